@@ -1,0 +1,462 @@
+"""Read, validate and write ``probe-log/1`` files (shared/spec/probe-log.md).
+
+A probe log is the one data contract between every source of touches (the
+simulator, the hardware adapter, anybody's shop-floor macros) and the core.
+This module keeps the file's own units (mm, degrees, seconds, Celsius) and
+column names; :func:`core.touches.from_log` turns a log into SI arrays.
+
+Reading validates everything the spec promises and raises
+:class:`~core.exceptions.ProbeLogError` with a one-line message naming the
+file, the data row (0-based, as ``outlier_rows`` counts) and the file line.
+Writing is lossless (floats as their shortest round-trip repr) and atomic
+(a temporary file renamed into place).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from .exceptions import ProbeLogError
+
+FORMAT = "probe-log/1"
+
+#: Required columns, in the spec's order.
+REQUIRED = ("setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm",
+            "Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz")
+#: Measured columns: empty in a plan, and in a touch whose status is not ok.
+MEASURED = ("X_mm", "Y_mm", "Z_mm", "t_s")
+#: Optional columns defined by the spec, in the order vmt writes them.
+OPTIONAL = ("feature", "A_deg", "B_deg", "C_deg", "dx", "dy", "dz",
+            "wx_mm", "wy_mm", "wz_mm", "wnx", "wny", "wnz", "stylus_r_mm", "status")
+#: Columns holding text; every other column is numeric.
+TEXT_COLUMNS = ("setup", "target", "feature", "status")
+#: Tolerance on the length of unit vectors (normals, approach directions).
+UNIT_TOL = 1e-6
+#: Tolerance (mm) on a target's artefact-frame nominal across set-ups.
+TARGET_TOL_MM = 1e-6
+
+_VECTORS = (("nx", "ny", "nz"), ("dx", "dy", "dz"), ("wnx", "wny", "wnz"))
+
+
+def _is_text(name: str) -> bool:
+    return name in TEXT_COLUMNS
+
+
+@dataclass(frozen=True)
+class ProbeLog:
+    """One probe log in memory, in the file's units.
+
+    Attributes
+    ----------
+    meta : dict[str, str]
+        Metadata ``# key: value`` lines, in file order (unknown keys kept).
+    columns : dict[str, numpy.ndarray]
+        One array per column, in file order. Text columns are ``object``
+        arrays of ``str`` (``""`` when empty); numeric columns are float64,
+        NaN where the cell is empty.
+    source : str
+        Where the log came from (the path), used in error messages.
+    """
+
+    meta: dict[str, str]
+    columns: dict[str, np.ndarray]
+    source: str = "<memory>"
+
+    # ---- shape ---------------------------------------------------------
+    @property
+    def n(self) -> int:
+        """Number of touches (rows)."""
+        return len(self.columns["setup"]) if "setup" in self.columns else 0
+
+    def __len__(self) -> int:
+        return self.n
+
+    def has(self, name: str) -> bool:
+        """True when the log has column ``name``."""
+        return name in self.columns
+
+    def col(self, name: str) -> np.ndarray:
+        """Column ``name``, or its spec default when the log has none."""
+        if name in self.columns:
+            return self.columns[name]
+        n = self.n
+        if name == "status":
+            return np.array(["ok"] * n, dtype=object)
+        if name in ("feature",):
+            return np.array([""] * n, dtype=object)
+        if name in ("A_deg", "B_deg", "C_deg"):
+            return np.zeros(n)
+        if name in ("dx", "dy", "dz"):
+            return -self.col("n" + name[1])
+        if name == "stylus_r_mm":
+            v = self.meta.get("stylus_r_mm")
+            return np.full(n, float(v) if v not in (None, "") else np.nan)
+        return np.full(n, np.nan)
+
+    # ---- derived -------------------------------------------------------
+    @property
+    def ok(self) -> np.ndarray:
+        """(n,) bool: rows whose status is ``ok`` (the rows fits use)."""
+        st = self.col("status")
+        return np.array([s in ("", "ok") for s in st], dtype=bool)
+
+    @property
+    def is_plan(self) -> bool:
+        """True when every measured cell is empty (a plan, not a campaign)."""
+        return all(np.all(np.isnan(self.columns[c])) for c in MEASURED)
+
+    def positions_mm(self) -> np.ndarray:
+        """(n, 3) reported stylus-tip centre, machine frame, mm."""
+        return np.column_stack([self.columns[c] for c in ("X_mm", "Y_mm", "Z_mm")])
+
+    def nominals_mm(self) -> np.ndarray:
+        """(n, 3) nominal stylus-tip centre at contact, machine frame, mm."""
+        return np.column_stack([self.columns[c] for c in ("Xn_mm", "Yn_mm", "Zn_mm")])
+
+    def normals(self) -> np.ndarray:
+        """(n, 3) nominal outward surface normal, machine frame."""
+        return np.column_stack([self.columns[c] for c in ("nx", "ny", "nz")])
+
+    def dq_mm(self) -> np.ndarray:
+        """(n,) measured normal deviation ``n . (X - Xn)`` of each touch, mm."""
+        return np.einsum("ij,ij->i", self.normals(), self.positions_mm() - self.nominals_mm())
+
+    def temperature_columns(self) -> list[str]:
+        """Names of the ``temp_<name>_C`` columns."""
+        return [c for c in self.columns if c.startswith("temp_") and c.endswith("_C")]
+
+    def select(self, rows: np.ndarray) -> "ProbeLog":
+        """A new log with only ``rows`` (bool mask or indices), order kept."""
+        return replace(self, columns={k: v[rows] for k, v in self.columns.items()})
+
+
+def make_log(columns: Mapping[str, Iterable], meta: Mapping[str, str] | None = None,
+             source: str = "<memory>", *, validate: bool = True) -> ProbeLog:
+    """Build a :class:`ProbeLog` from column sequences (file units).
+
+    Required columns must be present; ``format`` metadata is set to
+    ``probe-log/1``. With ``validate`` the same checks as reading apply.
+    """
+    m = {"format": FORMAT}
+    m.update({str(k): str(v) for k, v in (meta or {}).items()})
+    cols: dict[str, np.ndarray] = {}
+    for name, values in columns.items():
+        if _is_text(name):
+            cols[name] = np.array(["" if v is None else str(v) for v in values], dtype=object)
+        else:
+            cols[name] = np.asarray(list(values) if not isinstance(values, np.ndarray) else values,
+                                    dtype=float).copy()
+    log = ProbeLog(meta=m, columns=_ordered(cols), source=source)
+    if validate:
+        _validate(log, lines=None)
+    return log
+
+
+def _ordered(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Columns in the canonical order: required, optional, then the rest."""
+    out = {k: cols[k] for k in REQUIRED if k in cols}
+    out.update({k: cols[k] for k in OPTIONAL if k in cols})
+    out.update({k: v for k, v in cols.items() if k not in out})
+    return out
+
+
+# ---------------------------------------------------------------------------
+# reading
+
+
+def read_probe_log(path: str | os.PathLike) -> ProbeLog:
+    """Read and validate a ``probe-log/1`` file.
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file.
+
+    Returns
+    -------
+    ProbeLog
+
+    Raises
+    ------
+    ProbeLogError
+        One line naming the file, row and what is wrong: missing or empty
+        file, no header, missing required column, a non-numeric or
+        non-finite value, a normal or approach vector not of unit length
+        (tolerance 1e-6), a ``target`` whose artefact-frame nominal differs
+        between set-ups, time going backwards, a row of the wrong width.
+    """
+    p = Path(path)
+    src = str(p)
+    if not p.exists():
+        raise ProbeLogError(f"{src}: no such file")
+    if p.is_dir():
+        raise ProbeLogError(f"{src}: is a directory, not a probe log")
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise ProbeLogError(f"{src}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+    return parse_probe_log(text, source=src)
+
+
+def parse_probe_log(text: str, source: str = "<memory>") -> ProbeLog:
+    """Parse probe-log text (see :func:`read_probe_log`)."""
+    src = source
+    if not text.strip():
+        raise ProbeLogError(f"{src}: empty file")
+    lines = text.splitlines()
+    meta: dict[str, str] = {}
+    i = 0
+    while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
+        s = lines[i]
+        if s.startswith("#"):
+            body = s[1:].strip()
+            if ":" in body:
+                k, v = body.split(":", 1)
+                meta[k.strip()] = v.strip()
+        i += 1
+    if i >= len(lines):
+        raise ProbeLogError(f"{src}: no header row (only metadata lines)")
+    fmt = meta.get("format")
+    if fmt is not None and fmt != FORMAT:
+        raise ProbeLogError(f"{src}: format {fmt!r} is not {FORMAT!r}")
+    header_line = i + 1  # 1-based file line of the header
+    reader = csv.reader(io.StringIO("\n".join(lines[i:])))
+    try:
+        header = [h.strip() for h in next(reader)]
+    except (StopIteration, csv.Error) as e:  # pragma: no cover - csv edge
+        raise ProbeLogError(f"{src}: line {header_line}: unreadable header ({e})") from None
+    if not any(h in REQUIRED for h in header):
+        raise ProbeLogError(
+            f"{src}: line {header_line}: no header row (expected columns such as "
+            f"'setup,target,t_s,...', got {','.join(header[:4])!r})")
+    seen = set()
+    for h in header:
+        if h in seen:
+            raise ProbeLogError(f"{src}: line {header_line}: duplicate column {h!r}")
+        if not h:
+            raise ProbeLogError(f"{src}: line {header_line}: empty column name")
+        seen.add(h)
+    missing = [c for c in REQUIRED if c not in seen]
+    if missing:
+        raise ProbeLogError(f"{src}: missing required column {missing[0]!r}"
+                            + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
+    raw: list[list[str]] = []
+    line_of_row: list[int] = []
+    try:
+        for k, row in enumerate(reader):
+            ln = header_line + 1 + k
+            if not row or all(not c.strip() for c in row):
+                continue
+            if len(row) != len(header):
+                raise ProbeLogError(
+                    f"{src}: row {len(raw)} (line {ln}): {len(row)} fields, header has {len(header)}")
+            raw.append(row)
+            line_of_row.append(ln)
+    except csv.Error as e:
+        raise ProbeLogError(f"{src}: line {header_line + 1 + k}: {e}") from None
+    cols: dict[str, np.ndarray] = {}
+    for j, name in enumerate(header):
+        cells = [r[j].strip() for r in raw]
+        if _is_text(name):
+            cols[name] = np.array(cells, dtype=object)
+            continue
+        vals = np.empty(len(cells))
+        for r, c in enumerate(cells):
+            if c == "":
+                vals[r] = np.nan
+                continue
+            try:
+                v = float(c)
+            except ValueError:
+                raise ProbeLogError(
+                    f"{src}: row {r} (line {line_of_row[r]}): column {name!r}: "
+                    f"{c!r} is not a number") from None
+            if not math.isfinite(v):
+                raise ProbeLogError(
+                    f"{src}: row {r} (line {line_of_row[r]}): column {name!r}: "
+                    f"{c!r} is not finite")
+            vals[r] = v
+        cols[name] = vals
+    log = ProbeLog(meta=meta, columns=cols, source=src)
+    _validate(log, lines=line_of_row)
+    return log
+
+
+def _where(src: str, r: int, lines: list[int] | None) -> str:
+    return f"{src}: row {r}" + (f" (line {lines[r]})" if lines is not None else "")
+
+
+def _validate(log: ProbeLog, lines: list[int] | None) -> None:
+    src = log.source
+    c = log.columns
+    n = log.n
+    for name in REQUIRED:
+        if name not in c:
+            raise ProbeLogError(f"{src}: missing required column {name!r}")
+    for name, v in c.items():
+        if len(v) != n:
+            raise ProbeLogError(f"{src}: column {name!r} has {len(v)} rows, expected {n}")
+        if not _is_text(name):
+            bad = ~np.isfinite(v) & ~np.isnan(v)
+            if bad.any():
+                r = int(np.argmax(bad))
+                raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r} is not finite")
+    ok = log.ok
+    plan = n > 0 and log.is_plan
+    # required cells: ids always; measured ones only for ok rows of a campaign
+    for name in ("setup", "target"):
+        empty = np.array([s == "" for s in c[name]], dtype=bool)
+        if empty.any():
+            r = int(np.argmax(empty))
+            raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r} is empty")
+    for name in REQUIRED:
+        if _is_text(name):
+            continue
+        need = ok if (name in MEASURED and not plan) else (
+            np.zeros(n, bool) if name in MEASURED else np.ones(n, bool))
+        empty = np.isnan(c[name]) & need
+        if empty.any():
+            r = int(np.argmax(empty))
+            raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r} is empty")
+    # unit vectors
+    for trio in _VECTORS:
+        present = [t for t in trio if t in c]
+        if not present:
+            continue
+        if len(present) != 3:
+            miss = [t for t in trio if t not in c][0]
+            raise ProbeLogError(f"{src}: column {miss!r} missing beside {present[0]!r}")
+        v = np.column_stack([c[t] for t in trio])
+        filled = ~np.isnan(v).any(axis=1)
+        partial = np.isnan(v).any(axis=1) & ~np.isnan(v).all(axis=1)
+        if partial.any():
+            r = int(np.argmax(partial))
+            raise ProbeLogError(f"{_where(src, r, lines)}: vector {','.join(trio)} is partly empty")
+        norm = np.linalg.norm(np.where(filled[:, None], v, 1.0), axis=1)
+        bad = filled & (np.abs(norm - 1.0) > UNIT_TOL)
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise ProbeLogError(
+                f"{_where(src, r, lines)}: vector ({','.join(trio)}) has length "
+                f"{norm[r]:.9g}, not 1 (tolerance {UNIT_TOL:g})")
+    # time never goes backwards (rows are in the order touches happened)
+    t = c["t_s"]
+    have = ~np.isnan(t)
+    idx = np.flatnonzero(have)
+    if idx.size > 1:
+        back = np.diff(t[idx]) < 0
+        if back.any():
+            k = int(np.argmax(back))
+            r = int(idx[k + 1])
+            raise ProbeLogError(
+                f"{_where(src, r, lines)}: time goes backwards "
+                f"(t_s {t[idx[k + 1]]:g} after {t[idx[k]]:g})")
+    # a target is one physical point: same artefact-frame nominal in every set-up
+    if all(k in c for k in ("wx_mm", "wy_mm", "wz_mm")):
+        w = np.column_stack([c["wx_mm"], c["wy_mm"], c["wz_mm"]])
+        first: dict[str, int] = {}
+        for r in range(n):
+            if np.isnan(w[r]).all():
+                continue
+            tgt = c["target"][r]
+            if tgt not in first:
+                first[tgt] = r
+                continue
+            r0 = first[tgt]
+            if np.max(np.abs(w[r] - w[r0])) > TARGET_TOL_MM:
+                raise ProbeLogError(
+                    f"{_where(src, r, lines)}: target {tgt!r} has artefact-frame nominal "
+                    f"{tuple(np.round(w[r], 6))} mm in set-up {c['setup'][r]!r} but "
+                    f"{tuple(np.round(w[r0], 6))} mm in set-up {c['setup'][r0]!r}")
+    sr = log.meta.get("stylus_r_mm")
+    if sr not in (None, ""):
+        try:
+            v = float(sr)
+            if not math.isfinite(v) or v < 0:
+                raise ValueError
+        except ValueError:
+            raise ProbeLogError(f"{src}: metadata stylus_r_mm {sr!r} is not a length") from None
+
+
+# ---------------------------------------------------------------------------
+# writing
+
+
+def _fmt(v: float) -> str:
+    return "" if math.isnan(v) else repr(float(v))
+
+
+def format_probe_log(log: ProbeLog) -> str:
+    """The file text of ``log`` (metadata, header, one row per touch)."""
+    buf = io.StringIO()
+    meta = dict(log.meta)
+    meta.setdefault("format", FORMAT)
+    meta = {"format": meta.pop("format"), **meta}
+    for k, v in meta.items():
+        buf.write(f"# {k}: {' '.join(str(v).split())}\n")
+    cols = _ordered(dict(log.columns))
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(list(cols))
+    text = {k: _is_text(k) for k in cols}
+    arrays = list(cols.items())
+    for r in range(log.n):
+        w.writerow([v[r] if text[k] else _fmt(v[r]) for k, v in arrays])
+    return buf.getvalue()
+
+
+def write_probe_log(path: str | os.PathLike, log: ProbeLog) -> Path:
+    """Write ``log`` to ``path`` atomically; reading it back gives ``log``."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    data = format_probe_log(log)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return p
+
+
+def summary(log: ProbeLog) -> dict:
+    """Short numeric summary of a log (for ``vmt check``)."""
+    ok = log.ok
+    out = {
+        "touches": log.n,
+        "ok": int(ok.sum()),
+        "setups": len(dict.fromkeys(log.col("setup"))),
+        "targets": len(dict.fromkeys(log.col("target"))),
+        "plan": bool(log.n and log.is_plan),
+    }
+    t = log.columns["t_s"][ok]
+    t = t[~np.isnan(t)]
+    out["time_span_s"] = float(t.max() - t.min()) if t.size else 0.0
+    for ax in ("X", "Y", "Z"):
+        v = log.columns[f"{ax}_mm"][ok]
+        if log.is_plan:
+            v = log.columns[f"{ax}n_mm"]
+        v = v[~np.isnan(v)]
+        out[f"{ax}_range_mm"] = [float(v.min()), float(v.max())] if v.size else None
+    for ax in ("A", "B", "C"):
+        if log.has(f"{ax}_deg"):
+            v = log.columns[f"{ax}_deg"]
+            out[f"{ax}_values_deg"] = sorted({float(x) for x in v if not math.isnan(x)})
+    statuses: dict[str, int] = {}
+    for s in log.col("status"):
+        statuses[s or "ok"] = statuses.get(s or "ok", 0) + 1
+    out["status"] = statuses
+    return out

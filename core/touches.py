@@ -1,0 +1,149 @@
+"""Touches in SI units: the arrays every estimator in ``core`` starts from.
+
+:func:`from_log` converts a :class:`~core.probelog.ProbeLog` (mm, degrees)
+into a :class:`Touches` (metres, radians), keeps only the rows whose status
+is ``ok`` (``row`` maps back to the log's 0-based rows) and indexes set-ups
+and targets.
+
+Frames: ``_R`` is the machine reference frame (MCS), ``_W`` the artefact /
+workpiece frame (WCS).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .exceptions import ProbeLogError
+from .probelog import ProbeLog
+
+MM = 1e-3
+DEG = np.pi / 180.0
+
+
+@dataclass(frozen=True)
+class Touches:
+    """Valid touches of one campaign, SI units.
+
+    Attributes
+    ----------
+    row : (n,) int
+        0-based row of each touch in the source log.
+    p_R : (n, 3) float
+        Reported stylus-tip centre, machine frame, m.
+    pn_R : (n, 3) float
+        Nominal stylus-tip centre at contact, machine frame, m.
+    n_R : (n, 3) float
+        Nominal outward surface normal, machine frame (unit).
+    d_R : (n, 3) float
+        Approach direction of the stylus, machine frame (unit).
+    rot_rad : (n, 3) float
+        Rotary axis positions A, B, C, rad.
+    t_s : (n,) float
+        Time since the campaign started, s.
+    setup : (n,) int
+        Index into ``setup_ids``.
+    target : (n,) int
+        Index into ``target_ids``.
+    setup_ids, target_ids : tuple of str
+        Ids in order of first appearance.
+    feature : (n,) object
+        Feature id per touch (``""`` when the log has none).
+    w_W : (n, 3) float
+        Nominal contact point, artefact frame, m (NaN when absent).
+    wn_W : (n, 3) float
+        Nominal normal, artefact frame (NaN when absent).
+    temps_C : dict[str, (n,) float]
+        Temperature columns, degrees Celsius.
+    """
+
+    row: np.ndarray
+    p_R: np.ndarray
+    pn_R: np.ndarray
+    n_R: np.ndarray
+    d_R: np.ndarray
+    rot_rad: np.ndarray
+    t_s: np.ndarray
+    setup: np.ndarray
+    target: np.ndarray
+    setup_ids: tuple
+    target_ids: tuple
+    feature: np.ndarray
+    w_W: np.ndarray
+    wn_W: np.ndarray
+    temps_C: dict
+
+    @property
+    def n(self) -> int:
+        """Number of touches."""
+        return len(self.row)
+
+    @property
+    def dq_m(self) -> np.ndarray:
+        """(n,) measured normal deviation ``n . (p - pn)``, m (spec's ``dq``)."""
+        return np.einsum("ij,ij->i", self.n_R, self.p_R - self.pn_R)
+
+    def subset(self, mask: np.ndarray) -> "Touches":
+        """Touches selected by a bool mask or index array (ids kept)."""
+        kw = {}
+        for k, v in self.__dict__.items():
+            if isinstance(v, np.ndarray):
+                kw[k] = v[mask]
+            elif k == "temps_C":
+                kw[k] = {n: a[mask] for n, a in v.items()}
+            else:
+                kw[k] = v
+        return Touches(**kw)
+
+
+def _index(ids: np.ndarray) -> tuple[np.ndarray, tuple]:
+    uniq = tuple(dict.fromkeys(ids.tolist()))
+    pos = {u: i for i, u in enumerate(uniq)}
+    return np.array([pos[s] for s in ids], dtype=int), uniq
+
+
+def from_log(log: ProbeLog, *, include_invalid: bool = False) -> Touches:
+    """Convert a probe log to SI :class:`Touches`.
+
+    Parameters
+    ----------
+    log : ProbeLog
+    include_invalid : bool
+        Keep rows whose ``status`` is not ``ok`` (default: leave them out,
+        as every fit does).
+
+    Raises
+    ------
+    ProbeLogError
+        If the log is a plan (no measured positions) or has no valid touch.
+    """
+    mask = np.ones(log.n, bool) if include_invalid else log.ok
+    if log.n and log.is_plan:
+        raise ProbeLogError(f"{log.source}: is a plan (measured columns empty), not a campaign")
+    if not mask.any():
+        raise ProbeLogError(f"{log.source}: no valid touch (every status is not 'ok')")
+    rows = np.flatnonzero(mask)
+
+    def v3(names, scale=1.0):
+        return np.column_stack([log.col(c)[rows] for c in names]) * scale
+
+    setup, setup_ids = _index(log.col("setup")[rows])
+    target, target_ids = _index(log.col("target")[rows])
+    return Touches(
+        row=rows,
+        p_R=v3(("X_mm", "Y_mm", "Z_mm"), MM),
+        pn_R=v3(("Xn_mm", "Yn_mm", "Zn_mm"), MM),
+        n_R=v3(("nx", "ny", "nz")),
+        d_R=v3(("dx", "dy", "dz")),
+        rot_rad=v3(("A_deg", "B_deg", "C_deg"), DEG),
+        t_s=log.col("t_s")[rows].astype(float),
+        setup=setup,
+        target=target,
+        setup_ids=setup_ids,
+        target_ids=target_ids,
+        feature=log.col("feature")[rows],
+        w_W=v3(("wx_mm", "wy_mm", "wz_mm"), MM),
+        wn_W=v3(("wnx", "wny", "wnz")),
+        temps_C={c: log.col(c)[rows] for c in log.temperature_columns()},
+    )

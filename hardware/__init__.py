@@ -1,0 +1,1 @@
+"""Adapters for real machines (GRBL live, LinuxCNC offline) and the emulator."""

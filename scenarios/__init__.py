@@ -1,0 +1,1 @@
+"""Named studies composing sim, core, hardware and viz; home of the ``vmt`` CLI."""

@@ -1,0 +1,20 @@
+"""``vmt demo``: the main job, end to end on a built-in default.
+
+It grows with the project: it always runs the most complete story vmt can
+tell today.
+"""
+
+from __future__ import annotations
+
+
+def register(sub) -> None:
+    p = sub.add_parser("demo", help="run the main job end to end (simulate, identify, discover)")
+    p.add_argument("--out", default="out", help="folder for the logs, JSON, report and recording")
+    p.add_argument("--seed", type=int, default=2026, help="seed of the simulated campaign")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from scenarios.demo import main_job
+
+    return main_job(out=args.out, seed=args.seed)

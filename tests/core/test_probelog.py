@@ -1,0 +1,167 @@
+import math
+
+import numpy as np
+import pytest
+
+from core.exceptions import ProbeLogError
+from core.probelog import (OPTIONAL, REQUIRED, format_probe_log, make_log, parse_probe_log,
+                           read_probe_log, summary, write_probe_log)
+from core.touches import from_log
+
+
+def full_log(rng, n=12):
+    """A log with every required and optional column and awkward floats."""
+    ang = rng.uniform(0, 2 * np.pi, n)
+    nx, ny = np.cos(ang), np.sin(ang)
+    cols = {
+        "setup": [f"C{int(k // 4)}" for k in range(n)],
+        "target": [f"t{k % 4:02d}" for k in range(n)],
+        "t_s": np.cumsum(rng.uniform(0.1, 3.0, n)),
+        "X_mm": rng.normal(0, 100, n), "Y_mm": rng.normal(0, 100, n),
+        "Z_mm": rng.normal(-3, 1, n),
+        "Xn_mm": rng.normal(0, 100, n), "Yn_mm": rng.normal(0, 100, n),
+        "Zn_mm": np.full(n, -3.0),
+        "nx": nx, "ny": ny, "nz": np.zeros(n),
+        "feature": ["pocket"] * (n - 2) + ["sphere1", "sphere1"],
+        "A_deg": np.zeros(n), "B_deg": np.zeros(n),
+        "C_deg": np.repeat([0.0, 75.0, 130.0], 4)[:n],
+        "dx": -nx, "dy": -ny, "dz": np.zeros(n),
+        "wx_mm": np.tile([1 / 3, 2.0, -7.1, 1e-17], 3)[:n],
+        "wy_mm": np.tile([0.1, 0.2, 0.3, 0.4], 3)[:n],
+        "wz_mm": np.full(n, -3.0),
+        "wnx": np.tile([1.0, 0, -1, 0], 3)[:n], "wny": np.tile([0, 1.0, 0, -1], 3)[:n],
+        "wnz": np.zeros(n),
+        "stylus_r_mm": np.full(n, 3.0),
+        "temp_spindle_C": rng.normal(20, 0.5, n),
+        "status": ["ok"] * (n - 1) + ["no_trigger"],
+    }
+    cols["X_mm"][-1] = np.nan  # a no_trigger touch has no position
+    return make_log(cols, meta={"machine": "test, with comma", "artefact": "cross-pocket",
+                                "stylus_r_mm": "3", "custom_key": "kept"})
+
+
+def test_round_trip_every_column_is_lossless(tmp_path, rng):
+    log = full_log(rng)
+    assert set(REQUIRED) | set(OPTIONAL) <= set(log.columns)
+    p = write_probe_log(tmp_path / "sub" / "log.csv", log)
+    back = read_probe_log(p)
+    assert list(back.columns) == list(log.columns)
+    assert back.meta == log.meta
+    for k, v in log.columns.items():
+        if v.dtype == object:
+            assert list(back.columns[k]) == list(v)
+        else:
+            np.testing.assert_array_equal(back.columns[k], v)  # bit for bit
+    assert format_probe_log(back) == format_probe_log(log)
+
+
+def test_minimal_log_uses_spec_defaults():
+    text = ("setup,target,t_s,X_mm,Y_mm,Z_mm,Xn_mm,Yn_mm,Zn_mm,nx,ny,nz\n"
+            "s1,p1,0,1.001,0,0,1,0,0,1,0,0\n"
+            "s1,p2,1,0,2,0,0,2,0,0,1,0\n")
+    log = parse_probe_log(text, "mini.csv")
+    np.testing.assert_allclose(log.dq_mm(), [0.001, 0.0], atol=1e-15)
+    np.testing.assert_array_equal(log.col("dx"), [-1.0, 0.0])
+    np.testing.assert_array_equal(log.col("C_deg"), [0.0, 0.0])
+    assert list(log.col("status")) == ["ok", "ok"]
+    t = from_log(log)
+    assert t.n == 2 and t.setup_ids == ("s1",)
+    np.testing.assert_allclose(t.dq_m, [1e-6, 0.0], atol=1e-18)
+
+
+def test_invalid_rows_kept_but_left_out_of_fits(rng):
+    log = full_log(rng)
+    assert log.n == 12 and log.ok.sum() == 11
+    t = from_log(log)
+    assert t.n == 11 and 11 not in t.row
+    assert from_log(log, include_invalid=True).n == 12
+
+
+def test_plan_with_empty_measured_columns(tmp_path, rng):
+    log = full_log(rng)
+    for c in ("X_mm", "Y_mm", "Z_mm", "t_s"):
+        log.columns[c][:] = np.nan
+    p = write_probe_log(tmp_path / "plan.csv", log)
+    plan = read_probe_log(p)
+    assert plan.is_plan and summary(plan)["plan"]
+    with pytest.raises(ProbeLogError, match="is a plan"):
+        from_log(plan)
+
+
+HEADER = "setup,target,t_s,X_mm,Y_mm,Z_mm,Xn_mm,Yn_mm,Zn_mm,nx,ny,nz"
+ROW = "s1,p1,0,1,0,0,1,0,0,1,0,0"
+
+
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ("", r"empty file"),
+        ("   \n\n", r"empty file"),
+        ("# format: probe-log/1\n# machine: m\n", r"no header row"),
+        ("1,2,3\n4,5,6\n", r"no header row"),
+        ("setup,target,t_s,X_mm,Y_mm,Z_mm,Xn_mm,Yn_mm,Zn_mm,nx,ny\n" + ROW[:-2] + "\n",
+         r"missing required column 'nz'"),
+        (HEADER + "\ns1,p1,0,abc,0,0,1,0,0,1,0,0\n", r"row 0 \(line 2\): column 'X_mm': 'abc' is not a number"),
+        (HEADER + "\n" + ROW + "\ns1,p2,1,inf,0,0,1,0,0,1,0,0\n", r"row 1 \(line 3\): column 'X_mm': 'inf' is not finite"),
+        (HEADER + "\ns1,p1,0,nan,0,0,1,0,0,1,0,0\n", r"column 'X_mm': 'nan' is not finite"),
+        (HEADER + "\ns1,p1,0,1,0,0,1,0,0,0.9,0,0\n", r"row 0 \(line 2\): vector \(nx,ny,nz\) has length 0.9"),
+        (HEADER + ",dx,dy,dz\n" + ROW + ",-1,0.01,0\n", r"vector \(dx,dy,dz\) has length 1.00005"),
+        (HEADER + "\n" + ROW + "\ns1,p2,-1,1,0,0,1,0,0,1,0,0\n", r"row 1 \(line 3\): time goes backwards"),
+        (HEADER + ",wx_mm,wy_mm,wz_mm\n" + ROW + ",1,2,3\ns2,p1,1,1,0,0,1,0,0,1,0,0,1,2,3.01\n",
+         r"row 1 \(line 3\): target 'p1' has artefact-frame nominal .* in set-up 's2'"),
+        (HEADER + "\n" + ROW + ",extra\n", r"row 0 \(line 2\): 13 fields, header has 12"),
+        (HEADER + "\ns1,p1,0,,0,0,1,0,0,1,0,0\n" + ROW.replace("s1,p1,0", "s1,p2,1") + "\n",
+         r"row 0 \(line 2\): column 'X_mm' is empty"),
+        (HEADER + "\n,p1,0,1,0,0,1,0,0,1,0,0\n", r"column 'setup' is empty"),
+        ("# format: probe-log/2\n" + HEADER + "\n" + ROW + "\n", r"format 'probe-log/2' is not"),
+        (HEADER + ",nx\n" + ROW + ",1\n", r"duplicate column 'nx'"),
+    ],
+)
+def test_bad_logs_name_file_row_and_problem(tmp_path, text, match):
+    p = tmp_path / "bad.csv"
+    p.write_text(text)
+    with pytest.raises(ProbeLogError, match=match) as ei:
+        read_probe_log(p)
+    msg = str(ei.value)
+    assert "\n" not in msg and msg.startswith(str(p))
+
+
+def test_missing_file_and_directory(tmp_path):
+    with pytest.raises(ProbeLogError, match=r"nope.csv: no such file"):
+        read_probe_log(tmp_path / "nope.csv")
+    with pytest.raises(ProbeLogError, match="is a directory"):
+        read_probe_log(tmp_path)
+
+
+def test_metadata_unknown_keys_kept_and_blank_measured_allowed_for_invalid_rows():
+    text = ("# format: probe-log/1\n# shop_macro: v7\n" + HEADER + ",status\n"
+            + ROW + ",ok\ns1,p2,,,,,0,2,0,0,1,0,no_trigger\n")
+    log = parse_probe_log(text)
+    assert log.meta["shop_macro"] == "v7"
+    assert list(log.ok) == [True, False]
+
+
+def test_write_is_atomic_on_failure(tmp_path, rng, monkeypatch):
+    log = full_log(rng)
+    p = write_probe_log(tmp_path / "log.csv", log)
+    before = p.read_text()
+    import core.probelog as pl
+
+    def boom(*a, **k):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(pl.os, "replace", boom)
+    with pytest.raises(OSError):
+        write_probe_log(p, log.select(np.arange(3)))
+    assert p.read_text() == before
+    assert [f.name for f in tmp_path.iterdir()] == ["log.csv"]
+
+
+def test_float_repr_round_trip_is_exact():
+    vals = np.array([0.1, 1 / 3, -1e-300, 123456.78901234567, 5e-324])
+    cols = {k: np.zeros(5) for k in REQUIRED if k not in ("setup", "target")}
+    cols.update(setup=["a"] * 5, target=[str(i) for i in range(5)], X_mm=vals,
+                nx=np.ones(5), t_s=np.arange(5.0))
+    back = parse_probe_log(format_probe_log(make_log(cols)))
+    assert all(math.copysign(1, a) == math.copysign(1, b) and a == b
+               for a, b in zip(back.columns["X_mm"], vals))

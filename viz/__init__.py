@@ -1,0 +1,1 @@
+"""rerun recordings and static report figures. Draws results; computes nothing."""
