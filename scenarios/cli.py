@@ -16,6 +16,7 @@ import sys
 COMMANDS = [
     ("check", "scenarios.cmd_check"),
     ("demo", "scenarios.cmd_demo"),
+    ("bench", "scenarios.bench"),
 ]
 
 
