@@ -1,0 +1,216 @@
+"""viz.record: recordings read back with rerun 0.41's own reader (rerun.chunk.RrdReader)."""
+
+from collections import defaultdict
+
+import numpy as np
+import pyarrow as pa
+import pytest
+
+from core.exceptions import ConfigError, VmtError
+from viz import record as vr
+
+rc = pytest.importorskip("rerun.chunk")
+
+
+def read(path):
+    """{entity_path: {column name: list of values}} of every chunk in the file."""
+    out = defaultdict(lambda: defaultdict(list))
+    for ch in rc.RrdReader(path).stream():
+        rb = ch.to_record_batch()
+        for i, name in enumerate(rb.schema.names):
+            col = rb.column(i)
+            if pa.types.is_temporal(col.type):  # ns times: read as integers
+                col = col.cast(pa.int64())
+            out[str(ch.entity_path)][name] += col.to_pylist()
+    return out
+
+
+def schema_paths(path):
+    return set(rc.RrdReader(path).store().schema().entity_paths())
+
+
+def scalars(data, entity):
+    return np.array([v[0] for v in data[entity]["Scalars:scalars"]])
+
+
+@pytest.fixture
+def grid():
+    x = np.linspace(-100.0, 100.0, 5)
+    y = np.linspace(-50.0, 50.0, 3)
+    X, Y = np.meshgrid(x, y)
+    return x, y, 0.01 * X, -0.02 * Y  # Ex, Ey in µm
+
+
+def test_world_is_z_up_once_static_at_root(tmp_path):
+    p = tmp_path / "run.rrd"
+    with vr.recording(p):
+        pass
+    assert p.exists() and not list(tmp_path.glob(".*tmp"))
+    data = read(p)
+    st = rc.RrdReader(p).store()
+    assert "/ rows=1 static=True" in st.summary()
+    assert len(data["/"]["ViewCoordinates:xyz"]) == 1
+    import rerun as rr
+    # RIGHT_HAND_Z_UP is X=Right, Y=Forward, Z=Up: the same three codes
+    assert data["/"]["ViewCoordinates:xyz"][0][0] == [d.value for d in
+                                                          rr.ViewCoordinates.RIGHT_HAND_Z_UP.coordinates]
+
+
+def test_failure_inside_leaves_no_file(tmp_path):
+    p = tmp_path / "run.rrd"
+    with pytest.raises(RuntimeError):
+        with vr.recording(p):
+            raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_missing_folder_is_a_config_error(tmp_path):
+    with pytest.raises(ConfigError, match="folder does not exist"):
+        with vr.recording(tmp_path / "no" / "run.rrd"):
+            pass
+
+
+def test_scene_paths_mirror_the_frame_tree(tmp_path, rng):
+    p = tmp_path / "scene.rrd"
+    T = np.eye(4)
+    T[:3, 3] = [0.1, 0.0, 0.0]
+    with vr.recording(p) as rec:
+        vr.log_placement(rec, vr.TABLE, np.eye(4), time_s=0.0)
+        vr.log_placement(rec, vr.W, T)
+        vr.log_mesh(rec, vr.ARTEFACT, rng.random((4, 3)), [[0, 1, 2], [0, 2, 3]])
+        vr.log_mesh(rec, vr.PROBE, rng.random((3, 3)), [[0, 1, 2]], T_parent_child=np.eye(4))
+        vr.log_probe_path(rec, rng.random((20, 3)))
+        dq = np.array([-3.0, 0.0, 3.0, 1.0])
+        vr.log_touches(rec, rng.random((4, 3)), dq, n_R=np.tile([0.0, 0.0, 1.0], (4, 1)))
+    paths = schema_paths(p)
+    for e in ["/world/R/table", "/world/R/table/W", "/world/R/table/W/artefact",
+              "/world/R/spindle/probe", "/world/R/probe_path", "/world/R/touches"]:
+        assert e in paths, e
+    data = read(p)
+    assert np.allclose(data["/world/R/table/W"]["Transform3D:translation"][0], [0.1, 0, 0])
+    # touches: symmetric diverging map, -max -> blue end, 0 -> near white, +max -> red end
+    cols = np.array(data["/world/R/touches"]["Points3D:colors"][0], dtype=np.uint32)
+    rgb = np.stack([(cols >> 24) & 255, (cols >> 16) & 255, (cols >> 8) & 255], axis=1)
+    assert rgb[0, 2] > rgb[0, 0] and rgb[2, 0] > rgb[2, 2]  # blue for -3, red for +3
+    assert np.all(rgb[1] > 230)  # white for 0 (RdBu midpoint is (247, 247, 247))
+
+
+def test_diverging_colors_are_symmetric():
+    c = vr.diverging_colors([-2.0, 2.0, 0.0], limit=2.0)
+    assert c.dtype == np.uint8 and c.shape == (3, 3)
+    assert np.array_equal(c[0], vr.diverging_colors([-5.0], limit=5.0)[0])
+    assert not np.array_equal(c[0], c[1])
+
+
+def test_error_grid_is_magnified_beside_the_truth(tmp_path, grid):
+    x, y, ex, ey = grid
+    p = tmp_path / "grid.rrd"
+    with vr.recording(p) as rec:
+        vr.log_error_grid(rec, x, y, ex, ey, true_ex_um=ex * 0.9, true_ey_um=ey * 0.9,
+                          u95_um=np.ones_like(ex))
+    paths = schema_paths(p)
+    for sub in ("nominal", "identified", "true", "identified/u95"):
+        assert f"/world/R/error_map/{sub}" in paths
+    data = read(p)
+    strips = data["/world/R/error_map/identified"]["LineStrips3D:strips"][0]
+    first_row = np.array(strips[0])  # y = -50 mm row, nodes along x
+    # node (x=100 mm, y=-50 mm): Ex = 1 µm drawn x1000 -> +1 mm; Ey = 1 µm -> +1 mm
+    assert np.allclose(first_row[-1], [0.100 + 0.001, -0.050 + 0.001, 0.0])
+    assert len(strips) == 3 + 5  # rows + columns
+
+
+def test_error_grid_bad_shape(grid):
+    x, y, ex, ey = grid
+    with pytest.raises(ConfigError, match=r"ey_um: expected shape \(3, 5\)"):
+        with_rec(lambda rec: vr.log_error_grid(rec, x, y, ex, ey.T))
+    with pytest.raises(ConfigError, match="give both or neither"):
+        with_rec(lambda rec: vr.log_error_grid(rec, x, y, ex, ey, true_ex_um=ex))
+
+
+def with_rec(fn):
+    import rerun as rr
+    rec = rr.RecordingStream("vmt_test")  # no sink: nothing is written anywhere
+    try:
+        fn(rec)
+    finally:
+        rec.disconnect()
+
+
+def test_error_motions_as_series_with_u95_band(tmp_path):
+    pos = np.array([-100.0, 0.0, 100.0])
+    axes = {"EXX": {"positions_mm": pos, "values_um": [1.0, 2.0, 3.0], "u95": [0.5, 0.5, 0.5]},
+            "ECY": {"positions_mm": pos, "values_urad": [4.0, 5.0, 6.0], "u95": 1.0}}
+    p = tmp_path / "em.rrd"
+    with vr.recording(p) as rec:
+        vr.log_error_motions(rec, axes, truth={"EXX": [1.1, 2.1, 3.1]})
+    data = read(p)
+    base = "/plots/error_motions/X/EXX"
+    assert np.allclose(scalars(data, f"{base}/value"), [1, 2, 3])
+    assert np.allclose(scalars(data, f"{base}/u95_upper"), [1.5, 2.5, 3.5])
+    assert np.allclose(scalars(data, f"{base}/u95_lower"), [0.5, 1.5, 2.5])
+    assert np.allclose(scalars(data, f"{base}/true"), [1.1, 2.1, 3.1])
+    assert data[f"{base}/value"]["X_um"] == [-100000, 0, 100000]
+    assert np.allclose(scalars(data, "/plots/error_motions/Y/ECY/u95_upper"), [5, 6, 7])
+    assert data["/plots/error_motions/Y/ECY/value"]["SeriesLines:names"][0] == ["ECY(Y) / µrad"]
+
+
+def test_error_motions_bad_input():
+    with pytest.raises(ConfigError, match="unknown ISO error symbol 'EQX'"):
+        with_rec(lambda rec: vr.log_error_motions(
+            rec, {"EQX": {"positions_mm": [0], "values_um": [0]}}))
+    with pytest.raises(ConfigError, match="needs 'values_um' or 'values_urad'"):
+        with_rec(lambda rec: vr.log_error_motions(rec, {"EXX": {"positions_mm": [0]}}))
+    with pytest.raises(ConfigError, match="length mismatch"):
+        with_rec(lambda rec: vr.log_error_motions(
+            rec, {"EXX": {"positions_mm": [0, 1], "values_um": [0]}}))
+
+
+def test_rotary_centre_trajectory_and_workpiece(tmp_path, rng):
+    p = tmp_path / "rot.rrd"
+    c = [0.0, 75.0, 130.0, 210.0]
+    with vr.recording(p) as rec:
+        vr.log_rotary(rec, c, [16, 14, 15, 13], [6, 7, 5, 6], ecc_urad=[0, 2, 1, 3],
+                      u95_exc_um=[1, 1, 1, 1], ex0c_um=15.0, ey0c_um=6.0)
+        n = 12
+        vr.log_workpiece(rec, rng.random((n, 3)), np.tile([1.0, 0, 0], (n, 1)),
+                         rng.normal(size=n), u95_um=rng.random(n))
+    data = read(p)
+    traj = np.array(data["/rotary/C/centre_trajectory"]["Points2D:positions"][0])
+    assert np.allclose(traj, [[16, 6], [14, 7], [15, 5], [13, 6]])
+    assert data["/rotary/C/centre_trajectory/centre"]["Points2D:positions"][0] == [[15.0, 6.0]]
+    assert data["/plots/rotary/C/ECC/value"]["C_mdeg"] == [0, 75000, 130000, 210000]
+    paths = schema_paths(p)
+    for e in ("nominal", "deviation", "u95"):
+        assert f"/world/R/table/W/workpiece/{e}" in paths
+    assert "/plots/rotary/C/EXC/u95_upper" in paths
+
+
+def test_residuals_against_time_and_angle(tmp_path, rng):
+    p = tmp_path / "res.rrd"
+    n = 30
+    t = np.linspace(0.0, 600.0, n)
+    a = rng.uniform(0.0, 360.0, n)
+    r = rng.normal(size=n)
+    with vr.recording(p) as rec:
+        vr.log_residuals(rec, t, a, r, outlier_rows=[4, 7])
+        vr.log_markdown(rec, "findings", vr.findings_markdown(
+            {"baseline": {"model": "rigid", "n": n, "rms_um": 1.2}, "cause": "outlier",
+             "findings": [{"cause": "outlier", "evidence": {"max_abs_um": 9.0},
+                           "params": {}, "rms_um": 0.8}]}))
+        vr.log_markdown(rec, "errors", vr.errors_markdown(
+            {"EXX": {"injected": 1.0, "identified": 1.1, "u95": 0.2}}))
+    data = read(p)
+    assert len(scalars(data, "/discover/residuals/vs_time")) == n
+    assert np.allclose(sorted(scalars(data, "/discover/residuals/vs_approach")), sorted(r))
+    assert np.allclose(scalars(data, "/discover/residuals/outliers_vs_time"), r[[4, 7]])
+    assert "outlier" in data["/reports/findings"]["TextDocument:text"][0][0]
+    assert "| EXX | µm |" in data["/reports/errors"]["TextDocument:text"][0][0]
+    with pytest.raises(VmtError, match="outlier_rows: index out of range"):
+        with_rec(lambda rec: vr.log_residuals(rec, t, a, r, outlier_rows=[n]))
+
+
+def test_bad_mesh_faces():
+    with pytest.raises(ConfigError, match="faces: vertex index out of range"):
+        with_rec(lambda rec: vr.log_mesh(rec, vr.ARTEFACT, np.eye(3), [[0, 1, 3]]))
+    with pytest.raises(ConfigError, match="vertices_m: expected shape"):
+        with_rec(lambda rec: vr.log_mesh(rec, vr.ARTEFACT, np.eye(2), [[0, 1, 1]]))
