@@ -1,0 +1,564 @@
+"""Static report figures (matplotlib, Agg): the figures the papers print.
+
+Every function takes plain numpy arrays (or the plain dicts of the results'
+JSON) and returns a :class:`matplotlib.figure.Figure` that is not attached to
+pyplot (no global state, no display); :func:`save_png` writes it. Every axis
+is labelled with its quantity's ISO symbol and unit, ``"EXX(X) / µm"``,
+``"X / mm"``.
+
+Units are those of the reports: positions in mm, angles in degrees, errors
+and deviations in µm / µrad, times in s; the name of each argument says so.
+viz computes nothing: errors, uncertainties, centres and residuals are drawn
+as given. The only arithmetic is drawing arithmetic (magnification of
+deviations along their normals, as the self-calibration paper's figures do).
+
+================================  ===========================================
+function                          paper figure
+================================  ===========================================
+:func:`profile_figure`            self-calibration Fig. 9 (profiles x2500)
+:func:`error_grid_figure`         self-calibration Fig. 12 (error map x1000)
+:func:`grid_uncertainty_figure`   self-calibration Fig. 20 (U95 of the map)
+:func:`error_motions_figure`      MFB Figs. 15-17 (error motions, U95 bars)
+:func:`errors_figure`             MFB scenario: injected vs identified ± U95
+:func:`rotary_centre_figure`      self-calibration Fig. 13 (C-axis centre)
+:func:`rotary_motions_figure`     self-calibration Fig. 14 (ECC(C) ...)
+:func:`workpiece_uncertainty_figure`  self-calibration Figs. 18-19 (U95 colour)
+:func:`residuals_figure`          discovery: residuals vs time and approach
+:func:`findings_figure`           discovery: RMS of baseline and candidates
+================================  ===========================================
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from core.exceptions import ConfigError
+from core.iso import symbol as iso_symbol
+
+PROFILE_MAGNIFICATION = 2500.0  # self-calibration paper, Fig. 9(a), (c)
+GRID_MAGNIFICATION = 1000.0  # self-calibration paper, Fig. 12
+
+_C_NOMINAL = "0.6"
+_C_MEAS = "tab:blue"
+_C_TRUE = "tab:orange"
+_C_BAD = "tab:red"
+_CYCLE = ("tab:blue", "tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:olive")
+
+
+# --- helpers ---------------------------------------------------------------
+def _arr(name: str, a, shape: tuple) -> np.ndarray:
+    x = np.asarray(a, dtype=float)
+    ok = x.ndim == len(shape) and all(s in (-1, d) for s, d in zip(shape, x.shape))
+    if not ok:
+        want = "(" + ", ".join("n" if s == -1 else str(s) for s in shape) + ")"
+        raise ConfigError(f"{name}: expected shape {want}, got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ConfigError(f"{name}: contains NaN or inf")
+    return x
+
+
+def _same_len(**arrays) -> int:
+    lens = {k: len(v) for k, v in arrays.items()}
+    if len(set(lens.values())) > 1:
+        raise ConfigError("length mismatch: " + ", ".join(f"{k}={v}" for k, v in lens.items()))
+    return next(iter(lens.values()))
+
+
+def _figure(width_in: float, height_in: float):
+    """A Figure with its own Agg canvas: no pyplot, no display, no global state."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, height_in), dpi=100, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _unit(sym) -> str:
+    return "µrad" if sym.angular else "µm"
+
+
+def iso_label(name: str) -> str:
+    """Axis label of an ISO error symbol with its argument and report unit.
+
+    ``"EXX"`` -> ``"EXX(X) / µm"``, ``"ECY"`` -> ``"ECY(Y) / µrad"``,
+    ``"EC0Y"`` -> ``"EC0Y / µrad"`` (a location error has no argument).
+    """
+    s = iso_symbol(name)
+    arg = "" if s.location else f"({s.axis})"
+    return f"{s.name}{arg} / {_unit(s)}"
+
+
+def _axis_label(axis: str) -> str:
+    return f"{axis} / °" if axis in ("A", "B", "C") else f"{axis} / mm"
+
+
+def _scale_bar(ax, length_mm: float, text: str) -> None:
+    """Error scale bar in the lower-left corner (data units of the plot, mm)."""
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar as Bar
+
+    ax.add_artist(Bar(ax.transData, length_mm, text, "lower left", pad=0.5,
+                      frameon=True, size_vertical=0))
+
+
+def save_png(fig, path, *, dpi: int = 110) -> Path:
+    """Write ``fig`` as a PNG at ``path``, complete or not at all (temp + rename)."""
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise ConfigError(f"figure path {str(path)!r}: folder does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=dpi, format="png")
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+# --- self-calibration figures ------------------------------------------------
+def profile_figure(points_mm, normals, profiles: Mapping[str, object], *,
+                   reference_um=None, reference_label: str = "reference (CMM)",
+                   magnification: float = PROFILE_MAGNIFICATION, scale_um: float = 20.0,
+                   title: str = "Workpiece profile"):
+    """Profiles drawn as deviations along the surface normal, magnified (Fig. 9).
+
+    Parameters
+    ----------
+    points_mm : (n, 2) float
+        Nominal points ``w p_i*`` in the workpiece frame W (x, y), mm.
+    normals : (n, 2) float
+        Unit normals at the points, in W.
+    profiles : dict
+        ``{label: dq_um}``: one (n,) array of normal deviations per profile
+        (e.g. ``"C = 0°"``, or ``"identified G_normal"``), µm.
+    reference_um : (n,) float, optional
+        A reference profile (CMM, or the injected truth), µm.
+    magnification : float
+        Drawing magnification (2500 as in Fig. 9(a)).
+    scale_um : float
+        Length of the error scale bar, µm.
+    """
+    p = _arr("points_mm", points_mm, (-1, 2))
+    n = _arr("normals", normals, (-1, 2))
+    _same_len(points_mm=p, normals=n)
+    if magnification <= 0:
+        raise ConfigError(f"magnification must be > 0, got {magnification}")
+    if not profiles and reference_um is None:
+        raise ConfigError("profiles: give at least one profile")
+    k = magnification * 1e-3  # µm -> mm, magnified
+    fig = _figure(6.4, 5.4)
+    ax = fig.add_subplot()
+    ax.plot(p[:, 0], p[:, 1], "o", ms=3, mfc="none", color=_C_NOMINAL, label="nominal")
+    for i, (label, dq) in enumerate(profiles.items()):
+        d = _arr(f"profiles[{label!r}]", dq, (-1,))
+        _same_len(points_mm=p, **{"profile": d})
+        q = p + k * d[:, None] * n
+        ax.plot(q[:, 0], q[:, 1], "o-", ms=3, lw=0.8, color=_CYCLE[i % len(_CYCLE)], label=label)
+    if reference_um is not None:
+        d = _arr("reference_um", reference_um, (-1,))
+        _same_len(points_mm=p, reference_um=d)
+        q = p + k * d[:, None] * n
+        ax.plot(q[:, 0], q[:, 1], "D", ms=3, color="tab:green", label=reference_label)
+    _scale_bar(ax, k * scale_um, f"error scale: {scale_um:g} µm")
+    ax.set_xlabel("x_W / mm")
+    ax.set_ylabel("y_W / mm")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"{title}: normal deviation dq / µm, magnified ×{magnification:g}")
+    ax.legend(fontsize="small", loc="upper right")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def _draw_grid(ax, X, Y, **kw) -> None:
+    for i in range(X.shape[0]):
+        ax.plot(X[i], Y[i], **kw)
+        kw.pop("label", None)
+    for j in range(X.shape[1]):
+        ax.plot(X[:, j], Y[:, j], **kw)
+
+
+def error_grid_figure(x_mm, y_mm, ex_um, ey_um, *, true_ex_um=None, true_ey_um=None,
+                      magnification: float = GRID_MAGNIFICATION, scale_um: float = 10.0,
+                      title: str = "2D positioning error map"):
+    """The error map drawn deformed and magnified beside the true one (Fig. 12).
+
+    Parameters
+    ----------
+    x_mm : (nx,) float, y_mm : (ny,) float
+        Grid positions in the machine frame R, mm.
+    ex_um, ey_um : (ny, nx) float
+        ``Ex,total``, ``Ey,total`` at each node (self-calibration eqs. 4-5,
+        from core), µm.
+    true_ex_um, true_ey_um : (ny, nx) float, optional
+        The true (injected or independently measured) errors.
+    """
+    x = _arr("x_mm", x_mm, (-1,))
+    y = _arr("y_mm", y_mm, (-1,))
+    shape = (len(y), len(x))
+    ex = _arr("ex_um", ex_um, shape)
+    ey = _arr("ey_um", ey_um, shape)
+    if (true_ex_um is None) != (true_ey_um is None):
+        raise ConfigError("true_ex_um and true_ey_um: give both or neither")
+    if magnification <= 0:
+        raise ConfigError(f"magnification must be > 0, got {magnification}")
+    k = magnification * 1e-3
+    X, Y = np.meshgrid(x, y)
+    fig = _figure(6.4, 5.4)
+    ax = fig.add_subplot()
+    _draw_grid(ax, X, Y, color=_C_NOMINAL, ls="--", lw=0.8, label="nominal")
+    if true_ex_um is not None:
+        tx = _arr("true_ex_um", true_ex_um, shape)
+        ty = _arr("true_ey_um", true_ey_um, shape)
+        _draw_grid(ax, X + k * tx, Y + k * ty, color=_C_TRUE, lw=3.0, alpha=0.6,
+                   label="true")
+    _draw_grid(ax, X + k * ex, Y + k * ey, color=_C_MEAS, lw=1.2, marker="o", ms=3,
+               label="identified")
+    _scale_bar(ax, k * scale_um, f"error scale: {scale_um:g} µm")
+    ax.set_xlabel("X / mm")
+    ax.set_ylabel("Y / mm")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"{title} (Ex,total, Ey,total / µm), magnified ×{magnification:g}")
+    ax.legend(fontsize="small", loc="upper right")
+    return fig
+
+
+def grid_uncertainty_figure(x_mm, y_mm, u95_um, *,
+                            title: str = "U95 (k=2) of the 2D positioning error"):
+    """Expanded uncertainty of the error map as colour (Fig. 20).
+
+    ``u95_um`` : (ny, nx) float, µm, at the nodes of ``x_mm`` (nx,), ``y_mm`` (ny,).
+    """
+    x = _arr("x_mm", x_mm, (-1,))
+    y = _arr("y_mm", y_mm, (-1,))
+    u = _arr("u95_um", u95_um, (len(y), len(x)))
+    fig = _figure(6.4, 5.0)
+    ax = fig.add_subplot()
+    m = ax.pcolormesh(x, y, u, shading="nearest", cmap="viridis", vmin=0.0)
+    fig.colorbar(m, ax=ax, label="U95 of (Ex,total, Ey,total) / µm")
+    ax.set_xlabel("X / mm")
+    ax.set_ylabel("Y / mm")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(title)
+    return fig
+
+
+def workpiece_uncertainty_figure(points_mm, u95_um, *, g_um=None, normals=None,
+                                 magnification: float = PROFILE_MAGNIFICATION,
+                                 title: str = "U95 (k=2) of the identified workpiece"):
+    """Uncertainty of the identified workpiece deviation as colour (Figs. 18-19).
+
+    Parameters
+    ----------
+    points_mm : (n, 2) float
+        Nominal target points in W (x, y), mm.
+    u95_um : (n,) float
+        Expanded uncertainty (k = 2) of ``G_normal`` at each target, µm.
+    g_um, normals : (n,) float, (n, 2) float, optional
+        When both are given the points are drawn moved along their normals by
+        ``magnification * g_um`` (the identified profile, as in Fig. 9(c)).
+    """
+    p = _arr("points_mm", points_mm, (-1, 2))
+    u = _arr("u95_um", u95_um, (-1,))
+    _same_len(points_mm=p, u95_um=u)
+    q = p
+    if (g_um is None) != (normals is None):
+        raise ConfigError("g_um and normals: give both or neither")
+    if g_um is not None:
+        g = _arr("g_um", g_um, (-1,))
+        n = _arr("normals", normals, (-1, 2))
+        _same_len(points_mm=p, g_um=g, normals=n)
+        q = p + magnification * 1e-3 * g[:, None] * n
+    fig = _figure(6.4, 5.0)
+    ax = fig.add_subplot()
+    ax.plot(p[:, 0], p[:, 1], ".", ms=2, color=_C_NOMINAL, label="nominal")
+    s = ax.scatter(q[:, 0], q[:, 1], c=u, cmap="viridis", vmin=0.0, s=22,
+                   label="identified" if g_um is not None else "targets")
+    fig.colorbar(s, ax=ax, label="U95 of G_normal / µm")
+    ax.set_xlabel("x_W / mm")
+    ax.set_ylabel("y_W / mm")
+    ax.set_aspect("equal", adjustable="datalim")
+    suffix = f", profile ×{magnification:g}" if g_um is not None else ""
+    ax.set_title(title + suffix)
+    return fig
+
+
+def rotary_centre_figure(c_deg, exc_um, eyc_um, *, ex0c_um: float | None = None,
+                         ey0c_um: float | None = None, u95_exc_um=None, u95_eyc_um=None,
+                         axis: str = "C", title: str | None = None):
+    """Trajectory of the rotary axis's centre, ``(EXC(C), EYC(C))`` (Fig. 13).
+
+    Parameters
+    ----------
+    c_deg : (n,) float
+        Indexed angles, degrees.
+    exc_um, eyc_um : (n,) float
+        Radial error motions at each angle, µm.
+    ex0c_um, ey0c_um : float, optional
+        Position of the axis average line (the best-fit circle's centre, as
+        identified by core), µm.
+    u95_exc_um, u95_eyc_um : (n,) float, optional
+        Expanded uncertainties (k = 2), drawn as error bars.
+    """
+    a = axis.upper()
+    c = _arr("c_deg", c_deg, (-1,))
+    ex = _arr("exc_um", exc_um, (-1,))
+    ey = _arr("eyc_um", eyc_um, (-1,))
+    _same_len(c_deg=c, exc_um=ex, eyc_um=ey)
+    order = np.argsort(c, kind="stable")
+    fig = _figure(5.4, 5.0)
+    ax = fig.add_subplot()
+    ux = None if u95_exc_um is None else _arr("u95_exc_um", u95_exc_um, (len(c),))
+    uy = None if u95_eyc_um is None else _arr("u95_eyc_um", u95_eyc_um, (len(c),))
+    ax.errorbar(ex[order], ey[order], xerr=None if ux is None else ux[order],
+                yerr=None if uy is None else uy[order], fmt="o-", color=_C_MEAS, capsize=3,
+                label=f"(EX{a}, EY{a}) at each {a}")
+    for ci, xi, yi in zip(c, ex, ey):
+        ax.annotate(f"{a}={ci:g}°", (xi, yi), textcoords="offset points", xytext=(4, 4),
+                    fontsize="small")
+    ax.plot([0], [0], "+", color="k", ms=10, label="no error")
+    if (ex0c_um is None) != (ey0c_um is None):
+        raise ConfigError("ex0c_um and ey0c_um: give both or neither")
+    if ex0c_um is not None:
+        ax.plot([ex0c_um], [ey0c_um], "x", color=_C_BAD, ms=10, mew=2,
+                label=f"(EX0{a}, EY0{a}) = ({ex0c_um:.1f}, {ey0c_um:.1f}) µm")
+    ax.set_xlabel(f"EX{a}({a}) / µm")
+    ax.set_ylabel(f"EY{a}({a}) / µm")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(title or f"Trajectory of the {a}-axis centre line")
+    ax.legend(fontsize="small")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def rotary_motions_figure(c_deg, values: Mapping[str, object],
+                          u95: Mapping[str, object] | None = None, *, axis: str = "C"):
+    """Rotary-axis error motions against the angle, with U95 bars (Fig. 14).
+
+    Parameters
+    ----------
+    c_deg : (n,) float
+        Indexed angles, degrees.
+    values : dict
+        ``{symbol: (n,) values}``, e.g. ``{"ECC": ecc_urad}``, in the
+        symbol's report unit (µm or µrad).
+    u95 : dict, optional
+        ``{symbol: (n,) U95}``, same units.
+    """
+    c = _arr("c_deg", c_deg, (-1,))
+    if not values:
+        raise ConfigError("values: give at least one error motion")
+    fig = _figure(6.4, 2.2 + 1.8 * len(values))
+    axs = fig.subplots(len(values), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (name, v) in zip(axs, values.items()):
+        s = iso_symbol(name)
+        val = _arr(name, v, (-1,))
+        _same_len(c_deg=c, **{name: val})
+        err = None
+        if u95 is not None and u95.get(name) is not None:
+            err = _arr(f"u95[{name!r}]", u95[name], (len(c),))
+        ax.errorbar(c, val, yerr=err, fmt="o", color=_C_MEAS, capsize=3, label=f"{s.name} ± U95")
+        ax.axhline(0.0, color=_C_NOMINAL, lw=0.8)
+        ax.set_ylabel(iso_label(name))
+        ax.grid(alpha=0.3)
+    axs[-1].set_xlabel(_axis_label(axis.upper()))
+    axs[0].set_title(f"Error motions of the {axis.upper()} axis (error bars: U95, k=2)")
+    return fig
+
+
+# --- MFB figures -------------------------------------------------------------
+def _u95_of(d: Mapping):
+    for key in ("u95", "u95_um", "u95_urad"):
+        if d.get(key) is not None:
+            return d[key]
+    return None
+
+
+def _values_of(name: str, d: Mapping) -> np.ndarray:
+    for key in ("values_um", "values_urad"):
+        if key in d:
+            return _arr(f"axes[{name!r}].{key}", d[key], (-1,))
+    raise ConfigError(f"axes[{name!r}]: needs 'values_um' or 'values_urad'")
+
+
+def error_motions_figure(axes: Mapping[str, Mapping], *, truth: Mapping | None = None,
+                         symbols: Sequence[str] | None = None, ncols: int = 3,
+                         title: str = "Error motions (band and bars: U95, k=2)"):
+    """Identified error motions against axis position with U95 (MFB Figs. 15-17).
+
+    Parameters
+    ----------
+    axes : dict
+        The identify report's ``axes``: ``{symbol: {positions_mm, values_um |
+        values_urad, u95}}`` (``u95``: scalar or (n,), the values' unit).
+    truth : dict, optional
+        ``{symbol: (n,) injected values}`` at the same positions.
+    symbols : sequence of str, optional
+        Which symbols to draw, in this order (default: all of ``axes``).
+    """
+    names = list(symbols) if symbols is not None else list(axes)
+    if not names:
+        raise ConfigError("axes: no error motion to draw")
+    for nm in names:
+        if nm not in axes:
+            raise ConfigError(f"symbols: {nm!r} is not in axes")
+    ncols = max(1, min(ncols, len(names)))
+    nrows = -(-len(names) // ncols)
+    fig = _figure(4.2 * ncols, 2.9 * nrows)
+    axs = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax, name in zip(axs, names):
+        s = iso_symbol(name)
+        d = axes[name]
+        pos = _arr(f"axes[{name!r}].positions_mm", d.get("positions_mm", []), (-1,))
+        val = _values_of(name, d)
+        _same_len(positions_mm=pos, values=val)
+        u = _u95_of(d)
+        if u is not None:
+            u = _arr(f"axes[{name!r}].u95", np.broadcast_to(np.asarray(u, float), val.shape), (-1,))
+            ax.fill_between(pos, val - u, val + u, color=_C_MEAS, alpha=0.2, lw=0, label="U95")
+        ax.errorbar(pos, val, yerr=u, fmt="o-", ms=3, color=_C_MEAS, capsize=2,
+                    label="identified")
+        if truth is not None and name in truth:
+            t = _arr(f"truth[{name!r}]", truth[name], (-1,))
+            _same_len(positions_mm=pos, truth=t)
+            ax.plot(pos, t, "--", color=_C_TRUE, label="injected")
+        ax.axhline(0.0, color=_C_NOMINAL, lw=0.8)
+        ax.set_xlabel(_axis_label(s.axis))
+        ax.set_ylabel(iso_label(name))
+        ax.set_title(s.name, fontsize="medium")
+        ax.grid(alpha=0.3)
+    axs[0].legend(fontsize="x-small")
+    for ax in axs[len(names):]:
+        ax.set_visible(False)
+    fig.suptitle(title)
+    return fig
+
+
+def errors_figure(errors: Mapping[str, Mapping],
+                  title: str = "Injected and identified errors (bars: U95, k=2)"):
+    """MFB scenario's ``errors`` object: identified ± U95 beside injected.
+
+    ``errors``: ``{symbol: {injected, identified, u95}}`` with scalar values
+    in the symbol's report unit. Translations (µm) and rotations (µrad) get
+    one panel each.
+    """
+    if not errors:
+        raise ConfigError("errors: nothing to draw")
+    groups: dict[str, list] = {"µm": [], "µrad": []}
+    for name, d in errors.items():
+        s = iso_symbol(name)
+        if "identified" not in d:
+            raise ConfigError(f"errors[{name!r}]: needs 'identified'")
+        groups[_unit(s)].append((s.name, d))
+    groups = {k: v for k, v in groups.items() if v}
+    fig = _figure(7.0, 1.6 + 0.3 * len(errors) + 0.6 * len(groups))
+    axs = fig.subplots(len(groups), 1, squeeze=False,
+                       height_ratios=[len(v) + 1 for v in groups.values()])[:, 0]
+    for ax, (unit, rows) in zip(axs, groups.items()):
+        yy = np.arange(len(rows))
+        ident = np.array([float(d["identified"]) for _, d in rows])
+        u = np.array([float(_u95_of(d) or 0.0) for _, d in rows])
+        ax.errorbar(ident, yy, xerr=u, fmt="o", color=_C_MEAS, capsize=3, label="identified ± U95")
+        inj = [(i, float(d["injected"])) for i, (_, d) in enumerate(rows)
+               if d.get("injected") is not None]
+        if inj:
+            ii, vv = zip(*inj)
+            ax.plot(vv, ii, "D", mfc="none", color=_C_TRUE, label="injected")
+        ax.axvline(0.0, color=_C_NOMINAL, lw=0.8)
+        ax.set_yticks(yy, [n for n, _ in rows])
+        ax.invert_yaxis()
+        ax.set_xlabel(f"error / {unit}")
+        ax.set_ylabel("ISO 230-1 symbol")
+        ax.grid(alpha=0.3, axis="x")
+        ax.legend(fontsize="x-small")
+    axs[0].set_title(title)
+    return fig
+
+
+# --- discovery figures ------------------------------------------------------
+def residuals_figure(t_s, approach_deg, residual_um, *, outlier_rows: Sequence[int] = (),
+                     title: str = "Residuals of the baseline model"):
+    """Discovery residuals against campaign time and approach angle.
+
+    Parameters
+    ----------
+    t_s : (n,) float
+        Time of each touch, s.
+    approach_deg : (n,) float
+        Approach direction in the machine XY plane, degrees.
+    residual_um : (n,) float
+        Normal residual ``dq - dq_model`` of each touch, µm.
+    outlier_rows : sequence of int
+        The report's ``outlier_rows`` (0-based), drawn in red.
+    """
+    t = _arr("t_s", t_s, (-1,))
+    a = _arr("approach_deg", approach_deg, (-1,))
+    r = _arr("residual_um", residual_um, (-1,))
+    n = _same_len(t_s=t, approach_deg=a, residual_um=r)
+    bad = np.zeros(n, bool)
+    rows = np.asarray(list(outlier_rows), dtype=int)
+    if rows.size and (rows.min() < 0 or rows.max() >= n):
+        raise ConfigError(f"outlier_rows: index out of range 0..{n - 1}")
+    bad[rows] = True
+    fig = _figure(9.0, 3.6)
+    ax1, ax2 = fig.subplots(1, 2, sharey=True)
+    for ax, xv, xl in ((ax1, t, "t / s"), (ax2, a, "approach angle θ / °")):
+        ax.plot(xv[~bad], r[~bad], ".", color=_C_MEAS, ms=4, label="touches")
+        if bad.any():
+            ax.plot(xv[bad], r[bad], "x", color=_C_BAD, ms=6, label="outlier rows")
+        ax.axhline(0.0, color=_C_NOMINAL, lw=0.8)
+        ax.set_xlabel(xl)
+        ax.grid(alpha=0.3)
+    ax1.set_ylabel("residual of dq / µm")
+    if a.size and a.min() >= 0.0 and a.max() <= 360.0:
+        ax2.set_xlim(-5.0, 365.0)
+    ax1.legend(fontsize="x-small")
+    fig.suptitle(title)
+    return fig
+
+
+def findings_figure(report: Mapping, title: str = "Discovery: residual RMS by model"):
+    """Residual RMS of the baseline and of each candidate extension.
+
+    ``report``: the discovery report (keys ``baseline.rms_um``,
+    ``findings[].cause`` / ``rms_um``, ``cause``, ``extended.cv_rms_um``,
+    ``baseline_cv_rms_um``; probe-log.md, "Discovery report").
+    """
+    base = report.get("baseline") or {}
+    if base.get("rms_um") is None:
+        raise ConfigError("report: needs baseline.rms_um")
+    labels = [f"baseline ({base.get('model', '?')})"]
+    rms = [float(base["rms_um"])]
+    for f in report.get("findings") or []:
+        labels.append(str(f.get("cause", "?")))
+        rms.append(float(f.get("rms_um", np.nan)))
+    fig = _figure(7.0, 1.4 + 0.35 * len(labels))
+    ax = fig.add_subplot()
+    colors = [_C_NOMINAL] + [_C_TRUE if lab == report.get("cause") else _C_MEAS
+                             for lab in labels[1:]]
+    yy = np.arange(len(labels))
+    ax.barh(yy, rms, color=colors)
+    ax.set_yticks(yy, labels)
+    ax.invert_yaxis()
+    cv_b, ext = report.get("baseline_cv_rms_um"), report.get("extended") or {}
+    if cv_b is not None and ext.get("cv_rms_um") is not None:
+        ax.set_title(f"{title}\ncross-validated RMS: baseline {cv_b:.3g} µm -> "
+                     f"{ext.get('model', 'extended')} {ext['cv_rms_um']:.3g} µm")
+    else:
+        ax.set_title(title)
+    ax.set_xlabel("residual RMS of dq / µm")
+    ax.set_ylabel("model (cause)")
+    ax.grid(alpha=0.3, axis="x")
+    return fig
