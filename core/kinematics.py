@@ -1,0 +1,458 @@
+"""core's own kinematic error model: batched homogeneous transforms in numpy.
+
+This is the identification side's model of a machine, written independently
+of the simulator's Pinocchio chain (``sim.machine``); the two must agree to
+rounding (tests/sim/test_machine.py checks it). It provides
+
+- :func:`tip_W`: the exact stylus-tip centre in the workpiece frame W for a
+  batch of axis readings and error values (homogeneous-transform product);
+- :func:`sensitivity`: d tip_W / d(error value), analytic small displacement;
+- :func:`jacobian_axes`: d tip_W / d(axis reading) with error values held;
+- :func:`mfb_deviation`: the MFB paper's first-order equations 10-12.
+
+The chain (the definition both implementations follow)
+------------------------------------------------------
+Every component frame coincides with the machine frame R when all axes are
+at zero and all errors are zero. Walking a branch from the bed outward
+(``core.chain``), each axis contributes, relative to the component it rides
+on (s = +1 on the tool branch, -1 on the workpiece branch; e the axis
+direction; ``exp`` the rotation-vector exponential, CONTRIBUTING.md)::
+
+    linear k :  [exp(rel_k) | 0] . Trans(s q_k e) . E_k(reading_k)
+    rotary k :  Trans(c_k + d_k) . [exp(rel_k) | 0] . E_k(theta_k)
+                . Rot(e, s theta_k) . Trans(-c_k)
+
+with ``E_k = [exp(skew(EA, EB, EC)) | (EX, EY, EZ)]`` the motion errors of
+axis k (evaluated at its reading), ``q_k = reading_k + J_k`` the axis
+position (the controller adds the probe offset J of eq. 8), ``c_k`` a point
+on the nominal rotary axis line and ``d_k`` its position errors (``EX0C``,
+``EY0C``...). The tool branch ends with ``Trans(-J)`` at the stylus-tip
+centre P (eq. 8); the workpiece branch ends at W. Hence on a perfect
+machine with rotary axes at zero, tip_W equals the readings, and W rotates
+as ``p_R = R(-C) p_W`` about the C line (self-calibration paper eq. 1).
+
+Location rotations ``rel_k``: a rotary axis's orientation errors (``EA0C``,
+``EB0C``) are relative to the component carrying it. A linear axis's
+(``EC0Y``, ``EB0Z``, ``EA0Z``) orient its reference line in R (ISO 230-1,
+X primary, Y secondary), so the rotation a linear axis inherits from its
+carrier is undone across the axis and kept along it::
+
+    rel_k = w_k - Pperp_k(cum_p),   cum_k = cum_p + rel_k,   cum_bed = 0
+
+(``w_k`` the axis's location-error rotation vector, ``Pperp_k`` the
+projection perpendicular to e, ``cum`` summed over the branch). For the
+Mikron chain ``b-X-Y-Z`` this is exactly eq. 8 (``EC0Y`` before Y carries Y,
+Z and the probe); for ``b-Y-X-Z`` (NMV3000) it keeps X along the machine X
+axis, so the squareness only shifts X by ``-y EC0Y`` (eq. 4).
+
+Errors on the workpiece branch move the part, errors on the tool branch
+move the probe: a positioning error ``EXX`` of a table-moving X shifts the
+tip relative to the part by ``-EXX``.
+
+Units: SI (m, rad); arrays batched over a leading axis n.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import iso
+from .chain import Chain, parse_chain
+from .exceptions import ConfigError
+
+_E = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
+
+
+# --------------------------------------------------------------------------- SO(3)
+def skew(w: np.ndarray) -> np.ndarray:
+    """(..., 3) -> (..., 3, 3) cross-product matrix."""
+    w = np.asarray(w, float)
+    K = np.zeros(w.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2] = -w[..., 2], w[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = w[..., 2], -w[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -w[..., 1], w[..., 0]
+    return K
+
+
+def _coeffs(th: np.ndarray):
+    """sin(t)/t, (1-cos t)/t^2, (t-sin t)/t^3 with series near 0."""
+    small = th < 1e-4
+    t = np.where(small, 1.0, th)
+    t2 = th * th
+    a = np.where(small, 1 - t2 / 6, np.sin(t) / t)
+    b = np.where(small, 0.5 - t2 / 24, (1 - np.cos(t)) / t**2)
+    c = np.where(small, 1 / 6 - t2 / 120, (t - np.sin(t)) / t**3)
+    return a, b, c
+
+
+def exp_so3(w: np.ndarray) -> np.ndarray:
+    """Rotation matrix ``exp(skew(w))`` (Rodrigues), (..., 3) -> (..., 3, 3)."""
+    w = np.asarray(w, float)
+    a, b, _ = _coeffs(np.linalg.norm(w, axis=-1))
+    K = skew(w)
+    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
+def left_jacobian_so3(w: np.ndarray) -> np.ndarray:
+    """J_l(w): d exp(skew(w)) = skew(J_l dw) exp(skew(w)), (..., 3) -> (..., 3, 3)."""
+    w = np.asarray(w, float)
+    _, b, c = _coeffs(np.linalg.norm(w, axis=-1))
+    K = skew(w)
+    return np.eye(3) + b[..., None, None] * K + c[..., None, None] * (K @ K)
+
+
+def _hom(R=None, t=None, n=1) -> np.ndarray:
+    T = np.zeros((n, 4, 4))
+    T[:, 3, 3] = 1.0
+    T[:, :3, :3] = np.eye(3) if R is None else R
+    if t is not None:
+        T[:, :3, 3] = t
+    return T
+
+
+# --------------------------------------------------------------------------- geometry
+@dataclass(frozen=True)
+class ChainGeometry:
+    """The nominal geometry core needs besides the error values.
+
+    Attributes
+    ----------
+    chain : Chain
+    J_m : (3,) float
+        Probe offsets (J_X, J_Y, J_Z) of MFB eq. 8, m: spindle gauge point
+        minus stylus-tip centre, in R at nominal orientation.
+    rotary_points_R_m : mapping axis -> (3,) float
+        A point on each rotary axis's nominal line, in R, all axes at zero, m.
+    """
+
+    chain: Chain
+    J_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotary_points_R_m: Mapping[str, tuple[float, float, float]] = field(default_factory=dict)
+
+    @staticmethod
+    def of(chain: str | Chain, J_m=(0.0, 0.0, 0.0), rotary_points_R_m=None) -> "ChainGeometry":
+        """Build from a chain string (or Chain), offsets and rotary points."""
+        ch = parse_chain(chain) if isinstance(chain, str) else chain
+        pts = {a: tuple(float(v) for v in (rotary_points_R_m or {}).get(a, (0.0, 0.0, 0.0)))
+               for a in ch.rotary_axes}
+        J = tuple(float(v) for v in J_m)
+        if len(J) != 3 or not np.all(np.isfinite(J)):
+            raise ConfigError(f"J_m must be 3 finite values, got {J_m!r}")
+        return ChainGeometry(ch, J, pts)
+
+
+def error_symbols(chain: Chain) -> tuple[str, ...]:
+    """ISO symbols that act on ``chain``, in ``core.iso.SYMBOLS`` order.
+
+    Motion errors of every axis, the squarenesses ``EC0Y``, ``EB0Z``,
+    ``EA0Z`` and the location errors of every rotary axis.
+    """
+    out = []
+    for s in iso.SYMBOLS:
+        if s.axis not in chain.axes:
+            continue
+        if s.location and s.axis in iso.LINEAR_AXES and s.name not in iso.SQUARENESS:
+            continue
+        out.append(s.name)
+    return tuple(out)
+
+
+# --------------------------------------------------------------------------- chain build
+def _col(values: Mapping, name: str, n: int) -> np.ndarray:
+    v = values.get(name) if values else None
+    if v is None:
+        return np.zeros(n)
+    v = np.asarray(v, float)
+    if v.ndim == 0:
+        return np.full(n, float(v))
+    if v.shape != (n,):
+        raise ConfigError(f"error value {name!r} has shape {v.shape}, expected () or ({n},)")
+    return v
+
+
+def _vec(values, names, n) -> np.ndarray:
+    return np.stack([_col(values, nm, n) for nm in names], axis=-1)
+
+
+def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
+    """Factors (n,4,4) of one branch, bed outward, and their derivative twists.
+
+    Returns factors, dsym {symbol: [(i, xi (n,6))]}, dax {axis: [(i, xi)]};
+    xi = (v, w) is the left-perturbation twist of factor i per unit change.
+    """
+    ch = geom.chain
+    axes = ch.tool_axes if side == "tool" else ch.workpiece_from_bed
+    s = 1.0 if side == "tool" else -1.0
+    F: list[np.ndarray] = []
+    dsym: dict[str, list] = {}
+    dax: dict[str, list] = {}
+    cum = np.zeros((n, 3))
+    dcum: dict[str, np.ndarray] = {}  # d cum / d location symbol, (3,)
+    lin_names = ("X", "Y", "Z")
+
+    def add(sym, i, xi):
+        dsym.setdefault(sym, []).append((i, xi))
+
+    for a in axes:
+        e = np.zeros(3)
+        e[_E[a]] = 1.0
+        locs = [sy for sy in iso.symbols_of_axis(a, location=True)
+                if a in iso.ROTARY_AXES or sy.name in iso.SQUARENESS]
+        w_loc = np.zeros((n, 3))
+        dw_loc: dict[str, np.ndarray] = {}
+        d_loc = np.zeros((n, 3))
+        for sy in locs:
+            v = _col(values, sy.name, n)
+            u = np.zeros(3)
+            u[_E[sy.direction]] = 1.0
+            if sy.angular:
+                w_loc += v[:, None] * u
+                dw_loc[sy.name] = u
+            else:
+                d_loc += v[:, None] * u
+                add(sy.name, len(F), np.broadcast_to(np.r_[u, 0, 0, 0], (n, 6)))  # Trans(c+d)
+        if a in iso.LINEAR_AXES:
+            perp = np.eye(3) - np.outer(e, e)
+            rel = w_loc - cum @ perp
+            drel = {k: -(perp @ v) for k, v in dcum.items()}
+            for k, v in dw_loc.items():
+                drel[k] = drel.get(k, 0.0) + v
+            dcum = {k: np.outer(e, e) @ v for k, v in dcum.items()}
+            for k, v in dw_loc.items():
+                dcum[k] = dcum.get(k, 0.0) + v
+            cum = cum + rel
+        else:
+            rel = w_loc
+            drel = dict(dw_loc)
+            for k, v in dw_loc.items():
+                dcum[k] = dcum.get(k, 0.0) + v
+            cum = cum + rel
+        mot = iso.symbols_of_axis(a, location=False)
+        t_E = _vec(values, [m.name for m in mot[:3]], n)
+        w_E = _vec(values, [m.name for m in mot[3:]], n)
+        Jl_E = left_jacobian_so3(w_E)
+        E = _hom(exp_so3(w_E), t_E, n)
+        Jl_rel = left_jacobian_so3(rel)
+        L = _hom(exp_so3(rel), None, n)
+
+        def add_rel(i):
+            for k, dv in drel.items():
+                wv = Jl_rel @ np.asarray(dv)
+                add(k, i, np.concatenate([np.zeros((n, 3)), wv], axis=1))
+
+        def add_E(i):
+            for j, m in enumerate(mot[:3]):
+                xi = np.zeros((n, 6))
+                xi[:, j] = 1.0
+                add(m.name, i, xi)
+            for j, m in enumerate(mot[3:]):
+                wv = Jl_E[:, :, j]
+                add(m.name, i, np.concatenate([-np.cross(wv, t_E), wv], axis=1))
+
+        if a in iso.LINEAR_AXES:
+            q = lin[:, lin_names.index(a)] + geom.J_m[_E[a]]
+            add_rel(len(F))
+            F.append(L)
+            dax.setdefault(a, []).append((len(F), np.broadcast_to(np.r_[s * e, 0, 0, 0], (n, 6))))
+            F.append(_hom(None, (s * q)[:, None] * e, n))
+            add_E(len(F))
+            F.append(E)
+        else:
+            c = np.asarray(geom.rotary_points_R_m.get(a, (0.0, 0.0, 0.0)), float)
+            th = rot[:, ch.rotary_axes.index(a)]
+            F.append(_hom(None, c + d_loc, n))  # location-position twists added above
+            add_rel(len(F))
+            F.append(L)
+            add_E(len(F))
+            F.append(E)
+            dax.setdefault(a, []).append((len(F), np.broadcast_to(np.r_[0, 0, 0, s * e], (n, 6))))
+            F.append(_hom(exp_so3((s * th)[:, None] * e), None, n))
+            F.append(_hom(None, -c, n))
+    return F, dsym, dax
+
+
+def _inputs(geom, lin_m, rot_rad):
+    lin = np.atleast_2d(np.asarray(lin_m, float))
+    if lin.ndim != 2 or lin.shape[1] != 3:
+        raise ConfigError(f"lin_m must be (n, 3), got shape {np.shape(lin_m)}")
+    n = lin.shape[0]
+    nr = len(geom.chain.rotary_axes)
+    if rot_rad is None:
+        rot = np.zeros((n, nr))
+    else:
+        rot = np.asarray(rot_rad, float).reshape(n, -1) if nr else np.zeros((n, 0))
+        if rot.shape != (n, nr):
+            raise ConfigError(f"rot_rad must be (n, {nr}) for {geom.chain.rotary_axes}, got {np.shape(rot_rad)}")
+    return lin, rot, n
+
+
+def _prod(F, n):
+    T = _hom(n=n)
+    for f in F:
+        T = T @ f
+    return T
+
+
+def T_R_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
+    """Actual pose of W in R, (n, 4, 4), for readings (n, 3) m, rotary (n, r) rad."""
+    lin, rot, n = _inputs(geom, lin_m, rot_rad)
+    F, _, _ = _branch(geom, "workpiece", lin, rot, values or {}, n)
+    return _prod(F, n)
+
+
+def T_R_P(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
+    """Actual pose of the stylus-tip frame P in R, (n, 4, 4)."""
+    lin, rot, n = _inputs(geom, lin_m, rot_rad)
+    F, _, _ = _branch(geom, "tool", lin, rot, values or {}, n)
+    return _prod(F, n) @ _hom(None, -np.asarray(geom.J_m), n)
+
+
+def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
+    """Actual stylus-tip centre in W, (n, 3) m (exact transform product).
+
+    Parameters
+    ----------
+    geom : ChainGeometry
+    lin_m : (n, 3) float
+        Axis readings X, Y, Z (tip centre as the machine believes it, R), m.
+    rot_rad : (n, r) float, optional
+        Rotary positions in ``geom.chain.rotary_axes`` order, rad.
+    values : mapping ISO symbol -> scalar or (n,) float, optional
+        Error values (m, rad) at each pose; absent symbols are zero.
+    """
+    TW = T_R_W(geom, lin_m, rot_rad, values)
+    p_R = T_R_P(geom, lin_m, rot_rad, values)[:, :3, 3]
+    R = TW[:, :3, :3]
+    return np.einsum("nji,nj->ni", R, p_R - TW[:, :3, 3])
+
+
+def _derivs(geom, lin_m, rot_rad, values, which):
+    lin, rot, n = _inputs(geom, lin_m, rot_rad)
+    values = values or {}
+    Fw, dsw, daw = _branch(geom, "workpiece", lin, rot, values, n)
+    Ft, dst, dat = _branch(geom, "tool", lin, rot, values, n)
+    Ft = Ft + [_hom(None, -np.asarray(geom.J_m), n)]
+    TW = _prod(Fw, n)
+    TP = _prod(Ft, n)
+    R_RW = TW[:, :3, :3]
+    tipW = np.einsum("nji,nj->ni", R_RW, TP[:, :3, 3] - TW[:, :3, 3])
+
+    def chain_terms(F, end_point):
+        pre = [_hom(n=n)]
+        for f in F:
+            pre.append(pre[-1] @ f)
+        suf = [None] * (len(F) + 1)
+        suf[len(F)] = end_point
+        for i in range(len(F) - 1, -1, -1):
+            suf[i] = np.einsum("nij,nj->ni", F[i], suf[i + 1])
+        return pre, suf
+
+    p_end_t = np.tile([0.0, 0, 0, 1], (n, 1))
+    p_end_w = np.concatenate([tipW, np.ones((n, 1))], axis=1)
+    pre_t, suf_t = chain_terms(Ft, p_end_t)
+    pre_w, suf_w = chain_terms(Fw, p_end_w)
+
+    def d_of(entries_t, entries_w):
+        d = np.zeros((n, 3))
+        for i, xi in entries_t:
+            s = suf_t[i][:, :3]
+            loc = np.cross(xi[:, 3:], s) + xi[:, :3]
+            d += np.einsum("nji,njk,nk->ni", R_RW, pre_t[i][:, :3, :3], loc)
+        for i, xi in entries_w:
+            s = suf_w[i][:, :3]
+            loc = np.cross(xi[:, 3:], s) + xi[:, :3]
+            d -= np.einsum("nji,njk,nk->ni", R_RW, pre_w[i][:, :3, :3], loc)
+        return d
+
+    if which == "sym":
+        return d_of, dst, dsw, n
+    return d_of, dat, daw, n
+
+
+def sensitivity(geom: ChainGeometry, lin_m, rot_rad=None, values=None, symbols=None) -> np.ndarray:
+    """d tip_W / d(error value), analytic small displacement, (n, 3, m).
+
+    Exact derivative of :func:`tip_W` at the given error values (not only at
+    zero): each error enters as a left twist of its factor, rotations through
+    the left Jacobian of SO(3).
+
+    Parameters
+    ----------
+    symbols : sequence of str, optional
+        Columns, default :func:`error_symbols` of the chain. Units: m/m for
+        translations, m/rad for rotations.
+    """
+    symbols = tuple(symbols) if symbols is not None else error_symbols(geom.chain)
+    for s in symbols:
+        iso.symbol(s)
+    d_of, dt, dw, n = _derivs(geom, lin_m, rot_rad, values, "sym")
+    out = np.zeros((n, 3, len(symbols)))
+    for j, s in enumerate(symbols):
+        out[:, :, j] = d_of(dt.get(s, []), dw.get(s, []))
+    return out
+
+
+def jacobian_axes(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
+    """d tip_W / d(axis reading) with the error values held, (n, 3, 3 + r).
+
+    Columns X, Y, Z (m/m) then the rotary axes in ``chain.rotary_axes``
+    order (m/rad). The total derivative adds ``sensitivity @ d values/d pos``.
+    """
+    d_of, dt, dw, n = _derivs(geom, lin_m, rot_rad, values, "axis")
+    cols = ("X", "Y", "Z") + geom.chain.rotary_axes
+    out = np.zeros((n, 3, len(cols)))
+    for j, a in enumerate(cols):
+        out[:, :, j] = d_of(dt.get(a, []), dw.get(a, []))
+    return out
+
+
+# --------------------------------------------------------------------------- MFB eqs 10-12
+def mfb_deviation(values: Mapping, p_w_m, R_f_R_w=None, p_f_w_m=None, J_m=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """First-order deviations (dX, dY, dZ) of MFB paper eqs. 10-12, (n, 3) m.
+
+    ``delta = (X_true - X, ...)``: the change of the axis positions needed
+    to bring the stylus tip to the same workpiece point, i.e. minus the tip
+    positioning error, for the serial chain ``b-X-Y-Z-t`` (eq. 8).
+
+    Parameters
+    ----------
+    values : mapping symbol -> scalar or (n,) float
+        The 21 errors ``core.iso.TWENTY_ONE`` (m, rad) at the poses; absent
+        ones are zero.
+    p_w_m : (n, 3) float
+        Probe centre (x, y, z) in the workpiece frame R_w, m.
+    R_f_R_w : (3, 3) float, optional
+        Workpiece orientation in the machine frame (a..i of eq. 8), default I.
+    p_f_w_m : (3,) float, optional
+        Workpiece position in the machine frame, m, default 0.
+    J_m : (3,) float
+        Tool offsets J_X, J_Y, J_Z, m.
+    """
+    p = np.atleast_2d(np.asarray(p_w_m, float))
+    n = p.shape[0]
+    Rw = np.eye(3) if R_f_R_w is None else np.asarray(R_f_R_w, float)
+    pf = np.zeros(3) if p_f_w_m is None else np.asarray(p_f_w_m, float)
+    for k in values or {}:
+        if iso.symbol(k).name not in iso.TWENTY_ONE:
+            raise ConfigError(f"mfb_deviation takes the 21 linear-axis errors only, got {k!r}")
+    E = {s: _col(values, s, n) for s in iso.TWENTY_ONE}
+    pr = p @ Rw.T + pf
+    Fv, Gv = pr[:, 1], pr[:, 2]  # F = p_y + b x + e y + h z ; G = p_z + c x + f y + i z
+    JX, JY, JZ = J_m
+    dX = (-E["EXX"] - E["EXY"] - E["EXZ"]
+          - (E["EB0Z"] + E["EBX"] + E["EBY"]) * Gv
+          + (E["EC0Y"] + E["ECX"]) * Fv
+          + E["EBZ"] * JZ
+          - (E["ECY"] + E["ECZ"]) * JY)
+    dY = (-E["EYX"] - E["EYY"] - E["EYZ"]
+          + (E["EA0Z"] + E["EAX"] + E["EAY"]) * Gv
+          - E["EAZ"] * JZ
+          + (E["EC0Y"] + E["ECX"] + E["ECY"] + E["ECZ"]) * JX)
+    dZ = (-E["EZX"] - E["EZY"] - E["EZZ"]
+          - E["EAX"] * Fv
+          + (E["EA0Z"] + E["EAY"] + E["EAZ"]) * JY
+          - (E["EB0Z"] + E["EBX"] + E["EBY"] + E["EBZ"]) * JX)
+    return np.stack([dX, dY, dZ], axis=1)
