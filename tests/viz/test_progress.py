@@ -1,0 +1,56 @@
+"""viz.progress: drawn on a terminal only, with an estimate of the time left."""
+
+import io
+
+from viz.progress import TerminalProgress, format_duration, no_progress
+
+
+class FakeTTY(io.StringIO):
+    def isatty(self):
+        return True
+
+
+class Clock:
+    def __init__(self):
+        self.t = 0.0
+
+    def __call__(self):
+        return self.t
+
+
+def test_silent_when_not_a_terminal():
+    s = io.StringIO()  # isatty() is False, like a pipe or a log file
+    with TerminalProgress("campaign", stream=s) as p:
+        for i in range(5):
+            p(i + 1, 5)
+    assert s.getvalue() == ""
+
+
+def test_estimate_of_time_left_on_a_terminal():
+    s, clock = FakeTTY(), Clock()
+    p = TerminalProgress("Monte Carlo", stream=s, clock=clock, min_interval_s=0.0)
+    clock.t = 10.0
+    p(25, 100)  # 10 s for 25 -> 30 s left for 75 at the same mean rate
+    assert "25/100" in s.getvalue() and "~30 s left" in s.getvalue()
+    clock.t = 40.0
+    p(100, 100)
+    p.close()
+    out = s.getvalue()
+    assert out.endswith("done in 40 s\n") and out.count("\r") == 2
+
+
+def test_redraws_are_throttled_but_the_last_one_is_drawn():
+    s, clock = FakeTTY(), Clock()
+    p = TerminalProgress("hardware", stream=s, clock=clock, min_interval_s=1.0)
+    for i in range(1, 100):
+        clock.t = i * 0.01
+        p(i, 100)
+    p(100, 100)
+    assert s.getvalue().count("\r") == 2  # the first update and the final one
+
+
+def test_format_duration_and_null_callback():
+    assert format_duration(42.4) == "42 s"
+    assert format_duration(185) == "3 min 05 s"
+    assert format_duration(7620) == "2 h 07 min"
+    assert no_progress(1, 2) is None
