@@ -1,0 +1,476 @@
+"""Run a probing plan on a machine: safety checks, append-only log, resume.
+
+A plan (``probe-log/1`` with empty measured columns, rows in probing order)
+becomes one probing step per row: approach to ``start = Xn - clearance * d``
+(``d`` the unit approach direction, default ``-n``), probe towards
+``end = Xn + overtravel * d``, log the touch, retract to ``start``.
+
+Safety before any motion (:func:`check_program`): every point of the
+program inside the soft limits, every feed at most the maximum feed.
+Motion is feed moves only (never rapids), so the maximum feed holds.
+
+The log (:class:`AppendLog`) is append-only: the header is created
+atomically, then each touch is one ``write`` of one complete line followed
+by ``fsync``. Log row ``i`` is plan row ``i``, so the resume point is the
+number of complete rows on disk (:func:`recover_log`; a torn last line is
+cut off). A touch made but not yet on disk when the process died is made
+again on resume: the log never holds a touch twice and never misses one.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from core.exceptions import ConfigError, HardwareError, PlanError, ProbeLogError
+from core.probelog import FORMAT, MEASURED, ProbeLog, parse_probe_log
+
+from .backend import ALARMS, ProbeResult
+
+MM = 1e-3
+
+
+@dataclass(frozen=True)
+class ProbeSettings:
+    """How a plan is probed (shop units, named).
+
+    Attributes
+    ----------
+    probe_feed_mm_min, move_feed_mm_min : float
+        Feed of probing moves and of positioning moves, mm/min.
+    max_feed_mm_min : float
+        No motion may be commanded faster.
+    clearance_mm, overtravel_mm : float
+        Approach start before, and probing end beyond, the nominal contact, mm.
+    safe_z_mm : float or None
+        If set, travel between touches goes up to this machine Z, across, and down.
+    allow_miss : bool
+        Probe with G38.3: a miss is logged ``no_trigger`` and the campaign goes on
+        (G38.2: the miss is logged, then the controller alarm stops the campaign).
+    limits_mm : (3, 2) tuple or None
+        Soft limits ``((xmin, xmax), (ymin, ymax), (zmin, zmax))``, machine frame, mm.
+    """
+
+    probe_feed_mm_min: float = 100.0
+    move_feed_mm_min: float = 1000.0
+    max_feed_mm_min: float = 2000.0
+    clearance_mm: float = 2.0
+    overtravel_mm: float = 2.0
+    safe_z_mm: float | None = None
+    allow_miss: bool = False
+    limits_mm: tuple | None = None
+
+    def __post_init__(self):
+        for k in ("probe_feed_mm_min", "move_feed_mm_min", "max_feed_mm_min",
+                  "clearance_mm", "overtravel_mm"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"{k} {v!r} must be a positive number")
+        if self.limits_mm is not None:
+            lim = np.asarray(self.limits_mm, dtype=float)
+            if lim.shape != (3, 2) or not np.all(np.isfinite(lim)) or np.any(lim[:, 0] >= lim[:, 1]):
+                raise ConfigError(f"limits_mm {self.limits_mm!r}: expected ((xmin, xmax), "
+                                  "(ymin, ymax), (zmin, zmax)) with min < max")
+
+
+def parse_limits(text: str) -> tuple:
+    """``"X-10:300,Y0:200,Z-100:0"`` -> ``((-10, 300), (0, 200), (-100, 0))`` mm."""
+    out = {}
+    for part in text.split(","):
+        part = part.strip()
+        try:
+            ax, rng = part[0].upper(), part[1:]
+            lo, hi = (float(v) for v in rng.split(":"))
+        except (ValueError, IndexError):
+            raise ConfigError(f"--limits {text!r}: {part!r} is not AXISmin:max (e.g. X-10:300)") from None
+        if ax not in "XYZ" or ax in out:
+            raise ConfigError(f"--limits {text!r}: axis {ax!r} unknown or repeated")
+        out[ax] = (lo, hi)
+    if set(out) != set("XYZ"):
+        raise ConfigError(f"--limits {text!r}: give X, Y and Z")
+    lim = tuple(out[a] for a in "XYZ")
+    ProbeSettings(limits_mm=lim)
+    return lim
+
+
+@dataclass(frozen=True)
+class Step:
+    """One touch of the program: plan row, approach start and probing end (machine frame, mm)."""
+
+    row: int
+    setup: str
+    target: str
+    start_mm: np.ndarray
+    end_mm: np.ndarray
+    rot_deg: np.ndarray
+
+
+def check_plan(plan: ProbeLog) -> None:
+    """A plan must have rows and empty measured columns."""
+    if plan.n == 0:
+        raise PlanError(f"{plan.source}: the plan has no rows")
+    for c in MEASURED:
+        filled = ~np.isnan(plan.columns[c])
+        if filled.any():
+            r = int(np.argmax(filled))
+            raise PlanError(f"{plan.source}: row {r}: column {c!r} is filled: a plan's measured "
+                            "columns must be empty (is this a campaign log?)")
+
+
+def plan_steps(plan: ProbeLog, settings: ProbeSettings) -> list[Step]:
+    """One :class:`Step` per plan row, in plan order."""
+    check_plan(plan)
+    pn = plan.nominals_mm()
+    d = np.column_stack([plan.col(c) for c in ("dx", "dy", "dz")])
+    rot = np.column_stack([plan.col(c) for c in ("A_deg", "B_deg", "C_deg")])
+    rot = np.where(np.isnan(rot), 0.0, rot)
+    out = []
+    for i in range(plan.n):
+        out.append(Step(i, str(plan.columns["setup"][i]), str(plan.columns["target"][i]),
+                        pn[i] - settings.clearance_mm * d[i], pn[i] + settings.overtravel_mm * d[i],
+                        rot[i]))
+    return out
+
+
+def approach(from_mm, step: Step, settings: ProbeSettings) -> list[np.ndarray]:
+    """Waypoints (machine frame, mm) from ``from_mm`` (or unknown: ``None``) to ``step``'s start."""
+    s = step.start_mm
+    if settings.safe_z_mm is None:
+        return [s]
+    z = settings.safe_z_mm
+    pts = []
+    if from_mm is not None:
+        pts.append(np.array([from_mm[0], from_mm[1], z]))
+    pts += [np.array([s[0], s[1], z]), s]
+    return pts
+
+
+def check_program(steps: list[Step], settings: ProbeSettings, *, require_limits: bool = True) -> None:
+    """Refuse a program that would leave the soft limits or exceed the maximum feed.
+
+    Raises
+    ------
+    PlanError
+        Naming the plan row and the point (mm) or the feed at fault.
+    """
+    mx = settings.max_feed_mm_min
+    for k in ("probe_feed_mm_min", "move_feed_mm_min"):
+        if getattr(settings, k) > mx:
+            raise PlanError(f"{k} {getattr(settings, k):g} exceeds the maximum feed {mx:g} mm/min")
+    if settings.limits_mm is None:
+        if require_limits:
+            raise PlanError("no soft limits given (--limits X..:..,Y..:..,Z..:..): "
+                            "refusing to move a machine without them")
+        return
+    lim = np.asarray(settings.limits_mm, dtype=float)
+    prev = None
+    for st in steps:
+        for what, p in [("approach", q) for q in approach(prev, st, settings)] + [
+                ("probing end", st.end_mm)]:
+            bad = (p < lim[:, 0] - 1e-9) | (p > lim[:, 1] + 1e-9)
+            if bad.any():
+                ax = "XYZ"[int(np.argmax(bad))]
+                raise PlanError(f"row {st.row} (target {st.target!r}): {what} "
+                                f"{np.round(p, 4).tolist()} mm is outside the soft limits "
+                                f"of {ax} {lim['XYZ'.index(ax)].tolist()} mm")
+        prev = st.start_mm
+
+
+def program_lines(steps: list[Step], settings: ProbeSettings, rotary: bool = False) -> list[str]:
+    """The GRBL lines a campaign sends (for ``--dry-run``), assuming every probe triggers."""
+    from .grbl import move_line, probe_line
+
+    out = ["G21", "G90", "G94"]
+    prev = None
+    for st in steps:
+        out.append(f"(row {st.row} setup {st.setup} target {st.target})")
+        rot = st.rot_deg if rotary else None
+        for p in approach(prev, st, settings):
+            out.append(move_line(p, settings.move_feed_mm_min, rot))
+        out.append(probe_line(st.start_mm, st.end_mm, settings.probe_feed_mm_min, settings.allow_miss))
+        out.append("G90")
+        out.append(move_line(st.start_mm, settings.move_feed_mm_min, rot))
+        prev = st.start_mm
+    if settings.safe_z_mm is not None and prev is not None:
+        out.append(move_line([prev[0], prev[1], settings.safe_z_mm], settings.move_feed_mm_min))
+    return out
+
+
+# ---------------------------------------------------------------------------
+# the append-only log
+
+
+def log_columns(plan: ProbeLog, temps: list[str]) -> list[str]:
+    """Columns of the campaign log: the plan's, then ``status``, then ``temp_<name>_C``."""
+    cols = list(plan.columns)
+    if "status" not in cols:
+        cols.append("status")
+    cols += [f"temp_{t}_C" for t in temps if f"temp_{t}_C" not in cols]
+    return cols
+
+
+def _cell(v) -> str:
+    if isinstance(v, str):
+        return v
+    v = float(v)
+    return "" if math.isnan(v) else repr(v)
+
+
+def _csv_line(cells: list[str]) -> str:
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(cells)
+    return buf.getvalue()
+
+
+class AppendLog:
+    """A probe log written one fsync'ed line per touch.
+
+    Use :meth:`create` for a new log (atomic: metadata and header appear
+    complete or not at all) or :meth:`reopen` after :func:`recover_log`.
+    """
+
+    def __init__(self, path: Path, columns: list[str]):
+        self.path = Path(path)
+        self.columns = list(columns)
+        self.fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+
+    @classmethod
+    def create(cls, path, columns: list[str], meta: dict) -> "AppendLog":
+        p = Path(path)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        text = "".join(f"# {k}: {' '.join(str(v).split())}\n" for k, v in meta.items())
+        text += _csv_line(columns)
+        tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        try:
+            os.write(fd, text.encode("utf-8"))
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        try:
+            os.link(tmp, p)          # fails if the log appeared meanwhile: never overwrite
+        except FileExistsError:
+            raise PlanError(f"{p}: exists; use --resume to continue it, or choose another --out") from None
+        finally:
+            os.unlink(tmp)
+        _fsync_dir(p.parent)
+        return cls(p, columns)
+
+    def append(self, row: dict) -> None:
+        """Write one touch (``{column: value}``; missing columns empty) and fsync."""
+        data = _csv_line([_cell(row.get(c, "")) for c in self.columns]).encode("utf-8")
+        n = os.write(self.fd, data)
+        if n != len(data):  # pragma: no cover - a full disk
+            raise HardwareError(f"{self.path}: short write ({n} of {len(data)} bytes)")
+        os.fsync(self.fd)
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+def _fsync_dir(d: Path) -> None:
+    try:
+        fd = os.open(d, os.O_RDONLY)
+    except OSError:  # pragma: no cover
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # pragma: no cover
+        pass
+    finally:
+        os.close(fd)
+
+
+@dataclass(frozen=True)
+class Recovered:
+    """What :func:`recover_log` found on disk."""
+
+    rows_done: int
+    columns: list
+    meta: dict
+    last_t_s: float
+    torn_bytes: int
+
+
+def recover_log(path, plan: ProbeLog) -> Recovered:
+    """Find where a campaign stopped: complete rows on disk, checked against the plan.
+
+    A last line without its newline (the process died while writing it) is
+    cut off the file. Every complete row must be the plan row of the same
+    index (same ``setup``, ``target`` and nominal point).
+
+    Raises
+    ------
+    PlanError
+        The log does not belong to this plan, or has more rows than it.
+    ProbeLogError
+        The file is not a readable probe log.
+    """
+    p = Path(path)
+    data = p.read_bytes()
+    keep = data.rfind(b"\n") + 1
+    torn = len(data) - keep
+    if torn:
+        with open(p, "r+b") as f:
+            f.truncate(keep)
+            f.flush()
+            os.fsync(f.fileno())
+        data = data[:keep]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ProbeLogError(f"{p}: not UTF-8 text at byte {e.start}") from None
+    log = parse_probe_log(text, source=str(p))
+    header = next(line for line in text.splitlines() if line and not line.startswith("#"))
+    columns = next(csv.reader([header]))
+    plan_cols = [c for c in plan.columns]
+    missing = [c for c in plan_cols if c not in columns]
+    if missing:
+        raise PlanError(f"{p}: log has no column {missing[0]!r} of the plan: not a log of this plan")
+    if log.n > plan.n:
+        raise PlanError(f"{p}: {log.n} rows but the plan has {plan.n}: not a log of this plan")
+    pn, ln = plan.nominals_mm(), log.nominals_mm()
+    for i in range(log.n):
+        same = (log.columns["setup"][i] == plan.columns["setup"][i]
+                and log.columns["target"][i] == plan.columns["target"][i]
+                and np.allclose(ln[i], pn[i], rtol=0, atol=1e-9))
+        if not same:
+            raise PlanError(f"{p}: row {i} (setup {log.columns['setup'][i]!r}, target "
+                            f"{log.columns['target'][i]!r}) is not plan row {i}: not a log of this plan")
+    t = log.columns["t_s"]
+    t = t[~np.isnan(t)]
+    return Recovered(log.n, columns, dict(log.meta), float(t.max()) if t.size else 0.0, torn)
+
+
+# ---------------------------------------------------------------------------
+# the campaign
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    """Outcome of :func:`run_campaign`."""
+
+    out: Path
+    rows_total: int
+    rows_before: int          # complete rows found on disk at the start (resume)
+    rows_done: int            # complete rows on disk at the end
+    torn_bytes: int = 0
+    statuses: dict = field(default_factory=dict)
+
+
+def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resume: bool = False,
+                 unlock: bool = False, home: bool = False, plan_path: str | None = None,
+                 clock: Callable[[], float] = time.time,
+                 on_touch: Callable[[int, ProbeResult], None] | None = None,
+                 require_limits: bool = True) -> CampaignResult:
+    """Probe ``plan`` on ``backend`` and append every touch to the log ``out``.
+
+    Parameters
+    ----------
+    backend : hardware.backend.ProbingBackend
+    plan : ProbeLog
+        The plan (measured columns empty), rows in probing order.
+    out : path-like
+        The campaign log. A new log must not exist; with ``resume`` an
+        existing log is continued after its last complete row.
+    settings : ProbeSettings
+    resume, unlock, home : bool
+        ``unlock`` (``$X``) and ``home`` (``$H``) only on the user's word.
+    clock : callable
+        Wall-clock seconds (``t_s`` is ``clock() - started_unix``, never going backwards).
+    on_touch : callable(row, ProbeResult) or None
+        Called after each touch is on disk.
+
+    Raises
+    ------
+    PlanError
+        Before any motion: limits, feeds, a log that exists or belongs to another plan.
+    HardwareError
+        The machine failed; every touch made before is on disk, ``resume`` continues.
+    """
+    steps = plan_steps(plan, settings)
+    check_program(steps, settings, require_limits=require_limits)
+    p = Path(out)
+    torn = 0
+    if p.exists():
+        if not resume:
+            raise PlanError(f"{p}: exists; use --resume to continue it, or choose another --out")
+        rec = recover_log(p, plan)
+        done, columns, torn = rec.rows_done, rec.columns, rec.torn_bytes
+        try:
+            started = float(rec.meta.get("started_unix", ""))
+        except ValueError:
+            raise PlanError(f"{p}: metadata started_unix missing or not a number") from None
+        last_t = rec.last_t_s
+        temps = [c[5:-2] for c in columns if c.startswith("temp_") and c.endswith("_C")]
+    else:
+        done, last_t, started = 0, 0.0, None
+    statuses: dict[str, int] = {}
+    before = done
+    if done >= plan.n:
+        return CampaignResult(p, plan.n, done, done, torn, statuses)
+    backend.start(unlock=unlock, home=home)
+    if started is None:
+        temps = sorted(backend.temperatures_C())
+        columns = log_columns(plan, temps)
+        started = float(clock())
+        meta = {"format": FORMAT}
+        for k, v in plan.meta.items():
+            if k in ("format",):
+                continue
+            meta["plan_machine" if k == "machine" else k] = v
+        meta.update({"machine": backend.name, "source": "vmt probe",
+                     "plan": plan_path or plan.source, "started_unix": repr(started),
+                     "probe_feed_mm_min": settings.probe_feed_mm_min,
+                     "clearance_mm": settings.clearance_mm, "overtravel_mm": settings.overtravel_mm})
+        log = AppendLog.create(p, columns, meta)
+    else:
+        log = AppendLog(p, columns)
+    try:
+        cur = backend.position_m() / MM
+        for st in steps[done:]:
+            rot_rad = np.radians(st.rot_deg)
+            for wp in approach(cur, st, settings):
+                backend.move(wp * MM, settings.move_feed_mm_min, rot_rad)
+            res = backend.probe(st.end_mm * MM, settings.probe_feed_mm_min,
+                                allow_miss=settings.allow_miss)
+            t = max(float(clock()) - started, last_t)
+            row = {c: plan.columns[c][st.row] for c in plan.columns}
+            row["status"] = res.status
+            if res.triggered:
+                x = np.asarray(res.pos_m, dtype=float) / MM
+                row.update({"X_mm": x[0], "Y_mm": x[1], "Z_mm": x[2], "t_s": t})
+                last_t = t
+            else:          # probe-log/1: the measured cells of an invalid touch stay empty
+                row.update({c: float("nan") for c in MEASURED})
+            if temps:
+                tc = backend.temperatures_C()
+                row.update({f"temp_{k}_C": tc.get(k, float("nan")) for k in temps})
+            log.append(row)
+            statuses[res.status] = statuses.get(res.status, 0) + 1
+            done = st.row + 1
+            if on_touch is not None:
+                on_touch(st.row, res)
+            if res.alarm is not None:
+                raise HardwareError(
+                    f"ALARM:{res.alarm} ({ALARMS.get(res.alarm, 'alarm')}) at row {st.row} "
+                    f"(target {st.target!r}, logged as {res.status}); {done} of {plan.n} rows on disk: "
+                    "clear the cause and continue with --resume --unlock")
+            backend.move(st.start_mm * MM, settings.move_feed_mm_min, rot_rad)
+            cur = st.start_mm
+        if settings.safe_z_mm is not None:
+            backend.move(np.array([cur[0], cur[1], settings.safe_z_mm]) * MM, settings.move_feed_mm_min)
+    except HardwareError as e:
+        raise HardwareError(f"{e} [{done} of {plan.n} rows in {p}; continue with --resume]"
+                            if "--resume" not in str(e) else str(e)) from None
+    finally:
+        log.close()
+    return CampaignResult(p, plan.n, before, done, torn, statuses)

@@ -1,0 +1,582 @@
+"""Live GRBL / grblHAL / FluidNC client over a TCP socket or a serial port.
+
+The protocol, as this client uses it (GRBL 1.1 "simple send-response"):
+
+- one G-code line at a time, answered by ``ok`` or ``error:N``;
+- ``?`` (real-time, no newline) answered by ``<State|MPos:x,y,z|...>``
+  (or ``WPos`` plus ``WCO``, then ``MPos = WPos + WCO``);
+- a probing move ``G38.2`` (``G38.3`` where a miss is allowed) reports
+  ``[PRB:x,y,z(,a,...):s]`` in machine coordinates, mm, any number of axes,
+  ``s`` = 1 on contact;
+- ``ALARM:N`` at any time: 4 = probe already triggered, 5 = no contact
+  (a ``no_trigger`` touch). The controller then refuses motion (error:9)
+  until ``$X``, which this client sends only when asked to.
+
+Positions always come from the controller's own ``PRB`` or status report,
+never from the command that was sent. Lines that are neither an expected
+answer nor a known informational message are reported through
+``on_event`` (and kept in :attr:`GrblClient.unexpected`) and never taken for
+a position. GRBL speaks millimetres: :class:`GrblBackend` converts to and
+from metres at its boundary.
+
+Motion: positioning is ``G53 G90 G1`` (machine coordinates, a feed move so
+the maximum feed holds); probing is ``G91 G38.2`` by an increment from where
+the machine stands, so work offsets never enter.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import re
+import select
+import socket
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+from urllib.parse import parse_qs, urlsplit
+
+import numpy as np
+
+from core.exceptions import HardwareError
+
+from .backend import ALARMS, ProbeResult
+
+#: GRBL 1.1 error codes the adapter names.
+ERRORS = {
+    1: "expected command letter", 2: "bad number format", 3: "invalid $ statement",
+    8: "not idle", 9: "G-code locked out during alarm or jog", 15: "travel exceeded",
+    20: "unsupported or invalid G-code command", 21: "modal group violation",
+    22: "feed rate not set", 26: "no axis words", 33: "invalid motion target",
+}
+
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)"
+_PRB = re.compile(rf"^\[PRB:({_NUM}(?:,{_NUM}){{2,8}}):([01])\]$")
+_STATUS = re.compile(r"^<([A-Za-z]+)(?::\d+)?((?:\|[^|<>]*)*)>$")
+
+#: Lines that inform and are harmless (not garbage, never a position).
+_INFO = re.compile(r"^(\[(MSG|GC|HLP|VER|OPT|G54|G55|G56|G57|G58|G59|G28|G30|G92|TLO|echo|"
+                   r"JSON|CTRL|AXS|NEWOPT|FIRMWARE|SIGNALS|NVS|BOARD|PLUGIN|AUX|SETTING|"
+                   r"SD|DRIVER|COMPILE|IP|AP|STA|MAC|MODE|MSG)[^\]]*\]|\$\d+=.*|>.*:ok)$")
+_BANNER = re.compile(r"^(Grbl|GrblHAL|grbl)\s*\S*\s*\[.*\]\s*$", re.I)
+
+
+def parse_prb(line: str):
+    """Parse a ``[PRB:x,y,z(,...):s]`` report.
+
+    Returns
+    -------
+    (axes_mm, ok) : ((k,) float, bool), k >= 3
+        Machine coordinates of every reported axis, and whether it touched.
+        ``None`` when the line is not a well-formed probe report.
+    """
+    m = _PRB.match(line.strip())
+    if not m:
+        return None
+    return np.array([float(v) for v in m.group(1).split(",")]), m.group(2) == "1"
+
+
+@dataclass(frozen=True)
+class Status:
+    """A parsed ``<State|...>`` report: state name and machine position, mm."""
+
+    state: str
+    mpos_mm: np.ndarray | None
+    wco_mm: np.ndarray | None = None
+
+
+def parse_status(line: str, wco_mm=None) -> Status | None:
+    """Parse a GRBL 1.1 status report; ``None`` when the line is not one.
+
+    ``MPos`` is used as is; ``WPos`` needs the work offset ``WCO`` (from this
+    report or ``wco_mm`` remembered from an earlier one).
+    """
+    m = _STATUS.match(line.strip())
+    if not m:
+        return None
+    fields = {}
+    for part in m.group(2).split("|")[1:]:
+        if ":" in part:
+            k, v = part.split(":", 1)
+            fields[k] = v
+
+    def vec(v):
+        try:
+            a = np.array([float(x) for x in v.split(",")])
+        except ValueError:
+            return None
+        return a if a.size >= 3 and np.all(np.isfinite(a)) else None
+
+    wco = vec(fields["WCO"]) if "WCO" in fields else (None if wco_mm is None else np.asarray(wco_mm))
+    if "MPos" in fields:
+        mpos = vec(fields["MPos"])
+        if mpos is None:
+            return None
+    elif "WPos" in fields:
+        w = vec(fields["WPos"])
+        if w is None:
+            return None
+        mpos = None if wco is None or wco.size != w.size else w + wco
+    else:
+        return None
+    return Status(m.group(1), mpos, wco)
+
+
+# ---------------------------------------------------------------------------
+# links: a byte stream read line by line
+
+
+class _LineBuffer:
+    def __init__(self):
+        self.buf = b""
+
+    def pop(self) -> str | None:
+        for sep in (b"\n", b"\r"):
+            i = self.buf.find(sep)
+            if i >= 0:
+                line, self.buf = self.buf[:i], self.buf[i + 1:]
+                return line.decode("ascii", errors="replace").strip()
+        return None
+
+
+class TcpLink:
+    """GRBL over a TCP socket (grblHAL / FluidNC telnet, ``vmt machine serve``)."""
+
+    def __init__(self, host: str, port: int, connect_timeout_s: float = 5.0):
+        self.where = f"grbl://{host}:{port}"
+        try:
+            self.sock = socket.create_connection((host, port), timeout=connect_timeout_s)
+        except OSError as e:
+            raise HardwareError(f"{self.where}: cannot connect ({e.strerror or e})") from None
+        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._lb = _LineBuffer()
+
+    def send(self, data: bytes) -> None:
+        try:
+            self.sock.sendall(data)
+        except OSError as e:
+            raise HardwareError(f"{self.where}: connection lost while sending ({e.strerror or e})") from None
+
+    def readline(self, timeout_s: float) -> str | None:
+        """Next non-empty line, or ``None`` after ``timeout_s``; EOF raises."""
+        end = time.monotonic() + timeout_s
+        while True:
+            line = self._lb.pop()
+            while line is not None and line == "":
+                line = self._lb.pop()
+            if line is not None:
+                return line
+            left = end - time.monotonic()
+            if left <= 0:
+                return None
+            self.sock.settimeout(left)
+            try:
+                data = self.sock.recv(4096)
+            except socket.timeout:
+                return None
+            except OSError as e:
+                raise HardwareError(f"{self.where}: connection lost ({e.strerror or e})") from None
+            if not data:
+                raise HardwareError(f"{self.where}: connection lost (closed by the controller)")
+            self._lb.buf += data
+
+    def close(self) -> None:
+        try:
+            self.sock.close()
+        except OSError:  # pragma: no cover
+            pass
+
+
+class SerialLink:
+    """GRBL over a serial port or pty, standard library only (termios, raw 8N1)."""
+
+    def __init__(self, path: str, baud: int = 115200):
+        import termios
+        import tty
+
+        self.where = f"serial://{path}"
+        try:
+            self.fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        except OSError as e:
+            raise HardwareError(f"{self.where}: cannot open ({e.strerror})") from None
+        try:
+            tty.setraw(self.fd)
+            attr = termios.tcgetattr(self.fd)
+            speed = getattr(termios, f"B{baud}", None)
+            if speed is None:
+                raise HardwareError(f"{self.where}: baud rate {baud} not supported")
+            attr[4] = attr[5] = speed
+            attr[2] |= termios.CLOCAL | termios.CREAD
+            termios.tcsetattr(self.fd, termios.TCSANOW, attr)
+        except termios.error as e:
+            os.close(self.fd)
+            raise HardwareError(f"{self.where}: not a serial port ({e})") from None
+        self._lb = _LineBuffer()
+
+    def send(self, data: bytes) -> None:
+        view = memoryview(data)
+        end = time.monotonic() + 5.0
+        while view:
+            try:
+                n = os.write(self.fd, view)
+                view = view[n:]
+            except BlockingIOError:
+                if time.monotonic() > end:
+                    raise HardwareError(f"{self.where}: write timed out") from None
+                select.select([], [self.fd], [], 0.1)
+            except OSError as e:
+                raise HardwareError(f"{self.where}: connection lost ({e.strerror})") from None
+
+    def readline(self, timeout_s: float) -> str | None:
+        end = time.monotonic() + timeout_s
+        while True:
+            line = self._lb.pop()
+            while line is not None and line == "":
+                line = self._lb.pop()
+            if line is not None:
+                return line
+            left = end - time.monotonic()
+            if left <= 0:
+                return None
+            r, _, _ = select.select([self.fd], [], [], left)
+            if not r:
+                return None
+            try:
+                data = os.read(self.fd, 4096)
+            except BlockingIOError:
+                continue
+            except OSError as e:
+                if e.errno == errno.EIO:
+                    raise HardwareError(f"{self.where}: connection lost (device closed)") from None
+                raise HardwareError(f"{self.where}: connection lost ({e.strerror})") from None
+            if not data:
+                raise HardwareError(f"{self.where}: connection lost (end of file)")
+            self._lb.buf += data
+
+    def close(self) -> None:
+        try:
+            os.close(self.fd)
+        except OSError:  # pragma: no cover
+            pass
+
+
+def open_link(url: str):
+    """A link from ``grbl://HOST:PORT`` or ``serial:///dev/ttyX[?baud=N]``."""
+    u = urlsplit(url)
+    if u.scheme in ("grbl", "tcp"):
+        if not u.hostname or u.port is None:
+            raise HardwareError(f"machine {url!r}: expected grbl://HOST:PORT")
+        return TcpLink(u.hostname, u.port)
+    if u.scheme == "serial":
+        if not u.path:
+            raise HardwareError(f"machine {url!r}: expected serial:///dev/ttyX")
+        q = parse_qs(u.query)
+        try:
+            baud = int(q.get("baud", ["115200"])[0])
+        except ValueError:
+            raise HardwareError(f"machine {url!r}: baud is not an integer") from None
+        return SerialLink(u.path, baud)
+    raise HardwareError(f"machine {url!r}: unknown scheme (use grbl://HOST:PORT or serial:///dev/ttyX)")
+
+
+# ---------------------------------------------------------------------------
+# the client
+
+
+@dataclass
+class Reply:
+    """Everything the controller said in answer to one line."""
+
+    command: str
+    ok: bool = False
+    error: int | None = None
+    alarms: list = field(default_factory=list)
+    prb: list = field(default_factory=list)   # [(axes_mm (k,), touched)]
+    lines: list = field(default_factory=list)
+
+
+class GrblClient:
+    """Send-response GRBL client over a link (:class:`TcpLink`, :class:`SerialLink`).
+
+    Parameters
+    ----------
+    link : object
+        ``send(bytes)``, ``readline(timeout_s) -> str | None``, ``close()``.
+    timeout_s : float
+        Longest wait for the answer to one line (a long move included).
+    on_event : callable(str) or None
+        Called with a one-line description of every unexpected line or alarm.
+    transcript : file-like or None
+        Text stream receiving ``"<t_s> > sent"`` / ``"<t_s> < received"`` lines
+        (the format :func:`hardware.transcript.import_grbl_transcript` reads).
+    """
+
+    def __init__(self, link, timeout_s: float = 60.0, on_event: Callable[[str], None] | None = None,
+                 transcript=None, clock=time.time):
+        self.link = link
+        self.timeout_s = float(timeout_s)
+        self.on_event = on_event
+        self.transcript = transcript
+        self.clock = clock
+        self.unexpected: list[str] = []
+        self.alarm: int | None = None
+        self._wco = None
+
+    # -- plumbing
+    def _note(self, msg: str) -> None:
+        if self.on_event is not None:
+            self.on_event(msg)
+
+    def _log(self, d: str, line: str) -> None:
+        if self.transcript is not None:
+            self.transcript.write(f"{self.clock():.3f} {d} {line}\n")
+            self.transcript.flush()
+
+    def _send(self, data: str) -> None:
+        self._log(">", data.strip() or repr(data))
+        self.link.send(data.encode("ascii"))
+
+    def _read(self, timeout_s: float) -> str | None:
+        line = self.link.readline(timeout_s)
+        if line is not None:
+            self._log("<", line)
+        return line
+
+    def _unexpected(self, line: str, context: str) -> None:
+        shown = line if len(line) <= 80 else line[:77] + "..."
+        self.unexpected.append(line)
+        self._note(f"unexpected line from controller ({context}): {shown!r}")
+
+    def _alarm(self, line: str) -> int | None:
+        m = re.fullmatch(r"ALARM:(\d+)", line)
+        if not m:
+            return None
+        code = int(m.group(1))
+        self.alarm = code
+        self._note(f"controller alarm ALARM:{code} ({ALARMS.get(code, 'unknown alarm')})")
+        return code
+
+    # -- commands
+    def command(self, line: str, timeout_s: float | None = None) -> Reply:
+        """Send one G-code line and collect the answer up to ``ok`` / ``error:N``.
+
+        Raises
+        ------
+        HardwareError
+            No answer within the timeout, connection lost, the controller
+            reset (its banner) in the middle of a command.
+        """
+        line = line.strip()
+        rep = Reply(line)
+        self._send(line + "\n")
+        limit = self.timeout_s if timeout_s is None else timeout_s
+        end = time.monotonic() + limit
+        while True:
+            left = end - time.monotonic()
+            got = self._read(max(left, 0.0)) if left > 0 else None
+            if got is None:
+                if rep.alarms:   # an alarm may end a command without its ok
+                    return rep
+                raise HardwareError(f"controller did not answer {line!r} within {limit:g} s")
+            rep.lines.append(got)
+            if got == "ok":
+                rep.ok = True
+                return rep
+            m = re.fullmatch(r"error:(\d+)", got)
+            if m:
+                rep.error = int(m.group(1))
+                return rep
+            code = self._alarm(got)
+            if code is not None:
+                rep.alarms.append(code)
+                end = min(end, time.monotonic() + 2.0)   # wait briefly for PRB / ok
+                continue
+            if got.startswith("[PRB"):
+                p = parse_prb(got)
+                if p is None:
+                    self._unexpected(got, f"malformed probe report after {line!r}")
+                else:
+                    rep.prb.append(p)
+                continue
+            if _BANNER.match(got):
+                raise HardwareError(f"controller reset while executing {line!r} ({got!r})")
+            if got.startswith("<"):
+                st = parse_status(got, self._wco)
+                if st is not None:
+                    if st.wco_mm is not None:
+                        self._wco = st.wco_mm
+                    continue
+            if _INFO.match(got):
+                continue
+            self._unexpected(got, f"answering {line!r}")
+
+    def expect_ok(self, line: str, timeout_s: float | None = None) -> Reply:
+        """:meth:`command`, raising on ``error:N`` or an alarm."""
+        rep = self.command(line, timeout_s)
+        if rep.alarms:
+            a = rep.alarms[0]
+            raise HardwareError(f"ALARM:{a} ({ALARMS.get(a, 'unknown alarm')}) on {line!r}")
+        if rep.error is not None:
+            e = rep.error
+            hint = "; the controller is in alarm: clear the cause and re-run with --unlock" if e == 9 else ""
+            raise HardwareError(f"controller rejected {line!r}: error:{e} ({ERRORS.get(e, 'see the controller manual')}){hint}")
+        return rep
+
+    def status(self, timeout_s: float = 5.0) -> Status:
+        """Query ``?`` until a well-formed status report arrives (resent every 0.5 s)."""
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            self._send("?")
+            tick = min(end, time.monotonic() + 0.5)
+            while True:
+                left = tick - time.monotonic()
+                if left <= 0:
+                    break
+                got = self._read(left)
+                if got is None:
+                    break
+                if got.startswith("<"):
+                    st = parse_status(got, self._wco)
+                    if st is not None:
+                        if st.wco_mm is not None:
+                            self._wco = st.wco_mm
+                        if st.mpos_mm is None:
+                            self._unexpected(got, "status without MPos and no WCO known yet")
+                            continue
+                        return st
+                    self._unexpected(got, "malformed status report")
+                    continue
+                if self._alarm(got) is not None or got == "ok" or _BANNER.match(got) or _INFO.match(got):
+                    continue
+                self._unexpected(got, "waiting for status")
+        raise HardwareError(f"controller did not answer a status query within {timeout_s:g} s")
+
+    def close(self) -> None:
+        self.link.close()
+
+
+def move_line(target_mm, feed_mm_min: float, rot_deg=None) -> str:
+    """The positioning line: a feed move in machine coordinates (``G53 G90 G1``)."""
+    words = " ".join(f"{a}{v:.4f}" for a, v in zip("XYZ", target_mm))
+    if rot_deg is not None:
+        words += " " + " ".join(f"{a}{v:.4f}" for a, v in zip("ABC", rot_deg))
+    return f"G53 G90 G1 {words} F{feed_mm_min:.1f}"
+
+
+def probe_line(start_mm, end_mm, feed_mm_min: float, allow_miss: bool = False) -> str:
+    """The probing line: ``G91 G38.2`` (``G38.3`` with ``allow_miss``) by ``end - start``."""
+    d = np.asarray(end_mm, dtype=float) - np.asarray(start_mm, dtype=float)
+    g = "G38.3" if allow_miss else "G38.2"
+    return f"G91 {g} " + " ".join(f"{a}{v:.4f}" for a, v in zip("XYZ", d)) + f" F{feed_mm_min:.1f}"
+
+
+class GrblBackend:
+    """A GRBL-family controller behind :class:`hardware.backend.ProbingBackend`.
+
+    Parameters
+    ----------
+    client : GrblClient
+    name : str
+        Free text for the log (the machine URL).
+    rotary : bool
+        Send A, B, C words in positioning moves (grblHAL / FluidNC with rotary axes).
+    path_tol_mm : float
+        Largest distance of a probe report from the commanded probing segment
+        (and beyond its ends): a report farther away is not taken.
+    """
+
+    def __init__(self, client: GrblClient, name: str = "grbl", rotary: bool = False,
+                 path_tol_mm: float = 1.0):
+        self.client = client
+        self.name = name
+        self.rotary = rotary
+        self.path_tol_mm = float(path_tol_mm)
+        self._pos_mm: np.ndarray | None = None
+
+    def start(self, *, unlock: bool = False, home: bool = False) -> None:
+        st = self.client.status()
+        if st.state.lower() == "alarm" or self.client.alarm is not None:
+            if not unlock and not home:
+                raise HardwareError("controller is in alarm state; clear the cause and re-run "
+                                    "with --unlock (sends $X) or --home (sends $H)")
+        if home:
+            self.client.expect_ok("$H", timeout_s=max(self.client.timeout_s, 120.0))
+        elif st.state.lower() == "alarm" and unlock:
+            self.client.expect_ok("$X")
+        self.client.alarm = None
+        for line in ("G21", "G90", "G94"):
+            self.client.expect_ok(line)
+        self._pos_mm = self.client.status().mpos_mm[:3].copy()
+
+    def position_m(self) -> np.ndarray:
+        st = self.client.status()
+        self._pos_mm = st.mpos_mm[:3].copy()
+        return self._pos_mm * 1e-3
+
+    def move(self, target_m, feed_mm_min: float, rot_rad=None) -> None:
+        t = np.asarray(target_m, dtype=float) * 1e3
+        rot = np.degrees(rot_rad) if (self.rotary and rot_rad is not None) else None
+        self.client.expect_ok(move_line(t, feed_mm_min, rot))
+        self._pos_mm = t
+
+    def probe(self, target_m, feed_mm_min: float, *, allow_miss: bool = False) -> ProbeResult:
+        if self._pos_mm is None:
+            self.position_m()
+        start = self._pos_mm.copy()
+        end = np.asarray(target_m, dtype=float) * 1e3
+        d = end - start
+        if np.linalg.norm(d) < 1e-4:
+            raise HardwareError("probing move of zero length")
+        line = probe_line(start, end, feed_mm_min, allow_miss)
+        rep = self.client.command(line)
+        try:
+            self.client.expect_ok("G90")
+        except HardwareError:
+            if not rep.alarms:
+                raise
+        if 4 in rep.alarms:
+            raise HardwareError(f"ALARM:4 ({ALARMS[4]}): move the probe clear and re-run with --resume --unlock")
+        other = [a for a in rep.alarms if a != 5]
+        if other:
+            raise HardwareError(f"ALARM:{other[0]} ({ALARMS.get(other[0], 'unknown alarm')}) during {line!r}")
+        if rep.error is not None:
+            raise HardwareError(f"controller rejected {line!r}: error:{rep.error} "
+                                f"({ERRORS.get(rep.error, 'see the controller manual')})")
+        if len(rep.prb) != 1:
+            raise HardwareError(f"{len(rep.prb)} probe reports after {line!r} (expected exactly 1)")
+        axes, touched = rep.prb[0]
+        p = axes[:3]
+        # the report must lie on the commanded segment: never take a stray line for a touch
+        u = d / np.linalg.norm(d)
+        s = float((p - start) @ u)
+        off = float(np.linalg.norm(p - start - s * u))
+        if off > self.path_tol_mm or s < -self.path_tol_mm or s > np.linalg.norm(d) + self.path_tol_mm:
+            raise HardwareError(f"probe report {np.round(p, 4).tolist()} mm is off the commanded "
+                                f"path {np.round(start, 4).tolist()} -> {np.round(end, 4).tolist()} mm")
+        alarm5 = 5 in rep.alarms
+        if touched and alarm5:
+            raise HardwareError(f"contradictory answer to {line!r}: contact reported with ALARM:5")
+        self._pos_mm = None if alarm5 else p.copy()
+        if not alarm5:
+            # where the machine stopped (deceleration past the trigger), from its own report
+            self._pos_mm = self.client.status().mpos_mm[:3].copy()
+        if touched:
+            return ProbeResult("ok", p * 1e-3, extra_axes=tuple(axes[3:]))
+        if not allow_miss and not alarm5:
+            raise HardwareError(f"G38.2 ended without contact and without ALARM:5 ({line!r})")
+        return ProbeResult("no_trigger", p * 1e-3, alarm=5 if alarm5 else None,
+                           extra_axes=tuple(axes[3:]))
+
+    def temperatures_C(self) -> dict[str, float]:
+        return {}
+
+    def close(self) -> None:
+        self.client.close()
+
+
+def connect(url: str, *, timeout_s: float = 60.0, on_event=None, transcript=None,
+            rotary: bool = False) -> GrblBackend:
+    """Open ``grbl://HOST:PORT`` or ``serial:///dev/ttyX`` as a :class:`GrblBackend`."""
+    link = open_link(url)
+    client = GrblClient(link, timeout_s=timeout_s, on_event=on_event, transcript=transcript)
+    return GrblBackend(client, name=url, rotary=rotary)
