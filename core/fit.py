@@ -19,8 +19,8 @@ and returns a frozen result with
 
 Method (scikit-image ``measure/fit.py`` style): the points are centred on
 their centroid and scaled by their RMS distance to it, the problem is
-solved in those coordinates, and the column-equilibrated Jacobian at the
-solution is checked: if its condition number exceeds
+solved in those coordinates, and the Jacobian at the solution in those
+coordinates (the "scaled Jacobian") is checked: if its condition number exceeds
 :attr:`FitTolerances.cond_max` the fit raises :class:`FitError` saying
 "not enough significant data points" and naming the parameter combination
 the data cannot determine.
@@ -93,8 +93,8 @@ class FitTolerances:
     Attributes
     ----------
     cond_max : float
-        Largest condition number accepted for the column-equilibrated
-        Jacobian at the solution (centred, scaled coordinates). Above it a
+        Largest condition number accepted for the Jacobian at the solution
+        in centred coordinates scaled to unit RMS distance. Above it a
         parameter combination is not determined by the data: with
         ``cond = 1e8`` an SVD solve still keeps ~8 significant digits,
         i.e. ~1e-8 of the feature size, which is the limit vmt accepts.
@@ -104,11 +104,22 @@ class FitTolerances:
         the reference tests ask for, yet well above rounding (~1e-15).
     max_iter : int
         Iteration cap; reaching it raises :class:`FitError`.
+    rival_rms_ratio : float
+        Cylinder without ``axis_hint``: if another candidate converges to an
+        axis more than ``rival_angle`` away with an RMS residual within this
+        factor of the best one (or both are at rounding level, 1e-9 of the
+        feature size), the points do not single out one cylinder and the fit
+        raises instead of picking one. 2: a rival fitting within twice the
+        RMS cannot be rejected on the 8-12 points of an MFB feature.
+    rival_angle : float
+        rad; see ``rival_rms_ratio``.
     """
 
     cond_max: float = 1e8
     step_tol: float = 1e-12
     max_iter: int = 100
+    rival_rms_ratio: float = 2.0
+    rival_angle: float = 1e-3
 
 
 TOL = FitTolerances()
@@ -406,13 +417,16 @@ def _perp_basis(d, u_prev=None):
 
 
 def _conditioning(J, names):
-    """Condition number of the column-equilibrated J and its weakest combination."""
-    cn = np.linalg.norm(J, axis=0)
+    """Condition number of J (centred, scaled coordinates) and its weakest combination.
+
+    J is evaluated on the centred points scaled to unit RMS distance, so its
+    columns are O(sqrt(m)) for a well-spread data set and a column that is
+    small only through rounding stays small (equilibrating the columns
+    would hide exactly that degeneracy).
+    """
     if not np.all(np.isfinite(J)):
         return np.inf, "non-finite Jacobian"
-    if np.any(cn == 0.0):
-        return np.inf, " + ".join(n for n, c in zip(names, cn) if c == 0.0)
-    _, sv, Vt = np.linalg.svd(J / cn, full_matrices=False)
+    _, sv, Vt = np.linalg.svd(J, full_matrices=False)
     cond = sv[0] / sv[-1] if sv[-1] > 0 else np.inf
     w = Vt[-1]
     idx = np.argsort(-np.abs(w))
@@ -832,7 +846,11 @@ def fit_cylinder(points, *, axis_hint=None, tol: FitTolerances = TOL) -> Cylinde
     FitError
         Wrong shape, non-finite values, coincident or collinear points, all
         points in one section (axis tilt not determined), an arc too short
-        for the radius to be determined, or no convergence.
+        for the radius to be determined, rival cylinders with different axes
+        fitting about equally well (e.g. the MFB hole pattern of Viprey 2016
+        sec. 2.1 with the same four angles on both levels: the 8 points are
+        the corners of a cuboid, which lie exactly on three cylinders) when
+        no ``axis_hint`` is given, or no convergence.
     """
     kind = "cylinder"
     P, c0, s, X = _check_points(points, 3, 5, kind)
@@ -859,7 +877,7 @@ def fit_cylinder(points, *, axis_hint=None, tol: FitTolerances = TOL) -> Cylinde
         p = p - (p @ a) * a  # axis point nearest the centroid (origin)
         return (p, _perp_basis(a, B[0]), R + d[4])
 
-    best, errors = None, []
+    best, errors, rivals = None, [], []
     for a0 in candidates:
         B0 = _perp_basis(a0)
         c2, R0 = _kasa(np.column_stack([X @ B0[0], X @ B0[1]]))
@@ -870,11 +888,21 @@ def fit_cylinder(points, *, axis_hint=None, tol: FitTolerances = TOL) -> Cylinde
             errors.append(str(e))
             continue
         cost = float(r @ r)
+        rivals.append((cost, st, J, it))
         if best is None or cost < best[0]:
             best = (cost, st, J, it)
     if best is None:
         raise FitError(errors[0])
     _, (p, B, R), J, it = best
+    floor = len(X) * 1e-18  # RSS of 1e-9 RMS in scaled units: rounding level
+    for cost, (_, B2, _), _, _ in rivals:
+        if (np.linalg.norm(np.cross(B2[2], B[2])) > tol.rival_angle
+                and cost <= tol.rival_rms_ratio**2 * best[0] + floor):
+            raise FitError(
+                f"cylinder fit: not enough significant data points: the points lie about equally "
+                f"well on cylinders with different axes (rms {np.sqrt(best[0] / len(X)) * s:.3g} m "
+                f"about {np.round(orient(B[2]), 4).tolist()}, {np.sqrt(cost / len(X)) * s:.3g} m "
+                f"about {np.round(orient(B2[2]), 4).tolist()}); pass axis_hint")
     _check_rank(J, CylinderFit.param_names, kind,
                 "the points do not determine the axis and radius (one section, or one side "
                 "of the cylinder only)", tol)

@@ -121,9 +121,11 @@ def _angles(rng, n, arc):
     return th
 
 
-def _scaled(e, rng, residual_rms):
+def _scaled(e, rng, residual_rms, n):
+    """Scale ``e`` so that the RMS orthogonal distance over the n points is drawn
+    from ``residual_rms`` (line and circle in space: 2 components per point)."""
     lo, hi = residual_rms
-    rms = np.sqrt(np.mean(e**2))
+    rms = np.sqrt(np.sum(e**2) / n)
     return e * (rng.uniform(lo, hi) / rms) if rms > 0 else e
 
 
@@ -144,7 +146,8 @@ def make_refset(kind: str, rng: np.random.Generator, *, n: int | None = None,
         Feature position uniform in ``[-offset_max, offset_max]`` per
         coordinate, m.
     residual_rms : (2,) float
-        RMS of the added residuals drawn uniformly in this range, m.
+        RMS of the orthogonal residuals (distances), drawn uniformly in this
+        range, m.
     partial_arc : (2,) float
         Span of partial arcs (circle, cylinder), rad; default 90-120 deg.
     p_partial : float
@@ -172,7 +175,7 @@ def make_refset(kind: str, rng: np.random.Generator, *, n: int | None = None,
         ab = rng.uniform(-size, size, (n, 2)) * [1.0, rng.uniform(0.2, 1.0)]
         Q = off + ab @ B[:2]
         r0, J = _rj_plane(off, B, Q)
-        e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms)
+        e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms, n)
         P = Q + e[:, None] * d
         c = P.mean(axis=0)
         pos = c - ((c - off) @ d) * d  # centroid projected onto the plane
@@ -184,7 +187,7 @@ def make_refset(kind: str, rng: np.random.Generator, *, n: int | None = None,
         t = rng.uniform(-size, size, n)
         Q = off + t[:, None] * d
         _, J = _rj_line(off, B, Q)
-        e = _scaled(null_space_residuals(J, rng.normal(size=2 * n)), rng, residual_rms)
+        e = _scaled(null_space_residuals(J, rng.normal(size=2 * n)), rng, residual_rms, n)
         P = Q + e[:n, None] * B[0] + e[n:, None] * B[1]
         c = P.mean(axis=0)
         pos = off + ((c - off) @ d) * d
@@ -196,7 +199,7 @@ def make_refset(kind: str, rng: np.random.Generator, *, n: int | None = None,
         er = np.column_stack([np.cos(th), np.sin(th)])
         Q = off + R * er
         _, J = _rj_ball(off, R, Q)
-        e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms)
+        e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms, n)
         return RefSet(kind, Q + e[:, None] * er, off, None, R, e, arc)
 
     if kind == "sphere":
@@ -210,7 +213,7 @@ def make_refset(kind: str, rng: np.random.Generator, *, n: int | None = None,
         er = (sp * np.cos(az))[:, None] * B[0] + (sp * np.sin(az))[:, None] * B[1] + cp[:, None] * B[2]
         Q = off + R * er
         _, J = _rj_ball(off, R, Q)
-        e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms)
+        e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms, n)
         return RefSet(kind, Q + e[:, None] * er, off, None, R, e, cap)
 
     d = orient(_direction(rng))
@@ -221,7 +224,7 @@ def make_refset(kind: str, rng: np.random.Generator, *, n: int | None = None,
     if kind == "circle3d":
         Q = off + R * er
         _, J = _rj_circle3(off, B, R, Q)
-        e = _scaled(null_space_residuals(J, rng.normal(size=2 * n)), rng, residual_rms)
+        e = _scaled(null_space_residuals(J, rng.normal(size=2 * n)), rng, residual_rms, n)
         P = Q + e[:n, None] * d + e[n:, None] * er
         return RefSet(kind, P, off, d, R, np.hypot(e[:n], e[n:]), arc)
 
@@ -230,7 +233,7 @@ def make_refset(kind: str, rng: np.random.Generator, *, n: int | None = None,
     t = rng.uniform(-L / 2, L / 2, n)
     Q = off + R * er + t[:, None] * d
     _, J = _rj_cylinder(off, B, R, Q)
-    e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms)
+    e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms, n)
     P = Q + e[:, None] * er
     c = P.mean(axis=0)
     pos = off + ((c - off) @ d) * d
