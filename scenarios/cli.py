@@ -17,6 +17,7 @@ COMMANDS = [
     ("check", "scenarios.cmd_check"),
     ("demo", "scenarios.cmd_demo"),
     ("bench", "scenarios.bench"),
+    ("view", "scenarios.cmd_view"),
 ]
 
 
