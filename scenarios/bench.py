@@ -18,7 +18,9 @@ import time
 from pathlib import Path
 
 #: Benchmark modules, each with ``run() -> dict``.
-BENCHES: list[str] = []
+BENCHES: list[str] = [
+    "scenarios.bench_fit",
+]
 
 
 def register(sub) -> None:
