@@ -474,3 +474,44 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
     finally:
         log.close()
     return CampaignResult(p, plan.n, before, done, torn, statuses)
+
+
+def log_from_plan(plan: ProbeLog, pos_mm, status, t_s, meta: dict | None = None,
+                  source: str = "<memory>") -> ProbeLog:
+    """A full ``probe-log/1`` from a plan and what the machine measured.
+
+    Parameters
+    ----------
+    plan : ProbeLog
+        The plan, one row per touch in probing order.
+    pos_mm : (n, 3) float
+        Reported X, Y, Z of each touch, machine frame, mm (ignored where not ok).
+    status : (n,) str
+        ``ok`` or why the touch is invalid (``no_trigger``, ...).
+    t_s : (n,) float
+        Time of each touch, s since the start; must not go backwards.
+    meta : dict
+        Metadata added to (and overriding) the plan's.
+
+    Raises
+    ------
+    ProbeLogError
+        The result breaks ``probe-log/1`` (e.g. time going backwards).
+    """
+    from core.probelog import make_log
+
+    n = plan.n
+    pos = np.asarray(pos_mm, dtype=float).reshape(n, 3)
+    st = np.array([str(s) for s in status], dtype=object)
+    t = np.asarray(t_s, dtype=float).reshape(n)
+    ok = st == "ok"
+    cols = {c: v.copy() for c, v in plan.columns.items()}
+    for j, c in enumerate(("X_mm", "Y_mm", "Z_mm")):
+        cols[c] = np.where(ok, pos[:, j], np.nan)
+    cols["t_s"] = np.where(ok, t, np.nan)
+    cols["status"] = st
+    m = {k: v for k, v in plan.meta.items() if k != "format"}
+    if "machine" in m:
+        m["plan_machine"] = m.pop("machine")
+    m.update(meta or {})
+    return make_log(cols, m, source=source)

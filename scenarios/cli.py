@@ -18,6 +18,9 @@ COMMANDS = [
     ("demo", "scenarios.cmd_demo"),
     ("bench", "scenarios.bench"),
     ("view", "scenarios.cmd_view"),
+    ("probe", "scenarios.cmd_probe"),
+    ("import", "scenarios.cmd_import"),
+    ("machine", "scenarios.cmd_machine"),
 ]
 
 

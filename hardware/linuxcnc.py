@@ -1,0 +1,174 @@
+"""Offline LinuxCNC: the plan as a part program, and the controller's probe file back.
+
+:func:`part_program` writes a plan as G-code for LinuxCNC: every touch is a
+feed move to the approach start, a ``G38.2`` towards the probing end and a
+retract, between ``(PROBEOPEN file)`` and ``(PROBECLOSE)``, so the
+controller logs each successful probe as one line of its probe file.
+
+LinuxCNC writes the probed point in the coordinate system in effect. The
+program therefore selects a work coordinate system (``G59.3`` by default)
+after setting its offsets to zero (``G10 L2``) and clears ``G92``: the file
+then holds machine coordinates, with the probe's tool length offset applied
+(load the probe and ``G43`` before running, as for any probing job).
+
+:func:`read_probe_file` reads that file: one line per probe of 3 numbers
+(X Y Z, older LinuxCNC) or 9 (X Y Z A B C U V W). :func:`import_probe_file`
+merges it with the plan into a full ``probe-log/1``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from core.exceptions import PlanError, ProbeLogError
+from core.probelog import ProbeLog
+
+from .campaign import ProbeSettings, approach, check_program, log_from_plan, plan_steps
+
+_WCS_P = {"G54": 1, "G55": 2, "G56": 3, "G57": 4, "G58": 5, "G59": 6,
+          "G59.1": 7, "G59.2": 8, "G59.3": 9}
+
+
+def _words(p_mm, rot_deg=None) -> str:
+    w = " ".join(f"{a}{v:.4f}" for a, v in zip("XYZ", p_mm))
+    if rot_deg is not None:
+        w += " " + " ".join(f"{a}{v:.4f}" for a, v in zip("ABC", rot_deg))
+    return w
+
+
+def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "vmt-probe.txt",
+                 wcs: str = "G59.3", require_limits: bool = True) -> str:
+    """The LinuxCNC part program probing ``plan`` (safety-checked like a live campaign).
+
+    Parameters
+    ----------
+    plan : ProbeLog
+        The plan, rows in probing order.
+    settings : ProbeSettings
+        Feeds, clearance, overtravel, safe Z, soft limits (``allow_miss`` is
+        ignored: LinuxCNC logs successful probes only, so every probe is G38.2
+        and a miss stops the program).
+    probe_file : str
+        File named in ``(PROBEOPEN ...)``, as LinuxCNC will resolve it.
+    wcs : str
+        Work coordinate system zeroed and used (``G54`` ... ``G59.3``).
+
+    Raises
+    ------
+    PlanError
+        Limits or feeds violated, unknown ``wcs``, a file name LinuxCNC cannot take.
+    """
+    if wcs not in _WCS_P:
+        raise PlanError(f"wcs {wcs!r}: expected one of {', '.join(_WCS_P)}")
+    if any(c in probe_file for c in "()\n"):
+        raise PlanError(f"probe file {probe_file!r}: parentheses and newlines are not allowed")
+    steps = plan_steps(plan, settings)
+    check_program(steps, settings, require_limits=require_limits)
+    rotary = any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg"))
+    fm, fp = settings.move_feed_mm_min, settings.probe_feed_mm_min
+    zero = "X0 Y0 Z0" + (" A0 B0 C0" if rotary else "")
+    out = ["%",
+           f"(vmt probing program: {plan.n} touches from {Path(plan.source).name})",
+           f"(coordinates: {wcs} zeroed, G92 cleared: the probe file holds machine coordinates)",
+           "(load the probe tool with its length offset, G43, before running)",
+           "G21 G90 G94 G17 G40",
+           f"G10 L2 P{_WCS_P[wcs]} {zero}",
+           wcs,
+           "G92.1",
+           f"(PROBEOPEN {probe_file})"]
+    prev = None
+    for st in steps:
+        rot = st.rot_deg if rotary else None
+        label = f"row {st.row} setup {st.setup} target {st.target}"
+        out.append("(" + label.replace("(", "[").replace(")", "]") + ")")
+        for p in approach(prev, st, settings):
+            out.append(f"G1 {_words(p, rot)} F{fm:.1f}")
+        out.append(f"G38.2 {_words(st.end_mm)} F{fp:.1f}")
+        out.append(f"G1 {_words(st.start_mm)} F{fm:.1f}")
+        prev = st.start_mm
+    if settings.safe_z_mm is not None and prev is not None:
+        out.append(f"G1 {_words([prev[0], prev[1], settings.safe_z_mm])} F{fm:.1f}")
+    out += ["(PROBECLOSE)", "M2", "%"]
+    return "\n".join(out) + "\n"
+
+
+def read_probe_file(path) -> np.ndarray:
+    """Read a LinuxCNC ``PROBEOPEN`` file.
+
+    Returns
+    -------
+    (n, k) float, k = 3 or 9
+        One row per successful probe: X Y Z [A B C U V W] in the file's units.
+
+    Raises
+    ------
+    ProbeLogError
+        Missing or empty file; a line (named by number) that is not 3 or 9
+        numbers, not finite, or of another width than the first line.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ProbeLogError(f"{p}: no such file")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ProbeLogError(f"{p}: not text (byte {e.start})") from None
+    rows, width = [], None
+    for ln, line in enumerate(text.splitlines(), start=1):
+        if not line.strip():
+            continue
+        parts = line.split()
+        try:
+            vals = [float(v) for v in parts]
+        except ValueError:
+            bad = next(v for v in parts if not _isnum(v))
+            raise ProbeLogError(f"{p}: line {ln}: {bad!r} is not a number") from None
+        if len(vals) not in (3, 9):
+            raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers, expected 3 (X Y Z) "
+                                "or 9 (X Y Z A B C U V W)")
+        if width is not None and len(vals) != width:
+            raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers but earlier lines have {width}")
+        if not all(math.isfinite(v) for v in vals):
+            raise ProbeLogError(f"{p}: line {ln}: not finite")
+        width = len(vals)
+        rows.append(vals)
+    if not rows:
+        raise ProbeLogError(f"{p}: empty probe file")
+    return np.array(rows)
+
+
+def _isnum(v: str) -> bool:
+    try:
+        float(v)
+        return True
+    except ValueError:
+        return False
+
+
+def import_probe_file(path, plan: ProbeLog, *, dt_s: float = 1.0, units: str = "mm") -> ProbeLog:
+    """Merge a LinuxCNC probe file with its plan into a full ``probe-log/1``.
+
+    The file holds no clock: ``t_s`` is the touch index (plan order) times
+    ``dt_s``, and metadata ``t_s_source`` says so.
+
+    Raises
+    ------
+    PlanError
+        The file has not one line per plan row.
+    ProbeLogError
+        A bad line of the file (see :func:`read_probe_file`).
+    """
+    data = read_probe_file(path)
+    if data.shape[0] != plan.n:
+        raise PlanError(f"{path}: {data.shape[0]} probe lines but the plan {plan.source} has "
+                        f"{plan.n} rows (LinuxCNC logs successful probes only: a miss stops the program)")
+    if units not in ("mm", "inch"):
+        raise PlanError(f"units {units!r}: expected mm or inch")
+    pos = data[:, :3] * (25.4 if units == "inch" else 1.0)
+    t = np.arange(plan.n) * float(dt_s)
+    meta = {"machine": "linuxcnc", "source": f"vmt import linuxcnc {Path(path).name}",
+            "t_s_source": f"plan order x {dt_s:g} s (the probe file has no clock)"}
+    return log_from_plan(plan, pos, ["ok"] * plan.n, t, meta, source=str(path))

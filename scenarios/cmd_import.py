@@ -1,0 +1,35 @@
+"""``vmt import linuxcnc|grbl FILE --plan PLAN.csv --out LOG.csv``: a controller's log to probe-log/1."""
+
+from __future__ import annotations
+
+
+def register(sub) -> None:
+    p = sub.add_parser("import", help="merge a controller's probe file or transcript with its plan")
+    p.add_argument("kind", choices=("linuxcnc", "grbl"),
+                   help="linuxcnc: a PROBEOPEN file (3 or 9 numbers a line); grbl: a session transcript")
+    p.add_argument("file", help="the probe file or transcript")
+    p.add_argument("--plan", required=True, help="the probe-log/1 plan that was run")
+    p.add_argument("--out", required=True, help="probe-log/1 file to write")
+    p.add_argument("--dt", type=float, default=1.0,
+                   help="seconds between touches when the file has no clock (1)")
+    p.add_argument("--units", choices=("mm", "inch"), default="mm",
+                   help="units of a LinuxCNC probe file (mm)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from core.probelog import read_probe_log, write_probe_log
+
+    plan = read_probe_log(args.plan)
+    if args.kind == "linuxcnc":
+        from hardware.linuxcnc import import_probe_file
+
+        log = import_probe_file(args.file, plan, dt_s=args.dt, units=args.units)
+    else:
+        from hardware.transcript import import_transcript
+
+        log = import_transcript(args.file, plan, dt_s=args.dt)
+    write_probe_log(args.out, log)
+    ok = int(log.ok.sum())
+    print(f"{args.out}: {log.n} touches ({ok} ok) from {args.kind} {args.file}")
+    return 0

@@ -1,0 +1,118 @@
+"""``vmt probe``: run a probing plan on a machine, append-only and resumable.
+
+    vmt probe --machine grbl://HOST:PORT|serial:///dev/ttyX|virtual: --plan PLAN.csv
+              --out LOG.csv --limits X0:300,Y0:200,Z-100:0 [--dry-run] [--resume]
+
+Before any motion the program is checked against the soft limits and the
+maximum feed; ``--dry-run`` only prints it. Every touch is on disk (fsync)
+before the next move; after a lost connection, an alarm or a killed
+process, the same command with ``--resume`` continues where the log stops.
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def add_settings_args(p, *, live: bool = True) -> None:
+    """The probing settings shared by ``vmt probe`` and ``vmt machine program``."""
+    p.add_argument("--plan", required=True, help="probe-log/1 plan (measured columns empty)")
+    p.add_argument("--limits", help="soft limits, machine frame, mm: X-10:300,Y0:200,Z-100:0 "
+                   "(required before any motion)")
+    p.add_argument("--feed", type=float, default=100.0, help="probing feed, mm/min (100)")
+    p.add_argument("--move-feed", type=float, default=1000.0, help="positioning feed, mm/min (1000)")
+    p.add_argument("--max-feed", type=float, default=2000.0, help="no feed above this, mm/min (2000)")
+    p.add_argument("--clearance", type=float, default=2.0, help="approach start before contact, mm (2)")
+    p.add_argument("--overtravel", type=float, default=2.0, help="probing end beyond contact, mm (2)")
+    p.add_argument("--safe-z", type=float, help="travel between touches at this machine Z, mm")
+    if live:
+        p.add_argument("--allow-miss", action="store_true",
+                       help="probe with G38.3: a miss is logged no_trigger and the campaign goes on")
+
+
+def settings_from_args(args):
+    from hardware.campaign import ProbeSettings, parse_limits
+
+    return ProbeSettings(
+        probe_feed_mm_min=args.feed, move_feed_mm_min=args.move_feed,
+        max_feed_mm_min=args.max_feed, clearance_mm=args.clearance,
+        overtravel_mm=args.overtravel, safe_z_mm=args.safe_z,
+        allow_miss=bool(getattr(args, "allow_miss", False)),
+        limits_mm=parse_limits(args.limits) if args.limits else None)
+
+
+def register(sub) -> None:
+    p = sub.add_parser("probe", help="run a probing plan on a machine (GRBL live or virtual)")
+    p.add_argument("--machine", required=True,
+                   help="grbl://HOST:PORT, serial:///dev/ttyX[?baud=115200] or virtual: (built-in scene)")
+    p.add_argument("--out", required=True, help="campaign log (probe-log/1), append-only")
+    add_settings_args(p)
+    p.add_argument("--dry-run", action="store_true", help="print the program, move nothing")
+    p.add_argument("--resume", action="store_true", help="continue the log --out where it stops")
+    p.add_argument("--unlock", action="store_true", help="send $X if the controller is in alarm")
+    p.add_argument("--home", action="store_true", help="send $H (home) before probing")
+    p.add_argument("--rotary", action="store_true", help="send A, B, C words (plan's *_deg columns)")
+    p.add_argument("--timeout", type=float, default=60.0, help="longest wait for one answer, s (60)")
+    p.add_argument("--transcript", help="append the raw controller exchange to this file")
+    p.set_defaults(func=run)
+
+
+def _warn(msg: str) -> None:
+    print(f"vmt probe: warning: {msg}", file=sys.stderr, flush=True)
+
+
+def open_backend(url: str, args, transcript=None):
+    """A backend for ``--machine``."""
+    from core.exceptions import HardwareError
+
+    if url.startswith(("grbl://", "tcp://", "serial://")):
+        from hardware.grbl import connect
+
+        return connect(url, timeout_s=args.timeout, on_event=_warn, transcript=transcript,
+                       rotary=args.rotary)
+    if url in ("virtual:", "virtual://", "virtual://builtin"):
+        from hardware.backend import VirtualBackend
+        from scenarios.cmd_machine import builtin_machine
+
+        return VirtualBackend(builtin_machine(), name="virtual:builtin")
+    raise HardwareError(f"--machine {url!r}: expected grbl://HOST:PORT, serial:///dev/ttyX or virtual:")
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from core.probelog import read_probe_log
+    from hardware.campaign import check_program, plan_steps, program_lines, run_campaign
+
+    plan = read_probe_log(args.plan)
+    settings = settings_from_args(args)
+    steps = plan_steps(plan, settings)
+    if args.dry_run:
+        check_program(steps, settings, require_limits=False)
+        if settings.limits_mm is None:
+            _warn("no --limits: a live run will refuse to start")
+        for line in program_lines(steps, settings, rotary=args.rotary):
+            print(line)
+        return 0
+    check_program(steps, settings)          # before connecting, before any motion
+    if Path(args.out).exists() and not args.resume:
+        from core.exceptions import PlanError
+
+        raise PlanError(f"{args.out}: exists; use --resume to continue it, or choose another --out")
+    tr = open(args.transcript, "a", encoding="utf-8") if args.transcript else None
+    try:
+        backend = open_backend(args.machine, args, transcript=tr)
+        try:
+            res = run_campaign(backend, plan, args.out, settings, resume=args.resume,
+                               unlock=args.unlock, home=args.home, plan_path=args.plan)
+        finally:
+            backend.close()
+    finally:
+        if tr is not None:
+            tr.close()
+    new = res.rows_done - res.rows_before
+    extra = f", cut a torn last line ({res.torn_bytes} bytes)" if res.torn_bytes else ""
+    st = ", ".join(f"{k}: {v}" for k, v in sorted(res.statuses.items())) or "none"
+    print(f"{args.out}: {res.rows_done} of {res.rows_total} touches "
+          f"({new} new, {res.rows_before} before{extra}; {st})")
+    return 0
