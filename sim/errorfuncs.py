@@ -1,0 +1,305 @@
+"""Truth error functions injected into the virtual machine.
+
+Each is a small frozen dataclass, vectorised::
+
+    f(pos, t_s=None, direction=None) -> (n,) float
+
+``pos`` is the axis reading (m for a linear axis, rad for a rotary axis),
+``t_s`` seconds since the campaign start (None: 0), ``direction`` the sign
+of the axis velocity at that moment (-1, 0, +1; None: 0). The value is in
+m for a translational error, rad for an angular one (``core.iso``).
+``f.derivative(pos, t_s, direction)`` is d f / d pos (direction held).
+
+Kinds: :class:`Zero`, :class:`Constant`, :class:`Polynomial`,
+:class:`SplineTable`, :class:`Periodic`, :class:`Drift`, :class:`Reversal`,
+:class:`Sum` (also ``f + g``). Bad parameters raise ``ConfigError``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from core.exceptions import ConfigError
+
+
+def _finite(name: str, v) -> float:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a number, got {v!r}") from None
+    if not math.isfinite(x):
+        raise ConfigError(f"{name} must be finite, got {v!r}")
+    return x
+
+
+def _tuple(name: str, vs) -> tuple[float, ...]:
+    try:
+        seq = tuple(vs)
+    except TypeError:
+        raise ConfigError(f"{name} must be a sequence of numbers, got {vs!r}") from None
+    return tuple(_finite(f"{name}[{i}]", v) for i, v in enumerate(seq))
+
+
+class ErrorFunction:
+    """Base of the truth error functions (see module docstring)."""
+
+    def __call__(self, pos, t_s=None, direction=None) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    def derivative(self, pos, t_s=None, direction=None) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    @property
+    def static(self) -> bool:
+        """True when the value depends on the position only."""
+        return True
+
+    def __add__(self, other: "ErrorFunction") -> "Sum":
+        if not isinstance(other, ErrorFunction):
+            return NotImplemented
+        return Sum((self, other))
+
+
+@dataclass(frozen=True)
+class Zero(ErrorFunction):
+    """No error."""
+
+    def __call__(self, pos, t_s=None, direction=None):
+        return np.zeros(np.atleast_1d(np.asarray(pos, float)).shape)
+
+    derivative = __call__
+
+
+@dataclass(frozen=True)
+class Constant(ErrorFunction):
+    """A constant value (m or rad); the only kind allowed for location errors."""
+
+    value: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "value", _finite("Constant.value", self.value))
+
+    def __call__(self, pos, t_s=None, direction=None):
+        return np.full(np.atleast_1d(np.asarray(pos, float)).shape, self.value)
+
+    def derivative(self, pos, t_s=None, direction=None):
+        return np.zeros(np.atleast_1d(np.asarray(pos, float)).shape)
+
+
+@dataclass(frozen=True)
+class Polynomial(ErrorFunction):
+    """``sum_i coeffs[i] * pos**i`` (ascending powers; SI units per power)."""
+
+    coeffs: tuple[float, ...]
+
+    def __post_init__(self):
+        c = _tuple("Polynomial.coeffs", self.coeffs)
+        if not c:
+            raise ConfigError("Polynomial.coeffs must have at least one coefficient")
+        object.__setattr__(self, "coeffs", c)
+
+    def __call__(self, pos, t_s=None, direction=None):
+        return np.polynomial.polynomial.polyval(np.atleast_1d(np.asarray(pos, float)), self.coeffs)
+
+    def derivative(self, pos, t_s=None, direction=None):
+        d = np.polynomial.polynomial.polyder(self.coeffs) if len(self.coeffs) > 1 else [0.0]
+        return np.polynomial.polynomial.polyval(np.atleast_1d(np.asarray(pos, float)), d)
+
+
+@dataclass(frozen=True)
+class SplineTable(ErrorFunction):
+    """Cubic C2 spline through a table (``pos`` strictly increasing).
+
+    Not-a-knot end conditions (natural for 3 points or fewer); outside the
+    table the end tangent lines continue (C1), never a runaway cubic.
+    """
+
+    pos: tuple[float, ...]
+    values: tuple[float, ...]
+    _spline: object = field(init=False, repr=False, compare=False, default=None)
+
+    def __post_init__(self):
+        from scipy.interpolate import CubicSpline
+
+        x = _tuple("SplineTable.pos", self.pos)
+        y = _tuple("SplineTable.values", self.values)
+        if len(x) < 2:
+            raise ConfigError(f"SplineTable needs at least 2 points, got {len(x)}")
+        if len(x) != len(y):
+            raise ConfigError(f"SplineTable.pos has {len(x)} points but values has {len(y)}")
+        if np.any(np.diff(x) <= 0):
+            raise ConfigError("SplineTable.pos must be strictly increasing")
+        object.__setattr__(self, "pos", x)
+        object.__setattr__(self, "values", y)
+        bc = "not-a-knot" if len(x) > 3 else "natural"
+        object.__setattr__(self, "_spline", CubicSpline(np.array(x), np.array(y), bc_type=bc))
+
+    def __call__(self, pos, t_s=None, direction=None):
+        p = np.atleast_1d(np.asarray(pos, float))
+        x0, x1 = self.pos[0], self.pos[-1]
+        s = self._spline
+        out = s(np.clip(p, x0, x1))
+        lo, hi = p < x0, p > x1
+        out = np.where(lo, s(x0) + s(x0, 1) * (p - x0), out)
+        return np.where(hi, s(x1) + s(x1, 1) * (p - x1), out)
+
+    def derivative(self, pos, t_s=None, direction=None):
+        p = np.atleast_1d(np.asarray(pos, float))
+        return self._spline(np.clip(p, self.pos[0], self.pos[-1]), 1)
+
+
+@dataclass(frozen=True)
+class Periodic(ErrorFunction):
+    """``amplitude * sin(2 pi pos / period + phase)``: e.g. screw pitch error.
+
+    amplitude in m or rad, period in m or rad (> 0), phase in rad.
+    """
+
+    amplitude: float
+    period: float
+    phase: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "amplitude", _finite("Periodic.amplitude", self.amplitude))
+        object.__setattr__(self, "period", _finite("Periodic.period", self.period))
+        object.__setattr__(self, "phase", _finite("Periodic.phase", self.phase))
+        if self.period <= 0:
+            raise ConfigError(f"Periodic.period must be > 0, got {self.period}")
+
+    def __call__(self, pos, t_s=None, direction=None):
+        p = np.atleast_1d(np.asarray(pos, float))
+        return self.amplitude * np.sin(2 * np.pi * p / self.period + self.phase)
+
+    def derivative(self, pos, t_s=None, direction=None):
+        p = np.atleast_1d(np.asarray(pos, float))
+        k = 2 * np.pi / self.period
+        return self.amplitude * k * np.cos(k * p + self.phase)
+
+
+@dataclass(frozen=True)
+class Drift(ErrorFunction):
+    """Offset and scale change growing with time (thermal drift).
+
+    ``value = (offset_rate + scale_rate * pos) * h(t)
+    + (offset_per_K + scale_per_K * pos) * dT(t)``
+
+    with ``h(t) = t`` or, given ``tau_s``, ``tau (1 - exp(-t / tau))``
+    (first-order approach to a steady state), and ``dT(t)`` the temperature
+    history ``temperature_K`` at ``temperature_t_s`` (linear interpolation,
+    held at the ends) minus its first value.
+
+    Attributes
+    ----------
+    offset_rate : float  (m/s or rad/s)
+    scale_rate : float   (1/s)
+    tau_s : float or None
+    offset_per_K : float (m/K or rad/K)
+    scale_per_K : float  (1/K; e.g. 11.5e-6 for a steel scale)
+    temperature_t_s, temperature_K : tuples of float
+    """
+
+    offset_rate: float = 0.0
+    scale_rate: float = 0.0
+    tau_s: float | None = None
+    offset_per_K: float = 0.0
+    scale_per_K: float = 0.0
+    temperature_t_s: tuple[float, ...] = ()
+    temperature_K: tuple[float, ...] = ()
+
+    def __post_init__(self):
+        for k in ("offset_rate", "scale_rate", "offset_per_K", "scale_per_K"):
+            object.__setattr__(self, k, _finite(f"Drift.{k}", getattr(self, k)))
+        if self.tau_s is not None:
+            tau = _finite("Drift.tau_s", self.tau_s)
+            if tau <= 0:
+                raise ConfigError(f"Drift.tau_s must be > 0, got {tau}")
+            object.__setattr__(self, "tau_s", tau)
+        ts = _tuple("Drift.temperature_t_s", self.temperature_t_s)
+        Ks = _tuple("Drift.temperature_K", self.temperature_K)
+        if len(ts) != len(Ks):
+            raise ConfigError(f"Drift.temperature_t_s has {len(ts)} samples but temperature_K has {len(Ks)}")
+        if len(ts) and np.any(np.diff(ts) <= 0):
+            raise ConfigError("Drift.temperature_t_s must be strictly increasing")
+        if (self.offset_per_K or self.scale_per_K) and not ts:
+            raise ConfigError("Drift.offset_per_K/scale_per_K need a temperature history")
+        object.__setattr__(self, "temperature_t_s", ts)
+        object.__setattr__(self, "temperature_K", Ks)
+
+    @property
+    def static(self) -> bool:
+        return False
+
+    def _time(self, p, t_s):
+        t = np.zeros(p.shape) if t_s is None else np.broadcast_to(np.asarray(t_s, float), p.shape)
+        h = t if self.tau_s is None else self.tau_s * -np.expm1(-t / self.tau_s)
+        if self.temperature_t_s:
+            dT = np.interp(t, self.temperature_t_s, self.temperature_K) - self.temperature_K[0]
+        else:
+            dT = np.zeros(p.shape)
+        return h, dT
+
+    def __call__(self, pos, t_s=None, direction=None):
+        p = np.atleast_1d(np.asarray(pos, float))
+        h, dT = self._time(p, t_s)
+        return (self.offset_rate + self.scale_rate * p) * h + (self.offset_per_K + self.scale_per_K * p) * dT
+
+    def derivative(self, pos, t_s=None, direction=None):
+        p = np.atleast_1d(np.asarray(pos, float))
+        h, dT = self._time(p, t_s)
+        return self.scale_rate * h + self.scale_per_K * dT
+
+
+@dataclass(frozen=True)
+class Reversal(ErrorFunction):
+    """Direction-dependent error (backlash): ``+lost_motion/2`` moving in +,
+    ``-lost_motion/2`` moving in -, 0 when ``direction`` is 0 or None."""
+
+    lost_motion: float
+
+    def __post_init__(self):
+        v = _finite("Reversal.lost_motion", self.lost_motion)
+        if v < 0:
+            raise ConfigError(f"Reversal.lost_motion must be >= 0, got {v}")
+        object.__setattr__(self, "lost_motion", v)
+
+    @property
+    def static(self) -> bool:
+        return False
+
+    def __call__(self, pos, t_s=None, direction=None):
+        p = np.atleast_1d(np.asarray(pos, float))
+        if direction is None:
+            return np.zeros(p.shape)
+        return 0.5 * self.lost_motion * np.sign(np.broadcast_to(np.asarray(direction, float), p.shape))
+
+    def derivative(self, pos, t_s=None, direction=None):
+        return np.zeros(np.atleast_1d(np.asarray(pos, float)).shape)
+
+
+@dataclass(frozen=True)
+class Sum(ErrorFunction):
+    """Sum of error functions."""
+
+    terms: tuple[ErrorFunction, ...]
+
+    def __post_init__(self):
+        terms = tuple(self.terms) if isinstance(self.terms, (list, tuple)) else None
+        if not terms:
+            raise ConfigError("Sum.terms must be a non-empty sequence of error functions")
+        for i, t in enumerate(terms):
+            if not isinstance(t, ErrorFunction):
+                raise ConfigError(f"Sum.terms[{i}] is {type(t).__name__}, not an error function")
+        object.__setattr__(self, "terms", terms)
+
+    @property
+    def static(self) -> bool:
+        return all(t.static for t in self.terms)
+
+    def __call__(self, pos, t_s=None, direction=None):
+        return sum(t(pos, t_s, direction) for t in self.terms)
+
+    def derivative(self, pos, t_s=None, direction=None):
+        return sum(t.derivative(pos, t_s, direction) for t in self.terms)

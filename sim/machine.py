@@ -1,0 +1,426 @@
+"""The virtual machine: an exact Pinocchio chain with injected ISO 230 errors.
+
+Example (the default 5-axis machine, one squareness error)::
+
+    >>> import numpy as np
+    >>> from sim.machines import MACHINES
+    >>> from sim.errorfuncs import Constant
+    >>> from sim.machine import Machine
+    >>> m = Machine(MACHINES["nmv3000"](errors={"EC0Y": Constant(-43.4e-6)}))
+    >>> lin = np.array([[0.0, 0.0, 0.0], [0.0, 0.1, 0.0], [0.1, 0.1, -0.05]])  # m
+    >>> rot = np.zeros((3, len(m.rotary_axes)))                                # A, C in rad
+    >>> dev_um = (m.tip_W(lin, rot) - m.tip_W_nominal(lin, rot)) * 1e6
+    >>> print(np.round(dev_um, 2))  # -y * EC0Y in X (self-calibration eq. 4)
+    [[ 0.    0.    0.  ]
+     [ 4.34  0.    0.  ]
+     [ 4.34  0.    0.  ]]
+
+The chain (definition shared with ``core.kinematics``, whose module
+docstring states it in full): every axis is a nominal Pinocchio joint
+(prismatic / revolute) followed, or for a rotary axis preceded, by a free-
+flyer joint whose configuration is the axis's error motion
+``[exp(skew(EA, EB, EC)) | (EX, EY, EZ)]`` at that pose; location errors
+are fixed joint placements. The actual pose is therefore the exact product
+of nominal motions and error transforms, not a first-order formula. Two
+branches leave the universe (the bed, frame R): the workpiece branch ends
+at frame W, the tool branch at the stylus-tip frame P. Errors on the
+workpiece branch move the part, errors on the tool branch move the probe.
+
+Conventions: axis readings ``lin_m`` are the stylus-tip centre as the
+machine believes it, in R (the controller adds the probe offsets J, so axis
+position ``q = reading + J``); a table-moving linear axis moves the table
+by ``-q``. Rotary axes on the workpiece branch turn W by ``-theta``:
+``p_R = T_R_W(rot) p_W`` with ``R(-C)`` about the C line (self-calibration
+paper eq. 1), likewise A. Error functions are evaluated at the axis
+readings (the probe-log positions). Units: SI.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from core import iso
+from core.chain import Chain, parse_chain
+from core.exceptions import ConfigError
+from sim.errorfuncs import Constant, ErrorFunction, Zero
+
+_E = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
+
+
+@dataclass(frozen=True)
+class MachineConfig:
+    """A virtual machine: structure, nominal geometry and truth errors.
+
+    Attributes
+    ----------
+    name : str
+    chain : str
+        ISO 10791 chain, e.g. ``"V[w-C-A-b-Y-X-Z-(C)-t]"`` (``core.chain``).
+    strokes : mapping axis -> (min, max)
+        Travel of every axis of the chain, in readings: m (linear), rad
+        (rotary).
+    rotary_points_R_m : mapping axis -> (3,) float
+        A point on each rotary axis's nominal line, in R with all axes at
+        zero, m (the C entry is the rotary table centre). Default origin.
+    J_m : (3,) float
+        Probe offsets (J_X, J_Y, J_Z) of MFB eq. 8, m: spindle gauge point
+        minus stylus-tip centre (J_Z is the tip's depth below the spindle
+        gauge line). The Z ram's angular errors pivot about the gauge point.
+    errors : mapping ISO symbol -> ErrorFunction
+        Motion errors of every axis (``EXX`` ... ``ECZ``, ISO 230-7 ``EXC``
+        ... ``ECC``) and location errors as ``Constant``: ``EC0Y``, ``EB0Z``,
+        ``EA0Z``, and per rotary axis ``EX0C``, ``EY0C``, ``EA0C``, ``EB0C``
+        (``EY0A``, ``EZ0A``, ``EB0A``, ``EC0A`` for A). Absent: zero.
+    """
+
+    name: str
+    chain: str
+    strokes: Mapping[str, tuple[float, float]]
+    rotary_points_R_m: Mapping[str, tuple[float, float, float]] = field(default_factory=dict)
+    J_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    errors: Mapping[str, ErrorFunction] = field(default_factory=dict)
+
+    def __post_init__(self):
+        ch = parse_chain(self.chain)
+        missing = [a for a in iso.LINEAR_AXES if a not in ch.axes]
+        if missing:
+            raise ConfigError(f"machine {self.name!r}: chain {self.chain!r} lacks linear axis {missing[0]}")
+        strokes = {}
+        for a in ch.axes:
+            if a not in self.strokes:
+                raise ConfigError(f"machine {self.name!r}: no stroke for axis {a}")
+            lo, hi = (float(v) for v in self.strokes[a])
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+                raise ConfigError(f"machine {self.name!r}: stroke of {a} must be finite min < max, got {self.strokes[a]!r}")
+            strokes[a] = (lo, hi)
+        for a in self.strokes:
+            if a not in ch.axes:
+                raise ConfigError(f"machine {self.name!r}: stroke given for axis {a!r} not in the chain")
+        pts = {}
+        for a in ch.rotary_axes:
+            p = tuple(float(v) for v in self.rotary_points_R_m.get(a, (0.0, 0.0, 0.0)))
+            if len(p) != 3 or not np.all(np.isfinite(p)):
+                raise ConfigError(f"machine {self.name!r}: rotary_points_R_m[{a}] must be 3 finite values")
+            pts[a] = p
+        for a in self.rotary_points_R_m:
+            if a not in ch.rotary_axes:
+                raise ConfigError(f"machine {self.name!r}: rotary point given for {a!r}, not a rotary axis of the chain")
+        J = tuple(float(v) for v in self.J_m)
+        if len(J) != 3 or not np.all(np.isfinite(J)):
+            raise ConfigError(f"machine {self.name!r}: J_m must be 3 finite values, got {self.J_m!r}")
+        errs = {}
+        for k, f in dict(self.errors).items():
+            s = iso.symbol(k)
+            if s.axis not in ch.axes:
+                raise ConfigError(f"machine {self.name!r}: error {s.name} belongs to axis {s.axis}, not in {self.chain}")
+            if s.location and s.axis in iso.LINEAR_AXES and s.name not in iso.SQUARENESS:
+                raise ConfigError(f"machine {self.name!r}: {s.name} is zero by the ISO 230-1 convention (X primary, Y secondary)")
+            if not isinstance(f, ErrorFunction):
+                raise ConfigError(f"machine {self.name!r}: error {s.name} is a {type(f).__name__}, not an ErrorFunction")
+            if s.location and not isinstance(f, (Constant, Zero)):
+                raise ConfigError(f"machine {self.name!r}: location error {s.name} must be Constant")
+            if s.name in errs:
+                raise ConfigError(f"machine {self.name!r}: error {s.name} given twice")
+            errs[s.name] = f
+        object.__setattr__(self, "strokes", types.MappingProxyType(strokes))
+        object.__setattr__(self, "rotary_points_R_m", types.MappingProxyType(pts))
+        object.__setattr__(self, "J_m", J)
+        object.__setattr__(self, "errors", types.MappingProxyType(errs))
+
+    @property
+    def parsed_chain(self) -> Chain:
+        return parse_chain(self.chain)
+
+
+def _exp3(w: np.ndarray) -> np.ndarray:
+    """Rotation matrix of one rotation vector (3,)."""
+    import pinocchio as pin
+
+    return pin.exp3(np.asarray(w, float))
+
+
+def _quat_xyzw(w: np.ndarray) -> np.ndarray:
+    """Unit quaternions (x, y, z, w) of rotation vectors (n, 3), vectorised."""
+    th = np.linalg.norm(w, axis=1)
+    small = th < 1e-6
+    half = np.where(small, 0.5 - th**2 / 48.0, np.sin(0.5 * th) / np.where(small, 1.0, th))
+    return np.concatenate([w * half[:, None], np.cos(0.5 * th)[:, None]], axis=1)
+
+
+class Machine:
+    """The exact virtual machine built from a :class:`MachineConfig`.
+
+    Attributes
+    ----------
+    config : MachineConfig
+    chain : core.chain.Chain
+    linear_axes : ("X", "Y", "Z")
+    rotary_axes : tuple of str, A B C order (``()`` for a 3-axis machine)
+    """
+
+    def __init__(self, config: MachineConfig):
+        self.config = config
+        self.chain = config.parsed_chain
+        self._motion = {a: tuple(s.name for s in iso.symbols_of_axis(a, location=False)) for a in self.chain.axes}
+        self._model, self._layout, self._fW, self._fP = self._build(with_errors=True)
+        self._data = self._model.createData()
+        self._nmodel, self._nlayout, self._nfW, self._nfP = self._build(with_errors=False)
+        self._ndata = self._nmodel.createData()
+
+    # ------------------------------------------------------------------ API
+    @property
+    def linear_axes(self) -> tuple[str, ...]:
+        return iso.LINEAR_AXES
+
+    @property
+    def rotary_axes(self) -> tuple[str, ...]:
+        return self.chain.rotary_axes
+
+    def with_errors(self, errors: Mapping[str, ErrorFunction]) -> "Machine":
+        """A new machine, same geometry, these truth errors."""
+        return Machine(dataclasses.replace(self.config, errors=dict(errors)))
+
+    def error_values(self, lin_m, rot_rad=None, t_s=None, direction=None) -> dict[str, np.ndarray]:
+        """Every configured error evaluated at the poses: symbol -> (n,) m or rad.
+
+        Motion errors of a linear axis are evaluated at its reading and
+        ``direction[:, i]``; those of a rotary axis at its angle (direction 0).
+        """
+        lin, rot, n = self._inputs(lin_m, rot_rad)
+        t, d = self._td(t_s, direction, n)
+        out = {}
+        for name, f in self.config.errors.items():
+            s = iso.symbol(name)
+            if s.location:
+                out[name] = np.broadcast_to(f(np.zeros(1))[0], (n,)).copy()
+            elif s.axis in iso.LINEAR_AXES:
+                i = iso.LINEAR_AXES.index(s.axis)
+                out[name] = np.asarray(f(lin[:, i], t, d[:, i]), float).reshape(n)
+            else:
+                i = self.rotary_axes.index(s.axis)
+                out[name] = np.asarray(f(rot[:, i], t, None), float).reshape(n)
+        return out
+
+    def tip_W(self, lin_m, rot_rad=None, t_s=None, direction=None) -> np.ndarray:
+        """ACTUAL stylus-tip centre in the workpiece frame W, (n, 3) m.
+
+        Parameters
+        ----------
+        lin_m : (n, 3) float
+            Axis readings X, Y, Z, m (tip centre as the machine believes it, R).
+        rot_rad : (n, len(rotary_axes)) float, optional
+            Rotary positions, rad (default 0).
+        t_s : (n,) float or float, optional
+            Seconds since campaign start (time-dependent errors).
+        direction : (n, 3) float, optional
+            Signs (-1, 0, +1) of the X, Y, Z velocities (reversal errors).
+        """
+        return self._poses(lin_m, rot_rad, t_s, direction, want="tip")[1]
+
+    def T_R_W(self, lin_m, rot_rad=None, t_s=None, direction=None) -> np.ndarray:
+        """ACTUAL pose of W in R, (n, 4, 4)."""
+        oMW, _ = self._poses(lin_m, rot_rad, t_s, direction, want="W")
+        return oMW
+
+    def T_R_P(self, lin_m, rot_rad=None, t_s=None, direction=None) -> np.ndarray:
+        """ACTUAL pose of the stylus-tip frame P in R, (n, 4, 4)."""
+        _, oMP = self._poses(lin_m, rot_rad, t_s, direction, want="P")
+        return oMP
+
+    def T_R_W_nominal(self, rot_rad=None, lin_m=None) -> np.ndarray:
+        """Nominal pose of W in R, (n, 4, 4) (table-side linear axes at ``lin_m``,
+        default zero readings, i.e. positions q = J)."""
+        nr = len(self.rotary_axes)
+        if lin_m is not None:
+            n = len(np.atleast_2d(lin_m))
+        elif rot_rad is not None and nr:
+            n = np.asarray(rot_rad, float).reshape(-1, nr).shape[0]
+        else:
+            n = np.shape(rot_rad)[0] if rot_rad is not None and np.ndim(rot_rad) == 2 else 1
+        lin = np.zeros((n, 3)) if lin_m is None else lin_m
+        lin, rot, n = self._inputs(lin, rot_rad)
+        return self._nominal_product("workpiece", lin, rot, n)
+
+    def tip_W_nominal(self, lin_m, rot_rad=None) -> np.ndarray:
+        """Nominal stylus-tip centre in W, (n, 3) m (equals lin_m at rotary zero)."""
+        lin, rot, n = self._inputs(lin_m, rot_rad)
+        TW = self._nominal_product("workpiece", lin, rot, n)
+        TP = self._nominal_product("tool", lin, rot, n)
+        p = TP[:, :3, 3] - np.asarray(self.config.J_m) @ TP[:, :3, :3].transpose(0, 2, 1)
+        return np.einsum("nji,nj->ni", TW[:, :3, :3], p - TW[:, :3, 3])
+
+    def geometry(self):
+        """The nominal geometry as ``core.kinematics.ChainGeometry`` (for core)."""
+        from core.kinematics import ChainGeometry
+
+        return ChainGeometry.of(self.chain, self.config.J_m, self.config.rotary_points_R_m)
+
+    # ------------------------------------------------------------------ internals
+    def _inputs(self, lin_m, rot_rad):
+        lin = np.atleast_2d(np.asarray(lin_m, float))
+        if lin.ndim != 2 or lin.shape[1] != 3:
+            raise ConfigError(f"lin_m must be (n, 3), got shape {np.shape(lin_m)}")
+        n = lin.shape[0]
+        nr = len(self.rotary_axes)
+        if rot_rad is None or nr == 0:
+            if rot_rad is not None and np.size(rot_rad) != 0:
+                raise ConfigError(f"rot_rad given but machine {self.config.name!r} has no rotary axis")
+            return lin, np.zeros((n, nr)), n
+        rot = np.asarray(rot_rad, float)
+        rot = rot.reshape(n, nr) if rot.size == n * nr else rot
+        if rot.shape != (n, nr):
+            raise ConfigError(f"rot_rad must be (n, {nr}) for axes {self.rotary_axes}, got {np.shape(rot_rad)}")
+        return lin, rot, n
+
+    @staticmethod
+    def _td(t_s, direction, n):
+        t = None if t_s is None else np.broadcast_to(np.asarray(t_s, float), (n,))
+        if direction is None:
+            d = np.zeros((n, 3))
+        else:
+            d = np.asarray(direction, float)
+            if d.shape not in ((n, 3), (3,)):
+                raise ConfigError(f"direction must be (n, 3) signs, got shape {d.shape}")
+            d = np.sign(np.broadcast_to(d, (n, 3)))
+        return t, d
+
+    def _axes(self, side):
+        return self.chain.tool_axes if side == "tool" else self.chain.workpiece_from_bed
+
+    def _loc(self, name):
+        f = self.config.errors.get(name)
+        return 0.0 if f is None else float(f(np.zeros(1))[0])
+
+    def _build(self, with_errors: bool):
+        import pinocchio as pin
+
+        model = pin.Model()
+        layout = []  # (kind, axis, idx_q, sign): kind 'lin' | 'rot' | 'err'
+        J = np.asarray(self.config.J_m)
+        frames = {}
+        for side in ("workpiece", "tool"):
+            s = 1.0 if side == "tool" else -1.0
+            parent = 0
+            pending = pin.SE3.Identity()
+            cum = np.zeros(3)
+            for a in self._axes(side):
+                e = np.zeros(3)
+                e[_E[a]] = 1.0
+                w_loc = np.zeros(3)
+                d_loc = np.zeros(3)
+                if with_errors:
+                    for sy in iso.symbols_of_axis(a, location=True):
+                        if a in iso.LINEAR_AXES and sy.name not in iso.SQUARENESS:
+                            continue
+                        (w_loc if sy.angular else d_loc)[_E[sy.direction]] += self._loc(sy.name)
+                if a in iso.LINEAR_AXES:
+                    rel = w_loc - (cum - e * (e @ cum))  # undo the carrier's tilt across the axis
+                    cum = cum + rel
+                    place = pending * pin.SE3(_exp3(rel), np.zeros(3))
+                    jm = (pin.JointModelPX, pin.JointModelPY, pin.JointModelPZ)[_E[a]]()
+                    parent = model.addJoint(parent, jm, place, f"{a}")
+                    layout.append(("lin", a, model.joints[parent].idx_q, s))
+                    pending = pin.SE3.Identity()
+                    if with_errors:
+                        parent = model.addJoint(parent, pin.JointModelFreeFlyer(), pin.SE3.Identity(), f"E_{a}")
+                        layout.append(("err", a, model.joints[parent].idx_q, s))
+                else:
+                    c = np.asarray(self.config.rotary_points_R_m[a], float)
+                    rel = w_loc
+                    cum = cum + rel
+                    place = pending * pin.SE3(_exp3(rel), c + d_loc)
+                    if with_errors:
+                        parent = model.addJoint(parent, pin.JointModelFreeFlyer(), place, f"E_{a}")
+                        layout.append(("err", a, model.joints[parent].idx_q, s))
+                        place = pin.SE3.Identity()
+                    jm = (pin.JointModelRX, pin.JointModelRY, pin.JointModelRZ)[_E[a]]()
+                    parent = model.addJoint(parent, jm, place, f"{a}")
+                    layout.append(("rot", a, model.joints[parent].idx_q, s))
+                    pending = pin.SE3(np.eye(3), -c)
+            if side == "workpiece":
+                frames["W"] = model.addFrame(pin.Frame("W", parent, 0, pending, pin.FrameType.OP_FRAME))
+            else:
+                tip = pending * pin.SE3(np.eye(3), -J)
+                frames["P"] = model.addFrame(pin.Frame("P", parent, 0, tip, pin.FrameType.OP_FRAME))
+        return model, tuple(layout), frames["W"], frames["P"]
+
+    def _configurations(self, model, layout, lin, rot, vals, n):
+        import pinocchio as pin
+
+        Q = np.tile(pin.neutral(model), (n, 1))
+        J = self.config.J_m
+        for kind, a, iq, s in layout:
+            if kind == "lin":
+                Q[:, iq] = s * (lin[:, iso.LINEAR_AXES.index(a)] + J[_E[a]])
+            elif kind == "rot":
+                Q[:, iq] = s * rot[:, self.rotary_axes.index(a)]
+            else:
+                names = self._motion[a]
+                zero = np.zeros(n)
+                t = np.stack([vals.get(k, zero) for k in names[:3]], axis=1)
+                w = np.stack([vals.get(k, zero) for k in names[3:]], axis=1)
+                Q[:, iq:iq + 3] = t
+                Q[:, iq + 3:iq + 7] = _quat_xyzw(w)
+        return Q
+
+    def _poses(self, lin_m, rot_rad, t_s, direction, want):
+        import pinocchio as pin
+
+        lin, rot, n = self._inputs(lin_m, rot_rad)
+        vals = self.error_values(lin, rot, t_s, direction)
+        model, data, fW, fP = self._model, self._data, self._fW, self._fP
+        Q = self._configurations(model, self._layout, lin, rot, vals, n)
+        fk, ufp = pin.forwardKinematics, pin.updateFramePlacement
+        if want == "tip":
+            out = np.empty((n, 3))
+            for i in range(n):
+                fk(model, data, Q[i])
+                out[i] = ufp(model, data, fW).actInv(ufp(model, data, fP).translation)
+            return None, out
+        out = np.empty((n, 4, 4))
+        fid = fW if want == "W" else fP
+        for i in range(n):
+            fk(model, data, Q[i])
+            out[i] = ufp(model, data, fid).homogeneous
+        return (out, None) if want == "W" else (None, out)
+
+    def _nominal_fk_tip(self, lin_m, rot_rad=None) -> np.ndarray:
+        """Nominal tip in W by Pinocchio's own FK on the error-free model
+        (benchmark reference; same result as :meth:`tip_W_nominal`)."""
+        import pinocchio as pin
+
+        lin, rot, n = self._inputs(lin_m, rot_rad)
+        model, data = self._nmodel, self._ndata
+        Q = self._configurations(model, self._nlayout, lin, rot, {}, n)
+        fk, ufp = pin.forwardKinematics, pin.updateFramePlacement
+        out = np.empty((n, 3))
+        for i in range(n):
+            fk(model, data, Q[i])
+            out[i] = ufp(model, data, self._nfW).actInv(ufp(model, data, self._nfP).translation)
+        return out
+
+    def _nominal_product(self, side, lin, rot, n):
+        """Nominal pose of the branch end (W, or the Z ram gauge point), numpy."""
+        T = np.tile(np.eye(4), (n, 1, 1))
+        s = 1.0 if side == "tool" else -1.0
+        J = self.config.J_m
+        for a in self._axes(side):
+            e = np.zeros(3)
+            e[_E[a]] = 1.0
+            M = np.tile(np.eye(4), (n, 1, 1))
+            if a in iso.LINEAR_AXES:
+                M[:, :3, 3] = (s * (lin[:, iso.LINEAR_AXES.index(a)] + J[_E[a]]))[:, None] * e
+            else:
+                c = np.asarray(self.config.rotary_points_R_m[a], float)
+                th = s * rot[:, self.rotary_axes.index(a)]
+                K = np.array([[0, -e[2], e[1]], [e[2], 0, -e[0]], [-e[1], e[0], 0]])
+                R = np.eye(3) + np.sin(th)[:, None, None] * K + (1 - np.cos(th))[:, None, None] * (K @ K)
+                M[:, :3, :3] = R
+                M[:, :3, 3] = c - R @ c
+            T = T @ M
+        return T

@@ -1,0 +1,192 @@
+"""Named virtual machines and a "realistic" truth error set.
+
+``MACHINES[name](errors=..., **geometry) -> MachineConfig``:
+
+- ``vmc-3axis``: 3-axis vertical machining centre ``V[w-X-Y-b-Z-(C)-t]``
+  (table on X on Y, spindle on Z).
+- ``mikron-ucp710``: 5-axis trunnion ``[w C' A' b X Y Z (C1) t]`` of the MFB
+  paper (Viprey et al. 2016), all linear axes on the tool side (eq. 8).
+- ``nmv3000``: 5-axis ``V[w-C-A-b-Y-X-Z-(C)-t]`` of the self-calibration
+  paper (Ibaraki et al.), X riding on Y.
+
+R's origin is on the C-axis centre line at the table surface (self-
+calibration paper, section 2.1); readings are stylus-tip positions in R.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+
+from core import iso
+from core.exceptions import ConfigError
+from sim.errorfuncs import Constant, ErrorFunction, Periodic, Polynomial, SplineTable, Sum
+from sim.machine import MachineConfig
+
+DEG = math.pi / 180.0
+#: Default probe offsets (J_X, J_Y, J_Z), m: a 150 mm probe below the gauge line.
+DEFAULT_J_M = (0.0, 0.0, 0.150)
+
+
+def _config(name, chain, strokes, rotary_points, errors, J_m, rotary_points_R_m, strokes_over):
+    st = dict(strokes)
+    st.update(strokes_over or {})
+    pts = dict(rotary_points)
+    pts.update(rotary_points_R_m or {})
+    return MachineConfig(name=name, chain=chain, strokes=st, rotary_points_R_m=pts,
+                         J_m=tuple(J_m), errors=dict(errors or {}))
+
+
+def vmc_3axis(*, errors: Mapping[str, ErrorFunction] | None = None, J_m=DEFAULT_J_M,
+              strokes: Mapping | None = None, name: str = "vmc-3axis") -> MachineConfig:
+    """3-axis VMC, X 600 x Y 400 x Z 450 mm, table on X on Y."""
+    return _config(name, "V[w-X-Y-b-Z-(C)-t]",
+                   {"X": (-0.30, 0.30), "Y": (-0.20, 0.20), "Z": (-0.05, 0.40)},
+                   {}, errors, J_m, None, strokes)
+
+
+def mikron_ucp710(*, errors: Mapping[str, ErrorFunction] | None = None, J_m=DEFAULT_J_M,
+                  rotary_points_R_m: Mapping | None = None, strokes: Mapping | None = None,
+                  name: str = "mikron-ucp710") -> MachineConfig:
+    """Mikron UCP710: X 710 x Y 550 x Z 500 mm, A -100..+120 deg, C endless
+    (stroke +-360 deg); A line 120 mm below the table surface."""
+    return _config(name, "[w C' A' b X Y Z (C1) t]",
+                   {"X": (-0.355, 0.355), "Y": (-0.275, 0.275), "Z": (-0.10, 0.40),
+                    "A": (-100 * DEG, 120 * DEG), "C": (-2 * math.pi, 2 * math.pi)},
+                   {"A": (0.0, 0.0, -0.120), "C": (0.0, 0.0, 0.0)},
+                   errors, J_m, rotary_points_R_m, strokes)
+
+
+def nmv3000(*, errors: Mapping[str, ErrorFunction] | None = None, J_m=DEFAULT_J_M,
+            rotary_points_R_m: Mapping | None = None, strokes: Mapping | None = None,
+            name: str = "nmv3000") -> MachineConfig:
+    """DMG Mori NMV3000 DCG: X 320 x Y 300 x Z 425 mm, A -120..+30 deg, C
+    endless (stroke +-360 deg); A line 100 mm below the table surface."""
+    return _config(name, "V[w-C-A-b-Y-X-Z-(C)-t]",
+                   {"X": (-0.16, 0.16), "Y": (-0.15, 0.15), "Z": (-0.10, 0.325),
+                    "A": (-120 * DEG, 30 * DEG), "C": (-2 * math.pi, 2 * math.pi)},
+                   {"A": (0.0, 0.0, -0.100), "C": (0.0, 0.0, 0.0)},
+                   errors, J_m, rotary_points_R_m, strokes)
+
+
+#: Machine factories by name (``vmt simulate --machine``).
+MACHINES: dict[str, Callable[..., MachineConfig]] = {
+    "vmc-3axis": vmc_3axis,
+    "mikron-ucp710": mikron_ucp710,
+    "nmv3000": nmv3000,
+}
+
+
+def describe() -> str:
+    """One line per machine: name, chain, strokes (mm, deg)."""
+    lines = []
+    for name, f in MACHINES.items():
+        c = f()
+        st = ", ".join(
+            f"{a} {lo / DEG:.0f}..{hi / DEG:.0f} deg" if a in iso.ROTARY_AXES
+            else f"{a} {lo * 1e3:.0f}..{hi * 1e3:.0f} mm"
+            for a, (lo, hi) in sorted(c.strokes.items(), key=lambda kv: "XYZABC".index(kv[0])))
+        lines.append(f"{name:14s} {c.chain:26s} {st}")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- realistic errors
+_DEFAULT_STROKES = {"X": (-0.355, 0.355), "Y": (-0.275, 0.275), "Z": (-0.10, 0.40),
+                    "A": (-120 * DEG, 120 * DEG), "C": (-math.pi, math.pi)}
+
+# (symbol, shape, magnitude): "lin" ramps 0..mag over the stroke, "bow" is a
+# smooth arc with peak mag (a straightness or an angular profile), "s" an S
+# curve. Magnitudes from the papers: MFB paper section 6 (EXX up to 38 um,
+# roughly linear; straightness 2-3 um; EBX up to 98 um/m, EAX < 10 um/m,
+# ECX < 40 um/m), self-calibration paper (EC0Y -43.4 urad, (EX0C, EY0C) =
+# (15, 6) um).
+_LINEAR = {
+    "X": [("EXX", "lin", 38e-6), ("EYX", "bow", 2.5e-6), ("EZX", "s", 3.0e-6),
+          ("EAX", "bow", 8e-6), ("EBX", "lin", 98e-6), ("ECX", "s", 35e-6)],
+    "Y": [("EXY", "bow", 2.0e-6), ("EYY", "lin", 20e-6), ("EZY", "s", 2.5e-6),
+          ("EAY", "s", 25e-6), ("EBY", "bow", 9e-6), ("ECY", "lin", 15e-6)],
+    "Z": [("EXZ", "s", 2.0e-6), ("EYZ", "bow", 3.0e-6), ("EZZ", "lin", 15e-6),
+          ("EAZ", "bow", 20e-6), ("EBZ", "lin", 30e-6), ("ECZ", "bow", 6e-6)],
+}
+_SQUARENESS = {"EC0Y": -43.4e-6, "EB0Z": 20e-6, "EA0Z": -15e-6}
+_ROTARY = {
+    "C": {"loc": {"EX0C": 15e-6, "EY0C": 6e-6, "EA0C": 10e-6, "EB0C": -8e-6},
+          "radial": ("EXC", "EYC", 1.5e-6), "axial": ("EZC", 0.8e-6),
+          "tilt": ("EAC", "EBC", 3e-6), "pos": ("ECC", 12e-6)},
+    "A": {"loc": {"EY0A": 10e-6, "EZ0A": -12e-6, "EB0A": 15e-6, "EC0A": -10e-6},
+          "radial": ("EYA", "EZA", 2e-6), "axial": ("EXA", 1.0e-6),
+          "tilt": ("EBA", "ECA", 5e-6), "pos": ("EAA", 20e-6)},
+    "B": {"loc": {"EX0B": 10e-6, "EZ0B": -8e-6, "EA0B": 10e-6, "EC0B": -6e-6},
+          "radial": ("EXB", "EZB", 2e-6), "axial": ("EYB", 1.0e-6),
+          "tilt": ("EAB", "ECB", 5e-6), "pos": ("EBB", 20e-6)},
+}
+
+
+def _profile(shape: str, mag: float, lo: float, hi: float, k: int = 9) -> ErrorFunction:
+    if shape == "lin":  # 0 at the low end, mag at the high end, plus a 1 % screw pitch ripple
+        slope = mag / (hi - lo)
+        return Sum((Polynomial((-slope * lo, slope)), Periodic(0.01 * abs(mag), 0.010)))
+    u = np.linspace(0.0, 1.0, k)
+    y = mag * (4 * u * (1 - u) if shape == "bow" else np.sin(2 * np.pi * u))
+    return SplineTable(tuple(lo + u * (hi - lo)), tuple(y))
+
+
+def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
+                     strokes: Mapping[str, tuple[float, float]] | None = None,
+                     rng: np.random.Generator | None = None) -> dict[str, ErrorFunction]:
+    """A realistic truth error set with the magnitudes the papers report.
+
+    Parameters
+    ----------
+    axes : sequence of str
+        Axes to give errors to (``"X"``, ..., ``"C"``); squarenesses come
+        with the linear axes they belong to (``EC0Y`` with Y, ``EB0Z`` and
+        ``EA0Z`` with Z).
+    strokes : mapping axis -> (min, max), optional
+        Strokes over which the profiles are drawn (m / rad); default a
+        Mikron-like workspace. Pass ``config.strokes``.
+    rng : np.random.Generator, optional
+        None: the nominal set (reproducible, paper magnitudes). Given: each
+        magnitude is scaled by U(0.5, 1) with a random sign, phases random.
+
+    Returns
+    -------
+    dict symbol -> ErrorFunction (SI units)
+    """
+    st = dict(_DEFAULT_STROKES)
+    st.update(strokes or {})
+    out: dict[str, ErrorFunction] = {}
+
+    def mag(m):
+        return m if rng is None else m * rng.uniform(0.5, 1.0) * rng.choice((-1.0, 1.0))
+
+    for a in axes:
+        if a not in st:
+            raise ConfigError(f"realistic_errors: unknown axis {a!r}")
+        lo, hi = st[a]
+        if a in _LINEAR:
+            for sym, shape, m in _LINEAR[a]:
+                out[sym] = _profile(shape, mag(m), lo, hi)
+            for sq, v in _SQUARENESS.items():
+                if iso.symbol(sq).axis == a:
+                    out[sq] = Constant(mag(v))
+        elif a in _ROTARY:
+            d = _ROTARY[a]
+            for sym, v in d["loc"].items():
+                out[sym] = Constant(mag(v))
+            ph = 0.0 if rng is None else rng.uniform(0, 2 * np.pi)
+            r1, r2, m = d["radial"]  # once-per-rev radial motion in quadrature + a 2nd harmonic
+            out[r1] = Periodic(mag(m), 2 * np.pi, ph) + Periodic(0.3 * m, np.pi, ph)
+            out[r2] = Periodic(mag(m), 2 * np.pi, ph + np.pi / 2)
+            ax, m = d["axial"]
+            out[ax] = Periodic(mag(m), np.pi, ph)
+            t1, t2, m = d["tilt"]
+            out[t1] = Periodic(mag(m), 2 * np.pi, ph + 0.3)
+            out[t2] = Periodic(mag(m), 2 * np.pi, ph + 0.3 + np.pi / 2)
+            ps, m = d["pos"]  # angular positioning: eccentric worm gear, once and 4x per rev
+            out[ps] = Periodic(mag(m), 2 * np.pi, ph) + Periodic(0.25 * m, np.pi / 2, ph)
+        else:
+            raise ConfigError(f"realistic_errors: unknown axis {a!r}")
+    return out
