@@ -26,7 +26,8 @@ coordinates (the "scaled Jacobian") is checked: if its condition number exceeds
 the data cannot determine.
 
 - Plane and line: exact, non-iterative, by SVD of the centred points (the
-  smallest / largest right singular vector). This is the same minimiser as
+  smallest / largest right singular vector); :func:`fit_planes` and
+  :func:`fit_lines` do the same for a batch ``(b, n, 3)`` in one call. This is the same minimiser as
   the cubic of Viprey et al. 2016, Appendix B (eqs. B.4-B.9), without its
   special cases (``c = 0``, plane through the origin); the tests check the
   two against each other.
@@ -77,6 +78,8 @@ __all__ = [
     "CylinderFit",
     "fit_plane",
     "fit_line",
+    "fit_planes",
+    "fit_lines",
     "fit_circle_2d",
     "fit_circle_3d",
     "fit_sphere",
@@ -348,8 +351,9 @@ class CylinderFit:
     cov : (5, 5) float
         Covariance of the SDS at the solution (``shift_u``, ``shift_v`` m,
         ``tilt_u``, ``tilt_v`` rad, ``radius`` m): ``point + shift_u u +
-        shift_v v``, ``axis + tilt_u u + tilt_v v`` (pivot at ``point``);
-        these are ``(u, v, -beta, alpha, r)``-like screw components of eq. A.4.
+        shift_v v``, ``axis + tilt_u u + tilt_v v`` (pivot at ``point``).
+        In the axis frame x = u, y = v, z = axis these are the screw of
+        eqs. A.4-A.5 as ``(u, v, beta, -alpha, r)``.
     dof : int
         ``n - 5``.
     basis : (3, 3) float
@@ -915,3 +919,140 @@ def fit_cylinder(points, *, axis_hint=None, tol: FitTolerances = TOL) -> Cylinde
     return CylinderFit(point=point, axis=a, radius=float(R), residuals=r,
                        rms=float(np.sqrt(np.mean(r**2))), cov=cov, dof=dof, basis=B,
                        iterations=it)
+
+
+# --------------------------------------------------------------------------- batches
+
+
+def _check_batch(points, kind: str, n_min: int):
+    """Validate (b, n, 3) points; return (P, c0 (b, 1, 3), s (b,), D, X)."""
+    try:
+        P = np.asarray(points, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise FitError(f"{kind} fit: points must be a numeric (b, n, 3) array ({e})") from None
+    if P.ndim != 3 or P.shape[2] != 3:
+        raise FitError(f"{kind} fit: points must be (b, n, 3), got {P.shape}")
+    if P.shape[1] < n_min:
+        raise FitError(f"{kind} fit: not enough data points: needs at least {n_min}, got {P.shape[1]}")
+    bad = ~np.isfinite(P).all(axis=2)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise FitError(f"{kind} fit: points contain non-finite values (set {i}, row {j})")
+    c0 = P.mean(axis=1, keepdims=True)
+    D = P - c0
+    s = np.sqrt(np.mean(np.einsum("bij,bij->bi", D, D), axis=1))
+    if np.any(s == 0.0):
+        raise FitError(f"{kind} fit: not enough significant data points: all points are "
+                       f"coincident (set {int(np.argmin(s))})")
+    return P, c0, s, D, D / s[:, None, None]
+
+
+def _batch_rank_and_cov(Js, Jm, r, k, kind, what, tol):
+    """Rank check on the scaled Jacobians Js (b, m, k); covariances from Jm (metres)."""
+    sv = np.linalg.svd(Js, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        cond = np.where(sv[:, -1] > 0, sv[:, 0] / sv[:, -1], np.inf)
+    if not np.all(cond <= tol.cond_max):
+        i = int(np.argmax(~(cond <= tol.cond_max)))
+        raise FitError(f"{kind} fit: not enough significant data points: {what} (set {i}, "
+                       f"condition number {cond[i]:.3g} of the scaled Jacobian > {tol.cond_max:.3g})")
+    dof = r.shape[1] - k
+    if dof <= 0:
+        return np.full((len(r), k, k), np.nan), dof
+    _, svm, Vt = np.linalg.svd(Jm, full_matrices=False)
+    inv = np.einsum("bji,bj,bjl->bil", Vt, 1.0 / svm**2, Vt)
+    s2 = np.einsum("bi,bi->b", r, r) / dof
+    return inv * s2[:, None, None], dof
+
+
+def _orient_batch(d, hint):
+    ref = REFERENCE_DIRECTION if hint is None else np.asarray(hint, dtype=float)
+    return np.where((d @ ref < 0)[:, None], -d, d)
+
+
+def fit_planes(points, *, normal_hint=None, tol: FitTolerances = TOL) -> PlaneFit:
+    """Least-squares planes for a batch of point sets (same method as :func:`fit_plane`).
+
+    Parameters
+    ----------
+    points : (b, n, 3) float
+        b sets of n points each, m, n >= 3.
+    normal_hint : (3,) float, optional
+        Orient every normal so that ``normal . normal_hint >= 0``.
+    tol : FitTolerances
+
+    Returns
+    -------
+    PlaneFit
+        Every array field gets a leading axis b: ``point (b, 3)``, ``normal
+        (b, 3)``, ``residuals (b, n)``, ``rms (b,)``, ``cov (b, 3, 3)``,
+        ``basis (b, 3, 3)``; ``dof`` is the common ``n - 3``.
+
+    Raises
+    ------
+    FitError
+        As :func:`fit_plane`, naming the first offending set.
+    """
+    P, c0, s, D, X = _check_batch(points, "plane", 3)
+    _, _, Vt = np.linalg.svd(X, full_matrices=False)
+    nrm = _orient_batch(Vt[:, 2], normal_hint)
+    u = Vt[:, 0]
+    B = np.stack([u, np.cross(nrm, u), nrm], axis=1)
+    b, n, _ = P.shape
+
+    def jac(Y):
+        return np.concatenate([-np.ones((b, n, 1)), np.einsum("bij,bkj->bik", Y, B[:, :2])], axis=2)
+
+    r = np.einsum("bij,bj->bi", D, nrm)
+    cov, dof = _batch_rank_and_cov(jac(X), jac(D), r, 3, "plane", "points are collinear", tol)
+    point = c0[:, 0] + np.mean(r, axis=1)[:, None] * nrm
+    r = np.einsum("bij,bj->bi", P - point[:, None], nrm)
+    return PlaneFit(point=point, normal=nrm, residuals=r, rms=np.sqrt(np.mean(r**2, axis=1)),
+                    cov=cov, dof=dof, basis=B)
+
+
+def fit_lines(points, *, direction_hint=None, tol: FitTolerances = TOL) -> LineFit:
+    """Least-squares lines for a batch of point sets (same method as :func:`fit_line`).
+
+    Parameters
+    ----------
+    points : (b, n, 3) float
+        b sets of n points each, m, n >= 2.
+    direction_hint : (3,) float, optional
+    tol : FitTolerances
+
+    Returns
+    -------
+    LineFit
+        Array fields with a leading axis b: ``point (b, 3)``, ``direction
+        (b, 3)``, ``residuals (b, n)``, ``residual_uv (b, n, 2)``, ``rms
+        (b,)``, ``cov (b, 4, 4)``, ``basis (b, 3, 3)``; ``dof = 2 n - 4``.
+
+    Raises
+    ------
+    FitError
+        As :func:`fit_line`, naming the first offending set.
+    """
+    P, c0, s, D, X = _check_batch(points, "line", 2)
+    b, n, _ = P.shape
+    if n < 3:  # pad so that the SVD returns a full 3x3 frame
+        _, _, Vt = np.linalg.svd(np.concatenate([X, np.zeros((b, 3 - n, 3))], axis=1))
+    else:
+        _, _, Vt = np.linalg.svd(X, full_matrices=False)
+    d = _orient_batch(Vt[:, 0], direction_hint)
+    u = Vt[:, 1]
+    B = np.stack([u, np.cross(d, u), d], axis=1)
+
+    def jac(Y):
+        t = np.einsum("bij,bj->bi", Y, d)
+        z, o = np.zeros((b, n)), np.ones((b, n))
+        Ju = np.stack([-o, z, -t, z], axis=2)
+        Jv = np.stack([z, -o, z, -t], axis=2)
+        return np.concatenate([Ju, Jv], axis=1)
+
+    uv = np.einsum("bij,bkj->bik", D, B[:, :2])
+    r = np.concatenate([uv[:, :, 0], uv[:, :, 1]], axis=1)
+    cov, dof = _batch_rank_and_cov(jac(X), jac(D), r, 4, "line", "points are coincident", tol)
+    dist = np.hypot(uv[:, :, 0], uv[:, :, 1])
+    return LineFit(point=c0[:, 0], direction=d, residuals=dist, residual_uv=uv,
+                   rms=np.sqrt(np.mean(dist**2, axis=1)), cov=cov, dof=dof, basis=B)

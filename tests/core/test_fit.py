@@ -85,6 +85,43 @@ def test_null_space_residuals_are_orthogonal(rng):
     assert np.max(np.abs(J.T @ e)) < 1e-13 * np.linalg.norm(J) * np.linalg.norm(e)
 
 
+@pytest.mark.parametrize("kind, single, batch, dname", [
+    ("plane", fit.fit_plane, fit.fit_planes, "normal"),
+    ("line", fit.fit_line, fit.fit_lines, "direction"),
+])
+def test_batched_fits_equal_single_fits(kind, single, batch, dname):
+    rng = np.random.default_rng(31)
+    sets = refdata.make_refsets(kind, 50, rng, n=12)
+    fb = batch(np.stack([s.points for s in sets]))
+    for i, s in enumerate(sets):
+        f = single(s.points)
+        # 1e-12: same SVD method, batch vs single LAPACK calls differ only by rounding
+        assert np.linalg.norm(getattr(fb, dname)[i] - getattr(f, dname)) < 1e-12
+        assert np.linalg.norm(fb.point[i] - f.point) < 1e-12
+        assert np.max(np.abs(fb.residuals[i] - f.residuals)) < 1e-12
+        T = fb.basis[i][:2] @ f.basis[:2].T  # (u, v) bases may differ by a rotation
+        M = np.eye(len(f.param_names))
+        if kind == "plane":
+            M[1:, 1:] = T
+        else:
+            M[:2, :2] = M[2:, 2:] = T
+        np.testing.assert_allclose(M @ f.cov @ M.T, fb.cov[i], rtol=1e-6,
+                                   atol=1e-9 * np.max(np.abs(f.cov)))
+        assert np.linalg.norm(fb.point[i] - s.position) < 1e-9
+
+
+@pytest.mark.parametrize("func, points, match", [
+    (fit.fit_planes, np.zeros((4, 3)), r"points must be \(b, n, 3\), got \(4, 3\)"),
+    (fit.fit_planes, np.stack([np.eye(3), np.linspace(0, 1, 3)[:, None] * [1, 1, 1]]),
+     r"collinear \(set 1"),
+    (fit.fit_lines, np.stack([np.eye(3), np.full((3, 3), np.nan)]), r"non-finite values \(set 1, row 0\)"),
+    (fit.fit_lines, np.ones((2, 3, 3)), r"coincident \(set 0\)"),
+])
+def test_batched_bad_input(func, points, match):
+    with pytest.raises(FitError, match=match):
+        func(points)
+
+
 # --------------------------------------------------------------------------- known answers
 
 
