@@ -1,0 +1,204 @@
+"""Choice of the C angles for a 2D self-calibration (paper section 6).
+
+The paper chose its C angles "based on the uncertainty analysis" (eqs 19,
+20). :func:`optimise_angles` does that explicitly: with C_1 = 0 fixed, it
+minimises the largest expanded uncertainty of the workpiece deviations G
+(linear propagation, :mod:`core.uncertainty`) by coordinate search over a
+degree grid, and reports the gain over a reference choice (e.g. the paper's
+0, 75, 130, 210 deg).
+
+:func:`example_cross_pocket` gives a nominal target set shaped like the
+paper's Fig. 8 (cross-shaped pocket 36 mm wide plus two precision spheres,
+92 points), so studies can run on a nominal design without simulation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .exceptions import ConfigError, IdentifiabilityError
+from .selfcal import Grid, estimator, nominal_touches
+from .uncertainty import K, U_PROBE_M, form_projector
+
+MM = 1e-3
+
+
+def example_cross_pocket(arm_m: float = 0.090, half_width_m: float = 0.018, spheres: bool = True,
+                         sphere_r_m: float = 0.0127, sphere_at_m: float = 0.060):
+    """Nominal targets of a cross-shaped pocket (Fig. 8 of the paper), W frame.
+
+    Returns
+    -------
+    w_W : (N_w, 2) float
+        Contact points, m (76 on the pocket, plus 8 per sphere on its equator).
+    wn_W : (N_w, 2) float
+        Outward normals (out of the material: into the pocket; away from a
+        sphere's centre).
+    ids : tuple of str
+    """
+    L, h = arm_m, half_width_m
+    # counter-clockwise boundary: the pocket (free space) lies to the left
+    V = np.array([(L, -h), (L, h), (h, h), (h, L), (-h, L), (-h, h), (-L, h), (-L, -h),
+                  (-h, -h), (-h, -L), (h, -L), (h, -h)])
+    pts, nrm, ids = [], [], []
+    for e in range(12):
+        a, b = V[e], V[(e + 1) % 12]
+        d = b - a
+        ln = np.linalg.norm(d)
+        k = 3 if ln < 2 * h + 1e-9 else 8
+        t = (np.arange(k) + 0.5) / k
+        for ti in t:
+            pts.append(a + ti * d)
+            nrm.append(np.array([-d[1], d[0]]) / ln)
+            ids.append(f"pocket{len(ids) + 1:02d}")
+    if spheres:
+        for s, c in enumerate(((sphere_at_m, sphere_at_m), (-sphere_at_m, -sphere_at_m))):
+            for k in range(8):
+                a = 2 * np.pi * k / 8
+                u = np.array([np.cos(a), np.sin(a)])
+                pts.append(np.array(c) + sphere_r_m * u)
+                nrm.append(u)
+                ids.append(f"sphere{s + 1}_{k + 1}")
+    return np.array(pts), np.array(nrm), tuple(ids)
+
+
+def max_workpiece_U95(w_W, wn_W, c_deg, grid: Grid, u_probe_m: float = U_PROBE_M,
+                      measure: str = "form") -> float:
+    """Largest expanded (k = 2) uncertainty of G over the targets, m; inf if not identifiable.
+
+    ``measure="form"``: of the workpiece form (shift, rotation and scale
+    removed, :func:`core.uncertainty.form_projector`; the paper's Fig. 18
+    quantity); ``"gauge"``: of G as identified in the gauge of eqs 16-17.
+    """
+    if measure not in ("form", "gauge"):
+        raise ConfigError(f"measure must be 'form' or 'gauge', got {measure!r}")
+    try:
+        t = nominal_touches(w_W, wn_W, c_deg)
+        des, est = estimator(t, grid)
+    except IdentifiabilityError:
+        return float("inf")
+    gi = np.arange(des.n_params)[des.slices["G"]]
+    if measure == "gauge":
+        return float(K * est.std(u_probe_m, index=gi).max())
+    DZg = est.DZ[gi]
+    Cg = DZg @ est._solve_M(DZg.T.toarray())
+    P = form_projector(des)
+    return float(K * u_probe_m * np.sqrt(max(np.einsum("ij,jk,ik->i", P, Cg, P).max(), 0.0)))
+
+
+@dataclass(frozen=True)
+class AngleDesign:
+    """Outcome of :func:`optimise_angles`.
+
+    Attributes
+    ----------
+    c_deg : tuple of float
+        Chosen C angles, degrees (first is 0).
+    max_U95_m : float
+        Largest expanded uncertainty of G with them, m.
+    reference_deg : tuple of float or None
+    reference_max_U95_m : float or None
+    gain : float or None
+        ``reference_max_U95_m / max_U95_m`` (> 1: the chosen angles are better).
+    evaluations : int
+        Designs evaluated.
+    step_deg : float
+    """
+
+    c_deg: tuple
+    max_U95_m: float
+    reference_deg: tuple | None
+    reference_max_U95_m: float | None
+    gain: float | None
+    evaluations: int
+    step_deg: float
+
+
+def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5.0,
+                    u_probe_m: float = U_PROBE_M, reference_deg=None, max_sweeps: int = 6,
+                    measure: str = "form", evaluate=None) -> AngleDesign:
+    """C angles minimising the largest workpiece uncertainty (C_1 = 0 fixed).
+
+    Coordinate search over the degree grid ``0, step, 2 step, ... < 360``:
+    starting from the best of equally spaced and compressed spreads of
+    angles (and the reference, when it has
+    ``n_angles`` angles and lies on the grid), each angle but the first is
+    moved in turn to its best grid value until a sweep brings no
+    improvement.
+
+    Parameters
+    ----------
+    w_W, wn_W : (N_w, 2) float
+        Targets and outward normals, W, m.
+    n_angles : int
+        Number of C angles (>= 2).
+    grid : Grid
+    step_deg : float
+        Search grid, degrees (must divide 360).
+    reference_deg : sequence of float, optional
+        The choice to compare with.
+    measure : {"form", "gauge"}
+        Which workpiece uncertainty to minimise (see :func:`max_workpiece_U95`).
+    evaluate : callable, optional
+        ``evaluate(list_of_angle_tuples) -> list of max U95`` (to run a sweep
+        in parallel, see ``scenarios.parallel``); default serial.
+    """
+    n_angles = int(n_angles)
+    if n_angles < 2:
+        raise ConfigError(f"n_angles must be >= 2, got {n_angles}")
+    nsteps = 360.0 / step_deg
+    if not (step_deg > 0 and abs(nsteps - round(nsteps)) < 1e-9):
+        raise ConfigError(f"step_deg must divide 360, got {step_deg}")
+    cand = step_deg * np.arange(int(round(nsteps)))
+    if n_angles > cand.size:
+        raise ConfigError(f"{n_angles} angles do not fit a {step_deg:g} deg grid")
+    if evaluate is None:
+        def evaluate(sets):
+            return [max_workpiece_U95(w_W, wn_W, s, grid, u_probe_m, measure) for s in sets]
+    cache: dict = {}
+
+    def ev(sets):
+        keys = [tuple(sorted(float(v) for v in s)) for s in sets]
+        todo = [k for k in dict.fromkeys(keys) if k not in cache]
+        if todo:
+            for k, v in zip(todo, evaluate(todo)):
+                cache[k] = float(v)
+        return [cache[k] for k in keys]
+
+    # equally spaced, and compressed spreads (a symmetric part makes equal spacing degenerate)
+    starts = []
+    for f in (1.0, 0.77, 0.55):
+        st = tuple(float(cand[int(round(i * f * cand.size / n_angles)) % cand.size]) for i in range(n_angles))
+        if len(set(st)) == n_angles:
+            starts.append(st)
+    if reference_deg is not None and len(reference_deg) == n_angles:
+        r = tuple(float(v) % 360 for v in reference_deg)
+        if 0.0 in r and all(abs(v / step_deg - round(v / step_deg)) < 1e-9 for v in r):
+            starts.append(tuple(sorted(r)))
+    vals = ev(starts)
+    best_i = int(np.argmin(vals))
+    cur, cur_v = list(starts[best_i]), vals[best_i]
+    for _ in range(max_sweeps):
+        improved = False
+        for j in range(1, n_angles):
+            others = set(cur[:j] + cur[j + 1:])
+            trial = [cur[:j] + [float(c)] + cur[j + 1:] for c in cand if float(c) not in others]
+            tv = ev(trial)
+            i = int(np.argmin(tv))
+            if tv[i] < cur_v * (1 - 1e-9):
+                cur, cur_v, improved = trial[i], tv[i], True
+        if not improved:
+            break
+    ref_v = gain = None
+    ref = None
+    if reference_deg is not None:
+        ref = tuple(float(v) for v in reference_deg)
+        ref_v = ev([ref])[0]
+        gain = ref_v / cur_v if np.isfinite(cur_v) and cur_v > 0 else None
+    if not np.isfinite(cur_v):
+        raise IdentifiabilityError(f"no choice of {n_angles} C angles on a {step_deg:g} deg grid identifies the"
+                                   " workpiece (eq 6: more angles or a coarser grid)")
+    return AngleDesign(c_deg=tuple(sorted(cur)), max_U95_m=cur_v, reference_deg=ref, reference_max_U95_m=ref_v,
+                       gain=gain, evaluations=len(cache), step_deg=float(step_deg))

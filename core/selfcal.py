@@ -1,0 +1,952 @@
+"""2D self-calibration of a workpiece on a rotary table (Ibaraki et al., eqs 1-18).
+
+The same nominal target points ``w_p_i`` of a workpiece are probed at ``N_c``
+C-axis indexings. Each normal deviation (eq 3)
+
+    dq_ij = n_ij . (p_reported - p_nominal)
+
+is modelled to first order as (eq 14 = eqs 7 + 12 + 13)
+
+    dq_ij = G_i                                     workpiece, eq 7
+          - n_ij . [E_X,total, E_Y,total](p_ij)     X/Y axes, eqs 10-12
+          + n_ij . [EXC,total(C_j), EYC,total(C_j)] C-axis displacement, eq 13
+          + (R90 p_ij) . n_ij * ECC(C_j)            C-axis angle, eq 13
+
+with the X-axis error motions ``EXX``, ``EYX`` tabulated on the x nodes, the
+Y-axis motions ``EXY``, ``EYY``, ``ECY`` on the y nodes, bilinear (per-axis
+linear) interpolation at the nominal stylus-tip centre ``pn_R`` (eqs 8-11) and
+the squareness ``EC0Y`` (eq 4). ``ECC`` is the right-handed rotation error of
+the table about Z (CONTRIBUTING: actual minus nominal pose of the moving
+component), which is the sign of eq 13. ``n . (R90 p)`` is the same for the
+tip centre and the contact point because ``n`` is perpendicular to ``R90 n``.
+
+Parameter vector (fixed order, names in :attr:`Design.names`)::
+
+    EXX@x (N_x) | EYX@x (N_x) | EXY@y (N_y) | EYY@y (N_y) | ECY@y (N_y) | EC0Y |
+    G[target] (N_w) | EXC,total[C] (N_c) | EYC,total[C] (N_c) | ECC[C] (N_c)
+
+Null space and gauge
+--------------------
+``A`` has exactly eleven null directions for a good design, derived here and
+checked numerically in the tests (:func:`null_space`):
+
+- translational (6): tool and table shifted together in X / in Y; the
+  constant split EXX/EXY and EYX/EYY; the workpiece shifted in X / in Y in W
+  (G changes by ``wn . t``, EXC/EYC,total by ``-R(-C_j) t``);
+- rotational (4): the machine frame rotated (EC0Y, EYX slope, all ECC); the
+  workpiece rotated in W (G by ``n . R90 p``, all ECC); a constant ECY traded
+  for an EYX slope; an EXY slope traded for EC0Y;
+- scale (1): EXX and EYY slopes with G by ``n . pn`` (a machine scale error
+  is indistinguishable from a scaled workpiece).
+
+The eleven gauge conditions (eq 16, printed garbled in the paper, and eq 17)
+fix them: ``EXX(x_o) = EYX(x_o) = EXY(y_o) = EYY(y_o) = ECY(y_o) = 0`` at the
+origin ``x_o = y_o = 0`` (interpolated; the first node when 0 is outside the
+grid), ``EXC,total = EYC,total = ECC = 0`` at the reference set-up (the one
+whose C is nearest 0), ``EYX(x_N) = 0``, ``EXY(y_N) = 0`` and
+``EXX(x_N) = delta_L``. When ``delta_L`` is not given, the scale is unknown:
+it is fixed to 0 and the result says so in ``conventions``.
+
+Solving (:func:`solve`) scales the columns, eliminates the equality
+constraints, checks the eq 6 count and the rank (dense eigen-decomposition
+for small problems, sparse LU pivots for large ones) and names every
+parameter combination the data cannot identify.
+
+Reproducing the paper
+---------------------
+Section 6 (cross pocket, 92 targets incl. two spheres, C = 0, 75, 130, 210
+deg, grid -110..110 mm step 22 mm, probing u = 1.38 um)::
+
+    from core.design import example_cross_pocket
+    from core.selfcal import Grid
+    from core.uncertainty import linear_uncertainty, monte_carlo
+    w, wn, ids = example_cross_pocket()
+    grid = Grid.regular(-0.110, 0.110, 0.022)
+    lin = linear_uncertainty(w, wn, [0, 75, 130, 210], grid)
+    mc = monte_carlo(w, wn, [0, 75, 130, 210], grid, runs=1000,
+                     rng=np.random.default_rng(1))
+    lin.U95_m[lin.design.slices["G"]].max()  # Fig 18(c): ~2 um (our geometry)
+
+Fewer angles (0, 75 and 0, 75, 130) reproduce the trend of Fig 18(a, b);
+the U of EXC/EYC,total and ECC per angle is Table 2's. With a measured log:
+``vmt identify LOG --json OUT --grid-mm -110:110:22 --mc 1000``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .exceptions import ConfigError, IdentifiabilityError
+from .touches import Touches
+
+MM = 1e-3
+DEG = np.pi / 180.0
+#: Largest number of free parameters solved densely (with an eigen rank check).
+DENSE_MAX = 1500
+#: Relative eigenvalue of the column-scaled normal matrix below which a
+#: direction counts as unidentifiable (singular-value ratio 1e-6).
+RANK_TOL = 1e-12
+#: Tolerance (m) for a touch lying on the grid's edge.
+EDGE_TOL = 1e-9
+#: Largest |n_z| accepted: the model is planar (XY).
+NZ_MAX = 0.01
+
+AXIS_SYMBOLS = ("EXX", "EYX", "EXY", "EYY", "ECY")
+GAUGE_NAMES = (
+    "X translation (tool and table)", "Y translation (tool and table)",
+    "EXX/EXY offset split", "EYX/EYY offset split",
+    "workpiece X shift", "workpiece Y shift",
+    "machine frame rotation", "workpiece rotation",
+    "ECY offset vs EYX slope", "EXY slope vs EC0Y",
+    "scale",
+)
+
+
+def _fmt_mm(v_m: float) -> str:
+    return f"{v_m / MM:g}"
+
+
+# ---------------------------------------------------------------------------
+# grid
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Grid:
+    """Nodes of the X- and Y-axis look-up tables (eqs 8-11).
+
+    Attributes
+    ----------
+    x_m : (N_x,) float
+        Strictly increasing x nodes, machine frame, m.
+    y_m : (N_y,) float
+        Strictly increasing y nodes, machine frame, m.
+    """
+
+    x_m: np.ndarray
+    y_m: np.ndarray
+
+    def __post_init__(self):
+        for nm in ("x_m", "y_m"):
+            v = np.asarray(getattr(self, nm), float).ravel()
+            if v.size < 2 or not np.all(np.isfinite(v)) or np.any(np.diff(v) <= 0):
+                raise ConfigError(f"grid {nm}: needs >= 2 finite strictly increasing nodes, got {v.tolist()}")
+            object.__setattr__(self, nm, v)
+
+    @classmethod
+    def regular(cls, lo_m: float, hi_m: float, step_m: float, ylo_m=None, yhi_m=None) -> "Grid":
+        """Nodes ``lo, lo + step, ..., hi`` in x and (by default the same) in y."""
+        if not step_m > 0:
+            raise ConfigError(f"grid step must be > 0, got {step_m}")
+        ylo_m = lo_m if ylo_m is None else ylo_m
+        yhi_m = hi_m if yhi_m is None else yhi_m
+
+        def nodes(a, b):
+            n = int(round((b - a) / step_m))
+            if n < 1 or abs(a + n * step_m - b) > 1e-9 * max(1.0, abs(b)):
+                raise ConfigError(f"grid {a / MM:g}..{b / MM:g} mm is not a whole number of {step_m / MM:g} mm steps")
+            return a + step_m * np.arange(n + 1)
+
+        return cls(nodes(lo_m, hi_m), nodes(ylo_m, yhi_m))
+
+    @classmethod
+    def from_extent(cls, p_R: np.ndarray, step_m: float) -> "Grid":
+        """Nodes at multiples of ``step_m`` covering ``p_R[:, :2]`` (so 0 is a node line).
+
+        Parameters
+        ----------
+        p_R : (n, 2+) float
+            Points, machine frame, m (the nominal tip centres).
+        step_m : float
+            Node spacing, m.
+        """
+        if not step_m > 0:
+            raise ConfigError(f"grid step must be > 0, got {step_m}")
+        p = np.asarray(p_R, float)
+        out = []
+        for c in (0, 1):
+            lo = np.floor(p[:, c].min() / step_m - 1e-9) * step_m
+            hi = np.ceil(p[:, c].max() / step_m + 1e-9) * step_m
+            if hi - lo < step_m * 0.5:
+                hi = lo + step_m
+            out.append(lo + step_m * np.arange(int(round((hi - lo) / step_m)) + 1))
+        return cls(*out)
+
+    @property
+    def origin_m(self) -> tuple[float, float]:
+        """(x_o, y_o): 0 when inside ``[node_0, node_N)``, else the first node."""
+        def o(v):
+            return 0.0 if v[0] <= 0.0 < v[-1] else float(v[0])
+        return o(self.x_m), o(self.y_m)
+
+
+def _interp_weights(nodes: np.ndarray, v: np.ndarray):
+    """Left node index and weight of the right node (eqs 8, 9)."""
+    k = np.clip(np.searchsorted(nodes, v, side="right") - 1, 0, len(nodes) - 2)
+    z = (v - nodes[k]) / (nodes[k + 1] - nodes[k])
+    return k, z
+
+
+def _interp_row(nodes: np.ndarray, v: float) -> np.ndarray:
+    k, z = _interp_weights(nodes, np.array([v]))
+    r = np.zeros(len(nodes))
+    r[k[0]] += 1 - z[0]
+    r[k[0] + 1] += z[0]
+    return r
+
+
+# ---------------------------------------------------------------------------
+# design
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Design:
+    """The linear model ``dq = A theta`` of eq 15 plus its gauge.
+
+    Attributes
+    ----------
+    A : scipy.sparse.csr_matrix, (n_touches, n_params)
+        Design matrix; theta in m (translations) and rad (rotations).
+    names : tuple of str
+        Parameter names in column order.
+    slices : dict[str, slice]
+        Column range of each block: ``EXX``, ``EYX``, ``EXY``, ``EYY``,
+        ``ECY``, ``EC0Y``, ``G``, ``EXC``, ``EYC``, ``ECC``.
+    grid : Grid
+    target_ids, setup_ids : tuple of str
+    c_rad : (N_c,) float
+        C angle of each set-up, rad.
+    ref_setup : int
+        Set-up whose C-axis errors the gauge fixes to 0.
+    C, d : (11, n_params), (11,) float
+        Gauge conditions ``C theta = d`` (eqs 16-17).
+    gauge : tuple of str
+        The gauge conditions in words (same order as rows of ``C``).
+    scale_known : bool
+        True when ``delta_L`` was given.
+    N : (n_params, 11) float
+        Analytic null-space basis, columns named by :data:`GAUGE_NAMES`.
+    """
+
+    A: sp.csr_matrix
+    names: tuple
+    slices: dict
+    grid: Grid
+    target_ids: tuple
+    setup_ids: tuple
+    c_rad: np.ndarray
+    ref_setup: int
+    C: np.ndarray
+    d: np.ndarray
+    gauge: tuple
+    scale_known: bool
+    N: np.ndarray
+
+    @property
+    def n_params(self) -> int:
+        return len(self.names)
+
+
+def _setup_angles(touches: Touches) -> np.ndarray:
+    c = np.zeros(len(touches.setup_ids))
+    for s, sid in enumerate(touches.setup_ids):
+        cs = touches.rot_rad[touches.setup == s, 2]
+        if np.ptp(cs) > 1e-9:
+            raise ConfigError(f"set-up {sid!r}: C varies within the set-up ({np.degrees(cs.min()):g}.."
+                              f"{np.degrees(cs.max()):g} deg); one indexing per set-up")
+        c[s] = cs[0]
+    return c
+
+
+def _c_names(setup_ids, c_rad):
+    deg = [f"{np.degrees(c):g}" for c in c_rad]
+    dup = len(set(deg)) < len(deg)
+    return [f"C={d}deg" + (f"#{s}" if dup else "") for d, s in zip(deg, setup_ids)]
+
+
+def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None) -> Design:
+    """Design matrix of eq 15 for measured or planned touches.
+
+    Parameters
+    ----------
+    touches : Touches
+        Uses ``pn_R`` (nominal tip centre, m, R) for the interpolation,
+        ``n_R`` (R) for the projections, ``rot_rad[:, 2]`` (C) per set-up
+        and the ``setup``/``target`` indices.
+    grid : Grid
+        Must cover every ``pn_R`` (no extrapolation).
+    delta_L_m : float or None
+        X-axis positioning error at the last x node (eq 17), m; None = scale
+        unknown (fixed to 0 and reported).
+
+    Raises
+    ------
+    ConfigError
+        A touch outside the grid, a non-planar normal, mixed C in a set-up.
+    """
+    if touches.n == 0:
+        raise ConfigError("no touches")
+    x = touches.pn_R[:, 0]
+    y = touches.pn_R[:, 1]
+    nx = touches.n_R[:, 0]
+    ny = touches.n_R[:, 1]
+    bad = np.flatnonzero(np.abs(touches.n_R[:, 2]) > NZ_MAX)
+    if bad.size:
+        raise ConfigError(f"log row {touches.row[bad[0]]}: normal n_z = {touches.n_R[bad[0], 2]:.3g};"
+                          f" the 2D self-calibration model needs normals in the XY plane")
+    gx, gy = grid.x_m, grid.y_m
+    for v, g, ax in ((x, gx, "X"), (y, gy, "Y")):
+        out = np.flatnonzero((v < g[0] - EDGE_TOL) | (v > g[-1] + EDGE_TOL))
+        if out.size:
+            i = out[0]
+            raise ConfigError(f"log row {touches.row[i]}: nominal {ax} = {v[i] / MM:.3f} mm lies outside the grid"
+                              f" {g[0] / MM:g}..{g[-1] / MM:g} mm ({out.size} touches outside)")
+    c_rad = _setup_angles(touches)
+    Nx, Ny = len(gx), len(gy)
+    Nw, Nc = len(touches.target_ids), len(touches.setup_ids)
+    sizes = [("EXX", Nx), ("EYX", Nx), ("EXY", Ny), ("EYY", Ny), ("ECY", Ny), ("EC0Y", 1),
+             ("G", Nw), ("EXC", Nc), ("EYC", Nc), ("ECC", Nc)]
+    slices, o = {}, 0
+    for nm, k in sizes:
+        slices[nm] = slice(o, o + k)
+        o += k
+    n_par = o
+    cn = _c_names(touches.setup_ids, c_rad)
+    names = ([f"EXX@x={_fmt_mm(v)}mm" for v in gx] + [f"EYX@x={_fmt_mm(v)}mm" for v in gx]
+             + [f"{s}@y={_fmt_mm(v)}mm" for s in ("EXY", "EYY", "ECY") for v in gy] + ["EC0Y"]
+             + [f"G[{t}]" for t in touches.target_ids]
+             + [f"EXC,total[{c}]" for c in cn] + [f"EYC,total[{c}]" for c in cn] + [f"ECC[{c}]" for c in cn])
+
+    m = touches.n
+    kx, zx = _interp_weights(gx, x)
+    ky, zy = _interp_weights(gy, y)
+    j = touches.setup
+    rows, cols, vals = [], [], []
+
+    def add(c, v):
+        rows.append(np.arange(m))
+        cols.append(np.asarray(c))
+        vals.append(np.asarray(v, float))
+
+    s = slices
+    # eq 12 with eqs 10, 11: dq = -nx E_X,total - ny E_Y,total
+    add(s["EXX"].start + kx, -nx * (1 - zx))
+    add(s["EXX"].start + kx + 1, -nx * zx)
+    add(s["EXY"].start + ky, -nx * (1 - zy))
+    add(s["EXY"].start + ky + 1, -nx * zy)
+    add(np.full(m, s["EC0Y"].start), nx * y)
+    add(s["EYX"].start + kx, -ny * (1 - zx))
+    add(s["EYX"].start + kx + 1, -ny * zx)
+    add(s["EYY"].start + ky, -ny * (1 - zy))
+    add(s["EYY"].start + ky + 1, -ny * zy)
+    add(s["ECY"].start + ky, -ny * x * (1 - zy))
+    add(s["ECY"].start + ky + 1, -ny * x * zy)
+    # eq 7
+    add(s["G"].start + touches.target, np.ones(m))
+    # eq 13
+    rp_n = -nx * y + ny * x  # (R90 p) . n
+    add(s["EXC"].start + j, nx)
+    add(s["EYC"].start + j, ny)
+    add(s["ECC"].start + j, rp_n)
+    A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, n_par))
+    A.sum_duplicates()
+
+    # gauge, eqs 16-17
+    xo, yo = grid.origin_m
+    ref = int(np.argmin(np.abs(np.angle(np.exp(1j * c_rad)))))
+    C = np.zeros((11, n_par))
+    d = np.zeros(11)
+    gauge = []
+
+    def g(i, blk, row, txt, val=0.0):
+        C[i, s[blk]] = row
+        d[i] = val
+        gauge.append(txt)
+
+    g(0, "EXX", _interp_row(gx, xo), f"EXX(x={_fmt_mm(xo)}mm)=0")
+    g(1, "EYX", _interp_row(gx, xo), f"EYX(x={_fmt_mm(xo)}mm)=0")
+    g(2, "EXY", _interp_row(gy, yo), f"EXY(y={_fmt_mm(yo)}mm)=0")
+    g(3, "EYY", _interp_row(gy, yo), f"EYY(y={_fmt_mm(yo)}mm)=0")
+    g(4, "ECY", _interp_row(gy, yo), f"ECY(y={_fmt_mm(yo)}mm)=0")
+    e = np.zeros(Nc)
+    e[ref] = 1.0
+    g(5, "EXC", e, f"EXC,total({cn[ref]})=0")
+    g(6, "EYC", e, f"EYC,total({cn[ref]})=0")
+    g(7, "ECC", e, f"ECC({cn[ref]})=0")
+    last_x = np.zeros(Nx)
+    last_x[-1] = 1
+    last_y = np.zeros(Ny)
+    last_y[-1] = 1
+    g(8, "EYX", last_x, f"EYX(x={_fmt_mm(gx[-1])}mm)=0")
+    g(9, "EXY", last_y, f"EXY(y={_fmt_mm(gy[-1])}mm)=0")
+    if delta_L_m is None:
+        g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=0: scale unknown (delta_L not given), "
+                             "EXX, EYY and G carry an unknown common scale")
+    else:
+        if not np.isfinite(delta_L_m):
+            raise ConfigError(f"delta_L must be finite, got {delta_L_m}")
+        g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=delta_L={delta_L_m * 1e6:g}um (scale known)",
+          float(delta_L_m))
+    N = _null_basis(touches, slices, gx, gy, c_rad, n_par)
+    return Design(A=A, names=tuple(names), slices=slices, grid=grid, target_ids=tuple(touches.target_ids),
+                  setup_ids=tuple(touches.setup_ids), c_rad=c_rad, ref_setup=ref, C=C, d=d,
+                  gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N)
+
+
+def _null_basis(touches, s, gx, gy, c_rad, n_par) -> np.ndarray:
+    """The eleven analytic null directions of A (see module docstring)."""
+    N = np.zeros((n_par, 11))
+    Nw = s["G"].stop - s["G"].start
+    first = np.full(Nw, -1)
+    for t in range(touches.n - 1, -1, -1):
+        first[touches.target[t]] = t
+    pn = touches.pn_R[first, :2]
+    nR = touches.n_R[first, :2]
+    cf = c_rad[touches.setup[first]]
+    # normal of each target in W: wn = R(+C) n
+    cw, sw = np.cos(cf), np.sin(cf)
+    wn = np.column_stack([cw * nR[:, 0] - sw * nR[:, 1], sw * nR[:, 0] + cw * nR[:, 1]])
+    cc, sc = np.cos(c_rad), np.sin(c_rad)
+    # 0, 1: tool and table translated together
+    N[s["EXX"], 0] = 1
+    N[s["EXC"], 0] = 1
+    N[s["EYX"], 1] = 1
+    N[s["EYC"], 1] = 1
+    # 2, 3: constant splits
+    N[s["EXX"], 2] = 1
+    N[s["EXY"], 2] = -1
+    N[s["EYX"], 3] = 1
+    N[s["EYY"], 3] = -1
+    # 4, 5: workpiece shifted by t in W; EC_j -= R(-C_j) t
+    for k, t in ((4, (1.0, 0.0)), (5, (0.0, 1.0))):
+        N[s["G"], k] = wn @ np.array(t)
+        N[s["EXC"], k] = -(cc * t[0] + sc * t[1])
+        N[s["EYC"], k] = -(-sc * t[0] + cc * t[1])
+    # 6: machine frame rotated
+    N[s["EC0Y"], 6] = 1
+    N[s["EYX"], 6] = gx
+    N[s["ECC"], 6] = 1
+    # 7: workpiece rotated in W
+    N[s["G"], 7] = -nR[:, 0] * pn[:, 1] + nR[:, 1] * pn[:, 0]
+    N[s["ECC"], 7] = -1
+    # 8: ECY offset vs EYX slope; 9: EXY slope vs EC0Y
+    N[s["ECY"], 8] = 1
+    N[s["EYX"], 8] = -gx
+    N[s["EXY"], 9] = gy
+    N[s["EC0Y"], 9] = 1
+    # 10: scale
+    N[s["EXX"], 10] = gx
+    N[s["EYY"], 10] = gy
+    N[s["G"], 10] = np.einsum("ij,ij->i", nR, pn)
+    return N
+
+
+def null_space(design: Design) -> np.ndarray:
+    """(n_params, 11) analytic null-space basis of ``design.A`` (named by :data:`GAUGE_NAMES`)."""
+    return design.N
+
+
+def to_gauge(design: Design, theta: np.ndarray, delta_L_m: float | None = None) -> np.ndarray:
+    """The parameter vector equivalent to ``theta`` that meets the gauge.
+
+    Adds the null-space combination ``N alpha`` with ``C (theta + N alpha) =
+    d`` so a truth (e.g. the simulator's) can be compared with an
+    identification. ``A theta`` is unchanged (exactly, for a truth in the
+    model space). ``delta_L_m`` overrides ``design.d``'s scale value.
+
+    Parameters
+    ----------
+    theta : (n_params,) float
+        Parameters in m / rad, in ``design.names`` order.
+    """
+    theta = np.asarray(theta, float)
+    if theta.shape != (design.n_params,):
+        raise ConfigError(f"theta: expected shape ({design.n_params},), got {theta.shape}")
+    d = design.d.copy()
+    if delta_L_m is not None:
+        d[10] = delta_L_m
+    CN = design.C @ design.N
+    alpha = np.linalg.solve(CN, d - design.C @ theta)
+    return theta + design.N @ alpha
+
+
+# ---------------------------------------------------------------------------
+# generic constrained sparse least squares
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Solution:
+    """Outcome of :func:`solve`.
+
+    Attributes
+    ----------
+    theta : (n,) float
+        Estimate (units of the columns of A).
+    residuals : (m,) float
+        ``b - A theta``.
+    rms : float
+        Residual RMS.
+    sigma : float
+        Standard deviation of one observation (given or from residuals).
+    sigma_source : str
+        ``"given"`` or ``"residuals"``.
+    dof : int
+        ``m - (n - n_constraints)``.
+    std : (n,) float or None
+        Standard uncertainty of each parameter (None when not computed).
+    cov : (n, n) float or None
+        Covariance ``sigma^2 (A^T A)^-1`` on the constrained problem.
+    estimator : LinearEstimator
+        The factorisation, reusable for many right-hand sides.
+    """
+
+    theta: np.ndarray
+    residuals: np.ndarray
+    rms: float
+    sigma: float
+    sigma_source: str
+    dof: int
+    std: np.ndarray | None
+    cov: np.ndarray | None
+    estimator: "LinearEstimator" = field(repr=False, compare=False)
+
+
+class LinearEstimator:
+    """The constrained least-squares estimator, factored once.
+
+    ``theta(b) = theta_0 + D Z M^-1 (A D Z)^T (b - A D phi_0)`` with column
+    scaling ``D``, constraint null-space basis ``Z`` and ``M = (A D Z)^T (A D
+    Z)``. :meth:`estimate` applies it to a batch of right-hand sides (the Monte
+    Carlo runs) without refactoring.
+    """
+
+    def __init__(self, A, DZ, B, phi0_theta, r0_shift, solve_M, n_free):
+        self.A = A
+        self.DZ = DZ  # (n, n_free) sparse: theta = DZ psi + theta0
+        self.B = B  # (m, n_free) sparse
+        self.theta0 = phi0_theta
+        self.b_shift = r0_shift  # A theta0
+        self._solve_M = solve_M
+        self.n_free = n_free
+
+    def psi(self, b: np.ndarray) -> np.ndarray:
+        rhs = self.B.T @ (b - (self.b_shift if b.ndim == 1 else self.b_shift[:, None]))
+        return self._solve_M(rhs)
+
+    def estimate(self, b: np.ndarray) -> np.ndarray:
+        """(n,) or (n, r) estimates for ``b`` of shape (m,) or (m, r)."""
+        b = np.asarray(b, float)
+        t = self.DZ @ self.psi(b)
+        return t + (self.theta0 if b.ndim == 1 else self.theta0[:, None])
+
+    def noise_gain(self, e: np.ndarray) -> np.ndarray:
+        """(n, r) change of the estimate caused by observation noise ``e`` (m, r)."""
+        return self.DZ @ self._solve_M(self.B.T @ e)
+
+    def covariance(self, sigma: float) -> np.ndarray:
+        """(n, n) dense covariance ``sigma^2 DZ M^-1 DZ^T``."""
+        MinvZt = self._solve_M(self.DZ.T.toarray())
+        return sigma ** 2 * (self.DZ @ MinvZt)
+
+    def std(self, sigma: float, index=None, block: int = 256) -> np.ndarray:
+        """Standard uncertainties of ``theta[index]`` (default all), in blocks (no dense n x n)."""
+        DZ = self.DZ if index is None else self.DZ[index]
+        DZt = DZ.T.tocsc()
+        n = DZt.shape[1]
+        out = np.empty(n)
+        for a in range(0, n, block):
+            cols = DZt[:, a:a + block].toarray()
+            X = self._solve_M(cols)
+            out[a:a + block] = np.einsum("ij,ij->j", cols, X)
+        return sigma * np.sqrt(np.maximum(out, 0))
+
+
+def _eliminate(C: np.ndarray, d: np.ndarray, n: int):
+    """Z (n, n-k) sparse and theta0 with C (Z psi + theta0) = d for all psi."""
+    k = C.shape[0]
+    if k == 0:
+        return sp.identity(n, format="csr"), np.zeros(n)
+    _q, r, piv = sla.qr(C, mode="economic", pivoting=True)
+    if abs(r[k - 1, k - 1]) <= 1e-12 * abs(r[0, 0]):
+        raise ConfigError("constraints are linearly dependent")
+    P = np.sort(piv[:k])
+    F = np.setdiff1d(np.arange(n), P)
+    CP = C[:, P]
+    T = np.linalg.solve(CP, C[:, F])  # theta_P = CP^-1 d - T theta_F
+    T[np.abs(T) < 1e-14 * max(1.0, np.abs(T).max())] = 0.0
+    Ts = sp.coo_matrix(T)
+    rows = np.concatenate([F, P[Ts.row]])
+    cols = np.concatenate([np.arange(len(F)), Ts.col])
+    vals = np.concatenate([np.ones(len(F)), -Ts.data])
+    Z = sp.csr_matrix((vals, (rows, cols)), shape=(n, len(F)))
+    theta0 = np.zeros(n)
+    theta0[P] = np.linalg.solve(CP, d)
+    return Z, theta0
+
+
+def _describe(v: np.ndarray, names, top: int = 4) -> str:
+    idx = np.argsort(-np.abs(v))[:top]
+    idx = [i for i in idx if abs(v[i]) > 0.05 * abs(v[idx[0]])]
+    return " ".join(f"{'+' if v[i] >= 0 else '-'}{abs(v[i]):.2f}*{names[i]}" for i in idx).lstrip("+")
+
+
+def solve(A, b, C=None, d=None, *, names=None, sigma=None, covariance: str = "auto",
+          rank_tol: float = RANK_TOL) -> Solution:
+    """Least squares ``min |A theta - b|`` subject to ``C theta = d``.
+
+    Conditioned before solving: columns scaled to unit norm, constraints
+    eliminated (QR with pivoting picks the eliminated parameters), then the
+    rank of the reduced normal matrix is checked and unidentifiable
+    combinations are reported by name.
+
+    Parameters
+    ----------
+    A : (m, n) sparse or dense
+    b : (m,) float
+    C : (k, n) float or None
+        Equality constraints (the gauge, plus any extension's own).
+    d : (k,) float or None
+    names : sequence of str, optional
+        Parameter names for messages (default ``theta[i]``).
+    sigma : float or None
+        Observation standard deviation; None = from the residuals.
+    covariance : {"auto", "full", "std", "none"}
+        ``auto``: full covariance up to :data:`DENSE_MAX` free parameters,
+        standard uncertainties only above.
+
+    Raises
+    ------
+    IdentifiabilityError
+        Fewer observations than free parameters, a parameter no observation
+        touches, or rank-deficient combinations (named).
+    """
+    A = sp.csr_matrix(A)
+    b = np.asarray(b, float).ravel()
+    m, n = A.shape
+    names = list(names) if names is not None else [f"theta[{i}]" for i in range(n)]
+    if b.shape != (m,):
+        raise ConfigError(f"b: expected shape ({m},), got {b.shape}")
+    if not np.all(np.isfinite(b)):
+        raise ConfigError(f"b: {np.count_nonzero(~np.isfinite(b))} non-finite observations")
+    C = np.zeros((0, n)) if C is None else np.atleast_2d(np.asarray(C, float))
+    d = np.zeros(C.shape[0]) if d is None else np.asarray(d, float).ravel()
+    k = C.shape[0]
+    if m < n - k:
+        raise IdentifiabilityError(f"{m} observations for {n - k} free parameters ({n} - {k} constraints)")
+    colnorm = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
+    # rounding dust (cos 90 deg = 6e-17) is no observation
+    colnorm[colnorm <= 1e-12 * max(colnorm.max(initial=0.0), 1e-300)] = 0.0
+    in_c = np.any(C != 0, axis=0)
+    zero = np.flatnonzero((colnorm == 0) & ~in_c)
+    if zero.size:
+        shown = ", ".join(names[i] for i in zero[:8]) + (f" and {zero.size - 8} more" if zero.size > 8 else "")
+        raise IdentifiabilityError(f"no observation constrains {shown}")
+    D = np.where(colnorm > 0, 1.0 / np.where(colnorm > 0, colnorm, 1.0), 1.0)
+    Ds = sp.diags(D)
+    Z, phi0 = _eliminate(C * D[None, :], d, n)
+    DZ = (Ds @ Z).tocsr()
+    theta0 = D * phi0
+    B = (A @ DZ).tocsc()
+    nf = B.shape[1]
+    M = (B.T @ B).tocsc()
+    if nf <= DENSE_MAX:
+        Md = M.toarray()
+        w, V = np.linalg.eigh(Md)
+        bad = w <= rank_tol * max(w[-1], 1e-300)
+        if bad.any():
+            dirs = [_describe(DZ @ V[:, i], names) for i in np.flatnonzero(bad)[:5]]
+            raise IdentifiabilityError(
+                f"rank deficient by {int(bad.sum())} beyond the constraints; unidentifiable: " + "; ".join(dirs))
+        cf = sla.cho_factor(Md)
+
+        def solve_M(r):
+            return sla.cho_solve(cf, r)
+    else:
+        try:
+            lu = spla.splu(M, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
+        except RuntimeError as e:
+            raise IdentifiabilityError(f"normal matrix singular ({e}); the design is rank deficient") from None
+        u = np.abs(lu.U.diagonal())
+        badp = np.flatnonzero(u <= rank_tol * u.max())
+        if badp.size:
+            fcols = np.argsort(lu.perm_c)[badp]  # Pr M Pc = LU: column j of M Pc is M[:, argsort(perm_c)[j]]
+            Zc = DZ.tocsc()
+            shown = []
+            for f in fcols[:5]:
+                col = Zc[:, f]
+                shown.append(names[col.indices[np.argmax(np.abs(col.data))]])
+            raise IdentifiabilityError(
+                f"rank deficient by about {badp.size} beyond the constraints; near-null pivots at: " + ", ".join(shown))
+
+        def solve_M(r):
+            return lu.solve(np.asarray(r, float))
+    est = LinearEstimator(A, DZ, B, theta0, A @ theta0, solve_M, nf)
+    theta = est.estimate(b)
+    res = b - A @ theta
+    dof = m - nf
+    rms = float(np.sqrt(np.mean(res ** 2))) if m else 0.0
+    if sigma is None:
+        if dof <= 0:
+            raise IdentifiabilityError(f"{m} observations for {nf} free parameters leave no residual to estimate sigma")
+        sig, src = float(np.sqrt(res @ res / dof)), "residuals"
+    else:
+        if not (np.isfinite(sigma) and sigma > 0):
+            raise ConfigError(f"sigma must be > 0, got {sigma}")
+        sig, src = float(sigma), "given"
+    cov = std = None
+    mode = covariance
+    if mode == "auto":
+        mode = "full" if nf <= DENSE_MAX else "std"
+    if mode == "full":
+        cov = est.covariance(sig)
+        std = np.sqrt(np.maximum(np.diag(cov), 0))
+    elif mode == "std":
+        std = est.std(sig)
+    elif mode != "none":
+        raise ConfigError(f"covariance must be auto, full, std or none, got {covariance!r}")
+    return Solution(theta=theta, residuals=res, rms=rms, sigma=sig, sigma_source=src, dof=int(dof),
+                    std=std, cov=cov, estimator=est)
+
+
+# ---------------------------------------------------------------------------
+# identification
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SelfCalResult:
+    """Identified workpiece, axis and rotary errors (eqs 15-18).
+
+    Attributes
+    ----------
+    design : Design
+    theta : (n_params,) float
+        All parameters, m / rad, in ``design.names`` order.
+    std : (n_params,) float or None
+        Standard uncertainties (k = 1), m / rad; 0 for gauge-fixed values.
+    cov : (n_params, n_params) float or None
+    residuals_m : (n_touches,) float
+    rms_m : float
+        Residual RMS, m.
+    sigma_m : float
+        Probing standard deviation used for the covariance, m.
+    sigma_source : str
+    dof : int
+    conventions : tuple of str
+        The gauge conditions and whether the scale is known.
+    scale_known : bool
+    n_touches : int
+    """
+
+    design: Design
+    theta: np.ndarray
+    std: np.ndarray | None
+    cov: np.ndarray | None
+    residuals_m: np.ndarray
+    rms_m: float
+    sigma_m: float
+    sigma_source: str
+    dof: int
+    conventions: tuple
+    scale_known: bool
+    n_touches: int
+
+    def _blk(self, k):
+        return self.theta[self.design.slices[k]]
+
+    @property
+    def EXX(self):
+        """(N_x,) m on ``design.grid.x_m``."""
+        return self._blk("EXX")
+
+    @property
+    def EYX(self):
+        """(N_x,) m."""
+        return self._blk("EYX")
+
+    @property
+    def EXY(self):
+        """(N_y,) m on ``design.grid.y_m``."""
+        return self._blk("EXY")
+
+    @property
+    def EYY(self):
+        """(N_y,) m."""
+        return self._blk("EYY")
+
+    @property
+    def ECY(self):
+        """(N_y,) rad."""
+        return self._blk("ECY")
+
+    @property
+    def EC0Y(self) -> float:
+        """Squareness, rad."""
+        return float(self._blk("EC0Y")[0])
+
+    @property
+    def G(self):
+        """(N_w,) workpiece normal deviation per target, m (``design.target_ids``)."""
+        return self._blk("G")
+
+    @property
+    def EXC(self):
+        """(N_c,) EXC,total per set-up, m."""
+        return self._blk("EXC")
+
+    @property
+    def EYC(self):
+        """(N_c,) EYC,total per set-up, m."""
+        return self._blk("EYC")
+
+    @property
+    def ECC(self):
+        """(N_c,) rad."""
+        return self._blk("ECC")
+
+    def value(self, name: str) -> float:
+        """One parameter by name."""
+        return float(self.theta[self.design.names.index(name)])
+
+
+def count_condition(n_w: int, n_x: int, n_y: int, n_c: int) -> tuple[int, int, int]:
+    """Eq 6: (equations, unknowns, least N_c meeting ``N_w N_c > unknowns``)."""
+    unknowns = n_w + 2 * n_x + 3 * n_y + 1 + 3 * n_c
+    need = None
+    if n_w > 3:
+        need = int(np.floor((n_w + 2 * n_x + 3 * n_y + 1) / (n_w - 3))) + 1
+    return n_w * n_c, unknowns, need
+
+
+def check_count(touches: Touches, grid: Grid) -> None:
+    """Raise :class:`IdentifiabilityError` unless eq 6 holds (and >= 2 C angles)."""
+    nw, nc = len(touches.target_ids), len(touches.setup_ids)
+    nx, ny = len(grid.x_m), len(grid.y_m)
+    unknowns = nw + 2 * nx + 3 * ny + 1 + 3 * nc
+    _, _, need = count_condition(nw, nx, ny, nc)
+    if nc < 2:
+        raise IdentifiabilityError(f"{nc} C angle: self-calibration needs the same targets at >= 2 C angles (eq 6)")
+    if touches.n <= unknowns:
+        needs = (f"at least {need} C angles with these {nw} targets" if need is not None
+                 else f"more than 3 targets (have {nw})")
+        raise IdentifiabilityError(
+            f"{nc} C angles give {touches.n} equations for {unknowns} unknowns"
+            f" (N_w={nw}, N_x={nx}, N_y={ny}); eq 6 needs N_w N_c > N_w + 2N_x + 3N_y + 1 + 3N_c: {needs},"
+            f" or a coarser grid")
+
+
+def _check_nodes(des: Design) -> None:
+    """Raise naming every grid node no touch constrains (they would be solved from the gauge alone)."""
+    A = des.A
+    colnorm = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
+    zero = np.flatnonzero(colnorm <= 1e-12 * colnorm.max())
+    if zero.size:
+        shown = ", ".join(des.names[i] for i in zero[:10]) + (f" and {zero.size - 10} more" if zero.size > 10 else "")
+        raise IdentifiabilityError(f"no touch constrains {shown}: fit the grid to the touches or add targets there")
+
+
+def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
+             grid_step_m: float = 0.022, sigma_m: float | None = None, covariance: str = "auto") -> SelfCalResult:
+    """2D self-calibration, eqs 15-18.
+
+    Parameters
+    ----------
+    touches : Touches
+        From :func:`core.touches.from_log` (or :func:`nominal_touches`).
+    grid : Grid or None
+        Look-up-table nodes; None = :meth:`Grid.from_extent` of ``pn_R`` with
+        ``grid_step_m``.
+    delta_L_m : float or None
+        ``EXX(x_N)`` measured independently (eq 17), m; None = scale unknown.
+    sigma_m : float or None
+        Probing standard deviation, m; None = estimated from residuals.
+    covariance : str
+        See :func:`solve`.
+
+    Raises
+    ------
+    IdentifiabilityError
+        Eq 6 fails, a grid node no touch constrains, or rank deficiency beyond
+        the eleven gauge directions (named).
+    ConfigError
+        Touches outside the grid, inconsistent set-ups.
+    """
+    if grid is None:
+        grid = Grid.from_extent(touches.pn_R, grid_step_m)
+    check_count(touches, grid)
+    des = build_design(touches, grid, delta_L_m)
+    _check_nodes(des)
+    sol = solve(des.A, touches.dq_m, des.C, des.d, names=des.names, sigma=sigma_m, covariance=covariance)
+    conv = des.gauge + (("scale known: EXX(x_N) = delta_L" if des.scale_known
+                         else "scale unknown: delta_L not given, fixed to 0"),
+                        "ECC is the right-handed rotation error of the table about Z (eq 13)",
+                        "G is the workpiece deviation along the outward normal (eq 7)",
+                        f"sigma from {sol.sigma_source}")
+    return SelfCalResult(design=des, theta=sol.theta, std=sol.std, cov=sol.cov, residuals_m=sol.residuals,
+                         rms_m=sol.rms, sigma_m=sol.sigma, sigma_source=sol.sigma_source, dof=sol.dof,
+                         conventions=conv, scale_known=des.scale_known, n_touches=touches.n)
+
+
+def estimator(touches: Touches, grid: Grid, delta_L_m: float | None = None) -> tuple[Design, LinearEstimator]:
+    """Build and factor the design once (for Monte Carlo and design studies)."""
+    check_count(touches, grid)
+    des = build_design(touches, grid, delta_L_m)
+    _check_nodes(des)
+    sol = solve(des.A, np.zeros(touches.n), des.C, des.d, names=des.names, sigma=1.0, covariance="none")
+    return des, sol.estimator
+
+
+# ---------------------------------------------------------------------------
+# nominal touches (plans, studies without simulation)
+# ---------------------------------------------------------------------------
+def rot2(a_rad) -> np.ndarray:
+    """(..., 2, 2) rotation by ``a_rad`` counter-clockwise (eq 2 uses R(-C))."""
+    a = np.asarray(a_rad, float)
+    c, s = np.cos(a), np.sin(a)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def nominal_touches(w_W: np.ndarray, wn_W: np.ndarray, c_deg, *, stylus_r_m: float = 0.0,
+                    target_ids=None, dq_m: np.ndarray | None = None) -> Touches:
+    """Touches of a plan: every target at every C angle (eq 1).
+
+    Parameters
+    ----------
+    w_W : (N_w, 2) float
+        Nominal contact points, workpiece frame W, m.
+    wn_W : (N_w, 2) float
+        Outward unit normals, W.
+    c_deg : sequence of float
+        C angles, degrees (one set-up each, named ``C=<deg>``).
+    stylus_r_m : float
+        Stylus radius: nominal tip centre = contact + r n.
+    dq_m : (N_c * N_w,) float or None
+        Normal deviations to report (set-up major order); None = 0.
+    """
+    w = np.asarray(w_W, float)
+    wn = np.asarray(wn_W, float)
+    if w.ndim != 2 or w.shape[1] != 2 or wn.shape != w.shape:
+        raise ConfigError(f"w_W and wn_W must both be (N_w, 2), got {w.shape} and {wn.shape}")
+    c = np.asarray(c_deg, float).ravel()
+    if len(set(c.tolist())) != c.size:
+        raise ConfigError(f"C angles repeat: {c.tolist()}")
+    nw, nc = len(w), len(c)
+    R = rot2(-c * DEG)  # (N_c, 2, 2), eq 1
+    tip = w + stylus_r_m * wn
+    pn = np.einsum("jab,ib->jia", R, tip).reshape(-1, 2)
+    nR = np.einsum("jab,ib->jia", R, wn).reshape(-1, 2)
+    m = nw * nc
+    z = np.zeros((m, 1))
+    pn3 = np.hstack([pn, z])
+    n3 = np.hstack([nR, z])
+    dq = np.zeros(m) if dq_m is None else np.asarray(dq_m, float).ravel()
+    if dq.shape != (m,):
+        raise ConfigError(f"dq_m: expected ({m},), got {dq.shape}")
+    ids = tuple(target_ids) if target_ids is not None else tuple(f"p{i + 1}" for i in range(nw))
+    sids = tuple(f"C={v:g}" for v in c)
+    return Touches(row=np.arange(m), p_R=pn3 + dq[:, None] * n3, pn_R=pn3, n_R=n3, d_R=-n3,
+                   rot_rad=np.column_stack([np.zeros(m), np.zeros(m), np.repeat(c * DEG, nw)]),
+                   t_s=np.arange(m, dtype=float), setup=np.repeat(np.arange(nc), nw),
+                   target=np.tile(np.arange(nw), nc), setup_ids=sids, target_ids=ids,
+                   feature=np.array([""] * m, dtype=object),
+                   w_W=np.hstack([np.tile(w, (nc, 1)), z]), wn_W=np.hstack([np.tile(wn, (nc, 1)), z]),
+                   temps_C={})

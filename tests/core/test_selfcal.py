@@ -1,0 +1,274 @@
+"""2D self-calibration (core.selfcal): null space, round trips, exact truth, bad input."""
+
+import numpy as np
+import pytest
+
+from core import selfcal
+from core.design import example_cross_pocket
+from core.exceptions import ConfigError, IdentifiabilityError
+from core.selfcal import Grid, build_design, identify, nominal_touches, rot2, solve, to_gauge
+
+UM = 1e-6
+GRID = Grid.regular(-0.110, 0.110, 0.022)
+ANGLES = [0, 75, 130, 210]
+
+
+def freeform(n=60, rng=None):
+    """Targets on a wavy closed curve (a free-form part), outward normals, W, m."""
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    r = 0.082 + 0.012 * np.sin(3 * t) + 0.005 * np.cos(5 * t)
+    dr = 0.036 * np.cos(3 * t) - 0.025 * np.sin(5 * t)
+    p = np.column_stack([r * np.cos(t), r * np.sin(t)])
+    tang = np.column_stack([dr * np.cos(t) - r * np.sin(t), dr * np.sin(t) + r * np.cos(t)])
+    nrm = np.column_stack([tang[:, 1], -tang[:, 0]])
+    return p, nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+
+
+def random_truth(des, rng, scale_um=5.0):
+    """A truth in the model space: node values, C-axis errors, G (m / rad)."""
+    th = rng.normal(0, scale_um * UM, des.n_params)
+    for k in ("ECY", "EC0Y", "ECC"):
+        th[des.slices[k]] = rng.normal(0, 20 * UM, des.slices[k].stop - des.slices[k].start)  # 20 urad
+    return th
+
+
+def with_dq(t, dq):
+    return nominal_touches_like(t, dq)
+
+
+def nominal_touches_like(t, dq):
+    from dataclasses import replace
+    return replace(t, p_R=t.pn_R + dq[:, None] * t.n_R)
+
+
+def test_null_space_is_eleven_dimensional_and_fixed_by_the_gauge():
+    w, wn, ids = example_cross_pocket()
+    t = nominal_touches(w, wn, ANGLES, stylus_r_m=0.003, target_ids=ids)
+    des = build_design(t, GRID)
+    A = des.A.toarray()
+    # the analytic directions are exact null vectors (rounding only)
+    assert np.abs(A @ des.N).max() < 1e-14
+    # ... and they are all of the null space: rank = n - 11 (column-scaled SVD)
+    sv = np.linalg.svd(A / np.linalg.norm(A, axis=0), compute_uv=False)
+    assert (sv > 1e-8 * sv[0]).sum() == des.n_params - 11
+    assert np.linalg.matrix_rank(des.N) == 11
+    # the eleven gauge conditions fix exactly these directions
+    assert np.linalg.matrix_rank(des.C @ des.N) == 11
+    assert len(des.gauge) == 11 and "scale unknown" in des.gauge[10]
+
+
+def test_names_and_order():
+    w, wn = freeform(40)
+    t = nominal_touches(w, wn, ANGLES)
+    des = build_design(t, GRID)
+    assert des.names[0] == "EXX@x=-110mm" and des.names[11] == "EYX@x=-110mm"
+    assert des.names[des.slices["EC0Y"]][0] == "EC0Y"
+    assert des.names[des.slices["G"]][0] == "G[p1]"
+    assert des.names[des.slices["ECC"]][1] == "ECC[C=75deg]"
+    assert des.names[des.slices["EXC"]][3] == "EXC,total[C=210deg]"
+
+
+def test_design_matches_eq14_for_one_touch():
+    """Known answer: eq 14 written out by hand for one touch at a grid-cell interior."""
+    w = np.array([[0.030, 0.050]])
+    wn = np.array([[0.6, 0.8]])
+    t = nominal_touches(np.repeat(w, 1, 0), wn, [0])
+    g = Grid(np.array([0.0, 0.04]), np.array([0.0, 0.1]))
+    des = build_design(t, g)
+    row = des.A.toarray()[0]
+    zx, zy = 0.030 / 0.04, 0.5
+    nx, ny, x, y = 0.6, 0.8, 0.030, 0.050
+    exp = {"EXX@x=0mm": -nx * (1 - zx), "EXX@x=40mm": -nx * zx, "EYX@x=40mm": -ny * zx,
+           "EXY@y=100mm": -nx * zy, "EYY@y=0mm": -ny * (1 - zy), "ECY@y=100mm": -ny * x * zy,
+           "EC0Y": nx * y, "G[p1]": 1.0, "EXC,total[C=0deg]": nx, "EYC,total[C=0deg]": ny,
+           "ECC[C=0deg]": -nx * y + ny * x}
+    for k, v in exp.items():
+        assert row[des.names.index(k)] == pytest.approx(v, abs=1e-15), k
+
+
+@pytest.mark.parametrize("delta_L_um", [None, 3.0])
+def test_round_trip_in_model_space(rng, delta_L_um):
+    """Truth in the model space -> noise 0.5 um -> identify -> gauge-equivalent truth within 4.5 sigma."""
+    w, wn = freeform(60)
+    t = nominal_touches(w, wn, ANGLES, stylus_r_m=0.002)
+    des = build_design(t, GRID)
+    dL = None if delta_L_um is None else delta_L_um * UM
+    truth = to_gauge(des, random_truth(des, rng), 0.0 if dL is None else dL)
+    noise = 0.5 * UM
+    dq = des.A @ truth + rng.normal(0, noise, t.n)
+    res = identify(nominal_touches_like(t, dq), GRID, dL, sigma_m=noise)
+    assert res.scale_known is (dL is not None)
+    assert any("scale unknown" in c for c in res.conventions) is (dL is None)
+    z = (res.theta - truth) / np.where(res.std > 0, res.std, 1)
+    # 4.5 sigma over ~250 parameters: a false alarm has probability ~1e-3
+    assert np.abs(z).max() < 4.5
+    assert res.rms_m == pytest.approx(noise * np.sqrt(res.dof / t.n), rel=0.25)
+    # gauge-fixed values are exact and have zero uncertainty
+    assert res.value("ECC[C=0deg]") == 0 and res.std[des.names.index("EXC,total[C=0deg]")] < 1e-20
+    assert res.EXX[-1] == pytest.approx(0.0 if dL is None else dL, abs=1e-15)
+
+
+def test_noise_free_exact_and_residuals_zero():
+    w, wn, ids = example_cross_pocket()
+    t = nominal_touches(w, wn, ANGLES, target_ids=ids)
+    des = build_design(t, GRID)
+    truth = to_gauge(des, random_truth(des, np.random.default_rng(3)))
+    res = identify(nominal_touches_like(t, des.A @ truth), GRID)
+    # rounding only: the estimator's gain is < 1e4 (cond of the scaled design)
+    assert np.abs(res.theta - truth).max() < 1e-12
+    assert res.rms_m < 1e-15
+
+
+def exact_campaign(w, wn, c_deg, truth, r_m):
+    """Reported positions of an exact rigid-body machine (outside the model space).
+
+    Actual table pose: R(ECC) R(-C) + (EXC, EYC) (exact rotation); actual tip
+    = believed tip + E(believed tip) with smooth E; workpiece contact point
+    moved by G along its normal. The trigger is solved exactly along the
+    nominal normal.
+    """
+    t = nominal_touches(w, wn, c_deg, stylus_r_m=r_m)
+    nw = len(w)
+    dq = np.empty(t.n)
+    for j, c in enumerate(c_deg):
+        Rj = rot2(truth["ECC"][j]) @ rot2(-np.radians(c))
+        for i in range(nw):
+            k = j * nw + i
+            a = Rj @ (w[i] + truth["G"][i] * wn[i]) + np.array([truth["EXC"][j], truth["EYC"][j]])
+            m = Rj @ wn[i]
+            n = t.n_R[k, :2]
+            pn = t.pn_R[k, :2]
+            s = 0.0
+            for _ in range(8):
+                p = pn + s * n
+                f = m @ (p + truth["E"](p) - a) - r_m
+                s -= f / (m @ n)
+            dq[k] = s
+    return t, dq
+
+
+def smooth_truth(nw, nc, rng):
+    def E(p):
+        x, y = p
+        exx = 4e-5 * x + 2e-4 * x ** 2
+        eyx = 3e-6 * np.sin(x / 0.07)
+        exy = 2e-6 * np.cos(y / 0.09) + 1e-5 * y
+        eyy = -3e-5 * y + 1.5e-4 * y ** 2
+        ecy = 15e-6 * np.sin(y / 0.1)
+        return np.array([exx + exy - y * 40e-6, eyx + eyy + x * ecy])
+
+    tr = {"E": E, "G": rng.normal(0, 3 * UM, nw), "EXC": rng.normal(10 * UM, 3 * UM, nc),
+          "EYC": rng.normal(5 * UM, 3 * UM, nc), "ECC": rng.normal(0, 30e-6, nc)}
+    return tr
+
+
+def sample_truth(des, tr, gx, gy):
+    th = np.zeros(des.n_params)
+    s = des.slices
+    th[s["EXX"]] = 4e-5 * gx + 2e-4 * gx ** 2
+    th[s["EYX"]] = 3e-6 * np.sin(gx / 0.07)
+    th[s["EXY"]] = 2e-6 * np.cos(gy / 0.09) + 1e-5 * gy
+    th[s["EYY"]] = -3e-5 * gy + 1.5e-4 * gy ** 2
+    th[s["ECY"]] = 15e-6 * np.sin(gy / 0.1)
+    th[s["EC0Y"]] = 40e-6
+    th[s["G"]] = tr["G"]
+    th[s["EXC"]], th[s["EYC"]], th[s["ECC"]] = tr["EXC"], tr["EYC"], tr["ECC"]
+    return th
+
+
+def test_exact_truth_outside_model_space_recovered_to_first_order(rng):
+    """Smooth error functions, exact table rotation, stylus radius 3 mm, no noise.
+
+    The model is first order with piecewise-linear tables, so the estimate
+    differs from the gauge-equivalent truth by (a) the bilinear
+    interpolation error, O(h^2) (max |f''| h^2 / 8 ~ 0.03 um per function at
+    h = 22 mm) and (b) second-order kinematic terms (ECC x E ~ 30 urad x
+    10 um = 3e-4 um), both amplified by the estimator. Checks: the error is
+    < 0.2 um (2 % of the raw machine error of ~10 um at h = 22 mm) and
+    falls like h^2 when the grid is halved (ratio < 0.35; 0.25 ideal).
+    """
+    w, wn = freeform(72)
+    tr = smooth_truth(len(w), len(ANGLES), rng)
+    t, dq = exact_campaign(w, wn, ANGLES, tr, 0.003)
+    raw = dq[: len(w)] - tr["G"]  # what probing at C = 0 alone would get wrong
+    assert np.abs(raw).max() > 5 * UM
+    err = {}
+    for step in (0.022, 0.011):
+        g = Grid.from_extent(t.pn_R, step)
+        res = identify(nominal_touches_like(t, dq), g)
+        truth = to_gauge(res.design, sample_truth(res.design, tr, g.x_m, g.y_m))
+        s = res.design.slices
+        err[step] = {k: np.abs(res.theta[s[k]] - truth[s[k]]).max() for k in ("G", "EXC", "EYC", "ECC")}
+    assert err[0.022]["G"] < 0.2 * UM
+    assert max(err[0.022]["EXC"], err[0.022]["EYC"]) < 0.2 * UM
+    assert err[0.022]["ECC"] < 0.5e-6  # 0.5 urad against 30 urad of truth
+    for k in ("G", "EXC", "EYC", "ECC"):
+        assert err[0.011][k] < 0.35 * err[0.022][k], k
+
+
+def test_sparse_path_matches_dense(monkeypatch, rng):
+    """Above DENSE_MAX the solver factors the sparse normal matrix; same answer and std."""
+    w, wn = freeform(50)
+    t = nominal_touches(w, wn, ANGLES)
+    des = build_design(t, GRID)
+    truth = to_gauge(des, random_truth(des, rng))
+    tt = nominal_touches_like(t, des.A @ truth + rng.normal(0, 1 * UM, t.n))
+    dense = identify(tt, GRID)
+    monkeypatch.setattr(selfcal, "DENSE_MAX", 10)
+    sparse = identify(tt, GRID)
+    assert sparse.cov is None
+    np.testing.assert_allclose(sparse.theta, dense.theta, atol=1e-13)
+    np.testing.assert_allclose(sparse.std, dense.std, rtol=1e-8, atol=1e-15)
+
+
+def test_symmetric_part_at_symmetric_angles_is_reported_by_name():
+    """A cross at 0/90/180/270 looks the same in R every time: rank deficient, named."""
+    w, wn, ids = example_cross_pocket(spheres=False)
+    t = nominal_touches(w, wn, [0, 90, 180, 270], target_ids=ids)
+    with pytest.raises(IdentifiabilityError,
+                       match=r"rank deficient by 5 beyond the constraints; unidentifiable: .*\*ECY@y=-55mm"):
+        identify(t, Grid.regular(-0.110, 0.110, 0.055))
+
+
+def test_too_few_angles_eq6_message():
+    w, wn = freeform(30)
+    t = nominal_touches(w, wn, [0, 75])
+    with pytest.raises(IdentifiabilityError, match=r"2 C angles give 60 equations for 92 unknowns.*eq 6.*at least 4 C angles"):
+        identify(t, GRID)
+    with pytest.raises(IdentifiabilityError, match="1 C angle"):
+        identify(nominal_touches(w, wn, [0]), GRID)
+
+
+def test_unconstrained_nodes_named():
+    w, wn = freeform(60)
+    t = nominal_touches(w, wn, ANGLES)
+    wide = Grid.regular(-0.110, 0.154, 0.022)
+    with pytest.raises(IdentifiabilityError, match=r"no touch constrains EXX@x=132mm, EXX@x=154mm, EYX@x=132mm"):
+        identify(t, wide)
+
+
+def test_bad_input():
+    w, wn = freeform(30)
+    t = nominal_touches(w, wn, ANGLES)
+    with pytest.raises(ConfigError, match=r"nominal X = .* mm lies outside the grid -50..50 mm"):
+        identify(t, Grid.regular(-0.05, 0.05, 0.01))
+    with pytest.raises(ConfigError, match="strictly increasing"):
+        Grid(np.array([0.0, 0.0]), np.array([0.0, 1.0]))
+    with pytest.raises(ConfigError, match="whole number"):
+        Grid.regular(-0.1, 0.1, 0.03)
+    with pytest.raises(ConfigError, match="sigma must be > 0"):
+        identify(t, GRID, sigma_m=-1.0)
+    with pytest.raises(ConfigError, match="C angles repeat"):
+        nominal_touches(w, wn, [0, 0, 75])
+    with pytest.raises(IdentifiabilityError, match="3 observations for 4 free parameters"):
+        solve(np.eye(4)[:3], np.zeros(3))
+
+
+def test_auto_grid_from_extent():
+    w, wn = freeform(40)
+    t = nominal_touches(w, wn, ANGLES)
+    g = Grid.from_extent(t.pn_R, 0.02)
+    assert g.x_m[0] <= t.pn_R[:, 0].min() and g.x_m[-1] >= t.pn_R[:, 0].max()
+    assert np.any(np.isclose(g.x_m, 0.0, atol=1e-12))
+    res = identify(t, grid_step_m=0.02)
+    assert np.array_equal(res.design.grid.x_m, g.x_m)
