@@ -1,0 +1,257 @@
+"""`vmt probe` campaigns against the emulator: equal to the backend, resumable, lossless."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import LIMITS, LIMITS_MM, plan_log, scene
+from core.exceptions import HardwareError, PlanError
+from core.probelog import read_probe_log, write_probe_log
+from hardware.backend import VirtualBackend
+from hardware.campaign import ProbeSettings, recover_log, run_campaign
+from hardware.emulator import Faults, GrblEmulator, TcpServer
+from scenarios.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+#: GRBL reports 3 decimals in mm (0.5 µm) and commands carry 4 (0.05 µm).
+QUANT_MM = 0.6e-3
+
+
+def direct_log(tmp_path, plan, noise_um=0.0, name="direct.csv"):
+    """The reference: the same plan on the same machine, called in-process."""
+    out = tmp_path / name
+    run_campaign(VirtualBackend(scene(noise_um), home_m=(0, 0, 0.05)), plan, out,
+                 ProbeSettings(limits_mm=LIMITS_MM, safe_z_mm=30.0))
+    return read_probe_log(out)
+
+
+def serve(faults=None, noise_um=0.0, machine=None):
+    emu = GrblEmulator(machine or scene(noise_um), home_mm=(0, 0, 50), faults=faults,
+                       limits_mm=LIMITS_MM)
+    return emu, TcpServer(emu).start()
+
+
+def probe_args(url, plan, out, *extra):
+    return ["probe", "--machine", url, "--plan", str(plan), "--out", str(out),
+            "--limits", LIMITS, "--safe-z", "30", "--timeout", "5", *extra]
+
+
+def assert_complete(log, plan):
+    """Row i is plan row i: nothing lost, nothing twice, time never backwards."""
+    assert log.n == plan.n
+    assert list(log.columns["target"]) == list(plan.columns["target"])
+    assert list(log.columns["setup"]) == list(plan.columns["setup"])
+    t = log.columns["t_s"][log.ok]
+    assert np.all(np.diff(t) >= 0)
+
+
+def test_campaign_through_vmt_probe_equals_the_backend(tmp_path, plan_path, capsys):
+    """Noise 1 µm, same seed: the emulator draws the same noise; difference = GRBL's rounding."""
+    plan = read_probe_log(plan_path)
+    ref = direct_log(tmp_path, plan, noise_um=1.0)
+    emu, srv = serve(noise_um=1.0)
+    try:
+        out = tmp_path / "log.csv"
+        assert main(probe_args(srv.url, plan_path, out)) == 0
+    finally:
+        srv.stop()
+    log = read_probe_log(out)
+    assert_complete(log, plan)
+    assert np.all(log.ok)
+    assert np.abs(log.positions_mm() - ref.positions_mm()).max() < QUANT_MM
+    # the known errors show: sphere touches deviate by µm, more than the rounding
+    assert np.abs(log.dq_mm()).max() > 2e-3
+    assert "12 of 12 touches (12 new, 0 before" in capsys.readouterr().out
+    assert log.meta["machine"] == srv.url and "started_unix" in log.meta
+
+
+def test_virtual_machine_url_runs_the_same_campaign(tmp_path, plan_path):
+    out = tmp_path / "v.csv"
+    assert main(probe_args("virtual:", plan_path, out)) == 0
+    assert_complete(read_probe_log(out), read_probe_log(plan_path))
+
+
+def test_lost_connection_then_resume_is_complete_and_duplicate_free(tmp_path, plan_path, capsys):
+    plan = read_probe_log(plan_path)
+    ref = direct_log(tmp_path, plan)
+    # probe 3 is made but its answer lost; probe 8 (the 7th touch) never happens
+    emu, srv = serve(Faults(drop_after_probe=(3,), drop_before_probe=(8,)))
+    out = tmp_path / "log.csv"
+    try:
+        assert main(probe_args(srv.url, plan_path, out)) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "connection lost" in err and "--resume" in err
+        assert read_probe_log(out).n == 2
+        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 2
+        assert read_probe_log(out).n == 6
+        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 0
+        assert "6 before" in capsys.readouterr().out
+        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 0    # nothing left: no motion
+    finally:
+        srv.stop()
+    log = read_probe_log(out)
+    assert_complete(log, plan)
+    assert np.abs(log.positions_mm() - ref.positions_mm()).max() < QUANT_MM
+    assert emu.probes == plan.n + 2          # the two lost probes were made again
+
+
+def test_alarm_stops_the_campaign_and_unlock_needs_the_users_word(tmp_path, plan_path, capsys):
+    plan = read_probe_log(plan_path)
+    emu, srv = serve(Faults(alarm_at_probe={5: 1}))        # a hard-limit alarm on probe 5
+    out = tmp_path / "log.csv"
+    try:
+        assert main(probe_args(srv.url, plan_path, out)) == 2
+        assert "ALARM:1" in capsys.readouterr().err
+        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 2
+        assert "--unlock" in capsys.readouterr().err and emu.state == "Alarm"
+        assert read_probe_log(out).n == 4
+        assert main(probe_args(srv.url, plan_path, out, "--resume", "--unlock")) == 0
+    finally:
+        srv.stop()
+    assert_complete(read_probe_log(out), plan)
+
+
+def test_missed_touch_g38_2_alarm_5_is_logged_once(tmp_path):
+    plan = plan_log(miss_rows=(2,))
+    plan_path = write_probe_log(tmp_path / "plan.csv", plan)
+    emu, srv = serve()
+    out = tmp_path / "log.csv"
+    try:
+        assert main(probe_args(srv.url, plan_path, out)) == 2
+        assert read_probe_log(out).n == 3 and emu.alarm == 5
+        assert main(probe_args(srv.url, plan_path, out, "--resume", "--unlock")) == 0
+    finally:
+        srv.stop()
+    log = read_probe_log(out)
+    assert_complete(log, plan)
+    assert list(log.col("status")).count("no_trigger") == 1 and log.col("status")[2] == "no_trigger"
+    assert np.isnan(log.columns["X_mm"][2])        # probe-log/1: invalid touch, empty measured cells
+
+
+def test_allow_miss_g38_3_goes_on(tmp_path):
+    plan_path = write_probe_log(tmp_path / "plan.csv", plan_log(miss_rows=(1, 6)))
+    emu, srv = serve()
+    out = tmp_path / "log.csv"
+    try:
+        assert main(probe_args(srv.url, plan_path, out, "--allow-miss")) == 0
+    finally:
+        srv.stop()
+    log = read_probe_log(out)
+    assert [i for i, s in enumerate(log.col("status")) if s != "ok"] == [1, 6]
+
+
+def test_garbage_lines_are_reported_and_never_taken(tmp_path, plan_path, capsys):
+    plan = read_probe_log(plan_path)
+    ref = direct_log(tmp_path, plan)
+    emu, srv = serve(Faults(garbage_every=2))
+    out = tmp_path / "log.csv"
+    try:
+        assert main(probe_args(srv.url, plan_path, out)) == 0
+    finally:
+        srv.stop()
+    err = capsys.readouterr().err
+    assert "unexpected line from controller" in err
+    log = read_probe_log(out)
+    assert_complete(log, plan)
+    assert np.abs(log.positions_mm() - ref.positions_mm()).max() < QUANT_MM
+
+
+class _Slow:
+    """A machine that takes 50 ms per probing move, so a kill lands mid-campaign."""
+
+    def __init__(self, machine):
+        self.machine = machine
+
+    def probe_move(self, a, b, rot):
+        time.sleep(0.05)
+        return self.machine.probe_move(a, b, rot)
+
+
+def test_killed_process_and_torn_line_then_resume(tmp_path, plan_path):
+    plan = read_probe_log(plan_path)
+    ref = direct_log(tmp_path, plan)
+    emu, srv = serve(machine=_Slow(scene()))
+    out = tmp_path / "log.csv"
+    try:
+        proc = subprocess.Popen([sys.executable, "-m", "scenarios.cli",
+                                 *probe_args(srv.url, plan_path, out)],
+                                cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        end = time.monotonic() + 15
+        while time.monotonic() < end:
+            rows = [x for x in out.read_text().splitlines() if not x.startswith("#")] if out.exists() else []
+            if len(rows) >= 1 + 5:                              # header + 5 touches
+                break
+            time.sleep(0.01)
+        proc.send_signal(signal.SIGKILL)
+        proc.communicate(timeout=10)
+        n_before = read_probe_log(out).n
+        assert 5 <= n_before < plan.n
+        with open(out, "ab") as f:                      # a torn line, as if killed mid-write
+            f.write(b"sphere,s9,12.0,61.2")
+        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 0
+    finally:
+        srv.stop()
+    log = read_probe_log(out)
+    assert_complete(log, plan)
+    assert np.abs(log.positions_mm() - ref.positions_mm()).max() < QUANT_MM
+
+
+def test_recover_cuts_a_torn_line_and_refuses_another_plan(tmp_path, plan_path):
+    plan = read_probe_log(plan_path)
+    ref_path = tmp_path / "direct.csv"
+    direct_log(tmp_path, plan)
+    text = ref_path.read_text()
+    cut = text[: text.index("sphere,s3")] + "sphere,s3,0.1"
+    ref_path.write_text(cut)
+    rec = recover_log(ref_path, plan)
+    assert rec.rows_done == 7 and rec.torn_bytes == len("sphere,s3,0.1")
+    assert ref_path.read_text().endswith("\n")
+    other = plan_log(n_sphere=6)
+    with pytest.raises(PlanError, match="not plan row 5"):
+        recover_log(ref_path, other)
+
+
+def test_safety_checks_before_any_connection(tmp_path, plan_path, capsys):
+    emu, srv = serve()
+    out = tmp_path / "log.csv"
+    try:
+        bad = [(["--limits", "X-20:200,Y-20:200,Z-1:100"], "outside the soft limits"),
+               (["--max-feed", "500"], "exceeds the maximum feed"),
+               (["--limits", "X1:0,Y0:1,Z0:1"], "min < max"),
+               (["--limits", "X0:1,Y0:1"], "give X, Y and Z")]
+        for extra, msg in bad:
+            assert main(probe_args(srv.url, plan_path, out, *extra)) == 2
+            err = capsys.readouterr().err
+            assert msg in err and err.count("\n") == 1
+        args = probe_args(srv.url, plan_path, out)
+        i = args.index("--limits")
+        assert main(args[:i] + args[i + 2:]) == 2
+        assert "without them" in capsys.readouterr().err
+        assert srv.connections == 0 and not out.exists()
+        # a log that exists is never overwritten
+        out.write_text("precious\n")
+        assert main(probe_args(srv.url, plan_path, out)) == 2
+        assert "use --resume" in capsys.readouterr().err and out.read_text() == "precious\n"
+        # a campaign log is not a plan
+        assert main(probe_args(srv.url, plan_path, tmp_path / "x.csv")) == 0
+        assert main(probe_args(srv.url, tmp_path / "x.csv", tmp_path / "y.csv")) == 2
+        assert "measured columns must be empty" in capsys.readouterr().err
+    finally:
+        srv.stop()
+
+
+def test_dry_run_prints_the_program_and_moves_nothing(tmp_path, plan_path, capsys):
+    emu, srv = serve()
+    try:
+        assert main(probe_args(srv.url, plan_path, tmp_path / "log.csv", "--dry-run")) == 0
+    finally:
+        srv.stop()
+    out = capsys.readouterr().out
+    assert out.count("G38.2") == 12 and "G53 G90 G1" in out
+    assert srv.connections == 0 and not (tmp_path / "log.csv").exists()
