@@ -424,9 +424,9 @@ def mfb_deviation(values: Mapping, p_w_m, R_f_R_w=None, p_f_w_m=None, J_m=(0.0, 
         ones are zero.
     p_w_m : (n, 3) float
         Probe centre (x, y, z) in the workpiece frame R_w, m.
-    R_f_R_w : (3, 3) float, optional
+    R_f_R_w : (3, 3) or (n, 3, 3) float, optional
         Workpiece orientation in the machine frame (a..i of eq. 8), default I.
-    p_f_w_m : (3,) float, optional
+    p_f_w_m : (3,) or (n, 3) float, optional
         Workpiece position in the machine frame, m, default 0.
     J_m : (3,) float
         Tool offsets J_X, J_Y, J_Z, m.
@@ -439,7 +439,8 @@ def mfb_deviation(values: Mapping, p_w_m, R_f_R_w=None, p_f_w_m=None, J_m=(0.0, 
         if iso.symbol(k).name not in iso.TWENTY_ONE:
             raise ConfigError(f"mfb_deviation takes the 21 linear-axis errors only, got {k!r}")
     E = {s: _col(values, s, n) for s in iso.TWENTY_ONE}
-    pr = p @ Rw.T + pf
+    Rw = np.broadcast_to(Rw, (n, 3, 3))
+    pr = np.einsum("nij,nj->ni", Rw, p) + pf
     Fv, Gv = pr[:, 1], pr[:, 2]  # F = p_y + b x + e y + h z ; G = p_z + c x + f y + i z
     JX, JY, JZ = J_m
     dX = (-E["EXX"] - E["EXY"] - E["EXZ"]

@@ -10,10 +10,10 @@ Example (the default 5-axis machine, one squareness error)::
     >>> lin = np.array([[0.0, 0.0, 0.0], [0.0, 0.1, 0.0], [0.1, 0.1, -0.05]])  # m
     >>> rot = np.zeros((3, len(m.rotary_axes)))                                # A, C in rad
     >>> dev_um = (m.tip_W(lin, rot) - m.tip_W_nominal(lin, rot)) * 1e6
-    >>> print(np.round(dev_um, 2))  # -y * EC0Y in X (self-calibration eq. 4)
-    [[ 0.    0.    0.  ]
-     [ 4.34  0.    0.  ]
-     [ 4.34  0.    0.  ]]
+    >>> print(np.round(dev_um, 2) + 0.0)  # -y * EC0Y in X (self-calibration eq. 4)
+    [[0.   0.   0.  ]
+     [4.34 0.   0.  ]
+     [4.34 0.   0.  ]]
 
 The chain (definition shared with ``core.kinematics``, whose module
 docstring states it in full): every axis is a nominal Pinocchio joint

@@ -1,0 +1,95 @@
+"""Truth error functions: known answers, derivatives, bad parameters."""
+
+import numpy as np
+import pytest
+
+from core.exceptions import ConfigError
+from sim.errorfuncs import (Constant, Drift, Periodic, Polynomial, Reversal, SplineTable, Sum,
+                            Zero)
+
+POS = np.linspace(-0.3, 0.3, 7)
+
+
+def test_zero_and_constant():
+    assert np.all(Zero()(POS) == 0)
+    assert np.allclose(Constant(5e-6)(POS), 5e-6)
+    assert Constant(1e-6)(0.0).shape == (1,)
+
+
+def test_polynomial_known_answer():
+    f = Polynomial((1e-6, 2e-5, -3e-4))  # 1 um + 20 um/m x - 300 um/m^2 x^2
+    assert np.allclose(f(POS), 1e-6 + 2e-5 * POS - 3e-4 * POS**2, rtol=0, atol=1e-18)
+    assert np.allclose(f.derivative(POS), 2e-5 - 6e-4 * POS, rtol=0, atol=1e-18)
+
+
+def test_spline_passes_through_table_and_is_c2():
+    x = (-0.3, -0.1, 0.0, 0.2, 0.3)
+    y = (0.0, 2e-6, 1e-6, -1e-6, 0.5e-6)
+    f = SplineTable(x, y)
+    assert np.allclose(f(x), y, rtol=0, atol=1e-18)
+    # a cubic is reproduced exactly by a not-a-knot spline
+    g = SplineTable(x, tuple(1e-5 * np.array(x) ** 3))
+    assert np.allclose(g(POS), 1e-5 * POS**3, rtol=0, atol=1e-18)
+    # outside the table: continued along the end tangent
+    assert np.isclose(g(0.4)[0], g(0.3)[0] + g.derivative(0.3)[0] * 0.1, rtol=0, atol=1e-18)
+
+
+def test_periodic_known_answer():
+    f = Periodic(1e-6, 0.01, np.pi / 2)  # cosine of 10 mm pitch
+    assert np.allclose(f([0.0, 0.005, 0.01]), [1e-6, -1e-6, 1e-6], rtol=0, atol=1e-18)
+
+
+def test_drift_grows_with_time_and_follows_temperature():
+    f = Drift(offset_rate=1e-9, scale_rate=1e-8)  # 1 nm/s + 10 nm/(m s)
+    assert np.allclose(f([0.1], t_s=100.0), (1e-9 + 1e-9) * 100, rtol=0, atol=1e-18)
+    assert np.all(f(POS) == 0)  # t = 0
+    g = Drift(offset_rate=1e-9, tau_s=600.0)
+    assert np.isclose(g([0.0], t_s=1e6)[0], 600e-9)  # saturates at rate * tau
+    h = Drift(scale_per_K=11.5e-6, temperature_t_s=(0, 3600), temperature_K=(293.15, 295.15))
+    assert np.isclose(h([0.2], t_s=1800.0)[0], 11.5e-6 * 0.2 * 1.0)  # 1 K halfway
+    assert not h.static
+
+
+def test_reversal_depends_on_direction():
+    f = Reversal(4e-6)
+    assert np.allclose(f(POS[:3], direction=[1, -1, 0]), [2e-6, -2e-6, 0])
+    assert np.all(f(POS) == 0)
+
+
+def test_sum_and_add():
+    f = Constant(1e-6) + Periodic(1e-6, 0.01)
+    assert isinstance(f, Sum)
+    assert np.allclose(f([0.0025]), 2e-6)
+    assert Sum((Reversal(1e-6), Constant(0.0))).static is False
+
+
+@pytest.mark.parametrize("f", [
+    Polynomial((1e-6, 2e-5, -3e-4, 1e-3)), SplineTable((-0.3, 0, 0.1, 0.3), (0, 1e-6, 3e-6, 0)),
+    Periodic(1e-6, 0.05, 0.3), Drift(offset_rate=1e-9, scale_rate=2e-8, tau_s=100.0),
+    Constant(1e-6) + Periodic(2e-6, 0.1)])
+def test_derivative_matches_finite_differences(f):
+    h = 1e-6
+    p = 0.9 * POS  # inside the spline table: its ends are only C1
+    fd = (f(p + h, t_s=50.0) - f(p - h, t_s=50.0)) / (2 * h)
+    # central difference: truncation h^2 f''' ~ 1e-12 * 1e-3; round-off 1e-16*1e-5/1e-6
+    assert np.allclose(f.derivative(p, t_s=50.0), fd, rtol=1e-6, atol=1e-12)
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: Constant(float("nan")), "Constant.value must be finite"),
+    (lambda: Constant("a"), "Constant.value must be a number"),
+    (lambda: Polynomial(()), "at least one coefficient"),
+    (lambda: SplineTable((0.0,), (1.0,)), "at least 2 points"),
+    (lambda: SplineTable((0.0, 1.0), (1.0,)), "values has 1"),
+    (lambda: SplineTable((0.0, 0.0, 1.0), (1.0, 2, 3)), "strictly increasing"),
+    (lambda: Periodic(1e-6, 0.0), "period must be > 0"),
+    (lambda: Drift(tau_s=-1.0), "tau_s must be > 0"),
+    (lambda: Drift(scale_per_K=1e-5), "need a temperature history"),
+    (lambda: Drift(temperature_t_s=(0, 1), temperature_K=(293,)), "temperature_K has 1"),
+    (lambda: Reversal(-1e-6), "lost_motion must be >= 0"),
+    (lambda: Sum(()), "non-empty"),
+    (lambda: Sum((Constant(0.0), 3.0)), "not an error function"),
+])
+def test_bad_parameters(make, match):
+    with pytest.raises(ConfigError, match=match):
+        make()

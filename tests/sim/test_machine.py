@@ -1,0 +1,283 @@
+"""The virtual machine: exact, general, and equal to core's independent model.
+
+Tolerances: chains of ~10 4x4 products of O(1 m) magnitude round to a few
+1e-16 m, so "exact" agreement is asserted at 1e-12 m.
+"""
+
+import doctest
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import sim.machine
+from core import iso
+from core import kinematics as K
+from core.exceptions import ConfigError
+from sim.errorfuncs import Constant, Drift, Periodic, Polynomial, Reversal
+from sim.machine import Machine
+from sim.machines import MACHINES, describe, realistic_errors
+
+NAMES = list(MACHINES)
+
+
+def _poses(cfg, rot_axes, n, rng):
+    lin = np.column_stack([rng.uniform(*cfg.strokes[a], n) for a in "XYZ"])
+    rot = np.column_stack([rng.uniform(*cfg.strokes[a], n) for a in rot_axes]) if rot_axes else None
+    return lin, rot
+
+
+def _realistic(name, rng=None):
+    cfg = MACHINES[name]()
+    m = Machine(cfg)
+    return m.with_errors(realistic_errors(m.chain.axes, strokes=cfg.strokes, rng=rng))
+
+
+def test_docstring_example_runs():
+    assert doctest.testmod(sim.machine).failed == 0
+
+
+def test_api_axes():
+    assert Machine(MACHINES["vmc-3axis"]()).rotary_axes == ()
+    m = Machine(MACHINES["nmv3000"]())
+    assert m.linear_axes == ("X", "Y", "Z") and m.rotary_axes == ("A", "C")
+    assert "mikron-ucp710" in describe()
+
+
+# (a) all errors zero: nominal to 1e-12 m -----------------------------------
+@pytest.mark.parametrize("name", NAMES)
+def test_zero_errors_is_nominal(name, rng):
+    cfg = MACHINES[name]()
+    m = Machine(cfg)
+    lin, rot = _poses(cfg, m.rotary_axes, 300, rng)
+    assert np.abs(m.tip_W(lin, rot) - m.tip_W_nominal(lin, rot)).max() < 1e-12
+    # rotary axes at zero: the tip in W is the reading, whichever side the axes are on
+    zero = None if rot is None else np.zeros_like(rot)
+    assert np.abs(m.tip_W(lin, zero) - lin).max() < 1e-12
+    assert np.abs(m._nominal_fk_tip(lin, rot) - m.tip_W_nominal(lin, rot)).max() < 1e-12
+
+
+def test_W_turns_by_minus_C_about_the_table_centre():
+    cfg = MACHINES["nmv3000"](rotary_points_R_m={"C": (0.01, -0.02, 0.0)})
+    m = Machine(cfg)
+    C = 0.3
+    T = m.T_R_W_nominal(np.array([[0.0, C]]))[0]
+    c = np.array([0.01, -0.02, 0.0])
+    p_W = np.array([0.05, 0.02, 0.01])
+    Rz = Rotation.from_rotvec([0, 0, -C]).as_matrix()  # R(-C): C positive clockwise (eq. 1)
+    assert np.allclose(T[:3, :3] @ p_W + T[:3, 3], c + Rz @ (p_W - c), atol=1e-15)
+    # and the tip: the reading p_R maps to p_W = T_R_W^-1 p_R
+    lin = np.array([[0.05, 0.02, 0.01]])
+    tip = m.tip_W_nominal(lin, [[0.0, C]])[0]
+    assert np.allclose(c + Rz @ (tip - c), lin[0], atol=1e-15)
+
+
+# (c) sim (Pinocchio) == core (numpy HTM) == a short HTM product here --------
+@pytest.mark.parametrize("name", NAMES)
+def test_sim_agrees_with_core(name, rng):
+    m = _realistic(name, rng)
+    lin, rot = _poses(m.config, m.rotary_axes, 200, rng)
+    t = rng.uniform(0, 3600, 200)
+    d = rng.choice([-1, 0, 1], size=(200, 3))
+    vals = m.error_values(lin, rot, t, d)
+    assert np.abs(m.tip_W(lin, rot, t, d) - K.tip_W(m.geometry(), lin, rot, vals)).max() < 1e-12
+    assert np.abs(m.T_R_W(lin, rot, t, d) - K.T_R_W(m.geometry(), lin, rot, vals)).max() < 1e-12
+
+
+def _H(R=np.eye(3), t=(0, 0, 0)):
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    return T
+
+
+def _E(v, axis):  # [exp(skew(EA, EB, EC)) | (EX, EY, EZ)] of one axis from the values dict
+    s = [f"E{d}{axis}" for d in "XYZABC"]
+    g = [float(v.get(k, 0.0)) for k in s]
+    return _H(Rotation.from_rotvec(g[3:]).as_matrix(), g[:3])
+
+
+def _rz(a):
+    return Rotation.from_rotvec([0, 0, a]).as_matrix()
+
+
+def _rx(a):
+    return Rotation.from_rotvec([a, 0, 0]).as_matrix()
+
+
+def _by_hand(name, cfg, lin, rot, v):
+    """The chain written out for one pose (MFB eq. 8 for the Mikron)."""
+    J = np.array(cfg.J_m)
+    q = lin + J
+    g = lambda k: float(v.get(k, 0.0))  # noqa: E731
+    c0y, b0z, a0z = g("EC0Y"), g("EB0Z"), g("EA0Z")
+    SZ = Rotation.from_rotvec([a0z, b0z, 0]).as_matrix()
+    Tx, Ty, Tz = (_H(t=q[i] * np.eye(3)[i]) for i in range(3))
+    if name == "mikron-ucp710":  # b-X-Y-Z: squareness carried downstream (eq. 8)
+        tool = Tx @ _E(v, "X") @ _H(_rz(c0y)) @ Ty @ _E(v, "Y") @ _H(SZ) @ Tz @ _E(v, "Z")
+    elif name == "nmv3000":  # b-Y-X-Z: X kept along the machine X axis
+        tool = _H(_rz(c0y)) @ Ty @ _E(v, "Y") @ _H(_rz(-c0y)) @ Tx @ _E(v, "X") @ _H(SZ) @ Tz @ _E(v, "Z")
+    else:  # vmc: b-Y-X-w on the table (moving by -q), b-Z-t
+        tool = _H(SZ) @ Tz @ _E(v, "Z")
+    tip_R = tool @ np.r_[-J, 1.0]
+    if name == "vmc-3axis":
+        TW = _H(_rz(c0y)) @ _H(t=-q[1] * np.eye(3)[1]) @ _E(v, "Y") @ _H(_rz(-c0y)) \
+            @ _H(t=-q[0] * np.eye(3)[0]) @ _E(v, "X")
+    else:
+        cA, cC = (np.array(cfg.rotary_points_R_m[a]) for a in "AC")
+        A, C = rot
+        TW = (_H(Rotation.from_rotvec([0, g("EB0A"), g("EC0A")]).as_matrix(), cA + [0, g("EY0A"), g("EZ0A")])
+              @ _E(v, "A") @ _H(_rx(-A)) @ _H(t=-cA)
+              @ _H(Rotation.from_rotvec([g("EA0C"), g("EB0C"), 0]).as_matrix(), cC + [g("EX0C"), g("EY0C"), 0])
+              @ _E(v, "C") @ _H(_rz(-C)) @ _H(t=-cC))
+    return (np.linalg.inv(TW) @ tip_R)[:3]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_sim_agrees_with_hand_written_htm(name, rng):
+    m = _realistic(name, rng)
+    lin, rot = _poses(m.config, m.rotary_axes, 20, rng)
+    got = m.tip_W(lin, rot)
+    vals = m.error_values(lin, rot)
+    for i in range(len(lin)):
+        v = {k: a[i] for k, a in vals.items()}
+        want = _by_hand(name, m.config, lin[i], None if rot is None else rot[i], v)
+        assert np.abs(got[i] - want).max() < 1e-12
+
+
+# (b) small errors: first order = MFB eqs. 10-12 ------------------------------
+def test_first_order_agrees_with_mfb_eqs_10_12(rng):
+    """Mikron (b-X-Y-Z, eq. 8): tip error = -(dX, dY, dZ) of eqs. 10-12 up to
+    second order. Bound: the exact chain differs from its linearisation by at
+    most (sum|angles|)^2 * L + (sum|angles|) * (sum|translations|), L the
+    largest arm from a pivot to the tip (< 1 m here)."""
+    cfg = MACHINES["mikron-ucp710"](J_m=(0.02, -0.015, 0.15))
+    m = Machine(cfg).with_errors(realistic_errors(("X", "Y", "Z"), strokes=cfg.strokes, rng=rng))
+    lin, rot = _poses(cfg, ("A", "C"), 200, rng)
+    geom = m.geometry()
+    T = m.T_R_W_nominal(rot)
+    p_w = m.tip_W_nominal(lin, rot)
+    resid = []
+    for scale in (1.0, 0.1):
+        vals = {k: scale * v for k, v in m.error_values(lin, rot).items()}
+        # eqs. 10-12 are in the machine frame R: rotate the tip error out of W
+        exact = np.einsum("nij,nj->ni", T[:, :3, :3], K.tip_W(geom, lin, rot, vals) - p_w)
+        delta = K.mfb_deviation(vals, p_w, T[:, :3, :3], T[:, :3, 3], cfg.J_m)
+        ang = sum(np.abs(vals[s]) for s in iso.TWENTY_ONE if iso.symbol(s).angular)
+        tra = sum(np.abs(vals[s]) for s in iso.TWENTY_ONE if not iso.symbol(s).angular)
+        bound = ang**2 * 1.0 + ang * tra
+        r = np.linalg.norm(exact + delta, axis=1)
+        assert np.all(r <= bound), (r / bound).max()
+        assert np.linalg.norm(exact, axis=1).max() > 100 * r.max()  # the first order is the bulk
+        resid.append(r.max())
+    assert resid[1] < resid[0] / 50  # quadratic: errors /10 -> remainder /100
+
+
+# (d) Jacobians against finite differences of the truth ------------------------
+def test_sensitivity_matches_finite_differences_of_sim(rng):
+    cfg = MACHINES["nmv3000"]()
+    errs = realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)
+    m = Machine(cfg).with_errors(errs)
+    lin, rot = _poses(cfg, m.rotary_axes, 5, rng)
+    syms = ("EXX", "EBX", "ECY", "EC0Y", "EB0Z", "EAZ", "EX0C", "EA0C", "ECC", "EYA", "EB0A")
+    S = K.sensitivity(m.geometry(), lin, rot, m.error_values(lin, rot), syms)
+    h = 1e-6  # central differences; exact for the translations, O(h^2 L) for angles
+    for j, s in enumerate(syms):
+        plus = m.with_errors({**errs, s: errs.get(s, Constant(0.0)) + Constant(h)}).tip_W(lin, rot)
+        minus = m.with_errors({**errs, s: errs.get(s, Constant(0.0)) + Constant(-h)}).tip_W(lin, rot)
+        assert np.allclose(S[:, :, j], (plus - minus) / (2 * h), rtol=0, atol=1e-8), s
+
+
+def test_axis_jacobian_with_error_slopes_matches_sim(rng):
+    cfg = MACHINES["mikron-ucp710"]()
+    errs = realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)
+    m = Machine(cfg).with_errors(errs)
+    lin, rot = _poses(cfg, m.rotary_axes, 5, rng)
+    geom = m.geometry()
+    vals = m.error_values(lin, rot)
+    syms = tuple(vals)
+    Ja = K.jacobian_axes(geom, lin, rot, vals)
+    S = K.sensitivity(geom, lin, rot, vals, syms)
+    cols = ("X", "Y", "Z") + m.rotary_axes
+    for j, a in enumerate(cols):
+        pos = lin[:, j] if j < 3 else rot[:, j - 3]
+        dv = np.array([errs[s].derivative(pos) if iso.symbol(s).axis == a and not iso.symbol(s).location
+                       else np.zeros(len(pos)) for s in syms]).T
+        total = Ja[:, :, j] + np.einsum("nkm,nm->nk", S, dv)
+        h = 1e-6
+        dl, dr = np.zeros_like(lin), np.zeros_like(rot)
+        (dl if j < 3 else dr)[:, j if j < 3 else j - 3] = h
+        fd = (m.tip_W(lin + dl, rot + dr) - m.tip_W(lin - dl, rot - dr)) / (2 * h)
+        assert np.allclose(total, fd, rtol=0, atol=1e-8), a
+
+
+# (e) time and direction really move the tip -----------------------------------
+def test_drift_and_reversal_move_the_tip():
+    cfg = MACHINES["vmc-3axis"]()
+    m = Machine(cfg).with_errors({"EXX": Reversal(4e-6), "EYY": Drift(offset_rate=1e-9)})
+    lin = np.array([[0.1, 0.1, 0.1]] * 3)
+    d = np.array([[1, 0, 0], [-1, 0, 0], [0, 0, 0]])
+    tip = m.tip_W(lin, None, t_s=np.array([0.0, 0.0, 1000.0]), direction=d)
+    # table-side X and Y: the errors move the part, so the tip moves by minus them
+    assert np.allclose(tip - lin, [[-2e-6, 0, 0], [2e-6, 0, 0], [0, -1e-6, 0]], rtol=0, atol=1e-15)
+
+
+def test_tool_side_error_moves_the_probe_table_side_moves_the_part():
+    lin = np.array([[0.1, 0.05, 0.2]])
+    tool = Machine(MACHINES["mikron-ucp710"](errors={"EXX": Constant(5e-6)}))
+    table = Machine(MACHINES["vmc-3axis"](errors={"EXX": Constant(5e-6)}))
+    assert np.allclose(tool.tip_W(lin, [[0, 0]]) - lin, [[5e-6, 0, 0]], atol=1e-15)
+    assert np.allclose(table.tip_W(lin) - lin, [[-5e-6, 0, 0]], atol=1e-15)
+
+
+def test_squareness_sign_convention():
+    """CONTRIBUTING.md: the tip error from EC0Y is -y * EC0Y in X, on every machine."""
+    lin = np.array([[0.0, 0.1, 0.0]])
+    for name in NAMES:
+        m = Machine(MACHINES[name](errors={"EC0Y": Constant(50e-6)}, J_m=(0, 0, 0.15)))
+        rot = None if not m.rotary_axes else np.zeros((1, 2))
+        # second order: y * EC0Y^2 / 2 ~ 1e-10 m in Y
+        assert np.allclose(m.tip_W(lin, rot) - lin, [[-5e-6, 0, 0]], rtol=0, atol=1e-9), name
+
+
+def test_c_axis_offset_moves_the_part():
+    m = Machine(MACHINES["nmv3000"](errors={"EX0C": Constant(15e-6), "EY0C": Constant(6e-6)}))
+    lin = np.array([[0.05, 0.0, 0.0]])
+    assert np.allclose(m.tip_W(lin, [[0.0, 0.0]]) - lin, [[-15e-6, -6e-6, 0]], atol=1e-15)
+
+
+def test_realistic_errors_magnitudes():
+    cfg = MACHINES["mikron-ucp710"]()
+    e = realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)
+    x = np.linspace(*cfg.strokes["X"], 201)
+    assert 35e-6 < np.ptp(e["EXX"](x)) < 40e-6
+    assert np.abs(e["EYX"](x)).max() <= 3e-6 and np.abs(e["EBX"](x)).max() <= 100e-6
+    assert np.abs(e["EAX"](x)).max() < 10e-6 and np.abs(e["ECX"](x)).max() < 40e-6
+    assert e["EX0C"].value == 15e-6 and e["EY0C"].value == 6e-6
+    r = realistic_errors(("X",), rng=np.random.default_rng(3))
+    assert 19e-6 <= np.ptp(r["EXX"](np.linspace(-0.355, 0.355, 11))) <= 40e-6
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(errors={"EQQ": Constant(0.0)}), "unknown ISO error symbol"),
+    (dict(errors={"EB0X": Constant(1e-6)}), "zero by the ISO 230-1 convention"),
+    (dict(errors={"EX0C": Polynomial((0, 1e-6))}), "must be Constant"),
+    (dict(errors={"EXB": Constant(0.0)}), "belongs to axis B"),
+    (dict(errors={"EXX": 1e-6}), "not an ErrorFunction"),
+    (dict(strokes={"X": (0.3, -0.3)}), "stroke of X"),
+    (dict(J_m=(0.0, 0.0)), "J_m must be 3"),
+])
+def test_bad_config(kw, match):
+    with pytest.raises(ConfigError, match=match):
+        MACHINES["nmv3000"](**kw)
+
+
+def test_bad_inputs():
+    m = Machine(MACHINES["nmv3000"]())
+    with pytest.raises(ConfigError, match="lin_m must be"):
+        m.tip_W(np.zeros((4, 2)))
+    with pytest.raises(ConfigError, match="rot_rad must be"):
+        m.tip_W(np.zeros((4, 3)), np.zeros((4, 3)))
+    with pytest.raises(ConfigError, match="no rotary axis"):
+        Machine(MACHINES["vmc-3axis"]()).tip_W(np.zeros((2, 3)), np.zeros((2, 1)))
+    with pytest.raises(ConfigError, match="lacks linear axis Z"):
+        sim.machine.MachineConfig("x", "[w-X-Y-b-t]", {"X": (0, 1), "Y": (0, 1)})
