@@ -20,6 +20,7 @@ from pathlib import Path
 #: Benchmark modules, each with ``run() -> dict``.
 BENCHES: list[str] = [
     "scenarios.bench_fit",
+    "scenarios.bench_machine",
 ]
 
 
