@@ -118,15 +118,15 @@ class AngleDesign:
 
 def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5.0,
                     u_probe_m: float = U_PROBE_M, reference_deg=None, max_sweeps: int = 6,
-                    measure: str = "form", evaluate=None) -> AngleDesign:
+                    measure: str = "form", exhaustive_max: int = 400, evaluate=None) -> AngleDesign:
     """C angles minimising the largest workpiece uncertainty (C_1 = 0 fixed).
 
-    Coordinate search over the degree grid ``0, step, 2 step, ... < 360``:
-    starting from the best of equally spaced and compressed spreads of
-    angles (and the reference, when it has
-    ``n_angles`` angles and lies on the grid), each angle but the first is
-    moved in turn to its best grid value until a sweep brings no
-    improvement.
+    Coordinate search over the degree grid ``0, step, 2 step, ... < 360``
+    from several starts (equally spaced and compressed spreads of angles,
+    and the reference when it has ``n_angles`` angles on the grid): each
+    angle but the first is moved in turn to its best grid value until a
+    sweep brings no improvement; the best end point wins. A local method:
+    it found the brute-force optimum in the tests, but does not prove it.
 
     Parameters
     ----------
@@ -141,6 +141,8 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
         The choice to compare with.
     measure : {"form", "gauge"}
         Which workpiece uncertainty to minimise (see :func:`max_workpiece_U95`).
+    exhaustive_max : int
+        Evaluate every combination instead when there are at most this many.
     evaluate : callable, optional
         ``evaluate(list_of_angle_tuples) -> list of max U95`` (to run a sweep
         in parallel, see ``scenarios.parallel``); default serial.
@@ -177,20 +179,31 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
         r = tuple(float(v) % 360 for v in reference_deg)
         if 0.0 in r and all(abs(v / step_deg - round(v / step_deg)) < 1e-9 for v in r):
             starts.append(tuple(sorted(r)))
-    vals = ev(starts)
-    best_i = int(np.argmin(vals))
-    cur, cur_v = list(starts[best_i]), vals[best_i]
-    for _ in range(max_sweeps):
-        improved = False
-        for j in range(1, n_angles):
-            others = set(cur[:j] + cur[j + 1:])
-            trial = [cur[:j] + [float(c)] + cur[j + 1:] for c in cand if float(c) not in others]
-            tv = ev(trial)
-            i = int(np.argmin(tv))
-            if tv[i] < cur_v * (1 - 1e-9):
-                cur, cur_v, improved = trial[i], tv[i], True
-        if not improved:
-            break
+    best, best_v = None, float("inf")
+    from math import comb
+    if comb(cand.size - 1, n_angles - 1) <= exhaustive_max:
+        import itertools
+        allsets = [(0.0,) + tuple(float(v) for v in c) for c in itertools.combinations(cand[1:], n_angles - 1)]
+        vals = ev(allsets)
+        i = int(np.argmin(vals))
+        best, best_v = list(allsets[i]), vals[i]
+        starts = []
+    for st in starts:  # coordinate search from every start (a local method: several starts)
+        cur, cur_v = list(st), ev([st])[0]
+        for _ in range(max_sweeps):
+            improved = False
+            for j in range(1, n_angles):
+                others = set(cur[:j] + cur[j + 1:])
+                trial = [cur[:j] + [float(c)] + cur[j + 1:] for c in cand if float(c) not in others]
+                tv = ev(trial)
+                i = int(np.argmin(tv))
+                if tv[i] < cur_v * (1 - 1e-9):
+                    cur, cur_v, improved = trial[i], tv[i], True
+            if not improved:
+                break
+        if cur_v < best_v:
+            best, best_v = cur, cur_v
+    cur, cur_v = (best, best_v) if best is not None else (list(starts[0]), float("inf"))
     ref_v = gain = None
     ref = None
     if reference_deg is not None:
