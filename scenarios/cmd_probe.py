@@ -81,6 +81,8 @@ def open_backend(url: str, args, transcript=None):
 def run(args) -> int:
     from pathlib import Path
 
+    import numpy as np
+
     from core.probelog import read_probe_log
     from hardware.campaign import check_program, plan_steps, program_lines, run_campaign
 
@@ -95,6 +97,13 @@ def run(args) -> int:
             print(line)
         return 0
     check_program(steps, settings)          # before connecting, before any motion
+    if not args.rotary and not args.machine.startswith("virtual"):
+        moving = [s for s in steps if np.any(s.rot_deg != 0)]
+        if moving:
+            from core.exceptions import PlanError
+
+            raise PlanError(f"{args.plan}: row {moving[0].row} needs rotary axes at "
+                            f"{moving[0].rot_deg.tolist()} deg: pass --rotary for a controller with A, B, C")
     if Path(args.out).exists() and not args.resume:
         from core.exceptions import PlanError
 

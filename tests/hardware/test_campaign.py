@@ -255,3 +255,51 @@ def test_dry_run_prints_the_program_and_moves_nothing(tmp_path, plan_path, capsy
     out = capsys.readouterr().out
     assert out.count("G38.2") == 12 and "G53 G90 G1" in out
     assert srv.connections == 0 and not (tmp_path / "log.csv").exists()
+
+
+class _Warm:
+    """A machine with a temperature sensor that warms by 0.1 degC per touch."""
+
+    def __init__(self, machine):
+        self.machine, self.k = machine, 0
+
+    def probe_move(self, a, b, rot):
+        self.k += 1
+        return self.machine.probe_move(a, b, rot)
+
+    def temperatures_C(self):
+        return {"spindle": 20.0 + 0.1 * self.k}
+
+
+def test_temperatures_are_logged_and_kept_on_resume(tmp_path, plan_path):
+    plan = read_probe_log(plan_path)
+    out = tmp_path / "log.csv"
+    machine = _Warm(scene())
+    settings = ProbeSettings(limits_mm=LIMITS_MM, safe_z_mm=30.0)
+
+    class Flaky(VirtualBackend):
+        fail_at = 5
+
+        def probe(self, *a, **k):
+            if self.machine.k + 1 == self.fail_at:
+                self.fail_at = None
+                raise HardwareError("connection lost (test)")
+            return super().probe(*a, **k)
+
+    with pytest.raises(HardwareError, match=r"4 of 12 rows .* --resume"):
+        run_campaign(Flaky(machine), plan, out, settings)
+    run_campaign(VirtualBackend(machine), plan, out, settings, resume=True)
+    log = read_probe_log(out)
+    assert_complete(log, plan)
+    assert np.allclose(log.columns["temp_spindle_C"], 20.0 + 0.1 * np.arange(1, 13))
+
+
+def test_rotary_plan_needs_rotary_controller(tmp_path, capsys):
+    plan = plan_log()
+    cols = dict(plan.columns)
+    cols["C_deg"] = np.where(np.arange(plan.n) < 6, 0.0, 90.0)
+    from core.probelog import make_log
+
+    p = write_probe_log(tmp_path / "plan.csv", make_log(cols, plan.meta))
+    assert main(probe_args("grbl://127.0.0.1:1", p, tmp_path / "o.csv")) == 2
+    assert "row 6 needs rotary axes" in capsys.readouterr().err
