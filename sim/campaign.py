@@ -1,0 +1,372 @@
+"""Campaigns: set-ups x plan -> moves, times, simulated touches -> probe log.
+
+A campaign runs one :class:`~sim.plans.Plan` in each :class:`Setup` (one
+artefact placement or one rotary-table index). For every touch it builds
+the nominal geometry in R (``Xn``: nominal stylus-tip centre at contact on
+a perfect machine with a perfect artefact in its nominal pose; ``n``: the
+nominal normal in R), the moves (link from the previous retract point,
+direct inside one feature level, else via the safe height; approach along
+``-n`` from ``clearance`` outside ``Xn``; retract back), their times from
+the feeds (``t_s``), checks the paths in the MuJoCo scene, then simulates
+all touches of a set-up at once (:func:`sim.probe.simulate_touches`) and
+writes every ``probe-log/1`` column through :func:`core.probelog.make_log`.
+
+Frames: R machine reference, W table (``T_R_W`` nominal from the machine,
+paper eq. 1 for a C table), A artefact (``T_W_A`` placement).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from core.exceptions import ConfigError, PlanError
+from core.probelog import ProbeLog, make_log
+
+from . import artefacts as A
+from .plans import Plan, make_plan
+from .probe import (OK, ProbeConfig, T_R_W_nominal, find_contacts, rotary_count,
+                    simulate_touches)
+
+MM = 1e-3
+#: Default feeds: probing 240 mm/min (MFB paper), rapid 10 m/min.
+PROBING_FEED_MPS = 0.240 / 60.0
+RAPID_FEED_MPS = 10.0 / 60.0
+#: Dwell per touch (trigger, reset), s.
+DWELL_S = 0.2
+#: Safe-height margin above the artefact's top, m.
+SAFE_MARGIN_M = 5.0 * MM
+
+
+@dataclass(frozen=True)
+class Setup:
+    """One set-up: placement ``T_W_A`` (nominal), rotary positions, true pose.
+
+    Attributes
+    ----------
+    name : str
+        The ``setup`` id in the log.
+    T_W_A : (4,4) float
+        Nominal placement of A in W, m.
+    rot_rad : tuple of float
+        Rotary axis positions in the machine's ``rotary_axes`` order, rad.
+    T_W_A_true : (4,4) float or None
+        True placement (default: the nominal one).
+    """
+
+    name: str
+    T_W_A: np.ndarray = field(compare=False)
+    rot_rad: tuple = ()
+    T_W_A_true: np.ndarray | None = field(default=None, compare=False)
+
+
+def c_angle_setups(machine, artefact: A.Artefact, c_angles_deg) -> list[Setup]:
+    """One set-up per C angle (deg), artefact in its default placement."""
+    axes = tuple(getattr(machine, "rotary_axes", ()) or ())
+    out = []
+    for c in c_angles_deg:
+        c = float(c)
+        if not np.isfinite(c):
+            raise ConfigError(f"C angle {c!r} is not finite")
+        rot = np.zeros(len(axes))
+        if "C" in axes:
+            rot[axes.index("C")] = np.deg2rad(c)
+        elif c != 0.0:
+            raise ConfigError(f"c_angles_deg: machine {machine_name(machine)!r} has no C axis "
+                              f"(rotary axes {axes or 'none'}); only 0 is possible")
+        out.append(Setup(f"C{c:g}", artefact.T_W_A, tuple(rot)))
+    if len({s.name for s in out}) != len(out):
+        raise ConfigError("c_angles_deg has repeated angles")
+    return out
+
+
+def mfb_placements(machine=None, artefact: A.Artefact | None = None) -> list[Setup]:
+    """17 MFB placements (the paper's count), the bar horizontal.
+
+    Chosen to fit the smallest machine (vmc-3axis, X 600 x Y 400 mm): along
+    X at y = -120, 0, +120 mm on 60 mm supports and on a 200 mm riser; at
+    +-30 deg about Z (centred) and +-15 deg (y = +-80 mm) at both heights;
+    reversed (180 deg, mistake-proofing) at both heights; one along X at
+    100 mm. A vertical probe cannot reach the holes of a vertical bar, so
+    there is no vertical placement (Z-axis positioning must come from
+    elsewhere, e.g. a tilted bar with the A axis).
+    """
+    art = artefact or A.multi_feature_bar()
+    k = rotary_count(machine) if machine is not None else 0
+    xc = float(art.info["poi_nominal_m"][-1, 0]) / 2
+    z0 = float(art.T_W_A[2, 3])
+    out = []
+
+    def add(theta_deg, cy, dz):
+        T = A.make_T(A.rot_z(np.deg2rad(theta_deg)), (0.0, cy, z0 + dz)) @ A.make_T(None, (-xc, 0.0, 0.0))
+        out.append(Setup(f"P{len(out) + 1:02d}", T, tuple(np.zeros(k))))
+
+    for dz in (0.0, 0.2):
+        for y in (-0.12, 0.0, 0.12):
+            add(0.0, y, dz)
+        add(30.0, 0.0, dz)
+        add(-30.0, 0.0, dz)
+        add(15.0, -0.08, dz)
+        add(-15.0, 0.08, dz)
+        add(180.0, 0.0, dz)
+    add(0.0, 0.0, 0.1)
+    return out
+
+
+def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves") -> None:
+    """PlanError when a move leaves the machine's strokes (``machine.config.strokes``)."""
+    strokes = getattr(getattr(machine, "config", None), "strokes", None)
+    if not strokes:
+        return
+    for i in range(plan.n):
+        pts = np.vstack([mv.links[i], mv.Xn_R[i] - plan.overshoot_m * mv.n_R[i]])
+        for j, ax in enumerate("XYZ"):
+            if ax not in strokes:
+                continue
+            lo, hi = strokes[ax]
+            bad = (pts[:, j] < lo - 1e-12) | (pts[:, j] > hi + 1e-12)
+            if bad.any():
+                v = pts[np.argmax(bad), j]
+                raise PlanError(f"set-up {setup.name!r} target {plan.target[i]!r}: {ax} = {v * 1e3:.3f} mm "
+                                f"is outside the stroke {lo * 1e3:.0f}..{hi * 1e3:.0f} mm")
+    for ax, v in zip(getattr(machine, "rotary_axes", ()), setup.rot_rad):
+        if ax in strokes and not (strokes[ax][0] - 1e-12 <= v <= strokes[ax][1] + 1e-12):
+            raise PlanError(f"set-up {setup.name!r}: {ax} = {np.rad2deg(v):g} deg is outside its stroke")
+
+
+def machine_name(machine) -> str:
+    for a in ("name",):
+        v = getattr(machine, a, None)
+        if isinstance(v, str) and v:
+            return v
+    cfg = getattr(machine, "config", None)
+    v = getattr(cfg, "name", None)
+    return v if isinstance(v, str) and v else type(machine).__name__
+
+
+def _kinematic_chain(machine) -> str:
+    for obj in (machine, getattr(machine, "config", None)):
+        v = getattr(obj, "kinematic_chain", None)
+        if isinstance(v, str) and v:
+            return v
+    return ""
+
+
+def validate_plan(art: A.Artefact, plan: Plan, probe: ProbeConfig) -> None:
+    """On a perfect machine and artefact, each touch must meet its own target.
+
+    Raises PlanError naming the first target whose stylus meets the feature
+    elsewhere first (e.g. a pocket wall point closer than the stylus
+    radius to a concave corner) or misses it.
+    """
+    r = probe.stylus_r_m
+    feats = sorted(set(plan.feature))
+    sdf = [art.feature(f).nominal.sdf for f in feats]
+    grp = np.array([feats.index(f) for f in plan.feature])
+    start = plan.w_A + (r + plan.clearance_m) * plan.wn_A
+    travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
+
+    def g(idx, s):
+        p = start[idx] - s[:, None] * plan.wn_A[idx]
+        out = np.empty(len(idx))
+        for k in np.unique(grp[idx]):
+            m = grp[idx] == k
+            out[m] = sdf[k](p[m])
+        return out - r
+
+    s, status = find_contacts(g, plan.n, travel)
+    bad = (status != OK) | ~(np.abs(s - plan.clearance_m) < 1e-9)
+    if bad.any():
+        i = int(np.argmax(bad))
+        what = (f"meets {plan.feature[i]!r} {(plan.clearance_m - s[i]) * 1e3:.6f} mm before the target"
+                if status[i] == OK else f"gives {status[i]}")
+        raise PlanError(f"plan {plan.artefact!r} target {plan.target[i]!r}: on a perfect machine the "
+                        f"stylus {what} (too close to a corner or an edge?)")
+
+
+@dataclass(frozen=True)
+class SetupMoves:
+    """Nominal geometry and moves of one set-up, frame R, SI units."""
+
+    T_R_W: np.ndarray
+    Xn_R: np.ndarray
+    n_R: np.ndarray
+    start_R: np.ndarray
+    links: list
+    link_len_m: np.ndarray
+
+
+def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: ProbeConfig,
+                start_from: np.ndarray | None = None) -> SetupMoves:
+    """Nominal contact centres, normals, start points and link moves in R."""
+    k = rotary_count(machine)
+    rot = np.asarray(setup.rot_rad, float).reshape(1, -1) if k else None
+    if k and rot.shape[1] != k:
+        raise ConfigError(f"set-up {setup.name!r}: rot_rad has {rot.shape[1]} values, machine has {k} rotary axes")
+    T_R_W = T_R_W_nominal(machine, rot, 1)[0]
+    T_R_A = T_R_W @ np.asarray(setup.T_W_A, float)
+    r = probe.stylus_r_m
+    Xn = A.apply_T(T_R_A, plan.w_A + r * plan.wn_A)
+    n_R = A.apply_R(T_R_A, plan.wn_A)
+    start = Xn + plan.clearance_m * n_R
+    top = max(float(np.max(A.apply_T(T_R_A, A.solid_points(s))[:, 2])) for s in art.solids)
+    z_safe = top + r + SAFE_MARGIN_M
+    links, lens = [], np.zeros(plan.n)
+    prev = None if start_from is None else np.asarray(start_from, float)
+    for i in range(plan.n):
+        s = start[i]
+        if prev is None:
+            path = np.array([[s[0], s[1], z_safe], s])
+        elif i > 0 and plan.feature[i] == plan.feature[i - 1] and plan.level[i] == plan.level[i - 1]:
+            path = np.array([prev, s])
+        else:
+            zs = max(z_safe, prev[2], s[2])
+            path = np.array([prev, [prev[0], prev[1], zs], [s[0], s[1], zs], s])
+        links.append(path)
+        lens[i] = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
+        prev = s
+    return SetupMoves(T_R_W, Xn, n_R, start, links, lens)
+
+
+def _resolve_setups(machine, art, setups) -> list[Setup]:
+    if setups is None:
+        return mfb_placements(machine, art) if art.name == "mfb" else c_angle_setups(machine, art, [0.0])
+    setups = list(setups)
+    if not setups:
+        raise ConfigError("no set-ups (c_angles_deg or placements is empty)")
+    if all(isinstance(s, Setup) for s in setups):
+        return setups
+    if all(np.ndim(s) == 0 for s in setups):
+        return c_angle_setups(machine, art, setups)
+    out = []
+    k = rotary_count(machine)
+    for j, T in enumerate(setups):
+        T = np.asarray(T, float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ConfigError(f"placement {j} is not a finite 4x4 transform")
+        out.append(Setup(f"P{j + 1:02d}", T, tuple(np.zeros(k))))
+    return out
+
+
+def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setups=None,
+                      rng: np.random.Generator | None = None, *, plan: Plan | None = None,
+                      feed_mps: float = PROBING_FEED_MPS, rapid_mps: float = RAPID_FEED_MPS,
+                      setup_change_s: float | None = None, check_collisions: bool = True,
+                      plan_only: bool = False, meta: dict | None = None) -> ProbeLog:
+    """Simulate a campaign into a probe log (or write the plan only).
+
+    Parameters
+    ----------
+    artefact : str or Artefact
+        ``mfb``, ``cross-pocket``, ``pin-circle``, ``freeform`` or an Artefact.
+    machine : object with ``tip_W`` (``sim.machine.Machine``)
+    probe : ProbeConfig, optional
+    setups : sequence of float (C angles, deg), of (4,4) placements, or of Setup
+        Default: the 17 MFB placements, or C = 0 for the other artefacts.
+    rng : np.random.Generator, optional
+        Noise source (None: noiseless).
+    plan : Plan, optional
+        Default: the artefact's standard plan.
+    feed_mps, rapid_mps : float
+        Probing and rapid feeds, m/s.
+    setup_change_s : float, optional
+        Time between set-ups (default 300 s for a placement, 10 s for an index).
+    check_collisions : bool
+        Check every link, approach and retract path in the MuJoCo scene.
+    plan_only : bool
+        Write the plan: measured columns (X/Y/Z_mm, t_s) empty.
+
+    Returns
+    -------
+    ProbeLog
+        Every ``probe-log/1`` column; ``status`` ``no_trigger`` /
+        ``early_trigger`` rows have empty measured cells.
+
+    Raises
+    ------
+    PlanError
+        A path crashes (set-up and target named), or a target cannot be
+        touched even on a perfect machine.
+    ConfigError
+        Bad set-ups, feeds, or a C angle on a machine without C.
+    """
+    art = A.make_artefact(artefact) if isinstance(artefact, str) else artefact
+    probe = probe or ProbeConfig()
+    if not (np.isfinite(feed_mps) and feed_mps > 0 and np.isfinite(rapid_mps) and rapid_mps > 0):
+        raise ConfigError("feed_mps and rapid_mps must be positive")
+    plan = plan or make_plan(art)
+    setups = _resolve_setups(machine, art, setups)
+    if len({s.name for s in setups}) != len(setups):
+        raise ConfigError("set-up names must be unique")
+    validate_plan(art, plan, probe)
+    if setup_change_s is None:
+        setup_change_s = 300.0 if art.name == "mfb" else 10.0
+    r = probe.stylus_r_m
+    axes = tuple(getattr(machine, "rotary_axes", ()) or ())
+    feats = sorted(set(plan.feature))
+    sdf_true = [art.feature(f).true.sdf for f in feats]
+    grp = np.array([feats.index(f) for f in plan.feature])
+    travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
+    scene = None
+    cols: dict[str, list] = {k: [] for k in (
+        "setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz",
+        "feature", "A_deg", "B_deg", "C_deg", "dx", "dy", "dz", "wx_mm", "wy_mm", "wz_mm",
+        "wnx", "wny", "wnz", "stylus_r_mm", "status")}
+    t_cursor = 0.0
+    for si, st in enumerate(setups):
+        mv = setup_moves(machine, art, plan, st, probe)
+        check_strokes(machine, st, plan, mv)
+        if check_collisions:
+            from .scene import Scene, check_touch_paths
+
+            if scene is None or scene.artefact is not art or not np.array_equal(scene_T, st.T_W_A):
+                scene = Scene(art, probe, st.T_W_A)
+                scene_T = np.asarray(st.T_W_A)
+            scene.set_table(mv.T_R_W)
+            check_touch_paths(scene, st.name, plan.target, plan.feature, mv.links,
+                              np.stack([mv.start_R, mv.Xn_R], axis=1))
+        if si > 0:
+            t_cursor += setup_change_s
+        per = travel / feed_mps + travel / rapid_mps + DWELL_S
+        t0 = t_cursor + np.cumsum(mv.link_len_m / rapid_mps) + np.concatenate([[0.0], np.cumsum(per)[:-1]])
+        t_cursor = float(t0[-1] + per[-1])
+        d_R = -mv.n_R
+        rot_deg = np.zeros(3)
+        for a, v in zip(axes, st.rot_rad):
+            if a in "ABC":
+                rot_deg["ABC".index(a)] = np.rad2deg(v)
+        if plan_only:
+            pos = np.full((plan.n, 3), np.nan)
+            t_s = np.full(plan.n, np.nan)
+            status = np.full(plan.n, OK, dtype=object)
+        else:
+            rot = np.tile(np.asarray(st.rot_rad, float), (plan.n, 1)) if axes else None
+            T_true = np.asarray(st.T_W_A if st.T_W_A_true is None else st.T_W_A_true, float)
+            T_A_W = np.broadcast_to(A.inv_T(T_true), (plan.n, 4, 4))
+            res = simulate_touches(machine, probe, rng, mv.start_R, d_R, travel, rot, t0,
+                                   np.full(plan.n, feed_mps), sdf_true, grp, T_A_W)
+            pos, status = res.pos_R, res.status
+            t_s = np.where(status == OK, res.t_s, np.nan)
+        cols["setup"] += [st.name] * plan.n
+        cols["target"] += list(plan.target)
+        cols["feature"] += list(plan.feature)
+        cols["status"] += list(status)
+        for j, c in enumerate("XYZ"):
+            cols[f"{c}_mm"].append(pos[:, j] / MM)
+            cols[f"{c}n_mm"].append(mv.Xn_R[:, j] / MM)
+            cols[f"n{c.lower()}"].append(mv.n_R[:, j])
+            cols[f"d{c.lower()}"].append(d_R[:, j])
+            cols[f"w{c.lower()}_mm"].append(plan.w_A[:, j] / MM)
+            cols[f"wn{c.lower()}"].append(plan.wn_A[:, j])
+        cols["t_s"].append(t_s)
+        for j, c in enumerate("ABC"):
+            cols[f"{c}_deg"].append(np.full(plan.n, rot_deg[j]))
+        cols["stylus_r_mm"].append(np.full(plan.n, r / MM))
+    columns = {k: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else v) for k, v in cols.items()}
+    m = {"machine": machine_name(machine), "artefact": art.name, "stylus_r_mm": repr(r / MM),
+         "kinematic_chain": _kinematic_chain(machine),
+         "probe_repeatability_k2_um": repr(probe.repeatability_k2_m * 1e6),
+         "feed_mm_per_min": repr(feed_mps * 60e3), "generator": "vmt sim.campaign"}
+    m.update(meta or {})
+    return make_log(columns, m)
