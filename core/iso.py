@@ -14,8 +14,9 @@ line.
 
 Sign conventions (used by ``core`` and by the simulator, ``sim``): an error
 motion is the actual pose of the moving component minus its nominal pose,
-expressed in the machine frame R; angular errors are right-handed rotations
-about the machine axes X (A), Y (B), Z (C), in radians.
+in the frame of the component it rides on (the machine frame R to first
+order); angular errors are right-handed rotations about X (A), Y (B),
+Z (C), in radians.
 
 Zero conventions of ISO 230-1 (X primary, Y secondary): the zero-position
 errors ``EX0X``, ``EY0Y``, ``EZ0Z`` and the offsets of the linear reference
