@@ -12,7 +12,10 @@ m for a translational error, rad for an angular one (``core.iso``).
 
 Kinds: :class:`Zero`, :class:`Constant`, :class:`Polynomial`,
 :class:`SplineTable`, :class:`Periodic`, :class:`Drift`, :class:`Reversal`,
-:class:`Sum` (also ``f + g``). Bad parameters raise ``ConfigError``.
+:class:`Sum` (also ``f + g``), and :class:`CrossAxis`, the one kind that
+also depends on another axis's reading (a non-rigid machine: the machine
+passes every reading through ``f.evaluate(pos, t_s, direction, axes)``).
+Bad parameters raise ``ConfigError``.
 """
 
 from __future__ import annotations
@@ -56,6 +59,11 @@ class ErrorFunction:
     def static(self) -> bool:
         """True when the value depends on the position only."""
         return True
+
+    def evaluate(self, pos, t_s=None, direction=None, axes=None) -> np.ndarray:
+        """Value with every axis reading at hand (``axes``: axis -> (n,));
+        only :class:`CrossAxis` (and sums holding one) uses ``axes``."""
+        return self(pos, t_s, direction)
 
     def __add__(self, other: "ErrorFunction") -> "Sum":
         if not isinstance(other, ErrorFunction):
@@ -303,5 +311,43 @@ class Sum(ErrorFunction):
     def __call__(self, pos, t_s=None, direction=None):
         return sum(t(pos, t_s, direction) for t in self.terms)
 
+    def evaluate(self, pos, t_s=None, direction=None, axes=None):
+        return sum(t.evaluate(pos, t_s, direction, axes) for t in self.terms)
+
     def derivative(self, pos, t_s=None, direction=None):
         return sum(t.derivative(pos, t_s, direction) for t in self.terms)
+
+
+@dataclass(frozen=True)
+class CrossAxis(ErrorFunction):
+    """A non-rigid coupling: ``k (pos - pos0) (other - other0)``.
+
+    The error of one axis depends on the reading of ``other`` (a linear
+    axis), which no rigid-body model of independent axes can produce
+    (a guideway bent by the load of another axis). ``k`` in m/m^2 for a
+    translational error, rad/m^2 for an angular one.
+    """
+
+    k: float
+    other: str
+    pos0: float = 0.0
+    other0: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "k", _finite("CrossAxis.k", self.k))
+        object.__setattr__(self, "pos0", _finite("CrossAxis.pos0", self.pos0))
+        object.__setattr__(self, "other0", _finite("CrossAxis.other0", self.other0))
+        if self.other not in ("X", "Y", "Z"):
+            raise ConfigError(f"CrossAxis.other must be a linear axis X, Y or Z, got {self.other!r}")
+
+    def __call__(self, pos, t_s=None, direction=None):
+        raise ConfigError(f"CrossAxis needs the reading of axis {self.other}: call evaluate(..., axes=...)")
+
+    def evaluate(self, pos, t_s=None, direction=None, axes=None):
+        if axes is None or self.other not in axes:
+            raise ConfigError(f"CrossAxis needs the reading of axis {self.other}")
+        p = np.atleast_1d(np.asarray(pos, float))
+        return self.k * (p - self.pos0) * (np.asarray(axes[self.other], float) - self.other0)
+
+    def derivative(self, pos, t_s=None, direction=None):
+        raise ConfigError("CrossAxis has no derivative along its own axis alone; it couples two axes")

@@ -200,7 +200,8 @@ class Machine:
                 out[name] = np.broadcast_to(f(np.zeros(1))[0], (n,)).copy()
             elif s.axis in iso.LINEAR_AXES:
                 i = iso.LINEAR_AXES.index(s.axis)
-                out[name] = np.asarray(f(lin[:, i], t, d[:, i]), float).reshape(n)
+                axes = {a: lin[:, k] for k, a in enumerate(iso.LINEAR_AXES)}
+                out[name] = np.asarray(f.evaluate(lin[:, i], t, d[:, i], axes), float).reshape(n)
             else:
                 i = self.rotary_axes.index(s.axis)
                 out[name] = np.asarray(f(rot[:, i], t, None), float).reshape(n)

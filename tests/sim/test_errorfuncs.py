@@ -93,3 +93,21 @@ def test_derivative_matches_finite_differences(f):
 def test_bad_parameters(make, match):
     with pytest.raises(ConfigError, match=match):
         make()
+
+
+def test_cross_axis_couples_two_axes_in_the_machine():
+    import numpy as np
+    from core.exceptions import ConfigError
+    from sim.errorfuncs import CrossAxis
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+
+    k = 2e-6 / 0.1 ** 2  # 2 um at (0.1, 0.1) m
+    m = Machine(MACHINES["nmv3000"](errors={"EXX": CrossAxis(k, "Y")}))
+    lin = np.array([[0.1, 0.1, 0.0], [0.1, -0.1, 0.0], [0.0, 0.1, 0.0]])
+    dev = m.tip_W(lin, np.zeros((3, len(m.rotary_axes)))) - lin
+    np.testing.assert_allclose(dev[:, 0], [2e-6, -2e-6, 0.0], atol=1e-15)
+    with pytest.raises(ConfigError, match="needs the reading of axis Y"):
+        CrossAxis(k, "Y")(np.zeros(2))
+    with pytest.raises(ConfigError, match="linear axis"):
+        CrossAxis(k, "C")
