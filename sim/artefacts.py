@@ -270,7 +270,8 @@ class Plane(_Primitive):
         o = np.asarray(self.origin, float)
         n = _unit(self.normal_)
         u = np.asarray(self.u, float)
-        u = _unit(u - n * (u @ n))
+        u = u - n * (u @ n)
+        u = _unit(u) if np.linalg.norm(u) > 1e-9 else _perp(n)
         v = np.cross(n, u)
         r = p - o
         h = r @ n

@@ -147,9 +147,10 @@ def machine_name(machine) -> str:
 
 def _kinematic_chain(machine) -> str:
     for obj in (machine, getattr(machine, "config", None)):
-        v = getattr(obj, "kinematic_chain", None)
-        if isinstance(v, str) and v:
-            return v
+        for a in ("kinematic_chain", "chain"):
+            v = getattr(obj, a, None)
+            if isinstance(v, str) and v:
+                return v
     return ""
 
 
@@ -335,7 +336,7 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         rot_deg = np.zeros(3)
         for a, v in zip(axes, st.rot_rad):
             if a in "ABC":
-                rot_deg["ABC".index(a)] = np.rad2deg(v)
+                rot_deg["ABC".index(a)] = np.round(np.rad2deg(v), 9)
         if plan_only:
             pos = np.full((plan.n, 3), np.nan)
             t_s = np.full(plan.n, np.nan)

@@ -1,0 +1,84 @@
+"""Exact primitives and artefacts: known distances, normals, form errors, truth."""
+
+import numpy as np
+import pytest
+
+from core.exceptions import ConfigError
+from sim import artefacts as A
+
+MM = 1e-3
+
+
+def test_plane_finite_face_distance_is_exact_to_the_prism():
+    f = A.Plane((0, 0, 0), (0, 0, 1), (1, 0, 0), 0.01, 0.02)
+    p = np.array([[0.005, 0.0, 0.003], [0.013, 0.0, 0.004], [0.013, 0.0, -0.004], [0.0, 0.0, -0.002]])
+    # inside laterally: height; beside: Euclidean to the rim; below beside: lateral; inside: -depth
+    np.testing.assert_allclose(A.Plane.sdf(f, p), [0.003, 0.005, 0.003, -0.002], atol=1e-15)
+    np.testing.assert_allclose(f.normal(p)[0], [0, 0, 1])
+
+
+def test_sphere_rod_hole_distances_and_normals():
+    s = A.Sphere((0.1, 0.0, 0.0), 0.0127)
+    np.testing.assert_allclose(s.sdf([[0.1, 0.02, 0.0]]), [0.02 - 0.0127], atol=1e-16)
+    r = A.Rod((0, 0, 0), (0, 0, 1), 0.006, 0.01)
+    np.testing.assert_allclose(r.sdf([[0.009, 0, 0.0], [0.008, 0, 0.014]]),
+                               [0.003, np.hypot(0.002, 0.004)], atol=1e-16)
+    h = A.Hole((0, 0, 0), (0, 0, 1), 0.008)
+    np.testing.assert_allclose(h.sdf([[0.005, 0, 0.3]]), [0.003], atol=1e-16)
+    np.testing.assert_allclose(h.normal([[0.005, 0, 0]])[0], [-1, 0, 0])
+
+
+def test_pocket_prism_concave_corner_is_exact():
+    pk = A.Prism(A.cross_outline(), material_inside=False)
+    # near the concave corner (100, 18) mm: distance to the nearer of the two walls
+    p = np.array([[97e-3, 16e-3, 0.0], [99e-3, 10e-3, 0.0], [0.0, 0.0, 0.0]])
+    # the centre: nearest material is the convex corner (18, 18) mm
+    np.testing.assert_allclose(pk.sdf(p), [2e-3, 1e-3, 18e-3 * np.sqrt(2)], atol=1e-15)
+    # inside the material (beyond the end wall)
+    assert pk.sdf([[0.105, 0.0, 0.0]])[0] == pytest.approx(-5e-3, abs=1e-15)
+
+
+def test_form_error_displaces_the_surface_along_its_normal():
+    f = A.Plane((0, 0, 0), (0, 0, 1), form=A.Offset(2e-6))
+    assert f.sdf([[0.0, 0.0, 1e-3]])[0] == pytest.approx(1e-3 - 2e-6, abs=1e-18)
+    w = A.Waviness(1e-6, 0.04, (1, 0, 0))
+    q = np.array([[0.01, 0.0, 0.0]])
+    assert w(q)[0] == pytest.approx(1e-6)
+
+
+def test_mfb_counts_and_truth_displace_the_features():
+    mfb = A.multi_feature_bar()
+    kinds = [f.kind for f in mfb.features]
+    assert kinds.count("hole") == 12 and kinds.count("rod") == 11 and kinds.count("plane") == 22
+    E = mfb.info["E_MFB_m"]
+    assert E[:, 0].min() == pytest.approx(-42e-6, abs=1e-9)  # positioning up to -42 um (paper Fig. 9)
+    assert np.abs(E[:, 1:]).max() < 5e-6  # straightness a few um
+    h12 = mfb.feature("hole12")
+    assert np.asarray(h12.true.centre)[0] - np.asarray(h12.nominal.centre)[0] == pytest.approx(E[11, 0])
+    assert mfb.info["support_spacing_m"] == pytest.approx(0.3211, abs=1e-4)  # eq. 1
+    # mistake-proofing: two holes shifted off the x axis
+    assert [f.name for f in mfb.features if f.kind == "hole" and f.nominal.centre[1] != 0] == ["hole02", "hole05"]
+
+
+def test_mfb_invar_expansion():
+    cold, warm = A.multi_feature_bar(temperature_C=20.0), A.multi_feature_bar(temperature_C=30.0)
+    dx = warm.feature("hole12").true.centre[0] - cold.feature("hole12").true.centre[0]
+    assert dx == pytest.approx(0.55 * 1e-6 * 10, rel=1e-3)  # 1 um/m/degC
+
+
+def test_artefacts_build_and_mesh():
+    for name in A.ARTEFACTS:
+        a = A.make_artefact(name)
+        m = a.mesh()
+        assert len(m.vertices) > 0 and np.all(np.isfinite(m.bounds))
+
+
+@pytest.mark.parametrize("bad", [np.zeros((11, 3)), np.full((12, 3), np.nan)])
+def test_mfb_bad_deviations(bad):
+    with pytest.raises(ConfigError, match="deviations_m"):
+        A.multi_feature_bar(deviations_m=bad)
+
+
+def test_unknown_artefact():
+    with pytest.raises(ConfigError, match="unknown artefact 'ballplate'"):
+        A.make_artefact("ballplate")

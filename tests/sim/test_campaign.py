@@ -1,0 +1,144 @@
+"""Plans and campaigns: counts, probe-log round trip, refusals, no_trigger."""
+
+import numpy as np
+import pytest
+
+from core.exceptions import ConfigError, PlanError
+from core.probelog import read_probe_log, write_probe_log
+from core.touches import from_log
+from sim import artefacts as A
+from sim.campaign import Setup, mfb_placements, simulate_campaign
+from sim.plans import make_plan, mfb_plan
+from sim.probe import ProbeConfig
+
+
+class Translated:
+    linear_axes = ("X", "Y", "Z")
+    rotary_axes = ()
+
+    def __init__(self, off=(0.0, 0.0, 0.0)):
+        self.off = np.asarray(off, float)
+
+    def tip_W(self, lin, rot=None, t=None, d=None):
+        return np.asarray(lin, float) + self.off
+
+
+class RotaryC(Translated):
+    """Stand-in 4-axis machine: perfect, W turned by R(-C) about Z (paper eq. 1)."""
+
+    rotary_axes = ("C",)
+
+    def T_R_W_nominal(self, rot, lin=None):
+        rot = np.atleast_2d(rot)
+        return np.stack([A.make_T(A.rot_z(-c), (0, 0, 0)) for c in rot[:, 0]])
+
+    def tip_W(self, lin, rot=None, t=None, d=None):
+        T = self.T_R_W_nominal(rot)
+        return np.einsum("nji,nj->ni", T[:, :3, :3], np.asarray(lin) - T[:, :3, 3])
+
+
+def test_mfb_plan_has_316_touches():
+    p = mfb_plan(A.multi_feature_bar())
+    c = p.counts()
+    assert c == {"hole": 8 * 12, "rod": 12 * 11, "face": 4 * 22}
+    assert 96 + 132 + 88 == 316 == p.n
+
+
+def test_other_plan_counts():
+    assert make_plan(A.cross_pocket()).n == 92  # 84 wall + 8 sphere points per C angle
+    assert make_plan(A.pin_circle()).n == 18 * 4 + 2 * 8  # 88 (the paper's "84" does not add up)
+    assert make_plan(A.freeform_plate()).n == 72
+    assert len(mfb_placements()) == 17
+
+
+def test_campaign_round_trip_and_truth(tmp_path, rng):
+    art = A.cross_pocket()
+    log = simulate_campaign(art, RotaryC(), ProbeConfig(), [0, 75, 130, 210], rng)
+    assert log.n == 4 * 92 and set(log.col("status")) == {"ok"}
+    p = write_probe_log(tmp_path / "c.csv", log)
+    back = read_probe_log(p)
+    for k in ("machine", "artefact", "stylus_r_mm", "kinematic_chain"):
+        assert k in back.meta
+    t = from_log(back)
+    assert t.n == 368 and len(t.setup_ids) == 4 and len(t.target_ids) == 92
+    assert np.all(np.diff(t.t_s) > 0)
+    # perfect machine: dq is the wall form error (same at every C) plus noise
+    dq = t.dq_m.reshape(4, 92)
+    assert np.max(np.abs(dq - dq[0])) < 8 * ProbeConfig().sigma_m * np.sqrt(2)
+    # w* identical across set-ups; C column in degrees
+    assert sorted(set(back.col("C_deg"))) == [0.0, 75.0, 130.0, 210.0]
+
+
+def test_plan_only_has_empty_measured_columns(tmp_path):
+    log = simulate_campaign("pin-circle", Translated(), ProbeConfig(), [0.0], None, plan_only=True)
+    assert log.is_plan and log.n == 88
+    back = read_probe_log(write_probe_log(tmp_path / "p.csv", log))
+    assert back.is_plan
+
+
+def test_translation_error_gives_minus_n_dot_E(rng):
+    E = np.array([4e-6, -3e-6, 2e-6])
+    log = simulate_campaign("freeform", Translated(E), ProbeConfig(repeatability_k2_m=0), [0.0], None,
+                            check_collisions=False)
+    nolog = simulate_campaign("freeform", Translated(), ProbeConfig(repeatability_k2_m=0), [0.0], None,
+                              check_collisions=False)
+    dq = (log.dq_mm() - nolog.dq_mm()) * 1e-3
+    np.testing.assert_allclose(dq, -log.normals() @ E, atol=1e-9)  # CONTRIBUTING: dq = -n . E
+
+
+def test_missed_surface_is_a_no_trigger_row(tmp_path):
+    art = A.pin_circle()
+    # the true pin 3 is 10 mm (more than pin + stylus radius) off in Y: the -X approach misses it
+    D = A.pin_default_deviations().copy()
+    D[2] = (0.0, 10.0e-3)
+    art_off = A.pin_circle(deviations_m=D)
+    log = simulate_campaign(art_off, Translated(), ProbeConfig(), [0.0], None, check_collisions=False)
+    st = log.col("status")
+    assert st[8] == "no_trigger" and np.isnan(log.columns["X_mm"][8])
+    assert st[9] == "early_trigger"  # the +Y start is inside the moved pin
+    assert (st == "ok").sum() == 88 - 4
+    back = read_probe_log(write_probe_log(tmp_path / "m.csv", log))
+    assert from_log(back).n == (st == "ok").sum()
+    assert art.name == art_off.name
+
+
+def test_crashing_placement_is_refused():
+    art = A.multi_feature_bar()
+    # the bar sunk 12 mm into the table plane of the scene: the rod approach from
+    # above still works, but a placement that puts the bar through the probe body is refused
+    bad = Setup("P99", A.make_T(A.rot_x(np.pi / 2), (-0.275, 0.0, 0.07)))
+    with pytest.raises(PlanError, match="set-up 'P99' target"):
+        simulate_campaign(art, Translated(), ProbeConfig(), [bad], None)
+
+
+def test_target_too_close_to_a_corner_is_refused():
+    art = A.cross_pocket()
+    p = make_plan(art)
+    w = p.w_A.copy()
+    w[0] = (0.1, 0.0175, -3e-3)  # on the end wall, 0.5 mm from the concave corner
+    bad = type(p)(p.artefact, p.target, p.feature, w, p.wn_A, p.level)
+    with pytest.raises(PlanError, match="target 'wall00_0'"):
+        simulate_campaign(art, Translated(), ProbeConfig(), [0.0], None, plan=bad)
+
+
+def test_bad_setups():
+    with pytest.raises(ConfigError, match="has no C axis"):
+        simulate_campaign("cross-pocket", Translated(), ProbeConfig(), [0, 90], None)
+    with pytest.raises(ConfigError, match="unknown artefact"):
+        simulate_campaign("nope", Translated(), ProbeConfig(), [0], None)
+
+
+def test_real_machine_campaign(tmp_path, rng):
+    pytest.importorskip("pinocchio")
+    from sim.machine import Machine
+    from sim.machines import MACHINES, realistic_errors
+
+    cfg = MACHINES["nmv3000"]()
+    m = Machine(MACHINES["nmv3000"](errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)))
+    log = simulate_campaign("cross-pocket", m, ProbeConfig.ibaraki(), [0, 75, 130, 210], rng)
+    assert log.meta["kinematic_chain"] == cfg.chain and log.meta["machine"] == "nmv3000"
+    t = from_log(read_probe_log(write_probe_log(tmp_path / "r.csv", log)))
+    assert t.n == 368
+    # errors of tens of um show: dq differs between C angles far beyond the noise
+    dq = t.dq_m.reshape(4, 92)
+    assert np.std(dq[1] - dq[0]) > 3e-6

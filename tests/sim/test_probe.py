@@ -1,0 +1,179 @@
+"""Touch-trigger model: contact to < 1 nm against analytic geometry, on a
+perfect machine and with errors of known answer; no_trigger; pre-travel;
+noise; the VirtualMachine for the emulator."""
+
+import numpy as np
+import pytest
+
+from core.exceptions import ConfigError
+from sim import artefacts as A
+from sim.probe import ProbeConfig, VirtualMachine, simulate_touches
+
+R = 3e-3
+NM = 1e-9
+
+
+class Translated:
+    """Stand-in machine: tip_W = reading + constant offset (a pure translation error)."""
+
+    linear_axes = ("X", "Y", "Z")
+    rotary_axes = ()
+
+    def __init__(self, off=(0.0, 0.0, 0.0)):
+        self.off = np.asarray(off, float)
+
+    def tip_W(self, lin, rot=None, t=None, d=None):
+        return np.asarray(lin, float) + self.off
+
+
+class Rotated(Translated):
+    """Stand-in: tip_W = Rz(eps) reading (a small rotation of the whole machine)."""
+
+    def __init__(self, eps):
+        self.R = A.rot_z(eps)
+
+    def tip_W(self, lin, rot=None, t=None, d=None):
+        return np.asarray(lin, float) @ self.R.T
+
+
+def touch(machine, prim, start, d, travel=6e-3, probe=None):
+    start = np.atleast_2d(np.asarray(start, float))
+    n = len(start)
+    d = np.broadcast_to(np.asarray(d, float), (n, 3))
+    return simulate_touches(machine, probe or ProbeConfig(repeatability_k2_m=0), None, start, d,
+                            np.full(n, travel), None, np.zeros(n), np.full(n, 0.004), [prim.sdf],
+                            np.zeros(n, int), np.broadcast_to(np.eye(4), (n, 4, 4)))
+
+
+OFF = np.array([3e-6, -2e-6, 5e-6])
+
+
+@pytest.mark.parametrize("off", [np.zeros(3), OFF])
+def test_plane_contact_exact(off):
+    pl = A.Plane((0, 0, 0.01), (0, 0, 1))
+    res = touch(Translated(off), pl, [[0.02, 0.03, 0.01 + R + 2e-3]], (0, 0, -1))
+    # actual tip = reading + off touches z = 0.01 + R  ->  reading z = 0.01 + R - off_z
+    assert abs(res.pos_R[0, 2] - (0.01 + R - off[2])) < NM
+
+
+@pytest.mark.parametrize("off", [np.zeros(3), OFF])
+def test_sphere_contact_exact_off_axis(off):
+    c, Rs = np.array([0.05, 0.0, 0.02]), 0.0127
+    sp = A.Sphere(tuple(c), Rs)
+    y = np.array([0.0, 2e-3, 6e-3])
+    start = np.column_stack([c[0] + Rs + R + 2e-3 + 0 * y, c[1] + y, np.full(3, c[2])])
+    res = touch(Translated(off), sp, start, (-1, 0, 0))
+    # actual path x(s) = x0 - s + off_x, at (y + off_y, off_z) from the centre
+    xa = c[0] + np.sqrt((Rs + R) ** 2 - (y + off[1]) ** 2 - off[2] ** 2)
+    assert np.max(np.abs(res.pos_R[:, 0] + off[0] - xa)) < NM
+
+
+@pytest.mark.parametrize("off", [np.zeros(3), OFF])
+def test_rod_and_hole_contact_exact(off):
+    rod = A.Rod((0.0, 0.0, 0.0), (0, 1, 0), 5e-3, 0.03)
+    a = np.deg2rad(45.0)
+    n = np.array([np.sin(a), 0, np.cos(a)])
+    res = touch(Translated(off), rod, [(5e-3 + R + 2e-3) * n], -n)
+    # solve |(s-line + off) radial in xz| = 5 + 3 mm exactly
+    p0 = (5e-3 + R + 2e-3) * n + off
+    b = p0[[0, 2]] @ (-n[[0, 2]])
+    cc = p0[[0, 2]] @ p0[[0, 2]] - (5e-3 + R) ** 2
+    s = -b - np.sqrt(b * b - cc)
+    assert np.linalg.norm(res.pos_R[0] - ((5e-3 + R + 2e-3) * n - s * n)) < NM
+    hole = A.Hole((0.1, 0.0, 0.0), (0, 0, 1), 8e-3)
+    res = touch(Translated(off), hole, [[0.1 + 3e-3, 0.0, 0.0]], (1, 0, 0))
+    xa = 0.1 + np.sqrt((8e-3 - R) ** 2 - off[1] ** 2)
+    assert abs(res.pos_R[0, 0] + off[0] - xa) < NM
+
+
+def test_contact_in_the_concave_pocket_corner_exact():
+    pk = A.Prism(A.cross_outline(), material_inside=False)
+    # along the bisector into the corner (100, 18) mm: the ball touches both walls at once
+    d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    start = np.array([[0.09, 0.008, 0.0]])
+    res = touch(Translated(), pk, start, d, travel=0.02)
+    np.testing.assert_allclose(res.pos_R[0, :2], [0.1 - R, 0.018 - R], atol=NM)
+    # oblique approach towards the corner, with a translation error: the end wall comes first
+    d = np.array([np.cos(np.pi / 6), np.sin(np.pi / 6), 0.0])
+    res = touch(Translated(OFF), pk, [[0.09, 0.0, 0.0]], d, travel=0.02)
+    s = (0.1 - R - 0.09 - OFF[0]) / d[0]
+    assert np.linalg.norm(res.pos_R[0] - (np.array([0.09, 0.0, 0.0]) + s * d)) < NM
+    # a start closer than the stylus radius to the other wall: early trigger, not a crash
+    res = touch(Translated(), pk, [[0.098, 0.013, 0.0]], (0, 1, 0))
+    assert res.status[0] == "early_trigger"
+
+
+def test_rotation_error_has_analytic_answer():
+    eps = 50e-6  # rad
+    pl = A.Plane((0.0, 0.0, 0.0), (1, 0, 0))  # face x = 0, material below
+    y0 = 0.2
+    res = touch(Rotated(eps), pl, [[R + 2e-3, y0, 0.0]], (-1, 0, 0))
+    # actual x = cos(eps) X - sin(eps) y0 = R  ->  X = (R + sin(eps) y0) / cos(eps)
+    assert abs(res.pos_R[0, 0] - (R + np.sin(eps) * y0) / np.cos(eps)) < NM
+
+
+def test_form_error_shows_in_the_touch():
+    pl = A.Plane((0, 0, 0), (0, 0, 1), form=A.Bump(3e-6, (0, 0, 0), 0.005))
+    res = touch(Translated(), pl, [[0.0, 0.0, R + 2e-3], [0.05, 0.0, R + 2e-3]], (0, 0, -1))
+    np.testing.assert_allclose(res.pos_R[:, 2] - R, [3e-6, 0.0], atol=NM)
+
+
+def test_missed_surface_is_no_trigger_not_an_exception():
+    sp = A.Sphere((0.0, 0.0, 0.0), 0.0127)
+    res = touch(Translated(), sp, [[0.03, 0.02, 0.0], [0.03, 0.0, 0.0]], (-1, 0, 0), travel=0.005)
+    assert list(res.status) == ["no_trigger", "no_trigger"]
+    assert np.isnan(res.pos_R).all()
+    res = touch(Translated(), sp, [[0.01, 0.0, 0.0]], (-1, 0, 0))
+    assert res.status[0] == "early_trigger"
+
+
+def test_pretravel_lobing_and_noise():
+    pl = A.Plane((0, 0, 0), (1, 0, 0))
+    pr = ProbeConfig(pretravel_m=1e-6, lobing_m=((3, 0.5e-6, 0.0),), repeatability_k2_m=0)
+    res = touch(Translated(), pl, [[R + 2e-3, 0.0, 0.0]], (-1, 0, 0), probe=pr)
+    # azimuth pi: cos(3 pi) = -1 -> pre-travel 0.5 um, reported farther along -x
+    assert res.pos_R[0, 0] == pytest.approx(R - 0.5e-6, abs=NM)
+    rng = np.random.default_rng(7)
+    n = 4000
+    start = np.tile([R + 2e-3, 0.0, 0.0], (n, 1))
+    res = simulate_touches(Translated(), ProbeConfig(), rng, start, np.tile([-1.0, 0, 0], (n, 1)),
+                           np.full(n, 6e-3), None, np.zeros(n), np.full(n, 0.004), [pl.sdf],
+                           np.zeros(n, int), np.broadcast_to(np.eye(4), (n, 4, 4)))
+    # sigma = 0.125 um; the sample std of 4000 draws is within 5 % (3.5 sigma of its spread)
+    assert np.std(res.pos_R[:, 0]) == pytest.approx(0.125e-6, rel=0.05)
+
+
+@pytest.mark.parametrize("kw,match", [({"stylus_r_m": -1.0}, "stylus_r_m"),
+                                      ({"repeatability_k2_m": -1e-6}, "repeatability"),
+                                      ({"lobing_m": ((0.5, 1e-6, 0),)}, "lobing")])
+def test_probe_config_bad_input(kw, match):
+    with pytest.raises(ConfigError, match=match):
+        ProbeConfig(**kw)
+
+
+def test_ibaraki_probe_noise():
+    assert ProbeConfig.ibaraki().sigma_m == pytest.approx(1.38e-6)
+
+
+def test_virtual_machine_probe_move():
+    art = A.cross_pocket(form=None)
+    vm = VirtualMachine(Translated(OFF), art, ProbeConfig(repeatability_k2_m=0), np.random.default_rng(1))
+    z = art.T_W_A[2, 3] - 3e-3
+    hit, pos = vm.probe_move([0.09, 0.0, z], [0.11, 0.0, z])
+    assert hit and abs(pos[0] + OFF[0] - (0.1 - R)) < NM
+    hit, pos = vm.probe_move([0.0, 0.0, z], [0.0, 0.0, z + 0.01])  # up into free air
+    assert not hit and np.allclose(pos, [0.0, 0.0, z + 0.01])
+
+
+def test_real_machine_translation_error_has_analytic_answer():
+    pytest.importorskip("pinocchio")
+    from sim.errorfuncs import Constant
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+
+    m = Machine(MACHINES["vmc-3axis"](errors={"EC0Y": Constant(-43.4e-6)}))
+    pl = A.Plane((0.0, 0.0, 0.0), (1, 0, 0))
+    y0 = 0.1
+    res = touch(m, pl, [[R + 2e-3, y0, 0.05]], (-1, 0, 0))
+    # tip error -y EC0Y in X (CONTRIBUTING): actual x = X - y0 EC0Y = R
+    assert abs(res.pos_R[0, 0] - (R + y0 * -43.4e-6)) < NM

@@ -1,0 +1,84 @@
+"""MuJoCo scene: analytic distances agree with the exact primitives; crashing paths refused."""
+
+import numpy as np
+import pytest
+
+from core.exceptions import PlanError
+from sim import artefacts as A
+from sim.probe import ProbeConfig
+from sim.scene import Scene, check_touch_paths
+
+pytest.importorskip("mujoco")
+R = 3e-3
+
+
+def _stylus_distance(scene, p_R, geom):
+    scene.set_tip(p_R)
+    return scene.geom_distance("stylus", geom)
+
+
+def test_mujoco_distances_match_exact_primitives_to_1nm():
+    rng = np.random.default_rng(3)
+    art = A.pin_circle()
+    scene = Scene(art, ProbeConfig())
+    T = art.T_W_A
+    checks = 0
+    for f in art.features:
+        k = next(i for i, s in enumerate(art.solids) if s.feature == f.name and s.exact)
+        geom = f"{f.name}__{k}"
+        for _ in range(5):
+            # points 0.5..4 mm outside the surface near the probed height
+            if f.kind == "sphere":
+                e = rng.normal(size=3)
+                e /= np.linalg.norm(e)
+                p_A = np.asarray(f.nominal.centre) + (f.nominal.radius + R + rng.uniform(0.5e-3, 4e-3)) * e
+            else:
+                a = rng.uniform(0, 2 * np.pi)
+                c = np.asarray(f.nominal.centre)
+                p_A = c + [(f.nominal.radius + R + rng.uniform(0.5e-3, 4e-3)) * np.cos(a),
+                           (f.nominal.radius + R + rng.uniform(0.5e-3, 4e-3)) * np.sin(a), rng.uniform(-5e-3, 5e-3)]
+            exact = f.nominal.sdf(p_A[None])[0] - R
+            got = _stylus_distance(scene, A.apply_T(T, p_A[None])[0], geom)
+            assert abs(got - exact) < 1e-9, (f.name, got, exact)
+            checks += 1
+    assert checks == 100
+
+
+def test_box_face_distance_matches_plane_primitive():
+    art = A.multi_feature_bar()
+    scene = Scene(art, ProbeConfig())
+    f = art.feature("faceR03")
+    k = next(i for i, s in enumerate(art.solids) if s.feature == f.name)
+    for dx, dz, h in ((0.0, 0.0, 1e-3), (8e-3, 6e-3, 2.5e-3), (-10e-3, -4e-3, 0.7e-3)):
+        p_A = np.asarray(f.nominal.origin) + [dx, h + R, dz]
+        got = _stylus_distance(scene, A.apply_T(art.T_W_A, p_A[None])[0], f"{f.name}__{k}")
+        assert abs(got - (f.nominal.sdf(p_A[None])[0] - R)) < 1e-9
+
+
+def test_hole_surroundings_are_conservative():
+    """The 16-gon of boxes contains all the material: inscribed in the hole."""
+    art = A.multi_feature_bar()
+    scene = Scene(art, ProbeConfig())
+    c = np.asarray(art.feature("hole04").nominal.centre)
+    # stylus touching the true hole wall collides with the polygon (never misses material)
+    p_A = c + [A.HOLE_R_M - R, 0.0, 0.0]
+    hits = scene.collisions(A.apply_T(art.T_W_A, p_A[None])[0])
+    assert any(h[1].startswith("hole04") for h in hits)
+    # ...and is allowed when hole04 is the touch's own feature
+    assert scene.collisions(A.apply_T(art.T_W_A, p_A[None])[0], allow_feature="hole04") == []
+
+
+def test_crashing_path_is_refused_naming_setup_and_target():
+    art = A.cross_pocket()
+    scene = Scene(art, ProbeConfig())
+    scene.set_table(np.eye(4))
+    z = art.T_W_A[2, 3] - 3e-3
+    # a straight link across the convex corner (18, 18) mm of the cross: crashes
+    link = np.array([[0.0225, 0.013, z], [0.013, 0.0225, z]])
+    approach = np.array([[[0.013, 0.0225, z], [0.013, 0.020, z]]])
+    with pytest.raises(PlanError, match=r"set-up 'C0' target 'wall02_0': link move crashes"):
+        check_touch_paths(scene, "C0", ["wall02_0"], ["pocket"], [link], approach)
+    # the approach itself into another feature: refused too
+    approach = np.array([[[0.0, 0.0, 0.06], [0.06, 0.06, 0.06]]])
+    with pytest.raises(PlanError, match=r"target 'x': approach/retract path crashes: stylus hits sphere1"):
+        check_touch_paths(scene, "C0", ["x"], ["pocket"], [None], approach)
