@@ -310,6 +310,47 @@ def test_cylinder_sds_matches_scipy_least_squares(rng, arc_deg):
         assert f.residuals @ f.residuals <= cost * (1 + 1e-9)
 
 
+def test_sds_step_equals_viprey_eq_a8(rng):
+    """One SDS iteration equals the normal equations A.8 of Viprey 2016, with the
+    screw mapped as (shift_u, shift_v, tilt_u, tilt_v, radius) = (u, v, beta, -alpha, r).
+
+    A.8 as printed has +sum(z sin^2) in row 4, column 1, where symmetry (it is
+    G^T G) needs -sum(z sin^2): the test uses the corrected entry.
+    """
+    a = np.array([0.3, -0.2, 0.93])
+    a /= np.linalg.norm(a)
+    B = fit._perp_basis(a)
+    th = rng.uniform(0, 2.0, 20)
+    z = rng.uniform(-0.02, 0.02, 20)
+    P = 0.01 * (np.cos(th)[:, None] * B[0] + np.sin(th)[:, None] * B[1]) + z[:, None] * a
+    P += rng.normal(0, 1e-5, P.shape)
+    # current estimate: axis tilted by 2 mrad, shifted by 30 µm, radius 20 µm off
+    a0 = a + 2e-3 * B[1]
+    a0 /= np.linalg.norm(a0)
+    B0 = fit._perp_basis(a0)
+    p0, R0 = 3e-5 * B0[0], 0.01002
+    r, J = fit._rj_cylinder(p0, B0, R0, P)
+    ours = fit._solve_step(J, r)
+    # the paper: points in the axis frame (eqs. A.1-A.3), xi_i = rho_i - R (A.2)
+    L = (P - p0) @ B0.T
+    x, y, zz = L.T
+    rho = np.hypot(x, y)
+    c, s, xi = x / rho, y / rho, rho - R0
+    M = np.array([
+        [np.sum(zz**2 * s**2), -np.sum(zz**2 * s * c), -np.sum(zz * s * c), -np.sum(zz * s**2), -np.sum(zz * s)],
+        [-np.sum(zz**2 * s * c), np.sum(zz**2 * c**2), np.sum(zz * c**2), np.sum(zz * s * c), np.sum(zz * c)],
+        [-np.sum(zz * s * c), np.sum(zz * c**2), np.sum(c**2), np.sum(s * c), np.sum(c)],
+        [-np.sum(zz * s**2), np.sum(zz * s * c), np.sum(s * c), np.sum(s**2), np.sum(s)],  # corrected sign
+        [-np.sum(zz * s), np.sum(zz * c), np.sum(c), np.sum(s), len(P)],
+    ])
+    assert np.allclose(M, M.T)
+    rhs = np.array([-np.sum(xi * zz * s), np.sum(xi * zz * c), np.sum(xi * c), np.sum(xi * s), np.sum(xi)])
+    alpha, beta, u, v, rr = np.linalg.solve(M, rhs)
+    # 1e-7 relative: the normal equations square the condition number of the design
+    # matrix (here ~3e2 in metres, so ~1e5), our SVD solve does not
+    np.testing.assert_allclose(ours, [u, v, beta, -alpha, rr], rtol=1e-7, atol=1e-9 * np.abs(ours).max())
+
+
 @pytest.mark.parametrize("kind", ["circle2d", "sphere", "circle3d"])
 def test_other_nonlinear_fits_match_scipy(rng, kind):
     s = refdata.make_refset(kind, rng, residual_rms=(20e-6, 20e-6))
