@@ -21,6 +21,7 @@ COMMANDS = [
     ("probe", "scenarios.cmd_probe"),
     ("import", "scenarios.cmd_import"),
     ("machine", "scenarios.cmd_machine"),
+    ("simulate", "scenarios.cmd_simulate"),
     ("discover", "scenarios.cmd_discover"),
 ]
 

@@ -142,3 +142,16 @@ def test_real_machine_campaign(tmp_path, rng):
     # errors of tens of um show: dq differs between C angles far beyond the noise
     dq = t.dq_m.reshape(4, 92)
     assert np.std(dq[1] - dq[0]) > 3e-6
+
+
+def test_cli_simulate_writes_a_readable_log(tmp_path, capsys):
+    from scenarios.cli import main
+
+    out = tmp_path / "cp.csv"
+    assert main(["simulate", "cross-pocket", "--out", str(out), "--seed", "4", "--c-angles", "0,75"]) == 0
+    log = read_probe_log(out)
+    assert log.n == 184 and log.meta["artefact"] == "cross-pocket" and log.meta["seed"] == "4"
+    assert main(["simulate", "cross-pocket", "--out", str(out), "--plan-only", "--errors", "none"]) == 0
+    assert read_probe_log(out).is_plan
+    assert main(["simulate", "mfb", "--out", str(out), "--c-angles", "0"]) == 2
+    assert "placements" in capsys.readouterr().err
