@@ -87,7 +87,7 @@ from .touches import Touches
 MM = 1e-3
 DEG = np.pi / 180.0
 #: Largest number of free parameters solved densely (with an eigen rank check).
-DENSE_MAX = 1500
+DENSE_MAX = 500
 #: Relative eigenvalue of the column-scaled normal matrix below which a
 #: direction counts as unidentifiable (singular-value ratio 1e-6).
 RANK_TOL = 1e-12
@@ -108,7 +108,7 @@ GAUGE_NAMES = (
 
 
 def _fmt_mm(v_m: float) -> str:
-    return f"{v_m / MM:g}"
+    return f"{v_m / MM + 0.0:g}"  # + 0.0: no "-0"
 
 
 # ---------------------------------------------------------------------------
@@ -148,7 +148,7 @@ class Grid:
             n = int(round((b - a) / step_m))
             if n < 1 or abs(a + n * step_m - b) > 1e-9 * max(1.0, abs(b)):
                 raise ConfigError(f"grid {a / MM:g}..{b / MM:g} mm is not a whole number of {step_m / MM:g} mm steps")
-            return a + step_m * np.arange(n + 1)
+            return np.round((a + step_m * np.arange(n + 1)) / 1e-9) * 1e-9  # whole nm: 0 is exactly 0
 
         return cls(nodes(lo_m, hi_m), nodes(ylo_m, yhi_m))
 
@@ -172,7 +172,7 @@ class Grid:
             hi = np.ceil(p[:, c].max() / step_m + 1e-9) * step_m
             if hi - lo < step_m * 0.5:
                 hi = lo + step_m
-            out.append(lo + step_m * np.arange(int(round((hi - lo) / step_m)) + 1))
+            out.append(np.round((lo + step_m * np.arange(int(round((hi - lo) / step_m)) + 1)) / 1e-9) * 1e-9)
         return cls(*out)
 
     @property

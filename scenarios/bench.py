@@ -21,6 +21,7 @@ from pathlib import Path
 BENCHES: list[str] = [
     "scenarios.bench_fit",
     "scenarios.bench_machine",
+    "scenarios.bench_selfcal",
     "scenarios.bench_touch",
 ]
 

@@ -23,6 +23,8 @@ COMMANDS = [
     ("machine", "scenarios.cmd_machine"),
     ("simulate", "scenarios.cmd_simulate"),
     ("discover", "scenarios.cmd_discover"),
+    ("identify", "scenarios.cmd_identify"),
+    ("design", "scenarios.cmd_design"),
 ]
 
 

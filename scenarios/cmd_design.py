@@ -1,0 +1,69 @@
+"""``vmt design PLAN --angles N``: choose C angles minimising the workpiece uncertainty (core.design)."""
+
+from __future__ import annotations
+
+
+def register(sub) -> None:
+    p = sub.add_parser("design", help="choose the C angles of a 2D self-calibration (min max workpiece U95)")
+    p.add_argument("plan", help="probe-log/1 plan or campaign with wx_mm.. and wnx.. (targets in W)")
+    p.add_argument("--angles", type=int, required=True, help="number of C angles")
+    p.add_argument("--grid-mm", default="-110:110:22", metavar="x0:x1:step", help="error-map grid, mm (write --grid-mm=-110:110:22)")
+    p.add_argument("--step-deg", type=float, default=5.0, help="angle search grid, degrees")
+    p.add_argument("--reference", default="0,75,130,210", help="reference C angles to compare, deg ('' = none)")
+    p.add_argument("--u-probe-um", type=float, default=1.38, help="probing standard uncertainty, um")
+    p.add_argument("--measure", choices=("form", "gauge"), default="form",
+                   help="minimise the form uncertainty (default) or that of G in the gauge")
+    p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT", help="evaluate sweeps on this Dask cluster")
+    p.add_argument("--workers", type=int, default=1, help="local processes when no --dask (1 = serial)")
+    p.add_argument("--json", default=None, metavar="OUT", help="also write the result as JSON")
+    p.set_defaults(func=run)
+
+
+def targets_from_log(log):
+    """(w_W (N_w, 2) m, wn_W (N_w, 2), ids) of the distinct targets of a log, in W."""
+    import numpy as np
+
+    from core.exceptions import ConfigError
+
+    ids, first = np.unique(log.col("target"), return_index=True)
+    order = np.argsort(first)
+    rows = first[order]
+    w = np.column_stack([log.col("wx_mm"), log.col("wy_mm")])[rows] * 1e-3
+    wn = np.column_stack([log.col("wnx"), log.col("wny")])[rows]
+    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(wn))):
+        raise ConfigError(f"{log.source}: needs wx_mm, wy_mm, wnx, wny (targets in W) for every target")
+    return w, wn / np.linalg.norm(wn, axis=1, keepdims=True), tuple(ids[order])
+
+
+def run(args) -> int:
+    from core.design import optimise_angles
+    from core.exceptions import ConfigError
+    from core.probelog import read_probe_log
+    from scenarios.cmd_identify import parse_grid, write_json_atomic
+    from scenarios.parallel import design_evaluator
+
+    log = read_probe_log(args.plan)
+    w, wn, _ids = targets_from_log(log)
+    grid = parse_grid(args.grid_mm, None) if ":" in args.grid_mm else None
+    if grid is None:
+        raise ConfigError(f"--grid-mm: expected x0:x1:step, got {args.grid_mm!r}")
+    try:
+        ref = [float(v) for v in args.reference.split(",")] if args.reference.strip() else None
+    except ValueError:
+        raise ConfigError(f"--reference: expected comma-separated degrees, got {args.reference!r}") from None
+    u = args.u_probe_um * 1e-6
+    ev = design_evaluator(w, wn, grid, u, args.measure, dask=args.dask, workers=args.workers)
+    r = optimise_angles(w, wn, args.angles, grid, step_deg=args.step_deg, u_probe_m=u, reference_deg=ref,
+                        measure=args.measure, evaluate=ev)
+    print(f"C angles {', '.join(f'{c:g}' for c in r.c_deg)} deg: max workpiece U95 {r.max_U95_m * 1e6:.3f} um"
+          f" ({args.measure}, {r.evaluations} designs evaluated)")
+    if r.reference_deg is not None:
+        print(f"reference {', '.join(f'{c:g}' for c in r.reference_deg)} deg: {r.reference_max_U95_m * 1e6:.3f} um;"
+              f" gain x{r.gain:.3f}")
+    if args.json:
+        write_json_atomic(args.json, {
+            "c_deg": list(r.c_deg), "max_u95_um": round(r.max_U95_m * 1e6, 4), "measure": args.measure,
+            "reference_deg": list(r.reference_deg) if r.reference_deg else None,
+            "reference_max_u95_um": None if r.reference_max_U95_m is None else round(r.reference_max_U95_m * 1e6, 4),
+            "gain": r.gain, "evaluations": r.evaluations, "step_deg": r.step_deg})
+    return 0

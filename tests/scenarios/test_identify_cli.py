@@ -1,0 +1,86 @@
+"""vmt identify / vmt design on probe-log files."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from core.design import example_cross_pocket
+from core.probelog import make_log, write_probe_log
+from core.selfcal import Grid, build_design, nominal_touches, to_gauge
+from scenarios.cli import main
+
+ANG = [0, 75, 130, 210]
+
+
+def write_campaign(path, rng, noise_m=0.3e-6, plan=False):
+    w, wn, ids = example_cross_pocket()
+    t = nominal_touches(w, wn, ANG, stylus_r_m=0.003, target_ids=ids)
+    des = build_design(t, Grid.regular(-0.110, 0.110, 0.022))
+    truth = to_gauge(des, rng.normal(0, 3e-6, des.n_params), 2e-6)
+    dq = des.A @ truth + rng.normal(0, noise_m, t.n)
+    p = t.pn_R + dq[:, None] * t.n_R
+    n = t.n
+    cols = {"setup": [t.setup_ids[s] for s in t.setup], "target": [t.target_ids[i] for i in t.target],
+            "t_s": np.arange(n, dtype=float), "X_mm": p[:, 0] * 1e3, "Y_mm": p[:, 1] * 1e3, "Z_mm": np.zeros(n),
+            "Xn_mm": t.pn_R[:, 0] * 1e3, "Yn_mm": t.pn_R[:, 1] * 1e3, "Zn_mm": np.zeros(n),
+            "nx": t.n_R[:, 0], "ny": t.n_R[:, 1], "nz": np.zeros(n), "C_deg": np.degrees(t.rot_rad[:, 2]),
+            "wx_mm": t.w_W[:, 0] * 1e3, "wy_mm": t.w_W[:, 1] * 1e3, "wz_mm": np.zeros(n),
+            "wnx": t.wn_W[:, 0], "wny": t.wn_W[:, 1], "wnz": np.zeros(n)}
+    write_probe_log(path, make_log(cols, {"artefact": "cross-pocket"}))
+    return des, truth
+
+
+def test_identify_writes_the_report(tmp_path, rng, capsys):
+    log = tmp_path / "camp.csv"
+    des, truth = write_campaign(log, rng)
+    out = tmp_path / "r" / "id.json"
+    assert main(["identify", str(log), "--json", str(out), "--grid-mm=-110:110:22",
+                 "--delta-l-um", "2", "--mc", "200", "--seed", "1"]) == 0
+    r = json.loads(out.read_text())
+    assert r["touches"] == 368 and len(r["workpiece"]) == 92
+    assert r["conventions"]["scale_known"] is True and len(r["conventions"]["gauge"]) == 11
+    g = np.array([x["g_um"] for x in r["workpiece"]])
+    u = np.array([x["u95_um"] for x in r["workpiece"]])
+    # U95 with sigma from residuals (~0.3 um noise); truth within 2.5 U95 (k = 5) everywhere
+    assert np.all(np.abs(g - truth[des.slices["G"]] * 1e6) < 2.5 * u + 1e-3)
+    assert r["rms_um"] < 0.3
+    assert [x["c_deg"] for x in r["rotary"]] == ANG
+    assert r["rotary"][0]["exc_um"] == 0 and r["rotary"][0]["ecc_u95_urad"] == 0
+    assert r["axes"]["EXX"]["pos_mm"][0] == -110 and r["axes"]["EXX"]["value_um"][-1] == pytest.approx(2.0)
+    assert r["monte_carlo"]["runs"] == 200
+    assert "368 touches" in capsys.readouterr().out
+
+
+def test_identify_scale_unknown_and_auto_grid(tmp_path, rng):
+    log = tmp_path / "camp.csv"
+    write_campaign(log, rng)
+    out = tmp_path / "id.json"
+    assert main(["identify", str(log), "--json", str(out), "--grid-mm", "22"]) == 0
+    r = json.loads(out.read_text())
+    assert r["conventions"]["scale_known"] is False
+    assert any("scale unknown" in c for c in r["conventions"]["gauge"])
+
+
+def test_identify_bad_input_one_line_exit_2(tmp_path, rng):
+    log = tmp_path / "camp.csv"
+    write_campaign(log, rng)
+    r = subprocess.run([sys.executable, "-m", "scenarios.cli", "identify", str(log), "--json",
+                        str(tmp_path / "x.json"), "--grid-mm=-50:50:10"], capture_output=True, text=True)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and r.stderr.count("\n") == 1
+    assert "lies outside the grid -50..50 mm" in r.stderr
+    assert not (tmp_path / "x.json").exists()
+    assert main(["identify", str(log), "--json", str(tmp_path / "y.json"), "--grid-mm", "a:b"]) == 2
+
+
+def test_design_command(tmp_path, rng, capsys):
+    log = tmp_path / "camp.csv"
+    write_campaign(log, rng)
+    out = tmp_path / "d.json"
+    assert main(["design", str(log), "--angles", "3", "--step-deg", "30", "--reference", "0,60,150",
+                 "--json", str(out)]) == 0
+    r = json.loads(out.read_text())
+    assert r["c_deg"][0] == 0 and len(r["c_deg"]) == 3 and r["gain"] >= 1.0
+    assert "gain x" in capsys.readouterr().out
