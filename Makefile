@@ -22,7 +22,7 @@ demo: $(STAMP)
 	$(VENV)/bin/vmt demo --out $(OUT)
 
 test: $(STAMP)
-	$(VPY) -m pytest -q -p no:cacheprovider
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(VPY) -m pytest -q -p no:cacheprovider
 
 bench: $(STAMP)
 	$(VENV)/bin/vmt bench --out bench/results.json

@@ -85,8 +85,8 @@ class Settings:
         Trial periods in the scan of the periodic candidate.
     """
 
-    alpha: float = 1e-4
-    cv_gain: float = 0.97
+    alpha: float = 1e-2
+    cv_gain: float = 1.0
     outlier_alpha: float = 0.001
     outlier_max_frac: float = 0.05
     structure_alpha: float = 1e-5
@@ -102,17 +102,73 @@ class Settings:
 
 @dataclass(frozen=True)
 class Baseline:
-    """The baseline design and everything discovery needs around it."""
+    """The baseline design and everything discovery needs around it.
+
+    Attributes
+    ----------
+    design : selfcal.Design
+        The paper's model (eqs 1-18).
+    A : (n, p) float
+        ``design.A`` dense, plus the height columns when the touches lie at
+        more than one Z level (see :func:`baseline`).
+    C, d : gauge conditions ``C theta = d`` for all p columns.
+    names : tuple of str
+    own_cols : tuple of int arrays
+        Per set-up, the columns that belong to it alone (its C-axis
+        errors): refitted on a held-out set-up in cross-validation.
+    """
 
     design: selfcal.Design
-    A: np.ndarray  # (n, p) dense
+    A: np.ndarray
+    C: np.ndarray
+    d: np.ndarray
+    names: tuple
     grid_step_m: float
-    own_cols: tuple  # per set-up: columns refitted on a held-out set-up
+    own_cols: tuple
+    z_levels_m: tuple
+
+
+def _height_columns(t: Touches, des: selfcal.Design):
+    """C-axis tilt and Abbe columns for touches at more than one Z level.
+
+    The paper's model is planar: every touch at one height. Touches at
+    another height (sphere equators above the pocket) also see the C-axis
+    tilt error motions ``EAC``/``EBC`` (per set-up) and the angular errors
+    of X and Y through the height difference ``dz``. The per-set-up tilt
+    columns take the C-axis part and, for raised targets that sit at a few
+    places (spheres), most of the rest; richer Abbe terms are not
+    identifiable from two spheres. Without them the baseline calls the
+    height effect an error. Returns (columns, names, per-set-up column indices
+    within the block, gauge rows) or None for a single level.
+    """
+    z = t.pn_R[:, 2]
+    zr = np.round(z, 6)
+    levels, counts = np.unique(zr, return_counts=True)
+    if levels.size < 2:
+        return None
+    z_ref = levels[np.argmax(counts)]
+    dz = z - z_ref
+    nx, ny = t.n_R[:, 0], t.n_R[:, 1]
+    cols, names, own = [], [], []
+    cn = [n.split("[", 1)[1].rstrip("]") for n in des.names[des.slices["EXC"]]]
+    for j in range(len(des.setup_ids)):
+        m = (t.setup == j).astype(float)
+        own.append(np.array([len(cols), len(cols) + 1]))
+        cols += [nx * dz * m, -ny * dz * m]
+        names += [f"EBC,total[{cn[j]}]", f"EAC,total[{cn[j]}]"]
+    # workpiece tilt in W is the same as shifting every raised target: fix the
+    # reference set-up's tilt (two gauge conditions)
+    ref = des.ref_setup
+    gauge = [own[ref][0], own[ref][1]]
+    return np.column_stack(cols), tuple(names), own, gauge, tuple(float(v) for v in levels)
 
 
 def baseline(touches: Touches, grid_step_mm: float | None = None,
              settings: Settings = Settings()) -> Baseline:
     """The 2D self-calibration design on the finest grid the data identify.
+
+    With touches at several Z levels, per-set-up C-axis tilt columns and
+    first-order Abbe columns are added (:func:`_height_columns`).
 
     Raises
     ------
@@ -128,15 +184,31 @@ def baseline(touches: Touches, grid_step_mm: float | None = None,
         try:
             selfcal.check_count(touches, grid)
             des = selfcal.build_design(touches, grid)
-            selfcal.solve(des.A, np.zeros(touches.n), des.C, des.d, names=des.names, sigma=1.0,
-                          covariance="none")
+            A = des.A.toarray()
+            C, d, names = des.C, des.d, tuple(des.names)
+            s = des.slices
+            own = [np.array([s["EXC"].start + j, s["EYC"].start + j, s["ECC"].start + j])
+                   for j in range(len(des.setup_ids))]
+            levels = (float(np.median(touches.pn_R[:, 2])),)
+            h = _height_columns(touches, des)
+            if h is not None:
+                H, hn, hown, hg, levels = h
+                p = A.shape[1]
+                A = np.hstack([A, H])
+                C = np.hstack([C, np.zeros((C.shape[0], H.shape[1]))])
+                extra = np.zeros((len(hg), A.shape[1]))
+                for r, c in enumerate(hg):
+                    extra[r, p + c] = 1.0
+                C = np.vstack([C, extra])
+                d = np.concatenate([d, np.zeros(len(hg))])
+                names = names + hn
+                own = [np.concatenate([o, p + ho]) for o, ho in zip(own, hown)]
+            selfcal.solve(A, np.zeros(touches.n), C, d, names=names, sigma=1.0, covariance="none")
         except IdentifiabilityError as e:
             last = e
             continue
-        s = des.slices
-        own = tuple(np.array([s["EXC"].start + j, s["EYC"].start + j, s["ECC"].start + j])
-                    for j in range(len(des.setup_ids)))
-        return Baseline(design=des, A=des.A.toarray(), grid_step_m=st * MM, own_cols=own)
+        return Baseline(design=des, A=A, C=C, d=d, names=names, grid_step_m=st * MM, own_cols=tuple(own),
+                        z_levels_m=levels)
     raise IdentifiabilityError(f"no baseline: the 2D self-calibration is not identifiable on grids of "
                                f"{', '.join(f'{s:g}' for s in steps)} mm ({last})")
 
@@ -243,8 +315,8 @@ def ext_drift(t: Touches) -> Extension:
     nx, ny = t.n_R[:, 0], t.n_R[:, 1]
     x, y, xs, ys, tt, T, L = _geometry(t)
     C = np.column_stack([-nx * tt, -ny * tt, -nx * x * tt, -ny * y * tt])
-    return Extension("thermal_drift", C, ("x_offset", "y_offset", "x_scale", "y_scale"),
-                     info={"T_s": T})
+    return Extension("thermal_drift", C, ("x_offset", "y_offset", "x_scale", "y_scale"), tries=4,
+                     info={"T_s": T, "pick_one": True})
 
 
 def ext_lobing(t: Touches, kmax: int = 4) -> Extension:
@@ -421,6 +493,7 @@ class Discovery:
     structure_p: dict
     grid_step_mm: float
     conventions: tuple
+    baseline_model: str = "selfcal-2d (Ibaraki eqs 1-18)"
 
     @property
     def cause(self) -> str:
@@ -430,7 +503,7 @@ class Discovery:
         """The discovery report of shared/spec/probe-log.md (plus extra keys)."""
         b_cv = self.baseline_cv_rms_um
         return {
-            "baseline": {"model": "selfcal-2d (Ibaraki eqs 1-18)", "n": self.baseline_n,
+            "baseline": {"model": self.baseline_model, "n": self.baseline_n,
                          "n_params": self.baseline_n_params, "rms_um": self.baseline_rms_um,
                          "grid_step_mm": self.grid_step_mm},
             "findings": [{"cause": f.cause, "evidence": f.evidence, "params": f.params, "rms_um": f.rms_um}
@@ -491,12 +564,10 @@ def _params(ext: Extension, coef: np.ndarray, std: np.ndarray, t: Touches) -> di
 
 def _solve_workpiece(bl: Baseline, A_ext: np.ndarray, y: np.ndarray, rows: np.ndarray):
     """Gauge-fixed estimate (theta, std) with the baseline's gauge conditions."""
-    des = bl.design
-    k = A_ext.shape[1] - des.n_params
-    C = np.hstack([des.C, np.zeros((des.C.shape[0], k))])
-    names = list(des.names) + [f"ext[{i}]" for i in range(k)]
-    sol = selfcal.solve(A_ext[rows], y[rows], C, des.d, names=names, covariance="full")
-    return sol
+    k = A_ext.shape[1] - bl.A.shape[1]
+    C = np.hstack([bl.C, np.zeros((bl.C.shape[0], k))])
+    names = list(bl.names) + [f"ext[{i}]" for i in range(k)]
+    return selfcal.solve(A_ext[rows], y[rows], C, bl.d, names=names, covariance="full")
 
 
 def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Settings = Settings()) -> Discovery:
@@ -546,12 +617,21 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         exts = [ext_drift(sub), ext_lobing(sub), ext_reversal(sub), ext_nonrigid(sub),
                 ext_periodic(sub, f_cur.Q, f_cur.r, bl.grid_step_m, settings.periods)]
         exts = [e for e in exts if e.cause not in {c.cause for c, _ in chosen}]
-        total_tries = sum(e.tries for e in exts)
         scored = []
         for e in exts:
             if e.columns.shape[1] == 0:
                 continue
             B, keep = _new_directions(f_cur.Q, e.columns)
+            if e.info.get("pick_one") and B.shape[1] > 1:
+                # a drift is one mechanism: take the single column that explains
+                # most (the Bonferroni factor ``tries`` pays for the choice)
+                gains = []
+                for j in np.flatnonzero(keep):
+                    Bj, _ = _new_directions(f_cur.Q, e.columns[:, [j]])
+                    gains.append((float(np.sum((Bj.T @ f_cur.r) ** 2)), j, Bj))
+                _, j, B = max(gains, key=lambda g: g[0])
+                keep = np.zeros(e.columns.shape[1], bool)
+                keep[j] = True
             k = B.shape[1]
             if k == 0 or f_cur.dof - k < 5:
                 continue
@@ -560,7 +640,8 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
             dof1 = f_cur.dof - k
             F = (drss / k) / max(rss1 / dof1, 1e-300)
             p = float(stats.f.sf(F, k, dof1))
-            p_adj = min(1.0, p * total_tries) if e.tries == 1 else min(1.0, p * total_tries)
+            # Bonferroni: over the candidates, and within one over what its scan tried
+            p_adj = min(1.0, p * len(exts) * e.tries)
             dbic = _bic(rss1, len(rows), k + (1 if e.cause == "periodic_axis_error" else 0)) - \
                 _bic(f_cur.rss, len(rows), 0)
             scored.append({"ext": e, "k": k, "keep": keep, "F": F, "p": p, "p_adj": p_adj,
@@ -576,14 +657,14 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
             Ae = np.hstack([A, _full_cols(t, e, rows)[:, s["keep"]]])
             cv = _cv_rms(Ae[rows], y[rows], t.setup[rows], bl.own_cols)
             s["cv"] = cv
-            if cv < settings.cv_gain * cv_cur and (best is None or cv < best["cv"]):
+            if cv < settings.cv_gain * cv_cur and (best is None or s["dbic"] < best["dbic"]):
                 best = s
         if best is None:
             break
         e = best["ext"]
         A = np.hstack([A, _full_cols(t, e, rows)[:, best["keep"]]])
         evidence = {"F": best["F"], "p_value": best["p"], "p_adjusted": best["p_adj"],
-                    "tries": int(total_tries), "delta_bic": best["dbic"], "added_params": int(best["k"]),
+                    "tries": int(best["ext"].tries), "candidates": len(exts), "delta_bic": best["dbic"], "added_params": int(best["k"]),
                     "cv_rms_before_um": cv_cur * UM, "cv_rms_after_um": best["cv"] * UM,
                     "rms_before_um": float(np.sqrt(f_cur.rss / len(rows))) * UM,
                     "rms_after_um": float(np.sqrt(best["rss"] / len(rows))) * UM}
@@ -610,7 +691,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     sol_b = _solve_workpiece(bl, A0, y, all_rows)
     sol_e = _solve_workpiece(bl, A, y, rows)
     cv_b = _cv_rms(A0, y, t.setup, bl.own_cols)
-    p0 = bl.design.n_params
+    p0 = bl.A.shape[1]
     findings = []
     o = p0
     rms_steps = []
@@ -652,7 +733,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
                    "extended_um": float(sol_e.theta[G][i] * UM),
                    "baseline_u95_um": float(2 * sol_b.std[G][i] * UM) if sol_b.std is not None else None,
                    "extended_u95_um": float(2 * sol_e.std[G][i] * UM) if sol_e.std is not None else None})
-    model = "selfcal-2d" + "".join(f" + {e.cause}" for e, _ in chosen) + (" - outliers" if outliers else "")
+    model = "selfcal-2d" + (" + heights" if len(bl.z_levels_m) > 1 else "") + "".join(f" + {e.cause}" for e, _ in chosen) + (" - outliers" if outliers else "")
     res_b = np.full(n, np.nan)
     res_b[:] = f0.r
     res_e = np.full(n, np.nan)
@@ -665,7 +746,10 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         extended_rms_um=float(np.sqrt(f_cur.rss / len(rows)) * UM), extended_cv_rms_um=cv_cur * UM,
         workpiece=tuple(wp), outlier_rows=tuple(int(t.row[i]) for i in outliers),
         residuals_baseline_um=res_b * UM, residuals_extended_um=res_e * UM, structure_p=struct,
-        grid_step_mm=bl.grid_step_m / MM, conventions=conv)
+        grid_step_mm=bl.grid_step_m / MM, conventions=conv,
+        baseline_model="selfcal-2d (Ibaraki eqs 1-18)" + (
+            f" + C-axis tilt and Abbe terms for {len(bl.z_levels_m)} probing heights"
+            if len(bl.z_levels_m) > 1 else ""))
 
 
 def _full_cols(t: Touches, e: Extension, rows: np.ndarray) -> np.ndarray:

@@ -124,9 +124,11 @@ _ROTARY = {
 }
 
 
-def _profile(shape: str, mag: float, lo: float, hi: float, k: int = 9) -> ErrorFunction:
+def _profile(shape: str, mag: float, lo: float, hi: float, k: int = 9, ripple: bool = True) -> ErrorFunction:
     if shape == "lin":  # 0 at the low end, mag at the high end, plus a 1 % screw pitch ripple
         slope = mag / (hi - lo)
+        if not ripple:
+            return Polynomial((-slope * lo, slope))
         return Sum((Polynomial((-slope * lo, slope)), Periodic(0.01 * abs(mag), 0.010)))
     u = np.linspace(0.0, 1.0, k)
     y = mag * (4 * u * (1 - u) if shape == "bow" else np.sin(2 * np.pi * u))
@@ -135,7 +137,8 @@ def _profile(shape: str, mag: float, lo: float, hi: float, k: int = 9) -> ErrorF
 
 def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
                      strokes: Mapping[str, tuple[float, float]] | None = None,
-                     rng: np.random.Generator | None = None) -> dict[str, ErrorFunction]:
+                     rng: np.random.Generator | None = None,
+                     ripple: bool = True) -> dict[str, ErrorFunction]:
     """A realistic truth error set with the magnitudes the papers report.
 
     Parameters
@@ -150,6 +153,11 @@ def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
     rng : np.random.Generator, optional
         None: the nominal set (reproducible, paper magnitudes). Given: each
         magnitude is scaled by U(0.5, 1) with a random sign, phases random.
+    ripple : bool
+        Add the 10 mm screw-pitch ripple (1 % of the positioning error) to
+        the positioning errors (default). ``False`` gives errors that the
+        papers' smooth look-up-table models represent (a "no hidden
+        effect" machine for model-discovery tests).
 
     Returns
     -------
@@ -168,7 +176,7 @@ def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
         lo, hi = st[a]
         if a in _LINEAR:
             for sym, shape, m in _LINEAR[a]:
-                out[sym] = _profile(shape, mag(m), lo, hi)
+                out[sym] = _profile(shape, mag(m), lo, hi, ripple=ripple)
             for sq, v in _SQUARENESS.items():
                 if iso.symbol(sq).axis == a:
                     out[sq] = Constant(mag(v))
