@@ -23,6 +23,7 @@ COMMANDS = [
     ("machine", "scenarios.cmd_machine"),
     ("simulate", "scenarios.cmd_simulate"),
     ("discover", "scenarios.cmd_discover"),
+    ("scenario", "scenarios.cmd_scenario"),
     ("identify", "scenarios.cmd_identify"),
     ("design", "scenarios.cmd_design"),
 ]

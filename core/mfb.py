@@ -1,0 +1,493 @@
+"""Multi-feature bar: points of interest, the bar frame R_MFB, orientation, reversal.
+
+Viprey et al. 2016 (shared/papers/viprey2016-multi-feature-bar.txt):
+
+- section 2.1: from the touches of one placement, ``AXIS_i`` of every hole
+  (least-squares cylinder, App. A), ``AXIS_j`` of every rod (cylinder),
+  the faces ``PL_Lj``, ``PL_Rj`` (least-squares planes, App. B), the points
+  ``P_Lj``, ``P_Rj`` where a rod axis crosses its faces, the plane ``PL_i``
+  through the four points of the two rods around hole i and the point of
+  interest ``O_i = AXIS_i ∩ PL_i`` (:func:`points_of_interest`);
+- the bar frame ``R_MFB``: ``z`` the normal of ``PL_ref`` (through the
+  P points of the first and last rods), oriented towards the probed side;
+  ``O_1``, ``O_N`` where the first and last hole axes meet ``PL_ref``;
+  ``x`` along ``O_1 O_N``; ``y = z ^ x``;
+- section 2.2: the mistake-proofing holes (2 and 5, shifted +1.5 mm in y)
+  tell whether the bar is reversed (:func:`detect_orientation`);
+- section 3, eqs 5-7: reversal calibration of the bar's straightness on a
+  CMM and positioning by substitution against a step gauge
+  (:func:`reversal_calibration`).
+
+Frames: R machine reference (the points are the reported stylus-tip
+centres, i.e. the machine's belief), M the bar frame R_MFB, A the bar's own
+design frame (origin on hole 1's axis in the plane of the rod axes; the
+nominal ``O_i`` in A are ``((i-1) L, shift_i, 0)``, eq. 3 plus the
+mistake-proofing shifts).
+
+The stylus radius needs no correction: hole and rod axes are the axes of
+the stylus-centre cylinders, and the face planes (offset by the radius)
+only slide ``P_L``/``P_R`` along the rod axes, which leaves ``PL_i`` (the
+plane of two rod axes) unchanged. Units: SI (m, rad).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .exceptions import ConfigError, FitError
+from .fit import fit_cylinder, fit_plane
+
+MM = 1e-3
+
+
+class OrientationError(ConfigError):
+    """The bar's orientation read from its shifted holes is not the declared one."""
+
+
+@dataclass(frozen=True)
+class BarGeometry:
+    """Design of a multi-feature bar (section 2.2).
+
+    Attributes
+    ----------
+    n_holes : int
+        N holes (N - 1 rods).
+    pitch_m : float
+        L, m.
+    shifted : tuple of (int, float)
+        Mistake-proofing: 1-based hole index -> design shift in y_A, m.
+    """
+
+    n_holes: int = 12
+    pitch_m: float = 0.050
+    shifted: tuple = ((2, 1.5 * MM), (5, 1.5 * MM))
+
+    def __post_init__(self):
+        if int(self.n_holes) != self.n_holes or self.n_holes < 3:
+            raise ConfigError(f"BarGeometry.n_holes must be an integer >= 3, got {self.n_holes!r}")
+        if not (np.isfinite(self.pitch_m) and self.pitch_m > 0):
+            raise ConfigError(f"BarGeometry.pitch_m must be > 0, got {self.pitch_m!r}")
+
+    def shift_of(self, i: int) -> float:
+        return dict(self.shifted).get(int(i), 0.0)
+
+    def O_A(self, holes=None) -> np.ndarray:
+        """(k, 3) nominal points of interest in the design frame A, m (eq. 3 + shifts)."""
+        holes = range(1, self.n_holes + 1) if holes is None else holes
+        return np.array([[(i - 1) * self.pitch_m, self.shift_of(i), 0.0] for i in holes], float)
+
+
+MFB = BarGeometry()
+
+#: Orientations of a bar relative to the declared one, and the rotation (in A)
+#: that maps the declared pose to it: ``normal``; ``upside-down`` (turned 180
+#: deg about x_A: the reversal of eqs 5-6); ``turned`` (180 deg about z_A:
+#: end for end); ``turned-upside-down`` (180 deg about y_A).
+ORIENTATIONS = ("normal", "upside-down", "turned", "turned-upside-down")
+
+
+def expected_shifts(geom: BarGeometry, orientation: str) -> dict:
+    """Hole label (1-based, as probed) -> expected y_M offset, m, for ``orientation``."""
+    N = geom.n_holes
+    out = {}
+    for i, s in geom.shifted:
+        if orientation == "normal":
+            out[i] = s
+        elif orientation == "upside-down":
+            out[i] = -s
+        elif orientation == "turned":
+            out[N + 1 - i] = -s
+        elif orientation == "turned-upside-down":
+            out[N + 1 - i] = s
+        else:
+            raise ConfigError(f"unknown bar orientation {orientation!r}; expected one of {', '.join(ORIENTATIONS)}")
+    return out
+
+
+@dataclass(frozen=True)
+class BarFeatures:
+    """Associated features of one placement (frame of the points, R).
+
+    Attributes
+    ----------
+    hole_point, hole_axis : dict hole index -> (3,) float
+        A point of AXIS_i (m) and its unit direction.
+    rod_point, rod_axis : dict rod index -> (3,) float
+    face_point, face_normal : dict (side, rod index) -> (3,) float
+        side ``"L"`` or ``"R"``.
+    probe_side : (3,) float
+        Mean outward normal of the rod touches (the probed side of the bar).
+    """
+
+    hole_point: dict
+    hole_axis: dict
+    rod_point: dict
+    rod_axis: dict
+    face_point: dict
+    face_normal: dict
+    probe_side: np.ndarray = field(compare=False)
+
+
+@dataclass(frozen=True)
+class PointsOfInterest:
+    """Points of interest of one placement (section 2.1).
+
+    Attributes
+    ----------
+    holes : tuple of int
+        1-based hole labels, as probed.
+    O_R : (k, 3) float
+        O_i in the frame of the touches (machine frame R, readings), m.
+    O_M : (k, 3) float
+        O_i in the bar frame R_MFB, m.
+    T_R_M : (4, 4) float
+        Pose of R_MFB in R (origin O_a, the first unshifted hole used).
+    frame_holes : (int, int)
+        The holes whose axes define the origin and x_M.
+    orientation : str
+        One of :data:`ORIENTATIONS`, read from the shifted holes.
+    shifted_found : dict hole -> float
+        Holes whose |y_M| exceeds half the design shift, with their y_M, m.
+    """
+
+    holes: tuple
+    O_R: np.ndarray
+    O_M: np.ndarray
+    T_R_M: np.ndarray
+    frame_holes: tuple
+    orientation: str
+    shifted_found: dict
+
+
+def _num(name: str, prefix: str) -> int | None:
+    if not name.startswith(prefix):
+        return None
+    tail = name[len(prefix):]
+    return int(tail) if tail.isdigit() else None
+
+
+def _axis_hint(normals: np.ndarray) -> np.ndarray:
+    """Direction perpendicular to all the touch normals of a cylinder (smallest singular vector)."""
+    _, _, Vt = np.linalg.svd(np.asarray(normals, float))
+    return Vt[-1]
+
+
+def _meet(p, d, q, n) -> np.ndarray:
+    """Intersection of the line (p, d) with the plane (q, n)."""
+    den = float(d @ n)
+    if abs(den) < 1e-9:
+        raise FitError("MFB: a feature axis is parallel to the plane it must cross")
+    return p + (float((q - p) @ n) / den) * d
+
+
+def _group(feature) -> dict:
+    out: dict = {}
+    for k, f in enumerate(np.asarray(feature, dtype=object)):
+        out.setdefault(str(f), []).append(k)
+    return {f: np.asarray(v) for f, v in out.items()}
+
+
+def fit_bar_features(p_R, feature, n_R) -> BarFeatures:
+    """Least-squares features of one placement (cylinders App. A, planes App. B).
+
+    Parameters
+    ----------
+    p_R : (n, 3) float
+        Reported stylus-tip centres, m.
+    feature : (n,) str
+        Feature id per touch: ``holeNN``, ``rodNN``, ``faceLNN``, ``faceRNN``
+        (others ignored).
+    n_R : (n, 3) float
+        Nominal outward normals (used for the axis hints and the probed side).
+    """
+    p_R = np.asarray(p_R, float)
+    n_R = np.asarray(n_R, float)
+    if p_R.ndim != 2 or p_R.shape[1] != 3 or n_R.shape != p_R.shape or len(feature) != len(p_R):
+        raise ConfigError(f"MFB features: p_R, n_R must be (n, 3) and feature (n,), got "
+                          f"{p_R.shape}, {n_R.shape}, {len(feature)}")
+    if not np.all(np.isfinite(p_R)):
+        raise ConfigError("MFB features: p_R holds non-finite positions (drop invalid touches first)")
+    hp, ha, rp, ra, fp, fn = {}, {}, {}, {}, {}, {}
+    rod_normals = []
+    for f, idx in _group(feature).items():
+        try:
+            if (i := _num(f, "hole")) is not None:
+                c = fit_cylinder(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
+                hp[i], ha[i] = c.point, c.axis
+            elif (j := _num(f, "rod")) is not None:
+                c = fit_cylinder(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
+                rp[j], ra[j] = c.point, c.axis
+                rod_normals.append(n_R[idx])
+            elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
+                pl = fit_plane(p_R[idx], normal_hint=n_R[idx].mean(axis=0))
+                fp[(f[4], j)], fn[(f[4], j)] = pl.point, pl.normal
+        except FitError as e:
+            raise FitError(f"MFB feature {f!r}: {e}") from None
+    side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
+    return BarFeatures(hp, ha, rp, ra, fp, fn, side)
+
+
+def _rod_points(bf: BarFeatures, j: int) -> np.ndarray:
+    pts = []
+    for s in ("L", "R"):
+        if (s, j) not in bf.face_point:
+            raise FitError(f"MFB: rod {j} has no face{s}{j:02d} touches (P_{s}{j} undefined)")
+        pts.append(_meet(bf.rod_point[j], bf.rod_axis[j], bf.face_point[(s, j)], bf.face_normal[(s, j)]))
+    return np.array(pts)
+
+
+def _rod_pair(i: int, rods: set) -> tuple[int, int]:
+    """Rods (j-1, j) around hole i (end holes: the two nearest rods)."""
+    cands = [(i - 1, i), (i, i + 1), (i - 2, i - 1)]
+    for a, b in cands:
+        if a in rods and b in rods:
+            return a, b
+    raise FitError(f"MFB: hole {i} has no two neighbouring rods measured (PL_{i} undefined)")
+
+
+def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB) -> PointsOfInterest:
+    """Points of interest and R_MFB from fitted features (section 2.1)."""
+    rods = set(bf.rod_point)
+    holes = sorted(bf.hole_point)
+    if len(holes) < 2 or len(rods) < 2:
+        raise FitError(f"MFB: need at least 2 holes and 2 rods, got {len(holes)} and {len(rods)}")
+    P = {j: _rod_points(bf, j) for j in sorted(rods)}
+    O_R = []
+    for i in holes:
+        a, b = _rod_pair(i, rods)
+        pl = fit_plane(np.vstack([P[a], P[b]]), normal_hint=bf.probe_side)
+        O_R.append(_meet(bf.hole_point[i], bf.hole_axis[i], pl.point, pl.normal))
+    O_R = np.array(O_R)
+    # R_MFB: PL_ref through the P points of the first and last rods
+    j0, j1 = min(rods), max(rods)
+    ref = fit_plane(np.vstack([P[j0], P[j1]]), normal_hint=bf.probe_side if np.any(bf.probe_side) else None)
+    z = ref.normal
+    shifted = {i for i, _ in geom.shifted} | {geom.n_holes + 1 - i for i, _ in geom.shifted}
+    plain = [i for i in holes if i not in shifted] or holes
+    ia, ib = plain[0], plain[-1]
+    if ia == ib:
+        ia, ib = holes[0], holes[-1]
+    Oa = _meet(bf.hole_point[ia], bf.hole_axis[ia], ref.point, z)
+    Ob = _meet(bf.hole_point[ib], bf.hole_axis[ib], ref.point, z)
+    x = (Ob - Oa) / np.linalg.norm(Ob - Oa)
+    y = np.cross(z, x)
+    R = np.column_stack([x, y, z])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, Oa
+    O_M = (O_R - Oa) @ R
+    O_M[:, 0] += (ia - 1) * geom.pitch_m  # x_M counted from hole 1's nominal place
+    orient, found = detect_orientation(O_M, holes, geom)
+    return PointsOfInterest(tuple(holes), O_R, O_M, T, (ia, ib), orient, found)
+
+
+def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str | None = None) -> PointsOfInterest:
+    """O_i of one placement from its touches (Viprey 2016, section 2.1).
+
+    Parameters
+    ----------
+    p_R : (n, 3) float
+        Reported stylus-tip centres of the touches of ONE placement, m.
+    feature : (n,) str
+        Feature ids (probe-log ``feature`` column).
+    n_R : (n, 3) float
+        Nominal outward normals, R.
+    geom : BarGeometry
+    declared : str, optional
+        Declared orientation; if given and the shifted holes say otherwise,
+        :class:`OrientationError` names them.
+
+    Returns
+    -------
+    PointsOfInterest
+    """
+    poi = poi_from_features(fit_bar_features(p_R, feature, n_R), geom)
+    if declared is not None:
+        check_orientation(poi.orientation, poi.shifted_found, declared, geom)
+    return poi
+
+
+def detect_orientation(O_M, holes, geom: BarGeometry = MFB) -> tuple[str, dict]:
+    """Orientation of the bar from the y_M offsets of its holes (section 2.2).
+
+    Returns the orientation in :data:`ORIENTATIONS` whose pattern of shifted
+    holes matches, and the holes found shifted (|y_M| above half the
+    smallest design shift) with their y_M. ``"unknown"`` when none matches.
+    """
+    O_M = np.asarray(O_M, float)
+    thr = 0.5 * min(abs(s) for _, s in geom.shifted)
+    found = {int(i): float(O_M[k, 1]) for k, i in enumerate(holes) if abs(O_M[k, 1]) > thr}
+    hs = set(int(h) for h in holes)
+    for o in ORIENTATIONS:
+        exp = {i: s for i, s in expected_shifts(geom, o).items() if i in hs}
+        if set(exp) == set(found) and all(np.sign(exp[i]) == np.sign(found[i]) for i in exp) and exp:
+            return o, found
+    return "unknown", found
+
+
+def _fmt_found(found: dict) -> str:
+    if not found:
+        return "no hole is shifted"
+    return ", ".join(f"hole {i} at y_M {v / MM:+.3f} mm" for i, v in sorted(found.items()))
+
+
+def check_orientation(orientation: str, found: dict, declared: str, geom: BarGeometry = MFB) -> None:
+    """Raise :class:`OrientationError` naming the shifted holes when ``orientation != declared``."""
+    if declared not in ORIENTATIONS:
+        raise ConfigError(f"declared orientation {declared!r} is not one of {', '.join(ORIENTATIONS)}")
+    if orientation != declared:
+        exp = expected_shifts(geom, declared)
+        want = ", ".join(f"hole {i} {s / MM:+.1f} mm" for i, s in sorted(exp.items()))
+        raise OrientationError(
+            f"bar declared {declared} (expects {want}) but the shifted holes read {orientation}: {_fmt_found(found)}")
+
+
+# --------------------------------------------------------------------------- noise gain
+def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float = 1e-7) -> np.ndarray:
+    """d O_R / d e: change of the points of interest per touch displacement along d, (3k, n).
+
+    Finite differences (step ``h_m`` along each touch's approach direction
+    ``d_R``), refitting only the feature the touch belongs to. Linear to
+    ~h/R (1e-5 relative) around the solution; used for the linear
+    propagation and the Monte Carlo (JCGM 101) of the probing noise.
+    """
+    p_R = np.asarray(p_R, float)
+    d_R = np.asarray(d_R, float)
+    n_R = np.asarray(n_R, float)
+    feature = np.asarray(feature, dtype=object)
+    bf = fit_bar_features(p_R, feature, n_R)
+    base = poi_from_features(bf, geom).O_R.ravel()
+    groups = _group(feature)
+    G = np.zeros((base.size, len(p_R)))
+    for f, idx in groups.items():
+        for k in idx:
+            q = p_R[idx].copy()
+            q[list(idx).index(k)] += h_m * d_R[k]
+            hp, ha, rp, ra = dict(bf.hole_point), dict(bf.hole_axis), dict(bf.rod_point), dict(bf.rod_axis)
+            fp, fn = dict(bf.face_point), dict(bf.face_normal)
+            if (i := _num(f, "hole")) is not None:
+                c = fit_cylinder(q, axis_hint=bf.hole_axis[i])
+                hp[i], ha[i] = c.point, c.axis
+            elif (j := _num(f, "rod")) is not None:
+                c = fit_cylinder(q, axis_hint=bf.rod_axis[j])
+                rp[j], ra[j] = c.point, c.axis
+            elif f[:5] in ("faceL", "faceR"):
+                key = (f[4], int(f[5:]))
+                pl = fit_plane(q, normal_hint=bf.face_normal[key])
+                fp[key], fn[key] = pl.point, pl.normal
+            else:
+                continue
+            bf2 = BarFeatures(hp, ha, rp, ra, fp, fn, bf.probe_side)
+            G[:, k] = (poi_from_features(bf2, geom).O_R.ravel() - base) / h_m
+    return G
+
+
+# --------------------------------------------------------------------------- reversal (eqs 5-7)
+@dataclass(frozen=True)
+class BarCalibration:
+    """Calibrated deviations of the points of interest (eq. 4) with uncertainty.
+
+    Attributes
+    ----------
+    E_m : (N, 3) float
+        (Exx, Eyx, Ezx)_MFB of O_i in R_MFB, m.
+    u_m : (N, 3) float
+        Standard uncertainties, m.
+    U95_m : (N, 3) float
+        Expanded uncertainties (95 %: Student t of the effective degrees of
+        freedom of the repeats, k = 2 for type B only), m.
+    n_repeats : int
+    """
+
+    E_m: np.ndarray
+    u_m: np.ndarray
+    U95_m: np.ndarray
+    n_repeats: int
+
+
+def reversal_calibration(M_NR, M_R, E_XX_cmm_m=None, *, pitch_m: float = MFB.pitch_m,
+                         u_step_gauge_m=None, geom: BarGeometry = MFB,
+                         declared_NR: str = "normal", declared_R: str = "upside-down") -> BarCalibration:
+    """Reversal calibration of the bar on a CMM (Viprey 2016 eqs 5-7).
+
+    Parameters
+    ----------
+    M_NR, M_R : (r, N, 3) float
+        Repeated CMM measurements of O_1..O_N, normal (no reversal) and
+        reversed (bar turned 180 deg about its x axis), in the CMM frame
+        with the bar along the CMM's X axis, each as the CMM reports it, m
+        (O_1 at the origin; the mistake-proofing shifts included).
+    E_XX_cmm_m : (N,) float, optional
+        CMM positioning error at the O_i (eq. 7), from the substitution
+        against a step gauge; default 0.
+    u_step_gauge_m : (N,) float, optional
+        Standard uncertainty of ``E_XX_cmm_m`` (default: the paper's step
+        gauge, U(k=2) = 0.3 um + 1.5e-6 L).
+    declared_NR, declared_R : str
+        Declared orientations of the two set-ups; :class:`OrientationError`
+        names the shifted holes when a set-up is not what it is declared.
+
+    Returns
+    -------
+    BarCalibration
+        ``Eyx = (M_Y^NR - M_Y^R) / 2``, ``Ezx = (M_Z^NR - M_Z^R) / 2``
+        (eq. 6: the CMM straightness cancels), ``Exx = (M_X^NR + M_X^R) / 2
+        - (i-1) L + E_XXcmm`` (eq. 7), averaged over the repeats; u from the
+        scatter of the repeats (type A) and the step gauge (type B).
+    """
+    M_NR = np.asarray(M_NR, float)
+    M_R = np.asarray(M_R, float)
+    N = geom.n_holes
+    if M_NR.ndim == 2:
+        M_NR = M_NR[None]
+    if M_R.ndim == 2:
+        M_R = M_R[None]
+    for nm, M in (("M_NR", M_NR), ("M_R", M_R)):
+        if M.ndim != 3 or M.shape[1:] != (N, 3) or not np.all(np.isfinite(M)):
+            raise ConfigError(f"reversal_calibration: {nm} must be finite (repeats, {N}, 3), got {M.shape}")
+    r = min(len(M_NR), len(M_R))
+    holes = list(range(1, N + 1))
+    shifts = np.array([geom.shift_of(i) for i in holes])
+    for nm, M, decl in (("normal set-up", M_NR, declared_NR), ("reversed set-up", M_R, declared_R)):
+        mean = M.mean(axis=0)
+        o, found = detect_orientation(mean, holes, geom)
+        try:
+            check_orientation(o, found, decl, geom)
+        except OrientationError as e:
+            raise OrientationError(f"reversal calibration, {nm}: {e}") from None
+    # remove the known design shifts (sign per set-up) before separating
+    sgn_NR = 1.0 if declared_NR == "normal" else -1.0
+    sgn_R = 1.0 if declared_R == "normal" else -1.0
+    NR = M_NR[:r].copy()
+    Rv = M_R[:r].copy()
+    NR[:, :, 1] -= sgn_NR * shifts
+    Rv[:, :, 1] -= sgn_R * shifts
+    x_nom = (np.arange(N)) * pitch_m
+    Exx_cmm = np.zeros(N) if E_XX_cmm_m is None else np.asarray(E_XX_cmm_m, float)
+    if Exx_cmm.shape != (N,):
+        raise ConfigError(f"reversal_calibration: E_XX_cmm_m must be ({N},), got {Exx_cmm.shape}")
+    u_sg = (0.5 * (0.3e-6 + 1.5e-6 * x_nom) if u_step_gauge_m is None
+            else np.broadcast_to(np.asarray(u_step_gauge_m, float), (N,)))
+    per = np.empty((r, N, 3))
+    per[:, :, 0] = 0.5 * (NR[:, :, 0] + Rv[:, :, 0]) - x_nom + Exx_cmm
+    per[:, :, 1] = 0.5 * (NR[:, :, 1] - Rv[:, :, 1])
+    per[:, :, 2] = 0.5 * (NR[:, :, 2] - Rv[:, :, 2])
+    E = per.mean(axis=0)
+    if r > 1:
+        uA = per.std(axis=0, ddof=1) / np.sqrt(r)
+    else:
+        uA = np.zeros((N, 3))
+    u = uA.copy()
+    u[:, 0] = np.sqrt(uA[:, 0] ** 2 + u_sg ** 2)
+    # coverage factor: Student t for the r - 1 degrees of freedom of the
+    # repeats (type A; Welch-Satterthwaite with an infinite-dof step gauge)
+    from scipy.stats import t as student
+
+    if r > 1:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            nu = np.where(uA > 0, (r - 1) * u ** 4 / np.where(uA > 0, uA, 1) ** 4, np.inf)
+        k = np.where(np.isfinite(nu), student.ppf(0.975, np.maximum(nu, 1)), 2.0)
+    else:
+        k = np.full_like(u, 2.0)
+    return BarCalibration(E, u, k * u, r)

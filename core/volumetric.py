@@ -1,0 +1,667 @@
+"""The 21 errors of three linear axes from MFB placements (Viprey 2016, sections 5-6).
+
+Measurement model
+-----------------
+A *measurement* is one probing of the bar in one *placement* (a bar pose
+on the table, and the rotary positions A, C of a 5-axis machine) with one
+probe (offsets J, eq. 8). It yields the points of interest O_i as the
+machine reads them (``O_R``: reported stylus-tip centres, :mod:`core.mfb`)
+and, from the bar's calibration, where they really are on the bar
+(``O_A``, eq. 4). The actual stylus tip at the reading is the true point::
+
+    tip_W(O_R; E) = exp(xi_p) T_W_A,p O_A                          (1)
+
+``tip_W`` is core's exact chain (:mod:`core.kinematics`), ``E`` the error
+motions evaluated at the readings, ``T_W_A,p`` the nominal placement and
+``xi_p = (v, w)`` the unknown placement error (6 nuisance values per
+placement, shared by the measurements of that placement). To first order
+(eqs 8-12, ``S = d tip_W / d E`` at E = 0, which for the chain b-X-Y-Z-t
+is eqs 10-12 with the opposite sign)::
+
+    y = T_W_A O_A - tip_W(O_R; 0) = S(O_R) E - v + skew(P) w        (2)
+
+Each motion error of an axis is a look-up table on nodes along that axis
+(the points of interest of the bars laid along it), interpolated by a C2
+cubic spline (section 6) where a point falls between nodes; the three
+squarenesses ``EC0Y``, ``EB0Z``, ``EA0Z`` are constants. The rotary axes'
+errors of a 5-axis machine are constant within one placement and are
+absorbed by its ``xi_p``, exactly.
+
+Gauge (ISO 230-1 zero conventions, X primary, Y secondary)
+------------------------------------------------------------
+The placement errors make some combinations invisible to any bar: the
+offset of every positioning and straightness table, the slope of every
+straightness table (traded with the squarenesses and the frame), and the
+constant part of the angular errors of axes carrying the table (a rotated
+table is a rotated bar). :func:`design` computes the null space of (2)
+and fixes it with the ISO conventions: always positioning zero at the first
+node (``EX0X = 0``...) and straightness zero at both end nodes (the
+end-point reference straight line, section 6); then, greedily, angular
+errors zero at the first node, each only while it removes a null direction. A null
+direction left after all conventions is a combination the plan cannot see:
+:func:`identify` raises :class:`~core.exceptions.IdentifiabilityError`
+naming it (via :func:`core.selfcal.solve`), never a silent solution.
+
+Solution: joint least squares of all measurements (the paper's sequential
+order, angular -> translational -> squareness, solves sub-blocks of the
+same equations; jointly is the least-squares optimum and needs no
+propagation of one stage's error into the next, so vmt solves jointly),
+then Gauss-Newton on the exact equation (1) (``exact=True``).
+
+Uncertainty (:func:`uncertainty`): probing noise through the
+points-of-interest extraction (:func:`core.mfb.poi_noise_gain`) and the
+bar calibration uncertainty (common to all placements), by linear
+propagation (sandwich of the least-squares estimator) and by Monte Carlo
+(JCGM 101) through the same estimator; the placement errors are estimated
+(``xi_p``) and leave no first-order trace on E.
+
+Units SI inside; report helpers give um / urad.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from . import iso
+from .exceptions import ConfigError, IdentifiabilityError
+from .kinematics import ChainGeometry, exp_so3, sensitivity, skew, tip_W
+from .selfcal import solve
+
+MOTION = iso.LINEAR_MOTION
+SQUARENESS = iso.SQUARENESS
+#: Placement error: translation (W frame) and rotation about the bar's y_A, z_A
+#: axes. The roll about the bar's own axis x_A moves no point of interest
+#: except the two mistake-proofing holes (1.5 mm arm): it is left out and
+#: those holes' observation along the bar's z_A is dropped instead (their
+#: other components, and every other hole, are unaffected to first order).
+NUISANCE = ("vx", "vy", "vz", "wyA", "wzA")
+#: Singular-value ratio below which a direction of the column-scaled design is null
+#: (looser than core.selfcal.RANK_TOL, 1e-6 in singular values, so that a
+#: convention is chosen for every combination the solver would refuse).
+NULL_TOL = 1e-5
+#: Eigenvalue ratio passed to core.selfcal.solve after the gauge: exact null
+#: directions (~1e-30) are refused, weakly determined ones (ratio ~1e-13,
+#: e.g. the ram roll ECZ seen only through 50 mm stylus offsets) are solved
+#: and show up as wide U95 bands instead.
+SOLVE_RANK_TOL = 1e-18
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """Points of interest of one measurement (one placement, one probe).
+
+    Attributes
+    ----------
+    name : str
+    placement : str
+        Placement id: measurements of one placement share the bar pose.
+    holes : tuple of int
+        1-based hole labels.
+    O_R : (k, 3) float
+        Points of interest as read by the machine (reported tip centres, R), m.
+    O_A : (k, 3) float
+        Their calibrated positions in the bar frame A (eq. 4), m.
+    T_W_A : (4, 4) float
+        Nominal placement of the bar in W, m.
+    rot_rad : (r,) float
+        Rotary positions of the placement (chain's rotary order), rad.
+    J_m : (3,) float
+        Probe offsets of this measurement (eq. 8), m.
+    G_A : (3k, t) float or None
+        Noise gain of the extraction in the bar frame: d O_A / d e per touch
+        displacement e along its approach (:func:`core.mfb.poi_noise_gain`).
+    """
+
+    name: str
+    placement: str
+    holes: tuple
+    O_R: np.ndarray = field(compare=False)
+    O_A: np.ndarray = field(compare=False)
+    T_W_A: np.ndarray = field(compare=False)
+    rot_rad: tuple = ()
+    J_m: tuple = (0.0, 0.0, 0.0)
+    G_A: np.ndarray | None = field(default=None, compare=False)
+
+
+@dataclass(frozen=True)
+class Design:
+    """The linear problem (2) for a set of measurements.
+
+    Attributes
+    ----------
+    A : (m, n) float
+    y : (m,) float
+        Left side of (2), m.
+    names : tuple of str
+        Parameter names: ``EXX@x=-275mm``, ``EC0Y``, ``P03.wz``...
+    slices : dict
+        Symbol or placement -> slice into the parameters.
+    nodes : dict axis -> (n_a,) float
+    C : (k, n) float
+        Gauge conventions chosen (rows), ``C theta = 0``.
+    gauge : tuple of str
+        The conventions, in words.
+    null : (n, q) float
+        Null space of A (before the gauge), columns in parameter units.
+    rows : list of (measurement name, hole)
+        One entry per point (three rows each).
+    """
+
+    A: np.ndarray
+    y: np.ndarray
+    names: tuple
+    slices: dict
+    nodes: dict
+    C: np.ndarray
+    gauge: tuple
+    null: np.ndarray
+    rows: list
+
+
+def _geom(chain: str, J_m, rotary_points_R_m) -> ChainGeometry:
+    return ChainGeometry.of(chain, J_m, rotary_points_R_m or {})
+
+
+def spline_weights(nodes: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """(len(u), len(nodes)) weights of the C2 (not-a-knot) cubic spline through the nodes.
+
+    Linear interpolation for 2-3 nodes; constant for one node.
+    """
+    nodes = np.asarray(nodes, float)
+    u = np.asarray(u, float)
+    k = len(nodes)
+    if k == 1:
+        return np.ones((len(u), 1))
+    if k < 4:
+        W = np.zeros((len(u), k))
+        for j in range(k):
+            e = np.zeros(k)
+            e[j] = 1.0
+            W[:, j] = np.interp(u, nodes, e, left=np.nan, right=np.nan)
+        lo, hi = u < nodes[0], u > nodes[-1]
+        W[lo] = np.eye(k)[0]
+        W[hi] = np.eye(k)[-1]
+        return W
+    return CubicSpline(nodes, np.eye(k), bc_type="not-a-knot")(u)
+
+
+def _layout(meas, nodes):
+    names, slices, n = [], {}, 0
+    for s in MOTION:
+        a = iso.symbol(s).axis
+        k = len(nodes[a])
+        slices[s] = slice(n, n + k)
+        names += [f"{s}@{a.lower()}={v * 1e3:.6g}mm" for v in nodes[a]]
+        n += k
+    for s in SQUARENESS:
+        slices[s] = slice(n, n + 1)
+        names.append(s)
+        n += 1
+    places = list(dict.fromkeys(m.placement for m in meas))
+    for p in places:
+        slices[p] = slice(n, n + 5)
+        names += [f"{p}.{q}" for q in NUISANCE]
+        n += 5
+    return names, slices, n, places
+
+
+def _check(meas, nodes):
+    if not meas:
+        raise ConfigError("volumetric: no measurements")
+    for a in iso.LINEAR_AXES:
+        v = np.asarray(nodes.get(a, ()), float)
+        if v.ndim != 1 or len(v) < 1 or not np.all(np.isfinite(v)) or np.any(np.diff(v) <= 0):
+            raise ConfigError(f"volumetric: nodes[{a!r}] must be a strictly increasing finite 1-D array")
+    for m in meas:
+        O_R, O_A = np.asarray(m.O_R), np.asarray(m.O_A)
+        if O_R.ndim != 2 or O_R.shape[1] != 3 or O_A.shape != O_R.shape:
+            raise ConfigError(f"measurement {m.name!r}: O_R and O_A must be (k, 3), got {O_R.shape}, {O_A.shape}")
+        if not np.all(np.isfinite(O_R)) or not np.all(np.isfinite(O_A)):
+            raise ConfigError(f"measurement {m.name!r}: non-finite points of interest")
+        if np.shape(m.T_W_A) != (4, 4):
+            raise ConfigError(f"measurement {m.name!r}: T_W_A must be 4x4")
+
+
+def _values(theta, slices, nodes, q):
+    """Error values at readings q (n, 3): symbol -> (n,) (spline of the node tables)."""
+    out = {}
+    for s in MOTION:
+        a = iso.symbol(s).axis
+        i = iso.LINEAR_AXES.index(a)
+        out[s] = spline_weights(nodes[a], q[:, i]) @ theta[slices[s]]
+    for s in SQUARENESS:
+        out[s] = np.full(len(q), theta[slices[s]][0])
+    return out
+
+
+def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact):
+    """Jacobian and residual of (1) at theta: target - prediction."""
+    Jrows, res, rows = [], [], []
+    for m in meas:
+        g = _geom(chain, m.J_m, rotary_points)
+        q = np.asarray(m.O_R, float)
+        k = len(q)
+        nr = len(g.chain.rotary_axes)
+        rot = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (k, 1)) if nr else None
+        vals = _values(theta, slices, nodes, q) if exact else None
+        S = sensitivity(g, q, rot, vals, symbols=MOTION + SQUARENESS)  # (k, 3, 21)
+        pred = tip_W(g, q, rot, vals)
+        T = np.asarray(m.T_W_A, float)
+        P = np.asarray(m.O_A, float) @ T[:3, :3].T + T[:3, 3]
+        xi = theta[slices[m.placement]] if exact else np.zeros(5)
+        Rw = exp_so3(T[:3, 1:3] @ xi[3:])
+        tgt = P @ Rw.T + xi[:3]
+        J = np.zeros((k, 3, n))
+        for s in MOTION:
+            a = iso.symbol(s).axis
+            W = spline_weights(nodes[a], q[:, iso.LINEAR_AXES.index(a)])
+            J[:, :, slices[s]] += S[:, :, MOTION.index(s)][:, :, None] * W[:, None, :]
+        for s in SQUARENESS:
+            J[:, :, slices[s].start] += S[:, :, 18 + SQUARENESS.index(s)]
+        sl = slices[m.placement]
+        J[:, :, sl.start:sl.start + 3] = -np.eye(3)
+        J[:, :, sl.start + 3:sl.stop] = skew(P @ Rw.T) @ T[:3, 1:3]
+        r = tgt - pred
+        # mistake-proofing holes: drop the component along the bar's z_A (roll)
+        zA = T[:3, 2]
+        Pz = np.eye(3) - np.outer(zA, zA)
+        off = np.abs(np.asarray(m.O_A, float)[:, 1]) > 1e-4
+        J[off] = np.einsum("ij,kjn->kin", Pz, J[off])
+        r[off] = r[off] @ Pz.T
+        Jrows.append(J.reshape(3 * k, n))
+        res.append(r.ravel())
+        rows += [(m.name, h) for h in m.holes]
+    return np.vstack(Jrows), np.concatenate(res), rows
+
+
+def _null(A, tol=NULL_TOL):
+    cn = np.linalg.norm(A, axis=0)
+    D = np.where(cn > 0, 1.0 / np.where(cn > 0, cn, 1), 1.0)
+    _, s, Vt = np.linalg.svd(A * D, full_matrices=True)
+    s_full = np.zeros(A.shape[1])
+    s_full[:len(s)] = s
+    N = Vt[s_full <= tol * s.max()].T
+    return D[:, None] * N
+
+
+def _gauge(null, slices, nodes, fixed=None):
+    """Choose the ISO conventions that fix the null space (see module doc).
+
+    ``fixed``: use exactly these conventions (words as returned before, e.g.
+    the gauge of the complete plan) instead of choosing.
+    """
+    n = null.shape[0]
+    cands = []
+    for kind in ("pos", "str", "ang"):
+        for s in MOTION:
+            sy = iso.symbol(s)
+            sl = slices[s]
+            if kind == "pos" and sy.kind == iso.Kind.POSITIONING:
+                cands.append((f"{s} = 0 at the first node", [sl.start], kind))
+            elif kind == "str" and sy.kind == iso.Kind.STRAIGHTNESS:
+                cands.append((f"{s} = 0 at the first node (end-point reference line)", [sl.start], kind))
+                cands.append((f"{s} = 0 at the last node (end-point reference line)", [sl.stop - 1], kind))
+            elif kind == "ang" and sy.kind == iso.Kind.ANGULAR:
+                cands.append((f"{s} = 0 at the first node", [sl.start], kind))
+    N = null.copy()
+    rows, words = [], []
+    if fixed is not None:
+        known = {w: idx for w, idx, _ in cands}
+        for w in fixed:
+            if w not in known:
+                raise ConfigError(f"unknown convention {w!r}")
+            c = np.zeros(n)
+            c[known[w]] = 1.0
+            rows.append(c)
+            words.append(w)
+            cN = c @ N
+            if N.shape[1] and np.linalg.norm(cN) > 1e-12 * np.linalg.norm(N):
+                _, _, Vt = np.linalg.svd(cN[None, :])
+                N = N @ Vt[1:].T
+        return (np.array(rows) if rows else np.zeros((0, n))), tuple(words), N
+    for kind in ("pos", "str", "ang"):
+        cls = [(w, idx) for w, idx, kd in cands if kd == kind]
+        while N.shape[1] and cls:
+            Q, _ = np.linalg.qr(N)
+            score = [np.linalg.norm(Q[idx[0]]) for _, idx in cls]
+            b = int(np.argmax(score))
+            if kind == "ang" and score[b] < 0.01:  # no angular convention touches what is left
+                break
+            w, idx = cls.pop(b)
+            c = np.zeros(n)
+            c[idx] = 1.0
+            cN = c @ N
+            rows.append(c)
+            words.append(w)
+            # keep the part of the null space the convention leaves free
+            _, _, Vt = np.linalg.svd(cN[None, :])
+            N = N @ Vt[1:].T
+    return (np.array(rows) if rows else np.zeros((0, n))), tuple(words), N
+
+
+def design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) -> Design:
+    """The first-order problem (2), its null space and the ISO gauge (chosen, or ``gauge``)."""
+    meas = list(meas)
+    nodes = {a: np.asarray(v, float) for a, v in nodes.items()}
+    _check(meas, nodes)
+    names, slices, n, _ = _layout(meas, nodes)
+    A, y, rows = _rows(meas, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False)
+    # null space and gauge from the design at readings rounded to 10 um: the
+    # plan's geometry, not the noise, decides which conventions are needed
+    from dataclasses import replace as _rep
+
+    meas_r = [_rep(m, O_R=np.round(np.asarray(m.O_R, float), 5)) for m in meas]
+    A_r, _, _ = _rows(meas_r, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False)
+    null = _null(A_r)
+    C, words, _ = _gauge(null, slices, nodes, gauge)
+    return Design(A, y, tuple(names), slices, nodes, C, words, null, rows)
+
+
+@dataclass(frozen=True)
+class ObservabilityReport:
+    """What a plan can and cannot see.
+
+    Attributes
+    ----------
+    n_params, rank : int
+        Parameters of (2) and rank of its matrix.
+    gauge : tuple of str
+        ISO conventions needed (each removes one null direction).
+    unidentifiable : tuple of str
+        Combinations left after the conventions, each as ``+0.71*EBX@x=..
+        -0.71*EXX@x=..`` (largest terms first).
+    """
+
+    n_params: int
+    rank: int
+    gauge: tuple
+    unidentifiable: tuple
+
+    @property
+    def ok(self) -> bool:
+        return not self.unidentifiable
+
+
+def _describe(v, names, top=4):
+    idx = np.argsort(-np.abs(v))[:top]
+    idx = [i for i in idx if abs(v[i]) > 0.05 * abs(v[idx[0]])]
+    return " ".join(f"{'+' if v[i] >= 0 else '-'}{abs(v[i]):.2f}*{names[i]}" for i in idx).lstrip("+")
+
+
+def observability(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) -> ObservabilityReport:
+    """Rank of the plan's problem and the error combinations it cannot see, by name.
+
+    ``gauge``: the conventions of a reference (complete) plan; without it
+    the conventions are chosen for this plan and may absorb a loss.
+    """
+    d = design(meas, chain, nodes, rotary_points_R_m, gauge)
+    _, _, left = _gauge(d.null, d.slices, d.nodes, gauge)
+    un = []
+    for j in range(left.shape[1]):
+        v = left[:, j]
+        un.append(_describe(v / np.abs(v).max(), d.names))
+    return ObservabilityReport(d.A.shape[1], d.A.shape[1] - d.null.shape[1], d.gauge, tuple(un))
+
+
+@dataclass(frozen=True)
+class VolumetricResult:
+    """Identified error tables.
+
+    Attributes
+    ----------
+    theta : (n,) float
+        All parameters (m, rad), names in ``design.names``.
+    design : Design
+    chain : str
+    rotary_points_R_m : dict
+    iterations : int
+        Gauss-Newton iterations on the exact model (0: first order only).
+    rms_m : float
+        RMS of the residuals of (1) at the solution.
+    K : (n, m) float
+        The estimator at the solution: d theta / d y.
+    """
+
+    theta: np.ndarray
+    design: Design
+    chain: str
+    rotary_points_R_m: dict
+    iterations: int
+    rms_m: float
+    K: np.ndarray = field(repr=False, compare=False)
+
+    def table(self, symbol: str) -> tuple[np.ndarray, np.ndarray]:
+        """(nodes m, values m or rad) of one motion error; (empty, (1,)) for a squareness."""
+        s = iso.symbol(symbol).name
+        if s in SQUARENESS:
+            return np.zeros(0), self.theta[self.design.slices[s]]
+        return self.design.nodes[iso.symbol(s).axis], self.theta[self.design.slices[s]]
+
+    def spline(self, symbol: str) -> CubicSpline:
+        """C2 cubic spline (not-a-knot) through a motion error's table (section 6)."""
+        x, v = self.table(symbol)
+        if len(x) < 2:
+            raise ConfigError(f"{symbol}: no table to interpolate")
+        return CubicSpline(x, v, bc_type="not-a-knot" if len(x) >= 4 else "natural")
+
+    def value(self, symbol: str, u) -> np.ndarray:
+        """The error between nodes by the spline, at positions u (m)."""
+        s = iso.symbol(symbol).name
+        if s in SQUARENESS:
+            return np.full(np.shape(u), self.theta[self.design.slices[s]][0])
+        x, v = self.table(s)
+        return spline_weights(x, np.atleast_1d(u)) @ v
+
+    def placement(self, name: str) -> np.ndarray:
+        """(5,) estimated placement error (v m in W; w about y_A, z_A, rad)."""
+        return self.theta[self.design.slices[name]]
+
+
+def identify(meas, chain: str, nodes: dict, rotary_points_R_m=None, *, exact: bool = True,
+             max_iter: int = 10, tol_m: float = 1e-12, gauge=None) -> VolumetricResult:
+    """Identify the 21 errors from MFB measurements (eqs 8-12, then the exact model).
+
+    Raises
+    ------
+    IdentifiabilityError
+        The plan leaves an error combination unseen beyond the ISO
+        conventions (named).
+    """
+    meas = list(meas)
+    d = design(meas, chain, nodes, rotary_points_R_m, gauge)
+    _, _, left = _gauge(d.null, d.slices, d.nodes, gauge)
+    if left.shape[1]:
+        un = [_describe(left[:, j] / np.abs(left[:, j]).max(), d.names) for j in range(left.shape[1])]
+        raise IdentifiabilityError(f"the plan cannot identify {len(un)} combination(s) beyond the ISO "
+                                   f"conventions: " + "; ".join(un[:6]))
+    C = d.C
+    sol = solve(d.A, d.y, C, np.zeros(len(C)), names=d.names, sigma=1e-6, covariance="none",
+                rank_tol=SOLVE_RANK_TOL)
+    theta = sol.theta
+    est = sol.estimator
+    it = 0
+    res = d.y - d.A @ theta
+    if exact:
+        n = len(theta)
+        for it in range(1, max_iter + 1):
+            J, r, _ = _rows(meas, chain, rotary_points_R_m, d.nodes, theta, d.slices, n, exact=True)
+            # r = target - prediction; J = d(prediction - target)/d theta with the sign of (2)
+            s2 = solve(J, r, C, np.zeros(len(C)), names=d.names, sigma=1e-6, covariance="none",
+                rank_tol=SOLVE_RANK_TOL)
+            theta = theta + s2.theta
+            est = s2.estimator
+            res = r - J @ s2.theta
+            if np.abs(s2.theta).max() < tol_m:
+                break
+        _, res, _ = _rows(meas, chain, rotary_points_R_m, d.nodes, theta, d.slices, n, exact=True)
+    m = d.A.shape[0]
+    K = est.estimate(np.eye(m)) - est.estimate(np.zeros(m))[:, None]
+    return VolumetricResult(theta, d, chain, dict(rotary_points_R_m or {}), it if exact else 0,
+                            float(np.sqrt(np.mean(res ** 2))), K)
+
+
+def to_gauge(design_: Design, theta_true: np.ndarray) -> np.ndarray:
+    """Express a parameter vector (e.g. the truth) in the design's ISO gauge.
+
+    Adds the null-space combination that makes ``C theta = 0``: what the
+    plan would identify from error-free data under the first-order model.
+    """
+    N, C = design_.null, design_.C
+    if C.shape[0] == 0:
+        return np.asarray(theta_true, float).copy()
+    alpha = np.linalg.lstsq(C @ N, -C @ theta_true, rcond=None)[0]
+    return theta_true + N @ alpha
+
+
+# --------------------------------------------------------------------------- uncertainty
+@dataclass(frozen=True)
+class Uncertainty:
+    """Uncertainty of the identified parameters.
+
+    Attributes
+    ----------
+    u_lin : (n,) float
+        Standard uncertainty by linear propagation (m, rad).
+    U95_lin : (n,) float
+        2 u_lin (coverage factor 2).
+    lo95, hi95 : (n,) float
+        Monte Carlo (JCGM 101) probabilistically symmetric 95 % interval
+        of each parameter, m / rad (empty when runs = 0).
+    U95_mc : (n,) float
+        Half width of the MC interval.
+    runs : int
+    """
+
+    u_lin: np.ndarray
+    U95_lin: np.ndarray
+    lo95: np.ndarray
+    hi95: np.ndarray
+    U95_mc: np.ndarray
+    runs: int
+
+
+def _input_maps(res: VolumetricResult, meas, n_holes):
+    """Matrices mapping probing noise (per touch) and bar calibration errors to y."""
+    blocks, B = [], np.zeros((res.K.shape[1], 3 * n_holes))
+    r0 = 0
+    for m in meas:
+        T = np.asarray(m.T_W_A, float)
+        R = T[:3, :3]
+        k = len(m.holes)
+        if m.G_A is None:
+            raise ConfigError(f"measurement {m.name!r} has no noise gain G_A (core.mfb.poi_noise_gain)")
+        G = np.asarray(m.G_A, float)
+        # y = T O_A - tip: a reading moved by dO_R (= R G e in W for a 3-axis
+        # machine) lowers y by it; the sign does not matter for covariance.
+        GR = np.einsum("ij,kjt->kit", R, G.reshape(k, 3, -1)).reshape(3 * k, -1)
+        blocks.append((r0, GR))
+        for a, h in enumerate(m.holes):
+            B[r0 + 3 * a:r0 + 3 * a + 3, 3 * (h - 1):3 * h] = R
+        r0 += 3 * k
+    return blocks, B
+
+
+def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, runs: int = 1000,
+                rng: np.random.Generator | None = None) -> Uncertainty:
+    """Linear propagation and Monte Carlo (JCGM 101) of probing noise and bar calibration.
+
+    Parameters
+    ----------
+    res : VolumetricResult
+    meas : sequence of Measurement (with ``G_A``), as identified
+    sigma_probe_m : float
+        Standard deviation of one touch along its approach, m.
+    u_cal_m : (N, 3) float
+        Standard uncertainty of the bar's calibrated deviations, m.
+    runs : int
+        Monte Carlo trials (0: linear only).
+    rng : np.random.Generator
+    """
+    meas = list(meas)
+    u_cal = np.asarray(u_cal_m, float)
+    if u_cal.ndim != 2 or u_cal.shape[1] != 3:
+        raise ConfigError(f"u_cal_m must be (N, 3), got {u_cal.shape}")
+    if not (np.isfinite(sigma_probe_m) and sigma_probe_m >= 0):
+        raise ConfigError(f"sigma_probe_m must be >= 0, got {sigma_probe_m!r}")
+    K = res.K
+    blocks, B = _input_maps(res, meas, u_cal.shape[0])
+    var = np.zeros(K.shape[0])
+    for r0, GR in blocks:
+        KG = K[:, r0:r0 + GR.shape[0]] @ GR
+        var += sigma_probe_m ** 2 * np.einsum("ij,ij->i", KG, KG)
+    KB = (K @ B) * u_cal.ravel()[None, :]
+    var += np.einsum("ij,ij->i", KB, KB)
+    u = np.sqrt(var)
+    lo = hi = U = np.zeros(0)
+    if runs:
+        if rng is None:
+            raise ConfigError("uncertainty: Monte Carlo needs an np.random.Generator (rng)")
+        d = np.zeros((K.shape[0], runs))
+        for r0, GR in blocks:
+            e = sigma_probe_m * rng.standard_normal((GR.shape[1], runs))
+            d += K[:, r0:r0 + GR.shape[0]] @ (GR @ e)
+        d += KB @ rng.standard_normal((KB.shape[1], runs))
+        lo = res.theta + np.percentile(d, 2.5, axis=1)
+        hi = res.theta + np.percentile(d, 97.5, axis=1)
+        U = 0.5 * (hi - lo)
+    return Uncertainty(u, 2.0 * u, lo, hi, U, int(runs))
+
+
+# --------------------------------------------------------------------------- reports and tables
+def report(res: VolumetricResult, unc: Uncertainty | None = None, truth: np.ndarray | None = None) -> dict:
+    """JSON-ready dict: one entry per ISO symbol with node tables in um / urad."""
+    out = {}
+    for s in MOTION + SQUARENESS:
+        sy = iso.symbol(s)
+        sl = res.design.slices[s]
+        unit = sy.report_unit
+        e = {"unit": unit, "kind": sy.kind.value,
+             "identified": (res.theta[sl] * 1e6).tolist()}
+        if s in MOTION:
+            e["nodes_mm"] = (res.design.nodes[sy.axis] * 1e3).tolist()
+        if unc is not None:
+            U = unc.U95_mc if unc.runs else unc.U95_lin
+            e["u95"] = (U[sl] * 1e6).tolist()
+            e["u95_lin"] = (unc.U95_lin[sl] * 1e6).tolist()
+        if truth is not None:
+            e["injected"] = (truth[sl] * 1e6).tolist()
+        out[s] = e
+    return out
+
+
+def linuxcnc_comp(res: VolumetricResult, axis: str, step_m: float | None = None) -> str:
+    """LinuxCNC per-axis compensation file for the positioning error of ``axis``.
+
+    LinuxCNC (ini ``[JOINT_n] COMP_FILE``, ``COMP_FILE_TYPE = 0``) reads
+    lines of three numbers, ``nominal forward-trip reverse-trip`` in machine
+    units (mm here): the position the axis is commanded to and where it
+    must go to be there. The positioning error ``E`` is actual minus
+    nominal, so the corrected commands are ``nominal - E``; forward and
+    reverse trips are equal (the MFB sees no reversal). Points every
+    ``step_m`` along the table by the C2 spline (default: the nodes).
+    """
+    a = axis.upper()
+    if a not in iso.LINEAR_AXES:
+        raise ConfigError(f"linuxcnc_comp: axis must be X, Y or Z, got {axis!r}")
+    s = f"E{a}{a}"
+    x = res.design.nodes[a]
+    if step_m is not None:
+        if not (step_m > 0):
+            raise ConfigError(f"linuxcnc_comp: step_m must be > 0, got {step_m!r}")
+        x = np.arange(x[0], x[-1] + 0.5 * step_m, step_m)
+    e = res.value(s, x)
+    lines = [f"{u * 1e3:.6f} {(u - v) * 1e3:.6f} {(u - v) * 1e3:.6f}" for u, v in zip(x, e)]
+    return "\n".join(lines) + "\n"
+
+
+def tables_json(res: VolumetricResult, unc: Uncertainty | None = None) -> str:
+    """vmt-readable compensation tables (JSON text, format ``vmt-comp/1``)."""
+    doc = {"format": "vmt-comp/1", "chain": res.chain,
+           "conventions": list(res.design.gauge),
+           "interpolation": "C2 cubic spline (not-a-knot) through the nodes",
+           "errors": report(res, unc)}
+    return json.dumps(doc, indent=1)

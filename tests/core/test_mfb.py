@@ -1,0 +1,119 @@
+"""core.mfb: points of interest (Viprey 2016 sec. 2.1), orientation, reversal (eqs 5-7)."""
+
+import numpy as np
+import pytest
+
+from core import mfb
+from core.exceptions import ConfigError
+from core.mfb import MFB, OrientationError
+
+
+def _touches(T, deviations=None, machine=None):
+    from core.touches import from_log
+    from sim import artefacts as A
+    from sim.campaign import Setup, simulate_campaign
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+    from sim.plans import mfb_plan
+
+    art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)) if deviations is None else deviations)
+    m = machine or Machine(MACHINES["vmc-3axis"]())
+    log = simulate_campaign(art, m, setups=[Setup("P1", T)], check_collisions=False,
+                            plan=mfb_plan(art, overshoot_m=3e-3))
+    return art, from_log(log)
+
+
+def test_perfect_machine_perfect_bar_poi_within_1nm():
+    # tolerance 1 nm (issue 5 item 4); the fits are exact to rounding here
+    from sim import artefacts as A
+
+    T = A.make_T(A.rot_z(0.3), (-0.25, -0.05, 0.07))
+    art, t = _touches(T)
+    poi = mfb.points_of_interest(t.p_R, t.feature, t.n_R, declared="normal")
+    assert np.abs(poi.O_R - A.apply_T(T, art.info["poi_nominal_m"])).max() < 1e-9
+    assert np.abs(poi.O_M - MFB.O_A()).max() < 1e-9
+    assert poi.orientation == "normal" and set(poi.shifted_found) == {2, 5}
+
+
+def test_calibrated_deviations_recovered_in_bar_frame():
+    # a deviated bar on a perfect machine: O_R = placement of the true O_i (eq. 4).
+    # 2 nm: sim states Ezx at the nominal x_i, the hole sits Exx (<= 42 um) away on
+    # a plane PL_i sloped by up to 2e-5 (rod heights): 0.9 nm, second order.
+    from sim import artefacts as A
+
+    E = A.mfb_default_deviations()
+    art, t = _touches(A.make_T(None, (-0.275, 0.0, 0.07)), deviations=E)
+    poi = mfb.points_of_interest(t.p_R, t.feature, t.n_R)
+    true = art.info["poi_true_m"]
+    assert np.abs(poi.O_R - (true + [-0.275, 0, 0.07])).max() < 2e-9
+
+
+def test_turned_bar_detected_and_named():
+    # the bar turned end for end but probed as declared: relabel features by place
+    from sim import artefacts as A
+
+    T = A.make_T(None, (-0.275, 0.0, 0.07))
+    art, t = _touches(T @ A.make_T(A.rot_z(np.pi), (0.55, 0, 0)))
+
+    def relabel(f):
+        if f.startswith("hole"):
+            return f"hole{13 - int(f[4:]):02d}"
+        if f.startswith("rod"):
+            return f"rod{12 - int(f[3:]):02d}"
+        return f"face{'R' if f[4] == 'L' else 'L'}{12 - int(f[5:]):02d}"
+
+    feat = np.array([relabel(f) for f in t.feature], dtype=object)
+    poi = mfb.points_of_interest(t.p_R, feat, t.n_R)
+    assert poi.orientation == "turned"
+    assert set(poi.shifted_found) == {8, 11}
+    with pytest.raises(OrientationError, match="hole 11 at y_M -1.500 mm"):
+        mfb.points_of_interest(t.p_R, feat, t.n_R, declared="normal")
+
+
+def _cmm(E_bar, rng, reps, reversed_flag, sigma=0.05e-6):
+    """Simulated CMM reading O_i: bar + design shifts (sign per set-up) + CMM straightness + noise."""
+    x = np.arange(12) * MFB.pitch_m
+    cmm = np.column_stack([3e-6 * (x / x[-1]) ** 2 + 1e-6 * np.sin(7 * x),  # E_XX_CMM
+                           2e-6 * np.sin(np.pi * x / x[-1]),                  # E_YX_CMM
+                           -1.5e-6 * np.cos(3 * x)])                          # E_ZX_CMM
+    sh = np.array([MFB.shift_of(i) for i in range(1, 13)])
+    out = []
+    for _ in range(reps):
+        s = -1.0 if reversed_flag else 1.0
+        M = np.column_stack([x + E_bar[:, 0], s * (sh + E_bar[:, 1]), s * E_bar[:, 2]]) - cmm
+        out.append(M + sigma * rng.standard_normal(M.shape))
+    return np.array(out), cmm
+
+
+def test_reversal_recovers_bar_within_uncertainty():
+    # eqs 5-7: straightness separated from the CMM's by reversal; positioning by substitution
+    from sim.artefacts import mfb_default_deviations
+
+    rng = np.random.default_rng(3)
+    E = mfb_default_deviations()
+    NR, cmm = _cmm(E, rng, 5, False)
+    R, _ = _cmm(E, rng, 5, True)
+    cal = mfb.reversal_calibration(NR, R, E_XX_cmm_m=cmm[:, 0], u_step_gauge_m=0.0)
+    dev = np.abs(cal.E_m - E)
+    assert np.mean(dev <= cal.U95_m) >= 0.9  # 95 % bands: at least 90 % of the 36 values inside
+    assert dev.max() < 0.2e-6  # 5 repeats of 0.05 um noise
+
+
+def test_reversal_wrong_setup_named():
+    from sim.artefacts import mfb_default_deviations
+
+    rng = np.random.default_rng(4)
+    E = mfb_default_deviations()
+    NR, cmm = _cmm(E, rng, 2, False)
+    R_wrong, _ = _cmm(E, rng, 2, False)  # declared reversed but left normal
+    with pytest.raises(OrientationError, match=r"reversed set-up: .*hole 2 at y_M \+1\.5"):
+        mfb.reversal_calibration(NR, R_wrong, cmm[:, 0])
+
+
+def test_bad_input():
+    with pytest.raises(ConfigError, match="M_NR must be finite"):
+        mfb.reversal_calibration(np.zeros((2, 5, 3)), np.zeros((2, 12, 3)))
+    with pytest.raises(ConfigError, match="p_R, n_R must be"):
+        mfb.points_of_interest(np.zeros((4, 2)), ["hole01"] * 4, np.zeros((4, 2)))
+    with pytest.raises(ConfigError, match="declared orientation"):
+        mfb.check_orientation("normal", {}, "sideways")

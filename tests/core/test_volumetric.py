@@ -1,0 +1,69 @@
+"""core.volumetric: 21-error identification, gauge, observability, tables (MFB eqs 8-12)."""
+
+import numpy as np
+import pytest
+
+from core import volumetric as vol
+from core.exceptions import ConfigError, IdentifiabilityError
+
+
+@pytest.fixture(scope="module")
+def meas3():
+    """Noise-free measurements of the 3-axis plan on a perfect machine (sim, ~3 s)."""
+    import scenarios.mfb as S
+    import core.volumetric as V
+
+    cap = {}
+    orig = V.identify
+
+    def spy(meas, chain, nodes, rp=None, **kw):
+        cap["m"] = (meas, chain, nodes, rp)
+        return orig(meas, chain, nodes, rp, **kw)
+
+    V.identify = spy
+    try:
+        S.run("mfb-3axis", noise_um=0.0, mc_runs=0)
+    finally:
+        V.identify = orig
+    return cap["m"]
+
+
+def test_gauge_is_iso_and_full_plan_observable(meas3):
+    meas, chain, nodes, rp = meas3
+    rep = vol.observability(meas, chain, nodes, rp)
+    assert rep.ok, rep.unidentifiable
+    g = " ".join(rep.gauge)
+    for s in ("EXX", "EYY", "EZZ"):  # positioning zero at the first node (EX0X = 0 ...)
+        assert f"{s} = 0 at the first node" in g
+    assert g.count("end-point reference line") == 12  # 6 straightnesses x 2 ends
+    assert rep.rank == rep.n_params - len(rep.gauge)
+
+
+@pytest.mark.parametrize("drop,names", [("X2", "EBX"), ("V1", "EBZ")])
+def test_plan_without_a_placement_names_what_is_lost(meas3, drop, names):
+    meas, chain, nodes, rp = meas3
+    full = vol.observability(meas, chain, nodes, rp).gauge  # conventions of the complete plan
+    kept = [m for m in meas if m.placement != drop]
+    rep = vol.observability(kept, chain, nodes, rp, gauge=full)
+    assert not rep.ok and names in " ".join(rep.unidentifiable)
+    with pytest.raises(IdentifiabilityError, match="cannot identify"):
+        vol.identify(kept, chain, nodes, rp, gauge=full)
+
+
+def test_spline_weights_interpolate_nodes_and_cubics():
+    x = np.linspace(0, 0.5, 6)
+    W = vol.spline_weights(x, x)
+    assert np.allclose(W, np.eye(6), atol=1e-12)
+    u = np.linspace(0, 0.5, 37)
+    f = lambda t: 3 * t ** 3 - t + 0.2  # noqa: E731  a not-a-knot spline reproduces cubics
+    assert np.allclose(vol.spline_weights(x, u) @ f(x), f(u), atol=1e-12)
+
+
+def test_bad_input(meas3):
+    meas, chain, nodes, rp = meas3
+    with pytest.raises(ConfigError, match="no measurements"):
+        vol.identify([], chain, nodes)
+    bad = dict(nodes)
+    bad["X"] = bad["X"][::-1]
+    with pytest.raises(ConfigError, match="strictly increasing"):
+        vol.identify(meas, chain, bad)
