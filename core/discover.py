@@ -389,9 +389,9 @@ def ext_periodic(t: Touches, Q: np.ndarray, r: np.ndarray, grid_step_m: float,
         gains.append(float(np.sum((B.T @ r) ** 2)))
     P = float(fine[int(np.argmax(gains))])
     ax = "XY"[axis]
+    # columns: -n_x (sin, cos), -n_y (sin, cos): the X and Y components of the error of axis ``ax``
     return Extension("periodic_axis_error", _periodic_columns(t, axis, P),
-                     (f"E{ax}{ax}_sin", f"E{ax}{ax}_cos", f"EY{ax}_sin" if ax == "X" else f"EX{ax}_sin",
-                      f"EY{ax}_cos" if ax == "X" else f"EX{ax}_cos"),
+                     (f"EX{ax}_sin", f"EX{ax}_cos", f"EY{ax}_sin", f"EY{ax}_cos"),
                      tries=2 * n_periods, info={"axis": ax, "period_m": P})
 
 
@@ -537,12 +537,13 @@ def _params(ext: Extension, coef: np.ndarray, std: np.ndarray, t: Touches) -> di
         ax = ext.info["axis"]
         p["axis"] = ax
         p["period_mm"] = ext.info["period_m"] / MM
-        amp_pos = float(np.hypot(coef[0], coef[1]))
-        amp_str = float(np.hypot(coef[2], coef[3]))
-        p[f"E{ax}{ax}_amplitude_um"] = amp_pos * UM
-        other = "Y" if ax == "X" else "X"
-        p[f"E{other}{ax}_amplitude_um"] = amp_str * UM
-        p["amplitude_u_um"] = float(np.max(std)) * UM
+        c = dict(zip(ext.labels, coef))
+        u = dict(zip(ext.labels, std))
+        for sym in (f"EX{ax}", f"EY{ax}"):
+            sn, cs = c.get(f"{sym}_sin", 0.0), c.get(f"{sym}_cos", 0.0)
+            p[f"{sym}_amplitude_um"] = float(np.hypot(sn, cs)) * UM
+            p[f"{sym}_phase_rad"] = float(np.arctan2(cs, sn))
+        p["amplitude_u_um"] = float(np.max([u.get(k, 0.0) for k in u])) * UM if u else float("nan")
     elif ext.cause == "probe_lobing":
         phi = np.linspace(-np.pi, np.pi, 721)
         f = sum(c * (np.cos(k * phi) if lab.startswith("cos") else np.sin(k * phi))

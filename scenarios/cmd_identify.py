@@ -78,8 +78,8 @@ def report(res, mc=None) -> dict:
         idx = np.arange(s[sym].start, s[sym].stop)
         f, unit = (1e6, "urad") if sym == "ECY" else (1e6, "um")
         out["axes"][sym] = {"axis_pos": "x" if sym in ("EXX", "EYX") else "y",
-                            "pos_mm": [_r(v * 1e3) for v in pos],
-                            f"value_{unit}": [_r(res.theta[i] * f) for i in idx],
+                            "positions_mm": [_r(v * 1e3) for v in pos],
+                            f"values_{unit}": [_r(res.theta[i] * f) for i in idx],
                             f"u95_{unit}": [_r(u95(i) * f) for i in idx]}
     i = s["EC0Y"].start
     out["axes"]["EC0Y"] = {"value_urad": _r(res.theta[i] * 1e6), "u95_urad": _r(u95(i) * 1e6)}

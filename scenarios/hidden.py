@@ -164,16 +164,11 @@ def hidden_campaign(causes=("none",), seed: int = 0, *, noise_sigma_m: float = 0
         out_rows = ()
     else:
         log, out_rows = _with_chips(art, plan, machine, probe, list(c_angles_deg), seed, chips, rng, meta)
-    # the workpiece truth: a perfect machine, no noise, the nominal pose
-    perfect = Machine(MACHINES["nmv3000"]())
-    ref = simulate_campaign(art, perfect, ProbeConfig(repeatability_k2_m=0.0), [0.0], None,
-                            check_collisions=False)
-    g = ref.dq_mm() * MM
-    tg = list(ref.col("target"))
-    w = np.column_stack([ref.col("wx_mm"), ref.col("wy_mm")]) * MM
-    wn = np.column_stack([ref.col("wnx"), ref.col("wny")])
-    truth = HiddenTruth(causes=causes, params=params, g_true_m=dict(zip(tg, g)),
-                        w_W={k: w[i] for i, k in enumerate(tg)}, wn_W={k: wn[i] for i, k in enumerate(tg)},
+    g_true = workpiece_truth(art, plan)
+    tg = list(dict.fromkeys(plan.target))
+    first = {k: plan.target.index(k) for k in tg}
+    truth = HiddenTruth(causes=causes, params=params, g_true_m=g_true,
+                        w_W={k: plan.w_A[first[k], :2] for k in tg}, wn_W={k: plan.wn_A[first[k], :2] for k in tg},
                         outlier_rows=tuple(out_rows))
     return log, truth
 
@@ -242,25 +237,40 @@ def _replace_pocket_form(art, form):
     return dataclasses.replace(art, features=tuple(feats))
 
 
-def workpiece_errors_um(report: dict, truth: HiddenTruth) -> tuple[float, float]:
-    """RMS of (estimate - truth) per target for the baseline and extended models, um.
+def workpiece_truth(art, plan) -> dict:
+    """True normal deviation of the part at each target (its form error), m.
 
-    Compared where self-calibration can see: the components a workpiece
-    translation, rotation and scale in W would cause (the gauge of eqs
-    16-17) are removed from the difference first.
+    At a nominal contact point ``w`` the true signed distance is
+    ``-form(w)`` (sim.artefacts), so the outward deviation is ``-sdf(w)``.
     """
-    ids = [w["target"] for w in report["workpiece"] if w["target"] in truth.g_true_m]
-    if not ids:
+    out = {}
+    for tid, f, w in zip(plan.target, plan.feature, plan.w_A):
+        out[tid] = -float(art.feature(f).true.sdf(np.asarray(w, float)[None, :])[0])
+    return out
+
+
+def gauge_free_rms_m(g_m, ids, g_true: dict, w_W: dict, wn_W: dict) -> float:
+    """RMS of (estimate - truth) per target after removing what self-calibration cannot see.
+
+    The workpiece's shift (2), rotation and scale in W and a common offset
+    (the gauge of eqs 16-17 and the stylus radius) are projected out of the
+    difference first.
+    """
+    P = np.array([w_W[k] for k in ids])
+    N = np.array([wn_W[k] for k in ids])
+    B = np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
+                         np.einsum("ij,ij->i", N, P), np.ones(len(ids))])
+    Q, _ = np.linalg.qr(B)
+    e = np.asarray(g_m, float) - np.array([g_true[k] for k in ids])
+    e = e - Q @ (Q.T @ e)
+    return float(np.sqrt(np.mean(e ** 2)))
+
+
+def workpiece_errors_um(report: dict, truth: HiddenTruth) -> tuple[float, float]:
+    """Gauge-free RMS error of the baseline and extended workpiece of a discovery report, um."""
+    rows = [w for w in report["workpiece"] if w["target"] in truth.g_true_m]
+    if not rows:
         raise ConfigError("no target of the report is in the truth")
-    P = np.array([truth.w_W[k] for k in ids])
-    N = np.array([truth.wn_W[k] for k in ids])
-    gauge = np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
-                             np.einsum("ij,ij->i", N, P), np.ones(len(ids))])
-    Q, _ = np.linalg.qr(gauge)
-    g = np.array([truth.g_true_m[k] for k in ids]) / UM
-    out = []
-    for key in ("baseline_um", "extended_um"):
-        e = np.array([w[key] for w in report["workpiece"] if w["target"] in truth.g_true_m]) - g
-        e = e - Q @ (Q.T @ e)
-        out.append(float(np.sqrt(np.mean(e ** 2))))
-    return out[0], out[1]
+    ids = [w["target"] for w in rows]
+    return tuple(gauge_free_rms_m(np.array([w[k] for w in rows]) * UM, ids, truth.g_true_m, truth.w_W,
+                                  truth.wn_W) / UM for k in ("baseline_um", "extended_um"))

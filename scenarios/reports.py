@@ -11,33 +11,21 @@ from pathlib import Path
 import numpy as np
 
 
-def discovery_report(folder, d, t, rep: dict, title: str) -> Path:
-    """Write ``folder`` with index.html, residual plots and a rerun recording.
-
-    Parameters
-    ----------
-    d : core.discover.Discovery
-    t : core.touches.Touches
-        The touches ``d`` was computed from (times, approach directions).
-    rep : dict
-        ``d.to_report()`` as written to JSON.
-    """
+def _discovery_sections(d, t, rep: dict, rec=None) -> list:
+    """Report sections (and recording entities) of one discovery."""
     from viz import figures, record
-    from viz.report import Section, Table, write_report
+    from viz.report import Section, Table
 
-    folder = Path(folder)
     approach_deg = np.degrees(np.arctan2(t.d_R[:, 1], t.d_R[:, 0]))
     out_idx = [int(np.flatnonzero(t.row == r)[0]) for r in rep["outlier_rows"]]
-    rrd = folder.parent / f".{folder.name}.rrd"
-    with record.recording(rrd) as rec:
-        record.log_touches(rec, t.pn_R, d.residuals_baseline_um, n_R=t.n_R)
+    if rec is not None:
         record.log_residuals(rec, t.t_s, approach_deg, d.residuals_baseline_um, outlier_rows=out_idx,
                              path=record.RESIDUALS + "/baseline")
         res_e = np.where(np.isfinite(d.residuals_extended_um), d.residuals_extended_um, 0.0)
         record.log_residuals(rec, t.t_s, approach_deg, res_e, path=record.RESIDUALS + "/extended")
         record.log_markdown(rec, "discovery", record.findings_markdown(rep))
     secs = [
-        Section("Verdict", text=_verdict(rep),
+        Section("Discovery: verdict", text=_verdict(rep),
                 figures={"findings": figures.findings_figure(rep)},
                 tables=[Table(["model", "RMS / µm", "cross-validated RMS / µm"],
                               [[rep["baseline"]["model"], rep["baseline"]["rms_um"], rep["baseline_cv_rms_um"]],
@@ -58,9 +46,114 @@ def discovery_report(folder, d, t, rep: dict, title: str) -> Path:
             rows.append([f["cause"], k, v])
     if rows:
         secs.append(Section("Fitted magnitudes", tables=[Table(["cause", "parameter", "value"], rows)]))
-    secs.append(Section("Workpiece per target", tables=[Table(
+    secs.append(Section("Workpiece per target (discovery)", tables=[Table(
         ["target", "baseline / µm", "extended / µm"],
         [[w["target"], w["baseline_um"], w["extended_um"]] for w in rep["workpiece"]])]))
+    return secs
+
+
+def discovery_report(folder, d, t, rep: dict, title: str) -> Path:
+    """Write ``folder`` with index.html, residual plots and a rerun recording.
+
+    Parameters
+    ----------
+    d : core.discover.Discovery
+    t : core.touches.Touches
+        The touches ``d`` was computed from (times, approach directions).
+    rep : dict
+        ``d.to_report()`` as written to JSON.
+    """
+    from viz import record
+    from viz.report import write_report
+
+    folder = Path(folder)
+    rrd = folder.parent / f".{folder.name}.rrd"
+    with record.recording(rrd) as rec:
+        record.log_touches(rec, t.pn_R, d.residuals_baseline_um, n_R=t.n_R)
+        secs = _discovery_sections(d, t, rep, rec)
+    try:
+        return write_report(folder, title, secs, recording=rrd)
+    finally:
+        if rrd.exists():
+            rrd.unlink()
+
+
+def error_map(res):
+    """E_X,total and E_Y,total (eqs 4-5) on the grid nodes from identified LUTs, um."""
+    g = res.design.grid
+    X, Y = np.meshgrid(g.x_m, g.y_m, indexing="ij")
+    ex = res.EXX[:, None] + res.EXY[None, :] - Y * res.EC0Y
+    ey = res.EYX[:, None] + res.EYY[None, :] + X * res.ECY[None, :]
+    return g.x_m * 1e3, g.y_m * 1e3, ex * 1e6, ey * 1e6
+
+
+def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str) -> Path:
+    """The demo's report: campaign, identification, discovery; PNGs and a recording."""
+    from core.fit import fit_circle_2d
+    from viz import figures, record
+    from viz.report import Section, Table, write_report
+
+    folder = Path(folder)
+    rrd = folder.parent / f".{folder.name}.rrd"
+    x_mm, y_mm, ex_um, ey_um = error_map(res)
+    des = res.design
+    first = {}
+    for k in range(t.n):
+        first.setdefault(int(t.target[k]), k)
+    idx = [first[i] for i in range(len(des.target_ids))]
+    w_mm = t.w_W[idx, :2] * 1e3
+    wn = t.wn_W[idx, :2]
+    g_um = res.G * 1e6
+    u95 = np.array([w["u95_um"] if w["u95_um"] is not None else np.nan for w in ident["workpiece"]])
+    c_deg = np.degrees(des.c_rad)
+    exc, eyc = res.EXC * 1e6, res.EYC * 1e6
+    centre = None
+    if len(c_deg) >= 3:
+        try:
+            centre = fit_circle_2d(np.column_stack([exc, eyc])).centre
+        except Exception:  # a degenerate trajectory has no circle: draw none
+            centre = None
+    with record.recording(rrd) as rec:
+        try:
+            mesh = art.mesh()
+            record.log_mesh(rec, record.ARTEFACT, np.asarray(mesh.vertices), np.asarray(mesh.faces))
+        except Exception:  # a display mesh is a nicety, never a reason to fail
+            pass
+        record.log_touches(rec, t.pn_R, t.dq_m * 1e6, n_R=t.n_R)
+        record.log_error_grid(rec, x_mm, y_mm, ex_um, ey_um)
+        record.log_workpiece(rec, t.w_W[idx], t.wn_W[idx], g_um, u95_um=u95)
+        record.log_rotary(rec, c_deg, exc, eyc, ecc_urad=res.ECC * 1e6,
+                          ex0c_um=None if centre is None else float(centre[0]),
+                          ey0c_um=None if centre is None else float(centre[1]))
+        record.log_error_motions(rec, {k: v for k, v in ident["axes"].items() if k != "EC0Y"})
+        dsecs = _discovery_sections(d, t, rep, rec)
+    profiles = {}
+    for j, sid in enumerate(des.setup_ids):
+        m = t.setup == j
+        order = np.argsort(t.target[m])
+        if m.sum() == len(idx):
+            profiles[f"raw {sid}"] = (t.dq_m[m][order]) * 1e6
+        if len(profiles) >= 2:
+            break
+    secs = [
+        Section("Campaign", text=f"{t.n} touches, {len(des.target_ids)} targets at C = "
+                f"{', '.join(f'{c:g}' for c in c_deg)} deg. Residual RMS of the self-calibration "
+                f"{res.rms_m * 1e6:.3f} µm.",
+                figures={"profile": figures.profile_figure(
+                    w_mm, wn, {"identified G_normal": g_um}, title="Identified workpiece")}),
+        Section("Machine error map (eqs 4-5, ×1000)",
+                figures={"error_map": figures.error_grid_figure(x_mm, y_mm, ex_um, ey_um),
+                         "error_motions": figures.error_motions_figure(
+                             {k: v for k, v in ident["axes"].items() if k != "EC0Y"})},
+                tables=[Table(["symbol", "value", "U95 (k=2)"],
+                              [["EC0Y / µrad", ident["axes"]["EC0Y"]["value_urad"],
+                                ident["axes"]["EC0Y"]["u95_urad"]]])]),
+        Section("C axis (Fig. 13)", figures={"c_axis": figures.rotary_centre_figure(
+            c_deg, exc, eyc, ex0c_um=None if centre is None else float(centre[0]),
+            ey0c_um=None if centre is None else float(centre[1]))}),
+        Section("Workpiece uncertainty (Figs. 18-19)", figures={"workpiece_u95": figures.workpiece_uncertainty_figure(
+            w_mm, u95, g_um=g_um, normals=wn)}),
+    ] + dsecs
     try:
         return write_report(folder, title, secs, recording=rrd)
     finally:

@@ -49,7 +49,7 @@ def test_identify_writes_the_report(tmp_path, rng, capsys):
     assert r["rms_um"] < 0.3
     assert [x["c_deg"] for x in r["rotary"]] == ANG
     assert r["rotary"][0]["exc_um"] == 0 and r["rotary"][0]["ecc_u95_urad"] == 0
-    assert r["axes"]["EXX"]["pos_mm"][0] == -110 and r["axes"]["EXX"]["value_um"][-1] == pytest.approx(2.0)
+    assert r["axes"]["EXX"]["positions_mm"][0] == -110 and r["axes"]["EXX"]["values_um"][-1] == pytest.approx(2.0)
     assert r["monte_carlo"]["runs"] == 200
     assert "368 touches" in capsys.readouterr().out
 
