@@ -18,13 +18,13 @@ import csv
 import io
 import math
 import os
-import tempfile
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterable, Mapping
 
 import numpy as np
 
+from .atomic import write_text_atomic
 from .exceptions import ProbeLogError
 
 FORMAT = "probe-log/1"
@@ -415,21 +415,7 @@ def format_probe_log(log: ProbeLog) -> str:
 
 def write_probe_log(path: str | os.PathLike, log: ProbeLog) -> Path:
     """Write ``log`` to ``path`` atomically; reading it back gives ``log``."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    data = format_probe_log(log)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return p
+    return write_text_atomic(path, format_probe_log(log))
 
 
 def summary(log: ProbeLog) -> dict:

@@ -39,7 +39,8 @@ def run(args) -> int:
     from core.design import optimise_angles
     from core.exceptions import ConfigError
     from core.probelog import read_probe_log
-    from scenarios.cmd_identify import parse_grid, write_json_atomic
+    from core.atomic import write_json_atomic
+    from scenarios.cmd_identify import parse_grid
     from scenarios.parallel import design_evaluator
 
     log = read_probe_log(args.plan)

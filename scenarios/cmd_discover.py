@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import json
-import os
-import tempfile
 from pathlib import Path
 
 
@@ -17,24 +14,9 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def write_json_atomic(path, obj) -> Path:
-    """Write ``obj`` as JSON; the file appears complete or not at all."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(obj, f, indent=2, allow_nan=False)
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return p
-
-
 def run_discover(log_path, json_out, report=None, grid_mm=None) -> dict:
     """Read, discover, write the JSON (and the report); return the report dict."""
+    from core.atomic import json_safe, write_json_atomic
     from core.discover import discover
     from core.probelog import read_probe_log
     from core.touches import from_log
@@ -42,7 +24,7 @@ def run_discover(log_path, json_out, report=None, grid_mm=None) -> dict:
     log = read_probe_log(log_path)
     t = from_log(log)
     d = discover(t, grid_step_mm=grid_mm)
-    rep = _clean(d.to_report())
+    rep = json_safe(d.to_report())
     rep["log"] = str(log_path)
     write_json_atomic(json_out, rep)
     if report:
@@ -50,19 +32,6 @@ def run_discover(log_path, json_out, report=None, grid_mm=None) -> dict:
 
         discovery_report(report, d, t, rep, title=f"vmt discover: {Path(log_path).name}")
     return rep
-
-
-def _clean(o):
-    """JSON-safe: NaN/inf become None (JSON has no NaN)."""
-    import math
-
-    if isinstance(o, dict):
-        return {k: _clean(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_clean(v) for v in o]
-    if isinstance(o, float) and not math.isfinite(o):
-        return None
-    return o
 
 
 def run(args) -> int:

@@ -2,10 +2,6 @@
 
 from __future__ import annotations
 
-import json
-import os
-import tempfile
-from pathlib import Path
 
 
 def register(sub) -> None:
@@ -96,20 +92,6 @@ def report(res, mc=None) -> dict:
     return out
 
 
-def write_json_atomic(path, obj) -> Path:
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(obj, f, indent=2)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return out
-
-
 def run(args) -> int:
     import numpy as np
 
@@ -134,6 +116,8 @@ def run(args) -> int:
     if args.mc:
         mc = monte_carlo_touches(t, grid, res.sigma_m, runs=args.mc, rng=np.random.default_rng(args.seed),
                                  delta_L_m=dL)
+    from core.atomic import write_json_atomic
+
     out = write_json_atomic(args.json, report(res, mc))
     G = res.G
     print(f"{args.log}: {res.n_touches} touches, {len(G)} targets, {len(res.design.setup_ids)} C angles;"

@@ -34,7 +34,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     from core.selfcal import Grid, identify
     from core.touches import from_log
     from core.uncertainty import monte_carlo_touches
-    from scenarios.cmd_discover import _clean, write_json_atomic
+    from core.atomic import json_safe, write_json_atomic
     from scenarios.cmd_identify import report as identify_report
     from scenarios.hidden import drift_check_plan, gauge_free_rms_m, workpiece_truth
     from sim import artefacts as A
@@ -78,7 +78,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     res = identify(t, grid)
     mc = monte_carlo_touches(t, grid, res.sigma_m, runs=1000, rng=np.random.default_rng(seed + 2))
     ident = identify_report(res, mc)
-    write_json_atomic(outp / "identify.json", _clean(ident))
+    write_json_atomic(outp / "identify.json", json_safe(ident))
     G_true = workpiece_truth(art, plan)
     first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
     wW = {k: plan.w_A[i, :2] for k, i in first.items()}
@@ -95,7 +95,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
 
     say.head("4. discover: what the model gets wrong, and why")
     d = discover(t)
-    rep = _clean(d.to_report())
+    rep = json_safe(d.to_report())
     rep["log"] = str(log_path)
     write_json_atomic(outp / "discover.json", rep)
     say(f"baseline {rep['baseline']['model']}: RMS {rep['baseline']['rms_um']:.3f} um, "

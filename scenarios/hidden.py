@@ -134,7 +134,6 @@ def hidden_campaign(causes=("none",), seed: int = 0, *, noise_sigma_m: float = 0
     -------
     (ProbeLog, HiddenTruth)
     """
-    from core.probelog import make_log
     from sim import artefacts as A
     from sim.campaign import simulate_campaign
     from sim.machine import Machine

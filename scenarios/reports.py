@@ -6,9 +6,17 @@ exist (discover, identify) and passes plain arrays.
 
 from __future__ import annotations
 
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
+
+
+def _recording_path(folder: Path) -> Path:
+    """A temporary ``recording.rrd`` beside the report (copied in by write_report)."""
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    return Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent)) / "recording.rrd"
 
 
 def _discovery_sections(d, t, rep: dict, rec=None) -> list:
@@ -67,15 +75,14 @@ def discovery_report(folder, d, t, rep: dict, title: str) -> Path:
     from viz.report import write_report
 
     folder = Path(folder)
-    rrd = folder.parent / f".{folder.name}.rrd"
+    rrd = _recording_path(folder)
     with record.recording(rrd) as rec:
         record.log_touches(rec, t.pn_R, d.residuals_baseline_um, n_R=t.n_R)
         secs = _discovery_sections(d, t, rep, rec)
     try:
         return write_report(folder, title, secs, recording=rrd)
     finally:
-        if rrd.exists():
-            rrd.unlink()
+        shutil.rmtree(rrd.parent, ignore_errors=True)
 
 
 def error_map(res):
@@ -94,7 +101,7 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str) -> P
     from viz.report import Section, Table, write_report
 
     folder = Path(folder)
-    rrd = folder.parent / f".{folder.name}.rrd"
+    rrd = _recording_path(folder)
     x_mm, y_mm, ex_um, ey_um = error_map(res)
     des = res.design
     first = {}
@@ -157,8 +164,7 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str) -> P
     try:
         return write_report(folder, title, secs, recording=rrd)
     finally:
-        if rrd.exists():
-            rrd.unlink()
+        shutil.rmtree(rrd.parent, ignore_errors=True)
 
 
 def _verdict(rep: dict) -> str:

@@ -309,7 +309,7 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     sdf_true = [art.feature(f).true.sdf for f in feats]
     grp = np.array([feats.index(f) for f in plan.feature])
     travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
-    scene = None
+    scene = scene_T = None
     cols: dict[str, list] = {k: [] for k in (
         "setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz",
         "feature", "A_deg", "B_deg", "C_deg", "dx", "dy", "dz", "wx_mm", "wy_mm", "wz_mm",

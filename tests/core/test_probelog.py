@@ -145,12 +145,12 @@ def test_write_is_atomic_on_failure(tmp_path, rng, monkeypatch):
     log = full_log(rng)
     p = write_probe_log(tmp_path / "log.csv", log)
     before = p.read_text()
-    import core.probelog as pl
+    import core.atomic as at
 
     def boom(*a, **k):
         raise OSError("disk full")
 
-    monkeypatch.setattr(pl.os, "replace", boom)
+    monkeypatch.setattr(at.os, "replace", boom)
     with pytest.raises(OSError):
         write_probe_log(p, log.select(np.arange(3)))
     assert p.read_text() == before

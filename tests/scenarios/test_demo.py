@@ -1,0 +1,22 @@
+"""The main job: `vmt demo` tells the whole story and leaves its outputs."""
+
+import json
+
+from core.probelog import read_probe_log
+from scenarios.cli import main
+
+
+def test_demo_end_to_end(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["demo", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "both hidden effects named" in text
+    log = read_probe_log(out / "cross-pocket.csv")
+    assert log.n == 432 and log.ok.all()
+    disc = json.loads((out / "discover.json").read_text())
+    assert {f["cause"] for f in disc["findings"]} >= {"probe_lobing", "periodic_axis_error"}
+    assert disc["gain"]["cv_rms_ratio"] < 0.5
+    ident = json.loads((out / "identify.json").read_text())
+    assert len(ident["workpiece"]) == 92 and ident["monte_carlo"]["runs"] == 1000
+    for f in ("index.html", "recording.rrd", "error_map.png", "residuals_baseline.png"):
+        assert (out / "report" / f).stat().st_size > 1000
