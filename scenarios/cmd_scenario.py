@@ -8,12 +8,9 @@ from __future__ import annotations
 
 
 def _mfb(args) -> int:
-    import json
-    import os
-
     from scenarios.mfb import run
 
-    r = run(args.name, seed=args.seed, noise_um=args.noise_um, mc_runs=args.mc)
+    r = run(args.name, seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc)
     d = r.doc
     print(f"vmt scenario {args.name}: {d['placements']} placements, {d['measurements']} measurements, "
           f"{d['touches']} touches, {r.seconds:.1f} s; {d['model']}")
@@ -24,16 +21,61 @@ def _mfb(args) -> int:
         print(f"{s:6s} {e['unit']:5s} {inj:14.3f} {e['max_dev']:15.4f} {u:9.3f}")
     print(f"max_dev_um {d['max_dev_um']:.4f}  max_dev_urad {d['max_dev_urad']:.4f}")
     if args.json:
-        tmp = args.json + ".tmp"
-        with open(tmp, "w") as fh:
-            json.dump(d, fh, indent=1)
-        os.replace(tmp, args.json)
+        from core.atomic import write_json_atomic
+
+        write_json_atomic(args.json, d)
+    return 0
+
+
+def _cross_pocket_uncertainty(args) -> int:
+    from core.atomic import write_json_atomic
+    from scenarios.crosspocket import cross_pocket_uncertainty
+
+    runs = 1000 if args.mc is None else args.mc
+    if runs < 10:
+        from core.exceptions import ConfigError
+
+        raise ConfigError(f"--mc must be >= 10 for this study, got {runs}")
+    r = cross_pocket_uncertainty(runs=runs, seed=args.seed)
+    print(f"vmt scenario cross-pocket-uncertainty: {r['method']}, u_probe {r['u_probe_um']} um")
+    print(f"{'C angles / deg':22s} {'spheres':8s} {'max U95(G) / um':>16s} {'linear':>8s} {'paper':>6s}")
+    for c in r["cases"]:
+        ang = ",".join(f"{a:g}" for a in c["c_angles_deg"])
+        if not c["identifiable"]:
+            print(f"{ang:22s} {str(c['spheres']):8s}  not identifiable: {c['reason']}")
+            continue
+        paper = "" if c["paper_g_u95_max_um"] is None else f"{c['paper_g_u95_max_um']:g}"
+        print(f"{ang:22s} {str(c['spheres']):8s} {c['g_u95_max_um']:16.2f} {c['g_u95_max_linear_um']:8.2f} {paper:>6s}")
+    print("Table 2 (U95, k=2):  C / deg   U_XC / um   U_YC / um   U_CC / urad   (paper)")
+    for t in r["table2"]:
+        print(f"{'':20s} {t['c_deg']:7g} {t['u_xc_um']:11.2f} {t['u_yc_um']:11.2f} {t['u_cc_urad']:13.2f}"
+              f"   ({t['paper_u_xc_um']:g}, {t['paper_u_yc_um']:g}, {t['paper_u_cc_urad']:g})")
+    for n in r["notes"]:
+        print(f"note: {n}")
+    if args.json:
+        write_json_atomic(args.json, r)
+    return 0
+
+
+def _pin_circle(args) -> int:
+    from core.atomic import write_json_atomic
+    from scenarios.crosspocket import pin_circle
+
+    r = pin_circle(seed=args.seed, **({} if args.noise_um is None else {"noise_um": args.noise_um / 2}))
+    print(f"vmt scenario pin-circle: {r['pins']} pins, {r['touches']} touches at C = "
+          f"{', '.join(f'{a:g}' for a in r['c_angles_deg'])} deg on {r['machine']}")
+    print(f"pin position error, max: raw at C=0 {r['raw_c0_pin_error_max_um']:.2f} um -> self-calibrated "
+          f"{r['selfcal_pin_error_max_um']:.2f} um (paper: {r['paper']})")
+    if args.json:
+        write_json_atomic(args.json, r)
     return 0
 
 
 #: name -> runner(args) -> exit code
 SCENARIOS = {
     "mfb-3axis": _mfb,
+    "cross-pocket-uncertainty": _cross_pocket_uncertainty,
+    "pin-circle": _pin_circle,
 }
 
 
@@ -44,5 +86,6 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=1, help="seed of the simulated campaign")
     p.add_argument("--noise-um", type=float, default=None, dest="noise_um",
                    help="probe repeatability k=2, um (default 0.25; 0 = noise-free)")
-    p.add_argument("--mc", type=int, default=500, help="Monte Carlo trials (0: linear propagation only)")
+    p.add_argument("--mc", type=int, default=None,
+                   help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty)")
     p.set_defaults(func=lambda a: SCENARIOS[a.name](a))
