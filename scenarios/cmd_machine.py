@@ -25,6 +25,50 @@ def builtin_machine(noise_um: float = 0.0, seed: int = 0, scale_ppm=(0.0, 0.0, 0
                        noise_m=noise_um * 1e-6, rng=np.random.default_rng(seed))
 
 
+class SimMachine:
+    """The simulator's virtual machine behind the emulator's ``probe_move``.
+
+    The emulator speaks rotary positions as (A, B, C); the simulated
+    machine takes only its own rotary axes, in its own order.
+    """
+
+    def __init__(self, vm):
+        self.vm = vm
+        self.rotary_axes = tuple(getattr(vm.machine, "rotary_axes", ()) or ())
+
+    def probe_move(self, start_m, target_m, rot_rad=None):
+        import numpy as np
+
+        rot = None
+        if self.rotary_axes:
+            abc = np.zeros(3) if rot_rad is None else np.asarray(rot_rad, float).reshape(-1)
+            abc = np.pad(abc, (0, max(0, 3 - abc.size)))[:3]
+            rot = np.array([abc["ABC".index(a)] for a in self.rotary_axes])
+        return self.vm.probe_move(start_m, target_m, rot)
+
+
+def sim_machine(scene: str = "cross-pocket", noise_um: float = 0.0, seed: int = 0, errors_seed: int = 1):
+    """The simulator's nmv3000 (realistic errors, seeded) with ``scene`` on the table.
+
+    ``noise_um`` is the probing standard deviation along the approach.
+    """
+    import numpy as np
+
+    from core.exceptions import ConfigError
+    from sim import artefacts as A
+    from sim.machine import Machine
+    from sim.machines import MACHINES, realistic_errors
+    from sim.probe import ProbeConfig, VirtualMachine
+
+    if scene not in A.ARTEFACTS:
+        raise ConfigError(f"--scene {scene!r}: expected simple or one of {', '.join(sorted(A.ARTEFACTS))}")
+    m = Machine(MACHINES["nmv3000"](errors=realistic_errors(
+        ("X", "Y", "Z", "C"), rng=np.random.default_rng(errors_seed), ripple=False)))
+    vm = VirtualMachine(m, A.make_artefact(scene), ProbeConfig(repeatability_k2_m=2 * noise_um * 1e-6),
+                        np.random.default_rng(seed))
+    return SimMachine(vm)
+
+
 def _floats3(text: str, name: str):
     from core.exceptions import ConfigError
 
@@ -44,6 +88,9 @@ def register(sub) -> None:
     s.add_argument("--port", type=int, required=True, help="TCP port (0: any free port)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (127.0.0.1)")
     s.add_argument("--pty", action="store_true", help="also serve on a pseudo-terminal (serial port)")
+    s.add_argument("--scene", default="simple",
+                   help="simple (table + sphere, linear errors) or a simulated artefact on the nmv3000 with "
+                        "realistic errors: cross-pocket, pin-circle, freeform, mfb")
     s.add_argument("--noise-um", type=float, default=0.0, help="probing noise, µm per axis (0)")
     s.add_argument("--seed", type=int, default=0, help="seed of the noise (0)")
     s.add_argument("--scale-ppm", default="0,0,0", help="scale errors of X,Y,Z, µm/m (0,0,0)")
@@ -72,8 +119,11 @@ def run_serve(args) -> int:
 
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port {args.port}: not a TCP port")
-    machine = builtin_machine(args.noise_um, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
-                              args.ec0y_urad)
+    if args.scene == "simple":
+        machine = builtin_machine(args.noise_um, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
+                                  args.ec0y_urad)
+    else:
+        machine = sim_machine(args.scene, args.noise_um, args.seed)
     emu = GrblEmulator(machine, axes=args.axes, home_mm=_floats3(args.home, "--home"),
                        limits_mm=parse_limits(args.limits) if args.limits else None)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
@@ -102,21 +152,13 @@ def run_serve(args) -> int:
 
 
 def run_program(args) -> int:
-    import os
-    import tempfile
-    from pathlib import Path
-
+    from core.atomic import write_text_atomic
     from core.probelog import read_probe_log
     from hardware.linuxcnc import part_program
     from scenarios.cmd_probe import settings_from_args
 
     plan = read_probe_log(args.plan)
     text = part_program(plan, settings_from_args(args), probe_file=args.probe_file, wcs=args.wcs)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", dir=out.parent)
-    with os.fdopen(fd, "w", encoding="ascii") as f:
-        f.write(text)
-    os.replace(tmp, out)
+    out = write_text_atomic(args.out, text)
     print(f"{out}: LinuxCNC program, {plan.n} touches, probe file {args.probe_file}")
     return 0

@@ -44,7 +44,8 @@ def settings_from_args(args):
 def register(sub) -> None:
     p = sub.add_parser("probe", help="run a probing plan on a machine (GRBL live or virtual)")
     p.add_argument("--machine", required=True,
-                   help="grbl://HOST:PORT, serial:///dev/ttyX[?baud=115200] or virtual: (built-in scene)")
+                   help="grbl://HOST:PORT, serial:///dev/ttyX[?baud=115200], virtual: (built-in scene) "
+                        "or virtual:cross-pocket (the simulator's nmv3000 and part)")
     p.add_argument("--out", required=True, help="campaign log (probe-log/1), append-only")
     add_settings_args(p)
     p.add_argument("--dry-run", action="store_true", help="print the program, move nothing")
@@ -75,7 +76,14 @@ def open_backend(url: str, args, transcript=None):
         from scenarios.cmd_machine import builtin_machine
 
         return VirtualBackend(builtin_machine(), name="virtual:builtin")
-    raise HardwareError(f"--machine {url!r}: expected grbl://HOST:PORT, serial:///dev/ttyX or virtual:")
+    if url.startswith("virtual:") and url[len("virtual:"):].lstrip("/"):
+        from hardware.backend import VirtualBackend
+        from scenarios.cmd_machine import sim_machine
+
+        scene = url[len("virtual:"):].lstrip("/")
+        return VirtualBackend(sim_machine(scene), name=f"virtual:{scene}")
+    raise HardwareError(f"--machine {url!r}: expected grbl://HOST:PORT, serial:///dev/ttyX, virtual: "
+                        "or virtual:SCENE (cross-pocket, pin-circle, freeform, mfb)")
 
 
 def run(args) -> int:
