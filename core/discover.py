@@ -126,6 +126,8 @@ class Baseline:
     grid_step_m: float
     own_cols: tuple
     z_levels_m: tuple
+    identifiable: bool = True
+    why: str = ""
 
 
 def _height_columns(t: Touches, des: selfcal.Design):
@@ -167,49 +169,63 @@ def baseline(touches: Touches, grid_step_mm: float | None = None,
              settings: Settings = Settings()) -> Baseline:
     """The 2D self-calibration design on the finest grid the data identify.
 
-    With touches at several Z levels, per-set-up C-axis tilt columns and
-    first-order Abbe columns are added (:func:`_height_columns`).
+    With touches at several Z levels, per-set-up C-axis tilt columns are
+    added (:func:`_height_columns`). When no grid makes the parameters
+    identifiable (a symmetric part at C angles 90 deg apart is the classic
+    case), the finest grid that meets the count condition of eq 6 is used
+    all the same: residuals do not depend on the gauge, and the workpiece
+    estimates are then reported as not identifiable (``identifiable`` False,
+    ``why`` names the combinations).
 
     Raises
     ------
     IdentifiabilityError
-        If no grid in ``settings.grid_steps_mm`` (or the given step) makes
-        the self-calibration identifiable: discovery needs the same targets
-        probed at two or more rotary-table angles.
+        If no grid meets eq 6: discovery needs the same targets probed at
+        two or more rotary-table angles, and more touches than unknowns.
     """
     steps = (grid_step_mm,) if grid_step_mm else settings.grid_steps_mm
     last = None
+    fallback = None
     for st in steps:
         grid = selfcal.Grid.from_extent(touches.pn_R, st * MM)
         try:
             selfcal.check_count(touches, grid)
             des = selfcal.build_design(touches, grid)
-            A = des.A.toarray()
-            C, d, names = des.C, des.d, tuple(des.names)
-            s = des.slices
-            own = [np.array([s["EXC"].start + j, s["EYC"].start + j, s["ECC"].start + j])
-                   for j in range(len(des.setup_ids))]
-            levels = (float(np.median(touches.pn_R[:, 2])),)
-            h = _height_columns(touches, des)
-            if h is not None:
-                H, hn, hown, hg, levels = h
-                p = A.shape[1]
-                A = np.hstack([A, H])
-                C = np.hstack([C, np.zeros((C.shape[0], H.shape[1]))])
-                extra = np.zeros((len(hg), A.shape[1]))
-                for r, c in enumerate(hg):
-                    extra[r, p + c] = 1.0
-                C = np.vstack([C, extra])
-                d = np.concatenate([d, np.zeros(len(hg))])
-                names = names + hn
-                own = [np.concatenate([o, p + ho]) for o, ho in zip(own, hown)]
-            selfcal.solve(A, np.zeros(touches.n), C, d, names=names, sigma=1.0, covariance="none")
         except IdentifiabilityError as e:
             last = e
             continue
-        return Baseline(design=des, A=A, C=C, d=d, names=names, grid_step_m=st * MM, own_cols=tuple(own),
-                        z_levels_m=levels)
-    raise IdentifiabilityError(f"no baseline: the 2D self-calibration is not identifiable on grids of "
+        A = des.A.toarray()
+        C, d, names = des.C, des.d, tuple(des.names)
+        s = des.slices
+        own = [np.array([s["EXC"].start + j, s["EYC"].start + j, s["ECC"].start + j])
+               for j in range(len(des.setup_ids))]
+        levels = (float(np.median(touches.pn_R[:, 2])),)
+        h = _height_columns(touches, des)
+        if h is not None:
+            H, hn, hown, hg, levels = h
+            p = A.shape[1]
+            A = np.hstack([A, H])
+            C = np.hstack([C, np.zeros((C.shape[0], H.shape[1]))])
+            extra = np.zeros((len(hg), A.shape[1]))
+            for r, c in enumerate(hg):
+                extra[r, p + c] = 1.0
+            C = np.vstack([C, extra])
+            d = np.concatenate([d, np.zeros(len(hg))])
+            names = names + hn
+            own = [np.concatenate([o, p + ho]) for o, ho in zip(own, hown)]
+        bl = dict(design=des, A=A, C=C, d=d, names=names, grid_step_m=st * MM, own_cols=tuple(own),
+                  z_levels_m=levels)
+        try:
+            selfcal.solve(A, np.zeros(touches.n), C, d, names=names, sigma=1.0, covariance="none")
+        except IdentifiabilityError as e:
+            last = e
+            if fallback is None:
+                fallback = Baseline(**bl, identifiable=False, why=str(e))
+            continue
+        return Baseline(**bl)
+    if fallback is not None:
+        return fallback
+    raise IdentifiabilityError(f"no baseline: the 2D self-calibration does not meet eq 6 on grids of "
                                f"{', '.join(f'{s:g}' for s in steps)} mm ({last})")
 
 
@@ -494,6 +510,7 @@ class Discovery:
     grid_step_mm: float
     conventions: tuple
     baseline_model: str = "selfcal-2d (Ibaraki eqs 1-18)"
+    workpiece_identifiable: bool = True
 
     @property
     def cause(self) -> str:
@@ -515,6 +532,7 @@ class Discovery:
             "gain": {"rms_ratio": self.extended_rms_um / max(self.baseline_rms_um, 1e-300),
                      "cv_rms_ratio": self.extended_cv_rms_um / max(b_cv, 1e-300)},
             "workpiece": [dict(w) for w in self.workpiece],
+            "workpiece_identifiable": self.workpiece_identifiable,
             "outlier_rows": [int(r) for r in self.outlier_rows],
             "residual_structure_p": self.structure_p,
             "conventions": list(self.conventions),
@@ -563,12 +581,33 @@ def _params(ext: Extension, coef: np.ndarray, std: np.ndarray, t: Touches) -> di
     return {k: (float(v) if not isinstance(v, str) else v) for k, v in p.items()}
 
 
-def _solve_workpiece(bl: Baseline, A_ext: np.ndarray, y: np.ndarray, rows: np.ndarray):
-    """Gauge-fixed estimate (theta, std) with the baseline's gauge conditions."""
+@dataclass(frozen=True)
+class _Estimate:
+    theta: np.ndarray
+    std: np.ndarray | None
+
+
+def _solve_workpiece(bl: Baseline, A_ext: np.ndarray, y: np.ndarray, rows: np.ndarray) -> _Estimate:
+    """Gauge-fixed estimate (theta, std) with the baseline's gauge conditions.
+
+    When the design is not identifiable beyond the gauge, the minimum-norm
+    solution that meets the gauge is returned without uncertainties.
+    """
     k = A_ext.shape[1] - bl.A.shape[1]
     C = np.hstack([bl.C, np.zeros((bl.C.shape[0], k))])
     names = list(bl.names) + [f"ext[{i}]" for i in range(k)]
-    return selfcal.solve(A_ext[rows], y[rows], C, bl.d, names=names, covariance="full")
+    if bl.identifiable:
+        try:
+            sol = selfcal.solve(A_ext[rows], y[rows], C, bl.d, names=names, covariance="full")
+            return _Estimate(sol.theta, sol.std)
+        except IdentifiabilityError:
+            pass
+    A = A_ext[rows]
+    scale = np.linalg.norm(A) / max(np.linalg.norm(C), 1e-300) * 1e3
+    M = np.vstack([A, scale * C])
+    rhs = np.concatenate([y[rows], scale * bl.d])
+    theta, *_ = np.linalg.lstsq(M, rhs, rcond=1e-12)
+    return _Estimate(theta, None)
 
 
 def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Settings = Settings()) -> Discovery:
@@ -739,7 +778,10 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     res_b[:] = f0.r
     res_e = np.full(n, np.nan)
     res_e[rows] = f_cur.r
-    conv = tuple(bl.design.gauge) + ("workpiece estimates in the baseline's gauge (eqs 16-17)",
+    conv = tuple(bl.design.gauge) + (("workpiece estimates in the baseline's gauge (eqs 16-17)"
+                                      if bl.identifiable else
+                                      "workpiece NOT identifiable by this design (minimum-norm estimates shown): "
+                                      + bl.why),
                                      "cv: leave-one-set-up-out, held-out set-up's C-axis errors refitted on it")
     return Discovery(
         baseline_rms_um=float(np.sqrt(f0.rss / n) * UM), baseline_cv_rms_um=cv_b * UM, baseline_n=n,
@@ -747,7 +789,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         extended_rms_um=float(np.sqrt(f_cur.rss / len(rows)) * UM), extended_cv_rms_um=cv_cur * UM,
         workpiece=tuple(wp), outlier_rows=tuple(int(t.row[i]) for i in outliers),
         residuals_baseline_um=res_b * UM, residuals_extended_um=res_e * UM, structure_p=struct,
-        grid_step_mm=bl.grid_step_m / MM, conventions=conv,
+        grid_step_mm=bl.grid_step_m / MM, conventions=conv, workpiece_identifiable=bl.identifiable,
         baseline_model="selfcal-2d (Ibaraki eqs 1-18)" + (
             f" + C-axis tilt and Abbe terms for {len(bl.z_levels_m)} probing heights"
             if len(bl.z_levels_m) > 1 else ""))

@@ -24,7 +24,7 @@ Frames: R machine reference (axis readings), W table, A artefact, P probe
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np

@@ -73,3 +73,15 @@ def test_bad_input(plan):
     one = plan.subset(plan.setup == 0)
     with pytest.raises(IdentifiabilityError, match="no baseline"):
         discover(one)
+
+
+def test_symmetric_design_still_discovers_but_says_workpiece_not_identifiable():
+    """A symmetric part at C 90 deg apart: the self-calibration is rank deficient
+    beyond the gauge; residuals need no gauge, so discovery runs and says so."""
+    w, wn, _ = example_cross_pocket(spheres=False)
+    t = selfcal.nominal_touches(w, wn, [0, 90, 180, 270], stylus_r_m=0.003)
+    rng = np.random.default_rng(11)
+    d = discover(_with(t, rng.normal(0, SIG, t.n)))
+    rep = d.to_report()
+    assert rep["cause"] == "none" and rep["workpiece_identifiable"] is False
+    assert "NOT identifiable" in " ".join(rep["conventions"])
