@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from core.exceptions import ConfigError
+from viz.checks import check_array, same_len
 from core.iso import symbol as iso_symbol
 
 # --- entity paths (mirror the frame tree) -----------------------------------
@@ -79,23 +80,8 @@ _RED = (214, 39, 40)
 
 
 # --- small checks ----------------------------------------------------------
-def _arr(name: str, a, shape: tuple) -> np.ndarray:
-    """``a`` as a float array of ``shape`` (``-1`` = any length) or ConfigError."""
-    x = np.asarray(a, dtype=float)
-    ok = x.ndim == len(shape) and all(s in (-1, d) for s, d in zip(shape, x.shape))
-    if not ok:
-        want = "(" + ", ".join("n" if s == -1 else str(s) for s in shape) + ")"
-        raise ConfigError(f"{name}: expected shape {want}, got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ConfigError(f"{name}: contains NaN or inf")
-    return x
-
-
-def _same_len(**arrays: np.ndarray) -> int:
-    lens = {k: len(v) for k, v in arrays.items()}
-    if len(set(lens.values())) > 1:
-        raise ConfigError("length mismatch: " + ", ".join(f"{k}={v}" for k, v in lens.items()))
-    return next(iter(lens.values()))
+_arr = check_array
+_same_len = same_len
 
 
 # --- colour maps (drawing only) --------------------------------------------
