@@ -118,10 +118,14 @@ def run(args) -> int:
         raise PlanError(f"{args.out}: exists; use --resume to continue it, or choose another --out")
     tr = open(args.transcript, "a", encoding="utf-8") if args.transcript else None
     try:
+        from viz.progress import TerminalProgress
+
         backend = open_backend(args.machine, args, transcript=tr)
         try:
-            res = run_campaign(backend, plan, args.out, settings, resume=args.resume,
-                               unlock=args.unlock, home=args.home, plan_path=args.plan)
+            with TerminalProgress("campaign") as progress:
+                res = run_campaign(backend, plan, args.out, settings, resume=args.resume,
+                                   unlock=args.unlock, home=args.home, plan_path=args.plan,
+                                   on_touch=lambda row, _r: progress(row + 1, plan.n))
         finally:
             backend.close()
     finally:
