@@ -118,7 +118,8 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     say.head("5. report and recording")
     from scenarios.reports import demo_report
 
-    folder = demo_report(outp / "report", t, res, ident, d, rep, art, title="vmt demo: cross-pocket self-calibration")
+    folder = demo_report(outp / "report", t, res, ident, d, rep, art, machine=machine,
+                         title="vmt demo: cross-pocket self-calibration")
     say(f"{folder / 'index.html'}  (open in a browser)")
     say(f"{folder / 'recording.rrd'}  (vmt view {folder / 'recording.rrd'})")
     say(f"done in {time.perf_counter() - t_start:.1f} s; JSON: {outp / 'identify.json'}, {outp / 'discover.json'}")

@@ -94,8 +94,33 @@ def error_map(res):
     return g.x_m * 1e3, g.y_m * 1e3, ex * 1e6, ey * 1e6
 
 
-def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str) -> Path:
-    """The demo's report: campaign, identification, discovery; PNGs and a recording."""
+def true_error_map(machine, x_mm, y_mm, z_m: float, ex_um, ey_um):
+    """The machine's true E_X,total / E_Y,total on the grid, in the identification's gauge.
+
+    The truth is the simulator's exact tip deviation at C = 0 and height
+    ``z_m``. Self-calibration determines the map only up to a translation, a
+    rotation and (without delta_L) a scale: those four are fitted to the
+    identified map and applied to the truth, so the two can be compared.
+    """
+    X, Y = np.meshgrid(np.asarray(x_mm) * 1e-3, np.asarray(y_mm) * 1e-3, indexing="ij")
+    lin = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z_m)])
+    rot = np.zeros((len(lin), len(machine.rotary_axes)))
+    E = (machine.tip_W(lin, rot) - machine.tip_W_nominal(lin, rot)) * 1e6
+    x, y = lin[:, 0], lin[:, 1]
+    one, zero = np.ones_like(x), np.zeros_like(x)
+    B = np.vstack([np.column_stack([one, zero, -y, x]), np.column_stack([zero, one, x, y])])
+    r = np.concatenate([np.ravel(ex_um) - E[:, 0], np.ravel(ey_um) - E[:, 1]])
+    c, *_ = np.linalg.lstsq(B, r, rcond=None)
+    Ea = E[:, :2] + (B @ c).reshape(2, -1).T
+    return Ea[:, 0].reshape(X.shape), Ea[:, 1].reshape(X.shape)
+
+
+def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, machine=None) -> Path:
+    """The demo's report: campaign, identification, discovery; PNGs and a recording.
+
+    ``machine`` (the simulator's, when known) adds the true error map and
+    simple machine bodies to the recording.
+    """
     from core.fit import fit_circle_2d
     from viz import figures, record
     from viz.report import Section, Table, write_report
@@ -103,6 +128,10 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str) -> P
     folder = Path(folder)
     rrd = _recording_path(folder)
     x_mm, y_mm, ex_um, ey_um = error_map(res)
+    tex = tey = None
+    if machine is not None:
+        z_level = float(np.median(t.pn_R[:, 2]))
+        tex, tey = true_error_map(machine, x_mm, y_mm, z_level, ex_um, ey_um)
     des = res.design
     first = {}
     for k in range(t.n):
@@ -127,7 +156,8 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str) -> P
         except Exception:  # a display mesh is a nicety, never a reason to fail
             pass
         record.log_touches(rec, t.pn_R, t.dq_m * 1e6, n_R=t.n_R)
-        record.log_error_grid(rec, x_mm, y_mm, ex_um, ey_um)
+        record.log_error_grid(rec, x_mm, y_mm, ex_um, ey_um, true_ex_um=tex, true_ey_um=tey)
+        _log_machine_bodies(rec, record, t)
         record.log_workpiece(rec, t.w_W[idx], t.wn_W[idx], g_um, u95_um=u95)
         record.log_rotary(rec, c_deg, exc, eyc, ecc_urad=res.ECC * 1e6,
                           ex0c_um=None if centre is None else float(centre[0]),
@@ -149,7 +179,8 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str) -> P
                 figures={"profile": figures.profile_figure(
                     w_mm, wn, {"identified G_normal": g_um}, title="Identified workpiece")}),
         Section("Machine error map (eqs 4-5, ×1000)",
-                figures={"error_map": figures.error_grid_figure(x_mm, y_mm, ex_um, ey_um),
+                figures={"error_map": figures.error_grid_figure(x_mm, y_mm, ex_um, ey_um, true_ex_um=tex,
+                                                                true_ey_um=tey),
                          "error_motions": figures.error_motions_figure(
                              {k: v for k, v in ident["axes"].items() if k != "EC0Y"})},
                 tables=[Table(["symbol", "value", "U95 (k=2)"],
@@ -165,6 +196,26 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str) -> P
         return write_report(folder, title, secs, recording=rrd)
     finally:
         shutil.rmtree(rrd.parent, ignore_errors=True)
+
+
+def _log_machine_bodies(rec, record, t) -> None:
+    """Simple display bodies: the rotary table under W, the spindle and probe above the tip."""
+    import trimesh
+
+    z_top = float(np.min(t.pn_R[:, 2])) - 0.013  # table surface below the probed level
+    table = trimesh.creation.cylinder(radius=0.17, height=0.04,
+                                      transform=trimesh.transformations.translation_matrix((0, 0, z_top - 0.02)))
+    record.log_mesh(rec, record.TABLE, np.asarray(table.vertices), np.asarray(table.faces), color=(120, 130, 150))
+    stylus = trimesh.creation.cylinder(radius=0.0015, height=0.05,
+                                       transform=trimesh.transformations.translation_matrix((0, 0, 0.025)))
+    ball = trimesh.creation.icosphere(radius=0.003)
+    probe = trimesh.util.concatenate([stylus, ball])
+    spindle = trimesh.creation.cylinder(radius=0.03, height=0.12,
+                                        transform=trimesh.transformations.translation_matrix((0, 0, 0.11)))
+    record.log_mesh(rec, record.PROBE, np.asarray(probe.vertices), np.asarray(probe.faces), color=(200, 60, 60))
+    record.log_mesh(rec, record.SPINDLE, np.asarray(spindle.vertices), np.asarray(spindle.faces),
+                    color=(150, 150, 160))
+    record.log_probe_path(rec, t.pn_R)
 
 
 def _verdict(rep: dict) -> str:
