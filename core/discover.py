@@ -630,8 +630,14 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     IdentifiabilityError
         The baseline cannot be identified (one set-up, too few targets).
     """
+    planar = np.abs(t.n_R[:, 2]) <= selfcal.NZ_MAX
+    left_out = int(t.n - planar.sum())
+    if left_out:
+        # the planar model (eqs 1-18) takes touches with normals in XY; the rest
+        # (sphere points off the equator, faces) are left out and said so
+        t = t.subset(planar, reindex=True)
     if t.n < 10:
-        raise ConfigError(f"discover needs at least 10 valid touches, got {t.n}")
+        raise ConfigError(f"discover needs at least 10 valid touches with normals in the XY plane, got {t.n}")
     bl = baseline(t, grid_step_mm, settings)
     y = t.dq_m
     A0 = bl.A
@@ -778,11 +784,13 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     res_b[:] = f0.r
     res_e = np.full(n, np.nan)
     res_e[rows] = f_cur.r
-    conv = tuple(bl.design.gauge) + (("workpiece estimates in the baseline's gauge (eqs 16-17)"
-                                      if bl.identifiable else
-                                      "workpiece NOT identifiable by this design (minimum-norm estimates shown): "
-                                      + bl.why),
-                                     "cv: leave-one-set-up-out, held-out set-up's C-axis errors refitted on it")
+    conv = list(bl.design.gauge)
+    conv.append("workpiece estimates in the baseline's gauge (eqs 16-17)" if bl.identifiable else
+                "workpiece NOT identifiable by this design (minimum-norm estimates shown): " + bl.why)
+    if left_out:
+        conv.append(f"{left_out} touches with normals out of the XY plane left out of the planar baseline")
+    conv.append("cv: leave-one-set-up-out, held-out set-up's C-axis errors refitted on it")
+    conv = tuple(conv)
     return Discovery(
         baseline_rms_um=float(np.sqrt(f0.rss / n) * UM), baseline_cv_rms_um=cv_b * UM, baseline_n=n,
         baseline_n_params=int(f0.Q.shape[1]), findings=tuple(findings), extended_model=model,

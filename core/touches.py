@@ -84,8 +84,13 @@ class Touches:
         """(n,) measured normal deviation ``n . (p - pn)``, m (spec's ``dq``)."""
         return np.einsum("ij,ij->i", self.n_R, self.p_R - self.pn_R)
 
-    def subset(self, mask: np.ndarray) -> "Touches":
-        """Touches selected by a bool mask or index array (ids kept)."""
+    def subset(self, mask: np.ndarray, *, reindex: bool = False) -> "Touches":
+        """Touches selected by a bool mask or index array.
+
+        ``reindex=False`` keeps ``setup_ids``/``target_ids`` (indices stay
+        comparable with the full set); ``True`` keeps only the set-ups and
+        targets that still have touches, renumbered by first appearance.
+        """
         kw = {}
         for k, v in self.__dict__.items():
             if isinstance(v, np.ndarray):
@@ -94,6 +99,9 @@ class Touches:
                 kw[k] = {n: a[mask] for n, a in v.items()}
             else:
                 kw[k] = v
+        if reindex:
+            for idx, ids in (("setup", "setup_ids"), ("target", "target_ids")):
+                kw[idx], kw[ids] = _index(np.array([self.__dict__[ids][i] for i in kw[idx]], dtype=object))
         return Touches(**kw)
 
 

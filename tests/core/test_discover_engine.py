@@ -85,3 +85,14 @@ def test_symmetric_design_still_discovers_but_says_workpiece_not_identifiable():
     rep = d.to_report()
     assert rep["cause"] == "none" and rep["workpiece_identifiable"] is False
     assert "NOT identifiable" in " ".join(rep["conventions"])
+
+
+def test_out_of_plane_touches_are_left_out_and_said(plan):
+    rng = np.random.default_rng(5)
+    t = _with(plan, rng.normal(0, SIG, plan.n))
+    n = t.n_R.copy()
+    n[:6] = [0.6, 0.0, 0.8]  # six touches on a raised face: not for the planar model
+    t = dataclasses.replace(t, n_R=n)
+    rep = discover(t).to_report()
+    assert rep["baseline"]["n"] == plan.n - 6
+    assert any("6 touches with normals out of the XY plane" in c for c in rep["conventions"])
