@@ -166,7 +166,7 @@ def _height_columns(t: Touches, des: selfcal.Design):
 
 
 def baseline(touches: Touches, grid_step_mm: float | None = None,
-             settings: Settings = Settings()) -> Baseline:
+             settings: Settings = Settings(), yaw: str = "ECY") -> Baseline:
     """The 2D self-calibration design on the finest grid the data identify.
 
     With touches at several Z levels, per-set-up C-axis tilt columns are
@@ -190,7 +190,7 @@ def baseline(touches: Touches, grid_step_mm: float | None = None,
         grid = selfcal.Grid.from_extent(touches.pn_R, st * MM)
         try:
             selfcal.check_count(touches, grid)
-            des = selfcal.build_design(touches, grid)
+            des = selfcal.build_design(touches, grid, yaw=yaw)
         except IdentifiabilityError as e:
             last = e
             continue
@@ -610,7 +610,8 @@ def _solve_workpiece(bl: Baseline, A_ext: np.ndarray, y: np.ndarray, rows: np.nd
     return _Estimate(theta, None)
 
 
-def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Settings = Settings()) -> Discovery:
+def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Settings = Settings(),
+             chain: str | None = None) -> Discovery:
     """Find what the 2D self-calibration model gets wrong in a campaign.
 
     Parameters
@@ -620,6 +621,10 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     grid_step_mm : float or None
         Error-map grid step of the baseline; None = the finest of
         ``settings.grid_steps_mm`` that the data identify.
+    chain : str or None
+        The machine's ISO 10791 chain (the log's ``kinematic_chain``): which
+        axis carries the other decides the rigid-body yaw term
+        (:func:`core.selfcal.yaw_for_chain`); None = the paper's.
 
     Returns
     -------
@@ -638,7 +643,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         t = t.subset(planar, reindex=True)
     if t.n < 10:
         raise ConfigError(f"discover needs at least 10 valid touches with normals in the XY plane, got {t.n}")
-    bl = baseline(t, grid_step_mm, settings)
+    bl = baseline(t, grid_step_mm, settings, yaw=selfcal.yaw_for_chain(chain))
     y = t.dq_m
     A0 = bl.A
     n = t.n

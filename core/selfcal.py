@@ -102,7 +102,7 @@ GAUGE_NAMES = (
     "EXX/EXY offset split", "EYX/EYY offset split",
     "workpiece X shift", "workpiece Y shift",
     "machine frame rotation", "workpiece rotation",
-    "ECY offset vs EYX slope", "EXY slope vs EC0Y",
+    "yaw offset vs straightness slope (ECY/EYX or ECX/EXY)", "EXY slope vs EC0Y",
     "scale",
 )
 
@@ -243,6 +243,7 @@ class Design:
     gauge: tuple
     scale_known: bool
     N: np.ndarray
+    yaw: str = "ECY"
 
     @property
     def n_params(self) -> int:
@@ -266,7 +267,30 @@ def _c_names(setup_ids, c_rad):
     return [f"C={d}deg" + (f"#{s}" if dup else "") for d, s in zip(deg, setup_ids)]
 
 
-def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None) -> Design:
+def yaw_for_chain(chain_text: str | None) -> str:
+    """Which yaw couples X and Y in the rigid-body model of a chain: ``"ECY"`` or ``"ECX"``.
+
+    The paper's eqs 4-5 are written for X riding on Y (``V[w-C-A-b-Y-X-Z-(C)-t]``,
+    or a table X on a saddle Y): the yaw of Y, ``ECY(y)``, turns the X
+    stroke, ``E_Y += x ECY(y)``. When Y rides on X (``[w C' A' b X Y Z (C1) t]``)
+    it is the yaw of X that turns the Y stroke: ``E_X -= y ECX(x)``. The axis
+    nearer the bed in the branch that holds both is the carrier; ``None`` or a
+    chain with X and Y on different branches gives the paper's ``"ECY"``.
+    """
+    if not chain_text:
+        return "ECY"
+    from .chain import parse_chain
+
+    ch = parse_chain(chain_text)
+    tool, work = list(ch.tool_axes), list(ch.workpiece_axes)
+    if "X" in tool and "Y" in tool:  # listed from the bed up: the first is the carrier
+        return "ECY" if tool.index("Y") < tool.index("X") else "ECX"
+    if "X" in work and "Y" in work:  # listed from the workpiece down: the last is the carrier
+        return "ECY" if work.index("Y") > work.index("X") else "ECX"
+    return "ECY"
+
+
+def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *, yaw: str = "ECY") -> Design:
     """Design matrix of eq 15 for measured or planned touches.
 
     Parameters
@@ -280,12 +304,18 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None) -
     delta_L_m : float or None
         X-axis positioning error at the last x node (eq 17), m; None = scale
         unknown (fixed to 0 and reported).
+    yaw : {"ECY", "ECX"}
+        The yaw that couples the axes (:func:`yaw_for_chain`): ``"ECY"``
+        on the y nodes (the paper: X rides on Y) or ``"ECX"`` on the x
+        nodes (Y rides on X, ``E_X -= y ECX(x)``).
 
     Raises
     ------
     ConfigError
         A touch outside the grid, a non-planar normal, mixed C in a set-up.
     """
+    if yaw not in ("ECY", "ECX"):
+        raise ConfigError(f"yaw must be 'ECY' or 'ECX', got {yaw!r}")
     if touches.n == 0:
         raise ConfigError("no touches")
     x = touches.pn_R[:, 0]
@@ -306,7 +336,7 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None) -
     c_rad = _setup_angles(touches)
     Nx, Ny = len(gx), len(gy)
     Nw, Nc = len(touches.target_ids), len(touches.setup_ids)
-    sizes = [("EXX", Nx), ("EYX", Nx), ("EXY", Ny), ("EYY", Ny), ("ECY", Ny), ("EC0Y", 1),
+    sizes = [("EXX", Nx), ("EYX", Nx), ("EXY", Ny), ("EYY", Ny), (yaw, Ny if yaw == "ECY" else Nx), ("EC0Y", 1),
              ("G", Nw), ("EXC", Nc), ("EYC", Nc), ("ECC", Nc)]
     slices, o = {}, 0
     for nm, k in sizes:
@@ -315,7 +345,9 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None) -
     n_par = o
     cn = _c_names(touches.setup_ids, c_rad)
     names = ([f"EXX@x={_fmt_mm(v)}mm" for v in gx] + [f"EYX@x={_fmt_mm(v)}mm" for v in gx]
-             + [f"{s}@y={_fmt_mm(v)}mm" for s in ("EXY", "EYY", "ECY") for v in gy] + ["EC0Y"]
+             + [f"{s}@y={_fmt_mm(v)}mm" for s in ("EXY", "EYY") for v in gy]
+             + ([f"ECY@y={_fmt_mm(v)}mm" for v in gy] if yaw == "ECY" else [f"ECX@x={_fmt_mm(v)}mm" for v in gx])
+             + ["EC0Y"]
              + [f"G[{t}]" for t in touches.target_ids]
              + [f"EXC,total[{c}]" for c in cn] + [f"EYC,total[{c}]" for c in cn] + [f"ECC[{c}]" for c in cn])
 
@@ -341,8 +373,12 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None) -
     add(s["EYX"].start + kx + 1, -ny * zx)
     add(s["EYY"].start + ky, -ny * (1 - zy))
     add(s["EYY"].start + ky + 1, -ny * zy)
-    add(s["ECY"].start + ky, -ny * x * (1 - zy))
-    add(s["ECY"].start + ky + 1, -ny * x * zy)
+    if yaw == "ECY":  # X rides on Y: E_Y += x ECY(y) (eq 5)
+        add(s["ECY"].start + ky, -ny * x * (1 - zy))
+        add(s["ECY"].start + ky + 1, -ny * x * zy)
+    else:  # Y rides on X: E_X -= y ECX(x)
+        add(s["ECX"].start + kx, nx * y * (1 - zx))
+        add(s["ECX"].start + kx + 1, nx * y * zx)
     # eq 7
     add(s["G"].start + touches.target, np.ones(m))
     # eq 13
@@ -369,7 +405,10 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None) -
     g(1, "EYX", _interp_row(gx, xo), f"EYX(x={_fmt_mm(xo)}mm)=0")
     g(2, "EXY", _interp_row(gy, yo), f"EXY(y={_fmt_mm(yo)}mm)=0")
     g(3, "EYY", _interp_row(gy, yo), f"EYY(y={_fmt_mm(yo)}mm)=0")
-    g(4, "ECY", _interp_row(gy, yo), f"ECY(y={_fmt_mm(yo)}mm)=0")
+    if yaw == "ECY":
+        g(4, "ECY", _interp_row(gy, yo), f"ECY(y={_fmt_mm(yo)}mm)=0")
+    else:
+        g(4, "ECX", _interp_row(gx, xo), f"ECX(x={_fmt_mm(xo)}mm)=0")
     e = np.zeros(Nc)
     e[ref] = 1.0
     g(5, "EXC", e, f"EXC,total({cn[ref]})=0")
@@ -389,13 +428,13 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None) -
             raise ConfigError(f"delta_L must be finite, got {delta_L_m}")
         g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=delta_L={delta_L_m * 1e6:g}um (scale known)",
           float(delta_L_m))
-    N = _null_basis(touches, slices, gx, gy, c_rad, n_par)
+    N = _null_basis(touches, slices, gx, gy, c_rad, n_par, yaw)
     return Design(A=A, names=tuple(names), slices=slices, grid=grid, target_ids=tuple(touches.target_ids),
                   setup_ids=tuple(touches.setup_ids), c_rad=c_rad, ref_setup=ref, C=C, d=d,
-                  gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N)
+                  gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N, yaw=yaw)
 
 
-def _null_basis(touches, s, gx, gy, c_rad, n_par) -> np.ndarray:
+def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw="ECY") -> np.ndarray:
     """The eleven analytic null directions of A (see module docstring)."""
     N = np.zeros((n_par, 11))
     Nw = s["G"].stop - s["G"].start
@@ -431,9 +470,13 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par) -> np.ndarray:
     # 7: workpiece rotated in W
     N[s["G"], 7] = -nR[:, 0] * pn[:, 1] + nR[:, 1] * pn[:, 0]
     N[s["ECC"], 7] = -1
-    # 8: ECY offset vs EYX slope; 9: EXY slope vs EC0Y
-    N[s["ECY"], 8] = 1
-    N[s["EYX"], 8] = -gx
+    # 8: yaw offset vs a straightness slope (ECY vs EYX; ECX vs EXY); 9: EXY slope vs EC0Y
+    if yaw == "ECY":
+        N[s["ECY"], 8] = 1
+        N[s["EYX"], 8] = -gx
+    else:
+        N[s["ECX"], 8] = 1
+        N[s["EXY"], 8] = gy
     N[s["EXY"], 9] = gy
     N[s["EC0Y"], 9] = 1
     # 10: scale
@@ -774,9 +817,19 @@ class SelfCalResult:
         return self._blk("EYY")
 
     @property
+    def yaw(self) -> str:
+        """``"ECY"`` (on the y nodes) or ``"ECX"`` (on the x nodes): see :func:`yaw_for_chain`."""
+        return self.design.yaw
+
+    @property
     def ECY(self):
-        """(N_y,) rad."""
+        """(N_y,) rad (designs with ``yaw="ECY"``)."""
         return self._blk("ECY")
+
+    @property
+    def ECX(self):
+        """(N_x,) rad (designs with ``yaw="ECX"``)."""
+        return self._blk("ECX")
 
     @property
     def EC0Y(self) -> float:
@@ -845,7 +898,8 @@ def _check_nodes(des: Design) -> None:
 
 
 def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
-             grid_step_m: float = 0.022, sigma_m: float | None = None, covariance: str = "auto") -> SelfCalResult:
+             grid_step_m: float = 0.022, sigma_m: float | None = None, covariance: str = "auto",
+             yaw: str = "ECY") -> SelfCalResult:
     """2D self-calibration, eqs 15-18.
 
     Parameters
@@ -861,6 +915,9 @@ def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None
         Probing standard deviation, m; None = estimated from residuals.
     covariance : str
         See :func:`solve`.
+    yaw : {"ECY", "ECX"}
+        The yaw coupling X and Y (:func:`yaw_for_chain` of the log's
+        ``kinematic_chain``); the paper's ``"ECY"`` by default.
 
     Raises
     ------
@@ -873,7 +930,7 @@ def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None
     if grid is None:
         grid = Grid.from_extent(touches.pn_R, grid_step_m)
     check_count(touches, grid)
-    des = build_design(touches, grid, delta_L_m)
+    des = build_design(touches, grid, delta_L_m, yaw=yaw)
     _check_nodes(des)
     sol = solve(des.A, touches.dq_m, des.C, des.d, names=des.names, sigma=sigma_m, covariance=covariance)
     conv = des.gauge + (("scale known: EXX(x_N) = delta_L" if des.scale_known
@@ -886,10 +943,11 @@ def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None
                          conventions=conv, scale_known=des.scale_known, n_touches=touches.n)
 
 
-def estimator(touches: Touches, grid: Grid, delta_L_m: float | None = None) -> tuple[Design, LinearEstimator]:
+def estimator(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
+              yaw: str = "ECY") -> tuple[Design, LinearEstimator]:
     """Build and factor the design once (for Monte Carlo and design studies)."""
     check_count(touches, grid)
-    des = build_design(touches, grid, delta_L_m)
+    des = build_design(touches, grid, delta_L_m, yaw=yaw)
     _check_nodes(des)
     sol = solve(des.A, np.zeros(touches.n), des.C, des.d, names=des.names, sigma=1.0, covariance="none")
     return des, sol.estimator

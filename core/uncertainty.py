@@ -114,10 +114,10 @@ def _check_u(u_probe_m):
 
 
 def linear_uncertainty_touches(touches: Touches, grid: Grid, u_probe_m: float = U_PROBE_M,
-                               delta_L_m: float | None = None) -> Uncertainty:
+                               delta_L_m: float | None = None, *, yaw: str = "ECY") -> Uncertainty:
     """Linear propagation for the touches of a log (only their geometry is used)."""
     _check_u(u_probe_m)
-    des, est = estimator(touches, grid, delta_L_m)
+    des, est = estimator(touches, grid, delta_L_m, yaw=yaw)
     u = est.std(u_probe_m)
     gi = np.arange(des.n_params)[des.slices["G"]]
     DZg = est.DZ[gi]
@@ -157,14 +157,15 @@ def mc_errors(est: LinearEstimator, n_obs: int, u_probe_m: float, runs: int,
 
 
 def monte_carlo_touches(touches: Touches, grid: Grid, u_probe_m: float = U_PROBE_M, *, runs: int = 1000,
-                        rng: np.random.Generator, delta_L_m: float | None = None) -> Uncertainty:
+                        rng: np.random.Generator, delta_L_m: float | None = None,
+                        yaw: str = "ECY") -> Uncertainty:
     """JCGM 101 Monte Carlo for the touches of a log (design factored once)."""
     _check_u(u_probe_m)
     if int(runs) < 10:
         raise ConfigError(f"runs must be >= 10, got {runs}")
     if not isinstance(rng, np.random.Generator):
         raise ConfigError("rng must be a numpy.random.Generator")
-    des, est = estimator(touches, grid, delta_L_m)
+    des, est = estimator(touches, grid, delta_L_m, yaw=yaw)
     err = mc_errors(est, touches.n, u_probe_m, int(runs), rng)
     return summarise_mc(des, err, u_probe_m)
 

@@ -23,7 +23,7 @@ def run_discover(log_path, json_out, report=None, grid_mm=None) -> dict:
 
     log = read_probe_log(log_path)
     t = from_log(log)
-    d = discover(t, grid_step_mm=grid_mm)
+    d = discover(t, grid_step_mm=grid_mm, chain=log.meta.get("kinematic_chain"))
     rep = json_safe(d.to_report())
     rep["log"] = str(log_path)
     write_json_atomic(json_out, rep)

@@ -58,7 +58,8 @@ def report(res, mc=None) -> dict:
         "sigma_um": _r(res.sigma_m * 1e6),
         "sigma_source": res.sigma_source,
         "dof": res.dof,
-        "conventions": {"gauge": list(des.gauge), "scale_known": res.scale_known, "notes": list(res.conventions[11:])},
+        "conventions": {"gauge": list(des.gauge), "scale_known": res.scale_known, "yaw": des.yaw,
+                        "notes": list(res.conventions[11:])},
         "workpiece": [],
         "axes": {},
         "rotary": [],
@@ -69,11 +70,12 @@ def report(res, mc=None) -> dict:
         if mc is not None:
             row["mc_u95_um"] = _r(mc.U95[i] * 1e6)
         out["workpiece"].append(row)
-    for sym in ("EXX", "EYX", "EXY", "EYY", "ECY"):
-        pos = des.grid.x_m if sym in ("EXX", "EYX") else des.grid.y_m
+    for sym in ("EXX", "EYX", "EXY", "EYY", des.yaw):
+        on_x = sym in ("EXX", "EYX", "ECX")
+        pos = des.grid.x_m if on_x else des.grid.y_m
         idx = np.arange(s[sym].start, s[sym].stop)
-        f, unit = (1e6, "urad") if sym == "ECY" else (1e6, "um")
-        out["axes"][sym] = {"axis_pos": "x" if sym in ("EXX", "EYX") else "y",
+        f, unit = (1e6, "urad") if sym in ("ECY", "ECX") else (1e6, "um")
+        out["axes"][sym] = {"axis_pos": "x" if on_x else "y",
                             "positions_mm": [_r(v * 1e3) for v in pos],
                             f"values_{unit}": [_r(res.theta[i] * f) for i in idx],
                             f"u95_{unit}": [_r(u95(i) * f) for i in idx]}
@@ -97,11 +99,18 @@ def run(args) -> int:
 
     from core.exceptions import ConfigError
     from core.probelog import read_probe_log
-    from core.selfcal import identify
+    from core.selfcal import identify, yaw_for_chain
     from core.touches import from_log
     from core.uncertainty import monte_carlo_touches
 
-    t = from_log(read_probe_log(args.log))
+    log = read_probe_log(args.log)
+    yaw = yaw_for_chain(log.meta.get("kinematic_chain"))
+    # the planar model takes touches with normals in XY (sphere points off the
+    # equator are for 3D fits); say how many were left out
+    planar = abs(log.col("nz")) <= 0.01
+    t = from_log(log.select(planar))
+    if not planar.all():
+        print(f"{args.log}: {int((~planar & log.ok).sum())} touches with normals out of the XY plane left out")
     grid = parse_grid(args.grid_mm, t.pn_R)
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
     sigma = None
@@ -111,11 +120,11 @@ def run(args) -> int:
         sigma = args.u_probe_um * 1e-6
     if args.mc < 0:
         raise ConfigError(f"--mc must be >= 0, got {args.mc}")
-    res = identify(t, grid, dL, sigma_m=sigma)
+    res = identify(t, grid, dL, sigma_m=sigma, yaw=yaw)
     mc = None
     if args.mc:
         mc = monte_carlo_touches(t, grid, res.sigma_m, runs=args.mc, rng=np.random.default_rng(args.seed),
-                                 delta_L_m=dL)
+                                 delta_L_m=dL, yaw=yaw)
     from core.atomic import write_json_atomic
 
     out = write_json_atomic(args.json, report(res, mc))

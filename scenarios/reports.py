@@ -90,7 +90,11 @@ def error_map(res):
     g = res.design.grid
     X, Y = np.meshgrid(g.x_m, g.y_m, indexing="ij")
     ex = res.EXX[:, None] + res.EXY[None, :] - Y * res.EC0Y
-    ey = res.EYX[:, None] + res.EYY[None, :] + X * res.ECY[None, :]
+    ey = res.EYX[:, None] + res.EYY[None, :]
+    if res.yaw == "ECY":  # X rides on Y (eq 5)
+        ey = ey + X * res.ECY[None, :]
+    else:  # Y rides on X
+        ex = ex - Y * res.ECX[:, None]
     return g.x_m * 1e3, g.y_m * 1e3, ex * 1e6, ey * 1e6
 
 

@@ -122,3 +122,22 @@ def test_generalises_to_another_part_angles_and_noise():
     lob = ProbeConfig(repeatability_k2_m=0.4e-6, lobing_m=((3, 2.0e-6, -1.0e-6),))
     dirty = simulate_campaign("freeform", m, lob, angles, np.random.default_rng(1))
     assert discover(from_log(dirty)).cause == "probe_lobing"
+
+
+def test_generalises_to_a_machine_whose_y_rides_on_x():
+    """The Mikron's Y rides on X: the rigid model's yaw is ECX(x), read from the
+    log's kinematic_chain. A clean pin-circle campaign stays 'none' (with the
+    paper's ECY model it would look non-rigid); a lobing probe is found."""
+    from sim.campaign import simulate_campaign
+    from sim.machine import Machine
+    from sim.machines import MACHINES, realistic_errors
+    from sim.probe import ProbeConfig
+
+    cfg = MACHINES["mikron-ucp710"]()
+    errs = realistic_errors(("X", "Y", "Z", "C"), strokes=cfg.strokes, rng=np.random.default_rng(2), ripple=False)
+    m = Machine(MACHINES["mikron-ucp710"](errors=errs))
+    angles = [0, 31, 83, 137, 191, 227, 257, 313]
+    for lobing, cause in (((), "none"), (((2, 1.5e-6, 0.8e-6),), "probe_lobing")):
+        log = simulate_campaign("pin-circle", m, ProbeConfig(repeatability_k2_m=0.6e-6, lobing_m=lobing), angles,
+                                np.random.default_rng(3), check_collisions=False)
+        assert discover(from_log(log), chain=log.meta["kinematic_chain"]).cause == cause
