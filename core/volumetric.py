@@ -69,7 +69,7 @@ from scipy.interpolate import CubicSpline
 from . import iso
 from .exceptions import ConfigError, IdentifiabilityError
 from .kinematics import ChainGeometry, exp_so3, sensitivity, skew, tip_W
-from .selfcal import solve
+from .selfcal import RANK_TOL, solve
 
 MOTION = iso.LINEAR_MOTION
 SQUARENESS = iso.SQUARENESS
@@ -79,15 +79,22 @@ SQUARENESS = iso.SQUARENESS
 #: those holes' observation along the bar's z_A is dropped instead (their
 #: other components, and every other hole, are unaffected to first order).
 NUISANCE = ("vx", "vy", "vz", "wyA", "wzA")
-#: Singular-value ratio below which a direction of the column-scaled design is null
-#: (looser than core.selfcal.RANK_TOL, 1e-6 in singular values, so that a
-#: convention is chosen for every combination the solver would refuse).
-NULL_TOL = 1e-5
-#: Eigenvalue ratio passed to core.selfcal.solve after the gauge: exact null
-#: directions (~1e-30) are refused, weakly determined ones (ratio ~1e-13,
-#: e.g. the ram roll ECZ seen only through 50 mm stylus offsets) are solved
-#: and show up as wide U95 bands instead.
-SOLVE_RANK_TOL = 1e-18
+#: Singular-value ratio (column-scaled design, over the largest) below which a
+#: direction is an exact null direction, fixed by an ISO convention (gauge
+#: freedoms are ~1e-16 at the nominal readings, :func:`_nominal_readings`).
+NULL_TOL = 1e-9
+#: Least component (orthonormal, column-scaled) a convention must have along
+#: the null space left for it to be taken (else it is redundant: exact null
+#: directions give components of 1e-15 or of order 0.1).
+GAUGE_MIN = 1e-6
+#: Relative singular value of the gauge-fixed, column-scaled design below
+#: which a combination counts as unseen and is named (IdentifiabilityError),
+#: not solved with a huge band. 1e-5 is stricter than core.selfcal.solve's
+#: RANK_TOL (1e-12 in eigenvalues, 1e-6 in singular values), so the plan is
+#: refused here, by name, before the solver would.
+COND_TOL = 1e-5
+#: Eigenvalue ratio passed to core.selfcal.solve: its default.
+SOLVE_RANK_TOL = RANK_TOL
 
 
 @dataclass(frozen=True)
@@ -149,6 +156,13 @@ class Design:
         Null space of A (before the gauge), columns in parameter units.
     rows : list of (measurement name, hole)
         One entry per point (three rows each).
+    unseen : (n, q') float
+        Combinations the plan cannot see beyond the conventions: null
+        directions left and directions whose relative singular value in the
+        gauge-fixed, column-scaled design is below :data:`COND_TOL`.
+    sv_rel : (r,) float
+        Singular values of the gauge-fixed, column-scaled design over the
+        largest, descending (the plan's observability).
     """
 
     A: np.ndarray
@@ -160,6 +174,8 @@ class Design:
     gauge: tuple
     null: np.ndarray
     rows: list
+    unseen: np.ndarray = field(default=None, repr=False, compare=False)
+    sv_rel: np.ndarray = field(default=None, repr=False, compare=False)
 
 
 def _geom(chain: str, J_m, rotary_points_R_m) -> ChainGeometry:
@@ -279,68 +295,88 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact):
 
 
 def _null(A, tol=NULL_TOL):
+    """Orthonormal null space of the column-scaled A, the scaling, and the singular values.
+
+    Returns ``N_s (n, q)``, ``D (n,)`` (theta = D theta_s) and ``s`` (sorted, descending).
+    """
     cn = np.linalg.norm(A, axis=0)
     D = np.where(cn > 0, 1.0 / np.where(cn > 0, cn, 1), 1.0)
     _, s, Vt = np.linalg.svd(A * D, full_matrices=True)
     s_full = np.zeros(A.shape[1])
     s_full[:len(s)] = s
-    N = Vt[s_full <= tol * s.max()].T
-    return D[:, None] * N
+    return Vt[s_full <= tol * s.max()].T, D, s
 
 
-def _gauge(null, slices, nodes, fixed=None):
+def _candidates(slices):
+    """ISO 230-1 conventions in order of preference: (words, parameter index)."""
+    out = []
+    for s in MOTION:  # positioning zero at the first node (EX0X = 0 ...)
+        if iso.symbol(s).kind == iso.Kind.POSITIONING:
+            out.append((f"{s} = 0 at the first node", slices[s].start))
+    for s in MOTION:  # end-point reference straight line (section 6)
+        if iso.symbol(s).kind == iso.Kind.STRAIGHTNESS:
+            out.append((f"{s} = 0 at the first node (end-point reference line)", slices[s].start))
+            out.append((f"{s} = 0 at the last node (end-point reference line)", slices[s].stop - 1))
+    for s in MOTION:  # constant part of angular errors (X primary, then Y, then Z)
+        if iso.symbol(s).kind == iso.Kind.ANGULAR:
+            out.append((f"{s} = 0 at the first node", slices[s].start))
+    return out
+
+
+def _gauge(N_s, slices, fixed=None):
     """Choose the ISO conventions that fix the null space (see module doc).
 
-    ``fixed``: use exactly these conventions (words as returned before, e.g.
-    the gauge of the complete plan) instead of choosing.
+    ``N_s``: orthonormal null space in column-scaled coordinates. Each
+    candidate (in the order of :func:`_candidates`) is taken while the
+    null space left has a component of at least :data:`GAUGE_MIN` along
+    it, so every convention removes one null direction and no convention
+    is nearly redundant (which would leave the rest ill-conditioned).
+    ``fixed``: use exactly these conventions (e.g. the gauge of the
+    complete plan) instead of choosing.
+
+    Returns ``C (k, n)``, the words, and the null directions left (n, q').
     """
-    n = null.shape[0]
-    cands = []
-    for kind in ("pos", "str", "ang"):
-        for s in MOTION:
-            sy = iso.symbol(s)
-            sl = slices[s]
-            if kind == "pos" and sy.kind == iso.Kind.POSITIONING:
-                cands.append((f"{s} = 0 at the first node", [sl.start], kind))
-            elif kind == "str" and sy.kind == iso.Kind.STRAIGHTNESS:
-                cands.append((f"{s} = 0 at the first node (end-point reference line)", [sl.start], kind))
-                cands.append((f"{s} = 0 at the last node (end-point reference line)", [sl.stop - 1], kind))
-            elif kind == "ang" and sy.kind == iso.Kind.ANGULAR:
-                cands.append((f"{s} = 0 at the first node", [sl.start], kind))
-    N = null.copy()
-    rows, words = [], []
+    n = N_s.shape[0]
+    cands = _candidates(slices)
     if fixed is not None:
-        known = {w: idx for w, idx, _ in cands}
-        for w in fixed:
-            if w not in known:
-                raise ConfigError(f"unknown convention {w!r}")
-            c = np.zeros(n)
-            c[known[w]] = 1.0
-            rows.append(c)
-            words.append(w)
-            cN = c @ N
-            if N.shape[1] and np.linalg.norm(cN) > 1e-12 * np.linalg.norm(N):
-                _, _, Vt = np.linalg.svd(cN[None, :])
-                N = N @ Vt[1:].T
-        return (np.array(rows) if rows else np.zeros((0, n))), tuple(words), N
-    for kind in ("pos", "str", "ang"):
-        cls = [(w, idx) for w, idx, kd in cands if kd == kind]
-        while N.shape[1] and cls:
-            Q, _ = np.linalg.qr(N)
-            score = [np.linalg.norm(Q[idx[0]]) for _, idx in cls]
-            b = int(np.argmax(score))
-            if kind == "ang" and score[b] < 0.01:  # no angular convention touches what is left
-                break
-            w, idx = cls.pop(b)
-            c = np.zeros(n)
-            c[idx] = 1.0
-            cN = c @ N
-            rows.append(c)
-            words.append(w)
-            # keep the part of the null space the convention leaves free
-            _, _, Vt = np.linalg.svd(cN[None, :])
-            N = N @ Vt[1:].T
+        known = dict(cands)
+        bad = [w for w in fixed if w not in known]
+        if bad:
+            raise ConfigError(f"unknown convention {bad[0]!r}")
+        cands = [(w, known[w]) for w in fixed]
+    N = N_s.copy()
+    rows, words = [], []
+    for w, idx in cands:
+        v = N[idx] if N.shape[1] else np.zeros(0)
+        if fixed is None and (not N.shape[1] or np.linalg.norm(v) < GAUGE_MIN):
+            continue
+        c = np.zeros(n)
+        c[idx] = 1.0
+        rows.append(c)
+        words.append(w)
+        if N.shape[1] and np.linalg.norm(v) > 1e-12:
+            _, _, Vt = np.linalg.svd(v[None, :])
+            N = N @ Vt[1:].T  # the part of the null space the convention leaves free
     return (np.array(rows) if rows else np.zeros((0, n))), tuple(words), N
+
+
+def _nominal_readings(m, chain, rotary_points_R_m) -> np.ndarray:
+    """(k, 3) readings a perfect machine gives at the nominal points of interest of ``m``.
+
+    The nominal O_A: the calibrated ones rounded to 0.1 mm (the deviations
+    are tens of um, the mistake-proofing shifts 1.5 mm). Nominal tip_W is
+    affine in the linear readings for fixed rotary positions; it is inverted.
+    """
+    g = _geom(chain, m.J_m, rotary_points_R_m)
+    O_A = np.round(np.asarray(m.O_A, float), 4)
+    T = np.asarray(m.T_W_A, float)
+    P = O_A @ T[:3, :3].T + T[:3, 3]
+    nr = len(g.chain.rotary_axes)
+    rot = np.asarray(m.rot_rad, float).reshape(1, -1) if nr else None
+    q4 = np.vstack([np.zeros(3), np.eye(3)])
+    t4 = tip_W(g, q4, None if rot is None else np.repeat(rot, 4, axis=0), None)
+    M = (t4[1:] - t4[0]).T
+    return np.linalg.solve(M, (P - t4[0]).T).T
 
 
 def design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) -> Design:
@@ -350,15 +386,34 @@ def design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) ->
     _check(meas, nodes)
     names, slices, n, _ = _layout(meas, nodes)
     A, y, rows = _rows(meas, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False)
-    # null space and gauge from the design at readings rounded to 10 um: the
-    # plan's geometry, not the noise, decides which conventions are needed
+    # null space, gauge and conditioning from the plan's geometry: the
+    # readings a perfect machine would give for the nominal bar (design O_A on
+    # lines, no calibrated deviations). At the actual readings the micrometre
+    # errors bend the bars by ~1e-5 relative, which turns exact gauge
+    # freedoms (a constant table rotation) into 1e-6 "observations".
     from dataclasses import replace as _rep
 
-    meas_r = [_rep(m, O_R=np.round(np.asarray(m.O_R, float), 5)) for m in meas]
+    meas_r = [_rep(m, O_R=_nominal_readings(m, chain, rotary_points_R_m), O_A=np.round(np.asarray(m.O_A, float), 4))
+              for m in meas]
     A_r, _, _ = _rows(meas_r, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False)
-    null = _null(A_r)
-    C, words, _ = _gauge(null, slices, nodes, gauge)
-    return Design(A, y, tuple(names), slices, nodes, C, words, null, rows)
+    N_s, D, _ = _null(A_r)
+    C, words, left_s = _gauge(N_s, slices, gauge)
+    # conditioning of the gauge-fixed problem: the scaled design without the
+    # columns the conventions pin (they are unit picks)
+    free = np.ones(n, bool)
+    free[np.flatnonzero(np.any(C != 0, axis=0))] = False
+    As = (A_r * D)[:, free]
+    _, sv, Vt = np.linalg.svd(As, full_matrices=False)
+    sv_rel = sv / sv.max()
+    weak = []
+    for j in np.flatnonzero(sv_rel < COND_TOL):
+        v = np.zeros(n)
+        v[free] = Vt[j]
+        weak.append(D * v)
+    left = D[:, None] * left_s
+    if weak:
+        left = np.column_stack([left] + weak)
+    return Design(A, y, tuple(names), slices, nodes, C, words, D[:, None] * N_s, rows, left, sv_rel)
 
 
 @dataclass(frozen=True)
@@ -372,18 +427,30 @@ class ObservabilityReport:
     gauge : tuple of str
         ISO conventions needed (each removes one null direction).
     unidentifiable : tuple of str
-        Combinations left after the conventions, each as ``+0.71*EBX@x=..
-        -0.71*EXX@x=..`` (largest terms first).
+        Combinations left after the conventions, or seen only below
+        :data:`COND_TOL`, each as ``+0.71*EBX@x=.. -0.71*EXX@x=..``
+        (largest terms, column-scaled, first).
+    sv_rel : (r,) float
+        Singular values of the gauge-fixed, column-scaled design over the
+        largest, descending.
+    weakest : tuple of str
+        The three least-seen combinations (smallest singular values).
     """
 
     n_params: int
     rank: int
     gauge: tuple
     unidentifiable: tuple
+    sv_rel: np.ndarray = field(default=None, repr=False, compare=False)
+    weakest: tuple = ()
 
     @property
     def ok(self) -> bool:
         return not self.unidentifiable
+
+    @property
+    def sv_min_rel(self) -> float:
+        return float(self.sv_rel[-1]) if self.sv_rel is not None and len(self.sv_rel) else 0.0
 
 
 def _describe(v, names, top=4):
@@ -392,19 +459,38 @@ def _describe(v, names, top=4):
     return " ".join(f"{'+' if v[i] >= 0 else '-'}{abs(v[i]):.2f}*{names[i]}" for i in idx).lstrip("+")
 
 
+def _unseen(d: Design) -> list:
+    U = d.unseen
+    out = []
+    for j in range(U.shape[1]):
+        v = U[:, j] / d_scale(d)
+        out.append(_describe(v / np.abs(v).max(), d.names))
+    return out
+
+
+def d_scale(d: Design) -> np.ndarray:
+    """(n,) column scaling of the design (theta = D theta_s)."""
+    cn = np.linalg.norm(d.A, axis=0)
+    return np.where(cn > 0, 1.0 / np.where(cn > 0, cn, 1), 1.0)
+
+
 def observability(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) -> ObservabilityReport:
-    """Rank of the plan's problem and the error combinations it cannot see, by name.
+    """Rank, singular values and the error combinations a plan cannot see, by name.
 
     ``gauge``: the conventions of a reference (complete) plan; without it
     the conventions are chosen for this plan and may absorb a loss.
     """
     d = design(meas, chain, nodes, rotary_points_R_m, gauge)
-    _, _, left = _gauge(d.null, d.slices, d.nodes, gauge)
-    un = []
-    for j in range(left.shape[1]):
-        v = left[:, j]
-        un.append(_describe(v / np.abs(v).max(), d.names))
-    return ObservabilityReport(d.A.shape[1], d.A.shape[1] - d.null.shape[1], d.gauge, tuple(un))
+    n = d.A.shape[1]
+    D = d_scale(d)
+    free = ~np.any(d.C != 0, axis=0)
+    _, _, Vt = np.linalg.svd(d.A[:, free] * D[free], full_matrices=False)
+    weakest = []
+    for j in range(1, min(3, Vt.shape[0]) + 1):
+        v = np.zeros(n)
+        v[free] = Vt[-j]
+        weakest.append(f"{d.sv_rel[-j]:.1e}: " + _describe(v / np.abs(v).max(), d.names))
+    return ObservabilityReport(n, n - d.null.shape[1], d.gauge, tuple(_unseen(d)), d.sv_rel, tuple(weakest))
 
 
 @dataclass(frozen=True)
@@ -473,9 +559,8 @@ def identify(meas, chain: str, nodes: dict, rotary_points_R_m=None, *, exact: bo
     """
     meas = list(meas)
     d = design(meas, chain, nodes, rotary_points_R_m, gauge)
-    _, _, left = _gauge(d.null, d.slices, d.nodes, gauge)
-    if left.shape[1]:
-        un = [_describe(left[:, j] / np.abs(left[:, j]).max(), d.names) for j in range(left.shape[1])]
+    if d.unseen.shape[1]:
+        un = _unseen(d)
         raise IdentifiabilityError(f"the plan cannot identify {len(un)} combination(s) beyond the ISO "
                                    f"conventions: " + "; ".join(un[:6]))
     C = d.C

@@ -70,6 +70,7 @@ class MeasurementSpec:
     J_m: tuple = (0.0, 0.0, 0.150)
     holes: tuple = tuple(range(1, 13))
     senses: str = ""
+    stylus: str = "T0"
 
 
 @dataclass(frozen=True)
@@ -96,34 +97,50 @@ def _T(cols, p):
 _X, _Y, _Z = np.eye(3)
 _S2 = np.sqrt(0.5)
 
+#: Styli of the 3-axis plan: name -> probe offsets J (eq. 8), m (gauge point
+#: minus tip centre). T0: straight 150 mm; TY1/TY2: star
+#: arm of 100/150 mm pointing +Y (tip at +Y of the spindle axis, so the spindle
+#: stays on the -Y side of a bar whose holes face -Y); TYL: TY1 on a 250 mm
+#: extension (J_Z 250 mm); TX1/TX2 likewise along +X.
+STYLI = {"T0": (0.0, 0.0, 0.150), "TYL": (0.0, -0.100, 0.250),
+         "TY1": (0.0, -0.100, 0.150), "TY2": (0.0, -0.150, 0.150),
+         "TX1": (-0.100, 0.0, 0.150), "TX2": (-0.150, 0.0, 0.150)}
+
 
 def plan_3axis() -> MfbPlan:
-    """The 3-axis plan for ``vmc-3axis`` (module doc)."""
+    """The 3-axis plan for ``vmc-3axis``: 11 placements, 14 measurements (module doc)."""
     L = 0.050
     ms = []
-    J0 = (0.0, 0.0, 0.150)
 
-    def add(name, cols, p, holes=tuple(range(1, 13)), Js=(J0,), senses=""):
-        T = _T(cols, p)
-        for k, J in enumerate(Js):
-            ms.append(MeasurementSpec(name if len(Js) == 1 else f"{name}{'ab'[k]}", name, T, (), J, tuple(holes), senses))
+    def add(name, x_A, z_A, p, holes, styli=("T0",), senses=""):
+        x_A, z_A = np.asarray(x_A, float), np.asarray(z_A, float)
+        T = _T((x_A, np.cross(z_A, x_A), z_A), p)
+        for k, st in enumerate(styli):
+            ms.append(MeasurementSpec(name if len(styli) == 1 else f"{name}{'abc'[k]}", name, T, (),
+                                      STYLI[st], tuple(holes), senses, st))
 
-    h8 = tuple(range(1, 9))
-    add("X1", (_X, _Y, _Z), (-0.275, -0.040, 0.060), senses="EXX EYX EZX at y=-40 z=60")
-    add("X2", (_X, _Y, _Z), (-0.275, -0.040, 0.260), senses="X at z=260: EBX, EAX by differential positioning/straightness")
-    add("X3", (_X, _Y, _Z), (-0.275, 0.110, 0.060), senses="X at y=110: ECX, EAX by differential positioning/straightness")
-    add("Y1", (_Y, -_X, _Z), (-0.025, -0.190, 0.060), h8, senses="EYY EXY EZY at x=-25 z=60")
-    add("Y2", (_Y, -_X, _Z), (-0.025, -0.190, 0.260), h8, senses="Y at z=260: EAY, EBY")
-    add("Y3", (_Y, -_X, _Z), (0.125, -0.190, 0.060), h8, senses="Y at x=125: ECY, EBY")
-    add("V1", (_Z, -_Y, _X), (-0.025, -0.040, 0.060), tuple(range(1, 8)),
-        Js=((0.05, 0.0, 0.150), (0.10, 0.0, 0.150)), senses="EZZ EXZ EYZ; EBZ ECZ from two J_X")
-    add("V2", (_Z, _X, _Y), (-0.025, -0.040, 0.060), tuple(range(1, 8)),
-        Js=((0.0, 0.05, 0.150), (0.0, 0.10, 0.150)), senses="EZZ EXZ EYZ; EAZ ECZ from two J_Y")
-    add("DXY", ((_X + _Y) * _S2, (_Y - _X) * _S2, _Z), (-0.125, -0.140, 0.060), h8, senses="EC0Y (crossed)")
-    add("DXZ", ((_X + _Z) * _S2, (_X - _Z) * _S2, _Y), (-0.125, -0.040, 0.060), h8,
-        Js=((0.0, 0.05, 0.150),), senses="EB0Z (crossed)")
-    add("DYZ", ((_Y + _Z) * _S2, (_Z - _Y) * _S2, _X), (-0.025, -0.140, 0.060), h8,
-        Js=((0.05, 0.0, 0.150),), senses="EA0Z (crossed)")
+    h12, h8, h7 = tuple(range(1, 13)), tuple(range(1, 9)), tuple(range(1, 8))
+    add("X1", _X, _Z, (-0.275, -0.040, 0.060), h12, senses="EXX, EYX, EZX (tables along X at y=-40, z=60 mm)")
+    add("X2", _X, _Z, (-0.275, -0.040, 0.260), h12,
+        senses="with X1 (arm dz = 200 mm): EBX by differential positioning, EAX by differential horizontal straightness")
+    add("X3", _X, _Z, (-0.275, 0.110, 0.060), h12,
+        senses="with X1 (arm dy = 150 mm): ECX by differential positioning, EAX by differential vertical straightness")
+    add("Y1", _Y, _Z, (-0.025, -0.190, 0.060), h8, senses="EYY, EXY, EZY (tables along Y at x=-25, z=60 mm)")
+    add("Y2", _Y, _Z, (-0.025, -0.190, 0.260), h8,
+        senses="with Y1 (arm dz = 200 mm): EAY by differential positioning, EBY by differential horizontal straightness")
+    add("Y3", _Y, _Z, (0.125, -0.190, 0.060), h8,
+        senses="with Y1 (arm dx = 150 mm): ECY by differential positioning, EBY by differential vertical straightness")
+    add("VY", _Z, -_Y, (-0.025, -0.040, 0.060), h7, ("TY1", "TY2", "TYL"),
+        senses="standing bar, holes facing -Y, probed with a star stylus arm along +Y: EZZ, EXZ, EYZ; "
+               "arm 100 vs 150 mm (dJ_Y = 50 mm): ECZ (x) and EAZ (z); stylus 150 vs 250 mm (dJ_Z): EBZ (x), EAZ (y)")
+    add("VX", _Z, -_X, (-0.025, -0.040, 0.060), h7, ("TX1", "TX2"),
+        senses="standing bar, holes facing -X, star stylus arm along +X: arm 100 vs 150 mm: ECZ (y), EBZ (z); "
+               "EXZ / EYZ again with the other Abbe arm")
+    add("DXY", (_X + _Y) * _S2, _Z, (-0.125, -0.140, 0.060), h8, senses="EC0Y (face diagonal in XY)")
+    add("DXZ", (_X + _Z) * _S2, -_Y, (-0.125, -0.040, 0.060), h8, ("TY1",),
+        senses="EB0Z (face diagonal in XZ, tilted 45 deg, holes facing -Y, star stylus arm along +Y)")
+    add("DYZ", (_Y + _Z) * _S2, -_X, (-0.025, -0.140, 0.060), h8, ("TX1",),
+        senses="EA0Z (face diagonal in YZ, tilted 45 deg, holes facing -X, star stylus arm along +X)")
     nodes = {"X": -0.275 + L * np.arange(12), "Y": -0.190 + L * np.arange(8), "Z": 0.060 + L * np.arange(7)}
     return MfbPlan("vmc-3axis", tuple(ms), nodes)
 

@@ -13,7 +13,7 @@ def test_cli_json_keys(tmp_path):
     d = json.loads(out.read_text())
     for k in ("placements", "measurements", "touches", "errors", "max_dev_um", "max_dev_urad"):
         assert k in d
-    assert d["placements"] == 11 and d["measurements"] == 13 and d["touches"] > 3000
+    assert d["placements"] == 11 and d["measurements"] == 14 and d["touches"] > 3000
     assert len(d["errors"]) == 21
     for e in d["errors"].values():
         assert {"injected", "identified", "u95"} <= set(e)
