@@ -326,12 +326,27 @@ def _geometry(t: Touches):
     return x, y, (x - xc) / L, (y - yc) / L, tt, T, L
 
 
+def _temperature(t: Touches):
+    """Mean of the log's temperature columns, centred (K), or None."""
+    cols = [v for v in t.temps_C.values() if np.all(np.isfinite(v)) and np.ptp(v) > 0]
+    if not cols:
+        return None
+    T = np.mean(cols, axis=0)
+    return T - T.mean()
+
+
 def ext_drift(t: Touches) -> Extension:
-    """Thermal drift: X/Y offsets and scales changing linearly with time."""
+    """Thermal drift: X/Y offsets and scales changing linearly with time, or
+    with the logged temperature when the log carries ``temp_*_C`` columns."""
     nx, ny = t.n_R[:, 0], t.n_R[:, 1]
     x, y, xs, ys, tt, T, L = _geometry(t)
-    C = np.column_stack([-nx * tt, -ny * tt, -nx * x * tt, -ny * y * tt])
-    return Extension("thermal_drift", C, ("x_offset", "y_offset", "x_scale", "y_scale"), tries=4,
+    cols = [-nx * tt, -ny * tt, -nx * x * tt, -ny * y * tt]
+    labels = ["x_offset", "y_offset", "x_scale", "y_scale"]
+    dT = _temperature(t)
+    if dT is not None:
+        cols += [-nx * dT, -ny * dT, -nx * x * dT, -ny * y * dT]
+        labels += ["x_offset_per_K", "y_offset_per_K", "x_scale_per_K", "y_scale_per_K"]
+    return Extension("thermal_drift", np.column_stack(cols), tuple(labels), tries=len(cols),
                      info={"T_s": T, "pick_one": True})
 
 
@@ -449,8 +464,9 @@ def structure_tests(t: Touches, r: np.ndarray, dof: int, bins: int = 8) -> dict:
     """p-values of residual structure against each variable the log carries.
 
     Binned one-way ANOVA of the residuals against time (within set-ups),
-    X, Y, approach azimuth and set-up x feature; each p-value is the
-    probability of that much between-bin variance from structureless noise.
+    X, Y, approach azimuth, temperature (when logged) and feature; each
+    p-value is the probability of that much between-bin variance from
+    structureless noise.
     """
     out = {}
     phi = np.arctan2(t.d_R[:, 1], t.d_R[:, 0])
@@ -459,7 +475,16 @@ def structure_tests(t: Touches, r: np.ndarray, dof: int, bins: int = 8) -> dict:
         m = t.setup == j
         tt[m] = (t.t_s[m] - t.t_s[m].min()) / max(np.ptp(t.t_s[m]), 1e-9)
     variables = {"time_in_setup": tt, "x": t.pn_R[:, 0], "y": t.pn_R[:, 1], "approach_azimuth": phi}
+    dT = _temperature(t)
+    if dT is not None:
+        variables["temperature"] = dT
     s2 = float(r @ r) / max(dof, 1)
+    feats = sorted(set(t.feature.tolist()))
+    if len(feats) > 1:  # categorical: one group per feature
+        groups = [r[t.feature == f] for f in feats if np.sum(t.feature == f) > 1]
+        if len(groups) > 1:
+            F = (sum(len(g) * g.mean() ** 2 for g in groups) / len(groups)) / max(s2, 1e-300)
+            out["feature"] = float(stats.f.sf(F, len(groups), max(dof, 1)))
     for name, v in variables.items():
         if np.ptp(v) <= 0:
             continue
@@ -545,7 +570,11 @@ def _params(ext: Extension, coef: np.ndarray, std: np.ndarray, t: Touches) -> di
     if ext.cause == "thermal_drift":
         T_h = ext.info["T_s"] / 3600
         for lab, c, s in zip(ext.labels, coef, std):
-            if lab.endswith("offset"):
+            if lab.endswith("_per_K"):
+                unit = "um_per_K" if "offset" in lab else "ppm_per_K"
+                p[f"{lab[:-6]}_{unit}"] = c * 1e6
+                p[f"{lab[:-6]}_u_{unit}"] = s * 1e6
+            elif lab.endswith("offset"):
                 p[f"{lab}_drift_um_per_h"] = c * UM / T_h
                 p[f"{lab}_drift_u_um_per_h"] = s * UM / T_h
             else:

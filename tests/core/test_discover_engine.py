@@ -96,3 +96,18 @@ def test_out_of_plane_touches_are_left_out_and_said(plan):
     rep = discover(t).to_report()
     assert rep["baseline"]["n"] == plan.n - 6
     assert any("6 touches with normals out of the XY plane" in c for c in rep["conventions"])
+
+
+def test_drift_follows_a_logged_temperature(plan):
+    """With temp_*_C columns, drift may follow the temperature rather than time:
+    a scale error growing with a temperature that rises and falls is found."""
+    rng = np.random.default_rng(21)
+    n = plan.n
+    temp = 20 + 1.5 * np.sin(np.linspace(0, 3 * np.pi, n))  # rises and falls: not linear in time
+    x = plan.pn_R[:, 0]
+    dq = -plan.n_R[:, 0] * x * 11.5e-6 * (temp - temp.mean()) + rng.normal(0, SIG, n)
+    t = dataclasses.replace(_with(plan, dq), temps_C={"temp_spindle_C": temp})
+    rep = discover(t).to_report()
+    assert rep["cause"] == "thermal_drift"
+    p = rep["findings"][0]["params"]
+    assert "x_scale_ppm_per_K" in p and abs(p["x_scale_ppm_per_K"] - 11.5) < 1.5
