@@ -526,12 +526,14 @@ def findings_figure(report: Mapping, title: str = "Discovery: residual RMS by mo
     base = report.get("baseline") or {}
     if base.get("rms_um") is None:
         raise ConfigError("report: needs baseline.rms_um")
-    labels = [f"baseline ({base.get('model', '?')})"]
+    import textwrap
+
+    labels = ["baseline"]
     rms = [float(base["rms_um"])]
     for f in report.get("findings") or []:
         labels.append(str(f.get("cause", "?")))
         rms.append(float(f.get("rms_um", np.nan)))
-    fig = _figure(7.0, 1.4 + 0.35 * len(labels))
+    fig = _figure(7.0, 2.2 + 0.35 * len(labels))
     ax = fig.add_subplot()
     colors = [_C_NOMINAL] + [_C_TRUE if lab == report.get("cause") else _C_MEAS
                              for lab in labels[1:]]
@@ -541,8 +543,9 @@ def findings_figure(report: Mapping, title: str = "Discovery: residual RMS by mo
     ax.invert_yaxis()
     cv_b, ext = report.get("baseline_cv_rms_um"), report.get("extended") or {}
     if cv_b is not None and ext.get("cv_rms_um") is not None:
-        ax.set_title(f"{title}\ncross-validated RMS: baseline {cv_b:.3g} µm -> "
-                     f"{ext.get('model', 'extended')} {ext['cv_rms_um']:.3g} µm")
+        models = textwrap.fill(f"baseline: {base.get('model', '?')}; extended: {ext.get('model', '?')}", 100)
+        ax.set_title(f"{title}\ncross-validated RMS: baseline {cv_b:.3g} µm -> extended {ext['cv_rms_um']:.3g} µm"
+                     f"\n{models}", fontsize="small")
     else:
         ax.set_title(title)
     ax.set_xlabel("residual RMS of dq / µm")
