@@ -118,7 +118,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     say.head("5. report and recording")
     from scenarios.reports import demo_report
 
-    folder = demo_report(outp / "report", t, res, ident, d, rep, art, machine=machine,
+    folder = demo_report(outp / "report", t, res, ident, d, rep, art, machine=machine, g_true=G_true,
                          title="vmt demo: cross-pocket self-calibration")
     say(f"{folder / 'index.html'}  (open in a browser)")
     say(f"{folder / 'recording.rrd'}  (vmt view {folder / 'recording.rrd'})")

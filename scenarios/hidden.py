@@ -248,6 +248,26 @@ def workpiece_truth(art, plan) -> dict:
     return out
 
 
+def remove_gauge(g, P, N) -> np.ndarray:
+    """``g`` (per target) less what a shift, rotation and scale of the part and a
+    common offset would give: the workpiece form that self-calibration sees.
+
+    Parameters
+    ----------
+    g : (n,) float
+    P : (n, 2) float
+        Nominal contact points in W, m.
+    N : (n, 2) float
+        Outward normals in W.
+    """
+    P, N = np.asarray(P, float), np.asarray(N, float)
+    B = np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
+                         np.einsum("ij,ij->i", N, P), np.ones(len(P))])
+    Q, _ = np.linalg.qr(B)
+    g = np.asarray(g, float)
+    return g - Q @ (Q.T @ g)
+
+
 def gauge_free_rms_m(g_m, ids, g_true: dict, w_W: dict, wn_W: dict) -> float:
     """RMS of (estimate - truth) per target after removing what self-calibration cannot see.
 
@@ -257,11 +277,7 @@ def gauge_free_rms_m(g_m, ids, g_true: dict, w_W: dict, wn_W: dict) -> float:
     """
     P = np.array([w_W[k] for k in ids])
     N = np.array([wn_W[k] for k in ids])
-    B = np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
-                         np.einsum("ij,ij->i", N, P), np.ones(len(ids))])
-    Q, _ = np.linalg.qr(B)
-    e = np.asarray(g_m, float) - np.array([g_true[k] for k in ids])
-    e = e - Q @ (Q.T @ e)
+    e = remove_gauge(np.asarray(g_m, float) - np.array([g_true[k] for k in ids]), P, N)
     return float(np.sqrt(np.mean(e ** 2)))
 
 

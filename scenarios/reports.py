@@ -119,7 +119,8 @@ def true_error_map(machine, x_mm, y_mm, z_m: float, ex_um, ey_um):
     return Ea[:, 0].reshape(X.shape), Ea[:, 1].reshape(X.shape)
 
 
-def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, machine=None) -> Path:
+def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, machine=None,
+                g_true: dict | None = None) -> Path:
     """The demo's report: campaign, identification, discovery; PNGs and a recording.
 
     ``machine`` (the simulator's, when known) adds the true error map and
@@ -179,9 +180,9 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
     secs = [
         Section("Campaign", text=f"{t.n} touches, {len(des.target_ids)} targets at C = "
                 f"{', '.join(f'{c:g}' for c in c_deg)} deg. Residual RMS of the self-calibration "
-                f"{res.rms_m * 1e6:.3f} µm.",
-                figures={"profile": figures.profile_figure(
-                    w_mm, wn, {"identified G_normal": g_um}, title="Identified workpiece")}),
+                f"{res.rms_m * 1e6:.3f} µm. The profile shows the pocket's form: the part's shift, rotation "
+                "and scale in W (which no self-calibration sees, eqs 16-17) are removed from each curve.",
+                figures={"profile": _profile_figure(figures, des, w_mm, wn, g_um, t, g_true)}),
         Section("Machine error map (eqs 4-5, ×1000)",
                 figures={"error_map": figures.error_grid_figure(x_mm, y_mm, ex_um, ey_um, true_ex_um=tex,
                                                                 true_ey_um=tey),
@@ -200,6 +201,30 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
         return write_report(folder, title, secs, recording=rrd)
     finally:
         shutil.rmtree(rrd.parent, ignore_errors=True)
+
+
+def _profile_figure(figures, des, w_mm, wn, g_um, t, g_true):
+    """The pocket's identified form beside the raw C = 0 probing and the truth (Fig. 9)."""
+    from scenarios.hidden import remove_gauge
+
+    feat = {}
+    for k in range(t.n):
+        feat.setdefault(int(t.target[k]), str(t.feature[k]))
+    pocket = np.array([feat.get(i) == "pocket" for i in range(len(des.target_ids))])
+    if pocket.sum() < 6:
+        pocket = np.ones(len(des.target_ids), bool)
+    P, N = w_mm[pocket] * 1e-3, wn[pocket]
+    prof = {"identified G_normal": remove_gauge(g_um[pocket], P, N)}
+    sel = t.setup == 0
+    raw = {des.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel] * 1e6)}
+    ids = [tid for tid, p in zip(des.target_ids, pocket) if p]
+    if all(k in raw for k in ids):
+        prof[f"raw, {des.setup_ids[0]}"] = remove_gauge(np.array([raw[k] for k in ids]), P, N)
+    ref = None
+    if g_true is not None and all(k in g_true for k in ids):
+        ref = remove_gauge(np.array([g_true[k] for k in ids]) * 1e6, P, N)
+    return figures.profile_figure(w_mm[pocket], N, prof, reference_um=ref, reference_label="true form",
+                                  title="Cross pocket form")
 
 
 def _log_machine_bodies(rec, record, t) -> None:
