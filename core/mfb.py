@@ -347,10 +347,12 @@ def check_orientation(orientation: str, found: dict, declared: str, geom: BarGeo
 def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float = 1e-7) -> np.ndarray:
     """d O_R / d e: change of the points of interest per touch displacement along d, (3k, n).
 
-    Finite differences (step ``h_m`` along each touch's approach direction
-    ``d_R``), refitting only the feature the touch belongs to. Linear to
-    ~h/R (1e-5 relative) around the solution; used for the linear
-    propagation and the Monte Carlo (JCGM 101) of the probing noise.
+    Central differences (step ``h_m`` along each touch's approach direction
+    ``d_R``), refitting only the feature the touch belongs to: exact to
+    ~(h/R)^2 and the fits' convergence (1e-9 relative), so that a rigid
+    motion of all touches moves the points rigidly (``G`` keeps the exact
+    gauge freedoms of :mod:`core.volumetric`). Used for the touch model of
+    the identification and for the propagation of the probing noise.
     """
     p_R = np.asarray(p_R, float)
     d_R = np.asarray(d_R, float)
@@ -361,9 +363,9 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
     groups = _group(feature)
     G = np.zeros((base.size, len(p_R)))
     for f, idx in groups.items():
-        for k in idx:
+        for k, sgn in ((k, sgn) for k in idx for sgn in (1.0, -1.0)):
             q = p_R[idx].copy()
-            q[list(idx).index(k)] += h_m * d_R[k]
+            q[list(idx).index(k)] += sgn * h_m * d_R[k]
             hp, ha, rp, ra = dict(bf.hole_point), dict(bf.hole_axis), dict(bf.rod_point), dict(bf.rod_axis)
             fp, fn = dict(bf.face_point), dict(bf.face_normal)
             if (i := _num(f, "hole")) is not None:
@@ -379,7 +381,7 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
             else:
                 continue
             bf2 = BarFeatures(hp, ha, rp, ra, fp, fn, bf.probe_side)
-            G[:, k] = (poi_from_features(bf2, geom).O_R.ravel() - base) / h_m
+            G[:, k] += sgn * (poi_from_features(bf2, geom).O_R.ravel() - base) / (2.0 * h_m)
     return G
 
 

@@ -121,6 +121,15 @@ class Measurement:
     G_A : (3k, t) float or None
         Noise gain of the extraction in the bar frame: d O_A / d e per touch
         displacement e along its approach (:func:`core.mfb.poi_noise_gain`).
+    q_R : (t, 3) float or None
+        Readings of the touches the points of interest were fitted from (the
+        columns of ``G_A``, same order), m. With ``q_R``, ``c_A`` and
+        ``d_A`` the machine errors enter through the touches (model (3) of
+        the module doc); without them, at ``O_R`` (model (2)).
+    c_A : (t, 3) float or None
+        Nominal stylus-centre contact points of those touches in A, m.
+    d_A : (t, 3) float or None
+        Their approach directions (unit, into the surface) in A.
     """
 
     name: str
@@ -132,6 +141,9 @@ class Measurement:
     rot_rad: tuple = ()
     J_m: tuple = (0.0, 0.0, 0.0)
     G_A: np.ndarray | None = field(default=None, compare=False)
+    q_R: np.ndarray | None = field(default=None, compare=False)
+    c_A: np.ndarray | None = field(default=None, compare=False)
+    d_A: np.ndarray | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -254,6 +266,22 @@ def _values(theta, slices, nodes, q):
     return out
 
 
+def _error_jacobian(S, q, nodes, slices, n):
+    """(p, 3, n) d tip / d theta from the per-symbol sensitivity S (p, 3, 21) at readings q (p, 3)."""
+    J = np.zeros((len(q), 3, n))
+    for s in MOTION:
+        a = iso.symbol(s).axis
+        W = spline_weights(nodes[a], q[:, iso.LINEAR_AXES.index(a)])
+        J[:, :, slices[s]] += S[:, :, MOTION.index(s)][:, :, None] * W[:, None, :]
+    for s in SQUARENESS:
+        J[:, :, slices[s].start] += S[:, :, 18 + SQUARENESS.index(s)]
+    return J
+
+
+def _has_touches(m) -> bool:
+    return m.q_R is not None and m.c_A is not None and m.d_A is not None and m.G_A is not None
+
+
 def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact):
     """Jacobian and residual of (1) at theta: target - prediction."""
     Jrows, res, rows = [], [], []
@@ -263,21 +291,32 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact):
         k = len(q)
         nr = len(g.chain.rotary_axes)
         rot = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (k, 1)) if nr else None
-        vals = _values(theta, slices, nodes, q) if exact else None
-        S = sensitivity(g, q, rot, vals, symbols=MOTION + SQUARENESS)  # (k, 3, 21)
-        pred = tip_W(g, q, rot, vals)
         T = np.asarray(m.T_W_A, float)
+        if _has_touches(m):
+            # model (3): the errors act at the touches; the extraction's gain
+            # carries each touch's normal shift into the points of interest
+            qt = np.asarray(m.q_R, float)
+            t = len(qt)
+            rott = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (t, 1)) if nr else None
+            vals_t = _values(theta, slices, nodes, qt) if exact else None
+            d_W = np.asarray(m.d_A, float) @ T[:3, :3].T
+            GW = np.einsum("ij,kjt->kit", T[:3, :3], np.asarray(m.G_A, float).reshape(k, 3, t))  # (k, 3, t)
+            St = sensitivity(g, qt, rott, vals_t, symbols=MOTION + SQUARENESS)
+            Jt = np.einsum("tj,tjn->tn", d_W, _error_jacobian(St, qt, nodes, slices, n))
+            J = np.einsum("kit,tn->kin", GW, Jt)
+            pred = tip_W(g, q, rot, None)
+            if exact:
+                e = np.einsum("tj,tj->t", d_W, tip_W(g, qt, rott, vals_t) - tip_W(g, qt, rott, None))
+                pred = pred + GW @ e
+        else:
+            vals = _values(theta, slices, nodes, q) if exact else None
+            S = sensitivity(g, q, rot, vals, symbols=MOTION + SQUARENESS)  # (k, 3, 21)
+            pred = tip_W(g, q, rot, vals)
+            J = _error_jacobian(S, q, nodes, slices, n)
         P = np.asarray(m.O_A, float) @ T[:3, :3].T + T[:3, 3]
         xi = theta[slices[m.placement]] if exact else np.zeros(5)
         Rw = exp_so3(T[:3, 1:3] @ xi[3:])
         tgt = P @ Rw.T + xi[:3]
-        J = np.zeros((k, 3, n))
-        for s in MOTION:
-            a = iso.symbol(s).axis
-            W = spline_weights(nodes[a], q[:, iso.LINEAR_AXES.index(a)])
-            J[:, :, slices[s]] += S[:, :, MOTION.index(s)][:, :, None] * W[:, None, :]
-        for s in SQUARENESS:
-            J[:, :, slices[s].start] += S[:, :, 18 + SQUARENESS.index(s)]
         sl = slices[m.placement]
         J[:, :, sl.start:sl.start + 3] = -np.eye(3)
         J[:, :, sl.start + 3:sl.stop] = skew(P @ Rw.T) @ T[:3, 1:3]
@@ -360,15 +399,16 @@ def _gauge(N_s, slices, fixed=None):
     return (np.array(rows) if rows else np.zeros((0, n))), tuple(words), N
 
 
-def _nominal_readings(m, chain, rotary_points_R_m) -> np.ndarray:
+def _nominal_readings(m, chain, rotary_points_R_m, points_A=None) -> np.ndarray:
     """(k, 3) readings a perfect machine gives at the nominal points of interest of ``m``.
 
     The nominal O_A: the calibrated ones rounded to 0.1 mm (the deviations
-    are tens of um, the mistake-proofing shifts 1.5 mm). Nominal tip_W is
-    affine in the linear readings for fixed rotary positions; it is inverted.
+    are tens of um, the mistake-proofing shifts 1.5 mm); or ``points_A``
+    (e.g. the nominal touches ``c_A``). Nominal tip_W is affine in the
+    linear readings for fixed rotary positions; it is inverted.
     """
     g = _geom(chain, m.J_m, rotary_points_R_m)
-    O_A = np.round(np.asarray(m.O_A, float), 4)
+    O_A = np.round(np.asarray(m.O_A, float), 4) if points_A is None else np.asarray(points_A, float)
     T = np.asarray(m.T_W_A, float)
     P = O_A @ T[:3, :3].T + T[:3, 3]
     nr = len(g.chain.rotary_axes)
@@ -393,7 +433,8 @@ def design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) ->
     # freedoms (a constant table rotation) into 1e-6 "observations".
     from dataclasses import replace as _rep
 
-    meas_r = [_rep(m, O_R=_nominal_readings(m, chain, rotary_points_R_m), O_A=np.round(np.asarray(m.O_A, float), 4))
+    meas_r = [_rep(m, O_R=_nominal_readings(m, chain, rotary_points_R_m), O_A=np.round(np.asarray(m.O_A, float), 4),
+                   q_R=_nominal_readings(m, chain, rotary_points_R_m, m.c_A) if _has_touches(m) else None)
               for m in meas]
     A_r, _, _ = _rows(meas_r, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False)
     N_s, D, _ = _null(A_r)

@@ -141,7 +141,13 @@ def plan_3axis() -> MfbPlan:
         senses="EB0Z (face diagonal in XZ, tilted 45 deg, holes facing -Y, star stylus arm along +Y)")
     add("DYZ", (_Y + _Z) * _S2, -_X, (-0.025, -0.140, 0.060), h8, ("TX1",),
         senses="EA0Z (face diagonal in YZ, tilted 45 deg, holes facing -X, star stylus arm along +X)")
-    nodes = {"X": -0.275 + L * np.arange(12), "Y": -0.190 + L * np.arange(8), "Z": 0.060 + L * np.arange(7)}
+    # table nodes spanning every touch of the plan (stylus centres), so that no
+    # error is extrapolated: a bar probed over holes 1..k also touches rod k and
+    # its faces 25 mm beyond hole k, and the plane PL_k through them samples
+    # the errors there (X: holes 1..12 -> 5 mm beyond the end holes; Y: rod 8
+    # at y = 185 mm; Z: rod 7 of the standing bars at z = 385 mm)
+    nodes = {"X": np.linspace(-0.281, 0.281, 12), "Y": np.linspace(-0.196, 0.194, 8),
+             "Z": np.linspace(0.048, 0.394, 7)}
     return MfbPlan("vmc-3axis", tuple(ms), nodes)
 
 
@@ -311,13 +317,17 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         t = from_log(log)
         n_touch += t.n
         poi = mfb.points_of_interest(t.p_R, t.feature, t.n_R)
-        key = tuple(pl.feature)
+        # the touches that were fitted (valid ones, plan order) and the gain of the
+        # extraction at their nominal places (A frame, stylus centres)
+        pl_ok = pl.select(np.asarray(log.ok, bool))
+        key = tuple(pl_ok.target)
         if key not in G_cache:
             r = probe.stylus_r_m
-            G_cache[key] = mfb.poi_noise_gain(pl.w_A + r * pl.wn_A, pl.feature, pl.wn_A, -pl.wn_A)
+            G_cache[key] = mfb.poi_noise_gain(pl_ok.w_A + r * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A)
         idx = [h - 1 for h in poi.holes]
         meas.append(vol.Measurement(ms.name, ms.placement, poi.holes, poi.O_R, O_A_cal[idx], ms.T_W_A,
-                                    tuple(ms.rot_rad), J, G_cache[key]))
+                                    tuple(ms.rot_rad), J, G_cache[key], q_R=t.p_R,
+                                    c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A))
     chain = cfg.chain
     rp = dict(cfg.rotary_points_R_m)
     res = vol.identify(meas, chain, plan.nodes, rp, exact=exact)
