@@ -101,10 +101,12 @@ _S2 = np.sqrt(0.5)
 #: minus tip centre). T0: straight 150 mm; TY1/TY2: star
 #: arm of 100/150 mm pointing +Y (tip at +Y of the spindle axis, so the spindle
 #: stays on the -Y side of a bar whose holes face -Y); TYL: TY1 on a 250 mm
-#: extension (J_Z 250 mm); TX1/TX2 likewise along +X.
+#: extension (J_Z 250 mm); TX1/TX2 likewise along +X; TXF: the TX1 arm with a
+#: 40 mm finger down (J_Z 190 mm), so the arm passes 35 mm above a flat bar.
 STYLI = {"T0": (0.0, 0.0, 0.150), "TYL": (0.0, -0.100, 0.250),
          "TY1": (0.0, -0.100, 0.150), "TY2": (0.0, -0.150, 0.150),
-         "TX1": (-0.100, 0.0, 0.150), "TX2": (-0.150, 0.0, 0.150)}
+         "TX1": (-0.100, 0.0, 0.150), "TX2": (-0.150, 0.0, 0.150),
+         "TXF": (-0.100, 0.0, 0.190)}
 
 
 def plan_3axis() -> MfbPlan:
@@ -128,8 +130,10 @@ def plan_3axis() -> MfbPlan:
     add("Y1", _Y, _Z, (-0.025, -0.190, 0.060), h8, senses="EYY, EXY, EZY (tables along Y at x=-25, z=60 mm)")
     add("Y2", _Y, _Z, (-0.025, -0.190, 0.260), h8,
         senses="with Y1 (arm dz = 200 mm): EAY by differential positioning, EBY by differential horizontal straightness")
-    add("Y3", _Y, _Z, (0.125, -0.190, 0.060), h8,
-        senses="with Y1 (arm dx = 150 mm): ECY by differential positioning, EBY by differential vertical straightness")
+    add("Y3", _Y, _Z, (0.125, -0.190, 0.060), h8, ("TXF",),
+        senses="with Y1, Abbe arm dJ_X = 100 mm: ECY by differential positioning, EBY by differential "
+               "vertical straightness (the table does not move in X under the tool when Y moves, so a bar "
+               "shifted in x gives no arm: the arm must come from the stylus)")
     add("VY", _Z, -_Y, (-0.025, -0.040, 0.060), h7, ("TY1", "TY2", "TYL"),
         senses="standing bar, holes facing -Y, probed with a star stylus arm along +Y: EZZ, EXZ, EYZ; "
                "arm 100 vs 150 mm (dJ_Y = 50 mm): ECZ (x) and EAZ (z); stylus 150 vs 250 mm (dJ_Z): EBZ (x), EAZ (y)")
@@ -146,7 +150,7 @@ def plan_3axis() -> MfbPlan:
     # its faces 25 mm beyond hole k, and the plane PL_k through them samples
     # the errors there (X: holes 1..12 -> 5 mm beyond the end holes; Y: rod 8
     # at y = 185 mm; Z: rod 7 of the standing bars at z = 385 mm)
-    nodes = {"X": np.linspace(-0.281, 0.281, 12), "Y": np.linspace(-0.196, 0.194, 8),
+    nodes = {"X": np.linspace(-0.281, 0.281, 12), "Y": np.linspace(-0.196, 0.194, 9),
              "Z": np.linspace(0.048, 0.394, 7)}
     return MfbPlan("vmc-3axis", tuple(ms), nodes)
 
@@ -256,7 +260,7 @@ class ScenarioResult:
 
 
 def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None, mc_runs: int = 500,
-        exact: bool = True, ripple: bool = False, drop: str | None = None,
+        exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
         u_cal_um: tuple = (0.2, 0.35, 0.35), bar_cal_error: bool = True) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
@@ -273,9 +277,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         ``u_cal_um`` (what the uncertainty must cover).
     drop : str, optional
         A placement to remove (to see the observability report refuse).
+    on_nodes : bool
+        Inject instead the C2 splines through the realistic errors' values at
+        the plan's nodes (errors the tables represent exactly: what is left
+        is the model's own truncation, not the interpolation's).
     """
     from core import iso, mfb, volumetric as vol
     from core.exceptions import ConfigError
+    from dataclasses import replace
+
     from core.touches import from_log
     from sim import artefacts as A
     from sim.campaign import Setup, simulate_campaign
@@ -301,7 +311,12 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     art_nom = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
     O_A_cal = art.info["poi_nominal_m"] + np.column_stack([E_cal[:, :2], A.multi_feature_bar(deviations_m=E_cal).info["E_MFB_m"][:, 2]])
     cfg, errs = default_machine(plan.machine, ripple)
-    from dataclasses import replace
+    if on_nodes:
+        from sim.errorfuncs import SplineTable
+
+        errs = {k: (SplineTable(tuple(plan.nodes[iso.symbol(k).axis]), tuple(np.asarray(
+            f(plan.nodes[iso.symbol(k).axis]), float))) if k in vol.MOTION else f) for k, f in errs.items()}
+        cfg = replace(cfg, errors=errs)
 
     machines = {}
     meas, G_cache, n_touch = [], {}, 0

