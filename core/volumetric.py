@@ -643,6 +643,53 @@ def to_gauge(design_: Design, theta_true: np.ndarray) -> np.ndarray:
     return theta_true + N @ alpha
 
 
+# --------------------------------------------------------------------------- ISO 230-1 report form
+def iso_map(design_: Design) -> np.ndarray:
+    """(n, n) linear map from the identification gauge to the ISO 230-1 report form.
+
+    Every straightness table is reported against its end-point reference
+    straight line (MFB paper section 6; ISO 230-1 3.4.8): the line through
+    its first and last node values is subtracted. The gauge already zeroes
+    both ends of ``EYX``, ``EZX``, ``EZY``; for ``EXY``, ``EXZ``, ``EYZ`` the
+    slope removed is what the squareness convention leaves in the table: it
+    is kept beside the table (:func:`end_point_slopes`), so the report still
+    describes the machine. Everything else is unchanged. Apply the same map
+    to the identified and to the injected values.
+    """
+    n = len(design_.names)
+    L = np.eye(n)
+    for s in MOTION:
+        sy = iso.symbol(s)
+        sl = design_.slices[s]
+        x = design_.nodes[sy.axis]
+        if sy.kind != iso.Kind.STRAIGHTNESS or len(x) < 2:
+            continue
+        u = (x - x[0]) / (x[-1] - x[0])
+        L[sl, sl.start] -= 1.0 - u
+        L[sl, sl.stop - 1] -= u
+    return L
+
+
+def end_point_slopes(design_: Design, theta: np.ndarray) -> dict:
+    """Straightness symbol -> slope of its end-point reference line (rad) in the identification gauge."""
+    out = {}
+    for s in MOTION:
+        sy = iso.symbol(s)
+        x = design_.nodes[sy.axis]
+        if sy.kind == iso.Kind.STRAIGHTNESS and len(x) >= 2:
+            v = theta[design_.slices[s]]
+            out[s] = float((v[-1] - v[0]) / (x[-1] - x[0]))
+    return out
+
+
+def iso_view(res: VolumetricResult) -> VolumetricResult:
+    """The result in the ISO 230-1 report form (:func:`iso_map` applied to theta and K)."""
+    from dataclasses import replace as _rep
+
+    L = iso_map(res.design)
+    return _rep(res, theta=L @ res.theta, K=L @ res.K)
+
+
 # --------------------------------------------------------------------------- uncertainty
 @dataclass(frozen=True)
 class Uncertainty:
@@ -738,8 +785,14 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
 
 
 # --------------------------------------------------------------------------- reports and tables
-def report(res: VolumetricResult, unc: Uncertainty | None = None, truth: np.ndarray | None = None) -> dict:
-    """JSON-ready dict: one entry per ISO symbol with node tables in um / urad."""
+def report(res: VolumetricResult, unc: Uncertainty | None = None, truth: np.ndarray | None = None,
+           slopes: dict | None = None) -> dict:
+    """JSON-ready dict: one entry per ISO symbol with node tables in um / urad.
+
+    ``res`` as reported (:func:`iso_view`: straightness against the end-point
+    line); ``slopes`` (:func:`end_point_slopes` of the identification) adds
+    the removed line's slope to each straightness entry.
+    """
     out = {}
     for s in MOTION + SQUARENESS:
         sy = iso.symbol(s)
@@ -755,6 +808,8 @@ def report(res: VolumetricResult, unc: Uncertainty | None = None, truth: np.ndar
             e["u95_lin"] = (unc.U95_lin[sl] * 1e6).tolist()
         if truth is not None:
             e["injected"] = (truth[sl] * 1e6).tolist()
+        if slopes is not None and s in slopes:
+            e["end_point_slope_urad"] = slopes[s] * 1e6
         out[s] = e
     return out
 

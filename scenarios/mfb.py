@@ -345,7 +345,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
                                     c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A))
     chain = cfg.chain
     rp = dict(cfg.rotary_points_R_m)
-    res = vol.identify(meas, chain, plan.nodes, rp, exact=exact)
+    res_g = vol.identify(meas, chain, plan.nodes, rp, exact=exact)
+    # reported in the ISO 230-1 form: straightness against the end-point
+    # reference line (identified and injected alike)
+    L_iso = vol.iso_map(res_g.design)
+    res = vol.iso_view(res_g)
     unc = vol.uncertainty(res, meas, probe.sigma_m, u_cal, runs=mc_runs, rng=rng) if mc_runs or noisy else None
     # truth in the same gauge
     d = res.design
@@ -363,12 +367,14 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         f = errs.get(s)
         if f is not None:
             truth[d.slices[s]] = float(np.asarray(f(np.zeros(1)))[0])
-    truth_g = vol.to_gauge(d, truth)
-    doc = _document(name, plan, res, unc, truth_g, n_touch, seed, k2)
+    truth_raw = vol.to_gauge(d, truth)
+    truth_g = L_iso @ truth_raw
+    slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
+    doc = _document(name, plan, res, unc, truth_g, n_touch, seed, k2, slopes)
     return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc)
 
 
-def _document(name, plan, res, unc, truth, n_touch, seed, k2) -> dict:
+def _document(name, plan, res, unc, truth, n_touch, seed, k2, slopes=None) -> dict:
     from core import iso, volumetric as vol
 
     errors = {}
@@ -381,6 +387,10 @@ def _document(name, plan, res, unc, truth, n_touch, seed, k2) -> dict:
         e = {"unit": sy.report_unit, "kind": sy.kind.value, "injected": inj.tolist(), "identified": ident.tolist()}
         if s in vol.MOTION:
             e["nodes_mm"] = (res.design.nodes[sy.axis] * 1e3).tolist()
+        if sy.kind == iso.Kind.STRAIGHTNESS:
+            e["reference"] = "end-point straight line"
+            if slopes is not None:
+                e["end_point_slope_urad"] = {"identified": slopes[0][s] * 1e6, "injected": slopes[1][s] * 1e6}
         if unc is not None:
             U = unc.U95_mc if unc.runs else unc.U95_lin
             e["u95"] = (U[sl] * 1e6).tolist()

@@ -73,3 +73,21 @@ def test_bad_input(meas3):
     bad["X"] = bad["X"][::-1]
     with pytest.raises(ConfigError, match="strictly increasing"):
         vol.identify(meas, chain, bad)
+
+
+def test_iso_map_end_point_line(meas3):
+    # known answer: a straightness table that is a line plus a bump is reported
+    # as the bump minus its own end-point line (zero at both ends); positioning
+    # and angular tables pass unchanged
+    meas, chain, nodes, rp = meas3
+    d = vol.design(meas, chain, nodes, rp)
+    L = vol.iso_map(d)
+    th = np.zeros(len(d.names))
+    x = d.nodes["Y"]
+    bump = 1e-6 * np.sin(np.pi * (x - x[0]) / (x[-1] - x[0]))
+    th[d.slices["EXY"]] = 3e-6 + 2e-5 * x + bump
+    th[d.slices["EYY"]] = 1e-5 * x
+    out = L @ th
+    assert np.allclose(out[d.slices["EXY"]], bump, atol=1e-18)
+    assert np.allclose(out[d.slices["EYY"]], th[d.slices["EYY"]])
+    assert vol.end_point_slopes(d, th)["EXY"] == pytest.approx(2e-5)
