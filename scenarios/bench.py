@@ -23,6 +23,7 @@ BENCHES: list[str] = [
     "scenarios.bench_machine",
     "scenarios.bench_selfcal",
     "scenarios.bench_touch",
+    "scenarios.bench_discover",
 ]
 
 
