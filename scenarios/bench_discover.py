@@ -16,5 +16,6 @@ def run() -> dict:
     for _ in range(3):
         d = discover(t)
     dt = (time.perf_counter() - t0) / 3
-    return {"discover_cross_pocket_s": round(dt, 3), "discover_touches": t.n,
-            "discover_named": d.cause}
+    if d.cause != "probe_lobing":  # a benchmark of a wrong answer is no figure
+        raise RuntimeError(f"discover named {d.cause!r} for a hidden probe_lobing")
+    return {"discover_cross_pocket_s": round(dt, 3), "discover_touches": t.n}
