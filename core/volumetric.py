@@ -718,8 +718,29 @@ class Uncertainty:
 
 
 def _input_maps(res: VolumetricResult, meas, n_holes):
-    """Matrices mapping probing noise (per touch) and bar calibration errors to y."""
+    """Matrices mapping probing noise (per touch), bar calibration errors and
+    placement errors (6 per placement: translation in A, rotation about x_A,
+    y_A, z_A, the roll included) to y."""
     blocks, B = [], np.zeros((res.K.shape[1], 3 * n_holes))
+    places = list(dict.fromkeys(m.placement for m in meas))
+    Bp = np.zeros((res.K.shape[1], 6 * len(places)))
+    r0 = 0
+    for m in meas:
+        T = np.asarray(m.T_W_A, float)
+        R = T[:3, :3]
+        k = len(m.holes)
+        P = np.asarray(m.O_A, float) @ R.T + T[:3, 3]
+        c = 6 * places.index(m.placement)
+        blk = np.zeros((k, 3, 6))
+        blk[:, :, :3] = R  # translation along x_A, y_A, z_A
+        for j in range(3):  # rotation about the bar's axes, about the origin of A
+            blk[:, :, 3 + j] = np.cross(R[:, j], P - T[:3, 3])
+        # the rows as the identification sees them: shifted holes without z_A
+        zA = R[:, 2]
+        off = np.abs(np.asarray(m.O_A, float)[:, 1]) > 1e-4
+        blk[off] = np.einsum("ij,kjn->kin", np.eye(3) - np.outer(zA, zA), blk[off])
+        Bp[r0:r0 + 3 * k, c:c + 6] = blk.reshape(3 * k, 6)
+        r0 += 3 * k
     r0 = 0
     for m in meas:
         T = np.asarray(m.T_W_A, float)
@@ -735,12 +756,12 @@ def _input_maps(res: VolumetricResult, meas, n_holes):
         for a, h in enumerate(m.holes):
             B[r0 + 3 * a:r0 + 3 * a + 3, 3 * (h - 1):3 * h] = R
         r0 += 3 * k
-    return blocks, B
+    return blocks, B, Bp
 
 
 def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, runs: int = 1000,
-                rng: np.random.Generator | None = None) -> Uncertainty:
-    """Linear propagation and Monte Carlo (JCGM 101) of probing noise and bar calibration.
+                rng: np.random.Generator | None = None, u_place=None) -> Uncertainty:
+    """Linear propagation and Monte Carlo (JCGM 101) of probing noise, bar calibration and placement.
 
     Parameters
     ----------
@@ -753,6 +774,19 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
     runs : int
         Monte Carlo trials (0: linear only).
     rng : np.random.Generator
+    u_place : (6,) float, optional
+        Standard uncertainty of each placement: translation along x_A, y_A,
+        z_A (m), rotation about x_A (roll), y_A, z_A (rad); independent per
+        placement. The estimator absorbs translation, pitch and yaw into
+        the placement's nuisance values (share ~0); the roll, not
+        estimated, moves the shifted holes along z_A (not used) and the
+        points by roll x their calibrated offsets from the bar axis (um):
+        a small share, propagated, not assumed.
+
+    Linear propagation: ``u^2 = sum (K G)^2 sigma^2 + (K B u_cal)^2 +
+    (K B_p u_place)^2`` (JCGM 100 eq. 13 for the linear estimator ``K``);
+    Monte Carlo: the same estimator over ``runs`` joint draws of the inputs
+    (JCGM 101, 95 % probabilistically symmetric interval).
     """
     meas = list(meas)
     u_cal = np.asarray(u_cal_m, float)
@@ -761,13 +795,18 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
     if not (np.isfinite(sigma_probe_m) and sigma_probe_m >= 0):
         raise ConfigError(f"sigma_probe_m must be >= 0, got {sigma_probe_m!r}")
     K = res.K
-    blocks, B = _input_maps(res, meas, u_cal.shape[0])
+    blocks, B, Bp = _input_maps(res, meas, u_cal.shape[0])
+    up = np.zeros(6) if u_place is None else np.asarray(u_place, float)
+    if up.shape != (6,) or not np.all(np.isfinite(up)) or np.any(up < 0):
+        raise ConfigError(f"u_place must be 6 finite values >= 0 (m, m, m, rad, rad, rad), got {u_place!r}")
     var = np.zeros(K.shape[0])
     for r0, GR in blocks:
         KG = K[:, r0:r0 + GR.shape[0]] @ GR
         var += sigma_probe_m ** 2 * np.einsum("ij,ij->i", KG, KG)
     KB = (K @ B) * u_cal.ravel()[None, :]
     var += np.einsum("ij,ij->i", KB, KB)
+    KP = (K @ Bp) * np.tile(up, Bp.shape[1] // 6)[None, :]
+    var += np.einsum("ij,ij->i", KP, KP)
     u = np.sqrt(var)
     lo = hi = U = np.zeros(0)
     if runs:
@@ -778,6 +817,7 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
             e = sigma_probe_m * rng.standard_normal((GR.shape[1], runs))
             d += K[:, r0:r0 + GR.shape[0]] @ (GR @ e)
         d += KB @ rng.standard_normal((KB.shape[1], runs))
+        d += KP @ rng.standard_normal((KP.shape[1], runs))
         lo = res.theta + np.percentile(d, 2.5, axis=1)
         hi = res.theta + np.percentile(d, 97.5, axis=1)
         U = 0.5 * (hi - lo)

@@ -179,6 +179,11 @@ def plan_5axis() -> MfbPlan:
 PLANS = {"mfb-3axis": plan_3axis}
 
 
+#: Default placement uncertainty of a bar set by hand on the table (standard):
+#: 0.2 mm along x_A, y_A, 0.1 mm along z_A; 0.5 mrad roll and pitch, 1 mrad yaw.
+U_PLACE = (0.2e-3, 0.2e-3, 0.1e-3, 0.5e-3, 0.5e-3, 1.0e-3)
+
+
 def _strip_ripple(f):
     from sim.errorfuncs import Periodic, Sum
 
@@ -261,7 +266,8 @@ class ScenarioResult:
 
 def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None, mc_runs: int = 500,
         exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
-        u_cal_um: tuple = (0.2, 0.35, 0.35), bar_cal_error: bool = True) -> ScenarioResult:
+        u_cal_um: tuple = (0.2, 0.35, 0.35), bar_cal_error: bool = True,
+        u_place: tuple = U_PLACE) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -275,6 +281,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     bar_cal_error : bool
         With noise: the true bar differs from its calibration by a draw of
         ``u_cal_um`` (what the uncertainty must cover).
+    u_place : (6,) float
+        With noise: standard deviation of each placement's error (translation
+        along x_A, y_A, z_A in m; rotation about x_A (roll), y_A, z_A in
+        rad), drawn once per placement and applied to the true bar pose of
+        all its measurements; propagated alike (:func:`core.volumetric.uncertainty`).
     drop : str, optional
         A placement to remove (to see the observability report refuse).
     on_nodes : bool
@@ -320,13 +331,24 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
+    T_true = {}
+    for p in plan.placements:  # bar placement errors (by hand on the table), roll included
+        T = next(m.T_W_A for m in plan.measurements if m.placement == p)
+        if noisy:
+            xi = rng.standard_normal(6) * np.asarray(u_place, float)
+            dT = np.eye(4)
+            dT[:3, :3] = A.rot_z(xi[5]) @ A.rot_y(xi[4]) @ A.rot_x(xi[3])
+            dT[:3, 3] = xi[:3]
+            T_true[p] = T @ dT
+        else:
+            T_true[p] = None
     for ms in plan.measurements:
         J = tuple(ms.J_m)
         if J not in machines:
             machines[J] = Machine(replace(cfg, J_m=J))
         m = machines[J]
         pl = _plan_for(art, ms.holes)
-        log = simulate_campaign(art, _NoSafeHeight(m), probe, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad))],
+        log = simulate_campaign(art, _NoSafeHeight(m), probe, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
                                 rng if noisy else None, plan=pl, check_collisions=False)
         _check_touch_strokes(log, m, ms.name)
         t = from_log(log)
@@ -350,7 +372,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     # reference line (identified and injected alike)
     L_iso = vol.iso_map(res_g.design)
     res = vol.iso_view(res_g)
-    unc = vol.uncertainty(res, meas, probe.sigma_m, u_cal, runs=mc_runs, rng=rng) if mc_runs or noisy else None
+    unc = (vol.uncertainty(res, meas, probe.sigma_m, u_cal, runs=mc_runs, rng=rng,
+                           u_place=np.asarray(u_place, float) if noisy else None)
+           if mc_runs or noisy else None)
     # truth in the same gauge
     d = res.design
     truth = np.zeros(len(res.theta))

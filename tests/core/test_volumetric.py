@@ -91,3 +91,24 @@ def test_iso_map_end_point_line(meas3):
     assert np.allclose(out[d.slices["EXY"]], bump, atol=1e-18)
     assert np.allclose(out[d.slices["EYY"]], th[d.slices["EYY"]])
     assert vol.end_point_slopes(d, th)["EXY"] == pytest.approx(2e-5)
+
+
+def test_placement_errors_are_absorbed_and_bad_u_place(meas3):
+    # a placement error moves the bar rigidly; the estimator takes translation,
+    # pitch and yaw into the placement's nuisance values (share ~1e-12 per mm /
+    # mrad, rounding). The roll is not estimated: it moves only the shifted
+    # holes along z_A (not used) and the points by roll x their calibrated
+    # offsets from the bar axis (a few um): a share below 1 % of what 0.1 um of
+    # calibration error gives.
+    meas, chain, nodes, rp = meas3
+    res = vol.identify(meas, chain, nodes, rp, exact=False)
+    d = res.design
+    idx = np.array([i for s in vol.MOTION + vol.SQUARENESS for i in range(d.slices[s].start, d.slices[s].stop)])
+    uc = vol.uncertainty(res, meas, 0.0, np.full((12, 3), 1e-7), runs=0).u_lin[idx].max()
+    for j in range(6):
+        u = np.zeros(6)
+        u[j] = 1e-3
+        up = vol.uncertainty(res, meas, 0.0, np.zeros((12, 3)), runs=0, u_place=u).u_lin[idx].max()
+        assert up < (0.01 * uc if j == 3 else 1e-10), (j, up)
+    with pytest.raises(ConfigError, match="u_place must be 6"):
+        vol.uncertainty(res, meas, 0.0, np.zeros((12, 3)), runs=0, u_place=(1e-4, 1e-4))
