@@ -879,10 +879,15 @@ def linuxcnc_comp(res: VolumetricResult, axis: str, step_m: float | None = None)
     return "\n".join(lines) + "\n"
 
 
-def tables_json(res: VolumetricResult, unc: Uncertainty | None = None) -> str:
-    """vmt-readable compensation tables (JSON text, format ``vmt-comp/1``)."""
+def tables_json(res: VolumetricResult, unc: Uncertainty | None = None, slopes: dict | None = None) -> str:
+    """vmt-readable compensation tables (JSON text, format ``vmt-comp/1``).
+
+    ``res`` as reported (:func:`iso_view`), ``slopes`` its straightness
+    end-point slopes (:func:`end_point_slopes` of the identification).
+    """
     doc = {"format": "vmt-comp/1", "chain": res.chain,
            "conventions": list(res.design.gauge),
+           "straightness_reference": "end-point straight line (slope in end_point_slope_urad)",
            "interpolation": "C2 cubic spline (not-a-knot) through the nodes",
-           "errors": report(res, unc)}
+           "errors": report(res, unc, slopes=slopes)}
     return json.dumps(doc, indent=1)

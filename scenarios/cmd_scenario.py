@@ -24,6 +24,9 @@ def _mfb(args) -> int:
         from core.atomic import write_json_atomic
 
         write_json_atomic(args.json, d)
+    if getattr(args, "comp", None):
+        for p in r.write_comp(args.comp):
+            print(f"wrote {p}")
     return 0
 
 
@@ -86,6 +89,8 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=1, help="seed of the simulated campaign")
     p.add_argument("--noise-um", type=float, default=None, dest="noise_um",
                    help="probe repeatability k=2, um (default 0.25; 0 = noise-free)")
+    p.add_argument("--comp", default=None, metavar="DIR",
+                   help="mfb scenarios: write the LinuxCNC per-axis compensation files and the vmt JSON tables here")
     p.add_argument("--mc", type=int, default=None,
                    help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty)")
     p.set_defaults(func=lambda a: SCENARIOS[a.name](a))

@@ -262,6 +262,31 @@ class ScenarioResult:
     n_touches: int
     seconds: float
     doc: dict
+    slopes: dict = field(default=None, compare=False)
+
+    def write_comp(self, directory) -> list:
+        """Write the LinuxCNC per-axis compensation files and the vmt JSON tables.
+
+        ``<dir>/<X|Y|Z>.comp`` (``[JOINT_n] COMP_FILE``, type 0: nominal,
+        forward, reverse in mm, every 5 mm along the table by its C2
+        spline) and ``<dir>/<scenario>-comp.json`` (``vmt-comp/1``).
+        Returns the paths written.
+        """
+        from pathlib import Path
+
+        from core import volumetric as vol
+
+        d = Path(directory)
+        d.mkdir(parents=True, exist_ok=True)
+        out = []
+        for a in ("X", "Y", "Z"):
+            p = d / f"{a}.comp"
+            p.write_text(vol.linuxcnc_comp(self.result, a, step_m=0.005))
+            out.append(p)
+        p = d / f"{self.doc['scenario']}-comp.json"
+        p.write_text(vol.tables_json(self.result, self.unc, self.slopes))
+        out.append(p)
+        return out
 
 
 def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None, mc_runs: int = 500,
@@ -395,7 +420,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, k2, slopes)
-    return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc)
+    return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0])
 
 
 def _document(name, plan, res, unc, truth, n_touch, seed, k2, slopes=None) -> dict:

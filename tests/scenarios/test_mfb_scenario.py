@@ -9,7 +9,8 @@ def test_cli_json_keys(tmp_path):
     from scenarios.cli import main
 
     out = tmp_path / "mfb.json"
-    assert main(["scenario", "mfb-3axis", "--json", str(out), "--seed", "2", "--mc", "100"]) == 0
+    comp = tmp_path / "comp"
+    assert main(["scenario", "mfb-3axis", "--json", str(out), "--seed", "2", "--mc", "100", "--comp", str(comp)]) == 0
     d = json.loads(out.read_text())
     for k in ("placements", "measurements", "touches", "errors", "max_dev_um", "max_dev_urad"):
         assert k in d
@@ -17,6 +18,21 @@ def test_cli_json_keys(tmp_path):
     assert len(d["errors"]) == 21
     for e in d["errors"].values():
         assert {"injected", "identified", "u95"} <= set(e)
+    # --comp: LinuxCNC per-axis files (nominal, forward, reverse in mm; ascending,
+    # corrected = nominal - identified positioning error) and the vmt JSON
+    import numpy as np
+
+    for a in "XYZ":
+        t = np.loadtxt(comp / f"{a}.comp")
+        assert t.shape[1] == 3 and np.all(np.diff(t[:, 0]) > 0) and np.array_equal(t[:, 1], t[:, 2])
+        nodes = np.asarray(d["errors"][f"E{a}{a}"]["nodes_mm"])
+        ident = np.asarray(d["errors"][f"E{a}{a}"]["identified"]) * 1e-3  # um -> mm
+        # the controller interpolates the 5 mm lines linearly: the C2 table's
+        # curvature over 5 mm (< 10 nm) plus the files' 1 nm rounding
+        assert np.allclose(np.interp(nodes[1:-1], t[:, 0], t[:, 0] - t[:, 1]), ident[1:-1], atol=1e-5)
+    j = json.loads((comp / "mfb-3axis-comp.json").read_text())
+    assert j["format"] == "vmt-comp/1" and len(j["errors"]) == 21
+    assert "end_point_slope_urad" in j["errors"]["EXY"]
 
 
 def test_unknown_scenario_exit_2(capsys):
