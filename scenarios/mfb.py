@@ -1,37 +1,66 @@
-"""MFB scenarios: placement plans for 3- and 5-axis machines and the runner.
+"""MFB scenarios: the placement plan for a 3-axis machine and the runner.
 
-A *placement* is a bar pose on the table (and the A, C positions of a
-5-axis machine); a *measurement* is one probing of a placement with one
-probe (offsets J). Each placement is chosen for what it senses (first-order
-model, Viprey 2016 eqs 10-12, checked by :func:`core.volumetric.observability`):
+A *placement* is a bar pose on the table; a *measurement* is one probing
+of a placement with one stylus (probe offsets J, eq. 8). What each
+placement senses follows from the first-order model (Viprey 2016 eqs
+10-12) *of this machine's chain* and is checked by
+:func:`core.volumetric.observability` (rank, conditioning, and the
+combinations lost when a placement is removed, by name).
 
-3-axis (``vmc-3axis``, table on X on Y, spindle on Z, J = (0, 0, 150) mm)
-- X1, X2, X3: bar along X at (y, z) = (-40, 60), (-40, 260), (110, 60) mm:
-  EXX, EYX, EZX from each; EBX and EAX from the differential positioning /
-  straightness between heights (X1-X2: arm dz), ECX and EAX from the
-  differential positioning / vertical straightness between X1 and X3 (arm dy);
-- Y1, Y2, Y3: the same along Y: EYY, EXY, EZY; EAY, EBY (heights), ECY, EBY (dx);
-- V1 (holes facing X) and V2 (holes facing Y): bar vertical along Z, each
-  probed with two horizontal styli (J_X or J_Y = 50 and 100 mm): EZZ, EXZ,
-  EYZ, and the ram's angular errors through the Abbe arms J (EBZ, ECZ from
-  the two J_X; EAZ, ECZ from the two J_Y: a straight stylus, J_X = J_Y = 0,
-  cannot see ECZ at all, nor tell EBZ from EXZ);
-- DXY, DXZ, DYZ: diagonals (45 deg) for the squarenesses EC0Y, EB0Z, EA0Z
-  (crossed measurements: a parallel bar absorbs the slope into its pose).
+3-axis (``vmc-3axis``: table on X on Y, spindle on Z, chain
+``w-X-Y-b-Z-t``). The table moves under a fixed tool, so an angular error
+of X or Y acts through the arm from the carriage to the *tool* point: a
+bar shifted on the table changes the arm only along axes that carry the X
+carriage (y, z for X; z for Y); the x arm of Y's errors must come from the
+stylus (J_X). Placements (11), measurements (14), 3272 touches:
 
-That is 11 placements and 13 measurements for our chain (the paper counts
-14 placements / 17 measurements for its Mikron set-up; the rank check says
-these 11 suffice here, and :func:`observability` of the plan with any
-placement removed names what is lost).
+- X1, X2, X3: bar along X at (y, z) = (-40, 60), (-40, 260), (110, 60) mm,
+  straight stylus T0 (J_Z 150 mm): EXX, EYX, EZX; X2-X1 (dz 200 mm): EBX
+  (positioning), EAX (horizontal straightness); X3-X1 (dy 150 mm): ECX
+  (positioning), EAX (vertical straightness);
+- Y1, Y2: bar along Y at (x, z) = (-25, 60), (-25, 260) mm, T0: EYY, EXY,
+  EZY; Y2-Y1 (dz): EAY, EBY;
+- Y3: along Y at x = 125 mm with TXF (star arm 100 mm along X with a
+  40 mm finger): Y3-Y1 (dJ_X 100 mm) gives ECY by differential positioning
+  and EBY by differential vertical straightness (with T0 it gave neither:
+  the weakest combination was an ECY ramp, relative sv 1.3e-4 -> 6.5e-4);
+- VY: standing bar (along Z) at (-25, -40) mm, holes facing -Y, star
+  styli TY1, TY2 (arm 100, 150 mm along Y) and TYL (TY1 on J_Z 250 mm):
+  EZZ, EXZ, EYZ; dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ;
+- VX: standing bar, holes facing -X, TX1 and TX2: ECZ, EBZ; EXZ, EYZ with
+  the other Abbe arm;
+- DXY (flat, 45 deg in XY, T0), DXZ (tilted 45 deg in XZ, holes facing
+  -Y, TY1), DYZ (tilted 45 deg in YZ, holes facing -X, TX1): the
+  squarenesses EC0Y, EB0Z, EA0Z (a bar parallel to an axis absorbs the
+  slope into its pose).
 
-5-axis (``mikron-ucp710``): 6 placements, 17 measurements, using the A and
-C axes to orient the bar (see :func:`plan_5axis`).
+Each bar is probed over the holes that fit the strokes (12 along X, 8
+along Y, 7 standing), with the rods and faces the planes PL_i need (rod k
+of a bar probed to hole k lies 25 mm beyond it). The error tables have
+nodes spanning every touch (12 along X, 9 along Y, 7 along Z), so no error
+is extrapolated.
+
+Identification (:mod:`core.volumetric`): the machine errors enter through
+the touches, carried into the points of interest by the extraction's gain;
+then Gauss-Newton on the exact chain; reported in the ISO 230-1 form
+(straightness against its end-point line, the slope kept beside it).
+Noise-free on the default realistic machine: 0.11 um / 0.37 urad (spline
+truncation of its 9-knot profiles); 0.015 um / 0.08 urad for errors the
+tables represent (``on_nodes=True``).
+
+Uncertainty: probing noise (0.25 um k=2), the bar's calibration (the
+true bar differs from its calibration by a draw of ``u_cal_um``) and the
+placement errors (:data:`U_PLACE`, roll included, drawn in the simulator),
+by linear propagation and Monte Carlo (JCGM 101) through the same
+estimator. The plan's weak directions make the bands wide (up to ~15 um /
+~50 urad U95 for a few tables at 0.25 um probing noise): see
+``observability(...).weakest``.
 
 The scenario injects ``sim.machines.realistic_errors`` of the machine's
-linear axes (and its rotary axes for the 5-axis machine) minus the 10 mm
-screw-pitch ripple: a bar of 50 mm pitch samples every hole at the same
-ripple phase and the hole fit averages it over +-5 mm, so no MFB plan can
-see a ripple shorter than twice its pitch (``ripple=True`` keeps it).
+linear axes minus the 10 mm screw-pitch ripple: a bar of 50 mm pitch
+samples every hole at the same ripple phase and the hole fit averages it
+over +-5 mm, so no MFB plan can see a ripple shorter than twice its pitch
+(``ripple=True`` keeps it). The 5-axis plan is not done.
 """
 
 from __future__ import annotations

@@ -73,6 +73,10 @@ def test_bad_input(meas3):
     bad["X"] = bad["X"][::-1]
     with pytest.raises(ConfigError, match="strictly increasing"):
         vol.identify(meas, chain, bad)
+    short = dict(nodes)
+    short["Y"] = nodes["Y"][:-1]  # a Y bar's last rod 25 mm beyond the last node: not extrapolated
+    with pytest.raises(ConfigError, match="outside the Y nodes"):
+        vol.identify(meas, chain, short)
 
 
 def test_iso_map_end_point_line(meas3):
