@@ -139,7 +139,34 @@ class _LineBuffer:
         return None
 
 
-class TcpLink:
+class _Link:
+    """A byte stream read line by line; subclasses implement ``_receive``."""
+
+    where: str
+    _lb: _LineBuffer
+
+    def _receive(self, left_s: float) -> bytes | None:  # pragma: no cover - abstract
+        """Bytes that arrived within ``left_s`` (None: none yet); raise HardwareError on loss."""
+        raise NotImplementedError
+
+    def readline(self, timeout_s: float) -> str | None:
+        """Next non-empty line, or ``None`` after ``timeout_s``; a lost link raises."""
+        end = time.monotonic() + timeout_s
+        while True:
+            line = self._lb.pop()
+            while line is not None and line == "":
+                line = self._lb.pop()
+            if line is not None:
+                return line
+            left = end - time.monotonic()
+            if left <= 0:
+                return None
+            data = self._receive(left)
+            if data:
+                self._lb.buf += data
+
+
+class TcpLink(_Link):
     """GRBL over a TCP socket (grblHAL / FluidNC telnet, ``vmt machine serve``)."""
 
     def __init__(self, host: str, port: int, connect_timeout_s: float = 5.0):
@@ -157,28 +184,17 @@ class TcpLink:
         except OSError as e:
             raise HardwareError(f"{self.where}: connection lost while sending ({e.strerror or e})") from None
 
-    def readline(self, timeout_s: float) -> str | None:
-        """Next non-empty line, or ``None`` after ``timeout_s``; EOF raises."""
-        end = time.monotonic() + timeout_s
-        while True:
-            line = self._lb.pop()
-            while line is not None and line == "":
-                line = self._lb.pop()
-            if line is not None:
-                return line
-            left = end - time.monotonic()
-            if left <= 0:
-                return None
-            self.sock.settimeout(left)
-            try:
-                data = self.sock.recv(4096)
-            except socket.timeout:
-                return None
-            except OSError as e:
-                raise HardwareError(f"{self.where}: connection lost ({e.strerror or e})") from None
-            if not data:
-                raise HardwareError(f"{self.where}: connection lost (closed by the controller)")
-            self._lb.buf += data
+    def _receive(self, left_s: float) -> bytes | None:
+        self.sock.settimeout(left_s)
+        try:
+            data = self.sock.recv(4096)
+        except socket.timeout:
+            return None
+        except OSError as e:
+            raise HardwareError(f"{self.where}: connection lost ({e.strerror or e})") from None
+        if not data:
+            raise HardwareError(f"{self.where}: connection lost (closed by the controller)")
+        return data
 
     def close(self) -> None:
         try:
@@ -187,7 +203,7 @@ class TcpLink:
             pass
 
 
-class SerialLink:
+class SerialLink(_Link):
     """GRBL over a serial port or pty, standard library only (termios, raw 8N1)."""
 
     def __init__(self, path: str, baud: int = 115200):
@@ -227,31 +243,21 @@ class SerialLink:
             except OSError as e:
                 raise HardwareError(f"{self.where}: connection lost ({e.strerror})") from None
 
-    def readline(self, timeout_s: float) -> str | None:
-        end = time.monotonic() + timeout_s
-        while True:
-            line = self._lb.pop()
-            while line is not None and line == "":
-                line = self._lb.pop()
-            if line is not None:
-                return line
-            left = end - time.monotonic()
-            if left <= 0:
-                return None
-            r, _, _ = select.select([self.fd], [], [], left)
-            if not r:
-                return None
-            try:
-                data = os.read(self.fd, 4096)
-            except BlockingIOError:
-                continue
-            except OSError as e:
-                if e.errno == errno.EIO:
-                    raise HardwareError(f"{self.where}: connection lost (device closed)") from None
-                raise HardwareError(f"{self.where}: connection lost ({e.strerror})") from None
-            if not data:
-                raise HardwareError(f"{self.where}: connection lost (end of file)")
-            self._lb.buf += data
+    def _receive(self, left_s: float) -> bytes | None:
+        r, _, _ = select.select([self.fd], [], [], left_s)
+        if not r:
+            return None
+        try:
+            data = os.read(self.fd, 4096)
+        except BlockingIOError:
+            return None
+        except OSError as e:
+            if e.errno == errno.EIO:
+                raise HardwareError(f"{self.where}: connection lost (device closed)") from None
+            raise HardwareError(f"{self.where}: connection lost ({e.strerror})") from None
+        if not data:
+            raise HardwareError(f"{self.where}: connection lost (end of file)")
+        return data
 
     def close(self) -> None:
         try:
