@@ -14,7 +14,7 @@ import sim.machine
 from core import iso
 from core import kinematics as K
 from core.exceptions import ConfigError
-from sim.errorfuncs import Constant, Drift, Periodic, Polynomial, Reversal
+from sim.errorfuncs import Constant, Drift, Polynomial, Reversal
 from sim.machine import Machine
 from sim.machines import MACHINES, describe, realistic_errors
 

@@ -8,22 +8,10 @@ import pytest
 from core.exceptions import ConfigError
 from sim import artefacts as A
 from sim.probe import ProbeConfig, VirtualMachine, simulate_touches
+from standins import Translated
 
 R = 3e-3
 NM = 1e-9
-
-
-class Translated:
-    """Stand-in machine: tip_W = reading + constant offset (a pure translation error)."""
-
-    linear_axes = ("X", "Y", "Z")
-    rotary_axes = ()
-
-    def __init__(self, off=(0.0, 0.0, 0.0)):
-        self.off = np.asarray(off, float)
-
-    def tip_W(self, lin, rot=None, t=None, d=None):
-        return np.asarray(lin, float) + self.off
 
 
 class Rotated(Translated):

@@ -10,17 +10,7 @@ from sim import artefacts as A
 from sim.campaign import Setup, mfb_placements, simulate_campaign
 from sim.plans import make_plan, mfb_plan
 from sim.probe import ProbeConfig
-
-
-class Translated:
-    linear_axes = ("X", "Y", "Z")
-    rotary_axes = ()
-
-    def __init__(self, off=(0.0, 0.0, 0.0)):
-        self.off = np.asarray(off, float)
-
-    def tip_W(self, lin, rot=None, t=None, d=None):
-        return np.asarray(lin, float) + self.off
+from standins import Translated
 
 
 class RotaryC(Translated):
