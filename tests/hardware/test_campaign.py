@@ -1,6 +1,5 @@
 """`vmt probe` campaigns against the emulator: equal to the backend, resumable, lossless."""
 
-import os
 import signal
 import subprocess
 import sys

@@ -11,7 +11,7 @@ from core.probelog import read_probe_log, write_probe_log
 from hardware.backend import VirtualBackend
 from hardware.campaign import ProbeSettings, run_campaign
 from hardware.emulator import GrblEmulator, TcpServer
-from hardware.linuxcnc import import_probe_file, part_program, read_probe_file
+from hardware.linuxcnc import part_program, read_probe_file
 from hardware.transcript import read_transcript
 from scenarios.cli import main
 
