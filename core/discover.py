@@ -677,8 +677,8 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     t : Touches
         Valid touches (``core.touches.from_log``), at two or more C angles.
     grid_step_mm : float or None
-        Error-map grid step of the baseline; None = the finest of
-        ``settings.grid_steps_mm`` that the data identify.
+        Error-map grid step of the baseline; None = chosen among
+        ``settings.grid_steps_mm`` (see :func:`baseline`).
     chain : str or None
         The machine's ISO 10791 chain (the log's ``kinematic_chain``): which
         axis carries the other decides the rigid-body yaw term
@@ -760,10 +760,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         for s in sorted(scored, key=lambda s: s["rss"]):
             if not (s["p_adj"] < settings.alpha and s["dbic"] < 0):
                 continue
-            e = s["ext"]
-            full = np.zeros((n, e.columns.shape[1]))
-            full[rows] = e.columns
-            Ae = np.hstack([A, _full_cols(t, e, rows)[:, s["keep"]]])
+            Ae = np.hstack([A, _full_cols(t, s["ext"])[:, s["keep"]]])
             cv = _cv_rms(Ae[rows], y[rows], t.setup[rows], bl.own_cols)
             s["cv"] = cv
             if cv < settings.cv_gain * cv_cur and (best is None or s["dbic"] < best["dbic"]):
@@ -771,7 +768,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         if best is None:
             break
         e = best["ext"]
-        A = np.hstack([A, _full_cols(t, e, rows)[:, best["keep"]]])
+        A = np.hstack([A, _full_cols(t, e)[:, best["keep"]]])
         evidence = {"F": best["F"], "p_value": best["p"], "p_adjusted": best["p_adj"],
                     "tries": int(best["ext"].tries), "candidates": len(exts), "delta_bic": best["dbic"], "added_params": int(best["k"]),
                     "cv_rms_before_um": cv_cur * UM, "cv_rms_after_um": best["cv"] * UM,
@@ -803,14 +800,12 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     p0 = bl.A.shape[1]
     findings = []
     o = p0
-    rms_steps = []
     for ext, ev in chosen:
         k = ext.columns.shape[1]
         coef = sol_e.theta[o:o + k]
         std = sol_e.std[o:o + k] if sol_e.std is not None else np.full(k, np.nan)
         o += k
         findings.append(Finding(ext.cause, ev, _params(ext, coef, std, t), ev["rms_after_um"]))
-        rms_steps.append(ev["rms_after_um"])
     struct = structure_tests(t.subset(rows), f_cur.r, f_cur.dof)
     n_struct = max(len(struct), 1)
     structured = {k: v for k, v in struct.items() if v * n_struct < settings.structure_alpha}
@@ -843,8 +838,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
                    "baseline_u95_um": float(2 * sol_b.std[G][i] * UM) if sol_b.std is not None else None,
                    "extended_u95_um": float(2 * sol_e.std[G][i] * UM) if sol_e.std is not None else None})
     model = "selfcal-2d" + (" + heights" if len(bl.z_levels_m) > 1 else "") + "".join(f" + {e.cause}" for e, _ in chosen) + (" - outliers" if outliers else "")
-    res_b = np.full(n, np.nan)
-    res_b[:] = f0.r
+    res_b = f0.r
     res_e = np.full(n, np.nan)
     res_e[rows] = f_cur.r
     conv = list(bl.design.gauge)
@@ -866,7 +860,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
             if len(bl.z_levels_m) > 1 else ""))
 
 
-def _full_cols(t: Touches, e: Extension, rows: np.ndarray) -> np.ndarray:
+def _full_cols(t: Touches, e: Extension) -> np.ndarray:
     """Extension columns for every touch (recomputed on the full set)."""
     if e.cause == "thermal_drift":
         return ext_drift(t).columns
