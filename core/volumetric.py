@@ -42,7 +42,9 @@ of the truth, amplified by the plan's weakest direction.
 
 Each motion error of an axis is a look-up table on nodes along that axis
 (the points of interest of the bars laid along it), interpolated by a C2
-cubic spline (section 6) where a point falls between nodes; the three
+cubic spline (section 6) where a point falls between nodes and along its
+end tangent up to :data:`NODE_MARGIN_M` beyond the end nodes (the rods and
+faces probed around the end holes; farther readings are refused); the three
 squarenesses ``EC0Y``, ``EB0Z``, ``EA0Z`` are constants. The rotary axes'
 errors of a 5-axis machine are constant within one placement and are
 absorbed by its ``xi_p``, exactly.
@@ -119,9 +121,16 @@ GAUGE_MIN = 1e-6
 #: RANK_TOL (1e-12 in eigenvalues, 1e-6 in singular values), so the plan is
 #: refused here, by name, before the solver would.
 COND_TOL = 1e-5
-#: How far (m) beyond the end nodes a reading may lie (extrapolating a cubic
-#: table over 1 mm costs < 1 nm on realistic errors; 25 mm cost 0.4 um).
-NODE_MARGIN_M = 1e-3
+#: How far (m) beyond the end nodes a reading may lie; there the table
+#: continues along its end tangent (:func:`spline_weights`). The nodes sit at
+#: the points of interest (where the bar senses every error, see
+#: scenarios.mfb); the rod and faces that give the last hole its height lie
+#: 25 mm beyond it and their far flank 34 mm: 40 mm covers them. Nodes spanning
+#: those touches instead put the end nodes where only one of the three
+#: directions is sensed, and the end-point conventions hang every table on
+#: them (U95 up to ~47 um / ~110 urad at 0.25 um probing noise). The tangent
+#: continuation costs < 0.08 um / 0.16 urad noise-free on the realistic machine.
+NODE_MARGIN_M = 0.040
 #: Eigenvalue ratio passed to core.selfcal.solve: its default.
 SOLVE_RANK_TOL = RANK_TOL
 
@@ -226,7 +235,10 @@ def _geom(chain: str, J_m, rotary_points_R_m) -> ChainGeometry:
 def spline_weights(nodes: np.ndarray, u: np.ndarray) -> np.ndarray:
     """(len(u), len(nodes)) weights of the C2 (not-a-knot) cubic spline through the nodes.
 
-    Linear interpolation for 2-3 nodes; constant for one node.
+    Linear interpolation for 2-3 nodes; constant for one node. Beyond the
+    end nodes (up to :data:`NODE_MARGIN_M`, checked by the caller) the
+    spline continues along its end tangent (C1), as ``sim``'s
+    ``SplineTable`` does, never as a runaway cubic.
     """
     nodes = np.asarray(nodes, float)
     u = np.asarray(u, float)
@@ -243,7 +255,14 @@ def spline_weights(nodes: np.ndarray, u: np.ndarray) -> np.ndarray:
         W[lo] = np.eye(k)[0]
         W[hi] = np.eye(k)[-1]
         return W
-    return CubicSpline(nodes, np.eye(k), bc_type="not-a-knot")(u)
+    cs = CubicSpline(nodes, np.eye(k), bc_type="not-a-knot")
+    W = cs(np.clip(u, nodes[0], nodes[-1]))
+    lo, hi = u < nodes[0], u > nodes[-1]
+    if lo.any() or hi.any():  # beyond the end nodes: the end tangent line (C1), no runaway cubic
+        d = cs.derivative()
+        W[lo] += (u[lo] - nodes[0])[:, None] * d(nodes[0])[None, :]
+        W[hi] += (u[hi] - nodes[-1])[:, None] * d(nodes[-1])[None, :]
+    return W
 
 
 def _layout(meas, nodes):
@@ -281,8 +300,8 @@ def _check(meas, nodes):
             raise ConfigError(f"measurement {m.name!r}: non-finite points of interest")
         if np.shape(m.T_W_A) != (4, 4):
             raise ConfigError(f"measurement {m.name!r}: T_W_A must be 4x4")
-        # the tables are not extrapolated: the readings the errors are
-        # evaluated at must lie within the nodes (NODE_MARGIN_M beyond)
+        # the readings the errors are evaluated at must lie within the nodes
+        # (at most NODE_MARGIN_M beyond, along the end tangent)
         q = np.asarray(m.q_R, float) if _has_touches(m) else O_R
         for j, a in enumerate(iso.LINEAR_AXES):
             v = np.asarray(nodes[a], float)

@@ -12,7 +12,7 @@ combinations lost when a placement is removed, by name).
 of X or Y acts through the arm from the carriage to the *tool* point: a
 bar shifted on the table changes the arm only along axes that carry the X
 carriage (y, z for X; z for Y); the x arm of Y's errors must come from the
-stylus (J_X). Placements (11), measurements (14), 3272 touches:
+stylus (J_X). Placements (14), measurements (17):
 
 - X1, X2, X3: bar along X at (y, z) = (-40, 60), (-40, 260), (110, 60) mm,
   straight stylus T0 (J_Z 150 mm): EXX, EYX, EZX; X2-X1 (dz 200 mm): EBX
@@ -32,29 +32,48 @@ stylus (J_X). Placements (11), measurements (14), 3272 touches:
 - DXY (flat, 45 deg in XY, T0), DXZ (tilted 45 deg in XZ, holes facing
   -Y, TY1), DYZ (tilted 45 deg in YZ, holes facing -X, TX1): the
   squarenesses EC0Y, EB0Z, EA0Z (a bar parallel to an axis absorbs the
-  slope into its pose).
+  slope into its pose);
+- AXY, AXZ, AYZ: the anti-diagonals (x_A along X-Y, X-Z, Y-Z; the tilted
+  ones start at z = 345 mm and fall). A linear twist of the table (an EAX
+  ramp, an EBY ramp) moves every bar parallel to an axis rigidly, so only
+  the diagonals see it, as a bend ``a s^2 / 2`` that the bar's own bow
+  (calibrated, to ``u_cal``) imitates; the anti-diagonal bends the other
+  way under the same bow. With one diagonal per plane the twist was the
+  plan's largest uncertainty (EAX / EBY U95 36 / 44 urad), with the pairs
+  14 / 11 urad; the squarenesses gain alike (EB0Z 14 -> 5 urad).
 
 Each bar is probed over the holes that fit the strokes (12 along X, 8
 along Y, 7 standing), with the rods and faces the planes PL_i need (rod k
 of a bar probed to hole k lies 25 mm beyond it). The error tables have
-nodes spanning every touch (12 along X, 9 along Y, 7 along Z), so no error
-is extrapolated.
+their nodes at the points of interest, where a bar senses all three
+directions: 8 along Y and 7 along Z (one per hole), 9 along X over the
+12 holes (a 12-hole bar has 11 rods, its only height sensors: 12 nodes
+leave one EZX combination seen by curvature alone). The end nodes are the
+end holes; over the rods and faces beyond them (up to 34 mm) the tables
+continue along their end tangent (:data:`core.volumetric.NODE_MARGIN_M`).
+End nodes spanning every touch (the previous layout) sat where only one
+direction is sensed, and the end-point conventions hung every table on
+them: U95 reached 47 um (EZX) and 110 urad (EBY) at 0.25 um probing noise.
 
 Identification (:mod:`core.volumetric`): the machine errors enter through
 the touches, carried into the points of interest by the extraction's gain;
 then Gauss-Newton on the exact chain; reported in the ISO 230-1 form
 (straightness against its end-point line, the slope kept beside it).
-Noise-free on the default realistic machine: 0.11 um / 0.37 urad (spline
-truncation of its 9-knot profiles); 0.015 um / 0.08 urad for errors the
-tables represent (``on_nodes=True``).
+Noise-free on the default realistic machine: 0.074 um / 0.15 urad (the
+tables' interpolation of its 9-knot profiles and the tangent continuation
+over the end rods); 0.003 um / 0.03 urad for errors the tables represent
+(``on_nodes=True``).
 
 Uncertainty: probing noise (0.25 um k=2), the bar's calibration (the
 true bar differs from its calibration by a draw of ``u_cal_um``) and the
 placement errors (:data:`U_PLACE`, roll included, drawn in the simulator),
 by linear propagation and Monte Carlo (JCGM 101) through the same
-estimator. The plan's weak directions make the bands wide (up to ~15 um /
-~50 urad U95 for a few tables at 0.25 um probing noise): see
-``observability(...).weakest``.
+estimator. At 0.25 um probing noise, over four seeded campaigns, U95 at
+the nodes: positioning median 0.8 um, max 2.1 um; straightness 1.3 / 4.3 um
+(EZX next to its end nodes, bar calibration dominated); angular 5.0 / 15.8
+urad (the EAX / EBY twist ramps); squareness 4.9 / 8.7 urad. 97 % of 504
+identified values within U95 (RMS error / U95 0.46); a noisy run is off by
+1-4 um / 5-11 urad. What is left weakest: ``observability(...).weakest``.
 
 The scenario injects ``sim.machines.realistic_errors`` of the machine's
 linear axes minus the 10 mm screw-pitch ripple: a bar of 50 mm pitch
@@ -139,7 +158,7 @@ STYLI = {"T0": (0.0, 0.0, 0.150), "TYL": (0.0, -0.100, 0.250),
 
 
 def plan_3axis() -> MfbPlan:
-    """The 3-axis plan for ``vmc-3axis``: 11 placements, 14 measurements (module doc)."""
+    """The 3-axis plan for ``vmc-3axis``: 14 placements, 17 measurements (module doc)."""
     L = 0.050
     ms = []
 
@@ -174,13 +193,29 @@ def plan_3axis() -> MfbPlan:
         senses="EB0Z (face diagonal in XZ, tilted 45 deg, holes facing -Y, star stylus arm along +Y)")
     add("DYZ", (_Y + _Z) * _S2, -_X, (-0.025, -0.140, 0.060), h8, ("TX1",),
         senses="EA0Z (face diagonal in YZ, tilted 45 deg, holes facing -X, star stylus arm along +X)")
-    # table nodes spanning every touch of the plan (stylus centres), so that no
-    # error is extrapolated: a bar probed over holes 1..k also touches rod k and
-    # its faces 25 mm beyond hole k, and the plane PL_k through them samples
-    # the errors there (X: holes 1..12 -> 5 mm beyond the end holes; Y: rod 8
-    # at y = 185 mm; Z: rod 7 of the standing bars at z = 385 mm)
-    nodes = {"X": np.linspace(-0.281, 0.281, 12), "Y": np.linspace(-0.196, 0.194, 9),
-             "Z": np.linspace(0.048, 0.394, 7)}
+    # the anti-diagonals: a linear twist of the table (EAX ~ a x, EBY ~ -a y)
+    # moves every bar parallel to an axis rigidly (absorbed by its placement)
+    # and bends a diagonal by a s^2 / 2, which the bar's own bow (calibrated,
+    # to u_cal) imitates; the anti-diagonal bends the other way under the
+    # same bow, so the pair separates twist from bar (and the squarenesses
+    # from the bar's length): EAX / EBY ramps 36 / 44 -> 14 / 11 urad U95
+    add("AXY", (_X - _Y) * _S2, _Z, (-0.125, 0.107, 0.060), h8,
+        senses="with DXY: twist of X and Y (EAX, EBY ramps) and EC0Y, free of the bar's bow")
+    add("AXZ", (_X - _Z) * _S2, -_Y, (-0.125, -0.040, 0.345), h8, ("TY1",),
+        senses="with DXZ: EAX ramp and EB0Z, free of the bar's bow (z falls along the bar)")
+    add("AYZ", (_Y - _Z) * _S2, -_X, (-0.025, -0.140, 0.345), h8, ("TX1",),
+        senses="with DYZ: EBY ramp and EA0Z, free of the bar's bow (z falls along the bar)")
+    # table nodes at the points of interest, where the bar senses every
+    # direction: the end nodes at the first and last holes (X +-275 mm, Y
+    # -190 / 160 mm, Z 60 / 360 mm), the tables continued along their end
+    # tangent over the rods and faces beyond (core.volumetric.NODE_MARGIN_M).
+    # Y and Z: one node per hole (8, 7; each hole k has its rod k). X: a bar
+    # of 12 holes has 11 rods, the only height sensors, so 12 nodes leave
+    # EZX one combination sensed by nothing but curvature (U95 ~25 um); 9
+    # nodes (68.75 mm) keep it at ~4 um and interpolate the realistic
+    # profiles to < 0.08 um.
+    nodes = {"X": np.linspace(-0.275, 0.275, 9), "Y": np.linspace(-0.190, 0.160, 8),
+             "Z": np.linspace(0.060, 0.360, 7)}
     return MfbPlan("vmc-3axis", tuple(ms), nodes)
 
 

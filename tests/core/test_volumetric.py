@@ -45,7 +45,10 @@ def test_gauge_is_iso_and_full_plan_observable(meas3):
     assert rep.sv_min_rel > 1e-5  # conditioning of the gauge-fixed, column-scaled design
 
 
-@pytest.mark.parametrize("drop,names", [("X2", "EBX"), ("VY", "EAZ")])
+# the standing bars are the only placements nothing else replaces (the X/Y
+# bars at a second height or with a second stylus are backed, weakly, by the
+# diagonal pairs: without X2 the weakest relative sv is 3e-5)
+@pytest.mark.parametrize("drop,names", [("VX", "EB0Z"), ("VY", "EA0Z")])
 def test_plan_without_a_placement_names_what_is_lost(meas3, drop, names):
     meas, chain, nodes, rp = meas3
     full = vol.observability(meas, chain, nodes, rp).gauge  # conventions of the complete plan
@@ -74,7 +77,7 @@ def test_bad_input(meas3):
     with pytest.raises(ConfigError, match="strictly increasing"):
         vol.identify(meas, chain, bad)
     short = dict(nodes)
-    short["Y"] = nodes["Y"][:-1]  # a Y bar's last rod 25 mm beyond the last node: not extrapolated
+    short["Y"] = nodes["Y"][:-1]  # the last Y bar touches 84 mm beyond the last node: refused, not extrapolated
     with pytest.raises(ConfigError, match="outside the Y nodes"):
         vol.identify(meas, chain, short)
 
@@ -102,8 +105,9 @@ def test_placement_errors_are_absorbed_and_bad_u_place(meas3):
     # pitch and yaw into the placement's nuisance values (share ~1e-12 per mm /
     # mrad, rounding). The roll is not estimated: it moves only the shifted
     # holes along z_A (not used) and the points by roll x their calibrated
-    # offsets from the bar axis (a few um): a share below 1 % of what 0.1 um of
-    # calibration error gives.
+    # offsets from the bar axis (a few um): 1 mrad of roll gives 0.04 um / urad
+    # at most (the tilted diagonals), 4 % of what 0.1 um of calibration error
+    # gives; bound 10 %.
     meas, chain, nodes, rp = meas3
     res = vol.identify(meas, chain, nodes, rp, exact=False)
     d = res.design
@@ -113,6 +117,6 @@ def test_placement_errors_are_absorbed_and_bad_u_place(meas3):
         u = np.zeros(6)
         u[j] = 1e-3
         up = vol.uncertainty(res, meas, 0.0, np.zeros((12, 3)), runs=0, u_place=u).u_lin[idx].max()
-        assert up < (0.01 * uc if j == 3 else 1e-10), (j, up)
+        assert up < (0.1 * uc if j == 3 else 1e-10), (j, up)
     with pytest.raises(ConfigError, match="u_place must be 6"):
         vol.uncertainty(res, meas, 0.0, np.zeros((12, 3)), runs=0, u_place=(1e-4, 1e-4))
