@@ -77,6 +77,7 @@ def _pin_circle(args) -> int:
 #: name -> runner(args) -> exit code
 SCENARIOS = {
     "mfb-3axis": _mfb,
+    "mfb-5axis": _mfb,
     "cross-pocket-uncertainty": _cross_pocket_uncertainty,
     "pin-circle": _pin_circle,
 }

@@ -1,4 +1,4 @@
-"""MFB scenarios: the placement plan for a 3-axis machine and the runner.
+"""MFB scenarios: the placement plans for a 3-axis and a 5-axis machine and the runner.
 
 A *placement* is a bar pose on the table; a *measurement* is one probing
 of a placement with one stylus (probe offsets J, eq. 8). What each
@@ -79,7 +79,13 @@ The scenario injects ``sim.machines.realistic_errors`` of the machine's
 linear axes minus the 10 mm screw-pitch ripple: a bar of 50 mm pitch
 samples every hole at the same ripple phase and the hole fit averages it
 over +-5 mm, so no MFB plan can see a ripple shorter than twice its pitch
-(``ripple=True`` keeps it). The 5-axis plan is not done.
+(``ripple=True`` keeps it).
+
+5-axis (``mfb-5axis``, ``mikron-ucp710``): :func:`plan_5axis`. Noise-free
+0.070 um / 0.126 urad on the realistic machine (rotary axes' errors
+included), 0.002 um / 0.011 urad on the nodes. At 0.25 um probing noise
+(two seeded campaigns) U95 max 2.2 um positioning, 4.1 um straightness,
+13.8 urad angular, 7.5 urad squareness; 99 % of 252 values within U95.
 """
 
 from __future__ import annotations
@@ -220,27 +226,77 @@ def plan_3axis() -> MfbPlan:
 
 
 def plan_5axis() -> MfbPlan:
-    """The 5-axis plan for ``mikron-ucp710``: 6 placements, 17 measurements.
+    """The 5-axis plan for ``mikron-ucp710``: 17 measurements with A and C.
 
-    The bar lies on the table along x_W. C = 0 / 90 deg turns it along X /
-    Y; A = 90 deg stands it vertical (along Z) and faces its holes
-    horizontally. Each placement is probed at several heights or with
-    several styli (measurements). Placements:
+    Chain ``[w C' A' b X Y Z (C1) t]``: the table turns (C on A), all linear
+    axes carry the tool (eq. 8). Each bar pose is given in R (the axes it
+    lies along, as in :func:`plan_3axis`) at its rotary positions; the pose
+    on the table follows (``T_W_A = T_R_W(A, C)^-1 T_R_A``). A placement is
+    a bar pose with its rotary positions (13; the rotary axes' errors are
+    constant within one and absorbed by its nuisance values).
 
-    - PA (C=0): along X at z=70 mm, probed with J_Z = 150 and 250 mm
-      (EXX, EYX, EZX; the two J_Z separate nothing of X, they are the Abbe
-      arms of EAY..EBZ; kept for the count of the paper);
-    - PB (C=0, bar at y_W = 150 mm): along X: ECX, EAX (arm y);
-    - PC (C=90): along Y: EYY, EXY, EZY; PD (C=90, x offset) ECY, EBY;
-    - PE (A=90, C=0): vertical, holes facing -Y: EZZ EXZ EYZ, two J_Y;
-    - PF (A=90, C=90): vertical, holes facing X: EBZ ECZ, two J_X;
-      on the Mikron all linear axes carry the tool (eq. 8), so EBX, EAY...
-      act through the Abbe arms of the tip height G and the J offsets.
+    What each senses on a tool-side chain: the arm of an angular error of X
+    is the tip relative to the X carriage, i.e. the Y and Z *readings* (the
+    stylus does not count: the readings are the tip); of Y, the Z reading
+    and the stylus offset J_X (Y rides on X); of Z, the stylus offsets only.
+    Hence:
+
+    - X1, X2, X3 (A = C = 0): along X at (y, z) = (-40, 60), (-40, 260),
+      (110, 60) mm, T0: EXX, EYX, EZX; X2-X1 (dz): EBX, EAX; X3-X1 (dy):
+      ECX, EAX. (Two styli on one X bar sense nothing of X: the tip is the
+      same point; without a second height EBX is lost to EB0Z.)
+    - Y1 (C = 90 deg; T0 and TXF), Y2 (C = 90, z = 260 mm): EYY, EXY, EZY;
+      Y2-Y1: EAY, EBY; TXF-T0 (dJ_X 100 mm): ECY, EBY.
+    - VY (A = 90): standing, holes facing -Y, TY1, TY2, TYL: EZZ, EXZ, EYZ;
+      dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ. VX (A = 90, C = 90): holes facing -X,
+      TX1, TX2: ECZ, EBZ.
+    - DXY / AXY (C = +-45 deg): EC0Y; DXZ / AXZ (A = 90, C = +-45, TY1):
+      EB0Z; DYZ / AYZ (A = +-45, C = 90, TX1): EA0Z; each pair also separates
+      a twist from the bar's bow (see the module doc).
+
+    The paper's plan counts 6 bar positions for its 17 measurements; here
+    the bar is re-set for each pose listed (13 placements, 17 measurements).
+    Nodes as :func:`plan_3axis` (the same R positions).
     """
-    raise NotImplementedError("5-axis plan: not done yet (see report)")
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+
+    m = Machine(MACHINES["mikron-ucp710"]())
+    axes = m.rotary_axes
+    ms = []
+
+    def add(name, rot_deg, x_R, z_R, p_R, holes, styli=("T0",), senses=""):
+        x_R, z_R = np.asarray(x_R, float), np.asarray(z_R, float)
+        T_R_A = _T((x_R, np.cross(z_R, x_R), z_R), p_R)
+        r = tuple(float(np.deg2rad(rot_deg[a])) for a in axes)
+        T_R_W = np.asarray(m.T_R_W_nominal(np.asarray(r)[None, :]), float).reshape(-1, 4, 4)[0]
+        T = np.linalg.inv(T_R_W) @ T_R_A
+        for k, st in enumerate(styli):
+            ms.append(MeasurementSpec(name if len(styli) == 1 else f"{name}{'abc'[k]}", name, T, r,
+                                      STYLI[st], tuple(holes), senses, st))
+
+    h12, h8, h7 = tuple(range(1, 13)), tuple(range(1, 9)), tuple(range(1, 8))
+    add("X1", {"A": 0, "C": 0}, _X, _Z, (-0.275, -0.040, 0.060), h12, senses="EXX, EYX, EZX")
+    add("X2", {"A": 0, "C": 0}, _X, _Z, (-0.275, -0.040, 0.260), h12, senses="with X1 (dz): EBX, EAX")
+    add("X3", {"A": 0, "C": 0}, _X, _Z, (-0.275, 0.110, 0.060), h12, senses="with X1 (dy): ECX, EAX")
+    add("Y1", {"A": 0, "C": 90}, _Y, _Z, (-0.025, -0.190, 0.060), h8, ("T0", "TXF"),
+        senses="EYY, EXY, EZY; dJ_X: ECY, EBY")
+    add("Y2", {"A": 0, "C": 90}, _Y, _Z, (-0.025, -0.190, 0.260), h8, senses="with Y1 (dz): EAY, EBY")
+    add("VY", {"A": 90, "C": 0}, _Z, -_Y, (-0.025, -0.040, 0.060), h7, ("TY1", "TY2", "TYL"),
+        senses="EZZ, EXZ, EYZ; dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ")
+    add("VX", {"A": 90, "C": 90}, _Z, -_X, (-0.025, -0.040, 0.060), h7, ("TX1", "TX2"), senses="dJ_X: ECZ, EBZ")
+    add("DXY", {"A": 0, "C": 45}, (_X + _Y) * _S2, _Z, (-0.125, -0.140, 0.060), h8, senses="EC0Y")
+    add("AXY", {"A": 0, "C": -45}, (_X - _Y) * _S2, _Z, (-0.125, 0.107, 0.060), h8, senses="EC0Y, twist")
+    add("DXZ", {"A": 90, "C": 45}, (_X + _Z) * _S2, -_Y, (-0.125, -0.040, 0.060), h8, ("TY1",), senses="EB0Z")
+    add("AXZ", {"A": 90, "C": -45}, (_X - _Z) * _S2, -_Y, (-0.125, -0.040, 0.345), h8, ("TY1",),
+        senses="EB0Z, twist")
+    add("DYZ", {"A": 45, "C": 90}, (_Y + _Z) * _S2, -_X, (-0.025, -0.140, 0.060), h8, ("TX1",), senses="EA0Z")
+    add("AYZ", {"A": -45, "C": 90}, (_Y - _Z) * _S2, -_X, (-0.025, -0.140, 0.345), h8, ("TX1",),
+        senses="EA0Z, twist")
+    return MfbPlan("mikron-ucp710", tuple(ms), dict(plan_3axis().nodes))
 
 
-PLANS = {"mfb-3axis": plan_3axis}
+PLANS = {"mfb-3axis": plan_3axis, "mfb-5axis": plan_5axis}
 
 
 #: Default placement uncertainty of a bar set by hand on the table (standard):
@@ -253,6 +309,8 @@ def _strip_ripple(f):
 
     if isinstance(f, Sum):
         terms = tuple(t for t in f.terms if not isinstance(t, Periodic))
+        if not terms:  # a rotary axis' periodic motion, not a screw ripple
+            return f
         return terms[0] if len(terms) == 1 else Sum(terms)
     return f
 
