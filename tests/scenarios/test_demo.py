@@ -18,5 +18,7 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert disc["gain"]["cv_rms_ratio"] < 0.5
     ident = json.loads((out / "identify.json").read_text())
     assert len(ident["workpiece"]) == 92 and ident["monte_carlo"]["runs"] == 1000
+    mfb = json.loads((out / "mfb-3axis.json").read_text())
+    assert (mfb["placements"], mfb["measurements"], len(mfb["errors"])) == (14, 17, 21)
     for f in ("index.html", "recording.rrd", "error_map.png", "residuals_baseline.png"):
         assert (out / "report" / f).stat().st_size > 1000
