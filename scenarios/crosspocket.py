@@ -150,6 +150,8 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
 
 def _pin_position_error_max(t, res, g_true, plan, raw: bool) -> float:
     """Largest pin-centre position error (um) from the per-target normal deviations."""
+    from scenarios.hidden import remove_gauge
+
     first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
     ids = [k for k in res.design.target_ids if k.startswith("pin")]
     if raw:
@@ -165,10 +167,7 @@ def _pin_position_error_max(t, res, g_true, plan, raw: bool) -> float:
         E.append(g[k] - g_true[k])
     P, N, E = np.array(P), np.array(N), np.array(E)
     # remove the part's rigid shift/rotation/scale first (as the paper aligns to pins)
-    B = np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0], np.einsum("ij,ij->i", N, P),
-                         np.ones(len(ids))])
-    Q, _ = np.linalg.qr(B)
-    E = E - Q @ (Q.T @ E)
+    E = remove_gauge(E, P, N)
     worst = 0.0
     groups: dict = {}
     for k, n, e in zip(ids, N, E):
