@@ -118,7 +118,8 @@ class AngleDesign:
 
 def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5.0,
                     u_probe_m: float = U_PROBE_M, reference_deg=None, max_sweeps: int = 6,
-                    measure: str = "form", exhaustive_max: int = 400, evaluate=None) -> AngleDesign:
+                    measure: str = "form", exhaustive_max: int = 400, evaluate=None,
+                    progress=None) -> AngleDesign:
     """C angles minimising the largest workpiece uncertainty (C_1 = 0 fixed).
 
     Coordinate search over the degree grid ``0, step, 2 step, ... < 360``
@@ -146,20 +147,59 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
     evaluate : callable, optional
         ``evaluate(list_of_angle_tuples) -> list of max U95`` (to run a sweep
         in parallel, see ``scenarios.parallel``); default serial.
+    progress : callable, optional
+        ``progress(done, total)``, called as designs are evaluated. ``total``
+        counts the designs the search may need at most (every start running
+        all ``max_sweeps``); a start that converges early counts its unused
+        sweeps as done, so the time left is an upper bound.
+
+    Raises
+    ------
+    ConfigError
+        ``n_angles`` not an integer >= 2, ``step_deg`` not a divisor of 360
+        of at least 0.5 deg (a grid of at most 720 angles), ``u_probe_m``
+        not > 0, a reference angle not finite, too many angles for the grid.
     """
+    try:
+        n_ok = int(n_angles) == n_angles
+    except (TypeError, ValueError, OverflowError):
+        n_ok = False
+    if not n_ok or int(n_angles) < 2:
+        raise ConfigError(f"n_angles must be >= 2 (an integer), got {n_angles}")
     n_angles = int(n_angles)
-    if n_angles < 2:
-        raise ConfigError(f"n_angles must be >= 2, got {n_angles}")
-    nsteps = 360.0 / step_deg
-    if not (step_deg > 0 and abs(nsteps - round(nsteps)) < 1e-9):
-        raise ConfigError(f"step_deg must divide 360, got {step_deg}")
+    step = float(step_deg)
+    if not (np.isfinite(step) and 0 < step <= 360):
+        raise ConfigError(f"step_deg must be > 0 and divide 360, got {step:g}")
+    nsteps = 360.0 / step
+    if abs(nsteps - round(nsteps)) > 1e-9 * nsteps:
+        raise ConfigError(f"step_deg must divide 360, got {step:g}")
+    if round(nsteps) > 720:
+        raise ConfigError(f"step_deg {step:g} makes a grid of {round(nsteps)} angles: at most 720 (0.5 deg)")
+    if not (np.isfinite(u_probe_m) and u_probe_m > 0):
+        raise ConfigError(f"u_probe_m must be > 0, got {float(u_probe_m):g}")
+    if reference_deg is not None and not np.all(np.isfinite(np.asarray(reference_deg, dtype=float))):
+        raise ConfigError("reference angles must be finite degrees")
+    if int(max_sweeps) < 1:
+        raise ConfigError(f"max_sweeps must be >= 1, got {max_sweeps}")
+    step_deg = step
     cand = step_deg * np.arange(int(round(nsteps)))
     if n_angles > cand.size:
         raise ConfigError(f"{n_angles} angles do not fit a {step_deg:g} deg grid")
-    if evaluate is None:
+    serial = evaluate is None
+    if serial:
         def evaluate(sets):
-            return [max_workpiece_U95(w_W, wn_W, s, grid, u_probe_m, measure) for s in sets]
+            out = []
+            for s in sets:
+                out.append(max_workpiece_U95(w_W, wn_W, s, grid, u_probe_m, measure))
+                tick(1)
+            return out
     cache: dict = {}
+    count = {"done": 0, "total": 0}
+
+    def tick(k):
+        count["done"] = min(count["done"] + k, count["total"])
+        if progress is not None:
+            progress(count["done"], count["total"])
 
     def ev(sets):
         keys = [tuple(sorted(float(v) for v in s)) for s in sets]
@@ -167,6 +207,7 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
         if todo:
             for k, v in zip(todo, evaluate(todo)):
                 cache[k] = float(v)
+        tick(len(keys) - (len(todo) if serial else 0))  # the serial evaluator ticked the new ones
         return [cache[k] for k in keys]
 
     # equally spaced, and compressed spreads (a symmetric part makes equal spacing degenerate)
@@ -181,17 +222,24 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
             starts.append(tuple(sorted(r)))
     best, best_v = None, float("inf")
     from math import comb
+    per_sweep = (n_angles - 1) * (cand.size - n_angles + 1)
+    n_ref = 0 if reference_deg is None else 1
     if comb(cand.size - 1, n_angles - 1) <= exhaustive_max:
         import itertools
         allsets = [(0.0,) + tuple(float(v) for v in c) for c in itertools.combinations(cand[1:], n_angles - 1)]
+        count["total"] = len(allsets) + n_ref
         vals = ev(allsets)
         i = int(np.argmin(vals))
         best, best_v = list(allsets[i]), vals[i]
         starts = []
+    else:
+        count["total"] = len(starts) * (1 + max_sweeps * per_sweep) + n_ref
     for st in starts:  # coordinate search from every start (a local method: several starts)
         cur, cur_v = list(st), ev([st])[0]
+        sweeps = 0
         for _ in range(max_sweeps):
             improved = False
+            sweeps += 1
             for j in range(1, n_angles):
                 others = set(cur[:j] + cur[j + 1:])
                 trial = [cur[:j] + [float(c)] + cur[j + 1:] for c in cand if float(c) not in others]
@@ -201,6 +249,7 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
                     cur, cur_v, improved = trial[i], tv[i], True
             if not improved:
                 break
+        tick((max_sweeps - sweeps) * per_sweep)        # the sweeps this start did not need
         if cur_v < best_v:
             best, best_v = cur, cur_v
     cur, cur_v = (best, best_v) if best is not None else (list(starts[0]), float("inf"))
@@ -210,6 +259,7 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
         ref = tuple(float(v) for v in reference_deg)
         ref_v = ev([ref])[0]
         gain = ref_v / cur_v if np.isfinite(cur_v) and cur_v > 0 else None
+    tick(count["total"])
     if not np.isfinite(cur_v):
         raise IdentifiabilityError(f"no choice of {n_angles} C angles on a {step_deg:g} deg grid identifies the"
                                    " workpiece (eq 6: more angles or a coarser grid)")
