@@ -421,6 +421,11 @@ def _shown(cell: str, n: int = 40) -> str:
     return repr(cell if len(cell) <= n else cell[:n] + "...")
 
 
+def _xyz(v) -> str:
+    """``(1, 2, 3.01)``: a point for a message (plain numbers, never ``np.float64(...)``)."""
+    return "(" + ", ".join(f"{float(x):.9g}" for x in v) + ")"
+
+
 def _where(src: str, r: int, lines: list[int] | None) -> str:
     return f"{src}: row {r}" + (f" (line {lines[r]})" if lines is not None else "")
 
@@ -519,8 +524,8 @@ def _validate(log: ProbeLog, lines: list[int] | None) -> None:
             if np.max(np.abs(w[r] - w[r0])) > TARGET_TOL_MM:
                 raise ProbeLogError(
                     f"{_where(src, r, lines)}: target {tgt!r} has artefact-frame nominal "
-                    f"{tuple(np.round(w[r], 6))} mm in set-up {c['setup'][r]!r} but "
-                    f"{tuple(np.round(w[r0], 6))} mm in set-up {c['setup'][r0]!r}")
+                    f"{_xyz(w[r])} mm in set-up {c['setup'][r]!r} but "
+                    f"{_xyz(w[r0])} mm in set-up {c['setup'][r0]!r}")
     sr = log.meta.get("stylus_r_mm")
     if sr not in (None, ""):
         try:
