@@ -24,6 +24,7 @@ finds an output that would overwrite an input.
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
@@ -145,7 +146,14 @@ def write_text_atomic(path, text: str, *, special: bool = False) -> Path:
     p = Path(path)
     if check_output(p, special=special) == "through":
         try:
-            with open(p, "w", encoding="utf-8", newline="") as f:
+            # non-blocking open: a FIFO nobody reads is an error, not a hang
+            fd = os.open(p, os.O_WRONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+        except OSError as e:
+            why = "no process is reading it" if e.errno == errno.ENXIO else (e.strerror or str(e))
+            raise OutputError(f"cannot write {p}: {why}") from None
+        try:
+            os.set_blocking(fd, True)
+            with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
                 f.write(text)
         except OSError as e:
             raise OutputError(f"cannot write {p}: {e.strerror or e}") from None
@@ -200,6 +208,15 @@ def _plain(o, where: str, path):
                       "not a JSON value")
 
 
+def json_text(obj, path="the output") -> str:
+    """``obj`` as indented JSON text, or :class:`OutputError` naming a NaN or infinite value's key.
+
+    To check a result before anything of a run is written (then write the
+    text with :func:`write_text_atomic`).
+    """
+    return json.dumps(_plain(obj, "", path), indent=2, allow_nan=False) + "\n"
+
+
 def write_json_atomic(path, obj, *, special: bool = False) -> Path:
     """Write ``obj`` as indented JSON, atomically.
 
@@ -209,8 +226,7 @@ def write_json_atomic(path, obj, *, special: bool = False) -> Path:
         ``obj`` holds NaN or an infinity (the message names the key), or a
         value JSON cannot hold; or :func:`write_text_atomic` refuses.
     """
-    text = json.dumps(_plain(obj, "", path), indent=2, allow_nan=False) + "\n"
-    return write_text_atomic(path, text, special=special)
+    return write_text_atomic(path, json_text(obj, path), special=special)
 
 
 # ---------------------------------------------------------------------------

@@ -563,9 +563,13 @@ def format_probe_log(log: ProbeLog) -> str:
     return buf.getvalue()
 
 
-def write_probe_log(path: str | os.PathLike, log: ProbeLog) -> Path:
-    """Write ``log`` to ``path`` atomically; reading it back gives ``log``."""
-    return write_text_atomic(path, format_probe_log(log))
+def write_probe_log(path: str | os.PathLike, log: ProbeLog, *, special: bool = False) -> Path:
+    """Write ``log`` to ``path`` atomically; reading it back gives ``log``.
+
+    Only a regular file is replaced; ``special`` writes through a device or
+    FIFO the user named (:func:`core.atomic.write_text_atomic`).
+    """
+    return write_text_atomic(path, format_probe_log(log), special=special)
 
 
 def summary(log: ProbeLog) -> dict:

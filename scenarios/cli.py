@@ -2,8 +2,9 @@
 
 Each sub-command lives in its own module (listed in ``COMMANDS``) exposing
 ``register(subparsers)``; heavy imports happen inside the command, so
-``vmt --help`` stays fast. Any :class:`core.exceptions.VmtError` becomes one
-line on stderr and exit status 2, never a traceback.
+``vmt --help`` stays fast. Any :class:`core.exceptions.VmtError` or
+operating-system error becomes one line on stderr and exit status 2, never a
+traceback, and a failed run leaves no output (:mod:`scenarios.guard`).
 """
 
 from __future__ import annotations
@@ -32,7 +33,9 @@ COMMANDS = [
 def build_parser() -> argparse.ArgumentParser:
     from core import __version__
 
-    p = argparse.ArgumentParser(
+    from scenarios.guard import OneLineParser
+
+    p = OneLineParser(
         prog="vmt",
         description="vmt: a virtual machine-tool testbed for touch-trigger metrology.",
     )
@@ -44,22 +47,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from core.exceptions import VmtError
+    """Run one command; every error is one line on stderr and exit status 2 (:mod:`scenarios.guard`)."""
+    from scenarios.guard import run_command
 
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    try:
-        rc = args.func(args)
-    except VmtError as e:
-        print(f"vmt {args.command}: error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"vmt {args.command}: interrupted", file=sys.stderr)
-        return 130
-    return int(rc or 0)
+    return run_command(args)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -29,7 +29,9 @@ def run(args) -> int:
         from hardware.transcript import import_transcript
 
         log = import_transcript(args.file, plan, dt_s=args.dt)
-    write_probe_log(args.out, log)
+    write_probe_log(args.out, log, special=True)
     ok = int(log.ok.sum())
-    print(f"{args.out}: {log.n} touches ({ok} ok) from {args.kind} {args.file}")
+    from scenarios.guard import said
+
+    print(f"{said(args.out)}: {log.n} touches ({ok} ok) from {args.kind} {args.file}")
     return 0

@@ -29,8 +29,17 @@ LOBING_M = ((2, 1.2e-6, 0.9e-6), (3, 1.0e-6, -0.6e-6))
 SCREW_UM, SCREW_MM = 1.5, 8.0
 
 
-def main_job(out: str = "out", seed: int = 2026) -> int:
-    """Run the demo into ``out``; return an exit code."""
+#: Relative duration of the six steps (measured on 2 busy cores), for the time left.
+STEP_WEIGHTS = (1, 10, 5, 30, 60, 10)
+
+
+def main_job(out: str = "out", seed: int = 2026, progress=None) -> int:
+    """Run the demo into ``out``; return an exit code.
+
+    ``progress(done, total)`` (percent of the expected work, steps weighted
+    by :data:`STEP_WEIGHTS`, the MFB step by measurement); if it has a
+    ``clear()`` method, it is called before each printed line.
+    """
     from core.discover import discover
     from core.probelog import read_probe_log, write_probe_log
     from core.selfcal import Grid, identify
@@ -48,9 +57,10 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     t_start = time.perf_counter()
     outp = Path(out)
     outp.mkdir(parents=True, exist_ok=True)
-    say = _Say()
+    say = _Say(progress)
 
     say.head("1. the virtual machine")
+    say.step(0)
     from sim.errorfuncs import Periodic
 
     errs = realistic_errors(("X", "Y", "Z", "C"), rng=np.random.default_rng(seed), ripple=False)
@@ -64,6 +74,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
         "(2- and 3-lobe pre-travel, 1.5 and 1.2 um); probing noise 0.3 um (1 sigma)")
 
     say.head("2. simulate the cross-pocket campaign")
+    say.step(1)
     art = A.cross_pocket()
     plan = drift_check_plan(art)
     angles = [0.0, 75.0, 130.0, 210.0]
@@ -76,6 +87,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
         f"{np.nanmax(log.col('t_s')) / 60:.1f} min of machine time -> {log_path}")
 
     say.head("3. identify: self-calibration, Ibaraki et al. eqs 1-18")
+    say.step(2)
     grid = Grid.regular(-0.110, 0.110, 0.022)
     res = identify(t, grid)
     mc = monte_carlo_touches(t, grid, res.sigma_m, runs=1000, rng=np.random.default_rng(seed + 2))
@@ -96,7 +108,8 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
         f" -> self-calibrated {g_err * 1e6:.2f} um RMS (shift, rotation and scale removed)")
 
     say.head("4. discover: what the model gets wrong, and why")
-    d = discover(t)
+    say.step(3)
+    d = discover(t, **_progress_kw(discover, lambda k, n: say.step(3, k / n)))
     rep = json_safe(d.to_report())
     rep["log"] = str(log_path)
     write_json_atomic(outp / "discover.json", rep)
@@ -118,9 +131,10 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     say(f"check: {verdict}")
 
     say.head("5. the multi-feature bar: 21 errors of three linear axes")
+    say.step(4)
     from scenarios.mfb import run as run_mfb
 
-    m = run_mfb("mfb-3axis", seed=seed, mc_runs=200)
+    m = run_mfb("mfb-3axis", seed=seed, mc_runs=200, progress=lambda d, n: say.step(4, d / n))
     doc = m.doc
     write_json_atomic(outp / "mfb-3axis.json", json_safe(doc))
     inside = total = 0
@@ -134,6 +148,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
         f"{inside} of {total} identified values within their U95 -> {outp / 'mfb-3axis.json'}")
 
     say.head("6. report and recording")
+    say.step(5)
     from scenarios.reports import demo_report
 
     folder = demo_report(outp / "report", t, res, ident, d, rep, art, machine=machine, g_true=G_true,
@@ -141,15 +156,42 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     say(f"{folder / 'index.html'}  (open in a browser)")
     say(f"{folder / 'recording.rrd'}  (vmt view {folder / 'recording.rrd'})")
     say(f"done in {time.perf_counter() - t_start:.1f} s; JSON: {outp / 'identify.json'}, {outp / 'discover.json'}")
+    say.step(len(STEP_WEIGHTS))
     return 0 if hidden <= named else 1
 
 
 class _Say:
+    """Prints the story; keeps the progress line (if any) below it."""
+
+    def __init__(self, progress=None):
+        self.progress = progress
+        self.clear = getattr(progress, "clear", None)
+
     def __call__(self, text: str) -> None:
+        if self.clear is not None:
+            self.clear()
         print(f"  {text}", flush=True)
 
     def head(self, text: str) -> None:
+        if self.clear is not None:
+            self.clear()
         print(f"\nvmt demo | {text}", flush=True)
+
+    def step(self, k: int, frac: float = 0.0) -> None:
+        """Step ``k`` (0-based) is ``frac`` done."""
+        if self.progress is not None:
+            w = STEP_WEIGHTS
+            self.progress(round(100 * (sum(w[:k]) + frac * (w[k] if k < len(w) else 0)) / sum(w)), 100)
+
+
+def _progress_kw(fn, progress) -> dict:
+    """``{"progress": progress}`` when ``fn`` takes a progress callback (the discovery engine will)."""
+    import inspect
+
+    try:
+        return {"progress": progress} if "progress" in inspect.signature(fn).parameters else {}
+    except (TypeError, ValueError):  # pragma: no cover - builtins
+        return {}
 
 
 def _finding_text(f: dict) -> str:

@@ -74,6 +74,8 @@ def test_fifo_and_link_to_device_written_through_when_asked(tmp_path):
     write_text_atomic(fifo, "through the pipe\n", special=True)
     t.join(5)
     assert got == ["through the pipe\n"] and output_kind(fifo) == "FIFO (named pipe)"
+    with pytest.raises(OutputError, match=r"cannot write .*pipe: no process is reading it"):
+        write_text_atomic(fifo, "nobody listens", special=True)       # an error, not a hang
     link = tmp_path / "null"
     link.symlink_to("/dev/null")
     write_text_atomic(link, "x", special=True)
