@@ -155,6 +155,8 @@ def write_text_atomic(path, text: str, *, special: bool = False) -> Path:
             os.set_blocking(fd, True)
             with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
                 f.write(text)
+        except BrokenPipeError:
+            raise                   # the reader left: the caller ends quietly
         except OSError as e:
             raise OutputError(f"cannot write {p}: {e.strerror or e}") from None
         return p
