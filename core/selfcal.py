@@ -107,6 +107,11 @@ GAUGE_NAMES = (
 )
 
 
+def _r(v, nd=4):
+    """``v`` rounded to ``nd`` decimals for a report (None stays None)."""
+    return None if v is None else round(float(v), nd)
+
+
 def _fmt_mm(v_m: float) -> str:
     return f"{v_m / MM + 0.0:g}"  # + 0.0: no "-0"
 
@@ -859,6 +864,64 @@ class SelfCalResult:
     def value(self, name: str) -> float:
         """One parameter by name."""
         return float(self.theta[self.design.names.index(name)])
+
+    def to_report(self, mc=None) -> dict:
+        """JSON-ready report (um, urad, mm, deg): what ``vmt identify`` writes.
+
+        ``mc`` (a Monte Carlo :func:`core.uncertainty.monte_carlo_touches` of the
+        same touches) adds its U95 per target and its summary.
+        """
+        res = self
+        des = res.design
+        s = des.slices
+        U = 2 * res.std if res.std is not None else np.full(des.n_params, np.nan)
+
+        def u95(i):
+            v = U[i]
+            return None if not np.isfinite(v) else v
+
+        out = {
+            "method": "2D self-calibration, Ibaraki et al. eqs 15-18",
+            "touches": res.n_touches,
+            "n_params": des.n_params,
+            "rms_um": _r(res.rms_m * 1e6),
+            "sigma_um": _r(res.sigma_m * 1e6),
+            "sigma_source": res.sigma_source,
+            "dof": res.dof,
+            "conventions": {"gauge": list(des.gauge), "scale_known": res.scale_known, "yaw": des.yaw,
+                            "notes": list(res.conventions[11:])},
+            "workpiece": [],
+            "axes": {},
+            "rotary": [],
+        }
+        for k, tid in enumerate(des.target_ids):
+            i = s["G"].start + k
+            row = {"target": tid, "g_um": _r(res.theta[i] * 1e6), "u95_um": _r(u95(i) * 1e6)}
+            if mc is not None:
+                row["mc_u95_um"] = _r(mc.U95[i] * 1e6)
+            out["workpiece"].append(row)
+        for sym in ("EXX", "EYX", "EXY", "EYY", des.yaw):
+            on_x = sym in ("EXX", "EYX", "ECX")
+            pos = des.grid.x_m if on_x else des.grid.y_m
+            idx = np.arange(s[sym].start, s[sym].stop)
+            f, unit = (1e6, "urad") if sym in ("ECY", "ECX") else (1e6, "um")
+            out["axes"][sym] = {"axis_pos": "x" if on_x else "y",
+                                "positions_mm": [_r(v * 1e3) for v in pos],
+                                f"values_{unit}": [_r(res.theta[i] * f) for i in idx],
+                                f"u95_{unit}": [_r(u95(i) * f) for i in idx]}
+        i = s["EC0Y"].start
+        out["axes"]["EC0Y"] = {"value_urad": _r(res.theta[i] * 1e6), "u95_urad": _r(u95(i) * 1e6)}
+        for j, sid in enumerate(des.setup_ids):
+            ix, iy, ic = s["EXC"].start + j, s["EYC"].start + j, s["ECC"].start + j
+            out["rotary"].append({"setup": sid, "c_deg": _r(np.degrees(des.c_rad[j]), 6),
+                                  "exc_um": _r(res.theta[ix] * 1e6), "exc_u95_um": _r(u95(ix) * 1e6),
+                                  "eyc_um": _r(res.theta[iy] * 1e6), "eyc_u95_um": _r(u95(iy) * 1e6),
+                                  "ecc_urad": _r(res.theta[ic] * 1e6), "ecc_u95_urad": _r(u95(ic) * 1e6)})
+        if mc is not None:
+            out["monte_carlo"] = {"runs": mc.runs, "u_probe_um": _r(mc.u_probe_m * 1e6),
+                                  "max_workpiece_u95_um": _r(mc.max_workpiece_U95 * 1e6),
+                                  "max_workpiece_form_u95_um": _r(mc.max_form_U95 * 1e6)}
+        return out
 
 
 def count_condition(n_w: int, n_x: int, n_y: int, n_c: int) -> tuple[int, int, int]:

@@ -40,7 +40,7 @@ def run(args) -> int:
     from core.exceptions import ConfigError
     from core.probelog import read_probe_log
     from core.atomic import write_json_atomic
-    from scenarios.cmd_identify import parse_grid
+    from scenarios.cli.options import parse_grid
     from scenarios.parallel import design_evaluator
 
     log = read_probe_log(args.plan)
