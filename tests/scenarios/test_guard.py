@@ -1,4 +1,4 @@
-"""The promises every command keeps (scenarios.guard): one line and exit 2, nothing left behind."""
+"""The promises every command keeps (scenarios.cli.guard): one line and exit 2, nothing left behind."""
 
 import io
 import json
@@ -141,7 +141,7 @@ def test_os_error_inside_a_command_is_one_line(files, capsys, monkeypatch):
     monkeypatch.setattr(cc, "run", boom)
     monkeypatch.setattr("scenarios.cmd_check.run", boom)
     from scenarios.cli import build_parser
-    from scenarios.guard import run_command
+    from scenarios.cli.guard import run_command
 
     args = build_parser().parse_args(["check", str(files["log"])])
     args.func = boom
@@ -163,7 +163,7 @@ def test_check_reports_repeated_touches_and_a_possibly_torn_end(files, capsys):
 
 
 def test_progress_line_is_quiet_off_a_terminal_and_clears_on_one():
-    from scenarios.guard import progress_line
+    from scenarios.cli.guard import progress_line
 
     bar = progress_line("x")
     assert not bar.enabled            # pytest's stderr is no terminal

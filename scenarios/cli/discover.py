@@ -77,13 +77,13 @@ def summary_lines(rep: dict) -> list[str]:
 
 
 def run(args) -> int:
-    from scenarios.guard import progress_line
+    from scenarios.cli.guard import progress_line
 
     with progress_line("discover") as bar:
         rep = run_discover(args.log, args.json_out, args.report, args.grid_mm, progress=bar)
     for line in summary_lines(rep):
         print(line)
-    from scenarios.guard import said
+    from scenarios.cli.guard import said
 
     print(f"wrote {said(args.json_out)}" + (f" and {args.report}/index.html" if args.report else ""))
     return 0

@@ -16,7 +16,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from scenarios.demo import main_job
-    from scenarios.guard import progress_line
+    from scenarios.cli.guard import progress_line
 
     with progress_line("demo") as bar:
         return main_job(out=args.out, seed=args.seed, progress=bar)

@@ -10,7 +10,7 @@ from __future__ import annotations
 def _mfb(args) -> int:
     from scenarios.mfb import run
 
-    from scenarios.guard import progress_line
+    from scenarios.cli.guard import progress_line
 
     with progress_line(f"{args.name}: measurements simulated") as bar:
         r = run(args.name, seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc,
@@ -43,7 +43,7 @@ def _cross_pocket_uncertainty(args) -> int:
         from core.exceptions import ConfigError
 
         raise ConfigError(f"--mc must be >= 10 for this study, got {runs}")
-    from scenarios.guard import progress_line
+    from scenarios.cli.guard import progress_line
 
     with progress_line("cross-pocket-uncertainty: cases") as bar:
         r = cross_pocket_uncertainty(runs=runs, seed=args.seed, progress=bar)

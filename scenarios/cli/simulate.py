@@ -83,7 +83,7 @@ def run(args) -> int:
     write_probe_log(args.out, log, special=True)
     ok = int(log.ok.sum())
     kind = "plan" if args.plan_only else "campaign"
-    from scenarios.guard import said
+    from scenarios.cli.guard import said
 
     print(f"{said(args.out)}: {kind} of {log.n} touches ({ok} ok) on {args.artefact}, machine {name}, "
           f"errors {args.errors}, {len(dict.fromkeys(log.col('setup')))} set-ups")

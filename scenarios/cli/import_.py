@@ -31,7 +31,7 @@ def run(args) -> int:
         log = import_transcript(args.file, plan, dt_s=args.dt)
     write_probe_log(args.out, log, special=True)
     ok = int(log.ok.sum())
-    from scenarios.guard import said
+    from scenarios.cli.guard import said
 
     print(f"{said(args.out)}: {log.n} touches ({ok} ok) from {args.kind} {args.file}")
     return 0
