@@ -11,8 +11,9 @@ Three promises, for every file vmt writes:
    turns the device into a file and a link is never silently replaced by a
    file. With ``special=True`` (the caller states that the user named a
    device or a pipe as the output) a character device or FIFO, also one
-   reached through a link, is written through instead, never replaced; a
-   block device or socket never is.
+   reached through a link, and ``/dev/stdout`` (whatever the shell made
+   of it) are written through instead, never replaced; a block device or
+   socket never is.
 3. **Honest numbers.** :func:`write_json_atomic` refuses NaN and infinities
    (JSON has neither) and names the key; a caller that means "not
    available" converts such values to ``None`` itself (:func:`json_safe`).
@@ -30,6 +31,7 @@ import math
 import os
 import shutil
 import stat
+import sys
 import tempfile
 from pathlib import Path
 
@@ -71,6 +73,19 @@ def output_kind(path) -> str:
     return _kind_of_mode(st.st_mode)
 
 
+def own_descriptor(path) -> int | None:
+    """N when ``path`` names an open descriptor of this process (``/dev/stdout``,
+    ``/dev/fd/N``, ``/proc/self/fd/N``), else None."""
+    q = str(path)
+    for t in (q, os.path.join(os.path.dirname(q), os.readlink(q)) if os.path.islink(q) else None):
+        if t is None:
+            continue
+        d = os.path.realpath(os.path.dirname(t))
+        if d == os.path.realpath("/proc/self/fd") and os.path.basename(t).isdigit():
+            return int(os.path.basename(t))
+    return None
+
+
 def check_output(path, *, special: bool = False) -> str:
     """Refuse an output path vmt must not replace; say how it will be written.
 
@@ -97,6 +112,8 @@ def check_output(path, *, special: bool = False) -> str:
     """
     p = Path(path)
     kind = output_kind(p)
+    if special and kind == "symbolic link" and own_descriptor(p) is not None:
+        return "through"        # /dev/stdout and kin: the shell's redirection, whatever it is
     if kind in ("missing", "file"):
         parent = p.parent
         pk = output_kind(parent) if str(parent) not in ("", ".") else "directory"
@@ -145,9 +162,18 @@ def write_text_atomic(path, text: str, *, special: bool = False) -> Path:
     """
     p = Path(path)
     if check_output(p, special=special) == "through":
+        own = own_descriptor(p)
         try:
-            # non-blocking open: a FIFO nobody reads is an error, not a hang
-            fd = os.open(p, os.O_WRONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+            if own is not None:
+                # /dev/stdout and kin: this process's own descriptor, the shell's redirection
+                # (a pipe, a file opened with > or >>): write on it, sharing its offset
+                for s in (sys.stdout, sys.stderr):
+                    if s is not None:
+                        s.flush()
+                fd = os.dup(own)
+            else:
+                # non-blocking open: a FIFO nobody reads is an error, not a hang
+                fd = os.open(p, os.O_WRONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
         except OSError as e:
             why = "no process is reading it" if e.errno == errno.ENXIO else (e.strerror or str(e))
             raise OutputError(f"cannot write {p}: {why}") from None

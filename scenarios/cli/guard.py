@@ -14,7 +14,9 @@
   (:class:`core.atomic.RunOutputs`); the append-only log of ``vmt probe``
   is kept, it is what ``--resume`` continues;
 - a closed pipe (``vmt check log.csv | head -2``) ends quietly, status 141
-  like any program killed by SIGPIPE; Ctrl-C ends with one line, status 130.
+  like any program killed by SIGPIPE; Ctrl-C ends with one line, status 130;
+- an output named ``/dev/stdout`` is written on standard output itself (never
+  replaced) and the command's own messages then go to stderr.
 
 Which argument of which command is an input or an output is the table
 :data:`FILES`; a command missing there gets only the error handling.
@@ -23,6 +25,7 @@ Which argument of which command is an input or an output is the table
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import os
 import stat
@@ -179,7 +182,7 @@ def _quiet_stdout() -> None:
 
 def run_command(args) -> int:
     """Run ``args.func(args)`` keeping the promises of this module; return the exit status."""
-    from core.atomic import RunOutputs
+    from core.atomic import RunOutputs, own_descriptor
     from core.exceptions import VmtError
 
     name = " ".join(x for x in (args.command, getattr(args, "machine_command", None)) if x)
@@ -194,7 +197,10 @@ def run_command(args) -> int:
             files, folders = _arg_paths(args, outs), _arg_paths(args, dirs)
             check_outputs(inputs, files, folders)
             outputs = RunOutputs(list(files.values()) + list(folders.values()))
-            rc = int(args.func(args) or 0)
+            # an output on our own stdout (--out /dev/stdout): the command's messages go to stderr
+            said_to = sys.stderr if any(own_descriptor(p) == 1 for p in files.values()) else None
+            with contextlib.redirect_stdout(said_to) if said_to else contextlib.nullcontext():
+                rc = int(args.func(args) or 0)
             sys.stdout.flush()
             return rc
         except BrokenPipeError:

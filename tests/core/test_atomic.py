@@ -4,7 +4,6 @@ import json
 import os
 import socket
 import stat
-import threading
 
 import numpy as np
 import pytest
@@ -68,12 +67,13 @@ def test_devices_refused_unless_asked_then_written_through():
 def test_fifo_and_link_to_device_written_through_when_asked(tmp_path):
     fifo = tmp_path / "pipe"
     os.mkfifo(fifo)
-    got = []
-    t = threading.Thread(target=lambda: got.append(open(fifo).read()))
-    t.start()
-    write_text_atomic(fifo, "through the pipe\n", special=True)
-    t.join(5)
-    assert got == ["through the pipe\n"] and output_kind(fifo) == "FIFO (named pipe)"
+    rfd = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)          # a reader (does not block)
+    try:
+        write_text_atomic(fifo, "through the pipe\n", special=True)
+        assert os.read(rfd, 100) == b"through the pipe\n"
+    finally:
+        os.close(rfd)
+    assert output_kind(fifo) == "FIFO (named pipe)"
     with pytest.raises(OutputError, match=r"cannot write .*pipe: no process is reading it"):
         write_text_atomic(fifo, "nobody listens", special=True)       # an error, not a hang
     link = tmp_path / "null"
@@ -164,3 +164,25 @@ def test_run_outputs_keeps_everything_when_nothing_was_written(tmp_path):
     outs = RunOutputs([tmp_path / "x.json", tmp_path / "missing" / "y.json"])
     assert outs.remove_written() == []
     assert listing(tmp_path) == ["x.json"]
+
+
+def test_dev_stdout_is_written_through_never_replaced(tmp_path):
+    """`--out /dev/stdout >> file` and `| reader`: the text lands where the shell sent stdout, after
+    what is there, and /dev/stdout stays the link it is. (As root, the old writer replaced
+    /dev/stdout by a regular file.)"""
+    import subprocess
+    import sys
+
+    code = ("import sys; from core.atomic import write_text_atomic; "
+            "write_text_atomic('/dev/stdout', 'through\\n', special=True)")
+    out = tmp_path / "o.txt"
+    out.write_text("kept\n")
+    with open(out, "a") as f:
+        subprocess.run([sys.executable, "-c", code], stdout=f, check=True)
+    assert out.read_text() == "kept\nthrough\n"
+    assert os.path.islink("/dev/stdout")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert r.stdout == "through\n"
+    with pytest.raises(OutputError, match="symbolic link"):
+        write_text_atomic("/dev/stdout", "x")             # not asked: refused, never replaced
+    assert os.path.islink("/dev/stdout")
