@@ -94,11 +94,11 @@ def check_input(path: str) -> None:
         raise VmtError(f"{path}: cannot read: {os.strerror(errno.EACCES)}")
 
 
-def _writable_folder(path: Path) -> None:
-    """The nearest existing folder on the way to ``path`` must take a new file."""
+def _writable_folder(path: Path, *, folder: bool = False) -> None:
+    """The nearest existing folder on the way to ``path`` (a file, or a ``folder``) must take a new file."""
     from core.exceptions import OutputError
 
-    q = path.parent
+    q = path if folder else path.parent
     while not q.exists() and q != q.parent:
         q = q.parent
     if not q.is_dir():
@@ -133,7 +133,7 @@ def check_outputs(inputs: dict, files: dict, folders: dict) -> None:
             raise OutputError(f"{_opt(name)} {out}: is a {kind}, not a folder")
         if kind != "missing" and not os.path.isdir(out):
             raise OutputError(f"{_opt(name)} {out}: is not a folder")
-        _writable_folder(Path(out) / "x")
+        _writable_folder(Path(out), folder=True)
 
 
 #: Options that mean the same in every command that has them (``args`` name: test, rule).
