@@ -261,6 +261,24 @@ def write_json_atomic(path, obj, *, special: bool = False) -> Path:
 # inputs versus outputs
 
 
+def input_problem(path, noun: str = "file") -> str | None:
+    """Why ``path`` cannot be read as an input (``"no such file"``, ``"is a directory, not a
+    NOUN"``, ``"cannot read: Permission denied"``, ...), or None when it is a readable file or pipe."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return "no such file"
+    except OSError as e:
+        return f"cannot read: {e.strerror or e}"
+    if stat.S_ISDIR(st.st_mode):
+        return f"is a directory, not a {noun}"
+    if not (stat.S_ISREG(st.st_mode) or stat.S_ISFIFO(st.st_mode)):
+        return f"is a device or socket, not a {noun}"
+    if not os.access(path, os.R_OK):
+        return f"cannot read: {os.strerror(errno.EACCES)}"
+    return None
+
+
 def same_file(a, b) -> bool:
     """True when paths ``a`` and ``b`` name the same file (links and ``..`` resolved)."""
     try:

@@ -18,14 +18,13 @@ import csv
 import io
 import math
 import os
-import stat
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterable, Mapping
 
 import numpy as np
 
-from .atomic import write_text_atomic
+from .atomic import input_problem, write_text_atomic
 from .exceptions import ProbeLogError
 
 FORMAT = "probe-log/1"
@@ -276,16 +275,9 @@ def read_probe_log(path: str | os.PathLike) -> ProbeLog:
     """
     p = Path(path)
     src = str(p)
-    try:
-        st = os.stat(p)
-    except FileNotFoundError:
-        raise ProbeLogError(f"{src}: no such file") from None
-    except OSError as e:
-        raise ProbeLogError(f"{src}: cannot read: {e.strerror or e}") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise ProbeLogError(f"{src}: is a directory, not a probe log")
-    if not (stat.S_ISREG(st.st_mode) or stat.S_ISFIFO(st.st_mode)):
-        raise ProbeLogError(f"{src}: is a device or socket, not a probe log file")
+    problem = input_problem(p, "probe log file")
+    if problem:
+        raise ProbeLogError(f"{src}: {problem}")
     try:
         data = p.read_bytes()
     except OSError as e:

@@ -26,9 +26,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import errno
 import os
-import stat
 import sys
 import tempfile
 from pathlib import Path
@@ -78,20 +76,12 @@ def _opt(name: str) -> str:
 
 def check_input(path: str) -> None:
     """A readable file (or pipe) at ``path``, else :class:`~core.exceptions.VmtError` naming it."""
+    from core.atomic import input_problem
     from core.exceptions import VmtError
 
-    try:
-        st = os.stat(path)
-    except FileNotFoundError:
-        raise VmtError(f"{path}: no such file") from None
-    except OSError as e:
-        raise VmtError(f"{path}: cannot read: {e.strerror}") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise VmtError(f"{path}: is a directory, not a file")
-    if not (stat.S_ISREG(st.st_mode) or stat.S_ISFIFO(st.st_mode)):
-        raise VmtError(f"{path}: is a device or socket, not a file")
-    if not os.access(path, os.R_OK):
-        raise VmtError(f"{path}: cannot read: {os.strerror(errno.EACCES)}")
+    problem = input_problem(path)
+    if problem:
+        raise VmtError(f"{path}: {problem}")
 
 
 def _writable_folder(path: Path, *, folder: bool = False) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from core.exceptions import VmtError
-from core.probelog import make_log, read_probe_log, write_probe_log
+from core.probelog import make_log, write_probe_log
 from scenarios.cli import main
 
 
@@ -110,7 +110,7 @@ def test_design_step_zero_and_usage_errors_are_one_line(files, capsys):
 def test_failed_run_leaves_no_output(files, capsys, monkeypatch):
     """A command that wrote its JSON and half a report, then failed: both removed, a file of
     the user's in the report's parent kept; Ctrl-C the same, exit 130."""
-    import scenarios.cmd_discover as cd
+    import scenarios.cli.discover as cd
 
     keep = files["dir"] / "notes.txt"
     keep.write_text("mine")
@@ -133,13 +133,13 @@ def test_failed_run_leaves_no_output(files, capsys, monkeypatch):
 
 
 def test_os_error_inside_a_command_is_one_line(files, capsys, monkeypatch):
-    import scenarios.cmd_check as cc
+    import scenarios.cli.check as cc
 
     def boom(args):
         raise IsADirectoryError(21, "Is a directory", "/some/where")
 
     monkeypatch.setattr(cc, "run", boom)
-    monkeypatch.setattr("scenarios.cmd_check.run", boom)
+    monkeypatch.setattr("scenarios.cli.check.run", boom)
     from scenarios.cli import build_parser
     from scenarios.cli.guard import run_command
 
