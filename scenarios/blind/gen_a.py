@@ -1658,19 +1658,21 @@ def _fx_probe_heating(rng, camp):
 
     Each trigger dissipates heat in the probe (its signal electronics and
     the stylus joint); the heat decays with a time constant of 10-40 min, so
-    ``H_k = H_{k-1} exp(-dt / tau) + 1`` and ``delta = a H_k / max H``.
+    ``H_k = H_{k-1} exp(-dt / tau) + 1`` over the triggered touches and
+    ``delta = a H_k / max H``.
     Long pauses cool it. Not a machine error and not the part: an
     out-of-catalogue effect. Covariates: order (touch count), time.
     """
     tau = rng.uniform(600, 2400)
     t = camp.t
     H = np.zeros(camp.n)
-    h = 0.0
-    for i in range(camp.n):
-        if i:
-            h *= np.exp(-(t[i] - t[i - 1]) / tau)
+    h, t_prev = 0.0, None
+    for i in np.flatnonzero(camp.plan.ok):  # a touch that did not trigger does not count
+        if t_prev is not None:
+            h *= np.exp(-(t[i] - t_prev) / tau)
         h += 1.0
         H[i] = h
+        t_prev = t[i]
     H /= H.max()
     def build(amp):
         return Mods(delta_mm=amp * UM * H)
@@ -2039,7 +2041,10 @@ def generate(effect: str, seed: int, **options) -> tuple[ProbeLog, Truth]:
     model_gap = _rms(baseline_residual(camp, dq_off, Q)) / UM
 
     on = options.get("effect_on", True) and effect != "none"
-    draw, amp = _draw_effect(effect, r_fx, camp, dq_off, Q, k_sig * sig_ref, sig_ref)
+    if on:
+        draw, amp = _draw_effect(effect, r_fx, camp, dq_off, Q, k_sig * sig_ref, sig_ref)
+    else:  # the same first draw (its parameters go in the truth), nothing injected
+        draw, amp = _effect_fn(effect, camp)(r_fx, camp), 0.0
     mods = draw.build(amp) if on else Mods()
     q_eff = simulate(camp, mods)
     d_eff = np.where(ok, dq_mm(camp, q_eff) - dq_off, np.nan)
@@ -2091,10 +2096,7 @@ def _draw_effect(effect, rng, camp, dq_off, Q, target_um, sig_ref):
     effect is weaker than asked, which the truth reports (``capped``,
     ``visible_sigmas``).
     """
-    fx = _FX[effect]
-    if effect == "temperature_expansion":
-        sensor = [s for s in camp.plan.temps if s in CYCLIC_SENSORS][0]
-        fx = lambda r, c: _fx_temperature_expansion(r, c, sensor)  # noqa: E731
+    fx = _effect_fn(effect, camp)
     best = None
     for _ in range(MAX_DRAWS):
         draw = fx(rng, camp)
@@ -2109,6 +2111,14 @@ def _draw_effect(effect, rng, camp, dq_off, Q, target_um, sig_ref):
         if best is None or amp / draw.amp_max < best[1]:
             best = (draw, amp / draw.amp_max)
     return best[0], best[0].amp_max
+
+
+def _effect_fn(effect: str, camp: Campaign) -> Callable:
+    """The effect's draw function (rng, campaign) -> _Draw."""
+    if effect == "temperature_expansion":  # driven by the campaign's cyclic sensor
+        sensor = [s for s in camp.plan.temps if s in CYCLIC_SENSORS][0]
+        return lambda r, c: _fx_temperature_expansion(r, c, sensor)
+    return _FX[effect]
 
 
 def _affected(draw: _Draw, d: np.ndarray, ok: np.ndarray) -> np.ndarray:
