@@ -84,10 +84,10 @@ from numpy.polynomial import chebyshev as _cheb
 
 from core.exceptions import ConfigError
 from core.probelog import ProbeLog, make_log
+from core.units import DEG, MM, UM, URAD
 
-DEG = np.pi / 180.0
-UM = 1e-3  # mm per um
-URAD = 1e-6
+#: One micrometre in millimetres: this module works in the file's units (mm).
+UM_MM = UM / MM
 
 #: Effect name -> kind. ``none`` counts as a catalogue cause (its name is one).
 EFFECTS: dict[str, str] = {
@@ -373,8 +373,8 @@ class Machine:
         x, y, z = q[:, 0], q[:, 1], q[:, 2]
         zer = np.zeros_like(x)
         ex_, ey_ = self._axis_errors("X", x), self._axis_errors("Y", y)
-        tX = np.column_stack([ex_[:, 0], ex_[:, 1], zer]) * UM
-        tY = np.column_stack([ey_[:, 0], ey_[:, 1], zer]) * UM
+        tX = np.column_stack([ex_[:, 0], ex_[:, 1], zer]) * UM_MM
+        tY = np.column_stack([ey_[:, 0], ey_[:, 1], zer]) * UM_MM
         RX = rotation(ex_[:, 2:] * URAD)
         RY = rotation(ey_[:, 2:] * URAD)
         e0y = self.EC0Y_urad * URAD
@@ -408,8 +408,8 @@ class Machine:
         c_rad = np.asarray(c_rad, float)
         n = len(c_rad)
         o = np.column_stack([
-            np.full(n, self.centre_mm[0]) + (self.EX0C_um + self.EXC(c_rad)) * UM,
-            np.full(n, self.centre_mm[1]) + (self.EY0C_um + self.EYC(c_rad)) * UM,
+            np.full(n, self.centre_mm[0]) + (self.EX0C_um + self.EXC(c_rad)) * UM_MM,
+            np.full(n, self.centre_mm[1]) + (self.EY0C_um + self.EYC(c_rad)) * UM_MM,
             np.full(n, self.z_top_mm)])
         tilt = rotation(np.column_stack([self.EA0C_urad + self.EAC(c_rad),
                                          self.EB0C_urad + self.EBC(c_rad), np.zeros(n)]) * URAD)
@@ -1154,7 +1154,7 @@ def simulate(camp: Campaign, mods: Mods | None = None, noise_dq_mm: np.ndarray |
     d = pl.d
     q0 = camp.Xn - pl.L_mm * d
     A, b = _part_pose(camp, mods)
-    G = part.form_um[ti] * UM
+    G = part.form_um[ti] * UM_MM
     if mods.dG_mm is not None:
         G = G + mods.dG_mm
     d_P = _mtv(A, d)
@@ -1172,7 +1172,7 @@ def simulate(camp: Campaign, mods: Mods | None = None, noise_dq_mm: np.ndarray |
             break
     else:  # pragma: no cover - converges in 3-5 steps for errors of um
         raise RuntimeError("contact solve did not converge")
-    delta = np.full(n, mach.probe_offset_um * UM)
+    delta = np.full(n, mach.probe_offset_um * UM_MM)
     if mods.delta_mm is not None:
         delta = delta + mods.delta_mm
     t = t + delta
@@ -1200,7 +1200,7 @@ def workpiece_deviation_um(part: Part, pose: np.ndarray, dG_um: np.ndarray | Non
     """
     N = part.n
     ti = np.arange(N)
-    G = (part.form_um + (0 if dG_um is None else dG_um)) * UM
+    G = (part.form_um + (0 if dG_um is None else dG_um)) * UM_MM
     R = _rz(np.full(N, pose[2]))
     m = np.array([pose[0], pose[1], 0.0])
     s = np.zeros(N)
@@ -1212,7 +1212,7 @@ def workpiece_deviation_um(part: Part, pose: np.ndarray, dG_um: np.ndarray | Non
         s = s - step
         if np.max(np.abs(step)) < SOLVE_TOL_MM:
             break
-    return s / UM
+    return s / UM_MM
 
 
 # ---------------------------------------------------------------------------
@@ -1354,7 +1354,7 @@ def _fx_outlier(rng, camp):
     frac = rng.uniform(8, 30, k)  # in noise sigmas, scaled by the caller
     def build(amp):
         dG = np.zeros(camp.n)
-        dG[rows] = frac * amp * UM
+        dG[rows] = frac * amp * UM_MM
         return Mods(dG_mm=dG)
     return _Draw({"rows": tuple(int(r) for r in rows), "heights_sigma": tuple(float(f) for f in frac)},
                  (), build, local=True, scaled=False)
@@ -1380,8 +1380,8 @@ def _fx_thermal_drift(rng, camp):
     def build(amp):
         w1, w2 = _warm(t, tau1), _warm(t, tau2)
         def tool(q):
-            ex = w1 * (Sx * 1e-6 * (q[:, 0] - x0) - K * URAD * (q[:, 1] - y0)) + w2 * Ox * UM
-            ey = w1 * Sy * 1e-6 * (q[:, 1] - y0) + w2 * Oy * UM
+            ex = w1 * (Sx * 1e-6 * (q[:, 0] - x0) - K * URAD * (q[:, 1] - y0)) + w2 * Ox * UM_MM
+            ey = w1 * Sy * 1e-6 * (q[:, 1] - y0) + w2 * Oy * UM_MM
             return amp * np.column_stack([ex, ey, np.zeros(len(q))])
         return Mods(tool=tool)
     return _Draw({"tau1_s": tau1, "tau2_s": tau2, "Sx_um_per_m": Sx, "Sy_um_per_m": Sy,
@@ -1415,7 +1415,7 @@ def _fx_periodic_axis_error(rng, camp):
     def build(amp):
         def tool(q):
             e = np.zeros_like(q)
-            e[:, ax] = amp * UM * np.sin(2 * np.pi * q[:, ax] / P + ph)
+            e[:, ax] = amp * UM_MM * np.sin(2 * np.pi * q[:, ax] / P + ph)
             return e
         return Mods(tool=tool)
     return _Draw({"axis": "XY"[ax], "period_mm": P, "phase_rad": ph, "axis_spacing_mm": sp},
@@ -1435,7 +1435,7 @@ def _fx_probe_lobing(rng, camp):
     ph0 = rng.uniform(0, 2 * np.pi / k)
     az = camp.azimuth
     def build(amp):
-        return Mods(delta_mm=amp * UM * np.cos(k * (az - ph0)))
+        return Mods(delta_mm=amp * UM_MM * np.cos(k * (az - ph0)))
     return _Draw({"lobes": k, "phase_rad": ph0}, ("approach_azimuth",), build, amp_max=6.0)
 
 
@@ -1459,7 +1459,7 @@ def _fx_reversal(rng, camp):
     def build(amp):
         def tool(q):
             e = np.zeros_like(q)
-            e[:, ax] = -0.5 * amp * UM * sgn
+            e[:, ax] = -0.5 * amp * UM_MM * sgn
             return e
         return Mods(tool=tool)
     return _Draw({"axis": "XY"[ax]}, ("approach_azimuth",), build,
@@ -1485,7 +1485,7 @@ def _fx_nonrigid(rng, camp):
         def tool(q):
             f = np.sin(np.pi * q[:, 0] / Lx + px) * np.sin(np.pi * q[:, 1] / Ly + py)
             e = np.zeros_like(q)
-            e[:, which] = amp * UM * f
+            e[:, which] = amp * UM_MM * f
             return e
         return Mods(tool=tool)
     return _Draw({"error_direction": "XY"[which], "half_wave_x_mm": Lx, "half_wave_y_mm": Ly},
@@ -1558,7 +1558,7 @@ def _fx_stylus_bending(rng, camp):
     c2 = rng.choice([-1, 1]) * rng.uniform(1, 4)
     e = camp.elevation
     def build(amp):
-        return Mods(delta_mm=amp * UM * (c1 * np.sin(e) + c2 * (1 - np.cos(e))))
+        return Mods(delta_mm=amp * UM_MM * (c1 * np.sin(e) + c2 * (1 - np.cos(e))))
     return _Draw({"c1": c1, "c2": c2}, ("approach_elevation",), build, amp_max=10.0)
 
 
@@ -1581,7 +1581,7 @@ def _fx_lobing_per_setup(rng, camp):
     az = camp.azimuth
     s = camp.plan.setup
     def build(amp):
-        return Mods(delta_mm=amp * UM * np.cos(k * (az - ph[s])))
+        return Mods(delta_mm=amp * UM_MM * np.cos(k * (az - ph[s])))
     return _Draw({"lobes": k, "phase_rad": tuple(float(p) for p in ph)},
                  ("approach_azimuth", "setup"), build, amp_max=6.0)
 
@@ -1605,7 +1605,7 @@ def _fx_local_scale_defect(rng, camp):
         def tool(q):
             u = (q[:, ax] - qc) / w
             e = np.zeros_like(q)
-            e[:, ax] = amp * UM * np.where(np.abs(u) < 1, (1 + np.cos(np.pi * u)) / 2, 0.0)
+            e[:, ax] = amp * UM_MM * np.where(np.abs(u) < 1, (1 + np.cos(np.pi * u)) / 2, 0.0)
             return e
         return Mods(tool=tool)
     return _Draw({"axis": "XY"[ax], "centre_mm": qc, "half_width_mm": w}, ("xy"[ax],), build, local=True,
@@ -1648,7 +1648,7 @@ def _fx_part_change(rng, camp):
     rho = _warm(camp.t, tau) / _warm(np.array(T), tau)
     ti = camp.plan.target
     def build(amp):
-        return Mods(dG_mm=amp * UM * shape[ti] * rho)
+        return Mods(dG_mm=amp * UM_MM * shape[ti] * rho)
     return _Draw({"feature": f, "tau_s": tau, "shape": shape}, ("time", "feature"), build, local=True,
                  amp_max=10.0)
 
@@ -1675,7 +1675,7 @@ def _fx_probe_heating(rng, camp):
         t_prev = t[i]
     H /= H.max()
     def build(amp):
-        return Mods(delta_mm=amp * UM * H)
+        return Mods(delta_mm=amp * UM_MM * H)
     return _Draw({"tau_s": tau}, ("order", "time"), build, amp_max=8.0)
 
 
@@ -1700,7 +1700,7 @@ def _fx_knock(rng, camp):
     after = camp.t >= t0
     def build(amp):
         pose = np.zeros((camp.n, 3))
-        pose[after] = [amp * UM * np.cos(ang), amp * UM * np.sin(ang), rs * amp * UM / 60.0]
+        pose[after] = [amp * UM_MM * np.cos(ang), amp * UM_MM * np.sin(ang), rs * amp * UM_MM / 60.0]
         return Mods(part_pose=pose)
     return _Draw({"setup": pl.setup_ids[j], "t_knock_s": float(t0), "direction_rad": ang},
                  ("time_in_setup", "setup"), build, local=True,
@@ -1722,11 +1722,11 @@ def _fx_feed_latency(rng, camp):
     vref = float(np.median(v))
     dv = (v - vref) / max(np.max(np.abs(v - vref)), 1e-9)
     def build(amp):
-        return Mods(delta_mm=amp * UM * dv)
+        return Mods(delta_mm=amp * UM_MM * dv)
     dvm = float(np.max(np.abs(v - vref)))
     return _Draw({"v_ref_mm_min": vref * 60.0, "dv_max_mm_s": dvm},
                  ("setup", "feature", "feed"), build,
-                 report=lambda a: {"latency_ms": float(a * UM / max(dvm, 1e-9) * 1e3), "amplitude_um": float(a)},
+                 report=lambda a: {"latency_ms": float(a * UM_MM / max(dvm, 1e-9) * 1e3), "amplitude_um": float(a)},
                  amp_max=8.0)
 
 
@@ -1744,7 +1744,7 @@ def _fx_reseat_hysteresis(rng, camp):
     flag = np.zeros(camp.n)
     flag[1:] = (np.einsum("ij,ij->i", d[1:], d[:-1]) < 0).astype(float)
     def build(amp):
-        return Mods(delta_mm=amp * UM * flag)
+        return Mods(delta_mm=amp * UM_MM * flag)
     return _Draw({"rows_affected": int(flag.sum())}, ("order", "approach_azimuth"), build, amp_max=10.0)
 
 
@@ -1760,7 +1760,7 @@ def _fx_vibration(rng, camp):
     psi = rng.uniform(0, 2 * np.pi)
     t = camp.t
     def build(amp):
-        s = amp * UM * np.sin(2 * np.pi * t / P + ph)
+        s = amp * UM_MM * np.sin(2 * np.pi * t / P + ph)
         def tool(q):
             return np.column_stack([s * np.cos(psi), s * np.sin(psi), np.zeros(len(q))])
         return Mods(tool=tool)
@@ -1786,7 +1786,7 @@ def _fx_thermal_bending(rng, camp):
     def build(amp):
         def tool(q):
             e = np.zeros_like(q)
-            e[:, 1] = amp * UM * w * ((q[:, 0] - xm) / h) ** 2
+            e[:, 1] = amp * UM_MM * w * ((q[:, 0] - xm) / h) ** 2
             return e
         return Mods(tool=tool)
     return _Draw({"tau_s": tau, "x_mid_mm": xm, "half_length_mm": h}, ("time", "x"), build,
@@ -2027,7 +2027,7 @@ def generate(effect: str, seed: int, **options) -> tuple[ProbeLog, Truth]:
     noise = float(np.round(r_noise.uniform(0.2, 0.5), 3)) if noise is None else float(noise)
     if noise < 0:
         raise ConfigError(f"noise_um must be >= 0, got {noise}")
-    eps = r_noise.normal(0.0, 1.0, camp.n) * noise * UM
+    eps = r_noise.normal(0.0, 1.0, camp.n) * noise * UM_MM
     if not options.get("noisy", True):
         eps = np.zeros(camp.n)
     sig_ref = noise if noise > 0 else 0.3
@@ -2038,7 +2038,7 @@ def generate(effect: str, seed: int, **options) -> tuple[ProbeLog, Truth]:
     q_off = simulate(camp)
     dq_off = dq_mm(camp, q_off)
     Q = _basis(camp)
-    model_gap = _rms(baseline_residual(camp, dq_off, Q)) / UM
+    model_gap = _rms(baseline_residual(camp, dq_off, Q)) / UM_MM
 
     on = options.get("effect_on", True) and effect != "none"
     if on:
@@ -2052,8 +2052,8 @@ def generate(effect: str, seed: int, **options) -> tuple[ProbeLog, Truth]:
     # the noise only adds travel after the contact: dq moves by eps exactly
     q = q_eff + (eps / np.einsum("ij,ij->i", camp.nR, camp.plan.d))[:, None] * camp.plan.d
     resid = baseline_residual(camp, np.nan_to_num(d_eff), Q)
-    mag = _rms(d_eff[aff]) / UM if on else 0.0
-    vis = _rms(resid[aff]) / UM if on else 0.0
+    mag = _rms(d_eff[aff]) / UM_MM if on else 0.0
+    vis = _rms(resid[aff]) / UM_MM if on else 0.0
 
     part = camp.part
     wp = workpiece_deviation_um(part, camp.mount)
@@ -2069,11 +2069,11 @@ def generate(effect: str, seed: int, **options) -> tuple[ProbeLog, Truth]:
     truth = Truth(
         effect=effect, kind=EFFECTS[effect], acceptable_causes=("none",) if effect == "none" else _acceptable(effect, draw),
         covariates=draw.covariates, magnitude_um=mag, visible_um=vis,
-        visible_sigmas=vis / noise if (on and noise > 0) else 0.0, peak_um=float(np.nanmax(np.abs(d_eff)) / UM) if on else 0.0,
+        visible_sigmas=vis / noise if (on and noise > 0) else 0.0, peak_um=float(np.nanmax(np.abs(d_eff)) / UM_MM) if on else 0.0,
         noise_um=noise,
         physical=draw.physical(amp) if on else {}, capped=bool(on and draw.scaled and amp >= draw.amp_max),
         params=params, affected_rows=tuple(int(r) for r in aff) if on else (), outlier_rows=out_rows,
-        effect_dq_um=d_eff / UM, targets=part.target, workpiece_um=wp, workpiece_end_um=wp_end,
+        effect_dq_um=d_eff / UM_MM, targets=part.target, workpiece_um=wp, workpiece_end_um=wp_end,
         workpiece_form_um=part.form_um.copy(),
         workpiece_identifiable=_identifiable(part, camp.plan.C_deg),
         schedule_deg=tuple(float(c) for c in camp.plan.C_deg), setup_ids=camp.plan.setup_ids,
@@ -2104,7 +2104,7 @@ def _draw_effect(effect, rng, camp, dq_off, Q, target_um, sig_ref):
             return draw, (sig_ref if effect != "none" else 0.0)
         d1 = dq_mm(camp, simulate(camp, draw.build(1.0))) - dq_off
         aff = _affected(draw, d1, camp.plan.ok)
-        vis1 = _rms(baseline_residual(camp, d1, Q)[aff]) / UM
+        vis1 = _rms(baseline_residual(camp, d1, Q)[aff]) / UM_MM
         amp = target_um / vis1 if vis1 > 0 else np.inf
         if amp <= draw.amp_max:
             return draw, amp
