@@ -64,7 +64,13 @@ is in the docstring of its ``_fx_<name>`` function. An effect's strength is
 set so that what the paper's model cannot absorb of it (its residual after a
 least-squares projection on the eq. 15 columns on an 8-interval grid,
 :func:`baseline_residual`) has an RMS of ``sigmas`` noise sigmas over the
-rows it affects, ``sigmas`` drawn in [1, 6] (outliers: 8-30 sigma each).
+rows it affects, ``sigmas`` drawn in [1, 6] (outliers: 8-30 sigma each),
+within a physical limit per effect (``_Draw.amp_max``: e.g. lobing 6 um,
+screw pitch 4 um, C creep 30 urad/min, expansion 25 um/m/K); where the limit
+binds, the effect is weaker than asked and the truth says so (``capped``,
+``visible_sigmas``). Where the schedule cannot identify the workpiece, a
+machine-position effect can be wholly absorbed (visible ~0): that is the
+physics, and the truth reports it.
 
 Everything random comes from ``numpy.random.SeedSequence(seed)``: one
 stream for the plan, one for the machine, one for the part, one for the
@@ -1833,7 +1839,9 @@ class Truth:
         The effect's other parameters (units in the keys).
     affected_rows, outlier_rows : tuple of int
         0-based log rows the effect acts on (all valid rows for a global
-        effect) / the chip rows of ``outlier``.
+        effect; for a local one, outlier, local_scale_defect, part_change,
+        knock, the valid rows where it reaches 10 % of its largest value) /
+        the chip rows of ``outlier``.
     effect_dq_um : (n,) float
         The effect's noise-free contribution to dq per row (NaN: no trigger).
     targets : tuple of str
@@ -1893,6 +1901,11 @@ class Truth:
     machine: Machine
     mount: tuple
     seed: int
+
+    @property
+    def detectable(self) -> bool:
+        """True when what the paper's model cannot absorb is at least one noise sigma."""
+        return self.visible_sigmas >= 1.0
 
     def workpiece(self) -> dict:
         """Target id -> true normal deviation (um) at the start of the campaign."""

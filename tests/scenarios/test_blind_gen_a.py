@@ -26,6 +26,18 @@ def _dq(log):
     return log.dq_mm()
 
 
+def _assert_same_columns(a, b, skip=()):
+    """Logs ``a`` and ``b`` hold the same columns, equal to the bit (NaN = NaN)."""
+    assert list(a.columns) == list(b.columns)
+    for c, v in a.columns.items():
+        if c in skip:
+            continue
+        if v.dtype == object:
+            assert list(b.columns[c]) == list(v), c
+        else:
+            np.testing.assert_array_equal(b.columns[c], v, err_msg=c)
+
+
 def _is_wall(log):
     """(n,) bool: rows on a plane face (pocket walls and slot faces)."""
     return np.array([f.startswith(("wall", "slot")) for f in log.col("feature")])
@@ -236,13 +248,7 @@ def test_workpiece_truth_is_what_a_perfect_machine_reads():
 def test_campaigns_read_back_and_pass_vmt_check(pairs, tmp_path, capsys, effect, seed):
     for e, (log, truth) in [(effect, pairs[effect, seed][0])]:
         p = write_probe_log(tmp_path / f"{e}.csv", log)
-        back = read_probe_log(p)
-        assert list(back.columns) == list(log.columns)
-        for c, v in log.columns.items():
-            if v.dtype == object:
-                assert list(back.columns[c]) == list(v), c
-            else:
-                np.testing.assert_array_equal(back.columns[c], v, err_msg=c)
+        _assert_same_columns(log, read_probe_log(p))
         assert main(["check", str(p)]) == 0
         out = capsys.readouterr().out
         assert "valid probe-log/1 campaign" in out and f"touches  {log.n}" in out
@@ -288,11 +294,7 @@ def test_plan_properties_over_seeds():
 def test_determinism_and_shared_plan(pairs):
     (a, ta), _ = pairs["probe_lobing", 1]
     b, tb = gen_a.generate("probe_lobing", 1)
-    for c, v in a.columns.items():
-        if v.dtype == object:
-            assert list(b.columns[c]) == list(v), c
-        else:
-            np.testing.assert_array_equal(b.columns[c], v, err_msg=c)
+    _assert_same_columns(a, b)
     np.testing.assert_array_equal(ta.effect_dq_um, tb.effect_dq_um)
     assert ta.physical == tb.physical and ta.visible_um == tb.visible_um
     # another seed is another campaign
@@ -357,13 +359,7 @@ def test_rigid_machine_is_absorbed_by_the_paper_model():
 def test_effect_changes_the_data_by_its_stated_magnitude(pairs, effect):
     for seed in SEEDS:
         (on, t_on), (off, t_off) = pairs[effect, seed]
-        for c, v in on.columns.items():  # only the readings differ
-            if c in ("X_mm", "Y_mm", "Z_mm"):
-                continue
-            if v.dtype == object:
-                assert list(off.columns[c]) == list(v), c
-            else:
-                np.testing.assert_array_equal(off.columns[c], v, err_msg=c)
+        _assert_same_columns(on, off, skip=("X_mm", "Y_mm", "Z_mm"))  # only the readings differ
         ok = on.ok
         diff = (_dq(on) - _dq(off)) / 1e-3
         np.testing.assert_allclose(diff[ok], t_on.effect_dq_um[ok], rtol=0, atol=1e-6)
