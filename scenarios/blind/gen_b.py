@@ -281,8 +281,9 @@ class Truth:
         Name in :data:`SCHEDULES` (``"custom"`` when given as angles).
     where : str
         The effect's physics in words.
-    params : Mapping
-        The effect's drawn parameters (units in the keys).
+    params : dict[str, float]
+        The effect's drawn parameters (units in the keys); a plain dict so
+        that a Truth pickles (for runs across processes).
     base_visible_um : float
         What the baseline cannot absorb of the base machine errors (should
         be far below the noise: the base machine is inside the model).
@@ -1500,7 +1501,7 @@ def generate(effect: str, seed: int, **options) -> tuple[ProbeLog, Truth]:
         targets=P.target, workpiece_um=wp,
         workpiece_identifiable=not any(ident.values()),
         schedule_deg=tuple(run), seed=int(seed), schedule=sched_name, where=spec.where,
-        params=MappingProxyType({k: float(v) for k, v in params.items()}),
+        params={k: float(v) for k, v in params.items()},
         base_visible_um=_rms(vis[:, 1]),
         centre_mm=(float(centre[0]), float(centre[1])), grid_x_mm=gx, grid_y_mm=gy)
     return log, truth

@@ -9,6 +9,7 @@ a workpiece form, and the validating reader and CLI of the core.
 from __future__ import annotations
 
 import math
+import pickle
 import subprocess
 import sys
 
@@ -64,6 +65,9 @@ def test_effect_list_names_kinds_and_truth_fields(campaigns):
         assert 3 <= len(tr.schedule_deg) <= 8
         assert 200 <= log.n <= 500
         assert log.has("temp_air_C") and log.has("temp_spindle_C")
+    _, tr = campaigns[("c_drift", True)]
+    back = pickle.loads(pickle.dumps(tr))                  # runs across processes
+    assert back.params == tr.params and np.array_equal(back.effect_dq_um, tr.effect_dq_um)
     _, off = campaigns[("c_drift", False)]
     assert off.acceptable_causes == ("none",) and off.magnitude_um == 0 and not off.effect_dq_um.any()
 
