@@ -1,0 +1,85 @@
+#!/usr/bin/python3
+"""vmt's headless LinuxCNC display: home, run one part program in AUTO, exit.
+
+LinuxCNC starts it as ``./vmt_display.py -ini FILE`` (``[DISPLAY]DISPLAY``);
+when it exits, LinuxCNC shuts down. It uses LinuxCNC's Python interface
+(``linuxcnc.stat``, ``linuxcnc.command``, ``linuxcnc.error_channel``):
+E-stop reset, machine on, home all joints, AUTO mode, open and run
+``$VMT_PROGRAM``, wait for the interpreter to go idle. It writes
+``$VMT_RESULT`` (JSON): the times from start to homed and of the run,
+every message of the error channel, and whether the program ran to its end.
+Exit status 0 when it did, 1 otherwise.
+"""
+
+import json
+import os
+import sys
+import time
+
+import linuxcnc
+
+T0 = time.monotonic()
+
+
+def main():
+    out = {"ok": False, "errors": [], "messages": []}
+    s, c, e = linuxcnc.stat(), linuxcnc.command(), linuxcnc.error_channel()
+    timeout_s = float(os.environ.get("VMT_TIMEOUT_S", "600"))
+
+    def drain():
+        while True:
+            m = e.poll()
+            if not m:
+                return
+            kind, text = m
+            (out["errors"] if kind in (linuxcnc.NML_ERROR, linuxcnc.OPERATOR_ERROR)
+             else out["messages"]).append(text)
+
+    def wait(cond, what, limit_s):
+        end = time.monotonic() + limit_s
+        while time.monotonic() < end:
+            s.poll()
+            drain()
+            if cond():
+                return
+            time.sleep(0.002)
+        raise TimeoutError(f"{what}: not done after {limit_s:g} s")
+
+    try:
+        wait(lambda: True, "status", 10)
+        c.state(linuxcnc.STATE_ESTOP_RESET)
+        c.wait_complete()
+        c.state(linuxcnc.STATE_ON)
+        c.wait_complete()
+        wait(lambda: s.task_state == linuxcnc.STATE_ON, "machine on", 10)
+        c.mode(linuxcnc.MODE_MANUAL)
+        c.wait_complete()
+        c.teleop_enable(0)
+        c.wait_complete()
+        c.home(-1)
+        c.wait_complete()
+        wait(lambda: all(s.homed[j] for j in range(s.joints)), "homing", 30)
+        out["homed_s"] = time.monotonic() - T0
+        c.mode(linuxcnc.MODE_AUTO)
+        c.wait_complete()
+        c.program_open(os.environ["VMT_PROGRAM"])
+        c.wait_complete()
+        t_run = time.monotonic()
+        c.auto(linuxcnc.AUTO_RUN, 0)
+        c.wait_complete()
+        wait(lambda: s.interp_state != linuxcnc.INTERP_IDLE or s.exec_state == linuxcnc.EXEC_ERROR,
+             "program start", 10)
+        wait(lambda: s.interp_state == linuxcnc.INTERP_IDLE, "program", timeout_s)
+        out["run_s"] = time.monotonic() - t_run
+        drain()
+        out["ok"] = not out["errors"]
+    except Exception as ex:  # report every failure in the result file, then exit non-zero
+        out["errors"].append(f"{type(ex).__name__}: {ex}")
+    out["total_s"] = time.monotonic() - T0
+    with open(os.environ["VMT_RESULT"], "w") as f:
+        json.dump(out, f)
+    return 0 if out["ok"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
