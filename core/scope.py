@@ -33,10 +33,13 @@ def _looks_like(n: np.ndarray, p: np.ndarray) -> str:
         return ("this looks like a surface (Z) probing file: try `vmt fit plane LOG` "
                 "(flatness and the height of each point above the plane)")
     if len(p) >= 4:
-        c = p.mean(axis=0)
-        r = p - c
-        radial = np.einsum("ij,ij->i", r, n) / np.maximum(np.linalg.norm(r, axis=1), 1e-12)
-        if np.all(np.abs(radial) > 0.9):
+        # a sphere: p_i = c + R n_i for one centre c and radius R (least squares, 4 unknowns)
+        A = np.zeros((3 * len(p), 4))
+        A[:, :3] = np.tile(np.eye(3), (len(p), 1))
+        A[:, 3] = n.ravel()
+        sol, _res, rank, _sv = np.linalg.lstsq(A, p.ravel(), rcond=None)
+        misfit = np.sqrt(np.mean((A @ sol - p.ravel()) ** 2))
+        if rank == 4 and abs(sol[3]) > 0 and misfit < 0.01 * abs(sol[3]):
             return "the normals point through one centre, as on a sphere: try `vmt fit sphere LOG`"
     return ""
 
@@ -64,13 +67,13 @@ def check_planar_scope(log: ProbeLog, command: str = "identify", *, min_touches:
     src = log.source
     if log.n == 0:
         raise IdentifiabilityError(f"{src}: no rows")
-    if log.is_plan:
-        raise IdentifiabilityError(f"{src}: is a plan (measured columns empty), not a campaign: "
-                                   f"probe it first (vmt probe, vmt simulate, vmt import)")
     ok = log.ok
     if not ok.any():
-        raise IdentifiabilityError(f"{src}: no valid touch: every row's status is not 'ok' "
-                                   f"({_statuses(log)})")
+        if log.has("status") and np.any(log.col("status").astype(str) != "ok"):
+            raise IdentifiabilityError(f"{src}: no valid touch: every row's status is not 'ok' "
+                                       f"({_statuses(log)})")
+        raise IdentifiabilityError(f"{src}: is a plan (measured columns empty), not a campaign: "
+                                   f"probe it first (vmt probe, vmt simulate, vmt import)")
     n = log.normals()[ok]
     p = log.positions_mm()[ok]
     planar = np.abs(n[:, 2]) <= NZ_MAX

@@ -86,8 +86,8 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
     rotary = any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg"))
     fm, fp = settings.move_feed_mm_min, settings.probe_feed_mm_min
     axes = "XYZABC" if rotary else "XYZ"
-    p = _WCS_P[wcs]
-    base = 5201 + 20 * p                  # parameters of the frame: X Y Z A B C U V W R
+    wcs_p = _WCS_P[wcs]
+    base = 5201 + 20 * wcs_p                  # parameters of the frame: X Y Z A B C U V W R
     saved = {a: f"#<_vmt_wcs_{a.lower()}>" for a in axes + "R"}
     zero = " ".join(f"{a}0" for a in axes) + " R0"
     back = " ".join(f"{a}{saved[a]}" for a in axes + "R")
@@ -103,7 +103,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
     out += ["#<_vmt_g92_on> = #5210",
             f"(DEBUG, vmt: {wcs} was " + " ".join(f"{a}{saved[a]}" for a in axes + "R") + ")",
             "G21 G90 G94 G17 G40",
-            f"G10 L2 P{p} {zero}",
+            f"G10 L2 P{wcs_p} {zero}",
             wcs,
             "G92.2",
             f"(PROBEOPEN {probe_file})"]
@@ -120,7 +120,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
     if settings.safe_z_mm is not None and prev is not None:
         out.append(f"G1 {_words([prev[0], prev[1], settings.safe_z_mm])} F{fm:.1f}")
     out += ["(PROBECLOSE)",
-            f"G10 L2 P{p} {back}",
+            f"G10 L2 P{wcs_p} {back}",
             "o9001 if [#<_vmt_g92_on> EQ 1]",
             "G92.3",
             "o9001 endif",
@@ -189,11 +189,18 @@ _WORD = re.compile(r"([A-Za-z])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
 def _log_line(p: Path, ln: int, line: str) -> list[float]:
     """X, Y, Z of a ``LOGOPEN`` line such as ``G1 X1.000000 Y2.000000 Z-0.500000``."""
     code = re.sub(r"\([^)]*\)|;.*$", "", line)
-    words = _WORD.findall(code)
-    rest = _WORD.sub("", code).strip()
-    if rest:
-        raise ProbeLogError(f"{p}: line {ln}: {rest[:30]!r} is not a G-code word "
-                            "(expected lines like 'G1 X1.0 Y2.0 Z-0.5')")
+    words, pos = [], 0
+    while pos < len(code):
+        if code[pos].isspace():
+            pos += 1
+            continue
+        m = _WORD.match(code, pos)
+        if m is None:
+            bad = code[pos:].split()[0]
+            raise ProbeLogError(f"{p}: line {ln}: {bad[:30]!r} is not a G-code word "
+                                "(expected lines like 'G1 X1.0 Y2.0 Z-0.5')")
+        words.append(m.groups())
+        pos = m.end()
     got = {}
     for letter, v in words:
         letter = letter.upper()

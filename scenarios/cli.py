@@ -20,6 +20,8 @@ COMMANDS = [
     ("view", "scenarios.cmd_view"),
     ("probe", "scenarios.cmd_probe"),
     ("import", "scenarios.cmd_import"),
+    ("plan", "scenarios.cmd_plan"),
+    ("fit", "scenarios.cmd_fit"),
     ("machine", "scenarios.cmd_machine"),
     ("simulate", "scenarios.cmd_simulate"),
     ("discover", "scenarios.cmd_discover"),
