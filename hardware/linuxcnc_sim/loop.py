@@ -279,6 +279,10 @@ def run_program(program, machine, *, probe_file: str, out_dir, parameters: dict 
     finally:
         server.stop()
     wall = time.monotonic() - t0
+    for f in ("linuxcnc_print.txt", "linuxcnc_debug.txt"):    # the launcher's own logs, in HOME
+        fp = Path(env["HOME"]) / f
+        if fp.is_file():
+            output += f"\n--- {f}\n" + fp.read_text(errors="replace")
     (out_dir / "linuxcnc.out").write_text(output)
     res = json.loads((work / "result.json").read_text()) if (work / "result.json").is_file() else {
         "ok": False, "errors": ["the display program wrote no result (see linuxcnc.out)"], "messages": []}

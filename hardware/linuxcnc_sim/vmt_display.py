@@ -43,15 +43,22 @@ def main():
             if cond():
                 return
             time.sleep(0.002)
-        raise TimeoutError(f"{what}: not done after {limit_s:g} s")
+        raise TimeoutError(f"{what}: not done after {limit_s:g} s (task_state {s.task_state}, "
+                           f"estop {s.estop}, enabled {s.enabled}, homed {s.homed[:s.joints]}, "
+                           f"interp_state {s.interp_state}, exec_state {s.exec_state})")
 
     try:
-        wait(lambda: True, "status", 10)
-        c.state(linuxcnc.STATE_ESTOP_RESET)
-        c.wait_complete()
-        c.state(linuxcnc.STATE_ON)
-        c.wait_complete()
-        wait(lambda: s.task_state == linuxcnc.STATE_ON, "machine on", 10)
+        # task may not listen yet when the display starts: repeat each state change until it shows
+        for state, what in ((linuxcnc.STATE_ESTOP_RESET, "E-stop reset"), (linuxcnc.STATE_ON, "machine on")):
+            for attempt in range(40):
+                c.state(state)
+                c.wait_complete(1.0)
+                try:
+                    wait(lambda: s.task_state == state, what, 0.5)
+                    break
+                except TimeoutError:
+                    if attempt == 39:
+                        raise
         c.mode(linuxcnc.MODE_MANUAL)
         c.wait_complete()
         c.teleop_enable(0)
