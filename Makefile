@@ -30,7 +30,7 @@ test-controllers: $(STAMP)
 	@if ! command -v linuxcnc >/dev/null 2>&1; then \
 	  echo "installing linuxcnc-uspace (Debian) ..."; t0=$$(date +%s); \
 	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
-	      -o DPkg::Lock::Timeout=600 linuxcnc-uspace >/dev/null; } \
+	      --no-install-recommends -o DPkg::Lock::Timeout=600 linuxcnc-uspace >/dev/null; } \
 	  || { echo "error: cannot install linuxcnc-uspace: the LinuxCNC tests cannot run"; exit 2; }; \
 	  echo "linuxcnc-uspace installed in $$(( $$(date +%s) - t0 )) s"; fi
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(VPY) -m pytest -q -s -p no:cacheprovider tests/controllers

@@ -49,7 +49,9 @@ _WCS_P = {"G54": 1, "G55": 2, "G56": 3, "G57": 4, "G58": 5, "G59": 6,
 
 
 def _words(p_mm, rot_deg=None) -> str:
-    w = " ".join(f"{a}{v:.4f}" for a, v in zip("XYZ", p_mm))
+    # 6 decimals (1 nm), as LinuxCNC writes its probe file: 4 would bend each probing line by up
+    # to 0.05 um per axis, a lateral error of the touch on any surface not square to an axis
+    w = " ".join(f"{a}{v:.6f}" for a, v in zip("XYZ", p_mm))
     if rot_deg is not None:
         w += " " + " ".join(f"{a}{v:.4f}" for a, v in zip("ABC", rot_deg))
     return w

@@ -12,7 +12,8 @@ Resolution (stated, and asserted): LinuxCNC latches the first servo sample
 past the trigger, so every touch lies on its probing line between the true
 trigger and one servo period of travel beyond it:
 ``0 <= e <= F * T = 30 mm/min * 1 ms = 0.5 um``; the file has 6 decimals
-(0.5 nm per axis), hence the 1 nm slack below.
+(0.5 nm per axis), and so has the program's path (vmt machine program), hence
+the 1 nm slack on each below.
 
 Never skipped: without LinuxCNC the test fails (the make target installs it).
 """
@@ -119,6 +120,8 @@ def test_touches_agree_with_the_virtual_part_to_the_resolution(loop, tmp_path):
     diff = log.positions_mm() - ref.positions_mm()
     along = np.einsum("ij,ij->i", diff, d)
     across = np.linalg.norm(diff - along[:, None] * d, axis=1)
+    print(f"\ntouch - virtual machine along the approach: {along.min() * 1e3:.4f} .. "
+          f"{along.max() * 1e3:.4f} um (bound 0 .. {RES_MM * 1e3:g}); across: max {across.max() * 1e6:.2f} nm")
     assert np.all(along >= -ROUND_MM) and np.all(along <= RES_MM + ROUND_MM), along
     assert np.all(across <= 2 * ROUND_MM), across
     # and against the geometry, computed here apart from the scene's code: the actual tip
