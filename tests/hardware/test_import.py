@@ -261,3 +261,30 @@ def test_identify_and_discover_name_the_real_reason(tmp_path, capsys):
         err = capsys.readouterr().err
         assert "no touch has a normal in the XY plane" in err and "vmt fit plane" in err
         assert f"{cmd[0]} needs touches on vertical walls" in err and err.count("\n") == 1
+
+
+def test_contact_server_answers_like_the_virtual_machine(monkeypatch):
+    """The socket vmt_probe.py talks to (hardware/linuxcnc_sim/loop.py), without LinuxCNC."""
+    import socket
+
+    from core.exceptions import HardwareError
+    from hardware.linuxcnc_sim import loop
+
+    sc = scene()
+    srv = loop.ContactServer(sc).start()
+    try:
+        host, port = srv.address.rsplit(":", 1)
+        with socket.create_connection((host, int(port)), timeout=5) as c:
+            f = c.makefile("r")
+            c.sendall(b"probe 130 50 1 0 0 -1\nprobe 50 50 40 0 0 1\nhello\n")
+            hit, miss, bad = f.readline().split(), f.readline().split(), f.readline().split()
+    finally:
+        srv.stop()
+    ok, q = sc.probe_move(np.array([0.130, 0.050, 0.001]), np.array([0.130, 0.050, 0.001 - loop.RAY_MM * 1e-3]))
+    assert hit[0] == "hit" and ok and np.allclose([float(v) for v in hit[1:]], q * 1e3, atol=1e-9)
+    assert miss == ["miss"] and bad == ["miss"] and "hello" in srv.error
+    assert len(srv.answers) == 2 and srv.answers[1]["q_mm"] is None
+    assert loop.resolution_mm(30.0) == pytest.approx(0.5e-3)          # 30 mm/min x 1 ms
+    monkeypatch.setattr(loop.shutil, "which", lambda name: None)
+    with pytest.raises(HardwareError, match="apt-get install -y linuxcnc-uspace"):
+        loop.linuxcnc_path()
