@@ -17,7 +17,9 @@ reference scale) measures where the axis went, ``P_ij``. This module
   (:func:`iso230_2`, :func:`figures`), returning a frozen
   :class:`Iso2302Result`;
 - gives the standard's own model of the data as a baseline a model-
-  discovery engine can test against (:func:`baseline`).
+  discovery engine can test against (:func:`baseline`);
+- estimates the uncertainty of each figure from the measuring conditions
+  (:func:`figure_uncertainty`, ISO/TR 230-9 style).
 
 The definitions (ISO 230-2, "Terms and definitions"; numbered 2.x in the
 2006 edition, the numbers cited below, and carried unchanged into clause 3
@@ -653,13 +655,13 @@ _DIRECTION_WORDS = {"+": 1, "up": 1, "pos": 1, "positive": 1, "fwd": 1, "forward
                     "↓": -1, "-1": -1}
 
 
-def read_table(path: str | os.PathLike, unit: str = "mm") -> PositioningLog:
+def read_table(path: str | os.PathLike, unit: str | None = None) -> PositioningLog:
     """Read a generic table of readings (see :func:`parse_table`)."""
     text, src = _read_text(path, "a table")
     return parse_table(text, source=src, unit=unit)
 
 
-def parse_table(text: str, source: str = "<memory>", unit: str = "mm") -> PositioningLog:
+def parse_table(text: str, source: str = "<memory>", unit: str | None = None) -> PositioningLog:
     """A generic whitespace-, comma-, semicolon- or tab-separated table.
 
     One reading a line: target, cycle, direction, measured value, in that
@@ -668,12 +670,11 @@ def parse_table(text: str, source: str = "<memory>", unit: str = "mm") -> Positi
     ``deviation_um`` instead of ``measured`` gives ``measured = target +
     deviation``). Directions: ``+ - up down fwd bwd forward backward pos
     neg +1 -1 1``. Lines starting with ``#`` are comments (``# key: value``
-    lines become metadata). Values in ``unit`` (``mm`` or ``deg``); rows
-    are taken to be in the order measured.
+    lines become metadata). Values in ``unit`` (``mm`` or ``deg``; default:
+    a ``# unit:`` comment line, else mm); rows are taken to be in the
+    order measured.
     """
     src = source
-    if unit not in _NUMERIC_REQUIRED:
-        raise PositioningLogError(f"{src}: unit {unit!r} is not 'mm' or 'deg'")
     if not text.strip():
         raise PositioningLogError(f"{src}: empty file")
     meta: dict[str, str] = {}
@@ -695,6 +696,9 @@ def parse_table(text: str, source: str = "<memory>", unit: str = "mm") -> Positi
         rows.append((ln, cells))
     if not rows:
         raise PositioningLogError(f"{src}: no data rows")
+    unit = unit or meta.get("unit") or "mm"
+    if unit not in _NUMERIC_REQUIRED:
+        raise PositioningLogError(f"{src}: unit {unit!r} is not 'mm' or 'deg'")
     first = rows[0][1]
 
     def is_number(c: str) -> bool:
@@ -762,7 +766,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str = "mm") -> Positi
     return make_positioning_log(tg, cy, di, me, meta=meta, unit=unit, source=src)
 
 
-def load_positioning(path: str | os.PathLike, kind: str = "auto", unit: str = "mm") -> PositioningLog:
+def load_positioning(path: str | os.PathLike, kind: str = "auto", unit: str | None = None) -> PositioningLog:
     """Read a positioning test from ``positioning-log/1``, an ecmc ``.dat`` or a table.
 
     ``kind``: ``log``, ``ecmc``, ``table`` or ``auto`` (a ``# format:``
@@ -1172,3 +1176,128 @@ def baseline(test: PositioningTest) -> PositioningBaseline:
                                deviation=dev, fitted=fit, residual=dev - fit,
                                s_up_pooled=pooled(test.dev_up), s_down_pooled=pooled(test.dev_down),
                                n_params=2 * test.m, dof=int(N - 2 * test.m), unit=test.unit)
+
+
+# ---------------------------------------------------------------------------
+# uncertainty of the test (ISO/TR 230-9 style budget)
+
+
+@dataclass(frozen=True)
+class UncertaintyInputs:
+    """What the test-uncertainty budget needs; standard uncertainties (k = 1).
+
+    Attributes
+    ----------
+    u_instrument_um : float
+        Length-independent part of the instrument's uncertainty (resolution,
+        noise floor, dead path), µm.
+    u_instrument_um_per_m : float
+        Length-proportional part (laser calibration, wavelength
+        compensation for air; scale calibration), µm per m of travel.
+    misalignment_urad : float
+        Largest expected angle between the beam (scale) and the axis, µrad:
+        the cosine error ``L (1 - cos φ) <= L φ² / 2``.
+    temperature_C : float
+        Mean temperature of the machine scale (or part) during the test;
+        the readings are corrected to 20 °C with ``alpha_per_K``.
+    u_temperature_K : float
+        Standard uncertainty of that temperature, K.
+    alpha_per_K : float
+        Expansion coefficient used for the correction (steel 11.5e-6).
+    u_alpha_per_K : float
+        Its standard uncertainty, 1/K.
+    eve_um : float
+        Environmental variation error E_VE: range of the reading in a
+        stationary drift check over the duration of the test, µm.
+    """
+
+    u_instrument_um: float = 0.0
+    u_instrument_um_per_m: float = 0.0
+    misalignment_urad: float = 0.0
+    temperature_C: float = 20.0
+    u_temperature_K: float = 0.0
+    alpha_per_K: float = 11.5e-6
+    u_alpha_per_K: float = 0.0
+    eve_um: float = 0.0
+
+    def __post_init__(self):
+        for k in ("u_instrument_um", "u_instrument_um_per_m", "misalignment_urad", "u_temperature_K",
+                  "alpha_per_K", "u_alpha_per_K", "eve_um"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise PositioningLogError(f"uncertainty input {k} must be a finite number >= 0, got {v!r}")
+        t = self.temperature_C
+        if not (isinstance(t, (int, float)) and math.isfinite(t) and -50 < t < 100):
+            raise PositioningLogError(f"uncertainty input temperature_C must be a workshop temperature, got {t!r}")
+
+
+@dataclass(frozen=True)
+class UncertaintyBudget:
+    """Expanded uncertainty (k = 2) of each ISO 230-2 figure, µm.
+
+    ``contributions``: source -> (u on the range figures, u on the
+    difference figures), µm, k = 1. ``U``: figure name (``E``, ``R``, ...)
+    -> expanded uncertainty, µm.
+    """
+
+    travel_mm: float
+    contributions: dict[str, tuple[float, float]]
+    U: dict[str, float]
+    k: float = 2.0
+
+    def to_report(self) -> dict:
+        return {"k": self.k, "travel_mm": self.travel_mm,
+                "contributions": [{"source": s, "u_range_um": a, "u_difference_um": b}
+                                  for s, (a, b) in self.contributions.items()],
+                **{f"U_{f}_um": v for f, v in self.U.items()}}
+
+
+def figure_uncertainty(result: Iso2302Result, inputs: UncertaintyInputs) -> UncertaintyBudget:
+    """The uncertainty of the test's figures from the measuring conditions.
+
+    In the manner of ISO/TR 230-9 (combined standard uncertainty as the
+    root sum of squares of independent contributions, k = 2), with the
+    contributions ISO 230-2 names for this test, each modelled here as:
+
+    ========================  ==================================  ============
+    source                    on the range figures (E, M, A)      on B, R
+    ========================  ==================================  ============
+    instrument                ``sqrt(u_c² + (u_ppm L)²)``          0
+    misalignment (cosine)     ``L φ²/2 / (2 sqrt 3)``              0
+    temperature measurement   ``L α u_T``                          0
+    expansion coefficient     ``L |T - 20 °C| u_α``                0
+    environmental variation   ``E_VE / (2 sqrt 3)``                same
+    ========================  ==================================  ============
+
+    ``L`` is the measurement travel (largest minus smallest target). The
+    instrument, alignment and temperature errors are scale-like (they grow
+    with the distance from where the instrument was zeroed), so they enter
+    a range over the targets with their value at ``L`` and cancel in a
+    difference at one target (B_i, s_i, hence B, B̄, R); the drift of the
+    environment during the test does not cancel. The cosine error lies
+    between 0 and ``L φ²/2`` (one-sided, rectangular: u = width / sqrt 12);
+    a range read as E_VE is rectangular of half-width E_VE / 2. Not
+    included: the sampling uncertainty of s itself (R and A rest on n
+    readings), set-up errors (Abbe offsets of the instrument to the
+    tool), which belong to the machine's own budget.
+    """
+    if result.unit != "mm":
+        raise PositioningLogError("the test-uncertainty budget is for linear axes (unit mm)")
+    L_mm = float(np.max(result.targets) - np.min(result.targets))
+    L_m = L_mm * 1e-3
+    phi = inputs.misalignment_urad * 1e-6
+    rows = {
+        "instrument": (math.hypot(inputs.u_instrument_um, inputs.u_instrument_um_per_m * L_m), 0.0),
+        "misalignment (cosine)": (L_m * 1e6 * phi * phi / 2 / math.sqrt(12.0), 0.0),
+        "temperature measurement": (L_m * 1e6 * inputs.alpha_per_K * inputs.u_temperature_K, 0.0),
+        "expansion coefficient": (L_m * 1e6 * abs(inputs.temperature_C - 20.0) * inputs.u_alpha_per_K, 0.0),
+    }
+    u_eve = inputs.eve_um / math.sqrt(12.0)
+    rows["environmental variation"] = (u_eve, u_eve)
+    u_range = math.sqrt(sum(a * a for a, _ in rows.values()))
+    u_diff = math.sqrt(sum(b * b for _, b in rows.values()))
+    k = 2.0
+    U = {f: k * u_range for f in ("E_up", "E_down", "E", "M", "A_up", "A_down", "A")}
+    U.update({f: k * u_diff for f in ("B", "B_mean", "R_up", "R_down", "R")})
+    return UncertaintyBudget(travel_mm=L_mm, contributions=rows, U=U, k=k)
+

@@ -446,3 +446,60 @@ def test_load_positioning_detects_the_kind(tmp_path):
     assert load_positioning(tmp_path / "c.txt").meta["imported_from"] == "table"
     with pytest.raises(PositioningLogError, match="input kind 'xls'"):
         load_positioning(tmp_path / "a.csv", kind="xls")
+
+
+# --------------------------------------------------------------------------
+# uncertainty of the test
+
+
+def test_uncertainty_budget_by_hand():
+    """Hand case travel L = 200 mm = 0.2 m.
+
+    instrument    sqrt(0.3^2 + (0.4 um/m * 0.2 m)^2) = sqrt(0.0964)       um
+    cosine        L phi^2/2 = 0.2e6 um * (1e-3)^2 / 2 = 0.1 um; / sqrt 12
+    temperature   L alpha u_T = 0.2e6 * 11.5e-6 * 0.1 = 0.23 um
+    coefficient   L |21.5 - 20| u_alpha = 0.2e6 * 1.5 * 1e-6 = 0.3 um
+    E_VE          0.6 / sqrt 12
+    u_range^2 = 0.0964 + 0.01/12 + 0.0529 + 0.09 + 0.36/12 = 0.27013333...
+    U(E) = 2 sqrt(0.270133333); U(B) = U(R) = 2 * 0.6 / sqrt 12
+    """
+    from core.positioning import UncertaintyInputs, figure_uncertainty
+
+    r = iso230_2(parse_positioning_log(hand_text()))
+    b = figure_uncertainty(r, UncertaintyInputs(
+        u_instrument_um=0.3, u_instrument_um_per_m=0.4, misalignment_urad=1000.0, temperature_C=21.5,
+        u_temperature_K=0.1, alpha_per_K=11.5e-6, u_alpha_per_K=1e-6, eve_um=0.6))
+    assert b.travel_mm == 200.0
+    assert b.contributions["instrument"][0] == pytest.approx(math.sqrt(0.0964), abs=1e-12)
+    assert b.contributions["temperature measurement"][0] == pytest.approx(0.23, abs=1e-12)
+    assert b.contributions["expansion coefficient"][0] == pytest.approx(0.3, abs=1e-12)
+    for f in ("E", "E_up", "M", "A"):
+        assert b.U[f] == pytest.approx(2 * math.sqrt(0.0964 + 0.01 / 12 + 0.0529 + 0.09 + 0.36 / 12), abs=1e-12)
+    for f in ("B", "B_mean", "R"):
+        assert b.U[f] == pytest.approx(2 * 0.6 / math.sqrt(12), abs=1e-12)
+    rep = b.to_report()
+    assert rep["k"] == 2.0 and rep["U_E_um"] == b.U["E"] and len(rep["contributions"]) == 5
+
+
+def test_cosine_error_stays_inside_its_bound():
+    """Misalign the instrument by phi (readings shrink by cos phi about the first
+    target, where it was zeroed): E moves by no more than L phi^2 / 2, the
+    width the budget gives the cosine error."""
+    phi = 2e-3
+    rows = [(p, c, d, 0.0 + (m - 0.0) * math.cos(phi)) for p, c, d, m in hand_rows()]
+    e0 = iso230_2(parse_positioning_log(hand_text())).E
+    e1 = iso230_2(parse_positioning_log(hand_text(rows))).E
+    width_mm = 200.0 * phi ** 2 / 2
+    assert 0 < abs(e1 - e0) <= width_mm
+
+
+@pytest.mark.parametrize("kw,match", [
+    (dict(eve_um=-1.0), "eve_um must be a finite number >= 0"),
+    (dict(u_instrument_um=float("nan")), "u_instrument_um must be"),
+    (dict(temperature_C=293.15), "temperature_C must be a workshop temperature"),
+])
+def test_uncertainty_bad_input(kw, match):
+    from core.positioning import UncertaintyInputs
+
+    with pytest.raises(PositioningLogError, match=match):
+        UncertaintyInputs(**kw)
