@@ -26,6 +26,7 @@ COMMANDS = [
     ("scenario", "scenarios.cmd_scenario"),
     ("identify", "scenarios.cmd_identify"),
     ("design", "scenarios.cmd_design"),
+    ("iso230-2", "scenarios.cmd_iso230_2"),
 ]
 
 

@@ -27,23 +27,34 @@ def register(sub) -> None:
         description=__doc__.split("\n\n")[1] if __doc__ else None,
         epilog="machines (--machine):\n  " + describe().replace("\n", "\n  ")
         + "\n\ndefaults: mfb on mikron-ucp710 (17 placements); cross-pocket and freeform on nmv3000 "
-          "at C = 0,75,130,210; pin-circle on mikron-ucp710 at C = 0,31,83,137,191,227,257,313")
-    p.add_argument("artefact", choices=ARTEFACT_NAMES, help="artefact to probe")
-    p.add_argument("--out", required=True, help="probe-log/1 CSV to write")
-    p.add_argument("--seed", type=int, default=0, help="seed of the probing noise")
+          "at C = 0,75,130,210; pin-circle on mikron-ucp710 at C = 0,31,83,137,191,227,257,313; "
+          "positioning on vmc-3axis, axis X")
+    p.add_argument("artefact", choices=ARTEFACT_NAMES + ("positioning",),
+                   help="artefact to probe, or 'positioning' for an ISO 230-2 test of one axis")
+    p.add_argument("--out", required=True, help="probe-log/1 CSV to write (positioning-log/1 for positioning)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the probing noise (positioning: of the scatter and target spacing)")
     p.add_argument("--machine", default=None, help="virtual machine (see the list below)")
     p.add_argument("--errors", choices=("realistic", "none"), default="realistic",
                    help="truth errors of the machine (default realistic: the papers' magnitudes)")
     p.add_argument("--noise-um", type=float, default=None,
                    help="probing repeatability as a standard deviation (k=1), um "
-                        "(default 0.125: the MFB paper's 0.25 um at k=2; 1.38 for the self-calibration paper)")
+                        "(default 0.125: the MFB paper's 0.25 um at k=2; 1.38 for the self-calibration paper; "
+                        "positioning: scatter of each reading, default 0.5)")
     p.add_argument("--c-angles", default=None, help="comma-separated C angles, deg (not for mfb)")
     p.add_argument("--plan-only", action="store_true", help="write the plan only (measured columns empty)")
     p.add_argument("--no-collision-check", action="store_true", help="skip the MuJoCo path checks")
+    from scenarios.cmd_iso230_2 import add_simulate_options
+
+    add_simulate_options(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from scenarios import cmd_iso230_2
+
+    if args.artefact == "positioning":
+        return cmd_iso230_2.run_simulate(args)
+    cmd_iso230_2.reject_positioning_options(args)
     import numpy as np
 
     from core.exceptions import ConfigError
