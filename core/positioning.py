@@ -225,6 +225,17 @@ def _is_temp(name: str) -> bool:
     return name.startswith("temp_") and name.endswith("_C") and len(name) > 7
 
 
+def _finite_number(text: str, where: str, what: str) -> float:
+    """``float(text)``, or a one-line error ``"<where>: <what> '<text>' is not a number"``."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise PositioningLogError(f"{where}: {what} {text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise PositioningLogError(f"{where}: {what} {text!r} is not finite")
+    return v
+
+
 # ---------------------------------------------------------------------------
 # reading positioning-log/1
 
@@ -343,14 +354,9 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
             if c == "" and allow_empty:
                 out[r] = np.nan
                 continue
-            try:
-                v = float(c)
-            except ValueError:
-                what = "is empty" if c == "" else f"{c!r} is not a number"
-                raise PositioningLogError(f"{where(r)}: column {name!r}: {what}") from None
-            if not math.isfinite(v):
-                raise PositioningLogError(f"{where(r)}: column {name!r}: {c!r} is not finite")
-            out[r] = v
+            if c == "":
+                raise PositioningLogError(f"{where(r)}: column {name!r}: is empty")
+            out[r] = _finite_number(c, where(r), f"column {name!r}:")
         return out
 
     status = np.array(col["status"], dtype=object) if "status" in col else None
@@ -550,13 +556,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
     extra_meta: dict[str, str] = {}
 
     def num(v: str, ln: int, what: str) -> float:
-        try:
-            x = float(v)
-        except ValueError:
-            raise PositioningLogError(f"{src}: line {ln}: {what} {v!r} is not a number") from None
-        if not math.isfinite(x):
-            raise PositioningLogError(f"{src}: line {ln}: {what} {v!r} is not finite")
-        return x
+        return _finite_number(v, f"{src}: line {ln}", what)
 
     def index(s: str, count: int, ln: int, key: str) -> tuple[int, ...]:
         parts = [p.strip() for p in s.split(",")]
@@ -739,14 +739,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
             raise PositioningLogError(f"{src}: line {ln}: {len(cells)} fields, expected {width}")
 
         def val(name: str) -> float:
-            c = cells[cols[name]]
-            try:
-                v = float(c)
-            except ValueError:
-                raise PositioningLogError(f"{src}: line {ln}: {name} {c!r} is not a number") from None
-            if not math.isfinite(v):
-                raise PositioningLogError(f"{src}: line {ln}: {name} {c!r} is not finite")
-            return v
+            return _finite_number(cells[cols[name]], f"{src}: line {ln}", name)
 
         t = val("target")
         c = val("cycle")
