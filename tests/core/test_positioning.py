@@ -503,3 +503,12 @@ def test_uncertainty_bad_input(kw, match):
 
     with pytest.raises(PositioningLogError, match=match):
         UncertaintyInputs(**kw)
+
+
+def test_uncertainty_budget_is_for_linear_axes():
+    from core.positioning import UncertaintyInputs, figure_uncertainty
+
+    rows = [(p / 100, c, d, m / 100) for p, c, d, m in hand_rows()]
+    text = hand_text(rows, header="target_deg,cycle,direction,measured_deg", meta="# unit: deg\n")
+    with pytest.raises(PositioningLogError, match="for linear axes"):
+        figure_uncertainty(iso230_2(parse_positioning_log(text)), UncertaintyInputs(eve_um=1.0))

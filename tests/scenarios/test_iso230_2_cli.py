@@ -6,44 +6,78 @@ import sys
 
 import pytest
 
+from core.positioning import iso230_2, read_positioning_log
 from scenarios.cli import main
-from tests.core.test_positioning import ECMC_OWN, HAND_FIGURES_UM, hand_rows, hand_text
+from scenarios.positioning_sample import SAMPLE
 
 CONTRACT = ("B_um", "B_mean_um", "R_up_um", "R_down_um", "R_um", "E_up_um", "E_down_um", "E_um", "M_um",
             "A_up_um", "A_down_um", "A_um", "per_target")
+# 2 targets (0, 10 mm) x 2 cycles; deviations in um: + at 0: 1, 3; - at 0: -1, -1; + at 10: 2, 2; - at 10: 0, 2
+ROWS = [(0, 1, "+", 0.001), (10, 1, "+", 10.002), (10, 1, "-", 10.0), (0, 1, "-", -0.001),
+        (0, 2, "+", 0.003), (10, 2, "+", 10.002), (10, 2, "-", 10.002), (0, 2, "-", -0.001)]
+# 2 targets, 2 cycles in ecmc's layout (FWD = +): B_i = (1.0 - -0.5, 2.0 - 0.0) = (1.5, 2.0) um
+ECMC = """UNIT=mm
+CYCLES=2
+POSITIONS=2
+TGT_DATA[1]=0
+TGT_DATA[2]=10
+REF_DATA_FWD[1,1]=0.0010
+REF_DATA_FWD[2,1]=10.0020
+REF_DATA_FWD[1,2]=0.0010
+REF_DATA_FWD[2,2]=10.0020
+REF_DATA_BWD[1,1]=-0.0005
+REF_DATA_BWD[2,1]=10.0000
+REF_DATA_BWD[1,2]=-0.0005
+REF_DATA_BWD[2,2]=10.0000
+"""
+
+
+def log_text(rows=ROWS):
+    body = "\n".join(",".join(str(v) for v in r) for r in rows)
+    return f"# format: positioning-log/1\ntarget_mm,cycle,direction,measured_mm\n{body}\n"
 
 
 def test_iso230_2_writes_the_contract(tmp_path, capsys):
-    log = tmp_path / "hand.csv"
-    log.write_text(hand_text())
     out = tmp_path / "r.json"
-    assert main(["iso230-2", str(log), "--json", str(out), "--eve-um", "0.6"]) == 0
+    assert main(["iso230-2", str(SAMPLE), "--json", str(out), "--eve-um", "0.6"]) == 0
     rep = json.loads(out.read_text())
     for k in CONTRACT:
         assert k in rep, k
-    for name, um in HAND_FIGURES_UM.items():
-        assert rep[f"{name}_um"] == pytest.approx(um, abs=1e-6)
+    lib = iso230_2(read_positioning_log(SAMPLE)).to_report()  # the wiring: the library's figures, in um
+    for k in CONTRACT[:-1]:
+        assert rep[k] == lib[k]
+    assert rep["per_target"] == lib["per_target"]
     assert rep["uncertainty"]["U_R_um"] == pytest.approx(2 * 0.6 / 12 ** 0.5)
     cap = capsys.readouterr()
-    assert ["E", "12.000", "um", "(U"] in [line.split()[:4] for line in cap.out.splitlines()]
-    assert "3 targets: ISO 230-2 asks at least 5" in cap.err
+    assert ["E", f"{lib['E_um']:.3f}", "um", "(U"] in [line.split()[:4] for line in cap.out.splitlines()]
+    assert cap.err == ""
+
+
+def test_iso230_2_warns_on_a_short_test(tmp_path, capsys):
+    p = tmp_path / "short.csv"
+    p.write_text(log_text())
+    assert main(["iso230-2", str(p), "--json", str(tmp_path / "r.json")]) == 0
+    # by hand: x_up(0) = 2, x_down(0) = -1, x_up(10) = 2, x_down(10) = 1 -> E = 2 - (-1) = 3 um
+    assert json.loads((tmp_path / "r.json").read_text())["E_um"] == pytest.approx(3.0, abs=1e-6)
+    err = capsys.readouterr().err
+    assert "2 valid approaches at some target and direction: ISO 230-2 asks 5" in err
 
 
 def test_iso230_2_reads_ecmc_and_writes_the_log(tmp_path, capsys):
     dat = tmp_path / "x.dat"
-    dat.write_text(ECMC_OWN)
+    dat.write_text(ECMC)
     assert main(["iso230-2", str(dat), "--json", str(tmp_path / "r.json"),
                  "--write-log", str(tmp_path / "x.csv")]) == 0
     assert (tmp_path / "x.csv").read_text().startswith("# format: positioning-log/1")
-    # B = max |B_i|: at 0 mm FWD 2.0, 2.2 um -> 2.1; BWD 0.0, -0.2 -> -0.1; B_i = 2.2 (at -10: 1.8, at 10: 1.8)
-    assert json.loads((tmp_path / "r.json").read_text())["B_um"] == pytest.approx(2.2, abs=1e-6)
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["B_um"] == pytest.approx(2.0, abs=1e-6) and rep["B_mean_um"] == pytest.approx(1.75, abs=1e-6)
 
 
 @pytest.mark.parametrize("text,kind,match", [
     (None, "auto", "no such file"),
-    ("\n".join(hand_text().splitlines()[:4]), "auto", "no valid readings approached in the '-' direction"),
-    (ECMC_OWN.replace("REF_DATA_BWD[3,2]=10.0010\n", ""), "auto", r"REF_DATA_BWD[3,2] missing"),
-    (hand_text(), "ecmc", "not KEY=VALUE or KEY[i,j]=VALUE"),
+    (log_text([r for r in ROWS if r[2] == "+"]), "auto", "no valid readings approached in the '-' direction"),
+    (ECMC.replace("REF_DATA_BWD[2,2]=10.0000\n", ""), "auto", "REF_DATA_BWD[2,2] missing"),
+    (log_text(), "ecmc", "not KEY=VALUE or KEY[i,j]=VALUE"),
 ])
 def test_iso230_2_bad_input_exit_2(tmp_path, capsys, text, kind, match):
     p = tmp_path / "in.txt"
@@ -58,8 +92,7 @@ def test_iso230_2_bad_input_exit_2(tmp_path, capsys, text, kind, match):
 
 def test_iso230_2_subprocess_no_traceback(tmp_path):
     p = tmp_path / "dup.csv"
-    rows = hand_rows()
-    p.write_text(hand_text(rows + [rows[0]]))
+    p.write_text(log_text(ROWS + [ROWS[0]]))
     r = subprocess.run([sys.executable, "-m", "scenarios.cli", "iso230-2", str(p), "--json",
                         str(tmp_path / "r.json")], capture_output=True, text=True)
     assert r.returncode == 2 and "Traceback" not in r.stderr and r.stderr.count("\n") == 1
