@@ -43,8 +43,8 @@ import numpy as np
 from core import iso
 from core.exceptions import ConfigError
 from core.positioning import CYCLE_KINDS, N_MIN, PositioningLog, make_positioning_log
+from core.units import MM, UM
 
-MM = 1e-3
 #: Default feed between targets, m/s (2000 mm/min).
 FEED_MPS = 2.0 / 60.0
 #: Default dwell at each target before the reading, s.
@@ -276,7 +276,7 @@ def simulate_positioning(machine, plan: PositioningPlan, rng: np.random.Generato
     name = getattr(machine.config, "name", "")
     m = {"axis": plan.axis, "machine": name,
          "instrument": "virtual laser interferometer (exact chain"
-                       + (f", scatter {noise_m / MM * 1e3:g} um k=1)" if noise_m else ")"),
+                       + (f", scatter {noise_m / UM:g} um k=1)" if noise_m else ")"),
          "cycle_kind": plan.cycle_kind,
          "line_mm": ",".join(f"{v / MM:g}" for v in plan.line_m),
          "overrun_mm": f"{plan.overrun_m / MM:g}", "feed_mm_min": f"{plan.feed_mps / MM * 60:g}",
