@@ -3,7 +3,9 @@
 LOG is a positioning-log/1 file, an ecmc ``.dat`` (EPICS motion control)
 or a table of target, cycle, direction, measured value. Every figure of
 ISO 230-2 goes to the JSON in µm; ``--report`` adds a folder with the
-standard's plot. ``vmt simulate positioning`` is in ``simulate.py``.
+standard's plot.
+
+(``vmt simulate positioning`` lives in ``simulate.py``.)
 """
 
 from __future__ import annotations
@@ -21,14 +23,14 @@ def register(sub) -> None:
                    help="what LOG is (auto: '# format:' line -> log, TGT_DATA[ -> ecmc, else table)")
     p.add_argument("--write-log", metavar="LOG", help="also write the readings as positioning-log/1")
     g = p.add_argument_group("uncertainty of the test (ISO/TR 230-9 style; any of these adds U (k=2) per figure)")
-    g.add_argument("--u-instrument-um", type=float, help="instrument, length-independent, standard uncertainty, µm")
-    g.add_argument("--u-instrument-um-per-m", type=float, help="instrument, per m of travel, standard uncertainty, µm/m")
-    g.add_argument("--misalignment-urad", type=float, help="largest beam-to-axis angle (cosine error), µrad")
-    g.add_argument("--temp-c", type=float, help="mean temperature of the machine scale during the test, °C (20)")
-    g.add_argument("--u-temp-k", type=float, help="standard uncertainty of that temperature, K")
-    g.add_argument("--alpha-per-k", type=float, help="expansion coefficient of the scale, 1/K (11.5e-6)")
-    g.add_argument("--u-alpha-per-k", type=float, help="its standard uncertainty, 1/K")
-    g.add_argument("--eve-um", type=float, help="environmental variation error E_VE (drift check range), µm")
+    g.add_argument("--u-instrument-um", type=float, metavar="UM", help="instrument, length-independent, standard uncertainty, µm")
+    g.add_argument("--u-instrument-um-per-m", type=float, metavar="UM_PER_M", help="instrument, per m of travel, standard uncertainty, µm/m")
+    g.add_argument("--misalignment-urad", type=float, metavar="URAD", help="largest beam-to-axis angle (cosine error), µrad")
+    g.add_argument("--temp-c", type=float, metavar="C", help="mean temperature of the machine scale during the test, °C (20)")
+    g.add_argument("--u-temp-k", type=float, metavar="K", help="standard uncertainty of that temperature, K")
+    g.add_argument("--alpha-per-k", type=float, metavar="PER_K", help="expansion coefficient of the scale, 1/K (11.5e-6)")
+    g.add_argument("--u-alpha-per-k", type=float, metavar="PER_K", help="its standard uncertainty, 1/K")
+    g.add_argument("--eve-um", type=float, metavar="UM", help="environmental variation error E_VE (drift check range), µm")
     p.set_defaults(func=run)
 
 
