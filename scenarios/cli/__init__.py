@@ -31,6 +31,7 @@ COMMANDS = [
     ("scenario", "scenarios.cli.scenario"),
     ("identify", "scenarios.cli.identify"),
     ("design", "scenarios.cli.design"),
+    ("iso230-2", "scenarios.cli.iso230_2"),
 ]
 
 
