@@ -25,11 +25,13 @@ def run(args) -> int:
 
     from core.exceptions import ConfigError
     from core.probelog import read_probe_log
+    from core.scope import check_planar_scope
     from core.selfcal import identify, yaw_for_chain
     from core.touches import from_log
     from core.uncertainty import monte_carlo_touches
 
     log = read_probe_log(args.log)
+    check_planar_scope(log, "identify")
     yaw = yaw_for_chain(log.meta.get("kinematic_chain"))
     # the planar model takes touches with normals in XY (sphere points off the
     # equator are for 3D fits); say how many were left out
