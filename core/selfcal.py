@@ -75,16 +75,16 @@ the U of EXC/EYC,total and ECC per angle is Table 2's. With a measured log:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 import scipy.sparse as sp
 
 from .exceptions import ConfigError, IdentifiabilityError
-from .lsq import LinearEstimator, solve
+from .lsq import LinearEstimator, remove_span, solve
 from .touches import Touches
+from .units import DEG, MM
 
-MM = 1e-3
-DEG = np.pi / 180.0
 #: Tolerance (m) for a touch lying on the grid's edge.
 EDGE_TOL = 1e-9
 #: Largest |n_z| accepted: the model is planar (XY).
@@ -197,6 +197,28 @@ def _interp_row(nodes: np.ndarray, v: float) -> np.ndarray:
     return r
 
 
+class Yaw(StrEnum):
+    """The yaw that couples the X and Y error maps (eqs 4-5); :data:`YAW_MESSAGES` says how."""
+
+    ECY = "ECY"
+    ECX = "ECX"
+
+
+#: How each :class:`Yaw` enters the model.
+YAW_MESSAGES = {
+    Yaw.ECY: "X rides on Y: the yaw of Y turns the X stroke, E_Y += x ECY(y), on the y nodes (eq 5, the paper)",
+    Yaw.ECX: "Y rides on X: the yaw of X turns the Y stroke, E_X -= y ECX(x), on the x nodes",
+}
+
+
+def yaw_model(value) -> Yaw:
+    """``value`` as a :class:`Yaw`; ConfigError naming the two otherwise."""
+    try:
+        return Yaw(value)
+    except ValueError:
+        raise ConfigError(f"yaw must be 'ECY' or 'ECX', got {value!r}") from None
+
+
 # ---------------------------------------------------------------------------
 # design
 # ---------------------------------------------------------------------------
@@ -242,7 +264,7 @@ class Design:
     gauge: tuple
     scale_known: bool
     N: np.ndarray
-    yaw: str = "ECY"
+    yaw: Yaw = Yaw.ECY
 
     @property
     def n_params(self) -> int:
@@ -266,7 +288,7 @@ def _c_names(setup_ids, c_rad):
     return [f"C={d}deg" + (f"#{s}" if dup else "") for d, s in zip(deg, setup_ids)]
 
 
-def yaw_for_chain(chain_text: str | None) -> str:
+def yaw_for_chain(chain_text: str | None) -> Yaw:
     """Which yaw couples X and Y in the rigid-body model of a chain: ``"ECY"`` or ``"ECX"``.
 
     The paper's eqs 4-5 are written for X riding on Y (``V[w-C-A-b-Y-X-Z-(C)-t]``,
@@ -277,19 +299,20 @@ def yaw_for_chain(chain_text: str | None) -> str:
     chain with X and Y on different branches gives the paper's ``"ECY"``.
     """
     if not chain_text:
-        return "ECY"
+        return Yaw.ECY
     from .chain import parse_chain
 
     ch = parse_chain(chain_text)
     tool, work = list(ch.tool_axes), list(ch.workpiece_axes)
     if "X" in tool and "Y" in tool:  # listed from the bed up: the first is the carrier
-        return "ECY" if tool.index("Y") < tool.index("X") else "ECX"
+        return Yaw.ECY if tool.index("Y") < tool.index("X") else Yaw.ECX
     if "X" in work and "Y" in work:  # listed from the workpiece down: the last is the carrier
-        return "ECY" if work.index("Y") > work.index("X") else "ECX"
-    return "ECY"
+        return Yaw.ECY if work.index("Y") > work.index("X") else Yaw.ECX
+    return Yaw.ECY
 
 
-def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *, yaw: str = "ECY") -> Design:
+def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
+                 yaw: Yaw | str = Yaw.ECY) -> Design:
     """Design matrix of eq 15 for measured or planned touches.
 
     Parameters
@@ -313,8 +336,7 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     ConfigError
         A touch outside the grid, a non-planar normal, mixed C in a set-up.
     """
-    if yaw not in ("ECY", "ECX"):
-        raise ConfigError(f"yaw must be 'ECY' or 'ECX', got {yaw!r}")
+    yaw = yaw_model(yaw)
     if touches.n == 0:
         raise ConfigError("no touches")
     x = touches.pn_R[:, 0]
@@ -335,7 +357,7 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     c_rad = _setup_angles(touches)
     Nx, Ny = len(gx), len(gy)
     Nw, Nc = len(touches.target_ids), len(touches.setup_ids)
-    sizes = [("EXX", Nx), ("EYX", Nx), ("EXY", Ny), ("EYY", Ny), (yaw, Ny if yaw == "ECY" else Nx), ("EC0Y", 1),
+    sizes = [("EXX", Nx), ("EYX", Nx), ("EXY", Ny), ("EYY", Ny), (yaw, Ny if yaw == Yaw.ECY else Nx), ("EC0Y", 1),
              ("G", Nw), ("EXC", Nc), ("EYC", Nc), ("ECC", Nc)]
     slices, o = {}, 0
     for nm, k in sizes:
@@ -345,7 +367,7 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     cn = _c_names(touches.setup_ids, c_rad)
     names = ([f"EXX@x={_fmt_mm(v)}mm" for v in gx] + [f"EYX@x={_fmt_mm(v)}mm" for v in gx]
              + [f"{s}@y={_fmt_mm(v)}mm" for s in ("EXY", "EYY") for v in gy]
-             + ([f"ECY@y={_fmt_mm(v)}mm" for v in gy] if yaw == "ECY" else [f"ECX@x={_fmt_mm(v)}mm" for v in gx])
+             + ([f"ECY@y={_fmt_mm(v)}mm" for v in gy] if yaw == Yaw.ECY else [f"ECX@x={_fmt_mm(v)}mm" for v in gx])
              + ["EC0Y"]
              + [f"G[{t}]" for t in touches.target_ids]
              + [f"EXC,total[{c}]" for c in cn] + [f"EYC,total[{c}]" for c in cn] + [f"ECC[{c}]" for c in cn])
@@ -372,7 +394,7 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     add(s["EYX"].start + kx + 1, -ny * zx)
     add(s["EYY"].start + ky, -ny * (1 - zy))
     add(s["EYY"].start + ky + 1, -ny * zy)
-    if yaw == "ECY":  # X rides on Y: E_Y += x ECY(y) (eq 5)
+    if yaw == Yaw.ECY:  # X rides on Y: E_Y += x ECY(y) (eq 5)
         add(s["ECY"].start + ky, -ny * x * (1 - zy))
         add(s["ECY"].start + ky + 1, -ny * x * zy)
     else:  # Y rides on X: E_X -= y ECX(x)
@@ -404,7 +426,7 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     g(1, "EYX", _interp_row(gx, xo), f"EYX(x={_fmt_mm(xo)}mm)=0")
     g(2, "EXY", _interp_row(gy, yo), f"EXY(y={_fmt_mm(yo)}mm)=0")
     g(3, "EYY", _interp_row(gy, yo), f"EYY(y={_fmt_mm(yo)}mm)=0")
-    if yaw == "ECY":
+    if yaw == Yaw.ECY:
         g(4, "ECY", _interp_row(gy, yo), f"ECY(y={_fmt_mm(yo)}mm)=0")
     else:
         g(4, "ECX", _interp_row(gx, xo), f"ECX(x={_fmt_mm(xo)}mm)=0")
@@ -433,7 +455,7 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
                   gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N, yaw=yaw)
 
 
-def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw="ECY") -> np.ndarray:
+def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
     """The eleven analytic null directions of A (see module docstring)."""
     N = np.zeros((n_par, 11))
     Nw = s["G"].stop - s["G"].start
@@ -470,7 +492,7 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw="ECY") -> np.ndarray:
     N[s["G"], 7] = -nR[:, 0] * pn[:, 1] + nR[:, 1] * pn[:, 0]
     N[s["ECC"], 7] = -1
     # 8: yaw offset vs a straightness slope (ECY vs EYX; ECX vs EXY); 9: EXY slope vs EC0Y
-    if yaw == "ECY":
+    if yaw == Yaw.ECY:
         N[s["ECY"], 8] = 1
         N[s["EYX"], 8] = -gx
     else:
@@ -579,8 +601,8 @@ class SelfCalResult:
         return self._blk("EYY")
 
     @property
-    def yaw(self) -> str:
-        """``"ECY"`` (on the y nodes) or ``"ECX"`` (on the x nodes): see :func:`yaw_for_chain`."""
+    def yaw(self) -> Yaw:
+        """``ECY`` (on the y nodes) or ``ECX`` (on the x nodes): see :func:`yaw_for_chain`."""
         return self.design.yaw
 
     @property
@@ -719,7 +741,7 @@ def _check_nodes(des: Design) -> None:
 
 def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
              grid_step_m: float = 0.022, sigma_m: float | None = None, covariance: str = "auto",
-             yaw: str = "ECY") -> SelfCalResult:
+             yaw: Yaw | str = Yaw.ECY) -> SelfCalResult:
     """2D self-calibration, eqs 15-18.
 
     Parameters
@@ -764,13 +786,92 @@ def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None
 
 
 def estimator(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
-              yaw: str = "ECY") -> tuple[Design, LinearEstimator]:
+              yaw: Yaw | str = Yaw.ECY) -> tuple[Design, LinearEstimator]:
     """Build and factor the design once (for Monte Carlo and design studies)."""
     check_count(touches, grid)
     des = build_design(touches, grid, delta_L_m, yaw=yaw)
     _check_nodes(des)
     sol = solve(des.A, np.zeros(touches.n), des.C, des.d, names=des.names, sigma=1.0, covariance="none")
     return des, sol.estimator
+
+
+# ---------------------------------------------------------------------------
+# error map and workpiece form: what an identification is compared with
+# ---------------------------------------------------------------------------
+def error_map(res: SelfCalResult) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """E_X,total and E_Y,total (eqs 4-5) on the grid nodes from the identified tables.
+
+    Returns
+    -------
+    x_m : (N_x,) float
+    y_m : (N_y,) float
+        The grid nodes, machine frame R, m.
+    ex_m, ey_m : (N_x, N_y) float
+        Tip position error in X and Y at each node (C = 0), m, in the
+        identification's gauge (eqs 16-17).
+    """
+    g = res.design.grid
+    X, Y = np.meshgrid(g.x_m, g.y_m, indexing="ij")
+    ex = res.EXX[:, None] + res.EXY[None, :] - Y * res.EC0Y
+    ey = res.EYX[:, None] + res.EYY[None, :]
+    if res.yaw == Yaw.ECY:  # X rides on Y (eq 5)
+        ey = ey + X * res.ECY[None, :]
+    else:  # Y rides on X
+        ex = ex - Y * res.ECX[:, None]
+    return g.x_m, g.y_m, ex, ey
+
+
+def map_gauge_basis(x_m, y_m) -> np.ndarray:
+    """(2 N, 4) directions of an (E_X, E_Y) map on nodes (x, y) that self-calibration cannot see.
+
+    A translation in X and in Y, a rotation about Z and a scale (the map's
+    part of the gauge of eqs 16-17), stacked as ``[E_X; E_Y]`` over the
+    ``N`` points (``x_m``, ``y_m`` flattened alike).
+    """
+    x, y = np.ravel(x_m), np.ravel(y_m)
+    one, zero = np.ones_like(x), np.zeros_like(x)
+    return np.vstack([np.column_stack([one, zero, -y, x]), np.column_stack([zero, one, x, y])])
+
+
+def map_in_gauge(x_m, y_m, ex_true, ey_true, ex_m, ey_m) -> tuple[np.ndarray, np.ndarray]:
+    """The true error map expressed in the gauge of an identified one.
+
+    Self-calibration determines the map only up to a translation, a rotation
+    and (without delta_L) a scale (:func:`map_gauge_basis`): the part of
+    ``identified - true`` those explain is added to the truth, so the two
+    can be compared. All maps of one shape, m; ``x_m``, ``y_m`` the node
+    coordinates of each entry (e.g. ``np.meshgrid(..., indexing="ij")``).
+
+    Returns
+    -------
+    (ex, ey) : the truth in the identification's gauge, shapes of ``ex_true``.
+    """
+    shape = np.shape(ex_true)
+    E = np.concatenate([np.ravel(ex_true), np.ravel(ey_true)])
+    r = np.concatenate([np.ravel(ex_m), np.ravel(ey_m)]) - E
+    Ea = E + (r - remove_span(r, map_gauge_basis(x_m, y_m)))
+    n = Ea.size // 2
+    return Ea[:n].reshape(shape), Ea[n:].reshape(shape)
+
+
+def workpiece_gauge_basis(w_W, wn_W) -> np.ndarray:
+    """(N_w, 5) workpiece deviations G that self-calibration cannot see (eqs 16-17).
+
+    A shift of the part in X and in Y (``wn . t``), a rotation in W
+    (``wn . R90 w``), a scale (``wn . w``) and a common offset (the stylus
+    radius), for targets at contact points ``w_W`` (N_w, 2), m, with outward
+    unit normals ``wn_W`` (N_w, 2), both in W.
+    """
+    P, N = np.asarray(w_W, float), np.asarray(wn_W, float)
+    return np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
+                            np.einsum("ij,ij->i", N, P), np.ones(len(P))])
+
+
+def workpiece_form(g, w_W, wn_W) -> np.ndarray:
+    """``g`` (N_w,) per target less what a shift, rotation and scale of the part and a
+    common offset would give (:func:`workpiece_gauge_basis`): the workpiece form that
+    self-calibration sees, in the unit of ``g``."""
+    return remove_span(np.asarray(g, float), workpiece_gauge_basis(w_W, wn_W))
 
 
 # ---------------------------------------------------------------------------
@@ -826,5 +927,5 @@ def nominal_touches(w_W: np.ndarray, wn_W: np.ndarray, c_deg, *, stylus_r_m: flo
                    t_s=np.arange(m, dtype=float), setup=np.repeat(np.arange(nc), nw),
                    target=np.tile(np.arange(nw), nc), setup_ids=sids, target_ids=ids,
                    feature=np.array([""] * m, dtype=object),
-                   w_W=np.hstack([np.tile(w, (nc, 1)), z]), wn_W=np.hstack([np.tile(wn, (nc, 1)), z]),
+                   w_A=np.hstack([np.tile(w, (nc, 1)), z]), wn_A=np.hstack([np.tile(wn, (nc, 1)), z]),
                    temps_C={})

@@ -24,7 +24,7 @@ import numpy as np
 
 from .exceptions import ConfigError
 from .lsq import LinearEstimator, remove_span
-from .selfcal import Design, Grid, estimator, nominal_touches
+from .selfcal import Design, Grid, Yaw, estimator, nominal_touches
 from .touches import Touches
 
 #: Standard probing uncertainty (k = 1) of the paper's section 6, m.
@@ -115,7 +115,7 @@ def _check_u(u_probe_m):
 
 
 def linear_uncertainty_touches(touches: Touches, grid: Grid, u_probe_m: float = U_PROBE_M,
-                               delta_L_m: float | None = None, *, yaw: str = "ECY") -> Uncertainty:
+                               delta_L_m: float | None = None, *, yaw: Yaw | str = Yaw.ECY) -> Uncertainty:
     """Linear propagation for the touches of a log (only their geometry is used)."""
     _check_u(u_probe_m)
     des, est = estimator(touches, grid, delta_L_m, yaw=yaw)
@@ -157,7 +157,7 @@ def mc_errors(est: LinearEstimator, n_obs: int, u_probe_m: float, runs: int,
 
 def monte_carlo_touches(touches: Touches, grid: Grid, u_probe_m: float = U_PROBE_M, *, runs: int = 1000,
                         rng: np.random.Generator, delta_L_m: float | None = None,
-                        yaw: str = "ECY") -> Uncertainty:
+                        yaw: Yaw | str = Yaw.ECY) -> Uncertainty:
     """JCGM 101 Monte Carlo for the touches of a log (design factored once)."""
     _check_u(u_probe_m)
     if int(runs) < 10:

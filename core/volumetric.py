@@ -905,31 +905,6 @@ def report(res: VolumetricResult, unc: Uncertainty | None = None, truth: np.ndar
     return out
 
 
-def linuxcnc_comp(res: VolumetricResult, axis: str, step_m: float | None = None) -> str:
-    """LinuxCNC per-axis compensation file for the positioning error of ``axis``.
-
-    LinuxCNC (ini ``[JOINT_n] COMP_FILE``, ``COMP_FILE_TYPE = 0``) reads
-    lines of three numbers, ``nominal forward-trip reverse-trip`` in machine
-    units (mm here): the position the axis is commanded to and where it
-    must go to be there. The positioning error ``E`` is actual minus
-    nominal, so the corrected commands are ``nominal - E``; forward and
-    reverse trips are equal (the MFB sees no reversal). Points every
-    ``step_m`` along the table by the C2 spline (default: the nodes).
-    """
-    a = axis.upper()
-    if a not in iso.LINEAR_AXES:
-        raise ConfigError(f"linuxcnc_comp: axis must be X, Y or Z, got {axis!r}")
-    s = f"E{a}{a}"
-    x = res.design.nodes[a]
-    if step_m is not None:
-        if not (step_m > 0):
-            raise ConfigError(f"linuxcnc_comp: step_m must be > 0, got {step_m!r}")
-        x = np.arange(x[0], x[-1] + 0.5 * step_m, step_m)
-    e = res.value(s, x)
-    lines = [f"{u * 1e3:.6f} {(u - v) * 1e3:.6f} {(u - v) * 1e3:.6f}" for u, v in zip(x, e)]
-    return "\n".join(lines) + "\n"
-
-
 def tables_json(res: VolumetricResult, unc: Uncertainty | None = None, slopes: dict | None = None) -> str:
     """vmt-readable compensation tables (JSON text, format ``vmt-comp/1``).
 

@@ -82,9 +82,9 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     write_json_atomic(outp / "identify.json", json_safe(ident))
     G_true = workpiece_truth(art, plan)
     first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
-    wW = {k: plan.w_A[i, :2] for k, i in first.items()}
-    wnW = {k: plan.wn_A[i, :2] for k, i in first.items()}
-    g_err = gauge_free_rms_m(res.G, res.design.target_ids, G_true, wW, wnW)
+    w_A = {k: plan.w_A[i, :2] for k, i in first.items()}
+    wn_A = {k: plan.wn_A[i, :2] for k, i in first.items()}
+    g_err = gauge_free_rms_m(res.G, res.design.target_ids, G_true, w_A, wn_A)
     say(f"residual RMS {res.rms_m * 1e6:.3f} um over {res.n_touches} touches; EC0Y {res.EC0Y * 1e6:+.1f} urad "
         f"(injected {errs['EC0Y'](np.zeros(1))[0] * 1e6:+.1f})")
     say(f"workpiece: max U95 {np.nanmax([w['u95_um'] for w in ident['workpiece']]):.2f} um (linear), "
@@ -109,7 +109,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     ids = [w["target"] for w in rep["workpiece"]]
     gb = np.array([w["baseline_um"] for w in rep["workpiece"]]) * 1e-6
     ge = np.array([w["extended_um"] for w in rep["workpiece"]]) * 1e-6
-    eb, ee = gauge_free_rms_m(gb, ids, G_true, wW, wnW), gauge_free_rms_m(ge, ids, G_true, wW, wnW)
+    eb, ee = gauge_free_rms_m(gb, ids, G_true, w_A, wn_A), gauge_free_rms_m(ge, ids, G_true, w_A, wn_A)
     say(f"workpiece against the truth: baseline {eb * 1e6:.3f} um RMS -> extended {ee * 1e6:.3f} um RMS")
     hidden = {"periodic_axis_error", "probe_lobing"}
     named = {f["cause"] for f in rep["findings"]}

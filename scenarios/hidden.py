@@ -36,11 +36,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.exceptions import ConfigError
+from core.units import MM, UM
 
 HIDDEN_CAUSES = ("none", "outlier", "thermal_drift", "periodic_axis_error", "probe_lobing", "reversal",
                  "nonrigid")
-UM = 1e-6
-MM = 1e-3
 
 
 @dataclass(frozen=True)
@@ -50,8 +49,8 @@ class HiddenTruth:
     causes: tuple
     params: dict
     g_true_m: dict = field(repr=False)  # target -> true normal deviation, m
-    w_W: dict = field(repr=False)  # target -> (2,) nominal contact point in W, m
-    wn_W: dict = field(repr=False)  # target -> (2,) normal in W
+    w_A: dict = field(repr=False)  # target -> (2,) nominal contact point, artefact frame A, m
+    wn_A: dict = field(repr=False)  # target -> (2,) normal, A
     outlier_rows: tuple = ()
 
 
@@ -167,7 +166,7 @@ def hidden_campaign(causes=("none",), seed: int = 0, *, noise_sigma_m: float = 0
     tg = list(dict.fromkeys(plan.target))
     first = {k: plan.target.index(k) for k in tg}
     truth = HiddenTruth(causes=causes, params=params, g_true_m=g_true,
-                        w_W={k: plan.w_A[first[k], :2] for k in tg}, wn_W={k: plan.wn_A[first[k], :2] for k in tg},
+                        w_A={k: plan.w_A[first[k], :2] for k in tg}, wn_A={k: plan.wn_A[first[k], :2] for k in tg},
                         outlier_rows=tuple(out_rows))
     return log, truth
 
@@ -179,7 +178,7 @@ def drift_check_plan(art, per_direction: int = 4):
     the path, so farthest in time from the repeat) whose normals point
     along +x, -x, +y and -y (A frame).
     """
-    from sim.plans import make_plan
+    from sim.catalog import make_plan
 
     plan = make_plan(art)
     pocket = np.flatnonzero(np.asarray(plan.feature) == "pocket")
@@ -248,36 +247,18 @@ def workpiece_truth(art, plan) -> dict:
     return out
 
 
-def remove_gauge(g, P, N) -> np.ndarray:
-    """``g`` (per target) less what a shift, rotation and scale of the part and a
-    common offset would give: the workpiece form that self-calibration sees.
-
-    Parameters
-    ----------
-    g : (n,) float
-    P : (n, 2) float
-        Nominal contact points in W, m.
-    N : (n, 2) float
-        Outward normals in W.
-    """
-    P, N = np.asarray(P, float), np.asarray(N, float)
-    B = np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
-                         np.einsum("ij,ij->i", N, P), np.ones(len(P))])
-    Q, _ = np.linalg.qr(B)
-    g = np.asarray(g, float)
-    return g - Q @ (Q.T @ g)
-
-
-def gauge_free_rms_m(g_m, ids, g_true: dict, w_W: dict, wn_W: dict) -> float:
+def gauge_free_rms_m(g_m, ids, g_true: dict, w_A: dict, wn_A: dict) -> float:
     """RMS of (estimate - truth) per target after removing what self-calibration cannot see.
 
     The workpiece's shift (2), rotation and scale in W and a common offset
     (the gauge of eqs 16-17 and the stylus radius) are projected out of the
-    difference first.
+    difference first (:func:`core.selfcal.workpiece_form`).
     """
-    P = np.array([w_W[k] for k in ids])
-    N = np.array([wn_W[k] for k in ids])
-    e = remove_gauge(np.asarray(g_m, float) - np.array([g_true[k] for k in ids]), P, N)
+    from core.selfcal import workpiece_form
+
+    P = np.array([w_A[k] for k in ids])
+    N = np.array([wn_A[k] for k in ids])
+    e = workpiece_form(np.asarray(g_m, float) - np.array([g_true[k] for k in ids]), P, N)
     return float(np.sqrt(np.mean(e ** 2)))
 
 
@@ -287,5 +268,5 @@ def workpiece_errors_um(report: dict, truth: HiddenTruth) -> tuple[float, float]
     if not rows:
         raise ConfigError("no target of the report is in the truth")
     ids = [w["target"] for w in rows]
-    return tuple(gauge_free_rms_m(np.array([w[k] for w in rows]) * UM, ids, truth.g_true_m, truth.w_W,
-                                  truth.wn_W) / UM for k in ("baseline_um", "extended_um"))
+    return tuple(gauge_free_rms_m(np.array([w[k] for w in rows]) * UM, ids, truth.g_true_m, truth.w_A,
+                                  truth.wn_A) / UM for k in ("baseline_um", "extended_um"))

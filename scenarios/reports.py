@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from core.units import MM, UM
+
 
 def _recording_path(folder: Path) -> Path:
     """A temporary ``recording.rrd`` beside the report (copied in by write_report)."""
@@ -85,38 +87,29 @@ def discovery_report(folder, d, t, rep: dict, title: str) -> Path:
         shutil.rmtree(rrd.parent, ignore_errors=True)
 
 
-def error_map(res):
-    """E_X,total and E_Y,total (eqs 4-5) on the grid nodes from identified LUTs, um."""
-    g = res.design.grid
-    X, Y = np.meshgrid(g.x_m, g.y_m, indexing="ij")
-    ex = res.EXX[:, None] + res.EXY[None, :] - Y * res.EC0Y
-    ey = res.EYX[:, None] + res.EYY[None, :]
-    if res.yaw == "ECY":  # X rides on Y (eq 5)
-        ey = ey + X * res.ECY[None, :]
-    else:  # Y rides on X
-        ex = ex - Y * res.ECX[:, None]
-    return g.x_m * 1e3, g.y_m * 1e3, ex * 1e6, ey * 1e6
+def error_map_um(res):
+    """(x_mm, y_mm, ex_um, ey_um): :func:`core.selfcal.error_map` (eqs 4-5) in report units."""
+    from core.selfcal import error_map
+
+    x_m, y_m, ex, ey = error_map(res)
+    return x_m / MM, y_m / MM, ex / UM, ey / UM
 
 
 def true_error_map(machine, x_mm, y_mm, z_m: float, ex_um, ey_um):
-    """The machine's true E_X,total / E_Y,total on the grid, in the identification's gauge.
+    """The machine's true E_X,total / E_Y,total on the grid (um), in the identification's gauge.
 
     The truth is the simulator's exact tip deviation at C = 0 and height
-    ``z_m``. Self-calibration determines the map only up to a translation, a
-    rotation and (without delta_L) a scale: those four are fitted to the
-    identified map and applied to the truth, so the two can be compared.
+    ``z_m``, expressed in the gauge of the identified map ``ex_um``, ``ey_um``
+    by :func:`core.selfcal.map_in_gauge`.
     """
-    X, Y = np.meshgrid(np.asarray(x_mm) * 1e-3, np.asarray(y_mm) * 1e-3, indexing="ij")
+    from core.selfcal import map_in_gauge
+
+    X, Y = np.meshgrid(np.asarray(x_mm) * MM, np.asarray(y_mm) * MM, indexing="ij")
     lin = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z_m)])
     rot = np.zeros((len(lin), len(machine.rotary_axes)))
-    E = (machine.tip_W(lin, rot) - machine.tip_W_nominal(lin, rot)) * 1e6
-    x, y = lin[:, 0], lin[:, 1]
-    one, zero = np.ones_like(x), np.zeros_like(x)
-    B = np.vstack([np.column_stack([one, zero, -y, x]), np.column_stack([zero, one, x, y])])
-    r = np.concatenate([np.ravel(ex_um) - E[:, 0], np.ravel(ey_um) - E[:, 1]])
-    c, *_ = np.linalg.lstsq(B, r, rcond=None)
-    Ea = E[:, :2] + (B @ c).reshape(2, -1).T
-    return Ea[:, 0].reshape(X.shape), Ea[:, 1].reshape(X.shape)
+    E = (machine.tip_W(lin, rot) - machine.tip_W_nominal(lin, rot)).reshape(X.shape + (3,))
+    tex, tey = map_in_gauge(X, Y, E[..., 0], E[..., 1], np.asarray(ex_um) * UM, np.asarray(ey_um) * UM)
+    return tex / UM, tey / UM
 
 
 def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, machine=None,
@@ -132,7 +125,7 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
 
     folder = Path(folder)
     rrd = _recording_path(folder)
-    x_mm, y_mm, ex_um, ey_um = error_map(res)
+    x_mm, y_mm, ex_um, ey_um = error_map_um(res)
     tex = tey = None
     if machine is not None:
         z_level = float(np.median(t.pn_R[:, 2]))
@@ -142,8 +135,8 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
     for k in range(t.n):
         first.setdefault(int(t.target[k]), k)
     idx = [first[i] for i in range(len(des.target_ids))]
-    w_mm = t.w_W[idx, :2] * 1e3
-    wn = t.wn_W[idx, :2]
+    w_mm = t.w_A[idx, :2] * 1e3
+    wn = t.wn_A[idx, :2]
     g_um = res.G * 1e6
     u95 = np.array([w["u95_um"] if w["u95_um"] is not None else np.nan for w in ident["workpiece"]])
     c_deg = np.degrees(des.c_rad)
@@ -163,7 +156,7 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
         record.log_touches(rec, t.pn_R, t.dq_m * 1e6, n_R=t.n_R)
         record.log_error_grid(rec, x_mm, y_mm, ex_um, ey_um, true_ex_um=tex, true_ey_um=tey)
         _log_machine_bodies(rec, record, t)
-        record.log_workpiece(rec, t.w_W[idx], t.wn_W[idx], g_um, u95_um=u95)
+        record.log_workpiece(rec, t.w_A[idx], t.wn_A[idx], g_um, u95_um=u95)
         record.log_rotary(rec, c_deg, exc, eyc, ecc_urad=res.ECC * 1e6,
                           ex0c_um=None if centre is None else float(centre[0]),
                           ey0c_um=None if centre is None else float(centre[1]))
@@ -205,7 +198,7 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
 
 def _profile_figure(figures, des, w_mm, wn, g_um, t, g_true):
     """The pocket's identified form beside the raw C = 0 probing and the truth (Fig. 9)."""
-    from scenarios.hidden import remove_gauge
+    from core.selfcal import workpiece_form
 
     feat = {}
     for k in range(t.n):
@@ -214,15 +207,15 @@ def _profile_figure(figures, des, w_mm, wn, g_um, t, g_true):
     if pocket.sum() < 6:
         pocket = np.ones(len(des.target_ids), bool)
     P, N = w_mm[pocket] * 1e-3, wn[pocket]
-    prof = {"identified G_normal": remove_gauge(g_um[pocket], P, N)}
+    prof = {"identified G_normal": workpiece_form(g_um[pocket], P, N)}
     sel = t.setup == 0
     raw = {des.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel] * 1e6)}
     ids = [tid for tid, p in zip(des.target_ids, pocket) if p]
     if all(k in raw for k in ids):
-        prof[f"raw, {des.setup_ids[0]}"] = remove_gauge(np.array([raw[k] for k in ids]), P, N)
+        prof[f"raw, {des.setup_ids[0]}"] = workpiece_form(np.array([raw[k] for k in ids]), P, N)
     ref = None
     if g_true is not None and all(k in g_true for k in ids):
-        ref = remove_gauge(np.array([g_true[k] for k in ids]) * 1e6, P, N)
+        ref = workpiece_form(np.array([g_true[k] for k in ids]) * 1e6, P, N)
     return figures.profile_figure(w_mm[pocket], N, prof, reference_um=ref, reference_label="true form",
                                   title="Cross pocket form")
 

@@ -17,19 +17,22 @@ paper eq. 1 for a C table), A artefact (``T_W_A`` placement).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from core.exceptions import ConfigError, PlanError
 from core.probelog import ProbeLog, make_log
+from core.touches import STATUS_MESSAGES, ProbeStatus
+from core.units import MM
 
 from . import artefacts as A
-from .plans import Plan, make_plan
-from .probe import (OK, ProbeConfig, T_R_W_nominal, find_contacts, rotary_count,
+from .catalog import CATALOG, make_artefact, make_plan
+from .plans import Plan
+from .probe import (ProbeConfig, T_R_W_nominal, find_contacts, rotary_count,
                     simulate_touches)
+from .setups import Setup, c_angle_setups, machine_name
 
-MM = 1e-3
 #: Default feeds: probing 240 mm/min (MFB paper), rapid 10 m/min.
 PROBING_FEED_MPS = 0.240 / 60.0
 RAPID_FEED_MPS = 10.0 / 60.0
@@ -37,81 +40,8 @@ RAPID_FEED_MPS = 10.0 / 60.0
 DWELL_S = 0.2
 #: Safe-height margin above the artefact's top, m.
 SAFE_MARGIN_M = 5.0 * MM
-
-
-@dataclass(frozen=True)
-class Setup:
-    """One set-up: placement ``T_W_A`` (nominal), rotary positions, true pose.
-
-    Attributes
-    ----------
-    name : str
-        The ``setup`` id in the log.
-    T_W_A : (4,4) float
-        Nominal placement of A in W, m.
-    rot_rad : tuple of float
-        Rotary axis positions in the machine's ``rotary_axes`` order, rad.
-    T_W_A_true : (4,4) float or None
-        True placement (default: the nominal one).
-    """
-
-    name: str
-    T_W_A: np.ndarray = field(compare=False)
-    rot_rad: tuple = ()
-    T_W_A_true: np.ndarray | None = field(default=None, compare=False)
-
-
-def c_angle_setups(machine, artefact: A.Artefact, c_angles_deg) -> list[Setup]:
-    """One set-up per C angle (deg), artefact in its default placement."""
-    axes = tuple(getattr(machine, "rotary_axes", ()) or ())
-    out = []
-    for c in c_angles_deg:
-        c = float(c)
-        if not np.isfinite(c):
-            raise ConfigError(f"C angle {c!r} is not finite")
-        rot = np.zeros(len(axes))
-        if "C" in axes:
-            rot[axes.index("C")] = np.deg2rad(c)
-        elif c != 0.0:
-            raise ConfigError(f"c_angles_deg: machine {machine_name(machine)!r} has no C axis "
-                              f"(rotary axes {axes or 'none'}); only 0 is possible")
-        out.append(Setup(f"C{c:g}", artefact.T_W_A, tuple(rot)))
-    if len({s.name for s in out}) != len(out):
-        raise ConfigError("c_angles_deg has repeated angles")
-    return out
-
-
-def mfb_placements(machine=None, artefact: A.Artefact | None = None) -> list[Setup]:
-    """17 MFB placements (the paper's count), the bar horizontal.
-
-    Chosen to fit the smallest machine (vmc-3axis, X 600 x Y 400 mm): along
-    X at y = -120, 0, +120 mm on 60 mm supports and on a 200 mm riser; at
-    +-30 deg about Z (centred) and +-15 deg (y = +-80 mm) at both heights;
-    reversed (180 deg, mistake-proofing) at both heights; one along X at
-    100 mm. A vertical probe cannot reach the holes of a vertical bar, so
-    there is no vertical placement (Z-axis positioning must come from
-    elsewhere, e.g. a tilted bar with the A axis).
-    """
-    art = artefact or A.multi_feature_bar()
-    k = rotary_count(machine) if machine is not None else 0
-    xc = float(art.info["poi_nominal_m"][-1, 0]) / 2
-    z0 = float(art.T_W_A[2, 3])
-    out = []
-
-    def add(theta_deg, cy, dz):
-        T = A.make_T(A.rot_z(np.deg2rad(theta_deg)), (0.0, cy, z0 + dz)) @ A.make_T(None, (-xc, 0.0, 0.0))
-        out.append(Setup(f"P{len(out) + 1:02d}", T, tuple(np.zeros(k))))
-
-    for dz in (0.0, 0.2):
-        for y in (-0.12, 0.0, 0.12):
-            add(0.0, y, dz)
-        add(30.0, 0.0, dz)
-        add(-30.0, 0.0, dz)
-        add(15.0, -0.08, dz)
-        add(-15.0, 0.08, dz)
-        add(180.0, 0.0, dz)
-    add(0.0, 0.0, 0.1)
-    return out
+#: Time between set-ups of an artefact without a record in :data:`sim.catalog.CATALOG`, s.
+DEFAULT_SETUP_CHANGE_S = 10.0
 
 
 def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves") -> None:
@@ -133,16 +63,6 @@ def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves") -> None:
     for ax, v in zip(getattr(machine, "rotary_axes", ()), setup.rot_rad):
         if ax in strokes and not (strokes[ax][0] - 1e-12 <= v <= strokes[ax][1] + 1e-12):
             raise PlanError(f"set-up {setup.name!r}: {ax} = {np.rad2deg(v):g} deg is outside its stroke")
-
-
-def machine_name(machine) -> str:
-    for a in ("name",):
-        v = getattr(machine, a, None)
-        if isinstance(v, str) and v:
-            return v
-    cfg = getattr(machine, "config", None)
-    v = getattr(cfg, "name", None)
-    return v if isinstance(v, str) and v else type(machine).__name__
 
 
 def _kinematic_chain(machine) -> str:
@@ -177,11 +97,11 @@ def validate_plan(art: A.Artefact, plan: Plan, probe: ProbeConfig) -> None:
         return out - r
 
     s, status = find_contacts(g, plan.n, travel)
-    bad = (status != OK) | ~(np.abs(s - plan.clearance_m) < 1e-9)
+    bad = (status != ProbeStatus.OK) | ~(np.abs(s - plan.clearance_m) < 1e-9)
     if bad.any():
         i = int(np.argmax(bad))
         what = (f"meets {plan.feature[i]!r} {(plan.clearance_m - s[i]) * 1e3:.6f} mm before the target"
-                if status[i] == OK else f"gives {status[i]}")
+                if status[i] == ProbeStatus.OK else f"gives {status[i]} ({STATUS_MESSAGES[status[i]]})")
         raise PlanError(f"plan {plan.artefact!r} target {plan.target[i]!r}: on a perfect machine the "
                         f"stylus {what} (too close to a corner or an edge?)")
 
@@ -231,8 +151,11 @@ def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: Probe
 
 
 def _resolve_setups(machine, art, setups) -> list[Setup]:
+    """Set-ups from C angles, placements or Setup objects; None: the artefact's defaults (its record)."""
     if setups is None:
-        return mfb_placements(machine, art) if art.name == "mfb" else c_angle_setups(machine, art, [0.0])
+        if art.name in CATALOG:
+            return CATALOG[art.name].default_setups(machine, art)
+        return c_angle_setups(machine, art, [0.0])
     setups = list(setups)
     if not setups:
         raise ConfigError("no set-ups (c_angles_deg or placements is empty)")
@@ -264,7 +187,8 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     machine : object with ``tip_W`` (``sim.machine.Machine``)
     probe : ProbeConfig, optional
     setups : sequence of float (C angles, deg), of (4,4) placements, or of Setup
-        Default: the 17 MFB placements, or C = 0 for the other artefacts.
+        Default: the artefact's record (:mod:`sim.catalog`): the 17 MFB
+        placements, or C = 0 for the other artefacts.
     rng : np.random.Generator, optional
         Noise source (None: noiseless).
     plan : Plan, optional
@@ -272,7 +196,8 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     feed_mps, rapid_mps : float
         Probing and rapid feeds, m/s.
     setup_change_s : float, optional
-        Time between set-ups (default 300 s for a placement, 10 s for an index).
+        Time between set-ups (default the record's: 300 s to re-place the
+        bar, 10 s for an index).
     check_collisions : bool
         Check every link, approach and retract path in the MuJoCo scene.
     plan_only : bool
@@ -292,7 +217,7 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     ConfigError
         Bad set-ups, feeds, or a C angle on a machine without C.
     """
-    art = A.make_artefact(artefact) if isinstance(artefact, str) else artefact
+    art = make_artefact(artefact) if isinstance(artefact, str) else artefact
     probe = probe or ProbeConfig()
     if not (np.isfinite(feed_mps) and feed_mps > 0 and np.isfinite(rapid_mps) and rapid_mps > 0):
         raise ConfigError("feed_mps and rapid_mps must be positive")
@@ -302,7 +227,7 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         raise ConfigError("set-up names must be unique")
     validate_plan(art, plan, probe)
     if setup_change_s is None:
-        setup_change_s = 300.0 if art.name == "mfb" else 10.0
+        setup_change_s = CATALOG[art.name].setup_change_s if art.name in CATALOG else DEFAULT_SETUP_CHANGE_S
     r = probe.stylus_r_m
     axes = tuple(getattr(machine, "rotary_axes", ()) or ())
     feats = sorted(set(plan.feature))
@@ -340,7 +265,7 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         if plan_only:
             pos = np.full((plan.n, 3), np.nan)
             t_s = np.full(plan.n, np.nan)
-            status = np.full(plan.n, OK, dtype=object)
+            status = np.full(plan.n, ProbeStatus.OK, dtype=object)
         else:
             rot = np.tile(np.asarray(st.rot_rad, float), (plan.n, 1)) if axes else None
             T_true = np.asarray(st.T_W_A if st.T_W_A_true is None else st.T_W_A_true, float)
@@ -348,7 +273,7 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
             res = simulate_touches(machine, probe, rng, mv.start_R, d_R, travel, rot, t0,
                                    np.full(plan.n, feed_mps), sdf_true, grp, T_A_W)
             pos, status = res.pos_R, res.status
-            t_s = np.where(status == OK, res.t_s, np.nan)
+            t_s = np.where(status == ProbeStatus.OK, res.t_s, np.nan)
         cols["setup"] += [st.name] * plan.n
         cols["target"] += list(plan.target)
         cols["feature"] += list(plan.feature)

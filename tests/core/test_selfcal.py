@@ -8,8 +8,8 @@ from core.design import example_cross_pocket
 from core.exceptions import ConfigError, IdentifiabilityError
 from core.lsq import solve
 from core.selfcal import Grid, build_design, identify, nominal_touches, rot2, to_gauge
+from core.units import UM
 
-UM = 1e-6
 GRID = Grid.regular(-0.110, 0.110, 0.022)
 ANGLES = [0, 75, 130, 210]
 
@@ -273,3 +273,62 @@ def test_auto_grid_from_extent():
     assert np.any(np.isclose(g.x_m, 0.0, atol=1e-12))
     res = identify(t, grid_step_m=0.02)
     assert np.array_equal(res.design.grid.x_m, g.x_m)
+
+
+def test_error_map_of_a_linear_machine_known_answer():
+    """Scales s_x, s_y and squareness a (tip error -y a in X, CONTRIBUTING) give, by hand,
+    E_X = s_x x - a y and E_Y = s_y y (eqs 4-5); the truth is already in the gauge
+    (zero at the origin, EXX(x_N) = delta_L, no straightness), so the noise-free
+    identification's map is that to rounding."""
+    from core.selfcal import error_map
+
+    sx, sy, a = 8 * UM / 0.1, -5 * UM / 0.1, 12 * UM  # 8 and -5 um per 100 mm, 12 urad
+    w, wn = freeform(60)
+    t = nominal_touches(w, wn, ANGLES)
+    des = build_design(t, GRID)
+    th = np.zeros(des.n_params)
+    th[des.slices["EXX"]] = sx * GRID.x_m
+    th[des.slices["EYY"]] = sy * GRID.y_m
+    th[des.slices["EC0Y"]] = a
+    res = identify(nominal_touches_like(t, des.A @ th), GRID, sx * GRID.x_m[-1], sigma_m=UM)
+    x, y, ex, ey = error_map(res)
+    X, Y = np.meshgrid(GRID.x_m, GRID.y_m, indexing="ij")
+    np.testing.assert_allclose(ex, sx * X - a * Y, atol=1e-15)
+    np.testing.assert_allclose(ey, sy * Y, atol=1e-15)
+
+
+def test_map_in_gauge_adds_exactly_the_unseen_part():
+    """A map differing from the truth by a shift, a rotation and a scale is the truth in
+    its gauge; a further bump (orthogonal to those by construction) stays a difference."""
+    from core.selfcal import map_gauge_basis, map_in_gauge
+
+    X, Y = np.meshgrid(np.linspace(-0.1, 0.1, 6), np.linspace(-0.08, 0.08, 5), indexing="ij")
+    ex_t, ey_t = 2 * UM * np.sin(20 * X) * Y / 0.1, 1 * UM * np.cos(15 * Y)
+    t1, t2, rot, scale = 3 * UM, -2 * UM, 15 * UM, 40 * UM
+    ex_id = ex_t + t1 - rot * Y + scale * X
+    ey_id = ey_t + t2 + rot * X + scale * Y
+    gx, gy = map_in_gauge(X, Y, ex_t, ey_t, ex_id, ey_id)
+    np.testing.assert_allclose(gx, ex_id, atol=1e-18)
+    np.testing.assert_allclose(gy, ey_id, atol=1e-18)
+    bump = np.concatenate([np.ravel(X ** 2 * Y), np.ravel(Y ** 3)]) * 1e-3
+    B = map_gauge_basis(X, Y)
+    bump -= B @ np.linalg.lstsq(B, bump, rcond=None)[0]
+    n = X.size
+    gx, gy = map_in_gauge(X, Y, ex_t, ey_t, ex_id + bump[:n].reshape(X.shape), ey_id + bump[n:].reshape(X.shape))
+    np.testing.assert_allclose(gx, ex_id, atol=1e-18)
+    np.testing.assert_allclose(gy, ey_id, atol=1e-18)
+
+
+def test_workpiece_form_removes_shift_rotation_scale_and_offset():
+    """G of the same part shifted, rotated, scaled and with another stylus radius has the
+    same form; a lobed form error survives it."""
+    from core.selfcal import workpiece_form
+
+    w, wn = freeform(40)
+    t, rot, scale, r = np.array([4.0, -3.0]) * UM, 20 * UM, 30 * UM, 1.5 * UM
+    g_rigid = wn @ t + rot * (-wn[:, 0] * w[:, 1] + wn[:, 1] * w[:, 0]) + scale * np.einsum("ij,ij->i", wn, w) + r
+    np.testing.assert_allclose(workpiece_form(g_rigid, w, wn), 0.0, atol=1e-18)
+    ang = np.arctan2(w[:, 1], w[:, 0])
+    lobes = 2 * UM * np.cos(7 * ang)
+    np.testing.assert_allclose(workpiece_form(lobes + g_rigid, w, wn), workpiece_form(lobes, w, wn), atol=1e-18)
+    assert np.sqrt(np.mean(workpiece_form(lobes, w, wn) ** 2)) > 1.2 * UM  # most of 2/sqrt(2) um survives

@@ -9,8 +9,8 @@ from core.design import example_cross_pocket
 from core.exceptions import ConfigError
 from core.selfcal import Grid, estimator, identify, nominal_touches, to_gauge
 from core.uncertainty import U_PROBE_M, linear_uncertainty, monte_carlo, monte_carlo_touches
+from core.units import UM
 
-UM = 1e-6
 GRID = Grid.regular(-0.110, 0.110, 0.022)
 PAPER = [0, 75, 130, 210]
 
