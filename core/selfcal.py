@@ -20,7 +20,7 @@ the table about Z (CONTRIBUTING: actual minus nominal pose of the moving
 component), which is the sign of eq 13. ``n . (R90 p)`` is the same for the
 tip centre and the contact point because ``n`` is perpendicular to ``R90 n``.
 
-Parameter vector (fixed order, names in :attr:`Design.names`)::
+Parameter vector (fixed order, names in :attr:`SelfCalDesign.names`)::
 
     EXX@x (N_x) | EYX@x (N_x) | EXY@y (N_y) | EYY@y (N_y) | ECY@y (N_y) | EC0Y |
     G[target] (N_w) | EXC,total[C] (N_c) | EYC,total[C] (N_c) | ECC[C] (N_c)
@@ -223,13 +223,13 @@ def yaw_model(value) -> Yaw:
 # design
 # ---------------------------------------------------------------------------
 @dataclass(frozen=True)
-class Design:
+class SelfCalDesign:
     """The linear model ``dq = A theta`` of eq 15 plus its gauge.
 
     Attributes
     ----------
     A : scipy.sparse.csr_matrix, (n_touches, n_params)
-        Design matrix; theta in m (translations) and rad (rotations).
+        SelfCalDesign matrix; theta in m (translations) and rad (rotations).
     names : tuple of str
         Parameter names in column order.
     slices : dict[str, slice]
@@ -269,6 +269,29 @@ class Design:
     @property
     def n_params(self) -> int:
         return len(self.names)
+
+    def to_gauge(self, theta: np.ndarray, delta_L_m: float | None = None) -> np.ndarray:
+        """The parameter vector equivalent to ``theta`` that meets this design's gauge.
+
+        Adds the null-space combination ``N alpha`` with ``C (theta + N alpha) =
+        d`` so a truth (e.g. the simulator's) can be compared with an
+        identification. ``A theta`` is unchanged (exactly, for a truth in the
+        model space). ``delta_L_m`` overrides ``d``'s scale value.
+
+        Parameters
+        ----------
+        theta : (n_params,) float
+            Parameters in m / rad, in ``names`` order.
+        """
+        theta = np.asarray(theta, float)
+        if theta.shape != (self.n_params,):
+            raise ConfigError(f"theta: expected shape ({self.n_params},), got {theta.shape}")
+        d = self.d.copy()
+        if delta_L_m is not None:
+            d[10] = delta_L_m
+        CN = self.C @ self.N
+        alpha = np.linalg.solve(CN, d - self.C @ theta)
+        return theta + self.N @ alpha
 
 
 def _setup_angles(touches: Touches) -> np.ndarray:
@@ -312,8 +335,8 @@ def yaw_for_chain(chain_text: str | None) -> Yaw:
 
 
 def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
-                 yaw: Yaw | str = Yaw.ECY) -> Design:
-    """Design matrix of eq 15 for measured or planned touches.
+                 yaw: Yaw | str = Yaw.ECY) -> SelfCalDesign:
+    """SelfCalDesign matrix of eq 15 for measured or planned touches.
 
     Parameters
     ----------
@@ -450,7 +473,7 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
         g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=delta_L={delta_L_m * 1e6:g}um (scale known)",
           float(delta_L_m))
     N = _null_basis(touches, slices, gx, gy, c_rad, n_par, yaw)
-    return Design(A=A, names=tuple(names), slices=slices, grid=grid, target_ids=tuple(touches.target_ids),
+    return SelfCalDesign(A=A, names=tuple(names), slices=slices, grid=grid, target_ids=tuple(touches.target_ids),
                   setup_ids=tuple(touches.setup_ids), c_rad=c_rad, ref_setup=ref, C=C, d=d,
                   gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N, yaw=yaw)
 
@@ -507,33 +530,9 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
     return N
 
 
-def null_space(design: Design) -> np.ndarray:
+def null_space(design: SelfCalDesign) -> np.ndarray:
     """(n_params, 11) analytic null-space basis of ``design.A`` (named by :data:`GAUGE_NAMES`)."""
     return design.N
-
-
-def to_gauge(design: Design, theta: np.ndarray, delta_L_m: float | None = None) -> np.ndarray:
-    """The parameter vector equivalent to ``theta`` that meets the gauge.
-
-    Adds the null-space combination ``N alpha`` with ``C (theta + N alpha) =
-    d`` so a truth (e.g. the simulator's) can be compared with an
-    identification. ``A theta`` is unchanged (exactly, for a truth in the
-    model space). ``delta_L_m`` overrides ``design.d``'s scale value.
-
-    Parameters
-    ----------
-    theta : (n_params,) float
-        Parameters in m / rad, in ``design.names`` order.
-    """
-    theta = np.asarray(theta, float)
-    if theta.shape != (design.n_params,):
-        raise ConfigError(f"theta: expected shape ({design.n_params},), got {theta.shape}")
-    d = design.d.copy()
-    if delta_L_m is not None:
-        d[10] = delta_L_m
-    CN = design.C @ design.N
-    alpha = np.linalg.solve(CN, d - design.C @ theta)
-    return theta + design.N @ alpha
 
 
 # ---------------------------------------------------------------------------
@@ -545,7 +544,7 @@ class SelfCalResult:
 
     Attributes
     ----------
-    design : Design
+    design : SelfCalDesign
     theta : (n_params,) float
         All parameters, m / rad, in ``design.names`` order.
     std : (n_params,) float or None
@@ -564,7 +563,7 @@ class SelfCalResult:
     n_touches : int
     """
 
-    design: Design
+    design: SelfCalDesign
     theta: np.ndarray
     std: np.ndarray | None
     cov: np.ndarray | None
@@ -729,7 +728,7 @@ def check_count(touches: Touches, grid: Grid) -> None:
             f" or a coarser grid")
 
 
-def _check_nodes(des: Design) -> None:
+def _check_nodes(des: SelfCalDesign) -> None:
     """Raise naming every grid node no touch constrains (they would be solved from the gauge alone)."""
     A = des.A
     colnorm = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
@@ -739,7 +738,7 @@ def _check_nodes(des: Design) -> None:
         raise IdentifiabilityError(f"no touch constrains {shown}: fit the grid to the touches or add targets there")
 
 
-def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
+def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
              grid_step_m: float = 0.022, sigma_m: float | None = None, covariance: str = "auto",
              yaw: Yaw | str = Yaw.ECY) -> SelfCalResult:
     """2D self-calibration, eqs 15-18.
@@ -786,7 +785,7 @@ def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None
 
 
 def estimator(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
-              yaw: Yaw | str = Yaw.ECY) -> tuple[Design, LinearEstimator]:
+              yaw: Yaw | str = Yaw.ECY) -> tuple[SelfCalDesign, LinearEstimator]:
     """Build and factor the design once (for Monte Carlo and design studies)."""
     check_count(touches, grid)
     des = build_design(touches, grid, delta_L_m, yaw=yaw)

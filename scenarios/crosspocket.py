@@ -98,7 +98,7 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1) -> dict:
 
 def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
     """The paper's case 2: raw error at C = 0 against the self-calibrated pin positions."""
-    from core.selfcal import Grid, identify
+    from core.selfcal import Grid, self_calibrate
     from core.touches import from_log
     from scenarios.hidden import gauge_free_rms_m, workpiece_truth
     from sim import artefacts as A
@@ -124,7 +124,7 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
     # the paper's 80 mm step; nodes only where touches are (the paper's -400..400
     # mm grid has nodes no pin reaches, which nothing can identify)
     grid = Grid.from_extent(t.pn_R, 0.080)
-    res = identify(t, grid)
+    res = self_calibrate(t, grid)
     g_true = workpiece_truth(art, plan)
     first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
     w_A = {k: plan.w_A[i, :2] for k, i in first.items()}

@@ -33,7 +33,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     """Run the demo into ``out``; return an exit code."""
     from core.discover import discover
     from core.probelog import read_probe_log, write_probe_log
-    from core.selfcal import Grid, identify
+    from core.selfcal import Grid, self_calibrate
     from core.touches import from_log
     from core.uncertainty import monte_carlo_touches
     from core.atomic import json_safe, write_json_atomic
@@ -76,7 +76,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
 
     say.head("3. identify: self-calibration, Ibaraki et al. eqs 1-18")
     grid = Grid.regular(-0.110, 0.110, 0.022)
-    res = identify(t, grid)
+    res = self_calibrate(t, grid)
     mc = monte_carlo_touches(t, grid, res.sigma_m, runs=1000, rng=np.random.default_rng(seed + 2))
     ident = res.to_report(mc)
     write_json_atomic(outp / "identify.json", json_safe(ident))

@@ -516,7 +516,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
                                     c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A))
     chain = cfg.chain
     rp = dict(cfg.rotary_points_R_m)
-    res_g = vol.identify(meas, chain, plan.nodes, rp, exact=exact)
+    res_g = vol.identify_volumetric(meas, chain, plan.nodes, rp, exact=exact)
     # reported in the ISO 230-1 form: straightness against the end-point
     # reference line (identified and injected alike)
     L_iso = vol.iso_map(res_g.design)
@@ -540,7 +540,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         f = errs.get(s)
         if f is not None:
             truth[d.slices[s]] = float(np.asarray(f(np.zeros(1)))[0])
-    truth_raw = vol.to_gauge(d, truth)
+    truth_raw = d.to_gauge(truth)
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, k2, slopes)

@@ -9,7 +9,7 @@ import pytest
 
 from core.design import example_cross_pocket
 from core.probelog import make_log, write_probe_log
-from core.selfcal import Grid, build_design, nominal_touches, to_gauge
+from core.selfcal import Grid, build_design, nominal_touches
 from scenarios.cli import main
 
 ANG = [0, 75, 130, 210]
@@ -19,7 +19,7 @@ def write_campaign(path, rng, noise_m=0.3e-6, plan=False):
     w, wn, ids = example_cross_pocket()
     t = nominal_touches(w, wn, ANG, stylus_r_m=0.003, target_ids=ids)
     des = build_design(t, Grid.regular(-0.110, 0.110, 0.022))
-    truth = to_gauge(des, rng.normal(0, 3e-6, des.n_params), 2e-6)
+    truth = des.to_gauge(rng.normal(0, 3e-6, des.n_params), 2e-6)
     dq = des.A @ truth + rng.normal(0, noise_m, t.n)
     p = t.pn_R + dq[:, None] * t.n_R
     n = t.n
