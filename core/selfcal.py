@@ -83,7 +83,7 @@ import scipy.sparse as sp
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import LinearEstimator, remove_span, solve
 from .touches import Touches
-from .units import DEG, MM
+from .units import DEG, MM, UM
 
 #: Tolerance (m) for a touch lying on the grid's edge.
 EDGE_TOL = 1e-9
@@ -229,7 +229,7 @@ class SelfCalDesign:
     Attributes
     ----------
     A : scipy.sparse.csr_matrix, (n_touches, n_params)
-        SelfCalDesign matrix; theta in m (translations) and rad (rotations).
+        Design matrix; theta in m (translations) and rad (rotations).
     names : tuple of str
         Parameter names in column order.
     slices : dict[str, slice]
@@ -336,7 +336,7 @@ def yaw_for_chain(chain_text: str | None) -> Yaw:
 
 def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
                  yaw: Yaw | str = Yaw.ECY) -> SelfCalDesign:
-    """SelfCalDesign matrix of eq 15 for measured or planned touches.
+    """Design matrix of eq 15 for measured or planned touches, with its gauge (eqs 16-17).
 
     Parameters
     ----------
@@ -350,34 +350,49 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
         X-axis positioning error at the last x node (eq 17), m; None = scale
         unknown (fixed to 0 and reported).
     yaw : {"ECY", "ECX"}
-        The yaw that couples the axes (:func:`yaw_for_chain`): ``"ECY"``
-        on the y nodes (the paper: X rides on Y) or ``"ECX"`` on the x
-        nodes (Y rides on X, ``E_X -= y ECX(x)``).
+        The yaw that couples the axes (:class:`Yaw`, :func:`yaw_for_chain`):
+        ``"ECY"`` on the y nodes (the paper: X rides on Y) or ``"ECX"`` on
+        the x nodes (Y rides on X, ``E_X -= y ECX(x)``).
 
     Raises
     ------
     ConfigError
-        A touch outside the grid, a non-planar normal, mixed C in a set-up.
+        A touch outside the grid, a non-planar normal, mixed C in a set-up,
+        a non-finite ``delta_L_m``.
     """
     yaw = yaw_model(yaw)
+    _check_touches(touches, grid)
+    if delta_L_m is not None and not np.isfinite(delta_L_m):
+        raise ConfigError(f"delta_L must be finite, got {delta_L_m}")
+    c_rad = _setup_angles(touches)
+    slices, names = _parameters(touches, grid, c_rad, yaw)
+    A = _eq14_matrix(touches, grid, slices, yaw)
+    C, d, gauge, ref = _gauge_conditions(grid, slices, c_rad, _c_names(touches.setup_ids, c_rad), delta_L_m, yaw)
+    N = _null_basis(touches, slices, grid.x_m, grid.y_m, c_rad, len(names), yaw)
+    return SelfCalDesign(A=A, names=tuple(names), slices=slices, grid=grid, target_ids=tuple(touches.target_ids),
+                         setup_ids=tuple(touches.setup_ids), c_rad=c_rad, ref_setup=ref, C=C, d=d,
+                         gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N, yaw=yaw)
+
+
+def _check_touches(touches: Touches, grid: Grid) -> None:
+    """ConfigError for no touches, a normal out of the XY plane, or a touch outside the grid."""
     if touches.n == 0:
         raise ConfigError("no touches")
-    x = touches.pn_R[:, 0]
-    y = touches.pn_R[:, 1]
-    nx = touches.n_R[:, 0]
-    ny = touches.n_R[:, 1]
     bad = np.flatnonzero(np.abs(touches.n_R[:, 2]) > NZ_MAX)
     if bad.size:
         raise ConfigError(f"log row {touches.row[bad[0]]}: normal n_z = {touches.n_R[bad[0], 2]:.3g};"
                           f" the 2D self-calibration model needs normals in the XY plane")
-    gx, gy = grid.x_m, grid.y_m
-    for v, g, ax in ((x, gx, "X"), (y, gy, "Y")):
+    for v, g, ax in ((touches.pn_R[:, 0], grid.x_m, "X"), (touches.pn_R[:, 1], grid.y_m, "Y")):
         out = np.flatnonzero((v < g[0] - EDGE_TOL) | (v > g[-1] + EDGE_TOL))
         if out.size:
             i = out[0]
             raise ConfigError(f"log row {touches.row[i]}: nominal {ax} = {v[i] / MM:.3f} mm lies outside the grid"
                               f" {g[0] / MM:g}..{g[-1] / MM:g} mm ({out.size} touches outside)")
-    c_rad = _setup_angles(touches)
+
+
+def _parameters(touches: Touches, grid: Grid, c_rad: np.ndarray, yaw: Yaw) -> tuple[dict, list]:
+    """(slices, names) of the parameter vector in its fixed order (module docstring)."""
+    gx, gy = grid.x_m, grid.y_m
     Nx, Ny = len(gx), len(gy)
     Nw, Nc = len(touches.target_ids), len(touches.setup_ids)
     sizes = [("EXX", Nx), ("EYX", Nx), ("EXY", Ny), ("EYY", Ny), (yaw, Ny if yaw == Yaw.ECY else Nx), ("EC0Y", 1),
@@ -386,7 +401,6 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     for nm, k in sizes:
         slices[nm] = slice(o, o + k)
         o += k
-    n_par = o
     cn = _c_names(touches.setup_ids, c_rad)
     names = ([f"EXX@x={_fmt_mm(v)}mm" for v in gx] + [f"EYX@x={_fmt_mm(v)}mm" for v in gx]
              + [f"{s}@y={_fmt_mm(v)}mm" for s in ("EXY", "EYY") for v in gy]
@@ -394,10 +408,16 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
              + ["EC0Y"]
              + [f"G[{t}]" for t in touches.target_ids]
              + [f"EXC,total[{c}]" for c in cn] + [f"EYC,total[{c}]" for c in cn] + [f"ECC[{c}]" for c in cn])
+    return slices, names
 
+
+def _eq14_matrix(touches: Touches, grid: Grid, s: dict, yaw: Yaw) -> sp.csr_matrix:
+    """(n_touches, n_params) sparse A of eq 14: eq 12 with eqs 4-5 and 8-11, eq 7, eq 13."""
     m = touches.n
-    kx, zx = _interp_weights(gx, x)
-    ky, zy = _interp_weights(gy, y)
+    x, y = touches.pn_R[:, 0], touches.pn_R[:, 1]
+    nx, ny = touches.n_R[:, 0], touches.n_R[:, 1]
+    kx, zx = _interp_weights(grid.x_m, x)
+    ky, zy = _interp_weights(grid.y_m, y)
     j = touches.setup
     rows, cols, vals = [], [], []
 
@@ -406,7 +426,6 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
         cols.append(np.asarray(c))
         vals.append(np.asarray(v, float))
 
-    s = slices
     # eq 12 with eqs 10, 11: dq = -nx E_X,total - ny E_Y,total
     add(s["EXX"].start + kx, -nx * (1 - zx))
     add(s["EXX"].start + kx + 1, -nx * zx)
@@ -430,10 +449,16 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     add(s["EXC"].start + j, nx)
     add(s["EYC"].start + j, ny)
     add(s["ECC"].start + j, rp_n)
+    n_par = max(sl.stop for sl in s.values())
     A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, n_par))
     A.sum_duplicates()
+    return A
 
-    # gauge, eqs 16-17
+
+def _gauge_conditions(grid: Grid, s: dict, c_rad: np.ndarray, cn: list, delta_L_m, yaw: Yaw):
+    """(C (11, n), d (11,), words, ref set-up) of the eleven gauge conditions, eqs 16-17."""
+    gx, gy = grid.x_m, grid.y_m
+    n_par = max(sl.stop for sl in s.values())
     xo, yo = grid.origin_m
     ref = int(np.argmin(np.abs(np.angle(np.exp(1j * c_rad)))))
     C = np.zeros((11, n_par))
@@ -453,14 +478,14 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
         g(4, "ECY", _interp_row(gy, yo), f"ECY(y={_fmt_mm(yo)}mm)=0")
     else:
         g(4, "ECX", _interp_row(gx, xo), f"ECX(x={_fmt_mm(xo)}mm)=0")
-    e = np.zeros(Nc)
+    e = np.zeros(len(c_rad))
     e[ref] = 1.0
     g(5, "EXC", e, f"EXC,total({cn[ref]})=0")
     g(6, "EYC", e, f"EYC,total({cn[ref]})=0")
     g(7, "ECC", e, f"ECC({cn[ref]})=0")
-    last_x = np.zeros(Nx)
+    last_x = np.zeros(len(gx))
     last_x[-1] = 1
-    last_y = np.zeros(Ny)
+    last_y = np.zeros(len(gy))
     last_y[-1] = 1
     g(8, "EYX", last_x, f"EYX(x={_fmt_mm(gx[-1])}mm)=0")
     g(9, "EXY", last_y, f"EXY(y={_fmt_mm(gy[-1])}mm)=0")
@@ -468,14 +493,9 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
         g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=0: scale unknown (delta_L not given), "
                              "EXX, EYY and G carry an unknown common scale")
     else:
-        if not np.isfinite(delta_L_m):
-            raise ConfigError(f"delta_L must be finite, got {delta_L_m}")
-        g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=delta_L={delta_L_m * 1e6:g}um (scale known)",
+        g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=delta_L={delta_L_m / UM:g}um (scale known)",
           float(delta_L_m))
-    N = _null_basis(touches, slices, gx, gy, c_rad, n_par, yaw)
-    return SelfCalDesign(A=A, names=tuple(names), slices=slices, grid=grid, target_ids=tuple(touches.target_ids),
-                  setup_ids=tuple(touches.setup_ids), c_rad=c_rad, ref_setup=ref, C=C, d=d,
-                  gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N, yaw=yaw)
+    return C, d, gauge, ref
 
 
 def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
