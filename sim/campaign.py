@@ -228,71 +228,119 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     validate_plan(art, plan, probe)
     if setup_change_s is None:
         setup_change_s = CATALOG[art.name].setup_change_s if art.name in CATALOG else DEFAULT_SETUP_CHANGE_S
-    r = probe.stylus_r_m
-    axes = tuple(getattr(machine, "rotary_axes", ()) or ())
     feats = sorted(set(plan.feature))
     sdf_true = [art.feature(f).true.sdf for f in feats]
     grp = np.array([feats.index(f) for f in plan.feature])
     travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
-    scene = scene_T = None
-    cols: dict[str, list] = {k: [] for k in (
-        "setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz",
-        "feature", "A_deg", "B_deg", "C_deg", "dx", "dy", "dz", "wx_mm", "wy_mm", "wz_mm",
-        "wnx", "wny", "wnz", "stylus_r_mm", "status")}
+    paths = _PathChecker(art, probe) if check_collisions else None
+    cols: dict[str, list] = {k: [] for k in LOG_COLUMNS}
     t_cursor = 0.0
     for si, st in enumerate(setups):
         mv = setup_moves(machine, art, plan, st, probe)
         check_strokes(machine, st, plan, mv)
-        if check_collisions:
-            from .scene import Scene, check_touch_paths
-
-            if scene is None or scene.artefact is not art or not np.array_equal(scene_T, st.T_W_A):
-                scene = Scene(art, probe, st.T_W_A)
-                scene_T = np.asarray(st.T_W_A)
-            scene.set_table(mv.T_R_W)
-            check_touch_paths(scene, st.name, plan.target, plan.feature, mv.links,
-                              np.stack([mv.start_R, mv.Xn_R], axis=1))
+        if paths is not None:
+            paths.check(st, plan, mv)
         if si > 0:
             t_cursor += setup_change_s
-        per = travel / feed_mps + travel / rapid_mps + DWELL_S
-        t0 = t_cursor + np.cumsum(mv.link_len_m / rapid_mps) + np.concatenate([[0.0], np.cumsum(per)[:-1]])
-        t_cursor = float(t0[-1] + per[-1])
-        d_R = -mv.n_R
-        rot_deg = np.zeros(3)
-        for a, v in zip(axes, st.rot_rad):
-            if a in "ABC":
-                rot_deg["ABC".index(a)] = np.round(np.rad2deg(v), 9)
+        t0, t_cursor = _touch_start_times(mv, travel, t_cursor, feed_mps, rapid_mps)
         if plan_only:
             pos = np.full((plan.n, 3), np.nan)
             t_s = np.full(plan.n, np.nan)
             status = np.full(plan.n, ProbeStatus.OK, dtype=object)
         else:
-            rot = np.tile(np.asarray(st.rot_rad, float), (plan.n, 1)) if axes else None
-            T_true = np.asarray(st.T_W_A if st.T_W_A_true is None else st.T_W_A_true, float)
-            T_A_W = np.broadcast_to(A.inv_T(T_true), (plan.n, 4, 4))
-            res = simulate_touches(machine, probe, rng, mv.start_R, d_R, travel, rot, t0,
-                                   np.full(plan.n, feed_mps), sdf_true, grp, T_A_W)
-            pos, status = res.pos_R, res.status
-            t_s = np.where(status == ProbeStatus.OK, res.t_s, np.nan)
-        cols["setup"] += [st.name] * plan.n
-        cols["target"] += list(plan.target)
-        cols["feature"] += list(plan.feature)
-        cols["status"] += list(status)
-        for j, c in enumerate("XYZ"):
-            cols[f"{c}_mm"].append(pos[:, j] / MM)
-            cols[f"{c}n_mm"].append(mv.Xn_R[:, j] / MM)
-            cols[f"n{c.lower()}"].append(mv.n_R[:, j])
-            cols[f"d{c.lower()}"].append(d_R[:, j])
-            cols[f"w{c.lower()}_mm"].append(plan.w_A[:, j] / MM)
-            cols[f"wn{c.lower()}"].append(plan.wn_A[:, j])
-        cols["t_s"].append(t_s)
-        for j, c in enumerate("ABC"):
-            cols[f"{c}_deg"].append(np.full(plan.n, rot_deg[j]))
-        cols["stylus_r_mm"].append(np.full(plan.n, r / MM))
+            pos, status, t_s = _simulate_setup(machine, probe, rng, st, mv, travel, t0, feed_mps, sdf_true, grp)
+        _append_rows(cols, plan, st, mv, pos, status, t_s, _rotary_deg(machine, st), probe.stylus_r_m)
     columns = {k: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else v) for k, v in cols.items()}
+    return make_log(columns, _campaign_meta(machine, art, probe, feed_mps, meta))
+
+
+#: Every column a campaign writes, in the order of ``probe-log/1``.
+LOG_COLUMNS = ("setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz",
+               "feature", "A_deg", "B_deg", "C_deg", "dx", "dy", "dz", "wx_mm", "wy_mm", "wz_mm",
+               "wnx", "wny", "wnz", "stylus_r_mm", "status")
+
+
+class _PathChecker:
+    """Every link, approach and retract path of a set-up checked in the MuJoCo scene.
+
+    The scene is built once per artefact placement and re-posed per table index.
+    """
+
+    def __init__(self, art: A.Artefact, probe: ProbeConfig):
+        self.art, self.probe = art, probe
+        self.scene = self.T_W_A = None
+
+    def check(self, st: Setup, plan: Plan, mv: SetupMoves) -> None:
+        from .scene import Scene, check_touch_paths
+
+        if self.scene is None or not np.array_equal(self.T_W_A, st.T_W_A):
+            self.scene = Scene(self.art, self.probe, st.T_W_A)
+            self.T_W_A = np.asarray(st.T_W_A)
+        self.scene.set_table(mv.T_R_W)
+        check_touch_paths(self.scene, st.name, plan.target, plan.feature, mv.links,
+                          np.stack([mv.start_R, mv.Xn_R], axis=1))
+
+
+def _touch_start_times(mv: SetupMoves, travel: np.ndarray, t_cursor: float, feed_mps: float,
+                       rapid_mps: float) -> tuple[np.ndarray, float]:
+    """(t0 (n,) s: start of each approach, end of the set-up s) from the link lengths and feeds.
+
+    Each touch: its link at rapid feed, then the approach and the search at
+    the probing feed, the retract at rapid feed and the dwell.
+    """
+    per = travel / feed_mps + travel / rapid_mps + DWELL_S
+    t0 = t_cursor + np.cumsum(mv.link_len_m / rapid_mps) + np.concatenate([[0.0], np.cumsum(per)[:-1]])
+    return t0, float(t0[-1] + per[-1])
+
+
+def _rotary_deg(machine, st: Setup) -> np.ndarray:
+    """(3,) A, B, C of the set-up, deg (0 for axes the machine lacks), rounded to 1e-9 deg."""
+    rot_deg = np.zeros(3)
+    for a, v in zip(tuple(getattr(machine, "rotary_axes", ()) or ()), st.rot_rad):
+        if a in "ABC":
+            rot_deg["ABC".index(a)] = np.round(np.rad2deg(v), 9)
+    return rot_deg
+
+
+def _simulate_setup(machine, probe: ProbeConfig, rng, st: Setup, mv: SetupMoves, travel, t0, feed_mps: float,
+                    sdf_true, grp):
+    """(pos_R (n, 3) m, status (n,), t_s (n,) s) of the set-up's touches (:func:`sim.probe.simulate_touches`)."""
+    n = len(t0)
+    rot = np.tile(np.asarray(st.rot_rad, float), (n, 1)) if rotary_count(machine) else None
+    T_true = np.asarray(st.T_W_A if st.T_W_A_true is None else st.T_W_A_true, float)
+    T_A_W = np.broadcast_to(A.inv_T(T_true), (n, 4, 4))
+    res = simulate_touches(machine, probe, rng, mv.start_R, -mv.n_R, travel, rot, t0,
+                           np.full(n, feed_mps), sdf_true, grp, T_A_W)
+    return res.pos_R, res.status, np.where(res.status == ProbeStatus.OK, res.t_s, np.nan)
+
+
+def _append_rows(cols: dict, plan: Plan, st: Setup, mv: SetupMoves, pos, status, t_s, rot_deg,
+                 stylus_r_m: float) -> None:
+    """Add the set-up's rows to the log columns (file units: mm, deg)."""
+    cols["setup"] += [st.name] * plan.n
+    cols["target"] += list(plan.target)
+    cols["feature"] += list(plan.feature)
+    cols["status"] += list(status)
+    d_R = -mv.n_R
+    for j, c in enumerate("XYZ"):
+        cols[f"{c}_mm"].append(pos[:, j] / MM)
+        cols[f"{c}n_mm"].append(mv.Xn_R[:, j] / MM)
+        cols[f"n{c.lower()}"].append(mv.n_R[:, j])
+        cols[f"d{c.lower()}"].append(d_R[:, j])
+        cols[f"w{c.lower()}_mm"].append(plan.w_A[:, j] / MM)
+        cols[f"wn{c.lower()}"].append(plan.wn_A[:, j])
+    cols["t_s"].append(t_s)
+    for j, c in enumerate("ABC"):
+        cols[f"{c}_deg"].append(np.full(plan.n, rot_deg[j]))
+    cols["stylus_r_mm"].append(np.full(plan.n, stylus_r_m / MM))
+
+
+def _campaign_meta(machine, art: A.Artefact, probe: ProbeConfig, feed_mps: float, meta: dict | None) -> dict:
+    """The log's metadata: machine, artefact, chain, probe, feed; ``meta`` on top."""
+    r = probe.stylus_r_m
     m = {"machine": machine_name(machine), "artefact": art.name, "stylus_r_mm": repr(r / MM),
          "kinematic_chain": _kinematic_chain(machine),
          "probe_repeatability_k2_um": repr(probe.repeatability_k2_m * 1e6),
          "feed_mm_per_min": repr(feed_mps * 60e3), "generator": "vmt sim.campaign"}
     m.update(meta or {})
-    return make_log(columns, m)
+    return m
