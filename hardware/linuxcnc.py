@@ -276,3 +276,40 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
                                    "or an abort); later rows are marked aborted")
     t = np.arange(n) * float(dt_s)
     return log_from_plan(plan, pos, status, t, meta, source=str(path))
+
+
+def comp_file(res, axis: str, step_m: float | None = None) -> str:
+    """LinuxCNC per-axis compensation file for the positioning error of ``axis``.
+
+    LinuxCNC (ini ``[JOINT_n] COMP_FILE``, ``COMP_FILE_TYPE = 0``) reads
+    lines of three numbers, ``nominal forward-trip reverse-trip`` in machine
+    units (mm here): the position the axis is commanded to and where it
+    must go to be there. The positioning error ``E`` is actual minus
+    nominal, so the corrected commands are ``nominal - E``; forward and
+    reverse trips are equal (the MFB sees no reversal). Points every
+    ``step_m`` along the table by the C2 spline (default: the nodes).
+
+    Parameters
+    ----------
+    res : core.volumetric.VolumetricResult
+        Identified tables (``res.value`` gives ``EXX``, ``EYY``, ``EZZ`` in m).
+    axis : {"X", "Y", "Z"}
+    step_m : float, optional
+        Spacing of the lines, m.
+    """
+    from core import iso
+    from core.exceptions import ConfigError
+    from core.units import MM
+
+    a = axis.upper()
+    if a not in iso.LINEAR_AXES:
+        raise ConfigError(f"comp_file: axis must be X, Y or Z, got {axis!r}")
+    s = f"E{a}{a}"
+    x = res.design.nodes[a]
+    if step_m is not None:
+        if not (step_m > 0):
+            raise ConfigError(f"comp_file: step_m must be > 0, got {step_m!r}")
+        x = np.arange(x[0], x[-1] + 0.5 * step_m, step_m)
+    e = res.value(s, x)
+    lines = [f"{u / MM:.6f} {(u - v) / MM:.6f} {(u - v) / MM:.6f}" for u, v in zip(x, e)]
+    return "\n".join(lines) + "\n"
