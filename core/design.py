@@ -184,13 +184,59 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
         of at least 0.5 deg (a grid of at most 720 angles), ``u_probe_m``
         not > 0, a reference angle not finite, too many angles for the grid.
     """
+    cand = _check_search(n_angles, step_deg, u_probe_m, reference_deg, max_sweeps)
+    n_angles, step_deg = int(n_angles), float(step_deg)
+    if n_angles > cand.size:
+        raise ConfigError(f"{n_angles} angles do not fit a {step_deg:g} deg grid")
+    count = _Count(progress)
+    serial = evaluate is None
+    if serial:
+        def evaluate(sets):
+            out = []
+            for s in sets:
+                out.append(max_workpiece_U95(w_W, wn_W, s, grid, u_probe_m, measure))
+                count.add(1)
+            return out
+    ev, cache = _cached(evaluate, count, ticks_new=serial)
+    starts = _search_starts(cand, n_angles, reference_deg, step_deg)
+    best, best_v = None, float("inf")
+    from math import comb
+    n_ref = 0 if reference_deg is None else 1
+    per_start = 1 + max_sweeps * (n_angles - 1) * (cand.size - n_angles + 1)
+    if comb(cand.size - 1, n_angles - 1) <= exhaustive_max:
+        count.total = comb(cand.size - 1, n_angles - 1) + n_ref
+        best, best_v = _exhaustive(cand, n_angles, ev)
+        starts = []
+    else:
+        count.total = len(starts) * per_start + n_ref
+    for k, st in enumerate(starts):  # coordinate search from every start (a local method: several starts)
+        cur, cur_v = _coordinate_search(st, cand, ev, max_sweeps)
+        count.add((k + 1) * per_start - count.done)     # the sweeps this start did not need
+        if cur_v < best_v:
+            best, best_v = cur, cur_v
+    cur, cur_v = (best, best_v) if best is not None else (list(starts[0]), float("inf"))
+    ref_v = gain = None
+    ref = None
+    if reference_deg is not None:
+        ref = tuple(float(v) for v in reference_deg)
+        ref_v = ev([ref])[0]
+        gain = ref_v / cur_v if np.isfinite(cur_v) and cur_v > 0 else None
+    count.add(count.total)
+    if not np.isfinite(cur_v):
+        raise IdentifiabilityError(f"no choice of {n_angles} C angles on a {step_deg:g} deg grid identifies the"
+                                   " workpiece (eq 6: more angles or a coarser grid)")
+    return AngleDesign(c_deg=tuple(sorted(cur)), max_U95_m=cur_v, reference_deg=ref, reference_max_U95_m=ref_v,
+                       gain=gain, evaluations=len(cache), step_deg=float(step_deg))
+
+
+def _check_search(n_angles, step_deg, u_probe_m, reference_deg, max_sweeps) -> np.ndarray:
+    """The grid of candidate angles, deg, after checking the search settings (ConfigError)."""
     try:
         n_ok = int(n_angles) == n_angles
     except (TypeError, ValueError, OverflowError):
         n_ok = False
     if not n_ok or int(n_angles) < 2:
         raise ConfigError(f"n_angles must be >= 2 (an integer), got {n_angles}")
-    n_angles = int(n_angles)
     step = float(step_deg)
     if not (np.isfinite(step) and 0 < step <= 360):
         raise ConfigError(f"step_deg must be > 0 and divide 360, got {step:g}")
@@ -205,25 +251,28 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
         raise ConfigError("reference angles must be finite degrees")
     if int(max_sweeps) < 1:
         raise ConfigError(f"max_sweeps must be >= 1, got {max_sweeps}")
-    step_deg = step
-    cand = step_deg * np.arange(int(round(nsteps)))
-    if n_angles > cand.size:
-        raise ConfigError(f"{n_angles} angles do not fit a {step_deg:g} deg grid")
-    serial = evaluate is None
-    if serial:
-        def evaluate(sets):
-            out = []
-            for s in sets:
-                out.append(max_workpiece_U95(w_W, wn_W, s, grid, u_probe_m, measure))
-                tick(1)
-            return out
-    cache: dict = {}
-    count = {"done": 0, "total": 0}
+    return step * np.arange(int(round(nsteps)))
 
-    def tick(k):
-        count["done"] = min(count["done"] + k, count["total"])
-        if progress is not None:
-            progress(count["done"], count["total"])
+
+class _Count:
+    """Designs considered so far, of at most ``total``, reported as ``progress(done, total)``."""
+
+    def __init__(self, progress):
+        self.progress, self.done, self.total = progress, 0, 0
+
+    def add(self, k: int) -> None:
+        self.done = min(self.done + k, self.total)
+        if self.progress is not None:
+            self.progress(self.done, self.total)
+
+
+def _cached(evaluate, count: _Count | None = None, ticks_new: bool = False):
+    """(ev, cache): ``evaluate`` over angle sets, each distinct (sorted) set evaluated once.
+
+    ``count`` is advanced by the sets each call considers (by the cached ones
+    only when ``evaluate`` itself counts the new ones: ``ticks_new``).
+    """
+    cache: dict = {}
 
     def ev(sets):
         keys = [tuple(sorted(float(v) for v in s)) for s in sets]
@@ -231,10 +280,16 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
         if todo:
             for k, v in zip(todo, evaluate(todo)):
                 cache[k] = float(v)
-        tick(len(keys) - (len(todo) if serial else 0))  # the serial evaluator ticked the new ones
+        if count is not None:
+            count.add(len(keys) - (len(todo) if ticks_new else 0))
         return [cache[k] for k in keys]
 
-    # equally spaced, and compressed spreads (a symmetric part makes equal spacing degenerate)
+    return ev, cache
+
+
+def _search_starts(cand: np.ndarray, n_angles: int, reference_deg, step_deg: float) -> list:
+    """Equally spaced and compressed spreads of angles (a symmetric part makes equal spacing
+    degenerate), and the reference when it has ``n_angles`` angles on the grid, 0 among them."""
     starts = []
     for f in (1.0, 0.77, 0.55):
         st = tuple(float(cand[int(round(i * f * cand.size / n_angles)) % cand.size]) for i in range(n_angles))
@@ -244,48 +299,31 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
         r = tuple(float(v) % 360 for v in reference_deg)
         if 0.0 in r and all(abs(v / step_deg - round(v / step_deg)) < 1e-9 for v in r):
             starts.append(tuple(sorted(r)))
-    best, best_v = None, float("inf")
-    from math import comb
-    per_sweep = (n_angles - 1) * (cand.size - n_angles + 1)
-    n_ref = 0 if reference_deg is None else 1
-    if comb(cand.size - 1, n_angles - 1) <= exhaustive_max:
-        import itertools
-        allsets = [(0.0,) + tuple(float(v) for v in c) for c in itertools.combinations(cand[1:], n_angles - 1)]
-        count["total"] = len(allsets) + n_ref
-        vals = ev(allsets)
-        i = int(np.argmin(vals))
-        best, best_v = list(allsets[i]), vals[i]
-        starts = []
-    else:
-        count["total"] = len(starts) * (1 + max_sweeps * per_sweep) + n_ref
-    for st in starts:  # coordinate search from every start (a local method: several starts)
-        cur, cur_v = list(st), ev([st])[0]
-        sweeps = 0
-        for _ in range(max_sweeps):
-            improved = False
-            sweeps += 1
-            for j in range(1, n_angles):
-                others = set(cur[:j] + cur[j + 1:])
-                trial = [cur[:j] + [float(c)] + cur[j + 1:] for c in cand if float(c) not in others]
-                tv = ev(trial)
-                i = int(np.argmin(tv))
-                if tv[i] < cur_v * (1 - 1e-9):
-                    cur, cur_v, improved = trial[i], tv[i], True
-            if not improved:
-                break
-        tick((max_sweeps - sweeps) * per_sweep)        # the sweeps this start did not need
-        if cur_v < best_v:
-            best, best_v = cur, cur_v
-    cur, cur_v = (best, best_v) if best is not None else (list(starts[0]), float("inf"))
-    ref_v = gain = None
-    ref = None
-    if reference_deg is not None:
-        ref = tuple(float(v) for v in reference_deg)
-        ref_v = ev([ref])[0]
-        gain = ref_v / cur_v if np.isfinite(cur_v) and cur_v > 0 else None
-    tick(count["total"])
-    if not np.isfinite(cur_v):
-        raise IdentifiabilityError(f"no choice of {n_angles} C angles on a {step_deg:g} deg grid identifies the"
-                                   " workpiece (eq 6: more angles or a coarser grid)")
-    return AngleDesign(c_deg=tuple(sorted(cur)), max_U95_m=cur_v, reference_deg=ref, reference_max_U95_m=ref_v,
-                       gain=gain, evaluations=len(cache), step_deg=float(step_deg))
+    return starts
+
+
+def _exhaustive(cand: np.ndarray, n_angles: int, ev) -> tuple[list, float]:
+    """(best angles, its value) over every set of ``n_angles`` grid angles with C_1 = 0."""
+    import itertools
+
+    allsets = [(0.0,) + tuple(float(v) for v in c) for c in itertools.combinations(cand[1:], n_angles - 1)]
+    vals = ev(allsets)
+    i = int(np.argmin(vals))
+    return list(allsets[i]), vals[i]
+
+
+def _coordinate_search(start, cand: np.ndarray, ev, max_sweeps: int) -> tuple[list, float]:
+    """(angles, value) where no single angle but the first improves by moving on the grid."""
+    cur, cur_v = list(start), ev([start])[0]
+    for _ in range(max_sweeps):
+        improved = False
+        for j in range(1, len(cur)):
+            others = set(cur[:j] + cur[j + 1:])
+            trial = [cur[:j] + [float(c)] + cur[j + 1:] for c in cand if float(c) not in others]
+            tv = ev(trial)
+            i = int(np.argmin(tv))
+            if tv[i] < cur_v * (1 - 1e-9):
+                cur, cur_v, improved = trial[i], tv[i], True
+        if not improved:
+            break
+    return cur, cur_v

@@ -79,8 +79,8 @@ def _is_temp(name: str) -> bool:
 def value_range(name: str) -> tuple[float, float, str, str] | None:
     """``(lowest, highest, unit, why)`` a numeric column may hold, or None (any finite value).
 
-    Lengths within +-:data:`LENGTH_MAX_MM`; the stylus radius in (0,
-    :data:`STYLUS_R_MAX_MM`]; ``t_s`` in [0, :data:`T_MAX_S`]; rotary
+    Lengths within +-:data:`LENGTH_MAX_MM`; the stylus radius in [0,
+    :data:`STYLUS_R_MAX_MM`] (0: a pin or a tool used as the probe); ``t_s`` in [0, :data:`T_MAX_S`]; rotary
     positions within +-:data:`ANGLE_MAX_DEG`; temperatures in
     :data:`TEMP_RANGE_C`; components of unit vectors within +-(1 +
     :data:`UNIT_TOL`) (their length is checked after).
@@ -88,7 +88,7 @@ def value_range(name: str) -> tuple[float, float, str, str] | None:
     if name in _LENGTHS:
         return (-LENGTH_MAX_MM, LENGTH_MAX_MM, "mm", "no machine tool's stroke reaches 100 m")
     if name == "stylus_r_mm":
-        return (0.0, STYLUS_R_MAX_MM, "mm", "a tip radius is positive")
+        return (0.0, STYLUS_R_MAX_MM, "mm", "a tip radius is not negative; 0 for a pin or a tool as the probe")
     if name == "t_s":
         return (0.0, T_MAX_S, "s", "time since the campaign started")
     if name in ("A_deg", "B_deg", "C_deg"):
@@ -444,12 +444,11 @@ def _validate(log: ProbeLog, lines: list[int] | None) -> None:
         if rng is not None:
             lo, hi, unit, why = rng
             with np.errstate(invalid="ignore"):
-                out = (v < lo) | (v > hi) | ((v <= 0) if name == "stylus_r_mm" else False)
+                out = (v < lo) | (v > hi)
             if out.any():
                 r = int(np.argmax(out))
-                low = f"> {lo:g}" if name == "stylus_r_mm" else f">= {lo:g}"
                 raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r}: {float(v[r]):.6g} is out of "
-                                    f"range (must be {low} and <= {hi:g}{' ' + unit if unit else ''}"
+                                    f"range (must be >= {lo:g} and <= {hi:g}{' ' + unit if unit else ''}"
                                     f"{': ' + why if why else ''})")
     ok = log.ok
     plan = n > 0 and log.is_plan
@@ -524,9 +523,9 @@ def _validate(log: ProbeLog, lines: list[int] | None) -> None:
             v = float(sr)
         except ValueError:
             raise ProbeLogError(f"{src}: metadata stylus_r_mm {_shown(sr)} is not a length") from None
-        if not (math.isfinite(v) and 0 < v <= STYLUS_R_MAX_MM):
-            raise ProbeLogError(f"{src}: metadata stylus_r_mm {_shown(sr)} is out of range (must be > 0 "
-                                f"and <= {STYLUS_R_MAX_MM:g} mm: a tip radius is positive)")
+        if not (math.isfinite(v) and 0 <= v <= STYLUS_R_MAX_MM):
+            raise ProbeLogError(f"{src}: metadata stylus_r_mm {_shown(sr)} is out of range (must be >= 0 "
+                                f"and <= {STYLUS_R_MAX_MM:g} mm: a tip radius is not negative)")
 
 
 # ---------------------------------------------------------------------------

@@ -26,9 +26,11 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     from core.atomic import json_safe, json_text, write_text_atomic
     from core.discover import discover
     from core.probelog import read_probe_log
+    from core.scope import check_planar_scope
     from core.touches import from_log
 
     log = read_probe_log(log_path)
+    check_planar_scope(log, "discover")
     t = from_log(log)
     kw = {}
     if progress is not None and _takes_progress(discover):

@@ -182,9 +182,10 @@ def _one(extra_cols="", extra=""):
     [
         (_one().replace("s1,p1,0,1,", "s1,p1,0,1e200,"), r"column 'X_mm': 1e\+200 is out of range \(must be >= -100000 and <= 100000 mm"),
         (_one().replace(",1,0,0,1,0,0\n", ",-100000.001,0,0,1,0,0\n"), r"column 'Xn_mm': -100000 is out of range"),
-        (_one(",stylus_r_mm", ",-3"), r"column 'stylus_r_mm': -3 is out of range \(must be > 0 and <= 100 mm"),
-        (_one(",stylus_r_mm", ",0"), r"column 'stylus_r_mm': 0 is out of range \(must be > 0"),
-        ("# stylus_r_mm: 0\n" + _one(), r"metadata stylus_r_mm '0' is out of range \(must be > 0"),
+        (_one(",stylus_r_mm", ",-3"), r"column 'stylus_r_mm': -3 is out of range \(must be >= 0 and <= 100 mm: "
+         r"a tip radius is not negative"),
+        (_one(",stylus_r_mm", ",100.5"), r"column 'stylus_r_mm': 100.5 is out of range"),
+        ("# stylus_r_mm: -0.001\n" + _one(), r"metadata stylus_r_mm '-0.001' is out of range \(must be >= 0"),
         ("# stylus_r_mm: -1.5\n" + _one(), r"metadata stylus_r_mm '-1.5' is out of range"),
         (_one().replace("s1,p1,0,", "s1,p1,-5,"), r"row 0 \(line 2\): column 't_s': -5 is out of range \(must be >= 0"),
         (_one(",C_deg", ",2e6"), r"column 'C_deg': 2e\+06 is out of range"),
@@ -206,8 +207,9 @@ def test_values_outside_their_physical_range_are_refused(tmp_path, text, match):
 
 
 def test_range_limits_themselves_are_allowed():
+    """The limits are inside; a radius of 0 is a pin or a tool used as the probe (vmt plan grid)."""
     text = ("# stylus_r_mm: 100\n" + HEADER + ",stylus_r_mm,C_deg,temp_a_C\n"
-            "s1,p1,0,100000,0,0,100000,0,0,1,0,0,1e-3,-1e6,-273.15\n"
+            "s1,p1,0,100000,0,0,100000,0,0,1,0,0,0,-1e6,-273.15\n"
             "s1,p2,1e10,-100000,0,0,-100000,0,0,1,0,0,100,1e6,1000\n")
     log = parse_probe_log(text)
     np.testing.assert_array_equal(log.columns["t_s"], [0, 1e10])
