@@ -36,7 +36,7 @@ ROOT = Path(__file__).resolve().parents[1]
 FUZZ_SEED = 20260520
 N_LOG_CASES = 420          # corrupted logs through `vmt check`
 N_IDENTIFY_CASES = 60      # corrupted logs through `vmt identify --json`
-N_ARGV_CASES = 140         # random argument lists
+N_ARGV_CASES = 160         # random argument lists
 
 
 # ---------------------------------------------------------------------------
@@ -322,9 +322,22 @@ def argv_case(rng, b, out: Path) -> list:
     outputs = [str(out / "r.json"), str(out / "r.json"), str(out / "sub" / "deep" / "r.json"),
                str(d / "folder"), "/dev/full", str(d / "link.json"), str(b["log"]) + "/x.json",
                str(b["log"]), str(out / "r.csv")]
-    cmd = int(rng.integers(0, 9))
+    cmd = int(rng.integers(0, 11))
     if cmd == 0:
         return ["check", pick(inputs)] + (["--json"] if rng.random() < 0.3 else [])
+    if cmd == 9:        # plan grid: small grids only
+        a = ["plan", "grid", "--x-mm", pick(["0:30:10", "0:30:0", "30:0:10", "a:b:c", "0:1e9:1", "nan:1:1"]),
+             "--y-mm", pick(["0:20:10", "0:20:-1", ""]), "--out", pick(outputs)]
+        if rng.random() < 0.4:
+            a += ["--stylus-r-mm", pick(["0", "1.5", "-1", "nan", "1e9"])]
+        if rng.random() < 0.3:
+            a += ["--z-mm", pick(NUMBERS)]
+        return a
+    if cmd == 10:
+        a = ["fit", pick(["plane", "sphere", "circle", "cylinder", "cone"]), pick(inputs)]
+        if rng.random() < 0.5:
+            a += ["--json", pick(outputs)]
+        return a
     if cmd == 1:
         a = ["identify", pick(inputs), "--json", pick(outputs), "--grid-mm", "55"]
         for opt, pool in (("--grid-mm", ["55", "55", "22", "0", "-5", "nan", "abc", "-110:110:55", "1:1:1", "1e9"]),

@@ -46,6 +46,9 @@ FILES = {
     "probe": (("plan",), (), ()),
     "machine": (("plan",), ("out",), ()),
     "view": (("rrd",), (), ()),
+    "plan": ((), ("out",), ()),
+    "fit": (("log",), ("json",), ()),
+    "iso230-2": (("log",), ("json", "write_log"), ("report",)),
 }
 
 #: Exit status of a command killed by SIGPIPE (128 + 13), as a shell reports it.
@@ -175,7 +178,8 @@ def run_command(args) -> int:
     from core.atomic import RunOutputs, own_descriptor
     from core.exceptions import VmtError
 
-    name = " ".join(x for x in (args.command, getattr(args, "machine_command", None)) if x)
+    name = " ".join([args.command] + [str(v) for k, v in sorted(vars(args).items())
+                                      if k.endswith("_command") and isinstance(v, str)])
     ins, outs, dirs = FILES.get(args.command, ((), (), ()))
     outputs = None
     try:
