@@ -52,7 +52,11 @@ def register(sub) -> None:
     p.add_argument("--resume", action="store_true", help="continue the log --out where it stops")
     p.add_argument("--unlock", action="store_true", help="send $X if the controller is in alarm")
     p.add_argument("--home", action="store_true", help="send $H (home) before probing")
-    p.add_argument("--rotary", action="store_true", help="send A, B, C words (plan's *_deg columns)")
+    p.add_argument("--rotary", action="store_true",
+                   help="send the controller's rotary axes (plan's A_deg, B_deg, C_deg; only those it has)")
+    p.add_argument("--axes", help="the controller's axes, e.g. XYZAC (default: from its reports)")
+    p.add_argument("--reset", action="store_true",
+                   help="soft-reset the controller (Ctrl-X) first: needed after a hard/soft limit alarm")
     p.add_argument("--timeout", type=float, default=60.0, help="longest wait for one answer, s (60)")
     p.add_argument("--transcript", help="append the raw controller exchange to this file")
     p.set_defaults(func=run)
@@ -70,7 +74,7 @@ def open_backend(url: str, args, transcript=None):
         from hardware.grbl import connect
 
         return connect(url, timeout_s=args.timeout, on_event=_warn, transcript=transcript,
-                       rotary=args.rotary)
+                       rotary=args.rotary, axes=args.axes, reset=args.reset)
     if url in ("virtual:", "virtual://", "virtual://builtin"):
         from hardware.backend import VirtualBackend
         from scenarios.cmd_machine import builtin_machine

@@ -7,7 +7,7 @@ import numpy as np
 from core.probelog import read_probe_log, write_probe_log
 from core.selfcal import Grid, identify
 from core.touches import from_log
-from hardware.emulator import GrblEmulator, TcpServer
+from hardware.emulator import ControllerConfig, GrblEmulator, TcpServer
 from scenarios.cli import main
 from scenarios.hidden import gauge_free_rms_m
 from scenarios.cmd_machine import sim_machine
@@ -30,9 +30,10 @@ def test_cross_pocket_through_grbl_matches_the_direct_simulation(tmp_path):
     plan_path = write_probe_log(tmp_path / "plan.csv", plan)
     direct = simulate_campaign(art, machine, ProbeConfig(repeatability_k2_m=2 * NOISE_UM * 1e-6), angles,
                                np.random.default_rng(5))
-    emu = GrblEmulator(sim_machine("cross-pocket", NOISE_UM, seed=9), axes="XYZABC", home_mm=(0, 0, 150),
-                       limits_mm=((-250, 250), (-250, 250), (-100, 200)))
-    srv = TcpServer(emu).start()
+    vm = sim_machine("cross-pocket", NOISE_UM, seed=9)
+    # the nmv3000's controller: its axes (X, Y, Z, A, C) and no soft limits (vmt checks --limits)
+    emu = GrblEmulator(vm, ControllerConfig(axes="XYZ" + "".join(sorted(vm.rotary_axes)), home=(0, 0, 150)))
+    srv = TcpServer(emu, time_scale=1000.0).start()
     out = tmp_path / "grbl.csv"
     try:
         assert main(["probe", "--machine", srv.url, "--plan", str(plan_path), "--out", str(out),
