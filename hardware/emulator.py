@@ -828,6 +828,8 @@ class GrblEmulator:
                     overflow = bool(self._line_flags & 1)
                     self._line = bytearray()
                     self._line_flags = 0
+                    while self._holding:     # a feed hold suspends the main loop until ~ or a reset
+                        yield {"cond": lambda: not self._holding}
                     return line, overflow
                 if self._line_flags:
                     if c == 0x29 and self._line_flags & 2:     # ) ends a (comment)
@@ -924,13 +926,17 @@ class GrblEmulator:
                 self._print(f">{s}:" + ("ok" if st == 0 else f"error:{st}"))
 
     # ---------------------------------------------------------------- status
+    def state_name(self) -> str:
+        """The state as a status report names it (``Idle``, ``Run``, ``Hold:0`` ...)."""
+        if self._sleep:
+            return "Sleep"
+        if self.state == "Hold":
+            return "Hold:0" if self._hold_done else "Hold:1"
+        return self.state
+
     def status_line(self) -> str:
         """A ``<State|...>`` report now (advances GRBL's WCO / Ov refresh counters)."""
-        st = self.state
-        if st == "Hold":
-            st = "Hold:0" if self._hold_done else "Hold:1"
-        if self._sleep:
-            st = "Sleep"
+        st = self.state_name()
         p = self.position()
         wco = self.wco()
         mask = int(self.settings[10])
@@ -940,7 +946,7 @@ class GrblEmulator:
         else:
             parts.append("WPos:" + self._units(p - wco))
         if mask & 2:
-            parts.append(f"Bf:{PLANNER_BLOCKS - len(self._queue)},{RX_BUFFER_BYTES + 1 - len(self._rx)}")
+            parts.append(f"Bf:{PLANNER_BLOCKS - self._planner_blocks()},{RX_BUFFER_BYTES + 1 - len(self._rx)}")
         inch = bool(self.settings[13])
         feed = self.speed_per_min() / (MM_PER_INCH if inch else 1.0)
         parts.append(f"FS:{_fmt(feed, 1 if inch else 0)},{_fmt(self.gc['speed'], 0)}")
@@ -1486,10 +1492,14 @@ class GrblEmulator:
             return False
         return any(r is not None and not (r[0] - 1e-9 <= v <= r[1] + 1e-9) for v, r in zip(target, tr))
 
+    def _planner_blocks(self) -> int:
+        """Blocks in the planner, the one executing included."""
+        return len(self._queue) + (self._active is not None)
+
     def _wait_planner(self):
-        while len(self._queue) >= PLANNER_BLOCKS:
+        while self._planner_blocks() >= PLANNER_BLOCKS:
             self._cycle_start()
-            yield {"cond": lambda: len(self._queue) < PLANNER_BLOCKS}
+            yield {"cond": lambda: self._planner_blocks() < PLANNER_BLOCKS}
 
     def _line_to(self, target, feed, rapid=False, kind="line"):
         """``mc_line``: soft limits, wait for planner room, queue."""

@@ -109,44 +109,69 @@ def test_client_replays_the_miss_transcript_alarm_5_wins(tmp_path):
 # ---- the emulator answers as the firmware did ------------------------------------------------
 
 _NUM = re.compile(r"-?\d+\.\d+")
+_RT = {"?": b"?", "!": b"!", "~": b"~", "^X": b"\x18", "0x85": b"\x85"}
 
 
 def _shape(line):
-    """A line with the positions replaced: what must agree exactly."""
+    """A line with the positions replaced: what must agree exactly.
+
+    Status reports: positions (MPos, WPos, WCO) and the realtime feed aside; of the
+    input pins only the probe (``P``): grbl-sim reads its limit and control pins
+    as active (``Pn:XYZRHS``), and the emulator has no limit switches.
+    """
     if line.startswith("<"):
-        return re.sub(r"(MPos|WPos|WCO):[-\d.,]+", r"\1:#", line)
+        line = re.sub(r"(MPos|WPos|WCO):[-\d.,:]+", r"\1:#", line)
+        line = re.sub(r"\|FS:[\d.]+,", "|FS:#,", line)
+        line = re.sub(r"\|Pn:([A-Z]+)", lambda m: "|Pn:P" if "P" in m.group(1) else "", line)
+        return line
     if line.startswith("[PRB:"):
         return _NUM.sub("#", line)
     return line
 
 
-def replay_on_emulator(lines, emu, max_wait_s=120.0):
-    """Send what was sent; collect as many lines as the firmware gave before the next send."""
-    i, compared = 0, 0
-    while i < len(lines):
-        d, text = lines[i]
-        assert d == ">"
-        i += 1
-        want = []
-        while i < len(lines) and lines[i][0] == "<":
-            want.append(lines[i][1])
-            i += 1
-        emu.receive(b"?" if text == "?" else (text + "\n").encode())
-        got = emu.take_output()
-        end = emu.now + max_wait_s
-        while len(got) < len(want):
+def replay_on_emulator(lines, emu, budget_s=600.0):
+    """The emulator receives what was sent and must say what the firmware said, in order.
+
+    Time aside: emulated time only runs while the firmware's next answer is
+    awaited, and before a ``?`` until the emulator is in the state the
+    firmware reported (never backwards). The whole answer stream is compared
+    (after each send, never more lines than the firmware had given).
+    """
+    want = [t for d, t in lines if d == "<"]
+    got = []
+
+    def collect():
+        got.extend(x for x in emu.take_output() if x != "")
+
+    def run_until(pred):
+        end = emu.now + budget_s
+        while not pred():
             te = emu.next_event()
             if te is None or te > end:
-                break
+                return
             emu.advance_to(te)
-            got += emu.take_output()
-        assert [_shape(x) for x in got] == [_shape(x) for x in want], f"after {text!r}"
-        for g, w in zip(got, want):
-            if w.startswith("[PRB:"):
-                assert np.allclose(parse_prb(g)[0], parse_prb(w)[0], rtol=0, atol=2e-3), (g, w)
-        compared += len(want)
+            collect()
+
+    n_before = 0
+    for i, (d, text) in enumerate(lines):
+        if d == "<":
+            n_before += 1
+            continue
+        n_after = n_before + next((k for k, (d2, _) in enumerate(lines[i + 1:]) if d2 == ">"),
+                                  len(lines) - i - 1)
+        if text == "?" and n_after > n_before and want[n_before].startswith("<"):
+            state = want[n_before][1:].split("|")[0]
+            run_until(lambda: emu.state_name() == state)
+        emu.receive(_RT.get(text, (text + "\n").encode("latin-1")))
+        collect()
+        run_until(lambda: len(got) >= n_after)
+        assert len(got) <= n_after, f"after {text!r}: extra {got[n_after:]}"
+    assert [_shape(x) for x in got] == [_shape(x) for x in want]
+    for g, w in zip(got, want):
+        if w.startswith("[PRB:") and "PRB:0.000,0.000,0.000:0" not in w:
+            assert np.allclose(parse_prb(g)[0], parse_prb(w)[0], rtol=0, atol=2e-3), (g, w)
     assert emu.internal_errors == []
-    return compared
+    return len(want)
 
 
 def _first_mpos(lines):
@@ -159,8 +184,7 @@ def test_emulator_answers_the_campaign_as_the_firmware_did():
     emu = GrblEmulator(SimpleScene(), ControllerConfig(home=_first_mpos(lines)))
     # the session before left GRBL's refresh counters here: its first WCO comes on report 4
     emu.set_report_counters(wco=3, ovr=3)
-    n = replay_on_emulator(lines, emu)
-    assert n == sum(d == "<" for d, _ in lines) == 78
+    assert replay_on_emulator(lines, emu) == 78
     assert emu.probes == 12 and all(t for t, _ in emu.touches)
 
 
@@ -168,6 +192,38 @@ def test_emulator_answers_the_miss_as_the_firmware_did():
     lines = transcript(MISS)
     emu = GrblEmulator(SimpleScene(), ControllerConfig(home=_first_mpos(lines)))
     emu.set_report_counters(wco=9, ovr=9)
-    n = replay_on_emulator(lines, emu)
-    assert n == sum(d == "<" for d, _ in lines) == 23
+    assert replay_on_emulator(lines, emu) == 23
     assert emu.state == "Alarm" and emu.alarm == 5
+
+
+# ---- sessions recorded from the firmware (grbl-sim, no contact model) -----------------------
+
+class AlwaysTouching:
+    """grbl-sim's probe pin: it always reads contact (``$6=1`` inverts it to never)."""
+
+    def in_contact(self, pos_m, rot_rad=None):
+        return True
+
+    def probe_move(self, start_m, target_m, rot_rad=None):
+        return True, np.asarray(start_m, dtype=float).copy()
+
+
+#: GRBL 1.1h's DEFAULTS_GENERIC, as the recorded firmware had them.
+GENERIC = dict(steps_per_unit=250.0, max_rate_per_min=500.0, accel_per_s2=10.0)
+RECORDED = {
+    # name: (controller, firmware lines answered)
+    "protocol": (ControllerConfig(probe_invert=True, **GENERIC), 198),
+    "probe_open": (ControllerConfig(probe_invert=True, **GENERIC), 58),
+    "probe_closed": (ControllerConfig(**GENERIC), 31),
+    "limits": (ControllerConfig(probe_invert=True, travel=((-50, 0),) * 3, **GENERIC), 26),
+    "motion": (ControllerConfig(probe_invert=True, **GENERIC), 146),
+}
+
+
+@pytest.mark.parametrize("name", sorted(RECORDED))
+def test_emulator_answers_recorded_sessions_as_the_firmware_did(name):
+    lines = transcript(DATA / f"recorded-{name}.txt")
+    config, n = RECORDED[name]
+    # the sessions start after a reset (settings written, then Ctrl-X): no power-on alarm
+    emu = GrblEmulator(AlwaysTouching(), config, start_in_alarm=False)
+    assert replay_on_emulator(lines, emu) == n == sum(d == "<" for d, _ in lines)
