@@ -658,6 +658,8 @@ class GrblEmulator:
     def receive(self, data: bytes) -> None:
         """Bytes from the serial line: real-time characters act now, the rest is buffered."""
         for b in bytes(data):
+            if b in (0x18, 0x3F, 0x7E, 0x21) or b >= 0x80:
+                self._run_main()          # the firmware keeps up with the line: what came first runs first
             if b == 0x18:
                 self._soft_reset()
             elif b == 0x3F:                # ?
@@ -666,6 +668,8 @@ class GrblEmulator:
                 self._rt_start = True
             elif b == 0x21:                # !
                 self._rt_hold = True
+            if b in (0x3F, 0x7E, 0x21) or b >= 0x80:
+                self._realtime()
             elif b >= 0x80:
                 if b == 0x85:
                     self._rt_jog_cancel = True
@@ -1784,7 +1788,8 @@ class _TcpPort:
         self.conn = conn
         self.out = bytearray()
         self.lock = threading.Lock()
-        self.dropped = False
+        self.dropped = False       # a fault: close after what was answered before it
+        self.overflow = False      # the client does not read: close at once
 
     def write(self, data: bytes) -> None:
         with self.lock:
@@ -1797,7 +1802,7 @@ class _TcpPort:
                     self.dropped = True
                     return
             if len(self.out) + len(data) > self.MAX_OUT:
-                self.dropped = True        # a client that does not read is let go
+                self.overflow = True       # a client that does not read is let go
                 return
             self.out += data
 
@@ -1858,7 +1863,7 @@ class TcpServer:
             except (socket.timeout, OSError):
                 continue
             try:
-                if not self._busy.acquire(blocking=False):
+                if not self._busy.acquire(timeout=0.5):    # the last client may be closing just now
                     self.refused += 1
                     self._refuse(conn)
                     continue
@@ -1895,7 +1900,7 @@ class TcpServer:
             conn.setblocking(False)
             port.write(("".join(x + "\r\n" for x in self.runner.greeting())).encode("latin-1"))
             last_in = time.monotonic()
-            while not self._stop.is_set() and not port.dropped:
+            while not self._stop.is_set() and not port.dropped and not port.overflow:
                 with port.lock:
                     pending = bool(port.out)
                 r, w, _ = select.select([conn], [conn] if pending else [], [], 0.02)
@@ -1926,11 +1931,11 @@ class TcpServer:
                     except OSError:
                         pass
                     return
-            if port.dropped:           # a fault asked to drop: send what was answered before it
+            if port.dropped and not port.overflow:   # a fault: send what was answered before it
                 with port.lock:
                     try:
                         conn.setblocking(True)
-                        conn.settimeout(1.0)
+                        conn.settimeout(0.2)
                         conn.sendall(bytes(port.out))
                     except OSError:
                         pass
