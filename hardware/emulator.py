@@ -1692,6 +1692,8 @@ class EmulatorRunner:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._users = 0
+        self._quiet = emulator.quiet()
+        self._greeting = emulator.greeting()
 
     @staticmethod
     def of(emulator_or_runner, time_scale: float = 1.0) -> "EmulatorRunner":
@@ -1704,18 +1706,20 @@ class EmulatorRunner:
         return self._e0 + (self.clock() - self._t0) * self.time_scale
 
     def send(self, port, data: bytes) -> None:
-        """Bytes from a port (thread-safe)."""
+        """Bytes from a port (thread-safe, never waits for the firmware)."""
         with self._lock:
             self._inbox.append((port, bytes(data)))
         self._wake.set()
 
     def greeting(self) -> list[str]:
-        with self._lock:
-            return self.emulator.greeting()
+        """What a new connection reads first (as of the firmware's last step)."""
+        return list(self._greeting)
 
     def quiet(self) -> bool:
+        """Nothing in progress and nothing waiting (as of the firmware's last step)."""
         with self._lock:
-            return self.emulator.quiet() and not self._inbox
+            waiting = bool(self._inbox)
+        return self._quiet and not waiting
 
     def forget(self, port) -> None:
         with self._lock:
@@ -1741,42 +1745,49 @@ class EmulatorRunner:
             if self._thread is not None:
                 self._thread.join(timeout=2.0)
 
-    def _run(self) -> None:
-        emu = self.emulator
-        while not self._stop.is_set():
-            with self._lock:
-                try:
-                    while self._inbox:
-                        port, data = self._inbox.popleft()
-                        if port is not None:
-                            self._active_port = port
-                        emu.advance_to(self.emulated_now())
-                        emu.receive(data)
-                    emu.advance_to(self.emulated_now())
-                except Exception as e:          # never let the firmware thread die
-                    emu.internal_errors.append(f"{type(e).__name__}: {e}")
-                out = emu.take_output()
-                port = self._active_port
-                te = emu.next_event()
-            if out and port is not None:
-                chunk = []
-                for line in out:
-                    if line == DROP:
-                        if chunk:
-                            port.write(("".join(x + "\r\n" for x in chunk)).encode("latin-1"))
-                            chunk = []
-                        port.drop()
-                        self.forget(port)
-                        port = None
-                        break
-                    chunk.append(line)
+    def _output(self, port, out) -> None:
+        chunk = []
+        for line in out:
+            if line == DROP:
                 if chunk and port is not None:
                     port.write(("".join(x + "\r\n" for x in chunk)).encode("latin-1"))
+                chunk = []
+                if port is not None:
+                    port.drop()
+                    self.forget(port)
+                port = None
+                continue
+            chunk.append(line)
+        if chunk and port is not None:
+            port.write(("".join(x + "\r\n" for x in chunk)).encode("latin-1"))
+
+    def _run(self) -> None:
+        """The firmware thread: the only one that touches the emulator once started."""
+        emu = self.emulator
+        while not self._stop.is_set():
+            self._wake.clear()                # a send() from now on wakes the wait below
+            while True:                       # one received chunk at a time, outputs as they come
+                with self._lock:
+                    item = self._inbox.popleft() if self._inbox else None
+                    if item is not None and item[0] is not None:
+                        self._active_port = item[0]
+                    port = self._active_port
+                try:
+                    emu.advance_to(self.emulated_now())
+                    if item is not None:
+                        emu.receive(item[1])
+                except Exception as e:          # never let the firmware thread die
+                    emu.internal_errors.append(f"{type(e).__name__}: {e}")
+                self._output(port, emu.take_output())
+                if item is None:
+                    break
+            self._quiet = emu.quiet()
+            self._greeting = emu.greeting()
+            te = emu.next_event()
             wait = 0.02
             if te is not None:
                 wait = min(wait, max(0.0, (te - self.emulated_now()) / self.time_scale))
             self._wake.wait(timeout=max(wait, 0.0005))
-            self._wake.clear()
 
 
 class _TcpPort:
