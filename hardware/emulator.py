@@ -85,7 +85,7 @@ import socket
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -313,10 +313,6 @@ def _time_at_s(phases, s):
 
 def _fmt(v: float, decimals: int) -> str:
     return f"{float(v) + 0.0:.{decimals}f}"
-
-
-class _Reset(Exception):
-    """Thrown into the firmware's main loop by Ctrl-X."""
 
 
 class GrblEmulator:
@@ -660,29 +656,28 @@ class GrblEmulator:
         for b in bytes(data):
             if b in (0x18, 0x3F, 0x7E, 0x21) or b >= 0x80:
                 self._run_main()          # the firmware keeps up with the line: what came first runs first
-            if b == 0x18:
-                self._soft_reset()
-            elif b == 0x3F:                # ?
-                self._rt_status = True
-            elif b == 0x7E:                # ~
-                self._rt_start = True
-            elif b == 0x21:                # !
-                self._rt_hold = True
-            if b in (0x3F, 0x7E, 0x21) or b >= 0x80:
-                self._realtime()
-            elif b >= 0x80:
-                if b == 0x85:
+                if b == 0x18:
+                    self._soft_reset()
+                    continue
+                if b == 0x3F:             # ?
+                    self._rt_status = True
+                elif b == 0x7E:           # ~
+                    self._rt_start = True
+                elif b == 0x21:           # !
+                    self._rt_hold = True
+                elif b == 0x85:
                     self._rt_jog_cancel = True
                 elif 0x90 <= b <= 0xA1:
                     self._override(b)
                 # other extended characters are thrown away, as the firmware does
-            else:
-                if len(self._rx) >= RX_BUFFER_BYTES:
-                    self._run_main()          # the firmware reads while bytes arrive
-                if len(self._rx) >= RX_BUFFER_BYTES:
-                    self._rx_dropped += 1
-                    continue
-                self._rx.append(b)
+                self._realtime()
+                continue
+            if len(self._rx) >= RX_BUFFER_BYTES:
+                self._run_main()          # the firmware reads while bytes arrive
+            if len(self._rx) >= RX_BUFFER_BYTES:
+                self._rx_dropped += 1
+                continue
+            self._rx.append(b)
         self._realtime()
         self._run_main()
 
@@ -1083,12 +1078,10 @@ class GrblEmulator:
                 return 0
             if st != "Idle":
                 return 8
-            n, i = _read_float(line, 2)
-            if n is None:
-                return 2
-            if line[i:i + 1] != "=":
-                return 3
-            block = line[i + 1:]
+            err, n, i = _number_then_equals(line, 2)
+            if err:
+                return err
+            block = line[i:]
             status = yield from self._gcode(block)
             if status:
                 return status
@@ -1096,12 +1089,10 @@ class GrblEmulator:
             if 0 <= k < N_STARTUP_LINES:
                 self.startup_lines[k] = block
             return 0
-        n, i = _read_float(line, 1)
-        if n is None:
-            return 2
-        if line[i:i + 1] != "=":
-            return 3
-        v, j = _read_float(line, i + 1)
+        err, n, i = _number_then_equals(line, 1)
+        if err:
+            return err
+        v, j = _read_float(line, i)
         if v is None:
             return 2
         if j != len(line) or n > 255:
@@ -1491,10 +1482,13 @@ class GrblEmulator:
         return 0
 
     def _outside(self, target) -> bool:
+        """Beyond the soft limits: the machine's travel box, or else GRBL's own ``[-$13x, 0]``."""
         tr = self.config.travel
-        if tr is None:
-            return False
-        return any(r is not None and not (r[0] - 1e-9 <= v <= r[1] + 1e-9) for v, r in zip(target, tr))
+        for i, v in enumerate(target):
+            lo, hi = (-self.settings[130 + i], 0.0) if tr is None else (tr[i] or (-math.inf, math.inf))
+            if not (lo - 1e-9 <= v <= hi + 1e-9):
+                return True
+        return False
 
     def _planner_blocks(self) -> int:
         """Blocks in the planner, the one executing included."""
@@ -1635,6 +1629,16 @@ class GrblEmulator:
         rep = start + u * s
         rep[:3] = p
         return s, rep
+
+
+def _number_then_equals(line: str, i: int):
+    """``N=`` at ``line[i:]`` (``$N0=...``, ``$110=...``): (error status or 0, N, index after =)."""
+    n, j = _read_float(line, i)
+    if n is None:
+        return 2, None, i
+    if line[j:j + 1] != "=":
+        return 3, None, j
+    return 0, n, j + 1
 
 
 def _read_float(s: str, i: int):

@@ -55,7 +55,7 @@ import numpy as np
 
 from core.exceptions import HardwareError
 
-from .backend import ALARMS, CRITICAL_ALARMS, ERRORS, ProbeResult, describe_alarm, describe_error
+from .backend import ALARMS, CRITICAL_ALARMS, ProbeResult, describe_alarm, describe_error
 
 #: Characters a line may have once spaces are removed (GRBL's 80-byte line buffer).
 LINE_MAX_CHARS = 79

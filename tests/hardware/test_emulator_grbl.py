@@ -178,3 +178,31 @@ def test_serial_receive_buffer_drops_what_a_busy_firmware_cannot_take():
     out = say(emu, "")
     assert out.count("ok") == 1 + 1 + 21                # the move, the probe, 127 // 6 lines
     assert math.isclose(emu.pos_mm[0], 1.0)
+
+
+def test_jog_cancel_and_overrides_act_at_once():
+    """0x85 stops a jog with a controlled deceleration and flushes it; 0x91 (+10 % feed) shows in Ov."""
+    emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 50)))
+    emu.receive(b"$J=G91 X-5 F300\n$J=G91 X-5 F300\n")
+    assert emu.take_output() == ["ok", "ok"] and emu.state == "Jog"
+    step(emu, 0.2)                                 # 5 mm/s reached after 0.05 s
+    x0 = emu.pos_mm[0]
+    emu.receive(b"\x85")
+    step(emu, 0.05 + 1e-9)                         # 5 mm/s to rest at 100 mm/s^2: 0.05 s, 0.125 mm
+    assert emu.state == "Idle" and emu.pos_mm[0] == pytest.approx(x0 - 0.125)
+    assert step(emu, 5) == [] and emu.pos_mm[0] == pytest.approx(x0 - 0.125)   # both jogs flushed
+    assert say(emu, b"G1 X0 F100\n") == ["ok"]     # the parser position followed the cancelled jog
+    step(emu, 10)
+    assert "|WCO:" in say(emu, "?")[0]             # the first report after power-on: WCO (Ov waits)
+    emu.receive(b"\x91?")                          # an override change: Ov on the very next report
+    assert emu.take_output()[-1].split("|Ov:")[1].startswith("110,100,100")
+
+
+def test_without_a_travel_box_the_soft_limits_are_grbls_own():
+    """limits.c: with $20=1 a target must lie in [-$13x, 0] (machine zero at the home switches)."""
+    emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 0), homing=True), start_in_alarm=False)
+    assert say(emu, "$130=50\n$20=1\nG1 X-49 F1000\n") == ["ok", "ok", "ok"]
+    assert say(emu, "G1 X-51\n") == ["ALARM:2", "[MSG:Reset to continue]"]
+    assert say(emu, "?") == [] and say(emu, "$X\n") == []         # nothing until a reset
+    assert say(emu, "\x18") == ["ok", BANNER, MSG_UNLOCK] and emu.pos_mm[0] == pytest.approx(-49)
+    assert say(emu, "$X\n$J=G91 X50 F100\n") == ["[MSG:Caution: Unlocked]", "ok", "error:15"]
