@@ -905,40 +905,79 @@ def report(res: VolumetricResult, unc: Uncertainty | None = None, truth: np.ndar
     return out
 
 
-def linuxcnc_comp(res: VolumetricResult, axis: str, step_m: float | None = None) -> str:
-    """LinuxCNC per-axis compensation file for the positioning error of ``axis``.
-
-    LinuxCNC (ini ``[JOINT_n] COMP_FILE``, ``COMP_FILE_TYPE = 0``) reads
-    lines of three numbers, ``nominal forward-trip reverse-trip`` in machine
-    units (mm here): the position the axis is commanded to and where it
-    must go to be there. The positioning error ``E`` is actual minus
-    nominal, so the corrected commands are ``nominal - E``; forward and
-    reverse trips are equal (the MFB sees no reversal). Points every
-    ``step_m`` along the table by the C2 spline (default: the nodes).
-    """
-    a = axis.upper()
-    if a not in iso.LINEAR_AXES:
-        raise ConfigError(f"linuxcnc_comp: axis must be X, Y or Z, got {axis!r}")
-    s = f"E{a}{a}"
-    x = res.design.nodes[a]
-    if step_m is not None:
-        if not (step_m > 0):
-            raise ConfigError(f"linuxcnc_comp: step_m must be > 0, got {step_m!r}")
-        x = np.arange(x[0], x[-1] + 0.5 * step_m, step_m)
-    e = res.value(s, x)
-    lines = [f"{u * 1e3:.6f} {(u - v) * 1e3:.6f} {(u - v) * 1e3:.6f}" for u, v in zip(x, e)]
-    return "\n".join(lines) + "\n"
-
-
 def tables_json(res: VolumetricResult, unc: Uncertainty | None = None, slopes: dict | None = None) -> str:
-    """vmt-readable compensation tables (JSON text, format ``vmt-comp/1``).
+    """Compensation tables for a controller with volumetric compensation (JSON text, ``vmt-comp/1``).
 
-    ``res`` as reported (:func:`iso_view`), ``slopes`` its straightness
-    end-point slopes (:func:`end_point_slopes` of the identification).
+    The format (README, "Compensation files"): ``format`` ``"vmt-comp/1"``,
+    ``chain`` (ISO 10791), ``sign_convention`` (ISO 230-1: every value is the
+    tool's displacement relative to the workpiece, actual minus commanded),
+    ``positions`` (the axis readings, stylus-tip centre in R, mm),
+    ``interpolation``, ``extrapolation``, ``conventions`` (the gauge) and
+    ``errors``: the 21 symbols, each with ``unit`` (um, urad), ``kind``,
+    ``identified`` (values at ``nodes_mm``; one value for a squareness),
+    ``u95`` / ``u95_lin`` when the uncertainty is given, and for a
+    straightness ``end_point_slope_urad``: the table is reported against its
+    end-point reference line (ISO 230-1); the error a controller corrects is
+    ``identified + end_point_slope_urad * 1e-3 * (x_mm - nodes_mm[0])`` um
+    (:func:`comp_tables`). ``res`` as reported (:func:`iso_view`), ``slopes``
+    its straightness end-point slopes (:func:`end_point_slopes` of the
+    identification).
     """
     doc = {"format": "vmt-comp/1", "chain": res.chain,
+           "sign_convention": "ISO 230-1: each value is the tool's displacement relative to the workpiece "
+                              "(actual minus commanded), whichever side of the bed the axis is on",
+           "positions": "axis readings: stylus-tip centre in the machine frame R, mm",
+           "rotary_points_mm": {a: [v * 1e3 for v in p] for a, p in (res.rotary_points_R_m or {}).items()},
            "conventions": list(res.design.gauge),
            "straightness_reference": "end-point straight line (slope in end_point_slope_urad)",
            "interpolation": "C2 cubic spline (not-a-knot) through the nodes",
+           "extrapolation": "beyond the end nodes along the end tangent",
            "errors": report(res, unc, slopes=slopes)}
     return json.dumps(doc, indent=1)
+
+
+def comp_tables(doc: dict) -> tuple[str, dict, dict, dict]:
+    """The errors a controller corrects, from a ``vmt-comp/1`` document (SI).
+
+    Returns
+    -------
+    chain : str
+    tables : dict symbol -> ((k,) nodes m, (k,) values m or rad)
+        The 18 motion errors; each straightness with its end-point line's
+        slope restored (its constant is the gauge's: no artefact sees a
+        constant shift).
+    constants : dict symbol -> float
+        The squarenesses, rad.
+    rotary_points_R_m : dict axis -> (3,) float
+
+    Raises
+    ------
+    ConfigError
+        Not ``vmt-comp/1``, an error missing, or tables of the wrong shape.
+    """
+    if not isinstance(doc, dict) or doc.get("format") != "vmt-comp/1":
+        raise ConfigError("compensation tables: not a vmt-comp/1 document (format missing or other)")
+    errs = doc.get("errors")
+    if not isinstance(errs, dict):
+        raise ConfigError("vmt-comp/1: 'errors' missing")
+    tables, const = {}, {}
+    for s in MOTION + SQUARENESS:
+        e = errs.get(s)
+        if not isinstance(e, dict) or "identified" not in e:
+            raise ConfigError(f"vmt-comp/1: error {s} missing")
+        v = np.asarray(e["identified"], float) * 1e-6
+        if s in SQUARENESS:
+            if v.shape != (1,) or not np.isfinite(v).all():
+                raise ConfigError(f"vmt-comp/1: {s}.identified must be one finite value")
+            const[s] = float(v[0])
+            continue
+        x = np.asarray(e.get("nodes_mm", []), float) * 1e-3
+        if x.ndim != 1 or x.shape != v.shape or len(x) < 1 or not (np.isfinite(x).all() and np.isfinite(v).all()):
+            raise ConfigError(f"vmt-comp/1: {s}: nodes_mm and identified must be equal-length finite lists")
+        if np.any(np.diff(x) <= 0):
+            raise ConfigError(f"vmt-comp/1: {s}.nodes_mm must be strictly increasing")
+        if "end_point_slope_urad" in e:
+            v = v + float(e["end_point_slope_urad"]) * 1e-6 * (x - x[0])
+        tables[s] = (x, v)
+    pts = {a: tuple(float(c) * 1e-3 for c in p) for a, p in (doc.get("rotary_points_mm") or {}).items()}
+    return str(doc.get("chain", "")), tables, const, pts

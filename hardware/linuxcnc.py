@@ -172,3 +172,111 @@ def import_probe_file(path, plan: ProbeLog, *, dt_s: float = 1.0, units: str = "
     meta = {"machine": "linuxcnc", "source": f"vmt import linuxcnc {Path(path).name}",
             "t_s_source": f"plan order x {dt_s:g} s (the probe file has no clock)"}
     return log_from_plan(plan, pos, ["ok"] * plan.n, t, meta, source=str(path))
+
+
+# --------------------------------------------------------------------------- compensation files
+#: LinuxCNC's largest compensation table (``EMCMOT_COMP_SIZE``, src/emc/motion/motion.h).
+COMP_SIZE = 256
+
+
+def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float = 0.0) -> str:
+    """LinuxCNC per-joint compensation file (``COMP_FILE_TYPE = 0``) for the positioning error of ``axis``.
+
+    LinuxCNC documents TYPE 0 lines as ``nominal forward reverse`` in machine
+    units (docs/src/config/ini-config.adoc, ``[JOINT_n] COMP_FILE``): the
+    commanded position, and the *actual* position the joint reaches there
+    moving in + and in -. Its loader (``usrmotLoadComp()``,
+    src/emc/motion/usrmotintf.cc) stores ``trim = nominal - forward``
+    (``- reverse``), and ``compute_screw_comp()`` (src/emc/motion/control.c)
+    adds the trim, interpolated linearly between lines and held beyond the
+    ends, to the command (``motor_pos_cmd``) while reporting the position
+    without it (``pos_fb``). The positioning error ``E`` of ``core.volumetric``
+    is ISO 230-1's (the tool relative to the part, actual minus commanded,
+    whichever side of the bed the axis is on), so the actual position is
+    ``nominal + E`` and the joint is sent to ``nominal - E``: the same
+    column for a table-moving and a tool-moving axis. Forward and reverse
+    are equal (the MFB sees no reversal).
+
+    Parameters
+    ----------
+    res : core.volumetric.VolumetricResult
+        Identified tables (``res.value("EXX", x)`` at readings x, m).
+    axis : {"X", "Y", "Z"}
+    step_m : float, optional
+        Spacing of the lines along the table (by its C2 spline), m; default
+        the table's nodes. At most :data:`COMP_SIZE` lines.
+    joint_offset_m : float
+        Joint position minus axis reading, m: vmt's tables are functions of
+        the readings (stylus-tip centre); LinuxCNC indexes the joint, which
+        is the reading plus the tool offset in effect (the probe's length
+        for Z). Nominal = reading + ``joint_offset_m``.
+
+    Returns
+    -------
+    str
+        Lines ``nominal forward reverse``, mm, 6 decimals, ascending, no
+        header (LinuxCNC stops reading at the first line that is not three
+        numbers).
+    """
+    from core import iso
+    from core.exceptions import ConfigError
+    from core.units import MM
+
+    a = axis.upper() if isinstance(axis, str) else axis
+    if a not in iso.LINEAR_AXES:
+        raise ConfigError(f"comp_file: axis must be X, Y or Z, got {axis!r}")
+    if not math.isfinite(joint_offset_m):
+        raise ConfigError(f"comp_file: joint_offset_m must be finite, got {joint_offset_m!r}")
+    x = res.design.nodes[a]
+    if step_m is not None:
+        if not (step_m > 0):
+            raise ConfigError(f"comp_file: step_m must be > 0, got {step_m!r}")
+        x = np.arange(x[0], x[-1] + 0.5 * step_m, step_m)
+    if len(x) > COMP_SIZE:
+        raise ConfigError(f"comp_file: {len(x)} lines, LinuxCNC takes at most {COMP_SIZE} per joint")
+    e = res.value(f"E{a}{a}", x)
+    nom = (x + joint_offset_m) / MM
+    act = nom + e / MM
+    return "".join(f"{u:.6f} {v:.6f} {v:.6f}\n" for u, v in zip(nom, act))
+
+
+def read_comp_file(path) -> np.ndarray:
+    """Read a LinuxCNC compensation file: (k, 3) ``nominal forward reverse`` as written (machine units).
+
+    Stricter than LinuxCNC, which stops at the first line that is not three
+    numbers and keeps what it read: here such a line (named by number) is an
+    error, so no table is silently cut short.
+
+    Raises
+    ------
+    ConfigError
+        No such file; a line that is not three finite numbers; nominal
+        values not strictly increasing (LinuxCNC: "compensation values must
+        increase"); more than :data:`COMP_SIZE` lines.
+    """
+    from core.exceptions import ConfigError
+
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"{p}: no such compensation file")
+    rows = []
+    for ln, line in enumerate(p.read_text(encoding="utf-8", errors="replace").splitlines(), start=1):
+        if not line.strip():
+            continue
+        parts = line.split()
+        try:
+            vals = [float(v) for v in parts]
+        except ValueError:
+            raise ConfigError(f"{p}: line {ln}: {line.strip()!r} is not three numbers") from None
+        if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
+            raise ConfigError(f"{p}: line {ln}: expected three finite numbers (nominal forward reverse), "
+                              f"got {line.strip()!r}")
+        if rows and vals[0] <= rows[-1][0]:
+            raise ConfigError(f"{p}: line {ln}: nominal {vals[0]:g} does not increase "
+                              "(LinuxCNC: compensation values must increase)")
+        rows.append(vals)
+    if not rows:
+        raise ConfigError(f"{p}: empty compensation file")
+    if len(rows) > COMP_SIZE:
+        raise ConfigError(f"{p}: {len(rows)} lines, LinuxCNC takes at most {COMP_SIZE} per joint")
+    return np.array(rows)
