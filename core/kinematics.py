@@ -194,11 +194,12 @@ def _vec(values, names, n) -> np.ndarray:
     return np.stack([_col(values, nm, n) for nm in names], axis=-1)
 
 
-def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
+def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = True):
     """Factors (n,4,4) of one branch, bed outward, and their derivative twists.
 
     Returns factors, dsym {symbol: [(i, xi (n,6))]}, dax {axis: [(i, xi)]};
-    xi = (v, w) is the left-perturbation twist of factor i per unit change.
+    xi = (v, w) is the left-perturbation twist of factor i per unit change
+    (empty when ``derivs`` is False: the poses only).
     """
     ch = geom.chain
     axes = ch.tool_axes if side == "tool" else ch.workpiece_from_bed
@@ -211,7 +212,8 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
     lin_names = ("X", "Y", "Z")
 
     def add(sym, i, xi):
-        dsym.setdefault(sym, []).append((i, xi))
+        if derivs:
+            dsym.setdefault(sym, []).append((i, xi))
 
     for a in axes:
         e = np.zeros(3)
@@ -250,16 +252,18 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
         mot = iso.symbols_of_axis(a, location=False)
         t_E = _vec(values, [m.name for m in mot[:3]], n)
         w_E = _vec(values, [m.name for m in mot[3:]], n)
-        Jl_E = left_jacobian_so3(w_E)
+        Jl_E = left_jacobian_so3(w_E) if derivs else None
         R_E = exp_so3(w_E)
         if side == "tool":
             E = _hom(R_E, t_E, n)
         else:  # the exact inverse motion of the component: tool relative to part = E
             E = _hom(np.swapaxes(R_E, 1, 2), -np.einsum("nji,nj->ni", R_E, t_E), n)
-        Jl_rel = left_jacobian_so3(rel)
+        Jl_rel = left_jacobian_so3(rel) if derivs else None
         L = _hom(exp_so3(rel), None, n)
 
         def add_rel(i):
+            if not derivs:
+                return
             for k, dv in drel.items():
                 wv = Jl_rel @ np.asarray(dv)
                 add(k, i, np.concatenate([np.zeros((n, 3)), wv], axis=1))
@@ -267,6 +271,8 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
         def add_E(i):
             # left twists xi of E per unit value; for E^-1 the left twist is
             # -Ad(E^-1) xi = -(R^T (v - t x w), R^T w)
+            if not derivs:
+                return
             for j, m in enumerate(mot):
                 xi = np.zeros((n, 6))
                 if j < 3:
@@ -331,14 +337,14 @@ def _prod(F, n):
 def T_R_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     """Actual pose of W in R, (n, 4, 4), for readings (n, 3) m, rotary (n, r) rad."""
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
-    F, _, _ = _branch(geom, "workpiece", lin, rot, values or {}, n)
+    F, _, _ = _branch(geom, "workpiece", lin, rot, values or {}, n, derivs=False)
     return _prod(F, n)
 
 
 def T_R_P(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     """Actual pose of the stylus-tip frame P in R, (n, 4, 4)."""
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
-    F, _, _ = _branch(geom, "tool", lin, rot, values or {}, n)
+    F, _, _ = _branch(geom, "tool", lin, rot, values or {}, n, derivs=False)
     return _prod(F, n) @ _hom(None, -np.asarray(geom.J_m), n)
 
 

@@ -187,6 +187,27 @@ class AxisCompensation(_Wrapper):
         return out
 
 
+def _table_function(x, v):
+    """The error table as a function of the reading, interpolated as
+    :func:`core.volumetric.spline_weights` does (C2 not-a-knot for 4 nodes or
+    more, continued along the end tangents; linear, ends held, below 4)."""
+    from scipy.interpolate import CubicSpline
+
+    x, v = np.asarray(x, float), np.asarray(v, float)
+    if len(x) == 1:
+        return lambda u: np.full(np.shape(u), v[0])
+    if len(x) < 4:
+        return lambda u: np.interp(u, x, v)
+    cs = CubicSpline(x, v, bc_type="not-a-knot")
+    d0, d1 = cs(x[0], 1), cs(x[-1], 1)
+
+    def f(u):
+        u = np.asarray(u, float)
+        out = cs(np.clip(u, x[0], x[-1]))
+        return np.where(u < x[0], v[0] + d0 * (u - x[0]), np.where(u > x[-1], v[-1] + d1 * (u - x[-1]), out))
+    return f
+
+
 @dataclass(frozen=True)
 class ErrorModel:
     """The 21 linear-axis errors as a controller holds them (tables, SI).
@@ -196,8 +217,8 @@ class ErrorModel:
     chain : str
         ISO 10791 chain the model is for.
     tables : mapping symbol -> ((k,) nodes m, (k,) values m or rad)
-        Motion errors, interpolated by :func:`core.volumetric.spline_weights`
-        (C2 not-a-knot, end tangents beyond the end nodes).
+        Motion errors, interpolated as :func:`core.volumetric.spline_weights`
+        does (C2 not-a-knot, end tangents beyond the end nodes).
     constants : mapping symbol -> float
         Squarenesses (rad).
     rotary_points_R_m : mapping axis -> (3,) float
@@ -208,15 +229,25 @@ class ErrorModel:
     constants: Mapping
     rotary_points_R_m: Mapping
 
+    def __post_init__(self):
+        fns = {}
+        for s, (x, v) in dict(self.tables).items():
+            sy = iso.symbol(s)
+            if sy.location or sy.axis not in iso.LINEAR_AXES:
+                raise ConfigError(f"ErrorModel: {s} is not a motion error of a linear axis")
+            x, v = np.asarray(x, float), np.asarray(v, float)
+            if x.ndim != 1 or x.shape != v.shape or len(x) < 1 or np.any(np.diff(x) <= 0):
+                raise ConfigError(f"ErrorModel: table of {s} must be increasing nodes and equal-length values")
+            fns[s] = (iso.LINEAR_AXES.index(sy.axis), _table_function(x, v))
+        for s in self.constants:
+            if iso.symbol(s).name not in iso.SQUARENESS:
+                raise ConfigError(f"ErrorModel: constant {s} is not a squareness")
+        object.__setattr__(self, "_fns", fns)
+
     def values(self, lin_m) -> dict:
         """symbol -> (n,) error values at the readings (n, 3)."""
-        from core.volumetric import spline_weights
-
         lin = np.atleast_2d(np.asarray(lin_m, float))
-        out = {}
-        for s, (x, v) in self.tables.items():
-            i = iso.LINEAR_AXES.index(iso.symbol(s).axis)
-            out[s] = spline_weights(np.asarray(x, float), lin[:, i]) @ np.asarray(v, float)
+        out = {s: f(lin[:, i]) for s, (i, f) in self._fns.items()}
         for s, v in self.constants.items():
             out[s] = np.full(len(lin), float(v))
         return out
