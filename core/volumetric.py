@@ -88,6 +88,7 @@ Units SI inside; report helpers give um / urad.
 
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import dataclass, field
 
@@ -255,14 +256,22 @@ def spline_weights(nodes: np.ndarray, u: np.ndarray) -> np.ndarray:
         W[lo] = np.eye(k)[0]
         W[hi] = np.eye(k)[-1]
         return W
-    cs = CubicSpline(nodes, np.eye(k), bc_type="not-a-knot")
+    cs, d0, d1 = _basis(tuple(nodes.tolist()))
     W = cs(np.clip(u, nodes[0], nodes[-1]))
     lo, hi = u < nodes[0], u > nodes[-1]
     if lo.any() or hi.any():  # beyond the end nodes: the end tangent line (C1), no runaway cubic
-        d = cs.derivative()
-        W[lo] += (u[lo] - nodes[0])[:, None] * d(nodes[0])[None, :]
-        W[hi] += (u[hi] - nodes[-1])[:, None] * d(nodes[-1])[None, :]
+        W[lo] += (u[lo] - nodes[0])[:, None] * d0[None, :]
+        W[hi] += (u[hi] - nodes[-1])[:, None] * d1[None, :]
     return W
+
+
+@functools.lru_cache(maxsize=64)
+def _basis(nodes: tuple):
+    """The cardinal C2 (not-a-knot) splines of a node tuple and their end slopes (cached: pure)."""
+    x = np.asarray(nodes)
+    cs = CubicSpline(x, np.eye(len(x)), bc_type="not-a-knot")
+    d = cs.derivative()
+    return cs, d(x[0]), d(x[-1])
 
 
 def _layout(meas, nodes):

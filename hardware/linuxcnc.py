@@ -14,6 +14,11 @@ then holds machine coordinates, with the probe's tool length offset applied
 :func:`read_probe_file` reads that file: one line per probe of 3 numbers
 (X Y Z, older LinuxCNC) or 9 (X Y Z A B C U V W). :func:`import_probe_file`
 merges it with the plan into a full ``probe-log/1``.
+
+:func:`comp_file` writes an identified positioning error as a LinuxCNC
+per-joint compensation file (``COMP_FILE_TYPE = 0``), :func:`read_comp_file`
+reads one back (``sim.compensation`` applies it to the virtual machine as
+LinuxCNC's motion controller does).
 """
 
 from __future__ import annotations
@@ -110,22 +115,8 @@ def read_probe_file(path) -> np.ndarray:
         numbers, not finite, or of another width than the first line.
     """
     p = Path(path)
-    if not p.is_file():
-        raise ProbeLogError(f"{p}: no such file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as e:
-        raise ProbeLogError(f"{p}: not text (byte {e.start})") from None
     rows, width = [], None
-    for ln, line in enumerate(text.splitlines(), start=1):
-        if not line.strip():
-            continue
-        parts = line.split()
-        try:
-            vals = [float(v) for v in parts]
-        except ValueError:
-            bad = next(v for v in parts if not _isnum(v))
-            raise ProbeLogError(f"{p}: line {ln}: {bad!r} is not a number") from None
+    for ln, vals in _number_lines(p, ProbeLogError):
         if len(vals) not in (3, 9):
             raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers, expected 3 (X Y Z) "
                                 "or 9 (X Y Z A B C U V W)")
@@ -138,6 +129,26 @@ def read_probe_file(path) -> np.ndarray:
     if not rows:
         raise ProbeLogError(f"{p}: empty probe file")
     return np.array(rows)
+
+
+def _number_lines(p: Path, error):
+    """(line number, numbers) of every non-blank line of text file ``p``;
+    ``error`` (a VmtError class) names the file and line of what is wrong."""
+    if not p.is_file():
+        raise error(f"{p}: no such file")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise error(f"{p}: not text (byte {e.start})") from None
+    for ln, line in enumerate(text.splitlines(), start=1):
+        parts = line.split()
+        if not parts:
+            continue
+        try:
+            yield ln, [float(v) for v in parts]
+        except ValueError:
+            bad = next(v for v in parts if not _isnum(v))
+            raise error(f"{p}: line {ln}: {bad!r} is not a number") from None
 
 
 def _isnum(v: str) -> bool:
@@ -257,20 +268,11 @@ def read_comp_file(path) -> np.ndarray:
     from core.exceptions import ConfigError
 
     p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"{p}: no such compensation file")
     rows = []
-    for ln, line in enumerate(p.read_text(encoding="utf-8", errors="replace").splitlines(), start=1):
-        if not line.strip():
-            continue
-        parts = line.split()
-        try:
-            vals = [float(v) for v in parts]
-        except ValueError:
-            raise ConfigError(f"{p}: line {ln}: {line.strip()!r} is not three numbers") from None
+    for ln, vals in _number_lines(p, ConfigError):
         if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
             raise ConfigError(f"{p}: line {ln}: expected three finite numbers (nominal forward reverse), "
-                              f"got {line.strip()!r}")
+                              f"got {len(vals)} numbers")
         if rows and vals[0] <= rows[-1][0]:
             raise ConfigError(f"{p}: line {ln}: nominal {vals[0]:g} does not increase "
                               "(LinuxCNC: compensation values must increase)")

@@ -91,9 +91,10 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     wnW = {k: plan.wn_A[i, :2] for k, i in first.items()}
     g_err = gauge_free_rms_m(res.G, res.design.target_ids, G_true, wW, wnW)
     inj = _injected_in_gauge(res.design, errs, G_true)
-    say(f"residual RMS {res.rms_m * 1e6:.3f} um over {res.n_touches} touches; EC0Y {res.EC0Y * 1e6:+.1f} urad, "
-        f"injected {inj[res.design.slices['EC0Y']][0] * 1e6:+.1f} urad in the same gauge (eqs 16-17: EYX zero "
-        f"at both ends; the raw injected {errs['EC0Y'](np.zeros(1))[0] * 1e6:+.1f})")
+    say(f"residual RMS {res.rms_m * 1e6:.3f} um over {res.n_touches} touches; EC0Y {res.EC0Y * 1e6:+.1f} urad "
+        f"against {inj[res.design.slices['EC0Y']][0] * 1e6:+.1f} urad injected, in the same gauge (eqs 16-17: "
+        f"EYX zero at both ends; raw {errs['EC0Y'](np.zeros(1))[0] * 1e6:+.1f}); the gap is the lobing probe's, "
+        "which this model does not know (step 4)")
     say(f"workpiece: max U95 {np.nanmax([w['u95_um'] for w in ident['workpiece']]):.2f} um (linear), "
         f"{ident['monte_carlo']['max_workpiece_u95_um']:.2f} um (Monte Carlo, 1000 runs, with the datum);"
         f" form {ident['monte_carlo']['max_workpiece_form_u95_um']:.2f} um")

@@ -355,36 +355,37 @@ class _Reader:
         probe = self.probe(self.table("probe", doc.get("probe", {})))
         return MachineSpec(cfg, probe, self.source, str(doc.get("description", "")), kind, seed, tuple(overrides))
 
+    def axis_of(self, key, k, axes, text, unit) -> str:
+        """The axis of a key ``<axis>_<unit>`` among ``axes`` (named in ``text``)."""
+        axis, _, got = k.partition("_")
+        if axis not in axes:
+            self.fail(key, f"{axis!r} is not {text}")
+        want = unit(axis)
+        if got != want:
+            self.fail(key, f"expected {axis}_{want}")
+        return axis
+
     def strokes(self, t, ch) -> dict:
+        def unit(a):
+            return "deg" if a in iso.ROTARY_AXES else "mm"
+
         out = {}
         for k, v in t.items():
             key = f"strokes.{k}"
-            axis, _, unit = k.partition("_")
-            if axis not in ch.axes:
-                self.fail(key, f"axis {axis!r} is not in the chain {ch.text}")
-            want = "deg" if axis in iso.ROTARY_AXES else "mm"
-            if unit != want:
-                self.fail(key, f"expected {axis}_{want}")
+            axis = self.axis_of(key, k, ch.axes, f"an axis of the chain {ch.text}", unit)
             lo, hi = self.numbers(key, v, 2)
             if not lo < hi:
                 self.fail(key, f"expected [min, max] with min < max, got {v!r}")
-            out[axis] = (lo * DEG, hi * DEG) if want == "deg" else (lo / 1e3, hi / 1e3)
+            out[axis] = (lo * DEG, hi * DEG) if unit(axis) == "deg" else (lo / 1e3, hi / 1e3)
         for a in ch.axes:
             if a not in out:
-                self.fail(f"strokes.{a}_{'deg' if a in iso.ROTARY_AXES else 'mm'}", "missing")
+                self.fail(f"strokes.{a}_{unit(a)}", "missing")
         return out
 
     def points(self, t, ch) -> dict:
-        out = {}
-        for k, v in t.items():
-            key = f"rotary_points.{k}"
-            axis, _, unit = k.partition("_")
-            if axis not in ch.rotary_axes:
-                self.fail(key, f"{axis!r} is not a rotary axis of the chain {ch.text}")
-            if unit != "mm":
-                self.fail(key, f"expected {axis}_mm")
-            out[axis] = tuple(x / 1e3 for x in self.numbers(key, v, 3))
-        return out
+        return {self.axis_of(f"rotary_points.{k}", k, ch.rotary_axes, f"a rotary axis of the chain {ch.text}",
+                             lambda a: "mm"): tuple(x / 1e3 for x in self.numbers(f"rotary_points.{k}", v, 3))
+                for k, v in t.items()}
 
     def probe(self, t):
         from .probe import ProbeConfig

@@ -16,6 +16,10 @@ def _mfb(args) -> int:
 
         spec = resolve(args.machine)
     kw = dict(seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc, machine=spec)
+    if args.apply_comp and not args.comp:
+        from scenarios.mfb import compensators
+
+        compensators(args.apply_comp, args.name)  # a bad directory is refused before the campaign
     r = run(args.name, **kw)
     d = r.doc
     print(f"vmt scenario {args.name}: {d['placements']} placements, {d['measurements']} measurements, "
@@ -128,4 +132,14 @@ def register(sub) -> None:
                         "again; the JSON gets closed_loop (before/after per axis)")
     p.add_argument("--mc", type=int, default=None,
                    help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty)")
-    p.set_defaults(func=lambda a: SCENARIOS[a.name](a))
+    p.set_defaults(func=_dispatch)
+
+
+def _dispatch(args) -> int:
+    from core.exceptions import ConfigError
+
+    if not args.name.startswith("mfb-"):
+        for opt, v in (("--machine", args.machine), ("--comp", args.comp), ("--apply-comp", args.apply_comp)):
+            if v is not None:
+                raise ConfigError(f"{opt}: only the mfb scenarios take it (not {args.name})")
+    return SCENARIOS[args.name](args)

@@ -73,6 +73,8 @@ def test_program_limits_from_a_machine_file(my_file, tmp_path, capsys):
     (["simulate", "cross-pocket", "--machine", "{my}", "--errors", "none", "--out", "{tmp}/o.csv"],
      "--errors: the machine file"),
     (["scenario", "mfb-3axis", "--machine", "nmv3000"], "is not the mfb-3axis plan's"),
+    (["scenario", "pin-circle", "--machine", "{my}"], "--machine: only the mfb scenarios take it"),
+    (["scenario", "mfb-3axis", "--apply-comp", "{tmp}"], "no X.comp, Y.comp, Z.comp or mfb-3axis-comp.json"),
     (["machine", "serve", "--port", "0", "--machine", "{bad}", "--scene", "cross-pocket"], "error.EXX"),
     (["machine", "show", "{tmp}/none.toml"], "no such machine file"),
 ])

@@ -118,7 +118,7 @@ BAD = [
     ('chain = "V[w-X-Y-b-Z-(C)-t]"\n[strokes]\nX_mm = [-1, 1]\nY_mm = [-1, 1]\n', r"strokes.Z_mm: missing"),
     ('base = "vmc-3axis"\n[strokes]\nX_mm = [1, -1]\n', r"strokes.X_mm: expected \[min, max\]"),
     ('base = "vmc-3axis"\n[strokes]\nX_deg = [-1, 1]\n', "strokes.X_deg: expected X_mm"),
-    ('base = "vmc-3axis"\n[strokes]\nC_deg = [-1, 1]\n', "strokes.C_deg: axis 'C' is not in the chain"),
+    ('base = "vmc-3axis"\n[strokes]\nC_deg = [-1, 1]\n', "strokes.C_deg: 'C' is not an axis of the chain"),
     ('base = "vmc-3axis"\n[error.EXX]\nconstant_urad = 1\n', "error.EXX.constant_urad: EXX is a translation; use constant_um"),
     ('base = "vmc-3axis"\n[error.EAX]\nconstant_um = 1\n', "error.EAX.constant_um: EAX is a rotation; use constant_urad"),
     ('base = "vmc-3axis"\n[error.EXX]\nconstant_mm = 1\n', "error.EXX.constant_mm: unknown key"),
