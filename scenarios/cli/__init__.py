@@ -29,6 +29,7 @@ COMMANDS = [
     ("scenario", "scenarios.cli.scenario"),
     ("identify", "scenarios.cli.identify"),
     ("design", "scenarios.cli.design"),
+    ("iso230-2", "scenarios.cli.iso230_2"),
 ]
 
 
