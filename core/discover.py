@@ -49,9 +49,7 @@ from scipy import stats
 from . import selfcal
 from .exceptions import ConfigError, IdentifiabilityError
 from .touches import Touches
-
-UM = 1e6
-MM = 1e-3
+from .units import MM, UM
 
 CAUSES = ("none", "outlier", "thermal_drift", "periodic_axis_error", "probe_lobing", "reversal",
           "nonrigid", "unexplained")
@@ -604,8 +602,8 @@ def _params(ext: Extension, coef: np.ndarray, std: np.ndarray, t: Touches) -> di
                 p[f"{lab[:-6]}_{unit}"] = c * 1e6
                 p[f"{lab[:-6]}_u_{unit}"] = s * 1e6
             elif lab.endswith("offset"):
-                p[f"{lab}_drift_um_per_h"] = c * UM / T_h
-                p[f"{lab}_drift_u_um_per_h"] = s * UM / T_h
+                p[f"{lab}_drift_um_per_h"] = c / UM / T_h
+                p[f"{lab}_drift_u_um_per_h"] = s / UM / T_h
             else:
                 p[f"{lab}_drift_ppm_per_h"] = c * 1e6 / T_h
                 p[f"{lab}_drift_u_ppm_per_h"] = s * 1e6 / T_h
@@ -617,25 +615,25 @@ def _params(ext: Extension, coef: np.ndarray, std: np.ndarray, t: Touches) -> di
         u = dict(zip(ext.labels, std))
         for sym in (f"EX{ax}", f"EY{ax}"):
             sn, cs = c.get(f"{sym}_sin", 0.0), c.get(f"{sym}_cos", 0.0)
-            p[f"{sym}_amplitude_um"] = float(np.hypot(sn, cs)) * UM
+            p[f"{sym}_amplitude_um"] = float(np.hypot(sn, cs)) / UM
             p[f"{sym}_phase_rad"] = float(np.arctan2(cs, sn))
-        p["amplitude_u_um"] = float(np.max([u.get(k, 0.0) for k in u])) * UM if u else float("nan")
+        p["amplitude_u_um"] = float(np.max([u.get(k, 0.0) for k in u])) / UM if u else float("nan")
     elif ext.cause == "probe_lobing":
         phi = np.linspace(-np.pi, np.pi, 721)
         f = sum(c * (np.cos(k * phi) if lab.startswith("cos") else np.sin(k * phi))
                 for lab, c in zip(ext.labels, coef) for k in [int(lab[3:])])
         for lab, c, s in zip(ext.labels, coef, std):
-            p[f"{lab}_um"] = c * UM
-            p[f"{lab}_u_um"] = s * UM
-        p["pretravel_variation_pv_um"] = float(np.ptp(f)) * UM if np.ndim(f) else 0.0
+            p[f"{lab}_um"] = c / UM
+            p[f"{lab}_u_um"] = s / UM
+        p["pretravel_variation_pv_um"] = float(np.ptp(f)) / UM if np.ndim(f) else 0.0
     elif ext.cause == "reversal":
         for lab, c, s in zip(ext.labels, coef, std):
-            p[f"{lab}_um"] = c * UM
-            p[f"{lab}_u_um"] = s * UM
+            p[f"{lab}_um"] = c / UM
+            p[f"{lab}_u_um"] = s / UM
     else:
         for lab, c, s in zip(ext.labels, coef, std):
-            p[f"{lab}_um"] = c * UM
-            p[f"{lab}_u_um"] = s * UM
+            p[f"{lab}_um"] = c / UM
+            p[f"{lab}_u_um"] = s / UM
     return {k: (float(v) if not isinstance(v, str) else v) for k, v in p.items()}
 
 
@@ -771,11 +769,11 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         A = np.hstack([A, _full_cols(t, e)[:, best["keep"]]])
         evidence = {"F": best["F"], "p_value": best["p"], "p_adjusted": best["p_adj"],
                     "tries": int(best["ext"].tries), "candidates": len(exts), "delta_bic": best["dbic"], "added_params": int(best["k"]),
-                    "cv_rms_before_um": cv_cur * UM, "cv_rms_after_um": best["cv"] * UM,
-                    "rms_before_um": float(np.sqrt(f_cur.rss / len(rows))) * UM,
-                    "rms_after_um": float(np.sqrt(best["rss"] / len(rows))) * UM}
+                    "cv_rms_before_um": cv_cur / UM, "cv_rms_after_um": best["cv"] / UM,
+                    "rms_before_um": float(np.sqrt(f_cur.rss / len(rows))) / UM,
+                    "rms_after_um": float(np.sqrt(best["rss"] / len(rows))) / UM}
         evidence["competitors"] = {s["ext"].cause: {"p_adjusted": s["p_adj"], "delta_bic": s["dbic"],
-                                                    "cv_rms_um": s.get("cv", float("nan")) * UM}
+                                                    "cv_rms_um": s.get("cv", float("nan")) / UM}
                                    for s in scored if s is not best}
         chosen.append((Extension(e.cause, e.columns[:, best["keep"]],
                                  tuple(np.array(e.labels)[best["keep"]]), e.tries, e.info), evidence))
@@ -815,28 +813,28 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         findings.append(Finding(
             "outlier",
             {"rows": [int(t.row[i]) for i in outliers],
-             "residual_um": [float(r_b[i] * UM) for i in outliers],
-             "robust_sigma_um": float(1.4826 * np.median(np.abs(f_cur.r - np.median(f_cur.r))) * UM),
-             "rss_removed_um2": drss_out * UM ** 2,
+             "residual_um": [float(r_b[i] / UM) for i in outliers],
+             "robust_sigma_um": float(1.4826 * np.median(np.abs(f_cur.r - np.median(f_cur.r))) / UM),
+             "rss_removed_um2": drss_out / UM ** 2,
              "test": f"studentized deleted residual beyond Bonferroni t bound, alpha={settings.outlier_alpha}"},
             {"n_outliers": len(outliers),
-             "max_deviation_um": float(np.max(np.abs(r_b[outliers])) * UM)},
-            float(np.sqrt(f_cur.rss / len(rows)) * UM)))
+             "max_deviation_um": float(np.max(np.abs(r_b[outliers])) / UM)},
+            float(np.sqrt(f_cur.rss / len(rows)) / UM)))
     # best first: by the residual sum of squares each finding removed
     findings.sort(key=lambda f: -(f.evidence["rss_removed_um2"] if f.cause == "outlier" else
                                   (f.evidence["rms_before_um"] ** 2 - f.evidence["rms_after_um"] ** 2) * n))
     if structured:
         findings.append(Finding("unexplained", {"structure_p_values": structured,
                                                 "test": "binned one-way ANOVA, Bonferroni over variables"},
-                                {}, float(np.sqrt(f_cur.rss / len(rows)) * UM)))
+                                {}, float(np.sqrt(f_cur.rss / len(rows)) / UM)))
     # workpiece per target
     G = bl.design.slices["G"]
     wp = []
     for i, tid in enumerate(bl.design.target_ids):
-        wp.append({"target": tid, "baseline_um": float(sol_b.theta[G][i] * UM),
-                   "extended_um": float(sol_e.theta[G][i] * UM),
-                   "baseline_u95_um": float(2 * sol_b.std[G][i] * UM) if sol_b.std is not None else None,
-                   "extended_u95_um": float(2 * sol_e.std[G][i] * UM) if sol_e.std is not None else None})
+        wp.append({"target": tid, "baseline_um": float(sol_b.theta[G][i] / UM),
+                   "extended_um": float(sol_e.theta[G][i] / UM),
+                   "baseline_u95_um": float(2 * sol_b.std[G][i] / UM) if sol_b.std is not None else None,
+                   "extended_u95_um": float(2 * sol_e.std[G][i] / UM) if sol_e.std is not None else None})
     model = "selfcal-2d" + (" + heights" if len(bl.z_levels_m) > 1 else "") + "".join(f" + {e.cause}" for e, _ in chosen) + (" - outliers" if outliers else "")
     res_b = f0.r
     res_e = np.full(n, np.nan)
@@ -849,11 +847,11 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     conv.append("cv: leave-one-set-up-out, held-out set-up's C-axis errors refitted on it")
     conv = tuple(conv)
     return Discovery(
-        baseline_rms_um=float(np.sqrt(f0.rss / n) * UM), baseline_cv_rms_um=cv_b * UM, baseline_n=n,
+        baseline_rms_um=float(np.sqrt(f0.rss / n) / UM), baseline_cv_rms_um=cv_b / UM, baseline_n=n,
         baseline_n_params=int(f0.Q.shape[1]), findings=tuple(findings), extended_model=model,
-        extended_rms_um=float(np.sqrt(f_cur.rss / len(rows)) * UM), extended_cv_rms_um=cv_cur * UM,
+        extended_rms_um=float(np.sqrt(f_cur.rss / len(rows)) / UM), extended_cv_rms_um=cv_cur / UM,
         workpiece=tuple(wp), outlier_rows=tuple(int(t.row[i]) for i in outliers),
-        residuals_baseline_um=res_b * UM, residuals_extended_um=res_e * UM, structure_p=struct,
+        residuals_baseline_um=res_b / UM, residuals_extended_um=res_e / UM, structure_p=struct,
         grid_step_mm=bl.grid_step_m / MM, conventions=conv, workpiece_identifiable=bl.identifiable,
         baseline_model="selfcal-2d (Ibaraki eqs 1-18)" + (
             f" + C-axis tilt and Abbe terms for {len(bl.z_levels_m)} probing heights"

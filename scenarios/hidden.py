@@ -36,11 +36,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.exceptions import ConfigError
+from core.units import MM, UM
 
 HIDDEN_CAUSES = ("none", "outlier", "thermal_drift", "periodic_axis_error", "probe_lobing", "reversal",
                  "nonrigid")
-UM = 1e-6
-MM = 1e-3
 
 
 @dataclass(frozen=True)
@@ -50,8 +49,8 @@ class HiddenTruth:
     causes: tuple
     params: dict
     g_true_m: dict = field(repr=False)  # target -> true normal deviation, m
-    w_W: dict = field(repr=False)  # target -> (2,) nominal contact point in W, m
-    wn_W: dict = field(repr=False)  # target -> (2,) normal in W
+    w_A: dict = field(repr=False)  # target -> (2,) nominal contact point, artefact frame A, m
+    wn_A: dict = field(repr=False)  # target -> (2,) normal, A
     outlier_rows: tuple = ()
 
 
@@ -60,59 +59,86 @@ def _mag(rng, lo_um=1.0, hi_um=4.0) -> float:
 
 
 def _effects(causes, rng, duration_s: float):
-    """Extra machine errors, probe settings and chips for the causes."""
-    from sim.errorfuncs import CrossAxis, Drift, Periodic, Reversal
-
+    """Extra machine errors, probe settings and chips for the causes (one builder per cause)."""
     errs: dict = {}
     probe_kw: dict = {}
     chips = []
     params: dict = {}
-
-    def add(sym, f):
-        errs[sym] = errs[sym] + f if sym in errs else f
-
     for c in causes:
         if c == "none":
             continue
-        if c == "thermal_drift":
-            kind = rng.choice(["x_offset", "y_offset", "x_scale", "y_scale"])
-            m = _mag(rng)
-            sym = "EXX" if kind[0] == "x" else "EYY"
-            if kind.endswith("offset"):
-                add(sym, Drift(offset_rate=m / duration_s))
-            else:  # m at 100 mm from the centre by the end of the campaign
-                add(sym, Drift(scale_rate=m / 0.1 / duration_s))
-            params[c] = {"kind": str(kind), "symbol": sym, "total_um": m / UM}
-        elif c == "periodic_axis_error":
-            sym = str(rng.choice(["EXX", "EYY", "EYX", "EXY"]))
-            P = float(rng.uniform(5, 15)) * MM
-            m = abs(_mag(rng))
-            add(sym, Periodic(m, P, float(rng.uniform(0, 2 * np.pi))))
-            params[c] = {"symbol": sym, "period_mm": P / MM, "amplitude_um": m / UM}
-        elif c == "probe_lobing":
-            m = abs(_mag(rng))
-            ph3, ph2 = rng.uniform(0, 2 * np.pi, 2)
-            r2 = float(rng.uniform(0.2, 0.6))
-            probe_kw["lobing_m"] = ((3, m * np.cos(ph3), m * np.sin(ph3)),
-                                    (2, r2 * m * np.cos(ph2), r2 * m * np.sin(ph2)))
-            params[c] = {"k3_amplitude_um": m / UM, "k2_amplitude_um": r2 * m / UM}
-        elif c == "reversal":
-            sym = str(rng.choice(["EXX", "EYY"]))
-            m = abs(_mag(rng))
-            add(sym, Reversal(m))
-            params[c] = {"symbol": sym, "lost_motion_um": m / UM}
-        elif c == "nonrigid":
-            sym, other = (("EXX", "Y") if rng.random() < 0.5 else ("EXY", "X"))
-            m = _mag(rng)
-            add(sym, CrossAxis(m / 0.1 ** 2, other))
-            params[c] = {"symbol": sym, "other": other, "at_100mm_um": m / UM}
-        elif c == "outlier":
-            n = int(rng.integers(1, 4))
-            chips = [abs(_mag(rng, 3.0, 10.0)) for _ in range(n)]
-            params[c] = {"chips_um": [h / UM for h in chips]}
-        else:
+        if c not in _EFFECTS:
             raise ConfigError(f"unknown hidden cause {c!r}; expected one of {', '.join(HIDDEN_CAUSES)}")
+        e_errs, e_probe, e_chips, params[c] = _EFFECTS[c](rng, duration_s)
+        for sym, f in e_errs.items():
+            errs[sym] = errs[sym] + f if sym in errs else f
+        probe_kw.update(e_probe)
+        chips = e_chips or chips
     return errs, probe_kw, chips, params
+
+
+def _thermal_drift(rng, duration_s):
+    """An X or Y offset or scale drifting linearly over the campaign."""
+    from sim.errorfuncs import Drift
+
+    kind = rng.choice(["x_offset", "y_offset", "x_scale", "y_scale"])
+    m = _mag(rng)
+    sym = "EXX" if kind[0] == "x" else "EYY"
+    if kind.endswith("offset"):
+        f = Drift(offset_rate=m / duration_s)
+    else:  # m at 100 mm from the centre by the end of the campaign
+        f = Drift(scale_rate=m / 0.1 / duration_s)
+    return {sym: f}, {}, [], {"kind": str(kind), "symbol": sym, "total_um": m / UM}
+
+
+def _periodic_axis_error(rng, duration_s):
+    """A 5-15 mm periodic term on one X/Y error (a ball screw's pitch)."""
+    from sim.errorfuncs import Periodic
+
+    sym = str(rng.choice(["EXX", "EYY", "EYX", "EXY"]))
+    P = float(rng.uniform(5, 15)) * MM
+    m = abs(_mag(rng))
+    f = Periodic(m, P, float(rng.uniform(0, 2 * np.pi)))
+    return {sym: f}, {}, [], {"symbol": sym, "period_mm": P / MM, "amplitude_um": m / UM}
+
+
+def _probe_lobing(rng, duration_s):
+    """Pre-travel lobing of the probe: 3 and 2 lobes."""
+    m = abs(_mag(rng))
+    ph3, ph2 = rng.uniform(0, 2 * np.pi, 2)
+    r2 = float(rng.uniform(0.2, 0.6))
+    lobing = ((3, m * np.cos(ph3), m * np.sin(ph3)), (2, r2 * m * np.cos(ph2), r2 * m * np.sin(ph2)))
+    return {}, {"lobing_m": lobing}, [], {"k3_amplitude_um": m / UM, "k2_amplitude_um": r2 * m / UM}
+
+
+def _reversal(rng, duration_s):
+    """Lost motion of the X or Y axis."""
+    from sim.errorfuncs import Reversal
+
+    sym = str(rng.choice(["EXX", "EYY"]))
+    m = abs(_mag(rng))
+    return {sym: Reversal(m)}, {}, [], {"symbol": sym, "lost_motion_um": m / UM}
+
+
+def _nonrigid(rng, duration_s):
+    """An X error growing with x * y (or the X straightness with y * x)."""
+    from sim.errorfuncs import CrossAxis
+
+    sym, other = (("EXX", "Y") if rng.random() < 0.5 else ("EXY", "X"))
+    m = _mag(rng)
+    return {sym: CrossAxis(m / 0.1 ** 2, other)}, {}, [], {"symbol": sym, "other": other, "at_100mm_um": m / UM}
+
+
+def _outlier(rng, duration_s):
+    """1-3 chips of 3-10 um on the pocket wall (placed by :func:`_with_chips`)."""
+    n = int(rng.integers(1, 4))
+    chips = [abs(_mag(rng, 3.0, 10.0)) for _ in range(n)]
+    return {}, {}, chips, {"chips_um": [h / UM for h in chips]}
+
+
+#: cause -> builder ``(rng, duration_s) -> (errors, probe settings, chips, params)``.
+_EFFECTS = {"thermal_drift": _thermal_drift, "periodic_axis_error": _periodic_axis_error,
+            "probe_lobing": _probe_lobing, "reversal": _reversal, "nonrigid": _nonrigid, "outlier": _outlier}
 
 
 def hidden_campaign(causes=("none",), seed: int = 0, *, noise_sigma_m: float = 0.3e-6,
@@ -167,7 +193,7 @@ def hidden_campaign(causes=("none",), seed: int = 0, *, noise_sigma_m: float = 0
     tg = list(dict.fromkeys(plan.target))
     first = {k: plan.target.index(k) for k in tg}
     truth = HiddenTruth(causes=causes, params=params, g_true_m=g_true,
-                        w_W={k: plan.w_A[first[k], :2] for k in tg}, wn_W={k: plan.wn_A[first[k], :2] for k in tg},
+                        w_A={k: plan.w_A[first[k], :2] for k in tg}, wn_A={k: plan.wn_A[first[k], :2] for k in tg},
                         outlier_rows=tuple(out_rows))
     return log, truth
 
@@ -179,7 +205,7 @@ def drift_check_plan(art, per_direction: int = 4):
     the path, so farthest in time from the repeat) whose normals point
     along +x, -x, +y and -y (A frame).
     """
-    from sim.plans import make_plan
+    from sim.catalog import make_plan
 
     plan = make_plan(art)
     pocket = np.flatnonzero(np.asarray(plan.feature) == "pocket")
@@ -248,36 +274,18 @@ def workpiece_truth(art, plan) -> dict:
     return out
 
 
-def remove_gauge(g, P, N) -> np.ndarray:
-    """``g`` (per target) less what a shift, rotation and scale of the part and a
-    common offset would give: the workpiece form that self-calibration sees.
-
-    Parameters
-    ----------
-    g : (n,) float
-    P : (n, 2) float
-        Nominal contact points in W, m.
-    N : (n, 2) float
-        Outward normals in W.
-    """
-    P, N = np.asarray(P, float), np.asarray(N, float)
-    B = np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
-                         np.einsum("ij,ij->i", N, P), np.ones(len(P))])
-    Q, _ = np.linalg.qr(B)
-    g = np.asarray(g, float)
-    return g - Q @ (Q.T @ g)
-
-
-def gauge_free_rms_m(g_m, ids, g_true: dict, w_W: dict, wn_W: dict) -> float:
+def gauge_free_rms_m(g_m, ids, g_true: dict, w_A: dict, wn_A: dict) -> float:
     """RMS of (estimate - truth) per target after removing what self-calibration cannot see.
 
     The workpiece's shift (2), rotation and scale in W and a common offset
     (the gauge of eqs 16-17 and the stylus radius) are projected out of the
-    difference first.
+    difference first (:func:`core.selfcal.workpiece_form`).
     """
-    P = np.array([w_W[k] for k in ids])
-    N = np.array([wn_W[k] for k in ids])
-    e = remove_gauge(np.asarray(g_m, float) - np.array([g_true[k] for k in ids]), P, N)
+    from core.selfcal import workpiece_form
+
+    P = np.array([w_A[k] for k in ids])
+    N = np.array([wn_A[k] for k in ids])
+    e = workpiece_form(np.asarray(g_m, float) - np.array([g_true[k] for k in ids]), P, N)
     return float(np.sqrt(np.mean(e ** 2)))
 
 
@@ -287,5 +295,5 @@ def workpiece_errors_um(report: dict, truth: HiddenTruth) -> tuple[float, float]
     if not rows:
         raise ConfigError("no target of the report is in the truth")
     ids = [w["target"] for w in rows]
-    return tuple(gauge_free_rms_m(np.array([w[k] for w in rows]) * UM, ids, truth.g_true_m, truth.w_W,
-                                  truth.wn_W) / UM for k in ("baseline_um", "extended_um"))
+    return tuple(gauge_free_rms_m(np.array([w[k] for w in rows]) * UM, ids, truth.g_true_m, truth.w_A,
+                                  truth.wn_A) / UM for k in ("baseline_um", "extended_um"))

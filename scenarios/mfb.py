@@ -96,7 +96,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-MM = 1e-3
+from core.units import MM
 
 
 @dataclass(frozen=True)
@@ -500,7 +500,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 
     from core.touches import from_log
     from sim import artefacts as A
-    from sim.campaign import Setup, simulate_campaign
+    from sim.campaign import simulate_campaign
+    from sim.setups import Setup
     from sim.machine import Machine
     from sim.probe import ProbeConfig
 
@@ -579,7 +580,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
                                     c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A))
     chain = cfg.chain
     rp = dict(cfg.rotary_points_R_m)
-    res_g = vol.identify(meas, chain, plan.nodes, rp, exact=exact)
+    res_g = vol.identify_volumetric(meas, chain, plan.nodes, rp, exact=exact)
     # reported in the ISO 230-1 form: straightness against the end-point
     # reference line (identified and injected alike)
     L_iso = vol.iso_map(res_g.design)
@@ -603,7 +604,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         f = errs.get(s)
         if f is not None:
             truth[d.slices[s]] = float(np.asarray(f(np.zeros(1)))[0])
-    truth_raw = vol.to_gauge(d, truth)
+    truth_raw = d.to_gauge(truth)
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, sigma_um, slopes)
@@ -614,31 +615,20 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None) -> dict:
     from core import iso, volumetric as vol
 
-    errors = {}
+    errors = vol.report(res, unc, truth)  # one entry per ISO symbol, um / urad
     dev_um, dev_urad = 0.0, 0.0
-    for s in vol.MOTION + vol.SQUARENESS:
-        sl = res.design.slices[s]
+    for s, e in errors.items():
         sy = iso.symbol(s)
-        ident = res.theta[sl] * 1e6
-        inj = truth[sl] * 1e6
-        e = {"unit": sy.report_unit, "kind": sy.kind.value, "injected": inj.tolist(), "identified": ident.tolist()}
-        if s in vol.MOTION:
-            e["nodes_mm"] = (res.design.nodes[sy.axis] * 1e3).tolist()
         if sy.kind == iso.Kind.STRAIGHTNESS:
             e["reference"] = "end-point straight line"
             if slopes is not None:
                 e["end_point_slope_urad"] = {"identified": slopes[0][s] * 1e6, "injected": slopes[1][s] * 1e6}
-        if unc is not None:
-            U = unc.U95_mc if unc.runs else unc.U95_lin
-            e["u95"] = (U[sl] * 1e6).tolist()
-            e["u95_lin"] = (unc.U95_lin[sl] * 1e6).tolist()
-        dmax = float(np.max(np.abs(ident - inj)))
+        dmax = float(np.max(np.abs(np.asarray(e["identified"]) - np.asarray(e["injected"]))))
         e["max_dev"] = dmax
         if sy.angular:
             dev_urad = max(dev_urad, dmax)
         else:
             dev_um = max(dev_um, dmax)
-        errors[s] = e
     return {"scenario": name, "machine": plan.machine, "seed": seed, "noise_um": sigma_um,
             "noise_note": "probing noise: a standard deviation (k = 1) along the approach",
             "placements": len(plan.placements), "measurements": len(plan.measurements),

@@ -23,6 +23,8 @@ COMMANDS = [
     ("view", "scenarios.cli.view"),
     ("probe", "scenarios.cli.probe"),
     ("import", "scenarios.cli.import_"),
+    ("plan", "scenarios.cli.plan"),
+    ("fit", "scenarios.cli.fit"),
     ("machine", "scenarios.cli.machine"),
     ("simulate", "scenarios.cli.simulate"),
     ("discover", "scenarios.cli.discover"),

@@ -1,37 +1,30 @@
 """``vmt simulate ARTEFACT --out LOG.csv``: simulate a touch-trigger campaign.
 
-The artefact (``mfb``, ``cross-pocket``, ``pin-circle``, ``freeform``) is
-probed with its standard plan on a named virtual machine, with the
-realistic truth errors or none, and the result written as ``probe-log/1``.
-``--plan-only`` writes the plan (measured columns empty).
+The artefact (one of ``sim.catalog.CATALOG``) is probed with its standard
+plan on a named virtual machine, with the realistic truth errors or none,
+and the result written as ``probe-log/1``. ``--plan-only`` writes the plan
+(measured columns empty).
 ``vmt simulate positioning --axis X`` runs an ISO 230-2 positioning test
 of one axis instead and writes ``positioning-log/1``.
 """
 
 from __future__ import annotations
 
-ARTEFACT_NAMES = ("mfb", "cross-pocket", "pin-circle", "freeform")
-#: Default machine and C angles (deg) per artefact (papers' values).
-DEFAULT_MACHINE = {"mfb": "mikron-ucp710", "cross-pocket": "nmv3000",
-                   "pin-circle": "mikron-ucp710", "freeform": "nmv3000"}
-DEFAULT_C_DEG = {"cross-pocket": "0,75,130,210", "pin-circle": "0,31,83,137,191,227,257,313",
-                 "freeform": "0,75,130,210"}
-
 
 def register(sub) -> None:
     import argparse
 
+    from sim import catalog
     from sim.machines import describe
 
     p = sub.add_parser(
         "simulate", help="simulate a touch-trigger campaign on an artefact into a probe log",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=__doc__.split("\n\n")[1] if __doc__ else None,
-        epilog="machines (--machine NAME, or a machine file):\n  " + describe().replace("\n", "\n  ")
-        + "\n\ndefaults: mfb on mikron-ucp710 (17 placements); cross-pocket and freeform on nmv3000 "
-          "at C = 0,75,130,210; pin-circle on mikron-ucp710 at C = 0,31,83,137,191,227,257,313; "
-          "positioning on vmc-3axis, axis X")
-    p.add_argument("artefact", choices=ARTEFACT_NAMES + ("positioning",),
+        epilog="artefacts (and their defaults):\n  " + catalog.describe().replace("\n", "\n  ")
+        + "\n  positioning   an ISO 230-2 positioning test of one axis\n                default: on vmc-3axis, axis X"
+        + "\n\nmachines (--machine NAME, or a machine file):\n  " + describe().replace("\n", "\n  "))
+    p.add_argument("artefact", choices=tuple(catalog.CATALOG) + ("positioning",),
                    help="artefact to probe, or 'positioning' for an ISO 230-2 test of one axis")
     p.add_argument("--out", required=True, help="probe-log/1 CSV to write (positioning-log/1 for positioning)")
     p.add_argument("--seed", type=int, default=0, help="seed of the probing noise (positioning: of the scatter and target spacing)")
@@ -45,7 +38,7 @@ def register(sub) -> None:
                    help="probing noise, a standard deviation (k=1) along the approach, um (default: the "
                         "machine's probe, 0.125 for the built-ins: the MFB paper's 0.25 um at k=2; 1.38 for the "
                         "self-calibration paper; positioning: scatter of each reading, default 0.5)")
-    p.add_argument("--c-angles", default=None, help="comma-separated C angles, deg (not for mfb)")
+    p.add_argument("--c-angles", default=None, help="comma-separated C angles, deg (not for a placed artefact: mfb)")
     p.add_argument("--plan-only", action="store_true", help="write the plan only (measured columns empty)")
     p.add_argument("--no-collision-check", action="store_true", help="skip the MuJoCo path checks")
     _add_positioning_options(p)
@@ -62,16 +55,18 @@ def run(args) -> int:
             raise ConfigError(f"--{name.replace('_', '-')} applies to 'vmt simulate positioning' only")
     import numpy as np
 
-    from core.exceptions import ConfigError
-    from core.probelog import write_probe_log
-    from sim.campaign import simulate_campaign
     from dataclasses import replace
 
+    from core.probelog import write_probe_log
+    from core.units import UM
+    from sim.campaign import simulate_campaign
+    from sim.catalog import CATALOG
     from sim.machine import Machine
     from sim.machinefile import builtin_names, resolve
     from sim.machines import realistic_errors
 
-    name = args.machine or DEFAULT_MACHINE[args.artefact]
+    rec = CATALOG[args.artefact]
+    name = args.machine or rec.default_machine
     spec = resolve(name)
     cfg = spec.config
     if name in builtin_names():
@@ -88,13 +83,13 @@ def run(args) -> int:
     if args.noise_um is not None:
         if not (np.isfinite(args.noise_um) and args.noise_um >= 0):
             raise ConfigError(f"--noise-um must be >= 0, got {args.noise_um!r}")
-        probe = replace(probe, repeatability_k2_m=2 * args.noise_um * 1e-6)
-    if args.artefact == "mfb":
+        probe = replace(probe, repeatability_k2_m=2 * args.noise_um * UM)
+    if rec.placements is not None:
         if args.c_angles:
-            raise ConfigError("--c-angles: the mfb campaign uses its 17 placements, not C angles")
+            raise ConfigError(f"--c-angles: the {rec.name} campaign uses its {rec.setups_text()}, not C angles")
         setups = None
     else:
-        text = args.c_angles or (DEFAULT_C_DEG[args.artefact] if machine.rotary_axes else "0")
+        text = args.c_angles or (",".join(f"{c:g}" for c in rec.default_c_deg) if machine.rotary_axes else "0")
         try:
             setups = [float(v) for v in text.split(",") if v.strip()]
         except ValueError:
