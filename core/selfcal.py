@@ -9,16 +9,27 @@ is modelled to first order as (eq 14 = eqs 7 + 12 + 13)
 
     dq_ij = G_i                                     workpiece, eq 7
           - n_ij . [E_X,total, E_Y,total](p_ij)     X/Y axes, eqs 10-12
-          + n_ij . [EXC,total(C_j), EYC,total(C_j)] C-axis displacement, eq 13
-          + (R90 p_ij) . n_ij * ECC(C_j)            C-axis angle, eq 13
+          - n_ij . [EXC,total(C_j), EYC,total(C_j)] C-axis displacement, eq 13
+          - (R90 p_ij) . n_ij * ECC(C_j)            C-axis angle, eq 13
 
 with the X-axis error motions ``EXX``, ``EYX`` tabulated on the x nodes, the
 Y-axis motions ``EXY``, ``EYY``, ``ECY`` on the y nodes, bilinear (per-axis
 linear) interpolation at the nominal stylus-tip centre ``pn_R`` (eqs 8-11) and
-the squareness ``EC0Y`` (eq 4). ``ECC`` is the right-handed rotation error of
-the table about Z (CONTRIBUTING: actual minus nominal pose of the moving
-component), which is the sign of eq 13. ``n . (R90 p)`` is the same for the
-tip centre and the contact point because ``n`` is perpendicular to ``R90 n``.
+the squareness ``EC0Y`` (eq 4). ``n . (R90 p)`` is the same for the tip
+centre and the contact point because ``n`` is perpendicular to ``R90 n``.
+
+Signs: every value is in the ISO 230-1 convention (CONTRIBUTING.md, "Error
+conventions"): the displacement of the tool relative to the workpiece, so
+each enters as ``-n . E`` like the linear axes of eq 12. The paper's eq 13
+has ``+`` because its ``EXC,total``, ``EYC,total`` and ``ECC`` are the
+displacement and rotation of the table (the C axis's moving component); vmt
+reports the same quantities with the opposite sign. ``EXC,total(C_j)`` is
+the tool's X displacement relative to the part due to the C axis at
+``C_j``: on a table-side C, the ISO radial motion ``EXC(C_j)`` minus the
+line's position ``EX0C`` (a location error is the position of the axis
+average line, whichever side it is on; the part rides on it). ``ECC`` is the
+ISO angular positioning error: actual minus commanded C of the tool
+relative to the part (with C positive as in eq 1).
 
 Parameter vector (fixed order, names in :attr:`SelfCalDesign.names`)::
 
@@ -444,11 +455,12 @@ def _eq14_matrix(touches: Touches, grid: Grid, s: dict, yaw: Yaw) -> sp.csr_matr
         add(s["ECX"].start + kx + 1, nx * y * zx)
     # eq 7
     add(s["G"].start + touches.target, np.ones(m))
-    # eq 13
+    # eq 13 in the ISO 230-1 sign (tool relative to the part, module doc):
+    # the paper's table displacement and rotation with the opposite sign
     rp_n = -nx * y + ny * x  # (R90 p) . n
-    add(s["EXC"].start + j, nx)
-    add(s["EYC"].start + j, ny)
-    add(s["ECC"].start + j, rp_n)
+    add(s["EXC"].start + j, -nx)
+    add(s["EYC"].start + j, -ny)
+    add(s["ECC"].start + j, -rp_n)
     n_par = max(sl.stop for sl in s.values())
     A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, n_par))
     A.sum_duplicates()
@@ -514,26 +526,26 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
     cc, sc = np.cos(c_rad), np.sin(c_rad)
     # 0, 1: tool and table translated together
     N[s["EXX"], 0] = 1
-    N[s["EXC"], 0] = 1
+    N[s["EXC"], 0] = -1
     N[s["EYX"], 1] = 1
-    N[s["EYC"], 1] = 1
+    N[s["EYC"], 1] = -1
     # 2, 3: constant splits
     N[s["EXX"], 2] = 1
     N[s["EXY"], 2] = -1
     N[s["EYX"], 3] = 1
     N[s["EYY"], 3] = -1
-    # 4, 5: workpiece shifted by t in W; EC_j -= R(-C_j) t
+    # 4, 5: workpiece shifted by t in W; EC_j += R(-C_j) t
     for k, t in ((4, (1.0, 0.0)), (5, (0.0, 1.0))):
         N[s["G"], k] = wn @ np.array(t)
-        N[s["EXC"], k] = -(cc * t[0] + sc * t[1])
-        N[s["EYC"], k] = -(-sc * t[0] + cc * t[1])
+        N[s["EXC"], k] = cc * t[0] + sc * t[1]
+        N[s["EYC"], k] = -sc * t[0] + cc * t[1]
     # 6: machine frame rotated
     N[s["EC0Y"], 6] = 1
     N[s["EYX"], 6] = gx
-    N[s["ECC"], 6] = 1
+    N[s["ECC"], 6] = -1
     # 7: workpiece rotated in W
     N[s["G"], 7] = -nR[:, 0] * pn[:, 1] + nR[:, 1] * pn[:, 0]
-    N[s["ECC"], 7] = -1
+    N[s["ECC"], 7] = 1
     # 8: yaw offset vs a straightness slope (ECY vs EYX; ECX vs EXY); 9: EXY slope vs EC0Y
     if yaw == Yaw.ECY:
         N[s["ECY"], 8] = 1

@@ -70,7 +70,10 @@ def test_names_and_order():
 
 
 def test_design_matches_eq14_for_one_touch():
-    """Known answer: eq 14 written out by hand for one touch at a grid-cell interior."""
+    """Known answer: eq 14 written out by hand for one touch at a grid-cell interior.
+
+    The C-axis terms in the ISO 230-1 sign (tool relative to the part): the
+    paper's eq 13 coefficients negated, like eq 12's for the linear axes."""
     w = np.array([[0.030, 0.050]])
     wn = np.array([[0.6, 0.8]])
     t = nominal_touches(np.repeat(w, 1, 0), wn, [0])
@@ -81,8 +84,8 @@ def test_design_matches_eq14_for_one_touch():
     nx, ny, x, y = 0.6, 0.8, 0.030, 0.050
     exp = {"EXX@x=0mm": -nx * (1 - zx), "EXX@x=40mm": -nx * zx, "EYX@x=40mm": -ny * zx,
            "EXY@y=100mm": -nx * zy, "EYY@y=0mm": -ny * (1 - zy), "ECY@y=100mm": -ny * x * zy,
-           "EC0Y": nx * y, "G[p1]": 1.0, "EXC,total[C=0deg]": nx, "EYC,total[C=0deg]": ny,
-           "ECC[C=0deg]": -nx * y + ny * x}
+           "EC0Y": nx * y, "G[p1]": 1.0, "EXC,total[C=0deg]": -nx, "EYC,total[C=0deg]": -ny,
+           "ECC[C=0deg]": -(-nx * y + ny * x)}
     for k, v in exp.items():
         assert row[des.names.index(k)] == pytest.approx(v, abs=1e-15), k
 
@@ -123,19 +126,20 @@ def test_noise_free_exact_and_residuals_zero():
 def exact_campaign(w, wn, c_deg, truth, r_m):
     """Reported positions of an exact rigid-body machine (outside the model space).
 
-    Actual table pose: R(ECC) R(-C) + (EXC, EYC) (exact rotation); actual tip
-    = believed tip + E(believed tip) with smooth E; workpiece contact point
-    moved by G along its normal. The trigger is solved exactly along the
-    nominal normal.
+    Actual table pose: R(-ECC) R(-C) - (EXC, EYC) (exact rotation): the
+    truth's EXC,total, EYC,total, ECC are ISO 230-1 values (the tool relative
+    to the part), so the table moves by their inverse; actual tip = believed
+    tip + E(believed tip) with smooth E; workpiece contact point moved by G
+    along its normal. The trigger is solved exactly along the nominal normal.
     """
     t = nominal_touches(w, wn, c_deg, stylus_r_m=r_m)
     nw = len(w)
     dq = np.empty(t.n)
     for j, c in enumerate(c_deg):
-        Rj = rot2(truth["ECC"][j]) @ rot2(-np.radians(c))
+        Rj = rot2(-truth["ECC"][j]) @ rot2(-np.radians(c))
         for i in range(nw):
             k = j * nw + i
-            a = Rj @ (w[i] + truth["G"][i] * wn[i]) + np.array([truth["EXC"][j], truth["EYC"][j]])
+            a = Rj @ (w[i] + truth["G"][i] * wn[i]) - np.array([truth["EXC"][j], truth["EYC"][j]])
             m = Rj @ wn[i]
             n = t.n_R[k, :2]
             pn = t.pn_R[k, :2]
