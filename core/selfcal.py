@@ -81,7 +81,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .exceptions import ConfigError, IdentifiabilityError
-from .lsq import LinearEstimator, remove_span, solve
+from .lsq import LinearEstimator, column_norms, remove_span, solve
 from .touches import Touches
 from .units import DEG, MM, UM
 
@@ -419,21 +419,20 @@ def _eq14_matrix(touches: Touches, grid: Grid, s: dict, yaw: Yaw) -> sp.csr_matr
     kx, zx = _interp_weights(grid.x_m, x)
     ky, zy = _interp_weights(grid.y_m, y)
     j = touches.setup
-    rows, cols, vals = [], [], []
+    cols, vals = [], []
 
-    def add(c, v):
-        rows.append(np.arange(m))
-        cols.append(np.asarray(c))
-        vals.append(np.asarray(v, float))
+    def add(c, v):  # one entry per touch (row): the matrix is built row-wise, a fixed count per row
+        cols.append(np.broadcast_to(np.asarray(c, np.int64), (m,)))
+        vals.append(np.broadcast_to(np.asarray(v, float), (m,)))
 
-    # eq 12 with eqs 10, 11: dq = -nx E_X,total - ny E_Y,total
+    # eq 12 with eqs 10, 11: dq = -nx E_X,total - ny E_Y,total; entries in column order
+    # (the blocks' order of _parameters), so every row comes out sorted
     add(s["EXX"].start + kx, -nx * (1 - zx))
     add(s["EXX"].start + kx + 1, -nx * zx)
-    add(s["EXY"].start + ky, -nx * (1 - zy))
-    add(s["EXY"].start + ky + 1, -nx * zy)
-    add(np.full(m, s["EC0Y"].start), nx * y)
     add(s["EYX"].start + kx, -ny * (1 - zx))
     add(s["EYX"].start + kx + 1, -ny * zx)
+    add(s["EXY"].start + ky, -nx * (1 - zy))
+    add(s["EXY"].start + ky + 1, -nx * zy)
     add(s["EYY"].start + ky, -ny * (1 - zy))
     add(s["EYY"].start + ky + 1, -ny * zy)
     if yaw == Yaw.ECY:  # X rides on Y: E_Y += x ECY(y) (eq 5)
@@ -442,6 +441,7 @@ def _eq14_matrix(touches: Touches, grid: Grid, s: dict, yaw: Yaw) -> sp.csr_matr
     else:  # Y rides on X: E_X -= y ECX(x)
         add(s["ECX"].start + kx, nx * y * (1 - zx))
         add(s["ECX"].start + kx + 1, nx * y * zx)
+    add(np.full(m, s["EC0Y"].start), nx * y)
     # eq 7
     add(s["G"].start + touches.target, np.ones(m))
     # eq 13
@@ -450,8 +450,14 @@ def _eq14_matrix(touches: Touches, grid: Grid, s: dict, yaw: Yaw) -> sp.csr_matr
     add(s["EYC"].start + j, ny)
     add(s["ECC"].start + j, rp_n)
     n_par = max(sl.stop for sl in s.values())
-    A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, n_par))
-    A.sum_duplicates()
+    k = len(cols)
+    idx = np.empty((m, k), np.int32 if n_par < 2 ** 31 else np.int64)
+    val = np.empty((m, k))
+    for c, (ci, vi) in enumerate(zip(cols, vals)):
+        idx[:, c] = ci
+        val[:, c] = vi
+    A = sp.csr_matrix((val.ravel(), idx.ravel(), np.arange(0, k * m + 1, k)), shape=(m, n_par))
+    A.has_sorted_indices = True  # built in column order (checked by the tests)
     return A
 
 
@@ -502,9 +508,8 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
     """The eleven analytic null directions of A (see module docstring)."""
     N = np.zeros((n_par, 11))
     Nw = s["G"].stop - s["G"].start
-    first = np.full(Nw, -1)
-    for t in range(touches.n - 1, -1, -1):
-        first[touches.target[t]] = t
+    first = np.full(Nw, touches.n)
+    np.minimum.at(first, touches.target, np.arange(touches.n))
     pn = touches.pn_R[first, :2]
     nR = touches.n_R[first, :2]
     cf = c_rad[touches.setup[first]]
@@ -750,8 +755,7 @@ def check_count(touches: Touches, grid: Grid) -> None:
 
 def _check_nodes(des: SelfCalDesign) -> None:
     """Raise naming every grid node no touch constrains (they would be solved from the gauge alone)."""
-    A = des.A
-    colnorm = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
+    colnorm = column_norms(des.A)
     zero = np.flatnonzero(colnorm <= 1e-12 * colnorm.max())
     if zero.size:
         shown = ", ".join(des.names[i] for i in zero[:10]) + (f" and {zero.size - 10} more" if zero.size > 10 else "")
@@ -793,7 +797,8 @@ def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float 
     check_count(touches, grid)
     des = build_design(touches, grid, delta_L_m, yaw=yaw)
     _check_nodes(des)
-    sol = solve(des.A, touches.dq_m, des.C, des.d, names=des.names, sigma=sigma_m, covariance=covariance)
+    sol = solve(des.A, touches.dq_m, des.C, des.d, names=des.names, sigma=sigma_m, covariance=covariance,
+                diagonal=des.slices["G"])
     conv = des.gauge + (("scale known: EXX(x_N) = delta_L" if des.scale_known
                          else "scale unknown: delta_L not given, fixed to 0"),
                         "ECC is the right-handed rotation error of the table about Z (eq 13)",
@@ -810,7 +815,8 @@ def estimator(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
     check_count(touches, grid)
     des = build_design(touches, grid, delta_L_m, yaw=yaw)
     _check_nodes(des)
-    sol = solve(des.A, np.zeros(touches.n), des.C, des.d, names=des.names, sigma=1.0, covariance="none")
+    sol = solve(des.A, np.zeros(touches.n), des.C, des.d, names=des.names, sigma=1.0, covariance="none",
+                diagonal=des.slices["G"])
     return des, sol.estimator
 
 
