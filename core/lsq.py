@@ -133,16 +133,28 @@ class LinearEstimator:
     def __init__(self, A, DZ, B, phi0_theta, r0_shift, solve_M, n_free, quad=None):
         self.A = A
         self.DZ = DZ  # (n, n_free) sparse: theta = DZ psi + theta0
-        self.B = B  # (m, n_free) sparse
+        self._B = B  # (m, n_free) sparse, or None: A DZ applied as two products (block elimination)
         self.theta0 = phi0_theta
         self.b_shift = r0_shift  # A theta0
         self._solve_M = solve_M
         self.n_free = n_free
         self._quad = quad  # V -> diag(V M^-1 V^T) for sparse V (k, n_free), when the factor has a fast one
 
+    @property
+    def B(self):
+        """(m, n_free) sparse ``A D Z`` (formed on first use when the factor did without it)."""
+        if self._B is None:
+            self._B = (self.A @ self.DZ).tocsr()
+        return self._B
+
+    def _Bt(self, e):
+        """``(A D Z)^T e`` for (m,) or (m, r) ``e``."""
+        if self._B is not None:
+            return self._B.T @ e
+        return self.DZ.T @ (self.A.T @ e)
+
     def psi(self, b: np.ndarray) -> np.ndarray:
-        rhs = self.B.T @ (b - (self.b_shift if b.ndim == 1 else self.b_shift[:, None]))
-        return self._solve_M(rhs)
+        return self._solve_M(self._Bt(b - (self.b_shift if b.ndim == 1 else self.b_shift[:, None])))
 
     def estimate(self, b: np.ndarray) -> np.ndarray:
         """(n,) or (n, r) estimates for ``b`` of shape (m,) or (m, r)."""
@@ -152,7 +164,7 @@ class LinearEstimator:
 
     def noise_gain(self, e: np.ndarray) -> np.ndarray:
         """(n, r) change of the estimate caused by observation noise ``e`` (m, r)."""
-        return self.DZ @ self._solve_M(self.B.T @ e)
+        return self.DZ @ self._solve_M(self._Bt(e))
 
     def covariance(self, sigma: float) -> np.ndarray:
         """(n, n) dense covariance ``sigma^2 DZ M^-1 DZ^T``."""
@@ -253,18 +265,14 @@ def _column_scale(A: sp.csr_matrix, C: np.ndarray, names) -> np.ndarray:
     return np.where(colnorm > 0, 1.0 / np.where(colnorm > 0, colnorm, 1.0), 1.0)
 
 
-def _factor_normal(B: sp.csr_matrix, DZ: sp.csr_matrix, names, rank_tol: float, diag=None):
-    """Step 4: ``(solve_M, quad)``: ``solve_M(r) = M^-1 r`` for ``M = B^T B``, after the rank check.
+def _factor_normal(B: sp.csr_matrix, DZ: sp.csr_matrix, names, rank_tol: float):
+    """Step 4: ``(solve_M, None)``: ``solve_M(r) = M^-1 r`` for ``M = B^T B``, after the rank check.
 
     Dense (eigen-decomposition, then Cholesky) up to :data:`DENSE_MAX` free
-    parameters; above, block elimination of the diagonal block ``diag``
-    (free-parameter indices) when given (:func:`_factor_schur`), else sparse
-    LU. A rank deficiency raises IdentifiabilityError naming the parameter
-    combinations (dense, Schur) or the near-null pivots (sparse LU). ``quad``
-    is a fast ``V -> diag(V M^-1 V^T)`` (Schur) or None.
+    parameters, sparse LU above (:func:`_factor_schur` when there is a
+    diagonal block). A rank deficiency raises IdentifiabilityError naming the
+    parameter combinations (dense) or the near-null pivots (sparse LU).
     """
-    if B.shape[1] > DENSE_MAX and diag is not None and len(diag) and B.shape[1] - len(diag) <= SCHUR_MAX:
-        return _factor_schur(B, DZ, names, rank_tol, np.asarray(diag))
     M = (B.T @ B).tocsc()
     if B.shape[1] <= DENSE_MAX:
         Md = M.toarray()
@@ -313,8 +321,10 @@ def _split_rows(B: sp.csr_matrix, g: np.ndarray):
     col[~isg] = np.arange(nf - len(g))
     cnt = np.diff(B.indptr)
     eg = isg[B.indices]
-    ng_row = np.add.reduceat(eg.astype(np.int64), B.indptr[:-1]) if B.nnz else np.zeros(m, np.int64)
-    ng_row[cnt == 0] = 0
+    if m and cnt[0] > 0 and np.all(cnt == cnt[0]):  # a fixed count per row (a design built row-wise)
+        ng_row = eg.reshape(m, cnt[0]).sum(axis=1)
+    else:
+        ng_row = np.bincount(np.repeat(np.arange(m), cnt)[eg], minlength=m)
     if ng_row.max(initial=0) > 1:
         raise ConfigError(f"diagonal block: observation {int(np.argmax(ng_row > 1))} touches "
                           f"{int(ng_row.max())} of its parameters (at most one allowed)")
@@ -356,55 +366,76 @@ def _gram(I: np.ndarray, V: np.ndarray, r: int) -> np.ndarray:
     return 0.5 * (G + G.T)
 
 
-def _factor_schur(B: sp.csr_matrix, DZ: sp.csr_matrix, names, rank_tol: float, g: np.ndarray):
+def _factor_schur(A: sp.csr_matrix, DZ: sp.csr_matrix, names, rank_tol: float, gth: np.ndarray, g: np.ndarray):
     """Step 4 by block elimination: ``M = [[D, W^T], [W, M_rr]]`` with ``D`` diagonal.
 
-    ``g`` are the free parameters of the diagonal block (each observation
-    touches at most one of them: the workpiece of a self-calibration, one
-    parameter per target), ``r`` the others. Then ``D`` is diagonal, and
-    ``M`` is factored through the Schur complement ``S = M_rr - W D^-1 W^T``
-    (dense, ``len(r)`` square, Cholesky):
+    ``g`` are the free parameters of the diagonal block (``gth`` the same
+    parameters' columns of ``A``; each observation touches at most one of
+    them: the workpiece of a self-calibration, one parameter per target),
+    ``r`` the others. Then ``D`` is diagonal, and ``M`` is factored through
+    the Schur complement ``S = M_rr - W D^-1 W^T`` (dense, ``len(r)`` square,
+    Cholesky):
 
         x_r = S^-1 (b_r - W D^-1 b_g),   x_g = D^-1 (b_g - W^T x_r).
 
-    ``M_rr`` is summed slot by slot (:func:`_gram`), ``W D^-1 W^T`` by dense
-    products over chunks of :data:`SCHUR_CHUNK` diagonal parameters: work
-    and memory grow linearly with the observations, not with the fill-in of
-    a sparse LU. The rank check: ``M`` is singular exactly when ``S`` is
-    (``D > 0``); a small Cholesky pivot of ``S`` sends it to an
+    Everything is summed on ``A``'s own rows (a fixed pattern, no ``A D Z``
+    product is formed) and carried to the free parameters by ``D Z``, which
+    keeps the two blocks apart (no constraint touches the diagonal block):
+    ``S = Z_r^T S_A Z_r``, ``W = Z_r^T W_A D_g``. ``A^T A`` of the other
+    columns is summed slot by slot (:func:`_gram`), ``W_A D_A^-1 W_A^T`` by
+    dense products over chunks of :data:`SCHUR_CHUNK` diagonal parameters:
+    work and memory grow linearly with the observations, not with the
+    fill-in of a sparse LU. The rank check: ``M`` is singular exactly when
+    ``S`` is (``D > 0``); a small Cholesky pivot of ``S`` sends it to an
     eigen-decomposition, whose null directions are named like the dense
     path's.
 
     Returns ``(solve_M, quad)`` with ``quad(V) = diag(V M^-1 V^T)`` computed
     as ``v_g D^-1 v_g + |L^-1 (v_r - W D^-1 v_g)|^2`` (no dense ``M^-1``).
     """
-    m, nf = B.shape
+    m, n = A.shape
+    nf = DZ.shape[1]
     keep = np.ones(nf, bool)
     keep[g] = False
     r = np.flatnonzero(keep)
+    keep = np.ones(n, bool)
+    keep[gth] = False
+    rth = np.flatnonzero(keep)
     nr, ng = len(r), len(g)
-    tg, bg, I, V = _split_rows(B, g)
+    DZc = DZ.tocsc()
+    Zr = DZc[:, r][rth].tocsc()  # (n - ng, nr): the other parameters from the free ones
+    Dg = np.asarray(DZ[gth, g]).ravel()  # the diagonal block's column scales
+    if DZc[:, g][rth].nnz or DZ[gth][:, r].nnz:  # cannot happen when no constraint touches the block; a guard
+        raise ConfigError("diagonal: the constraints couple the diagonal block with the other parameters")
+    if not A.has_canonical_format:  # _gram needs one entry per column in a row
+        A = A.copy()
+        A.sum_duplicates()
+    tg, bg, I, V = _split_rows(A, gth)
     has = tg >= 0
-    dg = np.bincount(tg[has], weights=bg[has] ** 2, minlength=ng)
-    S = _gram(I, V, nr)
-    # W (r, g): column j = sum over the rows of parameter j of bg * (their other entries)
-    # W (r, g) in CSC: rows sorted by their diagonal parameter, each row's slots one after the
+    dA = np.bincount(tg[has], weights=bg[has] ** 2, minlength=ng)
+    SA = _gram(I, V, len(rth))
+    # W_A (rth, g) in CSC: rows sorted by their diagonal parameter, each row's slots one after the
     # other (repeated indices within a column are summed by every product and by toarray)
     rows = np.flatnonzero(has)
     rows = rows[np.argsort(tg[rows], kind="stable")]
     k = I.shape[1]
-    W = sp.csc_matrix((np.ravel(V[rows] * bg[rows, None]), np.ravel(I[rows]),
-                       np.concatenate([[0], np.cumsum(np.bincount(tg[rows], minlength=ng) * k)])), shape=(nr, ng))
-    del I, V
-    isd = 1.0 / np.sqrt(dg)
-    syrk = sla.get_blas_funcs("syrk", (S,))
-    acc = np.zeros((nr, nr), order="F")
+    WA = sp.csc_matrix((np.ravel(V[rows] * bg[rows, None]), np.ravel(I[rows]),
+                        np.concatenate([[0], np.cumsum(np.bincount(tg[rows], minlength=ng) * k)])),
+                       shape=(len(rth), ng))
+    del I, V, rows
+    isd = 1.0 / np.sqrt(dA)
+    syrk = sla.get_blas_funcs("syrk", (SA,))
+    acc = np.zeros(SA.shape, order="F")
     for a in range(0, ng, SCHUR_CHUNK):
-        Wc = W[:, a:a + SCHUR_CHUNK].toarray() * isd[a:a + SCHUR_CHUNK]  # (r, chunk), C order
+        Wc = WA[:, a:a + SCHUR_CHUNK].toarray() * isd[a:a + SCHUR_CHUNK]  # (rth, chunk), C order
         acc = syrk(1.0, Wc.T, trans=1, beta=1.0, c=acc, lower=1, overwrite_c=1)  # += Wc Wc^T, lower half
     acc = np.tril(acc)
-    S -= acc + np.tril(acc, -1).T
+    SA -= acc + np.tril(acc, -1).T
+    S = Zr.T @ (Zr.T @ SA).T  # Z_r^T S_A Z_r (S_A symmetric)
     S = 0.5 * (S + S.T)
+    W = (Zr.T @ WA @ sp.diags(Dg)).tocsc()  # (nr, ng)
+    dg = Dg ** 2 * dA
+    del WA, SA
 
     def full_psi(v_r):
         out = np.zeros(nf)
@@ -476,9 +507,9 @@ def _covariance(est: LinearEstimator, sigma: float, mode: Covariance):
 
 
 def _diagonal_free(diagonal, C: np.ndarray, F: np.ndarray, n: int):
-    """Free-parameter indices of the caller's ``diagonal`` block (None when not given)."""
+    """(parameter indices, free-parameter indices) of the caller's ``diagonal`` block ((None, None) when not given)."""
     if diagonal is None:
-        return None
+        return None, None
     j = np.arange(n)[diagonal] if isinstance(diagonal, slice) else np.asarray(diagonal, int).ravel()
     if j.size and (j.min() < 0 or j.max() >= n):
         raise ConfigError(f"diagonal: indices must lie in 0..{n - 1}")
@@ -487,7 +518,7 @@ def _diagonal_free(diagonal, C: np.ndarray, F: np.ndarray, n: int):
     pos = np.minimum(np.searchsorted(F, j), len(F) - 1)
     if np.any(F[pos] != j):  # cannot happen when no constraint touches them; a guard all the same
         raise ConfigError("diagonal: a parameter of the diagonal block was eliminated by the constraints")
-    return pos
+    return j, pos
 
 
 def solve(A, b, C=None, d=None, *, names=None, sigma=None, covariance: str = "auto",
@@ -540,9 +571,14 @@ def solve(A, b, C=None, d=None, *, names=None, sigma=None, covariance: str = "au
     Z, phi0, F = _eliminate(C * D[None, :], d, n)
     DZ = (sp.diags(D) @ Z).tocsr()
     theta0 = D * phi0
-    B = (A @ DZ).tocsr()  # a product: one entry per column in a row (columns maybe unsorted)
-    nf = B.shape[1]
-    solve_M, quad = _factor_normal(B, DZ, names, rank_tol, _diagonal_free(diagonal, C, F, n))
+    nf = DZ.shape[1]
+    gth, gfree = _diagonal_free(diagonal, C, F, n)
+    if nf > DENSE_MAX and gfree is not None and gfree.size and nf - gfree.size <= SCHUR_MAX:
+        B = None
+        solve_M, quad = _factor_schur(A, DZ, names, rank_tol, gth, gfree)
+    else:
+        B = (A @ DZ).tocsr()
+        solve_M, quad = _factor_normal(B, DZ, names, rank_tol)
     est = LinearEstimator(A, DZ, B, theta0, A @ theta0, solve_M, nf, quad=quad)
     theta = est.estimate(b)
     res = b - A @ theta
