@@ -67,6 +67,12 @@ def _identify(t, g) -> None:
     self_calibrate(t, g, covariance="none")
 
 
+def _identify_std(t, g) -> None:
+    from core.selfcal import self_calibrate
+
+    self_calibrate(t, g)
+
+
 def _timed(fn, *args) -> float:
     t0 = time.perf_counter()
     fn(*args)
@@ -101,6 +107,8 @@ def grid_scaling(sizes=(1e4, 1e5, 1e6), grid_n: int = 101, n_angles: int = 10, s
         peaks[n] = _peak_mb(ident, t, g)
         out[f"grid100_{tag}_touches_s"] = round(times[n], 3)
         out[f"grid100_{tag}_touches_peak_mb"] = round(peaks[n], 1)
+        if n == sizes[-1]:  # what vmt identify does after reading: standard uncertainties of every parameter
+            out[f"grid100_{tag}_touches_with_std_s"] = round(_timed(_identify_std, t, g), 3)
         if n == sizes[0]:
             ref = _timed(_reference_solve, t, g)
             out[f"grid100_{tag}_touches_reference_s"] = round(ref, 3)
