@@ -775,28 +775,39 @@ def height_terms(touches: Touches, design: SelfCalDesign, *, abbe: bool | str = 
 def _abbe_identifiable(touches: Touches, dz: np.ndarray, setups: np.ndarray) -> tuple[bool, str]:
     """Whether the raised touches tell the Abbe shear apart from the tilt and their targets' G.
 
-    A local rank test on the raised touches alone: the two shear columns
-    must add two to the rank of [tilt per set-up, G per raised target]
-    (the twist and growth parts never do: they are the gauge).
+    A local rank test on the raised touches alone: with each raised
+    target's own constant (its G) projected out (the columns less their mean
+    over the target's touches), the two shear columns must add two to the
+    rank of the tilt columns (the twist and growth parts never do: they are
+    the gauge). Cost linear in the raised touches.
     """
     raised = np.flatnonzero(dz != 0)
     nx, ny = touches.n_R[raised, 0], touches.n_R[raised, 1]
     x, y, d = touches.pn_R[raised, 0], touches.pn_R[raised, 1], dz[raised]
-    st, tg = touches.setup[raised], touches.target[raised]
-    base = [nx * d * (st == j) for j in setups] + [-ny * d * (st == j) for j in setups]
-    base += [(tg == k).astype(float) for k in np.unique(tg)]
-    B = np.column_stack(base)
+    st = touches.setup[raised]
+    _, tg = np.unique(touches.target[raised], return_inverse=True)
+    tilt = np.column_stack([nx * d * (st == j) for j in setups] + [-ny * d * (st == j) for j in setups])
     shear = np.column_stack([-nx * d * x + ny * d * y, -nx * d * y - ny * d * x])  # (1,0,0,1), (0,1,-1,0)
-    def rank(M):
-        M = M / np.maximum(np.linalg.norm(M, axis=0), 1e-300)
-        sv = np.linalg.svd(M, compute_uv=False)
-        return int(np.sum(sv > 1e-9 * sv[0])) if sv.size else 0
-    gain = rank(np.hstack([B, shear])) - rank(B)
+    M = np.hstack([tilt, shear])
+    cnt = np.bincount(tg)
+    for c in range(M.shape[1]):
+        M[:, c] -= (np.bincount(tg, weights=M[:, c]) / cnt)[tg]
+    gain = _rank(M) - _rank(M[:, :-2])
     if gain == 2:
         return True, ""
-    return False, (f"the raised touches ({len(raised)} at {len(np.unique(tg))} targets in {len(setups)} set-up(s))"
+    return False, (f"the raised touches ({len(raised)} at {len(cnt)} targets in {len(setups)} set-up(s))"
                    f" do not tell the tool's Abbe terms apart from the part's tilt and the raised targets' own"
                    f" positions (probe raised features in more set-ups); left out")
+
+
+def _rank(M: np.ndarray, tol: float = 1e-9) -> int:
+    """Numerical rank of ``M`` with its columns scaled to unit norm (zero columns count nothing)."""
+    nrm = np.linalg.norm(M, axis=0)
+    M = M[:, nrm > 0] / nrm[nrm > 0]
+    if M.size == 0:
+        return 0
+    sv = np.linalg.svd(M, compute_uv=False)
+    return int(np.sum(sv > tol * sv[0]))
 
 
 def with_heights(des: SelfCalDesign, ht: HeightTerms) -> SelfCalDesign:

@@ -333,13 +333,15 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
     dof = n - est.n_free
     s0 = float(np.sqrt(r @ r / dof)) if dof > 0 else 0.0
     tables = [k for k in TABLES if k in des.slices]
-    fine = [_fine_table(des, touches, k, step_m) for k in tables]
-    cells = n * sum(P.shape[1] for P, _ in fine)
+    span = {k: (des.grid.x_m if k in ("EXX", "EYX", "ECX") else des.grid.y_m) for k in tables}
+    n_fine = sum(max(int(np.ceil((v[-1] - v[0]) / step_m - 1e-9)), 1) + 1 for v in span.values())
+    cells = max(n, des.n_params) * n_fine  # the dense work arrays: (touches or parameters) x fine nodes
     sig = s0 if sigma_m is None else float(sigma_m)
     zero = np.zeros(des.n_params)
     if cells > MODEL_ERROR_MAX_CELLS or dof <= 0:
         return ModelErrorBudget(sig, {k: 0.0 for k in tables}, {k: float("nan") for k in tables}, sig * u1, zero,
                                 None, False)
+    fine = [_fine_table(des, touches, k, step_m) for k in tables]
     A = est.A
     KP = [est.noise_gain(P.toarray()) for P, _ in fine]
     RP = [P.toarray() - A @ kp for (P, _), kp in zip(fine, KP)]
