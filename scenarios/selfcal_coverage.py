@@ -147,7 +147,8 @@ def block_truth(c: Campaign, des) -> tuple[np.ndarray, float]:
         q = np.array([0.0, 0.0, z_ref, 1.0])
         d = Ta @ np.linalg.solve(Tn, q) - q
         Rr = Ta[:3, :3] @ Tn[:3, :3].T
-        th[s["EXC"].start + j], th[s["EYC"].start + j], th[s["ECC"].start + j] = d[0], d[1], Rr[1, 0]
+        # ISO 230-1 values: the tool relative to the workpiece, i.e. minus the table's own motion
+        th[s["EXC"].start + j], th[s["EYC"].start + j], th[s["ECC"].start + j] = -d[0], -d[1], -Rr[1, 0]
         tilt[j] = (Rr[0, 2], Rr[2, 1])  # rotation about Y (EBC), about X (EAC)
     g = workpiece_truth(c.art, c.plan)
     th[s["G"]] = [g[k] for k in des.target_ids]
