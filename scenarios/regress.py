@@ -398,7 +398,10 @@ def _machine(r: _Reader, doc: dict, base_dir: Path):
     if inj.get("errors") == "none" and "seed" not in inj:
         mdoc.pop("seed", None)
     # the machine-file reader names the key that is wrong (source: the study's machine with its injections)
-    return mf._Reader(f"{r.source}: machine {src}" + (" with [injected]" if inj else "")).spec(mdoc)
+    try:
+        return mf._Reader(f"{r.source}: machine {src}" + (" with [injected]" if inj else "")).spec(mdoc)
+    except mf.MachineFileError as e:
+        raise StudyError(str(e)) from None
 
 
 def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
