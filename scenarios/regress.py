@@ -16,7 +16,7 @@ Study file
 
     format = "vmt-study/1"
     name = "cross-pocket self-calibration, nmv3000"
-    identification = "selfcal"    # selfcal | mfb-3axis | mfb-5axis | iso230-2
+    identification = "selfcal"    # selfcal | mfb-3axis | mfb-5axis | iso230-2 | discover
     machine = "nmv3000"           # a built-in machine, or a machine file (path relative to the study)
     seeds = [1, 2]                # one campaign per seed (its probing noise)
     noise_um = 0.3                # probing noise, k = 1 (default: the machine's probe)
@@ -25,6 +25,8 @@ Study file
     errors = "realistic"          # "none" | "realistic" (the papers' magnitudes) ...
     seed = 3                      # ... drawn from this seed
     ripple = false
+    [injected.probe]              # the machine file's [probe] keys (lobing, pretravel_um, ...)
+    lobing = [{ k = 3, cos_um = 0.4, sin_um = 0.0 }]
     [injected.error.EC0Y]         # any [error.SYMBOL] of a machine file
     constant_urad = -20.0
 
@@ -72,10 +74,18 @@ Identifications, their quantities and ``[plan]`` keys:
     and direction, without scatter, averaged per target and direction, and
     the figures computed from it here (ISO 230-2 definitions).
 
-Discovery (``vmt discover``) is not a study kind yet: its engine is being
-rewritten.
+``discover``
+    the cross-pocket campaign as for ``selfcal``, written as a probe log
+    and read by ``vmt discover``'s own code path
+    (:func:`scenarios.cli.discover.run_discover`). One quantity, ``cause``:
+    the causes its JSON report names (``findings[*].cause``, e.g.
+    ``periodic_axis_error``, ``probe_lobing``), checked by ``[accept.cause]
+    expected = ["periodic_axis_error"]`` (every expected cause named; other
+    findings allowed). Only the cause names are relied on: the discovery
+    engine is being rewritten, its fitted magnitudes are not checked.
 
-Acceptance rules (``[accept.QUANTITY]``, exactly one key): ``within_u95 = k``
+Acceptance rules (``[accept.QUANTITY]``, exactly one key; discover:
+``expected``): ``within_u95 = k``
 (every element: ``|identified - injected| <= k U95 + 1e-6``; needs probing
 noise; the 1e-6 um / urad lets an element fixed by the ISO convention, U95
 0, match to rounding: :data:`GAUGE_FLOOR`), ``tolerance_um = t`` or ``tolerance_urad = t`` (every element:
@@ -115,7 +125,7 @@ from core.exceptions import ConfigError
 
 FORMAT = "vmt-study/1"
 #: The identifications a study can run.
-IDENTIFICATIONS = ("selfcal", "mfb-3axis", "mfb-5axis", "iso230-2")
+IDENTIFICATIONS = ("selfcal", "mfb-3axis", "mfb-5axis", "iso230-2", "discover")
 #: Quantities of each identification and their unit (um | urad).
 _SELFCAL_Q = {"EXX": "um", "EYX": "um", "EXY": "um", "EYY": "um", "ECY": "urad", "ECX": "urad",
               "EC0Y": "urad", "workpiece": "um", "EXC": "um", "EYC": "um", "ECC": "urad",
@@ -125,7 +135,8 @@ _MFB_Q = {s: ("urad" if s[1] in "ABC" else "um") for s in
            "EZZ", "EXZ", "EYZ", "EAZ", "EBZ", "ECZ", "EC0Y", "EB0Z", "EA0Z")}
 _MFB_Q.update({"EC0Y": "urad", "EB0Z": "urad", "EA0Z": "urad"})
 _POS_Q = {"mean": "um", "reversal": "um", "E": "um", "M": "um", "B": "um"}
-QUANTITIES = {"selfcal": _SELFCAL_Q, "mfb-3axis": _MFB_Q, "mfb-5axis": _MFB_Q, "iso230-2": _POS_Q}
+QUANTITIES = {"selfcal": _SELFCAL_Q, "mfb-3axis": _MFB_Q, "mfb-5axis": _MFB_Q, "iso230-2": _POS_Q,
+              "discover": {"cause": "cause"}}
 #: Added to ``k U95``, in the quantity's unit (1 pm, 1 prad): an element fixed by the identification's ISO
 #: convention (its U95 is 0, e.g. EXX at the first node) must match the injected value in the same gauge to
 #: the rounding of the gauge transform (~1e-14), so a gauge or sign mismatch there fails.
@@ -133,10 +144,10 @@ GAUGE_FLOOR = 1e-6
 #: Quantities that have no U95 (absolute tolerance only).
 _NO_U95 = {"iso230-2": ("E", "M", "B")}
 _PLAN_KEYS = {"selfcal": ("c_angles_deg", "grid_mm"), "mfb-3axis": ("mc_runs",), "mfb-5axis": ("mc_runs",),
-              "iso230-2": ("axis", "targets", "cycles", "cycle")}
+              "iso230-2": ("axis", "targets", "cycles", "cycle"), "discover": ("c_angles_deg",)}
 _TOP = ("format", "name", "description", "identification", "machine", "seeds", "noise_um", "injected", "plan",
         "accept", "mutate")
-_INJECTED = ("errors", "seed", "ripple", "error")
+_INJECTED = ("errors", "seed", "ripple", "error", "probe")
 
 
 class StudyError(ConfigError):
@@ -155,15 +166,20 @@ class Rule:
     tolerance : float or None
         Absolute tolerance, in ``unit``.
     unit : str
-        ``um`` or ``urad``: the quantity's unit.
+        ``um`` or ``urad``: the quantity's unit (``cause`` for discover).
+    expected : tuple of str
+        Discover: the causes the findings must name.
     """
 
     quantity: str
     k: float | None
     tolerance: float | None
     unit: str
+    expected: tuple[str, ...] = ()
 
     def text(self) -> str:
+        if self.expected:
+            return "names " + ", ".join(self.expected)
         return f"<= {self.k:g} x U95" if self.k is not None else f"<= {self.tolerance:g} {self.unit}"
 
 
@@ -180,7 +196,9 @@ class Mutation:
             if q in out:
                 out[q] = out[q].replaced(identified=-out[q].identified)
         for q in self.drop:
-            if q in out:
+            if isinstance(out.get(q), Causes):
+                out[q] = Causes(())
+            elif q in out:
                 out[q] = out[q].replaced(identified=np.zeros_like(out[q].identified))
         return out
 
@@ -234,6 +252,13 @@ class Estimate:
         from dataclasses import replace
 
         return replace(self, **kw)
+
+
+@dataclass(frozen=True)
+class Causes:
+    """What ``vmt discover`` named (its JSON's ``findings[*].cause``), in order."""
+
+    named: tuple[str, ...]
 
 
 @dataclass(frozen=True)
@@ -317,7 +342,7 @@ class StudyResult:
             def f(v):
                 return "-" if not math.isfinite(v) else f"{v:.4g}"
 
-            rows.append((f"{c.quantity} [{c.unit}]", str(c.seed), c.where or "-", f(c.injected), f(c.identified),
+            rows.append((c.quantity if c.unit == "cause" else f"{c.quantity} [{c.unit}]", str(c.seed), c.where or "-", f(c.injected), f(c.identified),
                          f(c.u95), f(c.limit), ("pass" if c.passed else "FAIL") + (f" ({c.note})" if c.note else "")))
         w = [max(len(r[i]) for r in rows + [head]) for i in range(len(head))]
         lines = ["  ".join(h.ljust(w[i]) for i, h in enumerate(head))]
@@ -389,10 +414,10 @@ def _machine(r: _Reader, doc: dict, base_dir: Path):
         src = str(p)
     mdoc = dict(mdoc)
     for k, v in inj.items():
-        if k == "error":
-            errs = dict(r.table("injected.error", mdoc.get("error", {})))
-            errs.update(r.table("injected.error", v))
-            mdoc["error"] = errs
+        if k in ("error", "probe"):
+            merged = dict(r.table(f"injected.{k}", mdoc.get(k, {})))
+            merged.update(r.table(f"injected.{k}", v))
+            mdoc[k] = merged
         else:
             mdoc[k] = v
     if inj.get("errors") == "none" and "seed" not in inj:
@@ -449,6 +474,15 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
             r.fail(key, f"unknown quantity for {ident} (known: {', '.join(known)})")
         body = r.table(key, body)
         unit = known[q]
+        if ident == "discover":
+            if list(body) != ["expected"]:
+                r.fail(key, "expected exactly one key: expected = [\"cause\", ...] (the causes discover must name)")
+            exp = body["expected"]
+            exp = [exp] if isinstance(exp, str) else exp
+            if not isinstance(exp, list) or not exp or not all(isinstance(x, str) and x for x in exp):
+                r.fail(f"{key}.expected", f"expected a cause name or a non-empty list of them, got {body['expected']!r}")
+            rules.append(Rule(q, None, None, unit, tuple(exp)))
+            continue
         allowed = ("within_u95", f"tolerance_{unit}")
         for k in body:
             if k not in allowed:
@@ -471,6 +505,8 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
         for k in mt:
             if k not in ("flip_sign", "drop"):
                 r.fail(f"mutate.{k}", "unknown key (expected flip_sign, drop)")
+        if ident == "discover" and mt.get("flip_sign"):
+            r.fail("mutate.flip_sign", "a cause has no sign (discover: drop only)")
         mutation = Mutation(r.names("mutate.flip_sign", mt.get("flip_sign", []), known),
                             r.names("mutate.drop", mt.get("drop", []), known))
     desc = doc.get("description", "")
@@ -481,7 +517,7 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
 
 
 def _check_plan(r: _Reader, ident: str, plan: dict) -> None:
-    if ident == "selfcal":
+    if ident in ("selfcal", "discover"):
         if "c_angles_deg" in plan:
             v = plan["c_angles_deg"]
             if not isinstance(v, list) or len(v) < 2:
@@ -527,13 +563,10 @@ def load_study(path) -> Study:
 
 
 # --------------------------------------------------------------------------- identifications
-def _selfcal(study: Study, seed: int) -> dict:
-    """Cross-pocket campaign on the study's machine, self-calibration, truth in its gauge."""
+def _cross_pocket(study: Study, seed: int):
+    """(machine, artefact, plan, probe log): the cross-pocket campaign of ``seed`` on the study's machine."""
     from dataclasses import replace
 
-    from core.selfcal import Grid, self_calibrate, yaw_for_chain
-    from core.touches import from_log
-    from scenarios.selfcal_coverage import Campaign, block_truth
     from sim import artefacts as A
     from sim.campaign import simulate_campaign
     from sim.catalog import make_plan
@@ -541,7 +574,7 @@ def _selfcal(study: Study, seed: int) -> dict:
 
     spec = study.machine
     if "C" not in spec.config.strokes:
-        raise StudyError(f"{study.source}: machine {spec.config.name}: the self-calibration needs a C axis")
+        raise StudyError(f"{study.source}: machine {spec.config.name}: the cross-pocket campaign needs a C axis")
     m = Machine(spec.config)
     noise_m = study.noise_um * 1e-6
     probe = replace(spec.probe, repeatability_k2_m=2.0 * noise_m)
@@ -549,7 +582,20 @@ def _selfcal(study: Study, seed: int) -> dict:
     plan = make_plan(art)
     angles = [float(c) for c in study.plan_value("c_angles_deg", [0.0, 75.0, 130.0, 210.0])]
     rng = np.random.default_rng(seed) if noise_m > 0 else None
-    log = simulate_campaign(art, m, probe, angles, rng, check_collisions=False)
+    log = simulate_campaign(art, m, probe, angles, rng, check_collisions=False,
+                            meta={"errors": f"study {study.name}", "seed": str(seed)})
+    return m, art, plan, log
+
+
+def _selfcal(study: Study, seed: int) -> dict:
+    """Cross-pocket campaign on the study's machine, self-calibration, truth in its gauge."""
+    from core.selfcal import Grid, self_calibrate, yaw_for_chain
+    from core.touches import from_log
+    from scenarios.selfcal_coverage import Campaign, block_truth
+
+    spec = study.machine
+    m, art, plan, log = _cross_pocket(study, seed)
+    noise_m = study.noise_um * 1e-6
     t = from_log(log.select(np.abs(log.col("nz")) <= 0.01))
     lo, hi, st = (v * 1e-3 for v in study.plan_value("grid_mm", [-110.0, 110.0, 22.0]))
     res = self_calibrate(t, Grid.regular(lo, hi, st), yaw=yaw_for_chain(spec.config.chain))
@@ -621,8 +667,28 @@ def _positioning(study: Study, seed: int) -> dict:
     }
 
 
-#: identification -> callable(study, seed) -> {quantity: Estimate}
-RUNNERS = {"selfcal": _selfcal, "mfb-3axis": _mfb, "mfb-5axis": _mfb, "iso230-2": _positioning}
+def _discover(study: Study, seed: int) -> dict:
+    """The cross-pocket campaign written as a probe log and read by ``vmt discover``'s own code path; the
+    causes its JSON report names (``findings[*].cause``): the only part of discover's output a study
+    relies on, as its engine is being rewritten."""
+    import json
+    import tempfile
+
+    from core.probelog import write_probe_log
+    from scenarios.cli.discover import run_discover
+
+    *_, log = _cross_pocket(study, seed)
+    with tempfile.TemporaryDirectory(prefix="vmt-regress-") as d:
+        p, j = Path(d) / "campaign.csv", Path(d) / "discover.json"
+        write_probe_log(p, log)
+        run_discover(str(p), str(j))
+        rep = json.loads(j.read_text(encoding="utf-8"))
+    return {"cause": Causes(tuple(str(f["cause"]) for f in rep.get("findings", [])))}
+
+
+#: identification -> callable(study, seed) -> {quantity: Estimate (or Causes for discover)}
+RUNNERS = {"selfcal": _selfcal, "mfb-3axis": _mfb, "mfb-5axis": _mfb, "iso230-2": _positioning,
+           "discover": _discover}
 
 
 # --------------------------------------------------------------------------- comparing
@@ -630,6 +696,12 @@ def check(rule: Rule, est: Estimate | None, seed: int) -> Check:
     """The verdict of ``rule`` on one identified quantity (None: the identification did not give it)."""
     if est is None:
         return Check(seed, rule.quantity, rule.unit, rule.text(), False, note="not identified")
+    if rule.expected:
+        named = est.named
+        missing = [c for c in rule.expected if c not in named]
+        note = ("named " + (", ".join(named) if named else "no cause")
+                + (f"; expected {', '.join(missing)} not named" if missing else ""))
+        return Check(seed, rule.quantity, rule.unit, rule.text(), not missing, "findings", n=len(named), note=note)
     dev = np.abs(np.asarray(est.identified, float) - np.asarray(est.injected, float))
     if rule.k is not None:
         if est.u95 is None:
