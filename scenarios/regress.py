@@ -103,7 +103,11 @@ exactly what a sign error in Q's columns of the model gives when Q's gauge
 conditions are homogeneous (the solution of the flipped model is Q
 negated, everything else unchanged). ``drop = [Q, ...]`` reports Q as
 identically zero, what a model without the term assumes; unlike a real
-model without it, the other quantities do not absorb its effect here. A
+model without it, the other quantities do not absorb its effect here.
+``planar = true`` (selfcal) is a change inside the estimator itself: the
+self-calibration runs without its height terms (the C axis's tilt per
+set-up, the tool's Abbe terms), so their effect on the raised targets
+leaks into the other quantities as it would in a real regression. A
 study with a mutation is expected to FAIL on the mutated quantities: that
 is how a user proves the acceptance rules would catch such a change.
 
@@ -185,10 +189,12 @@ class Rule:
 
 @dataclass(frozen=True)
 class Mutation:
-    """A change injected into the identification (module docstring): quantities sign-flipped or dropped."""
+    """A change injected into the identification (module docstring): quantities sign-flipped or dropped;
+    ``planar``: the self-calibration run without its height terms (a different estimator)."""
 
     flip_sign: tuple[str, ...] = ()
     drop: tuple[str, ...] = ()
+    planar: bool = False
 
     def __call__(self, identification: str, estimates: dict) -> dict:
         out = dict(estimates)
@@ -330,7 +336,8 @@ class StudyResult:
                 "convention": "ISO 230-1: every error is the tool's displacement relative to the workpiece; "
                               "injected values in the identification's gauge",
                 "mutation": None if s.mutation is None else {"flip_sign": list(s.mutation.flip_sign),
-                                                             "drop": list(s.mutation.drop)},
+                                                             "drop": list(s.mutation.drop),
+                                                             "planar": s.mutation.planar},
                 "passed": self.passed, "n_checks": len(self.checks), "n_failed": len(self.failures),
                 "seconds": [round(t, 3) for t in self.seconds], "checks": [c.to_json() for c in self.checks]}
 
@@ -503,12 +510,17 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
     if "mutate" in doc:
         mt = r.table("mutate", doc["mutate"])
         for k in mt:
-            if k not in ("flip_sign", "drop"):
-                r.fail(f"mutate.{k}", "unknown key (expected flip_sign, drop)")
+            if k not in ("flip_sign", "drop", "planar"):
+                r.fail(f"mutate.{k}", "unknown key (expected flip_sign, drop, planar)")
+        planar = mt.get("planar", False)
+        if not isinstance(planar, bool):
+            r.fail("mutate.planar", f"expected true or false, got {planar!r}")
+        if planar and ident != "selfcal":
+            r.fail("mutate.planar", "only for the self-calibration (its height terms)")
         if ident == "discover" and mt.get("flip_sign"):
             r.fail("mutate.flip_sign", "a cause has no sign (discover: drop only)")
         mutation = Mutation(r.names("mutate.flip_sign", mt.get("flip_sign", []), known),
-                            r.names("mutate.drop", mt.get("drop", []), known))
+                            r.names("mutate.drop", mt.get("drop", []), known), planar)
     desc = doc.get("description", "")
     if not isinstance(desc, str):
         r.fail("description", f"expected a string, got {desc!r}")
@@ -598,7 +610,8 @@ def _selfcal(study: Study, seed: int) -> dict:
     noise_m = study.noise_um * 1e-6
     t = from_log(log.select(np.abs(log.col("nz")) <= 0.01))
     lo, hi, st = (v * 1e-3 for v in study.plan_value("grid_mm", [-110.0, 110.0, 22.0]))
-    res = self_calibrate(t, Grid.regular(lo, hi, st), yaw=yaw_for_chain(spec.config.chain))
+    heights = False if (study.mutation is not None and study.mutation.planar) else "auto"
+    res = self_calibrate(t, Grid.regular(lo, hi, st), yaw=yaw_for_chain(spec.config.chain), heights=heights)
     des = res.design
     raw, _ = block_truth(Campaign(m, t, art, plan, seed, noise_m), des)
     truth = des.to_gauge(raw)

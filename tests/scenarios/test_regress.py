@@ -160,6 +160,20 @@ def test_a_mutated_identification_fails_on_that_quantity(tmp_path, capsys, src, 
     assert f"FAIL {quantity} (seed" in out and "MUTATED" in out
 
 
+def test_a_dropped_model_term_inside_the_estimator_is_caught(tmp_path, capsys):
+    """``planar = true``: the self-calibration itself runs without its height terms (a different estimator,
+    not a relabelled output). The spheres stand 25.7 mm above the walls, so the C axis's tilt and the
+    tool's Abbe terms go unmodelled into the workpiece (and the tables): the study fails there and the
+    C axis's location, which the tilt does not move at the pocket's height, still passes."""
+    p = _mutated(tmp_path, SELFCAL, "planar = true")
+    j = tmp_path / "r.json"
+    assert main(["regress", str(p), "--json", str(j)]) == 1
+    checks = {c["quantity"]: c for c in json.loads(j.read_text())["checks"]}
+    assert not checks["workpiece"]["passed"] and checks["workpiece"]["margin"] < 0
+    assert checks["EXC"]["passed"] and checks["EYC"]["passed"]
+    assert "planar model" in capsys.readouterr().out
+
+
 def test_discover_fails_when_the_hidden_cause_is_not_there(tmp_path):
     """The discover example without its hidden screw error (and no ripple): discover names no cause,
     so the study fails on ``cause``; the check is not satisfied by any campaign."""
@@ -274,6 +288,7 @@ BASE = 'identification = "iso230-2"\nmachine = "vmc-3axis"\nseeds = [1]\n[accept
     (BASE + "[plan]\naxis = \"A\"\n", "plan.axis: expected X, Y or Z"),
     (BASE + "[plan]\nc_angles_deg = [0, 90]\n", "plan.c_angles_deg: unknown key for iso230-2"),
     (BASE + "[mutate]\nflip_sign = [\"EXX\"]\n", "mutate.flip_sign: unknown quantity 'EXX'"),
+    (BASE + "[mutate]\nplanar = true\n", "mutate.planar: only for the self-calibration"),
     (BASE + "[injected.error.EXX]\nslope_um = 1\n", "error.EXX"),
     (BASE.replace("[accept.mean]\nwithin_u95 = 1.0\n", ""), "accept: missing"),
 ])
