@@ -19,7 +19,8 @@ Study file
     identification = "selfcal"    # selfcal | mfb-3axis | mfb-5axis | iso230-2 | discover
     machine = "nmv3000"           # a built-in machine, or a machine file (path relative to the study)
     seeds = [1, 2]                # one campaign per seed (its probing noise)
-    noise_um = 0.3                # probing noise, k = 1 (default: the machine's probe)
+    noise_um = 0.3                # probing noise, k = 1 (default: the machine's probe;
+                                  # iso230-2: the scatter of a reading, default 0.5)
 
     [injected]                    # optional: the machine's errors, machine-file keys
     errors = "realistic"          # "none" | "realistic" (the papers' magnitudes) ...
@@ -137,7 +138,6 @@ _SELFCAL_Q = {"EXX": "um", "EYX": "um", "EXY": "um", "EYY": "um", "ECY": "urad",
 _MFB_Q = {s: ("urad" if s[1] in "ABC" else "um") for s in
           ("EXX", "EYX", "EZX", "EAX", "EBX", "ECX", "EYY", "EXY", "EZY", "EAY", "EBY", "ECY",
            "EZZ", "EXZ", "EYZ", "EAZ", "EBZ", "ECZ", "EC0Y", "EB0Z", "EA0Z")}
-_MFB_Q.update({"EC0Y": "urad", "EB0Z": "urad", "EA0Z": "urad"})
 _POS_Q = {"mean": "um", "reversal": "um", "E": "um", "M": "um", "B": "um"}
 QUANTITIES = {"selfcal": _SELFCAL_Q, "mfb-3axis": _MFB_Q, "mfb-5axis": _MFB_Q, "iso230-2": _POS_Q,
               "discover": {"cause": "cause"}}
