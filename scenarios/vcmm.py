@@ -32,9 +32,11 @@ from core import vcmm as V
 from core.exceptions import ConfigError, FitError, PlanError
 from core.touches import ProbeStatus
 
-#: Approach start before the nominal contact and search beyond it, m (find_contacts brackets in 7 samples).
+#: Approach start before the nominal contact and search beyond it, m. find_contacts brackets the
+#: contact with 7 samples, 1/6 of the travel apart; the nominal contact (0.4 of the travel) falls
+#: between two, never on one (a root exactly on a sample costs ~30 bisection steps there).
 CLEARANCE_M = 1.0e-3
-OVERSHOOT_M = 1.0e-3
+OVERSHOOT_M = 1.5e-3
 #: Probing feed (the campaign default, 240 mm/min), m/s.
 FEED_MPS = 0.240 / 60.0
 #: Largest distance of a plan's nominal contact from its feature's fitted primitive, m. A plan's
