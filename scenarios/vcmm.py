@@ -58,6 +58,7 @@ class Setting:
     config: object       # sim.machine.MachineConfig: the best estimate of the machine
     probe: object        # sim.probe.ProbeConfig (noise: the task's or the machine's)
     sources: tuple       # names: declared terms, then the probe's repeatability
+    targets: tuple = ()  # (k,) the plan's target of each used touch
 
 
 def _primitive_sdf(kind: str, p_W: np.ndarray, n_W: np.ndarray, r: float, name: str):
@@ -156,7 +157,8 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None) -> Setti
         if ax not in nominal.chain.axes:
             raise ConfigError(f"{task.source}: declared.{t.symbol}: axis {ax} is not in machine {cfg.name}'s "
                               f"chain {cfg.chain}")
-    return Setting(task, rows, Xn_R, n_R, rot, tuple(sdfs), group, cfg, probe, sources)
+    return Setting(task, rows, Xn_R, n_R, rot, tuple(sdfs), group, cfg, probe, sources,
+                   tuple(txt["target"][used].tolist()))
 
 
 def machine_errors(st: Setting, coeffs: dict) -> dict:
@@ -210,8 +212,12 @@ def draw(st: Setting, seed: int, run: int, active: tuple | None = None) -> tuple
     return coeffs, np.random.default_rng(ss[-1])
 
 
-def run_values(st: Setting, seed: int, runs, active: tuple | None = None) -> np.ndarray:
-    """Measurand values (len(runs), m) SI of the given run indices (sources ``active``, None: all)."""
+def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: list | None = None) -> np.ndarray:
+    """Measurand values (len(runs), m) SI of the given run indices (sources ``active``, None: all).
+
+    ``dq``: a list to which each run's (k,) normal deviations of the touches,
+    ``n . (reported - nominal)`` m, are appended (the report's worst touches).
+    """
     noise = active is None or V.PROBE_SOURCE in active
     out = np.empty((len(runs), len(st.task.measurands)))
     r_st = st.probe.stylus_r_m
@@ -224,6 +230,8 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None) -> np.
         coeffs, rng = draw(st, seed, int(k), active)
         p = simulate_run(st, coeffs, rng, noise=noise, machine=fixed)
         out[i] = V.evaluate(st.task, st.rows, p, st.n_R, r_st)
+        if dq is not None:
+            dq.append(np.einsum("ij,ij->i", p - st.Xn_R, st.n_R))
     return out
 
 
@@ -239,7 +247,8 @@ class Result:
 
 
 def adaptive(st: Setting, seed: int, active: tuple | None, which: str, first_run: int = 0, progress=None,
-             done_before: int = 0, total_hint: int = 0, tolerance: np.ndarray | None = None):
+             done_before: int = 0, total_hint: int = 0, tolerance: np.ndarray | None = None,
+             dq: list | None = None):
     """JCGM 101 7.9.4: batches of M runs until every measurand is stable (or ``max_runs``).
 
     ``tolerance`` (m,) SI: a numerical tolerance per measurand (the budget's
@@ -255,7 +264,7 @@ def adaptive(st: Setting, seed: int, active: tuple | None, which: str, first_run
     while True:
         h = len(batches)
         runs = np.arange(first_run + h * M, first_run + (h + 1) * M)
-        b = run_values(st, seed, runs, active)
+        b = run_values(st, seed, runs, active, dq)
         vals = np.vstack([vals, b])
         batches.append([[s.mean, s.u, s.low, s.high] for s in (V.mc_stats(b[:, j], mc.coverage)
                                                              for j in range(b.shape[1]))])
@@ -292,7 +301,10 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True) -> 
     y_best = V.evaluate(task, st.rows, simulate_run(st, {}, None, noise=False, machine=Machine(st.config)),
                         st.n_R, r_st)
     guess = task.mc.batch_runs * 2 * (1 + (len(st.sources) if budget else 0))
-    vals, ok = adaptive(st, seed, None, "all", progress=progress, total_hint=guess - 2 * task.mc.batch_runs)
+    dq: list = []
+    vals, ok = adaptive(st, seed, None, "all", progress=progress, total_hint=guess - 2 * task.mc.batch_runs,
+                        dq=dq)
+    dq_a = np.asarray(dq)
     done = len(vals)
     delta = np.array([task.mc.tolerance if task.mc.tolerance is not None else
                       V.numerical_tolerance(float(vals[:, j].std(ddof=1)), task.mc.significant_digits)
@@ -324,6 +336,7 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True) -> 
             "coverage": task.mc.coverage,
             "interval": [s.low * m.scale, s.high * m.scale],
             "converged": bool(ok[j]),
+            "tolerance": float(delta[j] * m.u_scale),
             "budget": [{"source": k, "u": u * m.u_scale, "share": (u * u / ss) if ss > 0 else 0.0,
                         "runs": bud_runs[k]} for k, u in u_src.items()],
             "budget_rss_over_u": (math.sqrt(ss) / s.u) if (budget and s.u > 0) else None,
@@ -336,7 +349,11 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True) -> 
                           + {0: "", 1: "/m", 2: "/m2"}[t.power]} for t in task.declared],
             "probe_noise_um": st.probe.sigma_m * 1e6,
             "runs_total": int(done), "elapsed_s": elapsed, "runs_per_s": done / elapsed if elapsed > 0 else None,
-            "measurands": out, "values_si": vals}
+            "measurands": out,
+            "touches_u": [{"target": st.targets[i], "feature": task.features[st.group[i]].name,
+                           "u_dq_um": float(dq_a[:, i].std(ddof=1) * 1e6),
+                           "mean_dq_um": float(dq_a[:, i].mean() * 1e6)} for i in range(dq_a.shape[1])],
+            "values_si": vals}
 
 
 # --------------------------------------------------------------------------- the README's example part
@@ -373,3 +390,37 @@ def block_plan():
             "Xn_mm": Xn[:, 0], "Yn_mm": Xn[:, 1], "Zn_mm": Xn[:, 2], "nx": nn[:, 0], "ny": nn[:, 1],
             "nz": nn[:, 2], "feature": [f for f, _, _, _ in rows], "stylus_r_mm": np.full(n, r)}
     return make_log(cols, {"plan": "vmt README example: block with a bore", "stylus_r_mm": "3.0"})
+
+
+def write_report(folder, rep: dict, *, worst: int = 10):
+    """A report folder (index.html): the measurands with U95 and interval, the budget chart, the worst touches.
+
+    The worst touches are those whose normal deviation ``dq`` (reported minus
+    nominal along the normal) scatters most over the Monte Carlo runs: where
+    the machine's declared errors and the probe move the touches most.
+    """
+    from viz.figures import budget_figure
+    from viz.report import Section, Table, write_report as write
+
+    ms = rep["measurands"]
+    rows = [(m["name"], m["quantity"], f"{m['nominal']:.6g} {m['unit']}", f"{m['bias']:+.4f}", f"{m['u']:.4f}",
+             "-" if m["U95"] is None else f"{m['U95']:.4f}",
+             f"[{m['interval'][0]:.6f}, {m['interval'][1]:.6f}] {m['unit']}", m["u_unit"],
+             "yes" if m["converged"] else "NO (max_runs)") for m in ms]
+    summary = Table(("measurand", "quantity", "nominal", "bias", "u", "U95", "coverage interval", "unit of bias/u/U95",
+                     "converged"), rows, caption="bias: Monte Carlo mean minus the value on a perfect machine; U95: "
+                     "half the probabilistically symmetric 95 % interval (JCGM 101 7.7)")
+    tw = sorted(rep["touches_u"], key=lambda t: -t["u_dq_um"])[:worst]
+    touches = Table(("target", "feature", "u(dq) / µm", "mean dq / µm"),
+                    [(t["target"], t["feature"], f"{t['u_dq_um']:.4f}", f"{t['mean_dq_um']:+.4f}") for t in tw])
+    src = ", ".join(f"{d['source']} +-{d['bound']:g} {d['unit']} ({d['distribution']})" for d in rep["declared"])
+    text = (f"Machine {rep['machine']}, task {rep['task']}, plan {rep.get('plan', '?')}: {rep['touches']} touches, "
+            f"{rep['runs']} Monte Carlo runs (JCGM 101 adaptive, batches of {rep['batch_runs']}), "
+            f"{rep['runs_total']} with the budget, seed {rep['seed']}. Declared: {src or 'none'}; probing "
+            f"repeatability {rep['probe_noise_um']:g} um (k = 1).")
+    secs = [Section("Measurands", text, tables=[summary]),
+            Section("Budget", "u of each source alone (the others at their best estimate), beside the full u.",
+                    figures={"budget": budget_figure(ms)}),
+            Section("Worst touches", "The touches whose normal deviation scatters most over the runs.",
+                    tables=[touches])]
+    return write(folder, "Virtual CMM: task uncertainty", secs)

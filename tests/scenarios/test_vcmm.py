@@ -137,7 +137,8 @@ def test_cli_end_to_end_gauge(tmp_path, machine, capsys):
     write_probe_log(plan, GAUGE)
     task.write_text(GAUGE_TASK)
     assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
-                 "--seed", "1"]) == 0
+                 "--seed", "1", "--report", str(tmp_path / "rep")]) == 0
+    assert (tmp_path / "rep" / "index.html").is_file() and (tmp_path / "rep" / "budget.png").is_file()
     rep = json.loads(out.read_text())
     m = rep["measurands"][0]
     assert m["converged"] and rep["runs"] >= 100
@@ -153,6 +154,9 @@ def test_cli_end_to_end_gauge(tmp_path, machine, capsys):
     # the budget's runs share the full runs' draws but stop on their own (u stable): within the tolerance
     assert b["source"] == "EXX slope" and b["share"] == 1.0 and abs(b["u"] - m["u"]) < 0.1
     assert "length" in capsys.readouterr().out
+    # the worst touches: every touch moves by s x along X, so u(dq) grows with |x| (face b at 103 mm)
+    tu = {t["target"]: t["u_dq_um"] for t in rep["touches_u"]}
+    assert abs(tu["P03"] - 0.103e6 * A_SLOPE / math.sqrt(3)) < 0.1 and tu["P00"] < 0.03
 
 
 @pytest.mark.parametrize("body, match", [
