@@ -37,6 +37,16 @@ Task file (units in the key names)::
     [probe]
     noise_um = 0.25              # repeatability, k = 1 (default: the machine's)
 
+    [temperature]                # results at 20 C, corrected with the best estimates
+    part_C = 22.0                # the part's temperature during the measurement
+    u_part_K = 0.5               # its standard uncertainty (normal)
+    part_alpha_per_K = 11.5e-6   # the part's expansion coefficient
+    u_part_alpha_per_K = 1.0e-6
+    scales_C = 21.0              # the machine's scales (one temperature for X, Y, Z)
+    u_scales_K = 0.3
+    scales_alpha_per_K = 8.0e-6
+    u_scales_alpha_per_K = 0.5e-6
+
     [mc]
     significant_digits = 1       # JCGM 101 7.9.2: u stable to this many digits
     # tolerance_um = 0.05        # or an absolute numerical tolerance
@@ -54,6 +64,7 @@ one independent source of the budget.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -76,6 +87,13 @@ U_PER_BOUND = {"uniform": 1 / math.sqrt(3), "normal": 0.5, "triangular": 1 / mat
 #: Power of the axis reading of each declared term.
 TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2}
 PROBE_SOURCE = "probe repeatability"
+#: Reference temperature of dimensional measurement (ISO 1), C.
+T_REF_C = 20.0
+#: Temperature sources: name -> (value key, its u key) of :class:`Temperature`.
+THERMAL_SOURCES = {"part temperature": ("part_C", "u_part_K"),
+                   "part expansion": ("part_alpha_per_K", "u_part_alpha_per_K"),
+                   "scale temperature": ("scales_C", "u_scales_K"),
+                   "scale expansion": ("scales_alpha_per_K", "u_scales_alpha_per_K")}
 
 
 class TaskFileError(ConfigError):
@@ -149,6 +167,56 @@ class DeclaredTerm:
 
 
 @dataclass(frozen=True)
+class Temperature:
+    """Temperatures and expansion coefficients with their standard uncertainties (normal draws).
+
+    The part expands about the centroid of its probed surface points by
+    ``e_p = alpha_p (T_p - 20)``; the scales by ``e_s = alpha_s (T_s - 20)``
+    (a reading is the true position over ``1 + e_s``: the tool sits at the
+    reading times ``1 + e_s``, an ``EXX``, ``EYY``, ``EZZ`` slope of ``e_s``). The
+    result is corrected to 20 C with the best estimates (:func:`correct_to_20c`);
+    what remains is the uncertainty of the draws.
+    """
+
+    part_C: float = T_REF_C
+    u_part_K: float = 0.0
+    part_alpha_per_K: float = 0.0
+    u_part_alpha_per_K: float = 0.0
+    scales_C: float = T_REF_C
+    u_scales_K: float = 0.0
+    scales_alpha_per_K: float = 0.0
+    u_scales_alpha_per_K: float = 0.0
+
+    @property
+    def sources(self) -> tuple:
+        """The sources with a non-zero u, in :data:`THERMAL_SOURCES` order."""
+        return tuple(k for k, (_, u) in THERMAL_SOURCES.items() if getattr(self, u) > 0)
+
+    def strains(self, draws: dict | None = None) -> tuple[float, float]:
+        """(e_part, e_scales): with ``draws`` ``{source: value}`` replacing the best estimates."""
+        v = {k: (draws or {}).get(k, getattr(self, key)) for k, (key, _) in THERMAL_SOURCES.items()}
+        return (v["part expansion"] * (v["part temperature"] - T_REF_C),
+                v["scale expansion"] * (v["scale temperature"] - T_REF_C))
+
+    def draw(self, source: str, rng: np.random.Generator) -> float:
+        key, ukey = THERMAL_SOURCES[source]
+        return float(getattr(self, key) + getattr(self, ukey) * rng.standard_normal())
+
+
+def correct_to_20c(p_R: np.ndarray, n_R: np.ndarray, stylus_r: float, e_part: float, e_scales: float,
+                   centre: np.ndarray) -> np.ndarray:
+    """Reported tip centres corrected to 20 C with the strains' best estimates, (n, 3) m.
+
+    The tool is at the reading times ``1 + e_scales``; the surface point is
+    ``r`` back along the normal; at 20 C the part is ``1 + e_part`` smaller
+    about ``centre``; the tip centre goes back out by ``r`` (the ball does
+    not belong to the part).
+    """
+    s = p_R * (1.0 + e_scales) - stylus_r * n_R
+    return centre + (s - centre) / (1.0 + e_part) + stylus_r * n_R
+
+
+@dataclass(frozen=True)
 class MCSettings:
     """JCGM 101 adaptive Monte Carlo settings (7.9).
 
@@ -176,6 +244,7 @@ class Task:
     probe_noise_um: float | None = None
     mc: MCSettings = field(default_factory=MCSettings)
     source: str = "<task>"
+    temperature: Temperature | None = None
 
     def feature(self, name: str) -> FeatureSpec:
         for f in self.features:
@@ -247,7 +316,8 @@ class _TaskReader:
                 self.fail(f"{key}.{k}" if key else k, f"unknown key (expected one of {', '.join(allowed)})")
 
     def task(self, doc) -> Task:
-        self.keys("", doc, ("format", "description", "features", "measurands", "declared", "probe", "mc"))
+        self.keys("", doc, ("format", "description", "features", "measurands", "declared", "probe", "mc",
+                            "temperature"))
         if "format" in doc and doc["format"] != FORMAT:
             self.fail("format", f"expected {FORMAT!r}, got {doc['format']!r}")
         feats = tuple(self.feature(n, b) for n, b in self.table("features", doc.get("features", {})).items())
@@ -267,7 +337,21 @@ class _TaskReader:
         probe = self.table("probe", doc.get("probe", {}))
         self.keys("probe", probe, ("noise_um",))
         noise = self.number("probe.noise_um", probe["noise_um"], nonneg=True) if "noise_um" in probe else None
-        return Task(feats, meas, tuple(declared), noise, self.mc(self.table("mc", doc.get("mc", {}))), self.source)
+        temp = self.temperature(self.table("temperature", doc["temperature"])) if "temperature" in doc else None
+        return Task(feats, meas, tuple(declared), noise, self.mc(self.table("mc", doc.get("mc", {}))), self.source,
+                    temp)
+
+    def temperature(self, t) -> Temperature:
+        keys = [f.name for f in dataclasses.fields(Temperature)]
+        self.keys("temperature", t, keys)
+        kw = {}
+        for k in keys:
+            if k in t:
+                kw[k] = self.number(f"temperature.{k}", t[k], nonneg=k.startswith("u_"))
+        for k in ("part_C", "scales_C"):
+            if k in kw and not -50.0 <= kw[k] <= 100.0:
+                self.fail(f"temperature.{k}", f"a workshop temperature in [-50, 100] C, got {kw[k]!r}")
+        return Temperature(**kw)
 
     def feature(self, name, body) -> FeatureSpec:
         key = f"features.{name}"

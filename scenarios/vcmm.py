@@ -59,6 +59,7 @@ class Setting:
     probe: object        # sim.probe.ProbeConfig (noise: the task's or the machine's)
     sources: tuple       # names: declared terms, then the probe's repeatability
     targets: tuple = ()  # (k,) the plan's target of each used touch
+    centre_R: np.ndarray | None = None   # (3,) the part's thermal centre: centroid of its probed surface points
 
 
 def _primitive_sdf(kind: str, p_W: np.ndarray, n_W: np.ndarray, r: float, name: str):
@@ -151,14 +152,18 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None) -> Setti
     overlap = sum(len(v) for v in rows.values()) != len(used)
     if overlap:
         raise ConfigError(f"{task.source}: a plan row belongs to two features (each touch probes one surface)")
-    sources = tuple(t.source for t in task.declared) + ((V.PROBE_SOURCE,) if probe.sigma_m > 0 else ())
+    sources = (tuple(t.source for t in task.declared) + ((V.PROBE_SOURCE,) if probe.sigma_m > 0 else ())
+               + (task.temperature.sources if task.temperature else ()))
+    if task.temperature is not None and rot is not None and np.any(rot != 0):
+        raise ConfigError(f"{task.source}: [temperature] with rotary positions other than 0 is not supported "
+                          "(the part's expansion is applied in the machine frame)")
     for t in task.declared:
         ax = V.iso.symbol(t.symbol).axis
         if ax not in nominal.chain.axes:
             raise ConfigError(f"{task.source}: declared.{t.symbol}: axis {ax} is not in machine {cfg.name}'s "
                               f"chain {cfg.chain}")
     return Setting(task, rows, Xn_R, n_R, rot, tuple(sdfs), group, cfg, probe, sources,
-                   tuple(txt["target"][used].tolist()))
+                   tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0))
 
 
 def machine_errors(st: Setting, coeffs: dict) -> dict:
@@ -178,17 +183,26 @@ def machine_errors(st: Setting, coeffs: dict) -> dict:
     return errs
 
 
+def _expanded(sdf, e: float, c: np.ndarray):
+    """The signed distance of the part grown by ``1 + e`` about ``c`` (exact: distances scale too)."""
+    def f(p):
+        return (1.0 + e) * sdf(c + (p - c) / (1.0 + e))
+    return f
+
+
 def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, noise: bool = True,
-                 machine=None) -> np.ndarray:
-    """Reported tip centres (k, 3) m of the used touches on the machine with ``coeffs`` drawn."""
+                 machine=None, e_part: float = 0.0) -> np.ndarray:
+    """Reported tip centres (k, 3) m of the used touches on the machine with ``coeffs`` drawn,
+    the part grown by ``1 + e_part`` about its thermal centre."""
     from sim.machine import Machine
     from sim.probe import simulate_touches
 
     m = machine if machine is not None else Machine(dataclasses.replace(st.config, errors=machine_errors(st, coeffs)))
     k = len(st.Xn_R)
+    sdfs = st.sdf_W if e_part == 0.0 else tuple(_expanded(f, e_part, st.centre_R) for f in st.sdf_W)
     res = simulate_touches(m, st.probe, rng if noise else None, st.Xn_R + CLEARANCE_M * st.n_R, -st.n_R,
                            np.full(k, CLEARANCE_M + OVERSHOOT_M), st.rot_rad, np.zeros(k), np.full(k, FEED_MPS),
-                           st.sdf_W, st.group, np.broadcast_to(np.eye(4), (k, 4, 4)))
+                           sdfs, st.group, np.broadcast_to(np.eye(4), (k, 4, 4)))
     bad = res.status != ProbeStatus.OK
     if bad.any():
         i = int(np.argmax(bad))
@@ -197,19 +211,42 @@ def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, 
     return res.pos_R
 
 
-def draw(st: Setting, seed: int, run: int, active: tuple | None = None) -> tuple[dict, np.random.Generator]:
-    """Run ``run``'s draws: ``{(symbol, power): value}`` of the active declared terms and the noise generator.
+def draw(st: Setting, seed: int, run: int, active: tuple | None = None):
+    """Run ``run``'s draws: ``({(symbol, power): value}, noise generator, {thermal source: value})``.
 
     Every term draws from its own stream, so switching a source off (``active``)
-    leaves the others' draws unchanged (the budget's runs share the full runs' draws).
+    leaves the others' draws unchanged (the budget's runs share the full runs'
+    draws); an inactive thermal source stays at its best estimate.
     """
-    ss = V.run_seeds(seed, run).spawn(len(st.task.declared) + 1)
+    nd = len(st.task.declared)
+    ss = V.run_seeds(seed, run).spawn(nd + 1 + len(V.THERMAL_SOURCES))
     coeffs = {}
     for t, s in zip(st.task.declared, ss):
         if active is None or t.source in active:
             key = (t.symbol, t.power)
             coeffs[key] = coeffs.get(key, 0.0) + V.draw_term(t, np.random.default_rng(s))
-    return coeffs, np.random.default_rng(ss[-1])
+    thermal = {}
+    if st.task.temperature is not None:
+        for name, s in zip(V.THERMAL_SOURCES, ss[nd + 1:]):
+            if name in st.task.temperature.sources and (active is None or name in active):
+                thermal[name] = st.task.temperature.draw(name, np.random.default_rng(s))
+    return coeffs, np.random.default_rng(ss[nd]), thermal
+
+
+def _measure(st: Setting, coeffs: dict, rng, thermal: dict, *, noise: bool, machine=None) -> np.ndarray:
+    """Reported tip centres of one run, corrected to 20 C when the task has a [temperature] table."""
+    temp = st.task.temperature
+    if temp is None:
+        return simulate_run(st, coeffs, rng, noise=noise, machine=machine)
+    e_p, e_s = temp.strains(thermal)
+    if e_s != 0.0:
+        machine = None
+        coeffs = dict(coeffs)
+        for sym in ("EXX", "EYY", "EZZ"):
+            coeffs[(sym, 1)] = coeffs.get((sym, 1), 0.0) + e_s
+    p = simulate_run(st, coeffs, rng, noise=noise, machine=machine, e_part=e_p)
+    e_p0, e_s0 = temp.strains()
+    return V.correct_to_20c(p, st.n_R, st.probe.stylus_r_m, e_p0, e_s0, st.centre_R)
 
 
 def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: list | None = None) -> np.ndarray:
@@ -225,25 +262,14 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: li
     if active is not None and not any(t.source in active for t in st.task.declared):
         from sim.machine import Machine
 
-        fixed = Machine(st.config)   # the probe alone: one machine for every run
+        fixed = Machine(st.config)   # no declared term drawn: one machine for every run
     for i, k in enumerate(runs):
-        coeffs, rng = draw(st, seed, int(k), active)
-        p = simulate_run(st, coeffs, rng, noise=noise, machine=fixed)
+        coeffs, rng, thermal = draw(st, seed, int(k), active)
+        p = _measure(st, coeffs, rng, thermal, noise=noise, machine=fixed)
         out[i] = V.evaluate(st.task, st.rows, p, st.n_R, r_st)
         if dq is not None:
             dq.append(np.einsum("ij,ij->i", p - st.Xn_R, st.n_R))
     return out
-
-
-@dataclass(frozen=True)
-class Result:
-    """One measurand's Monte Carlo result, SI (m or rad)."""
-
-    nominal: float
-    stats: V.MCStats
-    converged: bool
-    budget: dict          # source -> u (SI) from its one-at-a-time runs
-    budget_runs: dict     # source -> runs used
 
 
 def adaptive(st: Setting, seed: int, active: tuple | None, which: str, first_run: int = 0, progress=None,
@@ -298,7 +324,7 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True) -> 
     r_st = st.probe.stylus_r_m
     perfect = Machine(dataclasses.replace(st.config, errors={}))
     y_nom = V.evaluate(task, st.rows, simulate_run(st, {}, None, noise=False, machine=perfect), st.n_R, r_st)
-    y_best = V.evaluate(task, st.rows, simulate_run(st, {}, None, noise=False, machine=Machine(st.config)),
+    y_best = V.evaluate(task, st.rows, _measure(st, {}, None, {}, noise=False, machine=Machine(st.config)),
                         st.n_R, r_st)
     guess = task.mc.batch_runs * 2 * (1 + (len(st.sources) if budget else 0))
     dq: list = []

@@ -76,10 +76,21 @@ def test_task_reads_every_field():
     (("slope_um_per_m = 5", "slope_um_per_m = -5"), "must be >= 0"),
     (("batch_runs = 50", "batch_runs = 5"), "mc.batch_runs"),
     (('name = "x"', 'name = "d"'), "names must be unique"),
+    (("[mc]", "[temperature]\npart_C = 500\n[mc]"), "temperature.part_C: a workshop temperature"),
+    (("[mc]", "[temperature]\nu_part_K = -1\n[mc]"), "temperature.u_part_K: must be >= 0"),
+    (("[mc]", "[temperature]\npart_K = 1\n[mc]"), "temperature.part_K: unknown key"),
 ])
 def test_bad_task_names_the_key(edit, match):
     with pytest.raises(V.TaskFileError, match=match):
         V.loads_task(TASK.replace(*edit), "t.toml")
+
+
+def test_temperature_reads_and_strains():
+    t = V.loads_task(TASK.replace("[mc]", "[temperature]\npart_C = 23\nu_part_K = 0.5\npart_alpha_per_K = 1e-5\n"
+                                          "scales_C = 21\nscales_alpha_per_K = 8e-6\n[mc]"))
+    assert t.temperature.sources == ("part temperature",)              # only sources with a u
+    assert t.temperature.strains() == pytest.approx((3e-5, 8e-6))
+    assert t.temperature.strains({"part temperature": 20.0}) == pytest.approx((0.0, 8e-6))
 
 
 def test_feature_rows_select_and_refuse():

@@ -91,7 +91,7 @@ def _slopes(st, seed, runs):
     """The drawn (EXX, EYY) slopes of each run (the draws are public: scenarios.vcmm.draw)."""
     out = np.zeros((len(runs), 2))
     for i, k in enumerate(runs):
-        c, _ = S.draw(st, seed, k)
+        c, _, _ = S.draw(st, seed, k)
         out[i] = c.get(("EXX", 1), 0.0), c.get(("EYY", 1), 0.0)
     return out
 
@@ -128,6 +128,31 @@ def test_bore_diameter_under_scale_errors_matches_the_closed_form(machine):
     u_closed = rho * math.sqrt(2) * A_SLOPE / math.sqrt(3)
     # the sum of two uniforms (triangular, kurtosis 2.4): relative standard error of u sqrt(1.4 / 4N)
     assert abs(y.std(ddof=1) / u_closed - 1) < 4 * math.sqrt(1.4 / (4 * len(y)))
+
+
+def test_gauge_length_at_a_part_and_scale_temperature_matches_the_closed_form(machine):
+    """Part at T_p (best estimate 22 C, u 1 K), alpha_p = 11.5e-6 /K, scales at T_s (21 C, u 0.5 K),
+    alpha_s = 8e-6 /K; results corrected to 20 C with the best estimates e0. By hand: the faces are
+    L (1 + e_p) apart, the tip centres read (L (1 + e_p) + 2 r) / (1 + e_s); corrected,
+    L_20 = [(L (1 + e_p) + 2 r) (1 + e_s0) / (1 + e_s) - 2 r] / (1 + e_p0), run by run to 1 nm;
+    u = sqrt((L alpha_p u_Tp)^2 + ((L + 2 r) alpha_s u_Ts)^2) to first order (1.19 um)."""
+    task = loads_task(GAUGE_TASK.replace("[declared.EXX]\nslope_um_per_m = 10.0\ndistribution = \"uniform\"\n", "")
+                      + "[temperature]\npart_C = 22.0\nu_part_K = 1.0\npart_alpha_per_K = 11.5e-6\n"
+                        "scales_C = 21.0\nu_scales_K = 0.5\nscales_alpha_per_K = 8e-6\n")
+    st = S.prepare(GAUGE, task, machine)
+    assert st.sources == ("part temperature", "scale temperature")
+    runs = np.arange(200)
+    y = S.run_values(st, 11, runs)[:, 0]
+    T = np.array([[S.draw(st, 11, k)[2][n] for n in st.sources] for k in runs])
+    L, r = L_MM * 1e-3, R_ST * 1e-3
+    e_p, e_s = 11.5e-6 * (T[:, 0] - 20), 8e-6 * (T[:, 1] - 20)
+    e_p0, e_s0 = 11.5e-6 * 2, 8e-6 * 1
+    want = ((L * (1 + e_p) + 2 * r) * (1 + e_s0) / (1 + e_s) - 2 * r) / (1 + e_p0)
+    assert np.max(np.abs(y - want)) < 1e-9
+    u_closed = math.hypot(L * 11.5e-6 * 1.0, (L + 2 * r) * 8e-6 * 0.5)
+    # normal inputs: relative standard error of u 1 / sqrt(2N) (5 % at 200); 4 of them
+    assert abs(y.std(ddof=1) / u_closed - 1) < 4 / math.sqrt(2 * len(y))
+    assert abs(y.mean() - L) < 4 * u_closed / math.sqrt(len(y))        # corrected to 20 C: no bias
 
 
 def test_cli_end_to_end_gauge(tmp_path, machine, capsys):
