@@ -62,38 +62,58 @@ class Setting:
     centre_R: np.ndarray | None = None   # (3,) the part's thermal centre: centroid of its probed surface points
 
 
-def _primitive_sdf(kind: str, p_W: np.ndarray, n_W: np.ndarray, r: float, name: str):
-    """The material's signed distance (+ outside) of the primitive through the nominal contacts.
+@dataclass(frozen=True)
+class Surface:
+    """A nominal feature surface as a signed distance to the material (+ outside), W, m.
 
-    ``p_W`` : (k, 3) nominal tip centres in W; ``n_W`` outward normals in W;
-    the surface points are ``p_W - r n_W``.
+    ``kind`` plane (``c`` a point, ``a`` the outward normal), ball (a circle's
+    cylinder along Z when ``k`` = 2, a sphere when 3: centre ``c[:k]``, radius
+    ``R``), cylinder (axis through ``c`` along ``a``). ``sign`` -1 for a hollow
+    (bore). A plain dataclass, so a study can be shipped to Dask workers.
     """
-    s = p_W - r * n_W
+
+    kind: str
+    c: np.ndarray
+    a: np.ndarray | None = None
+    R: float = 0.0
+    k: int = 3
+    sign: float = 1.0
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        if self.kind == "plane":
+            return (p - self.c) @ self.a
+        if self.kind == "ball":
+            return self.sign * (np.linalg.norm(p[:, :self.k] - self.c[:self.k], axis=1) - self.R)
+        d = p - self.c
+        return self.sign * (np.linalg.norm(d - np.outer(d @ self.a, self.a), axis=1) - self.R)
+
+
+@dataclass(frozen=True)
+class Expanded:
+    """``surface`` grown by ``1 + e`` about ``c`` (exact: distances scale too)."""
+
+    surface: object
+    e: float
+    c: np.ndarray
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        return (1.0 + self.e) * self.surface(self.c + (p - self.c) / (1.0 + self.e))
+
+
+def _primitive_sdf(kind: str, p_W: np.ndarray, n_W: np.ndarray, r: float, name: str) -> Surface:
+    """The exact primitive through the nominal contacts (``p_W`` tip centres, ``n_W`` outward normals, W)."""
     f = V.fit_feature(kind, p_W, n_W, r)  # the same fits as the measurands (tip centres, radius applied)
     if kind == "plane":
-        c, nn = f.point, f.direction
-
-        def sdf(p):
-            return (p - c) @ nn
-        dev = (s - c) @ nn
+        sdf = Surface("plane", f.point, f.direction)
     elif kind in ("circle", "sphere"):
         k = 2 if kind == "circle" else 3
-        c, R = f.point[:k].copy(), f.radius
-        sign = 1.0 if V._outside(p_W[:, :k], n_W[:, :k], c) else -1.0
-
-        def sdf(p):
-            return sign * (np.linalg.norm(p[:, :k] - c, axis=1) - R)
-        dev = np.linalg.norm(s[:, :k] - c, axis=1) - R
+        sdf = Surface("ball", f.point.copy(), None, f.radius, k,
+                      1.0 if V._outside(p_W[:, :k], n_W[:, :k], f.point[:k]) else -1.0)
     else:
-        c, a, R = f.point, f.direction, f.radius
-        sign = 1.0 if V._outside(p_W, n_W, c, a) else -1.0
-
-        def sdf(p):
-            d = p - c
-            return sign * (np.linalg.norm(d - np.outer(d @ a, a), axis=1) - R)
-        d = s - c
-        dev = np.linalg.norm(d - np.outer(d @ a, a), axis=1) - R
-    worst = float(np.max(np.abs(dev)))
+        sdf = Surface("cylinder", f.point, f.direction, f.radius, 3,
+                      1.0 if V._outside(p_W, n_W, f.point, f.direction) else -1.0)
+    dev = np.abs(sdf(p_W - r * n_W))
+    worst = float(np.max(dev))
     if worst > NOMINAL_FIT_TOL_M:
         raise PlanError(f"feature {name!r}: the plan's nominal points are not on one {kind} "
                         f"(largest deviation {worst * 1e6:.3f} um > {NOMINAL_FIT_TOL_M * 1e6:g} um)")
@@ -183,13 +203,6 @@ def machine_errors(st: Setting, coeffs: dict) -> dict:
     return errs
 
 
-def _expanded(sdf, e: float, c: np.ndarray):
-    """The signed distance of the part grown by ``1 + e`` about ``c`` (exact: distances scale too)."""
-    def f(p):
-        return (1.0 + e) * sdf(c + (p - c) / (1.0 + e))
-    return f
-
-
 def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, noise: bool = True,
                  machine=None, e_part: float = 0.0) -> np.ndarray:
     """Reported tip centres (k, 3) m of the used touches on the machine with ``coeffs`` drawn,
@@ -199,7 +212,7 @@ def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, 
 
     m = machine if machine is not None else Machine(dataclasses.replace(st.config, errors=machine_errors(st, coeffs)))
     k = len(st.Xn_R)
-    sdfs = st.sdf_W if e_part == 0.0 else tuple(_expanded(f, e_part, st.centre_R) for f in st.sdf_W)
+    sdfs = st.sdf_W if e_part == 0.0 else tuple(Expanded(f, e_part, st.centre_R) for f in st.sdf_W)
     res = simulate_touches(m, st.probe, rng if noise else None, st.Xn_R + CLEARANCE_M * st.n_R, -st.n_R,
                            np.full(k, CLEARANCE_M + OVERSHOOT_M), st.rot_rad, np.zeros(k), np.full(k, FEED_MPS),
                            sdfs, st.group, np.broadcast_to(np.eye(4), (k, 4, 4)))
@@ -272,9 +285,35 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: li
     return out
 
 
+#: Runs per task shipped to a Dask worker (a batch of M runs is M / CHUNK_RUNS tasks).
+CHUNK_RUNS = 10
+
+
+def _chunk(task):
+    """A Dask task: (values (n, m), dq (n, k)) of the runs ``runs`` (module level: picklable)."""
+    st, seed, runs, active = task
+    dq: list = []
+    v = run_values(st, seed, runs, active, dq)
+    return v, np.asarray(dq)
+
+
+def _batch(st: Setting, seed: int, runs: np.ndarray, active, dq: list | None, dask: str | None) -> np.ndarray:
+    """Values of one batch, serially or on a Dask cluster (the same numbers: run k draws from (seed, k) alone)."""
+    if not dask:
+        return run_values(st, seed, runs, active, dq)
+    from scenarios.parallel import pmap
+
+    parts = pmap(_chunk, [(st, seed, runs[i:i + CHUNK_RUNS], active) for i in range(0, len(runs), CHUNK_RUNS)],
+                 dask=dask)
+    if dq is not None:
+        for _, d in parts:
+            dq.extend(d)
+    return np.vstack([v for v, _ in parts])
+
+
 def adaptive(st: Setting, seed: int, active: tuple | None, which: str, first_run: int = 0, progress=None,
              done_before: int = 0, total_hint: int = 0, tolerance: np.ndarray | None = None,
-             dq: list | None = None):
+             dq: list | None = None, dask: str | None = None):
     """JCGM 101 7.9.4: batches of M runs until every measurand is stable (or ``max_runs``).
 
     ``tolerance`` (m,) SI: a numerical tolerance per measurand (the budget's
@@ -290,7 +329,7 @@ def adaptive(st: Setting, seed: int, active: tuple | None, which: str, first_run
     while True:
         h = len(batches)
         runs = np.arange(first_run + h * M, first_run + (h + 1) * M)
-        b = run_values(st, seed, runs, active, dq)
+        b = _batch(st, seed, runs, active, dq, dask)
         vals = np.vstack([vals, b])
         batches.append([[s.mean, s.u, s.low, s.high] for s in (V.mc_stats(b[:, j], mc.coverage)
                                                              for j in range(b.shape[1]))])
@@ -311,8 +350,11 @@ def adaptive(st: Setting, seed: int, active: tuple | None, which: str, first_run
             return vals, ok
 
 
-def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True) -> dict:
+def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, dask: str | None = None) -> dict:
     """The full study: nominal values, the adaptive MC, the one-at-a-time budget.
+
+    ``dask``: a scheduler address (``tcp://HOST:PORT``); each batch's runs go
+    to its workers in tasks of :data:`CHUNK_RUNS`. The result is the same.
 
     Returns a dict ready for JSON (values in the measurands' report units),
     with the per-run values of the full MC under ``"runs"`` (SI) for tests.
@@ -329,7 +371,7 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True) -> 
     guess = task.mc.batch_runs * 2 * (1 + (len(st.sources) if budget else 0))
     dq: list = []
     vals, ok = adaptive(st, seed, None, "all", progress=progress, total_hint=guess - 2 * task.mc.batch_runs,
-                        dq=dq)
+                        dq=dq, dask=dask)
     dq_a = np.asarray(dq)
     done = len(vals)
     delta = np.array([task.mc.tolerance if task.mc.tolerance is not None else
@@ -340,7 +382,7 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True) -> 
         for i, src in enumerate(st.sources):
             left = (len(st.sources) - i - 1) * 2 * task.mc.batch_runs
             v, _ = adaptive(st, seed, (src,), "u", progress=progress, done_before=done, total_hint=left,
-                            tolerance=delta)
+                            tolerance=delta, dask=dask)
             done += len(v)
             bud[src] = v.std(axis=0, ddof=1)
             bud_runs[src] = len(v)

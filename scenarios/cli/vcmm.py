@@ -29,6 +29,8 @@ def register(sub) -> None:
                    help="JCGM 101 numerical tolerance on y, u and the interval ends, um "
                         "(default: the task's [mc], else 2 significant digits of u)")
     p.add_argument("--no-budget", action="store_true", help="skip the one-at-a-time budget runs")
+    p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT",
+                   help="run the Monte Carlo batches on this Dask cluster (the same result for a seed)")
     p.set_defaults(func=run)
 
 
@@ -56,7 +58,7 @@ def run(args) -> int:
     plan = read_probe_log(args.plan)
     st = prepare(plan, task, spec, noise_um=args.noise_um)
     with progress_line("vcmm: Monte Carlo runs") as bar:
-        rep = study(st, args.seed, progress=bar, budget=not args.no_budget)
+        rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask)
         bar.clear()
     rep.pop("values_si")
     rep["plan"] = str(args.plan)
