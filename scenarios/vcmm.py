@@ -400,6 +400,7 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             "mean": s.mean * m.scale,
             "bias": (s.mean - y_nom[j]) * m.u_scale,
             "u": s.u * m.u_scale,
+            "U": 0.5 * (s.high - s.low) * m.u_scale,
             "U95": 0.5 * (s.high - s.low) * m.u_scale if task.mc.coverage == 0.95 else None,
             "coverage": task.mc.coverage,
             "interval": [s.low * m.scale, s.high * m.scale],
@@ -472,12 +473,14 @@ def write_report(folder, rep: dict, *, worst: int = 10):
 
     ms = rep["measurands"]
     rows = [(m["name"], m["quantity"], f"{m['nominal']:.6g} {m['unit']}", f"{m['bias']:+.4f}", f"{m['u']:.4f}",
-             "-" if m["U95"] is None else f"{m['U95']:.4f}",
+             f"{m['U']:.4f}",
              f"[{m['interval'][0]:.6f}, {m['interval'][1]:.6f}] {m['unit']}", m["u_unit"],
              "yes" if m["converged"] else "NO (max_runs)") for m in ms]
-    summary = Table(("measurand", "quantity", "nominal", "bias", "u", "U95", "coverage interval", "unit of bias/u/U95",
-                     "converged"), rows, caption="bias: Monte Carlo mean minus the value on a perfect machine; U95: "
-                     "half the probabilistically symmetric 95 % interval (JCGM 101 7.7)")
+    p = f"{100 * rep['measurands'][0]['coverage']:g} %"
+    summary = Table(("measurand", "quantity", "nominal", "bias", "u", f"U ({p})", "coverage interval",
+                     "unit of bias/u/U", "converged"), rows,
+                    caption=f"bias: Monte Carlo mean minus the value on a perfect machine; U: half the "
+                            f"probabilistically symmetric {p} interval (JCGM 101 7.7)")
     tw = sorted(rep["touches_u"], key=lambda t: -t["u_dq_um"])[:worst]
     touches = Table(("target", "feature", "u(dq) / µm", "mean dq / µm"),
                     [(t["target"], t["feature"], f"{t['u_dq_um']:.4f}", f"{t['mean_dq_um']:+.4f}") for t in tw])

@@ -67,8 +67,8 @@ def run(args) -> int:
     for m in rep["measurands"]:
         tail = "" if m["converged"] else "  NOT CONVERGED (max_runs reached)"
         print(f"  {m['name']}: nominal {_fmt(m['nominal'], m['unit'])}, bias {m['bias']:+.4f} {m['u_unit']}, "
-              f"u {m['u']:.4f} {m['u_unit']}, U95 {m['U95']:.4f} {m['u_unit']}, "
-              f"95 % interval [{_fmt(m['interval'][0], m['unit'])}, {_fmt(m['interval'][1], m['unit'])}]{tail}")
+              f"u {m['u']:.4f} {m['u_unit']}, U{100 * m['coverage']:g} {m['U']:.4f} {m['u_unit']}, "
+              f"{100 * m['coverage']:g} % interval [{_fmt(m['interval'][0], m['unit'])}, {_fmt(m['interval'][1], m['unit'])}]{tail}")
         for b in sorted(m["budget"], key=lambda b: -b["u"]):
             print(f"      {b['source']:24s} u {b['u']:.4f} {m['u_unit']}  ({100 * b['share']:.1f} %)")
     if args.report:
