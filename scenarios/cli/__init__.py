@@ -35,6 +35,7 @@ COMMANDS = [
     ("design", "scenarios.cli.design"),
     ("iso230-2", "scenarios.cli.iso230_2"),
     ("regress", "scenarios.cli.regress"),
+    ("vcmm", "scenarios.cli.vcmm"),
 ]
 
 

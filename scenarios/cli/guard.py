@@ -50,6 +50,7 @@ FILES = {
     "fit": (("log",), ("json",), ()),
     "iso230-2": (("log",), ("json", "write_log"), ("report",)),
     "regress": (("study",), ("json", "junit"), ()),
+    "vcmm": (("plan", "task"), ("json",), ("report",)),
 }
 
 #: Exit status of a command killed by SIGPIPE (128 + 13), as a shell reports it.
