@@ -15,10 +15,10 @@ from scenarios.regress import (GAUGE_FLOOR, IDENTIFICATIONS, Causes, Estimate, M
                                junit_xml, load_study, loads_study, run_study)
 from scenarios.testing import assert_recovers, regress_study  # noqa: F401 (the fixture, as a user imports it)
 
-STUDIES = Path(__file__).resolve().parents[2] / "scenarios" / "studies"
-EXAMPLES = sorted(STUDIES.glob("*.toml"))
-SELFCAL = STUDIES / "selfcal-nmv3000.toml"
-POSITIONING = STUDIES / "iso230-2-vmc-x.toml"
+STUDIES = Path(__file__).resolve().parents[2] / "scenarios" / "data"
+EXAMPLES = sorted(STUDIES.glob("regress-*.toml"))
+SELFCAL = STUDIES / "regress-selfcal-nmv3000.toml"
+POSITIONING = STUDIES / "regress-iso230-2-vmc-x.toml"
 
 
 # --------------------------------------------------------------------------- JUnit schema rules
@@ -177,7 +177,7 @@ def test_a_dropped_model_term_inside_the_estimator_is_caught(tmp_path, capsys):
 def test_discover_fails_when_the_hidden_cause_is_not_there(tmp_path):
     """The discover example without its hidden screw error (and no ripple): discover names no cause,
     so the study fails on ``cause``; the check is not satisfied by any campaign."""
-    src = (STUDIES / "discover-nmv3000.toml").read_text()
+    src = (STUDIES / "regress-discover-nmv3000.toml").read_text()
     assert "period_mm = 8.01" in src and "ripple = false" in src
     p = tmp_path / "no-hidden.toml"
     p.write_text(src.replace("periodic = [{ amplitude_um = 1.5, period_mm = 8.01 }]", "slope_um_per_m = 0.0"))
