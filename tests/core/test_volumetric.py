@@ -8,24 +8,9 @@ from core.exceptions import ConfigError, IdentifiabilityError
 
 
 @pytest.fixture(scope="module")
-def meas3():
-    """Noise-free measurements of the 3-axis plan on a perfect machine (sim, ~3 s)."""
-    import scenarios.mfb as S
-    import core.volumetric as V
-
-    cap = {}
-    orig = V.identify_volumetric
-
-    def spy(meas, chain, nodes, rp=None, **kw):
-        cap["m"] = (meas, chain, nodes, rp)
-        return orig(meas, chain, nodes, rp, **kw)
-
-    V.identify_volumetric = spy
-    try:
-        S.run("mfb-3axis", noise_um=0.0, mc_runs=0)
-    finally:
-        V.identify_volumetric = orig
-    return cap["m"]
+def meas3(mfb3_noise_free):
+    """Noise-free measurements of the 3-axis plan on the default realistic machine (tests/conftest.py)."""
+    return mfb3_noise_free[1]
 
 
 def test_gauge_is_iso_and_full_plan_observable(meas3):
