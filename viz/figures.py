@@ -650,3 +650,34 @@ def positioning_figure(report: Mapping, *, readings: Mapping | None = None,
         sub += f", {report['cycle_kind']} cycle"
     fig.suptitle(f"{title} ({sub})")
     return fig
+
+
+# --- virtual CMM -------------------------------------------------------------
+def budget_figure(measurands: Sequence[Mapping], title: str = "Uncertainty budget (one source at a time)"):
+    """The budget of each measurand as horizontal bars: u of each source alone and the full u.
+
+    ``measurands``: the ``measurands`` of a ``vmt vcmm`` result (keys ``name``,
+    ``u``, ``u_unit``, ``budget[].source`` / ``u``). One panel per measurand;
+    the full Monte Carlo u is the dark bar on top, so a budget whose sources
+    do not add in quadrature to it (interactions, non-linear measurands such
+    as a form deviation) shows at a glance.
+    """
+    ms = list(measurands)
+    if not ms:
+        raise ConfigError("budget figure: no measurand")
+    rows = max(1, max(len(m.get("budget") or []) for m in ms) + 1)
+    fig = _figure(7.0, 0.6 + len(ms) * (0.7 + 0.28 * rows))
+    axes = fig.subplots(len(ms), 1, squeeze=False)[:, 0]
+    for ax, m in zip(axes, ms):
+        b = sorted(m.get("budget") or [], key=lambda x: -float(x["u"]))
+        labels = ["Monte Carlo u (all sources)"] + [str(x["source"]) for x in b]
+        u = [float(m["u"])] + [float(x["u"]) for x in b]
+        yy = np.arange(len(labels))
+        ax.barh(yy, u, color=[_C_NOMINAL] + [_C_MEAS] * len(b))
+        ax.set_yticks(yy, labels, fontsize="small")
+        ax.invert_yaxis()
+        ax.set_xlabel(f"standard uncertainty u / {m.get('u_unit', 'µm').replace('um', 'µm').replace('urad', 'µrad')}")
+        ax.set_title(str(m["name"]), fontsize="small")
+        ax.grid(alpha=0.3, axis="x")
+    fig.suptitle(title)
+    return fig

@@ -25,6 +25,7 @@ BENCHES: list[str] = [
     "scenarios.bench.selfcal",
     "scenarios.bench.touch",
     "scenarios.bench.discover",
+    "scenarios.bench.vcmm",
     "scenarios.bench.probelog",
 ]
 

@@ -49,6 +49,7 @@ FILES = {
     "plan": ((), ("out",), ()),
     "fit": (("log",), ("json",), ()),
     "iso230-2": (("log",), ("json", "write_log"), ("report",)),
+    "vcmm": (("plan", "task"), ("json",), ("report",)),
 }
 
 #: Exit status of a command killed by SIGPIPE (128 + 13), as a shell reports it.

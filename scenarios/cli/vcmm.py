@@ -1,0 +1,80 @@
+"""``vmt vcmm PLAN --machine MACHINE --task TASK.toml --json OUT``: the uncertainty of your own measurement.
+
+A virtual CMM (ISO 15530-4): the plan (probe-log/1, nominal points and
+normals) is probed on the machine again and again, each run with the
+machine's declared error limits drawn anew (the task's [declared] tables)
+and the probe's noise; the task's features are fitted and its measurands
+evaluated. Monte Carlo per JCGM 101 (adaptive: batches until y, u and the
+95 % interval of every measurand are stable), then the budget, one
+source at a time. The task file is described in the README ("Virtual CMM").
+"""
+
+from __future__ import annotations
+
+
+def register(sub) -> None:
+    p = sub.add_parser("vcmm", help="Monte Carlo uncertainty of a user's measurands on a machine (virtual CMM)",
+                       description=__doc__.split("\n\n")[1])
+    p.add_argument("plan", metavar="PLAN", help="probe-log/1 plan (or log: its nominal columns are used)")
+    p.add_argument("--machine", required=True, metavar="NAME|FILE",
+                   help="the machine: a built-in name or a machine file; its errors are the best estimate")
+    p.add_argument("--task", required=True, metavar="TASK.toml", help="features, measurands, declared limits")
+    p.add_argument("--json", required=True, metavar="OUT", help="result to write (JSON, atomically)")
+    p.add_argument("--report", help="folder for a readable report (index.html, the budget chart)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the draws (0); same seed, same result")
+    p.add_argument("--noise-um", type=float, default=None,
+                   help="probing repeatability, a standard deviation (k=1), um (default: the task's [probe], "
+                        "else the machine's)")
+    p.add_argument("--tol-um", type=float, default=None,
+                   help="JCGM 101 numerical tolerance on y, u and the interval ends, um "
+                        "(default: the task's [mc], else 2 significant digits of u)")
+    p.add_argument("--no-budget", action="store_true", help="skip the one-at-a-time budget runs")
+    p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT",
+                   help="run the Monte Carlo batches on this Dask cluster (the same result for a seed)")
+    p.set_defaults(func=run)
+
+
+def _fmt(v, unit):
+    return f"{v:.6f} {unit}" if unit in ("mm", "deg") else f"{v:.4f} {unit}"
+
+
+def run(args) -> int:
+    import dataclasses
+
+    from core.atomic import json_safe, write_json_atomic
+    from core.exceptions import ConfigError
+    from core.probelog import read_probe_log
+    from core.vcmm import load_task
+    from scenarios.cli.guard import progress_line, said
+    from scenarios.vcmm import prepare, study
+    from sim.machinefile import resolve
+
+    task = load_task(args.task)
+    if args.tol_um is not None:
+        if not (args.tol_um > 0 and args.tol_um < float("inf")):
+            raise ConfigError(f"--tol-um must be a positive number, got {args.tol_um:g}")
+        task = dataclasses.replace(task, mc=dataclasses.replace(task.mc, tolerance=args.tol_um * 1e-6))
+    spec = resolve(args.machine)
+    plan = read_probe_log(args.plan)
+    st = prepare(plan, task, spec, noise_um=args.noise_um)
+    with progress_line("vcmm: Monte Carlo runs") as bar:
+        rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask)
+        bar.clear()
+    rep.pop("values_si")
+    rep["plan"] = str(args.plan)
+    print(f"{args.plan}: {rep['touches']} touches on {rep['machine']}, {rep['runs']} runs "
+          f"({rep['runs_total']} with the budget, {rep['runs_per_s']:.1f} runs/s), seed {args.seed}")
+    for m in rep["measurands"]:
+        tail = "" if m["converged"] else "  NOT CONVERGED (max_runs reached)"
+        print(f"  {m['name']}: nominal {_fmt(m['nominal'], m['unit'])}, bias {m['bias']:+.4f} {m['u_unit']}, "
+              f"u {m['u']:.4f} {m['u_unit']}, U{100 * m['coverage']:g} {m['U']:.4f} {m['u_unit']}, "
+              f"{100 * m['coverage']:g} % interval [{_fmt(m['interval'][0], m['unit'])}, {_fmt(m['interval'][1], m['unit'])}]{tail}")
+        for b in sorted(m["budget"], key=lambda b: -b["u"]):
+            print(f"      {b['source']:24s} u {b['u']:.4f} {m['u_unit']}  ({100 * b['share']:.1f} %)")
+    if args.report:
+        from scenarios.vcmm import write_report
+
+        write_report(args.report, rep)
+    write_json_atomic(args.json, json_safe(rep))
+    print(f"wrote {said(args.json)}" + (f" and {args.report}/index.html" if args.report else ""))
+    return 0

@@ -1,0 +1,497 @@
+"""Virtual CMM study: a user's plan and task, Monte Carlo through the exact simulator.
+
+Each run draws a machine (the machine file's errors, the best estimate of
+its state, plus one draw of every declared error term of the task), draws
+the probing noise, simulates every touch the task uses on the exact
+Pinocchio chain (:func:`sim.probe.simulate_touches`), fits the features
+and evaluates the measurands (:mod:`core.vcmm`). Runs go in batches until
+JCGM 101's adaptive rule (7.9) says every measurand's y, u, and coverage
+interval ends are stable; then the budget: the same procedure with one
+source at a time (the others at their best estimate, zero), reporting u.
+
+The part: each task feature's nominal surface is the exact primitive (plane,
+cylinder for a circle, sphere, cylinder) through the plan's nominal
+contact points, in the table frame W (the part moves with the table).
+A plan row no task feature uses is not simulated: it cannot change a
+measurand.
+
+Run ``k`` of seed ``s`` draws from ``SeedSequence([s, k])`` alone: results
+are identical per seed, however the runs are batched.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from core import vcmm as V
+from core.exceptions import ConfigError, FitError, PlanError
+from core.touches import ProbeStatus
+
+#: Approach start before the nominal contact and search beyond it, m. find_contacts brackets the
+#: contact with 7 samples, 1/6 of the travel apart; the nominal contact (0.4 of the travel) falls
+#: between two, never on one (a root exactly on a sample costs ~30 bisection steps there).
+CLEARANCE_M = 1.0e-3
+OVERSHOOT_M = 1.5e-3
+#: Probing feed (the campaign default, 240 mm/min), m/s.
+FEED_MPS = 0.240 / 60.0
+#: Largest distance of a plan's nominal contact from its feature's fitted primitive, m. A plan's
+#: points are the user's; farther than this they do not describe one plane/circle/sphere/cylinder.
+NOMINAL_FIT_TOL_M = 1.0e-6
+
+
+@dataclass(frozen=True)
+class Setting:
+    """Everything a run needs, fixed for the study (SI, frame R for the touches)."""
+
+    task: V.Task
+    rows: dict           # feature -> rows of the used touches (indices into the used arrays)
+    Xn_R: np.ndarray     # (k, 3) nominal tip centres at contact
+    n_R: np.ndarray      # (k, 3) nominal outward normals
+    rot_rad: np.ndarray | None   # (k, nrot)
+    sdf_W: tuple         # one callable per feature: W points -> signed distance to the material, m
+    group: np.ndarray    # (k,) feature index of each touch
+    config: object       # sim.machine.MachineConfig: the best estimate of the machine
+    probe: object        # sim.probe.ProbeConfig (noise: the task's or the machine's)
+    sources: tuple       # names: declared terms, then the probe's repeatability
+    targets: tuple = ()  # (k,) the plan's target of each used touch
+    centre_R: np.ndarray | None = None   # (3,) the part's thermal centre: centroid of its probed surface points
+
+
+@dataclass(frozen=True)
+class Surface:
+    """A nominal feature surface as a signed distance to the material (+ outside), W, m.
+
+    ``kind`` plane (``c`` a point, ``a`` the outward normal), ball (a circle's
+    cylinder along Z when ``k`` = 2, a sphere when 3: centre ``c[:k]``, radius
+    ``R``), cylinder (axis through ``c`` along ``a``). ``sign`` -1 for a hollow
+    (bore). A plain dataclass, so a study can be shipped to Dask workers.
+    """
+
+    kind: str
+    c: np.ndarray
+    a: np.ndarray | None = None
+    R: float = 0.0
+    k: int = 3
+    sign: float = 1.0
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        if self.kind == "plane":
+            return (p - self.c) @ self.a
+        if self.kind == "ball":
+            return self.sign * (np.linalg.norm(p[:, :self.k] - self.c[:self.k], axis=1) - self.R)
+        d = p - self.c
+        return self.sign * (np.linalg.norm(d - np.outer(d @ self.a, self.a), axis=1) - self.R)
+
+
+@dataclass(frozen=True)
+class Expanded:
+    """``surface`` grown by ``1 + e`` about ``c`` (exact: distances scale too)."""
+
+    surface: object
+    e: float
+    c: np.ndarray
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        return (1.0 + self.e) * self.surface(self.c + (p - self.c) / (1.0 + self.e))
+
+
+def _primitive_sdf(kind: str, p_W: np.ndarray, n_W: np.ndarray, r: float, name: str) -> Surface:
+    """The exact primitive through the nominal contacts (``p_W`` tip centres, ``n_W`` outward normals, W)."""
+    f = V.fit_feature(kind, p_W, n_W, r)  # the same fits as the measurands (tip centres, radius applied)
+    if kind == "plane":
+        sdf = Surface("plane", f.point, f.direction)
+    elif kind in ("circle", "sphere"):
+        k = 2 if kind == "circle" else 3
+        sdf = Surface("ball", f.point.copy(), None, f.radius, k,
+                      1.0 if V._outside(p_W[:, :k], n_W[:, :k], f.point[:k]) else -1.0)
+    else:
+        sdf = Surface("cylinder", f.point, f.direction, f.radius, 3,
+                      1.0 if V._outside(p_W, n_W, f.point, f.direction) else -1.0)
+    dev = np.abs(sdf(p_W - r * n_W))
+    worst = float(np.max(dev))
+    if worst > NOMINAL_FIT_TOL_M:
+        raise PlanError(f"feature {name!r}: the plan's nominal points are not on one {kind} "
+                        f"(largest deviation {worst * 1e6:.3f} um > {NOMINAL_FIT_TOL_M * 1e6:g} um)")
+    return sdf
+
+
+def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None) -> Setting:
+    """The study's fixed part from a plan (:class:`core.probelog.ProbeLog`), a task and a machine spec.
+
+    ``noise_um`` (``--noise-um``) overrides the task's ``[probe] noise_um``,
+    which overrides the machine file's probe; a standard deviation (k = 1).
+    """
+    from sim.machine import Machine
+
+    if plan.n == 0:
+        raise PlanError(f"{plan.source}: the plan has no rows")
+    cfg = spec.config
+    nominal = Machine(dataclasses.replace(cfg, errors={}))
+    rot_deg = np.column_stack([plan.col(f"{a}_deg").astype(float) if plan.has(f"{a}_deg") else np.zeros(plan.n)
+                               for a in "ABC"])
+    rot_deg = np.nan_to_num(rot_deg)
+    txt = {c: (plan.col(c).astype(str) if plan.has(c) else np.full(plan.n, "")) for c in ("target", "feature", "setup")}
+    rows_all = V.feature_rows(task, txt["target"], txt["feature"], txt["setup"], rot_deg)
+    used = np.unique(np.concatenate(list(rows_all.values())))
+    where = {int(r): i for i, r in enumerate(used)}
+    rows = {k: np.array([where[int(r)] for r in v]) for k, v in rows_all.items()}
+    Xn_R = np.column_stack([plan.col(f"{c}n_mm").astype(float) for c in "XYZ"])[used] * 1e-3
+    n_R = np.column_stack([plan.col(f"n{c}").astype(float) for c in "xyz"])[used]
+    axes = nominal.rotary_axes
+    extra = [a for a in "ABC" if a not in axes and np.any(rot_deg[used, "ABC".index(a)] != 0)]
+    if extra:
+        raise PlanError(f"{plan.source}: rows at {extra[0]} != 0, machine {cfg.name} has no {extra[0]} axis")
+    rot = np.deg2rad(rot_deg[used][:, ["ABC".index(a) for a in axes]]) if axes else None
+    probe = spec.probe
+    if plan.has("stylus_r_mm"):
+        r_plan = plan.col("stylus_r_mm").astype(float)[used]
+        if np.all(np.isfinite(r_plan)):
+            if np.ptp(r_plan) > 1e-9:
+                raise PlanError(f"{plan.source}: the task's touches have different stylus radii")
+            probe = dataclasses.replace(probe, stylus_r_m=float(r_plan[0]) * 1e-3)  # the plan's stylus
+    noise = noise_um if noise_um is not None else task.probe_noise_um
+    if noise is not None:
+        probe = dataclasses.replace(probe, repeatability_k2_m=2.0 * noise * 1e-6)
+    r = probe.stylus_r_m
+    p_W = nominal.tip_W_nominal(Xn_R, rot)
+    T_R_W = nominal.T_R_W_nominal(rot, Xn_R)
+    n_W = np.einsum("nji,nj->ni", T_R_W[:, :3, :3], n_R)
+    sdfs, group = [], np.zeros(len(used), int)
+    for k, f in enumerate(task.features):
+        idx = rows[f.name]
+        group[idx] = k
+        try:
+            sdfs.append(_primitive_sdf(f.kind, p_W[idx], n_W[idx], r, f.name))
+        except FitError as e:
+            raise PlanError(f"feature {f.name!r}: {e}") from None
+    overlap = sum(len(v) for v in rows.values()) != len(used)
+    if overlap:
+        raise ConfigError(f"{task.source}: a plan row belongs to two features (each touch probes one surface)")
+    sources = (tuple(t.source for t in task.declared) + ((V.PROBE_SOURCE,) if probe.sigma_m > 0 else ())
+               + (task.temperature.sources if task.temperature else ()))
+    if task.temperature is not None and rot is not None and np.any(rot != 0):
+        raise ConfigError(f"{task.source}: [temperature] with rotary positions other than 0 is not supported "
+                          "(the part's expansion is applied in the machine frame)")
+    for t in task.declared:
+        ax = V.iso.symbol(t.symbol).axis
+        if ax not in nominal.chain.axes:
+            raise ConfigError(f"{task.source}: declared.{t.symbol}: axis {ax} is not in machine {cfg.name}'s "
+                              f"chain {cfg.chain}")
+    return Setting(task, rows, Xn_R, n_R, rot, tuple(sdfs), group, cfg, probe, sources,
+                   tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0))
+
+
+def machine_errors(st: Setting, coeffs: dict) -> dict:
+    """The machine file's errors plus the drawn terms ``{(symbol, power): value SI}``."""
+    from sim.errorfuncs import Constant, Polynomial
+
+    errs = dict(st.config.errors)
+    by_sym: dict[str, list] = {}
+    for (sym, power), v in coeffs.items():
+        c = by_sym.setdefault(sym, [0.0, 0.0, 0.0])
+        c[power] += v
+    for sym, c in by_sym.items():
+        while len(c) > 1 and c[-1] == 0.0:
+            c.pop()
+        f = Constant(c[0]) if len(c) == 1 else Polynomial(tuple(c))
+        errs[sym] = errs[sym] + f if sym in errs else f
+    return errs
+
+
+def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, noise: bool = True,
+                 machine=None, e_part: float = 0.0) -> np.ndarray:
+    """Reported tip centres (k, 3) m of the used touches on the machine with ``coeffs`` drawn,
+    the part grown by ``1 + e_part`` about its thermal centre."""
+    from sim.machine import Machine
+    from sim.probe import simulate_touches
+
+    m = machine if machine is not None else Machine(dataclasses.replace(st.config, errors=machine_errors(st, coeffs)))
+    k = len(st.Xn_R)
+    sdfs = st.sdf_W if e_part == 0.0 else tuple(Expanded(f, e_part, st.centre_R) for f in st.sdf_W)
+    res = simulate_touches(m, st.probe, rng if noise else None, st.Xn_R + CLEARANCE_M * st.n_R, -st.n_R,
+                           np.full(k, CLEARANCE_M + OVERSHOOT_M), st.rot_rad, np.zeros(k), np.full(k, FEED_MPS),
+                           sdfs, st.group, np.broadcast_to(np.eye(4), (k, 4, 4)))
+    bad = res.status != ProbeStatus.OK
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise PlanError(f"touch {i} of feature {st.task.features[st.group[i]].name!r}: {res.status[i]} "
+                        f"(the machine's errors move it beyond +-{CLEARANCE_M * 1e3:g} mm of its target?)")
+    return res.pos_R
+
+
+def draw(st: Setting, seed: int, run: int, active: tuple | None = None):
+    """Run ``run``'s draws: ``({(symbol, power): value}, noise generator, {thermal source: value})``.
+
+    Every term draws from its own stream, so switching a source off (``active``)
+    leaves the others' draws unchanged (the budget's runs share the full runs'
+    draws); an inactive thermal source stays at its best estimate.
+    """
+    nd = len(st.task.declared)
+    ss = V.run_seeds(seed, run).spawn(nd + 1 + len(V.THERMAL_SOURCES))
+    coeffs = {}
+    for t, s in zip(st.task.declared, ss):
+        if active is None or t.source in active:
+            key = (t.symbol, t.power)
+            coeffs[key] = coeffs.get(key, 0.0) + V.draw_term(t, np.random.default_rng(s))
+    thermal = {}
+    if st.task.temperature is not None:
+        for name, s in zip(V.THERMAL_SOURCES, ss[nd + 1:]):
+            if name in st.task.temperature.sources and (active is None or name in active):
+                thermal[name] = st.task.temperature.draw(name, np.random.default_rng(s))
+    return coeffs, np.random.default_rng(ss[nd]), thermal
+
+
+def _measure(st: Setting, coeffs: dict, rng, thermal: dict, *, noise: bool, machine=None) -> np.ndarray:
+    """Reported tip centres of one run, corrected to 20 C when the task has a [temperature] table."""
+    temp = st.task.temperature
+    if temp is None:
+        return simulate_run(st, coeffs, rng, noise=noise, machine=machine)
+    e_p, e_s = temp.strains(thermal)
+    if e_s != 0.0:
+        machine = None
+        coeffs = dict(coeffs)
+        for sym in ("EXX", "EYY", "EZZ"):
+            coeffs[(sym, 1)] = coeffs.get((sym, 1), 0.0) + e_s
+    p = simulate_run(st, coeffs, rng, noise=noise, machine=machine, e_part=e_p)
+    e_p0, e_s0 = temp.strains()
+    return V.correct_to_20c(p, st.n_R, st.probe.stylus_r_m, e_p0, e_s0, st.centre_R)
+
+
+def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: list | None = None) -> np.ndarray:
+    """Measurand values (len(runs), m) SI of the given run indices (sources ``active``, None: all).
+
+    ``dq``: a list to which each run's (k,) normal deviations of the touches,
+    ``n . (reported - nominal)`` m, are appended (the report's worst touches).
+    """
+    noise = active is None or V.PROBE_SOURCE in active
+    out = np.empty((len(runs), len(st.task.measurands)))
+    r_st = st.probe.stylus_r_m
+    fixed = None
+    if active is not None and not any(t.source in active for t in st.task.declared):
+        from sim.machine import Machine
+
+        fixed = Machine(st.config)   # no declared term drawn: one machine for every run
+    for i, k in enumerate(runs):
+        coeffs, rng, thermal = draw(st, seed, int(k), active)
+        p = _measure(st, coeffs, rng, thermal, noise=noise, machine=fixed)
+        out[i] = V.evaluate(st.task, st.rows, p, st.n_R, r_st)
+        if dq is not None:
+            dq.append(np.einsum("ij,ij->i", p - st.Xn_R, st.n_R))
+    return out
+
+
+#: Runs per task shipped to a Dask worker (a batch of M runs is M / CHUNK_RUNS tasks).
+CHUNK_RUNS = 10
+
+
+def _chunk(task):
+    """A Dask task: (values (n, m), dq (n, k)) of the runs ``runs`` (module level: picklable)."""
+    st, seed, runs, active = task
+    dq: list = []
+    v = run_values(st, seed, runs, active, dq)
+    return v, np.asarray(dq)
+
+
+def _batch(st: Setting, seed: int, runs: np.ndarray, active, dq: list | None, dask: str | None) -> np.ndarray:
+    """Values of one batch, serially or on a Dask cluster (the same numbers: run k draws from (seed, k) alone)."""
+    if not dask:
+        return run_values(st, seed, runs, active, dq)
+    from scenarios.parallel import pmap
+
+    parts = pmap(_chunk, [(st, seed, runs[i:i + CHUNK_RUNS], active) for i in range(0, len(runs), CHUNK_RUNS)],
+                 dask=dask)
+    if dq is not None:
+        for _, d in parts:
+            dq.extend(d)
+    return np.vstack([v for v, _ in parts])
+
+
+def adaptive(st: Setting, seed: int, active: tuple | None, which: str, first_run: int = 0, progress=None,
+             done_before: int = 0, total_hint: int = 0, tolerance: np.ndarray | None = None,
+             dq: list | None = None, dask: str | None = None):
+    """JCGM 101 7.9.4: batches of M runs until every measurand is stable (or ``max_runs``).
+
+    ``tolerance`` (m,) SI: a numerical tolerance per measurand (the budget's
+    runs take the full result's, so a small contribution is not chased to
+    digits the full u does not have); default the task's rule.
+    Returns (values (N, m) SI, converged (m,) bool).
+    """
+    mc = st.task.mc
+    M = mc.batch_runs
+    vals = np.empty((0, len(st.task.measurands)))
+    batches = []
+    est_total = 2 * M
+    while True:
+        h = len(batches)
+        runs = np.arange(first_run + h * M, first_run + (h + 1) * M)
+        b = _batch(st, seed, runs, active, dq, dask)
+        vals = np.vstack([vals, b])
+        batches.append([[s.mean, s.u, s.low, s.high] for s in (V.mc_stats(b[:, j], mc.coverage)
+                                                             for j in range(b.shape[1]))])
+        arr = np.asarray(batches)  # (h, m, 4)
+        checks = [V.adaptive_check(arr[:, j], float(vals[:, j].std(ddof=1)), mc.significant_digits,
+                                   mc.tolerance if tolerance is None else float(tolerance[j]), which)
+                  for j in range(arr.shape[1])]
+        ok = np.array([c.stable for c in checks])
+        n = len(vals)
+        if len(batches) >= 2:
+            # s shrinks like 1/sqrt(h): the batches still needed for 2 s <= delta
+            need = max((c.h * (2 * (c.s if which == "all" else c.s[1:2]).max() / c.delta) ** 2
+                        if c.delta > 0 else c.h) for c in checks)
+            est_total = min(mc.max_runs, max(n + M, int(math.ceil(need)) * M))
+        if progress is not None:
+            progress(done_before + n, done_before + max(est_total, n) + total_hint)
+        if ok.all() or n + M > mc.max_runs:
+            return vals, ok
+
+
+def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, dask: str | None = None) -> dict:
+    """The full study: nominal values, the adaptive MC, the one-at-a-time budget.
+
+    ``dask``: a scheduler address (``tcp://HOST:PORT``); each batch's runs go
+    to its workers in tasks of :data:`CHUNK_RUNS`. The result is the same.
+
+    Returns a dict ready for JSON (values in the measurands' report units),
+    with the per-run values of the full MC under ``"runs"`` (SI) for tests.
+    """
+    from sim.machine import Machine
+
+    t0 = time.perf_counter()
+    task = st.task
+    r_st = st.probe.stylus_r_m
+    perfect = Machine(dataclasses.replace(st.config, errors={}))
+    y_nom = V.evaluate(task, st.rows, simulate_run(st, {}, None, noise=False, machine=perfect), st.n_R, r_st)
+    y_best = V.evaluate(task, st.rows, _measure(st, {}, None, {}, noise=False, machine=Machine(st.config)),
+                        st.n_R, r_st)
+    guess = task.mc.batch_runs * 2 * (1 + (len(st.sources) if budget else 0))
+    dq: list = []
+    vals, ok = adaptive(st, seed, None, "all", progress=progress, total_hint=guess - 2 * task.mc.batch_runs,
+                        dq=dq, dask=dask)
+    dq_a = np.asarray(dq)
+    done = len(vals)
+    delta = np.array([task.mc.tolerance if task.mc.tolerance is not None else
+                      V.numerical_tolerance(float(vals[:, j].std(ddof=1)), task.mc.significant_digits)
+                      for j in range(vals.shape[1])])
+    bud, bud_runs = {}, {}
+    if budget:
+        for i, src in enumerate(st.sources):
+            left = (len(st.sources) - i - 1) * 2 * task.mc.batch_runs
+            v, _ = adaptive(st, seed, (src,), "u", progress=progress, done_before=done, total_hint=left,
+                            tolerance=delta, dask=dask)
+            done += len(v)
+            bud[src] = v.std(axis=0, ddof=1)
+            bud_runs[src] = len(v)
+    elapsed = time.perf_counter() - t0
+    out = []
+    for j, m in enumerate(task.measurands):
+        s = V.mc_stats(vals[:, j], task.mc.coverage)
+        u_src = {k: float(v[j]) for k, v in bud.items()}
+        ss = sum(x * x for x in u_src.values())
+        out.append({
+            "name": m.name, "quantity": m.quantity, "of": list(m.of), "axis": m.axis,
+            "unit": m.unit, "u_unit": m.u_unit,
+            "nominal": y_nom[j] * m.scale,
+            "machine_best_estimate": y_best[j] * m.scale,
+            "mean": s.mean * m.scale,
+            "bias": (s.mean - y_nom[j]) * m.u_scale,
+            "u": s.u * m.u_scale,
+            "U": 0.5 * (s.high - s.low) * m.u_scale,
+            "U95": 0.5 * (s.high - s.low) * m.u_scale if task.mc.coverage == 0.95 else None,
+            "coverage": task.mc.coverage,
+            "interval": [s.low * m.scale, s.high * m.scale],
+            "converged": bool(ok[j]),
+            "tolerance": float(delta[j] * m.u_scale),
+            "budget": [{"source": k, "u": u * m.u_scale, "share": (u * u / ss) if ss > 0 else 0.0,
+                        "runs": bud_runs[k]} for k, u in u_src.items()],
+            "budget_rss_over_u": (math.sqrt(ss) / s.u) if (budget and s.u > 0) else None,
+        })
+    return {"format": "vmt-vcmm/1", "machine": st.config.name, "task": task.source,
+            "touches": int(len(st.Xn_R)), "runs": int(len(vals)), "batch_runs": task.mc.batch_runs,
+            "seed": int(seed), "sources": list(st.sources),
+            "declared": [{"source": t.source, "bound": t.bound * 1e6, "distribution": t.distribution,
+                          "u": t.u * 1e6, "unit": ("urad" if V.iso.symbol(t.symbol).angular else "um")
+                          + {0: "", 1: "/m", 2: "/m2"}[t.power]} for t in task.declared],
+            "probe_noise_um": st.probe.sigma_m * 1e6,
+            "runs_total": int(done), "elapsed_s": elapsed, "runs_per_s": done / elapsed if elapsed > 0 else None,
+            "measurands": out,
+            "touches_u": [{"target": st.targets[i], "feature": task.features[st.group[i]].name,
+                           "u_dq_um": float(dq_a[:, i].std(ddof=1) * 1e6),
+                           "mean_dq_um": float(dq_a[:, i].mean() * 1e6)} for i in range(dq_a.shape[1])],
+            "values_si": vals}
+
+
+# --------------------------------------------------------------------------- the README's example part
+
+
+def block_plan():
+    """The README's example plan (probe-log/1, measured columns empty): a block on the table.
+
+    Block x -40..40, y -30..30, z -30..0 mm (machine frame R at rotary zero),
+    a through bore of 20 mm diameter centred at (10, 0): 8 touches at
+    z = -10; faces x = -40 and x = +40, 4 touches each; the top face z = 0,
+    8 touches clear of the bore. Stylus radius 3 mm.
+    """
+    from core.probelog import make_log
+
+    r = 3.0
+    rows = []   # (feature, target, surface point mm, outward normal)
+    for k in range(8):
+        a = np.deg2rad(22.5 + 45.0 * k)
+        rows.append(("bore", f"B{k + 1:02d}", (10 + 10 * np.cos(a), 10 * np.sin(a), -10.0),
+                     (-np.cos(a), -np.sin(a), 0.0)))
+    for side, x, nx in (("left", -40.0, -1.0), ("right", 40.0, 1.0)):
+        for k, (y, z) in enumerate(((-20, -10), (20, -10), (0, -20), (0, -5))):
+            rows.append((side, f"{side[0].upper()}{k + 1:02d}", (x, y, z), (nx, 0.0, 0.0)))
+    for k, (x, y) in enumerate(((-30, -20), (-30, 0), (-30, 20), (-15, -20), (-15, 20), (30, -20), (30, 20),
+                                (10, -22))):
+        rows.append(("top", f"T{k + 1:02d}", (x, y, 0.0), (0.0, 0.0, 1.0)))
+    n = len(rows)
+    s = np.array([p for _, _, p, _ in rows], float)
+    nn = np.array([v for _, _, _, v in rows], float)
+    Xn = s + r * nn
+    cols = {"setup": ["S1"] * n, "target": [t for _, t, _, _ in rows], "t_s": np.full(n, np.nan),
+            "X_mm": np.full(n, np.nan), "Y_mm": np.full(n, np.nan), "Z_mm": np.full(n, np.nan),
+            "Xn_mm": Xn[:, 0], "Yn_mm": Xn[:, 1], "Zn_mm": Xn[:, 2], "nx": nn[:, 0], "ny": nn[:, 1],
+            "nz": nn[:, 2], "feature": [f for f, _, _, _ in rows], "stylus_r_mm": np.full(n, r)}
+    return make_log(cols, {"plan": "vmt README example: block with a bore", "stylus_r_mm": "3.0"})
+
+
+def write_report(folder, rep: dict, *, worst: int = 10):
+    """A report folder (index.html): the measurands with U95 and interval, the budget chart, the worst touches.
+
+    The worst touches are those whose normal deviation ``dq`` (reported minus
+    nominal along the normal) scatters most over the Monte Carlo runs: where
+    the machine's declared errors and the probe move the touches most.
+    """
+    from viz.figures import budget_figure
+    from viz.report import Section, Table, write_report as write
+
+    ms = rep["measurands"]
+    rows = [(m["name"], m["quantity"], f"{m['nominal']:.6g} {m['unit']}", f"{m['bias']:+.4f}", f"{m['u']:.4f}",
+             f"{m['U']:.4f}",
+             f"[{m['interval'][0]:.6f}, {m['interval'][1]:.6f}] {m['unit']}", m["u_unit"],
+             "yes" if m["converged"] else "NO (max_runs)") for m in ms]
+    p = f"{100 * rep['measurands'][0]['coverage']:g} %"
+    summary = Table(("measurand", "quantity", "nominal", "bias", "u", f"U ({p})", "coverage interval",
+                     "unit of bias/u/U", "converged"), rows,
+                    caption=f"bias: Monte Carlo mean minus the value on a perfect machine; U: half the "
+                            f"probabilistically symmetric {p} interval (JCGM 101 7.7)")
+    tw = sorted(rep["touches_u"], key=lambda t: -t["u_dq_um"])[:worst]
+    touches = Table(("target", "feature", "u(dq) / µm", "mean dq / µm"),
+                    [(t["target"], t["feature"], f"{t['u_dq_um']:.4f}", f"{t['mean_dq_um']:+.4f}") for t in tw])
+    src = ", ".join(f"{d['source']} +-{d['bound']:g} {d['unit']} ({d['distribution']})" for d in rep["declared"])
+    text = (f"Machine {rep['machine']}, task {rep['task']}, plan {rep.get('plan', '?')}: {rep['touches']} touches, "
+            f"{rep['runs']} Monte Carlo runs (JCGM 101 adaptive, batches of {rep['batch_runs']}), "
+            f"{rep['runs_total']} with the budget, seed {rep['seed']}. Declared: {src or 'none'}; probing "
+            f"repeatability {rep['probe_noise_um']:g} um (k = 1).")
+    secs = [Section("Measurands", text, tables=[summary]),
+            Section("Budget", "u of each source alone (the others at their best estimate), beside the full u.",
+                    figures={"budget": budget_figure(ms)}),
+            Section("Worst touches", "The touches whose normal deviation scatters most over the runs.",
+                    tables=[touches])]
+    return write(folder, "Virtual CMM: task uncertainty", secs)
