@@ -379,16 +379,18 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
     def errors(g_by_target):
         names, nominal, d = pin_centres(g_by_target, plan)
         e = align_on_pins(d - truth[[int(n[3:]) - 1 for n in names]], nominal)
-        return names, np.hypot(e[:, 0], e[:, 1]) / UM
+        return names, nominal, e / UM
 
     sel = t.setup == 0
-    names, raw = errors({t.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel])})
+    names, nominal, raw_xy = errors({t.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel])})
+    raw = np.hypot(*raw_xy.T)
     runs = {}
     for label, kw in (("measured", dict(delta_L_m=dL, yaw=yaw)), ("true_delta_L", dict(delta_L_m=dL_true, yaw=yaw)),
                       ("yaw_ECY_printed", dict(delta_L_m=dL, yaw="ECY"))):
         res = self_calibrate(t, grid, **kw)
-        runs[label] = (res, errors(dict(zip(res.design.target_ids, res.G)))[1])
-    res, cal = runs["measured"]
+        e = errors(dict(zip(res.design.target_ids, res.G)))[2]
+        runs[label] = (res, np.hypot(*e.T), e)
+    res, cal, cal_xy = runs["measured"]
     return {"scenario": "pin-circle", "machine": "mikron-ucp710 (realistic errors)", "kinematic_chain": chain,
             "yaw": str(yaw), "yaw_rule": "core.selfcal.yaw_for_chain of the log's kinematic_chain",
             "c_angles_deg": angles,
@@ -400,6 +402,9 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
                                "averaged, artefact U95 = 0.6 + L/600 um (the paper's CMM)"},
             "alignment": "the paper's Fig. 17: error 0 at pin 1, X direction so that pin 11 has no Y error; "
                          "no scale removed",
+            "pin_nominal_mm": np.round(nominal / MM, 6).tolist(),
+            "raw_c0_pin_error_xy_um": np.round(raw_xy, 4).tolist(),
+            "selfcal_pin_error_xy_um": np.round(cal_xy, 4).tolist(),
             "raw_c0_pin_error_um": [round(float(v), 3) for v in raw],
             "selfcal_pin_error_um": [round(float(v), 3) for v in cal],
             "raw_c0_pin_error_max_um": round(float(raw.max()), 3),
@@ -414,3 +419,143 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
                       "delta_L measurement costs; selfcal_pin_error_max_yaw_ECY_um: the paper's printed yaw model "
                       "(X on Y) on this chain"],
             "seconds": round(time.perf_counter() - t0, 2)}
+
+
+def part_outline_mm(art, z_m: float | None = None) -> tuple[list, list]:
+    """The part's probed outline in W (A frame xy), mm: (polygons, circles) for the U95 figures.
+
+    Prism walls give their polygon; spheres their circle at height ``z_m``
+    (default: the equator), rods and holes their circle. Other features
+    (planes) have no 2D outline and are left out.
+    """
+    polys, circles = [], []
+    for f in art.features:
+        g = f.nominal
+        if f.kind == "prism":
+            polys.append(np.asarray(g.vertices, float)[:, :2] / MM)
+        elif f.kind == "sphere":
+            dz = 0.0 if z_m is None else z_m - g.centre[2]
+            if abs(dz) < g.radius:
+                circles.append((g.centre[0] / MM, g.centre[1] / MM, np.sqrt(g.radius ** 2 - dz ** 2) / MM))
+        elif f.kind in ("rod", "hole"):
+            circles.append((g.centre[0] / MM, g.centre[1] / MM, g.radius / MM))
+    return polys, circles
+
+
+# ---------------------------------------------------------------------------
+# the paper's figures
+# ---------------------------------------------------------------------------
+#: C angles of case 1 (eq 19), deg.
+CROSS_ANGLES_DEG = (0.0, 75.0, 130.0, 210.0)
+
+
+def cross_pocket_campaign(seed: int = 1):
+    """A simulated case-1 campaign: the cross pocket at eq 19's angles on the nmv3000 with realistic errors.
+
+    Probing noise: the paper's section 6 standard uncertainty (1.38 um).
+    Returns (artefact, plan, touches, machine).
+    """
+    from core.touches import from_log
+    from sim import artefacts as A
+    from sim.campaign import simulate_campaign
+    from sim.catalog import make_plan
+    from sim.machine import Machine
+    from sim.machines import MACHINES, realistic_errors
+    from sim.probe import ProbeConfig
+
+    errs = realistic_errors(("X", "Y", "Z", "C"), rng=np.random.default_rng(seed), ripple=False)
+    machine = Machine(MACHINES["nmv3000"](errors=errs))
+    art = A.cross_pocket()
+    plan = make_plan(art)
+    log = simulate_campaign(art, machine, ProbeConfig(repeatability_k2_m=2 * U_PROBE_M), list(CROSS_ANGLES_DEG),
+                            np.random.default_rng(seed + 1), plan=plan, check_collisions=False)
+    return art, plan, from_log(log.select(np.abs(log.col("nz")) < 0.01)), machine
+
+
+def paper_figures(folder, cpu: dict, pin: dict | None = None, seed: int = 1) -> dict:
+    """Write the self-calibration paper's figures as PNGs into ``folder``; returns ``{name: path}``.
+
+    Figs. 18(a-c), 19 (U95 of G on the outline), 20(a, b) (U95 of the map)
+    from ``cpu`` (:func:`cross_pocket_uncertainty`); 9(b), 10, 14 from a
+    simulated campaign (:func:`cross_pocket_campaign`); 17 from ``pin``
+    (:func:`pin_circle`) when given.
+    """
+    from pathlib import Path
+
+    from core.selfcal import Grid, self_calibrate, workpiece_form
+    from scenarios.hidden import workpiece_truth
+    from sim import artefacts as A
+    from viz import figures as F
+    from viz import selfcal_figures as S
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+
+    def save(name, fig):
+        out[name] = F.save_png(fig, folder / f"{name}.png")
+
+    a = cpu["arrays"]
+    polys, circles = part_outline_mm(A.cross_pocket())
+    tw, to = a["targets_with_spheres"], a["targets_without_spheres"]
+    for tag, c in (("a", (0, 75)), ("b", (0, 75, 130)), ("c", (0, 75, 130, 210))):
+        key = f"g_u95_um_with_spheres_C{'_'.join(str(v) for v in c)}"
+        if key in a:
+            save(f"fig18{tag}", S.outline_uncertainty_figure(
+                tw["w_mm"], a[key], outlines_mm=polys, circles_mm=circles,
+                title=f"Fig. 18({tag}): U95 of G_normal, spheres, C = {', '.join(map(str, c))}°"))
+    key = "g_u95_um_without_spheres_C0_75_130_210"
+    if key in a:
+        save("fig19", S.outline_uncertainty_figure(to["w_mm"], a[key], outlines_mm=polys,
+                                                   title="Fig. 19: U95 of G_normal, no spheres, C = 0, 75, 130, 210°"))
+    for tag, sph in (("a", "with"), ("b", "without")):
+        key = f"map_u95_um_{sph}_spheres_C0_75_130_210"
+        if key in a:
+            save(f"fig20{tag}", F.grid_uncertainty_figure(a["grid_x_mm"], a["grid_y_mm"], np.asarray(a[key]).T,
+                                                          title=f"Fig. 20({tag}): U95 (k=2) of the 2D positioning "
+                                                                f"error, {sph} spheres"))
+    # case 1 campaign: Figs. 9(b), 10, 14
+    art, plan, t, _ = cross_pocket_campaign(seed)
+    g_true = workpiece_truth(art, plan)
+    first = {}
+    for k in range(t.n):
+        first.setdefault(t.target_ids[t.target[k]], k)
+    pocket = [k for k in t.target_ids if not k.startswith("sphere")]
+    P = np.array([t.w_A[first[k], :2] for k in pocket])
+    N = np.array([t.wn_A[first[k], :2] for k in pocket])
+    ref = workpiece_form(np.array([g_true[k] for k in pocket]), P, N) / UM
+    prof = {}
+    for j, sid in enumerate(t.setup_ids):
+        sel = t.setup == j
+        raw = {t.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel])}
+        prof[f"C = {np.degrees(t.rot_rad[sel, 2][0]):g}°"] = np.array([raw[k] for k in pocket]) / UM
+    save("fig9b", F.profile_figure(P / MM, N, prof, magnification=1000.0, scale_um=50.0,
+                                   title="Fig. 9(b): raw profiles at each C (W)"))
+    grid = Grid.regular(-0.110, 0.110, 0.022)
+    keep = np.array([not t.target_ids[i].startswith("sphere") for i in t.target])
+    res0 = self_calibrate(t.subset(keep, reindex=True), grid)
+    g0 = dict(zip(res0.design.target_ids, res0.G))
+    ident = workpiece_form(np.array([g0[k] for k in pocket]), P, N) / UM
+    save("fig10", F.profile_figure(P / MM, N, {"identified G_normal, no spheres (form)": ident}, reference_um=ref,
+                                   reference_label="true form (the CMM's role)",
+                                   title="Fig. 10: identified without the spheres"))
+    res = self_calibrate(t, grid)
+    c_deg = np.degrees(res.design.c_rad)
+    save("fig14", F.rotary_motions_figure(c_deg, {"ECC": res.ECC * 1e6},
+                                          {"ECC": 2e6 * res.std[res.design.slices["ECC"]]}))
+    if pin is not None:
+        out["fig17"] = pin_figure(folder, pin)
+    return out
+
+
+def pin_figure(folder, pin: dict):
+    """Fig. 17 from a :func:`pin_circle` result, as ``folder/fig17.png``; returns the path."""
+    from pathlib import Path
+
+    from viz.figures import save_png
+    from viz.selfcal_figures import pin_positions_figure
+
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    return save_png(pin_positions_figure(pin["pin_nominal_mm"], pin["raw_c0_pin_error_xy_um"],
+                                         pin["selfcal_pin_error_xy_um"]), Path(folder) / "fig17.png")
+

@@ -51,7 +51,9 @@ def outline_uncertainty_figure(points_mm, u95_um, *, outlines_mm: Sequence = (),
         Top of the colour scale (to compare figures on one scale).
     """
     p = check_array("points_mm", points_mm, (-1, 2))
-    u = check_array("u95_um", u95_um, (-1,))
+    u = np.asarray(u95_um, float)
+    if u.ndim != 1 or np.any(np.isinf(u)) or np.all(np.isnan(u)):
+        raise ConfigError(f"u95_um: expected (n,) finite values (NaN = not computed), got shape {u.shape}")
     same_len(points_mm=p, u95_um=u)
     fig = _figure(6.4, 5.4)
     ax = fig.add_subplot()
@@ -65,12 +67,17 @@ def outline_uncertainty_figure(points_mm, u95_um, *, outlines_mm: Sequence = (),
         if not r > 0:
             raise ConfigError(f"circles_mm[{k}]: radius must be > 0, got {r}")
         ax.plot(x + r * np.cos(th), y + r * np.sin(th), "-", lw=0.8, color=_C_OUTLINE)
-    s = ax.scatter(p[:, 0], p[:, 1], c=u, cmap="jet", vmin=0.0, vmax=vmax_um, s=26, zorder=3)
+    bad = np.isnan(u)
+    if bad.any():
+        ax.plot(p[bad, 0], p[bad, 1], "x", ms=4, color="0.5", label="U95 not computed")
+    s = ax.scatter(p[~bad, 0], p[~bad, 1], c=u[~bad], cmap="jet", vmin=0.0, vmax=vmax_um, s=26, zorder=3)
     fig.colorbar(s, ax=ax, label="U95 (k=2) of G_normal / µm")
     ax.set_xlabel("x_W / mm")
     ax.set_ylabel("y_W / mm")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(f"{title}\nmax {np.nanmax(u):.2f} µm", fontsize="medium")
+    if bad.any():
+        ax.legend(fontsize="small", loc="upper right")
     ax.grid(alpha=0.3)
     return fig
 
