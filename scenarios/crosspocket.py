@@ -1,15 +1,22 @@
 """The self-calibration paper's studies, reproduced on vmt's reconstructed parts.
 
-``cross-pocket-uncertainty`` (paper section 6): the maximum expanded
-uncertainty (k = 2) of the identified workpiece ``G_normal`` for C = {0, 75},
+``cross-pocket-uncertainty`` (paper section 6): the expanded uncertainty
+(k = 2) of the identified workpiece ``G_normal`` for C = {0, 75},
 {0, 75, 130} and {0, 75, 130, 210} deg, with and without the two spheres,
 by Monte Carlo (JCGM 101, 1,000 runs, probing standard uncertainty 1.38 um)
-beside linear propagation, and the C-axis uncertainties of Table 2.
+beside linear propagation; Table 2 (C-axis), Fig. 19 (the spheres' effect),
+Fig. 20 (U95 of the error map). ONE reading of U95 throughout,
+:data:`U95_READING`: each parameter as identified under the gauge of
+eqs 16-17. A sensitivity run (:data:`SENSITIVITY`) shows what of the
+reconstructed geometry moves the numbers.
 
 ``pin-circle`` (paper section 5): 18 pins on a 400 mm pitch circle and two
 spheres at C = 0, 31, 83, 137, 191, 227, 257, 313 deg, grid step 80 mm over
-the touched extent (the paper's -400..400 mm has nodes no pin reaches); the raw error at C = 0 against the self-calibrated one.
+the touched extent (the paper's -400..400 mm has nodes no pin reaches), the
+yaw vmt's rule picks for the chain, eq 17's delta_L measured; the pin errors
+in the paper's frame (pin 1 and pin 11), raw at C = 0 and self-calibrated.
 
+:func:`paper_figures` writes Figs. 9(b), 10, 14, 17, 18(a-c), 19, 20(a, b).
 The part geometry is vmt's reconstruction (sim.artefacts); the paper's Fig. 8
 is not fully dimensioned, so the figures differ: see ``notes`` in the JSON.
 """
