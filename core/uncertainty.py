@@ -63,8 +63,10 @@ class SelfCalUncertainty:
         the gauge directions, :func:`form_projector`), m. The G values
         themselves also carry the uncertainty of the datum the gauge
         defines, which for the cross pocket is dominated by the weakly
-        observed edge nodes where eq 17 is imposed; the paper's Fig. 18
-        values match the form uncertainty.
+        observed edge nodes where eq 17 is imposed. The paper's Figs. 18-19
+        are read as the G values themselves (``block("G")``, the gauge of
+        eqs 16-17: scenarios.crosspocket.U95_READING); the form is one part
+        of that value (:func:`workpiece_components`), not another reading.
     """
 
     design: SelfCalDesign
