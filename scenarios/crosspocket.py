@@ -111,13 +111,27 @@ def sensitivity_study(spheres: bool = True) -> list:
                                                    if k != "total"},
                          "u_xc_um": [round(2 * float(v) / UM, 3) for v in u[des.slices["EXC"]]],
                          "u_yc_um": [round(2 * float(v) / UM, 3) for v in u[des.slices["EYC"]]],
-                         "u_cc_urad": [round(2e6 * float(v), 3) for v in u[des.slices["ECC"]]]})
+                         "u_cc_urad": [round(2e6 * float(v), 3) for v in u[des.slices["ECC"]]],
+                         "map_u95_max_um": round(float(_map_u95_linear(des, est).max()) / UM, 3)})
             if spheres and len(c) == 4:  # Fig. 19 against 18(c) for this variant
                 sph = np.array([k.startswith("sphere") for k in ids])
                 d2, e2 = estimator(nominal_touches(w[~sph], wn[~sph], c), grid)
                 g2 = 2 * e2.std(U_PROBE_M)[d2.slices["G"]]
                 rows[-1]["sphere_effect_max_um"] = round(float((g2 - parts["total"][~sph]).max()) / UM, 3)
     return rows
+
+
+def _map_u95_linear(des, est) -> np.ndarray:
+    """(N_x, N_y) U95 of the error map (as :func:`core.uncertainty.error_map_u95`) by linear propagation, m."""
+    from core.uncertainty import K, error_map_operator
+
+    M = error_map_operator(des)
+    cols = np.flatnonzero(np.any(M != 0, axis=0))
+    C = est.covariance_of(cols, U_PROBE_M)
+    Mc = M[:, cols]
+    v = np.einsum("ij,jk,ik->i", Mc, C, Mc)
+    n = v.size // 2
+    return K * np.sqrt(np.maximum(v[:n] + v[n:], 0)).reshape(len(des.grid.x_m), len(des.grid.y_m))
 
 
 def _parts_linear(des, est) -> dict:
@@ -398,6 +412,17 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
         e = errors(dict(zip(res.design.target_ids, res.G)))[2]
         runs[label] = (res, np.hypot(*e.T), e)
     res, cal, cal_xy = runs["measured"]
+    # the predicted U95 of each pin's position in the same frame: the chain G -> centres -> alignment is
+    # linear in G, so its matrix is built column by column and the identification's covariance pushed through
+    ids = res.design.target_ids
+    L = np.column_stack([errors({k: float(i == j) for j, k in enumerate(ids)})[2].ravel() * UM
+                         for i in range(len(ids))])
+    u95_pin = None
+    if res.cov is not None:
+        sg = res.design.slices["G"]
+        Cp = L @ res.cov[sg, sg] @ L.T
+        v = np.diag(Cp).reshape(-1, 2)
+        u95_pin = 2.0 * np.sqrt(v.sum(axis=1)) / UM
     return {"scenario": "pin-circle", "machine": "mikron-ucp710 (realistic errors)", "kinematic_chain": chain,
             "yaw": str(yaw), "yaw_rule": "core.selfcal.yaw_for_chain of the log's kinematic_chain",
             "c_angles_deg": angles,
@@ -419,6 +444,11 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
             "selfcal_pin_error_max_true_delta_L_um": round(float(runs["true_delta_L"][1].max()), 3),
             "selfcal_pin_error_max_yaw_ECY_um": round(float(runs["yaw_ECY_printed"][1].max()), 3),
             "residual_rms_um": round(res.rms_m / UM, 3),
+            "selfcal_pin_u95_um": None if u95_pin is None else [round(float(v), 3) for v in u95_pin],
+            "selfcal_pin_u95_max_um": None if u95_pin is None else round(float(u95_pin.max()), 3),
+            "selfcal_pin_u95_what": "2 sqrt(u_x^2 + u_y^2) of each pin's position in the paper's frame, from the "
+                                    "identification's covariance (probing noise and model error budget; delta_L "
+                                    "taken as exact)",
             "paper": "raw about 8 um at C = 0 (pin 13), self-calibrated within 2 um",
             "notes": ["pin position = least-squares centre shift (and a radius term) from the four normal "
                       "deviations of each pin; the reference is the true pin position (the CMM's role)",
@@ -480,47 +510,125 @@ def cross_pocket_campaign(seed: int = 1):
 
 
 def paper_figures(folder, cpu: dict, pin: dict | None = None, seed: int = 1) -> dict:
-    """Write the self-calibration paper's figures as PNGs into ``folder``; returns ``{name: path}``.
+    """The self-calibration paper's figures and tables as a report folder; returns ``{figure name: png path}``.
 
-    Figs. 18(a-c), 19 (U95 of G on the outline), 20(a, b) (U95 of the map)
-    from ``cpu`` (:func:`cross_pocket_uncertainty`); 9(b), 10, 14 from a
-    simulated campaign (:func:`cross_pocket_campaign`); 17 from ``pin``
+    ``folder`` gets ``index.html``, one PNG per figure and ``recording.rrd``
+    (U95 on the part, the tables paper vs vmt). Figs. 18(a-c), 19 (U95 of G
+    on the outline), 20(a, b) (U95 of the map) from ``cpu``
+    (:func:`cross_pocket_uncertainty`); 9(b), 10, 14 from a simulated
+    campaign (:func:`cross_pocket_campaign`); 17 from ``pin``
     (:func:`pin_circle`) when given.
     """
+    import shutil
     from pathlib import Path
 
+    from scenarios.reports import _recording_path
+    from viz import record
+    from viz.report import Section, write_report
+
+    folder = Path(folder)
+    figs = _paper_figure_objects(cpu, pin, seed)
+    tables = paper_tables(cpu, pin)
+    rrd = _recording_path(folder)
+    try:
+        with record.recording(rrd) as rec:
+            _record_paper(rec, record, cpu, tables)
+        secs = [Section("Self-calibration paper: the one U95 reading", text=cpu["u95_reading"]),
+                Section("Paper vs vmt", tables=list(tables.values()))]
+        groups = (("Case 1 profiles (Figs. 9(b), 10) and the C axis (Fig. 14)", ("fig9b", "fig10", "fig14")),
+                  ("Workpiece U95 on the outline (Figs. 18, 19)", ("fig18a", "fig18b", "fig18c", "fig19")),
+                  ("U95 of the error map (Fig. 20)", ("fig20a", "fig20b")),
+                  ("Pin circle (Fig. 17)", ("fig17",)))
+        for title, names in groups:
+            have = {n: figs[n] for n in names if n in figs}
+            if have:
+                secs.append(Section(title, figures=have))
+        write_report(folder, "Self-calibration paper (Ibaraki et al.), reproduced", secs, recording=rrd)
+    finally:
+        shutil.rmtree(rrd.parent, ignore_errors=True)
+    return {n: folder / f"{n}.png" for n in figs}
+
+
+def paper_tables(cpu: dict, pin: dict | None = None) -> dict:
+    """Tables paper vs vmt (:class:`viz.report.Table`): Fig. 18-20 maxima, Table 2, the sensitivity, the pins."""
+    from viz.report import Table
+
+    out = {}
+    rows = []
+    for c in cpu["cases"]:
+        rows.append([", ".join(f"{a:g}" for a in c["c_angles_deg"]), "yes" if c["spheres"] else "no",
+                     c.get("g_u95_max_um"), c.get("paper_g_u95_max_um") or "",
+                     c.get("ratio_to_paper", ""), c.get("map_u95_max_um")])
+    out["fig18"] = Table(["C / deg", "spheres", "max U95(G) / um", "paper", "ratio", "max U95 map / um"], rows,
+                         caption="Figs. 18-20 (paper's Fig. 20(a): 28 um at Y = +-110 mm)")
+    out["table2"] = Table(["C / deg", "U_XC / um", "paper", "U_YC / um", "paper", "U_CC / urad", "paper"],
+                          [[t["c_deg"], t["u_xc_um"], t["paper_u_xc_um"], t["u_yc_um"], t["paper_u_yc_um"],
+                            t["u_cc_urad"], t["paper_u_cc_urad"]] for t in cpu["table2"]], caption="Table 2")
+    if "sensitivity" in cpu:
+        out["sensitivity"] = Table(
+            ["variant", "C / deg", "max U95(G) / um", "U_XC / um", "U_YC / um", "U_CC / urad", "max U95 map / um"],
+            [[r["variant"], ", ".join(f"{a:g}" for a in r["c_angles_deg"]), r["g_u95_max_um"],
+              " ".join(f"{v:g}" for v in r["u_xc_um"][1:]), " ".join(f"{v:g}" for v in r["u_yc_um"][1:]),
+              " ".join(f"{v:g}" for v in r["u_cc_urad"][1:]), r["map_u95_max_um"]] for r in cpu["sensitivity"]],
+            caption="Sensitivity (linear propagation): what of the reconstruction drives the numbers")
+    if pin is not None:
+        out["pins"] = Table(["quantity", "vmt", "paper"],
+                            [["raw max pin error at C = 0 / um", pin["raw_c0_pin_error_max_um"], "about 8"],
+                             ["self-calibrated max pin error / um", pin["selfcal_pin_error_max_um"], "within 2"],
+                             ["predicted max U95 of a pin / um", pin["selfcal_pin_u95_max_um"], "-"],
+                             ["delta_L measured (true) / um",
+                              f"{pin['delta_L']['measured_um']} ({pin['delta_L']['true_um']})", "measured"],
+                             ["yaw", pin["yaw"], "ECY (its chain: X on Y)"]],
+                            caption="Fig. 17, the pin circle (aligned on pins 1 and 11, no scale removed)")
+    return out
+
+
+def _record_paper(rec, record, cpu: dict, tables: dict) -> None:
+    """The recording: U95 of G at the targets on the part (Figs. 18(c), 19) and the tables as markdown."""
+    a = cpu["arrays"]
+    for key, sub in (("g_u95_um_with_spheres_C0_75_130_210", "with"),
+                     ("g_u95_um_without_spheres_C0_75_130_210", "without")):
+        if key not in a:
+            continue
+        tg = a[f"targets_{sub}_spheres"]
+        p = np.column_stack([np.asarray(tg["w_mm"]) * MM, np.zeros(len(tg["w_mm"]))])
+        n = np.column_stack([np.asarray(tg["wn"]), np.zeros(len(tg["wn"]))])
+        record.log_workpiece(rec, p, n, np.zeros(len(p)), u95_um=a[key],
+                             path=f"{record.WORKPIECE}/u95_{sub}_spheres")
+    for name, t in tables.items():
+        md = "| " + " | ".join(t.columns) + " |\n|" + "---|" * len(t.columns) + "\n"
+        md += "\n".join("| " + " | ".join(str(v) for v in r) + " |" for r in t.rows)
+        record.log_markdown(rec, f"selfcal_{name}", (t.caption + "\n\n" if t.caption else "") + md)
+
+
+def _paper_figure_objects(cpu: dict, pin: dict | None, seed: int) -> dict:
+    """``{name: Figure}`` of the paper's figures (see :func:`paper_figures`)."""
     from core.selfcal import Grid, self_calibrate, workpiece_form
     from scenarios.hidden import workpiece_truth
     from sim import artefacts as A
     from viz import figures as F
     from viz import selfcal_figures as S
 
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
     out = {}
-
-    def save(name, fig):
-        out[name] = F.save_png(fig, folder / f"{name}.png")
-
     a = cpu["arrays"]
     polys, circles = part_outline_mm(A.cross_pocket())
     tw, to = a["targets_with_spheres"], a["targets_without_spheres"]
     for tag, c in (("a", (0, 75)), ("b", (0, 75, 130)), ("c", (0, 75, 130, 210))):
         key = f"g_u95_um_with_spheres_C{'_'.join(str(v) for v in c)}"
         if key in a:
-            save(f"fig18{tag}", S.outline_uncertainty_figure(
+            out[f"fig18{tag}"] = S.outline_uncertainty_figure(
                 tw["w_mm"], a[key], outlines_mm=polys, circles_mm=circles,
-                title=f"Fig. 18({tag}): U95 of G_normal, spheres, C = {', '.join(map(str, c))}°"))
+                title=f"Fig. 18({tag}): U95 of G_normal, spheres, C = {', '.join(map(str, c))}°")
     key = "g_u95_um_without_spheres_C0_75_130_210"
     if key in a:
-        save("fig19", S.outline_uncertainty_figure(to["w_mm"], a[key], outlines_mm=polys,
-                                                   title="Fig. 19: U95 of G_normal, no spheres, C = 0, 75, 130, 210°"))
+        out["fig19"] = S.outline_uncertainty_figure(to["w_mm"], a[key], outlines_mm=polys,
+                                                    title="Fig. 19: U95 of G_normal, no spheres, C = 0, 75, 130, 210°")
     for tag, sph in (("a", "with"), ("b", "without")):
         key = f"map_u95_um_{sph}_spheres_C0_75_130_210"
         if key in a:
-            save(f"fig20{tag}", F.grid_uncertainty_figure(a["grid_x_mm"], a["grid_y_mm"], np.asarray(a[key]).T,
-                                                          title=f"Fig. 20({tag}): U95 (k=2) of the 2D positioning "
-                                                                f"error, {sph} spheres"))
+            out[f"fig20{tag}"] = F.grid_uncertainty_figure(
+                a["grid_x_mm"], a["grid_y_mm"], np.asarray(a[key]).T,
+                title=f"Fig. 20({tag}): U95 (k=2) of the 2D positioning error, {sph} spheres")
     # case 1 campaign: Figs. 9(b), 10, 14
     art, plan, t, _ = cross_pocket_campaign(seed)
     g_true = workpiece_truth(art, plan)
@@ -532,27 +640,32 @@ def paper_figures(folder, cpu: dict, pin: dict | None = None, seed: int = 1) -> 
     N = np.array([t.wn_A[first[k], :2] for k in pocket])
     ref = workpiece_form(np.array([g_true[k] for k in pocket]), P, N) / UM
     prof = {}
-    for j, sid in enumerate(t.setup_ids):
+    for j in range(len(t.setup_ids)):
         sel = t.setup == j
         raw = {t.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel])}
         prof[f"C = {np.degrees(t.rot_rad[sel, 2][0]):g}°"] = np.array([raw[k] for k in pocket]) / UM
-    save("fig9b", F.profile_figure(P / MM, N, prof, magnification=1000.0, scale_um=50.0,
-                                   title="Fig. 9(b): raw profiles at each C (W)"))
+    out["fig9b"] = F.profile_figure(P / MM, N, prof, magnification=1000.0, scale_um=50.0,
+                                    title="Fig. 9(b): raw profiles at each C (W)")
     grid = Grid.regular(-0.110, 0.110, 0.022)
     keep = np.array([not t.target_ids[i].startswith("sphere") for i in t.target])
     res0 = self_calibrate(t.subset(keep, reindex=True), grid)
     g0 = dict(zip(res0.design.target_ids, res0.G))
     ident = workpiece_form(np.array([g0[k] for k in pocket]), P, N) / UM
-    save("fig10", F.profile_figure(P / MM, N, {"identified G_normal, no spheres (form)": ident}, reference_um=ref,
-                                   reference_label="true form (the CMM's role)",
-                                   title="Fig. 10: identified without the spheres"))
+    out["fig10"] = F.profile_figure(P / MM, N, {"identified G_normal, no spheres (form)": ident}, reference_um=ref,
+                                    reference_label="true form (the CMM's role)",
+                                    title="Fig. 10: identified without the spheres")
     res = self_calibrate(t, grid)
-    c_deg = np.degrees(res.design.c_rad)
-    save("fig14", F.rotary_motions_figure(c_deg, {"ECC": res.ECC * 1e6},
-                                          {"ECC": 2e6 * res.std[res.design.slices["ECC"]]}))
+    out["fig14"] = F.rotary_motions_figure(np.degrees(res.design.c_rad), {"ECC": res.ECC * 1e6},
+                                           {"ECC": 2e6 * res.std[res.design.slices["ECC"]]})
     if pin is not None:
-        out["fig17"] = pin_figure(folder, pin)
+        out["fig17"] = _pin_figure_object(pin)
     return out
+
+
+def _pin_figure_object(pin: dict):
+    from viz.selfcal_figures import pin_positions_figure
+
+    return pin_positions_figure(pin["pin_nominal_mm"], pin["raw_c0_pin_error_xy_um"], pin["selfcal_pin_error_xy_um"])
 
 
 def pin_figure(folder, pin: dict):
@@ -560,9 +673,7 @@ def pin_figure(folder, pin: dict):
     from pathlib import Path
 
     from viz.figures import save_png
-    from viz.selfcal_figures import pin_positions_figure
 
     Path(folder).mkdir(parents=True, exist_ok=True)
-    return save_png(pin_positions_figure(pin["pin_nominal_mm"], pin["raw_c0_pin_error_xy_um"],
-                                         pin["selfcal_pin_error_xy_um"]), Path(folder) / "fig17.png")
+    return save_png(_pin_figure_object(pin), Path(folder) / "fig17.png")
 

@@ -63,8 +63,9 @@ def test_sensitivity_names_the_driver(cpu):
     rows = {(r["variant"].split(" (")[0], tuple(int(a) for a in r["c_angles_deg"])): r for r in cpu["sensitivity"]}
     base = {k[1]: r for k, r in rows.items() if k[0] == "baseline"}
     cases = _cases(cpu)
-    for c, r in base.items():  # the baseline rows are the study's own (linear) values
+    for c, r in base.items():  # the baseline rows are the study's own (linear) values; MC 400 runs beside
         assert r["g_u95_max_um"] == pytest.approx(cases[(c, True)]["g_u95_max_linear_um"], rel=1e-3)
+        assert r["map_u95_max_um"] == pytest.approx(cases[(c, True)]["map_u95_max_um"], rel=0.12)
     coarse = {k[1]: r for k, r in rows.items() if k[0].startswith("grid step 44")}
     for c, paper in PAPER_G.items():
         assert 1 / 1.5 < coarse[c]["g_u95_max_um"] / paper < 1.5
@@ -100,9 +101,27 @@ def test_pin_circle_the_papers_way(pin):
     e = np.array(pin["selfcal_pin_error_xy_um"])
     assert np.all(e[0] == 0) and e[10, 1] == pytest.approx(0, abs=1e-9)  # the paper's frame
     assert pin["selfcal_pin_error_max_um"] < 2.0 < pin["raw_c0_pin_error_max_um"]  # paper: ~8 um -> < 2 um
+    # against the truth: every pin within its predicted U95 (0 at pin 1, the frame's origin); this seed's draw
+    u = np.array(pin["selfcal_pin_u95_um"])
+    assert u[0] == 0 and np.all(np.array(pin["selfcal_pin_error_um"]) <= u)
+    assert 3.0 < pin["selfcal_pin_u95_max_um"] < 5.0  # the paper's "within 2 um" is one draw of this spread
     assert (pin["_folder"] / "fig17.png").stat().st_size > 10_000
 
 
 def test_scenario_mc_too_small(capsys):
     assert main(["scenario", "cross-pocket-uncertainty", "--mc", "3"]) == 2
     assert "--mc must be >= 10" in capsys.readouterr().err
+
+
+def test_paper_report_folder(cpu, pin, tmp_path):
+    """Every self-calibration figure with data behind it, the tables paper vs vmt, and the recording."""
+    from scenarios.crosspocket import paper_figures
+
+    figs = paper_figures(tmp_path / "rep", cpu, pin)
+    assert sorted(figs) == sorted(["fig9b", "fig10", "fig14", "fig17", "fig18a", "fig18b", "fig18c", "fig19",
+                                   "fig20a", "fig20b"])
+    for p in figs.values():
+        assert p.stat().st_size > 10_000
+    html = (tmp_path / "rep" / "index.html").read_text()
+    assert "Table 2" in html and "eqs 16-17" in html and "Sensitivity" in html
+    assert (tmp_path / "rep" / "recording.rrd").stat().st_size > 1_000
