@@ -203,7 +203,12 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art) -> None:
     record.log_touches(rec, t.pn_R, t.dq_m / UM, n_R=t.n_R)
     record.log_error_grid(rec, v.x_mm, v.y_mm, v.ex_um, v.ey_um, true_ex_um=v.tex, true_ey_um=v.tey)
     _log_machine_bodies(rec, record, t)
-    record.log_workpiece(rec, t.w_A[v.idx], t.wn_A[v.idx], v.g_um, u95_um=v.u95_um)
+    # the profile drawn x2500 is the form: G with the datum's shift, rotation and scale (tens of um, which
+    # would move points tens of mm off the part) removed; the U95 colours sit on the nominal points
+    from core.selfcal import workpiece_form
+
+    record.log_workpiece(rec, t.w_A[v.idx], t.wn_A[v.idx], workpiece_form(v.g_um, v.w_mm * MM, v.wn),
+                         u95_um=v.u95_um)
     record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, ex0c_um=v.centre_um(0),
                       ey0c_um=v.centre_um(1))
     record.log_error_motions(rec, {k: e for k, e in ident["axes"].items() if k != "EC0Y"})
