@@ -126,6 +126,13 @@ class MeasurementSpec:
     holes: tuple = tuple(range(1, 13))
     senses: str = ""
     stylus: str = "T0"
+    setup: str = ""
+
+    @property
+    def setup_key(self) -> str:
+        """The set-up (placement and rotary positions): one bar pose in R, one
+        set of nuisance values in the identification."""
+        return self.setup or self.placement
 
 
 @dataclass(frozen=True)
@@ -133,13 +140,19 @@ class MfbPlan:
     machine: str
     measurements: tuple
     nodes: dict = field(compare=False)
+    fixtures: dict = field(default_factory=dict, compare=False)
+
+    @property
+    def setups(self) -> tuple:
+        return tuple(dict.fromkeys(m.setup_key for m in self.measurements))
 
     @property
     def placements(self) -> tuple:
         return tuple(dict.fromkeys(m.placement for m in self.measurements))
 
     def without(self, placement: str) -> "MfbPlan":
-        return MfbPlan(self.machine, tuple(m for m in self.measurements if m.placement != placement), self.nodes)
+        return MfbPlan(self.machine, tuple(m for m in self.measurements if m.placement != placement), self.nodes,
+                       {k: v for k, v in self.fixtures.items() if k != placement})
 
 
 def _T(cols, p):
@@ -226,75 +239,152 @@ def plan_3axis() -> MfbPlan:
     return MfbPlan("vmc-3axis", tuple(ms), nodes)
 
 
+#: Star styli of the 5-axis plan besides :data:`STYLI` (none needed: the bar's
+#: holes face +Z, -Y or -X in every measurement, probed with T0, TY*, TX*).
+
+#: 5-axis nodes (R, m): the points of interest of the bars along each axis
+#: (X: holes 1-10 of a bar whose first hole is at x = -175 mm, 9 nodes as
+#: the 3-axis plan's; Y: 8 holes from y = -225 to 125 mm; Z: 6 holes of the
+#: standing bars, z = -45 to 205 mm, the A line being 120 mm below the
+#: table face). Every reading of every measurement lies within the nodes
+#: (plus :data:`core.volumetric.NODE_MARGIN_M`) of all three axes.
+NODES_5AXIS = {"X": np.linspace(-0.175, 0.275, 9), "Y": np.linspace(-0.225, 0.125, 8),
+               "Z": np.linspace(-0.045, 0.205, 6)}
+
+
 def plan_5axis() -> MfbPlan:
-    """The 5-axis plan for ``mikron-ucp710``: 17 measurements with A and C.
+    """The 5-axis plan for ``mikron-ucp710``: 3 bar placements, 14 rotary set-ups, 17 measurements.
 
-    Chain ``[w C' A' b X Y Z (C1) t]``: the table turns (C on A), all linear
-    axes carry the tool (eq. 8). Each bar pose is given in R (the axes it
-    lies along, as in :func:`plan_3axis`) at its rotary positions; the pose
-    on the table follows (``T_W_A = T_R_W(A, C)^-1 T_R_A``). A placement is
-    a bar pose with its rotary positions (13; the rotary axes' errors are
-    constant within one and absorbed by its nuisance values).
+    Chain ``[w C' A' b X Y Z (C1) t]``: the table turns (C on A, the A line
+    120 mm below the table face), all linear axes carry the tool (eq. 8).
+    A *placement* is where the bar is fixed on the table (W frame, with its
+    workholder, :class:`sim.mfb_scene.Block`); the rotary axes then present
+    it in several orientations (*set-ups*); each set-up is probed with one
+    or more styli (*measurements*). The rotary axes' errors are constant
+    within a set-up and move the bar rigidly: the estimator gives each
+    set-up its own pose (5 nuisance values), so they are absorbed exactly,
+    and nothing of the rotary axes is assumed known.
 
-    What each senses on a tool-side chain: the arm of an angular error of X
-    is the tip relative to the X carriage, i.e. the Y and Z *readings* (the
-    stylus does not count: the readings are the tip); of Y, the Z reading
-    and the stylus offset J_X (Y rides on X); of Z, the stylus offsets only.
-    Hence:
+    - **P1**: the bar flat on its two supports on the table, along W x,
+      first hole at (x, y) = (-175, 80) mm. X1 (A = C = 0, T0): along X at
+      (y, z) = (80, 70) mm; X3 (A = -90, C = 0, TY1): along X at (-190, -40)
+      mm, holes facing -Y; Y1 (C = 90, T0): along -Y at (x, z) = (80, 70)
+      mm; VY (A = -90, C = -90; TY1, TY2, TYL): standing, holes facing -Y;
+      DXY / AXY (C = -45 / +45, T0) and DXZ / AXZ (A = -90, C = -45 / +45,
+      TY1): the diagonals.
+    - **P2**: the bar flat on a 200 mm riser block: X2 (A = C = 0, T0) at
+      (y, z) = (0, 270) mm, Y2 (C = 90, T0) at (x, z) = (0, 270) mm.
+    - **P3**: the bar on its edge along W y, holes facing -W x, its
+      supports bolted to an angle plate, 130 mm above the table: Y3 (A = C =
+      0, TX1), VX (A = -90; TX1, TX2), DYZ / AYZ (A = -45 / +45, TX1).
 
-    - X1, X2, X3 (A = C = 0): along X at (y, z) = (-40, 60), (-40, 260),
-      (110, 60) mm, T0: EXX, EYX, EZX; X2-X1 (dz): EBX, EAX; X3-X1 (dy):
-      ECX, EAX. (Two styli on one X bar sense nothing of X: the tip is the
-      same point; without a second height EBX is lost to EB0Z.)
-    - Y1 (C = 90 deg; T0 and TXF), Y2 (C = 90, z = 260 mm): EYY, EXY, EZY;
-      Y2-Y1: EAY, EBY; TXF-T0 (dJ_X 100 mm): ECY, EBY.
-    - VY (A = 90): standing, holes facing -Y, TY1, TY2, TYL: EZZ, EXZ, EYZ;
-      dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ. VX (A = 90, C = 90): holes facing -X,
-      TX1, TX2: ECZ, EBZ.
-    - DXY / AXY (C = +-45 deg): EC0Y; DXZ / AXZ (A = 90, C = +-45, TY1):
-      EB0Z; DYZ / AYZ (A = +-45, C = 90, TX1): EA0Z; each pair also separates
-      a twist from the bar's bow (see the module doc).
-
-    The paper's plan counts 6 bar positions for its 17 measurements; here
-    the bar is re-set for each pose listed (13 placements, 17 measurements).
-    Nodes as :func:`plan_3axis` (the same R positions).
+    What each senses (tool-side chain; module doc): X1, X2, X3 at three
+    (y, z) not on one line: EXX, EYX, EZX and EAX, EBX, ECX by
+    differential straightness and positioning; Y1, Y2 (dz 200 mm): EAY,
+    EBY; Y3 - Y1 (the stylus offset dJ_X 100 mm): ECY, EBY; VY (dJ_Y 50
+    mm, dJ_Z 100 mm) and VX (dJ_X 50 mm): ECZ, EAZ, EBZ; the diagonals:
+    EC0Y, EB0Z, EA0Z and the twist ramps (the pairs, module doc).
+    The paper's 6 placements: this chain needs 3 (``mfb_placements``
+    checks what is lost without each).
     """
     from sim.machine import Machine
     from sim.machines import MACHINES
+    from sim.mfb_scene import Block
 
     m = Machine(MACHINES["mikron-ucp710"]())
     axes = m.rotary_axes
     ms = []
+    fixtures = {}
 
-    def add(name, rot_deg, x_R, z_R, p_R, holes, styli=("T0",), senses=""):
-        x_R, z_R = np.asarray(x_R, float), np.asarray(z_R, float)
-        T_R_A = _T((x_R, np.cross(z_R, x_R), z_R), p_R)
+    def place(name, x_W, z_W, origin, blocks=()):
+        x_W, z_W = np.asarray(x_W, float), np.asarray(z_W, float)
+        fixtures[name] = tuple(blocks)
+        return name, _T((x_W, np.cross(z_W, x_W), z_W), origin)
+
+    def add(pl, name, rot_deg, holes, styli=("T0",), senses=""):
+        p, T = pl
         r = tuple(float(np.deg2rad(rot_deg[a])) for a in axes)
-        T_R_W = np.asarray(m.T_R_W_nominal(np.asarray(r)[None, :]), float).reshape(-1, 4, 4)[0]
-        T = np.linalg.inv(T_R_W) @ T_R_A
+        if holes == _DIAG:
+            T_R_W = np.asarray(m.T_R_W_nominal(np.asarray(r)[None, :]), float).reshape(4, 4)
+            holes = _fit_holes(T_R_W @ T, _reach(m.config.strokes), STYLI[styli[0]])
+        key = f"{p}@" + ",".join(f"{a}{rot_deg[a]:g}" for a in axes)
         for k, st in enumerate(styli):
-            ms.append(MeasurementSpec(name if len(styli) == 1 else f"{name}{'abc'[k]}", name, T, r,
-                                      STYLI[st], tuple(holes), senses, st))
+            ms.append(MeasurementSpec(name if len(styli) == 1 else f"{name}{'abc'[k]}", p, T, r,
+                                      STYLI[st], tuple(holes), senses, st, setup=key))
 
-    h12, h8, h7 = tuple(range(1, 13)), tuple(range(1, 9)), tuple(range(1, 8))
-    add("X1", {"A": 0, "C": 0}, _X, _Z, (-0.275, -0.040, 0.060), h12, senses="EXX, EYX, EZX")
-    add("X2", {"A": 0, "C": 0}, _X, _Z, (-0.275, -0.040, 0.260), h12, senses="with X1 (dz): EBX, EAX")
-    add("X3", {"A": 0, "C": 0}, _X, _Z, (-0.275, 0.110, 0.060), h12, senses="with X1 (dy): ECX, EAX")
-    add("Y1", {"A": 0, "C": 90}, _Y, _Z, (-0.025, -0.190, 0.060), h8, ("T0", "TXF"),
-        senses="EYY, EXY, EZY; dJ_X: ECY, EBY")
-    add("Y2", {"A": 0, "C": 90}, _Y, _Z, (-0.025, -0.190, 0.260), h8, senses="with Y1 (dz): EAY, EBY")
-    add("VY", {"A": 90, "C": 0}, _Z, -_Y, (-0.025, -0.040, 0.060), h7, ("TY1", "TY2", "TYL"),
+    h10, h29, h611, h18, h712 = (tuple(range(1, 11)), tuple(range(2, 10)), tuple(range(6, 12)),
+                                 tuple(range(1, 9)), tuple(range(7, 13)))
+    P1 = place("P1", _X, _Z, (-0.175, 0.080, 0.070))
+    P2 = place("P2", _X, _Z, (-0.175, 0.000, 0.220),
+               (Block("riser", (-0.095, -0.045, 0.0), (0.295, 0.045, 0.150)),))
+    P3 = place("P3", _Y, -_X, (-0.060, -0.225, 0.105),
+               (Block("angle_plate", (0.010, -0.135, 0.0), (0.030, 0.235, 0.140)),))
+    add(P1, "X1", {"A": 0, "C": 0}, h10, senses="EXX, EYX, EZX at (y, z) = (80, 70) mm")
+    add(P2, "X2", {"A": 0, "C": 0}, h10, senses="with X1 (dy -80, dz 150 mm): EAX, EBX, ECX")
+    add(P1, "X3", {"A": -90, "C": 0}, h10, ("TY1",), senses="with X1, X2 (y, z) = (-190, -40) mm: EAX, EBX, ECX")
+    add(P1, "Y1", {"A": 0, "C": 90}, h29, senses="EYY, EXY, EZY at (x, z) = (80, 70) mm")
+    add(P2, "Y2", {"A": 0, "C": 90}, h29, senses="with Y1 (dz 150 mm): EAY, EBY")
+    add(P3, "Y3", {"A": 0, "C": 0}, h18, ("TX1",), senses="with Y1 (dJ_X 100 mm): ECY, EBY")
+    add(P1, "VY", {"A": -90, "C": -90}, h611, ("TY1", "TY2", "TYL"),
         senses="EZZ, EXZ, EYZ; dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ")
-    add("VX", {"A": 90, "C": 90}, _Z, -_X, (-0.025, -0.040, 0.060), h7, ("TX1", "TX2"), senses="dJ_X: ECZ, EBZ")
-    add("DXY", {"A": 0, "C": 45}, (_X + _Y) * _S2, _Z, (-0.125, -0.140, 0.060), h8, senses="EC0Y")
-    add("AXY", {"A": 0, "C": -45}, (_X - _Y) * _S2, _Z, (-0.125, 0.107, 0.060), h8, senses="EC0Y, twist")
-    add("DXZ", {"A": 90, "C": 45}, (_X + _Z) * _S2, -_Y, (-0.125, -0.040, 0.060), h8, ("TY1",), senses="EB0Z")
-    add("AXZ", {"A": 90, "C": -45}, (_X - _Z) * _S2, -_Y, (-0.125, -0.040, 0.345), h8, ("TY1",),
-        senses="EB0Z, twist")
-    add("DYZ", {"A": 45, "C": 90}, (_Y + _Z) * _S2, -_X, (-0.025, -0.140, 0.060), h8, ("TX1",), senses="EA0Z")
-    add("AYZ", {"A": -45, "C": 90}, (_Y - _Z) * _S2, -_X, (-0.025, -0.140, 0.345), h8, ("TX1",),
-        senses="EA0Z, twist")
-    return MfbPlan("mikron-ucp710", tuple(ms), dict(plan_3axis().nodes))
+    add(P3, "VX", {"A": -90, "C": 0}, h712, ("TX1", "TX2"), senses="dJ_X: ECZ, EBZ")
+    add(P1, "DXY", {"A": 0, "C": -45}, _DIAG, senses="EC0Y, twist")
+    add(P1, "AXY", {"A": 0, "C": 45}, _DIAG, senses="EC0Y, twist")
+    add(P1, "DXZ", {"A": -90, "C": -45}, _DIAG, ("TY1",), senses="EB0Z, twist")
+    add(P1, "AXZ", {"A": -90, "C": 45}, _DIAG, ("TY1",), senses="EB0Z, twist")
+    add(P3, "DYZ", {"A": -45, "C": 0}, _DIAG, ("TX1",), senses="EA0Z, twist")
+    add(P3, "AYZ", {"A": 45, "C": 0}, _DIAG, ("TX1",), senses="EA0Z, twist")
+    return MfbPlan("mikron-ucp710", tuple(ms), dict(NODES_5AXIS), fixtures)
+
+
+#: Holes of the diagonal measurements: chosen per set-up (:func:`_fit_holes`).
+_DIAG = ()
+
+
+def _reach(strokes) -> dict:
+    """Where a 5-axis reading may lie: the strokes, and the node box of each axis
+    widened by 30 mm (within :data:`core.volumetric.NODE_MARGIN_M`)."""
+    return {a: (max(strokes[a][0], NODES_5AXIS[a][0] - 0.030), min(strokes[a][1], NODES_5AXIS[a][-1] + 0.030))
+            for a in "XYZ"}
+
+
+def _fit_holes(T_R_A, strokes, J_m, n_max: int = 8, margin_m: float = 5.0e-3) -> tuple:
+    """The longest run of at most ``n_max`` consecutive holes (centred on the
+    reachable ones) whose touches and approach starts, stylus ball included,
+    lie ``margin_m`` inside the strokes of the readings (X, Y, Z)."""
+    from sim import artefacts as A
+    from core.exceptions import PlanError
+
+    art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
+    ok = []
+    for h in range(1, 13):
+        pl = _plan_for(art, (h,))
+        r = 3.0e-3
+        c = A.apply_T(T_R_A, pl.w_A + r * pl.wn_A)
+        c = np.vstack([c, c + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)])
+        inside = all(np.all((c[:, j] >= strokes[a][0] + margin_m) & (c[:, j] <= strokes[a][1] - margin_m))
+                     for j, a in enumerate("XYZ"))
+        ok.append(inside)
+    best = (0, 0)
+    k = 0
+    while k < 12:
+        if ok[k]:
+            j = k
+            while j < 12 and ok[j]:
+                j += 1
+            if j - k > best[1] - best[0]:
+                best = (k, j)
+            k = j
+        else:
+            k += 1
+    lo, hi = best
+    if hi - lo < 3:
+        raise PlanError(f"fewer than 3 consecutive holes of the bar reachable within the strokes (J = {J_m})")
+    if hi - lo > n_max:
+        mid = (lo + hi) // 2
+        lo = max(lo, mid - n_max // 2)
+        hi = lo + n_max
+    return tuple(range(lo + 1, hi + 1))
 
 
 PLANS = {"mfb-3axis": plan_3axis, "mfb-5axis": plan_5axis}
@@ -342,6 +432,73 @@ class _NoSafeHeight:
 
     def __getattr__(self, k):
         return getattr(self._m, k)
+
+
+#: Collision checks already made (a pure function of the nominal plan).
+_CHECKS: dict = {}
+
+
+def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3) -> dict:
+    """Collision and reach check of every measurement of a plan with a workholder (MuJoCo).
+
+    Each measurement's touches, approach/retract and link moves are checked
+    in :class:`sim.mfb_scene.WorkZone` (table, workholder, bar and its
+    supports; stylus ball, star arm, extension, probe body, spindle) at the
+    set-up's rotary positions, and the touches against the strokes of the
+    readings. Returns the summary for the report (``passed``, per
+    measurement: set-up, stylus, holes, touches, path points, collisions,
+    least clearance from the table side).
+
+    Raises
+    ------
+    PlanError
+        A collision, the bar below the table face, or a touch outside a stroke
+        (measurement and what hits what named).
+    """
+    from core.exceptions import PlanError
+    from sim import artefacts as A
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+    from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurement
+
+    key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m)
+    if key in _CHECKS:
+        return _CHECKS[key]
+    t0 = time.time()
+    mach = Machine(MACHINES[plan.machine]())
+    art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
+    per, n_t, n_s = {}, 0, 0
+    for ms in plan.measurements:
+        rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
+        T_R_W = np.asarray(mach.T_R_W_nominal(rot), float).reshape(4, 4)
+        pl = _plan_for(art, ms.holes)
+        r = check_measurement(ms.name, art, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m,
+                              stylus_r_m, pl)
+        if not r.ok:
+            raise PlanError(f"measurement {ms.name!r} ({ms.setup_key}, {ms.stylus}): {r.collisions[0]}")
+        c = A.apply_T(T_R_W @ ms.T_W_A, pl.w_A + stylus_r_m * pl.wn_A)
+        for j, ax in enumerate("XYZ"):
+            lo, hi = mach.config.strokes[ax]
+            if c[:, j].min() < lo - 1e-9 or c[:, j].max() > hi + 1e-9:
+                raise PlanError(f"measurement {ms.name!r}: a touch at {ax} outside the stroke [{lo / MM:g}, "
+                                f"{hi / MM:g}] mm")
+        per[ms.name] = {"placement": ms.placement, "setup": ms.setup_key, "stylus": ms.stylus,
+                        "J_mm": [round(v / MM, 3) for v in ms.J_m], "holes": list(ms.holes),
+                        "touches": r.touches, "path_points": r.samples, "collisions": len(r.collisions),
+                        "min_clearance_from_table_side_mm": round(r.min_table_clearance_mm, 2),
+                        "touch_range_mm": {ax: [round(float(c[:, j].min()) / MM, 1), round(float(c[:, j].max()) / MM, 1)]
+                                           for j, ax in enumerate("XYZ")}}
+        n_t += r.touches
+        n_s += r.samples
+    out = {"passed": True, "engine": "MuJoCo (sim.mfb_scene.WorkZone)",
+           "checked": "table disc (R %g mm, %g mm thick), workholder blocks, bar and its supports vs stylus ball, "
+                      "star arm, extension, probe body, spindle nose; approach/retract and link moves; the bar "
+                      "above the table face; touches within the strokes" % (TABLE_R_M / MM, TABLE_T_M / MM),
+           "touches": n_t, "path_points": n_s, "seconds": round(time.time() - t0, 1), "measurements": per,
+           "fixtures": {p: [{"name": b.name, "lo_mm": [v / MM for v in b.lo], "hi_mm": [v / MM for v in b.hi]}
+                            for b in bl] for p, bl in plan.fixtures.items()}}
+    _CHECKS[key] = out
+    return out
 
 
 #: The extraction's gains already computed (pure functions of the nominal plan).
@@ -517,6 +674,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         if drop not in plan.placements:
             raise ConfigError(f"drop: no placement {drop!r} in {name} ({', '.join(plan.placements)})")
         plan = plan.without(drop)
+    collision = check_plan(plan) if plan.fixtures else None
     rng = np.random.default_rng(seed)
     if machine is not None:
         _check_machine_for_plan(machine.config, plan, name)
@@ -582,7 +740,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         if key not in G_cache:
             G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m)
         idx = [h - 1 for h in poi.holes]
-        meas.append(vol.Measurement(ms.name, ms.placement, poi.holes, poi.O_R, O_A_cal[idx], ms.T_W_A,
+        meas.append(vol.Measurement(ms.name, ms.setup_key, poi.holes, poi.O_R, O_A_cal[idx], ms.T_W_A,
                                     tuple(ms.rot_rad), J, G_cache[key], q_R=t.p_R,
                                     c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A))
     chain = cfg.chain
@@ -620,6 +778,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, sigma_um, slopes)
     doc["machine"] = cfg.name
+    if collision is not None:
+        doc["collision_check"] = collision
     if progress is not None:
         progress(steps, steps)
     return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0])
@@ -644,7 +804,8 @@ def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None)
             dev_um = max(dev_um, dmax)
     return {"scenario": name, "machine": plan.machine, "seed": seed, "noise_um": sigma_um,
             "noise_note": "probing noise: a standard deviation (k = 1) along the approach",
-            "placements": len(plan.placements), "measurements": len(plan.measurements),
+            "placements": len(plan.placements), "setups": len(plan.setups),
+            "measurements": len(plan.measurements),
             "touches": int(n_touch), "model": "first order (eqs 8-12) + exact Gauss-Newton"
             if res.iterations else "first order (eqs 8-12)", "gauss_newton_iterations": res.iterations,
             "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6,
