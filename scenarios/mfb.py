@@ -319,6 +319,7 @@ def plan_5axis() -> MfbPlan:
                (Block("riser", (-0.095, -0.045, 0.0), (0.295, 0.045, 0.150)),))
     P3 = place("P3", _Y, -_X, (-0.060, -0.225, 0.105),
                (Block("angle_plate", (0.010, -0.135, 0.0), (0.030, 0.235, 0.140)),))
+    P4 = place("P4", _X, _Z, (-0.300, 0.160, 0.070))
     add(P1, "X1", {"A": 0, "C": 0}, h10, senses="EXX, EYX, EZX at (y, z) = (80, 70) mm")
     add(P2, "X2", {"A": 0, "C": 0}, h10, senses="with X1 (dy -80, dz 150 mm): EAX, EBX, ECX")
     add(P1, "X3", {"A": -90, "C": 0}, h10, ("TY1",), senses="with X1, X2 (y, z) = (-190, -40) mm: EAX, EBX, ECX")
@@ -331,9 +332,9 @@ def plan_5axis() -> MfbPlan:
     add(P1, "DXY", {"A": 0, "C": -45}, _DIAG, senses="EC0Y, twist")
     add(P1, "AXY", {"A": 0, "C": 45}, _DIAG, senses="EC0Y, twist")
     add(P1, "DXZ", {"A": -90, "C": -45}, _DIAG, ("TY1",), senses="EB0Z, twist")
-    add(P1, "AXZ", {"A": -90, "C": 45}, _DIAG, ("TY1",), senses="EB0Z, twist")
+    add(P4, "AXZ", {"A": -90, "C": 45}, _DIAG, ("TY1",), senses="EB0Z, twist (the XZ anti-diagonal: out of "
+        "reach from P1, whose bar falls below the Z stroke)")
     add(P3, "DYZ", {"A": -45, "C": 0}, _DIAG, ("TX1",), senses="EA0Z, twist")
-    add(P3, "AYZ", {"A": 45, "C": 0}, _DIAG, ("TX1",), senses="EA0Z, twist")
     return MfbPlan("mikron-ucp710", tuple(ms), dict(NODES_5AXIS), fixtures)
 
 
@@ -348,10 +349,12 @@ def _reach(strokes) -> dict:
             for a in "XYZ"}
 
 
-def _fit_holes(T_R_A, strokes, J_m, n_max: int = 8, margin_m: float = 5.0e-3) -> tuple:
-    """The longest run of at most ``n_max`` consecutive holes (centred on the
-    reachable ones) whose touches and approach starts, stylus ball included,
-    lie ``margin_m`` inside the strokes of the readings (X, Y, Z)."""
+def _fit_holes(T_R_A, reach, J_m, prefer=((1, 8), (2, 9), (6, 11), (7, 12), (1, 10)),
+               margin_m: float = 5.0e-3) -> tuple:
+    """Holes of a diagonal measurement: the longest of the plan's other hole
+    runs (``prefer``, first, last; their extraction gains are computed once)
+    whose touches and approach starts lie ``margin_m`` inside ``reach``; else
+    the longest run of consecutive reachable holes (at least 4)."""
     from sim import artefacts as A
     from core.exceptions import PlanError
 
@@ -359,32 +362,25 @@ def _fit_holes(T_R_A, strokes, J_m, n_max: int = 8, margin_m: float = 5.0e-3) ->
     ok = []
     for h in range(1, 13):
         pl = _plan_for(art, (h,))
-        r = 3.0e-3
-        c = A.apply_T(T_R_A, pl.w_A + r * pl.wn_A)
+        c = A.apply_T(T_R_A, pl.w_A + 3.0e-3 * pl.wn_A)
         c = np.vstack([c, c + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)])
-        inside = all(np.all((c[:, j] >= strokes[a][0] + margin_m) & (c[:, j] <= strokes[a][1] - margin_m))
-                     for j, a in enumerate("XYZ"))
-        ok.append(inside)
-    best = (0, 0)
-    k = 0
+        ok.append(all(np.all((c[:, j] >= reach[a][0] + margin_m) & (c[:, j] <= reach[a][1] - margin_m))
+                      for j, a in enumerate("XYZ")))
+    fits = [(hi - lo, lo, hi) for lo, hi in prefer if all(ok[lo - 1:hi])]
+    if fits:
+        _, lo, hi = max(fits)
+        return tuple(range(lo, hi + 1))
+    best, k = (0, 0), 0
     while k < 12:
-        if ok[k]:
-            j = k
-            while j < 12 and ok[j]:
-                j += 1
-            if j - k > best[1] - best[0]:
-                best = (k, j)
-            k = j
-        else:
-            k += 1
-    lo, hi = best
-    if hi - lo < 3:
-        raise PlanError(f"fewer than 3 consecutive holes of the bar reachable within the strokes (J = {J_m})")
-    if hi - lo > n_max:
-        mid = (lo + hi) // 2
-        lo = max(lo, mid - n_max // 2)
-        hi = lo + n_max
-    return tuple(range(lo + 1, hi + 1))
+        j = k
+        while j < 12 and ok[j]:
+            j += 1
+        if j - k > best[1] - best[0]:
+            best = (k, j)
+        k = j + 1
+    if best[1] - best[0] < 4:
+        raise PlanError(f"fewer than 4 consecutive holes of the bar within reach (J = {J_m})")
+    return tuple(range(best[0] + 1, best[1] + 1))
 
 
 PLANS = {"mfb-3axis": plan_3axis, "mfb-5axis": plan_5axis}
