@@ -175,6 +175,8 @@ STYLI = {"T0": (0.0, 0.0, 0.150), "TYL": (0.0, -0.100, 0.250),
          "TY1": (0.0, -0.100, 0.150), "TY2": (0.0, -0.150, 0.150),
          "TX1": (-0.100, 0.0, 0.150), "TX2": (-0.150, 0.0, 0.150),
          "TXF": (-0.100, 0.0, 0.190)}
+#: Star styli whose ball hangs on a finger below the arm: name -> finger length, m.
+FINGERS = {"TXF": 0.040}
 
 
 def plan_3axis() -> MfbPlan:
@@ -323,7 +325,9 @@ def plan_5axis() -> MfbPlan:
     add(P1, "X1", {"A": 0, "C": 0}, h10, senses="EXX, EYX, EZX at (y, z) = (80, 70) mm")
     add(P2, "X2", {"A": 0, "C": 0}, h10, senses="with X1 (dy -80, dz 150 mm): EAX, EBX, ECX")
     add(P1, "X3", {"A": -90, "C": 0}, h10, ("TY1",), senses="with X1, X2 (y, z) = (-190, -40) mm: EAX, EBX, ECX")
-    add(P1, "Y1", {"A": 0, "C": 90}, h29, senses="EYY, EXY, EZY at (x, z) = (80, 70) mm")
+    add(P1, "Y1", {"A": 0, "C": 90}, h29, ("T0", "TXF"),
+        senses="EYY, EXY, EZY at (x, z) = (80, 70) mm; T0 vs TXF in one pose (dJ_X 100 mm): ECY, EBY "
+               "with their ramps (a ramp is a bar's yaw or pitch to any bar set up alone)")
     add(P2, "Y2", {"A": 0, "C": 90}, h29, senses="with Y1 (dz 150 mm): EAY, EBY")
     add(P3, "Y3", {"A": 0, "C": 0}, h18, ("TX1",), senses="with Y1 (dJ_X 100 mm): ECY, EBY")
     add(P1, "VY", {"A": -90, "C": -90}, h611, ("TY1", "TY2", "TYL"),
@@ -469,7 +473,7 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3) -> dict:
         T_R_W = np.asarray(mach.T_R_W_nominal(rot), float).reshape(4, 4)
         pl = _plan_for(art, ms.holes)
         r = check_measurement(ms.name, art, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m,
-                              stylus_r_m, pl)
+                              stylus_r_m, pl, FINGERS.get(ms.stylus, 0.0))
         if not r.ok:
             raise PlanError(f"measurement {ms.name!r} ({ms.setup_key}, {ms.stylus}): {r.collisions[0]}")
         c = A.apply_T(T_R_W @ ms.T_W_A, pl.w_A + stylus_r_m * pl.wn_A)
@@ -495,6 +499,17 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3) -> dict:
                             for b in bl] for p, bl in plan.fixtures.items()}}
     _CHECKS[key] = out
     return out
+
+
+def describe_collision_check(c: dict) -> str:
+    """The collision check's summary for the terminal: one line per placement, then the verdict."""
+    by = {}
+    for name, m in c["measurements"].items():
+        by.setdefault(m["placement"], []).append(f"{name}({m['setup'].split('@')[1]}, {m['stylus']})")
+    lines = [f"  {p}: {', '.join(v)}" for p, v in by.items()]
+    lines.append(f"collision check ({c['engine']}): {'passed' if c['passed'] else 'FAILED'}, "
+                 f"{c['touches']} touches, {c['path_points']} path points, {c['seconds']} s")
+    return "\n".join(lines)
 
 
 #: The extraction's gains already computed (pure functions of the nominal plan).

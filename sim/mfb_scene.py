@@ -87,17 +87,24 @@ class CheckResult:
         return not self.collisions
 
 
-def probe_geoms_mjcf(J_m, r_m: float) -> str:
-    """MJCF geoms of the probe (spindle body frame: tip centre, axes of R) for offsets J."""
+def probe_geoms_mjcf(J_m, r_m: float, finger_m: float = 0.0) -> str:
+    """MJCF geoms of the probe (spindle body frame: tip centre, axes of R) for offsets J.
+
+    ``finger_m``: a star stylus whose ball hangs on a vertical finger of this
+    length below its arm (0: the arm at the ball's height).
+    """
     J = np.asarray(J_m, float)
     g = [f'<geom name="ball" type="sphere" size="{r_m!r}" contype="0" conaffinity="1"/>']
     h = np.hypot(J[0], J[1])
     z_body = J[2] - PROBE_BODY_H_M
-    if h > 1e-9:  # star arm at the tip's height, then the vertical extension
+    if h > 1e-9:  # star arm (on its finger), then the vertical extension
         u = np.array([J[0], J[1], 0.0]) / h
-        g.append(f'<geom name="arm" type="capsule" fromto="{_f(r_m * u)} {_f([J[0], J[1], 0.0])}" '
-                 f'size="{STEM_R_M!r}" contype="0" conaffinity="1"/>')
-        z0 = 0.0
+        z0 = float(finger_m)
+        if z0 > 0:
+            g.append(f'<geom name="finger" type="capsule" fromto="0 0 {r_m!r} 0 0 {z0!r}" '
+                     f'size="{STEM_R_M!r}" contype="0" conaffinity="1"/>')
+        g.append(f'<geom name="arm" type="capsule" fromto="{_f((0.0 if z0 > 0 else r_m) * u + [0, 0, z0])} '
+                 f'{_f([J[0], J[1], z0])}" size="{STEM_R_M!r}" contype="0" conaffinity="1"/>')
     else:
         g.append(f'<geom name="stem" type="capsule" fromto="0 0 {r_m!r} 0 0 {STEM_L_M!r}" '
                  f'size="{STEM_R_M!r}" contype="0" conaffinity="1"/>')
@@ -126,7 +133,7 @@ class WorkZone:
     stylus_r_m : float
     """
 
-    def __init__(self, artefact, T_W_A, blocks, J_m, stylus_r_m: float):
+    def __init__(self, artefact, T_W_A, blocks, J_m, stylus_r_m: float, finger_m: float = 0.0):
         import mujoco
 
         self._mj = mujoco
@@ -151,7 +158,7 @@ class WorkZone:
             feats.append(s.feature)
         xml = (f'<mujoco model="vmt-mfb-workzone"><compiler angle="radian"/><option gravity="0 0 0"/><worldbody>'
                f'<body name="table"><freejoint name="table"/>{"".join(geoms)}</body>'
-               f'<body name="spindle"><freejoint name="spindle"/>{probe_geoms_mjcf(J_m, stylus_r_m)}</body>'
+               f'<body name="spindle"><freejoint name="spindle"/>{probe_geoms_mjcf(J_m, stylus_r_m, finger_m)}</body>'
                f'</worldbody></mujoco>')
         self.mjcf = xml
         self.model = m = mujoco.MjModel.from_xml_string(xml)
@@ -231,7 +238,7 @@ def _sample(pts, step):
     return np.concatenate(out)
 
 
-def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan,
+def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan, finger_m: float = 0.0,
                       link_step_m: float = 3.0e-3, approach_step_m: float = 0.5e-3) -> CheckResult:
     """Collision check of one measurement: every approach/retract and link move, and the bar on the table.
 
@@ -249,6 +256,8 @@ def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, pla
     stylus_r_m : float
     plan : sim.plans.Plan
         The measurement's touches (A frame).
+    finger_m : float
+        Finger of a star stylus (:func:`probe_geoms_mjcf`).
     """
     T_W_A = np.asarray(T_W_A, float)
     T_R_A = np.asarray(T_R_W, float) @ T_W_A
@@ -260,7 +269,7 @@ def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, pla
     for b in blocks:
         if min(b.lo[2], b.hi[2]) < -1e-9:
             bad.append(f"workholder block {b.name} below the table face")
-    wz = WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m)
+    wz = WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
     wz.set_table(T_R_W)
     r = stylus_r_m
     Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)

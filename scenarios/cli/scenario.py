@@ -27,6 +27,10 @@ def _mfb(args) -> int:
     d = r.doc
     print(f"vmt scenario {args.name}: {d['placements']} placements, {d['measurements']} measurements, "
           f"{d['touches']} touches on {d['machine']}, {r.seconds:.1f} s; {d['model']}")
+    if "collision_check" in d:
+        from scenarios.mfb import describe_collision_check
+
+        print(describe_collision_check(d["collision_check"]))
     print(f"{'error':6s} {'unit':5s} {'max|injected|':>14s} {'max|ident-inj|':>15s} {'max U95':>9s}")
     for s, e in d["errors"].items():
         inj = max(abs(v) for v in e["injected"])
