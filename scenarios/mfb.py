@@ -82,11 +82,20 @@ samples every hole at the same ripple phase and the hole fit averages it
 over +-5 mm, so no MFB plan can see a ripple shorter than twice its pitch
 (``ripple=True`` keeps it).
 
-5-axis (``mfb-5axis``, ``mikron-ucp710``): :func:`plan_5axis`. Noise-free
-0.070 um / 0.126 urad on the realistic machine (rotary axes' errors
-included), 0.002 um / 0.011 urad on the nodes. At 0.25 um probing noise
-(two seeded campaigns) U95 max 2.2 um positioning, 4.1 um straightness,
-13.8 urad angular, 7.5 urad squareness; 99 % of 252 values within U95.
+5-axis (``mfb-5axis``, ``mikron-ucp710``): :func:`plan_5axis`, 4 bar
+placements on the table (flat; flat on a 150 mm riser; on edge on an angle
+plate; flat for the XZ anti-diagonal), presented by A and C in 13 set-ups,
+17 measurements; every touch, approach and link move checked for
+collisions and reach in the MuJoCo work zone (:func:`check_plan`,
+:mod:`sim.mfb_scene`); the rotary axes' errors are absorbed by each
+set-up's pose. Noise-free on the realistic machine (rotary axes' errors
+included): 0.041 um / 0.49 urad (EBY). At 0.125 um probing noise (seed 1):
+U95 max 1.1 um positioning, 1.6 um straightness; the twists: EAX U95 30
+urad on a 4.8 urad peak-to-peak signal (not resolved: on this tool-side
+chain a ramp of an angular error of X moves every bar along X rigidly, and
+only the diagonals' bend, ~0.1 um, sees it), EBY 7.8 urad on 5.95 (seen by
+T0 vs TXF in one pose, dJ_X 100 mm), ECZ 9.1 urad on 3.6 (dJ 50 mm star
+arms; not resolved at this noise).
 """
 
 from __future__ import annotations
@@ -255,7 +264,7 @@ NODES_5AXIS = {"X": np.linspace(-0.175, 0.275, 9), "Y": np.linspace(-0.225, 0.12
 
 
 def plan_5axis() -> MfbPlan:
-    """The 5-axis plan for ``mikron-ucp710``: 3 bar placements, 14 rotary set-ups, 17 measurements.
+    """The 5-axis plan for ``mikron-ucp710``: 4 bar placements, 13 rotary set-ups, 17 measurements.
 
     Chain ``[w C' A' b X Y Z (C1) t]``: the table turns (C on A, the A line
     120 mm below the table face), all linear axes carry the tool (eq. 8).
@@ -264,30 +273,40 @@ def plan_5axis() -> MfbPlan:
     it in several orientations (*set-ups*); each set-up is probed with one
     or more styli (*measurements*). The rotary axes' errors are constant
     within a set-up and move the bar rigidly: the estimator gives each
-    set-up its own pose (5 nuisance values), so they are absorbed exactly,
-    and nothing of the rotary axes is assumed known.
+    set-up its own pose (5 nuisance values), so they are absorbed exactly
+    and nothing of the rotary axes is assumed known. Every touch, approach
+    and link move is checked in the MuJoCo work zone (:func:`check_plan`).
 
     - **P1**: the bar flat on its two supports on the table, along W x,
       first hole at (x, y) = (-175, 80) mm. X1 (A = C = 0, T0): along X at
       (y, z) = (80, 70) mm; X3 (A = -90, C = 0, TY1): along X at (-190, -40)
-      mm, holes facing -Y; Y1 (C = 90, T0): along -Y at (x, z) = (80, 70)
-      mm; VY (A = -90, C = -90; TY1, TY2, TYL): standing, holes facing -Y;
-      DXY / AXY (C = -45 / +45, T0) and DXZ / AXZ (A = -90, C = -45 / +45,
-      TY1): the diagonals.
-    - **P2**: the bar flat on a 200 mm riser block: X2 (A = C = 0, T0) at
-      (y, z) = (0, 270) mm, Y2 (C = 90, T0) at (x, z) = (0, 270) mm.
+      mm, holes facing -Y; Y1 (C = 90; T0 and TXF in one pose): along -Y at
+      (x, z) = (80, 70) mm; VY (A = -90, C = -90; TY1, TY2, TYL): standing,
+      holes facing -Y; DXY / AXY (C = -45 / +45, T0) and DXZ (A = -90,
+      C = -45, TY1): diagonals.
+    - **P2**: the bar flat on a 150 mm riser block: X2 (A = C = 0, T0) at
+      (y, z) = (0, 220) mm, Y2 (C = 90, T0) at (x, z) = (0, 220) mm.
     - **P3**: the bar on its edge along W y, holes facing -W x, its
-      supports bolted to an angle plate, 130 mm above the table: Y3 (A = C =
-      0, TX1), VX (A = -90; TX1, TX2), DYZ / AYZ (A = -45 / +45, TX1).
+      supports bolted to an angle plate, 105 mm above the table: Y3 (A = C =
+      0, TX1), VX (A = -90; TX1, TX2), DYZ (A = -45, TX1).
+    - **P4**: flat along W x, first hole at (-300, 160) mm: AXZ (A = -90,
+      C = 45, TY1), the XZ anti-diagonal (from P1 it falls below the Z
+      stroke after 4 holes).
+
+    The YZ anti-diagonal is not in the plan: A turns about X, so a line
+    at height h on the table keeps y + z = 1.41 (h + 120 mm) - 120 mm at A
+    = +45 deg; the anti-diagonal through the Z and Y reach needs h ~ 0 (a
+    bar on edge 30 mm into the table) or holes tilted 45 deg to the stylus.
 
     What each senses (tool-side chain; module doc): X1, X2, X3 at three
-    (y, z) not on one line: EXX, EYX, EZX and EAX, EBX, ECX by
-    differential straightness and positioning; Y1, Y2 (dz 200 mm): EAY,
-    EBY; Y3 - Y1 (the stylus offset dJ_X 100 mm): ECY, EBY; VY (dJ_Y 50
-    mm, dJ_Z 100 mm) and VX (dJ_X 50 mm): ECZ, EAZ, EBZ; the diagonals:
-    EC0Y, EB0Z, EA0Z and the twist ramps (the pairs, module doc).
-    The paper's 6 placements: this chain needs 3 (``mfb_placements``
-    checks what is lost without each).
+    (y, z) not on one line: EXX, EYX, EZX and, by differential straightness
+    and positioning, the *curvature* of EAX and EBX, ECX (a ramp of an
+    angular error of X moves a bar along X rigidly); Y1 a / b (dJ_X 100 mm in
+    one pose): ECY, EBY with their ramps; Y2 - Y1 (dz 150 mm): EAY, EBY; Y3;
+    VY (dJ_Y 50 mm, dJ_Z 100 mm) and VX (dJ_X 50 mm), one pose each: ECZ,
+    EAZ, EBZ with their ramps; the diagonals: EC0Y, EB0Z, EA0Z and the
+    twist ramps. The paper's 6 placements: this chain needs 4 (run with
+    ``drop=`` to see what is lost without each).
     """
     from sim.machine import Machine
     from sim.machines import MACHINES
@@ -624,7 +643,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
         u_cal_um: tuple = (0.2, 0.35, 0.35), bar_cal_error: bool = True,
         u_place: tuple = U_PLACE, machine=None, compensate=None, bar_seed: int | None = None,
-        progress=None) -> ScenarioResult:
+        u_stylus_um: float = 0.0, bar_temperature_C: float = 20.0, progress=None) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -656,6 +675,13 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         along x_A, y_A, z_A in m; rotation about x_A (roll), y_A, z_A in
         rad), drawn once per placement and applied to the true bar pose of
         all its measurements; propagated alike (:func:`core.volumetric.uncertainty`).
+    u_stylus_um : float
+        Standard uncertainty of each probe-offset component of each stylus
+        (its calibration), um: the simulated styli's true offsets differ from
+        the ones the identification uses by a draw (one per stylus and run).
+    bar_temperature_C : float
+        The bar's true temperature (Invar, :data:`sim.artefacts.INVAR_CTE_PER_C`);
+        the identification uses its 20 degC calibration.
     drop : str, optional
         A placement to remove (to see the observability report refuse).
     on_nodes : bool
@@ -704,7 +730,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     u_cal = np.tile(np.asarray(u_cal_um, float) * 1e-6, (12, 1))
     bar_rng = rng if bar_seed is None else np.random.default_rng(bar_seed)
     E_true = E_cal + (bar_rng.standard_normal(E_cal.shape) * u_cal if (noisy and bar_cal_error) else 0.0)
-    art = A.multi_feature_bar(deviations_m=E_true)
+    art = A.multi_feature_bar(deviations_m=E_true, temperature_C=bar_temperature_C)
+    if not (np.isfinite(u_stylus_um) and u_stylus_um >= 0):
+        raise ConfigError(f"u_stylus_um must be >= 0 (a standard uncertainty, um), got {u_stylus_um!r}")
+    dJ = {st: (rng.standard_normal(3) * u_stylus_um * 1e-6 if u_stylus_um > 0 else np.zeros(3))
+          for st in dict.fromkeys(ms.stylus for ms in plan.measurements)}
     art_nom = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
     O_A_cal = art.info["poi_nominal_m"] + np.column_stack([E_cal[:, :2], A.multi_feature_bar(deviations_m=E_cal).info["E_MFB_m"][:, 2]])
     if on_nodes:
@@ -732,11 +762,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         if progress is not None:
             progress(k, steps)
         J = tuple(ms.J_m)
-        if J not in machines:
-            machines[J] = Machine(replace(cfg, J_m=J))
+        if ms.stylus not in machines:  # the true offsets: the calibrated ones + the calibration's error
+            machines[ms.stylus] = Machine(replace(cfg, J_m=tuple(np.asarray(J) + dJ[ms.stylus])))
             if compensate is not None:
-                machines[J] = compensate(machines[J])
-        m = machines[J]
+                machines[ms.stylus] = compensate(machines[ms.stylus])
+        m = machines[ms.stylus]
         pl = _plan_for(art, ms.holes)
         log = simulate_campaign(art, _NoSafeHeight(m), probe, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
                                 rng if noisy else None, plan=pl, check_collisions=False)
