@@ -826,6 +826,44 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0])
 
 
+#: How each twist (an axis' rotation about itself) is sensed by the 5-axis plan
+#: (tool-side chain), and what limits it.
+TWIST_SENSING = {
+    "EAX": "not sensed by the X bars: the arm of X's angular errors is the tip's Y, Z reading, so a ramp of "
+           "EAX moves every bar along X rigidly (absorbed by its pose) and its constant is the ISO gauge; only "
+           "the bend of the XY / XZ diagonals (a s^2 / 2, ~0.1 um over the bar) sees it, against the bar's "
+           "calibrated bow (u 0.35 um) and the probing noise",
+    "EBY": "T0 vs TXF on Y1 in one pose (dJ_X 100 mm): differential vertical straightness; Y2 - Y1 (dz 150 mm) "
+           "only its curvature (separate poses); limited by the probing noise over the 100 mm arm",
+    "ECZ": "TY1 vs TY2 on VY and TX1 vs TX2 on VX, one pose each (dJ 50 mm): differential positioning; "
+           "limited by the probing noise over the 50 mm arm difference (a longer star arm puts the spindle "
+           "beyond the Y travel)",
+}
+
+
+def _twists(errors: dict) -> dict:
+    """Each twist's signal (injected peak-to-peak), error, U95 and whether it is resolved
+    (U95 max at most half the signal), with the reason it is or is not (:data:`TWIST_SENSING`)."""
+    out = {}
+    for s, why in TWIST_SENSING.items():
+        e = errors.get(s, {})
+        if "u95" not in e or "injected" not in e:
+            continue
+        inj = np.asarray(e["injected"], float)
+        u = float(np.max(e["u95"]))
+        pp = float(np.ptp(inj))
+        out[s] = {"signal_pp_urad": pp, "u95_max_urad": u, "error_max_urad": float(e["max_dev"]),
+                  "resolved": bool(u <= 0.5 * pp), "sensing": why}
+    return out
+
+
+def describe_twists(tw: dict) -> str:
+    """One line per twist for the terminal: signal, error, U95, resolved or not and why."""
+    return "\n".join(f"{s}: signal {v['signal_pp_urad']:.1f} urad p-p, error {v['error_max_urad']:.1f}, U95 "
+                     f"{v['u95_max_urad']:.1f} urad: {'resolved' if v['resolved'] else 'NOT resolved'} "
+                     f"({v['sensing'].split(';')[0].split(':')[0]})" for s, v in tw.items())
+
+
 def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None) -> dict:
     from core import iso, volumetric as vol
 
@@ -851,6 +889,7 @@ def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None)
             if res.iterations else "first order (eqs 8-12)", "gauss_newton_iterations": res.iterations,
             "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6,
             "errors": errors, "max_dev_um": dev_um, "max_dev_urad": dev_urad,
+            "twists": _twists(errors) if plan.fixtures else {},
             "injected_note": "truth at the nodes, expressed in the same ISO 230-1 conventions (gauge)"}
 
 

@@ -37,6 +37,10 @@ def _mfb(args) -> int:
         u = max(e.get("u95", [float("nan")]))
         print(f"{s:6s} {e['unit']:5s} {inj:14.3f} {e['max_dev']:15.4f} {u:9.3f}")
     print(f"max_dev_um {d['max_dev_um']:.4f}  max_dev_urad {d['max_dev_urad']:.4f}")
+    if d.get("twists"):
+        from scenarios.mfb import describe_twists
+
+        print(describe_twists(d["twists"]))
     if args.comp:
         for p in r.write_comp(args.comp):
             print(f"wrote {p}")

@@ -182,3 +182,15 @@ def test_5axis_compensation_closes_the_loop(tmp_path):
             outside += n - k
         assert outside <= 1, (key, outside)
     assert loop["volumetric"]["volumetric_residual_um"]["rms"] < loop["before"]["volumetric_residual_um"]["rms"] / 5
+
+
+def test_stylus_and_temperature_inputs_refuse_bad_values():
+    # the Monte Carlo's extra inputs (issue 16 item 3): a negative standard
+    # uncertainty of the stylus offsets is named before any touch is simulated
+    from core.exceptions import ConfigError
+    from scenarios.mfb import run
+
+    with pytest.raises(ConfigError, match="u_stylus_um"):
+        run("mfb-3axis", u_stylus_um=-1.0, mc_runs=0)
+    with pytest.raises(ConfigError, match="temperature_C"):
+        run("mfb-3axis", bar_temperature_C=float("nan"), mc_runs=0)
