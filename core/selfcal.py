@@ -601,11 +601,13 @@ class HeightTerms:
     touches; the sphere equators of the cross pocket sit 25.7 mm above the
     pocket walls) also sees, to first order,
 
-    - the tilt of the table at its set-up, ``EBC,total`` about Y and
-      ``EAC,total`` about X (the C axis's tilt motions and location errors
-      plus constant parts of the tool's Z-axis errors: all that is the same
-      for every raised touch of one set-up): ``dq += dz (n_x EBC - n_y EAC)``
-      (eq 13's table displacement ``n . (EBC dz, -EAC dz)``);
+    - the tilt of the tool relative to the part at its set-up, ``EBC,total``
+      about Y and ``EAC,total`` about X, in the ISO 230-1 sign like EXC, EYC
+      and ECC (the C axis's tilt motions and location errors, the opposite
+      of the table's tilt, plus constant parts of the tool's Z-axis errors:
+      all that is the same for every raised touch of one set-up):
+      ``dq += -dz (n_x EBC - n_y EAC)`` (the tool displaced by
+      ``(EBC dz, -EAC dz)`` relative to the part at height ``dz``);
     - the Abbe offset of the tool's angular error motions over the stroke,
       ``E_X += dz EB(x, y)``, ``E_Y -= dz EA(x, y)`` (eq 12 with the pitch
       ``EB`` and roll ``EA`` of the tool, actual minus nominal, as the
@@ -727,7 +729,7 @@ def height_terms(touches: Touches, design: SelfCalDesign, *, abbe: bool | str = 
     setups = np.flatnonzero(np.bincount(touches.setup[raised], minlength=len(design.setup_ids)))
     cn = [nm.split("[", 1)[1].rstrip("]") for nm in design.names[design.slices["EXC"]]]
     q = len(setups)
-    cols = [nx * dz * (touches.setup == j) for j in setups] + [-ny * dz * (touches.setup == j) for j in setups]
+    cols = [-nx * dz * (touches.setup == j) for j in setups] + [ny * dz * (touches.setup == j) for j in setups]
     names = [f"EBC,total[{cn[j]}]" for j in setups] + [f"EAC,total[{cn[j]}]" for j in setups]
     # the tilt's gauge: the reference set-up's (or the first with raised touches)
     ref = design.ref_setup if design.ref_setup in setups else int(setups[0])
@@ -758,8 +760,8 @@ def height_terms(touches: Touches, design: SelfCalDesign, *, abbe: bool | str = 
     for c, u in enumerate(((1.0, 0.0), (0.0, 1.0))):  # the part tilted: raised targets moved by dz u (W)
         NG[:, c] = dzt * (wn @ np.array(u))
         Ru = np.column_stack([np.cos(cs) * u[0] + np.sin(cs) * u[1], -np.sin(cs) * u[0] + np.cos(cs) * u[1]])  # R(-C) u
-        NH[:q, c] = -Ru[:, 0]
-        NH[q:2 * q, c] = Ru[:, 1]
+        NH[:q, c] = Ru[:, 0]
+        NH[q:2 * q, c] = -Ru[:, 1]
     null_names = ["part tilted about Y on the table (raised targets)", "part tilted about X on the table (raised targets)"]
     blocks = {"EBC": slice(0, q), "EAC": slice(q, 2 * q), "ABBE": slice(2 * q, k)}
     if use_abbe:

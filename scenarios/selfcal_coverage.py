@@ -147,7 +147,8 @@ def block_truth(c: Campaign, des) -> tuple[np.ndarray, float]:
         q = np.array([0.0, 0.0, z_ref, 1.0])
         d = Ta @ np.linalg.solve(Tn, q) - q
         Rr = Ta[:3, :3] @ Tn[:3, :3].T
-        th[s["EXC"].start + j], th[s["EYC"].start + j], th[s["ECC"].start + j] = d[0], d[1], Rr[1, 0]
+        # ISO 230-1 sign (core.selfcal): the tool relative to the part, the opposite of the table's motion
+        th[s["EXC"].start + j], th[s["EYC"].start + j], th[s["ECC"].start + j] = -d[0], -d[1], -Rr[1, 0]
         tilt[j] = (Rr[0, 2], Rr[2, 1])  # rotation about Y (EBC), about X (EAC)
     g = workpiece_truth(c.art, c.plan)
     th[s["G"]] = [g[k] for k in des.target_ids]
@@ -164,9 +165,9 @@ def block_truth(c: Campaign, des) -> tuple[np.ndarray, float]:
         cx, *_ = np.linalg.lstsq(F, dE[:, 0], rcond=None)
         cy, *_ = np.linalg.lstsq(F, dE[:, 1], rcond=None)
         for q, j in enumerate(ht.setups):
-            # dq = -n . c (tool) = dz (n_x EBC - n_y EAC): EBC = -c_x / dz, EAC = c_y / dz; plus the table's tilt
-            th[s["EBC"].start + q] = tilt[j, 0] - cx[0] / dz
-            th[s["EAC"].start + q] = tilt[j, 1] + cy[0] / dz
+            # dq = -n . c (tool) = -dz (n_x EBC - n_y EAC): EBC = c_x / dz, EAC = -c_y / dz; minus the table's tilt
+            th[s["EBC"].start + q] = -tilt[j, 0] + cx[0] / dz
+            th[s["EAC"].start + q] = -tilt[j, 1] - cy[0] / dz
         if ht.abbe:  # E_X += dz (b_x x + b_y y), E_Y -= dz (a_x x + a_y y)
             th[s["ABBE"]] = (cx[1] / dz, cx[2] / dz, -cy[1] / dz, -cy[2] / dz)
     return th, misfit
