@@ -1044,3 +1044,90 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw
         r = run(name, seed=seed + 1, bar_seed=seed, compensate=comp, **kw)
         doc[key] = block(r, comp)
     return doc
+
+
+# --------------------------------------------------------------------------- reversal on a CMM (eqs 5-7)
+def reversal_on_cmm(*, repeats: int = 5, seed: int = 1, noise_um: float = 0.05, deviations_m=None,
+                    cmm_errors: dict | None = None, u_place=(0.1e-3, 0.1e-3, 0.1e-3, 0.0, 0.2e-3, 0.2e-3)) -> dict:
+    """Calibrate the bar by reversal on a simulated CMM, touches and all (Viprey 2016 eqs 5-7).
+
+    The CMM is the ``vmc-3axis`` chain with its own errors (default: EXX 2
+    um/m, EYX and EZX bows of 1.5 / -1.1 um over the bar against its
+    end-point line), probing noise
+    ``noise_um`` (k = 1). The bar lies along the CMM's X, probed over its
+    12 holes, rods and faces: ``repeats`` times as it is (NR) and turned 180
+    deg about its x axis (R, the rods touched from the other side), each
+    time re-placed (``u_place``: translation m, rotation rad, standard).
+    Points of interest from the touches (:func:`core.mfb.points_of_interest`),
+    O_1 at the origin; the CMM's positioning error at the holes as a step
+    gauge gives it (the true value + a draw of the paper's U(k=2) = 0.3 um +
+    1.5e-6 L). Then :func:`core.mfb.reversal_calibration`.
+
+    Returns
+    -------
+    dict
+        ``calibration`` (core.mfb.BarCalibration), ``true_m`` (12, 3): the
+        bar's true deviations; ``compared_um``: per direction, the estimate
+        minus the truth in the calibration's gauge (x from O_1; y and z
+        against the end-point line O_1 O_12, the CMM's alignment on the bar),
+        its max, the U95 max and how many of the 12 lie within U95.
+    """
+    from dataclasses import replace
+
+    from core import mfb
+    from core.exceptions import ConfigError
+    from core.touches import from_log
+    from sim import artefacts as A
+    from sim.campaign import simulate_campaign
+    from sim.errorfuncs import Polynomial
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+    from sim.probe import ProbeConfig
+    from sim.setups import Setup
+
+    if int(repeats) < 2:
+        raise ConfigError(f"repeats must be >= 2 (the type A uncertainty needs a scatter), got {repeats!r}")
+    rng = np.random.default_rng(seed)
+    E_true = A.mfb_default_deviations() if deviations_m is None else np.asarray(deviations_m, float)
+    art = A.multi_feature_bar(deviations_m=E_true)
+    errs = cmm_errors if cmm_errors is not None else {
+        "EXX": Polynomial((0.0, 2.0e-6)), "EYX": Polynomial((0.0, 0.0, 2.0e-5)), "EZX": Polynomial((0.0, 0.0, -1.5e-5))}
+    cmm = Machine(MACHINES["vmc-3axis"](errors=errs, J_m=(0.0, 0.0, 0.150)))
+    probe = ProbeConfig(repeatability_k2_m=2.0 * float(noise_um) * 1e-6)
+    pl = _plan_for(art, tuple(range(1, 13)))
+    flip = np.array([1.0, 1.0, -1.0])
+    pl_rev = replace(pl, w_A=pl.w_A * flip, wn_A=pl.wn_A * flip)
+    T_nr = A.make_T(None, (-0.275, 0.0, 0.100))
+    T_r = T_nr @ A.make_T(A.rot_x(np.pi))
+    M = {"NR": [], "R": []}
+    for k in range(int(repeats)):
+        for key, T, p in (("NR", T_nr, pl), ("R", T_r, pl_rev)):
+            xi = rng.standard_normal(6) * np.asarray(u_place, float)
+            dT = A.make_T(A.rot_z(xi[5]) @ A.rot_y(xi[4]) @ A.rot_x(xi[3]), xi[:3])
+            log = simulate_campaign(art, cmm, probe, [Setup(f"{key}{k}", T, (), T @ dT)], rng, plan=p,
+                                    check_collisions=False)
+            t = from_log(log)
+            O = mfb.points_of_interest(t.p_R, t.feature, t.n_R).O_R
+            O = O - O[0]
+            # the CMM's alignment on the bar: y and z against the line O_1 O_12
+            # (the bar "carefully aligned along the CMM axis"; eq. 6 then gives
+            # the straightness against its end-point line)
+            O[:, 1:] -= np.outer(O[:, 0] / O[-1, 0], O[-1, 1:])
+            M[key].append(O)
+    x_cmm = T_nr[0, 3] + np.arange(12) * A.MFB_PITCH_M
+    exx = np.asarray(errs["EXX"](x_cmm), float) if "EXX" in errs else np.zeros(12)
+    u_sg = 0.5 * (0.3e-6 + 1.5e-6 * np.arange(12) * A.MFB_PITCH_M)
+    exx_sg = exx - exx[0] + rng.standard_normal(12) * u_sg
+    cal = mfb.reversal_calibration(np.array(M["NR"]), np.array(M["R"]), exx_sg, u_step_gauge_m=u_sg)
+    truth = np.asarray(art.info["E_MFB_m"], float)
+    x = np.arange(12) * A.MFB_PITCH_M
+    out = {}
+    for j, name in enumerate(("Exx", "Eyx", "Ezx")):
+        # the same gauge for both: x from O_1; y, z against the end-point line
+        d = cal.E_m[:, j] - truth[:, j]
+        d = d - d[0] - (x / x[-1] * (d[-1] - d[0]) if j else 0.0)
+        inside = int(np.sum(np.abs(d) <= cal.U95_m[:, j]))
+        out[name] = {"max_abs_um": float(np.abs(d).max() * 1e6), "U95_max_um": float(cal.U95_m[:, j].max() * 1e6),
+                     "within_U95": f"{inside}/12", "deviation_um": (d * 1e6).tolist()}
+    return {"calibration": cal, "true_m": truth, "compared_um": out, "repeats": int(repeats),
+            "touches": 2 * int(repeats) * pl.n}
