@@ -711,7 +711,6 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         if drop not in plan.placements:
             raise ConfigError(f"drop: no placement {drop!r} in {name} ({', '.join(plan.placements)})")
         plan = plan.without(drop)
-    collision = check_plan(plan) if plan.fixtures else None
     rng = np.random.default_rng(seed)
     if machine is not None:
         _check_machine_for_plan(machine.config, plan, name)
@@ -744,6 +743,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
             f(plan.nodes[iso.symbol(k).axis]), float))) if k in vol.MOTION else f) for k, f in errs.items()}
         cfg = replace(cfg, errors=errs)
 
+    collision = check_plan(plan) if plan.fixtures else None  # after the inputs are checked
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
     T_true = {}
