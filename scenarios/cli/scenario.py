@@ -27,12 +27,20 @@ def _mfb(args) -> int:
     d = r.doc
     print(f"vmt scenario {args.name}: {d['placements']} placements, {d['measurements']} measurements, "
           f"{d['touches']} touches on {d['machine']}, {r.seconds:.1f} s; {d['model']}")
+    if "collision_check" in d:
+        from scenarios.mfb import describe_collision_check
+
+        print(describe_collision_check(d["collision_check"]))
     print(f"{'error':6s} {'unit':5s} {'max|injected|':>14s} {'max|ident-inj|':>15s} {'max U95':>9s}")
     for s, e in d["errors"].items():
         inj = max(abs(v) for v in e["injected"])
         u = max(e.get("u95", [float("nan")]))
         print(f"{s:6s} {e['unit']:5s} {inj:14.3f} {e['max_dev']:15.4f} {u:9.3f}")
     print(f"max_dev_um {d['max_dev_um']:.4f}  max_dev_urad {d['max_dev_urad']:.4f}")
+    if d.get("twists"):
+        from scenarios.mfb import describe_twists
+
+        print(describe_twists(d["twists"]))
     if args.comp:
         for p in r.write_comp(args.comp):
             print(f"wrote {p}")
