@@ -347,7 +347,9 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
     """d O_R / d e: change of the points of interest per touch displacement along d, (3k, n).
 
     Central differences (step ``h_m`` along each touch's approach direction
-    ``d_R``), refitting only the feature the touch belongs to: exact to
+    ``d_R``), refitting only the feature the touch belongs to and
+    recomputing only the O_i it enters (its hole's, or those whose plane
+    PL_i uses its rod; the others' differences are exactly zero): exact to
     ~(h/R)^2 and the fits' convergence (1e-9 relative), so that a rigid
     motion of all touches moves the points rigidly (``G`` keeps the exact
     gauge freedoms of :mod:`core.volumetric`). Used for the touch model of
@@ -358,10 +360,38 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
     n_R = np.asarray(n_R, float)
     feature = np.asarray(feature, dtype=object)
     bf = fit_bar_features(p_R, feature, n_R)
-    base = poi_from_features(bf, geom).O_R.ravel()
+    holes = poi_from_features(bf, geom).holes  # validates the set (holes, rods, faces)
+    rods = set(bf.rod_point)
+    pair = {i: _rod_pair(i, rods) for i in holes}
+    row = {i: k for k, i in enumerate(holes)}
+
+    def o_rows(b, hs):
+        # O_i (section 2.1) of the holes hs only: a touch moves its own feature,
+        # which enters the O_i of its hole, or of the holes whose plane PL_i uses its rod
+        P = {}
+        out = {}
+        for i in hs:
+            a, c = pair[i]
+            for j in (a, c):
+                if j not in P:
+                    P[j] = _rod_points(b, j)
+            pl = fit_plane(np.vstack([P[a], P[c]]), normal_hint=b.probe_side)
+            out[i] = _meet(b.hole_point[i], b.hole_axis[i], pl.point, pl.normal)
+        return out
+
+    base = o_rows(bf, holes)
     groups = _group(feature)
-    G = np.zeros((base.size, len(p_R)))
+    G = np.zeros((3 * len(holes), len(p_R)))
     for f, idx in groups.items():
+        if (i := _num(f, "hole")) is not None:
+            hs = [i] if i in row else []
+        elif (j := _num(f, "rod")) is not None or f[:5] in ("faceL", "faceR"):
+            j = j if j is not None else int(f[5:])
+            hs = [h for h in holes if j in pair[h]]
+        else:
+            continue
+        if not hs:
+            continue
         for k, sgn in ((k, sgn) for k in idx for sgn in (1.0, -1.0)):
             q = p_R[idx].copy()
             q[list(idx).index(k)] += sgn * h_m * d_R[k]
@@ -373,14 +403,13 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
             elif (j := _num(f, "rod")) is not None:
                 c = fit_cylinder(q, axis_hint=bf.rod_axis[j])
                 rp[j], ra[j] = c.point, c.axis
-            elif f[:5] in ("faceL", "faceR"):
+            else:
                 key = (f[4], int(f[5:]))
                 pl = fit_plane(q, normal_hint=bf.face_normal[key])
                 fp[key], fn[key] = pl.point, pl.normal
-            else:
-                continue
-            bf2 = BarFeatures(hp, ha, rp, ra, fp, fn, bf.probe_side)
-            G[:, k] += sgn * (poi_from_features(bf2, geom).O_R.ravel() - base) / (2.0 * h_m)
+            new = o_rows(BarFeatures(hp, ha, rp, ra, fp, fn, bf.probe_side), hs)
+            for h in hs:
+                G[3 * row[h]:3 * row[h] + 3, k] += sgn * (new[h] - base[h]) / (2.0 * h_m)
     return G
 
 

@@ -63,8 +63,10 @@ class SelfCalUncertainty:
         the gauge directions, :func:`form_projector`), m. The G values
         themselves also carry the uncertainty of the datum the gauge
         defines, which for the cross pocket is dominated by the weakly
-        observed edge nodes where eq 17 is imposed; the paper's Fig. 18
-        values match the form uncertainty.
+        observed edge nodes where eq 17 is imposed. The paper's Figs. 18-19
+        are read as the G values themselves (``block("G")``, the gauge of
+        eqs 16-17: scenarios.crosspocket.U95_READING); the form is one part
+        of that value (:func:`workpiece_components`), not another reading.
     """
 
     design: SelfCalDesign
@@ -379,3 +381,77 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
             cov += s2[k] * (Gk @ Gk.T)
     return ModelErrorBudget(sig, {t: float(np.sqrt(v)) for t, v in zip(tables, s2)},
                             {t: float(v) for t, v in zip(tables, z)}, sig * u1, np.sqrt(u2), cov, True)
+
+
+# ---------------------------------------------------------------------------
+# the paper's section 6 quantities from Monte Carlo errors
+# ---------------------------------------------------------------------------
+#: The workpiece gauge directions of :func:`core.selfcal.null_space` (columns of ``design.N``) by name.
+WORKPIECE_GAUGE = {"shift": (4, 5), "rotation": (7,), "scale": (10,)}
+
+
+def error_map_operator(des: SelfCalDesign) -> np.ndarray:
+    """(2 N_x N_y, n_params) linear map from the parameters to ``[E_X,total; E_Y,total]`` on the nodes (eqs 4-5).
+
+    Rows: ``E_X`` then ``E_Y``, each over the nodes ``(x_k, y_l)`` with
+    ``k`` major (``np.meshgrid(x, y, indexing="ij")`` order), m per unit
+    parameter. The yaw is the design's (``ECY``: ``E_Y += x ECY(y)``;
+    ``ECX``: ``E_X -= y ECX(x)``), as :func:`core.selfcal.error_map`.
+    """
+    g, s = des.grid, des.slices
+    nx, ny = len(g.x_m), len(g.y_m)
+    X, Y = np.meshgrid(g.x_m, g.y_m, indexing="ij")
+    K, L = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    K, L, X, Y = K.ravel(), L.ravel(), X.ravel(), Y.ravel()
+    r = np.arange(nx * ny)
+    M = np.zeros((2 * nx * ny, des.n_params))
+    M[r, s["EXX"].start + K] = 1.0
+    M[r, s["EXY"].start + L] = 1.0
+    M[r, s["EC0Y"].start] = -Y
+    M[nx * ny + r, s["EYX"].start + K] = 1.0
+    M[nx * ny + r, s["EYY"].start + L] = 1.0
+    if des.yaw == Yaw.ECY:
+        M[nx * ny + r, s["ECY"].start + L] = X
+    else:
+        M[r, s["ECX"].start + K] = -Y
+    return M
+
+
+def error_map_u95(des: SelfCalDesign, err: np.ndarray) -> np.ndarray:
+    """(N_x, N_y) expanded uncertainty of the 2D positioning error on the nodes (the paper's Fig. 20), m.
+
+    ``U95 = k sqrt(u_X^2 + u_Y^2)``: the root sum of squares of the standard
+    uncertainties of ``E_X,total`` and ``E_Y,total`` (the 2D error's
+    magnitude), k = 2, from Monte Carlo errors ``err`` (runs, n_params) in the
+    gauge of eqs 16-17 (so 0 at the origin node, eq 16).
+    """
+    e = np.asarray(err, float) @ error_map_operator(des).T
+    u = e.std(axis=0, ddof=1)
+    n = u.size // 2
+    shape = (len(des.grid.x_m), len(des.grid.y_m))
+    return K * np.sqrt(u[:n] ** 2 + u[n:] ** 2).reshape(shape)
+
+
+def workpiece_components(des: SelfCalDesign, err: np.ndarray) -> dict:
+    """U95 of the workpiece ``G`` split into its form and what the datum of eqs 16-17 adds, m.
+
+    The error of ``G`` (``err`` (runs, n_params) Monte Carlo errors) is
+    split by least squares into the workpiece's gauge directions
+    (:data:`WORKPIECE_GAUGE`: shift, rotation, scale in W, the G rows of
+    ``design.N``) and the rest (the form). Returns, per part, the (N_w,)
+    expanded uncertainty ``k u`` of that part's contribution at each target,
+    and ``"total"``.
+    """
+    eg = np.asarray(err, float)[:, des.slices["G"]]
+    NG = des.N[des.slices["G"]]
+    cols = [c for v in WORKPIECE_GAUGE.values() for c in v]
+    B = NG[:, cols]
+    coef = np.linalg.lstsq(B, eg.T, rcond=None)[0].T  # (runs, 4)
+    out = {"total": K * eg.std(axis=0, ddof=1)}
+    j = 0
+    for name, c in WORKPIECE_GAUGE.items():
+        part = coef[:, j:j + len(c)] @ B[:, j:j + len(c)].T
+        out[name] = K * part.std(axis=0, ddof=1)
+        j += len(c)
+    out["form"] = K * (eg - coef @ B.T).std(axis=0, ddof=1)
+    return out

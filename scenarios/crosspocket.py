@@ -1,15 +1,22 @@
 """The self-calibration paper's studies, reproduced on vmt's reconstructed parts.
 
-``cross-pocket-uncertainty`` (paper section 6): the maximum expanded
-uncertainty (k = 2) of the identified workpiece ``G_normal`` for C = {0, 75},
+``cross-pocket-uncertainty`` (paper section 6): the expanded uncertainty
+(k = 2) of the identified workpiece ``G_normal`` for C = {0, 75},
 {0, 75, 130} and {0, 75, 130, 210} deg, with and without the two spheres,
 by Monte Carlo (JCGM 101, 1,000 runs, probing standard uncertainty 1.38 um)
-beside linear propagation, and the C-axis uncertainties of Table 2.
+beside linear propagation; Table 2 (C-axis), Fig. 19 (the spheres' effect),
+Fig. 20 (U95 of the error map). ONE reading of U95 throughout,
+:data:`U95_READING`: each parameter as identified under the gauge of
+eqs 16-17. A sensitivity run (:data:`SENSITIVITY`) shows what of the
+reconstructed geometry moves the numbers.
 
 ``pin-circle`` (paper section 5): 18 pins on a 400 mm pitch circle and two
 spheres at C = 0, 31, 83, 137, 191, 227, 257, 313 deg, grid step 80 mm over
-the touched extent (the paper's -400..400 mm has nodes no pin reaches); the raw error at C = 0 against the self-calibrated one.
+the touched extent (the paper's -400..400 mm has nodes no pin reaches), the
+yaw vmt's rule picks for the chain, eq 17's delta_L measured; the pin errors
+in the paper's frame (pin 1 and pin 11), raw at C = 0 and self-calibrated.
 
+:func:`paper_figures` writes Figs. 9(b), 10, 14, 17, 18(a-c), 19, 20(a, b).
 The part geometry is vmt's reconstruction (sim.artefacts); the paper's Fig. 8
 is not fully dimensioned, so the figures differ: see ``notes`` in the JSON.
 """
@@ -19,6 +26,9 @@ from __future__ import annotations
 import time
 
 import numpy as np
+
+from core.exceptions import ConfigError, VmtError
+from core.units import MM, UM
 
 PAPER_G_U95_UM = {(0.0, 75.0): 6.5, (0.0, 75.0, 130.0): 3.0, (0.0, 75.0, 130.0, 210.0): 2.1}
 PAPER_TABLE2 = {75.0: (1.0, 0.9, 8.9), 130.0: (1.2, 1.1, 9.3), 210.0: (1.2, 1.2, 8.2)}
@@ -36,79 +46,327 @@ def _plan_points(spheres: bool):
     return plan.w_A[keep, :2], plan.wn_A[keep, :2], ids
 
 
-def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None) -> dict:
-    """The paper's Fig. 18/19 and Table 2 study (see module docstring).
+#: The one reading of U95 used throughout (declared from the paper's text, not from its numbers).
+U95_READING = (
+    "U95 = 2 x the Monte Carlo standard deviation of each parameter AS IDENTIFIED by the algorithm of section 3.3, "
+    "i.e. under the gauge of eqs 16-17 (the paper's Monte Carlo is 'applied to the algorithm proposed in Section "
+    "3.3'; its Table 2 has U = 0 at C = 0 and its Fig. 20 U = 0 at (0, 0), 'because of Eq. (16)'). For G this "
+    "includes the part's shift, rotation and scale relative to that datum; the split into form and datum parts "
+    "(g_u95_parts_at_max_um) explains the value, it is not another reading.")
+#: Sensitivity variants of the reconstructed geometry, fixed before running them.
+SENSITIVITY = (
+    ("baseline (arms 200 mm, spheres (60, 60), (-70, -55) mm, grid step 22 mm)", {}),
+    ("arms 208 mm (end walls 4 mm nearer the x, y = +-110 mm nodes)", {"arm_half_m": 0.104}),
+    ("arms 214 mm (end walls 7 mm nearer the nodes)", {"arm_half_m": 0.107}),
+    ("spheres mirrored in y: (60, -60), (-70, 55) mm", {"spheres_m": ((0.060, -0.060), (-0.070, 0.055))}),
+    ("spheres near the centre: (30, 30), (-30, -30) mm", {"spheres_m": ((0.030, 0.030), (-0.030, -0.030))}),
+    ("grid step 44 mm (5 x 5 intervals: fewer table values)", {"step_m": 0.044}),
+)
+SENSITIVITY_ANGLES = ((0.0, 75.0), (0.0, 75.0, 130.0), (0.0, 75.0, 130.0, 210.0))
+
+
+def _variant_points(w, wn, ids, arm_half_m=None, spheres_m=None):
+    """The plan's points with the arms stretched to ``arm_half_m`` and/or the spheres moved (m)."""
+    from sim import artefacts as A
+
+    w = np.array(w, float)
+    sph = np.array([k.startswith("sphere") for k in ids])
+    if arm_half_m is not None:
+        h, l0 = A.CROSS_HALF_WIDTH_M, A.CROSS_HALF_LENGTH_M
+        p = w[~sph]
+        for c in (0, 1):
+            a = np.abs(p[:, c])
+            m = a > h + 1e-9
+            p[m, c] = np.sign(p[m, c]) * (h + (a[m] - h) * (arm_half_m - h) / (l0 - h))
+        w[~sph] = p
+    if spheres_m is not None:
+        for k, (old, new) in enumerate(zip(A.CROSS_SPHERES_M, spheres_m)):
+            m = np.array([i.startswith(f"sphere{k + 1}") for i in ids])
+            w[m] += np.asarray(new) - np.asarray(old)
+    return w, wn
+
+
+def sensitivity_study(spheres: bool = True) -> list:
+    """What of the reconstructed geometry drives U95 (linear propagation, exact for this linear estimator).
+
+    For each variant of :data:`SENSITIVITY` and the C sets of
+    :data:`SENSITIVITY_ANGLES`: the largest U95 of G (:data:`U95_READING`)
+    with its datum parts, and Table 2's U_XC, U_YC.
+    """
+    from core.selfcal import Grid, estimator, nominal_touches
+
+    w0, wn0, ids = _plan_points(spheres)
+    rows = []
+    for label, kw in SENSITIVITY:
+        w, wn = _variant_points(w0, wn0, ids, kw.get("arm_half_m"), kw.get("spheres_m"))
+        grid = Grid.regular(-0.110, 0.110, kw.get("step_m", 0.022))
+        for c in SENSITIVITY_ANGLES:
+            des, est = estimator(nominal_touches(w, wn, c), grid)
+            u = est.std(U_PROBE_M)
+            parts = _parts_linear(des, est)
+            i = int(np.argmax(parts["total"]))
+            rows.append({"variant": label, "c_angles_deg": list(c),
+                         "g_u95_max_um": round(float(parts["total"][i]) / UM, 3),
+                         "g_u95_parts_at_max_um": {k: round(float(v[i]) / UM, 3) for k, v in parts.items()
+                                                   if k != "total"},
+                         "u_xc_um": [round(2 * float(v) / UM, 3) for v in u[des.slices["EXC"]]],
+                         "u_yc_um": [round(2 * float(v) / UM, 3) for v in u[des.slices["EYC"]]],
+                         "u_cc_urad": [round(2e6 * float(v), 3) for v in u[des.slices["ECC"]]],
+                         "map_u95_max_um": round(float(_map_u95_linear(des, est).max()) / UM, 3)})
+            if spheres and len(c) == 4:  # Fig. 19 against 18(c) for this variant
+                sph = np.array([k.startswith("sphere") for k in ids])
+                d2, e2 = estimator(nominal_touches(w[~sph], wn[~sph], c), grid)
+                g2 = 2 * e2.std(U_PROBE_M)[d2.slices["G"]]
+                rows[-1]["sphere_effect_max_um"] = round(float((g2 - parts["total"][~sph]).max()) / UM, 3)
+    return rows
+
+
+def _map_u95_linear(des, est) -> np.ndarray:
+    """(N_x, N_y) U95 of the error map (as :func:`core.uncertainty.error_map_u95`) by linear propagation, m."""
+    from core.uncertainty import K, error_map_operator
+
+    M = error_map_operator(des)
+    cols = np.flatnonzero(np.any(M != 0, axis=0))
+    C = est.covariance_of(cols, U_PROBE_M)
+    Mc = M[:, cols]
+    v = np.einsum("ij,jk,ik->i", Mc, C, Mc)
+    n = v.size // 2
+    return K * np.sqrt(np.maximum(v[:n] + v[n:], 0)).reshape(len(des.grid.x_m), len(des.grid.y_m))
+
+
+def _parts_linear(des, est) -> dict:
+    """:func:`core.uncertainty.workpiece_components` from the covariance (linear propagation), m."""
+    from core.uncertainty import K, WORKPIECE_GAUGE
+
+    Cg = est.covariance_of(des.slices["G"], U_PROBE_M)
+    NG = des.N[des.slices["G"]]
+    B = NG[:, [c for v in WORKPIECE_GAUGE.values() for c in v]]
+    P = np.linalg.pinv(B)
+    out = {"total": K * np.sqrt(np.diag(Cg))}
+    j = 0
+    for name, c in WORKPIECE_GAUGE.items():
+        T = B[:, j:j + len(c)] @ P[j:j + len(c)]
+        out[name] = K * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", T, Cg, T), 0))
+        j += len(c)
+    F = np.eye(len(B)) - B @ P
+    out["form"] = K * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", F, Cg, F), 0))
+    return out
+
+
+def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, sensitivity: bool = True) -> dict:
+    """The paper's Figs. 18-20 and Table 2 study (see module docstring), in the one reading :data:`U95_READING`.
 
     ``progress(done, total)``: one step per case (C angles x spheres).
+    Returns the JSON-ready result; ``result["arrays"]`` holds the per-target
+    and per-node values the figures draw (also JSON-ready).
     """
-    from core.selfcal import Grid
-    from core.uncertainty import linear_uncertainty, monte_carlo
+    from core.selfcal import Grid, estimator, nominal_touches
+    from core.uncertainty import error_map_u95, linear_uncertainty, mc_errors, summarise_mc, workpiece_components
 
     grid = Grid.regular(-0.110, 0.110, 0.022)
     cases = []
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     table2 = []
+    arrays = {"grid_x_mm": (grid.x_m / MM).tolist(), "grid_y_mm": (grid.y_m / MM).tolist()}
     total = 2 * len(PAPER_G_U95_UM)
     for spheres in (True, False):
-        w, wn, _ = _plan_points(spheres)
+        w, wn, ids = _plan_points(spheres)
+        arrays[f"targets_{'with' if spheres else 'without'}_spheres"] = {
+            "ids": list(ids), "w_mm": np.round(w / MM, 6).tolist(), "wn": np.round(wn, 9).tolist()}
         for c in PAPER_G_U95_UM:
             if progress is not None:
                 progress(len(cases), total)
             case = {"c_angles_deg": list(c), "spheres": spheres, "n_targets": len(w),
                     "paper_g_u95_max_um": PAPER_G_U95_UM[c] if spheres else None}
             try:
-                mc = monte_carlo(w, wn, c, grid, U_PROBE_M, runs=runs, rng=rng)
+                t = nominal_touches(w, wn, c, target_ids=ids)
+                des, est = estimator(t, grid)
+                err = mc_errors(est, t.n, U_PROBE_M, runs, rng)
+                mc = summarise_mc(des, err, U_PROBE_M)
                 lin = linear_uncertainty(w, wn, c, grid, U_PROBE_M)
-            except Exception as e:  # an unidentifiable design is a result, not a crash
+            except VmtError as e:  # an unidentifiable design is a result, not a crash
                 case.update(identifiable=False, reason=str(e), g_u95_max_um=None)
                 cases.append(case)
                 continue
+            parts = workpiece_components(des, err)
+            i = int(np.argmax(parts["total"]))
+            umap = error_map_u95(des, err)
+            key = f"{'with' if spheres else 'without'}_spheres_C{'_'.join(f'{a:g}' for a in c)}"
+            arrays[f"g_u95_um_{key}"] = np.round(parts["total"] / UM, 4).tolist()
+            arrays[f"map_u95_um_{key}"] = np.round(umap / UM, 4).tolist()
             case.update(identifiable=True,
-                        g_u95_max_um=round(mc.max_form_U95 * 1e6, 3),
-                        g_u95_max_linear_um=round(lin.max_form_U95 * 1e6, 3),
-                        g_u95_max_with_datum_um=round(mc.max_workpiece_U95 * 1e6, 3))
+                        g_u95_max_um=round(float(parts["total"][i]) / UM, 3),
+                        g_u95_max_linear_um=round(lin.max_workpiece_U95 / UM, 3),
+                        g_u95_max_target=ids[i],
+                        g_u95_parts_at_max_um={k: round(float(v[i]) / UM, 3) for k, v in parts.items()
+                                               if k != "total"},
+                        map_u95_max_um=round(float(umap.max()) / UM, 3),
+                        map_u95_max_at_mm=[round(float(grid.x_m[k]) / MM, 3) for k in
+                                           (np.unravel_index(np.argmax(umap), umap.shape)[0],)]
+                        + [round(float(grid.y_m[np.unravel_index(np.argmax(umap), umap.shape)[1]]) / MM, 3)],
+                        map_u95_at_origin_um=round(float(umap[np.argmin(np.abs(grid.x_m)),
+                                                              np.argmin(np.abs(grid.y_m))]) / UM, 6))
+            if case["paper_g_u95_max_um"]:
+                case["ratio_to_paper"] = round(case["g_u95_max_um"] / case["paper_g_u95_max_um"], 2)
             cases.append(case)
             if spheres and len(c) == 4:
-                des = mc.design
                 for j, cj in enumerate(np.degrees(des.c_rad)):
-                    xc = mc.U95[des.slices["EXC"]][j] * 1e6
-                    yc = mc.U95[des.slices["EYC"]][j] * 1e6
+                    xc = mc.U95[des.slices["EXC"]][j] / UM
+                    yc = mc.U95[des.slices["EYC"]][j] / UM
                     cc = mc.U95[des.slices["ECC"]][j] * 1e6
                     p = PAPER_TABLE2.get(round(float(cj), 6), (0.0, 0.0, 0.0))
-                    table2.append({"c_deg": round(float(cj), 6), "u_xc_um": round(float(xc), 3),
-                                   "u_yc_um": round(float(yc), 3), "u_cc_urad": round(float(cc), 3), "paper_u_xc_um": p[0], "paper_u_yc_um": p[1],
-                                   "paper_u_cc_urad": p[2]})
+                    row = {"c_deg": round(float(cj), 6), "u_xc_um": round(float(xc), 3),
+                           "u_yc_um": round(float(yc), 3), "u_cc_urad": round(float(cc), 3),
+                           "paper_u_xc_um": p[0], "paper_u_yc_um": p[1], "paper_u_cc_urad": p[2]}
+                    if p[0]:
+                        row["ratios_xc_yc_cc"] = [round(row["u_xc_um"] / p[0], 2), round(row["u_yc_um"] / p[1], 2),
+                                                  round(row["u_cc_urad"] / p[2], 2)]
+                    table2.append(row)
     if progress is not None:
         progress(total, total)
-    return {
+    fig19 = _sphere_effect(arrays)
+    out = {
         "scenario": "cross-pocket-uncertainty",
         "method": f"Monte Carlo (JCGM 101), {runs} runs per case, linear propagation beside it",
-        "u_probe_um": U_PROBE_M * 1e6,
+        "u95_reading": U95_READING,
+        "u_probe_um": U_PROBE_M / UM,
         "grid_mm": "-110..110 step 22 (10 x 10 intervals), as the paper",
         "cases": cases,
         "table2": table2,
+        "fig19_sphere_effect": fig19,
         "notes": [
-            "g_u95_max_um: U95 (k=2) of the workpiece form, i.e. G with the part's shift, rotation and scale "
-            "(the gauge of eqs 16-17) removed, the quantity of the paper's Figs 18-19; "
-            "g_u95_max_with_datum_um adds the datum (eq 16-17 nodes at the grid edge).",
-            "table2 values are U95 (k=2) like the paper's Table 2; C = 0 is the reference set-up (0 by eq 16). "
-            "U_CC agrees with the paper within 10 %; U_XC and U_YC come out 2.5-3.5 times the paper's, a "
-            "difference not yet explained (the reconstructed sphere positions and point layout are the first "
-            "suspects: the C-axis shift is separated from the workpiece shift by few, sphere, points).",
-            "The pocket is reconstructed (arms 200 mm, 36 mm wide, spheres at (60, 60) and (-70, -55) mm); "
-            "the paper's point layout and sphere positions are not fully given, which moves the figures, most "
-            "of all for two angles, where the design is at the edge of eq 6.",
+            "g_u95_max_um: the largest U95 of G over the targets in the declared reading (u95_reading); "
+            "g_u95_parts_at_max_um splits it at that target into the form and the part's shift, rotation and "
+            "scale relative to the eq 16-17 datum (each part's own U95; they are correlated, so they do not add "
+            "in quadrature exactly).",
+            "Table 2: U95 (k=2) of EXC,total, EYC,total and ECC per C angle; C = 0 is the reference set-up (0 by eq 16).",
+            "map_u95: the paper's Fig. 20, U95 = 2 sqrt(u_X^2 + u_Y^2) of (E_X,total, E_Y,total) on the grid nodes.",
+            "The pocket is reconstructed (arms 200 mm, 36 mm wide, spheres at (60, 60) and (-70, -55) mm); the "
+            "paper's point layout and sphere positions are not fully given. The sensitivity block shows what of "
+            "that reconstruction moves the numbers (linear propagation, exact here: the estimator is linear in the "
+            "touches, so Monte Carlo and linear differ only by sampling).",
         ],
-        "seconds": round(time.perf_counter() - t0, 2),
+        "arrays": arrays,
     }
+    if sensitivity:
+        out["sensitivity"] = sensitivity_study()
+    out["seconds"] = round(time.perf_counter() - t0, 2)
+    return out
+
+
+def _sphere_effect(arrays: dict) -> dict:
+    """Fig. 19 against Fig. 18(c): U95 of G without the spheres minus with them, on the pocket's targets."""
+    a = arrays.get("g_u95_um_with_spheres_C0_75_130_210")
+    b = arrays.get("g_u95_um_without_spheres_C0_75_130_210")
+    if a is None or b is None:
+        return {"computed": False}
+    ids_a = arrays["targets_with_spheres"]["ids"]
+    ids_b = arrays["targets_without_spheres"]["ids"]
+    ua = dict(zip(ids_a, a))
+    d = np.array([ub - ua[k] for k, ub in zip(ids_b, b)])
+    i = int(np.argmax(d))
+    return {"computed": True, "max_difference_um": round(float(d[i]), 3), "at_target": ids_b[i],
+            "at_w_mm": arrays["targets_without_spheres"]["w_mm"][i],
+            "mean_difference_um": round(float(d.mean()), 3), "paper_max_difference_um": 4.0}
+
+
+#: The paper's case 2 (eq 20): C angles, deg.
+PIN_ANGLES_DEG = (0.0, 31.0, 83.0, 137.0, 191.0, 227.0, 257.0, 313.0)
+#: Grid step of case 2, m (the paper's 80 mm).
+PIN_STEP_M = 0.080
+#: Touches per end of the calibrated length artefact that measures delta_L (eq 17), averaged.
+DELTA_L_REPEATS = 5
+#: The paper's CMM (section 4.3), E = (0.6 + L/600) um, taken as the U95 (k = 2) of the length artefact's calibration.
+CMM_E_UM = (0.6, 1.0 / 600.0)
+
+
+def measure_delta_L(machine, x_n_m: float, z_m: float, sigma_probe_m: float, rng: np.random.Generator,
+                    repeats: int = DELTA_L_REPEATS) -> tuple[float, float, float]:
+    """Eq 17's ``delta_L``: the X positioning error at ``x_N`` against ``x = 0`` (y = 0), measured.
+
+    The paper measures it "by probing an artefact of the pre-calibrated
+    length" between X = 0 and ``x_N``. Simulated here: the machine's true tip
+    deviation in X at both ends (C = 0, height ``z_m``, the exact simulator),
+    plus the measurement's error: ``repeats`` touches per end averaged
+    (probing sigma each) and the artefact's calibration uncertainty (the
+    paper's CMM, ``U95 = 0.6 + L/600 um``, L in mm).
+
+    Returns
+    -------
+    (measured, true, u) : float, m
+        The measured value, the simulator's, and the standard uncertainty
+        of the measurement.
+    """
+    lin = np.array([[0.0, 0.0, z_m], [x_n_m, 0.0, z_m]])
+    rot = np.zeros((2, len(machine.rotary_axes)))
+    E = machine.tip_W(lin, rot) - machine.tip_W_nominal(lin, rot)
+    true = float(E[1, 0] - E[0, 0])
+    u_art = 0.5 * (CMM_E_UM[0] + CMM_E_UM[1] * abs(x_n_m) / MM) * UM
+    u = float(np.sqrt(2.0 * sigma_probe_m ** 2 / repeats + u_art ** 2))
+    return true + u * float(rng.standard_normal()), true, u
+
+
+def pin_centres(g_by_target: dict, plan) -> tuple[list, np.ndarray, np.ndarray]:
+    """Centre deviation of each pin from the normal deviations of its touches.
+
+    Per pin, least squares of ``g_k = wn_k . d + dr`` over its targets
+    (``d`` the centre's shift in W, ``dr`` a radius change: the stylus
+    radius and probe offsets, which no centre carries).
+
+    Returns
+    -------
+    names : list of str (``pin01`` ...), nominal : (P, 2) m, d : (P, 2) m
+    """
+    first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
+    groups: dict = {}
+    for k, g in g_by_target.items():
+        if k.startswith("pin"):
+            groups.setdefault(k.rsplit("_", 1)[0], []).append((plan.wn_A[first[k], :2], g))
+    names = sorted(groups)
+    d = np.zeros((len(names), 2))
+    for i, nm in enumerate(names):
+        N = np.array([r[0] for r in groups[nm]])
+        gg = np.array([r[1] for r in groups[nm]])
+        sol, *_ = np.linalg.lstsq(np.column_stack([N, np.ones(len(N))]), gg, rcond=None)
+        d[i] = sol[:2]
+    from sim import artefacts as A
+
+    nominal = A.pin_positions_nominal()[[int(nm[3:]) - 1 for nm in names]]
+    return names, nominal, d
+
+
+def align_on_pins(err_m: np.ndarray, nominal_m: np.ndarray, origin: int = 0, x_dir: int = 10) -> np.ndarray:
+    """The paper's Fig. 17 frame: error 0 at pin ``origin``; X turned so pin ``x_dir`` has no Y error.
+
+    ``err_m`` (P, 2) position errors (measured minus reference), m, at the
+    pins ``nominal_m`` (P, 2). A small rotation ``phi`` about pin ``origin``
+    adds ``phi R90 (p - p_origin)``; ``phi = -e_y / dx`` of pin ``x_dir``.
+    No scale is removed (the scale is eq 17's ``delta_L``, measured).
+    """
+    e = np.asarray(err_m, float) - err_m[origin]
+    r = nominal_m - nominal_m[origin]
+    if abs(r[x_dir, 0]) < 1e-3:
+        raise ConfigError("pin x_dir lies on the Y line through pin origin: it cannot set the X direction")
+    phi = -e[x_dir, 1] / r[x_dir, 0]
+    return e + phi * np.column_stack([-r[:, 1], r[:, 0]])
 
 
 def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
-    """The paper's case 2: raw error at C = 0 against the self-calibrated pin positions."""
-    from core.selfcal import Grid, self_calibrate
+    """The paper's case 2 (section 5), the paper's way.
+
+    18 pins and two spheres probed at the eight C angles of eq 20 on the
+    simulated mikron-ucp710; the 2D self-calibration with the yaw vmt's rule
+    picks for the log's kinematic chain (:func:`core.selfcal.yaw_for_chain`),
+    the grid step 80 mm over the touched extent, and eq 17's ``delta_L``
+    measured (:func:`measure_delta_L`), not removed. Pin centres from each
+    pin's four touches (:func:`pin_centres`), compared with the true pin
+    positions (the CMM's role) after the paper's alignment only: pin 1 and
+    pin 11 (:func:`align_on_pins`). The raw positions at C = 0 get the same
+    alignment.
+    """
+    from core.selfcal import Grid, self_calibrate, yaw_for_chain
     from core.touches import from_log
-    from scenarios.hidden import gauge_free_rms_m, workpiece_truth
     from sim import artefacts as A
     from sim.campaign import simulate_campaign
     from sim.machine import Machine
@@ -117,72 +375,305 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
     from sim.probe import ProbeConfig
 
     t0 = time.perf_counter()
-    angles = [0.0, 31.0, 83.0, 137.0, 191.0, 227.0, 257.0, 313.0]
+    angles = list(PIN_ANGLES_DEG)
     cfg = MACHINES["mikron-ucp710"]()
     errs = realistic_errors(tuple(a for a in ("X", "Y", "Z", "C") if a in cfg.strokes), strokes=cfg.strokes,
                             rng=np.random.default_rng(seed), ripple=False)
     machine = Machine(MACHINES["mikron-ucp710"](errors=errs))
     art = A.pin_circle()
     plan = make_plan(art)
+    rng = np.random.default_rng(seed + 1)
     log = simulate_campaign(art, machine, ProbeConfig(repeatability_k2_m=2 * noise_um * 1e-6), angles,
-                            np.random.default_rng(seed + 1), check_collisions=False)
+                            rng, check_collisions=False)
+    chain = log.meta.get("kinematic_chain")
+    yaw = yaw_for_chain(chain)
     # the planar model takes the touches whose normals lie in XY (sphere points
     # off the equator are for 3D sphere fits, not for eqs 1-18)
     t = from_log(log.select(np.abs(log.col("nz")) < 0.01))
     # the paper's 80 mm step; nodes only where touches are (the paper's -400..400
     # mm grid has nodes no pin reaches, which nothing can identify)
-    grid = Grid.from_extent(t.pn_R, 0.080)
-    res = self_calibrate(t, grid)
-    g_true = workpiece_truth(art, plan)
-    first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
-    w_A = {k: plan.w_A[i, :2] for k, i in first.items()}
-    wn_A = {k: plan.wn_A[i, :2] for k, i in first.items()}
-    raw0 = t.dq_m[t.setup == 0]
-    ids0 = [t.target_ids[k] for k in t.target[t.setup == 0]]
-    raw = gauge_free_rms_m(raw0, ids0, g_true, w_A, wn_A)
-    cal = gauge_free_rms_m(res.G, res.design.target_ids, g_true, w_A, wn_A)
-    pins = [k for k in res.design.target_ids if k.startswith("pin")]
-    raw_max = _pin_position_error_max(t, res, g_true, plan, raw=True)
-    cal_max = _pin_position_error_max(t, res, g_true, plan, raw=False)
-    return {"scenario": "pin-circle", "machine": "mikron-ucp710 (realistic errors)", "c_angles_deg": angles,
-            "grid_mm": f"{grid.x_m[0] * 1e3:g}..{grid.x_m[-1] * 1e3:g} step 80", "touches": t.n, "pins": len({p.rsplit('_', 1)[0] for p in pins}),
-            "probing_sigma_um": noise_um,
-            "raw_c0_rms_um": round(raw * 1e6, 3), "selfcal_rms_um": round(cal * 1e6, 3),
-            "raw_c0_pin_error_max_um": round(raw_max, 3), "selfcal_pin_error_max_um": round(cal_max, 3),
-            "paper": "raw about 8 um at C = 0, self-calibrated within 2 um",
-            "notes": ["errors compared after removing the part's shift, rotation and scale (no self-calibration "
-                      "sees them; the paper aligns to pin 1 and pin 11 likewise)",
-                      "pin position = least-squares centre shift from the four normal deviations of each pin"],
+    grid = Grid.from_extent(t.pn_R, PIN_STEP_M)
+    z_m = float(np.median(t.pn_R[:, 2]))
+    dL, dL_true, u_dL = measure_delta_L(machine, float(grid.x_m[-1]), z_m, noise_um * UM, rng)
+    truth = art.info["pin_dev_m"]
+
+    def errors(g_by_target):
+        names, nominal, d = pin_centres(g_by_target, plan)
+        e = align_on_pins(d - truth[[int(n[3:]) - 1 for n in names]], nominal)
+        return names, nominal, e / UM
+
+    sel = t.setup == 0
+    names, nominal, raw_xy = errors({t.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel])})
+    raw = np.hypot(*raw_xy.T)
+    runs = {}
+    for label, kw in (("measured", dict(delta_L_m=dL, yaw=yaw)), ("true_delta_L", dict(delta_L_m=dL_true, yaw=yaw)),
+                      ("yaw_ECY_printed", dict(delta_L_m=dL, yaw="ECY"))):
+        res = self_calibrate(t, grid, **kw)
+        e = errors(dict(zip(res.design.target_ids, res.G)))[2]
+        runs[label] = (res, np.hypot(*e.T), e)
+    res, cal, cal_xy = runs["measured"]
+    # the predicted U95 of each pin's position in the same frame: the chain G -> centres -> alignment is
+    # linear in G, so its matrix is built column by column and the identification's covariance pushed through
+    ids = res.design.target_ids
+    L = np.column_stack([errors({k: float(i == j) for j, k in enumerate(ids)})[2].ravel() * UM
+                         for i in range(len(ids))])
+    u95_pin = None
+    if res.cov is not None:
+        sg = res.design.slices["G"]
+        Cp = L @ res.cov[sg, sg] @ L.T
+        v = np.diag(Cp).reshape(-1, 2)
+        u95_pin = 2.0 * np.sqrt(v.sum(axis=1)) / UM
+    return {"scenario": "pin-circle", "machine": "mikron-ucp710 (realistic errors)", "kinematic_chain": chain,
+            "yaw": str(yaw), "yaw_rule": "core.selfcal.yaw_for_chain of the log's kinematic_chain",
+            "c_angles_deg": angles,
+            "grid_mm": f"{grid.x_m[0] / MM:g}..{grid.x_m[-1] / MM:g} step {PIN_STEP_M / MM:g}", "touches": t.n,
+            "pins": len(names), "probing_sigma_um": noise_um,
+            "delta_L": {"x_n_mm": round(float(grid.x_m[-1] / MM), 3), "measured_um": round(dL / UM, 3),
+                        "true_um": round(dL_true / UM, 3), "u_um": round(u_dL / UM, 3),
+                        "how": f"calibrated length artefact X = 0 .. x_N at y = 0, {DELTA_L_REPEATS} touches per end "
+                               "averaged, artefact U95 = 0.6 + L/600 um (the paper's CMM)"},
+            "alignment": "the paper's Fig. 17: error 0 at pin 1, X direction so that pin 11 has no Y error; "
+                         "no scale removed",
+            "pin_nominal_mm": np.round(nominal / MM, 6).tolist(),
+            "raw_c0_pin_error_xy_um": np.round(raw_xy, 4).tolist(),
+            "selfcal_pin_error_xy_um": np.round(cal_xy, 4).tolist(),
+            "raw_c0_pin_error_um": [round(float(v), 3) for v in raw],
+            "selfcal_pin_error_um": [round(float(v), 3) for v in cal],
+            "raw_c0_pin_error_max_um": round(float(raw.max()), 3),
+            "selfcal_pin_error_max_um": round(float(cal.max()), 3),
+            "selfcal_pin_error_max_true_delta_L_um": round(float(runs["true_delta_L"][1].max()), 3),
+            "selfcal_pin_error_max_yaw_ECY_um": round(float(runs["yaw_ECY_printed"][1].max()), 3),
+            "residual_rms_um": round(res.rms_m / UM, 3),
+            "selfcal_pin_u95_um": None if u95_pin is None else [round(float(v), 3) for v in u95_pin],
+            "selfcal_pin_u95_max_um": None if u95_pin is None else round(float(u95_pin.max()), 3),
+            "selfcal_pin_u95_what": "2 sqrt(u_x^2 + u_y^2) of each pin's position in the paper's frame, from the "
+                                    "identification's covariance (probing noise and model error budget; delta_L "
+                                    "taken as exact)",
+            "paper": "raw about 8 um at C = 0 (pin 13), self-calibrated within 2 um",
+            "notes": ["pin position = least-squares centre shift (and a radius term) from the four normal "
+                      "deviations of each pin; the reference is the true pin position (the CMM's role)",
+                      "selfcal_pin_error_max_true_delta_L_um: the same with the simulator's delta_L, what the "
+                      "delta_L measurement costs; selfcal_pin_error_max_yaw_ECY_um: the paper's printed yaw model "
+                      "(X on Y) on this chain"],
             "seconds": round(time.perf_counter() - t0, 2)}
 
 
-def _pin_position_error_max(t, res, g_true, plan, raw: bool) -> float:
-    """Largest pin-centre position error (um) from the per-target normal deviations."""
-    from core.selfcal import workpiece_form
+def part_outline_mm(art, z_m: float | None = None) -> tuple[list, list]:
+    """The part's probed outline in W (A frame xy), mm: (polygons, circles) for the U95 figures.
 
-    first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
-    ids = [k for k in res.design.target_ids if k.startswith("pin")]
-    if raw:
-        sel = t.setup == 0
-        g = {t.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel])}
-    else:
-        g = dict(zip(res.design.target_ids, res.G))
-    P, N, E = [], [], []
-    for k in ids:
-        i = first[k]
-        P.append(plan.w_A[i, :2])
-        N.append(plan.wn_A[i, :2])
-        E.append(g[k] - g_true[k])
-    P, N, E = np.array(P), np.array(N), np.array(E)
-    # remove the part's rigid shift/rotation/scale first (as the paper aligns to pins)
-    E = workpiece_form(E, P, N)
-    worst = 0.0
-    groups: dict = {}
-    for k, n, e in zip(ids, N, E):
-        groups.setdefault(k.rsplit("_", 1)[0], []).append((n, e))
-    for rows in groups.values():
-        Nn = np.array([r[0] for r in rows])
-        ee = np.array([r[1] for r in rows])
-        shift, *_ = np.linalg.lstsq(Nn, ee, rcond=None)
-        worst = max(worst, float(np.hypot(*shift)))
-    return worst * 1e6
+    Prism walls give their polygon; spheres their circle at height ``z_m``
+    (default: the equator), rods and holes their circle. Other features
+    (planes) have no 2D outline and are left out.
+    """
+    polys, circles = [], []
+    for f in art.features:
+        g = f.nominal
+        if f.kind == "prism":
+            polys.append(np.asarray(g.vertices, float)[:, :2] / MM)
+        elif f.kind == "sphere":
+            dz = 0.0 if z_m is None else z_m - g.centre[2]
+            if abs(dz) < g.radius:
+                circles.append((g.centre[0] / MM, g.centre[1] / MM, np.sqrt(g.radius ** 2 - dz ** 2) / MM))
+        elif f.kind in ("rod", "hole"):
+            circles.append((g.centre[0] / MM, g.centre[1] / MM, g.radius / MM))
+    return polys, circles
+
+
+# ---------------------------------------------------------------------------
+# the paper's figures
+# ---------------------------------------------------------------------------
+#: C angles of case 1 (eq 19), deg.
+CROSS_ANGLES_DEG = (0.0, 75.0, 130.0, 210.0)
+
+
+def cross_pocket_campaign(seed: int = 1):
+    """A simulated case-1 campaign: the cross pocket at eq 19's angles on the nmv3000 with realistic errors.
+
+    Probing noise: the paper's section 6 standard uncertainty (1.38 um).
+    Returns (artefact, plan, touches, machine).
+    """
+    from core.touches import from_log
+    from sim import artefacts as A
+    from sim.campaign import simulate_campaign
+    from sim.catalog import make_plan
+    from sim.machine import Machine
+    from sim.machines import MACHINES, realistic_errors
+    from sim.probe import ProbeConfig
+
+    errs = realistic_errors(("X", "Y", "Z", "C"), rng=np.random.default_rng(seed), ripple=False)
+    machine = Machine(MACHINES["nmv3000"](errors=errs))
+    art = A.cross_pocket()
+    plan = make_plan(art)
+    log = simulate_campaign(art, machine, ProbeConfig(repeatability_k2_m=2 * U_PROBE_M), list(CROSS_ANGLES_DEG),
+                            np.random.default_rng(seed + 1), plan=plan, check_collisions=False)
+    return art, plan, from_log(log.select(np.abs(log.col("nz")) < 0.01)), machine
+
+
+def paper_figures(folder, cpu: dict, pin: dict | None = None, seed: int = 1) -> dict:
+    """The self-calibration paper's figures and tables as a report folder; returns ``{figure name: png path}``.
+
+    ``folder`` gets ``index.html``, one PNG per figure and ``recording.rrd``
+    (U95 on the part, the tables paper vs vmt). Figs. 18(a-c), 19 (U95 of G
+    on the outline), 20(a, b) (U95 of the map) from ``cpu``
+    (:func:`cross_pocket_uncertainty`); 9(b), 10, 14 from a simulated
+    campaign (:func:`cross_pocket_campaign`); 17 from ``pin``
+    (:func:`pin_circle`) when given.
+    """
+    import shutil
+    from pathlib import Path
+
+    from scenarios.reports import _recording_path
+    from viz import record
+    from viz.report import Section, write_report
+
+    folder = Path(folder)
+    figs = _paper_figure_objects(cpu, pin, seed)
+    tables = paper_tables(cpu, pin)
+    rrd = _recording_path(folder)
+    try:
+        with record.recording(rrd) as rec:
+            _record_paper(rec, record, cpu, tables)
+        secs = [Section("Self-calibration paper: the one U95 reading", text=cpu["u95_reading"]),
+                Section("Paper vs vmt", tables=list(tables.values()))]
+        groups = (("Case 1 profiles (Figs. 9(b), 10) and the C axis (Fig. 14)", ("fig9b", "fig10", "fig14")),
+                  ("Workpiece U95 on the outline (Figs. 18, 19)", ("fig18a", "fig18b", "fig18c", "fig19")),
+                  ("U95 of the error map (Fig. 20)", ("fig20a", "fig20b")),
+                  ("Pin circle (Fig. 17)", ("fig17",)))
+        for title, names in groups:
+            have = {n: figs[n] for n in names if n in figs}
+            if have:
+                secs.append(Section(title, figures=have))
+        write_report(folder, "Self-calibration paper (Ibaraki et al.), reproduced", secs, recording=rrd)
+    finally:
+        shutil.rmtree(rrd.parent, ignore_errors=True)
+    return {n: folder / f"{n}.png" for n in figs}
+
+
+def paper_tables(cpu: dict, pin: dict | None = None) -> dict:
+    """Tables paper vs vmt (:class:`viz.report.Table`): Fig. 18-20 maxima, Table 2, the sensitivity, the pins."""
+    from viz.report import Table
+
+    out = {}
+    rows = []
+    for c in cpu["cases"]:
+        rows.append([", ".join(f"{a:g}" for a in c["c_angles_deg"]), "yes" if c["spheres"] else "no",
+                     c.get("g_u95_max_um"), c.get("paper_g_u95_max_um") or "",
+                     c.get("ratio_to_paper", ""), c.get("map_u95_max_um")])
+    out["fig18"] = Table(["C / deg", "spheres", "max U95(G) / um", "paper", "ratio", "max U95 map / um"], rows,
+                         caption="Figs. 18-20 (paper's Fig. 20(a): 28 um at Y = +-110 mm)")
+    out["table2"] = Table(["C / deg", "U_XC / um", "paper", "U_YC / um", "paper", "U_CC / urad", "paper"],
+                          [[t["c_deg"], t["u_xc_um"], t["paper_u_xc_um"], t["u_yc_um"], t["paper_u_yc_um"],
+                            t["u_cc_urad"], t["paper_u_cc_urad"]] for t in cpu["table2"]], caption="Table 2")
+    if "sensitivity" in cpu:
+        out["sensitivity"] = Table(
+            ["variant", "C / deg", "max U95(G) / um", "U_XC / um", "U_YC / um", "U_CC / urad", "max U95 map / um"],
+            [[r["variant"], ", ".join(f"{a:g}" for a in r["c_angles_deg"]), r["g_u95_max_um"],
+              " ".join(f"{v:g}" for v in r["u_xc_um"][1:]), " ".join(f"{v:g}" for v in r["u_yc_um"][1:]),
+              " ".join(f"{v:g}" for v in r["u_cc_urad"][1:]), r["map_u95_max_um"]] for r in cpu["sensitivity"]],
+            caption="Sensitivity (linear propagation): what of the reconstruction drives the numbers")
+    if pin is not None:
+        out["pins"] = Table(["quantity", "vmt", "paper"],
+                            [["raw max pin error at C = 0 / um", pin["raw_c0_pin_error_max_um"], "about 8"],
+                             ["self-calibrated max pin error / um", pin["selfcal_pin_error_max_um"], "within 2"],
+                             ["predicted max U95 of a pin / um", pin["selfcal_pin_u95_max_um"], "-"],
+                             ["delta_L measured (true) / um",
+                              f"{pin['delta_L']['measured_um']} ({pin['delta_L']['true_um']})", "measured"],
+                             ["yaw", pin["yaw"], "ECY (its chain: X on Y)"]],
+                            caption="Fig. 17, the pin circle (aligned on pins 1 and 11, no scale removed)")
+    return out
+
+
+def _record_paper(rec, record, cpu: dict, tables: dict) -> None:
+    """The recording: U95 of G at the targets on the part (Figs. 18(c), 19) and the tables as markdown."""
+    a = cpu["arrays"]
+    for key, sub in (("g_u95_um_with_spheres_C0_75_130_210", "with"),
+                     ("g_u95_um_without_spheres_C0_75_130_210", "without")):
+        if key not in a:
+            continue
+        tg = a[f"targets_{sub}_spheres"]
+        p = np.column_stack([np.asarray(tg["w_mm"]) * MM, np.zeros(len(tg["w_mm"]))])
+        n = np.column_stack([np.asarray(tg["wn"]), np.zeros(len(tg["wn"]))])
+        record.log_workpiece(rec, p, n, np.zeros(len(p)), u95_um=a[key],
+                             path=f"{record.WORKPIECE}/u95_{sub}_spheres")
+    for name, t in tables.items():
+        md = "| " + " | ".join(t.columns) + " |\n|" + "---|" * len(t.columns) + "\n"
+        md += "\n".join("| " + " | ".join(str(v) for v in r) + " |" for r in t.rows)
+        record.log_markdown(rec, f"selfcal_{name}", (t.caption + "\n\n" if t.caption else "") + md)
+
+
+def _paper_figure_objects(cpu: dict, pin: dict | None, seed: int) -> dict:
+    """``{name: Figure}`` of the paper's figures (see :func:`paper_figures`)."""
+    from core.selfcal import Grid, self_calibrate, workpiece_form
+    from scenarios.hidden import workpiece_truth
+    from sim import artefacts as A
+    from viz import figures as F
+    from viz import selfcal_figures as S
+
+    out = {}
+    a = cpu["arrays"]
+    polys, circles = part_outline_mm(A.cross_pocket())
+    tw, to = a["targets_with_spheres"], a["targets_without_spheres"]
+    for tag, c in (("a", (0, 75)), ("b", (0, 75, 130)), ("c", (0, 75, 130, 210))):
+        key = f"g_u95_um_with_spheres_C{'_'.join(str(v) for v in c)}"
+        if key in a:
+            out[f"fig18{tag}"] = S.outline_uncertainty_figure(
+                tw["w_mm"], a[key], outlines_mm=polys, circles_mm=circles,
+                title=f"Fig. 18({tag}): U95 of G_normal, spheres, C = {', '.join(map(str, c))}°")
+    key = "g_u95_um_without_spheres_C0_75_130_210"
+    if key in a:
+        out["fig19"] = S.outline_uncertainty_figure(to["w_mm"], a[key], outlines_mm=polys,
+                                                    title="Fig. 19: U95 of G_normal, no spheres, C = 0, 75, 130, 210°")
+    for tag, sph in (("a", "with"), ("b", "without")):
+        key = f"map_u95_um_{sph}_spheres_C0_75_130_210"
+        if key in a:
+            out[f"fig20{tag}"] = F.grid_uncertainty_figure(
+                a["grid_x_mm"], a["grid_y_mm"], np.asarray(a[key]).T,
+                title=f"Fig. 20({tag}): U95 (k=2) of the 2D positioning error, {sph} spheres")
+    # case 1 campaign: Figs. 9(b), 10, 14
+    art, plan, t, _ = cross_pocket_campaign(seed)
+    g_true = workpiece_truth(art, plan)
+    first = {}
+    for k in range(t.n):
+        first.setdefault(t.target_ids[t.target[k]], k)
+    pocket = [k for k in t.target_ids if not k.startswith("sphere")]
+    P = np.array([t.w_A[first[k], :2] for k in pocket])
+    N = np.array([t.wn_A[first[k], :2] for k in pocket])
+    ref = workpiece_form(np.array([g_true[k] for k in pocket]), P, N) / UM
+    prof = {}
+    for j in range(len(t.setup_ids)):
+        sel = t.setup == j
+        raw = {t.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel])}
+        prof[f"C = {np.degrees(t.rot_rad[sel, 2][0]):g}°"] = np.array([raw[k] for k in pocket]) / UM
+    out["fig9b"] = F.profile_figure(P / MM, N, prof, magnification=1000.0, scale_um=50.0,
+                                    title="Fig. 9(b): raw profiles at each C (W)")
+    grid = Grid.regular(-0.110, 0.110, 0.022)
+    keep = np.array([not t.target_ids[i].startswith("sphere") for i in t.target])
+    res0 = self_calibrate(t.subset(keep, reindex=True), grid)
+    g0 = dict(zip(res0.design.target_ids, res0.G))
+    ident = workpiece_form(np.array([g0[k] for k in pocket]), P, N) / UM
+    out["fig10"] = F.profile_figure(P / MM, N, {"identified G_normal, no spheres (form)": ident}, reference_um=ref,
+                                    reference_label="true form (the CMM's role)",
+                                    title="Fig. 10: identified without the spheres")
+    res = self_calibrate(t, grid)
+    out["fig14"] = F.rotary_motions_figure(np.degrees(res.design.c_rad), {"ECC": res.ECC * 1e6},
+                                           {"ECC": 2e6 * res.std[res.design.slices["ECC"]]})
+    if pin is not None:
+        out["fig17"] = _pin_figure_object(pin)
+    return out
+
+
+def _pin_figure_object(pin: dict):
+    from viz.selfcal_figures import pin_positions_figure
+
+    return pin_positions_figure(pin["pin_nominal_mm"], pin["raw_c0_pin_error_xy_um"], pin["selfcal_pin_error_xy_um"])
+
+
+def pin_figure(folder, pin: dict):
+    """Fig. 17 from a :func:`pin_circle` result, as ``folder/fig17.png``; returns the path."""
+    from pathlib import Path
+
+    from viz.figures import save_png
+
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    return save_png(_pin_figure_object(pin), Path(folder) / "fig17.png")
+

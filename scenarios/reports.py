@@ -129,7 +129,7 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
     with record.recording(rrd) as rec:
         _record_demo(rec, record, v, t, res, ident, art)
         dsecs = _discovery_sections(d, t, rep, rec)
-    secs = _demo_sections(figures, v, t, res, ident, g_true) + dsecs
+    secs = _demo_sections(figures, v, t, res, ident, g_true, art) + dsecs
     try:
         return write_report(folder, title, secs, recording=rrd)
     finally:
@@ -203,13 +203,18 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art) -> None:
     record.log_touches(rec, t.pn_R, t.dq_m / UM, n_R=t.n_R)
     record.log_error_grid(rec, v.x_mm, v.y_mm, v.ex_um, v.ey_um, true_ex_um=v.tex, true_ey_um=v.tey)
     _log_machine_bodies(rec, record, t)
-    record.log_workpiece(rec, t.w_A[v.idx], t.wn_A[v.idx], v.g_um, u95_um=v.u95_um)
+    # the profile drawn x2500 is the form: G with the datum's shift, rotation and scale (tens of um, which
+    # would move points tens of mm off the part) removed; the U95 colours sit on the nominal points
+    from core.selfcal import workpiece_form
+
+    record.log_workpiece(rec, t.w_A[v.idx], t.wn_A[v.idx], workpiece_form(v.g_um, v.w_mm * MM, v.wn),
+                         u95_um=v.u95_um)
     record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, ex0c_um=v.centre_um(0),
                       ey0c_um=v.centre_um(1))
     record.log_error_motions(rec, {k: e for k, e in ident["axes"].items() if k != "EC0Y"})
 
 
-def _demo_sections(figures, v: _DemoView, t, res, ident: dict, g_true) -> list:
+def _demo_sections(figures, v: _DemoView, t, res, ident: dict, g_true, art=None) -> list:
     """Report sections: campaign profile, error map (eqs 4-5), C axis (Fig. 13), workpiece U95 (Figs. 18-19)."""
     from viz.report import Section, Table
 
@@ -230,9 +235,17 @@ def _demo_sections(figures, v: _DemoView, t, res, ident: dict, g_true) -> list:
                                 ident["axes"]["EC0Y"]["u95_urad"]]])]),
         Section("C axis (Fig. 13)", figures={"c_axis": figures.rotary_centre_figure(
             v.c_deg, v.exc, v.eyc, ex0c_um=v.centre_um(0), ey0c_um=v.centre_um(1))}),
-        Section("Workpiece uncertainty (Figs. 18-19)", figures={"workpiece_u95": figures.workpiece_uncertainty_figure(
-            v.w_mm, v.u95_um, g_um=v.g_um, normals=v.wn)}),
+        Section("Workpiece uncertainty (Figs. 18-19)", figures={"workpiece_u95": _u95_outline_figure(v, art)}),
     ]
+
+
+def _u95_outline_figure(v: _DemoView, art):
+    """U95 of G as colour at the targets, on the part's outline (Figs. 18-19; no deviation moves a point)."""
+    from scenarios.crosspocket import part_outline_mm
+    from viz.selfcal_figures import outline_uncertainty_figure
+
+    polys, circles = part_outline_mm(art) if art is not None else ([], [])
+    return outline_uncertainty_figure(v.w_mm, v.u95_um, outlines_mm=polys, circles_mm=circles)
 
 
 def _profile_figure(figures, des, w_mm, wn, g_um, t, g_true):

@@ -26,6 +26,7 @@ BENCHES: list[str] = [
     "scenarios.bench.touch",
     "scenarios.bench.discover",
     "scenarios.bench.vcmm",
+    "scenarios.bench.probelog",
 ]
 
 
@@ -36,7 +37,9 @@ def short_name(mod: str) -> str:
 
 def run_all(only: list[str] | None = None) -> dict:
     """Run the benchmarks (those whose module or short name contains a text of ``only``)."""
-    figures: dict = {"python": platform.python_version(), "cpu_count": os.cpu_count()}
+    figures: dict = {"python": platform.python_version(), "cpu_count": os.cpu_count(),
+                     # the BLAS thread count asked for (one unless the user chose: scenarios.cli)
+                     "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS", "unset")}
     for mod in BENCHES:
         short = short_name(mod)
         if only and not any(o in mod or o in short for o in only):

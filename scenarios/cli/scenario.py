@@ -27,12 +27,20 @@ def _mfb(args) -> int:
     d = r.doc
     print(f"vmt scenario {args.name}: {d['placements']} placements, {d['measurements']} measurements, "
           f"{d['touches']} touches on {d['machine']}, {r.seconds:.1f} s; {d['model']}")
+    if "collision_check" in d:
+        from scenarios.mfb import describe_collision_check
+
+        print(describe_collision_check(d["collision_check"]))
     print(f"{'error':6s} {'unit':5s} {'max|injected|':>14s} {'max|ident-inj|':>15s} {'max U95':>9s}")
     for s, e in d["errors"].items():
         inj = max(abs(v) for v in e["injected"])
         u = max(e.get("u95", [float("nan")]))
         print(f"{s:6s} {e['unit']:5s} {inj:14.3f} {e['max_dev']:15.4f} {u:9.3f}")
     print(f"max_dev_um {d['max_dev_um']:.4f}  max_dev_urad {d['max_dev_urad']:.4f}")
+    if d.get("twists"):
+        from scenarios.mfb import describe_twists
+
+        print(describe_twists(d["twists"]))
     if args.comp:
         for p in r.write_comp(args.comp):
             print(f"wrote {p}")
@@ -90,6 +98,11 @@ def _cross_pocket_uncertainty(args) -> int:
               f"   ({t['paper_u_xc_um']:g}, {t['paper_u_yc_um']:g}, {t['paper_u_cc_urad']:g})")
     for n in r["notes"]:
         print(f"note: {n}")
+    if args.report:
+        from scenarios.crosspocket import paper_figures, pin_circle
+
+        figs = paper_figures(args.report, r, pin_circle(seed=args.seed), seed=args.seed)
+        print(f"figures ({', '.join(figs)}) -> {args.report}")
     if args.json:
         write_json_atomic(args.json, r, special=True)
     return 0
@@ -103,7 +116,14 @@ def _pin_circle(args) -> int:
     print(f"vmt scenario pin-circle: {r['pins']} pins, {r['touches']} touches at C = "
           f"{', '.join(f'{a:g}' for a in r['c_angles_deg'])} deg on {r['machine']}")
     print(f"pin position error, max: raw at C=0 {r['raw_c0_pin_error_max_um']:.2f} um -> self-calibrated "
-          f"{r['selfcal_pin_error_max_um']:.2f} um (paper: {r['paper']})")
+          f"{r['selfcal_pin_error_max_um']:.2f} um (paper: {r['paper']}); aligned on pins 1 and 11, delta_L "
+          f"measured {r['delta_L']['measured_um']:.2f} um (u {r['delta_L']['u_um']:.2f} um), yaw {r['yaw']}")
+    if args.report:
+        from pathlib import Path
+
+        from scenarios.crosspocket import pin_figure
+
+        print(f"figure fig17 -> {pin_figure(Path(args.report), r)}")
     if args.json:
         write_json_atomic(args.json, r, special=True)
     return 0
@@ -136,6 +156,8 @@ def register(sub) -> None:
                    help="mfb scenarios: apply the compensation in DIR (X/Y/Z.comp as LinuxCNC does, and the "
                         "vmt-comp/1 tables as a volumetric controller) to the virtual machine, re-run, identify "
                         "again; the JSON gets closed_loop (before/after per axis)")
+    p.add_argument("--report", default=None, metavar="DIR",
+                   help="cross-pocket-uncertainty, pin-circle: write the self-calibration paper's figures (PNG) here")
     p.add_argument("--mc", type=int, default=None,
                    help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty)")
     p.set_defaults(func=_dispatch)

@@ -298,9 +298,118 @@ def test_unreadable_device_and_fifo_inputs(tmp_path, monkeypatch):
     p = tmp_path / "log.csv"
     p.write_text(_one())
 
-    def denied(self):
+    def denied(self, *a, **k):
         raise PermissionError(13, "Permission denied", str(self))
 
-    monkeypatch.setattr(type(p), "read_bytes", denied)
+    monkeypatch.setattr(type(p), "open", denied)  # the reader streams the file through Path.open
     with pytest.raises(ProbeLogError, match=r"log.csv: cannot read: Permission denied"):
+        read_probe_log(p)
+
+
+# ---- the streaming reader (issue 19: a 1e6-row log in bounded memory) ----------------------------
+
+
+def _rows(n, bad=None):
+    """``n`` valid rows; ``bad`` maps a row to (column index, cell) to put a fault in."""
+    out = []
+    for r in range(n):
+        cells = ROW.replace("s1,p1,0", f"s{r // 3},p{r % 3},{r}").split(",")
+        if bad and r in bad:
+            j, cell = bad[r]
+            cells[j] = cell
+        out.append(",".join(cells))
+    return out
+
+
+@pytest.mark.parametrize("chunk", [1, 2, 3, 1000])
+def test_blocks_of_any_size_read_the_same_log(tmp_path, rng, monkeypatch, chunk):
+    """Rows are parsed in blocks of CHUNK_ROWS: a log read in blocks of 1, 2, 3 equals one read whole."""
+    import core.probelog as P
+
+    log = full_log(rng, 12)
+    p = tmp_path / "log.csv"
+    write_probe_log(p, log)
+    monkeypatch.setattr(P, "CHUNK_ROWS", chunk)
+    back = read_probe_log(p)
+    assert list(back.columns) == list(log.columns) and back.meta == log.meta
+    for k, v in log.columns.items():
+        if v.dtype == object:
+            assert back.columns[k].tolist() == v.tolist()
+        else:
+            assert np.array_equal(back.columns[k], v, equal_nan=True), k
+
+
+@pytest.mark.parametrize("chunk", [2, 1000])
+def test_first_fault_is_named_whatever_the_blocks(tmp_path, monkeypatch, chunk):
+    """Faults in several columns and blocks: the first column in header order, at its first row, is
+    named (as reading every cell first would), and a field-count fault anywhere comes before them."""
+    import core.probelog as P
+
+    monkeypatch.setattr(P, "CHUNK_ROWS", chunk)
+    p = tmp_path / "bad.csv"
+    # Y_mm (column 4) bad at row 1, X_mm (column 3) bad at rows 4 and 6
+    p.write_text(HEADER + "\n" + "\n".join(_rows(8, {1: (4, "y?"), 4: (3, "1e999"), 6: (3, "abc")})) + "\n")
+    with pytest.raises(ProbeLogError, match=r"row 4 \(line 6\): column 'X_mm': '1e999' is not finite$"):
+        read_probe_log(p)
+    rows = _rows(8, {1: (4, "y?")})
+    rows[7] += ",extra"
+    p.write_text(HEADER + "\n" + "\n".join(rows) + "\n")
+    with pytest.raises(ProbeLogError, match=r"row 7 \(line 9\): 13 fields, header has 12$"):
+        read_probe_log(p)
+
+
+@pytest.mark.parametrize("chunk", [2, 1000])
+def test_unknown_column_turns_text_on_a_late_block(tmp_path, monkeypatch, chunk):
+    """A column the spec does not define is numeric unless some cell is text, even in the last block."""
+    import core.probelog as P
+
+    monkeypatch.setattr(P, "CHUNK_ROWS", chunk)
+    p = tmp_path / "log.csv"
+    rows = [r + f",{k}" for k, r in enumerate(_rows(7))]
+    p.write_text(HEADER + ",gauge\n" + "\n".join(rows) + "\n")
+    assert read_probe_log(p).columns["gauge"].tolist() == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    rows[-1] = rows[-1].rsplit(",", 1)[0] + ",G-12"
+    p.write_text(HEADER + ",gauge\n" + "\n".join(rows) + "\n")
+    assert read_probe_log(p).columns["gauge"].tolist() == ["0", "1", "2", "3", "4", "5", "G-12"]
+
+
+def test_not_utf8_names_the_byte_of_the_file(tmp_path):
+    """The offset of a bad byte counts from the file's first byte, a UTF-8 byte-order mark included."""
+    body = (HEADER + "\n" + ROW + "\n").encode()
+    k = len(HEADER) + 4  # inside the data row
+    p = tmp_path / "bad.csv"
+    p.write_bytes(body[:k] + b"\xff" + body[k:])
+    with pytest.raises(ProbeLogError, match=rf"not UTF-8 text \(invalid start byte at byte {k}\)$"):
+        read_probe_log(p)
+    p.write_bytes(b"\xef\xbb\xbf" + body[:k] + b"\xff" + body[k:])
+    with pytest.raises(ProbeLogError, match=rf"not UTF-8 text \(invalid start byte at byte {k + 3}\)$"):
+        read_probe_log(p)
+    p.write_bytes(b"\xef\xbb\xbf" + body)  # the mark itself is not part of the first column's name
+    assert read_probe_log(p).columns["setup"].tolist() == ["s1"]
+
+
+def test_log_read_through_a_named_pipe(tmp_path, rng):
+    """A FIFO (``vmt check <(zcat log.gz)``) cannot be read twice: it is read once, same log."""
+    import os
+    import threading
+
+    log = full_log(rng, 12)
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    text = format_probe_log(log)
+    writer = threading.Thread(target=lambda: fifo.write_text(text))
+    writer.start()
+    try:
+        back = read_probe_log(fifo)
+    finally:
+        writer.join(timeout=10)
+    assert format_probe_log(back) == text
+
+
+def test_mixed_line_ends_count_lines_as_the_text_does(tmp_path):
+    """CR, LF and CRLF line ends all count as one line each (the row's line number in messages)."""
+    p = tmp_path / "bad.csv"
+    p.write_bytes(("# a: b\r" + HEADER + "\r\n" + ROW + "\n" + ROW.replace("s1,p1,0", "s1,p2,1") + "\r"
+                   + "s1,p3,2,x,0,0,1,0,0,1,0,0\r\n").encode())
+    with pytest.raises(ProbeLogError, match=r"row 2 \(line 5\): column 'X_mm': 'x' is not a number$"):
         read_probe_log(p)

@@ -8,24 +8,9 @@ from core.exceptions import ConfigError, IdentifiabilityError
 
 
 @pytest.fixture(scope="module")
-def meas3():
-    """Noise-free measurements of the 3-axis plan on a perfect machine (sim, ~3 s)."""
-    import scenarios.mfb as S
-    import core.volumetric as V
-
-    cap = {}
-    orig = V.identify_volumetric
-
-    def spy(meas, chain, nodes, rp=None, **kw):
-        cap["m"] = (meas, chain, nodes, rp)
-        return orig(meas, chain, nodes, rp, **kw)
-
-    V.identify_volumetric = spy
-    try:
-        S.run("mfb-3axis", noise_um=0.0, mc_runs=0)
-    finally:
-        V.identify_volumetric = orig
-    return cap["m"]
+def meas3(mfb3_noise_free):
+    """Noise-free measurements of the 3-axis plan on the default realistic machine (tests/conftest.py)."""
+    return mfb3_noise_free[1]
 
 
 def test_gauge_is_iso_and_full_plan_observable(meas3):
@@ -66,6 +51,22 @@ def test_spline_weights_interpolate_nodes_and_cubics():
     u = np.linspace(0, 0.5, 37)
     f = lambda t: 3 * t ** 3 - t + 0.2  # noqa: E731  a not-a-knot spline reproduces cubics
     assert np.allclose(vol.spline_weights(x, u) @ f(x), f(u), atol=1e-12)
+
+
+def test_spline_weights_cached_per_node_table():
+    """The splines are built once per node table (issue 19): the same table again gives the same
+    weights, another table of the same length its own (a cubic reproduced; beyond the ends the
+    end tangent), and a caller writing into the weights does not change the cache."""
+    f = lambda t: 3 * t ** 3 - t + 0.2  # noqa: E731
+    df = lambda t: 9 * t ** 2 - 1  # noqa: E731
+    for x in (np.linspace(0, 0.5, 6), np.linspace(-0.2, 0.1, 6), np.linspace(0, 0.5, 6)):
+        u = np.array([x[0] - 0.01, x[0], 0.5 * (x[1] + x[2]), x[-1], x[-1] + 0.02])
+        W = vol.spline_weights(x, u)
+        want = f(u)
+        want[0] = f(x[0]) - 0.01 * df(x[0])
+        want[-1] = f(x[-1]) + 0.02 * df(x[-1])
+        assert np.allclose(W @ f(x), want, atol=1e-12)
+        W[:] = 0.0
 
 
 def test_bad_input(meas3):

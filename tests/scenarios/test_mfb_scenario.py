@@ -81,10 +81,13 @@ def test_unknown_scenario_exit_2(capsys):
     # line. The bounds are the issue 6 targets, 0.1 um / 0.5 urad.
     (False, 0.1, 0.5),
 ])
-def test_noise_free_identification_matches_injected(on_nodes, tol_um, tol_urad):
+def test_noise_free_identification_matches_injected(on_nodes, tol_um, tol_urad, request):
     from scenarios.mfb import run
 
-    d = run("mfb-3axis", noise_um=0.0, mc_runs=0, on_nodes=on_nodes).doc
+    if on_nodes:
+        d = run("mfb-3axis", noise_um=0.0, mc_runs=0, on_nodes=True).doc
+    else:  # the default machine's run, shared with tests/core/test_volumetric.py (tests/conftest.py)
+        d = request.getfixturevalue("mfb3_noise_free")[0].doc
     assert d["max_dev_um"] < tol_um and d["max_dev_urad"] < tol_urad, (d["max_dev_um"], d["max_dev_urad"])
 
 
@@ -130,24 +133,35 @@ def test_u95_covers_the_truth_and_is_useful():
 
 def test_5axis_cli_noise_free(tmp_path):
     # vmt scenario mfb-5axis: the Mikron UCP710 (table C on A, linear axes on
-    # the tool), 17 measurements using A and C, the rotary axes' errors
-    # injected too. Noise-free on the realistic machine: measured 0.070 um
-    # (EZY) / 0.126 urad (ECZ); bounds the issue 6 targets 0.1 um / 0.5 urad.
+    # the tool): 4 bar placements on the table presented by A and C in 13
+    # set-ups, 17 measurements, every touch and move checked for collisions
+    # in the MuJoCo work zone (issue 16 item 1); the rotary axes' errors
+    # injected too. Noise-free on the realistic machine: measured 0.041 um
+    # (EZY) / 0.491 urad (EBY, the twist ramp seen only through the
+    # diagonals' bend); bounds the issue 6 targets 0.1 um / 0.5 urad.
     from scenarios.cli import main
 
     out = tmp_path / "mfb5.json"
     assert main(["scenario", "mfb-5axis", "--json", str(out), "--noise-um", "0", "--mc", "0"]) == 0
     d = json.loads(out.read_text())
-    assert d["machine"] == "mikron-ucp710" and d["measurements"] == 17 and d["placements"] == 13
-    assert len(d["errors"]) == 21
+    assert d["machine"] == "mikron-ucp710" and d["measurements"] == 17 and d["placements"] == 4
+    assert d["setups"] == 13 and len(d["errors"]) == 21
+    c = d["collision_check"]
+    assert c["passed"] and len(c["measurements"]) == 17 and c["touches"] == d["touches"]
+    assert all(m["collisions"] == 0 for m in c["measurements"].values())
     assert d["max_dev_um"] < 0.1 and d["max_dev_urad"] < 0.5, (d["max_dev_um"], d["max_dev_urad"])
 
 
 def test_5axis_compensation_closes_the_loop(tmp_path):
     """The Mikron's X, Y, Z all carry the tool: the axes whose files the old
-    convention doubled. Both controllers bring the true positioning error within
-    the identification's U95 at every node (criterion and margins as for the
-    3-axis test)."""
+    convention doubled. Both controllers bring the true positioning error
+    down by > 10x and within the identification's U95 at the nodes. A U95 is
+    a 95 % interval: over the plan's 23 nodes all inside has a probability
+    near 0.95^23 = 0.3 when it is right, so the criterion allows one node
+    outside per controller (seed 1: Y at one node, 0.82 um true after
+    compensation, EYY's identification error there), and every axis' true
+    error after compensation below the largest U95 of its identification
+    (Y: 0.82 um against 1.10 um)."""
     from scenarios.cli import main
 
     out, comp = tmp_path / "mfb5.json", tmp_path / "comp"
@@ -157,9 +171,58 @@ def test_5axis_compensation_closes_the_loop(tmp_path):
     loop = d["closed_loop"]
     for a in "XYZ":
         before = loop["before"]["positioning"][a]["true_max_um"]
-        assert before > 8.0
-        n = len(d["errors"][f"E{a}{a}"]["nodes_mm"])
+        assert before > 7.0  # EXX 24 um, EYY 12.7 um, EZZ 7.5 um over the 5-axis nodes
         for key in ("per_axis_files", "volumetric"):
             p = loop[key]["positioning"][a]
-            assert p["true_within_u95"] == f"{n}/{n}" and p["true_max_um"] < before / 10, (key, a, p)
+            assert p["true_max_um"] < before / 10, (key, a, p)
+            assert p["true_max_um"] < max(d["errors"][f"E{a}{a}"]["u95"]), (key, a, p)
+    for key in ("per_axis_files", "volumetric"):
+        outside = 0
+        for a in "XYZ":
+            n = len(d["errors"][f"E{a}{a}"]["nodes_mm"])
+            k, m = (int(v) for v in loop[key]["positioning"][a]["true_within_u95"].split("/"))
+            assert m == n
+            outside += n - k
+        assert outside <= 1, (key, outside)
     assert loop["volumetric"]["volumetric_residual_um"]["rms"] < loop["before"]["volumetric_residual_um"]["rms"] / 5
+    # the twists (issue 16 item 2), reported by name: at 0.125 um probing noise
+    # none is resolved (U95 above half its peak-to-peak signal; seed 1: EAX 30 urad
+    # on 4.8, EBY 7.8 on 6.0, ECZ 9.1 on 3.6), and each one's error is within U95
+    tw = d["twists"]
+    assert set(tw) == {"EAX", "EBY", "ECZ"}
+    for s, v in tw.items():
+        assert v["error_max_urad"] <= v["u95_max_urad"], (s, v)
+        assert v["resolved"] == (v["u95_max_urad"] <= 0.5 * v["signal_pp_urad"])
+    assert not tw["EAX"]["resolved"] and "rigidly" in tw["EAX"]["sensing"]
+
+
+def test_stylus_and_temperature_inputs_refuse_bad_values():
+    # the Monte Carlo's extra inputs (issue 16 item 3): a negative standard
+    # uncertainty of the stylus offsets is named before any touch is simulated
+    from core.exceptions import ConfigError
+    from scenarios.mfb import run
+
+    with pytest.raises(ConfigError, match="u_stylus_um"):
+        run("mfb-3axis", u_stylus_um=-1.0, mc_runs=0)
+    with pytest.raises(ConfigError, match="temperature_C"):
+        run("mfb-3axis", bar_temperature_C=float("nan"), mc_runs=0)
+
+
+def test_reversal_on_a_simulated_cmm_separates_the_cmm_straightness():
+    """Issue 16 item 7: touches on a simulated CMM (its straightness bows 1.5 um
+    in Y and 1.1 um in Z over the bar, hand computed: a x^2 over x = +-275 mm
+    against the chord, a = 2e-5 and 1.5e-5 /m), the bar probed as it is and
+    turned about x, eqs 5-7. A method that did not reverse would carry the
+    CMM's bow into the bar (1.1-1.5 um); the reversal leaves the probing noise
+    (0.05 um on the CMM) and the re-placement: < 0.15 um. The positioning
+    Exx carries the step gauge's error (U(k=2) 0.3 um + 1.5 um/m): within its U95."""
+    from scenarios.mfb import reversal_on_cmm
+
+    r = reversal_on_cmm(repeats=3, seed=3)
+    c = r["compared_um"]
+    assert r["touches"] == 6 * 316
+    for k in ("Eyx", "Ezx"):
+        assert c[k]["max_abs_um"] < 0.15, c[k]
+    assert c["Exx"]["max_abs_um"] < c["Exx"]["U95_max_um"], c["Exx"]
+    cal = r["calibration"]
+    assert cal.E_m.shape == (12, 3) and cal.n_repeats == 3

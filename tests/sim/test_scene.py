@@ -82,3 +82,33 @@ def test_crashing_path_is_refused_naming_setup_and_target():
     approach = np.array([[[0.0, 0.0, 0.06], [0.06, 0.06, 0.06]]])
     with pytest.raises(PlanError, match=r"target 'x': approach/retract path crashes: stylus hits sphere1"):
         check_touch_paths(scene, "C0", ["x"], ["pocket"], [None], approach)
+
+
+def test_a_passed_path_check_is_not_run_twice_and_a_crash_always_is(monkeypatch):
+    """Checks are memoised on the scene's MJCF, the table pose and the paths (issue 19): the same
+    check again samples nothing; a moved table or path samples again; a crash is never stored."""
+    art = A.cross_pocket()
+    scene = Scene(art, ProbeConfig())
+    calls = []
+    real = Scene.collisions
+    monkeypatch.setattr(Scene, "collisions", lambda self, *a, **k: calls.append(1) or real(self, *a, **k))
+    z = art.T_W_A[2, 3] + 0.02  # 20 mm above the artefact's base: clear of the pocket's floor
+    top = art.T_W_A[2, 3] + 0.08
+    links = [np.array([[0.0, 0.0, top], [0.0, 0.0, z]])]
+    approach = np.array([[[0.0, 0.0, z], [0.0, 0.001, z]]])
+    scene.set_table(A.make_T(np.eye(3), [0.3, 0.0, 0.0]))
+    check_touch_paths(scene, "C0", ["t"], ["pocket"], links, approach)
+    n_first = len(calls)
+    assert n_first > 10
+    check_touch_paths(scene, "C1", ["other name"], ["pocket"], links, approach)  # names do not matter
+    assert len(calls) == n_first
+    scene.set_table(A.make_T(np.eye(3), [0.3, 1e-6, 0.0]))  # table moved by 1 um: checked again
+    check_touch_paths(scene, "C0", ["t"], ["pocket"], links, approach)
+    assert len(calls) == 2 * n_first
+    check_touch_paths(scene, "C0", ["t"], ["pocket"], links, approach + [0, 0, 1e-9])  # path moved
+    assert len(calls) == 3 * n_first
+    scene.set_table(np.eye(4))
+    crash = np.array([[[0.0, 0.0, 0.0], [0.06, 0.06, 0.06]]])
+    for _ in range(2):
+        with pytest.raises(PlanError, match="approach/retract path crashes"):
+            check_touch_paths(scene, "C0", ["x"], ["pocket"], [None], crash)

@@ -1,0 +1,298 @@
+"""The MFB's work zone in MuJoCo: rotary table, workholder, bar, star styli, spindle.
+
+:mod:`sim.scene` holds the artefact and a straight probe; a 5-axis MFB plan
+also needs what the bar sits on and what the tool carries, because the
+table tilts (A) and turns (C) under the probe. This scene has two moving
+bodies, posed from the nominal kinematics (no dynamics; MuJoCo is the
+collision engine):
+
+- ``table`` (pose ``T_R_W``): the rotary table, a disc of
+  :data:`TABLE_R_M` radius and :data:`TABLE_T_M` thickness whose top face is
+  W's xy plane; the workholder's blocks (:class:`Block`, W frame); the
+  bar's solids (its two supports included) at ``T_W_A``.
+- ``spindle`` (origin at the stylus-tip centre, axes parallel to R): the
+  stylus ball; the stylus from the tip along the probing direction to the
+  probe offsets' horizontal point ``(J_X, J_Y, 0)`` (a star stylus arm, or
+  nothing for a straight stylus); the vertical extension from there up to
+  the probe body; the probe body (:data:`sim.scene.PROBE_BODY_R_M`) below
+  the gauge line ``J``; the spindle nose (:data:`SPINDLE_R_M`) above it.
+
+What is checked (:func:`check_measurement`): every touch's approach and
+retract (start point -> nominal contact), every link move between touches
+(retract along the bar's ``z_A`` to a clearance plane above the bar, move
+across, plunge: a part program for a bar in any orientation), and that the
+bar and the workholder lie on the table's side of its face. The tip ball
+may touch the geoms of the feature it probes (the exact primitives of
+:mod:`sim.probe` judge that contact); everything else is a collision.
+Not modelled: the A-axis cradle below the table, the machine's guards.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .artefacts import apply_R, apply_T, inv_T, make_T, solid_points
+from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat
+
+#: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
+TABLE_R_M = 0.300
+TABLE_T_M = 0.060
+#: Spindle nose above the gauge line: radius, length (m).
+SPINDLE_R_M = 0.060
+SPINDLE_H_M = 0.250
+#: Stylus stem and star arm radius, extension radius (m).
+STEM_R_M = 1.5e-3
+EXTENSION_R_M = 5.0e-3
+#: Length of the thin stem above the ball (or of the star arm's thin part), m.
+STEM_L_M = 0.050
+#: Clearance of the link moves above the bar's top (along z_A), m.
+LINK_CLEAR_M = 10.0e-3
+
+
+@dataclass(frozen=True)
+class Block:
+    """A workholder block on the table: axis-aligned box in W, corners ``lo``, ``hi`` (m)."""
+
+    name: str
+    lo: tuple
+    hi: tuple
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """Outcome of a measurement's collision and reach check.
+
+    Attributes
+    ----------
+    measurement : str
+    touches, samples : int
+        Touches and path points checked.
+    collisions : tuple of str
+        First collision of each colliding touch, in words (empty: passed).
+    min_table_clearance_mm : float
+        Least distance of the probe (ball, stylus, body, spindle) from the
+        table, the workholder and the bar's supports over all checked points.
+    """
+
+    measurement: str
+    touches: int
+    samples: int
+    collisions: tuple = ()
+    min_table_clearance_mm: float = field(default=float("nan"))
+
+    @property
+    def ok(self) -> bool:
+        return not self.collisions
+
+
+def probe_geoms_mjcf(J_m, r_m: float, finger_m: float = 0.0) -> str:
+    """MJCF geoms of the probe (spindle body frame: tip centre, axes of R) for offsets J.
+
+    ``finger_m``: a star stylus whose ball hangs on a vertical finger of this
+    length below its arm (0: the arm at the ball's height).
+    """
+    J = np.asarray(J_m, float)
+    g = [f'<geom name="ball" type="sphere" size="{r_m!r}" contype="0" conaffinity="1"/>']
+    h = np.hypot(J[0], J[1])
+    z_body = J[2] - PROBE_BODY_H_M
+    if h > 1e-9:  # star arm (on its finger), then the vertical extension
+        u = np.array([J[0], J[1], 0.0]) / h
+        z0 = float(finger_m)
+        if z0 > 0:
+            g.append(f'<geom name="finger" type="capsule" fromto="0 0 {r_m!r} 0 0 {z0!r}" '
+                     f'size="{STEM_R_M!r}" contype="0" conaffinity="1"/>')
+        g.append(f'<geom name="arm" type="capsule" fromto="{_f((0.0 if z0 > 0 else r_m) * u + [0, 0, z0])} '
+                 f'{_f([J[0], J[1], z0])}" size="{STEM_R_M!r}" contype="0" conaffinity="1"/>')
+    else:
+        g.append(f'<geom name="stem" type="capsule" fromto="0 0 {r_m!r} 0 0 {STEM_L_M!r}" '
+                 f'size="{STEM_R_M!r}" contype="0" conaffinity="1"/>')
+        z0 = STEM_L_M
+    if z_body - z0 > 1e-6:
+        g.append(f'<geom name="extension" type="capsule" fromto="{_f([J[0], J[1], z0])} '
+                 f'{_f([J[0], J[1], z_body])}" size="{EXTENSION_R_M!r}" contype="0" conaffinity="1"/>')
+    g.append(f'<geom name="probe_body" type="cylinder" pos="{_f([J[0], J[1], z_body + PROBE_BODY_H_M / 2])}" '
+             f'size="{PROBE_BODY_R_M!r} {PROBE_BODY_H_M / 2!r}" contype="0" conaffinity="1"/>')
+    g.append(f'<geom name="spindle" type="cylinder" pos="{_f([J[0], J[1], J[2] + SPINDLE_H_M / 2])}" '
+             f'size="{SPINDLE_R_M!r} {SPINDLE_H_M / 2!r}" contype="0" conaffinity="1"/>')
+    return "".join(g)
+
+
+class WorkZone:
+    """One bar placement on the table with its workholder, one probe (offsets J).
+
+    Parameters
+    ----------
+    artefact : sim.artefacts.Artefact
+    T_W_A : (4,4) float
+        Bar pose on the table (W), m.
+    blocks : sequence of Block
+    J_m : (3,) float
+        Probe offsets (gauge point minus tip centre, R axes), m.
+    stylus_r_m : float
+    """
+
+    def __init__(self, artefact, T_W_A, blocks, J_m, stylus_r_m: float, finger_m: float = 0.0):
+        import mujoco
+
+        self._mj = mujoco
+        T_W_A = np.asarray(T_W_A, float)
+        geoms, feats = [], []
+        geoms.append(f'<geom name="table_disc" type="cylinder" pos="0 0 {-TABLE_T_M / 2!r}" '
+                     f'size="{TABLE_R_M!r} {TABLE_T_M / 2!r}" contype="1" conaffinity="0"/>')
+        feats.append("")
+        for b in blocks:
+            lo, hi = np.asarray(b.lo, float), np.asarray(b.hi, float)
+            geoms.append(f'<geom name="fix_{b.name}" type="box" pos="{_f((lo + hi) / 2)}" size="{_f((hi - lo) / 2)}" '
+                         f'contype="1" conaffinity="0"/>')
+            feats.append("")
+        for k, s in enumerate(artefact.solids):
+            T = T_W_A @ make_T(s.rot, s.pos)
+            kind = s.kind if s.kind in ("box", "cylinder", "sphere") else None
+            if kind is None:
+                raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
+            gname = s.feature or ("support" if kind == "cylinder" else "body")
+            geoms.append(f'<geom name="{gname}__{k}" type="{kind}" size="{_f(s.size)}" '
+                         f'pos="{_f(T[:3, 3])}" quat="{_f(_quat(T[:3, :3]))}" contype="1" conaffinity="0"/>')
+            feats.append(s.feature)
+        xml = (f'<mujoco model="vmt-mfb-workzone"><compiler angle="radian"/><option gravity="0 0 0"/><worldbody>'
+               f'<body name="table"><freejoint name="table"/>{"".join(geoms)}</body>'
+               f'<body name="spindle"><freejoint name="spindle"/>{probe_geoms_mjcf(J_m, stylus_r_m, finger_m)}</body>'
+               f'</worldbody></mujoco>')
+        self.mjcf = xml
+        self.model = m = mujoco.MjModel.from_xml_string(xml)
+        self.data = mujoco.MjData(m)
+        table = m.body("table").id
+        self._feature = {}
+        tg = [i for i in range(m.ngeom) if m.geom_bodyid[i] == table]
+        for i, f in zip(tg, feats):
+            self._feature[i] = f
+        self._names = [m.geom(i).name for i in range(m.ngeom)]
+        self._ball = m.geom("ball").id
+        self._tq = m.jnt_qposadr[m.joint("table").id]
+        self._sq = m.jnt_qposadr[m.joint("spindle").id]
+        self._holder = [i for i in tg if self._names[i] == "table_disc"
+                        or self._names[i].startswith(("fix_", "support__"))]
+        self._probe = [i for i in range(m.ngeom) if m.geom_bodyid[i] != table]
+
+    def set_table(self, T_R_W) -> None:
+        T = np.asarray(T_R_W, float)
+        self.data.qpos[self._tq:self._tq + 3] = T[:3, 3]
+        self.data.qpos[self._tq + 3:self._tq + 7] = _quat(T[:3, :3])
+
+    def collisions(self, p_R, allow_feature: str = "") -> list:
+        """(probe geom, table-side geom, depth m) with the tip centre at ``p_R``."""
+        d = self.data
+        d.qpos[self._sq:self._sq + 3] = p_R
+        d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
+        self._mj.mj_kinematics(self.model, d)
+        self._mj.mj_collision(self.model, d)
+        out = []
+        for c in range(d.ncon):
+            dist = d.contact.dist[c]
+            if dist > -COLLISION_TOL_M:
+                continue
+            g1, g2 = (int(g) for g in d.contact.geom[c])
+            pg, ag = (g1, g2) if g1 in self._probe else (g2, g1)
+            if pg == self._ball and allow_feature and self._feature.get(ag, "") == allow_feature:
+                continue
+            out.append((self._names[pg], self._names[ag], float(dist)))
+        return out
+
+    def holder_clearance(self, distmax: float = 0.05) -> float:
+        """Least distance (m) of the probe's geoms from the table, the workholder and the
+        bar's supports at the current pose (``distmax`` if farther)."""
+        m, d = self.model, self.data
+        best = distmax
+        for a in self._probe:
+            for b in self._holder:
+                best = min(best, float(self._mj.mj_geomDistance(m, d, a, b, distmax, None)))
+        return best
+
+
+def link_paths(T_R_A, starts_R, features, levels, top_A_m):
+    """Link polylines (R, m) between consecutive approach starts: direct within one
+    feature and level, else retract along ``z_A`` to ``top_A_m`` + clearance, across, plunge."""
+    T_A_R = inv_T(T_R_A)
+    s_A = apply_T(T_A_R, np.asarray(starts_R, float))
+    z_c = top_A_m + LINK_CLEAR_M
+    out = [None]
+    for i in range(1, len(s_A)):
+        a, b = s_A[i - 1], s_A[i]
+        if features[i] == features[i - 1] and levels[i] == levels[i - 1]:
+            pts = np.array([a, b])
+        else:
+            zc = max(z_c, a[2], b[2])
+            pts = np.array([a, [a[0], a[1], zc], [b[0], b[1], zc], b])
+        out.append(apply_T(T_R_A, pts))
+    return out
+
+
+def _sample(pts, step):
+    out = []
+    for a, b in zip(pts[:-1], pts[1:]):
+        k = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
+        out.append(a + np.linspace(0.0, 1.0, k + 1)[:-1, None] * (b - a))
+    out.append(pts[-1:])
+    return np.concatenate(out)
+
+
+def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan, finger_m: float = 0.0,
+                      link_step_m: float = 3.0e-3, approach_step_m: float = 0.5e-3) -> CheckResult:
+    """Collision check of one measurement: every approach/retract and link move, and the bar on the table.
+
+    Parameters
+    ----------
+    name : str
+    artefact : Artefact
+    T_W_A : (4,4) float
+        Nominal bar pose on the table, m.
+    T_R_W : (4,4) float
+        Nominal table pose at the measurement's rotary positions, m.
+    blocks : sequence of Block
+        The workholder (W frame).
+    J_m : (3,) float
+    stylus_r_m : float
+    plan : sim.plans.Plan
+        The measurement's touches (A frame).
+    finger_m : float
+        Finger of a star stylus (:func:`probe_geoms_mjcf`).
+    """
+    T_W_A = np.asarray(T_W_A, float)
+    T_R_A = np.asarray(T_R_W, float) @ T_W_A
+    bad = []
+    # the bar and the workholder on the table's side of its face (W z >= 0)
+    z_bar = min(float(apply_T(T_W_A, solid_points(s))[:, 2].min()) for s in artefact.solids)
+    if z_bar < -1e-9:
+        bad.append(f"the bar reaches {z_bar * 1e3:.1f} mm below the table face")
+    for b in blocks:
+        if min(b.lo[2], b.hi[2]) < -1e-9:
+            bad.append(f"workholder block {b.name} below the table face")
+    wz = WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
+    wz.set_table(T_R_W)
+    r = stylus_r_m
+    Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
+    start = Xn + plan.clearance_m * apply_R(T_R_A, plan.wn_A)
+    top = max(float(np.max(solid_points(s)[:, 2])) for s in artefact.solids) + r
+    links = link_paths(T_R_A, start, plan.feature, plan.level, top)
+    n_samp, clear = 0, np.inf
+    for i in range(plan.n):
+        for pts, allow, step in ((links[i], "", link_step_m), (np.array([start[i], Xn[i]]), plan.feature[i],
+                                                                approach_step_m)):
+            if pts is None:
+                continue
+            for p in _sample(pts, step):
+                n_samp += 1
+                hit = wz.collisions(p, allow)
+                if hit:
+                    g, o, dep = hit[0]
+                    bad.append(f"{plan.target[i]}: {g} hits {o} ({-dep * 1e3:.2f} mm deep) at "
+                               f"{np.round(p * 1e3, 1).tolist()} mm")
+                    break
+            else:
+                continue
+            break
+        wz.collisions(start[i])
+        clear = min(clear, wz.holder_clearance())
+    return CheckResult(name, int(plan.n), n_samp, tuple(bad), float(clear * 1e3))

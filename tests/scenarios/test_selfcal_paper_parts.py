@@ -1,0 +1,90 @@
+"""Known answers for the pieces of the self-calibration paper's studies (scenarios.crosspocket, core.uncertainty)."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from core.exceptions import ConfigError
+from core.selfcal import Grid, error_map, estimator, nominal_touches
+from core.uncertainty import error_map_operator, workpiece_components
+from scenarios import crosspocket as cp
+from sim import artefacts as A
+
+
+def test_align_on_pins_removes_a_rigid_motion_not_a_scale():
+    p = A.pin_positions_nominal()
+    t, phi = np.array([3e-6, -2e-6]), 4e-6  # shift and small rotation (rad) of the whole circle
+    rigid = t + phi * np.column_stack([-p[:, 1], p[:, 0]])
+    assert np.abs(cp.align_on_pins(rigid, p)).max() < 1e-18
+    s = 5e-6  # a scale error of 5 ppm survives: pin 10 (opposite pin 1 within 20 deg) moves ~2 um
+    e = cp.align_on_pins(s * p, p)
+    assert np.all(e[0] == 0) and abs(e[10, 1]) < 1e-18
+    # hand-worked: the scale's errors relative to pin 1, rotated about pin 1 so that pin 11's y error is 0
+    r = p - p[0]
+    hand = s * r + (-s * r[10, 1] / r[10, 0]) * np.column_stack([-r[:, 1], r[:, 0]])
+    np.testing.assert_allclose(e, hand, atol=1e-18)
+    assert np.hypot(*e.T).max() > 1.5e-6
+    with pytest.raises(ConfigError, match="cannot set the X direction"):
+        cp.align_on_pins(rigid, np.array([[0.0, 0.0]] * 11))
+
+
+def test_pin_centres_round_trip():
+    from sim.catalog import make_plan
+
+    art = A.pin_circle()
+    plan = make_plan(art)
+    rng = np.random.default_rng(3)
+    d = rng.normal(0, 2e-6, (18, 2))
+    g = {}
+    for k, wn in zip(plan.target, plan.wn_A):
+        if k.startswith("pin"):
+            g[k] = float(wn[:2] @ d[int(k[3:5]) - 1]) + 1.5e-6  # + a radius change no centre carries
+    names, nominal, got = cp.pin_centres(g, plan)
+    assert names[0] == "pin01" and len(names) == 18
+    np.testing.assert_allclose(got, d, atol=1e-15)
+    np.testing.assert_array_equal(nominal, A.pin_positions_nominal())
+
+
+def test_measure_delta_L_known_answer():
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+
+    m = Machine(MACHINES["mikron-ucp710"]())  # no errors: the true delta_L is 0
+    rng = np.random.default_rng(7)
+    z = np.random.default_rng(7).standard_normal()
+    meas, true, u = cp.measure_delta_L(m, 0.240, 0.01, 0.9e-6, rng)
+    assert abs(true) < 1e-12
+    # by hand: 5 touches per end, sigma 0.9 um; artefact U95 = 0.6 + 240/600 = 1.0 um -> u = 0.5 um
+    assert u == pytest.approx(np.sqrt(2 * 0.81 / 5 + 0.25) * 1e-6, rel=1e-12)
+    assert meas == pytest.approx(true + u * z, abs=1e-15)
+
+
+@pytest.fixture(scope="module")
+def design():
+    w, wn, ids = cp._plan_points(True)
+    t = nominal_touches(w, wn, (0, 75, 130, 210), target_ids=ids)
+    return estimator(t, Grid.regular(-0.110, 0.110, 0.022))
+
+
+def test_error_map_operator_matches_error_map(design):
+    des, _ = design
+    theta = np.random.default_rng(2).normal(0, 1e-6, des.n_params)
+    res = SimpleNamespace(design=des, yaw=des.yaw, EC0Y=float(theta[des.slices["EC0Y"]][0]),
+                          **{k: theta[des.slices[k]] for k in ("EXX", "EYX", "EXY", "EYY", "ECY")})
+    _, _, ex, ey = error_map(res)
+    v = error_map_operator(des) @ theta
+    n = ex.size
+    np.testing.assert_allclose(v[:n], ex.ravel(), atol=1e-18)
+    np.testing.assert_allclose(v[n:], ey.ravel(), atol=1e-18)
+
+
+def test_workpiece_components_known_answer(design):
+    des, _ = design
+    rng = np.random.default_rng(5)
+    a = rng.normal(0, 1e-6, (50, 1))
+    err = a * des.N[:, 10]  # a pure scale (a null direction): no form, all scale
+    parts = workpiece_components(des, err)
+    np.testing.assert_allclose(parts["scale"], parts["total"], rtol=1e-9, atol=1e-20)
+    assert parts["form"].max() < 1e-9 * parts["total"].max()
+    assert parts["shift"].max() < 1e-9 * parts["total"].max()

@@ -1,0 +1,64 @@
+"""The MFB work zone (table, workholder, bar, star styli, spindle): collisions found, none invented."""
+
+import numpy as np
+import pytest
+
+from sim import artefacts as A
+from sim.mfb_scene import Block, WorkZone, check_measurement
+
+pytest.importorskip("mujoco")
+R = 3e-3
+BAR = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
+FLAT = A.make_T(None, (-0.175, 0.080, 0.070))  # flat on its supports, first hole at (-175, 80) mm
+
+
+def _holes(*h):
+    from scenarios.mfb import _plan_for
+
+    return _plan_for(BAR, h)
+
+
+def _T_R_W(A_deg, C_deg):
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+
+    m = Machine(MACHINES["mikron-ucp710"]())
+    return np.asarray(m.T_R_W_nominal(np.deg2rad([[A_deg, C_deg]])), float).reshape(4, 4)
+
+
+def test_flat_bar_probed_from_above_passes_and_supports_sit_on_the_table():
+    r = check_measurement("X1", BAR, FLAT, _T_R_W(0, 0), (), (0, 0, 0.150), R, _holes(1, 2))
+    assert r.ok and r.touches == 16 + 24 + 16, r.collisions  # 2 holes x 8, rods 1-2 x 12, their 4 faces x 4
+    # the supports stand on the table face: their bottoms at W z = 0 (hand computed:
+    # centre 70 mm, half thickness 10 mm, supports 60 mm)
+    z = min(A.apply_T(FLAT, A.solid_points(s))[:, 2].min() for s in BAR.solids)
+    assert z == pytest.approx(0.0, abs=1e-12)
+
+
+def test_star_arm_across_a_flat_bar_collides():
+    # a star arm along Y (TY1) at the tip's height, tip inside a hole whose axis is
+    # vertical: the arm passes through the hole wall
+    r = check_measurement("bad", BAR, FLAT, _T_R_W(0, 0), (), (0.0, -0.100, 0.150), R, _holes(3))
+    assert not r.ok and "arm" in r.collisions[0]
+
+
+def test_bar_behind_the_table_face_is_refused():
+    # the old plan's standing bar: a pose given in R at y = -40 mm with A = 90 puts
+    # the bar through the table (the table face is at y = +120 mm, facing +Y)
+    T_R_A = np.eye(4)
+    T_R_A[:3, :3] = np.column_stack([(0, 0, 1), np.cross((0, -1, 0), (0, 0, 1)), (0, -1, 0)])
+    T_R_A[:3, 3] = (-0.025, -0.040, 0.060)
+    T_R_W = _T_R_W(90, 0)
+    T_W_A = np.linalg.inv(T_R_W) @ T_R_A
+    r = check_measurement("VY-old", BAR, T_W_A, T_R_W, (), (0.0, -0.100, 0.150), R, _holes(1))
+    assert not r.ok and "below the table face" in r.collisions[0]
+
+
+def test_spindle_meets_a_tilted_table():
+    # straight probe over the table edge with the table tilted A = -90 (face vertical at
+    # y = -120 mm): the spindle nose (radius 60 mm) at y = -150 mm reaches into the table
+    wz = WorkZone(BAR, FLAT, (Block("riser", (0.0, 0.0, 0.0), (0.01, 0.01, 0.01)),), (0, 0, 0.150), R)
+    wz.set_table(_T_R_W(-90, 0))
+    hits = wz.collisions(np.array([-0.100, -0.150, -0.200]))
+    assert any(h[0] == "spindle" and h[1] == "table_disc" for h in hits), hits
+    assert wz.collisions(np.array([-0.330, -0.250, -0.200])) == []
