@@ -60,6 +60,7 @@ COMMANDS = [
     ("identify", "scenarios.cli.identify"),
     ("design", "scenarios.cli.design"),
     ("iso230-2", "scenarios.cli.iso230_2"),
+    ("regress", "scenarios.cli.regress"),
     ("vcmm", "scenarios.cli.vcmm"),
 ]
 

@@ -49,6 +49,7 @@ FILES = {
     "plan": ((), ("out",), ()),
     "fit": (("log",), ("json",), ()),
     "iso230-2": (("log",), ("json", "write_log"), ("report",)),
+    "regress": (("study",), ("json", "junit"), ()),
     "vcmm": (("plan", "task"), ("json",), ("report",)),
 }
 

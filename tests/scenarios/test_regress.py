@@ -1,0 +1,318 @@
+"""``vmt regress``: the example studies pass through the command, mutations fail on the right quantity,
+the JUnit XML meets the common schema's rules, bad studies exit 2, the comparison by hand."""
+
+import json
+import re
+from dataclasses import replace
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import numpy as np
+import pytest
+
+from scenarios.cli import main
+from scenarios.regress import (GAUGE_FLOOR, IDENTIFICATIONS, Causes, Estimate, Mutation, Rule, StudyError, check,
+                               junit_xml, load_study, loads_study, run_study)
+from scenarios.testing import assert_recovers, regress_study  # noqa: F401 (the fixture, as a user imports it)
+
+STUDIES = Path(__file__).resolve().parents[2] / "scenarios" / "data"
+EXAMPLES = sorted(STUDIES.glob("regress-*.toml"))
+SELFCAL = STUDIES / "regress-selfcal-nmv3000.toml"
+POSITIONING = STUDIES / "regress-iso230-2-vmc-x.toml"
+
+
+# --------------------------------------------------------------------------- JUnit schema rules
+# The rules of the common JUnit schema (Windy Road JUnit.xsd, Apache Ant's XMLJUnitResultFormatter format,
+# read by Jenkins, GitLab, GitHub actions): written here from the schema's text, not from vmt's writer.
+_TOKEN = re.compile(r"^\S+( \S+)*$")          # xs:token, minLength 1: no leading/trailing/double spaces, no tabs
+_INT = re.compile(r"^[+-]?[0-9]+$")
+_DECIMAL = re.compile(r"^[+-]?([0-9]+(\.[0-9]*)?|\.[0-9]+)$")  # xs:decimal: no exponent
+_TIMESTAMP = re.compile(r"^[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9]{2}:[0-9]{2}:[0-9]{2}$")  # no zone
+
+
+def _attrs(el, required: dict, optional: dict = {}):
+    for k, kind in required.items():
+        assert k in el.attrib, f"<{el.tag}> lacks the required attribute {k}"
+    for k, v in el.attrib.items():
+        kind = required.get(k, optional.get(k))
+        assert kind is not None, f"<{el.tag}> has an attribute the schema does not declare: {k}"
+        pat = {"token": _TOKEN, "int": _INT, "decimal": _DECIMAL, "timestamp": _TIMESTAMP, "string": None}[kind]
+        assert pat is None or pat.match(v), f"<{el.tag} {k}={v!r}> is not an xs:{kind}"
+
+
+def validate_junit(text: str) -> None:
+    """Raise AssertionError where ``text`` breaks the rules of JUnit.xsd (aggregated form)."""
+    root = ET.fromstring(text.encode("utf-8"))
+    assert root.tag == "testsuites" and not root.attrib, "root must be <testsuites> without attributes"
+    for n, suite in enumerate(root):
+        assert suite.tag == "testsuite", f"<testsuites> holds only <testsuite>, got <{suite.tag}>"
+        _attrs(suite, {"name": "token", "timestamp": "timestamp", "hostname": "token", "tests": "int",
+                       "failures": "int", "errors": "int", "time": "decimal", "package": "token", "id": "int"},
+               {"skipped": "int"})
+        assert int(suite.get("id")) == n, "testsuite ids start at 0 and count up"
+        tags = [c.tag for c in suite]
+        assert tags and tags[0] == "properties", "<properties> first (required)"
+        assert tags[-2:] == ["system-out", "system-err"], "<system-out>, <system-err> last (required)"
+        assert all(t == "testcase" for t in tags[1:-2]), f"only <testcase> between, got {tags[1:-2]}"
+        for p in suite[0]:
+            assert p.tag == "property" and not len(p)
+            _attrs(p, {"name": "token", "value": "string"})
+        cases = suite.findall("testcase")
+        for tc in cases:
+            _attrs(tc, {"name": "token", "classname": "token", "time": "decimal"})
+            assert len(tc) <= 1, "a testcase holds at most one of skipped, error, failure"
+            for r in tc:
+                assert r.tag in ("skipped", "error", "failure"), f"<testcase> cannot hold <{r.tag}>"
+                if r.tag != "skipped":
+                    _attrs(r, {"type": "string"}, {"message": "string"})
+                    assert not len(r), f"<{r.tag}> holds text only"
+        for t in ("system-out", "system-err"):
+            assert not len(suite.find(t)) and not suite.find(t).attrib
+        assert int(suite.get("tests")) == len(cases)
+        assert int(suite.get("failures")) == sum(tc.find("failure") is not None for tc in cases), "failures count"
+        assert int(suite.get("errors")) == sum(tc.find("error") is not None for tc in cases)
+
+
+GOOD = ('<testsuites><testsuite name="s" timestamp="2026-12-01T22:00:00" hostname="h" tests="1" failures="1" '
+        'errors="0" time="0.5" package="p" id="0"><properties><property name="a" value="b"/></properties>'
+        '<testcase name="q" classname="c" time="0.1"><failure type="t" message="m">m</failure></testcase>'
+        '<system-out>x</system-out><system-err/></testsuite></testsuites>')
+
+
+@pytest.mark.parametrize("bad, why", [
+    (GOOD.replace(' hostname="h"', ""), "hostname"),
+    (GOOD.replace("22:00:00", "22:00:00Z"), "timestamp"),
+    (GOOD.replace('time="0.5"', 'time="5e-1"'), "decimal"),
+    (GOOD.replace('name="q"', 'name=" q"'), "token"),
+    (GOOD.replace('<testcase name="q"', '<testcase verdict="x" name="q"'), "does not declare"),
+    (GOOD.replace('<system-err/>', ''), "system-err"),
+    (GOOD.replace('failures="1"', 'failures="0"'), "failures count"),
+    (GOOD.replace('<failure type="t" message="m">', '<failure message="m">'), "type"),
+    (GOOD.replace('<testsuites>', '<testsuites tests="1">'), "without attributes"),
+    (GOOD.replace('id="0"', 'id="1"'), "ids"),
+])
+def test_the_schema_rules_reject_what_the_schema_rejects(bad, why):
+    validate_junit(GOOD)
+    with pytest.raises(AssertionError, match=why):
+        validate_junit(bad)
+
+
+# --------------------------------------------------------------------------- the examples, through the command
+@pytest.fixture(scope="session")
+def example_runs(tmp_path_factory):
+    """Every example study run once through ``vmt regress`` (exit status, JSON, JUnit text)."""
+    d = tmp_path_factory.mktemp("regress")
+    out = {}
+    for p in EXAMPLES:
+        j, x = d / f"{p.stem}.json", d / f"{p.stem}.xml"
+        rc = main(["regress", str(p), "--json", str(j), "--junit", str(x)])
+        out[p.stem] = (rc, json.loads(j.read_text()), x.read_text())
+    return out
+
+
+def test_there_is_an_example_per_identification():
+    kinds = {load_study(p).identification for p in EXAMPLES}
+    assert kinds >= {"selfcal", "iso230-2", "discover"} and kinds & {"mfb-3axis", "mfb-5axis"}, kinds
+    assert set(kinds) <= set(IDENTIFICATIONS)
+
+
+@pytest.mark.parametrize("stem", [p.stem for p in EXAMPLES])
+def test_each_example_passes_through_vmt_regress(example_runs, stem):
+    rc, rep, xml = example_runs[stem]
+    assert rc == 0, [c["message"] for c in rep["checks"] if not c["passed"]]
+    assert rep["passed"] and rep["n_failed"] == 0 and rep["n_checks"] == len(rep["checks"]) > 0
+    for c in rep["checks"]:  # every check is a real comparison, not an empty one
+        assert c["elements"] >= 1
+        if c["unit"] != "cause":
+            assert c["deviation"] <= c["limit"] and c["margin"] >= 0
+    validate_junit(xml)
+    assert len(ET.fromstring(xml).findall(".//testcase")) == rep["n_checks"]
+
+
+# --------------------------------------------------------------------------- mutations
+def _mutated(tmp_path, src: Path, mutate: str) -> Path:
+    p = tmp_path / src.name
+    p.write_text(src.read_text() + "\n[mutate]\n" + mutate + "\n")
+    return p
+
+
+@pytest.mark.parametrize("src, mutate, quantity", [
+    (SELFCAL, 'flip_sign = ["EC0Y"]', "EC0Y"),       # a wrong sign in the squareness
+    (SELFCAL, 'drop = ["EXC"]', "EXC"),              # the C axis's X location error left out of the model
+    (POSITIONING, 'flip_sign = ["reversal"]', "reversal"),
+    (POSITIONING, 'drop = ["mean"]', "mean"),
+])
+def test_a_mutated_identification_fails_on_that_quantity(tmp_path, capsys, src, mutate, quantity):
+    p = _mutated(tmp_path, src, mutate)
+    j, x = tmp_path / "r.json", tmp_path / "r.xml"
+    assert main(["regress", str(p), "--json", str(j), "--junit", str(x)]) == 1
+    rep = json.loads(j.read_text())
+    failed = {c["quantity"] for c in rep["checks"] if not c["passed"]}
+    assert failed == {quantity}, failed
+    for c in rep["checks"]:
+        if not c["passed"]:
+            assert c["margin"] < 0 and quantity in c["message"] and "margin -" in c["message"]
+    xml = x.read_text()
+    validate_junit(xml)
+    fails = [tc.get("name") for tc in ET.fromstring(xml).iter("testcase") if tc.find("failure") is not None]
+    assert fails and all(n.startswith(quantity + " seed") for n in fails)
+    out = capsys.readouterr().out
+    assert f"FAIL {quantity} (seed" in out and "MUTATED" in out
+
+
+def test_a_dropped_model_term_inside_the_estimator_is_caught(tmp_path, capsys):
+    """``planar = true``: the self-calibration itself runs without its height terms (a different estimator,
+    not a relabelled output). The spheres stand 25.7 mm above the walls, so the C axis's tilt and the
+    tool's Abbe terms go unmodelled into the workpiece (and the tables): the study fails there and the
+    C axis's location, which the tilt does not move at the pocket's height, still passes."""
+    p = _mutated(tmp_path, SELFCAL, "planar = true")
+    j = tmp_path / "r.json"
+    assert main(["regress", str(p), "--json", str(j)]) == 1
+    checks = {c["quantity"]: c for c in json.loads(j.read_text())["checks"]}
+    assert not checks["workpiece"]["passed"] and checks["workpiece"]["margin"] < 0
+    assert checks["EXC"]["passed"] and checks["EYC"]["passed"]
+    assert "planar model" in capsys.readouterr().out
+
+
+def test_discover_fails_when_the_hidden_cause_is_not_there(tmp_path):
+    """The discover example without its hidden screw error (and no ripple): discover names no cause,
+    so the study fails on ``cause``; the check is not satisfied by any campaign."""
+    src = (STUDIES / "regress-discover-nmv3000.toml").read_text()
+    assert "period_mm = 8.01" in src and "ripple = false" in src
+    p = tmp_path / "no-hidden.toml"
+    p.write_text(src.replace("periodic = [{ amplitude_um = 1.5, period_mm = 8.01 }]", "slope_um_per_m = 0.0"))
+    j = tmp_path / "r.json"
+    assert main(["regress", str(p), "--json", str(j)]) == 1
+    (c,) = json.loads(j.read_text())["checks"]
+    assert c["quantity"] == "cause" and not c["passed"] and "periodic_axis_error not named" in c["message"]
+
+
+def test_the_flip_is_exactly_a_negation(tmp_path):
+    """The hook sees the identification's values: a sign flip negates the identified quantity, nothing else."""
+    study = load_study(POSITIONING)
+    study = replace(study, seeds=(1,))
+    base = run_study(study)
+    flipped = run_study(study, hook=Mutation(flip_sign=("mean",)))
+    b, f = base.estimates[1], flipped.estimates[1]
+    assert np.array_equal(f["mean"].identified, -b["mean"].identified)
+    assert np.array_equal(f["mean"].injected, b["mean"].injected)
+    assert np.array_equal(f["reversal"].identified, b["reversal"].identified)
+
+
+# --------------------------------------------------------------------------- pytest face
+def test_assert_recovers_names_the_quantity_and_margin():
+    study = replace(load_study(POSITIONING), seeds=(2,))
+    res = assert_recovers(study)
+    assert res.passed
+    with pytest.raises(AssertionError, match=r"reversal \(seed 2\) at P=.*exceeds <= 1 x U95 = .*margin -"):
+        assert_recovers(study, hook=Mutation(flip_sign=("reversal",)))
+
+
+@pytest.mark.parametrize("regress_study", [str(POSITIONING)], indirect=True)
+def test_the_fixture_gives_the_result(regress_study):
+    assert regress_study.passed and regress_study.study.identification == "iso230-2"
+
+
+# --------------------------------------------------------------------------- known answers
+def test_check_by_hand():
+    est = Estimate(np.array([1.0, 2.0, 0.0]), np.zeros(3), np.array([4.0, 1.0, 0.0]), ("a", "b", "c"), "um")
+    c = check(Rule("EXX", 1.0, None, "um"), est, 7)
+    # deviations 1, 2, 0 against limits 4, 1, 0 (+ floor): b is the worst, failed by 1 um
+    assert not c.passed and c.where == "b" and c.margin == pytest.approx(-1.0 + GAUGE_FLOOR)
+    assert c.message().startswith("EXX (seed 7) at b: |identified - injected| = |2 - 0| = 2 um exceeds")
+    c = check(Rule("EXX", None, 2.5, "um"), est, 7)
+    assert c.passed and c.where == "b" and c.margin == pytest.approx(0.5)
+    # an element fixed by the ISO convention (U95 0) must match to the rounding of the gauge transform
+    fixed = Estimate(np.array([0.0]), np.array([1e-14]), np.array([0.0]), ("EXX@0",), "um")
+    assert check(Rule("EXX", 1.0, None, "um"), fixed, 1).passed
+    off = Estimate(np.array([0.0]), np.array([1e-3]), np.array([0.0]), ("EXX@0",), "um")
+    assert not check(Rule("EXX", 1.0, None, "um"), off, 1).passed
+    assert check(Rule("EXX", 1.0, None, "um"), None, 1).note == "not identified"
+    rule = Rule("cause", None, None, "cause", ("periodic_axis_error",))
+    assert check(rule, Causes(("probe_lobing", "periodic_axis_error")), 1).passed
+    c = check(rule, Mutation(drop=("cause",))("discover", {"cause": Causes(("periodic_axis_error",))})["cause"], 1)
+    assert not c.passed and c.message() == "cause (seed 1): named no cause; expected periodic_axis_error not named"
+
+
+def test_positioning_truth_by_hand():
+    """Noise free, only EXX = 40 um/m and 3 um of lost motion: the mean deviation at P is 0.04 um/mm * P
+    and every reversal value 3 um, by hand; identified and injected both equal it."""
+    s = loads_study("""
+        identification = "iso230-2"
+        machine = "vmc-3axis"
+        seeds = [0]
+        noise_um = 0
+        [injected.error.EXX]
+        slope_um_per_m = 40.0
+        reversal_um = 3.0
+        [plan]
+        targets = 5
+        [accept.mean]
+        tolerance_um = 1e-6
+        [accept.reversal]
+        tolerance_um = 1e-6
+        [accept.B]
+        tolerance_um = 1e-6
+        [accept.M]
+        tolerance_um = 1e-6
+    """, "by-hand")
+    res = run_study(s)
+    assert res.passed, [c.message() for c in res.failures]
+    e = res.estimates[0]
+    P_mm = np.array([float(x[2:-2]) for x in e["mean"].labels])
+    assert np.allclose(e["mean"].injected, 0.04 * P_mm, atol=1e-9)
+    assert np.allclose(e["reversal"].injected, 3.0, atol=1e-9)
+    assert e["M"].injected[0] == pytest.approx(0.04 * np.ptp(P_mm), abs=1e-9)
+
+
+# --------------------------------------------------------------------------- bad input
+BASE = 'identification = "iso230-2"\nmachine = "vmc-3axis"\nseeds = [1]\n[accept.mean]\nwithin_u95 = 1.0\n'
+
+
+@pytest.mark.parametrize("text, match", [
+    ("x = ", "not TOML"),
+    ("colour = 1\n" + BASE, "colour: unknown key"),
+    (BASE.replace('"iso230-2"', '"dicsover"'), "identification: expected one of"),
+    (BASE.replace('"iso230-2"', '"discover"'), "accept.mean: unknown quantity for discover"),
+    (BASE.replace('"iso230-2"', '"discover"').replace("[accept.mean]\nwithin_u95 = 1.0", "[accept.cause]\nexpected = []"),
+     "accept.cause.expected: expected a cause name"),
+    (BASE.replace("seeds = [1]", "seeds = []"), "seeds: missing"),
+    (BASE.replace("seeds = [1]", "seeds = [1, 1]"), "seeds: a seed given twice"),
+    (BASE.replace("seeds = [1]", 'seeds = ["a"]'), r"seeds\[0\]: expected an integer"),
+    (BASE.replace('"vmc-3axis"', '"nope.toml"'), "machine: 'nope.toml': no such machine file"),
+    (BASE + "[accept.EXX]\ntolerance_um = 1\n", "accept.EXX: unknown quantity for iso230-2"),
+    (BASE + "[accept.E]\nwithin_u95 = 1\n", "accept.E.within_u95: E has no U95"),
+    (BASE + "[accept.M]\ntolerance_urad = 1\n", "accept.M.tolerance_urad: unknown key"),
+    (BASE + "[accept.B]\ntolerance_um = -1\n", "accept.B.tolerance_um: must be > 0"),
+    ("noise_um = 0\n" + BASE, "within_u95: needs probing noise"),
+    (BASE + "[plan]\naxis = \"A\"\n", "plan.axis: expected X, Y or Z"),
+    (BASE + "[plan]\nc_angles_deg = [0, 90]\n", "plan.c_angles_deg: unknown key for iso230-2"),
+    (BASE + "[mutate]\nflip_sign = [\"EXX\"]\n", "mutate.flip_sign: unknown quantity 'EXX'"),
+    (BASE + "[mutate]\nplanar = true\n", "mutate.planar: only for the self-calibration"),
+    (BASE + "[injected.error.EXX]\nslope_um = 1\n", "error.EXX"),
+    (BASE.replace("[accept.mean]\nwithin_u95 = 1.0\n", ""), "accept: missing"),
+])
+def test_bad_studies_are_refused_with_the_key(text, match):
+    with pytest.raises(StudyError, match=match):
+        loads_study(text, "s.toml")
+
+
+def test_bad_study_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys):
+    p = tmp_path / "s.toml"
+    p.write_text("colour = 1\n" + BASE)
+    j = tmp_path / "r.json"
+    assert main(["regress", str(p), "--json", str(j)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "colour: unknown key" in err and "Traceback" not in err
+    assert not j.exists()
+    assert main(["regress", str(tmp_path / "none.toml")]) == 2
+
+
+def test_junit_of_a_failed_run_names_the_failure():
+    s = replace(load_study(POSITIONING), seeds=(1,))
+    xml = junit_xml(run_study(s, hook=Mutation(drop=("mean",))), timestamp="2026-01-02T03:04:05", hostname="ci x")
+    validate_junit(xml)
+    suite = ET.fromstring(xml).find("testsuite")
+    assert suite.get("hostname") == "ci x" and suite.get("failures") == "1" and suite.get("tests") == "5"
+    f = suite.find("testcase[@name='mean seed 1']/failure")
+    assert f is not None and "mean (seed 1)" in f.get("message") and "margin -" in f.text
