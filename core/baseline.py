@@ -1,0 +1,497 @@
+"""The model discovery starts from, as one object: design, gauge, covariates, residuals.
+
+:func:`core.discover.discover_baseline` works on any linear(ised) model
+``y = A theta + e`` that says
+
+- what it explains: the design ``A`` (n, p) and the observations ``y``;
+- what it cannot see: the gauge conditions ``C theta = d`` that fix its
+  null space, and which columns are the *estimand* (the workpiece of a
+  self-calibration, the error tables of a volumetric identification, the
+  systematic deviations of a positioning test) with what of it no data can
+  see (the workpiece's position, rotation and scale);
+- how its rows group: the folds of the cross-validation (set-ups,
+  placements, cycles: a held-out group's own columns are refitted on it,
+  everything else is predicted) and the replicate groups (rows that are
+  the same design row measured again: their scatter is pure noise);
+- what its rows carry: the covariates (:class:`core.diagnosis.Covariate`)
+  and the response modes through which a smooth function of a covariate
+  acts on a row;
+- the data the named causes of :mod:`core.causes` build their columns from.
+
+:func:`planar` builds it for the 2D self-calibration of Ibaraki et al.
+(eqs 1-18, :mod:`core.selfcal`); :func:`core.volumetric_baseline.volumetric`
+(MFB) and the positioning baseline live beside their models.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import selfcal
+from .diagnosis import Covariate, orth
+from .exceptions import ConfigError, IdentifiabilityError
+from .touches import Touches
+
+MM = 1e-3
+#: Relative pivot of the column-scaled design below which a direction counts
+#: as unseen (singular-value ratio; core.selfcal.solve uses 1e-6).
+RANK_TOL = 1e-7
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """A linear baseline model and everything discovery needs around it.
+
+    Attributes
+    ----------
+    kind : str
+        ``"planar"``, ``"volumetric"`` or ``"positioning"``: which causes apply.
+    model : str
+        The model in words (report key ``baseline.model``).
+    A : (n, p) float
+        Design, SI units per unit parameter.
+    y : (n,) float
+        Observations, m (or rad).
+    names : tuple of str
+        Parameter names, p.
+    groups : (n,) int
+        Cross-validation fold of each row (index into ``group_ids``).
+    group_ids : tuple of str
+    C, d : (k, p), (k,) float
+        Gauge conditions ``C theta = d``.
+    estimand : (q,) int
+        Columns reported per id (the workpiece per target, ...).
+    estimand_ids : tuple of str
+    geometry : tuple of (q, 2) arrays or None
+        ``(P_W, N_W)``: nominal point and normal of each estimand id in the
+        part's frame (planar), for the form that self-calibration sees
+        (shift, rotation, scale and offset removed); None when not planar.
+    replicate : (n,) int
+        Replicate group of each row (equal design rows); -1 for none.
+    covariates : tuple of Covariate
+    modes : (n, m) float
+        Response modes (column ``j`` is mode ``j``), unit-free.
+    mode_names : tuple of str
+    rows : (n,) int
+        Source log row of each observation (``outlier_rows`` are these).
+    data : object
+        What the causes of this kind read (``PlanarData`` ...).
+    identifiable : bool
+        The estimand is identifiable beyond the gauge.
+    why : str
+        When not: the combinations the data cannot see.
+    conventions : tuple of str
+    info : dict
+        Kind-specific figures for the report (grid step ...).
+    """
+
+    kind: str
+    model: str
+    A: np.ndarray = field(repr=False)
+    y: np.ndarray = field(repr=False)
+    names: tuple = field(repr=False)
+    groups: np.ndarray = field(repr=False)
+    group_ids: tuple
+    C: np.ndarray = field(repr=False)
+    d: np.ndarray = field(repr=False)
+    estimand: np.ndarray = field(repr=False)
+    estimand_ids: tuple = field(repr=False)
+    geometry: tuple | None = field(repr=False)
+    replicate: np.ndarray = field(repr=False)
+    covariates: tuple = field(repr=False)
+    modes: np.ndarray = field(repr=False)
+    mode_names: tuple = field(repr=False)
+    rows: np.ndarray = field(repr=False)
+    data: object = field(repr=False)
+    identifiable: bool = True
+    why: str = ""
+    conventions: tuple = ()
+    info: dict = field(default_factory=dict)
+    estimand_label: str = "workpiece"
+
+    @property
+    def n(self) -> int:
+        return len(self.y)
+
+    def covariate(self, name: str) -> Covariate | None:
+        return next((c for c in self.covariates if c.name == name), None)
+
+
+# ---------------------------------------------------------------------------
+# planar: the 2D self-calibration
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PlanarData:
+    """What the planar causes build their columns from (machine frame R, SI).
+
+    Every coordinate is centred and scaled on the campaign itself, so the
+    columns' span does not change when the campaign is moved in machine
+    coordinates.
+
+    Attributes
+    ----------
+    touches : Touches
+        The planar touches (rows of the baseline).
+    x, y : (n,) float
+        Nominal tip centre, m.
+    xs, ys : (n,) float
+        ``(x - x_c) / L``, ``(y - y_c) / L``: centred on the extent, scaled
+        by its half-size ``L`` (unit-free, about -1..1).
+    L_m : float
+    nx, ny : (n,) float
+        Normal components, R.
+    azimuth, elevation : (n,) float
+        Approach direction's azimuth ``atan2(d_y, d_x)`` and elevation
+        ``asin(-d_z)`` (positive when the stylus moves down), rad.
+    tau : (n,) float
+        Time since the first touch over the campaign's span, 0..1.
+    t_in : (n,) float
+        Time since the set-up's first touch over the longest set-up's span, 0..1.
+    c0_m : (2,) float
+        C-axis centre in R (from the nominal positions of the same targets
+        at different C), m; NaN when the log cannot tell.
+    rot_m : (n,) float
+        ``(R90 (p - c0)) . n``: the normal deviation per radian of a table
+        rotation about the C axis (eq 13), m.
+    wn_az : (n,) float
+        Azimuth of the target's normal in the part's frame W, rad.
+    grid_step_m : float
+    span_s : float
+    temps : dict[str, (n,) float]
+    """
+
+    touches: Touches = field(repr=False)
+    x: np.ndarray = field(repr=False)
+    y: np.ndarray = field(repr=False)
+    xs: np.ndarray = field(repr=False)
+    ys: np.ndarray = field(repr=False)
+    L_m: float
+    nx: np.ndarray = field(repr=False)
+    ny: np.ndarray = field(repr=False)
+    azimuth: np.ndarray = field(repr=False)
+    elevation: np.ndarray = field(repr=False)
+    tau: np.ndarray = field(repr=False)
+    t_in: np.ndarray = field(repr=False)
+    c0_m: np.ndarray
+    rot_m: np.ndarray = field(repr=False)
+    wn_az: np.ndarray = field(repr=False)
+    grid_step_m: float
+    span_s: float
+    temps: dict = field(repr=False)
+
+
+PLANAR_MODES = ("scalar", "x translation", "y translation", "x scale", "y scale", "x shear (by y)",
+                "y shear (by x)")
+
+
+def planar_modes(d: PlanarData) -> np.ndarray:
+    """(n, 7) response modes: a scalar and an affine displacement field of the tip (R).
+
+    ``dq = -n . E`` for a tip displacement ``E`` (CONTRIBUTING): columns
+    ``1, -n_x, -n_y, -n_x xs, -n_y ys, -n_x ys, -n_y xs``.
+    """
+    one = np.ones_like(d.nx)
+    return np.column_stack([one, -d.nx, -d.ny, -d.nx * d.xs, -d.ny * d.ys, -d.nx * d.ys, -d.ny * d.xs])
+
+
+def _w_A(t: Touches):
+    """Nominal contact points and normals in the part's frame (the field's name changes in the layout move)."""
+    w = getattr(t, "w_A", None)
+    if w is None:
+        w = t.w_W
+    wn = getattr(t, "wn_A", None)
+    if wn is None:
+        wn = t.wn_W
+    return w, wn
+
+
+def c_axis_centre(t: Touches) -> np.ndarray:
+    """(2,) C-axis centre in R from the nominal tip centres, m (NaN when not determinable).
+
+    The same target at angles ``C_j`` and ``C_k`` sits at
+    ``p_k - c0 = R(C_j - C_k) (p_j - c0)`` (eq 1, ``p = R(-C) w + c0``), linear
+    in ``c0``; all pairs against each target's first touch are solved in the
+    least-squares sense.
+    """
+    _, first = np.unique(t.target, return_index=True)
+    j = first[np.searchsorted(np.unique(t.target), t.target)]
+    c = t.rot_rad[:, 2]
+    dc = c[j] - c
+    use = np.abs(np.angle(np.exp(1j * dc))) > 1e-6
+    if not use.any():
+        return np.full(2, np.nan)
+    R = selfcal.rot2(dc[use])  # (m, 2, 2)
+    M = (np.eye(2)[None] - R).reshape(-1, 2)
+    b = (t.pn_R[use, :2] - np.einsum("mab,mb->ma", R, t.pn_R[j[use], :2])).reshape(-1)
+    sol, *_ = np.linalg.lstsq(M, b, rcond=None)
+    return sol
+
+
+def planar_data(t: Touches, grid_step_m: float) -> PlanarData:
+    """The centred, scaled geometry and times the planar causes use."""
+    x, y = t.pn_R[:, 0], t.pn_R[:, 1]
+    xc, yc = (x.max() + x.min()) / 2, (y.max() + y.min()) / 2
+    L = max(np.ptp(x), np.ptp(y), 1e-3) / 2
+    t0 = t.t_s.min()
+    span = max(float(np.ptp(t.t_s)), 1e-9)
+    tin = np.zeros(t.n)
+    for j in np.unique(t.setup):
+        m = t.setup == j
+        tin[m] = t.t_s[m] - t.t_s[m].min()
+    tin = tin / max(tin.max(), 1e-9)
+    c0 = c_axis_centre(t)
+    cc = c0 if np.all(np.isfinite(c0)) else np.array([xc, yc])
+    rot = -t.n_R[:, 0] * (y - cc[1]) + t.n_R[:, 1] * (x - cc[0])
+    _, wn = _w_A(t)
+    if np.all(np.isfinite(wn[:, :2])):
+        wn_az = np.arctan2(wn[:, 1], wn[:, 0])
+    else:  # n_W = R(+C) n_R (eq 1 maps W to R by R(-C))
+        wn_az = np.arctan2(t.n_R[:, 1], t.n_R[:, 0]) + t.rot_rad[:, 2]
+    d = t.d_R
+    return PlanarData(
+        touches=t, x=x, y=y, xs=(x - xc) / L, ys=(y - yc) / L, L_m=float(L), nx=t.n_R[:, 0], ny=t.n_R[:, 1],
+        azimuth=np.arctan2(d[:, 1], d[:, 0]), elevation=np.arcsin(np.clip(-d[:, 2], -1, 1)),
+        tau=(t.t_s - t0) / span, t_in=tin, c0_m=c0, rot_m=rot, wn_az=np.angle(np.exp(1j * wn_az)),
+        grid_step_m=float(grid_step_m), span_s=span,
+        temps={k: np.asarray(v, float) for k, v in t.temps_C.items()
+               if np.all(np.isfinite(v)) and np.ptp(v) > 0})
+
+
+def planar_covariates(d: PlanarData) -> tuple:
+    """The covariates of a planar campaign (those that vary), with their bases."""
+    t = d.touches
+    allm = tuple(range(7))
+    pos = (0, 1, 2)
+    covs = [
+        Covariate("time", t.t_s, "smooth", 6, allm, "time", "time"),
+        Covariate("time_in_setup", d.t_in, "smooth", 5, allm, "time within each set-up", "time"),
+        Covariate("setup", t.setup, "categorical", 0, allm, "the set-up", "time"),
+        Covariate("x", d.x, "smooth", 8, pos, "the x position", "position"),
+        Covariate("y", d.y, "smooth", 8, pos, "the y position", "position"),
+        Covariate("approach_azimuth", d.azimuth, "circular", 4, (0,), "the approach azimuth (machine frame)",
+                  "direction"),
+        Covariate("order", np.arange(t.n, dtype=float), "smooth", 6, allm, "the touch order", "time"),
+    ]
+    xy = _xy_basis(d.xs, d.ys)
+    covs.append(Covariate("xy", xy, "basis", xy.shape[1], (1, 2), "x and y jointly (non-separable)", "position"))
+    cdeg = np.round(np.degrees(t.rot_rad[:, 2]), 6)
+    nc = np.unique(cdeg).size
+    if nc >= 3:
+        covs.append(Covariate("C", t.rot_rad[:, 2], "circular", min(2, (nc - 1) // 2), allm, "the C angle", "time"))
+    z = t.pn_R[:, 2]
+    nz = np.unique(np.round(z, 7)).size
+    if nz >= 2:
+        covs.append(Covariate("z", z, "smooth", min(4, nz), pos, "the z position", "position"))
+    if np.ptp(d.elevation) > np.radians(1.0):
+        covs.append(Covariate("approach_elevation", d.elevation, "smooth", 3, (0,), "the approach elevation",
+                              "direction"))
+    feats = np.asarray(t.feature, dtype=object)
+    if len(set(feats.tolist())) >= 2:
+        key = np.array([f"{f}|{s}" for f, s in zip(feats, t.setup)], dtype=object)
+        covs.append(Covariate("feature", key, "categorical", 0, pos, "the feature, differently in each set-up",
+                              "feature"))
+    for name, v in d.temps.items():
+        short = name[5:-2] if name.startswith("temp_") and name.endswith("_C") else name
+        covs.append(Covariate(f"temp_{short}", v, "smooth", 5, allm, f"the temperature {name}", "time"))
+    return tuple(covs)
+
+
+def _xy_basis(xs, ys):
+    """Products of Legendre polynomials ``P_i(xs) P_j(ys)``, i, j >= 1, i + j <= 4."""
+    P = [np.ones_like(xs), xs, (3 * xs ** 2 - 1) / 2, (5 * xs ** 3 - 3 * xs) / 2]
+    R = [np.ones_like(ys), ys, (3 * ys ** 2 - 1) / 2, (5 * ys ** 3 - 3 * ys) / 2]
+    return np.column_stack([P[i] * R[j] for i in range(1, 4) for j in range(1, 4) if i + j <= 4])
+
+
+def centred_grid(p_R: np.ndarray, step_m: float) -> selfcal.Grid:
+    """Nodes ``c + k step`` symmetric about the centre ``c`` of the points' extent.
+
+    Anchored on the campaign, not on the machine's zero: moving the
+    campaign in machine coordinates moves the grid with it.
+    """
+    nodes = []
+    for c in (0, 1):
+        v = p_R[:, c]
+        mid = (v.max() + v.min()) / 2
+        K = max(int(np.ceil((v.max() - mid) / step_m - 1e-9)), 1)
+        nodes.append(mid + step_m * np.arange(-K, K + 1))
+    return selfcal.Grid(*nodes)
+
+
+def _height_columns(t: Touches, des: selfcal.Design):
+    """C-axis tilt and Abbe columns for touches at more than one Z level.
+
+    The paper's model is planar: every touch at one height. Touches at
+    another height (sphere equators above the pocket) also see the C-axis
+    tilt error motions ``EAC``/``EBC`` (per set-up) and the angular errors
+    of X and Y through the height difference ``dz``: per-set-up columns
+    ``n_x dz``, ``-n_y dz``. The reference set-up's pair is fixed (a tilt
+    of the part in W is the same as shifting every raised target).
+    Returns (columns, names, per-set-up column indices, gauge columns,
+    levels) or None for a single level.
+    """
+    z = t.pn_R[:, 2]
+    levels, counts = np.unique(np.round(z, 6), return_counts=True)
+    if levels.size < 2:
+        return None
+    dz = z - levels[np.argmax(counts)]
+    nx, ny = t.n_R[:, 0], t.n_R[:, 1]
+    cols, names, own = [], [], []
+    cn = [n.split("[", 1)[1].rstrip("]") for n in des.names[des.slices["EXC"]]]
+    for j in range(len(des.setup_ids)):
+        m = (t.setup == j).astype(float)
+        own.append(np.array([len(cols), len(cols) + 1]))
+        cols += [nx * dz * m, -ny * dz * m]
+        names += [f"EBC,total[{cn[j]}]", f"EAC,total[{cn[j]}]"]
+    ref = des.ref_setup
+    return np.column_stack(cols), tuple(names), own, [own[ref][0], own[ref][1]], tuple(float(v) for v in levels)
+
+
+def _bic(rss: float, n: int, k: int) -> float:
+    return n * np.log(max(rss, 1e-300) / n) + k * np.log(n)
+
+
+def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 30.0, 40.0, 55.0, 80.0), *,
+           select_grid: bool = True, yaw: str = "ECY") -> Baseline:
+    """The 2D self-calibration baseline (eqs 1-18) on the grid the data choose.
+
+    Touches with normals out of the XY plane must be removed by the caller.
+    With touches at several Z levels, per-set-up C-axis tilt columns are
+    added (:func:`_height_columns`). Grids are tried from ``grid_steps_mm``
+    (or ``grid_step_mm`` alone), centred on the campaign
+    (:func:`centred_grid`); among those whose design is identifiable beyond
+    the gauge, BIC chooses (``select_grid``; else the finest). When none is
+    (a symmetric part at C 90 deg apart), the finest grid that meets eq 6
+    is used all the same: residuals do not depend on the gauge, and the
+    workpiece is then reported as not identifiable.
+
+    Raises
+    ------
+    IdentifiabilityError
+        No grid meets eq 6 (discovery needs the same targets at two or more
+        C angles and more touches than unknowns).
+    """
+    steps = (grid_step_mm,) if grid_step_mm else tuple(grid_steps_mm)
+    last = None
+    fallback = None
+    cands = []
+    for st in steps:
+        grid = centred_grid(t.pn_R, st * MM)
+        try:
+            selfcal.check_count(t, grid)
+            des = selfcal.build_design(t, grid, yaw=yaw)
+        except IdentifiabilityError as e:
+            last = e
+            continue
+        A = des.A.toarray()
+        C, d, names = des.C, des.d, tuple(des.names)
+        levels = (float(np.median(t.pn_R[:, 2])),)
+        h = _height_columns(t, des)
+        if h is not None:
+            H, hn, _, hg, levels = h
+            p = A.shape[1]
+            A = np.hstack([A, H])
+            C = np.hstack([C, np.zeros((C.shape[0], H.shape[1]))])
+            extra = np.zeros((len(hg), A.shape[1]))
+            for r, c in enumerate(hg):
+                extra[r, p + c] = 1.0
+            C = np.vstack([C, extra])
+            d = np.concatenate([d, np.zeros(len(hg))])
+            names = names + hn
+        Q = orth(A, tol=RANK_TOL)
+        item = (st, des, A, C, d, names, levels, Q)
+        # identifiable beyond the gauge: the gauge rows fix exactly the null space
+        nullity = A.shape[1] - Q.shape[1]
+        if nullity > np.linalg.matrix_rank(C):
+            last = IdentifiabilityError(f"grid {st:g} mm: the design leaves {nullity - np.linalg.matrix_rank(C)} "
+                                        "combination(s) beyond the gauge unseen (e.g. a symmetric part at C "
+                                        "angles 90 deg apart)")
+            if fallback is None:
+                fallback = (item, str(last))
+            continue
+        cands.append(item)
+    if not cands and fallback is None:
+        raise IdentifiabilityError(f"no baseline: the 2D self-calibration does not meet eq 6 on grids of "
+                                   f"{', '.join(f'{s:g}' for s in steps)} mm ({last})")
+    if cands:
+        if len(cands) > 1 and select_grid:
+            y = t.dq_m
+
+            def bic(item):
+                Q = item[-1]
+                r = y - Q @ (Q.T @ y)
+                return _bic(float(r @ r), t.n, Q.shape[1])
+
+            item = min(cands, key=bic)
+        else:
+            item = cands[0]
+        ident, why = True, ""
+    else:
+        item, why = fallback
+        ident = False
+    st, des, A, C, d, names, levels, _ = item
+    data = planar_data(t, st * MM)
+    G = des.slices["G"]
+    key = np.full(t.n, -1)
+    pair = t.setup * len(t.target_ids) + t.target
+    u, inv, cnt = np.unique(pair, return_inverse=True, return_counts=True)
+    rep = cnt[inv] > 1
+    key[rep] = pair[rep]
+    conv = list(des.gauge)
+    conv.append("workpiece estimates in the baseline's gauge (eqs 16-17)" if ident else
+                "workpiece NOT identifiable by this design: " + why)
+    model = "selfcal-2d (Ibaraki eqs 1-18)" + (
+        f" + C-axis tilt and Abbe terms for {len(levels)} probing heights" if len(levels) > 1 else "")
+    return Baseline(
+        kind="planar", model=model, A=A, y=t.dq_m, names=names, groups=t.setup.copy(),
+        group_ids=tuple(t.setup_ids), C=C, d=d, estimand=np.arange(G.start, G.stop),
+        estimand_ids=tuple(des.target_ids), geometry=workpiece_geometry(t, data.c0_m), replicate=key,
+        covariates=planar_covariates(data), modes=planar_modes(data), mode_names=PLANAR_MODES,
+        rows=np.asarray(t.row), data=data, identifiable=ident, why=why, conventions=tuple(conv),
+        info={"grid_step_mm": st, "z_levels_mm": [v / MM for v in levels], "yaw": des.yaw,
+              "design": des})
+
+
+def workpiece_geometry(t: Touches, c0_m: np.ndarray):
+    """(P_W (N_w, 2), N_W (N_w, 2)): each target's nominal point and normal in one frame of the part.
+
+    From the log's ``wx_mm ...`` columns when present; otherwise each
+    target's first touch is turned back about the C-axis centre by its C
+    angle (``w = R(C) (p - c0)``, eq 1). Either is good for removing a shift,
+    rotation, scale and offset of the part (their span does not depend on
+    which frame of the part is used).
+    """
+    first = {}
+    for i in range(t.n):
+        first.setdefault(int(t.target[i]), i)
+    idx = np.array([first[k] for k in range(len(t.target_ids))])
+    w, wn = _w_A(t)
+    if np.all(np.isfinite(w[idx, :2])) and np.all(np.isfinite(wn[idx, :2])):
+        return w[idx, :2].copy(), wn[idx, :2].copy()
+    c0 = c0_m if np.all(np.isfinite(c0_m)) else np.zeros(2)
+    R = selfcal.rot2(t.rot_rad[idx, 2])
+    P = np.einsum("kab,kb->ka", R, t.pn_R[idx, :2] - c0)
+    N = np.einsum("kab,kb->ka", R, t.n_R[idx, :2])
+    return P, N
+
+
+def form_projector(P: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """(q, q) projector removing what self-calibration cannot see from per-target values.
+
+    A shift of the part (2), its rotation and scale in W and a common
+    offset (the gauge of eqs 16-17 and the stylus radius) change the normal
+    deviations by ``n_x``, ``n_y``, ``n . R90 p``, ``n . p`` and 1: the
+    projector is ``I - B B^+`` over those five columns.
+    """
+    B = np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
+                         np.einsum("ij,ij->i", N, P), np.ones(len(P))])
+    Q = orth(B)
+    return np.eye(len(P)) - Q @ Q.T
+
+
+def check_planar(t: Touches) -> None:
+    """Raise ConfigError unless the touches suit the planar baseline."""
+    if t.n < 10:
+        raise ConfigError(f"discover needs at least 10 valid touches with normals in the XY plane, got {t.n}")
