@@ -21,8 +21,7 @@ import numpy as np
 from .exceptions import ConfigError, IdentifiabilityError
 from .selfcal import Grid, estimator, nominal_touches
 from .uncertainty import K, U_PROBE_M, form_projector
-
-MM = 1e-3
+from .units import MM
 
 
 def example_cross_pocket(arm_m: float = 0.090, half_width_m: float = 0.018, spheres: bool = True,
@@ -64,6 +63,32 @@ def example_cross_pocket(arm_m: float = 0.090, half_width_m: float = 0.018, sphe
     return np.array(pts), np.array(nrm), tuple(ids)
 
 
+def targets_from_log(log):
+    """The distinct targets of a plan or campaign, in the order they first appear.
+
+    Returns
+    -------
+    w_W : (N_w, 2) float
+        Nominal contact points from the ``wx_mm``, ``wy_mm`` columns, m.
+    wn_W : (N_w, 2) float
+        Unit outward normals from ``wnx``, ``wny``.
+    ids : tuple of str
+
+    Raises
+    ------
+    ConfigError
+        A target without those columns.
+    """
+    ids, first = np.unique(log.col("target"), return_index=True)
+    order = np.argsort(first)
+    rows = first[order]
+    w = np.column_stack([log.col("wx_mm"), log.col("wy_mm")])[rows] * MM
+    wn = np.column_stack([log.col("wnx"), log.col("wny")])[rows]
+    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(wn))):
+        raise ConfigError(f"{log.source}: needs wx_mm, wy_mm, wnx, wny (targets in W) for every target")
+    return w, wn / np.linalg.norm(wn, axis=1, keepdims=True), tuple(ids[order])
+
+
 def max_workpiece_U95(w_W, wn_W, c_deg, grid: Grid, u_probe_m: float = U_PROBE_M,
                       measure: str = "form") -> float:
     """Largest expanded (k = 2) uncertainty of G over the targets, m; inf if not identifiable.
@@ -82,8 +107,7 @@ def max_workpiece_U95(w_W, wn_W, c_deg, grid: Grid, u_probe_m: float = U_PROBE_M
     gi = np.arange(des.n_params)[des.slices["G"]]
     if measure == "gauge":
         return float(K * est.std(u_probe_m, index=gi).max())
-    DZg = est.DZ[gi]
-    Cg = DZg @ est._solve_M(DZg.T.toarray())
+    Cg = est.covariance_of(gi)
     P = form_projector(des)
     return float(K * u_probe_m * np.sqrt(max(np.einsum("ij,jk,ik->i", P, Cg, P).max(), 0.0)))
 

@@ -47,7 +47,7 @@ whose C is nearest 0), ``EYX(x_N) = 0``, ``EXY(y_N) = 0`` and
 ``EXX(x_N) = delta_L``. When ``delta_L`` is not given, the scale is unknown:
 it is fixed to 0 and the result says so in ``conventions``.
 
-Solving (:func:`solve`) scales the columns, eliminates the equality
+Solving (:func:`core.lsq.solve`) scales the columns, eliminates the equality
 constraints, checks the eq 6 count and the rank (dense eigen-decomposition
 for small problems, sparse LU pivots for large ones) and names every
 parameter combination the data cannot identify.
@@ -74,23 +74,17 @@ the U of EXC/EYC,total and ECC per angle is Table 2's. With a measured log:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .exceptions import ConfigError, IdentifiabilityError
+from .lsq import LinearEstimator, solve
 from .touches import Touches
 
 MM = 1e-3
 DEG = np.pi / 180.0
-#: Largest number of free parameters solved densely (with an eigen rank check).
-DENSE_MAX = 500
-#: Relative eigenvalue of the column-scaled normal matrix below which a
-#: direction counts as unidentifiable (singular-value ratio 1e-6).
-RANK_TOL = 1e-12
 #: Tolerance (m) for a touch lying on the grid's edge.
 EDGE_TOL = 1e-9
 #: Largest |n_z| accepted: the model is planar (XY).
@@ -105,6 +99,11 @@ GAUGE_NAMES = (
     "yaw offset vs straightness slope (ECY/EYX or ECX/EXY)", "EXY slope vs EC0Y",
     "scale",
 )
+
+
+def _r(v, nd=4):
+    """``v`` rounded to ``nd`` decimals for a report (None stays None)."""
+    return None if v is None else round(float(v), nd)
 
 
 def _fmt_mm(v_m: float) -> str:
@@ -516,243 +515,6 @@ def to_gauge(design: Design, theta: np.ndarray, delta_L_m: float | None = None) 
 
 
 # ---------------------------------------------------------------------------
-# generic constrained sparse least squares
-# ---------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Solution:
-    """Outcome of :func:`solve`.
-
-    Attributes
-    ----------
-    theta : (n,) float
-        Estimate (units of the columns of A).
-    residuals : (m,) float
-        ``b - A theta``.
-    rms : float
-        Residual RMS.
-    sigma : float
-        Standard deviation of one observation (given or from residuals).
-    sigma_source : str
-        ``"given"`` or ``"residuals"``.
-    dof : int
-        ``m - (n - n_constraints)``.
-    std : (n,) float or None
-        Standard uncertainty of each parameter (None when not computed).
-    cov : (n, n) float or None
-        Covariance ``sigma^2 (A^T A)^-1`` on the constrained problem.
-    estimator : LinearEstimator
-        The factorisation, reusable for many right-hand sides.
-    """
-
-    theta: np.ndarray
-    residuals: np.ndarray
-    rms: float
-    sigma: float
-    sigma_source: str
-    dof: int
-    std: np.ndarray | None
-    cov: np.ndarray | None
-    estimator: "LinearEstimator" = field(repr=False, compare=False)
-
-
-class LinearEstimator:
-    """The constrained least-squares estimator, factored once.
-
-    ``theta(b) = theta_0 + D Z M^-1 (A D Z)^T (b - A D phi_0)`` with column
-    scaling ``D``, constraint null-space basis ``Z`` and ``M = (A D Z)^T (A D
-    Z)``. :meth:`estimate` applies it to a batch of right-hand sides (the Monte
-    Carlo runs) without refactoring.
-    """
-
-    def __init__(self, A, DZ, B, phi0_theta, r0_shift, solve_M, n_free):
-        self.A = A
-        self.DZ = DZ  # (n, n_free) sparse: theta = DZ psi + theta0
-        self.B = B  # (m, n_free) sparse
-        self.theta0 = phi0_theta
-        self.b_shift = r0_shift  # A theta0
-        self._solve_M = solve_M
-        self.n_free = n_free
-
-    def psi(self, b: np.ndarray) -> np.ndarray:
-        rhs = self.B.T @ (b - (self.b_shift if b.ndim == 1 else self.b_shift[:, None]))
-        return self._solve_M(rhs)
-
-    def estimate(self, b: np.ndarray) -> np.ndarray:
-        """(n,) or (n, r) estimates for ``b`` of shape (m,) or (m, r)."""
-        b = np.asarray(b, float)
-        t = self.DZ @ self.psi(b)
-        return t + (self.theta0 if b.ndim == 1 else self.theta0[:, None])
-
-    def noise_gain(self, e: np.ndarray) -> np.ndarray:
-        """(n, r) change of the estimate caused by observation noise ``e`` (m, r)."""
-        return self.DZ @ self._solve_M(self.B.T @ e)
-
-    def covariance(self, sigma: float) -> np.ndarray:
-        """(n, n) dense covariance ``sigma^2 DZ M^-1 DZ^T``."""
-        MinvZt = self._solve_M(self.DZ.T.toarray())
-        return sigma ** 2 * (self.DZ @ MinvZt)
-
-    def std(self, sigma: float, index=None, block: int = 256) -> np.ndarray:
-        """Standard uncertainties of ``theta[index]`` (default all), in blocks (no dense n x n)."""
-        DZ = self.DZ if index is None else self.DZ[index]
-        DZt = DZ.T.tocsc()
-        n = DZt.shape[1]
-        out = np.empty(n)
-        for a in range(0, n, block):
-            cols = DZt[:, a:a + block].toarray()
-            X = self._solve_M(cols)
-            out[a:a + block] = np.einsum("ij,ij->j", cols, X)
-        return sigma * np.sqrt(np.maximum(out, 0))
-
-
-def _eliminate(C: np.ndarray, d: np.ndarray, n: int):
-    """Z (n, n-k) sparse and theta0 with C (Z psi + theta0) = d for all psi."""
-    k = C.shape[0]
-    if k == 0:
-        return sp.identity(n, format="csr"), np.zeros(n)
-    _q, r, piv = sla.qr(C, mode="economic", pivoting=True)
-    if abs(r[k - 1, k - 1]) <= 1e-12 * abs(r[0, 0]):
-        raise ConfigError("constraints are linearly dependent")
-    P = np.sort(piv[:k])
-    F = np.setdiff1d(np.arange(n), P)
-    CP = C[:, P]
-    T = np.linalg.solve(CP, C[:, F])  # theta_P = CP^-1 d - T theta_F
-    T[np.abs(T) < 1e-14 * max(1.0, np.abs(T).max())] = 0.0
-    Ts = sp.coo_matrix(T)
-    rows = np.concatenate([F, P[Ts.row]])
-    cols = np.concatenate([np.arange(len(F)), Ts.col])
-    vals = np.concatenate([np.ones(len(F)), -Ts.data])
-    Z = sp.csr_matrix((vals, (rows, cols)), shape=(n, len(F)))
-    theta0 = np.zeros(n)
-    theta0[P] = np.linalg.solve(CP, d)
-    return Z, theta0
-
-
-def _describe(v: np.ndarray, names, top: int = 4) -> str:
-    idx = np.argsort(-np.abs(v))[:top]
-    idx = [i for i in idx if abs(v[i]) > 0.05 * abs(v[idx[0]])]
-    return " ".join(f"{'+' if v[i] >= 0 else '-'}{abs(v[i]):.2f}*{names[i]}" for i in idx).lstrip("+")
-
-
-def solve(A, b, C=None, d=None, *, names=None, sigma=None, covariance: str = "auto",
-          rank_tol: float = RANK_TOL) -> Solution:
-    """Least squares ``min |A theta - b|`` subject to ``C theta = d``.
-
-    Conditioned before solving: columns scaled to unit norm, constraints
-    eliminated (QR with pivoting picks the eliminated parameters), then the
-    rank of the reduced normal matrix is checked and unidentifiable
-    combinations are reported by name.
-
-    Parameters
-    ----------
-    A : (m, n) sparse or dense
-    b : (m,) float
-    C : (k, n) float or None
-        Equality constraints (the gauge, plus any extension's own).
-    d : (k,) float or None
-    names : sequence of str, optional
-        Parameter names for messages (default ``theta[i]``).
-    sigma : float or None
-        Observation standard deviation; None = from the residuals.
-    covariance : {"auto", "full", "std", "none"}
-        ``auto``: full covariance up to :data:`DENSE_MAX` free parameters,
-        standard uncertainties only above.
-
-    Raises
-    ------
-    IdentifiabilityError
-        Fewer observations than free parameters, a parameter no observation
-        touches, or rank-deficient combinations (named).
-    """
-    A = sp.csr_matrix(A)
-    b = np.asarray(b, float).ravel()
-    m, n = A.shape
-    names = list(names) if names is not None else [f"theta[{i}]" for i in range(n)]
-    if b.shape != (m,):
-        raise ConfigError(f"b: expected shape ({m},), got {b.shape}")
-    if not np.all(np.isfinite(b)):
-        raise ConfigError(f"b: {np.count_nonzero(~np.isfinite(b))} non-finite observations")
-    C = np.zeros((0, n)) if C is None else np.atleast_2d(np.asarray(C, float))
-    d = np.zeros(C.shape[0]) if d is None else np.asarray(d, float).ravel()
-    k = C.shape[0]
-    if m < n - k:
-        raise IdentifiabilityError(f"{m} observations for {n - k} free parameters ({n} - {k} constraints)")
-    colnorm = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
-    # rounding dust (cos 90 deg = 6e-17) is no observation
-    colnorm[colnorm <= 1e-12 * max(colnorm.max(initial=0.0), 1e-300)] = 0.0
-    in_c = np.any(C != 0, axis=0)
-    zero = np.flatnonzero((colnorm == 0) & ~in_c)
-    if zero.size:
-        shown = ", ".join(names[i] for i in zero[:8]) + (f" and {zero.size - 8} more" if zero.size > 8 else "")
-        raise IdentifiabilityError(f"no observation constrains {shown}")
-    D = np.where(colnorm > 0, 1.0 / np.where(colnorm > 0, colnorm, 1.0), 1.0)
-    Ds = sp.diags(D)
-    Z, phi0 = _eliminate(C * D[None, :], d, n)
-    DZ = (Ds @ Z).tocsr()
-    theta0 = D * phi0
-    B = (A @ DZ).tocsc()
-    nf = B.shape[1]
-    M = (B.T @ B).tocsc()
-    if nf <= DENSE_MAX:
-        Md = M.toarray()
-        w, V = np.linalg.eigh(Md)
-        bad = w <= rank_tol * max(w[-1], 1e-300)
-        if bad.any():
-            dirs = [_describe(DZ @ V[:, i], names) for i in np.flatnonzero(bad)[:5]]
-            raise IdentifiabilityError(
-                f"rank deficient by {int(bad.sum())} beyond the constraints; unidentifiable: " + "; ".join(dirs))
-        cf = sla.cho_factor(Md)
-
-        def solve_M(r):
-            return sla.cho_solve(cf, r)
-    else:
-        try:
-            lu = spla.splu(M, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
-        except RuntimeError as e:
-            raise IdentifiabilityError(f"normal matrix singular ({e}); the design is rank deficient") from None
-        u = np.abs(lu.U.diagonal())
-        badp = np.flatnonzero(u <= rank_tol * u.max())
-        if badp.size:
-            fcols = np.argsort(lu.perm_c)[badp]  # Pr M Pc = LU: column j of M Pc is M[:, argsort(perm_c)[j]]
-            Zc = DZ.tocsc()
-            shown = []
-            for f in fcols[:5]:
-                col = Zc[:, f]
-                shown.append(names[col.indices[np.argmax(np.abs(col.data))]])
-            raise IdentifiabilityError(
-                f"rank deficient by about {badp.size} beyond the constraints; near-null pivots at: " + ", ".join(shown))
-
-        def solve_M(r):
-            return lu.solve(np.asarray(r, float))
-    est = LinearEstimator(A, DZ, B, theta0, A @ theta0, solve_M, nf)
-    theta = est.estimate(b)
-    res = b - A @ theta
-    dof = m - nf
-    rms = float(np.sqrt(np.mean(res ** 2))) if m else 0.0
-    if sigma is None:
-        if dof <= 0:
-            raise IdentifiabilityError(f"{m} observations for {nf} free parameters leave no residual to estimate sigma")
-        sig, src = float(np.sqrt(res @ res / dof)), "residuals"
-    else:
-        if not (np.isfinite(sigma) and sigma > 0):
-            raise ConfigError(f"sigma must be > 0, got {sigma}")
-        sig, src = float(sigma), "given"
-    cov = std = None
-    mode = covariance
-    if mode == "auto":
-        mode = "full" if nf <= DENSE_MAX else "std"
-    if mode == "full":
-        cov = est.covariance(sig)
-        std = np.sqrt(np.maximum(np.diag(cov), 0))
-    elif mode == "std":
-        std = est.std(sig)
-    elif mode != "none":
-        raise ConfigError(f"covariance must be auto, full, std or none, got {covariance!r}")
-    return Solution(theta=theta, residuals=res, rms=rms, sigma=sig, sigma_source=src, dof=int(dof),
-                    std=std, cov=cov, estimator=est)
-
-
-# ---------------------------------------------------------------------------
 # identification
 # ---------------------------------------------------------------------------
 @dataclass(frozen=True)
@@ -859,6 +621,64 @@ class SelfCalResult:
     def value(self, name: str) -> float:
         """One parameter by name."""
         return float(self.theta[self.design.names.index(name)])
+
+    def to_report(self, mc=None) -> dict:
+        """JSON-ready report (um, urad, mm, deg): what ``vmt identify`` writes.
+
+        ``mc`` (a Monte Carlo :func:`core.uncertainty.monte_carlo_touches` of the
+        same touches) adds its U95 per target and its summary.
+        """
+        res = self
+        des = res.design
+        s = des.slices
+        U = 2 * res.std if res.std is not None else np.full(des.n_params, np.nan)
+
+        def u95(i):
+            v = U[i]
+            return None if not np.isfinite(v) else v
+
+        out = {
+            "method": "2D self-calibration, Ibaraki et al. eqs 15-18",
+            "touches": res.n_touches,
+            "n_params": des.n_params,
+            "rms_um": _r(res.rms_m * 1e6),
+            "sigma_um": _r(res.sigma_m * 1e6),
+            "sigma_source": res.sigma_source,
+            "dof": res.dof,
+            "conventions": {"gauge": list(des.gauge), "scale_known": res.scale_known, "yaw": des.yaw,
+                            "notes": list(res.conventions[11:])},
+            "workpiece": [],
+            "axes": {},
+            "rotary": [],
+        }
+        for k, tid in enumerate(des.target_ids):
+            i = s["G"].start + k
+            row = {"target": tid, "g_um": _r(res.theta[i] * 1e6), "u95_um": _r(u95(i) * 1e6)}
+            if mc is not None:
+                row["mc_u95_um"] = _r(mc.U95[i] * 1e6)
+            out["workpiece"].append(row)
+        for sym in ("EXX", "EYX", "EXY", "EYY", des.yaw):
+            on_x = sym in ("EXX", "EYX", "ECX")
+            pos = des.grid.x_m if on_x else des.grid.y_m
+            idx = np.arange(s[sym].start, s[sym].stop)
+            f, unit = (1e6, "urad") if sym in ("ECY", "ECX") else (1e6, "um")
+            out["axes"][sym] = {"axis_pos": "x" if on_x else "y",
+                                "positions_mm": [_r(v * 1e3) for v in pos],
+                                f"values_{unit}": [_r(res.theta[i] * f) for i in idx],
+                                f"u95_{unit}": [_r(u95(i) * f) for i in idx]}
+        i = s["EC0Y"].start
+        out["axes"]["EC0Y"] = {"value_urad": _r(res.theta[i] * 1e6), "u95_urad": _r(u95(i) * 1e6)}
+        for j, sid in enumerate(des.setup_ids):
+            ix, iy, ic = s["EXC"].start + j, s["EYC"].start + j, s["ECC"].start + j
+            out["rotary"].append({"setup": sid, "c_deg": _r(np.degrees(des.c_rad[j]), 6),
+                                  "exc_um": _r(res.theta[ix] * 1e6), "exc_u95_um": _r(u95(ix) * 1e6),
+                                  "eyc_um": _r(res.theta[iy] * 1e6), "eyc_u95_um": _r(u95(iy) * 1e6),
+                                  "ecc_urad": _r(res.theta[ic] * 1e6), "ecc_u95_urad": _r(u95(ic) * 1e6)})
+        if mc is not None:
+            out["monte_carlo"] = {"runs": mc.runs, "u_probe_um": _r(mc.u_probe_m * 1e6),
+                                  "max_workpiece_u95_um": _r(mc.max_workpiece_U95 * 1e6),
+                                  "max_workpiece_form_u95_um": _r(mc.max_form_U95 * 1e6)}
+        return out
 
 
 def count_condition(n_w: int, n_x: int, n_y: int, n_c: int) -> tuple[int, int, int]:

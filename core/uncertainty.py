@@ -6,7 +6,7 @@
   estimator is linear in the observations).
 - :func:`monte_carlo`: JCGM 101 Monte Carlo (paper section 6: 1,000 runs,
   u = 1.38 um): every run adds N(0, u^2) to every touch and re-estimates
-  with the SAME factorisation (:class:`core.selfcal.LinearEstimator`), so
+  with the SAME factorisation (:class:`core.lsq.LinearEstimator`), so
   1,000 runs of the cross-pocket case take milliseconds.
 
 Expanded uncertainty ``U95 = 2 u`` (k = 2); Monte Carlo also gives the
@@ -23,7 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .exceptions import ConfigError
-from .selfcal import Design, Grid, LinearEstimator, estimator, nominal_touches
+from .lsq import LinearEstimator, remove_span
+from .selfcal import Design, Grid, estimator, nominal_touches
 from .touches import Touches
 
 #: Standard probing uncertainty (k = 1) of the paper's section 6, m.
@@ -105,7 +106,7 @@ def form_projector(des: Design) -> np.ndarray:
     (:func:`core.selfcal.null_space`).
     """
     Ng = des.N[des.slices["G"]][:, [4, 5, 7, 10]]
-    return np.eye(Ng.shape[0]) - Ng @ np.linalg.pinv(Ng)
+    return remove_span(np.eye(Ng.shape[0]), Ng)
 
 
 def _check_u(u_probe_m):
@@ -119,9 +120,7 @@ def linear_uncertainty_touches(touches: Touches, grid: Grid, u_probe_m: float = 
     _check_u(u_probe_m)
     des, est = estimator(touches, grid, delta_L_m, yaw=yaw)
     u = est.std(u_probe_m)
-    gi = np.arange(des.n_params)[des.slices["G"]]
-    DZg = est.DZ[gi]
-    Cg = u_probe_m ** 2 * (DZg @ est._solve_M(DZg.T.toarray()))
+    Cg = est.covariance_of(des.slices["G"], u_probe_m)
     P = form_projector(des)
     uf = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", P, Cg, P), 0))
     return Uncertainty(design=des, u=u, U95=K * u, method="linear", runs=0, lo=None, hi=None, u_se=None,

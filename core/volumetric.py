@@ -62,7 +62,7 @@ end-point reference straight line, section 6); then, greedily, angular
 errors zero at the first node, each only while it removes a null direction. A null
 direction left after all conventions is a combination the plan cannot see:
 :func:`identify` raises :class:`~core.exceptions.IdentifiabilityError`
-naming it (via :func:`core.selfcal.solve`), never a silent solution.
+naming it (via :func:`core.lsq.solve`), never a silent solution.
 
 Solution: joint least squares of all measurements (the paper's sequential
 order, angular -> translational -> squareness, solves sub-blocks of the
@@ -97,7 +97,7 @@ from scipy.interpolate import CubicSpline
 from . import iso
 from .exceptions import ConfigError, IdentifiabilityError
 from .kinematics import ChainGeometry, exp_so3, sensitivity, skew, tip_W
-from .selfcal import RANK_TOL, solve
+from .lsq import RANK_TOL, describe_direction, solve
 
 MOTION = iso.LINEAR_MOTION
 SQUARENESS = iso.SQUARENESS
@@ -117,7 +117,7 @@ NULL_TOL = 1e-9
 GAUGE_MIN = 1e-6
 #: Relative singular value of the gauge-fixed, column-scaled design below
 #: which a combination counts as unseen and is named (IdentifiabilityError),
-#: not solved with a huge band. 1e-5 is stricter than core.selfcal.solve's
+#: not solved with a huge band. 1e-5 is stricter than core.lsq.solve's
 #: RANK_TOL (1e-12 in eigenvalues, 1e-6 in singular values), so the plan is
 #: refused here, by name, before the solver would.
 COND_TOL = 1e-5
@@ -131,7 +131,7 @@ COND_TOL = 1e-5
 #: them (U95 up to ~47 um / ~110 urad at 0.25 um probing noise). The tangent
 #: continuation costs < 0.08 um / 0.16 urad noise-free on the realistic machine.
 NODE_MARGIN_M = 0.040
-#: Eigenvalue ratio passed to core.selfcal.solve: its default.
+#: Eigenvalue ratio passed to core.lsq.solve: its default.
 SOLVE_RANK_TOL = RANK_TOL
 
 
@@ -551,18 +551,12 @@ class ObservabilityReport:
         return float(self.sv_rel[-1]) if self.sv_rel is not None and len(self.sv_rel) else 0.0
 
 
-def _describe(v, names, top=4):
-    idx = np.argsort(-np.abs(v))[:top]
-    idx = [i for i in idx if abs(v[i]) > 0.05 * abs(v[idx[0]])]
-    return " ".join(f"{'+' if v[i] >= 0 else '-'}{abs(v[i]):.2f}*{names[i]}" for i in idx).lstrip("+")
-
-
 def _unseen(d: Design) -> list:
     U = d.unseen
     out = []
     for j in range(U.shape[1]):
         v = U[:, j] / d_scale(d)
-        out.append(_describe(v / np.abs(v).max(), d.names))
+        out.append(describe_direction(v / np.abs(v).max(), d.names))
     return out
 
 
@@ -587,7 +581,7 @@ def observability(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=N
     for j in range(1, min(3, Vt.shape[0]) + 1):
         v = np.zeros(n)
         v[free] = Vt[-j]
-        weakest.append(f"{d.sv_rel[-j]:.1e}: " + _describe(v / np.abs(v).max(), d.names))
+        weakest.append(f"{d.sv_rel[-j]:.1e}: " + describe_direction(v / np.abs(v).max(), d.names))
     return ObservabilityReport(n, n - d.null.shape[1], d.gauge, tuple(_unseen(d)), d.sv_rel, tuple(weakest))
 
 

@@ -37,7 +37,6 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     from core.touches import from_log
     from core.uncertainty import monte_carlo_touches
     from core.atomic import json_safe, write_json_atomic
-    from scenarios.cmd_identify import report as identify_report
     from scenarios.hidden import drift_check_plan, gauge_free_rms_m, workpiece_truth
     from sim import artefacts as A
     from sim.campaign import simulate_campaign
@@ -79,7 +78,7 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     grid = Grid.regular(-0.110, 0.110, 0.022)
     res = identify(t, grid)
     mc = monte_carlo_touches(t, grid, res.sigma_m, runs=1000, rng=np.random.default_rng(seed + 2))
-    ident = identify_report(res, mc)
+    ident = res.to_report(mc)
     write_json_atomic(outp / "identify.json", json_safe(ident))
     G_true = workpiece_truth(art, plan)
     first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}

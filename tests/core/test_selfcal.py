@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
-from core import selfcal
+from core import lsq
 from core.design import example_cross_pocket
 from core.exceptions import ConfigError, IdentifiabilityError
-from core.selfcal import Grid, build_design, identify, nominal_touches, rot2, solve, to_gauge
+from core.lsq import solve
+from core.selfcal import Grid, build_design, identify, nominal_touches, rot2, to_gauge
 
 UM = 1e-6
 GRID = Grid.regular(-0.110, 0.110, 0.022)
@@ -214,7 +215,7 @@ def test_sparse_path_matches_dense(monkeypatch, rng):
     truth = to_gauge(des, random_truth(des, rng))
     tt = nominal_touches_like(t, des.A @ truth + rng.normal(0, 1 * UM, t.n))
     dense = identify(tt, GRID)
-    monkeypatch.setattr(selfcal, "DENSE_MAX", 10)
+    monkeypatch.setattr(lsq, "DENSE_MAX", 10)
     sparse = identify(tt, GRID)
     assert sparse.cov is None
     np.testing.assert_allclose(sparse.theta, dense.theta, atol=1e-13)

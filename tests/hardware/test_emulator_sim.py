@@ -10,7 +10,7 @@ from core.touches import from_log
 from hardware.emulator import GrblEmulator, TcpServer
 from scenarios.cli import main
 from scenarios.hidden import gauge_free_rms_m
-from scenarios.cmd_machine import sim_machine
+from hardware.virtual import sim_machine
 from sim import artefacts as A
 from sim.campaign import simulate_campaign
 from sim.machine import Machine

@@ -7,7 +7,8 @@ import sys
 import pytest
 
 from core.exceptions import VmtError
-from scenarios import cmd_view
+from scenarios.cli import view as cmd_view
+from viz import viewer
 from scenarios.cli import main
 
 
@@ -28,12 +29,12 @@ def fake_viewer(tmp_path):
 
 
 def test_command_is_viewer_then_file(rrd, fake_viewer):
-    assert cmd_view.viewer_command(rrd, env={"RERUN_CLI_PATH": str(fake_viewer)}) == \
+    assert viewer.viewer_command(rrd, env={"RERUN_CLI_PATH": str(fake_viewer)}) == \
         [str(fake_viewer), str(rrd)]
 
 
 def test_default_viewer_is_the_installed_rerun_cli_binary(rrd):
-    cmd = cmd_view.viewer_command(rrd, env={})
+    cmd = viewer.viewer_command(rrd, env={})
     assert os.path.basename(cmd[0]) in ("rerun", "rerun.exe") and cmd[1] == str(rrd)
 
 
@@ -55,12 +56,12 @@ def test_not_an_rrd(tmp_path):
     p = tmp_path / "log.csv"
     p.write_text("x")
     with pytest.raises(VmtError, match="expected a .rrd file"):
-        cmd_view.viewer_command(p)
+        viewer.viewer_command(p)
 
 
 def test_no_viewer_found(rrd, tmp_path):
     with pytest.raises(VmtError, match="no rerun viewer found"):
-        cmd_view.viewer_command(rrd, env={"RERUN_CLI_PATH": str(tmp_path / "nope")})
+        viewer.viewer_command(rrd, env={"RERUN_CLI_PATH": str(tmp_path / "nope")})
 
 
 def test_no_display_exit_2(rrd, monkeypatch, capsys):
@@ -84,6 +85,6 @@ def test_viewer_failing_to_start_exit_2(rrd, monkeypatch, capsys):
 
 
 def test_has_display():
-    assert not cmd_view.has_display({}, "linux")
-    assert cmd_view.has_display({"WAYLAND_DISPLAY": "wayland-0"}, "linux")
-    assert cmd_view.has_display({}, "darwin")
+    assert not viewer.has_display({}, "linux")
+    assert viewer.has_display({"WAYLAND_DISPLAY": "wayland-0"}, "linux")
+    assert viewer.has_display({}, "darwin")

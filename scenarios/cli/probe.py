@@ -13,32 +13,7 @@ from __future__ import annotations
 
 import sys
 
-
-def add_settings_args(p, *, live: bool = True) -> None:
-    """The probing settings shared by ``vmt probe`` and ``vmt machine program``."""
-    p.add_argument("--plan", required=True, help="probe-log/1 plan (measured columns empty)")
-    p.add_argument("--limits", help="soft limits, machine frame, mm: X-10:300,Y0:200,Z-100:0 "
-                   "(required before any motion)")
-    p.add_argument("--feed", type=float, default=100.0, help="probing feed, mm/min (100)")
-    p.add_argument("--move-feed", type=float, default=1000.0, help="positioning feed, mm/min (1000)")
-    p.add_argument("--max-feed", type=float, default=2000.0, help="no feed above this, mm/min (2000)")
-    p.add_argument("--clearance", type=float, default=2.0, help="approach start before contact, mm (2)")
-    p.add_argument("--overtravel", type=float, default=2.0, help="probing end beyond contact, mm (2)")
-    p.add_argument("--safe-z", type=float, help="travel between touches at this machine Z, mm")
-    if live:
-        p.add_argument("--allow-miss", action="store_true",
-                       help="probe with G38.3: a miss is logged no_trigger and the campaign goes on")
-
-
-def settings_from_args(args):
-    from hardware.campaign import ProbeSettings, parse_limits
-
-    return ProbeSettings(
-        probe_feed_mm_min=args.feed, move_feed_mm_min=args.move_feed,
-        max_feed_mm_min=args.max_feed, clearance_mm=args.clearance,
-        overtravel_mm=args.overtravel, safe_z_mm=args.safe_z,
-        allow_miss=bool(getattr(args, "allow_miss", False)),
-        limits_mm=parse_limits(args.limits) if args.limits else None)
+from scenarios.cli.options import add_settings_args, settings_from_args
 
 
 def register(sub) -> None:
@@ -60,30 +35,6 @@ def register(sub) -> None:
 
 def _warn(msg: str) -> None:
     print(f"vmt probe: warning: {msg}", file=sys.stderr, flush=True)
-
-
-def open_backend(url: str, args, transcript=None):
-    """A backend for ``--machine``."""
-    from core.exceptions import HardwareError
-
-    if url.startswith(("grbl://", "tcp://", "serial://")):
-        from hardware.grbl import connect
-
-        return connect(url, timeout_s=args.timeout, on_event=_warn, transcript=transcript,
-                       rotary=args.rotary)
-    if url in ("virtual:", "virtual://", "virtual://builtin"):
-        from hardware.backend import VirtualBackend
-        from scenarios.cmd_machine import builtin_machine
-
-        return VirtualBackend(builtin_machine(), name="virtual:builtin")
-    if url.startswith("virtual:") and url[len("virtual:"):].lstrip("/"):
-        from hardware.backend import VirtualBackend
-        from scenarios.cmd_machine import sim_machine
-
-        scene = url[len("virtual:"):].lstrip("/")
-        return VirtualBackend(sim_machine(scene), name=f"virtual:{scene}")
-    raise HardwareError(f"--machine {url!r}: expected grbl://HOST:PORT, serial:///dev/ttyX, virtual: "
-                        "or virtual:SCENE (cross-pocket, pin-circle, freeform, mfb)")
 
 
 def run(args) -> int:
@@ -120,7 +71,10 @@ def run(args) -> int:
     try:
         from viz.progress import TerminalProgress
 
-        backend = open_backend(args.machine, args, transcript=tr)
+        from hardware.virtual import open_backend
+
+        backend = open_backend(args.machine, timeout_s=args.timeout, rotary=args.rotary, on_event=_warn,
+                               transcript=tr)
         try:
             with TerminalProgress("campaign") as progress:
                 res = run_campaign(backend, plan, args.out, settings, resume=args.resume,

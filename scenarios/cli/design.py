@@ -19,28 +19,12 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def targets_from_log(log):
-    """(w_W (N_w, 2) m, wn_W (N_w, 2), ids) of the distinct targets of a log, in W."""
-    import numpy as np
-
-    from core.exceptions import ConfigError
-
-    ids, first = np.unique(log.col("target"), return_index=True)
-    order = np.argsort(first)
-    rows = first[order]
-    w = np.column_stack([log.col("wx_mm"), log.col("wy_mm")])[rows] * 1e-3
-    wn = np.column_stack([log.col("wnx"), log.col("wny")])[rows]
-    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(wn))):
-        raise ConfigError(f"{log.source}: needs wx_mm, wy_mm, wnx, wny (targets in W) for every target")
-    return w, wn / np.linalg.norm(wn, axis=1, keepdims=True), tuple(ids[order])
-
-
 def run(args) -> int:
-    from core.design import optimise_angles
+    from core.design import optimise_angles, targets_from_log
     from core.exceptions import ConfigError
     from core.probelog import read_probe_log
     from core.atomic import write_json_atomic
-    from scenarios.cmd_identify import parse_grid
+    from scenarios.cli.options import parse_grid
     from scenarios.parallel import design_evaluator
 
     log = read_probe_log(args.plan)

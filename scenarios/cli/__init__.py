@@ -1,7 +1,10 @@
 """The ``vmt`` command line: one entry point for the scenarios and the core.
 
-Each sub-command lives in its own module (listed in ``COMMANDS``) exposing
-``register(subparsers)``; heavy imports happen inside the command, so
+Each sub-command lives in its own thin module of this package (listed in
+``COMMANDS``: ``scenarios/cli/<name>.py``, ``import_.py`` for ``import``)
+exposing ``register(subparsers)``; the work itself is library code in core,
+sim, hardware and the studies of ``scenarios``. Heavy imports happen inside
+the command, so
 ``vmt --help`` stays fast. Any :class:`core.exceptions.VmtError` becomes one
 line on stderr and exit status 2, never a traceback.
 """
@@ -14,18 +17,18 @@ import sys
 
 #: (name, module) of every sub-command, in the order ``--help`` lists them.
 COMMANDS = [
-    ("check", "scenarios.cmd_check"),
-    ("demo", "scenarios.cmd_demo"),
-    ("bench", "scenarios.bench"),
-    ("view", "scenarios.cmd_view"),
-    ("probe", "scenarios.cmd_probe"),
-    ("import", "scenarios.cmd_import"),
-    ("machine", "scenarios.cmd_machine"),
-    ("simulate", "scenarios.cmd_simulate"),
-    ("discover", "scenarios.cmd_discover"),
-    ("scenario", "scenarios.cmd_scenario"),
-    ("identify", "scenarios.cmd_identify"),
-    ("design", "scenarios.cmd_design"),
+    ("check", "scenarios.cli.check"),
+    ("demo", "scenarios.cli.demo"),
+    ("bench", "scenarios.cli.bench"),
+    ("view", "scenarios.cli.view"),
+    ("probe", "scenarios.cli.probe"),
+    ("import", "scenarios.cli.import_"),
+    ("machine", "scenarios.cli.machine"),
+    ("simulate", "scenarios.cli.simulate"),
+    ("discover", "scenarios.cli.discover"),
+    ("scenario", "scenarios.cli.scenario"),
+    ("identify", "scenarios.cli.identify"),
+    ("design", "scenarios.cli.design"),
 ]
 
 
@@ -60,7 +63,3 @@ def main(argv: list[str] | None = None) -> int:
         print(f"vmt {args.command}: interrupted", file=sys.stderr)
         return 130
     return int(rc or 0)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

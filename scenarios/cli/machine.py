@@ -10,65 +10,6 @@ import sys
 import time
 
 
-def builtin_machine(noise_um: float = 0.0, seed: int = 0, scale_ppm=(0.0, 0.0, 0.0),
-                    ec0y_urad: float = 0.0):
-    """The machine ``serve`` and ``virtual:`` use until the simulator's is wired in.
-
-    A table top at Z = 0 and a sphere of radius 12.5 mm at (50, 50, 0) mm
-    (stylus-tip-centre space), linear scale errors and a squareness, all known.
-    """
-    import numpy as np
-
-    from hardware.scene import SimpleScene
-
-    return SimpleScene(scale=tuple(s * 1e-6 for s in scale_ppm), ec0y_rad=ec0y_urad * 1e-6,
-                       noise_m=noise_um * 1e-6, rng=np.random.default_rng(seed))
-
-
-class SimMachine:
-    """The simulator's virtual machine behind the emulator's ``probe_move``.
-
-    The emulator speaks rotary positions as (A, B, C); the simulated
-    machine takes only its own rotary axes, in its own order.
-    """
-
-    def __init__(self, vm):
-        self.vm = vm
-        self.rotary_axes = tuple(getattr(vm.machine, "rotary_axes", ()) or ())
-
-    def probe_move(self, start_m, target_m, rot_rad=None):
-        import numpy as np
-
-        rot = None
-        if self.rotary_axes:
-            abc = np.zeros(3) if rot_rad is None else np.asarray(rot_rad, float).reshape(-1)
-            abc = np.pad(abc, (0, max(0, 3 - abc.size)))[:3]
-            rot = np.array([abc["ABC".index(a)] for a in self.rotary_axes])
-        return self.vm.probe_move(start_m, target_m, rot)
-
-
-def sim_machine(scene: str = "cross-pocket", noise_um: float = 0.0, seed: int = 0, errors_seed: int = 1):
-    """The simulator's nmv3000 (realistic errors, seeded) with ``scene`` on the table.
-
-    ``noise_um`` is the probing standard deviation along the approach.
-    """
-    import numpy as np
-
-    from core.exceptions import ConfigError
-    from sim import artefacts as A
-    from sim.machine import Machine
-    from sim.machines import MACHINES, realistic_errors
-    from sim.probe import ProbeConfig, VirtualMachine
-
-    if scene not in A.ARTEFACTS:
-        raise ConfigError(f"--scene {scene!r}: expected simple or one of {', '.join(sorted(A.ARTEFACTS))}")
-    m = Machine(MACHINES["nmv3000"](errors=realistic_errors(
-        ("X", "Y", "Z", "C"), rng=np.random.default_rng(errors_seed), ripple=False)))
-    vm = VirtualMachine(m, A.make_artefact(scene), ProbeConfig(repeatability_k2_m=2 * noise_um * 1e-6),
-                        np.random.default_rng(seed))
-    return SimMachine(vm)
-
-
 def _floats3(text: str, name: str):
     from core.exceptions import ConfigError
 
@@ -102,7 +43,7 @@ def register(sub) -> None:
     s.add_argument("--max-seconds", type=float, help="stop after this long (default: until Ctrl-C)")
     s.set_defaults(func=run_serve)
     g = msub.add_parser("program", help="write a plan as a LinuxCNC part program (G38.2, PROBEOPEN)")
-    from scenarios.cmd_probe import add_settings_args
+    from scenarios.cli.options import add_settings_args
 
     add_settings_args(g, live=False)
     g.add_argument("--out", required=True, help="part program to write (.ngc)")
@@ -119,6 +60,8 @@ def run_serve(args) -> int:
 
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port {args.port}: not a TCP port")
+    from hardware.virtual import builtin_machine, sim_machine
+
     if args.scene == "simple":
         machine = builtin_machine(args.noise_um, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
                                   args.ec0y_urad)
@@ -155,7 +98,7 @@ def run_program(args) -> int:
     from core.atomic import write_text_atomic
     from core.probelog import read_probe_log
     from hardware.linuxcnc import part_program
-    from scenarios.cmd_probe import settings_from_args
+    from scenarios.cli.options import settings_from_args
 
     plan = read_probe_log(args.plan)
     text = part_program(plan, settings_from_args(args), probe_file=args.probe_file, wcs=args.wcs)

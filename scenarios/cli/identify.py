@@ -1,0 +1,62 @@
+"""``vmt identify LOG --json OUT``: 2D self-calibration of a probe log (core.selfcal)."""
+
+from __future__ import annotations
+
+from scenarios.cli.options import parse_grid
+
+
+def register(sub) -> None:
+    p = sub.add_parser("identify", help="2D self-calibration on a rotary table (workpiece, X/Y and C errors)")
+    p.add_argument("log", help="probe-log/1 campaign: the same targets at several C angles")
+    p.add_argument("--json", required=True, metavar="OUT", help="JSON report to write (atomically)")
+    p.add_argument("--grid-mm", default="22", metavar="STEP|x0:x1:step",
+                   help="grid step (nodes at multiples of it covering the touches) or x0:x1:step (both axes; write --grid-mm=-110:110:22 when x0 < 0)")
+    p.add_argument("--delta-l-um", type=float, default=None,
+                   help="X positioning error at the last x node, measured (eq 17); omitted = scale unknown")
+    p.add_argument("--mc", type=int, default=0, metavar="N", help="also run N Monte Carlo runs (JCGM 101)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the Monte Carlo runs")
+    p.add_argument("--u-probe-um", type=float, default=None,
+                   help="probing standard uncertainty for U95 (default: sigma from the residuals)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import numpy as np
+
+    from core.exceptions import ConfigError
+    from core.probelog import read_probe_log
+    from core.selfcal import identify, yaw_for_chain
+    from core.touches import from_log
+    from core.uncertainty import monte_carlo_touches
+
+    log = read_probe_log(args.log)
+    yaw = yaw_for_chain(log.meta.get("kinematic_chain"))
+    # the planar model takes touches with normals in XY (sphere points off the
+    # equator are for 3D fits); say how many were left out
+    planar = abs(log.col("nz")) <= 0.01
+    t = from_log(log.select(planar))
+    if not planar.all():
+        print(f"{args.log}: {int((~planar & log.ok).sum())} touches with normals out of the XY plane left out")
+    grid = parse_grid(args.grid_mm, t.pn_R)
+    dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
+    sigma = None
+    if args.u_probe_um is not None:
+        if not args.u_probe_um > 0:
+            raise ConfigError(f"--u-probe-um must be > 0, got {args.u_probe_um}")
+        sigma = args.u_probe_um * 1e-6
+    if args.mc < 0:
+        raise ConfigError(f"--mc must be >= 0, got {args.mc}")
+    res = identify(t, grid, dL, sigma_m=sigma, yaw=yaw)
+    mc = None
+    if args.mc:
+        mc = monte_carlo_touches(t, grid, res.sigma_m, runs=args.mc, rng=np.random.default_rng(args.seed),
+                                 delta_L_m=dL, yaw=yaw)
+    from core.atomic import write_json_atomic
+
+    out = write_json_atomic(args.json, res.to_report(mc))
+    G = res.G
+    print(f"{args.log}: {res.n_touches} touches, {len(G)} targets, {len(res.design.setup_ids)} C angles;"
+          f" residual RMS {res.rms_m * 1e6:.3f} um; workpiece {G.min() * 1e6:+.2f}..{G.max() * 1e6:+.2f} um;"
+          f" scale {'known' if res.scale_known else 'unknown'}")
+    print(f"wrote {out}")
+    return 0
