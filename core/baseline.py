@@ -34,7 +34,7 @@ from .diagnosis import Covariate, orth
 from .exceptions import ConfigError, IdentifiabilityError
 from .touches import Touches
 
-MM = 1e-3
+from .units import MM
 #: Relative pivot of the column-scaled design below which a direction counts
 #: as unseen (singular-value ratio; core.selfcal.solve uses 1e-6).
 RANK_TOL = 1e-7
@@ -274,6 +274,12 @@ def planar_covariates(d: PlanarData) -> tuple:
                   "direction"),
         Covariate("order", np.arange(t.n, dtype=float), "smooth", 6, allm, "the touch order", "time"),
     ]
+    su = np.unique(t.setup)
+    if su.size >= 2:
+        F = np.column_stack([f(k * d.azimuth) for k in (2, 3, 4) for f in (np.cos, np.sin)])
+        B = np.hstack([F * (t.setup == j)[:, None] for j in su])
+        covs.append(Covariate("azimuth_by_setup", B, "basis", B.shape[1], (0,),
+                              "the approach azimuth, differently in each set-up", "direction"))
     xy = _xy_basis(d.xs, d.ys)
     covs.append(Covariate("xy", xy, "basis", xy.shape[1], (1, 2), "x and y jointly (non-separable)", "position"))
     cdeg = np.round(np.degrees(t.rot_rad[:, 2]), 6)
@@ -475,20 +481,6 @@ def workpiece_geometry(t: Touches, c0_m: np.ndarray):
     P = np.einsum("kab,kb->ka", R, t.pn_R[idx, :2] - c0)
     N = np.einsum("kab,kb->ka", R, t.n_R[idx, :2])
     return P, N
-
-
-def form_projector(P: np.ndarray, N: np.ndarray) -> np.ndarray:
-    """(q, q) projector removing what self-calibration cannot see from per-target values.
-
-    A shift of the part (2), its rotation and scale in W and a common
-    offset (the gauge of eqs 16-17 and the stylus radius) change the normal
-    deviations by ``n_x``, ``n_y``, ``n . R90 p``, ``n . p`` and 1: the
-    projector is ``I - B B^+`` over those five columns.
-    """
-    B = np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
-                         np.einsum("ij,ij->i", N, P), np.ones(len(P))])
-    Q = orth(B)
-    return np.eye(len(P)) - Q @ Q.T
 
 
 def check_planar(t: Touches) -> None:

@@ -45,9 +45,7 @@ from typing import Callable
 
 import numpy as np
 
-UM = 1e6  # m -> um (report scale)
-URAD = 1e6  # rad -> urad (report scale)
-MM = 1e-3
+from .units import MM, UM, URAD
 
 
 @dataclass(frozen=True)
@@ -56,20 +54,30 @@ class Scan:
 
     Attributes
     ----------
-    columns : (T, n, k) float
-        Design columns of each trial, m (or rad) per unit coefficient.
     labels : tuple of str
         The k coefficients' names.
     infos : tuple of dict
         Per trial: its choices and nonlinear parameters (``period_m`` ...).
     covariate : str
         Covariate the structure lives in (rival term).
+    build : callable(idx) -> (len(idx), n, k)
+        Design columns of the trials ``idx``, m (or rad) per unit coefficient.
+    score : callable(r, rows) -> (T,), optional
+        A cheap periodogram-like score of every trial against residuals ``r``
+        on ``rows`` (numerator exact, denominator ignoring the model), for
+        scans too large to build whole; the engine evaluates the best ones
+        exactly.
     """
 
-    columns: np.ndarray = field(repr=False)
     labels: tuple
     infos: tuple
     covariate: str
+    build: Callable = field(repr=False)
+    score: Callable | None = field(default=None, repr=False)
+
+    @property
+    def size(self) -> int:
+        return len(self.infos)
 
 
 @dataclass(frozen=True)
@@ -109,7 +117,27 @@ def _outer(modes: np.ndarray, funcs: np.ndarray) -> np.ndarray:
 
 
 def _one(cols: np.ndarray, labels, info: dict, cov: str) -> Scan:
-    return Scan(cols[None], tuple(labels), (info,), cov)
+    arr = cols[None]
+    return Scan(tuple(labels), (info,), cov, lambda idx: arr[np.asarray(idx)])
+
+
+def _matmul_score(funcs: Callable, weights: np.ndarray):
+    """Score of trials whose columns are ``weights[:, m] * F[:, t]`` for functions ``F = funcs()`` (n, T).
+
+    ``sum_m (r . (w_m F_t))^2 / |w_m F_t|^2`` by two matrix products per mode;
+    ``F`` is computed once (all rows) and kept.
+    """
+    cache = []
+
+    def score(r, rows):
+        if not cache:
+            cache.append(funcs())
+        F = cache[0][rows]
+        W = weights[rows]
+        num = ((r[:, None] * W).T @ F) ** 2
+        den = (W ** 2).T @ (F ** 2)
+        return np.sum(num / np.maximum(den, 1e-300), axis=0)
+    return score
 
 
 def _pv(vals) -> float:
@@ -153,7 +181,7 @@ def drift_magnitudes(info, coef, bl):
     dP = np.array([1.0 - (-1.0) ** j for j in range(1, deg + 1)])  # P_j(1) - P_j(-1)
     ch = c @ dP
     L = bl.data.L_m
-    return {"x_offset_change_um": ch[0] * UM, "y_offset_change_um": ch[1] * UM,
+    return {"x_offset_change_um": ch[0] / UM, "y_offset_change_um": ch[1] / UM,
             "x_scale_change_ppm": ch[2] / L * 1e6, "y_scale_change_ppm": ch[3] / L * 1e6,
             "over_h": bl.data.span_s / 3600.0}
 
@@ -196,12 +224,12 @@ def c_drift_scans(bl):
 def c_drift_magnitudes(info, coef, bl):
     c = np.asarray(coef)
     if info["form"] == "per set-up":
-        out = {f"ECC_change_urad[{sid}]": 2 * v * URAD for sid, v in zip(info["setups"], c)}
-        out["ECC_change_rms_urad"] = float(np.sqrt(np.mean((2 * c) ** 2))) * URAD
+        out = {f"ECC_change_urad[{sid}]": 2 * v / URAD for sid, v in zip(info["setups"], c)}
+        out["ECC_change_rms_urad"] = float(np.sqrt(np.mean((2 * c) ** 2))) / URAD
         return out
     dP = np.array([1.0 - (-1.0) ** j for j in range(1, info["degree"] + 1)])
     key = "ECC_change_in_setup_urad" if info["form"] == "after each indexing" else "ECC_change_over_campaign_urad"
-    return {key: float(c @ dP) * URAD}
+    return {key: float(c @ dP) / URAD}
 
 
 def expansion_scans(bl):
@@ -234,7 +262,7 @@ def expansion_scans(bl):
 def expansion_magnitudes(info, coef, bl):
     c = np.asarray(coef)
     return {"alpha_x_um_per_m_K": c[0] * 1e6, "alpha_y_um_per_m_K": c[1] * 1e6,
-            "x_offset_um_per_K": c[2] * UM, "y_offset_um_per_K": c[3] * UM,
+            "x_offset_um_per_K": c[2] / UM, "y_offset_um_per_K": c[3] / UM,
             "reference_temperature_C": 20.0, "temperature_range_K": info["range_K"]}
 
 
@@ -285,8 +313,21 @@ def periodic_scans(bl):
         P = 1 / f
         tries += span * (1 / p_lo - 1 / p_hi)
         ax = "XY"[axis]
-        scans.append(Scan(_periodic_cols(d, axis, P), (f"EX{ax}_sin", f"EX{ax}_cos", f"EY{ax}_sin", f"EY{ax}_cos"),
-                          tuple({"axis": ax, "period_m": float(p), "nyquist_m": p_lo} for p in P), "xy"[axis]))
+
+        def funcs(a=a, f=f):
+            ph = 2 * np.pi * a[:, None] * f[None, :]
+            return np.hstack([np.sin(ph), np.cos(ph)])
+
+        W = np.column_stack([-d.nx, -d.ny])
+        base = _matmul_score(funcs, W)
+
+        def score(r, rows, base=base, T=len(P)):  # sin and cos of each period: one trial
+            s2 = base(r, rows)
+            return s2[:T] + s2[T:]
+
+        scans.append(Scan((f"EX{ax}_sin", f"EX{ax}_cos", f"EY{ax}_sin", f"EY{ax}_cos"),
+                          tuple({"axis": ax, "period_m": float(p), "nyquist_m": p_lo} for p in P), "xy"[axis],
+                          lambda idx, axis=axis, P=P: _periodic_cols(d, axis, P[np.asarray(idx)]), score))
     return scans, tries
 
 
@@ -298,8 +339,8 @@ def periodic_magnitudes(info, coef, bl):
     c = np.asarray(coef)
     ax = info["axis"]
     return {"axis": ax, "period_mm": info["period_m"] / MM,
-            f"EX{ax}_amplitude_um": float(np.hypot(c[0], c[1])) * UM,
-            f"EY{ax}_amplitude_um": float(np.hypot(c[2], c[3])) * UM,
+            f"EX{ax}_amplitude_um": float(np.hypot(c[0], c[1])) / UM,
+            f"EY{ax}_amplitude_um": float(np.hypot(c[2], c[3])) / UM,
             f"EX{ax}_phase_rad": float(np.arctan2(c[1], c[0])), f"EY{ax}_phase_rad": float(np.arctan2(c[3], c[2]))}
 
 
@@ -334,10 +375,10 @@ def lobing_magnitudes(info, coef, bl):
     c = np.asarray(coef).reshape(4, 2)
     phi = np.linspace(-np.pi, np.pi, 721)
     f = sum(c[k - 1, 0] * np.cos(k * phi) + c[k - 1, 1] * np.sin(k * phi) for k in range(2, 5))
-    out = {f"k{k}_amplitude_um": float(np.hypot(*c[k - 1])) * UM for k in range(1, 5)}
+    out = {f"k{k}_amplitude_um": float(np.hypot(*c[k - 1])) / UM for k in range(1, 5)}
     # the first harmonic acts as a probe offset (a translation, usually in the
     # set-ups' own offsets and the stylus calibration): the variation is of k = 2..4
-    out["pretravel_variation_pv_um"] = _pv(f) * UM
+    out["pretravel_variation_pv_um"] = _pv(f) / UM
     return out
 
 
@@ -351,9 +392,11 @@ def unoriented_scans(bl):
     orientation per set-up. Linearised as ``cos k phi``, ``sin k phi`` per
     set-up for the harmonic k = 2, 3 or 4 (scanned; the first harmonic is a
     translation, in the set-up's own C-axis offsets). Plausible only when
-    the set-ups' amplitudes agree (the lobes are the probe's) and their
-    orientations do not (else the probe is oriented: ``probe_lobing``).
-    Parameters: harmonic, amplitude (um), orientation per set-up (deg).
+    the set-ups' lobing vectors lie on one circle (one probe's lobes,
+    turned; the circle's centre is a part fixed in the machine frame) and
+    their orientations differ (else the probe is oriented:
+    ``probe_lobing``). Parameters: harmonic, amplitude (um), orientation
+    per set-up (deg).
     """
     d = bl.data
     phi = d.azimuth
@@ -372,12 +415,32 @@ def unoriented_scans(bl):
     return scans, 3.0
 
 
+def _circle(P: np.ndarray):
+    """Algebraic (Kasa) circle through 2-D points: (centre (2,), radius, RMS distance to it)."""
+    M = np.column_stack([P[:, 0], P[:, 1], np.ones(len(P))])
+    b = -(P ** 2).sum(axis=1)
+    (D, E, F), *_ = np.linalg.lstsq(M, b, rcond=None)
+    c = np.array([-D / 2, -E / 2])
+    r = float(np.sqrt(max(c @ c - F, 0.0)))
+    return c, r, float(np.sqrt(np.mean((np.linalg.norm(P - c, axis=1) - r) ** 2)))
+
+
 def unoriented_magnitudes(info, coef, bl):
+    """Amplitude and orientations from the circle through the set-ups' lobing vectors.
+
+    Each set-up's coefficients ``c_j = (a_j, b_j)`` of ``cos k phi``,
+    ``sin k phi`` are ``A (cos k psi_j, sin k psi_j)`` plus a part common to
+    all set-ups (a lobing fixed in the machine frame, which on many parts
+    the machine's own scale errors imitate: not determined). The common
+    part is the circle's centre: the radius is the amplitude, the angle
+    about the centre the orientation, both free of it.
+    """
     k = info["harmonic"]
     c = np.asarray(coef).reshape(len(info["setups"]), 2)
-    amp = np.hypot(c[:, 0], c[:, 1])
-    ang = np.arctan2(c[:, 1], c[:, 0])  # k psi_j
-    out = {"amplitude_um": float(np.mean(amp)) * UM, "amplitude_spread_um": float(np.ptp(amp)) * UM}
+    centre, r, res = _circle(c)
+    ang = np.arctan2(c[:, 1] - centre[1], c[:, 0] - centre[0])  # k psi_j
+    out = {"amplitude_um": r / UM, "circle_residual_um": res / UM,
+           "spread_um": float(np.max(np.linalg.norm(c - c.mean(axis=0), axis=1))) / UM}
     diff = np.abs(np.angle(np.exp(1j * (ang[:, None] - ang[None, :]))))
     out["orientation_spread_deg"] = float(np.degrees(diff.max()) / k)
     for sid, a in zip(info["setups"], ang):
@@ -386,11 +449,14 @@ def unoriented_magnitudes(info, coef, bl):
 
 
 def unoriented_plausible(vals, u95):
-    a, da = vals.get("amplitude_um"), vals.get("amplitude_spread_um")
-    if a is None or da is None:
-        return "amplitudes not determined per set-up"
-    if da - (u95.get("amplitude_spread_um") or 0.0) > 0.5 * a:
-        return f"the set-ups' lobing amplitudes differ by {da:.2g} um (mean {a:.2g} um): not one probe's lobes"
+    a, res, spread = vals.get("amplitude_um"), vals.get("circle_residual_um"), vals.get("spread_um")
+    if a is None or res is None or spread is None:
+        return "the set-ups' lobing not determined"
+    if res - (u95.get("circle_residual_um") or 0.0) > 0.3 * a:
+        return f"the set-ups' lobing vectors lie off one circle ({res:.2g} um for {a:.2g} um): not one probe's lobes"
+    if a > 3 * spread:
+        return (f"the set-ups' lobing vectors change by {spread:.2g} um on a circle of {a:.2g} um: a trend, "
+                "not a probe turned at random")
     o, do = vals.get("orientation_spread_deg"), u95.get("orientation_spread_deg")
     if o is not None and do is not None and o <= do:
         return f"orientations agree within U95 ({o:.2g} +- {do:.2g} deg): the probe is oriented"
@@ -424,7 +490,7 @@ def bending_magnitudes(info, coef, bl):
     def p(e):  # pre-travel: dq = -p
         return -(c[0] * np.sin(e) + c[1] * np.sin(e) ** 2)
 
-    return {"pretravel_change_um": float(p(info["e_hi"]) - p(info["e_lo"])) * UM,
+    return {"pretravel_change_um": float(p(info["e_hi"]) - p(info["e_lo"])) / UM,
             "elevation_range_deg": float(np.degrees(info["e_hi"] - info["e_lo"]))}
 
 
@@ -473,8 +539,14 @@ def defect_scans(bl):
                 continue
             tries += span / w
             ax = "XY"[axis]
-            scans.append(Scan(_defect_cols(d, axis, x0, w), (f"E{ax}{ax}_bump",),
-                              tuple({"axis": ax, "centre_m": float(c), "half_width_m": w} for c in x0), "xy"[axis]))
+
+            def funcs(a=a, x0=x0, w=w):
+                return _hann((a[:, None] - x0[None, :]) / w)
+
+            scans.append(Scan((f"E{ax}{ax}_bump",),
+                              tuple({"axis": ax, "centre_m": float(c), "half_width_m": w} for c in x0), "xy"[axis],
+                              lambda idx, axis=axis, x0=x0, w=w: _defect_cols(d, axis, x0[np.asarray(idx)], w),
+                              _matmul_score(funcs, (-d.nx, -d.ny)[axis][:, None])))
     return scans, tries
 
 
@@ -485,7 +557,7 @@ def defect_rebuild(bl, info):
 def defect_magnitudes(info, coef, bl):
     ax = info["axis"]
     return {"axis": ax, "symbol": f"E{ax}{ax}", "centre_mm": info["centre_m"] / MM,
-            "half_width_mm": info["half_width_m"] / MM, "amplitude_um": float(coef[0]) * UM}
+            "half_width_mm": info["half_width_m"] / MM, "amplitude_um": float(coef[0]) / UM}
 
 
 def part_change_scans(bl):
@@ -536,7 +608,7 @@ def part_change_rival(bl, info):
 def part_change_magnitudes(info, coef, bl):
     out = {"feature": info["feature"]}
     for w, c in zip(info["walls_deg"], np.asarray(coef)):
-        out[f"wall{w}deg_change_um"] = float(c) * UM
+        out[f"wall{w}deg_change_um"] = float(c) / UM
     return out
 
 
@@ -556,7 +628,7 @@ def reversal_scans(bl):
 
 def reversal_magnitudes(info, coef, bl):
     c = np.asarray(coef)
-    return {"x_lost_motion_um": c[0] * UM, "y_lost_motion_um": c[1] * UM}
+    return {"x_lost_motion_um": c[0] / UM, "y_lost_motion_um": c[1] / UM}
 
 
 _NONRIGID = ("EX~xy", "EY~xy", "EX~x2y", "EY~xy2", "EX~xy2", "EY~x2y")
@@ -580,7 +652,7 @@ def nonrigid_scans(bl):
 
 
 def nonrigid_magnitudes(info, coef, bl):
-    return {f"{k}_um": float(c) * UM for k, c in zip(_NONRIGID, coef)}
+    return {f"{k}_um": float(c) / UM for k, c in zip(_NONRIGID, coef)}
 
 
 OUTLIER = "outlier"

@@ -79,19 +79,21 @@ def project_out(Q: np.ndarray, B: np.ndarray) -> np.ndarray:
 def new_basis(Q: np.ndarray, B: np.ndarray, tol: float = IN_SPAN) -> np.ndarray:
     """Orthonormal basis of the part of span(B) outside span(Q).
 
-    Columns whose projection keeps less than ``tol`` of their norm are
-    inside the model already and dropped before orthonormalising.
+    Columns normalised, projected out of Q; the eigen-decomposition of
+    their Gram matrix keeps directions whose singular value exceeds
+    ``max(tol, 1e-5)`` (a direction retaining less of a unit column is
+    inside the model, for every purpose here).
     """
     if B.shape[1] == 0:
         return np.zeros((B.shape[0], 0))
     nrm = np.linalg.norm(B, axis=0)
-    P = project_out(Q, B)
-    keep = np.linalg.norm(P, axis=0) > tol * np.maximum(nrm, 1e-300)
+    keep = nrm > 0
     if not keep.any():
         return np.zeros((B.shape[0], 0))
-    U, s, _ = sla.svd(P[:, keep] / nrm[keep], full_matrices=False, lapack_driver="gesdd")
-    r = int(np.sum(s > 1e-7 * max(s[0], 1e-300) + tol)) if s.size else 0
-    return U[:, :r]
+    P = project_out(Q, B[:, keep] / nrm[keep])
+    w, V = np.linalg.eigh(P.T @ P)
+    good = w > max(tol, 1e-5) ** 2
+    return (P @ V[:, good]) / np.sqrt(w[good])
 
 
 # ---------------------------------------------------------------------------
@@ -294,6 +296,11 @@ def function_basis(cov: Covariate) -> np.ndarray:
     raise ValueError(f"covariate {cov.name!r}: unknown kind {cov.kind!r}")
 
 
+def term_bases(covariates, modes: np.ndarray) -> dict:
+    """Every covariate's term basis over all rows, once (name -> (n, m))."""
+    return {c.name: term_basis(c, modes) for c in covariates}
+
+
 def term_basis(cov: Covariate, modes: np.ndarray, rows=None) -> np.ndarray:
     """(n, len(cov.modes) * m) columns of a smooth term: each mode times each basis function."""
     F = function_basis(cov)
@@ -341,7 +348,7 @@ class Diagnosis:
 
 
 def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarray, *,
-             sigma_m: float, material_sigma: float, rows=None) -> list:
+             sigma_m: float, material_sigma: float, rows=None, bases: dict | None = None) -> list:
     """Test every covariate's smooth term against the model, strongest first.
 
     Parameters
@@ -361,6 +368,8 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
         A term explaining less than ``material_sigma * sigma_m`` RMS is
         immaterial (reported, never a reason to call structure).
     rows : index array or None
+    bases : dict or None
+        :func:`term_bases` of the covariates (computed when None).
 
     Returns
     -------
@@ -370,8 +379,8 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
     rss = float(r @ r)
     raw = []
     for cov in covariates:
-        B = term_basis(cov, modes, rows)
-        U = new_basis(Q, B)
+        B = bases[cov.name] if bases is not None else term_basis(cov, modes)
+        U = new_basis(Q, B if rows is None else B[rows])
         if U.shape[1] == 0 or dof - U.shape[1] < 5:
             continue
         raw.append((cov, nested_f(U, r, rss, dof)))

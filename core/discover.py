@@ -26,11 +26,12 @@ What it does, in order, and the statistics behind each step
    a. significance: nested F test of its columns, Bonferroni over the
       causes and the effective number of trials of its scan (periods,
       positions, sensors);
-   b. identifiability: every column's variance inflation against the
-      model (and the cause's other columns) at most
-      :attr:`Settings.vif_max`; confounded columns are dropped and named,
-      and a cause left with none is refused (the principal angle to the
-      model is reported);
+   b. identifiability: the variance inflation of the cause's combinations
+      of columns against the model: those numerically inside it are left
+      out (a magnitude that needs them is not reported), and a cause whose
+      best combination is inflated more than :attr:`Settings.vif_max` is
+      confounded and refused (the principal angle to the model is
+      reported);
    c. material cross-validated gain: the held-out mean square must fall by
       at least ``(material_sigma * sigma)^2`` per row;
    d. plausibility: magnitudes inside the cause's bounds (beyond their
@@ -79,16 +80,16 @@ from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
 from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f_batch, new_basis, orth,
-                        replicate_scatter, term_basis)
+                        replicate_scatter, term_bases)
 from .exceptions import ConfigError, IdentifiabilityError
 from .touches import Touches
+from .units import UM
 
-UM = 1e6  # m -> um (report scale)
-MM = 1e-3
 
 #: Singular value (columns normalised, outside the model) below which a
-#: direction of a cause's columns counts as unseen: the VIF bound of 100.
-WEAK_SV = 0.1
+#: direction of a cause's columns counts as unseen (variance inflation 1e4:
+#: a hundredfold loss of precision; its magnitudes are not reported).
+WEAK_SV = 1e-2
 #: Leverage within its group above which a row is the only support of one of
 #: the group's own columns (it cannot be predicted; left out of the CV).
 OWN_LEVERAGE = 1e-3
@@ -118,9 +119,11 @@ class Settings:
         variance (the 0.98-0.997 CV ratios of the false alarms that
         motivated this threshold).
     vif_max : float
-        Largest variance inflation of an extension's coefficient against
-        the model: 100, a coefficient ten times less certain than if it
-        were orthogonal to the model (principal angle below ~6 deg).
+        A cause whose best-determined combination of columns is inflated
+        more than this against the model is confounded with it and refused:
+        100, ten times less certain than if it were orthogonal to the model
+        (principal angle below ~6 deg). Combinations inflated beyond
+        ``1 / WEAK_SV^2`` are left out of every cause.
     rival_share : float
         A named cause must explain at least this share of what a smooth
         function of its covariate explains (debiased): 0.8.
@@ -338,7 +341,8 @@ def _state(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _State:
 # ---------------------------------------------------------------------------
 # outliers
 # ---------------------------------------------------------------------------
-def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: float = 0.02) -> list[int]:
+def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: float = 0.02,
+                  Q: np.ndarray | None = None) -> list[int]:
     """Indices (into y) of gross outliers: studentized deleted residuals, one at a time.
 
     Each pass removes the most extreme row if its studentized deleted
@@ -351,6 +355,8 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
     X : (n, p) float
         The model's design (any scaling; the column space matters).
     y : (n,) float
+    Q : (n, r) float, optional
+        Orthonormal basis of X's column space (saves the first factorisation).
     """
     n = len(y)
     cap = max(3, int(max_frac * n))
@@ -358,7 +364,7 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
     out: list[int] = []
     while True:
         idx = np.flatnonzero(keep)
-        Q = orth(X[idx])
+        Q = Q if (Q is not None and len(idx) == n) else orth(X[idx])
         r = y[idx] - Q @ (Q.T @ y[idx])
         dof = len(idx) - Q.shape[1]
         if dof < 3:
@@ -540,12 +546,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     y = bl.y
     N = bl.n
     all_rows = np.arange(N)
-    af = settings.alpha_family
+    bases = term_bases(bl.covariates, bl.modes)
 
     # 0. baseline fit and a first outlier screen
     Qall = orth(bl.A)
     st0 = _state(Qall, y, all_rows, [])
-    rows = np.setdiff1d(all_rows, find_outliers(bl.A, y, settings.outlier_alpha, settings.outlier_max_frac))
+    rows = np.setdiff1d(all_rows, find_outliers(bl.A, y, settings.outlier_alpha, settings.outlier_max_frac, Qall))
     tick()
 
     cache: dict = {}
@@ -573,7 +579,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     tick()
     # 2. diagnosis of the baseline
     diag_b = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(st),
-                      material_sigma=settings.material_sigma, rows=rows)
+                      material_sigma=settings.material_sigma, rows=rows, bases=bases)
     tick()
     structure_b = _structure(diag_b, gap_b, lof_b, st, noise_sigma(st), settings)
 
@@ -618,7 +624,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     while changed and terms:
         changed = False
         for tm in list(terms):
-            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings)
+            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings, bases)
             tm.evidence.update(share)
             if not share["kept"]:
                 terms.remove(tm)
@@ -637,7 +643,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # 5. what remains
     sig = noise_sigma(st)
     diag_e = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=sig,
-                      material_sigma=settings.material_sigma, rows=rows)
+                      material_sigma=settings.material_sigma, rows=rows, bases=bases)
     E_named = _stack(terms, rows)
     gap_e = _cv_gap(folds, st, y, E_named, None, settings, rng) if terms else gap_b
     lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(bl.replicate[rows], E_named) else None
@@ -646,8 +652,21 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     tick()
     smooth = None
     if structure_e["present"]:
-        smooth = _unnamed_smooth(bl, diag_e, terms, folds, st, y, rows, cv_named, sig, settings)
+        smooth = _unnamed_smooth(bl, diag_e, terms, folds, st, y, rows, cv_named, sig, settings, bases)
         if smooth is not None and smooth.columns.shape[1]:
+            # a named cause that the unnamed term makes redundant explained part
+            # of that structure, not its own: it goes
+            E_s = smooth.columns[rows]
+            cv_s = folds.mse(y[rows], np.hstack([E_named, E_s]), _penalty(terms + [smooth]))
+            for tm in list(terms):
+                rest = [t for t in terms if t is not tm]
+                cv_wo = folds.mse(y[rows], np.hstack([_stack(rest, rows), E_s]), _penalty(rest + [smooth]))
+                if cv_wo - cv_s < (settings.material_sigma * sig) ** 2:
+                    terms.remove(tm)
+                    demoted.append({"cause": tm.cause, "redundant_with": smooth.covariate,
+                                    "cv_gain_over_unnamed_um2": (cv_wo - cv_s) / UM ** 2})
+                    rejected.append({"cause": tm.cause, "reason": "no material gain once the unnamed structure in "
+                                     f"{smooth.covariate} is modelled"})
             terms.append(smooth)
             # outliers judged against the model with the smooth term
             X = np.hstack([bl.A, _stack(terms, all_rows)])
@@ -659,7 +678,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     tick()
 
     # 6. estimates
-    findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named)
+    findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases)
     E_all = _stack(terms, rows)
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
@@ -682,13 +701,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if progress is not None:
         progress(total, total)
     return Discovery(
-        baseline=bl, baseline_rms_um=float(np.sqrt(st0.rss / N)) * UM, baseline_cv_rms_um=float(np.sqrt(cv_b)) * UM,
+        baseline=bl, baseline_rms_um=float(np.sqrt(st0.rss / N)) / UM, baseline_cv_rms_um=float(np.sqrt(cv_b)) / UM,
         baseline_n_params=int(Qall.shape[1]), findings=tuple(findings), extended_model=model_name,
-        extended_rms_um=float(np.sqrt(st.rss / len(rows))) * UM, extended_cv_rms_um=float(np.sqrt(cv_e)) * UM,
+        extended_rms_um=float(np.sqrt(st.rss / len(rows))) / UM, extended_cv_rms_um=float(np.sqrt(cv_e)) / UM,
         noise=_noise_report(rep, st0, gap_b, lof_b, sigma_rep, sig),
         diagnosis=tuple(diag_b), diagnosis_extended=tuple(diag_e), workpiece=tuple(wp),
-        outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r * UM,
-        residuals_extended_um=res_e * UM, conventions=tuple(conv), workpiece_identifiable=ident,
+        outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
+        residuals_extended_um=res_e / UM, conventions=tuple(conv), workpiece_identifiable=ident,
         G_baseline_m=Gb, G_extended_m=Ge, cov_G_baseline=cGb, cov_G_extended=cGe,
         structure={"baseline": structure_b, "extended": structure_e}, rejected=tuple(rejected))
 
@@ -731,13 +750,13 @@ def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings) -> dic
 
 
 def _noise_report(rep, st0, gap, lof, sigma_rep, sigma) -> dict:
-    out = {"sigma_um": sigma * UM, "method": "repeats" if sigma_rep is not None else "residuals",
-           "repeats": {"sigma_um": rep.sigma_m * UM if rep.dof else None, "dof": rep.dof, "groups": rep.groups},
-           "in_sample": {"sigma_um": st0.sigma * UM, "dof": st0.dof},
-           "cv_gap": {"sigma_cv_um": gap.sigma_cv_m * UM, "ratio": gap.ratio, "expected_ratio": gap.expected,
+    out = {"sigma_um": sigma / UM, "method": "repeats" if sigma_rep is not None else "residuals",
+           "repeats": {"sigma_um": rep.sigma_m / UM if rep.dof else None, "dof": rep.dof, "groups": rep.groups},
+           "in_sample": {"sigma_um": st0.sigma / UM, "dof": st0.dof},
+           "cv_gap": {"sigma_cv_um": gap.sigma_cv_m / UM, "ratio": gap.ratio, "expected_ratio": gap.expected,
                       "p_value": gap.p_value, "draws": gap.draws}}
     if lof is not None:
-        out["lack_of_fit"] = {"F": lof.F, "p_value": lof.p_value, "sigma_lof_um": lof.sigma_lof_m * UM, "dof": lof.dof}
+        out["lack_of_fit"] = {"F": lof.F, "p_value": lof.p_value, "sigma_lof_um": lof.sigma_lof_m / UM, "dof": lof.dof}
     return out
 
 
@@ -793,15 +812,21 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
     Columns normalised, projected out of the model; eigen-decomposition of
     their Gram matrix. A direction with eigenvalue ``w`` has its coefficient
     inflated ``1 / w`` times over an orthogonal design (its variance
-    inflation): directions with ``1 / w > vif_max`` are confounded with the
-    model (or with each other) and left out, never extrapolated.
+    inflation). Directions beyond ``1 / WEAK_SV^2`` are numerically inside
+    the model (or the cause's other columns): left out, never extrapolated,
+    and a magnitude that needs them is not reported. The cause is
+    confounded, and refused, when even its best direction is inflated more
+    than ``vif_max``.
 
     Returns
     -------
     M : (k, r) float
-        Columns to use: ``E @ M`` (label coefficients ``c = M c'``).
+        Columns to use: ``E @ M`` (label coefficients ``c = M c'``); r = 0
+        when the cause is confounded.
     vif : float
-        Largest inflation among the directions kept (inf when none).
+        Inflation of the best-determined direction.
+    vif_worst : float
+        Largest inflation among the directions kept.
     angle_deg : float
         Smallest principal angle between the cause's span and the model's.
     weak : int
@@ -812,24 +837,31 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
     En = E / np.where(nz, nrm, 1.0)
     P = En - Q @ (Q.T @ En)
     w, V = np.linalg.eigh(P.T @ P)
-    good = (w >= 1.0 / vif_max) & (np.abs(V[~nz]).max(axis=0, initial=0.0) < 1e-12)
+    good = (w >= WEAK_SV ** 2) & (np.abs(V[~nz]).max(axis=0, initial=0.0) < 1e-12)
     M = V[:, good] / np.where(nz, nrm, 1.0)[:, None]
     Qe = orth(En)
     sv = np.linalg.svd(Q.T @ Qe, compute_uv=False) if Qe.shape[1] and Q.shape[1] else np.zeros(1)
     ang = float(np.degrees(np.arccos(np.clip(sv.max(), 0, 1))))
-    vif = float(1.0 / w[good].min()) if good.any() else np.inf
-    return M, vif, ang, int((~good).sum())
+    best = float(1.0 / w.max()) if w.size and w.max() > 0 else np.inf
+    worst = float(1.0 / w[good].min()) if good.any() else np.inf
+    if best > vif_max:
+        M = M[:, :0]
+    return M, best, worst, ang, int((~good).sum())
 
 
 def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, sigma, settings) -> dict:
     """One cause against the current model: the four tests of adoption (module docstring 4a-d)."""
     rows = st.rows
     best = None
-    full = len(rows) == bl.n
     for sc in scans:
-        C = sc.columns if full else sc.columns[:, rows, :]
-        idx = np.arange(C.shape[0]) if C.shape[0] <= settings.shortlist else _coarse(C, st.r, settings.shortlist)
-        _, k, F, p = nested_f_batch(C[idx], st.Q, st.r, st.rss, st.dof)
+        if sc.size <= settings.shortlist:
+            idx = np.arange(sc.size)
+        elif sc.score is not None:
+            idx = np.argsort(-sc.score(st.r, rows))[:settings.shortlist]
+        else:
+            idx = _coarse(sc.build(np.arange(sc.size))[:, rows, :], st.r, settings.shortlist)
+        C = sc.build(idx)[:, rows, :]
+        _, k, F, p = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
         for j in np.flatnonzero(k > 0):
             if best is None or (p[j], -F[j]) < (best[0], -best[1]):
                 best = (float(p[j]), float(F[j]), int(k[j]), sc, int(idx[j]))
@@ -837,8 +869,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         return {"reason": "no columns outside the model"}
     p_val, F_val, k_val, sc, i = best
     info = sc.infos[i]
-    cols = sc.columns[i]
-    if cause.nonlinear and cause.rebuild is not None:
+    cols = sc.build([i])[0]
+    if cause.nonlinear and cause.rebuild is not None and p_val * tries < 1.0:  # refining only helps a candidate
         info = _refine(cause, bl, info, st, rows)
         cols = cause.rebuild(bl, info)[0]
         _, kk, FF, pp = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
@@ -850,8 +882,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     why = cause.check(info, bl) if cause.check else None
     if why:
         return {"reason": f"implausible: {why}", "significant": True}
-    M, vif, ang, weak = _determined(st.Q, cols[rows], settings.vif_max)
-    ev.update({"max_vif": vif, "principal_angle_deg": ang, "weak_directions": weak})
+    M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max)
+    ev.update({"vif": vif, "max_vif": vif_worst, "principal_angle_deg": ang, "weak_directions": weak})
     if M.shape[1] == 0:
         return {"reason": f"confounded with the baseline (principal angle {ang:.2g} deg)", "significant": True}
     # prediction and CV use the cause's own columns (a held-out set-up refits the
@@ -861,10 +893,10 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     cv = folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), kept[rows]]) if terms else kept[rows])
     gain = cv_cur - cv
     m2 = (settings.material_sigma * sigma) ** 2
-    ev.update({"cv_rms_before_um": float(np.sqrt(cv_cur)) * UM, "cv_rms_after_um": float(np.sqrt(cv)) * UM,
-               "cv_gain_um2": gain * UM ** 2, "materiality_um2": m2 * UM ** 2})
+    ev.update({"cv_rms_before_um": float(np.sqrt(cv_cur)) / UM, "cv_rms_after_um": float(np.sqrt(cv)) / UM,
+               "cv_gain_um2": gain / UM ** 2, "materiality_um2": m2 / UM ** 2})
     if gain < m2:
-        return {"reason": f"cross-validated gain {gain * UM ** 2:.3g} um^2 below materiality {m2 * UM ** 2:.3g} um^2",
+        return {"reason": f"cross-validated gain {gain / UM ** 2:.3g} um^2 below materiality {m2 / UM ** 2:.3g} um^2",
                 "significant": True}
     tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak,
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
@@ -971,7 +1003,7 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows):
     return out, u95
 
 
-def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings) -> dict:
+def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> dict:
     """How much of what a smooth term in the cause's covariate explains the cause explains."""
     others = [o for o in terms if o is not tm]
     so = _state(Qb, y, rows, others)
@@ -983,7 +1015,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings) -> dict:
         cov = bl.covariate(tm.covariate)
         if cov is None:
             return {"kept": True, "rival_share": 1.0, "rival": None}
-        B = term_basis(cov, bl.modes, rows)
+        B = bases[cov.name][rows]
     U = new_basis(so.Q, np.hstack([B, tm.columns[rows]]))
     ss_r = float(np.sum((U.T @ so.r) ** 2))
     k_r = U.shape[1]
@@ -995,11 +1027,11 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings) -> dict:
     share = d_n / d_r if d_r > 0 else 1.0
     immaterial = (d_r - d_n) < (settings.material_sigma * sigma) ** 2 * len(rows)
     return {"kept": bool(share >= settings.rival_share or immaterial), "rival_share": float(share),
-            "rival": tm.covariate, "explained_ss_um2": max(d_n, 0.0) * UM ** 2,
-            "rival_explained_ss_um2": max(d_r, 0.0) * UM ** 2}
+            "rival": tm.covariate, "explained_ss_um2": max(d_n, 0.0) / UM ** 2,
+            "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}
 
 
-def _alternatives(bl, tm: Term, named, Qb, y, rows, sigma, settings) -> list:
+def _alternatives(bl, tm: Term, named, Qb, y, rows, sigma, settings, bases) -> list:
     """Covariates of other families whose smooth term reproduces the cause's signal.
 
     The cause's signal is its contribution to the joint fit (its columns'
@@ -1024,7 +1056,7 @@ def _alternatives(bl, tm: Term, named, Qb, y, rows, sigma, settings) -> list:
     for cov in bl.covariates:
         if not cov.family or cov.family == fam:
             continue
-        U = new_basis(so.Q, term_basis(cov, bl.modes, rows))
+        U = new_basis(so.Q, bases[cov.name][rows])
         if U.shape[1] == 0:
             continue
         overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
@@ -1046,7 +1078,7 @@ def _pspline_penalty(cov, n_modes: int, m: int) -> np.ndarray:
     return np.kron(np.eye(n_modes), P1)
 
 
-def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings) -> Term | None:
+def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings, bases) -> Term | None:
     """The penalised smooth term in the strongest remaining covariate, if it earns its keep."""
     top = next((d for d in diag if d.significant(settings.alpha_family)), None)
     if top is None:
@@ -1054,7 +1086,7 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
     cov = bl.covariate(top.covariate)
     if cov is None:
         return None
-    B = term_basis(cov, bl.modes)  # all rows
+    B = bases[cov.name]  # all rows
     m = B.shape[1] // len(cov.modes)
     P1 = _pspline_penalty(cov, len(cov.modes), m)
     E_named = _stack(terms, rows)
@@ -1070,8 +1102,8 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
     cv, lam = best
     gain = cv_cur - cv
     m2 = (settings.material_sigma * sigma) ** 2
-    ev = {"covariate": cov.name, "diagnosis": top.words, "cv_rms_before_um": float(np.sqrt(cv_cur)) * UM,
-          "cv_rms_after_um": float(np.sqrt(cv)) * UM, "cv_gain_um2": gain * UM ** 2, "penalty": float(lam / scale),
+    ev = {"covariate": cov.name, "diagnosis": top.words, "cv_rms_before_um": float(np.sqrt(cv_cur)) / UM,
+          "cv_rms_after_um": float(np.sqrt(cv)) / UM, "cv_gain_um2": gain / UM ** 2, "penalty": float(lam / scale),
           "adopted": bool(gain >= m2)}
     if gain < m2:
         return Term(causes_mod.UNEXPLAINED, np.zeros((bl.n, 0)), (), {}, cov.name, evidence=ev,
@@ -1080,7 +1112,7 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
                 cov.name, evidence=ev, penalty=lam * P1)
 
 
-def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named) -> list:
+def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases) -> list:
     out = []
     sig = st.sigma
     for tm in terms:
@@ -1093,15 +1125,15 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         ev = dict(tm.evidence)
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
-        share = _rival_share(bl, tm, named, Qb, y, rows, sig, settings)
+        share = _rival_share(bl, tm, named, Qb, y, rows, sig, settings, bases)
         ev["explained_ss_um2"] = share["explained_ss_um2"]
-        alt = _alternatives(bl, tm, named, Qb, y, rows, sig, settings)
+        alt = _alternatives(bl, tm, named, Qb, y, rows, sig, settings, bases)
         ev["alternatives"] = alt
         ev["indistinguishable_from"] = [a["covariate"] for a in alt if a["indistinguishable"]]
         ev["confidence"] = "ambiguous" if ev["indistinguishable_from"] else "named"
         ev["explained_rms_um"] = float(np.sqrt(share["explained_ss_um2"] / len(rows)))
         out.append(Finding(tm.cause, _clean(ev), {**_info_params(tm.info), **vals}, u95,
-                           float(np.sqrt(st.rss / len(rows))) * UM, cause.books_to))
+                           float(np.sqrt(st.rss / len(rows))) / UM, cause.books_to))
     if structure_e["present"]:
         ev = {"diagnosis": [d.to_dict() for d in diag_e if d.significant(settings.alpha_family)],
               "cv_gap": structure_e["cv_gap"], "lack_of_fit": structure_e["lack_of_fit"],
@@ -1116,13 +1148,13 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             ev["smooth"] = smooth.evidence
             if smooth.columns.shape[1]:
                 ss = _smooth_ss(bl, terms, smooth, Qb, y, rows)
-                ev["explained_ss_um2"] = ss * UM ** 2
-                params = {"covariate": smooth.covariate, "explained_rms_um": float(np.sqrt(ss / len(rows))) * UM}
+                ev["explained_ss_um2"] = ss / UM ** 2
+                params = {"covariate": smooth.covariate, "explained_rms_um": float(np.sqrt(ss / len(rows))) / UM}
                 u95 = {"explained_rms_um": None}
         if "explained_ss_um2" not in ev:
             top = next((d for d in diag_e if d.significant(settings.alpha_family)), None)
             ev["explained_ss_um2"] = (top.explained_rms_um ** 2 * len(rows)) if top else 0.0
-        out.append(Finding(causes_mod.UNEXPLAINED, _clean(ev), params, u95, st.sigma * UM, "unknown"))
+        out.append(Finding(causes_mod.UNEXPLAINED, _clean(ev), params, u95, st.sigma / UM, "unknown"))
     return out
 
 
@@ -1154,11 +1186,11 @@ def _outlier_finding(bl, outliers, st0, st) -> Finding:
     r0 = st0.r[outliers]
     ss = float(np.sum(r0 ** 2))
     return Finding(causes_mod.OUTLIER, {
-        "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) * UM for v in r0],
-        "explained_ss_um2": ss * UM ** 2,
+        "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) / UM for v in r0],
+        "explained_ss_um2": ss / UM ** 2,
         "test": "studentized deleted residual beyond the Bonferroni t bound"},
-        {"n_outliers": int(len(outliers)), "max_deviation_um": float(np.max(np.abs(r0))) * UM},
-        {"max_deviation_um": None}, st.sigma * UM, "data")
+        {"n_outliers": int(len(outliers)), "max_deviation_um": float(np.max(np.abs(r0))) / UM},
+        {"max_deviation_um": None}, st.sigma / UM, "data")
 
 
 def _unexplained_only(diag, structure, st, sigma) -> Finding:
@@ -1170,7 +1202,7 @@ def _unexplained_only(diag, structure, st, sigma) -> Finding:
     return Finding(causes_mod.UNEXPLAINED, _clean({
         "text": words, "diagnosis": [d.to_dict() for d in diag if d.covariate in structure["covariates"]],
         "cv_gap": structure["cv_gap"], "lack_of_fit": structure["lack_of_fit"],
-        "explained_ss_um2": (top.explained_rms_um ** 2 * st.dof) if top else 0.0}), {}, {}, st.sigma * UM, "unknown")
+        "explained_ss_um2": (top.explained_rms_um ** 2 * st.dof) if top else 0.0}), {}, {}, st.sigma / UM, "unknown")
 
 
 def _workpiece(bl: Baseline, terms, y, rows, st0, st):
@@ -1200,10 +1232,10 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st):
     for i, tid in enumerate(bl.estimand_ids):
         j = q[i]
         out.append({"target": tid,
-                    "baseline_um": float(gb[j]) * UM if eb[j] else None,
-                    "extended_um": float(ge[j]) * UM if ee[j] else None,
-                    "baseline_u95_um": float(2 * np.sqrt(max(cb[j, j], 0))) * UM if eb[j] else None,
-                    "extended_u95_um": float(2 * np.sqrt(max(ce[j, j], 0))) * UM if ee[j] else None})
+                    "baseline_um": float(gb[j]) / UM if eb[j] else None,
+                    "extended_um": float(ge[j]) / UM if ee[j] else None,
+                    "baseline_u95_um": float(2 * np.sqrt(max(cb[j, j], 0))) / UM if eb[j] else None,
+                    "extended_u95_um": float(2 * np.sqrt(max(ce[j, j], 0))) / UM if ee[j] else None})
     ident = bool(np.all(eb[q]) and np.all(ee[q]))
     return (out, ident, np.where(eb[q], gb[q], np.nan), np.where(ee[q], ge[q], np.nan),
             cb[np.ix_(q, q)], ce[np.ix_(q, q)])

@@ -15,7 +15,19 @@ probe_lobing          the probe's pre-travel lobing (k = 2, 3 Fourier terms)
 reversal              ``Reversal`` (lost motion) of the X or Y axis
 nonrigid              ``CrossAxis``: the X error grows with x * y
 outlier               a chip on the pocket wall during one set-up (1-3 touches)
+c_axis_drift          ``Drift`` of ``ECC`` (saturating) over the campaign
+thermal_expansion     ``Drift`` of an X/Y scale following a temperature
+                      history, which the log carries as ``temp_scale_C``
+                      (sensor noise 5 mK)
+local_scale_defect    a Gaussian bump (sigma 3-5 mm) on ``EXX`` or ``EYY``
+probe_lobing_unoriented  a 2-lobe pre-travel turned by a random angle in
+                      every set-up (one probe run per set-up)
+part_change           one pocket wall growing set-up by set-up (a bump
+                      over the wall's middle; one part per set-up)
 ===================== ========================================================
+
+Not simulated here (the simulator's plans approach along the normal):
+stylus bending with the approach elevation (see the blind generators).
 
 Each set-up ends by re-probing sixteen pocket targets (four per wall
 direction), the drift check a careful metrologist adds: without repeated
@@ -32,15 +44,17 @@ workpiece's position, rotation and scale in W).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
 from core.exceptions import ConfigError
 
+from core.units import MM, UM
+
 HIDDEN_CAUSES = ("none", "outlier", "thermal_drift", "periodic_axis_error", "probe_lobing", "reversal",
-                 "nonrigid")
-UM = 1e-6
-MM = 1e-3
+                 "nonrigid", "c_axis_drift", "thermal_expansion", "local_scale_defect", "probe_lobing_unoriented",
+                 "part_change")
 
 
 @dataclass(frozen=True)
@@ -53,6 +67,7 @@ class HiddenTruth:
     w_W: dict = field(repr=False)  # target -> (2,) nominal contact point in W, m
     wn_W: dict = field(repr=False)  # target -> (2,) normal in W
     outlier_rows: tuple = ()
+    acceptable: tuple = ()  # report causes that name what was hidden (the cause itself, by default)
 
 
 def _mag(rng, lo_um=1.0, hi_um=4.0) -> float:
@@ -60,13 +75,14 @@ def _mag(rng, lo_um=1.0, hi_um=4.0) -> float:
 
 
 def _effects(causes, rng, duration_s: float):
-    """Extra machine errors, probe settings and chips for the causes."""
-    from sim.errorfuncs import CrossAxis, Drift, Periodic, Reversal
+    """Extra machine errors, probe settings, chips and per-set-up variants for the causes."""
+    from sim.errorfuncs import CrossAxis, Drift, Periodic, Reversal, SplineTable
 
     errs: dict = {}
     probe_kw: dict = {}
     chips = []
     params: dict = {}
+    extra: dict = {}
 
     def add(sym, f):
         errs[sym] = errs[sym] + f if sym in errs else f
@@ -110,9 +126,40 @@ def _effects(causes, rng, duration_s: float):
             n = int(rng.integers(1, 4))
             chips = [abs(_mag(rng, 3.0, 10.0)) for _ in range(n)]
             params[c] = {"chips_um": [h / UM for h in chips]}
+        elif c == "c_axis_drift":  # m at 100 mm radius by the end, saturating
+            m = _mag(rng)
+            tau = duration_s / 2
+            add("ECC", Drift(offset_rate=m / 0.1 / (tau * -np.expm1(-duration_s / tau)), tau_s=tau))
+            params[c] = {"total_urad": m / 0.1 / 1e-6}
+        elif c == "thermal_expansion":  # a scale following a temperature that rises and falls
+            sym = str(rng.choice(["EXX", "EYY"]))
+            ts = np.linspace(0, duration_s * 1.05, 60)
+            dT = float(rng.uniform(0.8, 2.0))
+            T = 20 + dT * np.sin(2 * np.pi * rng.uniform(0.8, 1.6) * ts / duration_s + rng.uniform(0, 2 * np.pi))
+            m = _mag(rng)
+            alpha = m / (0.1 * dT)  # m at 100 mm per dT
+            add(sym, Drift(scale_per_K=alpha, temperature_t_s=tuple(ts), temperature_K=tuple(T)))
+            extra["temperature"] = (ts, T)
+            params[c] = {"symbol": sym, "alpha_um_per_m_K": alpha * 1e6, "range_K": 2 * dT}
+        elif c == "local_scale_defect":
+            sym = str(rng.choice(["EXX", "EYY"]))
+            sig = float(rng.uniform(3.0, 5.0)) * MM
+            x0 = float(rng.uniform(-0.06, 0.06))
+            m = _mag(rng, 1.5, 4.0)
+            nodes = x0 + sig * np.arange(-5, 5.01, 0.25)
+            add(sym, SplineTable(tuple(nodes), tuple(m * np.exp(-0.5 * ((nodes - x0) / sig) ** 2))))
+            params[c] = {"symbol": sym, "centre_mm": x0 / MM, "sigma_mm": sig / MM, "amplitude_um": m / UM}
+        elif c == "probe_lobing_unoriented":
+            m = abs(_mag(rng))
+            extra["lobe_turns"] = (2, m, rng.uniform(0, np.pi, 16))
+            params[c] = {"k2_amplitude_um": m / UM}
+        elif c == "part_change":
+            m = _mag(rng, 1.5, 4.0)
+            extra["wall_growth"] = (m, int(rng.integers(4)))
+            params[c] = {"total_um": m / UM}
         else:
             raise ConfigError(f"unknown hidden cause {c!r}; expected one of {', '.join(HIDDEN_CAUSES)}")
-    return errs, probe_kw, chips, params
+    return errs, probe_kw, chips, params, extra
 
 
 def hidden_campaign(causes=("none",), seed: int = 0, *, noise_sigma_m: float = 0.3e-6,
@@ -146,30 +193,110 @@ def hidden_campaign(causes=("none",), seed: int = 0, *, noise_sigma_m: float = 0
         seed if machine_seed is None else machine_seed), ripple=False)
     art = A.cross_pocket()
     plan = drift_check_plan(art)
-    # the campaign's length (drift totals refer to it): a dry, noise-free run
-    dry = simulate_campaign(art, Machine(MACHINES["nmv3000"](errors=base)), ProbeConfig(), list(c_angles_deg),
-                            None, plan=plan, check_collisions=False)
-    duration = float(np.nanmax(dry.col("t_s")))
-    extra, probe_kw, chips, params = _effects(causes, rng, duration)
+    angles = tuple(float(a) for a in c_angles_deg)
+    duration = _duration(angles)  # the campaign's length (drift totals refer to it)
+    extra, probe_kw, chips, params, variants = _effects(causes, rng, duration)
     errs = dict(base)
     for k, f in extra.items():
         errs[k] = errs[k] + f if k in errs else f
     machine = Machine(MACHINES["nmv3000"](errors=errs))
     probe = ProbeConfig(repeatability_k2_m=2 * noise_sigma_m, **probe_kw)
-    noise = np.random.default_rng([seed, 1])
     meta = {"hidden": "yes (see the test that made it)"}
-    if not chips:
-        log = simulate_campaign(art, machine, probe, list(c_angles_deg), noise, plan=plan, meta=meta)
-        out_rows = ()
+    out_rows: tuple = ()
+    if chips:
+        log, out_rows = _with_chips(art, plan, machine, probe, list(angles), seed, chips, rng, meta)
+    elif "lobe_turns" in variants or "wall_growth" in variants:
+        arts, probes = [art] * len(angles), [probe] * len(angles)
+        if "lobe_turns" in variants:
+            k, m, psi = variants["lobe_turns"]
+            probes = [ProbeConfig(repeatability_k2_m=2 * noise_sigma_m, **{**probe_kw, "lobing_m": tuple(
+                probe_kw.get("lobing_m", ())) + ((k, m * np.cos(k * p), m * np.sin(k * p)),)}) for p in psi[:len(angles)]]
+        if "wall_growth" in variants:
+            m, wall = variants["wall_growth"]
+            arts = [_grown_wall(art, plan, wall, m * j / max(len(angles) - 1, 1)) for j in range(len(angles))]
+        log = _per_setup(arts, probes, plan, machine, list(angles), seed, meta)
     else:
-        log, out_rows = _with_chips(art, plan, machine, probe, list(c_angles_deg), seed, chips, rng, meta)
+        log = simulate_campaign(art, machine, probe, list(angles), np.random.default_rng([seed, 1]), plan=plan,
+                                meta=meta, check_collisions=False)
+    if "temperature" in variants:
+        log = _with_temperature(log, *variants["temperature"], np.random.default_rng([seed, 2]))
     g_true = workpiece_truth(art, plan)
     tg = list(dict.fromkeys(plan.target))
     first = {k: plan.target.index(k) for k in tg}
     truth = HiddenTruth(causes=causes, params=params, g_true_m=g_true,
                         w_W={k: plan.w_A[first[k], :2] for k in tg}, wn_W={k: plan.wn_A[first[k], :2] for k in tg},
-                        outlier_rows=tuple(out_rows))
+                        outlier_rows=tuple(out_rows), acceptable=tuple(c for c in causes))
     return log, truth
+
+
+@lru_cache(maxsize=8)
+def _duration(angles: tuple) -> float:
+    """Length of the campaign (s): a dry run on a perfect machine, with the collision check.
+
+    The moves and times do not depend on micrometre errors, so the hidden
+    campaigns with these angles need neither run again (they skip the check).
+    """
+    from sim import artefacts as A
+    from sim.campaign import simulate_campaign
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+    from sim.probe import ProbeConfig
+
+    art = A.cross_pocket()
+    dry = simulate_campaign(art, Machine(MACHINES["nmv3000"]()), ProbeConfig(), list(angles), None,
+                            plan=drift_check_plan(art), check_collisions=True)
+    return float(np.nanmax(dry.col("t_s")))
+
+
+def _per_setup(arts, probes, plan, machine, c_angles, seed, meta):
+    """A campaign whose set-up j is probed on ``arts[j]`` with ``probes[j]``.
+
+    One full run per distinct (part, probe) with identically seeded noise
+    (same moves, same times, same noise draws); set-up j's rows come from
+    run j. Time-dependent machine effects stay continuous.
+    """
+    from core.probelog import make_log
+    from sim.campaign import simulate_campaign
+
+    runs = [simulate_campaign(a, machine, p, c_angles, np.random.default_rng([seed, 1]), plan=plan, meta=meta,
+                              check_collisions=False) for a, p in zip(arts, probes)]
+    n_per = plan.n
+    cols = {}
+    for k in runs[0].columns:
+        parts = [r.columns[k][j * n_per:(j + 1) * n_per] for j, r in enumerate(runs)]
+        cols[k] = np.concatenate(parts) if runs[0].columns[k].dtype != object else np.array(
+            [v for p in parts for v in p], dtype=object)
+    return make_log(cols, runs[0].meta)
+
+
+def _grown_wall(art, plan, wall: int, growth_m: float):
+    """The part with one pocket wall (0..3: +x, +y, -x, -y in A) grown outwards by up to ``growth_m``.
+
+    A Gaussian bump over the wall's middle (sigma a third of the wall's
+    probed length) added to the pocket's form.
+    """
+    from sim import artefacts as A
+
+    d = np.array([(1, 0), (0, 1), (-1, 0), (0, -1)][wall], float)
+    pocket = np.flatnonzero(np.asarray(plan.feature) == "pocket")
+    on = pocket[plan.wn_A[pocket, :2] @ d > 0.99]
+    pts = plan.w_A[on]
+    centre = pts.mean(axis=0)
+    sigma = max(float(np.ptp(pts[:, :2] @ np.array([-d[1], d[0]]))) / 3, 5 * MM)
+    feat = art.feature("pocket")
+    base = [feat.true.form] if feat.true.form is not None else []
+    # the form is the material's outward deviation: a wall grown outwards moves towards the stylus
+    return _replace_pocket_form(art, A.FormSum(tuple(base + [A.Bump(growth_m, tuple(centre), sigma)])))
+
+
+def _with_temperature(log, ts, T, rng):
+    """The log with a ``temp_scale_C`` column: the history at each touch plus 5 mK sensor noise."""
+    from core.probelog import make_log
+
+    cols = dict(log.columns)
+    t = np.asarray(log.col("t_s"), float)
+    cols["temp_scale_C"] = np.round(np.interp(t, ts, T) + rng.normal(0, 0.005, len(t)), 4)
+    return make_log(cols, log.meta)
 
 
 def drift_check_plan(art, per_direction: int = 4):
@@ -211,8 +338,10 @@ def _with_chips(art, plan, machine, probe, c_angles, seed, chips, rng, meta):
     feat = art.feature("pocket")
     base_form = [feat.true.form] if feat.true.form is not None else []
     dirty = _replace_pocket_form(art, A.FormSum(tuple(base_form + bumps)))
-    clean = simulate_campaign(art, machine, probe, c_angles, np.random.default_rng([seed, 1]), plan=plan, meta=meta)
-    dirt = simulate_campaign(dirty, machine, probe, c_angles, np.random.default_rng([seed, 1]), plan=plan, meta=meta)
+    clean = simulate_campaign(art, machine, probe, c_angles, np.random.default_rng([seed, 1]), plan=plan, meta=meta,
+                              check_collisions=False)
+    dirt = simulate_campaign(dirty, machine, probe, c_angles, np.random.default_rng([seed, 1]), plan=plan, meta=meta,
+                             check_collisions=False)
     n_per = plan.n
     take = np.zeros(clean.n, bool)
     take[dirty_setup * n_per:(dirty_setup + 1) * n_per] = True
@@ -260,12 +389,24 @@ def remove_gauge(g, P, N) -> np.ndarray:
     N : (n, 2) float
         Outward normals in W.
     """
+    from core.lsq import remove_span
+
+    return remove_span(np.asarray(g, float), gauge_basis(P, N))
+
+
+def gauge_basis(P, N) -> np.ndarray:
+    """(n, 5) what self-calibration cannot see in per-target values: shift (2), rotation, scale, offset.
+
+    Parameters
+    ----------
+    P : (n, 2) float
+        Nominal points in the part's frame, m.
+    N : (n, 2) float
+        Outward normals there.
+    """
     P, N = np.asarray(P, float), np.asarray(N, float)
-    B = np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
-                         np.einsum("ij,ij->i", N, P), np.ones(len(P))])
-    Q, _ = np.linalg.qr(B)
-    g = np.asarray(g, float)
-    return g - Q @ (Q.T @ g)
+    return np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
+                            np.einsum("ij,ij->i", N, P), np.ones(len(P))])
 
 
 def gauge_free_rms_m(g_m, ids, g_true: dict, w_W: dict, wn_W: dict) -> float:
@@ -289,3 +430,169 @@ def workpiece_errors_um(report: dict, truth: HiddenTruth) -> tuple[float, float]
     ids = [w["target"] for w in rows]
     return tuple(gauge_free_rms_m(np.array([w[k] for w in rows]) * UM, ids, truth.g_true_m, truth.w_W,
                                   truth.wn_W) / UM for k in ("baseline_um", "extended_um"))
+
+
+# ---------------------------------------------------------------------------
+# studies: many campaigns per effect, the confusion matrix and the workpiece
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Outcome:
+    """One campaign of a study.
+
+    Attributes
+    ----------
+    generator, effect : str
+    seed : int
+    acceptable : tuple of str
+        Report causes that name the effect (``none`` for an effect-free one).
+    cause : str
+        The report's cause.
+    findings : tuple of str
+    confident : bool
+        The cause was named without an ambiguity flag.
+    effect_um : float
+        RMS per touch of what the baseline left of the effect: the baseline's
+        residual variance less the true noise's share, um (0 when below).
+    noise_um : float
+    wp_base_um, wp_ext_um : float
+        RMS over targets of (estimate - truth) after removing what
+        self-calibration cannot see; NaN when not identifiable.
+    wp_u95_um : float
+        RMS over targets of the extended workpiece's U95 after the same removal.
+    seconds : float
+        Time of discovery.
+    """
+
+    generator: str
+    effect: str
+    seed: int
+    acceptable: tuple
+    cause: str
+    findings: tuple
+    confident: bool
+    effect_um: float
+    noise_um: float
+    wp_base_um: float
+    wp_ext_um: float
+    wp_u95_um: float
+    seconds: float
+
+
+def catalogue_names() -> set:
+    """The named causes of the planar catalogue (outlier included)."""
+    from core import causes
+
+    return {c.name for c in causes.for_kind("planar")} | {causes.OUTLIER}
+
+
+def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true: dict | None, noise_um: float,
+                 identifiable: bool = True, **discover_kw) -> Outcome:
+    """Discover on one campaign and score it against its truth."""
+    import time
+
+    from core.discover import discover
+    from core.touches import from_log
+
+    t = from_log(log)
+    t0 = time.perf_counter()
+    d = discover(t, chain=log.meta.get("kinematic_chain"), **discover_kw)
+    dt = time.perf_counter() - t0
+    rep = d.to_report()
+    bl = d.baseline
+    n, p = bl.n, rep["baseline"]["n_params"]
+    eff2 = rep["baseline"]["rms_um"] ** 2 - noise_um ** 2 * (n - p) / n
+    wb = we = wu = float("nan")
+    if g_true is not None and d.G_baseline_m is not None:
+        ids = list(bl.estimand_ids)
+        keep = np.array([k in g_true for k in ids])
+        P, N = bl.geometry
+        if keep.sum() >= 6:
+            B = gauge_basis(P[keep], N[keep])
+            truth = np.array([g_true[k] for k, ok in zip(ids, keep) if ok])
+            from core.lsq import remove_span
+
+            def err(G):
+                e = remove_span(G[keep] - truth, B)
+                return float(np.sqrt(np.mean(e ** 2))) / UM if np.all(np.isfinite(e)) else float("nan")
+
+            wb, we = err(d.G_baseline_m), err(d.G_extended_m)
+            if identifiable and d.cov_G_extended is not None and np.all(np.isfinite(d.G_extended_m[keep])):
+                Pm = remove_span(np.eye(int(keep.sum())), B)
+                C = d.cov_G_extended[np.ix_(keep, keep)]
+                wu = float(np.sqrt(np.mean(4 * np.maximum(np.einsum("ij,jk,ik->i", Pm, C, Pm), 0)))) / UM
+    conf = not any(f["evidence"].get("confidence") == "ambiguous" for f in rep["findings"][:1])
+    return Outcome(generator, effect, int(seed), tuple(acceptable), rep["cause"],
+                   tuple(f["cause"] for f in rep["findings"]), bool(conf),
+                   float(np.sqrt(max(eff2, 0.0))), float(noise_um), wb, we, wu, dt)
+
+
+def binomial_interval(k: int, n: int, level: float = 0.95) -> tuple:
+    """Clopper-Pearson (exact) interval of a rate k / n."""
+    from scipy import stats
+
+    if n == 0:
+        return (float("nan"), float("nan"))
+    a = (1 - level) / 2
+    lo = 0.0 if k == 0 else float(stats.beta.ppf(a, k, n - k + 1))
+    hi = 1.0 if k == n else float(stats.beta.ppf(1 - a, k + 1, n - k))
+    return (lo, hi)
+
+
+def summarize(outcomes) -> dict:
+    """The aims of issue 13 item 7 as rates with their binomial intervals.
+
+    - ``false_alarm``: effect-free campaigns whose cause is not ``none``;
+    - ``catalogue``: catalogue effects whose campaign kept at least one
+      noise sigma per touch after the baseline, named acceptably;
+    - ``out_of_catalogue``: effects with no catalogue name among their
+      acceptable causes, reported ``unexplained`` or acceptably;
+    - ``confident_misnamed``: out-of-catalogue effects named with a wrong
+      catalogue cause without an ambiguity flag;
+    - ``workpiece_ok``: campaigns whose extended workpiece is no worse than
+      the baseline's beyond its U95 (both gauge-free against the truth).
+    """
+    cat = catalogue_names()
+    out: dict = {}
+
+    def rate(name, sel, ok):
+        k, n = int(sum(ok)), int(len(sel))
+        out[name] = {"k": k, "n": n, "rate": k / n if n else float("nan"), "ci95": binomial_interval(k, n)}
+
+    none = [o for o in outcomes if o.acceptable == ("none",)]
+    rate("false_alarm", none, [o.cause != "none" for o in none])
+    catl = [o for o in outcomes if set(o.acceptable) & cat and o.effect_um >= o.noise_um]
+    rate("catalogue", catl, [o.cause in o.acceptable for o in catl])
+    ooc = [o for o in outcomes if o.acceptable != ("none",) and not set(o.acceptable) & cat]
+    rate("out_of_catalogue", ooc, [o.cause in o.acceptable or o.cause == "unexplained" for o in ooc])
+    rate("confident_misnamed", ooc, [o.cause in cat and o.cause not in o.acceptable and o.confident for o in ooc])
+    wp = [o for o in outcomes if np.isfinite(o.wp_base_um) and np.isfinite(o.wp_ext_um) and np.isfinite(o.wp_u95_um)]
+    rate("workpiece_ok", wp, [o.wp_ext_um <= o.wp_base_um + o.wp_u95_um for o in wp])
+    if wp:
+        out["workpiece_mean_um"] = {"baseline": float(np.mean([o.wp_base_um for o in wp])),
+                                    "extended": float(np.mean([o.wp_ext_um for o in wp]))}
+    out["seconds_mean"] = float(np.mean([o.seconds for o in outcomes])) if outcomes else float("nan")
+    return out
+
+
+def format_study(outcomes, title: str = "") -> str:
+    """The confusion matrix (effect x reported cause), the aims with intervals and the workpiece."""
+    effects = list(dict.fromkeys(o.effect for o in outcomes))
+    causes = sorted({o.cause for o in outcomes})
+    w = max([len(e) for e in effects] + [8])
+    lines = [title] if title else []
+    lines.append(" " * (w + 1) + " ".join(f"{c[:10]:>10s}" for c in causes) + "   wp base->ext um (U95)")
+    for e in effects:
+        sel = [o for o in outcomes if o.effect == e]
+        row = " ".join(f"{sum(o.cause == c for o in sel):10d}" for c in causes)
+        fin = [o for o in sel if np.isfinite(o.wp_base_um) and np.isfinite(o.wp_ext_um)]
+        wp = (f"{np.mean([o.wp_base_um for o in fin]):.3f}->{np.mean([o.wp_ext_um for o in fin]):.3f}"
+              f" ({np.nanmean([o.wp_u95_um for o in fin]):.2f})" if fin else "n/a")
+        lines.append(f"{e:<{w}s} {row}   {wp}")
+    s = summarize(outcomes)
+    for k in ("false_alarm", "catalogue", "out_of_catalogue", "confident_misnamed", "workpiece_ok"):
+        v = s[k]
+        if v["n"]:
+            lines.append(f"{k:20s} {v['k']:3d}/{v['n']:<3d} = {v['rate']:.2f}  (95 % CI {v['ci95'][0]:.2f}-"
+                         f"{v['ci95'][1]:.2f})")
+    lines.append(f"discover mean {s['seconds_mean']:.2f} s per campaign")
+    return "\n".join(lines)

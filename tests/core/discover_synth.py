@@ -50,14 +50,14 @@ def plan(c_deg=(0.0, 75.0, 130.0, 210.0), repeats: int = 16, shift_m=(0.0, 0.0))
 
 
 def machine_and_form(t, rng):
-    """Smooth machine errors (within the baseline's model) and a workpiece form, m."""
+    """Smooth machine errors (within the baseline's model) and a workpiece form: (dq per touch, form per target), m."""
     x, y = t.pn_R[:, 0] - t.pn_R[:, 0].mean(), t.pn_R[:, 1] - t.pn_R[:, 1].mean()
     nx, ny = t.n_R[:, 0], t.n_R[:, 1]
     a = rng.normal(0, 1, 6)
     ex = 1e-6 * (3 * a[0] * x / 0.1 + a[1] * np.sin(x / 0.05) + 2 * a[2] * (y / 0.1) ** 2)
     ey = 1e-6 * (2 * a[3] * y / 0.1 + a[4] * np.cos(y / 0.04) + 2 * a[5] * (x / 0.1) ** 2)
     form = 1e-6 * rng.normal(0, 1, len(t.target_ids))
-    return -nx * ex - ny * ey + form[t.target]
+    return -nx * ex - ny * ey + form[t.target], form
 
 
 def effect(name: str, t, rng, mag_m: float, c0=(0.0, 0.0)) -> tuple[np.ndarray, dict]:
@@ -113,10 +113,17 @@ def effect(name: str, t, rng, mag_m: float, c0=(0.0, 0.0)) -> tuple[np.ndarray, 
     return e, kw
 
 
-def campaign(name: str, seed: int, mag_m: float = 2e-6, sigma_m: float = SIG, shift_m=(0.0, 0.0), t=None):
-    """Touches with the effect ``name`` at ``mag_m`` over ``sigma_m`` noise (seeded)."""
+def campaign(name: str, seed: int, mag_m: float = 2e-6, sigma_m: float = SIG, shift_m=(0.0, 0.0), t=None,
+             with_form: bool = False):
+    """Touches with the effect ``name`` at ``mag_m`` over ``sigma_m`` noise (seeded).
+
+    Returns (touches, effect per touch m) or, with ``with_form``, also the
+    true workpiece form per target (m, ``t.target_ids`` order).
+    """
     rng = np.random.default_rng(seed)
     t = plan(shift_m=shift_m) if t is None else t
     e, kw = effect(name, t, rng, mag_m, c0=shift_m)
-    dq = machine_and_form(t, rng) + e + rng.normal(0, sigma_m, t.n)
-    return dataclasses.replace(t, p_R=t.pn_R + dq[:, None] * t.n_R, **kw), e
+    mf, form = machine_and_form(t, rng)
+    dq = mf + e + rng.normal(0, sigma_m, t.n)
+    out = dataclasses.replace(t, p_R=t.pn_R + dq[:, None] * t.n_R, **kw)
+    return (out, e, form) if with_form else (out, e)
