@@ -160,6 +160,8 @@ class PlanarData:
     grid_step_m : float
     span_s : float
     temps : dict[str, (n,) float]
+    extra : dict[str, (n,) float]
+        Other numeric columns of the log (a feed, a spindle load ...).
     """
 
     touches: Touches = field(repr=False)
@@ -180,6 +182,7 @@ class PlanarData:
     grid_step_m: float
     span_s: float
     temps: dict = field(repr=False)
+    extra: dict = field(default_factory=dict, repr=False)
 
 
 PLANAR_MODES = ("scalar", "x translation", "y translation", "x scale", "y scale", "x shear (by y)",
@@ -229,7 +232,29 @@ def c_axis_centre(t: Touches) -> np.ndarray:
     return sol
 
 
-def planar_data(t: Touches, grid_step_m: float) -> PlanarData:
+def extra_columns(log, rows) -> dict:
+    """Numeric columns of a probe log beyond the format's own, at ``rows``: name -> (n,) float.
+
+    Columns the format defines (and ``temp_*_C``, read as temperatures)
+    are left out, as are text columns and constant ones. Discovery tests
+    the rest as covariates too: every covariate the log holds.
+    """
+    from .probelog import OPTIONAL, REQUIRED
+
+    out = {}
+    for name, v in log.columns.items():
+        if name in REQUIRED or name in OPTIONAL or name.startswith("temp_"):
+            continue
+        try:
+            a = np.asarray(v, float)[rows]
+        except (TypeError, ValueError):
+            continue
+        if np.all(np.isfinite(a)) and np.ptp(a) > 0:
+            out[name] = a
+    return out
+
+
+def planar_data(t: Touches, grid_step_m: float, extra: dict | None = None) -> PlanarData:
     """The centred, scaled geometry and times the planar causes use."""
     x, y = t.pn_R[:, 0], t.pn_R[:, 1]
     xc, yc = (x.max() + x.min()) / 2, (y.max() + y.min()) / 2
@@ -256,7 +281,8 @@ def planar_data(t: Touches, grid_step_m: float) -> PlanarData:
         tau=(t.t_s - t0) / span, t_in=tin, c0_m=c0, rot_m=rot, wn_az=np.angle(np.exp(1j * wn_az)),
         grid_step_m=float(grid_step_m), span_s=span,
         temps={k: np.asarray(v, float) for k, v in t.temps_C.items()
-               if np.all(np.isfinite(v)) and np.ptp(v) > 0})
+               if np.all(np.isfinite(v)) and np.ptp(v) > 0},
+        extra={k: np.asarray(v, float) for k, v in (extra or {}).items()})
 
 
 def planar_covariates(d: PlanarData) -> tuple:
@@ -301,6 +327,8 @@ def planar_covariates(d: PlanarData) -> tuple:
     for name, v in d.temps.items():
         short = name[5:-2] if name.startswith("temp_") and name.endswith("_C") else name
         covs.append(Covariate(f"temp_{short}", v, "smooth", 5, allm, f"the temperature {name}", "time"))
+    for name, v in d.extra.items():
+        covs.append(Covariate(name, v, "smooth", 5, allm, f"the column {name}", "other"))
     return tuple(covs)
 
 
@@ -360,7 +388,7 @@ def _bic(rss: float, n: int, k: int) -> float:
 
 
 def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 30.0, 40.0, 55.0, 80.0), *,
-           select_grid: bool = True, yaw: str = "ECY") -> Baseline:
+           select_grid: bool = True, yaw: str = "ECY", extra: dict | None = None) -> Baseline:
     """The 2D self-calibration baseline (eqs 1-18) on the grid the data choose.
 
     Touches with normals out of the XY plane must be removed by the caller.
@@ -400,10 +428,10 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
             p = A.shape[1]
             A = np.hstack([A, H])
             C = np.hstack([C, np.zeros((C.shape[0], H.shape[1]))])
-            extra = np.zeros((len(hg), A.shape[1]))
+            rows_g = np.zeros((len(hg), A.shape[1]))
             for r, c in enumerate(hg):
-                extra[r, p + c] = 1.0
-            C = np.vstack([C, extra])
+                rows_g[r, p + c] = 1.0
+            C = np.vstack([C, rows_g])
             d = np.concatenate([d, np.zeros(len(hg))])
             names = names + hn
         Q = orth(A, tol=RANK_TOL)
@@ -438,7 +466,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         item, why = fallback
         ident = False
     st, des, A, C, d, names, levels, _ = item
-    data = planar_data(t, st * MM)
+    data = planar_data(t, st * MM, extra)
     G = des.slices["G"]
     key = np.full(t.n, -1)
     pair = t.setup * len(t.target_ids) + t.target

@@ -21,6 +21,9 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
 - ``check(info, baseline) -> reason or None`` before the fit (a period below
   the Nyquist limit) and ``plausible(values, u95) -> reason or None`` after
   it (lobing amplitudes that differ between set-ups);
+- ``counter(baseline) -> (n, m)``: the plainer explanation's columns (a
+  finer error map for a non-rigid coupling): the cause is refused when
+  they explain as much as it does;
 - ``rebuild(baseline, info) -> (T, n, k)``: the columns for changed
   nonlinear parameters ``nonlinear`` (a period, a position; arrays give T
   trials at once): the engine refines them and carries their uncertainty;
@@ -96,6 +99,7 @@ class Cause:
     rival: Callable | None = None
     check: Callable | None = None
     plausible: Callable | None = None
+    counter: Callable | None = None
 
     @property
     def doc(self) -> str:
@@ -651,6 +655,24 @@ def nonrigid_scans(bl):
     return [_one(cols, _NONRIGID, {}, "xy")], 1.0
 
 
+def finer_error_map(bl) -> np.ndarray:
+    """The rigid-body error map on a grid twice as fine: the plainer explanation of an x-y structure.
+
+    ``EXX``, ``EYX`` as B-splines of x; ``EXY``, ``EYY`` of y; the chain's
+    yaw term (``ECY(y) x`` when X rides on Y, ``ECX(x) y`` otherwise: the
+    other one is itself a coupling), with twice as many functions as the
+    baseline's grid has nodes.
+    """
+    from .diagnosis import spline_basis
+
+    d = bl.data
+    kx = 2 * int(np.ceil(np.ptp(d.x) / d.grid_step_m)) + 2
+    ky = 2 * int(np.ceil(np.ptp(d.y) / d.grid_step_m)) + 2
+    Fx, Fy = spline_basis(d.x, kx), spline_basis(d.y, ky)
+    yaw = (-(d.ny * d.xs)[:, None] * Fy if bl.info.get("yaw", "ECY") == "ECY" else (d.nx * d.ys)[:, None] * Fx)
+    return np.hstack([-d.nx[:, None] * Fx, -d.ny[:, None] * Fx, -d.nx[:, None] * Fy, -d.ny[:, None] * Fy, yaw])
+
+
 def nonrigid_magnitudes(info, coef, bl):
     return {f"{k}_um": float(c) / UM for k, c in zip(_NONRIGID, coef)}
 
@@ -663,10 +685,10 @@ REGISTRY = {c.name: c for c in (
     Cause("thermal_drift", ("planar",), "machine", drift_scans, drift_magnitudes,
           {"x_offset_change_um": (-500, 500), "y_offset_change_um": (-500, 500),
            "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}),
-    Cause("c_axis_drift", ("planar",), "machine", c_drift_scans, c_drift_magnitudes,
+    Cause("c_drift", ("planar",), "machine", c_drift_scans, c_drift_magnitudes,
           {"ECC_change_in_setup_urad": (-2000, 2000), "ECC_change_over_campaign_urad": (-2000, 2000),
            "ECC_change_rms_urad": (0, 2000), "ECC_change_urad[*]": (-2000, 2000)}),
-    Cause("thermal_expansion", ("planar",), "machine", expansion_scans, expansion_magnitudes,
+    Cause("temperature_expansion", ("planar",), "machine", expansion_scans, expansion_magnitudes,
           {"alpha_x_um_per_m_K": (-60, 60), "alpha_y_um_per_m_K": (-60, 60),
            "x_offset_um_per_K": (-50, 50), "y_offset_um_per_K": (-50, 50)}),
     Cause("periodic_axis_error", ("planar",), "machine", periodic_scans, periodic_magnitudes,
@@ -674,7 +696,7 @@ REGISTRY = {c.name: c for c in (
            "EYY_amplitude_um": (0, 50)}, periodic_rebuild, ("period_m",), check=periodic_check),
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
           {"pretravel_variation_pv_um": (0, 50)}),
-    Cause("probe_lobing_unoriented", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
+    Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
           {"amplitude_um": (0, 50)}, plausible=unoriented_plausible),
     Cause("stylus_bending", ("planar",), "probe", bending_scans, bending_magnitudes,
           {"pretravel_change_um": (-50, 50)}),
@@ -685,7 +707,7 @@ REGISTRY = {c.name: c for c in (
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
           {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,
-          {f"{k}_um": (-200, 200) for k in _NONRIGID}),
+          {f"{k}_um": (-200, 200) for k in _NONRIGID}, counter=finer_error_map),
     Cause(OUTLIER, ("planar", "volumetric", "positioning"), "data", None, None, {},
           summary="A few observations deviate grossly (a chip or dust on the surface, a bad trigger, a "
                   "misread): studentized deleted residuals beyond a Bonferroni bound, removed one at a time."),

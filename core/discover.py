@@ -35,15 +35,23 @@ What it does, in order, and the statistics behind each step
    c. material cross-validated gain: the held-out mean square must fall by
       at least ``(material_sigma * sigma)^2`` per row;
    d. plausibility: magnitudes inside the cause's bounds (beyond their
-      U95), periods above the Nyquist limit.
+      U95), periods above the Nyquist limit;
+   e. the structure lives where the cause says: no smooth function of a
+      covariate of another family (time, position, direction, feature:
+      :attr:`core.diagnosis.Covariate.family`) explains materially more
+      than both the cause's columns and the best smooth function of a
+      covariate of its own family (debiased sums of squares).
 
    Among those, the lowest cross-validated mean square wins; within the
    materiality margin of it, the fewest columns (parsimony).
 5. **Rival check**: a named cause must explain the structure in its own
    covariate at least :attr:`Settings.rival_share` as well as a
    catalogue-free smooth function of that covariate does (debiased sums of
-   squares), or fall short of it by an immaterial amount. Otherwise it was
-   a guess that caught part of something else: it is dropped and said so.
+   squares), or fall short of it by an immaterial amount; and its plainer
+   counter-explanation (:attr:`core.causes.Cause.counter`, e.g. a finer
+   error map against a non-rigid coupling) must not explain as much.
+   Otherwise it was a guess that caught part of something else: it is
+   dropped and said so.
 6. **Unexplained**: if structure remains (diagnosis, lack of fit or CV gap
    significant and material), the cause list gains ``unexplained`` with
    the diagnosis; a penalised smooth term in the strongest covariate
@@ -483,7 +491,8 @@ class Discovery:
 # the engine
 # ---------------------------------------------------------------------------
 def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Settings = Settings(),
-             chain: str | None = None, rng: np.random.Generator | None = None, progress=None) -> Discovery:
+             chain: str | None = None, rng: np.random.Generator | None = None, progress=None,
+             extra: dict | None = None) -> Discovery:
     """Find what the 2D self-calibration model gets wrong in a campaign.
 
     Parameters
@@ -503,6 +512,9 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         (the report is then reproducible).
     progress : callable(done, total) or None
         Called as the work advances (the CLI shows time left).
+    extra : dict[str, (n,) float] or None
+        Further covariates per touch (the log's other numeric columns,
+        :func:`core.baseline.extra_columns`), aligned with ``t``.
 
     Raises
     ------
@@ -513,11 +525,16 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     """
     planar = np.abs(t.n_R[:, 2]) <= selfcal.NZ_MAX
     left_out = int(t.n - planar.sum())
+    extra = {k: np.asarray(v, float) for k, v in (extra or {}).items()}
+    for k, v in extra.items():
+        if v.shape != (t.n,):
+            raise ConfigError(f"extra covariate {k!r}: expected {t.n} values, got {v.shape}")
     if left_out:
         t = t.subset(planar, reindex=True)
+        extra = {k: v[planar] for k, v in extra.items()}
     bl_mod.check_planar(t)
     bl = bl_mod.planar(t, grid_step_mm, settings.grid_steps_mm, select_grid=settings.select_grid,
-                       yaw=selfcal.yaw_for_chain(chain))
+                       yaw=selfcal.yaw_for_chain(chain), extra=extra)
     if left_out:
         bl = _with_convention(bl, f"{left_out} touches with normals out of the XY plane left out of the planar "
                                   "baseline")
@@ -586,36 +603,58 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # 3. named causes, greedily
     scans = {c.name: c.scans(bl) for c in catalogue}
     n_causes = max(sum(1 for c in catalogue if scans[c.name][0]), 1)
-    terms: list[Term] = []
     rejected: list[dict] = []
-    cv_cur = cv_b
-    for _ in range(settings.max_findings):
-        best = None
-        for cause in catalogue:
-            if any(tm.cause == cause.name for tm in terms):
-                continue
-            sc, tries = scans[cause.name]
-            tick()
-            if not sc:
-                continue
-            cand = _evaluate(cause, sc, tries * n_causes, bl, st, folds, terms, cv_cur, noise_sigma(st), settings)
-            if cand.get("reason"):
-                if cand.get("significant"):
-                    rejected.append({"cause": cause.name, "reason": cand["reason"]})
-                continue
-            margin = settings.material_sigma ** 2 * noise_sigma(st) ** 2
-            if best is None or cand["cv"] < best["cv"] - margin or (
-                    cand["cv"] <= best["cv"] + margin and cand["term"].columns.shape[1] < best["term"].columns.shape[1]):
-                best = cand
-        if best is None:
-            break
-        terms.append(best["term"])
-        # outliers judged against the better model: a systematic effect is no dust
-        X = np.hstack([bl.A, _stack(terms, all_rows)])
-        new_rows = np.setdiff1d(all_rows, find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac))
-        Qb, folds, st = model(new_rows, terms)
-        rows = new_rows
-        cv_cur = folds.mse(y[rows], _stack(terms, rows))
+
+    def search(rows, st, folds, Qb, diag0, cv0):
+        """Greedy rounds from a set of rows; outliers re-judged after each adoption."""
+        terms: list[Term] = []
+        cv_cur = cv0
+        for rnd in range(settings.max_findings):
+            best = None
+            # where the structure lives now, per covariate family (debiased sums of squares)
+            diag_now = diag0 if rnd == 0 else diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes,
+                                                       sigma_m=noise_sigma(st), material_sigma=settings.material_sigma,
+                                                       rows=rows, bases=bases)
+            families = _family_ss(bl, diag_now, len(rows))
+            for cause in catalogue:
+                if any(tm.cause == cause.name for tm in terms):
+                    continue
+                sc, tries = scans[cause.name]
+                tick()
+                if not sc:
+                    continue
+                cand = _evaluate(cause, sc, tries * n_causes, bl, st, folds, terms, cv_cur, noise_sigma(st), settings,
+                                 families)
+                if cand.get("reason"):
+                    if cand.get("significant"):
+                        rejected.append({"cause": cause.name, "reason": cand["reason"]})
+                    continue
+                margin = settings.material_sigma ** 2 * noise_sigma(st) ** 2
+                if best is None or cand["cv"] < best["cv"] - margin or (
+                        cand["cv"] <= best["cv"] + margin
+                        and cand["term"].columns.shape[1] < best["term"].columns.shape[1]):
+                    best = cand
+            if best is None:
+                break
+            terms.append(best["term"])
+            # outliers judged against the better model: a systematic effect is no dust
+            X = np.hstack([bl.A, _stack(terms, all_rows)])
+            rows = np.setdiff1d(all_rows, find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac))
+            Qb, folds, st = model(rows, terms)
+            cv_cur = folds.mse(y[rows], _stack(terms, rows))
+        return terms, rows, st, folds, Qb
+
+    terms, rows, st, folds, Qb = search(rows, st, folds, Qb, diag_b, cv_b)
+    if len(rows) < N:
+        # the rows called outliers may be a systematic effect's largest
+        # residuals: search again with every row; if a cause is then adopted
+        # and no outlier is left against it, the "outliers" were its structure
+        Qa, fa, sa = model(all_rows, [])
+        t2, r2, s2, f2, q2 = search(all_rows, sa, fa, Qa, diagnose(
+            sa.Q, sa.r, sa.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(sa),
+            material_sigma=settings.material_sigma, bases=bases), fa.mse(y))
+        if t2 and len(r2) == N:
+            terms, rows, st, folds, Qb = t2, r2, s2, f2, q2
     tick()
 
     # 4. rival check: a named cause must explain its covariate's structure
@@ -629,8 +668,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if not share["kept"]:
                 terms.remove(tm)
                 demoted.append({"cause": tm.cause, **share})
-                rejected.append({"cause": tm.cause, "reason": "explains only part of the structure in "
-                                 f"{tm.covariate} (share {share['rival_share']:.2f} of a smooth term's)"})
+                why = (f"a plainer explanation ({share['counter']}) explains as much"
+                       if "counter_explained_ss_um2" in share and share["rival_share"] >= settings.rival_share else
+                       f"explains only part of the structure in {tm.covariate} (share {share['rival_share']:.2f} of "
+                       "a smooth term's)")
+                rejected.append({"cause": tm.cause, "reason": why})
                 Qb, folds, st = model(rows, terms)
                 changed = True
                 break
@@ -658,7 +700,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             # of that structure, not its own: it goes
             E_s = smooth.columns[rows]
             cv_s = folds.mse(y[rows], np.hstack([E_named, E_s]), _penalty(terms + [smooth]))
+            fam_s = bl.covariate(smooth.covariate).family
             for tm in list(terms):
+                cov_n = bl.covariate(tm.covariate)
+                if cov_n is not None and cov_n.family == fam_s:
+                    continue  # the unnamed term refines the cause's own covariate: the cause stays
                 rest = [t for t in terms if t is not tm]
                 cv_wo = folds.mse(y[rows], np.hstack([_stack(rest, rows), E_s]), _penalty(rest + [smooth]))
                 if cv_wo - cv_s < (settings.material_sigma * sig) ** 2:
@@ -806,6 +852,13 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     return info
 
 
+def _candidate_ss(C: np.ndarray, st: _State) -> float:
+    """Debiased sum of squares a candidate's columns (1, n, k) explain beside the model."""
+    ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
+    s2 = max(st.rss - ss[0], 1e-300) / max(st.dof - k[0], 1)
+    return float(max(ss[0] - k[0] * s2, 0.0))
+
+
 def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
     """The combinations of a cause's columns the data determine beside the model.
 
@@ -849,8 +902,22 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
     return M, best, worst, ang, int((~good).sum())
 
 
-def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, sigma, settings) -> dict:
-    """One cause against the current model: the four tests of adoption (module docstring 4a-d)."""
+def _family_ss(bl, diag, n) -> dict:
+    """Largest debiased sum of squares a smooth term explains, per covariate family: {family: (ss, covariate)}."""
+    out: dict = {}
+    for d in diag:
+        cov = bl.covariate(d.covariate)
+        if cov is None or not cov.family:
+            continue
+        ss = (d.explained_rms_um * UM) ** 2 * n
+        if ss > out.get(cov.family, (-1.0, ""))[0]:
+            out[cov.family] = (ss, d.covariate)
+    return out
+
+
+def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, sigma, settings,
+              families=None) -> dict:
+    """One cause against the current model: the tests of adoption (module docstring 4a-e)."""
     rows = st.rows
     best = None
     for sc in scans:
@@ -879,6 +946,20 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     ev = {"F": F_val, "p_value": p_val, "p_adjusted": p_adj, "tries": float(tries), "k": k_val}
     if p_adj >= settings.alpha_family:
         return {"reason": f"not significant ({fmt_p(p_adj)} after Bonferroni over {tries:.0f} tries)"}
+    # e. the structure must live where the cause says: a smooth function of a
+    # covariate of another family may not explain materially more than it
+    if families:
+        ss_n = _candidate_ss(cols[None, rows], st)
+        cov = bl.covariate(sc.covariate)
+        fam = cov.family if cov is not None else ""
+        m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
+        own = max(ss_n, families.get(fam, (0.0, ""))[0])
+        for f, (ss_f, name) in families.items():
+            if f != fam and ss_f > own + m_ss:
+                return {"reason": f"the structure follows {name} ({f}) more than this cause's form or its "
+                                  f"family ({ss_f / UM ** 2:.3g} against {own / UM ** 2:.3g} um^2)",
+                        "significant": True}
+        ev["explained_ss_um2_at_adoption"] = ss_n / UM ** 2
     why = cause.check(info, bl) if cause.check else None
     if why:
         return {"reason": f"implausible: {why}", "significant": True}
@@ -1025,10 +1106,20 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     d_n = ss_n - k_n * s2
     d_r = ss_r - k_r * s2
     share = d_n / d_r if d_r > 0 else 1.0
-    immaterial = (d_r - d_n) < (settings.material_sigma * sigma) ** 2 * len(rows)
-    return {"kept": bool(share >= settings.rival_share or immaterial), "rival_share": float(share),
-            "rival": tm.covariate, "explained_ss_um2": max(d_n, 0.0) / UM ** 2,
-            "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}
+    m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
+    immaterial = (d_r - d_n) < m_ss
+    out = {"kept": bool(share >= settings.rival_share or immaterial), "rival_share": float(share),
+           "rival": tm.covariate, "explained_ss_um2": max(d_n, 0.0) / UM ** 2,
+           "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}
+    if cause is not None and cause.counter is not None:
+        # the plainer explanation (a finer error map for a coupling): it must not do as well
+        Uc = new_basis(so.Q, cause.counter(bl)[rows])
+        d_c = float(np.sum((Uc.T @ so.r) ** 2)) - Uc.shape[1] * s2
+        out["counter"] = cause.counter.__name__.replace("_", " ")
+        out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
+        if d_c > d_n - m_ss:
+            out["kept"] = False
+    return out
 
 
 def _alternatives(bl, tm: Term, named, Qb, y, rows, sigma, settings, bases) -> list:

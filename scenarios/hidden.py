@@ -15,12 +15,12 @@ probe_lobing          the probe's pre-travel lobing (k = 2, 3 Fourier terms)
 reversal              ``Reversal`` (lost motion) of the X or Y axis
 nonrigid              ``CrossAxis``: the X error grows with x * y
 outlier               a chip on the pocket wall during one set-up (1-3 touches)
-c_axis_drift          ``Drift`` of ``ECC`` (saturating) over the campaign
-thermal_expansion     ``Drift`` of an X/Y scale following a temperature
+c_drift          ``Drift`` of ``ECC`` (saturating) over the campaign
+temperature_expansion     ``Drift`` of an X/Y scale following a temperature
                       history, which the log carries as ``temp_scale_C``
                       (sensor noise 5 mK)
 local_scale_defect    a Gaussian bump (sigma 3-5 mm) on ``EXX`` or ``EYY``
-probe_lobing_unoriented  a 2-lobe pre-travel turned by a random angle in
+lobing_per_setup  a 2-lobe pre-travel turned by a random angle in
                       every set-up (one probe run per set-up)
 part_change           one pocket wall growing set-up by set-up (a bump
                       over the wall's middle; one part per set-up)
@@ -53,7 +53,7 @@ from core.exceptions import ConfigError
 from core.units import MM, UM
 
 HIDDEN_CAUSES = ("none", "outlier", "thermal_drift", "periodic_axis_error", "probe_lobing", "reversal",
-                 "nonrigid", "c_axis_drift", "thermal_expansion", "local_scale_defect", "probe_lobing_unoriented",
+                 "nonrigid", "c_drift", "temperature_expansion", "local_scale_defect", "lobing_per_setup",
                  "part_change")
 
 
@@ -126,12 +126,12 @@ def _effects(causes, rng, duration_s: float):
             n = int(rng.integers(1, 4))
             chips = [abs(_mag(rng, 3.0, 10.0)) for _ in range(n)]
             params[c] = {"chips_um": [h / UM for h in chips]}
-        elif c == "c_axis_drift":  # m at 100 mm radius by the end, saturating
+        elif c == "c_drift":  # m at 100 mm radius by the end, saturating
             m = _mag(rng)
             tau = duration_s / 2
             add("ECC", Drift(offset_rate=m / 0.1 / (tau * -np.expm1(-duration_s / tau)), tau_s=tau))
             params[c] = {"total_urad": m / 0.1 / 1e-6}
-        elif c == "thermal_expansion":  # a scale following a temperature that rises and falls
+        elif c == "temperature_expansion":  # a scale following a temperature that rises and falls
             sym = str(rng.choice(["EXX", "EYY"]))
             ts = np.linspace(0, duration_s * 1.05, 60)
             dT = float(rng.uniform(0.8, 2.0))
@@ -149,7 +149,7 @@ def _effects(causes, rng, duration_s: float):
             nodes = x0 + sig * np.arange(-5, 5.01, 0.25)
             add(sym, SplineTable(tuple(nodes), tuple(m * np.exp(-0.5 * ((nodes - x0) / sig) ** 2))))
             params[c] = {"symbol": sym, "centre_mm": x0 / MM, "sigma_mm": sig / MM, "amplitude_um": m / UM}
-        elif c == "probe_lobing_unoriented":
+        elif c == "lobing_per_setup":
             m = abs(_mag(rng))
             extra["lobe_turns"] = (2, m, rng.uniform(0, np.pi, 16))
             params[c] = {"k2_amplitude_um": m / UM}
@@ -450,9 +450,10 @@ class Outcome:
     findings : tuple of str
     confident : bool
         The cause was named without an ambiguity flag.
-    effect_um : float
-        RMS per touch of what the baseline left of the effect: the baseline's
-        residual variance less the true noise's share, um (0 when below).
+    visible_sigmas : float
+        RMS per touch of what the baseline leaves of the effect, in noise
+        sigmas: the generator's own figure when it gives one, else the
+        baseline's residual variance less the true noise's share.
     noise_um : float
     wp_base_um, wp_ext_um : float
         RMS over targets of (estimate - truth) after removing what
@@ -470,7 +471,7 @@ class Outcome:
     cause: str
     findings: tuple
     confident: bool
-    effect_um: float
+    visible_sigmas: float
     noise_um: float
     wp_base_um: float
     wp_ext_um: float
@@ -486,16 +487,17 @@ def catalogue_names() -> set:
 
 
 def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true: dict | None, noise_um: float,
-                 identifiable: bool = True, **discover_kw) -> Outcome:
-    """Discover on one campaign and score it against its truth."""
+                 identifiable: bool = True, visible_sigmas: float | None = None, **discover_kw) -> Outcome:
+    """Discover on one campaign and score it against its truth (the log's other columns as covariates)."""
     import time
 
+    from core.baseline import extra_columns
     from core.discover import discover
     from core.touches import from_log
 
     t = from_log(log)
     t0 = time.perf_counter()
-    d = discover(t, chain=log.meta.get("kinematic_chain"), **discover_kw)
+    d = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row), **discover_kw)
     dt = time.perf_counter() - t0
     rep = d.to_report()
     bl = d.baseline
@@ -521,9 +523,9 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
                 C = d.cov_G_extended[np.ix_(keep, keep)]
                 wu = float(np.sqrt(np.mean(4 * np.maximum(np.einsum("ij,jk,ik->i", Pm, C, Pm), 0)))) / UM
     conf = not any(f["evidence"].get("confidence") == "ambiguous" for f in rep["findings"][:1])
+    vis = float(visible_sigmas) if visible_sigmas is not None else float(np.sqrt(max(eff2, 0.0)) / noise_um)
     return Outcome(generator, effect, int(seed), tuple(acceptable), rep["cause"],
-                   tuple(f["cause"] for f in rep["findings"]), bool(conf),
-                   float(np.sqrt(max(eff2, 0.0))), float(noise_um), wb, we, wu, dt)
+                   tuple(f["cause"] for f in rep["findings"]), bool(conf), vis, float(noise_um), wb, we, wu, dt)
 
 
 def binomial_interval(k: int, n: int, level: float = 0.95) -> tuple:
@@ -560,7 +562,7 @@ def summarize(outcomes) -> dict:
 
     none = [o for o in outcomes if o.acceptable == ("none",)]
     rate("false_alarm", none, [o.cause != "none" for o in none])
-    catl = [o for o in outcomes if set(o.acceptable) & cat and o.effect_um >= o.noise_um]
+    catl = [o for o in outcomes if set(o.acceptable) & cat and o.visible_sigmas >= 1.0]
     rate("catalogue", catl, [o.cause in o.acceptable for o in catl])
     ooc = [o for o in outcomes if o.acceptable != ("none",) and not set(o.acceptable) & cat]
     rate("out_of_catalogue", ooc, [o.cause in o.acceptable or o.cause == "unexplained" for o in ooc])
@@ -596,3 +598,28 @@ def format_study(outcomes, title: str = "") -> str:
                          f"{v['ci95'][1]:.2f})")
     lines.append(f"discover mean {s['seconds_mean']:.2f} s per campaign")
     return "\n".join(lines)
+
+
+def hidden_outcome(effect: str, seed: int, **discover_kw) -> Outcome:
+    """One campaign of :func:`hidden_campaign` with ``effect`` hidden, discovered and scored."""
+    log, truth = hidden_campaign((effect,), seed)
+    geo = {k: truth.g_true_m[k] for k in truth.g_true_m}
+    return run_campaign("hidden", effect, seed, log, (effect,), geo, 0.3, **discover_kw)
+
+
+def blind_outcome(module, effect: str, seed: int, generator: str = "", **discover_kw) -> Outcome:
+    """One campaign of a blind generator (``generate(effect, seed) -> (log, Truth)``), discovered and scored.
+
+    Only the generator's interface is used: the log, and from its Truth the
+    acceptable causes, the noise, the workpiece per target (``targets``,
+    ``workpiece_um``), whether it is identifiable and how visible the
+    effect stays after the baseline (``visible_sigmas``).
+    """
+    log, tr = module.generate(effect, seed)
+    g_true = None
+    if getattr(tr, "workpiece_um", None) is not None and getattr(tr, "targets", None) is not None:
+        g_true = {str(k): float(v) * UM for k, v in zip(tr.targets, np.asarray(tr.workpiece_um, float))}
+    return run_campaign(generator or module.__name__.rsplit(".", 1)[-1], effect, seed, log,
+                        tuple(tr.acceptable_causes), g_true, float(tr.noise_um),
+                        identifiable=bool(tr.workpiece_identifiable),
+                        visible_sigmas=getattr(tr, "visible_sigmas", None), **discover_kw)

@@ -76,10 +76,10 @@ def effect(name: str, t, rng, mag_m: float, c0=(0.0, 0.0)) -> tuple[np.ndarray, 
         e = 0 * x
     elif name == "thermal_drift":  # an x scale growing to a steady state
         e = -nx * mag_m * (x / 0.1) * (1 - np.exp(-3 * tau))
-    elif name == "c_axis_drift":  # the table creeping after each indexing (saturating)
+    elif name == "c_drift":  # the table creeping after each indexing (saturating)
         rot = -nx * (t.pn_R[:, 1] - c0[1]) + ny * (t.pn_R[:, 0] - c0[0])
         e = rot * (mag_m / 0.08) * (1 - np.exp(-4 * tin))
-    elif name == "thermal_expansion":
+    elif name == "temperature_expansion":
         T = 20 + 1.5 * np.sin(2 * np.pi * 1.3 * tau) + 0.3 * tau
         alpha = mag_m / (0.1 * 1.5)
         e = -ny * alpha * y * (T - T.mean())
@@ -88,7 +88,7 @@ def effect(name: str, t, rng, mag_m: float, c0=(0.0, 0.0)) -> tuple[np.ndarray, 
         e = -ny * mag_m * np.sin(2 * np.pi * t.pn_R[:, 1] / 0.0093 + 0.4)
     elif name == "probe_lobing":
         e = mag_m * (np.cos(2 * phi + 0.3) + 0.6 * np.sin(3 * phi))
-    elif name == "probe_lobing_unoriented":
+    elif name == "lobing_per_setup":
         psi = np.array([0.0, 0.8, 2.1, 2.9])[t.setup]
         e = mag_m * np.cos(2 * (phi - psi))
     elif name == "stylus_bending":
