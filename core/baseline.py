@@ -308,6 +308,11 @@ def planar_covariates(d: PlanarData) -> tuple:
                               "the approach azimuth, differently in each set-up", "direction"))
     xy = _xy_basis(d.xs, d.ys)
     covs.append(Covariate("xy", xy, "basis", xy.shape[1], (1, 2), "x and y jointly (non-separable)", "position"))
+    from .causes import nyquist_period_m
+
+    for name, v in (("x", d.x), ("y", d.y)):  # structure finer than a smooth term: a ripple along an axis
+        covs.append(Covariate(f"{name}_periodic", v, "spectral", 0, (1, 2), f"the {name} position periodically",
+                              "position", (nyquist_period_m(v), d.grid_step_m)))
     cdeg = np.round(np.degrees(t.rot_rad[:, 2]), 6)
     nc = np.unique(cdeg).size
     if nc >= 3:

@@ -45,6 +45,8 @@ import scipy.linalg as sla
 from scipy import special, stats
 from scipy.interpolate import BSpline
 
+from .units import UM
+
 #: Relative column norm (after projection out of the model) below which a
 #: basis column counts as already inside the model.
 IN_SPAN = 1e-6
@@ -165,9 +167,14 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
         (eigenvalues of the projected, column-normalised Gram above
         ``IN_SPAN^2``), the F statistic and its p-value.
     """
-    nrm = np.linalg.norm(C, axis=1)
+    T, n, k = C.shape
+    nrm = np.sqrt(np.einsum("tnk,tnk->tk", C, C))
     Cn = C / np.maximum(nrm, 1e-300)[:, None, :]
-    P = Cn - Q @ (Q.T @ Cn) if Q.shape[1] else Cn  # batched matmul (BLAS), not einsum
+    if Q.shape[1]:  # one matrix product for every trial: (n, T k)
+        C2 = np.moveaxis(Cn, 0, 1).reshape(n, T * k)
+        P = np.moveaxis((C2 - Q @ (Q.T @ C2)).reshape(n, T, k), 1, 0)
+    else:
+        P = Cn
     Pt = np.swapaxes(P, 1, 2)
     G = Pt @ P
     b = Pt @ r
@@ -233,6 +240,12 @@ class Covariate:
         Covariates of one family are confounded by the way campaigns are
         run (time, touch order and a temperature that follows the clock):
         ``time``, ``position``, ``direction``, ``feature``.
+    period_range : (float, float)
+        For ``kind="spectral"``: the shortest and longest period scanned, in
+        the covariate's unit. A spectral covariate is tested by the best
+        sine of its values (each mode times sin, cos), the p-value
+        Bonferroni-adjusted over the independent frequencies scanned:
+        structure too fine for a smooth basis (a screw ripple) is located.
     """
 
     name: str
@@ -242,6 +255,7 @@ class Covariate:
     modes: tuple
     words: str
     family: str = ""
+    period_range: tuple = ()
 
 
 def spline_basis(v: np.ndarray, size: int) -> np.ndarray:
@@ -293,12 +307,53 @@ def function_basis(cov: Covariate) -> np.ndarray:
         return category_basis(cov.values)
     if cov.kind == "basis":  # the functions themselves, (n, m)
         return np.asarray(cov.values, float)
+    if cov.kind == "spectral":
+        raise ValueError(f"covariate {cov.name!r}: a spectral covariate has no fixed basis")
     raise ValueError(f"covariate {cov.name!r}: unknown kind {cov.kind!r}")
 
 
 def term_bases(covariates, modes: np.ndarray) -> dict:
-    """Every covariate's term basis over all rows, once (name -> (n, m))."""
-    return {c.name: term_basis(c, modes) for c in covariates}
+    """Every covariate's term basis over all rows, once (name -> (n, m)); spectral ones have none."""
+    return {c.name: term_basis(c, modes) for c in covariates if c.kind != "spectral"}
+
+
+@dataclass(frozen=True)
+class _SpectralTest(NestedTest):
+    period: float = 0.0
+
+
+def _spectral(cov: Covariate, Q, r, rss, dof, modes, rows, shortlist: int = 8):
+    """The best sine of a covariate against the residuals (see :attr:`Covariate.period_range`)."""
+    v = np.asarray(cov.values, float)
+    M = modes[:, list(cov.modes)]
+    if rows is not None:
+        v, M = v[rows], M[rows]
+    span = float(np.ptp(v))
+    p_lo, p_hi = cov.period_range
+    if span <= 0 or p_hi <= 1.2 * p_lo:
+        return None
+    f = np.arange(1 / p_hi, 1 / p_lo, 1 / (3 * span))
+    ph = 2 * np.pi * v[:, None] * f[None, :]
+    S, C = np.sin(ph), np.cos(ph)
+    num = np.zeros(len(f))
+    for m in range(M.shape[1]):  # periodogram-like pre-screen (r is orthogonal to the model)
+        w = M[:, m]
+        for F in (S, C):
+            num += ((r * w) @ F) ** 2 / np.maximum((w ** 2) @ (F ** 2), 1e-300)
+    best = None
+    for i in np.argsort(-num)[:shortlist]:
+        B = np.hstack([M * S[:, [i]], M * C[:, [i]]])
+        U = new_basis(Q, B)
+        if U.shape[1] == 0 or dof - U.shape[1] < 5:
+            continue
+        t = nested_f(U, r, rss, dof)
+        if best is None or t.p_value < best[0].p_value:
+            best = (t, U, 1 / f[i])
+    if best is None:
+        return None
+    t, U, P = best
+    tries = max(span * (1 / p_lo - 1 / p_hi), 1.0)  # independent frequencies
+    return cov, _SpectralTest(t.k, t.ss, t.F, min(1.0, t.p_value * tries), t.explained_rms_m, float(P)), U
 
 
 def term_basis(cov: Covariate, modes: np.ndarray, rows=None) -> np.ndarray:
@@ -329,6 +384,8 @@ class Diagnosis:
         0.61 um, p < 1e-6"``).
     material : bool
         Explained RMS at least the materiality threshold (a fraction of the noise).
+    fitted_um : (n,) float or None
+        The fitted smooth term at the rows tested, um (what a figure draws).
     """
 
     covariate: str
@@ -338,6 +395,7 @@ class Diagnosis:
     k: int
     words: str
     material: bool
+    fitted_um: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def significant(self, alpha: float) -> bool:
         return self.p_value < alpha and self.material
@@ -379,20 +437,31 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
     rss = float(r @ r)
     raw = []
     for cov in covariates:
+        if cov.kind == "spectral":
+            res = _spectral(cov, Q, r, rss, dof, modes, rows)
+            if res is not None:
+                raw.append(res)
+            continue
         B = bases[cov.name] if bases is not None else term_basis(cov, modes)
         U = new_basis(Q, B if rows is None else B[rows])
         if U.shape[1] == 0 or dof - U.shape[1] < 5:
             continue
-        raw.append((cov, nested_f(U, r, rss, dof)))
+        raw.append((cov, nested_f(U, r, rss, dof), U))
     if not raw:
         return []
-    adj = holm([t.p_value for _, t in raw])
+    adj = holm([t.p_value for _, t, _ in raw])
     out = []
-    for (cov, t), pa in zip(raw, adj):
-        rms_um = t.explained_rms_m * 1e6
+    for (cov, t, U), pa in zip(raw, adj):
+        rms_um = t.explained_rms_m / UM
+        if cov.kind == "spectral":
+            P = getattr(t, "period", 0.0)
+            words = f"{cov.words} (period {P / 1e-3:.3g} mm)" if cov.family == "position" else \
+                f"{cov.words} (period {P:.3g})"
+        else:
+            words = cov.words
         out.append(Diagnosis(cov.name, rms_um, float(pa), t.p_value, t.k,
-                             f"residuals follow {cov.words}: {rms_um:.2g} µm, {fmt_p(float(pa))}",
-                             t.explained_rms_m >= material_sigma * sigma_m))
+                             f"residuals follow {words}: {rms_um:.2g} µm, {fmt_p(float(pa))}",
+                             t.explained_rms_m >= material_sigma * sigma_m, (U @ (U.T @ r)) / UM))
     out.sort(key=lambda d: (d.p_value, -d.explained_rms_um))
     return out
 

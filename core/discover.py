@@ -1145,7 +1145,7 @@ def _alternatives(bl, tm: Term, named, Qb, y, rows, sigma, settings, bases) -> l
     if d_n <= 0:
         return out
     for cov in bl.covariates:
-        if not cov.family or cov.family == fam:
+        if not cov.family or cov.family == fam or cov.name not in bases:
             continue
         U = new_basis(so.Q, bases[cov.name][rows])
         if U.shape[1] == 0:
@@ -1171,7 +1171,7 @@ def _pspline_penalty(cov, n_modes: int, m: int) -> np.ndarray:
 
 def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings, bases) -> Term | None:
     """The penalised smooth term in the strongest remaining covariate, if it earns its keep."""
-    top = next((d for d in diag if d.significant(settings.alpha_family)), None)
+    top = next((d for d in diag if d.significant(settings.alpha_family) and d.covariate in bases), None)
     if top is None:
         return None
     cov = bl.covariate(top.covariate)

@@ -25,6 +25,7 @@ BENCHES: list[str] = [
     "scenarios.bench.selfcal",
     "scenarios.bench.touch",
     "scenarios.bench.discover",
+    "scenarios.bench.discover_study",
 ]
 
 
