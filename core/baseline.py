@@ -85,6 +85,14 @@ class Baseline:
     conventions : tuple of str
     info : dict
         Kind-specific figures for the report (grid step ...).
+    estimand_label : str
+    whiten : (n, n) float or None
+        When the rows' noise is correlated or of unequal size (the points of
+        an MFB measurement share touches), ``A`` and ``y`` are already
+        multiplied by this matrix (the inverse square root of their noise
+        covariance, scaled to keep the rows' mean size), and the engine
+        multiplies every other column it builds (causes, smooth terms) by
+        it too, so that the tests see independent rows of one variance.
     """
 
     kind: str
@@ -110,6 +118,7 @@ class Baseline:
     conventions: tuple = ()
     info: dict = field(default_factory=dict)
     estimand_label: str = "workpiece"
+    whiten: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def n(self) -> int:
@@ -520,3 +529,183 @@ def check_planar(t: Touches) -> None:
     """Raise ConfigError unless the touches suit the planar baseline."""
     if t.n < 10:
         raise ConfigError(f"discover needs at least 10 valid touches with normals in the XY plane, got {t.n}")
+
+
+# ---------------------------------------------------------------------------
+# volumetric: the 21 errors of three linear axes from MFB placements
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class VolumetricData:
+    """What the volumetric causes build their columns from (W frame, SI).
+
+    One row per component (x, y, z in W) of each point of interest, in the
+    order of :func:`core.volumetric.design`'s rows.
+
+    Attributes
+    ----------
+    design : core.volumetric.Design
+    comp : (n,) int
+        Component of the row (0, 1, 2: x, y, z in W).
+    meas : (n,) int
+        Measurement of the row (index into ``meas_names``).
+    meas_names, placements, styli : tuple of str
+    placement, stylus : (n,) int
+    t_s : (n,) float
+        Time of the row's measurement, s.
+    s : (n,) float
+        Position of the row's point along its bar, centred on the bar and
+        scaled by the half-length probed (-1..1).
+    g_perp : (n,) float
+        The row's component of gravity perpendicular to the bar (``-z_W``
+        less its part along the bar axis): how much a sag of the bar moves
+        the point along this row.
+    O_R : (n, 3) float
+        The point's reading, machine frame, m.
+    touch_cols : list
+        Per measurement: (rows (int array), GW (len(rows), t) gain of the
+        touches' shifts along their approach into those rows (W), d_W
+        (t, 3) approach directions in W).
+    """
+
+    design: object = field(repr=False)
+    comp: np.ndarray = field(repr=False)
+    meas: np.ndarray = field(repr=False)
+    meas_names: tuple
+    placements: tuple
+    styli: tuple
+    placement: np.ndarray = field(repr=False)
+    stylus: np.ndarray = field(repr=False)
+    t_s: np.ndarray = field(repr=False)
+    s: np.ndarray = field(repr=False)
+    g_perp: np.ndarray = field(repr=False)
+    O_R: np.ndarray = field(repr=False)
+    touch_cols: list = field(repr=False)
+
+
+VOLUMETRIC_MODES = ("x (W)", "y (W)", "z (W)")
+#: Cross-validation folds of the volumetric baseline: the holes, by their
+#: number modulo this. Every placement is needed to see some errors (the plan
+#: is built that way), so leaving one out extrapolates; leaving a quarter of
+#: every bar's holes out interpolates, as a new measurement would.
+VOLUMETRIC_FOLDS = 4
+
+
+def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: dict | None = None) -> Baseline:
+    """The volumetric MFB baseline: the first-order problem (2)/(3) of :mod:`core.volumetric` with its ISO gauge.
+
+    Parameters
+    ----------
+    meas : sequence of core.volumetric.Measurement
+    chain, nodes, rotary_points_R_m : as :func:`core.volumetric.design`
+    times_s : dict measurement name -> time of the measurement (s), optional
+        Without it, the measurements' order (one unit each).
+
+    The rows are the points' deviations, one per W component; the folds of
+    the cross-validation are the holes (:data:`VOLUMETRIC_FOLDS`); the
+    estimand is the error tables (every motion error on its nodes and the
+    squarenesses). The covariates: time, placement, stylus, position along
+    the bar, x, y, z, component.
+    """
+    from . import volumetric as vol
+
+    meas = list(meas)
+    d = vol.design(meas, chain, nodes, rotary_points_R_m)
+    names = [m.name for m in meas]
+    places = list(dict.fromkeys(m.placement for m in meas))
+    styli = list(dict.fromkeys(tuple(np.round(np.asarray(m.J_m, float), 6)) for m in meas))
+    comp, mi, pl, st, t_s, s, gp, O, touch, fold, point = [], [], [], [], [], [], [], [], [], [], []
+    row = 0
+    for i, m in enumerate(meas):
+        k = len(m.holes)
+        T = np.asarray(m.T_W_A, float)
+        R = T[:3, :3]
+        x_A = R[:, 0]
+        g = np.array([0.0, 0.0, -1.0])
+        g_perp = g - (g @ x_A) * x_A
+        sA = np.asarray(m.O_A, float)[:, 0]
+        mid, half = (sA.max() + sA.min()) / 2, max(np.ptp(sA) / 2, 1e-9)
+        t_i = float((times_s or {}).get(m.name, i))
+        J = tuple(np.round(np.asarray(m.J_m, float), 6))
+        for p in range(k):
+            for c in range(3):
+                comp.append(c)
+                mi.append(i)
+                pl.append(places.index(m.placement))
+                st.append(styli.index(J))
+                t_s.append(t_i)
+                s.append((sA[p] - mid) / half)
+                gp.append(g_perp[c])
+                O.append(np.asarray(m.O_R, float)[p])
+                fold.append(int(m.holes[p]) % VOLUMETRIC_FOLDS)
+                point.append(len(point) // 3)
+        if m.G_A is not None and m.d_A is not None:
+            t = np.asarray(m.G_A).shape[1]
+            GW = np.einsum("ij,kjt->kit", R, np.asarray(m.G_A, float).reshape(k, 3, t)).reshape(3 * k, t)
+            touch.append((np.arange(row, row + 3 * k), GW, np.asarray(m.d_A, float) @ R.T))
+        row += 3 * k
+    # rows the model removes (the roll component of the mistake-proofing holes:
+    # zero in the design and the observation) carry nothing: left out
+    keep = np.any(d.A != 0, axis=1) | (d.y != 0)
+    new = np.cumsum(keep) - 1
+    touch = [(new[r[keep[r]]], GW[keep[r]], dW) for r, GW, dW in touch]
+    sel = np.flatnonzero(keep)
+    comp = np.array(comp)[sel]
+    fold = np.array(fold)[sel]
+    n = len(sel)
+    data = VolumetricData(d, comp, np.array(mi)[sel], tuple(names), tuple(places),
+                          tuple(",".join(f"{v * 1e3:g}" for v in J) for J in styli), np.array(pl)[sel],
+                          np.array(st)[sel], np.array(t_s, float)[sel], np.array(s)[sel], np.array(gp)[sel],
+                          np.array(O)[sel], touch)
+    W = _point_whitening(touch, n, np.array(point)[sel])
+    modes = np.eye(3)[comp]
+    allm = (0, 1, 2)
+    covs = [Covariate("placement", data.placement, "categorical", 0, allm, "the placement", "time"),
+            Covariate("stylus", data.stylus, "categorical", 0, allm, "the stylus", "direction"),
+            Covariate("along_bar", data.s, "smooth", 5, allm, "the position along the bar", "position"),
+            Covariate("x", data.O_R[:, 0], "smooth", 6, allm, "the x position", "position"),
+            Covariate("y", data.O_R[:, 1], "smooth", 6, allm, "the y position", "position"),
+            Covariate("z", data.O_R[:, 2], "smooth", 6, allm, "the z position", "position")]
+    if np.unique(data.t_s).size >= 3:
+        covs.insert(0, Covariate("time", data.t_s, "smooth", min(5, np.unique(data.t_s).size), allm, "time", "time"))
+    est = np.concatenate([np.arange(d.slices[s_].start, d.slices[s_].stop) for s_ in vol.MOTION + vol.SQUARENESS])
+    return Baseline(
+        kind="volumetric", model="volumetric MFB (Viprey eqs 8-12, touch model (3))", A=W @ d.A[sel],
+        y=W @ d.y[sel], names=d.names, whiten=W,
+        groups=np.array(fold), group_ids=tuple(f"holes = {k} mod {VOLUMETRIC_FOLDS}" for k in range(VOLUMETRIC_FOLDS)),
+        C=d.C, d=np.zeros(d.C.shape[0]), estimand=est,
+        estimand_ids=tuple(d.names[i] for i in est), geometry=None, replicate=np.full(n, -1),
+        covariates=tuple(covs), modes=modes, mode_names=VOLUMETRIC_MODES, rows=sel, data=data,
+        identifiable=not d.unseen.shape[1], why="" if not d.unseen.shape[1] else "the plan leaves combinations unseen",
+        conventions=tuple(d.gauge) + ("rows whitened by each point's noise covariance (its touches' gain)",),
+        info={"placements": len(places), "measurements": len(meas), "cv": False},
+        estimand_label="error tables")
+
+
+def _point_whitening(touch_cols, n: int, point: np.ndarray) -> np.ndarray:
+    """(n, n) inverse square root of each point's noise covariance (a 3 x 3 block per point).
+
+    A point's components come from shared touches: touch noise e
+    (independent, one variance) reaches them as ``GW e``, covariance
+    ``GW GW^T`` (up to the variance). Its inverse square root per point
+    (eigen-decomposition, directions below 1e-8 of the largest left as they
+    are) makes a point's rows independent and of one variance; the matrix
+    is scaled so that the rows keep their mean size (residuals stay in
+    micrometre-like units). Points are kept apart (neighbouring holes share
+    rods, a correlation left in): the cross-validation folds are points,
+    and whitening across them would mix the folds. Rows without touches are
+    left unchanged.
+    """
+    W = np.eye(n)
+    blocks, scale = [], []
+    for rows, GW, _ in touch_cols:
+        for p in np.unique(point[rows]):
+            r = rows[point[rows] == p]
+            Cm = GW[point[rows] == p] @ GW[point[rows] == p].T
+            w, V = np.linalg.eigh(Cm)
+            ok = w > 1e-8 * max(w.max(), 1e-300)
+            blocks.append((r, (V[:, ok] / np.sqrt(w[ok])) @ V[:, ok].T + V[:, ~ok] @ V[:, ~ok].T))
+            scale.append(np.mean(np.diag(Cm)))
+    c = np.sqrt(np.mean(scale)) if scale else 1.0
+    for r, Wi in blocks:
+        W[np.ix_(r, r)] = c * Wi
+    return W

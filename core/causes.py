@@ -8,16 +8,17 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
 - ``kinds``: which baselines it applies to (``planar``, ``volumetric``,
   ``positioning``);
 - ``books_to``: what it is an error of: ``machine``, ``probe``,
-  ``workpiece`` or ``data`` (a part that changes is never booked to the
-  machine);
+  ``workpiece``, ``artefact`` (a reference bar) or ``data`` (a part that
+  changes is never booked to the machine);
 - ``scans(baseline) -> (scans, tries)``: the candidate column sets. A scan
   holds trials of one layout (``columns (T, n, k)``), e.g. one per period of
   a periodic error; ``tries`` is the effective number of independent
   hypotheses tried (the Bonferroni factor of its F test);
 - ``magnitudes(info, coef, baseline) -> dict``: the physical magnitudes,
   units in the keys; their U95 follow by the delta method in the engine;
-- ``bounds``: plausible magnitudes, by key (``fnmatch`` patterns); a fit
-  outside them beyond its U95 is refused as implausible;
+- ``bounds``: plausible magnitudes, by key (``*`` stands for any text); a
+  fit outside them beyond its U95 is refused as implausible, and a
+  magnitude whose U95 is wider than the whole range is not reported;
 - ``check(info, baseline) -> reason or None`` before the fit (a period below
   the Nyquist limit) and ``plausible(values, u95) -> reason or None`` after
   it (lobing amplitudes that differ between set-ups);
@@ -677,11 +678,115 @@ def nonrigid_magnitudes(info, coef, bl):
     return {f"{k}_um": float(c) / UM for k, c in zip(_NONRIGID, coef)}
 
 
+# ---------------------------------------------------------------------------
+# volumetric causes (MFB placements, core.baseline.volumetric)
+# ---------------------------------------------------------------------------
+def vol_drift_scans(bl):
+    """Thermal drift between placements: the axes' scales changing with time.
+
+    The placements are probed over hours; the machine's scales grow with
+    its temperature, so a bar laid along X reads a different length in the
+    morning than in the afternoon: ``E_aa(u, t) = E_aa(u) + s_a tau(t) u``
+    for each axis a, with ``tau`` the time scaled to -1..1 over the
+    campaign (its mean is in the tables). The column of each axis is the
+    design's response to a unit scale of that axis' table, times ``tau``.
+    Parameters: the scale change of X, Y and Z from the first placement to
+    the last (ppm).
+    """
+    d = bl.data
+    des = d.design
+    if np.ptp(d.t_s) <= 0:
+        return [], 1.0
+    tau = 2 * (d.t_s - d.t_s.min()) / np.ptp(d.t_s) - 1
+    cols = []
+    for a in "XYZ":
+        sl = des.slices[f"E{a}{a}"]
+        cols.append((des.A[bl.rows][:, sl] @ des.nodes[a]) * tau)  # the raw design: the engine whitens
+    return [_one(np.column_stack(cols), ["X_scale", "Y_scale", "Z_scale"], {}, "time")], 1.0
+
+
+def vol_drift_magnitudes(info, coef, bl):
+    c = np.asarray(coef)
+    return {f"{a}_scale_change_ppm": 2 * v * 1e6 for a, v in zip("XYZ", c)}
+
+
+def bending_bar_scans(bl):
+    """The bar bending with its support: the points sag under gravity.
+
+    The bar was calibrated lying on its calibration supports; on the
+    machine table it rests on others, and gravity bends it between them.
+    The points of interest then sit lower (along gravity's component
+    perpendicular to the bar) by a smooth even function of their position
+    along the bar: ``w(s) = c_2 P_2(s) + c_4 P_4(s)`` (Legendre, s = -1..1
+    over the holes probed), the same for every placement of the bar at the
+    same inclination. A standing bar does not sag. Parameters: the sag of
+    the middle relative to the ends (um, positive down).
+    """
+    d = bl.data
+    if np.max(np.abs(d.g_perp)) < 1e-6:
+        return [], 1.0
+    P2 = (3 * d.s ** 2 - 1) / 2
+    P4 = (35 * d.s ** 4 - 30 * d.s ** 2 + 3) / 8
+    return [_one(np.column_stack([d.g_perp * P2, d.g_perp * P4]), ["P2", "P4"], {}, "along_bar")], 1.0
+
+
+def bending_bar_magnitudes(info, coef, bl):
+    c2, c4 = np.asarray(coef)
+    # y = target - reading: a point sagging by w along g reads w lower, the
+    # column (g P) takes -w: sag = w(0) - w(1) = -(c2 (P2(0) - P2(1)) + c4 (P4(0) - P4(1)))
+    return {"midspan_sag_um": float(1.5 * c2 + 0.625 * c4) / UM}
+
+
+def stylus_lobing_scans(bl):
+    """Lobing per stylus: each stylus of a star has its own pre-travel pattern.
+
+    A star stylus' arms rest on the same kinematic seat but are pushed
+    through different lever arms, so each has its own pre-travel as a
+    function of the approach direction: ``p(d) = sum_k a_k cos k phi +
+    b_k sin k phi + c d_z^2`` (k = 1..3, phi the approach azimuth in W).
+    A touch triggering late by ``p`` moves the point of interest by the
+    extraction's gain (model (3) of core.volumetric) times ``p``. One set
+    of seven coefficients per stylus. Parameters: the RMS shift of the
+    points of interest it causes and each stylus' pre-travel variation
+    over the azimuth (peak-to-valley, um; holes fitted from points all
+    round see little of the even lobes, so these are often not
+    determined).
+    """
+    d = bl.data
+    if not d.touch_cols:
+        return [], 1.0
+    n = len(d.comp)
+    n_st = len(d.styli)
+    cols = np.zeros((n, 7 * n_st))
+    for rows, GW, dW in d.touch_cols:
+        if not len(rows):
+            continue
+        st = int(d.stylus[rows[0]])
+        phi = np.arctan2(dW[:, 1], dW[:, 0])
+        H = np.column_stack([np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi), np.cos(3 * phi),
+                             np.sin(3 * phi), dW[:, 2] ** 2])
+        cols[rows, 7 * st:7 * st + 7] = GW @ H
+    labels = [f"{h}[{s_}]" for s_ in d.styli for h in ("c1", "s1", "c2", "s2", "c3", "s3", "axial")]
+    return [_one(cols, labels, {"styli": d.styli, "columns": cols}, "stylus")], 1.0
+
+
+def stylus_lobing_magnitudes(info, coef, bl):
+    c = np.asarray(coef).reshape(len(info["styli"]), 7)
+    out = {"point_shift_rms_um": float(np.sqrt(np.mean((info["columns"] @ np.asarray(coef)) ** 2))) / UM}
+    phi = np.linspace(-np.pi, np.pi, 361)
+    H = np.column_stack([np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi), np.cos(3 * phi),
+                         np.sin(3 * phi)])
+    for name, cs in zip(info["styli"], c):
+        out[f"pretravel_pv_um[{name}]"] = _pv(H @ cs[:6]) / UM
+    return out
+
+
 OUTLIER = "outlier"
 UNEXPLAINED = "unexplained"
 NONE = "none"
 
-REGISTRY = {c.name: c for c in (
+#: Every cause, one record each (a name may have a record per baseline kind).
+REGISTRY = (
     Cause("thermal_drift", ("planar",), "machine", drift_scans, drift_magnitudes,
           {"x_offset_change_um": (-500, 500), "y_offset_change_um": (-500, 500),
            "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}),
@@ -711,7 +816,13 @@ REGISTRY = {c.name: c for c in (
     Cause(OUTLIER, ("planar", "volumetric", "positioning"), "data", None, None, {},
           summary="A few observations deviate grossly (a chip or dust on the surface, a bad trigger, a "
                   "misread): studentized deleted residuals beyond a Bonferroni bound, removed one at a time."),
-)}
+    Cause("thermal_drift", ("volumetric",), "machine", vol_drift_scans, vol_drift_magnitudes,
+          {"X_scale_change_ppm": (-500, 500), "Y_scale_change_ppm": (-500, 500), "Z_scale_change_ppm": (-500, 500)}),
+    Cause("bar_bending", ("volumetric",), "artefact", bending_bar_scans, bending_bar_magnitudes,
+          {"midspan_sag_um": (-50, 50)}),
+    Cause("lobing_per_stylus", ("volumetric",), "probe", stylus_lobing_scans, stylus_lobing_magnitudes,
+          {"pretravel_pv_um[*]": (0, 50), "point_shift_rms_um": (0, 50)}),
+)
 
 #: Report names that are not catalogue entries.
 SPECIAL = {NONE: "the baseline explains the data within the noise",
@@ -719,4 +830,14 @@ SPECIAL = {NONE: "the baseline explains the data within the noise",
 
 def for_kind(kind: str) -> list:
     """The causes with columns that apply to a baseline kind (outliers are the engine's)."""
-    return [c for c in REGISTRY.values() if kind in c.kinds and c.scans is not None]
+    return [c for c in REGISTRY if kind in c.kinds and c.scans is not None]
+
+
+def lookup(name: str, kind: str = "planar") -> Cause | None:
+    """The record of cause ``name`` for a baseline kind."""
+    return next((c for c in REGISTRY if c.name == name and kind in c.kinds), None)
+
+
+def names() -> set:
+    """Every cause name of the catalogue (all kinds)."""
+    return {c.name for c in REGISTRY}

@@ -77,7 +77,8 @@ on their part outside that span; the same for every model compared.
 
 from __future__ import annotations
 
-import fnmatch
+import dataclasses
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -206,9 +207,11 @@ class Folds:
             Vs = V[:, keep] / np.sqrt(w[keep])
             U = As @ Vs  # (n_tr, r) orthonormal: the retained training span
             P = (A[te][:, used] / sc[used]) @ Vs  # test rows' prediction per unit of U^T y
+            full = w > 1e-12 * w[-1]
+            Uf = As @ (V[:, full] / np.sqrt(w[full]))  # the whole training span (weak directions too)
             Ao = A[te][:, ~used]
             Qo = orth(Ao) if Ao.shape[1] else np.zeros((te.size, 0))
-            self.items.append((tr, te, U, P, Qo))
+            self.items.append((tr, te, U, P, Qo, Uf))
         if not self.items:
             raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
         self.residuals(np.zeros(self.n))
@@ -224,7 +227,7 @@ class Folds:
         Y2 = Y[:, None] if one else Y
         out = np.zeros_like(Y2, dtype=float)
         self.last_dof = 0
-        for tr, te, U, P, Qo in self.items:
+        for tr, te, U, P, Qo, Uf in self.items:
             ytr = Y2[tr]
             z = U.T @ ytr
             pred = P @ z
@@ -235,18 +238,21 @@ class Folds:
                 eu = en > 1e-9 * max(en.max(), 1e-300)
                 if eu.any():
                     E1 = Etr[:, eu] / en[eu]
-                    zE = U.T @ E1
-                    Gm = E1.T @ E1 - zE.T @ zE
+                    # the extension is fitted on its part outside the whole training
+                    # span (a direction the baseline has but weakly sees is the
+                    # baseline's, not the extension's), then the baseline on the rest
+                    zf = Uf.T @ E1
+                    Gm = E1.T @ E1 - zf.T @ zf
                     if penalty is not None:
                         Gm = Gm + penalty[np.ix_(eu, eu)] / np.outer(en[eu], en[eu])
-                    rhs = E1.T @ ytr - zE.T @ z
+                    rhs = E1.T @ ytr - zf.T @ (Uf.T @ ytr)
                     # truncated like the baseline: directions of the (normalised)
                     # extension that the training rows barely see beyond the
                     # baseline's span are not extrapolated
                     w, V = np.linalg.eigh(Gm)
                     good = w > self.rcond ** 2 * max(w.max(), 1.0) if penalty is None else w > 1e-12 * max(w.max(), 1e-300)
                     c = V[:, good] @ ((V[:, good].T @ rhs) / w[good][:, None])
-                    pred = pred - P @ (zE @ c) + (E[te][:, eu] / en[eu]) @ c
+                    pred = P @ (U.T @ (ytr - E1 @ c)) + (E[te][:, eu] / en[eu]) @ c
                 if (~eu).any():
                     own = orth(np.hstack([own, E[te][:, ~eu]]))
             e = Y2[te] - pred
@@ -270,6 +276,57 @@ class Folds:
         return float(e @ e) / max(self.last_dof, 1)
 
 
+class CpEstimate:
+    """Mallows' Cp in place of cross-validation, for designs without redundancy.
+
+    When every parameter is seen by a few rows only (an MFB plan: each table
+    node by the points of one or two placements), predicting held-out rows
+    extrapolates and cross-validation measures that, not the model. The
+    prediction error is then estimated in sample: ``(RSS + 2 k s^2) / n``
+    with ``k`` the model's dimensions (effective ones for a penalised term)
+    and ``s^2`` the baseline's residual variance, fixed for every model
+    compared (Mallows 1973).
+    """
+
+    def __init__(self, A: np.ndarray, groups: np.ndarray, rcond: float):
+        self.n = len(A)
+        self.Q = orth(A)
+        r = None
+        self.s2 = None
+        self.dof = self.n
+        self.last_dof = self.n
+        del r, groups, rcond
+
+    def set_sigma(self, y: np.ndarray) -> None:
+        r = y - self.Q @ (self.Q.T @ y)
+        self.s2 = float(r @ r) / max(self.n - self.Q.shape[1], 1)
+
+    def residuals(self, Y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None):
+        """In-sample residuals (the null draws of a CV gap have no meaning here)."""
+        Q = self.Q if E is None or not E.shape[1] else np.hstack([self.Q, new_basis(self.Q, E)])
+        return Y - Q @ (Q.T @ Y)
+
+    def mse(self, y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> float:
+        if self.s2 is None:
+            self.set_sigma(y)
+        if E is None or not E.shape[1]:
+            r = y - self.Q @ (self.Q.T @ y)
+            k = self.Q.shape[1]
+        elif penalty is None:
+            U = new_basis(self.Q, E)
+            r = y - self.Q @ (self.Q.T @ y)
+            r = r - U @ (U.T @ r)
+            k = self.Q.shape[1] + U.shape[1]
+        else:
+            Sp = E - self.Q @ (self.Q.T @ E)
+            M = Sp.T @ Sp + penalty
+            r0 = y - self.Q @ (self.Q.T @ y)
+            c = np.linalg.lstsq(M, Sp.T @ r0, rcond=1e-12)[0]
+            r = r0 - Sp @ c
+            k = self.Q.shape[1] + float(np.trace(np.linalg.lstsq(M, Sp.T @ Sp, rcond=1e-12)[0]))
+        return (float(r @ r) + 2 * k * self.s2) / self.n
+
+
 # ---------------------------------------------------------------------------
 # the model being extended
 # ---------------------------------------------------------------------------
@@ -286,6 +343,7 @@ class Term:
     evidence: dict = field(default_factory=dict)
     penalty: np.ndarray | None = field(default=None, repr=False)
     weak: int = 0  # directions of the cause's columns left out as not identifiable
+    origin: object = field(default=None, repr=False)  # the core.causes.Cause record
     labels_all: tuple = ()  # the scan's labels (the magnitudes' coefficient layout)
     map: np.ndarray | None = field(default=None, repr=False)  # (k_all, k): label coefficients per column
     cols_all: np.ndarray | None = field(default=None, repr=False)  # (N, k_all) the scan's columns
@@ -378,7 +436,7 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         if dof < 3:
             break
         h = np.sum(Q ** 2, axis=1)
-        ok = h < 1 - 1e-9
+        ok = h < 0.99  # a row that (nearly) alone determines a parameter cannot be judged
         rss = float(r @ r)
         den = np.where(ok, 1 - h, 1.0)
         s2 = (rss - np.where(ok, r ** 2 / den, 0.0)) / (dof - 1)
@@ -542,8 +600,6 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
 
 
 def _with_convention(bl: Baseline, text: str) -> Baseline:
-    import dataclasses
-
     return dataclasses.replace(bl, conventions=bl.conventions + (text,))
 
 
@@ -563,7 +619,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     y = bl.y
     N = bl.n
     all_rows = np.arange(N)
-    bases = term_bases(bl.covariates, bl.modes)
+    white = (lambda M: M) if bl.whiten is None else (lambda M: bl.whiten @ M)
+    use_cv = bool(bl.info.get("cv", True))
+    bases = {k: white(B) for k, B in term_bases(bl.covariates, bl.modes).items()}
 
     # 0. baseline fit and a first outlier screen
     Qall = orth(bl.A)
@@ -577,7 +635,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         key = tuple(rows_.tolist()) if len(rows_) != N else None
         if key not in cache:
             Qb = orth(bl.A[rows_]) if key is not None else Qall
-            cache[key] = (Qb, Folds(bl.A[rows_], bl.groups[rows_], settings.cv_rcond))
+            est = (Folds if use_cv else CpEstimate)(bl.A[rows_], bl.groups[rows_], settings.cv_rcond)
+            if not use_cv:
+                est.set_sigma(y[rows_])
+            cache[key] = (Qb, est)
         Qb, folds = cache[key]
         return Qb, folds, _state(Qb, y, rows_, terms)
 
@@ -602,6 +663,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     # 3. named causes, greedily
     scans = {c.name: c.scans(bl) for c in catalogue}
+    if bl.whiten is not None:  # every column the causes build goes through the baseline's whitening
+        scans = {k: ([dataclasses.replace(sc, build=(lambda idx, b=sc.build: bl.whiten @ b(idx)), score=None)
+                      for sc in v[0]], v[1]) for k, v in scans.items()}
     n_causes = max(sum(1 for c in catalogue if scans[c.name][0]), 1)
     rejected: list[dict] = []
 
@@ -738,7 +802,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     res_e = np.full(N, np.nan)
     res_e[rows] = st.r
     conv = list(bl.conventions) + [
-        "cv: leave one group (set-up) out; the held-out group's own columns refitted on it",
+        ("cv: leave one group (set-up) out; the held-out group's own columns refitted on it" if use_cv else
+         "no cross-validation (the design has no redundancy to predict held-out rows): the prediction error "
+         "is Mallows' Cp, (RSS + 2 k s^2) / n"),
         f"false-alarm rate {settings.alpha:g} split over {', '.join(FAMILIES)}; "
         f"materiality {settings.material_sigma:g} sigma per row",
         "U95: k = 2, sigma from each model's residuals"]
@@ -762,6 +828,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 # steps
 # ---------------------------------------------------------------------------
 def _cv_gap(folds: Folds, st: _State, y, E, penalty, settings, rng) -> CvGap:
+    if isinstance(folds, CpEstimate):  # no cross-validation: no gap to test
+        return CvGap(float("nan"), float("nan"), 1.0, float("nan"), 0)
     yr = y[st.rows]
     e = folds.residuals(yr, E, penalty)
     Z = rng.standard_normal((len(yr), settings.cv_draws))
@@ -789,7 +857,7 @@ def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings) -> dic
     a = settings.alpha_family
     m2 = (settings.material_sigma * sigma) ** 2
     sig_cov = [d.covariate for d in diag if d.significant(a)]
-    gap_sig = gap.p_value < a and (gap.sigma_cv_m ** 2 - st.sigma ** 2) >= m2
+    gap_sig = bool(gap.draws) and gap.p_value < a and (gap.sigma_cv_m ** 2 - st.sigma ** 2) >= m2
     lof_sig = lof is not None and lof.p_value < a and lof.sigma_lof_m ** 2 >= m2
     return {"present": bool(sig_cov or gap_sig or lof_sig), "covariates": sig_cov, "cv_gap": bool(gap_sig),
             "lack_of_fit": bool(lof_sig)}
@@ -902,6 +970,11 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
     return M, best, worst, ang, int((~good).sum())
 
 
+def _matches(key: str, pattern: str) -> bool:
+    """``*`` in a bound's key pattern stands for any text (brackets are literal)."""
+    return re.fullmatch(re.escape(pattern).replace(r"\*", ".*"), key) is not None
+
+
 def _family_ss(bl, diag, n) -> dict:
     """Largest debiased sum of squares a smooth term explains, per covariate family: {family: (ss, covariate)}."""
     out: dict = {}
@@ -979,7 +1052,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     if gain < m2:
         return {"reason": f"cross-validated gain {gain / UM ** 2:.3g} um^2 below materiality {m2 / UM ** 2:.3g} um^2",
                 "significant": True}
-    tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak,
+    tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak, origin=cause,
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
     # plausibility of the magnitudes (with their U95)
     vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows)
@@ -987,7 +1060,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         if not isinstance(v, float) or v is None:
             continue
         for pat, (lo, hi) in cause.bounds.items():
-            if fnmatch.fnmatchcase(key, pat):
+            if _matches(key, pat):
                 u = u95.get(key) or 0.0
                 if v + u < lo or v - u > hi:
                     return {"reason": f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})", "significant": True}
@@ -1081,6 +1154,11 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows):
             continue
         out[key] = float(v)
         u95[key] = float(2 * np.sqrt(max(g @ cov @ g, 0.0)))
+        # an uncertainty wider than the whole plausible range determines nothing
+        for pat, (lo, hi) in cause.bounds.items():
+            if _matches(key, pat) and u95[key] > hi - lo:
+                out[key], u95[key] = None, None
+                break
     return out, u95
 
 
@@ -1089,9 +1167,9 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     others = [o for o in terms if o is not tm]
     so = _state(Qb, y, rows, others)
     sf = _state(Qb, y, rows, others + [tm])
-    cause = causes_mod.REGISTRY.get(tm.cause)
+    cause = tm.origin
     if cause is not None and cause.rival is not None:
-        B = cause.rival(bl, tm.info)[rows]
+        B = (cause.rival(bl, tm.info) if bl.whiten is None else bl.whiten @ cause.rival(bl, tm.info))[rows]
     else:
         cov = bl.covariate(tm.covariate)
         if cov is None:
@@ -1113,7 +1191,8 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
            "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}
     if cause is not None and cause.counter is not None:
         # the plainer explanation (a finer error map for a coupling): it must not do as well
-        Uc = new_basis(so.Q, cause.counter(bl)[rows])
+        Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
+        Uc = new_basis(so.Q, Bc[rows])
         d_c = float(np.sum((Uc.T @ so.r) ** 2)) - Uc.shape[1] * s2
         out["counter"] = cause.counter.__name__.replace("_", " ")
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
@@ -1209,7 +1288,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
     for tm in terms:
         if tm.cause == causes_mod.UNEXPLAINED:
             continue
-        cause = causes_mod.REGISTRY[tm.cause]
+        cause = tm.origin
         named = [t for t in terms if t.penalty is None]
         Qo = _state(Qb, y, rows, [t for t in named if t is not tm]).Q
         vals, u95 = _magnitudes(cause, bl, tm, Qo, rows)

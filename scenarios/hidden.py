@@ -483,7 +483,7 @@ def catalogue_names() -> set:
     """The named causes of the planar catalogue (outlier included)."""
     from core import causes
 
-    return {c.name for c in causes.for_kind("planar")} | {causes.OUTLIER}
+    return causes.names()
 
 
 def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true: dict | None, noise_um: float,
@@ -623,3 +623,128 @@ def blind_outcome(module, effect: str, seed: int, generator: str = "", **discove
                         tuple(tr.acceptable_causes), g_true, float(tr.noise_um),
                         identifiable=bool(tr.workpiece_identifiable),
                         visible_sigmas=getattr(tr, "visible_sigmas", None), **discover_kw)
+
+
+# ---------------------------------------------------------------------------
+# the volumetric MFB model: effects hidden between and in the placements
+# ---------------------------------------------------------------------------
+MFB_HIDDEN = ("none", "thermal_drift", "bar_bending", "lobing_per_stylus")
+#: Time between two measurements of the MFB plan, s (a bar is re-set by hand).
+MFB_MEASUREMENT_S = 600.0
+
+
+def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis"):
+    """An MFB campaign (scenarios.mfb) with ``cause`` hidden in the simulated machine, bar or probe.
+
+    ``thermal_drift``: the X, Y and Z scales drift by 5-15 ppm over the
+    campaign (one measurement every :data:`MFB_MEASUREMENT_S`), each
+    measurement on the machine as it is at that time; ``bar_bending``: the
+    bar sags between its supports by 1-4 um at mid-span (its points move
+    along gravity's component perpendicular to the bar, a quartic of the
+    position along it), standing bars do not; ``lobing_per_stylus``: each
+    stylus its own 2- and 3-lobe pre-travel of 0.5-1.5 um.
+
+    Returns
+    -------
+    (scenarios.mfb.ScenarioResult, times {measurement: s}, params dict)
+    """
+    from dataclasses import replace
+
+    from scenarios.mfb import run
+    from sim import artefacts as A
+    from sim.errorfuncs import Polynomial
+
+    if cause not in MFB_HIDDEN:
+        raise ConfigError(f"unknown hidden MFB cause {cause!r}; expected one of {', '.join(MFB_HIDDEN)}")
+    rng = np.random.default_rng([seed, 7])
+    params: dict = {}
+    times: dict = {}
+    scale = rng.uniform(5, 15, 3) * rng.choice([-1.0, 1.0], 3) * 1e-6
+    sag = float(rng.uniform(1.0, 4.0)) * UM
+    lobes: dict = {}
+    if cause == "thermal_drift":
+        params = {f"{a}_scale_change_ppm": float(v * 1e6) for a, v in zip("XYZ", scale)}
+    elif cause == "bar_bending":
+        params = {"midspan_sag_um": sag / UM}
+
+    def hook(i, spec, art, probe, machine):
+        times[spec.name] = i * MFB_MEASUREMENT_S
+        n_meas = 17
+        if cause == "thermal_drift":
+            tau = i / (n_meas - 1)
+            errs = dict(machine.config.errors)
+            for a, s_a in zip("XYZ", scale):
+                sym = f"E{a}{a}"
+                f = Polynomial((0.0, float(s_a * tau)))
+                errs[sym] = errs[sym] + f if sym in errs else f
+            machine = machine.with_errors(errs)
+        elif cause == "bar_bending":
+            R = np.asarray(spec.T_W_A, float)[:3, :3]
+            g_A = R.T @ np.array([0.0, 0.0, -1.0])
+            g_A[0] = 0.0  # the part along the bar compresses it, negligibly
+            E = np.asarray(art.info["E_MFB_m"], float)
+            s = np.linspace(-1, 1, len(E))
+            bend = sag * ((1 - s ** 2) ** 2 - np.mean((1 - s ** 2) ** 2))
+            art = A.multi_feature_bar(deviations_m=E + bend[:, None] * g_A[None, :])
+        elif cause == "lobing_per_stylus":
+            key = tuple(np.round(np.asarray(spec.J_m, float), 6))
+            if key not in lobes:
+                a = rng.uniform(0.5, 1.5, 2) * UM
+                ph = rng.uniform(0, 2 * np.pi, 2)
+                lobes[key] = ((2, a[0] * np.cos(ph[0]), a[0] * np.sin(ph[0])), (3, a[1] * np.cos(ph[1]),
+                                                                                a[1] * np.sin(ph[1])))
+                params[f"k2_um[{key}]"] = a[0] / UM
+            probe = replace(probe, lobing_m=lobes[key])
+        return art, probe, machine
+
+    res = run(name, seed=seed, mc_runs=0, hook=hook)
+    return res, times, params
+
+
+def mfb_outcome(cause: str, seed: int, **discover_kw) -> Outcome:
+    """One MFB campaign with ``cause`` hidden, discovered on the volumetric baseline and scored.
+
+    The estimand's error (``wp_*``) is the RMS over the positioning and
+    straightness table values (um) of estimate minus truth in the
+    baseline's gauge (the truth expressed with :func:`core.volumetric.to_gauge`).
+    """
+    import time
+
+    from core import iso, volumetric as vol
+    from core.baseline import volumetric
+    from core.discover import discover_baseline
+    from scenarios.mfb import default_machine
+
+    res, times, _ = hidden_mfb(cause, seed)
+    plan = res.plan
+    cfg, errs = default_machine(plan.machine)
+    bl = volumetric(res.meas, cfg.chain, plan.nodes, dict(cfg.rotary_points_R_m), times)
+    t0 = time.perf_counter()
+    d = discover_baseline(bl, **discover_kw)
+    dt = time.perf_counter() - t0
+    rep = d.to_report()
+    des = bl.data.design
+    truth = np.zeros(len(des.names))
+    for s in vol.MOTION:
+        a = iso.symbol(s).axis
+        f = errs.get(s)
+        if f is not None:
+            truth[des.slices[s]] = np.asarray(f(des.nodes[a]), float)
+    for s in vol.SQUARENESS:
+        f = errs.get(s)
+        if f is not None:
+            truth[des.slices[s]] = float(np.asarray(f(np.zeros(1)))[0])
+    truth = vol.to_gauge(des, truth)
+    lin = np.array([not iso.symbol(s.split("@")[0]).angular for s in bl.estimand_ids])
+    tq = truth[bl.estimand]
+
+    def err(G):
+        return float(np.sqrt(np.mean((G[lin] - tq[lin]) ** 2))) / UM if np.all(np.isfinite(G[lin])) else float("nan")
+
+    Cq = d.cov_G_extended[np.ix_(lin, lin)] if d.cov_G_extended is not None else None
+    wu = float(np.sqrt(np.mean(4 * np.maximum(np.diag(Cq), 0)))) / UM if Cq is not None else float("nan")
+    n, p = bl.n, rep["baseline"]["n_params"]
+    sig = 0.125
+    vis = float(np.sqrt(max(rep["baseline"]["rms_um"] ** 2 - sig ** 2 * (n - p) / n, 0.0)) / sig)
+    return Outcome("mfb", cause, int(seed), (cause,), rep["cause"], tuple(f["cause"] for f in rep["findings"]),
+                   True, vis, sig, err(d.G_baseline_m), err(d.G_extended_m), wu, dt)

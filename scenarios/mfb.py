@@ -385,6 +385,7 @@ class ScenarioResult:
     seconds: float
     doc: dict
     slopes: dict = field(default=None, compare=False)
+    meas: list = field(default=None, compare=False)  # the core.volumetric.Measurement list identified
 
     def write_comp(self, directory) -> list:
         """Write the LinuxCNC per-axis compensation files and the vmt JSON tables.
@@ -414,7 +415,7 @@ class ScenarioResult:
 def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None, mc_runs: int = 500,
         exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
         u_cal_um: tuple = (0.2, 0.35, 0.35), bar_cal_error: bool = True,
-        u_place: tuple = U_PLACE) -> ScenarioResult:
+        u_place: tuple = U_PLACE, hook=None) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -439,6 +440,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         Inject instead the C2 splines through the realistic errors' values at
         the plan's nodes (errors the tables represent exactly: what is left
         is the model's own truncation, not the interpolation's).
+    hook : callable(i, spec, artefact, probe, machine) -> (artefact, probe, machine), optional
+        Replaces what measurement ``i`` is simulated with (effects hidden
+        for model discovery, scenarios/hidden.py).
     """
     from core import iso, mfb, volumetric as vol
     from core.exceptions import ConfigError
@@ -494,8 +498,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         if J not in machines:
             machines[J] = Machine(replace(cfg, J_m=J))
         m = machines[J]
-        pl = _plan_for(art, ms.holes)
-        log = simulate_campaign(art, _NoSafeHeight(m), probe, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
+        art_i, probe_i = art, probe
+        if hook is not None:
+            art_i, probe_i, m = hook(len(meas), ms, art, probe, m)
+        pl = _plan_for(art_i, ms.holes)
+        log = simulate_campaign(art_i, _NoSafeHeight(m), probe_i, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
                                 rng if noisy else None, plan=pl, check_collisions=False)
         _check_touch_strokes(log, m, ms.name)
         t = from_log(log)
@@ -542,7 +549,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, k2, slopes)
-    return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0])
+    return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0], meas)
 
 
 def _document(name, plan, res, unc, truth, n_touch, seed, k2, slopes=None) -> dict:

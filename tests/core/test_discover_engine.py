@@ -230,11 +230,12 @@ def test_progress_reaches_the_total():
 
 def test_registry_records_are_complete():
     """One frozen record per cause: physics in a docstring, magnitudes, bounds."""
-    for c in causes.REGISTRY.values():
+    for c in causes.REGISTRY:
         assert c.doc and len(c.doc) > 80, c.name
         if c.scans is not None:
-            assert c.magnitudes is not None and c.books_to in ("machine", "probe", "workpiece")
-    assert causes.REGISTRY["part_change"].books_to == "workpiece"
+            assert c.magnitudes is not None and c.books_to in ("machine", "probe", "workpiece", "artefact")
+    assert causes.lookup("part_change").books_to == "workpiece"
+    assert len({(c.name, k) for c in causes.REGISTRY for k in c.kinds}) == sum(len(c.kinds) for c in causes.REGISTRY)
 
 
 def test_nested_f_is_calibrated_under_the_null():
