@@ -519,7 +519,7 @@ def defect_scans(bl):
     positioning error, ``E_XX(x) = A h((x - x0) / w)`` (``h`` a Hann
     window, zero beyond ``|x - x0| = w``), narrower than the error map's
     grid, so the grid's interpolation cannot follow it. Scanned: both
-    axes, half-widths 0.15, 0.25 and 0.4 grid steps (never below twice the
+    axes, half-widths 0.2 and 0.4 grid steps (never below twice the
     positions' mean spacing), centres every quarter half-width; a trial
     needs four distinct positions under its bump. ``tries`` counts the
     independent bumps (extent over half-width, per width and axis).
@@ -533,7 +533,7 @@ def defect_scans(bl):
         if span <= 0:
             continue
         u = np.unique(np.round(a / 1e-6)) * 1e-6
-        for fw in (0.15, 0.25, 0.4):
+        for fw in (0.2, 0.4):
             w = fw * d.grid_step_m
             if w < 2 * gap:
                 continue
