@@ -709,3 +709,118 @@ def _point_whitening(touch_cols, n: int, point: np.ndarray) -> np.ndarray:
     for r, Wi in blocks:
         W[np.ix_(r, r)] = c * Wi
     return W
+
+
+# ---------------------------------------------------------------------------
+# positioning: ISO 230-2 runs of one axis
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PositioningData:
+    """What the positioning causes build their columns from (SI).
+
+    Attributes
+    ----------
+    x : (n,) float
+        Target position, m (or rad for a rotary axis).
+    xs : (n,) float
+        Centred on the targets and scaled by their half-span (-1..1).
+    L : float
+        Half-span of the targets, m.
+    t_s : (n,) float
+        Time of each reading (or its order), s.
+    tau : (n,) float
+        Time since the first reading over the test's span, 0..1.
+    direction : (n,) int
+        +1 or -1.
+    cycle : (n,) int
+    """
+
+    x: np.ndarray = field(repr=False)
+    xs: np.ndarray = field(repr=False)
+    L: float
+    t_s: np.ndarray = field(repr=False)
+    tau: np.ndarray = field(repr=False)
+    direction: np.ndarray = field(repr=False)
+    cycle: np.ndarray = field(repr=False)
+
+
+def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict | None = None) -> Baseline:
+    """The ISO 230-2 baseline: a systematic deviation per target and direction, plus repeatability.
+
+    Parameters
+    ----------
+    target_m : (n,) float
+        Commanded target ``P_i`` of each reading, m (rad for a rotary axis).
+    direction : (n,) int or str
+        ``+1``/``"+"`` or ``-1``/``"-"``: the approach direction.
+    cycle : (n,) int
+        Run ``j`` of each reading.
+    deviation_m : (n,) float
+        ``x_ij = P_ij - P_i`` (ISO 230-2), m.
+    t_s : (n,) float, optional
+        Time of each reading; the reading order when absent.
+    temps : dict name -> (n,) float, optional
+        Temperature sensors (``temp_<name>_C``).
+
+    The design has one column per (target, direction): the mean
+    unidirectional positional deviations of ISO 230-2. Whatever the axis
+    does the same way in every cycle (its pitch error, a reversal that
+    varies along it, a periodic error at the targets) is in those means;
+    discovery looks for what changes between cycles (drift, warm-up,
+    outliers) and for structure against time, order or temperature. The
+    folds of the cross-validation are the cycles; replicates are the
+    readings of one target in one direction (their scatter is the
+    repeatability).
+
+    Raises
+    ------
+    ConfigError
+        Arrays of different lengths, fewer than two cycles, a direction
+        other than +/-.
+    """
+    x = np.asarray(target_m, float).ravel()
+    dev = np.asarray(deviation_m, float).ravel()
+    cyc = np.asarray(cycle).ravel()
+    dr = np.array([(1 if str(v).strip() in ("+", "1", "+1") else -1 if str(v).strip() in ("-", "-1") else 0)
+                   for v in np.asarray(direction).ravel()])
+    n = len(x)
+    if not (len(dev) == len(cyc) == len(dr) == n) or n == 0:
+        raise ConfigError("positioning: target, direction, cycle and deviation must have one value per reading")
+    if np.any(dr == 0):
+        raise ConfigError(f"positioning: direction must be + or -, got {np.asarray(direction).ravel()[dr == 0][0]!r}")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(dev))):
+        raise ConfigError("positioning: non-finite target or deviation")
+    cyc_ids, cyc_idx = np.unique(cyc, return_inverse=True)
+    if len(cyc_ids) < 2:
+        raise ConfigError("positioning: discovery needs at least two cycles")
+    t = np.arange(n, dtype=float) if t_s is None else np.asarray(t_s, float).ravel()
+    tx = np.round(x / 1e-9).astype(np.int64)
+    keys = list(dict.fromkeys(zip(tx.tolist(), dr.tolist())))
+    col = np.array([keys.index(k) for k in zip(tx.tolist(), dr.tolist())])
+    A = np.zeros((n, len(keys)))
+    A[np.arange(n), col] = 1.0
+    mid, L = (x.max() + x.min()) / 2, max(np.ptp(x) / 2, 1e-12)
+    tau = (t - t.min()) / max(np.ptp(t), 1e-12)
+    data = PositioningData(x, (x - mid) / L, float(L), t, tau, dr, cyc_idx)
+    ids = tuple(f"P={k[0] * 1e-6:g}mm{'+' if k[1] > 0 else '-'}" for k in keys)
+    modes = np.ones((n, 1))
+    covs = [Covariate("time", t, "smooth", 6, (0,), "time", "time"),
+            Covariate("cycle", cyc_idx, "categorical", 0, (0,), "the cycle", "time"),
+            Covariate("position", x, "smooth", 6, (0,), "the target position", "position"),
+            Covariate("position_by_cycle", np.column_stack([f * (cyc_idx == j) for j in range(len(cyc_ids))
+                                                            for f in (data.xs, data.xs ** 2)]), "basis",
+                      2 * len(cyc_ids), (0,), "the target position, differently in each cycle", "time"),
+            Covariate("order", np.arange(n, dtype=float), "smooth", 6, (0,), "the reading order", "time")]
+    for name, v in (temps or {}).items():
+        v = np.asarray(v, float)
+        if np.all(np.isfinite(v)) and np.ptp(v) > 0:
+            short = name[5:-2] if name.startswith("temp_") and name.endswith("_C") else name
+            covs.append(Covariate(f"temp_{short}", v, "smooth", 5, (0,), f"the temperature {name}", "time"))
+    return Baseline(
+        kind="positioning", model="ISO 230-2 systematic deviation per target and direction", A=A, y=dev,
+        names=ids, groups=cyc_idx, group_ids=tuple(str(c) for c in cyc_ids), C=np.zeros((0, A.shape[1])),
+        d=np.zeros(0), estimand=np.arange(A.shape[1]), estimand_ids=ids, geometry=None, replicate=col,
+        covariates=tuple(covs), modes=modes, mode_names=("deviation",), rows=np.arange(n), data=data,
+        conventions=("x_ij = measured - target (ISO 230-2); one mean per target and direction",),
+        info={"targets": int(len(np.unique(tx))), "cycles": int(len(cyc_ids))},
+        estimand_label="mean unidirectional positional deviation")

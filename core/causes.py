@@ -781,6 +781,72 @@ def stylus_lobing_magnitudes(info, coef, bl):
     return out
 
 
+# ---------------------------------------------------------------------------
+# positioning causes (ISO 230-2 runs, core.baseline.positioning)
+# ---------------------------------------------------------------------------
+def pos_drift_scans(bl):
+    """Drift across cycles: the axis' zero and scale changing with time during the test.
+
+    The axis warms as it runs the cycles: its zero moves and its scale
+    grows, ``x_ij += a(t) + s(t) (P_i - P_mid)`` with ``a``, ``s``
+    polynomials of degree 1 or 2 in the time over the test (the degree is
+    scanned). The mean unidirectional deviations hold the average over the
+    cycles; the change between cycles is the drift. Parameters: the offset
+    (um) and scale (ppm) change from the first reading to the last.
+    """
+    d = bl.data
+    u = 2 * d.tau - 1
+    scans = []
+    for deg in (1, 2):
+        P = _legendre(u, deg)
+        cols = np.hstack([P, d.xs[:, None] * P])
+        labels = [f"offset_P{j}" for j in range(1, deg + 1)] + [f"scale_P{j}" for j in range(1, deg + 1)]
+        scans.append(_one(cols, labels, {"degree": deg}, "time"))
+    return scans, 2.0
+
+
+def pos_drift_magnitudes(info, coef, bl):
+    deg = info["degree"]
+    c = np.asarray(coef).reshape(2, deg)
+    dP = np.array([1.0 - (-1.0) ** j for j in range(1, deg + 1)])
+    return {"offset_change_um": float(c[0] @ dP) / UM, "scale_change_ppm": float(c[1] @ dP) / bl.data.L * 1e6}
+
+
+def _warm(d, T):
+    T = np.atleast_1d(np.asarray(T, float))
+    e = np.exp(-(d.t_s - d.t_s.min())[None, :] / T[:, None])
+    return np.stack([e, d.xs[None, :] * e], axis=-1)
+
+
+def warm_up_scans(bl):
+    """Warm-up: the first cycles deviate, and the deviation dies away as the axis settles.
+
+    A cold axis (ball screw, guideways, scale) settles to its working
+    temperature over the first runs: ``x_ij += (a + s (P_i - P_mid))
+    exp(-t / T)``, an offset and a scale that decay with time constant T
+    (scanned from a twentieth to a half of the test's duration, refined).
+    Unlike a drift it stops: the last cycles agree. Parameters: the
+    initial offset (um) and scale (ppm) and the time constant (s).
+    """
+    d = bl.data
+    span = float(np.ptp(d.t_s))
+    if span <= 0:
+        return [], 1.0
+    T = np.geomspace(span / 20, span / 2, 12)
+    return [Scan(("offset", "scale"), tuple({"tau_s": float(v)} for v in T), "time",
+                 lambda idx, T=T: _warm(d, T[np.asarray(idx)]))], float(np.log(10) / np.log(1.5))
+
+
+def warm_up_rebuild(bl, info):
+    return _warm(bl.data, info["tau_s"])
+
+
+def warm_up_magnitudes(info, coef, bl):
+    c = np.asarray(coef)
+    return {"initial_offset_um": float(c[0]) / UM, "initial_scale_ppm": float(c[1]) / bl.data.L * 1e6,
+            "time_constant_s": float(info["tau_s"])}
+
+
 OUTLIER = "outlier"
 UNEXPLAINED = "unexplained"
 NONE = "none"
@@ -822,6 +888,10 @@ REGISTRY = (
           {"midspan_sag_um": (-50, 50)}),
     Cause("lobing_per_stylus", ("volumetric",), "probe", stylus_lobing_scans, stylus_lobing_magnitudes,
           {"pretravel_pv_um[*]": (0, 50), "point_shift_rms_um": (0, 50)}),
+    Cause("thermal_drift", ("positioning",), "machine", pos_drift_scans, pos_drift_magnitudes,
+          {"offset_change_um": (-500, 500), "scale_change_ppm": (-1000, 1000)}),
+    Cause("warm_up", ("positioning",), "machine", warm_up_scans, warm_up_magnitudes,
+          {"initial_offset_um": (-500, 500), "initial_scale_ppm": (-1000, 1000)}, warm_up_rebuild, ("tau_s",)),
 )
 
 #: Report names that are not catalogue entries.
