@@ -571,8 +571,9 @@ def part_change_scans(bl):
     Stress relief after machining, a clamp that creeps, moisture or heat
     taken up by the part: one feature's walls move while it is measured.
     Each wall (the targets of the feature whose normal in the part's frame
-    points into one 45 deg sector) moves linearly with the time since the
-    first touch: ``dq_i += v_wall t``. Set-up by set-up a rigid motion of
+    points into one 45 deg sector; two targets at least on a feature of
+    eight or more, any on a smaller one) moves linearly with the time since
+    the first touch: ``dq_i += v_wall t``. Set-up by set-up a rigid motion of
     the part is the set-up's own C-axis offsets; a wall moving against the
     others is not. This is an error of the workpiece, never of the machine:
     the extended model's workpiece is the form at the first touch.
@@ -586,12 +587,13 @@ def part_change_scans(bl):
     scans = []
     for f in sorted(set(feats.tolist())):
         m = feats == f
-        if np.unique(t.target[m]).size < 4 or np.unique(t.setup[m]).size < 2:
+        nt = np.unique(t.target[m]).size
+        if nt < 2 or np.unique(t.setup[m]).size < 2:
             continue
         cols, labels, walls = [], [], []
         for s in range(8):
             ms = m & (sector == s)
-            if np.unique(t.target[ms]).size >= 2:
+            if np.unique(t.target[ms]).size >= (2 if nt >= 8 else 1):  # a small feature: every direction it has
                 cols.append(ms * d.tau)
                 labels.append(f"{f}@{45 * s}deg")
                 walls.append(45 * s)
