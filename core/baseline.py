@@ -25,6 +25,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -425,18 +426,25 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
     last = None
     fallback = None
     cands = []
+    # the design in coordinates about the C axis (the campaign's own origin): the
+    # same matrix wherever the campaign sits in the machine
+    c0 = c_axis_centre(t)
+    if not np.all(np.isfinite(c0)):
+        c0 = np.array([(t.pn_R[:, 0].max() + t.pn_R[:, 0].min()) / 2, (t.pn_R[:, 1].max() + t.pn_R[:, 1].min()) / 2])
+    sh = np.array([c0[0], c0[1], 0.0])
+    td = dataclasses.replace(t, pn_R=t.pn_R - sh, p_R=t.p_R - sh)
     for st in steps:
-        grid = centred_grid(t.pn_R, st * MM)
+        grid = centred_grid(td.pn_R, st * MM)
         try:
-            selfcal.check_count(t, grid)
-            des = selfcal.build_design(t, grid, yaw=yaw)
+            selfcal.check_count(td, grid)
+            des = selfcal.build_design(td, grid, yaw=yaw)
         except IdentifiabilityError as e:
             last = e
             continue
         A = des.A.toarray()
         C, d, names = des.C, des.d, tuple(des.names)
         levels = (float(np.median(t.pn_R[:, 2])),)
-        h = _height_columns(t, des)
+        h = _height_columns(td, des)
         if h is not None:
             H, hn, _, hg, levels = h
             p = A.shape[1]
@@ -488,6 +496,8 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
     rep = cnt[inv] > 1
     key[rep] = pair[rep]
     conv = list(des.gauge)
+    conv.append(f"design coordinates about the C axis at X {c0[0] / MM:.3f}, Y {c0[1] / MM:.3f} mm (the gauge's "
+                "origin)")
     conv.append("workpiece estimates in the baseline's gauge (eqs 16-17)" if ident else
                 "workpiece NOT identifiable by this design: " + why)
     model = "selfcal-2d (Ibaraki eqs 1-18)" + (
