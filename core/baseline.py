@@ -323,6 +323,13 @@ def planar_covariates(d: PlanarData) -> tuple:
     for name, v in (("x", d.x), ("y", d.y)):  # structure finer than a smooth term: a ripple along an axis
         covs.append(Covariate(f"{name}_periodic", v, "spectral", 0, (1, 2), f"the {name} position periodically",
                               "position", (nyquist_period_m(v), d.grid_step_m)))
+    # an oscillation in time (a vibration, a cycling coolant): periods from twice the
+    # typical time between touches to a third of the campaign
+    dt = np.diff(np.sort(t.t_s))
+    dt = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 0.0
+    if dt > 0:
+        covs.append(Covariate("time_periodic", t.t_s, "spectral", 0, (0, 1, 2), "time periodically", "time",
+                              (2 * dt, d.span_s / 3)))
     cdeg = np.round(np.degrees(t.rot_rad[:, 2]), 6)
     nc = np.unique(cdeg).size
     if nc >= 3:

@@ -480,8 +480,8 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
         rms_um = t.explained_rms_m / UM
         if cov.kind == "spectral":
             P = getattr(t, "period", 0.0)
-            words = f"{cov.words} (period {P / 1e-3:.3g} mm)" if cov.family == "position" else \
-                f"{cov.words} (period {P:.3g})"
+            words = (f"{cov.words} (period {P / 1e-3:.3g} mm)" if cov.family == "position" else
+                     f"{cov.words} (period {P:.3g} s)" if cov.family == "time" else f"{cov.words} (period {P:.3g})")
         else:
             words = cov.words
         out.append(Diagnosis(cov.name, rms_um, float(pa), t.p_value, t.k,
