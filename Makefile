@@ -6,7 +6,7 @@ VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
 OUT     ?= out
 
-.PHONY: venv demo test bench clean
+.PHONY: venv demo test test-controllers bench clean
 
 venv: $(STAMP)
 
@@ -23,6 +23,17 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(VPY) -m pytest -q -p no:cacheprovider
+
+# Real controllers in the loop (tests/controllers): LinuxCNC 2.9 from Debian's packages,
+# installed here if missing (needs root, as in CI); it fails, never skips, when it cannot.
+test-controllers: $(STAMP)
+	@if ! command -v linuxcnc >/dev/null 2>&1; then \
+	  echo "installing linuxcnc-uspace (Debian) ..."; t0=$$(date +%s); \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	      --no-install-recommends -o DPkg::Lock::Timeout=600 linuxcnc-uspace >/dev/null; } \
+	  || { echo "error: cannot install linuxcnc-uspace: the LinuxCNC tests cannot run"; exit 2; }; \
+	  echo "linuxcnc-uspace installed in $$(( $$(date +%s) - t0 )) s"; fi
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(VPY) -m pytest -q -s -p no:cacheprovider tests/controllers
 
 bench: $(STAMP)
 	$(VENV)/bin/vmt bench --out bench/results.json

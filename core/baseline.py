@@ -210,14 +210,8 @@ def planar_modes(d: PlanarData) -> np.ndarray:
 
 
 def _w_A(t: Touches):
-    """Nominal contact points and normals in the part's frame (the field's name changes in the layout move)."""
-    w = getattr(t, "w_A", None)
-    if w is None:
-        w = t.w_W
-    wn = getattr(t, "wn_A", None)
-    if wn is None:
-        wn = t.wn_W
-    return w, wn
+    """Nominal contact points and normals in the part's frame A."""
+    return t.w_A, t.wn_A
 
 
 def c_axis_centre(t: Touches) -> np.ndarray:

@@ -183,48 +183,15 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
     if evaluate is None:
         def evaluate(sets):
             return [max_workpiece_U95(w_W, wn_W, s, grid, u_probe_m, measure) for s in sets]
-    cache: dict = {}
-
-    def ev(sets):
-        keys = [tuple(sorted(float(v) for v in s)) for s in sets]
-        todo = [k for k in dict.fromkeys(keys) if k not in cache]
-        if todo:
-            for k, v in zip(todo, evaluate(todo)):
-                cache[k] = float(v)
-        return [cache[k] for k in keys]
-
-    # equally spaced, and compressed spreads (a symmetric part makes equal spacing degenerate)
-    starts = []
-    for f in (1.0, 0.77, 0.55):
-        st = tuple(float(cand[int(round(i * f * cand.size / n_angles)) % cand.size]) for i in range(n_angles))
-        if len(set(st)) == n_angles:
-            starts.append(st)
-    if reference_deg is not None and len(reference_deg) == n_angles:
-        r = tuple(float(v) % 360 for v in reference_deg)
-        if 0.0 in r and all(abs(v / step_deg - round(v / step_deg)) < 1e-9 for v in r):
-            starts.append(tuple(sorted(r)))
+    ev, cache = _cached(evaluate)
+    starts = _search_starts(cand, n_angles, reference_deg, step_deg)
     best, best_v = None, float("inf")
     from math import comb
     if comb(cand.size - 1, n_angles - 1) <= exhaustive_max:
-        import itertools
-        allsets = [(0.0,) + tuple(float(v) for v in c) for c in itertools.combinations(cand[1:], n_angles - 1)]
-        vals = ev(allsets)
-        i = int(np.argmin(vals))
-        best, best_v = list(allsets[i]), vals[i]
+        best, best_v = _exhaustive(cand, n_angles, ev)
         starts = []
     for st in starts:  # coordinate search from every start (a local method: several starts)
-        cur, cur_v = list(st), ev([st])[0]
-        for _ in range(max_sweeps):
-            improved = False
-            for j in range(1, n_angles):
-                others = set(cur[:j] + cur[j + 1:])
-                trial = [cur[:j] + [float(c)] + cur[j + 1:] for c in cand if float(c) not in others]
-                tv = ev(trial)
-                i = int(np.argmin(tv))
-                if tv[i] < cur_v * (1 - 1e-9):
-                    cur, cur_v, improved = trial[i], tv[i], True
-            if not improved:
-                break
+        cur, cur_v = _coordinate_search(st, cand, ev, max_sweeps)
         if cur_v < best_v:
             best, best_v = cur, cur_v
     cur, cur_v = (best, best_v) if best is not None else (list(starts[0]), float("inf"))
@@ -239,3 +206,60 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
                                    " workpiece (eq 6: more angles or a coarser grid)")
     return AngleDesign(c_deg=tuple(sorted(cur)), max_U95_m=cur_v, reference_deg=ref, reference_max_U95_m=ref_v,
                        gain=gain, evaluations=len(cache), step_deg=float(step_deg))
+
+
+def _cached(evaluate):
+    """(ev, cache): ``evaluate`` over angle sets, each distinct (sorted) set evaluated once."""
+    cache: dict = {}
+
+    def ev(sets):
+        keys = [tuple(sorted(float(v) for v in s)) for s in sets]
+        todo = [k for k in dict.fromkeys(keys) if k not in cache]
+        if todo:
+            for k, v in zip(todo, evaluate(todo)):
+                cache[k] = float(v)
+        return [cache[k] for k in keys]
+
+    return ev, cache
+
+
+def _search_starts(cand: np.ndarray, n_angles: int, reference_deg, step_deg: float) -> list:
+    """Equally spaced and compressed spreads of angles (a symmetric part makes equal spacing
+    degenerate), and the reference when it has ``n_angles`` angles on the grid, 0 among them."""
+    starts = []
+    for f in (1.0, 0.77, 0.55):
+        st = tuple(float(cand[int(round(i * f * cand.size / n_angles)) % cand.size]) for i in range(n_angles))
+        if len(set(st)) == n_angles:
+            starts.append(st)
+    if reference_deg is not None and len(reference_deg) == n_angles:
+        r = tuple(float(v) % 360 for v in reference_deg)
+        if 0.0 in r and all(abs(v / step_deg - round(v / step_deg)) < 1e-9 for v in r):
+            starts.append(tuple(sorted(r)))
+    return starts
+
+
+def _exhaustive(cand: np.ndarray, n_angles: int, ev) -> tuple[list, float]:
+    """(best angles, its value) over every set of ``n_angles`` grid angles with C_1 = 0."""
+    import itertools
+
+    allsets = [(0.0,) + tuple(float(v) for v in c) for c in itertools.combinations(cand[1:], n_angles - 1)]
+    vals = ev(allsets)
+    i = int(np.argmin(vals))
+    return list(allsets[i]), vals[i]
+
+
+def _coordinate_search(start, cand: np.ndarray, ev, max_sweeps: int) -> tuple[list, float]:
+    """(angles, value) where no single angle but the first improves by moving on the grid."""
+    cur, cur_v = list(start), ev([start])[0]
+    for _ in range(max_sweeps):
+        improved = False
+        for j in range(1, len(cur)):
+            others = set(cur[:j] + cur[j + 1:])
+            trial = [cur[:j] + [float(c)] + cur[j + 1:] for c in cand if float(c) not in others]
+            tv = ev(trial)
+            i = int(np.argmin(tv))
+            if tv[i] < cur_v * (1 - 1e-9):
+                cur, cur_v, improved = trial[i], tv[i], True
+        if not improved:
+            break
+    return cur, cur_v

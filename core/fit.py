@@ -1075,3 +1075,53 @@ def fit_lines(points, *, direction_hint=None, tol: FitTolerances = TOL) -> LineF
     dist = np.hypot(uv[:, :, 0], uv[:, :, 1])
     return LineFit(point=c0[:, 0], direction=d, residuals=dist, residual_uv=uv,
                    rms=np.sqrt(np.mean(dist**2, axis=1)), cov=cov, dof=dof, basis=B)
+
+
+# --------------------------------------------------------------------------- U95 and form
+
+
+def coverage_factor(dof: int, p: float = 0.95) -> float:
+    """Two-sided coverage factor for ``dof`` degrees of freedom (JCGM 100 G.3: Student's t).
+
+    The covariance of a fit scales with ``s**2 = sum(r**2) / dof`` estimated
+    from the same residuals, so its expanded uncertainty takes Student's
+    ``t_{(1+p)/2, dof}`` (2.57 at 5 dof, 2.04 at 30, 1.96 at infinity), not 2.
+    NaN when ``dof < 1``.
+    """
+    from scipy.stats import t as student_t
+
+    return float(student_t.ppf(0.5 + p / 2.0, dof)) if dof >= 1 else float("nan")
+
+
+def u95(fit) -> dict:
+    """Expanded uncertainty (95 %) of each parameter of a fit, ``{param_name: U95}``.
+
+    ``U95 = t_{0.975, dof} * sqrt(diag(cov))`` in the parameter's unit (m or
+    rad). It covers the scatter of the points about the feature (probing
+    noise and form alike, treated as random): a systematic machine error
+    common to every point is not in it.
+    """
+    k = coverage_factor(fit.dof)
+    sd = np.sqrt(np.clip(np.diag(fit.cov), 0.0, None))
+    return {name: float(k * s) for name, s in zip(fit.param_names, sd)}
+
+
+def form_deviation(fit) -> float:
+    """Form deviation of the points about the least-squares feature, m.
+
+    Peak-to-valley of the signed orthogonal residuals, ``max(r) - min(r)``:
+    flatness for a plane, sphericity, roundness (circle), cylindricity,
+    each referred to the least-squares feature (ISO 12781 / 12181 / 12180
+    "LS" reference; the minimum-zone value is never larger). It includes the
+    probing noise: with noise ``sigma`` and ``n`` points it is about
+    ``d2(n) * sigma`` (3.1 sigma at 12 points) even on a perfect part.
+
+    Raises
+    ------
+    FitError
+        A fit whose residuals are unsigned distances (line, circle in space).
+    """
+    if isinstance(fit, (LineFit, Circle3Fit)):
+        raise FitError(f"{type(fit).__name__}: residuals are distances, not signed: no form deviation")
+    r = np.asarray(fit.residuals, dtype=float)
+    return float(r.max() - r.min())

@@ -182,6 +182,9 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
 
     Returns factors, dsym {symbol: [(i, xi (n,6))]}, dax {axis: [(i, xi)]};
     xi = (v, w) is the left-perturbation twist of factor i per unit change.
+    Per axis: its location errors (:func:`_location_errors`), the rotation they
+    leave relative to the axes below (:func:`_carried_rotation`), its motion
+    errors (:func:`_motion_errors`), then the factors in chain order.
     """
     ch = geom.chain
     axes = ch.tool_axes if side == "tool" else ch.workpiece_from_bed
@@ -191,7 +194,6 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
     dax: dict[str, list] = {}
     cum = np.zeros((n, 3))
     dcum: dict[str, np.ndarray] = {}  # d cum / d location symbol, (3,)
-    lin_names = ("X", "Y", "Z")
 
     def add(sym, i, xi):
         dsym.setdefault(sym, []).append((i, xi))
@@ -199,42 +201,9 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
     for a in axes:
         e = np.zeros(3)
         e[_E[a]] = 1.0
-        locs = [sy for sy in iso.symbols_of_axis(a, location=True)
-                if a in iso.ROTARY_AXES or sy.name in iso.SQUARENESS]
-        w_loc = np.zeros((n, 3))
-        dw_loc: dict[str, np.ndarray] = {}
-        d_loc = np.zeros((n, 3))
-        for sy in locs:
-            v = _col(values, sy.name, n)
-            u = np.zeros(3)
-            u[_E[sy.direction]] = 1.0
-            if sy.angular:
-                w_loc += v[:, None] * u
-                dw_loc[sy.name] = u
-            else:
-                d_loc += v[:, None] * u
-                add(sy.name, len(F), np.broadcast_to(np.r_[u, 0, 0, 0], (n, 6)))  # Trans(c+d)
-        if a in iso.LINEAR_AXES:
-            perp = np.eye(3) - np.outer(e, e)
-            rel = w_loc - cum @ perp
-            drel = {k: -(perp @ v) for k, v in dcum.items()}
-            for k, v in dw_loc.items():
-                drel[k] = drel.get(k, 0.0) + v
-            dcum = {k: np.outer(e, e) @ v for k, v in dcum.items()}
-            for k, v in dw_loc.items():
-                dcum[k] = dcum.get(k, 0.0) + v
-            cum = cum + rel
-        else:
-            rel = w_loc
-            drel = dict(dw_loc)
-            for k, v in dw_loc.items():
-                dcum[k] = dcum.get(k, 0.0) + v
-            cum = cum + rel
-        mot = iso.symbols_of_axis(a, location=False)
-        t_E = _vec(values, [m.name for m in mot[:3]], n)
-        w_E = _vec(values, [m.name for m in mot[3:]], n)
-        Jl_E = left_jacobian_so3(w_E)
-        E = _hom(exp_so3(w_E), t_E, n)
+        w_loc, dw_loc, d_loc = _location_errors(a, values, n, lambda sym, xi: add(sym, len(F), xi))
+        rel, drel, cum, dcum = _carried_rotation(a, e, w_loc, dw_loc, cum, dcum)
+        mot, t_E, E, Jl_E = _motion_errors(a, values, n)
         Jl_rel = left_jacobian_so3(rel)
         L = _hom(exp_so3(rel), None, n)
 
@@ -253,7 +222,7 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
                 add(m.name, i, np.concatenate([-np.cross(wv, t_E), wv], axis=1))
 
         if a in iso.LINEAR_AXES:
-            q = lin[:, lin_names.index(a)] + geom.J_m[_E[a]]
+            q = lin[:, ("X", "Y", "Z").index(a)] + geom.J_m[_E[a]]
             add_rel(len(F))
             F.append(L)
             dax.setdefault(a, []).append((len(F), np.broadcast_to(np.r_[s * e, 0, 0, 0], (n, 6))))
@@ -272,6 +241,63 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
             F.append(_hom(exp_so3((s * th)[:, None] * e), None, n))
             F.append(_hom(None, -c, n))
     return F, dsym, dax
+
+
+def _location_errors(a: str, values, n: int, add_translation):
+    """(w_loc (n,3) rad, dw_loc {symbol: (3,)}, d_loc (n,3) m): the location errors of axis ``a``.
+
+    The squarenesses of a linear axis; the position and orientation errors of
+    a rotary axis (ISO 230-7). ``add_translation(symbol, xi)`` records the
+    twist of each position error (a translation of the axis' first factor).
+    """
+    locs = [sy for sy in iso.symbols_of_axis(a, location=True)
+            if a in iso.ROTARY_AXES or sy.name in iso.SQUARENESS]
+    w_loc = np.zeros((n, 3))
+    dw_loc: dict[str, np.ndarray] = {}
+    d_loc = np.zeros((n, 3))
+    for sy in locs:
+        v = _col(values, sy.name, n)
+        u = np.zeros(3)
+        u[_E[sy.direction]] = 1.0
+        if sy.angular:
+            w_loc += v[:, None] * u
+            dw_loc[sy.name] = u
+        else:
+            d_loc += v[:, None] * u
+            add_translation(sy.name, np.broadcast_to(np.r_[u, 0, 0, 0], (n, 6)))  # Trans(c+d)
+    return w_loc, dw_loc, d_loc
+
+
+def _carried_rotation(a: str, e: np.ndarray, w_loc, dw_loc: dict, cum, dcum: dict):
+    """(rel, drel, cum, dcum): the rotation of axis ``a``'s frame relative to the axes below.
+
+    ``cum`` (n,3) is the orientation error accumulated so far and ``dcum`` its
+    derivative per location symbol. A linear axis carries only the part of
+    ``cum`` about its own direction ``e`` (a translation does not feel a
+    rotation about itself); a rotary axis carries all of it.
+    """
+    if a in iso.LINEAR_AXES:
+        perp = np.eye(3) - np.outer(e, e)
+        rel = w_loc - cum @ perp
+        drel = {k: -(perp @ v) for k, v in dcum.items()}
+        for k, v in dw_loc.items():
+            drel[k] = drel.get(k, 0.0) + v
+        dcum = {k: np.outer(e, e) @ v for k, v in dcum.items()}
+    else:
+        rel = w_loc
+        drel = dict(dw_loc)
+        dcum = dict(dcum)
+    for k, v in dw_loc.items():
+        dcum[k] = dcum.get(k, 0.0) + v
+    return rel, drel, cum + rel, dcum
+
+
+def _motion_errors(a: str, values, n: int):
+    """(symbols, t_E (n,3) m, E (n,4,4), Jl_E (n,3,3)): the six motion errors of axis ``a`` as a transform."""
+    mot = iso.symbols_of_axis(a, location=False)
+    t_E = _vec(values, [m.name for m in mot[:3]], n)
+    w_E = _vec(values, [m.name for m in mot[3:]], n)
+    return mot, t_E, _hom(exp_so3(w_E), t_E, n), left_jacobian_so3(w_E)
 
 
 def _inputs(geom, lin_m, rot_rad):

@@ -38,8 +38,7 @@ import numpy as np
 
 from .exceptions import ConfigError, FitError
 from .fit import fit_cylinder, fit_plane
-
-MM = 1e-3
+from .units import MM
 
 
 class OrientationError(ConfigError):
@@ -408,16 +407,17 @@ class BarCalibration:
     n_repeats: int
 
 
-def reversal_calibration(M_NR, M_R, E_XX_cmm_m=None, *, pitch_m: float = MFB.pitch_m,
+def reversal_calibration(M_norm, M_rev, E_XX_cmm_m=None, *, pitch_m: float = MFB.pitch_m,
                          u_step_gauge_m=None, geom: BarGeometry = MFB,
-                         declared_NR: str = "normal", declared_R: str = "upside-down") -> BarCalibration:
+                         declared_norm: str = "normal", declared_rev: str = "upside-down") -> BarCalibration:
     """Reversal calibration of the bar on a CMM (Viprey 2016 eqs 5-7).
 
     Parameters
     ----------
-    M_NR, M_R : (r, N, 3) float
-        Repeated CMM measurements of O_1..O_N, normal (no reversal) and
-        reversed (bar turned 180 deg about its x axis), in the CMM frame
+    M_norm, M_rev : (r, N, 3) float
+        Repeated CMM measurements of O_1..O_N, normal (no reversal, the
+        paper's NR) and reversed (``_rev``, the paper's R: bar turned 180 deg
+        about its x axis), in the CMM frame
         with the bar along the CMM's X axis, each as the CMM reports it, m
         (O_1 at the origin; the mistake-proofing shifts included).
     E_XX_cmm_m : (N,) float, optional
@@ -426,7 +426,7 @@ def reversal_calibration(M_NR, M_R, E_XX_cmm_m=None, *, pitch_m: float = MFB.pit
     u_step_gauge_m : (N,) float, optional
         Standard uncertainty of ``E_XX_cmm_m`` (default: the paper's step
         gauge, U(k=2) = 0.3 um + 1.5e-6 L).
-    declared_NR, declared_R : str
+    declared_norm, declared_rev : str
         Declared orientations of the two set-ups; :class:`OrientationError`
         names the shifted holes when a set-up is not what it is declared.
 
@@ -438,20 +438,20 @@ def reversal_calibration(M_NR, M_R, E_XX_cmm_m=None, *, pitch_m: float = MFB.pit
         - (i-1) L + E_XXcmm`` (eq. 7), averaged over the repeats; u from the
         scatter of the repeats (type A) and the step gauge (type B).
     """
-    M_NR = np.asarray(M_NR, float)
-    M_R = np.asarray(M_R, float)
+    M_norm = np.asarray(M_norm, float)
+    M_rev = np.asarray(M_rev, float)
     N = geom.n_holes
-    if M_NR.ndim == 2:
-        M_NR = M_NR[None]
-    if M_R.ndim == 2:
-        M_R = M_R[None]
-    for nm, M in (("M_NR", M_NR), ("M_R", M_R)):
+    if M_norm.ndim == 2:
+        M_norm = M_norm[None]
+    if M_rev.ndim == 2:
+        M_rev = M_rev[None]
+    for nm, M in (("M_norm", M_norm), ("M_rev", M_rev)):
         if M.ndim != 3 or M.shape[1:] != (N, 3) or not np.all(np.isfinite(M)):
             raise ConfigError(f"reversal_calibration: {nm} must be finite (repeats, {N}, 3), got {M.shape}")
-    r = min(len(M_NR), len(M_R))
+    r = min(len(M_norm), len(M_rev))
     holes = list(range(1, N + 1))
     shifts = np.array([geom.shift_of(i) for i in holes])
-    for nm, M, decl in (("normal set-up", M_NR, declared_NR), ("reversed set-up", M_R, declared_R)):
+    for nm, M, decl in (("normal set-up", M_norm, declared_norm), ("reversed set-up", M_rev, declared_rev)):
         mean = M.mean(axis=0)
         o, found = detect_orientation(mean, holes, geom)
         try:
@@ -459,12 +459,12 @@ def reversal_calibration(M_NR, M_R, E_XX_cmm_m=None, *, pitch_m: float = MFB.pit
         except OrientationError as e:
             raise OrientationError(f"reversal calibration, {nm}: {e}") from None
     # remove the known design shifts (sign per set-up) before separating
-    sgn_NR = 1.0 if declared_NR == "normal" else -1.0
-    sgn_R = 1.0 if declared_R == "normal" else -1.0
-    NR = M_NR[:r].copy()
-    Rv = M_R[:r].copy()
-    NR[:, :, 1] -= sgn_NR * shifts
-    Rv[:, :, 1] -= sgn_R * shifts
+    sgn_norm = 1.0 if declared_norm == "normal" else -1.0
+    sgn_rev = 1.0 if declared_rev == "normal" else -1.0
+    Mn = M_norm[:r].copy()
+    Mr = M_rev[:r].copy()
+    Mn[:, :, 1] -= sgn_norm * shifts
+    Mr[:, :, 1] -= sgn_rev * shifts
     x_nom = (np.arange(N)) * pitch_m
     Exx_cmm = np.zeros(N) if E_XX_cmm_m is None else np.asarray(E_XX_cmm_m, float)
     if Exx_cmm.shape != (N,):
@@ -472,9 +472,9 @@ def reversal_calibration(M_NR, M_R, E_XX_cmm_m=None, *, pitch_m: float = MFB.pit
     u_sg = (0.5 * (0.3e-6 + 1.5e-6 * x_nom) if u_step_gauge_m is None
             else np.broadcast_to(np.asarray(u_step_gauge_m, float), (N,)))
     per = np.empty((r, N, 3))
-    per[:, :, 0] = 0.5 * (NR[:, :, 0] + Rv[:, :, 0]) - x_nom + Exx_cmm
-    per[:, :, 1] = 0.5 * (NR[:, :, 1] - Rv[:, :, 1])
-    per[:, :, 2] = 0.5 * (NR[:, :, 2] - Rv[:, :, 2])
+    per[:, :, 0] = 0.5 * (Mn[:, :, 0] + Mr[:, :, 0]) - x_nom + Exx_cmm
+    per[:, :, 1] = 0.5 * (Mn[:, :, 1] - Mr[:, :, 1])
+    per[:, :, 2] = 0.5 * (Mn[:, :, 2] - Mr[:, :, 2])
     E = per.mean(axis=0)
     if r > 1:
         uA = per.std(axis=0, ddof=1) / np.sqrt(r)

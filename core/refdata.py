@@ -169,66 +169,84 @@ def make_refset(kind: str, rng: np.random.Generator, *, n: int | None = None,
     partial = rng.random() < p_partial
     arc = rng.uniform(*partial_arc) if partial else 2 * np.pi
 
-    if kind == "plane":
-        d = orient(_direction(rng))
-        B = _perp_basis(d)
-        ab = rng.uniform(-size, size, (n, 2)) * [1.0, rng.uniform(0.2, 1.0)]
-        Q = off + ab @ B[:2]
-        r0, J = _rj_plane(off, B, Q)
-        e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms, n)
-        P = Q + e[:, None] * d
-        c = P.mean(axis=0)
-        pos = c - ((c - off) @ d) * d  # centroid projected onto the plane
-        return RefSet(kind, P, pos, d, np.nan, e, np.nan)
+    return _BUILDERS[kind](rng, n, off, size, partial, arc, residual_rms)
 
-    if kind == "line":
-        d = orient(_direction(rng))
-        B = _perp_basis(d)
-        t = rng.uniform(-size, size, n)
-        Q = off + t[:, None] * d
-        _, J = _rj_line(off, B, Q)
-        e = _scaled(null_space_residuals(J, rng.normal(size=2 * n)), rng, residual_rms, n)
-        P = Q + e[:n, None] * B[0] + e[n:, None] * B[1]
-        c = P.mean(axis=0)
-        pos = off + ((c - off) @ d) * d
-        return RefSet(kind, P, pos, d, np.nan, np.hypot(e[:n], e[n:]), np.nan)
 
-    R = size
-    if kind == "circle2d":
-        th = _angles(rng, n, arc)
-        er = np.column_stack([np.cos(th), np.sin(th)])
-        Q = off + R * er
-        _, J = _rj_ball(off, R, Q)
-        e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms, n)
-        return RefSet(kind, Q + e[:, None] * er, off, None, R, e, arc)
+def _plane_set(rng, n, off, size, partial, arc, residual_rms) -> RefSet:
+    """Points about a plane through ``off``; position: the centroid projected onto it."""
+    d = orient(_direction(rng))
+    B = _perp_basis(d)
+    ab = rng.uniform(-size, size, (n, 2)) * [1.0, rng.uniform(0.2, 1.0)]
+    Q = off + ab @ B[:2]
+    r0, J = _rj_plane(off, B, Q)
+    e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms, n)
+    P = Q + e[:, None] * d
+    c = P.mean(axis=0)
+    pos = c - ((c - off) @ d) * d  # centroid projected onto the plane
+    return RefSet("plane", P, pos, d, np.nan, e, np.nan)
 
-    if kind == "sphere":
-        cap = rng.uniform(np.pi / 3, np.pi / 2) if partial else np.pi
-        pole = _direction(rng)
-        B = _perp_basis(pole)
-        # uniform on the cap: cos(polar) uniform in [cos cap, 1]
-        cp = rng.uniform(np.cos(cap), 1.0, n)
-        az = rng.uniform(0, 2 * np.pi, n)
-        sp = np.sqrt(1 - cp**2)
-        er = (sp * np.cos(az))[:, None] * B[0] + (sp * np.sin(az))[:, None] * B[1] + cp[:, None] * B[2]
-        Q = off + R * er
-        _, J = _rj_ball(off, R, Q)
-        e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms, n)
-        return RefSet(kind, Q + e[:, None] * er, off, None, R, e, cap)
 
+def _line_set(rng, n, off, size, partial, arc, residual_rms) -> RefSet:
+    """Points about a 3D line; position: the foot of the centroid on it."""
+    d = orient(_direction(rng))
+    B = _perp_basis(d)
+    t = rng.uniform(-size, size, n)
+    Q = off + t[:, None] * d
+    _, J = _rj_line(off, B, Q)
+    e = _scaled(null_space_residuals(J, rng.normal(size=2 * n)), rng, residual_rms, n)
+    P = Q + e[:n, None] * B[0] + e[n:, None] * B[1]
+    c = P.mean(axis=0)
+    pos = off + ((c - off) @ d) * d
+    return RefSet("line", P, pos, d, np.nan, np.hypot(e[:n], e[n:]), np.nan)
+
+
+def _circle2d_set(rng, n, off, R, partial, arc, residual_rms) -> RefSet:
+    """Points about a circle in the plane (full or an arc)."""
+    th = _angles(rng, n, arc)
+    er = np.column_stack([np.cos(th), np.sin(th)])
+    Q = off + R * er
+    _, J = _rj_ball(off, R, Q)
+    e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms, n)
+    return RefSet("circle2d", Q + e[:, None] * er, off, None, R, e, arc)
+
+
+def _sphere_set(rng, n, off, R, partial, arc, residual_rms) -> RefSet:
+    """Points about a sphere, uniform on a cap (partial) or the whole sphere."""
+    cap = rng.uniform(np.pi / 3, np.pi / 2) if partial else np.pi
+    pole = _direction(rng)
+    B = _perp_basis(pole)
+    # uniform on the cap: cos(polar) uniform in [cos cap, 1]
+    cp = rng.uniform(np.cos(cap), 1.0, n)
+    az = rng.uniform(0, 2 * np.pi, n)
+    sp = np.sqrt(1 - cp**2)
+    er = (sp * np.cos(az))[:, None] * B[0] + (sp * np.sin(az))[:, None] * B[1] + cp[:, None] * B[2]
+    Q = off + R * er
+    _, J = _rj_ball(off, R, Q)
+    e = _scaled(null_space_residuals(J, rng.normal(size=n)), rng, residual_rms, n)
+    return RefSet("sphere", Q + e[:, None] * er, off, None, R, e, cap)
+
+
+def _axis_frame(rng, n, arc):
+    """(d, B, er): a random axis, its basis and radial unit vectors at ``n`` angles over ``arc``."""
     d = orient(_direction(rng))
     B = _perp_basis(d)
     th = _angles(rng, n, arc)
-    er = np.cos(th)[:, None] * B[0] + np.sin(th)[:, None] * B[1]
+    return d, B, np.cos(th)[:, None] * B[0] + np.sin(th)[:, None] * B[1]
 
-    if kind == "circle3d":
-        Q = off + R * er
-        _, J = _rj_circle3(off, B, R, Q)
-        e = _scaled(null_space_residuals(J, rng.normal(size=2 * n)), rng, residual_rms, n)
-        P = Q + e[:n, None] * d + e[n:, None] * er
-        return RefSet(kind, P, off, d, R, np.hypot(e[:n], e[n:]), arc)
 
-    # cylinder: length 1-4 radii, heights uniform
+def _circle3d_set(rng, n, off, R, partial, arc, residual_rms) -> RefSet:
+    """Points about a circle in 3D (out of its plane and radially)."""
+    d, B, er = _axis_frame(rng, n, arc)
+    Q = off + R * er
+    _, J = _rj_circle3(off, B, R, Q)
+    e = _scaled(null_space_residuals(J, rng.normal(size=2 * n)), rng, residual_rms, n)
+    P = Q + e[:n, None] * d + e[n:, None] * er
+    return RefSet("circle3d", P, off, d, R, np.hypot(e[:n], e[n:]), arc)
+
+
+def _cylinder_set(rng, n, off, R, partial, arc, residual_rms) -> RefSet:
+    """Points about a cylinder of length 1-4 radii, heights uniform; position: the centroid's foot on the axis."""
+    d, B, er = _axis_frame(rng, n, arc)
     L = R * rng.uniform(1.0, 4.0)
     t = rng.uniform(-L / 2, L / 2, n)
     Q = off + R * er + t[:, None] * d
@@ -237,7 +255,12 @@ def make_refset(kind: str, rng: np.random.Generator, *, n: int | None = None,
     P = Q + e[:, None] * er
     c = P.mean(axis=0)
     pos = off + ((c - off) @ d) * d
-    return RefSet(kind, P, pos, d, R, e, arc)
+    return RefSet("cylinder", P, pos, d, R, e, arc)
+
+
+#: The builder of each kind: ``(rng, n, offset, size, partial, arc, residual_rms) -> RefSet``.
+_BUILDERS = {"plane": _plane_set, "line": _line_set, "circle2d": _circle2d_set, "sphere": _sphere_set,
+             "circle3d": _circle3d_set, "cylinder": _cylinder_set}
 
 
 def make_refsets(kind: str, count: int, rng: np.random.Generator, **kw) -> list[RefSet]:

@@ -20,7 +20,7 @@ the table about Z (CONTRIBUTING: actual minus nominal pose of the moving
 component), which is the sign of eq 13. ``n . (R90 p)`` is the same for the
 tip centre and the contact point because ``n`` is perpendicular to ``R90 n``.
 
-Parameter vector (fixed order, names in :attr:`Design.names`)::
+Parameter vector (fixed order, names in :attr:`SelfCalDesign.names`)::
 
     EXX@x (N_x) | EYX@x (N_x) | EXY@y (N_y) | EYY@y (N_y) | ECY@y (N_y) | EC0Y |
     G[target] (N_w) | EXC,total[C] (N_c) | EYC,total[C] (N_c) | ECC[C] (N_c)
@@ -75,16 +75,16 @@ the U of EXC/EYC,total and ECC per angle is Table 2's. With a measured log:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 import scipy.sparse as sp
 
 from .exceptions import ConfigError, IdentifiabilityError
-from .lsq import LinearEstimator, solve
+from .lsq import LinearEstimator, remove_span, solve
 from .touches import Touches
+from .units import DEG, MM, UM
 
-MM = 1e-3
-DEG = np.pi / 180.0
 #: Tolerance (m) for a touch lying on the grid's edge.
 EDGE_TOL = 1e-9
 #: Largest |n_z| accepted: the model is planar (XY).
@@ -197,11 +197,33 @@ def _interp_row(nodes: np.ndarray, v: float) -> np.ndarray:
     return r
 
 
+class Yaw(StrEnum):
+    """The yaw that couples the X and Y error maps (eqs 4-5); :data:`YAW_MESSAGES` says how."""
+
+    ECY = "ECY"
+    ECX = "ECX"
+
+
+#: How each :class:`Yaw` enters the model.
+YAW_MESSAGES = {
+    Yaw.ECY: "X rides on Y: the yaw of Y turns the X stroke, E_Y += x ECY(y), on the y nodes (eq 5, the paper)",
+    Yaw.ECX: "Y rides on X: the yaw of X turns the Y stroke, E_X -= y ECX(x), on the x nodes",
+}
+
+
+def yaw_model(value) -> Yaw:
+    """``value`` as a :class:`Yaw`; ConfigError naming the two otherwise."""
+    try:
+        return Yaw(value)
+    except ValueError:
+        raise ConfigError(f"yaw must be 'ECY' or 'ECX', got {value!r}") from None
+
+
 # ---------------------------------------------------------------------------
 # design
 # ---------------------------------------------------------------------------
 @dataclass(frozen=True)
-class Design:
+class SelfCalDesign:
     """The linear model ``dq = A theta`` of eq 15 plus its gauge.
 
     Attributes
@@ -242,11 +264,34 @@ class Design:
     gauge: tuple
     scale_known: bool
     N: np.ndarray
-    yaw: str = "ECY"
+    yaw: Yaw = Yaw.ECY
 
     @property
     def n_params(self) -> int:
         return len(self.names)
+
+    def to_gauge(self, theta: np.ndarray, delta_L_m: float | None = None) -> np.ndarray:
+        """The parameter vector equivalent to ``theta`` that meets this design's gauge.
+
+        Adds the null-space combination ``N alpha`` with ``C (theta + N alpha) =
+        d`` so a truth (e.g. the simulator's) can be compared with an
+        identification. ``A theta`` is unchanged (exactly, for a truth in the
+        model space). ``delta_L_m`` overrides ``d``'s scale value.
+
+        Parameters
+        ----------
+        theta : (n_params,) float
+            Parameters in m / rad, in ``names`` order.
+        """
+        theta = np.asarray(theta, float)
+        if theta.shape != (self.n_params,):
+            raise ConfigError(f"theta: expected shape ({self.n_params},), got {theta.shape}")
+        d = self.d.copy()
+        if delta_L_m is not None:
+            d[10] = delta_L_m
+        CN = self.C @ self.N
+        alpha = np.linalg.solve(CN, d - self.C @ theta)
+        return theta + self.N @ alpha
 
 
 def _setup_angles(touches: Touches) -> np.ndarray:
@@ -266,7 +311,7 @@ def _c_names(setup_ids, c_rad):
     return [f"C={d}deg" + (f"#{s}" if dup else "") for d, s in zip(deg, setup_ids)]
 
 
-def yaw_for_chain(chain_text: str | None) -> str:
+def yaw_for_chain(chain_text: str | None) -> Yaw:
     """Which yaw couples X and Y in the rigid-body model of a chain: ``"ECY"`` or ``"ECX"``.
 
     The paper's eqs 4-5 are written for X riding on Y (``V[w-C-A-b-Y-X-Z-(C)-t]``,
@@ -277,20 +322,21 @@ def yaw_for_chain(chain_text: str | None) -> str:
     chain with X and Y on different branches gives the paper's ``"ECY"``.
     """
     if not chain_text:
-        return "ECY"
+        return Yaw.ECY
     from .chain import parse_chain
 
     ch = parse_chain(chain_text)
     tool, work = list(ch.tool_axes), list(ch.workpiece_axes)
     if "X" in tool and "Y" in tool:  # listed from the bed up: the first is the carrier
-        return "ECY" if tool.index("Y") < tool.index("X") else "ECX"
+        return Yaw.ECY if tool.index("Y") < tool.index("X") else Yaw.ECX
     if "X" in work and "Y" in work:  # listed from the workpiece down: the last is the carrier
-        return "ECY" if work.index("Y") > work.index("X") else "ECX"
-    return "ECY"
+        return Yaw.ECY if work.index("Y") > work.index("X") else Yaw.ECX
+    return Yaw.ECY
 
 
-def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *, yaw: str = "ECY") -> Design:
-    """Design matrix of eq 15 for measured or planned touches.
+def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
+                 yaw: Yaw | str = Yaw.ECY) -> SelfCalDesign:
+    """Design matrix of eq 15 for measured or planned touches, with its gauge (eqs 16-17).
 
     Parameters
     ----------
@@ -304,55 +350,74 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
         X-axis positioning error at the last x node (eq 17), m; None = scale
         unknown (fixed to 0 and reported).
     yaw : {"ECY", "ECX"}
-        The yaw that couples the axes (:func:`yaw_for_chain`): ``"ECY"``
-        on the y nodes (the paper: X rides on Y) or ``"ECX"`` on the x
-        nodes (Y rides on X, ``E_X -= y ECX(x)``).
+        The yaw that couples the axes (:class:`Yaw`, :func:`yaw_for_chain`):
+        ``"ECY"`` on the y nodes (the paper: X rides on Y) or ``"ECX"`` on
+        the x nodes (Y rides on X, ``E_X -= y ECX(x)``).
 
     Raises
     ------
     ConfigError
-        A touch outside the grid, a non-planar normal, mixed C in a set-up.
+        A touch outside the grid, a non-planar normal, mixed C in a set-up,
+        a non-finite ``delta_L_m``.
     """
-    if yaw not in ("ECY", "ECX"):
-        raise ConfigError(f"yaw must be 'ECY' or 'ECX', got {yaw!r}")
+    yaw = yaw_model(yaw)
+    _check_touches(touches, grid)
+    if delta_L_m is not None and not np.isfinite(delta_L_m):
+        raise ConfigError(f"delta_L must be finite, got {delta_L_m}")
+    c_rad = _setup_angles(touches)
+    slices, names = _parameters(touches, grid, c_rad, yaw)
+    A = _eq14_matrix(touches, grid, slices, yaw)
+    C, d, gauge, ref = _gauge_conditions(grid, slices, c_rad, _c_names(touches.setup_ids, c_rad), delta_L_m, yaw)
+    N = _null_basis(touches, slices, grid.x_m, grid.y_m, c_rad, len(names), yaw)
+    return SelfCalDesign(A=A, names=tuple(names), slices=slices, grid=grid, target_ids=tuple(touches.target_ids),
+                         setup_ids=tuple(touches.setup_ids), c_rad=c_rad, ref_setup=ref, C=C, d=d,
+                         gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N, yaw=yaw)
+
+
+def _check_touches(touches: Touches, grid: Grid) -> None:
+    """ConfigError for no touches, a normal out of the XY plane, or a touch outside the grid."""
     if touches.n == 0:
         raise ConfigError("no touches")
-    x = touches.pn_R[:, 0]
-    y = touches.pn_R[:, 1]
-    nx = touches.n_R[:, 0]
-    ny = touches.n_R[:, 1]
     bad = np.flatnonzero(np.abs(touches.n_R[:, 2]) > NZ_MAX)
     if bad.size:
         raise ConfigError(f"log row {touches.row[bad[0]]}: normal n_z = {touches.n_R[bad[0], 2]:.3g};"
                           f" the 2D self-calibration model needs normals in the XY plane")
-    gx, gy = grid.x_m, grid.y_m
-    for v, g, ax in ((x, gx, "X"), (y, gy, "Y")):
+    for v, g, ax in ((touches.pn_R[:, 0], grid.x_m, "X"), (touches.pn_R[:, 1], grid.y_m, "Y")):
         out = np.flatnonzero((v < g[0] - EDGE_TOL) | (v > g[-1] + EDGE_TOL))
         if out.size:
             i = out[0]
             raise ConfigError(f"log row {touches.row[i]}: nominal {ax} = {v[i] / MM:.3f} mm lies outside the grid"
                               f" {g[0] / MM:g}..{g[-1] / MM:g} mm ({out.size} touches outside)")
-    c_rad = _setup_angles(touches)
+
+
+def _parameters(touches: Touches, grid: Grid, c_rad: np.ndarray, yaw: Yaw) -> tuple[dict, list]:
+    """(slices, names) of the parameter vector in its fixed order (module docstring)."""
+    gx, gy = grid.x_m, grid.y_m
     Nx, Ny = len(gx), len(gy)
     Nw, Nc = len(touches.target_ids), len(touches.setup_ids)
-    sizes = [("EXX", Nx), ("EYX", Nx), ("EXY", Ny), ("EYY", Ny), (yaw, Ny if yaw == "ECY" else Nx), ("EC0Y", 1),
+    sizes = [("EXX", Nx), ("EYX", Nx), ("EXY", Ny), ("EYY", Ny), (yaw, Ny if yaw == Yaw.ECY else Nx), ("EC0Y", 1),
              ("G", Nw), ("EXC", Nc), ("EYC", Nc), ("ECC", Nc)]
     slices, o = {}, 0
     for nm, k in sizes:
         slices[nm] = slice(o, o + k)
         o += k
-    n_par = o
     cn = _c_names(touches.setup_ids, c_rad)
     names = ([f"EXX@x={_fmt_mm(v)}mm" for v in gx] + [f"EYX@x={_fmt_mm(v)}mm" for v in gx]
              + [f"{s}@y={_fmt_mm(v)}mm" for s in ("EXY", "EYY") for v in gy]
-             + ([f"ECY@y={_fmt_mm(v)}mm" for v in gy] if yaw == "ECY" else [f"ECX@x={_fmt_mm(v)}mm" for v in gx])
+             + ([f"ECY@y={_fmt_mm(v)}mm" for v in gy] if yaw == Yaw.ECY else [f"ECX@x={_fmt_mm(v)}mm" for v in gx])
              + ["EC0Y"]
              + [f"G[{t}]" for t in touches.target_ids]
              + [f"EXC,total[{c}]" for c in cn] + [f"EYC,total[{c}]" for c in cn] + [f"ECC[{c}]" for c in cn])
+    return slices, names
 
+
+def _eq14_matrix(touches: Touches, grid: Grid, s: dict, yaw: Yaw) -> sp.csr_matrix:
+    """(n_touches, n_params) sparse A of eq 14: eq 12 with eqs 4-5 and 8-11, eq 7, eq 13."""
     m = touches.n
-    kx, zx = _interp_weights(gx, x)
-    ky, zy = _interp_weights(gy, y)
+    x, y = touches.pn_R[:, 0], touches.pn_R[:, 1]
+    nx, ny = touches.n_R[:, 0], touches.n_R[:, 1]
+    kx, zx = _interp_weights(grid.x_m, x)
+    ky, zy = _interp_weights(grid.y_m, y)
     j = touches.setup
     rows, cols, vals = [], [], []
 
@@ -361,7 +426,6 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
         cols.append(np.asarray(c))
         vals.append(np.asarray(v, float))
 
-    s = slices
     # eq 12 with eqs 10, 11: dq = -nx E_X,total - ny E_Y,total
     add(s["EXX"].start + kx, -nx * (1 - zx))
     add(s["EXX"].start + kx + 1, -nx * zx)
@@ -372,7 +436,7 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     add(s["EYX"].start + kx + 1, -ny * zx)
     add(s["EYY"].start + ky, -ny * (1 - zy))
     add(s["EYY"].start + ky + 1, -ny * zy)
-    if yaw == "ECY":  # X rides on Y: E_Y += x ECY(y) (eq 5)
+    if yaw == Yaw.ECY:  # X rides on Y: E_Y += x ECY(y) (eq 5)
         add(s["ECY"].start + ky, -ny * x * (1 - zy))
         add(s["ECY"].start + ky + 1, -ny * x * zy)
     else:  # Y rides on X: E_X -= y ECX(x)
@@ -385,10 +449,16 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     add(s["EXC"].start + j, nx)
     add(s["EYC"].start + j, ny)
     add(s["ECC"].start + j, rp_n)
+    n_par = max(sl.stop for sl in s.values())
     A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, n_par))
     A.sum_duplicates()
+    return A
 
-    # gauge, eqs 16-17
+
+def _gauge_conditions(grid: Grid, s: dict, c_rad: np.ndarray, cn: list, delta_L_m, yaw: Yaw):
+    """(C (11, n), d (11,), words, ref set-up) of the eleven gauge conditions, eqs 16-17."""
+    gx, gy = grid.x_m, grid.y_m
+    n_par = max(sl.stop for sl in s.values())
     xo, yo = grid.origin_m
     ref = int(np.argmin(np.abs(np.angle(np.exp(1j * c_rad)))))
     C = np.zeros((11, n_par))
@@ -404,18 +474,18 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     g(1, "EYX", _interp_row(gx, xo), f"EYX(x={_fmt_mm(xo)}mm)=0")
     g(2, "EXY", _interp_row(gy, yo), f"EXY(y={_fmt_mm(yo)}mm)=0")
     g(3, "EYY", _interp_row(gy, yo), f"EYY(y={_fmt_mm(yo)}mm)=0")
-    if yaw == "ECY":
+    if yaw == Yaw.ECY:
         g(4, "ECY", _interp_row(gy, yo), f"ECY(y={_fmt_mm(yo)}mm)=0")
     else:
         g(4, "ECX", _interp_row(gx, xo), f"ECX(x={_fmt_mm(xo)}mm)=0")
-    e = np.zeros(Nc)
+    e = np.zeros(len(c_rad))
     e[ref] = 1.0
     g(5, "EXC", e, f"EXC,total({cn[ref]})=0")
     g(6, "EYC", e, f"EYC,total({cn[ref]})=0")
     g(7, "ECC", e, f"ECC({cn[ref]})=0")
-    last_x = np.zeros(Nx)
+    last_x = np.zeros(len(gx))
     last_x[-1] = 1
-    last_y = np.zeros(Ny)
+    last_y = np.zeros(len(gy))
     last_y[-1] = 1
     g(8, "EYX", last_x, f"EYX(x={_fmt_mm(gx[-1])}mm)=0")
     g(9, "EXY", last_y, f"EXY(y={_fmt_mm(gy[-1])}mm)=0")
@@ -423,17 +493,12 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
         g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=0: scale unknown (delta_L not given), "
                              "EXX, EYY and G carry an unknown common scale")
     else:
-        if not np.isfinite(delta_L_m):
-            raise ConfigError(f"delta_L must be finite, got {delta_L_m}")
-        g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=delta_L={delta_L_m * 1e6:g}um (scale known)",
+        g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=delta_L={delta_L_m / UM:g}um (scale known)",
           float(delta_L_m))
-    N = _null_basis(touches, slices, gx, gy, c_rad, n_par, yaw)
-    return Design(A=A, names=tuple(names), slices=slices, grid=grid, target_ids=tuple(touches.target_ids),
-                  setup_ids=tuple(touches.setup_ids), c_rad=c_rad, ref_setup=ref, C=C, d=d,
-                  gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N, yaw=yaw)
+    return C, d, gauge, ref
 
 
-def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw="ECY") -> np.ndarray:
+def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
     """The eleven analytic null directions of A (see module docstring)."""
     N = np.zeros((n_par, 11))
     Nw = s["G"].stop - s["G"].start
@@ -470,7 +535,7 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw="ECY") -> np.ndarray:
     N[s["G"], 7] = -nR[:, 0] * pn[:, 1] + nR[:, 1] * pn[:, 0]
     N[s["ECC"], 7] = -1
     # 8: yaw offset vs a straightness slope (ECY vs EYX; ECX vs EXY); 9: EXY slope vs EC0Y
-    if yaw == "ECY":
+    if yaw == Yaw.ECY:
         N[s["ECY"], 8] = 1
         N[s["EYX"], 8] = -gx
     else:
@@ -485,33 +550,9 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw="ECY") -> np.ndarray:
     return N
 
 
-def null_space(design: Design) -> np.ndarray:
+def null_space(design: SelfCalDesign) -> np.ndarray:
     """(n_params, 11) analytic null-space basis of ``design.A`` (named by :data:`GAUGE_NAMES`)."""
     return design.N
-
-
-def to_gauge(design: Design, theta: np.ndarray, delta_L_m: float | None = None) -> np.ndarray:
-    """The parameter vector equivalent to ``theta`` that meets the gauge.
-
-    Adds the null-space combination ``N alpha`` with ``C (theta + N alpha) =
-    d`` so a truth (e.g. the simulator's) can be compared with an
-    identification. ``A theta`` is unchanged (exactly, for a truth in the
-    model space). ``delta_L_m`` overrides ``design.d``'s scale value.
-
-    Parameters
-    ----------
-    theta : (n_params,) float
-        Parameters in m / rad, in ``design.names`` order.
-    """
-    theta = np.asarray(theta, float)
-    if theta.shape != (design.n_params,):
-        raise ConfigError(f"theta: expected shape ({design.n_params},), got {theta.shape}")
-    d = design.d.copy()
-    if delta_L_m is not None:
-        d[10] = delta_L_m
-    CN = design.C @ design.N
-    alpha = np.linalg.solve(CN, d - design.C @ theta)
-    return theta + design.N @ alpha
 
 
 # ---------------------------------------------------------------------------
@@ -523,7 +564,7 @@ class SelfCalResult:
 
     Attributes
     ----------
-    design : Design
+    design : SelfCalDesign
     theta : (n_params,) float
         All parameters, m / rad, in ``design.names`` order.
     std : (n_params,) float or None
@@ -542,7 +583,7 @@ class SelfCalResult:
     n_touches : int
     """
 
-    design: Design
+    design: SelfCalDesign
     theta: np.ndarray
     std: np.ndarray | None
     cov: np.ndarray | None
@@ -579,8 +620,8 @@ class SelfCalResult:
         return self._blk("EYY")
 
     @property
-    def yaw(self) -> str:
-        """``"ECY"`` (on the y nodes) or ``"ECX"`` (on the x nodes): see :func:`yaw_for_chain`."""
+    def yaw(self) -> Yaw:
+        """``ECY`` (on the y nodes) or ``ECX`` (on the x nodes): see :func:`yaw_for_chain`."""
         return self.design.yaw
 
     @property
@@ -707,7 +748,7 @@ def check_count(touches: Touches, grid: Grid) -> None:
             f" or a coarser grid")
 
 
-def _check_nodes(des: Design) -> None:
+def _check_nodes(des: SelfCalDesign) -> None:
     """Raise naming every grid node no touch constrains (they would be solved from the gauge alone)."""
     A = des.A
     colnorm = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
@@ -717,9 +758,9 @@ def _check_nodes(des: Design) -> None:
         raise IdentifiabilityError(f"no touch constrains {shown}: fit the grid to the touches or add targets there")
 
 
-def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
+def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
              grid_step_m: float = 0.022, sigma_m: float | None = None, covariance: str = "auto",
-             yaw: str = "ECY") -> SelfCalResult:
+             yaw: Yaw | str = Yaw.ECY) -> SelfCalResult:
     """2D self-calibration, eqs 15-18.
 
     Parameters
@@ -764,13 +805,92 @@ def identify(touches: Touches, grid: Grid | None = None, delta_L_m: float | None
 
 
 def estimator(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
-              yaw: str = "ECY") -> tuple[Design, LinearEstimator]:
+              yaw: Yaw | str = Yaw.ECY) -> tuple[SelfCalDesign, LinearEstimator]:
     """Build and factor the design once (for Monte Carlo and design studies)."""
     check_count(touches, grid)
     des = build_design(touches, grid, delta_L_m, yaw=yaw)
     _check_nodes(des)
     sol = solve(des.A, np.zeros(touches.n), des.C, des.d, names=des.names, sigma=1.0, covariance="none")
     return des, sol.estimator
+
+
+# ---------------------------------------------------------------------------
+# error map and workpiece form: what an identification is compared with
+# ---------------------------------------------------------------------------
+def error_map(res: SelfCalResult) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """E_X,total and E_Y,total (eqs 4-5) on the grid nodes from the identified tables.
+
+    Returns
+    -------
+    x_m : (N_x,) float
+    y_m : (N_y,) float
+        The grid nodes, machine frame R, m.
+    ex_m, ey_m : (N_x, N_y) float
+        Tip position error in X and Y at each node (C = 0), m, in the
+        identification's gauge (eqs 16-17).
+    """
+    g = res.design.grid
+    X, Y = np.meshgrid(g.x_m, g.y_m, indexing="ij")
+    ex = res.EXX[:, None] + res.EXY[None, :] - Y * res.EC0Y
+    ey = res.EYX[:, None] + res.EYY[None, :]
+    if res.yaw == Yaw.ECY:  # X rides on Y (eq 5)
+        ey = ey + X * res.ECY[None, :]
+    else:  # Y rides on X
+        ex = ex - Y * res.ECX[:, None]
+    return g.x_m, g.y_m, ex, ey
+
+
+def map_gauge_basis(x_m, y_m) -> np.ndarray:
+    """(2 N, 4) directions of an (E_X, E_Y) map on nodes (x, y) that self-calibration cannot see.
+
+    A translation in X and in Y, a rotation about Z and a scale (the map's
+    part of the gauge of eqs 16-17), stacked as ``[E_X; E_Y]`` over the
+    ``N`` points (``x_m``, ``y_m`` flattened alike).
+    """
+    x, y = np.ravel(x_m), np.ravel(y_m)
+    one, zero = np.ones_like(x), np.zeros_like(x)
+    return np.vstack([np.column_stack([one, zero, -y, x]), np.column_stack([zero, one, x, y])])
+
+
+def map_in_gauge(x_m, y_m, ex_true, ey_true, ex_m, ey_m) -> tuple[np.ndarray, np.ndarray]:
+    """The true error map expressed in the gauge of an identified one.
+
+    Self-calibration determines the map only up to a translation, a rotation
+    and (without delta_L) a scale (:func:`map_gauge_basis`): the part of
+    ``identified - true`` those explain is added to the truth, so the two
+    can be compared. All maps of one shape, m; ``x_m``, ``y_m`` the node
+    coordinates of each entry (e.g. ``np.meshgrid(..., indexing="ij")``).
+
+    Returns
+    -------
+    (ex, ey) : the truth in the identification's gauge, shapes of ``ex_true``.
+    """
+    shape = np.shape(ex_true)
+    E = np.concatenate([np.ravel(ex_true), np.ravel(ey_true)])
+    r = np.concatenate([np.ravel(ex_m), np.ravel(ey_m)]) - E
+    Ea = E + (r - remove_span(r, map_gauge_basis(x_m, y_m)))
+    n = Ea.size // 2
+    return Ea[:n].reshape(shape), Ea[n:].reshape(shape)
+
+
+def workpiece_gauge_basis(w_W, wn_W) -> np.ndarray:
+    """(N_w, 5) workpiece deviations G that self-calibration cannot see (eqs 16-17).
+
+    A shift of the part in X and in Y (``wn . t``), a rotation in W
+    (``wn . R90 w``), a scale (``wn . w``) and a common offset (the stylus
+    radius), for targets at contact points ``w_W`` (N_w, 2), m, with outward
+    unit normals ``wn_W`` (N_w, 2), both in W.
+    """
+    P, N = np.asarray(w_W, float), np.asarray(wn_W, float)
+    return np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
+                            np.einsum("ij,ij->i", N, P), np.ones(len(P))])
+
+
+def workpiece_form(g, w_W, wn_W) -> np.ndarray:
+    """``g`` (N_w,) per target less what a shift, rotation and scale of the part and a
+    common offset would give (:func:`workpiece_gauge_basis`): the workpiece form that
+    self-calibration sees, in the unit of ``g``."""
+    return remove_span(np.asarray(g, float), workpiece_gauge_basis(w_W, wn_W))
 
 
 # ---------------------------------------------------------------------------
@@ -826,5 +946,5 @@ def nominal_touches(w_W: np.ndarray, wn_W: np.ndarray, c_deg, *, stylus_r_m: flo
                    t_s=np.arange(m, dtype=float), setup=np.repeat(np.arange(nc), nw),
                    target=np.tile(np.arange(nw), nc), setup_ids=sids, target_ids=ids,
                    feature=np.array([""] * m, dtype=object),
-                   w_W=np.hstack([np.tile(w, (nc, 1)), z]), wn_W=np.hstack([np.tile(wn, (nc, 1)), z]),
+                   w_A=np.hstack([np.tile(w, (nc, 1)), z]), wn_A=np.hstack([np.tile(wn, (nc, 1)), z]),
                    temps_C={})

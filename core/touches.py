@@ -5,21 +5,41 @@ into a :class:`Touches` (metres, radians), keeps only the rows whose status
 is ``ok`` (``row`` maps back to the log's 0-based rows) and indexes set-ups
 and targets.
 
-Frames: ``_R`` is the machine reference frame (MCS), ``_W`` the artefact /
-workpiece frame (WCS).
+Frames: ``_R`` is the machine reference frame (MCS), ``_A`` the artefact's
+own frame (the probe log's ``wx_mm``.. and ``wnx``.. columns). Self-calibration
+takes A as its workpiece frame W (the artefact sits on the table).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 
 from .exceptions import ProbeLogError
 from .probelog import ProbeLog
+from .units import DEG, MM
 
-MM = 1e-3
-DEG = np.pi / 180.0
+
+class ProbeStatus(StrEnum):
+    """Outcome of one touch: the probe log's ``status`` column (the values are its strings).
+
+    Only ``ok`` touches enter a fit (:func:`from_log`); :data:`STATUS_MESSAGES`
+    says what the others mean.
+    """
+
+    OK = "ok"
+    NO_TRIGGER = "no_trigger"
+    EARLY_TRIGGER = "early_trigger"
+
+
+#: What each :class:`ProbeStatus` means, in words.
+STATUS_MESSAGES = {
+    ProbeStatus.OK: "triggered on the surface: a valid touch",
+    ProbeStatus.NO_TRIGGER: "the probing move ended without contact (surface missing or farther than planned)",
+    ProbeStatus.EARLY_TRIGGER: "the stylus was already in contact at the start of the approach",
+}
 
 
 @dataclass(frozen=True)
@@ -50,9 +70,9 @@ class Touches:
         Ids in order of first appearance.
     feature : (n,) object
         Feature id per touch (``""`` when the log has none).
-    w_W : (n, 3) float
+    w_A : (n, 3) float
         Nominal contact point, artefact frame, m (NaN when absent).
-    wn_W : (n, 3) float
+    wn_A : (n, 3) float
         Nominal normal, artefact frame (NaN when absent).
     temps_C : dict[str, (n,) float]
         Temperature columns, degrees Celsius.
@@ -70,8 +90,8 @@ class Touches:
     setup_ids: tuple
     target_ids: tuple
     feature: np.ndarray
-    w_W: np.ndarray
-    wn_W: np.ndarray
+    w_A: np.ndarray
+    wn_A: np.ndarray
     temps_C: dict
 
     @property
@@ -151,7 +171,7 @@ def from_log(log: ProbeLog, *, include_invalid: bool = False) -> Touches:
         setup_ids=setup_ids,
         target_ids=target_ids,
         feature=log.col("feature")[rows],
-        w_W=v3(("wx_mm", "wy_mm", "wz_mm"), MM),
-        wn_W=v3(("wnx", "wny", "wnz")),
+        w_A=v3(("wx_mm", "wy_mm", "wz_mm"), MM),
+        wn_A=v3(("wnx", "wny", "wnz")),
         temps_C={c: log.col(c)[rows] for c in log.temperature_columns()},
     )

@@ -24,7 +24,7 @@ import numpy as np
 
 from .exceptions import ConfigError
 from .lsq import LinearEstimator, remove_span
-from .selfcal import Design, Grid, estimator, nominal_touches
+from .selfcal import SelfCalDesign, Grid, Yaw, estimator, nominal_touches
 from .touches import Touches
 
 #: Standard probing uncertainty (k = 1) of the paper's section 6, m.
@@ -34,12 +34,12 @@ K = 2.0
 
 
 @dataclass(frozen=True)
-class Uncertainty:
+class SelfCalUncertainty:
     """Uncertainty of every self-calibration parameter.
 
     Attributes
     ----------
-    design : Design
+    design : SelfCalDesign
         Names (``design.names``), blocks (``design.slices``), grid, targets.
     u : (n_params,) float
         Standard uncertainty, m / rad (0 for the gauge-fixed values).
@@ -67,7 +67,7 @@ class Uncertainty:
         values match the form uncertainty.
     """
 
-    design: Design
+    design: SelfCalDesign
     u: np.ndarray
     U95: np.ndarray
     method: str
@@ -98,7 +98,7 @@ class Uncertainty:
         return float(self.block("G").max())
 
 
-def form_projector(des: Design) -> np.ndarray:
+def form_projector(des: SelfCalDesign) -> np.ndarray:
     """(N_w, N_w) projector removing a workpiece shift, rotation and scale from G.
 
     ``P = I - N_G N_G^+`` with ``N_G`` the G rows of the null directions
@@ -115,7 +115,7 @@ def _check_u(u_probe_m):
 
 
 def linear_uncertainty_touches(touches: Touches, grid: Grid, u_probe_m: float = U_PROBE_M,
-                               delta_L_m: float | None = None, *, yaw: str = "ECY") -> Uncertainty:
+                               delta_L_m: float | None = None, *, yaw: Yaw | str = Yaw.ECY) -> SelfCalUncertainty:
     """Linear propagation for the touches of a log (only their geometry is used)."""
     _check_u(u_probe_m)
     des, est = estimator(touches, grid, delta_L_m, yaw=yaw)
@@ -123,12 +123,12 @@ def linear_uncertainty_touches(touches: Touches, grid: Grid, u_probe_m: float = 
     Cg = est.covariance_of(des.slices["G"], u_probe_m)
     P = form_projector(des)
     uf = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", P, Cg, P), 0))
-    return Uncertainty(design=des, u=u, U95=K * u, method="linear", runs=0, lo=None, hi=None, u_se=None,
+    return SelfCalUncertainty(design=des, u=u, U95=K * u, method="linear", runs=0, lo=None, hi=None, u_se=None,
                        u_probe_m=float(u_probe_m), G_form_u=uf)
 
 
 def linear_uncertainty(w_W, wn_W, c_deg, grid: Grid, u_probe_m: float = U_PROBE_M, *,
-                       stylus_r_m: float = 0.0) -> Uncertainty:
+                       stylus_r_m: float = 0.0) -> SelfCalUncertainty:
     """Linear propagation for a nominal design.
 
     Parameters
@@ -157,7 +157,7 @@ def mc_errors(est: LinearEstimator, n_obs: int, u_probe_m: float, runs: int,
 
 def monte_carlo_touches(touches: Touches, grid: Grid, u_probe_m: float = U_PROBE_M, *, runs: int = 1000,
                         rng: np.random.Generator, delta_L_m: float | None = None,
-                        yaw: str = "ECY") -> Uncertainty:
+                        yaw: Yaw | str = Yaw.ECY) -> SelfCalUncertainty:
     """JCGM 101 Monte Carlo for the touches of a log (design factored once)."""
     _check_u(u_probe_m)
     if int(runs) < 10:
@@ -169,18 +169,18 @@ def monte_carlo_touches(touches: Touches, grid: Grid, u_probe_m: float = U_PROBE
     return summarise_mc(des, err, u_probe_m)
 
 
-def summarise_mc(des: Design, err: np.ndarray, u_probe_m: float) -> Uncertainty:
+def summarise_mc(des: SelfCalDesign, err: np.ndarray, u_probe_m: float) -> SelfCalUncertainty:
     """Standard uncertainty, k = 2 band and 95 % coverage interval from MC errors (runs, n)."""
     runs = err.shape[0]
     u = err.std(axis=0, ddof=1)
     lo, hi = np.quantile(err, [0.025, 0.975], axis=0)
     uf = (err[:, des.slices["G"]] @ form_projector(des).T).std(axis=0, ddof=1)
-    return Uncertainty(design=des, u=u, U95=K * u, method="monte-carlo", runs=runs, lo=lo, hi=hi,
+    return SelfCalUncertainty(design=des, u=u, U95=K * u, method="monte-carlo", runs=runs, lo=lo, hi=hi,
                        u_se=u / np.sqrt(2.0 * (runs - 1)), u_probe_m=float(u_probe_m), G_form_u=uf)
 
 
 def monte_carlo(w_W, wn_W, c_deg, grid: Grid, u_probe_m: float = U_PROBE_M, *, runs: int = 1000,
-                rng: np.random.Generator, stylus_r_m: float = 0.0) -> Uncertainty:
+                rng: np.random.Generator, stylus_r_m: float = 0.0) -> SelfCalUncertainty:
     """JCGM 101 Monte Carlo for a nominal design (see :func:`linear_uncertainty`)."""
     return monte_carlo_touches(nominal_touches(w_W, wn_W, c_deg, stylus_r_m=stylus_r_m), grid, u_probe_m,
                                runs=runs, rng=rng)

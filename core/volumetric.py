@@ -61,7 +61,7 @@ node (``EX0X = 0``...) and straightness zero at both end nodes (the
 end-point reference straight line, section 6); then, greedily, angular
 errors zero at the first node, each only while it removes a null direction. A null
 direction left after all conventions is a combination the plan cannot see:
-:func:`identify` raises :class:`~core.exceptions.IdentifiabilityError`
+:func:`identify_volumetric` raises :class:`~core.exceptions.IdentifiabilityError`
 naming it (via :func:`core.lsq.solve`), never a silent solution.
 
 Solution: joint least squares of all measurements (the paper's sequential
@@ -185,7 +185,7 @@ class Measurement:
 
 
 @dataclass(frozen=True)
-class Design:
+class VolumetricDesign:
     """The linear problem (2) for a set of measurements.
 
     Attributes
@@ -226,6 +226,18 @@ class Design:
     rows: list
     unseen: np.ndarray = field(default=None, repr=False, compare=False)
     sv_rel: np.ndarray = field(default=None, repr=False, compare=False)
+
+    def to_gauge(self, theta_true: np.ndarray) -> np.ndarray:
+        """Express a parameter vector (e.g. the truth) in this design's ISO gauge.
+
+        Adds the null-space combination that makes ``C theta = 0``: what the
+        plan would identify from error-free data under the first-order model.
+        """
+        N, C = self.null, self.C
+        if C.shape[0] == 0:
+            return np.asarray(theta_true, float).copy()
+        alpha = np.linalg.lstsq(C @ N, -C @ theta_true, rcond=None)[0]
+        return theta_true + N @ alpha
 
 
 def _geom(chain: str, J_m, rotary_points_R_m) -> ChainGeometry:
@@ -476,7 +488,7 @@ def _nominal_readings(m, chain, rotary_points_R_m, points_A=None) -> np.ndarray:
     return np.linalg.solve(M, (P - t4[0]).T).T
 
 
-def design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) -> Design:
+def design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) -> VolumetricDesign:
     """The first-order problem (2), its null space and the ISO gauge (chosen, or ``gauge``)."""
     meas = list(meas)
     nodes = {a: np.asarray(v, float) for a, v in nodes.items()}
@@ -511,7 +523,7 @@ def design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) ->
     left = D[:, None] * left_s
     if weak:
         left = np.column_stack([left] + weak)
-    return Design(A, y, tuple(names), slices, nodes, C, words, D[:, None] * N_s, rows, left, sv_rel)
+    return VolumetricDesign(A, y, tuple(names), slices, nodes, C, words, D[:, None] * N_s, rows, left, sv_rel)
 
 
 @dataclass(frozen=True)
@@ -551,7 +563,7 @@ class ObservabilityReport:
         return float(self.sv_rel[-1]) if self.sv_rel is not None and len(self.sv_rel) else 0.0
 
 
-def _unseen(d: Design) -> list:
+def _unseen(d: VolumetricDesign) -> list:
     U = d.unseen
     out = []
     for j in range(U.shape[1]):
@@ -560,7 +572,7 @@ def _unseen(d: Design) -> list:
     return out
 
 
-def d_scale(d: Design) -> np.ndarray:
+def d_scale(d: VolumetricDesign) -> np.ndarray:
     """(n,) column scaling of the design (theta = D theta_s)."""
     cn = np.linalg.norm(d.A, axis=0)
     return np.where(cn > 0, 1.0 / np.where(cn > 0, cn, 1), 1.0)
@@ -593,7 +605,7 @@ class VolumetricResult:
     ----------
     theta : (n,) float
         All parameters (m, rad), names in ``design.names``.
-    design : Design
+    design : VolumetricDesign
     chain : str
     rotary_points_R_m : dict
     iterations : int
@@ -605,7 +617,7 @@ class VolumetricResult:
     """
 
     theta: np.ndarray
-    design: Design
+    design: VolumetricDesign
     chain: str
     rotary_points_R_m: dict
     iterations: int
@@ -639,7 +651,7 @@ class VolumetricResult:
         return self.theta[self.design.slices[name]]
 
 
-def identify(meas, chain: str, nodes: dict, rotary_points_R_m=None, *, exact: bool = True,
+def identify_volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, *, exact: bool = True,
              max_iter: int = 10, tol_m: float = 1e-12, gauge=None) -> VolumetricResult:
     """Identify the 21 errors from MFB measurements (eqs 8-12, then the exact model).
 
@@ -681,21 +693,8 @@ def identify(meas, chain: str, nodes: dict, rotary_points_R_m=None, *, exact: bo
                             float(np.sqrt(np.mean(res ** 2))), K)
 
 
-def to_gauge(design_: Design, theta_true: np.ndarray) -> np.ndarray:
-    """Express a parameter vector (e.g. the truth) in the design's ISO gauge.
-
-    Adds the null-space combination that makes ``C theta = 0``: what the
-    plan would identify from error-free data under the first-order model.
-    """
-    N, C = design_.null, design_.C
-    if C.shape[0] == 0:
-        return np.asarray(theta_true, float).copy()
-    alpha = np.linalg.lstsq(C @ N, -C @ theta_true, rcond=None)[0]
-    return theta_true + N @ alpha
-
-
 # --------------------------------------------------------------------------- ISO 230-1 report form
-def iso_map(design_: Design) -> np.ndarray:
+def iso_map(design_: VolumetricDesign) -> np.ndarray:
     """(n, n) linear map from the identification gauge to the ISO 230-1 report form.
 
     Every straightness table is reported against its end-point reference
@@ -721,7 +720,7 @@ def iso_map(design_: Design) -> np.ndarray:
     return L
 
 
-def end_point_slopes(design_: Design, theta: np.ndarray) -> dict:
+def end_point_slopes(design_: VolumetricDesign, theta: np.ndarray) -> dict:
     """Straightness symbol -> slope of its end-point reference line (rad) in the identification gauge."""
     out = {}
     for s in MOTION:
@@ -743,7 +742,7 @@ def iso_view(res: VolumetricResult) -> VolumetricResult:
 
 # --------------------------------------------------------------------------- uncertainty
 @dataclass(frozen=True)
-class Uncertainty:
+class VolumetricUncertainty:
     """Uncertainty of the identified parameters.
 
     Attributes
@@ -811,7 +810,7 @@ def _input_maps(res: VolumetricResult, meas, n_holes):
 
 
 def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, runs: int = 1000,
-                rng: np.random.Generator | None = None, u_place=None) -> Uncertainty:
+                rng: np.random.Generator | None = None, u_place=None) -> VolumetricUncertainty:
     """Linear propagation and Monte Carlo (JCGM 101) of probing noise, bar calibration and placement.
 
     Parameters
@@ -872,11 +871,11 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
         lo = res.theta + np.percentile(d, 2.5, axis=1)
         hi = res.theta + np.percentile(d, 97.5, axis=1)
         U = 0.5 * (hi - lo)
-    return Uncertainty(u, 2.0 * u, lo, hi, U, int(runs))
+    return VolumetricUncertainty(u, 2.0 * u, lo, hi, U, int(runs))
 
 
 # --------------------------------------------------------------------------- reports and tables
-def report(res: VolumetricResult, unc: Uncertainty | None = None, truth: np.ndarray | None = None,
+def report(res: VolumetricResult, unc: VolumetricUncertainty | None = None, truth: np.ndarray | None = None,
            slopes: dict | None = None) -> dict:
     """JSON-ready dict: one entry per ISO symbol with node tables in um / urad.
 
@@ -905,32 +904,7 @@ def report(res: VolumetricResult, unc: Uncertainty | None = None, truth: np.ndar
     return out
 
 
-def linuxcnc_comp(res: VolumetricResult, axis: str, step_m: float | None = None) -> str:
-    """LinuxCNC per-axis compensation file for the positioning error of ``axis``.
-
-    LinuxCNC (ini ``[JOINT_n] COMP_FILE``, ``COMP_FILE_TYPE = 0``) reads
-    lines of three numbers, ``nominal forward-trip reverse-trip`` in machine
-    units (mm here): the position the axis is commanded to and where it
-    must go to be there. The positioning error ``E`` is actual minus
-    nominal, so the corrected commands are ``nominal - E``; forward and
-    reverse trips are equal (the MFB sees no reversal). Points every
-    ``step_m`` along the table by the C2 spline (default: the nodes).
-    """
-    a = axis.upper()
-    if a not in iso.LINEAR_AXES:
-        raise ConfigError(f"linuxcnc_comp: axis must be X, Y or Z, got {axis!r}")
-    s = f"E{a}{a}"
-    x = res.design.nodes[a]
-    if step_m is not None:
-        if not (step_m > 0):
-            raise ConfigError(f"linuxcnc_comp: step_m must be > 0, got {step_m!r}")
-        x = np.arange(x[0], x[-1] + 0.5 * step_m, step_m)
-    e = res.value(s, x)
-    lines = [f"{u * 1e3:.6f} {(u - v) * 1e3:.6f} {(u - v) * 1e3:.6f}" for u, v in zip(x, e)]
-    return "\n".join(lines) + "\n"
-
-
-def tables_json(res: VolumetricResult, unc: Uncertainty | None = None, slopes: dict | None = None) -> str:
+def tables_json(res: VolumetricResult, unc: VolumetricUncertainty | None = None, slopes: dict | None = None) -> str:
     """vmt-readable compensation tables (JSON text, format ``vmt-comp/1``).
 
     ``res`` as reported (:func:`iso_view`), ``slopes`` its straightness

@@ -17,6 +17,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from core.exceptions import HardwareError
+from core.touches import ProbeStatus
 
 #: GRBL alarm codes the adapter names (GRBL 1.1 / grblHAL / FluidNC agree).
 ALARMS = {
@@ -39,8 +40,8 @@ class ProbeResult:
 
     Attributes
     ----------
-    status : str
-        ``"ok"`` (triggered) or ``"no_trigger"`` (the move ended without contact).
+    status : core.touches.ProbeStatus or str
+        ``ok`` (triggered) or ``no_trigger`` (the move ended without contact).
     pos_m : (3,) float
         Machine-reported stylus-tip centre at the trigger, machine frame R, m;
         where the move ended when nothing triggered.
@@ -59,7 +60,7 @@ class ProbeResult:
 
     @property
     def triggered(self) -> bool:
-        return self.status == "ok"
+        return self.status == ProbeStatus.OK
 
 
 @runtime_checkable
@@ -144,8 +145,8 @@ class VirtualBackend:
             raise HardwareError(f"ALARM:4 ({ALARMS[4]})")
         self._pos = pos.copy()
         if triggered:
-            return ProbeResult("ok", pos)
-        return ProbeResult("no_trigger", pos, alarm=None if allow_miss else 5)
+            return ProbeResult(ProbeStatus.OK, pos)
+        return ProbeResult(ProbeStatus.NO_TRIGGER, pos, alarm=None if allow_miss else 5)
 
     def temperatures_C(self) -> dict[str, float]:
         f = getattr(self.machine, "temperatures_C", None)

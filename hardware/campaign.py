@@ -32,10 +32,9 @@ import numpy as np
 
 from core.exceptions import ConfigError, HardwareError, PlanError, ProbeLogError
 from core.probelog import FORMAT, MEASURED, ProbeLog, parse_probe_log
+from core.units import MM
 
 from .backend import ALARMS, ProbeResult
-
-MM = 1e-3
 
 
 @dataclass(frozen=True)

@@ -5,20 +5,36 @@ feed move to the approach start, a ``G38.2`` towards the probing end and a
 retract, between ``(PROBEOPEN file)`` and ``(PROBECLOSE)``, so the
 controller logs each successful probe as one line of its probe file.
 
-LinuxCNC writes the probed point in the coordinate system in effect. The
-program therefore selects a work coordinate system (``G59.3`` by default)
-after setting its offsets to zero (``G10 L2``) and clears ``G92``: the file
-then holds machine coordinates, with the probe's tool length offset applied
-(load the probe and ``G43`` before running, as for any probing job).
+LinuxCNC writes the probed point in the coordinate system in effect
+(offsets and XY rotation removed). The program therefore saves the modal
+state (``M70``) and the user's ``G59.3`` (by default; ``wcs``), sets it to
+zero with no rotation (``G10 L2 P9 X0 Y0 Z0 R0``), selects it and suspends
+the ``G92`` / ``G52`` offsets (``G92.2``): the file then holds machine
+coordinates, with the probe's tool length offset applied (load the probe
+and ``G43`` before running, as for any probing job). At the end it puts
+the user's ``G59.3`` back, re-applies their ``G92`` offsets if they were on
+(``G92.3``) and restores the modal state (``M72``). A run that stops early
+(a miss, an abort) leaves the frame zeroed: the program prints its earlier
+values first (``DEBUG``), and its header says so.
 
 :func:`read_probe_file` reads that file: one line per probe of 3 numbers
-(X Y Z, older LinuxCNC) or 9 (X Y Z A B C U V W). :func:`import_probe_file`
-merges it with the plan into a full ``probe-log/1``.
+(X Y Z, older LinuxCNC) or 9 (X Y Z A B C U V W), as LinuxCNC writes it
+(``%f``: 6 decimals). It also reads ``LOGOPEN`` files whose lines are
+G-code words, as LinuxCNC's ``smartprobe.ngc`` writes them with
+``(LOG,G1 X#5061 Y#5062 Z#5063)``: every line must carry X, Y and Z words.
+:func:`import_probe_file` merges it with the plan into a full
+``probe-log/1``. A file shorter than the plan is the record of a run that
+stopped (a ``G38.2`` miss or an abort: LinuxCNC logs successful probes only
+and stops at a miss): its lines are the first plan rows, the rows after them
+are kept with status ``aborted`` and empty measured cells. Without a plan,
+the file is taken for a surface (Z) probing job and the plan is built from
+it (:func:`hardware.surface.plan_from_z_touches`).
 """
 
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +49,9 @@ _WCS_P = {"G54": 1, "G55": 2, "G56": 3, "G57": 4, "G58": 5, "G59": 6,
 
 
 def _words(p_mm, rot_deg=None) -> str:
-    w = " ".join(f"{a}{v:.4f}" for a, v in zip("XYZ", p_mm))
+    # 6 decimals (1 nm), as LinuxCNC writes its probe file: 4 would bend each probing line by up
+    # to 0.05 um per axis, a lateral error of the touch on any surface not square to an axis
+    w = " ".join(f"{a}{v:.6f}" for a, v in zip("XYZ", p_mm))
     if rot_deg is not None:
         w += " " + " ".join(f"{a}{v:.4f}" for a, v in zip("ABC", rot_deg))
     return w
@@ -69,16 +87,28 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
     check_program(steps, settings, require_limits=require_limits)
     rotary = any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg"))
     fm, fp = settings.move_feed_mm_min, settings.probe_feed_mm_min
-    zero = "X0 Y0 Z0" + (" A0 B0 C0" if rotary else "")
+    axes = "XYZABC" if rotary else "XYZ"
+    wcs_p = _WCS_P[wcs]
+    base = 5201 + 20 * wcs_p                  # parameters of the frame: X Y Z A B C U V W R
+    saved = {a: f"#<_vmt_wcs_{a.lower()}>" for a in axes + "R"}
+    zero = " ".join(f"{a}0" for a in axes) + " R0"
+    back = " ".join(f"{a}{saved[a]}" for a in axes + "R")
     out = ["%",
            f"(vmt probing program: {plan.n} touches from {Path(plan.source).name})",
-           f"(coordinates: {wcs} zeroed, G92 cleared: the probe file holds machine coordinates)",
+           f"(coordinates: {wcs} set to zero with no rotation [R0] and selected, G92/G52 offsets)",
+           "(suspended [G92.2]: the probe file holds machine coordinates)",
+           f"(at the end your {wcs}, your G92 offsets and the modal state [M70/M72] are restored;)",
+           f"(a run that stops early leaves {wcs} zeroed: its earlier values are the DEBUG line below)",
            "(load the probe tool with its length offset, G43, before running)",
-           "G21 G90 G94 G17 G40",
-           f"G10 L2 P{_WCS_P[wcs]} {zero}",
-           wcs,
-           "G92.1",
-           f"(PROBEOPEN {probe_file})"]
+           "M70"]
+    out += [f"{saved[a]} = #{base + (9 if a == 'R' else 'XYZABC'.index(a))}" for a in axes + "R"]
+    out += ["#<_vmt_g92_on> = #5210",
+            f"(DEBUG, vmt: {wcs} was " + " ".join(f"{a}{saved[a]}" for a in axes + "R") + ")",
+            "G21 G90 G94 G17 G40",
+            f"G10 L2 P{wcs_p} {zero}",
+            wcs,
+            "G92.2",
+            f"(PROBEOPEN {probe_file})"]
     prev = None
     for st in steps:
         rot = st.rot_deg if rotary else None
@@ -91,23 +121,31 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         prev = st.start_mm
     if settings.safe_z_mm is not None and prev is not None:
         out.append(f"G1 {_words([prev[0], prev[1], settings.safe_z_mm])} F{fm:.1f}")
-    out += ["(PROBECLOSE)", "M2", "%"]
+    out += ["(PROBECLOSE)",
+            f"G10 L2 P{wcs_p} {back}",
+            "o9001 if [#<_vmt_g92_on> EQ 1]",
+            "G92.3",
+            "o9001 endif",
+            "M72",
+            "M2", "%"]
     return "\n".join(out) + "\n"
 
 
 def read_probe_file(path) -> np.ndarray:
-    """Read a LinuxCNC ``PROBEOPEN`` file.
+    """Read a LinuxCNC ``PROBEOPEN`` file, or a ``LOGOPEN`` file of ``G1 X.. Y.. Z..`` lines.
 
     Returns
     -------
     (n, k) float, k = 3 or 9
-        One row per successful probe: X Y Z [A B C U V W] in the file's units.
+        One row per successful probe: X Y Z [A B C U V W] in the file's units
+        (``LOGOPEN`` files: X Y Z, k = 3).
 
     Raises
     ------
     ProbeLogError
         Missing or empty file; a line (named by number) that is not 3 or 9
-        numbers, not finite, or of another width than the first line.
+        numbers, not finite, or of another width than the first line; a
+        ``LOGOPEN`` line without X, Y and Z words, or lines of both kinds.
     """
     p = Path(path)
     if not p.is_file():
@@ -116,21 +154,28 @@ def read_probe_file(path) -> np.ndarray:
         text = p.read_text(encoding="utf-8")
     except UnicodeDecodeError as e:
         raise ProbeLogError(f"{p}: not text (byte {e.start})") from None
-    rows, width = [], None
+    rows, width, kind = [], None, None
     for ln, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
-        parts = line.split()
-        try:
-            vals = [float(v) for v in parts]
-        except ValueError:
-            bad = next(v for v in parts if not _isnum(v))
-            raise ProbeLogError(f"{p}: line {ln}: {bad!r} is not a number") from None
-        if len(vals) not in (3, 9):
-            raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers, expected 3 (X Y Z) "
-                                "or 9 (X Y Z A B C U V W)")
-        if width is not None and len(vals) != width:
-            raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers but earlier lines have {width}")
+        words = line.lstrip()[0].isalpha()
+        if kind is not None and words != (kind == "log"):
+            raise ProbeLogError(f"{p}: line {ln}: G-code words and bare numbers mixed in one file")
+        kind = "log" if words else "probe"
+        if words:
+            vals = _log_line(p, ln, line)
+        else:
+            parts = line.split()
+            try:
+                vals = [float(v) for v in parts]
+            except ValueError:
+                bad = next(v for v in parts if not _isnum(v))
+                raise ProbeLogError(f"{p}: line {ln}: {bad!r} is not a number") from None
+            if len(vals) not in (3, 9):
+                raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers, expected 3 (X Y Z) "
+                                    "or 9 (X Y Z A B C U V W)")
+            if width is not None and len(vals) != width:
+                raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers but earlier lines have {width}")
         if not all(math.isfinite(v) for v in vals):
             raise ProbeLogError(f"{p}: line {ln}: not finite")
         width = len(vals)
@@ -138,6 +183,38 @@ def read_probe_file(path) -> np.ndarray:
     if not rows:
         raise ProbeLogError(f"{p}: empty probe file")
     return np.array(rows)
+
+
+_WORD = re.compile(r"([A-Za-z])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
+
+
+def _log_line(p: Path, ln: int, line: str) -> list[float]:
+    """X, Y, Z of a ``LOGOPEN`` line such as ``G1 X1.000000 Y2.000000 Z-0.500000``."""
+    code = re.sub(r"\([^)]*\)|;.*$", "", line)
+    words, pos = [], 0
+    while pos < len(code):
+        if code[pos].isspace():
+            pos += 1
+            continue
+        m = _WORD.match(code, pos)
+        if m is None:
+            bad = code[pos:].split()[0]
+            raise ProbeLogError(f"{p}: line {ln}: {bad[:30]!r} is not a G-code word "
+                                "(expected lines like 'G1 X1.0 Y2.0 Z-0.5')")
+        words.append(m.groups())
+        pos = m.end()
+    got = {}
+    for letter, v in words:
+        letter = letter.upper()
+        if letter in "XYZ":
+            if letter in got:
+                raise ProbeLogError(f"{p}: line {ln}: two {letter} words")
+            got[letter] = float(v)
+    missing = [a for a in "XYZ" if a not in got]
+    if missing:
+        raise ProbeLogError(f"{p}: line {ln}: no {', '.join(missing)} word (a probe log line "
+                            "needs X, Y and Z, e.g. (LOG,G1 X#5061 Y#5062 Z#5063))")
+    return [got["X"], got["Y"], got["Z"]]
 
 
 def _isnum(v: str) -> bool:
@@ -148,27 +225,91 @@ def _isnum(v: str) -> bool:
         return False
 
 
-def import_probe_file(path, plan: ProbeLog, *, dt_s: float = 1.0, units: str = "mm") -> ProbeLog:
+def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
+                      units: str = "mm") -> ProbeLog:
     """Merge a LinuxCNC probe file with its plan into a full ``probe-log/1``.
 
     The file holds no clock: ``t_s`` is the touch index (plan order) times
     ``dt_s``, and metadata ``t_s_source`` says so.
 
+    Parameters
+    ----------
+    path : path-like
+        ``PROBEOPEN`` or ``LOGOPEN`` file (:func:`read_probe_file`).
+    plan : ProbeLog or None
+        The plan that was run. A file with fewer lines than the plan (the
+        program stopped) fills the first rows; the others get status
+        ``aborted`` and metadata ``probe_file_rows`` says how many were in the
+        file. ``None``: the file is a surface (Z) probing job and the plan is
+        built from it (:func:`hardware.surface.plan_from_z_touches`).
+    dt_s : float
+        Seconds between touches (``t_s``).
+    units : {"mm", "inch"}
+        Units of the file (a ``G20`` program writes inches).
+
     Raises
     ------
     PlanError
-        The file has not one line per plan row.
+        The file has more lines than the plan has rows; bad ``units``.
     ProbeLogError
         A bad line of the file (see :func:`read_probe_file`).
     """
-    data = read_probe_file(path)
-    if data.shape[0] != plan.n:
-        raise PlanError(f"{path}: {data.shape[0]} probe lines but the plan {plan.source} has "
-                        f"{plan.n} rows (LinuxCNC logs successful probes only: a miss stops the program)")
     if units not in ("mm", "inch"):
         raise PlanError(f"units {units!r}: expected mm or inch")
+    data = read_probe_file(path)
     pos = data[:, :3] * (25.4 if units == "inch" else 1.0)
-    t = np.arange(plan.n) * float(dt_s)
     meta = {"machine": "linuxcnc", "source": f"vmt import linuxcnc {Path(path).name}",
             "t_s_source": f"plan order x {dt_s:g} s (the probe file has no clock)"}
-    return log_from_plan(plan, pos, ["ok"] * plan.n, t, meta, source=str(path))
+    if plan is None:
+        from .surface import plan_from_z_touches
+
+        plan = plan_from_z_touches(pos, source=str(path))
+        meta["plan_source"] = "built from the probe file: a surface (Z) probing job (vmt plan grid)"
+    k, n = data.shape[0], plan.n
+    if k > n:
+        raise PlanError(f"{path}: {k} probe lines but the plan {plan.source} has "
+                        f"{n} rows: not the file of this plan")
+    status = ["ok"] * k + ["aborted"] * (n - k)
+    if k < n:
+        pos = np.vstack([pos, np.full((n - k, 3), np.nan)])
+        meta["probe_file_rows"] = (f"{k} of {n}: the program stopped at plan row {k} (a G38.2 miss "
+                                   "or an abort); later rows are marked aborted")
+    t = np.arange(n) * float(dt_s)
+    return log_from_plan(plan, pos, status, t, meta, source=str(path))
+
+
+def comp_file(res, axis: str, step_m: float | None = None) -> str:
+    """LinuxCNC per-axis compensation file for the positioning error of ``axis``.
+
+    LinuxCNC (ini ``[JOINT_n] COMP_FILE``, ``COMP_FILE_TYPE = 0``) reads
+    lines of three numbers, ``nominal forward-trip reverse-trip`` in machine
+    units (mm here): the position the axis is commanded to and where it
+    must go to be there. The positioning error ``E`` is actual minus
+    nominal, so the corrected commands are ``nominal - E``; forward and
+    reverse trips are equal (the MFB sees no reversal). Points every
+    ``step_m`` along the table by the C2 spline (default: the nodes).
+
+    Parameters
+    ----------
+    res : core.volumetric.VolumetricResult
+        Identified tables (``res.value`` gives ``EXX``, ``EYY``, ``EZZ`` in m).
+    axis : {"X", "Y", "Z"}
+    step_m : float, optional
+        Spacing of the lines, m.
+    """
+    from core import iso
+    from core.exceptions import ConfigError
+    from core.units import MM
+
+    a = axis.upper()
+    if a not in iso.LINEAR_AXES:
+        raise ConfigError(f"comp_file: axis must be X, Y or Z, got {axis!r}")
+    s = f"E{a}{a}"
+    x = res.design.nodes[a]
+    if step_m is not None:
+        if not (step_m > 0):
+            raise ConfigError(f"comp_file: step_m must be > 0, got {step_m!r}")
+        x = np.arange(x[0], x[-1] + 0.5 * step_m, step_m)
+    e = res.value(s, x)
+    lines = [f"{u / MM:.6f} {(u - v) / MM:.6f} {(u - v) / MM:.6f}" for u, v in zip(x, e)]
+    return "\n".join(lines) + "\n"

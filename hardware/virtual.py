@@ -65,18 +65,18 @@ def sim_machine(scene: str = "cross-pocket", noise_um: float = 0.0, seed: int = 
     Raises
     ------
     ConfigError
-        ``scene`` is no artefact of :mod:`sim.artefacts`.
+        ``scene`` is no artefact of :data:`sim.catalog.CATALOG`.
     """
-    from sim import artefacts as A
+    from sim.catalog import CATALOG, make_artefact
     from sim.machine import Machine
     from sim.machines import MACHINES, realistic_errors
     from sim.probe import ProbeConfig, VirtualMachine
 
-    if scene not in A.ARTEFACTS:
-        raise ConfigError(f"--scene {scene!r}: expected simple or one of {', '.join(sorted(A.ARTEFACTS))}")
+    if scene not in CATALOG:
+        raise ConfigError(f"--scene {scene!r}: expected simple or one of {', '.join(sorted(CATALOG))}")
     m = Machine(MACHINES["nmv3000"](errors=realistic_errors(
         ("X", "Y", "Z", "C"), rng=np.random.default_rng(errors_seed), ripple=False)))
-    vm = VirtualMachine(m, A.make_artefact(scene), ProbeConfig(repeatability_k2_m=2 * noise_um * UM),
+    vm = VirtualMachine(m, make_artefact(scene), ProbeConfig(repeatability_k2_m=2 * noise_um * UM),
                         np.random.default_rng(seed))
     return SimMachine(vm)
 

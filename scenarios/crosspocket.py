@@ -28,7 +28,7 @@ U_PROBE_M = 1.38e-6
 def _plan_points(spheres: bool):
     """Nominal contact points and normals (W, 2D) of the cross-pocket plan."""
     from sim import artefacts as A
-    from sim.plans import make_plan
+    from sim.catalog import make_plan
 
     plan = make_plan(A.cross_pocket())
     keep = np.array([spheres or not f.startswith("sphere") for f in plan.feature])
@@ -98,14 +98,14 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1) -> dict:
 
 def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
     """The paper's case 2: raw error at C = 0 against the self-calibrated pin positions."""
-    from core.selfcal import Grid, identify
+    from core.selfcal import Grid, self_calibrate
     from core.touches import from_log
     from scenarios.hidden import gauge_free_rms_m, workpiece_truth
     from sim import artefacts as A
     from sim.campaign import simulate_campaign
     from sim.machine import Machine
     from sim.machines import MACHINES, realistic_errors
-    from sim.plans import make_plan
+    from sim.catalog import make_plan
     from sim.probe import ProbeConfig
 
     t0 = time.perf_counter()
@@ -124,15 +124,15 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
     # the paper's 80 mm step; nodes only where touches are (the paper's -400..400
     # mm grid has nodes no pin reaches, which nothing can identify)
     grid = Grid.from_extent(t.pn_R, 0.080)
-    res = identify(t, grid)
+    res = self_calibrate(t, grid)
     g_true = workpiece_truth(art, plan)
     first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
-    wW = {k: plan.w_A[i, :2] for k, i in first.items()}
-    wnW = {k: plan.wn_A[i, :2] for k, i in first.items()}
+    w_A = {k: plan.w_A[i, :2] for k, i in first.items()}
+    wn_A = {k: plan.wn_A[i, :2] for k, i in first.items()}
     raw0 = t.dq_m[t.setup == 0]
     ids0 = [t.target_ids[k] for k in t.target[t.setup == 0]]
-    raw = gauge_free_rms_m(raw0, ids0, g_true, wW, wnW)
-    cal = gauge_free_rms_m(res.G, res.design.target_ids, g_true, wW, wnW)
+    raw = gauge_free_rms_m(raw0, ids0, g_true, w_A, wn_A)
+    cal = gauge_free_rms_m(res.G, res.design.target_ids, g_true, w_A, wn_A)
     pins = [k for k in res.design.target_ids if k.startswith("pin")]
     raw_max = _pin_position_error_max(t, res, g_true, plan, raw=True)
     cal_max = _pin_position_error_max(t, res, g_true, plan, raw=False)
@@ -150,7 +150,7 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
 
 def _pin_position_error_max(t, res, g_true, plan, raw: bool) -> float:
     """Largest pin-centre position error (um) from the per-target normal deviations."""
-    from scenarios.hidden import remove_gauge
+    from core.selfcal import workpiece_form
 
     first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
     ids = [k for k in res.design.target_ids if k.startswith("pin")]
@@ -167,7 +167,7 @@ def _pin_position_error_max(t, res, g_true, plan, raw: bool) -> float:
         E.append(g[k] - g_true[k])
     P, N, E = np.array(P), np.array(N), np.array(E)
     # remove the part's rigid shift/rotation/scale first (as the paper aligns to pins)
-    E = remove_gauge(E, P, N)
+    E = workpiece_form(E, P, N)
     worst = 0.0
     groups: dict = {}
     for k, n, e in zip(ids, N, E):

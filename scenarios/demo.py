@@ -17,9 +17,12 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from core.units import MM, UM
 
 #: The hidden probe: pre-travel lobing with 2 and 3 lobes (a pure 3-lobe pattern
 #: is invisible on a part probed in four directions 90 deg apart: it acts as a
@@ -30,30 +33,45 @@ SCREW_UM, SCREW_MM = 1.5, 8.0
 
 
 def main_job(out: str = "out", seed: int = 2026) -> int:
-    """Run the demo into ``out``; return an exit code."""
-    from core.discover import discover
-    from core.probelog import read_probe_log, write_probe_log
-    from core.selfcal import Grid, identify
-    from core.touches import from_log
-    from core.uncertainty import monte_carlo_touches
-    from core.atomic import json_safe, write_json_atomic
-    from scenarios.hidden import drift_check_plan, gauge_free_rms_m, workpiece_truth
-    from sim import artefacts as A
-    from sim.campaign import simulate_campaign
-    from sim.machine import Machine
-    from sim.machines import MACHINES, realistic_errors
-    from sim.probe import ProbeConfig
+    """Run the demo into ``out`` (steps 1-6 of the module docstring); return an exit code.
 
+    0 when discovery names both hidden effects, else 1.
+    """
     t_start = time.perf_counter()
     outp = Path(out)
     outp.mkdir(parents=True, exist_ok=True)
     say = _Say()
-
     say.head("1. the virtual machine")
+    machine, probe, errs = _machine(seed, say)
+    say.head("2. simulate the cross-pocket campaign")
+    art, plan, log_path, t = _campaign(machine, probe, seed, outp, say)
+    say.head("3. identify: self-calibration, Ibaraki et al. eqs 1-18")
+    truth = _Truth.of(art, plan)
+    res, ident = _identify(t, truth, errs, seed, outp, say)
+    say.head("4. discover: what the model gets wrong, and why")
+    d, rep, all_named = _discover(t, truth, log_path, outp, say)
+    say.head("5. the multi-feature bar: 21 errors of three linear axes")
+    _mfb(seed, outp, say)
+    say.head("6. report and recording")
+    from scenarios.reports import demo_report
+
+    folder = demo_report(outp / "report", t, res, ident, d, rep, art, machine=machine, g_true=truth.g,
+                         title="vmt demo: cross-pocket self-calibration")
+    say(f"{folder / 'index.html'}  (open in a browser)")
+    say(f"{folder / 'recording.rrd'}  (vmt view {folder / 'recording.rrd'})")
+    say(f"done in {time.perf_counter() - t_start:.1f} s; JSON: {outp / 'identify.json'}, {outp / 'discover.json'}")
+    return 0 if all_named else 1
+
+
+def _machine(seed: int, say):
+    """Step 1: the nmv3000 with realistic errors, the worn Y screw and the lobing probe."""
     from sim.errorfuncs import Periodic
+    from sim.machine import Machine
+    from sim.machines import MACHINES, realistic_errors
+    from sim.probe import ProbeConfig
 
     errs = realistic_errors(("X", "Y", "Z", "C"), rng=np.random.default_rng(seed), ripple=False)
-    errs["EYY"] = errs["EYY"] + Periodic(SCREW_UM * 1e-6, SCREW_MM * 1e-3, 0.7)
+    errs["EYY"] = errs["EYY"] + Periodic(SCREW_UM * UM, SCREW_MM * MM, 0.7)
     machine = Machine(MACHINES["nmv3000"](errors=errs))
     probe = ProbeConfig(repeatability_k2_m=0.6e-6, lobing_m=LOBING_M)
     say(f"nmv3000 {machine.config.chain}: {len(errs)} injected ISO 230-1/230-7 errors "
@@ -61,8 +79,17 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
         f"EX0C/EY0C {errs['EX0C'](np.zeros(1))[0] * 1e6:+.1f}/{errs['EY0C'](np.zeros(1))[0] * 1e6:+.1f} um)")
     say(f"hidden: a worn Y ball screw (EYY ripple {SCREW_UM:g} um, pitch {SCREW_MM:g} mm) and a lobing probe "
         "(2- and 3-lobe pre-travel, 1.5 and 1.2 um); probing noise 0.3 um (1 sigma)")
+    return machine, probe, errs
 
-    say.head("2. simulate the cross-pocket campaign")
+
+def _campaign(machine, probe, seed: int, outp: Path, say):
+    """Step 2: the cross-pocket campaign at four C angles, written and read back (only the file counts)."""
+    from core.probelog import read_probe_log, write_probe_log
+    from core.touches import from_log
+    from scenarios.hidden import drift_check_plan
+    from sim import artefacts as A
+    from sim.campaign import simulate_campaign
+
     art = A.cross_pocket()
     plan = drift_check_plan(art)
     angles = [0.0, 75.0, 130.0, 210.0]
@@ -70,31 +97,62 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
                             meta={"scenario": "vmt demo"})
     log_path = write_probe_log(outp / "cross-pocket.csv", log)
     log = read_probe_log(log_path)  # from here on, only what the file holds
-    t = from_log(log)
     say(f"{log.n} touches ({plan.n} per C angle at C = {', '.join(f'{a:g}' for a in angles)} deg), "
         f"{np.nanmax(log.col('t_s')) / 60:.1f} min of machine time -> {log_path}")
+    return art, plan, log_path, from_log(log)
 
-    say.head("3. identify: self-calibration, Ibaraki et al. eqs 1-18")
+
+@dataclass(frozen=True)
+class _Truth:
+    """The true workpiece form per target (m) and the targets' nominal points (m) and normals, A frame."""
+
+    g: dict
+    w_A: dict
+    wn_A: dict
+
+    @classmethod
+    def of(cls, art, plan) -> "_Truth":
+        from scenarios.hidden import workpiece_truth
+
+        first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
+        return cls(workpiece_truth(art, plan), {k: plan.w_A[i, :2] for k, i in first.items()},
+                   {k: plan.wn_A[i, :2] for k, i in first.items()})
+
+    def rms_m(self, g_m, ids) -> float:
+        """Gauge-free RMS of ``g_m`` against the truth (:func:`scenarios.hidden.gauge_free_rms_m`), m."""
+        from scenarios.hidden import gauge_free_rms_m
+
+        return gauge_free_rms_m(g_m, ids, self.g, self.w_A, self.wn_A)
+
+
+def _identify(t, truth: _Truth, errs, seed: int, outp: Path, say):
+    """Step 3: self-calibration with 1000 Monte Carlo runs; its error against the true workpiece."""
+    from core.atomic import json_safe, write_json_atomic
+    from core.selfcal import Grid, self_calibrate
+    from core.uncertainty import monte_carlo_touches
+
     grid = Grid.regular(-0.110, 0.110, 0.022)
-    res = identify(t, grid)
+    res = self_calibrate(t, grid)
     mc = monte_carlo_touches(t, grid, res.sigma_m, runs=1000, rng=np.random.default_rng(seed + 2))
     ident = res.to_report(mc)
     write_json_atomic(outp / "identify.json", json_safe(ident))
-    G_true = workpiece_truth(art, plan)
-    first = {k: plan.target.index(k) for k in dict.fromkeys(plan.target)}
-    wW = {k: plan.w_A[i, :2] for k, i in first.items()}
-    wnW = {k: plan.wn_A[i, :2] for k, i in first.items()}
-    g_err = gauge_free_rms_m(res.G, res.design.target_ids, G_true, wW, wnW)
+    g_err = truth.rms_m(res.G, res.design.target_ids)
     say(f"residual RMS {res.rms_m * 1e6:.3f} um over {res.n_touches} touches; EC0Y {res.EC0Y * 1e6:+.1f} urad "
         f"(injected {errs['EC0Y'](np.zeros(1))[0] * 1e6:+.1f})")
     say(f"workpiece: max U95 {np.nanmax([w['u95_um'] for w in ident['workpiece']]):.2f} um (linear), "
         f"{ident['monte_carlo']['max_workpiece_u95_um']:.2f} um (Monte Carlo, 1000 runs, with the datum);"
         f" form {ident['monte_carlo']['max_workpiece_form_u95_um']:.2f} um")
     raw = t.dq_m[t.setup == 0]
-    say(f"error against the true workpiece: raw C=0 probing {np.sqrt(np.mean((raw - _truth_at(t, G_true, 0)) ** 2)) * 1e6:.2f} um RMS"
+    say(f"error against the true workpiece: raw C=0 probing {np.sqrt(np.mean((raw - _truth_at(t, truth.g, 0)) ** 2)) * 1e6:.2f} um RMS"
         f" -> self-calibrated {g_err * 1e6:.2f} um RMS (shift, rotation and scale removed)")
+    return res, ident
 
-    say.head("4. discover: what the model gets wrong, and why")
+
+def _discover(t, truth: _Truth, log_path, outp: Path, say):
+    """Step 4: discovery; its findings against the two hidden effects. Returns (d, report, all named)."""
+    from core.atomic import json_safe, write_json_atomic
+    from core.discover import discover
+
     d = discover(t)
     rep = json_safe(d.to_report())
     rep["log"] = str(log_path)
@@ -107,20 +165,23 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     say(f"extended {rep['extended']['model']}: RMS {rep['extended']['rms_um']:.3f} um (x{g['rms_ratio']:.2f}),"
         f" cross-validated {rep['extended']['cv_rms_um']:.3f} um (x{g['cv_rms_ratio']:.2f})")
     ids = [w["target"] for w in rep["workpiece"]]
-    gb = np.array([w["baseline_um"] for w in rep["workpiece"]]) * 1e-6
-    ge = np.array([w["extended_um"] for w in rep["workpiece"]]) * 1e-6
-    eb, ee = gauge_free_rms_m(gb, ids, G_true, wW, wnW), gauge_free_rms_m(ge, ids, G_true, wW, wnW)
+    gb = np.array([w["baseline_um"] for w in rep["workpiece"]]) * UM
+    ge = np.array([w["extended_um"] for w in rep["workpiece"]]) * UM
+    eb, ee = truth.rms_m(gb, ids), truth.rms_m(ge, ids)
     say(f"workpiece against the truth: baseline {eb * 1e6:.3f} um RMS -> extended {ee * 1e6:.3f} um RMS")
     hidden = {"periodic_axis_error", "probe_lobing"}
     named = {f["cause"] for f in rep["findings"]}
     verdict = "both hidden effects named" if hidden <= named else f"named {sorted(named)}, hidden {sorted(hidden)}"
     say(f"check: {verdict}")
+    return d, rep, hidden <= named
 
-    say.head("5. the multi-feature bar: 21 errors of three linear axes")
+
+def _mfb(seed: int, outp: Path, say) -> None:
+    """Step 5: the MFB 3-axis scenario; how many identified values lie within their U95."""
+    from core.atomic import json_safe, write_json_atomic
     from scenarios.mfb import run as run_mfb
 
-    m = run_mfb("mfb-3axis", seed=seed, mc_runs=200)
-    doc = m.doc
+    doc = run_mfb("mfb-3axis", seed=seed, mc_runs=200).doc
     write_json_atomic(outp / "mfb-3axis.json", json_safe(doc))
     inside = total = 0
     for e in doc["errors"].values():
@@ -131,16 +192,6 @@ def main_job(out: str = "out", seed: int = 2026) -> int:
     say(f"{doc['placements']} placements, {doc['measurements']} measurements, {doc['touches']} touches; "
         f"largest deviation from the injected errors {doc['max_dev_um']:.2f} um / {doc['max_dev_urad']:.1f} urad; "
         f"{inside} of {total} identified values within their U95 -> {outp / 'mfb-3axis.json'}")
-
-    say.head("6. report and recording")
-    from scenarios.reports import demo_report
-
-    folder = demo_report(outp / "report", t, res, ident, d, rep, art, machine=machine, g_true=G_true,
-                         title="vmt demo: cross-pocket self-calibration")
-    say(f"{folder / 'index.html'}  (open in a browser)")
-    say(f"{folder / 'recording.rrd'}  (vmt view {folder / 'recording.rrd'})")
-    say(f"done in {time.perf_counter() - t_start:.1f} s; JSON: {outp / 'identify.json'}, {outp / 'discover.json'}")
-    return 0 if hidden <= named else 1
 
 
 class _Say:

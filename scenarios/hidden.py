@@ -58,7 +58,6 @@ from functools import lru_cache
 import numpy as np
 
 from core.exceptions import ConfigError
-
 from core.units import MM, UM
 
 #: Hidden causes this campaign's geometry cannot name (see the module doc).
@@ -76,8 +75,8 @@ class HiddenTruth:
     causes: tuple
     params: dict
     g_true_m: dict = field(repr=False)  # target -> true normal deviation, m
-    w_W: dict = field(repr=False)  # target -> (2,) nominal contact point in W, m
-    wn_W: dict = field(repr=False)  # target -> (2,) normal in W
+    w_A: dict = field(repr=False)  # target -> (2,) nominal contact point, artefact frame A, m
+    wn_A: dict = field(repr=False)  # target -> (2,) normal, A
     outlier_rows: tuple = ()
     acceptable: tuple = ()  # report causes that name what was hidden (the cause itself, by default)
 
@@ -87,91 +86,148 @@ def _mag(rng, lo_um=1.0, hi_um=4.0) -> float:
 
 
 def _effects(causes, rng, duration_s: float):
-    """Extra machine errors, probe settings, chips and per-set-up variants for the causes."""
-    from sim.errorfuncs import CrossAxis, Drift, Periodic, Reversal, SplineTable
+    """Extra machine errors, probe settings, chips and per-set-up variants for the causes (one builder per cause).
 
+    A builder returns (errors, probe settings, chips, params) and, for
+    effects that change the part, the probe per set-up or add a logged
+    column, a fifth item: the variants :func:`hidden_campaign` applies.
+    """
     errs: dict = {}
     probe_kw: dict = {}
     chips = []
     params: dict = {}
-    extra: dict = {}
-
-    def add(sym, f):
-        errs[sym] = errs[sym] + f if sym in errs else f
-
+    variants: dict = {}
     for c in causes:
         if c == "none":
             continue
-        if c == "thermal_drift":
-            kind = rng.choice(["x_offset", "y_offset", "x_scale", "y_scale"])
-            m = _mag(rng)
-            sym = "EXX" if kind[0] == "x" else "EYY"
-            if kind.endswith("offset"):
-                add(sym, Drift(offset_rate=m / duration_s))
-            else:  # m at 100 mm from the centre by the end of the campaign
-                add(sym, Drift(scale_rate=m / 0.1 / duration_s))
-            params[c] = {"kind": str(kind), "symbol": sym, "total_um": m / UM}
-        elif c == "periodic_axis_error":
-            sym = str(rng.choice(["EXX", "EYY", "EYX", "EXY"]))
-            P = float(rng.uniform(5, 15)) * MM
-            m = abs(_mag(rng))
-            add(sym, Periodic(m, P, float(rng.uniform(0, 2 * np.pi))))
-            params[c] = {"symbol": sym, "period_mm": P / MM, "amplitude_um": m / UM}
-        elif c == "probe_lobing":
-            m = abs(_mag(rng))
-            ph3, ph2 = rng.uniform(0, 2 * np.pi, 2)
-            r2 = float(rng.uniform(0.2, 0.6))
-            probe_kw["lobing_m"] = ((3, m * np.cos(ph3), m * np.sin(ph3)),
-                                    (2, r2 * m * np.cos(ph2), r2 * m * np.sin(ph2)))
-            params[c] = {"k3_amplitude_um": m / UM, "k2_amplitude_um": r2 * m / UM}
-        elif c == "reversal":
-            sym = str(rng.choice(["EXX", "EYY"]))
-            m = abs(_mag(rng))
-            add(sym, Reversal(m))
-            params[c] = {"symbol": sym, "lost_motion_um": m / UM}
-        elif c == "nonrigid":
-            sym, other = (("EXX", "Y") if rng.random() < 0.5 else ("EXY", "X"))
-            m = _mag(rng)
-            add(sym, CrossAxis(m / 0.1 ** 2, other))
-            params[c] = {"symbol": sym, "other": other, "at_100mm_um": m / UM}
-        elif c == "outlier":
-            n = int(rng.integers(1, 4))
-            chips = [abs(_mag(rng, 3.0, 10.0)) for _ in range(n)]
-            params[c] = {"chips_um": [h / UM for h in chips]}
-        elif c == "c_drift":  # m at 100 mm radius by the end, saturating
-            m = _mag(rng)
-            tau = duration_s / 2
-            add("ECC", Drift(offset_rate=m / 0.1 / (tau * -np.expm1(-duration_s / tau)), tau_s=tau))
-            params[c] = {"total_urad": m / 0.1 / 1e-6}
-        elif c == "temperature_expansion":  # a scale following a temperature that rises and falls
-            sym = str(rng.choice(["EXX", "EYY"]))
-            ts = np.linspace(0, duration_s * 1.05, 60)
-            dT = float(rng.uniform(0.8, 2.0))
-            T = 20 + dT * np.sin(2 * np.pi * rng.uniform(0.8, 1.6) * ts / duration_s + rng.uniform(0, 2 * np.pi))
-            m = _mag(rng)
-            alpha = m / (0.1 * dT)  # m at 100 mm per dT
-            add(sym, Drift(scale_per_K=alpha, temperature_t_s=tuple(ts), temperature_K=tuple(T)))
-            extra["temperature"] = (ts, T)
-            params[c] = {"symbol": sym, "alpha_um_per_m_K": alpha * 1e6, "range_K": 2 * dT}
-        elif c == "local_scale_defect":
-            sym = str(rng.choice(["EXX", "EYY"]))
-            sig = float(rng.uniform(3.0, 5.0)) * MM
-            x0 = float(rng.uniform(-0.06, 0.06))
-            m = _mag(rng, 1.5, 4.0)
-            nodes = x0 + sig * np.arange(-5, 5.01, 0.25)
-            add(sym, SplineTable(tuple(nodes), tuple(m * np.exp(-0.5 * ((nodes - x0) / sig) ** 2))))
-            params[c] = {"symbol": sym, "centre_mm": x0 / MM, "sigma_mm": sig / MM, "amplitude_um": m / UM}
-        elif c == "lobing_per_setup":
-            m = abs(_mag(rng))
-            extra["lobe_turns"] = (2, m, rng.uniform(0, np.pi, 16))
-            params[c] = {"k2_amplitude_um": m / UM}
-        elif c == "part_change":
-            m = _mag(rng, 1.5, 4.0)
-            extra["wall_growth"] = (m, int(rng.integers(4)))
-            params[c] = {"total_um": m / UM}
-        else:
+        if c not in _EFFECTS:
             raise ConfigError(f"unknown hidden cause {c!r}; expected one of {', '.join(HIDDEN_CAUSES)}")
-    return errs, probe_kw, chips, params, extra
+        out = _EFFECTS[c](rng, duration_s)
+        e_errs, e_probe, e_chips, params[c] = out[:4]
+        if len(out) > 4:
+            variants.update(out[4])
+        for sym, f in e_errs.items():
+            errs[sym] = errs[sym] + f if sym in errs else f
+        probe_kw.update(e_probe)
+        chips = e_chips or chips
+    return errs, probe_kw, chips, params, variants
+
+
+def _thermal_drift(rng, duration_s):
+    """An X or Y offset or scale drifting linearly over the campaign."""
+    from sim.errorfuncs import Drift
+
+    kind = rng.choice(["x_offset", "y_offset", "x_scale", "y_scale"])
+    m = _mag(rng)
+    sym = "EXX" if kind[0] == "x" else "EYY"
+    if kind.endswith("offset"):
+        f = Drift(offset_rate=m / duration_s)
+    else:  # m at 100 mm from the centre by the end of the campaign
+        f = Drift(scale_rate=m / 0.1 / duration_s)
+    return {sym: f}, {}, [], {"kind": str(kind), "symbol": sym, "total_um": m / UM}
+
+
+def _periodic_axis_error(rng, duration_s):
+    """A 5-15 mm periodic term on one X/Y error (a ball screw's pitch)."""
+    from sim.errorfuncs import Periodic
+
+    sym = str(rng.choice(["EXX", "EYY", "EYX", "EXY"]))
+    P = float(rng.uniform(5, 15)) * MM
+    m = abs(_mag(rng))
+    f = Periodic(m, P, float(rng.uniform(0, 2 * np.pi)))
+    return {sym: f}, {}, [], {"symbol": sym, "period_mm": P / MM, "amplitude_um": m / UM}
+
+
+def _probe_lobing(rng, duration_s):
+    """Pre-travel lobing of the probe: 3 and 2 lobes."""
+    m = abs(_mag(rng))
+    ph3, ph2 = rng.uniform(0, 2 * np.pi, 2)
+    r2 = float(rng.uniform(0.2, 0.6))
+    lobing = ((3, m * np.cos(ph3), m * np.sin(ph3)), (2, r2 * m * np.cos(ph2), r2 * m * np.sin(ph2)))
+    return {}, {"lobing_m": lobing}, [], {"k3_amplitude_um": m / UM, "k2_amplitude_um": r2 * m / UM}
+
+
+def _reversal(rng, duration_s):
+    """Lost motion of the X or Y axis."""
+    from sim.errorfuncs import Reversal
+
+    sym = str(rng.choice(["EXX", "EYY"]))
+    m = abs(_mag(rng))
+    return {sym: Reversal(m)}, {}, [], {"symbol": sym, "lost_motion_um": m / UM}
+
+
+def _nonrigid(rng, duration_s):
+    """An X error growing with x * y (or the X straightness with y * x)."""
+    from sim.errorfuncs import CrossAxis
+
+    sym, other = (("EXX", "Y") if rng.random() < 0.5 else ("EXY", "X"))
+    m = _mag(rng)
+    return {sym: CrossAxis(m / 0.1 ** 2, other)}, {}, [], {"symbol": sym, "other": other, "at_100mm_um": m / UM}
+
+
+def _outlier(rng, duration_s):
+    """1-3 chips of 3-10 um on the pocket wall (placed by :func:`_with_chips`)."""
+    n = int(rng.integers(1, 4))
+    chips = [abs(_mag(rng, 3.0, 10.0)) for _ in range(n)]
+    return {}, {}, chips, {"chips_um": [h / UM for h in chips]}
+
+
+def _c_drift(rng, duration_s):
+    """The C axis' angle creeping (``ECC`` drifting, saturating): m at 100 mm radius by the end."""
+    from sim.errorfuncs import Drift
+
+    m = _mag(rng)
+    tau = duration_s / 2
+    f = Drift(offset_rate=m / 0.1 / (tau * -np.expm1(-duration_s / tau)), tau_s=tau)
+    return {"ECC": f}, {}, [], {"total_urad": m / 0.1 / 1e-6}
+
+
+def _temperature_expansion(rng, duration_s):
+    """An X or Y scale following a temperature that rises and falls (logged as ``temp_scale_C``)."""
+    from sim.errorfuncs import Drift
+
+    sym = str(rng.choice(["EXX", "EYY"]))
+    ts = np.linspace(0, duration_s * 1.05, 60)
+    dT = float(rng.uniform(0.8, 2.0))
+    T = 20 + dT * np.sin(2 * np.pi * rng.uniform(0.8, 1.6) * ts / duration_s + rng.uniform(0, 2 * np.pi))
+    m = _mag(rng)
+    alpha = m / (0.1 * dT)  # m at 100 mm per dT
+    f = Drift(scale_per_K=alpha, temperature_t_s=tuple(ts), temperature_K=tuple(T))
+    return ({sym: f}, {}, [], {"symbol": sym, "alpha_um_per_m_K": alpha * 1e6, "range_K": 2 * dT},
+            {"temperature": (ts, T)})
+
+
+def _local_scale_defect(rng, duration_s):
+    """A Gaussian bump (sigma 3-5 mm, 1.5-4 um) on EXX or EYY."""
+    from sim.errorfuncs import SplineTable
+
+    sym = str(rng.choice(["EXX", "EYY"]))
+    sig = float(rng.uniform(3.0, 5.0)) * MM
+    x0 = float(rng.uniform(-0.06, 0.06))
+    m = _mag(rng, 1.5, 4.0)
+    nodes = x0 + sig * np.arange(-5, 5.01, 0.25)
+    f = SplineTable(tuple(nodes), tuple(m * np.exp(-0.5 * ((nodes - x0) / sig) ** 2)))
+    return {sym: f}, {}, [], {"symbol": sym, "centre_mm": x0 / MM, "sigma_mm": sig / MM, "amplitude_um": m / UM}
+
+
+def _lobing_per_setup(rng, duration_s):
+    """A 2-lobe pre-travel turned by a random angle in every set-up."""
+    m = abs(_mag(rng))
+    return {}, {}, [], {"k2_amplitude_um": m / UM}, {"lobe_turns": (2, m, rng.uniform(0, np.pi, 16))}
+
+
+def _part_change(rng, duration_s):
+    """One pocket wall growing set-up by set-up by up to 1.5-4 um."""
+    m = _mag(rng, 1.5, 4.0)
+    return {}, {}, [], {"total_um": m / UM}, {"wall_growth": (m, int(rng.integers(4)))}
+
+
+#: cause -> builder ``(rng, duration_s) -> (errors, probe settings, chips, params)``.
+_EFFECTS = {"thermal_drift": _thermal_drift, "periodic_axis_error": _periodic_axis_error,
+            "probe_lobing": _probe_lobing, "reversal": _reversal, "nonrigid": _nonrigid, "outlier": _outlier,
+            "c_drift": _c_drift, "temperature_expansion": _temperature_expansion,
+            "local_scale_defect": _local_scale_defect, "lobing_per_setup": _lobing_per_setup,
+            "part_change": _part_change}
 
 
 def hidden_campaign(causes=("none",), seed: int = 0, *, noise_sigma_m: float = 0.3e-6,
@@ -236,7 +292,7 @@ def hidden_campaign(causes=("none",), seed: int = 0, *, noise_sigma_m: float = 0
     tg = list(dict.fromkeys(plan.target))
     first = {k: plan.target.index(k) for k in tg}
     truth = HiddenTruth(causes=causes, params=params, g_true_m=g_true,
-                        w_W={k: plan.w_A[first[k], :2] for k in tg}, wn_W={k: plan.wn_A[first[k], :2] for k in tg},
+                        w_A={k: plan.w_A[first[k], :2] for k in tg}, wn_A={k: plan.wn_A[first[k], :2] for k in tg},
                         outlier_rows=tuple(out_rows), acceptable=tuple(c for c in causes) + tuple(
                             "unexplained" for c in causes if c in NOT_NAMEABLE))
     return log, truth
@@ -319,7 +375,7 @@ def drift_check_plan(art, per_direction: int = 4):
     the path, so farthest in time from the repeat) whose normals point
     along +x, -x, +y and -y (A frame).
     """
-    from sim.plans import make_plan
+    from sim.catalog import make_plan
 
     plan = make_plan(art)
     pocket = np.flatnonzero(np.asarray(plan.feature) == "pocket")
@@ -351,10 +407,8 @@ def _with_chips(art, plan, machine, probe, c_angles, seed, chips, rng, meta):
     feat = art.feature("pocket")
     base_form = [feat.true.form] if feat.true.form is not None else []
     dirty = _replace_pocket_form(art, A.FormSum(tuple(base_form + bumps)))
-    clean = simulate_campaign(art, machine, probe, c_angles, np.random.default_rng([seed, 1]), plan=plan, meta=meta,
-                              check_collisions=False)
-    dirt = simulate_campaign(dirty, machine, probe, c_angles, np.random.default_rng([seed, 1]), plan=plan, meta=meta,
-                             check_collisions=False)
+    clean = simulate_campaign(art, machine, probe, c_angles, np.random.default_rng([seed, 1]), plan=plan, meta=meta)
+    dirt = simulate_campaign(dirty, machine, probe, c_angles, np.random.default_rng([seed, 1]), plan=plan, meta=meta)
     n_per = plan.n
     take = np.zeros(clean.n, bool)
     take[dirty_setup * n_per:(dirty_setup + 1) * n_per] = True
@@ -390,48 +444,18 @@ def workpiece_truth(art, plan) -> dict:
     return out
 
 
-def remove_gauge(g, P, N) -> np.ndarray:
-    """``g`` (per target) less what a shift, rotation and scale of the part and a
-    common offset would give: the workpiece form that self-calibration sees.
-
-    Parameters
-    ----------
-    g : (n,) float
-    P : (n, 2) float
-        Nominal contact points in W, m.
-    N : (n, 2) float
-        Outward normals in W.
-    """
-    from core.lsq import remove_span
-
-    return remove_span(np.asarray(g, float), gauge_basis(P, N))
-
-
-def gauge_basis(P, N) -> np.ndarray:
-    """(n, 5) what self-calibration cannot see in per-target values: shift (2), rotation, scale, offset.
-
-    Parameters
-    ----------
-    P : (n, 2) float
-        Nominal points in the part's frame, m.
-    N : (n, 2) float
-        Outward normals there.
-    """
-    P, N = np.asarray(P, float), np.asarray(N, float)
-    return np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
-                            np.einsum("ij,ij->i", N, P), np.ones(len(P))])
-
-
-def gauge_free_rms_m(g_m, ids, g_true: dict, w_W: dict, wn_W: dict) -> float:
+def gauge_free_rms_m(g_m, ids, g_true: dict, w_A: dict, wn_A: dict) -> float:
     """RMS of (estimate - truth) per target after removing what self-calibration cannot see.
 
     The workpiece's shift (2), rotation and scale in W and a common offset
     (the gauge of eqs 16-17 and the stylus radius) are projected out of the
-    difference first.
+    difference first (:func:`core.selfcal.workpiece_form`).
     """
-    P = np.array([w_W[k] for k in ids])
-    N = np.array([wn_W[k] for k in ids])
-    e = remove_gauge(np.asarray(g_m, float) - np.array([g_true[k] for k in ids]), P, N)
+    from core.selfcal import workpiece_form
+
+    P = np.array([w_A[k] for k in ids])
+    N = np.array([wn_A[k] for k in ids])
+    e = workpiece_form(np.asarray(g_m, float) - np.array([g_true[k] for k in ids]), P, N)
     return float(np.sqrt(np.mean(e ** 2)))
 
 
@@ -441,8 +465,8 @@ def workpiece_errors_um(report: dict, truth: HiddenTruth) -> tuple[float, float]
     if not rows:
         raise ConfigError("no target of the report is in the truth")
     ids = [w["target"] for w in rows]
-    return tuple(gauge_free_rms_m(np.array([w[k] for w in rows]) * UM, ids, truth.g_true_m, truth.w_W,
-                                  truth.wn_W) / UM for k in ("baseline_um", "extended_um"))
+    return tuple(gauge_free_rms_m(np.array([w[k] for w in rows]) * UM, ids, truth.g_true_m, truth.w_A,
+                                  truth.wn_A) / UM for k in ("baseline_um", "extended_um"))
 
 
 # ---------------------------------------------------------------------------
@@ -522,7 +546,9 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
         keep = np.array([k in g_true for k in ids])
         P, N = bl.geometry
         if keep.sum() >= 6:
-            B = gauge_basis(P[keep], N[keep])
+            from core.selfcal import workpiece_gauge_basis
+
+            B = workpiece_gauge_basis(P[keep], N[keep])
             truth = np.array([g_true[k] for k, ok in zip(ids, keep) if ok])
             from core.lsq import remove_span
 

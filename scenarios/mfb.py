@@ -95,7 +95,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-MM = 1e-3
+from core.units import MM
 
 
 @dataclass(frozen=True)
@@ -398,13 +398,14 @@ class ScenarioResult:
         from pathlib import Path
 
         from core import volumetric as vol
+        from hardware.linuxcnc import comp_file
 
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
         out = []
         for a in ("X", "Y", "Z"):
             p = d / f"{a}.comp"
-            p.write_text(vol.linuxcnc_comp(self.result, a, step_m=0.005))
+            p.write_text(comp_file(self.result, a, step_m=0.005))
             out.append(p)
         p = d / f"{self.doc['scenario']}-comp.json"
         p.write_text(vol.tables_json(self.result, self.unc, self.slopes))
@@ -450,7 +451,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 
     from core.touches import from_log
     from sim import artefacts as A
-    from sim.campaign import Setup, simulate_campaign
+    from sim.campaign import simulate_campaign
+    from sim.setups import Setup
     from sim.machine import Machine
     from sim.probe import ProbeConfig
 
@@ -521,7 +523,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
                                     c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A))
     chain = cfg.chain
     rp = dict(cfg.rotary_points_R_m)
-    res_g = vol.identify(meas, chain, plan.nodes, rp, exact=exact)
+    res_g = vol.identify_volumetric(meas, chain, plan.nodes, rp, exact=exact)
     # reported in the ISO 230-1 form: straightness against the end-point
     # reference line (identified and injected alike)
     L_iso = vol.iso_map(res_g.design)
@@ -545,7 +547,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         f = errs.get(s)
         if f is not None:
             truth[d.slices[s]] = float(np.asarray(f(np.zeros(1)))[0])
-    truth_raw = vol.to_gauge(d, truth)
+    truth_raw = d.to_gauge(truth)
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, k2, slopes)
@@ -555,31 +557,20 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 def _document(name, plan, res, unc, truth, n_touch, seed, k2, slopes=None) -> dict:
     from core import iso, volumetric as vol
 
-    errors = {}
+    errors = vol.report(res, unc, truth)  # one entry per ISO symbol, um / urad
     dev_um, dev_urad = 0.0, 0.0
-    for s in vol.MOTION + vol.SQUARENESS:
-        sl = res.design.slices[s]
+    for s, e in errors.items():
         sy = iso.symbol(s)
-        ident = res.theta[sl] * 1e6
-        inj = truth[sl] * 1e6
-        e = {"unit": sy.report_unit, "kind": sy.kind.value, "injected": inj.tolist(), "identified": ident.tolist()}
-        if s in vol.MOTION:
-            e["nodes_mm"] = (res.design.nodes[sy.axis] * 1e3).tolist()
         if sy.kind == iso.Kind.STRAIGHTNESS:
             e["reference"] = "end-point straight line"
             if slopes is not None:
                 e["end_point_slope_urad"] = {"identified": slopes[0][s] * 1e6, "injected": slopes[1][s] * 1e6}
-        if unc is not None:
-            U = unc.U95_mc if unc.runs else unc.U95_lin
-            e["u95"] = (U[sl] * 1e6).tolist()
-            e["u95_lin"] = (unc.U95_lin[sl] * 1e6).tolist()
-        dmax = float(np.max(np.abs(ident - inj)))
+        dmax = float(np.max(np.abs(np.asarray(e["identified"]) - np.asarray(e["injected"]))))
         e["max_dev"] = dmax
         if sy.angular:
             dev_urad = max(dev_urad, dmax)
         else:
             dev_um = max(dev_um, dmax)
-        errors[s] = e
     return {"scenario": name, "machine": plan.machine, "seed": seed, "noise_um_k2": k2,
             "placements": len(plan.placements), "measurements": len(plan.measurements),
             "touches": int(n_touch), "model": "first order (eqs 8-12) + exact Gauss-Newton"

@@ -8,9 +8,12 @@ from __future__ import annotations
 
 import shutil
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from core.units import MM, UM, URAD
 
 
 def _recording_path(folder: Path) -> Path:
@@ -142,38 +145,29 @@ def discovery_report(folder, d, rep: dict, title: str) -> Path:
         shutil.rmtree(rrd.parent, ignore_errors=True)
 
 
-def error_map(res):
-    """E_X,total and E_Y,total (eqs 4-5) on the grid nodes from identified LUTs, um."""
-    g = res.design.grid
-    X, Y = np.meshgrid(g.x_m, g.y_m, indexing="ij")
-    ex = res.EXX[:, None] + res.EXY[None, :] - Y * res.EC0Y
-    ey = res.EYX[:, None] + res.EYY[None, :]
-    if res.yaw == "ECY":  # X rides on Y (eq 5)
-        ey = ey + X * res.ECY[None, :]
-    else:  # Y rides on X
-        ex = ex - Y * res.ECX[:, None]
-    return g.x_m * 1e3, g.y_m * 1e3, ex * 1e6, ey * 1e6
+def error_map_um(res):
+    """(x_mm, y_mm, ex_um, ey_um): :func:`core.selfcal.error_map` (eqs 4-5) in report units."""
+    from core.selfcal import error_map
+
+    x_m, y_m, ex, ey = error_map(res)
+    return x_m / MM, y_m / MM, ex / UM, ey / UM
 
 
 def true_error_map(machine, x_mm, y_mm, z_m: float, ex_um, ey_um):
-    """The machine's true E_X,total / E_Y,total on the grid, in the identification's gauge.
+    """The machine's true E_X,total / E_Y,total on the grid (um), in the identification's gauge.
 
     The truth is the simulator's exact tip deviation at C = 0 and height
-    ``z_m``. Self-calibration determines the map only up to a translation, a
-    rotation and (without delta_L) a scale: those four are fitted to the
-    identified map and applied to the truth, so the two can be compared.
+    ``z_m``, expressed in the gauge of the identified map ``ex_um``, ``ey_um``
+    by :func:`core.selfcal.map_in_gauge`.
     """
-    X, Y = np.meshgrid(np.asarray(x_mm) * 1e-3, np.asarray(y_mm) * 1e-3, indexing="ij")
+    from core.selfcal import map_in_gauge
+
+    X, Y = np.meshgrid(np.asarray(x_mm) * MM, np.asarray(y_mm) * MM, indexing="ij")
     lin = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z_m)])
     rot = np.zeros((len(lin), len(machine.rotary_axes)))
-    E = (machine.tip_W(lin, rot) - machine.tip_W_nominal(lin, rot)) * 1e6
-    x, y = lin[:, 0], lin[:, 1]
-    one, zero = np.ones_like(x), np.zeros_like(x)
-    B = np.vstack([np.column_stack([one, zero, -y, x]), np.column_stack([zero, one, x, y])])
-    r = np.concatenate([np.ravel(ex_um) - E[:, 0], np.ravel(ey_um) - E[:, 1]])
-    c, *_ = np.linalg.lstsq(B, r, rcond=None)
-    Ea = E[:, :2] + (B @ c).reshape(2, -1).T
-    return Ea[:, 0].reshape(X.shape), Ea[:, 1].reshape(X.shape)
+    E = (machine.tip_W(lin, rot) - machine.tip_W_nominal(lin, rot)).reshape(X.shape + (3,))
+    tex, tey = map_in_gauge(X, Y, E[..., 0], E[..., 1], np.asarray(ex_um) * UM, np.asarray(ey_um) * UM)
+    return tex / UM, tey / UM
 
 
 def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, machine=None,
@@ -183,86 +177,124 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
     ``machine`` (the simulator's, when known) adds the true error map and
     simple machine bodies to the recording.
     """
-    from core.fit import fit_circle_2d
     from viz import figures, record
-    from viz.report import Section, Table, write_report
+    from viz.report import write_report
 
     folder = Path(folder)
     rrd = _recording_path(folder)
-    x_mm, y_mm, ex_um, ey_um = error_map(res)
-    tex = tey = None
-    if machine is not None:
-        z_level = float(np.median(t.pn_R[:, 2]))
-        tex, tey = true_error_map(machine, x_mm, y_mm, z_level, ex_um, ey_um)
-    des = res.design
-    first = {}
-    for k in range(t.n):
-        first.setdefault(int(t.target[k]), k)
-    idx = [first[i] for i in range(len(des.target_ids))]
-    w_mm = t.w_W[idx, :2] * 1e3
-    wn = t.wn_W[idx, :2]
-    g_um = res.G * 1e6
-    u95 = np.array([w["u95_um"] if w["u95_um"] is not None else np.nan for w in ident["workpiece"]])
-    c_deg = np.degrees(des.c_rad)
-    exc, eyc = res.EXC * 1e6, res.EYC * 1e6
-    centre = None
-    if len(c_deg) >= 3:
-        try:
-            centre = fit_circle_2d(np.column_stack([exc, eyc])).centre
-        except Exception:  # a degenerate trajectory has no circle: draw none
-            centre = None
+    v = _DemoView.of(t, res, ident, machine)
     with record.recording(rrd) as rec:
-        try:
-            mesh = art.mesh()
-            record.log_mesh(rec, record.ARTEFACT, np.asarray(mesh.vertices), np.asarray(mesh.faces))
-        except Exception:  # a display mesh is a nicety, never a reason to fail
-            pass
-        record.log_touches(rec, t.pn_R, t.dq_m * 1e6, n_R=t.n_R)
-        record.log_error_grid(rec, x_mm, y_mm, ex_um, ey_um, true_ex_um=tex, true_ey_um=tey)
-        _log_machine_bodies(rec, record, t)
-        record.log_workpiece(rec, t.w_W[idx], t.wn_W[idx], g_um, u95_um=u95)
-        record.log_rotary(rec, c_deg, exc, eyc, ecc_urad=res.ECC * 1e6,
-                          ex0c_um=None if centre is None else float(centre[0]),
-                          ey0c_um=None if centre is None else float(centre[1]))
-        record.log_error_motions(rec, {k: v for k, v in ident["axes"].items() if k != "EC0Y"})
+        _record_demo(rec, record, v, t, res, ident, art)
         dsecs = _discovery_sections(d, t, rep, rec)
-    profiles = {}
-    for j, sid in enumerate(des.setup_ids):
-        m = t.setup == j
-        order = np.argsort(t.target[m])
-        if m.sum() == len(idx):
-            profiles[f"raw {sid}"] = (t.dq_m[m][order]) * 1e6
-        if len(profiles) >= 2:
-            break
-    secs = [
-        Section("Campaign", text=f"{t.n} touches, {len(des.target_ids)} targets at C = "
-                f"{', '.join(f'{c:g}' for c in c_deg)} deg. Residual RMS of the self-calibration "
-                f"{res.rms_m * 1e6:.3f} µm. The profile shows the pocket's form: the part's shift, rotation "
-                "and scale in W (which no self-calibration sees, eqs 16-17) are removed from each curve.",
-                figures={"profile": _profile_figure(figures, des, w_mm, wn, g_um, t, g_true)}),
-        Section("Machine error map (eqs 4-5, ×1000)",
-                figures={"error_map": figures.error_grid_figure(x_mm, y_mm, ex_um, ey_um, true_ex_um=tex,
-                                                                true_ey_um=tey),
-                         "error_motions": figures.error_motions_figure(
-                             {k: v for k, v in ident["axes"].items() if k != "EC0Y"})},
-                tables=[Table(["symbol", "value", "U95 (k=2)"],
-                              [["EC0Y / µrad", ident["axes"]["EC0Y"]["value_urad"],
-                                ident["axes"]["EC0Y"]["u95_urad"]]])]),
-        Section("C axis (Fig. 13)", figures={"c_axis": figures.rotary_centre_figure(
-            c_deg, exc, eyc, ex0c_um=None if centre is None else float(centre[0]),
-            ey0c_um=None if centre is None else float(centre[1]))}),
-        Section("Workpiece uncertainty (Figs. 18-19)", figures={"workpiece_u95": figures.workpiece_uncertainty_figure(
-            w_mm, u95, g_um=g_um, normals=wn)}),
-    ] + dsecs
+    secs = _demo_sections(figures, v, t, res, ident, g_true) + dsecs
     try:
         return write_report(folder, title, secs, recording=rrd)
     finally:
         shutil.rmtree(rrd.parent, ignore_errors=True)
 
 
+@dataclass(frozen=True)
+class _DemoView:
+    """What the demo's report draws, in report units (mm, um, deg) from one identification.
+
+    ``x_mm``, ``y_mm``, ``ex_um``, ``ey_um``: the error map (eqs 4-5) and
+    ``tex``, ``tey`` the true one in its gauge (None without the machine);
+    ``idx`` the first touch of each target, ``w_mm``, ``wn`` its nominal
+    point and normal (A frame), ``g_um``, ``u95_um`` the workpiece; ``c_deg``,
+    ``exc``, ``eyc`` the C axis and ``centre`` the circle through it (None
+    when degenerate or fewer than three angles).
+    """
+
+    x_mm: np.ndarray
+    y_mm: np.ndarray
+    ex_um: np.ndarray
+    ey_um: np.ndarray
+    tex: np.ndarray | None
+    tey: np.ndarray | None
+    idx: list
+    w_mm: np.ndarray
+    wn: np.ndarray
+    g_um: np.ndarray
+    u95_um: np.ndarray
+    c_deg: np.ndarray
+    exc: np.ndarray
+    eyc: np.ndarray
+    centre: np.ndarray | None
+
+    @classmethod
+    def of(cls, t, res, ident: dict, machine=None) -> "_DemoView":
+        from core.fit import fit_circle_2d
+
+        x_mm, y_mm, ex_um, ey_um = error_map_um(res)
+        tex = tey = None
+        if machine is not None:
+            tex, tey = true_error_map(machine, x_mm, y_mm, float(np.median(t.pn_R[:, 2])), ex_um, ey_um)
+        first = {}
+        for k in range(t.n):
+            first.setdefault(int(t.target[k]), k)
+        idx = [first[i] for i in range(len(res.design.target_ids))]
+        u95 = np.array([w["u95_um"] if w["u95_um"] is not None else np.nan for w in ident["workpiece"]])
+        c_deg = np.degrees(res.design.c_rad)
+        exc, eyc = res.EXC / UM, res.EYC / UM
+        centre = None
+        if len(c_deg) >= 3:
+            try:
+                centre = fit_circle_2d(np.column_stack([exc, eyc])).centre
+            except Exception:  # a degenerate trajectory has no circle: draw none
+                centre = None
+        return cls(x_mm, y_mm, ex_um, ey_um, tex, tey, idx, t.w_A[idx, :2] / MM, t.wn_A[idx, :2], res.G / UM, u95,
+                   c_deg, exc, eyc, centre)
+
+    def centre_um(self, i: int):
+        """EX0C (i = 0) or EY0C (i = 1) of the fitted circle, um, or None."""
+        return None if self.centre is None else float(self.centre[i])
+
+
+def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art) -> None:
+    """The demo's recording: artefact, touches, error grid, bodies, workpiece, C axis, error motions."""
+    try:
+        mesh = art.mesh()
+        record.log_mesh(rec, record.ARTEFACT, np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    except Exception:  # a display mesh is a nicety, never a reason to fail
+        pass
+    record.log_touches(rec, t.pn_R, t.dq_m / UM, n_R=t.n_R)
+    record.log_error_grid(rec, v.x_mm, v.y_mm, v.ex_um, v.ey_um, true_ex_um=v.tex, true_ey_um=v.tey)
+    _log_machine_bodies(rec, record, t)
+    record.log_workpiece(rec, t.w_A[v.idx], t.wn_A[v.idx], v.g_um, u95_um=v.u95_um)
+    record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, ex0c_um=v.centre_um(0),
+                      ey0c_um=v.centre_um(1))
+    record.log_error_motions(rec, {k: e for k, e in ident["axes"].items() if k != "EC0Y"})
+
+
+def _demo_sections(figures, v: _DemoView, t, res, ident: dict, g_true) -> list:
+    """Report sections: campaign profile, error map (eqs 4-5), C axis (Fig. 13), workpiece U95 (Figs. 18-19)."""
+    from viz.report import Section, Table
+
+    des = res.design
+    motions = {k: e for k, e in ident["axes"].items() if k != "EC0Y"}
+    return [
+        Section("Campaign", text=f"{t.n} touches, {len(des.target_ids)} targets at C = "
+                f"{', '.join(f'{c:g}' for c in v.c_deg)} deg. Residual RMS of the self-calibration "
+                f"{res.rms_m / UM:.3f} µm. The profile shows the pocket's form: the part's shift, rotation "
+                "and scale in W (which no self-calibration sees, eqs 16-17) are removed from each curve.",
+                figures={"profile": _profile_figure(figures, des, v.w_mm, v.wn, v.g_um, t, g_true)}),
+        Section("Machine error map (eqs 4-5, ×1000)",
+                figures={"error_map": figures.error_grid_figure(v.x_mm, v.y_mm, v.ex_um, v.ey_um,
+                                                                true_ex_um=v.tex, true_ey_um=v.tey),
+                         "error_motions": figures.error_motions_figure(motions)},
+                tables=[Table(["symbol", "value", "U95 (k=2)"],
+                              [["EC0Y / µrad", ident["axes"]["EC0Y"]["value_urad"],
+                                ident["axes"]["EC0Y"]["u95_urad"]]])]),
+        Section("C axis (Fig. 13)", figures={"c_axis": figures.rotary_centre_figure(
+            v.c_deg, v.exc, v.eyc, ex0c_um=v.centre_um(0), ey0c_um=v.centre_um(1))}),
+        Section("Workpiece uncertainty (Figs. 18-19)", figures={"workpiece_u95": figures.workpiece_uncertainty_figure(
+            v.w_mm, v.u95_um, g_um=v.g_um, normals=v.wn)}),
+    ]
+
+
 def _profile_figure(figures, des, w_mm, wn, g_um, t, g_true):
     """The pocket's identified form beside the raw C = 0 probing and the truth (Fig. 9)."""
-    from scenarios.hidden import remove_gauge
+    from core.selfcal import workpiece_form
 
     feat = {}
     for k in range(t.n):
@@ -271,15 +303,15 @@ def _profile_figure(figures, des, w_mm, wn, g_um, t, g_true):
     if pocket.sum() < 6:
         pocket = np.ones(len(des.target_ids), bool)
     P, N = w_mm[pocket] * 1e-3, wn[pocket]
-    prof = {"identified G_normal": remove_gauge(g_um[pocket], P, N)}
+    prof = {"identified G_normal": workpiece_form(g_um[pocket], P, N)}
     sel = t.setup == 0
     raw = {des.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel] * 1e6)}
     ids = [tid for tid, p in zip(des.target_ids, pocket) if p]
     if all(k in raw for k in ids):
-        prof[f"raw, {des.setup_ids[0]}"] = remove_gauge(np.array([raw[k] for k in ids]), P, N)
+        prof[f"raw, {des.setup_ids[0]}"] = workpiece_form(np.array([raw[k] for k in ids]), P, N)
     ref = None
     if g_true is not None and all(k in g_true for k in ids):
-        ref = remove_gauge(np.array([g_true[k] for k in ids]) * 1e6, P, N)
+        ref = workpiece_form(np.array([g_true[k] for k in ids]) * 1e6, P, N)
     return figures.profile_figure(w_mm[pocket], N, prof, reference_um=ref, reference_label="true form",
                                   title="Cross pocket form")
 

@@ -67,9 +67,8 @@ from typing import Callable
 import numpy as np
 
 from core.exceptions import ConfigError
+from core.units import MM, UM
 
-MM = 1e-3
-UM = 1e-6
 
 Form = Callable[[np.ndarray], np.ndarray]
 
@@ -894,19 +893,3 @@ def freeform_plate(form: Form | None = "default", T_W_A: np.ndarray | None = Non
     info = {"n_vertices": FREEFORM_N, "height_m": FREEFORM_H_M, "probe_z_m": FREEFORM_PROBE_Z_M,
             "sphere_xy_m": spheres}
     return Artefact("freeform", tuple(feats), tuple(solids), T_W_A, top_A_m=zc + CROSS_SPHERE_R_M, info=info)
-
-
-#: Artefact factories by name.
-ARTEFACTS = {
-    "mfb": multi_feature_bar,
-    "cross-pocket": cross_pocket,
-    "pin-circle": pin_circle,
-    "freeform": freeform_plate,
-}
-
-
-def make_artefact(name: str, **kw) -> Artefact:
-    """Build the artefact called ``name`` (ConfigError naming the choices if unknown)."""
-    if name not in ARTEFACTS:
-        raise ConfigError(f"unknown artefact {name!r} (choose from {', '.join(ARTEFACTS)})")
-    return ARTEFACTS[name](**kw)

@@ -17,19 +17,22 @@ paper eq. 1 for a C table), A artefact (``T_W_A`` placement).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from core.exceptions import ConfigError, PlanError
 from core.probelog import ProbeLog, make_log
+from core.touches import STATUS_MESSAGES, ProbeStatus
+from core.units import MM
 
 from . import artefacts as A
-from .plans import Plan, make_plan
-from .probe import (OK, ProbeConfig, T_R_W_nominal, find_contacts, rotary_count,
+from .catalog import CATALOG, make_artefact, make_plan
+from .plans import Plan
+from .probe import (ProbeConfig, T_R_W_nominal, find_contacts, rotary_count,
                     simulate_touches)
+from .setups import Setup, c_angle_setups, machine_name
 
-MM = 1e-3
 #: Default feeds: probing 240 mm/min (MFB paper), rapid 10 m/min.
 PROBING_FEED_MPS = 0.240 / 60.0
 RAPID_FEED_MPS = 10.0 / 60.0
@@ -37,81 +40,8 @@ RAPID_FEED_MPS = 10.0 / 60.0
 DWELL_S = 0.2
 #: Safe-height margin above the artefact's top, m.
 SAFE_MARGIN_M = 5.0 * MM
-
-
-@dataclass(frozen=True)
-class Setup:
-    """One set-up: placement ``T_W_A`` (nominal), rotary positions, true pose.
-
-    Attributes
-    ----------
-    name : str
-        The ``setup`` id in the log.
-    T_W_A : (4,4) float
-        Nominal placement of A in W, m.
-    rot_rad : tuple of float
-        Rotary axis positions in the machine's ``rotary_axes`` order, rad.
-    T_W_A_true : (4,4) float or None
-        True placement (default: the nominal one).
-    """
-
-    name: str
-    T_W_A: np.ndarray = field(compare=False)
-    rot_rad: tuple = ()
-    T_W_A_true: np.ndarray | None = field(default=None, compare=False)
-
-
-def c_angle_setups(machine, artefact: A.Artefact, c_angles_deg) -> list[Setup]:
-    """One set-up per C angle (deg), artefact in its default placement."""
-    axes = tuple(getattr(machine, "rotary_axes", ()) or ())
-    out = []
-    for c in c_angles_deg:
-        c = float(c)
-        if not np.isfinite(c):
-            raise ConfigError(f"C angle {c!r} is not finite")
-        rot = np.zeros(len(axes))
-        if "C" in axes:
-            rot[axes.index("C")] = np.deg2rad(c)
-        elif c != 0.0:
-            raise ConfigError(f"c_angles_deg: machine {machine_name(machine)!r} has no C axis "
-                              f"(rotary axes {axes or 'none'}); only 0 is possible")
-        out.append(Setup(f"C{c:g}", artefact.T_W_A, tuple(rot)))
-    if len({s.name for s in out}) != len(out):
-        raise ConfigError("c_angles_deg has repeated angles")
-    return out
-
-
-def mfb_placements(machine=None, artefact: A.Artefact | None = None) -> list[Setup]:
-    """17 MFB placements (the paper's count), the bar horizontal.
-
-    Chosen to fit the smallest machine (vmc-3axis, X 600 x Y 400 mm): along
-    X at y = -120, 0, +120 mm on 60 mm supports and on a 200 mm riser; at
-    +-30 deg about Z (centred) and +-15 deg (y = +-80 mm) at both heights;
-    reversed (180 deg, mistake-proofing) at both heights; one along X at
-    100 mm. A vertical probe cannot reach the holes of a vertical bar, so
-    there is no vertical placement (Z-axis positioning must come from
-    elsewhere, e.g. a tilted bar with the A axis).
-    """
-    art = artefact or A.multi_feature_bar()
-    k = rotary_count(machine) if machine is not None else 0
-    xc = float(art.info["poi_nominal_m"][-1, 0]) / 2
-    z0 = float(art.T_W_A[2, 3])
-    out = []
-
-    def add(theta_deg, cy, dz):
-        T = A.make_T(A.rot_z(np.deg2rad(theta_deg)), (0.0, cy, z0 + dz)) @ A.make_T(None, (-xc, 0.0, 0.0))
-        out.append(Setup(f"P{len(out) + 1:02d}", T, tuple(np.zeros(k))))
-
-    for dz in (0.0, 0.2):
-        for y in (-0.12, 0.0, 0.12):
-            add(0.0, y, dz)
-        add(30.0, 0.0, dz)
-        add(-30.0, 0.0, dz)
-        add(15.0, -0.08, dz)
-        add(-15.0, 0.08, dz)
-        add(180.0, 0.0, dz)
-    add(0.0, 0.0, 0.1)
-    return out
+#: Time between set-ups of an artefact without a record in :data:`sim.catalog.CATALOG`, s.
+DEFAULT_SETUP_CHANGE_S = 10.0
 
 
 def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves") -> None:
@@ -133,16 +63,6 @@ def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves") -> None:
     for ax, v in zip(getattr(machine, "rotary_axes", ()), setup.rot_rad):
         if ax in strokes and not (strokes[ax][0] - 1e-12 <= v <= strokes[ax][1] + 1e-12):
             raise PlanError(f"set-up {setup.name!r}: {ax} = {np.rad2deg(v):g} deg is outside its stroke")
-
-
-def machine_name(machine) -> str:
-    for a in ("name",):
-        v = getattr(machine, a, None)
-        if isinstance(v, str) and v:
-            return v
-    cfg = getattr(machine, "config", None)
-    v = getattr(cfg, "name", None)
-    return v if isinstance(v, str) and v else type(machine).__name__
 
 
 def _kinematic_chain(machine) -> str:
@@ -177,11 +97,11 @@ def validate_plan(art: A.Artefact, plan: Plan, probe: ProbeConfig) -> None:
         return out - r
 
     s, status = find_contacts(g, plan.n, travel)
-    bad = (status != OK) | ~(np.abs(s - plan.clearance_m) < 1e-9)
+    bad = (status != ProbeStatus.OK) | ~(np.abs(s - plan.clearance_m) < 1e-9)
     if bad.any():
         i = int(np.argmax(bad))
         what = (f"meets {plan.feature[i]!r} {(plan.clearance_m - s[i]) * 1e3:.6f} mm before the target"
-                if status[i] == OK else f"gives {status[i]}")
+                if status[i] == ProbeStatus.OK else f"gives {status[i]} ({STATUS_MESSAGES[status[i]]})")
         raise PlanError(f"plan {plan.artefact!r} target {plan.target[i]!r}: on a perfect machine the "
                         f"stylus {what} (too close to a corner or an edge?)")
 
@@ -231,8 +151,11 @@ def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: Probe
 
 
 def _resolve_setups(machine, art, setups) -> list[Setup]:
+    """Set-ups from C angles, placements or Setup objects; None: the artefact's defaults (its record)."""
     if setups is None:
-        return mfb_placements(machine, art) if art.name == "mfb" else c_angle_setups(machine, art, [0.0])
+        if art.name in CATALOG:
+            return CATALOG[art.name].default_setups(machine, art)
+        return c_angle_setups(machine, art, [0.0])
     setups = list(setups)
     if not setups:
         raise ConfigError("no set-ups (c_angles_deg or placements is empty)")
@@ -264,7 +187,8 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     machine : object with ``tip_W`` (``sim.machine.Machine``)
     probe : ProbeConfig, optional
     setups : sequence of float (C angles, deg), of (4,4) placements, or of Setup
-        Default: the 17 MFB placements, or C = 0 for the other artefacts.
+        Default: the artefact's record (:mod:`sim.catalog`): the 17 MFB
+        placements, or C = 0 for the other artefacts.
     rng : np.random.Generator, optional
         Noise source (None: noiseless).
     plan : Plan, optional
@@ -272,7 +196,8 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     feed_mps, rapid_mps : float
         Probing and rapid feeds, m/s.
     setup_change_s : float, optional
-        Time between set-ups (default 300 s for a placement, 10 s for an index).
+        Time between set-ups (default the record's: 300 s to re-place the
+        bar, 10 s for an index).
     check_collisions : bool
         Check every link, approach and retract path in the MuJoCo scene.
     plan_only : bool
@@ -292,7 +217,7 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     ConfigError
         Bad set-ups, feeds, or a C angle on a machine without C.
     """
-    art = A.make_artefact(artefact) if isinstance(artefact, str) else artefact
+    art = make_artefact(artefact) if isinstance(artefact, str) else artefact
     probe = probe or ProbeConfig()
     if not (np.isfinite(feed_mps) and feed_mps > 0 and np.isfinite(rapid_mps) and rapid_mps > 0):
         raise ConfigError("feed_mps and rapid_mps must be positive")
@@ -302,72 +227,120 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         raise ConfigError("set-up names must be unique")
     validate_plan(art, plan, probe)
     if setup_change_s is None:
-        setup_change_s = 300.0 if art.name == "mfb" else 10.0
-    r = probe.stylus_r_m
-    axes = tuple(getattr(machine, "rotary_axes", ()) or ())
+        setup_change_s = CATALOG[art.name].setup_change_s if art.name in CATALOG else DEFAULT_SETUP_CHANGE_S
     feats = sorted(set(plan.feature))
     sdf_true = [art.feature(f).true.sdf for f in feats]
     grp = np.array([feats.index(f) for f in plan.feature])
     travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
-    scene = scene_T = None
-    cols: dict[str, list] = {k: [] for k in (
-        "setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz",
-        "feature", "A_deg", "B_deg", "C_deg", "dx", "dy", "dz", "wx_mm", "wy_mm", "wz_mm",
-        "wnx", "wny", "wnz", "stylus_r_mm", "status")}
+    paths = _PathChecker(art, probe) if check_collisions else None
+    cols: dict[str, list] = {k: [] for k in LOG_COLUMNS}
     t_cursor = 0.0
     for si, st in enumerate(setups):
         mv = setup_moves(machine, art, plan, st, probe)
         check_strokes(machine, st, plan, mv)
-        if check_collisions:
-            from .scene import Scene, check_touch_paths
-
-            if scene is None or scene.artefact is not art or not np.array_equal(scene_T, st.T_W_A):
-                scene = Scene(art, probe, st.T_W_A)
-                scene_T = np.asarray(st.T_W_A)
-            scene.set_table(mv.T_R_W)
-            check_touch_paths(scene, st.name, plan.target, plan.feature, mv.links,
-                              np.stack([mv.start_R, mv.Xn_R], axis=1))
+        if paths is not None:
+            paths.check(st, plan, mv)
         if si > 0:
             t_cursor += setup_change_s
-        per = travel / feed_mps + travel / rapid_mps + DWELL_S
-        t0 = t_cursor + np.cumsum(mv.link_len_m / rapid_mps) + np.concatenate([[0.0], np.cumsum(per)[:-1]])
-        t_cursor = float(t0[-1] + per[-1])
-        d_R = -mv.n_R
-        rot_deg = np.zeros(3)
-        for a, v in zip(axes, st.rot_rad):
-            if a in "ABC":
-                rot_deg["ABC".index(a)] = np.round(np.rad2deg(v), 9)
+        t0, t_cursor = _touch_start_times(mv, travel, t_cursor, feed_mps, rapid_mps)
         if plan_only:
             pos = np.full((plan.n, 3), np.nan)
             t_s = np.full(plan.n, np.nan)
-            status = np.full(plan.n, OK, dtype=object)
+            status = np.full(plan.n, ProbeStatus.OK, dtype=object)
         else:
-            rot = np.tile(np.asarray(st.rot_rad, float), (plan.n, 1)) if axes else None
-            T_true = np.asarray(st.T_W_A if st.T_W_A_true is None else st.T_W_A_true, float)
-            T_A_W = np.broadcast_to(A.inv_T(T_true), (plan.n, 4, 4))
-            res = simulate_touches(machine, probe, rng, mv.start_R, d_R, travel, rot, t0,
-                                   np.full(plan.n, feed_mps), sdf_true, grp, T_A_W)
-            pos, status = res.pos_R, res.status
-            t_s = np.where(status == OK, res.t_s, np.nan)
-        cols["setup"] += [st.name] * plan.n
-        cols["target"] += list(plan.target)
-        cols["feature"] += list(plan.feature)
-        cols["status"] += list(status)
-        for j, c in enumerate("XYZ"):
-            cols[f"{c}_mm"].append(pos[:, j] / MM)
-            cols[f"{c}n_mm"].append(mv.Xn_R[:, j] / MM)
-            cols[f"n{c.lower()}"].append(mv.n_R[:, j])
-            cols[f"d{c.lower()}"].append(d_R[:, j])
-            cols[f"w{c.lower()}_mm"].append(plan.w_A[:, j] / MM)
-            cols[f"wn{c.lower()}"].append(plan.wn_A[:, j])
-        cols["t_s"].append(t_s)
-        for j, c in enumerate("ABC"):
-            cols[f"{c}_deg"].append(np.full(plan.n, rot_deg[j]))
-        cols["stylus_r_mm"].append(np.full(plan.n, r / MM))
+            pos, status, t_s = _simulate_setup(machine, probe, rng, st, mv, travel, t0, feed_mps, sdf_true, grp)
+        _append_rows(cols, plan, st, mv, pos, status, t_s, _rotary_deg(machine, st), probe.stylus_r_m)
     columns = {k: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else v) for k, v in cols.items()}
+    return make_log(columns, _campaign_meta(machine, art, probe, feed_mps, meta))
+
+
+#: Every column a campaign writes, in the order of ``probe-log/1``.
+LOG_COLUMNS = ("setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz",
+               "feature", "A_deg", "B_deg", "C_deg", "dx", "dy", "dz", "wx_mm", "wy_mm", "wz_mm",
+               "wnx", "wny", "wnz", "stylus_r_mm", "status")
+
+
+class _PathChecker:
+    """Every link, approach and retract path of a set-up checked in the MuJoCo scene.
+
+    The scene is built once per artefact placement and re-posed per table index.
+    """
+
+    def __init__(self, art: A.Artefact, probe: ProbeConfig):
+        self.art, self.probe = art, probe
+        self.scene = self.T_W_A = None
+
+    def check(self, st: Setup, plan: Plan, mv: SetupMoves) -> None:
+        from .scene import Scene, check_touch_paths
+
+        if self.scene is None or not np.array_equal(self.T_W_A, st.T_W_A):
+            self.scene = Scene(self.art, self.probe, st.T_W_A)
+            self.T_W_A = np.asarray(st.T_W_A)
+        self.scene.set_table(mv.T_R_W)
+        check_touch_paths(self.scene, st.name, plan.target, plan.feature, mv.links,
+                          np.stack([mv.start_R, mv.Xn_R], axis=1))
+
+
+def _touch_start_times(mv: SetupMoves, travel: np.ndarray, t_cursor: float, feed_mps: float,
+                       rapid_mps: float) -> tuple[np.ndarray, float]:
+    """(t0 (n,) s: start of each approach, end of the set-up s) from the link lengths and feeds.
+
+    Each touch: its link at rapid feed, then the approach and the search at
+    the probing feed, the retract at rapid feed and the dwell.
+    """
+    per = travel / feed_mps + travel / rapid_mps + DWELL_S
+    t0 = t_cursor + np.cumsum(mv.link_len_m / rapid_mps) + np.concatenate([[0.0], np.cumsum(per)[:-1]])
+    return t0, float(t0[-1] + per[-1])
+
+
+def _rotary_deg(machine, st: Setup) -> np.ndarray:
+    """(3,) A, B, C of the set-up, deg (0 for axes the machine lacks), rounded to 1e-9 deg."""
+    rot_deg = np.zeros(3)
+    for a, v in zip(tuple(getattr(machine, "rotary_axes", ()) or ()), st.rot_rad):
+        if a in "ABC":
+            rot_deg["ABC".index(a)] = np.round(np.rad2deg(v), 9)
+    return rot_deg
+
+
+def _simulate_setup(machine, probe: ProbeConfig, rng, st: Setup, mv: SetupMoves, travel, t0, feed_mps: float,
+                    sdf_true, grp):
+    """(pos_R (n, 3) m, status (n,), t_s (n,) s) of the set-up's touches (:func:`sim.probe.simulate_touches`)."""
+    n = len(t0)
+    rot = np.tile(np.asarray(st.rot_rad, float), (n, 1)) if rotary_count(machine) else None
+    T_true = np.asarray(st.T_W_A if st.T_W_A_true is None else st.T_W_A_true, float)
+    T_A_W = np.broadcast_to(A.inv_T(T_true), (n, 4, 4))
+    res = simulate_touches(machine, probe, rng, mv.start_R, -mv.n_R, travel, rot, t0,
+                           np.full(n, feed_mps), sdf_true, grp, T_A_W)
+    return res.pos_R, res.status, np.where(res.status == ProbeStatus.OK, res.t_s, np.nan)
+
+
+def _append_rows(cols: dict, plan: Plan, st: Setup, mv: SetupMoves, pos, status, t_s, rot_deg,
+                 stylus_r_m: float) -> None:
+    """Add the set-up's rows to the log columns (file units: mm, deg)."""
+    cols["setup"] += [st.name] * plan.n
+    cols["target"] += list(plan.target)
+    cols["feature"] += list(plan.feature)
+    cols["status"] += list(status)
+    d_R = -mv.n_R
+    for j, c in enumerate("XYZ"):
+        cols[f"{c}_mm"].append(pos[:, j] / MM)
+        cols[f"{c}n_mm"].append(mv.Xn_R[:, j] / MM)
+        cols[f"n{c.lower()}"].append(mv.n_R[:, j])
+        cols[f"d{c.lower()}"].append(d_R[:, j])
+        cols[f"w{c.lower()}_mm"].append(plan.w_A[:, j] / MM)
+        cols[f"wn{c.lower()}"].append(plan.wn_A[:, j])
+    cols["t_s"].append(t_s)
+    for j, c in enumerate("ABC"):
+        cols[f"{c}_deg"].append(np.full(plan.n, rot_deg[j]))
+    cols["stylus_r_mm"].append(np.full(plan.n, stylus_r_m / MM))
+
+
+def _campaign_meta(machine, art: A.Artefact, probe: ProbeConfig, feed_mps: float, meta: dict | None) -> dict:
+    """The log's metadata: machine, artefact, chain, probe, feed; ``meta`` on top."""
+    r = probe.stylus_r_m
     m = {"machine": machine_name(machine), "artefact": art.name, "stylus_r_mm": repr(r / MM),
          "kinematic_chain": _kinematic_chain(machine),
          "probe_repeatability_k2_um": repr(probe.repeatability_k2_m * 1e6),
          "feed_mm_per_min": repr(feed_mps * 60e3), "generator": "vmt sim.campaign"}
     m.update(meta or {})
-    return make_log(columns, m)
+    return m

@@ -24,8 +24,8 @@ from core import iso
 from core.exceptions import ConfigError
 from sim.errorfuncs import Constant, ErrorFunction, Periodic, Polynomial, SplineTable, Sum
 from sim.machine import MachineConfig
+from core.units import DEG
 
-DEG = math.pi / 180.0
 #: Default probe offsets (J_X, J_Y, J_Z), m: a 150 mm probe below the gauge line.
 DEFAULT_J_M = (0.0, 0.0, 0.150)
 

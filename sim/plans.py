@@ -30,8 +30,7 @@ import numpy as np
 from core.exceptions import ConfigError
 
 from . import artefacts as A
-
-MM = 1e-3
+from core.units import MM
 
 
 @dataclass(frozen=True)
@@ -200,19 +199,3 @@ def freeform_plan(art: A.Artefact, clearance_m=2.0 * MM, overshoot_m=1.0 * MM, n
         if f.kind == "sphere":
             _sphere_points(b, f)
     return b.plan(art.name, clearance_m, overshoot_m)
-
-
-#: Plan builders by artefact name.
-PLANS = {
-    "mfb": mfb_plan,
-    "cross-pocket": cross_pocket_plan,
-    "pin-circle": pin_circle_plan,
-    "freeform": freeform_plan,
-}
-
-
-def make_plan(art: A.Artefact, **kw) -> Plan:
-    """The standard plan of ``art``."""
-    if art.name not in PLANS:
-        raise ConfigError(f"no plan for artefact {art.name!r} (known: {', '.join(PLANS)})")
-    return PLANS[art.name](art, **kw)

@@ -30,11 +30,10 @@ from typing import Callable, Sequence
 import numpy as np
 
 from core.exceptions import ConfigError
+from core.touches import ProbeStatus
 
 from .artefacts import Artefact, Solid, apply_T, inv_T, make_T, solid_points
 
-#: Touch status codes (probe-log ``status`` values).
-OK, NO_TRIGGER, EARLY_TRIGGER = "ok", "no_trigger", "early_trigger"
 
 #: Root-finding tolerances (m): on |g| and on the bracket width.
 G_TOL_M = 1e-14
@@ -185,12 +184,12 @@ def find_contacts(g: Callable[[np.ndarray, np.ndarray], np.ndarray], n: int,
     idx = np.repeat(np.arange(n), n_coarse)
     s_grid = (travel[:, None] * frac).ravel()
     G = g(idx, s_grid).reshape(n, n_coarse)
-    status = np.full(n, OK, dtype=object)
+    status = np.full(n, ProbeStatus.OK, dtype=object)
     early = G[:, 0] <= 0
     neg = G <= 0
     hit = neg.any(axis=1) & ~early
-    status[early] = EARLY_TRIGGER
-    status[~hit & ~early] = NO_TRIGGER
+    status[early] = ProbeStatus.EARLY_TRIGGER
+    status[~hit & ~early] = ProbeStatus.NO_TRIGGER
     s = np.full(n, np.nan)
     k = np.argmax(neg, axis=1)
     act = np.flatnonzero(hit)
@@ -379,7 +378,7 @@ def simulate_touches(machine, probe: ProbeConfig, rng: np.random.Generator | Non
         return out - r
 
     s_c, status = find_contacts(g, n, travel_m, n_coarse=n_coarse)
-    ok = status == OK
+    ok = status == ProbeStatus.OK
     delta = probe.pretravel(d_R if d_P is None else d_P, feed)
     s_t = np.where(ok, s_c + delta, np.nan)
     pos = start_R + s_t[:, None] * d_R
@@ -452,9 +451,9 @@ class VirtualMachine:
 
         n_coarse = int(min(2001, max(13, np.ceil(L / 0.5e-3) + 1)))
         s, status = find_contacts(g, 1, np.array([L]), n_coarse=n_coarse)
-        if status[0] != OK:
+        if status[0] != ProbeStatus.OK:
             self.t_s += L / self.feed_mps
-            if status[0] == EARLY_TRIGGER:
+            if status[0] == ProbeStatus.EARLY_TRIGGER:
                 return True, start.copy()
             return False, target.copy()
         st = s[0] + float(self.probe.pretravel(d[None], self.feed_mps)[0])

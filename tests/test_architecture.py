@@ -1,27 +1,67 @@
-"""The rule that carries the design: core never imports sim, hardware, viz,
-scenarios, mujoco or rerun."""
+"""The package rules of ../shared/design/architecture.md, checked on the source.
+
+core never imports sim, hardware, viz, scenarios, mujoco or rerun; sim may
+import core (and mujoco, trimesh, pinocchio); hardware may import core, and
+sim only in the emulator and the virtual-machine module; viz may import core
+(and rerun); scenarios may import everything.
+"""
 
 import ast
 import pathlib
 import subprocess
 import sys
 
+import pytest
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 FORBIDDEN = {"sim", "hardware", "viz", "scenarios", "mujoco", "rerun", "pinocchio", "trimesh"}
+#: The project's packages and the heavy libraries whose use the rules restrict.
+RULED = {"core", "sim", "hardware", "viz", "scenarios", "mujoco", "rerun", "rerun_cli", "pinocchio", "trimesh"}
+#: What each package may import of RULED (its own modules always).
+ALLOWED = {
+    "core": {"core"},
+    "sim": {"sim", "core", "mujoco", "trimesh", "pinocchio"},
+    "hardware": {"hardware", "core"},
+    "viz": {"viz", "core", "rerun", "rerun_cli"},
+}
+#: The only hardware modules that may import sim: the GRBL emulator and the virtual machine.
+HARDWARE_SIM = {"emulator.py", "virtual.py"}
+
+
+def _imports(f: pathlib.Path):
+    """Top-level names of every absolute import in ``f`` (also those inside functions)."""
+    tree = ast.parse(f.read_text(), filename=str(f))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0:
+            names = [node.module or ""]
+        else:
+            continue
+        for n in names:
+            yield n.split(".")[0]
 
 
 def test_core_source_imports_nothing_forbidden():
     for f in (ROOT / "core").rglob("*.py"):
-        tree = ast.parse(f.read_text(), filename=str(f))
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.level == 0:
-                names = [node.module or ""]
-            else:
-                continue
-            for n in names:
-                assert n.split(".")[0] not in FORBIDDEN, f"{f.name} imports {n}"
+        for n in _imports(f):
+            assert n not in FORBIDDEN, f"{f.name} imports {n}"
+
+
+@pytest.mark.parametrize("pkg", sorted(ALLOWED))
+def test_package_imports_only_what_the_architecture_allows(pkg):
+    bad = []
+    for f in sorted((ROOT / pkg).rglob("*.py")):
+        allowed = ALLOWED[pkg] | ({"sim"} if pkg == "hardware" and f.name in HARDWARE_SIM else set())
+        bad += [f"{f.relative_to(ROOT)} imports {n}" for n in _imports(f) if n in RULED and n not in allowed]
+    assert not bad, "; ".join(bad)
+
+
+def test_the_rule_checker_sees_a_violation(tmp_path):
+    """The checker is not vacuous: an import inside a function, and one of a submodule, are found."""
+    f = tmp_path / "campaign.py"
+    f.write_text("def f():\n    from sim.machine import Machine\n    import viz.record\n")
+    assert sorted(_imports(f)) == ["sim", "viz"]
 
 
 def test_importing_core_loads_no_mujoco_or_rerun():

@@ -593,3 +593,101 @@ def diagnosis_figure(panels: Sequence[Mapping], title: str = "Discovery: where t
     axs[0].legend(fontsize="x-small")
     fig.suptitle(title)
     return fig
+
+
+# --- ISO 230-2 positioning test ---------------------------------------------
+_C_UP = "tab:blue"
+_C_DOWN = "tab:red"
+
+
+def positioning_figure(report: Mapping, *, readings: Mapping | None = None,
+                       title: str = "ISO 230-2 positioning test"):
+    """The standard's plot of a positioning test, with its figures in a table.
+
+    Mean unidirectional positional deviations ``x̄_i↑`` and ``x̄_i↓`` per
+    target with their ``x̄ ± 2s`` bands, the mean bidirectional deviation
+    ``x̄_i``, the individual readings (optional), the reversal values
+    ``B_i`` underneath, and the axis figures (``B``, ``R``, ``E``, ``M``,
+    ``A``, ...) beside.
+
+    Parameters
+    ----------
+    report : mapping
+        The ``vmt iso230-2`` JSON report (``core.positioning.Iso2302Result.
+        to_report``): ``unit`` (``um`` or ``arcsec``), ``axis``, the axis
+        figures ``<name>_<unit>`` and ``per_target`` with ``target_mm`` (or
+        ``target_deg``), ``mean_up_<u>``, ``mean_down_<u>``, ``mean_<u>``,
+        ``B_<u>``, ``lower_up_<u>`` ... ``upper_down_<u>``.
+    readings : mapping, optional
+        ``target`` (N,) in the target unit, ``deviation`` (N,) in the
+        report unit, ``direction`` (N,) +1 / -1: drawn as dots.
+    """
+    u = report.get("unit")
+    if u not in ("um", "arcsec"):
+        raise ConfigError(f"report: unit {u!r} is not 'um' or 'arcsec'")
+    rows = report.get("per_target") or []
+    if not rows:
+        raise ConfigError("report: needs per_target")
+    tkey = "target_mm" if "target_mm" in rows[0] else "target_deg"
+    sym = "µm" if u == "um" else "″"
+
+    def col(key):
+        try:
+            return _arr(key, [r[key] for r in rows], (-1,))
+        except KeyError:
+            raise ConfigError(f"report: per_target has no {key!r}") from None
+
+    P = col(tkey)
+    fig = _figure(11.0, 6.2)
+    gs = fig.add_gridspec(2, 2, width_ratios=(3.2, 1.25), height_ratios=(3.0, 1.1))
+    ax = fig.add_subplot(gs[0, 0])
+    axb = fig.add_subplot(gs[1, 0], sharex=ax)
+    axt = fig.add_subplot(gs[:, 1])
+    if readings is not None:
+        rt = _arr("readings target", readings.get("target"), (-1,))
+        rd = _arr("readings deviation", readings.get("deviation"), (-1,))
+        rs = _arr("readings direction", readings.get("direction"), (-1,))
+        _same_len(target=rt, deviation=rd, direction=rs)
+        for d, c in ((1, _C_UP), (-1, _C_DOWN)):
+            k = rs == d
+            ax.plot(rt[k], rd[k], ".", color=c, ms=3, alpha=0.45)
+    for d, c, arrow in (("up", _C_UP, "↑"), ("down", _C_DOWN, "↓")):
+        lo, hi = col(f"lower_{d}_{u}"), col(f"upper_{d}_{u}")
+        ax.fill_between(P, lo, hi, color=c, alpha=0.12, lw=0)
+        ax.plot(P, lo, "--", color=c, lw=0.8)
+        ax.plot(P, hi, "--", color=c, lw=0.8, label=f"x̄{arrow} ± 2s{arrow}")
+        ax.plot(P, col(f"mean_{d}_{u}"), "o-", color=c, ms=4, lw=1.5, label=f"x̄{arrow} (approach {'+' if d == 'up' else '-'})")
+    ax.plot(P, col(f"mean_{u}"), "k:", lw=1.2, label="x̄ bidirectional")
+    ax.axhline(0.0, color=_C_NOMINAL, lw=0.8)
+    ax.set_ylabel(f"positional deviation x / {sym}")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="x-small", ncol=3, loc="best")
+    ax.tick_params(labelbottom=False)
+    axb.bar(P, col(f"B_{u}"), width=0.6 * (np.min(np.diff(np.sort(P))) if P.size > 1 else 1.0),
+            color=_C_MEAS, alpha=0.7)
+    axb.axhline(0.0, color=_C_NOMINAL, lw=0.8)
+    axis = report.get("axis") or ""
+    axb.set_xlabel(_axis_label(axis) if axis else f"target P / {'mm' if tkey == 'target_mm' else '°'}")
+    axb.set_ylabel(f"B_i / {sym}")
+    axb.grid(alpha=0.3)
+    names = (("B", "reversal B"), ("B_mean", "mean reversal B̄"), ("R_up", "repeatability R↑"),
+             ("R_down", "repeatability R↓"), ("R", "repeatability R"), ("E_up", "systematic E↑"),
+             ("E_down", "systematic E↓"), ("E", "systematic E"), ("M", "mean bidir. M"),
+             ("A_up", "accuracy A↑"), ("A_down", "accuracy A↓"), ("A", "accuracy A"))
+    cells = []
+    for key, label in names:
+        v = report.get(f"{key}_{u}")
+        if v is None:
+            raise ConfigError(f"report: needs {key}_{u}")
+        cells.append([label, f"{float(v):.3f}"])
+    axt.axis("off")
+    tab = axt.table(cellText=cells, colLabels=["ISO 230-2", f"/ {sym}"], loc="upper center",
+                    cellLoc="left", colLoc="left")
+    tab.auto_set_font_size(False)
+    tab.set_fontsize(8.5)
+    tab.scale(1.0, 1.35)
+    sub = f"{report.get('targets', P.size)} targets, {report.get('cycles', '?')} cycles"
+    if report.get("cycle_kind"):
+        sub += f", {report['cycle_kind']} cycle"
+    fig.suptitle(f"{title} ({sub})")
+    return fig

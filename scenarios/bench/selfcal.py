@@ -11,7 +11,7 @@ def _campaign(n_targets: int, n_angles: int, grid_n: int, rng):
     """Random free-form targets (radius 20..95 mm) at n_angles C angles; in-model truth + 1 um noise."""
     from dataclasses import replace
 
-    from core.selfcal import Grid, build_design, nominal_touches, to_gauge
+    from core.selfcal import Grid, build_design, nominal_touches
 
     r = rng.uniform(0.02, 0.095, n_targets)
     a = rng.uniform(0, 2 * np.pi, n_targets)
@@ -23,17 +23,17 @@ def _campaign(n_targets: int, n_angles: int, grid_n: int, rng):
     lo, hi = t.pn_R[:, :2].min(axis=0), t.pn_R[:, :2].max(axis=0)
     g = Grid(np.linspace(lo[0], hi[0], grid_n), np.linspace(lo[1], hi[1], grid_n))
     des = build_design(t, g)
-    th = to_gauge(des, rng.normal(0, 3e-6, des.n_params))
+    th = des.to_gauge(rng.normal(0, 3e-6, des.n_params))
     dq = des.A @ th + rng.normal(0, 1e-6, t.n)
     return replace(t, p_R=t.pn_R + dq[:, None] * t.n_R), g
 
 
 def _time_identify(n_targets, n_angles, grid_n, rng):
-    from core.selfcal import identify
+    from core.selfcal import self_calibrate
 
     t, g = _campaign(n_targets, n_angles, grid_n, rng)
     t0 = time.perf_counter()
-    identify(t, g, covariance="none")
+    self_calibrate(t, g, covariance="none")
     return round(time.perf_counter() - t0, 4)
 
 

@@ -5,6 +5,9 @@ Each generator is written apart from ``sim/`` and from the discovery engine
 
 - :mod:`scenarios.blind.gen_a`: polygon/star pocket with a boss and bores,
   exact rigid-body chain with smooth (non-grid) errors, 19 effects.
+- :mod:`scenarios.blind.gen_b`: blade plate (spline blade boss, pin arc,
+  slot) on a table-type machine (X and Y carry the part), its own eq. 15
+  projection for the truth, 18 effects.
 
 ``generate(effect, seed, **options) -> (ProbeLog, Truth)`` and ``effects()``
 are the interface every generator offers.

@@ -23,12 +23,15 @@ COMMANDS = [
     ("view", "scenarios.cli.view"),
     ("probe", "scenarios.cli.probe"),
     ("import", "scenarios.cli.import_"),
+    ("plan", "scenarios.cli.plan"),
+    ("fit", "scenarios.cli.fit"),
     ("machine", "scenarios.cli.machine"),
     ("simulate", "scenarios.cli.simulate"),
     ("discover", "scenarios.cli.discover"),
     ("scenario", "scenarios.cli.scenario"),
     ("identify", "scenarios.cli.identify"),
     ("design", "scenarios.cli.design"),
+    ("iso230-2", "scenarios.cli.iso230_2"),
 ]
 
 

@@ -22,9 +22,11 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None):
     from core.baseline import extra_columns
     from core.discover import discover
     from core.probelog import read_probe_log
+    from core.scope import check_planar_scope
     from core.touches import from_log
 
     log = read_probe_log(log_path)
+    check_planar_scope(log, "discover")
     t = from_log(log)
     d = discover(t, grid_step_mm=grid_mm, chain=log.meta.get("kinematic_chain"), progress=progress,
                  extra=extra_columns(log, t.row))

@@ -25,11 +25,13 @@ def run(args) -> int:
 
     from core.exceptions import ConfigError
     from core.probelog import read_probe_log
-    from core.selfcal import identify, yaw_for_chain
+    from core.scope import check_planar_scope
+    from core.selfcal import self_calibrate, yaw_for_chain
     from core.touches import from_log
     from core.uncertainty import monte_carlo_touches
 
     log = read_probe_log(args.log)
+    check_planar_scope(log, "identify")
     yaw = yaw_for_chain(log.meta.get("kinematic_chain"))
     # the planar model takes touches with normals in XY (sphere points off the
     # equator are for 3D fits); say how many were left out
@@ -46,7 +48,7 @@ def run(args) -> int:
         sigma = args.u_probe_um * 1e-6
     if args.mc < 0:
         raise ConfigError(f"--mc must be >= 0, got {args.mc}")
-    res = identify(t, grid, dL, sigma_m=sigma, yaw=yaw)
+    res = self_calibrate(t, grid, dL, sigma_m=sigma, yaw=yaw)
     mc = None
     if args.mc:
         mc = monte_carlo_touches(t, grid, res.sigma_m, runs=args.mc, rng=np.random.default_rng(args.seed),

@@ -1,4 +1,4 @@
-"""``vmt import linuxcnc|grbl FILE --plan PLAN.csv --out LOG.csv``: a controller's log to probe-log/1."""
+"""``vmt import linuxcnc|grbl FILE [--plan PLAN.csv] --out LOG.csv``: a controller's log to probe-log/1."""
 
 from __future__ import annotations
 
@@ -6,9 +6,11 @@ from __future__ import annotations
 def register(sub) -> None:
     p = sub.add_parser("import", help="merge a controller's probe file or transcript with its plan")
     p.add_argument("kind", choices=("linuxcnc", "grbl"),
-                   help="linuxcnc: a PROBEOPEN file (3 or 9 numbers a line); grbl: a session transcript")
+                   help="linuxcnc: a PROBEOPEN file (3 or 9 numbers a line) or a LOGOPEN file "
+                        "(G1 X.. Y.. Z.. lines); grbl: a session transcript")
     p.add_argument("file", help="the probe file or transcript")
-    p.add_argument("--plan", required=True, help="the probe-log/1 plan that was run")
+    p.add_argument("--plan", help="the probe-log/1 plan that was run; without it (linuxcnc) the file "
+                   "is a surface probed along Z and the plan is built from it")
     p.add_argument("--out", required=True, help="probe-log/1 file to write")
     p.add_argument("--dt", type=float, default=1.0,
                    help="seconds between touches when the file has no clock (1)")
@@ -20,7 +22,9 @@ def register(sub) -> None:
 def run(args) -> int:
     from core.probelog import read_probe_log, write_probe_log
 
-    plan = read_probe_log(args.plan)
+    from core.exceptions import ConfigError
+
+    plan = read_probe_log(args.plan) if args.plan else None
     if args.kind == "linuxcnc":
         from hardware.linuxcnc import import_probe_file
 
@@ -28,8 +32,15 @@ def run(args) -> int:
     else:
         from hardware.transcript import import_transcript
 
+        if plan is None:
+            raise ConfigError("import grbl: --plan is required (a transcript does not say what was probed)")
+
         log = import_transcript(args.file, plan, dt_s=args.dt)
     write_probe_log(args.out, log)
     ok = int(log.ok.sum())
     print(f"{args.out}: {log.n} touches ({ok} ok) from {args.kind} {args.file}")
+    if "probe_file_rows" in log.meta:
+        print(f"note: the probe file has {log.meta['probe_file_rows']}")
+    if plan is None:
+        print(f"note: no plan: {log.meta.get('plan', 'built from the file')}")
     return 0

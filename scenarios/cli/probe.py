@@ -38,56 +38,71 @@ def _warn(msg: str) -> None:
 
 
 def run(args) -> int:
-    from pathlib import Path
-
-    import numpy as np
-
     from core.probelog import read_probe_log
-    from hardware.campaign import check_program, plan_steps, program_lines, run_campaign
+    from hardware.campaign import check_program, plan_steps
 
     plan = read_probe_log(args.plan)
     settings = settings_from_args(args)
     steps = plan_steps(plan, settings)
     if args.dry_run:
-        check_program(steps, settings, require_limits=False)
-        if settings.limits_mm is None:
-            _warn("no --limits: a live run will refuse to start")
-        for line in program_lines(steps, settings, rotary=args.rotary):
-            print(line)
-        return 0
+        return _dry_run(steps, settings, args)
     check_program(steps, settings)          # before connecting, before any motion
-    if not args.rotary and not args.machine.startswith("virtual"):
-        moving = [s for s in steps if np.any(s.rot_deg != 0)]
-        if moving:
-            from core.exceptions import PlanError
-
-            raise PlanError(f"{args.plan}: row {moving[0].row} needs rotary axes at "
-                            f"{moving[0].rot_deg.tolist()} deg: pass --rotary for a controller with A, B, C")
-    if Path(args.out).exists() and not args.resume:
-        from core.exceptions import PlanError
-
-        raise PlanError(f"{args.out}: exists; use --resume to continue it, or choose another --out")
-    tr = open(args.transcript, "a", encoding="utf-8") if args.transcript else None
-    try:
-        from viz.progress import TerminalProgress
-
-        from hardware.virtual import open_backend
-
-        backend = open_backend(args.machine, timeout_s=args.timeout, rotary=args.rotary, on_event=_warn,
-                               transcript=tr)
-        try:
-            with TerminalProgress("campaign") as progress:
-                res = run_campaign(backend, plan, args.out, settings, resume=args.resume,
-                                   unlock=args.unlock, home=args.home, plan_path=args.plan,
-                                   on_touch=lambda row, _r: progress(row + 1, plan.n))
-        finally:
-            backend.close()
-    finally:
-        if tr is not None:
-            tr.close()
+    _check_before_connecting(steps, args)
+    res = _probe(plan, settings, args)
     new = res.rows_done - res.rows_before
     extra = f", cut a torn last line ({res.torn_bytes} bytes)" if res.torn_bytes else ""
     st = ", ".join(f"{k}: {v}" for k, v in sorted(res.statuses.items())) or "none"
     print(f"{args.out}: {res.rows_done} of {res.rows_total} touches "
           f"({new} new, {res.rows_before} before{extra}; {st})")
     return 0
+
+
+def _dry_run(steps, settings, args) -> int:
+    """``--dry-run``: check the program (limits optional) and print it."""
+    from hardware.campaign import check_program, program_lines
+
+    check_program(steps, settings, require_limits=False)
+    if settings.limits_mm is None:
+        _warn("no --limits: a live run will refuse to start")
+    for line in program_lines(steps, settings, rotary=args.rotary):
+        print(line)
+    return 0
+
+
+def _check_before_connecting(steps, args) -> None:
+    """PlanError for rotary moves without ``--rotary`` (on a controller) or an existing log without ``--resume``."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from core.exceptions import PlanError
+
+    if not args.rotary and not args.machine.startswith("virtual"):
+        moving = [s for s in steps if np.any(s.rot_deg != 0)]
+        if moving:
+            raise PlanError(f"{args.plan}: row {moving[0].row} needs rotary axes at "
+                            f"{moving[0].rot_deg.tolist()} deg: pass --rotary for a controller with A, B, C")
+    if Path(args.out).exists() and not args.resume:
+        raise PlanError(f"{args.out}: exists; use --resume to continue it, or choose another --out")
+
+
+def _probe(plan, settings, args):
+    """Open the backend (and the transcript), run the campaign with progress, close both."""
+    from hardware.campaign import run_campaign
+    from hardware.virtual import open_backend
+    from viz.progress import TerminalProgress
+
+    tr = open(args.transcript, "a", encoding="utf-8") if args.transcript else None
+    try:
+        backend = open_backend(args.machine, timeout_s=args.timeout, rotary=args.rotary, on_event=_warn,
+                               transcript=tr)
+        try:
+            with TerminalProgress("campaign") as progress:
+                return run_campaign(backend, plan, args.out, settings, resume=args.resume,
+                                    unlock=args.unlock, home=args.home, plan_path=args.plan,
+                                    on_touch=lambda row, _r: progress(row + 1, plan.n))
+        finally:
+            backend.close()
+    finally:
+        if tr is not None:
+            tr.close()

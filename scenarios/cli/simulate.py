@@ -1,59 +1,67 @@
 """``vmt simulate ARTEFACT --out LOG.csv``: simulate a touch-trigger campaign.
 
-The artefact (``mfb``, ``cross-pocket``, ``pin-circle``, ``freeform``) is
-probed with its standard plan on a named virtual machine, with the
-realistic truth errors or none, and the result written as ``probe-log/1``.
-``--plan-only`` writes the plan (measured columns empty).
+The artefact (one of ``sim.catalog.CATALOG``) is probed with its standard
+plan on a named virtual machine, with the realistic truth errors or none,
+and the result written as ``probe-log/1``. ``--plan-only`` writes the plan
+(measured columns empty).
+``vmt simulate positioning --axis X`` runs an ISO 230-2 positioning test
+of one axis instead and writes ``positioning-log/1``.
 """
 
 from __future__ import annotations
-
-ARTEFACT_NAMES = ("mfb", "cross-pocket", "pin-circle", "freeform")
-#: Default machine and C angles (deg) per artefact (papers' values).
-DEFAULT_MACHINE = {"mfb": "mikron-ucp710", "cross-pocket": "nmv3000",
-                   "pin-circle": "mikron-ucp710", "freeform": "nmv3000"}
-DEFAULT_C_DEG = {"cross-pocket": "0,75,130,210", "pin-circle": "0,31,83,137,191,227,257,313",
-                 "freeform": "0,75,130,210"}
 
 
 def register(sub) -> None:
     import argparse
 
+    from sim import catalog
     from sim.machines import describe
 
     p = sub.add_parser(
         "simulate", help="simulate a touch-trigger campaign on an artefact into a probe log",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=__doc__.split("\n\n")[1] if __doc__ else None,
-        epilog="machines (--machine):\n  " + describe().replace("\n", "\n  ")
-        + "\n\ndefaults: mfb on mikron-ucp710 (17 placements); cross-pocket and freeform on nmv3000 "
-          "at C = 0,75,130,210; pin-circle on mikron-ucp710 at C = 0,31,83,137,191,227,257,313")
-    p.add_argument("artefact", choices=ARTEFACT_NAMES, help="artefact to probe")
-    p.add_argument("--out", required=True, help="probe-log/1 CSV to write")
-    p.add_argument("--seed", type=int, default=0, help="seed of the probing noise")
+        epilog="artefacts (and their defaults):\n  " + catalog.describe().replace("\n", "\n  ")
+        + "\n  positioning   an ISO 230-2 positioning test of one axis\n                default: on vmc-3axis, axis X"
+        + "\n\nmachines (--machine):\n  " + describe().replace("\n", "\n  "))
+    p.add_argument("artefact", choices=tuple(catalog.CATALOG) + ("positioning",),
+                   help="artefact to probe, or 'positioning' for an ISO 230-2 test of one axis")
+    p.add_argument("--out", required=True, help="probe-log/1 CSV to write (positioning-log/1 for positioning)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the probing noise (positioning: of the scatter and target spacing)")
     p.add_argument("--machine", default=None, help="virtual machine (see the list below)")
     p.add_argument("--errors", choices=("realistic", "none"), default="realistic",
                    help="truth errors of the machine (default realistic: the papers' magnitudes)")
     p.add_argument("--noise-um", type=float, default=None,
                    help="probing repeatability as a standard deviation (k=1), um "
-                        "(default 0.125: the MFB paper's 0.25 um at k=2; 1.38 for the self-calibration paper)")
-    p.add_argument("--c-angles", default=None, help="comma-separated C angles, deg (not for mfb)")
+                        "(default 0.125: the MFB paper's 0.25 um at k=2; 1.38 for the self-calibration paper; "
+                        "positioning: scatter of each reading, default 0.5)")
+    p.add_argument("--c-angles", default=None, help="comma-separated C angles, deg (not for a placed artefact: mfb)")
     p.add_argument("--plan-only", action="store_true", help="write the plan only (measured columns empty)")
     p.add_argument("--no-collision-check", action="store_true", help="skip the MuJoCo path checks")
+    _add_positioning_options(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    if args.artefact == "positioning":
+        return _run_positioning(args)
+    from core.exceptions import ConfigError
+
+    for name in POSITIONING_ONLY:
+        if getattr(args, name, None) is not None:
+            raise ConfigError(f"--{name.replace('_', '-')} applies to 'vmt simulate positioning' only")
     import numpy as np
 
-    from core.exceptions import ConfigError
     from core.probelog import write_probe_log
+    from core.units import UM
     from sim.campaign import simulate_campaign
+    from sim.catalog import CATALOG
     from sim.machine import Machine
     from sim.machines import MACHINES, realistic_errors
     from sim.probe import ProbeConfig
 
-    name = args.machine or DEFAULT_MACHINE[args.artefact]
+    rec = CATALOG[args.artefact]
+    name = args.machine or rec.default_machine
     if name not in MACHINES:
         raise ConfigError(f"--machine {name!r} is not one of {', '.join(MACHINES)}")
     cfg = MACHINES[name]()
@@ -65,14 +73,14 @@ def run(args) -> int:
     if args.noise_um is not None:
         if not (np.isfinite(args.noise_um) and args.noise_um >= 0):
             raise ConfigError(f"--noise-um must be >= 0, got {args.noise_um!r}")
-        kw["repeatability_k2_m"] = 2 * args.noise_um * 1e-6
+        kw["repeatability_k2_m"] = 2 * args.noise_um * UM
     probe = ProbeConfig(**kw)
-    if args.artefact == "mfb":
+    if rec.placements is not None:
         if args.c_angles:
-            raise ConfigError("--c-angles: the mfb campaign uses its 17 placements, not C angles")
+            raise ConfigError(f"--c-angles: the {rec.name} campaign uses its {rec.setups_text()}, not C angles")
         setups = None
     else:
-        text = args.c_angles or (DEFAULT_C_DEG[args.artefact] if machine.rotary_axes else "0")
+        text = args.c_angles or (",".join(f"{c:g}" for c in rec.default_c_deg) if machine.rotary_axes else "0")
         try:
             setups = [float(v) for v in text.split(",") if v.strip()]
         except ValueError:
@@ -86,3 +94,72 @@ def run(args) -> int:
     print(f"{args.out}: {kind} of {log.n} touches ({ok} ok) on {args.artefact}, machine {name}, "
           f"errors {args.errors}, {len(dict.fromkeys(log.col('setup')))} set-ups")
     return 0
+
+
+# --------------------------------------------------------------------------- vmt simulate positioning
+#: Options only ``vmt simulate positioning`` takes (dest names).
+POSITIONING_ONLY = ("axis", "targets", "travel_mm", "cycles", "cycle", "overrun_mm", "move_feed", "dwell_s",
+                    "line_mm", "reversal_um", "drift_um_per_h", "drift_tau_s")
+
+
+def _add_positioning_options(p) -> None:
+    """The options of ``vmt simulate positioning`` (on the ``simulate`` parser)."""
+    g = p.add_argument_group("positioning (vmt simulate positioning: an ISO 230-2 test, writes positioning-log/1)")
+    g.add_argument("--axis", choices=("X", "Y", "Z"), help="linear axis under test (X)")
+    g.add_argument("--targets", type=int, help="number of target positions, irregularly spaced (11)")
+    g.add_argument("--travel-mm", metavar="LO:HI", help="measurement travel, mm (the stroke less the overrun)")
+    g.add_argument("--cycles", type=int, help="approaches per target and direction (5, as ISO 230-2 asks)")
+    g.add_argument("--cycle", choices=("linear", "pilgrim"), help="ISO 230-2 test cycle (linear)")
+    g.add_argument("--overrun-mm", type=float, help="overrun before each reversal, mm (5)")
+    g.add_argument("--move-feed", type=float, help="positioning feed, mm/min (2000)")
+    g.add_argument("--dwell-s", type=float, help="stop at each target before the reading, s (2)")
+    g.add_argument("--line-mm", metavar="X,Y,Z", help="measuring line: readings of the other axes, mm "
+                   "(the tested axis's entry is ignored; default mid-stroke)")
+    g.add_argument("--reversal-um", type=float, help="lost motion added to the axis's positioning error, µm (0)")
+    g.add_argument("--drift-um-per-h", type=float, help="offset drift added to the axis's positioning error, µm/h (0)")
+    g.add_argument("--drift-tau-s", type=float, help="the drift approaches its steady state with this time constant, s")
+
+
+def _numbers(text: str, name: str, sep: str, count: int):
+    from core.exceptions import ConfigError
+
+    try:
+        v = [float(x) for x in text.split(sep)]
+    except ValueError:
+        v = []
+    if len(v) != count:
+        raise ConfigError(f"{name} {text!r}: expected {count} numbers separated by {sep!r}")
+    return v
+
+
+def _run_positioning(args) -> int:
+    """``vmt simulate positioning``: write the simulated test as positioning-log/1."""
+    import numpy as np
+
+    from core.exceptions import ConfigError
+    from core.positioning import write_positioning_log
+    from scenarios.positioning import simulate_test
+
+    for name in ("c_angles", "plan_only", "no_collision_check"):
+        if getattr(args, name, None):
+            raise ConfigError(f"--{name.replace('_', '-')} does not apply to a positioning test")
+
+    def opt(name, default):
+        v = getattr(args, name, None)
+        return default if v is None else v
+
+    travel = _numbers(args.travel_mm, "--travel-mm", ":", 2) if args.travel_mm else None
+    line = _numbers(args.line_mm, "--line-mm", ",", 3) if args.line_mm else None
+    name = args.machine or "vmc-3axis"
+    log = simulate_test(
+        name, opt("axis", "X"), np.random.default_rng(args.seed), errors=args.errors,
+        noise_um=opt("noise_um", 0.5), n_targets=opt("targets", 11), travel_mm=travel, cycles=opt("cycles", 5),
+        cycle_kind=opt("cycle", "linear"), overrun_mm=opt("overrun_mm", 5.0), feed_mm_min=opt("move_feed", 2000.0),
+        dwell_s=opt("dwell_s", 2.0), line_mm=line, reversal_um=opt("reversal_um", 0.0),
+        drift_um_per_h=opt("drift_um_per_h", 0.0), drift_tau_s=args.drift_tau_s)
+    write_positioning_log(args.out, log)
+    m = len(set(log.target.tolist()))
+    print(f"{args.out}: ISO 230-2 test of {log.axis} on {name}, {m} targets x {int(log.cycle.max())} cycles, "
+          f"{log.meta['cycle_kind']} cycle, {log.n} readings over {log.t_s[-1]:.0f} s, errors {args.errors}")
+    return 0
+

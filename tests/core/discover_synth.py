@@ -96,7 +96,7 @@ def effect(name: str, t, rng, mag_m: float, c0=(0.0, 0.0)) -> tuple[np.ndarray, 
     elif name == "local_scale_defect":
         e = -nx * mag_m * np.exp(-0.5 * ((t.pn_R[:, 0] - 0.035) / 0.003) ** 2)
     elif name == "part_change":  # one pocket wall (normal +x in the part) relaxing
-        wall = (np.abs(np.angle(np.exp(1j * np.arctan2(t.wn_W[:, 1], t.wn_W[:, 0])))) < 0.3)
+        wall = (np.abs(np.angle(np.exp(1j * np.arctan2(t.wn_A[:, 1], t.wn_A[:, 0])))) < 0.3)
         e = mag_m * wall * tau
     elif name == "reversal":
         e = -nx * np.sign(t.d_R[:, 0]) * mag_m / 2

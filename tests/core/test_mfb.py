@@ -11,7 +11,8 @@ from core.mfb import MFB, OrientationError
 def _touches(T, deviations=None, machine=None):
     from core.touches import from_log
     from sim import artefacts as A
-    from sim.campaign import Setup, simulate_campaign
+    from sim.campaign import simulate_campaign
+    from sim.setups import Setup
     from sim.machine import Machine
     from sim.machines import MACHINES
     from sim.plans import mfb_plan
@@ -111,7 +112,7 @@ def test_reversal_wrong_setup_named():
 
 
 def test_bad_input():
-    with pytest.raises(ConfigError, match="M_NR must be finite"):
+    with pytest.raises(ConfigError, match="M_norm must be finite"):
         mfb.reversal_calibration(np.zeros((2, 5, 3)), np.zeros((2, 12, 3)))
     with pytest.raises(ConfigError, match="p_R, n_R must be"):
         mfb.points_of_interest(np.zeros((4, 2)), ["hole01"] * 4, np.zeros((4, 2)))

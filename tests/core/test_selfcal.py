@@ -7,9 +7,9 @@ from core import lsq
 from core.design import example_cross_pocket
 from core.exceptions import ConfigError, IdentifiabilityError
 from core.lsq import solve
-from core.selfcal import Grid, build_design, identify, nominal_touches, rot2, to_gauge
+from core.selfcal import Grid, build_design, nominal_touches, rot2, self_calibrate
+from core.units import UM
 
-UM = 1e-6
 GRID = Grid.regular(-0.110, 0.110, 0.022)
 ANGLES = [0, 75, 130, 210]
 
@@ -94,10 +94,10 @@ def test_round_trip_in_model_space(rng, delta_L_um):
     t = nominal_touches(w, wn, ANGLES, stylus_r_m=0.002)
     des = build_design(t, GRID)
     dL = None if delta_L_um is None else delta_L_um * UM
-    truth = to_gauge(des, random_truth(des, rng), 0.0 if dL is None else dL)
+    truth = des.to_gauge(random_truth(des, rng), 0.0 if dL is None else dL)
     noise = 0.5 * UM
     dq = des.A @ truth + rng.normal(0, noise, t.n)
-    res = identify(nominal_touches_like(t, dq), GRID, dL, sigma_m=noise)
+    res = self_calibrate(nominal_touches_like(t, dq), GRID, dL, sigma_m=noise)
     assert res.scale_known is (dL is not None)
     assert any("scale unknown" in c for c in res.conventions) is (dL is None)
     z = (res.theta - truth) / np.where(res.std > 0, res.std, 1)
@@ -113,8 +113,8 @@ def test_noise_free_exact_and_residuals_zero():
     w, wn, ids = example_cross_pocket()
     t = nominal_touches(w, wn, ANGLES, target_ids=ids)
     des = build_design(t, GRID)
-    truth = to_gauge(des, random_truth(des, np.random.default_rng(3)))
-    res = identify(nominal_touches_like(t, des.A @ truth), GRID)
+    truth = des.to_gauge(random_truth(des, np.random.default_rng(3)))
+    res = self_calibrate(nominal_touches_like(t, des.A @ truth), GRID)
     # rounding only: the estimator's gain is < 1e4 (cond of the scaled design)
     assert np.abs(res.theta - truth).max() < 1e-12
     assert res.rms_m < 1e-15
@@ -196,8 +196,8 @@ def test_exact_truth_outside_model_space_recovered_to_first_order(rng):
     err = {}
     for step in (0.022, 0.011):
         g = Grid.from_extent(t.pn_R, step)
-        res = identify(nominal_touches_like(t, dq), g)
-        truth = to_gauge(res.design, sample_truth(res.design, tr, g.x_m, g.y_m))
+        res = self_calibrate(nominal_touches_like(t, dq), g)
+        truth = res.design.to_gauge(sample_truth(res.design, tr, g.x_m, g.y_m))
         s = res.design.slices
         err[step] = {k: np.abs(res.theta[s[k]] - truth[s[k]]).max() for k in ("G", "EXC", "EYC", "ECC")}
     assert err[0.022]["G"] < 0.2 * UM
@@ -212,11 +212,11 @@ def test_sparse_path_matches_dense(monkeypatch, rng):
     w, wn = freeform(50)
     t = nominal_touches(w, wn, ANGLES)
     des = build_design(t, GRID)
-    truth = to_gauge(des, random_truth(des, rng))
+    truth = des.to_gauge(random_truth(des, rng))
     tt = nominal_touches_like(t, des.A @ truth + rng.normal(0, 1 * UM, t.n))
-    dense = identify(tt, GRID)
+    dense = self_calibrate(tt, GRID)
     monkeypatch.setattr(lsq, "DENSE_MAX", 10)
-    sparse = identify(tt, GRID)
+    sparse = self_calibrate(tt, GRID)
     assert sparse.cov is None
     np.testing.assert_allclose(sparse.theta, dense.theta, atol=1e-13)
     np.testing.assert_allclose(sparse.std, dense.std, rtol=1e-8, atol=1e-15)
@@ -228,16 +228,16 @@ def test_symmetric_part_at_symmetric_angles_is_reported_by_name():
     t = nominal_touches(w, wn, [0, 90, 180, 270], target_ids=ids)
     with pytest.raises(IdentifiabilityError,
                        match=r"rank deficient by 5 beyond the constraints; unidentifiable: .*\*ECY@y=-55mm"):
-        identify(t, Grid.regular(-0.110, 0.110, 0.055))
+        self_calibrate(t, Grid.regular(-0.110, 0.110, 0.055))
 
 
 def test_too_few_angles_eq6_message():
     w, wn = freeform(30)
     t = nominal_touches(w, wn, [0, 75])
     with pytest.raises(IdentifiabilityError, match=r"2 C angles give 60 equations for 92 unknowns.*eq 6.*at least 4 C angles"):
-        identify(t, GRID)
+        self_calibrate(t, GRID)
     with pytest.raises(IdentifiabilityError, match="1 C angle"):
-        identify(nominal_touches(w, wn, [0]), GRID)
+        self_calibrate(nominal_touches(w, wn, [0]), GRID)
 
 
 def test_unconstrained_nodes_named():
@@ -245,20 +245,20 @@ def test_unconstrained_nodes_named():
     t = nominal_touches(w, wn, ANGLES)
     wide = Grid.regular(-0.110, 0.154, 0.022)
     with pytest.raises(IdentifiabilityError, match=r"no touch constrains EXX@x=132mm, EXX@x=154mm, EYX@x=132mm"):
-        identify(t, wide)
+        self_calibrate(t, wide)
 
 
 def test_bad_input():
     w, wn = freeform(30)
     t = nominal_touches(w, wn, ANGLES)
     with pytest.raises(ConfigError, match=r"nominal X = .* mm lies outside the grid -50..50 mm"):
-        identify(t, Grid.regular(-0.05, 0.05, 0.01))
+        self_calibrate(t, Grid.regular(-0.05, 0.05, 0.01))
     with pytest.raises(ConfigError, match="strictly increasing"):
         Grid(np.array([0.0, 0.0]), np.array([0.0, 1.0]))
     with pytest.raises(ConfigError, match="whole number"):
         Grid.regular(-0.1, 0.1, 0.03)
     with pytest.raises(ConfigError, match="sigma must be > 0"):
-        identify(t, GRID, sigma_m=-1.0)
+        self_calibrate(t, GRID, sigma_m=-1.0)
     with pytest.raises(ConfigError, match="C angles repeat"):
         nominal_touches(w, wn, [0, 0, 75])
     with pytest.raises(IdentifiabilityError, match="3 observations for 4 free parameters"):
@@ -271,5 +271,64 @@ def test_auto_grid_from_extent():
     g = Grid.from_extent(t.pn_R, 0.02)
     assert g.x_m[0] <= t.pn_R[:, 0].min() and g.x_m[-1] >= t.pn_R[:, 0].max()
     assert np.any(np.isclose(g.x_m, 0.0, atol=1e-12))
-    res = identify(t, grid_step_m=0.02)
+    res = self_calibrate(t, grid_step_m=0.02)
     assert np.array_equal(res.design.grid.x_m, g.x_m)
+
+
+def test_error_map_of_a_linear_machine_known_answer():
+    """Scales s_x, s_y and squareness a (tip error -y a in X, CONTRIBUTING) give, by hand,
+    E_X = s_x x - a y and E_Y = s_y y (eqs 4-5); the truth is already in the gauge
+    (zero at the origin, EXX(x_N) = delta_L, no straightness), so the noise-free
+    identification's map is that to rounding."""
+    from core.selfcal import error_map
+
+    sx, sy, a = 8 * UM / 0.1, -5 * UM / 0.1, 12 * UM  # 8 and -5 um per 100 mm, 12 urad
+    w, wn = freeform(60)
+    t = nominal_touches(w, wn, ANGLES)
+    des = build_design(t, GRID)
+    th = np.zeros(des.n_params)
+    th[des.slices["EXX"]] = sx * GRID.x_m
+    th[des.slices["EYY"]] = sy * GRID.y_m
+    th[des.slices["EC0Y"]] = a
+    res = self_calibrate(nominal_touches_like(t, des.A @ th), GRID, sx * GRID.x_m[-1], sigma_m=UM)
+    x, y, ex, ey = error_map(res)
+    X, Y = np.meshgrid(GRID.x_m, GRID.y_m, indexing="ij")
+    np.testing.assert_allclose(ex, sx * X - a * Y, atol=1e-15)
+    np.testing.assert_allclose(ey, sy * Y, atol=1e-15)
+
+
+def test_map_in_gauge_adds_exactly_the_unseen_part():
+    """A map differing from the truth by a shift, a rotation and a scale is the truth in
+    its gauge; a further bump (orthogonal to those by construction) stays a difference."""
+    from core.selfcal import map_gauge_basis, map_in_gauge
+
+    X, Y = np.meshgrid(np.linspace(-0.1, 0.1, 6), np.linspace(-0.08, 0.08, 5), indexing="ij")
+    ex_t, ey_t = 2 * UM * np.sin(20 * X) * Y / 0.1, 1 * UM * np.cos(15 * Y)
+    t1, t2, rot, scale = 3 * UM, -2 * UM, 15 * UM, 40 * UM
+    ex_id = ex_t + t1 - rot * Y + scale * X
+    ey_id = ey_t + t2 + rot * X + scale * Y
+    gx, gy = map_in_gauge(X, Y, ex_t, ey_t, ex_id, ey_id)
+    np.testing.assert_allclose(gx, ex_id, atol=1e-18)
+    np.testing.assert_allclose(gy, ey_id, atol=1e-18)
+    bump = np.concatenate([np.ravel(X ** 2 * Y), np.ravel(Y ** 3)]) * 1e-3
+    B = map_gauge_basis(X, Y)
+    bump -= B @ np.linalg.lstsq(B, bump, rcond=None)[0]
+    n = X.size
+    gx, gy = map_in_gauge(X, Y, ex_t, ey_t, ex_id + bump[:n].reshape(X.shape), ey_id + bump[n:].reshape(X.shape))
+    np.testing.assert_allclose(gx, ex_id, atol=1e-18)
+    np.testing.assert_allclose(gy, ey_id, atol=1e-18)
+
+
+def test_workpiece_form_removes_shift_rotation_scale_and_offset():
+    """G of the same part shifted, rotated, scaled and with another stylus radius has the
+    same form; a lobed form error survives it."""
+    from core.selfcal import workpiece_form
+
+    w, wn = freeform(40)
+    t, rot, scale, r = np.array([4.0, -3.0]) * UM, 20 * UM, 30 * UM, 1.5 * UM
+    g_rigid = wn @ t + rot * (-wn[:, 0] * w[:, 1] + wn[:, 1] * w[:, 0]) + scale * np.einsum("ij,ij->i", wn, w) + r
+    np.testing.assert_allclose(workpiece_form(g_rigid, w, wn), 0.0, atol=1e-18)
+    ang = np.arctan2(w[:, 1], w[:, 0])
+    lobes = 2 * UM * np.cos(7 * ang)
+    np.testing.assert_allclose(workpiece_form(lobes + g_rigid, w, wn), workpiece_form(lobes, w, wn), atol=1e-18)
+    assert np.sqrt(np.mean(workpiece_form(lobes, w, wn) ** 2)) > 1.2 * UM  # most of 2/sqrt(2) um survives

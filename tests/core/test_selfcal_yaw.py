@@ -46,8 +46,8 @@ def test_known_answer_in_the_model_space(design):
     theta[des.slices["ECX"]] = rng.normal(0, 20e-6, len(grid.x_m))
     dq = des.A @ theta
     tt = selfcal.nominal_touches(*example_cross_pocket()[:2], [0, 75, 130, 210], stylus_r_m=0.003, dq_m=dq)
-    res = selfcal.identify(tt, grid, yaw="ECX")
-    truth = selfcal.to_gauge(des, theta)
+    res = selfcal.self_calibrate(tt, grid, yaw="ECX")
+    truth = des.to_gauge(theta)
     np.testing.assert_allclose(res.theta, truth, atol=1e-12)
     assert res.rms_m < 1e-13 and len(res.ECX) == len(grid.x_m)
 

@@ -7,10 +7,10 @@ import pytest
 
 from core.design import example_cross_pocket
 from core.exceptions import ConfigError
-from core.selfcal import Grid, estimator, identify, nominal_touches, to_gauge
+from core.selfcal import Grid, estimator, nominal_touches, self_calibrate
 from core.uncertainty import U_PROBE_M, linear_uncertainty, monte_carlo, monte_carlo_touches
+from core.units import UM
 
-UM = 1e-6
 GRID = Grid.regular(-0.110, 0.110, 0.022)
 PAPER = [0, 75, 130, 210]
 
@@ -61,8 +61,8 @@ def test_coverage_by_repetition(pocket):
 
     Each campaign: a fresh random truth in the model space, probing noise
     u = 1.38 um, estimate and sigma from its own residuals, exactly what
-    :func:`identify` does, batched through the one factorisation (checked
-    equal to ``identify`` on the first campaigns). 400 campaigns x 149 free
+    :func:`self_calibrate` does, batched through the one factorisation (checked
+    equal to ``self_calibrate`` on the first campaigns). 400 campaigns x 149 free
     parameters: the binomial standard error of the fraction is ~0.1 %, a
     few times that with the correlations inside a campaign, so 93-97 %
     around the nominal 95.2 % (k = 2, t with ~220 dof) is meaningful.
@@ -76,14 +76,14 @@ def test_coverage_by_repetition(pocket):
     R = 400
     truth = rng.normal(0, 5 * UM, (R, des.n_params))
     truth[:, des.slices["ECC"]] = rng.normal(0, 20e-6, (R, len(PAPER)))
-    truth = np.array([to_gauge(des, th) for th in truth])
+    truth = np.array([des.to_gauge(th) for th in truth])
     dq = truth @ des.A.T.toarray() + rng.normal(0, U_PROBE_M, (R, t0.n))
     theta = est.estimate(dq.T).T
     res = dq - theta @ des.A.T.toarray()
     dof = t0.n - est.n_free
     sigma = np.sqrt((res ** 2).sum(axis=1) / dof)
     for r in range(3):
-        one = identify(replace(t0, p_R=t0.pn_R + dq[r][:, None] * t0.n_R), GRID)
+        one = self_calibrate(replace(t0, p_R=t0.pn_R + dq[r][:, None] * t0.n_R), GRID)
         np.testing.assert_allclose(one.theta, theta[r], atol=1e-12)
         np.testing.assert_allclose(one.std, sigma[r] * u1, rtol=1e-9, atol=1e-18)
     inside = np.abs(theta - truth)[:, free] <= 2 * sigma[:, None] * u1[free]

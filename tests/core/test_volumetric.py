@@ -14,17 +14,17 @@ def meas3():
     import core.volumetric as V
 
     cap = {}
-    orig = V.identify
+    orig = V.identify_volumetric
 
     def spy(meas, chain, nodes, rp=None, **kw):
         cap["m"] = (meas, chain, nodes, rp)
         return orig(meas, chain, nodes, rp, **kw)
 
-    V.identify = spy
+    V.identify_volumetric = spy
     try:
         S.run("mfb-3axis", noise_um=0.0, mc_runs=0)
     finally:
-        V.identify = orig
+        V.identify_volumetric = orig
     return cap["m"]
 
 
@@ -56,7 +56,7 @@ def test_plan_without_a_placement_names_what_is_lost(meas3, drop, names):
     rep = vol.observability(kept, chain, nodes, rp, gauge=full)
     assert not rep.ok and names in " ".join(rep.unidentifiable)
     with pytest.raises(IdentifiabilityError, match="cannot identify"):
-        vol.identify(kept, chain, nodes, rp, gauge=full)
+        vol.identify_volumetric(kept, chain, nodes, rp, gauge=full)
 
 
 def test_spline_weights_interpolate_nodes_and_cubics():
@@ -71,15 +71,15 @@ def test_spline_weights_interpolate_nodes_and_cubics():
 def test_bad_input(meas3):
     meas, chain, nodes, rp = meas3
     with pytest.raises(ConfigError, match="no measurements"):
-        vol.identify([], chain, nodes)
+        vol.identify_volumetric([], chain, nodes)
     bad = dict(nodes)
     bad["X"] = bad["X"][::-1]
     with pytest.raises(ConfigError, match="strictly increasing"):
-        vol.identify(meas, chain, bad)
+        vol.identify_volumetric(meas, chain, bad)
     short = dict(nodes)
     short["Y"] = nodes["Y"][:-1]  # the last Y bar touches 84 mm beyond the last node: refused, not extrapolated
     with pytest.raises(ConfigError, match="outside the Y nodes"):
-        vol.identify(meas, chain, short)
+        vol.identify_volumetric(meas, chain, short)
 
 
 def test_iso_map_end_point_line(meas3):
@@ -109,7 +109,7 @@ def test_placement_errors_are_absorbed_and_bad_u_place(meas3):
     # at most (the tilted diagonals), 4 % of what 0.1 um of calibration error
     # gives; bound 10 %.
     meas, chain, nodes, rp = meas3
-    res = vol.identify(meas, chain, nodes, rp, exact=False)
+    res = vol.identify_volumetric(meas, chain, nodes, rp, exact=False)
     d = res.design
     idx = np.array([i for s in vol.MOTION + vol.SQUARENESS for i in range(d.slices[s].start, d.slices[s].stop)])
     uc = vol.uncertainty(res, meas, 0.0, np.full((12, 3), 1e-7), runs=0).u_lin[idx].max()

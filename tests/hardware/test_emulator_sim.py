@@ -5,7 +5,7 @@ same identification as the direct simulation, within the probing noise."""
 import numpy as np
 
 from core.probelog import read_probe_log, write_probe_log
-from core.selfcal import Grid, identify
+from core.selfcal import Grid, self_calibrate
 from core.touches import from_log
 from hardware.emulator import GrblEmulator, TcpServer
 from scenarios.cli import main
@@ -42,7 +42,7 @@ def test_cross_pocket_through_grbl_matches_the_direct_simulation(tmp_path):
     log = read_probe_log(out)
     assert log.n == plan.n and log.ok.all()
     grid = Grid.regular(-0.110, 0.110, 0.022)
-    a, b = identify(from_log(direct), grid), identify(from_log(log), grid)
+    a, b = self_calibrate(from_log(direct), grid), self_calibrate(from_log(log), grid)
     assert a.design.target_ids == b.design.target_ids
     # the workpiece form (shift, rotation, scale removed: what self-calibration
     # sees) agrees within the probing noise: two independent 0.3 um draws plus

@@ -34,7 +34,20 @@ def test_part_program_probes_every_row_between_probeopen_and_probeclose(plan_pat
     i0, i1 = lines.index("(PROBEOPEN /tmp/p.txt)"), lines.index("(PROBECLOSE)")
     probes = [k for k, ln in enumerate(lines) if ln.startswith("G38.2 ")]
     assert len(probes) == 12 and i0 < probes[0] and probes[-1] < i1
-    assert "G10 L2 P9 X0 Y0 Z0" in text and "G59.3" in lines and "G92.1" in lines
+    # G59.3 zeroed with no rotation (R0: an existing XY rotation would turn the file), G92 suspended
+    assert "G10 L2 P9 X0 Y0 Z0 R0" in lines and "G59.3" in lines and "G92.2" in lines
+    assert "G92.1" not in lines                      # the user's G92 values are kept, not erased
+    # ... and the user's frame, G92 and modal state come back at the end, before M2
+    k0, k_end = lines.index("M70"), lines.index("M2")
+    saved = {ln.split(" = ")[0]: ln.split(" = ")[1] for ln in lines[k0 + 1:k0 + 5]}
+    assert saved == {"#<_vmt_wcs_x>": "#5381", "#<_vmt_wcs_y>": "#5382", "#<_vmt_wcs_z>": "#5383",
+                     "#<_vmt_wcs_r>": "#5390"}
+    assert lines[i1 + 1] == "G10 L2 P9 X#<_vmt_wcs_x> Y#<_vmt_wcs_y> Z#<_vmt_wcs_z> R#<_vmt_wcs_r>"
+    assert lines[i1 + 2:k_end] == ["o9001 if [#<_vmt_g92_on> EQ 1]", "G92.3", "o9001 endif", "M72"]
+    head = "\n".join(lines[:k0])
+    assert "restored" in head and "stops early" in head
+    g54 = part_program(read_probe_log(plan_path), ProbeSettings(limits_mm=LIMITS_MM), wcs="G54").splitlines()
+    assert "G10 L2 P1 X0 Y0 Z0 R0" in g54 and "#<_vmt_wcs_r> = #5230" in g54
     # each probe is followed by its retract to the approach start, which preceded it
     for k in probes:
         assert lines[k + 1] == lines[k - 1]
@@ -71,7 +84,11 @@ def test_linuxcnc_probe_file_both_widths(tmp_path, plan_path, measured, width, c
     ("1 2 3\n\n1 2 3 0 0 0 0 0 0\n", "line 3: 9 numbers but earlier lines have 3"),
     ("1 2 nan\n", "line 1: not finite"),
     ("\n\n", "empty probe file"),
-    ("1 2 3\n" * 5, "5 probe lines but the plan"),
+    ("1 2 3\n" * 13, "13 probe lines but the plan"),
+    ("G1 X1 Y2 Z3\n1 2 3\n", "line 2: G-code words and bare numbers mixed"),
+    ("G1 X1 Y2\n", "line 1: no Z word"),
+    ("G1 X1 Y2 Z3 X4\n", "line 1: two X words"),
+    ("probe 1 2 3\n", "line 1: 'probe' is not a G-code word"),
 ])
 def test_linuxcnc_bad_probe_file_one_line_exit_2(tmp_path, plan_path, capsys, body, msg):
     pf = tmp_path / "probe.txt"
@@ -149,3 +166,125 @@ def test_missing_files(tmp_path, plan_path, capsys):
         read_probe_file(tmp_path / "none.txt")
     with pytest.raises(ProbeLogError, match="no such file"):
         read_transcript(tmp_path / "none.txt")
+
+
+def _probe_file(path, pos, fmt="{:f}"):
+    with open(path, "w") as f:
+        for p in pos:
+            f.write(" ".join(fmt.format(v) for v in list(p) + [0.0] * 6) + "\n")
+
+
+def test_partial_probe_file_keeps_every_touch_and_marks_the_rest(tmp_path, plan_path, measured, capsys):
+    """A G38.2 miss stops LinuxCNC: the file holds the touches before it, in plan order."""
+    pos = measured.positions_mm()
+    pf = tmp_path / "probe.txt"
+    _probe_file(pf, pos[:5])
+    out = tmp_path / "log.csv"
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan_path), "--out", str(out)]) == 0
+    assert "5 of 12" in capsys.readouterr().out
+    log = read_probe_log(out)
+    assert list(log.col("status")) == ["ok"] * 5 + ["aborted"] * 7
+    assert np.allclose(log.positions_mm()[:5], pos[:5], atol=1e-6)
+    assert np.all(np.isnan(log.positions_mm()[5:]))
+    assert "plan row 5" in log.meta["probe_file_rows"]
+
+
+def test_logopen_file_smartprobe_style(tmp_path, plan_path, measured):
+    """smartprobe.ngc logs (LOG,G1 X#5061 Y#5062 Z#5063): 6 decimals, in the program's units."""
+    pos = measured.positions_mm()
+    pf = tmp_path / "probe-results.ngc"
+    lines = [f"G1 X{p[0] / 25.4:f} Y{p[1] / 25.4:f} Z{p[2] / 25.4:f}" for p in pos]
+    lines[1] = lines[1].replace(" ", "")                    # words need no spaces
+    lines[2] += " (comment)"
+    pf.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "log.csv"
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan_path), "--out", str(out),
+                 "--units", "inch"]) == 0
+    log = read_probe_log(out)
+    assert np.all(log.ok) and np.allclose(log.positions_mm(), pos, atol=25.4e-6)
+
+
+def test_plan_grid_and_a_planless_import_give_the_same_plan(tmp_path, capsys):
+    plan_p = tmp_path / "grid.csv"
+    assert main(["plan", "grid", "--x-mm", "0:30:10", "--y-mm=-10:10:10", "--z-mm", "2",
+                 "--stylus-r-mm", "1", "--out", str(plan_p)]) == 0
+    plan = read_probe_log(plan_p)
+    assert plan.n == 12 and plan.is_plan
+    assert list(plan.col("target")[:8]) == ["r0c0", "r0c1", "r0c2", "r0c3", "r1c3", "r1c2", "r1c1", "r1c0"]
+    assert np.allclose(plan.nominals_mm()[4], [30, 0, 3])              # serpentine; Z = surface + r
+    assert np.allclose(plan.normals(), [0, 0, 1]) and np.allclose(plan.col("dz"), -1)
+    # a surface 1 um/mm tilted in X, probed: the file alone rebuilds the same targets
+    pos = plan.nominals_mm() + np.column_stack([np.zeros((12, 2)), 1e-3 * plan.nominals_mm()[:, 0]])
+    pf = tmp_path / "probe.txt"
+    _probe_file(pf, pos)
+    out = tmp_path / "log.csv"
+    assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 0
+    assert "no plan" in capsys.readouterr().out
+    log = read_probe_log(out)
+    assert list(log.col("target")) == list(plan.col("target")) and np.all(log.ok)
+    assert np.allclose(log.dq_mm(), pos[:, 2] - np.median(pos[:, 2]), atol=1e-9)
+    # and vmt fit plane finds the tilt and a flat surface
+    js = tmp_path / "plane.json"
+    assert main(["fit", "plane", str(out), "--json", str(js)]) == 0
+    import json
+    rep = json.loads(js.read_text())
+    n = np.array(rep["values"]["normal"])
+    assert abs(n[0] / n[2] + 1e-3) < 1e-6 and rep["form_um"] < 0.01
+    assert len(rep["touches"]) == 12
+
+
+def test_planless_import_of_scattered_points_and_bad_grids(tmp_path, capsys):
+    pf = tmp_path / "probe.txt"
+    _probe_file(pf, [[0, 0, 1], [5, 1, 1.1], [0, 0, 1.05]])            # a repeat of the first point
+    out = tmp_path / "log.csv"
+    assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 0
+    assert list(read_probe_log(out).col("target")) == ["p0", "p1", "p0"]
+    for bad, msg in (("0:10:3", "not a whole number of steps"), ("10:0:1", "lo <= hi"),
+                     ("0:10", "expected lo:hi:step")):
+        assert main(["plan", "grid", "--x-mm", bad, "--y-mm", "0:1:1", "--out", str(tmp_path / "g.csv")]) == 2
+        assert msg in capsys.readouterr().err
+    assert main(["import", "grbl", str(pf), "--out", str(out)]) == 2
+    assert "--plan is required" in capsys.readouterr().err
+
+
+def test_identify_and_discover_name_the_real_reason(tmp_path, capsys):
+    plan_p = tmp_path / "grid.csv"
+    assert main(["plan", "grid", "--x-mm", "0:30:10", "--y-mm", "0:20:10", "--out", str(plan_p)]) == 0
+    pf = tmp_path / "probe.txt"
+    _probe_file(pf, read_probe_log(plan_p).nominals_mm())
+    out = tmp_path / "log.csv"
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan_p), "--out", str(out)]) == 0
+    capsys.readouterr()
+    for cmd in (["identify", str(out), "--json", str(tmp_path / "i.json")],
+                ["discover", str(out), "--json", str(tmp_path / "d.json")]):
+        assert main(cmd) == 2
+        err = capsys.readouterr().err
+        assert "no touch has a normal in the XY plane" in err and "vmt fit plane" in err
+        assert f"{cmd[0]} needs touches on vertical walls" in err and err.count("\n") == 1
+
+
+def test_contact_server_answers_like_the_virtual_machine(monkeypatch):
+    """The socket vmt_probe.py talks to (hardware/linuxcnc_sim/loop.py), without LinuxCNC."""
+    import socket
+
+    from core.exceptions import HardwareError
+    from hardware.linuxcnc_sim import loop
+
+    sc = scene()
+    srv = loop.ContactServer(sc).start()
+    try:
+        host, port = srv.address.rsplit(":", 1)
+        with socket.create_connection((host, int(port)), timeout=5) as c:
+            f = c.makefile("r")
+            c.sendall(b"probe 130 50 1 0 0 -1\nprobe 50 50 40 0 0 1\nhello\n")
+            hit, miss, bad = f.readline().split(), f.readline().split(), f.readline().split()
+    finally:
+        srv.stop()
+    ok, q = sc.probe_move(np.array([0.130, 0.050, 0.001]), np.array([0.130, 0.050, 0.001 - loop.RAY_MM * 1e-3]))
+    assert hit[0] == "hit" and ok and np.allclose([float(v) for v in hit[1:]], q * 1e3, atol=1e-9)
+    assert miss == ["miss"] and bad == ["miss"] and "hello" in srv.error
+    assert len(srv.answers) == 2 and srv.answers[1]["q_mm"] is None
+    assert loop.resolution_mm(30.0) == pytest.approx(0.5e-3)          # 30 mm/min x 1 ms
+    monkeypatch.setattr(loop.shutil, "which", lambda name: None)
+    with pytest.raises(HardwareError, match="apt-get install -y linuxcnc-uspace"):
+        loop.linuxcnc_path()

@@ -9,7 +9,7 @@ import pytest
 
 from core.design import example_cross_pocket
 from core.probelog import make_log, write_probe_log
-from core.selfcal import Grid, build_design, nominal_touches, to_gauge
+from core.selfcal import Grid, build_design, nominal_touches
 from scenarios.cli import main
 
 ANG = [0, 75, 130, 210]
@@ -19,7 +19,7 @@ def write_campaign(path, rng, noise_m=0.3e-6, plan=False):
     w, wn, ids = example_cross_pocket()
     t = nominal_touches(w, wn, ANG, stylus_r_m=0.003, target_ids=ids)
     des = build_design(t, Grid.regular(-0.110, 0.110, 0.022))
-    truth = to_gauge(des, rng.normal(0, 3e-6, des.n_params), 2e-6)
+    truth = des.to_gauge(rng.normal(0, 3e-6, des.n_params), 2e-6)
     dq = des.A @ truth + rng.normal(0, noise_m, t.n)
     p = t.pn_R + dq[:, None] * t.n_R
     n = t.n
@@ -27,8 +27,8 @@ def write_campaign(path, rng, noise_m=0.3e-6, plan=False):
             "t_s": np.arange(n, dtype=float), "X_mm": p[:, 0] * 1e3, "Y_mm": p[:, 1] * 1e3, "Z_mm": np.zeros(n),
             "Xn_mm": t.pn_R[:, 0] * 1e3, "Yn_mm": t.pn_R[:, 1] * 1e3, "Zn_mm": np.zeros(n),
             "nx": t.n_R[:, 0], "ny": t.n_R[:, 1], "nz": np.zeros(n), "C_deg": np.degrees(t.rot_rad[:, 2]),
-            "wx_mm": t.w_W[:, 0] * 1e3, "wy_mm": t.w_W[:, 1] * 1e3, "wz_mm": np.zeros(n),
-            "wnx": t.wn_W[:, 0], "wny": t.wn_W[:, 1], "wnz": np.zeros(n)}
+            "wx_mm": t.w_A[:, 0] * 1e3, "wy_mm": t.w_A[:, 1] * 1e3, "wz_mm": np.zeros(n),
+            "wnx": t.wn_A[:, 0], "wny": t.wn_A[:, 1], "wnz": np.zeros(n)}
     write_probe_log(path, make_log(cols, {"artefact": "cross-pocket"}))
     return des, truth
 

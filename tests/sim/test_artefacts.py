@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from core.exceptions import ConfigError
+from core.units import MM
 from sim import artefacts as A
-
-MM = 1e-3
+from sim.catalog import CATALOG, make_artefact
 
 
 def test_plane_finite_face_distance_is_exact_to_the_prism():
@@ -67,8 +67,9 @@ def test_mfb_invar_expansion():
 
 
 def test_artefacts_build_and_mesh():
-    for name in A.ARTEFACTS:
-        a = A.make_artefact(name)
+    for name in CATALOG:
+        a = make_artefact(name)
+        assert a.name == name  # the record's name is the artefact's (logs, plans)
         m = a.mesh()
         assert len(m.vertices) > 0 and np.all(np.isfinite(m.bounds))
 
@@ -81,4 +82,4 @@ def test_mfb_bad_deviations(bad):
 
 def test_unknown_artefact():
     with pytest.raises(ConfigError, match="unknown artefact 'ballplate'"):
-        A.make_artefact("ballplate")
+        make_artefact("ballplate")

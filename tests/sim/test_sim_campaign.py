@@ -7,8 +7,10 @@ from core.exceptions import ConfigError, PlanError
 from core.probelog import read_probe_log, write_probe_log
 from core.touches import from_log
 from sim import artefacts as A
-from sim.campaign import Setup, mfb_placements, simulate_campaign
-from sim.plans import make_plan, mfb_plan
+from sim.campaign import simulate_campaign
+from sim.catalog import make_plan
+from sim.plans import mfb_plan
+from sim.setups import Setup, mfb_placements
 from sim.probe import ProbeConfig
 from standins import Translated
 

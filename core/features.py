@@ -1,0 +1,174 @@
+"""One feature of a probe log: fitted, corrected for the stylus, with U95 and form.
+
+:func:`fit_log_feature` takes the valid touches of a log (optionally one
+``feature`` or one ``setup``), fits a plane, sphere, circle (in XY) or
+cylinder to the reported stylus-tip centres (:mod:`core.fit`) and turns the
+tip-centre feature into the surface: a plane moves by the stylus radius
+``r`` against its outward normal; a radius shrinks by ``r`` on a ball,
+boss or pin (the log's normals point away from the centre) and grows by
+``r`` in a bore or hollow (normals point at the centre). Position and
+orientation do not depend on ``r``.
+
+Each parameter comes with its U95 (:func:`core.fit.u95`: Student's t on the
+fit's own covariance) and the feature with its form deviation
+(:func:`core.fit.form_deviation`, peak-to-valley about the least-squares
+feature). Units: mm, um, urad, as the field names say; frame: the machine
+frame R of the log.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import fit as F
+from .exceptions import ConfigError, FitError
+from .probelog import ProbeLog
+
+KINDS = ("plane", "sphere", "circle", "cylinder")
+
+
+@dataclass(frozen=True)
+class FeatureReport:
+    """A fitted feature of a log.
+
+    Attributes
+    ----------
+    kind : str
+        ``plane``, ``sphere``, ``circle`` (in the XY plane) or ``cylinder``.
+    n : int
+        Touches used.
+    rows : (n,) int
+        Their 0-based rows in the log.
+    values : dict[str, float or list]
+        The surface feature: ``point_mm`` / ``normal`` (plane), ``centre_mm``,
+        ``radius_mm`` (sphere, circle), ``point_mm``, ``axis``, ``radius_mm``
+        (cylinder); ``side`` (``outside``: ball, boss, pin; ``inside``: bore).
+    u95 : dict[str, float]
+        U95 of each fitted parameter, unit in the name (``offset_n_um``,
+        ``tilt_u_urad``, ``centre_x_um``, ``radius_um``, ...).
+    form_um : float
+        Form deviation (flatness, sphericity, roundness, cylindricity), um.
+    rms_um : float
+        RMS of the residuals, um.
+    residuals_um : (n,) float
+        Signed orthogonal residual of each touch (for a plane: its height
+        above the least-squares plane along the normal), um.
+    stylus_r_mm : float
+        Stylus radius applied.
+    dof : int
+        Degrees of freedom of the fit.
+    """
+
+    kind: str
+    n: int
+    rows: np.ndarray
+    values: dict
+    u95: dict
+    form_um: float
+    rms_um: float
+    residuals_um: np.ndarray
+    stylus_r_mm: float
+    dof: int
+
+
+def _stylus_r_mm(log: ProbeLog, rows: np.ndarray) -> float:
+    if log.has("stylus_r_mm"):
+        r = log.col("stylus_r_mm")[rows].astype(float)
+        if np.all(np.isfinite(r)):
+            if np.ptp(r) > 1e-9:
+                raise ConfigError(f"{log.source}: the touches of this feature have different stylus radii")
+            return float(r[0])
+    try:
+        return float(log.meta.get("stylus_r_mm", 0.0))
+    except ValueError:
+        raise ConfigError(f"{log.source}: metadata stylus_r_mm {log.meta['stylus_r_mm']!r} is not a number") from None
+
+
+def _u95_named(fit, units: dict) -> dict:
+    out = {}
+    for name, v in F.u95(fit).items():
+        scale, unit = units.get(name, (1e6, "um"))
+        out[f"{name}_{unit}"] = v * scale
+    return out
+
+
+def _side(p_m: np.ndarray, n: np.ndarray, centre_m: np.ndarray, axis=None) -> str:
+    r = p_m - centre_m
+    if axis is not None:
+        r = r - np.outer(r @ axis, axis)
+    s = np.einsum("ij,ij->i", r, n)
+    return "outside" if np.sum(s) >= 0 else "inside"
+
+
+def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
+                    setup: str | None = None) -> FeatureReport:
+    """Fit a feature to the valid touches of ``log``.
+
+    Parameters
+    ----------
+    log : ProbeLog
+        A campaign log (reported positions, nominal normals).
+    kind : {"plane", "sphere", "circle", "cylinder"}
+    feature, setup : str or None
+        Use only the rows of this ``feature`` / ``setup``.
+
+    Raises
+    ------
+    ConfigError
+        Unknown kind, an unknown feature or set-up, a plan instead of a log.
+    FitError
+        Too few or degenerate points (from :mod:`core.fit`).
+    """
+    if kind not in KINDS:
+        raise ConfigError(f"feature kind {kind!r}: expected one of {', '.join(KINDS)}")
+    if log.n and log.is_plan:
+        raise ConfigError(f"{log.source}: is a plan (measured columns empty), not a campaign")
+    mask = log.ok.copy()
+    for col, want in (("feature", feature), ("setup", setup)):
+        if want is not None:
+            have = log.col(col).astype(str)
+            if want not in set(have):
+                known = ", ".join(sorted(set(have[log.ok])))[:200]
+                raise ConfigError(f"{log.source}: no {col} {want!r} (valid touches have: {known})")
+            mask &= have == want
+    rows = np.flatnonzero(mask)
+    if rows.size == 0:
+        raise FitError(f"{log.source}: no valid touch to fit")
+    p = log.positions_mm()[rows] * 1e-3
+    n = log.normals()[rows]
+    r_st = _stylus_r_mm(log, rows)
+    n_mean = n.mean(axis=0)
+    if kind == "plane":
+        f = F.fit_plane(p, normal_hint=n_mean if np.linalg.norm(n_mean) > 0.5 else None)
+        pt = f.point - r_st * 1e-3 * f.normal
+        vals = {"point_mm": (pt * 1e3).tolist(), "normal": f.normal.tolist()}
+        u = _u95_named(f, {"tilt_u": (1e6, "urad"), "tilt_v": (1e6, "urad")})
+        res = f.residuals
+    elif kind == "sphere":
+        f = F.fit_sphere(p)
+        side = _side(p, n, f.centre)
+        R = f.radius * 1e3 + (-r_st if side == "outside" else r_st)
+        vals = {"centre_mm": (f.centre * 1e3).tolist(), "radius_mm": R, "side": side}
+        u = _u95_named(f, {})
+        res = f.residuals
+    elif kind == "circle":
+        f = F.fit_circle_2d(p[:, :2])
+        side = _side(p[:, :2], n[:, :2], f.centre)
+        R = f.radius * 1e3 + (-r_st if side == "outside" else r_st)
+        vals = {"centre_mm": (f.centre * 1e3).tolist(), "radius_mm": R, "side": side,
+                "z_mm": float(np.mean(p[:, 2]) * 1e3)}
+        u = _u95_named(f, {})
+        res = f.residuals
+    else:
+        f = F.fit_cylinder(p)
+        side = _side(p, n, f.point, f.axis)
+        R = f.radius * 1e3 + (-r_st if side == "outside" else r_st)
+        vals = {"point_mm": (f.point * 1e3).tolist(), "axis": f.axis.tolist(), "radius_mm": R,
+                "side": side}
+        u = _u95_named(f, {"tilt_u": (1e6, "urad"), "tilt_v": (1e6, "urad")})
+        res = f.residuals
+    return FeatureReport(kind=kind, n=int(rows.size), rows=rows, values=vals, u95=u,
+                         form_um=F.form_deviation(f) * 1e6, rms_um=f.rms * 1e6,
+                         residuals_um=np.asarray(res) * 1e6, stylus_r_mm=r_st, dof=int(f.dof))

@@ -1,0 +1,1296 @@
+"""Positioning tests of one axis (ISO 230-2:2014): logs, importers, the figures.
+
+A positioning test moves one axis to ``m`` target positions ``P_i``, ``n``
+times approaching each from below (direction ``+``, the standard's ``↑``)
+and from above (``-``, ``↓``), and an instrument (laser interferometer,
+reference scale) measures where the axis went, ``P_ij``. This module
+
+- reads, validates and writes ``positioning-log/1`` files (CSV with
+  ``# key: value`` metadata; the format is described in README.md and in
+  :func:`read_positioning_log`), with the same one-line typed errors as
+  :mod:`core.probelog`;
+- imports the ``.dat`` files of the EPICS motion package ecmc
+  (:func:`parse_ecmc_dat`) and a generic whitespace/CSV table of target,
+  cycle, direction and measured value (:func:`parse_table`);
+- arranges a log into per-target, per-direction arrays
+  (:func:`arrange`) and evaluates every figure of ISO 230-2
+  (:func:`iso230_2`, :func:`figures`), returning a frozen
+  :class:`Iso2302Result`;
+- gives the standard's own model of the data as a baseline a model-
+  discovery engine can test against (:func:`baseline`);
+- estimates the uncertainty of each figure from the measuring conditions
+  (:func:`figure_uncertainty`, ISO/TR 230-9 style).
+
+The definitions (ISO 230-2, "Terms and definitions"; numbered 2.x in the
+2006 edition, the numbers cited below, and carried unchanged into clause 3
+of the 2014 edition; checked against two public reproductions, see
+``tests/core/test_positioning.py``), for target ``i`` and cycle ``j``:
+
+==========  =============================================================
+2.5         positional deviation ``x_ij = P_ij - P_i``
+2.10        mean unidirectional positional deviation ``x̄_i↑ = (1/n) Σ_j x_ij↑``
+            (likewise ``↓``)
+2.11        mean bidirectional positional deviation ``x̄_i = (x̄_i↑ + x̄_i↓) / 2``
+2.12        reversal value ``B_i = x̄_i↑ - x̄_i↓``
+2.13        reversal value of the axis ``B = max |B_i|``
+2.14        mean reversal value ``B̄ = (1/m) Σ_i B_i``
+2.15        estimator of the unidirectional standard uncertainty
+            ``s_i↑ = sqrt(Σ_j (x_ij↑ - x̄_i↑)² / (n - 1))``
+2.16        unidirectional repeatability ``R_i↑ = 4 s_i↑``
+2.17        bidirectional repeatability
+            ``R_i = max(2 s_i↑ + 2 s_i↓ + |B_i|, R_i↑, R_i↓)``
+2.18        ``R↑ = max R_i↑``, ``R↓ = max R_i↓``
+2.19        ``R = max R_i``
+2.20        unidirectional systematic positional deviation
+            ``E↑ = max x̄_i↑ - min x̄_i↑``
+2.21        bidirectional systematic positional deviation
+            ``E = max(x̄_i↑, x̄_i↓) - min(x̄_i↑, x̄_i↓)`` (over all i, both
+            directions together)
+2.22        range of the mean bidirectional positional deviation
+            ``M = max x̄_i - min x̄_i``
+2.23        unidirectional accuracy
+            ``A↑ = max(x̄_i↑ + 2 s_i↑) - min(x̄_i↑ - 2 s_i↑)``
+2.24        bidirectional accuracy ``A = max(x̄_i↑ + 2 s_i↑, x̄_i↓ + 2 s_i↓)
+            - min(x̄_i↑ - 2 s_i↑, x̄_i↓ - 2 s_i↓)``
+==========  =============================================================
+
+Units: arrays keep the file's unit (mm for a linear axis, degrees for a
+rotary one); :meth:`Iso2302Result.to_report` gives µm (arc seconds for a
+rotary axis), the unit in every key.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from .atomic import write_text_atomic
+from .exceptions import VmtError
+
+FORMAT = "positioning-log/1"
+#: ISO 230-2 asks five approaches in each direction at every target for the
+#: full test (and at least five targets); fewer are evaluated with a warning.
+N_STANDARD = 5
+#: The repeatability estimator s (2.15) needs n - 1 >= 1.
+N_MIN = 2
+#: Targets closer than this (file unit) are the same target P_i.
+TARGET_TOL = 1e-6
+#: Report scale per file unit: mm -> µm, deg -> arc seconds.
+REPORT_UNIT = {"mm": ("um", 1e3), "deg": ("arcsec", 3600.0)}
+CYCLE_KINDS = ("linear", "pilgrim")
+
+_NUMERIC_REQUIRED = {"mm": ("target_mm", "measured_mm"), "deg": ("target_deg", "measured_deg")}
+
+
+class PositioningLogError(VmtError, ValueError):
+    """A positioning log (or an imported table) cannot be read or evaluated."""
+
+
+# ---------------------------------------------------------------------------
+# the log in memory
+
+
+@dataclass(frozen=True)
+class PositioningLog:
+    """One positioning test in memory, in the file's unit.
+
+    Attributes
+    ----------
+    meta : dict[str, str]
+        ``# key: value`` metadata in file order (unknown keys kept).
+    target : (N,) float
+        Commanded target position P_i of each reading, mm (deg if
+        ``unit == "deg"``).
+    cycle : (N,) int
+        Run number j >= 1.
+    direction : (N,) int
+        +1: the target was approached moving in the positive direction
+        (ISO 230-2 ``↑``), -1: in the negative direction (``↓``).
+    measured : (N,) float
+        Position measured by the instrument, P_ij (same unit); NaN only in
+        rows whose status is not ``ok``.
+    t_s : (N,) float or None
+        Seconds since the test started (NaN where a row has none).
+    status : (N,) object
+        ``"ok"`` (or ``""``) or why the reading is not valid.
+    extra : dict[str, numpy.ndarray]
+        Other columns: ``temp_<name>_C`` as float, anything else as text.
+    source : str
+        Where the log came from, for error messages.
+    """
+
+    meta: dict[str, str]
+    target: np.ndarray
+    cycle: np.ndarray
+    direction: np.ndarray
+    measured: np.ndarray
+    t_s: np.ndarray | None = None
+    status: np.ndarray | None = None
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    source: str = "<memory>"
+
+    @property
+    def n(self) -> int:
+        """Number of readings (rows)."""
+        return int(self.target.shape[0])
+
+    def __len__(self) -> int:
+        return self.n
+
+    @property
+    def unit(self) -> str:
+        """``mm`` (linear axis, default) or ``deg`` (rotary axis)."""
+        return self.meta.get("unit", "mm") or "mm"
+
+    @property
+    def axis(self) -> str:
+        return self.meta.get("axis", "")
+
+    @property
+    def ok(self) -> np.ndarray:
+        """(N,) bool: the readings the evaluation uses."""
+        if self.status is None:
+            return np.ones(self.n, bool)
+        return np.array([s in ("", "ok") for s in self.status], dtype=bool)
+
+    @property
+    def deviation(self) -> np.ndarray:
+        """(N,) positional deviation ``x_ij = P_ij - P_i`` (ISO 230-2 2.5), file unit."""
+        return self.measured - self.target
+
+
+def _direction_array(values, src: str) -> np.ndarray:
+    out = np.empty(len(values), dtype=np.int64)
+    for r, v in enumerate(values):
+        if isinstance(v, str):
+            s = v.strip()
+            if s not in ("+", "-"):
+                raise PositioningLogError(f"{src}: row {r}: direction {v!r} is not '+' or '-'")
+            out[r] = 1 if s == "+" else -1
+        else:
+            try:
+                f = float(v)
+            except (TypeError, ValueError):
+                raise PositioningLogError(f"{src}: row {r}: direction {v!r} is not '+' or '-'") from None
+            if f not in (1.0, -1.0):
+                raise PositioningLogError(f"{src}: row {r}: direction {v!r} is not +1 or -1")
+            out[r] = int(f)
+    return out
+
+
+def make_positioning_log(target, cycle, direction, measured, *, t_s=None, status=None,
+                         extra: Mapping[str, Iterable] | None = None,
+                         meta: Mapping[str, str] | None = None, unit: str = "mm",
+                         source: str = "<memory>") -> PositioningLog:
+    """Build and validate a :class:`PositioningLog` from sequences (file unit).
+
+    ``direction`` holds ``"+"``/``"-"`` or +1/-1; ``unit`` is ``mm`` or
+    ``deg``; ``format`` and ``unit`` are written into the metadata.
+    """
+    m = {"format": FORMAT}
+    m.update({str(k): str(v) for k, v in (meta or {}).items()})
+    m["unit"] = unit
+    tgt = np.asarray(target, dtype=float).reshape(-1).copy()
+    n = tgt.shape[0]
+    try:
+        cyc_f = np.asarray(cycle, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise PositioningLogError(f"{source}: cycle numbers must be integers") from None
+    if cyc_f.shape[0] == n and np.any(cyc_f != np.round(cyc_f)):
+        r = int(np.argmax(cyc_f != np.round(cyc_f)))
+        raise PositioningLogError(f"{source}: row {r}: cycle {cyc_f[r]!r} is not a whole number")
+    ts = None if t_s is None else np.asarray(t_s, dtype=float).reshape(-1).copy()
+    st = None if status is None else np.array(["" if s is None else str(s) for s in status], dtype=object)
+    ex = {}
+    for k, v in (extra or {}).items():
+        ex[k] = (np.asarray(v, dtype=float).copy() if _is_temp(k)
+                 else np.array(["" if s is None else str(s) for s in v], dtype=object))
+    log = PositioningLog(meta=m, target=tgt, cycle=cyc_f.astype(np.int64),
+                         direction=_direction_array(list(direction), source),
+                         measured=np.asarray(measured, dtype=float).reshape(-1).copy(),
+                         t_s=ts, status=st, extra=ex, source=source)
+    _validate(log, None)
+    return log
+
+
+def _is_temp(name: str) -> bool:
+    return name.startswith("temp_") and name.endswith("_C") and len(name) > 7
+
+
+def _finite_number(text: str, where: str, what: str) -> float:
+    """``float(text)``, or a one-line error ``"<where>: <what> '<text>' is not a number"``."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise PositioningLogError(f"{where}: {what} {text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise PositioningLogError(f"{where}: {what} {text!r} is not finite")
+    return v
+
+
+# ---------------------------------------------------------------------------
+# reading positioning-log/1
+
+
+def _read_text(path, what: str) -> tuple[str, str]:
+    p = Path(path)
+    src = str(p)
+    if not p.exists():
+        raise PositioningLogError(f"{src}: no such file")
+    if p.is_dir():
+        raise PositioningLogError(f"{src}: is a directory, not {what}")
+    try:
+        return p.read_text(encoding="utf-8-sig"), src
+    except UnicodeDecodeError as e:
+        raise PositioningLogError(f"{src}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+
+
+def read_positioning_log(path: str | os.PathLike) -> PositioningLog:
+    """Read and validate a ``positioning-log/1`` file.
+
+    The file: UTF-8 CSV, one header row, one row per reading in the order
+    measured; ``# key: value`` lines before the header are metadata, of
+    which ``format: positioning-log/1`` is required (``axis``, ``unit`` =
+    ``mm`` or ``deg``, ``machine``, ``instrument``, ``cycle_kind`` =
+    ``linear`` or ``pilgrim`` are known; others are kept). Required
+    columns ``target_mm, cycle, direction, measured_mm`` (``target_deg``,
+    ``measured_deg`` for a rotary axis); optional ``t_s``,
+    ``temp_<name>_C``, ``status``.
+
+    Raises
+    ------
+    PositioningLogError
+        One line naming the file, the data row (0-based) and file line:
+        missing/empty file, no or wrong ``format``, missing column, a
+        value that is not a number, a cycle that is not a whole number
+        >= 1, a direction that is not ``+`` or ``-``, time going
+        backwards, the same (target, cycle, direction) twice among valid
+        readings.
+    """
+    text, src = _read_text(path, "a positioning log")
+    return parse_positioning_log(text, source=src)
+
+
+def _split_meta(text: str, src: str) -> tuple[dict[str, str], list[str], int]:
+    if not text.strip():
+        raise PositioningLogError(f"{src}: empty file")
+    lines = text.splitlines()
+    meta: dict[str, str] = {}
+    i = 0
+    while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
+        body = lines[i][1:].strip() if lines[i].startswith("#") else ""
+        if ":" in body:
+            k, v = body.split(":", 1)
+            meta[k.strip()] = v.strip()
+        i += 1
+    if i >= len(lines):
+        raise PositioningLogError(f"{src}: no header row (only metadata lines)")
+    return meta, lines, i
+
+
+def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog:
+    """Parse ``positioning-log/1`` text (see :func:`read_positioning_log`)."""
+    src = source
+    meta, lines, i = _split_meta(text, src)
+    fmt = meta.get("format")
+    if fmt is None:
+        raise PositioningLogError(f"{src}: no '# format: {FORMAT}' metadata line")
+    if fmt != FORMAT:
+        raise PositioningLogError(f"{src}: format {fmt!r} is not {FORMAT!r}")
+    header_line = i + 1
+    reader = csv.reader(io.StringIO("\n".join(lines[i:])))
+    header = [h.strip() for h in next(reader)]
+    seen: set[str] = set()
+    for h in header:
+        if not h:
+            raise PositioningLogError(f"{src}: line {header_line}: empty column name")
+        if h in seen:
+            raise PositioningLogError(f"{src}: line {header_line}: duplicate column {h!r}")
+        seen.add(h)
+    unit = meta.get("unit", "")
+    if unit and unit not in _NUMERIC_REQUIRED:
+        raise PositioningLogError(f"{src}: metadata unit {unit!r} is not 'mm' or 'deg'")
+    if not unit:
+        unit = "deg" if "target_deg" in seen else "mm"
+        meta["unit"] = unit
+    tname, mname = _NUMERIC_REQUIRED[unit]
+    other = "deg" if unit == "mm" else "mm"
+    for c in (tname, "cycle", "direction", mname):
+        if c not in seen:
+            hint = (f" (the columns are in {other}: set '# unit: {other}')"
+                    if c in (tname, mname) and c.replace(unit, other) in seen else "")
+            raise PositioningLogError(f"{src}: missing required column {c!r}{hint}")
+    raw: list[list[str]] = []
+    line_of_row: list[int] = []
+    k = 0
+    try:
+        for k, row in enumerate(reader):
+            ln = header_line + 1 + k
+            if not row or all(not c.strip() for c in row):
+                continue
+            if len(row) != len(header):
+                raise PositioningLogError(
+                    f"{src}: row {len(raw)} (line {ln}): {len(row)} fields, header has {len(header)}")
+            raw.append([c.strip() for c in row])
+            line_of_row.append(ln)
+    except csv.Error as e:
+        raise PositioningLogError(f"{src}: line {header_line + 1 + k}: {e}") from None
+    col = {h: [r[j] for r in raw] for j, h in enumerate(header)}
+
+    def where(r: int) -> str:
+        return f"{src}: row {r} (line {line_of_row[r]})"
+
+    def numbers(name: str, allow_empty: bool) -> np.ndarray:
+        out = np.empty(len(raw))
+        for r, c in enumerate(col[name]):
+            if c == "" and allow_empty:
+                out[r] = np.nan
+                continue
+            if c == "":
+                raise PositioningLogError(f"{where(r)}: column {name!r}: is empty")
+            out[r] = _finite_number(c, where(r), f"column {name!r}:")
+        return out
+
+    status = np.array(col["status"], dtype=object) if "status" in col else None
+    ok = np.array([s in ("", "ok") for s in status], bool) if status is not None else np.ones(len(raw), bool)
+    target = numbers(tname, allow_empty=False)
+    measured = numbers(mname, allow_empty=True)
+    miss = np.isnan(measured) & ok
+    if miss.any():
+        r = int(np.argmax(miss))
+        raise PositioningLogError(f"{where(r)}: column {mname!r} is empty in a valid reading")
+    cyc = numbers("cycle", allow_empty=False)
+    direction = np.empty(len(raw), dtype=np.int64)
+    for r, c in enumerate(col["direction"]):
+        if c not in ("+", "-"):
+            raise PositioningLogError(f"{where(r)}: direction {c!r} is not '+' or '-'")
+        direction[r] = 1 if c == "+" else -1
+    bad = (cyc != np.round(cyc)) | (cyc < 1)
+    if bad.any():
+        r = int(np.argmax(bad))
+        raise PositioningLogError(f"{where(r)}: cycle {col['cycle'][r]!r} is not a whole number >= 1")
+    t_s = numbers("t_s", allow_empty=True) if "t_s" in col else None
+    extra = {}
+    for h in header:
+        if h in (tname, mname, "cycle", "direction", "status", "t_s"):
+            continue
+        extra[h] = numbers(h, allow_empty=True) if _is_temp(h) else np.array(col[h], dtype=object)
+    log = PositioningLog(meta=meta, target=target, cycle=cyc.astype(np.int64), direction=direction,
+                         measured=measured, t_s=t_s, status=status, extra=extra, source=src)
+    _validate(log, line_of_row)
+    return log
+
+
+def _validate(log: PositioningLog, lines: list[int] | None) -> None:
+    src = log.source
+    n = log.n
+
+    def where(r: int) -> str:
+        return f"{src}: row {r}" + (f" (line {lines[r]})" if lines is not None else "")
+
+    unit = log.unit
+    if unit not in _NUMERIC_REQUIRED:
+        raise PositioningLogError(f"{src}: unit {unit!r} is not 'mm' or 'deg'")
+    kind = log.meta.get("cycle_kind", "")
+    if kind and kind not in CYCLE_KINDS:
+        raise PositioningLogError(f"{src}: metadata cycle_kind {kind!r} is not 'linear' or 'pilgrim'")
+    arrays = {"target": log.target, "cycle": log.cycle, "direction": log.direction,
+              "measured": log.measured}
+    if log.t_s is not None:
+        arrays["t_s"] = log.t_s
+    if log.status is not None:
+        arrays["status"] = log.status
+    arrays.update(log.extra)
+    for name, v in arrays.items():
+        if np.shape(v) != (n,):
+            raise PositioningLogError(f"{src}: column {name!r} has shape {np.shape(v)}, expected ({n},)")
+    ok = log.ok
+    bad = ~np.isfinite(log.target)
+    if bad.any():
+        raise PositioningLogError(f"{where(int(np.argmax(bad)))}: target is not a finite number")
+    bad = ~np.isfinite(log.measured) & ok
+    if bad.any():
+        raise PositioningLogError(f"{where(int(np.argmax(bad)))}: measured value is not a finite number")
+    bad = log.cycle < 1
+    if bad.any():
+        r = int(np.argmax(bad))
+        raise PositioningLogError(f"{where(r)}: cycle {int(log.cycle[r])} is not >= 1")
+    bad = ~np.isin(log.direction, (1, -1))
+    if bad.any():
+        raise PositioningLogError(f"{where(int(np.argmax(bad)))}: direction is not +1 or -1")
+    if log.t_s is not None:
+        t = log.t_s
+        bad = np.isinf(t)
+        if bad.any():
+            raise PositioningLogError(f"{where(int(np.argmax(bad)))}: t_s is not finite")
+        idx = np.flatnonzero(~np.isnan(t))
+        if idx.size > 1:
+            back = np.diff(t[idx]) < 0
+            if back.any():
+                k = int(np.argmax(back))
+                r = int(idx[k + 1])
+                raise PositioningLogError(
+                    f"{where(r)}: time goes backwards (t_s {t[r]:g} after {t[idx[k]]:g}); "
+                    "rows must be in the order measured")
+    # one valid reading per (target, cycle, direction)
+    first: dict[tuple, int] = {}
+    keys = np.round(log.target / TARGET_TOL).astype(np.int64)
+    for r in np.flatnonzero(ok):
+        key = (int(keys[r]), int(log.cycle[r]), int(log.direction[r]))
+        if key in first:
+            d = "+" if log.direction[r] > 0 else "-"
+            raise PositioningLogError(
+                f"{where(int(r))}: target {log.target[r]:g} {unit}, cycle {int(log.cycle[r])}, "
+                f"direction '{d}' already measured in row {first[key]} (mark one reading "
+                "with a status other than ok)")
+        first[key] = int(r)
+
+
+# ---------------------------------------------------------------------------
+# writing
+
+
+def _fmt(v: float) -> str:
+    return "" if math.isnan(v) else repr(float(v))
+
+
+def format_positioning_log(log: PositioningLog) -> str:
+    """The file text of ``log``: metadata, header, one row per reading."""
+    buf = io.StringIO()
+    meta = dict(log.meta)
+    meta["format"] = FORMAT
+    meta.setdefault("unit", log.unit)
+    meta = {"format": meta.pop("format"), **meta}
+    for k, v in meta.items():
+        buf.write(f"# {k}: {' '.join(str(v).split())}\n")
+    u = log.unit
+    cols: dict[str, tuple[np.ndarray, bool]] = {
+        f"target_{u}": (log.target, False), "cycle": (log.cycle, None),
+        "direction": (log.direction, None), f"measured_{u}": (log.measured, False)}
+    if log.t_s is not None:
+        cols["t_s"] = (log.t_s, False)
+    for k, v in log.extra.items():
+        cols[k] = (v, not _is_temp(k))
+    if log.status is not None:
+        cols["status"] = (log.status, True)
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(list(cols))
+    for r in range(log.n):
+        row = []
+        for name, (v, text) in cols.items():
+            if name == "cycle":
+                row.append(str(int(v[r])))
+            elif name == "direction":
+                row.append("+" if v[r] > 0 else "-")
+            else:
+                row.append(v[r] if text else _fmt(v[r]))
+        w.writerow(row)
+    return buf.getvalue()
+
+
+def write_positioning_log(path: str | os.PathLike, log: PositioningLog) -> Path:
+    """Write ``log`` atomically; reading it back gives the same log."""
+    return write_text_atomic(path, format_positioning_log(log))
+
+
+# ---------------------------------------------------------------------------
+# importers: ecmc .dat and a generic table
+
+_ECMC_LINE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:\[\s*([^\]]*)\])?\s*=\s*(.*?)\s*$")
+_ECMC_UNITS = {"mm": ("mm", 1.0), "um": ("mm", 1e-3), "µm": ("mm", 1e-3), "deg": ("deg", 1.0),
+               "degree": ("deg", 1.0), "degrees": ("deg", 1.0)}
+
+
+def read_ecmc_dat(path: str | os.PathLike) -> PositioningLog:
+    """Read an ecmc ISO 230-2 ``.dat`` file (see :func:`parse_ecmc_dat`)."""
+    text, src = _read_text(path, "an ecmc .dat file")
+    return parse_ecmc_dat(text, source=src)
+
+
+def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
+    """Parse the ISO 230-2 input file of ecmc (EPICS motion control, ESS/PSI).
+
+    The format, as ecmc's own scripts write it (``ecmccfg`` examples
+    ``fat_sat/report.md_ISO230.dat``): one ``KEY=VALUE`` a line, ``#``
+    comments, blank lines ignored::
+
+        UNIT=mm                   (optional, default mm)
+        CYCLES=5                  (optional; n)
+        POSITIONS=5               (optional; m)
+        TGT_DATA[i]=P_i           target i = 1..m
+        REF_DATA_FWD[i,j]=P_ij    reference reading, target i, cycle j, FWD
+        REF_DATA_BWD[i,j]=P_ij    likewise BWD
+
+    ``FWD`` is the positive direction: ecmc's test sequence starts below
+    the first target ("approach first test position from below") and
+    steps upwards; ``BWD`` comes back from above the last. (ecmc's own
+    evaluation script stores ``REF_DATA_FWD`` as its backward data and
+    vice versa, so its reported directions are swapped.) Other keys
+    (``DEC``, ``REF_PV``, ``TEST_PV``, ``TGT_SET_PV``, ...) are kept in the
+    metadata as ``ecmc_<key>``. The file has no clock: rows are written in
+    the order of ecmc's linear cycle (cycle j: FWD ascending, then BWD
+    descending) and ``cycle_kind`` is ``linear``.
+
+    Raises
+    ------
+    PositioningLogError
+        A line that is not ``KEY=VALUE``, a value that is not a number, an
+        index out of the declared ``POSITIONS``/``CYCLES``, a value given
+        twice, a reading without its target, a target or cycle missing in
+        one direction, an unknown unit.
+    """
+    src = source
+    if not text.strip():
+        raise PositioningLogError(f"{src}: empty file")
+    scalars: dict[str, tuple[str, int]] = {}
+    tgt: dict[int, tuple[float, int]] = {}
+    ref: dict[str, dict[tuple[int, int], tuple[float, int]]] = {"FWD": {}, "BWD": {}}
+    extra_meta: dict[str, str] = {}
+
+    def num(v: str, ln: int, what: str) -> float:
+        return _finite_number(v, f"{src}: line {ln}", what)
+
+    def index(s: str, count: int, ln: int, key: str) -> tuple[int, ...]:
+        parts = [p.strip() for p in s.split(",")]
+        if len(parts) != count or not all(p.isdigit() and int(p) >= 1 for p in parts):
+            want = "[i]" if count == 1 else "[i,j]"
+            raise PositioningLogError(f"{src}: line {ln}: {key}[{s}]: index must be {want} with whole numbers >= 1")
+        return tuple(int(p) for p in parts)
+
+    for ln, line in enumerate(text.splitlines(), start=1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        mt = _ECMC_LINE.match(s)
+        if not mt:
+            raise PositioningLogError(f"{src}: line {ln}: not KEY=VALUE or KEY[i,j]=VALUE: {s[:40]!r}")
+        key, idx, val = mt.group(1).upper(), mt.group(2), mt.group(3)
+        if key == "TGT_DATA":
+            if idx is None:
+                raise PositioningLogError(f"{src}: line {ln}: TGT_DATA needs an index [i]")
+            (i,) = index(idx, 1, ln, key)
+            if i in tgt:
+                raise PositioningLogError(f"{src}: line {ln}: TGT_DATA[{i}] given twice (first on line {tgt[i][1]})")
+            tgt[i] = (num(val, ln, f"TGT_DATA[{i}]"), ln)
+        elif key in ("REF_DATA_FWD", "REF_DATA_BWD"):
+            d = key[-3:]
+            if idx is None:
+                raise PositioningLogError(f"{src}: line {ln}: {key} needs an index [i,j]")
+            ij = index(idx, 2, ln, key)
+            if ij in ref[d]:
+                raise PositioningLogError(
+                    f"{src}: line {ln}: {key}[{ij[0]},{ij[1]}] given twice (first on line {ref[d][ij][1]})")
+            ref[d][ij] = (num(val, ln, f"{key}[{ij[0]},{ij[1]}]"), ln)
+        elif idx is None and key in ("UNIT", "CYCLES", "POSITIONS"):
+            if key in scalars:
+                raise PositioningLogError(f"{src}: line {ln}: {key} given twice (first on line {scalars[key][1]})")
+            scalars[key] = (val, ln)
+        else:
+            extra_meta[f"ecmc_{key}" + (f"[{idx}]" if idx is not None else "")] = val
+    unit_txt, uln = scalars.get("UNIT", ("mm", 0))
+    if unit_txt.strip().lower() not in _ECMC_UNITS:
+        raise PositioningLogError(f"{src}: line {uln}: UNIT {unit_txt!r} is not mm, um or deg")
+    unit, scale = _ECMC_UNITS[unit_txt.strip().lower()]
+    declared = {}
+    for key in ("POSITIONS", "CYCLES"):
+        if key in scalars:
+            v, ln = scalars[key]
+            if not v.strip().isdigit() or int(v) < 1:
+                raise PositioningLogError(f"{src}: line {ln}: {key} {v!r} is not a whole number >= 1")
+            declared[key] = int(v)
+    if not tgt:
+        raise PositioningLogError(f"{src}: no TGT_DATA[i] lines (not an ecmc ISO 230-2 file?)")
+    for d in ("FWD", "BWD"):
+        if not ref[d]:
+            raise PositioningLogError(f"{src}: no REF_DATA_{d}[i,j] lines: ISO 230-2 needs both directions")
+    m = declared.get("POSITIONS", max(tgt))
+    n = declared.get("CYCLES", max(j for d in ref for (_, j) in ref[d]))
+    for i, (_, ln) in tgt.items():
+        if i > m:
+            raise PositioningLogError(f"{src}: line {ln}: TGT_DATA[{i}] beyond POSITIONS={m}")
+    for d in ("FWD", "BWD"):
+        for (i, j), (_, ln) in ref[d].items():
+            if i > m or j > n:
+                raise PositioningLogError(
+                    f"{src}: line {ln}: REF_DATA_{d}[{i},{j}] beyond POSITIONS={m}, CYCLES={n}")
+    for i in range(1, m + 1):
+        if i not in tgt:
+            raise PositioningLogError(f"{src}: TGT_DATA[{i}] missing (POSITIONS={m})")
+        for d in ("FWD", "BWD"):
+            for j in range(1, n + 1):
+                if (i, j) not in ref[d]:
+                    raise PositioningLogError(f"{src}: REF_DATA_{d}[{i},{j}] missing (POSITIONS={m}, CYCLES={n})")
+    order = sorted(range(1, m + 1), key=lambda i: tgt[i][0])
+    rows_t, rows_c, rows_d, rows_m = [], [], [], []
+    for j in range(1, n + 1):
+        for d, seq in (("FWD", order), ("BWD", order[::-1])):
+            for i in seq:
+                rows_t.append(tgt[i][0] * scale)
+                rows_c.append(j)
+                rows_d.append(1 if d == "FWD" else -1)
+                rows_m.append(ref[d][(i, j)][0] * scale)
+    meta = {"axis": "", "instrument": "reference encoder (ecmc REF_PV)", "cycle_kind": "linear",
+            "imported_from": "ecmc .dat", "row_order": "ecmc linear cycle (assumed; the file has no clock)"}
+    meta.update(extra_meta)
+    return make_positioning_log(rows_t, rows_c, rows_d, rows_m, meta=meta, unit=unit, source=src)
+
+
+_TABLE_NAMES = {
+    "target": ("target", "target_mm", "target_deg", "p", "p_i", "nominal", "position", "tgt"),
+    "cycle": ("cycle", "run", "j", "repetition", "rep"),
+    "direction": ("direction", "dir", "approach"),
+    "measured": ("measured", "measured_mm", "measured_deg", "actual", "p_ij", "reading", "ref"),
+    "deviation_um": ("deviation_um", "error_um", "x_um", "dev_um"),
+}
+_DIRECTION_WORDS = {"+": 1, "up": 1, "pos": 1, "positive": 1, "fwd": 1, "forward": 1, "↑": 1, "1": 1,
+                    "+1": 1, "-": -1, "down": -1, "neg": -1, "negative": -1, "bwd": -1, "backward": -1,
+                    "↓": -1, "-1": -1}
+
+
+def read_table(path: str | os.PathLike, unit: str | None = None) -> PositioningLog:
+    """Read a generic table of readings (see :func:`parse_table`)."""
+    text, src = _read_text(path, "a table")
+    return parse_table(text, source=src, unit=unit)
+
+
+def parse_table(text: str, source: str = "<memory>", unit: str | None = None) -> PositioningLog:
+    """A generic whitespace-, comma-, semicolon- or tab-separated table.
+
+    One reading a line: target, cycle, direction, measured value, in that
+    order, or in any order under a header row naming them (``target``,
+    ``cycle``/``run``, ``direction``/``dir``, ``measured``/``actual``;
+    ``deviation_um`` instead of ``measured`` gives ``measured = target +
+    deviation``). Directions: ``+ - up down fwd bwd forward backward pos
+    neg +1 -1 1``. Lines starting with ``#`` are comments (``# key: value``
+    lines become metadata). Values in ``unit`` (``mm`` or ``deg``; default:
+    a ``# unit:`` comment line, else mm); rows are taken to be in the
+    order measured.
+    """
+    src = source
+    if not text.strip():
+        raise PositioningLogError(f"{src}: empty file")
+    meta: dict[str, str] = {}
+    rows: list[tuple[int, list[str]]] = []
+    for ln, line in enumerate(text.splitlines(), start=1):
+        s = line.strip()
+        if not s:
+            continue
+        if s.startswith("#"):
+            body = s[1:].strip()
+            if ":" in body:
+                k, v = body.split(":", 1)
+                meta[k.strip()] = v.strip()
+            continue
+        if "," in s or ";" in s:
+            cells = [c.strip() for c in re.split(r"[,;]", s)]
+        else:
+            cells = s.split()
+        rows.append((ln, cells))
+    if not rows:
+        raise PositioningLogError(f"{src}: no data rows")
+    unit = unit or meta.get("unit") or "mm"
+    if unit not in _NUMERIC_REQUIRED:
+        raise PositioningLogError(f"{src}: unit {unit!r} is not 'mm' or 'deg'")
+    first = rows[0][1]
+
+    def is_number(c: str) -> bool:
+        try:
+            float(c)
+            return True
+        except ValueError:
+            return False
+
+    cols: dict[str, int]
+    if not is_number(first[0]) or not is_number(first[-1]):
+        lookup = {}
+        for j, name in enumerate(first):
+            key = name.strip().lower()
+            for canon, names in _TABLE_NAMES.items():
+                if key in names:
+                    if canon in lookup:
+                        raise PositioningLogError(f"{src}: line {rows[0][0]}: two columns mean {canon!r}")
+                    lookup[canon] = j
+        for need in ("target", "cycle", "direction"):
+            if need not in lookup:
+                raise PositioningLogError(
+                    f"{src}: line {rows[0][0]}: header has no {need!r} column (got {', '.join(first)})")
+        if "measured" not in lookup and "deviation_um" not in lookup:
+            raise PositioningLogError(
+                f"{src}: line {rows[0][0]}: header has no 'measured' or 'deviation_um' column")
+        cols = lookup
+        rows = rows[1:]
+        width = len(first)
+        if not rows:
+            raise PositioningLogError(f"{src}: no data rows after the header")
+    else:
+        cols = {"target": 0, "cycle": 1, "direction": 2, "measured": 3}
+        width = 4
+    tg, cy, di, me = [], [], [], []
+    for ln, cells in rows:
+        if len(cells) != width:
+            raise PositioningLogError(f"{src}: line {ln}: {len(cells)} fields, expected {width}")
+
+        def val(name: str) -> float:
+            return _finite_number(cells[cols[name]], f"{src}: line {ln}", name)
+
+        t = val("target")
+        c = val("cycle")
+        if c != round(c) or c < 1:
+            raise PositioningLogError(f"{src}: line {ln}: cycle {cells[cols['cycle']]!r} is not a whole number >= 1")
+        dtxt = cells[cols["direction"]].strip().lower()
+        if dtxt not in _DIRECTION_WORDS:
+            raise PositioningLogError(f"{src}: line {ln}: direction {cells[cols['direction']]!r} is not + or -")
+        mv = val("measured") if "measured" in cols else t + val("deviation_um") * (1e-3 if unit == "mm" else 1 / 3600e3)
+        tg.append(t)
+        cy.append(int(c))
+        di.append(_DIRECTION_WORDS[dtxt])
+        me.append(mv)
+    meta.setdefault("imported_from", "table")
+    meta.pop("format", None)
+    meta.pop("unit", None)
+    return make_positioning_log(tg, cy, di, me, meta=meta, unit=unit, source=src)
+
+
+def load_positioning(path: str | os.PathLike, kind: str = "auto", unit: str | None = None) -> PositioningLog:
+    """Read a positioning test from ``positioning-log/1``, an ecmc ``.dat`` or a table.
+
+    ``kind``: ``log``, ``ecmc``, ``table`` or ``auto`` (a ``# format:``
+    line means a positioning log, ``TGT_DATA[`` an ecmc file, anything
+    else a table). ``unit`` applies to tables only.
+    """
+    if kind not in ("auto", "log", "ecmc", "table"):
+        raise PositioningLogError(f"input kind {kind!r} is not auto, log, ecmc or table")
+    text, src = _read_text(path, "a positioning test")
+    if kind == "auto":
+        if re.search(r"^\s*#\s*format\s*:", text, re.M):
+            kind = "log"
+        elif re.search(r"^\s*TGT_DATA\s*\[", text, re.M | re.I):
+            kind = "ecmc"
+        else:
+            kind = "table"
+    if kind == "log":
+        return parse_positioning_log(text, source=src)
+    if kind == "ecmc":
+        return parse_ecmc_dat(text, source=src)
+    return parse_table(text, source=src, unit=unit)
+
+
+# ---------------------------------------------------------------------------
+# arranging a log for the evaluation
+
+
+@dataclass(frozen=True)
+class PositioningTest:
+    """A log arranged per target and direction (valid readings only).
+
+    Attributes
+    ----------
+    unit : str
+        ``mm`` or ``deg``: the unit of every array here.
+    targets : (m,) float
+        Target positions P_i, ascending.
+    cycles : (n,) int
+        Cycle numbers j present (ascending); column k of the arrays is
+        cycle ``cycles[k]``.
+    dev_up, dev_down : (m, n) float
+        Positional deviations ``x_ij`` approached in ``+`` / ``-``; NaN
+        where a target has no valid reading of that cycle.
+    t_up, t_down : (m, n) float
+        Time of each reading, s (NaN when unknown).
+    row_up, row_down : (m, n) int
+        Row of each reading in the log (-1 where missing).
+    warnings : tuple of str
+        What makes this test less than ISO 230-2's full test.
+    axis, cycle_kind : str
+        From the log's metadata.
+    """
+
+    unit: str
+    targets: np.ndarray
+    cycles: np.ndarray
+    dev_up: np.ndarray
+    dev_down: np.ndarray
+    t_up: np.ndarray
+    t_down: np.ndarray
+    row_up: np.ndarray
+    row_down: np.ndarray
+    warnings: tuple[str, ...] = ()
+    axis: str = ""
+    cycle_kind: str = ""
+
+    @property
+    def m(self) -> int:
+        return int(self.targets.shape[0])
+
+    @property
+    def n_up(self) -> np.ndarray:
+        """(m,) valid readings per target approached in +."""
+        return np.sum(~np.isnan(self.dev_up), axis=1)
+
+    @property
+    def n_down(self) -> np.ndarray:
+        return np.sum(~np.isnan(self.dev_down), axis=1)
+
+
+def arrange(log: PositioningLog) -> PositioningTest:
+    """Arrange the valid readings of ``log`` per target and direction.
+
+    Raises
+    ------
+    PositioningLogError
+        No valid reading in one direction, a target approached in one
+        direction only, fewer than ``N_MIN`` = 2 readings of a target in a
+        direction (the estimator s of 2.15 needs n - 1 >= 1), fewer than 2
+        targets.
+    """
+    src = log.source
+    u = log.unit
+    ok = log.ok
+    rows = np.flatnonzero(ok)
+    if rows.size == 0:
+        raise PositioningLogError(f"{src}: no valid readings")
+    for d, name in ((1, "+"), (-1, "-")):
+        if not np.any(log.direction[rows] == d):
+            raise PositioningLogError(
+                f"{src}: no valid readings approached in the '{name}' direction "
+                "(ISO 230-2 needs both directions at every target)")
+    # targets: sorted, values closer than TARGET_TOL are one target
+    tv = log.target[rows]
+    order = np.argsort(tv, kind="stable")
+    groups = np.zeros(rows.size, dtype=np.int64)
+    g = 0
+    prev = tv[order[0]]
+    targets = [prev]
+    for k in order[1:]:
+        if tv[k] - prev > TARGET_TOL:
+            g += 1
+            targets.append(tv[k])
+        prev = tv[k]
+        groups[k] = g
+    targets_arr = np.array(targets)
+    m = targets_arr.size
+    if m < 2:
+        raise PositioningLogError(f"{src}: one target only ({targets_arr[0]:g} {u}); ISO 230-2 needs several")
+    cycles = np.unique(log.cycle[rows])
+    col_of = {int(c): k for k, c in enumerate(cycles)}
+    n = cycles.size
+    out = {d: (np.full((m, n), np.nan), np.full((m, n), np.nan), np.full((m, n), -1, np.int64))
+           for d in (1, -1)}
+    dev = log.deviation
+    t = log.t_s if log.t_s is not None else np.full(log.n, np.nan)
+    for k, r in enumerate(rows):
+        D, T, R = out[int(log.direction[r])]
+        i, c = groups[k], col_of[int(log.cycle[r])]
+        D[i, c] = dev[r]
+        T[i, c] = t[r]
+        R[i, c] = r
+    warnings = []
+    for d, name in ((1, "+"), (-1, "-")):
+        cnt = np.sum(~np.isnan(out[d][0]), axis=1)
+        other = np.sum(~np.isnan(out[-d][0]), axis=1)
+        for i in range(m):
+            if cnt[i] == 0 and other[i] > 0:
+                raise PositioningLogError(
+                    f"{src}: target {targets_arr[i]:g} {u} has readings in "
+                    f"'{'-' if d > 0 else '+'}' but none in '{name}': the targets do not "
+                    "match between directions")
+            if cnt[i] < N_MIN:
+                raise PositioningLogError(
+                    f"{src}: target {targets_arr[i]:g} {u}, direction '{name}': {int(cnt[i])} "
+                    f"valid reading; the repeatability estimator needs at least {N_MIN} "
+                    f"(ISO 230-2 asks {N_STANDARD})")
+    counts = np.concatenate([np.sum(~np.isnan(out[d][0]), axis=1) for d in (1, -1)])
+    if counts.min() < N_STANDARD:
+        warnings.append(
+            f"{int(counts.min())} valid approaches at some target and direction: ISO 230-2 asks "
+            f"{N_STANDARD} in each direction; s, R and A rest on fewer and are not the standard's figures")
+    if counts.min() != counts.max():
+        warnings.append(f"unequal numbers of valid readings per target and direction "
+                        f"({int(counts.min())} to {int(counts.max())})")
+    if m < 5:
+        warnings.append(f"{m} targets: ISO 230-2 asks at least 5 (5 per metre of travel up to 2 m)")
+    return PositioningTest(unit=u, targets=targets_arr, cycles=cycles.astype(np.int64),
+                           dev_up=out[1][0], dev_down=out[-1][0], t_up=out[1][1], t_down=out[-1][1],
+                           row_up=out[1][2], row_down=out[-1][2], warnings=tuple(warnings),
+                           axis=log.axis, cycle_kind=log.meta.get("cycle_kind", ""))
+
+
+# ---------------------------------------------------------------------------
+# the figures
+
+
+@dataclass(frozen=True)
+class Iso2302Result:
+    """Every figure of ISO 230-2 for one axis, in the file unit (mm or deg).
+
+    Per target (``(m,)`` arrays): ``mean_up``/``mean_down`` (2.10),
+    ``mean_bi`` (2.11), ``B_i`` (2.12), ``s_up``/``s_down`` (2.15),
+    ``R_up_i``/``R_down_i`` (2.16), ``R_i`` (2.17), ``n_up``/``n_down``
+    (readings used). Of the axis (floats): ``B`` (2.13), ``B_mean`` (2.14),
+    ``R_up``/``R_down`` (2.18), ``R`` (2.19), ``E_up``/``E_down`` (2.20),
+    ``E`` (2.21), ``M`` (2.22), ``A_up``/``A_down`` (2.23), ``A`` (2.24).
+    """
+
+    unit: str
+    targets: np.ndarray
+    n_up: np.ndarray
+    n_down: np.ndarray
+    mean_up: np.ndarray
+    mean_down: np.ndarray
+    mean_bi: np.ndarray
+    B_i: np.ndarray
+    s_up: np.ndarray
+    s_down: np.ndarray
+    R_up_i: np.ndarray
+    R_down_i: np.ndarray
+    R_i: np.ndarray
+    B: float
+    B_mean: float
+    R_up: float
+    R_down: float
+    R: float
+    E_up: float
+    E_down: float
+    E: float
+    M: float
+    A_up: float
+    A_down: float
+    A: float
+    warnings: tuple[str, ...] = ()
+    axis: str = ""
+    cycle_kind: str = ""
+
+    #: The axis figures, in the order the standard lists them.
+    FIGURES = ("B", "B_mean", "R_up", "R_down", "R", "E_up", "E_down", "E", "M", "A_up", "A_down", "A")
+
+    def to_report(self) -> dict:
+        """Plain dict for JSON: µm (arc seconds for ``deg``), unit in every key.
+
+        Top level: ``B_um, B_mean_um, R_up_um, R_down_um, R_um, E_up_um,
+        E_down_um, E_um, M_um, A_up_um, A_down_um, A_um`` and ``per_target``
+        (one dict per target with ``target_mm``, ``n_up``, ``n_down``,
+        ``mean_up_um``, ``mean_down_um``, ``mean_um``, ``B_um``,
+        ``s_up_um``, ``s_down_um``, ``R_up_um``, ``R_down_um``, ``R_um`` and
+        the band edges ``x̄ ± 2s`` as ``lower_up_um`` ... ``upper_down_um``).
+        """
+        ru, k = REPORT_UNIT[self.unit]
+        out: dict = {"standard": "ISO 230-2:2014", "axis": self.axis, "unit": ru,
+                     "cycle_kind": self.cycle_kind, "targets": int(self.targets.size),
+                     "cycles": int(max(self.n_up.max(), self.n_down.max()))}
+        for f in self.FIGURES:
+            out[f"{f}_{ru}"] = float(getattr(self, f)) * k
+        rows = []
+        for i in range(self.targets.size):
+            rows.append({
+                f"target_{self.unit}": float(self.targets[i]),
+                "n_up": int(self.n_up[i]), "n_down": int(self.n_down[i]),
+                f"mean_up_{ru}": float(self.mean_up[i]) * k,
+                f"mean_down_{ru}": float(self.mean_down[i]) * k,
+                f"mean_{ru}": float(self.mean_bi[i]) * k,
+                f"B_{ru}": float(self.B_i[i]) * k,
+                f"s_up_{ru}": float(self.s_up[i]) * k,
+                f"s_down_{ru}": float(self.s_down[i]) * k,
+                f"R_up_{ru}": float(self.R_up_i[i]) * k,
+                f"R_down_{ru}": float(self.R_down_i[i]) * k,
+                f"R_{ru}": float(self.R_i[i]) * k,
+                f"lower_up_{ru}": float(self.mean_up[i] - 2 * self.s_up[i]) * k,
+                f"upper_up_{ru}": float(self.mean_up[i] + 2 * self.s_up[i]) * k,
+                f"lower_down_{ru}": float(self.mean_down[i] - 2 * self.s_down[i]) * k,
+                f"upper_down_{ru}": float(self.mean_down[i] + 2 * self.s_down[i]) * k,
+            })
+        out["per_target"] = rows
+        out["warnings"] = list(self.warnings)
+        return out
+
+
+def _check_vector(name: str, v, m: int | None) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    if a.ndim != 1 or (m is not None and a.shape[0] != m):
+        raise PositioningLogError(f"{name} must be a 1-D array of {m} values, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise PositioningLogError(f"{name} must be finite")
+    return a
+
+
+def figures(targets, mean_up, mean_down, s_up, s_down, *, n_up=None, n_down=None, unit: str = "mm",
+            warnings: Iterable[str] = (), axis: str = "", cycle_kind: str = "") -> Iso2302Result:
+    """ISO 230-2 figures from the per-target statistics.
+
+    Parameters
+    ----------
+    targets : (m,) float
+        Target positions P_i (file unit).
+    mean_up, mean_down : (m,) float
+        Mean unidirectional positional deviations x̄_i↑, x̄_i↓ (2.10).
+    s_up, s_down : (m,) float
+        Estimators s_i↑, s_i↓ (2.15), >= 0.
+    n_up, n_down : (m,) int, optional
+        Readings behind each mean (reported only).
+
+    Returns
+    -------
+    Iso2302Result
+        Every per-target and axis figure (definitions 2.11-2.24, module
+        docstring), in the unit of the inputs.
+    """
+    P = _check_vector("targets", targets, None)
+    m = P.shape[0]
+    if m < 1:
+        raise PositioningLogError("no targets")
+    xu = _check_vector("mean_up", mean_up, m)
+    xd = _check_vector("mean_down", mean_down, m)
+    su = _check_vector("s_up", s_up, m)
+    sd = _check_vector("s_down", s_down, m)
+    if np.any(su < 0) or np.any(sd < 0):
+        raise PositioningLogError("s_up and s_down must be >= 0")
+    nu = np.zeros(m, np.int64) if n_up is None else np.asarray(n_up, np.int64)
+    nd = np.zeros(m, np.int64) if n_down is None else np.asarray(n_down, np.int64)
+    xm = 0.5 * (xu + xd)                                   # 2.11
+    Bi = xu - xd                                           # 2.12
+    Ru_i = 4.0 * su                                        # 2.16
+    Rd_i = 4.0 * sd
+    Ri = np.maximum(2.0 * su + 2.0 * sd + np.abs(Bi), np.maximum(Ru_i, Rd_i))  # 2.17
+    both = np.concatenate([xu, xd])
+    upper = np.concatenate([xu + 2.0 * su, xd + 2.0 * sd])
+    lower = np.concatenate([xu - 2.0 * su, xd - 2.0 * sd])
+    return Iso2302Result(
+        unit=unit, targets=P, n_up=nu, n_down=nd, mean_up=xu, mean_down=xd, mean_bi=xm, B_i=Bi,
+        s_up=su, s_down=sd, R_up_i=Ru_i, R_down_i=Rd_i, R_i=Ri,
+        B=float(np.max(np.abs(Bi))),                       # 2.13
+        B_mean=float(np.mean(Bi)),                         # 2.14
+        R_up=float(np.max(Ru_i)), R_down=float(np.max(Rd_i)),  # 2.18
+        R=float(np.max(Ri)),                               # 2.19
+        E_up=float(np.max(xu) - np.min(xu)), E_down=float(np.max(xd) - np.min(xd)),  # 2.20
+        E=float(np.max(both) - np.min(both)),              # 2.21
+        M=float(np.max(xm) - np.min(xm)),                  # 2.22
+        A_up=float(np.max(xu + 2 * su) - np.min(xu - 2 * su)),  # 2.23
+        A_down=float(np.max(xd + 2 * sd) - np.min(xd - 2 * sd)),
+        A=float(np.max(upper) - np.min(lower)),            # 2.24
+        warnings=tuple(warnings), axis=axis, cycle_kind=cycle_kind)
+
+
+def iso230_2(test: PositioningTest | PositioningLog) -> Iso2302Result:
+    """Evaluate a positioning test by ISO 230-2 (every figure of the module docstring).
+
+    ``x̄_i`` is the mean (2.10) and ``s_i`` the sample standard deviation
+    with ``n - 1`` in the denominator (2.15) of the valid readings of each
+    target and direction.
+    """
+    if isinstance(test, PositioningLog):
+        test = arrange(test)
+    n_up, n_down = test.n_up, test.n_down
+    mean_up = np.nanmean(test.dev_up, axis=1)
+    mean_down = np.nanmean(test.dev_down, axis=1)
+    s_up = np.nanstd(test.dev_up, axis=1, ddof=1)
+    s_down = np.nanstd(test.dev_down, axis=1, ddof=1)
+    return figures(test.targets, mean_up, mean_down, s_up, s_down, n_up=n_up, n_down=n_down,
+                   unit=test.unit, warnings=test.warnings, axis=test.axis, cycle_kind=test.cycle_kind)
+
+
+# ---------------------------------------------------------------------------
+# the standard's model as a baseline (for model discovery)
+
+
+@dataclass(frozen=True)
+class PositioningBaseline:
+    """ISO 230-2's own model of a test: ``x_ij = x̄_i(direction) + e_ij``.
+
+    The model has one systematic deviation per target and direction
+    (``2 m`` parameters) and treats everything else as random with a
+    standard deviation per target and direction. What it cannot express
+    (drift across cycles, a first-cycle effect, outliers, reversal or
+    pitch errors between targets) stays in the residuals; a discovery
+    engine tests candidate models against these. All arrays ``(N,)`` over
+    the valid readings, in measurement order (log row), file unit.
+
+    Attributes
+    ----------
+    row, target_index, cycle, direction : (N,) int
+    target, t_s : (N,) float (t_s NaN when the log has no clock)
+    deviation : (N,) float      x_ij
+    fitted : (N,) float         x̄_i↑ or x̄_i↓ of the reading's target and direction
+    residual : (N,) float       deviation - fitted
+    s_up_pooled, s_down_pooled : float
+        Pooled within-target standard deviation per direction,
+        ``sqrt(Σ_i (n_i - 1) s_i² / Σ_i (n_i - 1))``.
+    n_params : int              2 m
+    dof : int                   N - 2 m
+    unit : str
+    """
+
+    row: np.ndarray
+    target_index: np.ndarray
+    cycle: np.ndarray
+    direction: np.ndarray
+    target: np.ndarray
+    t_s: np.ndarray
+    deviation: np.ndarray
+    fitted: np.ndarray
+    residual: np.ndarray
+    s_up_pooled: float
+    s_down_pooled: float
+    n_params: int
+    dof: int
+    unit: str
+
+    @property
+    def rms(self) -> float:
+        """RMS of the residuals (file unit)."""
+        return float(np.sqrt(np.mean(self.residual ** 2)))
+
+
+def baseline(test: PositioningTest) -> PositioningBaseline:
+    """The standard's model fitted to ``test`` (see :class:`PositioningBaseline`)."""
+    parts = []
+    for d, D, T, R in ((1, test.dev_up, test.t_up, test.row_up), (-1, test.dev_down, test.t_down, test.row_down)):
+        mean = np.nanmean(D, axis=1)
+        ii, kk = np.nonzero(~np.isnan(D))
+        parts.append((R[ii, kk], ii, test.cycles[kk], np.full(ii.size, d), test.targets[ii],
+                      T[ii, kk], D[ii, kk], mean[ii]))
+    cat = [np.concatenate(x) for x in zip(*parts)]
+    order = np.argsort(cat[0], kind="stable")
+    row, ti, cyc, dirn, tgt, t, dev, fit = (a[order] for a in cat)
+
+    def pooled(D):
+        k = np.sum(~np.isnan(D), axis=1) - 1
+        ss = np.nansum((D - np.nanmean(D, axis=1)[:, None]) ** 2, axis=1)
+        return float(np.sqrt(ss.sum() / k.sum())) if k.sum() > 0 else float("nan")
+
+    N = row.size
+    return PositioningBaseline(row=row, target_index=ti, cycle=cyc, direction=dirn, target=tgt, t_s=t,
+                               deviation=dev, fitted=fit, residual=dev - fit,
+                               s_up_pooled=pooled(test.dev_up), s_down_pooled=pooled(test.dev_down),
+                               n_params=2 * test.m, dof=int(N - 2 * test.m), unit=test.unit)
+
+
+# ---------------------------------------------------------------------------
+# uncertainty of the test (ISO/TR 230-9 style budget)
+
+
+@dataclass(frozen=True)
+class UncertaintyInputs:
+    """What the test-uncertainty budget needs; standard uncertainties (k = 1).
+
+    Attributes
+    ----------
+    u_instrument_um : float
+        Length-independent part of the instrument's uncertainty (resolution,
+        noise floor, dead path), µm.
+    u_instrument_um_per_m : float
+        Length-proportional part (laser calibration, wavelength
+        compensation for air; scale calibration), µm per m of travel.
+    misalignment_urad : float
+        Largest expected angle between the beam (scale) and the axis, µrad:
+        the cosine error ``L (1 - cos φ) <= L φ² / 2``.
+    temperature_C : float
+        Mean temperature of the machine scale (or part) during the test;
+        the readings are corrected to 20 °C with ``alpha_per_K``.
+    u_temperature_K : float
+        Standard uncertainty of that temperature, K.
+    alpha_per_K : float
+        Expansion coefficient used for the correction (steel 11.5e-6).
+    u_alpha_per_K : float
+        Its standard uncertainty, 1/K.
+    eve_um : float
+        Environmental variation error E_VE: range of the reading in a
+        stationary drift check over the duration of the test, µm.
+    """
+
+    u_instrument_um: float = 0.0
+    u_instrument_um_per_m: float = 0.0
+    misalignment_urad: float = 0.0
+    temperature_C: float = 20.0
+    u_temperature_K: float = 0.0
+    alpha_per_K: float = 11.5e-6
+    u_alpha_per_K: float = 0.0
+    eve_um: float = 0.0
+
+    def __post_init__(self):
+        for k in ("u_instrument_um", "u_instrument_um_per_m", "misalignment_urad", "u_temperature_K",
+                  "alpha_per_K", "u_alpha_per_K", "eve_um"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise PositioningLogError(f"uncertainty input {k} must be a finite number >= 0, got {v!r}")
+        t = self.temperature_C
+        if not (isinstance(t, (int, float)) and math.isfinite(t) and -50 < t < 100):
+            raise PositioningLogError(f"uncertainty input temperature_C must be a workshop temperature, got {t!r}")
+
+
+@dataclass(frozen=True)
+class UncertaintyBudget:
+    """Expanded uncertainty (k = 2) of each ISO 230-2 figure, µm.
+
+    ``contributions``: source -> (u on the range figures, u on the
+    difference figures), µm, k = 1. ``U``: figure name (``E``, ``R``, ...)
+    -> expanded uncertainty, µm.
+    """
+
+    travel_mm: float
+    contributions: dict[str, tuple[float, float]]
+    U: dict[str, float]
+    k: float = 2.0
+
+    def to_report(self) -> dict:
+        return {"k": self.k, "travel_mm": self.travel_mm,
+                "contributions": [{"source": s, "u_range_um": a, "u_difference_um": b}
+                                  for s, (a, b) in self.contributions.items()],
+                **{f"U_{f}_um": v for f, v in self.U.items()}}
+
+
+def figure_uncertainty(result: Iso2302Result, inputs: UncertaintyInputs) -> UncertaintyBudget:
+    """The uncertainty of the test's figures from the measuring conditions.
+
+    In the manner of ISO/TR 230-9 (combined standard uncertainty as the
+    root sum of squares of independent contributions, k = 2), with the
+    contributions ISO 230-2 names for this test, each modelled here as:
+
+    ========================  ==================================  ============
+    source                    on the range figures (E, M, A)      on B, R
+    ========================  ==================================  ============
+    instrument                ``sqrt(u_c² + (u_ppm L)²)``          0
+    misalignment (cosine)     ``L φ²/2 / (2 sqrt 3)``              0
+    temperature measurement   ``L α u_T``                          0
+    expansion coefficient     ``L |T - 20 °C| u_α``                0
+    environmental variation   ``E_VE / (2 sqrt 3)``                same
+    ========================  ==================================  ============
+
+    ``L`` is the measurement travel (largest minus smallest target). The
+    instrument, alignment and temperature errors are scale-like (they grow
+    with the distance from where the instrument was zeroed), so they enter
+    a range over the targets with their value at ``L`` and cancel in a
+    difference at one target (B_i, s_i, hence B, B̄, R); the drift of the
+    environment during the test does not cancel. The cosine error lies
+    between 0 and ``L φ²/2`` (one-sided, rectangular: u = width / sqrt 12);
+    a range read as E_VE is rectangular of half-width E_VE / 2. Not
+    included: the sampling uncertainty of s itself (R and A rest on n
+    readings), set-up errors (Abbe offsets of the instrument to the
+    tool), which belong to the machine's own budget.
+    """
+    if result.unit != "mm":
+        raise PositioningLogError("the test-uncertainty budget is for linear axes (unit mm)")
+    L_mm = float(np.max(result.targets) - np.min(result.targets))
+    L_m = L_mm * 1e-3
+    phi = inputs.misalignment_urad * 1e-6
+    rows = {
+        "instrument": (math.hypot(inputs.u_instrument_um, inputs.u_instrument_um_per_m * L_m), 0.0),
+        "misalignment (cosine)": (L_m * 1e6 * phi * phi / 2 / math.sqrt(12.0), 0.0),
+        "temperature measurement": (L_m * 1e6 * inputs.alpha_per_K * inputs.u_temperature_K, 0.0),
+        "expansion coefficient": (L_m * 1e6 * abs(inputs.temperature_C - 20.0) * inputs.u_alpha_per_K, 0.0),
+    }
+    u_eve = inputs.eve_um / math.sqrt(12.0)
+    rows["environmental variation"] = (u_eve, u_eve)
+    u_range = math.sqrt(sum(a * a for a, _ in rows.values()))
+    u_diff = math.sqrt(sum(b * b for _, b in rows.values()))
+    k = 2.0
+    U = {f: k * u_range for f in ("E_up", "E_down", "E", "M", "A_up", "A_down", "A")}
+    U.update({f: k * u_diff for f in ("B", "B_mean", "R_up", "R_down", "R")})
+    return UncertaintyBudget(travel_mm=L_mm, contributions=rows, U=U, k=k)
+

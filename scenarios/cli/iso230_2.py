@@ -1,0 +1,63 @@
+"""``vmt iso230-2 LOG --json OUT [--report DIR]``: evaluate a positioning test by ISO 230-2.
+
+LOG is a positioning-log/1 file, an ecmc ``.dat`` (EPICS motion control)
+or a table of target, cycle, direction, measured value. Every figure of
+ISO 230-2 goes to the JSON in µm; ``--report`` adds a folder with the
+standard's plot.
+
+(``vmt simulate positioning`` lives in ``simulate.py``.)
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def register(sub) -> None:
+    p = sub.add_parser("iso230-2", help="evaluate a positioning test (ISO 230-2): every figure, in µm",
+                       description=__doc__.split("\n\n")[1])
+    p.add_argument("log", help="positioning-log/1 CSV, ecmc .dat, or a table of target, cycle, direction, measured")
+    p.add_argument("--json", required=True, metavar="OUT", help="JSON report to write (atomically)")
+    p.add_argument("--report", help="folder for a readable report (index.html, the standard's plot)")
+    p.add_argument("--from", dest="kind", choices=("auto", "log", "ecmc", "table"), default="auto",
+                   help="what LOG is (auto: '# format:' line -> log, TGT_DATA[ -> ecmc, else table)")
+    p.add_argument("--write-log", metavar="LOG", help="also write the readings as positioning-log/1")
+    g = p.add_argument_group("uncertainty of the test (ISO/TR 230-9 style; any of these adds U (k=2) per figure)")
+    g.add_argument("--u-instrument-um", type=float, metavar="UM", help="instrument, length-independent, standard uncertainty, µm")
+    g.add_argument("--u-instrument-um-per-m", type=float, metavar="UM_PER_M", help="instrument, per m of travel, standard uncertainty, µm/m")
+    g.add_argument("--misalignment-urad", type=float, metavar="URAD", help="largest beam-to-axis angle (cosine error), µrad")
+    g.add_argument("--temp-c", type=float, metavar="C", help="mean temperature of the machine scale during the test, °C (20)")
+    g.add_argument("--u-temp-k", type=float, metavar="K", help="standard uncertainty of that temperature, K")
+    g.add_argument("--alpha-per-k", type=float, metavar="PER_K", help="expansion coefficient of the scale, 1/K (11.5e-6)")
+    g.add_argument("--u-alpha-per-k", type=float, metavar="PER_K", help="its standard uncertainty, 1/K")
+    g.add_argument("--eve-um", type=float, metavar="UM", help="environmental variation error E_VE (drift check range), µm")
+    p.set_defaults(func=run)
+
+
+_UNC = {"u_instrument_um": "u_instrument_um", "u_instrument_um_per_m": "u_instrument_um_per_m",
+        "misalignment_urad": "misalignment_urad", "temp_c": "temperature_C", "u_temp_k": "u_temperature_K",
+        "alpha_per_k": "alpha_per_K", "u_alpha_per_k": "u_alpha_per_K", "eve_um": "eve_um"}
+
+
+def run(args) -> int:
+    from core.positioning import UncertaintyInputs
+    from scenarios.positioning import FIGURE_ROWS, evaluate_file
+
+    given = {v: getattr(args, k) for k, v in _UNC.items() if getattr(args, k) is not None}
+    unc = UncertaintyInputs(**given) if given else None
+    rep, warnings = evaluate_file(args.log, args.json, args.report, kind=args.kind, uncertainty=unc,
+                                  write_log=args.write_log)
+    for w in warnings:
+        print(f"vmt iso230-2: warning: {w}", file=sys.stderr)
+    u = rep["unit"]
+    sym = "um" if u == "um" else "arcsec"
+    print(f"{args.log}: axis {rep['axis'] or '?'}, {rep['targets']} targets x {rep['cycles']} cycles"
+          + (f", {rep['cycle_kind']} cycle" if rep.get("cycle_kind") else ""))
+    U = rep.get("uncertainty") or {}
+    for name, symbol, clause, meaning in FIGURE_ROWS:
+        extra = f"  (U {U[f'U_{name}_um']:.3f})" if U else ""
+        pad = " " * (4 - len(symbol.replace("\u0304", "")))  # B̄ carries a combining macron
+        print(f"  {symbol}{pad}{rep[f'{name}_{u}']:10.3f} {sym}{extra}   {meaning} [{clause}]")
+    print(f"wrote {args.json}" + (f" and {args.report}/index.html" if args.report else "")
+          + (f" and {args.write_log}" if args.write_log else ""))
+    return 0

@@ -1,0 +1,41 @@
+"""``vmt plan grid``: the plan of a rectangular grid probed along Z (surface probing)."""
+
+from __future__ import annotations
+
+
+def _range(text: str, name: str) -> tuple:
+    from core.exceptions import ConfigError
+
+    try:
+        lo, hi, step = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise ConfigError(f"{name} {text!r}: expected lo:hi:step in mm (write {name}=-10:10:5 "
+                          "when lo < 0)") from None
+    return lo, hi, step
+
+
+def register(sub) -> None:
+    p = sub.add_parser("plan", help="write a probing plan (probe-log/1) for a common job")
+    psub = p.add_subparsers(dest="plan_command", metavar="KIND")
+    g = psub.add_parser("grid", help="a rectangular XY grid probed straight down (surface / height map)")
+    g.add_argument("--x-mm", required=True, metavar="lo:hi:step", help="grid lines along X, machine frame, mm")
+    g.add_argument("--y-mm", required=True, metavar="lo:hi:step", help="grid lines along Y, machine frame, mm")
+    g.add_argument("--z-mm", type=float, default=0.0, help="nominal surface height, machine frame, mm (0)")
+    g.add_argument("--stylus-r-mm", type=float, default=0.0,
+                   help="stylus tip radius, mm (0: a pin or a tool as the probe)")
+    g.add_argument("--no-serpentine", action="store_true",
+                   help="probe every row in +X (default: serpentine, X reversed on odd rows)")
+    g.add_argument("--out", required=True, help="plan to write (probe-log/1, measured columns empty)")
+    g.set_defaults(func=run_grid)
+    p.set_defaults(func=lambda a: (p.print_help(), 2)[1])
+
+
+def run_grid(args) -> int:
+    from core.probelog import write_probe_log
+    from hardware.surface import grid_plan
+
+    plan = grid_plan(_range(args.x_mm, "--x-mm"), _range(args.y_mm, "--y-mm"), args.z_mm,
+                     stylus_r_mm=args.stylus_r_mm, serpentine=not args.no_serpentine)
+    write_probe_log(args.out, plan)
+    print(f"{args.out}: {plan.meta['plan']} ({plan.n} touches)")
+    return 0

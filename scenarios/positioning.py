@@ -1,0 +1,202 @@
+"""ISO 230-2 positioning tests: evaluate a file, report it, run one on a virtual machine.
+
+The commands ``vmt iso230-2`` and ``vmt simulate positioning`` are thin
+wrappers of :func:`evaluate_file` and :func:`simulate_test`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+#: Figures in the order the standard defines them: (name, symbol, clause, meaning).
+FIGURE_ROWS = (
+    ("B", "B", "2.13", "reversal value of the axis, max |B_i|"),
+    ("B_mean", "B̄", "2.14", "mean reversal value"),
+    ("R_up", "R↑", "2.18", "unidirectional repeatability, approach +"),
+    ("R_down", "R↓", "2.18", "unidirectional repeatability, approach -"),
+    ("R", "R", "2.19", "bidirectional repeatability (with the reversal term)"),
+    ("E_up", "E↑", "2.20", "unidirectional systematic positional deviation, +"),
+    ("E_down", "E↓", "2.20", "unidirectional systematic positional deviation, -"),
+    ("E", "E", "2.21", "bidirectional systematic positional deviation"),
+    ("M", "M", "2.22", "range of the mean bidirectional positional deviation"),
+    ("A_up", "A↑", "2.23", "unidirectional accuracy, +"),
+    ("A_down", "A↓", "2.23", "unidirectional accuracy, -"),
+    ("A", "A", "2.24", "bidirectional accuracy"),
+)
+
+
+def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertainty=None,
+                  write_log=None) -> tuple[dict, list[str]]:
+    """Read a positioning test, evaluate ISO 230-2, write the JSON (and report).
+
+    Parameters
+    ----------
+    path : path
+        ``positioning-log/1``, an ecmc ``.dat`` or a table (``kind``).
+    json_out : path
+        JSON report to write (atomically).
+    report : path, optional
+        Report folder (index.html, figure).
+    kind : str
+        ``auto``, ``log``, ``ecmc`` or ``table``.
+    uncertainty : core.positioning.UncertaintyInputs, optional
+        Measuring conditions: adds the expanded uncertainty of each figure.
+    write_log : path, optional
+        Also write the readings as ``positioning-log/1`` (an import).
+
+    Returns
+    -------
+    (dict, list of str)
+        The JSON report and its warnings.
+    """
+    from core.atomic import write_json_atomic
+    from core.positioning import (arrange, baseline, figure_uncertainty, iso230_2, load_positioning,
+                                  write_positioning_log)
+
+    log = load_positioning(path, kind=kind)
+    test = arrange(log)
+    result = iso230_2(test)
+    rep = result.to_report()
+    rep["log"] = str(path)
+    rep["machine"] = log.meta.get("machine", "")
+    rep["instrument"] = log.meta.get("instrument", "")
+    budget = None
+    if uncertainty is not None:
+        budget = figure_uncertainty(result, uncertainty)
+        rep["uncertainty"] = budget.to_report()
+    base = baseline(test)
+    k = 1e3 if test.unit == "mm" else 3600.0
+    ru = rep["unit"]
+    rep["baseline"] = {"model": "ISO 230-2: one mean per target and direction",
+                       "n_params": base.n_params, "dof": base.dof, f"rms_{ru}": base.rms * k,
+                       f"s_up_pooled_{ru}": base.s_up_pooled * k, f"s_down_pooled_{ru}": base.s_down_pooled * k}
+    if write_log:
+        write_positioning_log(write_log, log)
+    write_json_atomic(json_out, rep)
+    if report:
+        positioning_report(report, rep, log, budget=budget, title=f"ISO 230-2: {Path(path).name}")
+    return rep, list(result.warnings)
+
+
+def positioning_report(folder, rep: dict, log, *, budget=None, title: str = "ISO 230-2 positioning test"):
+    """Write the report folder of one evaluated test (viz.report helpers)."""
+    from viz.figures import positioning_figure
+    from viz.report import Section, Table, write_report
+
+    u = rep["unit"]
+    sym = "µm" if u == "um" else "arcsec"
+    test_text = (f"Axis {rep.get('axis') or '?'}; {rep['targets']} targets, {rep['cycles']} cycles"
+                 f"{', ' + rep['cycle_kind'] + ' cycle' if rep.get('cycle_kind') else ''}; "
+                 f"machine {rep.get('machine') or '?'}; instrument {rep.get('instrument') or '?'}. "
+                 "Definitions of ISO 230-2 (clause numbers of the 2006 edition, unchanged in 2014): "
+                 "x_ij = P_ij - P_i, means and s (n - 1) per target and direction, R_i = max(2 s↑ + 2 s↓ "
+                 "+ |B_i|, 4 s↑, 4 s↓).")
+    if rep.get("warnings"):
+        test_text += "\n\nWarnings: " + "; ".join(rep["warnings"]) + "."
+    rows = []
+    unc = rep.get("uncertainty") or {}
+    for name, symbol, clause, meaning in FIGURE_ROWS:
+        row = [symbol, clause, meaning, rep[f"{name}_{u}"]]
+        if unc:
+            row.append(unc.get(f"U_{name}_um"))
+        rows.append(row)
+    cols = ["figure", "clause", "meaning", f"value / {sym}"] + (["U (k=2) / µm"] if unc else [])
+    tkey = "target_mm" if "target_mm" in rep["per_target"][0] else "target_deg"
+    per = Table([f"P_i / {tkey[-2:] if tkey.endswith('mm') else 'deg'}", "n↑", "n↓", f"x̄↑ / {sym}",
+                 f"x̄↓ / {sym}", f"x̄ / {sym}", f"B_i / {sym}", f"s↑ / {sym}", f"s↓ / {sym}", f"R_i / {sym}"],
+                [[p[tkey], p["n_up"], p["n_down"], p[f"mean_up_{u}"], p[f"mean_down_{u}"], p[f"mean_{u}"],
+                  p[f"B_{u}"], p[f"s_up_{u}"], p[f"s_down_{u}"], p[f"R_{u}"]] for p in rep["per_target"]])
+    k = 1e3 if log.unit == "mm" else 3600.0
+    ok = log.ok
+    readings = {"target": log.target[ok], "deviation": log.deviation[ok] * k, "direction": log.direction[ok]}
+    sections = [
+        Section("Figures", text=test_text, tables=[Table(cols, rows)]),
+        Section("The standard's plot", text="Mean positional deviations per direction with their x̄ ± 2s "
+                "bands (the edges that make A), the bidirectional mean, every reading, and the reversal "
+                "value B_i at each target.", figures={"iso230_2": positioning_figure(rep, readings=readings)}),
+        Section("Per target", tables=[per]),
+    ]
+    if budget is not None:
+        sections.append(Section(
+            "Uncertainty of the test",
+            text=(f"ISO/TR 230-9 style budget over the measurement travel L = {budget.travel_mm:g} mm: "
+                  "scale-like contributions (instrument, cosine misalignment, temperature, expansion "
+                  "coefficient) act on the range figures E, M, A and cancel at one target; the "
+                  "environmental variation acts on all. Standard uncertainties (k = 1) below, "
+                  "expanded (k = 2) in the figures table."),
+            tables=[Table(["source", "u on E, M, A / µm", "u on B, R / µm"],
+                          [[s, a, b] for s, (a, b) in budget.contributions.items()])]))
+    b = rep["baseline"]
+    sections.append(Section(
+        "Baseline for model discovery",
+        text=(f"The standard's own model (one systematic deviation per target and direction, "
+              f"{b['n_params']} parameters, {b['dof']} degrees of freedom) leaves a residual RMS of "
+              f"{b[f'rms_{u}']:.3g} {sym}; pooled s {b[f's_up_pooled_{u}']:.3g} {sym} (+), "
+              f"{b[f's_down_pooled_{u}']:.3g} {sym} (-). Drift across cycles, warm-up, outliers, "
+              "pitch errors between targets stay in these residuals.")))
+    return write_report(folder, title, sections)
+
+
+def _error_fn_with(errors: dict, sym: str, extra):
+    """``errors`` with ``extra`` added to ``sym`` (a new dict)."""
+    out = dict(errors)
+    out[sym] = extra if sym not in out else out[sym] + extra
+    return out
+
+
+def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, errors: str = "realistic",
+                  noise_um: float = 0.5, n_targets: int = 11, travel_mm=None, cycles: int = 5,
+                  cycle_kind: str = "linear", overrun_mm: float = 5.0, feed_mm_min: float = 2000.0,
+                  dwell_s: float = 2.0, line_mm=None, reversal_um: float = 0.0,
+                  drift_um_per_h: float = 0.0, drift_tau_s: float | None = None):
+    """An ISO 230-2 test of ``axis`` on a named virtual machine: a positioning log.
+
+    ``errors``: ``realistic`` (sim.machines.realistic_errors, the papers'
+    magnitudes) or ``none``. ``reversal_um`` adds lost motion
+    (``Reversal``: +L/2 moving in +, -L/2 in -) and ``drift_um_per_h`` an
+    offset drift (``Drift``, linear, or approaching its steady state with
+    time constant ``drift_tau_s``) to the axis's positioning error
+    (``EXX`` for X, ...). Readings of a table-side axis see its errors with
+    the opposite sign (the part moves).
+    """
+    from core.exceptions import ConfigError
+    from sim.errorfuncs import Drift, Reversal
+    from sim.machine import Machine
+    from sim.machines import MACHINES, realistic_errors
+    from sim.positioning import positioning_plan, simulate_positioning
+
+    if machine_name not in MACHINES:
+        raise ConfigError(f"--machine {machine_name!r} is not one of {', '.join(MACHINES)}")
+    if axis not in ("X", "Y", "Z"):
+        raise ConfigError(f"--axis {axis!r}: expected X, Y or Z")
+    cfg = MACHINES[machine_name]()
+    errs = {}
+    if errors == "realistic":
+        errs = realistic_errors(tuple(a for a in "XYZABC" if a in cfg.strokes), strokes=cfg.strokes)
+    elif errors != "none":
+        raise ConfigError(f"--errors {errors!r}: expected realistic or none")
+    for name, v in (("--noise-um", noise_um), ("--reversal-um", reversal_um), ("--overrun-mm", overrun_mm),
+                    ("--dwell-s", dwell_s)):
+        if not (np.isfinite(v) and v >= 0):
+            raise ConfigError(f"{name} must be >= 0, got {v!r}")
+    if not np.isfinite(drift_um_per_h):
+        raise ConfigError(f"--drift-um-per-h must be finite, got {drift_um_per_h!r}")
+    if not (np.isfinite(feed_mm_min) and feed_mm_min > 0):
+        raise ConfigError(f"--move-feed must be > 0, got {feed_mm_min!r}")
+    sym = f"E{axis}{axis}"
+    if reversal_um:
+        errs = _error_fn_with(errs, sym, Reversal(reversal_um * 1e-6))
+    if drift_um_per_h:
+        errs = _error_fn_with(errs, sym, Drift(offset_rate=drift_um_per_h * 1e-6 / 3600.0, tau_s=drift_tau_s))
+    machine = Machine(MACHINES[machine_name](errors=errs))
+    plan = positioning_plan(
+        machine, axis, n_targets=n_targets, cycles=cycles, cycle_kind=cycle_kind,
+        travel_m=None if travel_mm is None else (travel_mm[0] * 1e-3, travel_mm[1] * 1e-3),
+        overrun_m=overrun_mm * 1e-3, feed_mps=feed_mm_min * 1e-3 / 60.0, dwell_s=dwell_s,
+        line_m=None if line_mm is None else np.asarray(line_mm, float) * 1e-3, rng=rng)
+    meta = {"errors": errors, "reversal_um": f"{reversal_um:g}", "drift_um_per_h": f"{drift_um_per_h:g}"}
+    if drift_tau_s:
+        meta["drift_tau_s"] = f"{drift_tau_s:g}"
+    return simulate_positioning(machine, plan, rng, noise_m=noise_um * 1e-6, meta=meta)

@@ -1,0 +1,116 @@
+"""Feature fits of a log (core.features), U95 and form (core.fit), the planar scope check (core.scope)."""
+
+import numpy as np
+import pytest
+
+from core.exceptions import ConfigError, FitError, IdentifiabilityError
+from core.features import fit_log_feature
+from core.fit import coverage_factor, fit_plane, fit_sphere, form_deviation, u95
+from core.probelog import make_log
+from core.scope import check_planar_scope
+
+
+def log_of(p_mm, n, *, feature="f", setup=None, stylus_r_mm=0.0, status=None):
+    p_mm, n = np.asarray(p_mm, float), np.asarray(n, float)
+    k = len(p_mm)
+    cols = {"setup": setup if setup is not None else ["s1"] * k, "target": [f"t{i}" for i in range(k)],
+            "t_s": np.arange(k, dtype=float), "X_mm": p_mm[:, 0], "Y_mm": p_mm[:, 1], "Z_mm": p_mm[:, 2],
+            "Xn_mm": p_mm[:, 0], "Yn_mm": p_mm[:, 1], "Zn_mm": p_mm[:, 2],
+            "nx": n[:, 0], "ny": n[:, 1], "nz": n[:, 2], "feature": [feature] * k}
+    if status is not None:
+        cols["status"] = status
+        bad = np.array(status) != "ok"
+        for c in ("t_s", "X_mm", "Y_mm", "Z_mm"):
+            cols[c] = np.where(bad, np.nan, cols[c])
+    return make_log(cols, {"stylus_r_mm": repr(stylus_r_mm)})
+
+
+def test_coverage_factor_is_student_t():
+    # JCGM 100 Table G.2: t_95.45 ... here the two-sided 95 % points, from any t table
+    assert coverage_factor(5) == pytest.approx(2.5706, abs=1e-4)
+    assert coverage_factor(30) == pytest.approx(2.0423, abs=1e-4)
+    assert np.isnan(coverage_factor(0))
+
+
+def test_plane_known_answer_form_and_stylus():
+    """A cosine bump of known amplitude on a tilted plane, 2 mm stylus on top."""
+    x, y = np.meshgrid(np.linspace(0, 100, 11), np.linspace(0, 60, 7))
+    x, y = x.ravel(), y.ravel()
+    bump = 2e-3 * np.cos(2 * np.pi * x / 100) * np.cos(2 * np.pi * y / 60)   # mm, zero mean on this grid
+    z_surf = 5.0 + bump                                   # surface height, mm
+    p = np.column_stack([x, y, z_surf + 2.0])             # tip centres, 2 mm radius, probed from above
+    rep = fit_log_feature(log_of(p, np.tile([0, 0, 1.0], (len(x), 1)), stylus_r_mm=2.0), "plane")
+    assert rep.values["point_mm"][2] == pytest.approx(5.0 + bump.mean(), abs=1e-9)
+    assert np.allclose(rep.values["normal"], [0, 0, 1], atol=1e-9)
+    # the grid samples each cosine symmetrically: LS removes no tilt, form = ptp of the bump
+    assert rep.form_um == pytest.approx(np.ptp(bump) * 1e3, abs=1e-6)
+    assert np.allclose(rep.residuals_um, (bump - bump.mean()) * 1e3, atol=1e-6)
+
+
+def test_sphere_and_circle_stylus_side():
+    rng = np.random.default_rng(1)
+    u = rng.normal(size=(30, 3))
+    u[:, 2] = np.abs(u[:, 2])
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    c = np.array([10.0, 20.0, 30.0])
+    ball = fit_log_feature(log_of(c + (12.5 + 1.5) * u, u, stylus_r_mm=1.5), "sphere")
+    assert ball.values["side"] == "outside" and ball.values["radius_mm"] == pytest.approx(12.5, abs=1e-9)
+    a = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    rad = np.column_stack([np.cos(a), np.sin(a), np.zeros(12)])
+    bore = fit_log_feature(log_of(c + (20.0 - 1.5) * rad, -rad, stylus_r_mm=1.5), "circle")
+    assert bore.values["side"] == "inside" and bore.values["radius_mm"] == pytest.approx(20.0, abs=1e-9)
+    assert np.allclose(bore.values["centre_mm"], c[:2], atol=1e-9)
+
+
+def test_u95_covers_the_truth_in_a_noise_round_trip():
+    """truth -> seeded noise -> plane and sphere: the error is within U95 in about 95 % of trials."""
+    rng = np.random.default_rng(20261201)
+    x, y = np.meshgrid(np.linspace(-50, 50, 5), np.linspace(-30, 30, 4))
+    P0 = np.column_stack([x.ravel(), y.ravel(), 1e-3 * x.ravel()]) * 1e-3      # m, tilt 1 mrad about Y
+    n_true = np.array([-1e-3, 0, 1]) / np.linalg.norm([-1e-3, 0, 1])
+    hits, trials = 0, 400
+    for _ in range(trials):
+        P = P0 + 1e-6 * rng.standard_normal(len(P0))[:, None] * n_true
+        f = fit_plane(P, normal_hint=[0, 0, 1])
+        tilt = (f.normal - n_true) @ f.basis[0]
+        hits += abs(tilt) <= u95(f)["tilt_u"]
+    assert 0.92 * trials <= hits <= 0.98 * trials            # binomial 95 %: 380 +- 9 at 2 sigma
+    u = np.random.default_rng(3).normal(size=(40, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    hits = 0
+    for _ in range(trials):
+        P = (0.0125 + 1e-6 * rng.standard_normal(40))[:, None] * u
+        f = fit_sphere(P)
+        hits += abs(f.radius - 0.0125) <= u95(f)["radius"]
+    assert 0.92 * trials <= hits <= 0.98 * trials
+    assert form_deviation(f) == pytest.approx(np.ptp(f.residuals))
+
+
+@pytest.mark.parametrize("kind, kw, exc, msg", [
+    ("cone", {}, ConfigError, "feature kind 'cone'"),
+    ("plane", {"feature": "nope"}, ConfigError, "no feature 'nope'"),
+    ("sphere", {}, FitError, "sphere fit"),
+])
+def test_fit_log_feature_bad_input(kind, kw, exc, msg):
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
+    with pytest.raises(exc, match=msg):
+        fit_log_feature(log_of(p, np.tile([0, 0, 1.0], (3, 1))), kind, **kw)
+
+
+def test_scope_names_the_real_reason():
+    zgrid = log_of(np.array([[0, 0, 0], [10, 0, 0], [0, 10, 0.0], [10, 10, 0]]), np.tile([0, 0, 1.0], (4, 1)))
+    with pytest.raises(IdentifiabilityError, match=r"no touch has a normal in the XY plane.*vmt fit plane"):
+        check_planar_scope(zgrid)
+    u = np.random.default_rng(0).normal(size=(8, 3))
+    u[:, 2] = np.abs(u[:, 2]) + 0.5
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    with pytest.raises(IdentifiabilityError, match="vmt fit sphere"):
+        check_planar_scope(log_of(12.5 * u, u), "discover")
+    dead = log_of(zgrid.positions_mm(), zgrid.normals(), status=["no_trigger", "aborted", "aborted", "aborted"])
+    with pytest.raises(IdentifiabilityError, match="no valid touch.*3 aborted, 1 no_trigger"):
+        check_planar_scope(dead)
+    a = np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    rad = np.column_stack([np.cos(a), np.sin(a), np.zeros(6)])
+    with pytest.raises(IdentifiabilityError, match="one set-up"):
+        check_planar_scope(log_of(20 * rad, rad))
+    check_planar_scope(log_of(20 * rad, rad, setup=["C0"] * 3 + ["C90"] * 3))      # in scope: no error

@@ -1,0 +1,514 @@
+"""ISO 230-2 positioning tests: the log, the importers, the figures.
+
+The definitions are ISO 230-2 clause 2.10-2.24 (2006 numbering; clause 3
+of the 2014 edition). They were checked against two public reproductions
+that agree with each other and with core.positioning: the MATLAB function
+``art_rot`` (comments "ISO 230-2 2006 Standard", 2.10-2.24) and
+``qualityControl/ISO230-2.py`` of paulscherrerinstitute/ecmccfg (2.10-2.24).
+
+Tolerances: the known-answer case is exact decimal arithmetic; float
+rounding of mm values of order 1e2 leaves ~1e-13 mm, so 1e-9 mm (the
+issue's requirement) is met with a wide margin.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+from core.exceptions import VmtError
+from core.positioning import (FORMAT, PositioningLogError, arrange, baseline, figures,
+                              format_positioning_log, iso230_2, load_positioning,
+                              make_positioning_log, parse_ecmc_dat, parse_positioning_log,
+                              parse_table, read_positioning_log, write_positioning_log)
+
+TOL_MM = 1e-9
+
+# --------------------------------------------------------------------------
+# The hand-worked case: 3 targets (0, 100, 200 mm), 5 cycles each way.
+# Deviations x_ij in µm, cycle j = 1..5:
+#
+#   P = 0    up   1  1  2  3  3   sum 10  -> mean 2 ; deviations from the mean
+#                                 -1 -1 0 1 1: SS = 4 -> s^2 = 4/(5-1) = 1, s = 1
+#            down -3 -3 -1  1  1  sum -5  -> mean -1; -2 -2 0 2 2: SS 16 -> s = 2
+#   P = 100  up   6  4  5  4  6   sum 25  -> mean 5 ; 1 -1 0 -1 1: SS 4 -> s = 1
+#            down 0  2  1  2  0   sum 5   -> mean 1 ; SS 4 -> s = 1
+#   P = 200  up  -5  1 -2 -5  1   sum -10 -> mean -2; -3 3 0 -3 3: SS 36 -> s^2 = 9, s = 3
+#            down -8 -6 -7 -6 -8  sum -35 -> mean -7; SS 4 -> s = 1
+#
+#   mean bidirectional x_i = (up + down)/2 = (2-1)/2, (5+1)/2, (-2-7)/2 = 0.5, 3, -4.5
+#   B_i = up - down = 3, 4, 5          B = max|B_i| = 5     B_mean = 12/3 = 4
+#   R_i up = 4 s up   = 4, 4, 12       R_up = 12
+#   R_i down = 4 s dn = 8, 4, 4        R_down = 8
+#   R_i = max(2 s_up + 2 s_dn + |B_i|, R_i up, R_i dn)
+#       P=0:   2*1 + 2*2 + 3 = 9   vs 4, 8   -> 9
+#       P=100: 2*1 + 2*1 + 4 = 8   vs 4, 4   -> 8
+#       P=200: 2*3 + 2*1 + 5 = 13  vs 12, 4  -> 13      R = 13 (> max(R_up, R_dn) = 12)
+#   E_up = 5 - (-2) = 7   E_down = 1 - (-7) = 8
+#   E = max(2,5,-2,-1,1,-7) - min(...) = 5 - (-7) = 12   (not max(E_up, E_down) = 8)
+#   M = 3 - (-4.5) = 7.5
+#   up + 2s  = 4, 7, 4;   up - 2s  = 0, 3, -8    A_up = 7 - (-8) = 15
+#   dn + 2s  = 3, 3, -5;  dn - 2s  = -5, -1, -9  A_down = 3 - (-9) = 12
+#   A = max(7, 3) - min(-8, -9) = 16
+# --------------------------------------------------------------------------
+HAND_UP = {0.0: [1, 1, 2, 3, 3], 100.0: [6, 4, 5, 4, 6], 200.0: [-5, 1, -2, -5, 1]}
+HAND_DOWN = {0.0: [-3, -3, -1, 1, 1], 100.0: [0, 2, 1, 2, 0], 200.0: [-8, -6, -7, -6, -8]}
+HAND_FIGURES_UM = {"B": 5, "B_mean": 4, "R_up": 12, "R_down": 8, "R": 13, "E_up": 7, "E_down": 8,
+                   "E": 12, "M": 7.5, "A_up": 15, "A_down": 12, "A": 16}
+
+
+def hand_rows():
+    """The hand case as rows in linear-cycle order: (target_mm, cycle, dir, measured_mm)."""
+    rows = []
+    for j in range(5):
+        for p in (0.0, 100.0, 200.0):
+            rows.append((p, j + 1, "+", p + HAND_UP[p][j] / 1000))
+        for p in (200.0, 100.0, 0.0):
+            rows.append((p, j + 1, "-", p + HAND_DOWN[p][j] / 1000))
+    return rows
+
+
+def hand_text(rows=None, header="target_mm,cycle,direction,measured_mm", meta="# axis: X\n"):
+    rows = hand_rows() if rows is None else rows
+    body = "\n".join(",".join(str(v) for v in r) for r in rows)
+    return f"# format: {FORMAT}\n{meta}{header}\n{body}\n"
+
+
+def test_hand_worked_case_every_figure():
+    r = iso230_2(parse_positioning_log(hand_text(), "hand.csv"))
+    for name, um in HAND_FIGURES_UM.items():
+        assert abs(getattr(r, name) - um * 1e-3) < TOL_MM, name
+    np.testing.assert_allclose(r.targets, [0, 100, 200])
+    np.testing.assert_allclose(r.mean_up, np.array([2, 5, -2]) * 1e-3, rtol=0, atol=TOL_MM)
+    np.testing.assert_allclose(r.mean_down, np.array([-1, 1, -7]) * 1e-3, rtol=0, atol=TOL_MM)
+    np.testing.assert_allclose(r.mean_bi, np.array([0.5, 3, -4.5]) * 1e-3, rtol=0, atol=TOL_MM)
+    np.testing.assert_allclose(r.B_i, np.array([3, 4, 5]) * 1e-3, rtol=0, atol=TOL_MM)
+    np.testing.assert_allclose(r.s_up, np.array([1, 1, 3]) * 1e-3, rtol=0, atol=TOL_MM)
+    np.testing.assert_allclose(r.s_down, np.array([2, 1, 1]) * 1e-3, rtol=0, atol=TOL_MM)
+    np.testing.assert_allclose(r.R_i, np.array([9, 8, 13]) * 1e-3, rtol=0, atol=TOL_MM)
+    assert list(r.n_up) == [5, 5, 5] and list(r.n_down) == [5, 5, 5]
+    # 3 targets is fewer than the standard asks: evaluated, with a warning
+    assert any("3 targets" in w for w in r.warnings)
+
+
+def test_report_keys_are_the_contract_in_um():
+    rep = iso230_2(parse_positioning_log(hand_text())).to_report()
+    for name, um in HAND_FIGURES_UM.items():
+        assert abs(rep[f"{name}_um"] - um) < TOL_MM * 1e3
+    assert [round(p["R_um"], 9) for p in rep["per_target"]] == [9, 8, 13]
+    p = rep["per_target"][2]
+    assert p["target_mm"] == 200.0 and p["n_up"] == 5
+    assert p["lower_up_um"] == pytest.approx(-8) and p["upper_up_um"] == pytest.approx(4)
+    assert p["lower_down_um"] == pytest.approx(-9) and p["upper_down_um"] == pytest.approx(-5)
+
+
+def test_rotary_axis_reports_arcsec():
+    rows = [(p / 100, c, d, p / 100 + (v - p) / 100 * 3.6) for p, c, d, v in hand_rows()]
+    # measured - target in deg = 3.6 * (µm value)/1000/100 ... i.e. x_deg = x_um * 3.6e-5
+    text = hand_text(rows, header="target_deg,cycle,direction,measured_deg", meta="# unit: deg\n")
+    rep = iso230_2(parse_positioning_log(text)).to_report()
+    assert rep["unit"] == "arcsec" and "E_arcsec" in rep and "E_um" not in rep
+    # E = 12 (hand units) * 3.6e-5 deg = 4.32e-4 deg = 1.5552 arcsec
+    assert rep["E_arcsec"] == pytest.approx(12 * 3.6e-5 * 3600, abs=1e-9)
+
+
+def test_write_read_round_trip(tmp_path):
+    log = parse_positioning_log(hand_text(meta="# axis: X\n# instrument: laser\n"))
+    p = write_positioning_log(tmp_path / "t.csv", log)
+    back = read_positioning_log(p)
+    for k in ("target", "cycle", "direction", "measured"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(log, k))
+    assert back.meta["instrument"] == "laser" and back.meta["format"] == FORMAT
+    assert format_positioning_log(back) == format_positioning_log(log)
+
+
+def test_invalid_readings_are_excluded_and_may_repeat():
+    rows = hand_rows()
+    text = hand_text([r + ("ok",) for r in rows] + [(0.0, 1, "+", 5.0, "laser beam broken")],
+                     header="target_mm,cycle,direction,measured_mm,status")
+    r = iso230_2(parse_positioning_log(text))
+    assert abs(r.E - 12e-3) < TOL_MM
+
+
+def test_optional_columns_kept(tmp_path):
+    rows = [r + (float(k), 20.0 + k / 100) for k, r in enumerate(hand_rows())]
+    text = hand_text(rows, header="target_mm,cycle,direction,measured_mm,t_s,temp_scale_C")
+    log = parse_positioning_log(text)
+    assert log.t_s[-1] == 29.0 and log.extra["temp_scale_C"][1] == pytest.approx(20.01)
+    back = read_positioning_log(write_positioning_log(tmp_path / "t.csv", log))
+    np.testing.assert_array_equal(back.extra["temp_scale_C"], log.extra["temp_scale_C"])
+
+
+# --------------------------------------------------------------------------
+# bad input: one line, typed, naming the file and row
+
+
+BAD_FILES = [
+    ("", "empty file"),
+    ("target_mm,cycle,direction,measured_mm\n0,1,+,0\n", "no '# format: positioning-log/1'"),
+    ("# format: probe-log/1\ntarget_mm,cycle,direction,measured_mm\n", "is not 'positioning-log/1'"),
+    (f"# format: {FORMAT}\ntarget_mm,cycle,measured_mm\n0,1,0\n", "missing required column 'direction'"),
+    (f"# format: {FORMAT}\ntarget_mm,cycle,direction,measured_mm\n0,1,+,abc\n",
+     "row 0 (line 3): column 'measured_mm': 'abc' is not a number"),
+    (f"# format: {FORMAT}\ntarget_mm,cycle,direction,measured_mm\n0,1,+,nan\n", "is not finite"),
+    (f"# format: {FORMAT}\ntarget_mm,cycle,direction,measured_mm\n0,1,up,0\n", "direction 'up' is not"),
+    (f"# format: {FORMAT}\ntarget_mm,cycle,direction,measured_mm\n0,1.5,+,0\n", "cycle '1.5' is not a whole"),
+    (f"# format: {FORMAT}\ntarget_mm,cycle,direction,measured_mm\n0,0,+,0\n", "cycle '0' is not a whole"),
+    (f"# format: {FORMAT}\ntarget_mm,cycle,direction,measured_mm\n0,1,+\n", "3 fields, header has 4"),
+    (f"# format: {FORMAT}\ntarget_mm,cycle,direction,measured_mm\n0,1,+,\n", "is empty in a valid reading"),
+    (f"# format: {FORMAT}\n# unit: inch\ntarget_mm,cycle,direction,measured_mm\n", "unit 'inch'"),
+    (f"# format: {FORMAT}\n# unit: mm\ntarget_deg,cycle,direction,measured_deg\n",
+     "missing required column 'target_mm' (the columns are in deg"),
+    (f"# format: {FORMAT}\n# cycle_kind: spiral\ntarget_mm,cycle,direction,measured_mm\n", "cycle_kind 'spiral'"),
+    (f"# format: {FORMAT}\ntarget_mm,cycle,direction,measured_mm,t_s\n0,1,+,0,5\n10,1,+,10,4\n",
+     "row 1 (line 4): time goes backwards"),
+    (f"# format: {FORMAT}\ntarget_mm,cycle,direction,measured_mm\n0,1,+,0\n10,1,+,10\n0,1,+,0.001\n",
+     "row 2 (line 5): target 0 mm, cycle 1, direction '+' already measured in row 0"),
+]
+
+
+@pytest.mark.parametrize("text,match", BAD_FILES)
+def test_bad_files_one_line_errors(text, match):
+    with pytest.raises(PositioningLogError, match=re.escape(match)) as e:
+        parse_positioning_log(text, "bad.csv")
+    assert "\n" not in str(e.value) and isinstance(e.value, VmtError)
+
+
+def test_missing_and_directory_files(tmp_path):
+    with pytest.raises(PositioningLogError, match="no such file"):
+        read_positioning_log(tmp_path / "nope.csv")
+    with pytest.raises(PositioningLogError, match="is a directory"):
+        read_positioning_log(tmp_path)
+    (tmp_path / "bin.csv").write_bytes(b"\xff\xfe\x00bad")
+    with pytest.raises(PositioningLogError, match="not UTF-8"):
+        read_positioning_log(tmp_path / "bin.csv")
+
+
+def _only(rows, keep):
+    return hand_text([r for r in rows if keep(r)])
+
+
+def test_a_direction_missing():
+    with pytest.raises(PositioningLogError, match="no valid readings approached in the '-' direction"):
+        arrange(parse_positioning_log(_only(hand_rows(), lambda r: r[2] == "+")))
+
+
+def test_targets_not_matching_between_directions():
+    text = _only(hand_rows(), lambda r: not (r[0] == 100.0 and r[2] == "-"))
+    with pytest.raises(PositioningLogError,
+                       match=r"target 100 mm has readings in '\+' but none in '-': the targets do not match"):
+        arrange(parse_positioning_log(text))
+
+
+def test_too_few_cycles_refused():
+    text = _only(hand_rows(), lambda r: r[1] == 1)
+    with pytest.raises(PositioningLogError, match="1 valid reading; the repeatability estimator needs at least 2"):
+        iso230_2(parse_positioning_log(text))
+
+
+def test_fewer_than_five_cycles_evaluated_with_warning():
+    # cycles 1..3 only; by hand, target 0 up: 1, 1, 2 -> mean 4/3, s^2 = ((1/3)^2*2 + (2/3)^2)/2 = 1/3
+    r = iso230_2(parse_positioning_log(_only(hand_rows(), lambda r: r[1] <= 3)))
+    assert abs(r.mean_up[0] - 4 / 3 * 1e-3) < TOL_MM
+    assert abs(r.s_up[0] - math.sqrt(1 / 3) * 1e-3) < TOL_MM
+    assert any("ISO 230-2 asks 5" in w for w in r.warnings)
+
+
+def test_one_target_refused():
+    with pytest.raises(PositioningLogError, match="one target only"):
+        arrange(parse_positioning_log(_only(hand_rows(), lambda r: r[0] == 0.0)))
+
+
+def test_make_log_checks_like_reading():
+    with pytest.raises(PositioningLogError, match="direction 'x' is not"):
+        make_positioning_log([0, 1], [1, 1], ["+", "x"], [0, 1])
+    with pytest.raises(PositioningLogError, match="already measured in row 0"):
+        make_positioning_log([0, 0], [1, 1], [1, 1], [0, 0])
+    with pytest.raises(PositioningLogError, match="is not a whole number"):
+        make_positioning_log([0], [1.5], [1], [0])
+
+
+def test_figures_bad_input():
+    with pytest.raises(PositioningLogError, match="mean_down must be a 1-D array of 2 values"):
+        figures([0, 1], [0, 0], [0], [1, 1], [1, 1])
+    with pytest.raises(PositioningLogError, match="must be >= 0"):
+        figures([0, 1], [0, 0], [0, 0], [1, -1], [1, 1])
+
+
+# --------------------------------------------------------------------------
+# truth -> noise -> estimate
+
+
+def test_round_trip_systematic_reversal_and_scatter():
+    """Readings from a known model: x = a + b P + c sin(2 pi P / 37 mm) + d B0/2 + N(0, sigma).
+
+    With n = 400 cycles the means and s converge: each mean within 4.5
+    standard errors (sigma / sqrt(n)) of the truth, each s within 4.5
+    standard errors of sigma (se(s) ~ sigma / sqrt(2 (n - 1))). The
+    figures then sit within these bounds of their true values.
+    """
+    rng = np.random.default_rng(20140915)
+    P = np.array([0.0, 61.3, 118.9, 182.2, 239.5, 300.0])
+    n, sigma, B0 = 400, 0.8e-3, 4e-3
+
+    def truth(p):
+        return 2e-3 + 3e-5 * p + 1.5e-3 * np.sin(2 * np.pi * p / 37.0)
+
+    T, C, D, M = [], [], [], []
+    for j in range(1, n + 1):
+        for d in (1, -1):
+            for p in (P if d > 0 else P[::-1]):
+                T.append(p), C.append(j), D.append(d)
+                M.append(p + truth(p) + d * B0 / 2 + rng.normal(0, sigma))
+    r = iso230_2(make_positioning_log(T, C, D, M))
+    se_mean, se_s = sigma / math.sqrt(n), sigma / math.sqrt(2 * (n - 1))
+    np.testing.assert_allclose(r.mean_up, truth(P) + B0 / 2, rtol=0, atol=4.5 * se_mean)
+    np.testing.assert_allclose(r.mean_down, truth(P) - B0 / 2, rtol=0, atol=4.5 * se_mean)
+    np.testing.assert_allclose(r.B_i, B0, rtol=0, atol=4.5 * math.sqrt(2) * se_mean)
+    np.testing.assert_allclose(r.s_up, sigma, rtol=0, atol=4.5 * se_s)
+    np.testing.assert_allclose(r.s_down, sigma, rtol=0, atol=4.5 * se_s)
+    E_true = np.ptp(np.concatenate([truth(P) + B0 / 2, truth(P) - B0 / 2]))
+    assert abs(r.E - E_true) < 2 * 4.5 * se_mean
+    # R = 2 s + 2 s + B (the reversal term dominates 4 s here)
+    assert abs(r.R - (4 * sigma + B0)) < 4 * 4.5 * se_s + 4.5 * math.sqrt(2) * se_mean
+
+
+def test_baseline_is_the_standard_model():
+    test = arrange(parse_positioning_log(hand_text()))
+    b = baseline(test)
+    assert b.n_params == 6 and b.dof == 30 - 6 and b.row.tolist() == list(range(30))
+    # residuals sum to zero within each target and direction (the fitted means)
+    for i in range(3):
+        for d in (1, -1):
+            k = (b.target_index == i) & (b.direction == d)
+            assert abs(b.residual[k].sum()) < 1e-15
+    # pooled s: sqrt(sum SS / sum (n-1)) = sqrt((4+4+36)/12) um up, sqrt((16+4+4)/12) um down
+    assert abs(b.s_up_pooled - math.sqrt(44 / 12) * 1e-3) < TOL_MM
+    assert abs(b.s_down_pooled - math.sqrt(24 / 12) * 1e-3) < TOL_MM
+    np.testing.assert_allclose(b.deviation, b.fitted + b.residual, rtol=0, atol=1e-15)
+
+
+# --------------------------------------------------------------------------
+# importers
+
+ECMC_OWN = """TEST_DATA=# a file in ecmc's layout, numbers made up for this test
+# Mandatory variable definitions:
+#     TGT_DATA[<pos_id>] ...
+REF_PV=IOC:Enc01-PosAct
+UNIT=mm
+CYCLES=2
+POSITIONS=3
+DEC=6
+TGT_DATA[1]=-10
+REF_DATA_FWD[1,1]=-9.9990
+TGT_DATA[2]=0
+REF_DATA_FWD[2,1]=.0020
+TGT_DATA[3]=10
+REF_DATA_FWD[3,1]=10.0030
+REF_DATA_FWD[1,2]=-9.9992
+REF_DATA_FWD[2,2]=0.0022
+REF_DATA_FWD[3,2]=10.0028
+REF_DATA_BWD[1,1]=-10.0010
+REF_DATA_BWD[2,1]=0.0000
+REF_DATA_BWD[3,1]=10.0012
+REF_DATA_BWD[1,2]= -10.0008
+REF_DATA_BWD[2,2]=-0.0002
+REF_DATA_BWD[3,2]=10.0010
+"""
+
+
+def test_ecmc_dat_fwd_is_positive_direction():
+    log = parse_ecmc_dat(ECMC_OWN, "own.dat")
+    assert log.meta["ecmc_REF_PV"] == "IOC:Enc01-PosAct" and log.meta["cycle_kind"] == "linear"
+    # linear cycle order: cycle 1 FWD ascending, BWD descending, then cycle 2
+    assert log.direction.tolist() == [1, 1, 1, -1, -1, -1] * 2
+    assert log.target.tolist() == [-10, 0, 10, 10, 0, -10] * 2
+    r = iso230_2(log)
+    # FWD (+) at -10: -9.9990 and -9.9992 -> +1.0, +0.8 um, mean +0.9 um; BWD: -1.0, -0.8 -> -0.9
+    assert abs(r.mean_up[0] - 0.9e-3) < TOL_MM and abs(r.mean_down[0] + 0.9e-3) < TOL_MM
+    assert abs(r.B_i[0] - 1.8e-3) < TOL_MM
+
+
+BAD_ECMC = [
+    (ECMC_OWN.replace("REF_DATA_BWD[2,2]=-0.0002\n", ""), r"REF_DATA_BWD\[2,2\] missing"),
+    (ECMC_OWN + "REF_DATA_FWD[1,1]=1\n", r"REF_DATA_FWD\[1,1\] given twice \(first on line 10\)"),
+    (ECMC_OWN.replace("=.0020", "=0,0020"), r"REF_DATA_FWD\[2,1\] '0,0020' is not a number"),
+    (ECMC_OWN + "REF_DATA_BWD[4,1]=20\n", r"REF_DATA_BWD\[4,1\] beyond POSITIONS=3"),
+    ("\n".join(s for s in ECMC_OWN.splitlines() if "BWD" not in s), "no REF_DATA_BWD"),
+    (ECMC_OWN.replace("UNIT=mm", "UNIT=inch"), "UNIT 'inch'"),
+    (ECMC_OWN.replace("TGT_DATA[2]=0", "TGT_DATA[2]=0\nthis is not a setting"), "not KEY=VALUE"),
+    (ECMC_OWN.replace("REF_DATA_FWD[3,2]", "REF_DATA_FWD[3]"), r"index must be \[i,j\]"),
+]
+
+
+@pytest.mark.parametrize("text,match", BAD_ECMC)
+def test_ecmc_bad_files(text, match):
+    with pytest.raises(PositioningLogError, match=match) as e:
+        parse_ecmc_dat(text, "bad.dat")
+    assert "\n" not in str(e.value)
+
+
+def test_ecmc_published_figures_against_the_standard():
+    """ecmc's own published ISO 230-2 report, evaluated by the standard.
+
+    Source: paulscherrerinstitute/ecmccfg, examples/test/fat_sat/report.md
+    (from report.md_ISO230.dat in the same folder; commit 19fd09c58).
+    Its tables, in mm, as printed (4 significant digits), under ecmc's
+    labels "forward" and "backward":
+
+    - x_avg(i) forward  -9.242e-05 -9.162e-05 -8.482e-05 -8.902e-05 -0.00010942
+    - x_avg(i) backward -9.202e-05 -0.00010122 -9.082e-05 -8.862e-05 -0.00012162
+    - S_fwd(i) 8.79e-06 6.77e-06 7.26e-06 9e-06 1.258e-05
+    - S_bwd(i) 6.28e-06 7.29e-06 1.043e-05 1.218e-05 1.573e-05
+    - reported: B = 1.22e-05, B_avg = 5.4e-06, R = 6.29e-05 ("max(R_fwd, R_bwd)"),
+      E_fwd = 2.46e-05, E_bwd = 3.3e-05, E = 2.46e-05, M = 2.77e-05,
+      A_fwd = 6.428e-05, A_bwd = 8.881e-05, A = 8.881e-05
+
+    ecmc's "forward" table is the REF_DATA_BWD data: its x(1,1) forward is
+    -8.102e-05 mm and the .dat has TGT_DATA[1]=-10,
+    REF_DATA_BWD[1,1]=-10.0000810190 (-> -8.1019e-05) but
+    REF_DATA_FWD[1,1]=-10.0000990190 (-> -9.9019e-05). Its parser stores
+    REF_DATA_FWD as backward and vice versa (ecmcISO230_2.py, parseLine).
+
+    From the same means the standard gives E = 36.8 nm where ecmc reports
+    24.6 nm (ecmc takes the larger of the two minima), and R = 68.82 nm
+    (with the reversal term of 2.17) where ecmc reports 62.9 nm. Where
+    ecmc follows the standard (E per direction, M, A per direction, B)
+    the figures agree once the directions are put right.
+
+    Tolerance 3.5e-8 mm (35 pm): ecmc prints with DEC=8 decimals (mm), so
+    every input is known to +-5e-9 mm; the widest figure, R_i or A, is a
+    sum of six such values (2 s + 2 s + |B| = 2 s + 2 s + mean - mean; A
+    likewise), +-3e-8 mm, plus +-5e-9 mm for ecmc's rounding of its output.
+    The differences the test is about (12.2 nm in E, 5.9 nm in R) are
+    hundreds of times larger.
+    """
+    assert round(-10.0000810190 - -10, 9) == pytest.approx(-8.102e-05, abs=1e-9)
+    assert abs((-10.0000990190 - -10) - -8.102e-05) > 1e-5
+    ecmc_fwd_mean = [-9.242e-05, -9.162e-05, -8.482e-05, -8.902e-05, -0.00010942]
+    ecmc_bwd_mean = [-9.202e-05, -0.00010122, -9.082e-05, -8.862e-05, -0.00012162]
+    ecmc_s_fwd = [8.79e-06, 6.77e-06, 7.26e-06, 9e-06, 1.258e-05]
+    ecmc_s_bwd = [6.28e-06, 7.29e-06, 1.043e-05, 1.218e-05, 1.573e-05]
+    targets = [-10, -4.88, 0.24, 5.36, 10.48]
+    # put the directions right: ecmc's "backward" is the + (FWD) direction
+    r = figures(targets, ecmc_bwd_mean, ecmc_fwd_mean, ecmc_s_bwd, ecmc_s_fwd)
+    tol = 3.5e-8
+    assert abs(r.E - 3.68e-05) < tol                      # the standard: 36.8 nm
+    assert r.E - 2.46e-05 > 1e-5                           # ecmc's E = 24.6 nm is not it
+    assert abs(r.E_down - 2.46e-05) < tol                  # what ecmc calls E (and E_fwd)
+    assert abs(r.E_up - 3.3e-05) < tol                     # ecmc E_bwd
+    assert abs(r.R - 6.882e-05) < tol                      # the standard: 68.82 nm
+    assert r.R - 6.29e-05 > 5e-6                           # ecmc's R = 62.9 nm is not it
+    assert abs(max(r.R_up, r.R_down) - 6.29e-05) < tol  # ecmc R (no reversal term)
+    assert abs(r.B - 1.22e-05) < tol and abs(r.M - 2.77e-05) < tol
+    assert abs(r.B_mean - -5.4e-06) < tol                  # sign flipped by ecmc's swap
+    assert abs(r.A_down - 6.428e-05) < tol and abs(r.A_up - 8.881e-05) < tol and abs(r.A - 8.881e-05) < tol
+
+
+def test_table_whitespace_without_header():
+    text = "# axis: Y\n" + "\n".join(f"{p} {c} {'up' if d == '+' else 'down'} {m}"
+                                      for p, c, d, m in hand_rows())
+    log = parse_table(text, "t.txt")
+    assert log.axis == "Y"
+    assert abs(iso230_2(log).E - 12e-3) < TOL_MM
+
+
+def test_table_csv_header_any_order_and_deviation_column():
+    lines = ["Direction;Run;Target;deviation_um"]
+    lines += [f"{d};{c};{p};{(m - p) * 1000:.6f}" for p, c, d, m in hand_rows()]
+    r = iso230_2(parse_table("\n".join(lines), "t.csv"))
+    for name, um in HAND_FIGURES_UM.items():
+        assert abs(getattr(r, name) - um * 1e-3) < TOL_MM, name
+
+
+@pytest.mark.parametrize("text,match", [
+    ("0 1 sideways 0\n", "direction 'sideways' is not"),
+    ("0 1 + 0 7\n", "5 fields, expected 4"),
+    ("target,cycle,measured\n0,1,0\n", "header has no 'direction' column"),
+    ("0 x + 0\n", "cycle 'x' is not a number"),
+    ("0 1 + 0\n0 1 + 0.1\n", "already measured in row 0"),
+    ("# only comments\n", "no data rows"),
+])
+def test_table_bad_input(text, match):
+    with pytest.raises(PositioningLogError, match=match):
+        parse_table(text, "t.txt")
+
+
+def test_load_positioning_detects_the_kind(tmp_path):
+    (tmp_path / "a.csv").write_text(hand_text())
+    (tmp_path / "b.dat").write_text(ECMC_OWN)
+    (tmp_path / "c.txt").write_text("\n".join(f"{p} {c} {d} {m}" for p, c, d, m in hand_rows()))
+    assert load_positioning(tmp_path / "a.csv").meta["format"] == FORMAT
+    assert load_positioning(tmp_path / "b.dat").meta["imported_from"] == "ecmc .dat"
+    assert load_positioning(tmp_path / "c.txt").meta["imported_from"] == "table"
+    with pytest.raises(PositioningLogError, match="input kind 'xls'"):
+        load_positioning(tmp_path / "a.csv", kind="xls")
+
+
+# --------------------------------------------------------------------------
+# uncertainty of the test
+
+
+def test_uncertainty_budget_by_hand():
+    """Hand case travel L = 200 mm = 0.2 m.
+
+    instrument    sqrt(0.3^2 + (0.4 um/m * 0.2 m)^2) = sqrt(0.0964)       um
+    cosine        L phi^2/2 = 0.2e6 um * (1e-3)^2 / 2 = 0.1 um; / sqrt 12
+    temperature   L alpha u_T = 0.2e6 * 11.5e-6 * 0.1 = 0.23 um
+    coefficient   L |21.5 - 20| u_alpha = 0.2e6 * 1.5 * 1e-6 = 0.3 um
+    E_VE          0.6 / sqrt 12
+    u_range^2 = 0.0964 + 0.01/12 + 0.0529 + 0.09 + 0.36/12 = 0.27013333...
+    U(E) = 2 sqrt(0.270133333); U(B) = U(R) = 2 * 0.6 / sqrt 12
+    """
+    from core.positioning import UncertaintyInputs, figure_uncertainty
+
+    r = iso230_2(parse_positioning_log(hand_text()))
+    b = figure_uncertainty(r, UncertaintyInputs(
+        u_instrument_um=0.3, u_instrument_um_per_m=0.4, misalignment_urad=1000.0, temperature_C=21.5,
+        u_temperature_K=0.1, alpha_per_K=11.5e-6, u_alpha_per_K=1e-6, eve_um=0.6))
+    assert b.travel_mm == 200.0
+    assert b.contributions["instrument"][0] == pytest.approx(math.sqrt(0.0964), abs=1e-12)
+    assert b.contributions["temperature measurement"][0] == pytest.approx(0.23, abs=1e-12)
+    assert b.contributions["expansion coefficient"][0] == pytest.approx(0.3, abs=1e-12)
+    for f in ("E", "E_up", "M", "A"):
+        assert b.U[f] == pytest.approx(2 * math.sqrt(0.0964 + 0.01 / 12 + 0.0529 + 0.09 + 0.36 / 12), abs=1e-12)
+    for f in ("B", "B_mean", "R"):
+        assert b.U[f] == pytest.approx(2 * 0.6 / math.sqrt(12), abs=1e-12)
+    rep = b.to_report()
+    assert rep["k"] == 2.0 and rep["U_E_um"] == b.U["E"] and len(rep["contributions"]) == 5
+
+
+def test_cosine_error_stays_inside_its_bound():
+    """Misalign the instrument by phi (readings shrink by cos phi about the first
+    target, where it was zeroed): E moves by no more than L phi^2 / 2, the
+    width the budget gives the cosine error."""
+    phi = 2e-3
+    rows = [(p, c, d, 0.0 + (m - 0.0) * math.cos(phi)) for p, c, d, m in hand_rows()]
+    e0 = iso230_2(parse_positioning_log(hand_text())).E
+    e1 = iso230_2(parse_positioning_log(hand_text(rows))).E
+    width_mm = 200.0 * phi ** 2 / 2
+    assert 0 < abs(e1 - e0) <= width_mm
+
+
+@pytest.mark.parametrize("kw,match", [
+    (dict(eve_um=-1.0), "eve_um must be a finite number >= 0"),
+    (dict(u_instrument_um=float("nan")), "u_instrument_um must be"),
+    (dict(temperature_C=293.15), "temperature_C must be a workshop temperature"),
+])
+def test_uncertainty_bad_input(kw, match):
+    from core.positioning import UncertaintyInputs
+
+    with pytest.raises(PositioningLogError, match=match):
+        UncertaintyInputs(**kw)
+
+
+def test_uncertainty_budget_is_for_linear_axes():
+    from core.positioning import UncertaintyInputs, figure_uncertainty
+
+    rows = [(p / 100, c, d, m / 100) for p, c, d, m in hand_rows()]
+    text = hand_text(rows, header="target_deg,cycle,direction,measured_deg", meta="# unit: deg\n")
+    with pytest.raises(PositioningLogError, match="for linear axes"):
+        figure_uncertainty(iso230_2(parse_positioning_log(text)), UncertaintyInputs(eve_um=1.0))

@@ -1,0 +1,129 @@
+"""``vmt iso230-2`` and ``vmt simulate positioning``: contract keys, bad input exits 2."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from core.positioning import iso230_2, read_positioning_log
+from scenarios.cli import main
+from scenarios.positioning_sample import SAMPLE
+
+CONTRACT = ("B_um", "B_mean_um", "R_up_um", "R_down_um", "R_um", "E_up_um", "E_down_um", "E_um", "M_um",
+            "A_up_um", "A_down_um", "A_um", "per_target")
+# 2 targets (0, 10 mm) x 2 cycles; deviations in um: + at 0: 1, 3; - at 0: -1, -1; + at 10: 2, 2; - at 10: 0, 2
+ROWS = [(0, 1, "+", 0.001), (10, 1, "+", 10.002), (10, 1, "-", 10.0), (0, 1, "-", -0.001),
+        (0, 2, "+", 0.003), (10, 2, "+", 10.002), (10, 2, "-", 10.002), (0, 2, "-", -0.001)]
+# 2 targets, 2 cycles in ecmc's layout (FWD = +): B_i = (1.0 - -0.5, 2.0 - 0.0) = (1.5, 2.0) um
+ECMC = """UNIT=mm
+CYCLES=2
+POSITIONS=2
+TGT_DATA[1]=0
+TGT_DATA[2]=10
+REF_DATA_FWD[1,1]=0.0010
+REF_DATA_FWD[2,1]=10.0020
+REF_DATA_FWD[1,2]=0.0010
+REF_DATA_FWD[2,2]=10.0020
+REF_DATA_BWD[1,1]=-0.0005
+REF_DATA_BWD[2,1]=10.0000
+REF_DATA_BWD[1,2]=-0.0005
+REF_DATA_BWD[2,2]=10.0000
+"""
+
+
+def log_text(rows=ROWS):
+    body = "\n".join(",".join(str(v) for v in r) for r in rows)
+    return f"# format: positioning-log/1\ntarget_mm,cycle,direction,measured_mm\n{body}\n"
+
+
+def test_iso230_2_writes_the_contract(tmp_path, capsys):
+    out = tmp_path / "r.json"
+    assert main(["iso230-2", str(SAMPLE), "--json", str(out), "--eve-um", "0.6"]) == 0
+    rep = json.loads(out.read_text())
+    for k in CONTRACT:
+        assert k in rep, k
+    lib = iso230_2(read_positioning_log(SAMPLE)).to_report()  # the wiring: the library's figures, in um
+    for k in CONTRACT[:-1]:
+        assert rep[k] == lib[k]
+    assert rep["per_target"] == lib["per_target"]
+    assert rep["uncertainty"]["U_R_um"] == pytest.approx(2 * 0.6 / 12 ** 0.5)
+    cap = capsys.readouterr()
+    assert ["E", f"{lib['E_um']:.3f}", "um", "(U"] in [line.split()[:4] for line in cap.out.splitlines()]
+    assert cap.err == ""
+
+
+def test_iso230_2_warns_on_a_short_test(tmp_path, capsys):
+    p = tmp_path / "short.csv"
+    p.write_text(log_text())
+    assert main(["iso230-2", str(p), "--json", str(tmp_path / "r.json")]) == 0
+    # by hand: x_up(0) = 2, x_down(0) = -1, x_up(10) = 2, x_down(10) = 1 -> E = 2 - (-1) = 3 um
+    assert json.loads((tmp_path / "r.json").read_text())["E_um"] == pytest.approx(3.0, abs=1e-6)
+    err = capsys.readouterr().err
+    assert "2 valid approaches at some target and direction: ISO 230-2 asks 5" in err
+
+
+def test_iso230_2_reads_ecmc_and_writes_the_log(tmp_path, capsys):
+    dat = tmp_path / "x.dat"
+    dat.write_text(ECMC)
+    assert main(["iso230-2", str(dat), "--json", str(tmp_path / "r.json"),
+                 "--write-log", str(tmp_path / "x.csv")]) == 0
+    assert (tmp_path / "x.csv").read_text().startswith("# format: positioning-log/1")
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["B_um"] == pytest.approx(2.0, abs=1e-6) and rep["B_mean_um"] == pytest.approx(1.75, abs=1e-6)
+
+
+@pytest.mark.parametrize("text,kind,match", [
+    (None, "auto", "no such file"),
+    (log_text([r for r in ROWS if r[2] == "+"]), "auto", "no valid readings approached in the '-' direction"),
+    (ECMC.replace("REF_DATA_BWD[2,2]=10.0000\n", ""), "auto", "REF_DATA_BWD[2,2] missing"),
+    (log_text(), "ecmc", "not KEY=VALUE or KEY[i,j]=VALUE"),
+])
+def test_iso230_2_bad_input_exit_2(tmp_path, capsys, text, kind, match):
+    p = tmp_path / "in.txt"
+    if text is not None:
+        p.write_text(text)
+    out = tmp_path / "r.json"
+    assert main(["iso230-2", str(p), "--json", str(out), "--from", kind]) == 2
+    err = capsys.readouterr().err
+    assert match in err and err.count("\n") == 1
+    assert not out.exists()  # nothing half-written
+
+
+def test_iso230_2_subprocess_no_traceback(tmp_path):
+    p = tmp_path / "dup.csv"
+    p.write_text(log_text(ROWS + [ROWS[0]]))
+    r = subprocess.run([sys.executable, "-m", "scenarios.cli", "iso230-2", str(p), "--json",
+                        str(tmp_path / "r.json")], capture_output=True, text=True)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and r.stderr.count("\n") == 1
+    assert "already measured in row 0" in r.stderr
+
+
+def test_simulate_positioning_then_evaluate_with_report(tmp_path, capsys):
+    log = tmp_path / "y.csv"
+    assert main(["simulate", "positioning", "--machine", "vmc-3axis", "--axis", "Y", "--out", str(log),
+                 "--targets", "6", "--cycles", "5", "--cycle", "pilgrim", "--reversal-um", "2",
+                 "--noise-um", "0", "--errors", "none"]) == 0
+    assert main(["iso230-2", str(log), "--json", str(tmp_path / "r.json"), "--report", str(tmp_path / "rep")]) == 0
+    rep = json.loads((tmp_path / "r.json").read_text())
+    # Y of vmc-3axis moves the table: lost motion 2 um reads as B_i = -2 um at every target, nothing else
+    assert rep["B_mean_um"] == pytest.approx(-2.0, abs=1e-6) and rep["E_um"] == pytest.approx(2.0, abs=1e-6)
+    assert rep["M_um"] == pytest.approx(0.0, abs=1e-6) and rep["cycle_kind"] == "pilgrim"
+    html = (tmp_path / "rep" / "index.html").read_text()
+    assert "iso230_2.png" in html and "Baseline for model discovery" in html
+
+
+@pytest.mark.parametrize("argv,match", [
+    (["simulate", "mfb", "--out", "x.csv", "--axis", "X"], "--axis applies to 'vmt simulate positioning' only"),
+    (["simulate", "positioning", "--out", "x.csv", "--c-angles", "0"], "--c-angles does not apply"),
+    (["simulate", "positioning", "--out", "x.csv", "--machine", "nope"], "--machine 'nope' is not one of"),
+    (["simulate", "positioning", "--out", "x.csv", "--travel-mm", "0-100"], "--travel-mm '0-100': expected 2"),
+    (["simulate", "positioning", "--out", "x.csv", "--cycles", "1"], "cycles must be a whole number >= 2"),
+    (["simulate", "positioning", "--out", "x.csv", "--travel-mm", "0:400"], "leave the stroke"),
+])
+def test_simulate_positioning_bad_options_exit_2(tmp_path, capsys, monkeypatch, argv, match):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert match in err and err.count("\n") == 1
+    assert not (tmp_path / "x.csv").exists()
