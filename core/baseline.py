@@ -835,3 +835,26 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
         conventions=("x_ij = measured - target (ISO 230-2); one mean per target and direction",),
         info={"targets": int(len(np.unique(tx))), "cycles": int(len(cyc_ids))},
         estimand_label="mean unidirectional positional deviation")
+
+
+def positioning_from_log(log) -> Baseline:
+    """The positioning baseline of a ``positioning-log/1`` test (:mod:`core.positioning`).
+
+    The valid readings as ISO 230-2 arranges them (:func:`core.positioning.arrange`
+    and :func:`core.positioning.baseline`), converted to SI (mm -> m,
+    deg -> rad), with the log's ``temp_*_C`` columns as covariates.
+    """
+    from . import positioning as pos
+    from .units import DEG
+
+    test = pos.arrange(log)
+    pb = pos.baseline(test)
+    k = DEG if pb.unit == "deg" else MM
+    t = None if np.all(np.isnan(pb.t_s)) else np.where(np.isfinite(pb.t_s), pb.t_s, np.nan)
+    if t is not None and np.any(np.isnan(t)):
+        t = None  # a clock with holes: the reading order instead
+    temps = {}
+    for name, v in getattr(log, "extra", {}).items():
+        if name.startswith("temp_") and name.endswith("_C"):
+            temps[name] = np.asarray(v, float)[pb.row]
+    return positioning(pb.target * k, pb.direction, pb.cycle, pb.deviation * k, t, temps)

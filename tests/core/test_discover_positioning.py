@@ -66,3 +66,16 @@ def test_positioning_bad_input():
         positioning([0.0, 0.1], ["+", "x"], [1, 2], [0.0, 0.0])
     with pytest.raises(ConfigError, match="two cycles"):
         positioning([0.0, 0.1], ["+", "-"], [1, 1], [0.0, 0.0])
+
+
+def test_positioning_log_through_core_positioning():
+    """The same engine from a positioning-log/1 test (core.positioning's arrangement), a drift named."""
+    from core.baseline import positioning_from_log
+    from core.positioning import make_positioning_log
+
+    bl = _run("thermal_drift", 5)
+    d = bl.data
+    log = make_positioning_log(d.x / 1e-3, d.cycle + 1, d.direction, (d.x + bl.y) / 1e-3, t_s=d.t_s)
+    rep = discover_baseline(positioning_from_log(log)).to_report()
+    assert rep["cause"] == "thermal_drift", [f["cause"] for f in rep["findings"]]
+    assert rep["baseline"]["n"] == log.n
