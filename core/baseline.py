@@ -554,7 +554,7 @@ class VolumetricData:
 
     Attributes
     ----------
-    design : core.volumetric.Design
+    design : core.volumetric.VolumetricDesign
     comp : (n,) int
         Component of the row (0, 1, 2: x, y, z in W).
     meas : (n,) int

@@ -745,7 +745,7 @@ def mfb_outcome(cause: str, seed: int, **discover_kw) -> Outcome:
 
     The estimand's error (``wp_*``) is the RMS over the positioning and
     straightness table values (um) of estimate minus truth in the
-    baseline's gauge (the truth expressed with :func:`core.volumetric.to_gauge`).
+    baseline's gauge (the truth expressed with ``VolumetricDesign.to_gauge``).
     """
     import time
 
@@ -773,7 +773,7 @@ def mfb_outcome(cause: str, seed: int, **discover_kw) -> Outcome:
         f = errs.get(s)
         if f is not None:
             truth[des.slices[s]] = float(np.asarray(f(np.zeros(1)))[0])
-    truth = vol.to_gauge(des, truth)
+    truth = des.to_gauge(truth)
     lin = np.array([not iso.symbol(s.split("@")[0]).angular for s in bl.estimand_ids])
     tq = truth[bl.estimand]
 
