@@ -37,7 +37,7 @@ from .touches import Touches
 
 from .units import MM
 #: Relative pivot of the column-scaled design below which a direction counts
-#: as unseen (singular-value ratio; core.selfcal.solve uses 1e-6).
+#: as unseen (singular-value ratio; core.lsq.solve uses 1e-6).
 RANK_TOL = 1e-7
 
 
@@ -370,7 +370,7 @@ def centred_grid(p_R: np.ndarray, step_m: float) -> selfcal.Grid:
     return selfcal.Grid(*nodes)
 
 
-def _height_columns(t: Touches, des: selfcal.Design):
+def _height_columns(t: Touches, des: selfcal.SelfCalDesign):
     """C-axis tilt and Abbe columns for touches at more than one Z level.
 
     The paper's model is planar: every touch at one height. Touches at
