@@ -19,19 +19,97 @@ import numpy as np
 from core.exceptions import HardwareError
 from core.touches import ProbeStatus
 
-#: GRBL alarm codes the adapter names (GRBL 1.1 / grblHAL / FluidNC agree).
+#: GRBL 1.1 alarm codes (grblHAL and FluidNC use the same numbers), in our words. The
+#: firmware's alarm_codes_en_US.csv and report.h are the source; what to do is in
+#: :data:`ALARM_RECOVERY`.
 ALARMS = {
-    1: "hard limit triggered",
-    2: "soft limit: target outside machine travel",
-    3: "reset while in motion",
-    4: "probe already triggered before the probing move",
-    5: "probe did not contact within the programmed travel",
-    6: "homing failed: reset during cycle",
-    7: "homing failed: door opened",
-    8: "homing failed: pull-off did not clear the switch",
-    9: "homing failed: switch not found",
-    10: "homing failed: second switch",
+    1: "hard limit: a limit switch tripped, the machine stopped at once, its position is likely lost",
+    2: "soft limit: the target lies outside the machine travel; stopped before it, position kept",
+    3: "reset while in motion: the machine stopped at once, its position is likely lost",
+    4: "probe not in the expected state at the start of a probing move "
+       "(G38.2/G38.3: already triggered; G38.4/G38.5: not triggered)",
+    5: "probe did not contact within the programmed travel (G38.2/G38.4); position kept",
+    6: "homing failed: reset during the homing cycle",
+    7: "homing failed: safety door opened during the homing cycle",
+    8: "homing failed: the pull-off did not clear the limit switch",
+    9: "homing failed: limit switch not found within the search distance",
+    10: "homing failed: the second switch of a dual axis not found",
 }
+
+#: Alarms after which GRBL answers nothing, not even a status report, until a reset
+#: (Ctrl-X): it prints ``[MSG:Reset to continue]`` and waits (protocol.c).
+CRITICAL_ALARMS = frozenset({1, 2})
+
+#: What each alarm needs before motion, in vmt's options. GRBL keeps its alarm lock
+#: (``error:9`` for every G-code line) until ``$X`` (``--unlock``) or ``$H`` (``--home``);
+#: after a critical alarm it first needs a reset (``--reset`` sends Ctrl-X).
+ALARM_RECOVERY = {
+    1: "clear the limit switch, then re-run with --resume --reset --home "
+       "(GRBL needs a reset first; re-home: the position is likely lost)",
+    2: "re-run with --resume --reset --unlock (GRBL needs a reset first, then $X; the position "
+       "was kept) after fixing the plan or the limits",
+    3: "re-run with --resume --home (the position is likely lost), or --unlock if it is known",
+    4: "move the probe clear of the part, then re-run with --resume --unlock",
+    5: "the miss is logged; re-run with --resume --unlock (or probe with --allow-miss)",
+    6: "re-run with --resume --home",
+    7: "close the door, then re-run with --resume --home",
+    8: "check the homing switches and pull-off ($27), then re-run with --resume --home",
+    9: "check the homing switches and travel ($130..), then re-run with --resume --home",
+    10: "check the dual-axis homing switches, then re-run with --resume --home",
+}
+
+#: GRBL 1.1 error codes (``error:N``), in our words. The firmware's error_codes_en_US.csv,
+#: report.h, gcode.c and system.c are the source; 18 and 19 are unused.
+ERRORS = {
+    1: "expected command letter: a G-code word has no letter before its value",
+    2: "bad number format: a value is missing or not a number",
+    3: "invalid statement: '$' command not recognised or not supported",
+    4: "negative value where a positive one is expected",
+    5: "setting disabled: homing ($H) is not enabled ($22=0)",
+    6: "step pulse shorter than 3 microseconds ($0)",
+    7: "EEPROM read failed: settings restored to defaults",
+    8: "not idle: this '$' command needs the controller idle",
+    9: "G-code locked out during alarm or jog",
+    10: "soft limits need homing enabled ($20=1 needs $22=1)",
+    11: "line overflow: more than 79 characters (spaces removed); the line was not executed",
+    12: "a setting makes the step rate exceed the maximum (30 kHz)",
+    13: "safety door open",
+    14: "build info or startup line too long for the EEPROM; not stored",
+    15: "jog target beyond the machine travel; jog ignored",
+    16: "invalid jog command: no '=' or a G-code a jog does not allow",
+    17: "laser mode needs PWM output",
+    20: "unsupported or invalid G-code command in the block",
+    21: "two commands of the same modal group in one block",
+    22: "feed rate not set",
+    23: "the command needs an integer value",
+    24: "two commands that both use axis words in one block",
+    25: "a word repeated in the block",
+    26: "no axis words for a command (or motion mode) that needs them",
+    27: "line number out of range",
+    28: "a required value word (P, L) is missing",
+    29: "G59.x work coordinate systems are not supported",
+    30: "G53 is allowed only with G0 and G1",
+    31: "axis words in a block where no command uses them",
+    32: "G2/G3 arc without an axis word in the selected plane",
+    33: "invalid motion target (a probing move of zero length, an arc end off the circle)",
+    34: "arc radius error: R too small for the distance to the end point",
+    35: "G2/G3 arc without an offset (I, J, K) in the selected plane",
+    36: "unused value words in the block",
+    37: "G43.1 dynamic tool length offset not on the tool length axis (Z)",
+    38: "tool number above the supported maximum (255)",
+}
+
+
+def describe_alarm(code: int) -> str:
+    """``ALARM:n (meaning): what to do`` for a message to the user."""
+    what = ALARMS.get(code, "unknown alarm (see the controller's manual)")
+    todo = ALARM_RECOVERY.get(code, "clear the cause, then re-run with --resume --unlock")
+    return f"ALARM:{code} ({what}): {todo}"
+
+
+def describe_error(code: int) -> str:
+    """``error:n (meaning)``."""
+    return f"error:{code} ({ERRORS.get(code, 'unknown error: see the controller manual')})"
 
 
 @dataclass(frozen=True)
@@ -142,7 +220,7 @@ class VirtualBackend:
         triggered, pos = self.machine.probe_move(start, target, self._rot.copy())
         pos = np.asarray(pos, dtype=float).reshape(3)
         if triggered and np.allclose(pos, start, rtol=0, atol=1e-12):
-            raise HardwareError(f"ALARM:4 ({ALARMS[4]})")
+            raise HardwareError(describe_alarm(4))
         self._pos = pos.copy()
         if triggered:
             return ProbeResult(ProbeStatus.OK, pos)

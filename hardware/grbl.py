@@ -8,9 +8,24 @@ The protocol, as this client uses it (GRBL 1.1 "simple send-response"):
 - a probing move ``G38.2`` (``G38.3`` where a miss is allowed) reports
   ``[PRB:x,y,z(,a,...):s]`` in machine coordinates, mm, any number of axes,
   ``s`` = 1 on contact;
-- ``ALARM:N`` at any time: 4 = probe already triggered, 5 = no contact
-  (a ``no_trigger`` touch). The controller then refuses motion (error:9)
-  until ``$X``, which this client sends only when asked to.
+- ``ALARM:N`` at any time (table and advice in :mod:`hardware.backend`).
+  After a ``G38.2`` miss the firmware prints ``ALARM:5``, then, after its
+  0.5 s alarm delay, ``[PRB:...:0]`` with the *previous* successful probe
+  position (it does not update it on a failed ``G38.2``), then ``ok``: the
+  alarm wins, the report is stale and never taken for a position. Every
+  G-code line then gets ``error:9`` (alarm lock) until ``$X`` or ``$H``,
+  which this client sends only on the user's word (``--unlock``,
+  ``--home``). After ``ALARM:1`` (hard limit) or ``ALARM:2`` (soft limit)
+  the firmware answers nothing, not even ``?``, until a reset (Ctrl-X,
+  ``--reset``), and only then ``$X`` or ``$H``;
+- a line holds at most 79 characters once spaces are removed (GRBL's
+  80-byte line buffer; ``error:11`` beyond): numbers are written with
+  fewer decimals when a line would not fit, and a line that cannot fit is
+  refused by name before it is sent;
+- the controller's axes: ``X, Y, Z`` when its status report has three
+  values; otherwise named by the user (``--axes``) or read from ``$I``
+  (grblHAL's ``[AXS:n:XYZAC]``). Positioning lines carry a word for every
+  rotary axis the controller has, and no other (``--rotary``).
 
 Positions always come from the controller's own ``PRB`` or status report,
 never from the command that was sent. Lines that are neither an expected
@@ -40,15 +55,12 @@ import numpy as np
 
 from core.exceptions import HardwareError
 
-from .backend import ALARMS, ProbeResult
+from .backend import ALARMS, CRITICAL_ALARMS, ProbeResult, describe_alarm, describe_error
 
-#: GRBL 1.1 error codes the adapter names.
-ERRORS = {
-    1: "expected command letter", 2: "bad number format", 3: "invalid $ statement",
-    8: "not idle", 9: "G-code locked out during alarm or jog", 15: "travel exceeded",
-    20: "unsupported or invalid G-code command", 21: "modal group violation",
-    22: "feed rate not set", 26: "no axis words", 33: "invalid motion target",
-}
+#: Characters a line may have once spaces are removed (GRBL's 80-byte line buffer).
+LINE_MAX_CHARS = 79
+#: After an alarm, how long to wait for the rest of the answer (GRBL waits 0.5 s after it), s.
+ALARM_GRACE_S = 3.0
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)"
 _PRB = re.compile(rf"^\[PRB:({_NUM}(?:,{_NUM}){{2,8}}):([01])\]$")
@@ -325,7 +337,8 @@ class GrblClient:
         self.transcript = transcript
         self.clock = clock
         self.unexpected: list[str] = []
-        self.alarm: int | None = None
+        self.alarm: int | None = None       # the last alarm seen, until cleared by the backend
+        self.last_msg: str | None = None    # the last [MSG:...] line
         self._wco = None
 
     # -- plumbing
@@ -340,13 +353,25 @@ class GrblClient:
 
     def _send(self, data: str) -> None:
         self._log(">", data.strip() or repr(data))
-        self.link.send(data.encode("ascii"))
+        try:
+            self.link.send(data.encode("latin-1"))
+        except HardwareError as e:
+            raise self._lost(e) from None
 
     def _read(self, timeout_s: float) -> str | None:
-        line = self.link.readline(timeout_s)
+        try:
+            line = self.link.readline(timeout_s)
+        except HardwareError as e:
+            raise self._lost(e) from None
         if line is not None:
             self._log("<", line)
+            if line.startswith("[MSG:"):
+                self.last_msg = line
         return line
+
+    def _lost(self, e: HardwareError) -> HardwareError:
+        said = f" (its last message: {self.last_msg})" if self.last_msg else ""
+        return HardwareError(f"{e}{said}")
 
     def _unexpected(self, line: str, context: str) -> None:
         shown = line if len(line) <= 80 else line[:77] + "..."
@@ -366,13 +391,21 @@ class GrblClient:
     def command(self, line: str, timeout_s: float | None = None) -> Reply:
         """Send one G-code line and collect the answer up to ``ok`` / ``error:N``.
 
+        After an alarm the answer may end without ``ok`` (``ALARM:1``/``2``:
+        the firmware then answers nothing until a reset): the reply is
+        returned :data:`ALARM_GRACE_S` after the last line.
+
         Raises
         ------
         HardwareError
-            No answer within the timeout, connection lost, the controller
-            reset (its banner) in the middle of a command.
+            The line is longer than GRBL takes, no answer within the timeout,
+            connection lost, the controller reset (its banner) in the middle.
         """
         line = line.strip()
+        n = len("".join(line.split()))
+        if n > LINE_MAX_CHARS:
+            raise HardwareError(f"line {line!r} has {n} characters without spaces; "
+                                f"GRBL takes at most {LINE_MAX_CHARS} (error:11)")
         rep = Reply(line)
         self._send(line + "\n")
         limit = self.timeout_s if timeout_s is None else timeout_s
@@ -395,8 +428,12 @@ class GrblClient:
             code = self._alarm(got)
             if code is not None:
                 rep.alarms.append(code)
-                end = min(end, time.monotonic() + 2.0)   # wait briefly for PRB / ok
+                end = min(end, time.monotonic() + ALARM_GRACE_S)   # then PRB / ok, or nothing
                 continue
+            if rep.alarms:
+                end = min(end, time.monotonic() + ALARM_GRACE_S)
+                if got == "[MSG:Reset to continue]":      # nothing more comes until a reset
+                    return rep
             if got.startswith("[PRB"):
                 p = parse_prb(got)
                 if p is None:
@@ -417,19 +454,29 @@ class GrblClient:
             self._unexpected(got, f"answering {line!r}")
 
     def expect_ok(self, line: str, timeout_s: float | None = None) -> Reply:
-        """:meth:`command`, raising on ``error:N`` or an alarm."""
+        """:meth:`command`, raising on ``error:N`` or an alarm (with what to do)."""
         rep = self.command(line, timeout_s)
         if rep.alarms:
-            a = rep.alarms[0]
-            raise HardwareError(f"ALARM:{a} ({ALARMS.get(a, 'unknown alarm')}) on {line!r}")
+            raise HardwareError(f"{describe_alarm(rep.alarms[0])} [on {line!r}]")
         if rep.error is not None:
             e = rep.error
-            hint = "; the controller is in alarm: clear the cause and re-run with --unlock" if e == 9 else ""
-            raise HardwareError(f"controller rejected {line!r}: error:{e} ({ERRORS.get(e, 'see the controller manual')}){hint}")
+            hint = ""
+            if e == 9:
+                hint = ("; the controller is in alarm" + (f": {describe_alarm(self.alarm)}"
+                                                         if self.alarm is not None else
+                                                         ": clear the cause and re-run with --unlock"))
+            raise HardwareError(f"controller rejected {line!r}: {describe_error(e)}{hint}")
         return rep
 
     def status(self, timeout_s: float = 5.0) -> Status:
-        """Query ``?`` until a well-formed status report arrives (resent every 0.5 s)."""
+        """Query ``?`` until a well-formed status report arrives (resent every 0.5 s).
+
+        Raises
+        ------
+        HardwareError
+            No status report within ``timeout_s``: GRBL answers none while a
+            hard or soft limit alarm waits for a reset.
+        """
         end = time.monotonic() + timeout_s
         while time.monotonic() < end:
             self._send("?")
@@ -452,28 +499,88 @@ class GrblClient:
                         return st
                     self._unexpected(got, "malformed status report")
                     continue
-                if self._alarm(got) is not None or got == "ok" or _BANNER.match(got) or _INFO.match(got):
+                if self._alarm(got) is not None or got in ("ok", "") or _BANNER.match(got) \
+                        or _INFO.match(got) or re.fullmatch(r"error:\d+", got):
                     continue
                 self._unexpected(got, "waiting for status")
-        raise HardwareError(f"controller did not answer a status query within {timeout_s:g} s")
+        after = f" after {describe_alarm(self.alarm)}" if self.alarm is not None else ""
+        raise HardwareError(f"controller did not answer a status query within {timeout_s:g} s{after}; "
+                            "GRBL answers nothing after a hard or soft limit alarm (ALARM:1/2) until "
+                            "a reset: re-run with --reset (then --unlock or --home)")
+
+    def reset(self, timeout_s: float = 5.0) -> list[str]:
+        """Soft reset (Ctrl-X) and wait for the banner; returns the lines read."""
+        self._send("\x18")
+        got_lines = []
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            got = self._read(end - time.monotonic())
+            if got is None:
+                break
+            got_lines.append(got)
+            self._alarm(got)
+            if _BANNER.match(got):
+                # the lock message, if any, follows the banner at once
+                more = self._read(0.3)
+                if more is not None:
+                    got_lines.append(more)
+                return got_lines
+        raise HardwareError(f"controller did not answer a reset (Ctrl-X) within {timeout_s:g} s")
+
+    def axes_from_info(self, timeout_s: float = 5.0) -> str | None:
+        """Axis letters from ``$I`` (grblHAL's ``[AXS:n:letters]``); None when not given."""
+        rep = self.command("$I", timeout_s)
+        for ln in rep.lines:
+            m = re.fullmatch(r"\[AXS:(\d+):([A-Z]+)\]", ln)
+            if m and int(m.group(1)) == len(m.group(2)):
+                return m.group(2)
+        return None
 
     def close(self) -> None:
         self.link.close()
 
 
-def move_line(target_mm, feed_mm_min: float, rot_deg=None) -> str:
-    """The positioning line: a feed move in machine coordinates (``G53 G90 G1``)."""
-    words = " ".join(f"{a}{v:.4f}" for a, v in zip("XYZ", target_mm))
+def _fit(words, feed_word: str, lead: str) -> str:
+    """``lead`` + words + ``feed_word``, with the fewest decimals dropped to fit GRBL's line.
+
+    ``words``: [(letter, value)]. Decimals go 4, then trailing zeros cut, then 3
+    (1 µm, GRBL's display resolution). Raises when even that does not fit.
+    """
+    def build(dec, strip):
+        parts = []
+        for a, v in words:
+            t = f"{v:.{dec}f}"
+            if strip and "." in t:
+                t = t.rstrip("0").rstrip(".")
+                t = "0" if t in ("-0", "") else t
+            parts.append(f"{a}{t}")
+        return " ".join([lead] + parts + ([feed_word] if feed_word else []))
+
+    for dec, strip in ((4, False), (4, True), (3, True)):
+        line = build(dec, strip)
+        if len("".join(line.split())) <= LINE_MAX_CHARS:
+            return line
+    raise HardwareError(f"line {build(3, True)!r} cannot be written within GRBL's "
+                        f"{LINE_MAX_CHARS} characters (error:11): too many axes or too large values")
+
+
+def move_line(target_mm, feed_mm_min: float, rot_deg=None, rotary: str = "ABC") -> str:
+    """The positioning line: a feed move in machine coordinates (``G53 G90 G1``).
+
+    ``rot_deg`` (3,) A, B, C in degrees, or None; only the axes in ``rotary``
+    (the controller's rotary axes) get a word.
+    """
+    words = list(zip("XYZ", (float(v) for v in target_mm)))
     if rot_deg is not None:
-        words += " " + " ".join(f"{a}{v:.4f}" for a, v in zip("ABC", rot_deg))
-    return f"G53 G90 G1 {words} F{feed_mm_min:.1f}"
+        words += [(a, float(v)) for a, v in zip("ABC", rot_deg) if a in rotary]
+    return _fit(words, f"F{feed_mm_min:.1f}", "G53 G90 G1")
 
 
 def probe_line(start_mm, end_mm, feed_mm_min: float, allow_miss: bool = False) -> str:
     """The probing line: ``G91 G38.2`` (``G38.3`` with ``allow_miss``) by ``end - start``."""
     d = np.asarray(end_mm, dtype=float) - np.asarray(start_mm, dtype=float)
     g = "G38.3" if allow_miss else "G38.2"
-    return f"G91 {g} " + " ".join(f"{a}{v:.4f}" for a, v in zip("XYZ", d)) + f" F{feed_mm_min:.1f}"
+    return _fit(list(zip("XYZ", (float(v) for v in d))), f"F{feed_mm_min:.1f}", f"G91 {g}")
 
 
 class GrblBackend:
@@ -485,34 +592,69 @@ class GrblBackend:
     name : str
         Free text for the log (the machine URL).
     rotary : bool
-        Send A, B, C words in positioning moves (grblHAL / FluidNC with rotary axes).
+        Send the controller's rotary axes (A, B, C: those it has) in positioning moves.
     path_tol_mm : float
         Largest distance of a probe report from the commanded probing segment
         (and beyond its ends): a report farther away is not taken.
+    axes : str or None
+        The controller's axes as the user names them (``"XYZAC"``); None: read
+        them (three values in the status report: X, Y, Z; more: ``$I``).
+    reset : bool
+        Soft-reset the controller (Ctrl-X) before anything else (after a hard
+        or soft limit alarm GRBL needs it).
     """
 
     def __init__(self, client: GrblClient, name: str = "grbl", rotary: bool = False,
-                 path_tol_mm: float = 1.0):
+                 path_tol_mm: float = 1.0, axes: str | None = None, reset: bool = False):
         self.client = client
         self.name = name
         self.rotary = rotary
         self.path_tol_mm = float(path_tol_mm)
+        self.user_axes = None if axes is None else _check_axes(axes)
+        self.axes: str | None = None
+        self.reset = reset
         self._pos_mm: np.ndarray | None = None
 
     def start(self, *, unlock: bool = False, home: bool = False) -> None:
-        st = self.client.status()
-        if st.state.lower() == "alarm" or self.client.alarm is not None:
+        c = self.client
+        if self.reset:
+            c.reset()
+        st = c.status(timeout_s=min(5.0, c.timeout_s))
+        self.axes = self._axes(st)
+        if st.state.lower() == "alarm":
             if not unlock and not home:
-                raise HardwareError("controller is in alarm state; clear the cause and re-run "
-                                    "with --unlock (sends $X) or --home (sends $H)")
+                why = describe_alarm(c.alarm) if c.alarm is not None else (
+                    "the controller is in alarm: clear the cause and re-run with --unlock "
+                    "(sends $X) or --home (sends $H)")
+                raise HardwareError(f"controller in alarm, nothing sent: {why}")
         if home:
-            self.client.expect_ok("$H", timeout_s=max(self.client.timeout_s, 120.0))
+            c.expect_ok("$H", timeout_s=max(c.timeout_s, 120.0))
         elif st.state.lower() == "alarm" and unlock:
-            self.client.expect_ok("$X")
-        self.client.alarm = None
+            c.expect_ok("$X")
+        c.alarm = None
         for line in ("G21", "G90", "G94"):
-            self.client.expect_ok(line)
-        self._pos_mm = self.client.status().mpos_mm[:3].copy()
+            c.expect_ok(line)
+        self._pos_mm = c.status().mpos_mm[:3].copy()
+
+    def _axes(self, st: Status) -> str:
+        k = st.mpos_mm.size
+        if self.user_axes is not None:
+            if len(self.user_axes) != k:
+                raise HardwareError(f"--axes {self.user_axes}: the controller reports {k} axes "
+                                    f"({','.join(f'{v:g}' for v in st.mpos_mm)})")
+            return self.user_axes
+        if k == 3:
+            return "XYZ"
+        got = self.client.axes_from_info()
+        if got is not None and len(got) == k:
+            return _check_axes(got)
+        raise HardwareError(f"the controller reports {k} axes but does not name them ($I has no "
+                            "[AXS:n:letters]): name them with --axes, e.g. --axes XYZA")
+
+    @property
+    def rotary_axes(self) -> str:
+        """The controller's rotary axes, ``""`` before :meth:`start`."""
+        return "".join(a for a in (self.axes or "") if a in "ABC")
 
     def position_m(self) -> np.ndarray:
         st = self.client.status()
@@ -521,11 +663,28 @@ class GrblBackend:
 
     def move(self, target_m, feed_mm_min: float, rot_rad=None) -> None:
         t = np.asarray(target_m, dtype=float) * 1e3
-        rot = np.degrees(rot_rad) if (self.rotary and rot_rad is not None) else None
-        self.client.expect_ok(move_line(t, feed_mm_min, rot))
+        rot = None
+        if self.rotary and rot_rad is not None:
+            rot = np.degrees(np.asarray(rot_rad, dtype=float).reshape(3))
+            have = self.rotary_axes
+            for a, v in zip("ABC", rot):
+                if a not in have and abs(v) > 1e-9:
+                    raise HardwareError(f"the plan needs {a} = {v:g} deg but the controller's axes are "
+                                        f"{self.axes}: no {a} axis to turn")
+        self.client.expect_ok(move_line(t, feed_mm_min, rot, self.rotary_axes))
         self._pos_mm = t
 
     def probe(self, target_m, feed_mm_min: float, *, allow_miss: bool = False) -> ProbeResult:
+        """One probing move (``G91 G38.2``, or ``G38.3`` with ``allow_miss``).
+
+        GRBL answers a contact with ``[PRB:x,y,z:1]`` and ``ok``. A ``G38.2``
+        miss raises ``ALARM:5``: the alarm decides, the ``[PRB:...:0]`` that
+        follows repeats the previous probe and is never a position, the touch
+        is a ``no_trigger`` with ``alarm=5``. The ``G90`` that restores
+        absolute mode is then refused with ``error:9`` (alarm lock), as the
+        firmware does; the controller stays locked until ``$X`` (``--unlock``)
+        when the campaign is resumed. Any other alarm raises with what to do.
+        """
         if self._pos_mm is None:
             self.position_m()
         start = self._pos_mm.copy()
@@ -535,19 +694,24 @@ class GrblBackend:
             raise HardwareError("probing move of zero length")
         line = probe_line(start, end, feed_mm_min, allow_miss)
         rep = self.client.command(line)
-        try:
-            self.client.expect_ok("G90")
-        except HardwareError:
-            if not rep.alarms:
-                raise
-        if 4 in rep.alarms:
-            raise HardwareError(f"ALARM:4 ({ALARMS[4]}): move the probe clear and re-run with --resume --unlock")
+        crit = [a for a in rep.alarms if a in CRITICAL_ALARMS]
+        if crit:       # the firmware now answers nothing until a reset: send nothing more
+            raise HardwareError(f"{describe_alarm(crit[0])} [during {line!r}]")
+        back = self.client.command("G90")
+        if back.error is not None and not (back.error == 9 and rep.alarms):
+            raise HardwareError(f"controller rejected 'G90': {describe_error(back.error)}")
         other = [a for a in rep.alarms if a != 5]
         if other:
-            raise HardwareError(f"ALARM:{other[0]} ({ALARMS.get(other[0], 'unknown alarm')}) during {line!r}")
+            raise HardwareError(f"{describe_alarm(other[0])} [during {line!r}]")
         if rep.error is not None:
-            raise HardwareError(f"controller rejected {line!r}: error:{rep.error} "
-                                f"({ERRORS.get(rep.error, 'see the controller manual')})")
+            raise HardwareError(f"controller rejected {line!r}: {describe_error(rep.error)}")
+        if 5 in rep.alarms:
+            for axes_mm, touched in rep.prb:
+                self.client._note(f"ALARM:5 (no contact): the probe report that follows it "
+                                  f"({np.round(axes_mm, 3).tolist()}:{int(touched)}) repeats the last "
+                                  "successful probe; not taken as a position")
+            self._pos_mm = None           # the machine stands at the end of the move; re-read it
+            return ProbeResult("no_trigger", end * 1e-3, alarm=5)
         if len(rep.prb) != 1:
             raise HardwareError(f"{len(rep.prb)} probe reports after {line!r} (expected exactly 1)")
         axes, touched = rep.prb[0]
@@ -559,19 +723,13 @@ class GrblBackend:
         if off > self.path_tol_mm or s < -self.path_tol_mm or s > np.linalg.norm(d) + self.path_tol_mm:
             raise HardwareError(f"probe report {np.round(p, 4).tolist()} mm is off the commanded "
                                 f"path {np.round(start, 4).tolist()} -> {np.round(end, 4).tolist()} mm")
-        alarm5 = 5 in rep.alarms
-        if touched and alarm5:
-            raise HardwareError(f"contradictory answer to {line!r}: contact reported with ALARM:5")
-        self._pos_mm = None if alarm5 else p.copy()
-        if not alarm5:
-            # where the machine stopped (deceleration past the trigger), from its own report
-            self._pos_mm = self.client.status().mpos_mm[:3].copy()
+        # where the machine stopped (deceleration past the trigger), from its own report
+        self._pos_mm = self.client.status().mpos_mm[:3].copy()
         if touched:
             return ProbeResult("ok", p * 1e-3, extra_axes=tuple(axes[3:]))
-        if not allow_miss and not alarm5:
+        if not allow_miss:
             raise HardwareError(f"G38.2 ended without contact and without ALARM:5 ({line!r})")
-        return ProbeResult("no_trigger", p * 1e-3, alarm=5 if alarm5 else None,
-                           extra_axes=tuple(axes[3:]))
+        return ProbeResult("no_trigger", p * 1e-3, extra_axes=tuple(axes[3:]))
 
     def temperatures_C(self) -> dict[str, float]:
         return {}
@@ -580,9 +738,16 @@ class GrblBackend:
         self.client.close()
 
 
+def _check_axes(axes: str) -> str:
+    a = str(axes).upper()
+    if a[:3] != "XYZ" or len(set(a)) != len(a) or any(x not in "ABC" for x in a[3:]):
+        raise HardwareError(f"axes {axes!r}: expected X, Y, Z then rotary axes A, B, C (e.g. XYZAC)")
+    return a
+
+
 def connect(url: str, *, timeout_s: float = 60.0, on_event=None, transcript=None,
-            rotary: bool = False) -> GrblBackend:
+            rotary: bool = False, axes: str | None = None, reset: bool = False) -> GrblBackend:
     """Open ``grbl://HOST:PORT`` or ``serial:///dev/ttyX`` as a :class:`GrblBackend`."""
     link = open_link(url)
     client = GrblClient(link, timeout_s=timeout_s, on_event=on_event, transcript=transcript)
-    return GrblBackend(client, name=url, rotary=rotary)
+    return GrblBackend(client, name=url, rotary=rotary, axes=axes, reset=reset)

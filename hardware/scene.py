@@ -65,6 +65,13 @@ class SimpleScene:
         e[0, 1] = -self.ec0y_rad
         return e
 
+    def in_contact(self, pos_m, rot_rad=(0.0, 0.0, 0.0)) -> bool:
+        """Whether the stylus touches or is inside material at ``pos_m`` (commanded, R, m)."""
+        pa = (np.eye(3) + self.E) @ np.asarray(pos_m, dtype=float).reshape(3)
+        if self.plane_z_m is not None and pa[2] <= self.plane_z_m:
+            return True
+        return any(float(np.sum((pa - np.asarray(c, dtype=float)) ** 2)) <= r * r for c, r in self.spheres)
+
     def probe_move(self, start_m, target_m, rot_rad=(0.0, 0.0, 0.0)):
         """Move linearly from ``start_m`` towards ``target_m``; stop at the first contact.
 

@@ -82,12 +82,13 @@ def sim_machine(scene: str = "cross-pocket", noise_um: float = 0.0, seed: int = 
 
 
 def open_backend(url: str, *, timeout_s: float = 60.0, rotary: bool = False, on_event=None,
-                 transcript=None):
+                 transcript=None, axes: str | None = None, reset: bool = False):
     """A probing backend for a ``--machine`` URL.
 
     ``grbl://HOST:PORT``, ``tcp://...`` or ``serial:///dev/ttyX`` connect to a
     GRBL controller (:func:`hardware.grbl.connect`, with ``timeout_s``,
-    ``rotary``, ``on_event`` and ``transcript``); ``virtual:`` is the
+    ``rotary``, ``on_event``, ``transcript``, the controller's ``axes`` when
+    the user names them, ``reset`` to send Ctrl-X first); ``virtual:`` is the
     built-in scene, ``virtual:SCENE`` the simulator with that artefact.
 
     Raises
@@ -100,7 +101,8 @@ def open_backend(url: str, *, timeout_s: float = 60.0, rotary: bool = False, on_
     if url.startswith(("grbl://", "tcp://", "serial://")):
         from .grbl import connect
 
-        return connect(url, timeout_s=timeout_s, on_event=on_event, transcript=transcript, rotary=rotary)
+        return connect(url, timeout_s=timeout_s, on_event=on_event, transcript=transcript, rotary=rotary,
+                       axes=axes, reset=reset)
     if url in BUILTIN_URLS:
         return VirtualBackend(builtin_machine(), name="virtual:builtin")
     if url.startswith("virtual:") and url[len("virtual:"):].lstrip("/"):

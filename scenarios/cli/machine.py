@@ -36,10 +36,15 @@ def register(sub) -> None:
     s.add_argument("--seed", type=int, default=0, help="seed of the noise (0)")
     s.add_argument("--scale-ppm", default="0,0,0", help="scale errors of X,Y,Z, µm/m (0,0,0)")
     s.add_argument("--ec0y-urad", type=float, default=0.0, help="squareness EC0Y, µrad (0)")
-    s.add_argument("--limits", help="soft limits, mm: X-10:300,Y0:200,Z-100:0 (ALARM:2 beyond)")
-    s.add_argument("--axes", default="XYZ", choices=("XYZ", "XYZA", "XYZAB", "XYZABC"),
-                   help="axes in reports (XYZ)")
+    s.add_argument("--limits", help="soft limits, mm: X-10:300,Y0:200,Z-100:0 (ALARM:2 beyond); "
+                   "GRBL allows them only with homing: the controller powers on in alarm")
+    s.add_argument("--homing", action="store_true", help="homing enabled ($22=1): powers on in alarm, $H homes")
+    s.add_argument("--axes", help="the controller's axes (default: the machine's, e.g. XYZAC for the nmv3000)")
     s.add_argument("--home", default="0,0,50", help="power-on / $H position, mm (0,0,50)")
+    s.add_argument("--time-scale", type=float, default=1.0,
+                   help="emulated time per second of wall clock (1: a machine's pace; 10: ten times faster)")
+    s.add_argument("--idle-timeout", type=float, default=300.0,
+                   help="close a client that sends nothing this long while the machine is idle, s (300)")
     s.add_argument("--max-seconds", type=float, help="stop after this long (default: until Ctrl-C)")
     s.set_defaults(func=run_serve)
     g = msub.add_parser("program", help="write a plan as a LinuxCNC part program (G38.2, PROBEOPEN)")
@@ -56,7 +61,7 @@ def register(sub) -> None:
 def run_serve(args) -> int:
     from core.exceptions import ConfigError
     from hardware.campaign import parse_limits
-    from hardware.emulator import GrblEmulator, PtyServer, TcpServer
+    from hardware.emulator import ControllerConfig, EmulatorRunner, GrblEmulator, PtyServer, TcpServer
 
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port {args.port}: not a TCP port")
@@ -67,17 +72,20 @@ def run_serve(args) -> int:
                                   args.ec0y_urad)
     else:
         machine = sim_machine(args.scene, args.noise_um, args.seed)
-    emu = GrblEmulator(machine, axes=args.axes, home_mm=_floats3(args.home, "--home"),
-                       limits_mm=parse_limits(args.limits) if args.limits else None)
+    axes = args.axes or "XYZ" + "".join(a for a in "ABC" if a in getattr(machine, "rotary_axes", ()))
+    config = ControllerConfig(axes=axes, home=_floats3(args.home, "--home"), homing=args.homing,
+                              travel=parse_limits(args.limits) if args.limits else None)
+    emu = GrblEmulator(machine, config)
+    runner = EmulatorRunner(emu, time_scale=args.time_scale)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"vmt machine: warning: listening on {args.host}, not only this computer",
               file=sys.stderr)
     try:
-        tcp = TcpServer(emu, args.host, args.port).start()
+        tcp = TcpServer(runner, args.host, args.port, idle_timeout_s=args.idle_timeout).start()
     except OSError as e:
         raise ConfigError(f"--host {args.host} --port {args.port}: cannot listen ({e.strerror})") from None
-    ptys = PtyServer(emu).start() if args.pty else None
-    print(f"vmt machine: GRBL emulator on {tcp.url}", flush=True)
+    ptys = PtyServer(runner).start() if args.pty else None
+    print(f"vmt machine: GRBL emulator of axes {axes} on {tcp.url}", flush=True)
     if ptys is not None:
         print(f"vmt machine: serial port {ptys.path} ({ptys.url})", flush=True)
     end = None if args.max_seconds is None else time.monotonic() + args.max_seconds

@@ -27,7 +27,11 @@ def register(sub) -> None:
     p.add_argument("--resume", action="store_true", help="continue the log --out where it stops")
     p.add_argument("--unlock", action="store_true", help="send $X if the controller is in alarm")
     p.add_argument("--home", action="store_true", help="send $H (home) before probing")
-    p.add_argument("--rotary", action="store_true", help="send A, B, C words (plan's *_deg columns)")
+    p.add_argument("--rotary", action="store_true",
+                   help="send the controller's rotary axes (plan's A_deg, B_deg, C_deg; only those it has)")
+    p.add_argument("--axes", help="the controller's axes, e.g. XYZAC (default: from its reports)")
+    p.add_argument("--reset", action="store_true",
+                   help="soft-reset the controller (Ctrl-X) first: needed after a hard/soft limit alarm")
     p.add_argument("--timeout", type=float, default=60.0, help="longest wait for one answer, s (60)")
     p.add_argument("--transcript", help="append the raw controller exchange to this file")
     p.set_defaults(func=run)
@@ -95,7 +99,7 @@ def _probe(plan, settings, args):
     tr = open(args.transcript, "a", encoding="utf-8") if args.transcript else None
     try:
         backend = open_backend(args.machine, timeout_s=args.timeout, rotary=args.rotary, on_event=_warn,
-                               transcript=tr)
+                               transcript=tr, axes=args.axes, reset=args.reset)
         try:
             with TerminalProgress("campaign") as progress:
                 return run_campaign(backend, plan, args.out, settings, resume=args.resume,

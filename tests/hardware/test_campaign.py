@@ -14,12 +14,14 @@ from core.exceptions import HardwareError, PlanError
 from core.probelog import read_probe_log, write_probe_log
 from hardware.backend import VirtualBackend
 from hardware.campaign import ProbeSettings, recover_log, run_campaign
-from hardware.emulator import Faults, GrblEmulator, TcpServer
+from hardware.emulator import ControllerConfig, Faults, GrblEmulator, TcpServer
 from scenarios.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 #: GRBL reports 3 decimals in mm (0.5 µm) and commands carry 4 (0.05 µm).
 QUANT_MM = 0.6e-3
+#: The emulator's motion takes the time a machine takes; its clock runs this much faster.
+TIME_SCALE = 200.0
 
 
 def direct_log(tmp_path, plan, noise_um=0.0, name="direct.csv"):
@@ -30,10 +32,10 @@ def direct_log(tmp_path, plan, noise_um=0.0, name="direct.csv"):
     return read_probe_log(out)
 
 
-def serve(faults=None, noise_um=0.0, machine=None):
-    emu = GrblEmulator(machine or scene(noise_um), home_mm=(0, 0, 50), faults=faults,
-                       limits_mm=LIMITS_MM)
-    return emu, TcpServer(emu).start()
+def serve(faults=None, noise_um=0.0, machine=None, homing=False):
+    emu = GrblEmulator(machine or scene(noise_um), ControllerConfig(home=(0, 0, 50), homing=homing),
+                       faults=faults)
+    return emu, TcpServer(emu, time_scale=TIME_SCALE).start()
 
 
 def probe_args(url, plan, out, *extra):
@@ -100,17 +102,27 @@ def test_lost_connection_then_resume_is_complete_and_duplicate_free(tmp_path, pl
     assert emu.probes == plan.n + 2          # the two lost probes were made again
 
 
-def test_alarm_stops_the_campaign_and_unlock_needs_the_users_word(tmp_path, plan_path, capsys):
+@pytest.mark.parametrize("homing", [False, True])
+def test_hard_limit_alarm_needs_a_reset_then_the_users_word(tmp_path, plan_path, capsys, homing):
+    """ALARM:1, as GRBL: nothing answered until a reset, then $X or $H; vmt says so."""
     plan = read_probe_log(plan_path)
-    emu, srv = serve(Faults(alarm_at_probe={5: 1}))        # a hard-limit alarm on probe 5
+    emu, srv = serve(Faults(alarm_at_probe={5: 1}), homing=homing)    # a hard limit on probe 5
     out = tmp_path / "log.csv"
+    word = "--home" if homing else "--unlock"
     try:
-        assert main(probe_args(srv.url, plan_path, out)) == 2
-        assert "ALARM:1" in capsys.readouterr().err
-        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 2
-        assert "--unlock" in capsys.readouterr().err and emu.state == "Alarm"
+        first = ["--home"] if homing else []
+        assert main(probe_args(srv.url, plan_path, out, *first)) == 2
+        err = capsys.readouterr().err
+        assert "ALARM:1 (hard limit" in err and "--resume --reset --home" in err
+        # --unlock alone cannot help: the firmware answers nothing until a reset
+        assert main(probe_args(srv.url, plan_path, out, "--resume", word, "--timeout", "1")) == 2
+        err = capsys.readouterr().err
+        assert "did not answer a status query" in err and "--reset" in err and emu.state == "Alarm"
         assert read_probe_log(out).n == 4
-        assert main(probe_args(srv.url, plan_path, out, "--resume", "--unlock")) == 0
+        # a reset alone leaves the alarm lock: nothing is sent without the user's word
+        assert main(probe_args(srv.url, plan_path, out, "--resume", "--reset")) == 2
+        assert "controller in alarm, nothing sent" in capsys.readouterr().err
+        assert main(probe_args(srv.url, plan_path, out, "--resume", "--reset", word)) == 0
     finally:
         srv.stop()
     assert_complete(read_probe_log(out), plan)

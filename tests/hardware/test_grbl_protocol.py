@@ -1,13 +1,16 @@
-"""GRBL parsing, the emulator's protocol, the client against it (TCP and pty)."""
+"""vmt's GRBL client: parsing, line length, axes, alarms, links (TCP and pty) to the emulator."""
 
 import numpy as np
 import pytest
 
 from core.exceptions import HardwareError
-from hardware.backend import VirtualBackend
-from hardware.emulator import BANNER, Faults, GrblEmulator, PtyServer, TcpServer
-from hardware.grbl import GrblBackend, GrblClient, connect, open_link, parse_prb, parse_status
+from hardware.backend import ALARM_RECOVERY, ALARMS, CRITICAL_ALARMS, ERRORS, VirtualBackend
+from hardware.emulator import BANNER, ControllerConfig, Faults, GrblEmulator, PtyServer, TcpServer
+from hardware.grbl import (LINE_MAX_CHARS, GrblBackend, GrblClient, connect, move_line, open_link,
+                           parse_prb, parse_status, probe_line)
 from hardware.scene import SimpleScene
+
+FAST = 200.0     # emulated seconds per wall-clock second
 
 
 # ---- parsing -------------------------------------------------------------
@@ -35,71 +38,45 @@ def test_parse_status_mpos_wpos_and_garbage():
     assert parse_status("Idle|MPos:1,2,3") is None
 
 
-# ---- the emulator, bytes in and out ---------------------------------------
-
-def say(emu, text):
-    out, drop = emu.feed_bytes(text.encode())
-    return out
-
-
-def test_emulator_speaks_grbl():
-    emu = GrblEmulator(SimpleScene(), home_mm=(10, 10, 5), limits_mm=((-1, 200), (-1, 200), (-50, 60)))
-    assert say(emu, "?") == ["<Idle|MPos:10.000,10.000,5.000|FS:0,0>"]
-    assert say(emu, "G1 X20\n") == ["error:22"]                    # no feed yet
-    assert say(emu, "G21 G90 G1 X20 F500\n") == ["ok"]
-    assert say(emu, "G91 G1 Y-5 F500\n") == ["ok"]
-    assert np.allclose(emu.pos_mm, [20, 5, 5])
-    assert say(emu, "G90\nG20 G1 X1\nG21\n") == ["ok", "ok", "ok"]   # inches
-    assert np.isclose(emu.pos_mm[0], 25.4)
-    assert say(emu, "G91 G38.2 Z0 F100\n") == ["error:33"]          # zero-length probe
-    assert say(emu, "G38.2 Z-10 F100\n") == ["[PRB:25.400,5.000,0.000:1]", "ok"]
-    assert say(emu, "G38.3 Z-1\n") == ["ALARM:4", "ok"]             # already in contact
-    assert say(emu, "G1 Z5\n") == ["error:9"] and say(emu, "?")[0].startswith("<Alarm|")
-    assert say(emu, "$X\n") == ["[MSG:Caution: Unlocked]", "ok"]
-    assert say(emu, "G90 G1 Z5 F500\nG91 G38.3 Z1\n") == ["ok", "[PRB:25.400,5.000,6.000:0]", "ok"]
-    assert say(emu, "G38.2 Z1\n") == ["ALARM:5", "[PRB:25.400,5.000,7.000:0]", "ok"]
-    assert say(emu, "$H\n") == ["ok"] and np.allclose(emu.pos_mm, [10, 10, 5])
-    assert say(emu, "G90 G1 Z100\n")[0] == "ALARM:2"                 # soft limit
-    assert say(emu, "$X\nG4.5 X1\nQ1\n$Q\n") == ["[MSG:Caution: Unlocked]", "ok",
-                                                 "error:20", "error:20", "error:3"]
-    assert say(emu, "\x18")[-1] == BANNER
+def test_tables_are_grbl_1_1s():
+    """Every code of GRBL 1.1h's report.h: errors 1-17 and 20-38, alarms 1-10."""
+    assert sorted(ERRORS) == list(range(1, 18)) + list(range(20, 39))
+    assert sorted(ALARMS) == sorted(ALARM_RECOVERY) == list(range(1, 11))
+    assert CRITICAL_ALARMS == {1, 2}
+    # a hard or soft limit needs a reset before $X / $H: --unlock alone is not the advice
+    for a in (1, 2):
+        assert "--reset" in ALARM_RECOVERY[a]
+    assert "--home" in ALARM_RECOVERY[1] and "--unlock" in ALARM_RECOVERY[2]
+    assert "--reset" not in ALARM_RECOVERY[5] and "--unlock" in ALARM_RECOVERY[5]
 
 
-def test_emulator_reports_rotary_axes():
-    emu = GrblEmulator(SimpleScene(), axes="XYZABC", home_mm=(10, 10, 5))
-    assert say(emu, "G1 A30 F100\nG38.2 Z-10\n")[-2] == "[PRB:10.000,10.000,0.000,30.000,0.000,0.000:1]"
-    assert say(GrblEmulator(SimpleScene()), "G1 A30 F100\n") == ["error:20"]
+# ---- the lines vmt writes ------------------------------------------------------------------
+
+def _chars(line):
+    return len("".join(line.split()))
 
 
-# ---- the client against the emulator -------------------------------------
+def test_lines_fit_grbl_s_79_characters_or_are_refused_by_name():
+    assert move_line([10, 10, 2], 2000) == "G53 G90 G1 X10.0000 Y10.0000 Z2.0000 F2000.0"   # transcript
+    assert probe_line([10, 10, 2], [10, 10, -2], 200) == "G91 G38.2 X0.0000 Y0.0000 Z-4.0000 F200.0"
+    # six axes of three-digit numbers: decimals trimmed until it fits
+    line = move_line([-123.4567, 234.5678, -345.6789], 1000, [-123.45678, 90.0, 359.99999])
+    assert _chars(line) <= LINE_MAX_CHARS and "B90" in line and "X-123.4567" in line
+    line = move_line([-12345.67891, -12345.67891, -1234.5678], 1000, [-1234.5678] * 3)
+    assert _chars(line) <= LINE_MAX_CHARS and "X-12345.679" in line     # 3 decimals: 1 µm
+    with pytest.raises(HardwareError, match="cannot be written within GRBL's 79 characters"):
+        move_line([-123456.789, 234567.891, -345678.912], 1000, [-123456.789, 234567.891, 345678.912])
+    # only the controller's rotary axes get words
+    assert move_line([1, 2, 3], 100, [10, 20, 30], rotary="C") == \
+        "G53 G90 G1 X1.0000 Y2.0000 Z3.0000 C30.0000 F100.0"
+    # the client refuses a line GRBL would refuse, before sending it
+    link = _ScriptLink([])
+    with pytest.raises(HardwareError, match="at most 79"):
+        GrblClient(link).command("G1 X" + "1" * 80)
+    assert link.sent == []
 
-def test_client_status_wpos_and_banner_over_tcp():
-    emu = GrblEmulator(SimpleScene(), home_mm=(1, 2, 3), report_wpos=True)
-    with TcpServer(emu) as srv:
-        be = connect(srv.url, timeout_s=5)
-        try:
-            be.start()
-            assert np.allclose(be.position_m(), [1e-3, 2e-3, 3e-3])
-        finally:
-            be.close()
 
-
-def test_client_lost_connection_and_bad_urls():
-    emu = GrblEmulator(SimpleScene(), faults=Faults(drop_before_probe=(1,)))
-    with TcpServer(emu) as srv:
-        be = connect(srv.url, timeout_s=5)
-        be.start()
-        with pytest.raises(HardwareError, match="connection lost"):
-            be.probe([0, 0, -0.001], 100)
-        be.close()
-    for url, msg in [("grbl://127.0.0.1", "HOST:PORT"), ("ftp://x", "unknown scheme"),
-                     ("serial://", "serial:///dev/ttyX"), ("serial:///nonexistent/tty", "cannot open")]:
-        with pytest.raises(HardwareError, match=msg):
-            open_link(url)
-    with pytest.raises(HardwareError, match="cannot connect"):
-        srv_port = srv.port   # closed now
-        open_link(f"grbl://127.0.0.1:{srv_port}")
-
+# ---- the client against scripted answers ------------------------------------------------------
 
 class _ScriptLink:
     """A link that answers from a script: the client must not take garbage for a position."""
@@ -109,7 +86,7 @@ class _ScriptLink:
         self.sent = []
 
     def send(self, data):
-        self.sent.append(data.decode())
+        self.sent.append(data.decode("latin-1"))
 
     def readline(self, timeout_s):
         return self.answers.pop(0) if self.answers else None
@@ -142,9 +119,60 @@ def test_garbage_is_reported_never_taken_for_a_position():
         GrblClient(_ScriptLink([]), timeout_s=0.05).command("G1 X1 F100")
 
 
+def test_alarm_5_wins_over_a_report_that_claims_contact():
+    """Even a [PRB:...:1] after ALARM:5 is stale: the alarm decides (a miss), the report is named."""
+    events = []
+    link = _ScriptLink(["ALARM:5", "[PRB:0.000,0.000,1.000:1]", "ok", "error:9"])
+    be = GrblBackend(GrblClient(link, timeout_s=0.2, on_event=events.append))
+    be._pos_mm = np.array([0.0, 0.0, 5.0])
+    r = be.probe([0, 0, 0.0], 100)
+    assert r.status == "no_trigger" and r.alarm == 5 and np.allclose(r.pos_m, [0, 0, 0])
+    assert link.sent == ["G91 G38.2 X0.0000 Y0.0000 Z-5.0000 F100.0\n", "G90\n"]
+    assert any("not taken as a position" in e for e in events)
+
+
+def test_critical_alarm_sends_nothing_more_and_says_reset():
+    link = _ScriptLink(["ALARM:2", "[MSG:Reset to continue]"])
+    be = GrblBackend(GrblClient(link, timeout_s=5))
+    be._pos_mm = np.array([0.0, 0.0, 5.0])
+    with pytest.raises(HardwareError, match=r"ALARM:2 \(soft limit.*--resume --reset --unlock"):
+        be.probe([0, 0, 0.0], 100)
+    assert len(link.sent) == 1            # no G90: the firmware would not answer it
+
+
+# ---- the client against the emulator -------------------------------------
+
+def test_client_status_wpos_and_banner_over_tcp():
+    emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(1, 2, 3), report_wpos=True))
+    with TcpServer(emu, time_scale=FAST) as srv:
+        be = connect(srv.url, timeout_s=5)
+        try:
+            be.start()
+            assert np.allclose(be.position_m(), [1e-3, 2e-3, 3e-3])
+        finally:
+            be.close()
+
+
+def test_client_lost_connection_and_bad_urls():
+    emu = GrblEmulator(SimpleScene(), faults=Faults(drop_before_probe=(1,)))
+    with TcpServer(emu, time_scale=FAST) as srv:
+        be = connect(srv.url, timeout_s=5)
+        be.start()
+        with pytest.raises(HardwareError, match="connection lost"):
+            be.probe([0, 0, -0.001], 100)
+        be.close()
+    for url, msg in [("grbl://127.0.0.1", "HOST:PORT"), ("ftp://x", "unknown scheme"),
+                     ("serial://", "serial:///dev/ttyX"), ("serial:///nonexistent/tty", "cannot open")]:
+        with pytest.raises(HardwareError, match=msg):
+            open_link(url)
+    with pytest.raises(HardwareError, match="cannot connect"):
+        open_link(f"grbl://127.0.0.1:{srv.port}")     # closed now
+
+
 def test_alarm_state_needs_the_users_word():
-    emu = GrblEmulator(SimpleScene(), start_in_alarm=True, home_mm=(0, 0, 5))
-    with TcpServer(emu) as srv:
+    emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 5), homing=True))
+    assert emu.state == "Alarm"                           # $22=1: powers on in alarm
+    with TcpServer(emu, time_scale=FAST) as srv:
         be = connect(srv.url, timeout_s=5)
         with pytest.raises(HardwareError, match="--unlock"):
             be.start()
@@ -154,12 +182,46 @@ def test_alarm_state_needs_the_users_word():
         be.close()
 
 
+def test_rotary_words_only_for_the_controllers_axes():
+    """A 5-axis controller XYZAC (grblHAL names its axes in $I): C and A words, never B."""
+    emu = GrblEmulator(SimpleScene(), ControllerConfig(axes="XYZAC", home=(0, 0, 30)))
+    sent = []
+    with TcpServer(emu, time_scale=FAST) as srv:
+        be = connect(srv.url, timeout_s=5, rotary=True)
+        inner = be.client.link.send
+        be.client.link.send = lambda data: (sent.append(data.decode()), inner(data))[1]
+        try:
+            be.start()
+            assert be.axes == "XYZAC" and "$I\n" in sent
+            be.move(np.array([10, 10, 3]) * 1e-3, 1000, np.radians([15.0, 0.0, 30.0]))
+            assert sent[-1] == "G53 G90 G1 X10.0000 Y10.0000 Z3.0000 A15.0000 C30.0000 F1000.0\n"
+            r = be.probe(np.array([10, 10, -3]) * 1e-3, 100)
+            assert r.triggered and np.allclose(r.extra_axes, [15.0, 30.0])
+            with pytest.raises(HardwareError, match="needs B = 5 deg .* axes are XYZAC"):
+                be.move(np.array([10, 10, 3]) * 1e-3, 1000, np.radians([0.0, 5.0, 0.0]))
+        finally:
+            be.close()
+
+
+def test_unnamed_extra_axes_need_the_users_word():
+    """A 4-axis controller that does not name its axes ($I without [AXS]): --axes, checked."""
+    link = _ScriptLink(["<Idle|MPos:0.000,0.000,5.000,0.000|FS:0,0>", "[VER:1.1h.20190830:]",
+                        "[OPT:V,15,128]", "ok"])
+    with pytest.raises(HardwareError, match="reports 4 axes but does not name them.*--axes"):
+        GrblBackend(GrblClient(link, timeout_s=0.2)).start()
+    link = _ScriptLink(["<Idle|MPos:0.000,0.000,5.000,0.000|FS:0,0>"])
+    with pytest.raises(HardwareError, match="--axes XYZAC: the controller reports 4 axes"):
+        GrblBackend(GrblClient(link, timeout_s=0.2), axes="XYZAC").start()
+    with pytest.raises(HardwareError, match="expected X, Y, Z then"):
+        GrblBackend(GrblClient(link), axes="XYQ")
+
+
 @pytest.mark.parametrize("transport", ["tcp", "pty"])
 def test_probe_through_the_protocol_equals_the_backend(transport):
     """Same touches through GRBL as directly; tolerance 0.5 µm: GRBL reports 3 decimals in mm."""
-    emu = GrblEmulator(SimpleScene(scale=(50e-6, 0, 0)), home_mm=(0, 0, 30))
+    emu = GrblEmulator(SimpleScene(scale=(50e-6, 0, 0)), ControllerConfig(home=(0, 0, 30)))
     direct = VirtualBackend(SimpleScene(scale=(50e-6, 0, 0)), home_m=(0, 0, 0.03))
-    server = TcpServer(emu) if transport == "tcp" else PtyServer(emu)
+    server = TcpServer(emu, time_scale=FAST) if transport == "tcp" else PtyServer(emu, time_scale=FAST)
     with server:
         be = connect(server.url, timeout_s=5)
         try:

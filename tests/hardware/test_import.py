@@ -10,7 +10,7 @@ from core.exceptions import PlanError, ProbeLogError
 from core.probelog import read_probe_log, write_probe_log
 from hardware.backend import VirtualBackend
 from hardware.campaign import ProbeSettings, run_campaign
-from hardware.emulator import GrblEmulator, TcpServer
+from hardware.emulator import ControllerConfig, GrblEmulator, TcpServer
 from hardware.linuxcnc import part_program, read_probe_file
 from hardware.transcript import read_transcript
 from scenarios.cli import main
@@ -102,8 +102,8 @@ def test_linuxcnc_bad_probe_file_one_line_exit_2(tmp_path, plan_path, capsys, bo
 
 def test_grbl_transcript_of_a_live_campaign_imports_to_the_same_log(tmp_path, plan_path):
     tr, out = tmp_path / "session.txt", tmp_path / "live.csv"
-    emu = GrblEmulator(scene(), home_mm=(0, 0, 50))
-    with TcpServer(emu) as srv:
+    emu = GrblEmulator(scene(), ControllerConfig(home=(0, 0, 50)))
+    with TcpServer(emu, time_scale=200.0) as srv:
         assert main(["probe", "--machine", srv.url, "--plan", str(plan_path), "--out", str(out),
                      "--limits", LIMITS, "--safe-z", "30", "--transcript", str(tr)]) == 0
     imp = tmp_path / "imported.csv"

@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 @pytest.fixture
 def server():
     proc = subprocess.Popen([sys.executable, "-m", "scenarios.cli", "machine", "serve", "--port", "0",
-                             "--pty", "--max-seconds", "30"], cwd=ROOT, stdout=subprocess.PIPE,
+                             "--pty", "--max-seconds", "30", "--time-scale", "200"], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     urls = []
     try:
