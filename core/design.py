@@ -142,7 +142,8 @@ class AngleDesign:
 
 def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5.0,
                     u_probe_m: float = U_PROBE_M, reference_deg=None, max_sweeps: int = 6,
-                    measure: str = "form", exhaustive_max: int = 400, evaluate=None) -> AngleDesign:
+                    measure: str = "form", exhaustive_max: int = 400, evaluate=None,
+                    progress=None) -> AngleDesign:
     """C angles minimising the largest workpiece uncertainty (C_1 = 0 fixed).
 
     Coordinate search over the degree grid ``0, step, 2 step, ... < 360``
@@ -170,28 +171,47 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
     evaluate : callable, optional
         ``evaluate(list_of_angle_tuples) -> list of max U95`` (to run a sweep
         in parallel, see ``scenarios.parallel``); default serial.
+    progress : callable, optional
+        ``progress(done, total)``, called as designs are evaluated. ``total``
+        counts the designs the search may need at most (every start running
+        all ``max_sweeps``); a start that converges early counts its unused
+        sweeps as done, so the time left is an upper bound.
+
+    Raises
+    ------
+    ConfigError
+        ``n_angles`` not an integer >= 2, ``step_deg`` not a divisor of 360
+        of at least 0.5 deg (a grid of at most 720 angles), ``u_probe_m``
+        not > 0, a reference angle not finite, too many angles for the grid.
     """
-    n_angles = int(n_angles)
-    if n_angles < 2:
-        raise ConfigError(f"n_angles must be >= 2, got {n_angles}")
-    nsteps = 360.0 / step_deg
-    if not (step_deg > 0 and abs(nsteps - round(nsteps)) < 1e-9):
-        raise ConfigError(f"step_deg must divide 360, got {step_deg}")
-    cand = step_deg * np.arange(int(round(nsteps)))
+    cand = _check_search(n_angles, step_deg, u_probe_m, reference_deg, max_sweeps)
+    n_angles, step_deg = int(n_angles), float(step_deg)
     if n_angles > cand.size:
         raise ConfigError(f"{n_angles} angles do not fit a {step_deg:g} deg grid")
-    if evaluate is None:
+    count = _Count(progress)
+    serial = evaluate is None
+    if serial:
         def evaluate(sets):
-            return [max_workpiece_U95(w_W, wn_W, s, grid, u_probe_m, measure) for s in sets]
-    ev, cache = _cached(evaluate)
+            out = []
+            for s in sets:
+                out.append(max_workpiece_U95(w_W, wn_W, s, grid, u_probe_m, measure))
+                count.add(1)
+            return out
+    ev, cache = _cached(evaluate, count, ticks_new=serial)
     starts = _search_starts(cand, n_angles, reference_deg, step_deg)
     best, best_v = None, float("inf")
     from math import comb
+    n_ref = 0 if reference_deg is None else 1
+    per_start = 1 + max_sweeps * (n_angles - 1) * (cand.size - n_angles + 1)
     if comb(cand.size - 1, n_angles - 1) <= exhaustive_max:
+        count.total = comb(cand.size - 1, n_angles - 1) + n_ref
         best, best_v = _exhaustive(cand, n_angles, ev)
         starts = []
-    for st in starts:  # coordinate search from every start (a local method: several starts)
+    else:
+        count.total = len(starts) * per_start + n_ref
+    for k, st in enumerate(starts):  # coordinate search from every start (a local method: several starts)
         cur, cur_v = _coordinate_search(st, cand, ev, max_sweeps)
+        count.add((k + 1) * per_start - count.done)     # the sweeps this start did not need
         if cur_v < best_v:
             best, best_v = cur, cur_v
     cur, cur_v = (best, best_v) if best is not None else (list(starts[0]), float("inf"))
@@ -201,6 +221,7 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
         ref = tuple(float(v) for v in reference_deg)
         ref_v = ev([ref])[0]
         gain = ref_v / cur_v if np.isfinite(cur_v) and cur_v > 0 else None
+    count.add(count.total)
     if not np.isfinite(cur_v):
         raise IdentifiabilityError(f"no choice of {n_angles} C angles on a {step_deg:g} deg grid identifies the"
                                    " workpiece (eq 6: more angles or a coarser grid)")
@@ -208,8 +229,49 @@ def optimise_angles(w_W, wn_W, n_angles: int, grid: Grid, *, step_deg: float = 5
                        gain=gain, evaluations=len(cache), step_deg=float(step_deg))
 
 
-def _cached(evaluate):
-    """(ev, cache): ``evaluate`` over angle sets, each distinct (sorted) set evaluated once."""
+def _check_search(n_angles, step_deg, u_probe_m, reference_deg, max_sweeps) -> np.ndarray:
+    """The grid of candidate angles, deg, after checking the search settings (ConfigError)."""
+    try:
+        n_ok = int(n_angles) == n_angles
+    except (TypeError, ValueError, OverflowError):
+        n_ok = False
+    if not n_ok or int(n_angles) < 2:
+        raise ConfigError(f"n_angles must be >= 2 (an integer), got {n_angles}")
+    step = float(step_deg)
+    if not (np.isfinite(step) and 0 < step <= 360):
+        raise ConfigError(f"step_deg must be > 0 and divide 360, got {step:g}")
+    nsteps = 360.0 / step
+    if abs(nsteps - round(nsteps)) > 1e-9 * nsteps:
+        raise ConfigError(f"step_deg must divide 360, got {step:g}")
+    if round(nsteps) > 720:
+        raise ConfigError(f"step_deg {step:g} makes a grid of {round(nsteps)} angles: at most 720 (0.5 deg)")
+    if not (np.isfinite(u_probe_m) and u_probe_m > 0):
+        raise ConfigError(f"u_probe_m must be > 0, got {float(u_probe_m):g}")
+    if reference_deg is not None and not np.all(np.isfinite(np.asarray(reference_deg, dtype=float))):
+        raise ConfigError("reference angles must be finite degrees")
+    if int(max_sweeps) < 1:
+        raise ConfigError(f"max_sweeps must be >= 1, got {max_sweeps}")
+    return step * np.arange(int(round(nsteps)))
+
+
+class _Count:
+    """Designs considered so far, of at most ``total``, reported as ``progress(done, total)``."""
+
+    def __init__(self, progress):
+        self.progress, self.done, self.total = progress, 0, 0
+
+    def add(self, k: int) -> None:
+        self.done = min(self.done + k, self.total)
+        if self.progress is not None:
+            self.progress(self.done, self.total)
+
+
+def _cached(evaluate, count: _Count | None = None, ticks_new: bool = False):
+    """(ev, cache): ``evaluate`` over angle sets, each distinct (sorted) set evaluated once.
+
+    ``count`` is advanced by the sets each call considers (by the cached ones
+    only when ``evaluate`` itself counts the new ones: ``ticks_new``).
+    """
     cache: dict = {}
 
     def ev(sets):
@@ -218,6 +280,8 @@ def _cached(evaluate):
         if todo:
             for k, v in zip(todo, evaluate(todo)):
                 cache[k] = float(v)
+        if count is not None:
+            count.add(len(keys) - (len(todo) if ticks_new else 0))
         return [cache[k] for k in keys]
 
     return ev, cache

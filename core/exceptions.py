@@ -37,3 +37,7 @@ class PlanError(VmtError, ValueError):
 
 class HardwareError(VmtError):
     """A machine or controller failed: lost connection, alarm, garbage."""
+
+
+class OutputError(VmtError):
+    """An output cannot be written as asked: not a regular file, not writable, not a valid result."""

@@ -24,7 +24,7 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
-from .atomic import write_text_atomic
+from .atomic import input_problem, write_text_atomic
 from .exceptions import ProbeLogError
 
 FORMAT = "probe-log/1"
@@ -43,12 +43,61 @@ TEXT_COLUMNS = ("setup", "target", "feature", "status")
 UNIT_TOL = 1e-6
 #: Tolerance (mm) on a target's artefact-frame nominal across set-ups.
 TARGET_TOL_MM = 1e-6
+#: Largest length (mm) a position may have: 100 m, beyond any machine tool's
+#: stroke. It keeps absurd values (1e200) from overflowing the analysis.
+LENGTH_MAX_MM = 1e5
+#: Largest stylus tip radius (mm): discs and balls on long styli stay under 50 mm.
+STYLUS_R_MAX_MM = 100.0
+#: Largest time since the campaign started (s): 1e10 s is 317 years, so a Unix
+#: timestamp written by mistake still reads; 1e200 does not.
+T_MAX_S = 1e10
+#: Largest rotary axis position (deg): 1e6 deg is 2778 turns of a multi-turn table.
+ANGLE_MAX_DEG = 1e6
+#: Temperatures (Celsius) from absolute zero to 1000 C (no machine tool runs hotter).
+TEMP_RANGE_C = (-273.15, 1000.0)
+
+_LENGTHS = ("X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "wx_mm", "wy_mm", "wz_mm")
+#: Statuses a writer may use; a torn last row ends in a proper prefix of one of them.
+KNOWN_STATUSES = ("ok", "no_trigger", "early_trigger", "alarm")
 
 _VECTORS = (("nx", "ny", "nz"), ("dx", "dy", "dz"), ("wnx", "wny", "wnz"))
 
 
 def _is_text(name: str) -> bool:
     return name in TEXT_COLUMNS
+
+
+def _spec_numeric(name: str) -> bool:
+    """True for a column the spec defines as numeric (every other unknown column may hold text)."""
+    return (name in REQUIRED or name in OPTIONAL or _is_temp(name)) and not _is_text(name)
+
+
+def _is_temp(name: str) -> bool:
+    return name.startswith("temp_") and name.endswith("_C") and len(name) > 7
+
+
+def value_range(name: str) -> tuple[float, float, str, str] | None:
+    """``(lowest, highest, unit, why)`` a numeric column may hold, or None (any finite value).
+
+    Lengths within +-:data:`LENGTH_MAX_MM`; the stylus radius in [0,
+    :data:`STYLUS_R_MAX_MM`] (0: a pin or a tool used as the probe); ``t_s`` in [0, :data:`T_MAX_S`]; rotary
+    positions within +-:data:`ANGLE_MAX_DEG`; temperatures in
+    :data:`TEMP_RANGE_C`; components of unit vectors within +-(1 +
+    :data:`UNIT_TOL`) (their length is checked after).
+    """
+    if name in _LENGTHS:
+        return (-LENGTH_MAX_MM, LENGTH_MAX_MM, "mm", "no machine tool's stroke reaches 100 m")
+    if name == "stylus_r_mm":
+        return (0.0, STYLUS_R_MAX_MM, "mm", "a tip radius is not negative; 0 for a pin or a tool as the probe")
+    if name == "t_s":
+        return (0.0, T_MAX_S, "s", "time since the campaign started")
+    if name in ("A_deg", "B_deg", "C_deg"):
+        return (-ANGLE_MAX_DEG, ANGLE_MAX_DEG, "deg", "")
+    if _is_temp(name):
+        return (*TEMP_RANGE_C, "C", "")
+    if any(name in trio for trio in _VECTORS):
+        return (-1 - UNIT_TOL, 1 + UNIT_TOL, "", "a component of a unit vector")
+    return None
 
 
 @dataclass(frozen=True)
@@ -65,11 +114,20 @@ class ProbeLog:
         NaN where the cell is empty.
     source : str
         Where the log came from (the path), used in error messages.
+    warnings : tuple of str
+        What reading found doubtful but not wrong (one line each, naming the
+        file and row), e.g. a last row without an end of line that may be
+        torn. The CLI prints them.
+
+    Columns the spec defines are numeric (except ``setup``, ``target``,
+    ``feature``, ``status``); a column the spec does not define is numeric
+    when every cell is empty or a finite number, and kept as text otherwise.
     """
 
     meta: dict[str, str]
     columns: dict[str, np.ndarray]
     source: str = "<memory>"
+    warnings: tuple = ()
 
     # ---- shape ---------------------------------------------------------
     @property
@@ -150,15 +208,34 @@ def make_log(columns: Mapping[str, Iterable], meta: Mapping[str, str] | None = N
     m.update({str(k): str(v) for k, v in (meta or {}).items()})
     cols: dict[str, np.ndarray] = {}
     for name, values in columns.items():
-        if _is_text(name):
-            cols[name] = np.array(["" if v is None else str(v) for v in values], dtype=object)
+        if isinstance(values, np.ndarray) and values.dtype != object:
+            vals = values
         else:
-            cols[name] = np.asarray(list(values) if not isinstance(values, np.ndarray) else values,
-                                    dtype=float).copy()
+            vals = list(values)
+        if _is_text(name) or (not _spec_numeric(name) and _text_cells(vals)):
+            cols[name] = np.array(["" if v is None else str(v) for v in vals], dtype=object)
+        else:
+            cols[name] = np.asarray(vals, dtype=float).copy()
     log = ProbeLog(meta=m, columns=_ordered(cols), source=source)
     if validate:
         _validate(log, lines=None)
     return log
+
+
+def _text_cells(values) -> bool:
+    """True when some value is a string that is not empty and not a finite number."""
+    for v in values:
+        if isinstance(v, str) and v.strip():
+            try:
+                if not math.isfinite(float(v)):
+                    return True
+            except ValueError:
+                return True
+    return False
+
+
+def _is_text_column(name: str, v: np.ndarray) -> bool:
+    return _is_text(name) or v.dtype == object
 
 
 def _ordered(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -179,7 +256,7 @@ def read_probe_log(path: str | os.PathLike) -> ProbeLog:
     Parameters
     ----------
     path : path-like
-        The CSV file.
+        The CSV file (a regular file, or a pipe).
 
     Returns
     -------
@@ -188,31 +265,52 @@ def read_probe_log(path: str | os.PathLike) -> ProbeLog:
     Raises
     ------
     ProbeLogError
-        One line naming the file, row and what is wrong: missing or empty
-        file, no header, missing required column, a non-numeric or
-        non-finite value, a normal or approach vector not of unit length
-        (tolerance 1e-6), a ``target`` whose artefact-frame nominal differs
-        between set-ups, time going backwards, a row of the wrong width.
+        One line naming the file, row and what is wrong: missing, unreadable
+        or empty file, a folder or device, no header, missing required
+        column, a non-numeric or non-finite value, a value outside its
+        physical range (:func:`value_range`), a normal or approach vector
+        not of unit length (tolerance 1e-6), a ``target`` whose
+        artefact-frame nominal differs between set-ups, time going
+        backwards, a row of the wrong width, a torn last row.
     """
     p = Path(path)
     src = str(p)
-    if not p.exists():
-        raise ProbeLogError(f"{src}: no such file")
-    if p.is_dir():
-        raise ProbeLogError(f"{src}: is a directory, not a probe log")
+    problem = input_problem(p, "probe log file")
+    if problem:
+        raise ProbeLogError(f"{src}: {problem}")
     try:
-        text = p.read_text(encoding="utf-8-sig")
+        data = p.read_bytes()
+    except OSError as e:
+        raise ProbeLogError(f"{src}: cannot read: {e.strerror or e}") from None
+    try:
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         raise ProbeLogError(f"{src}: not UTF-8 text ({e.reason} at byte {e.start})") from None
     return parse_probe_log(text, source=src)
 
 
+def _torn(src: str, r: int, ln: int, what: str) -> ProbeLogError:
+    return ProbeLogError(
+        f"{src}: row {r} (line {ln}): torn last row ({what}, and no end of line): its writer was "
+        "interrupted; `vmt probe --resume` cuts it off, or delete the line")
+
+
 def parse_probe_log(text: str, source: str = "<memory>") -> ProbeLog:
-    """Parse probe-log text (see :func:`read_probe_log`)."""
+    """Parse probe-log text (see :func:`read_probe_log`).
+
+    A last row without an end of line is where a writer that died would
+    have stopped. It is refused as torn when it is evidently cut short (too
+    few fields, a number cut to no number, an empty or cut ``status`` as
+    the last field) and kept with a warning (:attr:`ProbeLog.warnings`)
+    otherwise: a file written by hand may lack its last end of line.
+    """
     src = source
+    if "\x00" in text:
+        raise ProbeLogError(f"{src}: holds NUL bytes: not a text file")
     if not text.strip():
         raise ProbeLogError(f"{src}: empty file")
     lines = text.splitlines()
+    unterminated = not text.endswith(("\n", "\r"))
     meta: dict[str, str] = {}
     i = 0
     while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
@@ -251,22 +349,41 @@ def parse_probe_log(text: str, source: str = "<memory>") -> ProbeLog:
                             + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
     raw: list[list[str]] = []
     line_of_row: list[int] = []
+    k = 0
     try:
         for k, row in enumerate(reader):
             ln = header_line + 1 + k
             if not row or all(not c.strip() for c in row):
                 continue
             if len(row) != len(header):
+                if unterminated and ln == len(lines) and len(row) < len(header):
+                    raise _torn(src, len(raw), ln, f"{len(row)} of {len(header)} fields")
                 raise ProbeLogError(
                     f"{src}: row {len(raw)} (line {ln}): {len(row)} fields, header has {len(header)}")
             raw.append(row)
             line_of_row.append(ln)
     except csv.Error as e:
         raise ProbeLogError(f"{src}: line {header_line + 1 + k}: {e}") from None
+    # the last row ends the file without an end of line: torn, or written by hand?
+    last = len(raw) - 1 if (unterminated and raw and line_of_row[-1] == len(lines)) else None
+    warnings = []
+    if last is not None:
+        cell, name = raw[last][-1].strip(), header[-1]
+        if name == "status" and (cell == "" or any(w.startswith(cell) and w != cell for w in KNOWN_STATUSES)):
+            raise _torn(src, last, line_of_row[last], f"last field status {cell!r}")
+        if _spec_numeric(name) and cell:
+            try:
+                float(cell)
+            except ValueError:
+                raise _torn(src, last, line_of_row[last], f"last field {name} {cell!r} is no number") from None
+        if not (name == "status" and cell in KNOWN_STATUSES):
+                warnings.append(f"{src}: row {last} (line {line_of_row[last]}): the file ends without an end "
+                            f"of line: if its writer was interrupted, the last field ({name} {_shown(cell)}) "
+                            "may be cut short")
     cols: dict[str, np.ndarray] = {}
     for j, name in enumerate(header):
         cells = [r[j].strip() for r in raw]
-        if _is_text(name):
+        if _is_text(name) or (not _spec_numeric(name) and _text_cells(cells)):
             cols[name] = np.array(cells, dtype=object)
             continue
         vals = np.empty(len(cells))
@@ -279,16 +396,26 @@ def parse_probe_log(text: str, source: str = "<memory>") -> ProbeLog:
             except ValueError:
                 raise ProbeLogError(
                     f"{src}: row {r} (line {line_of_row[r]}): column {name!r}: "
-                    f"{c!r} is not a number") from None
+                    f"{_shown(c)} is not a number") from None
             if not math.isfinite(v):
                 raise ProbeLogError(
                     f"{src}: row {r} (line {line_of_row[r]}): column {name!r}: "
-                    f"{c!r} is not finite")
+                    f"{_shown(c)} is not finite")
             vals[r] = v
         cols[name] = vals
-    log = ProbeLog(meta=meta, columns=cols, source=src)
+    log = ProbeLog(meta=meta, columns=cols, source=src, warnings=tuple(warnings))
     _validate(log, lines=line_of_row)
     return log
+
+
+def _shown(cell: str, n: int = 40) -> str:
+    """``repr`` of a cell, cut to ``n`` characters (a message stays one short line)."""
+    return repr(cell if len(cell) <= n else cell[:n] + "...")
+
+
+def _xyz(v) -> str:
+    """``(1, 2, 3.01)``: a point for a message (plain numbers, never ``np.float64(...)``)."""
+    return "(" + ", ".join(f"{float(x):.9g}" for x in v) + ")"
 
 
 def _where(src: str, r: int, lines: list[int] | None) -> str:
@@ -305,11 +432,24 @@ def _validate(log: ProbeLog, lines: list[int] | None) -> None:
     for name, v in c.items():
         if len(v) != n:
             raise ProbeLogError(f"{src}: column {name!r} has {len(v)} rows, expected {n}")
-        if not _is_text(name):
-            bad = ~np.isfinite(v) & ~np.isnan(v)
-            if bad.any():
-                r = int(np.argmax(bad))
-                raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r} is not finite")
+        if _is_text_column(name, v):
+            if _spec_numeric(name):
+                raise ProbeLogError(f"{src}: column {name!r} holds text, not numbers")
+            continue
+        bad = ~np.isfinite(v) & ~np.isnan(v)
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r} is not finite")
+        rng = value_range(name)
+        if rng is not None:
+            lo, hi, unit, why = rng
+            with np.errstate(invalid="ignore"):
+                out = (v < lo) | (v > hi)
+            if out.any():
+                r = int(np.argmax(out))
+                raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r}: {float(v[r]):.6g} is out of "
+                                    f"range (must be >= {lo:g} and <= {hi:g}{' ' + unit if unit else ''}"
+                                    f"{': ' + why if why else ''})")
     ok = log.ok
     plan = n > 0 and log.is_plan
     # required cells: ids always; measured ones only for ok rows of a campaign
@@ -375,16 +515,17 @@ def _validate(log: ProbeLog, lines: list[int] | None) -> None:
             if np.max(np.abs(w[r] - w[r0])) > TARGET_TOL_MM:
                 raise ProbeLogError(
                     f"{_where(src, r, lines)}: target {tgt!r} has artefact-frame nominal "
-                    f"{tuple(np.round(w[r], 6))} mm in set-up {c['setup'][r]!r} but "
-                    f"{tuple(np.round(w[r0], 6))} mm in set-up {c['setup'][r0]!r}")
+                    f"{_xyz(w[r])} mm in set-up {c['setup'][r]!r} but "
+                    f"{_xyz(w[r0])} mm in set-up {c['setup'][r0]!r}")
     sr = log.meta.get("stylus_r_mm")
     if sr not in (None, ""):
         try:
             v = float(sr)
-            if not math.isfinite(v) or v < 0:
-                raise ValueError
         except ValueError:
-            raise ProbeLogError(f"{src}: metadata stylus_r_mm {sr!r} is not a length") from None
+            raise ProbeLogError(f"{src}: metadata stylus_r_mm {_shown(sr)} is not a length") from None
+        if not (math.isfinite(v) and 0 <= v <= STYLUS_R_MAX_MM):
+            raise ProbeLogError(f"{src}: metadata stylus_r_mm {_shown(sr)} is out of range (must be >= 0 "
+                                f"and <= {STYLUS_R_MAX_MM:g} mm: a tip radius is not negative)")
 
 
 # ---------------------------------------------------------------------------
@@ -406,16 +547,20 @@ def format_probe_log(log: ProbeLog) -> str:
     cols = _ordered(dict(log.columns))
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(list(cols))
-    text = {k: _is_text(k) for k in cols}
+    text = {k: _is_text_column(k, v) for k, v in cols.items()}
     arrays = list(cols.items())
     for r in range(log.n):
         w.writerow([v[r] if text[k] else _fmt(v[r]) for k, v in arrays])
     return buf.getvalue()
 
 
-def write_probe_log(path: str | os.PathLike, log: ProbeLog) -> Path:
-    """Write ``log`` to ``path`` atomically; reading it back gives ``log``."""
-    return write_text_atomic(path, format_probe_log(log))
+def write_probe_log(path: str | os.PathLike, log: ProbeLog, *, special: bool = False) -> Path:
+    """Write ``log`` to ``path`` atomically; reading it back gives ``log``.
+
+    Only a regular file is replaced; ``special`` writes through a device or
+    FIFO the user named (:func:`core.atomic.write_text_atomic`).
+    """
+    return write_text_atomic(path, format_probe_log(log), special=special)
 
 
 def summary(log: ProbeLog) -> dict:
@@ -445,4 +590,28 @@ def summary(log: ProbeLog) -> dict:
     for s in log.col("status"):
         statuses[s or "ok"] = statuses.get(s or "ok", 0) + 1
     out["status"] = statuses
+    out["repeated"] = repeated_touches(log)
+    out["warnings"] = list(log.warnings)
     return out
+
+
+def repeated_touches(log: ProbeLog, examples: int = 3) -> dict:
+    """Touches of a (setup, target) pair made more than once.
+
+    Two writers appending to one log, or a campaign resumed by hand, make
+    every touch twice; a plan may also repeat targets on purpose (a drift
+    check). Either way ``vmt check`` says so.
+
+    Returns
+    -------
+    dict
+        ``touches``: rows beyond the first of each pair; ``pairs``: pairs
+        made more than once; ``examples``: up to ``examples`` of them as
+        ``{"setup", "target", "times"}``, first repeated first.
+    """
+    count: dict[tuple, int] = {}
+    for key in zip(log.col("setup"), log.col("target")):
+        count[key] = count.get(key, 0) + 1
+    rep = [(k, v) for k, v in count.items() if v > 1]
+    return {"touches": int(sum(v - 1 for _k, v in rep)), "pairs": len(rep),
+            "examples": [{"setup": str(k[0]), "target": str(k[1]), "times": v} for k, v in rep[:examples]]}

@@ -11,7 +11,10 @@ Motion is feed moves only (never rapids), so the maximum feed holds.
 
 The log (:class:`AppendLog`) is append-only: the header is created
 atomically, then each touch is one ``write`` of one complete line followed
-by ``fsync``. Log row ``i`` is plan row ``i``, so the resume point is the
+by ``fsync``. While a client writes it, the log is locked (an advisory
+``flock``, taken before the log appears and before a resume reads it): a
+second writer is refused with a message naming the log, so two
+``vmt probe --resume`` never make every touch twice. Log row ``i`` is plan row ``i``, so the resume point is the
 number of complete rows on disk (:func:`recover_log`; a torn last line is
 cut off). A touch made but not yet on disk when the process died is made
 again on resume: the log never holds a touch twice and never misses one.
@@ -20,6 +23,7 @@ again on resume: the log never holds a touch twice and never misses one.
 from __future__ import annotations
 
 import csv
+import fcntl
 import io
 import math
 import os
@@ -229,17 +233,48 @@ def _csv_line(cells: list[str]) -> str:
     return buf.getvalue()
 
 
+def lock_log(fd: int, path) -> None:
+    """Take the writer's lock on the open log ``fd`` (advisory ``flock``, released on close or death).
+
+    Raises
+    ------
+    PlanError
+        Another process holds it (naming the log), or the file system cannot lock.
+    """
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        raise PlanError(f"{path}: another process is writing this log right now (a second vmt probe?); "
+                        "two writers would make touches twice: wait for it to end, or choose another --out") from None
+    except OSError as e:
+        raise PlanError(f"{path}: cannot lock the log ({e.strerror}): a second writer could not be kept "
+                        "out; write the log on a local disk") from None
+
+
+def open_locked(path) -> int:
+    """Open an existing log for appending and lock it (see :func:`lock_log`); return the descriptor."""
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+    try:
+        lock_log(fd, path)
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
 class AppendLog:
-    """A probe log written one fsync'ed line per touch.
+    """A probe log written one fsync'ed line per touch, locked against a second writer.
 
     Use :meth:`create` for a new log (atomic: metadata and header appear
-    complete or not at all) or :meth:`reopen` after :func:`recover_log`.
+    complete or not at all, and locked from the moment they appear) or the
+    constructor on an existing log after :func:`recover_log` (``fd`` from
+    :func:`open_locked` when the lock was taken before recovering).
     """
 
-    def __init__(self, path: Path, columns: list[str]):
+    def __init__(self, path: Path, columns: list[str], fd: int | None = None):
         self.path = Path(path)
         self.columns = list(columns)
-        self.fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        self.fd = open_locked(self.path) if fd is None else fd
 
     @classmethod
     def create(cls, path, columns: list[str], meta: dict) -> "AppendLog":
@@ -248,20 +283,22 @@ class AppendLog:
         text = "".join(f"# {k}: {' '.join(str(v).split())}\n" for k, v in meta.items())
         text += _csv_line(columns)
         tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
         try:
+            lock_log(fd, tmp)        # the lock goes with the file: locked before it is the log
             os.write(fd, text.encode("utf-8"))
             os.fsync(fd)
-        finally:
+            try:
+                os.link(tmp, p)          # fails if the log appeared meanwhile: never overwrite
+            except FileExistsError:
+                raise PlanError(f"{p}: exists; use --resume to continue it, or choose another --out") from None
+        except BaseException:
             os.close(fd)
-        try:
-            os.link(tmp, p)          # fails if the log appeared meanwhile: never overwrite
-        except FileExistsError:
-            raise PlanError(f"{p}: exists; use --resume to continue it, or choose another --out") from None
+            raise
         finally:
             os.unlink(tmp)
         _fsync_dir(p.parent)
-        return cls(p, columns)
+        return cls(p, columns, fd=fd)
 
     def append(self, row: dict) -> None:
         """Write one touch (``{column: value}``; missing columns empty) and fsync."""
@@ -272,7 +309,10 @@ class AppendLog:
         os.fsync(self.fd)
 
     def close(self) -> None:
-        os.close(self.fd)
+        """Close the log (and release the lock)."""
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
 
 
 def _fsync_dir(d: Path) -> None:
@@ -299,21 +339,30 @@ class Recovered:
     torn_bytes: int
 
 
-def recover_log(path, plan: ProbeLog) -> Recovered:
+def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
     """Find where a campaign stopped: complete rows on disk, checked against the plan.
 
     A last line without its newline (the process died while writing it) is
     cut off the file. Every complete row must be the plan row of the same
-    index (same ``setup``, ``target`` and nominal point).
+    index (same ``setup``, ``target`` and nominal point). Unless the caller
+    holds the writer's lock (``locked``), it is taken for the recovery, so
+    a line another client is writing is never cut.
 
     Raises
     ------
     PlanError
-        The log does not belong to this plan, or has more rows than it.
+        The log does not belong to this plan, or has more rows than it, or
+        another process is writing it.
     ProbeLogError
         The file is not a readable probe log.
     """
     p = Path(path)
+    if not locked:
+        fd = open_locked(p)
+        try:
+            return recover_log(p, plan, locked=True)
+        finally:
+            os.close(fd)
     data = p.read_bytes()
     keep = data.rfind(b"\n") + 1
     torn = len(data) - keep
@@ -399,15 +448,21 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
     check_program(steps, settings, require_limits=require_limits)
     p = Path(out)
     torn = 0
+    fd = None
     if p.exists():
         if not resume:
             raise PlanError(f"{p}: exists; use --resume to continue it, or choose another --out")
-        rec = recover_log(p, plan)
-        done, columns, torn = rec.rows_done, rec.columns, rec.torn_bytes
+        fd = open_locked(p)             # before reading: a second writer stops here
         try:
-            started = float(rec.meta.get("started_unix", ""))
-        except ValueError:
-            raise PlanError(f"{p}: metadata started_unix missing or not a number") from None
+            rec = recover_log(p, plan, locked=True)
+            done, columns, torn = rec.rows_done, rec.columns, rec.torn_bytes
+            try:
+                started = float(rec.meta.get("started_unix", ""))
+            except ValueError:
+                raise PlanError(f"{p}: metadata started_unix missing or not a number") from None
+        except BaseException:
+            os.close(fd)
+            raise
         last_t = rec.last_t_s
         temps = [c[5:-2] for c in columns if c.startswith("temp_") and c.endswith("_C")]
     else:
@@ -415,8 +470,15 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
     statuses: dict[str, int] = {}
     before = done
     if done >= plan.n:
+        if fd is not None:
+            os.close(fd)
         return CampaignResult(p, plan.n, done, done, torn, statuses)
-    backend.start(unlock=unlock, home=home)
+    try:
+        backend.start(unlock=unlock, home=home)
+    except BaseException:
+        if fd is not None:
+            os.close(fd)
+        raise
     if started is None:
         temps = sorted(backend.temperatures_C())
         columns = log_columns(plan, temps)
@@ -432,7 +494,7 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
                      "clearance_mm": settings.clearance_mm, "overtravel_mm": settings.overtravel_mm})
         log = AppendLog.create(p, columns, meta)
     else:
-        log = AppendLog(p, columns)
+        log = AppendLog(p, columns, fd=fd)
     try:
         cur = backend.position_m() / MM
         for st in steps[done:]:

@@ -36,8 +36,11 @@ def _plan_points(spheres: bool):
     return plan.w_A[keep, :2], plan.wn_A[keep, :2], ids
 
 
-def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1) -> dict:
-    """The paper's Fig. 18/19 and Table 2 study (see module docstring)."""
+def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None) -> dict:
+    """The paper's Fig. 18/19 and Table 2 study (see module docstring).
+
+    ``progress(done, total)``: one step per case (C angles x spheres).
+    """
     from core.selfcal import Grid
     from core.uncertainty import linear_uncertainty, monte_carlo
 
@@ -46,9 +49,12 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1) -> dict:
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     table2 = []
+    total = 2 * len(PAPER_G_U95_UM)
     for spheres in (True, False):
         w, wn, _ = _plan_points(spheres)
         for c in PAPER_G_U95_UM:
+            if progress is not None:
+                progress(len(cases), total)
             case = {"c_angles_deg": list(c), "spheres": spheres, "n_targets": len(w),
                     "paper_g_u95_max_um": PAPER_G_U95_UM[c] if spheres else None}
             try:
@@ -73,6 +79,8 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1) -> dict:
                     table2.append({"c_deg": round(float(cj), 6), "u_xc_um": round(float(xc), 3),
                                    "u_yc_um": round(float(yc), 3), "u_cc_urad": round(float(cc), 3), "paper_u_xc_um": p[0], "paper_u_yc_um": p[1],
                                    "paper_u_cc_urad": p[2]})
+    if progress is not None:
+        progress(total, total)
     return {
         "scenario": "cross-pocket-uncertainty",
         "method": f"Monte Carlo (JCGM 101), {runs} runs per case, linear propagation beside it",

@@ -416,7 +416,7 @@ class ScenarioResult:
 def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None, mc_runs: int = 500,
         exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
         u_cal_um: tuple = (0.2, 0.35, 0.35), bar_cal_error: bool = True,
-        u_place: tuple = U_PLACE, hook=None) -> ScenarioResult:
+        u_place: tuple = U_PLACE, hook=None, progress=None) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -444,6 +444,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     hook : callable(i, spec, artefact, probe, machine) -> (artefact, probe, machine), optional
         Replaces what measurement ``i`` is simulated with (effects hidden
         for model discovery, scenarios/hidden.py).
+    progress : callable, optional
+        ``progress(done, total)``: one step per simulated measurement, then
+        the identification and the uncertainty.
     """
     from core import iso, mfb, volumetric as vol
     from core.exceptions import ConfigError
@@ -495,7 +498,10 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
             T_true[p] = T @ dT
         else:
             T_true[p] = None
-    for ms in plan.measurements:
+    steps = len(plan.measurements) + 2
+    for k, ms in enumerate(plan.measurements):
+        if progress is not None:
+            progress(k, steps)
         J = tuple(ms.J_m)
         if J not in machines:
             machines[J] = Machine(replace(cfg, J_m=J))
@@ -523,11 +529,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
                                     c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A))
     chain = cfg.chain
     rp = dict(cfg.rotary_points_R_m)
+    if progress is not None:
+        progress(steps - 2, steps)
     res_g = vol.identify_volumetric(meas, chain, plan.nodes, rp, exact=exact)
     # reported in the ISO 230-1 form: straightness against the end-point
     # reference line (identified and injected alike)
     L_iso = vol.iso_map(res_g.design)
     res = vol.iso_view(res_g)
+    if progress is not None:
+        progress(steps - 1, steps)
     unc = (vol.uncertainty(res, meas, probe.sigma_m, u_cal, runs=mc_runs, rng=rng,
                            u_place=np.asarray(u_place, float) if noisy else None)
            if mc_runs or noisy else None)
@@ -551,6 +561,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, k2, slopes)
+    if progress is not None:
+        progress(steps, steps)
     return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0], meas)
 
 

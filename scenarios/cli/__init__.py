@@ -5,15 +5,17 @@ Each sub-command lives in its own thin module of this package (listed in
 exposing ``register(subparsers)``; the work itself is library code in core,
 sim, hardware and the studies of ``scenarios``. Heavy imports happen inside
 the command, so
-``vmt --help`` stays fast. Any :class:`core.exceptions.VmtError` becomes one
-line on stderr and exit status 2, never a traceback.
+``vmt --help`` stays fast. Any :class:`core.exceptions.VmtError` or
+operating-system error becomes one line on stderr and exit status 2, never a
+traceback, and a failed run leaves no output: :func:`main` runs every command
+through :func:`scenarios.cli.guard.run_command`, the one place that keeps
+these promises.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
-import sys
 
 #: (name, module) of every sub-command, in the order ``--help`` lists them.
 COMMANDS = [
@@ -38,7 +40,9 @@ COMMANDS = [
 def build_parser() -> argparse.ArgumentParser:
     from core import __version__
 
-    p = argparse.ArgumentParser(
+    from scenarios.cli.guard import OneLineParser
+
+    p = OneLineParser(
         prog="vmt",
         description="vmt: a virtual machine-tool testbed for touch-trigger metrology.",
     )
@@ -50,19 +54,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from core.exceptions import VmtError
+    """Run one command; every error is one line on stderr and exit status 2 (:mod:`scenarios.cli.guard`)."""
+    from scenarios.cli.guard import run_command
 
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    try:
-        rc = args.func(args)
-    except VmtError as e:
-        print(f"vmt {args.command}: error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"vmt {args.command}: interrupted", file=sys.stderr)
-        return 130
-    return int(rc or 0)
+    return run_command(args)

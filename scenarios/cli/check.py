@@ -36,4 +36,11 @@ def run(args) -> int:
     bad = {k: v for k, v in s["status"].items() if k != "ok"}
     if bad:
         print("  invalid  " + ", ".join(f"{k}: {v}" for k, v in bad.items()))
+    rep = s["repeated"]
+    if rep["touches"]:
+        ex = ", ".join(f"{e['setup']}/{e['target']} x{e['times']}" for e in rep["examples"])
+        print(f"  repeated {rep['touches']} touches repeat an earlier (setup, target) ({rep['pairs']} pairs, "
+              f"e.g. {ex}): two writers on one log, or a plan that repeats targets?")
+    for w in s["warnings"]:
+        print(f"  warning  {w}")
     return 0

@@ -16,5 +16,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from scenarios.demo import main_job
+    from scenarios.cli.guard import progress_line
 
-    return main_job(out=args.out, seed=args.seed)
+    with progress_line("demo") as bar:
+        return main_job(out=args.out, seed=args.seed, progress=bar)

@@ -37,16 +37,19 @@ def run(args) -> int:
     except ValueError:
         raise ConfigError(f"--reference: expected comma-separated degrees, got {args.reference!r}") from None
     u = args.u_probe_um * 1e-6
+    from scenarios.cli.guard import progress_line
+
     ev = design_evaluator(w, wn, grid, u, args.measure, dask=args.dask, workers=args.workers)
-    r = optimise_angles(w, wn, args.angles, grid, step_deg=args.step_deg, u_probe_m=u, reference_deg=ref,
-                        measure=args.measure, evaluate=ev)
+    with progress_line("design: designs evaluated (at most)") as bar:
+        r = optimise_angles(w, wn, args.angles, grid, step_deg=args.step_deg, u_probe_m=u, reference_deg=ref,
+                            measure=args.measure, evaluate=ev, progress=bar)
     print(f"C angles {', '.join(f'{c:g}' for c in r.c_deg)} deg: max workpiece U95 {r.max_U95_m * 1e6:.3f} um"
           f" ({args.measure}, {r.evaluations} designs evaluated)")
     if r.reference_deg is not None:
         print(f"reference {', '.join(f'{c:g}' for c in r.reference_deg)} deg: {r.reference_max_U95_m * 1e6:.3f} um;"
               f" gain x{r.gain:.3f}")
     if args.json:
-        write_json_atomic(args.json, {
+        write_json_atomic(args.json, special=True, obj={
             "c_deg": list(r.c_deg), "max_u95_um": round(r.max_U95_m * 1e6, 4), "measure": args.measure,
             "reference_deg": list(r.reference_deg) if r.reference_deg else None,
             "reference_max_u95_um": None if r.reference_max_U95_m is None else round(r.reference_max_U95_m * 1e6, 4),

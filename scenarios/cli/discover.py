@@ -16,9 +16,16 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None):
-    """Read, discover, write the JSON (and the report); return (report dict, Discovery)."""
-    from core.atomic import json_safe, write_json_atomic
+def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -> dict:
+    """Read, discover, check the result, write the report folder, then the JSON; return the report dict.
+
+    Nothing is written unless the result is complete: the JSON is checked
+    first (NaN or infinity in a figure the contract requires is refused),
+    the report folder comes next and the JSON last. ``null`` is allowed only
+    where the contract says "not available": the per-target workpiece
+    figures, the findings' fitted magnitudes and their U95.
+    """
+    from core.atomic import json_safe, json_text, write_text_atomic
     from core.baseline import extra_columns
     from core.discover import discover
     from core.probelog import read_probe_log
@@ -30,14 +37,18 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None):
     t = from_log(log)
     d = discover(t, grid_step_mm=grid_mm, chain=log.meta.get("kinematic_chain"), progress=progress,
                  extra=extra_columns(log, t.row))
-    rep = json_safe(d.to_report())
+    rep = dict(d.to_report())
+    for k in ("workpiece", "findings"):
+        if k in rep:
+            rep[k] = json_safe(rep[k])
     rep["log"] = str(log_path)
-    write_json_atomic(json_out, rep)
+    text = json_text(rep, json_out)
     if report:
         from scenarios.reports import discovery_report
 
         discovery_report(report, d, rep, title=f"vmt discover: {Path(log_path).name}")
-    return rep, d
+    write_text_atomic(json_out, text, special=True)
+    return rep
 
 
 def _fmt(v, u=None) -> str:
@@ -46,35 +57,40 @@ def _fmt(v, u=None) -> str:
     return "n/d" if v is None else str(v)
 
 
-def run(args) -> int:
-    from viz.progress import TerminalProgress
-
-    with TerminalProgress("discover") as bar:
-        rep, _ = run_discover(args.log, args.json_out, args.report, args.grid_mm, progress=bar)
+def summary_lines(rep: dict) -> list[str]:
+    """The lines ``vmt discover`` prints for a report: baseline, noise, diagnosis, cause, gain."""
     b, nz = rep["baseline"], rep["noise_um"]
-    print(f"baseline   {b['model']}: rms {b['rms_um']:.3f} um, cv rms {rep['baseline_cv_rms_um']:.3f} um "
-          f"({b['n']} touches, {b['n_params']} parameters)")
-    print(f"noise      {nz['sigma_um']:.3f} um (from {nz['method']}); held-out/in-sample ratio "
-          f"{nz['cv_gap']['ratio']:.2f} (pure noise: {nz['cv_gap']['expected_ratio']:.2f}, "
-          f"p = {nz['cv_gap']['p_value']:.2g})")
+    out = [f"baseline   {b['model']}: rms {b['rms_um']:.3f} um, cv rms {rep['baseline_cv_rms_um']:.3f} um "
+           f"({b['n']} touches, {b['n_params']} parameters)",
+           f"noise      {nz['sigma_um']:.3f} um (from {nz['method']}); held-out/in-sample ratio "
+           f"{nz['cv_gap']['ratio']:.2f} (pure noise: {nz['cv_gap']['expected_ratio']:.2f}, "
+           f"p = {nz['cv_gap']['p_value']:.2g})"]
     shown = [d for d in rep["diagnosis"] if d["p_value"] < 0.01][:4]
-    for d in shown:
-        print(f"diagnosis  {d['text']}")
+    out += [f"diagnosis  {d['text']}" for d in shown]
     if not shown:
-        print("diagnosis  no covariate carries structure (every smooth term's p >= 0.01)")
+        out.append("diagnosis  no covariate carries structure (every smooth term's p >= 0.01)")
     if not rep["findings"]:
-        print("cause      none: the baseline explains the data within the probing noise")
+        out.append("cause      none: the baseline explains the data within the probing noise")
     for f in rep["findings"]:
         pu = f.get("params_u95", {})
         params = ", ".join(f"{k} {_fmt(v, pu.get(k))}" for k, v in list(f["params"].items())[:6])
         flag = " (ambiguous: " + ", ".join(f["evidence"]["indistinguishable_from"]) + ")" \
             if f["evidence"].get("confidence") == "ambiguous" else ""
-        text = f["evidence"].get("text", "")
-        print(f"finding    {f['cause']}{flag}: {params or text}")
+        out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}")
     g = rep["gain"]
-    print(f"extended   {rep['extended']['model']}: rms {rep['extended']['rms_um']:.3f} um "
-          f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um (x{g['cv_rms_ratio']:.2f})")
+    out.append(f"extended   {rep['extended']['model']}: rms {rep['extended']['rms_um']:.3f} um "
+               f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um (x{g['cv_rms_ratio']:.2f})")
     if not rep["workpiece_identifiable"]:
-        print("workpiece  not identifiable by this design (reported as null)")
-    print(f"wrote {args.json_out}" + (f" and {args.report}/index.html" if args.report else ""))
+        out.append("workpiece  not identifiable by this design (reported as null)")
+    return out
+
+
+def run(args) -> int:
+    from scenarios.cli.guard import progress_line, said
+
+    with progress_line("discover") as bar:
+        rep = run_discover(args.log, args.json_out, args.report, args.grid_mm, progress=bar)
+    for line in summary_lines(rep):
+        print(line)
+    print(f"wrote {said(args.json_out)}" + (f" and {args.report}/index.html" if args.report else ""))
     return 0

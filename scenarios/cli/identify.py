@@ -55,10 +55,12 @@ def run(args) -> int:
                                  delta_L_m=dL, yaw=yaw)
     from core.atomic import write_json_atomic
 
-    out = write_json_atomic(args.json, res.to_report(mc))
+    out = write_json_atomic(args.json, res.to_report(mc), special=True)
     G = res.G
     print(f"{args.log}: {res.n_touches} touches, {len(G)} targets, {len(res.design.setup_ids)} C angles;"
           f" residual RMS {res.rms_m * 1e6:.3f} um; workpiece {G.min() * 1e6:+.2f}..{G.max() * 1e6:+.2f} um;"
           f" scale {'known' if res.scale_known else 'unknown'}")
-    print(f"wrote {out}")
+    from scenarios.cli.guard import said
+
+    print(f"wrote {said(out)}")
     return 0

@@ -36,9 +36,11 @@ def run(args) -> int:
             raise ConfigError("import grbl: --plan is required (a transcript does not say what was probed)")
 
         log = import_transcript(args.file, plan, dt_s=args.dt)
-    write_probe_log(args.out, log)
+    write_probe_log(args.out, log, special=True)
     ok = int(log.ok.sum())
-    print(f"{args.out}: {log.n} touches ({ok} ok) from {args.kind} {args.file}")
+    from scenarios.cli.guard import said
+
+    print(f"{said(args.out)}: {log.n} touches ({ok} ok) from {args.kind} {args.file}")
     if "probe_file_rows" in log.meta:
         print(f"note: the probe file has {log.meta['probe_file_rows']}")
     if plan is None:

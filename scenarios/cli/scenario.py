@@ -10,7 +10,11 @@ from __future__ import annotations
 def _mfb(args) -> int:
     from scenarios.mfb import run
 
-    r = run(args.name, seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc)
+    from scenarios.cli.guard import progress_line
+
+    with progress_line(f"{args.name}: measurements simulated") as bar:
+        r = run(args.name, seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc,
+                progress=bar)
     d = r.doc
     print(f"vmt scenario {args.name}: {d['placements']} placements, {d['measurements']} measurements, "
           f"{d['touches']} touches, {r.seconds:.1f} s; {d['model']}")
@@ -23,7 +27,7 @@ def _mfb(args) -> int:
     if args.json:
         from core.atomic import write_json_atomic
 
-        write_json_atomic(args.json, d)
+        write_json_atomic(args.json, d, special=True)
     if getattr(args, "comp", None):
         for p in r.write_comp(args.comp):
             print(f"wrote {p}")
@@ -39,7 +43,10 @@ def _cross_pocket_uncertainty(args) -> int:
         from core.exceptions import ConfigError
 
         raise ConfigError(f"--mc must be >= 10 for this study, got {runs}")
-    r = cross_pocket_uncertainty(runs=runs, seed=args.seed)
+    from scenarios.cli.guard import progress_line
+
+    with progress_line("cross-pocket-uncertainty: cases") as bar:
+        r = cross_pocket_uncertainty(runs=runs, seed=args.seed, progress=bar)
     print(f"vmt scenario cross-pocket-uncertainty: {r['method']}, u_probe {r['u_probe_um']} um")
     print(f"{'C angles / deg':22s} {'spheres':8s} {'max U95(G) / um':>16s} {'linear':>8s} {'paper':>6s}")
     for c in r["cases"]:
@@ -56,7 +63,7 @@ def _cross_pocket_uncertainty(args) -> int:
     for n in r["notes"]:
         print(f"note: {n}")
     if args.json:
-        write_json_atomic(args.json, r)
+        write_json_atomic(args.json, r, special=True)
     return 0
 
 
@@ -70,7 +77,7 @@ def _pin_circle(args) -> int:
     print(f"pin position error, max: raw at C=0 {r['raw_c0_pin_error_max_um']:.2f} um -> self-calibrated "
           f"{r['selfcal_pin_error_max_um']:.2f} um (paper: {r['paper']})")
     if args.json:
-        write_json_atomic(args.json, r)
+        write_json_atomic(args.json, r, special=True)
     return 0
 
 

@@ -88,10 +88,12 @@ def run(args) -> int:
     log = simulate_campaign(args.artefact, machine, probe, setups, np.random.default_rng(args.seed),
                             plan_only=args.plan_only, check_collisions=not args.no_collision_check,
                             meta={"errors": args.errors, "seed": str(args.seed)})
-    write_probe_log(args.out, log)
+    write_probe_log(args.out, log, special=True)
     ok = int(log.ok.sum())
     kind = "plan" if args.plan_only else "campaign"
-    print(f"{args.out}: {kind} of {log.n} touches ({ok} ok) on {args.artefact}, machine {name}, "
+    from scenarios.cli.guard import said
+
+    print(f"{said(args.out)}: {kind} of {log.n} touches ({ok} ok) on {args.artefact}, machine {name}, "
           f"errors {args.errors}, {len(dict.fromkeys(log.col('setup')))} set-ups")
     return 0
 

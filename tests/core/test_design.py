@@ -59,3 +59,44 @@ def test_bad_input(pocket):
         optimise_angles(w, wn, 3, GRID, step_deg=7)
     with pytest.raises(ConfigError, match="measure must be"):
         max_workpiece_U95(w, wn, [0, 75, 130], GRID, measure="max")
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"step_deg": 0}, r"step_deg must be > 0 and divide 360, got 0"),
+    ({"step_deg": -5}, r"step_deg must be > 0 and divide 360, got -5"),
+    ({"step_deg": float("nan")}, r"step_deg must be > 0 and divide 360, got nan"),
+    ({"step_deg": 400}, r"step_deg must be > 0 and divide 360, got 400"),
+    ({"step_deg": 0.1}, r"step_deg 0.1 makes a grid of 3600 angles: at most 720"),
+    ({"u_probe_m": 0.0}, r"u_probe_m must be > 0, got 0"),
+    ({"u_probe_m": float("inf")}, r"u_probe_m must be > 0, got inf"),
+    ({"reference_deg": [0, float("nan"), 130]}, r"reference angles must be finite"),
+    ({"max_sweeps": 0}, r"max_sweeps must be >= 1"),
+])
+def test_bad_search_settings_are_one_line_errors_not_crashes(pocket, kw, match):
+    w, wn = pocket
+    with pytest.raises(ConfigError, match=match) as ei:
+        optimise_angles(w, wn, 3, GRID, **kw)
+    assert "np." not in str(ei.value)
+    with pytest.raises(ConfigError, match=r"n_angles must be >= 2 \(an integer\), got 2.5"):
+        optimise_angles(w, wn, 2.5, GRID)
+
+
+@pytest.mark.parametrize("exhaustive_max", [400, 0])
+def test_progress_counts_up_to_its_total_and_changes_nothing(pocket, exhaustive_max):
+    """Exhaustive and coordinate search: progress(done, total) never goes back, never passes
+    total, ends at total; the design found is the same with or without it."""
+    w, wn = pocket
+    calls = []
+    r = optimise_angles(w, wn, 3, GRID, step_deg=45, reference_deg=[0, 90, 180],
+                        exhaustive_max=exhaustive_max, progress=lambda d, t: calls.append((d, t)))
+    r0 = optimise_angles(w, wn, 3, GRID, step_deg=45, reference_deg=[0, 90, 180], exhaustive_max=exhaustive_max)
+    assert r == r0
+    done = [d for d, _ in calls]
+    totals = {t for _, t in calls}
+    assert len(totals) == 1 and all(b >= a for a, b in zip(done, done[1:]))
+    total = totals.pop()
+    assert done[-1] == total and max(done) <= total
+    if exhaustive_max:
+        assert total == 21 + 1          # C(7, 2) pairs after C1 = 0, and the reference
+    # serial evaluation ticks design by design: more calls than batches
+    assert len(calls) >= r.evaluations

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from core.exceptions import ProbeLogError
+from core.exceptions import OutputError, ProbeLogError
 from core.probelog import (OPTIONAL, REQUIRED, format_probe_log, make_log, parse_probe_log,
                            read_probe_log, summary, write_probe_log)
 from core.touches import from_log
@@ -106,9 +106,11 @@ ROW = "s1,p1,0,1,0,0,1,0,0,1,0,0"
         (HEADER + "\ns1,p1,0,nan,0,0,1,0,0,1,0,0\n", r"column 'X_mm': 'nan' is not finite"),
         (HEADER + "\ns1,p1,0,1,0,0,1,0,0,0.9,0,0\n", r"row 0 \(line 2\): vector \(nx,ny,nz\) has length 0.9"),
         (HEADER + ",dx,dy,dz\n" + ROW + ",-1,0.01,0\n", r"vector \(dx,dy,dz\) has length 1.00005"),
-        (HEADER + "\n" + ROW + "\ns1,p2,-1,1,0,0,1,0,0,1,0,0\n", r"row 1 \(line 3\): time goes backwards"),
+        (HEADER + "\ns1,p1,5,1,0,0,1,0,0,1,0,0\ns1,p2,1,1,0,0,1,0,0,1,0,0\n",
+         r"row 1 \(line 3\): time goes backwards \(t_s 1 after 5\)"),
         (HEADER + ",wx_mm,wy_mm,wz_mm\n" + ROW + ",1,2,3\ns2,p1,1,1,0,0,1,0,0,1,0,0,1,2,3.01\n",
-         r"row 1 \(line 3\): target 'p1' has artefact-frame nominal .* in set-up 's2'"),
+         r"row 1 \(line 3\): target 'p1' has artefact-frame nominal \(1, 2, 3.01\) mm in set-up 's2' "
+         r"but \(1, 2, 3\) mm in set-up 's1'$"),
         (HEADER + "\n" + ROW + ",extra\n", r"row 0 \(line 2\): 13 fields, header has 12"),
         (HEADER + "\ns1,p1,0,,0,0,1,0,0,1,0,0\n" + ROW.replace("s1,p1,0", "s1,p2,1") + "\n",
          r"row 0 \(line 2\): column 'X_mm' is empty"),
@@ -151,17 +153,154 @@ def test_write_is_atomic_on_failure(tmp_path, rng, monkeypatch):
         raise OSError("disk full")
 
     monkeypatch.setattr(at.os, "replace", boom)
-    with pytest.raises(OSError):
+    with pytest.raises(OutputError, match=r"cannot write .*log.csv: disk full"):
         write_probe_log(p, log.select(np.arange(3)))
     assert p.read_text() == before
     assert [f.name for f in tmp_path.iterdir()] == ["log.csv"]
 
 
 def test_float_repr_round_trip_is_exact():
-    vals = np.array([0.1, 1 / 3, -1e-300, 123456.78901234567, 5e-324])
+    vals = np.array([0.1, 1 / 3, -1e-300, 98765.43210987654, 5e-324])
     cols = {k: np.zeros(5) for k in REQUIRED if k not in ("setup", "target")}
     cols.update(setup=["a"] * 5, target=[str(i) for i in range(5)], X_mm=vals,
                 nx=np.ones(5), t_s=np.arange(5.0))
     back = parse_probe_log(format_probe_log(make_log(cols)))
     assert all(math.copysign(1, a) == math.copysign(1, b) and a == b
                for a, b in zip(back.columns["X_mm"], vals))
+
+
+# ---------------------------------------------------------------------------
+# every value bounded by its physical meaning
+
+
+def _one(extra_cols="", extra=""):
+    return HEADER + extra_cols + "\n" + ROW + extra + "\n"
+
+
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        (_one().replace("s1,p1,0,1,", "s1,p1,0,1e200,"), r"column 'X_mm': 1e\+200 is out of range \(must be >= -100000 and <= 100000 mm"),
+        (_one().replace(",1,0,0,1,0,0\n", ",-100000.001,0,0,1,0,0\n"), r"column 'Xn_mm': -100000 is out of range"),
+        (_one(",stylus_r_mm", ",-3"), r"column 'stylus_r_mm': -3 is out of range \(must be >= 0 and <= 100 mm: "
+         r"a tip radius is not negative"),
+        (_one(",stylus_r_mm", ",100.5"), r"column 'stylus_r_mm': 100.5 is out of range"),
+        ("# stylus_r_mm: -0.001\n" + _one(), r"metadata stylus_r_mm '-0.001' is out of range \(must be >= 0"),
+        ("# stylus_r_mm: -1.5\n" + _one(), r"metadata stylus_r_mm '-1.5' is out of range"),
+        (_one().replace("s1,p1,0,", "s1,p1,-5,"), r"row 0 \(line 2\): column 't_s': -5 is out of range \(must be >= 0"),
+        (_one(",C_deg", ",2e6"), r"column 'C_deg': 2e\+06 is out of range"),
+        (_one(",temp_spindle_C", ",-300"), r"column 'temp_spindle_C': -300 is out of range \(must be >= -273.15"),
+        (_one(",wx_mm,wy_mm,wz_mm", ",1e6,0,0"), r"column 'wx_mm': 1e\+06 is out of range"),
+        (_one().replace(",1,0,0\n", ",1e200,0,0\n"), r"column 'nx': 1e\+200 is out of range \(must be >= -1 and <= 1: a component"),
+        (_one().replace(",1,0,0\n", ",0.9,0,0\n"), r"vector \(nx,ny,nz\) has length 0.9"),
+        (_one(",temp_spindle_C", ",warm"), r"column 'temp_spindle_C': 'warm' is not a number"),
+        (_one().replace("s1,p1,0,1,", "s1,p1,0," + "9" * 60 + "x,"), r"'9{40}\.\.\.' is not a number"),
+        ("setup,target\x00\n", r"NUL bytes"),
+    ],
+)
+def test_values_outside_their_physical_range_are_refused(tmp_path, text, match):
+    p = tmp_path / "bad.csv"
+    p.write_text(text)
+    with pytest.raises(ProbeLogError, match=match) as ei:
+        read_probe_log(p)
+    assert "\n" not in str(ei.value) and len(str(ei.value)) < 300
+
+
+def test_range_limits_themselves_are_allowed():
+    """The limits are inside; a radius of 0 is a pin or a tool used as the probe (vmt plan grid)."""
+    text = ("# stylus_r_mm: 100\n" + HEADER + ",stylus_r_mm,C_deg,temp_a_C\n"
+            "s1,p1,0,100000,0,0,100000,0,0,1,0,0,0,-1e6,-273.15\n"
+            "s1,p2,1e10,-100000,0,0,-100000,0,0,1,0,0,100,1e6,1000\n")
+    log = parse_probe_log(text)
+    np.testing.assert_array_equal(log.columns["t_s"], [0, 1e10])
+
+
+def test_unknown_text_column_is_kept_and_round_trips(tmp_path):
+    """The spec keeps unknown columns: an operator's name is text, a gauge reading stays numeric."""
+    text = (HEADER + ",operator,gauge_um,status\n" + ROW + ",anna,1.5,ok\n"
+            "s1,p2,1,0,2,0,0,2,0,0,1,0,\"Smith, J.\",,ok\n")
+    log = parse_probe_log(text, "op.csv")
+    assert list(log.columns["operator"]) == ["anna", "Smith, J."]
+    assert log.columns["gauge_um"].dtype == float and math.isnan(log.columns["gauge_um"][1])
+    p = write_probe_log(tmp_path / "op.csv", log)
+    back = read_probe_log(p)
+    assert list(back.columns["operator"]) == ["anna", "Smith, J."]
+    assert format_probe_log(back) == format_probe_log(log)
+    assert from_log(back).n == 2
+    # in memory the same
+    m = make_log({**{k: v for k, v in log.columns.items()}, "operator": ["anna", "bo"]})
+    assert m.columns["operator"].dtype == object
+    # a column the spec defines as numeric never becomes text
+    with pytest.raises(ProbeLogError, match=r"column 'C_deg': 'zero' is not a number"):
+        parse_probe_log(HEADER + ",C_deg\n" + ROW + ",zero\n")
+
+
+def test_file_with_only_spec_columns_reads_exactly_as_the_spec_says(rng):
+    """Every column the spec defines, text where it says, numbers bit for bit."""
+    log = full_log(rng)
+    back = parse_probe_log(format_probe_log(log))
+    assert [k for k, v in back.columns.items() if v.dtype == object] == ["setup", "target", "feature", "status"]
+    assert back.warnings == ()
+    for k, v in log.columns.items():
+        if v.dtype != object:
+            np.testing.assert_array_equal(back.columns[k], v)
+
+
+@pytest.mark.parametrize(
+    "tail, match",
+    [
+        ("s1,p2,1,0,2,0,0,2", r"row 1 \(line 3\): torn last row \(8 of 13 fields, and no end of line\)"),
+        ("s1,p2,1,0,2,0,0,2,0,0,1,0,o", r"torn last row \(last field status 'o'"),
+        ("s1,p2,1,0,2,0,0,2,0,0,1,0,", r"torn last row \(last field status ''"),
+        ("s1,p2,1,0,2,0,0,2,0,0,1,0,no_tr", r"torn last row \(last field status 'no_tr'"),
+    ],
+)
+def test_torn_last_row_is_refused_as_torn(tail, match):
+    with pytest.raises(ProbeLogError, match=match) as ei:
+        parse_probe_log(HEADER + ",status\n" + ROW + ",ok\n" + tail, "t.csv")
+    assert "--resume" in str(ei.value)
+    # the same cut with its end of line is an ordinary bad row or an invalid touch, not torn
+    try:
+        log = parse_probe_log(HEADER + ",status\n" + ROW + ",ok\n" + tail + "\n", "t.csv")
+    except ProbeLogError as e:
+        assert "torn" not in str(e)
+    else:
+        assert log.n == 2
+
+
+def test_torn_number_in_last_field():
+    head = HEADER + ",temp_spindle_C\n" + ROW + ",20.125\n"
+    with pytest.raises(ProbeLogError, match=r"torn last row \(last field temp_spindle_C '1e' is no number"):
+        parse_probe_log(head + "s1,p2,1,0,2,0,0,2,0,0,1,0,1e", "t.csv")
+    # a cut that still reads as a number cannot be told from a short one: kept, with a warning
+    log = parse_probe_log(head + "s1,p2,1,0,2,0,0,2,0,0,1,0,20.", "t.csv")
+    assert log.n == 2 and log.columns["temp_spindle_C"][1] == 20.0
+    assert len(log.warnings) == 1 and "row 1 (line 3): the file ends without an end of line" in log.warnings[0]
+    assert summary(log)["warnings"] == list(log.warnings)
+    # with its end of line, or ending in a whole status word, no warning
+    assert parse_probe_log(head + "s1,p2,1,0,2,0,0,2,0,0,1,0,20.\n").warnings == ()
+    assert parse_probe_log(HEADER + ",status\n" + ROW + ",ok").warnings == ()
+
+
+def test_summary_reports_repeated_setup_target_touches(rng):
+    log = full_log(rng)
+    assert summary(log)["repeated"] == {"touches": 0, "pairs": 0, "examples": []}
+    twice = log.select(np.r_[np.arange(log.n), 2, 3, 3])
+    rep = summary(twice)["repeated"]
+    assert rep["touches"] == 3 and rep["pairs"] == 2
+    assert rep["examples"][0] == {"setup": "C0", "target": "t02", "times": 2}
+    assert rep["examples"][1]["times"] == 3
+
+
+def test_unreadable_device_and_fifo_inputs(tmp_path, monkeypatch):
+    with pytest.raises(ProbeLogError, match=r"/dev/null: is a device or socket, not a probe log file"):
+        read_probe_log("/dev/null")
+    p = tmp_path / "log.csv"
+    p.write_text(_one())
+
+    def denied(self):
+        raise PermissionError(13, "Permission denied", str(self))
+
+    monkeypatch.setattr(type(p), "read_bytes", denied)
+    with pytest.raises(ProbeLogError, match=r"log.csv: cannot read: Permission denied"):
+        read_probe_log(p)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import LIMITS, LIMITS_MM, plan_log, scene
-from core.exceptions import HardwareError, PlanError
+from core.exceptions import HardwareError, PlanError, ProbeLogError
 from core.probelog import read_probe_log, write_probe_log
 from hardware.backend import VirtualBackend
 from hardware.campaign import ProbeSettings, recover_log, run_campaign
@@ -314,3 +314,77 @@ def test_rotary_plan_needs_rotary_controller(tmp_path, capsys):
     p = write_probe_log(tmp_path / "plan.csv", make_log(cols, plan.meta))
     assert main(probe_args("grbl://127.0.0.1:1", p, tmp_path / "o.csv")) == 2
     assert "row 6 needs rotary axes" in capsys.readouterr().err
+
+
+class _Slower(_Slow):
+    """0.4 s per probing move: a 12-touch campaign lasts about 5 s."""
+
+    def probe_move(self, a, b, rot):
+        time.sleep(0.4)
+        return self.machine.probe_move(a, b, rot)
+
+
+def _rows(path):
+    return [x for x in path.read_text().splitlines() if not x.startswith("#")][1:] if path.exists() else []
+
+
+def test_second_writer_is_refused_while_the_first_writes(tmp_path, plan_path, capsys):
+    """Two processes, one log: `vmt probe --resume` in a subprocess holds the lock; a second
+    `vmt probe --resume` (this process) is refused with one line naming the log, and changes nothing."""
+    plan = read_probe_log(plan_path)
+    ref = direct_log(tmp_path, plan)
+    out = tmp_path / "log.csv"
+    emu, srv = serve(machine=_Slower(scene()))
+    try:
+        assert main(probe_args("virtual:", plan_path, out)) == 0       # a finished log, cut back to 3 rows
+        text = out.read_text()
+        head = [x for x in text.splitlines(True) if x.startswith("#") or x.startswith("setup")]
+        out.write_text("".join(head + [x for x in text.splitlines(True)
+                                       if not (x.startswith("#") or x.startswith("setup"))][:3]))
+        first = subprocess.Popen([sys.executable, "-m", "scenarios.cli",
+                                  *probe_args(srv.url, plan_path, out, "--resume")],
+                                 cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        end = time.monotonic() + 30
+        while len(_rows(out)) < 4 and time.monotonic() < end:          # the first writer is at work
+            time.sleep(0.02)
+        assert len(_rows(out)) >= 4 and first.poll() is None
+        before = out.read_bytes()
+        capsys.readouterr()
+        assert main(probe_args("virtual:", plan_path, out, "--resume")) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err
+        assert f"{out}: another process is writing this log right now" in err
+        assert out.read_bytes()[:len(before)] == before                # nothing cut, nothing added by us
+        o, e = first.communicate(timeout=60)
+        assert first.returncode == 0, e
+    finally:
+        srv.stop()
+    log = read_probe_log(out)
+    assert_complete(log, plan)                                         # 12 rows, none twice
+    assert np.abs(log.positions_mm() - ref.positions_mm()).max() < QUANT_MM
+    # the lock dies with its holder: after the first writer, resuming is allowed (nothing left)
+    assert main(probe_args("virtual:", plan_path, out, "--resume")) == 0
+
+
+def test_lock_is_kept_from_creation_and_recovery_respects_it(tmp_path, plan_path):
+    """A log created by AppendLog is locked from the moment it exists; recover_log will not cut
+    a line under a live writer; a killed holder releases the lock."""
+    plan = read_probe_log(plan_path)
+    out = tmp_path / "log.csv"
+    holder = subprocess.Popen(
+        [sys.executable, "-c",
+         "import sys; from hardware.campaign import AppendLog; "
+         f"AppendLog.create({str(out)!r}, ['setup', 'target'], {{'format': 'probe-log/1'}}); "
+         "print('locked', flush=True); sys.stdin.read()"],
+        cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(PlanError, match=r"log.csv: another process is writing this log"):
+            recover_log(out, plan)
+        with pytest.raises(PlanError, match=r"another process is writing this log"):
+            run_campaign(VirtualBackend(scene()), plan, out, ProbeSettings(limits_mm=LIMITS_MM), resume=True)
+    finally:
+        holder.kill()
+        holder.wait(10)
+    with pytest.raises(ProbeLogError, match=r"missing required column 't_s'"):  # lock gone; the content speaks
+        recover_log(out, plan)

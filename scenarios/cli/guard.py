@@ -1,0 +1,247 @@
+"""What every ``vmt`` command promises, kept in one place.
+
+:func:`run_command` runs a parsed command so that
+
+- bad input (:class:`core.exceptions.VmtError`) and operating-system errors
+  (permission denied, no space left, a folder where a file should be, ...)
+  end as ONE line on stderr, ``vmt COMMAND: error: WHAT``, exit status 2;
+- the inputs are checked before any work (exist, are files, can be read),
+  and so are the outputs (not an input of the same run, not a folder, link,
+  device or socket where a file goes, in a folder that can be written), so a
+  ten-minute run never ends in "cannot write";
+- a run that fails leaves no output behind: what it wrote at its outputs
+  (files, report folders, hidden temporaries) is removed
+  (:class:`core.atomic.RunOutputs`); the append-only log of ``vmt probe``
+  is kept, it is what ``--resume`` continues;
+- a closed pipe (``vmt check log.csv | head -2``) ends quietly, status 141
+  like any program killed by SIGPIPE; Ctrl-C ends with one line, status 130;
+- an output named ``/dev/stdout`` is written on standard output itself (never
+  replaced) and the command's own messages then go to stderr.
+
+Which argument of which command is an input or an output is the table
+:data:`FILES`; a command missing there gets only the error handling.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+#: command -> (input files, output files, output folders), as ``args`` attribute names.
+#: ``vmt probe --out`` is absent on purpose: an append-only log, continued by --resume.
+FILES = {
+    "check": (("log",), (), ()),
+    "identify": (("log",), ("json",), ()),
+    "discover": (("log",), ("json_out",), ("report",)),
+    "design": (("plan",), ("json",), ()),
+    "import": (("file", "plan"), ("out",), ()),
+    "simulate": ((), ("out",), ()),
+    "scenario": ((), ("json",), ("comp",)),
+    "demo": ((), (), ("out",)),
+    "bench": ((), ("out",), ()),
+    "probe": (("plan",), (), ()),
+    "machine": (("plan",), ("out",), ()),
+    "view": (("rrd",), (), ()),
+    "plan": ((), ("out",), ()),
+    "fit": (("log",), ("json",), ()),
+    "iso230-2": (("log",), ("json", "write_log"), ("report",)),
+}
+
+#: Exit status of a command killed by SIGPIPE (128 + 13), as a shell reports it.
+EXIT_PIPE = 141
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line, ``vmt CMD: error: ...``, exit 2."""
+
+    def error(self, message):  # noqa: D102 - argparse's hook
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _arg_paths(args, names) -> dict:
+    """``{--option: path}`` of the arguments ``names`` that hold a path (skip flags and unset ones)."""
+    out = {}
+    for name in names:
+        v = getattr(args, name, None)
+        if isinstance(v, (str, os.PathLike)) and str(v) != "":
+            out[name] = str(v)
+    return out
+
+
+def _opt(name: str) -> str:
+    return {"json_out": "--json", "log": "LOG", "plan": "--plan", "file": "FILE", "rrd": "RRD"}.get(
+        name, "--" + name.replace("_", "-"))
+
+
+def check_input(path: str) -> None:
+    """A readable file (or pipe) at ``path``, else :class:`~core.exceptions.VmtError` naming it."""
+    from core.atomic import input_problem
+    from core.exceptions import VmtError
+
+    problem = input_problem(path)
+    if problem:
+        raise VmtError(f"{path}: {problem}")
+
+
+def _writable_folder(path: Path, *, folder: bool = False) -> None:
+    """The nearest existing folder on the way to ``path`` (a file, or a ``folder``) must take a new file."""
+    from core.exceptions import OutputError
+
+    q = path if folder else path.parent
+    while not q.exists() and q != q.parent:
+        q = q.parent
+    if not q.is_dir():
+        raise OutputError(f"{path}: cannot write there: {q} is not a folder")
+    try:
+        with tempfile.TemporaryFile(dir=q, prefix=f".{path.name}.probe."):
+            pass
+    except OSError as e:
+        raise OutputError(f"{path}: cannot write in {q}: {e.strerror}") from None
+
+
+def check_outputs(inputs: dict, files: dict, folders: dict) -> None:
+    """Refuse outputs that would overwrite an input, or that cannot be written as files/folders."""
+    from core.atomic import check_output, output_kind, same_file
+    from core.exceptions import OutputError
+
+    for oname, out in {**files, **folders}.items():
+        for iname, inp in inputs.items():
+            if os.path.exists(out) and same_file(out, inp):
+                raise OutputError(f"{_opt(oname)} {out} is the input {_opt(iname)} {inp}: "
+                                  "refusing to overwrite an input; choose another output")
+    for other, out in files.items():
+        for oname2, out2 in {**files, **folders}.items():
+            if oname2 != other and os.path.abspath(out) == os.path.abspath(out2):
+                raise OutputError(f"{_opt(other)} and {_opt(oname2)} are the same path {out}")
+    for name, out in files.items():
+        if check_output(out, special=True) == "replace":
+            _writable_folder(Path(out))
+    for name, out in folders.items():
+        kind = output_kind(out)
+        if kind not in ("missing", "directory", "symbolic link"):
+            raise OutputError(f"{_opt(name)} {out}: is a {kind}, not a folder")
+        if kind != "missing" and not os.path.isdir(out):
+            raise OutputError(f"{_opt(name)} {out}: is not a folder")
+        _writable_folder(Path(out), folder=True)
+
+
+#: Options that mean the same in every command that has them (``args`` name: test, rule).
+COMMON = {
+    "seed": (lambda v: v >= 0, "must be >= 0"),
+    "mc": (lambda v: v >= 0, "must be >= 0"),
+    "noise_um": (lambda v: v >= 0 and v < float("inf"), "must be a finite number >= 0"),
+    "u_probe_um": (lambda v: 0 < v < float("inf"), "must be > 0"),
+    "dt": (lambda v: 0 < v < float("inf"), "must be a positive number of seconds"),
+    "step_deg": (lambda v: 0 < v <= 360, "must be > 0 and divide 360"),
+    "angles": (lambda v: v >= 2, "must be >= 2"),
+    "workers": (lambda v: v >= 1, "must be >= 1"),
+    "delta_l_um": (lambda v: abs(v) < float("inf"), "must be a finite number"),
+}
+
+
+def check_common_options(args) -> None:
+    """Refuse a value of a shared option outside its meaning (NaN fails every test)."""
+    from core.exceptions import ConfigError
+
+    for name, (ok, rule) in COMMON.items():
+        v = getattr(args, name, None)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and not ok(v):
+            raise ConfigError(f"--{name.replace('_', '-')} {rule}, got {v:g}")
+
+
+def os_error_line(e: OSError) -> str:
+    """WHICH PATH: WHY (one line) for an operating-system error."""
+    why = e.strerror or str(e) or type(e).__name__
+    if e.filename is not None and e.filename2 is not None:
+        return f"{e.filename} -> {e.filename2}: {why}"
+    if e.filename is not None:
+        return f"{e.filename}: {why}"
+    return why
+
+
+def _quiet_stdout() -> None:
+    """After a closed pipe: point stdout at /dev/null so the exit flush stays silent."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # pragma: no cover - stdout without a descriptor
+        pass
+
+
+def run_command(args) -> int:
+    """Run ``args.func(args)`` keeping the promises of this module; return the exit status."""
+    from core.atomic import RunOutputs, own_descriptor
+    from core.exceptions import VmtError
+
+    name = " ".join([args.command] + [str(v) for k, v in sorted(vars(args).items())
+                                      if k.endswith("_command") and isinstance(v, str)])
+    ins, outs, dirs = FILES.get(args.command, ((), (), ()))
+    outputs = None
+    try:
+        try:
+            check_common_options(args)
+            inputs = _arg_paths(args, ins)
+            for path in inputs.values():
+                check_input(path)
+            files, folders = _arg_paths(args, outs), _arg_paths(args, dirs)
+            check_outputs(inputs, files, folders)
+            outputs = RunOutputs(list(files.values()) + list(folders.values()))
+            # an output on our own stdout (--out /dev/stdout): the command's messages go to stderr
+            said_to = sys.stderr if any(own_descriptor(p) == 1 for p in files.values()) else None
+            with contextlib.redirect_stdout(said_to) if said_to else contextlib.nullcontext():
+                rc = int(args.func(args) or 0)
+            sys.stdout.flush()
+            return rc
+        except BrokenPipeError:
+            raise           # the reader went away: what was written is complete, keep it
+        except BaseException:
+            if outputs is not None:
+                outputs.remove_written()
+            raise
+    except BrokenPipeError:
+        _quiet_stdout()
+        return EXIT_PIPE
+    except VmtError as e:
+        print(f"vmt {name}: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        print(f"vmt {name}: error: {os_error_line(e)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"vmt {name}: interrupted", file=sys.stderr)
+        return 130
+
+
+def progress_line(label: str):
+    """A :class:`viz.progress.TerminalProgress` (drawn on a terminal only) that can be cleared
+    before the command prints a line (``clear()``), so its line never mixes with the output."""
+    from viz.progress import TerminalProgress
+
+    class _Line(TerminalProgress):
+        def clear(self) -> None:
+            if self.enabled:
+                self.stream.write("\r\033[K")
+                self.stream.flush()
+                self._last_draw = -float("inf")   # draw again at the next call
+
+    return _Line(label)
+
+
+def said(path) -> str:
+    """``path`` as a command names an output it wrote: a device or FIFO says it was written through."""
+    try:
+        kind = _kind(os.stat(path).st_mode)
+    except OSError:
+        return str(path)
+    return f"{path} (a {kind}: written through, not replaced)" if kind != "file" else str(path)
+
+
+def _kind(mode: int) -> str:
+    from core.atomic import _kind_of_mode
+
+    return _kind_of_mode(mode)

@@ -1,0 +1,188 @@
+"""The atomic writer replaces only regular files, refuses non-finite JSON, and takes back a failed run."""
+
+import json
+import os
+import socket
+import stat
+
+import numpy as np
+import pytest
+
+import core.atomic as at
+from core.atomic import (RunOutputs, check_output, json_safe, output_kind, same_file, write_json_atomic,
+                         write_text_atomic)
+from core.exceptions import OutputError, VmtError
+
+
+def listing(d):
+    return sorted(p.name for p in d.iterdir())
+
+
+def test_new_and_replaced_regular_files(tmp_path):
+    p = write_text_atomic(tmp_path / "a" / "b" / "x.txt", "one\n")
+    assert p.read_text() == "one\n" and output_kind(p) == "file"
+    write_text_atomic(p, "two\n")
+    assert p.read_text() == "two\n"
+    assert listing(p.parent) == ["x.txt"]                  # no temporary left
+    assert stat.S_IMODE(p.stat().st_mode) == 0o666 & ~at._umask()
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda p: p.mkdir(), r"x: is a directory, not a file"),
+    (lambda p: p.symlink_to("elsewhere.txt"), r"x: is a symbolic link \(to elsewhere.txt, a missing\)"),
+    (lambda p: os.mkfifo(p), r"x: is a FIFO \(named pipe\), not a regular file: refusing to replace it"),
+])
+def test_refuses_to_replace_what_is_not_a_regular_file(tmp_path, make, match):
+    p = tmp_path / "x"
+    make(p)
+    kind = output_kind(p)
+    with pytest.raises(OutputError, match=match):
+        write_text_atomic(p, "data")
+    assert output_kind(p) == kind                         # untouched
+    assert listing(tmp_path) == ["x"]                     # no temporary left
+
+
+def test_link_to_a_file_is_refused_and_both_are_kept(tmp_path):
+    (tmp_path / "target.json").write_text('{"keep": 1}\n')
+    (tmp_path / "link.json").symlink_to("target.json")
+    with pytest.raises(OutputError, match=r"link.json: is a symbolic link \(to target.json, a file\): refusing"):
+        write_json_atomic(tmp_path / "link.json", {"new": 2})
+    assert (tmp_path / "link.json").is_symlink()
+    assert json.loads((tmp_path / "target.json").read_text()) == {"keep": 1}
+
+
+def test_devices_refused_unless_asked_then_written_through():
+    with pytest.raises(OutputError, match=r"/dev/null: is a character device, not a regular file"):
+        write_text_atomic("/dev/null", "x")
+    assert output_kind("/dev/null") == "character device"
+    assert check_output("/dev/null", special=True) == "through"
+    write_text_atomic("/dev/null", "x", special=True)
+    assert output_kind("/dev/null") == "character device"
+    # a full device: the error of the write, not "wrote"
+    with pytest.raises(OutputError, match=r"cannot write /dev/full: No space left on device"):
+        write_json_atomic("/dev/full", {"a": 1}, special=True)
+    assert output_kind("/dev/full") == "character device"
+
+
+def test_fifo_and_link_to_device_written_through_when_asked(tmp_path):
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    rfd = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)          # a reader (does not block)
+    try:
+        write_text_atomic(fifo, "through the pipe\n", special=True)
+        assert os.read(rfd, 100) == b"through the pipe\n"
+    finally:
+        os.close(rfd)
+    assert output_kind(fifo) == "FIFO (named pipe)"
+    with pytest.raises(OutputError, match=r"cannot write .*pipe: no process is reading it"):
+        write_text_atomic(fifo, "nobody listens", special=True)       # an error, not a hang
+    link = tmp_path / "null"
+    link.symlink_to("/dev/null")
+    write_text_atomic(link, "x", special=True)
+    assert link.is_symlink()
+
+
+def test_socket_and_file_as_folder_refused_even_when_asked(tmp_path):
+    s = socket.socket(socket.AF_UNIX)
+    try:
+        s.bind(str(tmp_path / "sock"))
+        with pytest.raises(OutputError, match=r"sock: is a socket, not a regular file"):
+            write_text_atomic(tmp_path / "sock", "x", special=True)
+    finally:
+        s.close()
+    (tmp_path / "f").write_text("")
+    with pytest.raises(OutputError, match=r"f/x.json: cannot write there: .*f is a file, not a folder"):
+        write_text_atomic(tmp_path / "f" / "x.json", "x")
+    with pytest.raises(OutputError, match=r"cannot write .*f/sub/x.json: Not a directory"):
+        write_text_atomic(tmp_path / "f" / "sub" / "x.json", "x")
+
+
+def test_operating_system_failures_are_one_line_naming_the_path(tmp_path, monkeypatch):
+    def denied(*a, **k):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(at.tempfile, "mkstemp", denied)
+    with pytest.raises(OutputError, match=r"^cannot write .*out.json: Permission denied$") as ei:
+        write_json_atomic(tmp_path / "out.json", {"a": 1})
+    assert isinstance(ei.value, VmtError)
+    assert listing(tmp_path) == []
+
+
+def test_json_non_finite_values_refused_naming_the_key(tmp_path):
+    p = tmp_path / "r.json"
+    for bad, key in [({"a": {"b": [1.0, float("nan")]}}, r"a.b\[1\] is nan"),
+                     ({"rms_um": np.float64("inf")}, r"rms_um is inf"),
+                     ({"v": np.array([1.0, -np.inf])}, r"v\[1\] is -inf"),
+                     ({"o": object()}, r"o is a object, not a JSON value")]:
+        with pytest.raises(OutputError, match=r"refusing to write .*r.json: " + key):
+            write_json_atomic(p, bad)
+        assert not p.exists()
+    # numpy values become plain JSON; a caller meaning "not available" says so with json_safe
+    write_json_atomic(p, {"n": np.int64(3), "x": np.float32(0.5), "a": np.arange(2), "ok": np.bool_(True),
+                          "u95": json_safe([1.0, float("nan")])})
+    assert json.loads(p.read_text()) == {"n": 3, "x": 0.5, "a": [0, 1], "ok": True, "u95": [1.0, None]}
+
+
+def test_same_file_through_links_and_dots(tmp_path):
+    a = tmp_path / "plan.csv"
+    a.write_text("x")
+    (tmp_path / "l.csv").symlink_to(a)
+    assert same_file(a, tmp_path / "l.csv")
+    assert same_file(a, tmp_path / "sub" / ".." / "plan.csv")
+    assert not same_file(a, tmp_path / "other.csv")
+
+
+def test_run_outputs_takes_back_what_a_failed_run_wrote(tmp_path):
+    keep = tmp_path / "keep.json"
+    keep.write_text("old")
+    replaced = tmp_path / "replaced.json"
+    replaced.write_text("old")
+    folder = tmp_path / "out"
+    folder.mkdir()
+    (folder / "mine.txt").write_text("user's")
+    (tmp_path / ".rep.before").mkdir()                   # a temporary from before: not this run's
+    outs = RunOutputs([keep, replaced, tmp_path / "new.json", folder, tmp_path / "rep",
+                       tmp_path / "a" / "b" / "deep.json", None, ""])
+    # the run
+    write_text_atomic(replaced, "new")
+    write_text_atomic(tmp_path / "new.json", "new")
+    write_text_atomic(folder / "result.csv", "new")
+    (tmp_path / "rep").mkdir()
+    (tmp_path / "rep" / "index.html").write_text("half")
+    (tmp_path / ".rep.x1y2").mkdir()                      # a hidden temporary left by the report
+    write_text_atomic(tmp_path / "a" / "b" / "deep.json", "new")
+    removed = outs.remove_written()
+    assert keep.read_text() == "old"
+    assert (folder / "mine.txt").read_text() == "user's"
+    assert listing(tmp_path) == [".rep.before", "keep.json", "out"]
+    assert listing(folder) == ["mine.txt"]
+    assert tmp_path / "a" in removed and tmp_path / ".rep.x1y2" in removed
+
+
+def test_run_outputs_keeps_everything_when_nothing_was_written(tmp_path):
+    (tmp_path / "x.json").write_text("old")
+    outs = RunOutputs([tmp_path / "x.json", tmp_path / "missing" / "y.json"])
+    assert outs.remove_written() == []
+    assert listing(tmp_path) == ["x.json"]
+
+
+def test_dev_stdout_is_written_through_never_replaced(tmp_path):
+    """`--out /dev/stdout >> file` and `| reader`: the text lands where the shell sent stdout, after
+    what is there, and /dev/stdout stays the link it is. (As root, the old writer replaced
+    /dev/stdout by a regular file.)"""
+    import subprocess
+    import sys
+
+    code = ("import sys; from core.atomic import write_text_atomic; "
+            "write_text_atomic('/dev/stdout', 'through\\n', special=True)")
+    out = tmp_path / "o.txt"
+    out.write_text("kept\n")
+    with open(out, "a") as f:
+        subprocess.run([sys.executable, "-c", code], stdout=f, check=True)
+    assert out.read_text() == "kept\nthrough\n"
+    assert os.path.islink("/dev/stdout")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert r.stdout == "through\n"
+    with pytest.raises(OutputError, match="symbolic link"):
+        write_text_atomic("/dev/stdout", "x")             # not asked: refused, never replaced
+    assert os.path.islink("/dev/stdout")

@@ -1,0 +1,192 @@
+"""The promises every command keeps (scenarios.cli.guard): one line and exit 2, nothing left behind."""
+
+import io
+import json
+import os
+
+import numpy as np
+import pytest
+
+from core.exceptions import VmtError
+from core.probelog import make_log, write_probe_log
+from scenarios.cli import main
+
+
+@pytest.fixture
+def files(tmp_path):
+    cols = {"setup": ["a", "a", "b"], "target": ["1", "2", "1"], "t_s": [0, 1, 2],
+            "X_mm": [1, 2, 3], "Y_mm": [0, 0, 0], "Z_mm": [0, 0, 0],
+            "Xn_mm": [1, 2, 3], "Yn_mm": [0, 0, 0], "Zn_mm": [0, 0, 0],
+            "nx": [1, 1, 1], "ny": [0, 0, 0], "nz": [0, 0, 0]}
+    log = write_probe_log(tmp_path / "log.csv", make_log(cols))
+    plan = make_log({**cols, **{c: [np.nan] * 3 for c in ("t_s", "X_mm", "Y_mm", "Z_mm")}})
+    plan_p = write_probe_log(tmp_path / "plan.csv", plan)
+    probe = tmp_path / "probe.txt"
+    probe.write_text("1 0 0\n2 0 0\n3 0 0\n")
+    return {"log": log, "plan": plan_p, "probe": probe, "dir": tmp_path}
+
+
+def one_line(capsys, start):
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(start), err
+    return err
+
+
+def test_unreadable_input_is_one_line(files, capsys, monkeypatch):
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, m: False if str(p) == str(files["log"]) else real(p, m))
+    assert main(["check", str(files["log"])]) == 2
+    one_line(capsys, f"vmt check: error: {files['log']}: cannot read: Permission denied")
+
+
+def test_folder_given_as_input_or_output(files, capsys):
+    d = files["dir"] / "sub"
+    d.mkdir()
+    assert main(["import", "linuxcnc", str(d), "--plan", str(files["plan"]), "--out", str(d / "x.csv")]) == 2
+    one_line(capsys, f"vmt import: error: {d}: is a directory, not a file")
+    assert main(["import", "linuxcnc", str(files["probe"]), "--plan", str(files["plan"]), "--out", str(d)]) == 2
+    one_line(capsys, f"vmt import: error: {d}: is a directory, not a file")
+    assert list(d.iterdir()) == []
+
+
+def test_output_folder_that_cannot_be_written(files, capsys, monkeypatch):
+    import tempfile
+
+    def denied(*a, **k):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", denied)
+    out = files["dir"] / "ro" / "x.csv"
+    assert main(["import", "linuxcnc", str(files["probe"]), "--plan", str(files["plan"]), "--out", str(out)]) == 2
+    one_line(capsys, f"vmt import: error: {out}: cannot write in {files['dir']}: Permission denied")
+    assert not (files["dir"] / "ro").exists()
+
+
+def test_devices_and_links_as_outputs(files, capsys):
+    args = ["import", "linuxcnc", str(files["probe"]), "--plan", str(files["plan"]), "--out"]
+    assert main(args + ["/dev/full"]) == 2
+    one_line(capsys, "vmt import: error: cannot write /dev/full: No space left on device")
+    assert not os.path.isfile("/dev/full")
+    assert main(args + ["/dev/null"]) == 0
+    assert "/dev/null (a character device: written through, not replaced)" in capsys.readouterr().out
+    link = files["dir"] / "link.csv"
+    link.symlink_to(files["dir"] / "target.csv")
+    assert main(args + [str(link)]) == 2
+    one_line(capsys, f"vmt import: error: {link}: is a symbolic link")
+    assert link.is_symlink() and not (files["dir"] / "target.csv").exists()
+
+
+def test_output_that_is_an_input_is_refused(files, capsys):
+    before = files["plan"].read_bytes()
+    assert main(["import", "linuxcnc", str(files["probe"]), "--plan", str(files["plan"]),
+                 "--out", str(files["dir"] / "." / "plan.csv")]) == 2
+    one_line(capsys, "vmt import: error: --out ")
+    assert files["plan"].read_bytes() == before
+
+
+@pytest.mark.parametrize("extra, msg", [
+    (["--dt", "nan"], "--dt must be a positive number of seconds, got nan"),
+    (["--dt", "-1"], "--dt must be a positive number of seconds, got -1"),
+    (["--dt", "0"], "--dt must be a positive number of seconds, got 0"),
+])
+def test_import_dt_messages(files, capsys, extra, msg):
+    out = files["dir"] / "o.csv"
+    assert main(["import", "linuxcnc", str(files["probe"]), "--plan", str(files["plan"]),
+                 "--out", str(out)] + extra) == 2
+    one_line(capsys, f"vmt import: error: {msg}")
+    assert not out.exists()
+
+
+def test_design_step_zero_and_usage_errors_are_one_line(files, capsys):
+    assert main(["design", str(files["plan"]), "--angles", "4", "--step-deg", "0"]) == 2
+    one_line(capsys, "vmt design: error: --step-deg must be > 0 and divide 360, got 0")
+    with pytest.raises(SystemExit) as e:
+        main(["design", str(files["plan"]), "--angles", "four"])
+    assert e.value.code == 2
+    one_line(capsys, "vmt design: error: argument --angles: invalid int value: 'four' (see vmt design --help)")
+
+
+def test_failed_run_leaves_no_output(files, capsys, monkeypatch):
+    """A command that wrote its JSON and half a report, then failed: both removed, a file of
+    the user's in the report's parent kept; Ctrl-C the same, exit 130."""
+    import scenarios.cli.discover as cd
+
+    keep = files["dir"] / "notes.txt"
+    keep.write_text("mine")
+
+    def half(log_path, json_out, report=None, grid_mm=None, progress=None):
+        from core.atomic import write_json_atomic
+
+        write_json_atomic(json_out, {"baseline": {}})
+        os.makedirs(report)
+        (files["dir"] / ".rep.tmp123").mkdir()
+        raise error
+
+    monkeypatch.setattr(cd, "run_discover", half)
+    for error, rc, start in ((VmtError("report: needs baseline.rms_um"), 2, "vmt discover: error: report"),
+                             (KeyboardInterrupt(), 130, "vmt discover: interrupted")):
+        assert main(["discover", str(files["log"]), "--json", str(files["dir"] / "d.json"),
+                     "--report", str(files["dir"] / "rep")]) == rc
+        one_line(capsys, start)
+        assert sorted(p.name for p in files["dir"].iterdir()) == ["log.csv", "notes.txt", "plan.csv", "probe.txt"]
+
+
+def test_os_error_inside_a_command_is_one_line(files, capsys, monkeypatch):
+    import scenarios.cli.check as cc
+
+    def boom(args):
+        raise IsADirectoryError(21, "Is a directory", "/some/where")
+
+    monkeypatch.setattr(cc, "run", boom)
+    monkeypatch.setattr("scenarios.cli.check.run", boom)
+    from scenarios.cli import build_parser
+    from scenarios.cli.guard import run_command
+
+    args = build_parser().parse_args(["check", str(files["log"])])
+    args.func = boom
+    assert run_command(args) == 2
+    one_line(capsys, "vmt check: error: /some/where: Is a directory")
+
+
+def test_check_reports_repeated_touches_and_a_possibly_torn_end(files, capsys):
+    text = files["log"].read_text()
+    dup = files["dir"] / "dup.csv"
+    dup.write_text(text + text.splitlines()[-1].replace(",2,3,", ",3,3,", 1))   # no end of line
+    assert main(["check", str(dup)]) == 0
+    out = capsys.readouterr().out
+    assert "repeated 1 touches repeat an earlier (setup, target) (1 pairs, e.g. b/1 x2)" in out
+    assert "warning  " in out and "may be cut short" in out
+    assert main(["check", str(dup), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["repeated"]["touches"] == 1 and len(s["warnings"]) == 1
+
+
+def test_progress_line_is_quiet_off_a_terminal_and_clears_on_one():
+    from scenarios.cli.guard import progress_line
+
+    bar = progress_line("x")
+    assert not bar.enabled            # pytest's stderr is no terminal
+    bar(1, 2)
+    bar.clear()
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    bar.stream, bar.enabled = Tty(), True
+    bar(1, 4)
+    bar.clear()
+    bar(2, 4)
+    text = bar.stream.getvalue()
+    assert text.count("\r\033[K") == 1 and text.endswith("2/4 ( 50 %)  ~" + text.split("~")[-1])
+    assert "left" in text
+
+
+def test_cross_pocket_uncertainty_reports_progress():
+    from scenarios.crosspocket import cross_pocket_uncertainty
+
+    calls = []
+    cross_pocket_uncertainty(runs=10, seed=1, progress=lambda d, t: calls.append((d, t)))
+    assert calls[0] == (0, 6) and calls[-1] == (6, 6)
+    assert [d for d, _ in calls] == sorted(d for d, _ in calls)
