@@ -489,8 +489,10 @@ class Outcome:
         The cause was named without an ambiguity flag.
     visible_sigmas : float
         RMS per touch of what the baseline leaves of the effect, in noise
-        sigmas: the generator's own figure when it gives one, else the
-        baseline's residual variance less the true noise's share.
+        sigmas: exact when the truth carries the effect per touch (its part
+        outside the baseline's column space), else the generator's own
+        figure when it gives one, else the baseline's residual variance
+        less the true noise's share.
     noise_um : float
     wp_base_um, wp_ext_um : float
         RMS over targets of (estimate - truth) after removing what
@@ -499,6 +501,12 @@ class Outcome:
         RMS over targets of the extended workpiece's U95 after the same removal.
     seconds : float
         Time of discovery.
+    visible_generator : float
+        The generator's own visibility figure (NaN when it gives none).
+    angle_to_baseline_deg : float
+        Angle between the effect (per touch) and the baseline's column
+        space: 0 when the baseline absorbs it entirely (no residual test
+        can see it; NaN when the truth does not carry the effect).
     """
 
     generator: str
@@ -514,6 +522,8 @@ class Outcome:
     wp_ext_um: float
     wp_u95_um: float
     seconds: float
+    visible_generator: float = float("nan")
+    angle_to_baseline_deg: float = float("nan")
 
 
 def catalogue_names() -> set:
@@ -524,8 +534,14 @@ def catalogue_names() -> set:
 
 
 def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true: dict | None, noise_um: float,
-                 identifiable: bool = True, visible_sigmas: float | None = None, **discover_kw) -> Outcome:
-    """Discover on one campaign and score it against its truth (the log's other columns as covariates)."""
+                 identifiable: bool = True, visible_sigmas: float | None = None, effect_dq_um=None,
+                 **discover_kw) -> Outcome:
+    """Discover on one campaign and score it against its truth (the log's other columns as covariates).
+
+    ``effect_dq_um`` (per log row, optional): the effect alone; its part
+    outside the baseline's column space gives the exact visibility and its
+    angle to that space (0: absorbed by the baseline).
+    """
     import time
 
     from core.baseline import extra_columns
@@ -563,8 +579,37 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
                 wu = float(np.sqrt(np.mean(4 * np.maximum(np.einsum("ij,jk,ik->i", Pm, C, Pm), 0)))) / UM
     conf = not any(f["evidence"].get("confidence") == "ambiguous" for f in rep["findings"][:1])
     vis = float(visible_sigmas) if visible_sigmas is not None else float(np.sqrt(max(eff2, 0.0)) / noise_um)
+    vis_gen = float(visible_sigmas) if visible_sigmas is not None else float("nan")
+    angle = float("nan")
+    if effect_dq_um is not None:
+        vis, angle = effect_outside_baseline(bl, np.asarray(effect_dq_um, float)[bl.rows] * UM, noise_um * UM)
     return Outcome(generator, effect, int(seed), tuple(acceptable), rep["cause"],
-                   tuple(f["cause"] for f in rep["findings"]), bool(conf), vis, float(noise_um), wb, we, wu, dt)
+                   tuple(f["cause"] for f in rep["findings"]), bool(conf), vis, float(noise_um), wb, we, wu, dt,
+                   vis_gen, angle)
+
+
+def effect_outside_baseline(bl, e_m: np.ndarray, noise_m: float) -> tuple[float, float]:
+    """(RMS per affected row of the effect's part outside the baseline's column space in noise sigmas, its angle, deg).
+
+    The baseline fits ``A theta``; whatever of the effect lies in span(A)
+    it absorbs exactly (into the machine's map, the set-ups' own terms or
+    the workpiece), and no test on the residuals can see it. The angle
+    between the effect and span(A) is 0 deg then. The RMS is taken over
+    the rows the effect acts on (at least 10 % of its largest value, the
+    blind generators' own convention), so that a local effect (an outlier,
+    a scale defect, one feature changing) is not diluted by the rows it
+    never touched; for an effect on every row it is the RMS over all rows.
+    """
+    from core.diagnosis import orth
+
+    Q = orth(bl.A)
+    ep = e_m - Q @ (Q.T @ e_m)
+    ne = float(np.linalg.norm(e_m))
+    if ne == 0:
+        return 0.0, float("nan")
+    on = np.abs(e_m) >= 0.1 * np.max(np.abs(e_m))
+    vis = float(np.sqrt(np.mean(ep[on] ** 2)) / noise_m)
+    return vis, float(np.degrees(np.arcsin(min(np.linalg.norm(ep) / ne, 1.0))))
 
 
 def binomial_interval(k: int, n: int, level: float = 0.95) -> tuple:
@@ -586,9 +631,18 @@ def summarize(outcomes) -> dict:
     - ``catalogue``: catalogue effects whose campaign kept at least one
       noise sigma per touch after the baseline, named acceptably;
     - ``out_of_catalogue``: effects with no catalogue name among their
-      acceptable causes, reported ``unexplained`` or acceptably;
-    - ``confident_misnamed``: out-of-catalogue effects named with a wrong
-      catalogue cause without an ambiguity flag;
+      acceptable causes that kept at least one noise sigma per touch after
+      the baseline, reported ``unexplained`` or acceptably;
+    - ``below_visibility``: effects (catalogue or not) that kept less than
+      one sigma per touch: not counted in the two rates above, reported
+      apart (``none`` is an honest answer there, a confident wrong name is
+      not: it counts in ``confident_misnamed``);
+    - ``absorbed``: of those, the effects the generator calls visible that
+      the baseline absorbs (its model can represent them: the effect's
+      angle to the baseline's column space, ``angle_to_baseline_deg``, is
+      the proof);
+    - ``confident_misnamed``: out-of-catalogue effects (visible or not)
+      named with a wrong catalogue cause without an ambiguity flag;
     - ``workpiece_ok``: campaigns whose extended workpiece is no worse than
       the baseline's beyond its U95 (both gauge-free against the truth).
     """
@@ -604,8 +658,13 @@ def summarize(outcomes) -> dict:
     catl = [o for o in outcomes if set(o.acceptable) & cat and o.visible_sigmas >= 1.0]
     rate("catalogue", catl, [o.cause in o.acceptable for o in catl])
     ooc = [o for o in outcomes if o.acceptable != ("none",) and not set(o.acceptable) & cat]
-    rate("out_of_catalogue", ooc, [o.cause in o.acceptable or o.cause == "unexplained" for o in ooc])
+    oocv = [o for o in ooc if o.visible_sigmas >= 1.0]
+    rate("out_of_catalogue", oocv, [o.cause in o.acceptable or o.cause == "unexplained" for o in oocv])
     rate("confident_misnamed", ooc, [o.cause in cat and o.cause not in o.acceptable and o.confident for o in ooc])
+    low = [o for o in outcomes if o.acceptable != ("none",) and o.visible_sigmas < 1.0]
+    rate("below_visibility", low, [o.cause in o.acceptable or o.cause in ("none", "unexplained") for o in low])
+    out["absorbed"] = [(o.effect, o.seed, round(o.visible_generator, 2), round(o.visible_sigmas, 3),
+                        round(o.angle_to_baseline_deg, 3)) for o in low if o.visible_generator >= 1.0]
     wp = [o for o in outcomes if np.isfinite(o.wp_base_um) and np.isfinite(o.wp_ext_um) and np.isfinite(o.wp_u95_um)]
     rate("workpiece_ok", wp, [o.wp_ext_um <= o.wp_base_um + o.wp_u95_um for o in wp])
     if wp:
@@ -621,20 +680,25 @@ def format_study(outcomes, title: str = "") -> str:
     causes = sorted({o.cause for o in outcomes})
     w = max([len(e) for e in effects] + [8])
     lines = [title] if title else []
-    lines.append(" " * (w + 1) + " ".join(f"{c[:10]:>10s}" for c in causes) + "   wp base->ext um (U95)")
+    lines.append(" " * (w + 1) + " ".join(f"{c[:10]:>10s}" for c in causes) + "   vis/sigma  wp base->ext um (U95)")
     for e in effects:
         sel = [o for o in outcomes if o.effect == e]
         row = " ".join(f"{sum(o.cause == c for o in sel):10d}" for c in causes)
         fin = [o for o in sel if np.isfinite(o.wp_base_um) and np.isfinite(o.wp_ext_um)]
         wp = (f"{np.mean([o.wp_base_um for o in fin]):.3f}->{np.mean([o.wp_ext_um for o in fin]):.3f}"
               f" ({np.nanmean([o.wp_u95_um for o in fin]):.2f})" if fin else "n/a")
-        lines.append(f"{e:<{w}s} {row}   {wp}")
+        lines.append(f"{e:<{w}s} {row}   {np.median([o.visible_sigmas for o in sel]):9.2f}  {wp}")
     s = summarize(outcomes)
-    for k in ("false_alarm", "catalogue", "out_of_catalogue", "confident_misnamed", "workpiece_ok"):
+    for k in ("false_alarm", "catalogue", "out_of_catalogue", "confident_misnamed", "workpiece_ok",
+              "below_visibility"):
         v = s[k]
         if v["n"]:
             lines.append(f"{k:20s} {v['k']:3d}/{v['n']:<3d} = {v['rate']:.2f}  (95 % CI {v['ci95'][0]:.2f}-"
                          f"{v['ci95'][1]:.2f})")
+    if s["absorbed"]:
+        lines.append("absorbed by the baseline (generator's visibility >= 1 sigma, < 1 sigma outside the "
+                     "baseline's column space; effect, seed, generator's, ours, angle deg): "
+                     + "; ".join(" ".join(str(v) for v in a) for a in s["absorbed"]))
     lines.append(f"discover mean {s['seconds_mean']:.2f} s per campaign")
     return "\n".join(lines)
 
@@ -661,7 +725,8 @@ def blind_outcome(module, effect: str, seed: int, generator: str = "", **discove
     return run_campaign(generator or module.__name__.rsplit(".", 1)[-1], effect, seed, log,
                         tuple(tr.acceptable_causes), g_true, float(tr.noise_um),
                         identifiable=bool(tr.workpiece_identifiable),
-                        visible_sigmas=getattr(tr, "visible_sigmas", None), **discover_kw)
+                        visible_sigmas=getattr(tr, "visible_sigmas", None),
+                        effect_dq_um=getattr(tr, "effect_dq_um", None), **discover_kw)
 
 
 # ---------------------------------------------------------------------------
