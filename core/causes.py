@@ -430,6 +430,47 @@ def _circle(P: np.ndarray):
     return c, r, float(np.sqrt(np.mean((np.linalg.norm(P - c, axis=1) - r) ** 2)))
 
 
+def _setup_c_rad(bl, setup_ids) -> np.ndarray:
+    """C angle of each named set-up (rad, mean over its touches; the touches' ``rot_rad[:, 2]``)."""
+    t = bl.data.touches
+    idx = [t.setup_ids.index(s) for s in setup_ids]
+    return np.array([float(np.mean(t.rot_rad[t.setup == j, 2])) for j in idx])
+
+
+def _part_frame_lobe(c: np.ndarray, c_rad: np.ndarray, k: int) -> np.ndarray:
+    """The part of the set-ups' lobing vectors that a form of the part itself explains, (n, 2) m.
+
+    A k-lobe form of the part turns with the table: in set-up j it reads as
+    lobing vector ``R(-k C_j) w`` against the machine-frame azimuth, which
+    the baseline's workpiece (a deviation per target) absorbs: the data
+    cannot see it (these are exactly the weak directions of the per-set-up
+    columns). Fitted jointly with the circle (centre ``m``, radius ``A``,
+    ``w``: five parameters, Gauss-Newton from the plain circle) so that the
+    amplitude and orientations are free of it; needs at least six set-ups
+    (one degree of freedom left) and C angles that turn ``k C`` (else
+    ``w`` is a part of the centre): otherwise zero, and the plain circle's
+    magnitudes are left to the weak-direction check.
+    """
+    n = len(c)
+    a = -k * np.asarray(c_rad, float)
+    R = np.stack([np.stack([np.cos(a), -np.sin(a)], -1), np.stack([np.sin(a), np.cos(a)], -1)], -2)  # (n, 2, 2)
+    D = np.concatenate([np.tile(np.eye(2), (n, 1)), R.reshape(2 * n, 2)], axis=1)
+    if n < 6 or np.linalg.svd(D, compute_uv=False)[-1] < 1e-6 * np.sqrt(n):
+        return np.zeros_like(c)
+    from scipy.optimize import least_squares
+
+    scale = max(float(np.max(np.abs(c - c.mean(axis=0)))), 1e-300)
+    cu = c / scale
+    m0, r0, _ = _circle(cu)
+
+    def res(x):
+        q = cu - x[:2] - R @ x[2:4]
+        return np.linalg.norm(q, axis=1) - x[4]
+
+    x = least_squares(res, np.r_[m0, 0.0, 0.0, r0], xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm").x
+    return (R @ x[2:4]) * scale
+
+
 def unoriented_magnitudes(info, coef, bl):
     """Amplitude and orientations from the circle through the set-ups' lobing vectors.
 
@@ -438,10 +479,13 @@ def unoriented_magnitudes(info, coef, bl):
     all set-ups (a lobing fixed in the machine frame, which on many parts
     the machine's own scale errors imitate: not determined). The common
     part is the circle's centre: the radius is the amplitude, the angle
-    about the centre the orientation, both free of it.
+    about the centre the orientation, both free of it. A lobing of the part
+    itself (turning with the table) is removed first
+    (:func:`_part_frame_lobe`).
     """
     k = info["harmonic"]
     c = np.asarray(coef).reshape(len(info["setups"]), 2)
+    c = c - _part_frame_lobe(c, _setup_c_rad(bl, info["setups"]), k)
     centre, r, res = _circle(c)
     ang = np.arctan2(c[:, 1] - centre[1], c[:, 0] - centre[0])  # k psi_j
     out = {"amplitude_um": r / UM, "circle_residual_um": res / UM,

@@ -261,3 +261,62 @@ def test_nested_f_is_calibrated_under_the_null():
 def test_holm_known_answer():
     """Holm (1979): sorted p (0.01, 0.04, 0.03, 0.005) over 4 tests -> 0.03, 0.06, 0.06, 0.02."""
     np.testing.assert_allclose(holm([0.01, 0.04, 0.03, 0.005]), [0.03, 0.06, 0.06, 0.02])
+
+
+def test_unoriented_lobing_free_of_the_parts_own_lobes():
+    """Known answer: one probe's 3-lobe pattern (1.5 um) turned to seven random
+    orientations, plus a lobing fixed in the machine frame (the circle's
+    centre) and a 3-lobe form of the part turning with the table (the
+    workpiece absorbs it: R(-3 C_j) w per set-up). Noise-free, the amplitude
+    and the orientations come back to the fit's precision (1e-6 um: the
+    Gauss-Newton's tolerance in a 1 um problem); with the part's lobes left
+    in, the plain circle is off by tenths of a micrometre."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(5)
+    k, A = 3, 1.5 * UM
+    c_rad = np.radians(rng.choice(np.arange(0, 360, 7), 7, replace=False).astype(float))
+    theta = rng.uniform(-np.pi, np.pi, 7)
+    m, w = rng.normal(0, 0.4 * UM, 2), rng.normal(0, 0.6 * UM, 2)
+    a = -k * c_rad
+    part = np.column_stack([np.cos(a) * w[0] - np.sin(a) * w[1], np.sin(a) * w[0] + np.cos(a) * w[1]])
+    coef = (m + part + A * np.column_stack([np.cos(theta), np.sin(theta)])).ravel()
+    ids = tuple(f"S{j}" for j in range(7))
+    setup = np.repeat(np.arange(7), 3)
+    rot = np.zeros((21, 3))
+    rot[:, 2] = c_rad[setup]
+    bl = SimpleNamespace(data=SimpleNamespace(touches=SimpleNamespace(setup_ids=ids, setup=setup, rot_rad=rot)))
+    out = causes.unoriented_magnitudes({"harmonic": k, "setups": ids}, coef, bl)
+    assert abs(out["amplitude_um"] - 1.5) < 1e-6, out["amplitude_um"]
+    assert out["circle_residual_um"] < 1e-6
+    got = np.radians([out[f"orientation_deg[{s}]"] for s in ids]) * k
+    assert np.max(np.abs(np.angle(np.exp(1j * (got - theta))))) < 1e-6
+    plain = causes._circle(coef.reshape(7, 2))
+    assert abs(plain[1] / UM - 1.5) > 0.05 or plain[2] / UM > 0.05  # the part's lobes do bend the plain circle
+
+
+def test_cv_gap_calibrated_when_one_set_up_dominates():
+    """Under pure noise the CV-gap p-value must not call ordinary excursions
+    structure, also when one poorly predicted set-up dominates the held-out
+    error (its held-out residual amplified 1e4-fold: the ratio is then
+    close to a scaled chi-square with one degree of freedom, far from
+    normal). Observed and null ratios are drawn from the same exact
+    quadratic forms (z_1^2 * 1e4 + sum of 199 z^2) / chi2(200); at the
+    engine's level 0.0025 the rate of p < level over 4000 pure-noise
+    campaigns stays within its binomial bound (a normal tail gave about
+    0.02 here)."""
+    from core.diagnosis import cv_gap
+
+    rng = np.random.default_rng(11)
+
+    def draw(m):
+        z = rng.standard_normal((m, 200))
+        return 1e4 * z[:, 0] ** 2 + np.sum(z[:, 1:] ** 2, axis=1), np.sum(rng.standard_normal((m, 200)) ** 2, axis=1)
+
+    hits = 0
+    for _ in range(4000):
+        cv, rss = draw(1)
+        ncv, nrss = draw(99)
+        hits += cv_gap(float(cv[0]), float(rss[0]), ncv, nrss).p_value < 0.0025
+    # binomial(4000, 0.0025): mean 10, P(X > 25) < 1e-4; a too-heavy tail would also be caught by the lower side
+    assert hits <= 25, hits
