@@ -149,13 +149,22 @@ class Settings:
         Named causes adopted at most.
     cv_draws : int
         Monte Carlo draws of the CV-gap null distribution (its mean and
-        spread; the p-value is the normal tail beyond the observed ratio).
+        spread; the p-value is the tail of a chi-square scaled to them).
     cv_rcond : float
         Relative singular value below which the training fit of a
         cross-validation fold drops a direction.
     shortlist : int
         Trials of a scan evaluated exactly after the periodogram-like
         pre-screen.
+    noise_max_um : float
+        The largest probing noise (1 sigma, um) a touch-trigger probe on a
+        machine tool gives: 1.5 um, three times a kinematic probe's stated
+        unidirectional repeatability (2 sigma <= 1 um) with the machine's
+        own repeatability added. A planar campaign whose noise estimate
+        (repeats, else residuals) is larger carries structure no covariate
+        follows (a seat that settles one way on some touches, a loose
+        stylus): never ``none``. Positioning runs and the whitened MFB
+        points have their own noise and are not judged by it.
     """
 
     alpha: float = 0.01
@@ -170,6 +179,7 @@ class Settings:
     cv_draws: int = 99
     cv_rcond: float = 1e-2
     shortlist: int = 8
+    noise_max_um: float = 1.5
 
     @property
     def alpha_family(self) -> float:
@@ -659,7 +669,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     diag_b = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(st),
                       material_sigma=settings.material_sigma, rows=rows, bases=bases)
     tick()
-    structure_b = _structure(diag_b, gap_b, lof_b, st, noise_sigma(st), settings)
+    structure_b = _structure(diag_b, gap_b, lof_b, st, noise_sigma(st), settings, bl.kind)
 
     # 3. named causes, greedily
     scans = {c.name: c.scans(bl) for c in catalogue}
@@ -756,7 +766,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     E_named = _stack(terms, rows)
     gap_e = _cv_gap(folds, st, y, E_named, None, settings, rng) if terms else gap_b
     lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(bl.replicate[rows], E_named) else None
-    structure_e = _structure(diag_e, gap_e, lof_e, st, sig, settings)
+    structure_e = _structure(diag_e, gap_e, lof_e, st, sig, settings, bl.kind)
     cv_named = folds.mse(y[rows], E_named) if terms else cv_b
     tick()
     smooth = None
@@ -798,7 +808,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if outliers.size:
         findings.append(_outlier_finding(bl, outliers, st0, st))
     if not findings and structure_b["present"]:
-        findings.append(_unexplained_only(diag_b, structure_b, st, sig))
+        findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
     # best first: the systematic findings by what they explain; removed
     # touches (outliers) after them, as data set aside rather than a cause
     findings.sort(key=lambda f: (f.cause == causes_mod.OUTLIER, -f.evidence.get("explained_ss_um2", 0.0)))
@@ -857,8 +867,13 @@ def _constant_within(key: np.ndarray, E: np.ndarray) -> bool:
     return True
 
 
-def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings) -> dict:
-    """Is there structure the model misses (catalogue-free)?"""
+def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: str = "") -> dict:
+    """Is there structure the model misses (catalogue-free)?
+
+    Besides the diagnosis, the held-out gap and the lack of fit: a planar
+    campaign's noise above :attr:`Settings.noise_max_um` is no probe's
+    noise (``noise_excess``, with the figure in ``noise_um``).
+    """
     a = settings.alpha_family
     m2 = (settings.material_sigma * sigma) ** 2
     sig_cov = [d.covariate for d in diag if d.significant(a)]
@@ -866,8 +881,18 @@ def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings) -> dic
     # is predicted, not fitted): material when they imply a noise 30 % above the fit's
     gap_sig = bool(gap.draws) and gap.p_value < a and gap.sigma_cv_m >= (1 + settings.material_sigma) * st.sigma
     lof_sig = lof is not None and lof.p_value < a and lof.sigma_lof_m ** 2 >= m2
-    return {"present": bool(sig_cov or gap_sig or lof_sig), "covariates": sig_cov, "cv_gap": bool(gap_sig),
-            "lack_of_fit": bool(lof_sig)}
+    excess = kind == "planar" and sigma > settings.noise_max_um * UM
+    return {"present": bool(sig_cov or gap_sig or lof_sig or excess), "covariates": sig_cov, "cv_gap": bool(gap_sig),
+            "lack_of_fit": bool(lof_sig), "noise_excess": bool(excess), "noise_um": sigma / UM}
+
+
+def _no_covariate_words(structure: dict, settings) -> str:
+    """What an ``unexplained`` finding says when no covariate carries the structure."""
+    why = [k for k in ("cv_gap", "lack_of_fit") if structure[k]]
+    if structure.get("noise_excess"):
+        why.append(f"a scatter of {structure['noise_um']:.2g} um, above any touch-trigger probe's noise "
+                   f"({settings.noise_max_um:g} um)")
+    return "no single covariate carries it: " + ", ".join(why)
 
 
 def _noise_report(rep, st0, gap, lof, sigma_rep, sigma) -> dict:
@@ -1315,11 +1340,11 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
     if structure_e["present"]:
         ev = {"diagnosis": [d.to_dict() for d in diag_e if d.significant(settings.alpha_family)],
               "cv_gap": structure_e["cv_gap"], "lack_of_fit": structure_e["lack_of_fit"],
+              "noise_excess": structure_e["noise_excess"],
               "partially_consistent_with": [{k: v for k, v in d.items() if k != "kept"} for d in demoted]}
         words = "; ".join(d.words for d in diag_e if d.significant(settings.alpha_family))
         if not words:
-            words = "no single covariate carries it: " + ", ".join(
-                k for k in ("cv_gap", "lack_of_fit") if structure_e[k])
+            words = _no_covariate_words(structure_e, settings)
         ev["text"] = words
         params, u95 = {}, {}
         if smooth is not None:
@@ -1371,16 +1396,15 @@ def _outlier_finding(bl, outliers, st0, st) -> Finding:
         {"max_deviation_um": None}, st.sigma / UM, "data")
 
 
-def _unexplained_only(diag, structure, st, sigma) -> Finding:
+def _unexplained_only(diag, structure, st, sigma, settings) -> Finding:
     words = "; ".join(d.words for d in diag if d.covariate in structure["covariates"])
     if not words:
-        words = "no single covariate carries it: " + ", ".join(
-            k for k in ("cv_gap", "lack_of_fit") if structure[k])
+        words = _no_covariate_words(structure, settings)
     top = next((d for d in diag if d.covariate in structure["covariates"]), None)
     return Finding(causes_mod.UNEXPLAINED, _clean({
         "text": words, "diagnosis": [d.to_dict() for d in diag if d.covariate in structure["covariates"]],
         "cv_gap": structure["cv_gap"], "lack_of_fit": structure["lack_of_fit"],
-        "explained_ss_um2": (top.explained_rms_um ** 2 * st.dof) if top else 0.0}), {}, {}, st.sigma / UM, "unknown")
+        "noise_excess": structure["noise_excess"], "explained_ss_um2": (top.explained_rms_um ** 2 * st.dof) if top else 0.0}), {}, {}, st.sigma / UM, "unknown")
 
 
 def _workpiece(bl: Baseline, terms, y, rows, st0, st):
