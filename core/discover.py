@@ -1404,7 +1404,8 @@ def _unexplained_only(diag, structure, st, sigma, settings) -> Finding:
     return Finding(causes_mod.UNEXPLAINED, _clean({
         "text": words, "diagnosis": [d.to_dict() for d in diag if d.covariate in structure["covariates"]],
         "cv_gap": structure["cv_gap"], "lack_of_fit": structure["lack_of_fit"],
-        "noise_excess": structure["noise_excess"], "explained_ss_um2": (top.explained_rms_um ** 2 * st.dof) if top else 0.0}), {}, {}, st.sigma / UM, "unknown")
+        "noise_excess": structure["noise_excess"],
+        "explained_ss_um2": (top.explained_rms_um ** 2 * st.dof) if top else 0.0}), {}, {}, st.sigma / UM, "unknown")
 
 
 def _workpiece(bl: Baseline, terms, y, rows, st0, st):
