@@ -38,7 +38,8 @@ def run() -> dict:
         else:
             outs = [blind_outcome(mod, e, 100 + s, generator=g) for e in mod.effects() for s in range(SEEDS)]
         s = summarize(outs)
-        for k in ("false_alarm", "catalogue", "out_of_catalogue", "confident_misnamed", "workpiece_ok"):
+        for k in ("false_alarm", "catalogue", "out_of_catalogue", "confident_misnamed", "workpiece_ok",
+                  "below_visibility"):
             out[f"discover_{g}_{k}_rate"] = round(s[k]["rate"], 4) if s[k]["n"] else None
             out[f"discover_{g}_{k}_n"] = s[k]["n"]
             out[f"discover_{g}_{k}_ci95"] = [round(v, 4) for v in s[k]["ci95"]] if s[k]["n"] else None
