@@ -12,11 +12,16 @@ carry a ``0``: ``EC0Y`` is the squareness of Y to X (orientation of the
 Y reference line about Z), ``EX0C`` the X position of the C-axis average
 line.
 
-Sign conventions (used by ``core`` and by the simulator, ``sim``): an error
-motion is the actual pose of the moving component minus its nominal pose,
-in the frame of the component it rides on (the machine frame R to first
-order); angular errors are right-handed rotations about X (A), Y (B),
-Z (C), in radians.
+Sign conventions (ISO 230-1; used by ``core``, by the simulator ``sim``
+and in every output, CONTRIBUTING.md "Error conventions"): an error motion
+is the displacement of the TOOL relative to the WORKPIECE, whichever side
+of the bed the axis is on (a table-moving X with ``EXX = +1 um`` leaves the
+tool 1 um further in +X relative to the part than commanded, as a
+tool-moving X does); translations are positive along the positive axis
+directions of ISO 841, angular errors right-handed rotations about X (A),
+Y (B), Z (C), in radians. Location errors are the position and
+orientation of an axis's reference (or average) line in the machine frame
+R, the same value whichever side the axis is on.
 
 Zero conventions of ISO 230-1 (X primary, Y secondary): the zero-position
 errors ``EX0X``, ``EY0Y``, ``EZ0Z`` and the offsets of the linear reference

@@ -15,12 +15,14 @@ The chain (the definition both implementations follow)
 Every component frame coincides with the machine frame R when all axes are
 at zero and all errors are zero. Walking a branch from the bed outward
 (``core.chain``), each axis contributes, relative to the component it rides
-on (s = +1 on the tool branch, -1 on the workpiece branch; e the axis
-direction; ``exp`` the rotation-vector exponential, CONTRIBUTING.md)::
+on (e the axis direction; ``exp`` the rotation-vector exponential)::
 
-    linear k :  [exp(rel_k) | 0] . Trans(s q_k e) . E_k(reading_k)
-    rotary k :  Trans(c_k + d_k) . [exp(rel_k) | 0] . E_k(theta_k)
-                . Rot(e, s theta_k) . Trans(-c_k)
+    tool branch       linear k :  [exp(rel_k) | 0] . Trans(q_k e) . E_k
+                      rotary k :  Trans(c_k + d_k) . [exp(rel_k) | 0] . E_k
+                                  . Rot(e, theta_k) . Trans(-c_k)
+    workpiece branch  linear k :  [exp(rel_k) | 0] . E_k^-1 . Trans(-q_k e)
+                      rotary k :  Trans(c_k + d_k) . [exp(rel_k) | 0] . E_k^-1
+                                  . Rot(e, -theta_k) . Trans(-c_k)
 
 with ``E_k = [exp(skew(EA, EB, EC)) | (EX, EY, EZ)]`` the motion errors of
 axis k (evaluated at its reading), ``q_k = reading_k + J_k`` the axis
@@ -30,6 +32,21 @@ on the nominal rotary axis line and ``d_k`` its position errors (``EX0C``,
 centre P (eq. 8); the workpiece branch ends at W. Hence on a perfect
 machine with rotary axes at zero, tip_W equals the readings, and W rotates
 as ``p_R = R(-C) p_W`` about the C line (self-calibration paper eq. 1).
+
+ISO 230-1 convention (CONTRIBUTING.md, "Error conventions"): every error
+value is the displacement of the TOOL relative to the WORKPIECE. A tool-
+branch axis applies ``E_k`` to its moving carriage, after the nominal
+motion (in the carriage's frame). A workpiece-branch axis moves its
+component by the exact inverse, ``E_k^-1`` before the nominal motion (in
+the carrier's frame), so that the carrier, and with it the tool, moves
+relative to the component by ``Trans(q_k e) . E_k``: the same relative
+motion, in the same frame (origin ``q_k e`` from the component's), as a
+tool-branch axis. A table-moving X with ``EXX = +1 um`` puts the tool
+1 um further in +X relative to the part than commanded, exactly as a
+tool-moving X does. A rotary axis's ``E_k`` sits in its carrier's
+non-rotating frame at the axis line: ``ECC`` is actual minus commanded C
+of the tool relative to the part on both branches. Location errors are the
+geometry of the axis lines in R and enter both branches alike.
 
 Location rotations ``rel_k``: a rotary axis's orientation errors (``EA0C``,
 ``EB0C``) are relative to the component carrying it. A linear axis's
@@ -45,9 +62,9 @@ Mikron chain ``b-X-Y-Z`` this is exactly eq. 8 (``EC0Y`` before Y carries Y,
 Z and the probe); for ``b-Y-X-Z`` (NMV3000) it keeps X along the machine X
 axis, so the squareness only shifts X by ``-y EC0Y`` (eq. 4).
 
-Errors on the workpiece branch move the part, errors on the tool branch
-move the probe: a positioning error ``EXX`` of a table-moving X shifts the
-tip relative to the part by ``-EXX``.
+A location error moves its line, and with it what the axis carries: a C
+line at ``+EX0C`` on the workpiece branch shifts the part by ``+EX0C``, the
+tip relative to the part by ``-EX0C``.
 
 Units: SI (m, rad); arrays batched over a leading axis n.
 """
@@ -177,12 +194,12 @@ def _vec(values, names, n) -> np.ndarray:
     return np.stack([_col(values, nm, n) for nm in names], axis=-1)
 
 
-def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
+def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = True):
     """Factors (n,4,4) of one branch, bed outward, and their derivative twists.
 
     Returns factors, dsym {symbol: [(i, xi (n,6))]}, dax {axis: [(i, xi)]};
-    xi = (v, w) is the left-perturbation twist of factor i per unit change.
-    Per axis: its location errors (:func:`_location_errors`), the rotation they
+    xi = (v, w) is the left-perturbation twist of factor i per unit change
+    (empty when ``derivs`` is False: the poses only). Per axis: its location errors (:func:`_location_errors`), the rotation they
     leave relative to the axes below (:func:`_carried_rotation`), its motion
     errors (:func:`_motion_errors`), then the factors in chain order.
     """
@@ -196,39 +213,57 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n):
     dcum: dict[str, np.ndarray] = {}  # d cum / d location symbol, (3,)
 
     def add(sym, i, xi):
-        dsym.setdefault(sym, []).append((i, xi))
+        if derivs:
+            dsym.setdefault(sym, []).append((i, xi))
 
     for a in axes:
         e = np.zeros(3)
         e[_E[a]] = 1.0
         w_loc, dw_loc, d_loc = _location_errors(a, values, n, lambda sym, xi: add(sym, len(F), xi))
         rel, drel, cum, dcum = _carried_rotation(a, e, w_loc, dw_loc, cum, dcum)
-        mot, t_E, E, Jl_E = _motion_errors(a, values, n)
-        Jl_rel = left_jacobian_so3(rel)
+        # the tool branch moves its carriage by E; the workpiece branch its
+        # component by the exact inverse E^-1 (the tool relative to the part: E)
+        mot, t_E, R_E, E, Jl_E = _motion_errors(a, values, n, inverse=side != "tool", derivs=derivs)
+        Jl_rel = left_jacobian_so3(rel) if derivs else None
         L = _hom(exp_so3(rel), None, n)
 
         def add_rel(i):
+            if not derivs:
+                return
             for k, dv in drel.items():
                 wv = Jl_rel @ np.asarray(dv)
                 add(k, i, np.concatenate([np.zeros((n, 3)), wv], axis=1))
 
         def add_E(i):
-            for j, m in enumerate(mot[:3]):
-                xi = np.zeros((n, 6))
-                xi[:, j] = 1.0
+            # left twists xi of E per unit value; for E^-1 the left twist is
+            # -Ad(E^-1) xi = -(R^T (v - t x w), R^T w)
+            if not derivs:
+                return
+            for j, m in enumerate(mot):
+                if j < 3:
+                    xi = np.zeros((n, 6))
+                    xi[:, j] = 1.0
+                else:
+                    wv = Jl_E[:, :, j - 3]
+                    xi = np.concatenate([-np.cross(wv, t_E), wv], axis=1)
+                if side != "tool":
+                    v, w = xi[:, :3], xi[:, 3:]
+                    xi = -np.concatenate([np.einsum("nji,nj->ni", R_E, v - np.cross(t_E, w)),
+                                          np.einsum("nji,nj->ni", R_E, w)], axis=1)
                 add(m.name, i, xi)
-            for j, m in enumerate(mot[3:]):
-                wv = Jl_E[:, :, j]
-                add(m.name, i, np.concatenate([-np.cross(wv, t_E), wv], axis=1))
 
         if a in iso.LINEAR_AXES:
             q = lin[:, ("X", "Y", "Z").index(a)] + geom.J_m[_E[a]]
             add_rel(len(F))
             F.append(L)
+            if side != "tool":  # E^-1 in the carrier's frame, before the motion
+                add_E(len(F))
+                F.append(E)
             dax.setdefault(a, []).append((len(F), np.broadcast_to(np.r_[s * e, 0, 0, 0], (n, 6))))
             F.append(_hom(None, (s * q)[:, None] * e, n))
-            add_E(len(F))
-            F.append(E)
+            if side == "tool":  # E in the moving carriage, after the motion
+                add_E(len(F))
+                F.append(E)
         else:
             c = np.asarray(geom.rotary_points_R_m.get(a, (0.0, 0.0, 0.0)), float)
             th = rot[:, ch.rotary_axes.index(a)]
@@ -292,12 +327,21 @@ def _carried_rotation(a: str, e: np.ndarray, w_loc, dw_loc: dict, cum, dcum: dic
     return rel, drel, cum + rel, dcum
 
 
-def _motion_errors(a: str, values, n: int):
-    """(symbols, t_E (n,3) m, E (n,4,4), Jl_E (n,3,3)): the six motion errors of axis ``a`` as a transform."""
+def _motion_errors(a: str, values, n: int, inverse: bool = False, derivs: bool = True):
+    """(symbols, t_E (n,3) m, R_E (n,3,3), E (n,4,4), Jl_E (n,3,3) or None): the six motion errors of axis ``a``.
+
+    ``E = [R_E | t_E]``, or its exact inverse ``[R_E^T | -R_E^T t_E]`` when
+    ``inverse`` (the workpiece branch); ``Jl_E`` only when ``derivs``.
+    """
     mot = iso.symbols_of_axis(a, location=False)
     t_E = _vec(values, [m.name for m in mot[:3]], n)
     w_E = _vec(values, [m.name for m in mot[3:]], n)
-    return mot, t_E, _hom(exp_so3(w_E), t_E, n), left_jacobian_so3(w_E)
+    R_E = exp_so3(w_E)
+    if inverse:
+        E = _hom(np.swapaxes(R_E, 1, 2), -np.einsum("nji,nj->ni", R_E, t_E), n)
+    else:
+        E = _hom(R_E, t_E, n)
+    return mot, t_E, R_E, E, (left_jacobian_so3(w_E) if derivs else None)
 
 
 def _inputs(geom, lin_m, rot_rad):
@@ -325,14 +369,14 @@ def _prod(F, n):
 def T_R_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     """Actual pose of W in R, (n, 4, 4), for readings (n, 3) m, rotary (n, r) rad."""
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
-    F, _, _ = _branch(geom, "workpiece", lin, rot, values or {}, n)
+    F, _, _ = _branch(geom, "workpiece", lin, rot, values or {}, n, derivs=False)
     return _prod(F, n)
 
 
 def T_R_P(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     """Actual pose of the stylus-tip frame P in R, (n, 4, 4)."""
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
-    F, _, _ = _branch(geom, "tool", lin, rot, values or {}, n)
+    F, _, _ = _branch(geom, "tool", lin, rot, values or {}, n, derivs=False)
     return _prod(F, n) @ _hom(None, -np.asarray(geom.J_m), n)
 
 

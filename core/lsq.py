@@ -13,8 +13,12 @@ volumetric identification (:mod:`core.volumetric`) and model discovery
 3. :func:`_eliminate`: the constraints eliminated (pivoted QR picks the
    eliminated parameters), ``theta = D (Z psi + phi_0)``;
 4. :func:`_factor_normal`: the reduced normal matrix factored, densely with
-   an eigen rank check up to :data:`DENSE_MAX` free parameters, by sparse LU
-   above; unidentifiable combinations are named (:func:`describe_direction`);
+   an eigen rank check up to :data:`DENSE_MAX` free parameters; above, when
+   the caller names a *diagonal block* (parameters each observation touches
+   at most one of, as the workpiece of a self-calibration: one parameter per
+   target), by block elimination (:func:`_factor_schur`: that block is
+   diagonal, its Schur complement small and dense), else by sparse LU;
+   unidentifiable combinations are named (:func:`describe_direction`);
 5. :func:`_sigma` and :func:`_covariance`: the observation standard
    deviation (given or from the residuals) and the parameters' uncertainty
    (:class:`Covariance` mode).
@@ -42,6 +46,13 @@ from .exceptions import ConfigError, IdentifiabilityError
 
 #: Largest number of free parameters solved densely (with an eigen rank check).
 DENSE_MAX = 500
+#: Largest reduced (Schur complement) block factored densely by :func:`_factor_schur`;
+#: above it the sparse LU of the whole normal matrix is used.
+SCHUR_MAX = 4000
+#: Targets per chunk when the Schur complement and the diagonal block's
+#: variances are formed (bounds the dense work arrays to about
+#: ``SCHUR_CHUNK * n_reduced * 8`` bytes).
+SCHUR_CHUNK = 2048
 #: Relative eigenvalue of the column-scaled normal matrix below which a
 #: direction counts as unidentifiable (singular-value ratio 1e-6).
 RANK_TOL = 1e-12
@@ -119,18 +130,31 @@ class LinearEstimator:
     Carlo runs) without refactoring.
     """
 
-    def __init__(self, A, DZ, B, phi0_theta, r0_shift, solve_M, n_free):
+    def __init__(self, A, DZ, B, phi0_theta, r0_shift, solve_M, n_free, quad=None):
         self.A = A
         self.DZ = DZ  # (n, n_free) sparse: theta = DZ psi + theta0
-        self.B = B  # (m, n_free) sparse
+        self._B = B  # (m, n_free) sparse, or None: A DZ applied as two products (block elimination)
         self.theta0 = phi0_theta
         self.b_shift = r0_shift  # A theta0
         self._solve_M = solve_M
         self.n_free = n_free
+        self._quad = quad  # V -> diag(V M^-1 V^T) for sparse V (k, n_free), when the factor has a fast one
+
+    @property
+    def B(self):
+        """(m, n_free) sparse ``A D Z`` (formed on first use when the factor did without it)."""
+        if self._B is None:
+            self._B = (self.A @ self.DZ).tocsr()
+        return self._B
+
+    def _Bt(self, e):
+        """``(A D Z)^T e`` for (m,) or (m, r) ``e``."""
+        if self._B is not None:
+            return self._B.T @ e
+        return self.DZ.T @ (self.A.T @ e)
 
     def psi(self, b: np.ndarray) -> np.ndarray:
-        rhs = self.B.T @ (b - (self.b_shift if b.ndim == 1 else self.b_shift[:, None]))
-        return self._solve_M(rhs)
+        return self._solve_M(self._Bt(b - (self.b_shift if b.ndim == 1 else self.b_shift[:, None])))
 
     def estimate(self, b: np.ndarray) -> np.ndarray:
         """(n,) or (n, r) estimates for ``b`` of shape (m,) or (m, r)."""
@@ -140,7 +164,7 @@ class LinearEstimator:
 
     def noise_gain(self, e: np.ndarray) -> np.ndarray:
         """(n, r) change of the estimate caused by observation noise ``e`` (m, r)."""
-        return self.DZ @ self._solve_M(self.B.T @ e)
+        return self.DZ @ self._solve_M(self._Bt(e))
 
     def covariance(self, sigma: float) -> np.ndarray:
         """(n, n) dense covariance ``sigma^2 DZ M^-1 DZ^T``."""
@@ -155,6 +179,8 @@ class LinearEstimator:
     def std(self, sigma: float, index=None, block: int = 256) -> np.ndarray:
         """Standard uncertainties of ``theta[index]`` (default all), in blocks (no dense n x n)."""
         DZ = self.DZ if index is None else self.DZ[index]
+        if self._quad is not None:
+            return sigma * np.sqrt(np.maximum(self._quad(DZ), 0))
         DZt = DZ.T.tocsc()
         n = DZt.shape[1]
         out = np.empty(n)
@@ -166,10 +192,14 @@ class LinearEstimator:
 
 
 def _eliminate(C: np.ndarray, d: np.ndarray, n: int):
-    """Z (n, n-k) sparse and theta0 with C (Z psi + theta0) = d for all psi."""
+    """(Z (n, n-k) sparse, theta0, F) with C (Z psi + theta0) = d for all psi.
+
+    ``F`` (n-k,) are the parameters left free, in order: ``psi[i]`` is
+    parameter ``F[i]`` (plus, for the eliminated ones, their combination).
+    """
     k = C.shape[0]
     if k == 0:
-        return sp.identity(n, format="csr"), np.zeros(n)
+        return sp.identity(n, format="csr"), np.zeros(n), np.arange(n)
     _q, r, piv = sla.qr(C, mode="economic", pivoting=True)
     if abs(r[k - 1, k - 1]) <= 1e-12 * abs(r[0, 0]):
         raise ConfigError("constraints are linearly dependent")
@@ -185,7 +215,7 @@ def _eliminate(C: np.ndarray, d: np.ndarray, n: int):
     Z = sp.csr_matrix((vals, (rows, cols)), shape=(n, len(F)))
     theta0 = np.zeros(n)
     theta0[P] = np.linalg.solve(CP, d)
-    return Z, theta0
+    return Z, theta0, F
 
 
 def describe_direction(v: np.ndarray, names, top: int = 4) -> str:
@@ -213,13 +243,18 @@ def _check_problem(A, b, C, d, names):
     return A, b, C, d, names
 
 
+def column_norms(A: sp.csr_matrix) -> np.ndarray:
+    """(n,) Euclidean norm of each column of a CSR matrix (no copy of ``A``)."""
+    return np.sqrt(np.bincount(A.indices, weights=A.data * A.data, minlength=A.shape[1]))
+
+
 def _column_scale(A: sp.csr_matrix, C: np.ndarray, names) -> np.ndarray:
     """Step 2: (n,) scale D making every observed column of ``A D`` unit-norm (1 for unobserved ones).
 
     Raises IdentifiabilityError naming the parameters neither an observation
     nor a constraint touches.
     """
-    colnorm = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
+    colnorm = column_norms(A)
     # rounding dust (cos 90 deg = 6e-17) is no observation
     colnorm[colnorm <= 1e-12 * max(colnorm.max(initial=0.0), 1e-300)] = 0.0
     in_c = np.any(C != 0, axis=0)
@@ -230,13 +265,13 @@ def _column_scale(A: sp.csr_matrix, C: np.ndarray, names) -> np.ndarray:
     return np.where(colnorm > 0, 1.0 / np.where(colnorm > 0, colnorm, 1.0), 1.0)
 
 
-def _factor_normal(B: sp.csc_matrix, DZ: sp.csr_matrix, names, rank_tol: float):
-    """Step 4: ``solve_M(r) = M^-1 r`` for ``M = B^T B``, after the rank check.
+def _factor_normal(B: sp.csr_matrix, DZ: sp.csr_matrix, names, rank_tol: float):
+    """Step 4: ``(solve_M, None)``: ``solve_M(r) = M^-1 r`` for ``M = B^T B``, after the rank check.
 
     Dense (eigen-decomposition, then Cholesky) up to :data:`DENSE_MAX` free
-    parameters, sparse LU above; a rank deficiency raises
-    IdentifiabilityError naming the parameter combinations (dense) or the
-    near-null pivots (sparse).
+    parameters, sparse LU above (:func:`_factor_schur` when there is a
+    diagonal block). A rank deficiency raises IdentifiabilityError naming the
+    parameter combinations (dense) or the near-null pivots (sparse LU).
     """
     M = (B.T @ B).tocsc()
     if B.shape[1] <= DENSE_MAX:
@@ -248,7 +283,7 @@ def _factor_normal(B: sp.csc_matrix, DZ: sp.csr_matrix, names, rank_tol: float):
             raise IdentifiabilityError(
                 f"rank deficient by {int(bad.sum())} beyond the constraints; unidentifiable: " + "; ".join(dirs))
         cf = sla.cho_factor(Md)
-        return lambda r: sla.cho_solve(cf, r)
+        return (lambda r: sla.cho_solve(cf, r)), None
     try:
         lu = spla.splu(M, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
     except RuntimeError as e:
@@ -264,7 +299,187 @@ def _factor_normal(B: sp.csc_matrix, DZ: sp.csr_matrix, names, rank_tol: float):
             shown.append(names[col.indices[np.argmax(np.abs(col.data))]])
         raise IdentifiabilityError(
             f"rank deficient by about {badp.size} beyond the constraints; near-null pivots at: " + ", ".join(shown))
-    return lambda r: lu.solve(np.asarray(r, float))
+    return (lambda r: lu.solve(np.asarray(r, float))), None
+
+
+def _split_rows(B: sp.csr_matrix, g: np.ndarray):
+    """The diagonal block's entry of each row and the other entries as slots.
+
+    Returns ``(tg, bg, I, V)``: ``tg`` (m,) the diagonal parameter (index
+    into ``g``) of each row, -1 for none; ``bg`` (m,) its value; ``I``, ``V``
+    (m, k) the column (index into the other parameters ``r``) and value of
+    the row's other entries, padded with (0, 0.0). Slot ``s`` (a column of
+    ``I``, ``V``) holds one entry per row, so a product of two slots is one
+    pass over the rows (:func:`_gram`). ConfigError when a row has two
+    diagonal entries.
+    """
+    m, nf = B.shape
+    isg = np.zeros(nf, bool)
+    isg[g] = True
+    col = np.empty(nf, np.int64)
+    col[g] = np.arange(len(g))
+    col[~isg] = np.arange(nf - len(g))
+    cnt = np.diff(B.indptr)
+    eg = isg[B.indices]
+    if m and cnt[0] > 0 and np.all(cnt == cnt[0]):  # a fixed count per row (a design built row-wise)
+        ng_row = eg.reshape(m, cnt[0]).sum(axis=1)
+    else:
+        ng_row = np.bincount(np.repeat(np.arange(m), cnt)[eg], minlength=m)
+    if ng_row.max(initial=0) > 1:
+        raise ConfigError(f"diagonal block: observation {int(np.argmax(ng_row > 1))} touches "
+                          f"{int(ng_row.max())} of its parameters (at most one allowed)")
+    rows_g = np.repeat(np.arange(m), cnt)[eg] if not np.all(ng_row == 1) else np.arange(m)
+    tg = np.full(m, -1, np.int64)
+    bg = np.zeros(m)
+    tg[rows_g] = col[B.indices[eg]]
+    bg[rows_g] = B.data[eg]
+    cnt_r = cnt - ng_row
+    k = max(int(cnt_r.max(initial=0)), 1)
+    ci, cv = col[B.indices[~eg]], B.data[~eg]
+    if np.all(cnt_r == k):  # every row has k other entries: a reshape
+        return tg, bg, ci.reshape(m, k).astype(np.int32 if nf < 2 ** 31 else np.int64), cv.reshape(m, k)
+    start = np.concatenate([[0], np.cumsum(cnt_r)[:-1]])
+    flat = np.arange(ci.size) + np.repeat(np.arange(m) * k - start, cnt_r)  # row * k + position in row
+    I = np.zeros(m * k, np.int32 if nf < 2 ** 31 else np.int64)
+    V = np.zeros(m * k)
+    I[flat] = ci
+    V[flat] = cv
+    return tg, bg, I.reshape(m, k), V.reshape(m, k)
+
+
+def _gram(I: np.ndarray, V: np.ndarray, r: int) -> np.ndarray:
+    """Dense ``sum_rows v v^T`` (r, r) from the slots (m, k) of :func:`_split_rows`.
+
+    Slot pair by slot pair with ``np.bincount``: ``k (k + 1) / 2`` passes
+    over the rows with contiguous arrays (scipy's sparse product costs about
+    ten times more for this tall, narrow shape).
+    """
+    k = I.shape[1]
+    It, Vt = np.ascontiguousarray(I.T), np.ascontiguousarray(V.T)
+    G = np.zeros(r * r)
+    for a in range(k):
+        ia = It[a].astype(np.int64) * r
+        for b in range(a, k):
+            w = Vt[a] * Vt[b]
+            G += np.bincount(ia + It[b], weights=w if b == a else 2.0 * w, minlength=r * r)
+    G = G.reshape(r, r)
+    return 0.5 * (G + G.T)
+
+
+def _factor_schur(A: sp.csr_matrix, DZ: sp.csr_matrix, names, rank_tol: float, gth: np.ndarray, g: np.ndarray):
+    """Step 4 by block elimination: ``M = [[D, W^T], [W, M_rr]]`` with ``D`` diagonal.
+
+    ``g`` are the free parameters of the diagonal block (``gth`` the same
+    parameters' columns of ``A``; each observation touches at most one of
+    them: the workpiece of a self-calibration, one parameter per target),
+    ``r`` the others. Then ``D`` is diagonal, and ``M`` is factored through
+    the Schur complement ``S = M_rr - W D^-1 W^T`` (dense, ``len(r)`` square,
+    Cholesky):
+
+        x_r = S^-1 (b_r - W D^-1 b_g),   x_g = D^-1 (b_g - W^T x_r).
+
+    Everything is summed on ``A``'s own rows (a fixed pattern, no ``A D Z``
+    product is formed) and carried to the free parameters by ``D Z``, which
+    keeps the two blocks apart (no constraint touches the diagonal block):
+    ``S = Z_r^T S_A Z_r``, ``W = Z_r^T W_A D_g``. ``A^T A`` of the other
+    columns is summed slot by slot (:func:`_gram`), ``W_A D_A^-1 W_A^T`` by
+    dense products over chunks of :data:`SCHUR_CHUNK` diagonal parameters:
+    work and memory grow linearly with the observations, not with the
+    fill-in of a sparse LU. The rank check: ``M`` is singular exactly when
+    ``S`` is (``D > 0``); a small Cholesky pivot of ``S`` sends it to an
+    eigen-decomposition, whose null directions are named like the dense
+    path's.
+
+    Returns ``(solve_M, quad)`` with ``quad(V) = diag(V M^-1 V^T)`` computed
+    as ``v_g D^-1 v_g + |L^-1 (v_r - W D^-1 v_g)|^2`` (no dense ``M^-1``).
+    """
+    m, n = A.shape
+    nf = DZ.shape[1]
+    keep = np.ones(nf, bool)
+    keep[g] = False
+    r = np.flatnonzero(keep)
+    keep = np.ones(n, bool)
+    keep[gth] = False
+    rth = np.flatnonzero(keep)
+    nr, ng = len(r), len(g)
+    DZc = DZ.tocsc()
+    Zr = DZc[:, r][rth].tocsc()  # (n - ng, nr): the other parameters from the free ones
+    Dg = np.asarray(DZ[gth, g]).ravel()  # the diagonal block's column scales
+    if DZc[:, g][rth].nnz or DZ[gth][:, r].nnz:  # cannot happen when no constraint touches the block; a guard
+        raise ConfigError("diagonal: the constraints couple the diagonal block with the other parameters")
+    if not A.has_canonical_format:  # _gram needs one entry per column in a row
+        A = A.copy()
+        A.sum_duplicates()
+    tg, bg, I, V = _split_rows(A, gth)
+    has = tg >= 0
+    dA = np.bincount(tg[has], weights=bg[has] ** 2, minlength=ng)
+    SA = _gram(I, V, len(rth))
+    # W_A (rth, g) in CSC: rows sorted by their diagonal parameter, each row's slots one after the
+    # other (repeated indices within a column are summed by every product and by toarray)
+    rows = np.flatnonzero(has)
+    rows = rows[np.argsort(tg[rows], kind="stable")]
+    k = I.shape[1]
+    WA = sp.csc_matrix((np.ravel(V[rows] * bg[rows, None]), np.ravel(I[rows]),
+                        np.concatenate([[0], np.cumsum(np.bincount(tg[rows], minlength=ng) * k)])),
+                       shape=(len(rth), ng))
+    del I, V, rows
+    isd = 1.0 / np.sqrt(dA)
+    syrk = sla.get_blas_funcs("syrk", (SA,))
+    acc = np.zeros(SA.shape, order="F")
+    for a in range(0, ng, SCHUR_CHUNK):
+        Wc = WA[:, a:a + SCHUR_CHUNK].toarray() * isd[a:a + SCHUR_CHUNK]  # (rth, chunk), C order
+        acc = syrk(1.0, Wc.T, trans=1, beta=1.0, c=acc, lower=1, overwrite_c=1)  # += Wc Wc^T, lower half
+    acc = np.tril(acc)
+    SA -= acc + np.tril(acc, -1).T
+    S = Zr.T @ (Zr.T @ SA).T  # Z_r^T S_A Z_r (S_A symmetric)
+    S = 0.5 * (S + S.T)
+    W = (Zr.T @ WA @ sp.diags(Dg)).tocsc()  # (nr, ng)
+    dg = Dg ** 2 * dA
+    del WA, SA
+
+    def full_psi(v_r):
+        out = np.zeros(nf)
+        out[r] = v_r
+        out[g] = -(W.T @ v_r) / dg
+        return out
+
+    scale = max(float(np.max(np.diag(S), initial=0.0)), float(dg.max(initial=0.0)), 1e-300)
+    try:
+        L = sla.cholesky(S, lower=True)
+        ok = np.min(np.diag(L), initial=np.inf) ** 2 > rank_tol * scale
+    except np.linalg.LinAlgError:
+        ok = False
+    if not ok:
+        w, Vs = np.linalg.eigh(S)
+        bad = w <= rank_tol * scale
+        if bad.any():
+            dirs = [describe_direction(DZ @ full_psi(Vs[:, i]), names) for i in np.flatnonzero(bad)[:5]]
+            raise IdentifiabilityError(
+                f"rank deficient by {int(bad.sum())} beyond the constraints; unidentifiable: " + "; ".join(dirs))
+        L = sla.cholesky(S, lower=True)
+
+    def solve_M(rhs):
+        R = np.asarray(rhs, float)
+        one = R.ndim == 1
+        R = R[:, None] if one else R
+        y = R[g] / dg[:, None]
+        xr = sla.cho_solve((L, True), R[r] - W @ y)
+        out = np.empty_like(R)
+        out[r] = xr
+        out[g] = y - (W.T @ xr) / dg[:, None]
+        return out[:, 0] if one else out
+
+    def quad(Vq):
+        Vq = sp.csc_matrix(Vq)
+        Vg, Vr = Vq[:, g].tocsr(), Vq[:, r].tocsr()
+        U = (Vr - Vg @ sp.diags(1.0 / dg) @ W.T).tocsr()
+        out = np.asarray(Vg.multiply(Vg) @ (1.0 / dg)).ravel()
+        for a in range(0, Vq.shape[0], SCHUR_CHUNK):
+            Y = sla.solve_triangular(L, U[a:a + SCHUR_CHUNK].toarray().T, lower=True, check_finite=False)
+            out[a:a + SCHUR_CHUNK] += np.einsum("ij,ij->j", Y, Y)
+        return out
+
+    return solve_M, quad
 
 
 def _sigma(res: np.ndarray, dof: int, n_free: int, sigma) -> tuple[float, str]:
@@ -291,8 +506,23 @@ def _covariance(est: LinearEstimator, sigma: float, mode: Covariance):
     return None, None
 
 
+def _diagonal_free(diagonal, C: np.ndarray, F: np.ndarray, n: int):
+    """(parameter indices, free-parameter indices) of the caller's ``diagonal`` block ((None, None) when not given)."""
+    if diagonal is None:
+        return None, None
+    j = np.arange(n)[diagonal] if isinstance(diagonal, slice) else np.asarray(diagonal, int).ravel()
+    if j.size and (j.min() < 0 or j.max() >= n):
+        raise ConfigError(f"diagonal: indices must lie in 0..{n - 1}")
+    if np.any(C[:, j] != 0):
+        raise ConfigError("diagonal: a constraint touches a parameter of the diagonal block")
+    pos = np.minimum(np.searchsorted(F, j), len(F) - 1)
+    if np.any(F[pos] != j):  # cannot happen when no constraint touches them; a guard all the same
+        raise ConfigError("diagonal: a parameter of the diagonal block was eliminated by the constraints")
+    return j, pos
+
+
 def solve(A, b, C=None, d=None, *, names=None, sigma=None, covariance: str = "auto",
-          rank_tol: float = RANK_TOL) -> Solution:
+          rank_tol: float = RANK_TOL, diagonal=None) -> Solution:
     """Least squares ``min |A theta - b|`` subject to ``C theta = d``.
 
     Conditioned before solving: columns scaled to unit norm, constraints
@@ -318,6 +548,13 @@ def solve(A, b, C=None, d=None, *, names=None, sigma=None, covariance: str = "au
     rank_tol : float
         Relative eigenvalue (or LU pivot) below which a direction counts as
         unidentifiable.
+    diagonal : slice or (q,) int, optional
+        Parameters each observation touches at most one of, and no
+        constraint touches (the workpiece of a self-calibration: one
+        parameter per target). Above :data:`DENSE_MAX` free parameters they
+        are eliminated first (:func:`_factor_schur`), which keeps time and
+        memory linear in the observations; the result is the same to
+        rounding.
 
     Raises
     ------
@@ -331,12 +568,18 @@ def solve(A, b, C=None, d=None, *, names=None, sigma=None, covariance: str = "au
     A, b, C, d, names = _check_problem(A, b, C, d, names)
     m, n = A.shape
     D = _column_scale(A, C, names)
-    Z, phi0 = _eliminate(C * D[None, :], d, n)
+    Z, phi0, F = _eliminate(C * D[None, :], d, n)
     DZ = (sp.diags(D) @ Z).tocsr()
     theta0 = D * phi0
-    B = (A @ DZ).tocsc()
-    nf = B.shape[1]
-    est = LinearEstimator(A, DZ, B, theta0, A @ theta0, _factor_normal(B, DZ, names, rank_tol), nf)
+    nf = DZ.shape[1]
+    gth, gfree = _diagonal_free(diagonal, C, F, n)
+    if nf > DENSE_MAX and gfree is not None and gfree.size and nf - gfree.size <= SCHUR_MAX:
+        B = None
+        solve_M, quad = _factor_schur(A, DZ, names, rank_tol, gth, gfree)
+    else:
+        B = (A @ DZ).tocsr()
+        solve_M, quad = _factor_normal(B, DZ, names, rank_tol)
+    est = LinearEstimator(A, DZ, B, theta0, A @ theta0, solve_M, nf, quad=quad)
     theta = est.estimate(b)
     res = b - A @ theta
     dof = m - nf

@@ -9,16 +9,27 @@ is modelled to first order as (eq 14 = eqs 7 + 12 + 13)
 
     dq_ij = G_i                                     workpiece, eq 7
           - n_ij . [E_X,total, E_Y,total](p_ij)     X/Y axes, eqs 10-12
-          + n_ij . [EXC,total(C_j), EYC,total(C_j)] C-axis displacement, eq 13
-          + (R90 p_ij) . n_ij * ECC(C_j)            C-axis angle, eq 13
+          - n_ij . [EXC,total(C_j), EYC,total(C_j)] C-axis displacement, eq 13
+          - (R90 p_ij) . n_ij * ECC(C_j)            C-axis angle, eq 13
 
 with the X-axis error motions ``EXX``, ``EYX`` tabulated on the x nodes, the
 Y-axis motions ``EXY``, ``EYY``, ``ECY`` on the y nodes, bilinear (per-axis
 linear) interpolation at the nominal stylus-tip centre ``pn_R`` (eqs 8-11) and
-the squareness ``EC0Y`` (eq 4). ``ECC`` is the right-handed rotation error of
-the table about Z (CONTRIBUTING: actual minus nominal pose of the moving
-component), which is the sign of eq 13. ``n . (R90 p)`` is the same for the
-tip centre and the contact point because ``n`` is perpendicular to ``R90 n``.
+the squareness ``EC0Y`` (eq 4). ``n . (R90 p)`` is the same for the tip
+centre and the contact point because ``n`` is perpendicular to ``R90 n``.
+
+Signs: every value is in the ISO 230-1 convention (CONTRIBUTING.md, "Error
+conventions"): the displacement of the tool relative to the workpiece, so
+each enters as ``-n . E`` like the linear axes of eq 12. The paper's eq 13
+has ``+`` because its ``EXC,total``, ``EYC,total`` and ``ECC`` are the
+displacement and rotation of the table (the C axis's moving component); vmt
+reports the same quantities with the opposite sign. ``EXC,total(C_j)`` is
+the tool's X displacement relative to the part due to the C axis at
+``C_j``: on a table-side C, the ISO radial motion ``EXC(C_j)`` minus the
+line's position ``EX0C`` (a location error is the position of the axis
+average line, whichever side it is on; the part rides on it). ``ECC`` is the
+ISO angular positioning error: actual minus commanded C of the tool
+relative to the part (with C positive as in eq 1).
 
 Parameter vector (fixed order, names in :attr:`SelfCalDesign.names`)::
 
@@ -81,7 +92,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .exceptions import ConfigError, IdentifiabilityError
-from .lsq import LinearEstimator, remove_span, solve
+from .lsq import LinearEstimator, column_norms, remove_span, solve
 from .touches import Touches
 from .units import DEG, MM, UM
 
@@ -234,21 +245,27 @@ class SelfCalDesign:
         Parameter names in column order.
     slices : dict[str, slice]
         Column range of each block: ``EXX``, ``EYX``, ``EXY``, ``EYY``,
-        ``ECY``, ``EC0Y``, ``G``, ``EXC``, ``EYC``, ``ECC``.
+        ``ECY`` (or ``ECX``), ``EC0Y``, ``G``, ``EXC``, ``EYC``, ``ECC``;
+        with height terms also ``EBC``, ``EAC`` and ``ABBE``.
     grid : Grid
     target_ids, setup_ids : tuple of str
     c_rad : (N_c,) float
         C angle of each set-up, rad.
     ref_setup : int
         Set-up whose C-axis errors the gauge fixes to 0.
-    C, d : (11, n_params), (11,) float
-        Gauge conditions ``C theta = d`` (eqs 16-17).
+    C, d : (11 + h, n_params), (11 + h,) float
+        Gauge conditions ``C theta = d`` (eqs 16-17, then the height terms').
     gauge : tuple of str
         The gauge conditions in words (same order as rows of ``C``).
     scale_known : bool
         True when ``delta_L`` was given.
-    N : (n_params, 11) float
-        Analytic null-space basis, columns named by :data:`GAUGE_NAMES`.
+    N : (n_params, 11 + h) float
+        Analytic null-space basis, columns named by :data:`GAUGE_NAMES`
+        (then the height terms' own, :attr:`HeightTerms.null_names`).
+    heights : HeightTerms or None
+        The C-axis tilt and Abbe terms of touches at several heights
+        (:func:`height_terms`), appended after the paper's parameters; None
+        for a planar design.
     """
 
     A: sp.csr_matrix
@@ -265,6 +282,7 @@ class SelfCalDesign:
     scale_known: bool
     N: np.ndarray
     yaw: Yaw = Yaw.ECY
+    heights: "HeightTerms | None" = None
 
     @property
     def n_params(self) -> int:
@@ -335,7 +353,7 @@ def yaw_for_chain(chain_text: str | None) -> Yaw:
 
 
 def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
-                 yaw: Yaw | str = Yaw.ECY) -> SelfCalDesign:
+                 yaw: Yaw | str = Yaw.ECY, heights: bool | str = False) -> SelfCalDesign:
     """Design matrix of eq 15 for measured or planned touches, with its gauge (eqs 16-17).
 
     Parameters
@@ -353,12 +371,16 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
         The yaw that couples the axes (:class:`Yaw`, :func:`yaw_for_chain`):
         ``"ECY"`` on the y nodes (the paper: X rides on Y) or ``"ECX"`` on
         the x nodes (Y rides on X, ``E_X -= y ECX(x)``).
+    heights : bool or "auto"
+        Append the height terms (:func:`height_terms`) when the touches lie
+        at more than one Z level (True and "auto" alike; False: the paper's
+        planar model whatever the heights).
 
     Raises
     ------
     ConfigError
         A touch outside the grid, a non-planar normal, mixed C in a set-up,
-        a non-finite ``delta_L_m``.
+        a non-finite ``delta_L_m``, a bad ``heights``.
     """
     yaw = yaw_model(yaw)
     _check_touches(touches, grid)
@@ -369,9 +391,16 @@ def build_design(touches: Touches, grid: Grid, delta_L_m: float | None = None, *
     A = _eq14_matrix(touches, grid, slices, yaw)
     C, d, gauge, ref = _gauge_conditions(grid, slices, c_rad, _c_names(touches.setup_ids, c_rad), delta_L_m, yaw)
     N = _null_basis(touches, slices, grid.x_m, grid.y_m, c_rad, len(names), yaw)
-    return SelfCalDesign(A=A, names=tuple(names), slices=slices, grid=grid, target_ids=tuple(touches.target_ids),
-                         setup_ids=tuple(touches.setup_ids), c_rad=c_rad, ref_setup=ref, C=C, d=d,
-                         gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N, yaw=yaw)
+    des = SelfCalDesign(A=A, names=tuple(names), slices=slices, grid=grid, target_ids=tuple(touches.target_ids),
+                        setup_ids=tuple(touches.setup_ids), c_rad=c_rad, ref_setup=ref, C=C, d=d,
+                        gauge=tuple(gauge), scale_known=delta_L_m is not None, N=N, yaw=yaw)
+    if not (heights is True or heights is False or heights == "auto"):
+        raise ConfigError(f"heights must be True, False or 'auto', got {heights!r}")
+    if heights:
+        ht = height_terms(touches, des)
+        if ht is not None:
+            des = with_heights(des, ht)
+    return des
 
 
 def _check_touches(touches: Touches, grid: Grid) -> None:
@@ -419,21 +448,20 @@ def _eq14_matrix(touches: Touches, grid: Grid, s: dict, yaw: Yaw) -> sp.csr_matr
     kx, zx = _interp_weights(grid.x_m, x)
     ky, zy = _interp_weights(grid.y_m, y)
     j = touches.setup
-    rows, cols, vals = [], [], []
+    cols, vals = [], []
 
-    def add(c, v):
-        rows.append(np.arange(m))
-        cols.append(np.asarray(c))
-        vals.append(np.asarray(v, float))
+    def add(c, v):  # one entry per touch (row): the matrix is built row-wise, a fixed count per row
+        cols.append(np.broadcast_to(np.asarray(c, np.int64), (m,)))
+        vals.append(np.broadcast_to(np.asarray(v, float), (m,)))
 
-    # eq 12 with eqs 10, 11: dq = -nx E_X,total - ny E_Y,total
+    # eq 12 with eqs 10, 11: dq = -nx E_X,total - ny E_Y,total; entries in column order
+    # (the blocks' order of _parameters), so every row comes out sorted
     add(s["EXX"].start + kx, -nx * (1 - zx))
     add(s["EXX"].start + kx + 1, -nx * zx)
-    add(s["EXY"].start + ky, -nx * (1 - zy))
-    add(s["EXY"].start + ky + 1, -nx * zy)
-    add(np.full(m, s["EC0Y"].start), nx * y)
     add(s["EYX"].start + kx, -ny * (1 - zx))
     add(s["EYX"].start + kx + 1, -ny * zx)
+    add(s["EXY"].start + ky, -nx * (1 - zy))
+    add(s["EXY"].start + ky + 1, -nx * zy)
     add(s["EYY"].start + ky, -ny * (1 - zy))
     add(s["EYY"].start + ky + 1, -ny * zy)
     if yaw == Yaw.ECY:  # X rides on Y: E_Y += x ECY(y) (eq 5)
@@ -442,16 +470,24 @@ def _eq14_matrix(touches: Touches, grid: Grid, s: dict, yaw: Yaw) -> sp.csr_matr
     else:  # Y rides on X: E_X -= y ECX(x)
         add(s["ECX"].start + kx, nx * y * (1 - zx))
         add(s["ECX"].start + kx + 1, nx * y * zx)
+    add(np.full(m, s["EC0Y"].start), nx * y)
     # eq 7
     add(s["G"].start + touches.target, np.ones(m))
-    # eq 13
+    # eq 13 in the ISO 230-1 sign (tool relative to the part, module doc):
+    # the paper's table displacement and rotation with the opposite sign
     rp_n = -nx * y + ny * x  # (R90 p) . n
-    add(s["EXC"].start + j, nx)
-    add(s["EYC"].start + j, ny)
-    add(s["ECC"].start + j, rp_n)
+    add(s["EXC"].start + j, -nx)
+    add(s["EYC"].start + j, -ny)
+    add(s["ECC"].start + j, -rp_n)
     n_par = max(sl.stop for sl in s.values())
-    A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, n_par))
-    A.sum_duplicates()
+    k = len(cols)
+    idx = np.empty((m, k), np.int32 if n_par < 2 ** 31 else np.int64)
+    val = np.empty((m, k))
+    for c, (ci, vi) in enumerate(zip(cols, vals)):
+        idx[:, c] = ci
+        val[:, c] = vi
+    A = sp.csr_matrix((val.ravel(), idx.ravel(), np.arange(0, k * m + 1, k)), shape=(m, n_par))
+    A.has_sorted_indices = True  # built in column order (checked by the tests)
     return A
 
 
@@ -502,9 +538,8 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
     """The eleven analytic null directions of A (see module docstring)."""
     N = np.zeros((n_par, 11))
     Nw = s["G"].stop - s["G"].start
-    first = np.full(Nw, -1)
-    for t in range(touches.n - 1, -1, -1):
-        first[touches.target[t]] = t
+    first = np.full(Nw, touches.n)
+    np.minimum.at(first, touches.target, np.arange(touches.n))
     pn = touches.pn_R[first, :2]
     nR = touches.n_R[first, :2]
     cf = c_rad[touches.setup[first]]
@@ -514,26 +549,26 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
     cc, sc = np.cos(c_rad), np.sin(c_rad)
     # 0, 1: tool and table translated together
     N[s["EXX"], 0] = 1
-    N[s["EXC"], 0] = 1
+    N[s["EXC"], 0] = -1
     N[s["EYX"], 1] = 1
-    N[s["EYC"], 1] = 1
+    N[s["EYC"], 1] = -1
     # 2, 3: constant splits
     N[s["EXX"], 2] = 1
     N[s["EXY"], 2] = -1
     N[s["EYX"], 3] = 1
     N[s["EYY"], 3] = -1
-    # 4, 5: workpiece shifted by t in W; EC_j -= R(-C_j) t
+    # 4, 5: workpiece shifted by t in W; EC_j += R(-C_j) t
     for k, t in ((4, (1.0, 0.0)), (5, (0.0, 1.0))):
         N[s["G"], k] = wn @ np.array(t)
-        N[s["EXC"], k] = -(cc * t[0] + sc * t[1])
-        N[s["EYC"], k] = -(-sc * t[0] + cc * t[1])
+        N[s["EXC"], k] = cc * t[0] + sc * t[1]
+        N[s["EYC"], k] = -sc * t[0] + cc * t[1]
     # 6: machine frame rotated
     N[s["EC0Y"], 6] = 1
     N[s["EYX"], 6] = gx
-    N[s["ECC"], 6] = 1
+    N[s["ECC"], 6] = -1
     # 7: workpiece rotated in W
     N[s["G"], 7] = -nR[:, 0] * pn[:, 1] + nR[:, 1] * pn[:, 0]
-    N[s["ECC"], 7] = -1
+    N[s["ECC"], 7] = 1
     # 8: yaw offset vs a straightness slope (ECY vs EYX; ECX vs EXY); 9: EXY slope vs EC0Y
     if yaw == Yaw.ECY:
         N[s["ECY"], 8] = 1
@@ -550,8 +585,270 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
     return N
 
 
+# ---------------------------------------------------------------------------
+# touches at several heights: C-axis tilt and Abbe terms
+# ---------------------------------------------------------------------------
+#: Touches whose nominal tip-centre heights differ by less than this share a probing level, m.
+LEVEL_TOL_M = 1e-6
+
+
+@dataclass(frozen=True)
+class HeightTerms:
+    """Columns for touches above (or below) the reference probing level.
+
+    The paper's model (eqs 1-18) is planar: every touch at one height. A
+    touch ``dz`` above the reference level (the level with the most
+    touches; the sphere equators of the cross pocket sit 25.7 mm above the
+    pocket walls) also sees, to first order,
+
+    - the tilt of the tool relative to the part at its set-up, ``EBC,total``
+      about Y and ``EAC,total`` about X, in the ISO 230-1 sign like EXC, EYC
+      and ECC (the C axis's tilt motions and location errors, the opposite
+      of the table's tilt, plus constant parts of the tool's Z-axis errors:
+      all that is the same for every raised touch of one set-up):
+      ``dq += -dz (n_x EBC - n_y EAC)`` (the tool displaced by
+      ``(EBC dz, -EAC dz)`` relative to the part at height ``dz``);
+    - the Abbe offset of the tool's angular error motions over the stroke,
+      ``E_X += dz EB(x, y)``, ``E_Y -= dz EA(x, y)`` (eq 12 with the pitch
+      ``EB`` and roll ``EA`` of the tool, actual minus nominal, as the
+      lever of ``dz``), taken linear: ``EB = dEB/dx x + dEB/dy y`` (the
+      slopes of ``EBX(x)`` and ``EBY(y)``), ``EA`` alike; their constant
+      parts are in the tilt. Curvature of the angular errors over the
+      raised targets is left as model error. Included only when the raised
+      touches can tell them apart from the tilt and the raised targets'
+      own positions (a local rank test: raised features seen in two set-ups
+      or more; two spheres at four angles tell them well, one sphere only
+      through its own two-lobe signature, weakly).
+
+    What no set of touches can see (the gauge, :attr:`C`): a tilt of the
+    part on the table (every raised target moved by ``dz`` times a vector in
+    W): the reference set-up's tilt is set to 0, like its EXC/EYC/ECC by
+    eq 16; a twist of the raised targets about Z and a growth of their
+    radius in proportion to their height: the rotation and scale parts of
+    the Abbe terms are set to 0 (only their two shear parts are seen). The
+    raised targets' G carry those parts instead, so a comparison of G with
+    the truth removes them as well (:func:`workpiece_gauge_basis` with
+    ``dz_W``).
+
+    Attributes
+    ----------
+    A : (n_touches, k) float
+        Columns, m per rad.
+    names : tuple of str
+        ``EBC,total[C=..]``, ``EAC,total[C=..]`` per set-up with raised
+        touches, then ``dEB/dx``, ``dEB/dy``, ``dEA/dx``, ``dEA/dy``
+        (rad per m) when included.
+    blocks : dict[str, slice]
+        ``EBC``, ``EAC``, ``ABBE`` within the k columns.
+    setups : (q,) int
+        The set-ups with raised touches (one EBC and one EAC each).
+    own : tuple of (2,) int arrays
+        Per set-up of the design, its own columns within the k (empty when
+        it has no raised touch): refitted on a held-out set-up in cross
+        validation (:mod:`core.discover`).
+    C : (h, k) float
+        Gauge rows on the k columns (``C theta_h = 0``).
+    gauge : tuple of str
+        The h gauge conditions in words.
+    null_G : (N_w, h) float
+        The G part of the h null directions the gauge fixes (per target).
+    null_H : (k, h) float
+        Their part on the k columns.
+    null_names : tuple of str
+    z_ref_m : float
+        Reference level (nominal tip-centre Z of most touches), machine frame, m.
+    levels_m : tuple of float
+        All levels, m.
+    dz_m : (n_touches,) float
+        Each touch's height above the reference level, m.
+    dz_target_m : (N_w,) float
+        Each target's (from its first touch), m: for :func:`workpiece_form`.
+    abbe : bool
+        Whether the Abbe terms are included.
+    why : str
+        Why not, when they are not.
+    """
+
+    A: np.ndarray
+    names: tuple
+    blocks: dict
+    setups: np.ndarray
+    own: tuple
+    C: np.ndarray
+    gauge: tuple
+    null_G: np.ndarray
+    null_H: np.ndarray
+    null_names: tuple
+    z_ref_m: float
+    levels_m: tuple
+    dz_m: np.ndarray
+    dz_target_m: np.ndarray
+    abbe: bool
+    why: str = ""
+
+
+def probing_levels(z_m: np.ndarray) -> tuple[np.ndarray, float]:
+    """(levels (L,), reference) of nominal tip-centre heights ``z_m`` (n,): the
+    levels within :data:`LEVEL_TOL_M`, the reference the one with most touches."""
+    z = np.asarray(z_m, float)
+    zr = np.round(z / LEVEL_TOL_M) * LEVEL_TOL_M
+    lv, cnt = np.unique(zr, return_counts=True)
+    return lv, float(lv[np.argmax(cnt)])
+
+
+def height_terms(touches: Touches, design: SelfCalDesign, *, abbe: bool | str = "auto") -> HeightTerms | None:
+    """The C-axis tilt and Abbe columns of touches at several heights (see :class:`HeightTerms`).
+
+    The physics the discovery engine adds to its baseline too: it can call
+    this with its own planar design (same touches, same set-ups).
+
+    Parameters
+    ----------
+    touches : Touches
+        Uses ``pn_R`` (its Z for the levels), ``n_R``, ``setup``, ``target``.
+    design : SelfCalDesign
+        The planar design of the same touches (set-up names, reference
+        set-up, targets).
+    abbe : bool or "auto"
+        Include the Abbe terms: "auto" when the raised touches identify
+        them (:func:`_abbe_identifiable`), True to insist (ConfigError
+        naming why not), False never.
+
+    Returns
+    -------
+    HeightTerms, or None when every touch is at one level.
+    """
+    z = touches.pn_R[:, 2]
+    lv, z_ref = probing_levels(z)
+    if lv.size < 2:
+        return None
+    dz = np.where(np.abs(z - z_ref) <= LEVEL_TOL_M, 0.0, z - z_ref)
+    nx, ny = touches.n_R[:, 0], touches.n_R[:, 1]
+    x, y = touches.pn_R[:, 0], touches.pn_R[:, 1]
+    raised = dz != 0
+    setups = np.flatnonzero(np.bincount(touches.setup[raised], minlength=len(design.setup_ids)))
+    cn = [nm.split("[", 1)[1].rstrip("]") for nm in design.names[design.slices["EXC"]]]
+    q = len(setups)
+    cols = [-nx * dz * (touches.setup == j) for j in setups] + [ny * dz * (touches.setup == j) for j in setups]
+    names = [f"EBC,total[{cn[j]}]" for j in setups] + [f"EAC,total[{cn[j]}]" for j in setups]
+    # the tilt's gauge: the reference set-up's (or the first with raised touches)
+    ref = design.ref_setup if design.ref_setup in setups else int(setups[0])
+    r = int(np.flatnonzero(setups == ref)[0])
+    if not (abbe is True or abbe is False or abbe == "auto"):
+        raise ConfigError(f"abbe must be True, False or 'auto', got {abbe!r}")
+    use_abbe, why = (False, "not asked for") if abbe is False else _abbe_identifiable(touches, dz, setups)
+    if abbe is True and not use_abbe:
+        raise ConfigError(f"the Abbe height terms are not identifiable: {why}")
+    ab = [-nx * dz * x, -nx * dz * y, ny * dz * x, ny * dz * y] if use_abbe else []
+    k = 2 * q + len(ab)
+    Ck = np.zeros((2 + 2 * use_abbe, k))
+    Ck[0, r] = 1.0
+    Ck[1, q + r] = 1.0
+    gauge = [f"EBC,total({cn[ref]})=0: a tilt of the part about Y on the table is not seen (height terms)",
+             f"EAC,total({cn[ref]})=0: a tilt of the part about X on the table is not seen (height terms)"]
+    # null directions: G parts per target (from its first touch) and height parts
+    nw = len(design.target_ids)
+    first = np.full(nw, touches.n)
+    np.minimum.at(first, touches.target, np.arange(touches.n))
+    dzt = dz[first]
+    nR, pn, cf = touches.n_R[first, :2], touches.pn_R[first, :2], design.c_rad[touches.setup[first]]
+    wn = np.column_stack([np.cos(cf) * nR[:, 0] - np.sin(cf) * nR[:, 1], np.sin(cf) * nR[:, 0] + np.cos(cf) * nR[:, 1]])
+    h = Ck.shape[0]
+    NG = np.zeros((nw, h))
+    NH = np.zeros((k, h))
+    cs = design.c_rad[setups]
+    for c, u in enumerate(((1.0, 0.0), (0.0, 1.0))):  # the part tilted: raised targets moved by dz u (W)
+        NG[:, c] = dzt * (wn @ np.array(u))
+        Ru = np.column_stack([np.cos(cs) * u[0] + np.sin(cs) * u[1], -np.sin(cs) * u[0] + np.cos(cs) * u[1]])  # R(-C) u
+        NH[:q, c] = Ru[:, 0]
+        NH[q:2 * q, c] = -Ru[:, 1]
+    null_names = ["part tilted about Y on the table (raised targets)", "part tilted about X on the table (raised targets)"]
+    blocks = {"EBC": slice(0, q), "EAC": slice(q, 2 * q), "ABBE": slice(2 * q, k)}
+    if use_abbe:
+        cols += ab
+        names += ["dEB/dx", "dEB/dy", "dEA/dx", "dEA/dy"]
+        Ck[2, 2 * q + 1] = Ck[2, 2 * q + 2] = 1.0  # rotation part: dEB/dy + dEA/dx = 0
+        Ck[3, 2 * q] = 1.0  # scale part: dEB/dx - dEA/dy = 0
+        Ck[3, 2 * q + 3] = -1.0
+        gauge += ["dEB/dy + dEA/dx = 0: a twist of the raised targets about Z in proportion to their height is not seen",
+                  "dEB/dx - dEA/dy = 0: a growth of the raised targets' radius in proportion to their height is not seen"]
+        NG[:, 2] = dzt * (-nR[:, 0] * pn[:, 1] + nR[:, 1] * pn[:, 0])  # twist: n . R90 p
+        NH[2 * q:, 2] = (0.0, -1.0, -1.0, 0.0)
+        NG[:, 3] = dzt * np.einsum("ij,ij->i", nR, pn)  # growth: n . p
+        NH[2 * q:, 3] = (1.0, 0.0, 0.0, -1.0)
+        null_names += ["raised targets twisted about Z in proportion to height",
+                       "raised targets' radius grown in proportion to height"]
+    own = tuple(np.array([np.flatnonzero(setups == j)[0], q + np.flatnonzero(setups == j)[0]])
+                if j in setups else np.zeros(0, int) for j in range(len(design.setup_ids)))
+    return HeightTerms(A=np.column_stack(cols), names=tuple(names), blocks=blocks, setups=setups, own=own, C=Ck,
+                       gauge=tuple(gauge), null_G=NG, null_H=NH, null_names=tuple(null_names), z_ref_m=z_ref,
+                       levels_m=tuple(float(v) for v in lv), dz_m=dz, dz_target_m=dzt, abbe=bool(use_abbe),
+                       why=why)
+
+
+def _abbe_identifiable(touches: Touches, dz: np.ndarray, setups: np.ndarray) -> tuple[bool, str]:
+    """Whether the raised touches tell the Abbe shear apart from the tilt and their targets' G.
+
+    A local rank test on the raised touches alone: with each raised
+    target's own constant (its G) projected out (the columns less their mean
+    over the target's touches), the two shear columns must add two to the
+    rank of the tilt columns (the twist and growth parts never do: they are
+    the gauge). Cost linear in the raised touches.
+    """
+    raised = np.flatnonzero(dz != 0)
+    nx, ny = touches.n_R[raised, 0], touches.n_R[raised, 1]
+    x, y, d = touches.pn_R[raised, 0], touches.pn_R[raised, 1], dz[raised]
+    st = touches.setup[raised]
+    _, tg = np.unique(touches.target[raised], return_inverse=True)
+    tilt = np.column_stack([nx * d * (st == j) for j in setups] + [-ny * d * (st == j) for j in setups])
+    shear = np.column_stack([-nx * d * x + ny * d * y, -nx * d * y - ny * d * x])  # (1,0,0,1), (0,1,-1,0)
+    M = np.hstack([tilt, shear])
+    cnt = np.bincount(tg)
+    for c in range(M.shape[1]):
+        M[:, c] -= (np.bincount(tg, weights=M[:, c]) / cnt)[tg]
+    gain = _rank(M) - _rank(M[:, :-2])
+    if gain == 2:
+        return True, ""
+    return False, (f"the raised touches ({len(raised)} at {len(cnt)} targets in {len(setups)} set-up(s))"
+                   f" do not tell the tool's Abbe terms apart from the part's tilt and the raised targets' own"
+                   f" positions (probe raised features in more set-ups); left out")
+
+
+def _rank(M: np.ndarray, tol: float = 1e-9) -> int:
+    """Numerical rank of ``M`` with its columns scaled to unit norm (zero columns count nothing)."""
+    nrm = np.linalg.norm(M, axis=0)
+    M = M[:, nrm > 0] / nrm[nrm > 0]
+    if M.size == 0:
+        return 0
+    sv = np.linalg.svd(M, compute_uv=False)
+    return int(np.sum(sv > tol * sv[0]))
+
+
+def with_heights(des: SelfCalDesign, ht: HeightTerms) -> SelfCalDesign:
+    """``des`` with the height terms ``ht`` appended (columns, names, gauge, null space)."""
+    import dataclasses
+
+    p = des.n_params
+    k = ht.A.shape[1]
+    A = sp.hstack([des.A, sp.csr_matrix(ht.A)], format="csr")
+    slices = dict(des.slices)
+    for nm, sl in ht.blocks.items():
+        slices[nm] = slice(p + sl.start, p + sl.stop)
+    C = np.vstack([np.hstack([des.C, np.zeros((des.C.shape[0], k))]),
+                   np.hstack([np.zeros((ht.C.shape[0], p)), ht.C])])
+    d = np.concatenate([des.d, np.zeros(ht.C.shape[0])])
+    Nh = np.zeros((p + k, ht.C.shape[0]))
+    Nh[des.slices["G"]] = ht.null_G
+    Nh[p:] = ht.null_H
+    N = np.hstack([np.vstack([des.N, np.zeros((k, des.N.shape[1]))]), Nh])
+    return dataclasses.replace(des, A=A, names=des.names + ht.names, slices=slices, C=C, d=d,
+                               gauge=des.gauge + ht.gauge, N=N, heights=ht)
+
+
+
 def null_space(design: SelfCalDesign) -> np.ndarray:
-    """(n_params, 11) analytic null-space basis of ``design.A`` (named by :data:`GAUGE_NAMES`)."""
+    """(n_params, 11 + h) analytic null-space basis of ``design.A`` (named by :data:`GAUGE_NAMES`, then
+    ``design.heights.null_names``)."""
     return design.N
 
 
@@ -568,19 +865,25 @@ class SelfCalResult:
     theta : (n_params,) float
         All parameters, m / rad, in ``design.names`` order.
     std : (n_params,) float or None
-        Standard uncertainties (k = 1), m / rad; 0 for gauge-fixed values.
+        Standard uncertainties (k = 1), m / rad; 0 for gauge-fixed values:
+        probing noise and, when budgeted, model error (``budget``).
     cov : (n_params, n_params) float or None
+        Their covariance (both parts).
     residuals_m : (n_touches,) float
     rms_m : float
         Residual RMS, m.
     sigma_m : float
-        Probing standard deviation used for the covariance, m.
+        Probing standard deviation used for the covariance, m (with a model
+        error budget: the noise component beside it).
     sigma_source : str
     dof : int
     conventions : tuple of str
-        The gauge conditions and whether the scale is known.
+        The gauge conditions (``design.gauge``), then notes.
     scale_known : bool
     n_touches : int
+    budget : ModelErrorBudget or None
+        The split of ``std`` into probing noise and model error
+        (:func:`core.uncertainty.model_error_budget`); None when not computed.
     """
 
     design: SelfCalDesign
@@ -595,6 +898,7 @@ class SelfCalResult:
     conventions: tuple
     scale_known: bool
     n_touches: int
+    budget: object = None
 
     def _blk(self, k):
         return self.theta[self.design.slices[k]]
@@ -659,6 +963,16 @@ class SelfCalResult:
         """(N_c,) rad."""
         return self._blk("ECC")
 
+    @property
+    def EBC(self):
+        """(q,) rad: the table's tilt about Y per set-up with raised touches (``design.heights.setups``)."""
+        return self._blk("EBC")
+
+    @property
+    def EAC(self):
+        """(q,) rad: the table's tilt about X per set-up with raised touches."""
+        return self._blk("EAC")
+
     def value(self, name: str) -> float:
         """One parameter by name."""
         return float(self.theta[self.design.names.index(name)])
@@ -687,7 +1001,7 @@ class SelfCalResult:
             "sigma_source": res.sigma_source,
             "dof": res.dof,
             "conventions": {"gauge": list(des.gauge), "scale_known": res.scale_known, "yaw": des.yaw,
-                            "notes": list(res.conventions[11:])},
+                            "notes": list(res.conventions[len(des.gauge):])},
             "workpiece": [],
             "axes": {},
             "rotary": [],
@@ -715,11 +1029,42 @@ class SelfCalResult:
                                   "exc_um": _r(res.theta[ix] * 1e6), "exc_u95_um": _r(u95(ix) * 1e6),
                                   "eyc_um": _r(res.theta[iy] * 1e6), "eyc_u95_um": _r(u95(iy) * 1e6),
                                   "ecc_urad": _r(res.theta[ic] * 1e6), "ecc_u95_urad": _r(u95(ic) * 1e6)})
+        if des.heights is not None:
+            out["heights"] = _heights_report(res, u95)
+        if res.budget is not None:
+            b = res.budget
+            unit = {"ECY": 1e6, "ECX": 1e6}
+            out["uncertainty"] = {
+                "probe_sigma_um": _r(b.sigma_probe_m * 1e6),
+                "model_error": {k: _r(v * unit.get(k, 1e6)) for k, v in b.components.items()},
+                "model_error_units": {k: ("urad" if k in unit else "um") for k in b.components},
+                "model_error_z": {k: _r(v, 2) for k, v in b.z.items()},
+                "rule": b.rule}
         if mc is not None:
             out["monte_carlo"] = {"runs": mc.runs, "u_probe_um": _r(mc.u_probe_m * 1e6),
+                                  "what": "probing noise only (JCGM 101), beside the linear U95 of the budget",
                                   "max_workpiece_u95_um": _r(mc.max_workpiece_U95 * 1e6),
                                   "max_workpiece_form_u95_um": _r(mc.max_form_U95 * 1e6)}
         return out
+
+
+def _heights_report(res: SelfCalResult, u95) -> dict:
+    """The height terms of a result in report units (mm, urad, urad/m)."""
+    des = res.design
+    ht = des.heights
+    s = des.slices
+    out = {"z_ref_mm": _r(ht.z_ref_m / MM, 6), "levels_mm": [_r(v / MM, 6) for v in ht.levels_m],
+           "abbe": ht.abbe, "why": ht.why, "tilt": []}
+    for q, j in enumerate(ht.setups):
+        ib, ia = s["EBC"].start + q, s["EAC"].start + q
+        out["tilt"].append({"setup": des.setup_ids[j], "ebc_urad": _r(res.theta[ib] * 1e6),
+                            "ebc_u95_urad": _r(u95(ib) * 1e6), "eac_urad": _r(res.theta[ia] * 1e6),
+                            "eac_u95_urad": _r(u95(ia) * 1e6)})
+    if ht.abbe:
+        out["abbe_urad_per_m"] = {nm: {"value": _r(res.theta[i] * 1e6), "u95": _r(u95(i) * 1e6)}
+                                  for nm, i in zip(("dEB/dx", "dEB/dy", "dEA/dx", "dEA/dy"), range(s["ABBE"].start,
+                                                                                                   s["ABBE"].stop))}
+    return out
 
 
 def count_condition(n_w: int, n_x: int, n_y: int, n_c: int) -> tuple[int, int, int]:
@@ -750,8 +1095,7 @@ def check_count(touches: Touches, grid: Grid) -> None:
 
 def _check_nodes(des: SelfCalDesign) -> None:
     """Raise naming every grid node no touch constrains (they would be solved from the gauge alone)."""
-    A = des.A
-    colnorm = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
+    colnorm = column_norms(des.A)
     zero = np.flatnonzero(colnorm <= 1e-12 * colnorm.max())
     if zero.size:
         shown = ", ".join(des.names[i] for i in zero[:10]) + (f" and {zero.size - 10} more" if zero.size > 10 else "")
@@ -759,8 +1103,9 @@ def _check_nodes(des: SelfCalDesign) -> None:
 
 
 def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
-             grid_step_m: float = 0.022, sigma_m: float | None = None, covariance: str = "auto",
-             yaw: Yaw | str = Yaw.ECY) -> SelfCalResult:
+                   grid_step_m: float = 0.022, sigma_m: float | None = None, covariance: str = "auto",
+                   yaw: Yaw | str = Yaw.ECY, heights: bool | str = "auto",
+                   model_error: bool | str = "auto") -> SelfCalResult:
     """2D self-calibration, eqs 15-18.
 
     Parameters
@@ -779,38 +1124,81 @@ def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float 
     yaw : {"ECY", "ECX"}
         The yaw coupling X and Y (:func:`yaw_for_chain` of the log's
         ``kinematic_chain``); the paper's ``"ECY"`` by default.
+    heights : bool or "auto"
+        Touches at more than one Z level get the height terms
+        (:func:`height_terms`: C-axis tilt per set-up, the tool's Abbe terms);
+        False keeps the planar model (their height effect is then model error).
+    model_error : bool or "auto"
+        Budget the model error (:func:`core.uncertainty.model_error_budget`):
+        ``std`` then holds probing noise and model error, and ``sigma_m``
+        the noise component. "auto" and True: when the design is small
+        enough (:data:`core.uncertainty.MODEL_ERROR_MAX_CELLS`; a note says
+        when not); False: probing noise alone (the residuals' sigma).
+        Not computed with ``covariance="none"``.
 
     Raises
     ------
     IdentifiabilityError
         Eq 6 fails, a grid node no touch constrains, or rank deficiency beyond
-        the eleven gauge directions (named).
+        the gauge directions (named).
     ConfigError
-        Touches outside the grid, inconsistent set-ups.
+        Touches outside the grid, inconsistent set-ups, a bad option.
     """
+    if not (model_error is True or model_error is False or model_error == "auto"):
+        raise ConfigError(f"model_error must be True, False or 'auto', got {model_error!r}")
     if grid is None:
         grid = Grid.from_extent(touches.pn_R, grid_step_m)
+    des, sol = _design_and_solve(touches, grid, delta_L_m, touches.dq_m, yaw, heights, sigma=sigma_m,
+                                 covariance=covariance)
+    std, cov, sigma, src, budget = sol.std, sol.cov, sol.sigma, sol.sigma_source, None
+    notes = [("scale known: EXX(x_N) = delta_L" if des.scale_known else "scale unknown: delta_L not given, fixed to 0"),
+             "ECC is the right-handed rotation error of the table about Z (eq 13)",
+             "G is the workpiece deviation along the outward normal (eq 7)"]
+    if des.heights is not None:
+        ht = des.heights
+        notes.append(f"touches at {len(ht.levels_m)} heights: C-axis tilt per set-up"
+                     + (" and the tool's Abbe terms (linear)" if ht.abbe else f"; Abbe terms: {ht.why}")
+                     + f" for touches off the reference level Z = {ht.z_ref_m / MM:g} mm")
+    if model_error and covariance != "none":
+        from .uncertainty import model_error_budget
+
+        budget = model_error_budget(des, sol.estimator, touches, sol.residuals, sigma_m, full=sol.cov is not None)
+        if budget.computed:
+            sigma = budget.sigma_probe_m
+            std = budget.u
+            if sol.cov is not None:
+                cov = sol.estimator.covariance(sigma) + budget.cov_model
+            if sigma_m is None:
+                src = "residuals (probing noise beside the model error, moment equations)"
+            notes.append(budget.rule)
+        else:
+            notes.append("model error not budgeted (design too large): U95 from the residuals' sigma as probing noise")
+            budget = None
+    notes.append(f"sigma from {src}")
+    return SelfCalResult(design=des, theta=sol.theta, std=std, cov=cov, residuals_m=sol.residuals,
+                         rms_m=sol.rms, sigma_m=sigma, sigma_source=src, dof=sol.dof,
+                         conventions=des.gauge + tuple(notes), scale_known=des.scale_known, n_touches=touches.n,
+                         budget=budget)
+
+
+def _design_and_solve(touches: Touches, grid: Grid, delta_L_m, dq, yaw, heights, **kw):
+    """(design, Solution): eq 6 checked, the design built (with heights), every node checked, solved."""
     check_count(touches, grid)
-    des = build_design(touches, grid, delta_L_m, yaw=yaw)
+    des = build_design(touches, grid, delta_L_m, yaw=yaw, heights=heights)
+    free = des.n_params - des.C.shape[0]
+    if des.heights is not None and touches.n <= free:
+        raise IdentifiabilityError(f"{touches.n} touches for {free} free parameters with the height terms"
+                                   f" ({len(des.heights.names)} of them): probe more targets or angles")
     _check_nodes(des)
-    sol = solve(des.A, touches.dq_m, des.C, des.d, names=des.names, sigma=sigma_m, covariance=covariance)
-    conv = des.gauge + (("scale known: EXX(x_N) = delta_L" if des.scale_known
-                         else "scale unknown: delta_L not given, fixed to 0"),
-                        "ECC is the right-handed rotation error of the table about Z (eq 13)",
-                        "G is the workpiece deviation along the outward normal (eq 7)",
-                        f"sigma from {sol.sigma_source}")
-    return SelfCalResult(design=des, theta=sol.theta, std=sol.std, cov=sol.cov, residuals_m=sol.residuals,
-                         rms_m=sol.rms, sigma_m=sol.sigma, sigma_source=sol.sigma_source, dof=sol.dof,
-                         conventions=conv, scale_known=des.scale_known, n_touches=touches.n)
+    sol = solve(des.A, dq, des.C, des.d, names=des.names, diagonal=des.slices["G"], **kw)
+    return des, sol
 
 
 def estimator(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
-              yaw: Yaw | str = Yaw.ECY) -> tuple[SelfCalDesign, LinearEstimator]:
+              yaw: Yaw | str = Yaw.ECY, heights: bool | str = "auto") -> tuple[SelfCalDesign, LinearEstimator]:
     """Build and factor the design once (for Monte Carlo and design studies)."""
-    check_count(touches, grid)
-    des = build_design(touches, grid, delta_L_m, yaw=yaw)
-    _check_nodes(des)
-    sol = solve(des.A, np.zeros(touches.n), des.C, des.d, names=des.names, sigma=1.0, covariance="none")
+    des, sol = _design_and_solve(touches, grid, delta_L_m, np.zeros(touches.n), yaw, heights, sigma=1.0,
+                                 covariance="none")
     return des, sol.estimator
 
 
@@ -873,24 +1261,33 @@ def map_in_gauge(x_m, y_m, ex_true, ey_true, ex_m, ey_m) -> tuple[np.ndarray, np
     return Ea[:n].reshape(shape), Ea[n:].reshape(shape)
 
 
-def workpiece_gauge_basis(w_W, wn_W) -> np.ndarray:
-    """(N_w, 5) workpiece deviations G that self-calibration cannot see (eqs 16-17).
+def workpiece_gauge_basis(w_W, wn_W, dz_m=None) -> np.ndarray:
+    """(N_w, 5 or 9) workpiece deviations G that self-calibration cannot see (eqs 16-17).
 
     A shift of the part in X and in Y (``wn . t``), a rotation in W
     (``wn . R90 w``), a scale (``wn . w``) and a common offset (the stylus
     radius), for targets at contact points ``w_W`` (N_w, 2), m, with outward
-    unit normals ``wn_W`` (N_w, 2), both in W.
+    unit normals ``wn_W`` (N_w, 2), both in W. With ``dz_m`` (N_w,), each
+    target's height above the reference probing level (m; 0 on it), also
+    what the height terms cannot see (:class:`HeightTerms`): a tilt of the
+    part (``dz wn . u``, two), a twist and a growth of the raised targets in
+    proportion to their height (``dz wn . R90 w``, ``dz wn . w``).
     """
     P, N = np.asarray(w_W, float), np.asarray(wn_W, float)
-    return np.column_stack([N[:, 0], N[:, 1], -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0],
-                            np.einsum("ij,ij->i", N, P), np.ones(len(P))])
+    rot, scl = -N[:, 0] * P[:, 1] + N[:, 1] * P[:, 0], np.einsum("ij,ij->i", N, P)
+    B = np.column_stack([N[:, 0], N[:, 1], rot, scl, np.ones(len(P))])
+    if dz_m is None or not np.any(np.asarray(dz_m) != 0):
+        return B
+    dz = np.asarray(dz_m, float)
+    return np.hstack([B, dz[:, None] * np.column_stack([N[:, 0], N[:, 1], rot, scl])])
 
 
-def workpiece_form(g, w_W, wn_W) -> np.ndarray:
+def workpiece_form(g, w_W, wn_W, dz_m=None) -> np.ndarray:
     """``g`` (N_w,) per target less what a shift, rotation and scale of the part and a
-    common offset would give (:func:`workpiece_gauge_basis`): the workpiece form that
-    self-calibration sees, in the unit of ``g``."""
-    return remove_span(np.asarray(g, float), workpiece_gauge_basis(w_W, wn_W))
+    common offset would give (and, with ``dz_m``, what the height terms cannot see:
+    :func:`workpiece_gauge_basis`): the workpiece form that self-calibration sees, in
+    the unit of ``g``."""
+    return remove_span(np.asarray(g, float), workpiece_gauge_basis(w_W, wn_W, dz_m))
 
 
 # ---------------------------------------------------------------------------

@@ -105,7 +105,8 @@ def form_projector(des: SelfCalDesign) -> np.ndarray:
     "workpiece X/Y shift", "workpiece rotation" and "scale"
     (:func:`core.selfcal.null_space`).
     """
-    Ng = des.N[des.slices["G"]][:, [4, 5, 7, 10]]
+    cols = [4, 5, 7, 10] + list(range(11, des.N.shape[1]))  # and the height terms' own (tilt, twist, growth)
+    Ng = des.N[des.slices["G"]][:, cols]
     return remove_span(np.eye(Ng.shape[0]), Ng)
 
 
@@ -115,10 +116,11 @@ def _check_u(u_probe_m):
 
 
 def linear_uncertainty_touches(touches: Touches, grid: Grid, u_probe_m: float = U_PROBE_M,
-                               delta_L_m: float | None = None, *, yaw: Yaw | str = Yaw.ECY) -> SelfCalUncertainty:
+                               delta_L_m: float | None = None, *, yaw: Yaw | str = Yaw.ECY,
+                               heights: bool | str = "auto") -> SelfCalUncertainty:
     """Linear propagation for the touches of a log (only their geometry is used)."""
     _check_u(u_probe_m)
-    des, est = estimator(touches, grid, delta_L_m, yaw=yaw)
+    des, est = estimator(touches, grid, delta_L_m, yaw=yaw, heights=heights)
     u = est.std(u_probe_m)
     Cg = est.covariance_of(des.slices["G"], u_probe_m)
     P = form_projector(des)
@@ -157,14 +159,14 @@ def mc_errors(est: LinearEstimator, n_obs: int, u_probe_m: float, runs: int,
 
 def monte_carlo_touches(touches: Touches, grid: Grid, u_probe_m: float = U_PROBE_M, *, runs: int = 1000,
                         rng: np.random.Generator, delta_L_m: float | None = None,
-                        yaw: Yaw | str = Yaw.ECY) -> SelfCalUncertainty:
-    """JCGM 101 Monte Carlo for the touches of a log (design factored once)."""
+                        yaw: Yaw | str = Yaw.ECY, heights: bool | str = "auto") -> SelfCalUncertainty:
+    """JCGM 101 Monte Carlo for the touches of a log (design factored once; probing noise only)."""
     _check_u(u_probe_m)
     if int(runs) < 10:
         raise ConfigError(f"runs must be >= 10, got {runs}")
     if not isinstance(rng, np.random.Generator):
         raise ConfigError("rng must be a numpy.random.Generator")
-    des, est = estimator(touches, grid, delta_L_m, yaw=yaw)
+    des, est = estimator(touches, grid, delta_L_m, yaw=yaw, heights=heights)
     err = mc_errors(est, touches.n, u_probe_m, int(runs), rng)
     return summarise_mc(des, err, u_probe_m)
 
@@ -184,3 +186,196 @@ def monte_carlo(w_W, wn_W, c_deg, grid: Grid, u_probe_m: float = U_PROBE_M, *, r
     """JCGM 101 Monte Carlo for a nominal design (see :func:`linear_uncertainty`)."""
     return monte_carlo_touches(nominal_touches(w_W, wn_W, c_deg, stylus_r_m=stylus_r_m), grid, u_probe_m,
                                runs=runs, rng=rng)
+
+
+# ---------------------------------------------------------------------------
+# model error: what the look-up tables cannot follow, in the budget
+# ---------------------------------------------------------------------------
+#: Step of the fine table that stands for what an error table cannot follow, m.
+MODEL_ERROR_STEP_M = 1.0e-3
+#: A table's model-error component enters the budget when its residual
+#: statistic exceeds what probing noise alone gives by this many standard
+#: deviations (one-sided; about 0.1 % false alarms per table for a Gaussian statistic).
+MODEL_ERROR_Z = 3.0
+#: Largest ``n_touches x fine nodes`` for which the budget is computed (dense work arrays).
+MODEL_ERROR_MAX_CELLS = 3.0e7
+#: The tables whose unrepresented part is budgeted (the yaw is ECY or ECX).
+TABLES = ("EXX", "EYX", "EXY", "EYY", "ECY", "ECX")
+
+MODEL_ERROR_RULE = (
+    "model error: what each error table (EXX, EYX, EXY, EYY, and the yaw) cannot follow between its nodes is taken as "
+    "a random function of its axis position, the same for touches within 1 mm along that axis and independent beyond "
+    "(a fine table, 1 mm step); a table's part enters when the residuals show it (z > 3 against probing noise alone), "
+    "its variance and the probing noise's estimated from the residuals (moment equations); it is propagated through the "
+    "estimator and, as the difference between a table's value and the function at its node, through the gauge")
+
+
+@dataclass(frozen=True)
+class ModelErrorBudget:
+    """The self-calibration's uncertainty from probing noise and from model error.
+
+    Attributes
+    ----------
+    sigma_probe_m : float
+        Probing standard deviation used, m (given, or the noise component
+        estimated beside the model error).
+    components : dict[str, float]
+        Per table, the standard deviation of its unrepresented part, m
+        (rad for the yaw); 0 when the residuals do not show it.
+    z : dict[str, float]
+        Per table, the residual statistic against probing noise alone.
+    u_probe : (n_params,) float
+        Standard uncertainty from probing noise, m / rad.
+    u_model : (n_params,) float
+        Standard uncertainty from model error, m / rad.
+    cov_model : (n_params, n_params) float or None
+        Its covariance (when asked for).
+    computed : bool
+        False when the design was too large (:data:`MODEL_ERROR_MAX_CELLS`):
+        the budget is then probing noise alone.
+    rule : str
+    """
+
+    sigma_probe_m: float
+    components: dict
+    z: dict
+    u_probe: np.ndarray
+    u_model: np.ndarray
+    cov_model: np.ndarray | None
+    computed: bool
+    rule: str = MODEL_ERROR_RULE
+
+    @property
+    def u(self) -> np.ndarray:
+        """(n_params,) combined standard uncertainty, m / rad."""
+        return np.sqrt(self.u_probe ** 2 + self.u_model ** 2)
+
+
+def _fine_table(des: SelfCalDesign, touches: Touches, name: str, step_m: float):
+    """(Phi (n, f) sparse, S (n_params, f)) of one table's fine model-error table.
+
+    ``Phi[i, :]``: how touch i sees the fine table (the table's coefficient
+    in eq 14 times the hat weights at its axis position); ``S``: the table's
+    node values as point values of the fine table (hat weights at each node).
+    """
+    import scipy.sparse as sp
+
+    x, y = touches.pn_R[:, 0], touches.pn_R[:, 1]
+    nx, ny = touches.n_R[:, 0], touches.n_R[:, 1]
+    coef, v, on_x = {"EXX": (-nx, x, True), "EYX": (-ny, x, True), "EXY": (-nx, y, False), "EYY": (-ny, y, False),
+                     "ECY": (-ny * x, y, False), "ECX": (nx * y, x, True)}[name]
+    nodes = des.grid.x_m if on_x else des.grid.y_m
+    lo, hi = nodes[0], nodes[-1]
+    f = max(int(np.ceil((hi - lo) / step_m - 1e-9)), 1)
+    h = (hi - lo) / f
+    k = np.clip(np.floor((v - lo) / h).astype(int), 0, f - 1)
+    z = (v - lo) / h - k
+    n = len(v)
+    Phi = sp.csr_matrix((np.concatenate([coef * (1 - z), coef * z]), (np.tile(np.arange(n), 2), np.concatenate([k, k + 1]))),
+                        shape=(n, f + 1))
+    kn = np.clip(np.floor((nodes - lo) / h + 1e-9).astype(int), 0, f - 1)
+    zn = (nodes - lo) / h - kn
+    S = np.zeros((des.n_params, f + 1))
+    idx = np.arange(des.slices[name].start, des.slices[name].stop)
+    np.add.at(S, (idx, kn), 1 - zn)
+    np.add.at(S, (idx, kn + 1), zn)
+    return Phi, S
+
+
+def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touches, residuals_m: np.ndarray,
+                       sigma_m: float | None = None, *, full: bool = False,
+                       step_m: float = MODEL_ERROR_STEP_M) -> ModelErrorBudget:
+    """The uncertainty of a self-calibration with its model error estimated from the residuals.
+
+    The tables of eqs 8-11 are piecewise linear: what an error motion does
+    between the nodes (a screw's ripple, curvature) they cannot follow, and
+    the touches see it. Treating it as probing noise (``sigma`` from the
+    residuals, independent per touch) misses two things: touches at one
+    axis position see the same unrepresented error (correlated, not white),
+    and a table's value differs from the function at its node by it (the
+    quantity the table is compared with, and the gauge of eqs 16-17 is
+    defined on node values). Here each table ``T`` gets a model-error
+    component: a fine table ``e_T`` (step ``step_m``, independent values of
+    variance ``s_T^2``) seen by touch i as ``c_Ti e_T(v_i)`` (``c`` its
+    coefficient in eq 14, ``v`` its axis position: ``Phi_T``), so
+
+        dq = A theta + sum_T Phi_T e_T + noise,
+        theta_hat - theta_true = K (sum_T Phi_T e_T + noise) - Q sum_T S_T e_T,
+
+    with ``K`` the estimator, ``S_T`` the node values of ``e_T`` and ``Q =
+    I - N (C N)^-1 C`` the gauge (eqs 16-17) applied to them. The variances
+    come from the residuals ``r = (I - H) dq`` by the moment equations
+    ``E[r.r] = sigma^2 tr(I - H) + sum_T s_T^2 |R Phi_T|^2`` and ``E[|Phi_T^T
+    r|^2] = sigma^2 |R Phi_T|^2 + sum_U s_U^2 |Phi_T^T R Phi_U|^2``
+    (``R = I - H``), solved non-negative, over the tables whose statistic
+    ``|Phi_T^T r|^2`` exceeds its probing-noise expectation by
+    :data:`MODEL_ERROR_Z` standard deviations (the others get 0).
+
+    Parameters
+    ----------
+    des, est : the design and its factored estimator (:func:`core.selfcal.estimator`).
+    touches : Touches
+    residuals_m : (n,) float
+        ``dq - A theta_hat``, m.
+    sigma_m : float or None
+        Probing standard deviation when known (then only the model-error
+        components are estimated), m.
+    full : bool
+        Also the model error's covariance (n_params, n_params).
+
+    Returns
+    -------
+    ModelErrorBudget
+    """
+    r = np.asarray(residuals_m, float)
+    n = touches.n
+    u1 = est.std(1.0)
+    dof = n - est.n_free
+    s0 = float(np.sqrt(r @ r / dof)) if dof > 0 else 0.0
+    tables = [k for k in TABLES if k in des.slices]
+    span = {k: (des.grid.x_m if k in ("EXX", "EYX", "ECX") else des.grid.y_m) for k in tables}
+    n_fine = sum(max(int(np.ceil((v[-1] - v[0]) / step_m - 1e-9)), 1) + 1 for v in span.values())
+    cells = max(n, des.n_params) * n_fine  # the dense work arrays: (touches or parameters) x fine nodes
+    sig = s0 if sigma_m is None else float(sigma_m)
+    zero = np.zeros(des.n_params)
+    if cells > MODEL_ERROR_MAX_CELLS or dof <= 0:
+        return ModelErrorBudget(sig, {k: 0.0 for k in tables}, {k: float("nan") for k in tables}, sig * u1, zero,
+                                None, False)
+    fine = [_fine_table(des, touches, k, step_m) for k in tables]
+    A = est.A
+    KP = [est.noise_gain(P.toarray()) for P, _ in fine]
+    RP = [P.toarray() - A @ kp for (P, _), kp in zip(fine, KP)]
+    q = np.array([float(np.sum((P.T @ r) ** 2)) for P, _ in fine])
+    tr = np.array([float(np.sum(rp ** 2)) for rp in RP])  # tr(Phi^T R Phi)
+    cross = np.array([[float(np.sum((P.T @ rq) ** 2)) for rq in RP] for P, _ in fine])  # |Phi_T^T R Phi_U|^2
+    var0 = 2.0 * s0 ** 4 * np.diag(cross)
+    z = np.where(var0 > 0, (q - s0 ** 2 * tr) / np.sqrt(np.where(var0 > 0, var0, 1.0)), 0.0)
+    keep = np.flatnonzero(z > MODEL_ERROR_Z)
+    s2 = np.zeros(len(tables))
+    if keep.size:
+        from scipy.optimize import nnls
+
+        lhs = np.vstack([np.concatenate([[float(dof)], tr[keep]]),
+                         np.column_stack([tr[keep], cross[np.ix_(keep, keep)]])])
+        rhs = np.concatenate([[float(r @ r)], q[keep]])
+        if sigma_m is None:
+            scale = np.sqrt((lhs ** 2).sum(axis=0))
+            sol, _ = nnls(lhs / scale, rhs)
+            sol = sol / scale
+            sig = float(np.sqrt(sol[0]))
+            s2[keep] = sol[1:]
+        else:
+            scale = np.sqrt((lhs[:, 1:] ** 2).sum(axis=0))
+            sol, _ = nnls(lhs[:, 1:] / scale, rhs - lhs[:, 0] * sig ** 2)
+            s2[keep] = sol / scale
+    Q = des.N @ np.linalg.solve(des.C @ des.N, des.C)  # gauge part of I - Q
+    u2 = np.zeros(des.n_params)
+    cov = np.zeros((des.n_params, des.n_params)) if full else None
+    for k in np.flatnonzero(s2 > 0):
+        S = fine[k][1]
+        Gk = KP[k] - (S - Q @ S)
+        u2 += s2[k] * np.einsum("ij,ij->i", Gk, Gk)
+        if full:
+            cov += s2[k] * (Gk @ Gk.T)
+    return ModelErrorBudget(sig, {t: float(np.sqrt(v)) for t, v in zip(tables, s2)},
+                            {t: float(v) for t, v in zip(tables, z)}, sig * u1, np.sqrt(u2), cov, True)

@@ -88,6 +88,7 @@ Units SI inside; report helpers give um / urad.
 
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import dataclass, field
 
@@ -267,14 +268,22 @@ def spline_weights(nodes: np.ndarray, u: np.ndarray) -> np.ndarray:
         W[lo] = np.eye(k)[0]
         W[hi] = np.eye(k)[-1]
         return W
-    cs = CubicSpline(nodes, np.eye(k), bc_type="not-a-knot")
+    cs, d0, d1 = _basis(tuple(nodes.tolist()))
     W = cs(np.clip(u, nodes[0], nodes[-1]))
     lo, hi = u < nodes[0], u > nodes[-1]
     if lo.any() or hi.any():  # beyond the end nodes: the end tangent line (C1), no runaway cubic
-        d = cs.derivative()
-        W[lo] += (u[lo] - nodes[0])[:, None] * d(nodes[0])[None, :]
-        W[hi] += (u[hi] - nodes[-1])[:, None] * d(nodes[-1])[None, :]
+        W[lo] += (u[lo] - nodes[0])[:, None] * d0[None, :]
+        W[hi] += (u[hi] - nodes[-1])[:, None] * d1[None, :]
     return W
+
+
+@functools.lru_cache(maxsize=64)
+def _basis(nodes: tuple):
+    """The cardinal C2 (not-a-knot) splines of a node tuple and their end slopes (cached: pure)."""
+    x = np.asarray(nodes)
+    cs = CubicSpline(x, np.eye(len(x)), bc_type="not-a-knot")
+    d = cs.derivative()
+    return cs, d(x[0]), d(x[-1])
 
 
 def _layout(meas, nodes):
@@ -905,14 +914,78 @@ def report(res: VolumetricResult, unc: VolumetricUncertainty | None = None, trut
 
 
 def tables_json(res: VolumetricResult, unc: VolumetricUncertainty | None = None, slopes: dict | None = None) -> str:
-    """vmt-readable compensation tables (JSON text, format ``vmt-comp/1``).
+    """Compensation tables for a controller with volumetric compensation (JSON text, ``vmt-comp/1``).
 
-    ``res`` as reported (:func:`iso_view`), ``slopes`` its straightness
-    end-point slopes (:func:`end_point_slopes` of the identification).
+    The format (README, "Compensation files"): ``format`` ``"vmt-comp/1"``,
+    ``chain`` (ISO 10791), ``sign_convention`` (ISO 230-1: every value is the
+    tool's displacement relative to the workpiece, actual minus commanded),
+    ``positions`` (the axis readings, stylus-tip centre in R, mm),
+    ``interpolation``, ``extrapolation``, ``conventions`` (the gauge) and
+    ``errors``: the 21 symbols, each with ``unit`` (um, urad), ``kind``,
+    ``identified`` (values at ``nodes_mm``; one value for a squareness),
+    ``u95`` / ``u95_lin`` when the uncertainty is given, and for a
+    straightness ``end_point_slope_urad``: the table is reported against its
+    end-point reference line (ISO 230-1); the error a controller corrects is
+    ``identified + end_point_slope_urad * 1e-3 * (x_mm - nodes_mm[0])`` um
+    (:func:`comp_tables`). ``res`` as reported (:func:`iso_view`), ``slopes``
+    its straightness end-point slopes (:func:`end_point_slopes` of the
+    identification).
     """
     doc = {"format": "vmt-comp/1", "chain": res.chain,
+           "sign_convention": "ISO 230-1: each value is the tool's displacement relative to the workpiece "
+                              "(actual minus commanded), whichever side of the bed the axis is on",
+           "positions": "axis readings: stylus-tip centre in the machine frame R, mm",
+           "rotary_points_mm": {a: [v * 1e3 for v in p] for a, p in (res.rotary_points_R_m or {}).items()},
            "conventions": list(res.design.gauge),
            "straightness_reference": "end-point straight line (slope in end_point_slope_urad)",
            "interpolation": "C2 cubic spline (not-a-knot) through the nodes",
+           "extrapolation": "beyond the end nodes along the end tangent",
            "errors": report(res, unc, slopes=slopes)}
     return json.dumps(doc, indent=1)
+
+
+def comp_tables(doc: dict) -> tuple[str, dict, dict, dict]:
+    """The errors a controller corrects, from a ``vmt-comp/1`` document (SI).
+
+    Returns
+    -------
+    chain : str
+    tables : dict symbol -> ((k,) nodes m, (k,) values m or rad)
+        The 18 motion errors; each straightness with its end-point line's
+        slope restored (its constant is the gauge's: no artefact sees a
+        constant shift).
+    constants : dict symbol -> float
+        The squarenesses, rad.
+    rotary_points_R_m : dict axis -> (3,) float
+
+    Raises
+    ------
+    ConfigError
+        Not ``vmt-comp/1``, an error missing, or tables of the wrong shape.
+    """
+    if not isinstance(doc, dict) or doc.get("format") != "vmt-comp/1":
+        raise ConfigError("compensation tables: not a vmt-comp/1 document (format missing or other)")
+    errs = doc.get("errors")
+    if not isinstance(errs, dict):
+        raise ConfigError("vmt-comp/1: 'errors' missing")
+    tables, const = {}, {}
+    for s in MOTION + SQUARENESS:
+        e = errs.get(s)
+        if not isinstance(e, dict) or "identified" not in e:
+            raise ConfigError(f"vmt-comp/1: error {s} missing")
+        v = np.asarray(e["identified"], float) * 1e-6
+        if s in SQUARENESS:
+            if v.shape != (1,) or not np.isfinite(v).all():
+                raise ConfigError(f"vmt-comp/1: {s}.identified must be one finite value")
+            const[s] = float(v[0])
+            continue
+        x = np.asarray(e.get("nodes_mm", []), float) * 1e-3
+        if x.ndim != 1 or x.shape != v.shape or len(x) < 1 or not (np.isfinite(x).all() and np.isfinite(v).all()):
+            raise ConfigError(f"vmt-comp/1: {s}: nodes_mm and identified must be equal-length finite lists")
+        if np.any(np.diff(x) <= 0):
+            raise ConfigError(f"vmt-comp/1: {s}.nodes_mm must be strictly increasing")
+        if "end_point_slope_urad" in e:
+            v = v + float(e["end_point_slope_urad"]) * 1e-6 * (x - x[0])
+        tables[s] = (x, v)
+    pts = {a: tuple(float(c) * 1e-3 for c in p) for a, p in (doc.get("rotary_points_mm") or {}).items()}
+    return str(doc.get("chain", "")), tables, const, pts

@@ -29,6 +29,11 @@ and stops at a miss): its lines are the first plan rows, the rows after them
 are kept with status ``aborted`` and empty measured cells. Without a plan,
 the file is taken for a surface (Z) probing job and the plan is built from
 it (:func:`hardware.surface.plan_from_z_touches`).
+
+:func:`comp_file` writes an identified positioning error as a LinuxCNC
+per-joint compensation file (``COMP_FILE_TYPE = 0``), :func:`read_comp_file`
+reads one back (``sim.compensation`` applies it to the virtual machine as
+LinuxCNC's motion controller does).
 """
 
 from __future__ import annotations
@@ -148,12 +153,7 @@ def read_probe_file(path) -> np.ndarray:
         ``LOGOPEN`` line without X, Y and Z words, or lines of both kinds.
     """
     p = Path(path)
-    if not p.is_file():
-        raise ProbeLogError(f"{p}: no such file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as e:
-        raise ProbeLogError(f"{p}: not text (byte {e.start})") from None
+    text = _read_text(p, ProbeLogError)
     rows, width, kind = [], None, None
     for ln, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
@@ -217,6 +217,30 @@ def _log_line(p: Path, ln: int, line: str) -> list[float]:
     return [got["X"], got["Y"], got["Z"]]
 
 
+def _read_text(p: Path, error) -> str:
+    """The UTF-8 text of file ``p``; ``error`` (a VmtError class) says why not."""
+    if not p.is_file():
+        raise error(f"{p}: no such file")
+    try:
+        return p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise error(f"{p}: not text (byte {e.start})") from None
+
+
+def _number_lines(p: Path, error):
+    """(line number, numbers) of every non-blank line of text file ``p``;
+    ``error`` (a VmtError class) names the file and line of what is wrong."""
+    for ln, line in enumerate(_read_text(p, error).splitlines(), start=1):
+        parts = line.split()
+        if not parts:
+            continue
+        try:
+            yield ln, [float(v) for v in parts]
+        except ValueError:
+            bad = next(v for v in parts if not _isnum(v))
+            raise error(f"{p}: line {ln}: {bad!r} is not a number") from None
+
+
 def _isnum(v: str) -> bool:
     try:
         float(v)
@@ -278,38 +302,100 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
     return log_from_plan(plan, pos, status, t, meta, source=str(path))
 
 
-def comp_file(res, axis: str, step_m: float | None = None) -> str:
-    """LinuxCNC per-axis compensation file for the positioning error of ``axis``.
+# --------------------------------------------------------------------------- compensation files
+#: LinuxCNC's largest compensation table (``EMCMOT_COMP_SIZE``, src/emc/motion/motion.h).
+COMP_SIZE = 256
 
-    LinuxCNC (ini ``[JOINT_n] COMP_FILE``, ``COMP_FILE_TYPE = 0``) reads
-    lines of three numbers, ``nominal forward-trip reverse-trip`` in machine
-    units (mm here): the position the axis is commanded to and where it
-    must go to be there. The positioning error ``E`` is actual minus
-    nominal, so the corrected commands are ``nominal - E``; forward and
-    reverse trips are equal (the MFB sees no reversal). Points every
-    ``step_m`` along the table by the C2 spline (default: the nodes).
+
+def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float = 0.0) -> str:
+    """LinuxCNC per-joint compensation file (``COMP_FILE_TYPE = 0``) for the positioning error of ``axis``.
+
+    LinuxCNC documents TYPE 0 lines as ``nominal forward reverse`` in machine
+    units (docs/src/config/ini-config.adoc, ``[JOINT_n] COMP_FILE``): the
+    commanded position, and the *actual* position the joint reaches there
+    moving in + and in -. Its loader (``usrmotLoadComp()``,
+    src/emc/motion/usrmotintf.cc) stores ``trim = nominal - forward``
+    (``- reverse``), and ``compute_screw_comp()`` (src/emc/motion/control.c)
+    adds the trim, interpolated linearly between lines and held beyond the
+    ends, to the command (``motor_pos_cmd``) while reporting the position
+    without it (``pos_fb``). The positioning error ``E`` of ``core.volumetric``
+    is ISO 230-1's (the tool relative to the part, actual minus commanded,
+    whichever side of the bed the axis is on), so the actual position is
+    ``nominal + E`` and the joint is sent to ``nominal - E``: the same
+    column for a table-moving and a tool-moving axis. Forward and reverse
+    are equal (the MFB sees no reversal).
 
     Parameters
     ----------
     res : core.volumetric.VolumetricResult
-        Identified tables (``res.value`` gives ``EXX``, ``EYY``, ``EZZ`` in m).
+        Identified tables (``res.value("EXX", x)`` at readings x, m).
     axis : {"X", "Y", "Z"}
     step_m : float, optional
-        Spacing of the lines, m.
+        Spacing of the lines along the table (by its C2 spline), m; default
+        the table's nodes. At most :data:`COMP_SIZE` lines.
+    joint_offset_m : float
+        Joint position minus axis reading, m: vmt's tables are functions of
+        the readings (stylus-tip centre); LinuxCNC indexes the joint, which
+        is the reading plus the tool offset in effect (the probe's length
+        for Z). Nominal = reading + ``joint_offset_m``.
+
+    Returns
+    -------
+    str
+        Lines ``nominal forward reverse``, mm, 6 decimals, ascending, no
+        header (LinuxCNC stops reading at the first line that is not three
+        numbers).
     """
     from core import iso
     from core.exceptions import ConfigError
     from core.units import MM
 
-    a = axis.upper()
+    a = axis.upper() if isinstance(axis, str) else axis
     if a not in iso.LINEAR_AXES:
         raise ConfigError(f"comp_file: axis must be X, Y or Z, got {axis!r}")
-    s = f"E{a}{a}"
+    if not math.isfinite(joint_offset_m):
+        raise ConfigError(f"comp_file: joint_offset_m must be finite, got {joint_offset_m!r}")
     x = res.design.nodes[a]
     if step_m is not None:
         if not (step_m > 0):
             raise ConfigError(f"comp_file: step_m must be > 0, got {step_m!r}")
         x = np.arange(x[0], x[-1] + 0.5 * step_m, step_m)
-    e = res.value(s, x)
-    lines = [f"{u / MM:.6f} {(u - v) / MM:.6f} {(u - v) / MM:.6f}" for u, v in zip(x, e)]
-    return "\n".join(lines) + "\n"
+    if len(x) > COMP_SIZE:
+        raise ConfigError(f"comp_file: {len(x)} lines, LinuxCNC takes at most {COMP_SIZE} per joint")
+    e = res.value(f"E{a}{a}", x)
+    nom = (x + joint_offset_m) / MM
+    act = nom + e / MM
+    return "".join(f"{u:.6f} {v:.6f} {v:.6f}\n" for u, v in zip(nom, act))
+
+
+def read_comp_file(path) -> np.ndarray:
+    """Read a LinuxCNC compensation file: (k, 3) ``nominal forward reverse`` as written (machine units).
+
+    Stricter than LinuxCNC, which stops at the first line that is not three
+    numbers and keeps what it read: here such a line (named by number) is an
+    error, so no table is silently cut short.
+
+    Raises
+    ------
+    ConfigError
+        No such file; a line that is not three finite numbers; nominal
+        values not strictly increasing (LinuxCNC: "compensation values must
+        increase"); more than :data:`COMP_SIZE` lines.
+    """
+    from core.exceptions import ConfigError
+
+    p = Path(path)
+    rows = []
+    for ln, vals in _number_lines(p, ConfigError):
+        if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
+            raise ConfigError(f"{p}: line {ln}: expected three finite numbers (nominal forward reverse), "
+                              f"got {len(vals)} numbers")
+        if rows and vals[0] <= rows[-1][0]:
+            raise ConfigError(f"{p}: line {ln}: nominal {vals[0]:g} does not increase "
+                              "(LinuxCNC: compensation values must increase)")
+        rows.append(vals)
+    if not rows:
+        raise ConfigError(f"{p}: empty compensation file")
+    if len(rows) > COMP_SIZE:
+        raise ConfigError(f"{p}: {len(rows)} lines, LinuxCNC takes at most {COMP_SIZE} per joint")
+    return np.array(rows)

@@ -13,7 +13,8 @@ believes the tip is (``p_cmd``, machine frame R, m) the tip actually is at
 ``p_act = p_cmd + E @ p_cmd``, with ``E = diag(scale) + squareness`` (the
 ISO 230-1 ``EXX``-like scale errors as slopes and ``EC0Y``: tip error
 ``-y * EC0Y`` in X, CONTRIBUTING). The reported position is ``p_cmd`` at the
-trigger plus seeded Gaussian noise.
+trigger plus seeded Gaussian noise along the approach direction (a standard
+deviation, k = 1, as ``--noise-um`` everywhere).
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ class SimpleScene:
     ec0y_rad : float
         Squareness of Y to X (rad).
     noise_m : float
-        Standard deviation of the reported position per axis, m.
+        Standard deviation (k = 1) of the reported position along the
+        approach direction, m.
     rng : numpy.random.Generator or None
         Source of the noise (required when ``noise_m > 0``).
     """
@@ -119,5 +121,5 @@ class SimpleScene:
             return True, a.copy()
         p = a + s0 * u
         if self.noise_m > 0:
-            p = p + self.rng.normal(0.0, self.noise_m, 3)
+            p = p + self.rng.normal(0.0, self.noise_m) * u / np.linalg.norm(u)
         return True, p

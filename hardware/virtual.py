@@ -25,7 +25,8 @@ def builtin_machine(noise_um: float = 0.0, seed: int = 0, scale_ppm=(0.0, 0.0, 0
 
     A table top at Z = 0 and a sphere of radius 12.5 mm at (50, 50, 0) mm
     (stylus-tip-centre space), linear scale errors (``scale_ppm``, um/m) and
-    a squareness ``ec0y_urad``, all known; ``noise_um`` the probing noise.
+    a squareness ``ec0y_urad``, all known; ``noise_um`` the probing noise, a
+    standard deviation (k = 1) along the approach, um.
     """
     from core.units import URAD
 
@@ -56,17 +57,22 @@ class SimMachine:
         return self.vm.probe_move(start_m, target_m, rot)
 
 
-def sim_machine(scene: str = "cross-pocket", noise_um: float = 0.0, seed: int = 0,
-                errors_seed: int = 1) -> SimMachine:
-    """The simulator's nmv3000 (realistic errors, seeded) with artefact ``scene`` on the table.
+def sim_machine(scene: str = "cross-pocket", noise_um: float | None = 0.0, seed: int = 0,
+                errors_seed: int = 1, spec=None) -> SimMachine:
+    """The simulator's virtual machine with artefact ``scene`` on the table.
 
-    ``noise_um`` is the probing standard deviation along the approach, um.
+    ``spec`` (a :class:`sim.machinefile.MachineSpec`, ``--machine FILE``) is
+    the machine and probe; default the nmv3000 with realistic errors (seeded
+    by ``errors_seed``). ``noise_um`` is the probing standard deviation (k=1)
+    along the approach, um (None: the spec's probe, else 0).
 
     Raises
     ------
     ConfigError
         ``scene`` is no artefact of :data:`sim.catalog.CATALOG`.
     """
+    from dataclasses import replace
+
     from sim.catalog import CATALOG, make_artefact
     from sim.machine import Machine
     from sim.machines import MACHINES, realistic_errors
@@ -74,10 +80,16 @@ def sim_machine(scene: str = "cross-pocket", noise_um: float = 0.0, seed: int = 
 
     if scene not in CATALOG:
         raise ConfigError(f"--scene {scene!r}: expected simple or one of {', '.join(sorted(CATALOG))}")
-    m = Machine(MACHINES["nmv3000"](errors=realistic_errors(
-        ("X", "Y", "Z", "C"), rng=np.random.default_rng(errors_seed), ripple=False)))
-    vm = VirtualMachine(m, make_artefact(scene), ProbeConfig(repeatability_k2_m=2 * noise_um * UM),
-                        np.random.default_rng(seed))
+    if spec is None:
+        m = Machine(MACHINES["nmv3000"](errors=realistic_errors(
+            ("X", "Y", "Z", "C"), rng=np.random.default_rng(errors_seed), ripple=False)))
+        probe = ProbeConfig(repeatability_k2_m=0.0)
+    else:
+        m = Machine(spec.config)
+        probe = spec.probe
+    if noise_um is not None:
+        probe = replace(probe, repeatability_k2_m=2 * noise_um * UM)
+    vm = VirtualMachine(m, make_artefact(scene), probe, np.random.default_rng(seed))
     return SimMachine(vm)
 
 

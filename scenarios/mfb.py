@@ -64,7 +64,8 @@ tables' interpolation of its 9-knot profiles and the tangent continuation
 over the end rods); 0.003 um / 0.03 urad for errors the tables represent
 (``on_nodes=True``).
 
-Uncertainty: probing noise (0.25 um k=2), the bar's calibration (the
+Uncertainty: probing noise (0.125 um standard deviation, the paper's 0.25 um
+at k = 2), the bar's calibration (the
 true bar differs from its calibration by a draw of ``u_cal_um``) and the
 placement errors (:data:`U_PLACE`, roll included, drawn in the simulator),
 by linear propagation and Monte Carlo (JCGM 101) through the same
@@ -343,6 +344,26 @@ class _NoSafeHeight:
         return getattr(self._m, k)
 
 
+#: The extraction's gains already computed (pure functions of the nominal plan).
+_GAINS: dict = {}
+
+
+def _noise_gain(pl_ok, r_m):
+    """:func:`core.mfb.poi_noise_gain` of the touches ``pl_ok`` (a plan's nominal
+    geometry and stylus radius only), kept for the next run of the same plan:
+    it is two thirds of a run's time and the same for every campaign."""
+    from core import mfb
+
+    key = (tuple(pl_ok.target), tuple(pl_ok.feature), pl_ok.w_A.tobytes(), pl_ok.wn_A.tobytes(), float(r_m))
+    if key not in _GAINS:
+        if len(_GAINS) >= 64:
+            _GAINS.pop(next(iter(_GAINS)))
+        G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A)
+        G.setflags(write=False)  # shared between runs: read only
+        _GAINS[key] = G
+    return _GAINS[key]
+
+
 def _check_touch_strokes(log, machine, name):
     from core.exceptions import PlanError
 
@@ -390,40 +411,73 @@ class ScenarioResult:
     def write_comp(self, directory) -> list:
         """Write the LinuxCNC per-axis compensation files and the vmt JSON tables.
 
-        ``<dir>/<X|Y|Z>.comp`` (``[JOINT_n] COMP_FILE``, type 0: nominal,
-        forward, reverse in mm, every 5 mm along the table by its C2
-        spline) and ``<dir>/<scenario>-comp.json`` (``vmt-comp/1``).
-        Returns the paths written.
+        ``<dir>/<X|Y|Z>.comp`` (``[JOINT_n] COMP_FILE``, ``COMP_FILE_TYPE =
+        0``: nominal, actual forward, actual reverse in mm, every 5 mm along
+        the table by its C2 spline, :func:`hardware.linuxcnc.comp_file`),
+        indexed by the joint position of the reference stylus
+        (:data:`COMP_STYLUS`: reading + its offsets J), and
+        ``<dir>/<scenario>-comp.json`` (``vmt-comp/1``,
+        :func:`core.volumetric.tables_json`). Returns the paths written.
         """
         from pathlib import Path
 
         from core import volumetric as vol
+        from core.atomic import write_text_atomic
         from hardware.linuxcnc import comp_file
 
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
         out = []
-        for a in ("X", "Y", "Z"):
-            p = d / f"{a}.comp"
-            p.write_text(comp_file(self.result, a, step_m=0.005))
-            out.append(p)
-        p = d / f"{self.doc['scenario']}-comp.json"
-        p.write_text(vol.tables_json(self.result, self.unc, self.slopes))
-        out.append(p)
-        return out
+        J = STYLI[COMP_STYLUS]
+        for i, a in enumerate(("X", "Y", "Z")):
+            out.append(write_text_atomic(d / f"{a}.comp", comp_file(self.result, a, step_m=0.005,
+                                                                    joint_offset_m=J[i])))
+        out.append(write_text_atomic(d / f"{self.doc['scenario']}-comp.json",
+                                     vol.tables_json(self.result, self.unc, self.slopes)))
+        return [Path(p) for p in out]
+
+
+#: The stylus whose joint positions index the LinuxCNC files (T0: a 150 mm probe).
+COMP_STYLUS = "T0"
+
+
+def _check_machine_for_plan(cfg, plan, name):
+    from core.chain import parse_chain
+    from core.exceptions import ConfigError
+    from sim.machines import MACHINES
+
+    want = parse_chain(MACHINES[plan.machine]().chain)
+    got = parse_chain(cfg.chain)
+    if (got.workpiece_axes, got.tool_axes) != (want.workpiece_axes, want.tool_axes):
+        raise ConfigError(f"--machine {cfg.name!r}: chain {cfg.chain!r} is not the {name} plan's "
+                          f"{want.text!r} (the plan is designed for that structure)")
 
 
 def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None, mc_runs: int = 500,
         exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
         u_cal_um: tuple = (0.2, 0.35, 0.35), bar_cal_error: bool = True,
-        u_place: tuple = U_PLACE, hook=None, progress=None) -> ScenarioResult:
+        u_place: tuple = U_PLACE, machine=None, compensate=None, bar_seed: int | None = None,
+        hook=None, progress=None) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
     ----------
     noise_um : float, optional
-        Probe repeatability (k = 2), um; default the paper's 0.25; 0 for a
+        Probing noise, a standard deviation (k = 1) along the approach, um;
+        default the probe's (the paper's 0.25 um at k = 2: 0.125); 0 for a
         noise-free run.
+    machine : sim.machinefile.MachineSpec, optional
+        The truth machine (a machine file) instead of the plan's built-in
+        machine with its realistic errors; its chain must be the plan's
+        machine's, its probe is used (noise overridden by ``noise_um``).
+    compensate : callable, optional
+        ``compensate(machine) -> machine``: the controller's compensation
+        (:mod:`sim.compensation`) in front of the truth machine of every
+        measurement (one per stylus); the truth stays the same.
+    bar_seed : int, optional
+        Seed of the bar's true deviations from its calibration (default: drawn
+        first from ``seed``'s stream; give the first run's seed to probe the
+        same bar again with new noise).
     u_cal_um : (3,) float
         Standard uncertainty of the bar calibration (Exx, Eyx, Ezx), um
         (about half the paper's 0.4 / 0.7 um expanded).
@@ -468,16 +522,26 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
             raise ConfigError(f"drop: no placement {drop!r} in {name} ({', '.join(plan.placements)})")
         plan = plan.without(drop)
     rng = np.random.default_rng(seed)
-    k2 = 0.25 if noise_um is None else float(noise_um)
-    probe = ProbeConfig(repeatability_k2_m=k2 * 1e-6)
-    noisy = k2 > 0
+    if machine is not None:
+        _check_machine_for_plan(machine.config, plan, name)
+        probe = machine.probe
+        cfg, errs = machine.config, dict(machine.config.errors)
+    else:
+        probe = ProbeConfig()
+        cfg, errs = default_machine(plan.machine, ripple)
+    if noise_um is not None:
+        if not (np.isfinite(noise_um) and noise_um >= 0):
+            raise ConfigError(f"noise_um must be >= 0 (a standard deviation, um), got {noise_um!r}")
+        probe = replace(probe, repeatability_k2_m=2.0 * float(noise_um) * 1e-6)
+    sigma_um = probe.sigma_m * 1e6
+    noisy = sigma_um > 0
     E_cal = A.mfb_default_deviations()
     u_cal = np.tile(np.asarray(u_cal_um, float) * 1e-6, (12, 1))
-    E_true = E_cal + (rng.standard_normal(E_cal.shape) * u_cal if (noisy and bar_cal_error) else 0.0)
+    bar_rng = rng if bar_seed is None else np.random.default_rng(bar_seed)
+    E_true = E_cal + (bar_rng.standard_normal(E_cal.shape) * u_cal if (noisy and bar_cal_error) else 0.0)
     art = A.multi_feature_bar(deviations_m=E_true)
     art_nom = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
     O_A_cal = art.info["poi_nominal_m"] + np.column_stack([E_cal[:, :2], A.multi_feature_bar(deviations_m=E_cal).info["E_MFB_m"][:, 2]])
-    cfg, errs = default_machine(plan.machine, ripple)
     if on_nodes:
         from sim.errorfuncs import SplineTable
 
@@ -505,6 +569,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         J = tuple(ms.J_m)
         if J not in machines:
             machines[J] = Machine(replace(cfg, J_m=J))
+            if compensate is not None:
+                machines[J] = compensate(machines[J])
         m = machines[J]
         art_i, probe_i = art, probe
         if hook is not None:
@@ -519,10 +585,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         # the touches that were fitted (valid ones, plan order) and the gain of the
         # extraction at their nominal places (A frame, stylus centres)
         pl_ok = pl.select(np.asarray(log.ok, bool))
-        key = tuple(pl_ok.target)
+        key = (tuple(pl_ok.target), probe.stylus_r_m)
         if key not in G_cache:
-            r = probe.stylus_r_m
-            G_cache[key] = mfb.poi_noise_gain(pl_ok.w_A + r * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A)
+            G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m)
         idx = [h - 1 for h in poi.holes]
         meas.append(vol.Measurement(ms.name, ms.placement, poi.holes, poi.O_R, O_A_cal[idx], ms.T_W_A,
                                     tuple(ms.rot_rad), J, G_cache[key], q_R=t.p_R,
@@ -560,13 +625,14 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     truth_raw = d.to_gauge(truth)
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
-    doc = _document(name, plan, res, unc, truth_g, n_touch, seed, k2, slopes)
+    doc = _document(name, plan, res, unc, truth_g, n_touch, seed, sigma_um, slopes)
+    doc["machine"] = cfg.name
     if progress is not None:
         progress(steps, steps)
     return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0], meas)
 
 
-def _document(name, plan, res, unc, truth, n_touch, seed, k2, slopes=None) -> dict:
+def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None) -> dict:
     from core import iso, volumetric as vol
 
     errors = vol.report(res, unc, truth)  # one entry per ISO symbol, um / urad
@@ -583,10 +649,164 @@ def _document(name, plan, res, unc, truth, n_touch, seed, k2, slopes=None) -> di
             dev_urad = max(dev_urad, dmax)
         else:
             dev_um = max(dev_um, dmax)
-    return {"scenario": name, "machine": plan.machine, "seed": seed, "noise_um_k2": k2,
+    return {"scenario": name, "machine": plan.machine, "seed": seed, "noise_um": sigma_um,
+            "noise_note": "probing noise: a standard deviation (k = 1) along the approach",
             "placements": len(plan.placements), "measurements": len(plan.measurements),
             "touches": int(n_touch), "model": "first order (eqs 8-12) + exact Gauss-Newton"
             if res.iterations else "first order (eqs 8-12)", "gauss_newton_iterations": res.iterations,
             "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6,
             "errors": errors, "max_dev_um": dev_um, "max_dev_urad": dev_urad,
             "injected_note": "truth at the nodes, expressed in the same ISO 230-1 conventions (gauge)"}
+
+
+# --------------------------------------------------------------------------- closed loop
+def _rigid_residual(D, P):
+    """Tip deviations D (n, 3) at points P (n, 3), m, minus the least-squares rigid
+    motion ``t + w x p`` (what no artefact on the table can tell from a moved part)."""
+    n = len(P)
+    A = np.zeros((3 * n, 6))
+    for i in range(3):
+        A[i::3, i] = 1.0
+    c = P - P.mean(axis=0)
+    A[0::3, 4], A[0::3, 5] = c[:, 2], -c[:, 1]  # (w x p)_x = wy z - wz y
+    A[1::3, 3], A[1::3, 5] = -c[:, 2], c[:, 0]  # (w x p)_y = wz x - wx z
+    A[2::3, 3], A[2::3, 4] = c[:, 1], -c[:, 0]  # (w x p)_z = wx y - wy x
+    sol = np.linalg.lstsq(A, D.ravel(), rcond=None)[0]
+    return D - (A @ sol).reshape(n, 3)
+
+
+def volumetric_residual_um(machine, nodes) -> dict:
+    """The machine's tip deviation (tool relative to the part, exact sim) over the
+    plan's node box, rotary axes at zero, a rigid motion removed: max |.| per axis, um."""
+    gx, gy, gz = (np.asarray(nodes[a], float) for a in "XYZ")
+    P = np.stack(np.meshgrid(gx, gy, gz, indexing="ij"), axis=-1).reshape(-1, 3)
+    rot = None if not machine.rotary_axes else np.zeros((len(P), len(machine.rotary_axes)))
+    D = np.asarray(machine.tip_W(P, rot), float) - np.asarray(machine.tip_W_nominal(P, rot), float)
+    R = _rigid_residual(D, P)
+    return {a: float(np.abs(R[:, i]).max() * 1e6) for i, a in enumerate("XYZ")} | {
+        "rms": float(np.sqrt(np.mean(R ** 2)) * 1e6), "points": int(len(P))}
+
+
+def compensators(directory, name: str):
+    """The two controllers a compensation directory feeds (``--apply-comp DIR``).
+
+    Returns ``{"per_axis_files": f, "volumetric": g}``, each ``f(machine) ->
+    machine``: LinuxCNC with ``<dir>/X.comp``, ``Y.comp``, ``Z.comp``
+    (:class:`sim.compensation.AxisCompensation`, joint positions of
+    :data:`COMP_STYLUS`) and a volumetric controller with
+    ``<dir>/<name>-comp.json`` (:class:`sim.compensation.VolumetricCompensation`).
+    A missing file leaves its controller out.
+
+    Raises
+    ------
+    ConfigError
+        None of the files, or a bad one (named).
+    """
+    import json
+    from pathlib import Path
+
+    from core.exceptions import ConfigError
+    from core.units import MM
+    from core.volumetric import comp_tables
+    from hardware.linuxcnc import read_comp_file
+    from sim.compensation import AxisCompensation, ErrorModel, JointTable, VolumetricCompensation
+
+    d = Path(directory)
+    out = {}
+    files = {a: d / f"{a}.comp" for a in "XYZ" if (d / f"{a}.comp").is_file()}
+    if files:
+        joints = {a: JointTable.from_type0(read_comp_file(p) * MM) for a, p in files.items()}
+        off = STYLI[COMP_STYLUS]
+        out["per_axis_files"] = lambda m: AxisCompensation(m, joints, joint_offset_m=off)
+    pj = d / f"{name}-comp.json"
+    if pj.is_file():
+        try:
+            doc = json.loads(pj.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as e:
+            raise ConfigError(f"{pj}: not JSON ({e.msg}, line {e.lineno})") from None
+        chain, tables, const, pts = comp_tables(doc)
+        model = ErrorModel(chain, tables, const, pts)
+        out["volumetric"] = lambda m: VolumetricCompensation(m, model)
+    if not out:
+        raise ConfigError(f"--apply-comp {d}: no X.comp, Y.comp, Z.comp or {name}-comp.json there")
+    return out
+
+
+def true_positioning_m(machine, nodes) -> dict:
+    """The machine's exact positioning error along each axis (sim), in the ISO gauge.
+
+    Axis a's reading moved over its nodes, the others at 0, a probe without
+    offsets (the tip is the carriage's reference point): the tip deviation's a
+    component, minus its value at the first node (positioning zero at the
+    first node, as identified). ``machine`` with ``J_m = 0``.
+    """
+    out = {}
+    for i, a in enumerate("XYZ"):
+        x = np.asarray(nodes[a], float)
+        lin = np.zeros((len(x), 3))
+        lin[:, i] = x
+        rot = None if not machine.rotary_axes else np.zeros((len(x), len(machine.rotary_axes)))
+        d = np.asarray(machine.tip_W(lin, rot), float)[:, i] - x
+        out[a] = d - d[0]
+    return out
+
+
+def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw) -> dict:
+    """Apply the compensation in ``directory`` to the virtual machine, run the plan again, identify again.
+
+    ``before`` is the uncompensated run (default: :func:`run` with ``kw``).
+    Each controller of :func:`compensators` is put in front of the same
+    truth machine, and a new campaign is run: the same bar (its true
+    deviations drawn with the first run's seed), new probing noise and bar
+    placements (seed + 1), identified again. Per axis X, Y, Z: the
+    positioning error (``EXX``, ``EYY``, ``EZZ``) identified before and after
+    with the U95 of each identification, and the machine's exact
+    positioning error (:func:`true_positioning_m`) before and after; the
+    criterion: after compensation the true positioning error lies within
+    the U95 of the identification the compensation came from, at every node
+    (``true_within_u95``). Beside it the machine's exact volumetric error
+    (:func:`volumetric_residual_um`, a rigid motion removed).
+    """
+    from dataclasses import replace as _rep
+
+    from sim.machine import Machine
+
+    if before is None:
+        before = run(name, **kw)
+    ctl = compensators(directory, name)
+    seed = kw.pop("seed", 1)
+    spec = kw.get("machine")
+    cfg = spec.config if spec is not None else default_machine(before.plan.machine, kw.get("ripple", False))[0]
+
+    def truth(J, comp=None):
+        m = Machine(_rep(cfg, J_m=J))
+        return m if comp is None else comp(m)
+
+    def u95(r, a):
+        e = r.doc["errors"][f"E{a}{a}"]
+        return np.asarray(e.get("u95", [np.nan] * len(e["identified"])), float)
+
+    def block(r, comp=None):
+        pos = {}
+        true = true_positioning_m(truth((0.0, 0.0, 0.0), comp), r.plan.nodes)
+        for a in "XYZ":
+            ident = np.abs(np.asarray(r.doc["errors"][f"E{a}{a}"]["identified"], float))
+            t = np.abs(true[a]) * 1e6
+            u_before, u_now = u95(before, a), u95(r, a)
+            pos[a] = {"true_max_um": float(t.max()), "identified_max_um": float(ident.max()),
+                      "u95_max_um": float(np.nanmax(u_now)) if np.isfinite(u_now).any() else None}
+            if np.isfinite(u_before).all():
+                pos[a]["true_within_u95"] = f"{int(np.sum(t <= u_before))}/{len(t)}"
+            if np.isfinite(u_now).all():
+                pos[a]["identified_within_u95"] = f"{int(np.sum(ident <= u_now))}/{len(ident)}"
+        return {"positioning": pos,
+                "volumetric_residual_um": volumetric_residual_um(truth(STYLI[COMP_STYLUS], comp), r.plan.nodes)}
+
+    doc = {"scenario": name, "directory": str(directory), "seed_before": seed, "seed_after": seed + 1,
+           "criterion": "after compensation, the true positioning error (exact sim) within the U95 of the "
+                        "identification the compensation came from, at every node (true_within_u95)",
+           "before": block(before)}
+    for key, comp in ctl.items():
+        r = run(name, seed=seed + 1, bar_seed=seed, compensate=comp, **kw)
+        doc[key] = block(r, comp)
+    return doc

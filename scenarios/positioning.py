@@ -146,37 +146,49 @@ def _error_fn_with(errors: dict, sym: str, extra):
     return out
 
 
-def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, errors: str = "realistic",
+def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, errors: str | None = None,
                   noise_um: float = 0.5, n_targets: int = 11, travel_mm=None, cycles: int = 5,
                   cycle_kind: str = "linear", overrun_mm: float = 5.0, feed_mm_min: float = 2000.0,
                   dwell_s: float = 2.0, line_mm=None, reversal_um: float = 0.0,
                   drift_um_per_h: float = 0.0, drift_tau_s: float | None = None):
     """An ISO 230-2 test of ``axis`` on a named virtual machine: a positioning log.
 
-    ``errors``: ``realistic`` (sim.machines.realistic_errors, the papers'
-    magnitudes) or ``none``. ``reversal_um`` adds lost motion
+    ``machine_name``: a built-in machine or a machine file
+    (:mod:`sim.machinefile`, whose errors are its own). ``errors`` for a
+    built-in: ``realistic`` (sim.machines.realistic_errors, the papers'
+    magnitudes, the default) or ``none``. ``reversal_um`` adds lost motion
     (``Reversal``: +L/2 moving in +, -L/2 in -) and ``drift_um_per_h`` an
     offset drift (``Drift``, linear, or approaching its steady state with
     time constant ``drift_tau_s``) to the axis's positioning error
-    (``EXX`` for X, ...). Readings of a table-side axis see its errors with
-    the opposite sign (the part moves).
+    (``EXX`` for X, ...). Error values are ISO 230-1's (the tool relative
+    to the workpiece), so the readings see them with their sign on a
+    table-side axis as on a tool-side one.
     """
     from core.exceptions import ConfigError
     from sim.errorfuncs import Drift, Reversal
+    from dataclasses import replace
+
     from sim.machine import Machine
-    from sim.machines import MACHINES, realistic_errors
+    from sim.machinefile import builtin_names, resolve
+    from sim.machines import realistic_errors
     from sim.positioning import positioning_plan, simulate_positioning
 
-    if machine_name not in MACHINES:
-        raise ConfigError(f"--machine {machine_name!r} is not one of {', '.join(MACHINES)}")
+    spec = resolve(machine_name)
     if axis not in ("X", "Y", "Z"):
         raise ConfigError(f"--axis {axis!r}: expected X, Y or Z")
-    cfg = MACHINES[machine_name]()
-    errs = {}
-    if errors == "realistic":
-        errs = realistic_errors(tuple(a for a in "XYZABC" if a in cfg.strokes), strokes=cfg.strokes)
-    elif errors != "none":
-        raise ConfigError(f"--errors {errors!r}: expected realistic or none")
+    cfg = spec.config
+    if machine_name in builtin_names():
+        errors = errors or "realistic"
+        errs = {}
+        if errors == "realistic":
+            errs = realistic_errors(tuple(a for a in "XYZABC" if a in cfg.strokes), strokes=cfg.strokes)
+        elif errors != "none":
+            raise ConfigError(f"--errors {errors!r}: expected realistic or none")
+    elif errors is not None:
+        raise ConfigError(f"--errors: the machine file {machine_name} states its errors (errors = ..., [error.*])")
+    else:
+        errs = dict(cfg.errors)
+        errors = f"machine file ({spec.errors})"
     for name, v in (("--noise-um", noise_um), ("--reversal-um", reversal_um), ("--overrun-mm", overrun_mm),
                     ("--dwell-s", dwell_s)):
         if not (np.isfinite(v) and v >= 0):
@@ -190,7 +202,7 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
         errs = _error_fn_with(errs, sym, Reversal(reversal_um * 1e-6))
     if drift_um_per_h:
         errs = _error_fn_with(errs, sym, Drift(offset_rate=drift_um_per_h * 1e-6 / 3600.0, tau_s=drift_tau_s))
-    machine = Machine(MACHINES[machine_name](errors=errs))
+    machine = Machine(replace(cfg, errors=errs))
     plan = positioning_plan(
         machine, axis, n_targets=n_targets, cycles=cycles, cycle_kind=cycle_kind,
         travel_m=None if travel_mm is None else (travel_mm[0] * 1e-3, travel_mm[1] * 1e-3),

@@ -11,7 +11,7 @@ m for a translational error, rad for an angular one (``core.iso``).
 ``f.derivative(pos, t_s, direction)`` is d f / d pos (direction held).
 
 Kinds: :class:`Zero`, :class:`Constant`, :class:`Polynomial`,
-:class:`SplineTable`, :class:`Periodic`, :class:`Drift`, :class:`Reversal`,
+:class:`SplineTable`, :class:`LinearTable`, :class:`Periodic`, :class:`Drift`, :class:`Reversal`,
 :class:`Sum` (also ``f + g``), and :class:`CrossAxis`, the one kind that
 also depends on another axis's reading (a non-rigid machine: the machine
 passes every reading through ``f.evaluate(pos, t_s, direction, axes)``).
@@ -159,6 +159,43 @@ class SplineTable(ErrorFunction):
     def derivative(self, pos, t_s=None, direction=None):
         p = np.atleast_1d(np.asarray(pos, float))
         return self._spline(np.clip(p, self.pos[0], self.pos[-1]), 1)
+
+
+@dataclass(frozen=True)
+class LinearTable(ErrorFunction):
+    """Linear interpolation in a table (``pos`` strictly increasing).
+
+    Outside the table the end segments continue (a straight line through the
+    last two points), like :class:`SplineTable`'s end tangents.
+    """
+
+    pos: tuple[float, ...]
+    values: tuple[float, ...]
+
+    def __post_init__(self):
+        x = _tuple("LinearTable.pos", self.pos)
+        y = _tuple("LinearTable.values", self.values)
+        if len(x) < 2:
+            raise ConfigError(f"LinearTable needs at least 2 points, got {len(x)}")
+        if len(x) != len(y):
+            raise ConfigError(f"LinearTable.pos has {len(x)} points but values has {len(y)}")
+        if np.any(np.diff(x) <= 0):
+            raise ConfigError("LinearTable.pos must be strictly increasing")
+        object.__setattr__(self, "pos", x)
+        object.__setattr__(self, "values", y)
+
+    def _segment(self, p):
+        x = np.asarray(self.pos)
+        k = np.clip(np.searchsorted(x, p, side="right") - 1, 0, len(x) - 2)
+        return k, (np.asarray(self.values)[k + 1] - np.asarray(self.values)[k]) / (x[k + 1] - x[k])
+
+    def __call__(self, pos, t_s=None, direction=None):
+        p = np.atleast_1d(np.asarray(pos, float))
+        k, slope = self._segment(p)
+        return np.asarray(self.values)[k] + slope * (p - np.asarray(self.pos)[k])
+
+    def derivative(self, pos, t_s=None, direction=None):
+        return self._segment(np.atleast_1d(np.asarray(pos, float)))[1]
 
 
 @dataclass(frozen=True)

@@ -17,14 +17,26 @@ Example (the default 5-axis machine, one squareness error)::
 
 The chain (definition shared with ``core.kinematics``, whose module
 docstring states it in full): every axis is a nominal Pinocchio joint
-(prismatic / revolute) followed, or for a rotary axis preceded, by a free-
-flyer joint whose configuration is the axis's error motion
-``[exp(skew(EA, EB, EC)) | (EX, EY, EZ)]`` at that pose; location errors
-are fixed joint placements. The actual pose is therefore the exact product
-of nominal motions and error transforms, not a first-order formula. Two
-branches leave the universe (the bed, frame R): the workpiece branch ends
-at frame W, the tool branch at the stylus-tip frame P. Errors on the
-workpiece branch move the part, errors on the tool branch move the probe.
+(prismatic / revolute) and a free-flyer joint whose configuration is the
+axis's error motion; location errors are fixed joint placements. The actual
+pose is therefore the exact product of nominal motions and error
+transforms, not a first-order formula. Two branches leave the universe (the
+bed, frame R): the workpiece branch ends at frame W, the tool branch at the
+stylus-tip frame P.
+
+Error values are ISO 230-1 values (CONTRIBUTING.md, "Error conventions"):
+the displacement of the TOOL relative to the WORKPIECE, whichever branch
+the axis is on. With ``E = [exp(skew(EA, EB, EC)) | (EX, EY, EZ)]`` at the
+axis's reading, a tool-branch linear axis moves its carriage by
+``Trans(q e) E`` relative to its carrier (E after the motion, in the
+carriage); a workpiece-branch linear axis moves its component by the exact
+inverse, ``E^-1 Trans(-q e)`` (the free-flyer before the prismatic joint),
+so that the carrier, with the tool, moves relative to the component by
+``Trans(q e) E``: the same relative motion in the same frame as on the tool
+branch. A rotary axis's error sits in its carrier's non-rotating frame at
+the axis line, before the rotation: ``E`` on the tool branch, ``E^-1`` on
+the workpiece branch. Location errors (squareness, rotary axis lines) are
+the geometry of the lines in R and enter alike on both branches.
 
 Conventions: axis readings ``lin_m`` are the stylus-tip centre as the
 machine believes it, in R (the controller adds the probe offsets J, so axis
@@ -73,9 +85,11 @@ class MachineConfig:
         gauge line). The Z ram's angular errors pivot about the gauge point.
     errors : mapping ISO symbol -> ErrorFunction
         Motion errors of every axis (``EXX`` ... ``ECZ``, ISO 230-7 ``EXC``
-        ... ``ECC``) and location errors as ``Constant``: ``EC0Y``, ``EB0Z``,
-        ``EA0Z``, and per rotary axis ``EX0C``, ``EY0C``, ``EA0C``, ``EB0C``
-        (``EY0A``, ``EZ0A``, ``EB0A``, ``EC0A`` for A). Absent: zero.
+        ... ``ECC``) in the ISO 230-1 convention (tool relative to the
+        workpiece, whichever branch carries the axis), and location errors
+        as ``Constant``: ``EC0Y``, ``EB0Z``, ``EA0Z``, and per rotary axis
+        ``EX0C``, ``EY0C``, ``EA0C``, ``EB0C`` (``EY0A``, ``EZ0A``, ``EB0A``,
+        ``EC0A`` for A). Absent: zero.
     """
 
     name: str
@@ -150,6 +164,13 @@ def _quat_xyzw(w: np.ndarray) -> np.ndarray:
     small = th < 1e-6
     half = np.where(small, 0.5 - th**2 / 48.0, np.sin(0.5 * th) / np.where(small, 1.0, th))
     return np.concatenate([w * half[:, None], np.cos(0.5 * th)[:, None]], axis=1)
+
+
+def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Vectors (n, 3) rotated by unit quaternions (n, 4) (x, y, z, w)."""
+    u, w = q[:, :3], q[:, 3:]
+    c = np.cross(u, v)
+    return v + 2.0 * w * c + 2.0 * np.cross(u, c)
 
 
 class Machine:
@@ -324,10 +345,14 @@ class Machine:
                     cum = cum + rel
                     place = pending * pin.SE3(_exp3(rel), np.zeros(3))
                     jm = (pin.JointModelPX, pin.JointModelPY, pin.JointModelPZ)[_E[a]]()
+                    if with_errors and side == "workpiece":  # E^-1 in the carrier, before the motion
+                        parent = model.addJoint(parent, pin.JointModelFreeFlyer(), place, f"E_{a}")
+                        layout.append(("err", a, model.joints[parent].idx_q, s))
+                        place = pin.SE3.Identity()
                     parent = model.addJoint(parent, jm, place, f"{a}")
                     layout.append(("lin", a, model.joints[parent].idx_q, s))
                     pending = pin.SE3.Identity()
-                    if with_errors:
+                    if with_errors and side == "tool":  # E in the moving carriage, after the motion
                         parent = model.addJoint(parent, pin.JointModelFreeFlyer(), pin.SE3.Identity(), f"E_{a}")
                         layout.append(("err", a, model.joints[parent].idx_q, s))
                 else:
@@ -365,8 +390,12 @@ class Machine:
                 zero = np.zeros(n)
                 t = np.stack([vals.get(k, zero) for k in names[:3]], axis=1)
                 w = np.stack([vals.get(k, zero) for k in names[3:]], axis=1)
+                quat = _quat_xyzw(w)
+                if s < 0:  # workpiece branch: the component moves by the exact inverse of E
+                    quat = quat * np.array([-1.0, -1.0, -1.0, 1.0])
+                    t = -_quat_rotate(quat, t)
                 Q[:, iq:iq + 3] = t
-                Q[:, iq + 3:iq + 7] = _quat_xyzw(w)
+                Q[:, iq + 3:iq + 7] = quat
         return Q
 
     def _poses(self, lin_m, rot_rad, t_s, direction, want):

@@ -1,6 +1,8 @@
 """Named virtual machines and a "realistic" truth error set.
 
-``MACHINES[name](errors=..., **geometry) -> MachineConfig``:
+``MACHINES[name](errors=..., **geometry) -> MachineConfig``; each built-in
+machine is a machine file shipped in the package (``sim/data/machines/``,
+:mod:`sim.machinefile`):
 
 - ``vmc-3axis``: 3-axis vertical machining centre ``V[w-X-Y-b-Z-(C)-t]``
   (table on X on Y, spindle on Z).
@@ -11,10 +13,13 @@
 
 R's origin is on the C-axis centre line at the table surface (self-
 calibration paper, section 2.1); readings are stylus-tip positions in R.
+Error values are ISO 230-1 values: the tool relative to the workpiece
+(CONTRIBUTING.md, "Error conventions").
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 
@@ -30,46 +35,36 @@ from core.units import DEG
 DEFAULT_J_M = (0.0, 0.0, 0.150)
 
 
-def _config(name, chain, strokes, rotary_points, errors, J_m, rotary_points_R_m, strokes_over):
-    st = dict(strokes)
-    st.update(strokes_over or {})
-    pts = dict(rotary_points)
-    pts.update(rotary_points_R_m or {})
-    return MachineConfig(name=name, chain=chain, strokes=st, rotary_points_R_m=pts,
-                         J_m=tuple(J_m), errors=dict(errors or {}))
+@functools.lru_cache(maxsize=None)
+def _builtin_config(file_name: str) -> MachineConfig:
+    from sim.machinefile import builtin_text, loads
+
+    return loads(builtin_text(file_name), source=file_name).config
 
 
-def vmc_3axis(*, errors: Mapping[str, ErrorFunction] | None = None, J_m=DEFAULT_J_M,
-              strokes: Mapping | None = None, name: str = "vmc-3axis") -> MachineConfig:
-    """3-axis VMC, X 600 x Y 400 x Z 450 mm, table on X on Y."""
-    return _config(name, "V[w-X-Y-b-Z-(C)-t]",
-                   {"X": (-0.30, 0.30), "Y": (-0.20, 0.20), "Z": (-0.05, 0.40)},
-                   {}, errors, J_m, None, strokes)
+def _builtin(file_name: str) -> Callable[..., MachineConfig]:
+    def factory(*, errors: Mapping[str, ErrorFunction] | None = None, J_m=None,
+                rotary_points_R_m: Mapping | None = None, strokes: Mapping | None = None,
+                name: str | None = None) -> MachineConfig:
+        from dataclasses import replace
+
+        cfg = _builtin_config(file_name)
+        st = dict(cfg.strokes)
+        st.update(strokes or {})
+        pts = dict(cfg.rotary_points_R_m)
+        pts.update(rotary_points_R_m or {})
+        return replace(cfg, name=name or cfg.name, strokes=st, rotary_points_R_m=pts,
+                       J_m=tuple(cfg.J_m if J_m is None else J_m), errors=dict(errors or {}))
+
+    factory.__name__ = file_name.replace("-", "_")
+    factory.__doc__ = (f"The built-in machine ``{file_name}`` (``sim/data/machines/{file_name}.toml``), "
+                       "with these truth errors (default none) and geometry overrides.")
+    return factory
 
 
-def mikron_ucp710(*, errors: Mapping[str, ErrorFunction] | None = None, J_m=DEFAULT_J_M,
-                  rotary_points_R_m: Mapping | None = None, strokes: Mapping | None = None,
-                  name: str = "mikron-ucp710") -> MachineConfig:
-    """Mikron UCP710: X 710 x Y 550 x Z 500 mm, A -100..+120 deg, C endless
-    (stroke +-360 deg); A line 120 mm below the table surface."""
-    return _config(name, "[w C' A' b X Y Z (C1) t]",
-                   {"X": (-0.355, 0.355), "Y": (-0.275, 0.275), "Z": (-0.10, 0.40),
-                    "A": (-100 * DEG, 120 * DEG), "C": (-2 * math.pi, 2 * math.pi)},
-                   {"A": (0.0, 0.0, -0.120), "C": (0.0, 0.0, 0.0)},
-                   errors, J_m, rotary_points_R_m, strokes)
-
-
-def nmv3000(*, errors: Mapping[str, ErrorFunction] | None = None, J_m=DEFAULT_J_M,
-            rotary_points_R_m: Mapping | None = None, strokes: Mapping | None = None,
-            name: str = "nmv3000") -> MachineConfig:
-    """DMG Mori NMV3000 DCG: X 320 x Y 300 x Z 425 mm, A -120..+30 deg, C
-    endless (stroke +-360 deg); A line 100 mm below the table surface."""
-    return _config(name, "V[w-C-A-b-Y-X-Z-(C)-t]",
-                   {"X": (-0.16, 0.16), "Y": (-0.15, 0.15), "Z": (-0.10, 0.325),
-                    "A": (-120 * DEG, 30 * DEG), "C": (-2 * math.pi, 2 * math.pi)},
-                   {"A": (0.0, 0.0, -0.100), "C": (0.0, 0.0, 0.0)},
-                   errors, J_m, rotary_points_R_m, strokes)
-
+vmc_3axis = _builtin("vmc-3axis")
+mikron_ucp710 = _builtin("mikron-ucp710")
+nmv3000 = _builtin("nmv3000")
 
 #: Machine factories by name (``vmt simulate --machine``).
 MACHINES: dict[str, Callable[..., MachineConfig]] = {

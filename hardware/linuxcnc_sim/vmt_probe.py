@@ -15,7 +15,7 @@ probe triggers).
 
 Polling at about 1 kHz, the component watches ``motion-type``. When a
 probing move starts (type 5) it takes the first position ``p1`` it sees and,
-once the machine is 10 um further, the direction ``d`` of the move (a
+once the machine is 50 um further, the direction ``d`` of the move (a
 LinuxCNC probing move is a straight line, so two points fix it to rounding).
 It asks where the ray ``p1 + s d`` triggers and publishes, for the axis ``i``
 with the largest ``|d_i|``, ``sel`` (that axis), ``sign = sign(d_i)`` and
@@ -36,7 +36,26 @@ import time
 import hal
 
 PROBING = 5          # motion.motion-type of a G38.x move (EMC_MOTION_TYPE_PROBING)
-MIN_TRAVEL_MM = 0.01
+MIN_TRAVEL_MM = 0.05
+
+
+def position(h):
+    """The machine position (x, y, z) of one servo period.
+
+    The three pins are read one by one from userspace while the servo thread
+    updates them: a read that straddles an update mixes two periods (up to
+    feed x period, 0.5 um at 30 mm/min, on one axis), which tilts the
+    direction taken from two such reads by 0.5 um / travel and moves the
+    trigger point along the ray by that tilt times the ray's length (several
+    um on a loaded machine). Reading until two successive triplets agree
+    gives a triplet of one period (a moving axis changes every period).
+    """
+    p = (h["x"], h["y"], h["z"])
+    while True:
+        q = (h["x"], h["y"], h["z"])
+        if q == p:
+            return p
+        p = q
 
 
 def main():
@@ -65,7 +84,7 @@ def main():
     try:
         while True:
             mt = h["motion-type"]
-            p = (h["x"], h["y"], h["z"])
+            p = position(h)
             if mt != PROBING:
                 if h["armed"]:
                     h["armed"] = False
@@ -90,7 +109,7 @@ def main():
                         h["sel1"] = bool(i & 2)
                         h["sign"] = sign
                         h["threshold"] = sign * q[i]
-                        now = (h["x"], h["y"], h["z"])
+                        now = position(h)
                         rec.update(q_mm=q, axis=i, late=bool(sign * now[i] >= sign * q[i]))
                         h["armed"] = True
                     else:

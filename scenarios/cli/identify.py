@@ -21,6 +21,13 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from viz.progress import TerminalProgress
+
+    with TerminalProgress("identify") as bar:
+        return _run(args, bar)
+
+
+def _run(args, bar) -> int:
     import numpy as np
 
     from core.exceptions import ConfigError
@@ -30,6 +37,8 @@ def run(args) -> int:
     from core.touches import from_log
     from core.uncertainty import monte_carlo_touches
 
+    steps = 4 if args.mc else 3
+    bar(0, steps)
     log = read_probe_log(args.log)
     check_planar_scope(log, "identify")
     yaw = yaw_for_chain(log.meta.get("kinematic_chain"))
@@ -39,6 +48,7 @@ def run(args) -> int:
     t = from_log(log.select(planar))
     if not planar.all():
         print(f"{args.log}: {int((~planar & log.ok).sum())} touches with normals out of the XY plane left out")
+    del log, planar  # the touches hold what the identification needs: the log's memory goes before it
     grid = parse_grid(args.grid_mm, t.pn_R)
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
     sigma = None
@@ -48,18 +58,35 @@ def run(args) -> int:
         sigma = args.u_probe_um * 1e-6
     if args.mc < 0:
         raise ConfigError(f"--mc must be >= 0, got {args.mc}")
+    bar(1, steps)
     res = self_calibrate(t, grid, dL, sigma_m=sigma, yaw=yaw)
+    bar(2, steps)
     mc = None
-    if args.mc:
+    if args.mc and res.sigma_m > 0:
         mc = monte_carlo_touches(t, grid, res.sigma_m, runs=args.mc, rng=np.random.default_rng(args.seed),
                                  delta_L_m=dL, yaw=yaw)
+        bar(3, steps)
     from core.atomic import write_json_atomic
 
     out = write_json_atomic(args.json, res.to_report(mc), special=True)
+    bar(steps, steps)
     G = res.G
     print(f"{args.log}: {res.n_touches} touches, {len(G)} targets, {len(res.design.setup_ids)} C angles;"
           f" residual RMS {res.rms_m * 1e6:.3f} um; workpiece {G.min() * 1e6:+.2f}..{G.max() * 1e6:+.2f} um;"
           f" scale {'known' if res.scale_known else 'unknown'}")
+    ht = res.design.heights
+    if ht is not None:
+        print(f"touches at {len(ht.levels_m)} heights: C-axis tilt per set-up"
+              + (" and the tool's Abbe terms" if ht.abbe else f" (Abbe terms left out: {ht.why})")
+              + f" above Z = {ht.z_ref_m * 1e3:g} mm")
+    b = res.budget
+    if b is not None:
+        me = ", ".join(f"{k} {v * 1e6:.3f} {'urad' if k in ('ECY', 'ECX') else 'um'}"
+                       for k, v in b.components.items() if v > 0)
+        print(f"U95: probing sigma {b.sigma_probe_m * 1e6:.3f} um"
+              + (f", model error the tables cannot follow: {me}" if me else ", no model error seen in the residuals"))
+    if args.mc and mc is None:
+        print("Monte Carlo skipped: no probing noise left beside the model error (sigma 0)")
     from scenarios.cli.guard import said
 
     print(f"wrote {said(out)}")

@@ -1,7 +1,8 @@
-"""``vmt machine serve|program``: the virtual machine behind GRBL, and LinuxCNC part programs.
+"""``vmt machine show|serve|program``: a machine's definition, the virtual machine behind GRBL, LinuxCNC programs.
 
-    vmt machine serve --port N [--host 127.0.0.1] [--pty]
-    vmt machine program --plan PLAN.csv --out PROBE.ngc --limits ...
+    vmt machine show NAME|FILE
+    vmt machine serve --port N [--host 127.0.0.1] [--pty] [--machine NAME|FILE --scene ARTEFACT]
+    vmt machine program --plan PLAN.csv --out PROBE.ngc (--limits ... | --machine NAME|FILE)
 """
 
 from __future__ import annotations
@@ -23,16 +24,24 @@ def _floats3(text: str, name: str):
 
 
 def register(sub) -> None:
-    p = sub.add_parser("machine", help="serve the virtual machine over GRBL; write LinuxCNC programs")
+    p = sub.add_parser("machine", help="show a machine; serve the virtual machine over GRBL; write LinuxCNC programs")
     msub = p.add_subparsers(dest="machine_command", metavar="ACTION")
+    sh = msub.add_parser("show", help="print a machine's chain, strokes, errors and tip deviations")
+    sh.add_argument("machine", metavar="NAME|FILE", help="a built-in machine or a machine file (TOML)")
+    sh.set_defaults(func=run_show)
     s = msub.add_parser("serve", help="run a GRBL emulator of the virtual machine on localhost")
     s.add_argument("--port", type=int, required=True, help="TCP port (0: any free port)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (127.0.0.1)")
     s.add_argument("--pty", action="store_true", help="also serve on a pseudo-terminal (serial port)")
     s.add_argument("--scene", default="simple",
-                   help="simple (table + sphere, linear errors) or a simulated artefact on the nmv3000 with "
-                        "realistic errors: cross-pocket, pin-circle, freeform, mfb")
-    s.add_argument("--noise-um", type=float, default=0.0, help="probing noise, µm per axis (0)")
+                   help="simple (table + sphere, linear errors) or a simulated artefact on the virtual machine: "
+                        "cross-pocket, pin-circle, freeform, mfb")
+    s.add_argument("--machine", default=None, metavar="NAME|FILE",
+                   help="the virtual machine under a simulated artefact: a built-in name or a machine file "
+                        "(default the nmv3000 with realistic errors)")
+    s.add_argument("--noise-um", type=float, default=None,
+                   help="probing noise, a standard deviation (k=1) along the approach, um "
+                        "(default 0, or the machine file's probe)")
     s.add_argument("--seed", type=int, default=0, help="seed of the noise (0)")
     s.add_argument("--scale-ppm", default="0,0,0", help="scale errors of X,Y,Z, µm/m (0,0,0)")
     s.add_argument("--ec0y-urad", type=float, default=0.0, help="squareness EC0Y, µrad (0)")
@@ -54,6 +63,8 @@ def register(sub) -> None:
     g.add_argument("--out", required=True, help="part program to write (.ngc)")
     g.add_argument("--probe-file", default="vmt-probe.txt", help="file named in (PROBEOPEN ...)")
     g.add_argument("--wcs", default="G59.3", help="work coordinate system zeroed and used (G59.3)")
+    g.add_argument("--machine", default=None, metavar="NAME|FILE",
+                   help="take the soft limits from this machine's X, Y, Z strokes (when --limits is not given)")
     g.set_defaults(func=run_program)
     p.set_defaults(func=lambda a: (p.print_help(), 2)[1])
 
@@ -68,10 +79,18 @@ def run_serve(args) -> int:
     from hardware.virtual import builtin_machine, sim_machine
 
     if args.scene == "simple":
-        machine = builtin_machine(args.noise_um, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
+        if args.machine is not None:
+            raise ConfigError("--machine: the simple scene has its own errors (--scale-ppm, --ec0y-urad); "
+                              "give --scene ARTEFACT to probe an artefact on that machine")
+        machine = builtin_machine(args.noise_um or 0.0, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
                                   args.ec0y_urad)
     else:
-        machine = sim_machine(args.scene, args.noise_um, args.seed)
+        spec = None
+        if args.machine is not None:
+            from sim.machinefile import resolve
+
+            spec = resolve(args.machine)
+        machine = sim_machine(args.scene, args.noise_um, args.seed, spec=spec)
     axes = args.axes or "XYZ" + "".join(a for a in "ABC" if a in getattr(machine, "rotary_axes", ()))
     config = ControllerConfig(axes=axes, home=_floats3(args.home, "--home"), homing=args.homing,
                               travel=parse_limits(args.limits) if args.limits else None)
@@ -109,7 +128,77 @@ def run_program(args) -> int:
     from scenarios.cli.options import settings_from_args
 
     plan = read_probe_log(args.plan)
-    text = part_program(plan, settings_from_args(args), probe_file=args.probe_file, wcs=args.wcs)
+    settings = settings_from_args(args)
+    if args.machine is not None:
+        from dataclasses import replace
+
+        from core.exceptions import ConfigError
+        from sim.machinefile import resolve
+
+        if args.limits:
+            raise ConfigError("--machine and --limits: give one (the machine's strokes are its limits)")
+        st = resolve(args.machine).config.strokes
+        settings = replace(settings, limits_mm=tuple((lo * 1e3, hi * 1e3) for lo, hi in (st[a] for a in "XYZ")))
+    text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs)
     out = write_text_atomic(args.out, text)
     print(f"{out}: LinuxCNC program, {plan.n} touches, probe file {args.probe_file}")
+    return 0
+
+
+def run_show(args) -> int:
+    import numpy as np
+
+    from core import iso
+    from core.units import DEG, MM
+    from sim.machine import Machine
+    from sim.machinefile import describe_error, resolve
+
+    spec = resolve(args.machine)
+    cfg = spec.config
+    ch = cfg.parsed_chain
+    print(f"machine {cfg.name} ({spec.source})" + (f": {spec.description}" if spec.description else ""))
+    print(f"chain {cfg.chain}: workpiece side {', '.join(ch.workpiece_from_bed) or '-'} (from the bed), "
+          f"tool side {', '.join(ch.tool_axes) or '-'}")
+
+    def stroke(a, lo, hi):
+        return f"{a} {lo / DEG:g}..{hi / DEG:g} deg" if a in iso.ROTARY_AXES else f"{a} {lo / MM:g}..{hi / MM:g} mm"
+
+    print("strokes: " + ", ".join(stroke(a, *cfg.strokes[a]) for a in "XYZABC" if a in cfg.strokes))
+    if cfg.rotary_points_R_m:
+        print("rotary axis points: " + ", ".join(f"{a} ({', '.join(f'{v * 1e3:g}' for v in p)}) mm"
+                                                 for a, p in cfg.rotary_points_R_m.items()))
+    print(f"tool offset J (gauge point - tip centre): ({', '.join(f'{v * 1e3:g}' for v in cfg.J_m)}) mm")
+    pr = spec.probe
+    lob = ", ".join(f"k={int(k)}: {a * 1e6:g}/{b * 1e6:g} um" for k, a, b in pr.lobing_m) or "none"
+    print(f"probe: stylus radius {pr.stylus_r_m * 1e3:g} mm, noise {pr.sigma_m * 1e6:g} um (k=1), "
+          f"pre-travel {pr.pretravel_m * 1e6:g} um, lobing {lob}")
+    base = spec.errors + (f", seed {spec.seed}" if spec.seed is not None else "")
+    print(f"errors (ISO 230-1: the tool relative to the workpiece; base set {base}"
+          + (f"; set in the file: {', '.join(spec.overrides)}" if spec.overrides else "") + "):")
+    if not cfg.errors:
+        print("  none")
+    for name, f in sorted(cfg.errors.items(), key=lambda kv: [s.name for s in iso.SYMBOLS].index(kv[0])):
+        sy = iso.symbol(name)
+        if sy.location:
+            rng_txt = ""
+        else:
+            lo, hi = cfg.strokes[sy.axis]
+            v = np.asarray(f(np.linspace(lo, hi, 201)), float) * 1e6
+            rng_txt = f"  [{v.min():+.3f} .. {v.max():+.3f}] over the stroke"
+        print(f"  {name:5s} {sy.report_unit:4s} {describe_error(f, sy)}{rng_txt}")
+    m = Machine(cfg)
+    lin = []
+    for x in (0, 1):
+        for y in (0, 1):
+            for z in (0, 1):
+                lin.append([cfg.strokes[a][k] for a, k in zip("XYZ", (x, y, z))])
+    lin.append([0.5 * sum(cfg.strokes[a]) for a in "XYZ"])
+    lin = np.array(lin)
+    rot = None if not m.rotary_axes else np.zeros((len(lin), len(m.rotary_axes)))
+    dev = (m.tip_W(lin, rot) - m.tip_W_nominal(lin, rot)) * 1e6
+    print("tip deviation, tool relative to the workpiece (exact chain; rotary axes at 0; corners and centre "
+          "of the strokes):")
+    print(f"  {'X_mm':>9s} {'Y_mm':>9s} {'Z_mm':>9s}   {'dX_um':>9s} {'dY_um':>9s} {'dZ_um':>9s}")
+    for p, d in zip(lin * 1e3, dev):
+        print(f"  {p[0]:9.1f} {p[1]:9.1f} {p[2]:9.1f}   {d[0]:9.3f} {d[1]:9.3f} {d[2]:9.3f}")
     return 0

@@ -8,29 +8,57 @@ from __future__ import annotations
 
 
 def _mfb(args) -> int:
-    from scenarios.mfb import run
+    from scenarios.mfb import closed_loop, run
 
     from scenarios.cli.guard import progress_line
 
+    spec = None
+    if args.machine is not None:
+        from sim.machinefile import resolve
+
+        spec = resolve(args.machine)
+    kw = dict(seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc, machine=spec)
+    if args.apply_comp and not args.comp:
+        from scenarios.mfb import compensators
+
+        compensators(args.apply_comp, args.name)  # a bad directory is refused before the campaign
     with progress_line(f"{args.name}: measurements simulated") as bar:
-        r = run(args.name, seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc,
-                progress=bar)
+        r = run(args.name, progress=bar, **kw)
     d = r.doc
     print(f"vmt scenario {args.name}: {d['placements']} placements, {d['measurements']} measurements, "
-          f"{d['touches']} touches, {r.seconds:.1f} s; {d['model']}")
+          f"{d['touches']} touches on {d['machine']}, {r.seconds:.1f} s; {d['model']}")
     print(f"{'error':6s} {'unit':5s} {'max|injected|':>14s} {'max|ident-inj|':>15s} {'max U95':>9s}")
     for s, e in d["errors"].items():
         inj = max(abs(v) for v in e["injected"])
         u = max(e.get("u95", [float("nan")]))
         print(f"{s:6s} {e['unit']:5s} {inj:14.3f} {e['max_dev']:15.4f} {u:9.3f}")
     print(f"max_dev_um {d['max_dev_um']:.4f}  max_dev_urad {d['max_dev_urad']:.4f}")
+    if args.comp:
+        for p in r.write_comp(args.comp):
+            print(f"wrote {p}")
+    if args.apply_comp:
+        loop = closed_loop(args.name, args.apply_comp, before=r, **kw)
+        d["closed_loop"] = loop
+        print(f"closed loop with {args.apply_comp}: a new campaign on the compensated virtual machine "
+              f"(seed {loop['seed_after']}), identified again; um")
+        print(f"{'':15s} {'axis':>4s} {'true pos. max':>13s} {'within U95':>10s} {'identified max':>14s} "
+              f"{'U95 max':>8s} {'volumetric max':>14s}")
+        for key in ("before", "per_axis_files", "volumetric"):
+            if key not in loop:
+                continue
+            for a in "XYZ":
+                pa = loop[key]["positioning"][a]
+                u = pa["u95_max_um"]
+                print(f"{key:15s} {a:>4s} {pa['true_max_um']:13.3f} {pa.get('true_within_u95', '-'):>10s} "
+                      f"{pa['identified_max_um']:14.3f} {u if u is not None else float('nan'):8.3f} "
+                      f"{loop[key]['volumetric_residual_um'][a]:14.3f}")
+        print("(true: the exact simulator's positioning error, zero at the first node; within U95: nodes where it "
+              "lies within the U95 of the identification that made the compensation; volumetric: the tip "
+              "deviation over the node box, a rigid motion removed)")
     if args.json:
         from core.atomic import write_json_atomic
 
         write_json_atomic(args.json, d, special=True)
-    if getattr(args, "comp", None):
-        for p in r.write_comp(args.comp):
-            print(f"wrote {p}")
     return 0
 
 
@@ -71,7 +99,7 @@ def _pin_circle(args) -> int:
     from core.atomic import write_json_atomic
     from scenarios.crosspocket import pin_circle
 
-    r = pin_circle(seed=args.seed, **({} if args.noise_um is None else {"noise_um": args.noise_um / 2}))
+    r = pin_circle(seed=args.seed, **({} if args.noise_um is None else {"noise_um": args.noise_um}))
     print(f"vmt scenario pin-circle: {r['pins']} pins, {r['touches']} touches at C = "
           f"{', '.join(f'{a:g}' for a in r['c_angles_deg'])} deg on {r['machine']}")
     print(f"pin position error, max: raw at C=0 {r['raw_c0_pin_error_max_um']:.2f} um -> self-calibrated "
@@ -96,9 +124,28 @@ def register(sub) -> None:
     p.add_argument("--json", default=None, help="write the result JSON here")
     p.add_argument("--seed", type=int, default=1, help="seed of the simulated campaign")
     p.add_argument("--noise-um", type=float, default=None, dest="noise_um",
-                   help="probe repeatability k=2, um (default 0.25; 0 = noise-free)")
+                   help="probing noise, a standard deviation (k=1) along the approach, um (default: mfb 0.125, "
+                        "the MFB paper's 0.25 um at k=2; pin-circle 0.9; 0 = noise-free)")
+    p.add_argument("--machine", default=None, metavar="NAME|FILE",
+                   help="mfb scenarios: the truth machine, a built-in name or a machine file (TOML, README "
+                        "'Your own machine'); its chain must be the plan's (default: the plan's machine with "
+                        "realistic errors)")
     p.add_argument("--comp", default=None, metavar="DIR",
                    help="mfb scenarios: write the LinuxCNC per-axis compensation files and the vmt JSON tables here")
+    p.add_argument("--apply-comp", default=None, metavar="DIR", dest="apply_comp",
+                   help="mfb scenarios: apply the compensation in DIR (X/Y/Z.comp as LinuxCNC does, and the "
+                        "vmt-comp/1 tables as a volumetric controller) to the virtual machine, re-run, identify "
+                        "again; the JSON gets closed_loop (before/after per axis)")
     p.add_argument("--mc", type=int, default=None,
                    help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty)")
-    p.set_defaults(func=lambda a: SCENARIOS[a.name](a))
+    p.set_defaults(func=_dispatch)
+
+
+def _dispatch(args) -> int:
+    from core.exceptions import ConfigError
+
+    if not args.name.startswith("mfb-"):
+        for opt, v in (("--machine", args.machine), ("--comp", args.comp), ("--apply-comp", args.apply_comp)):
+            if v is not None:
+                raise ConfigError(f"{opt}: only the mfb scenarios take it (not {args.name})")
+    return SCENARIOS[args.name](args)

@@ -23,18 +23,21 @@ def register(sub) -> None:
         description=__doc__.split("\n\n")[1] if __doc__ else None,
         epilog="artefacts (and their defaults):\n  " + catalog.describe().replace("\n", "\n  ")
         + "\n  positioning   an ISO 230-2 positioning test of one axis\n                default: on vmc-3axis, axis X"
-        + "\n\nmachines (--machine):\n  " + describe().replace("\n", "\n  "))
+        + "\n\nmachines (--machine NAME, or a machine file):\n  " + describe().replace("\n", "\n  "))
     p.add_argument("artefact", choices=tuple(catalog.CATALOG) + ("positioning",),
                    help="artefact to probe, or 'positioning' for an ISO 230-2 test of one axis")
     p.add_argument("--out", required=True, help="probe-log/1 CSV to write (positioning-log/1 for positioning)")
     p.add_argument("--seed", type=int, default=0, help="seed of the probing noise (positioning: of the scatter and target spacing)")
-    p.add_argument("--machine", default=None, help="virtual machine (see the list below)")
-    p.add_argument("--errors", choices=("realistic", "none"), default="realistic",
-                   help="truth errors of the machine (default realistic: the papers' magnitudes)")
+    p.add_argument("--machine", default=None, metavar="NAME|FILE",
+                   help="virtual machine: a built-in name (list below) or a machine file (TOML, README "
+                        "'Your own machine')")
+    p.add_argument("--errors", choices=("realistic", "none"), default=None,
+                   help="truth errors of a built-in machine (default realistic: the papers' magnitudes); "
+                        "a machine file states its own")
     p.add_argument("--noise-um", type=float, default=None,
-                   help="probing repeatability as a standard deviation (k=1), um "
-                        "(default 0.125: the MFB paper's 0.25 um at k=2; 1.38 for the self-calibration paper; "
-                        "positioning: scatter of each reading, default 0.5)")
+                   help="probing noise, a standard deviation (k=1) along the approach, um (default: the "
+                        "machine's probe, 0.125 for the built-ins: the MFB paper's 0.25 um at k=2; 1.38 for the "
+                        "self-calibration paper; positioning: scatter of each reading, default 0.5)")
     p.add_argument("--c-angles", default=None, help="comma-separated C angles, deg (not for a placed artefact: mfb)")
     p.add_argument("--plan-only", action="store_true", help="write the plan only (measured columns empty)")
     p.add_argument("--no-collision-check", action="store_true", help="skip the MuJoCo path checks")
@@ -52,29 +55,35 @@ def run(args) -> int:
             raise ConfigError(f"--{name.replace('_', '-')} applies to 'vmt simulate positioning' only")
     import numpy as np
 
+    from dataclasses import replace
+
     from core.probelog import write_probe_log
     from core.units import UM
     from sim.campaign import simulate_campaign
     from sim.catalog import CATALOG
     from sim.machine import Machine
-    from sim.machines import MACHINES, realistic_errors
-    from sim.probe import ProbeConfig
+    from sim.machinefile import builtin_names, resolve
+    from sim.machines import realistic_errors
 
     rec = CATALOG[args.artefact]
     name = args.machine or rec.default_machine
-    if name not in MACHINES:
-        raise ConfigError(f"--machine {name!r} is not one of {', '.join(MACHINES)}")
-    cfg = MACHINES[name]()
-    axes = tuple(a for a in "XYZABC" if a in cfg.strokes)
-    if args.errors == "realistic":
-        cfg = MACHINES[name](errors=realistic_errors(axes, strokes=cfg.strokes))
+    spec = resolve(name)
+    cfg = spec.config
+    if name in builtin_names():
+        errors = args.errors or "realistic"
+        if errors == "realistic":
+            axes = tuple(a for a in "XYZABC" if a in cfg.strokes)
+            cfg = replace(cfg, errors=realistic_errors(axes, strokes=cfg.strokes))
+    elif args.errors is not None:
+        raise ConfigError(f"--errors: the machine file {name} states its errors (errors = ..., [error.*])")
+    else:
+        errors = f"machine file ({spec.errors}" + (f", seed {spec.seed}" if spec.seed is not None else "") + ")"
     machine = Machine(cfg)
-    kw = {}
+    probe = spec.probe
     if args.noise_um is not None:
         if not (np.isfinite(args.noise_um) and args.noise_um >= 0):
             raise ConfigError(f"--noise-um must be >= 0, got {args.noise_um!r}")
-        kw["repeatability_k2_m"] = 2 * args.noise_um * UM
-    probe = ProbeConfig(**kw)
+        probe = replace(probe, repeatability_k2_m=2 * args.noise_um * UM)
     if rec.placements is not None:
         if args.c_angles:
             raise ConfigError(f"--c-angles: the {rec.name} campaign uses its {rec.setups_text()}, not C angles")
@@ -87,14 +96,14 @@ def run(args) -> int:
             raise ConfigError(f"--c-angles {text!r} is not a comma-separated list of degrees") from None
     log = simulate_campaign(args.artefact, machine, probe, setups, np.random.default_rng(args.seed),
                             plan_only=args.plan_only, check_collisions=not args.no_collision_check,
-                            meta={"errors": args.errors, "seed": str(args.seed)})
+                            meta={"errors": errors, "seed": str(args.seed)})
     write_probe_log(args.out, log, special=True)
     ok = int(log.ok.sum())
     kind = "plan" if args.plan_only else "campaign"
     from scenarios.cli.guard import said
 
-    print(f"{said(args.out)}: {kind} of {log.n} touches ({ok} ok) on {args.artefact}, machine {name}, "
-          f"errors {args.errors}, {len(dict.fromkeys(log.col('setup')))} set-ups")
+    print(f"{said(args.out)}: {kind} of {log.n} touches ({ok} ok) on {args.artefact}, machine {cfg.name}, "
+          f"errors {errors}, {len(dict.fromkeys(log.col('setup')))} set-ups")
     return 0
 
 
@@ -162,6 +171,6 @@ def _run_positioning(args) -> int:
     write_positioning_log(args.out, log)
     m = len(set(log.target.tolist()))
     print(f"{args.out}: ISO 230-2 test of {log.axis} on {name}, {m} targets x {int(log.cycle.max())} cycles, "
-          f"{log.meta['cycle_kind']} cycle, {log.n} readings over {log.t_s[-1]:.0f} s, errors {args.errors}")
+          f"{log.meta['cycle_kind']} cycle, {log.n} readings over {log.t_s[-1]:.0f} s, errors {log.meta['errors']}")
     return 0
 

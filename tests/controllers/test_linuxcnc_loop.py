@@ -100,8 +100,17 @@ def test_linuxcnc_runs_the_program_to_its_end(loop):
     assert res.probe_file is not None and res.probe_file.is_file()
     assert len(res.answers) == 24 and all(a["q_mm"] is not None for a in res.answers)
     assert not any(r.get("late") for r in res.component_log), res.component_log
+    # the ray the component asked about is the programmed probing line: its direction,
+    # taken from two of its own position reads 50 um apart, agrees with the plan's
+    # approach to the program's rounding (6 decimals over 2 mm: 2.5e-7 rad); a read
+    # mixing two servo periods, or a first point off the line, would tilt it by
+    # 0.5 um / 50 um = 1e-2 rad and move the trigger by um
+    nrm = read_probe_log(plan_path).normals()
+    tilt = [float(np.arccos(min(1.0, -np.dot(r["d"], nrm[r["move"]])))) for r in res.component_log]
+    assert len(tilt) == 24 and max(tilt) < 1e-6, tilt
     n = len(res.answers)
-    figures = {"start_to_homed_s": round(res.homed_s, 2), "run_s": round(res.run_s, 1),
+    figures = {"direction_error_urad_max": round(max(tilt) * 1e6, 4),
+               "start_to_homed_s": round(res.homed_s, 2), "run_s": round(res.run_s, 1),
                "touches": n, "touches_per_min": round(n / res.run_s * 60, 1),
                "wall_s": round(res.wall_s, 1), "resolution_um": RES_MM * 1e3}
     (tmp / "figures.json").write_text(json.dumps(figures))
@@ -122,7 +131,9 @@ def test_touches_agree_with_the_virtual_part_to_the_resolution(loop, tmp_path):
     across = np.linalg.norm(diff - along[:, None] * d, axis=1)
     print(f"\ntouch - virtual machine along the approach: {along.min() * 1e3:.4f} .. "
           f"{along.max() * 1e3:.4f} um (bound 0 .. {RES_MM * 1e3:g}); across: max {across.max() * 1e6:.2f} nm")
-    assert np.all(along >= -ROUND_MM) and np.all(along <= RES_MM + ROUND_MM), along
+    table = "\n".join(f"{k:2d} {log.col('target')[k]:6s} along {a * 1e3:+.4f} um across {c * 1e6:.2f} nm"
+                      for k, (a, c) in enumerate(zip(along, across)))
+    assert np.all(along >= -ROUND_MM) and np.all(along <= RES_MM + ROUND_MM), table
     assert np.all(across <= 2 * ROUND_MM), across
     # and against the geometry, computed here apart from the scene's code: the actual tip
     # (I + E) p of each touch is on the table top / the sphere, or at most F*T past it

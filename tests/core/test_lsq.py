@@ -7,7 +7,7 @@ test_volumetric.py, test_discover_*.py): round trips, rank messages, sparse path
 import numpy as np
 import pytest
 
-from core.exceptions import ConfigError
+from core.exceptions import ConfigError, IdentifiabilityError
 from core.lsq import COVARIANCE_MESSAGES, Covariance, covariance_mode, remove_span, solve
 
 
@@ -48,3 +48,71 @@ def test_covariance_modes():
     assert sol.cov is None
     with pytest.raises(ConfigError, match="covariance must be"):
         solve(np.eye(3), np.zeros(3), sigma=1.0, covariance="diag")
+
+
+# ---------------------------------------------------------------------------
+# block elimination of a diagonal block (the workpiece of a self-calibration)
+# ---------------------------------------------------------------------------
+def one_per_row_problem(rng, m=400, q=40, p=12):
+    """Rows touch one of q 'target' parameters (diagonal block) and p shared ones; two constraints."""
+    tgt = rng.integers(0, q, m)
+    tgt[:q] = np.arange(q)  # every target observed
+    A = np.zeros((m, q + p))
+    A[np.arange(m), tgt] = rng.uniform(0.5, 2.0, m)
+    A[:, q:] = rng.standard_normal((m, p)) * (rng.random((m, p)) < 0.5)
+    C = np.zeros((2, q + p))
+    C[0, q] = 1.0
+    C[1, q + 1:q + 3] = (1.0, -1.0)
+    return A, C, np.array([0.3, -0.1])
+
+
+@pytest.mark.parametrize("dense_max", [0, 10])
+def test_block_elimination_equals_the_dense_solve(monkeypatch, rng, dense_max):
+    """Known answer: the Schur path gives the dense path's estimate, residuals and
+    standard uncertainties to rounding (same problem, DENSE_MAX lowered to force it)."""
+    from core import lsq
+
+    A, C, d = one_per_row_problem(rng)
+    b = A @ rng.standard_normal(A.shape[1]) + 0.01 * rng.standard_normal(A.shape[0])
+    ref = solve(A, b, C, d, covariance="full")
+    monkeypatch.setattr(lsq, "DENSE_MAX", dense_max)
+    sch = solve(A, b, C, d, covariance="std", diagonal=slice(0, 40))
+    lu = solve(A, b, C, d, covariance="std")  # the sparse LU of the whole normal matrix
+    for s in (sch, lu):
+        np.testing.assert_allclose(s.theta, ref.theta, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(s.std, ref.std, rtol=1e-9, atol=1e-15)
+        assert s.sigma == pytest.approx(ref.sigma, rel=1e-10)
+    # many right-hand sides through the same factor (Monte Carlo)
+    E = rng.standard_normal((A.shape[0], 5))
+    np.testing.assert_allclose(sch.estimator.noise_gain(E), ref.estimator.noise_gain(E), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(sch.estimator.covariance_of([0, 45]), ref.estimator.covariance_of([0, 45]),
+                               rtol=1e-9, atol=1e-15)
+
+
+def test_block_elimination_names_the_unidentifiable(monkeypatch, rng):
+    """Two shared parameters with equal columns: the Schur complement is singular and the
+    message names the pair, as the dense path does."""
+    from core import lsq
+
+    A, C, d = one_per_row_problem(rng)
+    A[:, -1] = A[:, -2]
+    monkeypatch.setattr(lsq, "DENSE_MAX", 0)
+    names = [f"t{i}" for i in range(40)] + [f"s{i}" for i in range(12)]
+    with pytest.raises(IdentifiabilityError, match=r"rank deficient by 1 beyond the constraints; "
+                                                    r"unidentifiable: .*s1[01].*s1[01]"):
+        solve(A, np.zeros(A.shape[0]), C, d, names=names, diagonal=slice(0, 40))
+
+
+def test_block_elimination_bad_diagonal(monkeypatch, rng):
+    from core import lsq
+
+    A, C, d = one_per_row_problem(rng)
+    monkeypatch.setattr(lsq, "DENSE_MAX", 0)
+    A2 = A.copy()
+    A2[5, 7] = A2[5, 8] = 1.0  # row 5 already touches target 5
+    with pytest.raises(ConfigError, match=r"diagonal block: observation 5 touches 3 of its parameters"):
+        solve(A2, np.zeros(A.shape[0]), C, d, diagonal=slice(0, 40))
+    with pytest.raises(ConfigError, match="a constraint touches a parameter of the diagonal block"):
+        solve(A, np.zeros(A.shape[0]), C, d, diagonal=slice(0, 41))
+    with pytest.raises(ConfigError, match=r"diagonal: indices must lie in 0..51"):
+        solve(A, np.zeros(A.shape[0]), C, d, diagonal=[3, 99])

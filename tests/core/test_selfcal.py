@@ -70,7 +70,10 @@ def test_names_and_order():
 
 
 def test_design_matches_eq14_for_one_touch():
-    """Known answer: eq 14 written out by hand for one touch at a grid-cell interior."""
+    """Known answer: eq 14 written out by hand for one touch at a grid-cell interior.
+
+    The C-axis terms in the ISO 230-1 sign (tool relative to the part): the
+    paper's eq 13 coefficients negated, like eq 12's for the linear axes."""
     w = np.array([[0.030, 0.050]])
     wn = np.array([[0.6, 0.8]])
     t = nominal_touches(np.repeat(w, 1, 0), wn, [0])
@@ -81,8 +84,8 @@ def test_design_matches_eq14_for_one_touch():
     nx, ny, x, y = 0.6, 0.8, 0.030, 0.050
     exp = {"EXX@x=0mm": -nx * (1 - zx), "EXX@x=40mm": -nx * zx, "EYX@x=40mm": -ny * zx,
            "EXY@y=100mm": -nx * zy, "EYY@y=0mm": -ny * (1 - zy), "ECY@y=100mm": -ny * x * zy,
-           "EC0Y": nx * y, "G[p1]": 1.0, "EXC,total[C=0deg]": nx, "EYC,total[C=0deg]": ny,
-           "ECC[C=0deg]": -nx * y + ny * x}
+           "EC0Y": nx * y, "G[p1]": 1.0, "EXC,total[C=0deg]": -nx, "EYC,total[C=0deg]": -ny,
+           "ECC[C=0deg]": -(-nx * y + ny * x)}
     for k, v in exp.items():
         assert row[des.names.index(k)] == pytest.approx(v, abs=1e-15), k
 
@@ -123,19 +126,20 @@ def test_noise_free_exact_and_residuals_zero():
 def exact_campaign(w, wn, c_deg, truth, r_m):
     """Reported positions of an exact rigid-body machine (outside the model space).
 
-    Actual table pose: R(ECC) R(-C) + (EXC, EYC) (exact rotation); actual tip
-    = believed tip + E(believed tip) with smooth E; workpiece contact point
-    moved by G along its normal. The trigger is solved exactly along the
-    nominal normal.
+    Actual table pose: R(-ECC) R(-C) - (EXC, EYC) (exact rotation): the
+    truth's EXC,total, EYC,total, ECC are ISO 230-1 values (the tool relative
+    to the part), so the table moves by their inverse; actual tip = believed
+    tip + E(believed tip) with smooth E; workpiece contact point moved by G
+    along its normal. The trigger is solved exactly along the nominal normal.
     """
     t = nominal_touches(w, wn, c_deg, stylus_r_m=r_m)
     nw = len(w)
     dq = np.empty(t.n)
     for j, c in enumerate(c_deg):
-        Rj = rot2(truth["ECC"][j]) @ rot2(-np.radians(c))
+        Rj = rot2(-truth["ECC"][j]) @ rot2(-np.radians(c))
         for i in range(nw):
             k = j * nw + i
-            a = Rj @ (w[i] + truth["G"][i] * wn[i]) + np.array([truth["EXC"][j], truth["EYC"][j]])
+            a = Rj @ (w[i] + truth["G"][i] * wn[i]) - np.array([truth["EXC"][j], truth["EYC"][j]])
             m = Rj @ wn[i]
             n = t.n_R[k, :2]
             pn = t.pn_R[k, :2]
@@ -208,7 +212,7 @@ def test_exact_truth_outside_model_space_recovered_to_first_order(rng):
 
 
 def test_sparse_path_matches_dense(monkeypatch, rng):
-    """Above DENSE_MAX the solver factors the sparse normal matrix; same answer and std."""
+    """Above DENSE_MAX the solver eliminates the workpiece block (Schur complement); same answer and std."""
     w, wn = freeform(50)
     t = nominal_touches(w, wn, ANGLES)
     des = build_design(t, GRID)
@@ -332,3 +336,35 @@ def test_workpiece_form_removes_shift_rotation_scale_and_offset():
     lobes = 2 * UM * np.cos(7 * ang)
     np.testing.assert_allclose(workpiece_form(lobes + g_rigid, w, wn), workpiece_form(lobes, w, wn), atol=1e-18)
     assert np.sqrt(np.mean(workpiece_form(lobes, w, wn) ** 2)) > 1.2 * UM  # most of 2/sqrt(2) um survives
+
+
+def test_block_elimination_matches_the_sparse_lu_at_scale(rng):
+    """10,000 touches, 1,000 free-form targets, grid 30 x 30: the workpiece eliminated first
+    (what self_calibrate does above DENSE_MAX) gives the sparse LU's estimate and standard
+    uncertainties to rounding (relative 1e-9: both are direct factorisations of the same
+    well-conditioned normal matrix, column-scaled, cond ~1e5)."""
+    r = rng.uniform(0.02, 0.095, 1000)
+    a = rng.uniform(0, 2 * np.pi, 1000)
+    b = rng.uniform(0, 2 * np.pi, 1000)
+    t = nominal_touches(np.column_stack([r * np.cos(a), r * np.sin(a)]), np.column_stack([np.cos(b), np.sin(b)]),
+                        np.arange(10) * 36.0 + 7.0)
+    lo, hi = t.pn_R[:, :2].min(axis=0), t.pn_R[:, :2].max(axis=0)
+    g = Grid(np.linspace(lo[0], hi[0], 31), np.linspace(lo[1], hi[1], 31))
+    des = build_design(t, g)
+    dq = des.A @ des.to_gauge(rng.normal(0, 3 * UM, des.n_params)) + rng.normal(0, UM, t.n)
+    res = self_calibrate(nominal_touches_like(t, dq), g, covariance="std")
+    lu = solve(des.A, dq, des.C, des.d, covariance="std")
+    assert lu.estimator._quad is None and res.theta.size > lsq.DENSE_MAX
+    np.testing.assert_allclose(res.theta, lu.theta, rtol=1e-9, atol=1e-9 * np.abs(lu.theta).max())
+    np.testing.assert_allclose(res.std, lu.std, rtol=1e-9, atol=1e-20)
+    np.testing.assert_allclose(res.residuals_m, lu.residuals, atol=1e-9 * UM)
+
+
+def test_design_rows_are_sorted():
+    """The design is built row-wise in column order, without a sort: every row's column
+    indices increase strictly (what ``has_sorted_indices`` promises scipy), both yaws."""
+    w, wn = freeform(30)
+    for yaw in ("ECY", "ECX"):
+        A = build_design(nominal_touches(w, wn, ANGLES), GRID, yaw=yaw).A
+        assert A.has_sorted_indices
+        assert all(np.all(np.diff(A.indices[A.indptr[i]:A.indptr[i + 1]]) > 0) for i in range(A.shape[0]))

@@ -66,8 +66,10 @@ def test_campaign_through_vmt_probe_equals_the_backend(tmp_path, plan_path, caps
     assert_complete(log, plan)
     assert np.all(log.ok)
     assert np.abs(log.positions_mm() - ref.positions_mm()).max() < QUANT_MM
-    # the known errors show: sphere touches deviate by µm, more than the rounding
-    assert np.abs(log.dq_mm()).max() > 2e-3
+    # the known errors show: without noise, sphere touches deviate by > 1 µm
+    # (1.16 µm: 40 µm/m over ~60 mm, projected), more than the rounding
+    clean = direct_log(tmp_path, plan, noise_um=0.0, name="clean.csv")
+    assert np.abs(clean.dq_mm()).max() > 1e-3 > 1.5 * QUANT_MM
     assert "12 of 12 touches (12 new, 0 before" in capsys.readouterr().out
     assert log.meta["machine"] == srv.url and "started_unix" in log.meta
 

@@ -11,6 +11,9 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert main(["demo", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "both hidden effects named" in text
+    # like with like: the identified EC0Y beside the injected one in identify's gauge
+    assert "injected, in the same gauge (eqs 16-17" in text
+    assert "EYY ripple 1.5 um, pitch 8 mm" in text  # what the code hides, in the words
     log = read_probe_log(out / "cross-pocket.csv")
     assert log.n == 432 and log.ok.all()
     disc = json.loads((out / "discover.json").read_text())

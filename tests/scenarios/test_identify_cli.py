@@ -84,3 +84,31 @@ def test_design_command(tmp_path, rng, capsys):
     r = json.loads(out.read_text())
     assert r["c_deg"][0] == 0 and len(r["c_deg"]) == 3 and r["gain"] >= 1.0
     assert "gain x" in capsys.readouterr().out
+
+
+def test_identify_touches_at_two_heights(tmp_path, capsys):
+    """A simulated cross pocket with its spheres (equators 25.7 mm above the walls): identify adds the
+    height terms and budgets the model error; the report says both."""
+    from core.probelog import write_probe_log as write
+    from scenarios.selfcal_coverage import simulate
+    from sim import artefacts as A
+    from sim.campaign import simulate_campaign
+    from sim.probe import ProbeConfig
+
+    c = simulate("nmv3000", 2, 0.0)  # the machine with realistic errors
+    log = simulate_campaign(A.cross_pocket(), c.machine, ProbeConfig(repeatability_k2_m=0.6e-6), list(ANG),
+                            np.random.default_rng(5), check_collisions=False)
+    path = write(tmp_path / "pocket.csv", log)
+    out = tmp_path / "id.json"
+    assert main(["identify", str(path), "--json", str(out), "--grid-mm=-110:110:22", "--mc", "100"]) == 0
+    r = json.loads(out.read_text())
+    h = r["heights"]
+    assert h["abbe"] is True and len(h["levels_mm"]) == 2 and len(h["tilt"]) == 4
+    assert h["levels_mm"][1] - h["levels_mm"][0] == pytest.approx(25.7, abs=1e-6)
+    assert len(r["conventions"]["gauge"]) == 15 and r["n_params"] == 172
+    u = r["uncertainty"]
+    assert 0.2 < u["probe_sigma_um"] < 0.45 and set(u["model_error"]) == {"EXX", "EYX", "EXY", "EYY", "ECY"}
+    assert "probing noise only" in r["monte_carlo"]["what"]
+    text = capsys.readouterr().out
+    assert "touches at 2 heights: C-axis tilt per set-up and the tool's Abbe terms" in text
+    assert "U95: probing sigma" in text

@@ -106,8 +106,9 @@ def test_simulate_positioning_then_evaluate_with_report(tmp_path, capsys):
                  "--noise-um", "0", "--errors", "none"]) == 0
     assert main(["iso230-2", str(log), "--json", str(tmp_path / "r.json"), "--report", str(tmp_path / "rep")]) == 0
     rep = json.loads((tmp_path / "r.json").read_text())
-    # Y of vmc-3axis moves the table: lost motion 2 um reads as B_i = -2 um at every target, nothing else
-    assert rep["B_mean_um"] == pytest.approx(-2.0, abs=1e-6) and rep["E_um"] == pytest.approx(2.0, abs=1e-6)
+    # lost motion 2 um on Y (ISO 230-1 values: the tool relative to the part, also on this table-side
+    # Y) reads as B_i = +2 um at every target, nothing else
+    assert rep["B_mean_um"] == pytest.approx(2.0, abs=1e-6) and rep["E_um"] == pytest.approx(2.0, abs=1e-6)
     assert rep["M_um"] == pytest.approx(0.0, abs=1e-6) and rep["cycle_kind"] == "pilgrim"
     html = (tmp_path / "rep" / "index.html").read_text()
     assert "iso230_2.png" in html and "Baseline for model discovery" in html
@@ -116,7 +117,7 @@ def test_simulate_positioning_then_evaluate_with_report(tmp_path, capsys):
 @pytest.mark.parametrize("argv,match", [
     (["simulate", "mfb", "--out", "x.csv", "--axis", "X"], "--axis applies to 'vmt simulate positioning' only"),
     (["simulate", "positioning", "--out", "x.csv", "--c-angles", "0"], "--c-angles does not apply"),
-    (["simulate", "positioning", "--out", "x.csv", "--machine", "nope"], "--machine 'nope' is not one of"),
+    (["simulate", "positioning", "--out", "x.csv", "--machine", "nope"], "--machine 'nope': no such file, and not a built-in machine"),
     (["simulate", "positioning", "--out", "x.csv", "--travel-mm", "0-100"], "--travel-mm '0-100': expected 2"),
     (["simulate", "positioning", "--out", "x.csv", "--cycles", "1"], "cycles must be a whole number >= 2"),
     (["simulate", "positioning", "--out", "x.csv", "--travel-mm", "0:400"], "leave the stroke"),

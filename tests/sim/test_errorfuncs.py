@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from core.exceptions import ConfigError
-from sim.errorfuncs import (Constant, Drift, Periodic, Polynomial, Reversal, SplineTable, Sum,
-                            Zero)
+from sim.errorfuncs import (Constant, Drift, LinearTable, Periodic, Polynomial, Reversal, SplineTable,
+                            Sum, Zero)
 
 POS = np.linspace(-0.3, 0.3, 7)
 
@@ -32,6 +32,13 @@ def test_spline_passes_through_table_and_is_c2():
     assert np.allclose(g(POS), 1e-5 * POS**3, rtol=0, atol=1e-18)
     # outside the table: continued along the end tangent
     assert np.isclose(g(0.4)[0], g(0.3)[0] + g.derivative(0.3)[0] * 0.1, rtol=0, atol=1e-18)
+
+
+def test_linear_table_known_answer():
+    f = LinearTable((-0.1, 0.0, 0.2), (1e-6, 3e-6, -1e-6))
+    # between points: linear; beyond the ends: the end segments continued
+    np.testing.assert_allclose(f([-0.2, -0.05, 0.0, 0.1, 0.3]), [-1e-6, 2e-6, 3e-6, 1e-6, -3e-6], rtol=0, atol=1e-18)
+    np.testing.assert_allclose(f.derivative([-0.05, 0.1]), [2e-5, -2e-5], rtol=0, atol=1e-18)
 
 
 def test_periodic_known_answer():
@@ -82,6 +89,8 @@ def test_derivative_matches_finite_differences(f):
     (lambda: SplineTable((0.0,), (1.0,)), "at least 2 points"),
     (lambda: SplineTable((0.0, 1.0), (1.0,)), "values has 1"),
     (lambda: SplineTable((0.0, 0.0, 1.0), (1.0, 2, 3)), "strictly increasing"),
+    (lambda: LinearTable((0.0,), (1.0,)), "at least 2 points"),
+    (lambda: LinearTable((1.0, 0.0), (1.0, 2.0)), "strictly increasing"),
     (lambda: Periodic(1e-6, 0.0), "period must be > 0"),
     (lambda: Drift(tau_s=-1.0), "tau_s must be > 0"),
     (lambda: Drift(scale_per_K=1e-5), "need a temperature history"),

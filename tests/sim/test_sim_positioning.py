@@ -69,13 +69,13 @@ def test_iso_targets_irregular_inside_the_travel(rng):
     np.testing.assert_array_equal(np.round(P / 1e-6), P / 1e-6)  # commanded to 1 um
 
 
-@pytest.mark.parametrize("axis,sym,sign", [("X", "EXX", -1.0), ("Z", "EZZ", +1.0)])
+@pytest.mark.parametrize("axis,sym,sign", [("X", "EXX", +1.0), ("Z", "EZZ", +1.0)])
 def test_scale_error_and_reversal_read_exactly(axis, sym, sign):
-    """Only a positioning error and lost motion on the axis: the reading is +-E exactly.
+    """Only a positioning error and lost motion on the axis: the reading is E exactly.
 
-    X of vmc-3axis moves the table (workpiece side): a carriage error EXX
-    moves the part, so the tool relative to the part reads -EXX. Z moves
-    the spindle (tool side): +EZZ. Reversal gives +L/2 moving in +, -L/2 in -.
+    Error values are ISO 230-1's, the tool relative to the part, whichever
+    side of the bed the axis is on: X of vmc-3axis moves the table, Z the
+    spindle, both read +E. Reversal gives +L/2 moving in +, -L/2 in -.
     """
     L = 3e-6
     f = Polynomial((2e-6, 40e-6))  # 2 um + 40 um/m
@@ -93,10 +93,14 @@ def test_scale_error_and_reversal_read_exactly(axis, sym, sign):
 
 
 def test_drift_follows_the_clock():
-    """Thermal drift of 1 um per minute on EXX: every reading is -(EXX(P) + rate t) at its t_s."""
+    """Thermal drift of 1 um per minute on EXX: every reading is -(EXX(P) + rate t) at its t_s.
+
+    The machine of the old convention (the table's carriage error f + drift on
+    the table-side X) given in ISO 230-1 values (the tool relative to the
+    part): the injected error negated, the readings unchanged."""
     rate = 1e-6 / 60
     f = Polynomial((0.0, 20e-6))
-    m = Machine(MACHINES["vmc-3axis"](errors={"EXX": f + Drift(offset_rate=rate)}))
+    m = Machine(MACHINES["vmc-3axis"](errors={"EXX": Polynomial((0.0, -20e-6)) + Drift(offset_rate=-rate)}))
     plan = positioning_plan(m, "X", n_targets=5, cycles=5)
     log = simulate_positioning(m, plan, np.random.default_rng(0))
     expect_mm = -(f(log.target * MM) + rate * log.t_s) / MM

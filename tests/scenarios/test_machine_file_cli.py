@@ -1,0 +1,88 @@
+"""``--machine FILE`` wherever a machine is named, and ``vmt machine show``."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from core.probelog import read_probe_log
+from scenarios.cli import main
+
+MY = """
+base = "vmc-3axis"
+name = "my-vmc"
+[error.EXX]
+constant_um = 1.0
+[probe]
+noise_um = 0.0
+"""
+
+
+@pytest.fixture
+def my_file(tmp_path):
+    p = tmp_path / "my.toml"
+    p.write_text(MY)
+    return p
+
+
+def test_show_prints_chain_strokes_errors_and_tip_deviations(my_file, capsys):
+    assert main(["machine", "show", str(my_file)]) == 0
+    out = capsys.readouterr().out
+    assert "chain V[w-X-Y-b-Z-(C)-t]: workpiece side Y, X" in out
+    assert "X -300..300 mm" in out and "EXX   um   constant 1 um" in out
+    # the tip deviation table: +1 um in X at every point (ISO: tool relative to the part)
+    rows = [ln.split() for ln in out.splitlines()[-9:]]
+    assert all(float(r[3]) == pytest.approx(1.0, abs=1e-6) and float(r[4]) == 0.0 for r in rows)
+    assert main(["machine", "show", "nmv3000"]) == 0
+    assert "errors (ISO 230-1" in capsys.readouterr().out
+
+
+def test_simulate_with_a_machine_file_reads_minus_one_um_on_x_faces(my_file, tmp_path, capsys):
+    """The file's EXX = +1 um against the same campaign on the perfect built-in
+    (same part, form errors and all): every X-face touch 1 um short."""
+    out, ref = tmp_path / "log.csv", tmp_path / "ref.csv"
+    assert main(["simulate", "cross-pocket", "--machine", str(my_file), "--out", str(out),
+                 "--no-collision-check"]) == 0
+    assert "machine my-vmc" in capsys.readouterr().out
+    assert main(["simulate", "cross-pocket", "--machine", "vmc-3axis", "--errors", "none", "--noise-um", "0",
+                 "--out", str(ref), "--no-collision-check"]) == 0
+    log, base = read_probe_log(out), read_probe_log(ref)
+    x = np.abs(log.normals()[:, 0]) > 1 - 1e-12
+    assert x.sum() > 20
+    d = log.positions_mm()[x] - base.positions_mm()[x]
+    np.testing.assert_allclose(d, np.tile([-1e-3, 0, 0], (x.sum(), 1)), rtol=0, atol=1e-6)
+
+
+def test_program_limits_from_a_machine_file(my_file, tmp_path, capsys):
+    plan = tmp_path / "plan.csv"
+    assert main(["simulate", "cross-pocket", "--machine", "vmc-3axis", "--plan-only", "--out", str(plan),
+                 "--no-collision-check"]) == 0
+    ngc = tmp_path / "p.ngc"
+    assert main(["machine", "program", "--plan", str(plan), "--out", str(ngc), "--machine", str(my_file),
+                 "--safe-z", "50"]) == 0
+    assert ngc.read_text().count("G38.2") > 50
+    assert main(["machine", "program", "--plan", str(plan), "--out", str(ngc), "--machine", str(my_file),
+                 "--limits", "X-1:1,Y-1:1,Z-1:1"]) == 2
+    assert "give one" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["machine", "show", "{bad}"], "error.EXX.constant_urad: EXX is a translation; use constant_um"),
+    (["simulate", "cross-pocket", "--machine", "{bad}", "--out", "{tmp}/o.csv"], "error.EXX.constant_urad"),
+    (["simulate", "cross-pocket", "--machine", "{my}", "--errors", "none", "--out", "{tmp}/o.csv"],
+     "--errors: the machine file"),
+    (["scenario", "mfb-3axis", "--machine", "nmv3000"], "is not the mfb-3axis plan's"),
+    (["scenario", "pin-circle", "--machine", "{my}"], "--machine: only the mfb scenarios take it"),
+    (["scenario", "mfb-3axis", "--apply-comp", "{tmp}"], "no X.comp, Y.comp, Z.comp or mfb-3axis-comp.json"),
+    (["machine", "serve", "--port", "0", "--machine", "{bad}", "--scene", "cross-pocket"], "error.EXX"),
+    (["machine", "show", "{tmp}/none.toml"], "no such machine file"),
+])
+def test_bad_machine_file_one_line_exit_2(argv, match, my_file, tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('base = "vmc-3axis"\n[error.EXX]\nconstant_urad = 1\n')
+    argv = [a.format(bad=bad, my=my_file, tmp=tmp_path) for a in argv]
+    r = subprocess.run([sys.executable, "-m", "scenarios.cli", *argv], capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert match in r.stderr

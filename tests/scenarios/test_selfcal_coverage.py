@@ -1,0 +1,102 @@
+"""The self-calibration's U95 against the exact simulator's truth, per block (issue 14 item 4).
+
+Campaigns are shared by the module (one simulation each). The bigger study
+(20 seeds per machine and noise, Clopper-Pearson intervals) is in
+``make bench`` (scenarios.bench.selfcal, ``coverage_*`` figures).
+"""
+
+import numpy as np
+import pytest
+
+from core.selfcal import workpiece_form
+from core.units import UM
+from scenarios.selfcal_coverage import BLOCKS, block_truth, identify_and_cover, simulate
+
+MACHINES = ("nmv3000", "mikron-ucp710")  # X on Y (yaw ECY), Y on X (yaw ECX)
+SEEDS = range(4)
+NOISES_M = (0.0, 0.5e-6)
+
+
+@pytest.fixture(scope="module")
+def campaigns():
+    return {(m, nz): [simulate(m, s, nz) for s in SEEDS] for m in MACHINES for nz in NOISES_M}
+
+
+def pooled(cs, **kw):
+    tot = {b: [0, 0] for b in BLOCKS}
+    for c in cs:
+        for b, (k, n) in identify_and_cover(c, **kw)[1].items():
+            tot[b][0] += k
+            tot[b][1] += n
+    return {b: k / n for b, (k, n) in tot.items()}
+
+
+def test_truth_extraction_and_identification_agree_in_the_model_space():
+    """Errors the extended model represents exactly (straight tables, constant squareness, a
+    C axis that wobbles and tilts per set-up, angular errors linear in x and y acting through
+    the spheres' height): noise free, the identification equals the simulator's truth in
+    its gauge to second order. The discrepancy of each parameter is at most what 20 nm of
+    probing noise would give it (|error| / u(1 m of noise) < 2e-8; measured 8.7e-9, from
+    second-order cross terms: residual RMS 2.3 nm), the workpiece within 50 nm (21), and
+    the first-order split of the exact tip deviation into tables leaves < 1 nm. A sign or
+    frame error in the truth or in the height model would show as micrometres."""
+    from sim.errorfuncs import Constant, Periodic, Polynomial
+
+    errs = {"EXX": Polynomial((0.0, 1.2e-4)), "EYY": Polynomial((1e-6, -6e-5)), "EYX": Polynomial((0.0, 2e-5)),
+            "EXY": Polynomial((0.0, -3e-5)), "EC0Y": Constant(-43.4e-6), "ECY": Polynomial((4e-6, 0.0)),
+            "EBX": Polynomial((1e-5, 3e-4)), "EAY": Polynomial((-5e-6, 2e-4)), "EB0Z": Constant(20e-6),
+            "EX0C": Constant(15e-6), "EY0C": Constant(6e-6), "ECC": Periodic(12e-6, 2 * np.pi),
+            "EXC": Periodic(1.5e-6, 2 * np.pi), "EBC": Periodic(3e-6, 2 * np.pi), "EAC": Periodic(3e-6, 2 * np.pi, 1.0)}
+    from core.selfcal import estimator
+
+    c = simulate("nmv3000", 0, 0.0, errors=errs)
+    res, _, misfit = identify_and_cover(c, model_error=False)
+    raw, _ = block_truth(c, res.design)
+    err = np.abs(res.theta - res.design.to_gauge(raw))
+    u1 = estimator(c.touches, res.design.grid)[1].std(1.0)
+    free = u1 > 0
+    assert res.design.heights.abbe and misfit < 1e-9
+    assert (err[free] / u1[free]).max() < 2e-8
+    assert err[res.design.slices["G"]].max() < 50e-9 and res.rms_m < 5e-9
+
+
+def test_height_terms_remove_the_spheres_model_error():
+    """Issue 14: the sphere equators sit 25.7 mm above the pocket walls; the planar model
+    leaves the height effect in the workpiece. Noise free, smooth realistic errors (no
+    ripple), nmv3000: the workpiece form error (shift, rotation, scale, offset and the
+    height terms' tilt, twist and growth removed) falls from 0.196 um RMS (planar, measured)
+    to 0.0042 um, the pocket's alone from 0.204 to 0.0042 um (the pocket without the
+    spheres: 0.0024)."""
+    from scenarios.hidden import workpiece_truth
+
+    c = simulate("nmv3000", 1, 0.0, ripple=False)
+    g = workpiece_truth(c.art, c.plan)
+    err = {}
+    for name, kw in (("planar", dict(heights=False)), ("heights", {})):
+        res, _, _ = identify_and_cover(c, model_error=False, **kw)
+        des = res.design
+        first = [int(np.flatnonzero(c.touches.target == k)[0]) for k in range(len(des.target_ids))]
+        w, wn = c.touches.w_A[first, :2], c.touches.wn_A[first, :2]
+        dz = c.touches.pn_R[first, 2] - np.median(c.touches.pn_R[:, 2])
+        e = workpiece_form(res.G - np.array([g[k] for k in des.target_ids]), w, wn, dz)
+        err[name] = np.sqrt(np.mean(e ** 2))
+    assert err["planar"] > 0.1 * UM
+    assert err["heights"] < 0.01 * UM
+
+
+@pytest.mark.parametrize("machine", MACHINES)
+def test_u95_covers_per_block(campaigns, machine):
+    """Realistic errors (10 mm screw ripple, smooth tables, C-axis wobble, height), noise 0
+    and 0.5 um, four seeds each: at least 90 % of every block's U95 bands hold the truth.
+    Measured on these campaigns: 0.94-0.99 for every block of both machines; 20 seeds per
+    machine and noise in the bench."""
+    cov = pooled(campaigns[(machine, 0.0)] + campaigns[(machine, 0.5e-6)])
+    assert min(cov.values()) >= 0.90, cov
+
+
+def test_without_heights_and_budget_the_bands_do_not_cover(campaigns):
+    """The same campaigns identified the old way (planar model, sigma from the residuals as
+    probing noise): noise free on the mikron, EXX, EYY, the C axis and the workpiece cover
+    67, 68, 72 and 79 % (issue 14: "EXX 67 %"): the check has teeth."""
+    cov = pooled(campaigns[("mikron-ucp710", 0.0)], heights=False, model_error=False)
+    assert cov["EXX"] < 0.8 and cov["C-axis"] < 0.85 and cov["workpiece"] < 0.85, cov

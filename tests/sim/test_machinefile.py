@@ -1,0 +1,164 @@
+"""Machine files (TOML, vmt-machine/1): built-ins, units, overrides, bad input."""
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim.errorfuncs import LinearTable, SplineTable
+from sim.machine import Machine
+from sim.machinefile import MachineFileError, builtin_names, load, loads, resolve
+from sim.machines import MACHINES, realistic_errors
+
+README = Path(__file__).resolve().parents[2] / "README.md"
+
+
+def test_builtins_are_files_with_the_papers_geometry():
+    assert set(builtin_names()) == {"vmc-3axis", "mikron-ucp710", "nmv3000"} == set(MACHINES)
+    m = resolve("mikron-ucp710").config
+    assert m.chain == "[w C' A' b X Y Z (C1) t]"
+    assert m.strokes["X"] == (-0.355, 0.355) and m.strokes["Z"] == (-0.1, 0.4)
+    assert m.strokes["A"] == pytest.approx((-100 * math.pi / 180, 120 * math.pi / 180), abs=1e-15)
+    assert m.rotary_points_R_m["A"] == (0.0, 0.0, -0.12) and m.J_m == (0.0, 0.0, 0.15)
+    n = resolve("nmv3000").config
+    assert n.chain == "V[w-C-A-b-Y-X-Z-(C)-t]" and n.rotary_points_R_m["A"] == (0.0, 0.0, -0.1)
+    v = MACHINES["vmc-3axis"]()
+    assert v.strokes == {"X": (-0.3, 0.3), "Y": (-0.2, 0.2), "Z": (-0.05, 0.4)} and not v.errors
+    p = resolve("vmc-3axis").probe
+    assert p.stylus_r_m == 0.003 and p.sigma_m == pytest.approx(0.125e-6, abs=1e-18)
+
+
+def test_one_error_override_known_tip():
+    """[error.EXX] constant_um = 1 on the table-side X of vmc-3axis: the tool ends 1 um
+    further in +X relative to the part (ISO 230-1), everywhere."""
+    spec = loads('base = "vmc-3axis"\n[error.EXX]\nconstant_um = 1.0\n')
+    assert spec.overrides == ("EXX",) and spec.config.name == "vmc-3axis"
+    m = Machine(spec.config)
+    lin = np.array([[0.1, -0.1, 0.2], [-0.2, 0.15, 0.0]])
+    np.testing.assert_allclose(m.tip_W(lin) - lin, [[1e-6, 0, 0]] * 2, rtol=0, atol=1e-15)
+
+
+def test_units_in_the_key_names():
+    spec = loads('''
+base = "nmv3000"
+chain = "V[w-C-b-Y-X-Z-(C)-t]"
+[error.EXX]
+constant_um = 1.0
+slope_um_per_m = 20.0
+quadratic_um_per_m2 = -100.0
+periodic = [{ amplitude_um = 0.5, period_mm = 10.0, phase_deg = 90.0 }]
+[error.EYY]
+table_mm = [-150, 0, 150]
+table_um = [0, 3, 1]
+interpolation = "linear"
+[error.EZZ]
+table_mm = [-100, 0, 100, 325]
+table_um = [0, 1, 0, 2]
+interpolation = "cubic"
+reversal_um = 4.0
+[error.ECC]
+slope_urad_per_deg = 0.1
+[error.EX0C]
+constant_um = 15
+[error.EC0Y]
+constant_urad = -43.4
+[error.EXY]
+thermal = { offset_um_per_h = 2.0, scale_ppm_per_h = 1.0 }
+''')
+    c = spec.config
+    assert "A" not in c.strokes and set(c.strokes) == {"X", "Y", "Z", "C"}  # the chain dropped A
+    x = np.array([0.1])
+    assert c.errors["EXX"](x)[0] == pytest.approx(1e-6 + 20e-6 * 0.1 - 100e-6 * 0.01 + 0.5e-6, abs=1e-15)
+    assert isinstance(c.errors["EYY"], LinearTable) and c.errors["EYY"](np.array([-0.075]))[0] == pytest.approx(1.5e-6)
+    f = c.errors["EZZ"]
+    assert isinstance(f.terms[0], SplineTable)
+    assert f(np.array([0.0]), direction=np.array([1.0]))[0] == pytest.approx(1e-6 + 2e-6, abs=1e-15)
+    assert c.errors["ECC"](np.array([math.radians(90.0)]))[0] == pytest.approx(9e-6, abs=1e-15)
+    assert c.errors["EX0C"].value == 15e-6 and c.errors["EC0Y"].value == pytest.approx(-43.4e-6)
+    assert c.errors["EXY"](np.array([0.1]), t_s=np.array([1800.0]))[0] == pytest.approx(1e-6 + 0.05e-6, abs=1e-15)
+
+
+def test_realistic_with_seed_is_the_seeded_set():
+    spec = loads('base = "mikron-ucp710"\nerrors = "realistic"\nseed = 7\nripple = false\n')
+    cfg = MACHINES["mikron-ucp710"]()
+    want = realistic_errors(("A", "C", "X", "Y", "Z"), strokes=cfg.strokes, rng=np.random.default_rng(7),
+                            ripple=False)
+    lin = np.array([[0.1, -0.05, 0.2]])
+    rot = np.array([[0.3, 1.0]])
+    a = Machine(spec.config).tip_W(lin, rot)
+    b = Machine(MACHINES["mikron-ucp710"](errors=want)).tip_W(lin, rot)
+    assert np.array_equal(a, b) and spec.seed == 7 and spec.errors == "realistic"
+
+
+def _readme_machine_file() -> str:
+    text = README.read_text(encoding="utf-8")
+    sec = text.split("## Your own machine", 1)[1]
+    return re.search(r"```toml\n(.*?)```", sec, re.S).group(1)
+
+
+def test_readme_example_loads_and_simulates(tmp_path):
+    """The README's machine file, as a user copies it, read and probed."""
+    p = tmp_path / "my-machine.toml"
+    p.write_text(_readme_machine_file())
+    spec = load(p)
+    from sim.campaign import simulate_campaign
+
+    log = simulate_campaign("cross-pocket", Machine(spec.config), spec.probe, [0.0, 90.0],
+                            np.random.default_rng(0), check_collisions=False)
+    assert log.ok.all() and log.n > 100
+
+
+BAD = [
+    ("chain = 3\n", "chain: expected a string"),
+    ('base = "nope"\n', "base: unknown built-in machine 'nope'"),
+    ('base = "vmc-3axis"\nspeed = 3\n', "speed: unknown key"),
+    ('base = "vmc-3axis"\nformat = "vmt-machine/9"\n', "format: expected 'vmt-machine/1'"),
+    ('chain = "V[w-X-Y-b-Z-(C)-t]"\n[strokes]\nX_mm = [-1, 1]\nY_mm = [-1, 1]\n', r"strokes.Z_mm: missing"),
+    ('base = "vmc-3axis"\n[strokes]\nX_mm = [1, -1]\n', r"strokes.X_mm: expected \[min, max\]"),
+    ('base = "vmc-3axis"\n[strokes]\nX_deg = [-1, 1]\n', "strokes.X_deg: expected X_mm"),
+    ('base = "vmc-3axis"\n[strokes]\nC_deg = [-1, 1]\n', "strokes.C_deg: 'C' is not an axis of the chain"),
+    ('base = "vmc-3axis"\n[error.EXX]\nconstant_urad = 1\n', "error.EXX.constant_urad: EXX is a translation; use constant_um"),
+    ('base = "vmc-3axis"\n[error.EAX]\nconstant_um = 1\n', "error.EAX.constant_um: EAX is a rotation; use constant_urad"),
+    ('base = "vmc-3axis"\n[error.EXX]\nconstant_mm = 1\n', "error.EXX.constant_mm: unknown key"),
+    ('base = "vmc-3axis"\n[error.EQQ]\nconstant_um = 1\n', "error.EQQ: unknown ISO"),
+    ('base = "vmc-3axis"\n[error.EXC]\nconstant_um = 1\n', "error.EXC: EXC belongs to axis C"),
+    ('base = "vmc-3axis"\n[error.EB0X]\nconstant_urad = 1\n', "error.EB0X: EB0X is zero by the ISO 230-1 convention"),
+    ('base = "vmc-3axis"\n[error.EC0Y]\nslope_urad_per_m = 1\n', "error.EC0Y.slope_urad_per_m: EC0Y is a location error"),
+    ('base = "vmc-3axis"\n[error.EXX]\ntable_mm = [0, 1]\ntable_um = [0, 1]\n', "error.EXX.interpolation: missing"),
+    ('base = "vmc-3axis"\n[error.EXX]\ntable_mm = [0, 1]\ntable_um = [0]\ninterpolation = "cubic"\n',
+     "error.EXX.table_um: 1 values for 2 positions"),
+    ('base = "vmc-3axis"\n[error.EXX]\ntable_mm = [1, 0]\ntable_um = [0, 1]\ninterpolation = "cubic"\n',
+     "error.EXX.table_mm: positions must be strictly increasing"),
+    ('base = "vmc-3axis"\n[error.EXX]\ntable_mm = [0, 1]\ntable_um = [0, 1]\ninterpolation = "akima"\n',
+     "error.EXX.interpolation: expected"),
+    ('base = "vmc-3axis"\n[error.EXX]\nperiodic = [{ amplitude_um = 1 }]\n', r"error.EXX.periodic\[0\].period_mm: missing"),
+    ('base = "vmc-3axis"\n[error.EXX]\nperiodic = [{ amplitude_um = 1, period_mm = 0 }]\n', "must be > 0"),
+    ('base = "vmc-3axis"\n[error.EXX]\nreversal_um = -1\n', "error.EXX.reversal_um: must be >= 0"),
+    ('base = "vmc-3axis"\n[error.EAX]\nthermal = { scale_ppm_per_h = 1 }\n', "error.EAX.thermal.scale_ppm_per_h: unknown key"),
+    ('base = "vmc-3axis"\n[error.EXX]\n', "error.EXX: no terms"),
+    ('base = "vmc-3axis"\n[probe]\nnoise_um = -1\n', "probe.noise_um: must be >= 0"),
+    ('base = "vmc-3axis"\n[probe]\nradius_mm = 3\n', "probe.radius_mm: unknown key"),
+    ('base = "vmc-3axis"\n[probe]\nlobing = [{ k = 0, cos_um = 1 }]\n', r"probe.lobing\[0\].k: expected an integer >= 1"),
+    ('base = "vmc-3axis"\n[tool]\noffset_mm = [0, 150]\n', "tool.offset_mm: expected 3 numbers"),
+    ('base = "vmc-3axis"\nseed = 3\n', 'seed: only with errors = "realistic"'),
+    ('base = "vmc-3axis"\nerrors = "some"\n', "errors: expected"),
+    ('base = "vmc-3axis"\nchain = "[w-X-b-Q-t]"\n', "chain: chain '\\[w-X-b-Q-t\\]': unknown token"),
+    ("base = \n", "not TOML"),
+]
+
+
+@pytest.mark.parametrize("text, match", BAD)
+def test_bad_file_names_the_key(text, match):
+    with pytest.raises(MachineFileError, match=match) as e:
+        loads(text, source="m.toml")
+    msg = str(e.value)
+    assert msg.startswith("m.toml: ") and "\n" not in msg
+
+
+def test_missing_file_and_unknown_name(tmp_path):
+    with pytest.raises(MachineFileError, match="no such machine file"):
+        load(tmp_path / "nope.toml")
+    with pytest.raises(MachineFileError, match="not a built-in machine"):
+        resolve("nope")
