@@ -1,581 +1,539 @@
-"""Model discovery: what the baseline gets wrong, why, and what fixing it gains.
+"""Model discovery: what the baseline gets wrong, where, why, and what fixing it gains.
 
-Given a campaign, :func:`discover` fits the baseline model (the 2D
-self-calibration of Ibaraki et al., eqs 1-18, :mod:`core.selfcal`), looks
-for structure in its residuals, names the physical cause from a library of
-candidate extensions, refits with the winner (and a second one when the
-first leaves significant structure) and measures the gain in and out of
-sample.
+:func:`discover` takes a self-calibration campaign, builds the planar
+baseline (Ibaraki et al. eqs 1-18, :func:`core.baseline.planar`) and runs
+:func:`discover_baseline`, which works on any :class:`core.baseline.Baseline`
+(the MFB volumetric model and ISO 230-2 positioning runs have their own).
 
-Every candidate is a physical model with few parameters, added as columns
-to the baseline design ``dq = A theta`` (sign convention of CONTRIBUTING:
-a tool error ``E`` gives ``dq = -n . E``):
+What it does, in order, and the statistics behind each step
+-----------------------------------------------------------
+1. **Outliers**: studentized deleted residuals beyond the Bonferroni bound
+   ``t(1 - a / 2n, dof - 1)``, removed one at a time (at most
+   :attr:`Settings.outlier_max_frac` of the rows: more is a systematic
+   effect, not dust, and then nothing is removed).
+2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
+   error), the lack-of-fit F test of the baseline against it, and the gap
+   between held-out and in-sample residuals: ``cv_ss / rss`` against its
+   exact null distribution (standard normal draws through the same linear
+   fit and folds; the ratio does not depend on the noise level).
+3. **Diagnosis** (catalogue-free, :mod:`core.diagnosis`): for every
+   covariate a smooth term is tested against the model (nested F test,
+   Holm over the covariates); its debiased explained RMS says how much of
+   the residual follows that covariate.
+4. **Named causes** (:mod:`core.causes`), greedily, each round the best of
+   those that earn it:
 
-``thermal_drift``
-    offsets and scales of X and Y drifting linearly with time:
-    ``-n_x t``, ``-n_y t``, ``-n_x x t``, ``-n_y y t``.
-``periodic_axis_error``
-    a periodic error of one axis, shorter than the error-map grid:
-    ``-n_d sin(2 pi a / P)``, ``-n_d cos(2 pi a / P)`` for the axis ``a``
-    and both directions ``d``, period ``P`` scanned.
-``probe_lobing``
-    pre-travel as a low-order Fourier series of the approach azimuth in
-    the machine frame: ``cos k phi``, ``sin k phi``, k = 1..4.
-``reversal``
-    lost motion per axis: ``-n_a sign(d_a) / 2`` (``d`` approach direction).
-``nonrigid``
-    low-order coupling of X and Y that no rigid-body model can produce.
-``outlier``
-    a few touches deviating grossly: studentized deleted residuals beyond
-    a Bonferroni bound, removed iteratively.
+   a. significance: nested F test of its columns, Bonferroni over the
+      causes and the effective number of trials of its scan (periods,
+      positions, sensors);
+   b. identifiability: the variance inflation of the cause's combinations
+      of columns against the model: those numerically inside it are left
+      out (a magnitude that needs them is not reported), and a cause whose
+      best combination is inflated more than :attr:`Settings.vif_max` is
+      confounded and refused (the principal angle to the model is
+      reported);
+   c. material cross-validated gain: the held-out mean square must fall by
+      at least ``(material_sigma * sigma)^2`` per row;
+   d. plausibility: magnitudes inside the cause's bounds (beyond their
+      U95), periods above the Nyquist limit;
+   e. the structure lives where the cause says: no smooth function of a
+      covariate of another family (time, position, direction, feature:
+      :attr:`core.diagnosis.Covariate.family`) explains materially more
+      than both the cause's columns and the best smooth function of a
+      covariate of its own family (debiased sums of squares).
 
-A candidate counts only when it holds up out of sample: an F test on the
-added columns (Bonferroni over everything tried, including the scanned
-periods), a lower BIC, and a lower cross-validated RMS over held-out
-set-ups. The held-out set-up's own rigid parameters (its C-axis errors) are
-refitted on it, everything else is predicted. When nothing passes, the
-cause is ``none`` if the residuals show no structure and ``unexplained``
-if they do: never a guess.
+   Among those, the lowest cross-validated mean square wins; within the
+   materiality margin of it, the fewest columns (parsimony).
+5. **Rival check**: a named cause must explain the structure in its own
+   covariate at least :attr:`Settings.rival_share` as well as a
+   catalogue-free smooth function of that covariate does (debiased sums of
+   squares), or fall short of it by an immaterial amount; and its plainer
+   counter-explanation (:attr:`core.causes.Cause.counter`, e.g. a finer
+   error map against a non-rigid coupling) must not explain as much.
+   Otherwise it was a guess that caught part of something else: it is
+   dropped and said so.
+6. **Unexplained**: if structure remains (diagnosis, lack of fit or CV gap
+   significant and material), the cause list gains ``unexplained`` with
+   the diagnosis; a penalised smooth term in the strongest covariate
+   (P-spline, penalty by cross-validation) is fitted and kept when its
+   held-out gain is material, reported as unnamed.
+7. **Estimates**: the estimand (the workpiece) of the baseline and of the
+   extended model with U95 (k = 2, sigma from each model's residuals),
+   null where the design cannot identify it; every magnitude with its U95
+   (delta method through the covariance of the cause's coefficients and
+   nonlinear parameters).
+
+Family-wise false-alarm rate: :attr:`Settings.alpha`, split equally over
+the four families of tests (lack of fit, CV gap, diagnosis, named causes).
+
+Cross-validation: leave one group out (set-ups for the planar baseline);
+the held-out group's own columns (its C-axis errors, targets seen only
+there) are refitted on it, the rest predicted. The training fit solves the
+baseline by truncated SVD of the column-scaled design (relative singular
+values below :attr:`Settings.cv_rcond` dropped, so nodes the other set-ups
+barely see do not extrapolate) and the extension columns by least squares
+on their part outside that span; the same for every model compared.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg as sla
 from scipy import stats
 
+from . import baseline as bl_mod
+from . import causes as causes_mod
 from . import selfcal
+from .baseline import Baseline
+from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f_batch, new_basis, orth,
+                        replicate_scatter, term_bases)
 from .exceptions import ConfigError, IdentifiabilityError
 from .touches import Touches
-from .units import MM, UM
+from .units import UM
 
-CAUSES = ("none", "outlier", "thermal_drift", "periodic_axis_error", "probe_lobing", "reversal",
-          "nonrigid", "unexplained")
+
+#: Singular value (columns normalised, outside the model) below which a
+#: direction of a cause's columns counts as unseen (variance inflation 1e4:
+#: a hundredfold loss of precision; its magnitudes are not reported).
+WEAK_SV = 1e-2
+#: Leverage within its group above which a row is the only support of one of
+#: the group's own columns (it cannot be predicted; left out of the CV).
+OWN_LEVERAGE = 1e-3
+#: Families of tests sharing the false-alarm rate (Bonferroni split).
+FAMILIES = ("lack_of_fit", "cv_gap", "diagnosis", "causes")
 
 
 @dataclass(frozen=True)
 class Settings:
-    """Decision thresholds of :func:`discover` (one documented place).
+    """Decision thresholds of discovery (one documented place).
 
     Attributes
     ----------
     alpha : float
-        Family-wise false-alarm rate of the F tests, shared (Bonferroni)
-        over all candidates and every scanned period.
-    cv_gain : float
-        A candidate must reduce the cross-validated RMS below
-        ``cv_gain`` times the current model's.
+        Family-wise false-alarm rate of "there is structure", split
+        equally over :data:`FAMILIES`. 0.01: the aim is at most 5 % false
+        alarms on effect-free campaigns; the rate is an upper bound under
+        Gaussian noise, and materiality cuts it further.
+    material_sigma : float
+        Structure whose RMS per row is below ``material_sigma`` times the
+        noise is immaterial: never a finding, never "structure". 0.3
+        (a tenth of the noise variance): an effect that small biases a
+        target's workpiece estimate, averaged over its set-ups, by less
+        than half its own standard uncertainty ``sigma / sqrt(N_c)`` for
+        ``N_c <= 3`` set-ups, and the cross-validated mean square of
+        effect-free campaigns scatters by a few hundredths of the noise
+        variance (the 0.98-0.997 CV ratios of the false alarms that
+        motivated this threshold).
+    vif_max : float
+        A cause whose best-determined combination of columns is inflated
+        more than this against the model is confounded with it and refused:
+        100, ten times less certain than if it were orthogonal to the model
+        (principal angle below ~6 deg). Combinations inflated beyond
+        ``1 / WEAK_SV^2`` are left out of every cause.
+    rival_share : float
+        A named cause must explain at least this share of what a smooth
+        function of its covariate explains (debiased): 0.8.
     outlier_alpha : float
-        Family-wise rate of the studentized-residual outlier test.
+        Family-wise rate of the outlier test.
     outlier_max_frac : float
-        At most this fraction of touches may be called outliers; more
-        points to a systematic effect, not dust.
-    structure_alpha : float
-        Family-wise rate of the residual structure tests (unexplained).
+        At most this fraction of rows may be outliers; if the test wants
+        more, they are structure, not dust, and none is removed.
     grid_steps_mm : tuple of float
-        Error-map grid steps tried for the baseline, finest first.
+        Error-map grid steps tried for the planar baseline.
     select_grid : bool
-        Choose among the identifiable grids by BIC of the baseline fit
-        (default); False takes the finest identifiable one.
+        Choose the grid by BIC (else the finest identifiable).
     max_findings : int
-        Extensions added at most (besides outlier removal).
-    periods : int
-        Trial periods in the scan of the periodic candidate.
+        Named causes adopted at most.
+    cv_draws : int
+        Monte Carlo draws of the CV-gap null distribution (its mean and
+        spread; the p-value is the tail of a chi-square scaled to them).
+    cv_rcond : float
+        Relative singular value below which the training fit of a
+        cross-validation fold drops a direction.
+    shortlist : int
+        Trials of a scan evaluated exactly after the periodogram-like
+        pre-screen.
+    noise_max_um : float
+        The largest probing noise (1 sigma, um) a touch-trigger probe on a
+        machine tool gives: 1.5 um, three times a kinematic probe's stated
+        unidirectional repeatability (2 sigma <= 1 um) with the machine's
+        own repeatability added. A planar campaign whose noise estimate
+        (repeats, else residuals) is larger carries structure no covariate
+        follows (a seat that settles one way on some touches, a loose
+        stylus): never ``none``. Positioning runs and the whitened MFB
+        points have their own noise and are not judged by it.
     """
 
-    alpha: float = 1e-2
-    cv_gain: float = 1.0
+    alpha: float = 0.01
+    material_sigma: float = 0.3
+    vif_max: float = 100.0
+    rival_share: float = 0.8
     outlier_alpha: float = 0.001
-    outlier_max_frac: float = 0.05
-    structure_alpha: float = 1e-5
+    outlier_max_frac: float = 0.02
     grid_steps_mm: tuple = (22.0, 30.0, 40.0, 55.0, 80.0)
-    max_findings: int = 2
-    periods: int = 160
     select_grid: bool = True
+    max_findings: int = 3
+    cv_draws: int = 99
+    cv_rcond: float = 1e-2
+    shortlist: int = 8
+    noise_max_um: float = 1.5
+
+    @property
+    def alpha_family(self) -> float:
+        return self.alpha / len(FAMILIES)
 
 
 # ---------------------------------------------------------------------------
-# the baseline
+# cross-validation
 # ---------------------------------------------------------------------------
+class Folds:
+    """Leave-one-group-out cross-validation of linear models over one design (rows fixed).
+
+    The baseline part of each training fit is factored once (truncated
+    eigen-decomposition of the column-scaled normal matrix); extension
+    columns are then solved on their part outside the retained span, so a
+    candidate costs a few small products per fold. Linear in the
+    observations: :meth:`residuals` takes (n,) or (n, B).
+    """
+
+    def __init__(self, A: np.ndarray, groups: np.ndarray, rcond: float):
+        self.n = len(A)
+        self.rcond = rcond
+        self.items = []
+        for g in np.unique(groups):
+            te = np.flatnonzero(groups == g)
+            tr = np.flatnonzero(groups != g)
+            if te.size == 0 or tr.size == 0:
+                continue
+            Atr = A[tr]
+            sc = np.linalg.norm(Atr, axis=0)
+            used = sc > 1e-9 * max(sc.max(), 1e-300)
+            As = Atr[:, used] / sc[used]
+            w, V = np.linalg.eigh(As.T @ As)
+            keep = w > rcond ** 2 * w[-1]
+            Vs = V[:, keep] / np.sqrt(w[keep])
+            U = As @ Vs  # (n_tr, r) orthonormal: the retained training span
+            P = (A[te][:, used] / sc[used]) @ Vs  # test rows' prediction per unit of U^T y
+            full = w > 1e-12 * w[-1]
+            Uf = As @ (V[:, full] / np.sqrt(w[full]))  # the whole training span (weak directions too)
+            Ao = A[te][:, ~used]
+            Qo = orth(Ao) if Ao.shape[1] else np.zeros((te.size, 0))
+            self.items.append((tr, te, U, P, Qo, Uf))
+        if not self.items:
+            raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
+        self.residuals(np.zeros(self.n))
+        self.dof = max(self.last_dof, 1)
+
+    def residuals(self, Y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> np.ndarray:
+        """Held-out residuals of the baseline (plus extension columns ``E`` (n, k)).
+
+        ``penalty`` (k, k): a ridge penalty on the extension's coefficients
+        (a penalised smooth term).
+        """
+        one = Y.ndim == 1
+        Y2 = Y[:, None] if one else Y
+        out = np.zeros_like(Y2, dtype=float)
+        self.last_dof = 0
+        for tr, te, U, P, Qo, Uf in self.items:
+            ytr = Y2[tr]
+            z = U.T @ ytr
+            pred = P @ z
+            own = Qo
+            if E is not None and E.shape[1]:
+                Etr = E[tr]
+                en = np.linalg.norm(Etr, axis=0)
+                eu = en > 1e-9 * max(en.max(), 1e-300)
+                if eu.any():
+                    E1 = Etr[:, eu] / en[eu]
+                    # the extension is fitted on its part outside the whole training
+                    # span (a direction the baseline has but weakly sees is the
+                    # baseline's, not the extension's), then the baseline on the rest
+                    zf = Uf.T @ E1
+                    Gm = E1.T @ E1 - zf.T @ zf
+                    if penalty is not None:
+                        Gm = Gm + penalty[np.ix_(eu, eu)] / np.outer(en[eu], en[eu])
+                    rhs = E1.T @ ytr - zf.T @ (Uf.T @ ytr)
+                    # truncated like the baseline: directions of the (normalised)
+                    # extension that the training rows barely see beyond the
+                    # baseline's span are not extrapolated
+                    w, V = np.linalg.eigh(Gm)
+                    good = w > self.rcond ** 2 * max(w.max(), 1.0) if penalty is None else w > 1e-12 * max(w.max(), 1e-300)
+                    c = V[:, good] @ ((V[:, good].T @ rhs) / w[good][:, None])
+                    pred = P @ (U.T @ (ytr - E1 @ c)) + (E[te][:, eu] / en[eu]) @ c
+                if (~eu).any():
+                    own = orth(np.hstack([own, E[te][:, ~eu]]))
+            e = Y2[te] - pred
+            if own.shape[1]:
+                # the held-out group's own columns, fitted on its other rows:
+                # leave-one-row-out residuals within the group, e / (1 - h);
+                # a row that alone supports an own column (h = 1) says nothing
+                h = np.sum(own ** 2, axis=1)
+                ok = h < 1 - OWN_LEVERAGE
+                e = (e - own @ (own.T @ e)) / np.where(ok, 1 - h, 1.0)[:, None]
+                e[~ok] = 0.0
+                self.last_dof += int(ok.sum())
+            else:
+                self.last_dof += te.size
+            out[te] = e
+        return out[:, 0] if one else out
+
+    def mse(self, y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> float:
+        """Held-out mean square over the rows that can be predicted."""
+        e = self.residuals(y, E, penalty)
+        return float(e @ e) / max(self.last_dof, 1)
 
 
+class CpEstimate:
+    """Mallows' Cp in place of cross-validation, for designs without redundancy.
+
+    When every parameter is seen by a few rows only (an MFB plan: each table
+    node by the points of one or two placements), predicting held-out rows
+    extrapolates and cross-validation measures that, not the model. The
+    prediction error is then estimated in sample: ``(RSS + 2 k s^2) / n``
+    with ``k`` the model's dimensions (effective ones for a penalised term)
+    and ``s^2`` the baseline's residual variance, fixed for every model
+    compared (Mallows 1973).
+    """
+
+    def __init__(self, A: np.ndarray, groups: np.ndarray, rcond: float):
+        self.n = len(A)
+        self.Q = orth(A)
+        r = None
+        self.s2 = None
+        self.dof = self.n
+        self.last_dof = self.n
+        del r, groups, rcond
+
+    def set_sigma(self, y: np.ndarray) -> None:
+        r = y - self.Q @ (self.Q.T @ y)
+        self.s2 = float(r @ r) / max(self.n - self.Q.shape[1], 1)
+
+    def residuals(self, Y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None):
+        """In-sample residuals (the null draws of a CV gap have no meaning here)."""
+        Q = self.Q if E is None or not E.shape[1] else np.hstack([self.Q, new_basis(self.Q, E)])
+        return Y - Q @ (Q.T @ Y)
+
+    def mse(self, y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> float:
+        if self.s2 is None:
+            self.set_sigma(y)
+        if E is None or not E.shape[1]:
+            r = y - self.Q @ (self.Q.T @ y)
+            k = self.Q.shape[1]
+        elif penalty is None:
+            U = new_basis(self.Q, E)
+            r = y - self.Q @ (self.Q.T @ y)
+            r = r - U @ (U.T @ r)
+            k = self.Q.shape[1] + U.shape[1]
+        else:
+            Sp = E - self.Q @ (self.Q.T @ E)
+            M = Sp.T @ Sp + penalty
+            r0 = y - self.Q @ (self.Q.T @ y)
+            c = np.linalg.lstsq(M, Sp.T @ r0, rcond=1e-12)[0]
+            r = r0 - Sp @ c
+            k = self.Q.shape[1] + float(np.trace(np.linalg.lstsq(M, Sp.T @ Sp, rcond=1e-12)[0]))
+        return (float(r @ r) + 2 * k * self.s2) / self.n
+
+
+# ---------------------------------------------------------------------------
+# the model being extended
+# ---------------------------------------------------------------------------
 @dataclass(frozen=True)
-class Baseline:
-    """The baseline design and everything discovery needs around it.
+class Term:
+    """Columns added to the baseline: a named cause, or the unnamed smooth term."""
 
-    Attributes
-    ----------
-    design : selfcal.Design
-        The paper's model (eqs 1-18).
-    A : (n, p) float
-        ``design.A`` dense, plus the height columns when the touches lie at
-        more than one Z level (see :func:`baseline`).
-    C, d : gauge conditions ``C theta = d`` for all p columns.
-    names : tuple of str
-    own_cols : tuple of int arrays
-        Per set-up, the columns that belong to it alone (its C-axis
-        errors): refitted on a held-out set-up in cross-validation.
-    """
-
-    design: selfcal.Design
-    A: np.ndarray
-    C: np.ndarray
-    d: np.ndarray
-    names: tuple
-    grid_step_m: float
-    own_cols: tuple
-    z_levels_m: tuple
-    identifiable: bool = True
-    why: str = ""
+    cause: str
+    columns: np.ndarray = field(repr=False)  # (N, k) over all baseline rows
+    labels: tuple
+    info: dict
+    covariate: str
+    tries: float = 1.0
+    evidence: dict = field(default_factory=dict)
+    penalty: np.ndarray | None = field(default=None, repr=False)
+    weak: int = 0  # directions of the cause's columns left out as not identifiable
+    origin: object = field(default=None, repr=False)  # the core.causes.Cause record
+    labels_all: tuple = ()  # the scan's labels (the magnitudes' coefficient layout)
+    map: np.ndarray | None = field(default=None, repr=False)  # (k_all, k): label coefficients per column
+    cols_all: np.ndarray | None = field(default=None, repr=False)  # (N, k_all) the scan's columns
 
 
-def _height_columns(t: Touches, des: selfcal.Design):
-    """C-axis tilt and Abbe columns for touches at more than one Z level.
+def _stack(terms, rows) -> np.ndarray:
+    if not terms:
+        return np.zeros((len(rows), 0))
+    return np.hstack([t.columns[rows] for t in terms])
 
-    The paper's model is planar: every touch at one height. Touches at
-    another height (sphere equators above the pocket) also see the C-axis
-    tilt error motions ``EAC``/``EBC`` (per set-up) and the angular errors
-    of X and Y through the height difference ``dz``. The per-set-up tilt
-    columns take the C-axis part and, for raised targets that sit at a few
-    places (spheres), most of the rest; richer Abbe terms are not
-    identifiable from two spheres. Without them the baseline calls the
-    height effect an error. Returns (columns, names, per-set-up column indices
-    within the block, gauge rows) or None for a single level.
-    """
-    z = t.pn_R[:, 2]
-    zr = np.round(z, 6)
-    levels, counts = np.unique(zr, return_counts=True)
-    if levels.size < 2:
+
+def _penalty(terms) -> np.ndarray | None:
+    if not any(t.penalty is not None for t in terms):
         return None
-    z_ref = levels[np.argmax(counts)]
-    dz = z - z_ref
-    nx, ny = t.n_R[:, 0], t.n_R[:, 1]
-    cols, names, own = [], [], []
-    cn = [n.split("[", 1)[1].rstrip("]") for n in des.names[des.slices["EXC"]]]
-    for j in range(len(des.setup_ids)):
-        m = (t.setup == j).astype(float)
-        own.append(np.array([len(cols), len(cols) + 1]))
-        cols += [nx * dz * m, -ny * dz * m]
-        names += [f"EBC,total[{cn[j]}]", f"EAC,total[{cn[j]}]"]
-    # workpiece tilt in W is the same as shifting every raised target: fix the
-    # reference set-up's tilt (two gauge conditions)
-    ref = des.ref_setup
-    gauge = [own[ref][0], own[ref][1]]
-    return np.column_stack(cols), tuple(names), own, gauge, tuple(float(v) for v in levels)
+    k = sum(t.columns.shape[1] for t in terms)
+    P = np.zeros((k, k))
+    o = 0
+    for t in terms:
+        kk = t.columns.shape[1]
+        if t.penalty is not None:
+            P[o:o + kk, o:o + kk] = t.penalty
+        o += kk
+    return P
 
 
-def baseline(touches: Touches, grid_step_mm: float | None = None,
-             settings: Settings = Settings(), yaw: str = "ECY") -> Baseline:
-    """The 2D self-calibration design on the finest grid the data identify.
+@dataclass
+class _State:
+    """In-sample fit of baseline + terms on the rows kept (internal)."""
 
-    With touches at several Z levels, per-set-up C-axis tilt columns are
-    added (:func:`_height_columns`). When no grid makes the parameters
-    identifiable (a symmetric part at C angles 90 deg apart is the classic
-    case), the finest grid that meets the count condition of eq 6 is used
-    all the same: residuals do not depend on the gauge, and the workpiece
-    estimates are then reported as not identifiable (``identifiable`` False,
-    ``why`` names the combinations).
-
-    Raises
-    ------
-    IdentifiabilityError
-        If no grid meets eq 6: discovery needs the same targets probed at
-        two or more rotary-table angles, and more touches than unknowns.
-    """
-    steps = (grid_step_mm,) if grid_step_mm else settings.grid_steps_mm
-    last = None
-    fallback = None
-    cands: list = []
-    for st in steps:
-        grid = selfcal.Grid.from_extent(touches.pn_R, st * MM)
-        try:
-            selfcal.check_count(touches, grid)
-            des = selfcal.build_design(touches, grid, yaw=yaw)
-        except IdentifiabilityError as e:
-            last = e
-            continue
-        A = des.A.toarray()
-        C, d, names = des.C, des.d, tuple(des.names)
-        s = des.slices
-        own = [np.array([s["EXC"].start + j, s["EYC"].start + j, s["ECC"].start + j])
-               for j in range(len(des.setup_ids))]
-        levels = (float(np.median(touches.pn_R[:, 2])),)
-        h = _height_columns(touches, des)
-        if h is not None:
-            H, hn, hown, hg, levels = h
-            p = A.shape[1]
-            A = np.hstack([A, H])
-            C = np.hstack([C, np.zeros((C.shape[0], H.shape[1]))])
-            extra = np.zeros((len(hg), A.shape[1]))
-            for r, c in enumerate(hg):
-                extra[r, p + c] = 1.0
-            C = np.vstack([C, extra])
-            d = np.concatenate([d, np.zeros(len(hg))])
-            names = names + hn
-            own = [np.concatenate([o, p + ho]) for o, ho in zip(own, hown)]
-        bl = dict(design=des, A=A, C=C, d=d, names=names, grid_step_m=st * MM, own_cols=tuple(own),
-                  z_levels_m=levels)
-        try:
-            selfcal.solve(A, np.zeros(touches.n), C, d, names=names, sigma=1.0, covariance="none")
-        except IdentifiabilityError as e:
-            last = e
-            if fallback is None:
-                fallback = Baseline(**bl, identifiable=False, why=str(e))
-            continue
-        cands.append(Baseline(**bl))
-    if cands:
-        if len(cands) == 1 or not settings.select_grid:
-            return cands[0]
-        # the grid is part of the baseline model: the finest grid absorbs the
-        # most (also of what discovery looks for), the coarsest the least;
-        # the information criterion chooses, on the touches themselves
-        y = touches.dq_m
-
-        def bic(b):
-            f = _fit(b.A, y)
-            return _bic(f.rss, touches.n, f.Q.shape[1])
-
-        return min(cands, key=bic)
-    if fallback is not None:
-        return fallback
-    raise IdentifiabilityError(f"no baseline: the 2D self-calibration does not meet eq 6 on grids of "
-                               f"{', '.join(f'{s:g}' for s in steps)} mm ({last})")
-
-
-# ---------------------------------------------------------------------------
-# linear algebra on the column space
-# ---------------------------------------------------------------------------
-
-
-def _basis(A: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-    """Orthonormal basis (n, r) of the column space of A (columns scaled)."""
-    if A.shape[1] == 0:
-        return np.zeros((A.shape[0], 0))
-    nrm = np.linalg.norm(A, axis=0)
-    keep = nrm > 0
-    As = A[:, keep] / nrm[keep]
-    U, s, _ = sla.svd(As, full_matrices=False, lapack_driver="gesdd")
-    r = int(np.sum(s > tol * s[0])) if s.size else 0
-    return U[:, :r]
-
-
-def _new_directions(Q: np.ndarray, C: np.ndarray, tol: float = 1e-6):
-    """Part of the columns of C outside span(Q): (basis, kept column indices)."""
-    M = C - Q @ (Q.T @ C)
-    keep = np.linalg.norm(M, axis=0) > tol * np.maximum(np.linalg.norm(C, axis=0), 1e-300)
-    if not keep.any():
-        return np.zeros((C.shape[0], 0)), keep
-    return _basis(M[:, keep], tol=1e-8), keep
-
-
-@dataclass(frozen=True)
-class _Fit:
+    rows: np.ndarray
     Q: np.ndarray
     r: np.ndarray
     rss: float
     dof: int
 
-
-def _fit(A: np.ndarray, y: np.ndarray) -> _Fit:
-    Q = _basis(A)
-    r = y - Q @ (Q.T @ y)
-    return _Fit(Q, r, float(r @ r), int(len(y) - Q.shape[1]))
+    @property
+    def sigma(self) -> float:
+        return float(np.sqrt(self.rss / max(self.dof, 1)))
 
 
-def _bic(rss: float, n: int, k: int) -> float:
-    return n * np.log(max(rss, 1e-300) / n) + k * np.log(n)
-
-
-#: Relative singular value below which a held-out set-up's prediction does not
-#: extrapolate (truncated SVD of the column-scaled training design): without it,
-#: grid nodes that the remaining set-ups barely see make the predicted residual
-#: of the held-out set-up tens of micrometres, and the cross-validation noise.
-CV_RCOND = 1e-2
-
-
-def _cv_rms(A: np.ndarray, y: np.ndarray, setup: np.ndarray, own: tuple) -> float:
-    """Leave-one-set-up-out RMS: predict a set-up from the others, refit its own columns.
-
-    The training fit is a truncated-SVD least squares on the column-scaled
-    design (:data:`CV_RCOND`), the same for every model compared.
-    """
-    sq, cnt = 0.0, 0
-    for j, cols in enumerate(own):
-        te = setup == j
-        tr = ~te
-        if te.sum() == 0 or tr.sum() == 0:
-            continue
-        Atr = A[tr]
-        scale = np.linalg.norm(Atr, axis=0)
-        used = scale > 1e-9 * scale.max()  # rounding dust (cos 90 deg) is no column
-        theta = np.zeros(A.shape[1])
-        sol, *_ = np.linalg.lstsq(Atr[:, used] / scale[used], y[tr], rcond=CV_RCOND)
-        theta[used] = sol / scale[used]
-        own_mask = np.zeros(A.shape[1], bool)
-        own_mask[cols] = True
-        pred_cols = used & ~own_mask
-        e = y[te] - A[te][:, pred_cols] @ theta[pred_cols]
-        Ao = A[te][:, own_mask]
-        if Ao.size:
-            c, *_ = np.linalg.lstsq(Ao, e, rcond=1e-10)
-            e = e - Ao @ c
-        sq += float(e @ e)
-        cnt += int(te.sum())
-    if cnt == 0:
-        raise IdentifiabilityError("cross-validation needs at least two set-ups")
-    return float(np.sqrt(sq / cnt))
+def _state(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _State:
+    E = _stack([t for t in terms if t.penalty is None], rows)
+    Q = Qb if E.shape[1] == 0 else np.hstack([Qb, new_basis(Qb, E)])
+    yr = y[rows]
+    r = yr - Q @ (Q.T @ yr)
+    # a penalised term: its fitted part removed by the ridge solution
+    pen = [t for t in terms if t.penalty is not None]
+    dof = len(rows) - Q.shape[1]
+    if pen:
+        S = _stack(pen, rows)
+        Sp = S - Q @ (Q.T @ S)
+        Pm = _penalty(pen)
+        M = Sp.T @ Sp + Pm
+        c = np.linalg.lstsq(M, Sp.T @ r, rcond=1e-12)[0]
+        r = r - Sp @ c
+        edf = float(np.trace(np.linalg.lstsq(M, Sp.T @ Sp, rcond=1e-12)[0]))
+        dof = int(round(len(rows) - Q.shape[1] - edf))
+    return _State(rows, Q, r, float(r @ r), max(dof, 1))
 
 
 # ---------------------------------------------------------------------------
-# candidate extensions
+# outliers
 # ---------------------------------------------------------------------------
+def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: float = 0.02,
+                  Q: np.ndarray | None = None) -> list[int]:
+    """Indices (into y) of gross outliers: studentized deleted residuals, one at a time.
 
+    Each pass removes the most extreme row if its studentized deleted
+    residual exceeds the Bonferroni bound ``t(1 - alpha / 2n, dof - 1)``.
+    If more than ``max_frac`` of the rows (at least 3) would go, the large
+    residuals are structure, not dust: nothing is returned.
 
-@dataclass(frozen=True)
-class Extension:
-    """Columns of one candidate cause, with what they mean."""
-
-    cause: str
-    columns: np.ndarray  # (n, k)
-    labels: tuple  # k labels
-    tries: int = 1  # hypotheses tried to find it (Bonferroni factor)
-    info: dict = field(default_factory=dict)
-
-
-def _geometry(t: Touches):
-    x, y = t.pn_R[:, 0], t.pn_R[:, 1]
-    L = max(np.ptp(x), np.ptp(y), 1e-3) / 2
-    xc, yc = (x.max() + x.min()) / 2, (y.max() + y.min()) / 2
-    T = max(np.ptp(t.t_s), 1e-9)
-    tt = (t.t_s - t.t_s.min()) / T - 0.5
-    return x, y, (x - xc) / L, (y - yc) / L, tt, T, L
-
-
-def _temperature(t: Touches):
-    """Mean of the log's temperature columns, centred (K), or None."""
-    cols = [v for v in t.temps_C.values() if np.all(np.isfinite(v)) and np.ptp(v) > 0]
-    if not cols:
-        return None
-    T = np.mean(cols, axis=0)
-    return T - T.mean()
-
-
-def ext_drift(t: Touches) -> Extension:
-    """Thermal drift: X/Y offsets and scales changing linearly with time, or
-    with the logged temperature when the log carries ``temp_*_C`` columns."""
-    nx, ny = t.n_R[:, 0], t.n_R[:, 1]
-    x, y, xs, ys, tt, T, L = _geometry(t)
-    cols = [-nx * tt, -ny * tt, -nx * x * tt, -ny * y * tt]
-    labels = ["x_offset", "y_offset", "x_scale", "y_scale"]
-    dT = _temperature(t)
-    if dT is not None:
-        cols += [-nx * dT, -ny * dT, -nx * x * dT, -ny * y * dT]
-        labels += ["x_offset_per_K", "y_offset_per_K", "x_scale_per_K", "y_scale_per_K"]
-    return Extension("thermal_drift", np.column_stack(cols), tuple(labels), tries=len(cols),
-                     info={"T_s": T, "pick_one": True})
-
-
-def ext_lobing(t: Touches, kmax: int = 4) -> Extension:
-    """Probe lobing: pre-travel as a Fourier series of the approach azimuth (machine frame)."""
-    phi = np.arctan2(t.d_R[:, 1], t.d_R[:, 0])
-    cols, labels = [], []
-    for k in range(1, kmax + 1):
-        cols += [np.cos(k * phi), np.sin(k * phi)]
-        labels += [f"cos{k}", f"sin{k}"]
-    return Extension("probe_lobing", np.column_stack(cols), tuple(labels), info={"phi": phi})
-
-
-def ext_reversal(t: Touches) -> Extension:
-    """Reversal: lost motion of each axis, signed by its direction of motion at the touch."""
-    s = np.where(np.abs(t.d_R) > 1e-9, np.sign(t.d_R), 0.0)
-    C = np.column_stack([-t.n_R[:, 0] * s[:, 0] / 2, -t.n_R[:, 1] * s[:, 1] / 2])
-    return Extension("reversal", C, ("x_lost_motion", "y_lost_motion"))
-
-
-def ext_nonrigid(t: Touches) -> Extension:
-    """Non-rigid coupling: X/Y errors varying jointly with x and y."""
-    nx, ny = t.n_R[:, 0], t.n_R[:, 1]
-    x, y, xs, ys, *_ = _geometry(t)
-    C = np.column_stack([-nx * xs * ys, -ny * xs * ys, -nx * xs * xs * ys, -ny * xs * ys * ys,
-                         -nx * xs * ys * ys, -ny * xs * xs * ys])
-    return Extension("nonrigid", C, ("EX~xy", "EY~xy", "EX~x2y", "EY~xy2", "EX~xy2", "EY~x2y"))
-
-
-def _periodic_columns(t: Touches, axis: int, P: float) -> np.ndarray:
-    a = t.pn_R[:, axis]
-    s, c = np.sin(2 * np.pi * a / P), np.cos(2 * np.pi * a / P)
-    nx, ny = t.n_R[:, 0], t.n_R[:, 1]
-    return np.column_stack([-nx * s, -nx * c, -ny * s, -ny * c])
-
-
-def ext_periodic(t: Touches, Q: np.ndarray, r: np.ndarray, grid_step_m: float,
-                 n_periods: int = 160) -> Extension:
-    """Periodic axis error: scan the period along X and Y, keep the best.
-
-    Periods from four times the smallest spacing of distinct positions
-    (well sampled) up to the grid step: a periodic error shorter than the
-    error map's grid (longer ones are the error map's job).
-    """
-    best = (-1.0, 0, 0.0)
-    lo_all = []
-    for axis in (0, 1):
-        u = np.unique(np.round(t.pn_R[:, axis], 7))
-        if u.size < 8:
-            continue
-        lo_all.append(max(4 * np.median(np.diff(u)), 1e-3))
-    if not lo_all:
-        return Extension("periodic_axis_error", np.zeros((t.n, 0)), (), tries=1)
-    p_lo = min(lo_all)
-    p_hi = grid_step_m
-    if p_hi <= p_lo:
-        return Extension("periodic_axis_error", np.zeros((t.n, 0)), (), tries=1)
-    periods = np.geomspace(p_lo, p_hi, n_periods)
-    for axis in (0, 1):
-        for P in periods:
-            B, _ = _new_directions(Q, _periodic_columns(t, axis, P))
-            gain = float(np.sum((B.T @ r) ** 2))
-            if gain > best[0]:
-                best = (gain, axis, P)
-    # refine the period around the best trial
-    _, axis, P0 = best
-    fine = np.geomspace(P0 / 1.03, P0 * 1.03, 41)
-    gains = []
-    for P in fine:
-        B, _ = _new_directions(Q, _periodic_columns(t, axis, P))
-        gains.append(float(np.sum((B.T @ r) ** 2)))
-    P = float(fine[int(np.argmax(gains))])
-    ax = "XY"[axis]
-    # columns: -n_x (sin, cos), -n_y (sin, cos): the X and Y components of the error of axis ``ax``
-    return Extension("periodic_axis_error", _periodic_columns(t, axis, P),
-                     (f"EX{ax}_sin", f"EX{ax}_cos", f"EY{ax}_sin", f"EY{ax}_cos"),
-                     tries=2 * n_periods, info={"axis": ax, "period_m": P})
-
-
-# ---------------------------------------------------------------------------
-# outliers and residual structure
-# ---------------------------------------------------------------------------
-
-
-def find_outliers(A: np.ndarray, y: np.ndarray, settings: Settings = Settings()) -> list[int]:
-    """Indices (into y) of gross outliers: studentized deleted residuals, iteratively.
-
-    Each pass removes the most extreme touch if its studentized deleted
-    residual exceeds the Bonferroni bound ``t(1 - alpha / 2n, dof - 1)``;
-    at most ``outlier_max_frac`` of the touches.
+    Parameters
+    ----------
+    X : (n, p) float
+        The model's design (any scaling; the column space matters).
+    y : (n,) float
+    Q : (n, r) float, optional
+        Orthonormal basis of X's column space (saves the first factorisation).
     """
     n = len(y)
+    cap = max(3, int(max_frac * n))
     keep = np.ones(n, bool)
     out: list[int] = []
-    for _ in range(max(1, int(settings.outlier_max_frac * n))):
+    while True:
         idx = np.flatnonzero(keep)
-        f = _fit(A[idx], y[idx])
-        if f.dof < 3:
+        Q = Q if (Q is not None and len(idx) == n) else orth(X[idx])
+        r = y[idx] - Q @ (Q.T @ y[idx])
+        dof = len(idx) - Q.shape[1]
+        if dof < 3:
             break
-        h = np.sum(f.Q ** 2, axis=1)
-        ok = h < 1 - 1e-9
-        r = f.r
-        s2 = (f.rss - np.where(ok, r ** 2 / np.where(ok, 1 - h, 1), 0)) / (f.dof - 1)
-        tstat = np.where(ok, np.abs(r) / np.sqrt(np.maximum(s2, 1e-300) * np.where(ok, 1 - h, 1)), 0)
+        h = np.sum(Q ** 2, axis=1)
+        ok = h < 0.99  # a row that (nearly) alone determines a parameter cannot be judged
+        rss = float(r @ r)
+        den = np.where(ok, 1 - h, 1.0)
+        s2 = (rss - np.where(ok, r ** 2 / den, 0.0)) / (dof - 1)
+        tstat = np.where(ok, np.abs(r) / np.sqrt(np.maximum(s2, 1e-300) * den), 0.0)
         k = int(np.argmax(tstat))
-        bound = stats.t.isf(settings.outlier_alpha / (2 * len(idx)), f.dof - 1)
-        if tstat[k] <= bound:
+        if tstat[k] <= stats.t.isf(alpha / (2 * len(idx)), dof - 1):
             break
+        if len(out) >= cap:
+            return []
         out.append(int(idx[k]))
         keep[idx[k]] = False
     return sorted(out)
 
 
-def structure_tests(t: Touches, r: np.ndarray, dof: int, bins: int = 8) -> dict:
-    """p-values of residual structure against each variable the log carries.
-
-    Binned one-way ANOVA of the residuals against time (within set-ups),
-    X, Y, approach azimuth, temperature (when logged) and feature; each
-    p-value is the probability of that much between-bin variance from
-    structureless noise.
-    """
-    out = {}
-    phi = np.arctan2(t.d_R[:, 1], t.d_R[:, 0])
-    tt = np.zeros(t.n)
-    for j in np.unique(t.setup):
-        m = t.setup == j
-        tt[m] = (t.t_s[m] - t.t_s[m].min()) / max(np.ptp(t.t_s[m]), 1e-9)
-    variables = {"time_in_setup": tt, "x": t.pn_R[:, 0], "y": t.pn_R[:, 1], "approach_azimuth": phi}
-    dT = _temperature(t)
-    if dT is not None:
-        variables["temperature"] = dT
-    s2 = float(r @ r) / max(dof, 1)
-    feats = sorted(set(t.feature.tolist()))
-    if len(feats) > 1:  # categorical: one group per feature
-        groups = [r[t.feature == f] for f in feats if np.sum(t.feature == f) > 1]
-        if len(groups) > 1:
-            F = (sum(len(g) * g.mean() ** 2 for g in groups) / len(groups)) / max(s2, 1e-300)
-            out["feature"] = float(stats.f.sf(F, len(groups), max(dof, 1)))
-    for name, v in variables.items():
-        if np.ptp(v) <= 0:
-            continue
-        edges = np.quantile(v, np.linspace(0, 1, bins + 1))
-        lab = np.clip(np.searchsorted(edges, v, side="right") - 1, 0, bins - 1)
-        groups = [r[lab == b] for b in range(bins) if np.sum(lab == b) > 1]
-        if len(groups) < 2:
-            continue
-        ss = sum(len(g) * g.mean() ** 2 for g in groups)
-        k = len(groups)
-        F = (ss / k) / max(s2, 1e-300)
-        out[name] = float(stats.f.sf(F, k, max(dof, 1)))
-    return out
-
-
 # ---------------------------------------------------------------------------
-# discovery
+# results
 # ---------------------------------------------------------------------------
-
-
 @dataclass(frozen=True)
 class Finding:
-    """One named cause with the figures that support it."""
+    """One cause with the figures that support it.
+
+    Attributes
+    ----------
+    cause : str
+    evidence : dict
+        Figures behind the decision (F, p-values, CV, VIF, rival share ...).
+    params : dict
+        Fitted magnitudes, units in the keys (strings for choices).
+    params_u95 : dict
+        U95 (k = 2) of each numeric magnitude, same keys; None where the
+        data do not determine it.
+    rms_um : float
+        Residual RMS of the extended model, um.
+    books_to : str
+        ``machine``, ``probe``, ``workpiece``, ``data`` or ``unknown``.
+    """
 
     cause: str
     evidence: dict
     params: dict
+    params_u95: dict
     rms_um: float
+    books_to: str = "machine"
 
 
 @dataclass(frozen=True)
 class Discovery:
-    """Everything :func:`discover` found (``to_report`` gives the spec's JSON)."""
+    """Everything :func:`discover_baseline` found (``to_report`` gives the spec's JSON)."""
 
+    baseline: Baseline = field(repr=False)
     baseline_rms_um: float
     baseline_cv_rms_um: float
-    baseline_n: int
     baseline_n_params: int
     findings: tuple
     extended_model: str
     extended_rms_um: float
     extended_cv_rms_um: float
+    noise: dict
+    diagnosis: tuple
+    diagnosis_extended: tuple
     workpiece: tuple
     outlier_rows: tuple
-    residuals_baseline_um: np.ndarray
-    residuals_extended_um: np.ndarray
-    structure_p: dict
-    grid_step_mm: float
-    conventions: tuple
-    baseline_model: str = "selfcal-2d (Ibaraki eqs 1-18)"
+    residuals_baseline_um: np.ndarray = field(repr=False)
+    residuals_extended_um: np.ndarray = field(repr=False)
+    conventions: tuple = ()
     workpiece_identifiable: bool = True
+    G_baseline_m: np.ndarray | None = field(default=None, repr=False)
+    G_extended_m: np.ndarray | None = field(default=None, repr=False)
+    cov_G_baseline: np.ndarray | None = field(default=None, repr=False)
+    cov_G_extended: np.ndarray | None = field(default=None, repr=False)
+    structure: dict = field(default_factory=dict)
+    rejected: tuple = ()
 
     @property
     def cause(self) -> str:
-        return self.findings[0].cause if self.findings else "none"
+        return self.findings[0].cause if self.findings else causes_mod.NONE
 
     def to_report(self) -> dict:
-        """The discovery report of shared/spec/probe-log.md (plus extra keys)."""
+        """The discovery report of the probe-log spec (plus the keys it invites)."""
+        b = self.baseline
         b_cv = self.baseline_cv_rms_um
-        return {
-            "baseline": {"model": self.baseline_model, "n": self.baseline_n,
-                         "n_params": self.baseline_n_params, "rms_um": self.baseline_rms_um,
-                         "grid_step_mm": self.grid_step_mm},
-            "findings": [{"cause": f.cause, "evidence": f.evidence, "params": f.params, "rms_um": f.rms_um}
+        rep = {
+            "baseline": {"model": b.model, "n": int(b.n), "n_params": self.baseline_n_params,
+                         "rms_um": self.baseline_rms_um, **{k: v for k, v in b.info.items()
+                                                          if isinstance(v, (int, float, str, list))}},
+            "findings": [{"cause": f.cause, "evidence": f.evidence, "params": f.params,
+                          "params_u95": f.params_u95, "rms_um": f.rms_um, "books_to": f.books_to}
                          for f in self.findings],
             "cause": self.cause,
             "extended": {"model": self.extended_model, "rms_um": self.extended_rms_um,
@@ -583,291 +541,948 @@ class Discovery:
             "baseline_cv_rms_um": b_cv,
             "gain": {"rms_ratio": self.extended_rms_um / max(self.baseline_rms_um, 1e-300),
                      "cv_rms_ratio": self.extended_cv_rms_um / max(b_cv, 1e-300)},
+            "noise_um": self.noise,
+            "diagnosis": [d.to_dict() for d in self.diagnosis],
+            "diagnosis_extended": [d.to_dict() for d in self.diagnosis_extended],
+            "structure": self.structure,
             "workpiece": [dict(w) for w in self.workpiece],
             "workpiece_identifiable": self.workpiece_identifiable,
             "outlier_rows": [int(r) for r in self.outlier_rows],
-            "residual_structure_p": self.structure_p,
+            "rejected": list(self.rejected),
             "conventions": list(self.conventions),
         }
+        rep["baseline"].pop("design", None)
+        return rep
 
 
-def _params(ext: Extension, coef: np.ndarray, std: np.ndarray, t: Touches) -> dict:
-    """Physical magnitudes of an extension's coefficients (units in the keys)."""
-    p: dict = {}
-    if ext.cause == "thermal_drift":
-        T_h = ext.info["T_s"] / 3600
-        for lab, c, s in zip(ext.labels, coef, std):
-            if lab.endswith("_per_K"):
-                unit = "um_per_K" if "offset" in lab else "ppm_per_K"
-                p[f"{lab[:-6]}_{unit}"] = c * 1e6
-                p[f"{lab[:-6]}_u_{unit}"] = s * 1e6
-            elif lab.endswith("offset"):
-                p[f"{lab}_drift_um_per_h"] = c / UM / T_h
-                p[f"{lab}_drift_u_um_per_h"] = s / UM / T_h
-            else:
-                p[f"{lab}_drift_ppm_per_h"] = c * 1e6 / T_h
-                p[f"{lab}_drift_u_ppm_per_h"] = s * 1e6 / T_h
-    elif ext.cause == "periodic_axis_error":
-        ax = ext.info["axis"]
-        p["axis"] = ax
-        p["period_mm"] = ext.info["period_m"] / MM
-        c = dict(zip(ext.labels, coef))
-        u = dict(zip(ext.labels, std))
-        for sym in (f"EX{ax}", f"EY{ax}"):
-            sn, cs = c.get(f"{sym}_sin", 0.0), c.get(f"{sym}_cos", 0.0)
-            p[f"{sym}_amplitude_um"] = float(np.hypot(sn, cs)) / UM
-            p[f"{sym}_phase_rad"] = float(np.arctan2(cs, sn))
-        p["amplitude_u_um"] = float(np.max([u.get(k, 0.0) for k in u])) / UM if u else float("nan")
-    elif ext.cause == "probe_lobing":
-        phi = np.linspace(-np.pi, np.pi, 721)
-        f = sum(c * (np.cos(k * phi) if lab.startswith("cos") else np.sin(k * phi))
-                for lab, c in zip(ext.labels, coef) for k in [int(lab[3:])])
-        for lab, c, s in zip(ext.labels, coef, std):
-            p[f"{lab}_um"] = c / UM
-            p[f"{lab}_u_um"] = s / UM
-        p["pretravel_variation_pv_um"] = float(np.ptp(f)) / UM if np.ndim(f) else 0.0
-    elif ext.cause == "reversal":
-        for lab, c, s in zip(ext.labels, coef, std):
-            p[f"{lab}_um"] = c / UM
-            p[f"{lab}_u_um"] = s / UM
-    else:
-        for lab, c, s in zip(ext.labels, coef, std):
-            p[f"{lab}_um"] = c / UM
-            p[f"{lab}_u_um"] = s / UM
-    return {k: (float(v) if not isinstance(v, str) else v) for k, v in p.items()}
-
-
-@dataclass(frozen=True)
-class _Estimate:
-    theta: np.ndarray
-    std: np.ndarray | None
-
-
-def _solve_workpiece(bl: Baseline, A_ext: np.ndarray, y: np.ndarray, rows: np.ndarray) -> _Estimate:
-    """Gauge-fixed estimate (theta, std) with the baseline's gauge conditions.
-
-    When the design is not identifiable beyond the gauge, the minimum-norm
-    solution that meets the gauge is returned without uncertainties.
-    """
-    k = A_ext.shape[1] - bl.A.shape[1]
-    C = np.hstack([bl.C, np.zeros((bl.C.shape[0], k))])
-    names = list(bl.names) + [f"ext[{i}]" for i in range(k)]
-    if bl.identifiable:
-        try:
-            sol = selfcal.solve(A_ext[rows], y[rows], C, bl.d, names=names, covariance="full")
-            return _Estimate(sol.theta, sol.std)
-        except IdentifiabilityError:
-            pass
-    A = A_ext[rows]
-    scale = np.linalg.norm(A) / max(np.linalg.norm(C), 1e-300) * 1e3
-    M = np.vstack([A, scale * C])
-    rhs = np.concatenate([y[rows], scale * bl.d])
-    theta, *_ = np.linalg.lstsq(M, rhs, rcond=1e-12)
-    return _Estimate(theta, None)
-
-
+# ---------------------------------------------------------------------------
+# the engine
+# ---------------------------------------------------------------------------
 def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Settings = Settings(),
-             chain: str | None = None) -> Discovery:
+             chain: str | None = None, rng: np.random.Generator | None = None, progress=None,
+             extra: dict | None = None) -> Discovery:
     """Find what the 2D self-calibration model gets wrong in a campaign.
 
     Parameters
     ----------
     t : Touches
-        Valid touches (``core.touches.from_log``), at two or more C angles.
+        Valid touches (``core.touches.from_log``) at two or more C angles.
+        Touches whose normal is out of the XY plane are left out (said in
+        ``conventions``).
     grid_step_mm : float or None
-        Error-map grid step of the baseline; None = chosen among
-        ``settings.grid_steps_mm`` (see :func:`baseline`).
+        Error-map grid step of the baseline; None = chosen by BIC among
+        ``settings.grid_steps_mm``.
     chain : str or None
-        The machine's ISO 10791 chain (the log's ``kinematic_chain``): which
-        axis carries the other decides the rigid-body yaw term
-        (:func:`core.selfcal.yaw_for_chain`); None = the paper's.
-
-    Returns
-    -------
-    Discovery
+        The log's ``kinematic_chain``: which axis carries the other decides
+        the rigid-body yaw term (:func:`core.selfcal.yaw_for_chain`).
+    rng : np.random.Generator or None
+        Draws of the CV-gap null distribution; None = a generator seeded 0
+        (the report is then reproducible).
+    progress : callable(done, total) or None
+        Called as the work advances (the CLI shows time left).
+    extra : dict[str, (n,) float] or None
+        Further covariates per touch (the log's other numeric columns,
+        :func:`core.baseline.extra_columns`), aligned with ``t``.
 
     Raises
     ------
+    ConfigError
+        Fewer than 10 planar touches.
     IdentifiabilityError
-        The baseline cannot be identified (one set-up, too few targets).
+        No baseline (one set-up, too few targets).
     """
     planar = np.abs(t.n_R[:, 2]) <= selfcal.NZ_MAX
     left_out = int(t.n - planar.sum())
+    extra = {k: np.asarray(v, float) for k, v in (extra or {}).items()}
+    for k, v in extra.items():
+        if v.shape != (t.n,):
+            raise ConfigError(f"extra covariate {k!r}: expected {t.n} values, got {v.shape}")
     if left_out:
-        # the planar model (eqs 1-18) takes touches with normals in XY; the rest
-        # (sphere points off the equator, faces) are left out and said so
         t = t.subset(planar, reindex=True)
-    if t.n < 10:
-        raise ConfigError(f"discover needs at least 10 valid touches with normals in the XY plane, got {t.n}")
-    bl = baseline(t, grid_step_mm, settings, yaw=selfcal.yaw_for_chain(chain))
-    y = t.dq_m
-    A0 = bl.A
-    n = t.n
-    all_rows = np.arange(n)
-
-    # 0. baseline and a first outlier screen
-    f0 = _fit(A0, y)
-    out0 = find_outliers(A0, y, settings)
-    rows = np.setdiff1d(all_rows, out0)
-
-    def evaluate(A: np.ndarray, rows: np.ndarray):
-        f = _fit(A[rows], y[rows])
-        cv = _cv_rms(A[rows], y[rows], t.setup[rows], bl.own_cols)
-        return f, cv
-
-    # 1. compete: each round adds the candidate with the best out-of-sample gain
-    A = A0
-    chosen: list[tuple[Extension, dict]] = []
-    f_cur, cv_cur = evaluate(A, rows)
-    for _round in range(settings.max_findings):
-        sub = t.subset(rows)
-        exts = [ext_drift(sub), ext_lobing(sub), ext_reversal(sub), ext_nonrigid(sub),
-                ext_periodic(sub, f_cur.Q, f_cur.r, bl.grid_step_m, settings.periods)]
-        exts = [e for e in exts if e.cause not in {c.cause for c, _ in chosen}]
-        scored = []
-        for e in exts:
-            if e.columns.shape[1] == 0:
-                continue
-            B, keep = _new_directions(f_cur.Q, e.columns)
-            if e.info.get("pick_one") and B.shape[1] > 1:
-                # a drift is one mechanism: take the single column that explains
-                # most (the Bonferroni factor ``tries`` pays for the choice)
-                gains = []
-                for j in np.flatnonzero(keep):
-                    Bj, _ = _new_directions(f_cur.Q, e.columns[:, [j]])
-                    gains.append((float(np.sum((Bj.T @ f_cur.r) ** 2)), j, Bj))
-                _, j, B = max(gains, key=lambda g: g[0])
-                keep = np.zeros(e.columns.shape[1], bool)
-                keep[j] = True
-            k = B.shape[1]
-            if k == 0 or f_cur.dof - k < 5:
-                continue
-            drss = float(np.sum((B.T @ f_cur.r) ** 2))
-            rss1 = f_cur.rss - drss
-            dof1 = f_cur.dof - k
-            F = (drss / k) / max(rss1 / dof1, 1e-300)
-            p = float(stats.f.sf(F, k, dof1))
-            # Bonferroni: over the candidates, and within one over what its scan tried
-            p_adj = min(1.0, p * len(exts) * e.tries)
-            dbic = _bic(rss1, len(rows), k + (1 if e.cause == "periodic_axis_error" else 0)) - \
-                _bic(f_cur.rss, len(rows), 0)
-            scored.append({"ext": e, "k": k, "keep": keep, "F": F, "p": p, "p_adj": p_adj,
-                           "dbic": dbic, "rss": rss1})
-        # cross-validate the significant ones only (the rest cannot win)
-        best = None
-        for s in sorted(scored, key=lambda s: s["rss"]):
-            if not (s["p_adj"] < settings.alpha and s["dbic"] < 0):
-                continue
-            Ae = np.hstack([A, _full_cols(t, s["ext"])[:, s["keep"]]])
-            cv = _cv_rms(Ae[rows], y[rows], t.setup[rows], bl.own_cols)
-            s["cv"] = cv
-            if cv < settings.cv_gain * cv_cur and (best is None or s["dbic"] < best["dbic"]):
-                best = s
-        if best is None:
-            break
-        e = best["ext"]
-        A = np.hstack([A, _full_cols(t, e)[:, best["keep"]]])
-        evidence = {"F": best["F"], "p_value": best["p"], "p_adjusted": best["p_adj"],
-                    "tries": int(best["ext"].tries), "candidates": len(exts), "delta_bic": best["dbic"], "added_params": int(best["k"]),
-                    "cv_rms_before_um": cv_cur / UM, "cv_rms_after_um": best["cv"] / UM,
-                    "rms_before_um": float(np.sqrt(f_cur.rss / len(rows))) / UM,
-                    "rms_after_um": float(np.sqrt(best["rss"] / len(rows))) / UM}
-        evidence["competitors"] = {s["ext"].cause: {"p_adjusted": s["p_adj"], "delta_bic": s["dbic"],
-                                                    "cv_rms_um": s.get("cv", float("nan")) / UM}
-                                   for s in scored if s is not best}
-        chosen.append((Extension(e.cause, e.columns[:, best["keep"]],
-                                 tuple(np.array(e.labels)[best["keep"]]), e.tries, e.info), evidence))
-        f_cur, cv_cur = evaluate(A, rows)
-        # outliers judged against the better model: a systematic effect is no dust
-        out_new = find_outliers(A, y, settings)
-        if out_new != list(np.setdiff1d(all_rows, rows)):
-            rows = np.setdiff1d(all_rows, out_new)
-            f_cur, cv_cur = evaluate(A, rows)
-
-    outliers = sorted(set(all_rows) - set(rows))
-    # final outlier check against the final model
-    if chosen:
-        outliers = find_outliers(A, y, settings)
-        rows = np.setdiff1d(all_rows, outliers)
-        f_cur, cv_cur = evaluate(A, rows)
-
-    # 2. gauge-fixed estimates, per-finding magnitudes
-    sol_b = _solve_workpiece(bl, A0, y, all_rows)
-    sol_e = _solve_workpiece(bl, A, y, rows)
-    cv_b = _cv_rms(A0, y, t.setup, bl.own_cols)
-    p0 = bl.A.shape[1]
-    findings = []
-    o = p0
-    for ext, ev in chosen:
-        k = ext.columns.shape[1]
-        coef = sol_e.theta[o:o + k]
-        std = sol_e.std[o:o + k] if sol_e.std is not None else np.full(k, np.nan)
-        o += k
-        findings.append(Finding(ext.cause, ev, _params(ext, coef, std, t), ev["rms_after_um"]))
-    struct = structure_tests(t.subset(rows), f_cur.r, f_cur.dof)
-    n_struct = max(len(struct), 1)
-    structured = {k: v for k, v in struct.items() if v * n_struct < settings.structure_alpha}
-    if outliers:
-        r_b = f0.r
-        drss_out = float(np.sum(r_b[outliers] ** 2))
-        findings.append(Finding(
-            "outlier",
-            {"rows": [int(t.row[i]) for i in outliers],
-             "residual_um": [float(r_b[i] / UM) for i in outliers],
-             "robust_sigma_um": float(1.4826 * np.median(np.abs(f_cur.r - np.median(f_cur.r))) / UM),
-             "rss_removed_um2": drss_out / UM ** 2,
-             "test": f"studentized deleted residual beyond Bonferroni t bound, alpha={settings.outlier_alpha}"},
-            {"n_outliers": len(outliers),
-             "max_deviation_um": float(np.max(np.abs(r_b[outliers])) / UM)},
-            float(np.sqrt(f_cur.rss / len(rows)) / UM)))
-    # best first: by the residual sum of squares each finding removed
-    findings.sort(key=lambda f: -(f.evidence["rss_removed_um2"] if f.cause == "outlier" else
-                                  (f.evidence["rms_before_um"] ** 2 - f.evidence["rms_after_um"] ** 2) * n))
-    if structured:
-        findings.append(Finding("unexplained", {"structure_p_values": structured,
-                                                "test": "binned one-way ANOVA, Bonferroni over variables"},
-                                {}, float(np.sqrt(f_cur.rss / len(rows)) / UM)))
-    # workpiece per target
-    G = bl.design.slices["G"]
-    wp = []
-    for i, tid in enumerate(bl.design.target_ids):
-        wp.append({"target": tid, "baseline_um": float(sol_b.theta[G][i] / UM),
-                   "extended_um": float(sol_e.theta[G][i] / UM),
-                   "baseline_u95_um": float(2 * sol_b.std[G][i] / UM) if sol_b.std is not None else None,
-                   "extended_u95_um": float(2 * sol_e.std[G][i] / UM) if sol_e.std is not None else None})
-    model = "selfcal-2d" + (" + heights" if len(bl.z_levels_m) > 1 else "") + "".join(f" + {e.cause}" for e, _ in chosen) + (" - outliers" if outliers else "")
-    res_b = f0.r
-    res_e = np.full(n, np.nan)
-    res_e[rows] = f_cur.r
-    conv = list(bl.design.gauge)
-    conv.append("workpiece estimates in the baseline's gauge (eqs 16-17)" if bl.identifiable else
-                "workpiece NOT identifiable by this design (minimum-norm estimates shown): " + bl.why)
+        extra = {k: v[planar] for k, v in extra.items()}
+    bl_mod.check_planar(t)
+    bl = bl_mod.planar(t, grid_step_mm, settings.grid_steps_mm, select_grid=settings.select_grid,
+                       yaw=selfcal.yaw_for_chain(chain), extra=extra)
     if left_out:
-        conv.append(f"{left_out} touches with normals out of the XY plane left out of the planar baseline")
-    conv.append("cv: leave-one-set-up-out, held-out set-up's C-axis errors refitted on it")
-    conv = tuple(conv)
+        bl = _with_convention(bl, f"{left_out} touches with normals out of the XY plane left out of the planar "
+                                  "baseline")
+    return discover_baseline(bl, settings=settings, rng=rng, progress=progress)
+
+
+def _with_convention(bl: Baseline, text: str) -> Baseline:
+    return dataclasses.replace(bl, conventions=bl.conventions + (text,))
+
+
+def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.random.Generator | None = None,
+                      progress=None) -> Discovery:
+    """Discovery on any baseline (module docstring: the steps and their statistics)."""
+    rng = np.random.default_rng(0) if rng is None else rng
+    catalogue = causes_mod.for_kind(bl.kind)
+    total = 8 + settings.max_findings * max(len(catalogue), 1)
+    done = [0]
+
+    def tick(k=1):
+        done[0] = min(done[0] + k, total - 1)
+        if progress is not None:
+            progress(done[0], total)
+
+    y = bl.y
+    N = bl.n
+    all_rows = np.arange(N)
+    white = (lambda M: M) if bl.whiten is None else (lambda M: bl.whiten @ M)
+    use_cv = bool(bl.info.get("cv", True))
+    bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
+
+    # 0. baseline fit and a first outlier screen
+    Qall = orth(bl.A)
+    st0 = _state(Qall, y, all_rows, [])
+    rows = np.setdiff1d(all_rows, find_outliers(bl.A, y, settings.outlier_alpha, settings.outlier_max_frac, Qall))
+    tick()
+
+    cache: dict = {}
+
+    def model(rows_, terms):
+        key = tuple(rows_.tolist()) if len(rows_) != N else None
+        if key not in cache:
+            Qb = orth(bl.A[rows_]) if key is not None else Qall
+            est = (Folds if use_cv else CpEstimate)(bl.A[rows_], bl.groups[rows_], settings.cv_rcond)
+            if not use_cv:
+                est.set_sigma(y[rows_])
+            cache[key] = (Qb, est)
+        Qb, folds = cache[key]
+        return Qb, folds, _state(Qb, y, rows_, terms)
+
+    Qb, folds, st = model(rows, [])
+    rep = replicate_scatter(bl.replicate[rows], y[rows])
+    sigma_rep = rep.sigma_m if rep.dof >= 10 else None
+
+    def noise_sigma(s: _State) -> float:
+        return sigma_rep if sigma_rep is not None else s.sigma
+
+    # 1. noise floor of the baseline
+    base_cv = folds.residuals(y[rows])
+    cv_b = float(base_cv @ base_cv) / folds.dof
+    gap_b = _cv_gap(folds, st, y, None, None, settings, rng)
+    lof_b = lack_of_fit(st.rss, st.dof, rep)
+    tick()
+    # 2. diagnosis of the baseline
+    diag_b = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(st),
+                      material_sigma=settings.material_sigma, rows=rows, bases=bases)
+    tick()
+    structure_b = _structure(diag_b, gap_b, lof_b, st, noise_sigma(st), settings, bl.kind)
+
+    # 3. named causes, greedily
+    scans = {c.name: c.scans(bl) for c in catalogue}
+    if bl.whiten is not None:  # every column the causes build goes through the baseline's whitening
+        scans = {k: ([dataclasses.replace(sc, build=(lambda idx, b=sc.build: bl.whiten @ b(idx)), score=None)
+                      for sc in v[0]], v[1]) for k, v in scans.items()}
+    n_causes = max(sum(1 for c in catalogue if scans[c.name][0]), 1)
+    rejected: list[dict] = []
+
+    smooth_covs = [c for c in bl.covariates if c.kind != "spectral"]  # later rounds: the smooth terms' families
+
+    def search(rows, st, folds, Qb, diag0, cv0):
+        """Greedy rounds from a set of rows; outliers re-judged after each adoption."""
+        terms: list[Term] = []
+        cv_cur = cv0
+        for rnd in range(settings.max_findings):
+            best = None
+            # where the structure lives now, per covariate family (debiased sums of squares)
+            diag_now = diag0 if rnd == 0 else diagnose(st.Q, st.r, st.dof, smooth_covs, bl.modes,
+                                                       sigma_m=noise_sigma(st), material_sigma=settings.material_sigma,
+                                                       rows=rows, bases=bases)
+            families = _family_ss(bl, diag_now, len(rows))
+            for cause in catalogue:
+                if any(tm.cause == cause.name for tm in terms):
+                    continue
+                sc, tries = scans[cause.name]
+                tick()
+                if not sc:
+                    continue
+                cand = _evaluate(cause, sc, tries * n_causes, bl, st, folds, terms, cv_cur, noise_sigma(st), settings,
+                                 families)
+                if cand.get("reason"):
+                    if cand.get("significant"):
+                        rejected.append({"cause": cause.name, "reason": cand["reason"]})
+                    continue
+                margin = settings.material_sigma ** 2 * noise_sigma(st) ** 2
+                if best is None or cand["cv"] < best["cv"] - margin or (
+                        cand["cv"] <= best["cv"] + margin
+                        and cand["term"].columns.shape[1] < best["term"].columns.shape[1]):
+                    best = cand
+            if best is None:
+                break
+            terms.append(best["term"])
+            # outliers judged against the better model: a systematic effect is no dust
+            X = np.hstack([bl.A, _stack(terms, all_rows)])
+            rows = np.setdiff1d(all_rows, find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac))
+            Qb, folds, st = model(rows, terms)
+            cv_cur = folds.mse(y[rows], _stack(terms, rows))
+        return terms, rows, st, folds, Qb
+
+    terms, rows, st, folds, Qb = search(rows, st, folds, Qb, diag_b, cv_b)
+    if len(rows) < N:
+        # the rows called outliers may be a systematic effect's largest
+        # residuals: search again with every row; if a cause is then adopted
+        # and fewer outliers are left against it, the "outliers" it explains
+        # were its structure
+        Qa, fa, sa = model(all_rows, [])
+        t2, r2, s2, f2, q2 = search(all_rows, sa, fa, Qa, diagnose(
+            sa.Q, sa.r, sa.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(sa),
+            material_sigma=settings.material_sigma, bases=bases), fa.mse(y))
+        if t2 and len(r2) > len(rows):  # a cause explains some of them: they were its structure
+            terms, rows, st, folds, Qb = t2, r2, s2, f2, q2
+    tick()
+
+    # 4. rival check: a named cause must explain its covariate's structure
+    demoted = []
+    changed = True
+    while changed and terms:
+        changed = False
+        for tm in list(terms):
+            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings, bases)
+            tm.evidence.update(share)
+            if not share["kept"]:
+                terms.remove(tm)
+                demoted.append({"cause": tm.cause, **share})
+                why = (f"a plainer explanation ({share['counter']}) explains as much"
+                       if "counter_explained_ss_um2" in share and share["rival_share"] >= settings.rival_share else
+                       f"explains only part of the structure in {tm.covariate} (share {share['rival_share']:.2f} of "
+                       "a smooth term's)")
+                rejected.append({"cause": tm.cause, "reason": why})
+                Qb, folds, st = model(rows, terms)
+                changed = True
+                break
+    if terms:
+        X = np.hstack([bl.A, _stack(terms, all_rows)])
+        rows = np.setdiff1d(all_rows, find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac))
+    Qb, folds, st = model(rows, terms)
+    tick()
+
+    # 5. what remains
+    sig = noise_sigma(st)
+    diag_e = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=sig,
+                      material_sigma=settings.material_sigma, rows=rows, bases=bases)
+    E_named = _stack(terms, rows)
+    gap_e = _cv_gap(folds, st, y, E_named, None, settings, rng) if terms else gap_b
+    lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(bl.replicate[rows], E_named) else None
+    structure_e = _structure(diag_e, gap_e, lof_e, st, sig, settings, bl.kind)
+    cv_named = folds.mse(y[rows], E_named) if terms else cv_b
+    tick()
+    smooth = None
+    if structure_e["present"]:
+        smooth = _unnamed_smooth(bl, diag_e, terms, folds, st, y, rows, cv_named, sig, settings, bases)
+        if smooth is not None and smooth.columns.shape[1]:
+            # a named cause that the unnamed term makes redundant explained part
+            # of that structure, not its own: it goes
+            E_s = smooth.columns[rows]
+            cv_s = folds.mse(y[rows], np.hstack([E_named, E_s]), _penalty(terms + [smooth]))
+            fam_s = bl.covariate(smooth.covariate).family
+            for tm in list(terms):
+                cov_n = bl.covariate(tm.covariate)
+                if cov_n is not None and cov_n.family == fam_s:
+                    continue  # the unnamed term refines the cause's own covariate: the cause stays
+                rest = [t for t in terms if t is not tm]
+                cv_wo = folds.mse(y[rows], np.hstack([_stack(rest, rows), E_s]), _penalty(rest + [smooth]))
+                if cv_wo - cv_s < (settings.material_sigma * sig) ** 2:
+                    terms.remove(tm)
+                    demoted.append({"cause": tm.cause, "redundant_with": smooth.covariate,
+                                    "cv_gain_over_unnamed_um2": (cv_wo - cv_s) / UM ** 2})
+                    rejected.append({"cause": tm.cause, "reason": "no material gain once the unnamed structure in "
+                                     f"{smooth.covariate} is modelled"})
+            terms.append(smooth)
+            # outliers judged against the model with the smooth term
+            X = np.hstack([bl.A, _stack(terms, all_rows)])
+            new_rows = np.setdiff1d(all_rows, find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac))
+            if not np.array_equal(new_rows, rows):
+                rows = new_rows
+                Qb, folds, _ = model(rows, [])
+            st = _state(Qb, y, rows, terms)
+    tick()
+
+    # 6. estimates
+    findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases)
+    E_all = _stack(terms, rows)
+    cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
+    outliers = np.setdiff1d(all_rows, rows)
+    if outliers.size:
+        findings.append(_outlier_finding(bl, outliers, st0, st))
+    if not findings and structure_b["present"]:
+        findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
+    # best first: the systematic findings by what they explain; removed
+    # touches (outliers) after them, as data set aside rather than a cause
+    findings.sort(key=lambda f: (f.cause == causes_mod.OUTLIER, -f.evidence.get("explained_ss_um2", 0.0)))
+    tick()
+    wp, ident, Gb, Ge, cGb, cGe = _workpiece(bl, terms, y, rows, st0, st)
+    res_e = np.full(N, np.nan)
+    res_e[rows] = st.r
+    conv = list(bl.conventions) + [
+        ("cv: leave one group (set-up) out; the held-out group's own columns refitted on it" if use_cv else
+         "no cross-validation (the design has no redundancy to predict held-out rows): the prediction error "
+         "is Mallows' Cp, (RSS + 2 k s^2) / n"),
+        f"false-alarm rate {settings.alpha:g} split over {', '.join(FAMILIES)}; "
+        f"materiality {settings.material_sigma:g} sigma per row",
+        "U95: k = 2, sigma from each model's residuals"]
+    named = [t.cause if t.penalty is None else f"unnamed smooth in {t.covariate}" for t in terms]
+    model_name = bl.model.split(" (")[0] + "".join(f" + {c}" for c in named) + (" - outliers" if outliers.size else "")
+    if progress is not None:
+        progress(total, total)
     return Discovery(
-        baseline_rms_um=float(np.sqrt(f0.rss / n) / UM), baseline_cv_rms_um=cv_b / UM, baseline_n=n,
-        baseline_n_params=int(f0.Q.shape[1]), findings=tuple(findings), extended_model=model,
-        extended_rms_um=float(np.sqrt(f_cur.rss / len(rows)) / UM), extended_cv_rms_um=cv_cur / UM,
-        workpiece=tuple(wp), outlier_rows=tuple(int(t.row[i]) for i in outliers),
-        residuals_baseline_um=res_b / UM, residuals_extended_um=res_e / UM, structure_p=struct,
-        grid_step_mm=bl.grid_step_m / MM, conventions=conv, workpiece_identifiable=bl.identifiable,
-        baseline_model="selfcal-2d (Ibaraki eqs 1-18)" + (
-            f" + C-axis tilt and Abbe terms for {len(bl.z_levels_m)} probing heights"
-            if len(bl.z_levels_m) > 1 else ""))
+        baseline=bl, baseline_rms_um=float(np.sqrt(st0.rss / N)) / UM, baseline_cv_rms_um=float(np.sqrt(cv_b)) / UM,
+        baseline_n_params=int(Qall.shape[1]), findings=tuple(findings), extended_model=model_name,
+        extended_rms_um=float(np.sqrt(st.rss / len(rows))) / UM, extended_cv_rms_um=float(np.sqrt(cv_e)) / UM,
+        noise=_noise_report(rep, st0, gap_b, lof_b, sigma_rep, sig),
+        diagnosis=tuple(diag_b), diagnosis_extended=tuple(diag_e), workpiece=tuple(wp),
+        outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
+        residuals_extended_um=res_e / UM, conventions=tuple(conv), workpiece_identifiable=ident,
+        G_baseline_m=Gb, G_extended_m=Ge, cov_G_baseline=cGb, cov_G_extended=cGe,
+        structure={"baseline": structure_b, "extended": structure_e}, rejected=tuple(rejected))
 
 
-def _full_cols(t: Touches, e: Extension) -> np.ndarray:
-    """Extension columns for every touch (recomputed on the full set)."""
-    if e.cause == "thermal_drift":
-        return ext_drift(t).columns
-    if e.cause == "probe_lobing":
-        return ext_lobing(t).columns
-    if e.cause == "reversal":
-        return ext_reversal(t).columns
-    if e.cause == "nonrigid":
-        return ext_nonrigid(t).columns
-    if e.cause == "periodic_axis_error":
-        return _periodic_columns(t, "XY".index(e.info["axis"]), e.info["period_m"])
-    raise ConfigError(f"unknown extension {e.cause!r}")
+# ---------------------------------------------------------------------------
+# steps
+# ---------------------------------------------------------------------------
+def _cv_gap(folds: Folds, st: _State, y, E, penalty, settings, rng) -> CvGap:
+    if isinstance(folds, CpEstimate):  # no cross-validation: no gap to test
+        return CvGap(float("nan"), float("nan"), 1.0, float("nan"), 0)
+    yr = y[st.rows]
+    e = folds.residuals(yr, E, penalty)
+    Z = rng.standard_normal((len(yr), settings.cv_draws))
+    eZ = folds.residuals(Z, E, penalty)
+    rZ = Z - st.Q @ (st.Q.T @ Z)
+    return cv_gap(float(e @ e), st.rss, np.sum(eZ ** 2, axis=0), np.sum(rZ ** 2, axis=0))
+
+
+def _constant_within(key: np.ndarray, E: np.ndarray) -> bool:
+    """True when every column of E is constant within each replicate group."""
+    if E.shape[1] == 0:
+        return True
+    ok = key >= 0
+    if not ok.any():
+        return True
+    for k in np.unique(key[ok]):
+        m = key == k
+        if np.any(np.ptp(E[m], axis=0) > 1e-9 * np.maximum(np.abs(E).max(axis=0), 1e-300)):
+            return False
+    return True
+
+
+def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: str = "") -> dict:
+    """Is there structure the model misses (catalogue-free)?
+
+    Besides the diagnosis, the held-out gap and the lack of fit: a planar
+    campaign's noise above :attr:`Settings.noise_max_um` is no probe's
+    noise (``noise_excess``, with the figure in ``noise_um``).
+    """
+    a = settings.alpha_family
+    m2 = (settings.material_sigma * sigma) ** 2
+    sig_cov = [d.covariate for d in diag if d.significant(a)]
+    # the held-out residuals amplify what the model misses (a held-out set-up
+    # is predicted, not fitted): material when they imply a noise 30 % above the fit's
+    gap_sig = bool(gap.draws) and gap.p_value < a and gap.sigma_cv_m >= (1 + settings.material_sigma) * st.sigma
+    lof_sig = lof is not None and lof.p_value < a and lof.sigma_lof_m ** 2 >= m2
+    excess = kind == "planar" and sigma > settings.noise_max_um * UM
+    return {"present": bool(sig_cov or gap_sig or lof_sig or excess), "covariates": sig_cov, "cv_gap": bool(gap_sig),
+            "lack_of_fit": bool(lof_sig), "noise_excess": bool(excess), "noise_um": sigma / UM}
+
+
+def _no_covariate_words(structure: dict, settings) -> str:
+    """What an ``unexplained`` finding says when no covariate carries the structure."""
+    why = [k for k in ("cv_gap", "lack_of_fit") if structure[k]]
+    if structure.get("noise_excess"):
+        why.append(f"a scatter of {structure['noise_um']:.2g} um, above any touch-trigger probe's noise "
+                   f"({settings.noise_max_um:g} um)")
+    return "no single covariate carries it: " + ", ".join(why)
+
+
+def _noise_report(rep, st0, gap, lof, sigma_rep, sigma) -> dict:
+    out = {"sigma_um": sigma / UM, "method": "repeats" if sigma_rep is not None else "residuals",
+           "repeats": {"sigma_um": rep.sigma_m / UM if rep.dof else None, "dof": rep.dof, "groups": rep.groups},
+           "in_sample": {"sigma_um": st0.sigma / UM, "dof": st0.dof},
+           "cv_gap": {"sigma_cv_um": gap.sigma_cv_m / UM, "ratio": gap.ratio, "expected_ratio": gap.expected,
+                      "p_value": gap.p_value, "draws": gap.draws}}
+    if lof is not None:
+        out["lack_of_fit"] = {"F": lof.F, "p_value": lof.p_value, "sigma_lof_um": lof.sigma_lof_m / UM, "dof": lof.dof}
+    return out
+
+
+def _coarse(Ecols: np.ndarray, r: np.ndarray, keep: int) -> np.ndarray:
+    """Indices of the ``keep`` best trials by a periodogram-like score (columns treated as orthogonal).
+
+    The numerator ``(r . e)^2`` is exact (r is orthogonal to the model);
+    the denominator ignores the model's share of ``e``.
+    """
+    num = (np.swapaxes(Ecols, 1, 2) @ r) ** 2
+    den = np.sum(Ecols ** 2, axis=1)
+    score = np.sum(num / np.maximum(den, 1e-300), axis=1)
+    return np.argsort(-score)[:keep]
+
+
+def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
+    """Refine the nonlinear parameters of a trial on two nested grids (exact sums of squares).
+
+    Each parameter in turn: 11 values over the neighbourhood the scan's
+    step leaves open, then 9 around the best (a resolution of 1/40 of the
+    scan's step); the trial's value is kept unless a better one is found.
+    """
+    info = dict(info)
+    for name in cause.nonlinear:
+        v0 = info[name]
+        if name == "period_m":
+            span = np.ptp((bl.data.x, bl.data.y)["XY".index(info["axis"])])
+            f0, df = 1 / v0, 1 / (3 * max(span, 1e-9))
+            lo, hi = 1 / (f0 + df), 1 / max(f0 - df, 1e-12)
+        elif name == "half_width_m":
+            lo, hi = v0 * 0.75, v0 * 1.33
+        else:
+            h = info.get("half_width_m", abs(v0)) / 4
+            lo, hi = v0 - h, v0 + h
+        best_v, best_ss = v0, nested_f_batch(cause.rebuild(bl, info)[:, rows], st.Q, st.r, st.rss, st.dof)[0][0]
+        for _ in range(2):
+            grid = np.linspace(lo, hi, 11 if _ == 0 else 9)
+            inf = dict(info)
+            inf[name] = grid
+            ss = nested_f_batch(cause.rebuild(bl, inf)[:, rows], st.Q, st.r, st.rss, st.dof)[0]
+            i = int(np.argmax(ss))
+            if ss[i] > best_ss:
+                best_v, best_ss = float(grid[i]), float(ss[i])
+            step = grid[1] - grid[0]
+            lo, hi = best_v - step, best_v + step
+        info[name] = best_v
+    return info
+
+
+def _candidate_ss(C: np.ndarray, st: _State) -> float:
+    """Debiased sum of squares a candidate's columns (1, n, k) explain beside the model."""
+    ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
+    s2 = max(st.rss - ss[0], 1e-300) / max(st.dof - k[0], 1)
+    return float(max(ss[0] - k[0] * s2, 0.0))
+
+
+def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
+    """The combinations of a cause's columns the data determine beside the model.
+
+    Columns normalised, projected out of the model; eigen-decomposition of
+    their Gram matrix. A direction with eigenvalue ``w`` has its coefficient
+    inflated ``1 / w`` times over an orthogonal design (its variance
+    inflation). Directions beyond ``1 / WEAK_SV^2`` are numerically inside
+    the model (or the cause's other columns): left out, never extrapolated,
+    and a magnitude that needs them is not reported. The cause is
+    confounded, and refused, when even its best direction is inflated more
+    than ``vif_max``.
+
+    Returns
+    -------
+    M : (k, r) float
+        Columns to use: ``E @ M`` (label coefficients ``c = M c'``); r = 0
+        when the cause is confounded.
+    vif : float
+        Inflation of the best-determined direction.
+    vif_worst : float
+        Largest inflation among the directions kept.
+    angle_deg : float
+        Smallest principal angle between the cause's span and the model's.
+    weak : int
+        Directions left out.
+    """
+    nrm = np.linalg.norm(E, axis=0)
+    nz = nrm > 0
+    En = E / np.where(nz, nrm, 1.0)
+    P = En - Q @ (Q.T @ En)
+    w, V = np.linalg.eigh(P.T @ P)
+    good = (w >= WEAK_SV ** 2) & (np.abs(V[~nz]).max(axis=0, initial=0.0) < 1e-12)
+    M = V[:, good] / np.where(nz, nrm, 1.0)[:, None]
+    Qe = orth(En)
+    sv = np.linalg.svd(Q.T @ Qe, compute_uv=False) if Qe.shape[1] and Q.shape[1] else np.zeros(1)
+    ang = float(np.degrees(np.arccos(np.clip(sv.max(), 0, 1))))
+    best = float(1.0 / w.max()) if w.size and w.max() > 0 else np.inf
+    worst = float(1.0 / w[good].min()) if good.any() else np.inf
+    if best > vif_max:
+        M = M[:, :0]
+    return M, best, worst, ang, int((~good).sum())
+
+
+def _matches(key: str, pattern: str) -> bool:
+    """``*`` in a bound's key pattern stands for any text (brackets are literal)."""
+    return re.fullmatch(re.escape(pattern).replace(r"\*", ".*"), key) is not None
+
+
+def _family_ss(bl, diag, n) -> dict:
+    """Largest debiased sum of squares a smooth term explains, per covariate family: {family: (ss, covariate)}."""
+    out: dict = {}
+    for d in diag:
+        cov = bl.covariate(d.covariate)
+        if cov is None or not cov.family:
+            continue
+        ss = (d.explained_rms_um * UM) ** 2 * n
+        if ss > out.get(cov.family, (-1.0, ""))[0]:
+            out[cov.family] = (ss, d.covariate)
+    return out
+
+
+def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, sigma, settings,
+              families=None) -> dict:
+    """One cause against the current model: the tests of adoption (module docstring 4a-e)."""
+    rows = st.rows
+    best = None
+    for sc in scans:
+        if sc.size <= settings.shortlist:
+            idx = np.arange(sc.size)
+        elif sc.score is not None:
+            idx = np.argsort(-sc.score(st.r, rows))[:settings.shortlist]
+        else:
+            idx = _coarse(sc.build(np.arange(sc.size))[:, rows, :], st.r, settings.shortlist)
+        C = sc.build(idx)[:, rows, :]
+        _, k, F, p = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
+        for j in np.flatnonzero(k > 0):
+            if best is None or (p[j], -F[j]) < (best[0], -best[1]):
+                best = (float(p[j]), float(F[j]), int(k[j]), sc, int(idx[j]))
+    if best is None:
+        return {"reason": "no columns outside the model"}
+    p_val, F_val, k_val, sc, i = best
+    info = sc.infos[i]
+    cols = sc.build([i])[0]
+    if cause.nonlinear and cause.rebuild is not None and p_val * tries < 1.0:  # refining only helps a candidate
+        info = _refine(cause, bl, info, st, rows)
+        cols = cause.rebuild(bl, info)[0]
+        _, kk, FF, pp = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
+        p_val, F_val, k_val = float(pp[0]), float(FF[0]), int(kk[0])
+    p_adj = min(1.0, p_val * tries)
+    ev = {"F": F_val, "p_value": p_val, "p_adjusted": p_adj, "tries": float(tries), "k": k_val}
+    if p_adj >= settings.alpha_family:
+        return {"reason": f"not significant ({fmt_p(p_adj)} after Bonferroni over {tries:.0f} tries)"}
+    # e. the structure must live where the cause says: a smooth function of a
+    # covariate of another family may not explain materially more than it
+    if families:
+        ss_n = _candidate_ss(cols[None, rows], st)
+        cov = bl.covariate(sc.covariate)
+        fam = cov.family if cov is not None else ""
+        m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
+        own = max(ss_n, families.get(fam, (0.0, ""))[0])
+        for f, (ss_f, name) in families.items():
+            if f != fam and ss_f > own + m_ss:
+                return {"reason": f"the structure follows {name} ({f}) more than this cause's form or its "
+                                  f"family ({ss_f / UM ** 2:.3g} against {own / UM ** 2:.3g} um^2)",
+                        "significant": True}
+        ev["explained_ss_um2_at_adoption"] = ss_n / UM ** 2
+    why = cause.check(info, bl) if cause.check else None
+    if why:
+        return {"reason": f"implausible: {why}", "significant": True}
+    M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max)
+    ev.update({"vif": vif, "max_vif": vif_worst, "principal_angle_deg": ang, "weak_directions": weak})
+    if M.shape[1] == 0:
+        return {"reason": f"confounded with the baseline (principal angle {ang:.2g} deg)", "significant": True}
+    # prediction and CV use the cause's own columns (a held-out set-up refits the
+    # columns that are its own); the determined combinations M carry the
+    # magnitudes and the extended workpiece
+    kept = cols
+    cv = folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), kept[rows]]) if terms else kept[rows])
+    gain = cv_cur - cv
+    m2 = (settings.material_sigma * sigma) ** 2
+    ev.update({"cv_rms_before_um": float(np.sqrt(cv_cur)) / UM, "cv_rms_after_um": float(np.sqrt(cv)) / UM,
+               "cv_gain_um2": gain / UM ** 2, "materiality_um2": m2 / UM ** 2})
+    if gain < m2:
+        return {"reason": f"cross-validated gain {gain / UM ** 2:.3g} um^2 below materiality {m2 / UM ** 2:.3g} um^2",
+                "significant": True}
+    tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak, origin=cause,
+              labels_all=tuple(sc.labels), map=M, cols_all=cols)
+    # plausibility of the magnitudes (with their U95)
+    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows)
+    for key, v in vals.items():
+        if not isinstance(v, float) or v is None:
+            continue
+        for pat, (lo, hi) in cause.bounds.items():
+            if _matches(key, pat):
+                u = u95.get(key) or 0.0
+                if v + u < lo or v - u > hi:
+                    return {"reason": f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})", "significant": True}
+    why = cause.plausible(vals, u95) if cause.plausible else None
+    if why:
+        return {"reason": f"implausible: {why}", "significant": True}
+    return {"cv": cv, "term": tm}
+
+
+def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows):
+    """Magnitudes of a term and their U95 (delta method over coefficients and nonlinear parameters).
+
+    ``Qo``: orthonormal basis of the model without the term (rows used).
+    By Frisch-Waugh-Lovell the term's coefficients in the joint fit are the
+    least squares of the other model's residuals on the term's columns
+    projected out of it; their covariance ``s^2 (E_p^T E_p)^-1`` widens with
+    the nonlinear parameters' Jacobian columns.
+    """
+    M = tm.map
+    labels_all = tm.labels_all
+    E = tm.columns[rows] @ M
+    yr = bl.y[rows]
+    ro = yr - Qo @ (Qo.T @ yr)
+    Ep = E - Qo @ (Qo.T @ E)
+    c_red = np.linalg.lstsq(Ep, ro, rcond=1e-12)[0]
+    res = ro - Ep @ c_red
+    dof = max(len(rows) - Qo.shape[1] - E.shape[1], 1)
+    s2 = float(res @ res) / dof
+    k_all = len(labels_all)
+    coef = M @ c_red
+    nl = list(cause.nonlinear) if cause.rebuild is not None else []
+    # Jacobian columns of the nonlinear parameters at the fit
+    J = []
+    for name in nl:
+        h = max(abs(tm.info[name]) * 1e-6, 1e-9)
+        ip, im = dict(tm.info), dict(tm.info)
+        ip[name] += h
+        im[name] -= h
+        J.append((cause.rebuild(bl, ip)[0][rows] - cause.rebuild(bl, im)[0][rows]) @ coef / (2 * h))
+    X = np.hstack([Ep] + [(j - Qo @ (Qo.T @ j))[:, None] for j in J]) if J else Ep
+    try:
+        cov_all = s2 * np.linalg.inv(X.T @ X)
+    except np.linalg.LinAlgError:
+        cov_all = s2 * np.linalg.pinv(X.T @ X)
+    vec0 = np.concatenate([coef, [tm.info[nm] for nm in nl]])  # label coefficients, then nl
+
+    def f(vec):
+        inf = dict(tm.info)
+        for j, nm in enumerate(nl):
+            inf[nm] = float(vec[k_all + j])
+        return cause.magnitudes(inf, vec[:k_all], bl)
+
+    vals = f(vec0)
+    # covariance of the label coefficients (c = M c') and the nonlinear parameters
+    r = M.shape[1]
+    nv = k_all + len(nl)
+    T = np.zeros((nv, r + len(nl)))
+    T[:k_all, :r] = M
+    T[k_all:, r:] = np.eye(len(nl))
+    cov = T @ cov_all @ T.T
+    std = np.sqrt(np.maximum(np.diag(cov), 0))
+    grads = {}
+    for j in range(nv):
+        h = max(std[j] * 1e-3, abs(vec0[j]) * 1e-9, 1e-15 if j >= k_all else 1e-12)
+        vp, vm = vec0.copy(), vec0.copy()
+        vp[j] += h
+        vm[j] -= h
+        fp, fm = f(vp), f(vm)
+        for key in vals:
+            if isinstance(vals[key], float):
+                grads.setdefault(key, np.zeros(nv))[j] = (fp.get(key, np.nan) - fm.get(key, np.nan)) / (2 * h)
+    # a magnitude is determined when it does not move along a direction of the
+    # cause's columns that the data cannot see (inside the model, or collinear)
+    Eall = tm.cols_all[rows] if tm.cols_all is not None else E
+    nrm = np.maximum(np.linalg.norm(Eall, axis=0), 1e-300)
+    Pn = Eall / nrm - Qo @ (Qo.T @ (Eall / nrm))
+    _, sv, Vt = np.linalg.svd(Pn, full_matrices=False)
+    weak = Vt[sv < WEAK_SV]
+    u95, out = {}, {}
+    for key, v in vals.items():
+        if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
+            out[key] = v
+            continue
+        g = grads.get(key)
+        if g is None or not np.all(np.isfinite(g)):
+            out[key], u95[key] = float(v), None
+            continue
+        gn = g[:k_all] / nrm
+        if weak.shape[0] and np.max(np.abs(weak @ gn)) > 1e-2 * max(np.linalg.norm(gn), 1e-300):
+            out[key], u95[key] = None, None
+            continue
+        out[key] = float(v)
+        u95[key] = float(2 * np.sqrt(max(g @ cov @ g, 0.0)))
+        # an uncertainty wider than the whole plausible range determines nothing
+        for pat, (lo, hi) in cause.bounds.items():
+            if _matches(key, pat) and u95[key] > hi - lo:
+                out[key], u95[key] = None, None
+                break
+    return out, u95
+
+
+def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> dict:
+    """How much of what a smooth term in the cause's covariate explains the cause explains."""
+    others = [o for o in terms if o is not tm]
+    so = _state(Qb, y, rows, others)
+    sf = _state(Qb, y, rows, others + [tm])
+    cause = tm.origin
+    if cause is not None and cause.rival is not None:
+        B = (cause.rival(bl, tm.info) if bl.whiten is None else bl.whiten @ cause.rival(bl, tm.info))[rows]
+    else:
+        cov = bl.covariate(tm.covariate)
+        if cov is None:
+            return {"kept": True, "rival_share": 1.0, "rival": None}
+        B = bases[cov.name][rows]
+    U = new_basis(so.Q, np.hstack([B, tm.columns[rows]]))
+    ss_r = float(np.sum((U.T @ so.r) ** 2))
+    k_r = U.shape[1]
+    ss_n = so.rss - sf.rss
+    k_n = sf.Q.shape[1] - so.Q.shape[1]
+    s2 = sigma ** 2
+    d_n = ss_n - k_n * s2
+    d_r = ss_r - k_r * s2
+    share = d_n / d_r if d_r > 0 else 1.0
+    m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
+    immaterial = (d_r - d_n) < m_ss
+    out = {"kept": bool(share >= settings.rival_share or immaterial), "rival_share": float(share),
+           "rival": tm.covariate, "explained_ss_um2": max(d_n, 0.0) / UM ** 2,
+           "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}
+    if cause is not None and cause.counter is not None:
+        # the plainer explanation (a finer error map for a coupling): it must not do as well
+        Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
+        Uc = new_basis(so.Q, Bc[rows])
+        d_c = float(np.sum((Uc.T @ so.r) ** 2)) - Uc.shape[1] * s2
+        out["counter"] = cause.counter.__name__.replace("_", " ")
+        out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
+        if d_c > d_n - m_ss:
+            out["kept"] = False
+    return out
+
+
+def _alternatives(bl, tm: Term, named, Qb, y, rows, sigma, settings, bases) -> list:
+    """Covariates of other families whose smooth term reproduces the cause's signal.
+
+    The cause's signal is its contribution to the joint fit (its columns'
+    part outside the rest of the model, times their coefficients). A smooth
+    function of a covariate of another family (:attr:`Covariate.family`)
+    that reproduces at least ``rival_share`` of it and explains at least
+    ``rival_share`` as much (debiased) means the design cannot tell the
+    cause from "something following that covariate": the name is then
+    flagged as ambiguous.
+    """
+    fam = bl.covariate(tm.covariate).family if bl.covariate(tm.covariate) is not None else ""
+    so = _state(Qb, y, rows, [o for o in named if o is not tm])
+    E = tm.columns[rows]
+    Ep = E - so.Q @ (so.Q.T @ E)
+    c = np.linalg.lstsq(Ep, so.r, rcond=1e-12)[0]
+    sig_n = Ep @ c
+    s2 = sigma ** 2
+    d_n = float(sig_n @ sig_n) - E.shape[1] * s2
+    out = []
+    if d_n <= 0:
+        return out
+    for cov in bl.covariates:
+        if not cov.family or cov.family == fam or cov.name not in bases or isinstance(bases[cov.name], tuple):
+            continue
+        U = new_basis(so.Q, bases[cov.name][rows])
+        if U.shape[1] == 0:
+            continue
+        overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
+        d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * s2
+        ind = overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
+        if overlap >= 0.5:
+            out.append({"covariate": cov.name, "overlap": overlap, "explained_ratio": d_w / d_n,
+                        "indistinguishable": bool(ind)})
+    return out
+
+
+def _pspline_penalty(cov, n_modes: int, m: int) -> np.ndarray:
+    """Second-difference penalty per mode on B-spline coefficients (identity for others)."""
+    if cov.kind == "smooth" and m >= 3:
+        D = np.diff(np.eye(m), 2, axis=0)
+        P1 = D.T @ D + 1e-6 * np.eye(m)
+    else:
+        P1 = np.eye(m)
+    return np.kron(np.eye(n_modes), P1)
+
+
+def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings, bases) -> Term | None:
+    """The penalised smooth term in the strongest remaining covariate, if it earns its keep."""
+    top = next((d for d in diag if d.significant(settings.alpha_family) and d.covariate in bases
+                and not isinstance(bases[d.covariate], tuple)), None)
+    if top is None:
+        return None
+    cov = bl.covariate(top.covariate)
+    if cov is None:
+        return None
+    B = bases[cov.name]  # all rows
+    m = B.shape[1] // len(cov.modes)
+    P1 = _pspline_penalty(cov, len(cov.modes), m)
+    E_named = _stack(terms, rows)
+    Bp = B[rows] - st.Q @ (st.Q.T @ B[rows])
+    scale = float(np.trace(Bp.T @ Bp)) / max(B.shape[1], 1)
+    best = None
+    for lam in scale * np.logspace(-4, 2, 7):
+        Pm = np.zeros((E_named.shape[1] + B.shape[1],) * 2)
+        Pm[E_named.shape[1]:, E_named.shape[1]:] = lam * P1
+        cv = folds.mse(y[rows], np.hstack([E_named, B[rows]]), Pm)
+        if best is None or cv < best[0]:
+            best = (cv, lam)
+    cv, lam = best
+    gain = cv_cur - cv
+    m2 = (settings.material_sigma * sigma) ** 2
+    ev = {"covariate": cov.name, "diagnosis": top.words, "cv_rms_before_um": float(np.sqrt(cv_cur)) / UM,
+          "cv_rms_after_um": float(np.sqrt(cv)) / UM, "cv_gain_um2": gain / UM ** 2, "penalty": float(lam / scale),
+          "adopted": bool(gain >= m2)}
+    if gain < m2:
+        return Term(causes_mod.UNEXPLAINED, np.zeros((bl.n, 0)), (), {}, cov.name, evidence=ev,
+                    penalty=np.zeros((0, 0)))
+    return Term(causes_mod.UNEXPLAINED, B, tuple(f"smooth[{i}]" for i in range(B.shape[1])), {"covariate": cov.name},
+                cov.name, evidence=ev, penalty=lam * P1)
+
+
+def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases) -> list:
+    out = []
+    sig = st.sigma
+    for tm in terms:
+        if tm.cause == causes_mod.UNEXPLAINED:
+            continue
+        cause = tm.origin
+        named = [t for t in terms if t.penalty is None]
+        Qo = _state(Qb, y, rows, [t for t in named if t is not tm]).Q
+        vals, u95 = _magnitudes(cause, bl, tm, Qo, rows)
+        ev = dict(tm.evidence)
+        if tm.weak:
+            ev["not_identifiable_directions"] = int(tm.weak)
+        share = _rival_share(bl, tm, named, Qb, y, rows, sig, settings, bases)
+        ev["explained_ss_um2"] = share["explained_ss_um2"]
+        alt = _alternatives(bl, tm, named, Qb, y, rows, sig, settings, bases)
+        ev["alternatives"] = alt
+        ev["indistinguishable_from"] = [a["covariate"] for a in alt if a["indistinguishable"]]
+        ev["confidence"] = "ambiguous" if ev["indistinguishable_from"] else "named"
+        ev["explained_rms_um"] = float(np.sqrt(share["explained_ss_um2"] / len(rows)))
+        out.append(Finding(tm.cause, _clean(ev), {**_info_params(tm.info), **vals}, u95,
+                           float(np.sqrt(st.rss / len(rows))) / UM, cause.books_to))
+    if structure_e["present"]:
+        ev = {"diagnosis": [d.to_dict() for d in diag_e if d.significant(settings.alpha_family)],
+              "cv_gap": structure_e["cv_gap"], "lack_of_fit": structure_e["lack_of_fit"],
+              "noise_excess": structure_e["noise_excess"],
+              "partially_consistent_with": [{k: v for k, v in d.items() if k != "kept"} for d in demoted]}
+        words = "; ".join(d.words for d in diag_e if d.significant(settings.alpha_family))
+        if not words:
+            words = _no_covariate_words(structure_e, settings)
+        ev["text"] = words
+        params, u95 = {}, {}
+        if smooth is not None:
+            ev["smooth"] = smooth.evidence
+            if smooth.columns.shape[1]:
+                ss = _smooth_ss(bl, terms, smooth, Qb, y, rows)
+                ev["explained_ss_um2"] = ss / UM ** 2
+                params = {"covariate": smooth.covariate, "explained_rms_um": float(np.sqrt(ss / len(rows))) / UM}
+                u95 = {"explained_rms_um": None}
+        if "explained_ss_um2" not in ev:
+            top = next((d for d in diag_e if d.significant(settings.alpha_family)), None)
+            ev["explained_ss_um2"] = (top.explained_rms_um ** 2 * len(rows)) if top else 0.0
+        out.append(Finding(causes_mod.UNEXPLAINED, _clean(ev), params, u95, st.sigma / UM, "unknown"))
+    return out
+
+
+def _smooth_ss(bl, terms, smooth, Qb, y, rows) -> float:
+    without = [t for t in terms if t is not smooth]
+    return max(_state(Qb, y, rows, without).rss - _state(Qb, y, rows, terms).rss, 0.0)
+
+
+def _info_params(info: dict) -> dict:
+    return {k: v for k, v in info.items() if isinstance(v, str)}
+
+
+def _clean(d):
+    """JSON-friendly: numpy scalars to float, inf to None."""
+    if isinstance(d, dict):
+        return {k: _clean(v) for k, v in d.items()}
+    if isinstance(d, (list, tuple)):
+        return [_clean(v) for v in d]
+    if isinstance(d, (bool, np.bool_)):
+        return bool(d)
+    if isinstance(d, (int, np.integer)):
+        return int(d)
+    if isinstance(d, (float, np.floating)):
+        return float(d) if np.isfinite(d) else None
+    return d
+
+
+def _outlier_finding(bl, outliers, st0, st) -> Finding:
+    r0 = st0.r[outliers]
+    ss = float(np.sum(r0 ** 2))
+    return Finding(causes_mod.OUTLIER, {
+        "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) / UM for v in r0],
+        "explained_ss_um2": ss / UM ** 2,
+        "test": "studentized deleted residual beyond the Bonferroni t bound"},
+        {"n_outliers": int(len(outliers)), "max_deviation_um": float(np.max(np.abs(r0))) / UM},
+        {"max_deviation_um": None}, st.sigma / UM, "data")
+
+
+def _unexplained_only(diag, structure, st, sigma, settings) -> Finding:
+    words = "; ".join(d.words for d in diag if d.covariate in structure["covariates"])
+    if not words:
+        words = _no_covariate_words(structure, settings)
+    top = next((d for d in diag if d.covariate in structure["covariates"]), None)
+    return Finding(causes_mod.UNEXPLAINED, _clean({
+        "text": words, "diagnosis": [d.to_dict() for d in diag if d.covariate in structure["covariates"]],
+        "cv_gap": structure["cv_gap"], "lack_of_fit": structure["lack_of_fit"],
+        "noise_excess": structure["noise_excess"],
+        "explained_ss_um2": (top.explained_rms_um ** 2 * st.dof) if top else 0.0}), {}, {}, st.sigma / UM, "unknown")
+
+
+def _workpiece(bl: Baseline, terms, y, rows, st0, st):
+    """Estimand per id for the baseline and the extended model, with U95 (k = 2).
+
+    Returns (rows of the report, identifiable, G_b, G_e, cov_b, cov_e).
+    """
+    q = bl.estimand
+    A0 = bl.A
+    gb, cb, eb = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0)
+    # a named cause enters with the combinations the data determine (its map)
+    E = np.hstack([t.columns @ t.map if t.map is not None else t.columns for t in terms]) if terms \
+        else np.zeros((bl.n, 0))
+    A1 = np.hstack([A0, E])
+    C1 = np.hstack([bl.C, np.zeros((bl.C.shape[0], E.shape[1]))])
+    P = None
+    if any(t.penalty is not None for t in terms):
+        P = np.zeros((E.shape[1], E.shape[1]))
+        o = 0
+        for t in terms:
+            k = t.map.shape[1] if t.map is not None else t.columns.shape[1]
+            if t.penalty is not None:
+                P[o:o + k, o:o + k] = t.penalty
+            o += k
+    ge, ce, ee = _constrained(A1, y, C1, bl.d, rows, P, E.shape[1])
+    out = []
+    for i, tid in enumerate(bl.estimand_ids):
+        j = q[i]
+        out.append({"target": tid,
+                    "baseline_um": float(gb[j]) / UM if eb[j] else None,
+                    "extended_um": float(ge[j]) / UM if ee[j] else None,
+                    "baseline_u95_um": float(2 * np.sqrt(max(cb[j, j], 0))) / UM if eb[j] else None,
+                    "extended_u95_um": float(2 * np.sqrt(max(ce[j, j], 0))) / UM if ee[j] else None})
+    ident = bool(np.all(eb[q]) and np.all(ee[q]))
+    return (out, ident, np.where(eb[q], gb[q], np.nan), np.where(ee[q], ge[q], np.nan),
+            cb[np.ix_(q, q)], ce[np.ix_(q, q)])
+
+
+def _constrained(A, y, C, d, rows, penalty, k_ext):
+    """Gauge-constrained least squares with covariance and per-parameter estimability.
+
+    Null-space method: ``theta = theta0 + Z phi`` with ``C theta = d``;
+    ``phi`` by the pseudo-inverse of the column-scaled ``A Z`` (plus the
+    ridge rows of a penalised term). A parameter is estimable when no
+    direction the data cannot see moves it. sigma from the residuals.
+    """
+    Ar = A[rows]
+    yr = y[rows]
+    p = A.shape[1]
+    if penalty is not None and k_ext:
+        w, V = np.linalg.eigh(penalty)
+        R = (V * np.sqrt(np.maximum(w, 0))).T
+        Ar = np.vstack([Ar, np.hstack([np.zeros((k_ext, p - k_ext)), R])])
+        yr = np.concatenate([yr, np.zeros(k_ext)])
+    theta0 = np.linalg.lstsq(C, d, rcond=None)[0] if C.shape[0] else np.zeros(p)
+    _, sC, VtC = np.linalg.svd(C) if C.shape[0] else (None, np.zeros(0), np.eye(p))
+    rC = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))
+    Z = VtC[rC:].T
+    M = Ar @ Z
+    sc = np.linalg.norm(M, axis=0)
+    sc = np.where(sc > 0, sc, 1.0)
+    U, s, Vt = np.linalg.svd(M / sc, full_matrices=False)
+    tol = 1e-6 * s.max() if s.size else 0.0
+    good = s > tol
+    Vg = Vt[good].T / sc[:, None]  # (nz, r): phi = Vg diag(1/s) U^T b
+    b = yr - Ar @ theta0
+    phi = Vg @ ((U[:, good].T @ b) / s[good])
+    theta = theta0 + Z @ phi
+    res = yr - Ar @ theta
+    dof = max(len(rows) - int(good.sum()), 1)
+    s2 = float(res[:len(rows)] @ res[:len(rows)]) / dof
+    T = Z @ (Vg / s[good])  # theta per unit of U^T b
+    cov = s2 * (T @ T.T)
+    null = Z @ (Vt[~good].T / sc[:, None]) if (~good).any() else np.zeros((p, 0))
+    if null.shape[1]:
+        Qn = orth(null)
+        est = np.linalg.norm(Qn, axis=1) < 1e-6
+    else:
+        est = np.ones(p, bool)
+    return theta, cov, est

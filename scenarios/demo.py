@@ -257,7 +257,7 @@ def _finding_text(f: dict) -> str:
     if f["cause"] == "periodic_axis_error":
         ax = p["axis"]
         return (f"axis {ax}, period {p['period_mm']:.2f} mm, E{ax}{ax} amplitude "
-                f"{p[f'E{ax}{ax}_amplitude_um']:.2f} +/- {p['amplitude_u_um']:.2f} um")
+                f"{p[f'E{ax}{ax}_amplitude_um']:.2f} +/- {f['params_u95'][f'E{ax}{ax}_amplitude_um']:.2f} um (U95)")
     if f["cause"] == "probe_lobing":
         return f"pre-travel varies {p['pretravel_variation_pv_um']:.2f} um peak-to-valley with the approach azimuth"
     if f["cause"] == "outlier":

@@ -593,6 +593,7 @@ class ScenarioResult:
     seconds: float
     doc: dict
     slopes: dict = field(default=None, compare=False)
+    meas: list = field(default=None, compare=False)  # the core.volumetric.Measurement list identified
 
     def write_comp(self, directory) -> list:
         """Write the LinuxCNC per-axis compensation files and the vmt JSON tables.
@@ -643,7 +644,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
         u_cal_um: tuple = (0.2, 0.35, 0.35), bar_cal_error: bool = True,
         u_place: tuple = U_PLACE, machine=None, compensate=None, bar_seed: int | None = None,
-        u_stylus_um: float = 0.0, bar_temperature_C: float = 20.0, progress=None) -> ScenarioResult:
+        u_stylus_um: float = 0.0, bar_temperature_C: float = 20.0, hook=None, progress=None) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -688,6 +689,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         Inject instead the C2 splines through the realistic errors' values at
         the plan's nodes (errors the tables represent exactly: what is left
         is the model's own truncation, not the interpolation's).
+    hook : callable(i, spec, artefact, probe, machine) -> (artefact, probe, machine), optional
+        Replaces what measurement ``i`` is simulated with (effects hidden
+        for model discovery, scenarios/hidden.py).
     progress : callable, optional
         ``progress(done, total)``: one step per simulated measurement, then
         the identification and the uncertainty.
@@ -767,8 +771,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
             if compensate is not None:
                 machines[ms.stylus] = compensate(machines[ms.stylus])
         m = machines[ms.stylus]
-        pl = _plan_for(art, ms.holes)
-        log = simulate_campaign(art, _NoSafeHeight(m), probe, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
+        art_i, probe_i = art, probe
+        if hook is not None:
+            art_i, probe_i, m = hook(len(meas), ms, art, probe, m)
+        pl = _plan_for(art_i, ms.holes)
+        log = simulate_campaign(art_i, _NoSafeHeight(m), probe_i, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
                                 rng if noisy else None, plan=pl, check_collisions=False)
         _check_touch_strokes(log, m, ms.name)
         t = from_log(log)
@@ -823,7 +830,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         doc["collision_check"] = collision
     if progress is not None:
         progress(steps, steps)
-    return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0])
+    return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0], meas)
 
 
 #: How each twist (an axis' rotation about itself) is sensed by the 5-axis plan

@@ -22,55 +22,109 @@ def _recording_path(folder: Path) -> Path:
     return Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent)) / "recording.rrd"
 
 
+#: Covariates whose basis is not one variable are drawn against this one.
+_PLOT_AS = {"xy": "x", "azimuth_by_setup": "approach_azimuth"}
+
+
 def _discovery_sections(d, t, rep: dict, rec=None) -> list:
-    """Report sections (and recording entities) of one discovery."""
+    """Report sections (and recording entities) of one discovery.
+
+    ``t`` is not used (kept for callers): times, directions and covariates
+    come from the discovery's baseline, aligned with its residuals.
+    """
     from viz import figures, record
     from viz.report import Section, Table
 
-    approach_deg = np.degrees(np.arctan2(t.d_R[:, 1], t.d_R[:, 0]))
-    out_idx = [int(np.flatnonzero(t.row == r)[0]) for r in rep["outlier_rows"]]
+    bl = d.baseline
+    n = bl.n
+    tcov = bl.covariate("time")
+    t_s = np.asarray(tcov.values, float) if tcov is not None else np.arange(n, dtype=float)
+    acov = bl.covariate("approach_azimuth")
+    approach_deg = np.degrees(np.asarray(acov.values, float)) if acov is not None else np.zeros(n)
+    out_idx = [int(np.flatnonzero(bl.rows == r)[0]) for r in rep["outlier_rows"]]
     if rec is not None:
-        record.log_residuals(rec, t.t_s, approach_deg, d.residuals_baseline_um, outlier_rows=out_idx,
+        record.log_residuals(rec, t_s, approach_deg, d.residuals_baseline_um, outlier_rows=out_idx,
                              path=record.RESIDUALS + "/baseline")
         res_e = np.where(np.isfinite(d.residuals_extended_um), d.residuals_extended_um, 0.0)
-        record.log_residuals(rec, t.t_s, approach_deg, res_e, path=record.RESIDUALS + "/extended")
+        record.log_residuals(rec, t_s, approach_deg, res_e, path=record.RESIDUALS + "/extended")
         record.log_markdown(rec, "discovery", record.findings_markdown(rep))
+    nz = rep["noise_um"]
     secs = [
         Section("Discovery: verdict", text=_verdict(rep),
                 figures={"findings": figures.findings_figure(rep)},
                 tables=[Table(["model", "RMS / µm", "cross-validated RMS / µm"],
                               [[rep["baseline"]["model"], rep["baseline"]["rms_um"], rep["baseline_cv_rms_um"]],
                                [rep["extended"]["model"], rep["extended"]["rms_um"], rep["extended"]["cv_rms_um"]]])]),
-        Section("Baseline residuals: what the model gets wrong",
-                text="Residuals of the 2D self-calibration against time and approach direction "
-                     "(machine frame). Structure here is what the findings explain.",
-                figures={"residuals_baseline": figures.residuals_figure(
-                    t.t_s, approach_deg, d.residuals_baseline_um, outlier_rows=out_idx)}),
+        Section("Noise floor", text="The probing noise from the log itself: the scatter of repeated touches, "
+                "the lack of fit of the baseline against it, and the gap between held-out and in-sample "
+                "residuals against what pure noise gives through the same fit (Monte Carlo).",
+                tables=[Table(["estimate", "σ / µm", "figures"], [
+                    ["used", nz["sigma_um"], nz["method"]],
+                    ["repeated touches", nz["repeats"]["sigma_um"], f"{nz['repeats']['dof']} dof"],
+                    ["in-sample residuals", nz["in_sample"]["sigma_um"], f"{nz['in_sample']['dof']} dof"],
+                    ["held-out residuals", nz["cv_gap"]["sigma_cv_um"],
+                     f"ratio {nz['cv_gap']['ratio']:.3g} (noise: {nz['cv_gap']['expected_ratio']:.3g}), "
+                     f"p = {nz['cv_gap']['p_value']:.3g}"]])]),
     ]
+    panels = []
+    for dg in d.diagnosis:
+        if dg.p_value >= 0.01 or dg.fitted_um is None or len(panels) >= 6:
+            continue
+        cov = bl.covariate(_PLOT_AS.get(dg.covariate, dg.covariate))
+        if cov is None:
+            continue
+        x = np.asarray(cov.values)
+        if x.ndim != 1:
+            continue
+        label = cov.words
+        if x.dtype == object or cov.kind == "categorical":
+            x = np.unique(x, return_inverse=True)[1].astype(float)
+        elif cov.kind == "circular":
+            x = np.degrees(x.astype(float))
+            label += " / °"
+        elif cov.family == "position":
+            x = x.astype(float) / 1e-3
+            label += " / mm"
+        rows = np.setdiff1d(np.arange(n), out_idx) if len(dg.fitted_um) != n else np.arange(n)
+        panels.append({"x": x[rows], "residual_um": d.residuals_baseline_um[rows], "fitted_um": dg.fitted_um,
+                       "xlabel": label, "text": dg.words})
+    diag_rows = [[dg["covariate"], dg["explained_rms_um"], dg["p_value"], dg["text"]] for dg in rep["diagnosis"]]
+    secs.append(Section("Diagnosis: where the structure lives",
+                        text="For every covariate the log holds, a smooth function of it is added to the baseline "
+                             "and tested (nested F test, Holm over the covariates); the explained RMS is debiased.",
+                        figures={"diagnosis": figures.diagnosis_figure(panels)} if panels else {},
+                        tables=[Table(["covariate", "explained RMS / µm", "p (Holm)", "in words"], diag_rows)]))
+    secs.append(Section("Baseline residuals: what the model gets wrong",
+                        text="Residuals of the baseline against time and approach direction (machine frame).",
+                        figures={"residuals_baseline": figures.residuals_figure(
+                            t_s, approach_deg, d.residuals_baseline_um, outlier_rows=out_idx)}))
     fin = np.isfinite(d.residuals_extended_um)
     secs.append(Section("Extended model residuals",
                         figures={"residuals_extended": figures.residuals_figure(
-                            t.t_s[fin], approach_deg[fin], d.residuals_extended_um[fin])}))
+                            t_s[fin], approach_deg[fin], d.residuals_extended_um[fin])}))
     rows = []
     for f in rep["findings"]:
+        pu = f.get("params_u95", {})
         for k, v in f["params"].items():
-            rows.append([f["cause"], k, v])
+            rows.append([f["cause"], k, v, pu.get(k, "")])
     if rows:
-        secs.append(Section("Fitted magnitudes", tables=[Table(["cause", "parameter", "value"], rows)]))
-    secs.append(Section("Workpiece per target (discovery)", tables=[Table(
-        ["target", "baseline / µm", "extended / µm"],
-        [[w["target"], w["baseline_um"], w["extended_um"]] for w in rep["workpiece"]])]))
+        secs.append(Section("Fitted magnitudes", tables=[Table(["cause", "parameter", "value", "U95 (k=2)"], rows)]))
+    secs.append(Section("Workpiece per target (discovery)",
+                        text="" if rep["workpiece_identifiable"] else
+                        "Not identifiable by this design: no estimate is reported.",
+                        tables=[Table(
+                            ["target", "baseline / µm", "U95 / µm", "extended / µm", "U95 / µm"],
+                            [[w["target"], w["baseline_um"], w["baseline_u95_um"], w["extended_um"],
+                              w["extended_u95_um"]] for w in rep["workpiece"]])]))
     return secs
 
 
-def discovery_report(folder, d, t, rep: dict, title: str) -> Path:
-    """Write ``folder`` with index.html, residual plots and a rerun recording.
+def discovery_report(folder, d, rep: dict, title: str) -> Path:
+    """Write ``folder`` with index.html, residual and diagnosis plots and a rerun recording.
 
     Parameters
     ----------
     d : core.discover.Discovery
-    t : core.touches.Touches
-        The touches ``d`` was computed from (times, approach directions).
     rep : dict
         ``d.to_report()`` as written to JSON.
     """
@@ -79,9 +133,12 @@ def discovery_report(folder, d, t, rep: dict, title: str) -> Path:
 
     folder = Path(folder)
     rrd = _recording_path(folder)
+    bl = d.baseline
     with record.recording(rrd) as rec:
-        record.log_touches(rec, t.pn_R, d.residuals_baseline_um, n_R=t.n_R)
-        secs = _discovery_sections(d, t, rep, rec)
+        t = getattr(bl.data, "touches", None)
+        if t is not None:
+            record.log_touches(rec, t.pn_R, d.residuals_baseline_um, n_R=t.n_R)
+        secs = _discovery_sections(d, None, rep, rec)
     try:
         return write_report(folder, title, secs, recording=rrd)
     finally:
@@ -298,6 +355,8 @@ def _verdict(rep: dict) -> str:
                 "structure: the baseline explains the data within the probing noise.")
     names = ", ".join(f["cause"] for f in rep["findings"])
     g = rep["gain"]
+    where = "; ".join([d["text"] for d in rep["diagnosis"] if d["p_value"] < 0.01][:3])
     return (f"Cause: {rep['cause']} (findings: {names}). The extended model cuts the residual RMS by "
             f"a factor {1 / max(g['rms_ratio'], 1e-9):.2f} and the cross-validated RMS by "
-            f"{1 / max(g['cv_rms_ratio'], 1e-9):.2f}.")
+            f"{1 / max(g['cv_rms_ratio'], 1e-9):.2f}." + (f" Where the baseline's residuals had structure: "
+                                                          f"{where}." if where else ""))

@@ -25,6 +25,8 @@ function                          paper figure
 :func:`workpiece_uncertainty_figure`  self-calibration Figs. 18-19 (U95 colour)
 :func:`residuals_figure`          discovery: residuals vs time and approach
 :func:`findings_figure`           discovery: RMS of baseline and candidates
+:func:`diagnosis_figure`          discovery: residuals against each covariate
+                                  that carries structure, with its smooth term
 ================================  ===========================================
 """
 
@@ -551,6 +553,45 @@ def findings_figure(report: Mapping, title: str = "Discovery: residual RMS by mo
     ax.set_xlabel("residual RMS of dq / µm")
     ax.set_ylabel("model (cause)")
     ax.grid(alpha=0.3, axis="x")
+    return fig
+
+
+def diagnosis_figure(panels: Sequence[Mapping], title: str = "Discovery: where the structure lives"):
+    """Residuals against each covariate that carries structure, with the fitted smooth term.
+
+    Parameters
+    ----------
+    panels : sequence of mappings, one per covariate (at most 6 drawn)
+        ``x`` : (n,) float, the covariate's value per row (a category's index
+        for a category); ``residual_um`` : (n,) float, the baseline's
+        residuals, µm; ``fitted_um`` : (n,) float, the smooth term the
+        diagnosis fitted, µm; ``xlabel`` : str; ``text`` : str (the
+        diagnosis in words, drawn as the panel's title).
+    """
+    panels = list(panels)[:6]
+    if not panels:
+        raise ConfigError("panels: needs at least one covariate")
+    cols = min(3, len(panels))
+    rows = int(np.ceil(len(panels) / cols))
+    fig = _figure(4.2 * cols, 3.0 * rows + 0.6)
+    axs = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    for ax, p in zip(axs, panels):
+        x = _arr("x", p["x"], (-1,))
+        r = _arr("residual_um", p["residual_um"], (-1,))
+        f = _arr("fitted_um", p["fitted_um"], (-1,))
+        _same_len(x=x, residual_um=r, fitted_um=f)
+        order = np.argsort(x, kind="stable")
+        ax.plot(x, r, ".", color=_C_MEAS, ms=3, alpha=0.6, label="residuals")
+        ax.plot(x[order], f[order], ".", color=_C_TRUE, ms=3, label="smooth term")
+        ax.axhline(0.0, color=_C_NOMINAL, lw=0.8)
+        ax.set_xlabel(str(p.get("xlabel", "")))
+        ax.set_ylabel("residual of dq / µm")
+        ax.set_title(str(p.get("text", "")), fontsize="x-small")
+        ax.grid(alpha=0.3)
+    for ax in axs[len(panels):]:
+        ax.set_visible(False)
+    axs[0].legend(fontsize="x-small")
+    fig.suptitle(title)
     return fig
 
 

@@ -27,6 +27,7 @@ BENCHES: list[str] = [
     "scenarios.bench.discover",
     "scenarios.bench.vcmm",
     "scenarios.bench.probelog",
+    "scenarios.bench.discover_study",
 ]
 
 

@@ -1,21 +1,70 @@
-"""Benchmark of model discovery: one cross-pocket campaign (432 touches)."""
+"""Benchmark of model discovery: the demo's campaign (432 touches), timed beside a reference.
+
+Issue 19 item 6: discover on the demo campaign under 0.2 s. These machines
+are shared and noisy, so the time is given as CPU seconds (the median of
+five runs) and as a ratio to a reference measured in the same run: a fixed
+dense linear-algebra workload of the same shape as discovery's (twenty
+pivoted QR factorisations of a 432 x 160 design), whose own time says how
+fast the machine was at that moment.
+"""
 
 from __future__ import annotations
 
 import time
 
+import numpy as np
+
+
+def demo_campaign():
+    """The touches of ``vmt demo`` (same machine, probe, hidden effects and seed)."""
+    from core.touches import from_log
+    from scenarios.demo import LOBING_M, SCREW_MM, SCREW_UM
+    from scenarios.hidden import drift_check_plan
+    from sim import artefacts as A
+    from sim.campaign import simulate_campaign
+    from sim.errorfuncs import Periodic
+    from sim.machine import Machine
+    from sim.machines import MACHINES, realistic_errors
+    from sim.probe import ProbeConfig
+
+    seed = 2026
+    errs = realistic_errors(("X", "Y", "Z", "C"), rng=np.random.default_rng(seed), ripple=False)
+    errs["EYY"] = errs["EYY"] + Periodic(SCREW_UM * 1e-6, SCREW_MM * 1e-3, 0.7)
+    machine = Machine(MACHINES["nmv3000"](errors=errs))
+    probe = ProbeConfig(repeatability_k2_m=0.6e-6, lobing_m=LOBING_M)
+    art = A.cross_pocket()
+    log = simulate_campaign(art, machine, probe, [0.0, 75.0, 130.0, 210.0], np.random.default_rng(seed + 1),
+                            plan=drift_check_plan(art), check_collisions=False)
+    return from_log(log)
+
+
+def _reference_s() -> float:
+    """CPU seconds of the reference workload (twenty pivoted QR of a 432 x 160 matrix)."""
+    import scipy.linalg as sla
+
+    A = np.random.default_rng(0).normal(size=(432, 160))
+    t0 = time.process_time()
+    for _ in range(20):
+        sla.qr(A, mode="economic", pivoting=True)
+    return time.process_time() - t0
+
 
 def run() -> dict:
     from core.discover import discover
-    from core.touches import from_log
-    from scenarios.hidden import hidden_campaign
 
-    log, _ = hidden_campaign(("probe_lobing",), 3)
-    t = from_log(log)
-    t0 = time.perf_counter()
-    for _ in range(3):
-        d = discover(t)
-    dt = (time.perf_counter() - t0) / 3
-    if d.cause != "probe_lobing":  # a benchmark of a wrong answer is no figure
-        raise RuntimeError(f"discover named {d.cause!r} for a hidden probe_lobing")
-    return {"discover_cross_pocket_s": round(dt, 3), "discover_touches": t.n}
+    t = demo_campaign()
+    d = discover(t)  # warm caches and imports
+    named = {f.cause for f in d.findings}
+    if not {"periodic_axis_error", "probe_lobing"} <= named:  # a benchmark of a wrong answer is no figure
+        raise RuntimeError(f"discover named {sorted(named)} on the demo campaign")
+    cpu, wall, ref = [], [], []
+    for _ in range(5):
+        ref.append(_reference_s())
+        c0, w0 = time.process_time(), time.perf_counter()
+        discover(t)
+        cpu.append(time.process_time() - c0)
+        wall.append(time.perf_counter() - w0)
+    c, r = float(np.median(cpu)), float(np.median(ref))
+    return {"discover_demo_cpu_s": round(c, 4), "discover_demo_wall_s": round(float(np.median(wall)), 4),
+            "discover_demo_reference_cpu_s": round(r, 4), "discover_demo_ratio_to_reference": round(c / r, 3),
+            "discover_touches": int(t.n)}

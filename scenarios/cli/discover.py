@@ -1,4 +1,4 @@
-"""``vmt discover LOG --json OUT [--report DIR]``: what the model gets wrong, and why."""
+"""``vmt discover LOG --json OUT [--report DIR]``: what the model gets wrong, where, why, and what fixing it gains."""
 
 from __future__ import annotations
 
@@ -6,11 +6,13 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    p = sub.add_parser("discover", help="find what the baseline model misses, name the cause, extend, measure the gain")
+    p = sub.add_parser("discover", help="find what the baseline model misses, where, name the cause, extend, "
+                                        "measure the gain")
     p.add_argument("log", help="probe-log/1 campaign (the same targets at two or more C angles)")
     p.add_argument("--json", dest="json_out", required=True, help="discovery report (JSON) to write")
     p.add_argument("--report", help="folder for a readable report (index.html, PNG figures, rerun .rrd)")
-    p.add_argument("--grid-mm", type=float, default=None, help="error-map grid step of the baseline (default: finest identifiable)")
+    p.add_argument("--grid-mm", type=float, default=None,
+                   help="error-map grid step of the baseline, mm (default: chosen by BIC among 22-80 mm)")
     p.set_defaults(func=run)
 
 
@@ -21,9 +23,10 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     first (NaN or infinity in a figure the contract requires is refused),
     the report folder comes next and the JSON last. ``null`` is allowed only
     where the contract says "not available": the per-target workpiece
-    figures and the findings' fitted magnitudes.
+    figures, the findings' fitted magnitudes and their U95.
     """
     from core.atomic import json_safe, json_text, write_text_atomic
+    from core.baseline import extra_columns
     from core.discover import discover
     from core.probelog import read_probe_log
     from core.scope import check_planar_scope
@@ -32,10 +35,8 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     log = read_probe_log(log_path)
     check_planar_scope(log, "discover")
     t = from_log(log)
-    kw = {}
-    if progress is not None and _takes_progress(discover):
-        kw["progress"] = progress
-    d = discover(t, grid_step_mm=grid_mm, chain=log.meta.get("kinematic_chain"), **kw)
+    d = discover(t, grid_step_mm=grid_mm, chain=log.meta.get("kinematic_chain"), progress=progress,
+                 extra=extra_columns(log, t.row))
     rep = dict(d.to_report())
     for k in ("workpiece", "findings"):
         if k in rep:
@@ -45,47 +46,51 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     if report:
         from scenarios.reports import discovery_report
 
-        discovery_report(report, d, t, rep, title=f"vmt discover: {Path(log_path).name}")
+        discovery_report(report, d, rep, title=f"vmt discover: {Path(log_path).name}")
     write_text_atomic(json_out, text, special=True)
     return rep
 
 
-def _takes_progress(fn) -> bool:
-    """True when the discovery engine takes ``progress(done, total)`` (its next version will)."""
-    import inspect
-
-    try:
-        return "progress" in inspect.signature(fn).parameters
-    except (TypeError, ValueError):  # pragma: no cover
-        return False
+def _fmt(v, u=None) -> str:
+    if isinstance(v, float):
+        return f"{v:.3g}" + (f" +- {u:.2g}" if isinstance(u, float) else "")
+    return "n/d" if v is None else str(v)
 
 
 def summary_lines(rep: dict) -> list[str]:
-    """The lines ``vmt discover`` prints for a report."""
-    out = [f"baseline   {rep['baseline']['model']}: rms {rep['baseline']['rms_um']:.3f} um, "
-           f"cv rms {rep['baseline_cv_rms_um']:.3f} um ({rep['baseline']['n']} touches, "
-           f"{rep['baseline']['n_params']} parameters)"]
+    """The lines ``vmt discover`` prints for a report: baseline, noise, diagnosis, cause, gain."""
+    b, nz = rep["baseline"], rep["noise_um"]
+    out = [f"baseline   {b['model']}: rms {b['rms_um']:.3f} um, cv rms {rep['baseline_cv_rms_um']:.3f} um "
+           f"({b['n']} touches, {b['n_params']} parameters)",
+           f"noise      {nz['sigma_um']:.3f} um (from {nz['method']}); held-out/in-sample ratio "
+           f"{nz['cv_gap']['ratio']:.2f} (pure noise: {nz['cv_gap']['expected_ratio']:.2f}, "
+           f"p = {nz['cv_gap']['p_value']:.2g})"]
+    shown = [d for d in rep["diagnosis"] if d["p_value"] < 0.01][:4]
+    out += [f"diagnosis  {d['text']}" for d in shown]
+    if not shown:
+        out.append("diagnosis  no covariate carries structure (every smooth term's p >= 0.01)")
     if not rep["findings"]:
         out.append("cause      none: the baseline explains the data within the probing noise")
     for f in rep["findings"]:
-        shown = ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}"
-                          for k, v in list(f["params"].items())[:6])
-        rms = "n/a" if f.get("rms_um") is None else f"{f['rms_um']:.3f} um"
-        out.append(f"finding    {f['cause']}: rms {rms}  {shown}")
+        pu = f.get("params_u95", {})
+        params = ", ".join(f"{k} {_fmt(v, pu.get(k))}" for k, v in list(f["params"].items())[:6])
+        flag = " (ambiguous: " + ", ".join(f["evidence"]["indistinguishable_from"]) + ")" \
+            if f["evidence"].get("confidence") == "ambiguous" else ""
+        out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}")
     g = rep["gain"]
     out.append(f"extended   {rep['extended']['model']}: rms {rep['extended']['rms_um']:.3f} um "
                f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um (x{g['cv_rms_ratio']:.2f})")
+    if not rep["workpiece_identifiable"]:
+        out.append("workpiece  not identifiable by this design (reported as null)")
     return out
 
 
 def run(args) -> int:
-    from scenarios.cli.guard import progress_line
+    from scenarios.cli.guard import progress_line, said
 
     with progress_line("discover") as bar:
         rep = run_discover(args.log, args.json_out, args.report, args.grid_mm, progress=bar)
     for line in summary_lines(rep):
         print(line)
-    from scenarios.cli.guard import said
-
     print(f"wrote {said(args.json_out)}" + (f" and {args.report}/index.html" if args.report else ""))
     return 0

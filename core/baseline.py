@@ -1,0 +1,860 @@
+"""The model discovery starts from, as one object: design, gauge, covariates, residuals.
+
+:func:`core.discover.discover_baseline` works on any linear(ised) model
+``y = A theta + e`` that says
+
+- what it explains: the design ``A`` (n, p) and the observations ``y``;
+- what it cannot see: the gauge conditions ``C theta = d`` that fix its
+  null space, and which columns are the *estimand* (the workpiece of a
+  self-calibration, the error tables of a volumetric identification, the
+  systematic deviations of a positioning test) with what of it no data can
+  see (the workpiece's position, rotation and scale);
+- how its rows group: the folds of the cross-validation (set-ups,
+  placements, cycles: a held-out group's own columns are refitted on it,
+  everything else is predicted) and the replicate groups (rows that are
+  the same design row measured again: their scatter is pure noise);
+- what its rows carry: the covariates (:class:`core.diagnosis.Covariate`)
+  and the response modes through which a smooth function of a covariate
+  acts on a row;
+- the data the named causes of :mod:`core.causes` build their columns from.
+
+:func:`planar` builds it for the 2D self-calibration of Ibaraki et al.
+(eqs 1-18, :mod:`core.selfcal`); :func:`core.volumetric_baseline.volumetric`
+(MFB) and the positioning baseline live beside their models.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import selfcal
+from .diagnosis import Covariate, orth
+from .exceptions import ConfigError, IdentifiabilityError
+from .touches import Touches
+
+from .units import MM
+#: Relative pivot of the column-scaled design below which a direction counts
+#: as unseen (singular-value ratio; core.lsq.solve uses 1e-6).
+RANK_TOL = 1e-7
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """A linear baseline model and everything discovery needs around it.
+
+    Attributes
+    ----------
+    kind : str
+        ``"planar"``, ``"volumetric"`` or ``"positioning"``: which causes apply.
+    model : str
+        The model in words (report key ``baseline.model``).
+    A : (n, p) float
+        Design, SI units per unit parameter.
+    y : (n,) float
+        Observations, m (or rad).
+    names : tuple of str
+        Parameter names, p.
+    groups : (n,) int
+        Cross-validation fold of each row (index into ``group_ids``).
+    group_ids : tuple of str
+    C, d : (k, p), (k,) float
+        Gauge conditions ``C theta = d``.
+    estimand : (q,) int
+        Columns reported per id (the workpiece per target, ...).
+    estimand_ids : tuple of str
+    geometry : tuple of (q, 2) arrays or None
+        ``(P_W, N_W)``: nominal point and normal of each estimand id in the
+        part's frame (planar), for the form that self-calibration sees
+        (shift, rotation, scale and offset removed); None when not planar.
+    replicate : (n,) int
+        Replicate group of each row (equal design rows); -1 for none.
+    covariates : tuple of Covariate
+    modes : (n, m) float
+        Response modes (column ``j`` is mode ``j``), unit-free.
+    mode_names : tuple of str
+    rows : (n,) int
+        Source log row of each observation (``outlier_rows`` are these).
+    data : object
+        What the causes of this kind read (``PlanarData`` ...).
+    identifiable : bool
+        The estimand is identifiable beyond the gauge.
+    why : str
+        When not: the combinations the data cannot see.
+    conventions : tuple of str
+    info : dict
+        Kind-specific figures for the report (grid step ...).
+    estimand_label : str
+    whiten : (n, n) float or None
+        When the rows' noise is correlated or of unequal size (the points of
+        an MFB measurement share touches), ``A`` and ``y`` are already
+        multiplied by this matrix (the inverse square root of their noise
+        covariance, scaled to keep the rows' mean size), and the engine
+        multiplies every other column it builds (causes, smooth terms) by
+        it too, so that the tests see independent rows of one variance.
+    """
+
+    kind: str
+    model: str
+    A: np.ndarray = field(repr=False)
+    y: np.ndarray = field(repr=False)
+    names: tuple = field(repr=False)
+    groups: np.ndarray = field(repr=False)
+    group_ids: tuple
+    C: np.ndarray = field(repr=False)
+    d: np.ndarray = field(repr=False)
+    estimand: np.ndarray = field(repr=False)
+    estimand_ids: tuple = field(repr=False)
+    geometry: tuple | None = field(repr=False)
+    replicate: np.ndarray = field(repr=False)
+    covariates: tuple = field(repr=False)
+    modes: np.ndarray = field(repr=False)
+    mode_names: tuple = field(repr=False)
+    rows: np.ndarray = field(repr=False)
+    data: object = field(repr=False)
+    identifiable: bool = True
+    why: str = ""
+    conventions: tuple = ()
+    info: dict = field(default_factory=dict)
+    estimand_label: str = "workpiece"
+    whiten: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def n(self) -> int:
+        return len(self.y)
+
+    def covariate(self, name: str) -> Covariate | None:
+        return next((c for c in self.covariates if c.name == name), None)
+
+
+# ---------------------------------------------------------------------------
+# planar: the 2D self-calibration
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PlanarData:
+    """What the planar causes build their columns from (machine frame R, SI).
+
+    Every coordinate is centred and scaled on the campaign itself, so the
+    columns' span does not change when the campaign is moved in machine
+    coordinates.
+
+    Attributes
+    ----------
+    touches : Touches
+        The planar touches (rows of the baseline).
+    x, y : (n,) float
+        Nominal tip centre, m.
+    xs, ys : (n,) float
+        ``(x - x_c) / L``, ``(y - y_c) / L``: centred on the extent, scaled
+        by its half-size ``L`` (unit-free, about -1..1).
+    L_m : float
+    nx, ny : (n,) float
+        Normal components, R.
+    azimuth, elevation : (n,) float
+        Approach direction's azimuth ``atan2(d_y, d_x)`` and elevation
+        ``asin(-d_z)`` (positive when the stylus moves down), rad.
+    tau : (n,) float
+        Time since the first touch over the campaign's span, 0..1.
+    t_in : (n,) float
+        Time since the set-up's first touch over the longest set-up's span, 0..1.
+    c0_m : (2,) float
+        C-axis centre in R (from the nominal positions of the same targets
+        at different C), m; NaN when the log cannot tell.
+    rot_m : (n,) float
+        ``(R90 (p - c0)) . n``: the normal deviation per radian of a table
+        rotation about the C axis (eq 13), m.
+    wn_az : (n,) float
+        Azimuth of the target's normal in the part's frame W, rad.
+    grid_step_m : float
+    span_s : float
+    temps : dict[str, (n,) float]
+    extra : dict[str, (n,) float]
+        Other numeric columns of the log (a feed, a spindle load ...).
+    """
+
+    touches: Touches = field(repr=False)
+    x: np.ndarray = field(repr=False)
+    y: np.ndarray = field(repr=False)
+    xs: np.ndarray = field(repr=False)
+    ys: np.ndarray = field(repr=False)
+    L_m: float
+    nx: np.ndarray = field(repr=False)
+    ny: np.ndarray = field(repr=False)
+    azimuth: np.ndarray = field(repr=False)
+    elevation: np.ndarray = field(repr=False)
+    tau: np.ndarray = field(repr=False)
+    t_in: np.ndarray = field(repr=False)
+    c0_m: np.ndarray
+    rot_m: np.ndarray = field(repr=False)
+    wn_az: np.ndarray = field(repr=False)
+    grid_step_m: float
+    span_s: float
+    temps: dict = field(repr=False)
+    extra: dict = field(default_factory=dict, repr=False)
+
+
+PLANAR_MODES = ("scalar", "x translation", "y translation", "x scale", "y scale", "x shear (by y)",
+                "y shear (by x)")
+
+
+def planar_modes(d: PlanarData) -> np.ndarray:
+    """(n, 7) response modes: a scalar and an affine displacement field of the tip (R).
+
+    ``dq = -n . E`` for a tip displacement ``E`` (CONTRIBUTING): columns
+    ``1, -n_x, -n_y, -n_x xs, -n_y ys, -n_x ys, -n_y xs``.
+    """
+    one = np.ones_like(d.nx)
+    return np.column_stack([one, -d.nx, -d.ny, -d.nx * d.xs, -d.ny * d.ys, -d.nx * d.ys, -d.ny * d.xs])
+
+
+def _w_A(t: Touches):
+    """Nominal contact points and normals in the part's frame A."""
+    return t.w_A, t.wn_A
+
+
+def c_axis_centre(t: Touches) -> np.ndarray:
+    """(2,) C-axis centre in R from the nominal tip centres, m (NaN when not determinable).
+
+    The same target at angles ``C_j`` and ``C_k`` sits at
+    ``p_k - c0 = R(C_j - C_k) (p_j - c0)`` (eq 1, ``p = R(-C) w + c0``), linear
+    in ``c0``; all pairs against each target's first touch are solved in the
+    least-squares sense.
+    """
+    _, first = np.unique(t.target, return_index=True)
+    j = first[np.searchsorted(np.unique(t.target), t.target)]
+    c = t.rot_rad[:, 2]
+    dc = c[j] - c
+    use = np.abs(np.angle(np.exp(1j * dc))) > 1e-6
+    if not use.any():
+        return np.full(2, np.nan)
+    R = selfcal.rot2(dc[use])  # (m, 2, 2)
+    M = (np.eye(2)[None] - R).reshape(-1, 2)
+    b = (t.pn_R[use, :2] - np.einsum("mab,mb->ma", R, t.pn_R[j[use], :2])).reshape(-1)
+    sol, *_ = np.linalg.lstsq(M, b, rcond=None)
+    return sol
+
+
+def extra_columns(log, rows) -> dict:
+    """Numeric columns of a probe log beyond the format's own, at ``rows``: name -> (n,) float.
+
+    Columns the format defines (and ``temp_*_C``, read as temperatures)
+    are left out, as are text columns and constant ones. Discovery tests
+    the rest as covariates too: every covariate the log holds.
+    """
+    from .probelog import OPTIONAL, REQUIRED
+
+    out = {}
+    for name, v in log.columns.items():
+        if name in REQUIRED or name in OPTIONAL or name.startswith("temp_"):
+            continue
+        try:
+            a = np.asarray(v, float)[rows]
+        except (TypeError, ValueError):
+            continue
+        if np.all(np.isfinite(a)) and np.ptp(a) > 0:
+            out[name] = a
+    return out
+
+
+def planar_data(t: Touches, grid_step_m: float, extra: dict | None = None) -> PlanarData:
+    """The centred, scaled geometry and times the planar causes use."""
+    x, y = t.pn_R[:, 0], t.pn_R[:, 1]
+    xc, yc = (x.max() + x.min()) / 2, (y.max() + y.min()) / 2
+    L = max(np.ptp(x), np.ptp(y), 1e-3) / 2
+    t0 = t.t_s.min()
+    span = max(float(np.ptp(t.t_s)), 1e-9)
+    tin = np.zeros(t.n)
+    for j in np.unique(t.setup):
+        m = t.setup == j
+        tin[m] = t.t_s[m] - t.t_s[m].min()
+    tin = tin / max(tin.max(), 1e-9)
+    c0 = c_axis_centre(t)
+    cc = c0 if np.all(np.isfinite(c0)) else np.array([xc, yc])
+    rot = -t.n_R[:, 0] * (y - cc[1]) + t.n_R[:, 1] * (x - cc[0])
+    _, wn = _w_A(t)
+    if np.all(np.isfinite(wn[:, :2])):
+        wn_az = np.arctan2(wn[:, 1], wn[:, 0])
+    else:  # n_W = R(+C) n_R (eq 1 maps W to R by R(-C))
+        wn_az = np.arctan2(t.n_R[:, 1], t.n_R[:, 0]) + t.rot_rad[:, 2]
+    d = t.d_R
+    return PlanarData(
+        touches=t, x=x, y=y, xs=(x - xc) / L, ys=(y - yc) / L, L_m=float(L), nx=t.n_R[:, 0], ny=t.n_R[:, 1],
+        azimuth=np.arctan2(d[:, 1], d[:, 0]), elevation=np.arcsin(np.clip(-d[:, 2], -1, 1)),
+        tau=(t.t_s - t0) / span, t_in=tin, c0_m=c0, rot_m=rot, wn_az=np.angle(np.exp(1j * wn_az)),
+        grid_step_m=float(grid_step_m), span_s=span,
+        temps={k: np.asarray(v, float) for k, v in t.temps_C.items()
+               if np.all(np.isfinite(v)) and np.ptp(v) > 0},
+        extra={k: np.asarray(v, float) for k, v in (extra or {}).items()})
+
+
+def planar_covariates(d: PlanarData) -> tuple:
+    """The covariates of a planar campaign (those that vary), with their bases."""
+    t = d.touches
+    allm = tuple(range(7))
+    pos = (0, 1, 2)
+    covs = [
+        Covariate("time", t.t_s, "smooth", 6, allm, "time", "time"),
+        Covariate("time_in_setup", d.t_in, "smooth", 5, allm, "time within each set-up", "time"),
+        Covariate("setup", t.setup, "categorical", 0, allm, "the set-up", "time"),
+        Covariate("x", d.x, "smooth", 8, pos, "the x position", "position"),
+        Covariate("y", d.y, "smooth", 8, pos, "the y position", "position"),
+        Covariate("approach_azimuth", d.azimuth, "circular", 4, (0,), "the approach azimuth (machine frame)",
+                  "direction"),
+        Covariate("order", np.arange(t.n, dtype=float), "smooth", 6, allm, "the touch order", "time"),
+    ]
+    su = np.unique(t.setup)
+    if su.size >= 2:
+        F = np.column_stack([f(k * d.azimuth) for k in (2, 3, 4) for f in (np.cos, np.sin)])
+        B = np.hstack([F * (t.setup == j)[:, None] for j in su])
+        covs.append(Covariate("azimuth_by_setup", B, "basis", B.shape[1], (0,),
+                              "the approach azimuth, differently in each set-up", "direction"))
+    xy = _xy_basis(d.xs, d.ys)
+    covs.append(Covariate("xy", xy, "basis", xy.shape[1], (1, 2), "x and y jointly (non-separable)", "position"))
+    from .causes import nyquist_period_m
+
+    for name, v in (("x", d.x), ("y", d.y)):  # structure finer than a smooth term: a ripple along an axis
+        covs.append(Covariate(f"{name}_periodic", v, "spectral", 0, (1, 2), f"the {name} position periodically",
+                              "position", (nyquist_period_m(v), d.grid_step_m)))
+    # an oscillation in time (a vibration, a cycling coolant): periods from twice the
+    # typical time between touches to a third of the campaign
+    dt = np.diff(np.sort(t.t_s))
+    dt = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 0.0
+    if dt > 0:
+        covs.append(Covariate("time_periodic", t.t_s, "spectral", 0, (0, 1, 2), "time periodically", "time",
+                              (2 * dt, d.span_s / 3)))
+    cdeg = np.round(np.degrees(t.rot_rad[:, 2]), 6)
+    nc = np.unique(cdeg).size
+    if nc >= 3:
+        covs.append(Covariate("C", t.rot_rad[:, 2], "circular", min(2, (nc - 1) // 2), allm, "the C angle", "time"))
+    z = t.pn_R[:, 2]
+    nz = np.unique(np.round(z, 7)).size
+    if nz >= 2:
+        covs.append(Covariate("z", z, "smooth", min(4, nz), pos, "the z position", "position"))
+    if np.ptp(d.elevation) > np.radians(1.0):
+        covs.append(Covariate("approach_elevation", d.elevation, "smooth", 3, (0,), "the approach elevation",
+                              "direction"))
+    feats = np.asarray(t.feature, dtype=object)
+    if len(set(feats.tolist())) >= 2:
+        key = np.array([f"{f}|{s}" for f, s in zip(feats, t.setup)], dtype=object)
+        covs.append(Covariate("feature", key, "categorical", 0, pos, "the feature, differently in each set-up",
+                              "feature"))
+    for name, v in d.temps.items():
+        short = name[5:-2] if name.startswith("temp_") and name.endswith("_C") else name
+        covs.append(Covariate(f"temp_{short}", v, "smooth", 5, allm, f"the temperature {name}", "time"))
+    for name, v in d.extra.items():
+        covs.append(Covariate(name, v, "smooth", 5, allm, f"the column {name}", "other"))
+    return tuple(covs)
+
+
+def _xy_basis(xs, ys):
+    """Products of Legendre polynomials ``P_i(xs) P_j(ys)``, i, j >= 1, i + j <= 4."""
+    P = [np.ones_like(xs), xs, (3 * xs ** 2 - 1) / 2, (5 * xs ** 3 - 3 * xs) / 2]
+    R = [np.ones_like(ys), ys, (3 * ys ** 2 - 1) / 2, (5 * ys ** 3 - 3 * ys) / 2]
+    return np.column_stack([P[i] * R[j] for i in range(1, 4) for j in range(1, 4) if i + j <= 4])
+
+
+def centred_grid(p_R: np.ndarray, step_m: float) -> selfcal.Grid:
+    """Nodes ``c + k step`` symmetric about the centre ``c`` of the points' extent.
+
+    Anchored on the campaign, not on the machine's zero: moving the
+    campaign in machine coordinates moves the grid with it.
+    """
+    nodes = []
+    for c in (0, 1):
+        v = p_R[:, c]
+        mid = (v.max() + v.min()) / 2
+        K = max(int(np.ceil((v.max() - mid) / step_m - 1e-9)), 1)
+        nodes.append(mid + step_m * np.arange(-K, K + 1))
+    return selfcal.Grid(*nodes)
+
+
+def _height_columns(t: Touches, des: selfcal.SelfCalDesign):
+    """C-axis tilt and Abbe columns for touches at more than one Z level.
+
+    The paper's model is planar: every touch at one height. Touches at
+    another height (sphere equators above the pocket) also see the C-axis
+    tilt error motions ``EAC``/``EBC`` (per set-up) and the angular errors
+    of X and Y through the height difference ``dz``: per-set-up columns
+    ``n_x dz``, ``-n_y dz``. The reference set-up's pair is fixed (a tilt
+    of the part in W is the same as shifting every raised target).
+    Returns (columns, names, per-set-up column indices, gauge columns,
+    levels) or None for a single level.
+    """
+    z = t.pn_R[:, 2]
+    levels, counts = np.unique(np.round(z, 6), return_counts=True)
+    if levels.size < 2:
+        return None
+    dz = z - levels[np.argmax(counts)]
+    nx, ny = t.n_R[:, 0], t.n_R[:, 1]
+    cols, names, own = [], [], []
+    cn = [n.split("[", 1)[1].rstrip("]") for n in des.names[des.slices["EXC"]]]
+    for j in range(len(des.setup_ids)):
+        m = (t.setup == j).astype(float)
+        own.append(np.array([len(cols), len(cols) + 1]))
+        cols += [nx * dz * m, -ny * dz * m]
+        names += [f"EBC,total[{cn[j]}]", f"EAC,total[{cn[j]}]"]
+    ref = des.ref_setup
+    return np.column_stack(cols), tuple(names), own, [own[ref][0], own[ref][1]], tuple(float(v) for v in levels)
+
+
+def _bic(rss: float, n: int, k: int) -> float:
+    return n * np.log(max(rss, 1e-300) / n) + k * np.log(n)
+
+
+def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 30.0, 40.0, 55.0, 80.0), *,
+           select_grid: bool = True, yaw: str = "ECY", extra: dict | None = None) -> Baseline:
+    """The 2D self-calibration baseline (eqs 1-18) on the grid the data choose.
+
+    Touches with normals out of the XY plane must be removed by the caller.
+    With touches at several Z levels, per-set-up C-axis tilt columns are
+    added (:func:`_height_columns`). Grids are tried from ``grid_steps_mm``
+    (or ``grid_step_mm`` alone), centred on the campaign
+    (:func:`centred_grid`); among those whose design is identifiable beyond
+    the gauge, BIC chooses (``select_grid``; else the finest). When none is
+    (a symmetric part at C 90 deg apart), the finest grid that meets eq 6
+    is used all the same: residuals do not depend on the gauge, and the
+    workpiece is then reported as not identifiable.
+
+    Raises
+    ------
+    IdentifiabilityError
+        No grid meets eq 6 (discovery needs the same targets at two or more
+        C angles and more touches than unknowns).
+    """
+    steps = (grid_step_mm,) if grid_step_mm else tuple(grid_steps_mm)
+    last = None
+    fallback = None
+    cands = []
+    # the design in coordinates about the C axis (the campaign's own origin): the
+    # same matrix wherever the campaign sits in the machine
+    c0 = c_axis_centre(t)
+    if not np.all(np.isfinite(c0)):
+        c0 = np.array([(t.pn_R[:, 0].max() + t.pn_R[:, 0].min()) / 2, (t.pn_R[:, 1].max() + t.pn_R[:, 1].min()) / 2])
+    sh = np.array([c0[0], c0[1], 0.0])
+    td = dataclasses.replace(t, pn_R=t.pn_R - sh, p_R=t.p_R - sh)
+    for st in steps:
+        grid = centred_grid(td.pn_R, st * MM)
+        try:
+            selfcal.check_count(td, grid)
+            des = selfcal.build_design(td, grid, yaw=yaw)
+        except IdentifiabilityError as e:
+            last = e
+            continue
+        A = des.A.toarray()
+        C, d, names = des.C, des.d, tuple(des.names)
+        levels = (float(np.median(t.pn_R[:, 2])),)
+        h = _height_columns(td, des)
+        if h is not None:
+            H, hn, _, hg, levels = h
+            p = A.shape[1]
+            A = np.hstack([A, H])
+            C = np.hstack([C, np.zeros((C.shape[0], H.shape[1]))])
+            rows_g = np.zeros((len(hg), A.shape[1]))
+            for r, c in enumerate(hg):
+                rows_g[r, p + c] = 1.0
+            C = np.vstack([C, rows_g])
+            d = np.concatenate([d, np.zeros(len(hg))])
+            names = names + hn
+        Q = orth(A, tol=RANK_TOL)
+        item = (st, des, A, C, d, names, levels, Q)
+        # identifiable beyond the gauge: the gauge rows fix exactly the null space
+        nullity = A.shape[1] - Q.shape[1]
+        if nullity > np.linalg.matrix_rank(C):
+            last = IdentifiabilityError(f"grid {st:g} mm: the design leaves {nullity - np.linalg.matrix_rank(C)} "
+                                        "combination(s) beyond the gauge unseen (e.g. a symmetric part at C "
+                                        "angles 90 deg apart)")
+            if fallback is None:
+                fallback = (item, str(last))
+            continue
+        cands.append(item)
+    if not cands and fallback is None:
+        raise IdentifiabilityError(f"no baseline: the 2D self-calibration does not meet eq 6 on grids of "
+                                   f"{', '.join(f'{s:g}' for s in steps)} mm ({last})")
+    if cands:
+        if len(cands) > 1 and select_grid:
+            y = t.dq_m
+
+            def bic(item):
+                Q = item[-1]
+                r = y - Q @ (Q.T @ y)
+                return _bic(float(r @ r), t.n, Q.shape[1])
+
+            item = min(cands, key=bic)
+        else:
+            item = cands[0]
+        ident, why = True, ""
+    else:
+        item, why = fallback
+        ident = False
+    st, des, A, C, d, names, levels, _ = item
+    data = planar_data(t, st * MM, extra)
+    G = des.slices["G"]
+    key = np.full(t.n, -1)
+    pair = t.setup * len(t.target_ids) + t.target
+    u, inv, cnt = np.unique(pair, return_inverse=True, return_counts=True)
+    rep = cnt[inv] > 1
+    key[rep] = pair[rep]
+    conv = list(des.gauge)
+    conv.append(f"design coordinates about the C axis at X {c0[0] / MM:.3f}, Y {c0[1] / MM:.3f} mm (the gauge's "
+                "origin)")
+    conv.append("workpiece estimates in the baseline's gauge (eqs 16-17)" if ident else
+                "workpiece NOT identifiable by this design: " + why)
+    model = "selfcal-2d (Ibaraki eqs 1-18)" + (
+        f" + C-axis tilt and Abbe terms for {len(levels)} probing heights" if len(levels) > 1 else "")
+    return Baseline(
+        kind="planar", model=model, A=A, y=t.dq_m, names=names, groups=t.setup.copy(),
+        group_ids=tuple(t.setup_ids), C=C, d=d, estimand=np.arange(G.start, G.stop),
+        estimand_ids=tuple(des.target_ids), geometry=workpiece_geometry(t, data.c0_m), replicate=key,
+        covariates=planar_covariates(data), modes=planar_modes(data), mode_names=PLANAR_MODES,
+        rows=np.asarray(t.row), data=data, identifiable=ident, why=why, conventions=tuple(conv),
+        info={"grid_step_mm": st, "z_levels_mm": [v / MM for v in levels], "yaw": des.yaw,
+              "design": des})
+
+
+def workpiece_geometry(t: Touches, c0_m: np.ndarray):
+    """(P_W (N_w, 2), N_W (N_w, 2)): each target's nominal point and normal in one frame of the part.
+
+    From the log's ``wx_mm ...`` columns when present; otherwise each
+    target's first touch is turned back about the C-axis centre by its C
+    angle (``w = R(C) (p - c0)``, eq 1). Either is good for removing a shift,
+    rotation, scale and offset of the part (their span does not depend on
+    which frame of the part is used).
+    """
+    first = {}
+    for i in range(t.n):
+        first.setdefault(int(t.target[i]), i)
+    idx = np.array([first[k] for k in range(len(t.target_ids))])
+    w, wn = _w_A(t)
+    if np.all(np.isfinite(w[idx, :2])) and np.all(np.isfinite(wn[idx, :2])):
+        return w[idx, :2].copy(), wn[idx, :2].copy()
+    c0 = c0_m if np.all(np.isfinite(c0_m)) else np.zeros(2)
+    R = selfcal.rot2(t.rot_rad[idx, 2])
+    P = np.einsum("kab,kb->ka", R, t.pn_R[idx, :2] - c0)
+    N = np.einsum("kab,kb->ka", R, t.n_R[idx, :2])
+    return P, N
+
+
+def check_planar(t: Touches) -> None:
+    """Raise ConfigError unless the touches suit the planar baseline."""
+    if t.n < 10:
+        raise ConfigError(f"discover needs at least 10 valid touches with normals in the XY plane, got {t.n}")
+
+
+# ---------------------------------------------------------------------------
+# volumetric: the 21 errors of three linear axes from MFB placements
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class VolumetricData:
+    """What the volumetric causes build their columns from (W frame, SI).
+
+    One row per component (x, y, z in W) of each point of interest, in the
+    order of :func:`core.volumetric.design`'s rows.
+
+    Attributes
+    ----------
+    design : core.volumetric.VolumetricDesign
+    comp : (n,) int
+        Component of the row (0, 1, 2: x, y, z in W).
+    meas : (n,) int
+        Measurement of the row (index into ``meas_names``).
+    meas_names, placements, styli : tuple of str
+    placement, stylus : (n,) int
+    t_s : (n,) float
+        Time of the row's measurement, s.
+    s : (n,) float
+        Position of the row's point along its bar, centred on the bar and
+        scaled by the half-length probed (-1..1).
+    g_perp : (n,) float
+        The row's component of gravity perpendicular to the bar (``-z_W``
+        less its part along the bar axis): how much a sag of the bar moves
+        the point along this row.
+    O_R : (n, 3) float
+        The point's reading, machine frame, m.
+    touch_cols : list
+        Per measurement: (rows (int array), GW (len(rows), t) gain of the
+        touches' shifts along their approach into those rows (W), d_W
+        (t, 3) approach directions in W).
+    """
+
+    design: object = field(repr=False)
+    comp: np.ndarray = field(repr=False)
+    meas: np.ndarray = field(repr=False)
+    meas_names: tuple
+    placements: tuple
+    styli: tuple
+    placement: np.ndarray = field(repr=False)
+    stylus: np.ndarray = field(repr=False)
+    t_s: np.ndarray = field(repr=False)
+    s: np.ndarray = field(repr=False)
+    g_perp: np.ndarray = field(repr=False)
+    O_R: np.ndarray = field(repr=False)
+    touch_cols: list = field(repr=False)
+
+
+VOLUMETRIC_MODES = ("x (W)", "y (W)", "z (W)")
+#: Cross-validation folds of the volumetric baseline: the holes, by their
+#: number modulo this. Every placement is needed to see some errors (the plan
+#: is built that way), so leaving one out extrapolates; leaving a quarter of
+#: every bar's holes out interpolates, as a new measurement would.
+VOLUMETRIC_FOLDS = 4
+
+
+def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: dict | None = None) -> Baseline:
+    """The volumetric MFB baseline: the first-order problem (2)/(3) of :mod:`core.volumetric` with its ISO gauge.
+
+    Parameters
+    ----------
+    meas : sequence of core.volumetric.Measurement
+    chain, nodes, rotary_points_R_m : as :func:`core.volumetric.design`
+    times_s : dict measurement name -> time of the measurement (s), optional
+        Without it, the measurements' order (one unit each).
+
+    The rows are the points' deviations, one per W component; the folds of
+    the cross-validation are the holes (:data:`VOLUMETRIC_FOLDS`); the
+    estimand is the error tables (every motion error on its nodes and the
+    squarenesses). The covariates: time, placement, stylus, position along
+    the bar, x, y, z, component.
+    """
+    from . import volumetric as vol
+
+    meas = list(meas)
+    d = vol.design(meas, chain, nodes, rotary_points_R_m)
+    names = [m.name for m in meas]
+    places = list(dict.fromkeys(m.placement for m in meas))
+    styli = list(dict.fromkeys(tuple(np.round(np.asarray(m.J_m, float), 6)) for m in meas))
+    comp, mi, pl, st, t_s, s, gp, O, touch, fold, point = [], [], [], [], [], [], [], [], [], [], []
+    row = 0
+    for i, m in enumerate(meas):
+        k = len(m.holes)
+        T = np.asarray(m.T_W_A, float)
+        R = T[:3, :3]
+        x_A = R[:, 0]
+        g = np.array([0.0, 0.0, -1.0])
+        g_perp = g - (g @ x_A) * x_A
+        sA = np.asarray(m.O_A, float)[:, 0]
+        mid, half = (sA.max() + sA.min()) / 2, max(np.ptp(sA) / 2, 1e-9)
+        t_i = float((times_s or {}).get(m.name, i))
+        J = tuple(np.round(np.asarray(m.J_m, float), 6))
+        for p in range(k):
+            for c in range(3):
+                comp.append(c)
+                mi.append(i)
+                pl.append(places.index(m.placement))
+                st.append(styli.index(J))
+                t_s.append(t_i)
+                s.append((sA[p] - mid) / half)
+                gp.append(g_perp[c])
+                O.append(np.asarray(m.O_R, float)[p])
+                fold.append(int(m.holes[p]) % VOLUMETRIC_FOLDS)
+                point.append(len(point) // 3)
+        if m.G_A is not None and m.d_A is not None:
+            t = np.asarray(m.G_A).shape[1]
+            GW = np.einsum("ij,kjt->kit", R, np.asarray(m.G_A, float).reshape(k, 3, t)).reshape(3 * k, t)
+            touch.append((np.arange(row, row + 3 * k), GW, np.asarray(m.d_A, float) @ R.T))
+        row += 3 * k
+    # rows the model removes (the roll component of the mistake-proofing holes:
+    # zero in the design and the observation) carry nothing: left out
+    keep = np.any(d.A != 0, axis=1) | (d.y != 0)
+    new = np.cumsum(keep) - 1
+    touch = [(new[r[keep[r]]], GW[keep[r]], dW) for r, GW, dW in touch]
+    sel = np.flatnonzero(keep)
+    comp = np.array(comp)[sel]
+    fold = np.array(fold)[sel]
+    n = len(sel)
+    data = VolumetricData(d, comp, np.array(mi)[sel], tuple(names), tuple(places),
+                          tuple(",".join(f"{v * 1e3:g}" for v in J) for J in styli), np.array(pl)[sel],
+                          np.array(st)[sel], np.array(t_s, float)[sel], np.array(s)[sel], np.array(gp)[sel],
+                          np.array(O)[sel], touch)
+    W = _point_whitening(touch, n, np.array(point)[sel])
+    modes = np.eye(3)[comp]
+    allm = (0, 1, 2)
+    covs = [Covariate("placement", data.placement, "categorical", 0, allm, "the placement", "time"),
+            Covariate("stylus", data.stylus, "categorical", 0, allm, "the stylus", "direction"),
+            Covariate("along_bar", data.s, "smooth", 5, allm, "the position along the bar", "position"),
+            Covariate("x", data.O_R[:, 0], "smooth", 6, allm, "the x position", "position"),
+            Covariate("y", data.O_R[:, 1], "smooth", 6, allm, "the y position", "position"),
+            Covariate("z", data.O_R[:, 2], "smooth", 6, allm, "the z position", "position")]
+    if np.unique(data.t_s).size >= 3:
+        covs.insert(0, Covariate("time", data.t_s, "smooth", min(5, np.unique(data.t_s).size), allm, "time", "time"))
+    est = np.concatenate([np.arange(d.slices[s_].start, d.slices[s_].stop) for s_ in vol.MOTION + vol.SQUARENESS])
+    return Baseline(
+        kind="volumetric", model="volumetric MFB (Viprey eqs 8-12, touch model (3))", A=W @ d.A[sel],
+        y=W @ d.y[sel], names=d.names, whiten=W,
+        groups=np.array(fold), group_ids=tuple(f"holes = {k} mod {VOLUMETRIC_FOLDS}" for k in range(VOLUMETRIC_FOLDS)),
+        C=d.C, d=np.zeros(d.C.shape[0]), estimand=est,
+        estimand_ids=tuple(d.names[i] for i in est), geometry=None, replicate=np.full(n, -1),
+        covariates=tuple(covs), modes=modes, mode_names=VOLUMETRIC_MODES, rows=sel, data=data,
+        identifiable=not d.unseen.shape[1], why="" if not d.unseen.shape[1] else "the plan leaves combinations unseen",
+        conventions=tuple(d.gauge) + ("rows whitened by each point's noise covariance (its touches' gain)",),
+        info={"placements": len(places), "measurements": len(meas), "cv": False},
+        estimand_label="error tables")
+
+
+def _point_whitening(touch_cols, n: int, point: np.ndarray) -> np.ndarray:
+    """(n, n) inverse square root of each point's noise covariance (a 3 x 3 block per point).
+
+    A point's components come from shared touches: touch noise e
+    (independent, one variance) reaches them as ``GW e``, covariance
+    ``GW GW^T`` (up to the variance). Its inverse square root per point
+    (eigen-decomposition, directions below 1e-8 of the largest left as they
+    are) makes a point's rows independent and of one variance; the matrix
+    is scaled so that the rows keep their mean size (residuals stay in
+    micrometre-like units). Points are kept apart (neighbouring holes share
+    rods, a correlation left in): the cross-validation folds are points,
+    and whitening across them would mix the folds. Rows without touches are
+    left unchanged.
+    """
+    W = np.eye(n)
+    blocks, scale = [], []
+    for rows, GW, _ in touch_cols:
+        for p in np.unique(point[rows]):
+            r = rows[point[rows] == p]
+            Cm = GW[point[rows] == p] @ GW[point[rows] == p].T
+            w, V = np.linalg.eigh(Cm)
+            ok = w > 1e-8 * max(w.max(), 1e-300)
+            blocks.append((r, (V[:, ok] / np.sqrt(w[ok])) @ V[:, ok].T + V[:, ~ok] @ V[:, ~ok].T))
+            scale.append(np.mean(np.diag(Cm)))
+    c = np.sqrt(np.mean(scale)) if scale else 1.0
+    for r, Wi in blocks:
+        W[np.ix_(r, r)] = c * Wi
+    return W
+
+
+# ---------------------------------------------------------------------------
+# positioning: ISO 230-2 runs of one axis
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PositioningData:
+    """What the positioning causes build their columns from (SI).
+
+    Attributes
+    ----------
+    x : (n,) float
+        Target position, m (or rad for a rotary axis).
+    xs : (n,) float
+        Centred on the targets and scaled by their half-span (-1..1).
+    L : float
+        Half-span of the targets, m.
+    t_s : (n,) float
+        Time of each reading (or its order), s.
+    tau : (n,) float
+        Time since the first reading over the test's span, 0..1.
+    direction : (n,) int
+        +1 or -1.
+    cycle : (n,) int
+    """
+
+    x: np.ndarray = field(repr=False)
+    xs: np.ndarray = field(repr=False)
+    L: float
+    t_s: np.ndarray = field(repr=False)
+    tau: np.ndarray = field(repr=False)
+    direction: np.ndarray = field(repr=False)
+    cycle: np.ndarray = field(repr=False)
+
+
+def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict | None = None) -> Baseline:
+    """The ISO 230-2 baseline: a systematic deviation per target and direction, plus repeatability.
+
+    Parameters
+    ----------
+    target_m : (n,) float
+        Commanded target ``P_i`` of each reading, m (rad for a rotary axis).
+    direction : (n,) int or str
+        ``+1``/``"+"`` or ``-1``/``"-"``: the approach direction.
+    cycle : (n,) int
+        Run ``j`` of each reading.
+    deviation_m : (n,) float
+        ``x_ij = P_ij - P_i`` (ISO 230-2), m.
+    t_s : (n,) float, optional
+        Time of each reading; the reading order when absent.
+    temps : dict name -> (n,) float, optional
+        Temperature sensors (``temp_<name>_C``).
+
+    The design has one column per (target, direction): the mean
+    unidirectional positional deviations of ISO 230-2. Whatever the axis
+    does the same way in every cycle (its pitch error, a reversal that
+    varies along it, a periodic error at the targets) is in those means;
+    discovery looks for what changes between cycles (drift, warm-up,
+    outliers) and for structure against time, order or temperature. The
+    folds of the cross-validation are the cycles; replicates are the
+    readings of one target in one direction (their scatter is the
+    repeatability).
+
+    Raises
+    ------
+    ConfigError
+        Arrays of different lengths, fewer than two cycles, a direction
+        other than +/-.
+    """
+    x = np.asarray(target_m, float).ravel()
+    dev = np.asarray(deviation_m, float).ravel()
+    cyc = np.asarray(cycle).ravel()
+    dr = np.array([(1 if str(v).strip() in ("+", "1", "+1") else -1 if str(v).strip() in ("-", "-1") else 0)
+                   for v in np.asarray(direction).ravel()])
+    n = len(x)
+    if not (len(dev) == len(cyc) == len(dr) == n) or n == 0:
+        raise ConfigError("positioning: target, direction, cycle and deviation must have one value per reading")
+    if np.any(dr == 0):
+        raise ConfigError(f"positioning: direction must be + or -, got {np.asarray(direction).ravel()[dr == 0][0]!r}")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(dev))):
+        raise ConfigError("positioning: non-finite target or deviation")
+    cyc_ids, cyc_idx = np.unique(cyc, return_inverse=True)
+    if len(cyc_ids) < 2:
+        raise ConfigError("positioning: discovery needs at least two cycles")
+    t = np.arange(n, dtype=float) if t_s is None else np.asarray(t_s, float).ravel()
+    tx = np.round(x / 1e-9).astype(np.int64)
+    keys = list(dict.fromkeys(zip(tx.tolist(), dr.tolist())))
+    col = np.array([keys.index(k) for k in zip(tx.tolist(), dr.tolist())])
+    A = np.zeros((n, len(keys)))
+    A[np.arange(n), col] = 1.0
+    mid, L = (x.max() + x.min()) / 2, max(np.ptp(x) / 2, 1e-12)
+    tau = (t - t.min()) / max(np.ptp(t), 1e-12)
+    data = PositioningData(x, (x - mid) / L, float(L), t, tau, dr, cyc_idx)
+    ids = tuple(f"P={k[0] * 1e-6:g}mm{'+' if k[1] > 0 else '-'}" for k in keys)
+    modes = np.ones((n, 1))
+    covs = [Covariate("time", t, "smooth", 6, (0,), "time", "time"),
+            Covariate("cycle", cyc_idx, "categorical", 0, (0,), "the cycle", "time"),
+            Covariate("position", x, "smooth", 6, (0,), "the target position", "position"),
+            Covariate("position_by_cycle", np.column_stack([f * (cyc_idx == j) for j in range(len(cyc_ids))
+                                                            for f in (data.xs, data.xs ** 2)]), "basis",
+                      2 * len(cyc_ids), (0,), "the target position, differently in each cycle", "time"),
+            Covariate("order", np.arange(n, dtype=float), "smooth", 6, (0,), "the reading order", "time")]
+    for name, v in (temps or {}).items():
+        v = np.asarray(v, float)
+        if np.all(np.isfinite(v)) and np.ptp(v) > 0:
+            short = name[5:-2] if name.startswith("temp_") and name.endswith("_C") else name
+            covs.append(Covariate(f"temp_{short}", v, "smooth", 5, (0,), f"the temperature {name}", "time"))
+    return Baseline(
+        kind="positioning", model="ISO 230-2 systematic deviation per target and direction", A=A, y=dev,
+        names=ids, groups=cyc_idx, group_ids=tuple(str(c) for c in cyc_ids), C=np.zeros((0, A.shape[1])),
+        d=np.zeros(0), estimand=np.arange(A.shape[1]), estimand_ids=ids, geometry=None, replicate=col,
+        covariates=tuple(covs), modes=modes, mode_names=("deviation",), rows=np.arange(n), data=data,
+        conventions=("x_ij = measured - target (ISO 230-2); one mean per target and direction",),
+        info={"targets": int(len(np.unique(tx))), "cycles": int(len(cyc_ids))},
+        estimand_label="mean unidirectional positional deviation")
+
+
+def positioning_from_log(log) -> Baseline:
+    """The positioning baseline of a ``positioning-log/1`` test (:mod:`core.positioning`).
+
+    The valid readings as ISO 230-2 arranges them (:func:`core.positioning.arrange`
+    and :func:`core.positioning.baseline`), converted to SI (mm -> m,
+    deg -> rad), with the log's ``temp_*_C`` columns as covariates.
+    """
+    from . import positioning as pos
+    from .units import DEG
+
+    test = pos.arrange(log)
+    pb = pos.baseline(test)
+    k = DEG if pb.unit == "deg" else MM
+    t = None if np.all(np.isnan(pb.t_s)) else np.where(np.isfinite(pb.t_s), pb.t_s, np.nan)
+    if t is not None and np.any(np.isnan(t)):
+        t = None  # a clock with holes: the reading order instead
+    temps = {}
+    for name, v in getattr(log, "extra", {}).items():
+        if name.startswith("temp_") and name.endswith("_C"):
+            temps[name] = np.asarray(v, float)[pb.row]
+    return positioning(pb.target * k, pb.direction, pb.cycle, pb.deviation * k, t, temps)

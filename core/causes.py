@@ -1,0 +1,959 @@
+"""The catalogue of named causes: one frozen record per cause, in one place.
+
+Each cause is a physical model with few parameters, added as columns to a
+baseline's design (:class:`core.baseline.Baseline`). A record says
+
+- ``name``: the report's cause name (the spec's, or one documented here and
+  in the README);
+- ``kinds``: which baselines it applies to (``planar``, ``volumetric``,
+  ``positioning``);
+- ``books_to``: what it is an error of: ``machine``, ``probe``,
+  ``workpiece``, ``artefact`` (a reference bar) or ``data`` (a part that
+  changes is never booked to the machine);
+- ``scans(baseline) -> (scans, tries)``: the candidate column sets. A scan
+  holds trials of one layout (``columns (T, n, k)``), e.g. one per period of
+  a periodic error; ``tries`` is the effective number of independent
+  hypotheses tried (the Bonferroni factor of its F test);
+- ``magnitudes(info, coef, baseline) -> dict``: the physical magnitudes,
+  units in the keys; their U95 follow by the delta method in the engine;
+- ``bounds``: plausible magnitudes, by key (``*`` stands for any text); a
+  fit outside them beyond its U95 is refused as implausible, and a
+  magnitude whose U95 is wider than the whole range is not reported;
+- ``check(info, baseline) -> reason or None`` before the fit (a period below
+  the Nyquist limit) and ``plausible(values, u95) -> reason or None`` after
+  it (lobing amplitudes that differ between set-ups);
+- ``counter(baseline) -> (n, m)``: the plainer explanation's columns (a
+  finer error map for a non-rigid coupling): the cause is refused when
+  they explain as much as it does;
+- ``rebuild(baseline, info) -> (T, n, k)``: the columns for changed
+  nonlinear parameters ``nonlinear`` (a period, a position; arrays give T
+  trials at once): the engine refines them and carries their uncertainty;
+- the scan's ``covariate``: where the cause's structure lives, for the
+  rival check (a named cause must explain the structure in its covariate
+  about as well as a catalogue-free smooth function of it, else it is a
+  guess); ``rival(baseline, info) -> (n, m)`` overrides that smooth term;
+- the physics, in the docstring of its ``scans`` function (``doc``).
+
+Sign convention (CONTRIBUTING): a tool positioning error ``E`` gives
+``dq = -n . E``; a pre-travel ``p`` (trigger late along the approach) gives
+``dq = -p`` for an approach against the normal.
+
+Adding a cause touches this module only: write its scans and magnitudes
+functions and add one :class:`Cause` to :data:`REGISTRY`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .units import MM, UM, URAD
+
+
+@dataclass(frozen=True)
+class Scan:
+    """Trials of one layout of a cause's columns.
+
+    Attributes
+    ----------
+    labels : tuple of str
+        The k coefficients' names.
+    infos : tuple of dict
+        Per trial: its choices and nonlinear parameters (``period_m`` ...).
+    covariate : str
+        Covariate the structure lives in (rival term).
+    build : callable(idx) -> (len(idx), n, k)
+        Design columns of the trials ``idx``, m (or rad) per unit coefficient.
+    score : callable(r, rows) -> (T,), optional
+        A cheap periodogram-like score of every trial against residuals ``r``
+        on ``rows`` (numerator exact, denominator ignoring the model), for
+        scans too large to build whole; the engine evaluates the best ones
+        exactly.
+    """
+
+    labels: tuple
+    infos: tuple
+    covariate: str
+    build: Callable = field(repr=False)
+    score: Callable | None = field(default=None, repr=False)
+
+    @property
+    def size(self) -> int:
+        return len(self.infos)
+
+
+@dataclass(frozen=True)
+class Cause:
+    """One named cause (see the module docstring)."""
+
+    name: str
+    kinds: tuple
+    books_to: str
+    scans: Callable | None
+    magnitudes: Callable | None
+    bounds: dict
+    rebuild: Callable | None = None
+    nonlinear: tuple = ()
+    summary: str = ""
+    rival: Callable | None = None
+    check: Callable | None = None
+    plausible: Callable | None = None
+    counter: Callable | None = None
+
+    @property
+    def doc(self) -> str:
+        """The physics, from the scans function's docstring."""
+        return (self.scans.__doc__ or self.summary).strip() if self.scans else self.summary
+
+
+def _legendre(u: np.ndarray, deg: int) -> np.ndarray:
+    """(n, deg) Legendre polynomials P_1..P_deg of u in [-1, 1]."""
+    P = [np.ones_like(u), u]
+    for j in range(2, deg + 1):
+        P.append(((2 * j - 1) * u * P[-1] - (j - 1) * P[-2]) / j)
+    return np.column_stack(P[1:deg + 1])
+
+
+def _outer(modes: np.ndarray, funcs: np.ndarray) -> np.ndarray:
+    """(n, m * f): each mode times each function."""
+    return (modes[:, :, None] * funcs[:, None, :]).reshape(len(modes), -1)
+
+
+def _one(cols: np.ndarray, labels, info: dict, cov: str) -> Scan:
+    arr = cols[None]
+    return Scan(tuple(labels), (info,), cov, lambda idx: arr[np.asarray(idx)])
+
+
+def _matmul_score(funcs: Callable, weights: np.ndarray):
+    """Score of trials whose columns are ``weights[:, m] * F[:, t]`` for functions ``F = funcs()`` (n, T).
+
+    ``sum_m (r . (w_m F_t))^2 / |w_m F_t|^2`` by two matrix products per mode;
+    ``F`` is computed once (all rows) and kept.
+    """
+    cache = []
+
+    def score(r, rows):
+        if not cache:
+            cache.append(funcs())
+        F = cache[0][rows]
+        W = weights[rows]
+        num = ((r[:, None] * W).T @ F) ** 2
+        den = (W ** 2).T @ (F ** 2)
+        return np.sum(num / np.maximum(den, 1e-300), axis=0)
+    return score
+
+
+def _pv(vals) -> float:
+    return float(np.ptp(vals)) if len(vals) else 0.0
+
+
+# ---------------------------------------------------------------------------
+# planar causes
+# ---------------------------------------------------------------------------
+_DRIFT_MODES = ("x_offset", "y_offset", "x_scale", "y_scale")
+
+
+def drift_scans(bl):
+    """Thermal drift: offsets and scales of the X and Y axes changing with time.
+
+    The machine warms up or cools down during the campaign: each axis'
+    zero shifts (``EXX``/``EYX`` constant parts) and its scale stretches
+    (``EXX`` slope: a steel scale grows 11.5 um/m per K). The tip error is
+    ``E_X = a_x(t) + s_x(t) (x - x_c)``, ``E_Y = a_y(t) + s_y(t) (y - y_c)``
+    with smooth ``a``, ``s`` of time: Legendre polynomials of degree 1, 2
+    or 3 over the campaign (the degree is part of the scan). Within one
+    set-up most of a drift looks like the machine's error map or the
+    set-up's own C-axis offsets; it is seen by the touches repeated later
+    in the set-up and by the change between set-ups. Parameters: the
+    change of each offset (um) and scale (ppm) from the first to the last touch.
+    """
+    d = bl.data
+    modes = np.column_stack([-d.nx, -d.ny, -d.nx * d.xs, -d.ny * d.ys])
+    u = 2 * d.tau - 1
+    scans = []
+    for deg in (1, 2, 3):
+        cols = _outer(modes, _legendre(u, deg))
+        labels = [f"{m}_P{j}" for m in _DRIFT_MODES for j in range(1, deg + 1)]
+        scans.append(_one(cols, labels, {"degree": deg}, "time"))
+    return scans, 3.0
+
+
+def drift_magnitudes(info, coef, bl):
+    deg = info["degree"]
+    c = np.asarray(coef).reshape(4, deg)
+    dP = np.array([1.0 - (-1.0) ** j for j in range(1, deg + 1)])  # P_j(1) - P_j(-1)
+    ch = c @ dP
+    L = bl.data.L_m
+    return {"x_offset_change_um": ch[0] / UM, "y_offset_change_um": ch[1] / UM,
+            "x_scale_change_ppm": ch[2] / L * 1e6, "y_scale_change_ppm": ch[3] / L * 1e6,
+            "over_h": bl.data.span_s / 3600.0}
+
+
+def c_drift_scans(bl):
+    """C-axis angular drift: the table's angle creeping with time (``ECC`` against time).
+
+    After an indexing the rotary table is clamped; the clamp settles, the
+    servo creeps or the axis warms, and the table turns slowly by ``ECC(t)``
+    while the set-up is probed. A rotation about the C axis (centre
+    ``c0``, found from the nominal positions of the same targets at
+    different angles) moves each touch by ``(R90 (p - c0)) . n ECC``
+    (eq 13). The set-up's own constant ``ECC`` is in the baseline; the
+    change within the set-up is not. Trials: a common creep after every
+    indexing (degree 1 or 2 in the time since the set-up's first touch),
+    a rate of its own per set-up, or one drift over the whole campaign
+    (degree 1-3). Parameters: the angle change within a set-up (or over
+    the campaign), urad.
+    """
+    d = bl.data
+    rot = d.rot_m
+    s = 2 * d.t_in - 1
+    scans = []
+    for deg in (1, 2):
+        scans.append(_one(_outer(rot[:, None], _legendre(s, deg)), [f"ECC_in_setup_P{j}" for j in range(1, deg + 1)],
+                          {"form": "after each indexing", "degree": deg}, "time_in_setup"))
+    su = np.unique(d.touches.setup)
+    if su.size >= 2:
+        cols = np.column_stack([rot * s * (d.touches.setup == j) for j in su])
+        ids = [d.touches.setup_ids[j] for j in su]
+        scans.append(_one(cols, [f"ECC_rate[{i}]" for i in ids], {"form": "per set-up", "setups": tuple(ids)},
+                          "time_in_setup"))
+    u = 2 * d.tau - 1
+    for deg in (1, 2, 3):
+        scans.append(_one(_outer(rot[:, None], _legendre(u, deg)), [f"ECC_P{j}" for j in range(1, deg + 1)],
+                          {"form": "over the campaign", "degree": deg}, "time"))
+    return scans, float(len(scans))
+
+
+def c_drift_magnitudes(info, coef, bl):
+    c = np.asarray(coef)
+    if info["form"] == "per set-up":
+        out = {f"ECC_change_urad[{sid}]": 2 * v / URAD for sid, v in zip(info["setups"], c)}
+        out["ECC_change_rms_urad"] = float(np.sqrt(np.mean((2 * c) ** 2))) / URAD
+        return out
+    dP = np.array([1.0 - (-1.0) ** j for j in range(1, info["degree"] + 1)])
+    key = "ECC_change_in_setup_urad" if info["form"] == "after each indexing" else "ECC_change_over_campaign_urad"
+    return {key: float(c @ dP) / URAD}
+
+
+def expansion_scans(bl):
+    """Thermal expansion following a logged temperature (``temp_<name>_C``).
+
+    An axis' scale grows with the temperature of its scale or ball screw:
+    ``E_X = alpha_x (x - x_c) (T - T_mean) + b_x (T - T_mean)`` and likewise
+    for Y, where ``alpha`` is the effective expansion coefficient
+    (um/m/K: 11.5 for steel, 23 for aluminium) and ``b`` the drift of the
+    axis' zero with that sensor. Each ``temp_*_C`` column is tried as the
+    driver (one trial per sensor). Reference temperature: 20 C (ISO 1);
+    the static part ``alpha (T_mean - 20 C)`` is a constant scale, which
+    the baseline holds (and cannot tell from the part's size). Parameters:
+    ``alpha_x``, ``alpha_y`` in um/m/K and the offsets in um/K.
+    """
+    d = bl.data
+    scans = []
+    xm = (d.x.max() + d.x.min()) / 2
+    ym = (d.y.max() + d.y.min()) / 2
+    for name, T in d.temps.items():
+        dT = T - T.mean()
+        cols = np.column_stack([-d.nx * (d.x - xm) * dT, -d.ny * (d.y - ym) * dT, -d.nx * dT, -d.ny * dT])
+        short = name[5:-2] if name.startswith("temp_") and name.endswith("_C") else name
+        scans.append(_one(cols, ["alpha_x", "alpha_y", "x_offset_per_K", "y_offset_per_K"],
+                          {"sensor": name, "range_K": float(np.ptp(T)), "mean_C": float(T.mean())},
+                          f"temp_{short}"))
+    return scans, float(max(len(scans), 1))
+
+
+def expansion_magnitudes(info, coef, bl):
+    c = np.asarray(coef)
+    return {"alpha_x_um_per_m_K": c[0] * 1e6, "alpha_y_um_per_m_K": c[1] * 1e6,
+            "x_offset_um_per_K": c[2] / UM, "y_offset_um_per_K": c[3] / UM,
+            "reference_temperature_C": 20.0, "temperature_range_K": info["range_K"]}
+
+
+def _positions_gap(v: np.ndarray) -> tuple[float, float]:
+    """(span, mean gap) of the distinct positions (to 1 um)."""
+    u = np.unique(np.round(v / 1e-6)) * 1e-6
+    if u.size < 2:
+        return 0.0, np.inf
+    return float(u[-1] - u[0]), float((u[-1] - u[0]) / (u.size - 1))
+
+
+def nyquist_period_m(v: np.ndarray) -> float:
+    """Shortest period the positions resolve: twice their mean spacing (Nyquist), m."""
+    return 2.0 * _positions_gap(v)[1]
+
+
+def _periodic_cols(d, axis: int, P):
+    """(T, n, 4) ``-n_x sin, -n_x cos, -n_y sin, -n_y cos`` of ``2 pi a / P`` for periods P (T,)."""
+    a = (d.x, d.y)[axis]
+    ph = 2 * np.pi * a[None, :] / np.atleast_1d(P)[:, None]
+    s, c = np.sin(ph), np.cos(ph)
+    return np.stack([-d.nx * s, -d.nx * c, -d.ny * s, -d.ny * c], axis=-1)
+
+
+def periodic_scans(bl):
+    """Periodic axis error: a screw-pitch or scale ripple shorter than the error map's grid.
+
+    A ball screw's pitch error, a worn nut or an interpolation error of
+    the scale repeats every period ``P`` along the axis: ``E_X(x) =
+    a sin(2 pi x / P) + b cos(...)`` (positioning, ``EXX``) and its
+    companion in the straightness ``EYX``; likewise for Y. Periods are
+    scanned from the Nyquist limit of the positions along that axis (twice
+    their mean spacing; anything shorter is aliased) up to the grid step
+    (longer ripples are the error map's job), three trials per independent
+    frequency; the best is refined. ``tries`` is the number of independent
+    frequencies over both axes. Parameters: axis, period (mm) and the
+    amplitudes of ``EX<axis>``, ``EY<axis>`` (um).
+    """
+    d = bl.data
+    scans, tries = [], 1.0
+    for axis in (0, 1):
+        a = (d.x, d.y)[axis]
+        span, gap = _positions_gap(a)
+        p_lo, p_hi = 2 * gap, d.grid_step_m
+        if span <= 0 or p_hi <= 1.2 * p_lo:
+            continue
+        f = np.arange(1 / p_hi, 1 / p_lo, 1 / (3 * span))
+        P = 1 / f
+        tries += span * (1 / p_lo - 1 / p_hi)
+        ax = "XY"[axis]
+
+        def funcs(a=a, f=f):
+            ph = 2 * np.pi * a[:, None] * f[None, :]
+            return np.hstack([np.sin(ph), np.cos(ph)])
+
+        W = np.column_stack([-d.nx, -d.ny])
+        base = _matmul_score(funcs, W)
+
+        def score(r, rows, base=base, T=len(P)):  # sin and cos of each period: one trial
+            s2 = base(r, rows)
+            return s2[:T] + s2[T:]
+
+        scans.append(Scan((f"EX{ax}_sin", f"EX{ax}_cos", f"EY{ax}_sin", f"EY{ax}_cos"),
+                          tuple({"axis": ax, "period_m": float(p), "nyquist_m": p_lo} for p in P), "xy"[axis],
+                          lambda idx, axis=axis, P=P: _periodic_cols(d, axis, P[np.asarray(idx)]), score))
+    return scans, tries
+
+
+def periodic_rebuild(bl, info):
+    return _periodic_cols(bl.data, "XY".index(info["axis"]), info["period_m"])
+
+
+def periodic_magnitudes(info, coef, bl):
+    c = np.asarray(coef)
+    ax = info["axis"]
+    return {"axis": ax, "period_mm": info["period_m"] / MM,
+            f"EX{ax}_amplitude_um": float(np.hypot(c[0], c[1])) / UM,
+            f"EY{ax}_amplitude_um": float(np.hypot(c[2], c[3])) / UM,
+            f"EX{ax}_phase_rad": float(np.arctan2(c[1], c[0])), f"EY{ax}_phase_rad": float(np.arctan2(c[3], c[2]))}
+
+
+def periodic_check(info, bl):
+    if info["period_m"] < info["nyquist_m"]:
+        return (f"period {info['period_m'] / MM:.3g} mm below the Nyquist limit {info['nyquist_m'] / MM:.3g} mm "
+                f"of the positions along {info['axis']}")
+    return None
+
+
+def lobing_scans(bl):
+    """Probe lobing: pre-travel varying with the approach azimuth in the machine frame.
+
+    A kinematic touch-trigger probe rests on three (or more) contacts: the
+    force needed to trigger, hence the pre-travel, depends on the direction
+    of the push: ``p(phi) = sum_k a_k cos k phi + b_k sin k phi`` (k = 1..4)
+    of the approach azimuth ``phi`` (machine frame; the probe's orientation
+    is fixed with the spindle). The constant part is in every target's
+    deviation (and the stylus calibration). Parameters: amplitude per
+    harmonic and the peak-to-valley over the azimuth of harmonics 2-4
+    (the first acts as a probe offset) (um).
+    """
+    d = bl.data
+    phi = d.azimuth
+    if np.unique(np.round(phi, 4)).size < 3:
+        return [], 1.0
+    cols = np.column_stack([f(k * phi) for k in range(1, 5) for f in (np.cos, np.sin)])
+    return [_one(cols, [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")], {}, "approach_azimuth")], 1.0
+
+
+def lobing_magnitudes(info, coef, bl):
+    c = np.asarray(coef).reshape(4, 2)
+    phi = np.linspace(-np.pi, np.pi, 721)
+    f = sum(c[k - 1, 0] * np.cos(k * phi) + c[k - 1, 1] * np.sin(k * phi) for k in range(2, 5))
+    out = {f"k{k}_amplitude_um": float(np.hypot(*c[k - 1])) / UM for k in range(1, 5)}
+    # the first harmonic acts as a probe offset (a translation, usually in the
+    # set-ups' own offsets and the stylus calibration): the variation is of k = 2..4
+    out["pretravel_variation_pv_um"] = _pv(f) / UM
+    return out
+
+
+def unoriented_scans(bl):
+    """Probe lobing turning with an unoriented spindle: the lobes' orientation changes per set-up.
+
+    The pre-travel pattern is fixed in the probe; when the spindle is not
+    oriented (no M19 before probing), every set-up (re-clamping, tool
+    change) leaves the probe at another angle ``psi_j`` about the spindle
+    axis: ``p_j(phi) = A cos(k (phi - psi_j))``, one amplitude, an
+    orientation per set-up. Linearised as ``cos k phi``, ``sin k phi`` per
+    set-up for the harmonic k = 2, 3 or 4 (scanned; the first harmonic is a
+    translation, in the set-up's own C-axis offsets). Plausible only when
+    the set-ups' lobing vectors lie on one circle (one probe's lobes,
+    turned; the circle's centre is a part fixed in the machine frame) and
+    their orientations differ (else the probe is oriented:
+    ``probe_lobing``). Parameters: harmonic, amplitude (um), orientation
+    per set-up (deg).
+    """
+    d = bl.data
+    phi = d.azimuth
+    su = np.unique(d.touches.setup)
+    if su.size < 2 or np.unique(np.round(phi, 4)).size < 5:
+        return [], 1.0
+    ids = tuple(d.touches.setup_ids[j] for j in su)
+    scans = []
+    for k in (2, 3, 4):
+        cols, labels = [], []
+        for j, sid in zip(su, ids):
+            m = (d.touches.setup == j).astype(float)
+            cols += [m * np.cos(k * phi), m * np.sin(k * phi)]
+            labels += [f"cos{k}[{sid}]", f"sin{k}[{sid}]"]
+        scans.append(_one(np.column_stack(cols), labels, {"harmonic": k, "setups": ids}, "approach_azimuth"))
+    return scans, 3.0
+
+
+def _circle(P: np.ndarray):
+    """Algebraic (Kasa) circle through 2-D points: (centre (2,), radius, RMS distance to it)."""
+    M = np.column_stack([P[:, 0], P[:, 1], np.ones(len(P))])
+    b = -(P ** 2).sum(axis=1)
+    (D, E, F), *_ = np.linalg.lstsq(M, b, rcond=None)
+    c = np.array([-D / 2, -E / 2])
+    r = float(np.sqrt(max(c @ c - F, 0.0)))
+    return c, r, float(np.sqrt(np.mean((np.linalg.norm(P - c, axis=1) - r) ** 2)))
+
+
+def _setup_c_rad(bl, setup_ids) -> np.ndarray:
+    """C angle of each named set-up (rad, mean over its touches; the touches' ``rot_rad[:, 2]``)."""
+    t = bl.data.touches
+    idx = [t.setup_ids.index(s) for s in setup_ids]
+    return np.array([float(np.mean(t.rot_rad[t.setup == j, 2])) for j in idx])
+
+
+def _part_frame_lobe(c: np.ndarray, c_rad: np.ndarray, k: int) -> np.ndarray:
+    """The part of the set-ups' lobing vectors that a form of the part itself explains, (n, 2) m.
+
+    A k-lobe form of the part turns with the table: in set-up j it reads as
+    lobing vector ``R(-k C_j) w`` against the machine-frame azimuth, which
+    the baseline's workpiece (a deviation per target) absorbs: the data
+    cannot see it (these are exactly the weak directions of the per-set-up
+    columns). Fitted jointly with the circle (centre ``m``, radius ``A``,
+    ``w``: five parameters, Gauss-Newton from the plain circle) so that the
+    amplitude and orientations are free of it; needs at least six set-ups
+    (one degree of freedom left) and C angles that turn ``k C`` (else
+    ``w`` is a part of the centre): otherwise zero, and the plain circle's
+    magnitudes are left to the weak-direction check.
+    """
+    n = len(c)
+    a = -k * np.asarray(c_rad, float)
+    R = np.stack([np.stack([np.cos(a), -np.sin(a)], -1), np.stack([np.sin(a), np.cos(a)], -1)], -2)  # (n, 2, 2)
+    D = np.concatenate([np.tile(np.eye(2), (n, 1)), R.reshape(2 * n, 2)], axis=1)
+    if n < 6 or np.linalg.svd(D, compute_uv=False)[-1] < 1e-6 * np.sqrt(n):
+        return np.zeros_like(c)
+    from scipy.optimize import least_squares
+
+    scale = max(float(np.max(np.abs(c - c.mean(axis=0)))), 1e-300)
+    cu = c / scale
+    m0, r0, _ = _circle(cu)
+
+    def res(x):
+        q = cu - x[:2] - R @ x[2:4]
+        return np.linalg.norm(q, axis=1) - x[4]
+
+    x = least_squares(res, np.r_[m0, 0.0, 0.0, r0], xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm").x
+    return (R @ x[2:4]) * scale
+
+
+def unoriented_magnitudes(info, coef, bl):
+    """Amplitude and orientations from the circle through the set-ups' lobing vectors.
+
+    Each set-up's coefficients ``c_j = (a_j, b_j)`` of ``cos k phi``,
+    ``sin k phi`` are ``A (cos k psi_j, sin k psi_j)`` plus a part common to
+    all set-ups (a lobing fixed in the machine frame, which on many parts
+    the machine's own scale errors imitate: not determined). The common
+    part is the circle's centre: the radius is the amplitude, the angle
+    about the centre the orientation, both free of it. A lobing of the part
+    itself (turning with the table) is removed first
+    (:func:`_part_frame_lobe`).
+    """
+    k = info["harmonic"]
+    c = np.asarray(coef).reshape(len(info["setups"]), 2)
+    c = c - _part_frame_lobe(c, _setup_c_rad(bl, info["setups"]), k)
+    centre, r, res = _circle(c)
+    ang = np.arctan2(c[:, 1] - centre[1], c[:, 0] - centre[0])  # k psi_j
+    out = {"amplitude_um": r / UM, "circle_residual_um": res / UM,
+           "spread_um": float(np.max(np.linalg.norm(c - c.mean(axis=0), axis=1))) / UM}
+    diff = np.abs(np.angle(np.exp(1j * (ang[:, None] - ang[None, :]))))
+    out["orientation_spread_deg"] = float(np.degrees(diff.max()) / k)
+    for sid, a in zip(info["setups"], ang):
+        out[f"orientation_deg[{sid}]"] = float(np.degrees(a) / k)
+    return out
+
+
+def unoriented_plausible(vals, u95):
+    a, res, spread = vals.get("amplitude_um"), vals.get("circle_residual_um"), vals.get("spread_um")
+    if a is None or res is None or spread is None:
+        return "the set-ups' lobing not determined"
+    if res - (u95.get("circle_residual_um") or 0.0) > 0.3 * a:
+        return f"the set-ups' lobing vectors lie off one circle ({res:.2g} um for {a:.2g} um): not one probe's lobes"
+    if a > 3 * spread:
+        return (f"the set-ups' lobing vectors change by {spread:.2g} um on a circle of {a:.2g} um: a trend, "
+                "not a probe turned at random")
+    o, do = vals.get("orientation_spread_deg"), u95.get("orientation_spread_deg")
+    if o is not None and do is not None and o <= do:
+        return f"orientations agree within U95 ({o:.2g} +- {do:.2g} deg): the probe is oriented"
+    return None
+
+
+def bending_scans(bl):
+    """Stylus bending: pre-travel depending on the approach elevation.
+
+    The stylus bends under the trigger force; pushed sideways it bends
+    more than pushed along its axis, so the pre-travel changes with the
+    elevation ``e`` of the approach (the angle below the horizontal):
+    ``p(e) = p_0 + c_1 sin e + c_2 sin^2 e`` (the ``sin^2`` term is the
+    axial/lateral stiffness difference, ``sin`` an asymmetry between
+    approaches from above and below). Needs approaches at 2 deg or more
+    of elevation difference. Parameters: the pre-travel change between the
+    lowest and highest elevation probed (um) and the elevation range (deg).
+    """
+    d = bl.data
+    e = d.elevation
+    if np.ptp(e) < np.radians(2.0):
+        return [], 1.0
+    s = np.sin(e)
+    return [_one(np.column_stack([s, s ** 2]), ["sin_e", "sin2_e"],
+                 {"e_lo": float(e.min()), "e_hi": float(e.max())}, "approach_elevation")], 1.0
+
+
+def bending_magnitudes(info, coef, bl):
+    c = np.asarray(coef)
+
+    def p(e):  # pre-travel: dq = -p
+        return -(c[0] * np.sin(e) + c[1] * np.sin(e) ** 2)
+
+    return {"pretravel_change_um": float(p(info["e_hi"]) - p(info["e_lo"])) / UM,
+            "elevation_range_deg": float(np.degrees(info["e_hi"] - info["e_lo"]))}
+
+
+def _hann(u):
+    return np.where(np.abs(u) < 1, np.cos(np.pi * u / 2) ** 2, 0.0)
+
+
+def _defect_cols(d, axis: int, x0, w):
+    """(T, n, 1) bump columns for centres x0 and half-widths w (broadcast together)."""
+    a = (d.x, d.y)[axis]
+    n = (d.nx, d.ny)[axis]
+    x0, w = np.broadcast_arrays(np.atleast_1d(np.asarray(x0, float)), np.atleast_1d(np.asarray(w, float)))
+    return (-n[None, :] * _hann((a[None, :] - x0[:, None]) / w[:, None]))[:, :, None]
+
+
+def defect_scans(bl):
+    """Local scale defect: a positioning error of one axis confined to a short stretch.
+
+    A damaged or contaminated stretch of a linear scale, a local kink of
+    the ball screw or a chip under the scale adds a bump to the axis'
+    positioning error, ``E_XX(x) = A h((x - x0) / w)`` (``h`` a Hann
+    window, zero beyond ``|x - x0| = w``), narrower than the error map's
+    grid, so the grid's interpolation cannot follow it. Scanned: both
+    axes, half-widths 0.2 and 0.4 grid steps (never below twice the
+    positions' mean spacing), centres every quarter half-width; a trial
+    needs four distinct positions under its bump. ``tries`` counts the
+    independent bumps (extent over half-width, per width and axis).
+    Parameters: axis, centre and half-width (mm), peak amplitude (um).
+    """
+    d = bl.data
+    scans, tries = [], 1.0
+    for axis in (0, 1):
+        a = (d.x, d.y)[axis]
+        span, gap = _positions_gap(a)
+        if span <= 0:
+            continue
+        u = np.unique(np.round(a / 1e-6)) * 1e-6
+        for fw in (0.2, 0.4):
+            w = fw * d.grid_step_m
+            if w < 2 * gap:
+                continue
+            x0 = np.arange(u[0], u[-1] + 1e-12, w / 4)
+            cnt = np.searchsorted(u, x0 + w) - np.searchsorted(u, x0 - w)
+            x0 = x0[cnt >= 4]
+            if x0.size == 0:
+                continue
+            tries += span / w
+            ax = "XY"[axis]
+
+            def funcs(a=a, x0=x0, w=w):
+                return _hann((a[:, None] - x0[None, :]) / w)
+
+            scans.append(Scan((f"E{ax}{ax}_bump",),
+                              tuple({"axis": ax, "centre_m": float(c), "half_width_m": w} for c in x0), "xy"[axis],
+                              lambda idx, axis=axis, x0=x0, w=w: _defect_cols(d, axis, x0[np.asarray(idx)], w),
+                              _matmul_score(funcs, (-d.nx, -d.ny)[axis][:, None])))
+    return scans, tries
+
+
+def defect_rebuild(bl, info):
+    return _defect_cols(bl.data, "XY".index(info["axis"]), info["centre_m"], info["half_width_m"])
+
+
+def defect_magnitudes(info, coef, bl):
+    ax = info["axis"]
+    return {"axis": ax, "symbol": f"E{ax}{ax}", "centre_mm": info["centre_m"] / MM,
+            "half_width_mm": info["half_width_m"] / MM, "amplitude_um": float(coef[0]) / UM}
+
+
+def part_change_scans(bl):
+    """The part itself changing during the campaign: one feature's form drifting with time.
+
+    Stress relief after machining, a clamp that creeps, moisture or heat
+    taken up by the part: one feature's walls move while it is measured.
+    Each wall (the targets of the feature whose normal in the part's frame
+    points into one 45 deg sector; two targets at least on a feature of
+    eight or more, any on a smaller one) moves linearly with the time since
+    the first touch: ``dq_i += v_wall t``. Set-up by set-up a rigid motion of
+    the part is the set-up's own C-axis offsets; a wall moving against the
+    others is not. This is an error of the workpiece, never of the machine:
+    the extended model's workpiece is the form at the first touch.
+    One trial per feature. Parameters: each wall's change over the
+    campaign (um, positive outwards: material growing towards the stylus).
+    """
+    d = bl.data
+    t = d.touches
+    feats = np.asarray(t.feature, dtype=object)
+    sector = np.mod(np.round(d.wn_az / (np.pi / 4)).astype(int), 8)
+    scans = []
+    for f in sorted(set(feats.tolist())):
+        m = feats == f
+        nt = np.unique(t.target[m]).size
+        if nt < 2 or np.unique(t.setup[m]).size < 2:
+            continue
+        cols, labels, walls = [], [], []
+        for s in range(8):
+            ms = m & (sector == s)
+            if np.unique(t.target[ms]).size >= (2 if nt >= 8 else 1):  # a small feature: every direction it has
+                cols.append(ms * d.tau)
+                labels.append(f"{f}@{45 * s}deg")
+                walls.append(45 * s)
+        if cols:
+            scans.append(_one(np.column_stack(cols), labels, {"feature": str(f), "walls_deg": tuple(walls)}, "feature"))
+    return scans, float(max(len(scans), 1))
+
+
+def part_change_rival(bl, info):
+    """Any pattern of the feature's walls per set-up (what a changing part could do)."""
+    d = bl.data
+    t = d.touches
+    m = np.asarray(t.feature, dtype=object) == info["feature"]
+    sector = np.mod(np.round(d.wn_az / (np.pi / 4)).astype(int), 8)
+    key = np.where(m, sector * 10000 + t.setup, -1)
+    return np.column_stack([key == k for k in np.unique(key[m])]).astype(float)
+
+
+def part_change_magnitudes(info, coef, bl):
+    out = {"feature": info["feature"]}
+    for w, c in zip(info["walls_deg"], np.asarray(coef)):
+        out[f"wall{w}deg_change_um"] = float(c) / UM
+    return out
+
+
+def reversal_scans(bl):
+    """Reversal: lost motion of an axis, signed by the direction of motion at the touch.
+
+    Backlash of the drive, friction-induced lag or a loose scale mounting
+    make the axis stop short by half its lost motion ``B`` in the direction
+    it moves: ``E_X = -sign(d_x) B_x / 2``. Parameters: ``B_x``, ``B_y`` (um).
+    """
+    d = bl.data
+    dR = d.touches.d_R
+    s = np.where(np.abs(dR) > 1e-9, np.sign(dR), 0.0)
+    cols = np.column_stack([-d.nx * s[:, 0] / 2, -d.ny * s[:, 1] / 2])
+    return [_one(cols, ["x_lost_motion", "y_lost_motion"], {}, "approach_azimuth")], 1.0
+
+
+def reversal_magnitudes(info, coef, bl):
+    c = np.asarray(coef)
+    return {"x_lost_motion_um": c[0] / UM, "y_lost_motion_um": c[1] / UM}
+
+
+_NONRIGID = ("EX~xy", "EY~xy", "EX~x2y", "EY~xy2", "EX~xy2", "EY~x2y")
+
+
+def nonrigid_scans(bl):
+    """Non-rigid coupling: the error of one axis depends on the position of the other.
+
+    A rigid-body machine has errors of X that depend on x only; a table
+    that sags as the saddle moves, a twisted guideway or a column that
+    leans with the load makes ``E_X`` depend on x and y jointly: low-order
+    products ``xs ys``, ``xs^2 ys``, ``xs ys^2`` of the centred, scaled
+    positions in both directions. Parameters: each term's value at the
+    corner of the probed extent (um).
+    """
+    d = bl.data
+    xs, ys = d.xs, d.ys
+    cols = np.column_stack([-d.nx * xs * ys, -d.ny * xs * ys, -d.nx * xs * xs * ys, -d.ny * xs * ys * ys,
+                            -d.nx * xs * ys * ys, -d.ny * xs * xs * ys])
+    return [_one(cols, _NONRIGID, {}, "xy")], 1.0
+
+
+def finer_error_map(bl) -> np.ndarray:
+    """The rigid-body error map on a grid twice as fine: the plainer explanation of an x-y structure.
+
+    ``EXX``, ``EYX`` as B-splines of x; ``EXY``, ``EYY`` of y; the chain's
+    yaw term (``ECY(y) x`` when X rides on Y, ``ECX(x) y`` otherwise: the
+    other one is itself a coupling), with twice as many functions as the
+    baseline's grid has nodes.
+    """
+    from .diagnosis import spline_basis
+
+    d = bl.data
+    kx = 2 * int(np.ceil(np.ptp(d.x) / d.grid_step_m)) + 2
+    ky = 2 * int(np.ceil(np.ptp(d.y) / d.grid_step_m)) + 2
+    Fx, Fy = spline_basis(d.x, kx), spline_basis(d.y, ky)
+    yaw = (-(d.ny * d.xs)[:, None] * Fy if bl.info.get("yaw", "ECY") == "ECY" else (d.nx * d.ys)[:, None] * Fx)
+    return np.hstack([-d.nx[:, None] * Fx, -d.ny[:, None] * Fx, -d.nx[:, None] * Fy, -d.ny[:, None] * Fy, yaw])
+
+
+def nonrigid_magnitudes(info, coef, bl):
+    return {f"{k}_um": float(c) / UM for k, c in zip(_NONRIGID, coef)}
+
+
+# ---------------------------------------------------------------------------
+# volumetric causes (MFB placements, core.baseline.volumetric)
+# ---------------------------------------------------------------------------
+def vol_drift_scans(bl):
+    """Thermal drift between placements: the axes' scales changing with time.
+
+    The placements are probed over hours; the machine's scales grow with
+    its temperature, so a bar laid along X reads a different length in the
+    morning than in the afternoon: ``E_aa(u, t) = E_aa(u) + s_a tau(t) u``
+    for each axis a, with ``tau`` the time scaled to -1..1 over the
+    campaign (its mean is in the tables). The column of each axis is the
+    design's response to a unit scale of that axis' table, times ``tau``.
+    Parameters: the scale change of X, Y and Z from the first placement to
+    the last (ppm).
+    """
+    d = bl.data
+    des = d.design
+    if np.ptp(d.t_s) <= 0:
+        return [], 1.0
+    tau = 2 * (d.t_s - d.t_s.min()) / np.ptp(d.t_s) - 1
+    cols = []
+    for a in "XYZ":
+        sl = des.slices[f"E{a}{a}"]
+        cols.append((des.A[bl.rows][:, sl] @ des.nodes[a]) * tau)  # the raw design: the engine whitens
+    return [_one(np.column_stack(cols), ["X_scale", "Y_scale", "Z_scale"], {}, "time")], 1.0
+
+
+def vol_drift_magnitudes(info, coef, bl):
+    c = np.asarray(coef)
+    return {f"{a}_scale_change_ppm": 2 * v * 1e6 for a, v in zip("XYZ", c)}
+
+
+def bending_bar_scans(bl):
+    """The bar bending with its support: the points sag under gravity.
+
+    The bar was calibrated lying on its calibration supports; on the
+    machine table it rests on others, and gravity bends it between them.
+    The points of interest then sit lower (along gravity's component
+    perpendicular to the bar) by a smooth even function of their position
+    along the bar: ``w(s) = c_2 P_2(s) + c_4 P_4(s)`` (Legendre, s = -1..1
+    over the holes probed), the same for every placement of the bar at the
+    same inclination. A standing bar does not sag. Parameters: the sag of
+    the middle relative to the ends (um, positive down).
+    """
+    d = bl.data
+    if np.max(np.abs(d.g_perp)) < 1e-6:
+        return [], 1.0
+    P2 = (3 * d.s ** 2 - 1) / 2
+    P4 = (35 * d.s ** 4 - 30 * d.s ** 2 + 3) / 8
+    return [_one(np.column_stack([d.g_perp * P2, d.g_perp * P4]), ["P2", "P4"], {}, "along_bar")], 1.0
+
+
+def bending_bar_magnitudes(info, coef, bl):
+    c2, c4 = np.asarray(coef)
+    # y = target - reading: a point sagging by w along g reads w lower, the
+    # column (g P) takes -w: sag = w(0) - w(1) = -(c2 (P2(0) - P2(1)) + c4 (P4(0) - P4(1)))
+    return {"midspan_sag_um": float(1.5 * c2 + 0.625 * c4) / UM}
+
+
+def stylus_lobing_scans(bl):
+    """Lobing per stylus: each stylus of a star has its own pre-travel pattern.
+
+    A star stylus' arms rest on the same kinematic seat but are pushed
+    through different lever arms, so each has its own pre-travel as a
+    function of the approach direction: ``p(d) = sum_k a_k cos k phi +
+    b_k sin k phi + c d_z^2`` (k = 1..3, phi the approach azimuth in W).
+    A touch triggering late by ``p`` moves the point of interest by the
+    extraction's gain (model (3) of core.volumetric) times ``p``. One set
+    of seven coefficients per stylus. Parameters: the RMS shift of the
+    points of interest it causes and each stylus' pre-travel variation
+    over the azimuth (peak-to-valley, um; holes fitted from points all
+    round see little of the even lobes, so these are often not
+    determined).
+    """
+    d = bl.data
+    if not d.touch_cols:
+        return [], 1.0
+    n = len(d.comp)
+    n_st = len(d.styli)
+    cols = np.zeros((n, 7 * n_st))
+    for rows, GW, dW in d.touch_cols:
+        if not len(rows):
+            continue
+        st = int(d.stylus[rows[0]])
+        phi = np.arctan2(dW[:, 1], dW[:, 0])
+        H = np.column_stack([np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi), np.cos(3 * phi),
+                             np.sin(3 * phi), dW[:, 2] ** 2])
+        cols[rows, 7 * st:7 * st + 7] = GW @ H
+    labels = [f"{h}[{s_}]" for s_ in d.styli for h in ("c1", "s1", "c2", "s2", "c3", "s3", "axial")]
+    return [_one(cols, labels, {"styli": d.styli, "columns": cols}, "stylus")], 1.0
+
+
+def stylus_lobing_magnitudes(info, coef, bl):
+    c = np.asarray(coef).reshape(len(info["styli"]), 7)
+    out = {"point_shift_rms_um": float(np.sqrt(np.mean((info["columns"] @ np.asarray(coef)) ** 2))) / UM}
+    phi = np.linspace(-np.pi, np.pi, 361)
+    H = np.column_stack([np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi), np.cos(3 * phi),
+                         np.sin(3 * phi)])
+    for name, cs in zip(info["styli"], c):
+        out[f"pretravel_pv_um[{name}]"] = _pv(H @ cs[:6]) / UM
+    return out
+
+
+# ---------------------------------------------------------------------------
+# positioning causes (ISO 230-2 runs, core.baseline.positioning)
+# ---------------------------------------------------------------------------
+def pos_drift_scans(bl):
+    """Drift across cycles: the axis' zero and scale changing with time during the test.
+
+    The axis warms as it runs the cycles: its zero moves and its scale
+    grows, ``x_ij += a(t) + s(t) (P_i - P_mid)`` with ``a``, ``s``
+    polynomials of degree 1 or 2 in the time over the test (the degree is
+    scanned). The mean unidirectional deviations hold the average over the
+    cycles; the change between cycles is the drift. Parameters: the offset
+    (um) and scale (ppm) change from the first reading to the last.
+    """
+    d = bl.data
+    u = 2 * d.tau - 1
+    scans = []
+    for deg in (1, 2):
+        P = _legendre(u, deg)
+        cols = np.hstack([P, d.xs[:, None] * P])
+        labels = [f"offset_P{j}" for j in range(1, deg + 1)] + [f"scale_P{j}" for j in range(1, deg + 1)]
+        scans.append(_one(cols, labels, {"degree": deg}, "time"))
+    return scans, 2.0
+
+
+def pos_drift_magnitudes(info, coef, bl):
+    deg = info["degree"]
+    c = np.asarray(coef).reshape(2, deg)
+    dP = np.array([1.0 - (-1.0) ** j for j in range(1, deg + 1)])
+    return {"offset_change_um": float(c[0] @ dP) / UM, "scale_change_ppm": float(c[1] @ dP) / bl.data.L * 1e6}
+
+
+def _warm(d, T):
+    T = np.atleast_1d(np.asarray(T, float))
+    e = np.exp(-(d.t_s - d.t_s.min())[None, :] / T[:, None])
+    return np.stack([e, d.xs[None, :] * e], axis=-1)
+
+
+def warm_up_scans(bl):
+    """Warm-up: the first cycles deviate, and the deviation dies away as the axis settles.
+
+    A cold axis (ball screw, guideways, scale) settles to its working
+    temperature over the first runs: ``x_ij += (a + s (P_i - P_mid))
+    exp(-t / T)``, an offset and a scale that decay with time constant T
+    (scanned from a twentieth to a half of the test's duration, refined).
+    Unlike a drift it stops: the last cycles agree. Parameters: the
+    initial offset (um) and scale (ppm) and the time constant (s).
+    """
+    d = bl.data
+    span = float(np.ptp(d.t_s))
+    if span <= 0:
+        return [], 1.0
+    T = np.geomspace(span / 20, span / 2, 12)
+    return [Scan(("offset", "scale"), tuple({"tau_s": float(v)} for v in T), "time",
+                 lambda idx, T=T: _warm(d, T[np.asarray(idx)]))], float(np.log(10) / np.log(1.5))
+
+
+def warm_up_rebuild(bl, info):
+    return _warm(bl.data, info["tau_s"])
+
+
+def warm_up_magnitudes(info, coef, bl):
+    c = np.asarray(coef)
+    return {"initial_offset_um": float(c[0]) / UM, "initial_scale_ppm": float(c[1]) / bl.data.L * 1e6,
+            "time_constant_s": float(info["tau_s"])}
+
+
+OUTLIER = "outlier"
+UNEXPLAINED = "unexplained"
+NONE = "none"
+
+#: Every cause, one record each (a name may have a record per baseline kind).
+REGISTRY = (
+    Cause("thermal_drift", ("planar",), "machine", drift_scans, drift_magnitudes,
+          {"x_offset_change_um": (-500, 500), "y_offset_change_um": (-500, 500),
+           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}),
+    Cause("c_drift", ("planar",), "machine", c_drift_scans, c_drift_magnitudes,
+          {"ECC_change_in_setup_urad": (-2000, 2000), "ECC_change_over_campaign_urad": (-2000, 2000),
+           "ECC_change_rms_urad": (0, 2000), "ECC_change_urad[*]": (-2000, 2000)}),
+    Cause("temperature_expansion", ("planar",), "machine", expansion_scans, expansion_magnitudes,
+          {"alpha_x_um_per_m_K": (-60, 60), "alpha_y_um_per_m_K": (-60, 60),
+           "x_offset_um_per_K": (-50, 50), "y_offset_um_per_K": (-50, 50)}),
+    Cause("periodic_axis_error", ("planar",), "machine", periodic_scans, periodic_magnitudes,
+          {"EXX_amplitude_um": (0, 50), "EYX_amplitude_um": (0, 50), "EXY_amplitude_um": (0, 50),
+           "EYY_amplitude_um": (0, 50)}, periodic_rebuild, ("period_m",), check=periodic_check),
+    Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
+          {"pretravel_variation_pv_um": (0, 50)}),
+    Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
+          {"amplitude_um": (0, 50)}, plausible=unoriented_plausible),
+    Cause("stylus_bending", ("planar",), "probe", bending_scans, bending_magnitudes,
+          {"pretravel_change_um": (-50, 50)}),
+    Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,
+          {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m")),
+    Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
+          {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival),
+    Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
+          {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}),
+    Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,
+          {f"{k}_um": (-200, 200) for k in _NONRIGID}, counter=finer_error_map),
+    Cause(OUTLIER, ("planar", "volumetric", "positioning"), "data", None, None, {},
+          summary="A few observations deviate grossly (a chip or dust on the surface, a bad trigger, a "
+                  "misread): studentized deleted residuals beyond a Bonferroni bound, removed one at a time."),
+    Cause("thermal_drift", ("volumetric",), "machine", vol_drift_scans, vol_drift_magnitudes,
+          {"X_scale_change_ppm": (-500, 500), "Y_scale_change_ppm": (-500, 500), "Z_scale_change_ppm": (-500, 500)}),
+    Cause("bar_bending", ("volumetric",), "artefact", bending_bar_scans, bending_bar_magnitudes,
+          {"midspan_sag_um": (-50, 50)}),
+    Cause("lobing_per_stylus", ("volumetric",), "probe", stylus_lobing_scans, stylus_lobing_magnitudes,
+          {"pretravel_pv_um[*]": (0, 50), "point_shift_rms_um": (0, 50)}),
+    Cause("thermal_drift", ("positioning",), "machine", pos_drift_scans, pos_drift_magnitudes,
+          {"offset_change_um": (-500, 500), "scale_change_ppm": (-1000, 1000)}),
+    Cause("warm_up", ("positioning",), "machine", warm_up_scans, warm_up_magnitudes,
+          {"initial_offset_um": (-500, 500), "initial_scale_ppm": (-1000, 1000)}, warm_up_rebuild, ("tau_s",)),
+)
+
+#: Report names that are not catalogue entries.
+SPECIAL = {NONE: "the baseline explains the data within the noise",
+           UNEXPLAINED: "structure remains that no named cause explains; the diagnosis says where"}
+
+def for_kind(kind: str) -> list:
+    """The causes with columns that apply to a baseline kind (outliers are the engine's)."""
+    return [c for c in REGISTRY if kind in c.kinds and c.scans is not None]
+
+
+def lookup(name: str, kind: str = "planar") -> Cause | None:
+    """The record of cause ``name`` for a baseline kind."""
+    return next((c for c in REGISTRY if c.name == name and kind in c.kinds), None)
+
+
+def names() -> set:
+    """Every cause name of the catalogue (all kinds)."""
+    return {c.name for c in REGISTRY}

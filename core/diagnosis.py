@@ -1,0 +1,612 @@
+"""Where residual structure lives: covariate tests and the noise floor, without a catalogue.
+
+Discovery (:mod:`core.discover`) names causes from a catalogue
+(:mod:`core.causes`); this module answers the questions that must not
+depend on it:
+
+1. **How large is the noise?** From repeated touches (pure replicate
+   scatter, :func:`replicate_scatter`) and from the gap between in-sample
+   and cross-validated residuals (:func:`cv_gap`).
+2. **Where does the structure live?** For every covariate the log holds
+   (time, time within the set-up, set-up, C, x, y, z, approach azimuth and
+   elevation, feature, each ``temp_*_C``, touch order) a smooth function of
+   it is added to the model and its explained variance tested
+   (:func:`diagnose`).
+
+The test (:func:`nested_f`) is the classical F test of a nested linear
+model: the smooth term's columns ``B`` are projected out of the current
+model's column space, and under Gaussian noise of one variance the statistic
+``F = (SS_B / k) / ((RSS - SS_B) / (dof - k))`` follows ``F(k, dof - k)``
+exactly, whatever the model. Over the covariates the p-values are adjusted
+by Holm's step-down method (:func:`holm`), which holds the family-wise
+error rate under any dependence between the tests (covariates such as time
+and touch order are strongly correlated). The explained RMS is debiased:
+``sqrt(max(SS_B - k s^2, 0) / n)``, zero on average for pure noise.
+
+A smooth function of a covariate ``v`` acts on a touch through *response
+modes*: for the planar baseline a scalar (pre-travel, the part's surface)
+and the six components of an affine displacement field of the tip in the
+machine frame (x and y translation, x and y scale, the two shears, whose
+difference is a rotation), all on centred, scaled coordinates
+(:func:`core.baseline.planar_modes`). The basis of the term is every mode
+times every basis function of ``v`` (B-splines with knots at quantiles of
+``v``, a Fourier series for an angle, indicators for a category), so a
+machine error that follows ``v`` with any direction is seen, not only a
+scalar trend. Quantile knots and centred coordinates make the tests
+invariant to translating the campaign or renumbering its set-ups.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+from scipy import special, stats
+from scipy.interpolate import BSpline
+
+from .units import UM
+
+#: Relative column norm (after projection out of the model) below which a
+#: basis column counts as already inside the model.
+IN_SPAN = 1e-6
+
+
+# ---------------------------------------------------------------------------
+# linear algebra
+# ---------------------------------------------------------------------------
+def orth(M: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """(n, r) orthonormal basis of the column space of ``M`` (columns scaled first).
+
+    Pivoted QR; the rank is the number of ``|R_ii| > tol |R_00|``.
+    """
+    if M.ndim != 2 or M.shape[1] == 0:
+        return np.zeros((M.shape[0], 0))
+    nrm = np.linalg.norm(M, axis=0)
+    keep = nrm > 0
+    if not keep.any():
+        return np.zeros((M.shape[0], 0))
+    Ms = M[:, keep] / nrm[keep]
+    Q, R, _ = sla.qr(Ms, mode="economic", pivoting=True)
+    d = np.abs(np.diag(R))
+    r = int(np.sum(d > tol * d[0])) if d.size else 0
+    return Q[:, :r]
+
+
+def project_out(Q: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``B`` less its projection on the orthonormal columns ``Q``."""
+    return B - Q @ (Q.T @ B) if Q.shape[1] else B.copy()
+
+
+def new_basis(Q: np.ndarray, B: np.ndarray, tol: float = IN_SPAN) -> np.ndarray:
+    """Orthonormal basis of the part of span(B) outside span(Q).
+
+    Columns normalised, projected out of Q; the eigen-decomposition of
+    their Gram matrix keeps directions whose singular value exceeds
+    ``max(tol, 1e-5)`` (a direction retaining less of a unit column is
+    inside the model, for every purpose here).
+    """
+    if B.shape[1] == 0:
+        return np.zeros((B.shape[0], 0))
+    nrm = np.linalg.norm(B, axis=0)
+    keep = nrm > 0
+    if not keep.any():
+        return np.zeros((B.shape[0], 0))
+    P = project_out(Q, B[:, keep] / nrm[keep])
+    w, V = np.linalg.eigh(P.T @ P)
+    good = w > max(tol, 1e-5) ** 2
+    return (P @ V[:, good]) / np.sqrt(w[good])
+
+
+# ---------------------------------------------------------------------------
+# tests
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class NestedTest:
+    """F test of columns added to a linear model.
+
+    Attributes
+    ----------
+    k : int
+        Added dimensions (outside the model).
+    ss : float
+        Residual sum of squares they remove, m^2.
+    F, p_value : float
+    explained_rms_m : float
+        Debiased RMS of the added term over the rows, m.
+    """
+
+    k: int
+    ss: float
+    F: float
+    p_value: float
+    explained_rms_m: float
+
+
+def nested_f(U: np.ndarray, r: np.ndarray, rss: float, dof: int) -> NestedTest:
+    """Nested F test of the orthonormal directions ``U`` (already outside the model).
+
+    Parameters
+    ----------
+    U : (n, k) float
+        Orthonormal, orthogonal to the model's column space.
+    r : (n,) float
+        Residuals of the model, m.
+    rss : float
+        ``r @ r``.
+    dof : int
+        Residual degrees of freedom of the model.
+    """
+    k = U.shape[1]
+    n = len(r)
+    if k == 0 or dof - k < 1:
+        return NestedTest(0, 0.0, 0.0, 1.0, 0.0)
+    ss = float(np.sum((U.T @ r) ** 2))
+    s2 = max(rss - ss, 1e-300) / (dof - k)
+    F = (ss / k) / s2
+    p = float(special.fdtrc(k, dof - k, F))
+    return NestedTest(k, ss, F, p, float(np.sqrt(max(ss - k * s2, 0.0) / n)))
+
+
+def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof: int):
+    """Nested F tests of many candidate column sets at once.
+
+    Parameters
+    ----------
+    C : (T, n, k) float
+        Candidate columns (any scaling).
+    Q : (n, q) float
+        Orthonormal basis of the model.
+    r : (n,) float
+        Model residuals (orthogonal to Q); ``rss = r @ r``.
+
+    Returns
+    -------
+    ss, k, F, p : (T,) arrays
+        Sum of squares each set removes, its dimension outside the model
+        (eigenvalues of the projected, column-normalised Gram above
+        ``IN_SPAN^2``), the F statistic and its p-value.
+    """
+    T, n, k = C.shape
+    nrm = np.sqrt(np.einsum("tnk,tnk->tk", C, C))
+    Cn = C / np.maximum(nrm, 1e-300)[:, None, :]
+    if Q.shape[1]:  # one matrix product for every trial: (n, T k)
+        C2 = np.moveaxis(Cn, 0, 1).reshape(n, T * k)
+        P = np.moveaxis((C2 - Q @ (Q.T @ C2)).reshape(n, T, k), 1, 0)
+    else:
+        P = Cn
+    Pt = np.swapaxes(P, 1, 2)
+    G = Pt @ P
+    b = Pt @ r
+    w, V = np.linalg.eigh(G)
+    good = w > IN_SPAN ** 2
+    proj = (np.swapaxes(V, 1, 2) @ b[..., None])[..., 0]
+    ss = np.sum(np.where(good, proj ** 2 / np.where(good, w, 1.0), 0.0), axis=1)
+    k = good.sum(axis=1)
+    d2 = dof - k
+    ok = (k > 0) & (d2 >= 1)
+    F = np.where(ok, (ss / np.maximum(k, 1)) / (np.maximum(rss - ss, 1e-300) / np.maximum(d2, 1)), 0.0)
+    p = np.where(ok, special.fdtrc(np.maximum(k, 1), np.maximum(d2, 1), F), 1.0)
+    return ss, k, F, p
+
+
+def holm(p) -> np.ndarray:
+    """Holm step-down adjusted p-values (family-wise error rate, any dependence)."""
+    p = np.asarray(p, float)
+    m = len(p)
+    if m == 0:
+        return p
+    order = np.argsort(p)
+    adj = np.empty(m)
+    run = 0.0
+    for i, j in enumerate(order):
+        run = max(run, min(1.0, (m - i) * p[j]))
+        adj[j] = run
+    return adj
+
+
+def fmt_p(p: float) -> str:
+    """``p < 1e-6``, ``p = 0.0031``."""
+    if p < 1e-6:
+        return "p < 1e-6"
+    if p < 1e-3:
+        return f"p = {p:.1e}"
+    return f"p = {p:.2g}"
+
+
+# ---------------------------------------------------------------------------
+# covariates and their bases
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Covariate:
+    """One variable the rows carry, and how a smooth function of it is built.
+
+    Attributes
+    ----------
+    name : str
+        Report name (``time``, ``time_in_setup``, ``x``, ``temp_spindle_C`` ...).
+    values : (n,) float
+        The variable (any unit; bases use quantiles and ranges only).
+    kind : {"smooth", "circular", "categorical", "basis"}
+        B-splines, a Fourier series (values in rad), indicators, or given
+        functions (``values`` is then (n, m)).
+    size : int
+        Basis functions (smooth), harmonics (circular); ignored for categories.
+    modes : tuple of int
+        Which response modes of the baseline the function acts through.
+    words : str
+        How the report says it (``"time within each set-up"``).
+    family : str
+        Covariates of one family are confounded by the way campaigns are
+        run (time, touch order and a temperature that follows the clock):
+        ``time``, ``position``, ``direction``, ``feature``.
+    period_range : (float, float)
+        For ``kind="spectral"``: the shortest and longest period scanned, in
+        the covariate's unit. A spectral covariate is tested by the best
+        sine of its values (each mode times sin, cos), the p-value
+        Bonferroni-adjusted over the independent frequencies scanned:
+        structure too fine for a smooth basis (a screw ripple) is located.
+    """
+
+    name: str
+    values: np.ndarray = field(repr=False)
+    kind: str
+    size: int
+    modes: tuple
+    words: str
+    family: str = ""
+    period_range: tuple = ()
+
+
+def spline_basis(v: np.ndarray, size: int) -> np.ndarray:
+    """(n, m) B-spline basis of ``v`` with interior knots at quantiles of its distinct values.
+
+    Cubic when there are enough distinct values; the degree drops with
+    fewer. ``m <= size``; partition of unity (the constant is in the span).
+    """
+    v = np.asarray(v, float)
+    u = np.unique(v)
+    if u.size < 2:
+        return np.ones((len(v), 1))
+    m = int(min(size, u.size))
+    deg = int(min(3, m - 1))
+    n_int = m - deg - 1
+    lo, hi = u[0], u[-1]
+    inner = np.quantile(u, np.linspace(0, 1, n_int + 2)[1:-1]) if n_int > 0 else np.zeros(0)
+    t = np.concatenate([np.full(deg + 1, lo), inner, np.full(deg + 1, hi)])
+    x = np.clip(v, lo, hi)
+    B = BSpline.design_matrix(x, t, deg, extrapolate=False).toarray()
+    B[x >= hi, -1] = 1.0  # the right end belongs to the last function
+    B[x >= hi, :-1] = 0.0
+    return B
+
+
+def fourier_basis(phi: np.ndarray, harmonics: int) -> np.ndarray:
+    """(n, 1 + 2h) ``1, cos k phi, sin k phi`` for k = 1..h."""
+    cols = [np.ones(len(phi))]
+    for k in range(1, harmonics + 1):
+        cols += [np.cos(k * phi), np.sin(k * phi)]
+    return np.column_stack(cols)
+
+
+def category_basis(v: np.ndarray) -> np.ndarray:
+    """(n, L) indicators of the distinct values of ``v``."""
+    _, inv = np.unique(np.asarray(v), return_inverse=True)
+    B = np.zeros((len(inv), inv.max() + 1))
+    B[np.arange(len(inv)), inv] = 1.0
+    return B
+
+
+def function_basis(cov: Covariate) -> np.ndarray:
+    """(n, m) basis functions of the covariate alone (before the modes)."""
+    if cov.kind == "smooth":
+        return spline_basis(cov.values, cov.size)
+    if cov.kind == "circular":
+        return fourier_basis(np.asarray(cov.values, float), cov.size)
+    if cov.kind == "categorical":
+        return category_basis(cov.values)
+    if cov.kind == "basis":  # the functions themselves, (n, m)
+        return np.asarray(cov.values, float)
+    if cov.kind == "spectral":
+        raise ValueError(f"covariate {cov.name!r}: a spectral covariate has no fixed basis")
+    raise ValueError(f"covariate {cov.name!r}: unknown kind {cov.kind!r}")
+
+
+def term_bases(covariates, modes: np.ndarray) -> dict:
+    """Every covariate's term basis over all rows, once (name -> (n, m)).
+
+    A spectral covariate has no basis: its entry is the sines and cosines of
+    the frequencies scanned, (S, C, f), kept for every diagnosis of a run.
+    """
+    out = {}
+    for c in covariates:
+        if c.kind == "spectral":
+            f = _frequencies(c)
+            if f is not None:
+                ph = 2 * np.pi * np.asarray(c.values, float)[:, None] * f[None, :]
+                out[c.name] = (np.sin(ph), np.cos(ph), f)
+        else:
+            out[c.name] = term_basis(c, modes)
+    return out
+
+
+def _frequencies(cov: Covariate):
+    """Frequencies a spectral covariate scans (three per independent one), or None."""
+    span = float(np.ptp(np.asarray(cov.values, float)))
+    p_lo, p_hi = cov.period_range
+    if span <= 0 or p_hi <= 1.2 * p_lo:
+        return None
+    return np.arange(1 / p_hi, 1 / p_lo, 1 / (3 * span))
+
+
+@dataclass(frozen=True)
+class _SpectralTest(NestedTest):
+    period: float = 0.0
+
+
+def _spectral(cov: Covariate, Q, r, rss, dof, modes, rows, trig=None, shortlist: int = 4):
+    """The best sine of a covariate against the residuals (see :attr:`Covariate.period_range`)."""
+    v = np.asarray(cov.values, float)
+    M = modes[:, list(cov.modes)]
+    if trig is None:
+        f = _frequencies(cov)
+        if f is None:
+            return None
+        ph = 2 * np.pi * v[:, None] * f[None, :]
+        S, C = np.sin(ph), np.cos(ph)
+    else:
+        S, C, f = trig
+    if rows is not None:
+        v, M, S, C = v[rows], M[rows], S[rows], C[rows]
+    span = float(np.ptp(v))
+    p_lo, p_hi = cov.period_range
+    num = np.zeros(len(f))
+    for m in range(M.shape[1]):  # periodogram-like pre-screen (r is orthogonal to the model)
+        w = M[:, m]
+        for F in (S, C):
+            num += ((r * w) @ F) ** 2 / np.maximum((w ** 2) @ (F ** 2), 1e-300)
+    best = None
+    for i in np.argsort(-num)[:shortlist]:
+        B = np.hstack([M * S[:, [i]], M * C[:, [i]]])
+        U = new_basis(Q, B)
+        if U.shape[1] == 0 or dof - U.shape[1] < 5:
+            continue
+        t = nested_f(U, r, rss, dof)
+        if best is None or t.p_value < best[0].p_value:
+            best = (t, U, 1 / f[i])
+    if best is None:
+        return None
+    t, U, P = best
+    tries = max(span * (1 / p_lo - 1 / p_hi), 1.0)  # independent frequencies
+    return cov, _SpectralTest(t.k, t.ss, t.F, min(1.0, t.p_value * tries), t.explained_rms_m, float(P)), U
+
+
+def term_basis(cov: Covariate, modes: np.ndarray, rows=None) -> np.ndarray:
+    """(n, len(cov.modes) * m) columns of a smooth term: each mode times each basis function."""
+    F = function_basis(cov)
+    M = modes[:, list(cov.modes)]
+    if rows is not None:
+        F, M = F[rows], M[rows]
+    return (M[:, :, None] * F[:, None, :]).reshape(len(F), -1)
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Residual structure along one covariate.
+
+    Attributes
+    ----------
+    covariate : str
+    explained_rms_um : float
+        Debiased RMS of the fitted smooth term, um.
+    p_value : float
+        Holm-adjusted p-value of its F test.
+    p_raw : float
+    k : int
+        Dimensions of the term outside the model.
+    words : str
+        The finding in words (``"residuals follow time within each set-up:
+        0.61 um, p < 1e-6"``).
+    material : bool
+        Explained RMS at least the materiality threshold (a fraction of the noise).
+    fitted_um : (n,) float or None
+        The fitted smooth term at the rows tested, um (what a figure draws).
+    """
+
+    covariate: str
+    explained_rms_um: float
+    p_value: float
+    p_raw: float
+    k: int
+    words: str
+    material: bool
+    fitted_um: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def significant(self, alpha: float) -> bool:
+        return self.p_value < alpha and self.material
+
+    def to_dict(self) -> dict:
+        return {"covariate": self.covariate, "explained_rms_um": self.explained_rms_um,
+                "p_value": self.p_value, "k": self.k, "text": self.words}
+
+
+def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarray, *,
+             sigma_m: float, material_sigma: float, rows=None, bases: dict | None = None) -> list:
+    """Test every covariate's smooth term against the model, strongest first.
+
+    Parameters
+    ----------
+    Q : (n, r) float
+        Orthonormal basis of the model's column space (rows used).
+    r : (n,) float
+        The model's residuals, m.
+    dof : int
+    covariates : sequence of Covariate
+        Full-length covariates (``rows`` selects).
+    modes : (N, m) float
+        The baseline's response modes (full length).
+    sigma_m : float
+        Noise (1 sigma) for the materiality threshold, m.
+    material_sigma : float
+        A term explaining less than ``material_sigma * sigma_m`` RMS is
+        immaterial (reported, never a reason to call structure).
+    rows : index array or None
+    bases : dict or None
+        :func:`term_bases` of the covariates (computed when None).
+
+    Returns
+    -------
+    list of Diagnosis
+        Sorted by adjusted p-value, then explained RMS (descending).
+    """
+    rss = float(r @ r)
+    raw = []
+    for cov in covariates:
+        if cov.kind == "spectral":
+            res = _spectral(cov, Q, r, rss, dof, modes, rows, (bases or {}).get(cov.name))
+            if res is not None:
+                raw.append(res)
+            continue
+        B = bases[cov.name] if bases is not None else term_basis(cov, modes)
+        U = new_basis(Q, B if rows is None else B[rows])
+        if U.shape[1] == 0 or dof - U.shape[1] < 5:
+            continue
+        raw.append((cov, nested_f(U, r, rss, dof), U))
+    if not raw:
+        return []
+    adj = holm([t.p_value for _, t, _ in raw])
+    out = []
+    for (cov, t, U), pa in zip(raw, adj):
+        rms_um = t.explained_rms_m / UM
+        if cov.kind == "spectral":
+            P = getattr(t, "period", 0.0)
+            words = (f"{cov.words} (period {P / 1e-3:.3g} mm)" if cov.family == "position" else
+                     f"{cov.words} (period {P:.3g} s)" if cov.family == "time" else f"{cov.words} (period {P:.3g})")
+        else:
+            words = cov.words
+        out.append(Diagnosis(cov.name, rms_um, float(pa), t.p_value, t.k,
+                             f"residuals follow {words}: {rms_um:.2g} µm, {fmt_p(float(pa))}",
+                             t.explained_rms_m >= material_sigma * sigma_m, (U @ (U.T @ r)) / UM))
+    out.sort(key=lambda d: (d.p_value, -d.explained_rms_um))
+    return out
+
+
+# ---------------------------------------------------------------------------
+# noise floor
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Replicates:
+    """Scatter of repeated touches (same set-up, same target: the same design row).
+
+    Attributes
+    ----------
+    ss : float
+        Pure-error sum of squares, m^2.
+    dof : int
+        Sum over groups of (size - 1).
+    groups : int
+        Groups with two or more touches.
+    """
+
+    ss: float
+    dof: int
+    groups: int
+
+    @property
+    def sigma_m(self) -> float:
+        return float(np.sqrt(self.ss / self.dof)) if self.dof else float("nan")
+
+
+def replicate_scatter(key: np.ndarray, y: np.ndarray) -> Replicates:
+    """Pure replicate scatter of ``y`` within groups of equal ``key`` (``key < 0``: no group)."""
+    key = np.asarray(key)
+    ok = key >= 0
+    if not ok.any():
+        return Replicates(0.0, 0, 0)
+    k, inv, cnt = np.unique(key[ok], return_inverse=True, return_counts=True)
+    yy = y[ok]
+    s = np.bincount(inv, yy)
+    mean = s / cnt
+    ss = float(np.sum((yy - mean[inv]) ** 2))
+    return Replicates(ss, int(np.sum(cnt - 1)), int(np.sum(cnt > 1)))
+
+
+@dataclass(frozen=True)
+class LackOfFit:
+    """Classical lack-of-fit F test: residual scatter beyond the replicates' scatter."""
+
+    F: float
+    p_value: float
+    sigma_lof_m: float  # sqrt of the lack-of-fit variance component (0 when below the replicates)
+    dof: int
+
+
+def lack_of_fit(rss: float, dof: int, rep: Replicates) -> LackOfFit | None:
+    """F = ((RSS - SS_PE) / (dof - dof_PE)) / (SS_PE / dof_PE), or None without replicates.
+
+    Valid when the model's design rows are equal within each replicate
+    group (the baseline's are: same set-up, same target).
+    """
+    if rep.dof < 5 or dof - rep.dof < 1:
+        return None
+    d1 = dof - rep.dof
+    ms_lof = max(rss - rep.ss, 0.0) / d1
+    ms_pe = rep.ss / rep.dof
+    F = ms_lof / max(ms_pe, 1e-300)
+    return LackOfFit(F, float(stats.f.sf(F, d1, rep.dof)), float(np.sqrt(max(ms_lof - ms_pe, 0.0))), d1)
+
+
+@dataclass(frozen=True)
+class CvGap:
+    """Cross-validated against in-sample residuals, and what pure noise would give.
+
+    Attributes
+    ----------
+    ratio : float
+        ``cv_ss / rss`` observed.
+    expected : float
+        Its mean under pure noise (same model, same folds).
+    p_value : float
+        Upper tail of the observed ratio under a normal law with the draws'
+        mean and standard deviation.
+    sigma_cv_m : float
+        Noise level that would explain the cross-validated residuals:
+        ``sqrt(cv_ss / E||M z||^2)`` (M the linear CV map, z standard normal).
+    draws : int
+    """
+
+    ratio: float
+    expected: float
+    p_value: float
+    sigma_cv_m: float
+    draws: int
+
+
+def cv_gap(cv_ss: float, rss: float, null_cv_ss: np.ndarray, null_rss: np.ndarray) -> CvGap:
+    """The CV-gap test from the observed sums and their null draws.
+
+    Under pure Gaussian noise the ratio ``cv_ss / rss`` does not depend on
+    the noise level, so the draws (standard normal observations through the
+    same linear fit and folds) give its exact distribution up to Monte
+    Carlo error.
+    """
+    null = null_cv_ss / np.maximum(null_rss, 1e-300)
+    ratio = cv_ss / max(rss, 1e-300)
+    # the held-out sum of squares is a quadratic form in the noise: a scaled
+    # chi-square with matched mean and variance (Satterthwaite) gives its
+    # tail from the draws' mean and spread, so a p-value below 1 / draws is
+    # still resolved. When many directions share the held-out error the
+    # shape is large and the tail is the normal's; when one poorly
+    # predicted set-up dominates it the shape falls towards 1/2 and the
+    # tail is a chi-square's with one degree of freedom (a normal tail
+    # would call its ordinary excursions structure).
+    mu = float(np.mean(null)) if len(null) else float("nan")
+    var = float(np.var(null, ddof=1)) if len(null) > 1 else float("nan")
+    if var > 0 and mu > 0:
+        p = float(stats.gamma.sf(ratio, mu * mu / var, scale=var / mu))
+    elif var == 0 and mu > 0:  # every draw alike: the ratio does not vary with the noise
+        p = 1.0 if ratio <= mu * (1 + 1e-9) else 0.0
+    else:  # fewer than two draws: no test
+        p = 1.0
+    return CvGap(float(ratio), float(np.mean(null)), p, float(np.sqrt(cv_ss / max(np.mean(null_cv_ss), 1e-300))),
+                 int(len(null)))
