@@ -8,7 +8,9 @@ from pathlib import Path
 def register(sub) -> None:
     p = sub.add_parser("discover", help="find what the baseline model misses, where, name the cause, extend, "
                                         "measure the gain")
-    p.add_argument("log", help="probe-log/1 campaign (the same targets at two or more C angles)")
+    p.add_argument("log", help="probe-log/1 campaign (the same targets at two or more C angles), or a "
+                               "positioning-log/1 ISO 230-2 test (baseline: the standard's mean per target "
+                               "and direction)")
     p.add_argument("--json", dest="json_out", required=True, help="discovery report (JSON) to write")
     p.add_argument("--report", help="folder for a readable report (index.html, PNG figures, rerun .rrd)")
     p.add_argument("--grid-mm", type=float, default=None,
@@ -32,6 +34,8 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     from core.scope import check_planar_scope
     from core.touches import from_log
 
+    if _is_positioning_log(log_path):
+        return _run_positioning(log_path, json_out, report, grid_mm)
     log = read_probe_log(log_path)
     check_planar_scope(log, "discover")
     t = from_log(log)
@@ -48,6 +52,40 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
 
         discovery_report(report, d, rep, title=f"vmt discover: {Path(log_path).name}")
     write_text_atomic(json_out, text, special=True)
+    return rep
+
+
+def _is_positioning_log(path) -> bool:
+    """Whether the file's first line declares ``positioning-log/1`` (an unreadable file is left to the reader)."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            first = f.readline()
+    except (OSError, ValueError):
+        return False
+    return first.strip().replace(" ", "") == "#format:positioning-log/1"
+
+
+def _run_positioning(log_path, json_out, report, grid_mm) -> dict:
+    """Discovery on an ISO 230-2 test: the standard's model (a mean per target and direction,
+    the replicates' repeatability) as the baseline, then drift, warm-up, outliers (core.baseline)."""
+    from core.atomic import json_safe, json_text, write_text_atomic
+    from core.baseline import positioning_from_log
+    from core.discover import discover_baseline
+    from core.exceptions import ConfigError
+    from core.positioning import read_positioning_log
+
+    if grid_mm is not None:
+        raise ConfigError("--grid-mm: a positioning test has no error-map grid (its baseline is a mean per target "
+                          "and direction)")
+    if report:
+        raise ConfigError("--report: not available for positioning tests yet (the JSON and the summary are; "
+                          "vmt iso230-2 --report draws the test)")
+    rep = dict(discover_baseline(positioning_from_log(read_positioning_log(log_path))).to_report())
+    for k in ("workpiece", "findings"):
+        if k in rep:
+            rep[k] = json_safe(rep[k])
+    rep["log"] = str(log_path)
+    write_text_atomic(json_out, json_text(rep, json_out), special=True)
     return rep
 
 
@@ -80,7 +118,7 @@ def summary_lines(rep: dict) -> list[str]:
     g = rep["gain"]
     out.append(f"extended   {rep['extended']['model']}: rms {rep['extended']['rms_um']:.3f} um "
                f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um (x{g['cv_rms_ratio']:.2f})")
-    if not rep["workpiece_identifiable"]:
+    if not rep["workpiece_identifiable"] and rep.get("workpiece") is not None:
         out.append("workpiece  not identifiable by this design (reported as null)")
     return out
 
