@@ -74,6 +74,7 @@ import numpy as np
 from . import fit as F
 from . import iso
 from .exceptions import ConfigError, FitError
+from .keyreader import KeyReader
 
 FORMAT = "vmt-task/1"
 KINDS = ("plane", "circle", "sphere", "cylinder")
@@ -279,41 +280,11 @@ def loads_task(text: str, source: str = "<task>") -> Task:
     return _TaskReader(source).task(doc)
 
 
-class _TaskReader:
-    def __init__(self, source):
-        self.source = source
+class _TaskReader(KeyReader):
+    error_class = TaskFileError
 
-    def fail(self, key, what):
-        raise TaskFileError(f"{self.source}: {key}: {what}")
-
-    def table(self, key, v) -> dict:
-        if not isinstance(v, dict):
-            self.fail(key, f"expected a table, got {v!r}")
-        return v
-
-    def string(self, key, v) -> str:
-        if not isinstance(v, str) or not v:
-            self.fail(key, f"expected a non-empty string, got {v!r}")
-        return v
-
-    def number(self, key, v, *, positive=False, nonneg=False) -> float:
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
-            self.fail(key, f"expected a finite number, got {v!r}")
-        if positive and v <= 0:
-            self.fail(key, f"must be > 0, got {v!r}")
-        if nonneg and v < 0:
-            self.fail(key, f"must be >= 0, got {v!r}")
-        return float(v)
-
-    def integer(self, key, v, lo) -> int:
-        if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-            self.fail(key, f"expected an integer >= {lo}, got {v!r}")
-        return v
-
-    def keys(self, key, t, allowed):
-        for k in t:
-            if k not in allowed:
-                self.fail(f"{key}.{k}" if key else k, f"unknown key (expected one of {', '.join(allowed)})")
+    def string(self, key, v, *, nonempty: bool = True) -> str:
+        return super().string(key, v, nonempty=nonempty)
 
     def task(self, doc) -> Task:
         self.keys("", doc, ("format", "description", "features", "measurands", "declared", "probe", "mc",

@@ -127,6 +127,7 @@ from pathlib import Path
 import numpy as np
 
 from core.exceptions import ConfigError
+from core.keyreader import KeyReader
 
 FORMAT = "vmt-study/1"
 #: The identifications a study can run.
@@ -358,33 +359,8 @@ class StudyResult:
 
 
 # --------------------------------------------------------------------------- reading
-class _Reader:
-    def __init__(self, source: str):
-        self.source = source
-
-    def fail(self, key, what):
-        raise StudyError(f"{self.source}: {key}: {what}")
-
-    def number(self, key, v, *, positive=False, nonneg=False) -> float:
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
-            self.fail(key, f"expected a finite number, got {v!r}")
-        if positive and v <= 0:
-            self.fail(key, f"must be > 0, got {v!r}")
-        if nonneg and v < 0:
-            self.fail(key, f"must be >= 0, got {v!r}")
-        return float(v)
-
-    def integer(self, key, v, *, lo=None) -> int:
-        if isinstance(v, bool) or not isinstance(v, int):
-            self.fail(key, f"expected an integer, got {v!r}")
-        if lo is not None and v < lo:
-            self.fail(key, f"must be >= {lo}, got {v!r}")
-        return int(v)
-
-    def table(self, key, v) -> dict:
-        if not isinstance(v, dict):
-            self.fail(key, f"expected a table, got {v!r}")
-        return v
+class _Reader(KeyReader):
+    error_class = StudyError
 
     def names(self, key, v, known) -> tuple[str, ...]:
         if not isinstance(v, list) or not all(isinstance(x, str) for x in v):

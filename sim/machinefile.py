@@ -87,6 +87,7 @@ import numpy as np
 from core import iso
 from core.chain import parse_chain
 from core.exceptions import ConfigError
+from core.keyreader import KeyReader
 from core.units import DEG, MM, UM
 
 from .errorfuncs import (Constant, Drift, ErrorFunction, LinearTable, Periodic, Polynomial, Reversal,
@@ -225,26 +226,10 @@ def loads(text: str, source: str = "<machine file>") -> MachineSpec:
     return _Reader(source).spec(doc)
 
 
-class _Reader:
-    def __init__(self, source):
-        self.source = source
+class _Reader(KeyReader):
+    error_class = MachineFileError
 
     # ------------------------------------------------------------ helpers
-    def fail(self, key, what):
-        raise MachineFileError(f"{self.source}: {key}: {what}")
-
-    def number(self, key, v, *, positive=False, nonneg=False) -> float:
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            self.fail(key, f"expected a number, got {v!r}")
-        x = float(v)
-        if not math.isfinite(x):
-            self.fail(key, f"must be finite, got {v!r}")
-        if positive and x <= 0:
-            self.fail(key, f"must be > 0, got {v!r}")
-        if nonneg and x < 0:
-            self.fail(key, f"must be >= 0, got {v!r}")
-        return x
-
     def numbers(self, key, v, n=None, *, min_len=1) -> tuple[float, ...]:
         if not isinstance(v, list):
             self.fail(key, f"expected a list of numbers, got {v!r}")
@@ -253,16 +238,6 @@ class _Reader:
         if len(v) < min_len:
             self.fail(key, f"expected at least {min_len} numbers, got {len(v)}")
         return tuple(self.number(f"{key}[{i}]", x) for i, x in enumerate(v))
-
-    def table(self, key, v) -> dict:
-        if not isinstance(v, dict):
-            self.fail(key, f"expected a table, got {v!r}")
-        return v
-
-    def string(self, key, v) -> str:
-        if not isinstance(v, str):
-            self.fail(key, f"expected a string, got {v!r}")
-        return v
 
     # ------------------------------------------------------------ document
     def merged(self, doc: dict) -> dict:
