@@ -55,3 +55,16 @@ class KeyReader:
         for k in t:
             if k not in allowed:
                 self.fail(f"{key}.{k}" if key else k, f"unknown key (expected one of {', '.join(allowed)})")
+
+
+def read_text_file(path, error_class: type[ConfigError], what: str) -> str:
+    """The UTF-8 text of a TOML file, or ``error_class`` naming the path: ``no such <what>``, not UTF-8."""
+    from pathlib import Path
+
+    p = Path(path)
+    if not p.is_file():
+        raise error_class(f"{p}: no such {what}")
+    try:
+        return p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise error_class(f"{p}: not UTF-8 text (byte {e.start})") from None

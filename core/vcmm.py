@@ -74,7 +74,7 @@ import numpy as np
 from . import fit as F
 from . import iso
 from .exceptions import ConfigError, FitError
-from .keyreader import KeyReader
+from .keyreader import KeyReader, read_text_file
 
 FORMAT = "vmt-task/1"
 KINDS = ("plane", "circle", "sphere", "cylinder")
@@ -259,16 +259,7 @@ class Task:
 
 def load_task(path) -> Task:
     """Read a task file (see the module doc); :class:`TaskFileError` names the key at fault."""
-    from pathlib import Path
-
-    p = Path(path)
-    if not p.is_file():
-        raise TaskFileError(f"{p}: no such task file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as e:
-        raise TaskFileError(f"{p}: not UTF-8 text (byte {e.start})") from None
-    return loads_task(text, source=str(p))
+    return loads_task(read_text_file(path, TaskFileError, "task file"), source=str(path))
 
 
 def loads_task(text: str, source: str = "<task>") -> Task:

@@ -127,7 +127,7 @@ from pathlib import Path
 import numpy as np
 
 from core.exceptions import ConfigError
-from core.keyreader import KeyReader
+from core.keyreader import KeyReader, read_text_file
 
 FORMAT = "vmt-study/1"
 #: The identifications a study can run.
@@ -541,13 +541,7 @@ def load_study(path) -> Study:
         No such file, not UTF-8 TOML, or a key that is wrong (named).
     """
     p = Path(path)
-    if not p.is_file():
-        raise StudyError(f"{p}: no such study file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as e:
-        raise StudyError(f"{p}: not UTF-8 text (byte {e.start})") from None
-    return loads_study(text, str(p), p.parent)
+    return loads_study(read_text_file(p, StudyError, "study file"), str(p), p.parent)
 
 
 # --------------------------------------------------------------------------- identifications

@@ -87,7 +87,7 @@ import numpy as np
 from core import iso
 from core.chain import parse_chain
 from core.exceptions import ConfigError
-from core.keyreader import KeyReader
+from core.keyreader import KeyReader, read_text_file
 from core.units import DEG, MM, UM
 
 from .errorfuncs import (Constant, Drift, ErrorFunction, LinearTable, Periodic, Polynomial, Reversal,
@@ -170,14 +170,7 @@ def load(path) -> MachineSpec:
     MachineFileError
         No such file, not TOML, or a key that is wrong (named).
     """
-    p = Path(path)
-    if not p.is_file():
-        raise MachineFileError(f"{p}: no such machine file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as e:
-        raise MachineFileError(f"{p}: not UTF-8 text (byte {e.start})") from None
-    return loads(text, source=str(p))
+    return loads(read_text_file(path, MachineFileError, "machine file"), source=str(path))
 
 
 def describe_error(f: ErrorFunction, s) -> str:
