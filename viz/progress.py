@@ -106,6 +106,13 @@ class TerminalProgress:
         self.stream.flush()
         self._drawn = True
 
+    def clear(self) -> None:
+        """Erase the line before the caller prints one of its own (it is drawn again at the next call)."""
+        if self.enabled:
+            self.stream.write("\r\033[K")
+            self.stream.flush()
+            self._last_draw = -float("inf")
+
     def close(self) -> None:
         """End the line (if anything was drawn)."""
         if self.enabled and self._drawn:

@@ -220,18 +220,11 @@ def run_command(args) -> int:
 
 
 def progress_line(label: str):
-    """A :class:`viz.progress.TerminalProgress` (drawn on a terminal only) that can be cleared
-    before the command prints a line (``clear()``), so its line never mixes with the output."""
+    """A :class:`viz.progress.TerminalProgress` (drawn on a terminal only; ``clear()`` before
+    the command prints a line, so its line never mixes with the output)."""
     from viz.progress import TerminalProgress
 
-    class _Line(TerminalProgress):
-        def clear(self) -> None:
-            if self.enabled:
-                self.stream.write("\r\033[K")
-                self.stream.flush()
-                self._last_draw = -float("inf")   # draw again at the next call
-
-    return _Line(label)
+    return TerminalProgress(label)
 
 
 def said(path) -> str:

@@ -23,5 +23,12 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert len(ident["workpiece"]) == 92 and ident["monte_carlo"]["runs"] == 1000
     mfb = json.loads((out / "mfb-3axis.json").read_text())
     assert (mfb["placements"], mfb["measurements"], len(mfb["errors"])) == (14, 17, 21)
+    # step 6: the ISO 230-2 test of Y on the same machine, its figures and discovery on it
+    pos = json.loads((out / "iso230-2.json").read_text())
+    iso = pos["iso230_2"]
+    assert iso["E_um"] >= iso["M_um"] > 0 and iso["A_um"] >= iso["E_um"]
+    assert 0.2 < pos["discover"]["noise_um"]["sigma_um"] < 0.4          # 0.3 um scatter, 40 dof
+    assert (out / "positioning-Y.csv").read_text().startswith("# format: positioning-log/1")
+    assert "ISO 230-2: a positioning test of the Y axis" in text
     for f in ("index.html", "recording.rrd", "error_map.png", "residuals_baseline.png"):
         assert (out / "report" / f).stat().st_size > 1000
