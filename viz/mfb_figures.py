@@ -30,7 +30,10 @@ from core.exceptions import ConfigError
 from . import figures
 
 
-def _motions(errors: Mapping) -> tuple[dict, dict]:
+def motion_axes(errors: Mapping) -> tuple[dict, dict]:
+    """The 18 motions of ``errors`` as ``(axes, truth)``: ``axes`` ``{symbol: {positions_mm,
+    values_um | values_urad[, u95]}}`` (what :func:`viz.figures.error_motions_figure` and
+    :func:`viz.record.log_error_motions` take), ``truth`` ``{symbol: injected}``, same units."""
     axes, truth = {}, {}
     for s in iso.LINEAR_MOTION:
         if s not in errors:
@@ -47,7 +50,7 @@ def _motions(errors: Mapping) -> tuple[dict, dict]:
 
 def error_curves_figure(errors: Mapping, title: str = "MFB: 18 error motions, identified ± U95 (k=2) and injected"):
     """The 18 motion errors against their axis (6 rows x 3: X, Y, Z per column)."""
-    axes, truth = _motions(errors)
+    axes, truth = motion_axes(errors)
     order = [f"E{k}{a}" for a in "XYZ" for k in "XYZABC"]
     # columns X, Y, Z: the error of each axis in one column
     grid = [order[i + 6 * c] for i in range(6) for c in range(3)]

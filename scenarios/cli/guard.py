@@ -40,7 +40,7 @@ FILES = {
     "design": (("plan",), ("json",), ()),
     "import": (("file", "plan"), ("out",), ()),
     "simulate": ((), ("out",), ()),
-    "scenario": ((), ("json",), ("comp",)),
+    "scenario": ((), ("json",), ("comp", "report")),
     "demo": ((), (), ("out",)),
     "bench": ((), ("out",), ()),
     "probe": (("plan",), (), ()),

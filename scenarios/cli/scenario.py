@@ -63,6 +63,10 @@ def _mfb(args) -> int:
         print("(true: the exact simulator's positioning error, zero at the first node; within U95: nodes where it "
               "lies within the U95 of the identification that made the compensation; volumetric: the tip "
               "deviation over the node box, a rigid motion removed)")
+    if args.report:
+        from scenarios.mfb_report import mfb_report
+
+        print(f"report (index.html, figures, recording.rrd) -> {mfb_report(args.report, d)}")
     if args.json:
         from core.atomic import write_json_atomic
 
@@ -157,7 +161,9 @@ def register(sub) -> None:
                         "vmt-comp/1 tables as a volumetric controller) to the virtual machine, re-run, identify "
                         "again; the JSON gets closed_loop (before/after per axis)")
     p.add_argument("--report", default=None, metavar="DIR",
-                   help="cross-pocket-uncertainty, pin-circle: write the self-calibration paper's figures (PNG) here")
+                   help="write the paper's figures (PNG) here: cross-pocket-uncertainty and the mfb scenarios "
+                        "as a report folder (index.html, figures, the error table, recording.rrd), pin-circle "
+                        "its figure")
     p.add_argument("--mc", type=int, default=None,
                    help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty)")
     p.set_defaults(func=_dispatch)

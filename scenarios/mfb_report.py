@@ -1,0 +1,96 @@
+"""The MFB scenario's report folder: the paper's figures, the table of the 21 errors, a recording.
+
+viz draws (:mod:`viz.mfb_figures`, :mod:`viz.record`, :mod:`viz.report`);
+this module only picks what to draw from a finished run's JSON document
+(:attr:`scenarios.mfb.ScenarioResult.doc`) and from the bar calibration the
+run used.
+"""
+
+from __future__ import annotations
+
+import inspect
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from core import iso
+from core.units import MM, UM
+
+
+def bar_calibration(u_cal_um=None) -> dict:
+    """The bar calibration every MFB run identifies with, in report units (Figs. 9-10).
+
+    ``{x_mm, E_um, U95_um}``: the nominal x of the 12 points of interest
+    (mm), their calibrated Exx, Eyx, Ezx (:func:`sim.artefacts.mfb_default_deviations`,
+    eq. 4, µm) and the expanded uncertainty 2 ``u_cal_um`` (k = 2, µm);
+    ``u_cal_um`` defaults to the one :func:`scenarios.mfb.run` uses.
+    """
+    from sim import artefacts as A
+
+    from scenarios.mfb import run
+
+    if u_cal_um is None:
+        u_cal_um = inspect.signature(run).parameters["u_cal_um"].default
+    E = A.mfb_default_deviations()
+    x = np.arange(len(E)) * A.MFB_PITCH_M
+    return {"x_mm": x / MM, "E_um": E / UM, "U95_um": np.tile(2.0 * np.asarray(u_cal_um, float), (len(E), 1))}
+
+
+def error_rows(errors: dict) -> list:
+    """One row per error, in ISO order: symbol, unit, max |injected|, max |identified - injected|, max U95."""
+    rows = []
+    for s in (*iso.LINEAR_MOTION, *iso.SQUARENESS):
+        e = errors[s]
+        u = e.get("u95")
+        rows.append([s, e["unit"], float(np.max(np.abs(e["injected"]))), float(e["max_dev"]),
+                     None if u is None else float(np.max(u))])
+    return rows
+
+
+def mfb_report(folder, doc: dict) -> Path:
+    """Write ``folder``: index.html, the MFB figures (PNG) and ``recording.rrd``; returns the folder.
+
+    Complete or absent: the recording and the page are built beside
+    ``folder`` and renamed into place (:func:`viz.report.write_report`).
+
+    Parameters
+    ----------
+    doc : dict
+        The scenario's result document (``errors``: ``{symbol: {nodes_mm,
+        identified, injected, u95, unit, max_dev}}`` for all 21 errors).
+    """
+    from scenarios.reports import _recording_path
+    from viz import mfb_figures as F, record
+    from viz.report import Section, Table, write_report
+
+    folder = Path(folder)
+    errors = doc["errors"]
+    rows = error_rows(errors)
+    bar = bar_calibration()
+    axes, truth = F.motion_axes(errors)
+    secs = [
+        Section("Run", text=f"{doc['scenario']}: {doc['placements']} placements, {doc['measurements']} "
+                f"measurements, {doc['touches']} touches on {doc['machine']}, seed {doc['seed']}, probing "
+                f"noise {doc['noise_um']:g} µm (k = 1); {doc['model']}. Straightnesses against their end-point "
+                "line; the injected values are the truth at the nodes in the same ISO 230-1 conventions."
+                + ("" if rows[0][4] is not None else " No uncertainty was propagated (no U95 bars).")),
+        Section("Error motions (Figs. 15-17)", figures={"error-curves": F.error_curves_figure(errors)}),
+        Section("Squarenesses", figures={"squareness": F.squareness_figure(errors)}),
+        Section("Bar calibration (Figs. 9-10)",
+                text="The calibrated deviations of the bar's points of interest the identification used, "
+                     "± U95 (k = 2) of the calibration.",
+                figures={"bar-calibration": F.bar_calibration_figure(bar["x_mm"], bar["E_um"], bar["U95_um"])}),
+        Section("The 21 errors", tables=[Table(
+            ["error", "unit", "max |injected|", "max |identified - injected|", "max U95 (k=2)"], rows)]),
+    ]
+    rrd = _recording_path(folder)
+    try:
+        with record.recording(rrd) as rec:
+            record.log_error_motions(rec, axes, truth=truth)
+            record.log_markdown(rec, doc["scenario"], record.errors_markdown(
+                {s: {k: errors[s].get(k) for k in ("injected", "identified", "u95")} for s in errors}))
+        return write_report(folder, f"MFB ({doc['scenario']}): 21 errors identified, injected, U95", secs,
+                            recording=rrd)
+    finally:
+        shutil.rmtree(rrd.parent, ignore_errors=True)

@@ -1,0 +1,53 @@
+"""`vmt scenario mfb-3axis --report DIR`: index.html naming all 21 errors, the figures, the recording;
+nothing left behind when the run fails after the report was written.
+
+The shared noise-free run (conftest ``mfb3_noise_free``) stands in for the campaign, so the test
+exercises the command's wiring and the report, not a second simulation.
+"""
+
+import re
+
+from core import iso
+from scenarios.cli import main
+
+
+def _use_shared_run(monkeypatch, mfb3_noise_free):
+    import functools
+
+    import scenarios.mfb as S
+
+    # wraps: the report reads run's default bar calibration (u_cal_um) from its signature
+    monkeypatch.setattr(S, "run", functools.wraps(S.run)(lambda name, **kw: mfb3_noise_free[0]))
+
+
+def test_report_folder_has_the_page_figures_and_recording(tmp_path, monkeypatch, mfb3_noise_free, capsys):
+    _use_shared_run(monkeypatch, mfb3_noise_free)
+    rep = tmp_path / "rep"
+    assert main(["scenario", "mfb-3axis", "--mc", "0", "--noise-um", "0", "--report", str(rep)]) == 0
+    for f in ("index.html", "recording.rrd", "error-curves.png", "squareness.png", "bar-calibration.png"):
+        assert (rep / f).is_file() and (rep / f).stat().st_size > 0, f
+    assert (rep / "recording.rrd").read_bytes()[:4] == b"RRF2"  # a rerun stream, not an empty placeholder
+    page = (rep / "index.html").read_text(encoding="utf-8")
+    rows = re.findall(r"<tr><td>([A-Z0-9]+)</td>", page)
+    assert rows == [*iso.LINEAR_MOTION, *iso.SQUARENESS] and len(rows) == 21
+    for png in ("error-curves.png", "squareness.png", "bar-calibration.png"):
+        assert f'src="{png}"' in page
+    # the table's max |identified - injected| is the run's own, not recomputed differently
+    d = mfb3_noise_free[0].doc
+    assert f"<td>EXX</td><td>{d['errors']['EXX']['unit']}</td>" in page
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporaries left beside it
+
+
+def test_a_failing_run_leaves_no_report(tmp_path, monkeypatch, mfb3_noise_free, capsys):
+    import core.atomic
+
+    _use_shared_run(monkeypatch, mfb3_noise_free)
+
+    def fail(*a, **k):
+        raise OSError(28, "No space left on device", str(tmp_path / "r.json"))
+
+    monkeypatch.setattr(core.atomic, "write_json_atomic", fail)  # the JSON is written after the report
+    rep = tmp_path / "rep"
+    assert main(["scenario", "mfb-3axis", "--mc", "0", "--report", str(rep), "--json", str(tmp_path / "r.json")]) == 2
+    assert "No space left" in capsys.readouterr().err
+    assert not rep.exists() and list(tmp_path.iterdir()) == []
