@@ -28,19 +28,11 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     figures, the findings' fitted magnitudes and their U95.
     """
     from core.atomic import json_safe, json_text, write_text_atomic
-    from core.baseline import extra_columns
-    from core.discover import discover
-    from core.probelog import read_probe_log
-    from core.scope import check_planar_scope
-    from core.touches import from_log
 
     if _is_positioning_log(log_path):
-        return _run_positioning(log_path, json_out, report, grid_mm)
-    log = read_probe_log(log_path)
-    check_planar_scope(log, "discover")
-    t = from_log(log)
-    d = discover(t, grid_step_mm=grid_mm, chain=log.meta.get("kinematic_chain"), progress=progress,
-                 extra=extra_columns(log, t.row))
+        d = _discover_positioning(log_path, report, grid_mm)
+    else:
+        d = _discover_probe_log(log_path, grid_mm, progress)
     rep = dict(d.to_report())
     for k in ("workpiece", "findings"):
         if k in rep:
@@ -55,20 +47,36 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     return rep
 
 
+def _discover_probe_log(log_path, grid_mm, progress):
+    """The planar self-calibration baseline of a probe-log/1 campaign, then the search."""
+    from core.baseline import extra_columns
+    from core.discover import discover
+    from core.probelog import read_probe_log
+    from core.scope import check_planar_scope
+    from core.touches import from_log
+
+    log = read_probe_log(log_path)
+    check_planar_scope(log, "discover")
+    t = from_log(log)
+    return discover(t, grid_step_mm=grid_mm, chain=log.meta.get("kinematic_chain"), progress=progress,
+                    extra=extra_columns(log, t.row))
+
+
 def _is_positioning_log(path) -> bool:
     """Whether the file's first line declares ``positioning-log/1`` (an unreadable file is left to the reader)."""
+    from core.positioning import FORMAT
+
     try:
         with open(path, encoding="utf-8", errors="replace") as f:
             first = f.readline()
     except (OSError, ValueError):
         return False
-    return first.strip().replace(" ", "") == "#format:positioning-log/1"
+    return first.strip().replace(" ", "") == f"#format:{FORMAT}"
 
 
-def _run_positioning(log_path, json_out, report, grid_mm) -> dict:
+def _discover_positioning(log_path, report, grid_mm):
     """Discovery on an ISO 230-2 test: the standard's model (a mean per target and direction,
     the replicates' repeatability) as the baseline, then drift, warm-up, outliers (core.baseline)."""
-    from core.atomic import json_safe, json_text, write_text_atomic
     from core.baseline import positioning_from_log
     from core.discover import discover_baseline
     from core.exceptions import ConfigError
@@ -80,13 +88,7 @@ def _run_positioning(log_path, json_out, report, grid_mm) -> dict:
     if report:
         raise ConfigError("--report: not available for positioning tests yet (the JSON and the summary are; "
                           "vmt iso230-2 --report draws the test)")
-    rep = dict(discover_baseline(positioning_from_log(read_positioning_log(log_path))).to_report())
-    for k in ("workpiece", "findings"):
-        if k in rep:
-            rep[k] = json_safe(rep[k])
-    rep["log"] = str(log_path)
-    write_text_atomic(json_out, json_text(rep, json_out), special=True)
-    return rep
+    return discover_baseline(positioning_from_log(read_positioning_log(log_path)))
 
 
 def _fmt(v, u=None) -> str:
