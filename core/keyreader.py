@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from .exceptions import ConfigError
+from .exceptions import ConfigError, VmtError
 
 
 class KeyReader:
@@ -57,8 +57,9 @@ class KeyReader:
                 self.fail(f"{key}.{k}" if key else k, f"unknown key (expected one of {', '.join(allowed)})")
 
 
-def read_text_file(path, error_class: type[ConfigError], what: str) -> str:
-    """The UTF-8 text of a TOML file, or ``error_class`` naming the path: ``no such <what>``, not UTF-8."""
+def read_text_file(path, error_class: type[VmtError], what: str) -> str:
+    """The UTF-8 text of a file (TOML documents, LinuxCNC's probe and compensation files), or
+    ``error_class`` naming the path: ``no such <what>``, or not UTF-8 (with the byte)."""
     from pathlib import Path
 
     p = Path(path)

@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from core.exceptions import PlanError, ProbeLogError
+from core.keyreader import read_text_file
 from core.probelog import ProbeLog
 
 from .campaign import ProbeSettings, approach, check_program, log_from_plan, plan_steps
@@ -153,7 +154,7 @@ def read_probe_file(path) -> np.ndarray:
         ``LOGOPEN`` line without X, Y and Z words, or lines of both kinds.
     """
     p = Path(path)
-    text = _read_text(p, ProbeLogError)
+    text = read_text_file(p, ProbeLogError, "file")
     rows, width, kind = [], None, None
     for ln, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
@@ -217,20 +218,10 @@ def _log_line(p: Path, ln: int, line: str) -> list[float]:
     return [got["X"], got["Y"], got["Z"]]
 
 
-def _read_text(p: Path, error) -> str:
-    """The UTF-8 text of file ``p``; ``error`` (a VmtError class) says why not."""
-    if not p.is_file():
-        raise error(f"{p}: no such file")
-    try:
-        return p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as e:
-        raise error(f"{p}: not text (byte {e.start})") from None
-
-
 def _number_lines(p: Path, error):
     """(line number, numbers) of every non-blank line of text file ``p``;
     ``error`` (a VmtError class) names the file and line of what is wrong."""
-    for ln, line in enumerate(_read_text(p, error).splitlines(), start=1):
+    for ln, line in enumerate(read_text_file(p, error, "file").splitlines(), start=1):
         parts = line.split()
         if not parts:
             continue
