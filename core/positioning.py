@@ -74,6 +74,7 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .exceptions import VmtError
+from .probelog import step_back
 
 FORMAT = "positioning-log/1"
 #: ISO 230-2 asks five approaches in each direction at every target for the
@@ -431,15 +432,11 @@ def _validate(log: PositioningLog, lines: list[int] | None) -> None:
         bad = np.isinf(t)
         if bad.any():
             raise PositioningLogError(f"{where(int(np.argmax(bad)))}: t_s is not finite")
-        idx = np.flatnonzero(~np.isnan(t))
-        if idx.size > 1:
-            back = np.diff(t[idx]) < 0
-            if back.any():
-                k = int(np.argmax(back))
-                r = int(idx[k + 1])
-                raise PositioningLogError(
-                    f"{where(r)}: time goes backwards (t_s {t[r]:g} after {t[idx[k]]:g}); "
-                    "rows must be in the order measured")
+        back = step_back(t)
+        if back is not None:
+            before, r = back
+            raise PositioningLogError(f"{where(r)}: time goes backwards (t_s {t[r]:g} after {t[before]:g}); "
+                                      "rows must be in the order measured")
     # one valid reading per (target, cycle, direction)
     first: dict[tuple, int] = {}
     keys = np.round(log.target / TARGET_TOL).astype(np.int64)

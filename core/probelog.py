@@ -570,6 +570,14 @@ def _xyz(v) -> str:
     return "(" + ", ".join(f"{float(x):.9g}" for x in v) + ")"
 
 
+def step_back(t: np.ndarray) -> tuple[int, int] | None:
+    """The first place a clock goes backwards: ``(row before, row)`` of the first decrease
+    between successive known times (NaN rows skipped), or None."""
+    idx = np.flatnonzero(~np.isnan(t))
+    back = np.flatnonzero(np.diff(t[idx]) < 0)
+    return (int(idx[back[0]]), int(idx[back[0] + 1])) if back.size else None
+
+
 def _where(src: str, r: int, lines: np.ndarray | None) -> str:
     return f"{src}: row {r}" + (f" (line {lines[r]})" if lines is not None else "")
 
@@ -642,16 +650,10 @@ def _validate(log: ProbeLog, lines: np.ndarray | None) -> None:
                 f"{norm[r]:.9g}, not 1 (tolerance {UNIT_TOL:g})")
     # time never goes backwards (rows are in the order touches happened)
     t = c["t_s"]
-    have = ~np.isnan(t)
-    idx = np.flatnonzero(have)
-    if idx.size > 1:
-        back = np.diff(t[idx]) < 0
-        if back.any():
-            k = int(np.argmax(back))
-            r = int(idx[k + 1])
-            raise ProbeLogError(
-                f"{_where(src, r, lines)}: time goes backwards "
-                f"(t_s {t[idx[k + 1]]:g} after {t[idx[k]]:g})")
+    back = step_back(t)
+    if back is not None:
+        before, r = back
+        raise ProbeLogError(f"{_where(src, r, lines)}: time goes backwards (t_s {t[r]:g} after {t[before]:g})")
     # a target is one physical point: same artefact-frame nominal in every set-up
     if all(k in c for k in ("wx_mm", "wy_mm", "wz_mm")):
         w = np.column_stack([c["wx_mm"], c["wy_mm"], c["wz_mm"]])
