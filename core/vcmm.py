@@ -57,7 +57,11 @@ Task file (units in the key names)::
 Declared terms: ``constant_U``, and for a linear axis's motion errors also
 ``slope_U_per_m`` and ``quadratic_U_per_m2`` (``U`` = ``um`` for a
 translation, ``urad`` for a rotation) of the axis reading, the same
-polynomial as a machine file's; a location error (``EC0Y``, ``EX0C``, ...)
+polynomial as a machine file's, and ``periodic_U`` with ``period_mm``: a
+periodic error ``a sin(2 pi x / period + phi)`` (a screw's pitch error,
+the ripple an identification's tables cannot follow between their nodes)
+with its amplitude ``a`` drawn within +-``periodic_U`` by the distribution
+and its phase ``phi`` uniform; a location error (``EC0Y``, ``EX0C``, ...)
 and a rotary axis's motion errors take ``constant_U`` only. Every term is
 one independent source of the budget.
 """
@@ -86,7 +90,7 @@ DISTRIBUTIONS = ("uniform", "normal", "triangular", "arcsine")
 U_PER_BOUND = {"uniform": 1 / math.sqrt(3), "normal": 0.5, "triangular": 1 / math.sqrt(6),
                "arcsine": 1 / math.sqrt(2)}
 #: Power of the axis reading of each declared term.
-TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2}
+TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2, "periodic": 0}
 PROBE_SOURCE = "probe repeatability"
 #: Reference temperature of dimensional measurement (ISO 1), C.
 T_REF_C = 20.0
@@ -151,6 +155,7 @@ class DeclaredTerm:
     term: str
     bound: float
     distribution: str
+    period: float | None = None   # m, the periodic term's
 
     @property
     def source(self) -> str:
@@ -380,12 +385,21 @@ class _TaskReader(KeyReader):
         U = "urad" if s.angular else "um"
         terms = {f"constant_{U}": "constant"}
         if not s.location and s.axis in iso.LINEAR_AXES:
-            terms.update({f"slope_{U}_per_m": "slope", f"quadratic_{U}_per_m2": "quadratic"})
-        self.keys(key, body, tuple(terms) + ("distribution",))
+            terms.update({f"slope_{U}_per_m": "slope", f"quadratic_{U}_per_m2": "quadratic",
+                          f"periodic_{U}": "periodic"})
+        self.keys(key, body, tuple(terms) + ("distribution", "period_mm"))
         dist = body.get("distribution", "uniform")
         if dist not in DISTRIBUTIONS:
             self.fail(f"{key}.distribution", f"expected one of {', '.join(DISTRIBUTIONS)}, got {dist!r}")
-        out = [DeclaredTerm(s.name, t, self.number(f"{key}.{k}", body[k], nonneg=True) * 1e-6, dist)
+        period = None
+        if f"periodic_{U}" in terms and (f"periodic_{U}" in body) != ("period_mm" in body):
+            self.fail(key, f"periodic_{U} and period_mm go together")
+        if "period_mm" in body:
+            if f"periodic_{U}" not in terms:
+                self.fail(f"{key}.period_mm", "only with a linear axis's periodic term")
+            period = self.number(f"{key}.period_mm", body["period_mm"], positive=True) * 1e-3
+        out = [DeclaredTerm(s.name, t, self.number(f"{key}.{k}", body[k], nonneg=True) * 1e-6, dist,
+                            period if t == "periodic" else None)
                for k, t in terms.items() if k in body]
         if not out:
             self.fail(key, f"no term (expected one of {', '.join(terms)})")
@@ -577,6 +591,11 @@ def evaluate(task: Task, rows: dict, p_R: np.ndarray, n_R: np.ndarray, stylus_r:
 
 
 # --------------------------------------------------------------------------- drawing the declared errors
+
+
+def draw_periodic(term: DeclaredTerm, rng: np.random.Generator) -> tuple[float, float]:
+    """One draw of a periodic term: (amplitude SI drawn as :func:`draw_term`, phase rad uniform in [0, 2 pi))."""
+    return draw_term(term, rng), float(rng.uniform(0.0, 2.0 * math.pi))
 
 
 def draw_term(term: DeclaredTerm, rng: np.random.Generator) -> float:

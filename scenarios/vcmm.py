@@ -60,6 +60,12 @@ class Setting:
     sources: tuple       # names: declared terms, then the probe's repeatability
     targets: tuple = ()  # (k,) the plan's target of each used touch
     centre_R: np.ndarray | None = None   # (3,) the part's thermal centre: centroid of its probed surface points
+    state: object = None  # core.state.MachineState: an identified state drawn from N(estimate, covariance)
+
+
+#: The budget's name of an identified machine state (``--machine-state``), and its key among a run's draws.
+STATE_SOURCE = "machine state"
+STATE_KEY = (STATE_SOURCE, -1)
 
 
 @dataclass(frozen=True)
@@ -120,17 +126,42 @@ def _primitive_sdf(kind: str, p_W: np.ndarray, n_W: np.ndarray, r: float, name: 
     return sdf
 
 
-def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None) -> Setting:
+def state_errors(state, values=None) -> dict:
+    """The error functions of an identified state (:class:`core.state.MachineState`) for ``values``
+    (SI, default its estimate): ``{symbol: sim.errorfuncs function}``."""
+    from sim.errorfuncs import Constant, LinearTable, SplineTable
+
+    out = {}
+    for sym, (kind, x, v) in state.functions(values).items():
+        if kind == "constant":
+            out[sym] = Constant(float(v))
+        else:
+            out[sym] = (LinearTable if kind == "linear" else SplineTable)(tuple(x.tolist()), tuple(np.asarray(v).tolist()))
+    return out
+
+
+def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=None) -> Setting:
     """The study's fixed part from a plan (:class:`core.probelog.ProbeLog`), a task and a machine spec.
 
     ``noise_um`` (``--noise-um``) overrides the task's ``[probe] noise_um``,
     which overrides the machine file's probe; a standard deviation (k = 1).
+    ``state`` (``--machine-state``, :func:`core.state.read_estimate`): an
+    identified state; its symbols' errors replace the machine file's (the
+    estimate is the best estimate, each run draws from N(estimate, covariance)),
+    the machine file's other errors and the task's declared terms stay.
     """
     from sim.machine import Machine
 
     if plan.n == 0:
         raise PlanError(f"{plan.source}: the plan has no rows")
     cfg = spec.config
+    if state is not None:
+        chain_axes = Machine(dataclasses.replace(cfg, errors={})).chain.axes
+        for sym in state.symbols:
+            ax = V.iso.symbol(sym).axis
+            if ax not in chain_axes:
+                raise ConfigError(f"{state.source}: {sym}: axis {ax} is not in machine {cfg.name}'s chain {cfg.chain}")
+        cfg = dataclasses.replace(cfg, errors={**dict(cfg.errors), **state_errors(state)})
     nominal = Machine(dataclasses.replace(cfg, errors={}))
     rot_deg = np.column_stack([plan.col(f"{a}_deg").astype(float) if plan.has(f"{a}_deg") else np.zeros(plan.n)
                                for a in "ABC"])
@@ -173,7 +204,8 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None) -> Setti
     if overlap:
         raise ConfigError(f"{task.source}: a plan row belongs to two features (each touch probes one surface)")
     sources = (tuple(t.source for t in task.declared) + ((V.PROBE_SOURCE,) if probe.sigma_m > 0 else ())
-               + (task.temperature.sources if task.temperature else ()))
+               + (task.temperature.sources if task.temperature else ())
+               + ((STATE_SOURCE,) if state is not None and state.factor.size else ()))
     if task.temperature is not None and rot is not None and np.any(rot != 0):
         raise ConfigError(f"{task.source}: [temperature] with rotary positions other than 0 is not supported "
                           "(the part's expansion is applied in the machine frame)")
@@ -183,14 +215,22 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None) -> Setti
             raise ConfigError(f"{task.source}: declared.{t.symbol}: axis {ax} is not in machine {cfg.name}'s "
                               f"chain {cfg.chain}")
     return Setting(task, rows, Xn_R, n_R, rot, tuple(sdfs), group, cfg, probe, sources,
-                   tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0))
+                   tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0), state)
 
 
 def machine_errors(st: Setting, coeffs: dict) -> dict:
-    """The machine file's errors plus the drawn terms ``{(symbol, power): value SI}``."""
-    from sim.errorfuncs import Constant, Polynomial
+    """The machine file's errors plus the drawn terms ``{(symbol, power): value SI}`` (a periodic
+    term: ``{(symbol, "periodic", k): (amplitude SI, period m, phase rad)}``)."""
+    from sim.errorfuncs import Constant, Periodic, Polynomial
 
     errs = dict(st.config.errors)
+    coeffs = dict(coeffs)
+    if STATE_KEY in coeffs:   # a drawn identified state replaces its estimate
+        errs.update(state_errors(st.state, coeffs.pop(STATE_KEY)))
+    for key in [k for k in coeffs if len(k) == 3]:
+        a, period, phase = coeffs.pop(key)
+        f = Periodic(a, period, phase)
+        errs[key[0]] = errs[key[0]] + f if key[0] in errs else f
     by_sym: dict[str, list] = {}
     for (sym, power), v in coeffs.items():
         c = by_sym.setdefault(sym, [0.0, 0.0, 0.0])
@@ -232,10 +272,13 @@ def draw(st: Setting, seed: int, run: int, active: tuple | None = None):
     draws); an inactive thermal source stays at its best estimate.
     """
     nd = len(st.task.declared)
-    ss = V.run_seeds(seed, run).spawn(nd + 1 + len(V.THERMAL_SOURCES))
+    ss = V.run_seeds(seed, run).spawn(nd + 1 + len(V.THERMAL_SOURCES) + 1)  # children keep their index
     coeffs = {}
     for t, s in zip(st.task.declared, ss):
-        if active is None or t.source in active:
+        if (active is None or t.source in active) and t.term == "periodic":
+            a, phase = V.draw_periodic(t, np.random.default_rng(s))
+            coeffs[(t.symbol, "periodic", len(coeffs))] = (a, t.period, phase)
+        elif active is None or t.source in active:
             key = (t.symbol, t.power)
             coeffs[key] = coeffs.get(key, 0.0) + V.draw_term(t, np.random.default_rng(s))
     thermal = {}
@@ -243,6 +286,8 @@ def draw(st: Setting, seed: int, run: int, active: tuple | None = None):
         for name, s in zip(V.THERMAL_SOURCES, ss[nd + 1:]):
             if name in st.task.temperature.sources and (active is None or name in active):
                 thermal[name] = st.task.temperature.draw(name, np.random.default_rng(s))
+    if STATE_SOURCE in st.sources and (active is None or STATE_SOURCE in active):
+        coeffs[STATE_KEY] = st.state.draw(np.random.default_rng(ss[-1]))
     return coeffs, np.random.default_rng(ss[nd]), thermal
 
 
@@ -272,7 +317,7 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: li
     out = np.empty((len(runs), len(st.task.measurands)))
     r_st = st.probe.stylus_r_m
     fixed = None
-    if active is not None and not any(t.source in active for t in st.task.declared):
+    if active is not None and not any(t.source in active for t in st.task.declared) and STATE_SOURCE not in active:
         from sim.machine import Machine
 
         fixed = Machine(st.config)   # no declared term drawn: one machine for every run
@@ -413,9 +458,13 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
     return {"format": "vmt-vcmm/1", "machine": st.config.name, "task": task.source,
             "touches": int(len(st.Xn_R)), "runs": int(len(vals)), "batch_runs": task.mc.batch_runs,
             "seed": int(seed), "sources": list(st.sources),
+            "machine_state": None if st.state is None else {
+                "file": st.state.source, "symbols": list(st.state.symbols), "conventions": list(st.state.conventions),
+                "interpolation": st.state.interpolation},
             "declared": [{"source": t.source, "bound": t.bound * 1e6, "distribution": t.distribution,
                           "u": t.u * 1e6, "unit": ("urad" if V.iso.symbol(t.symbol).angular else "um")
-                          + {0: "", 1: "/m", 2: "/m2"}[t.power]} for t in task.declared],
+                          + {0: "", 1: "/m", 2: "/m2"}[t.power],
+                          **({"period_mm": t.period * 1e3} if t.period else {})} for t in task.declared],
             "probe_noise_um": st.probe.sigma_m * 1e6,
             "runs_total": int(done), "elapsed_s": elapsed, "runs_per_s": done / elapsed if elapsed > 0 else None,
             "measurands": out,

@@ -28,6 +28,10 @@ def register(sub) -> None:
     p.add_argument("--tol-um", type=float, default=None,
                    help="JCGM 101 numerical tolerance on y, u and the interval ends, um "
                         "(default: the task's [mc], else 2 significant digits of u)")
+    p.add_argument("--machine-state", default=None, metavar="RESULT.json",
+                   help="an identification result (vmt identify --json, vmt scenario mfb-3axis --json): its "
+                        "estimate replaces the machine file's errors it covers, each run draws the state from "
+                        "its covariance; the task's [declared] limits add what it does not cover")
     p.add_argument("--no-budget", action="store_true", help="skip the one-at-a-time budget runs")
     p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT",
                    help="run the Monte Carlo batches on this Dask cluster (the same result for a seed)")
@@ -56,7 +60,12 @@ def run(args) -> int:
         task = dataclasses.replace(task, mc=dataclasses.replace(task.mc, tolerance=args.tol_um * 1e-6))
     spec = resolve(args.machine)
     plan = read_probe_log(args.plan)
-    st = prepare(plan, task, spec, noise_um=args.noise_um)
+    state = None
+    if args.machine_state is not None:
+        from core.state import read_estimate
+
+        state = read_estimate(args.machine_state)
+    st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
     with progress_line("vcmm: Monte Carlo runs") as bar:
         rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask)
         bar.clear()

@@ -1,0 +1,182 @@
+"""Does a virtual CMM fed with an identified machine state cover the truth? Through the exact simulator.
+
+Each seed: a machine (``nmv3000``) with realistic errors drawn from the seed
+(:func:`sim.machines.realistic_errors`: smooth tables the 22 mm look-up
+tables cannot follow exactly, the 10 mm screw ripple, angular errors, C-
+and A-axis errors: a truth outside the model's space); a cross-pocket
+self-calibration campaign on it with probing noise, identified as ``vmt
+identify`` does (:func:`scenarios.selfcal_coverage.simulate` and
+:func:`core.selfcal.self_calibrate`), the scale from a measured length
+(eq 17, :func:`scenarios.crosspocket.measure_delta_L`, its standard
+uncertainty added to the state's covariance through the estimate's exact
+sensitivity to it); the result's ``vmt-estimate/1`` block read back
+(:func:`core.state.loads_estimate`) and handed to the virtual CMM
+(:func:`scenarios.vcmm.prepare` on the machine's structure with no other
+error: the state is all that is known) for a task on a block at the
+pocket's height, C = 0.
+
+The truth: the same task's touches on the *true* machine, simulated on the
+exact chain with one draw of the probing noise, fitted and evaluated as the
+virtual CMM evaluates a run. A measurand is covered when that value lies in
+the virtual CMM's 95 % coverage interval of the measured value.
+
+Measurands (:data:`TASK`): the distance between two faces 120 mm apart
+along X (scale and EXX), the distance between two bore centres 128 mm apart
+diagonally (the tables and EC0Y), one bore's diameter (20 mm: local form of
+the tables, where the 10 mm ripple lives).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+MACHINE = "nmv3000"
+#: Probing noise of the campaign and of the task (k = 1), m: the paper's 0.5 um at k = 2.
+NOISE_M = 0.25e-6
+#: The task (vmt-task/1) the coverage is counted on (features of :func:`coverage_plan`).
+TASK = """
+format = "vmt-task/1"
+[features.left]
+kind = "plane"
+feature = "left"
+[features.right]
+kind = "plane"
+feature = "right"
+[features.b1]
+kind = "circle"
+feature = "b1"
+[features.b2]
+kind = "circle"
+feature = "b2"
+[[measurands]]
+name = "face distance X"
+quantity = "distance"
+of = ["left", "right"]
+[[measurands]]
+name = "bore-bore distance"
+quantity = "distance"
+of = ["b1", "b2"]
+[[measurands]]
+name = "bore diameter"
+quantity = "diameter"
+of = "b1"
+[mc]
+batch_runs = 100
+max_runs = 400
+"""
+
+
+def coverage_plan(z_mm: float, stylus_r_mm: float = 3.0):
+    """A block at tip-centre height ``z_mm``: faces x = -60 and +60 mm (4 touches each, 4 mm above and below), bores of 20 mm at
+    (-50, -40) and (50, 40) mm (8 touches each), probe-log/1 plan columns (nominal only)."""
+    from core.probelog import make_log
+
+    r = stylus_r_mm
+    rows = []
+    for name, (cx, cy) in (("b1", (-50.0, -40.0)), ("b2", (50.0, 40.0))):
+        for k in range(8):
+            a = np.deg2rad(22.5 + 45.0 * k)
+            rows.append((name, f"{name}-{k}", (cx + 10 * np.cos(a), cy + 10 * np.sin(a), z_mm),
+                         (-np.cos(a), -np.sin(a), 0.0)))
+    for side, x, nx in (("left", -60.0, -1.0), ("right", 60.0, 1.0)):
+        for k, (y, dz) in enumerate(((-45.0, -4.0), (-15.0, 4.0), (15.0, -4.0), (45.0, 4.0))):
+            rows.append((side, f"{side}-{k}", (x, y, z_mm + dz), (nx, 0.0, 0.0)))
+    n = len(rows)
+    s = np.array([p for _, _, p, _ in rows], float)
+    nn = np.array([v for _, _, _, v in rows], float)
+    Xn = s + r * nn
+    cols = {"setup": ["S1"] * n, "target": [t for _, t, _, _ in rows], "t_s": np.full(n, np.nan),
+            "X_mm": np.full(n, np.nan), "Y_mm": np.full(n, np.nan), "Z_mm": np.full(n, np.nan),
+            "Xn_mm": Xn[:, 0], "Yn_mm": Xn[:, 1], "Zn_mm": Xn[:, 2], "nx": nn[:, 0], "ny": nn[:, 1],
+            "nz": nn[:, 2], "feature": [f for f, _, _, _ in rows], "stylus_r_mm": np.full(n, r)}
+    return make_log(cols, {"plan": "vmt vcmm coverage block", "stylus_r_mm": str(r)})
+
+
+@dataclasses.dataclass(frozen=True)
+class Identified:
+    """One campaign's identification: the ``vmt identify`` JSON report, the true machine, the pocket height."""
+
+    report: dict
+    machine: object
+    z_m: float
+    delta_L: tuple
+
+
+def identify_campaign(seed: int, noise_m: float = NOISE_M, *, ripple: bool = True) -> Identified:
+    """Simulate and identify one cross-pocket campaign (module doc); the report is ``vmt identify``'s JSON."""
+    from core.selfcal import Grid, probing_levels, self_calibrate, yaw_for_chain
+    from scenarios import selfcal_coverage as SC
+    from scenarios.crosspocket import measure_delta_L
+
+    c = SC.simulate(MACHINE, seed, noise_m, ripple=ripple)
+    lo, hi, step = (v * 1e-3 for v in SC.GRID_MM)
+    grid = Grid.regular(lo, hi, step)
+    _, z_ref = probing_levels(c.touches.pn_R[:, 2])
+    dL, dL_true, u_dL = measure_delta_L(c.machine, hi, z_ref, noise_m, np.random.default_rng([seed, 17]))
+    yaw = yaw_for_chain(c.machine.config.chain)
+    res = self_calibrate(c.touches, grid, dL, yaw=yaw)
+    # the measured length's own uncertainty: the estimate is linear in delta_L (eq 17 is a gauge row)
+    res1 = self_calibrate(c.touches, grid, dL + 1e-6, yaw=yaw, covariance="none", model_error=False)
+    res0 = self_calibrate(c.touches, grid, dL, yaw=yaw, covariance="none", model_error=False)
+    g = (res1.theta - res0.theta) / 1e-6
+    res = dataclasses.replace(res, cov=res.cov + np.outer(g, g) * u_dL ** 2)
+    return Identified(res.to_report(), c.machine, float(z_ref), (dL, dL_true, u_dL))
+
+
+def true_values(ident: Identified, st, seed: int) -> np.ndarray:
+    """The task's measurands (SI) on the true machine: the exact chain, one draw of the probing noise."""
+    from core import vcmm as V
+    from scenarios.vcmm import simulate_run
+
+    p = simulate_run(st, {}, np.random.default_rng([seed, 23]), machine=ident.machine)
+    return V.evaluate(st.task, st.rows, p, st.n_R, st.probe.stylus_r_m)
+
+
+def one_seed(seed: int, *, noise_m: float = NOISE_M, ripple: bool = True, vcmm_seed: int = 0,
+             ident: Identified | None = None, task: str = TASK) -> dict:
+    """Coverage of the task's measurands for one campaign: per measurand the true value, the interval, U95.
+
+    ``task``: the task's text (default :data:`TASK`); ``ident`` a campaign already identified."""
+    from core import vcmm as V
+    from core.state import loads_estimate
+    from scenarios.vcmm import prepare, study
+    from sim.machinefile import resolve
+
+    ident = ident if ident is not None else identify_campaign(seed, noise_m, ripple=ripple)
+    state = loads_estimate(ident.report, source=f"identify seed {seed}")
+    spec = resolve(MACHINE)
+    spec = dataclasses.replace(spec, config=dataclasses.replace(spec.config, errors={}))
+    task = V.loads_task(task, source="coverage task")
+    st = prepare(coverage_plan(ident.z_m * 1e3), task, spec, noise_um=noise_m * 1e6, state=state)
+    rep = study(st, vcmm_seed, budget=False)
+    y = true_values(ident, st, seed)
+    out = {}
+    for j, m in enumerate(rep["measurands"]):   # all in mm, U in um
+        lo, hi = m["interval"]
+        t = float(y[j] * task.measurands[j].scale)
+        out[m["name"]] = {"true_mm": t, "interval_mm": [lo, hi], "U95_um": m["U"], "covered": bool(lo <= t <= hi),
+                          "true_minus_mean_um": (t - m["mean"]) * 1e3, "runs": rep["runs"]}
+    return out
+
+
+def study_coverage(seeds=range(10), **kw) -> dict:
+    """Coverage over campaigns: per measurand and in all, covered / trials with Clopper-Pearson 95 % intervals."""
+    from scenarios.selfcal_coverage import clopper_pearson
+
+    per: dict = {}
+    rows = []
+    for sd in seeds:
+        r = one_seed(int(sd), **kw)
+        rows.append({"seed": int(sd), **r})
+        for k, v in r.items():
+            a = per.setdefault(k, [0, 0, []])
+            a[0] += v["covered"]
+            a[1] += 1
+            a[2].append(v["U95_um"])
+    out = {k: {"covered": a, "n": n, "ci95": list(clopper_pearson(a, n)), "U95_um_median": float(np.median(u))}
+           for k, (a, n, u) in per.items()}
+    ka, na = sum(v["covered"] for v in out.values()), sum(v["n"] for v in out.values())
+    out["all"] = {"covered": ka, "n": na, "ci95": list(clopper_pearson(ka, na))}
+    return {"summary": out, "seeds": rows}
