@@ -180,3 +180,98 @@ def study_coverage(seeds=range(10), **kw) -> dict:
     ka, na = sum(v["covered"] for v in out.values()), sum(v["n"] for v in out.values())
     out["all"] = {"covered": ka, "n": na, "ci95": list(clopper_pearson(ka, na))}
     return {"summary": out, "seeds": rows}
+
+
+#: Grid nodes (x, y) mm where the cross-pocket comparison reads the error map.
+COMPARE_NODES_MM = ((88.0, 88.0), (110.0, 0.0), (-110.0, 110.0))
+
+
+def _node_task(nodes_mm) -> str:
+    t = ['format = "vmt-task/1"']
+    for k, _ in enumerate(nodes_mm):
+        t += [f"[features.n{k}]", 'kind = "circle"', f'feature = "n{k}"']
+    for k, (x, y) in enumerate(nodes_mm):
+        for a in "xy":
+            t += ["[[measurands]]", f'name = "n{k} {a}"', 'quantity = "position"', f'of = "n{k}"', f'axis = "{a}"']
+    t += ["[mc]", "batch_runs = 100", "max_runs = 600"]
+    return "\n".join(t) + "\n"
+
+
+def _node_plan(nodes_mm, z_mm: float, r_mm: float = 3.0, ring_mm: float = 4.0):
+    """An 8-touch bore of radius ``ring_mm`` centred on each node (tip centres at height ``z_mm``)."""
+    from core.probelog import make_log
+
+    rows = []
+    for k, (cx, cy) in enumerate(nodes_mm):
+        for j in range(8):
+            a = np.deg2rad(22.5 + 45.0 * j)
+            rows.append((f"n{k}", f"n{k}-{j}", (cx + ring_mm * np.cos(a), cy + ring_mm * np.sin(a)),
+                         (-np.cos(a), -np.sin(a))))
+    n = len(rows)
+    p = np.array([q for _, _, q, _ in rows])
+    nn = np.array([v for _, _, _, v in rows])
+    X = p + r_mm * nn
+    return make_log({"setup": ["S1"] * n, "target": [t for _, t, _, _ in rows], "t_s": np.full(n, np.nan),
+                     "X_mm": np.full(n, np.nan), "Y_mm": np.full(n, np.nan), "Z_mm": np.full(n, np.nan),
+                     "Xn_mm": X[:, 0], "Yn_mm": X[:, 1], "Zn_mm": np.full(n, z_mm), "nx": nn[:, 0], "ny": nn[:, 1],
+                     "nz": np.zeros(n), "feature": [f for f, _, _, _ in rows], "stylus_r_mm": np.full(n, r_mm)},
+                    {"plan": "vcmm: bores on the cross-pocket grid nodes"})
+
+
+def crosspocket_comparison(seed: int = 1, nodes_mm=COMPARE_NODES_MM, vcmm_seed: int = 0) -> dict:
+    """The cross-pocket study's error-map U95 (its Fig. 20) against the virtual CMM's, node by node.
+
+    The same measurand: the tool's 2D position error at a grid node, in the gauge of eqs 16-17, scale
+    unknown, C = {0, 75, 130, 210} deg with the spheres, probing u 1.38 um (the cross-pocket study's
+    U_PROBE_M). The study: linear propagation through the nominal design (exact for this linear
+    estimator; its Monte Carlo agrees to sampling). The virtual CMM: a simulated campaign on a
+    realistic nmv3000 at that noise, identified as ``vmt identify`` does (scale unknown), its
+    estimate and covariance as ``--machine-state``, a noise-free probe (the state alone), an 8-touch
+    bore of 4 mm radius on each node; U95 = sqrt(U95_x^2 + U95_y^2). Beside both: the same map by
+    linear propagation of the identification's covariance, split into its probing part at the study's
+    1.38 um, at the residuals' sigma, and with the model-error budget (what the difference is made of).
+    """
+    from core.selfcal import Grid, estimator, nominal_touches, probing_levels, self_calibrate, yaw_for_chain
+    from core.state import loads_estimate
+    from core.uncertainty import K, error_map_operator
+    from scenarios import crosspocket as CP
+    from scenarios import selfcal_coverage as SC
+    from scenarios.vcmm import prepare, study
+    from core import vcmm as V
+    from sim.machinefile import resolve
+
+    grid = Grid.regular(-0.110, 0.110, 0.022)
+    w, wn, ids = CP._plan_points(True)
+    des0, est0 = estimator(nominal_touches(w, wn, SC.ANGLES, target_ids=ids), grid)
+    map0 = CP._map_u95_linear(des0, est0)
+    c = SC.simulate(MACHINE, seed, CP.U_PROBE_M)
+    _, z_ref = probing_levels(c.touches.pn_R[:, 2])
+    res = self_calibrate(c.touches, grid, None, yaw=yaw_for_chain(c.machine.config.chain))
+    _, est1 = estimator(c.touches, grid, yaw=yaw_for_chain(c.machine.config.chain))
+    M = error_map_operator(res.design)
+    nxy = len(grid.x_m) * len(grid.y_m)
+
+    def u95_map(cov):
+        v = np.einsum("ij,jk,ik->i", M, cov, M)
+        return K * np.sqrt(np.maximum(v[:nxy] + v[nxy:], 0)).reshape(len(grid.x_m), len(grid.y_m))
+
+    maps = {"campaign design, probing 1.38 um": u95_map(est1.covariance(CP.U_PROBE_M)),
+            f"campaign design, residual sigma {res.sigma_m * 1e6:.3f} um": u95_map(est1.covariance(res.sigma_m)),
+            "identification's covariance (sigma + model error)": u95_map(res.cov)}
+    spec = resolve(MACHINE)
+    spec = dataclasses.replace(spec, config=dataclasses.replace(spec.config, errors={}))
+    st = prepare(_node_plan(nodes_mm, z_ref * 1e3), V.loads_task(_node_task(nodes_mm)), spec, noise_um=0.0,
+                 state=loads_estimate(res.to_report(), source=f"identify seed {seed}"))
+    rep = study(st, vcmm_seed, budget=False)
+    ms = {m["name"]: m for m in rep["measurands"]}
+    rows = []
+    for k, (x, y) in enumerate(nodes_mm):
+        i, j = int(np.argmin(np.abs(grid.x_m - x * 1e-3))), int(np.argmin(np.abs(grid.y_m - y * 1e-3)))
+        row = {"node_mm": [x, y], "crosspocket_study_U95_um": float(map0[i, j] * 1e6),
+               "vcmm_U95_um": float(np.hypot(ms[f"n{k} x"]["U"], ms[f"n{k} y"]["U"])),
+               "vcmm_runs": rep["runs"]}
+        row.update({f"linear: {kk}": float(v[i, j] * 1e6) for kk, v in maps.items()})
+        rows.append(row)
+    return {"seed": seed, "residual_sigma_um": res.sigma_m * 1e6, "rms_um": res.rms_m * 1e6,
+            "model_error_um": ({k: float(v * 1e6) for k, v in res.budget.components.items()}
+                               if res.budget is not None else None), "nodes": rows}
