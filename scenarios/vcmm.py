@@ -485,8 +485,6 @@ def block_plan():
     z = -10; faces x = -40 and x = +40, 4 touches each; the top face z = 0,
     8 touches clear of the bore. Stylus radius 3 mm.
     """
-    from core.probelog import make_log
-
     r = 3.0
     rows = []   # (feature, target, surface point mm, outward normal)
     for k in range(8):
@@ -499,15 +497,24 @@ def block_plan():
     for k, (x, y) in enumerate(((-30, -20), (-30, 0), (-30, 20), (-15, -20), (-15, 20), (30, -20), (30, 20),
                                 (10, -22))):
         rows.append(("top", f"T{k + 1:02d}", (x, y, 0.0), (0.0, 0.0, 1.0)))
+    return plan_from_rows(rows, r, "vmt README example: block with a bore")
+
+
+def plan_from_rows(rows, stylus_r_mm: float, title: str):
+    """A probe-log/1 plan (measured columns empty, one set-up ``S1``) from ``(feature, target,
+    surface point mm, outward normal)`` rows: the nominal tip centre is the point plus the radius
+    along the normal."""
+    from core.probelog import make_log
+
     n = len(rows)
     s = np.array([p for _, _, p, _ in rows], float)
     nn = np.array([v for _, _, _, v in rows], float)
-    Xn = s + r * nn
-    cols = {"setup": ["S1"] * n, "target": [t for _, t, _, _ in rows], "t_s": np.full(n, np.nan),
-            "X_mm": np.full(n, np.nan), "Y_mm": np.full(n, np.nan), "Z_mm": np.full(n, np.nan),
-            "Xn_mm": Xn[:, 0], "Yn_mm": Xn[:, 1], "Zn_mm": Xn[:, 2], "nx": nn[:, 0], "ny": nn[:, 1],
-            "nz": nn[:, 2], "feature": [f for f, _, _, _ in rows], "stylus_r_mm": np.full(n, r)}
-    return make_log(cols, {"plan": "vmt README example: block with a bore", "stylus_r_mm": "3.0"})
+    Xn = s + stylus_r_mm * nn
+    nan = np.full(n, np.nan)
+    cols = {"setup": ["S1"] * n, "target": [t for _, t, _, _ in rows], "t_s": nan, "X_mm": nan, "Y_mm": nan,
+            "Z_mm": nan, "Xn_mm": Xn[:, 0], "Yn_mm": Xn[:, 1], "Zn_mm": Xn[:, 2], "nx": nn[:, 0], "ny": nn[:, 1],
+            "nz": nn[:, 2], "feature": [f for f, _, _, _ in rows], "stylus_r_mm": np.full(n, stylus_r_mm)}
+    return make_log(cols, {"plan": title, "stylus_r_mm": f"{stylus_r_mm:g}"})
 
 
 def write_report(folder, rep: dict, *, worst: int = 10):

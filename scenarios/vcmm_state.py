@@ -69,11 +69,10 @@ max_runs = 400
 
 
 def coverage_plan(z_mm: float, stylus_r_mm: float = 3.0):
-    """A block at tip-centre height ``z_mm``: faces x = -60 and +60 mm (4 touches each, 4 mm above and below), bores of 20 mm at
-    (-50, -40) and (50, 40) mm (8 touches each), probe-log/1 plan columns (nominal only)."""
-    from core.probelog import make_log
+    """A block at tip-centre height ``z_mm``: faces x = -60 and +60 mm (4 touches each, 4 mm above and
+    below), bores of 20 mm at (-50, -40) and (50, 40) mm (8 touches each); a probe-log/1 plan."""
+    from scenarios.vcmm import plan_from_rows
 
-    r = stylus_r_mm
     rows = []
     for name, (cx, cy) in (("b1", (-50.0, -40.0)), ("b2", (50.0, 40.0))):
         for k in range(8):
@@ -83,15 +82,7 @@ def coverage_plan(z_mm: float, stylus_r_mm: float = 3.0):
     for side, x, nx in (("left", -60.0, -1.0), ("right", 60.0, 1.0)):
         for k, (y, dz) in enumerate(((-45.0, -4.0), (-15.0, 4.0), (15.0, -4.0), (45.0, 4.0))):
             rows.append((side, f"{side}-{k}", (x, y, z_mm + dz), (nx, 0.0, 0.0)))
-    n = len(rows)
-    s = np.array([p for _, _, p, _ in rows], float)
-    nn = np.array([v for _, _, _, v in rows], float)
-    Xn = s + r * nn
-    cols = {"setup": ["S1"] * n, "target": [t for _, t, _, _ in rows], "t_s": np.full(n, np.nan),
-            "X_mm": np.full(n, np.nan), "Y_mm": np.full(n, np.nan), "Z_mm": np.full(n, np.nan),
-            "Xn_mm": Xn[:, 0], "Yn_mm": Xn[:, 1], "Zn_mm": Xn[:, 2], "nx": nn[:, 0], "ny": nn[:, 1],
-            "nz": nn[:, 2], "feature": [f for f, _, _, _ in rows], "stylus_r_mm": np.full(n, r)}
-    return make_log(cols, {"plan": "vmt vcmm coverage block", "stylus_r_mm": str(r)})
+    return plan_from_rows(rows, stylus_r_mm, "vmt vcmm coverage block")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -199,23 +190,15 @@ def _node_task(nodes_mm) -> str:
 
 def _node_plan(nodes_mm, z_mm: float, r_mm: float = 3.0, ring_mm: float = 4.0):
     """An 8-touch bore of radius ``ring_mm`` centred on each node (tip centres at height ``z_mm``)."""
-    from core.probelog import make_log
+    from scenarios.vcmm import plan_from_rows
 
     rows = []
     for k, (cx, cy) in enumerate(nodes_mm):
         for j in range(8):
             a = np.deg2rad(22.5 + 45.0 * j)
-            rows.append((f"n{k}", f"n{k}-{j}", (cx + ring_mm * np.cos(a), cy + ring_mm * np.sin(a)),
-                         (-np.cos(a), -np.sin(a))))
-    n = len(rows)
-    p = np.array([q for _, _, q, _ in rows])
-    nn = np.array([v for _, _, _, v in rows])
-    X = p + r_mm * nn
-    return make_log({"setup": ["S1"] * n, "target": [t for _, t, _, _ in rows], "t_s": np.full(n, np.nan),
-                     "X_mm": np.full(n, np.nan), "Y_mm": np.full(n, np.nan), "Z_mm": np.full(n, np.nan),
-                     "Xn_mm": X[:, 0], "Yn_mm": X[:, 1], "Zn_mm": np.full(n, z_mm), "nx": nn[:, 0], "ny": nn[:, 1],
-                     "nz": np.zeros(n), "feature": [f for f, _, _, _ in rows], "stylus_r_mm": np.full(n, r_mm)},
-                    {"plan": "vcmm: bores on the cross-pocket grid nodes"})
+            rows.append((f"n{k}", f"n{k}-{j}", (cx + ring_mm * np.cos(a), cy + ring_mm * np.sin(a), z_mm),
+                         (-np.cos(a), -np.sin(a), 0.0)))
+    return plan_from_rows(rows, r_mm, "vcmm: bores on the cross-pocket grid nodes")
 
 
 def crosspocket_comparison(seed: int = 1, nodes_mm=COMPARE_NODES_MM, vcmm_seed: int = 0) -> dict:

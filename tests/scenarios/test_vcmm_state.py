@@ -25,6 +25,7 @@ from scenarios import vcmm as S
 from scenarios import vcmm_state as VS
 from scenarios.cli import main
 from sim.machinefile import resolve
+from tests.scenarios.test_vcmm_study import GAUGE, GAUGE_TASK
 
 
 def _state_setting(report, z_m, noise_um=0.0, task=VS.TASK):
@@ -113,23 +114,8 @@ def test_mfb_estimate_rebuilt_moves_the_tool_as_the_truth(mfb3_noise_free):
     assert np.abs(R).max() < 0.3e-6, np.abs(R).max()
 
 
-PERIODIC_TASK = """
-[features.a]
-kind = "plane"
-feature = "a"
-[features.b]
-kind = "plane"
-feature = "b"
-[[measurands]]
-name = "length"
-quantity = "distance"
-of = ["a", "b"]
-[declared.EXX]
-periodic_um = 0.5
-period_mm = 10.0
-[probe]
-noise_um = 0.0
-"""
+#: The gauge's task with its X scale error replaced by a periodic X error (0.5 um, 10 mm, uniform amplitude).
+PERIODIC_TASK = GAUGE_TASK.replace('slope_um_per_m = 10.0\ndistribution = "uniform"', "periodic_um = 0.5\nperiod_mm = 10.0")
 
 
 def test_a_declared_periodic_error_moves_a_gauge_by_hand():
@@ -137,8 +123,6 @@ def test_a_declared_periodic_error_moves_a_gauge_by_hand():
     face's reading at contact is short by E there and the length reads L - (E(x2) - E(x1)), E = a sin(2 pi
     X / p + phi) with the run's drawn (a, phi); to 1 nm (E evaluated at the reading, not the nominal:
     a^2 2 pi / p = 0.16 nm)."""
-    from tests.scenarios.test_vcmm_study import GAUGE
-
     st = S.prepare(GAUGE, V.loads_task(PERIODIC_TASK), resolve("vmc-3axis"))
     (t,) = st.task.declared
     assert t.term == "periodic" and t.period == pytest.approx(0.010) and t.bound == pytest.approx(0.5e-6)
@@ -191,8 +175,6 @@ def test_cli_machine_state_end_to_end(tmp_path, identify_json, realistic, capsys
     ('{"method": "2D"}', "no vmt-estimate/1 estimate"),
 ])
 def test_cli_bad_machine_state_exits_2_with_one_line(tmp_path, capsys, content, match):
-    from tests.scenarios.test_vcmm_study import GAUGE, GAUGE_TASK
-
     plan, task, out, st = (tmp_path / n for n in ("plan.csv", "task.toml", "out.json", "state.json"))
     write_probe_log(plan, GAUGE)
     task.write_text(GAUGE_TASK)
@@ -207,8 +189,6 @@ def test_cli_bad_machine_state_exits_2_with_one_line(tmp_path, capsys, content, 
 
 def test_cli_state_of_an_axis_the_machine_lacks_exits_2(tmp_path, capsys, identify_json):
     """A state naming the C axis (EA0C) handed to vmc-3axis (X, Y, Z): refused by name."""
-    from tests.scenarios.test_vcmm_study import GAUGE, GAUGE_TASK
-
     doc = json.loads(identify_json.read_text())["estimate"]
     for p in doc["parameters"]:
         if p["symbol"] == "EC0Y":
