@@ -36,6 +36,10 @@ Task file (units in the key names)::
 
     [probe]
     noise_um = 0.25              # repeatability, k = 1 (default: the machine's)
+    pretravel_um = 0.5           # residual pre-travel after calibration, drawn within +-0.5 um
+    lobing_um = 0.3              # lobing amplitude within +-0.3 um (a cos(k phi - phi0), phase uniform)
+    lobes = 3                    # k, the lobing's order (default 3: a kinematic probe)
+    distribution = "uniform"     # of pretravel_um and lobing_um (as [declared])
 
     [temperature]                # results at 20 C, corrected with the best estimates
     part_C = 22.0                # the part's temperature during the measurement
@@ -90,8 +94,11 @@ DISTRIBUTIONS = ("uniform", "normal", "triangular", "arcsine")
 U_PER_BOUND = {"uniform": 1 / math.sqrt(3), "normal": 0.5, "triangular": 1 / math.sqrt(6),
                "arcsine": 1 / math.sqrt(2)}
 #: Power of the axis reading of each declared term.
-TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2, "periodic": 0}
+TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2, "periodic": 0, "pretravel": 0, "lobing": 0}
 PROBE_SOURCE = "probe repeatability"
+#: The declared probe terms' budget names (``[probe] pretravel_um``, ``lobing_um``).
+PRETRAVEL_SOURCE = "probe pre-travel"
+LOBING_SOURCE = "probe lobing"
 #: Reference temperature of dimensional measurement (ISO 1), C.
 T_REF_C = 20.0
 #: Temperature sources: name -> (value key, its u key) of :class:`Temperature`.
@@ -251,6 +258,14 @@ class Task:
     mc: MCSettings = field(default_factory=MCSettings)
     source: str = "<task>"
     temperature: Temperature | None = None
+    pretravel: DeclaredTerm | None = None   # symbol "probe", term "pretravel": bound m
+    lobing: DeclaredTerm | None = None      # symbol "probe", term "lobing", period = the number of lobes
+
+    @property
+    def probe_sources(self) -> tuple:
+        """The declared probe terms' budget names."""
+        return ((PRETRAVEL_SOURCE,) if self.pretravel is not None else ()) + (
+            (LOBING_SOURCE,) if self.lobing is not None else ())
 
     def feature(self, name: str) -> FeatureSpec:
         for f in self.features:
@@ -302,11 +317,24 @@ class _TaskReader(KeyReader):
         for sym, body in self.table("declared", doc.get("declared", {})).items():
             declared += self.declared(sym, self.table(f"declared.{sym}", body))
         probe = self.table("probe", doc.get("probe", {}))
-        self.keys("probe", probe, ("noise_um",))
+        self.keys("probe", probe, ("noise_um", "pretravel_um", "lobing_um", "lobes", "distribution"))
         noise = self.number("probe.noise_um", probe["noise_um"], nonneg=True) if "noise_um" in probe else None
+        pdist = probe.get("distribution", "uniform")
+        if pdist not in DISTRIBUTIONS:
+            self.fail("probe.distribution", f"expected one of {', '.join(DISTRIBUTIONS)}, got {pdist!r}")
+        pre = lob = None
+        if "pretravel_um" in probe:
+            pre = DeclaredTerm("probe", "pretravel", self.number("probe.pretravel_um", probe["pretravel_um"],
+                                                                 nonneg=True) * 1e-6, pdist)
+        if "lobes" in probe and "lobing_um" not in probe:
+            self.fail("probe.lobes", "only with lobing_um")
+        if "lobing_um" in probe:
+            k = self.integer("probe.lobes", probe["lobes"], 1) if "lobes" in probe else 3
+            lob = DeclaredTerm("probe", "lobing", self.number("probe.lobing_um", probe["lobing_um"], nonneg=True)
+                               * 1e-6, pdist, float(k))
         temp = self.temperature(self.table("temperature", doc["temperature"])) if "temperature" in doc else None
         return Task(feats, meas, tuple(declared), noise, self.mc(self.table("mc", doc.get("mc", {}))), self.source,
-                    temp)
+                    temp, pre, lob)
 
     def temperature(self, t) -> Temperature:
         keys = [f.name for f in dataclasses.fields(Temperature)]

@@ -204,6 +204,7 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=No
     if overlap:
         raise ConfigError(f"{task.source}: a plan row belongs to two features (each touch probes one surface)")
     sources = (tuple(t.source for t in task.declared) + ((V.PROBE_SOURCE,) if probe.sigma_m > 0 else ())
+               + task.probe_sources
                + (task.temperature.sources if task.temperature else ())
                + ((STATE_SOURCE,) if state is not None and state.factor.size else ()))
     if task.temperature is not None and rot is not None and np.any(rot != 0):
@@ -224,7 +225,7 @@ def machine_errors(st: Setting, coeffs: dict) -> dict:
     from sim.errorfuncs import Constant, Periodic, Polynomial
 
     errs = dict(st.config.errors)
-    coeffs = dict(coeffs)
+    coeffs = {k: v for k, v in coeffs.items() if k[0] != "probe"}   # the probe's draws: probe_of
     if STATE_KEY in coeffs:   # a drawn identified state replaces its estimate
         errs.update(state_errors(st.state, coeffs.pop(STATE_KEY)))
     for key in [k for k in coeffs if len(k) == 3]:
@@ -243,6 +244,20 @@ def machine_errors(st: Setting, coeffs: dict) -> dict:
     return errs
 
 
+def probe_of(st: Setting, coeffs: dict):
+    """The study's probe with a run's drawn pre-travel (``("probe", "pretravel")``: m, added) and
+    lobing (``("probe", "lobing")``: (k, a, b) m, one more term) applied."""
+    pre, lob = coeffs.get(("probe", "pretravel")), coeffs.get(("probe", "lobing"))
+    if pre is None and lob is None:
+        return st.probe
+    p = st.probe
+    if pre is not None:
+        p = dataclasses.replace(p, pretravel_m=p.pretravel_m + pre)
+    if lob is not None:
+        p = dataclasses.replace(p, lobing_m=tuple(p.lobing_m) + (lob,))
+    return p
+
+
 def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, noise: bool = True,
                  machine=None, e_part: float = 0.0) -> np.ndarray:
     """Reported tip centres (k, 3) m of the used touches on the machine with ``coeffs`` drawn,
@@ -253,7 +268,7 @@ def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, 
     m = machine if machine is not None else Machine(dataclasses.replace(st.config, errors=machine_errors(st, coeffs)))
     k = len(st.Xn_R)
     sdfs = st.sdf_W if e_part == 0.0 else tuple(Expanded(f, e_part, st.centre_R) for f in st.sdf_W)
-    res = simulate_touches(m, st.probe, rng if noise else None, st.Xn_R + CLEARANCE_M * st.n_R, -st.n_R,
+    res = simulate_touches(m, probe_of(st, coeffs), rng if noise else None, st.Xn_R + CLEARANCE_M * st.n_R, -st.n_R,
                            np.full(k, CLEARANCE_M + OVERSHOOT_M), st.rot_rad, np.zeros(k), np.full(k, FEED_MPS),
                            sdfs, st.group, np.broadcast_to(np.eye(4), (k, 4, 4)))
     bad = res.status != ProbeStatus.OK
@@ -272,7 +287,8 @@ def draw(st: Setting, seed: int, run: int, active: tuple | None = None):
     draws); an inactive thermal source stays at its best estimate.
     """
     nd = len(st.task.declared)
-    ss = V.run_seeds(seed, run).spawn(nd + 1 + len(V.THERMAL_SOURCES) + 1)  # children keep their index
+    nt = nd + 1 + len(V.THERMAL_SOURCES)   # then: the state, the pre-travel, the lobing (a child keeps its index)
+    ss = V.run_seeds(seed, run).spawn(nt + 3)
     coeffs = {}
     for t, s in zip(st.task.declared, ss):
         if (active is None or t.source in active) and t.term == "periodic":
@@ -287,7 +303,13 @@ def draw(st: Setting, seed: int, run: int, active: tuple | None = None):
             if name in st.task.temperature.sources and (active is None or name in active):
                 thermal[name] = st.task.temperature.draw(name, np.random.default_rng(s))
     if STATE_SOURCE in st.sources and (active is None or STATE_SOURCE in active):
-        coeffs[STATE_KEY] = st.state.draw(np.random.default_rng(ss[-1]))
+        coeffs[STATE_KEY] = st.state.draw(np.random.default_rng(ss[nt]))
+    task = st.task
+    if task.pretravel is not None and (active is None or V.PRETRAVEL_SOURCE in active):
+        coeffs[("probe", "pretravel")] = V.draw_term(task.pretravel, np.random.default_rng(ss[nt + 1]))
+    if task.lobing is not None and (active is None or V.LOBING_SOURCE in active):
+        a, psi = V.draw_periodic(task.lobing, np.random.default_rng(ss[nt + 2]))
+        coeffs[("probe", "lobing")] = (int(task.lobing.period), a * math.cos(psi), a * math.sin(psi))
     return coeffs, np.random.default_rng(ss[nd]), thermal
 
 
@@ -466,6 +488,10 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
                           + {0: "", 1: "/m", 2: "/m2"}[t.power],
                           **({"period_mm": t.period * 1e3} if t.period else {})} for t in task.declared],
             "probe_noise_um": st.probe.sigma_m * 1e6,
+            "probe_declared": [{"source": src, "bound_um": t.bound * 1e6, "distribution": t.distribution,
+                                **({"lobes": int(t.period)} if t.term == "lobing" else {})}
+                               for src, t in ((V.PRETRAVEL_SOURCE, task.pretravel), (V.LOBING_SOURCE, task.lobing))
+                               if t is not None],
             "runs_total": int(done), "elapsed_s": elapsed, "runs_per_s": done / elapsed if elapsed > 0 else None,
             "measurands": out,
             "touches_u": [{"target": st.targets[i], "feature": task.features[st.group[i]].name,

@@ -1,0 +1,68 @@
+"""``[probe] pretravel_um``, ``lobing_um``: the probe's declared terms, run by run against hand-worked answers.
+
+Pre-travel: the probe triggers ``p`` past the contact along its approach,
+so every touch reports ``p`` deeper into the material: a bore reads ``2 p``
+larger, the outer gauge ``2 p`` shorter. Lobing ``A cos(k phi) + B sin(k phi)``
+of the approach azimuth: with 8 touches equally spaced round a bore, a
+3-lobe term is orthogonal to a circle's centre and radius (harmonics 3 +- 1
+are not multiples of 8), so the diameter does not move and the roundness is
+the peak-to-valley of the lobing over the 8 azimuths.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from core import vcmm as V
+from scenarios import vcmm as S
+from sim.machinefile import resolve
+from tests.scenarios.test_vcmm_study import BORE, BORE_TASK, GAUGE, GAUGE_TASK, L_MM, R_MM
+
+NO_SCALE = ('[declared.EXX]\nslope_um_per_m = 10.0\ndistribution = "uniform"', "")
+
+
+@pytest.fixture(scope="module")
+def machine():
+    return resolve("vmc-3axis")
+
+
+def test_pretravel_moves_a_gauge_and_a_bore_by_twice_its_draw(machine):
+    g = S.prepare(GAUGE, V.loads_task(GAUGE_TASK.replace(*NO_SCALE).replace("[probe]", "[probe]\npretravel_um = 0.8")),
+                  machine)
+    bore = BORE_TASK.replace("[declared.EXX]\nslope_um_per_m = 10.0\n[declared.EYY]\nslope_um_per_m = 10.0\n", "")
+    b = S.prepare(BORE, V.loads_task(bore.replace("[probe]", "[probe]\npretravel_um = 0.8")), machine)
+    assert g.sources == (V.PRETRAVEL_SOURCE,) and b.sources == (V.PRETRAVEL_SOURCE,)
+    yg, yb = S.run_values(g, 2, range(5))[:, 0], S.run_values(b, 2, range(5))[:, 0]
+    for i in range(5):
+        p = S.draw(g, 2, i)[0][("probe", "pretravel")]
+        assert abs(p) <= 0.8e-6 and p == S.draw(b, 2, i)[0][("probe", "pretravel")]
+        assert abs(yg[i] - (L_MM * 1e-3 - 2 * p)) < 1e-9
+        assert abs(yb[i] - (2 * R_MM * 1e-3 + 2 * p)) < 1e-9
+
+
+def test_three_lobes_leave_the_diameter_and_make_the_roundness(machine):
+    task = (BORE_TASK.replace("[declared.EXX]\nslope_um_per_m = 10.0\n[declared.EYY]\nslope_um_per_m = 10.0\n", "")
+            .replace("[probe]", "[probe]\nlobing_um = 0.5\nlobes = 3")
+            + '[[measurands]]\nname = "round"\nquantity = "roundness"\nof = "bore"\n')
+    st = S.prepare(BORE, V.loads_task(task), machine)
+    assert st.sources == (V.LOBING_SOURCE,)
+    y = S.run_values(st, 4, range(5))
+    d = -st.n_R   # approach directions (R = P here: no rotation)
+    phi = np.arctan2(d[:, 1], d[:, 0])
+    for i in range(5):
+        k, A, B = S.draw(st, 4, i)[0][("probe", "lobing")]
+        assert k == 3 and math.hypot(A, B) <= 0.5e-6
+        assert abs(y[i, 0] - 2 * R_MM * 1e-3) < 1e-9
+        assert abs(y[i, 1] - np.ptp(A * np.cos(3 * phi) + B * np.sin(3 * phi))) < 1e-9
+
+
+@pytest.mark.parametrize("body, match", [
+    ("pretravel_um = -1", "probe.pretravel_um"),
+    ("lobes = 3", "probe.lobes: only with lobing_um"),
+    ("lobing_um = 1\nlobes = 0", "probe.lobes"),
+    ("pretravel_um = 1\ndistribution = \"cauchy\"", "probe.distribution"),
+])
+def test_bad_probe_terms(body, match):
+    with pytest.raises(V.TaskFileError, match=match):
+        V.loads_task(GAUGE_TASK.replace("[probe]", "[probe]\n" + body))
