@@ -279,16 +279,23 @@ def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, 
     return res.pos_R
 
 
-def draw(st: Setting, seed: int, run: int, active: tuple | None = None):
+def draw(st: Setting, seed: int, run: int, active: tuple | None = None, swap: tuple | None = None):
     """Run ``run``'s draws: ``({(symbol, power): value}, noise generator, {thermal source: value})``.
 
     Every term draws from its own stream, so switching a source off (``active``)
     leaves the others' draws unchanged (the budget's runs share the full runs'
-    draws); an inactive thermal source stays at its best estimate.
+    draws); an inactive thermal source stays at its best estimate. ``swap``
+    ``(run_b, sources)``: those sources draw as in run ``run_b`` (Sobol's
+    pick-and-freeze, :func:`sobol_first_order`).
     """
     nd = len(st.task.declared)
     nt = nd + 1 + len(V.THERMAL_SOURCES)   # then: the state, the pre-travel, the lobing (a child keeps its index)
-    ss = V.run_seeds(seed, run).spawn(nt + 3)
+    ss = list(V.run_seeds(seed, run).spawn(nt + 3))
+    if swap is not None:
+        ssb = V.run_seeds(seed, swap[0]).spawn(nt + 3)
+        names = ([t.source for t in st.task.declared] + [V.PROBE_SOURCE] + list(V.THERMAL_SOURCES)
+                 + [STATE_SOURCE, V.PRETRAVEL_SOURCE, V.LOBING_SOURCE])
+        ss = [b if n in swap[1] else a for a, b, n in zip(ss, ssb, names)]
     coeffs = {}
     for t, s in zip(st.task.declared, ss):
         if (active is None or t.source in active) and t.term == "periodic":
@@ -329,11 +336,13 @@ def _measure(st: Setting, coeffs: dict, rng, thermal: dict, *, noise: bool, mach
     return V.correct_to_20c(p, st.n_R, st.probe.stylus_r_m, e_p0, e_s0, st.centre_R)
 
 
-def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: list | None = None) -> np.ndarray:
+def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: list | None = None,
+               swap: tuple | None = None) -> np.ndarray:
     """Measurand values (len(runs), m) SI of the given run indices (sources ``active``, None: all).
 
     ``dq``: a list to which each run's (k,) normal deviations of the touches,
     ``n . (reported - nominal)`` m, are appended (the report's worst touches).
+    ``swap`` ``(offset, sources)``: run k draws those sources as run ``k + offset``.
     """
     noise = active is None or V.PROBE_SOURCE in active
     out = np.empty((len(runs), len(st.task.measurands)))
@@ -344,11 +353,42 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: li
 
         fixed = Machine(st.config)   # no declared term drawn: one machine for every run
     for i, k in enumerate(runs):
-        coeffs, rng, thermal = draw(st, seed, int(k), active)
+        coeffs, rng, thermal = draw(st, seed, int(k), active,
+                                    None if swap is None else (int(k) + swap[0], swap[1]))
         p = _measure(st, coeffs, rng, thermal, noise=noise, machine=fixed)
         out[i] = V.evaluate(st.task, st.rows, p, st.n_R, r_st)
         if dq is not None:
             dq.append(np.einsum("ij,ij->i", p - st.Xn_R, st.n_R))
+    return out
+
+
+#: First run index of the Sobol matrices (apart from the adaptive runs, which count from 0).
+SOBOL_FIRST_RUN = 10 ** 9
+
+
+def sobol_first_order(st: Setting, seed: int, n: int, progress=None, done_before: int = 0) -> dict:
+    """First-order Sobol indices of every source for every measurand, ``{source: (m,) float}``.
+
+    Pick-and-freeze with Saltelli's estimator (Saltelli et al. 2010, Comput. Phys. Commun. 181,
+    eq. (b) of table 2): ``A`` the runs ``N0 .. N0+n-1``, ``B`` the next ``n``, ``A_B^i`` the runs of
+    ``A`` with source ``i`` drawn as in ``B``; ``S_i = mean(f_B (f_{A_B^i} - f_A)) / V`` with ``V``
+    the variance of ``f_A`` and ``f_B`` together, all centred on their mean. ``n (k + 2)`` runs for
+    ``k`` sources. A measurand
+    without variance gets NaN. The indices sum to 1 for an additive model; less means interactions.
+    """
+    N0 = SOBOL_FIRST_RUN
+    fA = run_values(st, seed, range(N0, N0 + n))
+    fB = run_values(st, seed, range(N0 + n, N0 + 2 * n))
+    c = np.vstack([fA, fB]).mean(axis=0)   # centred: the estimator's variance grows with the mean^2
+    fA, fB = fA - c, fB - c
+    var = np.var(np.vstack([fA, fB]), axis=0)
+    out = {}
+    for i, src in enumerate(st.sources):
+        if progress is not None:
+            progress(done_before + (i + 2) * n, done_before + (len(st.sources) + 2) * n)
+        fAB = run_values(st, seed, range(N0, N0 + n), swap=(n, (src,))) - c
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[src] = np.where(var > 0, np.mean(fB * (fAB - fA), axis=0) / var, np.nan)
     return out
 
 
@@ -417,7 +457,8 @@ def adaptive(st: Setting, seed: int, active: tuple | None, which: str, first_run
             return vals, ok
 
 
-def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, dask: str | None = None) -> dict:
+def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, dask: str | None = None,
+          sobol_runs: int = 0) -> dict:
     """The full study: nominal values, the adaptive MC, the one-at-a-time budget.
 
     ``dask``: a scheduler address (``tcp://HOST:PORT``); each batch's runs go
@@ -453,6 +494,10 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             done += len(v)
             bud[src] = v.std(axis=0, ddof=1)
             bud_runs[src] = len(v)
+    sob = {}
+    if sobol_runs:
+        sob = sobol_first_order(st, seed, sobol_runs, progress=progress, done_before=done)
+        done += sobol_runs * (len(st.sources) + 2)
     elapsed = time.perf_counter() - t0
     out = []
     for j, m in enumerate(task.measurands):
@@ -476,6 +521,8 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             "budget": [{"source": k, "u": u * m.u_scale, "share": (u * u / ss) if ss > 0 else 0.0,
                         "runs": bud_runs[k]} for k, u in u_src.items()],
             "budget_rss_over_u": (math.sqrt(ss) / s.u) if (budget and s.u > 0) else None,
+            "sobol_first_order": ({k: (None if not np.isfinite(v[j]) else float(v[j])) for k, v in sob.items()}
+                                  if sob else None),
         })
     return {"format": "vmt-vcmm/1", "machine": st.config.name, "task": task.source,
             "touches": int(len(st.Xn_R)), "runs": int(len(vals)), "batch_runs": task.mc.batch_runs,
