@@ -81,3 +81,17 @@ def test_sobol_first_order_of_an_additive_gauge_matches_the_variance_shares(mach
     u1, u2 = (0.106 * 10.0) ** 2 / 3.0, 2 * 0.3 ** 2 / 3.0
     assert abs(s["EXX slope"][0] - u1 / (u1 + u2)) < 0.2
     assert abs(s[V.PROBE_SOURCE][0] - u2 / (u1 + u2)) < 0.2
+
+
+@pytest.mark.parametrize("n", ["-1", "1"])
+def test_cli_bad_sobol_runs_exit_2(tmp_path, capsys, n):
+    from core.probelog import write_probe_log
+    from scenarios.cli import main
+
+    plan, task, out = tmp_path / "plan.csv", tmp_path / "task.toml", tmp_path / "out.json"
+    write_probe_log(plan, GAUGE)
+    task.write_text(GAUGE_TASK)
+    assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
+                 "--sobol-runs", n]) == 2
+    err = capsys.readouterr().err
+    assert "--sobol-runs must be 0 or >= 2" in err and err.count("\n") == 1 and not out.exists()
