@@ -111,6 +111,8 @@ def _primitive_sdf(kind: str, p_W: np.ndarray, n_W: np.ndarray, r: float, name: 
     f = V.fit_feature(kind, p_W, n_W, r)  # the same fits as the measurands (tip centres, radius applied)
     if kind == "plane":
         sdf = Surface("plane", f.point, f.direction)
+    elif kind == "line":   # the trace of a vertical face: the plane through the line, normal d x z
+        sdf = Surface("plane", f.point, np.cross(f.direction, [0.0, 0.0, 1.0]))
     elif kind in ("circle", "sphere"):
         k = 2 if kind == "circle" else 3
         sdf = Surface("ball", f.point.copy(), None, f.radius, k,
@@ -356,7 +358,7 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: li
         coeffs, rng, thermal = draw(st, seed, int(k), active,
                                     None if swap is None else (int(k) + swap[0], swap[1]))
         p = _measure(st, coeffs, rng, thermal, noise=noise, machine=fixed)
-        out[i] = V.evaluate(st.task, st.rows, p, st.n_R, r_st)
+        out[i] = V.evaluate(st.task, st.rows, p, st.n_R, r_st, st.Xn_R)
         if dq is not None:
             dq.append(np.einsum("ij,ij->i", p - st.Xn_R, st.n_R))
     return out
@@ -473,9 +475,10 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
     task = st.task
     r_st = st.probe.stylus_r_m
     perfect = Machine(dataclasses.replace(st.config, errors={}))
-    y_nom = V.evaluate(task, st.rows, simulate_run(st, {}, None, noise=False, machine=perfect), st.n_R, r_st)
+    y_nom = V.evaluate(task, st.rows, simulate_run(st, {}, None, noise=False, machine=perfect), st.n_R, r_st,
+                       st.Xn_R)
     y_best = V.evaluate(task, st.rows, _measure(st, {}, None, {}, noise=False, machine=Machine(st.config)),
-                        st.n_R, r_st)
+                        st.n_R, r_st, st.Xn_R)
     guess = task.mc.batch_runs * 2 * (1 + (len(st.sources) if budget else 0))
     dq: list = []
     vals, ok = adaptive(st, seed, None, "all", progress=progress, total_hint=guess - 2 * task.mc.batch_runs,
