@@ -44,6 +44,13 @@ Task file (units in the key names)::
     lobes = 3                    # k, the lobing's order (default 3: a kinematic probe)
     distribution = "uniform"     # of pretravel_um and lobing_um (as [declared])
 
+    [form.bore]                  # the part's own form of feature "bore", drawn per run
+    amplitude_um = 1.0           # a, drawn within +-1 um (distribution), phase uniform
+    lobes = 3                    # circle, cylinder: a cos(k theta + phi) about the axis
+    # wavelength_mm = 40.0       # plane, line: a cos(2 pi s / wavelength + phi), s along the
+    # along = "x"                #   surface (line: its direction; plane: this axis projected on it)
+    distribution = "uniform"
+
     [temperature]                # results at 20 C, corrected with the best estimates
     part_C = 22.0                # the part's temperature during the measurement
     u_part_K = 0.5               # its standard uncertainty (normal)
@@ -85,6 +92,19 @@ d^2)``) or zone ``2 max |d|``: the width of the tolerance zone centred on
 the nominal that just holds every point (the part conforms to a profile
 tolerance ``t`` when zone <= t).
 
+The part's form (``[form.FEATURE]``): the feature's surface lies ``f`` out of
+its nominal along the nominal outward normal (+ = excess material, as the
+profile deviation's sign), a circle's or cylinder's
+``f = a cos(k theta + phi)`` with ``theta`` the azimuth about its axis (a
+circle: about Z; a cylinder: from the axis' perpendicular nearest +X, or +Y
+for an axis along X), a plane's or line's ``f = a cos(2 pi s / wavelength +
+phi)`` with ``s`` the coordinate along the surface; ``a`` drawn within
++-``amplitude_um`` by the distribution, ``phi`` uniform, each feature one
+source ``form of FEATURE``. A point-contact model: ``f`` is taken at the tip
+centre's foot on the nominal surface (the ball's mechanical filtering of
+waves shorter than about its radius is not modelled). A sphere takes no
+form.
+
 Declared terms: ``constant_U``, and for a linear axis's motion errors also
 ``slope_U_per_m`` and ``quadratic_U_per_m2`` (``U`` = ``um`` for a
 translation, ``urad`` for a rotation) of the axis reading, the same
@@ -124,7 +144,7 @@ DISTRIBUTIONS = ("uniform", "normal", "triangular", "arcsine")
 U_PER_BOUND = {"uniform": 1 / math.sqrt(3), "normal": 0.5, "triangular": 1 / math.sqrt(6),
                "arcsine": 1 / math.sqrt(2)}
 #: Power of the axis reading of each declared term.
-TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2, "periodic": 0, "pretravel": 0, "lobing": 0}
+TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2, "periodic": 0, "pretravel": 0, "lobing": 0, "form": 0}
 PROBE_SOURCE = "probe repeatability"
 #: The declared probe terms' budget names (``[probe] pretravel_um``, ``lobing_um``).
 PRETRAVEL_SOURCE = "probe pre-travel"
@@ -211,6 +231,31 @@ class DeclaredTerm:
 
 
 @dataclass(frozen=True)
+class PartForm:
+    """The declared form of one feature (``[form.FEATURE]``, see the module doc), SI.
+
+    ``bound`` m the amplitude's half-width; ``lobes`` (circle, cylinder) or
+    ``wavelength`` m and ``along`` (unit (3,), plane: the axis projected on
+    it; line: None, its direction).
+    """
+
+    feature: str
+    bound: float
+    distribution: str
+    lobes: int | None = None
+    wavelength: float | None = None
+    along: tuple | None = None
+
+    @property
+    def source(self) -> str:
+        return f"form of {self.feature}"
+
+    @property
+    def u(self) -> float:
+        return self.bound * U_PER_BOUND[self.distribution]
+
+
+@dataclass(frozen=True)
 class Temperature:
     """Temperatures and expansion coefficients with their standard uncertainties (normal draws).
 
@@ -291,12 +336,18 @@ class Task:
     temperature: Temperature | None = None
     pretravel: DeclaredTerm | None = None   # symbol "probe", term "pretravel": bound m
     lobing: DeclaredTerm | None = None      # symbol "probe", term "lobing", period = the number of lobes
+    forms: tuple = ()                       # PartForm, one per feature at most
 
     @property
     def probe_sources(self) -> tuple:
         """The declared probe terms' budget names."""
         return ((PRETRAVEL_SOURCE,) if self.pretravel is not None else ()) + (
             (LOBING_SOURCE,) if self.lobing is not None else ())
+
+    @property
+    def form_sources(self) -> tuple:
+        """The part's declared forms' budget names, ``form of FEATURE``."""
+        return tuple(f.source for f in self.forms)
 
     def feature(self, name: str) -> FeatureSpec:
         for f in self.features:
@@ -330,7 +381,7 @@ class _TaskReader(KeyReader):
 
     def task(self, doc) -> Task:
         self.keys("", doc, ("format", "description", "features", "measurands", "declared", "probe", "mc",
-                            "temperature"))
+                            "temperature", "form"))
         if "format" in doc and doc["format"] != FORMAT:
             self.fail("format", f"expected {FORMAT!r}, got {doc['format']!r}")
         feats = tuple(self.feature(n, b) for n, b in self.table("features", doc.get("features", {})).items())
@@ -364,8 +415,40 @@ class _TaskReader(KeyReader):
             lob = DeclaredTerm("probe", "lobing", self.number("probe.lobing_um", probe["lobing_um"], nonneg=True)
                                * 1e-6, pdist, float(k))
         temp = self.temperature(self.table("temperature", doc["temperature"])) if "temperature" in doc else None
+        forms = tuple(self.form(n, self.table(f"form.{n}", b), kinds)
+                      for n, b in self.table("form", doc.get("form", {})).items())
         return Task(feats, meas, tuple(declared), noise, self.mc(self.table("mc", doc.get("mc", {}))), self.source,
-                    temp, pre, lob)
+                    temp, pre, lob, forms)
+
+    def form(self, name, body, kinds) -> PartForm:
+        key = f"form.{name}"
+        if name not in kinds:
+            self.fail(key, f"no feature {name!r} (features: {', '.join(kinds)})")
+        kind = kinds[name]
+        if kind == "sphere":
+            self.fail(key, "a sphere takes no form (circle, cylinder: lobes; plane, line: wavelength_mm)")
+        lobed = kind in ("circle", "cylinder")
+        own = ("lobes",) if lobed else ("wavelength_mm",) + (("along",) if kind == "plane" else ())
+        self.keys(key, body, ("amplitude_um", "distribution") + own)
+        for k in own:
+            if k not in body:
+                self.fail(f"{key}.{k}", f"missing: a {kind}'s form needs {', '.join(own)}")
+        if "amplitude_um" not in body:
+            self.fail(f"{key}.amplitude_um", "missing")
+        dist = body.get("distribution", "uniform")
+        if dist not in DISTRIBUTIONS:
+            self.fail(f"{key}.distribution", f"expected one of {', '.join(DISTRIBUTIONS)}, got {dist!r}")
+        a = self.number(f"{key}.amplitude_um", body["amplitude_um"], nonneg=True) * 1e-6
+        if lobed:
+            return PartForm(name, a, dist, lobes=self.integer(f"{key}.lobes", body["lobes"], 1))
+        wl = self.number(f"{key}.wavelength_mm", body["wavelength_mm"], positive=True) * 1e-3
+        along = None
+        if kind == "plane":
+            ax = body["along"]
+            if ax not in ("x", "y", "z"):
+                self.fail(f"{key}.along", f"expected \"x\", \"y\" or \"z\", got {ax!r}")
+            along = tuple(float(i == "xyz".index(ax)) for i in range(3))
+        return PartForm(name, a, dist, wavelength=wl, along=along)
 
     def temperature(self, t) -> Temperature:
         keys = [f.name for f in dataclasses.fields(Temperature)]
@@ -724,12 +807,12 @@ def evaluate(task: Task, rows: dict, p_R: np.ndarray, n_R: np.ndarray, stylus_r:
 # --------------------------------------------------------------------------- drawing the declared errors
 
 
-def draw_periodic(term: DeclaredTerm, rng: np.random.Generator) -> tuple[float, float]:
+def draw_periodic(term: "DeclaredTerm | PartForm", rng: np.random.Generator) -> tuple[float, float]:
     """One draw of a periodic term: (amplitude SI drawn as :func:`draw_term`, phase rad uniform in [0, 2 pi))."""
     return draw_term(term, rng), float(rng.uniform(0.0, 2.0 * math.pi))
 
 
-def draw_term(term: DeclaredTerm, rng: np.random.Generator) -> float:
+def draw_term(term: "DeclaredTerm | PartForm", rng: np.random.Generator) -> float:
     """One draw of a declared coefficient (SI): uniform, normal (sigma = bound / 2), triangular
     or arcsine (``bound sin(phi)``, phi uniform: a periodic error at an unknown phase), all
     within +-``bound`` except the normal's tails."""

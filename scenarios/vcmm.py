@@ -61,6 +61,7 @@ class Setting:
     targets: tuple = ()  # (k,) the plan's target of each used touch
     centre_R: np.ndarray | None = None   # (3,) the part's thermal centre: centroid of its probed surface points
     state: object = None  # core.state.MachineState: an identified state drawn from N(estimate, covariance)
+    form_u: tuple = ()    # per task.forms: form_axis (W) or None
 
 
 #: The budget's name of an identified machine state (``--machine-state``), and its key among a run's draws.
@@ -104,6 +105,55 @@ class Expanded:
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
         return (1.0 + self.e) * self.surface(self.c + (p - self.c) / (1.0 + self.e))
+
+
+@dataclass(frozen=True)
+class Formed:
+    """``surface`` with the part's form: its boundary ``f(p)`` further out (``sdf - f``), W, m.
+
+    ``f = a cos(k theta + phase)`` (``lobes`` k: theta the azimuth about the
+    circle's Z / the cylinder's axis from ``e1``) or ``a cos(2 pi (p - c) . u /
+    wavelength + phase)`` (plane, line: ``u`` along the surface). Evaluated at the
+    tip centre, which has the azimuth / coordinate ``s`` of its foot on the nominal
+    surface when it approaches along the normal: a point-contact model.
+    """
+
+    surface: Surface
+    a: float
+    phase: float
+    lobes: int | None = None
+    wavelength: float | None = None
+    u: np.ndarray | None = None   # plane, line: unit, along the surface; cylinder: e1
+
+    def f(self, p: np.ndarray) -> np.ndarray:
+        sf = self.surface
+        d = p - sf.c
+        if self.lobes is None:
+            return self.a * np.cos(2.0 * math.pi * (d @ self.u) / self.wavelength + self.phase)
+        if sf.kind == "ball":
+            th = np.arctan2(d[:, 1], d[:, 0])
+        else:
+            th = np.arctan2(d @ np.cross(sf.a, self.u), d @ self.u)
+        return self.a * np.cos(self.lobes * th + self.phase)
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        return self.surface(p) - self.f(p)
+
+
+def form_axis(sdf: Surface, form: V.PartForm) -> np.ndarray | None:
+    """The unit direction ``u`` of a feature's form (:class:`Formed`), W; None for a circle."""
+    if sdf.kind == "ball":
+        return None
+    if sdf.kind == "cylinder":
+        ref = np.array([1.0, 0.0, 0.0]) if abs(sdf.a[0]) < 0.99 else np.array([0.0, 1.0, 0.0])
+    elif form.along is None:   # a line: its direction z x n
+        ref = np.cross([0.0, 0.0, 1.0], sdf.a)
+    else:
+        ref = np.asarray(form.along, float)
+    u = ref - (ref @ sdf.a) * sdf.a
+    if np.linalg.norm(u) < 1e-6:
+        raise ConfigError(f"form.{form.feature}.along: the plane's normal; give an axis along the plane")
+    return u / np.linalg.norm(u)
 
 
 def _primitive_sdf(kind: str, p_W: np.ndarray, n_W: np.ndarray, r: float, name: str) -> Surface:
@@ -205,8 +255,10 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=No
     overlap = sum(len(v) for v in rows.values()) != len(used)
     if overlap:
         raise ConfigError(f"{task.source}: a plan row belongs to two features (each touch probes one surface)")
+    names = [f.name for f in task.features]
+    form_u = tuple(form_axis(sdfs[names.index(fm.feature)], fm) for fm in task.forms)
     sources = (tuple(t.source for t in task.declared) + ((V.PROBE_SOURCE,) if probe.sigma_m > 0 else ())
-               + task.probe_sources
+               + task.probe_sources + task.form_sources
                + (task.temperature.sources if task.temperature else ())
                + ((STATE_SOURCE,) if state is not None and state.factor.size else ()))
     if task.temperature is not None and rot is not None and np.any(rot != 0):
@@ -218,7 +270,7 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=No
             raise ConfigError(f"{task.source}: declared.{t.symbol}: axis {ax} is not in machine {cfg.name}'s "
                               f"chain {cfg.chain}")
     return Setting(task, rows, Xn_R, n_R, rot, tuple(sdfs), group, cfg, probe, sources,
-                   tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0), state)
+                   tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0), state, form_u)
 
 
 def machine_errors(st: Setting, coeffs: dict) -> dict:
@@ -227,7 +279,7 @@ def machine_errors(st: Setting, coeffs: dict) -> dict:
     from sim.errorfuncs import Constant, Periodic, Polynomial
 
     errs = dict(st.config.errors)
-    coeffs = {k: v for k, v in coeffs.items() if k[0] != "probe"}   # the probe's draws: probe_of
+    coeffs = {k: v for k, v in coeffs.items() if k[0] not in ("probe", "form")}   # probe_of, part_sdfs
     if STATE_KEY in coeffs:   # a drawn identified state replaces its estimate
         errs.update(state_errors(st.state, coeffs.pop(STATE_KEY)))
     for key in [k for k in coeffs if len(k) == 3]:
@@ -260,6 +312,20 @@ def probe_of(st: Setting, coeffs: dict):
     return p
 
 
+def part_sdfs(st: Setting, coeffs: dict) -> tuple:
+    """The features' surfaces with a run's drawn forms (``("form", feature)``: (amplitude m, phase rad))."""
+    if not st.task.forms:
+        return st.sdf_W
+    out = list(st.sdf_W)
+    names = [f.name for f in st.task.features]
+    for fm, u in zip(st.task.forms, st.form_u):
+        if ("form", fm.feature) in coeffs:
+            a, phase = coeffs[("form", fm.feature)]
+            k = names.index(fm.feature)
+            out[k] = Formed(out[k], a, phase, fm.lobes, fm.wavelength, u)
+    return tuple(out)
+
+
 def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, noise: bool = True,
                  machine=None, e_part: float = 0.0) -> np.ndarray:
     """Reported tip centres (k, 3) m of the used touches on the machine with ``coeffs`` drawn,
@@ -269,7 +335,8 @@ def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, 
 
     m = machine if machine is not None else Machine(dataclasses.replace(st.config, errors=machine_errors(st, coeffs)))
     k = len(st.Xn_R)
-    sdfs = st.sdf_W if e_part == 0.0 else tuple(Expanded(f, e_part, st.centre_R) for f in st.sdf_W)
+    sdfs = part_sdfs(st, coeffs)
+    sdfs = sdfs if e_part == 0.0 else tuple(Expanded(f, e_part, st.centre_R) for f in sdfs)
     res = simulate_touches(m, probe_of(st, coeffs), rng if noise else None, st.Xn_R + CLEARANCE_M * st.n_R, -st.n_R,
                            np.full(k, CLEARANCE_M + OVERSHOOT_M), st.rot_rad, np.zeros(k), np.full(k, FEED_MPS),
                            sdfs, st.group, np.broadcast_to(np.eye(4), (k, 4, 4)))
@@ -292,11 +359,12 @@ def draw(st: Setting, seed: int, run: int, active: tuple | None = None, swap: tu
     """
     nd = len(st.task.declared)
     nt = nd + 1 + len(V.THERMAL_SOURCES)   # then: the state, the pre-travel, the lobing (a child keeps its index)
-    ss = list(V.run_seeds(seed, run).spawn(nt + 3))
+    nf = len(st.task.forms)   # the forms' streams come last: adding them leaves the others' draws
+    ss = list(V.run_seeds(seed, run).spawn(nt + 3 + nf))
     if swap is not None:
-        ssb = V.run_seeds(seed, swap[0]).spawn(nt + 3)
+        ssb = V.run_seeds(seed, swap[0]).spawn(nt + 3 + nf)
         names = ([t.source for t in st.task.declared] + [V.PROBE_SOURCE] + list(V.THERMAL_SOURCES)
-                 + [STATE_SOURCE, V.PRETRAVEL_SOURCE, V.LOBING_SOURCE])
+                 + [STATE_SOURCE, V.PRETRAVEL_SOURCE, V.LOBING_SOURCE] + list(st.task.form_sources))
         ss = [b if n in swap[1] else a for a, b, n in zip(ss, ssb, names)]
     coeffs = {}
     for t, s in zip(st.task.declared, ss):
@@ -319,6 +387,9 @@ def draw(st: Setting, seed: int, run: int, active: tuple | None = None, swap: tu
     if task.lobing is not None and (active is None or V.LOBING_SOURCE in active):
         a, psi = V.draw_periodic(task.lobing, np.random.default_rng(ss[nt + 2]))
         coeffs[("probe", "lobing")] = (int(task.lobing.period), a * math.cos(psi), a * math.sin(psi))
+    for j, fm in enumerate(task.forms):
+        if active is None or fm.source in active:
+            coeffs[("form", fm.feature)] = V.draw_periodic(fm, np.random.default_rng(ss[nt + 3 + j]))
     return coeffs, np.random.default_rng(ss[nd]), thermal
 
 
@@ -538,6 +609,9 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
                           + {0: "", 1: "/m", 2: "/m2"}[t.power],
                           **({"period_mm": t.period * 1e3} if t.period else {})} for t in task.declared],
             "probe_noise_um": st.probe.sigma_m * 1e6,
+            "part_form": [{"source": f.source, "amplitude_um": f.bound * 1e6, "distribution": f.distribution,
+                           **({"lobes": f.lobes} if f.lobes else {"wavelength_mm": f.wavelength * 1e3})}
+                          for f in task.forms],
             "probe_declared": [{"source": src, "bound_um": t.bound * 1e6, "distribution": t.distribution,
                                 **({"lobes": int(t.period)} if t.term == "lobing" else {})}
                                for src, t in ((V.PRETRAVEL_SOURCE, task.pretravel), (V.LOBING_SOURCE, task.lobing))
