@@ -51,6 +51,12 @@ Task file (units in the key names)::
     # along = "x"                #   surface (line: its direction; plane: this axis projected on it)
     distribution = "uniform"
 
+    [drift]                      # the machine's thermal drift during the measurement
+    x_um_per_h = 3.0             # rate of the X offset (an EXX growing with time), drawn within +-3 um/h
+    z_um_per_h = 5.0             # (x, y, z: each one source "EXX drift", "EYY drift", "EZZ drift")
+    distribution = "uniform"
+    touches_per_min = 6.0        # when the plan has no t_s: row i starts at i / rate (plan order)
+
     [temperature]                # results at 20 C, corrected with the best estimates
     part_C = 22.0                # the part's temperature during the measurement
     u_part_K = 0.5               # its standard uncertainty (normal)
@@ -105,6 +111,14 @@ centre's foot on the nominal surface (the ball's mechanical filtering of
 waves shorter than about its radius is not modelled). A sphere takes no
 form.
 
+Drift (``[drift]``): the axis's positioning error grows as ``v t`` (m, ``v``
+drawn within +-the rate), zero at the plan's first row (the datum is taken
+there), ``t`` the start of a touch's approach: the plan's ``t_s`` minus its
+first finite value when every used row has one, else the row's index in
+the plan over ``touches_per_min`` (rows no feature uses still take their
+time). The touch meets the part ``CLEARANCE / feed`` later (0.25 s), the same
+for every touch.
+
 Declared terms: ``constant_U``, and for a linear axis's motion errors also
 ``slope_U_per_m`` and ``quadratic_U_per_m2`` (``U`` = ``um`` for a
 translation, ``urad`` for a rotation) of the axis reading, the same
@@ -144,7 +158,8 @@ DISTRIBUTIONS = ("uniform", "normal", "triangular", "arcsine")
 U_PER_BOUND = {"uniform": 1 / math.sqrt(3), "normal": 0.5, "triangular": 1 / math.sqrt(6),
                "arcsine": 1 / math.sqrt(2)}
 #: Power of the axis reading of each declared term.
-TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2, "periodic": 0, "pretravel": 0, "lobing": 0, "form": 0}
+TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2, "periodic": 0, "pretravel": 0, "lobing": 0, "form": 0,
+              "drift": 0}
 PROBE_SOURCE = "probe repeatability"
 #: The declared probe terms' budget names (``[probe] pretravel_um``, ``lobing_um``).
 PRETRAVEL_SOURCE = "probe pre-travel"
@@ -337,12 +352,19 @@ class Task:
     pretravel: DeclaredTerm | None = None   # symbol "probe", term "pretravel": bound m
     lobing: DeclaredTerm | None = None      # symbol "probe", term "lobing", period = the number of lobes
     forms: tuple = ()                       # PartForm, one per feature at most
+    drift: tuple = ()                       # DeclaredTerm "EXX"/"EYY"/"EZZ", term "drift": bound m/s
+    touches_per_min: float | None = None    # [drift] touches_per_min
 
     @property
     def probe_sources(self) -> tuple:
         """The declared probe terms' budget names."""
         return ((PRETRAVEL_SOURCE,) if self.pretravel is not None else ()) + (
             (LOBING_SOURCE,) if self.lobing is not None else ())
+
+    @property
+    def drift_sources(self) -> tuple:
+        """The declared drifts' budget names, ``EXX drift`` ..."""
+        return tuple(t.source for t in self.drift)
 
     @property
     def form_sources(self) -> tuple:
@@ -381,7 +403,7 @@ class _TaskReader(KeyReader):
 
     def task(self, doc) -> Task:
         self.keys("", doc, ("format", "description", "features", "measurands", "declared", "probe", "mc",
-                            "temperature", "form"))
+                            "temperature", "form", "drift"))
         if "format" in doc and doc["format"] != FORMAT:
             self.fail("format", f"expected {FORMAT!r}, got {doc['format']!r}")
         feats = tuple(self.feature(n, b) for n, b in self.table("features", doc.get("features", {})).items())
@@ -417,8 +439,23 @@ class _TaskReader(KeyReader):
         temp = self.temperature(self.table("temperature", doc["temperature"])) if "temperature" in doc else None
         forms = tuple(self.form(n, self.table(f"form.{n}", b), kinds)
                       for n, b in self.table("form", doc.get("form", {})).items())
+        drift, rate = self.drift(self.table("drift", doc["drift"])) if "drift" in doc else ((), None)
         return Task(feats, meas, tuple(declared), noise, self.mc(self.table("mc", doc.get("mc", {}))), self.source,
-                    temp, pre, lob, forms)
+                    temp, pre, lob, forms, drift, rate)
+
+    def drift(self, t) -> tuple:
+        axes = {f"{a}_um_per_h": f"E{a.upper()}{a.upper()}" for a in "xyz"}
+        self.keys("drift", t, tuple(axes) + ("distribution", "touches_per_min"))
+        dist = t.get("distribution", "uniform")
+        if dist not in DISTRIBUTIONS:
+            self.fail("drift.distribution", f"expected one of {', '.join(DISTRIBUTIONS)}, got {dist!r}")
+        terms = tuple(DeclaredTerm(sym, "drift", self.number(f"drift.{k}", t[k], nonneg=True) * 1e-6 / 3600.0, dist)
+                      for k, sym in axes.items() if k in t)
+        if not terms:
+            self.fail("drift", f"no rate (expected one of {', '.join(axes)})")
+        rate = self.number("drift.touches_per_min", t["touches_per_min"], positive=True) if "touches_per_min" in t \
+            else None
+        return terms, rate
 
     def form(self, name, body, kinds) -> PartForm:
         key = f"form.{name}"

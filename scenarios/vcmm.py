@@ -62,6 +62,7 @@ class Setting:
     centre_R: np.ndarray | None = None   # (3,) the part's thermal centre: centroid of its probed surface points
     state: object = None  # core.state.MachineState: an identified state drawn from N(estimate, covariance)
     form_u: tuple = ()    # per task.forms: form_axis (W) or None
+    t0_s: np.ndarray | None = None   # (k,) start of each touch's approach, s ([drift]; else 0)
 
 
 #: The budget's name of an identified machine state (``--machine-state``), and its key among a run's draws.
@@ -258,7 +259,7 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=No
     names = [f.name for f in task.features]
     form_u = tuple(form_axis(sdfs[names.index(fm.feature)], fm) for fm in task.forms)
     sources = (tuple(t.source for t in task.declared) + ((V.PROBE_SOURCE,) if probe.sigma_m > 0 else ())
-               + task.probe_sources + task.form_sources
+               + task.probe_sources + task.form_sources + task.drift_sources
                + (task.temperature.sources if task.temperature else ())
                + ((STATE_SOURCE,) if state is not None and state.factor.size else ()))
     if task.temperature is not None and rot is not None and np.any(rot != 0):
@@ -270,16 +271,33 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=No
             raise ConfigError(f"{task.source}: declared.{t.symbol}: axis {ax} is not in machine {cfg.name}'s "
                               f"chain {cfg.chain}")
     return Setting(task, rows, Xn_R, n_R, rot, tuple(sdfs), group, cfg, probe, sources,
-                   tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0), state, form_u)
+                   tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0), state, form_u,
+                   touch_times(plan, task, used))
+
+
+def touch_times(plan, task: V.Task, used: np.ndarray) -> np.ndarray | None:
+    """Start of each used touch's approach (k,) s for a task with ``[drift]`` (module doc of core.vcmm), else None."""
+    if not task.drift:
+        return None
+    t = plan.col("t_s").astype(float) if plan.has("t_s") else np.full(plan.n, np.nan)
+    if np.all(np.isfinite(t[used])):
+        return t[used] - np.nanmin(t)
+    if task.touches_per_min is None:
+        raise ConfigError(f"{task.source}: [drift] needs the plan's t_s on every used row or "
+                          "drift.touches_per_min")
+    return used.astype(float) * 60.0 / task.touches_per_min
 
 
 def machine_errors(st: Setting, coeffs: dict) -> dict:
     """The machine file's errors plus the drawn terms ``{(symbol, power): value SI}`` (a periodic
     term: ``{(symbol, "periodic", k): (amplitude SI, period m, phase rad)}``)."""
-    from sim.errorfuncs import Constant, Periodic, Polynomial
+    from sim.errorfuncs import Constant, Drift, Periodic, Polynomial
 
     errs = dict(st.config.errors)
-    coeffs = {k: v for k, v in coeffs.items() if k[0] not in ("probe", "form")}   # probe_of, part_sdfs
+    for sym in [k[1] for k in coeffs if k[0] == "drift"]:
+        f = Drift(offset_rate=coeffs[("drift", sym)])
+        errs[sym] = errs[sym] + f if sym in errs else f
+    coeffs = {k: v for k, v in coeffs.items() if k[0] not in ("probe", "form", "drift")}   # probe_of, part_sdfs
     if STATE_KEY in coeffs:   # a drawn identified state replaces its estimate
         errs.update(state_errors(st.state, coeffs.pop(STATE_KEY)))
     for key in [k for k in coeffs if len(k) == 3]:
@@ -338,7 +356,7 @@ def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, 
     sdfs = part_sdfs(st, coeffs)
     sdfs = sdfs if e_part == 0.0 else tuple(Expanded(f, e_part, st.centre_R) for f in sdfs)
     res = simulate_touches(m, probe_of(st, coeffs), rng if noise else None, st.Xn_R + CLEARANCE_M * st.n_R, -st.n_R,
-                           np.full(k, CLEARANCE_M + OVERSHOOT_M), st.rot_rad, np.zeros(k), np.full(k, FEED_MPS),
+                           np.full(k, CLEARANCE_M + OVERSHOOT_M), st.rot_rad, np.zeros(k) if st.t0_s is None else st.t0_s, np.full(k, FEED_MPS),
                            sdfs, st.group, np.broadcast_to(np.eye(4), (k, 4, 4)))
     bad = res.status != ProbeStatus.OK
     if bad.any():
@@ -359,12 +377,14 @@ def draw(st: Setting, seed: int, run: int, active: tuple | None = None, swap: tu
     """
     nd = len(st.task.declared)
     nt = nd + 1 + len(V.THERMAL_SOURCES)   # then: the state, the pre-travel, the lobing (a child keeps its index)
-    nf = len(st.task.forms)   # the forms' streams come last: adding them leaves the others' draws
-    ss = list(V.run_seeds(seed, run).spawn(nt + 3 + nf))
+    nf = len(st.task.forms)   # the forms' then the drifts' streams come last: adding them leaves the others' draws
+    ns = nt + 3 + nf + len(st.task.drift)
+    ss = list(V.run_seeds(seed, run).spawn(ns))
     if swap is not None:
-        ssb = V.run_seeds(seed, swap[0]).spawn(nt + 3 + nf)
+        ssb = V.run_seeds(seed, swap[0]).spawn(ns)
         names = ([t.source for t in st.task.declared] + [V.PROBE_SOURCE] + list(V.THERMAL_SOURCES)
-                 + [STATE_SOURCE, V.PRETRAVEL_SOURCE, V.LOBING_SOURCE] + list(st.task.form_sources))
+                 + [STATE_SOURCE, V.PRETRAVEL_SOURCE, V.LOBING_SOURCE] + list(st.task.form_sources)
+                 + list(st.task.drift_sources))
         ss = [b if n in swap[1] else a for a, b, n in zip(ss, ssb, names)]
     coeffs = {}
     for t, s in zip(st.task.declared, ss):
@@ -390,6 +410,9 @@ def draw(st: Setting, seed: int, run: int, active: tuple | None = None, swap: tu
     for j, fm in enumerate(task.forms):
         if active is None or fm.source in active:
             coeffs[("form", fm.feature)] = V.draw_periodic(fm, np.random.default_rng(ss[nt + 3 + j]))
+    for j, t in enumerate(task.drift):
+        if active is None or t.source in active:
+            coeffs[("drift", t.symbol)] = V.draw_term(t, np.random.default_rng(ss[nt + 3 + nf + j]))
     return coeffs, np.random.default_rng(ss[nd]), thermal
 
 
@@ -421,7 +444,8 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: li
     out = np.empty((len(runs), len(st.task.measurands)))
     r_st = st.probe.stylus_r_m
     fixed = None
-    if active is not None and not any(t.source in active for t in st.task.declared) and STATE_SOURCE not in active:
+    if (active is not None and not any(t.source in active for t in st.task.declared + st.task.drift)
+            and STATE_SOURCE not in active):
         from sim.machine import Machine
 
         fixed = Machine(st.config)   # no declared term drawn: one machine for every run
@@ -612,6 +636,8 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             "part_form": [{"source": f.source, "amplitude_um": f.bound * 1e6, "distribution": f.distribution,
                            **({"lobes": f.lobes} if f.lobes else {"wavelength_mm": f.wavelength * 1e3})}
                           for f in task.forms],
+            "drift": [{"source": t.source, "bound_um_per_h": t.bound * 1e6 * 3600.0, "distribution": t.distribution}
+                      for t in task.drift],
             "probe_declared": [{"source": src, "bound_um": t.bound * 1e6, "distribution": t.distribution,
                                 **({"lobes": int(t.period)} if t.term == "lobing" else {})}
                                for src, t in ((V.PRETRAVEL_SOURCE, task.pretravel), (V.LOBING_SOURCE, task.lobing))
