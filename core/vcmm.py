@@ -900,6 +900,43 @@ def mc_stats(y: np.ndarray, p: float = 0.95) -> MCStats:
     return MCStats(float(y.mean()), float(y.std(ddof=1)), float(s[r - 1]), float(s[min(r + q, M) - 1]), M)
 
 
+def saltelli_first_order(fA: np.ndarray, fB: np.ndarray, fAB: dict) -> tuple[dict, dict]:
+    """First-order Sobol indices and their standard errors from pick-and-freeze samples.
+
+    Saltelli et al. 2010 (Comput. Phys. Commun. 181, 259-270), table 2 (b):
+    ``S_i = mean(f_B (f_{A_B^i} - f_A)) / V``, all values centred on the mean of
+    ``f_A`` and ``f_B`` (the estimator is unbiased either way, but its variance
+    grows with the mean squared), ``V`` the variance of ``f_A`` and ``f_B``
+    together. The standard error is that of the numerator's mean over the ``n``
+    rows, divided by ``V`` (``V`` taken as known: its own error is second order).
+
+    Parameters
+    ----------
+    fA, fB : (n, m) float
+        The model on the rows of the matrices A and B (m outputs).
+    fAB : dict
+        ``{source: (n, m)}``: on A with that source's column taken from B.
+
+    Returns
+    -------
+    (S, se) : dicts ``{source: (m,) float}``; NaN for an output without variance.
+    """
+    fA, fB = np.atleast_2d(np.asarray(fA, float)), np.atleast_2d(np.asarray(fB, float))
+    n = fA.shape[0]
+    if n < 2 or fB.shape != fA.shape:
+        raise ConfigError(f"Sobol indices need A and B of the same shape with >= 2 rows, got {fA.shape}, {fB.shape}")
+    c = np.vstack([fA, fB]).mean(axis=0)
+    fA, fB = fA - c, fB - c
+    var = np.var(np.vstack([fA, fB]), axis=0)
+    S, se = {}, {}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for src, f in fAB.items():
+            t = fB * (np.asarray(f, float) - c - fA)
+            S[src] = np.where(var > 0, t.mean(axis=0) / var, np.nan)
+            se[src] = np.where(var > 0, t.std(axis=0, ddof=1) / math.sqrt(n) / var, np.nan)
+    return S, se
+
+
 def numerical_tolerance(u: float, n_dig: int) -> float:
     """JCGM 101 7.9.2: write ``u`` as ``c 10^l`` with ``c`` an ``n_dig``-digit integer; delta = 10^l / 2."""
     if not (u > 0 and math.isfinite(u)):

@@ -463,30 +463,31 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: li
 SOBOL_FIRST_RUN = 10 ** 9
 
 
-def sobol_first_order(st: Setting, seed: int, n: int, progress=None, done_before: int = 0) -> dict:
-    """First-order Sobol indices of every source for every measurand, ``{source: (m,) float}``.
+def sobol_samples(st: Setting, seed: int, n: int, progress=None, done_before: int = 0):
+    """The pick-and-freeze samples: ``(f_A, f_B, {source: f_{A_B^i}})``, each (n, m) SI.
 
-    Pick-and-freeze with Saltelli's estimator (Saltelli et al. 2010, Comput. Phys. Commun. 181,
-    eq. (b) of table 2): ``A`` the runs ``N0 .. N0+n-1``, ``B`` the next ``n``, ``A_B^i`` the runs of
-    ``A`` with source ``i`` drawn as in ``B``; ``S_i = mean(f_B (f_{A_B^i} - f_A)) / V`` with ``V``
-    the variance of ``f_A`` and ``f_B`` together, all centred on their mean. ``n (k + 2)`` runs for
-    ``k`` sources. A measurand
-    without variance gets NaN. The indices sum to 1 for an additive model; less means interactions.
+    ``A`` the runs ``N0 .. N0+n-1``, ``B`` the next ``n``, ``A_B^i`` the runs of ``A`` with
+    source ``i`` drawn as in ``B`` (its own stream, :func:`draw`): ``n (k + 2)`` runs for ``k``
+    sources.
     """
     N0 = SOBOL_FIRST_RUN
     fA = run_values(st, seed, range(N0, N0 + n))
     fB = run_values(st, seed, range(N0 + n, N0 + 2 * n))
-    c = np.vstack([fA, fB]).mean(axis=0)   # centred: the estimator's variance grows with the mean^2
-    fA, fB = fA - c, fB - c
-    var = np.var(np.vstack([fA, fB]), axis=0)
-    out = {}
+    fAB = {}
     for i, src in enumerate(st.sources):
         if progress is not None:
             progress(done_before + (i + 2) * n, done_before + (len(st.sources) + 2) * n)
-        fAB = run_values(st, seed, range(N0, N0 + n), swap=(n, (src,))) - c
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out[src] = np.where(var > 0, np.mean(fB * (fAB - fA), axis=0) / var, np.nan)
-    return out
+        fAB[src] = run_values(st, seed, range(N0, N0 + n), swap=(n, (src,)))
+    return fA, fB, fAB
+
+
+def sobol_first_order(st: Setting, seed: int, n: int, progress=None, done_before: int = 0) -> tuple[dict, dict]:
+    """First-order Sobol indices of every source for every measurand and their standard errors,
+    ``({source: (m,) float}, {source: (m,) float})``: :func:`core.vcmm.saltelli_first_order` of
+    :func:`sobol_samples`. A measurand without variance gets NaN. The indices sum to 1 for an
+    additive model; less means interactions.
+    """
+    return V.saltelli_first_order(*sobol_samples(st, seed, n, progress, done_before))
 
 
 #: Runs per task shipped to a Dask worker (a batch of M runs is M / CHUNK_RUNS tasks).
@@ -554,6 +555,11 @@ def adaptive(st: Setting, seed: int, active: tuple | None, which: str, first_run
             return vals, ok
 
 
+def _of_measurand(d: dict, j: int) -> dict | None:
+    """``{source: (m,) float}`` -> ``{source: float or None (NaN)}`` of measurand ``j``; None when empty."""
+    return {k: (None if not np.isfinite(v[j]) else float(v[j])) for k, v in d.items()} if d else None
+
+
 def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, dask: str | None = None,
           sobol_runs: int = 0) -> dict:
     """The full study: nominal values, the adaptive MC, the one-at-a-time budget.
@@ -592,9 +598,9 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             done += len(v)
             bud[src] = v.std(axis=0, ddof=1)
             bud_runs[src] = len(v)
-    sob = {}
+    sob, sob_se = {}, {}
     if sobol_runs:
-        sob = sobol_first_order(st, seed, sobol_runs, progress=progress, done_before=done)
+        sob, sob_se = sobol_first_order(st, seed, sobol_runs, progress=progress, done_before=done)
         done += sobol_runs * (len(st.sources) + 2)
     elapsed = time.perf_counter() - t0
     out = []
@@ -619,8 +625,8 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             "budget": [{"source": k, "u": u * m.u_scale, "share": (u * u / ss) if ss > 0 else 0.0,
                         "runs": bud_runs[k]} for k, u in u_src.items()],
             "budget_rss_over_u": (math.sqrt(ss) / s.u) if (budget and s.u > 0) else None,
-            "sobol_first_order": ({k: (None if not np.isfinite(v[j]) else float(v[j])) for k, v in sob.items()}
-                                  if sob else None),
+            "sobol_first_order": _of_measurand(sob, j),
+            "sobol_first_order_se": _of_measurand(sob_se, j),
         })
     return {"format": "vmt-vcmm/1", "machine": st.config.name, "task": task.source,
             "touches": int(len(st.Xn_R)), "runs": int(len(vals)), "batch_runs": task.mc.batch_runs,
