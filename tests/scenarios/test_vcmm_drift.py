@@ -61,12 +61,10 @@ def test_drift_needs_times(machine):
         S.prepare(GAUGE, V.loads_task(GAUGE_TASK + DRIFT), machine)
 
 
-@pytest.mark.parametrize("body, match", [
+#: Bad [drift] tables (checked with the bad [form] tables: tests/scenarios/test_vcmm_form.py).
+BAD_DRIFT = [
     ("[drift]\ntouches_per_min = 6\n", "drift: no rate"),
     ("[drift]\nx_um_per_h = -1\n", "drift.x_um_per_h: must be >= 0"),
     ("[drift]\nx_um_per_h = 1\ntouches_per_min = 0\n", "drift.touches_per_min"),
     ("[drift]\nw_um_per_h = 1\n", "drift.w_um_per_h: unknown key"),
-])
-def test_bad_drift_names_the_key(body, match):
-    with pytest.raises(V.TaskFileError, match=match):
-        V.loads_task(GAUGE_TASK + body)
+]

@@ -20,6 +20,7 @@ import pytest
 from core import vcmm as V
 from scenarios import vcmm as S
 from sim.machinefile import resolve
+from tests.scenarios.test_vcmm_drift import BAD_DRIFT
 from tests.scenarios.test_vcmm_line_profile import HEAD, PLAN, XS, meas
 from tests.scenarios.test_vcmm_study import BORE, C_MM, R_MM
 
@@ -72,8 +73,8 @@ def test_wave_form_of_a_line(machine):
     ('[form.rail]\namplitude_um = -1\nwavelength_mm = 5\n', "form.rail.amplitude_um: must be >= 0"),
     ('[form.rail]\namplitude_um = 1\nwavelength_mm = 0\n', "form.rail.wavelength_mm"),
     ('[form.rail]\namplitude_um = 1\nwavelength_mm = 5\ndistribution = "cauchy"\n', "form.rail.distribution"),
-])
-def test_bad_form_names_the_key(body, match):
+] + BAD_DRIFT)
+def test_bad_form_or_drift_names_the_key(body, match):
     with pytest.raises(V.TaskFileError, match=match):
         V.loads_task(HEAD + meas("s", "straightness", "rail") + body)
 
