@@ -102,8 +102,9 @@ The part's form (``[form.FEATURE]``): the feature's surface lies ``f`` out of
 its nominal along the nominal outward normal (+ = excess material, as the
 profile deviation's sign), a circle's or cylinder's
 ``f = a cos(k theta + phi)`` with ``theta`` the azimuth about its axis (a
-circle: about Z; a cylinder: from the axis' perpendicular nearest +X, or +Y
-for an axis along X), a plane's or line's ``f = a cos(2 pi s / wavelength +
+circle: about Z from +X; a cylinder: anticlockwise about its axis directed
+along its largest component, positive, from the axis' perpendicular nearest
++X, or +Y for an axis along X), a plane's or line's ``f = a cos(2 pi s / wavelength +
 phi)`` with ``s`` the coordinate along the surface; ``a`` drawn within
 +-``amplitude_um`` by the distribution, ``phi`` uniform, each feature one
 source ``form of FEATURE``. A point-contact model: ``f`` is taken at the tip

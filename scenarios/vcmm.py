@@ -133,8 +133,9 @@ class Formed:
             return self.a * np.cos(2.0 * math.pi * (d @ self.u) / self.wavelength + self.phase)
         if sf.kind == "ball":
             th = np.arctan2(d[:, 1], d[:, 0])
-        else:
-            th = np.arctan2(d @ np.cross(sf.a, self.u), d @ self.u)
+        else:   # anticlockwise about the axis directed along its largest component, positive
+            ax = sf.a if sf.a[np.argmax(np.abs(sf.a))] > 0 else -sf.a
+            th = np.arctan2(d @ np.cross(ax, self.u), d @ self.u)
         return self.a * np.cos(self.lobes * th + self.phase)
 
     def __call__(self, p: np.ndarray) -> np.ndarray:

@@ -49,6 +49,28 @@ def test_three_lobe_form_of_a_bore(machine):
         assert dq[i] == pytest.approx(f, abs=1e-12)
 
 
+def test_three_lobe_form_of_a_cylinder_bore(machine):
+    """The bore as a cylinder (two rings of 8 at z = -5 and -15 mm): f_i = a cos(3 theta_i + phi),
+    theta anticlockwise about +Z from +X; the cylinder does not move, the cylindricity is ptp(f_i)."""
+    from tests.scenarios.test_vcmm_study import plan_of
+
+    az = np.deg2rad(22.5 + 45.0 * np.arange(8))
+    plan = plan_of([("bore", (C_MM[0] + R_MM * math.cos(a), C_MM[1] + R_MM * math.sin(a), z),
+                     (-math.cos(a), -math.sin(a), 0.0)) for z in (-5.0, -15.0) for a in az])
+    task = ('[features.bore]\nkind = "cylinder"\nfeature = "bore"\n[probe]\nnoise_um = 0.0\n'
+            + meas("d", "diameter", "bore") + meas("cyl", "cylindricity", "bore")
+            + '[form.bore]\namplitude_um = 1.5\nlobes = 3\ndistribution = "triangular"\n')
+    st = S.prepare(plan, V.loads_task(task), machine)
+    dq: list = []
+    y = S.run_values(st, 6, range(4), dq=dq)
+    th = np.tile(az, 2)
+    for i in range(4):
+        a, phi = S.draw(st, 6, i)[0][("form", "bore")]
+        f = a * np.cos(3 * th + phi)
+        assert dq[i] == pytest.approx(f, abs=1e-12)
+        assert y[i] == pytest.approx([2 * R_MM * 1e-3, np.ptp(f)], abs=1e-12)
+
+
 def test_wave_form_of_a_line(machine):
     task = (HEAD + meas("straight", "straightness", "rail") + meas("pmax", "profile", "rail", "max")
             + meas("prms", "profile", "rail", "rms") + meas("side pmax", "profile", "side", "max")
