@@ -51,7 +51,7 @@ def _quat(R: np.ndarray) -> np.ndarray:
 
 
 def _f(v) -> str:
-    return " ".join(repr(float(x)) for x in np.ravel(v))
+    return " ".join(map(repr, np.ravel(np.asarray(v, float)).tolist()))
 
 
 def scene_mjcf(artefact: Artefact, probe: ProbeConfig, T_W_A: np.ndarray | None = None) -> tuple[str, list]:
@@ -120,6 +120,7 @@ class Scene:
         self.stylus = m.geom("stylus").id
         self._tq = m.jnt_qposadr[m.joint("table").id]
         self._sq = m.jnt_qposadr[m.joint("spindle").id]
+        self._clr = None
         self.set_table(np.eye(4))
 
     def set_table(self, T_R_W: np.ndarray) -> None:
@@ -156,6 +157,21 @@ class Scene:
             out.append((str(self.geom_name[pg]), str(self.geom_name[ag]), float(dist)))
         return out
 
+    def clearance(self):
+        """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose."""
+        from .clearance import Clearance, model_geoms
+
+        key = np.array(self.data.qpos[self._tq:self._tq + 7])
+        if self._clr is None or not np.array_equal(self._clr[0], key):
+            self.set_tip(np.zeros(3))
+            m = self.model
+            table = m.body("table").id
+            tg = [i for i in range(m.ngeom) if m.geom_bodyid[i] == table]
+            pg = [i for i in range(m.ngeom) if m.geom_bodyid[i] != table]
+            self._clr = (key, Clearance(model_geoms(m, self.data, pg), model_geoms(m, self.data, tg),
+                                        self.geom_feature[tg], pg.index(self.stylus)))
+        return self._clr[1]
+
     def geom_distance(self, geom_a: str, geom_b: str, distmax: float = 1.0) -> float:
         """MuJoCo's signed distance between two named geoms (current poses), m."""
         m, d = self.model, self.data
@@ -165,6 +181,7 @@ class Scene:
     def check_path(self, pts_R: np.ndarray, allow_feature: str = "", step_m: float = 0.5e-3):
         """First collision on the polyline ``pts_R`` (m,3), sampled every ``step_m``.
 
+        MuJoCo at every sample (the reference :func:`check_touch_paths` must agree with).
         Returns ``None`` or ``(point (3,), collisions)``.
         """
         pts = np.asarray(pts_R, float)
@@ -180,8 +197,16 @@ class Scene:
 
 
 def check_touch_paths(scene: Scene, setup: str, targets, features, links, approach,
-                      link_step_m: float = 2.0e-3, approach_step_m: float = 0.25e-3) -> None:
+                      link_step_m: float = 2.0e-3, approach_step_m: float = 0.25e-3,
+                      broad_phase: bool = True) -> None:
     """Check every touch's link move and approach/retract path; PlanError on a crash.
+
+    The samples are those of :meth:`Scene.check_path` (every ``link_step_m``
+    on the links, ``approach_step_m`` on the approaches), in the same order;
+    the ones :mod:`sim.clearance` proves clear of every table geom by more
+    than :data:`sim.clearance.MARGIN_M` are skipped, the others go to MuJoCo
+    (:meth:`Scene.collisions`), so the first collision reported is the one
+    the sample-by-sample check finds.
 
     Parameters
     ----------
@@ -194,22 +219,28 @@ def check_touch_paths(scene: Scene, setup: str, targets, features, links, approa
     approach : (n,2,3) float
         Start and nominal contact position of the stylus centre (R, m); the
         retract retraces the approach.
+    broad_phase : bool
+        False: MuJoCo at every sample (the reference the tests compare with).
     """
     key = _paths_key(scene, features, links, approach, link_step_m, approach_step_m)
     if key in _PASSED:
         return
-    for i, tgt in enumerate(targets):
+    from .clearance import path_samples
+
+    paths = []  # (target index, phase, polyline, step, allowed feature), in the order checked
+    for i in range(len(targets)):
         if links[i] is not None and len(links[i]) > 1:
-            hit = scene.check_path(links[i], "", link_step_m)
-            if hit:
-                p, c = hit
-                raise PlanError(f"set-up {setup!r} target {tgt!r}: link move crashes: {c[0][0]} hits "
-                                f"{c[0][1]} at {np.round(p * 1e3, 3).tolist()} mm")
-        hit = scene.check_path(approach[i], features[i], approach_step_m)
-        if hit:
-            p, c = hit
-            raise PlanError(f"set-up {setup!r} target {tgt!r}: approach/retract path crashes: {c[0][0]} hits "
-                            f"{c[0][1]} at {np.round(p * 1e3, 3).tolist()} mm")
+            paths.append((i, "link move", links[i], link_step_m, ""))
+        paths.append((i, "approach/retract path", approach[i], approach_step_m, features[i]))
+    pts, seg, which = path_samples([p[2] for p in paths], [p[3] for p in paths], joints=True)
+    allow = np.array([p[4] for p in paths], dtype=object)[which]
+    near = scene.clearance().near(pts, allow, seg) if broad_phase else np.ones(len(pts), bool)
+    for k in np.flatnonzero(near):  # in path order
+        i, phase, _, _, feat = paths[which[k]]
+        c = scene.collisions(pts[k], feat)
+        if c:
+            raise PlanError(f"set-up {setup!r} target {targets[i]!r}: {phase} crashes: {c[0][0]} hits "
+                            f"{c[0][1]} at {np.round(pts[k] * 1e3, 3).tolist()} mm")
     _PASSED.add(key)
 
 
