@@ -299,10 +299,10 @@ class _PathChecker:
         self.scene = self.T_W_A = None
 
     def check(self, st: Setup, plan: Plan, mv: SetupMoves) -> None:
-        from .scene import Scene, check_touch_paths
+        from .scene import check_touch_paths, scene_for
 
         if self.scene is None or not np.array_equal(self.T_W_A, st.T_W_A):
-            self.scene = Scene(self.art, self.probe, st.T_W_A)
+            self.scene = scene_for(self.art, self.probe, st.T_W_A)
             self.T_W_A = np.asarray(st.T_W_A)
         self.scene.set_table(mv.T_R_W)
         check_touch_paths(self.scene, st.name, plan.target, plan.feature, mv.links,

@@ -56,11 +56,11 @@ class Geoms:
 
     def extent(self, u: np.ndarray) -> np.ndarray:
         """Support function about the centre, ``ext(u) = max_x (x - c) . u``, (k,) for unit u (k,3)."""
-        au = np.einsum("kji,kj->ki", self.axes, u)  # u in the geom's frame
+        au = _tmv(self.axes, u)  # u in the geom's frame
         s = self.size
         r, h = s[:, 0], s[:, 1]
         az = np.abs(au[:, 2])
-        box = np.einsum("ki,ki->k", np.abs(au), s)
+        box = np.abs(au[:, 0]) * s[:, 0] + np.abs(au[:, 1]) * s[:, 1] + np.abs(au[:, 2]) * s[:, 2]
         cyl = h * az + r * np.sqrt(np.maximum(0.0, 1.0 - az * az))
         out = np.where(self.kind == _SPHERE, r,
                        np.where(self.kind == _CAPSULE, h * az + r,
@@ -71,7 +71,7 @@ class Geoms:
     def closest(self, q: np.ndarray) -> np.ndarray:
         """A point of each geom near ``q`` (k,3): the closest for a box, cylinder, sphere (centre
         for other types); only used to choose a separating axis."""
-        ql = np.einsum("kji,kj->ki", self.axes, q - self.centre)
+        ql = _tmv(self.axes, q - self.centre)
         s = self.size
         box = np.clip(ql, -s, s)
         rho = np.hypot(ql[:, 0], ql[:, 1])
@@ -79,7 +79,7 @@ class Geoms:
         cyl = np.column_stack([ql[:, 0] * f, ql[:, 1] * f, np.clip(ql[:, 2], -s[:, 1], s[:, 1])])
         loc = np.where((self.kind == _BOX)[:, None], box,
                        np.where((self.kind == _CYLINDER)[:, None], cyl, 0.0))
-        return self.centre + np.einsum("kij,kj->ki", self.axes, loc)
+        return self.centre + _mv(self.axes, loc)
 
     def aabb(self) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi) (k,3): axis-aligned boxes containing the geoms."""
@@ -87,7 +87,7 @@ class Geoms:
         s = self.size
         r, h = s[:, 0], s[:, 1]
         az = A[:, :, 2]
-        box = np.einsum("kij,kj->ki", A, s)
+        box = _mv(A, s)
         cap = h[:, None] * az + r[:, None]
         cyl = h[:, None] * az + r[:, None] * np.sqrt(np.maximum(0.0, 1.0 - az * az))
         half = np.where((self.kind == _BOX)[:, None], box,
@@ -104,6 +104,16 @@ def model_geoms(model, data, ids) -> Geoms:
     return Geoms(np.array(data.geom_xpos[ids], float), np.array(data.geom_xmat[ids], float).reshape(-1, 3, 3),
                  np.array(model.geom_type[ids], int), np.array(model.geom_size[ids], float),
                  np.array(model.geom_rbound[ids], float))
+
+
+def _mv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """A_k v_k for (k,3,3), (k,3)."""
+    return A[:, :, 0] * v[:, 0, None] + A[:, :, 1] * v[:, 1, None] + A[:, :, 2] * v[:, 2, None]
+
+
+def _tmv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """A_k^T v_k for (k,3,3), (k,3)."""
+    return A[:, 0, :] * v[:, 0, None] + A[:, 1, :] * v[:, 1, None] + A[:, 2, :] * v[:, 2, None]
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -125,6 +135,11 @@ class Clearance:
         Feature name of each table geom ("" for none).
     ball : int
         Index in ``probe`` of the stylus ball (the geom allowed to touch its feature).
+
+    Attributes
+    ----------
+    pair_probe, pair_table : (k,) int
+        The geoms (indices in ``probe`` and ``table``) of every pair the bounds speak of.
     """
 
     def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int):
@@ -134,30 +149,30 @@ class Clearance:
         tlo, thi = table.aabb()
         ng, nh = len(probe.kind), len(table.kind)
         g, h = np.meshgrid(np.arange(ng), np.arange(nh), indexing="ij")
-        self._g, self._h = g.ravel(), h.ravel()
+        self.pair_probe, self.pair_table = g.ravel(), h.ravel()
         # the tip p puts geom g in collision range of h only if p lies in this box
-        self._lo = tlo[self._h] - phi[self._g] - MARGIN_M
-        self._hi = thi[self._h] - plo[self._g] + MARGIN_M
+        self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
+        self._hi = thi[self.pair_table] - plo[self.pair_probe] + MARGIN_M
         # fixed axes of each pair: the table geom's three, the probe geom's axis, their crosses
-        Ht, Pa = table.axes[self._h], probe.axes[self._g][:, :, 2]
+        Ht, Pa = table.axes[self.pair_table], probe.axes[self.pair_probe][:, :, 2]
         U = [Ht[:, :, 0], Ht[:, :, 1], Ht[:, :, 2], Pa] + [np.cross(Pa, Ht[:, :, j]) for j in range(3)]
         U = np.stack(U, axis=1)  # (pairs, 7, 3)
         U, ok = _unit(U)
-        npair = len(self._g)
-        P, T = probe.take(np.repeat(self._g, 7)), table.take(np.repeat(self._h, 7))
+        npair = len(self.pair_probe)
+        P, T = probe.take(np.repeat(self.pair_probe, 7)), table.take(np.repeat(self.pair_table, 7))
         flat = U.reshape(-1, 3)
         E = (P.extent(flat) + T.extent(flat)).reshape(npair, 7)
         self._U = U
         self._E = np.where(ok, E, np.inf)  # a degenerate cross product proves nothing
-        self._d0 = probe.centre[self._g] - table.centre[self._h]  # centre offset at p = 0
+        self._d0 = probe.centre[self.pair_probe] - table.centre[self.pair_table]  # centre offset at p = 0
         # clusters of table geoms (one per feature, one per geom without): pairs grouped per
         # (probe geom, cluster), with the union of their boxes
         key = [f if f else f"#{j}" for j, f in enumerate(self.feature)]
         _, cl = np.unique(np.array(key, dtype=object).astype(str), return_inverse=True)
-        order = np.lexsort((self._h, cl[self._h], self._g))  # pairs sorted by (g, cluster)
-        self._g, self._h, self._lo, self._hi = self._g[order], self._h[order], self._lo[order], self._hi[order]
+        order = np.lexsort((self.pair_table, cl[self.pair_table], self.pair_probe))  # pairs sorted by (g, cluster)
+        self.pair_probe, self.pair_table, self._lo, self._hi = self.pair_probe[order], self.pair_table[order], self._lo[order], self._hi[order]
         self._U, self._E, self._d0 = self._U[order], self._E[order], self._d0[order]
-        ck = self._g * (cl.max() + 1) + cl[self._h]
+        ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
         self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
         self._ccount = np.diff(np.r_[self._cstart, len(ck)])
         self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
@@ -194,16 +209,24 @@ class Clearance:
         ok = _overlap(q, q, self._lo[pair], self._hi[pair])
         return i[ok], pair[ok]
 
-    def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray) -> np.ndarray:
-        """Lower bound of the distance (m) of pair ``pair`` with the tip at sample ``i`` of ``p_R``."""
+    def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
+        """Lower bound of the distance (m) of pair ``pair`` with the tip at sample ``i`` of ``p_R``.
+
+        ``enough``: rows whose fixed axes already prove more than this skip the
+        closest-point axis (their bound is then that smaller, still valid, value).
+        """
         d = self._d0[pair] + p_R[i]
-        fixed = np.max(np.abs(np.einsum("kaj,kj->ka", self._U[pair], d)) - self._E[pair], axis=1)
-        g, h = self._g[pair], self._h[pair]
+        U = self._U[pair]
+        out = np.max(np.abs(U[:, :, 0] * d[:, 0, None] + U[:, :, 1] * d[:, 1, None] + U[:, :, 2] * d[:, 2, None])
+                     - self._E[pair], axis=1)
+        r = np.flatnonzero(out <= enough)
+        g, h, d = self.pair_probe[pair[r]], self.pair_table[pair[r]], d[r]
         T = self.table.take(h)
-        c_g = self.probe.centre[g] + p_R[i]
+        c_g = self.probe.centre[g] + p_R[i[r]]
         u, ok = _unit(c_g - T.closest(c_g))
-        dyn = np.abs(np.einsum("kj,kj->k", u, d)) - self.probe.take(g).extent(u) - T.extent(u)
-        return np.maximum(fixed, np.where(ok, dyn, -np.inf))
+        dyn = np.abs(u[:, 0] * d[:, 0] + u[:, 1] * d[:, 1] + u[:, 2] * d[:, 2]) - self.probe.take(g).extent(u) - T.extent(u)
+        out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
+        return out
 
     def near(self, p_R, allow_feature=None, group=None) -> np.ndarray:
         """(n,) bool: samples where some probe/table pair may be closer than :data:`MARGIN_M`.
@@ -218,11 +241,11 @@ class Clearance:
         i, pair = self.candidates(p, None if group is None else np.asarray(group))
         if allow_feature is not None:
             allow = np.asarray(allow_feature, dtype=object)
-            f = self.feature[self._h[pair]]
-            skip = (self._g[pair] == self.ball) & (f != "") & (f == allow[i])
+            f = self.feature[self.pair_table[pair]]
+            skip = (self.pair_probe[pair] == self.ball) & (f != "") & (f == allow[i])
             i, pair = i[~skip], pair[~skip]
         if i.size:
-            close = self.bound(p, i, pair) <= MARGIN_M
+            close = self.bound(p, i, pair, enough=MARGIN_M) <= MARGIN_M
             out[i[close]] = True
         return out
 
@@ -270,7 +293,9 @@ def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarr
     n_pt = np.array([len(p) for p in polylines], int)
     P = np.concatenate([np.asarray(p, float) for p in polylines])
     first = np.cumsum(n_pt) - n_pt
-    a_idx = np.setdiff1d(np.arange(len(P)), first + n_pt - 1)  # every point that starts a segment
+    starts = np.ones(len(P), bool)
+    starts[first + n_pt - 1] = False
+    a_idx = np.flatnonzero(starts)  # every point that starts a segment
     path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt - 1)
     a, b = P[a_idx], P[a_idx + 1]
     step = np.asarray(steps_m, float)[path_of_seg]
@@ -281,7 +306,9 @@ def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarr
         pos = np.arange(len(a)) + np.repeat(np.arange(len(n_pt)), n_pt - 1)  # room for the ends
         order = np.empty(len(a) + len(n_pt), int)
         order[pos] = np.arange(len(a))
-        order[np.setdiff1d(np.arange(len(order)), pos)] = len(a) + np.arange(len(n_pt))
+        free = np.ones(len(order), bool)
+        free[pos] = False
+        order[free] = len(a) + np.arange(len(n_pt))
         a = np.concatenate([a, P[last]])[order]
         b = np.concatenate([b, P[last]])[order]
         m = np.concatenate([k, np.ones(len(n_pt), int)])[order]

@@ -50,6 +50,31 @@ def _quat(R: np.ndarray) -> np.ndarray:
     return q
 
 
+def _quats(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions (w, x, y, z) (k,4) of rotation matrices (k,3,3), w >= 0 (Shepperd)."""
+    R = np.asarray(R, float)
+    tr = R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2]
+    d = np.stack([tr, R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]], axis=1)
+    k = np.argmax(d, axis=1)  # the largest of 4w^2-1, 4x^2-1, ... for a stable square root
+    q = np.empty((len(R), 4))
+    for j in range(4):
+        m = k == j
+        Rm = R[m]
+        if j == 0:
+            s = 2.0 * np.sqrt(1.0 + tr[m])
+            q[m] = np.column_stack([s / 4, (Rm[:, 2, 1] - Rm[:, 1, 2]) / s, (Rm[:, 0, 2] - Rm[:, 2, 0]) / s,
+                                    (Rm[:, 1, 0] - Rm[:, 0, 1]) / s])
+        else:
+            a, b, c = j - 1, j % 3, (j + 1) % 3
+            s = 2.0 * np.sqrt(1.0 + Rm[:, a, a] - Rm[:, b, b] - Rm[:, c, c])
+            v = np.empty((m.sum(), 3))
+            v[:, a] = s / 4
+            v[:, b] = (Rm[:, b, a] + Rm[:, a, b]) / s
+            v[:, c] = (Rm[:, c, a] + Rm[:, a, c]) / s
+            q[m] = np.column_stack([(Rm[:, c, b] - Rm[:, b, c]) / s, v])
+    return q * np.where(q[:, :1] < 0, -1.0, 1.0)
+
+
 def _f(v) -> str:
     return " ".join(map(repr, np.ravel(np.asarray(v, float)).tolist()))
 
@@ -58,16 +83,14 @@ def scene_mjcf(artefact: Artefact, probe: ProbeConfig, T_W_A: np.ndarray | None 
     """MJCF text of the scene and the feature name of each table geom (in order)."""
     T_W_A = artefact.T_W_A if T_W_A is None else np.asarray(T_W_A, float)
     geoms, feats = [], []
+    poses = [T_W_A @ make_T(s.rot, s.pos) for s in artefact.solids]
+    pos = [" ".join(map(repr, T[:3, 3].tolist())) for T in poses]
+    quat = [" ".join(map(repr, _quat(T[:3, :3]).tolist())) for T in poses]
     for k, s in enumerate(artefact.solids):
-        T = T_W_A @ make_T(s.rot, s.pos)
         name = f"{s.feature or 'body'}__{k}"
-        common = f'name="{name}" pos="{_f(T[:3, 3])}" quat="{_f(_quat(T[:3, :3]))}" contype="1" conaffinity="0"'
-        if s.kind == "box":
-            geoms.append(f'<geom type="box" size="{_f(s.size)}" {common}/>')
-        elif s.kind == "cylinder":
-            geoms.append(f'<geom type="cylinder" size="{_f(s.size)}" {common}/>')
-        elif s.kind == "sphere":
-            geoms.append(f'<geom type="sphere" size="{_f(s.size)}" {common}/>')
+        common = f'name="{name}" pos="{pos[k]}" quat="{quat[k]}" contype="1" conaffinity="0"'
+        if s.kind in ("box", "cylinder", "sphere"):
+            geoms.append(f'<geom type="{s.kind}" size="{_f(s.size)}" {common}/>')
         else:
             geoms.append(f'<geom type="mesh" mesh="mesh{k}" {common}/>')
         feats.append(s.feature)
@@ -121,7 +144,38 @@ class Scene:
         self._tq = m.jnt_qposadr[m.joint("table").id]
         self._sq = m.jnt_qposadr[m.joint("spindle").id]
         self._clr = None
+        self._table_geoms = np.array(tg, int)
+        self._local = None
+        self.T_W_A = np.array(artefact.T_W_A if T_W_A is None else T_W_A, float)
         self.set_table(np.eye(4))
+
+    def place(self, T_W_A) -> None:
+        """Move the artefact to the placement ``T_W_A`` (4,4) in the compiled model.
+
+        The table geoms' poses are written as the compiler would have read them
+        from :func:`scene_mjcf` (``T_W_A`` times each solid's pose; quaternion
+        normalised): no recompilation. Artefacts with mesh solids (which the
+        compiler re-centres) cannot be moved: build a new :class:`Scene`.
+        """
+        if any(s.kind not in ("box", "cylinder", "sphere") for s in self.artefact.solids):
+            raise ValueError("Scene.place: an artefact with mesh solids needs a new Scene")
+        T_W_A = np.array(T_W_A, float)
+        m = self.model
+        if self._local is None:  # each solid's pose on the artefact, (k,3,3) and (k,3)
+            self._local = (np.array([make_T(s.rot, s.pos)[:3, :3] for s in self.artefact.solids]).reshape(-1, 3, 3),
+                           np.array([make_T(s.rot, s.pos)[:3, 3] for s in self.artefact.solids]).reshape(-1, 3))
+        R_loc, p_loc = self._local
+        R = np.einsum("ij,kjl->kil", T_W_A[:3, :3], R_loc)
+        q = _quats(R)
+        g = self._table_geoms
+        m.geom_pos[g] = p_loc @ T_W_A[:3, :3].T + T_W_A[:3, 3]
+        m.geom_quat[g] = q / np.sqrt(np.sum(q * q, axis=1))[:, None]
+        m.geom_sameframe[g] = 0  # the compiler's "same frame as the body" shortcut no longer holds
+        # the compiler's bounding-volume hierarchy of the table body holds the old poses:
+        # MuJoCo then tests every geom pair of the two bodies (same contacts, no pruning)
+        m.opt.disableflags |= int(self._mj.mjtDisableBit.mjDSBL_MIDPHASE)
+        self.T_W_A = T_W_A
+        self._clr = None
 
     def set_table(self, T_R_W: np.ndarray) -> None:
         """Place the table (frame W) in R."""
@@ -136,7 +190,7 @@ class Scene:
         self._mj.mj_kinematics(self.model, self.data)
 
     def collisions(self, p_R, allow_feature: str = "") -> list[tuple[str, str, float]]:
-        """Collisions with the tip at ``p_R``: (probe geom, artefact geom, depth m).
+        """Collisions with the tip at ``p_R``: (probe geom, artefact geom, depth m), deepest first.
 
         Contacts of the stylus with geoms of ``allow_feature`` are ignored
         (the exact primitive judges those).
@@ -155,7 +209,9 @@ class Scene:
             if pg == self.stylus and allow_feature and self.geom_feature[ag] == allow_feature:
                 continue
             out.append((str(self.geom_name[pg]), str(self.geom_name[ag]), float(dist)))
-        return out
+        # deepest first (to 1 pm, then by name): MuJoCo's own order (its mid-phase tree)
+        # differs between a compiled and a moved scene (Scene.place)
+        return sorted(out, key=lambda c: (round(c[2], 12), c[0], c[1]))
 
     def clearance(self):
         """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose."""
@@ -194,6 +250,31 @@ class Scene:
                 if hit:
                     return p, hit
         return None
+
+
+#: Compiled scenes by (artefact object, probe): campaigns re-place them instead of compiling
+#: (a study's seeds, the same campaign with other machine errors, each set-up's placement).
+_SCENES: dict = {}
+
+
+def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
+    """The :class:`Scene` of ``artefact`` at ``T_W_A`` with ``probe``: compiled once per
+    artefact and probe, moved to each placement (:meth:`Scene.place`; a new one per
+    placement for an artefact with meshes).
+
+    The table pose is whatever the last user set: set it before use.
+    """
+    T = np.ascontiguousarray(T_W_A, float)
+    movable = all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids)
+    key = (id(artefact), probe, None if movable else T.tobytes())
+    hit = _SCENES.get(key)
+    if hit is None or hit[0] is not artefact:  # the artefact is kept in the entry: its id stays its own
+        if len(_SCENES) >= 64:
+            _SCENES.clear()
+        hit = _SCENES[key] = (artefact, Scene(artefact, probe, T))
+    if not np.array_equal(hit[1].T_W_A, T):
+        hit[1].place(T)
+    return hit[1]
 
 
 def check_touch_paths(scene: Scene, setup: str, targets, features, links, approach,
@@ -256,6 +337,7 @@ def _paths_key(scene: Scene, features, links, approach, link_step_m: float, appr
     """Digest of everything :func:`check_touch_paths` reads except the names in its messages."""
     h = hashlib.blake2b(digest_size=32)
     h.update(scene.mjcf.encode())
+    h.update(np.ascontiguousarray(scene.T_W_A, float).tobytes())  # the placement (Scene.place)
     h.update(np.ascontiguousarray(scene.data.qpos[scene._tq:scene._tq + 7], float).tobytes())
     h.update(np.array([link_step_m, approach_step_m, COLLISION_TOL_M]).tobytes())
     for f in features:

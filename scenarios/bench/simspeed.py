@@ -198,32 +198,18 @@ def collision_figures() -> dict:
     t0 = time.perf_counter()
     simulate_campaign("mfb", m, ProbeConfig(), None, np.random.default_rng(1), check_collisions=False)
     t_sim = time.perf_counter() - t0
-    t_chk = {}
+    t_chk, t_plan = {}, {}
     for bp in (True, False):
-        real = scene.check_touch_paths
         scene._PASSED.clear()
-        scene.check_touch_paths = lambda *a, _r=real, _bp=bp, **k: _r(*a, broad_phase=_bp, **k)
-        try:
-            t0 = time.perf_counter()
-            simulate_campaign("mfb", m, ProbeConfig(), None, np.random.default_rng(1), check_collisions=True)
-            t_chk[bp] = max(time.perf_counter() - t0 - t_sim, 1e-9)
-        finally:
-            scene.check_touch_paths = real
+        t_chk[bp] = max(_time_patched(scene, "check_touch_paths", bp, lambda: simulate_campaign(
+            "mfb", m, ProbeConfig(), None, np.random.default_rng(1), check_collisions=True)) - t_sim, 1e-9)
     scene._PASSED.clear()
     # the MFB 5-axis plan (sim.mfb_scene): its simulation, then check_plan with and without
     plan = S.plan_5axis()
     t_sim5 = _mfb5_simulation_s(plan)
-    t_plan = {}
     for bp in (True, False):
-        real = mfb_scene.check_measurement
         S._CHECKS.clear()
-        mfb_scene.check_measurement = lambda *a, _r=real, _bp=bp, **k: _r(*a, broad_phase=_bp, **k)
-        try:
-            t0 = time.perf_counter()
-            S.check_plan(plan)
-            t_plan[bp] = time.perf_counter() - t0
-        finally:
-            mfb_scene.check_measurement = real
+        t_plan[bp] = _time_patched(mfb_scene, "check_measurement", bp, lambda: S.check_plan(plan))
     S._CHECKS.clear()
     return {
         "col_mfb_campaign_simulation_s": round(t_sim, 3),
@@ -237,6 +223,18 @@ def collision_figures() -> dict:
         "col_mfb5_plan_check_over_simulation": round(t_plan[True] / t_sim5, 3),
         "col_mfb5_plan_check_speedup": round(t_plan[False] / t_plan[True], 2),
     }
+
+
+def _time_patched(module, name: str, broad_phase: bool, run) -> float:
+    """Seconds of ``run()`` while ``module.name`` is called with ``broad_phase``."""
+    real = getattr(module, name)
+    setattr(module, name, lambda *a, **k: real(*a, broad_phase=broad_phase, **k))
+    try:
+        t0 = time.perf_counter()
+        run()
+        return time.perf_counter() - t0
+    finally:
+        setattr(module, name, real)
 
 
 def _mfb5_simulation_s(plan) -> float:

@@ -114,3 +114,27 @@ def test_a_passed_path_check_is_not_run_twice_and_a_crash_always_is(monkeypatch)
     for _ in range(2):
         with pytest.raises(PlanError, match="approach/retract path crashes"):
             check_touch_paths(scene, "C0", ["x"], ["pocket"], [None], crash)
+
+
+def test_a_scene_moved_to_a_placement_is_the_scene_compiled_there():
+    """Scene.place (no recompilation) against a scene compiled at that placement: the same geom
+    poses to rounding and the same collisions at random tips around the bar (issue 19)."""
+    art = A.multi_feature_bar()
+    rng = np.random.default_rng(8)
+    T_B = A.make_T(A.rot_z(0.7) @ A.rot_x(0.3), (0.05, -0.02, 0.11))
+    moved = Scene(art, ProbeConfig())
+    moved.place(T_B)
+    fresh = Scene(art, ProbeConfig(), T_B)
+    T_R_W = A.make_T(A.rot_z(-0.4), (0.01, 0.02, 0.0))
+    for sc in (moved, fresh):
+        sc.set_table(T_R_W)
+        sc.set_tip(np.zeros(3))
+    assert np.abs(moved.data.geom_xpos - fresh.data.geom_xpos).max() < 1e-15
+    assert np.abs(moved.data.geom_xmat - fresh.data.geom_xmat).max() < 1e-15
+    tips = A.apply_T(T_R_W @ T_B, rng.uniform([-0.02, -0.02, -0.01], [0.38, 0.06, 0.05], (300, 3)))
+    got = [moved.collisions(p) for p in tips]
+    want = [fresh.collisions(p) for p in tips]
+    # the same contacts in the same order; depths to rounding (quaternions normalised apart)
+    assert [[c[:2] for c in g] for g in got] == [[c[:2] for c in w] for w in want]
+    assert max(abs(a[2] - b[2]) for g, w in zip(got, want) for a, b in zip(g, w)) < 1e-15
+    assert sum(bool(g) for g in got) > 20
