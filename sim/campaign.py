@@ -31,6 +31,7 @@ from .catalog import CATALOG, make_artefact, make_plan
 from .plans import Plan
 from .probe import (ProbeConfig, T_R_W_nominal, find_contacts, rotary_count,
                     simulate_touches)
+from .scene import artefact_points
 from .setups import Setup, c_angle_setups, machine_name
 
 #: Default feeds: probing 240 mm/min (MFB paper), rapid 10 m/min.
@@ -139,7 +140,7 @@ def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: Probe
     Xn = A.apply_T(T_R_A, plan.w_A + r * plan.wn_A)
     n_R = A.apply_R(T_R_A, plan.wn_A)
     start = Xn + plan.clearance_m * n_R
-    top = float(np.max(A.apply_T(T_R_A, _solid_points(art))[:, 2]))
+    top = float(np.max(A.apply_T(T_R_A, artefact_points(art))[:, 2]))
     z_safe = top + r + SAFE_MARGIN_M
     links, lens = [], np.zeros(plan.n)
     prev = None if start_from is None else np.asarray(start_from, float)
@@ -164,18 +165,6 @@ def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: Probe
     return SetupMoves(T_R_W, Xn, n_R, start, links, lens)
 
 
-#: Every solid's points (A frame) of the artefacts seen last (the artefact is kept, so its id stays its own).
-_POINTS: dict = {}
-
-
-def _solid_points(art: A.Artefact) -> np.ndarray:
-    """All the points of ``art``'s solids (k,3), A frame, m (cached per artefact object)."""
-    hit = _POINTS.get(id(art))
-    if hit is None or hit[0] is not art:
-        if len(_POINTS) > 16:
-            _POINTS.clear()
-        hit = _POINTS[id(art)] = (art, np.concatenate([A.solid_points(s) for s in art.solids]))
-    return hit[1]
 
 
 def _resolve_setups(machine, art, setups) -> list[Setup]:

@@ -33,9 +33,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .artefacts import apply_R, apply_T, inv_T, make_T, solid_points
+from .artefacts import apply_R, apply_T, inv_T, make_T
 from .clearance import path_samples
-from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat
+from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
 
 #: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
 TABLE_R_M = 0.300
@@ -235,7 +235,7 @@ class WorkZone:
 
         tips = np.asarray(tips_R, float).reshape(-1, 3)
         clr = self.clearance(holder_only=True)
-        npair = len(clr._g)
+        npair = len(clr.pair_probe)
         i = np.repeat(np.arange(len(tips)), npair)
         pair = np.tile(np.arange(npair), len(tips))
         lb = clr.bound(tips, i, pair) if broad_phase else np.full(len(i), -np.inf)
@@ -245,7 +245,7 @@ class WorkZone:
             if lb[k] > best + MARGIN_M:
                 break
             self.set_tip(tips[i[k]])
-            a, b = self._probe[clr._g[pair[k]]], self._holder[clr._h[pair[k]]]
+            a, b = self._probe[clr.pair_probe[pair[k]]], self._holder[clr.pair_table[pair[k]]]
             best = min(best, float(self._mj.mj_geomDistance(m, d, a, b, distmax, None)))
         return best
 
@@ -258,6 +258,22 @@ class WorkZone:
             for b in self._holder:
                 best = min(best, float(self._mj.mj_geomDistance(m, d, a, b, distmax, None)))
         return best
+
+
+#: Compiled work zones by everything their model is made of (the artefact object kept, so
+#: its id stays its own): a plan's measurements that share a placement and a stylus share one.
+_ZONES: dict = {}
+
+
+def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
+    key = (id(artefact), np.ascontiguousarray(T_W_A, float).tobytes(), tuple(blocks),
+           tuple(float(v) for v in J_m), float(stylus_r_m), float(finger_m))
+    hit = _ZONES.get(key)
+    if hit is None or hit[0] is not artefact:
+        if len(_ZONES) >= 64:
+            _ZONES.clear()
+        hit = _ZONES[key] = (artefact, WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m))
+    return hit[1]
 
 
 def link_paths(T_R_A, starts_R, features, levels, top_A_m):
@@ -317,14 +333,14 @@ def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, pla
     T_R_A = np.asarray(T_R_W, float) @ T_W_A
     bad = []
     # the bar and the workholder on the table's side of its face (W z >= 0)
-    pts_A = np.concatenate([solid_points(s) for s in artefact.solids])
+    pts_A = artefact_points(artefact)
     z_bar = float(apply_T(T_W_A, pts_A)[:, 2].min())
     if z_bar < -1e-9:
         bad.append(f"the bar reaches {z_bar * 1e3:.1f} mm below the table face")
     for b in blocks:
         if min(b.lo[2], b.hi[2]) < -1e-9:
             bad.append(f"workholder block {b.name} below the table face")
-    wz = WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
+    wz = _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
     wz.set_table(T_R_W)
     r = stylus_r_m
     Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)

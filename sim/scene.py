@@ -33,7 +33,7 @@ import numpy as np
 
 from core.exceptions import PlanError
 
-from .artefacts import Artefact, make_T
+from .artefacts import Artefact, make_T, solid_points
 from .probe import ProbeConfig
 
 #: A contact deeper than this counts as a collision (m).
@@ -250,6 +250,20 @@ class Scene:
                 if hit:
                     return p, hit
         return None
+
+
+#: Every solid's points (A frame) of the artefacts seen last (the artefact is kept, so its id stays its own).
+_POINTS: dict = {}
+
+
+def artefact_points(art: Artefact) -> np.ndarray:
+    """All the points of ``art``'s solids (k,3), A frame, m (cached per artefact object)."""
+    hit = _POINTS.get(id(art))
+    if hit is None or hit[0] is not art:
+        if len(_POINTS) > 16:
+            _POINTS.clear()
+        hit = _POINTS[id(art)] = (art, np.concatenate([solid_points(s) for s in art.solids]))
+    return hit[1]
 
 
 #: Compiled scenes by (artefact object, probe): campaigns re-place them instead of compiling
