@@ -77,7 +77,7 @@ def test_bounds_never_exceed_mujoco_distances(A_deg, C_deg, J_m, finger):
     rng = np.random.default_rng(abs(A_deg) + 7)
     T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
     tips = A.apply_T(T_R_A, rng.uniform([-0.03, -0.03, -0.03], [0.40, 0.08, 0.06], (300, 3)))
-    npair = len(clr._g)
+    npair = len(clr.pair_probe)
     cand = np.zeros((len(tips), npair), bool)
     ci, cp = clr.candidates(tips)
     cand[ci, cp] = True
@@ -91,7 +91,7 @@ def test_bounds_never_exceed_mujoco_distances(A_deg, C_deg, J_m, finger):
     worst, n_close = -np.inf, 0
     for k in range(len(k_all)):
         wz.set_tip(tips[i[k]])
-        a, b = wz._probe[clr._g[pair[k]]], wz._table[clr._h[pair[k]]]
+        a, b = wz._probe[clr.pair_probe[pair[k]]], wz._table[clr.pair_table[pair[k]]]
         d = mujoco.mj_geomDistance(wz.model, wz.data, a, b, 1.0, None)
         worst = max(worst, lb[k] - d)
         n_close += d < 5e-3
