@@ -266,7 +266,8 @@ _ZONES: dict = {}
 
 
 def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
-    key = (id(artefact), np.ascontiguousarray(T_W_A, float).tobytes(), tuple(blocks),
+    key = (id(artefact), np.ascontiguousarray(T_W_A, float).tobytes(),
+           tuple((b.name, tuple(map(float, b.lo)), tuple(map(float, b.hi))) for b in blocks),
            tuple(float(v) for v in J_m), float(stylus_r_m), float(finger_m))
     hit = _ZONES.get(key)
     if hit is None or hit[0] is not artefact:

@@ -280,7 +280,9 @@ def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
     """
     T = np.ascontiguousarray(T_W_A, float)
     movable = all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids)
-    key = (id(artefact), probe, None if movable else T.tobytes())
+    # the probe's geoms are made of these three lengths (scene_mjcf)
+    key = (id(artefact), float(probe.stylus_r_m), float(probe.shank_r_m), float(probe.shank_length_m),
+           None if movable else T.tobytes())
     hit = _SCENES.get(key)
     if hit is None or hit[0] is not artefact:  # the artefact is kept in the entry: its id stays its own
         if len(_SCENES) >= 64:
