@@ -16,7 +16,8 @@ campaign (``sim.scene``, timed inside the campaign run, the simulation being
 the rest of that run) and of the MFB 5-axis plan (``sim.mfb_scene``,
 ``scenarios.mfb.check_plan`` against the simulation of its 17 measurements),
 with the broad phase and with MuJoCo at every sample (``broad_phase=False``,
-the path before). Each in a fresh state: the first scene compiled included.
+the path before). Each in a fresh state: the first scene compiled included,
+MuJoCo's one-time import not.
 """
 
 from __future__ import annotations
@@ -190,6 +191,8 @@ def touch_figures() -> dict:
 
 
 def collision_figures() -> dict:
+    import mujoco  # noqa: F401  (its one-time import, ~0.5 s, is not a check's cost)
+
     from scenarios import mfb as S
     from sim import campaign, mfb_scene, scene
     from sim.campaign import simulate_campaign
