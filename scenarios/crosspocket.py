@@ -121,6 +121,148 @@ def sensitivity_study(spheres: bool = True) -> list:
     return rows
 
 
+#: Fig. 19 / Table 2 sensitivity: variants fixed BEFORE running them (what the spheres constrain, how many
+#: touches they get, where they sit, their noise, the grid). Keys: ``sphere_touches`` per sphere (on the
+#: equator, equally spaced from +x), ``rigid`` (each sphere's G is ``n . dc + dr``: centre shift and radius,
+#: 3 unknowns, instead of one free G per touch as eq 15 has for every probed point), ``sphere_r_m`` (centres
+#: moved along their own direction to this radius; 96 mm keeps every touch inside the +-110 mm grid at every
+#: C), ``sphere_sigma_m`` (the spheres' probing standard uncertainty), ``step_m``.
+SPHERE_SENSITIVITY = (
+    ("baseline: 4 touches a sphere, free G per touch, centres at r 85/89 mm, grid 22 mm", {}),
+    ("8 touches a sphere (case 2's count; N_w = 100)", {"sphere_touches": 8}),
+    ("precision spheres: G = n.dc + dr (3 unknowns a sphere)", {"rigid": True}),
+    ("8 touches + precision spheres", {"sphere_touches": 8, "rigid": True}),
+    ("spheres moved out to r 96 mm (touches up to 108.7 mm)", {"sphere_r_m": 0.096}),
+    ("r 96 mm + 8 touches + precision spheres", {"sphere_r_m": 0.096, "sphere_touches": 8, "rigid": True}),
+    ("sphere touches at the probe's own repeatability (0.175 um, OMP400 0.35 um 2 sigma)",
+     {"sphere_sigma_m": 0.175e-6}),
+    ("grid step 44 mm", {"step_m": 0.044}),
+    ("grid step 44 mm + 8 touches + precision spheres", {"step_m": 0.044, "sphere_touches": 8, "rigid": True}),
+)
+
+
+def _sphere_targets(n_touch: int, r_m: float | None):
+    """(w, wn, sphere index) of the two spheres' equator touches, W, m."""
+    from sim import artefacts as A
+
+    w, wn, k = [], [], []
+    for j, c in enumerate(A.CROSS_SPHERES_M):
+        c = np.asarray(c, float)
+        if r_m is not None:
+            c = c * r_m / np.hypot(*c)
+        a = 2 * np.pi * np.arange(n_touch) / n_touch
+        n = np.column_stack([np.cos(a), np.sin(a)])
+        w.append(c + A.CROSS_SPHERE_R_M * n)
+        wn.append(n)
+        k += [j] * n_touch
+    return np.vstack(w), np.vstack(wn), np.array(k)
+
+
+def _constrained_cov(A: np.ndarray, C: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Covariance of the equality-constrained weighted least squares ``min |(A t - b)/sigma|, C t = d``.
+
+    ``Z (Z' A' W A Z)^-1 Z'`` with ``Z`` an orthonormal basis of null(C), ``W = diag(sigma^-2)``
+    (written apart from core.lsq, which the baseline row is checked against).
+    """
+    from core.exceptions import IdentifiabilityError
+
+    _, s, Vt = np.linalg.svd(C)
+    Z = Vt[int(np.sum(s > s[0] * 1e-12)):].T
+    AZ = (A / sigma[:, None]) @ Z
+    M = AZ.T @ AZ
+    ev = np.linalg.eigvalsh(M)
+    if ev[0] <= ev[-1] * 1e-13:
+        raise IdentifiabilityError(f"sphere sensitivity: design not identifiable (condition {ev[-1] / ev[0]:.1e})")
+    return Z @ np.linalg.solve(M, Z.T)
+
+
+def _g_u95_readings(Cg: np.ndarray, NG: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(total, form) U95 of G at the given targets from their covariance; form = shift, rotation, scale removed."""
+    from core.uncertainty import K, WORKPIECE_GAUGE
+
+    B = NG[:, [c for v in WORKPIECE_GAUGE.values() for c in v]]
+    F = np.eye(len(B)) - B @ np.linalg.pinv(B)
+    return (K * np.sqrt(np.diag(Cg)),
+            K * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", F, Cg, F), 0)))
+
+
+def _sphere_case(c_deg, sphere_touches=4, rigid=False, sphere_r_m=None, sphere_sigma_m=U_PROBE_M,
+                 step_m=0.022, spheres=True) -> dict:
+    """One case of :data:`SPHERE_SENSITIVITY` by dense linear propagation: U95 of the pocket's G, Table 2, map."""
+    from core.selfcal import Grid, build_design, nominal_touches
+    from core.uncertainty import K, error_map_operator
+
+    w, wn, ids = _plan_points(False)
+    npk = len(w)
+    sig = [np.full(npk, U_PROBE_M)]
+    if spheres:
+        sw, sn, sk = _sphere_targets(sphere_touches, sphere_r_m)
+        w, wn = np.vstack([w, sw]), np.vstack([wn, sn])
+        ids = list(ids) + [f"sphere{k + 1}_p{i}" for i, k in enumerate(sk)]
+        sig.append(np.full(len(sw), sphere_sigma_m))
+    sig = np.tile(np.concatenate(sig), len(c_deg))
+    grid = Grid.regular(-0.110, 0.110, step_m)
+    des = build_design(nominal_touches(w, wn, c_deg, target_ids=ids), grid)
+    A = des.A.toarray()
+    n = des.n_params
+    T = np.eye(n)
+    if spheres and rigid:  # each sphere's touches share a centre shift (x, y) and a radius error
+        g0 = des.slices["G"].start
+        drop = g0 + npk + np.arange(len(sk))
+        keep = np.setdiff1d(np.arange(n), drop)
+        extra = np.zeros((n, 3 * 2))
+        for i, k in enumerate(sk):
+            extra[g0 + npk + i, 3 * k:3 * k + 2] = sn[i]
+            extra[g0 + npk + i, 3 * k + 2] = 1.0
+        T = np.hstack([np.eye(n)[:, keep], extra])
+    cov = T @ _constrained_cov(A @ T, des.C @ T, sig) @ T.T
+    sg = des.slices["G"]
+    pk = np.arange(sg.start, sg.start + npk)
+    tot, form = _g_u95_readings(cov[np.ix_(pk, pk)], des.N[pk])
+    M = error_map_operator(des)
+    v = np.einsum("ij,jk,ik->i", M, cov, M)
+    h = v.size // 2
+    umap = K * np.sqrt(np.maximum(v[:h] + v[h:], 0))
+    u = np.sqrt(np.maximum(np.diag(cov), 0))
+    return {"g_total_um": tot / UM, "g_form_um": form / UM, "map_max_um": float(umap.max()) / UM,
+            "u_xc_um": 2 * u[des.slices["EXC"]] / UM, "u_yc_um": 2 * u[des.slices["EYC"]] / UM,
+            "u_cc_urad": 2e6 * u[des.slices["ECC"]], "pocket_ids": list(ids[:npk]), "pocket_w_m": w[:npk]}
+
+
+def sphere_sensitivity() -> list:
+    """Fig. 19's sphere effect, Table 2 and the 2-angle case under each variant of :data:`SPHERE_SENSITIVITY`.
+
+    Per variant: the largest U95 of the pocket's G with the spheres (Fig. 18(c), C = 0, 75, 130, 210 deg)
+    and without them (Fig. 19), the largest increase without - with (the paper: about 4 um) and where,
+    both in the declared reading (:data:`U95_READING`) and for the form alone; Table 2's U_XC, U_YC, U_CC;
+    the 2-angle maximum (Fig. 18(a)); the error map's largest U95 with and without (Fig. 20).
+    """
+    four, two = CROSS_ANGLES_DEG, (0.0, 75.0)
+    rows, without = [], {}
+    for label, kw in SPHERE_SENSITIVITY:
+        nokw = {k: v for k, v in kw.items() if k in ("step_m",)}
+        key = tuple(sorted(nokw.items()))
+        if key not in without:
+            without[key] = _sphere_case(four, spheres=False, **nokw)
+        b = without[key]
+        a = _sphere_case(four, **kw)
+        a2 = _sphere_case(two, **kw)
+        row = {"variant": label, "settings": kw}
+        for rd in ("total", "form"):
+            d = b[f"g_{rd}_um"] - a[f"g_{rd}_um"]
+            i = int(np.argmax(d))
+            row[rd] = {"fig18c_max_um": round(float(a[f"g_{rd}_um"].max()), 3),
+                       "fig19_max_um": round(float(b[f"g_{rd}_um"].max()), 3),
+                       "sphere_effect_max_um": round(float(d[i]), 3), "at_target": a["pocket_ids"][i],
+                       "at_w_mm": np.round(a["pocket_w_m"][i] / MM, 1).tolist(),
+                       "fig18a_max_um": round(float(a2[f"g_{rd}_um"].max()), 3)}
+        row.update(u_xc_um=np.round(a["u_xc_um"], 3).tolist(), u_yc_um=np.round(a["u_yc_um"], 3).tolist(),
+                   u_cc_urad=np.round(a["u_cc_urad"], 3).tolist(),
+                   fig20a_max_um=round(a["map_max_um"], 3), fig20b_max_um=round(b["map_max_um"], 3))
+        rows.append(row)
+    return rows
+
+
 def _map_u95_linear(des, est) -> np.ndarray:
     """(N_x, N_y) U95 of the error map (as :func:`core.uncertainty.error_map_u95`) by linear propagation, m."""
     from core.uncertainty import K, error_map_operator
