@@ -241,9 +241,9 @@ def sphere_sensitivity() -> list:
     Per variant: the largest U95 of the pocket's G with the spheres (Fig. 18(c), C = 0, 75, 130, 210 deg)
     and without them (Fig. 19), the largest increase without - with (the paper: about 4 um) and where,
     both in the declared reading (:data:`U95_READING`) and for the form alone; Table 2's U_XC, U_YC, U_CC;
-    the 2-angle maximum (Fig. 18(a)); the error map's largest U95 with and without (Fig. 20).
+    the 2- and 3-angle maxima (Figs. 18(a, b)); the error map's largest U95 with and without (Fig. 20).
     """
-    four, two = CROSS_ANGLES_DEG, (0.0, 75.0)
+    four, three, two = CROSS_ANGLES_DEG, (0.0, 75.0, 130.0), (0.0, 75.0)
     rows, without = [], {}
     for label, kw in SPHERE_SENSITIVITY:
         nokw = {k: v for k, v in kw.items() if k in ("step_m",)}
@@ -253,6 +253,7 @@ def sphere_sensitivity() -> list:
         b = without[key]
         a = _sphere_case(four, **kw)
         a2 = _sphere_case(two, **kw)
+        a3 = _sphere_case(three, **kw)
         row = {"variant": label, "settings": kw}
         for rd in ("total", "form"):
             d = b[f"g_{rd}_um"] - a[f"g_{rd}_um"]
@@ -261,7 +262,8 @@ def sphere_sensitivity() -> list:
                        "fig19_max_um": round(float(b[f"g_{rd}_um"].max()), 3),
                        "sphere_effect_max_um": round(float(d[i]), 3), "at_target": a["pocket_ids"][i],
                        "at_w_mm": np.round(a["pocket_w_m"][i] / MM, 1).tolist(),
-                       "fig18a_max_um": round(float(a2[f"g_{rd}_um"].max()), 3)}
+                       "fig18a_max_um": round(float(a2[f"g_{rd}_um"].max()), 3),
+                       "fig18b_max_um": round(float(a3[f"g_{rd}_um"].max()), 3)}
         row.update(u_xc_um=np.round(a["u_xc_um"], 3).tolist(), u_yc_um=np.round(a["u_yc_um"], 3).tolist(),
                    u_cc_urad=np.round(a["u_cc_urad"], 3).tolist(),
                    fig20a_max_um=round(a["map_max_um"], 3), fig20b_max_um=round(b["map_max_um"], 3))
@@ -399,6 +401,7 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
     }
     if sensitivity:
         out["sensitivity"] = sensitivity_study()
+        out["sphere_sensitivity"] = sphere_sensitivity()
     out["seconds"] = round(time.perf_counter() - t0, 2)
     return out
 
@@ -719,6 +722,21 @@ def paper_tables(cpu: dict, pin: dict | None = None) -> dict:
               " ".join(f"{v:g}" for v in r["u_xc_um"][1:]), " ".join(f"{v:g}" for v in r["u_yc_um"][1:]),
               " ".join(f"{v:g}" for v in r["u_cc_urad"][1:]), r["map_u95_max_um"]] for r in cpu["sensitivity"]],
             caption="Sensitivity (linear propagation): what of the reconstruction drives the numbers")
+    if "sphere_sensitivity" in cpu:
+        p4 = PAPER_G_U95_UM
+        out["spheres"] = Table(
+            ["variant", "18(a) / um", "18(b) / um", "18(c) / um", "19 / um", "19 - 18(c) / um", "at (mm)",
+             "form 19 - 18(c) / um", "U_XC / um", "U_YC / um", "U_CC / urad", "20(a) / um"],
+            [["paper", p4[(0.0, 75.0)], p4[(0.0, 75.0, 130.0)], p4[CROSS_ANGLES_DEG], "-", "about 4",
+              "groove edges", "-", "1.0 1.2 1.2", "0.9 1.1 1.2", "8.9 9.3 8.2", 28]]
+            + [[r["variant"], r["total"]["fig18a_max_um"], r["total"]["fig18b_max_um"], r["total"]["fig18c_max_um"],
+                r["total"]["fig19_max_um"], r["total"]["sphere_effect_max_um"],
+                ", ".join(f"{v:g}" for v in r["total"]["at_w_mm"]), r["form"]["sphere_effect_max_um"],
+                " ".join(f"{v:g}" for v in r["u_xc_um"][1:]), " ".join(f"{v:g}" for v in r["u_yc_um"][1:]),
+                " ".join(f"{v:g}" for v in r["u_cc_urad"][1:]), r["fig20a_max_um"]]
+               for r in cpu["sphere_sensitivity"]],
+            caption="Fig. 19's sphere effect and Table 2 under variants fixed before running (linear propagation, "
+                    "pocket targets; 18(c), 19: C = 0, 75, 130, 210 deg)")
     if pin is not None:
         out["pins"] = Table(["quantity", "vmt", "paper"],
                             [["raw max pin error at C = 0 / um", pin["raw_c0_pin_error_max_um"], "about 8"],
