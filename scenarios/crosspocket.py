@@ -16,7 +16,8 @@ the touched extent (the paper's -400..400 mm has nodes no pin reaches), the
 yaw vmt's rule picks for the chain, eq 17's delta_L measured; the pin errors
 in the paper's frame (pin 1 and pin 11), raw at C = 0 and self-calibrated.
 
-:func:`paper_figures` writes Figs. 9(b), 10, 14, 17, 18(a-c), 19, 20(a, b).
+:func:`paper_figures` writes Figs. 9(a-c), 10, 12(a, b), 13, 14, 17, 18(a-c), 19, 20(a, b), and puts the
+figures themselves in the rerun recording.
 The part geometry is vmt's reconstruction (sim.artefacts); the paper's Fig. 8
 is not fully dimensioned, so the figures differ: see ``notes`` in the JSON.
 """
@@ -664,17 +665,19 @@ def paper_figures(folder, cpu: dict, pin: dict | None = None, seed: int = 1) -> 
     """The self-calibration paper's figures and tables as a report folder; returns ``{figure name: png path}``.
 
     ``folder`` gets ``index.html``, one PNG per figure and ``recording.rrd``
-    (U95 on the part, the tables paper vs vmt). Figs. 18(a-c), 19 (U95 of G
-    on the outline), 20(a, b) (U95 of the map) from ``cpu``
-    (:func:`cross_pocket_uncertainty`); 9(b), 10, 14 from a simulated
-    campaign (:func:`cross_pocket_campaign`); 17 from ``pin``
-    (:func:`pin_circle`) when given.
+    (U95 on the part, the tables paper vs vmt, every figure as an image
+    under ``reports/figures``). Figs. 18(a-c), 19 (U95 of G on the outline),
+    20(a, b) (U95 of the map) from ``cpu`` (:func:`cross_pocket_uncertainty`);
+    9(a-c), 10, 12(a, b), 13, 14 from a simulated campaign
+    (:func:`cross_pocket_campaign`; the simulator's truth in the CMM's and
+    the 2D scale's roles); 17 from ``pin`` (:func:`pin_circle`) when given.
     """
     import shutil
     from pathlib import Path
 
     from scenarios.reports import _recording_path
     from viz import record
+    from viz import selfcal_figures as S
     from viz.report import Section, write_report
 
     folder = Path(folder)
@@ -684,9 +687,11 @@ def paper_figures(folder, cpu: dict, pin: dict | None = None, seed: int = 1) -> 
     try:
         with record.recording(rrd) as rec:
             _record_paper(rec, record, cpu, tables)
+            S.log_figures(rec, figs)
         secs = [Section("Self-calibration paper: the one U95 reading", text=cpu["u95_reading"]),
                 Section("Paper vs vmt", tables=list(tables.values()))]
-        groups = (("Case 1 profiles (Figs. 9(b), 10) and the C axis (Fig. 14)", ("fig9b", "fig10", "fig14")),
+        groups = (("Case 1 profiles (Figs. 9(a-c), 10)", ("fig9a", "fig9b", "fig9c", "fig10")),
+                  ("Case 1 error map (Fig. 12) and the C axis (Figs. 13, 14)", ("fig12a", "fig12b", "fig13", "fig14")),
                   ("Workpiece U95 on the outline (Figs. 18, 19)", ("fig18a", "fig18b", "fig18c", "fig19")),
                   ("U95 of the error map (Fig. 20)", ("fig20a", "fig20b")),
                   ("Pin circle (Fig. 17)", ("fig17",)))
@@ -796,7 +801,7 @@ def _paper_figure_objects(cpu: dict, pin: dict | None, seed: int) -> dict:
                 a["grid_x_mm"], a["grid_y_mm"], np.asarray(a[key]).T,
                 title=f"Fig. 20({tag}): U95 (k=2) of the 2D positioning error, {sph} spheres")
     # case 1 campaign: Figs. 9(b), 10, 14
-    art, plan, t, _ = cross_pocket_campaign(seed)
+    art, plan, t, machine = cross_pocket_campaign(seed)
     g_true = workpiece_truth(art, plan)
     first = {}
     for k in range(t.n):
@@ -823,8 +828,46 @@ def _paper_figure_objects(cpu: dict, pin: dict | None, seed: int) -> dict:
     res = self_calibrate(t, grid)
     out["fig14"] = F.rotary_motions_figure(np.degrees(res.design.c_rad), {"ECC": res.ECC * 1e6},
                                            {"ECC": 2e6 * res.std[res.design.slices["ECC"]]})
+    out.update(_case1_figures(t, res, res0, P, N, pocket, ref, machine))
     if pin is not None:
         out["fig17"] = _pin_figure_object(pin)
+    return out
+
+
+def _case1_figures(t, res, res0, P, N, pocket, ref_um, machine) -> dict:
+    """Figs. 9(a), 9(c), 12(a, b), 13 from the simulated case-1 campaign; the simulator's truth plays the CMM
+    (Fig. 9) and the 2D digital scale (Fig. 12: the whole grid, the paper's KGM only X120 x Y180 mm)."""
+    from core.fit import fit_circle_2d
+    from core.selfcal import workpiece_form
+    from scenarios.reports import error_map_um, true_error_map
+    from viz import figures as F
+
+    out = {}
+    sel = t.setup == int(np.argmin(np.abs(t.rot_rad[:, 2])))  # C = 0
+    raw = {t.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel])}
+    raw0 = workpiece_form(np.array([raw[k] for k in pocket]), P, N) / UM
+    note = " (part's shift, rotation, scale removed)"
+    out["fig9a"] = F.profile_figure(P / MM, N, {"raw at C = 0°" + note: raw0}, reference_um=ref_um,
+                                    reference_label="true form (the CMM's role)", magnification=2500.0,
+                                    scale_um=20.0, title="Fig. 9(a)")
+    g = dict(zip(res.design.target_ids, res.G))
+    ident = workpiece_form(np.array([g[k] for k in pocket]), P, N) / UM
+    out["fig9c"] = F.profile_figure(P / MM, N, {"identified G_normal, with spheres" + note: ident},
+                                    reference_um=ref_um, reference_label="true form (the CMM's role)",
+                                    magnification=2500.0, scale_um=20.0, title="Fig. 9(c)")
+    z = float(np.median(t.pn_R[:, 2]))
+    for tag, r, what in (("a", res, "with spheres"), ("b", res0, "without spheres")):
+        x, y, ex, ey = error_map_um(r)
+        tex, tey = true_error_map(machine, x, y, z, ex, ey)
+        out[f"fig12{tag}"] = F.error_grid_figure(x, y, ex.T, ey.T, true_ex_um=tex.T, true_ey_um=tey.T,
+                                                 title=f"Fig. 12({tag}), {what}")
+    c_deg = np.degrees(res.design.c_rad)
+    exc, eyc = res.EXC / UM, res.EYC / UM
+    centre = fit_circle_2d(np.column_stack([exc, eyc])).centre
+    out["fig13"] = F.rotary_centre_figure(c_deg, exc, eyc, ex0c_um=float(centre[0]), ey0c_um=float(centre[1]),
+                                          u95_exc_um=2 * res.std[res.design.slices["EXC"]] / UM,
+                                          u95_eyc_um=2 * res.std[res.design.slices["EYC"]] / UM,
+                                          title="Fig. 13: C-axis centre trajectory, with spheres")
     return out
 
 

@@ -119,13 +119,23 @@ def test_paper_report_folder(cpu, pin, tmp_path):
     from scenarios.crosspocket import paper_figures
 
     figs = paper_figures(tmp_path / "rep", cpu, pin)
-    assert sorted(figs) == sorted(["fig9b", "fig10", "fig14", "fig17", "fig18a", "fig18b", "fig18c", "fig19",
-                                   "fig20a", "fig20b"])
+    assert sorted(figs) == sorted(["fig9a", "fig9b", "fig9c", "fig10", "fig12a", "fig12b", "fig13", "fig14",
+                                   "fig17", "fig18a", "fig18b", "fig18c", "fig19", "fig20a", "fig20b"])
     for p in figs.values():
         assert p.stat().st_size > 10_000
     html = (tmp_path / "rep" / "index.html").read_text()
     assert "Table 2" in html and "eqs 16-17" in html and "Sensitivity" in html
-    assert (tmp_path / "rep" / "recording.rrd").stat().st_size > 1_000
+    # the recording holds the figures themselves: one PNG image per figure (rerun 0.41's own reader)
+    rc = pytest.importorskip("rerun.chunk")
+    blobs = {}
+    for ch in rc.RrdReader(tmp_path / "rep" / "recording.rrd").stream():
+        rb = ch.to_record_batch()
+        if "EncodedImage:blob" in rb.schema.names:
+            blob = rb.column(rb.schema.names.index("EncodedImage:blob")).to_pylist()[0][0]
+            blobs[str(ch.entity_path).rsplit("/", 1)[-1]] = bytes(blob)
+    assert sorted(blobs) == sorted(figs)
+    for name, b in blobs.items():
+        assert b[:8] == b"\x89PNG\r\n\x1a\n" and len(b) > 10_000, name
 
 
 def test_sphere_sensitivity_dense_matches_core_lsq():
