@@ -128,7 +128,7 @@ def sensitivity_study(spheres: bool = True) -> list:
 #: 3 unknowns, instead of one free G per touch as eq 15 has for every probed point), ``sphere_r_m`` (centres
 #: moved along their own direction to this radius; 96 mm keeps every touch inside the +-110 mm grid at every
 #: C), ``sphere_sigma_m`` (the spheres' probing standard uncertainty), ``step_m``; ``rigid="known"``: the
-#: spheres' G is 0 (they define the part's datum).
+#: spheres' G is 0 (they define the part's datum); ``arm_half_m`` as :data:`SENSITIVITY`.
 SPHERE_SENSITIVITY = (
     ("baseline: 4 touches a sphere, free G per touch, centres at r 85/89 mm, grid 22 mm", {}),
     ("8 touches a sphere (case 2's count; N_w = 100)", {"sphere_touches": 8}),
@@ -145,6 +145,10 @@ SPHERE_SENSITIVITY = (
     ("round 2: spheres as datum, G = 0 at their touches", {"rigid": "known"}),
     ("round 2: spheres as datum + 8 touches", {"rigid": "known", "sphere_touches": 8}),
     ("round 2: spheres as datum, grid step 44 mm", {"rigid": "known", "step_m": 0.044}),
+    # round 3, fixed after round 2 (all within 1.5x but the 2-angle case) and before running it: does the
+    # arms' reach (the earlier sensitivity's 208 / 214 mm arms) bring the 2-angle case in?
+    ("round 3: spheres as datum, arms 208 mm", {"rigid": "known", "arm_half_m": 0.104}),
+    ("round 3: spheres as datum, arms 214 mm", {"rigid": "known", "arm_half_m": 0.107}),
 )
 
 
@@ -194,12 +198,13 @@ def _g_u95_readings(Cg: np.ndarray, NG: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def _sphere_case(c_deg, sphere_touches=4, rigid=False, sphere_r_m=None, sphere_sigma_m=U_PROBE_M,
-                 step_m=0.022, spheres=True) -> dict:
+                 step_m=0.022, spheres=True, arm_half_m=None) -> dict:
     """One case of :data:`SPHERE_SENSITIVITY` by dense linear propagation: U95 of the pocket's G, Table 2, map."""
     from core.selfcal import Grid, build_design, nominal_touches
     from core.uncertainty import K, error_map_operator
 
     w, wn, ids = _plan_points(False)
+    w, wn = _variant_points(w, wn, ids, arm_half_m)
     npk = len(w)
     sig = [np.full(npk, U_PROBE_M)]
     if spheres:
@@ -247,7 +252,7 @@ def sphere_sensitivity() -> list:
     four, three, two = CROSS_ANGLES_DEG, (0.0, 75.0, 130.0), (0.0, 75.0)
     rows, without = [], {}
     for label, kw in SPHERE_SENSITIVITY:
-        nokw = {k: v for k, v in kw.items() if k in ("step_m",)}
+        nokw = {k: v for k, v in kw.items() if k in ("step_m", "arm_half_m")}
         key = tuple(sorted(nokw.items()))
         if key not in without:
             without[key] = _sphere_case(four, spheres=False, **nokw)
