@@ -16,7 +16,7 @@ the touched extent (the paper's -400..400 mm has nodes no pin reaches), the
 yaw vmt's rule picks for the chain, eq 17's delta_L measured; the pin errors
 in the paper's frame (pin 1 and pin 11), raw at C = 0 and self-calibrated.
 
-:func:`paper_figures` writes Figs. 9(a-c), 10, 12(a, b), 13, 14, 17, 18(a-c), 19, 20(a, b), and puts the
+:func:`paper_figures` writes Figs. 9(a-c), 10, 11, 12(a, b), 13, 14, 17, 18(a-c), 19, 20(a, b), and puts the
 figures themselves in the rerun recording.
 The part geometry is vmt's reconstruction (sim.artefacts); the paper's Fig. 8
 is not fully dimensioned, so the figures differ: see ``notes`` in the JSON.
@@ -673,7 +673,7 @@ def paper_figures(folder, cpu: dict, pin: dict | None = None, seed: int = 1) -> 
     (U95 on the part, the tables paper vs vmt, every figure as an image
     under ``reports/figures``). Figs. 18(a-c), 19 (U95 of G on the outline),
     20(a, b) (U95 of the map) from ``cpu`` (:func:`cross_pocket_uncertainty`);
-    9(a-c), 10, 12(a, b), 13, 14 from a simulated campaign
+    9(a-c), 10, 11, 12(a, b), 13, 14 from a simulated campaign
     (:func:`cross_pocket_campaign`; the simulator's truth in the CMM's and
     the 2D scale's roles); 17 from ``pin`` (:func:`pin_circle`) when given.
     """
@@ -697,7 +697,8 @@ def paper_figures(folder, cpu: dict, pin: dict | None = None, seed: int = 1) -> 
         secs = [Section("Self-calibration paper: the one U95 reading", text=cpu["u95_reading"]),
                 Section("Paper vs vmt", tables=list(tables.values()))]
         groups = (("Case 1 profiles (Figs. 9(a-c), 10)", ("fig9a", "fig9b", "fig9c", "fig10")),
-                  ("Case 1 error map (Fig. 12) and the C axis (Figs. 13, 14)", ("fig12a", "fig12b", "fig13", "fig14")),
+                  ("Case 1 tables and map (Figs. 11, 12)", ("fig11", "fig12a", "fig12b")),
+                  ("Case 1 C axis (Figs. 13, 14)", ("fig13", "fig14")),
                   ("Workpiece U95 on the outline (Figs. 18, 19)", ("fig18a", "fig18b", "fig18c", "fig19")),
                   ("U95 of the error map (Fig. 20)", ("fig20a", "fig20b")),
                   ("Pin circle (Fig. 17)", ("fig17",)))
@@ -902,7 +903,7 @@ def _case1_table(c: dict, seed: int):
 
 
 def _case1_figures(t, res, res0, P, N, pocket, ref_um, machine) -> dict:
-    """Figs. 9(a), 9(c), 12(a, b), 13 from the simulated case-1 campaign; the simulator's truth plays the CMM
+    """Figs. 9(a), 9(c), 11, 12(a, b), 13 from the simulated case-1 campaign; the simulator's truth plays the CMM
     (Fig. 9) and the 2D digital scale (Fig. 12: the whole grid, the paper's KGM only X120 x Y180 mm)."""
     from core.fit import fit_circle_2d
     from core.selfcal import workpiece_form
@@ -928,6 +929,11 @@ def _case1_figures(t, res, res0, P, N, pocket, ref_um, machine) -> dict:
         tex, tey = true_error_map(machine, x, y, z, ex, ey)
         out[f"fig12{tag}"] = F.error_grid_figure(x, y, ex.T, ey.T, true_ex_um=tex.T, true_ey_um=tey.T,
                                                  title=f"Fig. 12({tag}), {what}")
+    ax = res.to_report()["axes"]
+    out["fig11"] = F.error_motions_figure(
+        {k: v for k, v in ax.items() if k != "EC0Y"},
+        title=f"Fig. 11: identified X and Y tables, with spheres (EC0Y = {ax['EC0Y']['value_urad']:.1f} "
+              f"± {ax['EC0Y']['u95_urad']:.1f} µrad; bars U95)")
     c_deg = np.degrees(res.design.c_rad)
     exc, eyc = res.EXC / UM, res.EYC / UM
     centre = fit_circle_2d(np.column_stack([exc, eyc])).centre

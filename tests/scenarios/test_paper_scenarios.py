@@ -119,7 +119,7 @@ def test_paper_report_folder(cpu, pin, tmp_path):
     from scenarios.crosspocket import paper_figures
 
     figs = paper_figures(tmp_path / "rep", cpu, pin)
-    assert sorted(figs) == sorted(["fig9a", "fig9b", "fig9c", "fig10", "fig12a", "fig12b", "fig13", "fig14",
+    assert sorted(figs) == sorted(["fig9a", "fig9b", "fig9c", "fig10", "fig11", "fig12a", "fig12b", "fig13", "fig14",
                                    "fig17", "fig18a", "fig18b", "fig18c", "fig19", "fig20a", "fig20b"])
     for p in figs.values():
         assert p.stat().st_size > 10_000
