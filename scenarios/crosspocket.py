@@ -696,9 +696,10 @@ def paper_figures(folder, cpu: dict, pin: dict | None = None, seed: int = 1) -> 
     from viz.report import Section, write_report
 
     folder = Path(folder)
-    figs = _paper_figure_objects(cpu, pin, seed)
+    run = _case1_run(seed)
+    figs = _paper_figure_objects(cpu, pin, run)
     tables = paper_tables(cpu, pin)
-    tables["case1"] = _case1_table(case1_comparison(seed), seed)
+    tables["case1"] = _case1_table(case1_comparison(seed, run), seed)
     rrd = _recording_path(folder)
     try:
         with record.recording(rrd) as rec:
@@ -789,10 +790,9 @@ def _record_paper(rec, record, cpu: dict, tables: dict) -> None:
         record.log_markdown(rec, f"selfcal_{name}", (t.caption + "\n\n" if t.caption else "") + md)
 
 
-def _paper_figure_objects(cpu: dict, pin: dict | None, seed: int) -> dict:
-    """``{name: Figure}`` of the paper's figures (see :func:`paper_figures`)."""
-    from core.selfcal import Grid, self_calibrate, workpiece_form
-    from scenarios.hidden import workpiece_truth
+def _paper_figure_objects(cpu: dict, pin: dict | None, run: dict) -> dict:
+    """``{name: Figure}`` of the paper's figures (see :func:`paper_figures`); ``run``: :func:`_case1_run`."""
+    from core.selfcal import workpiece_form
     from sim import artefacts as A
     from viz import figures as F
     from viz import selfcal_figures as S
@@ -817,16 +817,8 @@ def _paper_figure_objects(cpu: dict, pin: dict | None, seed: int) -> dict:
             out[f"fig20{tag}"] = F.grid_uncertainty_figure(
                 a["grid_x_mm"], a["grid_y_mm"], np.asarray(a[key]).T,
                 title=f"Fig. 20({tag}): U95 (k=2) of the 2D positioning error, {sph} spheres")
-    # case 1 campaign: Figs. 9(b), 10, 14
-    art, plan, t, machine = cross_pocket_campaign(seed)
-    g_true = workpiece_truth(art, plan)
-    first = {}
-    for k in range(t.n):
-        first.setdefault(t.target_ids[t.target[k]], k)
-    pocket = [k for k in t.target_ids if not k.startswith("sphere")]
-    P = np.array([t.w_A[first[k], :2] for k in pocket])
-    N = np.array([t.wn_A[first[k], :2] for k in pocket])
-    ref = workpiece_form(np.array([g_true[k] for k in pocket]), P, N) / UM
+    # case 1 campaign: Figs. 9, 10, 11, 12, 13, 14
+    t, P, N, pocket, ref, res, res0 = (run[k] for k in ("t", "P", "N", "pocket", "ref_um", "res", "res0"))
     prof = {}
     for j in range(len(t.setup_ids)):
         sel = t.setup == j
@@ -834,33 +826,23 @@ def _paper_figure_objects(cpu: dict, pin: dict | None, seed: int) -> dict:
         prof[f"C = {np.degrees(t.rot_rad[sel, 2][0]):g}°"] = np.array([raw[k] for k in pocket]) / UM
     out["fig9b"] = F.profile_figure(P / MM, N, prof, magnification=1000.0, scale_um=50.0,
                                     title="Fig. 9(b): raw profiles at each C (W)")
-    grid = Grid.regular(-0.110, 0.110, 0.022)
-    keep = np.array([not t.target_ids[i].startswith("sphere") for i in t.target])
-    res0 = self_calibrate(t.subset(keep, reindex=True), grid)
     g0 = dict(zip(res0.design.target_ids, res0.G))
     ident = workpiece_form(np.array([g0[k] for k in pocket]), P, N) / UM
     out["fig10"] = F.profile_figure(P / MM, N, {"identified G_normal, no spheres (form)": ident}, reference_um=ref,
                                     reference_label="true form (the CMM's role)",
                                     title="Fig. 10: identified without the spheres")
-    res = self_calibrate(t, grid)
     out["fig14"] = F.rotary_motions_figure(np.degrees(res.design.c_rad), {"ECC": res.ECC * 1e6},
                                            {"ECC": 2e6 * res.std[res.design.slices["ECC"]]})
-    out.update(_case1_figures(t, res, res0, P, N, pocket, ref, machine))
+    out.update(_case1_figures(t, res, res0, P, N, pocket, ref, run["machine"]))
     if pin is not None:
         out["fig17"] = _pin_figure_object(pin)
     return out
 
 
-def case1_comparison(seed: int = 1) -> dict:
-    """Case 1 against the simulator's truth (the paper's CMM and 2D scale), um: what Figs. 9, 10, 12 show.
-
-    Profiles are compared as forms (the part's shift, rotation and scale removed, which no self-calibration
-    sees); maps in the identification's gauge (:func:`scenarios.reports.true_error_map`). ``kgm`` is the
-    paper's 2D-scale range X120 x Y180 mm, ``edge`` the nodes at Y = +-110 mm.
-    """
+def _case1_run(seed: int) -> dict:
+    """The simulated case-1 campaign identified with and without the spheres, and the truth's form (um)."""
     from core.selfcal import Grid, self_calibrate, workpiece_form
     from scenarios.hidden import workpiece_truth
-    from scenarios.reports import error_map_um, true_error_map
 
     art, plan, t, machine = cross_pocket_campaign(seed)
     g_true = workpiece_truth(art, plan)
@@ -870,18 +852,33 @@ def case1_comparison(seed: int = 1) -> dict:
     pocket = [k for k in t.target_ids if not k.startswith("sphere")]
     P = np.array([t.w_A[first[k], :2] for k in pocket])
     N = np.array([t.wn_A[first[k], :2] for k in pocket])
-    ref = workpiece_form(np.array([g_true[k] for k in pocket]), P, N) / UM
+    grid = Grid.regular(-0.110, 0.110, 0.022)
+    keep = np.array([not t.target_ids[i].startswith("sphere") for i in t.target])
+    return {"t": t, "machine": machine, "pocket": pocket, "P": P, "N": N,
+            "ref_um": workpiece_form(np.array([g_true[k] for k in pocket]), P, N) / UM,
+            "res": self_calibrate(t, grid), "res0": self_calibrate(t.subset(keep, reindex=True), grid)}
+
+
+def case1_comparison(seed: int = 1, run: dict | None = None) -> dict:
+    """Case 1 against the simulator's truth (the paper's CMM and 2D scale), um: what Figs. 9, 10, 12 show.
+
+    Profiles are compared as forms (the part's shift, rotation and scale removed, which no self-calibration
+    sees); maps in the identification's gauge (:func:`scenarios.reports.true_error_map`). ``kgm`` is the
+    paper's 2D-scale range X120 x Y180 mm, ``edge`` the nodes at Y = +-110 mm.
+    """
+    from core.selfcal import workpiece_form
+    from scenarios.reports import error_map_um, true_error_map
+
+    run = _case1_run(seed) if run is None else run
+    t, P, N, pocket, ref, machine = (run[k] for k in ("t", "P", "N", "pocket", "ref_um", "machine"))
     out = {"true_form_pp_um": round(float(np.ptp(ref)), 3), "raw_form_error_max_um": {}}
     for j, sid in enumerate(t.setup_ids):
         sel = t.setup == j
         raw = {t.target_ids[k]: v for k, v in zip(t.target[sel], t.dq_m[sel])}
         r = workpiece_form(np.array([raw[k] for k in pocket]), P, N) / UM
         out["raw_form_error_max_um"][sid] = round(float(np.abs(r - ref).max()), 3)
-    grid = Grid.regular(-0.110, 0.110, 0.022)
-    keep = np.array([not t.target_ids[i].startswith("sphere") for i in t.target])
     z = float(np.median(t.pn_R[:, 2]))
-    for name, tt in (("with_spheres", t), ("without_spheres", t.subset(keep, reindex=True))):
-        res = self_calibrate(tt, grid)
+    for name, res in (("with_spheres", run["res"]), ("without_spheres", run["res0"])):
         g = dict(zip(res.design.target_ids, res.G))
         e = np.abs(workpiece_form(np.array([g[k] for k in pocket]), P, N) / UM - ref)
         x, y, ex, ey = error_map_um(res)

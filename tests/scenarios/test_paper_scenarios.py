@@ -162,9 +162,10 @@ def test_fig19_and_table2_explained(cpu):
     18(c), 19 - 18(c), 20(a) and every Table 2 value within 1.5x of the paper; the 2-angle case 1.83x.
     """
     rows = {r["variant"]: r for r in cpu["sphere_sensitivity"]}
-    r1 = [r for r in cpu["sphere_sensitivity"] if not r["variant"].startswith("round 2")]
+    r1 = [r for r in cpu["sphere_sensitivity"] if not r["variant"].startswith("round")]
     eff1 = [r["total"]["sphere_effect_max_um"] for r in r1]
-    assert r1[0]["variant"].startswith("baseline") and r1[0]["total"]["sphere_effect_max_um"] == pytest.approx(0.85, abs=0.01)
+    assert r1[0]["variant"].startswith("baseline")
+    assert r1[0]["total"]["sphere_effect_max_um"] == pytest.approx(0.85, abs=0.01)
     assert max(eff1) == pytest.approx(2.60, abs=0.01) and max(eff1) < 4.0 / 1.5
     assert max(r["form"]["sphere_effect_max_um"] for r in r1) < 0.4  # the form alone hardly moves
     r2 = rows["round 2: spheres as datum, G = 0 at their touches"]  # 4 touches a sphere, 22 mm grid
@@ -181,6 +182,11 @@ def test_fig19_and_table2_explained(cpu):
         assert 1 / 1.5 < r2["u_yc_um"][j] / p["paper_u_yc_um"] < 1.5
         assert 1 / 1.5 < r2["u_cc_urad"][j] / p["paper_u_cc_urad"] < 1.5
     assert 1.5 < t["fig18a_max_um"] / 6.5 < 2.0  # the 2-angle case stays outside: 11.9 um
+    # round 3: the arms' reach does not bring it in (12.4, 12.5 um); the rest stays within 1.5x
+    for arms in ("208", "214"):
+        r3 = rows[f"round 3: spheres as datum, arms {arms} mm"]["total"]
+        assert r3["fig18a_max_um"] / 6.5 > 1.5
+        assert 1 / 1.5 < r3["fig18c_max_um"] / 2.1 < 1.5 and 1 / 1.5 < r3["sphere_effect_max_um"] / 4.0 < 1.5
 
 
 def test_case1_closed_loop_against_the_truth():
