@@ -28,6 +28,7 @@ BENCHES: list[str] = [
     "scenarios.bench.vcmm",
     "scenarios.bench.probelog",
     "scenarios.bench.discover_study",
+    "scenarios.bench.simspeed",
 ]
 
 
