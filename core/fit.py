@@ -77,6 +77,8 @@ __all__ = [
     "SphereFit",
     "CylinderFit",
     "fit_plane",
+    "plane_point_normal",
+    "cylinder_point_axis",
     "fit_line",
     "fit_planes",
     "fit_lines",
@@ -378,6 +380,20 @@ class CylinderFit:
 # --------------------------------------------------------------------------- helpers
 
 
+def _centred(P):
+    """Centroid, RMS distance to it and the centred points scaled by it: (c0, s, X)."""
+    c0 = P.mean(axis=0)
+    D = P - c0
+    s = float(np.sqrt(np.mean(np.einsum("ij,ij->i", D, D))))
+    return c0, s, D / s if s > 0.0 else D
+
+
+def _n_distinct(P) -> int:
+    """Number of distinct rows of ``P`` (n, d) (same count as ``np.unique(P, axis=0)``)."""
+    Q = P[np.lexsort(P.T[::-1])]
+    return 1 + int(np.count_nonzero(np.any(Q[1:] != Q[:-1], axis=1))) if len(Q) else 0
+
+
 def _check_points(points, dim: int, n_min: int, kind: str):
     """Validate and centre/scale ``points``; return (P, c0, s, X)."""
     try:
@@ -392,16 +408,21 @@ def _check_points(points, dim: int, n_min: int, kind: str):
     bad = ~np.isfinite(P).all(axis=1)
     if bad.any():
         raise FitError(f"{kind} fit: points contain non-finite values (row {int(np.argmax(bad))})")
-    c0 = P.mean(axis=0)
-    D = P - c0
-    s = float(np.sqrt(np.mean(np.einsum("ij,ij->i", D, D))))
+    c0, s, X = _centred(P)
     if s == 0.0:
         raise FitError(f"{kind} fit: not enough significant data points: all points are coincident")
-    n_distinct = np.unique(P, axis=0).shape[0]
+    n_distinct = _n_distinct(P)
     if n_distinct < n_min:
         raise FitError(f"{kind} fit: not enough significant data points: only {n_distinct} "
                        f"distinct points (coincident points), needs {n_min}")
-    return P, c0, s, D / s
+    return P, c0, s, X
+
+
+def _cross3(a, b):
+    """``np.cross`` of two (3,) vectors without its generic-axis overhead (same operations, same bits)."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def _perp_basis(d, u_prev=None):
@@ -417,7 +438,7 @@ def _perp_basis(d, u_prev=None):
         u = a - (a @ d) * d
         nu = np.linalg.norm(u)
     u = u / nu
-    v = np.cross(d, u)
+    v = _cross3(d, u)
     return np.stack([u, v, d])
 
 
@@ -613,17 +634,61 @@ def fit_plane(points, *, normal_hint=None, tol: FitTolerances = TOL) -> PlaneFit
         collinear points (the normal is not determined).
     """
     P, c0, s, X = _check_points(points, 3, 3, "plane")
-    _, Vt = _svd_frame(X)
-    n = orient(Vt[2], normal_hint)
-    B = _perp_basis(n, Vt[0])
-    _, J = _rj_plane(np.zeros(3), B, X)
-    _check_rank(J, PlaneFit.param_names, "plane", "points are collinear", tol)
-    r, J = _rj_plane(np.zeros(3), B, P - c0)
-    point = c0 + (np.mean(P - c0, axis=0) @ n) * n  # (mean is 0 up to rounding)
+    point, n, B = _plane_solve(P, c0, X, normal_hint, tol)
+    _, J = _rj_plane(np.zeros(3), B, P - c0)
     r = (P - point) @ n
     cov, dof = _covariance(J, r, 3)
     return PlaneFit(point=point, normal=n, residuals=r, rms=float(np.sqrt(np.mean(r**2))),
                     cov=cov, dof=dof, basis=B)
+
+
+def _plane_solve(P, c0, X, normal_hint, tol, basis: bool = True):
+    """(point, normal, basis) of the plane through ``P`` (centroid ``c0``, scaled ``X``);
+    the rank check when ``tol`` is given (None: the caller has checked these points);
+    basis None when neither asked for nor needed by the check."""
+    _, Vt = _svd_frame(X)
+    n = orient(Vt[2], normal_hint)
+    B = _perp_basis(n, Vt[0]) if basis or tol is not None else None
+    if tol is not None:
+        _, J = _rj_plane(np.zeros(3), B, X)
+        _check_rank(J, PlaneFit.param_names, "plane", "points are collinear", tol)
+    point = c0 + (np.mean(P - c0, axis=0) @ n) * n  # (mean is 0 up to rounding)
+    return point, n, B
+
+
+def plane_point_normal(points, *, normal_hint=None, tol: FitTolerances = TOL,
+                       validate: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``(point, normal)`` of :func:`fit_plane`, bit for bit, without residuals or covariance.
+
+    The light path for callers that refit the same feature many times (the
+    finite-difference gain of :func:`core.mfb.poi_noise_gain`).
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Points, m, n >= 3.
+    normal_hint : (3,) float, optional
+        As :func:`fit_plane`.
+    tol : FitTolerances
+    validate : bool
+        True: the checks of :func:`fit_plane` (shape, finite, distinct points,
+        rank). False: none; only for points known good, e.g. a feature that
+        passed :func:`fit_plane` moved by far less than its spread.
+
+    Returns
+    -------
+    point : (3,) float
+        m, as ``fit_plane(...).point``.
+    normal : (3,) float
+        As ``fit_plane(...).normal``.
+    """
+    if validate:
+        P, c0, _, X = _check_points(points, 3, 3, "plane")
+    else:
+        P = points
+        c0, _, X = _centred(P)
+    point, n, _ = _plane_solve(P, c0, X, normal_hint, tol if validate else None, basis=False)
+    return point, n
 
 
 def fit_line(points, *, direction_hint=None, tol: FitTolerances = TOL) -> LineFit:
@@ -875,15 +940,28 @@ def fit_cylinder(points, *, axis_hint=None, tol: FitTolerances = TOL) -> Cylinde
         the corners of a cuboid, which lie exactly on three cylinders) when
         no ``axis_hint`` is given, or no convergence.
     """
+    P, c0, s, X = _check_points(points, 3, 5, "cylinder")
+    point, a, B, R, it = _cylinder_solve(P, c0, s, X, axis_hint, tol, validate=True)
+    r, J = _rj_cylinder(point - c0, B, R, P - c0)
+    cov, dof = _covariance(J, r, 5)
+    return CylinderFit(point=point, axis=a, radius=float(R), residuals=r,
+                       rms=float(np.sqrt(np.mean(r**2))), cov=cov, dof=dof, basis=B,
+                       iterations=it)
+
+
+def _cylinder_solve(P, c0, s, X, axis_hint, tol: FitTolerances, validate: bool):
+    """(point, axis, basis, radius, iterations) of the cylinder through ``P`` (centroid
+    ``c0``, scale ``s``, scaled ``X``). ``validate`` False (only with ``axis_hint``):
+    no collinearity, hint or rank check; the caller has checked these points."""
     kind = "cylinder"
-    P, c0, s, X = _check_points(points, 3, 5, kind)
-    S, Vt = _svd_frame(X)
-    if S[1] <= S[0] / tol.cond_max:
-        raise FitError(f"{kind} fit: not enough significant data points: points are collinear, "
-                       f"the radius is not determined")
+    if validate or axis_hint is None:
+        S, Vt = _svd_frame(X)
+        if S[1] <= S[0] / tol.cond_max:
+            raise FitError(f"{kind} fit: not enough significant data points: points are collinear, "
+                           f"the radius is not determined")
     if axis_hint is not None:
         h = np.asarray(axis_hint, dtype=float)
-        if h.shape != (3,) or not np.all(np.isfinite(h)) or not np.linalg.norm(h) > 0:
+        if validate and (h.shape != (3,) or not np.all(np.isfinite(h)) or not np.linalg.norm(h) > 0):
             raise FitError(f"cylinder fit: axis_hint must be a finite non-zero (3,) vector, got {h!r}")
         candidates = [h / np.linalg.norm(h)]
     else:
@@ -918,7 +996,7 @@ def fit_cylinder(points, *, axis_hint=None, tol: FitTolerances = TOL) -> Cylinde
         raise FitError(errors[0])
     _, (p, B, R), J, it = best
     floor = len(X) * 1e-18  # RSS of 1e-9 RMS in scaled units: rounding level
-    for cost, (_, B2, _), _, _ in rivals:
+    for cost, (_, B2, _), _, _ in rivals if len(rivals) > 1 else ():
         if (np.linalg.norm(np.cross(B2[2], B[2])) > tol.rival_angle
                 and cost <= tol.rival_rms_ratio**2 * best[0] + floor):
             raise FitError(
@@ -926,18 +1004,50 @@ def fit_cylinder(points, *, axis_hint=None, tol: FitTolerances = TOL) -> Cylinde
                 f"well on cylinders with different axes (rms {np.sqrt(best[0] / len(X)) * s:.3g} m "
                 f"about {np.round(orient(B[2]), 4).tolist()}, {np.sqrt(cost / len(X)) * s:.3g} m "
                 f"about {np.round(orient(B2[2]), 4).tolist()}); pass axis_hint")
-    _check_rank(J, CylinderFit.param_names, kind,
-                "the points do not determine the axis and radius (one section, or one side "
-                "of the cylinder only)", tol)
+    if validate:
+        _check_rank(J, CylinderFit.param_names, kind,
+                    "the points do not determine the axis and radius (one section, or one side "
+                    "of the cylinder only)", tol)
     a = orient(B[2], axis_hint)
     B = _perp_basis(a, B[0])
-    point = c0 + s * p
-    R = s * R
-    r, J = _rj_cylinder(point - c0, B, R, P - c0)
-    cov, dof = _covariance(J, r, 5)
-    return CylinderFit(point=point, axis=a, radius=float(R), residuals=r,
-                       rms=float(np.sqrt(np.mean(r**2))), cov=cov, dof=dof, basis=B,
-                       iterations=it)
+    return c0 + s * p, a, B, s * R, it
+
+
+def cylinder_point_axis(points, *, axis_hint, tol: FitTolerances = TOL,
+                        validate: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``(point, axis)`` of :func:`fit_cylinder` with ``axis_hint``, bit for bit, without
+    residuals or covariance.
+
+    The light path for callers that refit the same feature many times (the
+    finite-difference gain of :func:`core.mfb.poi_noise_gain`).
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Points, m, n >= 5.
+    axis_hint : (3,) float
+        Approximate axis (the only initial axis, and the sign of the result).
+    tol : FitTolerances
+    validate : bool
+        True: the checks of :func:`fit_cylinder`. False: none (shape, finite
+        values, distinct points, collinearity, rank); only for points known
+        good, e.g. a feature that passed :func:`fit_cylinder` moved by far less
+        than its spread. Non-convergence still raises :class:`FitError`.
+
+    Returns
+    -------
+    point : (3,) float
+        m, as ``fit_cylinder(...).point``.
+    axis : (3,) float
+        As ``fit_cylinder(...).axis``.
+    """
+    if validate:
+        P, c0, s, X = _check_points(points, 3, 5, "cylinder")
+    else:
+        P = points
+        c0, s, X = _centred(P)
+    point, a, _, _, _ = _cylinder_solve(P, c0, s, X, axis_hint, tol, validate)
+    return point, a
 
 
 # --------------------------------------------------------------------------- batches

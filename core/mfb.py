@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .exceptions import ConfigError, FitError
-from .fit import fit_cylinder, fit_plane
+from .fit import cylinder_point_axis, plane_point_normal
 from .units import MM
 
 
@@ -213,15 +213,12 @@ def fit_bar_features(p_R, feature, n_R) -> BarFeatures:
     for f, idx in _group(feature).items():
         try:
             if (i := _num(f, "hole")) is not None:
-                c = fit_cylinder(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
-                hp[i], ha[i] = c.point, c.axis
+                hp[i], ha[i] = cylinder_point_axis(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
             elif (j := _num(f, "rod")) is not None:
-                c = fit_cylinder(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
-                rp[j], ra[j] = c.point, c.axis
+                rp[j], ra[j] = cylinder_point_axis(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
                 rod_normals.append(n_R[idx])
             elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
-                pl = fit_plane(p_R[idx], normal_hint=n_R[idx].mean(axis=0))
-                fp[(f[4], j)], fn[(f[4], j)] = pl.point, pl.normal
+                fp[(f[4], j)], fn[(f[4], j)] = plane_point_normal(p_R[idx], normal_hint=n_R[idx].mean(axis=0))
         except FitError as e:
             raise FitError(f"MFB feature {f!r}: {e}") from None
     side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
@@ -256,20 +253,20 @@ def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB) -> PointsOfInter
     O_R = []
     for i in holes:
         a, b = _rod_pair(i, rods)
-        pl = fit_plane(np.vstack([P[a], P[b]]), normal_hint=bf.probe_side)
-        O_R.append(_meet(bf.hole_point[i], bf.hole_axis[i], pl.point, pl.normal))
+        q, n = plane_point_normal(np.vstack([P[a], P[b]]), normal_hint=bf.probe_side)
+        O_R.append(_meet(bf.hole_point[i], bf.hole_axis[i], q, n))
     O_R = np.array(O_R)
     # R_MFB: PL_ref through the P points of the first and last rods
     j0, j1 = min(rods), max(rods)
-    ref = fit_plane(np.vstack([P[j0], P[j1]]), normal_hint=bf.probe_side if np.any(bf.probe_side) else None)
-    z = ref.normal
+    ref_point, z = plane_point_normal(np.vstack([P[j0], P[j1]]),
+                                      normal_hint=bf.probe_side if np.any(bf.probe_side) else None)
     shifted = {i for i, _ in geom.shifted} | {geom.n_holes + 1 - i for i, _ in geom.shifted}
     plain = [i for i in holes if i not in shifted] or holes
     ia, ib = plain[0], plain[-1]
     if ia == ib:
         ia, ib = holes[0], holes[-1]
-    Oa = _meet(bf.hole_point[ia], bf.hole_axis[ia], ref.point, z)
-    Ob = _meet(bf.hole_point[ib], bf.hole_axis[ib], ref.point, z)
+    Oa = _meet(bf.hole_point[ia], bf.hole_axis[ia], ref_point, z)
+    Ob = _meet(bf.hole_point[ib], bf.hole_axis[ib], ref_point, z)
     x = (Ob - Oa) / np.linalg.norm(Ob - Oa)
     y = np.cross(z, x)
     R = np.column_stack([x, y, z])
@@ -375,8 +372,8 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
             for j in (a, c):
                 if j not in P:
                     P[j] = _rod_points(b, j)
-            pl = fit_plane(np.vstack([P[a], P[c]]), normal_hint=b.probe_side)
-            out[i] = _meet(b.hole_point[i], b.hole_axis[i], pl.point, pl.normal)
+            q, n = plane_point_normal(np.vstack([P[a], P[c]]), normal_hint=b.probe_side, validate=False)
+            out[i] = _meet(b.hole_point[i], b.hole_axis[i], q, n)
         return out
 
     base = o_rows(bf, holes)
@@ -397,16 +394,15 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
             q[list(idx).index(k)] += sgn * h_m * d_R[k]
             hp, ha, rp, ra = dict(bf.hole_point), dict(bf.hole_axis), dict(bf.rod_point), dict(bf.rod_axis)
             fp, fn = dict(bf.face_point), dict(bf.face_normal)
+            # the light fits (same numbers as fit_cylinder / fit_plane, no covariance):
+            # these points passed the full fits' checks in fit_bar_features, moved by h_m
             if (i := _num(f, "hole")) is not None:
-                c = fit_cylinder(q, axis_hint=bf.hole_axis[i])
-                hp[i], ha[i] = c.point, c.axis
+                hp[i], ha[i] = cylinder_point_axis(q, axis_hint=bf.hole_axis[i], validate=False)
             elif (j := _num(f, "rod")) is not None:
-                c = fit_cylinder(q, axis_hint=bf.rod_axis[j])
-                rp[j], ra[j] = c.point, c.axis
+                rp[j], ra[j] = cylinder_point_axis(q, axis_hint=bf.rod_axis[j], validate=False)
             else:
                 key = (f[4], int(f[5:]))
-                pl = fit_plane(q, normal_hint=bf.face_normal[key])
-                fp[key], fn[key] = pl.point, pl.normal
+                fp[key], fn[key] = plane_point_normal(q, normal_hint=bf.face_normal[key], validate=False)
             new = o_rows(BarFeatures(hp, ha, rp, ra, fp, fn, bf.probe_side), hs)
             for h in hs:
                 G[3 * row[h]:3 * row[h] + 3, k] += sgn * (new[h] - base[h]) / (2.0 * h_m)
