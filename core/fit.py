@@ -79,6 +79,8 @@ __all__ = [
     "fit_plane",
     "plane_point_normal",
     "cylinder_point_axis",
+    "planes_point_normal",
+    "cylinders_point_axis",
     "fit_line",
     "fit_planes",
     "fit_lines",
@@ -1188,6 +1190,143 @@ def fit_lines(points, *, direction_hint=None, tol: FitTolerances = TOL) -> LineF
 
 
 # --------------------------------------------------------------------------- U95 and form
+
+
+def planes_point_normal(points, *, normal_hint=None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`plane_point_normal` (``validate=False``) of each set of a batch, in one call.
+
+    Parameters
+    ----------
+    points : (b, n, 3) float
+        b sets of n >= 3 points, m, each known good (no checks: see
+        :func:`plane_point_normal`).
+    normal_hint : (3,) float, optional
+
+    Returns
+    -------
+    point : (b, 3) float
+        m.
+    normal : (b, 3) float
+        Unit normals, oriented by ``normal_hint`` (or :func:`orient`).
+    """
+    P = points
+    c0 = P.mean(axis=1)
+    D = P - c0[:, None]
+    s = np.sqrt(np.mean(np.einsum("bij,bij->bi", D, D), axis=1))
+    _, _, Vt = np.linalg.svd(D / s[:, None, None], full_matrices=False)
+    n = _orient_batch(Vt[:, 2], normal_hint)
+    point = c0 + np.einsum("bj,bj->b", D.mean(axis=1), n)[:, None] * n
+    return point, n
+
+
+def _perp_basis_batch(d, u_prev):
+    """Rows (u, v, d) per item, u the part of ``u_prev`` (b, 3) normal to ``d`` (b, 3);
+    None when some ``u_prev`` is nearly along its ``d`` (the caller falls back)."""
+    u = u_prev - np.einsum("bj,bj->b", u_prev, d)[:, None] * d
+    nu = np.linalg.norm(u, axis=1)
+    if np.any(nu < 1e-6):
+        return None
+    u = u / nu[:, None]
+    return np.stack([u, np.cross(d, u), d], axis=1)
+
+
+def cylinders_point_axis(points, *, axis_hint, tol: FitTolerances = TOL) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cylinder_point_axis` (``validate=False``) of each set of a batch, in one call.
+
+    The same iteration as :func:`fit_cylinder` from ``axis_hint`` (iterated
+    SDS, Viprey 2016 App. A; the same start, steps and stopping rule per set),
+    run on the whole batch at once; a set whose step must be halved, or that
+    has not converged in ``tol.max_iter`` iterations, is refitted alone by
+    :func:`cylinder_point_axis`. Agrees with the one-set path to rounding
+    (batched rather than single linear algebra), not bit for bit.
+
+    Parameters
+    ----------
+    points : (b, n, 3) float
+        b sets of n >= 5 points, m, each known good (no checks).
+    axis_hint : (3,) float
+        The initial axis of every set, and the sign of the results.
+    tol : FitTolerances
+
+    Returns
+    -------
+    point : (b, 3) float
+        Axis point nearest each set's centroid, m.
+    axis : (b, 3) float
+        Unit axes.
+    """
+    Q = points
+    b, m, _ = Q.shape
+    c0 = Q.mean(axis=1)
+    D = Q - c0[:, None]
+    s = np.sqrt(np.mean(np.einsum("bij,bij->bi", D, D), axis=1))
+    X = D / s[:, None, None]
+    h = np.asarray(axis_hint, dtype=float)
+    B0 = _perp_basis(h / np.linalg.norm(h))
+    # start: the algebraic circle of the points projected along the hint (_kasa)
+    Y = np.stack([X @ B0[0], X @ B0[1]], axis=2)
+    A = np.concatenate([2.0 * Y, np.ones((b, m, 1))], axis=2)
+    sol = np.einsum("bij,bj->bi", np.linalg.pinv(A), np.einsum("bij,bij->bi", Y, Y))
+    R2 = sol[:, 2] + np.einsum("bi,bi->b", sol[:, :2], sol[:, :2])
+    R = np.where(R2 > 0, np.sqrt(np.abs(R2)), 1.0)
+    p = sol[:, :1] * B0[0] + sol[:, 1:2] * B0[1]
+    B = np.broadcast_to(B0, (b, 3, 3)).copy()
+
+    def resjac(p, B, R):
+        w = X - p[:, None]
+        t = np.einsum("bij,bj->bi", w, B[:, 2])
+        wp = w - t[:, :, None] * B[:, None, 2]
+        rho = np.linalg.norm(wp, axis=2)
+        e = wp / rho[:, :, None]
+        eu, ev = np.einsum("bij,bj->bi", e, B[:, 0]), np.einsum("bij,bj->bi", e, B[:, 1])
+        J = np.stack([-eu, -ev, -t * eu, -t * ev, -np.ones_like(t)], axis=2)
+        return rho - R[:, None], J
+
+    r, J = resjac(p, B, R)
+    cost = np.einsum("bi,bi->b", r, r)
+    prev = np.full(b, np.inf)
+    active = np.ones(b, bool)
+    alone = ~np.isfinite(cost)  # refitted one by one (cylinder_point_axis)
+    active &= ~alone
+    sq = np.sqrt(tol.step_tol)
+    for _ in range(tol.max_iter + 1):
+        if not active.any():
+            break
+        cn = np.linalg.norm(J, axis=1)
+        cn = np.where(cn > 0, cn, 1.0)
+        U, S, Vt = np.linalg.svd(J / cn[:, None], full_matrices=False)
+        delta = -np.einsum("bji,bj->bi", Vt, np.einsum("bij,bi->bj", U, r) / S) / cn
+        size = np.linalg.norm(delta, axis=1)
+        bad = active & ~np.all(np.isfinite(delta), axis=1)
+        alone |= bad
+        active &= ~bad
+        done = active & ((size < tol.step_tol) | ((size < sq) & (size > 0.5 * prev)))
+        active &= ~done
+        prev = size
+        a = B[:, 2] + delta[:, 2:3] * B[:, 0] + delta[:, 3:4] * B[:, 1]
+        a = a / np.linalg.norm(a, axis=1)[:, None]
+        p_new = p + delta[:, :1] * B[:, 0] + delta[:, 1:2] * B[:, 1]
+        p_new = p_new - np.einsum("bj,bj->b", p_new, a)[:, None] * a
+        B_new = _perp_basis_batch(a, B[:, 0])
+        if B_new is None:
+            B_new = B
+            alone |= active
+            active[:] = False
+        R_new = R + delta[:, 4]
+        r_new, J_new = resjac(p_new, B_new, R_new)
+        c_new = np.einsum("bi,bi->b", r_new, r_new)
+        # a large step that does not descend would be halved: that set goes alone
+        halve = active & (size >= sq) & ~(np.isfinite(c_new) & (c_new <= cost * (1 + 1e-12) + 1e-300))
+        alone |= halve
+        active &= ~halve
+        k = active
+        p[k], B[k], R[k], r[k], J[k], cost[k] = p_new[k], B_new[k], R_new[k], r_new[k], J_new[k], c_new[k]
+    alone |= active  # no convergence: the one-set path says so
+    axis = _orient_batch(B[:, 2], h)
+    point = c0 + s[:, None] * p
+    for i in np.flatnonzero(alone):
+        point[i], axis[i] = cylinder_point_axis(Q[i], axis_hint=h, tol=tol, validate=False)
+    return point, axis
 
 
 def coverage_factor(dof: int, p: float = 0.95) -> float:
