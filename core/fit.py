@@ -390,6 +390,15 @@ def _centred(P):
     return c0, s, D / s if s > 0.0 else D
 
 
+def _prepared(points, n_min: int, kind: str, validate: bool):
+    """(P, c0, s, X) of (n, 3) ``points``: checked by :func:`_check_points`, or only centred
+    and scaled when the caller vouches for them (the light paths' ``validate=False``)."""
+    if validate:
+        return _check_points(points, 3, n_min, kind)
+    c0, s, X = _centred(points)
+    return points, c0, s, X
+
+
 def _n_distinct(P) -> int:
     """Number of distinct rows of ``P`` (n, d) (same count as ``np.unique(P, axis=0)``)."""
     Q = P[np.lexsort(P.T[::-1])]
@@ -684,11 +693,7 @@ def plane_point_normal(points, *, normal_hint=None, tol: FitTolerances = TOL,
     normal : (3,) float
         As ``fit_plane(...).normal``.
     """
-    if validate:
-        P, c0, _, X = _check_points(points, 3, 3, "plane")
-    else:
-        P = points
-        c0, _, X = _centred(P)
+    P, c0, _, X = _prepared(points, 3, "plane", validate)
     point, n, _ = _plane_solve(P, c0, X, normal_hint, tol if validate else None, basis=False)
     return point, n
 
@@ -1043,11 +1048,7 @@ def cylinder_point_axis(points, *, axis_hint, tol: FitTolerances = TOL,
     axis : (3,) float
         As ``fit_cylinder(...).axis``.
     """
-    if validate:
-        P, c0, s, X = _check_points(points, 3, 5, "cylinder")
-    else:
-        P = points
-        c0, s, X = _centred(P)
+    P, c0, s, X = _prepared(points, 5, "cylinder", validate)
     point, a, _, _, _ = _cylinder_solve(P, c0, s, X, axis_hint, tol, validate)
     return point, a
 
