@@ -63,9 +63,17 @@ def test_readme_hardware_commands_as_written(tmp_path, monkeypatch, capsys):
     # the dry run: every row is approached from the safe Z, never straight across the part
     capsys.readouterr()
     assert main(probe + ["--dry-run"]) == 0
-    lines = capsys.readouterr().out.splitlines()
+    cap = capsys.readouterr()
+    lines = cap.out.splitlines()
     firsts = [lines[i + 1] for i, ln in enumerate(lines) if ln.startswith("(row ")]
     assert len(firsts) == plan.n and all(" Z80.0000 " in ln for ln in firsts)
+    # without a controller the dry run cannot know its axes: it says so, and --axes names them
+    assert "no --axes" in cap.err and re.search(r" B-?\d", cap.out)
+    assert main(probe + ["--dry-run", "--axes", "XYZAC"]) == 0
+    out = capsys.readouterr().out
+    assert not re.search(r" B-?\d", out) and re.search(r" C-?\d", out)
+    assert main(probe + ["--dry-run", "--axes", "XYQ"]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
     proc = subprocess.Popen([sys.executable, "-m", "scenarios.cli", *serve], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
