@@ -282,6 +282,23 @@ def _mfb5_simulation_s(plan) -> float:
     return time.perf_counter() - t0
 
 
+#: figure -> its same-run reference (ratio = figure / reference; scenarios.bench)
+REFERENCES = {
+    "kin_fk_error_poses_per_s": "kin_fk_tight_numpy_ref_poses_per_s",
+    "kin_core_tip_W_poses_per_s": "kin_fk_tight_numpy_ref_poses_per_s",
+    "kin_touches_per_s": "kin_touches_per_s_pinocchio_loop_ref",
+    "col_mfb_campaign_check_s": "col_mfb_campaign_simulation_s",
+    "col_mfb5_plan_check_s": "col_mfb5_simulation_s",
+}
+#: figure -> the issue's target
+TARGETS = {
+    "kin_fk_error_poses_per_s": ">= 0.5 x the tight numpy reference (issue 19 item 5)",
+    "kin_touches_per_s": ">= 2 x the Pinocchio-loop path (issue 19 item 5)",
+    "col_mfb_campaign_check_s": "< 0.25 x the simulation (issue 19 item 4)",
+    "col_mfb5_plan_check_s": "< 0.25 x the simulation (issue 19 item 4)",
+}
+
+
 def run() -> dict:
     out = kinematics_figures()
     out.update(touch_figures())
