@@ -11,6 +11,7 @@ def _mfb(args) -> int:
     from scenarios.mfb import closed_loop, run
 
     from scenarios.cli.guard import progress_line
+    from scenarios.mfb import describe_budget
 
     spec = None
     if args.machine is not None:
@@ -67,6 +68,13 @@ def _mfb(args) -> int:
         print("(true: the exact simulator's positioning error, zero at the first node; within U95: nodes where it "
               "lies within the U95 of the identification that made the compensation; volumetric: the tip "
               "deviation over the node box, a rigid motion removed)")
+    if args.budget_runs:
+        from scenarios.mfb import budget
+
+        with progress_line(f"{args.name}: budget, pipeline runs") as bar:
+            d["budget"] = budget(args.name, mc_runs=args.budget_runs, seed=args.seed, progress=bar,
+                                 bar_calibration=kw.get("bar_calibration"), bar_true_m=kw.get("bar_true_m"))
+        print(describe_budget(d["budget"]))
     if args.report:
         from scenarios.mfb_report import mfb_report
 
@@ -190,6 +198,9 @@ def register(sub) -> None:
                    help="mfb scenarios: identify with this bar calibration (vmt-bar-calibration/1 JSON, as "
                         "'vmt scenario mfb-reversal --json FILE' writes it) instead of the declared one; a "
                         "simulated calibration's true bar is the one simulated")
+    p.add_argument("--budget-runs", type=int, default=0, metavar="N", dest="budget_runs",
+                   help="mfb scenarios: add the uncertainty budget (each source's share per error, and N "
+                        "Monte Carlo runs of the whole pipeline with every source; about 20-40 s a run)")
     p.add_argument("--mc", type=int, default=None,
                    help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty)")
     p.set_defaults(func=_dispatch)
@@ -200,7 +211,7 @@ def _dispatch(args) -> int:
 
     if args.name not in ("mfb-3axis", "mfb-5axis"):
         for opt, v in (("--machine", args.machine), ("--comp", args.comp), ("--apply-comp", args.apply_comp),
-                       ("--bar-calibration", args.bar_calibration)):
+                       ("--bar-calibration", args.bar_calibration), ("--budget-runs", args.budget_runs or None)):
             if v is not None:
                 raise ConfigError(f"{opt}: only the mfb scenarios take it (not {args.name})")
     return SCENARIOS[args.name](args)

@@ -338,3 +338,29 @@ def test_a_given_calibration_is_what_the_identification_uses(mfb3_noise_free):
     b = r.doc["bar"]
     assert b["calibrated_minus_true_max_um"] < 1e-9 and np.allclose(b["U95_um"], 0.2, rtol=0, atol=1e-12)
     assert base.doc["bar"]["source"] == "declared" and "calibration given" in b["source"]
+
+
+def test_budget_refuses_bad_settings_before_any_run(capsys):
+    from core.exceptions import ConfigError
+    from scenarios.cli import main
+    from scenarios.mfb import budget
+
+    with pytest.raises(ConfigError, match="mc_runs"):
+        budget("mfb-3axis", mc_runs=1)
+    with pytest.raises(ConfigError, match="temperature_range_C"):
+        budget("mfb-3axis", temperature_range_C=(22.0, 19.0))
+    assert main(["scenario", "pin-circle", "--budget-runs", "3"]) == 2
+    assert "--budget-runs: only the mfb scenarios" in capsys.readouterr().err
+
+
+def test_describe_budget_prints_every_source_and_the_ratio():
+    from scenarios.mfb import BUDGET_SOURCES, describe_budget
+
+    per = {"EXX": {"unit": "um", "U95": {s: 0.1 * (i + 1) for i, s in enumerate(BUDGET_SOURCES)},
+                   "quadrature": 1.4, "mc": 1.5, "mc_over_quadrature": 1.5 / 1.4}}
+    b = {"sources": list(BUDGET_SOURCES), "per_error": per, "mc_runs": 12, "ratio_range": [0.5, 1.0, 1.5],
+         "coverage": {"within_quadrature_U95": "100/104", "within_run_linear_U95": "80/104"},
+         "runs_lost": [{"seed": 3, "error": "x"}]}
+    t = describe_budget(b)
+    assert "T mach" in t and "    0.70    1.40    1.50    1.07" in t
+    assert "100/104" in t and "80/104" in t and "1 runs lost" in t
