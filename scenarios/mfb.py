@@ -96,6 +96,15 @@ chain a ramp of an angular error of X moves every bar along X rigidly, and
 only the diagonals' bend, ~0.1 um, sees it), EBY 7.8 urad on 5.95 (seen by
 T0 vs TXF in one pose, dJ_X 100 mm), ECZ 9.1 urad on 3.6 (dJ 50 mm star
 arms; not resolved at this noise).
+
+The bar's calibration: declared (its default deviations, u_cal_um) or the
+reversal on a simulated CMM (:func:`reversal_on_cmm`, eqs 5-7, written by
+:func:`bar_calibration_doc`, read by :func:`read_bar_calibration`) fed to
+:func:`run` (``bar_calibration``, ``bar_true_m``); the result keeps the
+bar's true and calibrated deviations (``doc['bar']``). The budget
+(:func:`budget`): each source's share per error (probing noise, bar
+calibration, placement, stylus offsets, lobing, the bar's and the machine's
+temperature) and a Monte Carlo through the whole pipeline.
 """
 
 from __future__ import annotations

@@ -214,4 +214,6 @@ def _dispatch(args) -> int:
                        ("--bar-calibration", args.bar_calibration), ("--budget-runs", args.budget_runs or None)):
             if v is not None:
                 raise ConfigError(f"{opt}: only the mfb scenarios take it (not {args.name})")
+    if args.budget_runs and args.budget_runs < 2:
+        raise ConfigError(f"--budget-runs must be >= 2 (a Monte Carlo spread), got {args.budget_runs}")
     return SCENARIOS[args.name](args)

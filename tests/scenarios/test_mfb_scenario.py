@@ -351,6 +351,8 @@ def test_budget_refuses_bad_settings_before_any_run(capsys):
         budget("mfb-3axis", temperature_range_C=(22.0, 19.0))
     assert main(["scenario", "pin-circle", "--budget-runs", "3"]) == 2
     assert "--budget-runs: only the mfb scenarios" in capsys.readouterr().err
+    assert main(["scenario", "mfb-3axis", "--budget-runs", "-1"]) == 2  # before any touch
+    assert "--budget-runs must be >= 2" in capsys.readouterr().err
 
 
 def test_describe_budget_prints_every_source_and_the_ratio():
