@@ -876,8 +876,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         if progress is not None:
             progress(k, steps)
         J = tuple(ms.J_m)
-        if ms.stylus not in machines:  # the true offsets: the calibrated ones + the calibration's error
-            machines[ms.stylus] = Machine(replace(cfg_true, J_m=tuple(np.asarray(J) + dJ[ms.stylus])))
+        if ms.stylus not in machines:
+            machines[ms.stylus] = Machine(replace(cfg_true, J_m=J))
             if compensate is not None:
                 machines[ms.stylus] = compensate(machines[ms.stylus])
         m = machines[ms.stylus]
@@ -890,7 +890,12 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         _check_touch_strokes(log, m, ms.name)
         t = from_log(log)
         n_touch += t.n
-        poi = mfb.points_of_interest(t.p_R, t.feature, t.n_R)
+        # the stylus's calibration error: the controller converts joints to tip positions
+        # with the offsets it was given, J, while the tip sits at J + dJ: every reading of
+        # this stylus is off by dJ (the tool does not turn on these chains). (A machine
+        # built with J + dJ would move and read with the same offsets: no error at all.)
+        p_R = t.p_R + dJ[ms.stylus]
+        poi = mfb.points_of_interest(p_R, t.feature, t.n_R)
         # the touches that were fitted (valid ones, plan order) and the gain of the
         # extraction at their nominal places (A frame, stylus centres)
         pl_ok = pl.select(np.asarray(log.ok, bool))
@@ -899,7 +904,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
             G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m)
         idx = [h - 1 for h in poi.holes]
         meas.append(vol.Measurement(ms.name, ms.setup_key, poi.holes, poi.O_R, O_A_cal[idx], ms.T_W_A,
-                                    tuple(ms.rot_rad), J, G_cache[key], q_R=t.p_R,
+                                    tuple(ms.rot_rad), J, G_cache[key], q_R=p_R,
                                     c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A))
     chain = cfg.chain
     rp = dict(cfg.rotary_points_R_m)
@@ -1434,7 +1439,11 @@ def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_
         own.append(r.unc.U95_lin)
     errs, own = np.array(errs), np.array(own)
     mc = 2.0 * np.sqrt(np.mean(errs ** 2, axis=0))
-    keep = ~gauge
+    # the 21 errors' values (theta also holds each set-up's pose), less the ones the conventions fix
+    errs_idx = np.zeros(len(gauge), bool)
+    for s in (*vol.MOTION, *vol.SQUARENESS):
+        errs_idx[d.slices[s]] = True
+    keep = errs_idx & ~gauge
     per = {}
     for s in (*vol.MOTION, *vol.SQUARENESS):
         sl = d.slices[s]

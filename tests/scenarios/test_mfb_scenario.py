@@ -366,3 +366,22 @@ def test_describe_budget_prints_every_source_and_the_ratio():
     t = describe_budget(b)
     assert "T mach" in t and "    0.70    1.40    1.50    1.07" in t
     assert "100/104" in t and "80/104" in t and "1 runs lost" in t
+
+
+def test_a_stylus_calibration_error_reaches_the_differential_errors(mfb3_noise_free):
+    """u_stylus_um: the controller reads each stylus with the offsets it was given while the
+    tip sits dJ away (before, the simulated machine moved and read with the same wrong
+    offsets: no error at all, 0.0006 urad on ECZ). Noise-free, 0.5 um per component
+    (seed 101): ECZ rests on TY1 vs TY2 in one pose (50 mm apart), so it moves by about
+    0.5 um x sqrt(2) / 50 mm = 14 urad (measured 11.1; > 5 asserted); EXX, seen by single-
+    stylus set-ups, only through the pose: < 0.01 um (measured 0.001)."""
+    from scenarios.mfb import run
+
+    base = mfb3_noise_free[0]
+    r = run("mfb-3axis", noise_um=0.0, mc_runs=0, u_stylus_um=0.5, seed=101)
+    d = base.result.design
+
+    def moved(s):
+        return np.abs(r.result.theta[d.slices[s]] - base.result.theta[d.slices[s]]).max() * 1e6
+
+    assert moved("ECZ") > 5.0 and moved("EXX") < 0.01, (moved("ECZ"), moved("EXX"))
