@@ -1361,7 +1361,9 @@ def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_
       uniform; the bar Invar, the machine's scales :data:`MACHINE_CTE_PER_C`;
       nothing corrected): one noise-free pipeline run at 21 degC each gives
       the change per degC; the share is 2 x that x the RMS of T - 20
-      (1.0 degC for 19-22), a bias mostly (mean 20.5).
+      (1.0 degC for 19-22), a bias mostly (mean 20.5). Bar and machine are at
+      the shop's one temperature: in the sum they enter as one source, their
+      changes added with their signs (``temperature_one_T``).
 
     The Monte Carlo: ``mc_runs`` runs of the pipeline (simulate, fit,
     extract, identify) with every source drawn (one T for bar and machine,
@@ -1419,7 +1421,9 @@ def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_
             "machine temperature": go(seed=seed, machine_temperature_C=21.0, **quiet).result.theta - th0}
     for src, s_ in sens.items():
         U[src] = 2.0 * np.abs(s_) * t_rms
-    quad = np.sqrt(sum(U[s] ** 2 for s in BUDGET_SOURCES))
+    # bar and machine share the shop's temperature: one source, their changes add with their signs
+    U_temp = 2.0 * np.abs(sens["bar temperature"] + sens["machine temperature"]) * t_rms
+    quad = np.sqrt(sum(U[s] ** 2 for s in BUDGET_SOURCES[:5]) + U_temp ** 2)
     rng = np.random.default_rng(seed + 1000)
     errs, own, lost = [], [], []
     j = 0
@@ -1453,6 +1457,7 @@ def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_
         q, m = quad[sl][k], mc[sl][k]
         per[s] = {"unit": iso.symbol(s).report_unit,
                   "U95": {src: float(U[src][sl][k].max() * 1e6) for src in BUDGET_SOURCES},
+                  "temperature_one_T": float(U_temp[sl][k].max() * 1e6),
                   "quadrature": float(q.max() * 1e6), "mc": float(m.max() * 1e6),
                   "mc_over_quadrature": float(m.max() / q.max()),
                   "dominant": max(BUDGET_SOURCES, key=lambda src: float(U[src][sl][k].max()))}
@@ -1471,7 +1476,8 @@ def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_
                        f"stylus offsets from {int(stylus_runs)} noise-free pipeline runs with that draw alone "
                        "(2 x RMS); lobing from 2 pipeline runs (cos and sin term, 2 x RMS over the phase); bar "
                        "and machine temperature from one pipeline run at 21 degC each (2 x change per degC x "
-                       f"{t_rms:.2f} degC, the RMS of T - 20 over {t_lo:g}-{t_hi:g} degC). MC: {int(mc_runs)} "
+                       f"{t_rms:.2f} degC, the RMS of T - 20 over {t_lo:g}-{t_hi:g} degC; in the sum as one source, "
+                       f"bar and machine at the same T, their changes added with their signs). MC: {int(mc_runs)} "
                        "runs of the whole pipeline with every source drawn, 2 x RMS of identified - true."),
             "per_error": per, "runs_lost": lost,
             "ratio_range": [float(ratio.min()), float(np.median(ratio)), float(ratio.max())],
@@ -1491,11 +1497,12 @@ def describe_budget(b: dict) -> str:
              "stylus offsets": "stylus", "lobing": "lobing", "bar temperature": "T bar",
              "machine temperature": "T mach"}
     head = f"{'error':6s} {'unit':5s}" + "".join(f"{short.get(s, s):>8s}" for s in b["sources"]) + \
-        f"{'sum':>8s}{'MC':>8s}{'MC/sum':>8s}"
-    lines = [f"uncertainty budget, U95 (k=2) max over the nodes; {b['mc_runs']} pipeline runs", head]
+        f"{'T one':>8s}{'sum':>8s}{'MC':>8s}{'MC/sum':>8s}"
+    lines = [f"uncertainty budget, U95 (k=2) max over the nodes; {b['mc_runs']} pipeline runs (T one: bar and "
+             "machine at the same temperature, what the sum takes)", head]
     for s, c in b["per_error"].items():
         lines.append(f"{s:6s} {c['unit']:5s}" + "".join(f"{c['U95'][k]:8.2f}" for k in b["sources"])
-                     + f"{c['quadrature']:8.2f}{c['mc']:8.2f}{c['mc_over_quadrature']:8.2f}")
+                     + f"{c.get('temperature_one_T', float('nan')):8.2f}{c['quadrature']:8.2f}{c['mc']:8.2f}{c['mc_over_quadrature']:8.2f}")
     cv = b["coverage"]
     lo, med, hi = b["ratio_range"]
     lines.append(f"MC / sum per node: {lo:.2f} - {hi:.2f} (median {med:.2f}); within the sum's U95 "

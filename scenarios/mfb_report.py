@@ -53,10 +53,12 @@ def budget_table(budget: dict) -> tuple[list, list]:
     source (max over the nodes of its U95 share, k = 2), then the sum in quadrature,
     the Monte Carlo U95 through the pipeline and their ratio."""
     srcs = list(budget["sources"])
-    head = ["error", "unit", *srcs, "quadrature sum", "MC (all sources)", "MC / sum"]
+    head = ["error", "unit", *srcs, "temperature, bar and machine at one T", "quadrature sum",
+            "MC (all sources)", "MC / sum"]
     rows = []
     for s, c in budget["per_error"].items():
-        rows.append([s, c["unit"], *[c["U95"].get(k) for k in srcs], c.get("quadrature"), c.get("mc"),
+        rows.append([s, c["unit"], *[c["U95"].get(k) for k in srcs], c.get("temperature_one_T"),
+                     c.get("quadrature"), c.get("mc"),
                      c.get("mc_over_quadrature")])
     return head, rows
 

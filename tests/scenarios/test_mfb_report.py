@@ -63,7 +63,7 @@ def test_report_draws_the_true_bar_and_the_budget_table(tmp_path, mfb3_noise_fre
 
     doc = copy.deepcopy(mfb3_noise_free[0].doc)
     per = {"EXX": {"unit": "um", "U95": {s: 0.1 * (i + 1) for i, s in enumerate(BUDGET_SOURCES)},
-                   "quadrature": 1.4, "mc": 1.5, "mc_over_quadrature": 1.5 / 1.4}}
+                   "temperature_one_T": 0.65, "quadrature": 1.4, "mc": 1.5, "mc_over_quadrature": 1.5 / 1.4}}
     doc["budget"] = {"sources": list(BUDGET_SOURCES), "per_error": per, "method": "declared method text"}
     page = (mfb_report(tmp_path / "rep", doc) / "index.html").read_text(encoding="utf-8")
     assert "true deviations" in page and "declared" in page

@@ -359,12 +359,12 @@ def test_describe_budget_prints_every_source_and_the_ratio():
     from scenarios.mfb import BUDGET_SOURCES, describe_budget
 
     per = {"EXX": {"unit": "um", "U95": {s: 0.1 * (i + 1) for i, s in enumerate(BUDGET_SOURCES)},
-                   "quadrature": 1.4, "mc": 1.5, "mc_over_quadrature": 1.5 / 1.4}}
+                   "temperature_one_T": 0.65, "quadrature": 1.4, "mc": 1.5, "mc_over_quadrature": 1.5 / 1.4}}
     b = {"sources": list(BUDGET_SOURCES), "per_error": per, "mc_runs": 12, "ratio_range": [0.5, 1.0, 1.5],
          "coverage": {"within_quadrature_U95": "100/104", "within_run_linear_U95": "80/104"},
          "runs_lost": [{"seed": 3, "error": "x"}]}
     t = describe_budget(b)
-    assert "T mach" in t and "    0.70    1.40    1.50    1.07" in t
+    assert "T mach" in t and "    0.70    0.65    1.40    1.50    1.07" in t
     assert "100/104" in t and "80/104" in t and "1 runs lost" in t
 
 
