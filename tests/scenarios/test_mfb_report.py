@@ -69,3 +69,31 @@ def test_report_draws_the_true_bar_and_the_budget_table(tmp_path, mfb3_noise_fre
     assert "true deviations" in page and "declared" in page
     assert "declared method text" in page and "machine temperature" in page
     assert re.search(r"<tr><td>EXX</td><td>um</td><td>0\.1(0*)?</td>", page), page[page.find("budget"):][:800]
+
+
+def test_cli_budget_runs_reaches_json_terminal_and_report(tmp_path, monkeypatch, mfb3_noise_free, capsys):
+    """--budget-runs N: the budget (stubbed here: its numbers are budget()'s, tested apart) is
+    asked for N runs with the run's seed, printed, and lands in the JSON and the report."""
+    import json
+
+    import scenarios.mfb as S
+
+    _use_shared_run(monkeypatch, mfb3_noise_free)
+    seen = {}
+    per = {"EXX": {"unit": "um", "U95": {s: 0.1 for s in S.BUDGET_SOURCES}, "temperature_one_T": 0.1,
+                   "quadrature": 0.3, "mc": 0.3, "mc_over_quadrature": 1.0}}
+
+    def fake(name, **kw):
+        seen.update(kw, name=name)
+        return {"sources": list(S.BUDGET_SOURCES), "per_error": per, "mc_runs": kw["mc_runs"], "method": "m",
+                "ratio_range": [1.0, 1.0, 1.0], "coverage": {"within_quadrature_U95": "1/1",
+                                                             "within_run_linear_U95": "1/1"}}
+
+    monkeypatch.setattr(S, "budget", fake)
+    rep, js = tmp_path / "rep", tmp_path / "r.json"
+    assert main(["scenario", "mfb-3axis", "--mc", "0", "--seed", "4", "--budget-runs", "3", "--report", str(rep),
+                 "--json", str(js)]) == 0
+    assert seen["name"] == "mfb-3axis" and seen["mc_runs"] == 3 and seen["seed"] == 4
+    assert "uncertainty budget" in capsys.readouterr().out
+    assert json.loads(js.read_text())["budget"]["per_error"]["EXX"]["mc"] == 0.3
+    assert "Uncertainty budget" in (rep / "index.html").read_text(encoding="utf-8")
