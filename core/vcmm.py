@@ -36,6 +36,10 @@ Task file (units in the key names)::
 
     [probe]
     noise_um = 0.25              # repeatability, k = 1 (default: the machine's)
+    pretravel_um = 0.5           # residual pre-travel after calibration, drawn within +-0.5 um
+    lobing_um = 0.3              # lobing amplitude within +-0.3 um (a cos(k phi - phi0), phase uniform)
+    lobes = 3                    # k, the lobing's order (default 3: a kinematic probe)
+    distribution = "uniform"     # of pretravel_um and lobing_um (as [declared])
 
     [temperature]                # results at 20 C, corrected with the best estimates
     part_C = 22.0                # the part's temperature during the measurement
@@ -57,7 +61,11 @@ Task file (units in the key names)::
 Declared terms: ``constant_U``, and for a linear axis's motion errors also
 ``slope_U_per_m`` and ``quadratic_U_per_m2`` (``U`` = ``um`` for a
 translation, ``urad`` for a rotation) of the axis reading, the same
-polynomial as a machine file's; a location error (``EC0Y``, ``EX0C``, ...)
+polynomial as a machine file's, and ``periodic_U`` with ``period_mm``: a
+periodic error ``a sin(2 pi x / period + phi)`` (a screw's pitch error,
+the ripple an identification's tables cannot follow between their nodes)
+with its amplitude ``a`` drawn within +-``periodic_U`` by the distribution
+and its phase ``phi`` uniform; a location error (``EC0Y``, ``EX0C``, ...)
 and a rotary axis's motion errors take ``constant_U`` only. Every term is
 one independent source of the budget.
 """
@@ -86,8 +94,11 @@ DISTRIBUTIONS = ("uniform", "normal", "triangular", "arcsine")
 U_PER_BOUND = {"uniform": 1 / math.sqrt(3), "normal": 0.5, "triangular": 1 / math.sqrt(6),
                "arcsine": 1 / math.sqrt(2)}
 #: Power of the axis reading of each declared term.
-TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2}
+TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2, "periodic": 0, "pretravel": 0, "lobing": 0}
 PROBE_SOURCE = "probe repeatability"
+#: The declared probe terms' budget names (``[probe] pretravel_um``, ``lobing_um``).
+PRETRAVEL_SOURCE = "probe pre-travel"
+LOBING_SOURCE = "probe lobing"
 #: Reference temperature of dimensional measurement (ISO 1), C.
 T_REF_C = 20.0
 #: Temperature sources: name -> (value key, its u key) of :class:`Temperature`.
@@ -151,6 +162,7 @@ class DeclaredTerm:
     term: str
     bound: float
     distribution: str
+    period: float | None = None   # m, the periodic term's
 
     @property
     def source(self) -> str:
@@ -246,6 +258,14 @@ class Task:
     mc: MCSettings = field(default_factory=MCSettings)
     source: str = "<task>"
     temperature: Temperature | None = None
+    pretravel: DeclaredTerm | None = None   # symbol "probe", term "pretravel": bound m
+    lobing: DeclaredTerm | None = None      # symbol "probe", term "lobing", period = the number of lobes
+
+    @property
+    def probe_sources(self) -> tuple:
+        """The declared probe terms' budget names."""
+        return ((PRETRAVEL_SOURCE,) if self.pretravel is not None else ()) + (
+            (LOBING_SOURCE,) if self.lobing is not None else ())
 
     def feature(self, name: str) -> FeatureSpec:
         for f in self.features:
@@ -297,11 +317,24 @@ class _TaskReader(KeyReader):
         for sym, body in self.table("declared", doc.get("declared", {})).items():
             declared += self.declared(sym, self.table(f"declared.{sym}", body))
         probe = self.table("probe", doc.get("probe", {}))
-        self.keys("probe", probe, ("noise_um",))
+        self.keys("probe", probe, ("noise_um", "pretravel_um", "lobing_um", "lobes", "distribution"))
         noise = self.number("probe.noise_um", probe["noise_um"], nonneg=True) if "noise_um" in probe else None
+        pdist = probe.get("distribution", "uniform")
+        if pdist not in DISTRIBUTIONS:
+            self.fail("probe.distribution", f"expected one of {', '.join(DISTRIBUTIONS)}, got {pdist!r}")
+        pre = lob = None
+        if "pretravel_um" in probe:
+            pre = DeclaredTerm("probe", "pretravel", self.number("probe.pretravel_um", probe["pretravel_um"],
+                                                                 nonneg=True) * 1e-6, pdist)
+        if "lobes" in probe and "lobing_um" not in probe:
+            self.fail("probe.lobes", "only with lobing_um")
+        if "lobing_um" in probe:
+            k = self.integer("probe.lobes", probe["lobes"], 1) if "lobes" in probe else 3
+            lob = DeclaredTerm("probe", "lobing", self.number("probe.lobing_um", probe["lobing_um"], nonneg=True)
+                               * 1e-6, pdist, float(k))
         temp = self.temperature(self.table("temperature", doc["temperature"])) if "temperature" in doc else None
         return Task(feats, meas, tuple(declared), noise, self.mc(self.table("mc", doc.get("mc", {}))), self.source,
-                    temp)
+                    temp, pre, lob)
 
     def temperature(self, t) -> Temperature:
         keys = [f.name for f in dataclasses.fields(Temperature)]
@@ -380,12 +413,21 @@ class _TaskReader(KeyReader):
         U = "urad" if s.angular else "um"
         terms = {f"constant_{U}": "constant"}
         if not s.location and s.axis in iso.LINEAR_AXES:
-            terms.update({f"slope_{U}_per_m": "slope", f"quadratic_{U}_per_m2": "quadratic"})
-        self.keys(key, body, tuple(terms) + ("distribution",))
+            terms.update({f"slope_{U}_per_m": "slope", f"quadratic_{U}_per_m2": "quadratic",
+                          f"periodic_{U}": "periodic"})
+        self.keys(key, body, tuple(terms) + ("distribution", "period_mm"))
         dist = body.get("distribution", "uniform")
         if dist not in DISTRIBUTIONS:
             self.fail(f"{key}.distribution", f"expected one of {', '.join(DISTRIBUTIONS)}, got {dist!r}")
-        out = [DeclaredTerm(s.name, t, self.number(f"{key}.{k}", body[k], nonneg=True) * 1e-6, dist)
+        period = None
+        if f"periodic_{U}" in terms and (f"periodic_{U}" in body) != ("period_mm" in body):
+            self.fail(key, f"periodic_{U} and period_mm go together")
+        if "period_mm" in body:
+            if f"periodic_{U}" not in terms:
+                self.fail(f"{key}.period_mm", "only with a linear axis's periodic term")
+            period = self.number(f"{key}.period_mm", body["period_mm"], positive=True) * 1e-3
+        out = [DeclaredTerm(s.name, t, self.number(f"{key}.{k}", body[k], nonneg=True) * 1e-6, dist,
+                            period if t == "periodic" else None)
                for k, t in terms.items() if k in body]
         if not out:
             self.fail(key, f"no term (expected one of {', '.join(terms)})")
@@ -577,6 +619,11 @@ def evaluate(task: Task, rows: dict, p_R: np.ndarray, n_R: np.ndarray, stylus_r:
 
 
 # --------------------------------------------------------------------------- drawing the declared errors
+
+
+def draw_periodic(term: DeclaredTerm, rng: np.random.Generator) -> tuple[float, float]:
+    """One draw of a periodic term: (amplitude SI drawn as :func:`draw_term`, phase rad uniform in [0, 2 pi))."""
+    return draw_term(term, rng), float(rng.uniform(0.0, 2.0 * math.pi))
 
 
 def draw_term(term: DeclaredTerm, rng: np.random.Generator) -> float:

@@ -940,6 +940,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, sigma_um, slopes)
+    doc["estimate"] = vol.estimate(res_g, vol.covariance(res_g, meas, probe.sigma_m, u_cal,  # vmt-estimate/1
+                                                         np.asarray(u_place, float) if draw else None))
     doc["machine"] = cfg.name
     if unc is not None:
         doc["within_u95"] = within_u95(doc["errors"])
