@@ -76,7 +76,14 @@ deg, grid -110..110 mm step 22 mm, probing u = 1.38 um)::
     lin = linear_uncertainty(w, wn, [0, 75, 130, 210], grid)
     mc = monte_carlo(w, wn, [0, 75, 130, 210], grid, runs=1000,
                      rng=np.random.default_rng(1))
-    lin.U95_m[lin.design.slices["G"]].max()  # Fig 18(c): ~2 um (our geometry)
+    lin.U95[lin.design.slices["G"]].max()  # 20.5 um: G in the gauge of eqs 16-17
+    lin.max_form_U95                         # 2.0 um: its form part
+
+This example (arms 90 mm, 8 touches a sphere) is a quick sketch. The paper's
+comparison uses the reconstruction in ``sim.artefacts.cross_pocket``
+(``vmt scenario cross-pocket-uncertainty``): 6.5 um there in the declared
+reading against the paper's 2.1 um, 2.1 um when the spheres' G is taken as
+known (docs/papers-selfcal.md).
 
 Fewer angles (0, 75 and 0, 75, 130) reproduce the trend of Fig 18(a, b);
 the U of EXC/EYC,total and ECC per angle is Table 2's. With a measured log:
