@@ -122,7 +122,7 @@ def true_values(ident: Identified, st, seed: int) -> np.ndarray:
     from scenarios.vcmm import simulate_run
 
     p = simulate_run(st, {}, np.random.default_rng([seed, 23]), machine=ident.machine)
-    return V.evaluate(st.task, st.rows, p, st.n_R, st.probe.stylus_r_m)
+    return V.evaluate(st.task, st.rows, p, st.n_R, st.probe.stylus_r_m, st.Xn_R)
 
 
 def one_seed(seed: int, *, noise_m: float = NOISE_M, ripple: bool = True, vcmm_seed: int = 0,

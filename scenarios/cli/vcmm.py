@@ -87,8 +87,9 @@ def run(args) -> int:
         for b in sorted(m["budget"], key=lambda b: -b["u"]):
             print(f"      {b['source']:24s} u {b['u']:.4f} {m['u_unit']}  ({100 * b['share']:.1f} %)")
         if m["sobol_first_order"]:
-            print("      first-order Sobol: " + ", ".join(f"{k} {v:.3f}" for k, v in m["sobol_first_order"].items()
-                                                       if v is not None))
+            se = m["sobol_first_order_se"]
+            print("      first-order Sobol (+- standard error): " + ", ".join(
+                f"{k} {v:.3f} +- {se[k]:.3f}" for k, v in m["sobol_first_order"].items() if v is not None))
     if args.report:
         from scenarios.vcmm import write_report
 
