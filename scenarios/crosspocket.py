@@ -7,13 +7,13 @@ by Monte Carlo (JCGM 101, 1,000 runs, probing standard uncertainty 1.38 um)
 beside linear propagation; Table 2 (C-axis), Fig. 19 (the spheres' effect),
 Fig. 20 (U95 of the error map). ONE reading of U95 throughout,
 :data:`U95_READING`: each parameter as identified under the gauge of
-eqs 16-17. A sensitivity run (:data:`SENSITIVITY`) shows what of the
-reconstructed geometry moves the numbers; :data:`SPHERE_SENSITIVITY`
-(variants fixed before running, in rounds) what the spheres constrain: with a
-free G per sphere touch (eq 15 as printed) no variant reaches Fig. 19's
-~4 um; with the spheres' G known (they fix the part's datum) Figs. 18(b, c),
-19, 20(a) and Table 2 come within 1.5x of the paper at its 22 mm grid, the
-2-angle case stays 1.83x (docs/papers-selfcal.md).
+eqs 16-17. The design is the one ``vmt identify`` builds from a campaign of
+this plan (:data:`EVALUATION_POINTS`, :func:`study_touches`): the X/Y tables
+interpolated at the commanded stylus-tip centres, at each target's height.
+A sensitivity run (:data:`SENSITIVITY`) shows what of the reconstructed
+geometry moves the numbers; :data:`SPHERE_SENSITIVITY` (variants fixed before
+running, in rounds) what the spheres constrain; :func:`evaluation_point_steps`
+what the evaluation points moved (docs/papers-selfcal.md has the numbers).
 
 ``pin-circle`` (paper section 5): 18 pins on a 400 mm pitch circle and two
 spheres at C = 0, 31, 83, 137, 191, 227, 257, 313 deg, grid step 80 mm over
@@ -201,8 +201,8 @@ SPHERE_SENSITIVITY = (
     ("round 2: spheres as datum, G = 0 at their touches", {"rigid": "known"}),
     ("round 2: spheres as datum + 8 touches", {"rigid": "known", "sphere_touches": 8}),
     ("round 2: spheres as datum, grid step 44 mm", {"rigid": "known", "step_m": 0.044}),
-    # round 3, fixed after round 2 (all within 1.5x but the 2-angle case) and before running it: does the
-    # arms' reach (the earlier sensitivity's 208 / 214 mm arms) bring the 2-angle case in?
+    # round 3, fixed after round 2 (at the contact points then: all within 1.5x but the 2-angle case) and before
+    # running it: does the arms' reach (the earlier sensitivity's 208 / 214 mm arms) bring the 2-angle case in?
     ("round 3: spheres as datum, arms 208 mm", {"rigid": "known", "arm_half_m": 0.104}),
     ("round 3: spheres as datum, arms 214 mm", {"rigid": "known", "arm_half_m": 0.107}),
 )
@@ -497,9 +497,12 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
             "touches, so Monte Carlo and linear differ only by sampling).",
             "sphere_sensitivity: Fig. 19 and Table 2 under variants fixed before running (rounds 1-3; linear, "
             "pocket targets only). Round 1 (a free G at every sphere touch, eq 15 as printed): the sphere effect "
-            "stays <= 2.6 um against the paper's ~4. Round 2 (the spheres' G known: they fix the part's datum): "
-            "Figs. 18(b, c), 19 - 18(c), 20(a) and Table 2 within 1.5x of the paper at its 22 mm grid; the "
-            "2-angle case 1.83x. Read from the numbers, not stated by the paper.",
+            "is 1.6 um at the baseline, up to 4.3 um with spheres at r 93 mm, 8 touches, precision model. Round 2 "
+            "(the spheres' G known: they fix the part's datum): Figs. 18(b, c) and U_CC within 1.5x of the paper "
+            "at its 22 mm grid; 19 - 18(c) 1.58x, 20(a) 1.93x, U_XC, U_YC 1.8-2.2x, the 2-angle case 2.45x. "
+            "Read from the numbers, not stated by the paper.",
+            "evaluation_points: the X/Y tables at the commanded tip centres at the targets' heights, the design "
+            "vmt identify builds (evaluation_point_steps: from the contact points, one step at a time).",
         ],
         "arrays": arrays,
     }
@@ -849,6 +852,16 @@ def paper_tables(cpu: dict, pin: dict | None = None) -> dict:
                for r in cpu["sphere_sensitivity"]],
             caption="Fig. 19's sphere effect and Table 2 under variants fixed before running (linear propagation, "
                     "pocket targets; 18(c), 19: C = 0, 75, 130, 210 deg)")
+    if "evaluation_point_steps" in cpu:
+        out["evaluation"] = Table(
+            ["reading", "tables evaluated at", "18(a) / um", "18(b) / um", "18(c) / um", "19 - 18(c) / um",
+             "U_XC / um", "U_YC / um", "U_CC / urad", "map at (-110, 110) / um", "20(a) / um"],
+            [["paper", "", 6.5, 3.0, 2.1, "about 4", "1.0 1.2 1.2", "0.9 1.1 1.2", "8.9 9.3 8.2", "", 28]]
+            + [[r["reading"], r["step"], r["fig18a_max_um"], r["fig18b_max_um"], r["fig18c_max_um"],
+                r["sphere_effect_max_um"], " ".join(f"{v:g}" for v in r["u_xc_um"][1:]),
+                " ".join(f"{v:g}" for v in r["u_yc_um"][1:]), " ".join(f"{v:.1f}" for v in r["u_cc_urad"][1:]),
+                r["map_corner_um"], r["fig20a_max_um"]] for r in cpu["evaluation_point_steps"]],
+            caption="Where the X/Y tables are evaluated (linear, pocket targets; 18(c), 19: C = 0, 75, 130, 210 deg)")
     if pin is not None:
         out["pins"] = Table(["quantity", "vmt", "paper"],
                             [["raw max pin error at C = 0 / um", pin["raw_c0_pin_error_max_um"], "about 8"],
