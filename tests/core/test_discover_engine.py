@@ -17,7 +17,8 @@ import pytest
 from core import causes, selfcal
 from core.design import example_cross_pocket
 from core.diagnosis import holm, nested_f, new_basis, orth
-from core.discover import Settings, discover, find_outliers
+from core.baseline import touch_history
+from core.discover import Settings, concentration_p, discover, find_outliers
 from core.exceptions import ConfigError, IdentifiabilityError
 from core.units import UM
 import discover_synth as S
@@ -188,6 +189,49 @@ def test_too_many_outliers_are_structure_not_dust():
     y[:10] += 12.0  # 3.3 % of the rows, 12 sigma
     assert find_outliers(np.ones((300, 1)), y, max_frac=0.02) == []
     assert find_outliers(np.ones((300, 1)), y, max_frac=0.05) == list(range(10))
+
+
+def test_chips_that_fall_at_random_are_dust_up_to_5_percent():
+    """Five chips in 140 touches (3.6 %) at random rows are removed when the rows' covariates say they fall
+    at random; the same five on consecutive touches (the touches after something moved) are structure."""
+    rng = np.random.default_rng(5)
+    n = 140
+    ranks = np.column_stack([(np.arange(n) + 0.5) / n, (rng.permutation(n) + 0.5) / n])  # time order, a position
+    y = rng.normal(0, 1, n)
+    chips = [9, 33, 61, 97, 128]
+    y[chips] += 15.0
+    g = np.random.default_rng
+    assert find_outliers(np.ones((n, 1)), y) == []  # nothing says where they fall: more than 2 % is structure
+    assert find_outliers(np.ones((n, 1)), y, ranks=ranks, rng=g(0)) == chips
+    y2 = rng.normal(0, 1, n)
+    y2[70:75] += 15.0
+    assert find_outliers(np.ones((n, 1)), y2, ranks=ranks, rng=g(0)) == []
+    y3 = rng.normal(0, 1, n)
+    y3[:8] += 15.0  # 5.7 %: more than any shop's chips, wherever they fall
+    assert find_outliers(np.ones((n, 1)), y3, ranks=ranks[::-1].copy(), rng=g(0)) == []
+
+
+def test_concentration_known_answers():
+    """Rows at one end of a covariate or side by side are concentrated; rows drawn at random are not
+    (the test's false rate at a 5 % level over 200 random draws of 4 rows: binomial 99.9 % bound 20)."""
+    n = 200
+    ranks = ((np.arange(n) + 0.5) / n)[:, None]
+    rng = np.random.default_rng(6)
+    assert concentration_p(ranks, [196, 197, 198, 199], rng) < 1e-3  # the last four: both statistics
+    assert concentration_p(ranks, [100, 101, 102, 103], rng) < 1e-3  # together in the middle: the spread
+    hits = sum(concentration_p(ranks, rng.choice(n, 4, replace=False), rng, draws=2000) < 0.05 for _ in range(200))
+    assert hits <= 20, hits
+    assert concentration_p(ranks, [5], rng) == 1.0  # one row cannot concentrate
+
+
+def test_touch_history_known_answer():
+    """Rest since the previous touch (log10 s; the first gets the others' median) and the approach's turn."""
+    t = np.array([10.0, 0.0, 1.0, 3.0])  # log order differs from time order
+    d = np.array([[0, 1, 0], [1, 0, 0], [1, 0, 0], [-1, 0, 0]], float)
+    since, turn = touch_history(t, d)
+    np.testing.assert_allclose(since, [np.log10(7), np.median([0, np.log10(2), np.log10(7)]), 0, np.log10(2)],
+                               atol=1e-15)
+    np.testing.assert_array_equal(turn, [90, 0, 0, 180])
 
 
 def test_bad_input():
