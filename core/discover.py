@@ -8,10 +8,9 @@ baseline (Ibaraki et al. eqs 1-18, :func:`core.baseline.planar`) and runs
 What it does, in order, and the statistics behind each step
 -----------------------------------------------------------
 1. **Outliers**: studentized deleted residuals beyond the Bonferroni bound
-   ``t(1 - a / 2n, dof - 1)``, removed one at a time; then judged by
-   where they fall (:func:`concentration_p`): concentrated in a covariate
-   they are a systematic effect and nothing is removed; at random they
-   are dust, up to :attr:`Settings.outlier_max_frac_dust` of the rows.
+   ``t(1 - a / 2n, dof - 1)``, removed one at a time (at most
+   :attr:`Settings.outlier_max_frac` of the rows: more is a systematic
+   effect, not dust, and then nothing is removed).
 2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
    error), the lack-of-fit F test of the baseline against it, and the gap
    between held-out and in-sample residuals: ``cv_ss / rss`` against its
@@ -50,10 +49,7 @@ What it does, in order, and the statistics behind each step
    catalogue-free smooth function of that covariate does (debiased sums of
    squares), or fall short of it by an immaterial amount; and its plainer
    counter-explanation (:attr:`core.causes.Cause.counter`, e.g. a finer
-   error map against a non-rigid coupling) must not explain as much; and
-   it must explain something material beyond the best trial of its
-   :attr:`core.causes.Cause.counter_scan` (a one-off slip of the part in
-   one set-up, debiased for the choice among its trials).
+   error map against a non-rigid coupling) must not explain as much.
    Otherwise it was a guess that caught part of something else: it is
    dropped and said so.
 6. **Unexplained**: if structure remains (diagnosis, lack of fit or CV gap
@@ -65,9 +61,7 @@ What it does, in order, and the statistics behind each step
    extended model with U95 (k = 2, sigma from each model's residuals),
    null where the design cannot identify it; every magnitude with its U95
    (delta method through the covariance of the cause's coefficients and
-   nonlinear parameters). An ambiguous name that moves the workpiece
-   beyond the baseline's U95 has its extended workpiece withheld
-   (:func:`_workpiece_guard`).
+   nonlinear parameters).
 
 Family-wise false-alarm rate: :attr:`Settings.alpha`, split equally over
 the four families of tests (lack of fit, CV gap, diagnosis, named causes).
@@ -602,7 +596,6 @@ class Discovery:
     cov_G_extended: np.ndarray | None = field(default=None, repr=False)
     structure: dict = field(default_factory=dict)
     rejected: tuple = ()
-    extended_workpiece_withheld: str = ""
 
     @property
     def cause(self) -> str:
@@ -631,7 +624,6 @@ class Discovery:
             "structure": self.structure,
             "workpiece": [dict(w) for w in self.workpiece],
             "workpiece_identifiable": self.workpiece_identifiable,
-            "extended_workpiece_withheld": self.extended_workpiece_withheld or None,
             "outlier_rows": [int(r) for r in self.outlier_rows],
             "rejected": list(self.rejected),
             "conventions": list(self.conventions),
@@ -909,11 +901,6 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     findings.sort(key=lambda f: (f.cause == causes_mod.OUTLIER, -f.evidence.get("explained_ss_um2", 0.0)))
     tick()
     wp, ident, Gb, Ge, cGb, cGe = _workpiece(bl, terms, y, rows, st0, st)
-    withheld = _workpiece_guard(findings, Gb, Ge, cGb)
-    if withheld:
-        wp = tuple({**w, "extended_um": None, "extended_u95_um": None} for w in wp)
-        Ge = np.full_like(Ge, np.nan)
-        cGe = np.full_like(cGe, np.nan)
     res_e = np.full(N, np.nan)
     res_e[rows] = st.r
     conv = list(bl.conventions) + [
@@ -936,33 +923,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
         residuals_extended_um=res_e / UM, conventions=tuple(conv), workpiece_identifiable=ident,
         G_baseline_m=Gb, G_extended_m=Ge, cov_G_baseline=cGb, cov_G_extended=cGe,
-        structure={"baseline": structure_b, "extended": structure_e}, rejected=tuple(rejected),
-        extended_workpiece_withheld=withheld)
-
-
-def _workpiece_guard(findings, Gb, Ge, cGb) -> str:
-    """Why the extended workpiece is not reported ("" when it is).
-
-    An extended workpiece that moves a target beyond the baseline's own
-    U95 claims the baseline is biased by more than its uncertainty. That
-    claim is only as good as the extension's identification: when the
-    named cause is ambiguous (a smooth function of another covariate
-    reproduces its signal, :func:`_alternatives`), the correction depends
-    on which explanation is true, and the data cannot say. Such a move is
-    not reported as an estimate.
-    """
-    amb = [f.cause for f in findings if f.evidence.get("confidence") == "ambiguous"]
-    if not amb or Gb is None or Ge is None:
-        return ""
-    u = 2 * np.sqrt(np.maximum(np.diag(cGb), 0))
-    move = np.abs(Ge - Gb)
-    ok = np.isfinite(move) & np.isfinite(u)
-    if not np.any(ok & (move > u)):
-        return ""
-    j = int(np.argmax(np.where(ok, move - u, -np.inf)))
-    return (f"the extended workpiece moves a target by {move[j] / UM:.3g} um from the baseline's, beyond the "
-            f"baseline's U95 {u[j] / UM:.3g} um, and {', '.join(amb)} cannot be told from "
-            "another explanation: that correction is not an estimate")
+        structure={"baseline": structure_b, "extended": structure_e}, rejected=tuple(rejected))
 
 
 # ---------------------------------------------------------------------------

@@ -507,9 +507,6 @@ class Outcome:
         Angle between the effect (per touch) and the baseline's column
         space: 0 when the baseline absorbs it entirely (no residual test
         can see it; NaN when the truth does not carry the effect).
-    wp_withheld : bool
-        The report withheld the extended workpiece (an ambiguous name that
-        moves it beyond the baseline's U95); ``wp_ext_um`` is NaN then.
     """
 
     generator: str
@@ -527,7 +524,6 @@ class Outcome:
     seconds: float
     visible_generator: float = float("nan")
     angle_to_baseline_deg: float = float("nan")
-    wp_withheld: bool = False
 
 
 def catalogue_names() -> set:
@@ -589,7 +585,7 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
         vis, angle = effect_outside_baseline(bl, np.asarray(effect_dq_um, float)[bl.rows] * UM, noise_um * UM)
     return Outcome(generator, effect, int(seed), tuple(acceptable), rep["cause"],
                    tuple(f["cause"] for f in rep["findings"]), bool(conf), vis, float(noise_um), wb, we, wu, dt,
-                   vis_gen, angle, bool(rep.get("extended_workpiece_withheld")))
+                   vis_gen, angle)
 
 
 def effect_outside_baseline(bl, e_m: np.ndarray, noise_m: float) -> tuple[float, float]:
@@ -648,9 +644,7 @@ def summarize(outcomes) -> dict:
     - ``confident_misnamed``: out-of-catalogue effects (visible or not)
       named with a wrong catalogue cause without an ambiguity flag;
     - ``workpiece_ok``: campaigns whose extended workpiece is no worse than
-      the baseline's beyond its U95 (both gauge-free against the truth);
-    - ``workpiece_withheld``: (effect, seed) of the campaigns whose report
-      withheld the extended workpiece (not in ``workpiece_ok``).
+      the baseline's beyond its U95 (both gauge-free against the truth).
     """
     cat = catalogue_names()
     out: dict = {}
@@ -673,7 +667,6 @@ def summarize(outcomes) -> dict:
                         round(o.angle_to_baseline_deg, 3)) for o in low if o.visible_generator >= 1.0]
     wp = [o for o in outcomes if np.isfinite(o.wp_base_um) and np.isfinite(o.wp_ext_um) and np.isfinite(o.wp_u95_um)]
     rate("workpiece_ok", wp, [o.wp_ext_um <= o.wp_base_um + o.wp_u95_um for o in wp])
-    out["workpiece_withheld"] = [(o.effect, o.seed) for o in outcomes if o.wp_withheld]
     if wp:
         out["workpiece_mean_um"] = {"baseline": float(np.mean([o.wp_base_um for o in wp])),
                                     "extended": float(np.mean([o.wp_ext_um for o in wp]))}
@@ -706,9 +699,6 @@ def format_study(outcomes, title: str = "") -> str:
         lines.append("absorbed by the baseline (generator's visibility >= 1 sigma, < 1 sigma outside the "
                      "baseline's column space; effect, seed, generator's, ours, angle deg): "
                      + "; ".join(" ".join(str(v) for v in a) for a in s["absorbed"]))
-    if s["workpiece_withheld"]:
-        lines.append("extended workpiece withheld (an ambiguous name moving it beyond the baseline's U95; not in "
-                     "workpiece_ok): " + "; ".join(f"{e} {sd}" for e, sd in s["workpiece_withheld"]))
     lines.append(f"discover mean {s['seconds_mean']:.2f} s per campaign")
     return "\n".join(lines)
 
