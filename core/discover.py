@@ -8,9 +8,10 @@ baseline (Ibaraki et al. eqs 1-18, :func:`core.baseline.planar`) and runs
 What it does, in order, and the statistics behind each step
 -----------------------------------------------------------
 1. **Outliers**: studentized deleted residuals beyond the Bonferroni bound
-   ``t(1 - a / 2n, dof - 1)``, removed one at a time (at most
-   :attr:`Settings.outlier_max_frac` of the rows: more is a systematic
-   effect, not dust, and then nothing is removed).
+   ``t(1 - a / 2n, dof - 1)``, removed one at a time; then judged by
+   where they fall (:func:`concentration_p`): concentrated in a covariate
+   they are a systematic effect and nothing is removed; at random they
+   are dust, up to :attr:`Settings.outlier_max_frac_dust` of the rows.
 2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
    error), the lack-of-fit F test of the baseline against it, and the gap
    between held-out and in-sample residuals: ``cv_ss / rss`` against its
@@ -49,7 +50,10 @@ What it does, in order, and the statistics behind each step
    catalogue-free smooth function of that covariate does (debiased sums of
    squares), or fall short of it by an immaterial amount; and its plainer
    counter-explanation (:attr:`core.causes.Cause.counter`, e.g. a finer
-   error map against a non-rigid coupling) must not explain as much.
+   error map against a non-rigid coupling) must not explain as much; and
+   it must explain something material beyond the best trial of its
+   :attr:`core.causes.Cause.counter_scan` (a one-off slip of the part in
+   one set-up, debiased for the choice among its trials).
    Otherwise it was a guess that caught part of something else: it is
    dropped and said so.
 6. **Unexplained**: if structure remains (diagnosis, lack of fit or CV gap
