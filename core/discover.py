@@ -751,8 +751,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return sigma_rep if sigma_rep is not None else s.sigma
 
     # 1. noise floor of the baseline
-    base_cv = folds.residuals(y[rows])
-    cv_b = float(base_cv @ base_cv) / folds.dof
+    # the baseline's prediction error as every candidate's is measured (Mallows'
+    # Cp includes its 2 k s^2 / n where there is no cross-validation)
+    cv_b = folds.mse(y[rows])
     gap_b = _cv_gap(folds, st, y, None, None, settings, rng)
     lof_b = lack_of_fit(st.rss, st.dof, rep)
     tick()
