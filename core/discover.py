@@ -433,7 +433,7 @@ def _state(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _State:
 def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: float = 0.02,
                   Q: np.ndarray | None = None, ranks: np.ndarray | None = None,
                   rng: np.random.Generator | None = None, max_frac_dust: float = 0.05,
-                  alpha_concentration: float = 0.0025) -> list[int]:
+                  alpha_concentration: float = 0.0025, events: np.ndarray | None = None) -> list[int]:
     """Indices (into y) of gross outliers: studentized deleted residuals, one at a time.
 
     Each pass removes the most extreme row if its studentized deleted
@@ -468,6 +468,12 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
     alpha_concentration : float
         Family-wise level of the concentration test (Bonferroni over the
         covariates).
+    events : (n,) int, optional
+        Rows that one piece of dust corrupts together (the touches of one
+        target within one set-up: a chip stays on the part until the part
+        is set up again, and every touch of that target hits it); negative:
+        a row of its own. The concentration test counts one outlier per
+        event.
     """
     n = len(y)
     judged = ranks is not None and ranks.shape[1] > 0 and rng is not None
@@ -494,8 +500,13 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
             return []
         out.append(int(idx[k]))
         keep[idx[k]] = False
-    if judged and len(out) >= 2 and concentration_p(ranks, out, rng) < alpha_concentration:
-        return []
+    if judged:
+        first = out
+        if events is not None:  # a negative key: a row of its own
+            ev = np.where(np.asarray(events)[out] >= 0, np.asarray(events)[out], -1 - np.arange(len(out)))
+            first = [out[i] for i in sorted(np.unique(ev, return_index=True)[1])]
+        if len(first) >= 2 and concentration_p(ranks, first, rng) < alpha_concentration:
+            return []
     return sorted(out)
 
 
@@ -721,7 +732,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         # answer does not depend on how many other tests drew before it
         return find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac, Q, ranks=ranks,
                              rng=np.random.default_rng(outlier_seed), max_frac_dust=settings.outlier_max_frac_dust,
-                             alpha_concentration=settings.alpha_family)
+                             alpha_concentration=settings.alpha_family, events=bl.replicate)
 
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     # 0. baseline fit and a first outlier screen
