@@ -187,8 +187,13 @@ def check_program(steps: list[Step], settings: ProbeSettings, *, require_limits:
         prev = st.start_mm
 
 
-def program_lines(steps: list[Step], settings: ProbeSettings, rotary: bool = False) -> list[str]:
-    """The GRBL lines a campaign sends (for ``--dry-run``), assuming every probe triggers."""
+def program_lines(steps: list[Step], settings: ProbeSettings, rotary: bool = False,
+                  rotary_axes: str = "ABC") -> list[str]:
+    """The GRBL lines a campaign sends (for ``--dry-run``), assuming every probe triggers.
+
+    ``rotary_axes`` names the controller's rotary axes (``"AC"`` for XYZAC):
+    only those get a word, as in a live run.
+    """
     from .grbl import move_line, probe_line
 
     out = ["G21", "G90", "G94"]
@@ -197,10 +202,10 @@ def program_lines(steps: list[Step], settings: ProbeSettings, rotary: bool = Fal
         out.append(f"(row {st.row} setup {st.setup} target {st.target})")
         rot = st.rot_deg if rotary else None
         for p in approach(prev, st, settings):
-            out.append(move_line(p, settings.move_feed_mm_min, rot))
+            out.append(move_line(p, settings.move_feed_mm_min, rot, rotary_axes))
         out.append(probe_line(st.start_mm, st.end_mm, settings.probe_feed_mm_min, settings.allow_miss))
         out.append("G90")
-        out.append(move_line(st.start_mm, settings.move_feed_mm_min, rot))
+        out.append(move_line(st.start_mm, settings.move_feed_mm_min, rot, rotary_axes))
         prev = st.start_mm
     if settings.safe_z_mm is not None and prev is not None:
         out.append(move_line([prev[0], prev[1], settings.safe_z_mm], settings.move_feed_mm_min))

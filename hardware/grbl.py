@@ -610,7 +610,7 @@ class GrblBackend:
         self.name = name
         self.rotary = rotary
         self.path_tol_mm = float(path_tol_mm)
-        self.user_axes = None if axes is None else _check_axes(axes)
+        self.user_axes = None if axes is None else check_axes(axes)
         self.axes: str | None = None
         self.reset = reset
         self._pos_mm: np.ndarray | None = None
@@ -647,7 +647,7 @@ class GrblBackend:
             return "XYZ"
         got = self.client.axes_from_info()
         if got is not None and len(got) == k:
-            return _check_axes(got)
+            return check_axes(got)
         raise HardwareError(f"the controller reports {k} axes but does not name them ($I has no "
                             "[AXS:n:letters]): name them with --axes, e.g. --axes XYZA")
 
@@ -738,7 +738,7 @@ class GrblBackend:
         self.client.close()
 
 
-def _check_axes(axes: str) -> str:
+def check_axes(axes: str) -> str:
     a = str(axes).upper()
     if a[:3] != "XYZ" or len(set(a)) != len(a) or any(x not in "ABC" for x in a[3:]):
         raise HardwareError(f"axes {axes!r}: expected X, Y, Z then rotary axes A, B, C (e.g. XYZAC)")

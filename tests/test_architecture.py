@@ -1,4 +1,4 @@
-"""The package rules of ../shared/design/architecture.md, checked on the source.
+"""The package rules of CONTRIBUTING.md ("Map of the code"), checked on the source.
 
 core never imports sim, hardware, viz, scenarios, mujoco or rerun; sim may
 import core (and mujoco, trimesh, pinocchio); hardware may import core, and
@@ -76,3 +76,12 @@ def test_importing_core_loads_no_mujoco_or_rerun():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=ROOT, check=True)
     assert out.stdout.strip() == ""
+
+
+def test_shipped_docs_stand_alone():
+    """A user's clone has only the repository: its docs may not send readers outside it."""
+    docs = [ROOT / "README.md", ROOT / "CONTRIBUTING.md", *sorted((ROOT / "docs").glob("*.md"))]
+    leaks = [f"{p.name}:{i}" for p in docs for i, ln in enumerate(p.read_text().splitlines(), 1)
+             if "../shared" in ln or "shared/spec" in ln or "shared/papers" in ln]
+    assert leaks == []
+    assert "probe-log/1" in (ROOT / "docs" / "formats.md").read_text()

@@ -68,7 +68,14 @@ def _dry_run(steps, settings, args) -> int:
     check_program(steps, settings, require_limits=False)
     if settings.limits_mm is None:
         _warn("no --limits: a live run will refuse to start")
-    for line in program_lines(steps, settings, rotary=args.rotary):
+    rotary_axes = "ABC"
+    if args.axes is not None:
+        from hardware.grbl import check_axes
+        rotary_axes = check_axes(args.axes)[3:]
+    elif args.rotary:
+        _warn("no --axes: the dry run writes A, B and C words; a live run sends only the "
+              "controller's rotary axes (name them with --axes, e.g. XYZAC)")
+    for line in program_lines(steps, settings, rotary=args.rotary, rotary_axes=rotary_axes):
         print(line)
     return 0
 

@@ -36,13 +36,14 @@ QUANT_MM = 0.6e-3
 
 def readme_hardware_commands():
     """The plan, serve and probe lines of the README's command block (comments cut)."""
-    text = (ROOT / "README.md").read_text()
-    block = text.split("## Command line", 1)[1].split("```")[1]
-    cmds = [re.split(r"\s+#", ln)[0].strip() for ln in block.splitlines() if ln.startswith("vmt ")]
-    plan = next(c for c in cmds if c.startswith("vmt simulate") and "--plan-only" in c)
-    serve = next(c for c in cmds if c.startswith("vmt machine serve"))
-    probe = next(c for c in cmds if c.startswith("vmt probe --machine grbl://"))
-    return plan, serve, probe
+    return (readme_command("vmt simulate cross-pocket --plan-only"), readme_command("vmt machine serve"),
+            readme_command("vmt probe --machine grbl://"))
+
+
+def readme_command(prefix):
+    """The README command block's line that starts with ``prefix`` (comment cut)."""
+    block = (ROOT / "README.md").read_text().split("## Command line", 1)[1].split("```")[1]
+    return next(re.split(r"\s+#", ln)[0].strip() for ln in block.splitlines() if ln.startswith(prefix))
 
 
 def _free_port():
@@ -63,9 +64,20 @@ def test_readme_hardware_commands_as_written(tmp_path, monkeypatch, capsys):
     # the dry run: every row is approached from the safe Z, never straight across the part
     capsys.readouterr()
     assert main(probe + ["--dry-run"]) == 0
-    lines = capsys.readouterr().out.splitlines()
+    cap = capsys.readouterr()
+    lines = cap.out.splitlines()
     firsts = [lines[i + 1] for i, ln in enumerate(lines) if ln.startswith("(row ")]
     assert len(firsts) == plan.n and all(" Z80.0000 " in ln for ln in firsts)
+    # without a controller the dry run cannot know its axes: it says so, and --axes names them
+    assert "no --axes" in cap.err and re.search(r" B-?\d", cap.out)
+    assert main(probe + ["--dry-run", "--axes", "XYZAC"]) == 0
+    out = capsys.readouterr().out
+    assert not re.search(r" B-?\d", out) and re.search(r" C-?\d", out)
+    assert main(probe + ["--dry-run", "--axes", "XYQ"]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+    # the README's LinuxCNC part program, as written, on the same plan
+    assert main(shlex.split(readme_command("vmt machine program"))[1:]) == 0, capsys.readouterr().err
+    assert (tmp_path / "probe.ngc").read_text().count("G38.2") == plan.n
     proc = subprocess.Popen([sys.executable, "-m", "scenarios.cli", *serve], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
