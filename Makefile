@@ -6,7 +6,7 @@ VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
 OUT     ?= out
 
-.PHONY: venv demo test test-controllers bench clean
+.PHONY: venv demo test test-controllers bench bench-table clean
 
 venv: $(STAMP)
 
@@ -35,8 +35,13 @@ test-controllers: $(STAMP)
 	  echo "linuxcnc-uspace installed in $$(( $$(date +%s) - t0 )) s"; fi
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(VPY) -m pytest -q -s -p no:cacheprovider tests/controllers
 
+# every figure with its same-run reference (bench/results.json), and README's table generated from it
 bench: $(STAMP)
-	$(VENV)/bin/vmt bench --out bench/results.json
+	$(VENV)/bin/vmt bench --out bench/results.json --readme README.md
+
+# README's performance table again from the last bench/results.json (no benchmark run)
+bench-table: $(STAMP)
+	$(VENV)/bin/vmt bench --from-json bench/results.json --readme README.md
 
 clean:
 	rm -rf $(VENV) $(OUT) build *.egg-info

@@ -149,8 +149,8 @@ def write_text_atomic(path, text: str, *, special: bool = False) -> Path:
     Parameters
     ----------
     path : path-like
-    text : str
-        Written as UTF-8.
+    text : str or iterable of str
+        Written as UTF-8; an iterable piece by piece (a large text never whole in memory).
     special : bool
         Write through a character device or FIFO (see :func:`check_output`).
 
@@ -180,7 +180,7 @@ def write_text_atomic(path, text: str, *, special: bool = False) -> Path:
         try:
             os.set_blocking(fd, True)
             with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-                f.write(text)
+                f.writelines([text] if isinstance(text, str) else text)
         except BrokenPipeError:
             raise                   # the reader left: the caller ends quietly
         except OSError as e:
@@ -191,7 +191,7 @@ def write_text_atomic(path, text: str, *, special: bool = False) -> Path:
         p.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent)
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
+            f.writelines([text] if isinstance(text, str) else text)
             f.flush()
             os.fsync(f.fileno())
         os.chmod(tmp, 0o666 & ~_umask())

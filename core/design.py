@@ -93,9 +93,16 @@ def max_workpiece_U95(w_W, wn_W, c_deg, grid: Grid, u_probe_m: float = U_PROBE_M
                       measure: str = "form") -> float:
     """Largest expanded (k = 2) uncertainty of G over the targets, m; inf if not identifiable.
 
-    ``measure="form"``: of the workpiece form (shift, rotation and scale
-    removed, :func:`core.uncertainty.form_projector`; the paper's Fig. 18
-    quantity); ``"gauge"``: of G as identified in the gauge of eqs 16-17.
+    ``measure="gauge"``: of G as identified in the gauge of eqs 16-17, the
+    one reading vmt compares with the paper's Figs. 18-19
+    (``scenarios.crosspocket.U95_READING``). ``measure="form"`` (the
+    default): of the workpiece form only (shift, rotation and scale removed,
+    :func:`core.uncertainty.form_projector`), one part of that value, NOT the
+    paper's quantity. It is the default for choosing angles because the
+    datum part depends on how the part's datum is fixed (the gauge's edge
+    nodes, or the spheres when their G is taken as known: the sphere
+    sensitivity in ``scenarios.crosspocket``), which the angles cannot
+    change much; the form is what the angles decide.
     """
     if measure not in ("form", "gauge"):
         raise ConfigError(f"measure must be 'form' or 'gauge', got {measure!r}")

@@ -77,6 +77,10 @@ __all__ = [
     "SphereFit",
     "CylinderFit",
     "fit_plane",
+    "plane_point_normal",
+    "cylinder_point_axis",
+    "planes_point_normal",
+    "cylinders_point_axis",
     "fit_line",
     "fit_planes",
     "fit_lines",
@@ -378,6 +382,29 @@ class CylinderFit:
 # --------------------------------------------------------------------------- helpers
 
 
+def _centred(P):
+    """Centroid, RMS distance to it and the centred points scaled by it: (c0, s, X)."""
+    c0 = P.mean(axis=0)
+    D = P - c0
+    s = float(np.sqrt(np.mean(np.einsum("ij,ij->i", D, D))))
+    return c0, s, D / s if s > 0.0 else D
+
+
+def _prepared(points, n_min: int, kind: str, validate: bool):
+    """(P, c0, s, X) of (n, 3) ``points``: checked by :func:`_check_points`, or only centred
+    and scaled when the caller vouches for them (the light paths' ``validate=False``)."""
+    if validate:
+        return _check_points(points, 3, n_min, kind)
+    c0, s, X = _centred(points)
+    return points, c0, s, X
+
+
+def _n_distinct(P) -> int:
+    """Number of distinct rows of ``P`` (n, d) (same count as ``np.unique(P, axis=0)``)."""
+    Q = P[np.lexsort(P.T[::-1])]
+    return 1 + int(np.count_nonzero(np.any(Q[1:] != Q[:-1], axis=1))) if len(Q) else 0
+
+
 def _check_points(points, dim: int, n_min: int, kind: str):
     """Validate and centre/scale ``points``; return (P, c0, s, X)."""
     try:
@@ -392,16 +419,21 @@ def _check_points(points, dim: int, n_min: int, kind: str):
     bad = ~np.isfinite(P).all(axis=1)
     if bad.any():
         raise FitError(f"{kind} fit: points contain non-finite values (row {int(np.argmax(bad))})")
-    c0 = P.mean(axis=0)
-    D = P - c0
-    s = float(np.sqrt(np.mean(np.einsum("ij,ij->i", D, D))))
+    c0, s, X = _centred(P)
     if s == 0.0:
         raise FitError(f"{kind} fit: not enough significant data points: all points are coincident")
-    n_distinct = np.unique(P, axis=0).shape[0]
+    n_distinct = _n_distinct(P)
     if n_distinct < n_min:
         raise FitError(f"{kind} fit: not enough significant data points: only {n_distinct} "
                        f"distinct points (coincident points), needs {n_min}")
-    return P, c0, s, D / s
+    return P, c0, s, X
+
+
+def _cross3(a, b):
+    """``np.cross`` of two (3,) vectors without its generic-axis overhead (same operations, same bits)."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def _perp_basis(d, u_prev=None):
@@ -417,7 +449,7 @@ def _perp_basis(d, u_prev=None):
         u = a - (a @ d) * d
         nu = np.linalg.norm(u)
     u = u / nu
-    v = np.cross(d, u)
+    v = _cross3(d, u)
     return np.stack([u, v, d])
 
 
@@ -613,17 +645,57 @@ def fit_plane(points, *, normal_hint=None, tol: FitTolerances = TOL) -> PlaneFit
         collinear points (the normal is not determined).
     """
     P, c0, s, X = _check_points(points, 3, 3, "plane")
-    _, Vt = _svd_frame(X)
-    n = orient(Vt[2], normal_hint)
-    B = _perp_basis(n, Vt[0])
-    _, J = _rj_plane(np.zeros(3), B, X)
-    _check_rank(J, PlaneFit.param_names, "plane", "points are collinear", tol)
-    r, J = _rj_plane(np.zeros(3), B, P - c0)
-    point = c0 + (np.mean(P - c0, axis=0) @ n) * n  # (mean is 0 up to rounding)
+    point, n, B = _plane_solve(P, c0, X, normal_hint, tol)
+    _, J = _rj_plane(np.zeros(3), B, P - c0)
     r = (P - point) @ n
     cov, dof = _covariance(J, r, 3)
     return PlaneFit(point=point, normal=n, residuals=r, rms=float(np.sqrt(np.mean(r**2))),
                     cov=cov, dof=dof, basis=B)
+
+
+def _plane_solve(P, c0, X, normal_hint, tol, basis: bool = True):
+    """(point, normal, basis) of the plane through ``P`` (centroid ``c0``, scaled ``X``);
+    the rank check when ``tol`` is given (None: the caller has checked these points);
+    basis None when neither asked for nor needed by the check."""
+    _, Vt = _svd_frame(X)
+    n = orient(Vt[2], normal_hint)
+    B = _perp_basis(n, Vt[0]) if basis or tol is not None else None
+    if tol is not None:
+        _, J = _rj_plane(np.zeros(3), B, X)
+        _check_rank(J, PlaneFit.param_names, "plane", "points are collinear", tol)
+    point = c0 + (np.mean(P - c0, axis=0) @ n) * n  # (mean is 0 up to rounding)
+    return point, n, B
+
+
+def plane_point_normal(points, *, normal_hint=None, tol: FitTolerances = TOL,
+                       validate: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``(point, normal)`` of :func:`fit_plane`, bit for bit, without residuals or covariance.
+
+    The light path for callers that refit the same feature many times (the
+    finite-difference gain of :func:`core.mfb.poi_noise_gain`).
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Points, m, n >= 3.
+    normal_hint : (3,) float, optional
+        As :func:`fit_plane`.
+    tol : FitTolerances
+    validate : bool
+        True: the checks of :func:`fit_plane` (shape, finite, distinct points,
+        rank). False: none; only for points known good, e.g. a feature that
+        passed :func:`fit_plane` moved by far less than its spread.
+
+    Returns
+    -------
+    point : (3,) float
+        m, as ``fit_plane(...).point``.
+    normal : (3,) float
+        As ``fit_plane(...).normal``.
+    """
+    P, c0, _, X = _prepared(points, 3, "plane", validate)
+    point, n, _ = _plane_solve(P, c0, X, normal_hint, tol if validate else None, basis=False)
+    return point, n
 
 
 def fit_line(points, *, direction_hint=None, tol: FitTolerances = TOL) -> LineFit:
@@ -875,15 +947,28 @@ def fit_cylinder(points, *, axis_hint=None, tol: FitTolerances = TOL) -> Cylinde
         the corners of a cuboid, which lie exactly on three cylinders) when
         no ``axis_hint`` is given, or no convergence.
     """
+    P, c0, s, X = _check_points(points, 3, 5, "cylinder")
+    point, a, B, R, it = _cylinder_solve(P, c0, s, X, axis_hint, tol, validate=True)
+    r, J = _rj_cylinder(point - c0, B, R, P - c0)
+    cov, dof = _covariance(J, r, 5)
+    return CylinderFit(point=point, axis=a, radius=float(R), residuals=r,
+                       rms=float(np.sqrt(np.mean(r**2))), cov=cov, dof=dof, basis=B,
+                       iterations=it)
+
+
+def _cylinder_solve(P, c0, s, X, axis_hint, tol: FitTolerances, validate: bool):
+    """(point, axis, basis, radius, iterations) of the cylinder through ``P`` (centroid
+    ``c0``, scale ``s``, scaled ``X``). ``validate`` False (only with ``axis_hint``):
+    no collinearity, hint or rank check; the caller has checked these points."""
     kind = "cylinder"
-    P, c0, s, X = _check_points(points, 3, 5, kind)
-    S, Vt = _svd_frame(X)
-    if S[1] <= S[0] / tol.cond_max:
-        raise FitError(f"{kind} fit: not enough significant data points: points are collinear, "
-                       f"the radius is not determined")
+    if validate or axis_hint is None:
+        S, Vt = _svd_frame(X)
+        if S[1] <= S[0] / tol.cond_max:
+            raise FitError(f"{kind} fit: not enough significant data points: points are collinear, "
+                           f"the radius is not determined")
     if axis_hint is not None:
         h = np.asarray(axis_hint, dtype=float)
-        if h.shape != (3,) or not np.all(np.isfinite(h)) or not np.linalg.norm(h) > 0:
+        if validate and (h.shape != (3,) or not np.all(np.isfinite(h)) or not np.linalg.norm(h) > 0):
             raise FitError(f"cylinder fit: axis_hint must be a finite non-zero (3,) vector, got {h!r}")
         candidates = [h / np.linalg.norm(h)]
     else:
@@ -918,7 +1003,7 @@ def fit_cylinder(points, *, axis_hint=None, tol: FitTolerances = TOL) -> Cylinde
         raise FitError(errors[0])
     _, (p, B, R), J, it = best
     floor = len(X) * 1e-18  # RSS of 1e-9 RMS in scaled units: rounding level
-    for cost, (_, B2, _), _, _ in rivals:
+    for cost, (_, B2, _), _, _ in rivals if len(rivals) > 1 else ():
         if (np.linalg.norm(np.cross(B2[2], B[2])) > tol.rival_angle
                 and cost <= tol.rival_rms_ratio**2 * best[0] + floor):
             raise FitError(
@@ -926,18 +1011,46 @@ def fit_cylinder(points, *, axis_hint=None, tol: FitTolerances = TOL) -> Cylinde
                 f"well on cylinders with different axes (rms {np.sqrt(best[0] / len(X)) * s:.3g} m "
                 f"about {np.round(orient(B[2]), 4).tolist()}, {np.sqrt(cost / len(X)) * s:.3g} m "
                 f"about {np.round(orient(B2[2]), 4).tolist()}); pass axis_hint")
-    _check_rank(J, CylinderFit.param_names, kind,
-                "the points do not determine the axis and radius (one section, or one side "
-                "of the cylinder only)", tol)
+    if validate:
+        _check_rank(J, CylinderFit.param_names, kind,
+                    "the points do not determine the axis and radius (one section, or one side "
+                    "of the cylinder only)", tol)
     a = orient(B[2], axis_hint)
     B = _perp_basis(a, B[0])
-    point = c0 + s * p
-    R = s * R
-    r, J = _rj_cylinder(point - c0, B, R, P - c0)
-    cov, dof = _covariance(J, r, 5)
-    return CylinderFit(point=point, axis=a, radius=float(R), residuals=r,
-                       rms=float(np.sqrt(np.mean(r**2))), cov=cov, dof=dof, basis=B,
-                       iterations=it)
+    return c0 + s * p, a, B, s * R, it
+
+
+def cylinder_point_axis(points, *, axis_hint, tol: FitTolerances = TOL,
+                        validate: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``(point, axis)`` of :func:`fit_cylinder` with ``axis_hint``, bit for bit, without
+    residuals or covariance.
+
+    The light path for callers that refit the same feature many times (the
+    finite-difference gain of :func:`core.mfb.poi_noise_gain`).
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Points, m, n >= 5.
+    axis_hint : (3,) float
+        Approximate axis (the only initial axis, and the sign of the result).
+    tol : FitTolerances
+    validate : bool
+        True: the checks of :func:`fit_cylinder`. False: none (shape, finite
+        values, distinct points, collinearity, rank); only for points known
+        good, e.g. a feature that passed :func:`fit_cylinder` moved by far less
+        than its spread. Non-convergence still raises :class:`FitError`.
+
+    Returns
+    -------
+    point : (3,) float
+        m, as ``fit_cylinder(...).point``.
+    axis : (3,) float
+        As ``fit_cylinder(...).axis``.
+    """
+    P, c0, s, X = _prepared(points, 5, "cylinder", validate)
+    point, a, _, _, _ = _cylinder_solve(P, c0, s, X, axis_hint, tol, validate)
+    return point, a
 
 
 # --------------------------------------------------------------------------- batches
@@ -1078,6 +1191,143 @@ def fit_lines(points, *, direction_hint=None, tol: FitTolerances = TOL) -> LineF
 
 
 # --------------------------------------------------------------------------- U95 and form
+
+
+def planes_point_normal(points, *, normal_hint=None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`plane_point_normal` (``validate=False``) of each set of a batch, in one call.
+
+    Parameters
+    ----------
+    points : (b, n, 3) float
+        b sets of n >= 3 points, m, each known good (no checks: see
+        :func:`plane_point_normal`).
+    normal_hint : (3,) float, optional
+
+    Returns
+    -------
+    point : (b, 3) float
+        m.
+    normal : (b, 3) float
+        Unit normals, oriented by ``normal_hint`` (or :func:`orient`).
+    """
+    P = points
+    c0 = P.mean(axis=1)
+    D = P - c0[:, None]
+    s = np.sqrt(np.mean(np.einsum("bij,bij->bi", D, D), axis=1))
+    _, _, Vt = np.linalg.svd(D / s[:, None, None], full_matrices=False)
+    n = _orient_batch(Vt[:, 2], normal_hint)
+    point = c0 + np.einsum("bj,bj->b", D.mean(axis=1), n)[:, None] * n
+    return point, n
+
+
+def _perp_basis_batch(d, u_prev):
+    """Rows (u, v, d) per item, u the part of ``u_prev`` (b, 3) normal to ``d`` (b, 3);
+    None when some ``u_prev`` is nearly along its ``d`` (the caller falls back)."""
+    u = u_prev - np.einsum("bj,bj->b", u_prev, d)[:, None] * d
+    nu = np.linalg.norm(u, axis=1)
+    if np.any(nu < 1e-6):
+        return None
+    u = u / nu[:, None]
+    return np.stack([u, np.cross(d, u), d], axis=1)
+
+
+def cylinders_point_axis(points, *, axis_hint, tol: FitTolerances = TOL) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cylinder_point_axis` (``validate=False``) of each set of a batch, in one call.
+
+    The same iteration as :func:`fit_cylinder` from ``axis_hint`` (iterated
+    SDS, Viprey 2016 App. A; the same start, steps and stopping rule per set),
+    run on the whole batch at once; a set whose step must be halved, or that
+    has not converged in ``tol.max_iter`` iterations, is refitted alone by
+    :func:`cylinder_point_axis`. Agrees with the one-set path to rounding
+    (batched rather than single linear algebra), not bit for bit.
+
+    Parameters
+    ----------
+    points : (b, n, 3) float
+        b sets of n >= 5 points, m, each known good (no checks).
+    axis_hint : (3,) float
+        The initial axis of every set, and the sign of the results.
+    tol : FitTolerances
+
+    Returns
+    -------
+    point : (b, 3) float
+        Axis point nearest each set's centroid, m.
+    axis : (b, 3) float
+        Unit axes.
+    """
+    Q = points
+    b, m, _ = Q.shape
+    c0 = Q.mean(axis=1)
+    D = Q - c0[:, None]
+    s = np.sqrt(np.mean(np.einsum("bij,bij->bi", D, D), axis=1))
+    X = D / s[:, None, None]
+    h = np.asarray(axis_hint, dtype=float)
+    B0 = _perp_basis(h / np.linalg.norm(h))
+    # start: the algebraic circle of the points projected along the hint (_kasa)
+    Y = np.stack([X @ B0[0], X @ B0[1]], axis=2)
+    A = np.concatenate([2.0 * Y, np.ones((b, m, 1))], axis=2)
+    sol = np.einsum("bij,bj->bi", np.linalg.pinv(A), np.einsum("bij,bij->bi", Y, Y))
+    R2 = sol[:, 2] + np.einsum("bi,bi->b", sol[:, :2], sol[:, :2])
+    R = np.where(R2 > 0, np.sqrt(np.abs(R2)), 1.0)
+    p = sol[:, :1] * B0[0] + sol[:, 1:2] * B0[1]
+    B = np.broadcast_to(B0, (b, 3, 3)).copy()
+
+    def resjac(p, B, R):
+        w = X - p[:, None]
+        t = np.einsum("bij,bj->bi", w, B[:, 2])
+        wp = w - t[:, :, None] * B[:, None, 2]
+        rho = np.linalg.norm(wp, axis=2)
+        e = wp / rho[:, :, None]
+        eu, ev = np.einsum("bij,bj->bi", e, B[:, 0]), np.einsum("bij,bj->bi", e, B[:, 1])
+        J = np.stack([-eu, -ev, -t * eu, -t * ev, -np.ones_like(t)], axis=2)
+        return rho - R[:, None], J
+
+    r, J = resjac(p, B, R)
+    cost = np.einsum("bi,bi->b", r, r)
+    prev = np.full(b, np.inf)
+    active = np.ones(b, bool)
+    alone = ~np.isfinite(cost)  # refitted one by one (cylinder_point_axis)
+    active &= ~alone
+    sq = np.sqrt(tol.step_tol)
+    for _ in range(tol.max_iter + 1):
+        if not active.any():
+            break
+        cn = np.linalg.norm(J, axis=1)
+        cn = np.where(cn > 0, cn, 1.0)
+        U, S, Vt = np.linalg.svd(J / cn[:, None], full_matrices=False)
+        delta = -np.einsum("bji,bj->bi", Vt, np.einsum("bij,bi->bj", U, r) / S) / cn
+        size = np.linalg.norm(delta, axis=1)
+        bad = active & ~np.all(np.isfinite(delta), axis=1)
+        alone |= bad
+        active &= ~bad
+        done = active & ((size < tol.step_tol) | ((size < sq) & (size > 0.5 * prev)))
+        active &= ~done
+        prev = size
+        a = B[:, 2] + delta[:, 2:3] * B[:, 0] + delta[:, 3:4] * B[:, 1]
+        a = a / np.linalg.norm(a, axis=1)[:, None]
+        p_new = p + delta[:, :1] * B[:, 0] + delta[:, 1:2] * B[:, 1]
+        p_new = p_new - np.einsum("bj,bj->b", p_new, a)[:, None] * a
+        B_new = _perp_basis_batch(a, B[:, 0])
+        if B_new is None:
+            B_new = B
+            alone |= active
+            active[:] = False
+        R_new = R + delta[:, 4]
+        r_new, J_new = resjac(p_new, B_new, R_new)
+        c_new = np.einsum("bi,bi->b", r_new, r_new)
+        # a large step that does not descend would be halved: that set goes alone
+        halve = active & (size >= sq) & ~(np.isfinite(c_new) & (c_new <= cost * (1 + 1e-12) + 1e-300))
+        alone |= halve
+        active &= ~halve
+        k = active
+        p[k], B[k], R[k], r[k], J[k], cost[k] = p_new[k], B_new[k], R_new[k], r_new[k], J_new[k], c_new[k]
+    alone |= active  # no convergence: the one-set path says so
+    axis = _orient_batch(B[:, 2], h)
+    point = c0 + s[:, None] * p
+    for i in np.flatnonzero(alone):
+        point[i], axis[i] = cylinder_point_axis(Q[i], axis_hint=h, tol=tol, validate=False)
+    return point, axis
 
 
 def coverage_factor(dof: int, p: float = 0.95) -> float:

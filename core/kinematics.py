@@ -366,22 +366,133 @@ def _prod(F, n):
     return T
 
 
+class _Pose:
+    """A batch of rigid transforms being composed left to right: ``T <- T . factor``.
+
+    Rotation ``R`` as (3, 3, n) (None while it is the identity) and translation
+    ``t`` as (3, n): every product is a few rows of n numbers, no 4x4 matrices,
+    and identity factors (errors absent or zero) are skipped, exactly.
+    """
+
+    def __init__(self, n: int):
+        self.n, self.R, self.t = n, None, np.zeros((3, n))
+
+    def translate(self, v) -> None:
+        """T <- T . Trans(v), v (n,3) or (3,)."""
+        v = np.asarray(v, float)
+        vt = v.T if v.ndim == 2 else v[:, None]
+        if not np.any(vt):
+            return
+        if self.R is None:
+            self.t = self.t + vt
+        else:
+            R = self.R
+            self.t = self.t + R[:, 0] * vt[0] + R[:, 1] * vt[1] + R[:, 2] * vt[2]
+
+    def rotate(self, R) -> None:
+        """T <- T . [R | 0], R (3,3,n) or None (identity)."""
+        if R is None:
+            return
+        A = self.R
+        self.R = R if A is None else A[:, 0, None] * R[None, 0] + A[:, 1, None] * R[None, 1] + A[:, 2, None] * R[None, 2]
+
+    def rotate_about(self, k: int, th: np.ndarray) -> None:
+        """T <- T . Rot(e_k, th), th (n,) rad."""
+        R = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, self.n)) if self.R is None else self.R
+        c, s = np.cos(th), np.sin(th)
+        i, j = (k + 1) % 3, (k + 2) % 3  # e_i -> c e_i + s e_j, e_j -> -s e_i + c e_j
+        out = np.empty((3, 3, self.n))
+        out[:, k] = R[:, k]
+        out[:, i] = c * R[:, i] + s * R[:, j]
+        out[:, j] = c * R[:, j] - s * R[:, i]
+        self.R = out
+
+    def matrix(self) -> np.ndarray:
+        """(n, 4, 4)."""
+        T = _hom(n=self.n)
+        if self.R is not None:
+            T[:, :3, :3] = np.moveaxis(self.R, 2, 0)
+        T[:, :3, 3] = self.t.T
+        return T
+
+
+def _exp_rows(w: np.ndarray) -> np.ndarray:
+    """:func:`exp_so3` of rotation vectors (n,3) as (3,3,n): ``I + a K + b (w w^T - |w|^2 I)``."""
+    w = np.asarray(w, float)
+    x, y, z = w[:, 0], w[:, 1], w[:, 2]
+    th2 = x * x + y * y + z * z
+    a, b, _ = _coeffs(np.sqrt(th2))
+    d = 1.0 - b * th2
+    bx, by, bz = b * x, b * y, b * z
+    ax, ay, az = a * x, a * y, a * z
+    return np.stack([np.stack([d + bx * x, bx * y - az, bx * z + ay]),
+                     np.stack([bx * y + az, d + by * y, by * z - ax]),
+                     np.stack([bx * z - ay, by * z + ax, d + bz * z])])
+
+
+def _branch_pose(geom: ChainGeometry, side: str, lin, rot, values, n: int) -> _Pose:
+    """The product of :func:`_branch`'s factors, composed directly (poses only, no derivatives)."""
+    ch = geom.chain
+    axes = ch.tool_axes if side == "tool" else ch.workpiece_from_bed
+    s = 1.0 if side == "tool" else -1.0
+    P = _Pose(n)
+    cum = np.zeros((n, 3))
+    dcum: dict[str, np.ndarray] = {}
+    for a in axes:
+        e = np.zeros(3)
+        e[_E[a]] = 1.0
+        w_loc, dw_loc, d_loc = _location_errors(a, values, n, lambda sym, xi: None)
+        rel, _, cum, dcum = _carried_rotation(a, e, w_loc, dw_loc, cum, dcum)
+        L = _exp_rows(rel) if np.any(rel) else None
+        mot = iso.symbols_of_axis(a, location=False)
+        t_E = _vec(values, [m.name for m in mot[:3]], n)
+        w_E = _vec(values, [m.name for m in mot[3:]], n)
+        R_E = _exp_rows(w_E) if np.any(w_E) else None
+        if side != "tool":  # the exact inverse E^-1 = [R^T | -R^T t]
+            if R_E is not None:
+                R_E = np.swapaxes(R_E, 0, 1)
+                t_E = -(R_E[:, 0] * t_E[:, 0] + R_E[:, 1] * t_E[:, 1] + R_E[:, 2] * t_E[:, 2]).T
+            else:
+                t_E = -t_E
+
+        def apply_E():
+            P.translate(t_E)
+            P.rotate(R_E)
+
+        if a in iso.LINEAR_AXES:
+            q = lin[:, ("X", "Y", "Z").index(a)] + geom.J_m[_E[a]]
+            P.rotate(L)
+            if side != "tool":
+                apply_E()
+            P.translate((s * q)[:, None] * e)
+            if side == "tool":
+                apply_E()
+        else:
+            c = np.asarray(geom.rotary_points_R_m.get(a, (0.0, 0.0, 0.0)), float)
+            P.translate(c + d_loc)
+            P.rotate(L)
+            apply_E()
+            P.rotate_about(_E[a], s * rot[:, ch.rotary_axes.index(a)])
+            P.translate(-c)
+    return P
+
+
 def T_R_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     """Actual pose of W in R, (n, 4, 4), for readings (n, 3) m, rotary (n, r) rad."""
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
-    F, _, _ = _branch(geom, "workpiece", lin, rot, values or {}, n, derivs=False)
-    return _prod(F, n)
+    return _branch_pose(geom, "workpiece", lin, rot, values or {}, n).matrix()
 
 
 def T_R_P(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     """Actual pose of the stylus-tip frame P in R, (n, 4, 4)."""
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
-    F, _, _ = _branch(geom, "tool", lin, rot, values or {}, n, derivs=False)
-    return _prod(F, n) @ _hom(None, -np.asarray(geom.J_m), n)
+    P = _branch_pose(geom, "tool", lin, rot, values or {}, n)
+    P.translate(-np.asarray(geom.J_m, float))
+    return P.matrix()
 
 
 def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
-    """Actual stylus-tip centre in W, (n, 3) m (exact transform product).
+    """Actual stylus-tip centre in W, (n, 3) m (exact transform product, no derivatives).
 
     Parameters
     ----------
@@ -393,10 +504,15 @@ def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     values : mapping ISO symbol -> scalar or (n,) float, optional
         Error values (m, rad) at each pose; absent symbols are zero.
     """
-    TW = T_R_W(geom, lin_m, rot_rad, values)
-    p_R = T_R_P(geom, lin_m, rot_rad, values)[:, :3, 3]
-    R = TW[:, :3, :3]
-    return np.einsum("nji,nj->ni", R, p_R - TW[:, :3, 3])
+    lin, rot, n = _inputs(geom, lin_m, rot_rad)
+    values = values or {}
+    W = _branch_pose(geom, "workpiece", lin, rot, values, n)
+    P = _branch_pose(geom, "tool", lin, rot, values, n)
+    P.translate(-np.asarray(geom.J_m, float))
+    d = P.t - W.t
+    if W.R is None:
+        return d.T.copy()
+    return np.einsum("jin,jn->ni", W.R, d)
 
 
 def _derivs(geom, lin_m, rot_rad, values, which):

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .exceptions import ConfigError, FitError
-from .fit import fit_cylinder, fit_plane
+from .fit import cylinder_point_axis, cylinders_point_axis, plane_point_normal, planes_point_normal
 from .units import MM
 
 
@@ -213,15 +213,12 @@ def fit_bar_features(p_R, feature, n_R) -> BarFeatures:
     for f, idx in _group(feature).items():
         try:
             if (i := _num(f, "hole")) is not None:
-                c = fit_cylinder(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
-                hp[i], ha[i] = c.point, c.axis
+                hp[i], ha[i] = cylinder_point_axis(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
             elif (j := _num(f, "rod")) is not None:
-                c = fit_cylinder(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
-                rp[j], ra[j] = c.point, c.axis
+                rp[j], ra[j] = cylinder_point_axis(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
                 rod_normals.append(n_R[idx])
             elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
-                pl = fit_plane(p_R[idx], normal_hint=n_R[idx].mean(axis=0))
-                fp[(f[4], j)], fn[(f[4], j)] = pl.point, pl.normal
+                fp[(f[4], j)], fn[(f[4], j)] = plane_point_normal(p_R[idx], normal_hint=n_R[idx].mean(axis=0))
         except FitError as e:
             raise FitError(f"MFB feature {f!r}: {e}") from None
     side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
@@ -256,20 +253,20 @@ def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB) -> PointsOfInter
     O_R = []
     for i in holes:
         a, b = _rod_pair(i, rods)
-        pl = fit_plane(np.vstack([P[a], P[b]]), normal_hint=bf.probe_side)
-        O_R.append(_meet(bf.hole_point[i], bf.hole_axis[i], pl.point, pl.normal))
+        q, n = plane_point_normal(np.vstack([P[a], P[b]]), normal_hint=bf.probe_side)
+        O_R.append(_meet(bf.hole_point[i], bf.hole_axis[i], q, n))
     O_R = np.array(O_R)
     # R_MFB: PL_ref through the P points of the first and last rods
     j0, j1 = min(rods), max(rods)
-    ref = fit_plane(np.vstack([P[j0], P[j1]]), normal_hint=bf.probe_side if np.any(bf.probe_side) else None)
-    z = ref.normal
+    ref_point, z = plane_point_normal(np.vstack([P[j0], P[j1]]),
+                                      normal_hint=bf.probe_side if np.any(bf.probe_side) else None)
     shifted = {i for i, _ in geom.shifted} | {geom.n_holes + 1 - i for i, _ in geom.shifted}
     plain = [i for i in holes if i not in shifted] or holes
     ia, ib = plain[0], plain[-1]
     if ia == ib:
         ia, ib = holes[0], holes[-1]
-    Oa = _meet(bf.hole_point[ia], bf.hole_axis[ia], ref.point, z)
-    Ob = _meet(bf.hole_point[ib], bf.hole_axis[ib], ref.point, z)
+    Oa = _meet(bf.hole_point[ia], bf.hole_axis[ia], ref_point, z)
+    Ob = _meet(bf.hole_point[ib], bf.hole_axis[ib], ref_point, z)
     x = (Ob - Oa) / np.linalg.norm(Ob - Oa)
     y = np.cross(z, x)
     R = np.column_stack([x, y, z])
@@ -343,6 +340,14 @@ def check_orientation(orientation: str, found: dict, declared: str, geom: BarGeo
 
 
 # --------------------------------------------------------------------------- noise gain
+def _meet_batch(p, d, q, n) -> np.ndarray:
+    """:func:`_meet` for (b, 3) lines and planes (either side may be one (3,) line or plane)."""
+    den = np.einsum("...j,...j->...", d, n)
+    if np.any(np.abs(den) < 1e-9):
+        raise FitError("MFB: a feature axis is parallel to the plane it must cross")
+    return p + (np.einsum("...j,...j->...", q - p, n) / den)[..., None] * d
+
+
 def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float = 1e-7) -> np.ndarray:
     """d O_R / d e: change of the points of interest per touch displacement along d, (3k, n).
 
@@ -354,62 +359,70 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
     motion of all touches moves the points rigidly (``G`` keeps the exact
     gauge freedoms of :mod:`core.volumetric`). Used for the touch model of
     the identification and for the propagation of the probing noise.
+
+    The 2 n perturbed fits of a feature run as one batch (the light fits of
+    :mod:`core.fit`: :func:`~core.fit.cylinders_point_axis`,
+    :func:`~core.fit.planes_point_normal`, no covariance); the features of
+    the unperturbed touches are checked once, by the full fits
+    (:func:`fit_bar_features`, :func:`poi_from_features`).
     """
     p_R = np.asarray(p_R, float)
     d_R = np.asarray(d_R, float)
     n_R = np.asarray(n_R, float)
     feature = np.asarray(feature, dtype=object)
+    if d_R.shape != p_R.shape or not np.all(np.isfinite(d_R)):
+        raise ConfigError(f"MFB noise gain: d_R must be finite and shaped as p_R {p_R.shape}, got {d_R.shape}")
     bf = fit_bar_features(p_R, feature, n_R)
     holes = poi_from_features(bf, geom).holes  # validates the set (holes, rods, faces)
     rods = set(bf.rod_point)
     pair = {i: _rod_pair(i, rods) for i in holes}
     row = {i: k for k, i in enumerate(holes)}
-
-    def o_rows(b, hs):
-        # O_i (section 2.1) of the holes hs only: a touch moves its own feature,
-        # which enters the O_i of its hole, or of the holes whose plane PL_i uses its rod
-        P = {}
-        out = {}
-        for i in hs:
-            a, c = pair[i]
-            for j in (a, c):
-                if j not in P:
-                    P[j] = _rod_points(b, j)
-            pl = fit_plane(np.vstack([P[a], P[c]]), normal_hint=b.probe_side)
-            out[i] = _meet(b.hole_point[i], b.hole_axis[i], pl.point, pl.normal)
-        return out
-
-    base = o_rows(bf, holes)
-    groups = _group(feature)
+    P = {j: _rod_points(bf, j) for j in sorted({j for i in holes for j in pair[i]})}
+    PL = {i: plane_point_normal(np.vstack([P[pair[i][0]], P[pair[i][1]]]), normal_hint=bf.probe_side,
+                                validate=False) for i in holes}
+    base = {i: _meet(bf.hole_point[i], bf.hole_axis[i], *PL[i]) for i in holes}
     G = np.zeros((3 * len(holes), len(p_R)))
-    for f, idx in groups.items():
-        if (i := _num(f, "hole")) is not None:
+    for f, idx in _group(feature).items():
+        i, j = _num(f, "hole"), _num(f, "rod")
+        face = f[:5] in ("faceL", "faceR") and _num(f[5:], "") is not None
+        if i is not None:
             hs = [i] if i in row else []
-        elif (j := _num(f, "rod")) is not None or f[:5] in ("faceL", "faceR"):
+        elif j is not None or face:
             j = j if j is not None else int(f[5:])
             hs = [h for h in holes if j in pair[h]]
         else:
             continue
         if not hs:
             continue
-        for k, sgn in ((k, sgn) for k in idx for sgn in (1.0, -1.0)):
-            q = p_R[idx].copy()
-            q[list(idx).index(k)] += sgn * h_m * d_R[k]
-            hp, ha, rp, ra = dict(bf.hole_point), dict(bf.hole_axis), dict(bf.rod_point), dict(bf.rod_axis)
-            fp, fn = dict(bf.face_point), dict(bf.face_normal)
-            if (i := _num(f, "hole")) is not None:
-                c = fit_cylinder(q, axis_hint=bf.hole_axis[i])
-                hp[i], ha[i] = c.point, c.axis
-            elif (j := _num(f, "rod")) is not None:
-                c = fit_cylinder(q, axis_hint=bf.rod_axis[j])
-                rp[j], ra[j] = c.point, c.axis
+        # the 2 n perturbed point sets of this feature: touch k moved by +h, then -h, along d
+        nk = len(idx)
+        Q = np.broadcast_to(p_R[idx], (2 * nk, nk, 3)).copy()
+        step = h_m * d_R[idx]
+        Q[2 * np.arange(nk), np.arange(nk)] += step
+        Q[2 * np.arange(nk) + 1, np.arange(nk)] -= step
+        if i is not None:
+            q, a = cylinders_point_axis(Q, axis_hint=bf.hole_axis[i])
+            new = {i: _meet_batch(q, a, *PL[i])}
+        else:
+            Pj = np.broadcast_to(P[j], (2 * nk, 2, 3)).copy()
+            if not face:
+                q, a = cylinders_point_axis(Q, axis_hint=bf.rod_axis[j])
+                for k, sd in enumerate("LR"):
+                    Pj[:, k] = _meet_batch(q, a, bf.face_point[(sd, j)], bf.face_normal[(sd, j)])
             else:
-                key = (f[4], int(f[5:]))
-                pl = fit_plane(q, normal_hint=bf.face_normal[key])
-                fp[key], fn[key] = pl.point, pl.normal
-            new = o_rows(BarFeatures(hp, ha, rp, ra, fp, fn, bf.probe_side), hs)
+                sd = f[4]
+                q, nrm = planes_point_normal(Q, normal_hint=bf.face_normal[(sd, j)])
+                Pj[:, "LR".index(sd)] = _meet_batch(bf.rod_point[j], bf.rod_axis[j], q, nrm)
+            new = {}
             for h in hs:
-                G[3 * row[h]:3 * row[h] + 3, k] += sgn * (new[h] - base[h]) / (2.0 * h_m)
+                a, c = pair[h]
+                pts = np.concatenate([Pj if a == j else np.broadcast_to(P[a], Pj.shape),
+                                      Pj if c == j else np.broadcast_to(P[c], Pj.shape)], axis=1)
+                q, nrm = planes_point_normal(pts, normal_hint=bf.probe_side)
+                new[h] = _meet_batch(bf.hole_point[h], bf.hole_axis[h], q, nrm)
+        for h in hs:
+            dO = (new[h] - base[h]) / (2.0 * h_m)  # (2 nk, 3): +h then -h of each touch
+            G[3 * row[h]:3 * row[h] + 3, idx] = (dO[0::2] - dO[1::2]).T
     return G
 
 

@@ -691,8 +691,40 @@ def _fmt(v: float) -> str:
     return "" if math.isnan(v) else repr(float(v))
 
 
-def format_probe_log(log: ProbeLog) -> str:
-    """The file text of ``log`` (metadata, header, one row per touch)."""
+#: rows formatted at a time by :func:`iter_probe_log_text` (a block: ~1 MB of text, ~7 MB of cells)
+WRITE_BLOCK_ROWS = 5_000
+
+
+def _csv_cell(c) -> str:
+    """One text cell as ``csv.writer`` (excel dialect) writes it: quoted only when it must be."""
+    c = "" if c is None else str(c)
+    if not any(ch in c for ch in ',"\r\n'):
+        return c
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([c])
+    return buf.getvalue()[:-1]
+
+
+def _column_cells(name: str, v: np.ndarray) -> list:
+    """The cells of one column block: text as csv writes it; numbers as ``repr(float)``, NaN empty."""
+    if _is_text_column(name, v):
+        cells = ["" if c is None else str(c) for c in v.tolist()]
+        if any(ch in "".join(cells) for ch in ',"\r\n'):  # rare: quote the cells that need it
+            cells = [_csv_cell(c) for c in cells]
+        return cells
+    cells = list(map(repr, v.astype(float).tolist()))
+    for i in np.flatnonzero(np.isnan(v)).tolist():
+        cells[i] = ""
+    return cells
+
+
+def iter_probe_log_text(log: ProbeLog, rows_per_block: int = WRITE_BLOCK_ROWS) -> Iterator[str]:
+    """The file text of ``log`` in pieces: metadata and header, then blocks of rows.
+
+    ``"".join`` of the pieces is :func:`format_probe_log`; a writer that takes
+    the pieces one by one never holds more than one block of text (1e6 rows:
+    a 200 MB file written one block of rows at a time, a few MB).
+    """
     buf = io.StringIO()
     meta = dict(log.meta)
     meta.setdefault("format", FORMAT)
@@ -700,22 +732,26 @@ def format_probe_log(log: ProbeLog) -> str:
     for k, v in meta.items():
         buf.write(f"# {k}: {' '.join(str(v).split())}\n")
     cols = _ordered(dict(log.columns))
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(list(cols))
-    text = {k: _is_text_column(k, v) for k, v in cols.items()}
-    arrays = list(cols.items())
-    for r in range(log.n):
-        w.writerow([v[r] if text[k] else _fmt(v[r]) for k, v in arrays])
-    return buf.getvalue()
+    csv.writer(buf, lineterminator="\n").writerow(list(cols))
+    yield buf.getvalue()
+    for r0 in range(0, log.n, int(rows_per_block)):
+        cells = [_column_cells(k, v[r0:r0 + int(rows_per_block)]) for k, v in cols.items()]
+        yield "\n".join(map(",".join, zip(*cells))) + "\n"
+
+
+def format_probe_log(log: ProbeLog) -> str:
+    """The file text of ``log`` (metadata, header, one row per touch)."""
+    return "".join(iter_probe_log_text(log))
 
 
 def write_probe_log(path: str | os.PathLike, log: ProbeLog, *, special: bool = False) -> Path:
     """Write ``log`` to ``path`` atomically; reading it back gives ``log``.
 
-    Only a regular file is replaced; ``special`` writes through a device or
-    FIFO the user named (:func:`core.atomic.write_text_atomic`).
+    The text is written block by block (:func:`iter_probe_log_text`), never
+    whole in memory. Only a regular file is replaced; ``special`` writes
+    through a device or FIFO the user named (:func:`core.atomic.write_text_atomic`).
     """
-    return write_text_atomic(path, format_probe_log(log), special=special)
+    return write_text_atomic(path, iter_probe_log_text(log), special=special)
 
 
 def summary(log: ProbeLog) -> dict:

@@ -15,7 +15,7 @@ Task file (units in the key names)::
     format = "vmt-task/1"
 
     [features.bore]              # a feature: a kind and the plan rows it fits
-    kind = "circle"              # plane | circle (in XY) | sphere | cylinder
+    kind = "circle"              # plane | line (in XY) | circle (in XY) | sphere | cylinder
     feature = "bore"             # rows whose plan column `feature` is this
     # targets = ["B01", "B02"]   # or/and these targets; setup = "S1" narrows
 
@@ -26,8 +26,11 @@ Task file (units in the key names)::
     # quantity = "position", axis = "x" | "y" | "z": a centre coordinate
     # quantity = "distance", of = [A, B]: plane-plane (along A's normal),
     #   centre-centre, plane-centre
-    # quantity = "angle", of = [A, B]: between plane normals / cylinder axes
-    # quantity = "flatness" | "roundness" | "sphericity" | "cylindricity"
+    # quantity = "angle", of = [A, B]: between plane normals / cylinder axes /
+    #   lines (their outward normals); of = L (one line): its direction from +X
+    # quantity = "flatness" | "straightness" | "roundness" | "sphericity" | "cylindricity"
+    # quantity = "profile", statistic = "max" | "min" | "rms" | "zone": the
+    #   deviations from the nominal (ISO 1101 profile of a surface, no best fit)
 
     [declared.EXX]               # MPE-style limits of one ISO 230-1 symbol
     slope_um_per_m = 5.0         # each term drawn within +-bound
@@ -36,6 +39,23 @@ Task file (units in the key names)::
 
     [probe]
     noise_um = 0.25              # repeatability, k = 1 (default: the machine's)
+    pretravel_um = 0.5           # residual pre-travel after calibration, drawn within +-0.5 um
+    lobing_um = 0.3              # lobing amplitude within +-0.3 um (a cos(k phi - phi0), phase uniform)
+    lobes = 3                    # k, the lobing's order (default 3: a kinematic probe)
+    distribution = "uniform"     # of pretravel_um and lobing_um (as [declared])
+
+    [form.bore]                  # the part's own form of feature "bore", drawn per run
+    amplitude_um = 1.0           # a, drawn within +-1 um (distribution), phase uniform
+    lobes = 3                    # circle, cylinder: a cos(k theta + phi) about the axis
+    # wavelength_mm = 40.0       # plane, line: a cos(2 pi s / wavelength + phi), s along the
+    # along = "x"                #   surface (line: its direction; plane: this axis projected on it)
+    distribution = "uniform"
+
+    [drift]                      # the machine's thermal drift during the measurement
+    x_um_per_h = 3.0             # rate of the X offset (an EXX growing with time), drawn within +-3 um/h
+    z_um_per_h = 5.0             # (x, y, z: each one source "EXX drift", "EYY drift", "EZZ drift")
+    distribution = "uniform"
+    touches_per_min = 6.0        # when the plan has no t_s: row i starts at i / rate (plan order)
 
     [temperature]                # results at 20 C, corrected with the best estimates
     part_C = 22.0                # the part's temperature during the measurement
@@ -54,10 +74,60 @@ Task file (units in the key names)::
     max_runs = 20000
     coverage = 0.95
 
+A ``line`` is the trace of a face touched at one height: a least-squares
+line of the tip centres in XY (their Z ignored), its direction ``d = z x n``
+with ``n`` its outward normal in XY (the mean of the nominal normals'
+sense), i.e. a boss's outline runs anticlockwise seen from +Z; its
+``straightness`` is the peak-to-valley of the signed XY residuals about the
+least-squares line (ISO 12780 LS reference). A line's ``angle`` alone is the
+angle of ``d`` from +X in XY, on the branch of the nominal direction (that
+of the nominal normals, in (-180, 180] deg): it does not jump when a line
+along -X tilts across the cut at 180 deg; between two lines the
+angle of their outward normals, in [0, 180] deg, so two perpendicular faces
+of a block read 90. ``distance`` with a line: the
+XY distance of the other feature's point (line: its centroid; circle,
+sphere: centre) from the line.
+
+Profile deviation (ISO 1101 profile of a surface, the plan's frame being the
+datum system: no best fit): each touch's deviation is ``d_i = n_i . (p_i -
+Xn_i)``, the reported minus the nominal tip centre along the nominal outward
+normal, equal to the surface point's deviation (the ball's radius cancels).
+Sign: positive where the surface lies outside the nominal (excess
+material), negative inside it. ``statistic`` max, min, rms (``sqrt(mean
+d^2)``) or zone ``2 max |d|``: the width of the tolerance zone centred on
+the nominal that just holds every point (the part conforms to a profile
+tolerance ``t`` when zone <= t).
+
+The part's form (``[form.FEATURE]``): the feature's surface lies ``f`` out of
+its nominal along the nominal outward normal (+ = excess material, as the
+profile deviation's sign), a circle's or cylinder's
+``f = a cos(k theta + phi)`` with ``theta`` the azimuth about its axis (a
+circle: about Z from +X; a cylinder: anticlockwise about its axis directed
+along its largest component, positive, from the axis' perpendicular nearest
++X, or +Y for an axis along X), a plane's or line's ``f = a cos(2 pi s / wavelength +
+phi)`` with ``s`` the coordinate along the surface; ``a`` drawn within
++-``amplitude_um`` by the distribution, ``phi`` uniform, each feature one
+source ``form of FEATURE``. A point-contact model: ``f`` is taken at the tip
+centre's foot on the nominal surface (the ball's mechanical filtering of
+waves shorter than about its radius is not modelled). A sphere takes no
+form.
+
+Drift (``[drift]``): the axis's positioning error grows as ``v t`` (m, ``v``
+drawn within +-the rate), zero at the plan's first row (the datum is taken
+there), ``t`` the start of a touch's approach: the plan's ``t_s`` minus its
+first finite value when every used row has one, else the row's index in
+the plan over ``touches_per_min`` (rows no feature uses still take their
+time). The touch meets the part ``CLEARANCE / feed`` later (0.25 s), the same
+for every touch.
+
 Declared terms: ``constant_U``, and for a linear axis's motion errors also
 ``slope_U_per_m`` and ``quadratic_U_per_m2`` (``U`` = ``um`` for a
 translation, ``urad`` for a rotation) of the axis reading, the same
-polynomial as a machine file's; a location error (``EC0Y``, ``EX0C``, ...)
+polynomial as a machine file's, and ``periodic_U`` with ``period_mm``: a
+periodic error ``a sin(2 pi x / period + phi)`` (a screw's pitch error,
+the ripple an identification's tables cannot follow between their nodes)
+with its amplitude ``a`` drawn within +-``periodic_U`` by the distribution
+and its phase ``phi`` uniform; a location error (``EC0Y``, ``EX0C``, ...)
 and a rotary axis's motion errors take ``constant_U`` only. Every term is
 one independent source of the budget.
 """
@@ -77,17 +147,24 @@ from .exceptions import ConfigError, FitError
 from .keyreader import KeyReader, read_text_file
 
 FORMAT = "vmt-task/1"
-KINDS = ("plane", "circle", "sphere", "cylinder")
+KINDS = ("plane", "line", "circle", "sphere", "cylinder")
 #: quantity -> feature kinds it applies to (one feature), form names.
-FORM_OF = {"flatness": "plane", "roundness": "circle", "sphericity": "sphere", "cylindricity": "cylinder"}
-QUANTITIES = ("diameter", "position", "distance", "angle") + tuple(FORM_OF)
+FORM_OF = {"flatness": "plane", "straightness": "line", "roundness": "circle", "sphericity": "sphere",
+           "cylindricity": "cylinder"}
+QUANTITIES = ("diameter", "position", "distance", "angle", "profile") + tuple(FORM_OF)
+#: ``statistic`` of a ``profile`` measurand (see the module doc).
+PROFILE_STATISTICS = ("max", "min", "rms", "zone")
 DISTRIBUTIONS = ("uniform", "normal", "triangular", "arcsine")
 #: Standard uncertainty of a term declared with half-width (bound) 1 (normal: bound = U at k = 2).
 U_PER_BOUND = {"uniform": 1 / math.sqrt(3), "normal": 0.5, "triangular": 1 / math.sqrt(6),
                "arcsine": 1 / math.sqrt(2)}
 #: Power of the axis reading of each declared term.
-TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2}
+TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2, "periodic": 0, "pretravel": 0, "lobing": 0, "form": 0,
+              "drift": 0}
 PROBE_SOURCE = "probe repeatability"
+#: The declared probe terms' budget names (``[probe] pretravel_um``, ``lobing_um``).
+PRETRAVEL_SOURCE = "probe pre-travel"
+LOBING_SOURCE = "probe lobing"
 #: Reference temperature of dimensional measurement (ISO 1), C.
 T_REF_C = 20.0
 #: Temperature sources: name -> (value key, its u key) of :class:`Temperature`.
@@ -125,10 +202,11 @@ class Measurand:
     quantity: str
     of: tuple
     axis: str | None = None
+    statistic: str | None = None   # profile: one of PROFILE_STATISTICS
 
     @property
     def unit(self) -> str:
-        return {"angle": "deg"}.get(self.quantity, "um" if self.quantity in FORM_OF else "mm")
+        return {"angle": "deg"}.get(self.quantity, "um" if self.quantity in FORM_OF or self.quantity == "profile" else "mm")
 
     @property
     def scale(self) -> float:
@@ -151,6 +229,7 @@ class DeclaredTerm:
     term: str
     bound: float
     distribution: str
+    period: float | None = None   # m, the periodic term's
 
     @property
     def source(self) -> str:
@@ -164,6 +243,31 @@ class DeclaredTerm:
     @property
     def u(self) -> float:
         """Standard uncertainty of the coefficient (SI)."""
+        return self.bound * U_PER_BOUND[self.distribution]
+
+
+@dataclass(frozen=True)
+class PartForm:
+    """The declared form of one feature (``[form.FEATURE]``, see the module doc), SI.
+
+    ``bound`` m the amplitude's half-width; ``lobes`` (circle, cylinder) or
+    ``wavelength`` m and ``along`` (unit (3,), plane: the axis projected on
+    it; line: None, its direction).
+    """
+
+    feature: str
+    bound: float
+    distribution: str
+    lobes: int | None = None
+    wavelength: float | None = None
+    along: tuple | None = None
+
+    @property
+    def source(self) -> str:
+        return f"form of {self.feature}"
+
+    @property
+    def u(self) -> float:
         return self.bound * U_PER_BOUND[self.distribution]
 
 
@@ -246,6 +350,27 @@ class Task:
     mc: MCSettings = field(default_factory=MCSettings)
     source: str = "<task>"
     temperature: Temperature | None = None
+    pretravel: DeclaredTerm | None = None   # symbol "probe", term "pretravel": bound m
+    lobing: DeclaredTerm | None = None      # symbol "probe", term "lobing", period = the number of lobes
+    forms: tuple = ()                       # PartForm, one per feature at most
+    drift: tuple = ()                       # DeclaredTerm "EXX"/"EYY"/"EZZ", term "drift": bound m/s
+    touches_per_min: float | None = None    # [drift] touches_per_min
+
+    @property
+    def probe_sources(self) -> tuple:
+        """The declared probe terms' budget names."""
+        return ((PRETRAVEL_SOURCE,) if self.pretravel is not None else ()) + (
+            (LOBING_SOURCE,) if self.lobing is not None else ())
+
+    @property
+    def drift_sources(self) -> tuple:
+        """The declared drifts' budget names, ``EXX drift`` ..."""
+        return tuple(t.source for t in self.drift)
+
+    @property
+    def form_sources(self) -> tuple:
+        """The part's declared forms' budget names, ``form of FEATURE``."""
+        return tuple(f.source for f in self.forms)
 
     def feature(self, name: str) -> FeatureSpec:
         for f in self.features:
@@ -279,7 +404,7 @@ class _TaskReader(KeyReader):
 
     def task(self, doc) -> Task:
         self.keys("", doc, ("format", "description", "features", "measurands", "declared", "probe", "mc",
-                            "temperature"))
+                            "temperature", "form", "drift"))
         if "format" in doc and doc["format"] != FORMAT:
             self.fail("format", f"expected {FORMAT!r}, got {doc['format']!r}")
         feats = tuple(self.feature(n, b) for n, b in self.table("features", doc.get("features", {})).items())
@@ -297,11 +422,71 @@ class _TaskReader(KeyReader):
         for sym, body in self.table("declared", doc.get("declared", {})).items():
             declared += self.declared(sym, self.table(f"declared.{sym}", body))
         probe = self.table("probe", doc.get("probe", {}))
-        self.keys("probe", probe, ("noise_um",))
+        self.keys("probe", probe, ("noise_um", "pretravel_um", "lobing_um", "lobes", "distribution"))
         noise = self.number("probe.noise_um", probe["noise_um"], nonneg=True) if "noise_um" in probe else None
+        pdist = probe.get("distribution", "uniform")
+        if pdist not in DISTRIBUTIONS:
+            self.fail("probe.distribution", f"expected one of {', '.join(DISTRIBUTIONS)}, got {pdist!r}")
+        pre = lob = None
+        if "pretravel_um" in probe:
+            pre = DeclaredTerm("probe", "pretravel", self.number("probe.pretravel_um", probe["pretravel_um"],
+                                                                 nonneg=True) * 1e-6, pdist)
+        if "lobes" in probe and "lobing_um" not in probe:
+            self.fail("probe.lobes", "only with lobing_um")
+        if "lobing_um" in probe:
+            k = self.integer("probe.lobes", probe["lobes"], 1) if "lobes" in probe else 3
+            lob = DeclaredTerm("probe", "lobing", self.number("probe.lobing_um", probe["lobing_um"], nonneg=True)
+                               * 1e-6, pdist, float(k))
         temp = self.temperature(self.table("temperature", doc["temperature"])) if "temperature" in doc else None
+        forms = tuple(self.form(n, self.table(f"form.{n}", b), kinds)
+                      for n, b in self.table("form", doc.get("form", {})).items())
+        drift, rate = self.drift(self.table("drift", doc["drift"])) if "drift" in doc else ((), None)
         return Task(feats, meas, tuple(declared), noise, self.mc(self.table("mc", doc.get("mc", {}))), self.source,
-                    temp)
+                    temp, pre, lob, forms, drift, rate)
+
+    def drift(self, t) -> tuple:
+        axes = {f"{a}_um_per_h": f"E{a.upper()}{a.upper()}" for a in "xyz"}
+        self.keys("drift", t, tuple(axes) + ("distribution", "touches_per_min"))
+        dist = t.get("distribution", "uniform")
+        if dist not in DISTRIBUTIONS:
+            self.fail("drift.distribution", f"expected one of {', '.join(DISTRIBUTIONS)}, got {dist!r}")
+        terms = tuple(DeclaredTerm(sym, "drift", self.number(f"drift.{k}", t[k], nonneg=True) * 1e-6 / 3600.0, dist)
+                      for k, sym in axes.items() if k in t)
+        if not terms:
+            self.fail("drift", f"no rate (expected one of {', '.join(axes)})")
+        rate = self.number("drift.touches_per_min", t["touches_per_min"], positive=True) if "touches_per_min" in t \
+            else None
+        return terms, rate
+
+    def form(self, name, body, kinds) -> PartForm:
+        key = f"form.{name}"
+        if name not in kinds:
+            self.fail(key, f"no feature {name!r} (features: {', '.join(kinds)})")
+        kind = kinds[name]
+        if kind == "sphere":
+            self.fail(key, "a sphere takes no form (circle, cylinder: lobes; plane, line: wavelength_mm)")
+        lobed = kind in ("circle", "cylinder")
+        own = ("lobes",) if lobed else ("wavelength_mm",) + (("along",) if kind == "plane" else ())
+        self.keys(key, body, ("amplitude_um", "distribution") + own)
+        for k in own:
+            if k not in body:
+                self.fail(f"{key}.{k}", f"missing: a {kind}'s form needs {', '.join(own)}")
+        if "amplitude_um" not in body:
+            self.fail(f"{key}.amplitude_um", "missing")
+        dist = body.get("distribution", "uniform")
+        if dist not in DISTRIBUTIONS:
+            self.fail(f"{key}.distribution", f"expected one of {', '.join(DISTRIBUTIONS)}, got {dist!r}")
+        a = self.number(f"{key}.amplitude_um", body["amplitude_um"], nonneg=True) * 1e-6
+        if lobed:
+            return PartForm(name, a, dist, lobes=self.integer(f"{key}.lobes", body["lobes"], 1))
+        wl = self.number(f"{key}.wavelength_mm", body["wavelength_mm"], positive=True) * 1e-3
+        along = None
+        if kind == "plane":
+            ax = body["along"]
+            if ax not in ("x", "y", "z"):
+                self.fail(f"{key}.along", f"expected \"x\", \"y\" or \"z\", got {ax!r}")
+            along = tuple(float(i == "xyz".index(ax)) for i in range(3))
+        return PartForm(name, a, dist, wavelength=wl, along=along)
 
     def temperature(self, t) -> Temperature:
         keys = [f.name for f in dataclasses.fields(Temperature)]
@@ -336,7 +521,7 @@ class _TaskReader(KeyReader):
 
     def measurand(self, i, body, kinds) -> Measurand:
         key = f"measurands[{i}]"
-        self.keys(key, body, ("name", "quantity", "of", "axis"))
+        self.keys(key, body, ("name", "quantity", "of", "axis", "statistic"))
         name = self.string(f"{key}.name", body.get("name"))
         q = self.string(f"{key}.quantity", body.get("quantity"))
         if q not in QUANTITIES:
@@ -349,12 +534,12 @@ class _TaskReader(KeyReader):
             if f not in kinds:
                 self.fail(f"{key}.of", f"no feature {f!r} (features: {', '.join(kinds)})")
         k = [kinds[f] for f in of]
-        want2 = q in ("distance", "angle")
+        want2 = q == "distance" or (q == "angle" and not (len(of) == 1 and k[0] == "line"))
         if len(of) != (2 if want2 else 1):
             self.fail(f"{key}.of", f"{q} takes {'two features' if want2 else 'one feature'}, got {len(of)}")
         axis = None
-        if q == "diameter" and k[0] == "plane":
-            self.fail(f"{key}.of", "a plane has no diameter")
+        if q == "diameter" and k[0] in ("plane", "line"):
+            self.fail(f"{key}.of", f"a {k[0]} has no diameter")
         if q in FORM_OF and k[0] != FORM_OF[q]:
             self.fail(f"{key}.of", f"{q} is the form of a {FORM_OF[q]}, {of[0]!r} is a {k[0]}")
         if q == "position":
@@ -365,11 +550,23 @@ class _TaskReader(KeyReader):
                 self.fail(f"{key}.axis", f"position needs axis = \"x\", \"y\" or \"z\", got {axis!r}")
         elif "axis" in body:
             self.fail(f"{key}.axis", "only for quantity = \"position\"")
+        stat = None
+        if q == "profile":
+            stat = body.get("statistic")
+            if stat not in PROFILE_STATISTICS:
+                self.fail(f"{key}.statistic", f"profile needs statistic = one of {', '.join(PROFILE_STATISTICS)}, "
+                                              f"got {stat!r}")
+        elif "statistic" in body:
+            self.fail(f"{key}.statistic", "only for quantity = \"profile\"")
         if q == "distance" and "cylinder" in k:
-            self.fail(f"{key}.of", "distance: between planes, circle and sphere centres (not a cylinder)")
-        if q == "angle" and not all(x in ("plane", "cylinder") for x in k):
-            self.fail(f"{key}.of", "angle: between planes and cylinder axes")
-        return Measurand(name, q, tuple(of), axis)
+            self.fail(f"{key}.of", "distance: between planes, lines, circle and sphere centres (not a cylinder)")
+        if q == "distance" and "line" in k and "plane" in k:
+            self.fail(f"{key}.of", "distance: a line with a line, circle or sphere (not a plane)")
+        if q == "angle" and not all(x in ("plane", "cylinder", "line") for x in k):
+            self.fail(f"{key}.of", "angle: between planes, lines and cylinder axes")
+        if q == "angle" and "line" in k and k.count("line") != len(k):
+            self.fail(f"{key}.of", "angle: a line with another line (or one line: its direction)")
+        return Measurand(name, q, tuple(of), axis, stat)
 
     def declared(self, sym, body) -> list[DeclaredTerm]:
         key = f"declared.{sym}"
@@ -380,12 +577,21 @@ class _TaskReader(KeyReader):
         U = "urad" if s.angular else "um"
         terms = {f"constant_{U}": "constant"}
         if not s.location and s.axis in iso.LINEAR_AXES:
-            terms.update({f"slope_{U}_per_m": "slope", f"quadratic_{U}_per_m2": "quadratic"})
-        self.keys(key, body, tuple(terms) + ("distribution",))
+            terms.update({f"slope_{U}_per_m": "slope", f"quadratic_{U}_per_m2": "quadratic",
+                          f"periodic_{U}": "periodic"})
+        self.keys(key, body, tuple(terms) + ("distribution", "period_mm"))
         dist = body.get("distribution", "uniform")
         if dist not in DISTRIBUTIONS:
             self.fail(f"{key}.distribution", f"expected one of {', '.join(DISTRIBUTIONS)}, got {dist!r}")
-        out = [DeclaredTerm(s.name, t, self.number(f"{key}.{k}", body[k], nonneg=True) * 1e-6, dist)
+        period = None
+        if f"periodic_{U}" in terms and (f"periodic_{U}" in body) != ("period_mm" in body):
+            self.fail(key, f"periodic_{U} and period_mm go together")
+        if "period_mm" in body:
+            if f"periodic_{U}" not in terms:
+                self.fail(f"{key}.period_mm", "only with a linear axis's periodic term")
+            period = self.number(f"{key}.period_mm", body["period_mm"], positive=True) * 1e-3
+        out = [DeclaredTerm(s.name, t, self.number(f"{key}.{k}", body[k], nonneg=True) * 1e-6, dist,
+                            period if t == "periodic" else None)
                for k, t in terms.items() if k in body]
         if not out:
             self.fail(key, f"no term (expected one of {', '.join(terms)})")
@@ -464,8 +670,10 @@ class FittedFeature:
 
     ``point`` (plane: centroid on the plane; circle: centre with z the mean
     height; sphere: centre; cylinder: a point on the axis), ``direction``
-    (plane normal, cylinder axis, else None), ``radius`` (None for a plane),
-    ``form`` (peak-to-valley of the residuals about the LS feature).
+    (plane normal, cylinder axis, a line's direction ``z x n`` in XY, else
+    None), ``radius`` (None for a plane or line), ``form`` (peak-to-valley of
+    the residuals about the LS feature). A line's ``point`` is its surface
+    point nearest the tip centres' centroid, with z their mean height.
     """
 
     kind: str
@@ -473,6 +681,7 @@ class FittedFeature:
     direction: np.ndarray | None
     radius: float | None
     form: float
+    nominal_direction: np.ndarray | None = None   # a line's: z x (mean nominal normal), XY unit
 
 
 def _outside(p, n, centre, axis=None) -> bool:
@@ -487,7 +696,7 @@ def fit_feature(kind: str, p_R: np.ndarray, n_R: np.ndarray, stylus_r: float) ->
 
     Parameters
     ----------
-    kind : {"plane", "circle", "sphere", "cylinder"}
+    kind : {"plane", "line", "circle", "sphere", "cylinder"}
     p_R : (k, 3) float
         Reported stylus-tip centres, R, m.
     n_R : (k, 3) float
@@ -503,6 +712,18 @@ def fit_feature(kind: str, p_R: np.ndarray, n_R: np.ndarray, stylus_r: float) ->
         nm = n_R.mean(axis=0)
         f = F.fit_plane(p_R, normal_hint=nm if np.linalg.norm(nm) > 0.5 else None)
         return FittedFeature(kind, f.point - stylus_r * f.normal, f.normal, None, F.form_deviation(f))
+    if kind == "line":
+        q = np.column_stack([p_R[:, :2], np.zeros(len(p_R))])
+        f = F.fit_line(q)
+        d = np.array([f.direction[0], f.direction[1], 0.0])
+        nrm = np.cross(d, [0.0, 0.0, 1.0])             # n = d x z: d = z x n for n in XY
+        if float(np.sum(n_R[:, :2] @ nrm[:2])) < 0:    # the nominal normals' sense: outward
+            d, nrm = -d, -nrm
+        res = (q - f.point) @ nrm                       # signed XY residuals, + outward
+        c = np.array([f.point[0], f.point[1], float(np.mean(p_R[:, 2]))])
+        n0 = np.array([*n_R[:, :2].mean(axis=0), 0.0])
+        d0 = np.cross([0.0, 0.0, 1.0], n0 / np.linalg.norm(n0)) if np.linalg.norm(n0) > 0 else d
+        return FittedFeature(kind, c - stylus_r * nrm, d, None, float(res.max() - res.min()), d0)
     if kind == "circle":
         f = F.fit_circle_2d(p_R[:, :2])
         out = _outside(p_R[:, :2], n_R[:, :2], f.centre)
@@ -520,16 +741,44 @@ def fit_feature(kind: str, p_R: np.ndarray, n_R: np.ndarray, stylus_r: float) ->
     raise ConfigError(f"feature kind {kind!r}: expected one of {', '.join(KINDS)}")
 
 
+def _xy_normal(f: FittedFeature) -> np.ndarray:
+    """A line's outward normal in XY, ``d x z`` (3,), unit."""
+    return np.cross(f.direction, [0.0, 0.0, 1.0])
+
+
+def profile_deviations(p_R: np.ndarray, Xn_R: np.ndarray, n_R: np.ndarray) -> np.ndarray:
+    """Each touch's profile deviation ``n . (p - Xn)`` (k,) m: + outside the nominal surface (see the module doc)."""
+    return np.einsum("ij,ij->i", p_R - Xn_R, n_R)
+
+
+def profile_value(stat: str, d: np.ndarray) -> float:
+    """One ``statistic`` of profile deviations ``d`` (k,) m: max, min, rms or zone ``2 max |d|``."""
+    if stat == "max":
+        return float(d.max())
+    if stat == "min":
+        return float(d.min())
+    if stat == "rms":
+        return float(np.sqrt(np.mean(d * d)))
+    return float(2.0 * np.abs(d).max())
+
+
 def measurand_value(m: Measurand, feats: dict) -> float:
     """Value of one measurand from fitted features ``{name: FittedFeature}``, SI (m, rad).
 
     distance: plane-plane is the distance of B's point from plane A along
     A's normal; plane-centre the centre's distance from the plane;
-    centre-centre the Euclidean distance (circles: in XY). angle: between
+    centre-centre the Euclidean distance (circles: in XY); with a line, the
+    XY distance of the other's point from the line. angle: between
     plane normals (outward, so two faces of a block at 90 deg read 90),
-    or with a cylinder axis (sign-free: in [0, 90] deg).
+    or with a cylinder axis (sign-free: in [0, 90] deg); between lines, their
+    outward normals in XY; a line alone: its direction from +X in
+    (-pi, pi]. A ``profile`` measurand is not a fitted feature's
+    (:func:`evaluate`).
     """
     a = feats[m.of[0]]
+    if m.quantity == "angle" and len(m.of) == 1:   # from +X, on the nominal direction's branch
+        d, d0 = a.direction, a.nominal_direction
+        return math.atan2(d0[1], d0[0]) + math.atan2(d0[0] * d[1] - d0[1] * d[0], d0[0] * d[0] + d0[1] * d[1])
     if m.quantity == "diameter":
         return 2.0 * a.radius
     if m.quantity == "position":
@@ -537,6 +786,11 @@ def measurand_value(m: Measurand, feats: dict) -> float:
     if m.quantity in FORM_OF:
         return a.form
     b = feats[m.of[1]]
+    if "line" in (a.kind, b.kind):
+        if m.quantity == "angle":
+            return math.acos(max(-1.0, min(1.0, float(np.dot(_xy_normal(a), _xy_normal(b))))))
+        ln, other = (a, b) if a.kind == "line" else (b, a)
+        return abs(float(np.dot((other.point - ln.point)[:2], _xy_normal(ln)[:2])))
     if m.quantity == "angle":
         c = float(np.dot(a.direction, b.direction))
         if "cylinder" in (a.kind, b.kind):
@@ -552,7 +806,8 @@ def measurand_value(m: Measurand, feats: dict) -> float:
     return float(np.linalg.norm(d))
 
 
-def evaluate(task: Task, rows: dict, p_R: np.ndarray, n_R: np.ndarray, stylus_r: float) -> np.ndarray:
+def evaluate(task: Task, rows: dict, p_R: np.ndarray, n_R: np.ndarray, stylus_r: float,
+             Xn_R: np.ndarray | None = None) -> np.ndarray:
     """Every measurand of ``task`` from one set of touches, (m,) SI.
 
     Parameters
@@ -566,6 +821,8 @@ def evaluate(task: Task, rows: dict, p_R: np.ndarray, n_R: np.ndarray, stylus_r:
         Nominal outward normals, R.
     stylus_r : float
         m.
+    Xn_R : (n, 3) float, optional
+        Nominal tip centres, R, m: needed by ``profile`` measurands.
     """
     feats = {}
     for f in task.features:
@@ -573,13 +830,27 @@ def evaluate(task: Task, rows: dict, p_R: np.ndarray, n_R: np.ndarray, stylus_r:
         if not np.all(np.isfinite(p_R[r])):
             raise FitError(f"feature {f.name!r}: a touch did not trigger")
         feats[f.name] = fit_feature(f.kind, p_R[r], n_R[r], stylus_r)
-    return np.array([measurand_value(m, feats) for m in task.measurands])
+    out = []
+    for m in task.measurands:
+        if m.quantity == "profile":
+            if Xn_R is None:
+                raise ConfigError(f"measurand {m.name!r}: a profile deviation needs the nominal points")
+            r = rows[m.of[0]]
+            out.append(profile_value(m.statistic, profile_deviations(p_R[r], Xn_R[r], n_R[r])))
+        else:
+            out.append(measurand_value(m, feats))
+    return np.array(out)
 
 
 # --------------------------------------------------------------------------- drawing the declared errors
 
 
-def draw_term(term: DeclaredTerm, rng: np.random.Generator) -> float:
+def draw_periodic(term: "DeclaredTerm | PartForm", rng: np.random.Generator) -> tuple[float, float]:
+    """One draw of a periodic term: (amplitude SI drawn as :func:`draw_term`, phase rad uniform in [0, 2 pi))."""
+    return draw_term(term, rng), float(rng.uniform(0.0, 2.0 * math.pi))
+
+
+def draw_term(term: "DeclaredTerm | PartForm", rng: np.random.Generator) -> float:
     """One draw of a declared coefficient (SI): uniform, normal (sigma = bound / 2), triangular
     or arcsine (``bound sin(phi)``, phi uniform: a periodic error at an unknown phase), all
     within +-``bound`` except the normal's tails."""
@@ -628,6 +899,43 @@ def mc_stats(y: np.ndarray, p: float = 0.95) -> MCStats:
     r = max(r, 1)
     s = np.sort(y)
     return MCStats(float(y.mean()), float(y.std(ddof=1)), float(s[r - 1]), float(s[min(r + q, M) - 1]), M)
+
+
+def saltelli_first_order(fA: np.ndarray, fB: np.ndarray, fAB: dict) -> tuple[dict, dict]:
+    """First-order Sobol indices and their standard errors from pick-and-freeze samples.
+
+    Saltelli et al. 2010 (Comput. Phys. Commun. 181, 259-270), table 2 (b):
+    ``S_i = mean(f_B (f_{A_B^i} - f_A)) / V``, all values centred on the mean of
+    ``f_A`` and ``f_B`` (the estimator is unbiased either way, but its variance
+    grows with the mean squared), ``V`` the variance of ``f_A`` and ``f_B``
+    together. The standard error is that of the numerator's mean over the ``n``
+    rows, divided by ``V`` (``V`` taken as known: its own error is second order).
+
+    Parameters
+    ----------
+    fA, fB : (n, m) float
+        The model on the rows of the matrices A and B (m outputs).
+    fAB : dict
+        ``{source: (n, m)}``: on A with that source's column taken from B.
+
+    Returns
+    -------
+    (S, se) : dicts ``{source: (m,) float}``; NaN for an output without variance.
+    """
+    fA, fB = np.atleast_2d(np.asarray(fA, float)), np.atleast_2d(np.asarray(fB, float))
+    n = fA.shape[0]
+    if n < 2 or fB.shape != fA.shape:
+        raise ConfigError(f"Sobol indices need A and B of the same shape with >= 2 rows, got {fA.shape}, {fB.shape}")
+    c = np.vstack([fA, fB]).mean(axis=0)
+    fA, fB = fA - c, fB - c
+    var = np.var(np.vstack([fA, fB]), axis=0)
+    S, se = {}, {}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for src, f in fAB.items():
+            t = fB * (np.asarray(f, float) - c - fA)
+            S[src] = np.where(var > 0, t.mean(axis=0) / var, np.nan)
+            se[src] = np.where(var > 0, t.std(axis=0, ddof=1) / math.sqrt(n) / var, np.nan)
+    return S, se
 
 
 def numerical_tolerance(u: float, n_dig: int) -> float:

@@ -883,6 +883,57 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
     return VolumetricUncertainty(u, 2.0 * u, lo, hi, U, int(runs))
 
 
+def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None) -> np.ndarray:
+    """(n, n) covariance of ``res.theta`` by linear propagation, the same inputs as :func:`uncertainty`.
+
+    ``K G G^T K^T sigma^2`` per measurement plus ``(K B) diag(u_cal^2) (K B)^T`` plus the placements'
+    (JCGM 100 eq. 13 in matrix form); its diagonal is :func:`uncertainty`'s ``u_lin**2``.
+    """
+    u_cal = np.asarray(u_cal_m, float)
+    if u_cal.ndim != 2 or u_cal.shape[1] != 3:
+        raise ConfigError(f"u_cal_m must be (N, 3), got {u_cal.shape}")
+    K = res.K
+    blocks, B, Bp = _input_maps(res, list(meas), u_cal.shape[0])
+    up = np.zeros(6) if u_place is None else np.asarray(u_place, float)
+    cov = np.zeros((K.shape[0], K.shape[0]))
+    for r0, GR in blocks:
+        KG = K[:, r0:r0 + GR.shape[0]] @ GR
+        cov += sigma_probe_m ** 2 * (KG @ KG.T)
+    KB = (K @ B) * u_cal.ravel()[None, :]
+    KP = (K @ Bp) * np.tile(up, Bp.shape[1] // 6)[None, :]
+    return cov + KB @ KB.T + KP @ KP.T
+
+
+def estimate(res: VolumetricResult, cov: np.ndarray) -> dict:
+    """The ``vmt-estimate/1`` block (:mod:`core.state`) of an identification in its own gauge.
+
+    ``res`` as identified (:func:`identify_volumetric`, not :func:`iso_view`): its tables are the
+    machine's errors up to the conventions (a straightness keeps its slope). The 18 motion tables on
+    their nodes (C2 spline, end tangents beyond) and the squarenesses are machine errors; the
+    placements' nuisance values are named only.
+    """
+    from .state import estimate_doc
+
+    d = res.design
+    n = len(res.theta)
+    symbols, at, units = [None] * n, [None] * n, ["um"] * n
+    for s in MOTION + SQUARENESS:
+        sy = iso.symbol(s)
+        sl = d.slices[s]
+        for k, i in enumerate(range(sl.start, sl.stop)):
+            symbols[i] = s
+            units[i] = "urad" if sy.angular else "um"
+            if s in MOTION:
+                at[i] = float(d.nodes[sy.axis][k])
+    for i, nm in enumerate(d.names):
+        if symbols[i] is None and nm.split(".")[-1].startswith("w"):
+            units[i] = "urad"
+    return estimate_doc(d.names, symbols, at, units, res.theta, cov,
+                        method="MFB volumetric identification (Viprey 2016 eqs 8-12, exact Gauss-Newton); "
+                               "covariance: probing noise, bar calibration, placements (linear propagation)",
+                        interpolation="cubic-spline", conventions=d.gauge)
+
+
 # --------------------------------------------------------------------------- reports and tables
 def report(res: VolumetricResult, unc: VolumetricUncertainty | None = None, truth: np.ndarray | None = None,
            slopes: dict | None = None) -> dict:

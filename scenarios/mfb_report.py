@@ -48,6 +48,21 @@ def error_rows(errors: dict) -> list:
     return rows
 
 
+def budget_table(budget: dict) -> tuple[list, list]:
+    """(header, rows) of the budget's contributions: one row per error, one column per
+    source (max over the nodes of its U95 share, k = 2), then the sum in quadrature,
+    the Monte Carlo U95 through the pipeline and their ratio."""
+    srcs = list(budget["sources"])
+    head = ["error", "unit", *srcs, "temperature, bar and machine at one T", "quadrature sum",
+            "MC (all sources)", "MC / sum"]
+    rows = []
+    for s, c in budget["per_error"].items():
+        rows.append([s, c["unit"], *[c["U95"].get(k) for k in srcs], c.get("temperature_one_T"),
+                     c.get("quadrature"), c.get("mc"),
+                     c.get("mc_over_quadrature")])
+    return head, rows
+
+
 def mfb_report(folder, doc: dict) -> Path:
     """Write ``folder``: index.html, the MFB figures (PNG) and ``recording.rrd``; returns the folder.
 
@@ -67,7 +82,17 @@ def mfb_report(folder, doc: dict) -> Path:
     folder = Path(folder)
     errors = doc["errors"]
     rows = error_rows(errors)
-    bar = bar_calibration()
+    b = doc.get("bar")
+    if b is not None:  # the calibration the run used, and the simulated bar's truth (one gauge)
+        bar = {"x_mm": np.asarray(b["x_mm"], float), "E_um": np.asarray(b["calibrated_um"], float),
+               "U95_um": np.asarray(b["U95_um"], float), "truth_um": np.asarray(b["true_um"], float)}
+        bar_text = (f"The bar's calibration the identification used ({b['source']}) ± its U95, beside the "
+                    f"simulated bar's true deviations (max difference {b['calibrated_minus_true_max_um']:.3f} µm); "
+                    f"both in one gauge: {b['gauge']}.")
+    else:  # a document written before the bar block
+        bar = bar_calibration()
+        bar_text = ("The calibrated deviations of the bar's points of interest the identification used, "
+                    "± U95 (k = 2) of the calibration.")
     axes, truth = F.motion_axes(errors)
     secs = [
         Section("Run", text=f"{doc['scenario']}: {doc['placements']} placements, {doc['measurements']} "
@@ -78,16 +103,22 @@ def mfb_report(folder, doc: dict) -> Path:
         Section("Error motions (Figs. 15-17)", figures={"error-curves": F.error_curves_figure(errors)}),
         Section("Squarenesses", figures={"squareness": F.squareness_figure(errors)}),
         Section("Bar calibration (Figs. 9-10)",
-                text="The calibrated deviations of the bar's points of interest the identification used, "
-                     "± U95 (k = 2) of the calibration.",
-                figures={"bar-calibration": F.bar_calibration_figure(bar["x_mm"], bar["E_um"], bar["U95_um"])}),
+                text=bar_text,
+                figures={"bar-calibration": F.bar_calibration_figure(bar["x_mm"], bar["E_um"], bar["U95_um"],
+                                                                     truth_um=bar.get("truth_um"))}),
         Section("The 21 errors", tables=[Table(
             ["error", "unit", "max |injected|", "max |identified - injected|", "max U95 (k=2)"], rows)]),
     ]
+    if doc.get("budget"):
+        bt = budget_table(doc["budget"])
+        secs.append(Section("Uncertainty budget: contributions per error", text=doc["budget"]["method"],
+                            tables=[Table(bt[0], bt[1])]))
     rrd = _recording_path(folder)
     try:
         with record.recording(rrd) as rec:
             record.log_error_motions(rec, axes, truth=truth)
+            F.log_squareness(rec, errors)
+            F.log_bar_calibration(rec, bar["x_mm"], bar["E_um"], bar["U95_um"], truth_um=bar.get("truth_um"))
             record.log_markdown(rec, doc["scenario"], record.errors_markdown(
                 {s: {k: errors[s].get(k) for k in ("injected", "identified", "u95")} for s in errors}))
         return write_report(folder, f"MFB ({doc['scenario']}): 21 errors identified, injected, U95", secs,

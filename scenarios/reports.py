@@ -197,7 +197,7 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
 class _DemoView:
     """What the demo's report draws, in report units (mm, um, deg) from one identification.
 
-    ``x_mm``, ``y_mm``, ``ex_um``, ``ey_um``: the error map (eqs 4-5) and
+    ``x_mm`` (nx,), ``y_mm`` (ny,), ``ex_um``, ``ey_um`` (ny, nx): the error map (eqs 4-5) and
     ``tex``, ``tey`` the true one in its gauge (None without the machine);
     ``idx`` the first touch of each target, ``w_mm``, ``wn`` its nominal
     point and normal (A frame), ``g_um``, ``u95_um`` the workpiece; ``c_deg``,
@@ -229,6 +229,8 @@ class _DemoView:
         tex = tey = None
         if machine is not None:
             tex, tey = true_error_map(machine, x_mm, y_mm, float(np.median(t.pn_R[:, 2])), ex_um, ey_um)
+            tex, tey = tex.T, tey.T
+        ex_um, ey_um = ex_um.T, ey_um.T     # error_map's (nx, ny) -> the figures' (ny, nx)
         first = {}
         for k in range(t.n):
             first.setdefault(int(t.target[k]), k)

@@ -60,6 +60,14 @@ class Setting:
     sources: tuple       # names: declared terms, then the probe's repeatability
     targets: tuple = ()  # (k,) the plan's target of each used touch
     centre_R: np.ndarray | None = None   # (3,) the part's thermal centre: centroid of its probed surface points
+    state: object = None  # core.state.MachineState: an identified state drawn from N(estimate, covariance)
+    form_u: tuple = ()    # per task.forms: form_axis (W) or None
+    t0_s: np.ndarray | None = None   # (k,) start of each touch's approach, s ([drift]; else 0)
+
+
+#: The budget's name of an identified machine state (``--machine-state``), and its key among a run's draws.
+STATE_SOURCE = "machine state"
+STATE_KEY = (STATE_SOURCE, -1)
 
 
 @dataclass(frozen=True)
@@ -100,11 +108,63 @@ class Expanded:
         return (1.0 + self.e) * self.surface(self.c + (p - self.c) / (1.0 + self.e))
 
 
+@dataclass(frozen=True)
+class Formed:
+    """``surface`` with the part's form: its boundary ``f(p)`` further out (``sdf - f``), W, m.
+
+    ``f = a cos(k theta + phase)`` (``lobes`` k: theta the azimuth about the
+    circle's Z / the cylinder's axis from ``e1``) or ``a cos(2 pi (p - c) . u /
+    wavelength + phase)`` (plane, line: ``u`` along the surface). Evaluated at the
+    tip centre, which has the azimuth / coordinate ``s`` of its foot on the nominal
+    surface when it approaches along the normal: a point-contact model.
+    """
+
+    surface: Surface
+    a: float
+    phase: float
+    lobes: int | None = None
+    wavelength: float | None = None
+    u: np.ndarray | None = None   # plane, line: unit, along the surface; cylinder: e1
+
+    def f(self, p: np.ndarray) -> np.ndarray:
+        sf = self.surface
+        d = p - sf.c
+        if self.lobes is None:
+            return self.a * np.cos(2.0 * math.pi * (d @ self.u) / self.wavelength + self.phase)
+        if sf.kind == "ball":
+            th = np.arctan2(d[:, 1], d[:, 0])
+        else:   # anticlockwise about the axis directed along its largest component, positive
+            ax = sf.a if sf.a[np.argmax(np.abs(sf.a))] > 0 else -sf.a
+            th = np.arctan2(d @ np.cross(ax, self.u), d @ self.u)
+        return self.a * np.cos(self.lobes * th + self.phase)
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        return self.surface(p) - self.f(p)
+
+
+def form_axis(sdf: Surface, form: V.PartForm) -> np.ndarray | None:
+    """The unit direction ``u`` of a feature's form (:class:`Formed`), W; None for a circle."""
+    if sdf.kind == "ball":
+        return None
+    if sdf.kind == "cylinder":
+        ref = np.array([1.0, 0.0, 0.0]) if abs(sdf.a[0]) < 0.99 else np.array([0.0, 1.0, 0.0])
+    elif form.along is None:   # a line: its direction z x n
+        ref = np.cross([0.0, 0.0, 1.0], sdf.a)
+    else:
+        ref = np.asarray(form.along, float)
+    u = ref - (ref @ sdf.a) * sdf.a
+    if np.linalg.norm(u) < 1e-6:
+        raise ConfigError(f"form.{form.feature}.along: the plane's normal; give an axis along the plane")
+    return u / np.linalg.norm(u)
+
+
 def _primitive_sdf(kind: str, p_W: np.ndarray, n_W: np.ndarray, r: float, name: str) -> Surface:
     """The exact primitive through the nominal contacts (``p_W`` tip centres, ``n_W`` outward normals, W)."""
     f = V.fit_feature(kind, p_W, n_W, r)  # the same fits as the measurands (tip centres, radius applied)
     if kind == "plane":
         sdf = Surface("plane", f.point, f.direction)
+    elif kind == "line":   # the trace of a vertical face: the plane through the line, normal d x z
+        sdf = Surface("plane", f.point, np.cross(f.direction, [0.0, 0.0, 1.0]))
     elif kind in ("circle", "sphere"):
         k = 2 if kind == "circle" else 3
         sdf = Surface("ball", f.point.copy(), None, f.radius, k,
@@ -120,17 +180,42 @@ def _primitive_sdf(kind: str, p_W: np.ndarray, n_W: np.ndarray, r: float, name: 
     return sdf
 
 
-def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None) -> Setting:
+def state_errors(state, values=None) -> dict:
+    """The error functions of an identified state (:class:`core.state.MachineState`) for ``values``
+    (SI, default its estimate): ``{symbol: sim.errorfuncs function}``."""
+    from sim.errorfuncs import Constant, LinearTable, SplineTable
+
+    out = {}
+    for sym, (kind, x, v) in state.functions(values).items():
+        if kind == "constant":
+            out[sym] = Constant(float(v))
+        else:
+            out[sym] = (LinearTable if kind == "linear" else SplineTable)(tuple(x.tolist()), tuple(np.asarray(v).tolist()))
+    return out
+
+
+def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=None) -> Setting:
     """The study's fixed part from a plan (:class:`core.probelog.ProbeLog`), a task and a machine spec.
 
     ``noise_um`` (``--noise-um``) overrides the task's ``[probe] noise_um``,
     which overrides the machine file's probe; a standard deviation (k = 1).
+    ``state`` (``--machine-state``, :func:`core.state.read_estimate`): an
+    identified state; its symbols' errors replace the machine file's (the
+    estimate is the best estimate, each run draws from N(estimate, covariance)),
+    the machine file's other errors and the task's declared terms stay.
     """
     from sim.machine import Machine
 
     if plan.n == 0:
         raise PlanError(f"{plan.source}: the plan has no rows")
     cfg = spec.config
+    if state is not None:
+        chain_axes = Machine(dataclasses.replace(cfg, errors={})).chain.axes
+        for sym in state.symbols:
+            ax = V.iso.symbol(sym).axis
+            if ax not in chain_axes:
+                raise ConfigError(f"{state.source}: {sym}: axis {ax} is not in machine {cfg.name}'s chain {cfg.chain}")
+        cfg = dataclasses.replace(cfg, errors={**dict(cfg.errors), **state_errors(state)})
     nominal = Machine(dataclasses.replace(cfg, errors={}))
     rot_deg = np.column_stack([plan.col(f"{a}_deg").astype(float) if plan.has(f"{a}_deg") else np.zeros(plan.n)
                                for a in "ABC"])
@@ -172,8 +257,12 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None) -> Setti
     overlap = sum(len(v) for v in rows.values()) != len(used)
     if overlap:
         raise ConfigError(f"{task.source}: a plan row belongs to two features (each touch probes one surface)")
+    names = [f.name for f in task.features]
+    form_u = tuple(form_axis(sdfs[names.index(fm.feature)], fm) for fm in task.forms)
     sources = (tuple(t.source for t in task.declared) + ((V.PROBE_SOURCE,) if probe.sigma_m > 0 else ())
-               + (task.temperature.sources if task.temperature else ()))
+               + task.probe_sources + task.form_sources + task.drift_sources
+               + (task.temperature.sources if task.temperature else ())
+               + ((STATE_SOURCE,) if state is not None and state.factor.size else ()))
     if task.temperature is not None and rot is not None and np.any(rot != 0):
         raise ConfigError(f"{task.source}: [temperature] with rotary positions other than 0 is not supported "
                           "(the part's expansion is applied in the machine frame)")
@@ -183,14 +272,39 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None) -> Setti
             raise ConfigError(f"{task.source}: declared.{t.symbol}: axis {ax} is not in machine {cfg.name}'s "
                               f"chain {cfg.chain}")
     return Setting(task, rows, Xn_R, n_R, rot, tuple(sdfs), group, cfg, probe, sources,
-                   tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0))
+                   tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0), state, form_u,
+                   touch_times(plan, task, used))
+
+
+def touch_times(plan, task: V.Task, used: np.ndarray) -> np.ndarray | None:
+    """Start of each used touch's approach (k,) s for a task with ``[drift]`` (module doc of core.vcmm), else None."""
+    if not task.drift:
+        return None
+    t = plan.col("t_s").astype(float) if plan.has("t_s") else np.full(plan.n, np.nan)
+    if np.all(np.isfinite(t[used])):
+        return t[used] - np.nanmin(t)
+    if task.touches_per_min is None:
+        raise ConfigError(f"{task.source}: [drift] needs the plan's t_s on every used row or "
+                          "drift.touches_per_min")
+    return used.astype(float) * 60.0 / task.touches_per_min
 
 
 def machine_errors(st: Setting, coeffs: dict) -> dict:
-    """The machine file's errors plus the drawn terms ``{(symbol, power): value SI}``."""
-    from sim.errorfuncs import Constant, Polynomial
+    """The machine file's errors plus the drawn terms ``{(symbol, power): value SI}`` (a periodic
+    term: ``{(symbol, "periodic", k): (amplitude SI, period m, phase rad)}``)."""
+    from sim.errorfuncs import Constant, Drift, Periodic, Polynomial
 
     errs = dict(st.config.errors)
+    for sym in [k[1] for k in coeffs if k[0] == "drift"]:
+        f = Drift(offset_rate=coeffs[("drift", sym)])
+        errs[sym] = errs[sym] + f if sym in errs else f
+    coeffs = {k: v for k, v in coeffs.items() if k[0] not in ("probe", "form", "drift")}   # probe_of, part_sdfs
+    if STATE_KEY in coeffs:   # a drawn identified state replaces its estimate
+        errs.update(state_errors(st.state, coeffs.pop(STATE_KEY)))
+    for key in [k for k in coeffs if len(k) == 3]:
+        a, period, phase = coeffs.pop(key)
+        f = Periodic(a, period, phase)
+        errs[key[0]] = errs[key[0]] + f if key[0] in errs else f
     by_sym: dict[str, list] = {}
     for (sym, power), v in coeffs.items():
         c = by_sym.setdefault(sym, [0.0, 0.0, 0.0])
@@ -203,6 +317,34 @@ def machine_errors(st: Setting, coeffs: dict) -> dict:
     return errs
 
 
+def probe_of(st: Setting, coeffs: dict):
+    """The study's probe with a run's drawn pre-travel (``("probe", "pretravel")``: m, added) and
+    lobing (``("probe", "lobing")``: (k, a, b) m, one more term) applied."""
+    pre, lob = coeffs.get(("probe", "pretravel")), coeffs.get(("probe", "lobing"))
+    if pre is None and lob is None:
+        return st.probe
+    p = st.probe
+    if pre is not None:
+        p = dataclasses.replace(p, pretravel_m=p.pretravel_m + pre)
+    if lob is not None:
+        p = dataclasses.replace(p, lobing_m=tuple(p.lobing_m) + (lob,))
+    return p
+
+
+def part_sdfs(st: Setting, coeffs: dict) -> tuple:
+    """The features' surfaces with a run's drawn forms (``("form", feature)``: (amplitude m, phase rad))."""
+    if not st.task.forms:
+        return st.sdf_W
+    out = list(st.sdf_W)
+    names = [f.name for f in st.task.features]
+    for fm, u in zip(st.task.forms, st.form_u):
+        if ("form", fm.feature) in coeffs:
+            a, phase = coeffs[("form", fm.feature)]
+            k = names.index(fm.feature)
+            out[k] = Formed(out[k], a, phase, fm.lobes, fm.wavelength, u)
+    return tuple(out)
+
+
 def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, noise: bool = True,
                  machine=None, e_part: float = 0.0) -> np.ndarray:
     """Reported tip centres (k, 3) m of the used touches on the machine with ``coeffs`` drawn,
@@ -212,9 +354,10 @@ def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, 
 
     m = machine if machine is not None else Machine(dataclasses.replace(st.config, errors=machine_errors(st, coeffs)))
     k = len(st.Xn_R)
-    sdfs = st.sdf_W if e_part == 0.0 else tuple(Expanded(f, e_part, st.centre_R) for f in st.sdf_W)
-    res = simulate_touches(m, st.probe, rng if noise else None, st.Xn_R + CLEARANCE_M * st.n_R, -st.n_R,
-                           np.full(k, CLEARANCE_M + OVERSHOOT_M), st.rot_rad, np.zeros(k), np.full(k, FEED_MPS),
+    sdfs = part_sdfs(st, coeffs)
+    sdfs = sdfs if e_part == 0.0 else tuple(Expanded(f, e_part, st.centre_R) for f in sdfs)
+    res = simulate_touches(m, probe_of(st, coeffs), rng if noise else None, st.Xn_R + CLEARANCE_M * st.n_R, -st.n_R,
+                           np.full(k, CLEARANCE_M + OVERSHOOT_M), st.rot_rad, np.zeros(k) if st.t0_s is None else st.t0_s, np.full(k, FEED_MPS),
                            sdfs, st.group, np.broadcast_to(np.eye(4), (k, 4, 4)))
     bad = res.status != ProbeStatus.OK
     if bad.any():
@@ -224,18 +367,32 @@ def simulate_run(st: Setting, coeffs: dict, rng: np.random.Generator | None, *, 
     return res.pos_R
 
 
-def draw(st: Setting, seed: int, run: int, active: tuple | None = None):
+def draw(st: Setting, seed: int, run: int, active: tuple | None = None, swap: tuple | None = None):
     """Run ``run``'s draws: ``({(symbol, power): value}, noise generator, {thermal source: value})``.
 
     Every term draws from its own stream, so switching a source off (``active``)
     leaves the others' draws unchanged (the budget's runs share the full runs'
-    draws); an inactive thermal source stays at its best estimate.
+    draws); an inactive thermal source stays at its best estimate. ``swap``
+    ``(run_b, sources)``: those sources draw as in run ``run_b`` (Sobol's
+    pick-and-freeze, :func:`sobol_first_order`).
     """
     nd = len(st.task.declared)
-    ss = V.run_seeds(seed, run).spawn(nd + 1 + len(V.THERMAL_SOURCES))
+    nt = nd + 1 + len(V.THERMAL_SOURCES)   # then: the state, the pre-travel, the lobing (a child keeps its index)
+    nf = len(st.task.forms)   # the forms' then the drifts' streams come last: adding them leaves the others' draws
+    ns = nt + 3 + nf + len(st.task.drift)
+    ss = list(V.run_seeds(seed, run).spawn(ns))
+    if swap is not None:
+        ssb = V.run_seeds(seed, swap[0]).spawn(ns)
+        names = ([t.source for t in st.task.declared] + [V.PROBE_SOURCE] + list(V.THERMAL_SOURCES)
+                 + [STATE_SOURCE, V.PRETRAVEL_SOURCE, V.LOBING_SOURCE] + list(st.task.form_sources)
+                 + list(st.task.drift_sources))
+        ss = [b if n in swap[1] else a for a, b, n in zip(ss, ssb, names)]
     coeffs = {}
     for t, s in zip(st.task.declared, ss):
-        if active is None or t.source in active:
+        if (active is None or t.source in active) and t.term == "periodic":
+            a, phase = V.draw_periodic(t, np.random.default_rng(s))
+            coeffs[(t.symbol, "periodic", len(coeffs))] = (a, t.period, phase)
+        elif active is None or t.source in active:
             key = (t.symbol, t.power)
             coeffs[key] = coeffs.get(key, 0.0) + V.draw_term(t, np.random.default_rng(s))
     thermal = {}
@@ -243,6 +400,20 @@ def draw(st: Setting, seed: int, run: int, active: tuple | None = None):
         for name, s in zip(V.THERMAL_SOURCES, ss[nd + 1:]):
             if name in st.task.temperature.sources and (active is None or name in active):
                 thermal[name] = st.task.temperature.draw(name, np.random.default_rng(s))
+    if STATE_SOURCE in st.sources and (active is None or STATE_SOURCE in active):
+        coeffs[STATE_KEY] = st.state.draw(np.random.default_rng(ss[nt]))
+    task = st.task
+    if task.pretravel is not None and (active is None or V.PRETRAVEL_SOURCE in active):
+        coeffs[("probe", "pretravel")] = V.draw_term(task.pretravel, np.random.default_rng(ss[nt + 1]))
+    if task.lobing is not None and (active is None or V.LOBING_SOURCE in active):
+        a, psi = V.draw_periodic(task.lobing, np.random.default_rng(ss[nt + 2]))
+        coeffs[("probe", "lobing")] = (int(task.lobing.period), a * math.cos(psi), a * math.sin(psi))
+    for j, fm in enumerate(task.forms):
+        if active is None or fm.source in active:
+            coeffs[("form", fm.feature)] = V.draw_periodic(fm, np.random.default_rng(ss[nt + 3 + j]))
+    for j, t in enumerate(task.drift):
+        if active is None or t.source in active:
+            coeffs[("drift", t.symbol)] = V.draw_term(t, np.random.default_rng(ss[nt + 3 + nf + j]))
     return coeffs, np.random.default_rng(ss[nd]), thermal
 
 
@@ -262,27 +433,62 @@ def _measure(st: Setting, coeffs: dict, rng, thermal: dict, *, noise: bool, mach
     return V.correct_to_20c(p, st.n_R, st.probe.stylus_r_m, e_p0, e_s0, st.centre_R)
 
 
-def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: list | None = None) -> np.ndarray:
+def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: list | None = None,
+               swap: tuple | None = None) -> np.ndarray:
     """Measurand values (len(runs), m) SI of the given run indices (sources ``active``, None: all).
 
     ``dq``: a list to which each run's (k,) normal deviations of the touches,
     ``n . (reported - nominal)`` m, are appended (the report's worst touches).
+    ``swap`` ``(offset, sources)``: run k draws those sources as run ``k + offset``.
     """
     noise = active is None or V.PROBE_SOURCE in active
     out = np.empty((len(runs), len(st.task.measurands)))
     r_st = st.probe.stylus_r_m
     fixed = None
-    if active is not None and not any(t.source in active for t in st.task.declared):
+    if (active is not None and not any(t.source in active for t in st.task.declared + st.task.drift)
+            and STATE_SOURCE not in active):
         from sim.machine import Machine
 
         fixed = Machine(st.config)   # no declared term drawn: one machine for every run
     for i, k in enumerate(runs):
-        coeffs, rng, thermal = draw(st, seed, int(k), active)
+        coeffs, rng, thermal = draw(st, seed, int(k), active,
+                                    None if swap is None else (int(k) + swap[0], swap[1]))
         p = _measure(st, coeffs, rng, thermal, noise=noise, machine=fixed)
-        out[i] = V.evaluate(st.task, st.rows, p, st.n_R, r_st)
+        out[i] = V.evaluate(st.task, st.rows, p, st.n_R, r_st, st.Xn_R)
         if dq is not None:
             dq.append(np.einsum("ij,ij->i", p - st.Xn_R, st.n_R))
     return out
+
+
+#: First run index of the Sobol matrices (apart from the adaptive runs, which count from 0).
+SOBOL_FIRST_RUN = 10 ** 9
+
+
+def sobol_samples(st: Setting, seed: int, n: int, progress=None, done_before: int = 0):
+    """The pick-and-freeze samples: ``(f_A, f_B, {source: f_{A_B^i}})``, each (n, m) SI.
+
+    ``A`` the runs ``N0 .. N0+n-1``, ``B`` the next ``n``, ``A_B^i`` the runs of ``A`` with
+    source ``i`` drawn as in ``B`` (its own stream, :func:`draw`): ``n (k + 2)`` runs for ``k``
+    sources.
+    """
+    N0 = SOBOL_FIRST_RUN
+    fA = run_values(st, seed, range(N0, N0 + n))
+    fB = run_values(st, seed, range(N0 + n, N0 + 2 * n))
+    fAB = {}
+    for i, src in enumerate(st.sources):
+        if progress is not None:
+            progress(done_before + (i + 2) * n, done_before + (len(st.sources) + 2) * n)
+        fAB[src] = run_values(st, seed, range(N0, N0 + n), swap=(n, (src,)))
+    return fA, fB, fAB
+
+
+def sobol_first_order(st: Setting, seed: int, n: int, progress=None, done_before: int = 0) -> tuple[dict, dict]:
+    """First-order Sobol indices of every source for every measurand and their standard errors,
+    ``({source: (m,) float}, {source: (m,) float})``: :func:`core.vcmm.saltelli_first_order` of
+    :func:`sobol_samples`. A measurand without variance gets NaN. The indices sum to 1 for an
+    additive model; less means interactions.
+    """
+    return V.saltelli_first_order(*sobol_samples(st, seed, n, progress, done_before))
 
 
 #: Runs per task shipped to a Dask worker (a batch of M runs is M / CHUNK_RUNS tasks).
@@ -350,7 +556,13 @@ def adaptive(st: Setting, seed: int, active: tuple | None, which: str, first_run
             return vals, ok
 
 
-def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, dask: str | None = None) -> dict:
+def _of_measurand(d: dict, j: int) -> dict | None:
+    """``{source: (m,) float}`` -> ``{source: float or None (NaN)}`` of measurand ``j``; None when empty."""
+    return {k: (None if not np.isfinite(v[j]) else float(v[j])) for k, v in d.items()} if d else None
+
+
+def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, dask: str | None = None,
+          sobol_runs: int = 0) -> dict:
     """The full study: nominal values, the adaptive MC, the one-at-a-time budget.
 
     ``dask``: a scheduler address (``tcp://HOST:PORT``); each batch's runs go
@@ -365,9 +577,10 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
     task = st.task
     r_st = st.probe.stylus_r_m
     perfect = Machine(dataclasses.replace(st.config, errors={}))
-    y_nom = V.evaluate(task, st.rows, simulate_run(st, {}, None, noise=False, machine=perfect), st.n_R, r_st)
+    y_nom = V.evaluate(task, st.rows, simulate_run(st, {}, None, noise=False, machine=perfect), st.n_R, r_st,
+                       st.Xn_R)
     y_best = V.evaluate(task, st.rows, _measure(st, {}, None, {}, noise=False, machine=Machine(st.config)),
-                        st.n_R, r_st)
+                        st.n_R, r_st, st.Xn_R)
     guess = task.mc.batch_runs * 2 * (1 + (len(st.sources) if budget else 0))
     dq: list = []
     vals, ok = adaptive(st, seed, None, "all", progress=progress, total_hint=guess - 2 * task.mc.batch_runs,
@@ -386,6 +599,10 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             done += len(v)
             bud[src] = v.std(axis=0, ddof=1)
             bud_runs[src] = len(v)
+    sob, sob_se = {}, {}
+    if sobol_runs:
+        sob, sob_se = sobol_first_order(st, seed, sobol_runs, progress=progress, done_before=done)
+        done += sobol_runs * (len(st.sources) + 2)
     elapsed = time.perf_counter() - t0
     out = []
     for j, m in enumerate(task.measurands):
@@ -409,14 +626,29 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             "budget": [{"source": k, "u": u * m.u_scale, "share": (u * u / ss) if ss > 0 else 0.0,
                         "runs": bud_runs[k]} for k, u in u_src.items()],
             "budget_rss_over_u": (math.sqrt(ss) / s.u) if (budget and s.u > 0) else None,
+            "sobol_first_order": _of_measurand(sob, j),
+            "sobol_first_order_se": _of_measurand(sob_se, j),
         })
     return {"format": "vmt-vcmm/1", "machine": st.config.name, "task": task.source,
             "touches": int(len(st.Xn_R)), "runs": int(len(vals)), "batch_runs": task.mc.batch_runs,
             "seed": int(seed), "sources": list(st.sources),
+            "machine_state": None if st.state is None else {
+                "file": st.state.source, "symbols": list(st.state.symbols), "conventions": list(st.state.conventions),
+                "interpolation": st.state.interpolation},
             "declared": [{"source": t.source, "bound": t.bound * 1e6, "distribution": t.distribution,
                           "u": t.u * 1e6, "unit": ("urad" if V.iso.symbol(t.symbol).angular else "um")
-                          + {0: "", 1: "/m", 2: "/m2"}[t.power]} for t in task.declared],
+                          + {0: "", 1: "/m", 2: "/m2"}[t.power],
+                          **({"period_mm": t.period * 1e3} if t.period else {})} for t in task.declared],
             "probe_noise_um": st.probe.sigma_m * 1e6,
+            "part_form": [{"source": f.source, "amplitude_um": f.bound * 1e6, "distribution": f.distribution,
+                           **({"lobes": f.lobes} if f.lobes else {"wavelength_mm": f.wavelength * 1e3})}
+                          for f in task.forms],
+            "drift": [{"source": t.source, "bound_um_per_h": t.bound * 1e6 * 3600.0, "distribution": t.distribution}
+                      for t in task.drift],
+            "probe_declared": [{"source": src, "bound_um": t.bound * 1e6, "distribution": t.distribution,
+                                **({"lobes": int(t.period)} if t.term == "lobing" else {})}
+                               for src, t in ((V.PRETRAVEL_SOURCE, task.pretravel), (V.LOBING_SOURCE, task.lobing))
+                               if t is not None],
             "runs_total": int(done), "elapsed_s": elapsed, "runs_per_s": done / elapsed if elapsed > 0 else None,
             "measurands": out,
             "touches_u": [{"target": st.targets[i], "feature": task.features[st.group[i]].name,
@@ -436,8 +668,6 @@ def block_plan():
     z = -10; faces x = -40 and x = +40, 4 touches each; the top face z = 0,
     8 touches clear of the bore. Stylus radius 3 mm.
     """
-    from core.probelog import make_log
-
     r = 3.0
     rows = []   # (feature, target, surface point mm, outward normal)
     for k in range(8):
@@ -450,15 +680,24 @@ def block_plan():
     for k, (x, y) in enumerate(((-30, -20), (-30, 0), (-30, 20), (-15, -20), (-15, 20), (30, -20), (30, 20),
                                 (10, -22))):
         rows.append(("top", f"T{k + 1:02d}", (x, y, 0.0), (0.0, 0.0, 1.0)))
+    return plan_from_rows(rows, r, "vmt README example: block with a bore")
+
+
+def plan_from_rows(rows, stylus_r_mm: float, title: str):
+    """A probe-log/1 plan (measured columns empty, one set-up ``S1``) from ``(feature, target,
+    surface point mm, outward normal)`` rows: the nominal tip centre is the point plus the radius
+    along the normal."""
+    from core.probelog import make_log
+
     n = len(rows)
     s = np.array([p for _, _, p, _ in rows], float)
     nn = np.array([v for _, _, _, v in rows], float)
-    Xn = s + r * nn
-    cols = {"setup": ["S1"] * n, "target": [t for _, t, _, _ in rows], "t_s": np.full(n, np.nan),
-            "X_mm": np.full(n, np.nan), "Y_mm": np.full(n, np.nan), "Z_mm": np.full(n, np.nan),
-            "Xn_mm": Xn[:, 0], "Yn_mm": Xn[:, 1], "Zn_mm": Xn[:, 2], "nx": nn[:, 0], "ny": nn[:, 1],
-            "nz": nn[:, 2], "feature": [f for f, _, _, _ in rows], "stylus_r_mm": np.full(n, r)}
-    return make_log(cols, {"plan": "vmt README example: block with a bore", "stylus_r_mm": "3.0"})
+    Xn = s + stylus_r_mm * nn
+    nan = np.full(n, np.nan)
+    cols = {"setup": ["S1"] * n, "target": [t for _, t, _, _ in rows], "t_s": nan, "X_mm": nan, "Y_mm": nan,
+            "Z_mm": nan, "Xn_mm": Xn[:, 0], "Yn_mm": Xn[:, 1], "Zn_mm": Xn[:, 2], "nx": nn[:, 0], "ny": nn[:, 1],
+            "nz": nn[:, 2], "feature": [f for f, _, _, _ in rows], "stylus_r_mm": np.full(n, stylus_r_mm)}
+    return make_log(cols, {"plan": title, "stylus_r_mm": f"{stylus_r_mm:g}"})
 
 
 def write_report(folder, rep: dict, *, worst: int = 10):

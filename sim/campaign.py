@@ -31,6 +31,7 @@ from .catalog import CATALOG, make_artefact, make_plan
 from .plans import Plan
 from .probe import (ProbeConfig, T_R_W_nominal, find_contacts, rotary_count,
                     simulate_touches)
+from .scene import artefact_points
 from .setups import Setup, c_angle_setups, machine_name
 
 #: Default feeds: probing 240 mm/min (MFB paper), rapid 10 m/min.
@@ -49,17 +50,25 @@ def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves") -> None:
     strokes = getattr(getattr(machine, "config", None), "strokes", None)
     if not strokes:
         return
-    for i in range(plan.n):
-        pts = np.vstack([mv.links[i], mv.Xn_R[i] - plan.overshoot_m * mv.n_R[i]])
-        for j, ax in enumerate("XYZ"):
-            if ax not in strokes:
-                continue
+    # every link point and overshoot end, touch by touch (vectorised; the first offender is
+    # the first touch, then axis X Y Z, then point in order, as a loop over them would find)
+    n_pt = np.array([len(ln) + 1 for ln in mv.links], int)
+    pts = np.concatenate([np.vstack([mv.links[i], mv.Xn_R[i] - plan.overshoot_m * mv.n_R[i]])
+                          for i in range(plan.n)]) if plan.n else np.zeros((0, 3))
+    touch = np.repeat(np.arange(plan.n), n_pt)
+    bad = np.zeros((len(pts), 3), bool)
+    for j, ax in enumerate("XYZ"):
+        if ax in strokes:
             lo, hi = strokes[ax]
-            bad = (pts[:, j] < lo - 1e-12) | (pts[:, j] > hi + 1e-12)
-            if bad.any():
-                v = pts[np.argmax(bad), j]
-                raise PlanError(f"set-up {setup.name!r} target {plan.target[i]!r}: {ax} = {v * 1e3:.3f} mm "
-                                f"is outside the stroke {lo * 1e3:.0f}..{hi * 1e3:.0f} mm")
+            bad[:, j] = (pts[:, j] < lo - 1e-12) | (pts[:, j] > hi + 1e-12)
+    if bad.any():
+        i = int(touch[np.flatnonzero(bad.any(axis=1))[0]])
+        rows = np.flatnonzero(touch == i)
+        j = int(np.flatnonzero(bad[rows].any(axis=0))[0])
+        lo, hi = strokes["XYZ"[j]]
+        v = pts[rows[np.argmax(bad[rows, j])], j]
+        raise PlanError(f"set-up {setup.name!r} target {plan.target[i]!r}: {'XYZ'[j]} = {v * 1e3:.3f} mm "
+                        f"is outside the stroke {lo * 1e3:.0f}..{hi * 1e3:.0f} mm")
     for ax, v in zip(getattr(machine, "rotary_axes", ()), setup.rot_rad):
         if ax in strokes and not (strokes[ax][0] - 1e-12 <= v <= strokes[ax][1] + 1e-12):
             raise PlanError(f"set-up {setup.name!r}: {ax} = {np.rad2deg(v):g} deg is outside its stroke")
@@ -131,7 +140,7 @@ def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: Probe
     Xn = A.apply_T(T_R_A, plan.w_A + r * plan.wn_A)
     n_R = A.apply_R(T_R_A, plan.wn_A)
     start = Xn + plan.clearance_m * n_R
-    top = max(float(np.max(A.apply_T(T_R_A, A.solid_points(s))[:, 2])) for s in art.solids)
+    top = float(np.max(A.apply_T(T_R_A, artefact_points(art))[:, 2]))
     z_safe = top + r + SAFE_MARGIN_M
     links, lens = [], np.zeros(plan.n)
     prev = None if start_from is None else np.asarray(start_from, float)
@@ -145,9 +154,17 @@ def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: Probe
             zs = max(z_safe, prev[2], s[2])
             path = np.array([prev, [prev[0], prev[1], zs], [s[0], s[1], zs], s])
         links.append(path)
-        lens[i] = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
         prev = s
+    if plan.n:  # each link's length: the sum of its segments' lengths, in order
+        P = np.concatenate(links)
+        first = np.cumsum([len(p) for p in links]) - np.array([len(p) for p in links])
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        keep = np.ones(len(seg), bool)
+        keep[first[1:] - 1] = False  # the step from one link's end to the next link's start
+        lens = np.add.reduceat(seg[keep], first - np.arange(plan.n))
     return SetupMoves(T_R_W, Xn, n_R, start, links, lens)
+
+
 
 
 def _resolve_setups(machine, art, setups) -> list[Setup]:
@@ -271,10 +288,10 @@ class _PathChecker:
         self.scene = self.T_W_A = None
 
     def check(self, st: Setup, plan: Plan, mv: SetupMoves) -> None:
-        from .scene import Scene, check_touch_paths
+        from .scene import check_touch_paths, scene_for
 
         if self.scene is None or not np.array_equal(self.T_W_A, st.T_W_A):
-            self.scene = Scene(self.art, self.probe, st.T_W_A)
+            self.scene = scene_for(self.art, self.probe, st.T_W_A)
             self.T_W_A = np.asarray(st.T_W_A)
         self.scene.set_table(mv.T_R_W)
         check_touch_paths(self.scene, st.name, plan.target, plan.feature, mv.links,

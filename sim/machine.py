@@ -158,19 +158,23 @@ def _exp3(w: np.ndarray) -> np.ndarray:
     return pin.exp3(np.asarray(w, float))
 
 
-def _quat_xyzw(w: np.ndarray) -> np.ndarray:
-    """Unit quaternions (x, y, z, w) of rotation vectors (n, 3), vectorised."""
-    th = np.linalg.norm(w, axis=1)
+def _quat_xyzw_rows(w) -> np.ndarray:
+    """Unit quaternions (x, y, z, w) (4, n) of rotation vectors (3 rows of n)."""
+    wx, wy, wz = (np.asarray(v, float) for v in w)
+    th = np.sqrt(wx * wx + wy * wy + wz * wz)
     small = th < 1e-6
     half = np.where(small, 0.5 - th**2 / 48.0, np.sin(0.5 * th) / np.where(small, 1.0, th))
-    return np.concatenate([w * half[:, None], np.cos(0.5 * th)[:, None]], axis=1)
+    return np.stack([wx * half, wy * half, wz * half, np.cos(0.5 * th)])
 
 
-def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Vectors (n, 3) rotated by unit quaternions (n, 4) (x, y, z, w)."""
-    u, w = q[:, :3], q[:, 3:]
-    c = np.cross(u, v)
-    return v + 2.0 * w * c + 2.0 * np.cross(u, c)
+def _quat_rotate_rows(q: np.ndarray, v) -> list:
+    """Vectors (3 rows of n) rotated by unit quaternions (4, n) (x, y, z, w): 3 rows."""
+    ux, uy, uz, w = q
+    vx, vy, vz = v
+    cx, cy, cz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+    return [vx + 2.0 * w * cx + 2.0 * (uy * cz - uz * cy),
+            vy + 2.0 * w * cy + 2.0 * (uz * cx - ux * cz),
+            vz + 2.0 * w * cz + 2.0 * (ux * cy - uy * cx)]
 
 
 class Machine:
@@ -192,6 +196,7 @@ class Machine:
         self._data = self._model.createData()
         self._nmodel, self._nlayout, self._nfW, self._nfP = self._build(with_errors=False)
         self._ndata = self._nmodel.createData()
+        self._fk = _BatchFK(self._model, (self._fW, self._fP))
 
     # ------------------------------------------------------------------ API
     @property
@@ -376,29 +381,54 @@ class Machine:
         return model, tuple(layout), frames["W"], frames["P"]
 
     def _configurations(self, model, layout, lin, rot, vals, n):
+        """Pinocchio configurations (n, nq) of the poses: axis positions and error free-flyers."""
+        return self._configurations_T(model, layout, lin, rot, vals, n).T
+
+    def _configurations_T(self, model, layout, lin, rot, vals, n):
+        """:meth:`_configurations` transposed, (nq, n), each coordinate a contiguous row."""
         import pinocchio as pin
 
-        Q = np.tile(pin.neutral(model), (n, 1))
+        QT = np.repeat(np.asarray(pin.neutral(model), float)[:, None], n, axis=1)
         J = self.config.J_m
+        zero = np.zeros(n)
         for kind, a, iq, s in layout:
             if kind == "lin":
-                Q[:, iq] = s * (lin[:, iso.LINEAR_AXES.index(a)] + J[_E[a]])
+                QT[iq] = s * (lin[:, iso.LINEAR_AXES.index(a)] + J[_E[a]])
             elif kind == "rot":
-                Q[:, iq] = s * rot[:, self.rotary_axes.index(a)]
+                QT[iq] = s * rot[:, self.rotary_axes.index(a)]
             else:
                 names = self._motion[a]
-                zero = np.zeros(n)
-                t = np.stack([vals.get(k, zero) for k in names[:3]], axis=1)
-                w = np.stack([vals.get(k, zero) for k in names[3:]], axis=1)
-                quat = _quat_xyzw(w)
+                t = [vals.get(k, zero) for k in names[:3]]
+                quat = _quat_xyzw_rows([vals.get(k, zero) for k in names[3:]])
                 if s < 0:  # workpiece branch: the component moves by the exact inverse of E
-                    quat = quat * np.array([-1.0, -1.0, -1.0, 1.0])
-                    t = -_quat_rotate(quat, t)
-                Q[:, iq:iq + 3] = t
-                Q[:, iq + 3:iq + 7] = quat
-        return Q
+                    quat[:3] = -quat[:3]
+                    t = [-v for v in _quat_rotate_rows(quat, t)]
+                QT[iq:iq + 3] = t
+                QT[iq + 3:iq + 7] = quat
+        return QT
 
     def _poses(self, lin_m, rot_rad, t_s, direction, want):
+        """Poses of W, P or the tip by :class:`_BatchFK` (the Pinocchio model, all poses at once)."""
+        lin, rot, n = self._inputs(lin_m, rot_rad)
+        vals = self.error_values(lin, rot, t_s, direction)
+        QT = self._configurations_T(self._model, self._layout, lin, rot, vals, n)
+        (R_W, t_W), (R_P, t_P) = self._fk.frames(QT)
+        if want == "tip":
+            return None, np.einsum("nji,nj->ni", R_W, t_P - t_W)
+        R, t = (R_W, t_W) if want == "W" else (R_P, t_P)
+        out = np.zeros((n, 4, 4))
+        out[:, :3, :3], out[:, :3, 3], out[:, 3, 3] = R, t, 1.0
+        return (out, None) if want == "W" else (None, out)
+
+    def tip_W_pinocchio(self, lin_m, rot_rad=None, t_s=None, direction=None) -> np.ndarray:
+        """:meth:`tip_W` by Pinocchio's own ``forwardKinematics``, one pose at a time, (n, 3) m.
+
+        The independent oracle of the batched evaluation (tests) and the reference
+        of its speed (``vmt bench``); same arguments as :meth:`tip_W`.
+        """
+        return self._poses_pinocchio(lin_m, rot_rad, t_s, direction, want="tip")[1]
+
+    def _poses_pinocchio(self, lin_m, rot_rad, t_s, direction, want):
         import pinocchio as pin
 
         lin, rot, n = self._inputs(lin_m, rot_rad)
@@ -454,3 +484,123 @@ class Machine:
                 M[:, :3, 3] = c - R @ c
             T = T @ M
         return T
+
+
+class _BatchFK:
+    """Forward kinematics of a Pinocchio model for a batch of configurations, in numpy.
+
+    Walks ``model``'s joints in order (each after its parent) and composes
+    ``oMi = oMparent . jointPlacement . M_joint(q)`` for every configuration
+    at once, then the frames' ``oMf = oMi[parent] . placement``: the product
+    ``pinocchio.forwardKinematics`` forms one configuration at a time, read
+    from the same model (joint types, placements, configuration indices),
+    without derivatives. Joint types: prismatic and revolute about X, Y, Z,
+    free-flyer (translation, unit quaternion x y z w); others raise.
+    Pinocchio's own loop stays the oracle (``tests/sim/test_machine.py``:
+    agreement < 1e-12 m).
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+    frame_ids : sequence of int
+        Frames returned by :meth:`frames`.
+    """
+
+    _KINDS = {"JointModelPX": ("P", 0), "JointModelPY": ("P", 1), "JointModelPZ": ("P", 2),
+              "JointModelRX": ("R", 0), "JointModelRY": ("R", 1), "JointModelRZ": ("R", 2),
+              "JointModelFreeFlyer": ("F", 0)}
+
+    def __init__(self, model, frame_ids):
+        self.joints = []
+        for j in range(1, model.njoints):
+            name = model.joints[j].shortname()
+            if name not in self._KINDS:
+                raise ConfigError(f"batched kinematics: joint type {name} is not supported")
+            M = model.jointPlacements[j]
+            R = np.array(M.rotation, float)
+            self.joints.append((*self._KINDS[name], int(model.parents[j]), int(model.joints[j].idx_q), R,
+                                np.array(M.translation, float), bool(np.array_equal(R, np.eye(3)))))
+        self.frames_ = []
+        for f in frame_ids:
+            fr = model.frames[f]
+            parent = fr.parentJoint if hasattr(fr, "parentJoint") else fr.parent
+            Rf = np.array(fr.placement.rotation, float)
+            self.frames_.append((int(parent), None if np.array_equal(Rf, np.eye(3)) else Rf,
+                                 np.array(fr.placement.translation, float)))
+
+    def frames(self, QT: np.ndarray) -> list:
+        """[(R (n,3,3), t (n,3))] of the frames in the universe, for configurations QT (nq, n)
+        (transposed: each coordinate a row)."""
+        QT = np.asarray(QT, float)
+        n = QT.shape[1]
+        # rotations as (3, 3, n) and translations as (3, n): every product is 9 or 3 rows of n
+        oM = [(None, np.zeros((3, n)))]  # joint 0, the universe (None: identity)
+        for kind, ax, parent, iq, Rp, tp, Rp_is_I in self.joints:
+            Ra, ta = oM[parent]
+            t = ta + (tp[:, None] if Ra is None else _mv_const(Ra, tp))
+            Rb = Ra if Rp_is_I else (np.broadcast_to(Rp[:, :, None], (3, 3, n)) if Ra is None else _mm_const(Ra, Rp))
+            if kind == "P":
+                R = Rb
+                col = np.eye(3)[:, ax, None] if Rb is None else Rb[:, ax]
+                t = t + col * QT[iq]
+            elif kind == "R":
+                c, s = np.cos(QT[iq]), np.sin(QT[iq])
+                i, k = (ax + 1) % 3, (ax + 2) % 3  # Rot about e_ax: e_i -> c e_i + s e_k, e_k -> -s e_i + c e_k
+                Rb = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n)) if Rb is None else Rb
+                R = np.empty((3, 3, n))
+                R[:, ax] = Rb[:, ax]
+                R[:, i] = c * Rb[:, i] + s * Rb[:, k]
+                R[:, k] = c * Rb[:, k] - s * Rb[:, i]
+            else:
+                Rq = _quat_matrix(QT[iq + 3:iq + 7])
+                if Rb is None:
+                    R, t = Rq, t + QT[iq:iq + 3]
+                else:
+                    R, t = _mm(Rb, Rq), t + _mv(Rb, QT[iq:iq + 3])
+            oM.append((R, t))
+        out = []
+        for parent, Rf, tf in self.frames_:
+            Ra, ta = oM[parent]
+            if Ra is None:
+                R = np.broadcast_to((np.eye(3) if Rf is None else Rf)[:, :, None], (3, 3, n))
+                t = ta + tf[:, None]
+            else:
+                R, t = (Ra if Rf is None else _mm_const(Ra, Rf)), ta + _mv_const(Ra, tf)
+            out.append((np.moveaxis(R, 2, 0), t.T))
+        return out
+
+
+def _mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Products of stacked 3x3 matrices, (3,3,n) x (3,3,n) -> (3,3,n)."""
+    return A[:, 0, None] * B[None, 0] + A[:, 1, None] * B[None, 1] + A[:, 2, None] * B[None, 2]
+
+
+def _mm_const(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """(3,3,n) x (3,3) -> (3,3,n)."""
+    return A[:, 0, None] * B[None, 0, :, None] + A[:, 1, None] * B[None, 1, :, None] + A[:, 2, None] * B[None, 2, :, None]
+
+
+def _mv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(3,3,n) x (3,n) -> (3,n)."""
+    return A[:, 0] * v[0] + A[:, 1] * v[1] + A[:, 2] * v[2]
+
+
+def _mv_const(A: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(3,3,n) x (3,) -> (3,n)."""
+    return A[:, 0] * v[0] + A[:, 1] * v[1] + A[:, 2] * v[2]
+
+
+def _quat_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices (3,3,n) of unit quaternions (4,n) (x, y, z, w)."""
+    x, y, z, w = q
+    R = np.empty((3, 3, q.shape[1]))
+    R[0, 0] = 1 - 2 * (y * y + z * z)
+    R[0, 1] = 2 * (x * y - z * w)
+    R[0, 2] = 2 * (x * z + y * w)
+    R[1, 0] = 2 * (x * y + z * w)
+    R[1, 1] = 1 - 2 * (x * x + z * z)
+    R[1, 2] = 2 * (y * z - x * w)
+    R[2, 0] = 2 * (x * z - y * w)
+    R[2, 1] = 2 * (y * z + x * w)
+    R[2, 2] = 1 - 2 * (x * x + y * y)
+    return R

@@ -33,8 +33,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .artefacts import apply_R, apply_T, inv_T, make_T, solid_points
-from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat
+from .artefacts import apply_R, apply_T, inv_T, make_T
+from .clearance import path_samples
+from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
 
 #: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
 TABLE_R_M = 0.300
@@ -175,18 +176,39 @@ class WorkZone:
         self._holder = [i for i in tg if self._names[i] == "table_disc"
                         or self._names[i].startswith(("fix_", "support__"))]
         self._probe = [i for i in range(m.ngeom) if m.geom_bodyid[i] != table]
+        self._table = tg
+        self._clr = {}
 
     def set_table(self, T_R_W) -> None:
         T = np.asarray(T_R_W, float)
         self.data.qpos[self._tq:self._tq + 3] = T[:3, 3]
         self.data.qpos[self._tq + 3:self._tq + 7] = _quat(T[:3, :3])
 
-    def collisions(self, p_R, allow_feature: str = "") -> list:
-        """(probe geom, table-side geom, depth m) with the tip centre at ``p_R``."""
+    def set_tip(self, p_R) -> None:
+        """Place the stylus-tip centre at ``p_R`` (3,) m, R (spindle axes parallel to R)."""
         d = self.data
         d.qpos[self._sq:self._sq + 3] = p_R
         d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
         self._mj.mj_kinematics(self.model, d)
+
+    def clearance(self, holder_only: bool = False):
+        """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose:
+        the probe against every table-side geom, or against the holder's only."""
+        from .clearance import Clearance, model_geoms
+
+        key = (np.array(self.data.qpos[self._tq:self._tq + 7]).tobytes(), holder_only)
+        if key not in self._clr:
+            self.set_tip(np.zeros(3))
+            m, d = self.model, self.data
+            tg = self._holder if holder_only else self._table
+            self._clr[key] = Clearance(model_geoms(m, d, self._probe), model_geoms(m, d, tg),
+                                       [self._feature.get(i, "") for i in tg], self._probe.index(self._ball))
+        return self._clr[key]
+
+    def collisions(self, p_R, allow_feature: str = "") -> list:
+        """(probe geom, table-side geom, depth m) with the tip centre at ``p_R``."""
+        d = self.data
+        self.set_tip(p_R)
         self._mj.mj_collision(self.model, d)
         out = []
         for c in range(d.ncon):
@@ -200,6 +222,33 @@ class WorkZone:
             out.append((self._names[pg], self._names[ag], float(dist)))
         return out
 
+    def least_holder_clearance(self, tips_R, distmax: float = 0.05, broad_phase: bool = True) -> float:
+        """Least :meth:`holder_clearance` over the tip positions ``tips_R`` (n,3) m, R.
+
+        Branch and bound: each (tip, probe geom, holder geom) triple has a lower
+        bound from :mod:`sim.clearance`; MuJoCo's ``mj_geomDistance`` runs in
+        increasing order of bound while the bound is below the least distance
+        found (plus :data:`sim.clearance.MARGIN_M`, MuJoCo's tolerance being far smaller).
+        ``broad_phase=False``: every triple (the reference).
+        """
+        from .clearance import MARGIN_M
+
+        tips = np.asarray(tips_R, float).reshape(-1, 3)
+        clr = self.clearance(holder_only=True)
+        npair = len(clr.pair_probe)
+        i = np.repeat(np.arange(len(tips)), npair)
+        pair = np.tile(np.arange(npair), len(tips))
+        lb = clr.bound(tips, i, pair) if broad_phase else np.full(len(i), -np.inf)
+        best = distmax
+        m, d = self.model, self.data
+        for k in np.argsort(lb, kind="stable"):
+            if lb[k] > best + MARGIN_M:
+                break
+            self.set_tip(tips[i[k]])
+            a, b = self._probe[clr.pair_probe[pair[k]]], self._holder[clr.pair_table[pair[k]]]
+            best = min(best, float(self._mj.mj_geomDistance(m, d, a, b, distmax, None)))
+        return best
+
     def holder_clearance(self, distmax: float = 0.05) -> float:
         """Least distance (m) of the probe's geoms from the table, the workholder and the
         bar's supports at the current pose (``distmax`` if farther)."""
@@ -209,6 +258,23 @@ class WorkZone:
             for b in self._holder:
                 best = min(best, float(self._mj.mj_geomDistance(m, d, a, b, distmax, None)))
         return best
+
+
+#: Compiled work zones by everything their model is made of (the artefact object kept, so
+#: its id stays its own): a plan's measurements that share a placement and a stylus share one.
+_ZONES: dict = {}
+
+
+def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
+    key = (id(artefact), np.ascontiguousarray(T_W_A, float).tobytes(),
+           tuple((b.name, tuple(map(float, b.lo)), tuple(map(float, b.hi))) for b in blocks),
+           tuple(float(v) for v in J_m), float(stylus_r_m), float(finger_m))
+    hit = _ZONES.get(key)
+    if hit is None or hit[0] is not artefact:
+        if len(_ZONES) >= 64:
+            _ZONES.clear()
+        hit = _ZONES[key] = (artefact, WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m))
+    return hit[1]
 
 
 def link_paths(T_R_A, starts_R, features, levels, top_A_m):
@@ -239,7 +305,8 @@ def _sample(pts, step):
 
 
 def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan, finger_m: float = 0.0,
-                      link_step_m: float = 3.0e-3, approach_step_m: float = 0.5e-3) -> CheckResult:
+                      link_step_m: float = 3.0e-3, approach_step_m: float = 0.5e-3,
+                      broad_phase: bool = True) -> CheckResult:
     """Collision check of one measurement: every approach/retract and link move, and the bar on the table.
 
     Parameters
@@ -258,41 +325,53 @@ def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, pla
         The measurement's touches (A frame).
     finger_m : float
         Finger of a star stylus (:func:`probe_geoms_mjcf`).
+    broad_phase : bool
+        Skip the samples :mod:`sim.clearance` proves clear (default); False:
+        MuJoCo at every sample and every pair (the reference the tests and the
+        benchmark compare with).
     """
     T_W_A = np.asarray(T_W_A, float)
     T_R_A = np.asarray(T_R_W, float) @ T_W_A
     bad = []
     # the bar and the workholder on the table's side of its face (W z >= 0)
-    z_bar = min(float(apply_T(T_W_A, solid_points(s))[:, 2].min()) for s in artefact.solids)
+    pts_A = artefact_points(artefact)
+    z_bar = float(apply_T(T_W_A, pts_A)[:, 2].min())
     if z_bar < -1e-9:
         bad.append(f"the bar reaches {z_bar * 1e3:.1f} mm below the table face")
     for b in blocks:
         if min(b.lo[2], b.hi[2]) < -1e-9:
             bad.append(f"workholder block {b.name} below the table face")
-    wz = WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
+    wz = _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
     wz.set_table(T_R_W)
     r = stylus_r_m
     Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
     start = Xn + plan.clearance_m * apply_R(T_R_A, plan.wn_A)
-    top = max(float(np.max(solid_points(s)[:, 2])) for s in artefact.solids) + r
+    top = float(pts_A[:, 2].max()) + r
     links = link_paths(T_R_A, start, plan.feature, plan.level, top)
-    n_samp, clear = 0, np.inf
+    # the samples of every path, in the order checked; MuJoCo only where the broad phase
+    # (sim.clearance) cannot prove them clear: the same first collision per touch
+    paths = []  # (touch, polyline, step, allowed feature), in the order checked
     for i in range(plan.n):
-        for pts, allow, step in ((links[i], "", link_step_m), (np.array([start[i], Xn[i]]), plan.feature[i],
-                                                                approach_step_m)):
-            if pts is None:
+        if links[i] is not None:
+            paths.append((i, links[i], link_step_m, ""))
+        paths.append((i, np.array([start[i], Xn[i]]), approach_step_m, plan.feature[i]))
+    n_samp, bad_touch = 0, set()
+    if paths:
+        pts, seg, which = path_samples([p[1] for p in paths], [p[2] for p in paths], joints=False)
+        touch = np.array([p[0] for p in paths])[which]
+        allow = np.array([p[3] for p in paths], dtype=object)[which]
+        near = wz.clearance().near(pts, allow, seg) if broad_phase else np.ones(len(pts), bool)
+        n_samp = len(pts)
+        for k in np.flatnonzero(near):  # in path order
+            i = int(touch[k])
+            if i in bad_touch:
                 continue
-            for p in _sample(pts, step):
-                n_samp += 1
-                hit = wz.collisions(p, allow)
-                if hit:
-                    g, o, dep = hit[0]
-                    bad.append(f"{plan.target[i]}: {g} hits {o} ({-dep * 1e3:.2f} mm deep) at "
-                               f"{np.round(p * 1e3, 1).tolist()} mm")
-                    break
-            else:
-                continue
-            break
-        wz.collisions(start[i])
-        clear = min(clear, wz.holder_clearance())
+            hit = wz.collisions(pts[k], allow[k])
+            if hit:  # the first collision of touch i: the rest of its samples are not checked
+                g, o, dep = hit[0]
+                bad.append(f"{plan.target[i]}: {g} hits {o} ({-dep * 1e3:.2f} mm deep) at "
+                           f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
+                bad_touch.add(i)
+                n_samp -= int(np.count_nonzero(touch[k + 1:] == i))
+    clear = wz.least_holder_clearance(start, broad_phase=broad_phase) if plan.n else np.inf
     return CheckResult(name, int(plan.n), n_samp, tuple(bad), float(clear * 1e3))

@@ -33,7 +33,7 @@ import numpy as np
 
 from core.exceptions import PlanError
 
-from .artefacts import Artefact, make_T
+from .artefacts import Artefact, make_T, solid_points
 from .probe import ProbeConfig
 
 #: A contact deeper than this counts as a collision (m).
@@ -50,24 +50,47 @@ def _quat(R: np.ndarray) -> np.ndarray:
     return q
 
 
+def _quats(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions (w, x, y, z) (k,4) of rotation matrices (k,3,3), w >= 0 (Shepperd)."""
+    R = np.asarray(R, float)
+    tr = R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2]
+    d = np.stack([tr, R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]], axis=1)
+    k = np.argmax(d, axis=1)  # the largest of 4w^2-1, 4x^2-1, ... for a stable square root
+    q = np.empty((len(R), 4))
+    for j in range(4):
+        m = k == j
+        Rm = R[m]
+        if j == 0:
+            s = 2.0 * np.sqrt(1.0 + tr[m])
+            q[m] = np.column_stack([s / 4, (Rm[:, 2, 1] - Rm[:, 1, 2]) / s, (Rm[:, 0, 2] - Rm[:, 2, 0]) / s,
+                                    (Rm[:, 1, 0] - Rm[:, 0, 1]) / s])
+        else:
+            a, b, c = j - 1, j % 3, (j + 1) % 3
+            s = 2.0 * np.sqrt(1.0 + Rm[:, a, a] - Rm[:, b, b] - Rm[:, c, c])
+            v = np.empty((m.sum(), 3))
+            v[:, a] = s / 4
+            v[:, b] = (Rm[:, b, a] + Rm[:, a, b]) / s
+            v[:, c] = (Rm[:, c, a] + Rm[:, a, c]) / s
+            q[m] = np.column_stack([(Rm[:, c, b] - Rm[:, b, c]) / s, v])
+    return q * np.where(q[:, :1] < 0, -1.0, 1.0)
+
+
 def _f(v) -> str:
-    return " ".join(repr(float(x)) for x in np.ravel(v))
+    return " ".join(map(repr, np.ravel(np.asarray(v, float)).tolist()))
 
 
 def scene_mjcf(artefact: Artefact, probe: ProbeConfig, T_W_A: np.ndarray | None = None) -> tuple[str, list]:
     """MJCF text of the scene and the feature name of each table geom (in order)."""
     T_W_A = artefact.T_W_A if T_W_A is None else np.asarray(T_W_A, float)
     geoms, feats = [], []
+    poses = [T_W_A @ make_T(s.rot, s.pos) for s in artefact.solids]
+    pos = [" ".join(map(repr, T[:3, 3].tolist())) for T in poses]
+    quat = [" ".join(map(repr, _quat(T[:3, :3]).tolist())) for T in poses]
     for k, s in enumerate(artefact.solids):
-        T = T_W_A @ make_T(s.rot, s.pos)
         name = f"{s.feature or 'body'}__{k}"
-        common = f'name="{name}" pos="{_f(T[:3, 3])}" quat="{_f(_quat(T[:3, :3]))}" contype="1" conaffinity="0"'
-        if s.kind == "box":
-            geoms.append(f'<geom type="box" size="{_f(s.size)}" {common}/>')
-        elif s.kind == "cylinder":
-            geoms.append(f'<geom type="cylinder" size="{_f(s.size)}" {common}/>')
-        elif s.kind == "sphere":
-            geoms.append(f'<geom type="sphere" size="{_f(s.size)}" {common}/>')
+        common = f'name="{name}" pos="{pos[k]}" quat="{quat[k]}" contype="1" conaffinity="0"'
+        if s.kind in ("box", "cylinder", "sphere"):
+            geoms.append(f'<geom type="{s.kind}" size="{_f(s.size)}" {common}/>')
         else:
             geoms.append(f'<geom type="mesh" mesh="mesh{k}" {common}/>')
         feats.append(s.feature)
@@ -120,7 +143,39 @@ class Scene:
         self.stylus = m.geom("stylus").id
         self._tq = m.jnt_qposadr[m.joint("table").id]
         self._sq = m.jnt_qposadr[m.joint("spindle").id]
+        self._clr = None
+        self._table_geoms = np.array(tg, int)
+        self._local = None
+        self.T_W_A = np.array(artefact.T_W_A if T_W_A is None else T_W_A, float)
         self.set_table(np.eye(4))
+
+    def place(self, T_W_A) -> None:
+        """Move the artefact to the placement ``T_W_A`` (4,4) in the compiled model.
+
+        The table geoms' poses are written as the compiler would have read them
+        from :func:`scene_mjcf` (``T_W_A`` times each solid's pose; quaternion
+        normalised): no recompilation. Artefacts with mesh solids (which the
+        compiler re-centres) cannot be moved: build a new :class:`Scene`.
+        """
+        if any(s.kind not in ("box", "cylinder", "sphere") for s in self.artefact.solids):
+            raise ValueError("Scene.place: an artefact with mesh solids needs a new Scene")
+        T_W_A = np.array(T_W_A, float)
+        m = self.model
+        if self._local is None:  # each solid's pose on the artefact, (k,3,3) and (k,3)
+            self._local = (np.array([make_T(s.rot, s.pos)[:3, :3] for s in self.artefact.solids]).reshape(-1, 3, 3),
+                           np.array([make_T(s.rot, s.pos)[:3, 3] for s in self.artefact.solids]).reshape(-1, 3))
+        R_loc, p_loc = self._local
+        R = np.einsum("ij,kjl->kil", T_W_A[:3, :3], R_loc)
+        q = _quats(R)
+        g = self._table_geoms
+        m.geom_pos[g] = p_loc @ T_W_A[:3, :3].T + T_W_A[:3, 3]
+        m.geom_quat[g] = q / np.sqrt(np.sum(q * q, axis=1))[:, None]
+        m.geom_sameframe[g] = 0  # the compiler's "same frame as the body" shortcut no longer holds
+        # the compiler's bounding-volume hierarchy of the table body holds the old poses:
+        # MuJoCo then tests every geom pair of the two bodies (same contacts, no pruning)
+        m.opt.disableflags |= int(self._mj.mjtDisableBit.mjDSBL_MIDPHASE)
+        self.T_W_A = T_W_A
+        self._clr = None
 
     def set_table(self, T_R_W: np.ndarray) -> None:
         """Place the table (frame W) in R."""
@@ -135,7 +190,7 @@ class Scene:
         self._mj.mj_kinematics(self.model, self.data)
 
     def collisions(self, p_R, allow_feature: str = "") -> list[tuple[str, str, float]]:
-        """Collisions with the tip at ``p_R``: (probe geom, artefact geom, depth m).
+        """Collisions with the tip at ``p_R``: (probe geom, artefact geom, depth m), deepest first.
 
         Contacts of the stylus with geoms of ``allow_feature`` are ignored
         (the exact primitive judges those).
@@ -154,7 +209,24 @@ class Scene:
             if pg == self.stylus and allow_feature and self.geom_feature[ag] == allow_feature:
                 continue
             out.append((str(self.geom_name[pg]), str(self.geom_name[ag]), float(dist)))
-        return out
+        # deepest first (to 1 pm, then by name): MuJoCo's own order (its mid-phase tree)
+        # differs between a compiled and a moved scene (Scene.place)
+        return sorted(out, key=lambda c: (round(c[2], 12), c[0], c[1]))
+
+    def clearance(self):
+        """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose."""
+        from .clearance import Clearance, model_geoms
+
+        key = np.array(self.data.qpos[self._tq:self._tq + 7])
+        if self._clr is None or not np.array_equal(self._clr[0], key):
+            self.set_tip(np.zeros(3))
+            m = self.model
+            table = m.body("table").id
+            tg = [i for i in range(m.ngeom) if m.geom_bodyid[i] == table]
+            pg = [i for i in range(m.ngeom) if m.geom_bodyid[i] != table]
+            self._clr = (key, Clearance(model_geoms(m, self.data, pg), model_geoms(m, self.data, tg),
+                                        self.geom_feature[tg], pg.index(self.stylus)))
+        return self._clr[1]
 
     def geom_distance(self, geom_a: str, geom_b: str, distmax: float = 1.0) -> float:
         """MuJoCo's signed distance between two named geoms (current poses), m."""
@@ -165,6 +237,7 @@ class Scene:
     def check_path(self, pts_R: np.ndarray, allow_feature: str = "", step_m: float = 0.5e-3):
         """First collision on the polyline ``pts_R`` (m,3), sampled every ``step_m``.
 
+        MuJoCo at every sample (the reference :func:`check_touch_paths` must agree with).
         Returns ``None`` or ``(point (3,), collisions)``.
         """
         pts = np.asarray(pts_R, float)
@@ -179,9 +252,58 @@ class Scene:
         return None
 
 
+#: Every solid's points (A frame) of the artefacts seen last (the artefact is kept, so its id stays its own).
+_POINTS: dict = {}
+
+
+def artefact_points(art: Artefact) -> np.ndarray:
+    """All the points of ``art``'s solids (k,3), A frame, m (cached per artefact object)."""
+    hit = _POINTS.get(id(art))
+    if hit is None or hit[0] is not art:
+        if len(_POINTS) > 16:
+            _POINTS.clear()
+        hit = _POINTS[id(art)] = (art, np.concatenate([solid_points(s) for s in art.solids]))
+    return hit[1]
+
+
+#: Compiled scenes by (artefact object, probe): campaigns re-place them instead of compiling
+#: (a study's seeds, the same campaign with other machine errors, each set-up's placement).
+_SCENES: dict = {}
+
+
+def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
+    """The :class:`Scene` of ``artefact`` at ``T_W_A`` with ``probe``: compiled once per
+    artefact and probe, moved to each placement (:meth:`Scene.place`; a new one per
+    placement for an artefact with meshes).
+
+    The table pose is whatever the last user set: set it before use.
+    """
+    T = np.ascontiguousarray(T_W_A, float)
+    movable = all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids)
+    # the probe's geoms are made of these three lengths (scene_mjcf)
+    key = (id(artefact), float(probe.stylus_r_m), float(probe.shank_r_m), float(probe.shank_length_m),
+           None if movable else T.tobytes())
+    hit = _SCENES.get(key)
+    if hit is None or hit[0] is not artefact:  # the artefact is kept in the entry: its id stays its own
+        if len(_SCENES) >= 64:
+            _SCENES.clear()
+        hit = _SCENES[key] = (artefact, Scene(artefact, probe, T))
+    if not np.array_equal(hit[1].T_W_A, T):
+        hit[1].place(T)
+    return hit[1]
+
+
 def check_touch_paths(scene: Scene, setup: str, targets, features, links, approach,
-                      link_step_m: float = 2.0e-3, approach_step_m: float = 0.25e-3) -> None:
+                      link_step_m: float = 2.0e-3, approach_step_m: float = 0.25e-3,
+                      broad_phase: bool = True) -> None:
     """Check every touch's link move and approach/retract path; PlanError on a crash.
+
+    The samples are those of :meth:`Scene.check_path` (every ``link_step_m``
+    on the links, ``approach_step_m`` on the approaches), in the same order;
+    the ones :mod:`sim.clearance` proves clear of every table geom by more
+    than :data:`sim.clearance.MARGIN_M` are skipped, the others go to MuJoCo
+    (:meth:`Scene.collisions`), so the first collision reported is the one
+    the sample-by-sample check finds.
 
     Parameters
     ----------
@@ -194,22 +316,28 @@ def check_touch_paths(scene: Scene, setup: str, targets, features, links, approa
     approach : (n,2,3) float
         Start and nominal contact position of the stylus centre (R, m); the
         retract retraces the approach.
+    broad_phase : bool
+        False: MuJoCo at every sample (the reference the tests compare with).
     """
     key = _paths_key(scene, features, links, approach, link_step_m, approach_step_m)
     if key in _PASSED:
         return
-    for i, tgt in enumerate(targets):
+    from .clearance import path_samples
+
+    paths = []  # (target index, phase, polyline, step, allowed feature), in the order checked
+    for i in range(len(targets)):
         if links[i] is not None and len(links[i]) > 1:
-            hit = scene.check_path(links[i], "", link_step_m)
-            if hit:
-                p, c = hit
-                raise PlanError(f"set-up {setup!r} target {tgt!r}: link move crashes: {c[0][0]} hits "
-                                f"{c[0][1]} at {np.round(p * 1e3, 3).tolist()} mm")
-        hit = scene.check_path(approach[i], features[i], approach_step_m)
-        if hit:
-            p, c = hit
-            raise PlanError(f"set-up {setup!r} target {tgt!r}: approach/retract path crashes: {c[0][0]} hits "
-                            f"{c[0][1]} at {np.round(p * 1e3, 3).tolist()} mm")
+            paths.append((i, "link move", links[i], link_step_m, ""))
+        paths.append((i, "approach/retract path", approach[i], approach_step_m, features[i]))
+    pts, seg, which = path_samples([p[2] for p in paths], [p[3] for p in paths], joints=True)
+    allow = np.array([p[4] for p in paths], dtype=object)[which]
+    near = scene.clearance().near(pts, allow, seg) if broad_phase else np.ones(len(pts), bool)
+    for k in np.flatnonzero(near):  # in path order
+        i, phase, _, _, feat = paths[which[k]]
+        c = scene.collisions(pts[k], feat)
+        if c:
+            raise PlanError(f"set-up {setup!r} target {targets[i]!r}: {phase} crashes: {c[0][0]} hits "
+                            f"{c[0][1]} at {np.round(pts[k] * 1e3, 3).tolist()} mm")
     _PASSED.add(key)
 
 
@@ -225,6 +353,7 @@ def _paths_key(scene: Scene, features, links, approach, link_step_m: float, appr
     """Digest of everything :func:`check_touch_paths` reads except the names in its messages."""
     h = hashlib.blake2b(digest_size=32)
     h.update(scene.mjcf.encode())
+    h.update(np.ascontiguousarray(scene.T_W_A, float).tobytes())  # the placement (Scene.place)
     h.update(np.ascontiguousarray(scene.data.qpos[scene._tq:scene._tq + 7], float).tobytes())
     h.update(np.array([link_step_m, approach_step_m, COLLISION_TOL_M]).tobytes())
     for f in features:

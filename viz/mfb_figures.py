@@ -104,6 +104,50 @@ def bar_calibration_figure(x_mm, E_um, U95_um=None, *, truth_um=None,
     return fig
 
 
+def log_squareness(rec, errors: Mapping, *, path: str = "mfb/squareness") -> None:
+    """Log the three squarenesses as points (identified, injected, ±U95) on a sequence
+    timeline ``squareness`` (0 EC0Y, 1 EB0Z, 2 EA0Z), µrad: the squareness figure as a plot."""
+    from .record import _BLUE, _GREY, _ORANGE, _series
+
+    idx = np.arange(len(iso.SQUARENESS), dtype=np.int64)
+    vals = {k: [] for k in ("identified", "injected", "u95")}
+    for s in iso.SQUARENESS:
+        e = errors[s]
+        for k in vals:
+            v = e.get(k)
+            vals[k].append(np.nan if v is None else float(np.asarray(v, float).ravel()[0]))
+    ident, inj, u = (np.asarray(vals[k]) for k in ("identified", "injected", "u95"))
+    _series(rec, f"{path}/identified", "squareness", idx, ident, "identified / µrad", _BLUE, points=True)
+    if np.all(np.isfinite(inj)):
+        _series(rec, f"{path}/injected", "squareness", idx, inj, "injected / µrad", _ORANGE, points=True)
+    if np.all(np.isfinite(u)):
+        _series(rec, f"{path}/u95_upper", "squareness", idx, ident + u, "+U95 (k=2)", _GREY, points=True)
+        _series(rec, f"{path}/u95_lower", "squareness", idx, ident - u, "-U95 (k=2)", _GREY, points=True)
+
+
+def log_bar_calibration(rec, x_mm, E_um, U95_um=None, *, truth_um=None, path: str = "mfb/bar_calibration") -> None:
+    """Log the bar's calibrated Exx, Eyx, Ezx (µm) at its points of interest with ±U95 and,
+    for a simulated bar, its true deviations, on the sequence timeline ``x_MFB_um``
+    (nominal x in integer µm): Figs. 9-10 as plots (``<path>/<Exx|Eyx|Ezx>/...``)."""
+    from .record import _BLUE, _GREY, _ORANGE, _series
+
+    x = np.asarray(x_mm, float).ravel()
+    E = np.asarray(E_um, float)
+    if E.shape != (len(x), 3) or not np.all(np.isfinite(E)):
+        raise ConfigError(f"E_um must be a finite ({len(x)}, 3) array, got shape {E.shape}")
+    ticks = np.round(x * 1000.0).astype(np.int64)
+    for j, name in enumerate(("Exx", "Eyx", "Ezx")):
+        base = f"{path}/{name}"
+        _series(rec, f"{base}/calibrated", "x_MFB_um", ticks, E[:, j], f"{name} calibrated / µm", _BLUE)
+        if U95_um is not None:
+            u = np.asarray(U95_um, float)[:, j]
+            _series(rec, f"{base}/u95_upper", "x_MFB_um", ticks, E[:, j] + u, "+U95 (k=2)", _GREY)
+            _series(rec, f"{base}/u95_lower", "x_MFB_um", ticks, E[:, j] - u, "-U95 (k=2)", _GREY)
+        if truth_um is not None:
+            _series(rec, f"{base}/true", "x_MFB_um", ticks, np.asarray(truth_um, float)[:, j],
+                    f"{name} true / µm", _ORANGE)
+
+
 def write_mfb_figures(doc: Mapping, directory, *, bar: Mapping | None = None) -> list:
     """Write the MFB figures of a scenario result (its JSON dict) as PNG; returns the paths.
 

@@ -10,10 +10,13 @@ function                          paper figure
                                   self-calibrated, errors ×2500
 ================================  ===========================================
 
-Figs. 9(b) and 10 are :func:`viz.figures.profile_figure` (×1000 and ×2500),
-Fig. 14 is :func:`viz.figures.rotary_motions_figure`, Fig. 20 is
+Figs. 9(a-c) and 10 are :func:`viz.figures.profile_figure` (×2500, ×1000),
+Fig. 12 :func:`viz.figures.error_grid_figure`, Fig. 13
+:func:`viz.figures.rotary_centre_figure`, Fig. 14
+:func:`viz.figures.rotary_motions_figure`, Fig. 20
 :func:`viz.figures.grid_uncertainty_figure`; :mod:`scenarios.crosspocket`
-assembles them. Same conventions as :mod:`viz.figures`: plain arrays in, a
+assembles them. :func:`log_figures` puts the rendered figures themselves in a
+rerun recording. Same conventions as :mod:`viz.figures`: plain arrays in, a
 Figure not attached to pyplot out; positions mm, errors µm; viz computes
 nothing but drawing arithmetic.
 """
@@ -123,3 +126,21 @@ def pin_positions_figure(nominal_mm, raw_err_um, cal_err_um, *, magnification: f
     ax.legend(fontsize="small", loc="upper right")
     ax.grid(alpha=0.3)
     return fig
+
+
+def figure_png_bytes(fig, *, dpi: int = 110) -> bytes:
+    """The figure rendered as PNG bytes (what :func:`log_figures` records)."""
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=dpi, format="png")
+    return buf.getvalue()
+
+
+def log_figures(rec, figures: dict, *, path: str = "reports/figures") -> None:
+    """Log each ``{name: Figure}`` as a PNG image at ``path/name`` (static) in a rerun recording."""
+    import rerun as rr
+
+    for name, fig in figures.items():
+        rec.log(f"{path}/{name}", rr.EncodedImage(contents=figure_png_bytes(fig), media_type="image/png"),
+                static=True)

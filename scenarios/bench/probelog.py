@@ -14,6 +14,16 @@ interpreter so that its peak resident memory is its own:
 Speed: ``log_1e6_check_s`` (the whole ``vmt check``) beside
 ``log_1e6_csv_split_s`` (the same file split into cells by ``csv.reader``
 alone, no number parsing or validation, in this process), and their ratio.
+
+Writing: ``log_1e6_write_s``, the 1e6-row file written by
+:func:`core.probelog.write_probe_log` (streamed block by block). On the
+first 1e5 rows, beside the previous writer (:func:`previous_format`: one
+``csv.writer`` row per touch, the whole text in memory, then written):
+``log_1e5_write_s`` / ``log_1e5_write_previous_s`` (time) and
+``log_1e5_write_peak_mb`` / ``log_1e5_write_previous_peak_mb`` (peak of
+Python's allocations while writing, tracemalloc, the log's columns
+already in memory): the streamed writer's peak is one block of text
+whatever the row count, the previous one's the whole file twice.
 """
 
 from __future__ import annotations
@@ -31,15 +41,25 @@ import numpy as np
 N_TARGETS, N_ANGLES = 10_000, 100
 
 
-def write_large_log(path, n_targets: int, n_angles: int, rng: np.random.Generator, block: int = 50_000) -> int:
-    """Write a self-calibration campaign of ``n_targets * n_angles`` touches; return the row count.
+#: figure -> its reference figure measured in the same run (ratio = figure / reference)
+REFERENCES = {
+    "log_1e6_check_s": "log_1e6_csv_split_s",
+    "log_1e6_check_peak_mb": "python_numpy_baseline_mb",
+    "log_1e6_touches_peak_mb": "python_numpy_baseline_mb",
+    "log_1e5_write_s": "log_1e5_write_previous_s",
+    "log_1e5_write_peak_mb": "log_1e5_write_previous_peak_mb",
+}
+TARGETS = {"log_1e6_check_peak_mb": "< 2048 MB (issue 19 item 2)",
+           "log_1e6_touches_peak_mb": "< 2048 MB (issue 19 item 2)"}
+
+
+def large_log(n_targets: int, n_angles: int, rng: np.random.Generator):
+    """A self-calibration campaign of ``n_targets * n_angles`` touches as a ProbeLog (file units).
 
     Targets on random radii 20..95 mm with random in-plane normals, probed at
-    ``n_angles`` C angles with 1 um normal noise; rows are written in blocks
-    of ``block`` with :func:`core.probelog.format_probe_log` (metadata and
-    header once), so the text never sits in memory whole.
+    ``n_angles`` C angles with 1 um normal noise.
     """
-    from core.probelog import format_probe_log, make_log
+    from core.probelog import make_log
     from core.selfcal import nominal_touches
 
     r = rng.uniform(0.02, 0.095, n_targets)
@@ -59,14 +79,49 @@ def write_large_log(path, n_targets: int, n_angles: int, rng: np.random.Generato
             "nx": t.n_R[:, 0], "ny": t.n_R[:, 1], "nz": z, "C_deg": np.degrees(t.rot_rad[:, 2]),
             "wx_mm": t.w_A[:, 0] * 1e3, "wy_mm": t.w_A[:, 1] * 1e3, "wz_mm": z,
             "wnx": t.wn_A[:, 0], "wny": t.wn_A[:, 1], "wnz": z, "status": np.full(n, "ok", dtype=object)}
-    with open(path, "w", encoding="utf-8") as f:
-        for i in range(0, n, block):
-            text = format_probe_log(make_log({k: v[i:i + block] for k, v in cols.items()},
-                                             {"artefact": "bench"}, validate=False))
-            if i:  # metadata and header only once
-                text = text[text.index("\n", text.index("\nsetup,") + 1) + 1:]
-            f.write(text)
-    return n
+    return make_log(cols, {"artefact": "bench"}, validate=False)
+
+
+def previous_format(log) -> str:
+    """The probe-log text as :func:`core.probelog.format_probe_log` built it before it streamed:
+    one ``csv.writer`` row per touch into one in-memory text (the reference of the writer's figures)."""
+    import csv
+    import io
+
+    from core import probelog as P
+
+    buf = io.StringIO()
+    buf.write(next(P.iter_probe_log_text(log)))  # metadata and header, as before
+    cols = P._ordered(dict(log.columns))
+    w = csv.writer(buf, lineterminator="\n")
+    text = {k: P._is_text_column(k, v) for k, v in cols.items()}
+    for r in range(log.n):
+        w.writerow([v[r] if text[k] else P._fmt(v[r]) for k, v in cols.items()])
+    return buf.getvalue()
+
+
+def _write_figures(log, d) -> dict:
+    """Time and traced peak of the streamed writer and of the previous one on the same rows."""
+    import tracemalloc
+
+    from core.atomic import write_text_atomic
+    from core.probelog import format_probe_log, write_probe_log
+
+    new, old = Path(d) / "new.csv", Path(d) / "old.csv"
+    out = {}
+    for name, f in (("log_1e5_write", lambda: write_probe_log(new, log)),
+                    ("log_1e5_write_previous", lambda: write_text_atomic(old, previous_format(log)))):
+        t0 = time.perf_counter()
+        f()
+        out[f"{name}_s"] = round(time.perf_counter() - t0, 2)
+        tracemalloc.start()
+        f()
+        out[f"{name}_peak_mb"] = round(tracemalloc.get_traced_memory()[1] / 2**20, 1)
+        tracemalloc.stop()
+    if new.read_text(encoding="utf-8") != old.read_text(encoding="utf-8") or \
+            format_probe_log(log) != previous_format(log):  # a faster writer of another text is no figure
+        raise RuntimeError("the streamed probe-log writer's text differs from the previous writer's")
+    return out
 
 
 # run in a fresh interpreter: the work, then its wall time (s) and its own peak RSS (kB): VmHWM of
@@ -108,9 +163,15 @@ def run() -> dict:
     out: dict = {}
     with tempfile.TemporaryDirectory(prefix="vmt-bench-log.") as d:
         path = Path(d) / "campaign-1e6.csv"
+        from core.probelog import write_probe_log
+
+        log = large_log(N_TARGETS, N_ANGLES, np.random.default_rng(19))
+        n = log.n
         t0 = time.perf_counter()
-        n = write_large_log(path, N_TARGETS, N_ANGLES, np.random.default_rng(19))
+        write_probe_log(path, log)
         out["log_1e6_write_s"] = round(time.perf_counter() - t0, 2)
+        out.update(_write_figures(log.select(np.arange(100_000)), d))
+        del log
         out["log_1e6_rows"] = n
         out["log_1e6_file_mb"] = round(os.path.getsize(path) / 2**20, 1)
         t0 = time.perf_counter()

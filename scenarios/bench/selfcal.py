@@ -21,6 +21,18 @@ import tracemalloc
 import numpy as np
 
 
+#: figure -> its reference figure measured in the same run (ratio = figure / reference); for
+#: 1e6 touches the reference is 1e4 touches on the same grid: ratio 100 is linear growth
+REFERENCES = {
+    "grid100_1e4_touches_s": "grid100_1e4_touches_reference_s",
+    "grid100_1e4_touches_peak_mb": "grid100_1e4_touches_reference_peak_mb",
+    "grid100_1e6_touches_s": "grid100_1e4_touches_s",
+    "grid100_1e6_touches_peak_mb": "grid100_1e4_touches_peak_mb",
+}
+TARGETS = {"grid100_1e6_touches_s": "< 15 s, linear from 1e4 (issue 19 item 2)",
+           "grid100_1e6_touches_peak_mb": "linear from 1e4 (issue 19 item 2)"}
+
+
 def _campaign(n_targets: int, n_angles: int, grid_n: int, rng):
     """Random free-form targets (radius 20..95 mm) at n_angles C angles; in-model truth + 1 um noise."""
     from dataclasses import replace

@@ -1,21 +1,37 @@
-"""``vmt bench``: run every benchmark (:mod:`scenarios.bench`) and write one flat JSON of figures."""
+"""``vmt bench``: run the benchmarks (:mod:`scenarios.bench`), write their figures as JSON, and
+regenerate the README's performance table from them."""
 
 from __future__ import annotations
 
 
 def register(sub) -> None:
-    p = sub.add_parser("bench", help="run the benchmarks, write one flat JSON of figures")
+    p = sub.add_parser("bench", help="run the benchmarks, write their figures (with same-run references) as JSON")
     p.add_argument("--out", default="bench/results.json", help="JSON file to write")
     p.add_argument("--only", action="append", default=[], help="run only modules containing this text")
+    p.add_argument("--readme", metavar="FILE", default=None,
+                   help="also rewrite FILE's performance table (between its bench-table markers) from the JSON")
+    p.add_argument("--from-json", metavar="FILE", default=None,
+                   help="run nothing: take the figures of this earlier JSON (with --readme)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from scenarios.bench import run_all, write_figures
+    from scenarios.bench.table import update_readme
 
-    figures = run_all(args.only)
-    out = write_figures(figures, args.out)
-    for k in sorted(figures):
-        print(f"{k:40s} {figures[k]}")
+    if args.from_json is not None:
+        if args.readme is None:
+            from core.exceptions import ConfigError
+
+            raise ConfigError("--from-json only feeds --readme: give --readme FILE")
+        print(f"wrote {update_readme(args.readme, args.from_json)}")
+        return 0
+    doc = run_all(args.only)
+    out = write_figures(doc, args.out)
+    for k, r in sorted(doc["figures"].items()):
+        ref = f"   [{r['ratio']} x {r['reference']}]" if r.get("reference") else ""
+        print(f"{k:40s} {r['value']}{ref}")
     print(f"wrote {out}")
+    if args.readme is not None:
+        print(f"wrote {update_readme(args.readme, out)}")
     return 0

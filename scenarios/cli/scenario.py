@@ -11,6 +11,7 @@ def _mfb(args) -> int:
     from scenarios.mfb import closed_loop, run
 
     from scenarios.cli.guard import progress_line
+    from scenarios.mfb import describe_budget
 
     spec = None
     if args.machine is not None:
@@ -18,6 +19,10 @@ def _mfb(args) -> int:
 
         spec = resolve(args.machine)
     kw = dict(seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc, machine=spec)
+    if args.bar_calibration:
+        from scenarios.mfb import read_bar_calibration
+
+        kw["bar_calibration"], kw["bar_true_m"] = read_bar_calibration(args.bar_calibration)
     if args.apply_comp and not args.comp:
         from scenarios.mfb import compensators
 
@@ -63,6 +68,13 @@ def _mfb(args) -> int:
         print("(true: the exact simulator's positioning error, zero at the first node; within U95: nodes where it "
               "lies within the U95 of the identification that made the compensation; volumetric: the tip "
               "deviation over the node box, a rigid motion removed)")
+    if args.budget_runs:
+        from scenarios.mfb import budget
+
+        with progress_line(f"{args.name}: budget, pipeline runs") as bar:
+            d["budget"] = budget(args.name, mc_runs=args.budget_runs, seed=args.seed, progress=bar,
+                                 bar_calibration=kw.get("bar_calibration"), bar_true_m=kw.get("bar_true_m"))
+        print(describe_budget(d["budget"]))
     if args.report:
         from scenarios.mfb_report import mfb_report
 
@@ -71,6 +83,23 @@ def _mfb(args) -> int:
         from core.atomic import write_json_atomic
 
         write_json_atomic(args.json, d, special=True)
+    return 0
+
+
+def _mfb_reversal(args) -> int:
+    from scenarios.mfb import bar_calibration_doc, reversal_on_cmm
+
+    rev = reversal_on_cmm(seed=args.seed, **({} if args.noise_um is None else {"noise_um": args.noise_um}))
+    doc = bar_calibration_doc(rev)
+    print(f"vmt scenario mfb-reversal: the bar as is and turned about x on a simulated CMM, {rev['repeats']} "
+          f"repeats, {rev['touches']} touches (eqs 5-7); estimate - truth, um:")
+    for k, v in rev["compared_um"].items():
+        print(f"{k}: max {v['max_abs_um']:.3f}, U95 max {v['U95_max_um']:.3f}, within U95 {v['within_U95']}")
+    if args.json:
+        from core.atomic import write_json_atomic
+
+        write_json_atomic(args.json, doc, special=True)
+        print(f"bar calibration ({doc['format']}) -> {args.json} (for --bar-calibration)")
     return 0
 
 
@@ -137,6 +166,7 @@ def _pin_circle(args) -> int:
 SCENARIOS = {
     "mfb-3axis": _mfb,
     "mfb-5axis": _mfb,
+    "mfb-reversal": _mfb_reversal,
     "cross-pocket-uncertainty": _cross_pocket_uncertainty,
     "pin-circle": _pin_circle,
 }
@@ -164,6 +194,13 @@ def register(sub) -> None:
                    help="write the paper's figures (PNG) here: cross-pocket-uncertainty and the mfb scenarios "
                         "as a report folder (index.html, figures, the error table, recording.rrd), pin-circle "
                         "its figure")
+    p.add_argument("--bar-calibration", default=None, metavar="FILE", dest="bar_calibration",
+                   help="mfb scenarios: identify with this bar calibration (vmt-bar-calibration/1 JSON, as "
+                        "'vmt scenario mfb-reversal --json FILE' writes it) instead of the declared one; a "
+                        "simulated calibration's true bar is the one simulated")
+    p.add_argument("--budget-runs", type=int, default=0, metavar="N", dest="budget_runs",
+                   help="mfb scenarios: add the uncertainty budget (each source's share per error, and N "
+                        "Monte Carlo runs of the whole pipeline with every source; about 20-40 s a run)")
     p.add_argument("--mc", type=int, default=None,
                    help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty)")
     p.set_defaults(func=_dispatch)
@@ -172,8 +209,11 @@ def register(sub) -> None:
 def _dispatch(args) -> int:
     from core.exceptions import ConfigError
 
-    if not args.name.startswith("mfb-"):
-        for opt, v in (("--machine", args.machine), ("--comp", args.comp), ("--apply-comp", args.apply_comp)):
+    if args.name not in ("mfb-3axis", "mfb-5axis"):
+        for opt, v in (("--machine", args.machine), ("--comp", args.comp), ("--apply-comp", args.apply_comp),
+                       ("--bar-calibration", args.bar_calibration), ("--budget-runs", args.budget_runs or None)):
             if v is not None:
                 raise ConfigError(f"{opt}: only the mfb scenarios take it (not {args.name})")
+    if args.budget_runs and args.budget_runs < 2:
+        raise ConfigError(f"--budget-runs must be >= 2 (a Monte Carlo spread), got {args.budget_runs}")
     return SCENARIOS[args.name](args)

@@ -28,6 +28,13 @@ def register(sub) -> None:
     p.add_argument("--tol-um", type=float, default=None,
                    help="JCGM 101 numerical tolerance on y, u and the interval ends, um "
                         "(default: the task's [mc], else 2 significant digits of u)")
+    p.add_argument("--machine-state", default=None, metavar="RESULT.json",
+                   help="an identification result (vmt identify --json, vmt scenario mfb-3axis --json): its "
+                        "estimate replaces the machine file's errors it covers, each run draws the state from "
+                        "its covariance; the task's [declared] limits add what it does not cover")
+    p.add_argument("--sobol-runs", type=int, default=0, metavar="N",
+                   help="also first-order Sobol indices of every source, N runs per matrix (N (k + 2) runs for "
+                        "k sources; 0: none)")
     p.add_argument("--no-budget", action="store_true", help="skip the one-at-a-time budget runs")
     p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT",
                    help="run the Monte Carlo batches on this Dask cluster (the same result for a seed)")
@@ -54,11 +61,19 @@ def run(args) -> int:
         if not (args.tol_um > 0 and args.tol_um < float("inf")):
             raise ConfigError(f"--tol-um must be a positive number, got {args.tol_um:g}")
         task = dataclasses.replace(task, mc=dataclasses.replace(task.mc, tolerance=args.tol_um * 1e-6))
+    if args.sobol_runs < 0 or args.sobol_runs == 1:
+        raise ConfigError(f"--sobol-runs must be 0 or >= 2, got {args.sobol_runs}")
     spec = resolve(args.machine)
     plan = read_probe_log(args.plan)
-    st = prepare(plan, task, spec, noise_um=args.noise_um)
+    state = None
+    if args.machine_state is not None:
+        from core.state import read_estimate
+
+        state = read_estimate(args.machine_state)
+    st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
     with progress_line("vcmm: Monte Carlo runs") as bar:
-        rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask)
+        rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask,
+                    sobol_runs=args.sobol_runs)
         bar.clear()
     rep.pop("values_si")
     rep["plan"] = str(args.plan)
@@ -71,6 +86,10 @@ def run(args) -> int:
               f"{100 * m['coverage']:g} % interval [{_fmt(m['interval'][0], m['unit'])}, {_fmt(m['interval'][1], m['unit'])}]{tail}")
         for b in sorted(m["budget"], key=lambda b: -b["u"]):
             print(f"      {b['source']:24s} u {b['u']:.4f} {m['u_unit']}  ({100 * b['share']:.1f} %)")
+        if m["sobol_first_order"]:
+            se = m["sobol_first_order_se"]
+            print("      first-order Sobol (+- standard error): " + ", ".join(
+                f"{k} {v:.3f} +- {se[k]:.3f}" for k, v in m["sobol_first_order"].items() if v is not None))
     if args.report:
         from scenarios.vcmm import write_report
 

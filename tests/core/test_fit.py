@@ -504,3 +504,68 @@ def test_refdata_bad_kind():
     from core.exceptions import ConfigError
     with pytest.raises(ConfigError, match="kind must be one of"):
         refdata.make_refset("cone", np.random.default_rng(0))
+
+
+# --------------------------------------------------------------------------- light paths (issue 19 item 3)
+
+
+@pytest.mark.parametrize("validate", [True, False])
+def test_light_fits_equal_full_fits_bit_for_bit(validate):
+    # plane_point_normal / cylinder_point_axis run the very operations of
+    # fit_plane / fit_cylinder minus residuals and covariance: equal, not close
+    rng = np.random.default_rng(41)
+    for s in refdata.make_refsets("plane", 30, rng, n=12):
+        f = fit.fit_plane(s.points, normal_hint=s.direction)
+        q, n = fit.plane_point_normal(s.points, normal_hint=s.direction, validate=validate)
+        np.testing.assert_array_equal(q, f.point)
+        np.testing.assert_array_equal(n, f.normal)
+    for s in refdata.make_refsets("cylinder", 30, rng, n=12):
+        hint = s.direction + rng.normal(0, 0.02, 3)
+        f = fit.fit_cylinder(s.points, axis_hint=hint)
+        q, a = fit.cylinder_point_axis(s.points, axis_hint=hint, validate=validate)
+        np.testing.assert_array_equal(q, f.point)
+        np.testing.assert_array_equal(a, f.axis)
+
+
+def test_batched_light_fits_equal_single_light_fits():
+    rng = np.random.default_rng(43)
+    sets = refdata.make_refsets("plane", 40, rng, n=8)
+    P = np.stack([s.points for s in sets])
+    q, n = fit.planes_point_normal(P, normal_hint=[0.0, 0.0, 1.0])
+    for i in range(len(P)):
+        qi, ni = fit.plane_point_normal(P[i], normal_hint=[0.0, 0.0, 1.0], validate=False)
+        # measured equal (the batched SVD is LAPACK's per set); 1e-15 relative allows a reordered sum
+        assert np.abs(q[i] - qi).max() <= 1e-15 * np.abs(qi).max() and np.abs(n[i] - ni).max() <= 1e-15
+    # cylinders: the perturbed copies of one set around one hint, as the MFB gain fits them
+    s = refdata.make_refset("cylinder", rng, n=12)
+    Q = np.broadcast_to(s.points, (24, 12, 3)).copy()
+    Q[np.arange(24), np.arange(24) % 12] += rng.normal(0, 1e-6, (24, 3))
+    hint = s.direction + 0.01
+    q, a = fit.cylinders_point_axis(Q, axis_hint=hint)
+    for i in range(len(Q)):
+        qi, ai = fit.cylinder_point_axis(Q[i], axis_hint=hint, validate=False)
+        # measured 3.3e-16 relative (batched vs single SVD steps); 1e-14: rounding, far
+        # below the iteration's own stopping step (1e-12 of the feature size)
+        assert np.abs(q[i] - qi).max() <= 1e-14 * np.abs(qi).max()
+        assert np.abs(a[i] - ai).max() <= 1e-14
+        assert (a[i] @ hint) > 0
+
+
+@pytest.mark.parametrize("func, points, match", [
+    (fit.plane_point_normal, np.zeros((5, 2)), r"points must be \(n, 3\), got \(5, 2\)"),
+    (fit.plane_point_normal, np.ones((5, 3)), "coincident"),
+    (fit.plane_point_normal, _line, "not enough significant data points: points are collinear"),
+    (partial(fit.cylinder_point_axis, axis_hint=[0, 0, 1]), _line, "collinear"),
+    (partial(fit.cylinder_point_axis, axis_hint=[0, 0, 1]), _one_side, "not enough significant data points.*one side"),
+    (partial(fit.cylinder_point_axis, axis_hint=[0, 0, 0]), _arc(12, 300, dim=3) + [0, 0, 1e-3], "axis_hint"),
+])
+def test_light_fits_check_like_the_full_fits(func, points, match):
+    with pytest.raises(FitError, match=match):
+        func(points)
+
+
+def test_distinct_count_matches_numpy_unique():
+    rng = np.random.default_rng(47)
+    P = rng.integers(0, 3, (40, 3)).astype(float)
+    assert fit._n_distinct(P) == np.unique(P, axis=0).shape[0]
+    assert fit._n_distinct(np.ones((4, 3))) == 1

@@ -141,3 +141,33 @@ def test_noise_gain_moves_points_rigidly_with_the_touches():
                           (np.cross(w, c_A), np.cross(w, poi.O_R))):
         e = np.einsum("ij,ij->i", d_A, shift)
         assert np.allclose((G @ e).reshape(-1, 3), expect, atol=1e-7 * np.abs(expect).max())
+
+
+def test_noise_gain_equals_the_single_refit_path():
+    # the batched light fits against the previous path (every perturbed feature
+    # refitted alone by the full fit_cylinder / fit_plane, scenarios.bench.mfb),
+    # on the same touches, off the nominal (noise 0.5 um) so that the fits have residuals
+    from scenarios.bench.mfb import gain_by_single_refits
+    from scenarios.mfb import _plan_for
+    from sim import artefacts as A
+
+    art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
+    pl = _plan_for(art, (1, 2, 3, 4, 5))
+    c_A = pl.w_A + 3e-3 * pl.wn_A + np.random.default_rng(5).normal(0, 5e-7, pl.w_A.shape)
+    args = (c_A, pl.feature, pl.wn_A, -pl.wn_A)
+    G = mfb.poi_noise_gain(*args)
+    G_ref = gain_by_single_refits(*args)
+    assert G.shape == G_ref.shape == (15, len(c_A))
+    # measured 5e-11 (|G| up to 1.3): both are central differences over h = 1e-7 m, so
+    # a rounding of the fitted positions (1e-16 of 0.5 m) shows as ~5e-10; 2e-9 allows that
+    assert np.abs(G - G_ref).max() <= 2e-9
+    assert np.array_equal(G == 0, G_ref == 0)  # the same structure: a touch moves only its O_i
+
+
+def test_noise_gain_bad_directions():
+    from scenarios.mfb import _plan_for
+    from sim import artefacts as A
+
+    pl = _plan_for(A.multi_feature_bar(deviations_m=np.zeros((12, 3))), (1, 2, 3))
+    with pytest.raises(ConfigError, match="d_R must be finite and shaped as p_R"):
+        mfb.poi_noise_gain(pl.w_A, pl.feature, pl.wn_A, -pl.wn_A[:-1])

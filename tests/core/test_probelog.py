@@ -159,6 +159,44 @@ def test_write_is_atomic_on_failure(tmp_path, rng, monkeypatch):
     assert [f.name for f in tmp_path.iterdir()] == ["log.csv"]
 
 
+def test_streamed_writer_writes_the_previous_text(tmp_path):
+    # issue 19: the writer formats blocks of rows and streams them; its text must be the
+    # previous per-row csv.writer's, byte for byte (scenarios.bench.probelog.previous_format),
+    # awkward cells included: quoted text, NaN (empty), -0.0, 5e-324, 1e16
+    import core.probelog as P
+    from scenarios.bench.probelog import previous_format
+
+    n = 11
+    vals = np.array([0.1, -0.0, np.nan, 5e-324, 1e16, 1 / 3, -98765.43210987654, 1e-5, 2.0, np.nan, 7.25])
+    cols = {k: np.zeros(n) for k in REQUIRED if k not in ("setup", "target")}
+    cols.update(setup=["s,1"] * n, target=[['p"q', "a\nb", "", "plain"][i % 4] for i in range(n)],
+                X_mm=vals, Y_mm=vals[::-1].copy(), nx=np.ones(n), t_s=np.arange(n) * 0.5)
+    log = make_log(cols, {"artefact": "x, y"}, validate=False)
+    pieces = list(P.iter_probe_log_text(log, rows_per_block=3))  # several blocks, the last one short
+    assert len(pieces) == 1 + 4
+    assert "".join(pieces) == format_probe_log(log) == previous_format(log)
+    path = write_probe_log(tmp_path / "log.csv", log)
+    assert path.read_text(encoding="utf-8") == previous_format(log)
+
+
+def test_streamed_write_failing_midway_leaves_the_old_file(tmp_path, rng, monkeypatch):
+    import core.probelog as P
+
+    log = full_log(rng)
+    p = write_probe_log(tmp_path / "log.csv", log)
+    before = p.read_text()
+
+    def pieces(log, rows_per_block=3):
+        yield "# format: probe-log/1\n"
+        raise ProbeLogError("log.csv: cannot format row 4")
+
+    monkeypatch.setattr(P, "iter_probe_log_text", pieces)
+    with pytest.raises(ProbeLogError, match="cannot format row 4"):
+        write_probe_log(p, log)
+    assert p.read_text() == before
+    assert [f.name for f in tmp_path.iterdir()] == ["log.csv"]
+
+
 def test_float_repr_round_trip_is_exact():
     vals = np.array([0.1, 1 / 3, -1e-300, 98765.43210987654, 5e-324])
     cols = {k: np.zeros(5) for k in REQUIRED if k not in ("setup", "target")}

@@ -79,6 +79,14 @@ def test_task_reads_every_field():
     (("[mc]", "[temperature]\npart_C = 500\n[mc]"), "temperature.part_C: a workshop temperature"),
     (("[mc]", "[temperature]\nu_part_K = -1\n[mc]"), "temperature.u_part_K: must be >= 0"),
     (("[mc]", "[temperature]\npart_K = 1\n[mc]"), "temperature.part_K: unknown key"),
+    (('quantity = "flatness"', 'quantity = "profile"'), "profile needs statistic = one of max, min, rms, zone"),
+    (('quantity = "flatness"', 'quantity = "profile"\nstatistic = "p2v"'), "measurands.4..statistic"),
+    (('quantity = "flatness"', 'quantity = "flatness"\nstatistic = "max"'), "only for quantity = \"profile\""),
+    (('quantity = "flatness"', 'quantity = "straightness"'), "straightness is the form of a line, 'f1' is a plane"),
+    (('kind = "plane"\nfeature = "f2"', 'kind = "line"\nfeature = "f2"'),
+     "distance: a line with a line, circle or sphere"),
+    (('[[measurands]]\nname = "flat"', '[[measurands]]\nname = "a1"\nquantity = "angle"\nof = "f1"\n'
+      '[[measurands]]\nname = "flat"'), "angle takes two features"),
 ])
 def test_bad_task_names_the_key(edit, match):
     with pytest.raises(V.TaskFileError, match=match):
@@ -144,6 +152,71 @@ def test_measurands_known_answers():
     assert val("angle", ("l", "r")) == pytest.approx(math.pi, abs=1e-12)      # outward normals: opposite
     assert val("diameter", ("s",)) == pytest.approx(0.024, abs=1e-12)         # 15 mm tip sphere - 3 mm
     assert val("flatness", ("l",)) == pytest.approx(0.0, abs=1e-15)
+
+
+def test_line_known_answers():
+    """Tip centres of a face with outward normal (-sin a, cos a), a = 30 deg, probed by a 2 mm ball at
+    5 points 10 mm apart, the middle one 3 um proud: the LS line moves 3/5 um out (the offset's mean),
+    the residuals are -0.6 (x4) and +2.4 um, so the straightness is 3 um; the direction z x n is
+    (-cos a, -sin a): 210 deg, reported -150; the surface is 2 mm back along the normal."""
+    a, r, h = math.radians(30.0), 2e-3, 3e-6
+    n = np.array([-math.sin(a), math.cos(a), 0.0])
+    t = np.array([math.cos(a), math.sin(a), 0.0])
+    s = np.arange(5)[:, None] * 0.01 * t + [0.1, 0.2, -0.01]
+    p = s + r * n
+    p[2] += h * n
+    f = V.fit_feature("line", p, np.tile(n, (5, 1)), r)
+    assert f.form == pytest.approx(h, abs=1e-15)
+    assert f.direction == pytest.approx(-t, abs=1e-12)
+    assert f.point == pytest.approx(s.mean(axis=0) + h / 5 * n, abs=1e-12)
+    ang = V.measurand_value(V.Measurand("a", "angle", ("l",)), {"l": f})
+    assert ang == pytest.approx(math.radians(-150.0), abs=1e-12)
+    g = V.fit_feature("line", s + 0.05 * n + r * n, np.tile(n, (5, 1)), r)   # a parallel face 50 mm further out
+    assert V.measurand_value(V.Measurand("d", "distance", ("l", "g")), {"l": f, "g": g}) == pytest.approx(
+        0.05 - h / 5, abs=1e-12)
+    assert V.measurand_value(V.Measurand("b", "angle", ("l", "g")), {"l": f, "g": g}) == pytest.approx(0, abs=1e-6)
+
+
+def test_profile_statistics_hand_worked():
+    """Deviations +1, -3, +2 um (reported minus nominal along the outward normal; the normals differ,
+    the offsets along the surface do not count): max 2, min -3, rms sqrt(14/3), zone 6 um."""
+    n = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
+    Xn = np.array([[0.1, 0, 0], [0, 0.2, 0], [0, 0, 0.3]])
+    p = Xn + n * np.array([[1e-6], [-3e-6], [2e-6]]) + [[0, 5e-6, 0], [7e-6, 0, 0], [0, 0, 0]]
+    d = V.profile_deviations(p, Xn, n)
+    assert d == pytest.approx([1e-6, -3e-6, 2e-6], abs=1e-16)   # rounding of 0.3 m + 2 um: ~6e-17
+    got = [V.profile_value(k, d) for k in V.PROFILE_STATISTICS]
+    assert got == pytest.approx([2e-6, -3e-6, math.sqrt(14 / 3) * 1e-6, 6e-6], abs=1e-16)
+
+
+def test_saltelli_first_order_on_the_ishigami_function():
+    """Ishigami (a = 7, b = 0.1, X uniform on [-pi, pi]^3) has closed-form first-order indices
+    S1 = V1 / V = 0.3139, S2 = 0.4424, S3 = 0 (V1 = (1 + b pi^4 / 5)^2 / 2, V2 = a^2 / 8,
+    V13 = b^2 pi^8 (1/18 - 1/50)). Shifted by 1000 so that an estimator without centring fails
+    (its standard error grows ~270-fold). The stated standard error is right: over 200 seeds at
+    n = 4000, (S - S_true) / se had standard deviations 0.97, 1.00, 1.01 and 3-4 % beyond 2; here
+    each index within 4 se, and se < 0.02."""
+    a, b, n = 7.0, 0.1, 4000
+    V1, V2, V13 = 0.5 * (1 + b * math.pi ** 4 / 5) ** 2, a * a / 8, b * b * math.pi ** 8 * (1 / 18 - 1 / 50)
+    truth = np.array([V1, V2, 0.0]) / (V1 + V2 + V13)
+
+    def f(X):
+        return (1000 + np.sin(X[:, 0]) + a * np.sin(X[:, 1]) ** 2 + b * X[:, 2] ** 4 * np.sin(X[:, 0]))[:, None]
+
+    rng = np.random.default_rng(11)
+    A, B = rng.uniform(-np.pi, np.pi, (n, 3)), rng.uniform(-np.pi, np.pi, (n, 3))
+    fAB = {}
+    for i in range(3):
+        M = A.copy()
+        M[:, i] = B[:, i]
+        fAB[i] = f(M)
+    s, se = V.saltelli_first_order(f(A), f(B), fAB)
+    for i in range(3):
+        assert se[i][0] < 0.02 and abs(s[i][0] - truth[i]) < 4 * se[i][0], (i, s[i], se[i], truth[i])
+    flat = V.saltelli_first_order(np.ones((5, 1)), np.ones((5, 1)), {"x": np.ones((5, 1))})
+    assert np.isnan(flat[0]["x"][0]) and np.isnan(flat[1]["x"][0])   # no variance: NaN, not 0 / 0 noise
+    with pytest.raises(ConfigError, match="same shape"):
+        V.saltelli_first_order(np.ones((5, 1)), np.ones((4, 1)), {})
 
 
 def test_flatness_is_the_peak_to_valley_of_a_known_bump():

@@ -2,6 +2,8 @@
 
 import json
 
+import numpy as np
+
 import pytest
 
 
@@ -226,3 +228,160 @@ def test_reversal_on_a_simulated_cmm_separates_the_cmm_straightness():
     assert c["Exx"]["max_abs_um"] < c["Exx"]["U95_max_um"], c["Exx"]
     cal = r["calibration"]
     assert cal.E_m.shape == (12, 3) and cal.n_repeats == 3
+
+
+def test_thermal_scales_add_the_scale_expansion_to_positioning_only():
+    """The machine at T: EXX, EYY, EZZ gain 11.5e-6 (T - 20) pos (hand value at 22 degC
+    and 0.3 m: 6.9 um); the other errors are the same objects; a missing one becomes the ramp."""
+    from scenarios.mfb import MACHINE_CTE_PER_C, default_machine, thermal_scales
+
+    _, errs = default_machine("vmc-3axis")
+    hot = thermal_scales(errs, 22.0)
+    x = np.array([0.0, 0.3])
+    assert MACHINE_CTE_PER_C == 11.5e-6
+    for s in ("EXX", "EYY", "EZZ"):
+        d = np.asarray(hot[s](x), float) - np.asarray(errs[s](x), float)
+        assert np.allclose(d, [0.0, 6.9e-6], rtol=0, atol=1e-15), (s, d)
+    assert all(hot[s] is errs[s] for s in errs if s not in ("EXX", "EYY", "EZZ"))
+    assert np.allclose(thermal_scales({}, 19.0)["EYY"](x), [0.0, -3.45e-6], rtol=0, atol=1e-15)
+
+
+def test_bar_gauge_ignores_a_rigid_move_of_the_bar():
+    """Hand case: deviations of a straight bar moved by 3 um along x, y, z and tilted 2
+    urad about z and 5 urad about y (Eyx = 2e-6 x, Ezx = -5e-6 x at z = 0) gauge to zero."""
+    from scenarios.mfb import bar_gauge
+
+    x = np.arange(12) * 0.05
+    E = np.column_stack([np.full(12, 3e-6), 3e-6 + 2e-6 * x, 3e-6 - 5e-6 * x])
+    assert np.abs(bar_gauge(E)).max() < 1e-18
+    bow = np.column_stack([np.zeros(12), 1e-6 * np.sin(np.pi * x / x[-1]), np.zeros(12)])
+    assert np.allclose(bar_gauge(E + bow), bow, rtol=0, atol=1e-18)
+
+
+def _cal_doc(E_um, u_um, **extra):
+    return {"format": "vmt-bar-calibration/1", "E_um": np.asarray(E_um).tolist(),
+            "u_um": np.asarray(u_um).tolist(), **extra}
+
+
+@pytest.mark.parametrize("content, message", [
+    (None, "cannot read"),
+    ("{not json", "not JSON"),
+    (json.dumps({"format": "other"}), "format"),
+    (json.dumps(_cal_doc(np.zeros((11, 3)), np.zeros((12, 3)))), "E_um must be 12 rows"),
+    (json.dumps(_cal_doc(np.zeros((12, 3)), -np.ones((12, 3)))), "u_um must be >= 0"),
+    (json.dumps({"format": "vmt-bar-calibration/1", "E_um": [[0, 0, 0]] * 12}), "u_um missing"),
+])
+def test_bar_calibration_file_refused_with_its_problem(tmp_path, content, message, capsys):
+    from core.exceptions import ConfigError
+    from scenarios.cli import main
+    from scenarios.mfb import read_bar_calibration
+
+    f = tmp_path / "cal.json"
+    if content is not None:
+        f.write_text(content)
+    with pytest.raises(ConfigError, match=message):
+        read_bar_calibration(f)
+    # the CLI names it in one line, exit 2, before any touch is simulated
+    assert main(["scenario", "mfb-3axis", "--bar-calibration", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_reversal_calibration_file_round_trip_and_cli(tmp_path, capsys):
+    """vmt scenario mfb-reversal --json writes what --bar-calibration reads back: the
+    calibration's E and u to the last digit, and the simulated bar's true deviations."""
+    from scenarios.cli import main
+    from scenarios.mfb import read_bar_calibration, reversal_on_cmm
+    from sim.artefacts import mfb_default_deviations
+
+    f = tmp_path / "cal.json"
+    assert main(["scenario", "mfb-reversal", "--json", str(f)]) == 0
+    out = capsys.readouterr().out
+    assert "Eyx: max" in out and "vmt-bar-calibration/1" in out
+    cal, true_m = read_bar_calibration(f)
+    ref = reversal_on_cmm()["calibration"]  # the CLI's default seed
+    assert np.allclose(cal.E_m, ref.E_m, rtol=1e-12, atol=0) and np.allclose(cal.u_m, ref.u_m, rtol=1e-12, atol=0)
+    assert np.allclose(cal.U95_m, ref.U95_m, rtol=1e-12, atol=0) and cal.n_repeats == 5
+    assert np.allclose(true_m, mfb_default_deviations(), rtol=1e-12, atol=0)
+    assert main(["scenario", "pin-circle", "--bar-calibration", str(f)]) == 2
+
+
+def test_a_given_calibration_is_what_the_identification_uses(mfb3_noise_free):
+    """Item 7's path: the bar's calibration replaces the declared one. A calibration
+    that is the true bar moved rigidly (x shifted 2 um, tilted 3 / 4 urad about z / y: a
+    set-up's pose absorbs it exactly) identifies what the declared, exact calibration
+    did, to 0.03 um / urad (measured 0.018): the touches enter at their nominal places
+    on the features, so a pose turned by 4 urad moves them against the calibrated
+    points by 4 urad x the feature's ~10 mm, 0.04 um at most, mostly absorbed;
+    the simulated bar is not the declared one (Eyx bowed 1 um more), so a calibration
+    ignored would be off by that bow;
+    the true and calibrated bar in the result agree in one gauge to 1e-9 um, and its
+    U95 is 2 u of the calibration given."""
+    import core.volumetric as V
+    from core.mfb import BarCalibration
+    from scenarios.mfb import run
+    from sim import artefacts as A
+
+    base = mfb3_noise_free[0]
+    x = np.arange(12) * A.MFB_PITCH_M
+    # a bar other than the declared one (Eyx bowed 1 um more): the declared calibration
+    # would carry that bow into the X bars' straightness, the given one must not
+    E = A.mfb_default_deviations() + np.column_stack([0 * x, 1e-6 * np.sin(np.pi * x / x[-1]), 0 * x])
+    poi = np.asarray(A.multi_feature_bar(deviations_m=E).info["E_MFB_m"], float)
+    moved = poi + np.column_stack([np.full(12, 2e-6), 3e-6 * x, -4e-6 * x])
+    u = np.full((12, 3), 0.1e-6)
+    r = run("mfb-3axis", noise_um=0.0, mc_runs=0, bar_calibration=BarCalibration(moved, u, 2 * u, 5),
+            bar_true_m=E)
+    d = base.result.design  # the 21 errors (theta also holds each set-up's pose, which takes the move)
+    idx = np.concatenate([np.arange(len(base.result.theta))[d.slices[s]] for s in (*V.MOTION, *V.SQUARENESS)])
+    assert np.abs(r.result.theta[idx] - base.result.theta[idx]).max() * 1e6 < 0.03
+    b = r.doc["bar"]
+    assert b["calibrated_minus_true_max_um"] < 1e-9 and np.allclose(b["U95_um"], 0.2, rtol=0, atol=1e-12)
+    assert base.doc["bar"]["source"] == "declared" and "calibration given" in b["source"]
+
+
+def test_budget_refuses_bad_settings_before_any_run(capsys):
+    from core.exceptions import ConfigError
+    from scenarios.cli import main
+    from scenarios.mfb import budget
+
+    with pytest.raises(ConfigError, match="mc_runs"):
+        budget("mfb-3axis", mc_runs=1)
+    with pytest.raises(ConfigError, match="temperature_range_C"):
+        budget("mfb-3axis", temperature_range_C=(22.0, 19.0))
+    assert main(["scenario", "pin-circle", "--budget-runs", "3"]) == 2
+    assert "--budget-runs: only the mfb scenarios" in capsys.readouterr().err
+    assert main(["scenario", "mfb-3axis", "--budget-runs", "-1"]) == 2  # before any touch
+    assert "--budget-runs must be >= 2" in capsys.readouterr().err
+
+
+def test_describe_budget_prints_every_source_and_the_ratio():
+    from scenarios.mfb import BUDGET_SOURCES, describe_budget
+
+    per = {"EXX": {"unit": "um", "U95": {s: 0.1 * (i + 1) for i, s in enumerate(BUDGET_SOURCES)},
+                   "temperature_one_T": 0.65, "quadrature": 1.4, "mc": 1.5, "mc_over_quadrature": 1.5 / 1.4}}
+    b = {"sources": list(BUDGET_SOURCES), "per_error": per, "mc_runs": 12, "ratio_range": [0.5, 1.0, 1.5],
+         "coverage": {"within_quadrature_U95": "100/104", "within_run_linear_U95": "80/104"},
+         "runs_lost": [{"seed": 3, "error": "x"}]}
+    t = describe_budget(b)
+    assert "T mach" in t and "    0.70    0.65    1.40    1.50    1.07" in t
+    assert "100/104" in t and "80/104" in t and "1 runs lost" in t
+
+
+def test_a_stylus_calibration_error_reaches_the_differential_errors(mfb3_noise_free):
+    """u_stylus_um: the controller reads each stylus with the offsets it was given while the
+    tip sits dJ away (before, the simulated machine moved and read with the same wrong
+    offsets: no error at all, 0.0006 urad on ECZ). Noise-free, 0.5 um per component
+    (seed 101): ECZ rests on TY1 vs TY2 in one pose (50 mm apart), so it moves by about
+    0.5 um x sqrt(2) / 50 mm = 14 urad (measured 11.1; > 5 asserted); EXX, seen by single-
+    stylus set-ups, only through the pose: < 0.01 um (measured 0.001)."""
+    from scenarios.mfb import run
+
+    base = mfb3_noise_free[0]
+    r = run("mfb-3axis", noise_um=0.0, mc_runs=0, u_stylus_um=0.5, seed=101)
+    d = base.result.design
+
+    def moved(s):
+        return np.abs(r.result.theta[d.slices[s]] - base.result.theta[d.slices[s]]).max() * 1e6
+
+    assert moved("ECZ") > 5.0 and moved("EXX") < 0.01, (moved("ECZ"), moved("EXX"))

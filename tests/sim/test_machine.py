@@ -82,6 +82,31 @@ def test_sim_agrees_with_core(name, rng):
     vals = m.error_values(lin, rot, t, d)
     assert np.abs(m.tip_W(lin, rot, t, d) - K.tip_W(m.geometry(), lin, rot, vals)).max() < 1e-12
     assert np.abs(m.T_R_W(lin, rot, t, d) - K.T_R_W(m.geometry(), lin, rot, vals)).max() < 1e-12
+    # Pinocchio's own forwardKinematics, one pose at a time, is the oracle of both fast paths
+    # (sim's batched evaluation of the Pinocchio model, core's direct (R, t) product)
+    pin_tip = m.tip_W_pinocchio(lin, rot, t, d)
+    assert np.abs(m.tip_W(lin, rot, t, d) - pin_tip).max() < 1e-12
+    assert np.abs(K.tip_W(m.geometry(), lin, rot, vals) - pin_tip).max() < 1e-12
+    for want in ("W", "P"):
+        oracle = m._poses_pinocchio(lin, rot, t, d, want)[0 if want == "W" else 1]
+        fast = m.T_R_W(lin, rot, t, d) if want == "W" else m.T_R_P(lin, rot, t, d)
+        assert np.abs(fast - oracle).max() < 1e-12
+    assert np.abs(K.T_R_P(m.geometry(), lin, rot, vals) - m.T_R_P(lin, rot, t, d)).max() < 1e-12
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_batched_kinematics_is_pinocchio_with_large_errors(name, rng):
+    """Errors of 1 mm and 0.05 rad (far beyond any machine's, so no product can hide behind
+    a small-angle shortcut): the batched evaluation still equals Pinocchio's loop."""
+    big = {s.name: Constant(rng.uniform(-1, 1) * (0.05 if s.angular else 1e-3))
+           for s in iso.SYMBOLS if s.axis in Machine(MACHINES[name]()).chain.axes
+           and not (s.location and s.axis in iso.LINEAR_AXES and s.name not in iso.SQUARENESS)}
+    m = Machine(MACHINES[name]()).with_errors(big)
+    lin, rot = _poses(m.config, m.rotary_axes, 100, rng)
+    pin_tip = m.tip_W_pinocchio(lin, rot)
+    assert np.abs(pin_tip - m.tip_W_nominal(lin, rot)).max() > 1e-4  # the errors matter
+    assert np.abs(m.tip_W(lin, rot) - pin_tip).max() < 1e-12
+    assert np.abs(K.tip_W(m.geometry(), lin, rot, m.error_values(lin, rot)) - pin_tip).max() < 1e-12
 
 
 def _H(R=np.eye(3), t=(0, 0, 0)):

@@ -44,3 +44,31 @@ def test_bad_input_is_refused_by_name():
         M.error_curves_figure(e)
     with pytest.raises(ConfigError, match="E_um"):
         M.bar_calibration_figure(np.arange(12.0), np.zeros((11, 3)))
+
+
+def test_recording_holds_the_squareness_and_bar_calibration_plots(tmp_path):
+    """The figures themselves in the recording (read back with rerun's own reader): the three
+    squarenesses as points with ±U95 and the injected ones; the bar's calibrated Exx, Eyx, Ezx
+    ±U95 and its true deviations, on x_MFB in µm."""
+    from viz import record as vr
+
+    rc = pytest.importorskip("rerun.chunk")
+    from tests.viz.test_record import read, scalars
+
+    x = np.arange(12) * 50.0
+    E = np.column_stack([-x / 10.0, np.sin(x / 100.0), np.cos(x / 100.0)])
+    p = tmp_path / "r.rrd"
+    with vr.recording(p) as rec:
+        M.log_squareness(rec, _errors())
+        M.log_bar_calibration(rec, x, E, np.full((12, 3), 0.4), truth_um=E + 0.05)
+    assert rc is not None
+    d = read(p)
+    assert np.allclose(scalars(d, "/mfb/squareness/identified"), [2.0] * 3)
+    assert np.allclose(scalars(d, "/mfb/squareness/injected"), [2.5] * 3)
+    assert np.allclose(scalars(d, "/mfb/squareness/u95_upper"), [3.0] * 3)
+    assert np.allclose(scalars(d, "/mfb/bar_calibration/Eyx/calibrated"), E[:, 1])
+    assert np.allclose(scalars(d, "/mfb/bar_calibration/Exx/u95_lower"), E[:, 0] - 0.4)
+    assert np.allclose(scalars(d, "/mfb/bar_calibration/Ezx/true"), E[:, 2] + 0.05)
+    with pytest.raises(ConfigError, match="E_um"):
+        with vr.recording(tmp_path / "bad.rrd") as rec:
+            M.log_bar_calibration(rec, x, E[:11])

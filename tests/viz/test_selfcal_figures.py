@@ -60,3 +60,23 @@ def test_pin_figure_draws_magnified_errors_and_rejects_bad_input():
         S.pin_positions_figure(p, e[:5], e)
     with pytest.raises(ConfigError, match="magnification"):
         S.pin_positions_figure(p, e, e, magnification=0)
+
+
+def test_log_figures_puts_the_png_itself_in_the_recording(tmp_path):
+    """The bytes read back with rerun's own reader are the PNG the figure renders to."""
+    rc = pytest.importorskip("rerun.chunk")
+    from viz import record
+    from viz.selfcal_figures import figure_png_bytes, log_figures, pin_positions_figure
+
+    nominal = [[200.0, 0.0], [0.0, 200.0], [-200.0, 0.0]]
+    fig = pin_positions_figure(nominal, [[0, 0], [1, 2], [-1, 0.5]], [[0, 0], [0.2, 0.1], [0.1, 0]])
+    rrd = tmp_path / "r.rrd"
+    with record.recording(rrd) as rec:
+        log_figures(rec, {"fig17": fig})
+    got = {}
+    for ch in rc.RrdReader(rrd).stream():
+        rb = ch.to_record_batch()
+        if "EncodedImage:blob" in rb.schema.names:
+            got[str(ch.entity_path)] = bytes(rb.column(rb.schema.names.index("EncodedImage:blob")).to_pylist()[0][0])
+    assert list(got) == ["/reports/figures/fig17"]
+    assert got["/reports/figures/fig17"] == figure_png_bytes(fig)

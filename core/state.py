@@ -1,0 +1,244 @@
+"""An identified machine state: the estimate and its covariance, self-described (``vmt-estimate/1``).
+
+``vmt identify`` (2D self-calibration, :mod:`core.selfcal`) and the MFB
+scenarios (:mod:`core.volumetric`) write, under the key ``estimate`` of
+their JSON, the whole estimated parameter vector with its covariance in
+a form a reader can turn back into error functions without the code that
+produced it (README, "Identification results: the estimate and its
+covariance")::
+
+    {"format": "vmt-estimate/1",
+     "method": "...",
+     "sign_convention": "ISO 230-1: the tool's displacement relative to the workpiece",
+     "positions": "axis readings: stylus-tip centre in the machine frame R, mm",
+     "interpolation": "linear" | "cubic-spline",
+     "conventions": ["EXX(x=0mm)=0", ...],       # the gauge: what the data cannot fix
+     "parameters": [{"name": "EXX@x=-110mm", "symbol": "EXX", "at_mm": -110.0, "unit": "um"},
+                    {"name": "EC0Y", "symbol": "EC0Y", "unit": "urad"},
+                    {"name": "G[P01]", "symbol": null, "unit": "um"}, ...],
+     "values": [...],                            # one per parameter, in its unit
+     "covariance": [[...], ...]}                 # n x n, entry (i, j) in unit_i * unit_j
+
+A parameter with a ``symbol`` and ``at_mm`` is one node of that ISO 230-1
+motion error's table along its axis (the symbol names the axis); with a
+``symbol`` and no ``at_mm`` it is a constant (a squareness); with no
+``symbol`` it belongs to the identification alone (the workpiece, a
+set-up, a placement) and is named only. Between nodes the tables follow
+``interpolation`` (``linear``: straight segments, ``cubic-spline``: the C2
+not-a-knot spline); beyond the end nodes the end segment (tangent)
+continues.
+
+This module writes the block (:func:`estimate_doc`) and reads it back
+(:func:`read_estimate`) into a :class:`MachineState` that can draw machine
+states from the multivariate normal of the estimate (JCGM 101 6.4.8).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import iso
+from .exceptions import ConfigError
+
+FORMAT = "vmt-estimate/1"
+INTERPOLATIONS = ("linear", "cubic-spline")
+SIGN_CONVENTION = "ISO 230-1: the tool's displacement relative to the workpiece (actual minus commanded)"
+POSITIONS = "axis readings: stylus-tip centre in the machine frame R, mm"
+#: Relative asymmetry of a covariance tolerated (rounding in JSON), and the relative size of a negative
+#: eigenvalue taken as rounding (clipped to 0) rather than refused.
+SYM_TOL = 1e-6
+NEG_EIG_TOL = 1e-9
+
+
+class StateFileError(ConfigError):
+    """An estimate (``vmt-estimate/1``) that cannot be used: the file, the key, what is wrong."""
+
+
+def estimate_doc(names, symbols, at_m, units, theta, cov, *, method: str, interpolation: str,
+                 conventions) -> dict:
+    """The ``vmt-estimate/1`` block (module doc), JSON-ready.
+
+    Parameters
+    ----------
+    names : (n,) str
+    symbols : (n,) str or None
+        The ISO 230-1 symbol of a table node or constant; None for a
+        parameter of the identification alone.
+    at_m : (n,) float or None
+        The node's position along the symbol's axis, m; None for a constant.
+    units : (n,) str
+        Each parameter's unit in the file: ``um`` (SI m), ``urad`` (rad),
+        ``urad/m`` (rad/m): every one is the SI value times 1e6.
+    theta : (n,) float
+        SI (m, rad).
+    cov : (n, n) float
+        SI.
+    """
+    if interpolation not in INTERPOLATIONS:
+        raise ConfigError(f"interpolation: expected one of {INTERPOLATIONS}, got {interpolation!r}")
+    theta = np.asarray(theta, float)
+    cov = np.asarray(cov, float)
+    n = len(theta)
+    if cov.shape != (n, n):
+        raise ConfigError(f"covariance must be ({n}, {n}), got {cov.shape}")
+    params = []
+    for nm, s, a, un in zip(names, symbols, at_m, units):
+        p = {"name": str(nm), "symbol": s, "unit": str(un)}
+        if a is not None:
+            p["at_mm"] = round(float(a) * 1e3, 9)
+        params.append(p)
+    return {"format": FORMAT, "method": method, "sign_convention": SIGN_CONVENTION, "positions": POSITIONS,
+            "interpolation": interpolation, "conventions": [str(c) for c in conventions],
+            "parameters": params, "values": (theta * 1e6).tolist(), "covariance": (cov * 1e12).tolist()}
+
+
+@dataclass(frozen=True)
+class MachineState:
+    """The machine part of an estimate: tables and constants with their joint normal distribution (SI).
+
+    Attributes
+    ----------
+    tables : dict symbol -> ((k,) nodes m, (k,) int indices into ``mean``)
+    constants : dict symbol -> int index into ``mean``
+    mean : (p,) float
+        The estimate of the machine parameters, m / rad.
+    factor : (p, r) float
+        ``cov = factor factor^T`` (its non-negative eigen-decomposition).
+    interpolation : str
+    conventions : tuple of str
+    source : str
+    """
+
+    tables: dict
+    constants: dict
+    mean: np.ndarray
+    factor: np.ndarray
+    interpolation: str
+    conventions: tuple
+    source: str
+
+    @property
+    def symbols(self) -> tuple:
+        return tuple(self.tables) + tuple(self.constants)
+
+    @property
+    def u(self) -> np.ndarray:
+        """(p,) standard uncertainties, SI."""
+        return np.sqrt(np.einsum("ij,ij->i", self.factor, self.factor))
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        """One draw of the machine parameters from N(mean, cov), (p,) SI."""
+        return self.mean + self.factor @ rng.standard_normal(self.factor.shape[1])
+
+    def functions(self, values: np.ndarray | None = None) -> dict:
+        """``{symbol: sim-free description}``: ``(kind, nodes m, values)`` with kind ``linear``,
+        ``cubic-spline`` or ``constant`` (nodes None), for ``values`` (default the mean)."""
+        v = self.mean if values is None else np.asarray(values, float)
+        out = {s: (self.interpolation, x, v[i]) for s, (x, i) in self.tables.items()}
+        out.update({s: ("constant", None, float(v[i])) for s, i in self.constants.items()})
+        return out
+
+
+def read_estimate(path) -> MachineState:
+    """Read the ``estimate`` of an identification result (``vmt identify``'s or an MFB scenario's JSON),
+    or a bare ``vmt-estimate/1`` document; :class:`StateFileError` names the key at fault."""
+    from .keyreader import read_text_file
+
+    text = read_text_file(path, StateFileError, "machine state")
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise StateFileError(f"{path}: not JSON: {e}") from None
+    return loads_estimate(doc, source=str(path))
+
+
+def loads_estimate(doc, source: str = "<estimate>") -> MachineState:
+    """:func:`read_estimate` of a parsed document."""
+    def fail(key, msg):
+        raise StateFileError(f"{source}: {key}: {msg}")
+
+    if not isinstance(doc, dict):
+        fail("(top)", "expected a JSON object")
+    if doc.get("format") != FORMAT:
+        if "estimate" not in doc:
+            fail("estimate", f"missing: no {FORMAT} estimate in this file (write it with vmt identify or "
+                             "vmt scenario mfb-3axis --json)")
+        doc = doc["estimate"]
+        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+            fail("estimate.format", f"expected {FORMAT!r}")
+    interp = doc.get("interpolation")
+    if interp not in INTERPOLATIONS:
+        fail("interpolation", f"expected one of {', '.join(INTERPOLATIONS)}, got {interp!r}")
+    params, vals, cov = doc.get("parameters"), doc.get("values"), doc.get("covariance")
+    if not isinstance(params, list) or not params or not all(isinstance(p, dict) for p in params):
+        fail("parameters", "expected a non-empty list of objects")
+    n = len(params)
+    try:
+        v = np.asarray(vals, float)
+        C = np.asarray(cov, float)
+    except (TypeError, ValueError):
+        fail("values/covariance", "expected numbers")
+    if v.shape != (n,):
+        fail("values", f"expected {n} numbers (one per parameter), got shape {v.shape}")
+    if C.shape != (n, n):
+        fail("covariance", f"expected {n} x {n}, got shape {C.shape}")
+    if not (np.all(np.isfinite(v)) and np.all(np.isfinite(C))):
+        fail("values/covariance", "not finite")
+    scale = max(float(np.abs(np.diag(C)).max()), 1e-300)
+    if np.abs(C - C.T).max() > SYM_TOL * scale:
+        fail("covariance", "not symmetric")
+    tables: dict = {}
+    constants: dict = {}
+    for i, p in enumerate(params):
+        s = p.get("symbol")
+        if s is None:
+            continue
+        key = f"parameters[{i}]"
+        try:
+            sy = iso.symbol(s)
+        except ConfigError:
+            fail(f"{key}.symbol", f"unknown ISO 230-1 / 230-7 error symbol {s!r}")
+        unit = "urad" if sy.angular else "um"
+        if p.get("unit") != unit:
+            fail(f"{key}.unit", f"{sy.name} is in {unit}, got {p.get('unit')!r}")
+        if "at_mm" in p:
+            a = p["at_mm"]
+            if not isinstance(a, int | float) or isinstance(a, bool) or not math.isfinite(a):
+                fail(f"{key}.at_mm", f"expected a number, got {a!r}")
+            if sy.axis not in iso.LINEAR_AXES:
+                fail(f"{key}.at_mm", f"{sy.name}: tables along a rotary axis are not supported")
+            tables.setdefault(sy.name, []).append((float(a) * 1e-3, i))
+        else:
+            if sy.name in constants:
+                fail(f"{key}.symbol", f"{sy.name} given twice as a constant")
+            constants[sy.name] = i
+    if not tables and not constants:
+        fail("parameters", "no machine error (no parameter has a symbol)")
+    both = set(tables) & set(constants)
+    if both:
+        fail("parameters", f"{sorted(both)[0]} is both a table and a constant")
+    keep: list = []
+    out_t = {}
+    for s, rows in tables.items():
+        rows.sort()
+        x = np.array([r[0] for r in rows])
+        if len(x) < 2 or np.any(np.diff(x) <= 0):
+            fail("parameters", f"{s}: a table needs >= 2 nodes at distinct positions")
+        out_t[s] = (x, np.arange(len(keep), len(keep) + len(rows)))
+        keep += [r[1] for r in rows]
+    out_c = {}
+    for s, i in constants.items():
+        out_c[s] = len(keep)
+        keep.append(i)
+    keep = np.array(keep)
+    Cs = 0.5 * (C + C.T)[np.ix_(keep, keep)] * 1e-12
+    w, V = np.linalg.eigh(Cs)
+    if w.size and w.min() < -NEG_EIG_TOL * max(w.max(), 1e-300):
+        fail("covariance", f"not positive semi-definite (eigenvalue {w.min() * 1e12:.3g})")
+    F = V * np.sqrt(np.clip(w, 0.0, None))[None, :]
+    return MachineState(out_t, out_c, v[keep] * 1e-6, F, interp, tuple(str(c) for c in doc.get("conventions", [])),
+                        source)

@@ -1,0 +1,145 @@
+"""The multi-feature bar end to end: ``vmt scenario mfb-3axis`` in this process, and its gain.
+
+Figures:
+
+- ``mfb_3axis_end_to_end_s``: :func:`scenarios.mfb.run` of ``mfb-3axis``
+  (simulation of the 17 measurements, points of interest, the extraction's
+  gain, identification, Monte Carlo uncertainty, report), imports warm and
+  the gain cache empty, as ``vmt scenario mfb-3axis`` spends it after its
+  imports; split by the run's progress steps into ``mfb_3axis_measure_s``
+  (simulation + points of interest + gain), ``mfb_3axis_identify_s`` and
+  ``mfb_3axis_uncertainty_s`` (Monte Carlo + report). Reference: the same
+  run with the gain already cached (``mfb_3axis_gain_cached_s``).
+- ``mfb_gain_s``: :func:`core.mfb.poi_noise_gain` of the three plans of
+  ``mfb-3axis`` (batched light fits), beside ``mfb_gain_refit_reference_s``:
+  the same gains by the previous path (:func:`gain_by_single_refits`: every
+  perturbed feature refitted alone by the full :func:`core.fit.fit_cylinder`
+  / :func:`core.fit.fit_plane`), on the same inputs in the same run, and
+  ``mfb_gain_max_abs_diff`` between the two (dimensionless, |G| ~ 1).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+#: figure -> its reference figure measured in the same run (ratio = figure / reference)
+REFERENCES = {
+    "mfb_3axis_end_to_end_s": "mfb_3axis_gain_cached_s",
+    "mfb_gain_s": "mfb_gain_refit_reference_s",
+}
+#: figure -> the issue's target
+TARGETS = {"mfb_3axis_end_to_end_s": "< 1 s (issue 19 item 3)"}
+
+
+def gain_by_single_refits(p_R, feature, n_R, d_R, geom=None, h_m: float = 1e-7) -> np.ndarray:
+    """The extraction's gain as :func:`core.mfb.poi_noise_gain` computed it before it was batched.
+
+    Each touch is moved by +-``h_m`` along ``d_R`` in turn and its feature is
+    refitted alone by the full fits (checks, residuals, covariance), then the
+    points of interest it enters are recomputed: the reference the batched
+    light path is measured and tested against (tests/core/test_mfb.py).
+    Returns (3k, n), as :func:`core.mfb.poi_noise_gain`.
+    """
+    from core import mfb
+    from core.fit import fit_cylinder, fit_plane
+
+    geom = mfb.MFB if geom is None else geom
+    p_R, d_R, n_R = (np.asarray(a, float) for a in (p_R, d_R, n_R))
+    feature = np.asarray(feature, dtype=object)
+    bf = mfb.fit_bar_features(p_R, feature, n_R)
+    holes = mfb.poi_from_features(bf, geom).holes
+    rods = set(bf.rod_point)
+    pair = {i: mfb._rod_pair(i, rods) for i in holes}
+    row = {i: k for k, i in enumerate(holes)}
+
+    def o_rows(b, hs):
+        P, out = {}, {}
+        for i in hs:
+            a, c = pair[i]
+            for j in (a, c):
+                if j not in P:
+                    P[j] = mfb._rod_points(b, j)
+            pl = fit_plane(np.vstack([P[a], P[c]]), normal_hint=b.probe_side)
+            out[i] = mfb._meet(b.hole_point[i], b.hole_axis[i], pl.point, pl.normal)
+        return out
+
+    base = o_rows(bf, holes)
+    G = np.zeros((3 * len(holes), len(p_R)))
+    for f, idx in mfb._group(feature).items():
+        if (i := mfb._num(f, "hole")) is not None:
+            hs = [i] if i in row else []
+        elif (j := mfb._num(f, "rod")) is not None or f[:5] in ("faceL", "faceR"):
+            j = j if j is not None else int(f[5:])
+            hs = [h for h in holes if j in pair[h]]
+        else:
+            continue
+        for k, sgn in ((k, sgn) for k in idx for sgn in (1.0, -1.0)) if hs else ():
+            q = p_R[idx].copy()
+            q[list(idx).index(k)] += sgn * h_m * d_R[k]
+            hp, ha, rp, ra = dict(bf.hole_point), dict(bf.hole_axis), dict(bf.rod_point), dict(bf.rod_axis)
+            fp, fn = dict(bf.face_point), dict(bf.face_normal)
+            if (i := mfb._num(f, "hole")) is not None:
+                c = fit_cylinder(q, axis_hint=bf.hole_axis[i])
+                hp[i], ha[i] = c.point, c.axis
+            elif (j := mfb._num(f, "rod")) is not None:
+                c = fit_cylinder(q, axis_hint=bf.rod_axis[j])
+                rp[j], ra[j] = c.point, c.axis
+            else:
+                key = (f[4], int(f[5:]))
+                pl = fit_plane(q, normal_hint=bf.face_normal[key])
+                fp[key], fn[key] = pl.point, pl.normal
+            new = o_rows(mfb.BarFeatures(hp, ha, rp, ra, fp, fn, bf.probe_side), hs)
+            for h in hs:
+                G[3 * row[h]:3 * row[h] + 3, k] += sgn * (new[h] - base[h]) / (2.0 * h_m)
+    return G
+
+
+def plan_gain_inputs(name: str = "mfb-3axis") -> list[tuple]:
+    """``(c_A, feature, wn_A, d_A)`` of each distinct hole set of a scenario's plan (nominal bar, 3 mm stylus)."""
+    from scenarios.mfb import PLANS, _plan_for
+    from sim import artefacts as A
+
+    art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
+    out = []
+    for holes in dict.fromkeys(tuple(ms.holes) for ms in PLANS[name]().measurements):
+        pl = _plan_for(art, holes)
+        out.append((pl.w_A + 3e-3 * pl.wn_A, pl.feature, pl.wn_A, -pl.wn_A))
+    return out
+
+
+def run() -> dict:
+    from core import mfb
+    from scenarios import mfb as S
+
+    out: dict = {}
+    inputs = plan_gain_inputs()
+    t0 = time.perf_counter()
+    G_new = [mfb.poi_noise_gain(*a) for a in inputs]
+    t1 = time.perf_counter()
+    G_ref = [gain_by_single_refits(*a) for a in inputs]
+    t2 = time.perf_counter()
+    out["mfb_gain_s"] = round(t1 - t0, 3)
+    out["mfb_gain_refit_reference_s"] = round(t2 - t1, 3)
+    out["mfb_gain_max_abs_diff"] = float(max(np.abs(a - b).max() for a, b in zip(G_new, G_ref)))
+
+    S.run("mfb-3axis", mc_runs=20)  # imports and first-use caches warm
+    stamps = {}
+    S._GAINS.clear()
+    t0 = time.perf_counter()
+    S.run("mfb-3axis", progress=lambda k, n: stamps.setdefault(k, time.perf_counter()))
+    t_end = time.perf_counter()
+    n = max(stamps)
+    out["mfb_3axis_end_to_end_s"] = round(t_end - t0, 3)
+    out["mfb_3axis_measure_s"] = round(stamps[n - 2] - t0, 3)
+    out["mfb_3axis_identify_s"] = round(stamps[n - 1] - stamps[n - 2], 3)
+    out["mfb_3axis_uncertainty_s"] = round(t_end - stamps[n - 1], 3)
+    t0 = time.perf_counter()
+    S.run("mfb-3axis")  # the gains cached from the run above
+    out["mfb_3axis_gain_cached_s"] = round(time.perf_counter() - t0, 3)
+    return out
+
+
+if __name__ == "__main__":  # pragma: no cover - by hand: python -m scenarios.bench.mfb
+    print(run())

@@ -1,0 +1,310 @@
+"""Simulator speed, each figure beside its reference measured in the same run (issue 19 items 4, 5).
+
+Kinematics (:func:`kinematics_figures`, 5-axis nmv3000 with realistic errors,
+20,000 poses): ``sim.machine.Machine.tip_W`` (batched evaluation of the
+Pinocchio model) and ``core.kinematics.tip_W`` against a tight numpy chain
+written here (:func:`tight_tip_W`: the same error values, Rodrigues and 3x3
+products in rows of n) and against Pinocchio's own loop
+(``Machine.tip_W_pinocchio``).
+
+Touches (:func:`touch_figures`): the MFB campaign (17 set-ups x 316 touches)
+simulated with the machine as it is and with ``tip_W`` routed to the
+Pinocchio loop (the path before issue 19).
+
+Collision checks (:func:`collision_figures`): the path checks of the MFB
+campaign (``sim.scene``, timed inside the campaign run, the simulation being
+the rest of that run) and of the MFB 5-axis plan (``sim.mfb_scene``,
+``scenarios.mfb.check_plan`` against the simulation of its 17 measurements),
+with the broad phase and with MuJoCo at every sample (``broad_phase=False``,
+the path before). Each in a fresh state: the first scene compiled included,
+MuJoCo's one-time import not.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+def _best(f, repeat=3) -> float:
+    best = float("inf")
+    for _ in range(repeat):
+        t = time.perf_counter()
+        f()
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def tight_tip_W(machine, lin_m, rot_rad=None) -> np.ndarray:
+    """The tip in W by a tight numpy chain: the speed reference of the kinematics figures.
+
+    The chain of ``sim.machine`` (its module docstring) written out once more with
+    rows of n numbers: rotation vectors by Rodrigues, 3x3 products entry by entry.
+    Location rotations are ignored (``realistic_errors`` gives none but the
+    squareness, which is applied as the carried rotation of the linear axes).
+    """
+    from core import iso
+
+    lin = np.asarray(lin_m, float)
+    n = len(lin)
+    rot = np.zeros((n, 0)) if rot_rad is None else np.asarray(rot_rad, float)
+    cfg, ch = machine.config, machine.chain
+    vals = machine.error_values(lin, rot)
+    zero = np.zeros(n)
+    E = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
+
+    def exp_rows(x, y, z):
+        th2 = x * x + y * y + z * z
+        th = np.sqrt(th2)
+        small = th < 1e-4
+        tt = np.where(small, 1.0, th)
+        a = np.where(small, 1 - th2 / 6, np.sin(tt) / tt)
+        b = np.where(small, 0.5 - th2 / 24, (1 - np.cos(tt)) / tt**2)
+        d = 1 - b * th2
+        return np.array([[d + b * x * x, b * x * y - a * z, b * x * z + a * y],
+                         [b * x * y + a * z, d + b * y * y, b * y * z - a * x],
+                         [b * x * z - a * y, b * y * z + a * x, d + b * z * z]])
+
+    def mm(A, B):
+        return A[:, 0, None] * B[None, 0] + A[:, 1, None] * B[None, 1] + A[:, 2, None] * B[None, 2]
+
+    def mv(A, v):
+        return A[:, 0] * v[0] + A[:, 1] * v[1] + A[:, 2] * v[2]
+
+    def branch(side):
+        s = 1.0 if side == "tool" else -1.0
+        R = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))
+        t = np.zeros((3, n))
+        cum = np.zeros(3)
+        for a in (ch.tool_axes if side == "tool" else ch.workpiece_from_bed):
+            e = np.eye(3)[E[a]]
+            mot = [sy.name for sy in iso.symbols_of_axis(a, location=False)]
+            tE = np.array([vals.get(k, zero) for k in mot[:3]])
+            RE = exp_rows(*(vals.get(k, zero) for k in mot[3:]))
+            if side != "tool":
+                RE = RE.transpose(1, 0, 2)
+                tE = -mv(RE, tE)
+            if a in "XYZ":
+                w = np.zeros(3)
+                for sq in iso.SQUARENESS:
+                    if iso.symbol(sq).axis == a and sq in cfg.errors:
+                        w[E[iso.symbol(sq).direction]] += float(cfg.errors[sq](np.zeros(1))[0])
+                rel = w - (cum - e * (e @ cum))
+                cum = cum + rel
+                R = mm(R, exp_rows(*(np.full(n, v) for v in rel)))
+                q = s * (lin[:, E[a]] + cfg.J_m[E[a]])
+                if side != "tool":
+                    t, R = t + mv(R, tE), mm(R, RE)
+                t = t + R[:, E[a]] * q
+                if side == "tool":
+                    t, R = t + mv(R, tE), mm(R, RE)
+            else:
+                c = np.asarray(cfg.rotary_points_R_m[a], float)
+                t = t + mv(R, np.broadcast_to(c[:, None], (3, n)))
+                t, R = t + mv(R, tE), mm(R, RE)
+                th = s * rot[:, ch.rotary_axes.index(a)]
+                R = mm(R, exp_rows(*(th * v for v in e)))
+                t = t - mv(R, np.broadcast_to(c[:, None], (3, n)))
+        return R, t
+
+    RW, tW = branch("workpiece")
+    RP, tP = branch("tool")
+    tP = tP - mv(RP, np.broadcast_to(np.asarray(cfg.J_m, float)[:, None], (3, n)))
+    return np.einsum("jin,jn->ni", RW, tP - tW)
+
+
+def kinematics_figures(n: int = 20000) -> dict:
+    from core import kinematics as K
+    from sim.machine import Machine
+    from sim.machines import MACHINES, realistic_errors
+
+    cfg = MACHINES["nmv3000"]()
+    m = Machine(cfg)
+    m = m.with_errors({k: f for k, f in realistic_errors(m.chain.axes, strokes=cfg.strokes,
+                                                         rng=np.random.default_rng(0)).items()
+                       if not (k.endswith(("0C", "0A")))})  # the tight chain leaves the rotary lines out
+    rng = np.random.default_rng(1)
+    lin = np.column_stack([rng.uniform(*cfg.strokes[a], n) for a in "XYZ"])
+    rot = np.column_stack([rng.uniform(*cfg.strokes[a], n) for a in m.rotary_axes])
+    geom = m.geometry()
+    ref = tight_tip_W(m, lin, rot)
+    dev = max(float(np.abs(m.tip_W(lin, rot) - ref).max()),
+              float(np.abs(K.tip_W(geom, lin, rot, m.error_values(lin, rot)) - ref).max()),
+              float(np.abs(m.tip_W_pinocchio(lin[:500], rot[:500]) - ref[:500]).max()))
+    t_tight = _best(lambda: tight_tip_W(m, lin, rot), 5)
+    t_sim = _best(lambda: m.tip_W(lin, rot), 5)
+    t_core = _best(lambda: K.tip_W(geom, lin, rot, m.error_values(lin, rot)), 5)
+    t_pin = _best(lambda: m.tip_W_pinocchio(lin, rot), 2)
+    return {
+        "kin_fk_error_poses_per_s": round(n / t_sim),
+        "kin_fk_tight_numpy_ref_poses_per_s": round(n / t_tight),
+        "kin_fk_error_over_tight_ref": round(t_tight / t_sim, 3),
+        "kin_fk_pinocchio_loop_poses_per_s": round(n / t_pin),
+        "kin_fk_error_over_pinocchio_loop": round(t_pin / t_sim, 3),
+        "kin_core_tip_W_poses_per_s": round(n / t_core),
+        "kin_core_tip_W_over_tight_ref": round(t_tight / t_core, 3),
+        "kin_max_deviation_from_tight_ref_m": dev,
+    }
+
+
+class _PinocchioLoop:
+    """A machine whose ``tip_W`` is Pinocchio's loop (the simulator before issue 19)."""
+
+    def __init__(self, machine):
+        self._m = machine
+
+    def tip_W(self, lin_m, rot_rad=None, t_s=None, direction=None):
+        return self._m.tip_W_pinocchio(lin_m, rot_rad, t_s, direction)
+
+    def __getattr__(self, k):
+        return getattr(self._m, k)
+
+
+def _mfb_machine():
+    from sim.machine import Machine
+    from sim.machines import MACHINES, realistic_errors
+
+    cfg = MACHINES["mikron-ucp710"]()
+    return Machine(MACHINES["mikron-ucp710"](errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)))
+
+
+def touch_figures() -> dict:
+    from sim.campaign import simulate_campaign
+    from sim.probe import ProbeConfig
+
+    m = _mfb_machine()
+    simulate_campaign("cross-pocket", m, ProbeConfig(), [0.0], np.random.default_rng(1), check_collisions=False)
+    out = {}
+    for key, mach in (("new", m), ("ref", _PinocchioLoop(m))):
+        t = []
+        for _ in range(2):
+            t0 = time.perf_counter()
+            log = simulate_campaign("mfb", mach, ProbeConfig(), None, np.random.default_rng(1), check_collisions=False)
+            t.append(time.perf_counter() - t0)
+        out[key] = (log.n, min(t))
+    return {
+        "kin_touches_per_s": round(out["new"][0] / out["new"][1], 1),
+        "kin_touches_per_s_pinocchio_loop_ref": round(out["ref"][0] / out["ref"][1], 1),
+        "kin_touches_speedup": round(out["ref"][1] / out["new"][1], 3),
+    }
+
+
+def collision_figures() -> dict:
+    import mujoco  # noqa: F401  (its one-time import, ~0.5 s, is not a check's cost)
+
+    from scenarios import mfb as S
+    from sim import campaign, mfb_scene, scene
+    from sim.campaign import simulate_campaign
+    from sim.probe import ProbeConfig
+
+    m = _mfb_machine()
+    # the MFB campaign (sim.scene): one run with checks, the checks timed inside it (the
+    # simulation is the rest), then the checks again with MuJoCo at every sample
+    t_chk, t_plan, t_sim = {}, {}, None
+    real_check = campaign._PathChecker.check
+    for bp in (True, False):
+        scene._PASSED.clear()
+        scene._SCENES.clear()
+        spent = [0.0]
+
+        def timed(self, *a, _bp=bp, _spent=spent):
+            t0 = time.perf_counter()
+            _time_patched(scene, "check_touch_paths", _bp, lambda: real_check(self, *a))
+            _spent[0] += time.perf_counter() - t0
+
+        campaign._PathChecker.check = timed
+        try:
+            t0 = time.perf_counter()
+            simulate_campaign("mfb", m, ProbeConfig(), None, np.random.default_rng(1), check_collisions=True)
+            total = time.perf_counter() - t0
+        finally:
+            campaign._PathChecker.check = real_check
+        t_chk[bp] = spent[0]
+        if t_sim is None:
+            t_sim = total - spent[0]
+    scene._PASSED.clear()
+    # the MFB 5-axis plan (sim.mfb_scene): its simulation, then check_plan with and without
+    plan = S.plan_5axis()
+    t_sim5 = _mfb5_simulation_s(plan)
+    for bp in (True, False):
+        mfb_scene._ZONES.clear()
+        S._CHECKS.clear()
+        t_plan[bp] = _time_patched(mfb_scene, "check_measurement", bp, lambda: S.check_plan(plan))
+    S._CHECKS.clear()
+    return {
+        "col_mfb_campaign_simulation_s": round(t_sim, 3),
+        "col_mfb_campaign_check_s": round(t_chk[True], 3),
+        "col_mfb_campaign_check_every_sample_ref_s": round(t_chk[False], 3),
+        "col_mfb_campaign_check_over_simulation": round(t_chk[True] / t_sim, 3),
+        "col_mfb_campaign_check_speedup": round(t_chk[False] / t_chk[True], 2),
+        "col_mfb5_simulation_s": round(t_sim5, 3),
+        "col_mfb5_plan_check_s": round(t_plan[True], 3),
+        "col_mfb5_plan_check_every_sample_ref_s": round(t_plan[False], 3),
+        "col_mfb5_plan_check_over_simulation": round(t_plan[True] / t_sim5, 3),
+        "col_mfb5_plan_check_speedup": round(t_plan[False] / t_plan[True], 2),
+    }
+
+
+def _time_patched(module, name: str, broad_phase: bool, run) -> float:
+    """Seconds of ``run()`` while ``module.name`` is called with ``broad_phase``."""
+    real = getattr(module, name)
+    setattr(module, name, lambda *a, **k: real(*a, broad_phase=broad_phase, **k))
+    try:
+        t0 = time.perf_counter()
+        run()
+        return time.perf_counter() - t0
+    finally:
+        setattr(module, name, real)
+
+
+def _mfb5_simulation_s(plan) -> float:
+    """Seconds to simulate every measurement of the MFB 5-axis plan (as ``scenarios.mfb.run``)."""
+    from scenarios import mfb as S
+    from sim import artefacts as A
+    from sim.campaign import simulate_campaign
+    from sim.machine import Machine
+    from sim.probe import ProbeConfig
+    from sim.setups import Setup
+
+    m0 = _mfb_machine()
+    art = A.multi_feature_bar()
+    machines = {}
+    t0 = time.perf_counter()
+    for ms in plan.measurements:
+        if ms.stylus not in machines:
+            from dataclasses import replace
+
+            machines[ms.stylus] = Machine(replace(m0.config, J_m=tuple(ms.J_m)))
+        simulate_campaign(art, S._NoSafeHeight(machines[ms.stylus]), ProbeConfig(),
+                          [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad))], np.random.default_rng(1),
+                          plan=S._plan_for(art, ms.holes), check_collisions=False)
+    return time.perf_counter() - t0
+
+
+#: figure -> its same-run reference (ratio = figure / reference; scenarios.bench)
+REFERENCES = {
+    "kin_fk_error_poses_per_s": "kin_fk_tight_numpy_ref_poses_per_s",
+    "kin_core_tip_W_poses_per_s": "kin_fk_tight_numpy_ref_poses_per_s",
+    "kin_touches_per_s": "kin_touches_per_s_pinocchio_loop_ref",
+    "col_mfb_campaign_check_s": "col_mfb_campaign_simulation_s",
+    "col_mfb5_plan_check_s": "col_mfb5_simulation_s",
+}
+#: figure -> the issue's target
+TARGETS = {
+    "kin_fk_error_poses_per_s": ">= 0.5 x the tight numpy reference (issue 19 item 5)",
+    "kin_touches_per_s": ">= 2 x the Pinocchio-loop path (issue 19 item 5)",
+    "col_mfb_campaign_check_s": "< 0.25 x the simulation (issue 19 item 4)",
+    "col_mfb5_plan_check_s": "< 0.25 x the simulation (issue 19 item 4)",
+}
+
+
+def run() -> dict:
+    out = kinematics_figures()
+    out.update(touch_figures())
+    out.update(collision_figures())
+    return out
+
+
+if __name__ == "__main__":  # pragma: no cover
+    print(run())

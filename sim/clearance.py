@@ -1,0 +1,323 @@
+"""Broad phase of the path checks: which path samples are provably clear, in numpy.
+
+The MuJoCo scenes (:mod:`sim.scene`, :mod:`sim.mfb_scene`) have two bodies:
+the table (its geoms fixed for one table pose) and the spindle, which only
+translates (origin at the stylus-tip centre, axes parallel to R). A path
+check asks MuJoCo's ``mj_collision`` at every sample of a polyline; most
+samples are centimetres from anything. This module reads the geoms of the
+compiled MuJoCo model (type, size, pose after ``mj_kinematics``) and
+computes, for every sample at once, a LOWER BOUND on the distance between
+each probe geom (moved to the sample) and each table geom; a sample whose
+bounds all exceed :data:`MARGIN_M` cannot collide and is skipped, and only
+the others go to ``mj_collision`` (the same call as before, same samples in
+the same order, so the first collision found is the same).
+
+The bound is the separating-axis gap of two convex sets: for any unit
+vector u, ``|(c_G - c_H) . u| - ext_G(u) - ext_H(u)`` is at most their
+distance, with ``ext`` the support function about the geom's centre
+(sphere ``r``; capsule ``l |a.u| + r``; cylinder ``h |a.u| + r sqrt(1 -
+(a.u)^2)``; box ``sum e_i |R_i . u|``; any other type its MuJoCo bounding
+radius). The axes tried per pair: the table geom's three axes, the probe
+geom's axis, their cross products and the direction from the table geom's
+closest point to the probe geom's centre (exact for a sphere against a box,
+cylinder or sphere). Candidate pairs come from the geoms' axis-aligned
+boxes (exact for the probe's axis-aligned geoms; table geoms' boxes from
+their corners or analytic extents), each a sound superset.
+
+Frames: R (the machine reference, MuJoCo's world); units m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: A sample is skipped only when every probe/table geom pair is at least this far
+#: apart (m): 100x MuJoCo's default CCD tolerance (1e-6 m), far above any rounding
+#: of its narrow phase, far below the clearances of the plans (mm).
+MARGIN_M = 1.0e-4
+
+_SPHERE, _CAPSULE, _CYLINDER, _BOX = 2, 3, 5, 6
+
+
+@dataclass(frozen=True)
+class Geoms:
+    """Convex geoms in R: centre (k,3), axes (k,3,3) columns, type (k,), size (k,3), rbound (k,)."""
+
+    centre: np.ndarray
+    axes: np.ndarray
+    kind: np.ndarray
+    size: np.ndarray
+    rbound: np.ndarray
+
+    def take(self, idx) -> "Geoms":
+        return Geoms(self.centre[idx], self.axes[idx], self.kind[idx], self.size[idx], self.rbound[idx])
+
+    def extent(self, u: np.ndarray) -> np.ndarray:
+        """Support function about the centre, ``ext(u) = max_x (x - c) . u``, (k,) for unit u (k,3)."""
+        au = _tmv(self.axes, u)  # u in the geom's frame
+        s = self.size
+        r, h = s[:, 0], s[:, 1]
+        az = np.abs(au[:, 2])
+        box = np.abs(au[:, 0]) * s[:, 0] + np.abs(au[:, 1]) * s[:, 1] + np.abs(au[:, 2]) * s[:, 2]
+        cyl = h * az + r * np.sqrt(np.maximum(0.0, 1.0 - az * az))
+        out = np.where(self.kind == _SPHERE, r,
+                       np.where(self.kind == _CAPSULE, h * az + r,
+                                np.where(self.kind == _CYLINDER, cyl,
+                                         np.where(self.kind == _BOX, box, self.rbound))))
+        return out
+
+    def closest(self, q: np.ndarray) -> np.ndarray:
+        """A point of each geom near ``q`` (k,3): the closest for a box, cylinder, sphere (centre
+        for other types); only used to choose a separating axis."""
+        ql = _tmv(self.axes, q - self.centre)
+        s = self.size
+        box = np.clip(ql, -s, s)
+        rho = np.hypot(ql[:, 0], ql[:, 1])
+        f = np.minimum(1.0, s[:, 0] / np.where(rho > 0, rho, 1.0))
+        cyl = np.column_stack([ql[:, 0] * f, ql[:, 1] * f, np.clip(ql[:, 2], -s[:, 1], s[:, 1])])
+        loc = np.where((self.kind == _BOX)[:, None], box,
+                       np.where((self.kind == _CYLINDER)[:, None], cyl, 0.0))
+        return self.centre + _mv(self.axes, loc)
+
+    def aabb(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) (k,3): axis-aligned boxes containing the geoms."""
+        A = np.abs(self.axes)  # rows: world axis, columns: geom axis
+        s = self.size
+        r, h = s[:, 0], s[:, 1]
+        az = A[:, :, 2]
+        box = _mv(A, s)
+        cap = h[:, None] * az + r[:, None]
+        cyl = h[:, None] * az + r[:, None] * np.sqrt(np.maximum(0.0, 1.0 - az * az))
+        half = np.where((self.kind == _BOX)[:, None], box,
+                        np.where((self.kind == _CAPSULE)[:, None], cap,
+                                 np.where((self.kind == _CYLINDER)[:, None], cyl,
+                                          np.where((self.kind == _SPHERE)[:, None], r[:, None],
+                                                   self.rbound[:, None]))))
+        return self.centre - half, self.centre + half
+
+
+def model_geoms(model, data, ids) -> Geoms:
+    """The geoms ``ids`` of a MuJoCo model at the poses of ``data`` (after ``mj_kinematics``)."""
+    ids = np.asarray(ids, int)
+    return Geoms(np.array(data.geom_xpos[ids], float), np.array(data.geom_xmat[ids], float).reshape(-1, 3, 3),
+                 np.array(model.geom_type[ids], int), np.array(model.geom_size[ids], float),
+                 np.array(model.geom_rbound[ids], float))
+
+
+def _mv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """A_k v_k for (k,3,3), (k,3)."""
+    return A[:, :, 0] * v[:, 0, None] + A[:, :, 1] * v[:, 1, None] + A[:, :, 2] * v[:, 2, None]
+
+
+def _tmv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """A_k^T v_k for (k,3,3), (k,3)."""
+    return A[:, 0, :] * v[:, 0, None] + A[:, 1, :] * v[:, 1, None] + A[:, 2, :] * v[:, 2, None]
+
+
+def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n = np.linalg.norm(v, axis=-1)
+    ok = n > 1e-12
+    return v / np.where(ok, n, 1.0)[..., None], ok
+
+
+class Clearance:
+    """Lower bounds of the probe/table distances for a spindle that only translates.
+
+    Parameters
+    ----------
+    probe : Geoms
+        The spindle body's geoms with the tip centre at the origin of R.
+    table : Geoms
+        The table body's geoms at the current table pose (R).
+    table_feature : (k_table,) object
+        Feature name of each table geom ("" for none).
+    ball : int
+        Index in ``probe`` of the stylus ball (the geom allowed to touch its feature).
+
+    Attributes
+    ----------
+    pair_probe, pair_table : (k,) int
+        The geoms (indices in ``probe`` and ``table``) of every pair the bounds speak of.
+    """
+
+    def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int):
+        self.probe, self.table, self.ball = probe, table, int(ball)
+        self.feature = np.asarray(table_feature, dtype=object)
+        plo, phi = probe.aabb()
+        tlo, thi = table.aabb()
+        ng, nh = len(probe.kind), len(table.kind)
+        g, h = np.meshgrid(np.arange(ng), np.arange(nh), indexing="ij")
+        self.pair_probe, self.pair_table = g.ravel(), h.ravel()
+        # the tip p puts geom g in collision range of h only if p lies in this box
+        self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
+        self._hi = thi[self.pair_table] - plo[self.pair_probe] + MARGIN_M
+        # fixed axes of each pair: the table geom's three, the probe geom's axis, their crosses
+        Ht, Pa = table.axes[self.pair_table], probe.axes[self.pair_probe][:, :, 2]
+        U = [Ht[:, :, 0], Ht[:, :, 1], Ht[:, :, 2], Pa] + [np.cross(Pa, Ht[:, :, j]) for j in range(3)]
+        U = np.stack(U, axis=1)  # (pairs, 7, 3)
+        U, ok = _unit(U)
+        npair = len(self.pair_probe)
+        P, T = probe.take(np.repeat(self.pair_probe, 7)), table.take(np.repeat(self.pair_table, 7))
+        flat = U.reshape(-1, 3)
+        E = (P.extent(flat) + T.extent(flat)).reshape(npair, 7)
+        self._U = U
+        self._E = np.where(ok, E, np.inf)  # a degenerate cross product proves nothing
+        self._d0 = probe.centre[self.pair_probe] - table.centre[self.pair_table]  # centre offset at p = 0
+        # clusters of table geoms (one per feature, one per geom without): pairs grouped per
+        # (probe geom, cluster), with the union of their boxes
+        key = [f if f else f"#{j}" for j, f in enumerate(self.feature)]
+        _, cl = np.unique(np.array(key, dtype=object).astype(str), return_inverse=True)
+        order = np.lexsort((self.pair_table, cl[self.pair_table], self.pair_probe))  # pairs sorted by (g, cluster)
+        self.pair_probe, self.pair_table, self._lo, self._hi = self.pair_probe[order], self.pair_table[order], self._lo[order], self._hi[order]
+        self._U, self._E, self._d0 = self._U[order], self._E[order], self._d0[order]
+        ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
+        self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
+        self._ccount = np.diff(np.r_[self._cstart, len(ck)])
+        self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
+        self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
+
+    def candidates(self, p_R: np.ndarray, group: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(sample index, pair index) of every pair whose boxes overlap at a sample of ``p_R`` (n,3).
+
+        Three levels, each a superset of the next: the box of each ``group`` of
+        consecutive samples (a path segment) against the box of each cluster of
+        table geoms (one feature's geoms), then against each table geom, then each sample.
+        """
+        n = len(p_R)
+        if group is None:
+            group = np.zeros(n, int)
+        cut = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+        s_cnt = np.diff(np.r_[cut, n])
+        s_lo, s_hi = np.minimum.reduceat(p_R, cut, axis=0), np.maximum.reduceat(p_R, cut, axis=0)
+        # segment x (probe geom, cluster)
+        hit = np.ones((len(cut), len(self._clo)), bool)
+        for ax in range(3):  # (a reduction over a last axis of 3 is slow in numpy)
+            hit &= s_hi[:, ax, None] >= self._clo[None, :, ax]
+            hit &= s_lo[:, ax, None] <= self._chi[None, :, ax]
+        seg, cp = np.nonzero(hit)
+        # -> (segment, pair) for the cluster's member geoms
+        k, pair = _expand(self._cstart[cp], self._ccount[cp])
+        seg = seg[k]
+        ok = _overlap(s_lo[seg], s_hi[seg], self._lo[pair], self._hi[pair])
+        seg, pair = seg[ok], pair[ok]
+        # -> (sample, pair)
+        k, i = _expand(cut[seg], s_cnt[seg])
+        pair = pair[k]
+        q = p_R[i]
+        ok = _overlap(q, q, self._lo[pair], self._hi[pair])
+        return i[ok], pair[ok]
+
+    def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
+        """Lower bound of the distance (m) of pair ``pair`` with the tip at sample ``i`` of ``p_R``.
+
+        ``enough``: rows whose fixed axes already prove more than this skip the
+        closest-point axis (their bound is then that smaller, still valid, value).
+        """
+        d = self._d0[pair] + p_R[i]
+        U = self._U[pair]
+        out = np.max(np.abs(U[:, :, 0] * d[:, 0, None] + U[:, :, 1] * d[:, 1, None] + U[:, :, 2] * d[:, 2, None])
+                     - self._E[pair], axis=1)
+        r = np.flatnonzero(out <= enough)
+        g, h, d = self.pair_probe[pair[r]], self.pair_table[pair[r]], d[r]
+        T = self.table.take(h)
+        c_g = self.probe.centre[g] + p_R[i[r]]
+        u, ok = _unit(c_g - T.closest(c_g))
+        dyn = np.abs(u[:, 0] * d[:, 0] + u[:, 1] * d[:, 1] + u[:, 2] * d[:, 2]) - self.probe.take(g).extent(u) - T.extent(u)
+        out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
+        return out
+
+    def near(self, p_R, allow_feature=None, group=None) -> np.ndarray:
+        """(n,) bool: samples where some probe/table pair may be closer than :data:`MARGIN_M`.
+
+        ``allow_feature`` (n,) of str: at each sample, the stylus ball's pairs with the
+        geoms of that feature are ignored (the exact primitives judge that contact).
+        ``group`` (n,) int: runs of equal values are path segments (speed only: any
+        grouping gives the same answer).
+        """
+        p = np.ascontiguousarray(p_R, float).reshape(-1, 3)
+        out = np.zeros(len(p), bool)
+        i, pair = self.candidates(p, None if group is None else np.asarray(group))
+        if allow_feature is not None:
+            allow = np.asarray(allow_feature, dtype=object)
+            f = self.feature[self.pair_table[pair]]
+            skip = (self.pair_probe[pair] == self.ball) & (f != "") & (f == allow[i])
+            i, pair = i[~skip], pair[~skip]
+        if i.size:
+            close = self.bound(p, i, pair, enough=MARGIN_M) <= MARGIN_M
+            out[i[close]] = True
+        return out
+
+
+def _overlap(lo1, hi1, lo2, hi2) -> np.ndarray:
+    """(k,) bool: boxes [lo1, hi1] and [lo2, hi2] (k,3) intersect (closed)."""
+    ok = (hi1[:, 0] >= lo2[:, 0]) & (lo1[:, 0] <= hi2[:, 0])
+    for ax in (1, 2):
+        ok &= (hi1[:, ax] >= lo2[:, ax]) & (lo1[:, ax] <= hi2[:, ax])
+    return ok
+
+
+def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(which run, element): the elements ``start[r] .. start[r] + count[r] - 1`` of every run r."""
+    tot = int(count.sum())
+    r = np.repeat(np.arange(len(count)), count)
+    off = np.arange(tot) - np.repeat(np.cumsum(count) - count, count)
+    return r, start[r] + off
+
+
+def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Samples of several polylines at once, in path order.
+
+    Each segment ``a -> b`` of polyline j gets ``k = max(1, ceil(|b - a| / steps_m[j]))``
+    equal steps: ``a + (i / k)(b - a)`` computed as numpy's ``linspace(0, 1, k + 1)``
+    does (``i * (1 / k)``, the last fraction exactly 1). ``joints``: every segment keeps
+    both ends (a joint appears twice, as in :meth:`sim.scene.Scene.check_path`), else
+    each segment drops its end and the polyline's last point closes it (as in
+    :func:`sim.mfb_scene.check_measurement`).
+
+    Parameters
+    ----------
+    polylines : sequence of (m_j, 3) float, m_j >= 2
+    steps_m : (len(polylines),) float
+    joints : bool
+
+    Returns
+    -------
+    samples : (k, 3) float
+    segment : (k,) int
+        A running number of the segment (runs of equal values, for :meth:`Clearance.near`).
+    path : (k,) int
+        Index of the polyline.
+    """
+    n_pt = np.array([len(p) for p in polylines], int)
+    P = np.concatenate([np.asarray(p, float) for p in polylines])
+    first = np.cumsum(n_pt) - n_pt
+    starts = np.ones(len(P), bool)
+    starts[first + n_pt - 1] = False
+    a_idx = np.flatnonzero(starts)  # every point that starts a segment
+    path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt - 1)
+    a, b = P[a_idx], P[a_idx + 1]
+    step = np.asarray(steps_m, float)[path_of_seg]
+    L = np.linalg.norm(b - a, axis=1)
+    k = np.maximum(1, np.ceil(L / step).astype(int))
+    if not joints:  # the last point of each polyline: a segment of one sample at fraction 0
+        last = first + n_pt - 1
+        pos = np.arange(len(a)) + np.repeat(np.arange(len(n_pt)), n_pt - 1)  # room for the ends
+        order = np.empty(len(a) + len(n_pt), int)
+        order[pos] = np.arange(len(a))
+        free = np.ones(len(order), bool)
+        free[pos] = False
+        order[free] = len(a) + np.arange(len(n_pt))
+        a = np.concatenate([a, P[last]])[order]
+        b = np.concatenate([b, P[last]])[order]
+        m = np.concatenate([k, np.ones(len(n_pt), int)])[order]
+        k = np.concatenate([k, np.ones(len(n_pt), int)])[order]
+        path_of_seg = np.concatenate([path_of_seg, np.arange(len(n_pt))])[order]
+    else:
+        m = k + 1
+    seg = np.repeat(np.arange(len(k)), m)
+    j = np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)
+    f = j * (1.0 / k[seg])
+    f[j == k[seg]] = 1.0
+    return a[seg] + f[:, None] * (b - a)[seg], seg, path_of_seg[seg]

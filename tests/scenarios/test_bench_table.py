@@ -1,0 +1,90 @@
+"""scenarios.bench: figures with their same-run references, and the README table generated from them (issue 19 item 8)."""
+
+import json
+
+import pytest
+
+from core.exceptions import ConfigError
+from scenarios.bench import document
+from scenarios.bench.table import BEGIN, END, replace_table, table_markdown
+from scenarios.cli import main
+
+META = {"date_utc": "2026-12-02 01:00", "cpu_count": 2, "python": "3.11.7", "blas_threads": "1",
+        "load_average_1min_at_start": 1.5, "load_average_1min_at_end": 2.0}
+
+
+def small_doc():
+    values = {"a_s": 3.0, "a_reference_s": 12.0, "b_per_s": 50, "zero_ref_s": 1.0, "z_s": 0.0,
+              "count": 7, "broken_ratio_s": 2.0, "text_fig": "x|y"}
+    refs = {"a_s": "a_reference_s", "zero_ref_s": "z_s", "broken_ratio_s": "missing_s", "text_fig": "a_s"}
+    targets = {"a_s": "< 5 s", "b_per_s": "doubled"}
+    origin = {k: "bench_one" for k in values}
+    return document(META, values, refs, targets, origin)
+
+
+def test_records_carry_reference_and_ratio():
+    f = small_doc()["figures"]
+    assert f["a_s"] == {"value": 3.0, "bench": "bench_one", "reference": "a_reference_s",
+                        "reference_value": 12.0, "ratio": 0.25, "target": "< 5 s"}
+    assert f["count"] == {"value": 7, "bench": "bench_one"}  # nothing declared: value only
+    assert f["b_per_s"] == {"value": 50, "bench": "bench_one", "target": "doubled"}
+    # no ratio rather than a wrong one: a zero, missing or non-numeric side
+    assert f["zero_ref_s"]["ratio"] is None and f["zero_ref_s"]["reference_value"] == 0.0
+    assert f["broken_ratio_s"]["ratio"] is None and f["broken_ratio_s"]["reference_value"] is None
+    assert f["text_fig"]["ratio"] is None
+
+
+def test_table_known_answer():
+    t = table_markdown(small_doc()).splitlines()
+    assert t[0].startswith("Measured 2026-12-02 01:00 UTC on 2 cores (load average 1.5 at the start, 2.0 at the end)")
+    assert t[2] == "| figure | value | reference | reference value | ratio | target |"
+    rows = t[4:]
+    # the figures with a reference or a target, by module then name; "|" escaped
+    assert rows == [
+        "| `a_s` | 3 | `a_reference_s` | 12 | 0.25 | < 5 s |",
+        "| `b_per_s` | 50 |  |  |  | doubled |",
+        "| `broken_ratio_s` | 2 | `missing_s` |  |  |  |",
+        "| `text_fig` | x\\|y | `a_s` | 3 |  |  |",
+        "| `zero_ref_s` | 1 | `z_s` | 0 |  |  |",
+    ]
+
+
+def test_replace_table_touches_only_the_marked_section():
+    readme = f"# title\n\ntext before\n\n{BEGIN}\nold table\nmore\n{END}\n\ntext after\n"
+    out = replace_table(readme, "NEW\n")
+    assert out == f"# title\n\ntext before\n\n{BEGIN}\nNEW\n{END}\n\ntext after\n"
+    assert replace_table(out, "NEW\n") == out  # idempotent
+
+
+@pytest.mark.parametrize("readme", ["no markers\n", f"{END}\n{BEGIN}\n", f"{BEGIN}\n{BEGIN}\n{END}\n"])
+def test_replace_table_refuses_without_one_marked_section(readme):
+    with pytest.raises(ConfigError, match="bench-table"):
+        replace_table(readme, "T\n", "README.md")
+
+
+def test_cli_regenerates_the_readme_from_a_json(tmp_path, capsys):
+    res = tmp_path / "results.json"
+    res.write_text(json.dumps(small_doc()))
+    readme = tmp_path / "README.md"
+    readme.write_text(f"intro\n{BEGIN}\n(run make bench)\n{END}\nrest\n")
+    assert main(["bench", "--from-json", str(res), "--readme", str(readme)]) == 0
+    text = readme.read_text()
+    assert text.startswith(f"intro\n{BEGIN}\nMeasured ") and text.endswith(f"{END}\nrest\n")
+    assert "| `a_s` | 3 | `a_reference_s` | 12 | 0.25 | < 5 s |" in text
+
+
+@pytest.mark.parametrize("args, match", [
+    (["--from-json", "{res}"], "--from-json only feeds --readme"),
+    (["--from-json", "{tmp}/none.json", "--readme", "{readme}"], "none.json: no such file"),
+    (["--from-json", "{bad}", "--readme", "{readme}"], "not a vmt bench document"),
+])
+def test_cli_bad_input_exit_2(tmp_path, capsys, args, match):
+    res, bad, readme = tmp_path / "r.json", tmp_path / "bad.json", tmp_path / "README.md"
+    res.write_text(json.dumps(small_doc()))
+    bad.write_text(json.dumps({"a_s": 3.0}))  # the flat JSON of before: refused, not misread
+    readme.write_text(f"{BEGIN}\n{END}\n")
+    argv = [a.format(res=res, tmp=tmp_path, bad=bad, readme=readme) for a in args]
+    assert main(["bench", *argv]) == 2
+    err = capsys.readouterr().err
+    assert match in err and err.count("\n") == 1
+    assert readme.read_text() == f"{BEGIN}\n{END}\n"  # untouched
