@@ -153,6 +153,16 @@ class Settings:
         dirty shop may see several (5 of 140 touches is 3.6 %); outliers
         concentrated in a covariate are structure at any count, and more
         than 5 % of the touches is no chip.
+    outlier_events : str
+        What one piece of dust corrupts together, for the concentration
+        test (planar baselines; others count each row): ``"target"`` (the
+        touches of one target within one set-up) or ``"setup"`` (every
+        touch of one set-up: a chip on the part stays until the part is
+        set up again, so chips on several targets of one set-up are one
+        dirty set-up, side by side in time). ``"setup"`` also lets
+        outliers confined to one set-up (a fixture slip's touches after
+        the slip) pass the test as one event; docs/discovery.md gives the
+        measured trade.
     grid_steps_mm : tuple of float
         Error-map grid steps tried for the planar baseline.
     select_grid : bool
@@ -186,6 +196,7 @@ class Settings:
     outlier_alpha: float = 0.001
     outlier_max_frac: float = 0.02
     outlier_max_frac_dust: float = 0.05
+    outlier_events: str = "target"
     grid_steps_mm: tuple = (22.0, 30.0, 40.0, 55.0, 80.0)
     select_grid: bool = True
     max_findings: int = 3
@@ -726,13 +737,16 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
 
     ranks = covariate_ranks(bl.covariates)
+    if settings.outlier_events not in ("target", "setup"):
+        raise ConfigError(f"Settings.outlier_events must be 'target' or 'setup', not {settings.outlier_events!r}")
+    events = bl.groups if settings.outlier_events == "setup" and bl.kind == "planar" else bl.replicate
 
     def outliers_of(X, Q=None):
         # each call draws its own null from a generator seeded by the caller's: the
         # answer does not depend on how many other tests drew before it
         return find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac, Q, ranks=ranks,
                              rng=np.random.default_rng(outlier_seed), max_frac_dust=settings.outlier_max_frac_dust,
-                             alpha_concentration=settings.alpha_family, events=bl.replicate)
+                             alpha_concentration=settings.alpha_family, events=events)
 
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     # 0. baseline fit and a first outlier screen
