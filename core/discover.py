@@ -161,8 +161,12 @@ class Settings:
         set up again, so chips on several targets of one set-up are one
         dirty set-up, side by side in time). ``"setup"`` also lets
         outliers confined to one set-up (a fixture slip's touches after
-        the slip) pass the test as one event; docs/discovery.md gives the
-        measured trade.
+        the slip) pass the test as one event; ``"setup_slip"`` counts
+        per set-up too, but a set-up's outliers are no dust when the best
+        one-off rigid step of the part within that set-up
+        (:func:`core.causes.fixture_slip`), adopted on every row, leaves
+        none of them an outlier (they were the slip's touches).
+        docs/discovery.md gives the measured trade.
     grid_steps_mm : tuple of float
         Error-map grid steps tried for the planar baseline.
     select_grid : bool
@@ -444,7 +448,8 @@ def _state(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _State:
 def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: float = 0.02,
                   Q: np.ndarray | None = None, ranks: np.ndarray | None = None,
                   rng: np.random.Generator | None = None, max_frac_dust: float = 0.05,
-                  alpha_concentration: float = 0.0025, events: np.ndarray | None = None) -> list[int]:
+                  alpha_concentration: float = 0.0025, events: np.ndarray | None = None,
+                  slips=None) -> list[int]:
     """Indices (into y) of gross outliers: studentized deleted residuals, one at a time.
 
     Each pass removes the most extreme row if its studentized deleted
@@ -485,6 +490,12 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         is set up again, and every touch of that target hits it); negative:
         a row of its own. The concentration test counts one outlier per
         event.
+    slips : callable, optional
+        ``slips() -> (T, n, k)``: one-off steps within an event (a fixture
+        slip's trials, :func:`core.causes.fixture_slip`). Two or more
+        outliers of one event are no dust when the best trial (least
+        residual sum of squares, every row in the fit) leaves none of them
+        beyond the bound: they were that step's touches.
     """
     n = len(y)
     judged = ranks is not None and ranks.shape[1] > 0 and rng is not None
@@ -518,7 +529,56 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
             first = [out[i] for i in sorted(np.unique(ev, return_index=True)[1])]
         if len(first) >= 2 and concentration_p(ranks, first, rng) < alpha_concentration:
             return []
+        if slips is not None and events is not None and _slip_explains(X, y, out, np.asarray(events), slips, alpha):
+            return []
     return sorted(out)
+
+
+def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, slips, alpha: float) -> bool:
+    """Whether one step of :func:`find_outliers`'s ``slips`` explains an event's two or more outliers.
+
+    Per event holding at least two of ``out``: the trial confined to that
+    event with the least residual sum of squares (every row fitted) is
+    adopted, and its studentized deleted residuals of those outliers are
+    compared with the same Bonferroni bound; none beyond it: a step, not
+    dust.
+    """
+    out = np.asarray(out, int)
+    ev = events[out]
+    multi = [e for e in np.unique(ev[ev >= 0]) if np.sum(ev == e) >= 2]
+    if not multi:
+        return False
+    Cs = slips()
+    if Cs.shape[0] == 0:
+        return False
+    on = np.any(Cs != 0, axis=2)  # (T, n) rows each trial moves
+    Q0 = orth(X)
+    n = len(y)
+    for e in multi:
+        trials = np.flatnonzero(np.all(~on[:, events != e], axis=1) & np.any(on[:, events == e], axis=1))
+        best, best_rss = None, np.inf
+        for tr in trials:
+            Q = np.hstack([Q0, new_basis(Q0, Cs[tr])])
+            r = y - Q @ (Q.T @ y)
+            rss = float(r @ r)
+            if rss < best_rss:
+                best, best_rss = (Q, r), rss
+        if best is None:
+            continue
+        Q, r = best
+        dof = n - Q.shape[1]
+        if dof < 3:
+            continue
+        h = np.sum(Q ** 2, axis=1)
+        rows = out[ev == e]
+        den = 1 - h[rows]
+        if np.any(den < 0.01):
+            continue
+        s2 = (best_rss - r[rows] ** 2 / den) / (dof - 1)
+        tstat = np.abs(r[rows]) / np.sqrt(np.maximum(s2, 1e-300) * den)
+        if np.all(tstat <= stats.t.isf(alpha / (2 * n), dof - 1)):
+            return True
+    return False
 
 
 #: Draws of the concentration test's null (its smallest p-value is 1 / (draws + 1)).
@@ -737,16 +797,23 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
 
     ranks = covariate_ranks(bl.covariates)
-    if settings.outlier_events not in ("target", "setup"):
-        raise ConfigError(f"Settings.outlier_events must be 'target' or 'setup', not {settings.outlier_events!r}")
-    events = bl.groups if settings.outlier_events == "setup" and bl.kind == "planar" else bl.replicate
+    if settings.outlier_events not in ("target", "setup", "setup_slip"):
+        raise ConfigError("Settings.outlier_events must be 'target', 'setup' or 'setup_slip', not "
+                          f"{settings.outlier_events!r}")
+    per_setup = settings.outlier_events != "target" and bl.kind == "planar"
+    events = bl.groups if per_setup else bl.replicate
+    slips = None
+    if per_setup and settings.outlier_events == "setup_slip":
+        def slips():
+            Cs = causes_mod.fixture_slip(bl)
+            return Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
 
     def outliers_of(X, Q=None):
         # each call draws its own null from a generator seeded by the caller's: the
         # answer does not depend on how many other tests drew before it
         return find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac, Q, ranks=ranks,
                              rng=np.random.default_rng(outlier_seed), max_frac_dust=settings.outlier_max_frac_dust,
-                             alpha_concentration=settings.alpha_family, events=events)
+                             alpha_concentration=settings.alpha_family, events=events, slips=slips)
 
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     # 0. baseline fit and a first outlier screen
