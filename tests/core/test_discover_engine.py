@@ -395,3 +395,34 @@ def test_scatter_above_a_probes_noise_is_never_none():
     f = rep["findings"][0]
     assert rep["cause"] == "unexplained" and f["evidence"]["noise_excess"], rep["findings"]
     assert "above any touch-trigger probe's noise" in f["evidence"]["text"]
+
+
+def test_a_dirty_set_up_is_dust_but_a_slip_within_it_is_not():
+    """Counting one event per set-up: three chips scattered in one set-up are dust; three outliers that one
+    step of that set-up's tail explains (a slip moving the part: large where the touch's normal meets the
+    motion, small elsewhere) are not, once the slip's trials are given. Without the trials both are dust:
+    the trade Settings.outlier_events='setup' makes."""
+    rng = np.random.default_rng(12)
+    n, per = 120, 30
+    setup = np.repeat(np.arange(4), per)
+    pos = np.tile(np.arange(per), 4)
+    ranks = np.column_stack([(np.arange(n) + 0.5) / n, (rng.permutation(n) + 0.5) / n])
+    w = rng.uniform(-0.1, 0.1, n)  # the slip's share on each touch (its normal against the motion)
+    w[[62 + 20, 62 + 23, 62 + 27]] = 1.0
+    trials = np.array([(w * ((setup == j) & (pos >= s)))[:, None] for j in range(4) for s in range(1, per)])
+    X = np.column_stack([np.ones(n), np.linspace(-1, 1, n)])
+    g = np.random.default_rng
+    slip = rng.normal(0, 1, n)
+    slip[(setup == 2) & (pos >= 20)] += 12.0 * w[(setup == 2) & (pos >= 20)]
+    chips = rng.normal(0, 1, n)
+    chips[[63, 74, 86]] += 12.0
+    for y, rows in ((slip, [82, 85, 89]), (chips, [63, 74, 86])):
+        assert find_outliers(X, y, ranks=ranks, rng=g(0), events=setup) == rows
+    assert find_outliers(X, chips, ranks=ranks, rng=g(0), events=setup, slips=lambda: trials) == [63, 74, 86]
+    assert find_outliers(X, slip, ranks=ranks, rng=g(0), events=setup, slips=lambda: trials) == []
+
+
+def test_outlier_events_must_be_known():
+    t, _ = S.campaign("none", 3)
+    with pytest.raises(ConfigError, match="outlier_events"):
+        discover(t, settings=Settings(outlier_events="chip"))
