@@ -95,17 +95,49 @@ class Identified:
     delta_L: tuple
 
 
-def identify_campaign(seed: int, noise_m: float = NOISE_M, *, ripple: bool = True) -> Identified:
-    """Simulate and identify one cross-pocket campaign (module doc); the report is ``vmt identify``'s JSON."""
+def model_space_errors(seed: int, ripple: bool = True) -> dict:
+    """The realistic machine of ``seed`` projected onto the identification's own model: its tool's exact
+    X/Y deviation at the probing height on the grid's nodes, split into the tables (EXX, EYX, EXY, EYY,
+    the yaw; linear between nodes) and EC0Y (:func:`scenarios.selfcal_coverage._tool_tables`); no
+    other error. A truth inside the model space with the realistic machine's node values."""
+    from core.selfcal import Grid, estimator, probing_levels, yaw_for_chain
+    from scenarios import selfcal_coverage as SC
+    from sim.errorfuncs import Constant, LinearTable
+
+    c = SC.simulate(MACHINE, seed, 0.0, ripple=ripple)
+    lo, hi, step = (v * 1e-3 for v in SC.GRID_MM)
+    des, _ = estimator(c.touches, Grid.regular(lo, hi, step), yaw=yaw_for_chain(c.machine.config.chain))
+    _, z_ref = probing_levels(c.touches.pn_R[:, 2])
+    th, _ = SC._tool_tables(SC._split(c.machine)[0], des, z_ref)
+    s = des.slices
+    gx, gy = tuple(des.grid.x_m), tuple(des.grid.y_m)
+    errs = {"EXX": LinearTable(gx, tuple(th[s["EXX"]])), "EYX": LinearTable(gx, tuple(th[s["EYX"]])),
+            "EXY": LinearTable(gy, tuple(th[s["EXY"]])), "EYY": LinearTable(gy, tuple(th[s["EYY"]])),
+            "EC0Y": Constant(float(th[s["EC0Y"]][0]))}
+    if "ECY" in s:
+        errs["ECY"] = LinearTable(gy, tuple(th[s["ECY"]]))
+    else:
+        errs["ECX"] = LinearTable(gx, tuple(th[s["ECX"]]))
+    return errs
+
+
+def identify_campaign(seed: int, noise_m: float = NOISE_M, *, ripple: bool = True, exact_scale: bool = False,
+                      errors: dict | None = None) -> Identified:
+    """Simulate and identify one cross-pocket campaign (module doc); the report is ``vmt identify``'s JSON.
+
+    ``exact_scale``: delta_L is its true value and adds no uncertainty (a diagnosis, not a measurement);
+    ``errors``: the machine's errors instead of the realistic draw (e.g. :func:`model_space_errors`)."""
     from core.selfcal import Grid, probing_levels, self_calibrate, yaw_for_chain
     from scenarios import selfcal_coverage as SC
     from scenarios.crosspocket import measure_delta_L
 
-    c = SC.simulate(MACHINE, seed, noise_m, ripple=ripple)
+    c = SC.simulate(MACHINE, seed, noise_m, ripple=ripple, errors=errors)
     lo, hi, step = (v * 1e-3 for v in SC.GRID_MM)
     grid = Grid.regular(lo, hi, step)
     _, z_ref = probing_levels(c.touches.pn_R[:, 2])
     dL, dL_true, u_dL = measure_delta_L(c.machine, hi, z_ref, noise_m, np.random.default_rng([seed, 17]))
+    if exact_scale:
+        dL, u_dL = dL_true, 0.0
     yaw = yaw_for_chain(c.machine.config.chain)
     res = self_calibrate(c.touches, grid, dL, yaw=yaw)
     # the measured length's own uncertainty: the estimate is linear in delta_L (eq 17 is a gauge row)

@@ -201,3 +201,36 @@ def test_cli_state_of_an_axis_the_machine_lacks_exits_2(tmp_path, capsys, identi
                  "--machine-state", str(st)]) == 2
     err = capsys.readouterr().err
     assert "EA0C: axis C is not in machine" in err and err.count("\n") == 1
+
+
+def test_model_space_errors_follow_the_realistic_tool_on_the_nodes():
+    """The diagnosis's model-space truth (docs/vcmm-coverage-diagnosis.md): on every grid node at the
+    probing height its tool's exact X/Y deviation equals the realistic machine's tool-side deviation up
+    to the split's misfit; between nodes it is linear (it differs from the realistic
+    machine there by more than on the nodes: the realistic tables are smooth, not piecewise linear)."""
+    from core.selfcal import probing_levels
+    from scenarios import selfcal_coverage as SC
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+
+    errs = VS.model_space_errors(3, ripple=False)
+    c = SC.simulate(VS.MACHINE, 3, 0.0, ripple=False)
+    _, z = probing_levels(c.touches.pn_R[:, 2])
+    tool = SC._split(c.machine)[0]
+    ms = Machine(MACHINES[VS.MACHINE](errors=errs))
+
+    def dev(m, P):
+        rot = np.zeros((len(P), len(m.rotary_axes)))
+        return m.tip_W(P, rot) - m.tip_W_nominal(P, rot)
+
+    def mesh(v):
+        X, Y = np.meshgrid(v, v, indexing="ij")
+        return np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z)])
+
+    nodes, mid = mesh(np.arange(-0.110, 0.1101, 0.022)), mesh(np.arange(-0.099, 0.1, 0.022))
+    on = np.abs(dev(tool, nodes)[:, :2] - dev(ms, nodes)[:, :2]).max()
+    off = np.abs(dev(tool, mid)[:, :2] - dev(ms, mid)[:, :2]).max()
+    # on the nodes: the split's misfit (seen 0.09 nm; the project's 1 nm for exact geometry); between
+    # them the realistic machine's curvature the linear tables leave (seen 26 nm for seed 3)
+    assert on < 1e-9, on
+    assert off > 100 * on, (on, off)
