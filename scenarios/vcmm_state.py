@@ -238,7 +238,8 @@ def crosspocket_comparison(seed: int = 1, nodes_mm=COMPARE_NODES_MM, vcmm_seed: 
 
     The same measurand: the tool's 2D position error at a grid node, in the gauge of eqs 16-17, scale
     unknown, C = {0, 75, 130, 210} deg with the spheres, probing u 1.38 um (the cross-pocket study's
-    U_PROBE_M). The study: linear propagation through the nominal design (exact for this linear
+    U_PROBE_M). The study: linear propagation through the nominal design, evaluated where identify
+    evaluates (the tip centres, with the height terms: :func:`scenarios.crosspocket.study_touches`; exact for this linear
     estimator; its Monte Carlo agrees to sampling). The virtual CMM: a simulated campaign on a
     realistic nmv3000 at that noise, identified as ``vmt identify`` does (scale unknown), its
     estimate and covariance as ``--machine-state``, a noise-free probe (the state alone), an 8-touch
@@ -246,7 +247,7 @@ def crosspocket_comparison(seed: int = 1, nodes_mm=COMPARE_NODES_MM, vcmm_seed: 
     linear propagation of the identification's covariance, split into its probing part at the study's
     1.38 um, at the residuals' sigma, and with the model-error budget (what the difference is made of).
     """
-    from core.selfcal import Grid, estimator, nominal_touches, probing_levels, self_calibrate, yaw_for_chain
+    from core.selfcal import Grid, estimator, probing_levels, self_calibrate, yaw_for_chain
     from core.state import loads_estimate
     from core.uncertainty import K, error_map_operator
     from scenarios import crosspocket as CP
@@ -256,8 +257,8 @@ def crosspocket_comparison(seed: int = 1, nodes_mm=COMPARE_NODES_MM, vcmm_seed: 
     from sim.machinefile import resolve
 
     grid = Grid.regular(-0.110, 0.110, 0.022)
-    w, wn, ids = CP._plan_points(True)
-    des0, est0 = estimator(nominal_touches(w, wn, SC.ANGLES, target_ids=ids), grid)
+    w, wn, ids, z = CP._plan_points(True, heights=True)
+    des0, est0 = estimator(CP.study_touches(w, wn, SC.ANGLES, ids, z), grid)
     map0 = CP._map_u95_linear(des0, est0)
     c = SC.simulate(MACHINE, seed, CP.U_PROBE_M)
     _, z_ref = probing_levels(c.touches.pn_R[:, 2])
