@@ -97,13 +97,10 @@ def validate_plan(art: A.Artefact, plan: Plan, probe: ProbeConfig) -> None:
     start = plan.w_A + (r + plan.clearance_m) * plan.wn_A
     travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
 
+    dist = A.GroupedSdf(sdf)
+
     def g(idx, s):
-        p = start[idx] - s[:, None] * plan.wn_A[idx]
-        out = np.empty(len(idx))
-        for k in np.unique(grp[idx]):
-            m = grp[idx] == k
-            out[m] = sdf[k](p[m])
-        return out - r
+        return dist(grp[idx], start[idx] - s[:, None] * plan.wn_A[idx]) - r
 
     s, status = find_contacts(g, plan.n, travel)
     bad = (status != ProbeStatus.OK) | ~(np.abs(s - plan.clearance_m) < 1e-9)
