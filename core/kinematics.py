@@ -99,9 +99,10 @@ def _coeffs(th: np.ndarray):
     small = th < 1e-4
     t = np.where(small, 1.0, th)
     t2 = th * th
-    a = np.where(small, 1 - t2 / 6, np.sin(t) / t)
+    st = np.sin(t)
+    a = np.where(small, 1 - t2 / 6, st / t)
     b = np.where(small, 0.5 - t2 / 24, (1 - np.cos(t)) / t**2)
-    c = np.where(small, 1 / 6 - t2 / 120, (t - np.sin(t)) / t**3)
+    c = np.where(small, 1 / 6 - t2 / 120, (t - st) / t**3)
     return a, b, c
 
 
@@ -245,10 +246,10 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = 
                     xi[:, j] = 1.0
                 else:
                     wv = Jl_E[:, :, j - 3]
-                    xi = np.concatenate([-np.cross(wv, t_E), wv], axis=1)
+                    xi = np.concatenate([-_cross_rows(wv, t_E), wv], axis=1)
                 if side != "tool":
                     v, w = xi[:, :3], xi[:, 3:]
-                    xi = -np.concatenate([np.einsum("nji,nj->ni", R_E, v - np.cross(t_E, w)),
+                    xi = -np.concatenate([np.einsum("nji,nj->ni", R_E, v - _cross_rows(t_E, w)),
                                           np.einsum("nji,nj->ni", R_E, w)], axis=1)
                 add(m.name, i, xi)
 

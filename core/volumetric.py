@@ -338,10 +338,9 @@ def _axis_weights(nodes, q) -> dict:
     return {a: spline_weights(nodes[a], q[:, i]) for i, a in enumerate(iso.LINEAR_AXES)}
 
 
-def _values(theta, slices, W):
-    """Error values at the readings of the weights W (:func:`_axis_weights`): symbol -> (p,)."""
+def _values(theta, slices, W, p):
+    """Error values at the p readings of the weights W (:func:`_axis_weights`): symbol -> (p,)."""
     out = {s: W[iso.symbol(s).axis] @ theta[slices[s]] for s in MOTION}
-    p = len(W[iso.LINEAR_AXES[0]])
     for s in SQUARENESS:
         out[s] = np.full(p, theta[slices[s]][0])
     return out
@@ -390,7 +389,7 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact):
             t = len(qt)
             rott = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (t, 1)) if nr else None
             Wt = _axis_weights(nodes, qt)
-            vals_t = _values(theta, slices, Wt) if exact else None
+            vals_t = _values(theta, slices, Wt, t) if exact else None
             d_W = np.asarray(m.d_A, float) @ T[:3, :3].T
             GW = np.einsum("ij,kjt->kit", T[:3, :3], np.asarray(m.G_A, float).reshape(k, 3, t))  # (k, 3, t)
             St = sensitivity(g, qt, rott, vals_t, symbols=MOTION + SQUARENESS)
@@ -402,7 +401,7 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact):
                 pred = pred + GW @ e
         else:
             W = _axis_weights(nodes, q)
-            vals = _values(theta, slices, W) if exact else None
+            vals = _values(theta, slices, W, k) if exact else None
             S = sensitivity(g, q, rot, vals, symbols=MOTION + SQUARENESS)  # (k, 3, 21)
             pred = tip_W(g, q, rot, vals)
             J = _error_jacobian(S, W, slices, n)
