@@ -289,6 +289,47 @@ def planar_data(t: Touches, grid_step_m: float, extra: dict | None = None) -> Pl
         extra={k: np.asarray(v, float) for k, v in (extra or {}).items()})
 
 
+def touch_history(t_s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """What the probe went through just before each touch: (log10 time since the previous touch, turn, deg).
+
+    A kinematic seat that settles after each trigger (its error shrinking
+    with the rest between touches) or that lands differently when the
+    approach reverses (hysteresis of the seat) leaves residuals following
+    these, not the time or the direction themselves. Touches are taken in
+    time order (ties in log order); the first touch gets the median rest
+    (it has no previous one, and an extreme value would give it a basis
+    function of its own) and no turn.
+
+    Parameters
+    ----------
+    t_s : (n,) float
+        Touch times, s.
+    d : (n, 3) float
+        Unit approach directions (any frame: only angles between them count).
+
+    Returns
+    -------
+    since : (n,) float
+        ``log10`` of the time since the previous touch in s (floored at 1 ms).
+    turn : (n,) float
+        Angle between the approach and the previous touch's, deg, rounded
+        to 1 deg (0: same direction, 180: reversed).
+    """
+    t_s = np.asarray(t_s, float)
+    n = len(t_s)
+    since = np.zeros(n)
+    turn = np.zeros(n)
+    if n < 2:
+        return since, turn
+    o = np.argsort(t_s, kind="stable")
+    gap = np.diff(t_s[o])
+    since[o[1:]] = np.log10(np.maximum(gap, 1e-3))
+    since[o[0]] = float(np.median(since[o[1:]]))
+    cosang = np.clip(np.sum(d[o[1:]] * d[o[:-1]], axis=1), -1.0, 1.0)
+    turn[o[1:]] = np.round(np.degrees(np.arccos(cosang)))
+    return since, turn
+
+
 def planar_covariates(d: PlanarData) -> tuple:
     """The covariates of a planar campaign (those that vary), with their bases."""
     t = d.touches
@@ -340,6 +381,13 @@ def planar_covariates(d: PlanarData) -> tuple:
         key = np.array([f"{f}|{s}" for f, s in zip(feats, t.setup)], dtype=object)
         covs.append(Covariate("feature", key, "categorical", 0, pos, "the feature, differently in each set-up",
                               "feature"))
+    since, turn = touch_history(t.t_s, t.d_R)
+    if np.ptp(since) > 0:
+        covs.append(Covariate("time_since_previous", since, "smooth", 4, (0,),
+                              "the time since the previous touch", "history"))
+    if np.unique(turn).size >= 2:
+        covs.append(Covariate("turn_from_previous", turn, "smooth", 4, (0,),
+                              "the turn of the approach from the previous touch's", "history"))
     for name, v in d.temps.items():
         short = name[5:-2] if name.startswith("temp_") and name.endswith("_C") else name
         covs.append(Covariate(f"temp_{short}", v, "smooth", 5, allm, f"the temperature {name}", "time"))

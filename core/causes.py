@@ -32,7 +32,11 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   rival check (a named cause must explain the structure in its covariate
   about as well as a catalogue-free smooth function of it, else it is a
   guess); ``rival(baseline, info) -> (n, m)`` overrides that smooth term;
-- the physics, in the docstring of its ``scans`` function (``doc``).
+- the physics, in the docstring of its ``scans`` function (``doc``);
+- ``counter(baseline) -> (n, m)``, ``counter_scan(baseline) -> (T, n, k)``:
+  a plainer explanation the cause must beat (a finer error map for a
+  coupling; the best of T trials of a one-off rigid step of the part,
+  :func:`fixture_slip`, for the planar causes).
 
 Sign convention (CONTRIBUTING): a tool positioning error ``E`` gives
 ``dq = -n . E``; a pre-travel ``p`` (trigger late along the approach) gives
@@ -101,6 +105,7 @@ class Cause:
     check: Callable | None = None
     plausible: Callable | None = None
     counter: Callable | None = None
+    counter_scan: Callable | None = None
 
     @property
     def doc(self) -> str:
@@ -702,6 +707,43 @@ def nonrigid_scans(bl):
     return [_one(cols, _NONRIGID, {}, "xy")], 1.0
 
 
+#: Split points tried per set-up by :func:`fixture_slip` (quantiles of its touches when it has more).
+SLIP_SPLITS = 40
+
+
+def fixture_slip(bl) -> np.ndarray:
+    """(T, n, 3) the plainer explanation of a change within a set-up: the part moved once (a slip).
+
+    A clamp or fixture that gives way under the probing force moves the
+    whole part rigidly at one moment: every touch of that set-up after it
+    is off by the same translation and rotation (``n_x dx + n_y dy + rot
+    dC``), and the set-ups after it take the new position into their own
+    C-axis offsets. A cause that changes with time, direction or position
+    can mimic one set-up's step; if a step explains as much, the data
+    cannot tell the named cause from a slip and it is not named. Trials:
+    a step after each touch of each set-up in time order (at most
+    :data:`SLIP_SPLITS` per set-up, at quantiles), at least one touch on
+    each side.
+    """
+    d = bl.data
+    t = d.touches
+    M = np.column_stack([d.nx, d.ny, d.rot_m / max(d.L_m, 1e-9)])
+    out = []
+    for j in np.unique(t.setup):
+        idx = np.flatnonzero(t.setup == j)
+        idx = idx[np.argsort(t.t_s[idx], kind="stable")]
+        if idx.size < 3:
+            continue
+        splits = np.arange(1, idx.size)
+        if splits.size > SLIP_SPLITS:
+            splits = np.unique(np.round(np.linspace(1, idx.size - 1, SLIP_SPLITS)).astype(int))
+        for s in splits:
+            m = np.zeros(t.n)
+            m[idx[s:]] = 1.0
+            out.append(M * m[:, None])
+    return np.array(out) if out else np.zeros((0, t.n, 3))
+
+
 def finer_error_map(bl) -> np.ndarray:
     """The rigid-body error map on a grid twice as fine: the plainer explanation of an x-y structure.
 
@@ -901,28 +943,30 @@ NONE = "none"
 REGISTRY = (
     Cause("thermal_drift", ("planar",), "machine", drift_scans, drift_magnitudes,
           {"x_offset_change_um": (-500, 500), "y_offset_change_um": (-500, 500),
-           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}),
+           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, counter_scan=fixture_slip),
     Cause("c_drift", ("planar",), "machine", c_drift_scans, c_drift_magnitudes,
           {"ECC_change_in_setup_urad": (-2000, 2000), "ECC_change_over_campaign_urad": (-2000, 2000),
-           "ECC_change_rms_urad": (0, 2000), "ECC_change_urad[*]": (-2000, 2000)}),
+           "ECC_change_rms_urad": (0, 2000), "ECC_change_urad[*]": (-2000, 2000)},
+          counter_scan=fixture_slip),
     Cause("temperature_expansion", ("planar",), "machine", expansion_scans, expansion_magnitudes,
           {"alpha_x_um_per_m_K": (-60, 60), "alpha_y_um_per_m_K": (-60, 60),
-           "x_offset_um_per_K": (-50, 50), "y_offset_um_per_K": (-50, 50)}),
+           "x_offset_um_per_K": (-50, 50), "y_offset_um_per_K": (-50, 50)}, counter_scan=fixture_slip),
     Cause("periodic_axis_error", ("planar",), "machine", periodic_scans, periodic_magnitudes,
           {"EXX_amplitude_um": (0, 50), "EYX_amplitude_um": (0, 50), "EXY_amplitude_um": (0, 50),
-           "EYY_amplitude_um": (0, 50)}, periodic_rebuild, ("period_m",), check=periodic_check),
+           "EYY_amplitude_um": (0, 50)}, periodic_rebuild, ("period_m",), check=periodic_check,
+          counter_scan=fixture_slip),
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
-          {"pretravel_variation_pv_um": (0, 50)}),
+          {"pretravel_variation_pv_um": (0, 50)}, counter_scan=fixture_slip),
     Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
-          {"amplitude_um": (0, 50)}, plausible=unoriented_plausible),
+          {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter_scan=fixture_slip),
     Cause("stylus_bending", ("planar",), "probe", bending_scans, bending_magnitudes,
-          {"pretravel_change_um": (-50, 50)}),
+          {"pretravel_change_um": (-50, 50)}, counter_scan=fixture_slip),
     Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,
-          {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m")),
+          {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
-          {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival),
+          {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
-          {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}),
+          {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,
           {f"{k}_um": (-200, 200) for k in _NONRIGID}, counter=finer_error_map),
     Cause(OUTLIER, ("planar", "volumetric", "positioning"), "data", None, None, {},

@@ -8,9 +8,13 @@ baseline (Ibaraki et al. eqs 1-18, :func:`core.baseline.planar`) and runs
 What it does, in order, and the statistics behind each step
 -----------------------------------------------------------
 1. **Outliers**: studentized deleted residuals beyond the Bonferroni bound
-   ``t(1 - a / 2n, dof - 1)``, removed one at a time (at most
-   :attr:`Settings.outlier_max_frac` of the rows: more is a systematic
-   effect, not dust, and then nothing is removed).
+   ``t(1 - a / 2n, dof - 1)``, removed one at a time; then judged by
+   where they fall (:func:`concentration_p`): concentrated in a covariate
+   they are a systematic effect and nothing is removed; at random they
+   are dust, up to :attr:`Settings.outlier_max_frac_dust` of the rows.
+   One set-up's outliers count as one event (a chip stays on the part
+   until it is set up again), unless one rigid step of the part within
+   that set-up explains them (a fixture slip: structure).
 2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
    error), the lack-of-fit F test of the baseline against it, and the gap
    between held-out and in-sample residuals: ``cv_ss / rss`` against its
@@ -49,7 +53,10 @@ What it does, in order, and the statistics behind each step
    catalogue-free smooth function of that covariate does (debiased sums of
    squares), or fall short of it by an immaterial amount; and its plainer
    counter-explanation (:attr:`core.causes.Cause.counter`, e.g. a finer
-   error map against a non-rigid coupling) must not explain as much.
+   error map against a non-rigid coupling) must not explain as much; and
+   it must explain something material beyond the best trial of its
+   :attr:`core.causes.Cause.counter_scan` (a one-off slip of the part in
+   one set-up, debiased for the choice among its trials).
    Otherwise it was a guess that caught part of something else: it is
    dropped and said so.
 6. **Unexplained**: if structure remains (diagnosis, lack of fit or CV gap
@@ -139,8 +146,31 @@ class Settings:
     outlier_alpha : float
         Family-wise rate of the outlier test.
     outlier_max_frac : float
-        At most this fraction of rows may be outliers; if the test wants
-        more, they are structure, not dust, and none is removed.
+        At most this fraction of rows may be outliers when nothing says
+        where they fall; if the test wants more, they are structure, not
+        dust, and none is removed.
+    outlier_max_frac_dust : float
+        The same for outliers that fall at random over every covariate the
+        log holds (the concentration test of :func:`find_outliers`): 0.05.
+        Chips and dust hit touches at random, and a short campaign in a
+        dirty shop may see several (5 of 140 touches is 3.6 %); outliers
+        concentrated in a covariate are structure at any count, and more
+        than 5 % of the touches is no chip.
+    outlier_events : str
+        What one piece of dust corrupts together, for the concentration
+        test (planar baselines; others count each row): ``"target"`` (the
+        touches of one target within one set-up) or ``"setup"`` (every
+        touch of one set-up: a chip on the part stays until the part is
+        set up again, so chips on several targets of one set-up are one
+        dirty set-up, side by side in time). ``"setup"`` also lets
+        outliers confined to one set-up (a fixture slip's touches after
+        the slip) pass the test as one event; ``"setup_slip"`` counts
+        per set-up too, but a set-up's outliers are no dust when the best
+        one-off rigid step of the part within that set-up
+        (:func:`core.causes.fixture_slip`), adopted on every row, leaves
+        none of them an outlier (they were the slip's touches): the
+        default, measured against the other two on fresh seeds
+        (docs/discovery.md).
     grid_steps_mm : tuple of float
         Error-map grid steps tried for the planar baseline.
     select_grid : bool
@@ -173,6 +203,8 @@ class Settings:
     rival_share: float = 0.8
     outlier_alpha: float = 0.001
     outlier_max_frac: float = 0.02
+    outlier_max_frac_dust: float = 0.05
+    outlier_events: str = "setup_slip"
     grid_steps_mm: tuple = (22.0, 30.0, 40.0, 55.0, 80.0)
     select_grid: bool = True
     max_findings: int = 3
@@ -418,13 +450,26 @@ def _state(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _State:
 # outliers
 # ---------------------------------------------------------------------------
 def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: float = 0.02,
-                  Q: np.ndarray | None = None) -> list[int]:
+                  Q: np.ndarray | None = None, ranks: np.ndarray | None = None,
+                  rng: np.random.Generator | None = None, max_frac_dust: float = 0.05,
+                  alpha_concentration: float = 0.0025, events: np.ndarray | None = None,
+                  slips=None) -> list[int]:
     """Indices (into y) of gross outliers: studentized deleted residuals, one at a time.
 
     Each pass removes the most extreme row if its studentized deleted
     residual exceeds the Bonferroni bound ``t(1 - alpha / 2n, dof - 1)``.
     If more than ``max_frac`` of the rows (at least 3) would go, the large
     residuals are structure, not dust: nothing is returned.
+
+    With ``ranks`` (the rows' covariates as normalised ranks) the set is
+    also judged by where it falls. Dust (a chip, a bad trigger) has no
+    memory: it hits touches at random, so the outliers' mean rank in every
+    covariate is that of ``k`` touches drawn at random
+    (:func:`concentration_p`). Outliers concentrated in one covariate (the
+    touches after a reversal, after a long rest, late in a set-up) are
+    structure: nothing is returned. Outliers that fall at random are dust
+    up to ``max_frac_dust`` of the rows (more than that many chips is no
+    chip).
 
     Parameters
     ----------
@@ -433,9 +478,32 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
     y : (n,) float
     Q : (n, r) float, optional
         Orthonormal basis of X's column space (saves the first factorisation).
+    ranks : (n, m) float, optional
+        Normalised ranks (0..1) of the rows in ``m`` covariates
+        (:func:`covariate_ranks`).
+    rng : np.random.Generator, optional
+        Draws of the concentration test's null (needed with ``ranks``).
+    max_frac_dust : float
+        Largest fraction of outliers that fall at random (with ``ranks``).
+    alpha_concentration : float
+        Family-wise level of the concentration test (Bonferroni over the
+        covariates).
+    events : (n,) int, optional
+        Rows that one piece of dust corrupts together (the touches of one
+        target within one set-up: a chip stays on the part until the part
+        is set up again, and every touch of that target hits it); negative:
+        a row of its own. The concentration test counts one outlier per
+        event.
+    slips : callable, optional
+        ``slips() -> (T, n, k)``: one-off steps within an event (a fixture
+        slip's trials, :func:`core.causes.fixture_slip`). Two or more
+        outliers of one event are no dust when the best trial (least
+        residual sum of squares, every row in the fit) leaves none of them
+        beyond the bound: they were that step's touches.
     """
     n = len(y)
-    cap = max(3, int(max_frac * n))
+    judged = ranks is not None and ranks.shape[1] > 0 and rng is not None
+    cap = max(3, int((max_frac_dust if judged else max_frac) * n))
     keep = np.ones(n, bool)
     out: list[int] = []
     while True:
@@ -458,7 +526,106 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
             return []
         out.append(int(idx[k]))
         keep[idx[k]] = False
+    if judged:
+        first = out
+        if events is not None:  # a negative key: a row of its own
+            ev = np.where(np.asarray(events)[out] >= 0, np.asarray(events)[out], -1 - np.arange(len(out)))
+            first = [out[i] for i in sorted(np.unique(ev, return_index=True)[1])]
+        if len(first) >= 2 and concentration_p(ranks, first, rng) < alpha_concentration:
+            return []
+        if slips is not None and events is not None and _slip_explains(X, y, out, np.asarray(events), slips, alpha):
+            return []
     return sorted(out)
+
+
+def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, slips, alpha: float) -> bool:
+    """Whether one step of :func:`find_outliers`'s ``slips`` explains an event's two or more outliers.
+
+    Per event holding at least two of ``out``: the trial confined to that
+    event with the least residual sum of squares (every row fitted) is
+    adopted, and its studentized deleted residuals of those outliers are
+    compared with the same Bonferroni bound; none beyond it: a step, not
+    dust.
+    """
+    out = np.asarray(out, int)
+    ev = events[out]
+    multi = [e for e in np.unique(ev[ev >= 0]) if np.sum(ev == e) >= 2]
+    if not multi:
+        return False
+    Cs = slips()
+    if Cs.shape[0] == 0:
+        return False
+    on = np.any(Cs != 0, axis=2)  # (T, n) rows each trial moves
+    Q0 = orth(X)
+    n = len(y)
+    for e in multi:
+        trials = np.flatnonzero(np.all(~on[:, events != e], axis=1) & np.any(on[:, events == e], axis=1))
+        best, best_rss = None, np.inf
+        for tr in trials:
+            Q = np.hstack([Q0, new_basis(Q0, Cs[tr])])
+            r = y - Q @ (Q.T @ y)
+            rss = float(r @ r)
+            if rss < best_rss:
+                best, best_rss = (Q, r), rss
+        if best is None:
+            continue
+        Q, r = best
+        dof = n - Q.shape[1]
+        if dof < 3:
+            continue
+        h = np.sum(Q ** 2, axis=1)
+        rows = out[ev == e]
+        den = 1 - h[rows]
+        if np.any(den < 0.01):
+            continue
+        s2 = (best_rss - r[rows] ** 2 / den) / (dof - 1)
+        tstat = np.abs(r[rows]) / np.sqrt(np.maximum(s2, 1e-300) * den)
+        if np.all(tstat <= stats.t.isf(alpha / (2 * n), dof - 1)):
+            return True
+    return False
+
+
+#: Draws of the concentration test's null (its smallest p-value is 1 / (draws + 1)).
+CONCENTRATION_DRAWS = 20000
+
+
+def covariate_ranks(covariates) -> np.ndarray:
+    """(n, m) normalised ranks ``(rank - 1/2) / n`` (ties averaged) of the scalar covariates that vary.
+
+    Smooth covariates only: a category has no order, an angle no ends.
+    """
+    cols = []
+    for c in covariates:
+        v = np.asarray(c.values)
+        if c.kind != "smooth" or v.ndim != 1 or np.ptp(v) <= 0:
+            continue
+        cols.append((stats.rankdata(v) - 0.5) / len(v))
+    return np.column_stack(cols) if cols else np.zeros((0, 0))
+
+
+def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int = CONCENTRATION_DRAWS) -> float:
+    """Bonferroni-adjusted p-value that the rows ``idx`` fall at random over every covariate.
+
+    Two statistics per covariate: the shift ``|mean rank of the rows -
+    mean rank of all|`` (the rows sit at one end: late in the campaign,
+    after long rests, after reversals) and the spread ``max - min`` of
+    their ranks (the rows sit together anywhere: the touches after a part
+    moved in the middle of a set-up). Null: ``k`` rows drawn at random
+    (with replacement: a slightly wider null than without, so the test is
+    conservative), ``draws`` Monte Carlo draws, p = (1 + exceedances) /
+    (draws + 1); the smallest over the ``2 m`` statistics times ``2 m``.
+    """
+    idx = np.asarray(idx, int)
+    n, m = ranks.shape
+    if m == 0 or idx.size < 2:
+        return 1.0
+    mu = ranks.mean(axis=0)
+    R = ranks[idx]
+    shift, spread = np.abs(R.mean(axis=0) - mu), np.ptp(R, axis=0)
+    Rn = ranks[rng.integers(0, n, (draws, idx.size))]  # (draws, k, m)
+    p_shift = (1 + np.sum(np.abs(Rn.mean(axis=1) - mu) >= shift - 1e-12, axis=0)) / (draws + 1)
+    p_spread = (1 + np.sum(np.ptp(Rn, axis=1) <= spread + 1e-12, axis=0)) / (draws + 1)
+    return float(min(1.0, min(p_shift.min(), p_spread.min()) * 2 * m))
 
 
 # ---------------------------------------------------------------------------
@@ -633,10 +800,30 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     use_cv = bool(bl.info.get("cv", True))
     bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
 
+    ranks = covariate_ranks(bl.covariates)
+    if settings.outlier_events not in ("target", "setup", "setup_slip"):
+        raise ConfigError("Settings.outlier_events must be 'target', 'setup' or 'setup_slip', not "
+                          f"{settings.outlier_events!r}")
+    per_setup = settings.outlier_events != "target" and bl.kind == "planar"
+    events = bl.groups if per_setup else bl.replicate
+    slips = None
+    if per_setup and settings.outlier_events == "setup_slip":
+        def slips():
+            Cs = causes_mod.fixture_slip(bl)
+            return Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
+
+    def outliers_of(X, Q=None):
+        # each call draws its own null from a generator seeded by the caller's: the
+        # answer does not depend on how many other tests drew before it
+        return find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac, Q, ranks=ranks,
+                             rng=np.random.default_rng(outlier_seed), max_frac_dust=settings.outlier_max_frac_dust,
+                             alpha_concentration=settings.alpha_family, events=events, slips=slips)
+
+    outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     # 0. baseline fit and a first outlier screen
     Qall = orth(bl.A)
     st0 = _state(Qall, y, all_rows, [])
-    rows = np.setdiff1d(all_rows, find_outliers(bl.A, y, settings.outlier_alpha, settings.outlier_max_frac, Qall))
+    rows = np.setdiff1d(all_rows, outliers_of(bl.A, Qall))
     tick()
 
     cache: dict = {}
@@ -660,8 +847,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return sigma_rep if sigma_rep is not None else s.sigma
 
     # 1. noise floor of the baseline
-    base_cv = folds.residuals(y[rows])
-    cv_b = float(base_cv @ base_cv) / folds.dof
+    # the baseline's prediction error as every candidate's is measured (Mallows'
+    # Cp includes its 2 k s^2 / n where there is no cross-validation)
+    cv_b = folds.mse(y[rows])
     gap_b = _cv_gap(folds, st, y, None, None, settings, rng)
     lof_b = lack_of_fit(st.rss, st.dof, rep)
     tick()
@@ -715,7 +903,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             terms.append(best["term"])
             # outliers judged against the better model: a systematic effect is no dust
             X = np.hstack([bl.A, _stack(terms, all_rows)])
-            rows = np.setdiff1d(all_rows, find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac))
+            rows = np.setdiff1d(all_rows, outliers_of(X))
             Qb, folds, st = model(rows, terms)
             cv_cur = folds.mse(y[rows], _stack(terms, rows))
         return terms, rows, st, folds, Qb
@@ -755,7 +943,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 break
     if terms:
         X = np.hstack([bl.A, _stack(terms, all_rows)])
-        rows = np.setdiff1d(all_rows, find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac))
+        rows = np.setdiff1d(all_rows, outliers_of(X))
     Qb, folds, st = model(rows, terms)
     tick()
 
@@ -793,7 +981,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             terms.append(smooth)
             # outliers judged against the model with the smooth term
             X = np.hstack([bl.A, _stack(terms, all_rows)])
-            new_rows = np.setdiff1d(all_rows, find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac))
+            new_rows = np.setdiff1d(all_rows, outliers_of(X))
             if not np.array_equal(new_rows, rows):
                 rows = new_rows
                 Qb, folds, _ = model(rows, [])
@@ -1230,6 +1418,28 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
         if d_c > d_n - m_ss:
             out["kept"] = False
+    if cause is not None and cause.counter_scan is not None and out["kept"]:
+        # a one-off alternative chosen among T trials: its best sum of squares is
+        # debiased by the median of the largest of T chi-squares (k dof) under noise
+        Cs = cause.counter_scan(bl)
+        if Cs.shape[0]:
+            if bl.whiten is not None:
+                Cs = np.einsum("ij,tjk->tik", bl.whiten, Cs)
+            ss_s, k_s, _, _ = nested_f_batch(Cs[:, rows, :], so.Q, so.r, so.rss, so.dof)
+            j = int(np.argmax(ss_s))
+            null_max = float(stats.chi2.isf(np.log(2) / Cs.shape[0], max(int(k_s[j]), 1)))
+            d_s = float(ss_s[j]) - null_max * s2
+            # what the cause still explains once the slip is in the model
+            Qs = np.hstack([so.Q, new_basis(so.Q, Cs[j][rows])])
+            rs = so.r - Qs[:, so.Q.shape[1]:] @ (Qs[:, so.Q.shape[1]:].T @ so.r)
+            Un = new_basis(Qs, tm.columns[rows])
+            d_ns = float(np.sum((Un.T @ rs) ** 2)) - Un.shape[1] * s2
+            out["slip_explained_ss_um2"] = max(d_s, 0.0) / UM ** 2
+            out["explained_beyond_slip_ss_um2"] = max(d_ns, 0.0) / UM ** 2
+            if d_s >= m_ss and d_ns < m_ss:
+                out["kept"] = False
+                out["counter"] = cause.counter_scan.__name__.replace("_", " ")
+                out["counter_explained_ss_um2"] = out["slip_explained_ss_um2"]
     return out
 
 

@@ -553,11 +553,12 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3) -> dict:
     t0 = time.time()
     mach = Machine(MACHINES[plan.machine]())
     art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
+    margin = placement_margin_m()  # the program run() simulates for the default placement tolerance
     per, n_t, n_s = {}, 0, 0
     for ms in plan.measurements:
         rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
         T_R_W = np.asarray(mach.T_R_W_nominal(rot), float).reshape(4, 4)
-        pl = _plan_for(art, ms.holes)
+        pl = _plan_for(art, ms.holes, clearance_m=max(2.0 * MM, margin), overshoot_m=max(3.0 * MM, margin))
         r = check_measurement(ms.name, art, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m,
                               stylus_r_m, pl, FINGERS.get(ms.stylus, 0.0))
         if not r.ok:
@@ -629,10 +630,60 @@ def _check_touch_strokes(log, machine, name):
             raise PlanError(f"measurement {name!r}: a touch at {ax} = {p[bad][0, j] / MM:.1f} mm is outside the stroke")
 
 
-def _plan_for(art, holes, overshoot_m=3.0 * MM):
+#: Coverage factor of the MFB program's approach margins against the placement
+#: tolerance (:func:`placement_margin_m`).
+PLACEMENT_MARGIN_K = 5.0
+
+
+def placement_margin_m(u_place=U_PLACE, k: float = PLACEMENT_MARGIN_K) -> float:
+    """Approach margin of the MFB program for a bar placed within ``u_place``, m.
+
+    A placement error (translation t, small rotation w, :data:`U_PLACE`)
+    moves the bar's surface point w_A along its normal n by t.n + w.(w_A x n).
+    The program (start ``clearance_m`` before the nominal surface, search
+    ``overshoot_m`` beyond it) must cover that for every touch of the full
+    bar: the largest ``k`` standard deviations of it, rounded up to 0.5 mm,
+    and at least the plan's 2 mm clearance / 3 mm overshoot. With
+    :data:`U_PLACE` the far end's face touches (550 mm from O_1, approached
+    along y_A) give sqrt(0.2^2 + (1 mrad x 550 mm)^2) = 0.585 mm per sigma:
+    2.93 mm at k = 5, so 3.0 mm. (A 2 mm clearance, 3.4 sigma there, let about
+    one Monte Carlo run in 25 start a face touch inside the bar: seed 23 of
+    the 3-axis budget.)
+    """
+    from sim import artefacts as A
     from sim.plans import mfb_plan
 
-    full = mfb_plan(art, overshoot_m=overshoot_m)
+    u = np.asarray(u_place, float)
+    if u.shape != (6,) or not np.all(np.isfinite(u) & (u >= 0)):
+        from core.exceptions import ConfigError
+
+        raise ConfigError(f"u_place must be 6 standard deviations >= 0 (m, m, m, rad, rad, rad), got {u_place!r}")
+    pl = mfb_plan(A.multi_feature_bar(deviations_m=np.zeros((12, 3))))
+    s = np.sqrt(((u[:3] * pl.wn_A) ** 2).sum(axis=1) + ((u[3:] * np.cross(pl.w_A, pl.wn_A)) ** 2).sum(axis=1))
+    return float(np.ceil(k * s.max() / (0.5 * MM) - 1e-9) * 0.5 * MM)
+
+
+def _check_touches_ok(log, name, program):
+    """Every touch of an MFB measurement must trigger on its target: a touch that
+    starts inside the bar (``early_trigger``: on a machine, the probe strikes the
+    bar on its way in) or meets nothing (``no_trigger``) means the bar as placed
+    lies beyond the program's margins; the fit must not quietly go on without it."""
+    from core.exceptions import PlanError
+
+    st = np.asarray(log.col("status"), object)
+    bad = np.flatnonzero(st != "ok")
+    if bad.size:
+        feats = sorted({str(log.col("feature")[i]) for i in bad})
+        kinds = sorted({str(st[i]) for i in bad})
+        raise PlanError(f"measurement {name!r}: {bad.size} touches {'/'.join(kinds)} on {', '.join(feats)}: the "
+                        f"bar as placed lies beyond the program's approach margins (clearance "
+                        f"{program['clearance_m'] / MM:g} mm, overshoot {program['overshoot_m'] / MM:g} mm)")
+
+
+def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM):
+    from sim.plans import mfb_plan
+
+    full = mfb_plan(art, clearance_m=clearance_m, overshoot_m=overshoot_m)
     hs = set(holes)
     # the rods each probed hole's plane PL_i needs: (i-1, i), (1, 2) for hole 1
     lo, hi = min(holes), max(holes)
@@ -857,6 +908,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     cfg_true = cfg if machine_temperature_C == 20.0 else replace(
         cfg, errors=thermal_scales(errs, machine_temperature_C))
 
+    # the program's approach margins cover the declared placement tolerance (not the draw)
+    margin = placement_margin_m(u_place)
+    program = {"clearance_m": max(2.0 * MM, margin), "overshoot_m": max(3.0 * MM, margin)}
     collision = check_plan(plan) if plan.fixtures else None  # after the inputs are checked
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
@@ -884,10 +938,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         art_i, probe_i = art, probe
         if hook is not None:
             art_i, probe_i, m = hook(len(meas), ms, art, probe, m)
-        pl = _plan_for(art_i, ms.holes)
+        pl = _plan_for(art_i, ms.holes, **program)
         log = simulate_campaign(art_i, _NoSafeHeight(m), probe_i, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
                                 rng if noisy else None, plan=pl, check_collisions=False)
         _check_touch_strokes(log, m, ms.name)
+        _check_touches_ok(log, ms.name, program)
         t = from_log(log)
         n_touch += t.n
         # the stylus's calibration error: the controller converts joints to tip positions
@@ -1379,7 +1434,7 @@ def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_
     mc_over_quadrature}}``, ``coverage``, ``ratio_range`` and the settings.
     """
     from core import iso, volumetric as vol
-    from core.exceptions import ConfigError, FitError
+    from core.exceptions import ConfigError, PlanError
 
     if int(mc_runs) < 2 or int(stylus_runs) < 2:
         raise ConfigError(f"budget: mc_runs and stylus_runs must be >= 2, got {mc_runs!r}, {stylus_runs!r}")
@@ -1436,7 +1491,10 @@ def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_
         try:
             r = go(seed=seed + j, u_stylus_um=u_stylus_um, lobing_m=((lobing_k, a * np.cos(ph), a * np.sin(ph)),),
                    bar_temperature_C=T, machine_temperature_C=T)
-        except FitError as e:  # a touch lost (e.g. a rod face missed by a displaced bar): counted, redrawn
+        except PlanError as e:
+            # the drawn placement puts the bar beyond the program's margins (placement_margin_m, 5 sigma):
+            # on a machine the probe would strike or miss the bar and the operator would set it again. Counted
+            # and redrawn (the placement distribution is truncated there); any other error is a bug and raises.
             lost.append({"seed": seed + j, "error": str(e)})
             if len(lost) > max(2, int(mc_runs) // 5):
                 raise
@@ -1481,7 +1539,10 @@ def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_
                        f"{t_rms:.2f} degC, the RMS of T - 20 over {t_lo:g}-{t_hi:g} degC; in the sum as one source, "
                        f"bar and machine at the same T, their changes added with their signs). MC: {int(mc_runs)} "
                        "runs of the whole pipeline with every source drawn, 2 x RMS of identified - true."),
-            "per_error": per, "runs_lost": lost,
+            "per_error": per, "runs_lost": lost, "runs_drawn": j,
+            "runs_lost_note": ("a run is lost when its drawn placement puts the bar beyond the program's approach "
+                               f"margins ({placement_margin_m() / MM:g} mm, 5 sigma of the placement at the far "
+                               "end): counted here and redrawn, as an operator would set the bar again"),
             "ratio_range": [float(ratio.min()), float(np.median(ratio)), float(ratio.max())],
             "coverage": {"within_quadrature_U95": f"{inside}/{n}", "fraction_quadrature": inside / n,
                          "within_run_linear_U95": f"{inside_own}/{n}", "fraction_run_linear": inside_own / n,
@@ -1509,7 +1570,8 @@ def describe_budget(b: dict) -> str:
     lo, med, hi = b["ratio_range"]
     lines.append(f"MC / sum per node: {lo:.2f} - {hi:.2f} (median {med:.2f}); within the sum's U95 "
                  f"{cv['within_quadrature_U95']}, within the run's linear U95 {cv['within_run_linear_U95']}"
-                 + (f"; {len(b['runs_lost'])} runs lost and redrawn" if b.get("runs_lost") else ""))
+                 + (f"; {len(b['runs_lost'])} of {b.get('runs_drawn', '?')} runs lost (the bar beyond the "
+                    "program's margins) and redrawn" if b.get("runs_lost") else ""))
     return "\n".join(lines)
 
 

@@ -200,7 +200,7 @@ def register(sub) -> None:
                         "simulated calibration's true bar is the one simulated")
     p.add_argument("--budget-runs", type=int, default=0, metavar="N", dest="budget_runs",
                    help="mfb scenarios: add the uncertainty budget (each source's share per error, and N "
-                        "Monte Carlo runs of the whole pipeline with every source; about 20-40 s a run)")
+                        "Monte Carlo runs of the whole pipeline with every source; about 8 s of CPU a run)")
     p.add_argument("--mc", type=int, default=None,
                    help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty)")
     p.set_defaults(func=_dispatch)

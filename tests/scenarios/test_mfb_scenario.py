@@ -362,10 +362,73 @@ def test_describe_budget_prints_every_source_and_the_ratio():
                    "temperature_one_T": 0.65, "quadrature": 1.4, "mc": 1.5, "mc_over_quadrature": 1.5 / 1.4}}
     b = {"sources": list(BUDGET_SOURCES), "per_error": per, "mc_runs": 12, "ratio_range": [0.5, 1.0, 1.5],
          "coverage": {"within_quadrature_U95": "100/104", "within_run_linear_U95": "80/104"},
-         "runs_lost": [{"seed": 3, "error": "x"}]}
+         "runs_lost": [{"seed": 3, "error": "x"}], "runs_drawn": 13}
     t = describe_budget(b)
     assert "T mach" in t and "    0.70    0.65    1.40    1.50    1.07" in t
-    assert "100/104" in t and "80/104" in t and "1 runs lost" in t
+    assert "100/104" in t and "80/104" in t and "1 of 13 runs lost" in t
+
+
+def test_placement_margin_known_answer():
+    """The program's approach margin for U_PLACE, by hand: the touches of hole 12 at
+    azimuth 90 / 270 deg sit at x_A = 550 mm with their normal along y_A, so a yaw of
+    1 mrad and a y shift of 0.2 mm move them sqrt(0.2^2 + 0.55^2) = 0.585 mm per sigma
+    (the roll adds 5 mm x 0.5 mrad = 2.5 um in quadrature); 5 sigma = 2.93 mm, rounded up
+    to 0.5 mm: 3.0 mm. A y shift alone: 5 x 0.2 = 1.0 mm exactly."""
+    from core.exceptions import ConfigError
+    from scenarios.mfb import placement_margin_m
+
+    assert placement_margin_m() == pytest.approx(3.0e-3, abs=1e-15)
+    assert placement_margin_m((0.0, 0.2e-3, 0.0, 0.0, 0.0, 0.0)) == pytest.approx(1.0e-3, abs=1e-15)
+    assert placement_margin_m((0.0, 0.0, 0.0, 0.0, 0.0, 1.0e-3), k=1.0) == pytest.approx(1.0e-3, abs=1e-15)
+    with pytest.raises(ConfigError, match="u_place"):
+        placement_margin_m((0.1, 0.2))
+
+
+def test_the_lost_budget_draw_is_touched_by_the_program():
+    """Regression: run 23 of the 3-axis budget (seed 1) was lost, 'rod 10 has no faceL10
+    touches'. Its draw put placement X3 (bar along X, 12 holes) at a y shift of -0.77 mm
+    (3.9 sigma) and a yaw of -2.59 mrad (2.6 sigma): the far faces came 2.2 mm towards
+    the probe, past the program's 2 mm clearance, so their touches started inside the bar
+    (early_trigger: on a machine, the probe strikes the bar), and the fit quietly dropped
+    them until a face had none. The draw below is that run's (seed 23's stream: the bar,
+    the styli, then the placements P1..X3). With the old 2 mm program the faces of rods
+    10-11 and holes 11-12 fail and the scenario's check refuses the measurement by name;
+    the program sized from the placement tolerance (3 mm, 5 sigma) touches all 316."""
+    from core.exceptions import PlanError
+    from scenarios import mfb
+    from sim import artefacts as A
+    from sim.campaign import simulate_campaign
+    from sim.machine import Machine
+    from sim.probe import ProbeConfig
+    from sim.setups import Setup
+
+    xi = np.array([-0.00028941, -0.00077186, -0.00013084, 0.00024341, -0.00044277, -0.00259482])
+    ms = next(m for m in mfb.plan_3axis().measurements if m.placement == "X3")
+    dT = np.eye(4)
+    dT[:3, :3] = A.rot_z(xi[5]) @ A.rot_y(xi[4]) @ A.rot_x(xi[3])
+    dT[:3, 3] = xi[:3]
+    art = A.multi_feature_bar(deviations_m=A.mfb_default_deviations())
+    cfg, _ = mfb.default_machine("vmc-3axis")
+    from dataclasses import replace
+
+    m = mfb._NoSafeHeight(Machine(replace(cfg, J_m=tuple(ms.J_m))))
+    setup = [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), ms.T_W_A @ dT)]
+
+    def touch(**program):
+        pl = mfb._plan_for(art, ms.holes, **program)
+        return simulate_campaign(art, m, ProbeConfig(), setup, None, plan=pl, check_collisions=False)
+
+    old = {"clearance_m": 2.0e-3, "overshoot_m": 3.0e-3}
+    log = touch(**old)
+    st = np.asarray(log.col("status"), object)
+    lost = {str(f) for f, s in zip(log.col("feature"), st) if s != "ok"}
+    assert lost == {"faceL10", "faceL11", "hole11", "hole12"} and set(st) == {"ok", "early_trigger"}
+    with pytest.raises(PlanError, match=r"'X3': 12 touches early_trigger on faceL10, faceL11, hole11, hole12"):
+        mfb._check_touches_ok(log, ms.name, old)
+    new = {"clearance_m": mfb.placement_margin_m(), "overshoot_m": mfb.placement_margin_m()}
+    log = touch(**new)
+    assert log.n == 316 and set(log.col("status")) == {"ok"}
+    mfb._check_touches_ok(log, ms.name, new)
 
 
 def test_a_stylus_calibration_error_reaches_the_differential_errors(mfb3_noise_free):
