@@ -99,9 +99,10 @@ def _coeffs(th: np.ndarray):
     small = th < 1e-4
     t = np.where(small, 1.0, th)
     t2 = th * th
-    a = np.where(small, 1 - t2 / 6, np.sin(t) / t)
+    st = np.sin(t)
+    a = np.where(small, 1 - t2 / 6, st / t)
     b = np.where(small, 0.5 - t2 / 24, (1 - np.cos(t)) / t**2)
-    c = np.where(small, 1 / 6 - t2 / 120, (t - np.sin(t)) / t**3)
+    c = np.where(small, 1 / 6 - t2 / 120, (t - st) / t**3)
     return a, b, c
 
 
@@ -245,10 +246,10 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = 
                     xi[:, j] = 1.0
                 else:
                     wv = Jl_E[:, :, j - 3]
-                    xi = np.concatenate([-np.cross(wv, t_E), wv], axis=1)
+                    xi = np.concatenate([-_cross_rows(wv, t_E), wv], axis=1)
                 if side != "tool":
                     v, w = xi[:, :3], xi[:, 3:]
-                    xi = -np.concatenate([np.einsum("nji,nj->ni", R_E, v - np.cross(t_E, w)),
+                    xi = -np.concatenate([np.einsum("nji,nj->ni", R_E, v - _cross_rows(t_E, w)),
                                           np.einsum("nji,nj->ni", R_E, w)], axis=1)
                 add(m.name, i, xi)
 
@@ -515,6 +516,15 @@ def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     return np.einsum("jin,jn->ni", W.R, d)
 
 
+def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (n,3) arrays (``np.cross``'s products, without its axis handling)."""
+    out = np.empty_like(b)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _derivs(geom, lin_m, rot_rad, values, which):
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
     values = values or {}
@@ -541,16 +551,23 @@ def _derivs(geom, lin_m, rot_rad, values, which):
     pre_t, suf_t = chain_terms(Ft, p_end_t)
     pre_w, suf_w = chain_terms(Fw, p_end_w)
 
+    # R_RW^T times the rotation before factor i: shared by every symbol entering at factor i
+    to_W: dict = {}
+
+    def rot_W(side, pre, i):
+        M = to_W.get((side, i))
+        if M is None:
+            M = to_W[(side, i)] = np.einsum("nji,njk->nik", R_RW, pre[i][:, :3, :3])
+        return M
+
     def d_of(entries_t, entries_w):
         d = np.zeros((n, 3))
         for i, xi in entries_t:
-            s = suf_t[i][:, :3]
-            loc = np.cross(xi[:, 3:], s) + xi[:, :3]
-            d += np.einsum("nji,njk,nk->ni", R_RW, pre_t[i][:, :3, :3], loc)
+            loc = _cross_rows(xi[:, 3:], suf_t[i][:, :3]) + xi[:, :3]
+            d += np.einsum("nik,nk->ni", rot_W("t", pre_t, i), loc)
         for i, xi in entries_w:
-            s = suf_w[i][:, :3]
-            loc = np.cross(xi[:, 3:], s) + xi[:, :3]
-            d -= np.einsum("nji,njk,nk->ni", R_RW, pre_w[i][:, :3, :3], loc)
+            loc = _cross_rows(xi[:, 3:], suf_w[i][:, :3]) + xi[:, :3]
+            d -= np.einsum("nik,nk->ni", rot_W("w", pre_w, i), loc)
         return d
 
     if which == "sym":

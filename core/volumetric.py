@@ -332,27 +332,39 @@ def _check(meas, nodes):
                                   f"{v[0] * 1e3:.1f} .. {v[-1] * 1e3:.1f} mm (extend the nodes)")
 
 
-def _values(theta, slices, nodes, q):
-    """Error values at readings q (n, 3): symbol -> (n,) (spline of the node tables)."""
-    out = {}
-    for s in MOTION:
-        a = iso.symbol(s).axis
-        i = iso.LINEAR_AXES.index(a)
-        out[s] = spline_weights(nodes[a], q[:, i]) @ theta[slices[s]]
+def _axis_weights(nodes, q) -> dict:
+    """axis -> (p, k_axis) spline weights at the readings q (p, 3): one evaluation per
+    axis, shared by the six motion errors of that axis (and by values and Jacobian)."""
+    return {a: spline_weights(nodes[a], q[:, i]) for i, a in enumerate(iso.LINEAR_AXES)}
+
+
+def _values(theta, slices, W, p):
+    """Error values at the p readings of the weights W (:func:`_axis_weights`): symbol -> (p,)."""
+    out = {s: W[iso.symbol(s).axis] @ theta[slices[s]] for s in MOTION}
     for s in SQUARENESS:
-        out[s] = np.full(len(q), theta[slices[s]][0])
+        out[s] = np.full(p, theta[slices[s]][0])
     return out
 
 
-def _error_jacobian(S, q, nodes, slices, n):
-    """(p, 3, n) d tip / d theta from the per-symbol sensitivity S (p, 3, 21) at readings q (p, 3)."""
-    J = np.zeros((len(q), 3, n))
-    for s in MOTION:
-        a = iso.symbol(s).axis
-        W = spline_weights(nodes[a], q[:, iso.LINEAR_AXES.index(a)])
-        J[:, :, slices[s]] += S[:, :, MOTION.index(s)][:, :, None] * W[:, None, :]
-    for s in SQUARENESS:
-        J[:, :, slices[s].start] += S[:, :, 18 + SQUARENESS.index(s)]
+def _error_jacobian(S, W, slices, n):
+    """(p, 3, n) d tip / d theta from the per-symbol sensitivity S (p, 3, 21) and weights W."""
+    J = np.zeros((len(S), 3, n))
+    for k, s in enumerate(MOTION):
+        J[:, :, slices[s]] = S[:, :, k][:, :, None] * W[iso.symbol(s).axis][:, None, :]
+    for k, s in enumerate(SQUARENESS):
+        J[:, :, slices[s].start] = S[:, :, 18 + k]
+    return J
+
+
+def _projected_error_jacobian(S, d, W, slices, n):
+    """(p, n) d (d . tip) / d theta: S (p, 3, 21) projected on the directions d (p, 3)
+    first, then spread over the node weights W (no (p, 3, n) intermediate)."""
+    Sd = np.einsum("tj,tjs->ts", d, S)
+    J = np.zeros((len(S), n))
+    for k, s in enumerate(MOTION):
+        J[:, slices[s]] = Sd[:, k, None] * W[iso.symbol(s).axis]
+    for k, s in enumerate(SQUARENESS):
+        J[:, slices[s].start] = Sd[:, 18 + k]
     return J
 
 
@@ -376,21 +388,23 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact):
             qt = np.asarray(m.q_R, float)
             t = len(qt)
             rott = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (t, 1)) if nr else None
-            vals_t = _values(theta, slices, nodes, qt) if exact else None
+            Wt = _axis_weights(nodes, qt)
+            vals_t = _values(theta, slices, Wt, t) if exact else None
             d_W = np.asarray(m.d_A, float) @ T[:3, :3].T
             GW = np.einsum("ij,kjt->kit", T[:3, :3], np.asarray(m.G_A, float).reshape(k, 3, t))  # (k, 3, t)
             St = sensitivity(g, qt, rott, vals_t, symbols=MOTION + SQUARENESS)
-            Jt = np.einsum("tj,tjn->tn", d_W, _error_jacobian(St, qt, nodes, slices, n))
-            J = np.einsum("kit,tn->kin", GW, Jt)
+            Jt = _projected_error_jacobian(St, d_W, Wt, slices, n)
+            J = (GW.reshape(3 * k, t) @ Jt).reshape(k, 3, n)
             pred = tip_W(g, q, rot, None)
             if exact:
                 e = np.einsum("tj,tj->t", d_W, tip_W(g, qt, rott, vals_t) - tip_W(g, qt, rott, None))
                 pred = pred + GW @ e
         else:
-            vals = _values(theta, slices, nodes, q) if exact else None
+            W = _axis_weights(nodes, q)
+            vals = _values(theta, slices, W, k) if exact else None
             S = sensitivity(g, q, rot, vals, symbols=MOTION + SQUARENESS)  # (k, 3, 21)
             pred = tip_W(g, q, rot, vals)
-            J = _error_jacobian(S, q, nodes, slices, n)
+            J = _error_jacobian(S, W, slices, n)
         P = np.asarray(m.O_A, float) @ T[:3, :3].T + T[:3, 3]
         xi = theta[slices[m.placement]] if exact else np.zeros(5)
         Rw = exp_so3(T[:3, 1:3] @ xi[3:])

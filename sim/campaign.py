@@ -53,8 +53,13 @@ def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves") -> None:
     # every link point and overshoot end, touch by touch (vectorised; the first offender is
     # the first touch, then axis X Y Z, then point in order, as a loop over them would find)
     n_pt = np.array([len(ln) + 1 for ln in mv.links], int)
-    pts = np.concatenate([np.vstack([mv.links[i], mv.Xn_R[i] - plan.overshoot_m * mv.n_R[i]])
-                          for i in range(plan.n)]) if plan.n else np.zeros((0, 3))
+    pts = np.zeros((int(n_pt.sum()), 3))
+    if plan.n:  # touch i: its link points, then its overshoot end
+        end = np.cumsum(n_pt) - 1
+        pts[end] = mv.Xn_R - plan.overshoot_m * mv.n_R
+        on_link = np.ones(len(pts), bool)
+        on_link[end] = False
+        pts[on_link] = np.concatenate(mv.links)
     touch = np.repeat(np.arange(plan.n), n_pt)
     bad = np.zeros((len(pts), 3), bool)
     for j, ax in enumerate("XYZ"):
@@ -97,13 +102,10 @@ def validate_plan(art: A.Artefact, plan: Plan, probe: ProbeConfig) -> None:
     start = plan.w_A + (r + plan.clearance_m) * plan.wn_A
     travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
 
+    dist = A.GroupedSdf(sdf)
+
     def g(idx, s):
-        p = start[idx] - s[:, None] * plan.wn_A[idx]
-        out = np.empty(len(idx))
-        for k in np.unique(grp[idx]):
-            m = grp[idx] == k
-            out[m] = sdf[k](p[m])
-        return out - r
+        return dist(grp[idx], start[idx] - s[:, None] * plan.wn_A[idx]) - r
 
     s, status = find_contacts(g, plan.n, travel)
     bad = (status != ProbeStatus.OK) | ~(np.abs(s - plan.clearance_m) < 1e-9)
@@ -127,6 +129,36 @@ class SetupMoves:
     link_len_m: np.ndarray
 
 
+def _links(start: np.ndarray, plan: Plan, z_safe: float, start_from) -> list[np.ndarray]:
+    """Each touch's link from the previous start (R, m): straight along a feature's level,
+    else up to the safe height (or the higher end), across and down; from above the first
+    start when there is no previous point."""
+    n = len(start)
+    if n == 0:
+        return []
+    prev = np.empty((n, 3))
+    prev[1:] = start[:-1]
+    fresh = np.zeros(n, bool)  # no previous point
+    if start_from is None:
+        fresh[0] = True
+        prev[0] = np.nan
+    else:
+        prev[0] = np.asarray(start_from, float)
+    feat, lev = np.asarray(plan.feature, object), np.asarray(plan.level)
+    same = np.zeros(n, bool)
+    same[1:] = (feat[1:] == feat[:-1]) & (lev[1:] == lev[:-1])
+    same &= ~fresh
+    zs = np.maximum(np.maximum(z_safe, prev[:, 2]), start[:, 2])
+    paths = np.empty((n, 4, 3))
+    paths[:, 0], paths[:, 1], paths[:, 2], paths[:, 3] = prev, prev, start, start
+    paths[:, 1, 2] = paths[:, 2, 2] = zs
+    paths[same, 1] = start[same]
+    paths[fresh, 2, 2] = z_safe
+    paths[fresh, 3] = start[fresh]
+    k = np.where(same | fresh, 2, 4)
+    return [paths[i, 4 - k[i]:] if fresh[i] else paths[i, :k[i]] for i in range(n)]
+
+
 def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: ProbeConfig,
                 start_from: np.ndarray | None = None) -> SetupMoves:
     """Nominal contact centres, normals, start points and link moves in R."""
@@ -142,19 +174,7 @@ def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: Probe
     start = Xn + plan.clearance_m * n_R
     top = float(np.max(A.apply_T(T_R_A, artefact_points(art))[:, 2]))
     z_safe = top + r + SAFE_MARGIN_M
-    links, lens = [], np.zeros(plan.n)
-    prev = None if start_from is None else np.asarray(start_from, float)
-    for i in range(plan.n):
-        s = start[i]
-        if prev is None:
-            path = np.array([[s[0], s[1], z_safe], s])
-        elif i > 0 and plan.feature[i] == plan.feature[i - 1] and plan.level[i] == plan.level[i - 1]:
-            path = np.array([prev, s])
-        else:
-            zs = max(z_safe, prev[2], s[2])
-            path = np.array([prev, [prev[0], prev[1], zs], [s[0], s[1], zs], s])
-        links.append(path)
-        prev = s
+    links, lens = _links(start, plan, z_safe, start_from), np.zeros(plan.n)
     if plan.n:  # each link's length: the sum of its segments' lengths, in order
         P = np.concatenate(links)
         first = np.cumsum([len(p) for p in links]) - np.array([len(p) for p in links])

@@ -130,6 +130,7 @@ class SplineTable(ErrorFunction):
     pos: tuple[float, ...]
     values: tuple[float, ...]
     _spline: object = field(init=False, repr=False, compare=False, default=None)
+    _ends: tuple = field(init=False, repr=False, compare=False, default=())
 
     def __post_init__(self):
         from scipy.interpolate import CubicSpline
@@ -145,16 +146,19 @@ class SplineTable(ErrorFunction):
         object.__setattr__(self, "pos", x)
         object.__setattr__(self, "values", y)
         bc = "not-a-knot" if len(x) > 3 else "natural"
-        object.__setattr__(self, "_spline", CubicSpline(np.array(x), np.array(y), bc_type=bc))
+        s = CubicSpline(np.array(x), np.array(y), bc_type=bc)
+        object.__setattr__(self, "_spline", s)
+        # value and slope at both ends, for the tangent lines outside the table
+        object.__setattr__(self, "_ends", (s(x[0]), s(x[0], 1), s(x[-1]), s(x[-1], 1)))
 
     def __call__(self, pos, t_s=None, direction=None):
         p = np.atleast_1d(np.asarray(pos, float))
         x0, x1 = self.pos[0], self.pos[-1]
-        s = self._spline
-        out = s(np.clip(p, x0, x1))
+        y0, dy0, y1, dy1 = self._ends
+        out = self._spline(np.clip(p, x0, x1))
         lo, hi = p < x0, p > x1
-        out = np.where(lo, s(x0) + s(x0, 1) * (p - x0), out)
-        return np.where(hi, s(x1) + s(x1, 1) * (p - x1), out)
+        out = np.where(lo, y0 + dy0 * (p - x0), out)
+        return np.where(hi, y1 + dy1 * (p - x1), out)
 
     def derivative(self, pos, t_s=None, direction=None):
         p = np.atleast_1d(np.asarray(pos, float))

@@ -32,7 +32,7 @@ import numpy as np
 from core.exceptions import ConfigError
 from core.touches import ProbeStatus
 
-from .artefacts import Artefact, Solid, apply_T, inv_T, make_T, solid_points
+from .artefacts import Artefact, GroupedSdf, Solid, apply_T, inv_T, make_T, solid_points
 
 
 #: Root-finding tolerances (m): on |g| and on the bracket width.
@@ -320,11 +320,23 @@ class TouchResult:
     status: np.ndarray
 
 
+def _feature_by_feature(sdf_A):
+    """``(group (m,), p (m,3)) -> (m,)`` calling each distance function on its own points."""
+    def dist(gi, p):
+        out = np.empty(len(gi))
+        for k in np.unique(gi):
+            m = gi == k
+            out[m] = sdf_A[k](p[m])
+        return out
+    return dist
+
+
 def simulate_touches(machine, probe: ProbeConfig, rng: np.random.Generator | None,
                      start_R: np.ndarray, d_R: np.ndarray, travel_m: np.ndarray,
                      rot_rad: np.ndarray | None, t0_s: np.ndarray, feed_mps: np.ndarray,
                      sdf_A: Sequence[Callable[[np.ndarray], np.ndarray]], group: np.ndarray,
-                     T_A_W: np.ndarray, d_P: np.ndarray | None = None, n_coarse: int = 7) -> TouchResult:
+                     T_A_W: np.ndarray, d_P: np.ndarray | None = None, n_coarse: int = 7,
+                     grouped_sdf: bool = True) -> TouchResult:
     """Simulate ``n`` touch-trigger moves at once.
 
     Parameters
@@ -356,6 +368,10 @@ def simulate_touches(machine, probe: ProbeConfig, rng: np.random.Generator | Non
     n_coarse : int
         Samples per path bracketing the first contact (default 7: 0.5 mm
         apart on the default 3 mm travel, far below the stylus radius).
+    grouped_sdf : bool
+        Evaluate the distances of all touches in one pass per primitive kind
+        (:class:`sim.artefacts.GroupedSdf`, default) or feature by feature (the
+        path before issue 19, kept as the reference of the bench and tests).
     """
     start_R = np.asarray(start_R, float)
     n = len(start_R)
@@ -365,17 +381,13 @@ def simulate_touches(machine, probe: ProbeConfig, rng: np.random.Generator | Non
     group = np.asarray(group, int)
     r = probe.stylus_r_m
     rot = None if rot_rad is None else np.asarray(rot_rad, float)
+    dist = GroupedSdf(sdf_A) if grouped_sdf else _feature_by_feature(sdf_A)
 
     def g(idx, s):
         lin = start_R[idx] + s[:, None] * d_R[idx]
         p_W = tip_W(machine, lin, None if rot is None else rot[idx], t0[idx] + s / feed[idx], d_R[idx])
         p_A = apply_T(T_A_W[idx], p_W)
-        out = np.empty(len(idx))
-        gi = group[idx]
-        for k in np.unique(gi):
-            m = gi == k
-            out[m] = sdf_A[k](p_A[m])
-        return out - r
+        return dist(group[idx], p_A) - r
 
     s_c, status = find_contacts(g, n, travel_m, n_coarse=n_coarse)
     ok = status == ProbeStatus.OK

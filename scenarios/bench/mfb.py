@@ -10,6 +10,10 @@ Figures:
   (simulation + points of interest + gain), ``mfb_3axis_identify_s`` and
   ``mfb_3axis_uncertainty_s`` (Monte Carlo + report). Reference: the same
   run with the gain already cached (``mfb_3axis_gain_cached_s``).
+- ``mfb_3axis_identify_only_s``: :func:`core.volumetric.identify_volumetric` on
+  that run's own inputs, beside ``mfb_3axis_identify_rows_before_ref_s``: the
+  same with its rows built as before issue 19 (:func:`identify_before`), and
+  ``mfb_3axis_identify_max_theta_diff`` between the two (m or rad).
 - ``mfb_gain_s``: :func:`core.mfb.poi_noise_gain` of the three plans of
   ``mfb-3axis`` (batched light fits), beside ``mfb_gain_refit_reference_s``:
   the same gains by the previous path (:func:`gain_by_single_refits`: every
@@ -28,6 +32,7 @@ import numpy as np
 REFERENCES = {
     "mfb_3axis_end_to_end_s": "mfb_3axis_gain_cached_s",
     "mfb_gain_s": "mfb_gain_refit_reference_s",
+    "mfb_3axis_identify_only_s": "mfb_3axis_identify_rows_before_ref_s",
 }
 #: figure -> the issue's target
 TARGETS = {"mfb_3axis_end_to_end_s": "< 1 s (issue 19 item 3)"}
@@ -96,6 +101,36 @@ def gain_by_single_refits(p_R, feature, n_R, d_R, geom=None, h_m: float = 1e-7) 
     return G
 
 
+class _WeightsEveryLookup(dict):
+    """Spline weights recomputed at every lookup: the cost of ``core.volumetric`` before
+    issue 19 (weights evaluated once per error symbol, 36 times per measurement)."""
+
+    def __init__(self, nodes, q):
+        super().__init__()
+        self._nodes, self._q = nodes, q
+
+    def __getitem__(self, a):
+        from core import iso, volumetric as vol
+
+        return vol.spline_weights(self._nodes[a], self._q[:, iso.LINEAR_AXES.index(a)])
+
+
+def identify_before(args, kwargs):
+    """``core.volumetric.identify_volumetric`` with its rows built as before issue 19: spline
+    weights once per symbol, the (t, 3, n) Jacobian of the touches built then projected.
+    (The shared rotations in ``core.kinematics.sensitivity`` are in both paths.)"""
+    from core import volumetric as vol
+
+    saved = vol._axis_weights, vol._projected_error_jacobian
+    vol._axis_weights = _WeightsEveryLookup
+    vol._projected_error_jacobian = lambda S, d, W, slices, n: np.einsum(
+        "tj,tjn->tn", d, vol._error_jacobian(S, W, slices, n))
+    try:
+        return vol.identify_volumetric(*args, **kwargs)
+    finally:
+        vol._axis_weights, vol._projected_error_jacobian = saved
+
+
 def plan_gain_inputs(name: str = "mfb-3axis") -> list[tuple]:
     """``(c_A, feature, wn_A, d_A)`` of each distinct hole set of a scenario's plan (nominal bar, 3 mm stylus)."""
     from scenarios.mfb import PLANS, _plan_for
@@ -124,17 +159,41 @@ def run() -> dict:
     out["mfb_gain_refit_reference_s"] = round(t2 - t1, 3)
     out["mfb_gain_max_abs_diff"] = float(max(np.abs(a - b).max() for a, b in zip(G_new, G_ref)))
 
+    from core import volumetric as vol
+
     S.run("mfb-3axis", mc_runs=20)  # imports and first-use caches warm
-    stamps = {}
+    stamps, ident = {}, {}
     S._GAINS.clear()
-    t0 = time.perf_counter()
-    S.run("mfb-3axis", progress=lambda k, n: stamps.setdefault(k, time.perf_counter()))
-    t_end = time.perf_counter()
+    real = vol.identify_volumetric
+
+    def spy(*a, **k):
+        ident["args"] = (a, k)
+        return real(*a, **k)
+
+    vol.identify_volumetric = spy
+    try:
+        t0 = time.perf_counter()
+        S.run("mfb-3axis", progress=lambda k, n: stamps.setdefault(k, time.perf_counter()))
+        t_end = time.perf_counter()
+    finally:
+        vol.identify_volumetric = real
     n = max(stamps)
     out["mfb_3axis_end_to_end_s"] = round(t_end - t0, 3)
     out["mfb_3axis_measure_s"] = round(stamps[n - 2] - t0, 3)
     out["mfb_3axis_identify_s"] = round(stamps[n - 1] - stamps[n - 2], 3)
     out["mfb_3axis_uncertainty_s"] = round(t_end - stamps[n - 1], 3)
+    # the identification alone on the run's own inputs, as it is and as before, side by side
+    t_new, t_old = [], []
+    for _ in range(2):
+        t0 = time.perf_counter()
+        r_new = real(*ident["args"][0], **ident["args"][1])
+        t_new.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        r_old = identify_before(*ident["args"])
+        t_old.append(time.perf_counter() - t0)
+    out["mfb_3axis_identify_only_s"] = round(min(t_new), 3)
+    out["mfb_3axis_identify_rows_before_ref_s"] = round(min(t_old), 3)
+    out["mfb_3axis_identify_max_theta_diff"] = float(np.abs(r_new.theta - r_old.theta).max())
     t0 = time.perf_counter()
     S.run("mfb-3axis")  # the gains cached from the run above
     out["mfb_3axis_gain_cached_s"] = round(time.perf_counter() - t0, 3)

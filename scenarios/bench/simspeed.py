@@ -8,8 +8,10 @@ products in rows of n) and against Pinocchio's own loop
 (``Machine.tip_W_pinocchio``).
 
 Touches (:func:`touch_figures`): the MFB campaign (17 set-ups x 316 touches)
-simulated with the machine as it is and with ``tip_W`` routed to the
-Pinocchio loop (the path before issue 19).
+simulated with the machine as it is and by the path before issue 19 (``tip_W``
+routed to the Pinocchio loop, the artefact's distances evaluated feature by
+feature), and with only the distances feature by feature; the touch positions
+of the three runs must agree (their largest difference is reported).
 
 Collision checks (:func:`collision_figures`): the path checks of the MFB
 campaign (``sim.scene``, timed inside the campaign run, the simulation being
@@ -173,20 +175,35 @@ def touch_figures() -> dict:
     from sim.campaign import simulate_campaign
     from sim.probe import ProbeConfig
 
+    from sim import campaign, probe
+
     m = _mfb_machine()
     simulate_campaign("cross-pocket", m, ProbeConfig(), [0.0], np.random.default_rng(1), check_collisions=False)
-    out = {}
-    for key, mach in (("new", m), ("ref", _PinocchioLoop(m))):
+    real = probe.simulate_touches
+    out, pos = {}, {}
+    # new: batched kinematics and distances; ref: the path before issue 19 (Pinocchio's
+    # loop, distances feature by feature); dist_ref: batched kinematics, old distances
+    for key, mach, grouped in (("new", m, True), ("ref", _PinocchioLoop(m), False), ("dist_ref", m, False)):
+        campaign.simulate_touches = lambda *a, _g=grouped, **k: real(*a, grouped_sdf=_g, **k)
         t = []
-        for _ in range(2):
-            t0 = time.perf_counter()
-            log = simulate_campaign("mfb", mach, ProbeConfig(), None, np.random.default_rng(1), check_collisions=False)
-            t.append(time.perf_counter() - t0)
+        try:
+            for _ in range(2):
+                t0 = time.perf_counter()
+                log = simulate_campaign("mfb", mach, ProbeConfig(), None, np.random.default_rng(1),
+                                        check_collisions=False)
+                t.append(time.perf_counter() - t0)
+        finally:
+            campaign.simulate_touches = real
         out[key] = (log.n, min(t))
+        pos[key] = log.positions_mm()
+    dev = max(float(np.nanmax(np.abs(pos[k] - pos["new"]))) for k in ("ref", "dist_ref")) * 1e-3
     return {
         "kin_touches_per_s": round(out["new"][0] / out["new"][1], 1),
         "kin_touches_per_s_pinocchio_loop_ref": round(out["ref"][0] / out["ref"][1], 1),
         "kin_touches_speedup": round(out["ref"][1] / out["new"][1], 3),
+        "kin_touches_per_s_distances_by_feature_ref": round(out["dist_ref"][0] / out["dist_ref"][1], 1),
+        "kin_touches_over_distances_by_feature": round(out["dist_ref"][1] / out["new"][1], 3),
+        "kin_touches_max_deviation_from_refs_m": dev,
     }
 
 
