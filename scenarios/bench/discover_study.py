@@ -54,3 +54,40 @@ def run(blind_seed0: int = 100, hidden_seed0: int = 2000) -> dict:
             out[f"discover_{g}_workpiece_extended_um"] = round(s["workpiece_mean_um"]["extended"], 4)
         out[f"discover_{g}_matrix"] = "\n" + format_study(outs, f"{g}: {SEEDS} campaigns per effect")
     return out
+
+
+#: Effects the rule for dust (``Settings.outlier_events``) can change, per generator.
+OUTLIER_TRADE = {"hidden": ("none", "outlier", "part_change"),
+                 "gen_a": ("none", "outlier", "knock", "part_change", "reseat_hysteresis"),
+                 "gen_b": ("none", "outlier", "fixture_slip", "part_change", "reseat_settling")}
+
+
+def outlier_trade(blind_seed0: int, hidden_seed0: int, seeds: int = SEEDS,
+                  rules=("target", "setup", "setup_slip")) -> list[dict]:
+    """The campaigns of :data:`OUTLIER_TRADE` under each rule for dust: one dict per campaign and rule.
+
+    Keys: ``generator``, ``effect``, ``seed``, ``rule``, ``cause``, ``acceptable``, ``confident``,
+    ``visible_sigmas``, ``wp_base_um``, ``wp_ext_um``, ``wp_u95_um`` (docs/discovery.md gives the
+    figures at seeds 100/2000 and 400/2300).
+    """
+    import importlib
+
+    from core.discover import Settings
+    from scenarios.hidden import blind_outcome, hidden_outcome
+
+    out = []
+    for rule in rules:
+        st = Settings(outlier_events=rule)
+        for g, effects in OUTLIER_TRADE.items():
+            for e in effects:
+                for s in range(seeds):
+                    if g == "hidden":
+                        o = hidden_outcome(e, hidden_seed0 + s, settings=st)
+                    else:
+                        o = blind_outcome(importlib.import_module(f"scenarios.blind.{g}"), e, blind_seed0 + s,
+                                          generator=g, settings=st)
+                    out.append({"generator": g, "effect": e, "seed": o.seed, "rule": rule, "cause": o.cause,
+                                "acceptable": list(o.acceptable), "confident": o.confident,
+                                "visible_sigmas": o.visible_sigmas, "wp_base_um": o.wp_base_um,
+                                "wp_ext_um": o.wp_ext_um, "wp_u95_um": o.wp_u95_um})
+    return out
