@@ -986,7 +986,7 @@ def case1_comparison(seed: int = 1, run: dict | None = None) -> dict:
         x, y, ex, ey = error_map_um(res)
         tex, tey = true_error_map(machine, x, y, z, ex, ey)
         d = np.hypot(ex - tex, ey - tey)
-        X, Y = np.meshgrid(x, y, indexing="ij")
+        X, Y = np.meshgrid(x, y)
         out[name] = {"form_error_max_um": round(float(e.max()), 3), "form_error_rms_um": round(float(np.sqrt(
             np.mean(e ** 2))), 3), "map_error_max_um": round(float(d.max()), 3),
             "map_error_kgm_max_um": round(float(d[(np.abs(X) <= 60) & (np.abs(Y) <= 90)].max()), 3),
@@ -1036,7 +1036,7 @@ def _case1_figures(t, res, res0, P, N, pocket, ref_um, machine) -> dict:
     for tag, r, what in (("a", res, "with spheres"), ("b", res0, "without spheres")):
         x, y, ex, ey = error_map_um(r)
         tex, tey = true_error_map(machine, x, y, z, ex, ey)
-        out[f"fig12{tag}"] = F.error_grid_figure(x, y, ex.T, ey.T, true_ex_um=tex.T, true_ey_um=tey.T,
+        out[f"fig12{tag}"] = F.error_grid_figure(x, y, ex, ey, true_ex_um=tex, true_ey_um=tey,
                                                  title=f"Fig. 12({tag}), {what}")
     ax = res.to_report()["axes"]
     out["fig11"] = F.error_motions_figure(

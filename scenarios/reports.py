@@ -146,11 +146,12 @@ def discovery_report(folder, d, rep: dict, title: str) -> Path:
 
 
 def error_map_um(res):
-    """(x_mm, y_mm, ex_um, ey_um): :func:`core.selfcal.error_map` (eqs 4-5) in report units."""
+    """(x_mm (nx,), y_mm (ny,), ex_um, ey_um (ny, nx)): :func:`core.selfcal.error_map` (eqs 4-5) in
+    report units and in the layout viz draws (rows y, columns x; core's map is (N_x, N_y))."""
     from core.selfcal import error_map
 
     x_m, y_m, ex, ey = error_map(res)
-    return x_m / MM, y_m / MM, ex / UM, ey / UM
+    return x_m / MM, y_m / MM, ex.T / UM, ey.T / UM
 
 
 def true_error_map(machine, x_mm, y_mm, z_m: float, ex_um, ey_um):
@@ -158,11 +159,12 @@ def true_error_map(machine, x_mm, y_mm, z_m: float, ex_um, ey_um):
 
     The truth is the simulator's exact tip deviation at C = 0 and height
     ``z_m``, expressed in the gauge of the identified map ``ex_um``, ``ey_um``
-    by :func:`core.selfcal.map_in_gauge`.
+    by :func:`core.selfcal.map_in_gauge`. Maps are (ny, nx), as
+    :func:`error_map_um` gives them; the result has that layout.
     """
     from core.selfcal import map_in_gauge
 
-    X, Y = np.meshgrid(np.asarray(x_mm) * MM, np.asarray(y_mm) * MM, indexing="ij")
+    X, Y = np.meshgrid(np.asarray(x_mm) * MM, np.asarray(y_mm) * MM)     # (ny, nx), as ex_um
     lin = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z_m)])
     rot = np.zeros((len(lin), len(machine.rotary_axes)))
     E = (machine.tip_W(lin, rot) - machine.tip_W_nominal(lin, rot)).reshape(X.shape + (3,))
@@ -229,8 +231,6 @@ class _DemoView:
         tex = tey = None
         if machine is not None:
             tex, tey = true_error_map(machine, x_mm, y_mm, float(np.median(t.pn_R[:, 2])), ex_um, ey_um)
-            tex, tey = tex.T, tey.T
-        ex_um, ey_um = ex_um.T, ey_um.T     # error_map's (nx, ny) -> the figures' (ny, nx)
         first = {}
         for k in range(t.n):
             first.setdefault(int(t.target[k]), k)
