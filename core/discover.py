@@ -933,10 +933,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if not share["kept"]:
                 terms.remove(tm)
                 demoted.append({"cause": tm.cause, **share})
-                why = ("explains less than materiality in sample beside the other causes (debiased for the best "
-                       f"of {tm.tries:.0f} tries: {share['explained_ss_selected_um2']:.3g} um^2)"
-                       if not share.get("material", True) else
-                       f"a plainer explanation ({share['counter']}) explains as much"
+                why = (f"a plainer explanation ({share['counter']}) explains as much"
                        if "counter_explained_ss_um2" in share and share["rival_share"] >= settings.rival_share else
                        f"explains only part of the structure in {tm.covariate} (share {share['rival_share']:.2f} of "
                        "a smooth term's)")
@@ -1143,17 +1140,6 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     return info
 
 
-def _selection_null(tries: float, k: int) -> float:
-    """Median of the largest of ``tries`` chi-squares with ``k`` dof: what the best trial explains of pure noise, in sigma^2."""
-    return float(stats.chi2.isf(np.log(2) / max(float(tries), 1.0), max(int(k), 1)))
-
-
-def _selected_ss(C: np.ndarray, st: _State, sigma: float, tries: float) -> float:
-    """Sum of squares the columns C (1, n, k) explain beside the model, less what the best of ``tries`` explains of noise."""
-    ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
-    return float(ss[0]) - _selection_null(tries, int(k[0])) * sigma ** 2
-
-
 def _candidate_ss(C: np.ndarray, st: _State) -> float:
     """Debiased sum of squares a candidate's columns (1, n, k) explain beside the model."""
     ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
@@ -1253,16 +1239,6 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     ev = {"F": F_val, "p_value": p_val, "p_adjusted": p_adj, "tries": float(tries), "k": k_val}
     if p_adj >= settings.alpha_family:
         return {"reason": f"not significant ({fmt_p(p_adj)} after Bonferroni over {tries:.0f} tries)"}
-    # c'. material in sample: what the columns explain of the residuals, debiased for
-    # being the best of the trials, must itself be material; a cross-validated gain
-    # beyond it comes from how the columns change the baseline's extrapolation to
-    # a held-out set-up, not from structure in the residuals
-    d_sel = _selected_ss(cols[None, rows], st, sigma, tries)
-    m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
-    ev["explained_ss_selected_um2"] = d_sel / UM ** 2
-    if d_sel < m_ss:
-        return {"reason": f"explains {max(d_sel, 0.0) / UM ** 2:.3g} um^2 in sample (debiased for the best of "
-                          f"{tries:.0f} tries), below materiality {m_ss / UM ** 2:.3g} um^2", "significant": True}
     # e. the structure must live where the cause says: a smooth function of a
     # covariate of another family may not explain materially more than it
     if families:
@@ -1430,15 +1406,9 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     share = d_n / d_r if d_r > 0 else 1.0
     m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
     immaterial = (d_r - d_n) < m_ss
-    # material in sample beside the other named causes (debiased for its choice among its trials)
-    d_sel = ss_n - _selection_null(tm.tries, k_n) * s2 if tm.penalty is None else d_n
     out = {"kept": bool(share >= settings.rival_share or immaterial), "rival_share": float(share),
            "rival": tm.covariate, "explained_ss_um2": max(d_n, 0.0) / UM ** 2,
-           "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2, "explained_ss_selected_um2": d_sel / UM ** 2,
-           "material": bool(d_sel >= m_ss)}
-    if not out["material"]:
-        out["kept"] = False
-        return out
+           "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}
     if cause is not None and cause.counter is not None:
         # the plainer explanation (a finer error map for a coupling): it must not do as well
         Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
@@ -1457,7 +1427,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
                 Cs = np.einsum("ij,tjk->tik", bl.whiten, Cs)
             ss_s, k_s, _, _ = nested_f_batch(Cs[:, rows, :], so.Q, so.r, so.rss, so.dof)
             j = int(np.argmax(ss_s))
-            null_max = _selection_null(Cs.shape[0], int(k_s[j]))
+            null_max = float(stats.chi2.isf(np.log(2) / Cs.shape[0], max(int(k_s[j]), 1)))
             d_s = float(ss_s[j]) - null_max * s2
             # what the cause still explains once the slip is in the model
             Qs = np.hstack([so.Q, new_basis(so.Q, Cs[j][rows])])
