@@ -1140,6 +1140,13 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     return info
 
 
+def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> float:
+    """Debiased sum of squares the cause's plainer explanation (``cause.counter``) explains beside the model ``st``."""
+    Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
+    Uc = new_basis(st.Q, Bc[rows])
+    return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2
+
+
 def _candidate_ss(C: np.ndarray, st: _State) -> float:
     """Debiased sum of squares a candidate's columns (1, n, k) explain beside the model."""
     ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
@@ -1256,6 +1263,19 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     why = cause.check(info, bl) if cause.check else None
     if why:
         return {"reason": f"implausible: {why}", "significant": True}
+    if cause.counter is not None:
+        # the plainer explanation is tested before adoption too, so that a plainer
+        # cause of the catalogue (the probe's fixed lobes for lobes turned per
+        # set-up, which nest them) can win the round instead of the richer one
+        # being adopted and then dropped to `unexplained` by the rival check
+        Cn = cols[None, rows]
+        ss_c, k_c, _, _ = nested_f_batch(Cn, st.Q, st.r, st.rss, st.dof)
+        d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
+        d_c = _counter_ss(bl, cause, st, rows, sigma)
+        if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows):
+            return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
+                              f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
+                    "significant": True}
     M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max)
     ev.update({"vif": vif, "max_vif": vif_worst, "principal_angle_deg": ang, "weak_directions": weak})
     if M.shape[1] == 0:
@@ -1411,9 +1431,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
            "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}
     if cause is not None and cause.counter is not None:
         # the plainer explanation (a finer error map for a coupling): it must not do as well
-        Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
-        Uc = new_basis(so.Q, Bc[rows])
-        d_c = float(np.sum((Uc.T @ so.r) ** 2)) - Uc.shape[1] * s2
+        d_c = _counter_ss(bl, cause, so, rows, sigma)
         out["counter"] = cause.counter.__name__.replace("_", " ")
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
         if d_c > d_n - m_ss:
