@@ -1451,10 +1451,19 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
             Qs = np.hstack([so.Q, new_basis(so.Q, Cs[j][rows])])
             rs = so.r - Qs[:, so.Q.shape[1]:] @ (Qs[:, so.Q.shape[1]:].T @ so.r)
             Un = new_basis(Qs, tm.columns[rows])
-            d_ns = float(np.sum((Un.T @ rs) ** 2)) - Un.shape[1] * s2
+            ss_ns = float(np.sum((Un.T @ rs) ** 2))
+            d_ns = ss_ns - Un.shape[1] * s2
+            # and whether it is still significant beside the slip (its F test with
+            # the Bonferroni factor of its adoption)
+            dof_ns = len(rows) - Qs.shape[1] - Un.shape[1]
+            p_ns = 1.0
+            if Un.shape[1] and dof_ns > 0:
+                F_ns = (ss_ns / Un.shape[1]) / max((float(rs @ rs) - ss_ns) / dof_ns, 1e-300)
+                p_ns = min(1.0, float(stats.f.sf(F_ns, Un.shape[1], dof_ns)) * tm.tries)
             out["slip_explained_ss_um2"] = max(d_s, 0.0) / UM ** 2
             out["explained_beyond_slip_ss_um2"] = max(d_ns, 0.0) / UM ** 2
-            if d_s >= m_ss and d_ns < m_ss:
+            out["p_adjusted_beyond_slip"] = p_ns
+            if (d_s >= m_ss and d_ns < m_ss) or (p_ns >= settings.alpha_family and d_s >= d_n - m_ss):
                 out["kept"] = False
                 out["counter"] = cause.counter_scan.__name__.replace("_", " ")
                 out["counter_explained_ss_um2"] = out["slip_explained_ss_um2"]
