@@ -538,6 +538,40 @@ PIN_STEP_M = 0.080
 DELTA_L_REPEATS = 5
 #: The paper's CMM (section 4.3), E = (0.6 + L/600) um, taken as the U95 (k = 2) of the length artefact's calibration.
 CMM_E_UM = (0.6, 1.0 / 600.0)
+#: Touches on each of case 2's spheres: "On each sphere, eight points are probed" (section 5.1). The plan puts
+#: them on the equator, as case 1 does ("The points on the spheres are on their equator", 4.2), because eq 3's
+#: normal lies in XY. 18 x 4 + 2 x 8 = 88 a set-up; the paper's "Total 84" is not what its own counts give.
+PIN_SPHERE_TOUCHES = 8
+
+
+def pin_circle_paper_plan(art, sphere_touches: int = PIN_SPHERE_TOUCHES):
+    """Case 2's plan as the paper writes it: 4 touches a pin, ``sphere_touches`` on each sphere's equator.
+
+    The pins' touches are :func:`sim.plans.pin_circle_plan`'s (4 at the
+    probing height, normals at 0, 90, 180, 270 deg). Each sphere gets
+    ``sphere_touches`` equator points equally spaced in azimuth from +x
+    (normals in XY, as eqs 1-3 take them). A frame, m.
+    """
+    from sim.plans import Plan, pin_circle_plan
+
+    if int(sphere_touches) != sphere_touches or sphere_touches < 3:
+        raise ConfigError(f"sphere_touches must be an integer >= 3 (a sphere's centre and radius), "
+                          f"got {sphere_touches!r}")
+    base = pin_circle_plan(art)
+    pins = base.select(np.array([f.startswith("pin") for f in base.feature]))
+    t, f, w, n, lv = list(pins.target), list(pins.feature), [pins.w_A], [pins.wn_A], [pins.level]
+    for feat in art.features:
+        if feat.kind != "sphere":
+            continue
+        a = 2.0 * np.pi * np.arange(int(sphere_touches)) / int(sphere_touches)
+        e = np.column_stack([np.cos(a), np.sin(a), np.zeros_like(a)])
+        t += [f"{feat.name}_p{k}" for k in range(len(a))]
+        f += [feat.name] * len(a)
+        w.append(np.asarray(feat.nominal.centre, float) + feat.nominal.radius * e)
+        n.append(e)
+        lv.append(2000.0 + np.arange(len(a)))
+    return Plan(base.artefact, tuple(t), tuple(f), np.vstack(w), np.vstack(n), np.concatenate(lv),
+                base.clearance_m, base.overshoot_m)
 
 
 def measure_delta_L(machine, x_n_m: float, z_m: float, sigma_probe_m: float, rng: np.random.Generator,
@@ -611,7 +645,7 @@ def align_on_pins(err_m: np.ndarray, nominal_m: np.ndarray, origin: int = 0, x_d
     return e + phi * np.column_stack([-r[:, 1], r[:, 0]])
 
 
-def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
+def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2, sphere_touches: int = PIN_SPHERE_TOUCHES) -> dict:
     """The paper's case 2 (section 5), the paper's way.
 
     18 pins and two spheres probed at the eight C angles of eq 20 on the
@@ -622,7 +656,8 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
     pin's four touches (:func:`pin_centres`), compared with the true pin
     positions (the CMM's role) after the paper's alignment only: pin 1 and
     pin 11 (:func:`align_on_pins`). The raw positions at C = 0 get the same
-    alignment.
+    alignment. Each sphere gets ``sphere_touches`` equator touches
+    (:func:`pin_circle_paper_plan`; the paper's eight).
     """
     from core.selfcal import Grid, self_calibrate, yaw_for_chain
     from core.touches import from_log
@@ -630,7 +665,6 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
     from sim.campaign import simulate_campaign
     from sim.machine import Machine
     from sim.machines import MACHINES, realistic_errors
-    from sim.catalog import make_plan
     from sim.probe import ProbeConfig
 
     t0 = time.perf_counter()
@@ -640,10 +674,10 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
                             rng=np.random.default_rng(seed), ripple=False)
     machine = Machine(MACHINES["mikron-ucp710"](errors=errs))
     art = A.pin_circle()
-    plan = make_plan(art)
+    plan = pin_circle_paper_plan(art, sphere_touches)
     rng = np.random.default_rng(seed + 1)
     log = simulate_campaign(art, machine, ProbeConfig(repeatability_k2_m=2 * noise_um * 1e-6), angles,
-                            rng, check_collisions=False)
+                            rng, plan=plan, check_collisions=False)
     chain = log.meta.get("kinematic_chain")
     yaw = yaw_for_chain(chain)
     # the planar model takes the touches whose normals lie in XY (sphere points
@@ -686,6 +720,7 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
             "yaw": str(yaw), "yaw_rule": "core.selfcal.yaw_for_chain of the log's kinematic_chain",
             "c_angles_deg": angles,
             "grid_mm": f"{grid.x_m[0] / MM:g}..{grid.x_m[-1] / MM:g} step {PIN_STEP_M / MM:g}", "touches": t.n,
+            "touches_per_setup": int(t.n // len(angles)), "sphere_touches_each": int(sphere_touches),
             "pins": len(names), "probing_sigma_um": noise_um,
             "delta_L": {"x_n_mm": round(float(grid.x_m[-1] / MM), 3), "measured_um": round(dL / UM, 3),
                         "true_um": round(dL_true / UM, 3), "u_um": round(u_dL / UM, 3),

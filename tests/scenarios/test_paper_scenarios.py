@@ -159,6 +159,7 @@ def test_evaluation_points_what_moved(cpu):
 
 def test_pin_circle_the_papers_way(pin):
     assert pin["pins"] == 18
+    assert pin["sphere_touches_each"] == 8 and pin["touches_per_setup"] == 88 and pin["touches"] == 8 * 88
     assert pin["kinematic_chain"] == "[w C' A' b X Y Z (C1) t]" and pin["yaw"] == "ECX"  # Y rides on X
     dl = pin["delta_L"]
     assert abs(dl["measured_um"] - dl["true_um"]) < 4 * dl["u_um"]

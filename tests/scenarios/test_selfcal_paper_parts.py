@@ -46,6 +46,33 @@ def test_pin_centres_round_trip():
     np.testing.assert_array_equal(nominal, A.pin_positions_nominal())
 
 
+def test_pin_circle_plan_has_the_papers_eight_equator_touches_a_sphere():
+    art = A.pin_circle()
+    plan = cp.pin_circle_paper_plan(art)
+    assert plan.n == 18 * 4 + 2 * 8 == 88  # section 5.1's counts (its "Total 84" is not what they give)
+    spheres = {f.name: f.nominal for f in art.features if f.kind == "sphere"}
+    for name, s in spheres.items():
+        rows = [i for i, f in enumerate(plan.feature) if f == name]
+        assert len(rows) == 8
+        w, n = plan.w_A[rows], plan.wn_A[rows]
+        c = np.asarray(s.centre)
+        np.testing.assert_allclose(np.linalg.norm(w - c, axis=1), s.radius, rtol=0, atol=1e-15)  # on the sphere
+        np.testing.assert_allclose(w[:, 2], c[2], atol=1e-15)  # on its equator
+        np.testing.assert_allclose(n[:, 2], 0.0, atol=1e-15)  # eq 3's normal in XY
+        np.testing.assert_allclose(np.degrees(np.arctan2(n[:, 1], n[:, 0])) % 360, np.arange(0, 360, 45),
+                                   atol=1e-12)
+    pins = [i for i, f in enumerate(plan.feature) if f.startswith("pin")]
+    from sim.plans import pin_circle_plan
+
+    ref = pin_circle_plan(art)
+    keep = [i for i, f in enumerate(ref.feature) if f.startswith("pin")]
+    np.testing.assert_array_equal(plan.w_A[pins], ref.w_A[keep])  # the pins' touches are the standard plan's
+    assert cp.pin_circle_paper_plan(art, 4).n == 80
+    for bad in (2, 4.5, -1):
+        with pytest.raises(ConfigError, match="sphere_touches must be an integer >= 3"):
+            cp.pin_circle_paper_plan(art, bad)
+
+
 def test_measure_delta_L_known_answer():
     from sim.machine import Machine
     from sim.machines import MACHINES
