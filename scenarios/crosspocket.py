@@ -381,6 +381,37 @@ def _map_u95_linear(des, est) -> np.ndarray:
     return K * np.sqrt(np.maximum(v[:n] + v[n:], 0)).reshape(len(des.grid.x_m), len(des.grid.y_m))
 
 
+def map_u95_json(grid, umap_m: np.ndarray) -> tuple[list, list]:
+    """Fig. 20's map for the JSON, in the layout the figure draws, and where its maximum is.
+
+    ``umap_m`` (N_x, N_y), m, as :func:`core.uncertainty.error_map_u95`
+    gives it. Returns the map in um as nested lists of shape (N_y, N_x):
+    row ``r`` is ``y = grid_y_mm[r]``, column ``c`` is ``x = grid_x_mm[c]``
+    (``viz.figures.grid_uncertainty_figure``'s ``u95_um``), and
+    ``[x, y]`` of the maximum, mm.
+    """
+    u = np.asarray(umap_m, float)
+    if u.shape != (len(grid.x_m), len(grid.y_m)):
+        raise ConfigError(f"error-map U95 of shape {u.shape} on a {len(grid.x_m)} x {len(grid.y_m)} grid")
+    ix, iy = np.unravel_index(int(np.argmax(u)), u.shape)
+    return (np.round(u.T / UM, 4).tolist(),
+            [round(float(grid.x_m[ix]) / MM, 3), round(float(grid.y_m[iy]) / MM, 3)])
+
+
+def fig20_figures(arrays: dict) -> dict:
+    """Figs. 20(a, b) from the study's ``arrays`` (maps (N_y, N_x), :func:`map_u95_json`)."""
+    from viz import figures as F
+
+    out = {}
+    for tag, sph in (("a", "with"), ("b", "without")):
+        key = f"map_u95_um_{sph}_spheres_C0_75_130_210"
+        if key in arrays:
+            out[f"fig20{tag}"] = F.grid_uncertainty_figure(
+                arrays["grid_x_mm"], arrays["grid_y_mm"], arrays[key],
+                title=f"Fig. 20({tag}): U95 (k=2) of the 2D positioning error, {sph} spheres")
+    return out
+
+
 def _parts_linear(des, est) -> dict:
     """:func:`core.uncertainty.workpiece_components` from the covariance (linear propagation), m."""
     from core.uncertainty import K, WORKPIECE_GAUGE
@@ -442,7 +473,7 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
             umap = error_map_u95(des, err)
             key = f"{'with' if spheres else 'without'}_spheres_C{'_'.join(f'{a:g}' for a in c)}"
             arrays[f"g_u95_um_{key}"] = np.round(parts["total"] / UM, 4).tolist()
-            arrays[f"map_u95_um_{key}"] = np.round(umap / UM, 4).tolist()
+            arrays[f"map_u95_um_{key}"], at_mm = map_u95_json(grid, umap)
             case.update(identifiable=True,
                         g_u95_max_um=round(float(parts["total"][i]) / UM, 3),
                         g_u95_max_linear_um=round(lin.max_workpiece_U95 / UM, 3),
@@ -450,9 +481,7 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
                         g_u95_parts_at_max_um={k: round(float(v[i]) / UM, 3) for k, v in parts.items()
                                                if k != "total"},
                         map_u95_max_um=round(float(umap.max()) / UM, 3),
-                        map_u95_max_at_mm=[round(float(grid.x_m[k]) / MM, 3) for k in
-                                           (np.unravel_index(np.argmax(umap), umap.shape)[0],)]
-                        + [round(float(grid.y_m[np.unravel_index(np.argmax(umap), umap.shape)[1]]) / MM, 3)],
+                        map_u95_max_at_mm=at_mm,
                         map_u95_at_origin_um=round(float(umap[np.argmin(np.abs(grid.x_m)),
                                                               np.argmin(np.abs(grid.y_m))]) / UM, 6))
             if case["paper_g_u95_max_um"]:
@@ -490,7 +519,8 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
             "scale relative to the eq 16-17 datum (each part's own U95; they are correlated, so they do not add "
             "in quadrature exactly).",
             "Table 2: U95 (k=2) of EXC,total, EYC,total and ECC per C angle; C = 0 is the reference set-up (0 by eq 16).",
-            "map_u95: the paper's Fig. 20, U95 = 2 sqrt(u_X^2 + u_Y^2) of (E_X,total, E_Y,total) on the grid nodes.",
+            "map_u95: the paper's Fig. 20, U95 = 2 sqrt(u_X^2 + u_Y^2) of (E_X,total, E_Y,total) on the grid nodes; "
+            "arrays.map_u95_um_* are (N_y, N_x): row r at grid_y_mm[r], column c at grid_x_mm[c], as drawn.",
             "The pocket is reconstructed (arms 200 mm, 36 mm wide, spheres at (60, 60) and (-70, -55) mm); the "
             "paper's point layout and sphere positions are not fully given. The sensitivity block shows what of "
             "that reconstruction moves the numbers (linear propagation, exact here: the estimator is linear in the "
@@ -948,12 +978,7 @@ def _paper_figure_objects(cpu: dict, pin: dict | None, run: dict) -> dict:
     if key in a:
         out["fig19"] = S.outline_uncertainty_figure(to["w_mm"], a[key], outlines_mm=polys,
                                                     title="Fig. 19: U95 of G_normal, no spheres, C = 0, 75, 130, 210°")
-    for tag, sph in (("a", "with"), ("b", "without")):
-        key = f"map_u95_um_{sph}_spheres_C0_75_130_210"
-        if key in a:
-            out[f"fig20{tag}"] = F.grid_uncertainty_figure(
-                a["grid_x_mm"], a["grid_y_mm"], np.asarray(a[key]).T,
-                title=f"Fig. 20({tag}): U95 (k=2) of the 2D positioning error, {sph} spheres")
+    out.update(fig20_figures(a))
     # case 1 campaign: Figs. 9, 10, 11, 12, 13, 14
     t, P, N, pocket, ref, res, res0 = (run[k] for k in ("t", "P", "N", "pocket", "ref_um", "res", "res0"))
     prof = {}

@@ -115,3 +115,20 @@ def test_workpiece_components_known_answer(design):
     np.testing.assert_allclose(parts["scale"], parts["total"], rtol=1e-9, atol=1e-20)
     assert parts["form"].max() < 1e-9 * parts["total"].max()
     assert parts["shift"].max() < 1e-9 * parts["total"].max()
+
+
+def test_fig20_json_is_in_the_figures_layout_on_a_non_square_grid():
+    """The JSON map is (N_y, N_x) as drawn (row = y, column = x); a square grid would hide a transposition."""
+    g = Grid(np.array([-0.04, 0.0, 0.04]), np.array([-0.02, 0.0, 0.02, 0.04, 0.06]))  # 3 x-nodes, 5 y-nodes
+    X, Y = np.meshgrid(g.x_m, g.y_m, indexing="ij")
+    umap = (1.0 + 100.0 * X + 10.0 * Y) * 1e-6  # (N_x, N_y) as error_map_u95 gives it; largest at (40, 60) mm
+    js, at = cp.map_u95_json(g, umap)
+    assert np.shape(js) == (5, 3) and at == [40.0, 60.0]
+    assert js[4][0] == pytest.approx(1.0 - 4.0 + 0.6)  # row y = 60 mm, column x = -40 mm, by hand
+    assert js[0][2] == pytest.approx(1.0 + 4.0 - 0.2)  # row y = -20 mm, column x = 40 mm
+    figs = cp.fig20_figures({"grid_x_mm": [-40, 0, 40], "grid_y_mm": [-20, 0, 20, 40, 60],
+                             "map_u95_um_with_spheres_C0_75_130_210": js})
+    quad = figs["fig20a"].axes[0].collections[0]
+    np.testing.assert_allclose(np.asarray(quad.get_array()).reshape(5, 3), js)  # drawn as written
+    with pytest.raises(ConfigError, match="shape"):
+        cp.map_u95_json(g, umap.T)
