@@ -260,8 +260,33 @@ def _sphere_case(c_deg, sphere_touches=4, rigid=False, sphere_r_m=None, sphere_s
     """One case of :data:`SPHERE_SENSITIVITY` by dense linear propagation: U95 of the pocket's G, Table 2, map.
 
     ``stylus_r_m``, ``heights``: :func:`study_touches` (the defaults: what identify reads)."""
-    from core.selfcal import Grid, build_design
     from core.uncertainty import K, error_map_operator
+
+    des, cov, npk, ids, w = _sphere_case_cov(c_deg, sphere_touches, rigid, sphere_r_m, sphere_sigma_m, step_m,
+                                             spheres, arm_half_m, stylus_r_m, heights)
+    sg = des.slices["G"]
+    pk = np.arange(sg.start, sg.start + npk)
+    tot, form = _g_u95_readings(cov[np.ix_(pk, pk)], des.N[pk])
+    M = error_map_operator(des)
+    v = np.einsum("ij,jk,ik->i", M, cov, M)
+    h = v.size // 2
+    umap = K * np.sqrt(np.maximum(v[:h] + v[h:], 0))
+    u = np.sqrt(np.maximum(np.diag(cov), 0))
+    gx, gy = des.grid.x_m, des.grid.y_m
+    corner = int(np.argmin(np.abs(gx + 0.110))) * len(gy) + int(np.argmin(np.abs(gy - 0.110)))
+    return {"g_total_um": tot / UM, "g_form_um": form / UM, "map_max_um": float(umap.max()) / UM,
+            "map_corner_um": float(umap[corner]) / UM,
+            "u_xc_um": 2 * u[des.slices["EXC"]] / UM, "u_yc_um": 2 * u[des.slices["EYC"]] / UM,
+            "u_cc_urad": 2e6 * u[des.slices["ECC"]], "pocket_ids": list(ids[:npk]), "pocket_w_m": w[:npk]}
+
+
+def _sphere_case_cov(c_deg, sphere_touches=4, rigid=False, sphere_r_m=None, sphere_sigma_m=U_PROBE_M,
+                     step_m=0.022, spheres=True, arm_half_m=None, stylus_r_m=None, heights=True):
+    """The design and the covariance of its parameters (m^2, rad^2, from the touches' sigmas) for one case.
+
+    Returns ``(design, cov, n_pocket, ids, w)``: ``ids``, ``w`` (W, m) of all targets, the pocket's first.
+    """
+    from core.selfcal import Grid, build_design
 
     w, wn, ids, z = _plan_points(False, heights=True)
     w, wn = _variant_points(w, wn, ids, arm_half_m)
@@ -289,20 +314,7 @@ def _sphere_case(c_deg, sphere_touches=4, rigid=False, sphere_r_m=None, sphere_s
             extra[g0 + npk + i, 3 * k + 2] = 1.0
         T = np.hstack([np.eye(n)[:, keep], extra])
     cov = T @ _constrained_cov(A @ T, des.C @ T, sig) @ T.T
-    sg = des.slices["G"]
-    pk = np.arange(sg.start, sg.start + npk)
-    tot, form = _g_u95_readings(cov[np.ix_(pk, pk)], des.N[pk])
-    M = error_map_operator(des)
-    v = np.einsum("ij,jk,ik->i", M, cov, M)
-    h = v.size // 2
-    umap = K * np.sqrt(np.maximum(v[:h] + v[h:], 0))
-    u = np.sqrt(np.maximum(np.diag(cov), 0))
-    gx, gy = des.grid.x_m, des.grid.y_m
-    corner = int(np.argmin(np.abs(gx + 0.110))) * len(gy) + int(np.argmin(np.abs(gy - 0.110)))
-    return {"g_total_um": tot / UM, "g_form_um": form / UM, "map_max_um": float(umap.max()) / UM,
-            "map_corner_um": float(umap[corner]) / UM,
-            "u_xc_um": 2 * u[des.slices["EXC"]] / UM, "u_yc_um": 2 * u[des.slices["EYC"]] / UM,
-            "u_cc_urad": 2e6 * u[des.slices["ECC"]], "pocket_ids": list(ids[:npk]), "pocket_w_m": w[:npk]}
+    return des, cov, npk, ids, w
 
 
 def sphere_sensitivity() -> list:
@@ -338,6 +350,126 @@ def sphere_sensitivity() -> list:
                    u_cc_urad=np.round(a["u_cc_urad"], 3).tolist(),
                    fig20a_max_um=round(a["map_max_um"], 3), fig20b_max_um=round(b["map_max_um"], 3))
         rows.append(row)
+    return rows
+
+
+#: Round 4 (fixed before running, after rounds 1-3 left Fig. 18(a) at 2.45x and Table 2's U_XC/U_YC at
+#: 1.8-2.2x under the spheres as datum): what the 2-angle design leaves nearly free, and what drives U_XC/U_YC.
+#: Per reading (eq 15 as printed; spheres as datum) x model (identify's: tip centres at the targets' heights;
+#: the paper's eqs 1-15: tip centres, one level, no height terms; eqs 8-11 literally: contact points, one
+#: level) x C set: the eigen-directions of the parameters' covariance (angles scaled by 110 mm, the grid's
+#: half-width, so every parameter is a length at the grid's edge), the U95 along the 3 least determined
+#: ones, what each is made of, and how much of the largest U95 of G and of U_XC, U_YC each carries.
+CONDITIONING_READINGS = (("eq 15 as printed", {}), ("spheres as datum", {"rigid": "known"}))
+CONDITIONING_MODELS = (("identify: tip centres, targets' heights", {}),
+                       ("paper's eqs 1-15: tip centres, one level", {"heights": False}),
+                       ("eqs 8-11 literally: contact points, one level", {"stylus_r_m": 0.0, "heights": False}))
+#: Half-width of the grid, m: an angle (rad) times it is the length it moves at the grid's edge.
+CONDITIONING_LEVER_M = 0.110
+
+
+def _param_groups(des, npk: int) -> list:
+    """A group name for each design parameter (tables split into edge nodes and inner nodes; G into pocket and
+    spheres), for saying what a direction is made of."""
+    names = [""] * des.n_params
+    for key, sl in des.slices.items():
+        k = str(getattr(key, "value", key))
+        idx = range(sl.start, sl.stop)
+        for j, i in enumerate(idx):
+            if k == "G":
+                names[i] = "G pocket" if j < npk else "G spheres"
+            elif k in ("EXX", "EYX", "EXY", "EYY", "ECY", "ECX"):
+                names[i] = f"{k} edge node" if j in (0, len(idx) - 1) else f"{k} inner"
+            else:
+                names[i] = k
+    return names
+
+
+def _scale_to_length(des) -> np.ndarray:
+    """Per parameter: 1 for lengths, the lever for angles, lever^2 for the Abbe slopes (rad/m)."""
+    L = CONDITIONING_LEVER_M
+    s = np.ones(des.n_params)
+    for key, sl in des.slices.items():
+        k = str(getattr(key, "value", key))
+        if k in ("ECY", "ECX", "EC0Y", "ECC", "EBC", "EAC"):
+            s[sl] = L
+        elif k == "ABBE":
+            s[sl] = L * L
+    return s
+
+
+def _hand_xc_floor_um(c_deg) -> list:
+    """U95 of E_XC, E_YC at each C if the map and the part were known: the part's rigid shift from its
+    92 touches (sigma 1.38 um each) at C_j minus that at C_1 (eq 16's C terms are 0 at C_1). Per C_j:
+    ``2 sqrt(sigma^2 [(sum N N')^-1]_C1 + sigma^2 [(sum N N')^-1]_Cj)`` with N the touches' normals in R."""
+    w, wn, _ = _plan_points(False)
+    sw, sn, _, _ = _sphere_targets(4, None)
+    n = np.vstack([wn, sn])
+    out = []
+    inv = []
+    for c in c_deg:
+        a = np.radians(-c)  # eq 2: the part turned by -C in R
+        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        N = n @ R.T
+        inv.append(np.linalg.inv(N.T @ N) * U_PROBE_M ** 2)
+    for j in range(1, len(c_deg)):
+        v = np.diag(inv[0] + inv[j])
+        out.append([round(2 * float(np.sqrt(v[0])) / UM, 3), round(2 * float(np.sqrt(v[1])) / UM, 3)])
+    return out
+
+
+def conditioning_study(n_dirs: int = 3) -> list:
+    """Round 4 (:data:`CONDITIONING_READINGS` x :data:`CONDITIONING_MODELS` x the paper's three C sets).
+
+    Per case: the largest U95 of the pocket's G and where; U_XC, U_YC per C; the ``n_dirs`` least
+    determined directions of the parameters (eigenvectors of the covariance in length units at the grid's
+    edge, :func:`_scale_to_length`), each with its U95 (``2 sqrt(eigenvalue)``), its three largest groups
+    (share of its squared length, :func:`_param_groups`), and the share of the variance of the largest-U95
+    target's G and of each U_XC, U_YC it carries; the ratio of the largest to the median U95 over all
+    identified directions (the design's conditioning); the hand floor of U_XC, U_YC (:func:`_hand_xc_floor_um`).
+    """
+    sets = ((0.0, 75.0), (0.0, 75.0, 130.0), CROSS_ANGLES_DEG)
+    rows = []
+    for reading, kw0 in CONDITIONING_READINGS:
+        for model, kw1 in CONDITIONING_MODELS:
+            for c in sets:
+                des, cov, npk, ids, w = _sphere_case_cov(c, **kw0, **kw1)
+                sc = _scale_to_length(des)
+                Cs = cov * np.outer(sc, sc)
+                ev, V = np.linalg.eigh(Cs)
+                ev, V = ev[::-1], V[:, ::-1]
+                live = ev > ev[0] * 1e-12
+                groups = _param_groups(des, npk)
+                sg = des.slices["G"]
+                g = np.sqrt(np.maximum(np.diag(cov)[sg.start:sg.start + npk], 0))
+                i = int(np.argmax(g))
+                gi = sg.start + i
+                xc = list(range(des.slices["EXC"].start + 1, des.slices["EXC"].stop))
+                yc = list(range(des.slices["EYC"].start + 1, des.slices["EYC"].stop))
+                dirs = []
+                for d in range(n_dirs):
+                    v = V[:, d]
+                    share: dict = {}
+                    for gname, vv in zip(groups, v):
+                        share[gname] = share.get(gname, 0.0) + float(vv * vv)
+                    top = sorted(share.items(), key=lambda kv: -kv[1])[:3]
+                    dirs.append({"u95_um": round(2 * float(np.sqrt(ev[d])) / UM, 3),
+                                 "made_of": {k: round(v_, 3) for k, v_ in top},
+                                 "share_of_max_g_variance": round(float(ev[d] * V[gi, d] ** 2 / Cs[gi, gi]), 3),
+                                 "share_of_u_xc_variance": [round(float(ev[d] * V[k, d] ** 2 / Cs[k, k]), 3)
+                                                            for k in xc],
+                                 "share_of_u_yc_variance": [round(float(ev[d] * V[k, d] ** 2 / Cs[k, k]), 3)
+                                                            for k in yc]})
+                u = np.sqrt(np.maximum(np.diag(cov), 0))
+                rows.append({"reading": reading, "model": model, "c_angles_deg": list(c),
+                             "g_u95_max_um": round(2 * float(g[i]) / UM, 3), "at_target": ids[i],
+                             "at_w_mm": np.round(w[i] / MM, 1).tolist(),
+                             "u_xc_um": [round(2 * float(u[k]) / UM, 3) for k in xc],
+                             "u_yc_um": [round(2 * float(u[k]) / UM, 3) for k in yc],
+                             "hand_floor_u_xc_yc_um": _hand_xc_floor_um(c),
+                             "identified_directions": int(live.sum()),
+                             "largest_to_median_u95": round(float(np.sqrt(ev[0] / np.median(ev[live]))), 2),
+                             "least_determined": dirs})
     return rows
 
 
