@@ -473,6 +473,55 @@ def conditioning_study(n_dirs: int = 3) -> list:
     return rows
 
 
+#: Round 5 (fixed after round 4, before running it): round 4 found no single direction carrying U_XC/U_YC
+#: at 4 angles under eq 15 as printed. Asked here: how much of U_XC, U_YC is the part's datum (the shift,
+#: rotation and scale of G, :data:`core.uncertainty.WORKPIECE_GAUGE`, fixed in the gauge of eqs 16-17 only
+#: through the edge nodes), and how much the height terms (EBC, EAC, ABBE): U_XC, U_YC conditional on each
+#: being known (Gaussian conditioning of the joint covariance), per reading and model of round 4, 4 angles.
+CONDITIONAL_GIVEN = ("part's datum (shift, rotation, scale of G)", "height terms (EBC, EAC, ABBE)")
+
+
+def conditional_table2() -> list:
+    """Round 5 (:data:`CONDITIONAL_GIVEN`): Table 2's U_XC, U_YC at C = 75, 130, 210 deg as identified, and
+    conditional on the part's datum known, and on the height terms known (where the model has them)."""
+    from core.uncertainty import WORKPIECE_GAUGE
+
+    rows = []
+    for reading, kw0 in CONDITIONING_READINGS:
+        for model, kw1 in CONDITIONING_MODELS:
+            des, cov, npk, ids, w = _sphere_case_cov(CROSS_ANGLES_DEG, **kw0, **kw1)
+            sg = des.slices["G"]
+            pk = np.arange(sg.start, sg.start + npk)
+            B = des.N[pk][:, [c for v in WORKPIECE_GAUGE.values() for c in v]]
+            Pd = np.zeros((B.shape[1], des.n_params))
+            Pd[:, pk] = np.linalg.pinv(B)  # the pocket's G -> its shift, rotation, scale (least squares)
+            xc = np.arange(des.slices["EXC"].start + 1, des.slices["EXC"].stop)
+            yc = np.arange(des.slices["EYC"].start + 1, des.slices["EYC"].stop)
+            T = np.zeros((len(xc) + len(yc), des.n_params))
+            T[np.arange(len(xc)), xc] = 1.0
+            T[len(xc) + np.arange(len(yc)), yc] = 1.0
+            row = {"reading": reading, "model": model}
+
+            def u95(given):
+                Stt = T @ cov @ T.T
+                if given is not None:
+                    Stg, Sgg = T @ cov @ given.T, given @ cov @ given.T
+                    Stt = Stt - Stg @ np.linalg.pinv(Sgg, rcond=1e-12) @ Stg.T
+                u = 2 * np.sqrt(np.maximum(np.diag(Stt), 0)) / UM
+                return [round(float(v), 3) for v in u[:len(xc)]], [round(float(v), 3) for v in u[len(xc):]]
+
+            row["as_identified"] = u95(None)
+            row["given_datum"] = u95(Pd)
+            hk = [k for k in ("EBC", "EAC", "ABBE") if k in des.slices]
+            if hk:
+                H = np.eye(des.n_params)[np.concatenate([np.arange(des.slices[k].start, des.slices[k].stop)
+                                                         for k in hk])]
+                row["given_heights"] = u95(H)
+                row["given_datum_and_heights"] = u95(np.vstack([Pd, H]))
+            rows.append(row)
+    return rows
+
+
 #: :func:`evaluation_point_steps`: from the study's former evaluation points to identify's, one step at a time.
 EVALUATION_STEPS = (("contact points, one level (the study before)", {"stylus_r_m": 0.0, "heights": False}),
                     ("tip centres, one level", {"heights": False}),
