@@ -714,6 +714,12 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
             "Read from the numbers, not stated by the paper.",
             "evaluation_points: the X/Y tables at the commanded tip centres at the targets' heights, the design "
             "vmt identify builds (evaluation_point_steps: from the contact points, one step at a time).",
+            "conditioning (round 4): with 2 C angles one direction of the parameters (ECY at the y = +-110 mm "
+            "nodes with the pocket's G near the arm ends) carries 94 % of the variance of Fig. 18(a)'s largest "
+            "value under eq 15 as printed; largest/median U95 over the directions 318 (2 angles), 48 (3), 41 (4). "
+            "conditional_table2 (round 5): given the part's datum (shift, rotation, scale of G), U_XC and U_YC "
+            "fall to 0.63-0.89 um in every reading and model (paper 0.9-1.2; a rigid part on a known map: 0.58): "
+            "how the part's datum is fixed carries Table 2's excess.",
         ],
         "arrays": arrays,
     }
@@ -721,6 +727,8 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
         out["sensitivity"] = sensitivity_study()
         out["sphere_sensitivity"] = sphere_sensitivity()
         out["evaluation_point_steps"] = evaluation_point_steps()
+        out["conditioning"] = conditioning_study()
+        out["conditional_table2"] = conditional_table2()
     out["seconds"] = round(time.perf_counter() - t0, 2)
     return out
 
@@ -1108,6 +1116,26 @@ def paper_tables(cpu: dict, pin: dict | None = None) -> dict:
                 " ".join(f"{v:g}" for v in r["u_yc_um"][1:]), " ".join(f"{v:.1f}" for v in r["u_cc_urad"][1:]),
                 r["map_corner_um"], r["fig20a_max_um"]] for r in cpu["evaluation_point_steps"]],
             caption="Where the X/Y tables are evaluated (linear, pocket targets; 18(c), 19: C = 0, 75, 130, 210 deg)")
+    if "conditioning" in cpu:
+        out["conditioning"] = Table(
+            ["reading", "model", "C / deg", "max U95(G) / um", "largest / median U95", "least determined: U95 / um",
+             "made of (share)", "its share of max U95(G)^2", "U_XC / um", "U_YC / um", "hand floor U_XC / um"],
+            [[r["reading"], r["model"], ", ".join(f"{a:g}" for a in r["c_angles_deg"]), r["g_u95_max_um"],
+              r["largest_to_median_u95"], r["least_determined"][0]["u95_um"],
+              ", ".join(f"{k} {v:.2f}" for k, v in r["least_determined"][0]["made_of"].items()),
+              r["least_determined"][0]["share_of_max_g_variance"], " ".join(f"{v:g}" for v in r["u_xc_um"]),
+              " ".join(f"{v:g}" for v in r["u_yc_um"]), r["hand_floor_u_xc_yc_um"][0][0]]
+             for r in cpu["conditioning"]],
+            caption="Round 4: the least determined direction of each design (angles as lengths at 110 mm)")
+    if "conditional_table2" in cpu:
+        out["conditional_table2"] = Table(
+            ["reading", "model", "given", "U_XC 75/130/210 / um", "U_YC / um"],
+            [["paper", "", "", "1.0 1.2 1.2", "0.9 1.1 1.2"]]
+            + [[r["reading"], r["model"], k.replace("_", " "), " ".join(f"{v:g}" for v in r[k][0]),
+                " ".join(f"{v:g}" for v in r[k][1])]
+               for r in cpu["conditional_table2"] for k in ("as_identified", "given_datum", "given_heights",
+                                                            "given_datum_and_heights") if k in r],
+            caption="Round 5: Table 2's U_XC, U_YC with the part's datum or the height terms known (4 angles)")
     if pin is not None:
         out["pins"] = Table(["quantity", "vmt", "paper"],
                             [["raw max pin error at C = 0 / um", pin["raw_c0_pin_error_max_um"], "about 8"],
