@@ -13,10 +13,13 @@ interpolated at the commanded stylus-tip centres, at each target's height.
 A sensitivity run (:data:`SENSITIVITY`) shows what of the reconstructed
 geometry moves the numbers; :data:`SPHERE_SENSITIVITY` (variants fixed before
 running, in rounds) what the spheres constrain; :func:`evaluation_point_steps`
-what the evaluation points moved (docs/papers-selfcal.md has the numbers).
+what the evaluation points moved; :func:`conditioning_study` (round 4) the
+2-angle design's nearly free direction and :func:`conditional_table2`
+(round 5) what carries Table 2's U_XC, U_YC (docs/papers-selfcal.md has the
+numbers).
 
-``pin-circle`` (paper section 5): 18 pins on a 400 mm pitch circle and two
-spheres at C = 0, 31, 83, 137, 191, 227, 257, 313 deg, grid step 80 mm over
+``pin-circle`` (paper section 5): 18 pins on a 400 mm pitch circle (4
+touches each) and two spheres (8 equator touches each) at C = 0, 31, 83, 137, 191, 227, 257, 313 deg, grid step 80 mm over
 the touched extent (the paper's -400..400 mm has nodes no pin reaches), the
 yaw vmt's rule picks for the chain, eq 17's delta_L measured; the pin errors
 in the paper's frame (pin 1 and pin 11), raw at C = 0 and self-calibrated.
