@@ -73,6 +73,20 @@ def test_pin_circle_plan_has_the_papers_eight_equator_touches_a_sphere():
             cp.pin_circle_paper_plan(art, bad)
 
 
+def test_pin_circle_paper_plan_runs_without_collision():
+    """Every approach, touch, retract and link of the paper's plan at the eq 20 angles, checked in the MuJoCo
+    scene (the scenario itself runs without the check)."""
+    from sim.campaign import simulate_campaign
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+    from sim.probe import ProbeConfig
+
+    art = A.pin_circle()
+    log = simulate_campaign(art, Machine(MACHINES["mikron-ucp710"]()), ProbeConfig(), list(cp.PIN_ANGLES_DEG),
+                            None, plan=cp.pin_circle_paper_plan(art), check_collisions=True)
+    assert len(log.col("status")) == 8 * 88 and set(log.col("status")) == {"ok"}
+
+
 def test_measure_delta_L_known_answer():
     from sim.machine import Machine
     from sim.machines import MACHINES
