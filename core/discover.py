@@ -44,7 +44,11 @@ What it does, in order, and the statistics behind each step
       covariate of another family (time, position, direction, feature:
       :attr:`core.diagnosis.Covariate.family`) explains materially more
       than both the cause's columns and the best smooth function of a
-      covariate of its own family (debiased sums of squares).
+      covariate of its own family (debiased sums of squares);
+   f. its plainer counter-explanation (:attr:`core.causes.Cause.counter`)
+      does not explain as much (step 5's test, made before adoption too, so
+      that a plainer cause of the catalogue can win the round: the probe's
+      fixed lobes against lobes turned per set-up).
 
    Among those, the lowest cross-validated mean square wins; within the
    materiality margin of it, the fewest columns (parsimony).
@@ -56,7 +60,9 @@ What it does, in order, and the statistics behind each step
    error map against a non-rigid coupling) must not explain as much; and
    it must explain something material beyond the best trial of its
    :attr:`core.causes.Cause.counter_scan` (a one-off slip of the part in
-   one set-up, debiased for the choice among its trials).
+   one set-up, debiased for the choice among its trials), and stay
+   significant beside it (F test, the Bonferroni factor of its adoption)
+   unless it explains materially more than the slip.
    Otherwise it was a guess that caught part of something else: it is
    dropped and said so.
 6. **Unexplained**: if structure remains (diagnosis, lack of fit or CV gap
