@@ -59,7 +59,7 @@ import numpy as np
 from core import iso
 from core.chain import Chain, parse_chain
 from core.exceptions import ConfigError
-from sim.errorfuncs import Constant, ErrorFunction, Zero
+from sim.errorfuncs import Constant, ErrorFunction, SplineStack, SplineTable, Zero
 
 _E = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
 
@@ -192,6 +192,7 @@ class Machine:
         self.config = config
         self.chain = config.parsed_chain
         self._motion = {a: tuple(s.name for s in iso.symbols_of_axis(a, location=False)) for a in self.chain.axes}
+        self._error_plan, self._spline_stacks = self._compile_errors()
         self._model, self._layout, self._fW, self._fP = self._build(with_errors=True)
         self._data = self._model.createData()
         self._nmodel, self._nlayout, self._nfW, self._nfP = self._build(with_errors=False)
@@ -216,22 +217,54 @@ class Machine:
 
         Motion errors of a linear axis are evaluated at its reading and
         ``direction[:, i]``; those of a rotary axis at its angle (direction 0).
+        Spline tables of one linear axis on the same knots are evaluated in one
+        call (:class:`sim.errorfuncs.SplineStack`, the same values), and the
+        position-only errors of a rotary axis once per distinct angle (a
+        rotary axis is held during a touch: a campaign has one angle per set-up).
         """
         lin, rot, n = self._inputs(lin_m, rot_rad)
         t, d = self._td(t_s, direction, n)
+        axes = {a: lin[:, k] for k, a in enumerate(iso.LINEAR_AXES)}
+        stacked = {}
+        for i, names, stack in self._spline_stacks:
+            stacked.update(zip(names, stack(lin[:, i])))
+        angles = {}  # rotary axis index -> (distinct angles, index of each pose's angle)
         out = {}
+        for name, kind, i, f in self._error_plan:
+            if kind == "loc":
+                out[name] = np.full(n, f)
+            elif kind == "spline":
+                out[name] = stacked[name]
+            elif kind == "lin":
+                out[name] = np.asarray(f.evaluate(lin[:, i], t, d[:, i], axes), float).reshape(n)
+            elif kind == "rot_static":
+                if i not in angles:
+                    angles[i] = np.unique(rot[:, i], return_inverse=True)
+                u, inv = angles[i]
+                out[name] = np.asarray(f(u, None, None), float).reshape(len(u))[inv.reshape(n)]
+            else:
+                out[name] = np.asarray(f(rot[:, i], t, None), float).reshape(n)
+        return out
+
+    def _compile_errors(self):
+        """How :meth:`error_values` evaluates each error: ``[(name, kind, axis index, f or value)]``
+        in the configuration's order, and the spline stacks ``[(axis index, names, SplineStack)]``."""
+        plan, tables = [], {}
         for name, f in self.config.errors.items():
             s = iso.symbol(name)
             if s.location:
-                out[name] = np.broadcast_to(f(np.zeros(1))[0], (n,)).copy()
+                plan.append((name, "loc", -1, float(f(np.zeros(1))[0])))
             elif s.axis in iso.LINEAR_AXES:
                 i = iso.LINEAR_AXES.index(s.axis)
-                axes = {a: lin[:, k] for k, a in enumerate(iso.LINEAR_AXES)}
-                out[name] = np.asarray(f.evaluate(lin[:, i], t, d[:, i], axes), float).reshape(n)
+                if type(f) is SplineTable:
+                    tables.setdefault((i, f.pos), []).append((name, f))
+                    plan.append((name, "spline", i, f))
+                else:
+                    plan.append((name, "lin", i, f))
             else:
-                i = self.rotary_axes.index(s.axis)
-                out[name] = np.asarray(f(rot[:, i], t, None), float).reshape(n)
-        return out
+                plan.append((name, "rot_static" if f.static else "rot", self.rotary_axes.index(s.axis), f))
+        stacks = [(i, tuple(k for k, _ in fs), SplineStack([f for _, f in fs])) for (i, _), fs in tables.items()]
+        return tuple(plan), tuple(stacks)
 
     def tip_W(self, lin_m, rot_rad=None, t_s=None, direction=None) -> np.ndarray:
         """ACTUAL stylus-tip centre in the workpiece frame W, (n, 3) m.

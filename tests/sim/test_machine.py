@@ -302,3 +302,41 @@ def test_bad_inputs():
         Machine(MACHINES["vmc-3axis"]()).tip_W(np.zeros((2, 3)), np.zeros((2, 1)))
     with pytest.raises(ConfigError, match="lacks linear axis Z"):
         sim.machine.MachineConfig("x", "[w-X-Y-b-t]", {"X": (0, 1), "Y": (0, 1)})
+
+
+def test_error_values_are_each_function_at_its_axis():
+    # issue 19 item 5: error_values evaluates spline tables of an axis together and the
+    # position-only errors of a rotary axis once per distinct angle; every value must be
+    # the function's own at that pose (bit for bit), whatever the mix: tables on shared
+    # and on other knots, sums, a time-dependent rotary error, reversal, a cross-axis term
+    from sim.errorfuncs import CrossAxis, Periodic, SplineTable
+
+    rng = np.random.default_rng(11)
+    xs = tuple(np.linspace(-0.4, 0.4, 9))
+
+    def table(x=xs):
+        return SplineTable(x, tuple(rng.normal(scale=4e-6, size=len(x))))
+
+    errors = {"EXX": table() + Polynomial((1e-6, 2e-6)), "EYX": table(), "EZX": table(), "EAX": table(),
+              "EBX": table((-0.1, 0.0, 0.2, 0.3)), "EXY": table(), "EYY": Reversal(3e-6) + table(),
+              "EZZ": CrossAxis(1e-4, "X"), "EC0Y": Constant(2e-5),
+              "EXC": Periodic(3e-6, np.pi / 2), "EYC": Drift(offset_rate=1e-9) + Periodic(1e-6, np.pi),
+              "ECC": Periodic(2e-6, np.pi, 0.3), "EAA": Periodic(1e-5, np.pi / 3), "EY0A": Constant(1e-5)}
+    m = Machine(MACHINES["nmv3000"](errors=errors))
+    n = 600
+    lin = rng.uniform(-0.5, 0.5, (n, 3))
+    rot = np.column_stack([rng.choice(rng.uniform(-1, 1, 5), n) for _ in m.rotary_axes])  # few angles
+    t, d = rng.uniform(0, 1e3, n), rng.choice([-1.0, 0.0, 1.0], (n, 3))
+    got = m.error_values(lin, rot, t, d)
+    assert list(got) == list(errors)
+    axes = {a: lin[:, k] for k, a in enumerate("XYZ")}
+    for name, f in errors.items():
+        s = iso.symbol(name)
+        if s.location:
+            want = np.full(n, f.value)
+        elif s.axis in "XYZ":
+            i = "XYZ".index(s.axis)
+            want = f.evaluate(lin[:, i], t, d[:, i], axes)
+        else:
+            want = f(rot[:, m.rotary_axes.index(s.axis)], t, None)
+        assert got[name].shape == (n,) and np.array_equal(got[name], want), name
