@@ -198,6 +198,11 @@ class Machine:
         self._nmodel, self._nlayout, self._nfW, self._nfP = self._build(with_errors=False)
         self._ndata = self._nmodel.createData()
         self._fk = _BatchFK(self._model, (self._fW, self._fP))
+        self._fk_W, self._fk_P = _BatchFK(self._model, (self._fW,)), _BatchFK(self._model, (self._fP,))
+        # W's pose depends on the rotary angles alone when its branch holds only rotary axes
+        # whose errors depend on the angle only: then it is evaluated once per distinct angles
+        self._W_by_angles = bool(self.rotary_axes) and all(a in self.rotary_axes for a in self.chain.workpiece_from_bed) \
+            and all(f.static for k, f in self.config.errors.items() if iso.symbol(k).axis in self.chain.workpiece_from_bed)
 
     # ------------------------------------------------------------------ API
     @property
@@ -445,6 +450,13 @@ class Machine:
         lin, rot, n = self._inputs(lin_m, rot_rad)
         vals = self.error_values(lin, rot, t_s, direction)
         QT = self._configurations_T(self._model, self._layout, lin, rot, vals, n)
+        if want == "tip" and self._W_by_angles and n > 1:
+            # the workpiece branch once per distinct rotary position (a campaign: one per set-up)
+            _, first, inv = np.unique(rot, axis=0, return_index=True, return_inverse=True)
+            (R_W, t_W), = self._fk_W.frames(QT[:, first])
+            (R_P, t_P), = self._fk_P.frames(QT)
+            inv = inv.reshape(n)
+            return None, np.einsum("nji,nj->ni", R_W[inv], t_P - t_W[inv])
         (R_W, t_W), (R_P, t_P) = self._fk.frames(QT)
         if want == "tip":
             return None, np.einsum("nji,nj->ni", R_W, t_P - t_W)
@@ -545,7 +557,17 @@ class _BatchFK:
 
     def __init__(self, model, frame_ids):
         self.joints = []
+        needed = set()  # the joints the frames hang from and their ancestors: the only ones walked
+        for f in frame_ids:
+            fr = model.frames[f]
+            j = int(fr.parentJoint if hasattr(fr, "parentJoint") else fr.parent)
+            while j > 0:
+                needed.add(j)
+                j = int(model.parents[j])
         for j in range(1, model.njoints):
+            if j not in needed:
+                self.joints.append(None)
+                continue
             name = model.joints[j].shortname()
             if name not in self._KINDS:
                 raise ConfigError(f"batched kinematics: joint type {name} is not supported")
@@ -568,7 +590,11 @@ class _BatchFK:
         n = QT.shape[1]
         # rotations as (3, 3, n) and translations as (3, n): every product is 9 or 3 rows of n
         oM = [(None, np.zeros((3, n)))]  # joint 0, the universe (None: identity)
-        for kind, ax, parent, iq, Rp, tp, Rp_is_I in self.joints:
+        for joint in self.joints:
+            if joint is None:  # not an ancestor of the frames asked for
+                oM.append(None)
+                continue
+            kind, ax, parent, iq, Rp, tp, Rp_is_I = joint
             Ra, ta = oM[parent]
             t = ta + (tp[:, None] if Ra is None else _mv_const(Ra, tp))
             Rb = Ra if Rp_is_I else (np.broadcast_to(Rp[:, :, None], (3, 3, n)) if Ra is None else _mm_const(Ra, Rp))

@@ -340,3 +340,27 @@ def test_error_values_are_each_function_at_its_axis():
         else:
             want = f(rot[:, m.rotary_axes.index(s.axis)], t, None)
         assert got[name].shape == (n,) and np.array_equal(got[name], want), name
+
+
+@pytest.mark.parametrize("drift", [False, True])
+def test_workpiece_branch_once_per_angle_is_pinocchio(drift, rng):
+    # issue 19 item 5: on a machine whose workpiece branch holds only rotary axes with
+    # position-only errors, tip_W evaluates W once per distinct rotary position; against
+    # Pinocchio's own loop (1e-12 m, module docstring) and against the full batched walk
+    # (the same products on the same numbers: 1e-15 m, rounding of the libm only); a drift
+    # on C makes W time-dependent, where the full walk must be taken
+    m = _realistic("mikron-ucp710", rng)
+    if drift:
+        err = dict(m.config.errors)
+        err["EXC"] = err["EXC"] + Drift(offset_rate=1e-8)
+        m = m.with_errors(err)
+    assert m._W_by_angles is not drift
+    n = 400
+    lin, _ = _poses(m.config, (), n, rng)
+    angles = np.column_stack([rng.uniform(*m.config.strokes[a], 6) for a in m.rotary_axes])
+    rot = angles[rng.integers(0, 6, n)]
+    t, d = rng.uniform(0, 3e3, n), rng.choice([-1.0, 0.0, 1.0], (n, 3))
+    got = m.tip_W(lin, rot, t, d)
+    assert np.max(np.abs(got - m.tip_W_pinocchio(lin, rot, t, d))) < 1e-12
+    m._W_by_angles = False
+    assert np.max(np.abs(got - m.tip_W(lin, rot, t, d))) < 1e-15
