@@ -574,7 +574,8 @@ class _BatchFK:
             M = model.jointPlacements[j]
             R = np.array(M.rotation, float)
             self.joints.append((*self._KINDS[name], int(model.parents[j]), int(model.joints[j].idx_q), R,
-                                np.array(M.translation, float), bool(np.array_equal(R, np.eye(3)))))
+                                None if not np.any(M.translation) else np.array(M.translation, float),
+                                bool(np.array_equal(R, np.eye(3)))))  # None: no translation
         self.frames_ = []
         for f in frame_ids:
             fr = model.frames[f]
@@ -596,7 +597,7 @@ class _BatchFK:
                 continue
             kind, ax, parent, iq, Rp, tp, Rp_is_I = joint
             Ra, ta = oM[parent]
-            t = ta + (tp[:, None] if Ra is None else _mv_const(Ra, tp))
+            t = ta if tp is None else ta + (tp[:, None] if Ra is None else _mv_const(Ra, tp))
             Rb = Ra if Rp_is_I else (np.broadcast_to(Rp[:, :, None], (3, 3, n)) if Ra is None else _mm_const(Ra, Rp))
             if kind == "P":
                 R = Rb
