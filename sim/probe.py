@@ -206,7 +206,12 @@ def find_contacts(g: Callable[[np.ndarray, np.ndarray], np.ndarray], n: int,
     gb = G[act, kk]
     side = np.zeros(act.size, int)
     x = b.copy()
-    done = np.zeros(act.size, bool)
+    # a coarse sample on the root already (|g| within the tolerance: a nominal contact on a
+    # perfect machine lies on a sample): that sample. Regula falsi would return the sample
+    # itself, which the bracket test rejects, and bisect some 30 times to S_TOL_M.
+    at_a = np.abs(ga) < G_TOL_M
+    x[at_a] = a[at_a]
+    done = at_a | (np.abs(gb) < G_TOL_M)
     for _ in range(max_iter):
         live = np.flatnonzero(~done)
         if live.size == 0:

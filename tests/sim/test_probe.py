@@ -196,3 +196,24 @@ def test_find_contacts_in_two_passes_is_all_samples_at_once(n_first):
     assert {"ok", "no_trigger", "early_trigger"} <= set(st_all)
     if n_first < 7:
         assert calls[0] == n * n_first and calls[0] + calls[1] < n_all
+
+
+def test_root_on_a_coarse_sample_is_that_sample_without_bisection():
+    # a nominal contact on a perfect machine falls on a coarse sample (2 mm clearance, 3 mm
+    # travel, 13 samples): regula falsi returns the sample itself, which the bracket test
+    # rejected, and the search bisected ~30 times; now the sample is the root, at once, on
+    # either side of the bracket (g just above 0 before it, or exactly 0 at it)
+    from sim.probe import G_TOL_M, find_contacts
+
+    n = 50
+    root = np.full(n, 2e-3)
+    eps = np.where(np.arange(n) % 2 == 0, 0.0, 0.3 * G_TOL_M)  # g = +eps at the sample
+    calls = []
+
+    def g(idx, s):
+        calls.append(len(s))
+        return root[idx] - s + eps[idx]
+
+    s, st = find_contacts(g, n, np.full(n, 3e-3), n_coarse=13)
+    assert set(st) == {"ok"} and np.array_equal(s, root)
+    assert len(calls) == 1
