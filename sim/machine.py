@@ -548,7 +548,8 @@ class _BatchFK:
     ----------
     model : pinocchio.Model
     frame_ids : sequence of int
-        Frames returned by :meth:`frames`.
+        Frames returned by :meth:`frames` (only the joints they hang from and
+        those joints' ancestors are walked).
     """
 
     _KINDS = {"JointModelPX": ("P", 0), "JointModelPY": ("P", 1), "JointModelPZ": ("P", 2),
