@@ -88,6 +88,13 @@ def _kinematic_chain(machine) -> str:
     return ""
 
 
+def _feature_groups(plan: Plan) -> tuple[list, np.ndarray]:
+    """(the plan's features sorted, (n,) index of each touch's feature in them)."""
+    feats = sorted(set(plan.feature))
+    at = {f: i for i, f in enumerate(feats)}
+    return feats, np.array([at[f] for f in plan.feature], int)
+
+
 def validate_plan(art: A.Artefact, plan: Plan, probe: ProbeConfig) -> None:
     """On a perfect machine and artefact, each touch must meet its own target.
 
@@ -96,9 +103,8 @@ def validate_plan(art: A.Artefact, plan: Plan, probe: ProbeConfig) -> None:
     radius to a concave corner) or misses it.
     """
     r = probe.stylus_r_m
-    feats = sorted(set(plan.feature))
+    feats, grp = _feature_groups(plan)
     sdf = [art.feature(f).nominal.sdf for f in feats]
-    grp = np.array([feats.index(f) for f in plan.feature])
     start = plan.w_A + (r + plan.clearance_m) * plan.wn_A
     travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
 
@@ -265,9 +271,8 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     validate_plan(art, plan, probe)
     if setup_change_s is None:
         setup_change_s = CATALOG[art.name].setup_change_s if art.name in CATALOG else DEFAULT_SETUP_CHANGE_S
-    feats = sorted(set(plan.feature))
+    feats, grp = _feature_groups(plan)
     sdf_true = [art.feature(f).true.sdf for f in feats]
-    grp = np.array([feats.index(f) for f in plan.feature])
     travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
     paths = _PathChecker(art, probe) if check_collisions else None
     cols: dict[str, list] = {k: [] for k in LOG_COLUMNS}
