@@ -199,6 +199,8 @@ class Machine:
         self._ndata = self._nmodel.createData()
         self._fk = _BatchFK(self._model, (self._fW, self._fP))
         self._fk_W, self._fk_P = _BatchFK(self._model, (self._fW,)), _BatchFK(self._model, (self._fP,))
+        self._layout_W = tuple(e for e in self._layout if e[3] < 0)  # the workpiece branch's joints
+        self._layout_P = tuple(e for e in self._layout if e[3] > 0)  # the tool branch's
         # W's pose depends on the rotary angles alone when its branch holds only rotary axes
         # whose errors depend on the angle only: then it is evaluated once per distinct angles
         self._W_by_angles = bool(self.rotary_axes) and all(a in self.rotary_axes for a in self.chain.workpiece_from_bed) \
@@ -244,9 +246,9 @@ class Machine:
                 out[name] = np.asarray(f.evaluate(lin[:, i], t, d[:, i], axes), float).reshape(n)
             elif kind == "rot_static":
                 if i not in angles:
-                    angles[i] = np.unique(rot[:, i], return_inverse=True)
-                u, inv = angles[i]
-                out[name] = np.asarray(f(u, None, None), float).reshape(len(u))[inv.reshape(n)]
+                    angles[i] = _runs(rot[:, i])
+                first, inv = angles[i]
+                out[name] = np.asarray(f(rot[first, i], None, None), float).reshape(len(first))[inv]
             else:
                 out[name] = np.asarray(f(rot[:, i], t, None), float).reshape(n)
         return out
@@ -449,14 +451,16 @@ class Machine:
         """Poses of W, P or the tip by :class:`_BatchFK` (the Pinocchio model, all poses at once)."""
         lin, rot, n = self._inputs(lin_m, rot_rad)
         vals = self.error_values(lin, rot, t_s, direction)
-        QT = self._configurations_T(self._model, self._layout, lin, rot, vals, n)
         if want == "tip" and self._W_by_angles and n > 1:
-            # the workpiece branch once per distinct rotary position (a campaign: one per set-up)
-            _, first, inv = np.unique(rot, axis=0, return_index=True, return_inverse=True)
-            (R_W, t_W), = self._fk_W.frames(QT[:, first])
-            (R_P, t_P), = self._fk_P.frames(QT)
-            inv = inv.reshape(n)
+            # the workpiece branch once per run of equal rotary positions (a campaign: one per
+            # set-up), the tool branch at every pose
+            first, inv = _runs(rot)
+            vals_W = {k: v[first] for k, v in vals.items()}
+            QT_W = self._configurations_T(self._model, self._layout_W, lin[first], rot[first], vals_W, len(first))
+            (R_W, t_W), = self._fk_W.frames(QT_W)
+            (R_P, t_P), = self._fk_P.frames(self._configurations_T(self._model, self._layout_P, lin, rot, vals, n))
             return None, np.einsum("nji,nj->ni", R_W[inv], t_P - t_W[inv])
+        QT = self._configurations_T(self._model, self._layout, lin, rot, vals, n)
         (R_W, t_W), (R_P, t_P) = self._fk.frames(QT)
         if want == "tip":
             return None, np.einsum("nji,nj->ni", R_W, t_P - t_W)
@@ -629,6 +633,21 @@ class _BatchFK:
                 R, t = (Ra if Rf is None else _mm_const(Ra, Rf)), ta + _mv_const(Ra, tf)
             out.append((np.moveaxis(R, 2, 0), t.T))
         return out
+
+
+def _runs(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(first row of each run of equal rows, the run of each row) of ``a`` (n,) or (n, k).
+
+    The distinct held rotary positions of a campaign's poses in one pass (its
+    touches come set-up by set-up); a value met again later gets a run of its
+    own, a NaN a run alone: never two different values in one run.
+    """
+    n = len(a)
+    new = np.ones(n, bool)
+    if n > 1:
+        a2 = np.asarray(a).reshape(n, -1)
+        np.any(a2[1:] != a2[:-1], axis=1, out=new[1:])
+    return np.flatnonzero(new), np.cumsum(new) - 1
 
 
 def _mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:

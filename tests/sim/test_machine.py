@@ -364,3 +364,17 @@ def test_workpiece_branch_once_per_angle_is_pinocchio(drift, rng):
     assert np.max(np.abs(got - m.tip_W_pinocchio(lin, rot, t, d))) < 1e-12
     m._W_by_angles = False
     assert np.max(np.abs(got - m.tip_W(lin, rot, t, d))) < 1e-15
+
+
+def test_runs_of_equal_rows():
+    # the dedupe behind the once-per-angle evaluations: consecutive equal rows share a run,
+    # a value met again later and every NaN row get runs of their own
+    from sim.machine import _runs
+
+    a = np.array([[1.0, 2.0], [1.0, 2.0], [1.0, 3.0], [1.0, 2.0], [np.nan, 0.0], [np.nan, 0.0], [4.0, 0.0]])
+    first, inv = _runs(a)
+    assert first.tolist() == [0, 2, 3, 4, 5, 6] and inv.tolist() == [0, 0, 1, 2, 3, 4, 5]
+    np.testing.assert_array_equal(a[first][inv], a)
+    first, inv = _runs(np.array([0.5, 0.5, 0.5]))
+    assert first.tolist() == [0] and inv.tolist() == [0, 0, 0]
+    assert _runs(np.zeros((0, 2)))[0].size == 0 and _runs(np.zeros((1, 2)))[1].tolist() == [0]
