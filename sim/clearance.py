@@ -29,6 +29,7 @@ Frames: R (the machine reference, MuJoCo's world); units m.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,6 +40,8 @@ import numpy as np
 MARGIN_M = 1.0e-4
 
 _SPHERE, _CAPSULE, _CYLINDER, _BOX = 2, 3, 5, 6
+#: Consecutive segment boxes tested together against the clusters of table geoms first.
+_BLOCK = 16
 
 
 @dataclass(frozen=True)
@@ -128,13 +131,18 @@ class Clearance:
     Parameters
     ----------
     probe : Geoms
-        The spindle body's geoms with the tip centre at the origin of R.
+        The spindle body's geoms with the tip centre at the origin, axes of the frame F.
     table : Geoms
-        The table body's geoms at the current table pose (R).
+        The table body's geoms at the current table pose, frame F.
     table_feature : (k_table,) object
         Feature name of each table geom ("" for none).
     ball : int
         Index in ``probe`` of the stylus ball (the geom allowed to touch its feature).
+    T_F_R : (4,4) float, optional
+        The frame F the geoms are given in, from R (default: F = R). Every method
+        takes tips in R and moves them to F (rounding: 1e-16 m, against the bounds'
+        :data:`MARGIN_M`). A frame fixed to the table lets one Clearance serve every
+        placement of an artefact with the same orientation to the spindle.
 
     Attributes
     ----------
@@ -142,41 +150,63 @@ class Clearance:
         The geoms (indices in ``probe`` and ``table``) of every pair the bounds speak of.
     """
 
-    def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int):
+    def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int, T_F_R=None):
         self.probe, self.table, self.ball = probe, table, int(ball)
         self.feature = np.asarray(table_feature, dtype=object)
+        self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
         plo, phi = probe.aabb()
         tlo, thi = table.aabb()
         ng, nh = len(probe.kind), len(table.kind)
-        g, h = np.meshgrid(np.arange(ng), np.arange(nh), indexing="ij")
-        self.pair_probe, self.pair_table = g.ravel(), h.ravel()
+        # clusters of table geoms (one per feature, one per geom without): pairs sorted by
+        # (probe geom, cluster, table geom), with the union of each cluster's boxes
+        key = [f if f else f"#{j}" for j, f in enumerate(self.feature)]
+        _, cl = np.unique(np.array(key, dtype=object).astype(str), return_inverse=True)
+        h_order = np.lexsort((np.arange(nh), cl))
+        self.pair_probe, self.pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
         # the tip p puts geom g in collision range of h only if p lies in this box
         self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
         self._hi = thi[self.pair_table] - plo[self.pair_probe] + MARGIN_M
-        # fixed axes of each pair: the table geom's three, the probe geom's axis, their crosses
-        Ht, Pa = table.axes[self.pair_table], probe.axes[self.pair_probe][:, :, 2]
-        U = [Ht[:, :, 0], Ht[:, :, 1], Ht[:, :, 2], Pa] + [np.cross(Pa, Ht[:, :, j]) for j in range(3)]
-        U = np.stack(U, axis=1)  # (pairs, 7, 3)
-        U, ok = _unit(U)
-        npair = len(self.pair_probe)
-        P, T = probe.take(np.repeat(self.pair_probe, 7)), table.take(np.repeat(self.pair_table, 7))
-        flat = U.reshape(-1, 3)
-        E = (P.extent(flat) + T.extent(flat)).reshape(npair, 7)
-        self._U = U
-        self._E = np.where(ok, E, np.inf)  # a degenerate cross product proves nothing
         self._d0 = probe.centre[self.pair_probe] - table.centre[self.pair_table]  # centre offset at p = 0
-        # clusters of table geoms (one per feature, one per geom without): pairs grouped per
-        # (probe geom, cluster), with the union of their boxes
-        key = [f if f else f"#{j}" for j, f in enumerate(self.feature)]
-        _, cl = np.unique(np.array(key, dtype=object).astype(str), return_inverse=True)
-        order = np.lexsort((self.pair_table, cl[self.pair_table], self.pair_probe))  # pairs sorted by (g, cluster)
-        self.pair_probe, self.pair_table, self._lo, self._hi = self.pair_probe[order], self.pair_table[order], self._lo[order], self._hi[order]
-        self._U, self._E, self._d0 = self._U[order], self._E[order], self._d0[order]
+        npair = len(self.pair_probe)
+        self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
+        self._have = np.zeros(npair, bool)
         ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
         self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
         self._ccount = np.diff(np.r_[self._cstart, len(ck)])
         self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
         self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
+
+    def _axes(self, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(U (r,7,3), E (r,7)): the fixed axes of pairs ``pair`` (the table geom's three, the
+        probe geom's axis, their cross products) and the sum of the two extents on each
+        (inf on a degenerate cross product: it proves nothing). Computed once per pair."""
+        need = np.unique(pair[~self._have[pair]])
+        if need.size:
+            g, h = self.pair_probe[need], self.pair_table[need]
+            Ht, Pa = self.table.axes[h], self.probe.axes[g][:, :, 2]
+            U = np.stack([Ht[:, :, 0], Ht[:, :, 1], Ht[:, :, 2], Pa] + [np.cross(Pa, Ht[:, :, j]) for j in range(3)],
+                         axis=1)  # (need, 7, 3)
+            U, ok = _unit(U)
+            P, T = self.probe.take(np.repeat(g, 7)), self.table.take(np.repeat(h, 7))
+            flat = U.reshape(-1, 3)
+            E = (P.extent(flat) + T.extent(flat)).reshape(len(need), 7)
+            self._U[need], self._E[need] = U, np.where(ok, E, np.inf)
+            self._have[need] = True
+        return self._U[pair], self._E[pair]
+
+    def moved(self, T_F_R) -> "Clearance":
+        """The same geoms in F, F now at ``T_F_R`` from R (the table moved with its artefact);
+        the pair data (computed or to be) is shared."""
+        out = copy.copy(self)
+        out.T_F_R = np.array(T_F_R, float)
+        return out
+
+    def to_frame(self, p_R: np.ndarray) -> np.ndarray:
+        """Tips ``p_R`` (n,3) in R -> the frame of the geoms (n,3)."""
+        p = np.ascontiguousarray(p_R, float).reshape(-1, 3)
+        if self.T_F_R is None:
+            return p
+        return p @ self.T_F_R[:3, :3].T + self.T_F_R[:3, 3]
 
     def candidates(self, p_R: np.ndarray, group: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(sample index, pair index) of every pair whose boxes overlap at a sample of ``p_R`` (n,3).
@@ -185,23 +215,14 @@ class Clearance:
         consecutive samples (a path segment) against the box of each cluster of
         table geoms (one feature's geoms), then against each table geom, then each sample.
         """
+        p_R = self.to_frame(p_R)
         n = len(p_R)
         if group is None:
             group = np.zeros(n, int)
         cut = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
         s_cnt = np.diff(np.r_[cut, n])
         s_lo, s_hi = np.minimum.reduceat(p_R, cut, axis=0), np.maximum.reduceat(p_R, cut, axis=0)
-        # segment x (probe geom, cluster)
-        hit = np.ones((len(cut), len(self._clo)), bool)
-        for ax in range(3):  # (a reduction over a last axis of 3 is slow in numpy)
-            hit &= s_hi[:, ax, None] >= self._clo[None, :, ax]
-            hit &= s_lo[:, ax, None] <= self._chi[None, :, ax]
-        seg, cp = np.nonzero(hit)
-        # -> (segment, pair) for the cluster's member geoms
-        k, pair = _expand(self._cstart[cp], self._ccount[cp])
-        seg = seg[k]
-        ok = _overlap(s_lo[seg], s_hi[seg], self._lo[pair], self._hi[pair])
-        seg, pair = seg[ok], pair[ok]
+        seg, pair = self._box_pairs(s_lo, s_hi)
         # -> (sample, pair)
         k, i = _expand(cut[seg], s_cnt[seg])
         pair = pair[k]
@@ -209,20 +230,115 @@ class Clearance:
         ok = _overlap(q, q, self._lo[pair], self._hi[pair])
         return i[ok], pair[ok]
 
+    def _box_pairs(self, s_lo: np.ndarray, s_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(box index, pair index) of every pair in collision range of a tip somewhere in the
+        boxes ``[s_lo, s_hi]`` (s,3): runs of :data:`_BLOCK` consecutive boxes (a path's
+        neighbouring segments) against clusters, then each box against the clusters it
+        may meet, then against the clusters' pairs; each level a superset of the next."""
+        n = len(s_lo)
+        cut = np.arange(0, n, _BLOCK)
+        b_lo, b_hi = np.minimum.reduceat(s_lo, cut, axis=0), np.maximum.reduceat(s_hi, cut, axis=0)
+        hit = np.ones((len(cut), len(self._clo)), bool)
+        for ax in range(3):  # (a reduction over a last axis of 3 is slow in numpy)
+            hit &= b_hi[:, ax, None] >= self._clo[None, :, ax]
+            hit &= b_lo[:, ax, None] <= self._chi[None, :, ax]
+        blk, cp = np.nonzero(hit)
+        k, seg = _expand(cut[blk], np.minimum(_BLOCK, n - cut[blk]))
+        cp = cp[k]
+        ok = _overlap(s_lo[seg], s_hi[seg], self._clo[cp], self._chi[cp])
+        seg, cp = seg[ok], cp[ok]
+        # -> (segment, pair) for the cluster's member geoms
+        k, pair = _expand(self._cstart[cp], self._ccount[cp])
+        seg = seg[k]
+        ok = _overlap(s_lo[seg], s_hi[seg], self._lo[pair], self._hi[pair])
+        return seg[ok], pair[ok]
+
+    def swept_bound(self, a_R: np.ndarray, b_R: np.ndarray, pair: np.ndarray) -> np.ndarray:
+        """Lower bound (m) of the distance of pair ``pair`` (r,) for every tip on the segment ``a_R -> b_R`` (r,3).
+
+        On an axis u the centre offset ``(d0 + p) . u`` is linear along the
+        segment, so its least magnitude is 0 when its signs at the ends differ and
+        the smaller end's otherwise; minus the two extents, it bounds the distance
+        at every point of the segment (the separating-axis gap of the geom swept
+        along the segment). Axes: the pair's fixed ones and, for rows not yet
+        farther than :data:`MARGIN_M`, the direction from the table geom's point
+        nearest the probe geom's centre at the segment's middle.
+        """
+        return self._swept(self.to_frame(a_R), self.to_frame(b_R), pair)
+
+    def _swept(self, a: np.ndarray, b: np.ndarray, pair: np.ndarray) -> np.ndarray:
+        """:meth:`swept_bound` for ends already in the geoms' frame."""
+        U, E = self._axes(pair)
+        d0 = self._d0[pair]
+        da, db = d0 + a, d0 + b
+
+        def gap(U, E):  # U (r,j,3), E (r,j)
+            sa = U[:, :, 0] * da[:, 0, None] + U[:, :, 1] * da[:, 1, None] + U[:, :, 2] * da[:, 2, None]
+            sb = U[:, :, 0] * db[:, 0, None] + U[:, :, 1] * db[:, 1, None] + U[:, :, 2] * db[:, 2, None]
+            return np.where(sa * sb > 0, np.minimum(np.abs(sa), np.abs(sb)), 0.0) - E
+
+        out = np.max(gap(U, E), axis=1)
+        r = np.flatnonzero(out <= MARGIN_M)
+        if r.size:
+            g, h = self.pair_probe[pair[r]], self.pair_table[pair[r]]
+            T = self.table.take(h)
+            c_g = self.probe.centre[g] + 0.5 * (a[r] + b[r])
+            u, ok = _unit(c_g - T.closest(c_g))
+            E = self.probe.take(g).extent(u) + T.extent(u)
+            da, db = da[r], db[r]
+            dyn = gap(u[:, None, :], E[:, None])[:, 0]
+            out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
+        return out
+
+    def near_segments(self, sg: "Segments", allow_feature=None) -> np.ndarray:
+        """Sorted sample numbers of ``sg`` where some probe/table pair may be closer than :data:`MARGIN_M`.
+
+        The same samples as :meth:`near` on all of ``sg``'s samples, less those a
+        whole segment's bound clears: each segment's box against the pairs' boxes,
+        then :meth:`swept_bound` per (segment, pair); only the pairs it cannot clear
+        are bounded sample by sample (:meth:`bound`).
+        ``allow_feature`` (number of polylines,) of str: as in :meth:`near`, per polyline.
+        """
+        a, b = self.to_frame(sg.a), self.to_frame(sg.b)
+        seg, pair = self._box_pairs(np.minimum(a, b), np.maximum(a, b))
+        if allow_feature is not None and seg.size:
+            allow = np.asarray(allow_feature, dtype=object)[sg.path[seg]]
+            f = self.feature[self.pair_table[pair]]
+            keep = ~((self.pair_probe[pair] == self.ball) & (f != "") & (f == allow))
+            seg, pair = seg[keep], pair[keep]
+        if not seg.size:
+            return np.zeros(0, int)
+        open_ = self._swept(a[seg], b[seg], pair) <= MARGIN_M
+        seg, pair = seg[open_], pair[open_]
+        if not seg.size:
+            return np.zeros(0, int)
+        # sample by sample for the pairs the swept bound leaves open
+        k, idx = _expand(sg.first[seg], sg.m[seg])
+        pair = pair[k]
+        q_R = sg.points(idx)
+        q = self.to_frame(q_R)
+        ok = _overlap(q, q, self._lo[pair], self._hi[pair])
+        idx, pair, q_R = idx[ok], pair[ok], q_R[ok]
+        if not idx.size:
+            return np.zeros(0, int)
+        close = self.bound(q_R, np.arange(len(q_R)), pair, enough=MARGIN_M) <= MARGIN_M
+        return np.unique(idx[close])
+
     def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
         """Lower bound of the distance (m) of pair ``pair`` with the tip at sample ``i`` of ``p_R``.
 
         ``enough``: rows whose fixed axes already prove more than this skip the
         closest-point axis (their bound is then that smaller, still valid, value).
         """
-        d = self._d0[pair] + p_R[i]
-        U = self._U[pair]
+        p = self.to_frame(p_R)
+        d = self._d0[pair] + p[i]
+        U, E = self._axes(pair)
         out = np.max(np.abs(U[:, :, 0] * d[:, 0, None] + U[:, :, 1] * d[:, 1, None] + U[:, :, 2] * d[:, 2, None])
-                     - self._E[pair], axis=1)
+                     - E, axis=1)
         r = np.flatnonzero(out <= enough)
         g, h, d = self.pair_probe[pair[r]], self.pair_table[pair[r]], d[r]
         T = self.table.take(h)
-        c_g = self.probe.centre[g] + p_R[i[r]]
+        c_g = self.probe.centre[g] + p[i[r]]
         u, ok = _unit(c_g - T.closest(c_g))
         dyn = np.abs(u[:, 0] * d[:, 0] + u[:, 1] * d[:, 1] + u[:, 2] * d[:, 2]) - self.probe.take(g).extent(u) - T.extent(u)
         out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
@@ -266,29 +382,62 @@ def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return r, start[r] + off
 
 
-def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Samples of several polylines at once, in path order.
+@dataclass(frozen=True)
+class Segments:
+    """The straight segments of several sampled polylines, in path order (:func:`path_segments`).
+
+    Segment j holds the ``m[j]`` samples ``a[j] + f (b[j] - a[j])``, ``f = i (1 / k[j])``
+    for ``i = 0 .. m[j] - 1`` (``f = 1`` exactly when ``i = k[j]``): every sample lies
+    on the closed segment ``[a[j], b[j]]`` (to rounding), which is what lets
+    :meth:`Clearance.near_segments` clear a whole segment at once. Samples are
+    numbered in path order; segment j's are ``first[j] .. first[j] + m[j] - 1``.
+
+    Attributes
+    ----------
+    a, b : (s,3) float
+    k, m, first, path : (s,) int
+        Steps, samples, index of the first sample, index of the polyline.
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    k: np.ndarray
+    m: np.ndarray
+    first: np.ndarray
+    path: np.ndarray
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.m.sum())
+
+    def segment_of(self, idx: np.ndarray) -> np.ndarray:
+        """(n,) int: the segment of each sample number ``idx`` (n,)."""
+        return np.searchsorted(self.first, idx, side="right") - 1
+
+    def points(self, idx: np.ndarray) -> np.ndarray:
+        """(n,3): the samples numbered ``idx`` (n,), computed as :func:`path_samples` does."""
+        idx = np.asarray(idx, int)
+        seg = self.segment_of(idx)
+        j = idx - self.first[seg]
+        f = j * (1.0 / self.k[seg])
+        f[j == self.k[seg]] = 1.0
+        return self.a[seg] + f[:, None] * (self.b - self.a)[seg]
+
+
+def path_segments(polylines, steps_m, joints: bool) -> Segments:
+    """The segments of several polylines sampled at once (:func:`path_samples` without the samples).
 
     Each segment ``a -> b`` of polyline j gets ``k = max(1, ceil(|b - a| / steps_m[j]))``
-    equal steps: ``a + (i / k)(b - a)`` computed as numpy's ``linspace(0, 1, k + 1)``
-    does (``i * (1 / k)``, the last fraction exactly 1). ``joints``: every segment keeps
-    both ends (a joint appears twice, as in :meth:`sim.scene.Scene.check_path`), else
-    each segment drops its end and the polyline's last point closes it (as in
-    :func:`sim.mfb_scene.check_measurement`).
+    equal steps. ``joints``: every segment keeps both ends (``k + 1`` samples: a joint
+    appears twice, as in :meth:`sim.scene.Scene.check_path`), else each segment drops
+    its end (``k`` samples) and the polyline's last point closes it, as a segment of
+    one sample from that point to itself (as in :func:`sim.mfb_scene.check_measurement`).
 
     Parameters
     ----------
     polylines : sequence of (m_j, 3) float, m_j >= 2
     steps_m : (len(polylines),) float
     joints : bool
-
-    Returns
-    -------
-    samples : (k, 3) float
-    segment : (k,) int
-        A running number of the segment (runs of equal values, for :meth:`Clearance.near`).
-    path : (k,) int
-        Index of the polyline.
     """
     n_pt = np.array([len(p) for p in polylines], int)
     P = np.concatenate([np.asarray(p, float) for p in polylines])
@@ -316,8 +465,30 @@ def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarr
         path_of_seg = np.concatenate([path_of_seg, np.arange(len(n_pt))])[order]
     else:
         m = k + 1
-    seg = np.repeat(np.arange(len(k)), m)
-    j = np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)
-    f = j * (1.0 / k[seg])
-    f[j == k[seg]] = 1.0
-    return a[seg] + f[:, None] * (b - a)[seg], seg, path_of_seg[seg]
+    return Segments(a, b, k, m, np.cumsum(m) - m, path_of_seg)
+
+
+def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Samples of several polylines at once, in path order (the samples of :func:`path_segments`).
+
+    ``a + (i / k)(b - a)`` is computed as numpy's ``linspace(0, 1, k + 1)`` does
+    (``i * (1 / k)``, the last fraction exactly 1).
+
+    Parameters
+    ----------
+    polylines : sequence of (m_j, 3) float, m_j >= 2
+    steps_m : (len(polylines),) float
+    joints : bool
+
+    Returns
+    -------
+    samples : (k, 3) float
+    segment : (k,) int
+        A running number of the segment (runs of equal values, for :meth:`Clearance.near`).
+    path : (k,) int
+        Index of the polyline.
+    """
+    sg = path_segments(polylines, steps_m, joints)
+    idx = np.arange(sg.n_samples)
+    seg = np.repeat(np.arange(len(sg.k)), sg.m)
+    return sg.points(idx), seg, sg.path[seg]

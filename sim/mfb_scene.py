@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .artefacts import apply_R, apply_T, inv_T, make_T
-from .clearance import path_samples
+from .clearance import path_segments
 from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
 
 #: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
@@ -357,21 +357,25 @@ def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, pla
         paths.append((i, np.array([start[i], Xn[i]]), approach_step_m, plan.feature[i]))
     n_samp, bad_touch = 0, set()
     if paths:
-        pts, seg, which = path_samples([p[1] for p in paths], [p[2] for p in paths], joints=False)
-        touch = np.array([p[0] for p in paths])[which]
-        allow = np.array([p[3] for p in paths], dtype=object)[which]
-        near = wz.clearance().near(pts, allow, seg) if broad_phase else np.ones(len(pts), bool)
-        n_samp = len(pts)
-        for k in np.flatnonzero(near):  # in path order
-            i = int(touch[k])
+        sg = path_segments([p[1] for p in paths], [p[2] for p in paths], joints=False)
+        path_touch = np.array([p[0] for p in paths])
+        allow = [p[3] for p in paths]
+        n_samp = sg.n_samples
+        # one past the last sample of each touch (a touch's paths are consecutive)
+        touch_end = np.zeros(plan.n, int)
+        np.maximum.at(touch_end, path_touch[sg.path], sg.first + sg.m)
+        idx = wz.clearance().near_segments(sg, allow) if broad_phase else np.arange(n_samp)
+        pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
+        for k in range(len(idx)):  # in path order
+            i = int(path_touch[which[k]])
             if i in bad_touch:
                 continue
-            hit = wz.collisions(pts[k], allow[k])
+            hit = wz.collisions(pts[k], allow[which[k]])
             if hit:  # the first collision of touch i: the rest of its samples are not checked
                 g, o, dep = hit[0]
                 bad.append(f"{plan.target[i]}: {g} hits {o} ({-dep * 1e3:.2f} mm deep) at "
                            f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
                 bad_touch.add(i)
-                n_samp -= int(np.count_nonzero(touch[k + 1:] == i))
+                n_samp -= int(touch_end[i] - idx[k] - 1)
     clear = wz.least_holder_clearance(start, broad_phase=broad_phase) if plan.n else np.inf
     return CheckResult(name, int(plan.n), n_samp, tuple(bad), float(clear * 1e3))

@@ -33,7 +33,8 @@ import numpy as np
 
 from core.exceptions import PlanError
 
-from .artefacts import Artefact, make_T, solid_points
+from .artefacts import Artefact, inv_T, make_T, solid_points
+from .clearance import Geoms
 from .probe import ProbeConfig
 
 #: A contact deeper than this counts as a collision (m).
@@ -174,8 +175,7 @@ class Scene:
         # the compiler's bounding-volume hierarchy of the table body holds the old poses:
         # MuJoCo then tests every geom pair of the two bodies (same contacts, no pruning)
         m.opt.disableflags |= int(self._mj.mjtDisableBit.mjDSBL_MIDPHASE)
-        self.T_W_A = T_W_A
-        self._clr = None
+        self.T_W_A = T_W_A  # (the broad phases kept in self._clr are in A: they stay valid)
 
     def set_table(self, T_R_W: np.ndarray) -> None:
         """Place the table (frame W) in R."""
@@ -214,19 +214,39 @@ class Scene:
         return sorted(out, key=lambda c: (round(c[2], 12), c[0], c[1]))
 
     def clearance(self):
-        """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose."""
+        """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose.
+
+        Built in the artefact's frame A from the compiled model's geoms and kept per
+        orientation of A to the spindle: every placement of the artefact turned the
+        same way (a campaign's set-ups moved across the table) shares one, its pair
+        data computed once. (Another placement's geoms in A differ from the kept ones
+        by rounding, 1e-16 m, against the bounds' 0.1 mm margin.)
+        """
         from .clearance import Clearance, model_geoms
 
-        key = np.array(self.data.qpos[self._tq:self._tq + 7])
-        if self._clr is None or not np.array_equal(self._clr[0], key):
+        m, d = self.model, self.data
+        table = m.body("table").id
+        self._mj.mj_kinematics(m, d)
+        T_R_A = make_T(np.array(d.xmat[table], float).reshape(3, 3), d.xpos[table]) @ self.T_W_A
+        key = np.ascontiguousarray(T_R_A[:3, :3]).tobytes()
+        if self._clr is None:
+            self._clr = {}
+        hit = self._clr.get(key)
+        if hit is None:
+            if len(self._clr) >= 32:
+                self._clr.clear()
             self.set_tip(np.zeros(3))
-            m = self.model
-            table = m.body("table").id
-            tg = [i for i in range(m.ngeom) if m.geom_bodyid[i] == table]
+            tg = self._table_geoms
             pg = [i for i in range(m.ngeom) if m.geom_bodyid[i] != table]
-            self._clr = (key, Clearance(model_geoms(m, self.data, pg), model_geoms(m, self.data, tg),
-                                        self.geom_feature[tg], pg.index(self.stylus)))
-        return self._clr[1]
+            T_A_R = inv_T(T_R_A)
+            R = T_A_R[:3, :3]
+            P, H = model_geoms(m, d, pg), model_geoms(m, d, tg)
+            P = Geoms(P.centre @ R.T, R @ P.axes, P.kind, P.size, P.rbound)  # about the tip, axes of A
+            H = Geoms(H.centre @ R.T + T_A_R[:3, 3], R @ H.axes, H.kind, H.size, H.rbound)
+            hit = self._clr[key] = Clearance(P, H, self.geom_feature[tg], pg.index(self.stylus), T_F_R=T_A_R)
+        elif not np.array_equal(hit.T_F_R, inv_T(T_R_A)):
+            hit = self._clr[key] = hit.moved(inv_T(T_R_A))
+        return hit
 
     def geom_distance(self, geom_a: str, geom_b: str, distmax: float = 1.0) -> float:
         """MuJoCo's signed distance between two named geoms (current poses), m."""
@@ -322,17 +342,20 @@ def check_touch_paths(scene: Scene, setup: str, targets, features, links, approa
     key = _paths_key(scene, features, links, approach, link_step_m, approach_step_m)
     if key in _PASSED:
         return
-    from .clearance import path_samples
+    from .clearance import path_segments
 
     paths = []  # (target index, phase, polyline, step, allowed feature), in the order checked
     for i in range(len(targets)):
         if links[i] is not None and len(links[i]) > 1:
             paths.append((i, "link move", links[i], link_step_m, ""))
         paths.append((i, "approach/retract path", approach[i], approach_step_m, features[i]))
-    pts, seg, which = path_samples([p[2] for p in paths], [p[3] for p in paths], joints=True)
-    allow = np.array([p[4] for p in paths], dtype=object)[which]
-    near = scene.clearance().near(pts, allow, seg) if broad_phase else np.ones(len(pts), bool)
-    for k in np.flatnonzero(near):  # in path order
+    sg = path_segments([p[2] for p in paths], [p[3] for p in paths], joints=True)
+    if broad_phase:
+        idx = scene.clearance().near_segments(sg, [p[4] for p in paths])
+    else:
+        idx = np.arange(sg.n_samples)
+    pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
+    for k in range(len(idx)):  # in path order
         i, phase, _, _, feat = paths[which[k]]
         c = scene.collisions(pts[k], feat)
         if c:
