@@ -148,6 +148,8 @@ class Scene:
         self._table_geoms = np.array(tg, int)
         self._local = None
         self.T_W_A = np.array(artefact.T_W_A if T_W_A is None else T_W_A, float)
+        self._model_T_W_A = self.T_W_A  # the placement the model holds (compiled there)
+        self._mjcf_digest = hashlib.blake2b(self.mjcf.encode(), digest_size=32).digest()
         self.set_table(np.eye(4))
 
     def place(self, T_W_A) -> None:
@@ -155,12 +157,20 @@ class Scene:
 
         The table geoms' poses are written as the compiler would have read them
         from :func:`scene_mjcf` (``T_W_A`` times each solid's pose; quaternion
-        normalised): no recompilation. Artefacts with mesh solids (which the
-        compiler re-centres) cannot be moved: build a new :class:`Scene`.
+        normalised): no recompilation. They are written when MuJoCo next needs
+        them (:meth:`set_tip`, :meth:`geom_distance`): the broad phase
+        (:meth:`clearance`, in the artefact's frame) does not. Artefacts with mesh
+        solids (which the compiler re-centres) cannot be moved: build a new :class:`Scene`.
         """
         if any(s.kind not in ("box", "cylinder", "sphere") for s in self.artefact.solids):
             raise ValueError("Scene.place: an artefact with mesh solids needs a new Scene")
-        T_W_A = np.array(T_W_A, float)
+        self.T_W_A = np.array(T_W_A, float)  # (the broad phases kept in self._clr are in A: they stay valid)
+
+    def _sync(self) -> None:
+        """Write the placement :meth:`place` recorded into the model, if not yet done."""
+        if self._model_T_W_A is self.T_W_A:
+            return
+        T_W_A = self.T_W_A
         m = self.model
         if self._local is None:  # each solid's pose on the artefact, (k,3,3) and (k,3)
             self._local = (np.array([make_T(s.rot, s.pos)[:3, :3] for s in self.artefact.solids]).reshape(-1, 3, 3),
@@ -175,7 +185,7 @@ class Scene:
         # the compiler's bounding-volume hierarchy of the table body holds the old poses:
         # MuJoCo then tests every geom pair of the two bodies (same contacts, no pruning)
         m.opt.disableflags |= int(self._mj.mjtDisableBit.mjDSBL_MIDPHASE)
-        self.T_W_A = T_W_A  # (the broad phases kept in self._clr are in A: they stay valid)
+        self._model_T_W_A = T_W_A
 
     def set_table(self, T_R_W: np.ndarray) -> None:
         """Place the table (frame W) in R."""
@@ -185,6 +195,7 @@ class Scene:
 
     def set_tip(self, p_R) -> None:
         """Place the stylus-tip centre at ``p_R`` (3,), probe frame aligned with R."""
+        self._sync()
         self.data.qpos[self._sq:self._sq + 3] = p_R
         self.data.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
         self._mj.mj_kinematics(self.model, self.data)
@@ -250,6 +261,7 @@ class Scene:
 
     def geom_distance(self, geom_a: str, geom_b: str, distmax: float = 1.0) -> float:
         """MuJoCo's signed distance between two named geoms (current poses), m."""
+        self._sync()
         m, d = self.model, self.data
         self._mj.mj_kinematics(m, d)
         return float(self._mj.mj_geomDistance(m, d, m.geom(geom_a).id, m.geom(geom_b).id, distmax, None))
@@ -375,18 +387,17 @@ _PASSED: set[bytes] = set()
 def _paths_key(scene: Scene, features, links, approach, link_step_m: float, approach_step_m: float) -> bytes:
     """Digest of everything :func:`check_touch_paths` reads except the names in its messages."""
     h = hashlib.blake2b(digest_size=32)
-    h.update(scene.mjcf.encode())
+    h.update(scene._mjcf_digest)  # the scene as compiled (artefact, probe)
     h.update(np.ascontiguousarray(scene.T_W_A, float).tobytes())  # the placement (Scene.place)
     h.update(np.ascontiguousarray(scene.data.qpos[scene._tq:scene._tq + 7], float).tobytes())
     h.update(np.array([link_step_m, approach_step_m, COLLISION_TOL_M]).tobytes())
-    for f in features:
-        h.update(str(f).encode() + b"\0")
-    for ln in links:
-        if ln is None:
-            h.update(b"N")
-        else:
-            a = np.ascontiguousarray(ln, float)
-            h.update(b"L" + np.array(a.shape, np.int64).tobytes() + a.tobytes())
+    h.update("\0".join(str(f) for f in features).encode() + b"\1")
+    arrs = [np.asarray(ln, float) for ln in links if ln is not None]
+    # each link's shape (-1 for none), then all their points
+    h.update(np.array([x for ln in links for x in ((-1,) if ln is None else (np.ndim(ln),) + np.shape(ln))],
+                      np.int64).tobytes() + b"\1")
+    if arrs:
+        h.update(np.concatenate([a.ravel() for a in arrs]).tobytes())
     a = np.ascontiguousarray(approach, float)
     h.update(b"A" + np.array(a.shape, np.int64).tobytes() + a.tobytes())
     return h.digest()
