@@ -42,6 +42,10 @@ MARGIN_M = 1.0e-4
 _SPHERE, _CAPSULE, _CYLINDER, _BOX = 2, 3, 5, 6
 #: Consecutive segment boxes tested together against the clusters of table geoms first.
 _BLOCK = 16
+#: Segment boxes are padded by this much (m) before the pairs' boxes are tested: a pair left
+#: out is then farther than MARGIN_M from any segment within this distance (the certificates
+#: of :meth:`Clearance.near_segments`).
+CERT_PAD_M = 0.5e-3
 
 
 @dataclass(frozen=True)
@@ -170,6 +174,7 @@ class Clearance:
         npair = len(self.pair_probe)
         self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
         self._have = np.zeros(npair, bool)
+        self._memo = []  # certificates of near_segments (shared by the moved copies: same frame)
         ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
         self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
         self._ccount = np.diff(np.r_[self._cstart, len(ck)])
@@ -293,22 +298,52 @@ class Clearance:
     def near_segments(self, sg: "Segments", allow_feature=None) -> np.ndarray:
         """Sorted sample numbers of ``sg`` where some probe/table pair may be closer than :data:`MARGIN_M`.
 
-        The same samples as :meth:`near` on all of ``sg``'s samples, less those a
-        whole segment's bound clears: each segment's box against the pairs' boxes,
-        then :meth:`swept_bound` per (segment, pair); only the pairs it cannot clear
-        are bounded sample by sample (:meth:`bound`).
+        Every other sample is provably farther than :data:`MARGIN_M` from every table
+        geom (its ball's pairs with the allowed feature aside), as with :meth:`near` on
+        all of ``sg``'s samples; fewer samples may be kept. Per segment: its box
+        against the pairs' boxes (padded by :data:`CERT_PAD_M`), then
+        :meth:`swept_bound` per (segment, pair); only the pairs it cannot clear are
+        bounded sample by sample (:meth:`bound`).
+
+        Certificates: each call remembers, per segment (in the geoms' frame), a
+        radius ``r`` within which any segment is clear (the least swept bound minus
+        the margin, at most the box padding: the distance moves at most as far as
+        the tip). A later call with as many segments and the same allowed features
+        (the same plan at another placement turned the same way) clears every
+        segment whose ends lie within ``r`` of the remembered ones at once.
+
         ``allow_feature`` (number of polylines,) of str: as in :meth:`near`, per polyline.
         """
         a, b = self.to_frame(sg.a), self.to_frame(sg.b)
-        seg, pair = self._box_pairs(np.minimum(a, b), np.maximum(a, b))
-        if allow_feature is not None and seg.size:
-            allow = np.asarray(allow_feature, dtype=object)[sg.path[seg]]
+        n = len(a)
+        allow_seg = (np.full(n, "", dtype=object) if allow_feature is None
+                     else np.asarray(allow_feature, dtype=object)[sg.path])
+        r = np.full(n, -np.inf)  # the certificate of this call
+        todo = np.arange(n)
+        for a0, b0, allow0, r0 in self._memo:
+            if len(a0) == n and np.array_equal(allow0, allow_seg):
+                moved = np.maximum(np.linalg.norm(a - a0, axis=1), np.linalg.norm(b - b0, axis=1))
+                ok = moved < r0
+                r[ok] = r0[ok] - moved[ok]
+                todo = np.flatnonzero(~ok)
+                break
+        if todo.size:
+            seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - CERT_PAD_M,
+                                        np.maximum(a[todo], b[todo]) + CERT_PAD_M)
+            seg = todo[seg]
+            r[todo] = CERT_PAD_M
+        else:
+            seg = pair = np.zeros(0, int)
+        if seg.size:
             f = self.feature[self.pair_table[pair]]
-            keep = ~((self.pair_probe[pair] == self.ball) & (f != "") & (f == allow))
+            keep = ~((self.pair_probe[pair] == self.ball) & (f != "") & (f == allow_seg[seg]))
             seg, pair = seg[keep], pair[keep]
-        if not seg.size:
-            return np.zeros(0, int)
-        open_ = self._swept(a[seg], b[seg], pair) <= MARGIN_M
+        lb = self._swept(a[seg], b[seg], pair) if seg.size else np.zeros(0)
+        np.minimum.at(r, seg, lb - MARGIN_M)
+        if len(self._memo) >= 8:
+            self._memo.pop(0)
+        self._memo.append((a, b, allow_seg, r))
+        open_ = lb <= MARGIN_M
         seg, pair = seg[open_], pair[open_]
         if not seg.size:
             return np.zeros(0, int)
@@ -439,8 +474,8 @@ def path_segments(polylines, steps_m, joints: bool) -> Segments:
     steps_m : (len(polylines),) float
     joints : bool
     """
-    n_pt = np.array([len(p) for p in polylines], int)
-    P = np.concatenate([np.asarray(p, float) for p in polylines])
+    n_pt = np.fromiter(map(len, polylines), int, len(polylines))
+    P = np.concatenate(polylines, dtype=float).reshape(-1, 3)
     first = np.cumsum(n_pt) - n_pt
     starts = np.ones(len(P), bool)
     starts[first + n_pt - 1] = False

@@ -131,26 +131,67 @@ class Scene:
         self._mj = mujoco
         self.artefact = artefact
         self.probe = probe or ProbeConfig()
-        self.mjcf, feats = scene_mjcf(artefact, self.probe, T_W_A)
-        self.model = mujoco.MjModel.from_xml_string(self.mjcf)
-        self.data = mujoco.MjData(self.model)
-        m = self.model
-        self.geom_feature = np.array([""] * m.ngeom, dtype=object)
-        self.geom_name = np.array([m.geom(i).name for i in range(m.ngeom)], dtype=object)
-        table = m.body("table").id
-        tg = [i for i in range(m.ngeom) if m.geom_bodyid[i] == table]
-        for i, f in zip(tg, feats):
-            self.geom_feature[i] = f
-        self.stylus = m.geom("stylus").id
-        self._tq = m.jnt_qposadr[m.joint("table").id]
-        self._sq = m.jnt_qposadr[m.joint("spindle").id]
-        self._clr = None
-        self._table_geoms = np.array(tg, int)
-        self._local = None
         self.T_W_A = np.array(artefact.T_W_A if T_W_A is None else T_W_A, float)
-        self._model_T_W_A = self.T_W_A  # the placement the model holds (compiled there)
-        self._mjcf_digest = hashlib.blake2b(self.mjcf.encode(), digest_size=32).digest()
+        self._T0 = self.T_W_A  # the placement the MJCF is written at
+        # geom ids, names and features as scene_mjcf writes them: the table body's geoms
+        # (one per solid), then the spindle's three
+        k = len(artefact.solids)
+        names = [f"{s.feature or 'body'}__{j}" for j, s in enumerate(artefact.solids)]
+        self.geom_name = np.array(names + ["stylus", "shank", "probe_body"], dtype=object)
+        self.geom_feature = np.array([s.feature for s in artefact.solids] + [""] * 3, dtype=object)
+        self.stylus = k
+        self._table_geoms = np.arange(k)
+        self._tq, self._sq = 0, 7  # the two free joints' qpos
+        self._qpos = np.zeros(14)
+        self._clr = None
+        self._local = None
+        self._model = self._data = self._mjcf = None
+        self._model_T_W_A = None
+        self._movable = all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids)
         self.set_table(np.eye(4))
+        if not self._movable:  # meshes: the broad phase reads the compiled model (the compiler re-centres them)
+            self.model  # noqa: B018
+
+    @property
+    def mjcf(self) -> str:
+        """The scene's MJCF (:func:`scene_mjcf`) at the placement it was built with."""
+        if self._mjcf is None:
+            self._mjcf = scene_mjcf(self.artefact, self.probe, self._T0)[0]
+        return self._mjcf
+
+    @property
+    def model(self):
+        """The compiled MuJoCo model (compiled on first use: the broad phase of an artefact made
+        of boxes, cylinders and spheres reads their definitions instead)."""
+        if self._model is None:
+            m = self._mj.MjModel.from_xml_string(self.mjcf)
+            assert [m.geom(i).name for i in range(m.ngeom)] == list(self.geom_name)
+            assert m.jnt_qposadr[m.joint("table").id] == self._tq and m.jnt_qposadr[m.joint("spindle").id] == self._sq
+            self._model, self._data = m, self._mj.MjData(m)
+            self._model_T_W_A = self._T0
+        return self._model
+
+    @property
+    def data(self):
+        self.model  # noqa: B018  (compiles on first use)
+        return self._data
+
+    def digest(self) -> bytes:
+        """Digest of everything the scene's model is written from (its MJCF at the placement it
+        was built with, without writing it out: solids, probe, that placement)."""
+        if getattr(self, "_digest", None) is None:
+            h = hashlib.blake2b(digest_size=32)
+            h.update(b"vmt-scene/1\0")
+            for s in self.artefact.solids:
+                h.update(f"{s.kind}\0{s.feature}\0".encode())
+                for v in (s.size, s.rot, s.pos, getattr(s, "vertices", None)):
+                    a = np.zeros(0) if v is None else np.ascontiguousarray(v, float)
+                    h.update(np.array(a.shape, np.int64).tobytes() + a.tobytes())
+            pr = self.probe
+            h.update(np.array([pr.stylus_r_m, pr.shank_r_m, pr.shank_length_m, PROBE_BODY_R_M, PROBE_BODY_H_M]).tobytes())
+            h.update(np.ascontiguousarray(self._T0, float).tobytes())
+            self._digest = h.digest()
+        return self._digest
 
     def place(self, T_W_A) -> None:
         """Move the artefact to the placement ``T_W_A`` (4,4) in the compiled model.
@@ -168,6 +209,7 @@ class Scene:
 
     def _sync(self) -> None:
         """Write the placement :meth:`place` recorded into the model, if not yet done."""
+        self.model  # noqa: B018  (compiles on first use)
         if self._model_T_W_A is self.T_W_A:
             return
         T_W_A = self.T_W_A
@@ -190,14 +232,19 @@ class Scene:
     def set_table(self, T_R_W: np.ndarray) -> None:
         """Place the table (frame W) in R."""
         T = np.asarray(T_R_W, float)
-        self.data.qpos[self._tq:self._tq + 3] = T[:3, 3]
-        self.data.qpos[self._tq + 3:self._tq + 7] = _quat(T[:3, :3])
+        self._qpos[self._tq:self._tq + 3] = T[:3, 3]
+        self._qpos[self._tq + 3:self._tq + 7] = _quat(T[:3, :3])
+
+    def table_qpos(self) -> np.ndarray:
+        """(7,) the table's free-joint position and quaternion (as :meth:`set_table` wrote them)."""
+        return self._qpos[self._tq:self._tq + 7]
 
     def set_tip(self, p_R) -> None:
         """Place the stylus-tip centre at ``p_R`` (3,), probe frame aligned with R."""
         self._sync()
-        self.data.qpos[self._sq:self._sq + 3] = p_R
-        self.data.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
+        self._qpos[self._sq:self._sq + 3] = p_R
+        self._qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
+        self.data.qpos[:] = self._qpos
         self._mj.mj_kinematics(self.model, self.data)
 
     def collisions(self, p_R, allow_feature: str = "") -> list[tuple[str, str, float]]:
@@ -227,37 +274,75 @@ class Scene:
     def clearance(self):
         """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose.
 
-        Built in the artefact's frame A from the compiled model's geoms and kept per
-        orientation of A to the spindle: every placement of the artefact turned the
-        same way (a campaign's set-ups moved across the table) shares one, its pair
-        data computed once. (Another placement's geoms in A differ from the kept ones
-        by rounding, 1e-16 m, against the bounds' 0.1 mm margin.)
+        Built in the artefact's frame A and kept per orientation of A to the spindle:
+        every placement of the artefact turned the same way (a campaign's set-ups
+        moved across the table) shares one, its pair data and certificates computed
+        once. The geoms are those the model is written from (:meth:`definition_geoms`;
+        the compiled model's for an artefact with meshes); MuJoCo's agree to rounding,
+        1e-16 m, against the bounds' 0.1 mm margin.
         """
-        from .clearance import Clearance, model_geoms
+        from .clearance import Clearance
 
-        m, d = self.model, self.data
-        table = m.body("table").id
-        self._mj.mj_kinematics(m, d)
-        T_R_A = make_T(np.array(d.xmat[table], float).reshape(3, 3), d.xpos[table]) @ self.T_W_A
+        q = np.array(self.table_qpos())
+        self._mj.mju_normalize4(q[3:])
+        R_R_W = np.zeros(9)
+        self._mj.mju_quat2Mat(R_R_W, q[3:])
+        T_R_A = make_T(R_R_W.reshape(3, 3), q[:3]) @ self.T_W_A
         key = np.ascontiguousarray(T_R_A[:3, :3]).tobytes()
         if self._clr is None:
             self._clr = {}
         hit = self._clr.get(key)
+        T_A_R = inv_T(T_R_A)
         if hit is None:
             if len(self._clr) >= 32:
                 self._clr.clear()
-            self.set_tip(np.zeros(3))
-            tg = self._table_geoms
-            pg = [i for i in range(m.ngeom) if m.geom_bodyid[i] != table]
-            T_A_R = inv_T(T_R_A)
+            P, H = self.definition_geoms() if self._movable else self._model_geoms_A(T_A_R)
             R = T_A_R[:3, :3]
-            P, H = model_geoms(m, d, pg), model_geoms(m, d, tg)
             P = Geoms(P.centre @ R.T, R @ P.axes, P.kind, P.size, P.rbound)  # about the tip, axes of A
-            H = Geoms(H.centre @ R.T + T_A_R[:3, 3], R @ H.axes, H.kind, H.size, H.rbound)
-            hit = self._clr[key] = Clearance(P, H, self.geom_feature[tg], pg.index(self.stylus), T_F_R=T_A_R)
-        elif not np.array_equal(hit.T_F_R, inv_T(T_R_A)):
-            hit = self._clr[key] = hit.moved(inv_T(T_R_A))
+            hit = self._clr[key] = Clearance(P, H, self.geom_feature[self._table_geoms], 0, T_F_R=T_A_R)
+        elif not np.array_equal(hit.T_F_R, T_A_R):
+            hit = self._clr[key] = hit.moved(T_A_R)
         return hit
+
+    def definition_geoms(self):
+        """(probe, table) :class:`sim.clearance.Geoms` as :func:`scene_mjcf` defines them: the
+        probe's about the tip, axes of R (stylus, shank, probe body); the table's in A."""
+        from .clearance import Geoms
+
+        if getattr(self, "_defs", None) is not None:
+            return self._defs
+        art, pr = self.artefact, self.probe
+        if self._local is None:  # each solid's pose on the artefact, (k,3,3) and (k,3)
+            self._local = (np.array([make_T(s.rot, s.pos)[:3, :3] for s in art.solids]).reshape(-1, 3, 3),
+                           np.array([make_T(s.rot, s.pos)[:3, 3] for s in art.solids]).reshape(-1, 3))
+        R_loc, p_loc = self._local
+        code = {"sphere": 2, "cylinder": 5, "box": 6}
+        kind = np.array([code[s.kind] for s in art.solids], int)
+        size = np.zeros((len(kind), 3))
+        for j, s in enumerate(art.solids):
+            size[j, :np.size(s.size)] = np.ravel(s.size)
+        rb = np.where(kind == 6, np.linalg.norm(size, axis=1), np.where(kind == 5, np.hypot(size[:, 0], size[:, 1]),
+                                                                       size[:, 0]))
+        H = Geoms(p_loc.copy(), R_loc.copy(), kind, size, rb)
+        r, rs, L = pr.stylus_r_m, pr.shank_r_m, pr.shank_length_m
+        hb = PROBE_BODY_H_M / 2
+        # (MuJoCo turns the shank's fromto +z into a frame whose z is -z: the same geom)
+        P = Geoms(np.array([[0.0, 0, 0], [0.0, 0, (r + L) / 2], [0.0, 0, L + hb]]),
+                  np.array([np.eye(3), np.diag([1.0, -1.0, -1.0]), np.eye(3)]),
+                  np.array([2, 3, 5]), np.array([[r, 0, 0], [rs, (L - r) / 2, 0], [PROBE_BODY_R_M, hb, 0]]),
+                  np.array([r, rs + (L - r) / 2, np.hypot(PROBE_BODY_R_M, hb)]))
+        self._defs = (P, H)
+        return P, H
+
+    def _model_geoms_A(self, T_A_R):
+        """(probe about the tip, axes of R; table in A) from the compiled model."""
+        from .clearance import model_geoms
+
+        self.set_tip(np.zeros(3))
+        m, d = self.model, self.data
+        P, H = model_geoms(m, d, [self.stylus, self.stylus + 1, self.stylus + 2]), model_geoms(m, d, self._table_geoms)
+        R = T_A_R[:3, :3]
+        return P, Geoms(H.centre @ R.T + T_A_R[:3, 3], R @ H.axes, H.kind, H.size, H.rbound)
 
     def geom_distance(self, geom_a: str, geom_b: str, distmax: float = 1.0) -> float:
         """MuJoCo's signed distance between two named geoms (current poses), m."""
@@ -387,17 +472,16 @@ _PASSED: set[bytes] = set()
 def _paths_key(scene: Scene, features, links, approach, link_step_m: float, approach_step_m: float) -> bytes:
     """Digest of everything :func:`check_touch_paths` reads except the names in its messages."""
     h = hashlib.blake2b(digest_size=32)
-    h.update(scene._mjcf_digest)  # the scene as compiled (artefact, probe)
+    h.update(scene.digest())  # the scene as built (artefact, probe)
     h.update(np.ascontiguousarray(scene.T_W_A, float).tobytes())  # the placement (Scene.place)
-    h.update(np.ascontiguousarray(scene.data.qpos[scene._tq:scene._tq + 7], float).tobytes())
+    h.update(np.ascontiguousarray(scene.table_qpos(), float).tobytes())
     h.update(np.array([link_step_m, approach_step_m, COLLISION_TOL_M]).tobytes())
     h.update("\0".join(str(f) for f in features).encode() + b"\1")
-    arrs = [np.asarray(ln, float) for ln in links if ln is not None]
-    # each link's shape (-1 for none), then all their points
-    h.update(np.array([x for ln in links for x in ((-1,) if ln is None else (np.ndim(ln),) + np.shape(ln))],
-                      np.int64).tobytes() + b"\1")
+    arrs = [ln for ln in links if ln is not None]  # (m,3) polylines
+    # each link's number of points (-1 for none), then all their points
+    h.update(np.array([-1 if ln is None else len(ln) for ln in links], np.int64).tobytes() + b"\1")
     if arrs:
-        h.update(np.concatenate([a.ravel() for a in arrs]).tobytes())
+        h.update(np.concatenate(arrs, dtype=float).reshape(-1, 3).tobytes())
     a = np.ascontiguousarray(approach, float)
     h.update(b"A" + np.array(a.shape, np.int64).tobytes() + a.tobytes())
     return h.digest()
