@@ -135,6 +135,14 @@ def _solid_poses(art) -> list:
     return hit[1]
 
 
+def _solid_pose_stack(art) -> np.ndarray:
+    """(k,4,4): :func:`_solid_poses` stacked (kept beside them)."""
+    hit = _SOLID_POSES.get(("stack", id(art)))
+    if hit is None or hit[0] is not art:
+        hit = _SOLID_POSES[("stack", id(art))] = (art, np.array(_solid_poses(art)).reshape(-1, 4, 4))
+    return hit[1]
+
+
 class WorkZone:
     """One bar placement on the table with its workholder, one probe (offsets J).
 
@@ -163,13 +171,14 @@ class WorkZone:
             lo, hi = np.asarray(b.lo, float), np.asarray(b.hi, float)
             kinds.append("box"), sizes.append(tuple((hi - lo) / 2)), poses.append(make_T(None, (lo + hi) / 2))
             names.append(f"fix_{b.name}"), feats.append("")
-        for k, (s, T_A_S) in enumerate(zip(artefact.solids, _solid_poses(artefact))):
+        for k, s in enumerate(artefact.solids):
             if s.kind not in ("box", "cylinder", "sphere"):
                 raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
-            kinds.append(s.kind), sizes.append(tuple(np.ravel(s.size))), poses.append(T_W_A @ T_A_S)
+            kinds.append(s.kind), sizes.append(tuple(np.ravel(s.size)))
             names.append(f"{s.feature or ('support' if s.kind == 'cylinder' else 'body')}__{k}")
             feats.append(s.feature)
-        self._tkind, self._tsize, self._tpose = kinds, sizes, np.array(poses)
+        self._tkind, self._tsize, self._tpose0 = kinds, sizes, poses  # (the solids' poses: _pose)
+        self._T_W_A = T_W_A
         nt = len(names)
         holder = [j for j, n in enumerate(names) if n == "table_disc" or n.startswith(("fix_", "support__"))]
         self._probe_mjcf = probe_geoms_mjcf(J_m, stylus_r_m, finger_m)
@@ -195,8 +204,13 @@ class WorkZone:
         self._tqpos = np.array([0.0, 0, 0, 1, 0, 0, 0])
         self._clr = {}
 
+    def _pose(self, j: int) -> np.ndarray:
+        """(4,4) pose in W of table-side geom j (a solid's: T_W_A times its pose on the bar)."""
+        n0 = len(self._tpose0)
+        return self._tpose0[j] if j < n0 else self._T_W_A @ _solid_poses(self._args[0])[j - n0]
+
     def _geom_mjcf(self, j: int) -> str:
-        kind, size, T = self._tkind[j], self._tsize[j], self._tpose[j]
+        kind, size, T = self._tkind[j], self._tsize[j], self._pose(j)
         name = self._names[j]
         if j == 0:
             return (f'<geom name="table_disc" type="cylinder" pos="0 0 {-TABLE_T_M / 2!r}" '
@@ -261,7 +275,10 @@ class WorkZone:
         self._set_holder_tip(np.zeros(3))
         d = self._hdata
         body = self._hmodel.body("table").id
-        T = make_T(np.array(d.xmat[body], float).reshape(3, 3), d.xpos[body]) @ self._tpose
+        T_R_W = make_T(np.array(d.xmat[body], float).reshape(3, 3), d.xpos[body])
+        T = np.concatenate([np.array(self._tpose0), _solid_pose_stack(self._args[0])])
+        T[len(self._tpose0):] = self._T_W_A @ T[len(self._tpose0):]
+        T = T_R_W @ T
         code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
         size = np.zeros((len(self._tkind), 3))
         for j, sz in enumerate(self._tsize):
@@ -323,9 +340,6 @@ class WorkZone:
         npair = len(clr.pair_probe)
         i = np.repeat(np.arange(len(tips)), npair)
         pair = np.tile(np.arange(npair), len(tips))
-        # rows whose fixed axes already put them beyond distmax (+ margin) can never lower the
-        # least distance: they keep that smaller bound and sort after every row that can
-        lb = clr.bound(tips, i, pair, enough=distmax + MARGIN_M) if broad_phase else np.full(len(i), -np.inf)
         best = distmax
         if not broad_phase:  # the reference: every triple in the whole work zone's model
             for k in range(len(i)):
@@ -334,12 +348,26 @@ class WorkZone:
                 best = min(best, float(self._mj.mj_geomDistance(self.model, self.data, a, b, distmax, None)))
             return best
         m, d = self._hmodel, self._hdata
-        for k in np.argsort(lb, kind="stable"):
-            if lb[k] > best + MARGIN_M:
-                break
+
+        def dist(k):
             self._set_holder_tip(tips[i[k]])
             a, b = self._hprobe[clr.pair_probe[pair[k]]], int(clr.pair_table[pair[k]])
-            best = min(best, float(self._mj.mj_geomDistance(m, d, a, b, distmax, None)))
+            return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
+
+        # the result is min(distmax, every triple's distance) as in the reference: a triple is
+        # left out only when its bound exceeds a distance already found by more than the margin
+        # (MuJoCo's distances err by far less). First the fixed axes' bound of every triple and
+        # the distance of the least; then the full bound of the triples that may be nearer
+        lb0 = clr.bound(tips, i, pair, enough=-np.inf)
+        k0 = int(np.argmin(lb0))
+        best = min(best, dist(k0))
+        rows = np.flatnonzero(lb0 <= best + MARGIN_M)
+        rows = rows[rows != k0]
+        lb = clr.bound(tips, i[rows], pair[rows])
+        for j in np.argsort(lb, kind="stable"):
+            if lb[j] > best + MARGIN_M:
+                break
+            best = min(best, dist(rows[j]))
         return best
 
     def holder_clearance(self, distmax: float = 0.05) -> float:
