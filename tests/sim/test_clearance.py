@@ -191,3 +191,92 @@ def test_check_touch_paths_random_paths_agree_with_every_sample_check():
         assert msgs[0] == msgs[1]
         outcomes.append(msgs[0] is None)
     assert 3 <= sum(outcomes) <= 27  # both verdicts drawn
+
+
+def test_broad_phase_geoms_are_the_compiled_models():
+    """The broad phases read the geoms the MJCF is written from, not the compiled model (which is
+    compiled only when a sample reaches MuJoCo): they agree with MuJoCo's poses to rounding."""
+    from sim.clearance import model_geoms
+
+    T_R_W = A.make_T(A.rot_z(-0.4) @ A.rot_x(0.2), (0.01, 0.02, -0.03))
+    for art in (BAR, A.cross_pocket()):
+        sc = Scene(art, ProbeConfig())
+        sc.place(A.make_T(A.rot_z(0.7), (0.05, -0.02, 0.11)))
+        sc.set_table(T_R_W)
+        clr = sc.clearance()
+        assert sc._model is None  # nothing compiled yet
+        sc.set_tip(np.zeros(3))
+        T_A_R = clr.T_F_R
+        H = model_geoms(sc.model, sc.data, sc._table_geoms)
+        P = model_geoms(sc.model, sc.data, [sc.stylus, sc.stylus + 1, sc.stylus + 2])
+        assert np.abs(H.centre @ T_A_R[:3, :3].T + T_A_R[:3, 3] - clr.table.centre).max() < 1e-15
+        assert np.abs(T_A_R[:3, :3] @ H.axes - clr.table.axes).max() < 1e-15
+        assert np.abs(P.centre @ T_A_R[:3, :3].T - clr.probe.centre).max() < 1e-15
+        assert np.abs(T_A_R[:3, :3] @ P.axes - clr.probe.axes).max() < 1e-15
+        for G, g in ((H, clr.table), (P, clr.probe)):
+            assert np.array_equal(G.kind, g.kind) and np.abs(G.size - g.size).max() < 1e-18
+    wz = WorkZone(BAR, FLAT, (), (0.030, 0.0, 0.150), R, 0.020)
+    wz.set_table(_T_R_W(-60, 30))
+    g = wz.table_geoms()
+    assert wz._model is None
+    wz.set_tip(np.zeros(3))
+    m, d = wz.model, wz.data
+    assert np.abs(g.centre - d.geom_xpos[wz._table]).max() < 1e-15
+    assert np.abs(g.axes.reshape(-1, 9) - d.geom_xmat[wz._table]).max() < 1e-15
+    assert np.array_equal(g.kind, m.geom_type[wz._table]) and np.array_equal(g.size, m.geom_size[wz._table])
+
+
+def test_certificates_across_placements_agree_with_every_sample_check(monkeypatch):
+    """A plan checked at one placement leaves certificates; the same paths (fixed in R) at other
+    placements of the artefact turned the same way (moved 0 to 1.2 mm: some within a certificate's
+    radius, some beyond) give exactly the verdicts and messages of MuJoCo at every sample. The
+    links graze the artefact's top (the ball 0.5 mm below to 1 mm above it: some pairs within the
+    boxes' 0.5 mm padding, some beyond), so the moves change verdicts: a certificate that clears too
+    much is seen (a radius 2 mm too large, or a padding radius 1 mm too large, fails here)."""
+    from sim import scene as S
+    from sim.clearance import Clearance
+
+    art = A.cross_pocket()  # the pocket's blocks' tops at z_A = 0, 0.12 m from the centre; spheres at
+    probe = ProbeConfig()   # y_A = 0.06 and -0.055, standing higher
+    scene = Scene(art, probe)
+    rng = np.random.default_rng(9)
+    T0 = art.T_W_A
+    z_top = T0[2, 3] + probe.stylus_r_m
+    boxes = [0]
+    real = Clearance._box_pairs
+    monkeypatch.setattr(Clearance, "_box_pairs", lambda self, a, b: boxes.__setitem__(0, boxes[0] + len(a))
+                        or real(self, a, b))
+    changed = reused = 0
+    for trial in range(10):
+        n = 4
+        links = [None]
+        for _ in range(n - 1):  # across the blocks' tops from outside, at a grazing height
+            z = z_top + rng.uniform(-0.5e-3, 1.0e-3)
+            y = T0[1, 3] + rng.choice([-1, 1]) * rng.uniform(0.025, 0.035)
+            x = T0[0, 3] + rng.choice([-1, 1]) * 0.14
+            links.append(np.array([[x, y, z + 0.02], [x, y, z], [-x, y, z]]))
+        approach = np.column_stack([T0[0, 3] + rng.uniform(-0.1, 0.1, n), T0[1, 3] + rng.uniform(-0.03, 0.03, n),
+                                    np.full(n, z_top + 0.03)])
+        approach = np.stack([approach, approach - [0, 0, 2e-3]], axis=1)
+        feats = [""] * n
+        outcomes = []
+        for j, move in enumerate([0.0] + list(rng.uniform(0, 1.2e-3, 6))):
+            u = rng.normal(size=3) if j % 2 else np.array([0.0, 0.0, 1.0])  # half of them straight up
+            scene.place(A.make_T(T0[:3, :3], T0[:3, 3] + move * u / np.linalg.norm(u)))
+            scene.set_table(np.eye(4))
+            msgs = []
+            for bp in (True, False):
+                S._PASSED.clear()
+                before = boxes[0]
+                try:
+                    check_touch_paths(scene, "C0", [f"t{k}" for k in range(n)], feats, links, approach,
+                                      broad_phase=bp)
+                    msgs.append(None)
+                except PlanError as e:
+                    msgs.append(str(e))
+                if bp and j > 0:
+                    reused += boxes[0] - before < 5 * n  # most segments cleared by certificates
+            assert msgs[0] == msgs[1], (trial, j, move)
+            outcomes.append(msgs[1])
+        changed += len(set(outcomes)) > 1
+    assert changed >= 3 and reused >= 10, (changed, reused)
