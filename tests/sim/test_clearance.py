@@ -232,7 +232,9 @@ def test_certificates_across_placements_agree_with_every_sample_check(monkeypatc
     radius, some beyond) give exactly the verdicts and messages of MuJoCo at every sample. The
     links graze the artefact's top (the ball 0.5 mm below to 1 mm above it: some pairs within the
     boxes' 0.5 mm padding, some beyond), so the moves change verdicts: a certificate that clears too
-    much is seen (a radius 2 mm too large, or a padding radius 1 mm too large, fails here)."""
+    much is seen (a radius 2 mm too large, or a padding radius 1 mm too large, fails here). A third
+    of the placements are also turned about the spindle axis, the paths with them: the probe looks
+    the same from every side, so they share the broad phase and its certificates."""
     from sim import scene as S
     from sim.clearance import Clearance
 
@@ -262,14 +264,20 @@ def test_certificates_across_placements_agree_with_every_sample_check(monkeypatc
         outcomes = []
         for j, move in enumerate([0.0] + list(rng.uniform(0, 1.2e-3, 6))):
             u = rng.normal(size=3) if j % 2 else np.array([0.0, 0.0, 1.0])  # half of them straight up
-            scene.place(A.make_T(T0[:3, :3], T0[:3, 3] + move * u / np.linalg.norm(u)))
+            # a third turned about the spindle axis, the paths with them (the same plan in A)
+            T_turn = A.make_T(A.rot_z(rng.uniform(-np.pi, np.pi)) if j % 3 == 2 else np.eye(3), [0.0, 0, 0])
+            T_turn = T0 @ T_turn @ A.inv_T(T0)
+            T_nom = T_turn @ T0
+            scene.place(A.make_T(T_nom[:3, :3], T_nom[:3, 3] + move * u / np.linalg.norm(u)))
             scene.set_table(np.eye(4))
+            links_j = [None] + [A.apply_T(T_turn, ln) for ln in links[1:]]
+            approach_j = A.apply_T(T_turn, approach.reshape(-1, 3)).reshape(approach.shape)
             msgs = []
             for bp in (True, False):
                 S._PASSED.clear()
                 before = boxes[0]
                 try:
-                    check_touch_paths(scene, "C0", [f"t{k}" for k in range(n)], feats, links, approach,
+                    check_touch_paths(scene, "C0", [f"t{k}" for k in range(n)], feats, links_j, approach_j,
                                       broad_phase=bp)
                     msgs.append(None)
                 except PlanError as e:
