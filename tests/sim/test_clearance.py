@@ -288,3 +288,34 @@ def test_certificates_across_placements_agree_with_every_sample_check(monkeypatc
             outcomes.append(msgs[1])
         changed += len(set(outcomes)) > 1
     assert changed >= 3 and reused >= 10, (changed, reused)
+
+
+def test_a_tilted_spindle_axis_gets_its_own_broad_phase():
+    """The same plan in the artefact's frame, first with the spindle along z_A (clear: the shank
+    stands in the pocket's channel), then with the table tilted 60 deg (the shank, along R's z,
+    leans onto the channel's wall): the second check crashes, with and without the broad phase
+    alike (a broad phase or certificate shared across spindle axes would clear it)."""
+    from sim import scene as S
+
+    art = A.cross_pocket()
+    probe = ProbeConfig()
+    scene = Scene(art, probe)
+    T0 = art.T_W_A
+    z = -0.010 + probe.stylus_r_m  # the ball's centre on the floor of the channel along x_A
+    p_A = np.array([[[0.05, -0.010, z + 5e-3], [0.05, -0.010, z + 1e-3]]])  # 8 mm from its wall
+    outcomes = []
+    for th in (0.0, np.deg2rad(60.0)):
+        T_R_W = A.make_T(A.rot_x(-th), [0.0, 0, 0])
+        scene.set_table(T_R_W)
+        approach = A.apply_T(T_R_W @ T0, p_A.reshape(-1, 3)).reshape(p_A.shape)
+        msgs = []
+        for bp in (True, False):
+            S._PASSED.clear()
+            try:
+                check_touch_paths(scene, "C0", ["t"], ["pocket"], [None], approach, broad_phase=bp)
+                msgs.append(None)
+            except PlanError as e:
+                msgs.append(str(e))
+        assert msgs[0] == msgs[1]
+        outcomes.append(msgs[1])
+    assert outcomes[0] is None and "shank hits pocket" in outcomes[1], outcomes
