@@ -3,14 +3,14 @@
 The MuJoCo scenes (:mod:`sim.scene`, :mod:`sim.mfb_scene`) have two bodies:
 the table (its geoms fixed for one table pose) and the spindle, which only
 translates (origin at the stylus-tip centre, axes parallel to R). A path
-check asks MuJoCo's ``mj_collision`` at every sample of a polyline; most
-samples are centimetres from anything. This module reads the geoms of the
-compiled MuJoCo model (type, size, pose after ``mj_kinematics``) and
-computes, for every sample at once, a LOWER BOUND on the distance between
-each probe geom (moved to the sample) and each table geom; a sample whose
-bounds all exceed :data:`MARGIN_M` cannot collide and is skipped, and only
-the others go to ``mj_collision`` (the same call as before, same samples in
-the same order, so the first collision found is the same).
+check asks MuJoCo's ``mj_collision`` at samples of polylines; most samples
+are centimetres from anything. This module takes the scene's geoms (type,
+size, pose: the definitions its MJCF is written from, or the compiled
+model's) and computes LOWER BOUNDS on the distance between each probe geom
+(moved with the tip) and each table geom; a sample whose bounds all exceed
+:data:`MARGIN_M` cannot collide and is skipped, and only the others go to
+``mj_collision`` (the same call as before, in the same order, so the first
+collision found is the same).
 
 The bound is the separating-axis gap of two convex sets: for any unit
 vector u, ``|(c_G - c_H) . u| - ext_G(u) - ext_H(u)`` is at most their
@@ -24,7 +24,20 @@ cylinder or sphere). Candidate pairs come from the geoms' axis-aligned
 boxes (exact for the probe's axis-aligned geoms; table geoms' boxes from
 their corners or analytic extents), each a sound superset.
 
-Frames: R (the machine reference, MuJoCo's world); units m.
+Whole segments at once (:meth:`Clearance.near_segments`): along a straight
+move ``a -> b`` the offset ``(c_G - c_H) . u`` is linear, so its least
+magnitude over the segment is 0 if it changes sign, else the smaller end's:
+that gap bounds the distance at every sample of the segment (a swept-geom
+bound), and only the pairs it cannot clear are bounded sample by sample.
+Each call leaves per-segment certificates (the radius within which the
+segment stays clear, since a distance moves no farther than the tip): the
+same plan at another placement turned the same way is cleared segment by
+segment in a few vector operations.
+
+Frames: the geoms may be given in any frame F fixed to the table (``T_F_R``;
+the scene uses the artefact's frame A, so one broad phase serves every
+placement of the artefact turned the same way); tips are always given in R
+(the machine reference, MuJoCo's world); units m.
 """
 
 from __future__ import annotations

@@ -416,15 +416,6 @@ def link_paths(T_R_A, starts_R, features, levels, top_A_m):
     return out
 
 
-def _sample(pts, step):
-    out = []
-    for a, b in zip(pts[:-1], pts[1:]):
-        k = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
-        out.append(a + np.linspace(0.0, 1.0, k + 1)[:-1, None] * (b - a))
-    out.append(pts[-1:])
-    return np.concatenate(out)
-
-
 def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan, finger_m: float = 0.0,
                       link_step_m: float = 3.0e-3, approach_step_m: float = 0.5e-3,
                       broad_phase: bool = True) -> CheckResult:
