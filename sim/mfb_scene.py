@@ -400,20 +400,30 @@ def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
 
 def link_paths(T_R_A, starts_R, features, levels, top_A_m):
     """Link polylines (R, m) between consecutive approach starts: direct within one
-    feature and level, else retract along ``z_A`` to ``top_A_m`` + clearance, across, plunge."""
+    feature and level, else retract along ``z_A`` to ``top_A_m`` + clearance, across, plunge.
+
+    Returns a list (one per start; None for the first) of (2,3) or (4,3) arrays. All the
+    links' points go through one transform back to R (the same values, bit for bit, as
+    transforming each link's points alone: tests/sim/test_clearance.py).
+    """
     T_A_R = inv_T(T_R_A)
     s_A = apply_T(T_A_R, np.asarray(starts_R, float))
-    z_c = top_A_m + LINK_CLEAR_M
-    out = [None]
-    for i in range(1, len(s_A)):
-        a, b = s_A[i - 1], s_A[i]
-        if features[i] == features[i - 1] and levels[i] == levels[i - 1]:
-            pts = np.array([a, b])
-        else:
-            zc = max(z_c, a[2], b[2])
-            pts = np.array([a, [a[0], a[1], zc], [b[0], b[1], zc], b])
-        out.append(apply_T(T_R_A, pts))
-    return out
+    n = len(s_A)
+    if n < 2:
+        return [None] * n
+    a, b = s_A[:-1], s_A[1:]
+    f, lv = np.asarray(features, dtype=object), np.asarray(levels)
+    direct = (f[1:] == f[:-1]) & (lv[1:] == lv[:-1])
+    zc = np.maximum(np.maximum(top_A_m + LINK_CLEAR_M, a[:, 2]), b[:, 2])
+    up_a, up_b = np.column_stack([a[:, :2], zc]), np.column_stack([b[:, :2], zc])
+    cnt = np.where(direct, 2, 4)
+    P = np.empty((int(cnt.sum()), 3))
+    st = np.cumsum(cnt) - cnt
+    P[st] = a
+    P[st + 1] = np.where(direct[:, None], b, up_a)
+    P[(st + 2)[~direct]] = up_b[~direct]
+    P[(st + 3)[~direct]] = b[~direct]
+    return [None] + np.split(apply_T(T_R_A, P), np.cumsum(cnt)[:-1])
 
 
 def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan, finger_m: float = 0.0,

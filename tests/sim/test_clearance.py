@@ -319,3 +319,50 @@ def test_a_tilted_spindle_axis_gets_its_own_broad_phase():
         assert msgs[0] == msgs[1]
         outcomes.append(msgs[1])
     assert outcomes[0] is None and "shank hits pocket" in outcomes[1], outcomes
+
+
+def _link_paths_one_by_one(T_R_A, starts_R, features, levels, top_A_m):
+    """The link moves as sim.mfb_scene.link_paths wrote them before it batched them (one
+    transform per link)."""
+    from sim.mfb_scene import LINK_CLEAR_M
+
+    T_A_R = A.inv_T(T_R_A)
+    s_A = A.apply_T(T_A_R, np.asarray(starts_R, float))
+    out = [None]
+    for i in range(1, len(s_A)):
+        a, b = s_A[i - 1], s_A[i]
+        if features[i] == features[i - 1] and levels[i] == levels[i - 1]:
+            pts = np.array([a, b])
+        else:
+            zc = max(top_A_m + LINK_CLEAR_M, a[2], b[2])
+            pts = np.array([a, [a[0], a[1], zc], [b[0], b[1], zc], b])
+        out.append(A.apply_T(T_R_A, pts))
+    return out
+
+
+def test_link_paths_are_the_one_by_one_links_bit_for_bit():
+    """The batched link moves of every measurement of the MFB 5-axis plan (and of its starts
+    scattered by 10 mm) are the links computed one by one, to the last bit."""
+    from scenarios import mfb as S
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+    from sim.mfb_scene import link_paths
+    from sim.scene import artefact_points
+
+    plan = S.plan_5axis()
+    mach = Machine(MACHINES[plan.machine]())
+    rng = np.random.default_rng(3)
+    top = float(artefact_points(BAR)[:, 2].max()) + R
+    n = 0
+    for ms in plan.measurements[::3]:
+        T_R_A = np.asarray(mach.T_R_W_nominal(np.asarray(ms.rot_rad, float)[None, :]), float).reshape(4, 4) @ ms.T_W_A
+        pl = _holes(*ms.holes)
+        start = A.apply_T(T_R_A, pl.w_A + (R + pl.clearance_m) * pl.wn_A)
+        for st in (start, start + rng.normal(0, 0.01, start.shape)):
+            got, want = link_paths(T_R_A, st, pl.feature, pl.level, top), _link_paths_one_by_one(T_R_A, st, pl.feature, pl.level, top)
+            assert got[0] is None and len(got) == len(want)
+            for g, w in zip(got[1:], want[1:]):
+                assert g.shape == w.shape and np.array_equal(g, w)
+            n += len(got) - 1
+    assert n > 500
+    assert link_paths(np.eye(4), np.zeros((1, 3)), ["a"], [0], 0.0) == [None]
