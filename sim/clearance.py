@@ -160,6 +160,10 @@ class Clearance:
         takes tips in R and moves them to F (rounding: 1e-16 m, against the bounds'
         :data:`MARGIN_M`). A frame fixed to the table lets one Clearance serve every
         placement of an artefact with the same orientation to the spindle.
+    cert_pad_m : float
+        The segment boxes' padding of :meth:`near_segments`, the largest radius of
+        its certificates (0: fewer pairs bounded, no certificates; for a broad
+        phase that will not see the same plan again).
 
     Attributes
     ----------
@@ -167,8 +171,10 @@ class Clearance:
         The geoms (indices in ``probe`` and ``table``) of every pair the bounds speak of.
     """
 
-    def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int, T_F_R=None):
+    def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int, T_F_R=None,
+                 cert_pad_m: float = CERT_PAD_M):
         self.probe, self.table, self.ball = probe, table, int(ball)
+        self.cert_pad_m = float(cert_pad_m)
         self.feature = np.asarray(table_feature, dtype=object)
         self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
         plo, phi = probe.aabb()
@@ -314,7 +320,7 @@ class Clearance:
         Every other sample is provably farther than :data:`MARGIN_M` from every table
         geom (its ball's pairs with the allowed feature aside), as with :meth:`near` on
         all of ``sg``'s samples; fewer samples may be kept. Per segment: its box
-        against the pairs' boxes (padded by :data:`CERT_PAD_M`), then
+        against the pairs' boxes (padded by ``cert_pad_m``), then
         :meth:`swept_bound` per (segment, pair); only the pairs it cannot clear are
         bounded sample by sample (:meth:`bound`).
 
@@ -341,10 +347,10 @@ class Clearance:
                 todo = np.flatnonzero(~ok)
                 break
         if todo.size:
-            seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - CERT_PAD_M,
-                                        np.maximum(a[todo], b[todo]) + CERT_PAD_M)
+            pad = self.cert_pad_m
+            seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - pad, np.maximum(a[todo], b[todo]) + pad)
             seg = todo[seg]
-            r[todo] = CERT_PAD_M
+            r[todo] = pad
         else:
             seg = pair = np.zeros(0, int)
         if seg.size:

@@ -304,7 +304,8 @@ class WorkZone:
                 table, tg = model_geoms(hm, hd, range(len(self._holder))), self._holder
             else:
                 table, tg = self.table_geoms(), self._table
-            self._clr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in tg], ball)
+            # (a plan's measurements each have their own table pose: no certificates to reuse)
+            self._clr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in tg], ball, cert_pad_m=0.0)
         return self._clr[key]
 
     def collisions(self, p_R, allow_feature: str = "") -> list:
