@@ -356,19 +356,22 @@ class WorkZone:
             return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
 
         # the result is min(distmax, every triple's distance) as in the reference: a triple is
-        # left out only when its bound exceeds a distance already found by more than the margin
-        # (MuJoCo's distances err by far less). First the fixed axes' bound of every triple and
-        # the distance of the least; then the full bound of the triples that may be nearer
+        # left out only when a lower bound of its distance exceeds a distance already found by
+        # more than the margin (MuJoCo's distances err by far less). The fixed axes' bound of
+        # every triple; in its increasing order, chunks of triples get the full bound and MuJoCo
+        # in the full bound's order, while the chunk's fixed-axes bound may still be nearer
         lb0 = clr.bound(tips, i, pair, enough=-np.inf)
-        k0 = int(np.argmin(lb0))
-        best = min(best, dist(k0))
-        rows = np.flatnonzero(lb0 <= best + MARGIN_M)
-        rows = rows[rows != k0]
-        lb = clr.bound(tips, i[rows], pair[rows])
-        for j in np.argsort(lb, kind="stable"):
-            if lb[j] > best + MARGIN_M:
-                break
-            best = min(best, dist(rows[j]))
+        order = np.argsort(lb0, kind="stable")
+        pos = 0
+        while pos < len(order) and lb0[order[pos]] <= best + MARGIN_M:
+            rows = order[pos:pos + 64]
+            pos += 64
+            rows = rows[lb0[rows] <= best + MARGIN_M]
+            lb = clr.bound(tips, i[rows], pair[rows])
+            for j in np.argsort(lb, kind="stable"):
+                if lb[j] > best + MARGIN_M:
+                    break
+                best = min(best, dist(rows[j]))
         return best
 
     def holder_clearance(self, distmax: float = 0.05) -> float:
