@@ -378,6 +378,15 @@ class Clearance:
         close = self.bound(q_R, np.arange(len(q_R)), pair, enough=MARGIN_M) <= MARGIN_M
         return np.unique(idx[close])
 
+    def fixed_bound_grid(self, p_R: np.ndarray) -> np.ndarray:
+        """(n, pairs): the bound of every pair at every tip ``p_R`` (n,3) on the pairs' fixed
+        axes only (:meth:`bound` with ``enough=-inf``, without its row gathers)."""
+        p = self.to_frame(p_R)
+        U, E = self._axes(np.arange(len(self.pair_probe)))
+        d = self._d0[None, :, :] + p[:, None, :]  # (n, pairs, 3)
+        s = d[:, :, None, 0] * U[None, :, :, 0] + d[:, :, None, 1] * U[None, :, :, 1] + d[:, :, None, 2] * U[None, :, :, 2]
+        return np.max(np.abs(s) - E[None], axis=2)
+
     def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
         """Lower bound of the distance (m) of pair ``pair`` with the tip at sample ``i`` of ``p_R``.
 

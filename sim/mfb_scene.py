@@ -360,7 +360,7 @@ class WorkZone:
         # more than the margin (MuJoCo's distances err by far less). The fixed axes' bound of
         # every triple; in its increasing order, chunks of triples get the full bound and MuJoCo
         # in the full bound's order, while the chunk's fixed-axes bound may still be nearer
-        lb0 = clr.bound(tips, i, pair, enough=-np.inf)
+        lb0 = clr.fixed_bound_grid(tips).ravel()  # rows (tip, pair) as i, pair
         order = np.argsort(lb0, kind="stable")
         pos = 0
         while pos < len(order) and lb0[order[pos]] <= best + MARGIN_M:

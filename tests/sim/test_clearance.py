@@ -366,3 +366,17 @@ def test_link_paths_are_the_one_by_one_links_bit_for_bit():
             n += len(got) - 1
     assert n > 500
     assert link_paths(np.eye(4), np.zeros((1, 3)), ["a"], [0], 0.0) == [None]
+
+
+def test_fixed_bound_grid_is_the_rows_bound_on_fixed_axes():
+    """Clearance.fixed_bound_grid (the least clearance's first pass) equals bound() on every
+    (tip, pair) row with the closest-point axis left out, bit for bit, and never exceeds bound()."""
+    wz = _zone(-60, 30, (0.0, -0.100, 0.150))
+    tips = np.random.default_rng(0).uniform(-0.3, 0.3, (40, 3))
+    for holder_only in (True, False):
+        clr = wz.clearance(holder_only=holder_only)
+        npair = len(clr.pair_probe)
+        i, pair = np.repeat(np.arange(len(tips)), npair), np.tile(np.arange(npair), len(tips))
+        grid = clr.fixed_bound_grid(tips).ravel()
+        assert np.array_equal(grid, clr.bound(tips, i, pair, enough=-np.inf))
+        assert np.all(grid <= clr.bound(tips, i, pair))
