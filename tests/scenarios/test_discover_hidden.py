@@ -175,7 +175,7 @@ def test_a_smooth_that_moves_the_workpiece_is_checked():
     o = blind_outcome(mod, "fixture_slip", 301, generator="gen_b")
     assert not o.identifiable and np.isfinite(o.wp_ext_um)
     assert abs(o.wp_ext_um - o.wp_base_um) > 0.3, (o.wp_base_um, o.wp_ext_um)  # the smooth did move it
-    # a U95 of millimetres would pass any check: bound it at ten noise sigmas (0.3 um here)
+    # a U95 of millimetres would pass any check: bound it (3 um, over ten noise sigmas: 0.26 um here)
     assert np.isfinite(o.wp_u95_um) and o.wp_u95_um < 3.0, o.wp_u95_um
     s = summarize([o])["workpiece_ok"]
     assert (s["k"], s["n"]) == (1, 1), (o.wp_base_um, o.wp_ext_um, o.wp_u95_um)
