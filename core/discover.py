@@ -1017,6 +1017,17 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         f"false-alarm rate {settings.alpha:g} split over {', '.join(FAMILIES)}; "
         f"materiality {settings.material_sigma:g} sigma per row",
         "U95: k = 2, sigma from each model's residuals"]
+    smooth_terms = [t for t in terms if t.penalty is not None]
+    if smooth_terms:
+        conv.append("extended workpiece beside an unnamed smooth: the smooth takes no combination the baseline "
+                    "spans exactly; U95 from the penalised fit's covariance s^2 (A^T A + P)^-1 (the Bayesian "
+                    "covariance of a penalised spline, Wahba 1983); an estimate only where the data alone "
+                    "determine it")
+    lost = [w["target"] for w in wp if w["baseline_um"] is not None and w["extended_um"] is None]
+    if lost:
+        conv.append(f"extended workpiece not reported at {len(lost)} target(s) (e.g. {lost[0]}): the data alone "
+                    "do not determine it beside " + ", ".join(t.cause if t.penalty is None else
+                                                               f"the unnamed smooth in {t.covariate}" for t in terms))
     named = [t.cause if t.penalty is None else f"unnamed smooth in {t.covariate}" for t in terms]
     model_name = bl.model.split(" (")[0] + "".join(f" + {c}" for c in named) + (" - outliers" if outliers.size else "")
     if progress is not None:
