@@ -1394,6 +1394,179 @@ BUDGET_SOURCES = ("probing noise", "bar calibration", "placement", "stylus offse
                   "bar temperature", "machine temperature")
 
 
+def _budget_settings(mc_runs, stylus_runs, temperature_range_C):
+    from core.exceptions import ConfigError
+
+    if int(mc_runs) < 2 or int(stylus_runs) < 2:
+        raise ConfigError(f"budget: mc_runs and stylus_runs must be >= 2, got {mc_runs!r}, {stylus_runs!r}")
+    t_lo, t_hi = (float(t) for t in temperature_range_C)
+    if not (np.isfinite(t_lo) and np.isfinite(t_hi) and t_lo <= t_hi):
+        raise ConfigError(f"budget: temperature_range_C must be (low, high), got {temperature_range_C!r}")
+    return t_lo, t_hi
+
+
+def budget_draws(seed: int, attempts: int, temperature_range_C: tuple = (19.0, 22.0)) -> np.ndarray:
+    """(attempts, 2) the budget's Monte Carlo draws of attempts 1..``attempts``: the shop
+    temperature T (degC, uniform over ``temperature_range_C``) and the lobing phase (rad,
+    uniform), from ``np.random.default_rng(seed + 1000)`` in attempt order; attempt ``j``
+    runs the pipeline with ``seed + j`` (:func:`budget_run`). Any attempt is reproduced
+    alone, so a study can be resumed or split between processes."""
+    t_lo, t_hi = (float(t) for t in temperature_range_C)
+    rng = np.random.default_rng(seed + 1000)
+    out = np.empty((int(attempts), 2))
+    for j in range(int(attempts)):
+        out[j] = float(rng.uniform(t_lo, t_hi)), float(rng.uniform(0.0, 2.0 * np.pi))
+    return out
+
+
+def budget_run(name: str, j: int, *, seed: int = 1, u_stylus_um: float = 0.5, lobing_um: float = 0.25,
+               lobing_k: int = 3, temperature_range_C: tuple = (19.0, 22.0), bar_calibration=None,
+               bar_true_m=None) -> dict:
+    """Monte Carlo attempt ``j`` (1, 2, ...) of :func:`budget`: the whole pipeline with every
+    source drawn (:func:`budget_draws` for T and the lobing phase, ``seed + j`` for the rest).
+
+    Returns ``{"j", "T_C", "phase_rad", "error" (n,) identified - true (m, rad), "U95_lin" (n,)
+    the run's own linear U95}``, or ``{"j", "T_C", "phase_rad", "lost": message}`` when the
+    drawn placement puts the bar beyond the program's margins (a :class:`core.exceptions.PlanError`;
+    any other error raises).
+    """
+    from core.exceptions import PlanError
+
+    T, ph = budget_draws(seed, j, temperature_range_C)[j - 1]
+    a = float(lobing_um) * 1e-6
+    out = {"j": int(j), "T_C": float(T), "phase_rad": float(ph)}
+    try:
+        r = run(name, mc_runs=0, bar_calibration=bar_calibration, bar_true_m=bar_true_m, seed=seed + j,
+                u_stylus_um=u_stylus_um, lobing_m=((lobing_k, a * np.cos(ph), a * np.sin(ph)),),
+                bar_temperature_C=float(T), machine_temperature_C=float(T))
+    except PlanError as e:
+        # the drawn placement puts the bar beyond the program's margins (placement_margin_m, 5 sigma):
+        # on a machine the probe would strike or miss the bar and the operator would set it again
+        out["lost"] = str(e)
+        return out
+    out["error"] = r.result.theta - r.truth
+    out["U95_lin"] = r.unc.U95_lin
+    return out
+
+
+def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 6, u_stylus_um: float = 0.5,
+                  lobing_um: float = 0.25, lobing_k: int = 3, temperature_range_C: tuple = (19.0, 22.0),
+                  bar_calibration=None, bar_true_m=None, progress=None) -> dict:
+    """Each source's U95 share per parameter (:func:`budget`, one source at a time): ``U``
+    {source: (n,)}, ``U_temp`` (n,) bar and machine at one temperature, ``sens`` {source: (n,)}
+    per degC, ``keep`` (n,) bool (the 21 errors' values less the ones the conventions fix),
+    ``slices`` {symbol: (start, stop)}, ``t_rms``; m / rad."""
+    from core import volumetric as vol
+
+    t_lo, t_hi = _budget_settings(2, stylus_runs, temperature_range_C)
+    total = 6 + int(stylus_runs)
+    step = [0]
+
+    def go(**kw):
+        if progress is not None:
+            progress(step[0], total)
+        step[0] += 1
+        return run(name, mc_runs=0, bar_calibration=bar_calibration, bar_true_m=bar_true_m, **kw)
+
+    quiet = dict(noise_um=0.0, draw_inputs=False)
+    base = go(seed=seed, **quiet)
+    d = base.result.design
+    sigma = 0.125e-6
+    u_cal = (np.tile(np.asarray(inspect_default("u_cal_um"), float) * 1e-6, (12, 1))
+             if bar_calibration is None else np.asarray(bar_calibration.u_m, float))
+    U = {}
+    for src, (sg, uc, up) in {"probing noise": (sigma, 0 * u_cal, None),
+                              "bar calibration": (0.0, u_cal, None),
+                              "placement": (0.0, 0 * u_cal, np.asarray(U_PLACE, float))}.items():
+        U[src] = vol.uncertainty(base.result, base.meas, sg, uc, runs=0, u_place=up).U95_lin
+    full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float))
+    gauge = full_lin.U95_lin <= 1e-12  # values the conventions fix (zero U95 whatever the input)
+    th0 = base.result.theta
+    dst = np.array([go(seed=seed + 100 + k, u_stylus_um=u_stylus_um, **quiet).result.theta - th0
+                    for k in range(int(stylus_runs))])
+    U["stylus offsets"] = 2.0 * np.sqrt(np.mean(dst ** 2, axis=0))
+    a = float(lobing_um) * 1e-6
+    dc = go(seed=seed, lobing_m=((lobing_k, a, 0.0),), **quiet).result.theta - th0
+    ds = go(seed=seed, lobing_m=((lobing_k, 0.0, a),), **quiet).result.theta - th0
+    U["lobing"] = 2.0 * np.sqrt((dc ** 2 + ds ** 2) / 2.0)
+    t_rms = float(np.sqrt(((t_hi - 20.0) ** 3 - (t_lo - 20.0) ** 3) / (3.0 * (t_hi - t_lo)))) if t_hi > t_lo \
+        else abs(t_lo - 20.0)
+    sens = {"bar temperature": go(seed=seed, bar_temperature_C=21.0, **quiet).result.theta - th0,
+            "machine temperature": go(seed=seed, machine_temperature_C=21.0, **quiet).result.theta - th0}
+    for src, s_ in sens.items():
+        U[src] = 2.0 * np.abs(s_) * t_rms
+    # bar and machine share the shop's temperature: one source, their changes add with their signs
+    U_temp = 2.0 * np.abs(sens["bar temperature"] + sens["machine temperature"]) * t_rms
+    # the 21 errors' values (theta also holds each set-up's pose), less the ones the conventions fix
+    errs_idx = np.zeros(len(gauge), bool)
+    for s in (*vol.MOTION, *vol.SQUARENESS):
+        errs_idx[d.slices[s]] = True
+    if progress is not None:
+        progress(total, total)
+    return {"U": U, "U_temp": U_temp, "sens": sens, "keep": errs_idx & ~gauge, "t_rms": t_rms,
+            "slices": {s: (d.slices[s].start, d.slices[s].stop) for s in (*vol.MOTION, *vol.SQUARENESS)},
+            "stylus_runs": int(stylus_runs)}
+
+
+def budget_summary(name: str, shares: dict, errors, U95_lin, *, seed: int = 1, u_stylus_um: float = 0.5,
+                   lobing_um: float = 0.25, lobing_k: int = 3, temperature_range_C: tuple = (19.0, 22.0),
+                   runs_lost: list = (), runs_drawn: int | None = None) -> dict:
+    """The budget's table from the shares (:func:`budget_shares`) and the Monte Carlo runs'
+    ``errors`` (runs, n) identified - true and their own linear ``U95_lin`` (runs, n): a pure
+    function, so a stored study's summary can be recomputed from its per-run vectors."""
+    from core import iso, volumetric as vol
+
+    t_lo, t_hi = (float(t) for t in temperature_range_C)
+    errs, own = np.asarray(errors, float), np.asarray(U95_lin, float)
+    U, U_temp, keep, t_rms = shares["U"], shares["U_temp"], np.asarray(shares["keep"], bool), shares["t_rms"]
+    quad = np.sqrt(sum(U[s] ** 2 for s in BUDGET_SOURCES[:5]) + U_temp ** 2)
+    mc = 2.0 * np.sqrt(np.mean(errs ** 2, axis=0))
+    per = {}
+    for s in (*vol.MOTION, *vol.SQUARENESS):
+        sl = slice(*shares["slices"][s])
+        k = keep[sl]
+        if not np.any(k):
+            continue
+        q, m = quad[sl][k], mc[sl][k]
+        per[s] = {"unit": iso.symbol(s).report_unit,
+                  "U95": {src: float(U[src][sl][k].max() * 1e6) for src in BUDGET_SOURCES},
+                  "temperature_one_T": float(U_temp[sl][k].max() * 1e6),
+                  "quadrature": float(q.max() * 1e6), "mc": float(m.max() * 1e6),
+                  "mc_over_quadrature": float(m.max() / q.max()),
+                  "dominant": max(BUDGET_SOURCES, key=lambda src: float(U[src][sl][k].max()))}
+    ratio = mc[keep] / quad[keep]
+    inside = int(np.sum(np.abs(errs[:, keep]) <= quad[keep]))
+    inside_own = int(np.sum(np.abs(errs[:, keep]) <= own[:, keep]))
+    n = int(errs[:, keep].size)
+    runs = len(errs)
+    stylus_runs = shares["stylus_runs"]
+    return {"scenario": name, "sources": list(BUDGET_SOURCES), "mc_runs": runs, "stylus_runs": stylus_runs,
+            "seed": seed, "u_stylus_um": u_stylus_um, "lobing": {"k": lobing_k, "amplitude_um": lobing_um},
+            "temperature_range_C": [t_lo, t_hi], "temperature_rms_from_20_C": t_rms,
+            "machine_cte_per_C": MACHINE_CTE_PER_C, "bar_cte_per_C": 1.0e-6,
+            "method": ("Per source, its U95 share (k = 2, max over the nodes, gauge nodes left out): probing "
+                       "noise, bar calibration and placement by linear propagation through the estimator; "
+                       f"stylus offsets from {stylus_runs} noise-free pipeline runs with that draw alone "
+                       "(2 x RMS); lobing from 2 pipeline runs (cos and sin term, 2 x RMS over the phase); bar "
+                       "and machine temperature from one pipeline run at 21 degC each (2 x change per degC x "
+                       f"{t_rms:.2f} degC, the RMS of T - 20 over {t_lo:g}-{t_hi:g} degC; in the sum as one source, "
+                       f"bar and machine at the same T, their changes added with their signs). MC: {runs} "
+                       "runs of the whole pipeline with every source drawn, 2 x RMS of identified - true."),
+            "per_error": per, "runs_lost": list(runs_lost),
+            "runs_drawn": runs + len(runs_lost) if runs_drawn is None else int(runs_drawn),
+            "runs_lost_note": ("a run is lost when its drawn placement puts the bar beyond the program's approach "
+                               f"margins ({placement_margin_m() / MM:g} mm, 5 sigma of the placement at the far "
+                               "end): counted here and redrawn, as an operator would set the bar again"),
+            "ratio_range": [float(ratio.min()), float(np.median(ratio)), float(ratio.max())],
+            "coverage": {"within_quadrature_U95": f"{inside}/{n}", "fraction_quadrature": inside / n,
+                         "within_run_linear_U95": f"{inside_own}/{n}", "fraction_run_linear": inside_own / n,
+                         "note": "run linear U95: the noise, calibration and placement the identification "
+                                 "propagates (what vmt scenario reports without the budget)"},
+            "temperature_sensitivity_per_C": {
+                src: {s: float(np.abs(v[slice(*shares["slices"][s])]).max() * 1e6) for s in ("EXX", "EYY", "EZZ")}
+                for src, v in shares["sens"].items()}}
+
+
 def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_runs: int = 6,
            u_stylus_um: float = 0.5, lobing_um: float = 0.25, lobing_k: int = 3,
            temperature_range_C: tuple = (19.0, 22.0), bar_calibration=None, bar_true_m=None,
@@ -1433,124 +1606,35 @@ def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_
     ``{symbol: {unit, U95: {source: max over nodes}, quadrature, mc,
     mc_over_quadrature}}``, ``coverage``, ``ratio_range`` and the settings.
     """
-    from core import iso, volumetric as vol
-    from core.exceptions import ConfigError, PlanError
+    from core.exceptions import PlanError
 
-    if int(mc_runs) < 2 or int(stylus_runs) < 2:
-        raise ConfigError(f"budget: mc_runs and stylus_runs must be >= 2, got {mc_runs!r}, {stylus_runs!r}")
-    t_lo, t_hi = (float(t) for t in temperature_range_C)
-    if not (np.isfinite(t_lo) and np.isfinite(t_hi) and t_lo <= t_hi):
-        raise ConfigError(f"budget: temperature_range_C must be (low, high), got {temperature_range_C!r}")
+    _budget_settings(mc_runs, stylus_runs, temperature_range_C)
+    kw = dict(seed=seed, u_stylus_um=u_stylus_um, lobing_um=lobing_um, lobing_k=lobing_k,
+              temperature_range_C=temperature_range_C, bar_calibration=bar_calibration, bar_true_m=bar_true_m)
     total = 6 + int(stylus_runs) + int(mc_runs)
-    step = [0]
-
-    def go(**kw):
-        if progress is not None:
-            progress(step[0], total)
-        step[0] += 1
-        return run(name, mc_runs=0, bar_calibration=bar_calibration, bar_true_m=bar_true_m, **kw)
-
-    quiet = dict(noise_um=0.0, draw_inputs=False)
-    base = go(seed=seed, **quiet)
-    d = base.result.design
-    gauge = None
-    sigma = 0.125e-6
-    u_cal = (np.tile(np.asarray(inspect_default("u_cal_um"), float) * 1e-6, (12, 1))
-             if bar_calibration is None else np.asarray(bar_calibration.u_m, float))
-    U = {}
-    for src, (sg, uc, up) in {"probing noise": (sigma, 0 * u_cal, None),
-                              "bar calibration": (0.0, u_cal, None),
-                              "placement": (0.0, 0 * u_cal, np.asarray(U_PLACE, float))}.items():
-        U[src] = vol.uncertainty(base.result, base.meas, sg, uc, runs=0, u_place=up).U95_lin
-    full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float))
-    gauge = full_lin.U95_lin <= 1e-12  # values the conventions fix (zero U95 whatever the input)
-    th0 = base.result.theta
-    dst = np.array([go(seed=seed + 100 + k, u_stylus_um=u_stylus_um, **quiet).result.theta - th0
-                    for k in range(int(stylus_runs))])
-    U["stylus offsets"] = 2.0 * np.sqrt(np.mean(dst ** 2, axis=0))
-    a = float(lobing_um) * 1e-6
-    dc = go(seed=seed, lobing_m=((lobing_k, a, 0.0),), **quiet).result.theta - th0
-    ds = go(seed=seed, lobing_m=((lobing_k, 0.0, a),), **quiet).result.theta - th0
-    U["lobing"] = 2.0 * np.sqrt((dc ** 2 + ds ** 2) / 2.0)
-    t_rms = float(np.sqrt(((t_hi - 20.0) ** 3 - (t_lo - 20.0) ** 3) / (3.0 * (t_hi - t_lo)))) if t_hi > t_lo \
-        else abs(t_lo - 20.0)
-    sens = {"bar temperature": go(seed=seed, bar_temperature_C=21.0, **quiet).result.theta - th0,
-            "machine temperature": go(seed=seed, machine_temperature_C=21.0, **quiet).result.theta - th0}
-    for src, s_ in sens.items():
-        U[src] = 2.0 * np.abs(s_) * t_rms
-    # bar and machine share the shop's temperature: one source, their changes add with their signs
-    U_temp = 2.0 * np.abs(sens["bar temperature"] + sens["machine temperature"]) * t_rms
-    quad = np.sqrt(sum(U[s] ** 2 for s in BUDGET_SOURCES[:5]) + U_temp ** 2)
-    rng = np.random.default_rng(seed + 1000)
-    errs, own, lost = [], [], []
+    shares = budget_shares(name, stylus_runs=stylus_runs, **kw,
+                           progress=None if progress is None else (lambda k, _n: progress(k, total)))
+    runs, lost = [], []
     j = 0
-    while len(errs) < int(mc_runs):
-        T = float(rng.uniform(t_lo, t_hi))
-        ph = float(rng.uniform(0.0, 2.0 * np.pi))
+    while len(runs) < int(mc_runs):
         j += 1
-        try:
-            r = go(seed=seed + j, u_stylus_um=u_stylus_um, lobing_m=((lobing_k, a * np.cos(ph), a * np.sin(ph)),),
-                   bar_temperature_C=T, machine_temperature_C=T)
-        except PlanError as e:
-            # the drawn placement puts the bar beyond the program's margins (placement_margin_m, 5 sigma):
-            # on a machine the probe would strike or miss the bar and the operator would set it again. Counted
-            # and redrawn (the placement distribution is truncated there); any other error is a bug and raises.
-            lost.append({"seed": seed + j, "error": str(e)})
+        if progress is not None:
+            progress(6 + int(stylus_runs) + len(runs), total)
+        r = budget_run(name, j, **kw)
+        if "lost" in r:
+            # counted and redrawn (the placement distribution is truncated there); any other error is a
+            # bug and raises (in budget_run)
+            lost.append({"seed": seed + j, "error": r["lost"]})
             if len(lost) > max(2, int(mc_runs) // 5):
-                raise
+                raise PlanError(f"budget: {len(lost)} of {j} runs lost (the bar beyond the program's margins): "
+                                  + r["lost"])
             continue
-        errs.append(r.result.theta - r.truth)
-        own.append(r.unc.U95_lin)
-    errs, own = np.array(errs), np.array(own)
-    mc = 2.0 * np.sqrt(np.mean(errs ** 2, axis=0))
-    # the 21 errors' values (theta also holds each set-up's pose), less the ones the conventions fix
-    errs_idx = np.zeros(len(gauge), bool)
-    for s in (*vol.MOTION, *vol.SQUARENESS):
-        errs_idx[d.slices[s]] = True
-    keep = errs_idx & ~gauge
-    per = {}
-    for s in (*vol.MOTION, *vol.SQUARENESS):
-        sl = d.slices[s]
-        k = keep[sl]
-        if not np.any(k):
-            continue
-        q, m = quad[sl][k], mc[sl][k]
-        per[s] = {"unit": iso.symbol(s).report_unit,
-                  "U95": {src: float(U[src][sl][k].max() * 1e6) for src in BUDGET_SOURCES},
-                  "temperature_one_T": float(U_temp[sl][k].max() * 1e6),
-                  "quadrature": float(q.max() * 1e6), "mc": float(m.max() * 1e6),
-                  "mc_over_quadrature": float(m.max() / q.max()),
-                  "dominant": max(BUDGET_SOURCES, key=lambda src: float(U[src][sl][k].max()))}
-    ratio = mc[keep] / quad[keep]
-    inside = int(np.sum(np.abs(errs[:, keep]) <= quad[keep]))
-    inside_own = int(np.sum(np.abs(errs[:, keep]) <= own[:, keep]))
-    n = int(errs[:, keep].size)
+        runs.append(r)
     if progress is not None:
         progress(total, total)
-    return {"scenario": name, "sources": list(BUDGET_SOURCES), "mc_runs": int(mc_runs), "stylus_runs": int(stylus_runs),
-            "seed": seed, "u_stylus_um": u_stylus_um, "lobing": {"k": lobing_k, "amplitude_um": lobing_um},
-            "temperature_range_C": [t_lo, t_hi], "temperature_rms_from_20_C": t_rms,
-            "machine_cte_per_C": MACHINE_CTE_PER_C, "bar_cte_per_C": 1.0e-6,
-            "method": ("Per source, its U95 share (k = 2, max over the nodes, gauge nodes left out): probing "
-                       "noise, bar calibration and placement by linear propagation through the estimator; "
-                       f"stylus offsets from {int(stylus_runs)} noise-free pipeline runs with that draw alone "
-                       "(2 x RMS); lobing from 2 pipeline runs (cos and sin term, 2 x RMS over the phase); bar "
-                       "and machine temperature from one pipeline run at 21 degC each (2 x change per degC x "
-                       f"{t_rms:.2f} degC, the RMS of T - 20 over {t_lo:g}-{t_hi:g} degC; in the sum as one source, "
-                       f"bar and machine at the same T, their changes added with their signs). MC: {int(mc_runs)} "
-                       "runs of the whole pipeline with every source drawn, 2 x RMS of identified - true."),
-            "per_error": per, "runs_lost": lost, "runs_drawn": j,
-            "runs_lost_note": ("a run is lost when its drawn placement puts the bar beyond the program's approach "
-                               f"margins ({placement_margin_m() / MM:g} mm, 5 sigma of the placement at the far "
-                               "end): counted here and redrawn, as an operator would set the bar again"),
-            "ratio_range": [float(ratio.min()), float(np.median(ratio)), float(ratio.max())],
-            "coverage": {"within_quadrature_U95": f"{inside}/{n}", "fraction_quadrature": inside / n,
-                         "within_run_linear_U95": f"{inside_own}/{n}", "fraction_run_linear": inside_own / n,
-                         "note": "run linear U95: the noise, calibration and placement the identification "
-                                 "propagates (what vmt scenario reports without the budget)"},
-            "temperature_sensitivity_per_C": {
-                src: {s: float(np.abs(v[d.slices[s]]).max() * 1e6) for s in ("EXX", "EYY", "EZZ")}
-                for src, v in sens.items()}}
+    kw.pop("bar_calibration"), kw.pop("bar_true_m")
+    return budget_summary(name, shares, [r["error"] for r in runs], [r["U95_lin"] for r in runs],
+                          runs_lost=lost, runs_drawn=j, **kw)
 
 
 def describe_budget(b: dict) -> str:
@@ -1580,3 +1664,99 @@ def inspect_default(param: str):
     import inspect
 
     return inspect.signature(run).parameters[param].default
+
+
+# --------------------------------------------------------------------------- a long budget study, resumable
+def _npz_atomic(path, **arrays):
+    """Write an .npz by a temporary file renamed over ``path`` (a run is whole or absent)."""
+    import os
+    from pathlib import Path
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as f:
+        np.savez_compressed(f, **arrays)
+    os.replace(tmp, path)
+    return path
+
+
+def _study_attempt(task):
+    """One Monte Carlo attempt of a study, written to its own file (for :func:`budget_study`'s workers)."""
+    name, j, directory, kw = task
+    from pathlib import Path
+
+    path = Path(directory) / f"run-{j:05d}.npz"
+    if path.exists():
+        return j
+    r = budget_run(name, j, **kw)
+    if "lost" in r:
+        _npz_atomic(path, j=j, T_C=r["T_C"], phase_rad=r["phase_rad"], lost=np.array(r["lost"]))
+    else:
+        _npz_atomic(path, j=j, T_C=r["T_C"], phase_rad=r["phase_rad"], error=r["error"], U95_lin=r["U95_lin"])
+    return j
+
+
+def budget_study(name: str, directory, runs: int = 1000, *, workers: int = 1, seed: int = 1, stylus_runs: int = 6,
+                 chunk: int = 8, progress=None, **kw) -> dict:
+    """:func:`budget` with ``runs`` Monte Carlo runs, each run written to ``directory`` as it ends
+    (``run-NNNNN.npz``; the shares to ``shares.npz``): interrupted, it resumes where it stopped and
+    loses at most the runs in progress. Attempts run in order (``workers`` processes,
+    :func:`scenarios.parallel.pmap`), each from its own seed (:func:`budget_draws`), so the result does
+    not depend on the workers or on the interruptions. Returns :func:`study_arrays` of what is done."""
+    from pathlib import Path
+
+    from scenarios.parallel import pmap
+
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    settings = dict(seed=seed, **kw)
+    if not (d / "shares.npz").exists():
+        sh = budget_shares(name, stylus_runs=stylus_runs, **settings)
+        _npz_atomic(d / "shares.npz", keep=sh["keep"], U_temp=sh["U_temp"], t_rms=sh["t_rms"],
+                    stylus_runs=sh["stylus_runs"], slices=np.array([(s, *v) for s, v in sh["slices"].items()], object),
+                    **{f"U:{s}": v for s, v in sh["U"].items()}, **{f"sens:{s}": v for s, v in sh["sens"].items()})
+    kw_run = {k: v for k, v in settings.items()}
+    while True:
+        st = study_arrays(d)
+        ok = int(st["ok"].sum())
+        if ok >= runs:
+            return st
+        if progress is not None:
+            progress(ok, runs)
+        done = {int(p.stem[4:]) for p in d.glob("run-*.npz")}
+        todo, j = [], 0
+        while len(todo) < max(1, workers) * chunk:
+            j += 1
+            if j not in done:
+                todo.append(j)
+        todo = todo[:max(1, min(len(todo), (runs - ok) + 2))]
+        pmap(_study_attempt, [(name, j, str(d), kw_run) for j in todo], workers=workers)
+
+
+def study_arrays(directory, runs: int | None = None) -> dict:
+    """The runs of a study directory (:func:`budget_study`) as arrays: the attempts 1..J of the
+    longest complete prefix, ``ok`` (J,) bool, ``T_C``, ``phase_rad`` (J,), ``error`` and
+    ``U95_lin`` (runs ok, n), ``lost`` [(j, message)]; at most ``runs`` runs that are ok."""
+    from pathlib import Path
+
+    d = Path(directory)
+    js = sorted(int(p.stem[4:]) for p in d.glob("run-*.npz"))
+    J = 0
+    while J < len(js) and js[J] == J + 1:
+        J += 1
+    ok, T, ph, err, own, lost = [], [], [], [], [], []
+    for j in range(1, J + 1):
+        if runs is not None and len(err) >= runs:
+            break
+        with np.load(d / f"run-{j:05d}.npz") as z:
+            T.append(float(z["T_C"]))
+            ph.append(float(z["phase_rad"]))
+            if "lost" in z.files:
+                ok.append(False)
+                lost.append((j, str(z["lost"])))
+            else:
+                ok.append(True)
+                err.append(z["error"])
+                own.append(z["U95_lin"])
+    return {"ok": np.array(ok, bool), "T_C": np.array(T), "phase_rad": np.array(ph),
+            "error": np.array(err), "U95_lin": np.array(own), "lost": lost}
