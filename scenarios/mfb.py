@@ -1688,11 +1688,14 @@ def _study_attempt(task):
     path = Path(directory) / f"run-{j:05d}.npz"
     if path.exists():
         return j
+    t0, c0 = time.perf_counter(), time.process_time()
     r = budget_run(name, j, **kw)
+    spent = dict(wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0)
     if "lost" in r:
-        _npz_atomic(path, j=j, T_C=r["T_C"], phase_rad=r["phase_rad"], lost=np.array(r["lost"]))
+        _npz_atomic(path, j=j, T_C=r["T_C"], phase_rad=r["phase_rad"], lost=np.array(r["lost"]), **spent)
     else:
-        _npz_atomic(path, j=j, T_C=r["T_C"], phase_rad=r["phase_rad"], error=r["error"], U95_lin=r["U95_lin"])
+        _npz_atomic(path, j=j, T_C=r["T_C"], phase_rad=r["phase_rad"], error=r["error"], U95_lin=r["U95_lin"],
+                    **spent)
     return j
 
 
