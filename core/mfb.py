@@ -188,7 +188,7 @@ def _group(feature) -> dict:
     return {f: np.asarray(v) for f, v in out.items()}
 
 
-def fit_bar_features(p_R, feature, n_R) -> BarFeatures:
+def fit_bar_features(p_R, feature, n_R, *, batched: bool = False) -> BarFeatures:
     """Least-squares features of one placement (cylinders App. A, planes App. B).
 
     Parameters
@@ -200,7 +200,17 @@ def fit_bar_features(p_R, feature, n_R) -> BarFeatures:
         (others ignored).
     n_R : (n, 3) float
         Nominal outward normals (used for the axis hints and the probed side).
+    batched : bool
+        Fit the features that share a kind, a touch count and a hint (every
+        hole, every rod, every left / right face of a placement) in one call
+        (:func:`core.fit.cylinders_point_axis`, :func:`core.fit.planes_point_normal`):
+        the same iteration per feature, the same answer to rounding (not bit
+        for bit), without the single fits' checks (coincident or collinear
+        points, rank): only for touches known good, e.g. simulated touches
+        each checked to trigger on its target (:func:`scenarios.mfb.run`).
     """
+    if batched:
+        return _fit_bar_features_batched(p_R, feature, n_R)
     p_R = np.asarray(p_R, float)
     n_R = np.asarray(n_R, float)
     if p_R.ndim != 2 or p_R.shape[1] != 3 or n_R.shape != p_R.shape or len(feature) != len(p_R):
@@ -223,6 +233,45 @@ def fit_bar_features(p_R, feature, n_R) -> BarFeatures:
             raise FitError(f"MFB feature {f!r}: {e}") from None
     side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
     return BarFeatures(hp, ha, rp, ra, fp, fn, side)
+
+
+def _fit_bar_features_batched(p_R, feature, n_R) -> BarFeatures:
+    """:func:`fit_bar_features` with ``batched=True``."""
+    p_R = np.asarray(p_R, float)
+    n_R = np.asarray(n_R, float)
+    if p_R.ndim != 2 or p_R.shape[1] != 3 or n_R.shape != p_R.shape or len(feature) != len(p_R):
+        raise ConfigError(f"MFB features: p_R, n_R must be (n, 3) and feature (n,), got "
+                          f"{p_R.shape}, {n_R.shape}, {len(feature)}")
+    if not np.all(np.isfinite(p_R)):
+        raise ConfigError("MFB features: p_R holds non-finite positions (drop invalid touches first)")
+    groups: dict = {}  # (kind, touches, hint bytes) -> [(key, idx)]
+    rod_normals = []
+    for f, idx in _group(feature).items():
+        if (i := _num(f, "hole")) is not None:
+            kind, key, hint = "hole", i, _axis_hint(n_R[idx])
+        elif (j := _num(f, "rod")) is not None:
+            kind, key, hint = "rod", j, _axis_hint(n_R[idx])
+            rod_normals.append(n_R[idx])
+        elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
+            kind, key, hint = "face", (f[4], j), n_R[idx].mean(axis=0)
+        else:
+            continue
+        groups.setdefault((kind, len(idx), hint.tobytes()), []).append((key, idx, hint, f))
+    out = {"hole": ({}, {}), "rod": ({}, {}), "face": ({}, {})}
+    for (kind, _, _), items in groups.items():
+        pts = np.stack([p_R[idx] for _, idx, _, _ in items])
+        hint = items[0][2]
+        try:
+            if kind == "face":
+                pt, ax = planes_point_normal(pts, normal_hint=hint)
+            else:
+                pt, ax = cylinders_point_axis(pts, axis_hint=hint)
+        except FitError as e:
+            raise FitError(f"MFB features {', '.join(f for *_, f in items)}: {e}") from None
+        for k, (key, *_) in enumerate(items):
+            out[kind][0][key], out[kind][1][key] = pt[k], ax[k]
+    side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
+    return BarFeatures(*out["hole"], *out["rod"], *out["face"], side)
 
 
 def _rod_points(bf: BarFeatures, j: int) -> np.ndarray:
@@ -278,7 +327,8 @@ def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB) -> PointsOfInter
     return PointsOfInterest(tuple(holes), O_R, O_M, T, (ia, ib), orient, found)
 
 
-def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str | None = None) -> PointsOfInterest:
+def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str | None = None, *,
+                       batched: bool = False) -> PointsOfInterest:
     """O_i of one placement from its touches (Viprey 2016, section 2.1).
 
     Parameters
@@ -293,12 +343,14 @@ def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str
     declared : str, optional
         Declared orientation; if given and the shifted holes say otherwise,
         :class:`OrientationError` names them.
+    batched : bool
+        The features fitted in batches (:func:`fit_bar_features`: touches known good only).
 
     Returns
     -------
     PointsOfInterest
     """
-    poi = poi_from_features(fit_bar_features(p_R, feature, n_R), geom)
+    poi = poi_from_features(fit_bar_features(p_R, feature, n_R, batched=batched), geom)
     if declared is not None:
         check_orientation(poi.orientation, poi.shifted_found, declared, geom)
     return poi

@@ -680,10 +680,13 @@ def _check_touches_ok(log, name, program):
                         f"{program['clearance_m'] / MM:g} mm, overshoot {program['overshoot_m'] / MM:g} mm)")
 
 
-def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM):
+def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM, full=None):
+    """The touches of ``holes`` of the bar ``art`` (and of the rods and faces their planes need),
+    selected from ``full`` (default: :func:`sim.plans.mfb_plan` of ``art`` with these margins)."""
     from sim.plans import mfb_plan
 
-    full = mfb_plan(art, clearance_m=clearance_m, overshoot_m=overshoot_m)
+    if full is None:
+        full = mfb_plan(art, clearance_m=clearance_m, overshoot_m=overshoot_m)
     hs = set(holes)
     # the rods each probed hole's plane PL_i needs: (i-1, i), (1, 2) for hole 1
     lo, hi = min(holes), max(holes)
@@ -845,6 +848,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     from core.touches import from_log
     from sim import artefacts as A
     from sim.campaign import simulate_campaign
+    from sim.plans import mfb_plan
     from sim.setups import Setup
     from sim.machine import Machine
     from sim.probe import ProbeConfig
@@ -914,6 +918,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     collision = check_plan(plan) if plan.fixtures else None  # after the inputs are checked
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
+    plans, full_plans = {}, {}  # full_plans holds each bar (its id is the key) for the run
     T_true = {}
     for p in plan.placements:  # bar placement errors (by hand on the table), roll included
         T = next(m.T_W_A for m in plan.measurements if m.placement == p)
@@ -938,7 +943,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         art_i, probe_i = art, probe
         if hook is not None:
             art_i, probe_i, m = hook(len(meas), ms, art, probe, m)
-        pl = _plan_for(art_i, ms.holes, **program)
+        if (id(art_i), ms.holes) not in plans:  # the bar's full program once per bar, its part per hole set
+            if id(art_i) not in full_plans:
+                full_plans[id(art_i)] = (art_i, mfb_plan(art_i, **program))
+            plans[id(art_i), ms.holes] = _plan_for(art_i, ms.holes, **program, full=full_plans[id(art_i)][1])
+        pl = plans[id(art_i), ms.holes]
         log = simulate_campaign(art_i, _NoSafeHeight(m), probe_i, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
                                 rng if noisy else None, plan=pl, check_collisions=False)
         _check_touch_strokes(log, m, ms.name)
@@ -950,7 +959,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         # this stylus is off by dJ (the tool does not turn on these chains). (A machine
         # built with J + dJ would move and read with the same offsets: no error at all.)
         p_R = t.p_R + dJ[ms.stylus]
-        poi = mfb.points_of_interest(p_R, t.feature, t.n_R)
+        # simulated touches, each checked to trigger on its target: fitted in batches (to rounding)
+        poi = mfb.points_of_interest(p_R, t.feature, t.n_R, batched=True)
         # the touches that were fitted (valid ones, plan order) and the gain of the
         # extraction at their nominal places (A frame, stylus centres)
         pl_ok = pl.select(np.asarray(log.ok, bool))
@@ -1763,3 +1773,81 @@ def study_arrays(directory, runs: int | None = None) -> dict:
                 own.append(z["U95_lin"])
     return {"ok": np.array(ok, bool), "T_C": np.array(T), "phase_rad": np.array(ph),
             "error": np.array(err), "U95_lin": np.array(own), "lost": lost}
+
+
+def _shares_from(z) -> dict:
+    """The shares (:func:`budget_shares`) back from an .npz written by :func:`budget_study`."""
+    U = {s: z[f"U:{s}"] for s in BUDGET_SOURCES}
+    sens = {s: z[f"sens:{s}"] for s in ("bar temperature", "machine temperature")}
+    slices = {str(r[0]): (int(r[1]), int(r[2])) for r in z["slices"]}
+    return {"U": U, "U_temp": z["U_temp"], "sens": sens, "keep": z["keep"].astype(bool), "t_rms": float(z["t_rms"]),
+            "slices": slices, "stylus_runs": int(z["stylus_runs"])}
+
+
+def assemble_study(directory, path, runs: int | None = None, *, name: str = "mfb-3axis", seed: int = 1) -> dict:
+    """One compressed .npz of a study directory (:func:`budget_study`): its shares, every attempt's
+    draw (T, lobing phase, ok), the ok runs' ``error`` (runs, n) float64 and ``U95_lin`` float32, the
+    lost runs' messages, each run's CPU seconds. Returns :func:`study_report` of it."""
+    from pathlib import Path
+
+    d = Path(directory)
+    st = study_arrays(d, runs)
+    with np.load(d / "shares.npz", allow_pickle=True) as z:
+        sh = {k: z[k] for k in z.files}
+    J = len(st["ok"])
+    cpu = []
+    for j in range(1, J + 1):
+        with np.load(d / f"run-{j:05d}.npz") as z:
+            cpu.append(float(z["cpu_s"]) if "cpu_s" in z.files else np.nan)
+    _npz_atomic(path, name=np.array(name), seed=seed, attempt_T_C=st["T_C"], attempt_phase_rad=st["phase_rad"],
+                attempt_ok=st["ok"], attempt_cpu_s=np.array(cpu), error=st["error"],
+                U95_lin=st["U95_lin"].astype(np.float32),
+                lost_j=np.array([j for j, _ in st["lost"]], int), lost_message=np.array([m for _, m in st["lost"]]),
+                **sh)
+    return study_report(path)
+
+
+def study_report(path) -> dict:
+    """The budget table (:func:`budget_summary`) recomputed from a stored study (:func:`assemble_study`),
+    with the Monte Carlo's own checks (JCGM 101):
+
+    - ``mc_percentile``: per error, the max over its nodes of the 95th percentile of |error| (the
+      half-width covering 95 % of the runs), beside 2 x RMS (``mc``);
+    - ``coverage["within_mc_U95"]``: the runs' errors within the MC's 2 x RMS;
+    - ``stability``: 2 x RMS of the first and of the second half of the runs per parameter, their
+      difference over its standard error (sqrt of the two halves' squared standard errors, each
+      U / sqrt(2 n) for a normal spread): the fraction within 1 and 2 standard errors (0.68 / 0.95
+      expected when stable), and per error the largest relative difference of the halves' maxima;
+    - ``temperature_draws``: the runs' RMS of T - 20 degC and mean T.
+    """
+    with np.load(path, allow_pickle=True) as z:
+        shares = _shares_from(z)
+        err, own = z["error"], z["U95_lin"].astype(float)
+        ok, T = z["attempt_ok"], z["attempt_T_C"]
+        lost = [{"seed": int(z["seed"]) + int(j), "error": str(m)} for j, m in zip(z["lost_j"], z["lost_message"])]
+        name, seed, cpu = str(z["name"]), int(z["seed"]), z["attempt_cpu_s"]
+    b = budget_summary(name, shares, err, own, seed=seed, runs_lost=lost, runs_drawn=len(ok))
+    keep = shares["keep"]
+    n_runs = len(err)
+    mc = 2.0 * np.sqrt(np.mean(err ** 2, axis=0))
+    p95 = np.percentile(np.abs(err), 95.0, axis=0)
+    half = n_runs // 2
+    U1 = 2.0 * np.sqrt(np.mean(err[:half] ** 2, axis=0))
+    U2 = 2.0 * np.sqrt(np.mean(err[half:2 * half] ** 2, axis=0))
+    se = np.sqrt(U1 ** 2 / (2 * half) + U2 ** 2 / (2 * half))
+    z_ = np.abs(U1 - U2)[keep] / se[keep]
+    per_half = {}
+    for s, c in b["per_error"].items():
+        sl = slice(*shares["slices"][s])
+        k = keep[sl]
+        c["mc_percentile"] = float(p95[sl][k].max() * 1e6)
+        a, bb = float(U1[sl][k].max()), float(U2[sl][k].max())
+        per_half[s] = {"first": a * 1e6, "second": bb * 1e6, "relative_difference": abs(a - bb) / max(a, bb)}
+    b["coverage"]["within_mc_U95"] = f"{int(np.sum(np.abs(err[:, keep]) <= mc[keep]))}/{err[:, keep].size}"
+    b["stability"] = {"runs_per_half": half, "within_1_se": float(np.mean(z_ <= 1.0)),
+                      "within_2_se": float(np.mean(z_ <= 2.0)), "max_over_se": float(z_.max()),
+                      "per_error_max_U95_halves": per_half}
+    Tk = T[ok]
+    b["temperature_draws"] = {"rms_from_20_C": float(np.sqrt(np.mean((Tk - 20.0) ** 2))), "mean_C": float(Tk.mean())}
+    b["cpu_s_per_run_median"] = float(np.nanmedian(cpu)) if np.any(np.isfinite(cpu)) else None
+    return b
