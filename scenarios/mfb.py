@@ -1533,6 +1533,8 @@ def budget_summary(name: str, shares: dict, errors, U95_lin, *, seed: int = 1, u
     mc = 2.0 * np.sqrt(np.mean(errs ** 2, axis=0))
     per = {}
     for s in (*vol.MOTION, *vol.SQUARENESS):
+        if s not in shares["slices"]:
+            continue
         sl = slice(*shares["slices"][s])
         k = keep[sl]
         if not np.any(k):
@@ -1573,7 +1575,8 @@ def budget_summary(name: str, shares: dict, errors, U95_lin, *, seed: int = 1, u
                          "note": "run linear U95: the noise, calibration and placement the identification "
                                  "propagates (what vmt scenario reports without the budget)"},
             "temperature_sensitivity_per_C": {
-                src: {s: float(np.abs(v[slice(*shares["slices"][s])]).max() * 1e6) for s in ("EXX", "EYY", "EZZ")}
+                src: {s: float(np.abs(v[slice(*shares["slices"][s])]).max() * 1e6) for s in ("EXX", "EYY", "EZZ")
+                      if s in shares["slices"]}
                 for src, v in shares["sens"].items()}}
 
 
@@ -1730,19 +1733,18 @@ def budget_study(name: str, directory, runs: int = 1000, *, workers: int = 1, se
                     **{f"U:{s}": v for s, v in sh["U"].items()}, **{f"sens:{s}": v for s, v in sh["sens"].items()})
     kw_run = {k: v for k, v in settings.items()}
     while True:
-        st = study_arrays(d)
+        st = study_arrays(d, runs)
         ok = int(st["ok"].sum())
         if ok >= runs:
             return st
         if progress is not None:
             progress(ok, runs)
         done = {int(p.stem[4:]) for p in d.glob("run-*.npz")}
-        todo, j = [], 0
-        while len(todo) < max(1, workers) * chunk:
-            j += 1
-            if j not in done:
-                todo.append(j)
-        todo = todo[:max(1, min(len(todo), (runs - ok) + 2))]
+        top = max(done, default=0)
+        size = max(1, workers) * chunk
+        # the holes an interruption left first, then new attempts (a couple beyond the need, for lost runs)
+        todo = [j for j in range(1, top + 1) if j not in done][:size] or \
+            list(range(top + 1, top + 1 + max(1, min(size, runs - ok + 2))))
         pmap(_study_attempt, [(name, j, str(d), kw_run) for j in todo], workers=workers)
 
 
@@ -1818,7 +1820,9 @@ def study_report(path) -> dict:
       difference over its standard error (sqrt of the two halves' squared standard errors, each
       U / sqrt(2 n) for a normal spread): the fraction within 1 and 2 standard errors (0.68 / 0.95
       expected when stable), and per error the largest relative difference of the halves' maxima;
-    - ``temperature_draws``: the runs' RMS of T - 20 degC and mean T.
+    - ``temperature_draws``: the runs' RMS of T - 20 degC and mean T;
+    - per error ``linear``: the max over its nodes of the runs' mean own linear U95 (noise,
+      calibration, placement: what ``vmt scenario`` reports).
     """
     with np.load(path, allow_pickle=True) as z:
         shares = _shares_from(z)
@@ -1837,10 +1841,12 @@ def study_report(path) -> dict:
     se = np.sqrt(U1 ** 2 / (2 * half) + U2 ** 2 / (2 * half))
     z_ = np.abs(U1 - U2)[keep] / se[keep]
     per_half = {}
+    lin = own.mean(axis=0)
     for s, c in b["per_error"].items():
         sl = slice(*shares["slices"][s])
         k = keep[sl]
         c["mc_percentile"] = float(p95[sl][k].max() * 1e6)
+        c["linear"] = float(lin[sl][k].max() * 1e6)
         a, bb = float(U1[sl][k].max()), float(U2[sl][k].max())
         per_half[s] = {"first": a * 1e6, "second": bb * 1e6, "relative_difference": abs(a - bb) / max(a, bb)}
     b["coverage"]["within_mc_U95"] = f"{int(np.sum(np.abs(err[:, keep]) <= mc[keep]))}/{err[:, keep].size}"
@@ -1851,3 +1857,24 @@ def study_report(path) -> dict:
     b["temperature_draws"] = {"rms_from_20_C": float(np.sqrt(np.mean((Tk - 20.0) ** 2))), "mean_C": float(Tk.mean())}
     b["cpu_s_per_run_median"] = float(np.nanmedian(cpu)) if np.any(np.isfinite(cpu)) else None
     return b
+
+
+def study_table_markdown(rep: dict) -> str:
+    """The stored study's table for docs/papers-mfb.md (:func:`study_report`): per error each
+    source's U95 share, bar and machine at one temperature, their quadrature sum, the run's own
+    linear U95, the Monte Carlo (2 x RMS and the 95th percentile of |error|), MC / sum."""
+    short = {"probing noise": "noise", "bar calibration": "bar cal", "placement": "place",
+             "stylus offsets": "stylus", "lobing": "lobing", "bar temperature": "T bar",
+             "machine temperature": "T mach"}
+    head = (["error", "unit"] + [short[s] for s in rep["sources"]]
+            + ["T one", "sum", "linear", "MC 2xRMS", "MC p95", "MC/sum", "halves"])
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    halves = rep["stability"]["per_error_max_U95_halves"]
+    for s, c in rep["per_error"].items():
+        h = halves[s]
+        row = ([s, c["unit"]] + [f"{c['U95'][k]:.2f}" for k in rep["sources"]]
+               + [f"{c['temperature_one_T']:.2f}", f"{c['quadrature']:.2f}", f"{c['linear']:.2f}",
+                  f"{c['mc']:.2f}", f"{c['mc_percentile']:.2f}", f"{c['mc_over_quadrature']:.2f}",
+                  f"{h['first']:.2f} / {h['second']:.2f}"])
+        lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines)
