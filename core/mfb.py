@@ -292,19 +292,22 @@ def _rod_pair(i: int, rods: set) -> tuple[int, int]:
     raise FitError(f"MFB: hole {i} has no two neighbouring rods measured (PL_{i} undefined)")
 
 
-def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB) -> PointsOfInterest:
-    """Points of interest and R_MFB from fitted features (section 2.1)."""
+def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB, *, batched: bool = False) -> PointsOfInterest:
+    """Points of interest and R_MFB from fitted features (section 2.1). ``batched``: the
+    planes PL_i of all holes in one call (:func:`core.fit.planes_point_normal`, to rounding;
+    without the single fit's checks: for features known good, :func:`fit_bar_features`)."""
     rods = set(bf.rod_point)
     holes = sorted(bf.hole_point)
     if len(holes) < 2 or len(rods) < 2:
         raise FitError(f"MFB: need at least 2 holes and 2 rods, got {len(holes)} and {len(rods)}")
     P = {j: _rod_points(bf, j) for j in sorted(rods)}
-    O_R = []
-    for i in holes:
-        a, b = _rod_pair(i, rods)
-        q, n = plane_point_normal(np.vstack([P[a], P[b]]), normal_hint=bf.probe_side)
-        O_R.append(_meet(bf.hole_point[i], bf.hole_axis[i], q, n))
-    O_R = np.array(O_R)
+    pairs = [_rod_pair(i, rods) for i in holes]
+    if batched:
+        qs, ns = planes_point_normal(np.stack([np.vstack([P[a], P[b]]) for a, b in pairs]),
+                                     normal_hint=bf.probe_side)
+    else:
+        qs, ns = zip(*(plane_point_normal(np.vstack([P[a], P[b]]), normal_hint=bf.probe_side) for a, b in pairs))
+    O_R = np.array([_meet(bf.hole_point[i], bf.hole_axis[i], q, n) for i, q, n in zip(holes, qs, ns)])
     # R_MFB: PL_ref through the P points of the first and last rods
     j0, j1 = min(rods), max(rods)
     ref_point, z = plane_point_normal(np.vstack([P[j0], P[j1]]),
@@ -350,7 +353,7 @@ def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str
     -------
     PointsOfInterest
     """
-    poi = poi_from_features(fit_bar_features(p_R, feature, n_R, batched=batched), geom)
+    poi = poi_from_features(fit_bar_features(p_R, feature, n_R, batched=batched), geom, batched=batched)
     if declared is not None:
         check_orientation(poi.orientation, poi.shifted_found, declared, geom)
     return poi

@@ -1717,11 +1717,10 @@ def budget_study(name: str, directory, runs: int = 1000, *, workers: int = 1, se
     """:func:`budget` with ``runs`` Monte Carlo runs, each run written to ``directory`` as it ends
     (``run-NNNNN.npz``; the shares to ``shares.npz``): interrupted, it resumes where it stopped and
     loses at most the runs in progress. Attempts run in order (``workers`` processes,
-    :func:`scenarios.parallel.pmap`), each from its own seed (:func:`budget_draws`), so the result does
+    one pool of spawned processes), each from its own seed (:func:`budget_draws`), so the result does
     not depend on the workers or on the interruptions. Returns :func:`study_arrays` of what is done."""
+    import contextlib
     from pathlib import Path
-
-    from scenarios.parallel import pmap
 
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
@@ -1731,21 +1730,30 @@ def budget_study(name: str, directory, runs: int = 1000, *, workers: int = 1, se
         _npz_atomic(d / "shares.npz", keep=sh["keep"], U_temp=sh["U_temp"], t_rms=sh["t_rms"],
                     stylus_runs=sh["stylus_runs"], slices=np.array([(s, *v) for s, v in sh["slices"].items()], object),
                     **{f"U:{s}": v for s, v in sh["U"].items()}, **{f"sens:{s}": v for s, v in sh["sens"].items()})
-    kw_run = {k: v for k, v in settings.items()}
-    while True:
-        st = study_arrays(d, runs)
-        ok = int(st["ok"].sum())
-        if ok >= runs:
-            return st
-        if progress is not None:
-            progress(ok, runs)
-        done = {int(p.stem[4:]) for p in d.glob("run-*.npz")}
-        top = max(done, default=0)
-        size = max(1, workers) * chunk
-        # the holes an interruption left first, then new attempts (a couple beyond the need, for lost runs)
-        todo = [j for j in range(1, top + 1) if j not in done][:size] or \
-            list(range(top + 1, top + 1 + max(1, min(size, runs - ok + 2))))
-        pmap(_study_attempt, [(name, j, str(d), kw_run) for j in todo], workers=workers)
+    with contextlib.ExitStack() as stack:
+        mapper = map
+        if workers > 1:
+            # one pool for the whole study: its processes keep their imports and first-use caches
+            # (the extraction's gains, the nominal design, the 5-axis collision check)
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            mapper = stack.enter_context(ProcessPoolExecutor(max_workers=workers,
+                                                             mp_context=mp.get_context("spawn"))).map
+        while True:
+            st = study_arrays(d, runs)
+            ok = int(st["ok"].sum())
+            if ok >= runs:
+                return st
+            if progress is not None:
+                progress(ok, runs)
+            done = {int(p.stem[4:]) for p in d.glob("run-*.npz")}
+            top = max(done, default=0)
+            size = max(1, workers) * chunk
+            # the holes an interruption left first, then new attempts (a couple beyond the need, for lost runs)
+            todo = [j for j in range(1, top + 1) if j not in done][:size] or \
+                list(range(top + 1, top + 1 + max(1, min(size, runs - ok + 2))))
+            list(mapper(_study_attempt, [(name, j, str(d), settings) for j in todo]))
 
 
 def study_arrays(directory, runs: int | None = None) -> dict:
