@@ -767,7 +767,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         u_place: tuple = U_PLACE, machine=None, compensate=None, bar_seed: int | None = None,
         u_stylus_um: float = 0.0, bar_temperature_C: float = 20.0, hook=None, progress=None,
         bar_calibration=None, bar_true_m=None, draw_inputs: bool | None = None, lobing_m: tuple = (),
-        machine_temperature_C: float = 20.0) -> ScenarioResult:
+        machine_temperature_C: float = 20.0, stylus_dJ_m: dict | None = None) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -821,6 +821,10 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         Draw the bar's calibration error and the placement errors (default:
         when there is probing noise); False/True to switch them apart from
         the noise (the budget's one source at a time, :func:`budget`).
+    stylus_dJ_m : dict, optional
+        ``{stylus: (3,) m}``: these probe-offset errors instead of a draw of
+        ``u_stylus_um`` (styli not named: none); the budget's stylus share
+        component by component (:func:`budget_shares`).
     lobing_m : tuple of (k, a, b)
         The probe's lobing left after its calibration (:class:`sim.probe.ProbeConfig`),
         m; not in the identification's model.
@@ -897,8 +901,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     art = A.multi_feature_bar(deviations_m=E_true, temperature_C=bar_temperature_C)
     if not (np.isfinite(u_stylus_um) and u_stylus_um >= 0):
         raise ConfigError(f"u_stylus_um must be >= 0 (a standard uncertainty, um), got {u_stylus_um!r}")
-    dJ = {st: (rng.standard_normal(3) * u_stylus_um * 1e-6 if u_stylus_um > 0 else np.zeros(3))
-          for st in dict.fromkeys(ms.stylus for ms in plan.measurements)}
+    styli = list(dict.fromkeys(ms.stylus for ms in plan.measurements))
+    if stylus_dJ_m is not None:
+        bad = [k for k in stylus_dJ_m if k not in styli]
+        if bad or not all(np.shape(v) == (3,) and np.all(np.isfinite(v)) for v in stylus_dJ_m.values()):
+            raise ConfigError(f"stylus_dJ_m: finite (3,) offsets of the plan's styli ({', '.join(styli)}), "
+                              f"got {sorted(stylus_dJ_m)!r}")
+        dJ = {st: np.asarray(stylus_dJ_m.get(st, np.zeros(3)), float) for st in styli}
+    else:
+        dJ = {st: (rng.standard_normal(3) * u_stylus_um * 1e-6 if u_stylus_um > 0 else np.zeros(3)) for st in styli}
     art_nom = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
     O_A_cal = art.info["poi_nominal_m"] + E_cal_O
     if on_nodes:
@@ -1461,15 +1472,21 @@ def budget_run(name: str, j: int, *, seed: int = 1, u_stylus_um: float = 0.5, lo
 
 def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 6, u_stylus_um: float = 0.5,
                   lobing_um: float = 0.25, lobing_k: int = 3, temperature_range_C: tuple = (19.0, 22.0),
-                  bar_calibration=None, bar_true_m=None, progress=None) -> dict:
+                  bar_calibration=None, bar_true_m=None, stylus_components: bool = False, progress=None) -> dict:
     """Each source's U95 share per parameter (:func:`budget`, one source at a time): ``U``
     {source: (n,)}, ``U_temp`` (n,) bar and machine at one temperature, ``sens`` {source: (n,)}
     per degC, ``keep`` (n,) bool (the 21 errors' values less the ones the conventions fix),
-    ``slices`` {symbol: (start, stop)}, ``t_rms``; m / rad."""
+    ``slices`` {symbol: (start, stop)}, ``t_rms``; m / rad.
+
+    ``stylus_components``: the stylus share from one noise-free pipeline run per offset
+    component of each stylus (``u_stylus_um`` on it alone: 3 x the plan's styli runs), 2 x the
+    root sum of squares of the changes: exact for a response linear in the offsets (the
+    draws' share, ``stylus_runs`` random draws, is +-30 % from 6 of them)."""
     from core import volumetric as vol
 
     t_lo, t_hi = _budget_settings(2, stylus_runs, temperature_range_C)
-    total = 6 + int(stylus_runs)
+    styli = list(dict.fromkeys(ms.stylus for ms in PLANS[name]().measurements)) if name in PLANS else []
+    total = 5 + (3 * len(styli) if stylus_components else int(stylus_runs))
     step = [0]
 
     def go(**kw):
@@ -1492,9 +1509,15 @@ def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 
     full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float))
     gauge = full_lin.U95_lin <= 1e-12  # values the conventions fix (zero U95 whatever the input)
     th0 = base.result.theta
-    dst = np.array([go(seed=seed + 100 + k, u_stylus_um=u_stylus_um, **quiet).result.theta - th0
-                    for k in range(int(stylus_runs))])
-    U["stylus offsets"] = 2.0 * np.sqrt(np.mean(dst ** 2, axis=0))
+    if stylus_components:
+        u = float(u_stylus_um) * 1e-6
+        dst = np.array([go(seed=seed, stylus_dJ_m={st: u * np.eye(3)[c]}, **quiet).result.theta - th0
+                        for st in styli for c in range(3)])
+        U["stylus offsets"] = 2.0 * np.sqrt(np.sum(dst ** 2, axis=0))
+    else:
+        dst = np.array([go(seed=seed + 100 + k, u_stylus_um=u_stylus_um, **quiet).result.theta - th0
+                        for k in range(int(stylus_runs))])
+        U["stylus offsets"] = 2.0 * np.sqrt(np.mean(dst ** 2, axis=0))
     a = float(lobing_um) * 1e-6
     dc = go(seed=seed, lobing_m=((lobing_k, a, 0.0),), **quiet).result.theta - th0
     ds = go(seed=seed, lobing_m=((lobing_k, 0.0, a),), **quiet).result.theta - th0
@@ -1515,7 +1538,7 @@ def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 
         progress(total, total)
     return {"U": U, "U_temp": U_temp, "sens": sens, "keep": errs_idx & ~gauge, "t_rms": t_rms,
             "slices": {s: (d.slices[s].start, d.slices[s].stop) for s in (*vol.MOTION, *vol.SQUARENESS)},
-            "stylus_runs": int(stylus_runs)}
+            "stylus_runs": len(dst), "stylus_components": bool(stylus_components)}
 
 
 def budget_summary(name: str, shares: dict, errors, U95_lin, *, seed: int = 1, u_stylus_um: float = 0.5,
@@ -1558,8 +1581,12 @@ def budget_summary(name: str, shares: dict, errors, U95_lin, *, seed: int = 1, u
             "machine_cte_per_C": MACHINE_CTE_PER_C, "bar_cte_per_C": 1.0e-6,
             "method": ("Per source, its U95 share (k = 2, max over the nodes, gauge nodes left out): probing "
                        "noise, bar calibration and placement by linear propagation through the estimator; "
-                       f"stylus offsets from {stylus_runs} noise-free pipeline runs with that draw alone "
-                       "(2 x RMS); lobing from 2 pipeline runs (cos and sin term, 2 x RMS over the phase); bar "
+                       + (f"stylus offsets from {stylus_runs} noise-free pipeline runs, one per offset component "
+                          "of each stylus (2 x root sum of squares: exact for a linear response); "
+                          if shares.get("stylus_components") else
+                          f"stylus offsets from {stylus_runs} noise-free pipeline runs with that draw alone "
+                          "(2 x RMS); ")
+                       + "lobing from 2 pipeline runs (cos and sin term, 2 x RMS over the phase); bar "
                        "and machine temperature from one pipeline run at 21 degC each (2 x change per degC x "
                        f"{t_rms:.2f} degC, the RMS of T - 20 over {t_lo:g}-{t_hi:g} degC; in the sum as one source, "
                        f"bar and machine at the same T, their changes added with their signs). MC: {runs} "
@@ -1713,12 +1740,14 @@ def _study_attempt(task):
 
 
 def budget_study(name: str, directory, runs: int = 1000, *, workers: int = 1, seed: int = 1, stylus_runs: int = 6,
-                 chunk: int = 8, progress=None, **kw) -> dict:
+                 stylus_components: bool = True, chunk: int = 8, progress=None, **kw) -> dict:
     """:func:`budget` with ``runs`` Monte Carlo runs, each run written to ``directory`` as it ends
     (``run-NNNNN.npz``; the shares to ``shares.npz``): interrupted, it resumes where it stopped and
     loses at most the runs in progress. Attempts run in order (``workers`` processes,
     one pool of spawned processes), each from its own seed (:func:`budget_draws`), so the result does
-    not depend on the workers or on the interruptions. Returns :func:`study_arrays` of what is done."""
+    not depend on the workers or on the interruptions. The stylus share by components
+    (:func:`budget_shares`, ``stylus_components``) unless told otherwise. Returns
+    :func:`study_arrays` of what is done."""
     import contextlib
     from pathlib import Path
 
@@ -1726,9 +1755,9 @@ def budget_study(name: str, directory, runs: int = 1000, *, workers: int = 1, se
     d.mkdir(parents=True, exist_ok=True)
     settings = dict(seed=seed, **kw)
     if not (d / "shares.npz").exists():
-        sh = budget_shares(name, stylus_runs=stylus_runs, **settings)
+        sh = budget_shares(name, stylus_runs=stylus_runs, stylus_components=stylus_components, **settings)
         _npz_atomic(d / "shares.npz", keep=sh["keep"], U_temp=sh["U_temp"], t_rms=sh["t_rms"],
-                    stylus_runs=sh["stylus_runs"], slices=np.array([(s, *v) for s, v in sh["slices"].items()], object),
+                    stylus_runs=sh["stylus_runs"], stylus_components=sh["stylus_components"], slices=np.array([(s, *v) for s, v in sh["slices"].items()], object),
                     **{f"U:{s}": v for s, v in sh["U"].items()}, **{f"sens:{s}": v for s, v in sh["sens"].items()})
     with contextlib.ExitStack() as stack:
         mapper = map
@@ -1791,7 +1820,8 @@ def _shares_from(z) -> dict:
     sens = {s: z[f"sens:{s}"] for s in ("bar temperature", "machine temperature")}
     slices = {str(r[0]): (int(r[1]), int(r[2])) for r in z["slices"]}
     return {"U": U, "U_temp": z["U_temp"], "sens": sens, "keep": z["keep"].astype(bool), "t_rms": float(z["t_rms"]),
-            "slices": slices, "stylus_runs": int(z["stylus_runs"])}
+            "slices": slices, "stylus_runs": int(z["stylus_runs"]),
+            "stylus_components": bool(z["stylus_components"]) if "stylus_components" in z.files else False}
 
 
 def assemble_study(directory, path, runs: int | None = None, *, name: str = "mfb-3axis", seed: int = 1) -> dict:
