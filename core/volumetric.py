@@ -567,24 +567,22 @@ def _nominal_key(meas, chain, nodes, rotary_points_R_m, gauge, names) -> bytes:
 
     h = hashlib.blake2b(digest_size=32)
 
-    def add(*xs):
+    def add(*xs):  # arrays by their shape and bytes, None and text by their repr
         for x in xs:
-            if x is None:
-                h.update(b"\x00none")
-            elif isinstance(x, np.ndarray) or isinstance(x, (list, tuple)) and x and not isinstance(x[0], str):
+            if x is None or isinstance(x, str):
+                h.update(repr(x).encode())
+            else:
                 a = np.ascontiguousarray(np.asarray(x, float))
                 h.update(repr(a.shape).encode() + a.tobytes())
-            else:
-                h.update(repr(x).encode())
             h.update(b"|")
 
-    add(chain, sorted((k, tuple(np.atleast_1d(np.asarray(v, float)).tolist())) for k, v in (rotary_points_R_m or {}).items()),
-        None if gauge is None else tuple(gauge), tuple(names))
+    rp = sorted((str(k), tuple(float(u) for u in np.ravel(v))) for k, v in (rotary_points_R_m or {}).items())
+    add(chain, repr(rp), repr(None if gauge is None else tuple(gauge)), repr(tuple(names)))
     for a in sorted(nodes):
         add(a, nodes[a])
     for m in meas:
-        add(m.placement, tuple(m.holes), np.asarray(m.J_m, float), np.asarray(m.T_W_A, float),
-            np.asarray(m.rot_rad, float), np.round(np.asarray(m.O_A, float), 4), np.shape(m.O_R))
+        add(str(m.placement), np.asarray(m.holes, float), np.asarray(m.J_m, float), np.asarray(m.T_W_A, float),
+            np.asarray(m.rot_rad, float), np.round(np.asarray(m.O_A, float), 4), np.asarray(np.shape(m.O_R), float))
         if _has_touches(m):
             add(np.asarray(m.c_A, float), np.asarray(m.d_A, float), np.asarray(m.G_A, float))
         else:

@@ -1757,7 +1757,7 @@ def budget_study(name: str, directory, runs: int = 1000, *, workers: int = 1, se
     if not (d / "shares.npz").exists():
         sh = budget_shares(name, stylus_runs=stylus_runs, stylus_components=stylus_components, **settings)
         _npz_atomic(d / "shares.npz", keep=sh["keep"], U_temp=sh["U_temp"], t_rms=sh["t_rms"],
-                    stylus_runs=sh["stylus_runs"], stylus_components=sh["stylus_components"], slices=np.array([(s, *v) for s, v in sh["slices"].items()], object),
+                    stylus_runs=sh["stylus_runs"], stylus_components=sh.get("stylus_components", False), slices=np.array([(s, *v) for s, v in sh["slices"].items()], object),
                     **{f"U:{s}": v for s, v in sh["U"].items()}, **{f"sens:{s}": v for s, v in sh["sens"].items()})
     with contextlib.ExitStack() as stack:
         mapper = map
