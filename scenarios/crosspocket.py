@@ -13,10 +13,13 @@ interpolated at the commanded stylus-tip centres, at each target's height.
 A sensitivity run (:data:`SENSITIVITY`) shows what of the reconstructed
 geometry moves the numbers; :data:`SPHERE_SENSITIVITY` (variants fixed before
 running, in rounds) what the spheres constrain; :func:`evaluation_point_steps`
-what the evaluation points moved (docs/papers-selfcal.md has the numbers).
+what the evaluation points moved; :func:`conditioning_study` (round 4) the
+2-angle design's nearly free direction and :func:`conditional_table2`
+(round 5) what carries Table 2's U_XC, U_YC (docs/papers-selfcal.md has the
+numbers).
 
-``pin-circle`` (paper section 5): 18 pins on a 400 mm pitch circle and two
-spheres at C = 0, 31, 83, 137, 191, 227, 257, 313 deg, grid step 80 mm over
+``pin-circle`` (paper section 5): 18 pins on a 400 mm pitch circle (4
+touches each) and two spheres (8 equator touches each) at C = 0, 31, 83, 137, 191, 227, 257, 313 deg, grid step 80 mm over
 the touched extent (the paper's -400..400 mm has nodes no pin reaches), the
 yaw vmt's rule picks for the chain, eq 17's delta_L measured; the pin errors
 in the paper's frame (pin 1 and pin 11), raw at C = 0 and self-calibrated.
@@ -260,8 +263,33 @@ def _sphere_case(c_deg, sphere_touches=4, rigid=False, sphere_r_m=None, sphere_s
     """One case of :data:`SPHERE_SENSITIVITY` by dense linear propagation: U95 of the pocket's G, Table 2, map.
 
     ``stylus_r_m``, ``heights``: :func:`study_touches` (the defaults: what identify reads)."""
-    from core.selfcal import Grid, build_design
     from core.uncertainty import K, error_map_operator
+
+    des, cov, npk, ids, w = _sphere_case_cov(c_deg, sphere_touches, rigid, sphere_r_m, sphere_sigma_m, step_m,
+                                             spheres, arm_half_m, stylus_r_m, heights)
+    sg = des.slices["G"]
+    pk = np.arange(sg.start, sg.start + npk)
+    tot, form = _g_u95_readings(cov[np.ix_(pk, pk)], des.N[pk])
+    M = error_map_operator(des)
+    v = np.einsum("ij,jk,ik->i", M, cov, M)
+    h = v.size // 2
+    umap = K * np.sqrt(np.maximum(v[:h] + v[h:], 0))
+    u = np.sqrt(np.maximum(np.diag(cov), 0))
+    gx, gy = des.grid.x_m, des.grid.y_m
+    corner = int(np.argmin(np.abs(gx + 0.110))) * len(gy) + int(np.argmin(np.abs(gy - 0.110)))
+    return {"g_total_um": tot / UM, "g_form_um": form / UM, "map_max_um": float(umap.max()) / UM,
+            "map_corner_um": float(umap[corner]) / UM,
+            "u_xc_um": 2 * u[des.slices["EXC"]] / UM, "u_yc_um": 2 * u[des.slices["EYC"]] / UM,
+            "u_cc_urad": 2e6 * u[des.slices["ECC"]], "pocket_ids": list(ids[:npk]), "pocket_w_m": w[:npk]}
+
+
+def _sphere_case_cov(c_deg, sphere_touches=4, rigid=False, sphere_r_m=None, sphere_sigma_m=U_PROBE_M,
+                     step_m=0.022, spheres=True, arm_half_m=None, stylus_r_m=None, heights=True):
+    """The design and the covariance of its parameters (m^2, rad^2, from the touches' sigmas) for one case.
+
+    Returns ``(design, cov, n_pocket, ids, w)``: ``ids``, ``w`` (W, m) of all targets, the pocket's first.
+    """
+    from core.selfcal import Grid, build_design
 
     w, wn, ids, z = _plan_points(False, heights=True)
     w, wn = _variant_points(w, wn, ids, arm_half_m)
@@ -289,20 +317,7 @@ def _sphere_case(c_deg, sphere_touches=4, rigid=False, sphere_r_m=None, sphere_s
             extra[g0 + npk + i, 3 * k + 2] = 1.0
         T = np.hstack([np.eye(n)[:, keep], extra])
     cov = T @ _constrained_cov(A @ T, des.C @ T, sig) @ T.T
-    sg = des.slices["G"]
-    pk = np.arange(sg.start, sg.start + npk)
-    tot, form = _g_u95_readings(cov[np.ix_(pk, pk)], des.N[pk])
-    M = error_map_operator(des)
-    v = np.einsum("ij,jk,ik->i", M, cov, M)
-    h = v.size // 2
-    umap = K * np.sqrt(np.maximum(v[:h] + v[h:], 0))
-    u = np.sqrt(np.maximum(np.diag(cov), 0))
-    gx, gy = des.grid.x_m, des.grid.y_m
-    corner = int(np.argmin(np.abs(gx + 0.110))) * len(gy) + int(np.argmin(np.abs(gy - 0.110)))
-    return {"g_total_um": tot / UM, "g_form_um": form / UM, "map_max_um": float(umap.max()) / UM,
-            "map_corner_um": float(umap[corner]) / UM,
-            "u_xc_um": 2 * u[des.slices["EXC"]] / UM, "u_yc_um": 2 * u[des.slices["EYC"]] / UM,
-            "u_cc_urad": 2e6 * u[des.slices["ECC"]], "pocket_ids": list(ids[:npk]), "pocket_w_m": w[:npk]}
+    return des, cov, npk, ids, w
 
 
 def sphere_sensitivity() -> list:
@@ -338,6 +353,175 @@ def sphere_sensitivity() -> list:
                    u_cc_urad=np.round(a["u_cc_urad"], 3).tolist(),
                    fig20a_max_um=round(a["map_max_um"], 3), fig20b_max_um=round(b["map_max_um"], 3))
         rows.append(row)
+    return rows
+
+
+#: Round 4 (fixed before running, after rounds 1-3 left Fig. 18(a) at 2.45x and Table 2's U_XC/U_YC at
+#: 1.8-2.2x under the spheres as datum): what the 2-angle design leaves nearly free, and what drives U_XC/U_YC.
+#: Per reading (eq 15 as printed; spheres as datum) x model (identify's: tip centres at the targets' heights;
+#: the paper's eqs 1-15: tip centres, one level, no height terms; eqs 8-11 literally: contact points, one
+#: level) x C set: the eigen-directions of the parameters' covariance (angles scaled by 110 mm, the grid's
+#: half-width, so every parameter is a length at the grid's edge), the U95 along the 3 least determined
+#: ones, what each is made of, and how much of the largest U95 of G and of U_XC, U_YC each carries.
+CONDITIONING_READINGS = (("eq 15 as printed", {}), ("spheres as datum", {"rigid": "known"}))
+CONDITIONING_MODELS = (("identify: tip centres, targets' heights", {}),
+                       ("paper's eqs 1-15: tip centres, one level", {"heights": False}),
+                       ("eqs 8-11 literally: contact points, one level", {"stylus_r_m": 0.0, "heights": False}))
+#: Half-width of the grid, m: an angle (rad) times it is the length it moves at the grid's edge.
+CONDITIONING_LEVER_M = 0.110
+
+
+def _param_groups(des, npk: int) -> list:
+    """A group name for each design parameter (tables split into edge nodes and inner nodes; G into pocket and
+    spheres), for saying what a direction is made of."""
+    names = [""] * des.n_params
+    for key, sl in des.slices.items():
+        k = str(getattr(key, "value", key))
+        idx = range(sl.start, sl.stop)
+        for j, i in enumerate(idx):
+            if k == "G":
+                names[i] = "G pocket" if j < npk else "G spheres"
+            elif k in ("EXX", "EYX", "EXY", "EYY", "ECY", "ECX"):
+                names[i] = f"{k} edge node" if j in (0, len(idx) - 1) else f"{k} inner"
+            else:
+                names[i] = k
+    return names
+
+
+def _scale_to_length(des) -> np.ndarray:
+    """Per parameter: 1 for lengths, the lever for angles, lever^2 for the Abbe slopes (rad/m)."""
+    L = CONDITIONING_LEVER_M
+    s = np.ones(des.n_params)
+    for key, sl in des.slices.items():
+        k = str(getattr(key, "value", key))
+        if k in ("ECY", "ECX", "EC0Y", "ECC", "EBC", "EAC"):
+            s[sl] = L
+        elif k == "ABBE":
+            s[sl] = L * L
+    return s
+
+
+def _hand_xc_floor_um(c_deg) -> list:
+    """U95 of E_XC, E_YC at each C if the map and the part were known: the part's rigid shift from its
+    92 touches (sigma 1.38 um each) at C_j minus that at C_1 (eq 16's C terms are 0 at C_1). Per C_j:
+    ``2 sqrt(sigma^2 [(sum N N')^-1]_C1 + sigma^2 [(sum N N')^-1]_Cj)`` with N the touches' normals in R."""
+    w, wn, _ = _plan_points(False)
+    sw, sn, _, _ = _sphere_targets(4, None)
+    n = np.vstack([wn, sn])
+    out = []
+    inv = []
+    for c in c_deg:
+        a = np.radians(-c)  # eq 2: the part turned by -C in R
+        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        N = n @ R.T
+        inv.append(np.linalg.inv(N.T @ N) * U_PROBE_M ** 2)
+    for j in range(1, len(c_deg)):
+        v = np.diag(inv[0] + inv[j])
+        out.append([round(2 * float(np.sqrt(v[0])) / UM, 3), round(2 * float(np.sqrt(v[1])) / UM, 3)])
+    return out
+
+
+def conditioning_study(n_dirs: int = 3) -> list:
+    """Round 4 (:data:`CONDITIONING_READINGS` x :data:`CONDITIONING_MODELS` x the paper's three C sets).
+
+    Per case: the largest U95 of the pocket's G and where; U_XC, U_YC per C; the ``n_dirs`` least
+    determined directions of the parameters (eigenvectors of the covariance in length units at the grid's
+    edge, :func:`_scale_to_length`), each with its U95 (``2 sqrt(eigenvalue)``), its three largest groups
+    (share of its squared length, :func:`_param_groups`), and the share of the variance of the largest-U95
+    target's G and of each U_XC, U_YC it carries; the ratio of the largest to the median U95 over all
+    identified directions (the design's conditioning); the hand floor of U_XC, U_YC (:func:`_hand_xc_floor_um`).
+    """
+    sets = ((0.0, 75.0), (0.0, 75.0, 130.0), CROSS_ANGLES_DEG)
+    rows = []
+    for reading, kw0 in CONDITIONING_READINGS:
+        for model, kw1 in CONDITIONING_MODELS:
+            for c in sets:
+                des, cov, npk, ids, w = _sphere_case_cov(c, **kw0, **kw1)
+                sc = _scale_to_length(des)
+                Cs = cov * np.outer(sc, sc)
+                ev, V = np.linalg.eigh(Cs)
+                ev, V = ev[::-1], V[:, ::-1]
+                live = ev > ev[0] * 1e-12
+                groups = _param_groups(des, npk)
+                sg = des.slices["G"]
+                g = np.sqrt(np.maximum(np.diag(cov)[sg.start:sg.start + npk], 0))
+                i = int(np.argmax(g))
+                gi = sg.start + i
+                xc = list(range(des.slices["EXC"].start + 1, des.slices["EXC"].stop))
+                yc = list(range(des.slices["EYC"].start + 1, des.slices["EYC"].stop))
+                dirs = []
+                for d in range(n_dirs):
+                    v = V[:, d]
+                    share: dict = {}
+                    for gname, vv in zip(groups, v):
+                        share[gname] = share.get(gname, 0.0) + float(vv * vv)
+                    top = sorted(share.items(), key=lambda kv: -kv[1])[:3]
+                    dirs.append({"u95_um": round(2 * float(np.sqrt(ev[d])) / UM, 3),
+                                 "made_of": {k: round(v_, 3) for k, v_ in top},
+                                 "share_of_max_g_variance": round(float(ev[d] * V[gi, d] ** 2 / Cs[gi, gi]), 3),
+                                 "share_of_u_xc_variance": [round(float(ev[d] * V[k, d] ** 2 / Cs[k, k]), 3)
+                                                            for k in xc],
+                                 "share_of_u_yc_variance": [round(float(ev[d] * V[k, d] ** 2 / Cs[k, k]), 3)
+                                                            for k in yc]})
+                u = np.sqrt(np.maximum(np.diag(cov), 0))
+                rows.append({"reading": reading, "model": model, "c_angles_deg": list(c),
+                             "g_u95_max_um": round(2 * float(g[i]) / UM, 3), "at_target": ids[i],
+                             "at_w_mm": np.round(w[i] / MM, 1).tolist(),
+                             "u_xc_um": [round(2 * float(u[k]) / UM, 3) for k in xc],
+                             "u_yc_um": [round(2 * float(u[k]) / UM, 3) for k in yc],
+                             "hand_floor_u_xc_yc_um": _hand_xc_floor_um(c),
+                             "identified_directions": int(live.sum()),
+                             "largest_to_median_u95": round(float(np.sqrt(ev[0] / np.median(ev[live]))), 2),
+                             "least_determined": dirs})
+    return rows
+
+
+#: Round 5 (fixed after round 4, before running it): round 4 found no single direction carrying U_XC/U_YC
+#: at 4 angles under eq 15 as printed. Asked here: how much of U_XC, U_YC is the part's datum (the shift,
+#: rotation and scale of G, :data:`core.uncertainty.WORKPIECE_GAUGE`, fixed in the gauge of eqs 16-17 only
+#: through the edge nodes), and how much the height terms (EBC, EAC, ABBE): U_XC, U_YC conditional on each
+#: being known (Gaussian conditioning of the joint covariance), per reading and model of round 4, 4 angles.
+CONDITIONAL_GIVEN = ("part's datum (shift, rotation, scale of G)", "height terms (EBC, EAC, ABBE)")
+
+
+def conditional_table2() -> list:
+    """Round 5 (:data:`CONDITIONAL_GIVEN`): Table 2's U_XC, U_YC at C = 75, 130, 210 deg as identified, and
+    conditional on the part's datum known, and on the height terms known (where the model has them)."""
+    from core.uncertainty import WORKPIECE_GAUGE
+
+    rows = []
+    for reading, kw0 in CONDITIONING_READINGS:
+        for model, kw1 in CONDITIONING_MODELS:
+            des, cov, npk, ids, w = _sphere_case_cov(CROSS_ANGLES_DEG, **kw0, **kw1)
+            sg = des.slices["G"]
+            pk = np.arange(sg.start, sg.start + npk)
+            B = des.N[pk][:, [c for v in WORKPIECE_GAUGE.values() for c in v]]
+            Pd = np.zeros((B.shape[1], des.n_params))
+            Pd[:, pk] = np.linalg.pinv(B)  # the pocket's G -> its shift, rotation, scale (least squares)
+            xc = np.arange(des.slices["EXC"].start + 1, des.slices["EXC"].stop)
+            yc = np.arange(des.slices["EYC"].start + 1, des.slices["EYC"].stop)
+            T = np.zeros((len(xc) + len(yc), des.n_params))
+            T[np.arange(len(xc)), xc] = 1.0
+            T[len(xc) + np.arange(len(yc)), yc] = 1.0
+            row = {"reading": reading, "model": model}
+
+            def u95(given):
+                Stt = T @ cov @ T.T
+                if given is not None:
+                    Stg, Sgg = T @ cov @ given.T, given @ cov @ given.T
+                    Stt = Stt - Stg @ np.linalg.pinv(Sgg, rcond=1e-12) @ Stg.T
+                u = 2 * np.sqrt(np.maximum(np.diag(Stt), 0)) / UM
+                return [round(float(v), 3) for v in u[:len(xc)]], [round(float(v), 3) for v in u[len(xc):]]
+
+            row["as_identified"] = u95(None)
+            row["given_datum"] = u95(Pd)
+            hk = [k for k in ("EBC", "EAC", "ABBE") if k in des.slices]
+            if hk:
+                H = np.eye(des.n_params)[np.concatenate([np.arange(des.slices[k].start, des.slices[k].stop)
+                                                         for k in hk])]
+                row["given_heights"] = u95(H)
+                row["given_datum_and_heights"] = u95(np.vstack([Pd, H]))
+            rows.append(row)
     return rows
 
 
@@ -379,6 +563,37 @@ def _map_u95_linear(des, est) -> np.ndarray:
     v = np.einsum("ij,jk,ik->i", Mc, C, Mc)
     n = v.size // 2
     return K * np.sqrt(np.maximum(v[:n] + v[n:], 0)).reshape(len(des.grid.x_m), len(des.grid.y_m))
+
+
+def map_u95_json(grid, umap_m: np.ndarray) -> tuple[list, list]:
+    """Fig. 20's map for the JSON, in the layout the figure draws, and where its maximum is.
+
+    ``umap_m`` (N_x, N_y), m, as :func:`core.uncertainty.error_map_u95`
+    gives it. Returns the map in um as nested lists of shape (N_y, N_x):
+    row ``r`` is ``y = grid_y_mm[r]``, column ``c`` is ``x = grid_x_mm[c]``
+    (``viz.figures.grid_uncertainty_figure``'s ``u95_um``), and
+    ``[x, y]`` of the maximum, mm.
+    """
+    u = np.asarray(umap_m, float)
+    if u.shape != (len(grid.x_m), len(grid.y_m)):
+        raise ConfigError(f"error-map U95 of shape {u.shape} on a {len(grid.x_m)} x {len(grid.y_m)} grid")
+    ix, iy = np.unravel_index(int(np.argmax(u)), u.shape)
+    return (np.round(u.T / UM, 4).tolist(),
+            [round(float(grid.x_m[ix]) / MM, 3), round(float(grid.y_m[iy]) / MM, 3)])
+
+
+def fig20_figures(arrays: dict) -> dict:
+    """Figs. 20(a, b) from the study's ``arrays`` (maps (N_y, N_x), :func:`map_u95_json`)."""
+    from viz import figures as F
+
+    out = {}
+    for tag, sph in (("a", "with"), ("b", "without")):
+        key = f"map_u95_um_{sph}_spheres_C0_75_130_210"
+        if key in arrays:
+            out[f"fig20{tag}"] = F.grid_uncertainty_figure(
+                arrays["grid_x_mm"], arrays["grid_y_mm"], arrays[key],
+                title=f"Fig. 20({tag}): U95 (k=2) of the 2D positioning error, {sph} spheres")
+    return out
 
 
 def _parts_linear(des, est) -> dict:
@@ -442,7 +657,7 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
             umap = error_map_u95(des, err)
             key = f"{'with' if spheres else 'without'}_spheres_C{'_'.join(f'{a:g}' for a in c)}"
             arrays[f"g_u95_um_{key}"] = np.round(parts["total"] / UM, 4).tolist()
-            arrays[f"map_u95_um_{key}"] = np.round(umap / UM, 4).tolist()
+            arrays[f"map_u95_um_{key}"], at_mm = map_u95_json(grid, umap)
             case.update(identifiable=True,
                         g_u95_max_um=round(float(parts["total"][i]) / UM, 3),
                         g_u95_max_linear_um=round(lin.max_workpiece_U95 / UM, 3),
@@ -450,9 +665,7 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
                         g_u95_parts_at_max_um={k: round(float(v[i]) / UM, 3) for k, v in parts.items()
                                                if k != "total"},
                         map_u95_max_um=round(float(umap.max()) / UM, 3),
-                        map_u95_max_at_mm=[round(float(grid.x_m[k]) / MM, 3) for k in
-                                           (np.unravel_index(np.argmax(umap), umap.shape)[0],)]
-                        + [round(float(grid.y_m[np.unravel_index(np.argmax(umap), umap.shape)[1]]) / MM, 3)],
+                        map_u95_max_at_mm=at_mm,
                         map_u95_at_origin_um=round(float(umap[np.argmin(np.abs(grid.x_m)),
                                                               np.argmin(np.abs(grid.y_m))]) / UM, 6))
             if case["paper_g_u95_max_um"]:
@@ -490,7 +703,8 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
             "scale relative to the eq 16-17 datum (each part's own U95; they are correlated, so they do not add "
             "in quadrature exactly).",
             "Table 2: U95 (k=2) of EXC,total, EYC,total and ECC per C angle; C = 0 is the reference set-up (0 by eq 16).",
-            "map_u95: the paper's Fig. 20, U95 = 2 sqrt(u_X^2 + u_Y^2) of (E_X,total, E_Y,total) on the grid nodes.",
+            "map_u95: the paper's Fig. 20, U95 = 2 sqrt(u_X^2 + u_Y^2) of (E_X,total, E_Y,total) on the grid nodes; "
+            "arrays.map_u95_um_* are (N_y, N_x): row r at grid_y_mm[r], column c at grid_x_mm[c], as drawn.",
             "The pocket is reconstructed (arms 200 mm, 36 mm wide, spheres at (60, 60) and (-70, -55) mm); the "
             "paper's point layout and sphere positions are not fully given. The sensitivity block shows what of "
             "that reconstruction moves the numbers (linear propagation, exact here: the estimator is linear in the "
@@ -503,6 +717,12 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
             "Read from the numbers, not stated by the paper.",
             "evaluation_points: the X/Y tables at the commanded tip centres at the targets' heights, the design "
             "vmt identify builds (evaluation_point_steps: from the contact points, one step at a time).",
+            "conditioning (round 4): with 2 C angles one direction of the parameters (ECY at the y = +-110 mm "
+            "nodes with the pocket's G near the arm ends) carries 94 % of the variance of Fig. 18(a)'s largest "
+            "value under eq 15 as printed; largest/median U95 over the directions 318 (2 angles), 48 (3), 41 (4). "
+            "conditional_table2 (round 5): given the part's datum (shift, rotation, scale of G), U_XC and U_YC "
+            "fall to 0.63-0.89 um in every reading and model (paper 0.9-1.2; a rigid part on a known map: 0.58): "
+            "how the part's datum is fixed carries Table 2's excess.",
         ],
         "arrays": arrays,
     }
@@ -510,6 +730,8 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
         out["sensitivity"] = sensitivity_study()
         out["sphere_sensitivity"] = sphere_sensitivity()
         out["evaluation_point_steps"] = evaluation_point_steps()
+        out["conditioning"] = conditioning_study()
+        out["conditional_table2"] = conditional_table2()
     out["seconds"] = round(time.perf_counter() - t0, 2)
     return out
 
@@ -538,6 +760,40 @@ PIN_STEP_M = 0.080
 DELTA_L_REPEATS = 5
 #: The paper's CMM (section 4.3), E = (0.6 + L/600) um, taken as the U95 (k = 2) of the length artefact's calibration.
 CMM_E_UM = (0.6, 1.0 / 600.0)
+#: Touches on each of case 2's spheres: "On each sphere, eight points are probed" (section 5.1). The plan puts
+#: them on the equator, as case 1 does ("The points on the spheres are on their equator", 4.2), because eq 3's
+#: normal lies in XY. 18 x 4 + 2 x 8 = 88 a set-up; the paper's "Total 84" is not what its own counts give.
+PIN_SPHERE_TOUCHES = 8
+
+
+def pin_circle_paper_plan(art, sphere_touches: int = PIN_SPHERE_TOUCHES):
+    """Case 2's plan as the paper writes it: 4 touches a pin, ``sphere_touches`` on each sphere's equator.
+
+    The pins' touches are :func:`sim.plans.pin_circle_plan`'s (4 at the
+    probing height, normals at 0, 90, 180, 270 deg). Each sphere gets
+    ``sphere_touches`` equator points equally spaced in azimuth from +x
+    (normals in XY, as eqs 1-3 take them). A frame, m.
+    """
+    from sim.plans import Plan, pin_circle_plan
+
+    if int(sphere_touches) != sphere_touches or sphere_touches < 3:
+        raise ConfigError(f"sphere_touches must be an integer >= 3 (a sphere's centre and radius), "
+                          f"got {sphere_touches!r}")
+    base = pin_circle_plan(art)
+    pins = base.select(np.array([f.startswith("pin") for f in base.feature]))
+    t, f, w, n, lv = list(pins.target), list(pins.feature), [pins.w_A], [pins.wn_A], [pins.level]
+    for feat in art.features:
+        if feat.kind != "sphere":
+            continue
+        a = 2.0 * np.pi * np.arange(int(sphere_touches)) / int(sphere_touches)
+        e = np.column_stack([np.cos(a), np.sin(a), np.zeros_like(a)])
+        t += [f"{feat.name}_p{k}" for k in range(len(a))]
+        f += [feat.name] * len(a)
+        w.append(np.asarray(feat.nominal.centre, float) + feat.nominal.radius * e)
+        n.append(e)
+        lv.append(2000.0 + np.arange(len(a)))
+    return Plan(base.artefact, tuple(t), tuple(f), np.vstack(w), np.vstack(n), np.concatenate(lv),
+                base.clearance_m, base.overshoot_m)
 
 
 def measure_delta_L(machine, x_n_m: float, z_m: float, sigma_probe_m: float, rng: np.random.Generator,
@@ -611,7 +867,7 @@ def align_on_pins(err_m: np.ndarray, nominal_m: np.ndarray, origin: int = 0, x_d
     return e + phi * np.column_stack([-r[:, 1], r[:, 0]])
 
 
-def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
+def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2, sphere_touches: int = PIN_SPHERE_TOUCHES) -> dict:
     """The paper's case 2 (section 5), the paper's way.
 
     18 pins and two spheres probed at the eight C angles of eq 20 on the
@@ -622,7 +878,8 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
     pin's four touches (:func:`pin_centres`), compared with the true pin
     positions (the CMM's role) after the paper's alignment only: pin 1 and
     pin 11 (:func:`align_on_pins`). The raw positions at C = 0 get the same
-    alignment.
+    alignment. Each sphere gets ``sphere_touches`` equator touches
+    (:func:`pin_circle_paper_plan`; the paper's eight).
     """
     from core.selfcal import Grid, self_calibrate, yaw_for_chain
     from core.touches import from_log
@@ -630,7 +887,6 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
     from sim.campaign import simulate_campaign
     from sim.machine import Machine
     from sim.machines import MACHINES, realistic_errors
-    from sim.catalog import make_plan
     from sim.probe import ProbeConfig
 
     t0 = time.perf_counter()
@@ -640,10 +896,10 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
                             rng=np.random.default_rng(seed), ripple=False)
     machine = Machine(MACHINES["mikron-ucp710"](errors=errs))
     art = A.pin_circle()
-    plan = make_plan(art)
+    plan = pin_circle_paper_plan(art, sphere_touches)
     rng = np.random.default_rng(seed + 1)
     log = simulate_campaign(art, machine, ProbeConfig(repeatability_k2_m=2 * noise_um * 1e-6), angles,
-                            rng, check_collisions=False)
+                            rng, plan=plan, check_collisions=False)
     chain = log.meta.get("kinematic_chain")
     yaw = yaw_for_chain(chain)
     # the planar model takes the touches whose normals lie in XY (sphere points
@@ -686,6 +942,7 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2) -> dict:
             "yaw": str(yaw), "yaw_rule": "core.selfcal.yaw_for_chain of the log's kinematic_chain",
             "c_angles_deg": angles,
             "grid_mm": f"{grid.x_m[0] / MM:g}..{grid.x_m[-1] / MM:g} step {PIN_STEP_M / MM:g}", "touches": t.n,
+            "touches_per_setup": int(t.n // len(angles)), "sphere_touches_each": int(sphere_touches),
             "pins": len(names), "probing_sigma_um": noise_um,
             "delta_L": {"x_n_mm": round(float(grid.x_m[-1] / MM), 3), "measured_um": round(dL / UM, 3),
                         "true_um": round(dL_true / UM, 3), "u_um": round(u_dL / UM, 3),
@@ -862,6 +1119,26 @@ def paper_tables(cpu: dict, pin: dict | None = None) -> dict:
                 " ".join(f"{v:g}" for v in r["u_yc_um"][1:]), " ".join(f"{v:.1f}" for v in r["u_cc_urad"][1:]),
                 r["map_corner_um"], r["fig20a_max_um"]] for r in cpu["evaluation_point_steps"]],
             caption="Where the X/Y tables are evaluated (linear, pocket targets; 18(c), 19: C = 0, 75, 130, 210 deg)")
+    if "conditioning" in cpu:
+        out["conditioning"] = Table(
+            ["reading", "model", "C / deg", "max U95(G) / um", "largest / median U95", "least determined: U95 / um",
+             "made of (share)", "its share of max U95(G)^2", "U_XC / um", "U_YC / um", "hand floor U_XC / um"],
+            [[r["reading"], r["model"], ", ".join(f"{a:g}" for a in r["c_angles_deg"]), r["g_u95_max_um"],
+              r["largest_to_median_u95"], r["least_determined"][0]["u95_um"],
+              ", ".join(f"{k} {v:.2f}" for k, v in r["least_determined"][0]["made_of"].items()),
+              r["least_determined"][0]["share_of_max_g_variance"], " ".join(f"{v:g}" for v in r["u_xc_um"]),
+              " ".join(f"{v:g}" for v in r["u_yc_um"]), r["hand_floor_u_xc_yc_um"][0][0]]
+             for r in cpu["conditioning"]],
+            caption="Round 4: the least determined direction of each design (angles as lengths at 110 mm)")
+    if "conditional_table2" in cpu:
+        out["conditional_table2"] = Table(
+            ["reading", "model", "given", "U_XC 75/130/210 / um", "U_YC / um"],
+            [["paper", "", "", "1.0 1.2 1.2", "0.9 1.1 1.2"]]
+            + [[r["reading"], r["model"], k.replace("_", " "), " ".join(f"{v:g}" for v in r[k][0]),
+                " ".join(f"{v:g}" for v in r[k][1])]
+               for r in cpu["conditional_table2"] for k in ("as_identified", "given_datum", "given_heights",
+                                                            "given_datum_and_heights") if k in r],
+            caption="Round 5: Table 2's U_XC, U_YC with the part's datum or the height terms known (4 angles)")
     if pin is not None:
         out["pins"] = Table(["quantity", "vmt", "paper"],
                             [["raw max pin error at C = 0 / um", pin["raw_c0_pin_error_max_um"], "about 8"],
@@ -913,12 +1190,7 @@ def _paper_figure_objects(cpu: dict, pin: dict | None, run: dict) -> dict:
     if key in a:
         out["fig19"] = S.outline_uncertainty_figure(to["w_mm"], a[key], outlines_mm=polys,
                                                     title="Fig. 19: U95 of G_normal, no spheres, C = 0, 75, 130, 210°")
-    for tag, sph in (("a", "with"), ("b", "without")):
-        key = f"map_u95_um_{sph}_spheres_C0_75_130_210"
-        if key in a:
-            out[f"fig20{tag}"] = F.grid_uncertainty_figure(
-                a["grid_x_mm"], a["grid_y_mm"], np.asarray(a[key]).T,
-                title=f"Fig. 20({tag}): U95 (k=2) of the 2D positioning error, {sph} spheres")
+    out.update(fig20_figures(a))
     # case 1 campaign: Figs. 9, 10, 11, 12, 13, 14
     t, P, N, pocket, ref, res, res0 = (run[k] for k in ("t", "P", "N", "pocket", "ref_um", "res", "res0"))
     prof = {}

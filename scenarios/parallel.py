@@ -177,7 +177,7 @@ def _mc_group(group):
     return [_mc_block(t) for t in group]
 
 
-def design_sweep(w_W, wn_W, angle_sets, grid, u_probe_m: float, measure: str = "form", *,
+def design_sweep(w_W, wn_W, angle_sets, grid, u_probe_m: float, measure: str = "gauge", *,
                  dask: str | None = None, workers: int | None = None) -> list:
     """Max workpiece U95 (m) of every angle set, in order, on any executor."""
     w = np.ascontiguousarray(w_W, float)
@@ -187,7 +187,7 @@ def design_sweep(w_W, wn_W, angle_sets, grid, u_probe_m: float, measure: str = "
     return [float(v) for v in pmap(_design_eval, tasks, dask=dask, workers=workers)]
 
 
-def design_evaluator(w_W, wn_W, grid, u_probe_m, measure="form", *, dask=None, workers=None):
+def design_evaluator(w_W, wn_W, grid, u_probe_m, measure="gauge", *, dask=None, workers=None):
     """An ``evaluate`` callable for :func:`core.design.optimise_angles` (None = serial default)."""
     if not dask and not (workers and workers > 1):
         return None

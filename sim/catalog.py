@@ -15,6 +15,7 @@ A new artefact: its factory in ``sim/artefacts.py``, its plan in
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -74,7 +75,7 @@ class ArtefactRecord:
     def setups_text(self) -> str:
         """The default set-ups in words: ``17 placements`` or ``C = 0,75,130,210``."""
         if self.placements is not None:
-            return f"{len(self.placements(None, None))} placements"
+            return f"{_placement_count(self.placements)} placements"
         return f"C = {','.join(f'{c:g}' for c in self.default_c_deg)}"
 
     def defaults_text(self) -> str:
@@ -82,6 +83,13 @@ class ArtefactRecord:
         if self.placements is not None:
             return f"{self.name} on {self.default_machine} ({self.setups_text()})"
         return f"{self.name} on {self.default_machine} at {self.setups_text()}"
+
+
+@functools.cache
+def _placement_count(placements: Callable[..., list]) -> int:
+    """How many placements ``placements`` makes: built once (it builds the artefact), as
+    every ``vmt`` command's help text asks for it when the parser is built."""
+    return len(placements(None, None))
 
 
 #: Every artefact by name, in the order help texts list them.

@@ -68,13 +68,18 @@ def run_all(only: list[str] | None = None) -> dict:
         if only and not any(o in mod or o in short for o in only):
             continue
         t0 = time.perf_counter()
+        run = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
+               "load_average_1min_at_start": round(os.getloadavg()[0], 2)}
+        meta.setdefault("runs", {})[short] = run
         try:
             m = importlib.import_module(mod)
             res = m.run()
         except Exception as e:  # a broken benchmark is a figure too
             values[f"{short}_error"] = f"{type(e).__name__}: {e}"
             origin[f"{short}_error"] = short
+            run["load_average_1min_at_end"] = round(os.getloadavg()[0], 2)
             continue
+        run["load_average_1min_at_end"] = round(os.getloadavg()[0], 2)
         res[f"{short}_wall_s"] = round(time.perf_counter() - t0, 3)
         values.update(res)
         origin.update(dict.fromkeys(res, short))
@@ -104,6 +109,28 @@ def document(meta: dict, values: dict, refs: dict, targets: dict, origin: dict |
         if name in targets:
             rec["target"] = targets[name]
         figures[name] = rec
+    return {"meta": meta, "figures": figures}
+
+
+def merge_documents(old: dict, new: dict) -> dict:
+    """``old`` with the benchmarks of ``new`` replaced: every figure of a benchmark run in
+    ``new`` comes from ``new`` (old figures of that benchmark go, even those it no longer
+    writes); the others stay as ``old`` measured them, with their run's date and load in
+    ``meta["runs"]``. Ratios are never formed across documents: each figure's reference
+    belongs to its own benchmark, so to its own run.
+    """
+    ran = set(new.get("meta", {}).get("runs", {}))
+    figures = {k: r for k, r in old.get("figures", {}).items()
+               if not (isinstance(r, dict) and r.get("bench") in ran)}
+    figures.update(new["figures"])
+    runs = {k: v for k, v in old.get("meta", {}).get("runs", {}).items() if k not in ran}
+    if not runs and old.get("figures"):  # a document written before meta["runs"] existed
+        om = old.get("meta", {})
+        for b in {r.get("bench") for r in figures.values() if isinstance(r, dict)} - ran - {None}:
+            runs[b] = {k: om.get(k) for k in ("date_utc", "load_average_1min_at_start",
+                                              "load_average_1min_at_end")}
+    runs.update(new.get("meta", {}).get("runs", {}))
+    meta = dict(new.get("meta", {}), runs=dict(sorted(runs.items())))
     return {"meta": meta, "figures": figures}
 
 

@@ -33,11 +33,21 @@ def table_markdown(doc: dict) -> str:
         raise ConfigError("bench results: not a vmt bench document (no 'figures' object; "
                           "re-run `make bench` to write one)")
     meta = doc.get("meta", {})
-    lines = [f"Measured {meta.get('date_utc', '?')} UTC on {meta.get('cpu_count', '?')} cores "
-             f"(load average {meta.get('load_average_1min_at_start', '?')} at the start, "
-             f"{meta.get('load_average_1min_at_end', '?')} at the end), Python {meta.get('python', '?')}, "
-             f"BLAS threads {meta.get('blas_threads', '?')}. Ratio = figure / its reference, "
-             "both measured in the same run.", "",
+    runs = meta.get("runs") if isinstance(meta.get("runs"), dict) else {}
+    if len({r.get("date_utc") for r in runs.values() if isinstance(r, dict)}) > 1:
+        # figures merged from several `vmt bench --merge` runs: say when each benchmark ran
+        when = "; ".join(f"{b.removeprefix('bench_')} {r.get('date_utc', '?')} "
+                         f"({r.get('load_average_1min_at_start', '?')}/{r.get('load_average_1min_at_end', '?')})"
+                         for b, r in sorted(runs.items()) if isinstance(r, dict))
+        head = (f"Measured on {meta.get('cpu_count', '?')} cores, Python {meta.get('python', '?')}, "
+                f"BLAS threads {meta.get('blas_threads', '?')}, benchmark by benchmark (UTC, load average "
+                f"at its start/end): {when}.")
+    else:
+        head = (f"Measured {meta.get('date_utc', '?')} UTC on {meta.get('cpu_count', '?')} cores "
+                f"(load average {meta.get('load_average_1min_at_start', '?')} at the start, "
+                f"{meta.get('load_average_1min_at_end', '?')} at the end), Python {meta.get('python', '?')}, "
+                f"BLAS threads {meta.get('blas_threads', '?')}.")
+    lines = [head + " Ratio = figure / its reference, both measured in the same run.", "",
              "| figure | value | reference | reference value | ratio | target |",
              "| --- | ---: | --- | ---: | ---: | --- |"]
     rows = {k: r for k, r in doc["figures"].items()

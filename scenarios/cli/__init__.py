@@ -15,6 +15,7 @@ these promises.
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
 import os
 
@@ -81,11 +82,18 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+@functools.cache
+def _parser() -> argparse.ArgumentParser:
+    """The parser, built once per process: argparse does not change it while parsing, and
+    building it (13 sub-commands, 180 options) costs more than most commands' checks."""
+    return build_parser()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one command; every error is one line on stderr and exit status 2 (:mod:`scenarios.cli.guard`)."""
     from scenarios.cli.guard import run_command
 
-    parser = build_parser()
+    parser = _parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

@@ -10,13 +10,16 @@ def register(sub) -> None:
     p.add_argument("--only", action="append", default=[], help="run only modules containing this text")
     p.add_argument("--readme", metavar="FILE", default=None,
                    help="also rewrite FILE's performance table (between its bench-table markers) from the JSON")
+    p.add_argument("--merge", action="store_true",
+                   help="keep the --out file's figures of the benchmarks not run now (each keeps its own run's "
+                        "date and load); replace those run now")
     p.add_argument("--from-json", metavar="FILE", default=None,
                    help="run nothing: take the figures of this earlier JSON (with --readme)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from scenarios.bench import run_all, write_figures
+    from scenarios.bench import merge_documents, run_all, write_figures
     from scenarios.bench.table import update_readme
 
     if args.from_json is not None:
@@ -26,8 +29,15 @@ def run(args) -> int:
             raise ConfigError("--from-json only feeds --readme: give --readme FILE")
         print(f"wrote {update_readme(args.readme, args.from_json)}")
         return 0
+    old = None
+    if args.merge:
+        from pathlib import Path
+
+        from scenarios.bench.table import read_results
+
+        old = read_results(args.out) if Path(args.out).exists() else {}
     doc = run_all(args.only)
-    out = write_figures(doc, args.out)
+    out = write_figures(doc if old is None else merge_documents(old, doc), args.out)
     for k, r in sorted(doc["figures"].items()):
         ref = f"   [{r['ratio']} x {r['reference']}]" if r.get("reference") else ""
         print(f"{k:40s} {r['value']}{ref}")

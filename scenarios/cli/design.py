@@ -11,8 +11,8 @@ def register(sub) -> None:
     p.add_argument("--step-deg", type=float, default=5.0, help="angle search grid, degrees")
     p.add_argument("--reference", default="0,75,130,210", help="reference C angles to compare, deg ('' = none)")
     p.add_argument("--u-probe-um", type=float, default=1.38, help="probing standard uncertainty, um")
-    p.add_argument("--measure", choices=("form", "gauge"), default="form",
-                   help="minimise the form uncertainty (default) or that of G in the gauge")
+    p.add_argument("--measure", choices=("gauge", "form"), default="gauge",
+                   help="minimise U95 of G as identified (gauge, default: the paper's section-6 reading) or of its form")
     p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT", help="evaluate sweeps on this Dask cluster")
     p.add_argument("--workers", type=int, default=1, help="local processes when no --dask (1 = serial)")
     p.add_argument("--json", default=None, metavar="OUT", help="also write the result as JSON")

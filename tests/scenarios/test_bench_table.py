@@ -88,3 +88,43 @@ def test_cli_bad_input_exit_2(tmp_path, capsys, args, match):
     err = capsys.readouterr().err
     assert match in err and err.count("\n") == 1
     assert readme.read_text() == f"{BEGIN}\n{END}\n"  # untouched
+
+
+def _run(short, date, load, values, refs=None):
+    meta = dict(META, date_utc=date, runs={short: {"date_utc": date, "load_average_1min_at_start": load,
+                                                   "load_average_1min_at_end": load + 1}})
+    return document(meta, values, refs or {}, {}, dict.fromkeys(values, short))
+
+
+def test_merge_replaces_only_the_benchmarks_run_again():
+    from scenarios.bench import merge_documents
+
+    old = merge_documents(_run("bench_one", "2026-12-02 01:00", 9.0, {"a_s": 3.0, "a_ref_s": 12.0, "gone_s": 1.0},
+                               {"a_s": "a_ref_s"}),
+                          _run("bench_two", "2026-12-02 01:30", 8.0, {"b_s": 5.0, "b_ref_s": 10.0},
+                               {"b_s": "b_ref_s"}))
+    new = _run("bench_one", "2026-12-02 05:00", 1.0, {"a_s": 2.0, "a_ref_s": 16.0}, {"a_s": "a_ref_s"})
+    m = merge_documents(old, new)
+    f = m["figures"]
+    # bench_one's figures all come from the new run (its vanished figure goes); bench_two's stay
+    assert set(f) == {"a_s", "a_ref_s", "b_s", "b_ref_s"}
+    assert f["a_s"]["ratio"] == 0.125 and f["b_s"]["ratio"] == 0.5
+    assert m["meta"]["runs"]["bench_one"]["date_utc"] == "2026-12-02 05:00"
+    assert m["meta"]["runs"]["bench_two"]["load_average_1min_at_start"] == 8.0
+    # the table says when each benchmark ran, since they did not run together
+    head = table_markdown(m).splitlines()[0]
+    assert "one 2026-12-02 05:00 (1.0/2.0); two 2026-12-02 01:30 (8.0/9.0)" in head
+
+
+def test_cli_merge_keeps_what_was_not_run(tmp_path, monkeypatch):
+    import scenarios.bench as B
+
+    out = tmp_path / "results.json"
+    out.write_text(json.dumps(_run("bench_two", "2026-12-02 01:30", 8.0, {"b_s": 5.0})))
+    monkeypatch.setattr(B, "BENCHES", ["tests_bench_stub"])
+    monkeypatch.setitem(__import__("sys").modules, "tests_bench_stub",
+                        type("M", (), {"run": staticmethod(lambda: {"c_s": 1.5})}))
+    assert main(["bench", "--out", str(out), "--merge"]) == 0
+    f = json.loads(out.read_text())["figures"]
+    assert f["b_s"]["value"] == 5.0 and f["c_s"]["value"] == 1.5
+    assert set(json.loads(out.read_text())["meta"]["runs"]) == {"bench_two", "bench_tests_bench_stub"}

@@ -159,6 +159,7 @@ def test_evaluation_points_what_moved(cpu):
 
 def test_pin_circle_the_papers_way(pin):
     assert pin["pins"] == 18
+    assert pin["sphere_touches_each"] == 8 and pin["touches_per_setup"] == 88 and pin["touches"] == 8 * 88
     assert pin["kinematic_chain"] == "[w C' A' b X Y Z (C1) t]" and pin["yaw"] == "ECX"  # Y rides on X
     dl = pin["delta_L"]
     assert abs(dl["measured_um"] - dl["true_um"]) < 4 * dl["u_um"]
@@ -256,6 +257,41 @@ def test_fig19_and_table2_explained(cpu):
         r3 = rows[f"round 3: spheres as datum, arms {arms} mm"]["total"]
         assert r3["fig18a_max_um"] / 6.5 > 1.5
         assert 1 / 1.5 < r3["fig18c_max_um"] / 2.1 < 1.5 and 1 / 1.5 < r3["sphere_effect_max_um"] / 4.0 < 1.5
+
+
+def test_two_angle_case_and_table2_drivers(cpu):
+    """Rounds 4-5 (fixed before running; numbers in docs/papers-selfcal.md).
+
+    Fig. 18(a): with C = 0, 75 deg one direction of the parameters (ECY at the y = +-110 mm edge nodes with the
+    pocket's G) has U95 621 um (as a length at 110 mm) and carries 94 % of the variance of the largest U95 of
+    G (89.4 um); the design's largest / median U95 over its directions is 318 against 41 with 4 angles.
+    Table 2: given the part's datum (shift, rotation, scale of G), U_XC and U_YC fall to 0.63-0.89 um in every
+    reading and model (paper 0.9-1.2), above the hand floor of a rigid part on a known map (0.58 um).
+    """
+    rows = {(r["reading"], r["model"][:8], len(r["c_angles_deg"])): r for r in cpu["conditioning"]}
+    a2 = rows[("eq 15 as printed", "identify", 2)]
+    assert a2["g_u95_max_um"] == pytest.approx(89.43, abs=0.01)  # = the study's linear 18(a) on the pocket
+    top = a2["least_determined"][0]
+    assert top["u95_um"] == pytest.approx(621.1, abs=0.1) and top["share_of_max_g_variance"] > 0.9
+    assert next(iter(top["made_of"])) == "ECY edge node"
+    a4 = rows[("eq 15 as printed", "identify", 4)]
+    assert a2["largest_to_median_u95"] > 5 * a4["largest_to_median_u95"]
+    assert a4["least_determined"][0]["share_of_max_g_variance"] < 0.1  # 4 angles: no single direction
+    # the spheres as datum, the paper's eqs 1-15 (no height terms): 18(a) 12.46 um, still 1.92x
+    assert rows[("spheres as datum", "paper's ", 2)]["g_u95_max_um"] == pytest.approx(12.46, abs=0.01)
+    # hand floor: 92 normals, sum n_x^2 = sum n_y^2 = 42 (walls) + 4 (spheres) = 46 at any C
+    assert a4["hand_floor_u_xc_yc_um"][0] == pytest.approx([2 * 1.38 * np.sqrt(2 / 46)] * 2, abs=1e-3)
+    paper = {75.0: (1.0, 0.9), 130.0: (1.2, 1.1), 210.0: (1.2, 1.2)}
+    for r in cpu["conditional_table2"]:
+        xc, yc = r["given_datum"]
+        assert max(xc + yc) < 0.9 and min(xc + yc) > 0.575  # datum known: at or below the paper's
+        if r["reading"] == "eq 15 as printed":
+            assert min(v / paper[c][0] for v, c in zip(r["as_identified"][0], paper)) > 2.5
+    # two computations of one thing: identify's design with its height terms known = the model without them
+    by = {(r["reading"], r["model"][:8]): r for r in cpu["conditional_table2"]}
+    for reading in ("eq 15 as printed", "spheres as datum"):
+        np.testing.assert_allclose(by[(reading, "identify")]["given_heights"],
+                                   by[(reading, "paper's ")]["as_identified"], atol=2e-3)
 
 
 def test_case1_closed_loop_against_the_truth():

@@ -46,6 +46,47 @@ def test_pin_centres_round_trip():
     np.testing.assert_array_equal(nominal, A.pin_positions_nominal())
 
 
+def test_pin_circle_plan_has_the_papers_eight_equator_touches_a_sphere():
+    art = A.pin_circle()
+    plan = cp.pin_circle_paper_plan(art)
+    assert plan.n == 18 * 4 + 2 * 8 == 88  # section 5.1's counts (its "Total 84" is not what they give)
+    spheres = {f.name: f.nominal for f in art.features if f.kind == "sphere"}
+    for name, s in spheres.items():
+        rows = [i for i, f in enumerate(plan.feature) if f == name]
+        assert len(rows) == 8
+        w, n = plan.w_A[rows], plan.wn_A[rows]
+        c = np.asarray(s.centre)
+        np.testing.assert_allclose(np.linalg.norm(w - c, axis=1), s.radius, rtol=0, atol=1e-15)  # on the sphere
+        np.testing.assert_allclose(w[:, 2], c[2], atol=1e-15)  # on its equator
+        np.testing.assert_allclose(n[:, 2], 0.0, atol=1e-15)  # eq 3's normal in XY
+        np.testing.assert_allclose(np.degrees(np.arctan2(n[:, 1], n[:, 0])) % 360, np.arange(0, 360, 45),
+                                   atol=1e-12)
+    pins = [i for i, f in enumerate(plan.feature) if f.startswith("pin")]
+    from sim.plans import pin_circle_plan
+
+    ref = pin_circle_plan(art)
+    keep = [i for i, f in enumerate(ref.feature) if f.startswith("pin")]
+    np.testing.assert_array_equal(plan.w_A[pins], ref.w_A[keep])  # the pins' touches are the standard plan's
+    assert cp.pin_circle_paper_plan(art, 4).n == 80
+    for bad in (2, 4.5, -1):
+        with pytest.raises(ConfigError, match="sphere_touches must be an integer >= 3"):
+            cp.pin_circle_paper_plan(art, bad)
+
+
+def test_pin_circle_paper_plan_runs_without_collision():
+    """Every approach, touch, retract and link of the paper's plan at the eq 20 angles, checked in the MuJoCo
+    scene (the scenario itself runs without the check)."""
+    from sim.campaign import simulate_campaign
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+    from sim.probe import ProbeConfig
+
+    art = A.pin_circle()
+    log = simulate_campaign(art, Machine(MACHINES["mikron-ucp710"]()), ProbeConfig(), list(cp.PIN_ANGLES_DEG),
+                            None, plan=cp.pin_circle_paper_plan(art), check_collisions=True)
+    assert len(log.col("status")) == 8 * 88 and set(log.col("status")) == {"ok"}
+
+
 def test_measure_delta_L_known_answer():
     from sim.machine import Machine
     from sim.machines import MACHINES
@@ -88,3 +129,20 @@ def test_workpiece_components_known_answer(design):
     np.testing.assert_allclose(parts["scale"], parts["total"], rtol=1e-9, atol=1e-20)
     assert parts["form"].max() < 1e-9 * parts["total"].max()
     assert parts["shift"].max() < 1e-9 * parts["total"].max()
+
+
+def test_fig20_json_is_in_the_figures_layout_on_a_non_square_grid():
+    """The JSON map is (N_y, N_x) as drawn (row = y, column = x); a square grid would hide a transposition."""
+    g = Grid(np.array([-0.04, 0.0, 0.04]), np.array([-0.02, 0.0, 0.02, 0.04, 0.06]))  # 3 x-nodes, 5 y-nodes
+    X, Y = np.meshgrid(g.x_m, g.y_m, indexing="ij")
+    umap = (1.0 + 100.0 * X + 10.0 * Y) * 1e-6  # (N_x, N_y) as error_map_u95 gives it; largest at (40, 60) mm
+    js, at = cp.map_u95_json(g, umap)
+    assert np.shape(js) == (5, 3) and at == [40.0, 60.0]
+    assert js[4][0] == pytest.approx(1.0 - 4.0 + 0.6)  # row y = 60 mm, column x = -40 mm, by hand
+    assert js[0][2] == pytest.approx(1.0 + 4.0 - 0.2)  # row y = -20 mm, column x = 40 mm
+    figs = cp.fig20_figures({"grid_x_mm": [-40, 0, 40], "grid_y_mm": [-20, 0, 20, 40, 60],
+                             "map_u95_um_with_spheres_C0_75_130_210": js})
+    quad = figs["fig20a"].axes[0].collections[0]
+    np.testing.assert_allclose(np.asarray(quad.get_array()).reshape(5, 3), js)  # drawn as written
+    with pytest.raises(ConfigError, match="shape"):
+        cp.map_u95_json(g, umap.T)
