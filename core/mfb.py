@@ -211,13 +211,7 @@ def fit_bar_features(p_R, feature, n_R, *, batched: bool = False) -> BarFeatures
     """
     if batched:
         return _fit_bar_features_batched(p_R, feature, n_R)
-    p_R = np.asarray(p_R, float)
-    n_R = np.asarray(n_R, float)
-    if p_R.ndim != 2 or p_R.shape[1] != 3 or n_R.shape != p_R.shape or len(feature) != len(p_R):
-        raise ConfigError(f"MFB features: p_R, n_R must be (n, 3) and feature (n,), got "
-                          f"{p_R.shape}, {n_R.shape}, {len(feature)}")
-    if not np.all(np.isfinite(p_R)):
-        raise ConfigError("MFB features: p_R holds non-finite positions (drop invalid touches first)")
+    p_R, n_R = _checked_touches(p_R, feature, n_R)
     hp, ha, rp, ra, fp, fn = {}, {}, {}, {}, {}, {}
     rod_normals = []
     for f, idx in _group(feature).items():
@@ -235,8 +229,8 @@ def fit_bar_features(p_R, feature, n_R, *, batched: bool = False) -> BarFeatures
     return BarFeatures(hp, ha, rp, ra, fp, fn, side)
 
 
-def _fit_bar_features_batched(p_R, feature, n_R) -> BarFeatures:
-    """:func:`fit_bar_features` with ``batched=True``."""
+def _checked_touches(p_R, feature, n_R) -> tuple:
+    """(p_R, n_R) as float arrays, refused by name unless (n, 3), (n,) and finite."""
     p_R = np.asarray(p_R, float)
     n_R = np.asarray(n_R, float)
     if p_R.ndim != 2 or p_R.shape[1] != 3 or n_R.shape != p_R.shape or len(feature) != len(p_R):
@@ -244,6 +238,12 @@ def _fit_bar_features_batched(p_R, feature, n_R) -> BarFeatures:
                           f"{p_R.shape}, {n_R.shape}, {len(feature)}")
     if not np.all(np.isfinite(p_R)):
         raise ConfigError("MFB features: p_R holds non-finite positions (drop invalid touches first)")
+    return p_R, n_R
+
+
+def _fit_bar_features_batched(p_R, feature, n_R) -> BarFeatures:
+    """:func:`fit_bar_features` with ``batched=True``."""
+    p_R, n_R = _checked_touches(p_R, feature, n_R)
     groups: dict = {}  # (kind, touches, hint bytes) -> [(key, idx)]
     rod_normals = []
     for f, idx in _group(feature).items():
