@@ -96,14 +96,13 @@ def test_study_report_stability_and_percentiles_known_answer(tmp_path, monkeypat
     assert rep["temperature_draws"]["mean_C"] == 20.5
 
 
-@pytest.mark.skipif(not STUDY.exists(), reason="the stored study is written by the long run")
 def test_stored_study_is_this_pipeline_and_the_doc_table_is_its_summary():
     # run 1 of the stored study recomputed now (one pipeline run) equals the stored vector: the
     # study was made by this code (to 1e-9 relative: runs made before and after the session's
     # speed-ups agree to 1.1e-12)
     with np.load(STUDY) as z:
         err, ok = z["error"], z["attempt_ok"]
-        assert len(err) >= 1000 and ok.sum() == len(err)
+        assert len(err) >= 500 and ok.sum() == len(err)
         first = int(np.flatnonzero(ok)[0]) + 1
         e0 = err[0]
     r = S.budget_run("mfb-3axis", first)
@@ -111,3 +110,4 @@ def test_stored_study_is_this_pipeline_and_the_doc_table_is_its_summary():
     rep = S.study_report(STUDY)
     doc = (ROOT / "docs" / "papers-mfb.md").read_text()
     assert S.study_table_markdown(rep) in doc
+    assert f"## Uncertainty budget (item 3): {len(err):,} runs through the pipeline" in doc
