@@ -193,7 +193,7 @@ class Clearance:
         npair = len(self.pair_probe)
         self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
         self._have = np.zeros(npair, bool)
-        self._memo = []  # certificates of near_segments (shared by the moved copies: same frame)
+        self._certs = _Certificates()  # of near_segments (shared by the moved copies: same frame)
         ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
         self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
         self._ccount = np.diff(np.r_[self._cstart, len(ck)])
@@ -324,12 +324,14 @@ class Clearance:
         :meth:`swept_bound` per (segment, pair); only the pairs it cannot clear are
         bounded sample by sample (:meth:`bound`).
 
-        Certificates: each call remembers, per segment (in the geoms' frame), a
-        radius ``r`` within which any segment is clear (the least swept bound minus
-        the margin, at most the box padding: the distance moves at most as far as
-        the tip). A later call with as many segments and the same allowed features
-        (the same plan at another placement turned the same way) clears every
-        segment whose ends lie within ``r`` of the remembered ones at once.
+        Certificates: each call remembers, per segment it bounded (in the geoms'
+        frame), a radius ``r`` within which any segment is clear (the least swept
+        bound minus the margin, at most the box padding: every point of a segment
+        whose ends moved at most ``r`` moved at most ``r``, and a distance moves no
+        farther than the tip). A later call clears at once every segment whose ends
+        lie within ``r`` of a remembered segment's with the same allowed feature,
+        found by nearest-neighbour search (the same plan at another placement turned
+        the same way, another measurement of the same work zone sharing its moves).
 
         ``allow_feature`` (number of polylines,) of str: as in :meth:`near`, per polyline.
         """
@@ -338,14 +340,10 @@ class Clearance:
         allow_seg = (np.full(n, "", dtype=object) if allow_feature is None
                      else np.asarray(allow_feature, dtype=object)[sg.path])
         r = np.full(n, -np.inf)  # the certificate of this call
-        todo = np.arange(n)
-        for a0, b0, allow0, r0 in self._memo:
-            if len(a0) == n and np.array_equal(allow0, allow_seg):
-                moved = np.maximum(np.linalg.norm(a - a0, axis=1), np.linalg.norm(b - b0, axis=1))
-                ok = moved < r0
-                r[ok] = r0[ok] - moved[ok]
-                todo = np.flatnonzero(~ok)
-                break
+        r_old, moved = self._certs.lookup(a, b, allow_seg)
+        ok = moved < r_old
+        r[ok] = r_old[ok] - moved[ok]
+        todo = np.flatnonzero(~ok)
         if todo.size:
             pad = self.cert_pad_m
             seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - pad, np.maximum(a[todo], b[todo]) + pad)
@@ -359,9 +357,8 @@ class Clearance:
             seg, pair = seg[keep], pair[keep]
         lb = self._swept(a[seg], b[seg], pair) if seg.size else np.zeros(0)
         np.minimum.at(r, seg, lb - MARGIN_M)
-        if len(self._memo) >= 8:
-            self._memo.pop(0)
-        self._memo.append((a, b, allow_seg, r))
+        if self.cert_pad_m > 0:  # the segments bounded here (the others' certificates are derived)
+            self._certs.add(a[todo], b[todo], allow_seg[todo], r[todo])
         open_ = lb <= MARGIN_M
         seg, pair = seg[open_], pair[open_]
         if not seg.size:
@@ -427,6 +424,71 @@ class Clearance:
             close = self.bound(p, i, pair, enough=MARGIN_M) <= MARGIN_M
             out[i[close]] = True
         return out
+
+
+class _Certificates:
+    """Certificates of :meth:`Clearance.near_segments`: segments ``a -> b`` (geoms' frame, m),
+    their allowed feature and the radius ``r`` (m) within which a segment is clear.
+
+    :meth:`lookup` finds, per query segment, among its :data:`_CERT_K` nearest remembered
+    segments in (a, b) (a 7-D k-d tree: the ends, and the allowed feature as a coordinate
+    :data:`_FEATURE_GAP_M` apart per feature) the one leaving the largest ``r - moved``,
+    ``moved = max(|a - a0|, |b - b0|)`` (a segment whose ends moved by at most ``moved``
+    has every point moved by at most that). A different feature never certifies.
+    """
+
+    def __init__(self):
+        self.a, self.b, self.r, self.allow = [], [], [], []
+        self._ids: dict = {}
+        self._tree = None
+        self._n = 0
+
+    def _feature_ids(self, allow) -> np.ndarray:
+        return np.array([self._ids.setdefault(f, len(self._ids)) for f in allow], float)
+
+    def add(self, a, b, allow, r) -> None:
+        keep = r > 0
+        if not keep.any():
+            return
+        if self._n + int(keep.sum()) > _CERT_MAX:
+            self.__init__()
+        self.a.append(a[keep]), self.b.append(b[keep]), self.r.append(r[keep]), self.allow.append(allow[keep])
+        self._n += int(keep.sum())
+        self._tree = None
+
+    def lookup(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
+        """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate
+        chosen and how far its segment's ends are from the query's (r0 = -inf: none)."""
+        n = len(a)
+        r0, moved = np.full(n, -np.inf), np.full(n, np.inf)
+        if not self._n or not n:
+            return r0, moved
+        from scipy.spatial import cKDTree
+
+        if self._tree is None:
+            A, B = np.concatenate(self.a), np.concatenate(self.b)
+            self._A, self._B, self._R = A, B, np.concatenate(self.r)
+            self._allow = np.concatenate(self.allow)
+            self._tree = cKDTree(np.column_stack([A, B, _FEATURE_GAP_M * self._feature_ids(self._allow)]))
+        k = min(_CERT_K, self._n)
+        _, j = self._tree.query(np.column_stack([a, b, _FEATURE_GAP_M * self._feature_ids(allow)]), k=k)
+        j = j.reshape(n, k)
+        mv = np.maximum(np.linalg.norm(a[:, None, :] - self._A[j], axis=2),
+                        np.linalg.norm(b[:, None, :] - self._B[j], axis=2))
+        gain = np.where(self._allow[j] == np.asarray(allow, dtype=object)[:, None], self._R[j] - mv, -np.inf)
+        best = np.argmax(gain, axis=1)
+        rows = np.arange(n)
+        ok = np.isfinite(gain[rows, best])
+        r0[ok], moved[ok] = self._R[j[rows, best]][ok], mv[rows, best][ok]
+        return r0, moved
+
+
+#: Remembered segments per broad phase before the certificates are forgotten (memory).
+_CERT_MAX = 200_000
+#: Nearest remembered segments tried per query segment.
+_CERT_K = 4
+#: The allowed feature as a k-d tree coordinate: features this far apart (m) in it.
+_FEATURE_GAP_M = 10.0
 
 
 def _overlap(lo1, hi1, lo2, hi2) -> np.ndarray:
