@@ -510,3 +510,23 @@ def test_least_holder_clearance_looks_past_loose_bounds():
     assert abs(new - 8e-3) < 1e-9, new  # MuJoCo's sphere-cylinder distance, to rounding
     assert abs(new - wz.least_holder_clearance(tips, broad_phase=False)) <= 1e-12
     assert abs(wz.least_holder_clearance(tips[:-1]) - 9e-3) < 1e-6  # the rim alone: the ball 9 mm away
+
+
+@pytest.mark.parametrize("J_m,finger", [((0.0, 0.0, 0.150), 0.0), ((0.0, -0.060, 0.150), 0.020)])
+def test_one_work_zone_at_many_table_poses_agrees_with_every_sample_check(J_m, finger):
+    """One work zone (one stylus, one placement) checked at table poses in turn, as a plan's
+    measurements are: turns about the spindle axis (sharing the broad phase in W and its
+    certificates when the probe is a straight stylus) and tilts (each its own), some crashing.
+    Every result equals MuJoCo at every sample. A broad phase shared across spindle axes, or a
+    star stylus's shared across turns about the axis, misses a crash here."""
+    from sim import mfb_scene
+
+    mfb_scene._ZONES.clear()
+    pl = _holes(3, 4, 5)
+    n_bad = 0
+    for A_deg, C_deg in ((0, 0), (0, 90), (0, -45), (-90, 0), (-90, 90), (-45, 0), (0, 180), (-90, -90)):
+        args = ("m", BAR, FLAT, _T_R_W(A_deg, C_deg), (), J_m, R, pl, finger)
+        new, old = check_measurement(*args), check_measurement(*args, broad_phase=False)
+        assert new == old, (A_deg, C_deg)
+        n_bad += bool(new.collisions)
+    assert n_bad >= 2
