@@ -430,21 +430,26 @@ class _Certificates:
     """Certificates of :meth:`Clearance.near_segments`: segments ``a -> b`` (geoms' frame, m),
     their allowed feature and the radius ``r`` (m) within which a segment is clear.
 
-    :meth:`lookup` finds, per query segment, among its :data:`_CERT_K` nearest remembered
-    segments in (a, b) (a 7-D k-d tree: the ends, and the allowed feature as a coordinate
-    :data:`_FEATURE_GAP_M` apart per feature) the one leaving the largest ``r - moved``,
-    ``moved = max(|a - a0|, |b - b0|)`` (a segment whose ends moved by at most ``moved``
-    has every point moved by at most that). A different feature never certifies.
+    :meth:`lookup` finds, per query segment, a remembered one with the same allowed feature
+    whose ends are nearest: first the segment at the same place in a remembered call of as
+    many segments (the same plan at another placement), then, for the rest, the remembered
+    segment in the same cell of a :data:`_CERT_GRID_M` grid in (a, b) (the same move in
+    another measurement). A certificate applies when ``moved = max(|a - a0|, |b - b0|) < r``
+    (a segment whose ends moved by at most ``moved`` has every point moved by at most that);
+    a segment whose neighbour lies in another cell is only bounded again.
     """
 
     def __init__(self):
-        self.a, self.b, self.r, self.allow = [], [], [], []
+        self.blocks = []  # (a, b, allow, r) per call
         self._ids: dict = {}
-        self._tree = None
+        self._keys = None
         self._n = 0
 
-    def _feature_ids(self, allow) -> np.ndarray:
-        return np.array([self._ids.setdefault(f, len(self._ids)) for f in allow], float)
+    def _key(self, a, b, allow) -> np.ndarray:
+        """(n,) void: the grid cell of each segment and its allowed feature, as bytes."""
+        f = np.fromiter((self._ids.setdefault(x, len(self._ids)) for x in allow), np.int64, len(allow))
+        k = np.column_stack([np.round(np.column_stack([a, b]) / _CERT_GRID_M).astype(np.int64), f])
+        return np.ascontiguousarray(k).view(np.dtype((np.void, 8 * 7))).ravel()
 
     def add(self, a, b, allow, r) -> None:
         keep = r > 0
@@ -452,9 +457,9 @@ class _Certificates:
             return
         if self._n + int(keep.sum()) > _CERT_MAX:
             self.__init__()
-        self.a.append(a[keep]), self.b.append(b[keep]), self.r.append(r[keep]), self.allow.append(allow[keep])
+        self.blocks.append((a[keep], b[keep], allow[keep], r[keep]))
         self._n += int(keep.sum())
-        self._tree = None
+        self._keys = None
 
     def lookup(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
         """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate
@@ -463,32 +468,34 @@ class _Certificates:
         r0, moved = np.full(n, -np.inf), np.full(n, np.inf)
         if not self._n or not n:
             return r0, moved
-        from scipy.spatial import cKDTree
-
-        if self._tree is None:
-            A, B = np.concatenate(self.a), np.concatenate(self.b)
-            self._A, self._B, self._R = A, B, np.concatenate(self.r)
-            self._allow = np.concatenate(self.allow)
-            self._tree = cKDTree(np.column_stack([A, B, _FEATURE_GAP_M * self._feature_ids(self._allow)]))
-        k = min(_CERT_K, self._n)
-        _, j = self._tree.query(np.column_stack([a, b, _FEATURE_GAP_M * self._feature_ids(allow)]), k=k)
-        j = j.reshape(n, k)
-        mv = np.maximum(np.linalg.norm(a[:, None, :] - self._A[j], axis=2),
-                        np.linalg.norm(b[:, None, :] - self._B[j], axis=2))
-        gain = np.where(self._allow[j] == np.asarray(allow, dtype=object)[:, None], self._R[j] - mv, -np.inf)
-        best = np.argmax(gain, axis=1)
-        rows = np.arange(n)
-        ok = np.isfinite(gain[rows, best])
-        r0[ok], moved[ok] = self._R[j[rows, best]][ok], mv[rows, best][ok]
+        for a0, b0, allow0, rr in self.blocks:  # the same segments in order (another placement)
+            if len(a0) == n and np.array_equal(allow0, allow):
+                mv = np.maximum(np.linalg.norm(a - a0, axis=1), np.linalg.norm(b - b0, axis=1))
+                better = rr - mv > r0 - moved
+                r0[better], moved[better] = rr[better], mv[better]
+        rest = np.flatnonzero(~(moved < r0))
+        if rest.size:  # the same move elsewhere in the remembered calls (its grid cell)
+            if self._keys is None:
+                A = np.concatenate([blk[0] for blk in self.blocks])
+                B = np.concatenate([blk[1] for blk in self.blocks])
+                F = np.concatenate([blk[2] for blk in self.blocks])
+                k = self._key(A, B, F)
+                o = np.argsort(k, kind="stable")
+                self._keys, self._A, self._B = k[o], A[o], B[o]
+                self._R = np.concatenate([blk[3] for blk in self.blocks])[o]
+            q = self._key(a[rest], b[rest], allow[rest])
+            j = np.minimum(np.searchsorted(self._keys, q), len(self._keys) - 1)
+            hit = self._keys[j] == q
+            rest, j = rest[hit], j[hit]
+            mv = np.maximum(np.linalg.norm(a[rest] - self._A[j], axis=1), np.linalg.norm(b[rest] - self._B[j], axis=1))
+            r0[rest], moved[rest] = self._R[j], mv
         return r0, moved
 
 
 #: Remembered segments per broad phase before the certificates are forgotten (memory).
 _CERT_MAX = 200_000
-#: Nearest remembered segments tried per query segment.
-_CERT_K = 4
-#: The allowed feature as a k-d tree coordinate: features this far apart (m) in it.
-_FEATURE_GAP_M = 10.0
+#: Grid (m) of the certificates' second lookup: segments whose ends round to the same cells.
+_CERT_GRID_M = 1.0e-6
 
 
 def _overlap(lo1, hi1, lo2, hi2) -> np.ndarray:

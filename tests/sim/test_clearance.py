@@ -433,9 +433,11 @@ def test_certificates_clear_exactly_their_radius():
     assert clr.near_segments(*seg(R - 1e-3, R - 1e-3)).size > 0  # but nothing else may
 
 
-def test_certificates_by_nearest_segment_and_feature():
-    """The certificate store finds, per segment, a remembered segment within its radius among
-    many (shuffled, other features mixed in), and leaves the rest open."""
+def test_certificates_by_place_and_by_segment_and_feature():
+    """The certificate store finds a remembered segment within its radius for the same segments
+    in the same order moved by less than their radii (another placement), and for the same
+    segments in another order and number, moved by rounding (another measurement's moves);
+    never across allowed features, never for a segment moved by its radius or more."""
     from sim.clearance import _Certificates
 
     rng = np.random.default_rng(4)
@@ -446,12 +448,14 @@ def test_certificates_by_nearest_segment_and_feature():
     st = _Certificates()
     st.add(a, b, allow, r)
     st.add(a + 0.05, b + 0.05, np.roll(allow, 1), r)  # others, elsewhere
-    p = rng.permutation(500)
     u = rng.normal(size=(500, 3))
     u /= np.linalg.norm(u, axis=1)[:, None]
-    d = rng.uniform(0, 1, 500) * r[p]
-    r0, moved = st.lookup(a[p] + d[:, None] * u, b[p], allow[p])
-    assert np.all(moved < r0) and np.allclose(moved, d, rtol=0, atol=1e-15)
+    f = rng.uniform(0, 1.5, 500)
+    r0, moved = st.lookup(a + (f * r)[:, None] * u, b, allow)  # in order, moved 0 to 1.5 radii
+    assert np.array_equal(moved < r0, f < 1) and np.allclose(moved, f * r, rtol=0, atol=1e-15)
+    p = rng.permutation(500)[:300]
+    r0, moved = st.lookup(a[p] + rng.normal(0, 1e-15, (300, 3)), b[p], allow[p])  # shuffled, 300
+    assert np.all(moved < r0) and np.all(moved < 1e-14) and np.array_equal(r0, r[p])
     other = np.where(allow[p] == "", "rod02", "").astype(object)
     r0, moved = st.lookup(a[p], b[p], other)  # the same segments with another allowed feature
     assert not np.any(moved < r0)
