@@ -459,6 +459,12 @@ def test_certificates_by_place_and_by_segment_and_feature():
     other = np.where(allow[p] == "", "rod02", "").astype(object)
     r0, moved = st.lookup(a[p], b[p], other)  # the same segments with another allowed feature
     assert not np.any(moved < r0)
+    # within one grid cell (1 um) but beyond a 0.2 um radius: the distance is still measured
+    c = np.array([[0.012, -0.034, 0.056]])
+    st.add(c, c + [0.01, 0, 0], np.array([""], dtype=object), np.array([0.2e-6]))
+    r0, moved = st.lookup(np.r_[a[:3], c + [0.4e-6, 0, 0]], np.r_[b[:3], c + [0.01, 0, 0]],
+                          np.r_[allow[:3], np.array([""], dtype=object)])
+    assert r0[3] == 0.2e-6 and abs(moved[3] - 0.4e-6) < 1e-15 and not moved[3] < r0[3]
 
 
 def test_least_holder_clearance_refines_to_the_every_triple_minimum():
