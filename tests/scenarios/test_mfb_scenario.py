@@ -208,6 +208,12 @@ def test_stylus_and_temperature_inputs_refuse_bad_values():
         run("mfb-3axis", u_stylus_um=-1.0, mc_runs=0)
     with pytest.raises(ConfigError, match="temperature_C"):
         run("mfb-3axis", bar_temperature_C=float("nan"), mc_runs=0)
+    # the budget's stylus share by components sets the offsets' errors directly: an unknown
+    # stylus or a malformed offset is named with the plan's styli
+    with pytest.raises(ConfigError, match=r"stylus_dJ_m: .*T0, .*\['T9'\]"):
+        run("mfb-3axis", stylus_dJ_m={"T9": [0.0, 0.0, 1e-6]}, mc_runs=0)
+    with pytest.raises(ConfigError, match="stylus_dJ_m"):
+        run("mfb-3axis", stylus_dJ_m={"T0": [0.0, float("nan"), 0.0]}, mc_runs=0)
 
 
 def test_reversal_on_a_simulated_cmm_separates_the_cmm_straightness():
