@@ -524,8 +524,13 @@ class _NoSafeHeight:
 _CHECKS: dict = {}
 
 
-def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3) -> dict:
+def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> dict:
     """Collision and reach check of every measurement of a plan with a workholder (MuJoCo).
+
+    The program checked is the one :func:`run` simulates for the placement
+    tolerance ``u_place`` (its approach margins, :func:`placement_margin_m`):
+    a wider tolerance starts every touch further out, and that path is the
+    one checked.
 
     Each measurement's touches, approach/retract and link moves are checked
     in :class:`sim.mfb_scene.WorkZone` (table, workholder, bar and its
@@ -547,13 +552,14 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3) -> dict:
     from sim.machines import MACHINES
     from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurement
 
-    key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m)
+    margin = placement_margin_m(u_place)  # the program run() simulates for this placement tolerance
+    key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
+           margin)
     if key in _CHECKS:
         return _CHECKS[key]
     t0 = time.time()
     mach = Machine(MACHINES[plan.machine]())
     art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
-    margin = placement_margin_m()  # the program run() simulates for the default placement tolerance
     per, n_t, n_s = {}, 0, 0
     for ms in plan.measurements:
         rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
@@ -582,6 +588,8 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3) -> dict:
                       "star arm, extension, probe body, spindle nose; approach/retract and link moves; the bar "
                       "above the table face; touches within the strokes" % (TABLE_R_M / MM, TABLE_T_M / MM),
            "touches": n_t, "path_points": n_s, "seconds": round(time.time() - t0, 1), "measurements": per,
+           "program_mm": {"clearance": round(max(2.0 * MM, margin) / MM, 3),
+                          "overshoot": round(max(3.0 * MM, margin) / MM, 3)},
            "fixtures": {p: [{"name": b.name, "lo_mm": [v / MM for v in b.lo], "hi_mm": [v / MM for v in b.hi]}
                             for b in bl] for p, bl in plan.fixtures.items()}}
     _CHECKS[key] = out
@@ -926,7 +934,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     # the program's approach margins cover the declared placement tolerance (not the draw)
     margin = placement_margin_m(u_place)
     program = {"clearance_m": max(2.0 * MM, margin), "overshoot_m": max(3.0 * MM, margin)}
-    collision = check_plan(plan) if plan.fixtures else None  # after the inputs are checked
+    collision = check_plan(plan, u_place=u_place) if plan.fixtures else None  # after the inputs are checked
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
     plans, full_plans = {}, {}  # full_plans holds each bar (its id is the key) for the run

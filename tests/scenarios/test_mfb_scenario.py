@@ -463,3 +463,19 @@ def test_a_stylus_calibration_error_reaches_the_differential_errors(mfb3_noise_f
         return np.abs(r.result.theta[d.slices[s]] - base.result.theta[d.slices[s]]).max() * 1e6
 
     assert moved("ECZ") > 5.0 and moved("EXX") < 0.01, (moved("ECZ"), moved("EXX"))
+
+
+def test_the_collision_check_checks_the_program_run_simulates():
+    """check_plan checked the program for the default placement tolerance (3 mm margins) whatever
+    tolerance run() was given; a wider tolerance starts every touch further out (5 sigma of the
+    far end's face: 2 x (0.2, 0.2, 0.1 mm, 0.5, 0.5, 1 mrad) gives 5.85 -> 6.0 mm), and that
+    longer path is the one to check."""
+    from scenarios.mfb import U_PLACE, check_plan, placement_margin_m, plan_5axis
+
+    plan = plan_5axis()
+    wide = tuple(2.0 * v for v in U_PLACE)
+    assert placement_margin_m(wide) == pytest.approx(6.0e-3, abs=1e-15)
+    c0, c1 = check_plan(plan), check_plan(plan, u_place=wide)
+    assert c0["program_mm"] == {"clearance": 3.0, "overshoot": 3.0}
+    assert c1["program_mm"] == {"clearance": 6.0, "overshoot": 6.0}
+    assert c1["passed"] and c1["path_points"] > c0["path_points"]  # the longer approaches were checked
