@@ -1017,6 +1017,17 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         f"false-alarm rate {settings.alpha:g} split over {', '.join(FAMILIES)}; "
         f"materiality {settings.material_sigma:g} sigma per row",
         "U95: k = 2, sigma from each model's residuals"]
+    smooth_terms = [t for t in terms if t.penalty is not None]
+    if smooth_terms:
+        conv.append("extended workpiece beside an unnamed smooth: the smooth takes no combination the baseline "
+                    "spans exactly; U95 from the penalised fit's covariance s^2 (A^T A + P)^-1 (the Bayesian "
+                    "covariance of a penalised spline, Wahba 1983); an estimate only where the data alone "
+                    "determine it")
+    lost = [w["target"] for w in wp if w["baseline_um"] is not None and w["extended_um"] is None]
+    if lost:
+        conv.append(f"extended workpiece not reported at {len(lost)} target(s) (e.g. {lost[0]}): the data alone "
+                    "do not determine it beside " + ", ".join(t.cause if t.penalty is None else
+                                                               f"the unnamed smooth in {t.covariate}" for t in terms))
     named = [t.cause if t.penalty is None else f"unnamed smooth in {t.covariate}" for t in terms]
     model_name = bl.model.split(" (")[0] + "".join(f" + {c}" for c in named) + (" - outliers" if outliers.size else "")
     if progress is not None:
@@ -1665,15 +1676,24 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st):
     A1 = np.hstack([A0, E])
     C1 = np.hstack([bl.C, np.zeros((bl.C.shape[0], E.shape[1]))])
     P = None
+    d1 = bl.d
     if any(t.penalty is not None for t in terms):
         P = np.zeros((E.shape[1], E.shape[1]))
-        o = 0
+        pen = np.zeros(A1.shape[1], bool)
+        o = A0.shape[1]
         for t in terms:
             k = t.map.shape[1] if t.map is not None else t.columns.shape[1]
             if t.penalty is not None:
-                P[o:o + k, o:o + k] = t.penalty
+                P[o - A0.shape[1]:o - A0.shape[1] + k, o - A0.shape[1]:o - A0.shape[1] + k] = t.penalty
+                pen[o:o + k] = True
             o += k
-    ge, ce, ee = _constrained(A1, y, C1, bl.d, rows, P, E.shape[1])
+        C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen)
+    ge, ce, ee = _constrained(A1, y, C1, d1, rows, P, E.shape[1])
+    if P is not None:
+        # the penalty's ridge rows make every parameter formally estimable:
+        # the extended workpiece is an estimate only where the data alone
+        # determine it (else the penalty's strength, not the campaign, decides)
+        ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
     out = []
     for i, tid in enumerate(bl.estimand_ids):
         j = q[i]
@@ -1685,6 +1705,41 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st):
     ident = bool(np.all(eb[q]) and np.all(ee[q]))
     return (out, ident, np.where(eb[q], gb[q], np.nan), np.where(ee[q], ge[q], np.nan),
             cb[np.ix_(q, q)], ce[np.ix_(q, q)])
+
+
+def _smooth_gauge(A, C, d, rows, pen):
+    """Gauge rows for a penalised (smooth) term: it takes no combination the rest of the model spans exactly.
+
+    A smooth basis (B-splines sum to one, per set-up modes) can reproduce
+    exactly some of the baseline's columns (a set-up's offset, the size of
+    the part): along those directions the fitted values do not change and
+    only the penalty would split the signal between the workpiece and the
+    smooth. Each such null direction of the unpenalised system that moves
+    the smooth's coefficients (``pen``) is fixed by one row ``K theta = 0``
+    on those coefficients: what the baseline can represent stays the
+    baseline's. The fitted values are unchanged (only null directions are
+    pinned). Returns (C, d) with the rows appended.
+    """
+    p = A.shape[1]
+    if C.shape[0]:
+        _, sC, VtC = np.linalg.svd(C)
+        Z = VtC[int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300))):].T
+    else:
+        Z = np.eye(p)
+    M = A[rows] @ Z
+    sc = np.linalg.norm(M, axis=0)
+    sc = np.where(sc > 0, sc, 1.0)
+    _, s, Vt = np.linalg.svd(M / sc, full_matrices=False)
+    null = Vt[s <= 1e-6 * s.max()] if s.size else Vt[:0]
+    if M.shape[1] > s.size:  # more unknowns than rows: the rest is null too
+        null = np.vstack([null, np.linalg.svd(M / sc)[2][s.size:]])
+    Ns = (Z @ (null.T / sc[:, None]))[pen]
+    if Ns.shape[1] == 0:
+        return C, d
+    K = orth(Ns).T  # (r, n_pen)
+    rows_K = np.zeros((K.shape[0], p))
+    rows_K[:, pen] = K
+    return np.vstack([C, rows_K]), np.concatenate([d, np.zeros(K.shape[0])])
 
 
 def _constrained(A, y, C, d, rows, penalty, k_ext):

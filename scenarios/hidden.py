@@ -507,6 +507,9 @@ class Outcome:
         Angle between the effect (per touch) and the baseline's column
         space: 0 when the baseline absorbs it entirely (no residual test
         can see it; NaN when the truth does not carry the effect).
+    identifiable : bool
+        The generator's word on the design: the part separable from smooth
+        machine error fields (not the engine's own test).
     """
 
     generator: str
@@ -524,6 +527,7 @@ class Outcome:
     seconds: float
     visible_generator: float = float("nan")
     angle_to_baseline_deg: float = float("nan")
+    identifiable: bool = True
 
 
 def catalogue_names() -> set:
@@ -573,7 +577,10 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
                 return float(np.sqrt(np.mean(e ** 2))) / UM if np.all(np.isfinite(e)) else float("nan")
 
             wb, we = err(d.G_baseline_m), err(d.G_extended_m)
-            if identifiable and d.cov_G_extended is not None and np.all(np.isfinite(d.G_extended_m[keep])):
+            # the extended workpiece's U95 whenever it is reported as an estimate
+            # (also on designs the generator calls unidentifiable: the check
+            # must see an extension that moves the workpiece there too)
+            if d.cov_G_extended is not None and np.all(np.isfinite(d.G_extended_m[keep])):
                 Pm = remove_span(np.eye(int(keep.sum())), B)
                 C = d.cov_G_extended[np.ix_(keep, keep)]
                 wu = float(np.sqrt(np.mean(4 * np.maximum(np.einsum("ij,jk,ik->i", Pm, C, Pm), 0)))) / UM
@@ -585,7 +592,7 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
         vis, angle = effect_outside_baseline(bl, np.asarray(effect_dq_um, float)[bl.rows] * UM, noise_um * UM)
     return Outcome(generator, effect, int(seed), tuple(acceptable), rep["cause"],
                    tuple(f["cause"] for f in rep["findings"]), bool(conf), vis, float(noise_um), wb, we, wu, dt,
-                   vis_gen, angle)
+                   vis_gen, angle, bool(identifiable))
 
 
 def effect_outside_baseline(bl, e_m: np.ndarray, noise_m: float) -> tuple[float, float]:
@@ -644,7 +651,12 @@ def summarize(outcomes) -> dict:
     - ``confident_misnamed``: out-of-catalogue effects (visible or not)
       named with a wrong catalogue cause without an ambiguity flag;
     - ``workpiece_ok``: campaigns whose extended workpiece is no worse than
-      the baseline's beyond its U95 (both gauge-free against the truth).
+      the baseline's beyond its U95 (both gauge-free against the truth),
+      over every campaign that reports an extended estimate (one reported
+      without a U95 counts as a failure); ``workpiece_ok_identifiable`` the
+      same on the designs the generator calls identifiable;
+    - ``workpiece_withheld``: campaigns whose extended workpiece the engine
+      refused to report as an estimate (not identifiable from the data).
     """
     cat = catalogue_names()
     out: dict = {}
@@ -665,8 +677,15 @@ def summarize(outcomes) -> dict:
     rate("below_visibility", low, [o.cause in o.acceptable or o.cause in ("none", "unexplained") for o in low])
     out["absorbed"] = [(o.effect, o.seed, round(o.visible_generator, 2), round(o.visible_sigmas, 3),
                         round(o.angle_to_baseline_deg, 3)) for o in low if o.visible_generator >= 1.0]
-    wp = [o for o in outcomes if np.isfinite(o.wp_base_um) and np.isfinite(o.wp_ext_um) and np.isfinite(o.wp_u95_um)]
-    rate("workpiece_ok", wp, [o.wp_ext_um <= o.wp_base_um + o.wp_u95_um for o in wp])
+    # every extended workpiece reported as an estimate is checked: one
+    # without a U95 fails (an estimate must carry its uncertainty)
+    wp = [o for o in outcomes if np.isfinite(o.wp_base_um) and np.isfinite(o.wp_ext_um)]
+    ok = [bool(np.isfinite(o.wp_u95_um) and o.wp_ext_um <= o.wp_base_um + o.wp_u95_um) for o in wp]
+    rate("workpiece_ok", wp, ok)
+    wpi = [(o, k) for o, k in zip(wp, ok) if o.identifiable]
+    rate("workpiece_ok_identifiable", wpi, [k for _, k in wpi])
+    rate("workpiece_withheld", [o for o in outcomes if np.isfinite(o.wp_base_um)],
+         [not np.isfinite(o.wp_ext_um) for o in outcomes if np.isfinite(o.wp_base_um)])
     if wp:
         out["workpiece_mean_um"] = {"baseline": float(np.mean([o.wp_base_um for o in wp])),
                                     "extended": float(np.mean([o.wp_ext_um for o in wp]))}

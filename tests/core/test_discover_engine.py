@@ -457,3 +457,48 @@ def test_fixed_lobes_are_the_plainer_explanation_of_lobes_per_set_up():
     rep = discover(_lobed_campaign(1, [0.0, 0.8, 2.1, 2.9, 1.4, 0.3])).to_report()
     assert rep["cause"] == "lobing_per_setup", [f["cause"] for f in rep["findings"]]
     assert abs(rep["findings"][0]["params"]["amplitude_um"] - 2.0) < 0.1
+
+
+def test_smooth_term_workpiece_u95_is_the_datas_not_the_penaltys():
+    """Known answer: a smooth basis that copies a workpiece column exactly.
+
+    Three targets measured in two set-ups, four times each; the baseline is
+    ``y = g[target] + o[set-up]`` with ``o[0] = 0`` (the gauge). The smooth
+    term's basis is (target 0's indicator, time): its first column is the
+    workpiece's own, so the data cannot split that signal and only the
+    penalty would. The extended workpiece must then be the ordinary least
+    squares of (targets, set-up 1, time), computed here by the textbook
+    formula ``s^2 (X^T X)^-1`` apart from the engine: estimate and U95 to
+    1e-7 um. Why that bound: the ridge (lambda = 1e-10 on the smooth's
+    coefficients) biases the time coefficient by about
+    lambda / |t outside the model|^2, 2e-9 um here; float64 rounding on a
+    24-row problem is far below. The engine before this rule let the ridge
+    decide the shared direction: target 0's U95 was 45,668 um (about
+    2 s / sqrt(lambda)) and its estimate 1.07e-6 um off.
+    """
+    from types import SimpleNamespace
+
+    from core.discover import Term, _workpiece
+
+    rng = np.random.default_rng(7)
+    tgt = np.tile(np.repeat(np.arange(3), 4), 2)
+    su = np.repeat([0, 1], 12)
+    n = tgt.size
+    time = np.arange(n, dtype=float) / n
+    A0 = np.hstack([np.eye(3)[tgt], np.eye(2)[su]])
+    C = np.array([[0.0, 0, 0, 1, 0]])
+    y = A0 @ np.array([3.0, -2.0, 1.0, 0.0, 5.0]) * UM + 0.8 * UM * time + 0.3 * UM * rng.standard_normal(n)
+    bl = SimpleNamespace(estimand=np.arange(3), A=A0, C=C, d=np.zeros(1), n=n, estimand_ids=("a", "b", "c"))
+    lam = 1e-10
+    sm = Term(causes.UNEXPLAINED, np.column_stack([A0[:, 0], time]), ("smooth[0]", "smooth[1]"), {}, "time",
+              penalty=lam * np.eye(2))
+    rows = np.arange(n)
+    wp, ident, _, Ge, _, cGe = _workpiece(bl, [sm], y, rows, None, None)
+    X = np.column_stack([np.eye(3)[tgt], (su == 1).astype(float), time])
+    beta, rss = np.linalg.lstsq(X, y, rcond=None)[:2]
+    cov = float(rss[0]) / (n - X.shape[1]) * np.linalg.inv(X.T @ X)
+    assert ident
+    assert np.allclose(Ge / UM, beta[:3] / UM, atol=1e-7, rtol=0)
+    u95 = np.array([w["extended_u95_um"] for w in wp])
+    assert np.allclose(u95, 2 * np.sqrt(np.diag(cov)[:3]) / UM, atol=1e-7, rtol=0)
+    assert np.allclose(2 * np.sqrt(np.diag(cGe)) / UM, u95, atol=1e-12, rtol=0)

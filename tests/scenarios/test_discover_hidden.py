@@ -46,9 +46,10 @@ their intervals).
 import importlib
 import importlib.util
 
+import numpy as np
 import pytest
 
-from scenarios.hidden import HIDDEN_CAUSES, blind_outcome, catalogue_names, format_study, hidden_outcome, summarize
+from scenarios.hidden import HIDDEN_CAUSES, Outcome, blind_outcome, catalogue_names, format_study, hidden_outcome, summarize
 
 SEEDS = {"hidden": (1000,), "gen_a": (0,), "gen_b": (0,)}
 #: Aim for out-of-catalogue effects (unexplained or acceptably named).
@@ -131,8 +132,53 @@ def test_out_of_catalogue_never_confidently_misnamed_beyond_the_known(studies, g
 def test_extended_workpiece_never_worse_beyond_its_u95(studies, gen):
     s = summarize(studies[gen])["workpiece_ok"]
     bad = [(o.effect, round(o.wp_base_um, 3), round(o.wp_ext_um, 3), round(o.wp_u95_um, 3)) for o in studies[gen]
-           if o.wp_ext_um > o.wp_base_um + o.wp_u95_um]
+           if np.isfinite(o.wp_ext_um) and not o.wp_ext_um <= o.wp_base_um + o.wp_u95_um]
     assert s["k"] == s["n"], bad
+
+
+def _outcome(base, ext, u95, identifiable=True):
+    return Outcome("g", "e", 0, ("unexplained",), "unexplained", ("unexplained",), True, 2.0, 0.3,
+                   base, ext, u95, 0.1, identifiable=identifiable)
+
+
+def test_workpiece_check_counts_every_reported_extension():
+    """Known answers: an extended workpiece reported without a U95 fails the check.
+
+    The case of gen_b fixture_slip 301 before the smooth's gauge: baseline
+    0.26 um, extended 0.79 um, no U95 (design the generator calls
+    unidentifiable); it used to be left out of the check.
+    """
+    nan = float("nan")
+    outs = [_outcome(0.26, 0.79, nan, identifiable=False),  # reported, no U95: fails
+            _outcome(0.26, 0.79, 0.40),  # 0.79 > 0.66: fails
+            _outcome(0.26, 0.79, 0.96, identifiable=False),  # within: passes
+            _outcome(0.26, 0.20, 0.05),  # better than the baseline: passes
+            _outcome(0.26, nan, nan)]  # withheld (not an estimate): not checked, counted apart
+    s = summarize(outs)
+    assert (s["workpiece_ok"]["k"], s["workpiece_ok"]["n"]) == (2, 4)
+    assert (s["workpiece_ok_identifiable"]["k"], s["workpiece_ok_identifiable"]["n"]) == (1, 2)
+    assert (s["workpiece_withheld"]["k"], s["workpiece_withheld"]["n"]) == (1, 5)
+
+
+def test_a_smooth_that_moves_the_workpiece_is_checked():
+    """gen_b fixture_slip 301: the unnamed smooth in temp_spindle moves the workpiece (0.26 -> 0.79 um).
+
+    Its design (quarters or thirds) is one the generator calls unidentifiable;
+    the extension is reported as an estimate, so it must carry a U95 and be
+    counted: finite, and the extended error within baseline + U95 (0.96 um
+    at the time of writing; before the smooth's gauge the engine's per-target
+    U95 were about 3,000 um and the study gave none).
+    """
+    mod = _blind("gen_b")
+    if mod is None:
+        pytest.skip("blind generator gen_b not present")
+    o = blind_outcome(mod, "fixture_slip", 301, generator="gen_b")
+    assert not o.identifiable and np.isfinite(o.wp_ext_um)
+    assert abs(o.wp_ext_um - o.wp_base_um) > 0.3, (o.wp_base_um, o.wp_ext_um)  # the smooth did move it
+    # a U95 of millimetres would pass any check: bound it (3 um, over ten noise sigmas: 0.26 um here)
+    assert np.isfinite(o.wp_u95_um) and o.wp_u95_um < 3.0, o.wp_u95_um
+    s = summarize([o])["workpiece_ok"]
+    assert (s["k"], s["n"]) == (1, 1), (o.wp_base_um, o.wp_ext_um, o.wp_u95_um)
 
 
 #: Campaigns once named wrongly, each fixed by a rule of the engine (not by a
