@@ -3,14 +3,14 @@
 The MuJoCo scenes (:mod:`sim.scene`, :mod:`sim.mfb_scene`) have two bodies:
 the table (its geoms fixed for one table pose) and the spindle, which only
 translates (origin at the stylus-tip centre, axes parallel to R). A path
-check asks MuJoCo's ``mj_collision`` at every sample of a polyline; most
-samples are centimetres from anything. This module reads the geoms of the
-compiled MuJoCo model (type, size, pose after ``mj_kinematics``) and
-computes, for every sample at once, a LOWER BOUND on the distance between
-each probe geom (moved to the sample) and each table geom; a sample whose
-bounds all exceed :data:`MARGIN_M` cannot collide and is skipped, and only
-the others go to ``mj_collision`` (the same call as before, same samples in
-the same order, so the first collision found is the same).
+check asks MuJoCo's ``mj_collision`` at samples of polylines; most samples
+are centimetres from anything. This module takes the scene's geoms (type,
+size, pose: the definitions its MJCF is written from, or the compiled
+model's) and computes LOWER BOUNDS on the distance between each probe geom
+(moved with the tip) and each table geom; a sample whose bounds all exceed
+:data:`MARGIN_M` cannot collide and is skipped, and only the others go to
+``mj_collision`` (the same call as before, in the same order, so the first
+collision found is the same).
 
 The bound is the separating-axis gap of two convex sets: for any unit
 vector u, ``|(c_G - c_H) . u| - ext_G(u) - ext_H(u)`` is at most their
@@ -24,11 +24,25 @@ cylinder or sphere). Candidate pairs come from the geoms' axis-aligned
 boxes (exact for the probe's axis-aligned geoms; table geoms' boxes from
 their corners or analytic extents), each a sound superset.
 
-Frames: R (the machine reference, MuJoCo's world); units m.
+Whole segments at once (:meth:`Clearance.near_segments`): along a straight
+move ``a -> b`` the offset ``(c_G - c_H) . u`` is linear, so its least
+magnitude over the segment is 0 if it changes sign, else the smaller end's:
+that gap bounds the distance at every sample of the segment (a swept-geom
+bound), and only the pairs it cannot clear are bounded sample by sample.
+Each call leaves per-segment certificates (the radius within which the
+segment stays clear, since a distance moves no farther than the tip): the
+same plan at another placement turned the same way is cleared segment by
+segment in a few vector operations.
+
+Frames: the geoms may be given in any frame F fixed to the table (``T_F_R``;
+the scene uses the artefact's frame A, so one broad phase serves every
+placement of the artefact turned the same way); tips are always given in R
+(the machine reference, MuJoCo's world); units m.
 """
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,6 +53,12 @@ import numpy as np
 MARGIN_M = 1.0e-4
 
 _SPHERE, _CAPSULE, _CYLINDER, _BOX = 2, 3, 5, 6
+#: Consecutive segment boxes tested together against the clusters of table geoms first.
+_BLOCK = 16
+#: Segment boxes are padded by this much (m) before the pairs' boxes are tested: a pair left
+#: out is then farther than MARGIN_M from any segment within this distance (the certificates
+#: of :meth:`Clearance.near_segments`).
+CERT_PAD_M = 0.5e-3
 
 
 @dataclass(frozen=True)
@@ -128,13 +148,22 @@ class Clearance:
     Parameters
     ----------
     probe : Geoms
-        The spindle body's geoms with the tip centre at the origin of R.
+        The spindle body's geoms with the tip centre at the origin, axes of the frame F.
     table : Geoms
-        The table body's geoms at the current table pose (R).
+        The table body's geoms at the current table pose, frame F.
     table_feature : (k_table,) object
         Feature name of each table geom ("" for none).
     ball : int
         Index in ``probe`` of the stylus ball (the geom allowed to touch its feature).
+    T_F_R : (4,4) float, optional
+        The frame F the geoms are given in, from R (default: F = R). Every method
+        takes tips in R and moves them to F (rounding: 1e-16 m, against the bounds'
+        :data:`MARGIN_M`). A frame fixed to the table lets one Clearance serve every
+        placement of an artefact with the same orientation to the spindle.
+    cert_pad_m : float
+        The segment boxes' padding of :meth:`near_segments`, the largest radius of
+        its certificates (0: fewer pairs bounded, no certificates; for a broad
+        phase that will not see the same plan again).
 
     Attributes
     ----------
@@ -142,41 +171,66 @@ class Clearance:
         The geoms (indices in ``probe`` and ``table``) of every pair the bounds speak of.
     """
 
-    def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int):
+    def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int, T_F_R=None,
+                 cert_pad_m: float = CERT_PAD_M):
         self.probe, self.table, self.ball = probe, table, int(ball)
+        self.cert_pad_m = float(cert_pad_m)
         self.feature = np.asarray(table_feature, dtype=object)
+        self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
         plo, phi = probe.aabb()
         tlo, thi = table.aabb()
         ng, nh = len(probe.kind), len(table.kind)
-        g, h = np.meshgrid(np.arange(ng), np.arange(nh), indexing="ij")
-        self.pair_probe, self.pair_table = g.ravel(), h.ravel()
+        # clusters of table geoms (one per feature, one per geom without): pairs sorted by
+        # (probe geom, cluster, table geom), with the union of each cluster's boxes
+        key = [f if f else f"#{j}" for j, f in enumerate(self.feature)]
+        _, cl = np.unique(np.array(key, dtype=object).astype(str), return_inverse=True)
+        h_order = np.lexsort((np.arange(nh), cl))
+        self.pair_probe, self.pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
         # the tip p puts geom g in collision range of h only if p lies in this box
         self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
         self._hi = thi[self.pair_table] - plo[self.pair_probe] + MARGIN_M
-        # fixed axes of each pair: the table geom's three, the probe geom's axis, their crosses
-        Ht, Pa = table.axes[self.pair_table], probe.axes[self.pair_probe][:, :, 2]
-        U = [Ht[:, :, 0], Ht[:, :, 1], Ht[:, :, 2], Pa] + [np.cross(Pa, Ht[:, :, j]) for j in range(3)]
-        U = np.stack(U, axis=1)  # (pairs, 7, 3)
-        U, ok = _unit(U)
-        npair = len(self.pair_probe)
-        P, T = probe.take(np.repeat(self.pair_probe, 7)), table.take(np.repeat(self.pair_table, 7))
-        flat = U.reshape(-1, 3)
-        E = (P.extent(flat) + T.extent(flat)).reshape(npair, 7)
-        self._U = U
-        self._E = np.where(ok, E, np.inf)  # a degenerate cross product proves nothing
         self._d0 = probe.centre[self.pair_probe] - table.centre[self.pair_table]  # centre offset at p = 0
-        # clusters of table geoms (one per feature, one per geom without): pairs grouped per
-        # (probe geom, cluster), with the union of their boxes
-        key = [f if f else f"#{j}" for j, f in enumerate(self.feature)]
-        _, cl = np.unique(np.array(key, dtype=object).astype(str), return_inverse=True)
-        order = np.lexsort((self.pair_table, cl[self.pair_table], self.pair_probe))  # pairs sorted by (g, cluster)
-        self.pair_probe, self.pair_table, self._lo, self._hi = self.pair_probe[order], self.pair_table[order], self._lo[order], self._hi[order]
-        self._U, self._E, self._d0 = self._U[order], self._E[order], self._d0[order]
+        npair = len(self.pair_probe)
+        self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
+        self._have = np.zeros(npair, bool)
+        self._memo = []  # certificates of near_segments (shared by the moved copies: same frame)
         ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
         self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
         self._ccount = np.diff(np.r_[self._cstart, len(ck)])
         self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
         self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
+
+    def _axes(self, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(U (r,7,3), E (r,7)): the fixed axes of pairs ``pair`` (the table geom's three, the
+        probe geom's axis, their cross products) and the sum of the two extents on each
+        (inf on a degenerate cross product: it proves nothing). Computed once per pair."""
+        need = np.unique(pair[~self._have[pair]])
+        if need.size:
+            g, h = self.pair_probe[need], self.pair_table[need]
+            Ht, Pa = self.table.axes[h], self.probe.axes[g][:, :, 2]
+            U = np.stack([Ht[:, :, 0], Ht[:, :, 1], Ht[:, :, 2], Pa] + [np.cross(Pa, Ht[:, :, j]) for j in range(3)],
+                         axis=1)  # (need, 7, 3)
+            U, ok = _unit(U)
+            P, T = self.probe.take(np.repeat(g, 7)), self.table.take(np.repeat(h, 7))
+            flat = U.reshape(-1, 3)
+            E = (P.extent(flat) + T.extent(flat)).reshape(len(need), 7)
+            self._U[need], self._E[need] = U, np.where(ok, E, np.inf)
+            self._have[need] = True
+        return self._U[pair], self._E[pair]
+
+    def moved(self, T_F_R) -> "Clearance":
+        """The same geoms in F, F now at ``T_F_R`` from R (the table moved with its artefact);
+        the pair data (computed or to be) is shared."""
+        out = copy.copy(self)
+        out.T_F_R = np.array(T_F_R, float)
+        return out
+
+    def to_frame(self, p_R: np.ndarray) -> np.ndarray:
+        """Tips ``p_R`` (n,3) in R -> the frame of the geoms (n,3)."""
+        p = np.ascontiguousarray(p_R, float).reshape(-1, 3)
+        if self.T_F_R is None:
+            return p
+        return p @ self.T_F_R[:3, :3].T + self.T_F_R[:3, 3]
 
     def candidates(self, p_R: np.ndarray, group: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(sample index, pair index) of every pair whose boxes overlap at a sample of ``p_R`` (n,3).
@@ -185,23 +239,14 @@ class Clearance:
         consecutive samples (a path segment) against the box of each cluster of
         table geoms (one feature's geoms), then against each table geom, then each sample.
         """
+        p_R = self.to_frame(p_R)
         n = len(p_R)
         if group is None:
             group = np.zeros(n, int)
         cut = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
         s_cnt = np.diff(np.r_[cut, n])
         s_lo, s_hi = np.minimum.reduceat(p_R, cut, axis=0), np.maximum.reduceat(p_R, cut, axis=0)
-        # segment x (probe geom, cluster)
-        hit = np.ones((len(cut), len(self._clo)), bool)
-        for ax in range(3):  # (a reduction over a last axis of 3 is slow in numpy)
-            hit &= s_hi[:, ax, None] >= self._clo[None, :, ax]
-            hit &= s_lo[:, ax, None] <= self._chi[None, :, ax]
-        seg, cp = np.nonzero(hit)
-        # -> (segment, pair) for the cluster's member geoms
-        k, pair = _expand(self._cstart[cp], self._ccount[cp])
-        seg = seg[k]
-        ok = _overlap(s_lo[seg], s_hi[seg], self._lo[pair], self._hi[pair])
-        seg, pair = seg[ok], pair[ok]
+        seg, pair = self._box_pairs(s_lo, s_hi)
         # -> (sample, pair)
         k, i = _expand(cut[seg], s_cnt[seg])
         pair = pair[k]
@@ -209,20 +254,154 @@ class Clearance:
         ok = _overlap(q, q, self._lo[pair], self._hi[pair])
         return i[ok], pair[ok]
 
+    def _box_pairs(self, s_lo: np.ndarray, s_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(box index, pair index) of every pair in collision range of a tip somewhere in the
+        boxes ``[s_lo, s_hi]`` (s,3): runs of :data:`_BLOCK` consecutive boxes (a path's
+        neighbouring segments) against clusters, then each box against the clusters it
+        may meet, then against the clusters' pairs; each level a superset of the next."""
+        n = len(s_lo)
+        cut = np.arange(0, n, _BLOCK)
+        b_lo, b_hi = np.minimum.reduceat(s_lo, cut, axis=0), np.maximum.reduceat(s_hi, cut, axis=0)
+        hit = np.ones((len(cut), len(self._clo)), bool)
+        for ax in range(3):  # (a reduction over a last axis of 3 is slow in numpy)
+            hit &= b_hi[:, ax, None] >= self._clo[None, :, ax]
+            hit &= b_lo[:, ax, None] <= self._chi[None, :, ax]
+        blk, cp = np.nonzero(hit)
+        k, seg = _expand(cut[blk], np.minimum(_BLOCK, n - cut[blk]))
+        cp = cp[k]
+        ok = _overlap(s_lo[seg], s_hi[seg], self._clo[cp], self._chi[cp])
+        seg, cp = seg[ok], cp[ok]
+        # -> (segment, pair) for the cluster's member geoms
+        k, pair = _expand(self._cstart[cp], self._ccount[cp])
+        seg = seg[k]
+        ok = _overlap(s_lo[seg], s_hi[seg], self._lo[pair], self._hi[pair])
+        return seg[ok], pair[ok]
+
+    def swept_bound(self, a_R: np.ndarray, b_R: np.ndarray, pair: np.ndarray) -> np.ndarray:
+        """Lower bound (m) of the distance of pair ``pair`` (r,) for every tip on the segment ``a_R -> b_R`` (r,3).
+
+        On an axis u the centre offset ``(d0 + p) . u`` is linear along the
+        segment, so its least magnitude is 0 when its signs at the ends differ and
+        the smaller end's otherwise; minus the two extents, it bounds the distance
+        at every point of the segment (the separating-axis gap of the geom swept
+        along the segment). Axes: the pair's fixed ones and, for rows not yet
+        farther than :data:`MARGIN_M`, the direction from the table geom's point
+        nearest the probe geom's centre at the segment's middle.
+        """
+        return self._swept(self.to_frame(a_R), self.to_frame(b_R), pair)
+
+    def _swept(self, a: np.ndarray, b: np.ndarray, pair: np.ndarray) -> np.ndarray:
+        """:meth:`swept_bound` for ends already in the geoms' frame."""
+        U, E = self._axes(pair)
+        d0 = self._d0[pair]
+        da, db = d0 + a, d0 + b
+
+        def gap(U, E):  # U (r,j,3), E (r,j)
+            sa = U[:, :, 0] * da[:, 0, None] + U[:, :, 1] * da[:, 1, None] + U[:, :, 2] * da[:, 2, None]
+            sb = U[:, :, 0] * db[:, 0, None] + U[:, :, 1] * db[:, 1, None] + U[:, :, 2] * db[:, 2, None]
+            return np.where(sa * sb > 0, np.minimum(np.abs(sa), np.abs(sb)), 0.0) - E
+
+        out = np.max(gap(U, E), axis=1)
+        r = np.flatnonzero(out <= MARGIN_M)
+        if r.size:
+            g, h = self.pair_probe[pair[r]], self.pair_table[pair[r]]
+            T = self.table.take(h)
+            c_g = self.probe.centre[g] + 0.5 * (a[r] + b[r])
+            u, ok = _unit(c_g - T.closest(c_g))
+            E = self.probe.take(g).extent(u) + T.extent(u)
+            da, db = da[r], db[r]
+            dyn = gap(u[:, None, :], E[:, None])[:, 0]
+            out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
+        return out
+
+    def near_segments(self, sg: "Segments", allow_feature=None) -> np.ndarray:
+        """Sorted sample numbers of ``sg`` where some probe/table pair may be closer than :data:`MARGIN_M`.
+
+        Every other sample is provably farther than :data:`MARGIN_M` from every table
+        geom (its ball's pairs with the allowed feature aside), as with :meth:`near` on
+        all of ``sg``'s samples; fewer samples may be kept. Per segment: its box
+        against the pairs' boxes (padded by ``cert_pad_m``), then
+        :meth:`swept_bound` per (segment, pair); only the pairs it cannot clear are
+        bounded sample by sample (:meth:`bound`).
+
+        Certificates: each call remembers, per segment (in the geoms' frame), a
+        radius ``r`` within which any segment is clear (the least swept bound minus
+        the margin, at most the box padding: the distance moves at most as far as
+        the tip). A later call with as many segments and the same allowed features
+        (the same plan at another placement turned the same way) clears every
+        segment whose ends lie within ``r`` of the remembered ones at once.
+
+        ``allow_feature`` (number of polylines,) of str: as in :meth:`near`, per polyline.
+        """
+        a, b = self.to_frame(sg.a), self.to_frame(sg.b)
+        n = len(a)
+        allow_seg = (np.full(n, "", dtype=object) if allow_feature is None
+                     else np.asarray(allow_feature, dtype=object)[sg.path])
+        r = np.full(n, -np.inf)  # the certificate of this call
+        todo = np.arange(n)
+        for a0, b0, allow0, r0 in self._memo:
+            if len(a0) == n and np.array_equal(allow0, allow_seg):
+                moved = np.maximum(np.linalg.norm(a - a0, axis=1), np.linalg.norm(b - b0, axis=1))
+                ok = moved < r0
+                r[ok] = r0[ok] - moved[ok]
+                todo = np.flatnonzero(~ok)
+                break
+        if todo.size:
+            pad = self.cert_pad_m
+            seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - pad, np.maximum(a[todo], b[todo]) + pad)
+            seg = todo[seg]
+            r[todo] = pad
+        else:
+            seg = pair = np.zeros(0, int)
+        if seg.size:
+            f = self.feature[self.pair_table[pair]]
+            keep = ~((self.pair_probe[pair] == self.ball) & (f != "") & (f == allow_seg[seg]))
+            seg, pair = seg[keep], pair[keep]
+        lb = self._swept(a[seg], b[seg], pair) if seg.size else np.zeros(0)
+        np.minimum.at(r, seg, lb - MARGIN_M)
+        if len(self._memo) >= 8:
+            self._memo.pop(0)
+        self._memo.append((a, b, allow_seg, r))
+        open_ = lb <= MARGIN_M
+        seg, pair = seg[open_], pair[open_]
+        if not seg.size:
+            return np.zeros(0, int)
+        # sample by sample for the pairs the swept bound leaves open
+        k, idx = _expand(sg.first[seg], sg.m[seg])
+        pair = pair[k]
+        q_R = sg.points(idx)
+        q = self.to_frame(q_R)
+        ok = _overlap(q, q, self._lo[pair], self._hi[pair])
+        idx, pair, q_R = idx[ok], pair[ok], q_R[ok]
+        if not idx.size:
+            return np.zeros(0, int)
+        close = self.bound(q_R, np.arange(len(q_R)), pair, enough=MARGIN_M) <= MARGIN_M
+        return np.unique(idx[close])
+
+    def fixed_bound_grid(self, p_R: np.ndarray) -> np.ndarray:
+        """(n, pairs): the bound of every pair at every tip ``p_R`` (n,3) on the pairs' fixed
+        axes only (:meth:`bound` with ``enough=-inf``, without its row gathers)."""
+        p = self.to_frame(p_R)
+        U, E = self._axes(np.arange(len(self.pair_probe)))
+        d = self._d0[None, :, :] + p[:, None, :]  # (n, pairs, 3)
+        s = d[:, :, None, 0] * U[None, :, :, 0] + d[:, :, None, 1] * U[None, :, :, 1] + d[:, :, None, 2] * U[None, :, :, 2]
+        return np.max(np.abs(s) - E[None], axis=2)
+
     def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
         """Lower bound of the distance (m) of pair ``pair`` with the tip at sample ``i`` of ``p_R``.
 
         ``enough``: rows whose fixed axes already prove more than this skip the
         closest-point axis (their bound is then that smaller, still valid, value).
         """
-        d = self._d0[pair] + p_R[i]
-        U = self._U[pair]
+        p = self.to_frame(p_R)
+        d = self._d0[pair] + p[i]
+        U, E = self._axes(pair)
         out = np.max(np.abs(U[:, :, 0] * d[:, 0, None] + U[:, :, 1] * d[:, 1, None] + U[:, :, 2] * d[:, 2, None])
-                     - self._E[pair], axis=1)
+                     - E, axis=1)
         r = np.flatnonzero(out <= enough)
         g, h, d = self.pair_probe[pair[r]], self.pair_table[pair[r]], d[r]
         T = self.table.take(h)
-        c_g = self.probe.centre[g] + p_R[i[r]]
+        c_g = self.probe.centre[g] + p[i[r]]
         u, ok = _unit(c_g - T.closest(c_g))
         dyn = np.abs(u[:, 0] * d[:, 0] + u[:, 1] * d[:, 1] + u[:, 2] * d[:, 2]) - self.probe.take(g).extent(u) - T.extent(u)
         out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
@@ -266,32 +445,65 @@ def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return r, start[r] + off
 
 
-def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Samples of several polylines at once, in path order.
+@dataclass(frozen=True)
+class Segments:
+    """The straight segments of several sampled polylines, in path order (:func:`path_segments`).
+
+    Segment j holds the ``m[j]`` samples ``a[j] + f (b[j] - a[j])``, ``f = i (1 / k[j])``
+    for ``i = 0 .. m[j] - 1`` (``f = 1`` exactly when ``i = k[j]``): every sample lies
+    on the closed segment ``[a[j], b[j]]`` (to rounding), which is what lets
+    :meth:`Clearance.near_segments` clear a whole segment at once. Samples are
+    numbered in path order; segment j's are ``first[j] .. first[j] + m[j] - 1``.
+
+    Attributes
+    ----------
+    a, b : (s,3) float
+    k, m, first, path : (s,) int
+        Steps, samples, index of the first sample, index of the polyline.
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    k: np.ndarray
+    m: np.ndarray
+    first: np.ndarray
+    path: np.ndarray
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.m.sum())
+
+    def segment_of(self, idx: np.ndarray) -> np.ndarray:
+        """(n,) int: the segment of each sample number ``idx`` (n,)."""
+        return np.searchsorted(self.first, idx, side="right") - 1
+
+    def points(self, idx: np.ndarray) -> np.ndarray:
+        """(n,3): the samples numbered ``idx`` (n,), computed as :func:`path_samples` does."""
+        idx = np.asarray(idx, int)
+        seg = self.segment_of(idx)
+        j = idx - self.first[seg]
+        f = j * (1.0 / self.k[seg])
+        f[j == self.k[seg]] = 1.0
+        return self.a[seg] + f[:, None] * (self.b - self.a)[seg]
+
+
+def path_segments(polylines, steps_m, joints: bool) -> Segments:
+    """The segments of several polylines sampled at once (:func:`path_samples` without the samples).
 
     Each segment ``a -> b`` of polyline j gets ``k = max(1, ceil(|b - a| / steps_m[j]))``
-    equal steps: ``a + (i / k)(b - a)`` computed as numpy's ``linspace(0, 1, k + 1)``
-    does (``i * (1 / k)``, the last fraction exactly 1). ``joints``: every segment keeps
-    both ends (a joint appears twice, as in :meth:`sim.scene.Scene.check_path`), else
-    each segment drops its end and the polyline's last point closes it (as in
-    :func:`sim.mfb_scene.check_measurement`).
+    equal steps. ``joints``: every segment keeps both ends (``k + 1`` samples: a joint
+    appears twice, as in :meth:`sim.scene.Scene.check_path`), else each segment drops
+    its end (``k`` samples) and the polyline's last point closes it, as a segment of
+    one sample from that point to itself (as in :func:`sim.mfb_scene.check_measurement`).
 
     Parameters
     ----------
     polylines : sequence of (m_j, 3) float, m_j >= 2
     steps_m : (len(polylines),) float
     joints : bool
-
-    Returns
-    -------
-    samples : (k, 3) float
-    segment : (k,) int
-        A running number of the segment (runs of equal values, for :meth:`Clearance.near`).
-    path : (k,) int
-        Index of the polyline.
     """
-    n_pt = np.array([len(p) for p in polylines], int)
-    P = np.concatenate([np.asarray(p, float) for p in polylines])
+    n_pt = np.fromiter(map(len, polylines), int, len(polylines))
+    P = np.concatenate(polylines, dtype=float).reshape(-1, 3)
     first = np.cumsum(n_pt) - n_pt
     starts = np.ones(len(P), bool)
     starts[first + n_pt - 1] = False
@@ -316,8 +528,30 @@ def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarr
         path_of_seg = np.concatenate([path_of_seg, np.arange(len(n_pt))])[order]
     else:
         m = k + 1
-    seg = np.repeat(np.arange(len(k)), m)
-    j = np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)
-    f = j * (1.0 / k[seg])
-    f[j == k[seg]] = 1.0
-    return a[seg] + f[:, None] * (b - a)[seg], seg, path_of_seg[seg]
+    return Segments(a, b, k, m, np.cumsum(m) - m, path_of_seg)
+
+
+def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Samples of several polylines at once, in path order (the samples of :func:`path_segments`).
+
+    ``a + (i / k)(b - a)`` is computed as numpy's ``linspace(0, 1, k + 1)`` does
+    (``i * (1 / k)``, the last fraction exactly 1).
+
+    Parameters
+    ----------
+    polylines : sequence of (m_j, 3) float, m_j >= 2
+    steps_m : (len(polylines),) float
+    joints : bool
+
+    Returns
+    -------
+    samples : (k, 3) float
+    segment : (k,) int
+        A running number of the segment (runs of equal values, for :meth:`Clearance.near`).
+    path : (k,) int
+        Index of the polyline.
+    """
+    sg = path_segments(polylines, steps_m, joints)
+    idx = np.arange(sg.n_samples)
+    seg = np.repeat(np.arange(len(sg.k)), sg.m)
+    return sg.points(idx), seg, sg.path[seg]

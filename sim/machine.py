@@ -59,7 +59,7 @@ import numpy as np
 from core import iso
 from core.chain import Chain, parse_chain
 from core.exceptions import ConfigError
-from sim.errorfuncs import Constant, ErrorFunction, Zero
+from sim.errorfuncs import Constant, ErrorFunction, SplineStack, SplineTable, Zero
 
 _E = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
 
@@ -192,11 +192,19 @@ class Machine:
         self.config = config
         self.chain = config.parsed_chain
         self._motion = {a: tuple(s.name for s in iso.symbols_of_axis(a, location=False)) for a in self.chain.axes}
+        self._error_plan, self._spline_stacks = self._compile_errors()
         self._model, self._layout, self._fW, self._fP = self._build(with_errors=True)
         self._data = self._model.createData()
         self._nmodel, self._nlayout, self._nfW, self._nfP = self._build(with_errors=False)
         self._ndata = self._nmodel.createData()
         self._fk = _BatchFK(self._model, (self._fW, self._fP))
+        self._fk_W, self._fk_P = _BatchFK(self._model, (self._fW,)), _BatchFK(self._model, (self._fP,))
+        self._layout_W = tuple(e for e in self._layout if e[3] < 0)  # the workpiece branch's joints
+        self._layout_P = tuple(e for e in self._layout if e[3] > 0)  # the tool branch's
+        # W's pose depends on the rotary angles alone when its branch holds only rotary axes
+        # whose errors depend on the angle only: then it is evaluated once per distinct angles
+        self._W_by_angles = bool(self.rotary_axes) and all(a in self.rotary_axes for a in self.chain.workpiece_from_bed) \
+            and all(f.static for k, f in self.config.errors.items() if iso.symbol(k).axis in self.chain.workpiece_from_bed)
 
     # ------------------------------------------------------------------ API
     @property
@@ -216,22 +224,54 @@ class Machine:
 
         Motion errors of a linear axis are evaluated at its reading and
         ``direction[:, i]``; those of a rotary axis at its angle (direction 0).
+        Spline tables of one linear axis on the same knots are evaluated in one
+        call (:class:`sim.errorfuncs.SplineStack`, the same values), and the
+        position-only errors of a rotary axis once per distinct angle (a
+        rotary axis is held during a touch: a campaign has one angle per set-up).
         """
         lin, rot, n = self._inputs(lin_m, rot_rad)
         t, d = self._td(t_s, direction, n)
+        axes = {a: lin[:, k] for k, a in enumerate(iso.LINEAR_AXES)}
+        stacked = {}
+        for i, names, stack in self._spline_stacks:
+            stacked.update(zip(names, stack(lin[:, i])))
+        angles = {}  # rotary axis index -> (distinct angles, index of each pose's angle)
         out = {}
+        for name, kind, i, f in self._error_plan:
+            if kind == "loc":
+                out[name] = np.full(n, f)
+            elif kind == "spline":
+                out[name] = stacked[name]
+            elif kind == "lin":
+                out[name] = np.asarray(f.evaluate(lin[:, i], t, d[:, i], axes), float).reshape(n)
+            elif kind == "rot_static":
+                if i not in angles:
+                    angles[i] = _runs(rot[:, i])
+                first, inv = angles[i]
+                out[name] = np.asarray(f(rot[first, i], None, None), float).reshape(len(first))[inv]
+            else:
+                out[name] = np.asarray(f(rot[:, i], t, None), float).reshape(n)
+        return out
+
+    def _compile_errors(self):
+        """How :meth:`error_values` evaluates each error: ``[(name, kind, axis index, f or value)]``
+        in the configuration's order, and the spline stacks ``[(axis index, names, SplineStack)]``."""
+        plan, tables = [], {}
         for name, f in self.config.errors.items():
             s = iso.symbol(name)
             if s.location:
-                out[name] = np.broadcast_to(f(np.zeros(1))[0], (n,)).copy()
+                plan.append((name, "loc", -1, float(f(np.zeros(1))[0])))
             elif s.axis in iso.LINEAR_AXES:
                 i = iso.LINEAR_AXES.index(s.axis)
-                axes = {a: lin[:, k] for k, a in enumerate(iso.LINEAR_AXES)}
-                out[name] = np.asarray(f.evaluate(lin[:, i], t, d[:, i], axes), float).reshape(n)
+                if type(f) is SplineTable:
+                    tables.setdefault((i, f.pos), []).append((name, f))
+                    plan.append((name, "spline", i, f))
+                else:
+                    plan.append((name, "lin", i, f))
             else:
-                i = self.rotary_axes.index(s.axis)
-                out[name] = np.asarray(f(rot[:, i], t, None), float).reshape(n)
-        return out
+                plan.append((name, "rot_static" if f.static else "rot", self.rotary_axes.index(s.axis), f))
+        stacks = [(i, tuple(k for k, _ in fs), SplineStack([f for _, f in fs])) for (i, _), fs in tables.items()]
+        return tuple(plan), tuple(stacks)
 
     def tip_W(self, lin_m, rot_rad=None, t_s=None, direction=None) -> np.ndarray:
         """ACTUAL stylus-tip centre in the workpiece frame W, (n, 3) m.
@@ -411,6 +451,15 @@ class Machine:
         """Poses of W, P or the tip by :class:`_BatchFK` (the Pinocchio model, all poses at once)."""
         lin, rot, n = self._inputs(lin_m, rot_rad)
         vals = self.error_values(lin, rot, t_s, direction)
+        if want == "tip" and self._W_by_angles and n > 1:
+            # the workpiece branch once per run of equal rotary positions (a campaign: one per
+            # set-up), the tool branch at every pose
+            first, inv = _runs(rot)
+            vals_W = {k: v[first] for k, v in vals.items()}
+            QT_W = self._configurations_T(self._model, self._layout_W, lin[first], rot[first], vals_W, len(first))
+            (R_W, t_W), = self._fk_W.frames(QT_W)
+            (R_P, t_P), = self._fk_P.frames(self._configurations_T(self._model, self._layout_P, lin, rot, vals, n))
+            return None, np.einsum("nji,nj->ni", R_W[inv], t_P - t_W[inv])
         QT = self._configurations_T(self._model, self._layout, lin, rot, vals, n)
         (R_W, t_W), (R_P, t_P) = self._fk.frames(QT)
         if want == "tip":
@@ -503,7 +552,8 @@ class _BatchFK:
     ----------
     model : pinocchio.Model
     frame_ids : sequence of int
-        Frames returned by :meth:`frames`.
+        Frames returned by :meth:`frames` (only the joints they hang from and
+        those joints' ancestors are walked).
     """
 
     _KINDS = {"JointModelPX": ("P", 0), "JointModelPY": ("P", 1), "JointModelPZ": ("P", 2),
@@ -512,14 +562,25 @@ class _BatchFK:
 
     def __init__(self, model, frame_ids):
         self.joints = []
+        needed = set()  # the joints the frames hang from and their ancestors: the only ones walked
+        for f in frame_ids:
+            fr = model.frames[f]
+            j = int(fr.parentJoint if hasattr(fr, "parentJoint") else fr.parent)
+            while j > 0:
+                needed.add(j)
+                j = int(model.parents[j])
         for j in range(1, model.njoints):
+            if j not in needed:
+                self.joints.append(None)
+                continue
             name = model.joints[j].shortname()
             if name not in self._KINDS:
                 raise ConfigError(f"batched kinematics: joint type {name} is not supported")
             M = model.jointPlacements[j]
             R = np.array(M.rotation, float)
             self.joints.append((*self._KINDS[name], int(model.parents[j]), int(model.joints[j].idx_q), R,
-                                np.array(M.translation, float), bool(np.array_equal(R, np.eye(3)))))
+                                None if not np.any(M.translation) else np.array(M.translation, float),
+                                bool(np.array_equal(R, np.eye(3)))))  # None: no translation
         self.frames_ = []
         for f in frame_ids:
             fr = model.frames[f]
@@ -535,9 +596,13 @@ class _BatchFK:
         n = QT.shape[1]
         # rotations as (3, 3, n) and translations as (3, n): every product is 9 or 3 rows of n
         oM = [(None, np.zeros((3, n)))]  # joint 0, the universe (None: identity)
-        for kind, ax, parent, iq, Rp, tp, Rp_is_I in self.joints:
+        for joint in self.joints:
+            if joint is None:  # not an ancestor of the frames asked for
+                oM.append(None)
+                continue
+            kind, ax, parent, iq, Rp, tp, Rp_is_I = joint
             Ra, ta = oM[parent]
-            t = ta + (tp[:, None] if Ra is None else _mv_const(Ra, tp))
+            t = ta if tp is None else ta + (tp[:, None] if Ra is None else _mv_const(Ra, tp))
             Rb = Ra if Rp_is_I else (np.broadcast_to(Rp[:, :, None], (3, 3, n)) if Ra is None else _mm_const(Ra, Rp))
             if kind == "P":
                 R = Rb
@@ -568,6 +633,21 @@ class _BatchFK:
                 R, t = (Ra if Rf is None else _mm_const(Ra, Rf)), ta + _mv_const(Ra, tf)
             out.append((np.moveaxis(R, 2, 0), t.T))
         return out
+
+
+def _runs(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(first row of each run of equal rows, the run of each row) of ``a`` (n,) or (n, k).
+
+    The distinct held rotary positions of a campaign's poses in one pass (its
+    touches come set-up by set-up); a value met again later gets a run of its
+    own, a NaN a run alone: never two different values in one run.
+    """
+    n = len(a)
+    new = np.ones(n, bool)
+    if n > 1:
+        a2 = np.asarray(a).reshape(n, -1)
+        np.any(a2[1:] != a2[:-1], axis=1, out=new[1:])
+    return np.flatnonzero(new), np.cumsum(new) - 1
 
 
 def _mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:

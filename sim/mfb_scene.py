@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .artefacts import apply_R, apply_T, inv_T, make_T
-from .clearance import path_samples
+from .clearance import path_segments
 from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
 
 #: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
@@ -50,6 +50,8 @@ EXTENSION_R_M = 5.0e-3
 STEM_L_M = 0.050
 #: Clearance of the link moves above the bar's top (along z_A), m.
 LINK_CLEAR_M = 10.0e-3
+#: MuJoCo's geom type codes (mjtGeom).
+_SPHERE_T, _CYLINDER_T, _BOX_T = 2, 5, 6
 
 
 @dataclass(frozen=True)
@@ -120,6 +122,27 @@ def probe_geoms_mjcf(J_m, r_m: float, finger_m: float = 0.0) -> str:
     return "".join(g)
 
 
+#: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object.
+_SOLID_POSES: dict = {}
+
+
+def _solid_poses(art) -> list:
+    hit = _SOLID_POSES.get(id(art))
+    if hit is None or hit[0] is not art:  # the artefact is kept in the entry: its id stays its own
+        if len(_SOLID_POSES) > 16:
+            _SOLID_POSES.clear()
+        hit = _SOLID_POSES[id(art)] = (art, [make_T(s.rot, s.pos) for s in art.solids])
+    return hit[1]
+
+
+def _solid_pose_stack(art) -> np.ndarray:
+    """(k,4,4): :func:`_solid_poses` stacked (kept beside them)."""
+    hit = _SOLID_POSES.get(("stack", id(art)))
+    if hit is None or hit[0] is not art:
+        hit = _SOLID_POSES[("stack", id(art))] = (art, np.array(_solid_poses(art)).reshape(-1, 4, 4))
+    return hit[1]
+
+
 class WorkZone:
     """One bar placement on the table with its workholder, one probe (offsets J).
 
@@ -139,70 +162,150 @@ class WorkZone:
 
         self._mj = mujoco
         T_W_A = np.asarray(T_W_A, float)
-        geoms, feats = [], []
-        geoms.append(f'<geom name="table_disc" type="cylinder" pos="0 0 {-TABLE_T_M / 2!r}" '
-                     f'size="{TABLE_R_M!r} {TABLE_T_M / 2!r}" contype="1" conaffinity="0"/>')
-        feats.append("")
+        self._args = (artefact, T_W_A, tuple(blocks))
+        # the table side in W, as numpy geoms (kind, size, pose) in the model's order: the
+        # disc, the blocks, the bar's solids (the MJCF of self.mjcf is written from these)
+        kinds, sizes, poses, names, feats = ["cylinder"], [(TABLE_R_M, TABLE_T_M / 2, 0.0)], \
+            [make_T(None, (0.0, 0.0, -TABLE_T_M / 2))], ["table_disc"], [""]
         for b in blocks:
             lo, hi = np.asarray(b.lo, float), np.asarray(b.hi, float)
-            geoms.append(f'<geom name="fix_{b.name}" type="box" pos="{_f((lo + hi) / 2)}" size="{_f((hi - lo) / 2)}" '
-                         f'contype="1" conaffinity="0"/>')
-            feats.append("")
+            kinds.append("box"), sizes.append(tuple((hi - lo) / 2)), poses.append(make_T(None, (lo + hi) / 2))
+            names.append(f"fix_{b.name}"), feats.append("")
         for k, s in enumerate(artefact.solids):
-            T = T_W_A @ make_T(s.rot, s.pos)
-            kind = s.kind if s.kind in ("box", "cylinder", "sphere") else None
-            if kind is None:
+            if s.kind not in ("box", "cylinder", "sphere"):
                 raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
-            gname = s.feature or ("support" if kind == "cylinder" else "body")
-            geoms.append(f'<geom name="{gname}__{k}" type="{kind}" size="{_f(s.size)}" '
-                         f'pos="{_f(T[:3, 3])}" quat="{_f(_quat(T[:3, :3]))}" contype="1" conaffinity="0"/>')
+            kinds.append(s.kind), sizes.append(tuple(np.ravel(s.size)))
+            names.append(f"{s.feature or ('support' if s.kind == 'cylinder' else 'body')}__{k}")
             feats.append(s.feature)
-        xml = (f'<mujoco model="vmt-mfb-workzone"><compiler angle="radian"/><option gravity="0 0 0"/><worldbody>'
-               f'<body name="table"><freejoint name="table"/>{"".join(geoms)}</body>'
-               f'<body name="spindle"><freejoint name="spindle"/>{probe_geoms_mjcf(J_m, stylus_r_m, finger_m)}</body>'
-               f'</worldbody></mujoco>')
-        self.mjcf = xml
-        self.model = m = mujoco.MjModel.from_xml_string(xml)
-        self.data = mujoco.MjData(m)
-        table = m.body("table").id
-        self._feature = {}
-        tg = [i for i in range(m.ngeom) if m.geom_bodyid[i] == table]
-        for i, f in zip(tg, feats):
-            self._feature[i] = f
-        self._names = [m.geom(i).name for i in range(m.ngeom)]
-        self._ball = m.geom("ball").id
-        self._tq = m.jnt_qposadr[m.joint("table").id]
-        self._sq = m.jnt_qposadr[m.joint("spindle").id]
-        self._holder = [i for i in tg if self._names[i] == "table_disc"
-                        or self._names[i].startswith(("fix_", "support__"))]
-        self._probe = [i for i in range(m.ngeom) if m.geom_bodyid[i] != table]
-        self._table = tg
+        self._tkind, self._tsize, self._tpose0 = kinds, sizes, poses  # (the solids' poses: _pose)
+        self._T_W_A = T_W_A
+        nt = len(names)
+        holder = [j for j, n in enumerate(names) if n == "table_disc" or n.startswith(("fix_", "support__"))]
+        self._probe_mjcf = probe_geoms_mjcf(J_m, stylus_r_m, finger_m)
+        self._names = names
+        # the holder's model (table disc, blocks, bar supports; the probe): MuJoCo's distances for
+        # the least clearance; its probe geoms are the broad phase's
+        self._hmodel = mujoco.MjModel.from_xml_string(self._xml(holder))
+        self._hdata = mujoco.MjData(self._hmodel)
+        hm = self._hmodel
+        npg = hm.ngeom - len(holder)
+        # geom ids of the full model (compiled when MuJoCo first needs it, self.model): the table
+        # body's geoms in order, then the spindle's
+        self._names = names + [hm.geom(len(holder) + j).name for j in range(npg)]  # + the probe's
+        self._table = list(range(nt))
+        self._probe = list(range(nt, nt + npg))
+        self._holder = holder
+        self._feature = dict(enumerate(feats))
+        self._ball = self._names.index("ball")
+        self._tq = hm.jnt_qposadr[hm.joint("table").id]
+        self._sq = hm.jnt_qposadr[hm.joint("spindle").id]
+        self._hprobe = list(range(len(holder), hm.ngeom))
+        self._model = self._data = None
+        self._tqpos = np.array([0.0, 0, 0, 1, 0, 0, 0])
         self._clr = {}
+
+    def _pose(self, j: int) -> np.ndarray:
+        """(4,4) pose in W of table-side geom j (a solid's: T_W_A times its pose on the bar)."""
+        n0 = len(self._tpose0)
+        return self._tpose0[j] if j < n0 else self._T_W_A @ _solid_poses(self._args[0])[j - n0]
+
+    def _geom_mjcf(self, j: int) -> str:
+        kind, size, T = self._tkind[j], self._tsize[j], self._pose(j)
+        name = self._names[j]
+        if j == 0:
+            return (f'<geom name="table_disc" type="cylinder" pos="0 0 {-TABLE_T_M / 2!r}" '
+                    f'size="{TABLE_R_M!r} {TABLE_T_M / 2!r}" contype="1" conaffinity="0"/>')
+        if name.startswith("fix_") and j <= len(self._args[2]):
+            return f'<geom name="{name}" type="box" pos="{_f(T[:3, 3])}" size="{_f(size)}" contype="1" conaffinity="0"/>'
+        return (f'<geom name="{name}" type="{kind}" size="{_f(size)}" '
+                f'pos="{_f(T[:3, 3])}" quat="{_f(_quat(T[:3, :3]))}" contype="1" conaffinity="0"/>')
+
+    def _xml(self, table_geoms) -> str:
+        return (f'<mujoco model="vmt-mfb-workzone"><compiler angle="radian"/><option gravity="0 0 0"/><worldbody>'
+                f'<body name="table"><freejoint name="table"/>{"".join(self._geom_mjcf(j) for j in table_geoms)}</body>'
+                f'<body name="spindle"><freejoint name="spindle"/>{self._probe_mjcf}</body>'
+                f'</worldbody></mujoco>')
+
+    @property
+    def mjcf(self) -> str:
+        """The work zone's MJCF (table side, probe)."""
+        return self._xml(self._table)
+
+    @property
+    def model(self):
+        """The compiled MuJoCo model of the whole work zone (compiled on first use: the broad
+        phase and the least clearance do not need it)."""
+        if self._model is None:
+            m = self._mj.MjModel.from_xml_string(self.mjcf)
+            assert [m.geom(i).name for i in range(m.ngeom)] == self._names
+            self._model, self._data = m, self._mj.MjData(m)
+        return self._model
+
+    @property
+    def data(self):
+        self.model  # noqa: B018  (compiles on first use)
+        return self._data
 
     def set_table(self, T_R_W) -> None:
         T = np.asarray(T_R_W, float)
-        self.data.qpos[self._tq:self._tq + 3] = T[:3, 3]
-        self.data.qpos[self._tq + 3:self._tq + 7] = _quat(T[:3, :3])
+        self._tqpos = np.r_[T[:3, 3], _quat(T[:3, :3])]
+        self._hdata.qpos[self._tq:self._tq + 7] = self._tqpos
+        if self._data is not None:
+            self._data.qpos[self._tq:self._tq + 7] = self._tqpos
 
     def set_tip(self, p_R) -> None:
         """Place the stylus-tip centre at ``p_R`` (3,) m, R (spindle axes parallel to R)."""
         d = self.data
+        d.qpos[self._tq:self._tq + 7] = self._tqpos
         d.qpos[self._sq:self._sq + 3] = p_R
         d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
         self._mj.mj_kinematics(self.model, d)
 
+    def _set_holder_tip(self, p_R) -> None:
+        d = self._hdata
+        d.qpos[self._sq:self._sq + 3] = p_R
+        d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
+        self._mj.mj_kinematics(self._hmodel, d)
+
+    def table_geoms(self):
+        """The table side's geoms (:class:`sim.clearance.Geoms`, R) at the current table pose,
+        in the model's order, from their definitions (MuJoCo's poses agree to rounding, 1e-16 m)."""
+        from .clearance import Geoms
+
+        self._set_holder_tip(np.zeros(3))
+        d = self._hdata
+        body = self._hmodel.body("table").id
+        T_R_W = make_T(np.array(d.xmat[body], float).reshape(3, 3), d.xpos[body])
+        T = np.concatenate([np.array(self._tpose0), _solid_pose_stack(self._args[0])])
+        T[len(self._tpose0):] = self._T_W_A @ T[len(self._tpose0):]
+        T = T_R_W @ T
+        code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
+        size = np.zeros((len(self._tkind), 3))
+        for j, sz in enumerate(self._tsize):
+            size[j, :len(sz)] = sz
+        kind = np.array([code[k] for k in self._tkind])
+        rb = np.where(kind == _BOX_T, np.linalg.norm(size, axis=1),
+                      np.where(kind == _CYLINDER_T, np.hypot(size[:, 0], size[:, 1]), size[:, 0]))
+        return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rb)
+
     def clearance(self, holder_only: bool = False):
         """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose:
-        the probe against every table-side geom, or against the holder's only."""
+        the probe against every table-side geom (indices of ``self._table``), or against
+        the holder's only (indices of ``self._holder``)."""
         from .clearance import Clearance, model_geoms
 
-        key = (np.array(self.data.qpos[self._tq:self._tq + 7]).tobytes(), holder_only)
+        key = (self._tqpos.tobytes(), holder_only)
         if key not in self._clr:
-            self.set_tip(np.zeros(3))
-            m, d = self.model, self.data
-            tg = self._holder if holder_only else self._table
-            self._clr[key] = Clearance(model_geoms(m, d, self._probe), model_geoms(m, d, tg),
-                                       [self._feature.get(i, "") for i in tg], self._probe.index(self._ball))
+            self._set_holder_tip(np.zeros(3))
+            hm, hd = self._hmodel, self._hdata
+            probe = model_geoms(hm, hd, self._hprobe)
+            ball = self._probe.index(self._ball)
+            if holder_only:
+                table, tg = model_geoms(hm, hd, range(len(self._holder))), self._holder
+            else:
+                table, tg = self.table_geoms(), self._table
+            # (a plan's measurements each have their own table pose: no certificates to reuse)
+            self._clr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in tg], ball, cert_pad_m=0.0)
         return self._clr[key]
 
     def collisions(self, p_R, allow_feature: str = "") -> list:
@@ -238,15 +341,37 @@ class WorkZone:
         npair = len(clr.pair_probe)
         i = np.repeat(np.arange(len(tips)), npair)
         pair = np.tile(np.arange(npair), len(tips))
-        lb = clr.bound(tips, i, pair) if broad_phase else np.full(len(i), -np.inf)
         best = distmax
-        m, d = self.model, self.data
-        for k in np.argsort(lb, kind="stable"):
-            if lb[k] > best + MARGIN_M:
-                break
-            self.set_tip(tips[i[k]])
-            a, b = self._probe[clr.pair_probe[pair[k]]], self._holder[clr.pair_table[pair[k]]]
-            best = min(best, float(self._mj.mj_geomDistance(m, d, a, b, distmax, None)))
+        if not broad_phase:  # the reference: every triple in the whole work zone's model
+            for k in range(len(i)):
+                self.set_tip(tips[i[k]])
+                a, b = self._probe[clr.pair_probe[pair[k]]], self._holder[clr.pair_table[pair[k]]]
+                best = min(best, float(self._mj.mj_geomDistance(self.model, self.data, a, b, distmax, None)))
+            return best
+        m, d = self._hmodel, self._hdata
+
+        def dist(k):
+            self._set_holder_tip(tips[i[k]])
+            a, b = self._hprobe[clr.pair_probe[pair[k]]], int(clr.pair_table[pair[k]])
+            return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
+
+        # the result is min(distmax, every triple's distance) as in the reference: a triple is
+        # left out only when a lower bound of its distance exceeds a distance already found by
+        # more than the margin (MuJoCo's distances err by far less). The fixed axes' bound of
+        # every triple; in its increasing order, chunks of triples get the full bound and MuJoCo
+        # in the full bound's order, while the chunk's fixed-axes bound may still be nearer
+        lb0 = clr.fixed_bound_grid(tips).ravel()  # rows (tip, pair) as i, pair
+        order = np.argsort(lb0, kind="stable")
+        pos = 0
+        while pos < len(order) and lb0[order[pos]] <= best + MARGIN_M:
+            rows = order[pos:pos + 64]
+            pos += 64
+            rows = rows[lb0[rows] <= best + MARGIN_M]
+            lb = clr.bound(tips, i[rows], pair[rows])
+            for j in np.argsort(lb, kind="stable"):
+                if lb[j] > best + MARGIN_M:
+                    break
+                best = min(best, dist(rows[j]))
         return best
 
     def holder_clearance(self, distmax: float = 0.05) -> float:
@@ -279,29 +404,30 @@ def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
 
 def link_paths(T_R_A, starts_R, features, levels, top_A_m):
     """Link polylines (R, m) between consecutive approach starts: direct within one
-    feature and level, else retract along ``z_A`` to ``top_A_m`` + clearance, across, plunge."""
+    feature and level, else retract along ``z_A`` to ``top_A_m`` + clearance, across, plunge.
+
+    Returns a list (one per start; None for the first) of (2,3) or (4,3) arrays. All the
+    links' points go through one transform back to R (the same values, bit for bit, as
+    transforming each link's points alone: tests/sim/test_clearance.py).
+    """
     T_A_R = inv_T(T_R_A)
     s_A = apply_T(T_A_R, np.asarray(starts_R, float))
-    z_c = top_A_m + LINK_CLEAR_M
-    out = [None]
-    for i in range(1, len(s_A)):
-        a, b = s_A[i - 1], s_A[i]
-        if features[i] == features[i - 1] and levels[i] == levels[i - 1]:
-            pts = np.array([a, b])
-        else:
-            zc = max(z_c, a[2], b[2])
-            pts = np.array([a, [a[0], a[1], zc], [b[0], b[1], zc], b])
-        out.append(apply_T(T_R_A, pts))
-    return out
-
-
-def _sample(pts, step):
-    out = []
-    for a, b in zip(pts[:-1], pts[1:]):
-        k = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
-        out.append(a + np.linspace(0.0, 1.0, k + 1)[:-1, None] * (b - a))
-    out.append(pts[-1:])
-    return np.concatenate(out)
+    n = len(s_A)
+    if n < 2:
+        return [None] * n
+    a, b = s_A[:-1], s_A[1:]
+    f, lv = np.asarray(features, dtype=object), np.asarray(levels)
+    direct = (f[1:] == f[:-1]) & (lv[1:] == lv[:-1])
+    zc = np.maximum(np.maximum(top_A_m + LINK_CLEAR_M, a[:, 2]), b[:, 2])
+    up_a, up_b = np.column_stack([a[:, :2], zc]), np.column_stack([b[:, :2], zc])
+    cnt = np.where(direct, 2, 4)
+    P = np.empty((int(cnt.sum()), 3))
+    st = np.cumsum(cnt) - cnt
+    P[st] = a
+    P[st + 1] = np.where(direct[:, None], b, up_a)
+    P[(st + 2)[~direct]] = up_b[~direct]
+    P[(st + 3)[~direct]] = b[~direct]
+    return [None] + np.split(apply_T(T_R_A, P), np.cumsum(cnt)[:-1])
 
 
 def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan, finger_m: float = 0.0,
@@ -357,21 +483,25 @@ def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, pla
         paths.append((i, np.array([start[i], Xn[i]]), approach_step_m, plan.feature[i]))
     n_samp, bad_touch = 0, set()
     if paths:
-        pts, seg, which = path_samples([p[1] for p in paths], [p[2] for p in paths], joints=False)
-        touch = np.array([p[0] for p in paths])[which]
-        allow = np.array([p[3] for p in paths], dtype=object)[which]
-        near = wz.clearance().near(pts, allow, seg) if broad_phase else np.ones(len(pts), bool)
-        n_samp = len(pts)
-        for k in np.flatnonzero(near):  # in path order
-            i = int(touch[k])
+        sg = path_segments([p[1] for p in paths], [p[2] for p in paths], joints=False)
+        path_touch = np.array([p[0] for p in paths])
+        allow = [p[3] for p in paths]
+        n_samp = sg.n_samples
+        # one past the last sample of each touch (a touch's paths are consecutive)
+        touch_end = np.zeros(plan.n, int)
+        np.maximum.at(touch_end, path_touch[sg.path], sg.first + sg.m)
+        idx = wz.clearance().near_segments(sg, allow) if broad_phase else np.arange(n_samp)
+        pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
+        for k in range(len(idx)):  # in path order
+            i = int(path_touch[which[k]])
             if i in bad_touch:
                 continue
-            hit = wz.collisions(pts[k], allow[k])
+            hit = wz.collisions(pts[k], allow[which[k]])
             if hit:  # the first collision of touch i: the rest of its samples are not checked
                 g, o, dep = hit[0]
                 bad.append(f"{plan.target[i]}: {g} hits {o} ({-dep * 1e3:.2f} mm deep) at "
                            f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
                 bad_touch.add(i)
-                n_samp -= int(np.count_nonzero(touch[k + 1:] == i))
+                n_samp -= int(touch_end[i] - idx[k] - 1)
     clear = wz.least_holder_clearance(start, broad_phase=broad_phase) if plan.n else np.inf
     return CheckResult(name, int(plan.n), n_samp, tuple(bad), float(clear * 1e3))

@@ -157,8 +157,8 @@ def T_R_W_nominal(machine, rot_rad: np.ndarray | None, n: int) -> np.ndarray:
 
 
 def find_contacts(g: Callable[[np.ndarray, np.ndarray], np.ndarray], n: int,
-                  travel_m: np.ndarray, n_coarse: int = 13, max_iter: int = 100
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  travel_m: np.ndarray, n_coarse: int = 13, max_iter: int = 100,
+                  n_first: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """First root of ``g(idx, s)`` on ``[0, travel]`` for ``n`` paths at once.
 
     Parameters
@@ -171,6 +171,12 @@ def find_contacts(g: Callable[[np.ndarray, np.ndarray], np.ndarray], n: int,
     n_coarse : int
         Samples per path to bracket the first crossing (a graze that enters
         and leaves the material between two samples is missed).
+    n_first : int, optional
+        Evaluate the first ``n_first`` samples of every path, then the others
+        only on the paths without a crossing among them (default: all at
+        once). The same samples decide, so the result is the same; only the
+        number of evaluations changes (fewer when most contacts lie within
+        the first samples).
 
     Returns
     -------
@@ -181,9 +187,7 @@ def find_contacts(g: Callable[[np.ndarray, np.ndarray], np.ndarray], n: int,
     """
     travel = np.broadcast_to(np.asarray(travel_m, float), (n,))
     frac = np.linspace(0.0, 1.0, n_coarse)
-    idx = np.repeat(np.arange(n), n_coarse)
-    s_grid = (travel[:, None] * frac).ravel()
-    G = g(idx, s_grid).reshape(n, n_coarse)
+    G = _coarse_samples(g, n, travel, frac, n_coarse if n_first is None else max(1, min(n_first, n_coarse)))
     status = np.full(n, ProbeStatus.OK, dtype=object)
     early = G[:, 0] <= 0
     neg = G <= 0
@@ -202,7 +206,12 @@ def find_contacts(g: Callable[[np.ndarray, np.ndarray], np.ndarray], n: int,
     gb = G[act, kk]
     side = np.zeros(act.size, int)
     x = b.copy()
-    done = np.zeros(act.size, bool)
+    # a coarse sample on the root already (|g| within the tolerance: a nominal contact on a
+    # perfect machine lies on a sample): that sample. Regula falsi would return the sample
+    # itself, which the bracket test rejects, and bisect some 30 times to S_TOL_M.
+    at_a = np.abs(ga) < G_TOL_M
+    x[at_a] = a[at_a]
+    done = at_a | (np.abs(gb) < G_TOL_M)
     for _ in range(max_iter):
         live = np.flatnonzero(~done)
         if live.size == 0:
@@ -225,6 +234,22 @@ def find_contacts(g: Callable[[np.ndarray, np.ndarray], np.ndarray], n: int,
         done[live] = conv
     s[act] = x
     return s, status
+
+
+def _coarse_samples(g, n: int, travel: np.ndarray, frac: np.ndarray, n_first: int) -> np.ndarray:
+    """(n, len(frac)) values of ``g`` at ``travel * frac`` on each path: the first ``n_first``
+    samples of every path, the rest on the paths where none of those is <= 0 (elsewhere
+    +inf: never read, the first crossing lies before them)."""
+    k = len(frac)
+    G = np.full((n, k), np.inf)
+    rows = np.arange(n)
+    for cols in (np.arange(n_first), np.arange(n_first, k)):
+        if cols.size == 0 or rows.size == 0:
+            continue
+        idx = np.repeat(rows, cols.size)
+        G[np.ix_(rows, cols)] = g(idx, (travel[rows, None] * frac[cols]).ravel()).reshape(rows.size, cols.size)
+        rows = rows[~(G[rows, :cols[-1] + 1] <= 0).any(axis=1)]
+    return G
 
 
 def _box_sdf(p: np.ndarray, half: np.ndarray) -> np.ndarray:
@@ -389,7 +414,9 @@ def simulate_touches(machine, probe: ProbeConfig, rng: np.random.Generator | Non
         p_A = apply_T(T_A_W[idx], p_W)
         return dist(group[idx], p_A) - r
 
-    s_c, status = find_contacts(g, n, travel_m, n_coarse=n_coarse)
+    # the last sample only where no crossing is bracketed before it (a campaign's nominal
+    # contact lies at two thirds of the travel): the same result, 1/7 fewer evaluations
+    s_c, status = find_contacts(g, n, travel_m, n_coarse=n_coarse, n_first=n_coarse - 1)
     ok = status == ProbeStatus.OK
     delta = probe.pretravel(d_R if d_P is None else d_P, feed)
     s_t = np.where(ok, s_c + delta, np.nan)

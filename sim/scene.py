@@ -33,7 +33,8 @@ import numpy as np
 
 from core.exceptions import PlanError
 
-from .artefacts import Artefact, make_T, solid_points
+from .artefacts import Artefact, inv_T, make_T, solid_points
+from .clearance import Geoms
 from .probe import ProbeConfig
 
 #: A contact deeper than this counts as a collision (m).
@@ -130,36 +131,89 @@ class Scene:
         self._mj = mujoco
         self.artefact = artefact
         self.probe = probe or ProbeConfig()
-        self.mjcf, feats = scene_mjcf(artefact, self.probe, T_W_A)
-        self.model = mujoco.MjModel.from_xml_string(self.mjcf)
-        self.data = mujoco.MjData(self.model)
-        m = self.model
-        self.geom_feature = np.array([""] * m.ngeom, dtype=object)
-        self.geom_name = np.array([m.geom(i).name for i in range(m.ngeom)], dtype=object)
-        table = m.body("table").id
-        tg = [i for i in range(m.ngeom) if m.geom_bodyid[i] == table]
-        for i, f in zip(tg, feats):
-            self.geom_feature[i] = f
-        self.stylus = m.geom("stylus").id
-        self._tq = m.jnt_qposadr[m.joint("table").id]
-        self._sq = m.jnt_qposadr[m.joint("spindle").id]
-        self._clr = None
-        self._table_geoms = np.array(tg, int)
-        self._local = None
         self.T_W_A = np.array(artefact.T_W_A if T_W_A is None else T_W_A, float)
+        self._T0 = self.T_W_A  # the placement the MJCF is written at
+        # geom ids, names and features as scene_mjcf writes them: the table body's geoms
+        # (one per solid), then the spindle's three
+        k = len(artefact.solids)
+        names = [f"{s.feature or 'body'}__{j}" for j, s in enumerate(artefact.solids)]
+        self.geom_name = np.array(names + ["stylus", "shank", "probe_body"], dtype=object)
+        self.geom_feature = np.array([s.feature for s in artefact.solids] + [""] * 3, dtype=object)
+        self.stylus = k
+        self._table_geoms = np.arange(k)
+        self._tq, self._sq = 0, 7  # the two free joints' qpos
+        self._qpos = np.zeros(14)
+        self._clr = None
+        self._local = None
+        self._model = self._data = self._mjcf = None
+        self._model_T_W_A = None
+        self._movable = all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids)
+        self._axisym = None  # the probe's geoms all on its z axis (clearance)
         self.set_table(np.eye(4))
+        if not self._movable:  # meshes: the broad phase reads the compiled model (the compiler re-centres them)
+            self.model  # noqa: B018
+
+    @property
+    def mjcf(self) -> str:
+        """The scene's MJCF (:func:`scene_mjcf`) at the placement it was built with."""
+        if self._mjcf is None:
+            self._mjcf = scene_mjcf(self.artefact, self.probe, self._T0)[0]
+        return self._mjcf
+
+    @property
+    def model(self):
+        """The compiled MuJoCo model (compiled on first use: the broad phase of an artefact made
+        of boxes, cylinders and spheres reads their definitions instead)."""
+        if self._model is None:
+            m = self._mj.MjModel.from_xml_string(self.mjcf)
+            assert [m.geom(i).name for i in range(m.ngeom)] == list(self.geom_name)
+            assert m.jnt_qposadr[m.joint("table").id] == self._tq and m.jnt_qposadr[m.joint("spindle").id] == self._sq
+            self._model, self._data = m, self._mj.MjData(m)
+            self._model_T_W_A = self._T0
+        return self._model
+
+    @property
+    def data(self):
+        self.model  # noqa: B018  (compiles on first use)
+        return self._data
+
+    def digest(self) -> bytes:
+        """Digest of everything the scene's model is written from (its MJCF at the placement it
+        was built with, without writing it out: solids, probe, that placement)."""
+        if getattr(self, "_digest", None) is None:
+            h = hashlib.blake2b(digest_size=32)
+            h.update(b"vmt-scene/1\0")
+            for s in self.artefact.solids:
+                h.update(f"{s.kind}\0{s.feature}\0".encode())
+                for v in (s.size, s.rot, s.pos, getattr(s, "vertices", None)):
+                    a = np.zeros(0) if v is None else np.ascontiguousarray(v, float)
+                    h.update(np.array(a.shape, np.int64).tobytes() + a.tobytes())
+            pr = self.probe
+            h.update(np.array([pr.stylus_r_m, pr.shank_r_m, pr.shank_length_m, PROBE_BODY_R_M, PROBE_BODY_H_M]).tobytes())
+            h.update(np.ascontiguousarray(self._T0, float).tobytes())
+            self._digest = h.digest()
+        return self._digest
 
     def place(self, T_W_A) -> None:
         """Move the artefact to the placement ``T_W_A`` (4,4) in the compiled model.
 
         The table geoms' poses are written as the compiler would have read them
         from :func:`scene_mjcf` (``T_W_A`` times each solid's pose; quaternion
-        normalised): no recompilation. Artefacts with mesh solids (which the
-        compiler re-centres) cannot be moved: build a new :class:`Scene`.
+        normalised): no recompilation. They are written when MuJoCo next needs
+        them (:meth:`set_tip`, :meth:`geom_distance`): the broad phase
+        (:meth:`clearance`, in the artefact's frame) does not. Artefacts with mesh
+        solids (which the compiler re-centres) cannot be moved: build a new :class:`Scene`.
         """
         if any(s.kind not in ("box", "cylinder", "sphere") for s in self.artefact.solids):
             raise ValueError("Scene.place: an artefact with mesh solids needs a new Scene")
-        T_W_A = np.array(T_W_A, float)
+        self.T_W_A = np.array(T_W_A, float)  # (the broad phases kept in self._clr are in A: they stay valid)
+
+    def _sync(self) -> None:
+        """Write the placement :meth:`place` recorded into the model, if not yet done."""
+        self.model  # noqa: B018  (compiles on first use)
+        if self._model_T_W_A is self.T_W_A:
+            return
+        T_W_A = self.T_W_A
         m = self.model
         if self._local is None:  # each solid's pose on the artefact, (k,3,3) and (k,3)
             self._local = (np.array([make_T(s.rot, s.pos)[:3, :3] for s in self.artefact.solids]).reshape(-1, 3, 3),
@@ -174,19 +228,24 @@ class Scene:
         # the compiler's bounding-volume hierarchy of the table body holds the old poses:
         # MuJoCo then tests every geom pair of the two bodies (same contacts, no pruning)
         m.opt.disableflags |= int(self._mj.mjtDisableBit.mjDSBL_MIDPHASE)
-        self.T_W_A = T_W_A
-        self._clr = None
+        self._model_T_W_A = T_W_A
 
     def set_table(self, T_R_W: np.ndarray) -> None:
         """Place the table (frame W) in R."""
         T = np.asarray(T_R_W, float)
-        self.data.qpos[self._tq:self._tq + 3] = T[:3, 3]
-        self.data.qpos[self._tq + 3:self._tq + 7] = _quat(T[:3, :3])
+        self._qpos[self._tq:self._tq + 3] = T[:3, 3]
+        self._qpos[self._tq + 3:self._tq + 7] = _quat(T[:3, :3])
+
+    def table_qpos(self) -> np.ndarray:
+        """(7,) the table's free-joint position and quaternion (as :meth:`set_table` wrote them)."""
+        return self._qpos[self._tq:self._tq + 7]
 
     def set_tip(self, p_R) -> None:
         """Place the stylus-tip centre at ``p_R`` (3,), probe frame aligned with R."""
-        self.data.qpos[self._sq:self._sq + 3] = p_R
-        self.data.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
+        self._sync()
+        self._qpos[self._sq:self._sq + 3] = p_R
+        self._qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
+        self.data.qpos[:] = self._qpos
         self._mj.mj_kinematics(self.model, self.data)
 
     def collisions(self, p_R, allow_feature: str = "") -> list[tuple[str, str, float]]:
@@ -214,22 +273,90 @@ class Scene:
         return sorted(out, key=lambda c: (round(c[2], 12), c[0], c[1]))
 
     def clearance(self):
-        """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose."""
-        from .clearance import Clearance, model_geoms
+        """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose.
 
-        key = np.array(self.data.qpos[self._tq:self._tq + 7])
-        if self._clr is None or not np.array_equal(self._clr[0], key):
-            self.set_tip(np.zeros(3))
-            m = self.model
-            table = m.body("table").id
-            tg = [i for i in range(m.ngeom) if m.geom_bodyid[i] == table]
-            pg = [i for i in range(m.ngeom) if m.geom_bodyid[i] != table]
-            self._clr = (key, Clearance(model_geoms(m, self.data, pg), model_geoms(m, self.data, tg),
-                                        self.geom_feature[tg], pg.index(self.stylus)))
-        return self._clr[1]
+        Built in the artefact's frame A and kept per orientation of A to the spindle:
+        every placement of the artefact turned the same way (a campaign's set-ups
+        moved across the table) shares one, its pair data and certificates computed
+        once. The geoms are those the model is written from (:meth:`definition_geoms`;
+        the compiled model's for an artefact with meshes); MuJoCo's agree to rounding,
+        1e-16 m, against the bounds' 0.1 mm margin.
+        """
+        from .clearance import Clearance
+
+        q = np.array(self.table_qpos())
+        self._mj.mju_normalize4(q[3:])
+        R_R_W = np.zeros(9)
+        self._mj.mju_quat2Mat(R_R_W, q[3:])
+        T_R_A = make_T(R_R_W.reshape(3, 3), q[:3]) @ self.T_W_A
+        T_A_R = inv_T(T_R_A)
+        P, H = self.definition_geoms() if self._movable else (None, None)
+        if self._axisym is None:
+            P0 = P if P is not None else self._model_geoms_A(T_A_R)[0]
+            self._axisym = bool(np.all(P0.centre[:, :2] == 0) and np.all(np.abs(P0.axes[:, 2, 2]) == 1)
+                                and np.all(np.isin(P0.kind, (2, 3, 5))))
+        # a probe of spheres, capsules and cylinders on its z axis looks the same from every
+        # direction about that axis: placements that differ by a turn about the spindle axis (an
+        # artefact turned on a 3-axis table) share one broad phase and its certificates
+        key = np.ascontiguousarray(T_A_R[:3, 2] if self._axisym else T_A_R[:3, :3]).tobytes()
+        if self._clr is None:
+            self._clr = {}
+        hit = self._clr.get(key)
+        if hit is None:
+            if len(self._clr) >= 32:
+                self._clr.clear()
+            if P is None:
+                P, H = self._model_geoms_A(T_A_R)
+            R = T_A_R[:3, :3]
+            P = Geoms(P.centre @ R.T, R @ P.axes, P.kind, P.size, P.rbound)  # about the tip, axes of A
+            hit = self._clr[key] = Clearance(P, H, self.geom_feature[self._table_geoms], 0, T_F_R=T_A_R)
+        elif not np.array_equal(hit.T_F_R, T_A_R):
+            hit = self._clr[key] = hit.moved(T_A_R)
+        return hit
+
+    def definition_geoms(self):
+        """(probe, table) :class:`sim.clearance.Geoms` as :func:`scene_mjcf` defines them: the
+        probe's about the tip, axes of R (stylus, shank, probe body); the table's in A."""
+        from .clearance import Geoms
+
+        if getattr(self, "_defs", None) is not None:
+            return self._defs
+        art, pr = self.artefact, self.probe
+        if self._local is None:  # each solid's pose on the artefact, (k,3,3) and (k,3)
+            self._local = (np.array([make_T(s.rot, s.pos)[:3, :3] for s in art.solids]).reshape(-1, 3, 3),
+                           np.array([make_T(s.rot, s.pos)[:3, 3] for s in art.solids]).reshape(-1, 3))
+        R_loc, p_loc = self._local
+        code = {"sphere": 2, "cylinder": 5, "box": 6}
+        kind = np.array([code[s.kind] for s in art.solids], int)
+        size = np.zeros((len(kind), 3))
+        for j, s in enumerate(art.solids):
+            size[j, :np.size(s.size)] = np.ravel(s.size)
+        rb = np.where(kind == 6, np.linalg.norm(size, axis=1), np.where(kind == 5, np.hypot(size[:, 0], size[:, 1]),
+                                                                       size[:, 0]))
+        H = Geoms(p_loc.copy(), R_loc.copy(), kind, size, rb)
+        r, rs, L = pr.stylus_r_m, pr.shank_r_m, pr.shank_length_m
+        hb = PROBE_BODY_H_M / 2
+        # (MuJoCo turns the shank's fromto +z into a frame whose z is -z: the same geom)
+        P = Geoms(np.array([[0.0, 0, 0], [0.0, 0, (r + L) / 2], [0.0, 0, L + hb]]),
+                  np.array([np.eye(3), np.diag([1.0, -1.0, -1.0]), np.eye(3)]),
+                  np.array([2, 3, 5]), np.array([[r, 0, 0], [rs, (L - r) / 2, 0], [PROBE_BODY_R_M, hb, 0]]),
+                  np.array([r, rs + (L - r) / 2, np.hypot(PROBE_BODY_R_M, hb)]))
+        self._defs = (P, H)
+        return P, H
+
+    def _model_geoms_A(self, T_A_R):
+        """(probe about the tip, axes of R; table in A) from the compiled model."""
+        from .clearance import model_geoms
+
+        self.set_tip(np.zeros(3))
+        m, d = self.model, self.data
+        P, H = model_geoms(m, d, [self.stylus, self.stylus + 1, self.stylus + 2]), model_geoms(m, d, self._table_geoms)
+        R = T_A_R[:3, :3]
+        return P, Geoms(H.centre @ R.T + T_A_R[:3, 3], R @ H.axes, H.kind, H.size, H.rbound)
 
     def geom_distance(self, geom_a: str, geom_b: str, distmax: float = 1.0) -> float:
         """MuJoCo's signed distance between two named geoms (current poses), m."""
+        self._sync()
         m, d = self.model, self.data
         self._mj.mj_kinematics(m, d)
         return float(self._mj.mj_geomDistance(m, d, m.geom(geom_a).id, m.geom(geom_b).id, distmax, None))
@@ -271,6 +398,10 @@ def artefact_points(art: Artefact) -> np.ndarray:
 _SCENES: dict = {}
 
 
+#: Whether each artefact seen last has only boxes, cylinders and spheres (by object, kept).
+_MOVABLE: dict = {}
+
+
 def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
     """The :class:`Scene` of ``artefact`` at ``T_W_A`` with ``probe``: compiled once per
     artefact and probe, moved to each placement (:meth:`Scene.place`; a new one per
@@ -279,7 +410,12 @@ def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
     The table pose is whatever the last user set: set it before use.
     """
     T = np.ascontiguousarray(T_W_A, float)
-    movable = all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids)
+    hit = _MOVABLE.get(id(artefact))
+    if hit is None or hit[0] is not artefact:
+        if len(_MOVABLE) > 64:
+            _MOVABLE.clear()
+        hit = _MOVABLE[id(artefact)] = (artefact, all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids))
+    movable = hit[1]
     # the probe's geoms are made of these three lengths (scene_mjcf)
     key = (id(artefact), float(probe.stylus_r_m), float(probe.shank_r_m), float(probe.shank_length_m),
            None if movable else T.tobytes())
@@ -322,17 +458,20 @@ def check_touch_paths(scene: Scene, setup: str, targets, features, links, approa
     key = _paths_key(scene, features, links, approach, link_step_m, approach_step_m)
     if key in _PASSED:
         return
-    from .clearance import path_samples
+    from .clearance import path_segments
 
     paths = []  # (target index, phase, polyline, step, allowed feature), in the order checked
     for i in range(len(targets)):
         if links[i] is not None and len(links[i]) > 1:
             paths.append((i, "link move", links[i], link_step_m, ""))
         paths.append((i, "approach/retract path", approach[i], approach_step_m, features[i]))
-    pts, seg, which = path_samples([p[2] for p in paths], [p[3] for p in paths], joints=True)
-    allow = np.array([p[4] for p in paths], dtype=object)[which]
-    near = scene.clearance().near(pts, allow, seg) if broad_phase else np.ones(len(pts), bool)
-    for k in np.flatnonzero(near):  # in path order
+    sg = path_segments([p[2] for p in paths], [p[3] for p in paths], joints=True)
+    if broad_phase:
+        idx = scene.clearance().near_segments(sg, [p[4] for p in paths])
+    else:
+        idx = np.arange(sg.n_samples)
+    pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
+    for k in range(len(idx)):  # in path order
         i, phase, _, _, feat = paths[which[k]]
         c = scene.collisions(pts[k], feat)
         if c:
@@ -352,18 +491,16 @@ _PASSED: set[bytes] = set()
 def _paths_key(scene: Scene, features, links, approach, link_step_m: float, approach_step_m: float) -> bytes:
     """Digest of everything :func:`check_touch_paths` reads except the names in its messages."""
     h = hashlib.blake2b(digest_size=32)
-    h.update(scene.mjcf.encode())
+    h.update(scene.digest())  # the scene as built (artefact, probe)
     h.update(np.ascontiguousarray(scene.T_W_A, float).tobytes())  # the placement (Scene.place)
-    h.update(np.ascontiguousarray(scene.data.qpos[scene._tq:scene._tq + 7], float).tobytes())
+    h.update(np.ascontiguousarray(scene.table_qpos(), float).tobytes())
     h.update(np.array([link_step_m, approach_step_m, COLLISION_TOL_M]).tobytes())
-    for f in features:
-        h.update(str(f).encode() + b"\0")
-    for ln in links:
-        if ln is None:
-            h.update(b"N")
-        else:
-            a = np.ascontiguousarray(ln, float)
-            h.update(b"L" + np.array(a.shape, np.int64).tobytes() + a.tobytes())
+    h.update("\0".join(str(f) for f in features).encode() + b"\1")
+    arrs = [ln for ln in links if ln is not None]  # (m,3) polylines
+    # each link's number of points (-1 for none), then all their points
+    h.update(np.array([-1 if ln is None else len(ln) for ln in links], np.int64).tobytes() + b"\1")
+    if arrs:
+        h.update(np.concatenate(arrs, dtype=float).reshape(-1, 3).tobytes())
     a = np.ascontiguousarray(approach, float)
     h.update(b"A" + np.array(a.shape, np.int64).tobytes() + a.tobytes())
     return h.digest()

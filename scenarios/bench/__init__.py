@@ -68,7 +68,7 @@ def run_all(only: list[str] | None = None) -> dict:
         if only and not any(o in mod or o in short for o in only):
             continue
         t0 = time.perf_counter()
-        run = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
+        run = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "invocation_utc": meta["date_utc"],
                "load_average_1min_at_start": round(os.getloadavg()[0], 2)}
         meta.setdefault("runs", {})[short] = run
         try:

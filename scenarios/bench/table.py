@@ -34,7 +34,7 @@ def table_markdown(doc: dict) -> str:
                           "re-run `make bench` to write one)")
     meta = doc.get("meta", {})
     runs = meta.get("runs") if isinstance(meta.get("runs"), dict) else {}
-    if len({r.get("date_utc") for r in runs.values() if isinstance(r, dict)}) > 1:
+    if len({r.get("invocation_utc", r.get("date_utc")) for r in runs.values() if isinstance(r, dict)}) > 1:
         # figures merged from several `vmt bench --merge` runs: say when each benchmark ran
         when = "; ".join(f"{b.removeprefix('bench_')} {r.get('date_utc', '?')} "
                          f"({r.get('load_average_1min_at_start', '?')}/{r.get('load_average_1min_at_end', '?')})"

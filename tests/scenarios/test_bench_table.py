@@ -91,7 +91,8 @@ def test_cli_bad_input_exit_2(tmp_path, capsys, args, match):
 
 
 def _run(short, date, load, values, refs=None):
-    meta = dict(META, date_utc=date, runs={short: {"date_utc": date, "load_average_1min_at_start": load,
+    meta = dict(META, date_utc=date, runs={short: {"date_utc": date, "invocation_utc": date,
+                                                   "load_average_1min_at_start": load,
                                                    "load_average_1min_at_end": load + 1}})
     return document(meta, values, refs or {}, {}, dict.fromkeys(values, short))
 
@@ -128,3 +129,10 @@ def test_cli_merge_keeps_what_was_not_run(tmp_path, monkeypatch):
     f = json.loads(out.read_text())["figures"]
     assert f["b_s"]["value"] == 5.0 and f["c_s"]["value"] == 1.5
     assert set(json.loads(out.read_text())["meta"]["runs"]) == {"bench_two", "bench_tests_bench_stub"}
+
+
+def test_one_invocation_keeps_the_one_line_heading():
+    """Benchmarks of one `vmt bench` run start at different minutes: still one run, one heading."""
+    doc = _run("bench_one", "2026-12-02 01:00", 1.0, {"a_s": 1.0})
+    doc["meta"]["runs"]["bench_two"] = dict(doc["meta"]["runs"]["bench_one"], date_utc="2026-12-02 01:40")
+    assert table_markdown(doc).startswith("Measured 2026-12-02 01:00 UTC on 2 cores")

@@ -191,3 +191,192 @@ def test_check_touch_paths_random_paths_agree_with_every_sample_check():
         assert msgs[0] == msgs[1]
         outcomes.append(msgs[0] is None)
     assert 3 <= sum(outcomes) <= 27  # both verdicts drawn
+
+
+def test_broad_phase_geoms_are_the_compiled_models():
+    """The broad phases read the geoms the MJCF is written from, not the compiled model (which is
+    compiled only when a sample reaches MuJoCo): they agree with MuJoCo's poses to rounding."""
+    from sim.clearance import model_geoms
+
+    T_R_W = A.make_T(A.rot_z(-0.4) @ A.rot_x(0.2), (0.01, 0.02, -0.03))
+    for art in (BAR, A.cross_pocket()):
+        sc = Scene(art, ProbeConfig())
+        sc.place(A.make_T(A.rot_z(0.7), (0.05, -0.02, 0.11)))
+        sc.set_table(T_R_W)
+        clr = sc.clearance()
+        assert sc._model is None  # nothing compiled yet
+        sc.set_tip(np.zeros(3))
+        T_A_R = clr.T_F_R
+        H = model_geoms(sc.model, sc.data, sc._table_geoms)
+        P = model_geoms(sc.model, sc.data, [sc.stylus, sc.stylus + 1, sc.stylus + 2])
+        assert np.abs(H.centre @ T_A_R[:3, :3].T + T_A_R[:3, 3] - clr.table.centre).max() < 1e-15
+        assert np.abs(T_A_R[:3, :3] @ H.axes - clr.table.axes).max() < 1e-15
+        assert np.abs(P.centre @ T_A_R[:3, :3].T - clr.probe.centre).max() < 1e-15
+        assert np.abs(T_A_R[:3, :3] @ P.axes - clr.probe.axes).max() < 1e-15
+        for G, g in ((H, clr.table), (P, clr.probe)):
+            assert np.array_equal(G.kind, g.kind) and np.abs(G.size - g.size).max() < 1e-18
+    wz = WorkZone(BAR, FLAT, (), (0.030, 0.0, 0.150), R, 0.020)
+    wz.set_table(_T_R_W(-60, 30))
+    g = wz.table_geoms()
+    assert wz._model is None
+    wz.set_tip(np.zeros(3))
+    m, d = wz.model, wz.data
+    assert np.abs(g.centre - d.geom_xpos[wz._table]).max() < 1e-15
+    assert np.abs(g.axes.reshape(-1, 9) - d.geom_xmat[wz._table]).max() < 1e-15
+    assert np.array_equal(g.kind, m.geom_type[wz._table]) and np.array_equal(g.size, m.geom_size[wz._table])
+
+
+def test_certificates_across_placements_agree_with_every_sample_check(monkeypatch):
+    """A plan checked at one placement leaves certificates; the same paths (fixed in R) at other
+    placements of the artefact turned the same way (moved 0 to 1.2 mm: some within a certificate's
+    radius, some beyond) give exactly the verdicts and messages of MuJoCo at every sample. The
+    links graze the artefact's top (the ball 0.5 mm below to 1 mm above it: some pairs within the
+    boxes' 0.5 mm padding, some beyond), so the moves change verdicts: a certificate that clears too
+    much is seen (a radius 2 mm too large, or a padding radius 1 mm too large, fails here). A third
+    of the placements are also turned about the spindle axis, the paths with them: the probe looks
+    the same from every side, so they share the broad phase and its certificates."""
+    from sim import scene as S
+    from sim.clearance import Clearance
+
+    art = A.cross_pocket()  # the pocket's blocks' tops at z_A = 0, 0.12 m from the centre; spheres at
+    probe = ProbeConfig()   # y_A = 0.06 and -0.055, standing higher
+    scene = Scene(art, probe)
+    rng = np.random.default_rng(9)
+    T0 = art.T_W_A
+    z_top = T0[2, 3] + probe.stylus_r_m
+    boxes = [0]
+    real = Clearance._box_pairs
+    monkeypatch.setattr(Clearance, "_box_pairs", lambda self, a, b: boxes.__setitem__(0, boxes[0] + len(a))
+                        or real(self, a, b))
+    changed = reused = 0
+    for trial in range(10):
+        n = 4
+        links = [None]
+        for _ in range(n - 1):  # across the blocks' tops from outside, at a grazing height
+            z = z_top + rng.uniform(-0.5e-3, 1.0e-3)
+            y = T0[1, 3] + rng.choice([-1, 1]) * rng.uniform(0.025, 0.035)
+            x = T0[0, 3] + rng.choice([-1, 1]) * 0.14
+            links.append(np.array([[x, y, z + 0.02], [x, y, z], [-x, y, z]]))
+        approach = np.column_stack([T0[0, 3] + rng.uniform(-0.1, 0.1, n), T0[1, 3] + rng.uniform(-0.03, 0.03, n),
+                                    np.full(n, z_top + 0.03)])
+        approach = np.stack([approach, approach - [0, 0, 2e-3]], axis=1)
+        feats = [""] * n
+        outcomes = []
+        for j, move in enumerate([0.0] + list(rng.uniform(0, 1.2e-3, 6))):
+            u = rng.normal(size=3) if j % 2 else np.array([0.0, 0.0, 1.0])  # half of them straight up
+            # a third turned about the spindle axis, the paths with them (the same plan in A)
+            T_turn = A.make_T(A.rot_z(rng.uniform(-np.pi, np.pi)) if j % 3 == 2 else np.eye(3), [0.0, 0, 0])
+            T_turn = T0 @ T_turn @ A.inv_T(T0)
+            T_nom = T_turn @ T0
+            scene.place(A.make_T(T_nom[:3, :3], T_nom[:3, 3] + move * u / np.linalg.norm(u)))
+            scene.set_table(np.eye(4))
+            links_j = [None] + [A.apply_T(T_turn, ln) for ln in links[1:]]
+            approach_j = A.apply_T(T_turn, approach.reshape(-1, 3)).reshape(approach.shape)
+            msgs = []
+            for bp in (True, False):
+                S._PASSED.clear()
+                before = boxes[0]
+                try:
+                    check_touch_paths(scene, "C0", [f"t{k}" for k in range(n)], feats, links_j, approach_j,
+                                      broad_phase=bp)
+                    msgs.append(None)
+                except PlanError as e:
+                    msgs.append(str(e))
+                if bp and j > 0:
+                    reused += boxes[0] - before < 5 * n  # most segments cleared by certificates
+            assert msgs[0] == msgs[1], (trial, j, move)
+            outcomes.append(msgs[1])
+        changed += len(set(outcomes)) > 1
+    assert changed >= 3 and reused >= 10, (changed, reused)
+
+
+def test_a_tilted_spindle_axis_gets_its_own_broad_phase():
+    """The same plan in the artefact's frame, first with the spindle along z_A (clear: the shank
+    stands in the pocket's channel), then with the table tilted 60 deg (the shank, along R's z,
+    leans onto the channel's wall): the second check crashes, with and without the broad phase
+    alike (a broad phase or certificate shared across spindle axes would clear it)."""
+    from sim import scene as S
+
+    art = A.cross_pocket()
+    probe = ProbeConfig()
+    scene = Scene(art, probe)
+    T0 = art.T_W_A
+    z = -0.010 + probe.stylus_r_m  # the ball's centre on the floor of the channel along x_A
+    p_A = np.array([[[0.05, -0.010, z + 5e-3], [0.05, -0.010, z + 1e-3]]])  # 8 mm from its wall
+    outcomes = []
+    for th in (0.0, np.deg2rad(60.0)):
+        T_R_W = A.make_T(A.rot_x(-th), [0.0, 0, 0])
+        scene.set_table(T_R_W)
+        approach = A.apply_T(T_R_W @ T0, p_A.reshape(-1, 3)).reshape(p_A.shape)
+        msgs = []
+        for bp in (True, False):
+            S._PASSED.clear()
+            try:
+                check_touch_paths(scene, "C0", ["t"], ["pocket"], [None], approach, broad_phase=bp)
+                msgs.append(None)
+            except PlanError as e:
+                msgs.append(str(e))
+        assert msgs[0] == msgs[1]
+        outcomes.append(msgs[1])
+    assert outcomes[0] is None and "shank hits pocket" in outcomes[1], outcomes
+
+
+def _link_paths_one_by_one(T_R_A, starts_R, features, levels, top_A_m):
+    """The link moves as sim.mfb_scene.link_paths wrote them before it batched them (one
+    transform per link)."""
+    from sim.mfb_scene import LINK_CLEAR_M
+
+    T_A_R = A.inv_T(T_R_A)
+    s_A = A.apply_T(T_A_R, np.asarray(starts_R, float))
+    out = [None]
+    for i in range(1, len(s_A)):
+        a, b = s_A[i - 1], s_A[i]
+        if features[i] == features[i - 1] and levels[i] == levels[i - 1]:
+            pts = np.array([a, b])
+        else:
+            zc = max(top_A_m + LINK_CLEAR_M, a[2], b[2])
+            pts = np.array([a, [a[0], a[1], zc], [b[0], b[1], zc], b])
+        out.append(A.apply_T(T_R_A, pts))
+    return out
+
+
+def test_link_paths_are_the_one_by_one_links_bit_for_bit():
+    """The batched link moves of every measurement of the MFB 5-axis plan (and of its starts
+    scattered by 10 mm) are the links computed one by one, to the last bit."""
+    from scenarios import mfb as S
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+    from sim.mfb_scene import link_paths
+    from sim.scene import artefact_points
+
+    plan = S.plan_5axis()
+    mach = Machine(MACHINES[plan.machine]())
+    rng = np.random.default_rng(3)
+    top = float(artefact_points(BAR)[:, 2].max()) + R
+    n = 0
+    for ms in plan.measurements[::3]:
+        T_R_A = np.asarray(mach.T_R_W_nominal(np.asarray(ms.rot_rad, float)[None, :]), float).reshape(4, 4) @ ms.T_W_A
+        pl = _holes(*ms.holes)
+        start = A.apply_T(T_R_A, pl.w_A + (R + pl.clearance_m) * pl.wn_A)
+        for st in (start, start + rng.normal(0, 0.01, start.shape)):
+            got, want = link_paths(T_R_A, st, pl.feature, pl.level, top), _link_paths_one_by_one(T_R_A, st, pl.feature, pl.level, top)
+            assert got[0] is None and len(got) == len(want)
+            for g, w in zip(got[1:], want[1:]):
+                assert g.shape == w.shape and np.array_equal(g, w)
+            n += len(got) - 1
+    assert n > 500
+    assert link_paths(np.eye(4), np.zeros((1, 3)), ["a"], [0], 0.0) == [None]
+
+
+def test_fixed_bound_grid_is_the_rows_bound_on_fixed_axes():
+    """Clearance.fixed_bound_grid (the least clearance's first pass) equals bound() on every
+    (tip, pair) row with the closest-point axis left out, bit for bit, and never exceeds bound()."""
+    wz = _zone(-60, 30, (0.0, -0.100, 0.150))
+    tips = np.random.default_rng(0).uniform(-0.3, 0.3, (40, 3))
+    for holder_only in (True, False):
+        clr = wz.clearance(holder_only=holder_only)
+        npair = len(clr.pair_probe)
+        i, pair = np.repeat(np.arange(len(tips)), npair), np.tile(np.arange(npair), len(tips))
+        grid = clr.fixed_bound_grid(tips).ravel()
+        assert np.array_equal(grid, clr.bound(tips, i, pair, enough=-np.inf))
+        assert np.all(grid <= clr.bound(tips, i, pair))

@@ -120,3 +120,25 @@ def test_cross_axis_couples_two_axes_in_the_machine():
         CrossAxis(k, "Y")(np.zeros(2))
     with pytest.raises(ConfigError, match="linear axis"):
         CrossAxis(k, "C")
+
+
+def test_spline_stack_is_each_table():
+    # issue 19 item 5: tables on the same knots in one call; each row is the table's own
+    # value, bit for bit (the same coefficients and compiled evaluation), inside the
+    # table, on its ends and on the tangent lines outside it
+    from sim.errorfuncs import SplineStack
+
+    rng = np.random.default_rng(4)
+    x = (-0.3, -0.2, -0.05, 0.1, 0.2, 0.3)
+    tables = [SplineTable(x, tuple(rng.normal(scale=5e-6, size=6))) for _ in range(4)]
+    tables.append(SplineTable(x[:3], (1e-6, -1e-6, 2e-6)))  # natural ends: not on these knots
+    p = np.concatenate([rng.uniform(-0.5, 0.5, 500), x, [-0.3000001, 0.3000001]])
+    got = SplineStack(tables[:4])(p)
+    assert got.shape == (4, len(p))
+    for k in range(4):
+        assert np.array_equal(got[k], tables[k](p))
+    assert np.array_equal(SplineStack(tables[:1])(0.25)[0], tables[0](0.25))
+    with pytest.raises(ConfigError, match="same knots"):
+        SplineStack(tables[3:])
+    with pytest.raises(ConfigError, match="same knots"):
+        SplineStack([])

@@ -302,3 +302,79 @@ def test_bad_inputs():
         Machine(MACHINES["vmc-3axis"]()).tip_W(np.zeros((2, 3)), np.zeros((2, 1)))
     with pytest.raises(ConfigError, match="lacks linear axis Z"):
         sim.machine.MachineConfig("x", "[w-X-Y-b-t]", {"X": (0, 1), "Y": (0, 1)})
+
+
+def test_error_values_are_each_function_at_its_axis():
+    # issue 19 item 5: error_values evaluates spline tables of an axis together and the
+    # position-only errors of a rotary axis once per distinct angle; every value must be
+    # the function's own at that pose (bit for bit), whatever the mix: tables on shared
+    # and on other knots, sums, a time-dependent rotary error, reversal, a cross-axis term
+    from sim.errorfuncs import CrossAxis, Periodic, SplineTable
+
+    rng = np.random.default_rng(11)
+    xs = tuple(np.linspace(-0.4, 0.4, 9))
+
+    def table(x=xs):
+        return SplineTable(x, tuple(rng.normal(scale=4e-6, size=len(x))))
+
+    errors = {"EXX": table() + Polynomial((1e-6, 2e-6)), "EYX": table(), "EZX": table(), "EAX": table(),
+              "EBX": table((-0.1, 0.0, 0.2, 0.3)), "EXY": table(), "EYY": Reversal(3e-6) + table(),
+              "EZZ": CrossAxis(1e-4, "X"), "EC0Y": Constant(2e-5),
+              "EXC": Periodic(3e-6, np.pi / 2), "EYC": Drift(offset_rate=1e-9) + Periodic(1e-6, np.pi),
+              "ECC": Periodic(2e-6, np.pi, 0.3), "EAA": Periodic(1e-5, np.pi / 3), "EY0A": Constant(1e-5)}
+    m = Machine(MACHINES["nmv3000"](errors=errors))
+    n = 600
+    lin = rng.uniform(-0.5, 0.5, (n, 3))
+    rot = np.column_stack([rng.choice(rng.uniform(-1, 1, 5), n) for _ in m.rotary_axes])  # few angles
+    t, d = rng.uniform(0, 1e3, n), rng.choice([-1.0, 0.0, 1.0], (n, 3))
+    got = m.error_values(lin, rot, t, d)
+    assert list(got) == list(errors)
+    axes = {a: lin[:, k] for k, a in enumerate("XYZ")}
+    for name, f in errors.items():
+        s = iso.symbol(name)
+        if s.location:
+            want = np.full(n, f.value)
+        elif s.axis in "XYZ":
+            i = "XYZ".index(s.axis)
+            want = f.evaluate(lin[:, i], t, d[:, i], axes)
+        else:
+            want = f(rot[:, m.rotary_axes.index(s.axis)], t, None)
+        assert got[name].shape == (n,) and np.array_equal(got[name], want), name
+
+
+@pytest.mark.parametrize("drift", [False, True])
+def test_workpiece_branch_once_per_angle_is_pinocchio(drift, rng):
+    # issue 19 item 5: on a machine whose workpiece branch holds only rotary axes with
+    # position-only errors, tip_W evaluates W once per distinct rotary position; against
+    # Pinocchio's own loop (1e-12 m, module docstring) and against the full batched walk
+    # (the same products on the same numbers: 1e-15 m, rounding of the libm only); a drift
+    # on C makes W time-dependent, where the full walk must be taken
+    m = _realistic("mikron-ucp710", rng)
+    if drift:
+        err = dict(m.config.errors)
+        err["EXC"] = err["EXC"] + Drift(offset_rate=1e-8)
+        m = m.with_errors(err)
+    assert m._W_by_angles is not drift
+    n = 400
+    lin, _ = _poses(m.config, (), n, rng)
+    angles = np.column_stack([rng.uniform(*m.config.strokes[a], 6) for a in m.rotary_axes])
+    rot = angles[rng.integers(0, 6, n)]
+    t, d = rng.uniform(0, 3e3, n), rng.choice([-1.0, 0.0, 1.0], (n, 3))
+    got = m.tip_W(lin, rot, t, d)
+    assert np.max(np.abs(got - m.tip_W_pinocchio(lin, rot, t, d))) < 1e-12
+    m._W_by_angles = False
+    assert np.max(np.abs(got - m.tip_W(lin, rot, t, d))) < 1e-15
+
+
+def test_runs_of_equal_rows():
+    # the dedupe behind the once-per-angle evaluations: consecutive equal rows share a run,
+    # a value met again later and every NaN row get runs of their own
+    from sim.machine import _runs
+
+    a = np.array([[1.0, 2.0], [1.0, 2.0], [1.0, 3.0], [1.0, 2.0], [np.nan, 0.0], [np.nan, 0.0], [4.0, 0.0]])
+    first, inv = _runs(a)
+    assert first.tolist() == [0, 2, 3, 4, 5, 6] and inv.tolist() == [0, 0, 1, 2, 3, 4, 5]
+    np.testing.assert_array_equal(a[first][inv], a)
+    first, inv = _runs(np.array([0.5, 0.5, 0.5]))
+    assert first.tolist() == [0] and inv.tolist() == [0, 0, 0]
+    assert _runs(np.zeros((0, 2)))[0].size == 0 and _runs(np.zeros((1, 2)))[1].tolist() == [0]

@@ -165,3 +165,55 @@ def test_real_machine_translation_error_has_analytic_answer():
     res = touch(m, pl, [[R + 2e-3, y0, 0.05]], (-1, 0, 0))
     # tip error -y EC0Y in X (CONTRIBUTING): actual x = X - y0 EC0Y = R
     assert abs(res.pos_R[0, 0] - (R + y0 * -43.4e-6)) < NM
+
+
+@pytest.mark.parametrize("n_first", [1, 3, 6, 7, 20])
+def test_find_contacts_in_two_passes_is_all_samples_at_once(n_first):
+    # issue 19 item 5: the later coarse samples only where no crossing is bracketed before
+    # them; the same samples decide, so the roots and statuses are bit-identical to all
+    # samples at once, on paths crossing early, late, twice (the first crossing counts),
+    # never, or starting inside the material; and the late samples are evaluated only on
+    # the paths that need them
+    from sim.probe import find_contacts
+
+    rng = np.random.default_rng(8)
+    n = 400
+    a = rng.uniform(-0.5e-3, 3.5e-3, n)  # first surface at s = a (before 0: early; past 3 mm: none)
+    b = a + rng.uniform(0.2e-3, 2e-3, n)  # material ends at b (a second crossing beyond it)
+    curv = rng.uniform(-50, 50, n)
+    calls = []
+
+    def g(idx, s):
+        calls.append(len(s))
+        return np.where(s < b[idx], a[idx] - s, s - b[idx] - 1e-4) + curv[idx] * (s - a[idx]) ** 2
+
+    travel = np.full(n, 3e-3)
+    s_all, st_all = find_contacts(g, n, travel, n_coarse=7)
+    n_all = calls[0]
+    calls.clear()
+    s_two, st_two = find_contacts(g, n, travel, n_coarse=7, n_first=n_first)
+    assert np.array_equal(s_all, s_two, equal_nan=True) and list(st_all) == list(st_two)
+    assert {"ok", "no_trigger", "early_trigger"} <= set(st_all)
+    if n_first < 7:
+        assert calls[0] == n * n_first and calls[0] + calls[1] < n_all
+
+
+def test_root_on_a_coarse_sample_is_that_sample_without_bisection():
+    # a nominal contact on a perfect machine falls on a coarse sample (2 mm clearance, 3 mm
+    # travel, 13 samples): regula falsi returns the sample itself, which the bracket test
+    # rejected, and the search bisected ~30 times; now the sample is the root, at once, on
+    # either side of the bracket (g just above 0 before it, or exactly 0 at it)
+    from sim.probe import G_TOL_M, find_contacts
+
+    n = 50
+    root = np.full(n, 2e-3)
+    eps = np.where(np.arange(n) % 2 == 0, 0.0, 0.3 * G_TOL_M)  # g = +eps at the sample
+    calls = []
+
+    def g(idx, s):
+        calls.append(len(s))
+        return root[idx] - s + eps[idx]
+
+    s, st = find_contacts(g, n, np.full(n, 3e-3), n_coarse=13)
+    assert set(st) == {"ok"} and np.array_equal(s, root)
+    assert len(calls) == 1

@@ -92,8 +92,9 @@ def test_a_passed_path_check_is_not_run_twice_and_a_crash_always_is(monkeypatch)
     art = A.cross_pocket()
     scene = Scene(art, ProbeConfig())
     calls = []
-    real = Clearance.near
-    monkeypatch.setattr(Clearance, "near", lambda self, p, *a, **k: calls.append(len(p)) or real(self, p, *a, **k))
+    real = Clearance.near_segments
+    monkeypatch.setattr(Clearance, "near_segments",
+                        lambda self, sg, *a, **k: calls.append(sg.n_samples) or real(self, sg, *a, **k))
     z = art.T_W_A[2, 3] + 0.02  # 20 mm above the artefact's base: clear of the pocket's floor
     top = art.T_W_A[2, 3] + 0.08
     links = [np.array([[0.0, 0.0, top], [0.0, 0.0, z]])]
