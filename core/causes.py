@@ -425,6 +425,18 @@ def unoriented_scans(bl):
     return scans, 3.0
 
 
+def common_lobing(bl) -> np.ndarray:
+    """The probe's lobes fixed in the machine frame (``probe_lobing``'s columns): the plainer explanation of lobes per set-up.
+
+    A lobing that turns from set-up to set-up nests the oriented one (equal
+    orientations); the turned one is named only when it explains materially
+    more than the probe's fixed lobes (harmonics 1-4 of the approach
+    azimuth, machine frame) do.
+    """
+    phi = bl.data.azimuth
+    return np.column_stack([f(k * phi) for k in range(1, 5) for f in (np.cos, np.sin)])
+
+
 def _circle(P: np.ndarray):
     """Algebraic (Kasa) circle through 2-D points: (centre (2,), radius, RMS distance to it)."""
     M = np.column_stack([P[:, 0], P[:, 1], np.ones(len(P))])
@@ -958,7 +970,7 @@ REGISTRY = (
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
           {"pretravel_variation_pv_um": (0, 50)}, counter_scan=fixture_slip),
     Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
-          {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter_scan=fixture_slip),
+          {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter=common_lobing, counter_scan=fixture_slip),
     Cause("stylus_bending", ("planar",), "probe", bending_scans, bending_magnitudes,
           {"pretravel_change_um": (-50, 50)}, counter_scan=fixture_slip),
     Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,

@@ -44,7 +44,11 @@ What it does, in order, and the statistics behind each step
       covariate of another family (time, position, direction, feature:
       :attr:`core.diagnosis.Covariate.family`) explains materially more
       than both the cause's columns and the best smooth function of a
-      covariate of its own family (debiased sums of squares).
+      covariate of its own family (debiased sums of squares);
+   f. its plainer counter-explanation (:attr:`core.causes.Cause.counter`)
+      does not explain as much (step 5's test, made before adoption too, so
+      that a plainer cause of the catalogue can win the round: the probe's
+      fixed lobes against lobes turned per set-up).
 
    Among those, the lowest cross-validated mean square wins; within the
    materiality margin of it, the fewest columns (parsimony).
@@ -56,7 +60,9 @@ What it does, in order, and the statistics behind each step
    error map against a non-rigid coupling) must not explain as much; and
    it must explain something material beyond the best trial of its
    :attr:`core.causes.Cause.counter_scan` (a one-off slip of the part in
-   one set-up, debiased for the choice among its trials).
+   one set-up, debiased for the choice among its trials), and stay
+   significant beside it (F test, the Bonferroni factor of its adoption)
+   unless it explains materially more than the slip.
    Otherwise it was a guess that caught part of something else: it is
    dropped and said so.
 6. **Unexplained**: if structure remains (diagnosis, lack of fit or CV gap
@@ -1140,6 +1146,13 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     return info
 
 
+def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> float:
+    """Debiased sum of squares the cause's plainer explanation (``cause.counter``) explains beside the model ``st``."""
+    Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
+    Uc = new_basis(st.Q, Bc[rows])
+    return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2
+
+
 def _candidate_ss(C: np.ndarray, st: _State) -> float:
     """Debiased sum of squares a candidate's columns (1, n, k) explain beside the model."""
     ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
@@ -1256,6 +1269,19 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     why = cause.check(info, bl) if cause.check else None
     if why:
         return {"reason": f"implausible: {why}", "significant": True}
+    if cause.counter is not None:
+        # the plainer explanation is tested before adoption too, so that a plainer
+        # cause of the catalogue (the probe's fixed lobes for lobes turned per
+        # set-up, which nest them) can win the round instead of the richer one
+        # being adopted and then dropped to `unexplained` by the rival check
+        Cn = cols[None, rows]
+        ss_c, k_c, _, _ = nested_f_batch(Cn, st.Q, st.r, st.rss, st.dof)
+        d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
+        d_c = _counter_ss(bl, cause, st, rows, sigma)
+        if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows):
+            return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
+                              f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
+                    "significant": True}
     M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max)
     ev.update({"vif": vif, "max_vif": vif_worst, "principal_angle_deg": ang, "weak_directions": weak})
     if M.shape[1] == 0:
@@ -1411,9 +1437,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
            "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}
     if cause is not None and cause.counter is not None:
         # the plainer explanation (a finer error map for a coupling): it must not do as well
-        Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
-        Uc = new_basis(so.Q, Bc[rows])
-        d_c = float(np.sum((Uc.T @ so.r) ** 2)) - Uc.shape[1] * s2
+        d_c = _counter_ss(bl, cause, so, rows, sigma)
         out["counter"] = cause.counter.__name__.replace("_", " ")
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
         if d_c > d_n - m_ss:
@@ -1433,10 +1457,19 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
             Qs = np.hstack([so.Q, new_basis(so.Q, Cs[j][rows])])
             rs = so.r - Qs[:, so.Q.shape[1]:] @ (Qs[:, so.Q.shape[1]:].T @ so.r)
             Un = new_basis(Qs, tm.columns[rows])
-            d_ns = float(np.sum((Un.T @ rs) ** 2)) - Un.shape[1] * s2
+            ss_ns = float(np.sum((Un.T @ rs) ** 2))
+            d_ns = ss_ns - Un.shape[1] * s2
+            # and whether it is still significant beside the slip (its F test with
+            # the Bonferroni factor of its adoption)
+            dof_ns = len(rows) - Qs.shape[1] - Un.shape[1]
+            p_ns = 1.0
+            if Un.shape[1] and dof_ns > 0:
+                F_ns = (ss_ns / Un.shape[1]) / max((float(rs @ rs) - ss_ns) / dof_ns, 1e-300)
+                p_ns = min(1.0, float(stats.f.sf(F_ns, Un.shape[1], dof_ns)) * tm.tries)
             out["slip_explained_ss_um2"] = max(d_s, 0.0) / UM ** 2
             out["explained_beyond_slip_ss_um2"] = max(d_ns, 0.0) / UM ** 2
-            if d_s >= m_ss and d_ns < m_ss:
+            out["p_adjusted_beyond_slip"] = p_ns
+            if (d_s >= m_ss and d_ns < m_ss) or (p_ns >= settings.alpha_family and d_s >= d_n - m_ss):
                 out["kept"] = False
                 out["counter"] = cause.counter_scan.__name__.replace("_", " ")
                 out["counter_explained_ss_um2"] = out["slip_explained_ss_um2"]

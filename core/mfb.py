@@ -188,7 +188,7 @@ def _group(feature) -> dict:
     return {f: np.asarray(v) for f, v in out.items()}
 
 
-def fit_bar_features(p_R, feature, n_R) -> BarFeatures:
+def fit_bar_features(p_R, feature, n_R, *, batched: bool = False) -> BarFeatures:
     """Least-squares features of one placement (cylinders App. A, planes App. B).
 
     Parameters
@@ -200,14 +200,18 @@ def fit_bar_features(p_R, feature, n_R) -> BarFeatures:
         (others ignored).
     n_R : (n, 3) float
         Nominal outward normals (used for the axis hints and the probed side).
+    batched : bool
+        Fit the features that share a kind, a touch count and a hint (every
+        hole, every rod, every left / right face of a placement) in one call
+        (:func:`core.fit.cylinders_point_axis`, :func:`core.fit.planes_point_normal`):
+        the same iteration per feature, the same answer to rounding (not bit
+        for bit), without the single fits' checks (coincident or collinear
+        points, rank): only for touches known good, e.g. simulated touches
+        each checked to trigger on its target (:func:`scenarios.mfb.run`).
     """
-    p_R = np.asarray(p_R, float)
-    n_R = np.asarray(n_R, float)
-    if p_R.ndim != 2 or p_R.shape[1] != 3 or n_R.shape != p_R.shape or len(feature) != len(p_R):
-        raise ConfigError(f"MFB features: p_R, n_R must be (n, 3) and feature (n,), got "
-                          f"{p_R.shape}, {n_R.shape}, {len(feature)}")
-    if not np.all(np.isfinite(p_R)):
-        raise ConfigError("MFB features: p_R holds non-finite positions (drop invalid touches first)")
+    if batched:
+        return _fit_bar_features_batched(p_R, feature, n_R)
+    p_R, n_R = _checked_touches(p_R, feature, n_R)
     hp, ha, rp, ra, fp, fn = {}, {}, {}, {}, {}, {}
     rod_normals = []
     for f, idx in _group(feature).items():
@@ -223,6 +227,51 @@ def fit_bar_features(p_R, feature, n_R) -> BarFeatures:
             raise FitError(f"MFB feature {f!r}: {e}") from None
     side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
     return BarFeatures(hp, ha, rp, ra, fp, fn, side)
+
+
+def _checked_touches(p_R, feature, n_R) -> tuple:
+    """(p_R, n_R) as float arrays, refused by name unless (n, 3), (n,) and finite."""
+    p_R = np.asarray(p_R, float)
+    n_R = np.asarray(n_R, float)
+    if p_R.ndim != 2 or p_R.shape[1] != 3 or n_R.shape != p_R.shape or len(feature) != len(p_R):
+        raise ConfigError(f"MFB features: p_R, n_R must be (n, 3) and feature (n,), got "
+                          f"{p_R.shape}, {n_R.shape}, {len(feature)}")
+    if not np.all(np.isfinite(p_R)):
+        raise ConfigError("MFB features: p_R holds non-finite positions (drop invalid touches first)")
+    return p_R, n_R
+
+
+def _fit_bar_features_batched(p_R, feature, n_R) -> BarFeatures:
+    """:func:`fit_bar_features` with ``batched=True``."""
+    p_R, n_R = _checked_touches(p_R, feature, n_R)
+    groups: dict = {}  # (kind, touches, hint bytes) -> [(key, idx)]
+    rod_normals = []
+    for f, idx in _group(feature).items():
+        if (i := _num(f, "hole")) is not None:
+            kind, key, hint = "hole", i, _axis_hint(n_R[idx])
+        elif (j := _num(f, "rod")) is not None:
+            kind, key, hint = "rod", j, _axis_hint(n_R[idx])
+            rod_normals.append(n_R[idx])
+        elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
+            kind, key, hint = "face", (f[4], j), n_R[idx].mean(axis=0)
+        else:
+            continue
+        groups.setdefault((kind, len(idx), hint.tobytes()), []).append((key, idx, hint, f))
+    out = {"hole": ({}, {}), "rod": ({}, {}), "face": ({}, {})}
+    for (kind, _, _), items in groups.items():
+        pts = np.stack([p_R[idx] for _, idx, _, _ in items])
+        hint = items[0][2]
+        try:
+            if kind == "face":
+                pt, ax = planes_point_normal(pts, normal_hint=hint)
+            else:
+                pt, ax = cylinders_point_axis(pts, axis_hint=hint)
+        except FitError as e:
+            raise FitError(f"MFB features {', '.join(f for *_, f in items)}: {e}") from None
+        for k, (key, *_) in enumerate(items):
+            out[kind][0][key], out[kind][1][key] = pt[k], ax[k]
+    side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
+    return BarFeatures(*out["hole"], *out["rod"], *out["face"], side)
 
 
 def _rod_points(bf: BarFeatures, j: int) -> np.ndarray:
@@ -243,19 +292,22 @@ def _rod_pair(i: int, rods: set) -> tuple[int, int]:
     raise FitError(f"MFB: hole {i} has no two neighbouring rods measured (PL_{i} undefined)")
 
 
-def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB) -> PointsOfInterest:
-    """Points of interest and R_MFB from fitted features (section 2.1)."""
+def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB, *, batched: bool = False) -> PointsOfInterest:
+    """Points of interest and R_MFB from fitted features (section 2.1). ``batched``: the
+    planes PL_i of all holes in one call (:func:`core.fit.planes_point_normal`, to rounding;
+    without the single fit's checks: for features known good, :func:`fit_bar_features`)."""
     rods = set(bf.rod_point)
     holes = sorted(bf.hole_point)
     if len(holes) < 2 or len(rods) < 2:
         raise FitError(f"MFB: need at least 2 holes and 2 rods, got {len(holes)} and {len(rods)}")
     P = {j: _rod_points(bf, j) for j in sorted(rods)}
-    O_R = []
-    for i in holes:
-        a, b = _rod_pair(i, rods)
-        q, n = plane_point_normal(np.vstack([P[a], P[b]]), normal_hint=bf.probe_side)
-        O_R.append(_meet(bf.hole_point[i], bf.hole_axis[i], q, n))
-    O_R = np.array(O_R)
+    pairs = [_rod_pair(i, rods) for i in holes]
+    if batched:
+        qs, ns = planes_point_normal(np.stack([np.vstack([P[a], P[b]]) for a, b in pairs]),
+                                     normal_hint=bf.probe_side)
+    else:
+        qs, ns = zip(*(plane_point_normal(np.vstack([P[a], P[b]]), normal_hint=bf.probe_side) for a, b in pairs))
+    O_R = np.array([_meet(bf.hole_point[i], bf.hole_axis[i], q, n) for i, q, n in zip(holes, qs, ns)])
     # R_MFB: PL_ref through the P points of the first and last rods
     j0, j1 = min(rods), max(rods)
     ref_point, z = plane_point_normal(np.vstack([P[j0], P[j1]]),
@@ -278,7 +330,8 @@ def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB) -> PointsOfInter
     return PointsOfInterest(tuple(holes), O_R, O_M, T, (ia, ib), orient, found)
 
 
-def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str | None = None) -> PointsOfInterest:
+def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str | None = None, *,
+                       batched: bool = False) -> PointsOfInterest:
     """O_i of one placement from its touches (Viprey 2016, section 2.1).
 
     Parameters
@@ -293,12 +346,14 @@ def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str
     declared : str, optional
         Declared orientation; if given and the shifted holes say otherwise,
         :class:`OrientationError` names them.
+    batched : bool
+        The features fitted in batches (:func:`fit_bar_features`: touches known good only).
 
     Returns
     -------
     PointsOfInterest
     """
-    poi = poi_from_features(fit_bar_features(p_R, feature, n_R), geom)
+    poi = poi_from_features(fit_bar_features(p_R, feature, n_R, batched=batched), geom, batched=batched)
     if declared is not None:
         check_orientation(poi.orientation, poi.shifted_found, declared, geom)
     return poi

@@ -372,57 +372,80 @@ def _has_touches(m) -> bool:
     return m.q_R is not None and m.c_A is not None and m.d_A is not None and m.G_A is not None
 
 
-def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact):
-    """Jacobian and residual of (1) at theta: target - prediction."""
+def _prepare(m, chain, rotary_points, nodes) -> dict:
+    """What :func:`_rows` computes of measurement ``m`` whatever theta: geometry, spline
+    weights at the readings, the gain in W, the error-free tip positions (for the
+    Gauss-Newton iterations of one identification to share)."""
+    g = _geom(chain, m.J_m, rotary_points)
+    q = np.asarray(m.O_R, float)
+    k = len(q)
+    nr = len(g.chain.rotary_axes)
+    rot = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (k, 1)) if nr else None
+    T = np.asarray(m.T_W_A, float)
+    zA = T[:3, 2]
+    p = {"g": g, "q": q, "k": k, "rot": rot, "T": T, "touches": _has_touches(m),
+         "P": np.asarray(m.O_A, float) @ T[:3, :3].T + T[:3, 3], "Pz": np.eye(3) - np.outer(zA, zA),
+         "off": np.abs(np.asarray(m.O_A, float)[:, 1]) > 1e-4}
+    if p["touches"]:
+        qt = np.asarray(m.q_R, float)
+        t = len(qt)
+        p["qt"] = qt
+        p["rott"] = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (t, 1)) if nr else None
+        p["W"] = _axis_weights(nodes, qt)
+        p["d_W"] = np.asarray(m.d_A, float) @ T[:3, :3].T
+        p["GW"] = np.einsum("ij,kjt->kit", T[:3, :3], np.asarray(m.G_A, float).reshape(k, 3, t))  # (k, 3, t)
+        p["pred0"] = tip_W(g, q, rot, None)
+        p["tip0_t"] = tip_W(g, qt, p["rott"], None)
+    else:
+        p["W"] = _axis_weights(nodes, q)
+    return p
+
+
+def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=True, prep=None):
+    """Jacobian and residual of (1) at theta: target - prediction (``jacobian=False``:
+    the residual alone, the same numbers, Jacobian None: no sensitivity evaluated).
+    ``prep``: :func:`_prepare` of each measurement (computed here when None)."""
     Jrows, res, rows = [], [], []
-    for m in meas:
-        g = _geom(chain, m.J_m, rotary_points)
-        q = np.asarray(m.O_R, float)
-        k = len(q)
-        nr = len(g.chain.rotary_axes)
-        rot = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (k, 1)) if nr else None
-        T = np.asarray(m.T_W_A, float)
-        if _has_touches(m):
+    for i, m in enumerate(meas):
+        pm = _prepare(m, chain, rotary_points, nodes) if prep is None else prep[i]
+        g, q, k, rot, T, W = pm["g"], pm["q"], pm["k"], pm["rot"], pm["T"], pm["W"]
+        if pm["touches"]:
             # model (3): the errors act at the touches; the extraction's gain
             # carries each touch's normal shift into the points of interest
-            qt = np.asarray(m.q_R, float)
+            qt, rott, d_W, GW = pm["qt"], pm["rott"], pm["d_W"], pm["GW"]
             t = len(qt)
-            rott = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (t, 1)) if nr else None
-            Wt = _axis_weights(nodes, qt)
-            vals_t = _values(theta, slices, Wt, t) if exact else None
-            d_W = np.asarray(m.d_A, float) @ T[:3, :3].T
-            GW = np.einsum("ij,kjt->kit", T[:3, :3], np.asarray(m.G_A, float).reshape(k, 3, t))  # (k, 3, t)
-            St = sensitivity(g, qt, rott, vals_t, symbols=MOTION + SQUARENESS)
-            Jt = _projected_error_jacobian(St, d_W, Wt, slices, n)
-            J = (GW.reshape(3 * k, t) @ Jt).reshape(k, 3, n)
-            pred = tip_W(g, q, rot, None)
+            vals_t = _values(theta, slices, W, t) if exact else None
+            if jacobian:
+                St = sensitivity(g, qt, rott, vals_t, symbols=MOTION + SQUARENESS)
+                Jt = _projected_error_jacobian(St, d_W, W, slices, n)
+                J = (GW.reshape(3 * k, t) @ Jt).reshape(k, 3, n)
+            pred = pm["pred0"]
             if exact:
-                e = np.einsum("tj,tj->t", d_W, tip_W(g, qt, rott, vals_t) - tip_W(g, qt, rott, None))
+                e = np.einsum("tj,tj->t", d_W, tip_W(g, qt, rott, vals_t) - pm["tip0_t"])
                 pred = pred + GW @ e
         else:
-            W = _axis_weights(nodes, q)
             vals = _values(theta, slices, W, k) if exact else None
-            S = sensitivity(g, q, rot, vals, symbols=MOTION + SQUARENESS)  # (k, 3, 21)
             pred = tip_W(g, q, rot, vals)
-            J = _error_jacobian(S, W, slices, n)
-        P = np.asarray(m.O_A, float) @ T[:3, :3].T + T[:3, 3]
+            if jacobian:
+                S = sensitivity(g, q, rot, vals, symbols=MOTION + SQUARENESS)  # (k, 3, 21)
+                J = _error_jacobian(S, W, slices, n)
+        P = pm["P"]
         xi = theta[slices[m.placement]] if exact else np.zeros(5)
         Rw = exp_so3(T[:3, 1:3] @ xi[3:])
         tgt = P @ Rw.T + xi[:3]
-        sl = slices[m.placement]
-        J[:, :, sl.start:sl.start + 3] = -np.eye(3)
-        J[:, :, sl.start + 3:sl.stop] = skew(P @ Rw.T) @ T[:3, 1:3]
         r = tgt - pred
         # mistake-proofing holes: drop the component along the bar's z_A (roll)
-        zA = T[:3, 2]
-        Pz = np.eye(3) - np.outer(zA, zA)
-        off = np.abs(np.asarray(m.O_A, float)[:, 1]) > 1e-4
-        J[off] = np.einsum("ij,kjn->kin", Pz, J[off])
+        Pz, off = pm["Pz"], pm["off"]
         r[off] = r[off] @ Pz.T
-        Jrows.append(J.reshape(3 * k, n))
+        if jacobian:
+            sl = slices[m.placement]
+            J[:, :, sl.start:sl.start + 3] = -np.eye(3)
+            J[:, :, sl.start + 3:sl.stop] = skew(P @ Rw.T) @ T[:3, 1:3]
+            J[off] = np.einsum("ij,kjn->kin", Pz, J[off])
+            Jrows.append(J.reshape(3 * k, n))
         res.append(r.ravel())
         rows += [(m.name, h) for h in m.holes]
-    return np.vstack(Jrows), np.concatenate(res), rows
+    return (np.vstack(Jrows) if jacobian else None), np.concatenate(res), rows
 
 
 def _null(A, tol=NULL_TOL):
@@ -513,11 +536,62 @@ def _nominal_readings(m, chain, rotary_points_R_m, points_A=None) -> np.ndarray:
 
 def design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) -> VolumetricDesign:
     """The first-order problem (2), its null space and the ISO gauge (chosen, or ``gauge``)."""
+    return _design(meas, chain, nodes, rotary_points_R_m, gauge)[0]
+
+
+def _design(meas, chain, nodes, rotary_points_R_m, gauge) -> tuple:
+    """(:func:`design`, :func:`_prepare` of each measurement)."""
     meas = list(meas)
     nodes = {a: np.asarray(v, float) for a, v in nodes.items()}
     _check(meas, nodes)
     names, slices, n, _ = _layout(meas, nodes)
-    A, y, rows = _rows(meas, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False)
+    prep = [_prepare(m, chain, rotary_points_R_m, nodes) for m in meas]
+    A, y, rows = _rows(meas, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False, prep=prep)
+    key = _nominal_key(meas, chain, nodes, rotary_points_R_m, gauge, names)
+    if key not in _NOMINAL:
+        if len(_NOMINAL) >= 8:
+            _NOMINAL.pop(next(iter(_NOMINAL)))
+        _NOMINAL[key] = _nominal_design(meas, chain, nodes, rotary_points_R_m, gauge, slices, n)
+    C, words, null, left, sv_rel = _NOMINAL[key]
+    return VolumetricDesign(A, y, tuple(names), slices, nodes, C, words, null, rows, left, sv_rel), prep
+
+
+#: The plan's part of :func:`design` (null space, gauge, conditioning: nominal readings only),
+#: by :func:`_nominal_key`: the same for every campaign of a plan (a Monte Carlo's runs).
+_NOMINAL: dict = {}
+
+
+def _nominal_key(meas, chain, nodes, rotary_points_R_m, gauge, names) -> bytes:
+    """A digest of everything :func:`_nominal_design` reads (not the readings, nor the measured O_R)."""
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=32)
+
+    def add(*xs):  # arrays by their shape and bytes, None and text by their repr
+        for x in xs:
+            if x is None or isinstance(x, str):
+                h.update(repr(x).encode())
+            else:
+                a = np.ascontiguousarray(np.asarray(x, float))
+                h.update(repr(a.shape).encode() + a.tobytes())
+            h.update(b"|")
+
+    rp = sorted((str(k), tuple(float(u) for u in np.ravel(v))) for k, v in (rotary_points_R_m or {}).items())
+    add(chain, repr(rp), repr(None if gauge is None else tuple(gauge)), repr(tuple(names)))
+    for a in sorted(nodes):
+        add(a, nodes[a])
+    for m in meas:
+        add(str(m.placement), np.asarray(m.holes, float), np.asarray(m.J_m, float), np.asarray(m.T_W_A, float),
+            np.asarray(m.rot_rad, float), np.round(np.asarray(m.O_A, float), 4), np.asarray(np.shape(m.O_R), float))
+        if _has_touches(m):
+            add(np.asarray(m.c_A, float), np.asarray(m.d_A, float), np.asarray(m.G_A, float))
+        else:
+            add(None)
+    return h.digest()
+
+
+def _nominal_design(meas, chain, nodes, rotary_points_R_m, gauge, slices, n) -> tuple:
+    """(C, words, null, left, sv_rel) of :func:`design` from the plan's nominal readings."""
     # null space, gauge and conditioning from the plan's geometry: the
     # readings a perfect machine would give for the nominal bar (design O_A on
     # lines, no calibrated deviations). At the actual readings the micrometre
@@ -546,7 +620,10 @@ def design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) ->
     left = D[:, None] * left_s
     if weak:
         left = np.column_stack([left] + weak)
-    return VolumetricDesign(A, y, tuple(names), slices, nodes, C, words, D[:, None] * N_s, rows, left, sv_rel)
+    out = (C, words, D[:, None] * N_s, left, sv_rel)
+    for a in (C, *out[2:]):
+        a.setflags(write=False)  # shared by every design of the plan
+    return out
 
 
 @dataclass(frozen=True)
@@ -685,7 +762,7 @@ def identify_volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, *
         conventions (named).
     """
     meas = list(meas)
-    d = design(meas, chain, nodes, rotary_points_R_m, gauge)
+    d, prep = _design(meas, chain, nodes, rotary_points_R_m, gauge)
     if d.unseen.shape[1]:
         un = _unseen(d)
         raise IdentifiabilityError(f"the plan cannot identify {len(un)} combination(s) beyond the ISO "
@@ -700,7 +777,7 @@ def identify_volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, *
     if exact:
         n = len(theta)
         for it in range(1, max_iter + 1):
-            J, r, _ = _rows(meas, chain, rotary_points_R_m, d.nodes, theta, d.slices, n, exact=True)
+            J, r, _ = _rows(meas, chain, rotary_points_R_m, d.nodes, theta, d.slices, n, exact=True, prep=prep)
             # r = target - prediction; J = d(prediction - target)/d theta with the sign of (2)
             s2 = solve(J, r, C, np.zeros(len(C)), names=d.names, sigma=1e-6, covariance="none",
                 rank_tol=SOLVE_RANK_TOL)
@@ -709,7 +786,8 @@ def identify_volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, *
             res = r - J @ s2.theta
             if np.abs(s2.theta).max() < tol_m:
                 break
-        _, res, _ = _rows(meas, chain, rotary_points_R_m, d.nodes, theta, d.slices, n, exact=True)
+        _, res, _ = _rows(meas, chain, rotary_points_R_m, d.nodes, theta, d.slices, n, exact=True, jacobian=False,
+                          prep=prep)
     m = d.A.shape[0]
     K = est.estimate(np.eye(m)) - est.estimate(np.zeros(m))[:, None]
     return VolumetricResult(theta, d, chain, dict(rotary_points_R_m or {}), it if exact else 0,
@@ -793,13 +871,19 @@ class VolumetricUncertainty:
 def _input_maps(res: VolumetricResult, meas, n_holes):
     """Matrices mapping probing noise (per touch), bar calibration errors and
     placement errors (6 per placement: translation in A, rotation about x_A,
-    y_A, z_A, the roll included) to y."""
+    y_A, z_A, the roll included) to y.
+
+    The bar's maps are taken at its pose as identified (the nominal pose moved
+    by the placement's estimated v, w: the pose the estimator ``res.K`` was
+    linearised at), not at the nominal one: a bar set 1-2 mrad off in yaw
+    otherwise leaks its placement uncertainty into the errors (EBX up to
+    12 urad where the Monte Carlo shows 0.1)."""
     blocks, B = [], np.zeros((res.K.shape[1], 3 * n_holes))
     places = list(dict.fromkeys(m.placement for m in meas))
     Bp = np.zeros((res.K.shape[1], 6 * len(places)))
     r0 = 0
     for m in meas:
-        T = np.asarray(m.T_W_A, float)
+        T = _identified_pose(res, m)
         R = T[:3, :3]
         k = len(m.holes)
         P = np.asarray(m.O_A, float) @ R.T + T[:3, 3]
@@ -817,7 +901,8 @@ def _input_maps(res: VolumetricResult, meas, n_holes):
     r0 = 0
     for m in meas:
         T = np.asarray(m.T_W_A, float)
-        R = T[:3, :3]
+        R = T[:3, :3]  # the readings' gain as the identification's rows carry it (nominal pose)
+        R_id = _identified_pose(res, m)[:3, :3]  # d target / d O_A at the identified pose
         k = len(m.holes)
         if m.G_A is None:
             raise ConfigError(f"measurement {m.name!r} has no noise gain G_A (core.mfb.poi_noise_gain)")
@@ -827,9 +912,25 @@ def _input_maps(res: VolumetricResult, meas, n_holes):
         GR = np.einsum("ij,kjt->kit", R, G.reshape(k, 3, -1)).reshape(3 * k, -1)
         blocks.append((r0, GR))
         for a, h in enumerate(m.holes):
-            B[r0 + 3 * a:r0 + 3 * a + 3, 3 * (h - 1):3 * h] = R
+            B[r0 + 3 * a:r0 + 3 * a + 3, 3 * (h - 1):3 * h] = R_id
         r0 += 3 * k
     return blocks, B, Bp
+
+
+def _identified_pose(res: VolumetricResult, m) -> np.ndarray:
+    """(4, 4) the bar's pose of measurement ``m`` where the estimator ``res.K`` was
+    linearised: T_W_A moved by its placement's v (W, m) and w (about y_A, z_A, rad), as
+    the rows of (1) move it; T_W_A itself for a first-order result (``iterations`` 0:
+    its rows are taken at zero placement errors)."""
+    T = np.asarray(m.T_W_A, float)
+    if not res.iterations:
+        return T
+    xi = res.theta[res.design.slices[m.placement]]
+    Rw = exp_so3(T[:3, 1:3] @ xi[3:])
+    out = np.eye(4)
+    out[:3, :3] = Rw @ T[:3, :3]
+    out[:3, 3] = Rw @ T[:3, 3] + xi[:3]
+    return out
 
 
 def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, runs: int = 1000,

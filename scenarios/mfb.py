@@ -524,8 +524,13 @@ class _NoSafeHeight:
 _CHECKS: dict = {}
 
 
-def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3) -> dict:
+def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> dict:
     """Collision and reach check of every measurement of a plan with a workholder (MuJoCo).
+
+    The program checked is the one :func:`run` simulates for the placement
+    tolerance ``u_place`` (its approach margins, :func:`placement_margin_m`):
+    a wider tolerance starts every touch further out, and that path is the
+    one checked.
 
     Each measurement's touches, approach/retract and link moves are checked
     in :class:`sim.mfb_scene.WorkZone` (table, workholder, bar and its
@@ -547,13 +552,14 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3) -> dict:
     from sim.machines import MACHINES
     from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurement
 
-    key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m)
+    margin = placement_margin_m(u_place)  # the program run() simulates for this placement tolerance
+    key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
+           margin)
     if key in _CHECKS:
         return _CHECKS[key]
     t0 = time.time()
     mach = Machine(MACHINES[plan.machine]())
     art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
-    margin = placement_margin_m()  # the program run() simulates for the default placement tolerance
     per, n_t, n_s = {}, 0, 0
     for ms in plan.measurements:
         rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
@@ -582,6 +588,8 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3) -> dict:
                       "star arm, extension, probe body, spindle nose; approach/retract and link moves; the bar "
                       "above the table face; touches within the strokes" % (TABLE_R_M / MM, TABLE_T_M / MM),
            "touches": n_t, "path_points": n_s, "seconds": round(time.time() - t0, 1), "measurements": per,
+           "program_mm": {"clearance": round(max(2.0 * MM, margin) / MM, 3),
+                          "overshoot": round(max(3.0 * MM, margin) / MM, 3)},
            "fixtures": {p: [{"name": b.name, "lo_mm": [v / MM for v in b.lo], "hi_mm": [v / MM for v in b.hi]}
                             for b in bl] for p, bl in plan.fixtures.items()}}
     _CHECKS[key] = out
@@ -680,10 +688,13 @@ def _check_touches_ok(log, name, program):
                         f"{program['clearance_m'] / MM:g} mm, overshoot {program['overshoot_m'] / MM:g} mm)")
 
 
-def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM):
+def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM, full=None):
+    """The touches of ``holes`` of the bar ``art`` (and of the rods and faces their planes need),
+    selected from ``full`` (default: :func:`sim.plans.mfb_plan` of ``art`` with these margins)."""
     from sim.plans import mfb_plan
 
-    full = mfb_plan(art, clearance_m=clearance_m, overshoot_m=overshoot_m)
+    if full is None:
+        full = mfb_plan(art, clearance_m=clearance_m, overshoot_m=overshoot_m)
     hs = set(holes)
     # the rods each probed hole's plane PL_i needs: (i-1, i), (1, 2) for hole 1
     lo, hi = min(holes), max(holes)
@@ -764,7 +775,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         u_place: tuple = U_PLACE, machine=None, compensate=None, bar_seed: int | None = None,
         u_stylus_um: float = 0.0, bar_temperature_C: float = 20.0, hook=None, progress=None,
         bar_calibration=None, bar_true_m=None, draw_inputs: bool | None = None, lobing_m: tuple = (),
-        machine_temperature_C: float = 20.0) -> ScenarioResult:
+        machine_temperature_C: float = 20.0, stylus_dJ_m: dict | None = None) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -818,6 +829,10 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         Draw the bar's calibration error and the placement errors (default:
         when there is probing noise); False/True to switch them apart from
         the noise (the budget's one source at a time, :func:`budget`).
+    stylus_dJ_m : dict, optional
+        ``{stylus: (3,) m}``: these probe-offset errors instead of a draw of
+        ``u_stylus_um`` (styli not named: none); the budget's stylus share
+        component by component (:func:`budget_shares`).
     lobing_m : tuple of (k, a, b)
         The probe's lobing left after its calibration (:class:`sim.probe.ProbeConfig`),
         m; not in the identification's model.
@@ -845,6 +860,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     from core.touches import from_log
     from sim import artefacts as A
     from sim.campaign import simulate_campaign
+    from sim.plans import mfb_plan
     from sim.setups import Setup
     from sim.machine import Machine
     from sim.probe import ProbeConfig
@@ -893,8 +909,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     art = A.multi_feature_bar(deviations_m=E_true, temperature_C=bar_temperature_C)
     if not (np.isfinite(u_stylus_um) and u_stylus_um >= 0):
         raise ConfigError(f"u_stylus_um must be >= 0 (a standard uncertainty, um), got {u_stylus_um!r}")
-    dJ = {st: (rng.standard_normal(3) * u_stylus_um * 1e-6 if u_stylus_um > 0 else np.zeros(3))
-          for st in dict.fromkeys(ms.stylus for ms in plan.measurements)}
+    styli = list(dict.fromkeys(ms.stylus for ms in plan.measurements))
+    if stylus_dJ_m is not None:
+        bad = [k for k in stylus_dJ_m if k not in styli]
+        if bad or not all(np.shape(v) == (3,) and np.all(np.isfinite(v)) for v in stylus_dJ_m.values()):
+            raise ConfigError(f"stylus_dJ_m: finite (3,) offsets of the plan's styli ({', '.join(styli)}), "
+                              f"got {sorted(stylus_dJ_m)!r}")
+        dJ = {st: np.asarray(stylus_dJ_m.get(st, np.zeros(3)), float) for st in styli}
+    else:
+        dJ = {st: (rng.standard_normal(3) * u_stylus_um * 1e-6 if u_stylus_um > 0 else np.zeros(3)) for st in styli}
     art_nom = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
     O_A_cal = art.info["poi_nominal_m"] + E_cal_O
     if on_nodes:
@@ -911,9 +934,10 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     # the program's approach margins cover the declared placement tolerance (not the draw)
     margin = placement_margin_m(u_place)
     program = {"clearance_m": max(2.0 * MM, margin), "overshoot_m": max(3.0 * MM, margin)}
-    collision = check_plan(plan) if plan.fixtures else None  # after the inputs are checked
+    collision = check_plan(plan, u_place=u_place) if plan.fixtures else None  # after the inputs are checked
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
+    plans, full_plans = {}, {}  # full_plans holds each bar (its id is the key) for the run
     T_true = {}
     for p in plan.placements:  # bar placement errors (by hand on the table), roll included
         T = next(m.T_W_A for m in plan.measurements if m.placement == p)
@@ -938,7 +962,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         art_i, probe_i = art, probe
         if hook is not None:
             art_i, probe_i, m = hook(len(meas), ms, art, probe, m)
-        pl = _plan_for(art_i, ms.holes, **program)
+        if (id(art_i), ms.holes) not in plans:  # the bar's full program once per bar, its part per hole set
+            if id(art_i) not in full_plans:
+                full_plans[id(art_i)] = (art_i, mfb_plan(art_i, **program))
+            plans[id(art_i), ms.holes] = _plan_for(art_i, ms.holes, **program, full=full_plans[id(art_i)][1])
+        pl = plans[id(art_i), ms.holes]
         log = simulate_campaign(art_i, _NoSafeHeight(m), probe_i, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
                                 rng if noisy else None, plan=pl, check_collisions=False)
         _check_touch_strokes(log, m, ms.name)
@@ -950,7 +978,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         # this stylus is off by dJ (the tool does not turn on these chains). (A machine
         # built with J + dJ would move and read with the same offsets: no error at all.)
         p_R = t.p_R + dJ[ms.stylus]
-        poi = mfb.points_of_interest(p_R, t.feature, t.n_R)
+        # simulated touches, each checked to trigger on its target: fitted in batches (to rounding)
+        poi = mfb.points_of_interest(p_R, t.feature, t.n_R, batched=True)
         # the touches that were fitted (valid ones, plan order) and the gain of the
         # extraction at their nominal places (A frame, stylus centres)
         pl_ok = pl.select(np.asarray(log.ok, bool))
@@ -1394,6 +1423,198 @@ BUDGET_SOURCES = ("probing noise", "bar calibration", "placement", "stylus offse
                   "bar temperature", "machine temperature")
 
 
+def _budget_settings(mc_runs, stylus_runs, temperature_range_C):
+    from core.exceptions import ConfigError
+
+    if int(mc_runs) < 2 or int(stylus_runs) < 2:
+        raise ConfigError(f"budget: mc_runs and stylus_runs must be >= 2, got {mc_runs!r}, {stylus_runs!r}")
+    t_lo, t_hi = (float(t) for t in temperature_range_C)
+    if not (np.isfinite(t_lo) and np.isfinite(t_hi) and t_lo <= t_hi):
+        raise ConfigError(f"budget: temperature_range_C must be (low, high), got {temperature_range_C!r}")
+    return t_lo, t_hi
+
+
+def budget_draws(seed: int, attempts: int, temperature_range_C: tuple = (19.0, 22.0)) -> np.ndarray:
+    """(attempts, 2) the budget's Monte Carlo draws of attempts 1..``attempts``: the shop
+    temperature T (degC, uniform over ``temperature_range_C``) and the lobing phase (rad,
+    uniform), from ``np.random.default_rng(seed + 1000)`` in attempt order; attempt ``j``
+    runs the pipeline with ``seed + j`` (:func:`budget_run`). Any attempt is reproduced
+    alone, so a study can be resumed or split between processes."""
+    t_lo, t_hi = (float(t) for t in temperature_range_C)
+    rng = np.random.default_rng(seed + 1000)
+    out = np.empty((int(attempts), 2))
+    for j in range(int(attempts)):
+        out[j] = float(rng.uniform(t_lo, t_hi)), float(rng.uniform(0.0, 2.0 * np.pi))
+    return out
+
+
+def budget_run(name: str, j: int, *, seed: int = 1, u_stylus_um: float = 0.5, lobing_um: float = 0.25,
+               lobing_k: int = 3, temperature_range_C: tuple = (19.0, 22.0), bar_calibration=None,
+               bar_true_m=None) -> dict:
+    """Monte Carlo attempt ``j`` (1, 2, ...) of :func:`budget`: the whole pipeline with every
+    source drawn (:func:`budget_draws` for T and the lobing phase, ``seed + j`` for the rest).
+
+    Returns ``{"j", "T_C", "phase_rad", "error" (n,) identified - true (m, rad), "U95_lin" (n,)
+    the run's own linear U95}``, or ``{"j", "T_C", "phase_rad", "lost": message}`` when the
+    drawn placement puts the bar beyond the program's margins (a :class:`core.exceptions.PlanError`;
+    any other error raises).
+    """
+    from core.exceptions import PlanError
+
+    T, ph = budget_draws(seed, j, temperature_range_C)[j - 1]
+    a = float(lobing_um) * 1e-6
+    out = {"j": int(j), "T_C": float(T), "phase_rad": float(ph)}
+    try:
+        r = run(name, mc_runs=0, bar_calibration=bar_calibration, bar_true_m=bar_true_m, seed=seed + j,
+                u_stylus_um=u_stylus_um, lobing_m=((lobing_k, a * np.cos(ph), a * np.sin(ph)),),
+                bar_temperature_C=float(T), machine_temperature_C=float(T))
+    except PlanError as e:
+        # the drawn placement puts the bar beyond the program's margins (placement_margin_m, 5 sigma):
+        # on a machine the probe would strike or miss the bar and the operator would set it again
+        out["lost"] = str(e)
+        return out
+    out["error"] = r.result.theta - r.truth
+    out["U95_lin"] = r.unc.U95_lin
+    return out
+
+
+def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 6, u_stylus_um: float = 0.5,
+                  lobing_um: float = 0.25, lobing_k: int = 3, temperature_range_C: tuple = (19.0, 22.0),
+                  bar_calibration=None, bar_true_m=None, stylus_components: bool = False, progress=None) -> dict:
+    """Each source's U95 share per parameter (:func:`budget`, one source at a time): ``U``
+    {source: (n,)}, ``U_temp`` (n,) bar and machine at one temperature, ``sens`` {source: (n,)}
+    per degC, ``keep`` (n,) bool (the 21 errors' values less the ones the conventions fix),
+    ``slices`` {symbol: (start, stop)}, ``t_rms``; m / rad.
+
+    ``stylus_components``: the stylus share from one noise-free pipeline run per offset
+    component of each stylus (``u_stylus_um`` on it alone: 3 x the plan's styli runs), 2 x the
+    root sum of squares of the changes: exact for a response linear in the offsets (the
+    draws' share, ``stylus_runs`` random draws, is +-30 % from 6 of them)."""
+    from core import volumetric as vol
+
+    t_lo, t_hi = _budget_settings(2, stylus_runs, temperature_range_C)
+    styli = list(dict.fromkeys(ms.stylus for ms in PLANS[name]().measurements)) if name in PLANS else []
+    total = 5 + (3 * len(styli) if stylus_components else int(stylus_runs))
+    step = [0]
+
+    def go(**kw):
+        if progress is not None:
+            progress(step[0], total)
+        step[0] += 1
+        return run(name, mc_runs=0, bar_calibration=bar_calibration, bar_true_m=bar_true_m, **kw)
+
+    quiet = dict(noise_um=0.0, draw_inputs=False)
+    base = go(seed=seed, **quiet)
+    d = base.result.design
+    sigma = 0.125e-6
+    u_cal = (np.tile(np.asarray(inspect_default("u_cal_um"), float) * 1e-6, (12, 1))
+             if bar_calibration is None else np.asarray(bar_calibration.u_m, float))
+    U = {}
+    for src, (sg, uc, up) in {"probing noise": (sigma, 0 * u_cal, None),
+                              "bar calibration": (0.0, u_cal, None),
+                              "placement": (0.0, 0 * u_cal, np.asarray(U_PLACE, float))}.items():
+        U[src] = vol.uncertainty(base.result, base.meas, sg, uc, runs=0, u_place=up).U95_lin
+    full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float))
+    gauge = full_lin.U95_lin <= 1e-12  # values the conventions fix (zero U95 whatever the input)
+    th0 = base.result.theta
+    if stylus_components:
+        u = float(u_stylus_um) * 1e-6
+        dst = np.array([go(seed=seed, stylus_dJ_m={st: u * np.eye(3)[c]}, **quiet).result.theta - th0
+                        for st in styli for c in range(3)])
+        U["stylus offsets"] = 2.0 * np.sqrt(np.sum(dst ** 2, axis=0))
+    else:
+        dst = np.array([go(seed=seed + 100 + k, u_stylus_um=u_stylus_um, **quiet).result.theta - th0
+                        for k in range(int(stylus_runs))])
+        U["stylus offsets"] = 2.0 * np.sqrt(np.mean(dst ** 2, axis=0))
+    a = float(lobing_um) * 1e-6
+    dc = go(seed=seed, lobing_m=((lobing_k, a, 0.0),), **quiet).result.theta - th0
+    ds = go(seed=seed, lobing_m=((lobing_k, 0.0, a),), **quiet).result.theta - th0
+    U["lobing"] = 2.0 * np.sqrt((dc ** 2 + ds ** 2) / 2.0)
+    t_rms = float(np.sqrt(((t_hi - 20.0) ** 3 - (t_lo - 20.0) ** 3) / (3.0 * (t_hi - t_lo)))) if t_hi > t_lo \
+        else abs(t_lo - 20.0)
+    sens = {"bar temperature": go(seed=seed, bar_temperature_C=21.0, **quiet).result.theta - th0,
+            "machine temperature": go(seed=seed, machine_temperature_C=21.0, **quiet).result.theta - th0}
+    for src, s_ in sens.items():
+        U[src] = 2.0 * np.abs(s_) * t_rms
+    # bar and machine share the shop's temperature: one source, their changes add with their signs
+    U_temp = 2.0 * np.abs(sens["bar temperature"] + sens["machine temperature"]) * t_rms
+    # the 21 errors' values (theta also holds each set-up's pose), less the ones the conventions fix
+    errs_idx = np.zeros(len(gauge), bool)
+    for s in (*vol.MOTION, *vol.SQUARENESS):
+        errs_idx[d.slices[s]] = True
+    if progress is not None:
+        progress(total, total)
+    return {"U": U, "U_temp": U_temp, "sens": sens, "keep": errs_idx & ~gauge, "t_rms": t_rms,
+            "slices": {s: (d.slices[s].start, d.slices[s].stop) for s in (*vol.MOTION, *vol.SQUARENESS)},
+            "stylus_runs": len(dst), "stylus_components": bool(stylus_components)}
+
+
+def budget_summary(name: str, shares: dict, errors, U95_lin, *, seed: int = 1, u_stylus_um: float = 0.5,
+                   lobing_um: float = 0.25, lobing_k: int = 3, temperature_range_C: tuple = (19.0, 22.0),
+                   runs_lost: list = (), runs_drawn: int | None = None) -> dict:
+    """The budget's table from the shares (:func:`budget_shares`) and the Monte Carlo runs'
+    ``errors`` (runs, n) identified - true and their own linear ``U95_lin`` (runs, n): a pure
+    function, so a stored study's summary can be recomputed from its per-run vectors."""
+    from core import iso, volumetric as vol
+
+    t_lo, t_hi = (float(t) for t in temperature_range_C)
+    errs, own = np.asarray(errors, float), np.asarray(U95_lin, float)
+    U, U_temp, keep, t_rms = shares["U"], shares["U_temp"], np.asarray(shares["keep"], bool), shares["t_rms"]
+    quad = np.sqrt(sum(U[s] ** 2 for s in BUDGET_SOURCES[:5]) + U_temp ** 2)
+    mc = 2.0 * np.sqrt(np.mean(errs ** 2, axis=0))
+    per = {}
+    for s in (*vol.MOTION, *vol.SQUARENESS):
+        if s not in shares["slices"]:
+            continue
+        sl = slice(*shares["slices"][s])
+        k = keep[sl]
+        if not np.any(k):
+            continue
+        q, m = quad[sl][k], mc[sl][k]
+        per[s] = {"unit": iso.symbol(s).report_unit,
+                  "U95": {src: float(U[src][sl][k].max() * 1e6) for src in BUDGET_SOURCES},
+                  "temperature_one_T": float(U_temp[sl][k].max() * 1e6),
+                  "quadrature": float(q.max() * 1e6), "mc": float(m.max() * 1e6),
+                  "mc_over_quadrature": float(m.max() / q.max()),
+                  "dominant": max(BUDGET_SOURCES, key=lambda src: float(U[src][sl][k].max()))}
+    ratio = mc[keep] / quad[keep]
+    inside = int(np.sum(np.abs(errs[:, keep]) <= quad[keep]))
+    inside_own = int(np.sum(np.abs(errs[:, keep]) <= own[:, keep]))
+    n = int(errs[:, keep].size)
+    runs = len(errs)
+    stylus_runs = shares["stylus_runs"]
+    return {"scenario": name, "sources": list(BUDGET_SOURCES), "mc_runs": runs, "stylus_runs": stylus_runs,
+            "seed": seed, "u_stylus_um": u_stylus_um, "lobing": {"k": lobing_k, "amplitude_um": lobing_um},
+            "temperature_range_C": [t_lo, t_hi], "temperature_rms_from_20_C": t_rms,
+            "machine_cte_per_C": MACHINE_CTE_PER_C, "bar_cte_per_C": 1.0e-6,
+            "method": ("Per source, its U95 share (k = 2, max over the nodes, gauge nodes left out): probing "
+                       "noise, bar calibration and placement by linear propagation through the estimator; "
+                       + (f"stylus offsets from {stylus_runs} noise-free pipeline runs, one per offset component "
+                          "of each stylus (2 x root sum of squares: exact for a linear response); "
+                          if shares.get("stylus_components") else
+                          f"stylus offsets from {stylus_runs} noise-free pipeline runs with that draw alone "
+                          "(2 x RMS); ")
+                       + "lobing from 2 pipeline runs (cos and sin term, 2 x RMS over the phase); bar "
+                       "and machine temperature from one pipeline run at 21 degC each (2 x change per degC x "
+                       f"{t_rms:.2f} degC, the RMS of T - 20 over {t_lo:g}-{t_hi:g} degC; in the sum as one source, "
+                       f"bar and machine at the same T, their changes added with their signs). MC: {runs} "
+                       "runs of the whole pipeline with every source drawn, 2 x RMS of identified - true."),
+            "per_error": per, "runs_lost": list(runs_lost),
+            "runs_drawn": runs + len(runs_lost) if runs_drawn is None else int(runs_drawn),
+            "runs_lost_note": ("a run is lost when its drawn placement puts the bar beyond the program's approach "
+                               f"margins ({placement_margin_m() / MM:g} mm, 5 sigma of the placement at the far "
+                               "end): counted here and redrawn, as an operator would set the bar again"),
+            "ratio_range": [float(ratio.min()), float(np.median(ratio)), float(ratio.max())],
+            "coverage": {"within_quadrature_U95": f"{inside}/{n}", "fraction_quadrature": inside / n,
+                         "within_run_linear_U95": f"{inside_own}/{n}", "fraction_run_linear": inside_own / n,
+                         "note": "run linear U95: the noise, calibration and placement the identification "
+                                 "propagates (what vmt scenario reports without the budget)"},
+            "temperature_sensitivity_per_C": {
+                src: {s: float(np.abs(v[slice(*shares["slices"][s])]).max() * 1e6) for s in ("EXX", "EYY", "EZZ")
+                      if s in shares["slices"]}
+                for src, v in shares["sens"].items()}}
+
+
 def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_runs: int = 6,
            u_stylus_um: float = 0.5, lobing_um: float = 0.25, lobing_k: int = 3,
            temperature_range_C: tuple = (19.0, 22.0), bar_calibration=None, bar_true_m=None,
@@ -1433,124 +1654,35 @@ def budget(name: str = "mfb-3axis", *, mc_runs: int = 20, seed: int = 1, stylus_
     ``{symbol: {unit, U95: {source: max over nodes}, quadrature, mc,
     mc_over_quadrature}}``, ``coverage``, ``ratio_range`` and the settings.
     """
-    from core import iso, volumetric as vol
-    from core.exceptions import ConfigError, PlanError
+    from core.exceptions import PlanError
 
-    if int(mc_runs) < 2 or int(stylus_runs) < 2:
-        raise ConfigError(f"budget: mc_runs and stylus_runs must be >= 2, got {mc_runs!r}, {stylus_runs!r}")
-    t_lo, t_hi = (float(t) for t in temperature_range_C)
-    if not (np.isfinite(t_lo) and np.isfinite(t_hi) and t_lo <= t_hi):
-        raise ConfigError(f"budget: temperature_range_C must be (low, high), got {temperature_range_C!r}")
+    _budget_settings(mc_runs, stylus_runs, temperature_range_C)
+    kw = dict(seed=seed, u_stylus_um=u_stylus_um, lobing_um=lobing_um, lobing_k=lobing_k,
+              temperature_range_C=temperature_range_C, bar_calibration=bar_calibration, bar_true_m=bar_true_m)
     total = 6 + int(stylus_runs) + int(mc_runs)
-    step = [0]
-
-    def go(**kw):
-        if progress is not None:
-            progress(step[0], total)
-        step[0] += 1
-        return run(name, mc_runs=0, bar_calibration=bar_calibration, bar_true_m=bar_true_m, **kw)
-
-    quiet = dict(noise_um=0.0, draw_inputs=False)
-    base = go(seed=seed, **quiet)
-    d = base.result.design
-    gauge = None
-    sigma = 0.125e-6
-    u_cal = (np.tile(np.asarray(inspect_default("u_cal_um"), float) * 1e-6, (12, 1))
-             if bar_calibration is None else np.asarray(bar_calibration.u_m, float))
-    U = {}
-    for src, (sg, uc, up) in {"probing noise": (sigma, 0 * u_cal, None),
-                              "bar calibration": (0.0, u_cal, None),
-                              "placement": (0.0, 0 * u_cal, np.asarray(U_PLACE, float))}.items():
-        U[src] = vol.uncertainty(base.result, base.meas, sg, uc, runs=0, u_place=up).U95_lin
-    full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float))
-    gauge = full_lin.U95_lin <= 1e-12  # values the conventions fix (zero U95 whatever the input)
-    th0 = base.result.theta
-    dst = np.array([go(seed=seed + 100 + k, u_stylus_um=u_stylus_um, **quiet).result.theta - th0
-                    for k in range(int(stylus_runs))])
-    U["stylus offsets"] = 2.0 * np.sqrt(np.mean(dst ** 2, axis=0))
-    a = float(lobing_um) * 1e-6
-    dc = go(seed=seed, lobing_m=((lobing_k, a, 0.0),), **quiet).result.theta - th0
-    ds = go(seed=seed, lobing_m=((lobing_k, 0.0, a),), **quiet).result.theta - th0
-    U["lobing"] = 2.0 * np.sqrt((dc ** 2 + ds ** 2) / 2.0)
-    t_rms = float(np.sqrt(((t_hi - 20.0) ** 3 - (t_lo - 20.0) ** 3) / (3.0 * (t_hi - t_lo)))) if t_hi > t_lo \
-        else abs(t_lo - 20.0)
-    sens = {"bar temperature": go(seed=seed, bar_temperature_C=21.0, **quiet).result.theta - th0,
-            "machine temperature": go(seed=seed, machine_temperature_C=21.0, **quiet).result.theta - th0}
-    for src, s_ in sens.items():
-        U[src] = 2.0 * np.abs(s_) * t_rms
-    # bar and machine share the shop's temperature: one source, their changes add with their signs
-    U_temp = 2.0 * np.abs(sens["bar temperature"] + sens["machine temperature"]) * t_rms
-    quad = np.sqrt(sum(U[s] ** 2 for s in BUDGET_SOURCES[:5]) + U_temp ** 2)
-    rng = np.random.default_rng(seed + 1000)
-    errs, own, lost = [], [], []
+    shares = budget_shares(name, stylus_runs=stylus_runs, **kw,
+                           progress=None if progress is None else (lambda k, _n: progress(k, total)))
+    runs, lost = [], []
     j = 0
-    while len(errs) < int(mc_runs):
-        T = float(rng.uniform(t_lo, t_hi))
-        ph = float(rng.uniform(0.0, 2.0 * np.pi))
+    while len(runs) < int(mc_runs):
         j += 1
-        try:
-            r = go(seed=seed + j, u_stylus_um=u_stylus_um, lobing_m=((lobing_k, a * np.cos(ph), a * np.sin(ph)),),
-                   bar_temperature_C=T, machine_temperature_C=T)
-        except PlanError as e:
-            # the drawn placement puts the bar beyond the program's margins (placement_margin_m, 5 sigma):
-            # on a machine the probe would strike or miss the bar and the operator would set it again. Counted
-            # and redrawn (the placement distribution is truncated there); any other error is a bug and raises.
-            lost.append({"seed": seed + j, "error": str(e)})
+        if progress is not None:
+            progress(6 + int(stylus_runs) + len(runs), total)
+        r = budget_run(name, j, **kw)
+        if "lost" in r:
+            # counted and redrawn (the placement distribution is truncated there); any other error is a
+            # bug and raises (in budget_run)
+            lost.append({"seed": seed + j, "error": r["lost"]})
             if len(lost) > max(2, int(mc_runs) // 5):
-                raise
+                raise PlanError(f"budget: {len(lost)} of {j} runs lost (the bar beyond the program's margins): "
+                                  + r["lost"])
             continue
-        errs.append(r.result.theta - r.truth)
-        own.append(r.unc.U95_lin)
-    errs, own = np.array(errs), np.array(own)
-    mc = 2.0 * np.sqrt(np.mean(errs ** 2, axis=0))
-    # the 21 errors' values (theta also holds each set-up's pose), less the ones the conventions fix
-    errs_idx = np.zeros(len(gauge), bool)
-    for s in (*vol.MOTION, *vol.SQUARENESS):
-        errs_idx[d.slices[s]] = True
-    keep = errs_idx & ~gauge
-    per = {}
-    for s in (*vol.MOTION, *vol.SQUARENESS):
-        sl = d.slices[s]
-        k = keep[sl]
-        if not np.any(k):
-            continue
-        q, m = quad[sl][k], mc[sl][k]
-        per[s] = {"unit": iso.symbol(s).report_unit,
-                  "U95": {src: float(U[src][sl][k].max() * 1e6) for src in BUDGET_SOURCES},
-                  "temperature_one_T": float(U_temp[sl][k].max() * 1e6),
-                  "quadrature": float(q.max() * 1e6), "mc": float(m.max() * 1e6),
-                  "mc_over_quadrature": float(m.max() / q.max()),
-                  "dominant": max(BUDGET_SOURCES, key=lambda src: float(U[src][sl][k].max()))}
-    ratio = mc[keep] / quad[keep]
-    inside = int(np.sum(np.abs(errs[:, keep]) <= quad[keep]))
-    inside_own = int(np.sum(np.abs(errs[:, keep]) <= own[:, keep]))
-    n = int(errs[:, keep].size)
+        runs.append(r)
     if progress is not None:
         progress(total, total)
-    return {"scenario": name, "sources": list(BUDGET_SOURCES), "mc_runs": int(mc_runs), "stylus_runs": int(stylus_runs),
-            "seed": seed, "u_stylus_um": u_stylus_um, "lobing": {"k": lobing_k, "amplitude_um": lobing_um},
-            "temperature_range_C": [t_lo, t_hi], "temperature_rms_from_20_C": t_rms,
-            "machine_cte_per_C": MACHINE_CTE_PER_C, "bar_cte_per_C": 1.0e-6,
-            "method": ("Per source, its U95 share (k = 2, max over the nodes, gauge nodes left out): probing "
-                       "noise, bar calibration and placement by linear propagation through the estimator; "
-                       f"stylus offsets from {int(stylus_runs)} noise-free pipeline runs with that draw alone "
-                       "(2 x RMS); lobing from 2 pipeline runs (cos and sin term, 2 x RMS over the phase); bar "
-                       "and machine temperature from one pipeline run at 21 degC each (2 x change per degC x "
-                       f"{t_rms:.2f} degC, the RMS of T - 20 over {t_lo:g}-{t_hi:g} degC; in the sum as one source, "
-                       f"bar and machine at the same T, their changes added with their signs). MC: {int(mc_runs)} "
-                       "runs of the whole pipeline with every source drawn, 2 x RMS of identified - true."),
-            "per_error": per, "runs_lost": lost, "runs_drawn": j,
-            "runs_lost_note": ("a run is lost when its drawn placement puts the bar beyond the program's approach "
-                               f"margins ({placement_margin_m() / MM:g} mm, 5 sigma of the placement at the far "
-                               "end): counted here and redrawn, as an operator would set the bar again"),
-            "ratio_range": [float(ratio.min()), float(np.median(ratio)), float(ratio.max())],
-            "coverage": {"within_quadrature_U95": f"{inside}/{n}", "fraction_quadrature": inside / n,
-                         "within_run_linear_U95": f"{inside_own}/{n}", "fraction_run_linear": inside_own / n,
-                         "note": "run linear U95: the noise, calibration and placement the identification "
-                                 "propagates (what vmt scenario reports without the budget)"},
-            "temperature_sensitivity_per_C": {
-                src: {s: float(np.abs(v[d.slices[s]]).max() * 1e6) for s in ("EXX", "EYY", "EZZ")}
-                for src, v in sens.items()}}
+    kw.pop("bar_calibration"), kw.pop("bar_true_m")
+    return budget_summary(name, shares, [r["error"] for r in runs], [r["U95_lin"] for r in runs],
+                          runs_lost=lost, runs_drawn=j, **kw)
 
 
 def describe_budget(b: dict) -> str:
@@ -1580,3 +1712,221 @@ def inspect_default(param: str):
     import inspect
 
     return inspect.signature(run).parameters[param].default
+
+
+# --------------------------------------------------------------------------- a long budget study, resumable
+def _npz_atomic(path, **arrays):
+    """Write an .npz by a temporary file renamed over ``path`` (a run is whole or absent)."""
+    import os
+    from pathlib import Path
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as f:
+        np.savez_compressed(f, **arrays)
+    os.replace(tmp, path)
+    return path
+
+
+def _study_attempt(task):
+    """One Monte Carlo attempt of a study, written to its own file (for :func:`budget_study`'s workers)."""
+    name, j, directory, kw = task
+    from pathlib import Path
+
+    path = Path(directory) / f"run-{j:05d}.npz"
+    if path.exists():
+        return j
+    t0, c0 = time.perf_counter(), time.process_time()
+    r = budget_run(name, j, **kw)
+    spent = dict(wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0)
+    if "lost" in r:
+        _npz_atomic(path, j=j, T_C=r["T_C"], phase_rad=r["phase_rad"], lost=np.array(r["lost"]), **spent)
+    else:
+        _npz_atomic(path, j=j, T_C=r["T_C"], phase_rad=r["phase_rad"], error=r["error"], U95_lin=r["U95_lin"],
+                    **spent)
+    return j
+
+
+def budget_study(name: str, directory, runs: int = 1000, *, workers: int = 1, seed: int = 1, stylus_runs: int = 6,
+                 stylus_components: bool = True, chunk: int = 8, progress=None, **kw) -> dict:
+    """:func:`budget` with ``runs`` Monte Carlo runs, each run written to ``directory`` as it ends
+    (``run-NNNNN.npz``; the shares to ``shares.npz``): interrupted, it resumes where it stopped and
+    loses at most the runs in progress. Attempts run in order (``workers`` processes,
+    one pool of spawned processes), each from its own seed (:func:`budget_draws`), so the result does
+    not depend on the workers or on the interruptions. The stylus share by components
+    (:func:`budget_shares`, ``stylus_components``) unless told otherwise. Returns
+    :func:`study_arrays` of what is done."""
+    import contextlib
+    from pathlib import Path
+
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    settings = dict(seed=seed, **kw)
+    if not (d / "shares.npz").exists():
+        sh = budget_shares(name, stylus_runs=stylus_runs, stylus_components=stylus_components, **settings)
+        _npz_atomic(d / "shares.npz", keep=sh["keep"], U_temp=sh["U_temp"], t_rms=sh["t_rms"],
+                    stylus_runs=sh["stylus_runs"], stylus_components=sh.get("stylus_components", False), slices=np.array([(s, *v) for s, v in sh["slices"].items()], object),
+                    **{f"U:{s}": v for s, v in sh["U"].items()}, **{f"sens:{s}": v for s, v in sh["sens"].items()})
+    with contextlib.ExitStack() as stack:
+        mapper = map
+        if workers > 1:
+            # one pool for the whole study: its processes keep their imports and first-use caches
+            # (the extraction's gains, the nominal design, the 5-axis collision check)
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            mapper = stack.enter_context(ProcessPoolExecutor(max_workers=workers,
+                                                             mp_context=mp.get_context("spawn"))).map
+        while True:
+            st = study_arrays(d, runs)
+            ok = int(st["ok"].sum())
+            if ok >= runs:
+                return st
+            if progress is not None:
+                progress(ok, runs)
+            done = {int(p.stem[4:]) for p in d.glob("run-*.npz")}
+            top = max(done, default=0)
+            size = max(1, workers) * chunk
+            # the holes an interruption left first, then new attempts (a couple beyond the need, for lost runs)
+            todo = [j for j in range(1, top + 1) if j not in done][:size] or \
+                list(range(top + 1, top + 1 + max(1, min(size, runs - ok + 2))))
+            list(mapper(_study_attempt, [(name, j, str(d), settings) for j in todo]))
+
+
+def study_arrays(directory, runs: int | None = None) -> dict:
+    """The runs of a study directory (:func:`budget_study`) as arrays: the attempts 1..J of the
+    longest complete prefix, ``ok`` (J,) bool, ``T_C``, ``phase_rad`` (J,), ``error`` and
+    ``U95_lin`` (runs ok, n), ``lost`` [(j, message)]; at most ``runs`` runs that are ok."""
+    from pathlib import Path
+
+    d = Path(directory)
+    js = sorted(int(p.stem[4:]) for p in d.glob("run-*.npz"))
+    J = 0
+    while J < len(js) and js[J] == J + 1:
+        J += 1
+    ok, T, ph, err, own, lost = [], [], [], [], [], []
+    for j in range(1, J + 1):
+        if runs is not None and len(err) >= runs:
+            break
+        with np.load(d / f"run-{j:05d}.npz") as z:
+            T.append(float(z["T_C"]))
+            ph.append(float(z["phase_rad"]))
+            if "lost" in z.files:
+                ok.append(False)
+                lost.append((j, str(z["lost"])))
+            else:
+                ok.append(True)
+                err.append(z["error"])
+                own.append(z["U95_lin"])
+    return {"ok": np.array(ok, bool), "T_C": np.array(T), "phase_rad": np.array(ph),
+            "error": np.array(err), "U95_lin": np.array(own), "lost": lost}
+
+
+def _shares_from(z) -> dict:
+    """The shares (:func:`budget_shares`) back from an .npz written by :func:`budget_study`."""
+    U = {s: z[f"U:{s}"] for s in BUDGET_SOURCES}
+    sens = {s: z[f"sens:{s}"] for s in ("bar temperature", "machine temperature")}
+    slices = {str(r[0]): (int(r[1]), int(r[2])) for r in z["slices"]}
+    return {"U": U, "U_temp": z["U_temp"], "sens": sens, "keep": z["keep"].astype(bool), "t_rms": float(z["t_rms"]),
+            "slices": slices, "stylus_runs": int(z["stylus_runs"]),
+            "stylus_components": bool(z["stylus_components"]) if "stylus_components" in z.files else False}
+
+
+def assemble_study(directory, path, runs: int | None = None, *, name: str = "mfb-3axis", seed: int = 1) -> dict:
+    """One compressed .npz of a study directory (:func:`budget_study`): its shares, every attempt's
+    draw (T, lobing phase, ok), the ok runs' ``error`` (runs, n) float64 and ``U95_lin`` float32, the
+    lost runs' messages, each run's CPU seconds. Returns :func:`study_report` of it."""
+    from pathlib import Path
+
+    d = Path(directory)
+    st = study_arrays(d, runs)
+    with np.load(d / "shares.npz", allow_pickle=True) as z:
+        sh = {k: z[k] for k in z.files}
+    J = len(st["ok"])
+    cpu = []
+    for j in range(1, J + 1):
+        with np.load(d / f"run-{j:05d}.npz") as z:
+            cpu.append(float(z["cpu_s"]) if "cpu_s" in z.files else np.nan)
+    _npz_atomic(path, name=np.array(name), seed=seed, attempt_T_C=st["T_C"], attempt_phase_rad=st["phase_rad"],
+                attempt_ok=st["ok"], attempt_cpu_s=np.array(cpu), error=st["error"],
+                U95_lin=st["U95_lin"].astype(np.float32),
+                lost_j=np.array([j for j, _ in st["lost"]], int), lost_message=np.array([m for _, m in st["lost"]]),
+                **sh)
+    return study_report(path)
+
+
+def study_report(path) -> dict:
+    """The budget table (:func:`budget_summary`) recomputed from a stored study (:func:`assemble_study`),
+    with the Monte Carlo's own checks (JCGM 101):
+
+    - ``mc_percentile``: per error, the max over its nodes of the 95th percentile of |error| (the
+      half-width covering 95 % of the runs), beside 2 x RMS (``mc``);
+    - ``coverage["within_mc_U95"]``: the runs' errors within the MC's 2 x RMS;
+    - ``stability``: 2 x RMS of the first and of the second half of the runs per parameter, their
+      difference over its standard error (sqrt of the two halves' squared standard errors, each
+      U / sqrt(2 n) for a normal spread): the fraction within 1 and 2 standard errors (0.68 / 0.95
+      expected when stable), and per error the largest relative difference of the halves' maxima;
+    - ``temperature_draws``: the runs' RMS of T - 20 degC and mean T;
+    - per error ``linear``: the linear propagation of noise, calibration and placement at the
+      nominal pose (the shares' quadrature: what ``vmt scenario`` reports), max over the nodes,
+      with ``coverage["within_linear_U95"]``; ``run_linear_mean``: the runs' own stored linear U95
+      (mean over the runs, max over the nodes), whose coverage is ``within_run_linear_U95``.
+    """
+    with np.load(path, allow_pickle=True) as z:
+        shares = _shares_from(z)
+        err, own = z["error"], z["U95_lin"].astype(float)
+        ok, T = z["attempt_ok"], z["attempt_T_C"]
+        lost = [{"seed": int(z["seed"]) + int(j), "error": str(m)} for j, m in zip(z["lost_j"], z["lost_message"])]
+        name, seed, cpu = str(z["name"]), int(z["seed"]), z["attempt_cpu_s"]
+    b = budget_summary(name, shares, err, own, seed=seed, runs_lost=lost, runs_drawn=len(ok))
+    keep = shares["keep"]
+    n_runs = len(err)
+    mc = 2.0 * np.sqrt(np.mean(err ** 2, axis=0))
+    p95 = np.percentile(np.abs(err), 95.0, axis=0)
+    half = n_runs // 2
+    U1 = 2.0 * np.sqrt(np.mean(err[:half] ** 2, axis=0))
+    U2 = 2.0 * np.sqrt(np.mean(err[half:2 * half] ** 2, axis=0))
+    se = np.sqrt(U1 ** 2 / (2 * half) + U2 ** 2 / (2 * half))
+    z_ = np.abs(U1 - U2)[keep] / se[keep]
+    per_half = {}
+    U = shares["U"]
+    lin = np.sqrt(U["probing noise"] ** 2 + U["bar calibration"] ** 2 + U["placement"] ** 2)
+    own_mean = own.mean(axis=0)
+    for s, c in b["per_error"].items():
+        sl = slice(*shares["slices"][s])
+        k = keep[sl]
+        c["mc_percentile"] = float(p95[sl][k].max() * 1e6)
+        c["linear"] = float(lin[sl][k].max() * 1e6)
+        c["run_linear_mean"] = float(own_mean[sl][k].max() * 1e6)
+        a, bb = float(U1[sl][k].max()), float(U2[sl][k].max())
+        per_half[s] = {"first": a * 1e6, "second": bb * 1e6, "relative_difference": abs(a - bb) / max(a, bb)}
+    b["coverage"]["within_mc_U95"] = f"{int(np.sum(np.abs(err[:, keep]) <= mc[keep]))}/{err[:, keep].size}"
+    b["coverage"]["within_linear_U95"] = f"{int(np.sum(np.abs(err[:, keep]) <= lin[keep]))}/{err[:, keep].size}"
+    b["stability"] = {"runs_per_half": half, "within_1_se": float(np.mean(z_ <= 1.0)),
+                      "within_2_se": float(np.mean(z_ <= 2.0)), "max_over_se": float(z_.max()),
+                      "per_error_max_U95_halves": per_half}
+    Tk = T[ok]
+    b["temperature_draws"] = {"rms_from_20_C": float(np.sqrt(np.mean((Tk - 20.0) ** 2))), "mean_C": float(Tk.mean())}
+    b["cpu_s_per_run_median"] = float(np.nanmedian(cpu)) if np.any(np.isfinite(cpu)) else None
+    return b
+
+
+def study_table_markdown(rep: dict) -> str:
+    """The stored study's table for docs/papers-mfb.md (:func:`study_report`): per error each
+    source's U95 share, bar and machine at one temperature, their quadrature sum, the run's own
+    linear U95, the Monte Carlo (2 x RMS and the 95th percentile of |error|), MC / sum."""
+    short = {"probing noise": "noise", "bar calibration": "bar cal", "placement": "place",
+             "stylus offsets": "stylus", "lobing": "lobing", "bar temperature": "T bar",
+             "machine temperature": "T mach"}
+    head = (["error", "unit"] + [short[s] for s in rep["sources"]]
+            + ["T one", "sum", "linear", "MC 2xRMS", "MC p95", "MC/sum", "halves"])
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    halves = rep["stability"]["per_error_max_U95_halves"]
+    for s, c in rep["per_error"].items():
+        h = halves[s]
+        row = ([s, c["unit"]] + [f"{c['U95'][k]:.2f}" for k in rep["sources"]]
+               + [f"{c['temperature_one_T']:.2f}", f"{c['quadrature']:.2f}", f"{c['linear']:.2f}",
+                  f"{c['mc']:.2f}", f"{c['mc_percentile']:.2f}", f"{c['mc_over_quadrature']:.2f}",
+                  f"{h['first']:.2f} / {h['second']:.2f}"])
+        lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines)

@@ -193,7 +193,7 @@ class Clearance:
         npair = len(self.pair_probe)
         self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
         self._have = np.zeros(npair, bool)
-        self._memo = []  # certificates of near_segments (shared by the moved copies: same frame)
+        self._certs = _Certificates()  # of near_segments (shared by the moved copies: same frame)
         ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
         self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
         self._ccount = np.diff(np.r_[self._cstart, len(ck)])
@@ -324,12 +324,14 @@ class Clearance:
         :meth:`swept_bound` per (segment, pair); only the pairs it cannot clear are
         bounded sample by sample (:meth:`bound`).
 
-        Certificates: each call remembers, per segment (in the geoms' frame), a
-        radius ``r`` within which any segment is clear (the least swept bound minus
-        the margin, at most the box padding: the distance moves at most as far as
-        the tip). A later call with as many segments and the same allowed features
-        (the same plan at another placement turned the same way) clears every
-        segment whose ends lie within ``r`` of the remembered ones at once.
+        Certificates: each call remembers, per segment it bounded (in the geoms'
+        frame), a radius ``r`` within which any segment is clear (the least swept
+        bound minus the margin, at most the box padding: every point of a segment
+        whose ends moved at most ``r`` moved at most ``r``, and a distance moves no
+        farther than the tip). A later call clears at once every segment whose ends
+        lie within ``r`` of a remembered segment's with the same allowed feature,
+        found by nearest-neighbour search (the same plan at another placement turned
+        the same way, another measurement of the same work zone sharing its moves).
 
         ``allow_feature`` (number of polylines,) of str: as in :meth:`near`, per polyline.
         """
@@ -338,14 +340,10 @@ class Clearance:
         allow_seg = (np.full(n, "", dtype=object) if allow_feature is None
                      else np.asarray(allow_feature, dtype=object)[sg.path])
         r = np.full(n, -np.inf)  # the certificate of this call
-        todo = np.arange(n)
-        for a0, b0, allow0, r0 in self._memo:
-            if len(a0) == n and np.array_equal(allow0, allow_seg):
-                moved = np.maximum(np.linalg.norm(a - a0, axis=1), np.linalg.norm(b - b0, axis=1))
-                ok = moved < r0
-                r[ok] = r0[ok] - moved[ok]
-                todo = np.flatnonzero(~ok)
-                break
+        r_old, moved = self._certs.lookup(a, b, allow_seg)
+        ok = moved < r_old
+        r[ok] = r_old[ok] - moved[ok]
+        todo = np.flatnonzero(~ok)
         if todo.size:
             pad = self.cert_pad_m
             seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - pad, np.maximum(a[todo], b[todo]) + pad)
@@ -359,9 +357,8 @@ class Clearance:
             seg, pair = seg[keep], pair[keep]
         lb = self._swept(a[seg], b[seg], pair) if seg.size else np.zeros(0)
         np.minimum.at(r, seg, lb - MARGIN_M)
-        if len(self._memo) >= 8:
-            self._memo.pop(0)
-        self._memo.append((a, b, allow_seg, r))
+        if self.cert_pad_m > 0:  # the segments bounded here (the others' certificates are derived)
+            self._certs.add(a[todo], b[todo], allow_seg[todo], r[todo])
         open_ = lb <= MARGIN_M
         seg, pair = seg[open_], pair[open_]
         if not seg.size:
@@ -427,6 +424,78 @@ class Clearance:
             close = self.bound(p, i, pair, enough=MARGIN_M) <= MARGIN_M
             out[i[close]] = True
         return out
+
+
+class _Certificates:
+    """Certificates of :meth:`Clearance.near_segments`: segments ``a -> b`` (geoms' frame, m),
+    their allowed feature and the radius ``r`` (m) within which a segment is clear.
+
+    :meth:`lookup` finds, per query segment, a remembered one with the same allowed feature
+    whose ends are nearest: first the segment at the same place in a remembered call of as
+    many segments (the same plan at another placement), then, for the rest, the remembered
+    segment in the same cell of a :data:`_CERT_GRID_M` grid in (a, b) (the same move in
+    another measurement). A certificate applies when ``moved = max(|a - a0|, |b - b0|) < r``
+    (a segment whose ends moved by at most ``moved`` has every point moved by at most that);
+    a segment whose neighbour lies in another cell is only bounded again.
+    """
+
+    def __init__(self):
+        self.blocks = []  # (a, b, allow, r) per call
+        self._ids: dict = {}
+        self._keys = None
+        self._n = 0
+
+    def _key(self, a, b, allow) -> np.ndarray:
+        """(n,) void: the grid cell of each segment and its allowed feature, as bytes."""
+        f = np.fromiter((self._ids.setdefault(x, len(self._ids)) for x in allow), np.int64, len(allow))
+        k = np.column_stack([np.round(np.column_stack([a, b]) / _CERT_GRID_M).astype(np.int64), f])
+        return np.ascontiguousarray(k).view(np.dtype((np.void, 8 * 7))).ravel()
+
+    def add(self, a, b, allow, r) -> None:
+        keep = r > 0
+        if not keep.any():
+            return
+        if self._n + int(keep.sum()) > _CERT_MAX:
+            self.__init__()
+        self.blocks.append((a[keep], b[keep], allow[keep], r[keep]))
+        self._n += int(keep.sum())
+        self._keys = None
+
+    def lookup(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
+        """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate
+        chosen and how far its segment's ends are from the query's (r0 = -inf: none)."""
+        n = len(a)
+        r0, moved = np.full(n, -np.inf), np.full(n, np.inf)
+        if not self._n or not n:
+            return r0, moved
+        for a0, b0, allow0, rr in self.blocks:  # the same segments in order (another placement)
+            if len(a0) == n and np.array_equal(allow0, allow):
+                mv = np.maximum(np.linalg.norm(a - a0, axis=1), np.linalg.norm(b - b0, axis=1))
+                better = rr - mv > r0 - moved
+                r0[better], moved[better] = rr[better], mv[better]
+        rest = np.flatnonzero(~(moved < r0))
+        if rest.size:  # the same move elsewhere in the remembered calls (its grid cell)
+            if self._keys is None:
+                A = np.concatenate([blk[0] for blk in self.blocks])
+                B = np.concatenate([blk[1] for blk in self.blocks])
+                F = np.concatenate([blk[2] for blk in self.blocks])
+                k = self._key(A, B, F)
+                o = np.argsort(k, kind="stable")
+                self._keys, self._A, self._B = k[o], A[o], B[o]
+                self._R = np.concatenate([blk[3] for blk in self.blocks])[o]
+            q = self._key(a[rest], b[rest], allow[rest])
+            j = np.minimum(np.searchsorted(self._keys, q), len(self._keys) - 1)
+            hit = self._keys[j] == q
+            rest, j = rest[hit], j[hit]
+            mv = np.maximum(np.linalg.norm(a[rest] - self._A[j], axis=1), np.linalg.norm(b[rest] - self._B[j], axis=1))
+            r0[rest], moved[rest] = self._R[j], mv
+        return r0, moved
+
+
+#: Remembered segments per broad phase before the certificates are forgotten (memory).
+_CERT_MAX = 200_000
+#: Grid (m) of the certificates' second lookup: segments whose ends round to the same cells.
+_CERT_GRID_M = 1.0e-6
 
 
 def _overlap(lo1, hi1, lo2, hi2) -> np.ndarray:

@@ -203,6 +203,7 @@ class WorkZone:
         self._model = self._data = None
         self._tqpos = np.array([0.0, 0, 0, 1, 0, 0, 0])
         self._clr = {}
+        self._axisym = None  # the probe's geoms all on its z axis (clearance)
 
     def _pose(self, j: int) -> np.ndarray:
         """(4,4) pose in W of table-side geom j (a solid's: T_W_A times its pose on the bar)."""
@@ -267,18 +268,23 @@ class WorkZone:
         d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
         self._mj.mj_kinematics(self._hmodel, d)
 
-    def table_geoms(self):
-        """The table side's geoms (:class:`sim.clearance.Geoms`, R) at the current table pose,
-        in the model's order, from their definitions (MuJoCo's poses agree to rounding, 1e-16 m)."""
-        from .clearance import Geoms
-
+    def _T_R_W(self) -> np.ndarray:
+        """(4,4) the table's pose as MuJoCo has it (the holder model's, after set_table)."""
         self._set_holder_tip(np.zeros(3))
         d = self._hdata
         body = self._hmodel.body("table").id
-        T_R_W = make_T(np.array(d.xmat[body], float).reshape(3, 3), d.xpos[body])
+        return make_T(np.array(d.xmat[body], float).reshape(3, 3), d.xpos[body])
+
+    def table_geoms(self, in_W: bool = False):
+        """The table side's geoms (:class:`sim.clearance.Geoms`, R; W if ``in_W``) at the current
+        table pose, in the model's order, from their definitions (MuJoCo's poses agree to
+        rounding, 1e-16 m)."""
+        from .clearance import Geoms
+
         T = np.concatenate([np.array(self._tpose0), _solid_pose_stack(self._args[0])])
         T[len(self._tpose0):] = self._T_W_A @ T[len(self._tpose0):]
-        T = T_R_W @ T
+        if not in_W:
+            T = self._T_R_W() @ T
         code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
         size = np.zeros((len(self._tkind), 3))
         for j, sz in enumerate(self._tsize):
@@ -291,22 +297,42 @@ class WorkZone:
     def clearance(self, holder_only: bool = False):
         """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose:
         the probe against every table-side geom (indices of ``self._table``), or against
-        the holder's only (indices of ``self._holder``)."""
-        from .clearance import Clearance, model_geoms
+        the holder's only (indices of ``self._holder``).
 
-        key = (self._tqpos.tobytes(), holder_only)
-        if key not in self._clr:
-            self._set_holder_tip(np.zeros(3))
-            hm, hd = self._hmodel, self._hdata
-            probe = model_geoms(hm, hd, self._hprobe)
-            ball = self._probe.index(self._ball)
-            if holder_only:
-                table, tg = model_geoms(hm, hd, range(len(self._holder))), self._holder
-            else:
-                table, tg = self.table_geoms(), self._table
-            # (a plan's measurements each have their own table pose: no certificates to reuse)
-            self._clr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in tg], ball, cert_pad_m=0.0)
-        return self._clr[key]
+        The whole zone's is built in the table's frame W and kept per orientation of the
+        spindle to W (per spindle axis for a probe of spheres, capsules and cylinders on
+        its axis, which looks the same from every direction about it): the measurements
+        of one work zone at table poses that differ by a turn about the spindle axis (a
+        C turn on a vertical spindle) share it, its pair data and the certificates of
+        their moves (the same touches in W: :meth:`sim.clearance.Clearance.near_segments`).
+        """
+        from .clearance import Clearance, Geoms, model_geoms
+
+        self._set_holder_tip(np.zeros(3))
+        hm, hd = self._hmodel, self._hdata
+        probe = model_geoms(hm, hd, self._hprobe)  # about the tip, axes of R
+        ball = self._probe.index(self._ball)
+        if holder_only:
+            key = (self._tqpos.tobytes(), True)
+            if key not in self._clr:
+                table = model_geoms(hm, hd, range(len(self._holder)))
+                self._clr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
+                                           cert_pad_m=0.0)
+            return self._clr[key]
+        T_W_R = inv_T(self._T_R_W())
+        R = T_W_R[:3, :3]
+        if self._axisym is None:
+            self._axisym = bool(np.all(probe.centre[:, :2] == 0) and np.all(np.abs(probe.axes[:, 2, 2]) == 1)
+                                and np.all(np.isin(probe.kind, (2, 3, 5))))
+        key = (np.ascontiguousarray((R[:, 2] if self._axisym else R) + 0.0).tobytes(), False)  # (-0 -> +0)
+        hit = self._clr.get(key)
+        if hit is None:
+            P = Geoms(probe.centre @ R.T, R @ probe.axes, probe.kind, probe.size, probe.rbound)  # axes of W
+            hit = self._clr[key] = Clearance(P, self.table_geoms(in_W=True),
+                                             [self._feature.get(i, "") for i in self._table], ball, T_F_R=T_W_R)
+        elif not np.array_equal(hit.T_F_R, T_W_R):
+            hit = self._clr[key] = hit.moved(T_W_R)
+        return hit
 
     def collisions(self, p_R, allow_feature: str = "") -> list:
         """(probe geom, table-side geom, depth m) with the tip centre at ``p_R``."""

@@ -10,6 +10,14 @@ Figures:
   (simulation + points of interest + gain), ``mfb_3axis_identify_s`` and
   ``mfb_3axis_uncertainty_s`` (Monte Carlo + report). Reference: the same
   run with the gain already cached (``mfb_3axis_gain_cached_s``).
+- ``mfb_3axis_end_to_end_before_ref_s``: the same run in the same process by the path
+  before issue 16's Monte Carlo work (:func:`before_shortcuts`: every design's nominal part
+  from scratch, every Gauss-Newton row set recomputed whole with its Jacobian, the
+  features fitted one by one with their checks); ``mfb_3axis_end_to_end_max_theta_diff``
+  between the two (m or rad).
+- ``mfb_3axis_budget_run_s``: one Monte Carlo run of the budget (:func:`scenarios.mfb.budget_run`,
+  attempt 1: every source drawn, no Monte Carlo of its own), beside
+  ``mfb_3axis_budget_run_before_ref_s``, the same by the path before.
 - ``mfb_3axis_identify_only_s``: :func:`core.volumetric.identify_volumetric` on
   that run's own inputs, beside ``mfb_3axis_identify_rows_before_ref_s``: the
   same with its rows built as before issue 19 (:func:`identify_before`), and
@@ -30,7 +38,8 @@ import numpy as np
 
 #: figure -> its reference figure measured in the same run (ratio = figure / reference)
 REFERENCES = {
-    "mfb_3axis_end_to_end_s": "mfb_3axis_gain_cached_s",
+    "mfb_3axis_end_to_end_s": "mfb_3axis_end_to_end_before_ref_s",
+    "mfb_3axis_budget_run_s": "mfb_3axis_budget_run_before_ref_s",
     "mfb_gain_s": "mfb_gain_refit_reference_s",
     "mfb_3axis_identify_only_s": "mfb_3axis_identify_rows_before_ref_s",
 }
@@ -131,6 +140,42 @@ def identify_before(args, kwargs):
         vol._axis_weights, vol._projected_error_jacobian = saved
 
 
+class _NeverKept(dict):
+    """A cache that keeps nothing (core.volumetric's nominal designs before they were kept)."""
+
+    def __contains__(self, key):
+        return False
+
+
+def before_shortcuts():
+    """Context manager: ``scenarios.mfb.run`` as before issue 16's Monte Carlo work (the
+    reference of ``mfb_3axis_end_to_end_s``): the nominal design rebuilt at every
+    identification, every ``_rows`` call recomputing its theta-independent parts and its
+    Jacobian (also for the last residual), the bar's features fitted one by one by the
+    validated single fits. (The bar's program, now built once per run, is not undone.)"""
+    import contextlib
+
+    from core import mfb, volumetric as vol
+
+    @contextlib.contextmanager
+    def ctx():
+        rows, nominal, poi = vol._rows, vol._NOMINAL, mfb.points_of_interest
+
+        def rows_before(*a, **k):
+            k.pop("prep", None)
+            k["jacobian"] = True
+            return rows(*a, **k)
+
+        vol._rows, vol._NOMINAL = rows_before, _NeverKept()
+        mfb.points_of_interest = lambda *a, **k: poi(*a, **{**k, "batched": False})
+        try:
+            yield
+        finally:
+            vol._rows, vol._NOMINAL, mfb.points_of_interest = rows, nominal, poi
+
+    return ctx()
+
+
 def plan_gain_inputs(name: str = "mfb-3axis") -> list[tuple]:
     """``(c_A, feature, wn_A, d_A)`` of each distinct hole set of a scenario's plan (nominal bar, 3 mm stylus)."""
     from scenarios.mfb import PLANS, _plan_for
@@ -195,8 +240,23 @@ def run() -> dict:
     out["mfb_3axis_identify_rows_before_ref_s"] = round(min(t_old), 3)
     out["mfb_3axis_identify_max_theta_diff"] = float(np.abs(r_new.theta - r_old.theta).max())
     t0 = time.perf_counter()
-    S.run("mfb-3axis")  # the gains cached from the run above
+    r_now = S.run("mfb-3axis")  # the gains cached from the run above
     out["mfb_3axis_gain_cached_s"] = round(time.perf_counter() - t0, 3)
+    with before_shortcuts():
+        t0 = time.perf_counter()
+        r_before = S.run("mfb-3axis")
+        out["mfb_3axis_end_to_end_before_ref_s"] = round(time.perf_counter() - t0, 3)
+    out["mfb_3axis_end_to_end_max_theta_diff"] = float(np.abs(r_now.result.theta - r_before.result.theta).max())
+    # one Monte Carlo run of the budget, now and before, side by side (warm: the first was run above)
+    S.budget_run("mfb-3axis", 2)
+    t0 = time.perf_counter()
+    b_now = S.budget_run("mfb-3axis", 1)
+    out["mfb_3axis_budget_run_s"] = round(time.perf_counter() - t0, 3)
+    with before_shortcuts():
+        t0 = time.perf_counter()
+        b_before = S.budget_run("mfb-3axis", 1)
+        out["mfb_3axis_budget_run_before_ref_s"] = round(time.perf_counter() - t0, 3)
+    out["mfb_3axis_budget_run_max_error_diff"] = float(np.abs(b_now["error"] - b_before["error"]).max())
     return out
 
 

@@ -121,3 +121,65 @@ def test_placement_errors_are_absorbed_and_bad_u_place(meas3):
         assert up < (0.1 * uc if j == 3 else 1e-10), (j, up)
     with pytest.raises(ConfigError, match="u_place must be 6"):
         vol.uncertainty(res, meas, 0.0, np.zeros((12, 3)), runs=0, u_place=(1e-4, 1e-4))
+
+
+def test_identify_shortcuts_give_the_reference_bit_for_bit(meas3, monkeypatch):
+    # the plan's nominal design kept between identifications, the theta-independent parts of the
+    # rows computed once, the last residual without its Jacobian: against the path without them
+    # (every design from scratch, every _rows call recomputing everything with its Jacobian),
+    # kept here as the reference by monkeypatching; theta, K and the design identical bit for bit
+    meas, chain, nodes, rp = meas3
+    # a run off the noise-free one (readings moved 0.3 um) so that the iterations have work to do
+    rng = np.random.default_rng(2)
+    from dataclasses import replace
+
+    meas = [replace(m, q_R=m.q_R + rng.normal(0, 3e-7, m.q_R.shape)) for m in meas]
+    vol._NOMINAL.clear()
+    new = vol.identify_volumetric(meas, chain, nodes, rp)
+    assert len(vol._NOMINAL) == 1
+    again = vol.identify_volumetric(meas, chain, nodes, rp)  # from the kept nominal design
+    real_rows = vol._rows
+
+    def rows_reference(*a, **k):
+        k.pop("prep", None)
+        k["jacobian"] = True
+        return real_rows(*a, **k)
+
+    class NeverKept(dict):
+        def __contains__(self, key):
+            return False
+
+    monkeypatch.setattr(vol, "_rows", rows_reference)
+    monkeypatch.setattr(vol, "_NOMINAL", NeverKept())
+    ref = vol.identify_volumetric(meas, chain, nodes, rp)
+    for r in (new, again):
+        assert r.iterations == ref.iterations >= 2
+        assert np.array_equal(r.theta, ref.theta) and np.array_equal(r.K, ref.K) and r.rms_m == ref.rms_m
+        for f in ("A", "y", "C", "null", "unseen", "sv_rel"):
+            assert np.array_equal(getattr(r.design, f), getattr(ref.design, f)), f
+        assert r.design.gauge == ref.design.gauge
+
+
+def test_nominal_design_kept_per_plan(meas3):
+    # the key holds everything the nominal design reads: another stylus offset, another plan or
+    # another node table is another entry; new readings of the same plan are not
+    meas, chain, nodes, rp = meas3
+    from dataclasses import replace
+
+    k0 = vol._nominal_key(meas, chain, nodes, rp, None, ("a",))
+    moved = [replace(meas[0], O_R=meas[0].O_R + 1e-6, q_R=meas[0].q_R + 1e-6)] + list(meas[1:])
+    assert vol._nominal_key(moved, chain, nodes, rp, None, ("a",)) == k0
+    other_J = [replace(meas[0], J_m=(0.0, 0.0, 0.151))] + list(meas[1:])
+    assert vol._nominal_key(other_J, chain, nodes, rp, None, ("a",)) != k0
+    assert vol._nominal_key(meas[1:], chain, nodes, rp, None, ("a",)) != k0
+    nodes2 = dict(nodes, X=np.asarray(nodes["X"]) + 1e-3)
+    assert vol._nominal_key(meas, chain, nodes2, rp, None, ("a",)) != k0
+    G2 = np.array(meas[0].G_A, float)
+    G2[0, 0] += 1e-9
+    assert vol._nominal_key([replace(meas[0], G_A=G2)] + list(meas[1:]), chain, nodes, rp, None, ("a",)) != k0
+    # residual alone: the same numbers as with the Jacobian
+    names, slices, n, _ = vol._layout(meas, {a: np.asarray(v, float) for a, v in nodes.items()})
+    th = np.random.default_rng(1).normal(0, 1e-6, n)
+    J, r1, _ = vol._rows(meas, chain, rp, nodes, th, slices, n, True)
+    none, r2, _ = vol._rows(meas, chain, rp, nodes, th, slices, n, True, jacobian=False)
+    assert none is None and J.shape == (len(r1), n) and np.array_equal(r1, r2)

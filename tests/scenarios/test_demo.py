@@ -24,13 +24,19 @@ def test_demo_end_to_end(tmp_path, capsys):
     mfb = json.loads((out / "mfb-3axis.json").read_text())
     assert (mfb["placements"], mfb["measurements"], len(mfb["errors"])) == (14, 17, 21)
     # its compensation applied to the machine and measured again: the true error (exact simulator)
-    # falls within the U95 of the identification that made it, at every node, per-axis and volumetric
+    # falls 10x and within the U95 of the identification that made it at the nodes, as a 95 % interval
+    # should: over 24 nodes the count outside is near Binomial(24, 0.05), P(>= 4) = 0.03, so at most 3
+    # (a U95 half the right size would leave about 8 outside)
     loop = json.loads((out / "mfb-3axis-closed-loop.json").read_text())
+    outside = 0
     for a in "XYZ":
         before, files = loop["before"]["positioning"][a], loop["per_axis_files"]["positioning"][a]
         n = len(mfb["errors"][f"E{a}{a}"]["identified"])
-        assert files["true_within_u95"] == f"{n}/{n}" and files["true_max_um"] < before["true_max_um"] / 10
+        k, m = (int(v) for v in files["true_within_u95"].split("/"))
+        assert m == n and files["true_max_um"] < before["true_max_um"] / 10
+        outside += n - k
         assert loop["volumetric"]["volumetric_residual_um"][a] < loop["before"]["volumetric_residual_um"][a] / 4
+    assert outside <= 3, outside
     assert "applied to the virtual machine" in text
     # step 6: the ISO 230-2 test of Y on the same machine, its figures and discovery on it
     pos = json.loads((out / "iso230-2.json").read_text())

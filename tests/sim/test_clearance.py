@@ -380,3 +380,163 @@ def test_fixed_bound_grid_is_the_rows_bound_on_fixed_axes():
         grid = clr.fixed_bound_grid(tips).ravel()
         assert np.array_equal(grid, clr.bound(tips, i, pair, enough=-np.inf))
         assert np.all(grid <= clr.bound(tips, i, pair))
+
+
+def _sphere_over_box(pad=0.5e-3):
+    """A ball of radius R (the probe, tip at its centre) over a box whose top face is z = 0
+    (feature "top"): the distance of the ball at height z is z - R, exactly."""
+    from sim.clearance import Clearance, Geoms
+
+    one = lambda *v: np.array([v], float)  # noqa: E731
+    ball = Geoms(one(0, 0, 0), np.eye(3)[None], np.array([2]), one(R, 0, 0), np.array([R]))
+    box = Geoms(one(0, 0, -0.010), np.eye(3)[None], np.array([6]), one(0.050, 0.050, 0.010),
+                np.array([np.sqrt(0.05 ** 2 * 2 + 0.01 ** 2)]))
+    return Clearance(ball, box, ["top"], 0, cert_pad_m=pad)
+
+
+def test_certificates_clear_exactly_their_radius():
+    """Known answer: a move 0.3 mm above the box leaves a certificate of 0.3 - 0.1 (margin)
+    = 0.2 mm. Moves of the same segment by 0.19 mm down are cleared by it (no new box test);
+    by 0.21 mm (0.09 mm from the box: within the margin), by 0.45 mm (0.15 mm deep) and with one
+    end only 0.45 mm down (the segment tilted into the box) the samples near the box are
+    returned. A radius 0.06 mm too large, or a move measured at its nearer end, clears one of
+    them. A certificate left with the ball allowed on the box's feature clears nothing for a
+    move that is not."""
+    from sim.clearance import Clearance, path_segments
+
+    def seg(za, zb, allow=""):
+        sg = path_segments([np.array([[-0.02, 0, za], [0.02, 0, zb]])], [0.5e-3], joints=False)
+        return sg, [allow]
+
+    z0 = R + 0.3e-3
+    calls = []
+    real = Clearance._box_pairs
+
+    def counted(self, lo, hi):
+        calls.append(len(lo))
+        return real(self, lo, hi)
+
+    for dz_a, dz_b, want_near in ((0.19e-3, 0.19e-3, False), (0.21e-3, 0.21e-3, True),
+                                  (0.45e-3, 0.45e-3, True), (0.45e-3, 0.0, True), (0.0, 0.45e-3, True)):
+        clr = _sphere_over_box()
+        Clearance._box_pairs = counted
+        try:
+            assert clr.near_segments(*seg(z0, z0)).size == 0
+            calls.clear()
+            near = clr.near_segments(*seg(z0 - dz_a, z0 - dz_b))
+        finally:
+            Clearance._box_pairs = real
+        assert (near.size > 0) == want_near, (dz_a, dz_b)
+        assert (len(calls) == 0) == (not want_near)  # cleared by the certificate, not recomputed
+    clr = _sphere_over_box()
+    assert clr.near_segments(*seg(R - 1e-3, R - 1e-3, "top")).size == 0  # the ball may touch "top"
+    assert clr.near_segments(*seg(R - 1e-3, R - 1e-3)).size > 0  # but nothing else may
+
+
+def test_certificates_by_place_and_by_segment_and_feature():
+    """The certificate store finds a remembered segment within its radius for the same segments
+    in the same order moved by less than their radii (another placement), and for the same
+    segments in another order and number, moved by rounding (another measurement's moves);
+    never across allowed features, never for a segment moved by its radius or more."""
+    from sim.clearance import _Certificates
+
+    rng = np.random.default_rng(4)
+    a = rng.uniform(-0.2, 0.2, (500, 3))
+    b = a + rng.normal(0, 0.01, (500, 3))
+    allow = np.array(["", "hole01", "rod02"], dtype=object)[rng.integers(0, 3, 500)]
+    r = rng.uniform(0.1e-3, 0.5e-3, 500)
+    st = _Certificates()
+    st.add(a, b, allow, r)
+    st.add(a + 0.05, b + 0.05, np.roll(allow, 1), r)  # others, elsewhere
+    u = rng.normal(size=(500, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    f = rng.uniform(0, 1.5, 500)
+    r0, moved = st.lookup(a + (f * r)[:, None] * u, b, allow)  # in order, moved 0 to 1.5 radii
+    assert np.array_equal(moved < r0, f < 1) and np.allclose(moved, f * r, rtol=0, atol=1e-15)
+    p = rng.permutation(500)[:300]
+    r0, moved = st.lookup(a[p] + rng.normal(0, 1e-15, (300, 3)), b[p], allow[p])  # shuffled, 300
+    assert np.all(moved < r0) and np.all(moved < 1e-14) and np.array_equal(r0, r[p])
+    other = np.where(allow[p] == "", "rod02", "").astype(object)
+    r0, moved = st.lookup(a[p], b[p], other)  # the same segments with another allowed feature
+    assert not np.any(moved < r0)
+    # within one grid cell (1 um) but beyond a 0.2 um radius: the distance is still measured
+    c = np.array([[0.012, -0.034, 0.056]])
+    st.add(c, c + [0.01, 0, 0], np.array([""], dtype=object), np.array([0.2e-6]))
+    r0, moved = st.lookup(np.r_[a[:3], c + [0.4e-6, 0, 0]], np.r_[b[:3], c + [0.01, 0, 0]],
+                          np.r_[allow[:3], np.array([""], dtype=object)])
+    assert r0[3] == 0.2e-6 and abs(moved[3] - 0.4e-6) < 1e-15 and not moved[3] < r0[3]
+
+
+def test_least_holder_clearance_refines_to_the_every_triple_minimum():
+    """Tips scattered 0-20 mm around the bar's supports and the table, a star stylus at a tilted
+    table (its arm's and finger's bounds loose by millimetres): the branch and bound gives
+    MuJoCo's least distance over every (tip, probe geom, holder geom), as the reference does, to
+    1e-12 m (MuJoCo's distances, the same calls). A refinement stopped 5 mm (or 1 mm) early
+    returns a larger value on some of these sets."""
+    rng = np.random.default_rng(11)
+    n_diff = 0
+    for A_deg, C_deg, J in ((-60, 30, (0.0, -0.100, 0.150)), (-30, 120, (0.030, 0.0, 0.150)),
+                            (0, 45, (0.0, 0.0, 0.150))):
+        wz = _zone(A_deg, C_deg, J, 0.020 if J[0] else 0.0)
+        T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
+        pts = A.apply_T(T_R_A, artefact_points_low())
+        for _ in range(3):
+            tips = pts[rng.integers(0, len(pts), 40)] + rng.normal(0, 0.012, (40, 3))
+            new = wz.least_holder_clearance(tips)
+            old = wz.least_holder_clearance(tips, broad_phase=False)
+            assert abs(new - old) <= 1e-12, (A_deg, C_deg, new, old)
+            n_diff += new < 0.05
+    assert n_diff >= 6
+
+
+def artefact_points_low():
+    """Points of the bar within 15 mm of its underside (A frame, m): near the supports and the table."""
+    from sim.scene import artefact_points
+
+    p = artefact_points(BAR)
+    return p[p[:, 2] <= p[:, 2].min() + 0.015]
+
+
+def test_least_holder_clearance_looks_past_loose_bounds():
+    """Known answer: 108 tips 12 mm outside the table disc's rim, at half its thickness (the ball
+    9 mm from the rim; at oblique azimuths the fixed axes' bounds of those pairs are negative,
+    so they come first) and one tip with the ball 8 mm above the disc's face (its bound exact,
+    8 mm, ranked after more than 64 loose rows). The least clearance is 8 mm, with the broad
+    phase as without; a refinement that stops 5 mm short of the best distance found (9 mm) never
+    reaches the 8 mm tip."""
+    from sim.mfb_scene import TABLE_R_M, TABLE_T_M
+
+    wz = _zone(0, 0, (0.0, 0.0, 0.150))
+    T_R_W = _T_R_W(0, 0)
+    az = np.deg2rad(np.linspace(20, 70, 15))[:, None] + np.deg2rad([0, 90, 180, 270])[None, :]
+    # and 48 nearly on the axes (7-10 deg: the ball's bounds 4.3-6.7 mm, its distance 9 mm), so
+    # more than 64 rows lie between the best distance less 5 mm and the 8 mm tip's bound
+    az = np.r_[az.ravel(), (np.deg2rad(np.linspace(7, 10, 12))[:, None] + np.deg2rad([0, 90, 180, 270])).ravel()]
+    rho = TABLE_R_M + 12e-3
+    rim = np.column_stack([rho * np.cos(az), rho * np.sin(az), np.full(az.size, -TABLE_T_M / 2)])
+    top = np.array([[0.05, -0.02, R + 8e-3]])  # above the disc, far from the bar's supports
+    tips = A.apply_T(T_R_W, np.vstack([rim, top]))
+    new = wz.least_holder_clearance(tips)
+    assert abs(new - 8e-3) < 1e-9, new  # MuJoCo's sphere-cylinder distance, to rounding
+    assert abs(new - wz.least_holder_clearance(tips, broad_phase=False)) <= 1e-12
+    assert abs(wz.least_holder_clearance(tips[:-1]) - 9e-3) < 1e-6  # the rim alone: the ball 9 mm away
+
+
+@pytest.mark.parametrize("J_m,finger", [((0.0, 0.0, 0.150), 0.0), ((0.0, -0.060, 0.150), 0.020)])
+def test_one_work_zone_at_many_table_poses_agrees_with_every_sample_check(J_m, finger):
+    """One work zone (one stylus, one placement) checked at table poses in turn, as a plan's
+    measurements are: turns about the spindle axis (sharing the broad phase in W and its
+    certificates when the probe is a straight stylus) and tilts (each its own), some crashing.
+    Every result equals MuJoCo at every sample. A broad phase shared across spindle axes, or a
+    star stylus's shared across turns about the axis, misses a crash here."""
+    from sim import mfb_scene
+
+    mfb_scene._ZONES.clear()
+    pl = _holes(3, 4, 5)
+    n_bad = 0
+    for A_deg, C_deg in ((0, 0), (0, 90), (0, -45), (-90, 0), (-90, 90), (-45, 0), (0, 180), (-90, -90)):
+        args = ("m", BAR, FLAT, _T_R_W(A_deg, C_deg), (), J_m, R, pl, finger)
+        new, old = check_measurement(*args), check_measurement(*args, broad_phase=False)
+        assert new == old, (A_deg, C_deg)
+        n_bad += bool(new.collisions)
+    assert n_bad >= 2
