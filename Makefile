@@ -21,8 +21,12 @@ $(STAMP): requirements.lock pyproject.toml
 demo: $(STAMP)
 	$(VENV)/bin/vmt demo --out $(OUT)
 
+# two workers (pytest-xdist); each test file on one worker, files sharing a session fixture together,
+# the longest first (tests/conftest.py): no costly fixture computed twice
+TEST_WORKERS ?= 2
 test: $(STAMP)
-	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(VPY) -m pytest -q -p no:cacheprovider
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(VPY) -m pytest -q -p no:cacheprovider \
+	  -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # Real controllers in the loop (tests/controllers): LinuxCNC 2.9 from Debian's packages,
 # installed here if missing (needs root, as in CI); it fails, never skips, when it cannot.

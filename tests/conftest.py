@@ -1,5 +1,101 @@
+"""Fixtures shared by the whole suite, and how the suite is split between workers.
+
+``make test`` runs on two pytest-xdist workers with ``--dist loadfile``, which
+this file refines (:func:`pytest_xdist_make_scheduler`): each test file stays
+on one worker, so its module and session fixtures are computed once, and the
+files that use one of :data:`SHARED_SESSION_FIXTURES` are one unit, so that
+fixture too is computed once. The longest units are handed out first
+(:data:`LONGEST_FIRST`).
+
+(``--dist loadgroup`` with ``xdist_group`` marks would say the same, but with
+pytest 9.2 and xdist 3.8 the marks are silently ignored: xdist rewrites
+``item._nodeid``, which pytest no longer reads; pytest-xdist issue 1386.)
+"""
+
+import functools
+import inspect
+import warnings
+from pathlib import Path
+
 import numpy as np
 import pytest
+
+#: The session fixtures of this conftest that several test files use: every file that names one
+#: runs on the same worker. Checked on every worker against the fixtures the tests really use.
+SHARED_SESSION_FIXTURES = ("mfb3_noise_free",)
+
+#: The longest units, longest first (summed test durations, 2026-12-02, 1,178 tests at load 13: the
+#: mfb3_noise_free unit 225 s, then 90, 48, 35, 33, 33, 31, 26, 23, 20, 20, 18, 17 s; every other file
+#: under 17 s). Handed out first, so that no long file starts last and leaves one worker running alone;
+#: the others follow in collection order. A file missing here only loses its place in the queue.
+LONGEST_FIRST = ("fixture:mfb3_noise_free", "tests/scenarios/test_discover_hidden.py",
+                 "tests/scenarios/test_paper_scenarios.py", "tests/scenarios/test_demo.py",
+                 "tests/core/test_discover_generalisation.py", "tests/core/test_design.py",
+                 "tests/core/test_fit.py", "tests/scenarios/test_vcmm_study.py",
+                 "tests/core/test_discover_engine.py", "tests/scenarios/test_machine_file_cli.py",
+                 "tests/hardware/test_emulator_sim.py", "tests/scenarios/test_parallel.py",
+                 "tests/hardware/test_campaign.py")
+
+_ROOT = Path(__file__).resolve().parents[1]
+
+
+@functools.cache
+def unit_of(path: str) -> str:
+    """The work unit of a test file (rootdir-relative ``path``): ``fixture:NAME`` for a file whose
+    source names a shared session fixture (the first of :data:`SHARED_SESSION_FIXTURES`), else the file."""
+    try:
+        text = (_ROOT / path).read_text(encoding="utf-8")
+    except OSError:
+        return path
+    return next((f"fixture:{n}" for n in SHARED_SESSION_FIXTURES if n in text), path)
+
+
+def _unit_rank(path: str) -> int:
+    u = unit_of(path)
+    return LONGEST_FIRST.index(u) if u in LONGEST_FIRST else len(LONGEST_FIRST)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadfile`` with the files of one shared session fixture as one unit (other modes: xdist's own)."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class SharedFixtureScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return unit_of(nodeid.split("::", 1)[0])
+
+    return SharedFixtureScheduling(config, log)
+
+
+def _conftest_session_fixtures(item) -> set:
+    """Names of the session fixtures defined in a conftest that ``item`` uses."""
+    info = getattr(item, "_fixtureinfo", None)      # absent on non-function items (doctests)
+    if info is None:
+        return set()
+    return {name for name, defs in info.name2fixturedefs.items()
+            if defs[-1].scope == "session" and (inspect.getsourcefile(defs[-1].func) or "").endswith("conftest.py")}
+
+
+def pytest_collection_modifyitems(config, items):
+    """On an xdist worker: the longest units first (``make test`` passes ``--no-loadscope-reorder``, so
+    the queue keeps this order), and a warning for a conftest session fixture used by several files
+    but not in :data:`SHARED_SESSION_FIXTURES` (it would be computed on both workers). A plain
+    ``pytest`` run keeps the collection order."""
+    if not hasattr(config, "workerinput"):
+        return
+    users = {}
+    for item in items:
+        for name in _conftest_session_fixtures(item):
+            users.setdefault(name, set()).add(item.nodeid.split("::", 1)[0])
+    for name, files in sorted(users.items()):
+        units = {unit_of(f) for f in files}
+        if len(units) > 1:
+            warnings.warn(pytest.PytestWarning(
+                f"session fixture {name} is used by {len(files)} test files on {len(units)} xdist units: "
+                f"add it to SHARED_SESSION_FIXTURES in tests/conftest.py (else each worker computes it)"))
+    items.sort(key=lambda it: _unit_rank(it.nodeid.split("::", 1)[0]))   # stable: files stay whole, in order
 
 
 @pytest.fixture

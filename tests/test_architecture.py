@@ -7,6 +7,7 @@ sim only in the emulator and the virtual-machine module; viz may import core
 """
 
 import ast
+import functools
 import pathlib
 import subprocess
 import sys
@@ -28,18 +29,20 @@ ALLOWED = {
 HARDWARE_SIM = {"emulator.py", "virtual.py"}
 
 
-def _imports(f: pathlib.Path):
-    """Top-level names of every absolute import in ``f`` (also those inside functions)."""
-    tree = ast.parse(f.read_text(), filename=str(f))
-    for node in ast.walk(tree):
+@functools.cache
+def _imports(f: pathlib.Path) -> tuple:
+    """Top-level names of every absolute import in ``f`` (also those inside functions); each file
+    parsed once for the two core checks."""
+    out = []
+    for node in ast.walk(ast.parse(f.read_text(), filename=str(f))):
         if isinstance(node, ast.Import):
             names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0:
             names = [node.module or ""]
         else:
             continue
-        for n in names:
-            yield n.split(".")[0]
+        out += [n.split(".")[0] for n in names]
+    return tuple(out)
 
 
 def test_core_source_imports_nothing_forbidden():

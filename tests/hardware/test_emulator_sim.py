@@ -78,8 +78,11 @@ def test_readme_hardware_commands_as_written(tmp_path, monkeypatch, capsys):
     # the README's LinuxCNC part program, as written, on the same plan
     assert main(shlex.split(readme_command("vmt machine program"))[1:]) == 0, capsys.readouterr().err
     assert (tmp_path / "probe.ngc").read_text().count("G38.2") == plan.n
+    # Ctrl-C must reach it even when this run was started with SIGINT ignored (a background job of a
+    # non-interactive shell): an ignored SIGINT is inherited through exec, and the server then never stops
     proc = subprocess.Popen([sys.executable, "-m", "scenarios.cli", *serve], cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         first = proc.stdout.readline()
         assert f"of axes XYZAC on grbl://127.0.0.1:{port}" in first, first + proc.stderr.read()
