@@ -52,6 +52,13 @@ def short_name(mod: str) -> str:
     return "bench_" + mod.rsplit(".", 1)[-1]
 
 
+def _selects(o: str, mod: str, short: str) -> bool:
+    """Whether ``--only o`` selects a module: a module's exact name (``bench_discover``,
+    ``scenarios.bench.discover``) selects it alone; any other text, every module containing it."""
+    exact = {m for b in BENCHES for m in (b, short_name(b))}
+    return o in (mod, short) if o in exact else (o in mod or o in short)
+
+
 def run_all(only: list[str] | None = None) -> dict:
     """Run the benchmarks (those whose module or short name contains a text of ``only``); the document."""
     meta: dict = {"python": platform.python_version(), "cpu_count": os.cpu_count(),
@@ -65,7 +72,7 @@ def run_all(only: list[str] | None = None) -> dict:
     targets: dict = {}
     for mod in BENCHES:
         short = short_name(mod)
-        if only and not any(o in mod or o in short for o in only):
+        if only and not any(_selects(o, mod, short) for o in only):
             continue
         t0 = time.perf_counter()
         run = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "invocation_utc": meta["date_utc"],

@@ -7,7 +7,7 @@ from __future__ import annotations
 def register(sub) -> None:
     p = sub.add_parser("bench", help="run the benchmarks, write their figures (with same-run references) as JSON")
     p.add_argument("--out", default="bench/results.json", help="JSON file to write")
-    p.add_argument("--only", action="append", default=[], help="run only modules containing this text")
+    p.add_argument("--only", action="append", default=[], help="run only the benchmarks containing this text (a benchmark's exact name, e.g. bench_discover, selects it alone)")
     p.add_argument("--readme", metavar="FILE", default=None,
                    help="also rewrite FILE's performance table (between its bench-table markers) from the JSON")
     p.add_argument("--merge", action="store_true",

@@ -136,3 +136,12 @@ def test_one_invocation_keeps_the_one_line_heading():
     doc = _run("bench_one", "2026-12-02 01:00", 1.0, {"a_s": 1.0})
     doc["meta"]["runs"]["bench_two"] = dict(doc["meta"]["runs"]["bench_one"], date_utc="2026-12-02 01:40")
     assert table_markdown(doc).startswith("Measured 2026-12-02 01:00 UTC on 2 cores")
+
+
+def test_only_an_exact_name_selects_that_benchmark_alone():
+    from scenarios.bench import BENCHES, _selects, short_name
+
+    pick = lambda o: [short_name(b) for b in BENCHES if _selects(o, b, short_name(b))]  # noqa: E731
+    assert pick("bench_discover") == ["bench_discover"]          # not bench_discover_study
+    assert pick("discover") == ["bench_discover", "bench_discover_study"]
+    assert pick("scenarios.bench.discover_study") == ["bench_discover_study"]
