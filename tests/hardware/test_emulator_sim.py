@@ -89,7 +89,12 @@ def test_readme_hardware_commands_as_written(tmp_path, monkeypatch, capsys):
         assert main(probe) == 0
     finally:
         proc.send_signal(signal.SIGINT)          # Ctrl-C, as a user stops it
-        out, err = proc.communicate(timeout=120)   # a busy machine: stopping waits for the last move
+        try:
+            out, err = proc.communicate(timeout=120)   # a busy machine: stopping waits for the last move
+        except subprocess.TimeoutExpired:
+            proc.kill()                          # never leave a server behind a failed test
+            out, err = proc.communicate()
+            raise AssertionError(f"machine serve did not stop within 120 s of Ctrl-C: {err[-500:]}") from None
     assert f"stopped after {plan.n} probing moves" in out, err
     log = read_probe_log(tmp_path / "log.csv")
     assert log.n == plan.n == 368 and log.ok.all()
