@@ -108,87 +108,50 @@ _MFB_PLANS: dict = {}
 def mfb_plan(art: A.Artefact, clearance_m=2.0 * MM, overshoot_m=1.0 * MM) -> Plan:
     """The MFB's 316 touches per placement, pattern by pattern (Viprey 2016, 2.1).
 
-    Built for all holes, rods and faces at once (numpy): the same arrays, bit for bit,
-    as adding the touches one by one (tests/sim/test_plans.py keeps that builder as the
-    oracle). Plans are cached per (artefact object, clearance, overshoot); the cached
-    plan's arrays are read-only.
+    Cached per (artefact object, clearance, overshoot): a collision check asks for the
+    same bar's plan once per measurement. The cached plan's arrays are read-only.
     """
     key = (id(art), float(clearance_m), float(overshoot_m))
     hit = _MFB_PLANS.get(key)
     if hit is not None and hit[0] is art:
         return hit[1]
-    if not (clearance_m > 0 and overshoot_m > 0):
-        raise ConfigError("clearance_m and overshoot_m must be positive")
-    feats = {f.name: f for f in art.features}
-
-    def feature(name):
-        if name not in feats:
-            art.feature(name)  # its ConfigError
-        return feats[name]
-
-    n_holes = sum(1 for f in art.features if f.kind == "hole")
-    nr = max(n_holes - 1, 0)
-    holes = [feature(f"hole{i:02d}") for i in range(1, n_holes + 1)]
-    rods = [feature(f"rod{i:02d}") for i in range(1, nr + 1)]
-    faces = [[feature(f"face{s}{i:02d}") for s in "LR"] for i in range(1, nr + 1)]
-    # holes (n_holes, 2 levels, 4 azimuths)
-    az = np.deg2rad([0.0, 90.0, 180.0, 270.0])
-    e = np.column_stack([np.cos(az), np.sin(az), np.zeros(4)])  # (4,3)
-    hc = np.array([np.asarray(h.nominal.centre, float) for h in holes]).reshape(-1, 3)
-    hR = np.array([h.nominal.radius for h in holes], float)
-    zs = np.array([5.0 * MM, -5.0 * MM])
-    dz = np.zeros((2, 3))
-    dz[:, 2] = zs
-    h_w = (hc[:, None, None, :] + dz[None, :, None, :]) + hR[:, None, None, None] * e[None, None, :, :]
-    h_n = np.broadcast_to(-e, h_w.shape)
-    h_lv = np.broadcast_to(zs[None, :, None], h_w.shape[:3])
-    # rods (nr, 4 sections, 3 angles)
-    ra = np.deg2rad([-45.0, 0.0, 45.0])
-    er = np.column_stack([np.sin(ra), np.zeros(3), np.cos(ra)])  # (3,3)
-    rc = np.array([np.asarray(r.nominal.centre, float) for r in rods]).reshape(-1, 3)
-    rR = np.array([r.nominal.radius for r in rods], float)
-    ys = np.array([-15.0 * MM, -7.5 * MM, 7.5 * MM, 15.0 * MM])
-    dy = np.zeros((4, 3))
-    dy[:, 1] = ys
-    r_w = (rc[:, None, None, :] + dy[None, :, None, :]) + rR[:, None, None, None] * er[None, None, :, :]
-    r_n = np.broadcast_to(er, r_w.shape)
-    r_lv = np.broadcast_to(1000 + np.arange(4)[:, None] * 10 + np.arange(3)[None, :], r_w.shape[:3]).astype(float)
-    # faces (nr, L/R, 4 points)
-    fo = np.array([[np.asarray(f.nominal.origin, float) for f in fs] for fs in faces]).reshape(-1, 2, 3)
-    fn = np.array([[np.asarray(f.nominal.normal_, float) for f in fs] for fs in faces]).reshape(-1, 2, 3)
-    dxz = np.array([[-8.0 * MM, 0, -6.0 * MM], [8.0 * MM, 0, -6.0 * MM], [8.0 * MM, 0, 6.0 * MM],
-                    [-8.0 * MM, 0, 6.0 * MM]])
-    f_w = fo[:, :, None, :] + dxz[None, None, :, :]
-    f_n = np.broadcast_to(fn[:, :, None, :], f_w.shape)
-    # the probing order: hole i, rod i, face L i, face R i, ..., the last hole
-    w, nrm, lv, tgt, ftr = [], [], [], [], []
-    for i in range(n_holes):
-        hn = holes[i].name
-        w.append(h_w[i].reshape(-1, 3)), nrm.append(h_n[i].reshape(-1, 3)), lv.append(h_lv[i].ravel())
-        tgt += [f"hole{i + 1:02d}_{lvl}{k}" for lvl in "ul" for k in range(4)]
-        ftr += [hn] * 8
-        if i == n_holes - 1:
-            break
-        w.append(r_w[i].reshape(-1, 3)), nrm.append(r_n[i].reshape(-1, 3)), lv.append(r_lv[i].ravel())
-        tgt += [f"rod{i + 1:02d}_s{si}_a{k}" for si in range(4) for k in range(3)]
-        ftr += [rods[i].name] * 12
-        w.append(f_w[i].reshape(-1, 3)), nrm.append(f_n[i].reshape(-1, 3)), lv.append(np.zeros(8))
-        tgt += [f"face{s}{i + 1:02d}_p{k}" for s in "LR" for k in range(4)]
-        ftr += [faces[i][0].name] * 4 + [faces[i][1].name] * 4
-    if len(set(tgt)) != len(tgt):
-        raise ConfigError(f"plan for {art.name!r} has duplicate target ids")
-    if tgt:
-        w, nrm, lv = np.concatenate(w), np.concatenate(nrm), np.concatenate(lv)
-        nrm = nrm / np.sqrt(np.einsum("ij,ij->i", nrm, nrm))[:, None]
-    else:
-        w, nrm, lv = np.zeros((0,)), np.zeros((0,)), np.zeros((0,))
-    for a in (w, nrm, lv):
-        a.flags.writeable = False
-    pl = Plan(art.name, tuple(tgt), tuple(ftr), w, nrm, lv, float(clearance_m), float(overshoot_m))
+    pl = _build_mfb_plan(art, clearance_m, overshoot_m)
+    for x in (pl.w_A, pl.wn_A, pl.level):
+        x.flags.writeable = False
     if len(_MFB_PLANS) >= 64:
         _MFB_PLANS.clear()
     _MFB_PLANS[key] = (art, pl)
     return pl
+
+
+def _build_mfb_plan(art: A.Artefact, clearance_m, overshoot_m) -> Plan:
+    b = _Builder()
+    az = np.deg2rad([0.0, 90.0, 180.0, 270.0])
+    n_holes = sum(1 for f in art.features if f.kind == "hole")
+    for i in range(1, n_holes + 1):
+        hole = art.feature(f"hole{i:02d}")
+        c = np.asarray(hole.nominal.centre)
+        R = hole.nominal.radius
+        for lvl, z in (("u", 5.0 * MM), ("l", -5.0 * MM)):
+            for k, a in enumerate(az):
+                e = np.array([np.cos(a), np.sin(a), 0.0])
+                b.add(f"hole{i:02d}_{lvl}{k}", hole.name, c + [0, 0, z] + R * e, -e, level=z)
+        if i == n_holes:
+            break
+        rod = art.feature(f"rod{i:02d}")
+        c = np.asarray(rod.nominal.centre)
+        R = rod.nominal.radius
+        for si, y in enumerate((-15.0 * MM, -7.5 * MM, 7.5 * MM, 15.0 * MM)):
+            for k, a in enumerate(np.deg2rad([-45.0, 0.0, 45.0])):
+                e = np.array([np.sin(a), 0.0, np.cos(a)])
+                b.add(f"rod{i:02d}_s{si}_a{k}", rod.name, c + [0, y, 0] + R * e, e, level=1000 + si * 10 + k)
+        for side in ("L", "R"):
+            face = art.feature(f"face{side}{i:02d}")
+            o = np.asarray(face.nominal.origin)
+            nrm = np.asarray(face.nominal.normal_, float)
+            for k, (dx, dz) in enumerate(((-8.0, -6.0), (8.0, -6.0), (8.0, 6.0), (-8.0, 6.0))):
+                b.add(f"face{side}{i:02d}_p{k}", face.name, o + [dx * MM, 0, dz * MM], nrm, level=0.0)
+    return b.plan(art.name, clearance_m, overshoot_m)
 
 
 def _sphere_points(b, feat, elevations_deg=(0.0,), azimuths=((0, 90, 180, 270),), level=2000.0):
