@@ -1007,7 +1007,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # touches (outliers) after them, as data set aside rather than a cause
     findings.sort(key=lambda f: (f.cause == causes_mod.OUTLIER, -f.evidence.get("explained_ss_um2", 0.0)))
     tick()
-    wp, ident, Gb, Ge, cGb, cGe = _workpiece(bl, terms, y, rows, st0, st)
+    wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family)
     res_e = np.full(N, np.nan)
     res_e[rows] = st.r
     conv = list(bl.conventions) + [
@@ -1023,6 +1023,15 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     "spans exactly; U95 from the penalised fit's covariance s^2 (A^T A + P)^-1 (the Bayesian "
                     "covariance of a penalised spline, Wahba 1983); an estimate only where the data alone "
                     "determine it")
+    if shift is not None:
+        for f in findings:
+            if f.cause == causes_mod.UNEXPLAINED and "smooth" in f.evidence:
+                f.evidence["workpiece_shift"] = _clean(shift)
+        conv.append(f"the unnamed smooth moves the workpiece by {shift['shift_rms_um']:.3g} um RMS (form only), "
+                    f"{fmt_p(shift['p'])} against its own scatter: " + (
+                        "real, and the split of an unnamed effect between machine and part is the smooth's "
+                        "assumption: the extended U95 carries the shift (u = |shift| / 2 per target)"
+                        if shift["carried_in_u95"] else "within the noise the extended U95 already carries"))
     lost = [w["target"] for w in wp if w["baseline_um"] is not None and w["extended_um"] is None]
     if lost:
         conv.append(f"extended workpiece not reported at {len(lost)} target(s) (e.g. {lost[0]}): the data alone "
@@ -1662,10 +1671,14 @@ def _unexplained_only(diag, structure, st, sigma, settings) -> Finding:
         "explained_ss_um2": (top.explained_rms_um ** 2 * st.dof) if top else 0.0}), {}, {}, st.sigma / UM, "unknown")
 
 
-def _workpiece(bl: Baseline, terms, y, rows, st0, st):
+def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
     """Estimand per id for the baseline and the extended model, with U95 (k = 2).
 
-    Returns (rows of the report, identifiable, G_b, G_e, cov_b, cov_e).
+    Beside an unnamed smooth the extended U95 carries the workpiece shift
+    the smooth makes when the data say it is real (:func:`_unnamed_shift`).
+
+    Returns (rows of the report, identifiable, G_b, G_e, cov_b, cov_e, shift),
+    ``shift`` the test's figures (None without an unnamed smooth).
     """
     q = bl.estimand
     A0 = bl.A
@@ -1689,11 +1702,13 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st):
             o += k
         C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen)
     ge, ce, ee = _constrained(A1, y, C1, d1, rows, P, E.shape[1])
+    shift = None
     if P is not None:
         # the penalty's ridge rows make every parameter formally estimable:
         # the extended workpiece is an estimate only where the data alone
         # determine it (else the penalty's strength, not the campaign, decides)
         ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
+        ce, shift = _unnamed_shift(bl, A0, A1, y, C1, d1, rows, P, E.shape[1], gb, ge, ce, eb & ee[:len(eb)], alpha)
     out = []
     for i, tid in enumerate(bl.estimand_ids):
         j = q[i]
@@ -1704,7 +1719,64 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st):
                     "extended_u95_um": float(2 * np.sqrt(max(ce[j, j], 0))) / UM if ee[j] else None})
     ident = bool(np.all(eb[q]) and np.all(ee[q]))
     return (out, ident, np.where(eb[q], gb[q], np.nan), np.where(ee[q], ge[q], np.nan),
-            cb[np.ix_(q, q)], ce[np.ix_(q, q)])
+            cb[np.ix_(q, q)], ce[np.ix_(q, q)], shift)
+
+
+def _unnamed_shift(bl, A0, A1, y, C1, d1, rows, P, k_ext, gb, ge, ce, est, alpha):
+    """The workpiece shift an unnamed smooth makes, its test, and the extended covariance that carries it.
+
+    An unnamed smooth has no physics: how the unknown effect splits between
+    the machine, the probe and the part is the smooth's form, not a
+    measurement (a named cause books its effect by its model). Its shift
+    ``D = G_e - G_b`` of the workpiece (what self-calibration can see: the
+    part's translation, rotation, scale and size removed, eqs 16-17) is
+    tested against its own covariance ``s^2 (L_e - L_b)(L_e - L_b)^T``
+    (both estimates are linear in the data, ``G = L y``; the test of
+    Hausman 1978 for two estimators of one quantity), chi-square at
+    ``alpha``. A shift the data do not support is noise, already in the
+    extended U95. A real one says the effect moves the workpiece by as much
+    as the smooth's assumed split: that split is a systematic component of
+    the extended workpiece's uncertainty, added as ``D D^T / 4`` (fully
+    correlated, ``u = |D| / 2`` per target: the U95, k = 2, reaches the
+    baseline's answer at each target).
+
+    Returns (cov_e, figures): the covariance of all parameters (only the
+    estimand block changed) and a JSON-friendly dict of the test.
+    """
+    q = np.unique(bl.estimand)
+    q = q[est[q]]
+    if q.size == 0:
+        return ce, None
+    n = bl.n
+    _, _, _, Lb, _ = _constrained(A0, y, bl.C, bl.d, np.arange(n), None, 0, linear_map=True)
+    _, _, _, Le, s2 = _constrained(A1, y, C1, d1, rows, P, k_ext, linear_map=True)
+    Le_n = np.zeros((Le.shape[0], n))
+    Le_n[:, rows] = Le
+    L = Le_n[q] - Lb[q]
+    D = ge[q] - gb[q]
+    if getattr(bl, "geometry", None) is not None:
+        Pw, Nw = bl.geometry
+        idx = {j: i for i, j in enumerate(bl.estimand)}  # geometry rows follow the estimand ids
+        Gq = selfcal.workpiece_gauge_basis(Pw[[idx[j] for j in q]], Nw[[idx[j] for j in q]])
+        Qg = orth(Gq)
+        proj = np.eye(q.size) - Qg @ Qg.T
+    else:
+        proj = np.eye(q.size)
+    Dv, Lv = proj @ D, proj @ L
+    U, sv, _ = np.linalg.svd(Lv, full_matrices=False)
+    good = sv > 1e-9 * sv.max(initial=0.0)
+    r = int(good.sum())
+    z = (U[:, good].T @ Dv) / sv[good]
+    chi2 = float(z @ z) / max(s2, 1e-300) if r else 0.0
+    p_val = float(stats.chi2.sf(chi2, r)) if r else 1.0
+    real = p_val < alpha
+    fig = {"shift_rms_um": float(np.sqrt(np.mean(Dv ** 2))) / UM, "chi2": chi2, "dof": r, "p": p_val,
+           "alpha": alpha, "carried_in_u95": bool(real)}
+    if not real:
+        return ce, fig
+    ce = ce.copy()
+    ce[np.ix_(q, q)] += np.outer(D, D) / 4.0
+    return ce, fig
 
 
 def _smooth_gauge(A, C, d, rows, pen):
@@ -1742,13 +1814,15 @@ def _smooth_gauge(A, C, d, rows, pen):
     return np.vstack([C, rows_K]), np.concatenate([d, np.zeros(K.shape[0])])
 
 
-def _constrained(A, y, C, d, rows, penalty, k_ext):
+def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
     """Gauge-constrained least squares with covariance and per-parameter estimability.
 
     Null-space method: ``theta = theta0 + Z phi`` with ``C theta = d``;
     ``phi`` by the pseudo-inverse of the column-scaled ``A Z`` (plus the
     ridge rows of a penalised term). A parameter is estimable when no
     direction the data cannot see moves it. sigma from the residuals.
+    With ``linear_map`` also ``L`` (p, len(rows)), ``theta = theta0 + L y[rows]``
+    (the estimate is linear in the data, penalised or not), and ``s^2``.
     """
     Ar = A[rows]
     yr = y[rows]
@@ -1783,4 +1857,6 @@ def _constrained(A, y, C, d, rows, penalty, k_ext):
         est = np.linalg.norm(Qn, axis=1) < 1e-6
     else:
         est = np.ones(p, bool)
+    if linear_map:
+        return theta, cov, est, T @ U[:len(rows), good].T, s2
     return theta, cov, est
