@@ -1000,7 +1000,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
     if outliers.size:
-        findings.append(_outlier_finding(bl, outliers, st0, st))
+        findings.append(_outlier_finding(bl, outliers, st0, st, ranks, events, outlier_seed, settings.alpha))
     if not findings and structure_b["present"]:
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
     # best first: the systematic findings by what they explain; removed
@@ -1648,12 +1648,37 @@ def _clean(d):
     return d
 
 
-def _outlier_finding(bl, outliers, st0, st) -> Finding:
+def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha) -> Finding:
+    """The outliers as a finding, with how confidently they are dust.
+
+    Calling touches outliers says they are dust: a chip or a bad trigger,
+    with no memory, falling at random over every covariate. An intermittent
+    mechanism (a probe seat that re-seats after reversals, a clamp that
+    slips) also leaves a few large residuals; only where they fall tells
+    the two apart. So the finding is ``named`` (confident) only when that
+    test could have seen a pattern and saw none: at least two independent
+    events (one touch, or one set-up's touches, cannot show a pattern), and
+    the concentration p-value (:func:`concentration_p`) at least the
+    engine's overall false-alarm rate ``alpha``, not only the family level
+    that decides the removal. Otherwise ``ambiguous``, with the reason.
+    """
     r0 = st0.r[outliers]
     ss = float(np.sum(r0 ** 2))
+    ev = np.asarray(events)[outliers]
+    ev = np.where(ev >= 0, ev, -1 - np.arange(len(outliers)))
+    first = [outliers[i] for i in sorted(np.unique(ev, return_index=True)[1])]
+    if len(first) < 2 or ranks.shape[1] == 0:
+        p_conc, why = None, ("one event (a touch, or one set-up's touches) cannot show whether it is dust or an "
+                             "intermittent mechanism" if len(first) < 2 else "no covariate to test the pattern in")
+    else:
+        p_conc = concentration_p(ranks, first, np.random.default_rng(seed))
+        why = (None if p_conc >= alpha else
+               f"the outliers gather in a covariate (concentration {fmt_p(p_conc)}, below the overall "
+               f"false-alarm rate {alpha:g}): they may be an intermittent mechanism, not dust")
     return Finding(causes_mod.OUTLIER, {
         "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) / UM for v in r0],
-        "explained_ss_um2": ss / UM ** 2,
+        "explained_ss_um2": ss / UM ** 2, "events": len(first), "concentration_p": p_conc,
+        "confidence": "ambiguous" if why else "named", **({"confidence_reason": why} if why else {}),
         "test": "studentized deleted residual beyond the Bonferroni t bound"},
         {"n_outliers": int(len(outliers)), "max_deviation_um": float(np.max(np.abs(r0))) / UM},
         {"max_deviation_um": None}, st.sigma / UM, "data")
