@@ -191,10 +191,14 @@ def test_outliers_are_confidently_dust_only_when_their_pattern_could_be_seen():
     for rows, conf in (([7, 150, 300], "named"), ([150], "ambiguous")):
         dq = t.dq_m.copy()
         dq[rows] += 6e-6
-        f = discover(dataclasses.replace(t, p_R=t.pn_R + dq[:, None] * t.n_R)).to_report()["findings"][0]
+        rep = discover(dataclasses.replace(t, p_R=t.pn_R + dq[:, None] * t.n_R)).to_report()
+        f = rep["findings"][0]
         assert f["cause"] == "outlier" and f["evidence"]["events"] == len(rows)
         assert f["evidence"]["confidence"] == conf, f["evidence"]
     assert f["evidence"]["confidence_reason"].startswith("one event")
+    from scenarios.cli.discover import summary_lines  # the CLI says why
+
+    assert any(ln.startswith("finding    outlier (ambiguous: one event") for ln in summary_lines(rep))
 
 
 def test_too_many_outliers_are_structure_not_dust():
