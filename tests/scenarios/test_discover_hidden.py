@@ -204,10 +204,8 @@ def test_a_real_shift_by_an_unnamed_smooth_is_in_the_u95():
 
 #: Out-of-catalogue campaigns once named with full confidence by a wrong catalogue cause, now reported with
 #: the name flagged ``ambiguous`` (the confidence rules of core.discover's step 8, not a threshold):
-#: - gen_a reseat_hysteresis 502: one outlier of 5 um (one event cannot tell a chip from a seat);
-#: - gen_b stylus_pickup 501: thermal_drift whose offset and scale changes (15 um, -123 ppm) cancel to
-#:   0.34 um RMS on a combination inflated 1,551 times.
-NOW_AMBIGUOUS = [("gen_a", "reseat_hysteresis", 502, "outlier"), ("gen_b", "stylus_pickup", 501, "thermal_drift")]
+#: - gen_a reseat_hysteresis 502: one outlier of 5 um (one event cannot tell a chip from a seat).
+NOW_AMBIGUOUS = [("gen_a", "reseat_hysteresis", 502, "outlier")]
 
 
 @pytest.mark.parametrize("gen, effect, seed, cause", NOW_AMBIGUOUS)
