@@ -1726,7 +1726,7 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
     """
     q = bl.estimand
     A0 = bl.A
-    gb, cb, eb = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0)
+    gb, cb, eb, Lb, _ = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=True)
     # a named cause enters with the combinations the data determine (its map)
     E = np.hstack([t.columns @ t.map if t.map is not None else t.columns for t in terms]) if terms \
         else np.zeros((bl.n, 0))
@@ -1745,14 +1745,14 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
                 pen[o:o + k] = True
             o += k
         C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen)
-    ge, ce, ee = _constrained(A1, y, C1, d1, rows, P, E.shape[1])
+    ge, ce, ee, Le, s2e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=True)
     shift = None
     if P is not None:
         # the penalty's ridge rows make every parameter formally estimable:
         # the extended workpiece is an estimate only where the data alone
         # determine it (else the penalty's strength, not the campaign, decides)
         ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
-        ce, shift = _unnamed_shift(bl, A0, A1, y, C1, d1, rows, P, E.shape[1], gb, ge, ce, eb & ee[:len(eb)], alpha)
+        ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, Lb, Le, s2e, eb & ee[:len(eb)], alpha)
     out = []
     for i, tid in enumerate(bl.estimand_ids):
         j = q[i]
@@ -1766,7 +1766,7 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
             cb[np.ix_(q, q)], ce[np.ix_(q, q)], shift)
 
 
-def _unnamed_shift(bl, A0, A1, y, C1, d1, rows, P, k_ext, gb, ge, ce, est, alpha):
+def _unnamed_shift(bl, rows, gb, ge, ce, Lb, Le, s2, est, alpha):
     """The workpiece shift an unnamed smooth makes, its test, and the extended covariance that carries it.
 
     An unnamed smooth has no physics: how the unknown effect splits between
@@ -1784,16 +1784,17 @@ def _unnamed_shift(bl, A0, A1, y, C1, d1, rows, P, k_ext, gb, ge, ce, est, alpha
     correlated, ``u = |D| / 2`` per target: the U95, k = 2, reaches the
     baseline's answer at each target).
 
-    Returns (cov_e, figures): the covariance of all parameters (only the
-    estimand block changed) and a JSON-friendly dict of the test.
+    ``Lb`` (p, n) and ``Le`` (p, len(rows)) map the data to the baseline's
+    and the extended parameters (:func:`_constrained`), ``s2`` the extended
+    fit's residual variance. Returns (cov_e, figures): the covariance of all
+    parameters (only the estimand block changed) and a JSON-friendly dict of
+    the test.
     """
     q = np.unique(bl.estimand)
     q = q[est[q]]
     if q.size == 0:
         return ce, None
     n = bl.n
-    _, _, _, Lb, _ = _constrained(A0, y, bl.C, bl.d, np.arange(n), None, 0, linear_map=True)
-    _, _, _, Le, s2 = _constrained(A1, y, C1, d1, rows, P, k_ext, linear_map=True)
     Le_n = np.zeros((Le.shape[0], n))
     Le_n[:, rows] = Le
     L = Le_n[q] - Lb[q]
