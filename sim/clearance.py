@@ -375,12 +375,14 @@ class Clearance:
         close = self.bound(q_R, np.arange(len(q_R)), pair, enough=MARGIN_M) <= MARGIN_M
         return np.unique(idx[close])
 
-    def fixed_bound_grid(self, p_R: np.ndarray) -> np.ndarray:
-        """(n, pairs): the bound of every pair at every tip ``p_R`` (n,3) on the pairs' fixed
-        axes only (:meth:`bound` with ``enough=-inf``, without its row gathers)."""
+    def fixed_bound_grid(self, p_R: np.ndarray, pairs: np.ndarray | None = None) -> np.ndarray:
+        """(n, pairs): the bound of each pair of ``pairs`` (default: every pair) at every tip
+        ``p_R`` (n,3) on the pairs' fixed axes only (:meth:`bound` with ``enough=-inf``,
+        without its row gathers)."""
         p = self.to_frame(p_R)
-        U, E = self._axes(np.arange(len(self.pair_probe)))
-        d = self._d0[None, :, :] + p[:, None, :]  # (n, pairs, 3)
+        pairs = np.arange(len(self.pair_probe)) if pairs is None else np.asarray(pairs, int)
+        U, E = self._axes(pairs)
+        d = self._d0[pairs][None, :, :] + p[:, None, :]  # (n, pairs, 3)
         s = d[:, :, None, 0] * U[None, :, :, 0] + d[:, :, None, 1] * U[None, :, :, 1] + d[:, :, None, 2] * U[None, :, :, 2]
         return np.max(np.abs(s) - E[None], axis=2)
 
@@ -572,7 +574,14 @@ def path_segments(polylines, steps_m, joints: bool) -> Segments:
     joints : bool
     """
     n_pt = np.fromiter(map(len, polylines), int, len(polylines))
-    P = np.concatenate(polylines, dtype=float).reshape(-1, 3)
+    return flat_path_segments(np.concatenate(polylines, dtype=float).reshape(-1, 3), n_pt, steps_m, joints)
+
+
+def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -> Segments:
+    """:func:`path_segments` of polylines given as one array: ``P`` (sum n_pt, 3) holds the
+    points of polyline 0, then 1, ...; ``n_pt`` (polylines,) int >= 2 their counts."""
+    P = np.asarray(P, float)
+    n_pt = np.asarray(n_pt, int)
     first = np.cumsum(n_pt) - n_pt
     starts = np.ones(len(P), bool)
     starts[first + n_pt - 1] = False
