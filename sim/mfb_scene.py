@@ -429,10 +429,13 @@ class WorkZone:
 
         # the result is min(distmax, every triple's distance) as in the reference: a triple is
         # left out only when a lower bound of its distance exceeds a distance already found by
-        # more than the margin (MuJoCo's distances err by far less). The fixed axes' bound of
-        # every triple; in its increasing order, chunks of triples get the full bound and MuJoCo
-        # in the full bound's order, while the chunk's fixed-axes bound may still be nearer
-        lb0 = clr.fixed_bound_grid(tips, hp).ravel()  # rows (tip, pair) as i, pair
+        # more than the margin (MuJoCo's distances err by far less). The bound of the geoms'
+        # boxes of every triple; in its increasing order, chunks of triples get the full bound
+        # and MuJoCo in the full bound's order, while the chunk's box bound may still be nearer
+        # (a triple whose boxes lie farther than distmax cannot lower min(distmax, ...))
+        lb0 = clr.box_bound(tips, hp).ravel()  # rows (tip, pair) as i, pair
+        near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
+        i, pair, lb0 = i[near], pair[near], lb0[near]
         order = np.argsort(lb0, kind="stable")
         pos = 0
         while pos < len(order) and lb0[order[pos]] <= best + MARGIN_M:
