@@ -197,6 +197,12 @@ class Clearance:
         ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
         self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
         self._ccount = np.diff(np.r_[self._cstart, len(ck)])
+        # features as numbers (-2: none); each cluster's feature when it is the ball's (the
+        # clusters a touch of that feature may meet), else -1
+        self._fid = {f: k for k, f in enumerate(dict.fromkeys(f for f in self.feature if f))}
+        first = self._cstart
+        fid = np.fromiter((self._fid.get(f, -1) for f in self.feature[self.pair_table[first]]), int, len(first))
+        self._cballf = np.where(self.pair_probe[first] == self.ball, fid, -1)
         self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
         self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
 
@@ -254,11 +260,14 @@ class Clearance:
         ok = _overlap(q, q, self._lo[pair], self._hi[pair])
         return i[ok], pair[ok]
 
-    def _box_pairs(self, s_lo: np.ndarray, s_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _box_pairs(self, s_lo: np.ndarray, s_hi: np.ndarray, allow: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
         """(box index, pair index) of every pair in collision range of a tip somewhere in the
         boxes ``[s_lo, s_hi]`` (s,3): runs of :data:`_BLOCK` consecutive boxes (a path's
         neighbouring segments) against clusters, then each box against the clusters it
-        may meet, then against the clusters' pairs; each level a superset of the next."""
+        may meet, then against the clusters' pairs; each level a superset of the next.
+        ``allow`` (s,) int: per box, the feature (:meth:`feature_ids`) the ball may touch:
+        the ball's pairs with its geoms are left out (a cluster is one feature's geoms)."""
         n = len(s_lo)
         cut = np.arange(0, n, _BLOCK)
         b_lo, b_hi = np.minimum.reduceat(s_lo, cut, axis=0), np.maximum.reduceat(s_hi, cut, axis=0)
@@ -270,6 +279,8 @@ class Clearance:
         k, seg = _expand(cut[blk], np.minimum(_BLOCK, n - cut[blk]))
         cp = cp[k]
         ok = _overlap(s_lo[seg], s_hi[seg], self._clo[cp], self._chi[cp])
+        if allow is not None:
+            ok &= self._cballf[cp] != allow[seg]
         seg, cp = seg[ok], cp[ok]
         # -> (segment, pair) for the cluster's member geoms
         k, pair = _expand(self._cstart[cp], self._ccount[cp])
@@ -314,6 +325,12 @@ class Clearance:
             out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
         return out
 
+    def feature_ids(self, features) -> np.ndarray:
+        """(k,) int: the table features ``features`` (k,) of str as numbers (-2: "" or none of
+        the table's), the same for this broad phase and its moved copies."""
+        f = np.asarray(features, dtype=object).ravel()
+        return np.fromiter((self._fid.get(x, -2) if x else -2 for x in f), int, len(f))
+
     def near_segments(self, sg: "Segments", allow_feature=None) -> np.ndarray:
         """Sorted sample numbers of ``sg`` where some probe/table pair may be closer than :data:`MARGIN_M`.
 
@@ -337,8 +354,7 @@ class Clearance:
         """
         a, b = self.to_frame(sg.a), self.to_frame(sg.b)
         n = len(a)
-        allow_seg = (np.full(n, "", dtype=object) if allow_feature is None
-                     else np.asarray(allow_feature, dtype=object)[sg.path])
+        allow_seg = np.full(n, -2) if allow_feature is None else self.feature_ids(allow_feature)[sg.path]
         r = np.full(n, -np.inf)  # the certificate of this call
         r_old, moved = self._certs.lookup(a, b, allow_seg)
         ok = moved < r_old
@@ -346,15 +362,12 @@ class Clearance:
         todo = np.flatnonzero(~ok)
         if todo.size:
             pad = self.cert_pad_m
-            seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - pad, np.maximum(a[todo], b[todo]) + pad)
+            seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - pad, np.maximum(a[todo], b[todo]) + pad,
+                                        allow_seg[todo])
             seg = todo[seg]
             r[todo] = pad
         else:
             seg = pair = np.zeros(0, int)
-        if seg.size:
-            f = self.feature[self.pair_table[pair]]
-            keep = ~((self.pair_probe[pair] == self.ball) & (f != "") & (f == allow_seg[seg]))
-            seg, pair = seg[keep], pair[keep]
         lb = self._swept(a[seg], b[seg], pair) if seg.size else np.zeros(0)
         np.minimum.at(r, seg, lb - MARGIN_M)
         if self.cert_pad_m > 0:  # the segments bounded here (the others' certificates are derived)
@@ -454,7 +467,10 @@ class _Certificates:
 
     def _key(self, a, b, allow) -> np.ndarray:
         """(n,) void: the grid cell of each segment and its allowed feature, as bytes."""
-        f = np.fromiter((self._ids.setdefault(x, len(self._ids)) for x in allow), np.int64, len(allow))
+        if np.issubdtype(np.asarray(allow).dtype, np.integer):  # features as numbers already
+            f = np.asarray(allow, np.int64)
+        else:
+            f = np.fromiter((self._ids.setdefault(x, len(self._ids)) for x in allow), np.int64, len(allow))
         k = np.column_stack([np.round(np.column_stack([a, b]) / _CERT_GRID_M).astype(np.int64), f])
         return np.ascontiguousarray(k).view(np.dtype((np.void, 8 * 7))).ravel()
 

@@ -248,8 +248,8 @@ def test_certificates_across_placements_agree_with_every_sample_check(monkeypatc
     z_top = T0[2, 3] + probe.stylus_r_m
     boxes = [0]
     real = Clearance._box_pairs
-    monkeypatch.setattr(Clearance, "_box_pairs", lambda self, a, b: boxes.__setitem__(0, boxes[0] + len(a))
-                        or real(self, a, b))
+    monkeypatch.setattr(Clearance, "_box_pairs", lambda self, a, *r: boxes.__setitem__(0, boxes[0] + len(a))
+                        or real(self, a, *r))
     changed = reused = 0
     for trial in range(10):
         n = 4
@@ -400,9 +400,9 @@ def test_certificates_clear_exactly_their_radius():
     calls = []
     real = Clearance._box_pairs
 
-    def counted(self, lo, hi):
+    def counted(self, lo, *rest):
         calls.append(len(lo))
-        return real(self, lo, hi)
+        return real(self, lo, *rest)
 
     for dz_a, dz_b, want_near in ((0.19e-3, 0.19e-3, False), (0.21e-3, 0.21e-3, True),
                                   (0.45e-3, 0.45e-3, True), (0.45e-3, 0.0, True), (0.0, 0.45e-3, True)):
