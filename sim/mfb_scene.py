@@ -138,13 +138,15 @@ def _solid_poses(art) -> list:
 @dataclass(frozen=True)
 class _Solids:
     """A bar's solids as table-side geoms of a work zone: MuJoCo type names, sizes (tuples
-    as the MJCF writes them, and (k,3) zero-padded), geom names, feature names."""
+    as the MJCF writes them, and (k,3) zero-padded), geom names, feature names, and the
+    solids that belong to the workholder (the bar's supports: ``holder``, indices)."""
 
     kinds: list
     sizes: list
     names: list
     features: list
     size3: np.ndarray
+    holder: list
 
 
 def _solid_table(art) -> _Solids:
@@ -162,7 +164,8 @@ def _solid_table(art) -> _Solids:
         size3 = np.zeros((len(sizes), 3))
         for j, sz in enumerate(sizes):
             size3[j, :len(sz)] = sz
-        hit = _SOLID_POSES[("table", id(art))] = (art, _Solids(kinds, sizes, names, feats, size3))
+        holder = [k for k, n in enumerate(names) if n.startswith(("fix_", "support__"))]
+        hit = _SOLID_POSES[("table", id(art))] = (art, _Solids(kinds, sizes, names, feats, size3, holder))
     return hit[1]
 
 
@@ -210,7 +213,8 @@ class WorkZone:
         self._tkind, self._tsize, self._tpose0 = kinds, sizes, poses  # (the solids' poses: _pose)
         self._T_W_A = T_W_A
         nt = len(names)
-        holder = [j for j, n in enumerate(names) if n == "table_disc" or n.startswith(("fix_", "support__"))]
+        n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
+        holder = list(range(n0)) + [n0 + k for k in sol.holder]
         self._probe_mjcf = probe_geoms_mjcf(J_m, stylus_r_m, finger_m)
         self._names = names
         # the holder's model (table disc, blocks, bar supports; the probe): MuJoCo's distances for
@@ -221,12 +225,14 @@ class WorkZone:
         npg = hm.ngeom - len(holder)
         # geom ids of the full model (compiled when MuJoCo first needs it, self.model): the table
         # body's geoms in order, then the spindle's
-        self._names = names + [hm.geom(len(holder) + j).name for j in range(npg)]  # + the probe's
+        pnames = [hm.geom(len(holder) + j).name for j in range(npg)]
+        self._names = names + pnames  # + the probe's
         self._table = list(range(nt))
         self._probe = list(range(nt, nt + npg))
         self._holder = holder
         self._feature = dict(enumerate(feats))
-        self._ball = self._names.index("ball")
+        self._feats = feats  # (the same, as a list)
+        self._ball = nt + pnames.index("ball")
         self._tq = hm.jnt_qposadr[hm.joint("table").id]
         self._sq = hm.jnt_qposadr[hm.joint("spindle").id]
         self._hprobe = list(range(len(holder), hm.ngeom))
@@ -368,7 +374,7 @@ class WorkZone:
         if hit is None:
             P = Geoms(probe.centre @ R.T, R @ probe.axes, probe.kind, probe.size, probe.rbound)  # axes of W
             hit = self._clr[key] = Clearance(P, self.table_geoms(in_W=True),
-                                             [self._feature.get(i, "") for i in self._table], ball, T_F_R=T_W_R)
+                                             self._feats, ball, T_F_R=T_W_R)
         elif not np.array_equal(hit.T_F_R, T_W_R):
             hit = self._clr[key] = hit.moved(T_W_R)
         return hit
