@@ -43,6 +43,7 @@ placement of the artefact turned the same way); tips are always given in R
 from __future__ import annotations
 
 import copy
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -201,7 +202,8 @@ class Clearance:
         # clusters a touch of that feature may meet), else -1
         self._fid = {f: k for k, f in enumerate(dict.fromkeys(f for f in self.feature if f))}
         first = self._cstart
-        fid = np.fromiter((self._fid.get(f, -1) for f in self.feature[self.pair_table[first]]), int, len(first))
+        fid = np.fromiter(map(self._fid.get, self.feature[self.pair_table[first]], itertools.repeat(-1)), int,
+                          len(first))
         self._cballf = np.where(self.pair_probe[first] == self.ball, fid, -1)
         self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
         self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
@@ -329,7 +331,7 @@ class Clearance:
         """(k,) int: the table features ``features`` (k,) of str as numbers (-2: "" or none of
         the table's), the same for this broad phase and its moved copies."""
         f = np.asarray(features, dtype=object).ravel()
-        return np.fromiter((self._fid.get(x, -2) if x else -2 for x in f), int, len(f))
+        return np.fromiter(map(self._fid.get, f, itertools.repeat(-2)), int, len(f))  # ("" is no key)
 
     def near_segments(self, sg: "Segments", allow_feature=None) -> np.ndarray:
         """Sorted sample numbers of ``sg`` where some probe/table pair may be closer than :data:`MARGIN_M`.

@@ -461,10 +461,11 @@ def check_touch_paths(scene: Scene, setup: str, targets, features, links, approa
     # the polylines in the order checked: per touch its link move (if it has one), then its
     # approach/retract path; all their points in one array
     try:  # (a campaign's links are all arrays: their lengths in one pass)
-        has = np.fromiter(map(len, links), int, n) > 1
+        lens = np.fromiter(map(len, links), int, n)
     except TypeError:  # some None
-        has = np.fromiter((ln is not None and len(ln) > 1 for ln in links), bool, n)
-    cnt = np.fromiter((len(links[i]) for i in np.flatnonzero(has)), int)
+        lens = np.fromiter((0 if ln is None else len(ln) for ln in links), int, n)
+    has = lens > 1
+    cnt = lens[has]
     app = np.arange(n) + np.cumsum(has)  # each approach's polyline; its link (if any) just before
     n_pt = np.full(n + int(has.sum()), 2)
     n_pt[app[has] - 1] = cnt
@@ -473,7 +474,8 @@ def check_touch_paths(scene: Scene, setup: str, targets, features, links, approa
     P[first[app]], P[first[app] + 1] = approach[:, 0], approach[:, 1]
     if cnt.size:
         into = np.repeat(first[app[has] - 1] - (np.cumsum(cnt) - cnt), cnt) + np.arange(int(cnt.sum()))
-        P[into] = np.concatenate([links[i] for i in np.flatnonzero(has)], dtype=float).reshape(-1, 3)
+        used = links if has.all() else [links[i] for i in np.flatnonzero(has)]
+        P[into] = np.concatenate(used, dtype=float).reshape(-1, 3)
     key = _paths_key(scene, features, has, n_pt, P, link_step_m, approach_step_m)
     if key in _PASSED:
         return
