@@ -357,11 +357,9 @@ class Clearance:
         a, b = self.to_frame(sg.a), self.to_frame(sg.b)
         n = len(a)
         allow_seg = np.full(n, -2) if allow_feature is None else self.feature_ids(allow_feature)[sg.path]
-        r = np.full(n, -np.inf)  # the certificate of this call
+        r = np.full(n, -np.inf)  # the certificates this call leaves
         r_old, moved = self._certs.lookup(a, b, allow_seg)
-        ok = moved < r_old
-        r[ok] = r_old[ok] - moved[ok]
-        todo = np.flatnonzero(~ok)
+        todo = np.flatnonzero(~(moved < r_old))  # the segments no certificate clears
         if todo.size:
             pad = self.cert_pad_m
             seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - pad, np.maximum(a[todo], b[todo]) + pad,
@@ -372,7 +370,7 @@ class Clearance:
             seg = pair = np.zeros(0, int)
         lb = self._swept(a[seg], b[seg], pair) if seg.size else np.zeros(0)
         np.minimum.at(r, seg, lb - MARGIN_M)
-        if self.cert_pad_m > 0:  # the segments bounded here (the others' certificates are derived)
+        if self.cert_pad_m > 0:  # the segments bounded here (the others are covered by the old ones)
             self._certs.add(a[todo], b[todo], allow_seg[todo], r[todo])
         open_ = lb <= MARGIN_M
         seg, pair = seg[open_], pair[open_]

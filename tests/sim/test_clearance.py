@@ -528,3 +528,65 @@ def test_one_work_zone_at_many_table_poses_agrees_with_every_sample_check(J_m, f
         assert new == old, (A_deg, C_deg)
         n_bad += bool(new.collisions)
     assert n_bad >= 2
+
+
+def _same_segments(got, want):
+    for f in ("a", "b", "k", "m", "first", "path"):
+        assert np.array_equal(getattr(got, f), getattr(want, f)), f
+
+
+def test_measurement_paths_are_the_polylines_checked_one_by_one():
+    """check_measurement's polylines built in one array (sim.mfb_scene._touch_paths) are the ones
+    the list-of-polylines version built: per touch the link into its start (none for the first,
+    allowed feature none), then its approach (the touched feature allowed); the same segments,
+    bit for bit, the same touch and allowed feature per polyline."""
+    from sim.clearance import path_segments
+    from sim.mfb_scene import _touch_paths, link_paths
+
+    for holes, (A_deg, C_deg) in (((3, 4, 5), (0, 0)), ((1,), (-90, 45)), ((10, 11), (-45, 120))):
+        pl = _holes(*holes)
+        T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
+        Xn = A.apply_T(T_R_A, pl.w_A + R * pl.wn_A)
+        start = Xn + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)
+        top = 0.021
+        for n in (pl.n, 1, 2):
+            sub = pl.select(np.arange(n))
+            links = link_paths(T_R_A, start[:n], sub.feature, sub.level, top)
+            paths = []
+            for i in range(n):
+                if links[i] is not None:
+                    paths.append((i, links[i], 3e-3, ""))
+                paths.append((i, np.array([start[i], Xn[i]]), 0.5e-3, sub.feature[i]))
+            want = path_segments([p[1] for p in paths], [p[2] for p in paths], joints=False)
+            sg, touch, allow = _touch_paths(T_R_A, start[:n], Xn[:n], sub, top, 3e-3, 0.5e-3)
+            _same_segments(sg, want)
+            assert touch.tolist() == [p[0] for p in paths] and allow.tolist() == [p[3] for p in paths]
+
+
+def test_campaign_paths_are_the_polylines_checked_one_by_one(monkeypatch):
+    """check_touch_paths' polylines in one array are those of the list-of-polylines version: per
+    touch its link (when it has one of two points or more; none allowed), then its approach (its
+    feature allowed); the same segments bit for bit, as sim.clearance receives them."""
+    from sim import scene as S
+    from sim.clearance import Clearance, path_segments
+
+    seen = []
+    monkeypatch.setattr(Clearance, "near_segments", lambda self, sg, allow: seen.append((sg, list(allow))) or
+                        np.zeros(0, int))
+    art = A.cross_pocket()
+    scene = Scene(art, ProbeConfig())
+    rng = np.random.default_rng(9)
+    for links in ([None, np.zeros((1, 3)), rng.normal(0, 0.05, (3, 3)), rng.normal(0, 0.05, (2, 3))],
+                  [rng.normal(0, 0.05, (k, 3)) for k in (2, 4, 4, 3)]):
+        approach = rng.normal(0, 0.05, (4, 2, 3))
+        feats = ["pocket", "sphere1", "", "pocket"]
+        S._PASSED.clear()
+        seen.clear()
+        check_touch_paths(scene, "C0", ["a", "b", "c", "d"], feats, links, approach)
+        paths = []
+        for i in range(4):
+            if links[i] is not None and len(links[i]) > 1:
+                paths.append((links[i], 2e-3, ""))
+            paths.append((approach[i], 0.25e-3, feats[i]))
+        _same_segments(seen[0][0], path_segments([p[0] for p in paths], [p[1] for p in paths], joints=True))
+        assert seen[0][1] == [p[2] for p in paths]
