@@ -176,16 +176,10 @@ class Clearance:
                  cert_pad_m: float = CERT_PAD_M):
         self.probe, self.table, self.ball = probe, table, int(ball)
         self.cert_pad_m = float(cert_pad_m)
-        self.feature = np.asarray(table_feature, dtype=object)
         self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
         plo, phi = probe.aabb()
-        tlo, thi = table.aabb()
         ng, nh = len(probe.kind), len(table.kind)
-        # clusters of table geoms (one per feature, one per geom without): pairs sorted by
-        # (probe geom, cluster, table geom), with the union of each cluster's boxes
-        key = [f if f else f"#{j}" for j, f in enumerate(self.feature)]
-        _, cl = np.unique(np.array(key, dtype=object).astype(str), return_inverse=True)
-        h_order = np.lexsort((np.arange(nh), cl))
+        self.feature, tlo, thi, cl, h_order, self._fid = _table_prep(table, table_feature)
         self.pair_probe, self.pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
         # the tip p puts geom g in collision range of h only if p lies in this box
         self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
@@ -198,9 +192,8 @@ class Clearance:
         ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
         self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
         self._ccount = np.diff(np.r_[self._cstart, len(ck)])
-        # features as numbers (-2: none); each cluster's feature when it is the ball's (the
-        # clusters a touch of that feature may meet), else -1
-        self._fid = {f: k for k, f in enumerate(dict.fromkeys(f for f in self.feature if f))}
+        # each cluster's feature as a number (_fid) when it is the ball's (the clusters a touch
+        # of that feature may meet), else -1
         first = self._cstart
         fid = np.fromiter(map(self._fid.get, self.feature[self.pair_table[first]], itertools.repeat(-1)), int,
                           len(first))
@@ -444,6 +437,34 @@ class Clearance:
             close = self.bound(p, i, pair, enough=MARGIN_M) <= MARGIN_M
             out[i[close]] = True
         return out
+
+
+#: The table side's part of :class:`Clearance` (boxes, clusters, feature numbers) by table
+#: Geoms and feature list objects (kept in the entry, so their ids stay theirs): the work
+#: zones of one placement (sim.mfb_scene) share their table's geoms, whatever the probe.
+_TABLE_PREP: dict = {}
+
+
+def _table_prep(table: Geoms, table_feature):
+    """(feature (k,) object, tlo, thi (k,3), cluster (k,) int, geoms in cluster order (k,),
+    feature -> number) of a table side; computed once per (table, table_feature) objects."""
+    key = (id(table), id(table_feature))
+    hit = _TABLE_PREP.get(key)
+    if hit is not None and hit[0] is table and hit[1] is table_feature:
+        return hit[2]
+    feature = np.asarray(table_feature, dtype=object)
+    tlo, thi = table.aabb()
+    # clusters of table geoms (one per feature, one per geom without): pairs sorted by
+    # (probe geom, cluster, table geom), with the union of each cluster's boxes
+    k = [f if f else f"#{j}" for j, f in enumerate(feature)]
+    _, cl = np.unique(np.array(k, dtype=object).astype(str), return_inverse=True)
+    h_order = np.lexsort((np.arange(len(feature)), cl))
+    fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
+    if len(_TABLE_PREP) >= 16:
+        _TABLE_PREP.clear()
+    out = (feature, tlo, thi, cl, h_order, fid)
+    _TABLE_PREP[key] = (table, table_feature, out)
+    return out
 
 
 class _Certificates:

@@ -241,6 +241,8 @@ class WorkZone:
         self._clr = {}
         self._axisym = None  # the probe's geoms all on its z axis (clearance)
         self._probe_geoms = self._T_W_R = None  # (clearance)
+        #: what the work zones of this placement share (_work_zone): the table side's geoms in W
+        self._shared = {}
 
     def _pose(self, j: int) -> np.ndarray:
         """(4,4) pose in W of table-side geom j (a solid's: T_W_A times its pose on the bar)."""
@@ -373,8 +375,10 @@ class WorkZone:
         hit = self._clr.get(key)
         if hit is None:
             P = Geoms(probe.centre @ R.T, R @ probe.axes, probe.kind, probe.size, probe.rbound)  # axes of W
-            hit = self._clr[key] = Clearance(P, self.table_geoms(in_W=True),
-                                             self._feats, ball, T_F_R=T_W_R)
+            if "table_W" not in self._shared:  # (the same for every probe at this placement)
+                self._shared["table_W"], self._shared["features"] = self.table_geoms(in_W=True), self._feats
+            hit = self._clr[key] = Clearance(P, self._shared["table_W"], self._shared["features"], ball,
+                                             T_F_R=T_W_R)
         elif not np.array_equal(hit.T_F_R, T_W_R):
             hit = self._clr[key] = hit.moved(T_W_R)
         return hit
@@ -479,7 +483,13 @@ def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
     if hit is None or hit[0] is not artefact:
         if len(_ZONES) >= 64:
             _ZONES.clear()
-        hit = _ZONES[key] = (artefact, WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m))
+        wz = WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
+        pkey = ("placement",) + key[:3]  # the artefact, its pose, the blocks
+        place = _ZONES.get(pkey)
+        if place is None or place[0] is not artefact:
+            place = _ZONES[pkey] = (artefact, {})
+        wz._shared = place[1]
+        hit = _ZONES[key] = (artefact, wz)
     return hit[1]
 
 
