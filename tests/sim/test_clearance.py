@@ -487,8 +487,8 @@ def artefact_points_low():
 
 def test_least_holder_clearance_looks_past_loose_bounds():
     """Known answer: 108 tips 12 mm outside the table disc's rim, at half its thickness (the ball
-    9 mm from the rim; at oblique azimuths the fixed axes' bounds of those pairs are negative,
-    so they come first) and one tip with the ball 8 mm above the disc's face (its bound exact,
+    9 mm from the rim; at oblique azimuths they lie within the disc's bounding box, so the first
+    bounds of those pairs are at most 0 and they come first) and one tip with the ball 8 mm above the disc's face (its bound exact,
     8 mm, ranked after more than 64 loose rows). The least clearance is 8 mm, with the broad
     phase as without; a refinement that stops 5 mm short of the best distance found (9 mm) never
     reaches the 8 mm tip."""
