@@ -141,11 +141,15 @@ def _matmul_score(funcs: Callable, weights: np.ndarray):
 
     def score(r, rows):
         if not cache:
-            cache.append(funcs())
-        F = cache[0][rows]
+            F = funcs()
+            cache.append((F, F ** 2))
+        F, F2 = cache[0]
+        every = len(rows) == len(F) and np.array_equal(rows, np.arange(len(F)))
+        if not every:  # (every row: the table itself, not a copy of it)
+            F, F2 = F[rows], F2[rows]
         W = weights[rows]
         num = ((r[:, None] * W).T @ F) ** 2
-        den = (W ** 2).T @ (F ** 2)
+        den = (W ** 2).T @ F2
         return np.sum(num / np.maximum(den, 1e-300), axis=0)
     return score
 
@@ -740,7 +744,7 @@ def fixture_slip(bl) -> np.ndarray:
     d = bl.data
     t = d.touches
     M = np.column_stack([d.nx, d.ny, d.rot_m / max(d.L_m, 1e-9)])
-    out = []
+    masks = []
     for j in np.unique(t.setup):
         idx = np.flatnonzero(t.setup == j)
         idx = idx[np.argsort(t.t_s[idx], kind="stable")]
@@ -749,11 +753,13 @@ def fixture_slip(bl) -> np.ndarray:
         splits = np.arange(1, idx.size)
         if splits.size > SLIP_SPLITS:
             splits = np.unique(np.round(np.linspace(1, idx.size - 1, SLIP_SPLITS)).astype(int))
-        for s in splits:
-            m = np.zeros(t.n)
-            m[idx[s:]] = 1.0
-            out.append(M * m[:, None])
-    return np.array(out) if out else np.zeros((0, t.n, 3))
+        m = np.zeros((splits.size, t.n))  # (trials, n): 1 on the set-up's touches from each split on
+        after = np.arange(idx.size)[None, :] >= splits[:, None]
+        m[:, idx] = after
+        masks.append(m)
+    if not masks:
+        return np.zeros((0, t.n, 3))
+    return M[None, :, :] * np.concatenate(masks)[:, :, None]  # one product: the same values as trial by trial
 
 
 def finer_error_map(bl) -> np.ndarray:
