@@ -53,6 +53,7 @@ from typing import Callable
 
 import numpy as np
 
+from .diagnosis import screen_phasors
 from .units import MM, UM, URAD
 
 
@@ -328,9 +329,9 @@ def periodic_scans(bl):
         tries += span * (1 / p_lo - 1 / p_hi)
         ax = "XY"[axis]
 
-        def funcs(a=a, f=f):
-            ph = 2 * np.pi * a[:, None] * f[None, :]
-            return np.hstack([np.sin(ph), np.cos(ph)])
+        def funcs(a=a, f=f):  # the score's sines and cosines: it ranks trials, the columns tested are exact
+            Z = screen_phasors(2 * np.pi * a, f)
+            return np.hstack([Z.imag, Z.real])
 
         W = np.column_stack([-d.nx, -d.ny])
         base = _matmul_score(funcs, W)

@@ -380,15 +380,26 @@ def spectral_table(cov: Covariate):
     if f is None:
         return None
     w = 2 * np.pi * np.asarray(cov.values, float)
+    Z = screen_phasors(w, f)
+    return SpectralTable(Z, Z.imag ** 2, Z.real ** 2, f, w)
+
+
+def screen_phasors(w: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """(n, F) complex ``exp(i w f)`` on an evenly spaced ``f``, for ranking frequencies only.
+
+    Exact (``np.exp``) at every ``_BLOCK``-th frequency, rotations of it
+    by ``exp(i w df)`` between: within about ``_BLOCK * eps * |w f|`` of
+    the exact phasor (3e-13 on the campaigns seen), at a few complex
+    products per entry instead of a sine and a cosine. A pre-screen ranks
+    with it; every test uses exact columns.
+    """
     heads = np.arange(0, len(f), _BLOCK)
     E = np.exp(1j * (w[:, None] * f[heads][None, :]))  # (n, nb) exact at each block's first frequency
     step = f[1] - f[0] if len(f) > 1 else 0.0
     R = np.ones((len(w), _BLOCK), complex)  # exp(i w k step), k = 0 .. _BLOCK - 1
     R[:, 1:] = np.exp(1j * w * step)[:, None]
     R = np.cumprod(R, axis=1)
-    Z = (E[:, :, None] * R[:, None, :]).reshape(len(w), -1)[:, :len(f)]
-    Z = np.ascontiguousarray(Z)
-    return SpectralTable(Z, Z.imag ** 2, Z.real ** 2, f, w)
+    return np.ascontiguousarray((E[:, :, None] * R[:, None, :]).reshape(len(w), -1)[:, :len(f)])
 
 
 @dataclass(frozen=True)
