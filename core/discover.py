@@ -1490,7 +1490,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     return out
 
 
-def _alternatives(bl, tm: Term, named, Qb, y, rows, sigma, settings, bases) -> list:
+def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
     """Covariates of other families whose smooth term reproduces the cause's signal.
 
     The cause's signal is its contribution to the joint fit (its columns'
@@ -1502,7 +1502,7 @@ def _alternatives(bl, tm: Term, named, Qb, y, rows, sigma, settings, bases) -> l
     flagged as ambiguous.
     """
     fam = bl.covariate(tm.covariate).family if bl.covariate(tm.covariate) is not None else ""
-    so = _state(Qb, y, rows, [o for o in named if o is not tm])
+    rows = so.rows  # so: the model without the cause (the other named causes)
     E = tm.columns[rows]
     Ep = E - so.Q @ (so.Q.T @ E)
     c = np.linalg.lstsq(Ep, so.r, rcond=1e-12)[0]
@@ -1589,7 +1589,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         # what the cause explains beside the others (the rival check's own figure; its tests were made)
         explained = max(_named_ss(so, _state(Qb, y, rows, others + [tm]), sig), 0.0) / UM ** 2
         ev["explained_ss_um2"] = explained
-        alt = _alternatives(bl, tm, named, Qb, y, rows, sig, settings, bases)
+        alt = _alternatives(bl, tm, so, sig, settings, bases)
         ev["alternatives"] = alt
         ev["indistinguishable_from"] = [a["covariate"] for a in alt if a["indistinguishable"]]
         ev["confidence"] = "ambiguous" if ev["indistinguishable_from"] else "named"
