@@ -399,7 +399,7 @@ def screen_phasors(w: np.ndarray, f: np.ndarray) -> np.ndarray:
     R = np.ones((len(w), _BLOCK), complex)  # exp(i w k step), k = 0 .. _BLOCK - 1
     R[:, 1:] = np.exp(1j * w * step)[:, None]
     R = np.cumprod(R, axis=1)
-    return np.ascontiguousarray((E[:, :, None] * R[:, None, :]).reshape(len(w), -1)[:, :len(f)])
+    return (E[:, :, None] * R[:, None, :]).reshape(len(w), -1)[:, :len(f)]  # a view: products take its stride
 
 
 @dataclass(frozen=True)
