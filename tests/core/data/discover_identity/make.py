@@ -4,11 +4,15 @@ Run from the repository root with the engine whose reports are the
 reference (issue 19 item 6: main at 2a7a508, before discover's numerical
 kernels were rewritten):
 
-    python tests/core/data/discover_identity/make.py
+    python tests/core/data/discover_identity/make.py          # the reports, from the stored logs
+    python tests/core/data/discover_identity/make.py --logs   # the logs too (simulated, generated)
 
 Each campaign's probe log is kept (gzip CSV, the data contract's text), so
 the test reads the same touches whatever the simulator or the generators
 become; ``reports.json.gz`` holds ``discover(...).to_report()`` of each.
+A change meant to change discover's answers (a decision rule) rewrites
+the reports with the first command once it is reviewed; a change of its
+numerical kernels must leave them as they are.
 """
 
 from __future__ import annotations
@@ -72,8 +76,9 @@ def main() -> None:
 
     reports = {}
     for name, gen, effect, seed in CAMPAIGNS:
-        log = campaign_log(gen, effect, seed)
-        (HERE / f"{name}.csv.gz").write_bytes(gzip.compress(format_probe_log(log).encode(), mtime=0))
+        if "--logs" in sys.argv[1:]:
+            log = campaign_log(gen, effect, seed)
+            (HERE / f"{name}.csv.gz").write_bytes(gzip.compress(format_probe_log(log).encode(), mtime=0))
         reports[name] = report_of(read_log(name))  # from the stored text: what the test reads
         print(name, [f["cause"] for f in reports[name]["findings"]])
     (HERE / "reports.json.gz").write_bytes(gzip.compress(json.dumps(reports, sort_keys=True).encode(), mtime=0))
