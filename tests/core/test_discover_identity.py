@@ -13,7 +13,13 @@ equal, so every decision; every number equal to ``REL`` relative (or within
 the kernels re-associate sums (one matrix product for many columns, a
 projection factored once), which moves a well-determined number by about
 1e-15 relative; a changed formula, threshold or decision moves a number by
-far more than 1e-9 or changes a text.
+far more than 1e-9 or changes a text. The kernels rewritten so far
+(issue 19 item 6) give the stored reports byte for byte on this machine.
+The references come from one BLAS (OpenBLAS, Haswell kernels): a number
+whose term has a Gram eigenvalue just above the in-span threshold moves
+by up to about 1e-7 when a product is merely re-associated, so another
+BLAS may move it beyond REL; the failure names it, and make.py run with
+main's engine on that machine gives that machine's references.
 """
 
 from __future__ import annotations
