@@ -566,7 +566,11 @@ def bending_magnitudes(info, coef, bl):
 
 
 def _hann(u):
-    return np.where(np.abs(u) < 1, np.cos(np.pi * u / 2) ** 2, 0.0)
+    u = np.asarray(u, float)
+    out = np.zeros(u.shape)
+    on = np.abs(u) < 1  # the window's support only (the rest is zero): the same values as evaluating everywhere
+    out[on] = np.cos(np.pi * u[on] / 2) ** 2
+    return out
 
 
 def _defect_cols(d, axis: int, x0, w):
