@@ -195,12 +195,13 @@ def _vec(values, names, n) -> np.ndarray:
     return np.stack([_col(values, nm, n) for nm in names], axis=-1)
 
 
-def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = True):
+def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = True, J=None):
     """Factors (n,4,4) of one branch, bed outward, and their derivative twists.
 
     Returns factors, dsym {symbol: [(i, xi (n,6))]}, dax {axis: [(i, xi)]};
     xi = (v, w) is the left-perturbation twist of factor i per unit change
-    (empty when ``derivs`` is False: the poses only). Per axis: its location errors (:func:`_location_errors`), the rotation they
+    (empty when ``derivs`` is False: the poses only); ``J`` (n, 3): per-pose probe
+    offsets instead of ``geom.J_m`` (:func:`_probe_offsets`). Per axis: its location errors (:func:`_location_errors`), the rotation they
     leave relative to the axes below (:func:`_carried_rotation`), its motion
     errors (:func:`_motion_errors`), then the factors in chain order.
     """
@@ -254,7 +255,7 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = 
                 add(m.name, i, xi)
 
         if a in iso.LINEAR_AXES:
-            q = lin[:, ("X", "Y", "Z").index(a)] + geom.J_m[_E[a]]
+            q = lin[:, ("X", "Y", "Z").index(a)] + (geom.J_m[_E[a]] if J is None else J[:, _E[a]])
             add_rel(len(F))
             F.append(L)
             if side != "tool":  # E^-1 in the carrier's frame, before the motion
@@ -431,7 +432,7 @@ def _exp_rows(w: np.ndarray) -> np.ndarray:
                      np.stack([bx * z - ay, by * z + ax, d + bz * z])])
 
 
-def _branch_pose(geom: ChainGeometry, side: str, lin, rot, values, n: int) -> _Pose:
+def _branch_pose(geom: ChainGeometry, side: str, lin, rot, values, n: int, J=None) -> _Pose:
     """The product of :func:`_branch`'s factors, composed directly (poses only, no derivatives)."""
     ch = geom.chain
     axes = ch.tool_axes if side == "tool" else ch.workpiece_from_bed
@@ -461,7 +462,7 @@ def _branch_pose(geom: ChainGeometry, side: str, lin, rot, values, n: int) -> _P
             P.rotate(R_E)
 
         if a in iso.LINEAR_AXES:
-            q = lin[:, ("X", "Y", "Z").index(a)] + geom.J_m[_E[a]]
+            q = lin[:, ("X", "Y", "Z").index(a)] + (geom.J_m[_E[a]] if J is None else J[:, _E[a]])
             P.rotate(L)
             if side != "tool":
                 apply_E()
@@ -492,7 +493,21 @@ def T_R_P(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     return P.matrix()
 
 
-def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
+def _probe_offsets(geom: ChainGeometry, J_m, n: int):
+    """None (``geom.J_m`` for every pose) or the per-pose probe offsets ``J_m`` as (n, 3) m.
+
+    Poses taken with different styli (their offsets J) in one batch: each
+    pose's numbers are the ones a call with ``geom.J_m`` = its row gives.
+    """
+    if J_m is None:
+        return None
+    J = np.asarray(J_m, float)
+    if J.shape != (n, 3) or not np.all(np.isfinite(J)):
+        raise ConfigError(f"J_m must be finite (n, 3) = ({n}, 3) probe offsets, got shape {J.shape}")
+    return J
+
+
+def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None, J_m=None) -> np.ndarray:
     """Actual stylus-tip centre in W, (n, 3) m (exact transform product, no derivatives).
 
     Parameters
@@ -504,12 +519,16 @@ def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
         Rotary positions in ``geom.chain.rotary_axes`` order, rad.
     values : mapping ISO symbol -> scalar or (n,) float, optional
         Error values (m, rad) at each pose; absent symbols are zero.
+    J_m : (n, 3) float, optional
+        Probe offsets of each pose (m), instead of ``geom.J_m`` for all:
+        several styli in one call.
     """
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
+    J = _probe_offsets(geom, J_m, n)
     values = values or {}
-    W = _branch_pose(geom, "workpiece", lin, rot, values, n)
-    P = _branch_pose(geom, "tool", lin, rot, values, n)
-    P.translate(-np.asarray(geom.J_m, float))
+    W = _branch_pose(geom, "workpiece", lin, rot, values, n, J)
+    P = _branch_pose(geom, "tool", lin, rot, values, n, J)
+    P.translate(-np.asarray(geom.J_m, float) if J is None else -J)
     d = P.t - W.t
     if W.R is None:
         return d.T.copy()
@@ -525,12 +544,13 @@ def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _derivs(geom, lin_m, rot_rad, values, which):
+def _derivs(geom, lin_m, rot_rad, values, which, J_m=None):
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
+    J = _probe_offsets(geom, J_m, n)
     values = values or {}
-    Fw, dsw, daw = _branch(geom, "workpiece", lin, rot, values, n)
-    Ft, dst, dat = _branch(geom, "tool", lin, rot, values, n)
-    Ft = Ft + [_hom(None, -np.asarray(geom.J_m), n)]
+    Fw, dsw, daw = _branch(geom, "workpiece", lin, rot, values, n, J=J)
+    Ft, dst, dat = _branch(geom, "tool", lin, rot, values, n, J=J)
+    Ft = Ft + [_hom(None, -np.asarray(geom.J_m) if J is None else -J, n)]
     TW = _prod(Fw, n)
     TP = _prod(Ft, n)
     R_RW = TW[:, :3, :3]
@@ -575,7 +595,7 @@ def _derivs(geom, lin_m, rot_rad, values, which):
     return d_of, dat, daw, n
 
 
-def sensitivity(geom: ChainGeometry, lin_m, rot_rad=None, values=None, symbols=None) -> np.ndarray:
+def sensitivity(geom: ChainGeometry, lin_m, rot_rad=None, values=None, symbols=None, J_m=None) -> np.ndarray:
     """d tip_W / d(error value), analytic small displacement, (n, 3, m).
 
     Exact derivative of :func:`tip_W` at the given error values (not only at
@@ -587,11 +607,13 @@ def sensitivity(geom: ChainGeometry, lin_m, rot_rad=None, values=None, symbols=N
     symbols : sequence of str, optional
         Columns, default :func:`error_symbols` of the chain. Units: m/m for
         translations, m/rad for rotations.
+    J_m : (n, 3) float, optional
+        Per-pose probe offsets (m), as :func:`tip_W`.
     """
     symbols = tuple(symbols) if symbols is not None else error_symbols(geom.chain)
     for s in symbols:
         iso.symbol(s)
-    d_of, dt, dw, n = _derivs(geom, lin_m, rot_rad, values, "sym")
+    d_of, dt, dw, n = _derivs(geom, lin_m, rot_rad, values, "sym", J_m)
     out = np.zeros((n, 3, len(symbols)))
     for j, s in enumerate(symbols):
         out[:, :, j] = d_of(dt.get(s, []), dw.get(s, []))

@@ -401,27 +401,58 @@ def _prepare(m, chain, rotary_points, nodes) -> dict:
     return p
 
 
+def _touch_kinematics(prep, theta, slices, exact, jacobian):
+    """The touches of every measurement (:func:`_prepare`) in one kinematics call: their
+    sensitivity (t_all, 3, 21) when ``jacobian`` and exact tip positions (t_all, 3) when
+    ``exact`` (else None), and each measurement's first row in them.
+
+    The measurements share the chain and differ in their stylus: each touch carries
+    its own probe offsets J (``J_m`` of :func:`core.kinematics.tip_W`), so every row is
+    the number a call per measurement gives, bit for bit (tests/core/test_volumetric.py).
+    """
+    idx = [i for i, pm in enumerate(prep) if pm["touches"]]
+    if not idx or not (exact or jacobian):
+        return None, None, {}
+    at, t0 = {}, 0
+    for i in idx:
+        at[i] = t0
+        t0 += len(prep[i]["qt"])
+    qt = np.concatenate([prep[i]["qt"] for i in idx])
+    rott = None if prep[idx[0]]["rott"] is None else np.concatenate([prep[i]["rott"] for i in idx])
+    J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["qt"].shape) for i in idx])
+    vals = None
+    if exact:
+        each = [_values(theta, slices, prep[i]["W"], len(prep[i]["qt"])) for i in idx]
+        vals = {s: np.concatenate([v[s] for v in each]) for s in each[0]}
+    g = prep[idx[0]]["g"]
+    St = sensitivity(g, qt, rott, vals, symbols=MOTION + SQUARENESS, J_m=J) if jacobian else None
+    tip = tip_W(g, qt, rott, vals, J_m=J) if exact else None
+    return St, tip, at
+
+
 def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=True, prep=None):
     """Jacobian and residual of (1) at theta: target - prediction (``jacobian=False``:
     the residual alone, the same numbers, Jacobian None: no sensitivity evaluated).
     ``prep``: :func:`_prepare` of each measurement (computed here when None)."""
     Jrows, res, rows = [], [], []
+    if prep is None:
+        prep = [_prepare(m, chain, rotary_points, nodes) for m in meas]
+    St_all, tip_all, at = _touch_kinematics(prep, theta, slices, exact, jacobian)
     for i, m in enumerate(meas):
-        pm = _prepare(m, chain, rotary_points, nodes) if prep is None else prep[i]
+        pm = prep[i]
         g, q, k, rot, T, W = pm["g"], pm["q"], pm["k"], pm["rot"], pm["T"], pm["W"]
         if pm["touches"]:
             # model (3): the errors act at the touches; the extraction's gain
             # carries each touch's normal shift into the points of interest
-            qt, rott, d_W, GW = pm["qt"], pm["rott"], pm["d_W"], pm["GW"]
+            qt, d_W, GW = pm["qt"], pm["d_W"], pm["GW"]
             t = len(qt)
-            vals_t = _values(theta, slices, W, t) if exact else None
+            rows_t = slice(at[i], at[i] + t)
             if jacobian:
-                St = sensitivity(g, qt, rott, vals_t, symbols=MOTION + SQUARENESS)
-                Jt = _projected_error_jacobian(St, d_W, W, slices, n)
+                Jt = _projected_error_jacobian(St_all[rows_t], d_W, W, slices, n)
                 J = (GW.reshape(3 * k, t) @ Jt).reshape(k, 3, n)
             pred = pm["pred0"]
             if exact:
-                e = np.einsum("tj,tj->t", d_W, tip_W(g, qt, rott, vals_t) - pm["tip0_t"])
+                e = np.einsum("tj,tj->t", d_W, tip_all[rows_t] - pm["tip0_t"])
                 pred = pred + GW @ e
         else:
             vals = _values(theta, slices, W, k) if exact else None
