@@ -394,11 +394,29 @@ def _prepare(m, chain, rotary_points, nodes) -> dict:
         p["W"] = _axis_weights(nodes, qt)
         p["d_W"] = np.asarray(m.d_A, float) @ T[:3, :3].T
         p["GW"] = np.einsum("ij,kjt->kit", T[:3, :3], np.asarray(m.G_A, float).reshape(k, 3, t))  # (k, 3, t)
-        p["pred0"] = tip_W(g, q, rot, None)
-        p["tip0_t"] = tip_W(g, qt, p["rott"], None)
     else:
         p["W"] = _axis_weights(nodes, q)
     return p
+
+
+def _prepare_all(meas, chain, rotary_points, nodes) -> list:
+    """:func:`_prepare` of every measurement, with the error-free tips of the measurements with
+    touches (at their points of interest, ``pred0``, and at their touches, ``tip0_t``) each
+    in one kinematics call for all measurements (per-pose probe offsets, as :func:`_touch_kinematics`)."""
+    prep = [_prepare(m, chain, rotary_points, nodes) for m in meas]
+    idx = [i for i, pm in enumerate(prep) if pm["touches"]]
+    for q_key, rot_key, out in (("q", "rot", "pred0"), ("qt", "rott", "tip0_t")):
+        if not idx:
+            break
+        q = np.concatenate([prep[i][q_key] for i in idx])
+        rot = None if prep[idx[0]][rot_key] is None else np.concatenate([prep[i][rot_key] for i in idx])
+        J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i][q_key].shape) for i in idx])
+        tip = tip_W(prep[idx[0]]["g"], q, rot, None, J_m=J)
+        at = 0
+        for i in idx:
+            prep[i][out] = tip[at:at + len(prep[i][q_key])]
+            at += len(prep[i][q_key])
+    return prep
 
 
 def _touch_kinematics(prep, theta, slices, exact, jacobian):
@@ -436,7 +454,7 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=T
     ``prep``: :func:`_prepare` of each measurement (computed here when None)."""
     Jrows, res, rows = [], [], []
     if prep is None:
-        prep = [_prepare(m, chain, rotary_points, nodes) for m in meas]
+        prep = _prepare_all(meas, chain, rotary_points, nodes)
     St_all, tip_all, at = _touch_kinematics(prep, theta, slices, exact, jacobian)
     for i, m in enumerate(meas):
         pm = prep[i]
@@ -576,7 +594,7 @@ def _design(meas, chain, nodes, rotary_points_R_m, gauge) -> tuple:
     nodes = {a: np.asarray(v, float) for a, v in nodes.items()}
     _check(meas, nodes)
     names, slices, n, _ = _layout(meas, nodes)
-    prep = [_prepare(m, chain, rotary_points_R_m, nodes) for m in meas]
+    prep = _prepare_all(meas, chain, rotary_points_R_m, nodes)
     A, y, rows = _rows(meas, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False, prep=prep)
     key = _nominal_key(meas, chain, nodes, rotary_points_R_m, gauge, names)
     if key not in _NOMINAL:
