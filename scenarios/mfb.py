@@ -611,17 +611,18 @@ def describe_collision_check(c: dict) -> str:
 _GAINS: dict = {}
 
 
-def _noise_gain(pl_ok, r_m):
+def _noise_gain(pl_ok, r_m, fits=None):
     """:func:`core.mfb.poi_noise_gain` of the touches ``pl_ok`` (a plan's nominal
     geometry and stylus radius only), kept for the next run of the same plan:
-    it is two thirds of a run's time and the same for every campaign."""
+    it is two thirds of a run's time and the same for every campaign. ``fits``:
+    the light fits of the run's other hole sets (``fits`` of :func:`core.mfb.poi_noise_gain`)."""
     from core import mfb
 
     key = (tuple(pl_ok.target), tuple(pl_ok.feature), pl_ok.w_A.tobytes(), pl_ok.wn_A.tobytes(), float(r_m))
     if key not in _GAINS:
         if len(_GAINS) >= 64:
             _GAINS.pop(next(iter(_GAINS)))
-        G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A)
+        G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A, fits=fits)
         G.setflags(write=False)  # shared between runs: read only
         _GAINS[key] = G
     return _GAINS[key]
@@ -937,6 +938,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     collision = check_plan(plan, u_place=u_place) if plan.fixtures else None  # after the inputs are checked
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
+    gain_fits: dict = {}  # the gains' light fits, shared by the hole sets of this run (same touches, same fits)
     plans, full_plans = {}, {}  # full_plans holds each bar (its id is the key) for the run
     T_true = {}
     for p in plan.placements:  # bar placement errors (by hand on the table), roll included
@@ -985,7 +987,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         pl_ok = pl.select(np.asarray(log.ok, bool))
         key = (tuple(pl_ok.target), probe.stylus_r_m)
         if key not in G_cache:
-            G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m)
+            G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m, gain_fits)
         idx = [h - 1 for h in poi.holes]
         meas.append(vol.Measurement(ms.name, ms.setup_key, poi.holes, poi.O_R, O_A_cal[idx], ms.T_W_A,
                                     tuple(ms.rot_rad), J, G_cache[key], q_R=p_R,
