@@ -470,6 +470,7 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
                                 validate=False) for i in holes}
     base = {i: _meet(bf.hole_point[i], bf.hole_axis[i], *PL[i]) for i in holes}
     G = np.zeros((3 * len(holes), len(p_R)))
+    planes = []  # (touches, hole h, perturbed point sets of PL_h) of the rods and faces
     for f, idx in _group(feature).items():
         i, j = _num(f, "hole"), _num(f, "rod")
         face = f[:5] in ("faceL", "faceR") and _num(f[5:], "") is not None
@@ -490,7 +491,7 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
         Q[2 * np.arange(nk) + 1, np.arange(nk)] -= step
         if i is not None:
             q, a = _fit_once(fits, "cylinders", Q, bf.hole_axis[i])
-            new = {i: _meet_batch(q, a, *PL[i])}
+            _gain_rows(G, 3 * row[i], idx, _meet_batch(q, a, *PL[i]) - base[i], h_m)
         else:
             Pj = np.broadcast_to(P[j], (2 * nk, 2, 3)).copy()
             if not face:
@@ -501,17 +502,24 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
                 sd = f[4]
                 q, nrm = _fit_once(fits, "planes", Q, bf.face_normal[(sd, j)])
                 Pj[:, "LR".index(sd)] = _meet_batch(bf.rod_point[j], bf.rod_axis[j], q, nrm)
-            new = {}
             for h in hs:
                 a, c = pair[h]
-                pts = np.concatenate([Pj if a == j else np.broadcast_to(P[a], Pj.shape),
-                                      Pj if c == j else np.broadcast_to(P[c], Pj.shape)], axis=1)
-                q, nrm = _fit_once(fits, "planes", pts, bf.probe_side)
-                new[h] = _meet_batch(bf.hole_point[h], bf.hole_axis[h], q, nrm)
-        for h in hs:
-            dO = (new[h] - base[h]) / (2.0 * h_m)  # (2 nk, 3): +h then -h of each touch
-            G[3 * row[h]:3 * row[h] + 3, idx] = (dO[0::2] - dO[1::2]).T
+                planes.append((idx, h, np.concatenate([Pj if a == j else np.broadcast_to(P[a], Pj.shape),
+                                                       Pj if c == j else np.broadcast_to(P[c], Pj.shape)], axis=1)))
+    if planes:  # every perturbed plane PL_h in one batch (they share the hint)
+        q, nrm = planes_point_normal(np.concatenate([pts for *_, pts in planes]), normal_hint=bf.probe_side)
+        at = 0
+        for idx, h, pts in planes:
+            b = slice(at, at + len(pts))
+            at += len(pts)
+            _gain_rows(G, 3 * row[h], idx, _meet_batch(bf.hole_point[h], bf.hole_axis[h], q[b], nrm[b]) - base[h], h_m)
     return G
+
+
+def _gain_rows(G, r0: int, idx, dO, h_m: float) -> None:
+    """G[r0:r0 + 3, idx] from the shifts dO (2 n, 3) of a point of interest, +h then -h of each touch."""
+    dO = dO / (2.0 * h_m)
+    G[r0:r0 + 3, idx] = (dO[0::2] - dO[1::2]).T
 
 
 # --------------------------------------------------------------------------- reversal (eqs 5-7)
