@@ -361,13 +361,6 @@ def _inputs(geom, lin_m, rot_rad):
     return lin, rot, n
 
 
-def _prod(F, n):
-    T = _hom(n=n)
-    for f in F:
-        T = T @ f
-    return T
-
-
 class _Pose:
     """A batch of rigid transforms being composed left to right: ``T <- T . factor``.
 
@@ -551,25 +544,27 @@ def _derivs(geom, lin_m, rot_rad, values, which, J_m=None):
     Fw, dsw, daw = _branch(geom, "workpiece", lin, rot, values, n, J=J)
     Ft, dst, dat = _branch(geom, "tool", lin, rot, values, n, J=J)
     Ft = Ft + [_hom(None, -np.asarray(geom.J_m) if J is None else -J, n)]
-    TW = _prod(Fw, n)
-    TP = _prod(Ft, n)
-    R_RW = TW[:, :3, :3]
-    tipW = np.einsum("nji,nj->ni", R_RW, TP[:, :3, 3] - TW[:, :3, 3])
-
-    def chain_terms(F, end_point):
+    def prefixes(F):  # I, F0, F0 F1, ...: the last is the branch's pose (the products of _prod)
         pre = [_hom(n=n)]
         for f in F:
             pre.append(pre[-1] @ f)
+        return pre
+
+    def suffixes(F, end_point):
         suf = [None] * (len(F) + 1)
         suf[len(F)] = end_point
         for i in range(len(F) - 1, -1, -1):
             suf[i] = np.einsum("nij,nj->ni", F[i], suf[i + 1])
-        return pre, suf
+        return suf
 
+    pre_w, pre_t = prefixes(Fw), prefixes(Ft)
+    TW, TP = pre_w[-1], pre_t[-1]
+    R_RW = TW[:, :3, :3]
+    tipW = np.einsum("nji,nj->ni", R_RW, TP[:, :3, 3] - TW[:, :3, 3])
     p_end_t = np.tile([0.0, 0, 0, 1], (n, 1))
     p_end_w = np.concatenate([tipW, np.ones((n, 1))], axis=1)
-    pre_t, suf_t = chain_terms(Ft, p_end_t)
-    pre_w, suf_w = chain_terms(Fw, p_end_w)
+    suf_t = suffixes(Ft, p_end_t)
+    suf_w = suffixes(Fw, p_end_w)
 
     # R_RW^T times the rotation before factor i: shared by every symbol entering at factor i
     to_W: dict = {}
