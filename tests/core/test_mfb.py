@@ -200,3 +200,27 @@ def test_batched_feature_fits_equal_the_single_fits():
     assert np.abs(mfb.points_of_interest(c2, pl.feature, n, batched=True).O_R[4] - poi2.O_R[4]).max() > 5e-7
     with pytest.raises(ConfigError, match="non-finite"):
         mfb.fit_bar_features(np.where(np.arange(len(c))[:, None] == 3, np.nan, c), pl.feature, n, batched=True)
+
+
+def test_noise_gain_fits_shared_between_hole_sets():
+    # the gains of a campaign's hole sets with their fits shared (the 12-hole plan first, then
+    # the 8- and 7-hole plans, as scenarios.mfb.run does): each bit for bit its gain alone, and
+    # the smaller plans found their features' fits (the same touches and hints) in the dict
+    from scenarios.bench.mfb import plan_gain_inputs
+
+    inputs = plan_gain_inputs("mfb-3axis")
+    assert [len(a[0]) for a in inputs] == sorted((len(a[0]) for a in inputs), reverse=True)
+    alone = [mfb.poi_noise_gain(*a) for a in inputs]
+    fits: dict = {}
+    seen = []
+    for a, G in zip(inputs, alone):
+        before = len(fits)
+        assert np.array_equal(mfb.poi_noise_gain(*a, fits=fits), G)
+        seen.append(len(fits) - before)
+    assert seen[0] > 0 and seen[1:] == [0, 0], seen  # every fit of the smaller plans found, none refitted
+    # a kept fit is found by its points AND its hint: the opposite hint flips the normal
+    pts = inputs[0][0][:6] * np.array([1.0, 1.0, 0.0])  # six points in z = 0
+    up = mfb._fit_once(fits, "plane", pts, np.array([0.0, 0.0, 1.0]))
+    down = mfb._fit_once(fits, "plane", pts, np.array([0.0, 0.0, -1.0]))
+    assert up[1][2] == 1.0 and down[1][2] == -1.0
+    assert mfb._fit_once(fits, "plane", pts.copy(), np.array([0.0, 0.0, 1.0])) is up
