@@ -23,7 +23,8 @@ Figures:
   same with its rows built as before issue 19 (:func:`identify_before`), and
   ``mfb_3axis_identify_max_theta_diff`` between the two (m or rad).
 - ``mfb_gain_s``: :func:`core.mfb.poi_noise_gain` of the three plans of
-  ``mfb-3axis`` (batched light fits), beside ``mfb_gain_refit_reference_s``:
+  ``mfb-3axis`` (batched light fits, shared between the plans as
+  :func:`scenarios.mfb.run` shares them), beside ``mfb_gain_refit_reference_s``:
   the same gains by the previous path (:func:`gain_by_single_refits`: every
   perturbed feature refitted alone by the full :func:`core.fit.fit_cylinder`
   / :func:`core.fit.fit_plane`), on the same inputs in the same run, and
@@ -196,7 +197,8 @@ def run() -> dict:
     out: dict = {}
     inputs = plan_gain_inputs()
     t0 = time.perf_counter()
-    G_new = [mfb.poi_noise_gain(*a) for a in inputs]
+    fits: dict = {}
+    G_new = [mfb.poi_noise_gain(*a, fits=fits) for a in inputs]
     t1 = time.perf_counter()
     G_ref = [gain_by_single_refits(*a) for a in inputs]
     t2 = time.perf_counter()
