@@ -247,35 +247,50 @@ def _checked_touches(p_R, feature, n_R) -> tuple:
 
 def _fit_bar_features_batched(p_R, feature, n_R) -> BarFeatures:
     """:func:`fit_bar_features` with ``batched=True``."""
-    p_R, n_R = _checked_touches(p_R, feature, n_R)
-    groups: dict = {}  # (kind, touches, hint bytes) -> [(key, idx)]
-    rod_normals = []
-    for f, idx in _group(feature).items():
-        if (i := _num(f, "hole")) is not None:
-            kind, key, hint = "hole", i, _axis_hint(n_R[idx])
-        elif (j := _num(f, "rod")) is not None:
-            kind, key, hint = "rod", j, _axis_hint(n_R[idx])
-            rod_normals.append(n_R[idx])
-        elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
-            kind, key, hint = "face", (f[4], j), n_R[idx].mean(axis=0)
-        else:
-            continue
-        groups.setdefault((kind, len(idx), hint.tobytes()), []).append((key, idx, hint, f))
-    out = {"hole": ({}, {}), "rod": ({}, {}), "face": ({}, {})}
+    return _fit_placements_batched([(p_R, feature, n_R)])[0]
+
+
+def _fit_placements_batched(placements) -> list[BarFeatures]:
+    """:func:`fit_bar_features` (``batched=True``) of several placements ``[(p_R, feature, n_R)]``:
+    the features of all of them that share a kind, a touch count and a hint (the same bits: the
+    placements of one orientation) fitted in one call. Each set's iteration is its own (the batched
+    fits update a set only while it is active), so every feature gets the numbers its placement's
+    own batch gives, bit for bit (tests/core/test_mfb.py). A fit error is raised as the first
+    placement's own batch raises it."""
+    placements = [_checked_touches(p, f, n) + (f,) for p, f, n in placements]
+    groups: dict = {}  # (kind, touches, hint bytes) -> [(placement, key, idx, hint, feature)]
+    sides = []
+    for k, (p_R, n_R, feature) in enumerate(placements):
+        rod_normals = []
+        for f, idx in _group(feature).items():
+            if (i := _num(f, "hole")) is not None:
+                kind, key, hint = "hole", i, _axis_hint(n_R[idx])
+            elif (j := _num(f, "rod")) is not None:
+                kind, key, hint = "rod", j, _axis_hint(n_R[idx])
+                rod_normals.append(n_R[idx])
+            elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
+                kind, key, hint = "face", (f[4], j), n_R[idx].mean(axis=0)
+            else:
+                continue
+            groups.setdefault((kind, len(idx), hint.tobytes()), []).append((k, key, idx, hint, f))
+        sides.append(np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3))
+    out = [{"hole": ({}, {}), "rod": ({}, {}), "face": ({}, {})} for _ in placements]
     for (kind, _, _), items in groups.items():
-        pts = np.stack([p_R[idx] for _, idx, _, _ in items])
-        hint = items[0][2]
+        pts = np.stack([placements[k][0][idx] for k, _, idx, _, _ in items])
+        hint = items[0][3]
         try:
             if kind == "face":
                 pt, ax = planes_point_normal(pts, normal_hint=hint)
             else:
                 pt, ax = cylinders_point_axis(pts, axis_hint=hint)
         except FitError as e:
+            if len(placements) > 1:  # name the features as the placement's own batch does
+                for p_R, n_R, feature in placements:
+                    _fit_placements_batched([(p_R, feature, n_R)])
             raise FitError(f"MFB features {', '.join(f for *_, f in items)}: {e}") from None
-        for k, (key, *_) in enumerate(items):
-            out[kind][0][key], out[kind][1][key] = pt[k], ax[k]
-    side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
-    return BarFeatures(*out["hole"], *out["rod"], *out["face"], side)
+        for b, (k, key, *_) in enumerate(items):
+            out[k][kind][0][key], out[k][kind][1][key] = pt[b], ax[b]
+    return [BarFeatures(*o["hole"], *o["rod"], *o["face"], side) for o, side in zip(out, sides)]
 
 
 def _rod_points(bf: BarFeatures, j: int) -> np.ndarray:
@@ -361,6 +376,13 @@ def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str
     if declared is not None:
         check_orientation(poi.orientation, poi.shifted_found, declared, geom)
     return poi
+
+
+def points_of_interest_batched(placements, geom: BarGeometry = MFB) -> list[PointsOfInterest]:
+    """:func:`points_of_interest` (``batched=True``) of several placements ``[(p_R, feature, n_R)]``,
+    their features fitted together (:func:`_fit_placements_batched`: each one's numbers bit for
+    bit; touches known good only, e.g. a campaign's simulated touches each checked to trigger)."""
+    return [poi_from_features(bf, geom, batched=True) for bf in _fit_placements_batched(placements)]
 
 
 def detect_orientation(O_M, holes, geom: BarGeometry = MFB) -> tuple[str, dict]:

@@ -939,6 +939,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
     gain_fits: dict = {}  # the gains' light fits, shared by the hole sets of this run (same touches, same fits)
+    done = []  # (spec, J, touches, readings, plan of the valid touches) of each measurement simulated
     plans, full_plans = {}, {}  # full_plans holds each bar (its id is the key) for the run
     T_true = {}
     for p in plan.placements:  # bar placement errors (by hand on the table), roll included
@@ -963,7 +964,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         m = machines[ms.stylus]
         art_i, probe_i = art, probe
         if hook is not None:
-            art_i, probe_i, m = hook(len(meas), ms, art, probe, m)
+            art_i, probe_i, m = hook(k, ms, art, probe, m)
         if (id(art_i), ms.holes) not in plans:  # the bar's full program once per bar, its part per hole set
             if id(art_i) not in full_plans:
                 full_plans[id(art_i)] = (art_i, mfb_plan(art_i, **program))
@@ -980,11 +981,13 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         # this stylus is off by dJ (the tool does not turn on these chains). (A machine
         # built with J + dJ would move and read with the same offsets: no error at all.)
         p_R = t.p_R + dJ[ms.stylus]
-        # simulated touches, each checked to trigger on its target: fitted in batches (to rounding)
-        poi = mfb.points_of_interest(p_R, t.feature, t.n_R, batched=True)
-        # the touches that were fitted (valid ones, plan order) and the gain of the
-        # extraction at their nominal places (A frame, stylus centres)
-        pl_ok = pl.select(np.asarray(log.ok, bool))
+        # the touches that were fitted (valid ones, plan order)
+        done.append((ms, J, t, p_R, pl.select(np.asarray(log.ok, bool))))
+    # simulated touches, each checked to trigger on its target: fitted in batches (to rounding),
+    # the features of every measurement together (each one's numbers as its own batch gives)
+    pois = mfb.points_of_interest_batched([(p_R, t.feature, t.n_R) for _, _, t, p_R, _ in done])
+    for (ms, J, t, p_R, pl_ok), poi in zip(done, pois):
+        # the gain of the extraction at the nominal places of the touches (A frame, stylus centres)
         key = (tuple(pl_ok.target), probe.stylus_r_m)
         if key not in G_cache:
             G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m, gain_fits)
