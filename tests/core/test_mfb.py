@@ -224,3 +224,30 @@ def test_noise_gain_fits_shared_between_hole_sets():
     down = mfb._fit_once(fits, "plane", pts, np.array([0.0, 0.0, -1.0]))
     assert up[1][2] == 1.0 and down[1][2] == -1.0
     assert mfb._fit_once(fits, "plane", pts.copy(), np.array([0.0, 0.0, 1.0])) is up
+
+
+def test_points_of_interest_of_several_placements_equal_each_placement_alone():
+    # points_of_interest_batched (the features of every placement together: three placements of
+    # one orientation share their hints, so their holes, rods and faces are fitted in one call)
+    # against each placement's own batched extraction: bit for bit, also beside a rotated bar
+    # and a smaller hole set
+    from scenarios.mfb import _plan_for
+    from sim import artefacts as A
+
+    art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
+    rng = np.random.default_rng(4)
+    places = []
+    for holes, R in ((range(1, 13), np.eye(3)), (range(1, 13), np.eye(3)), (range(1, 9), A.rot_z(0.3)),
+                     (range(1, 13), np.eye(3))):
+        pl = _plan_for(art, tuple(holes))
+        c = (pl.w_A + 3e-3 * pl.wn_A + rng.normal(0, 5e-7, pl.w_A.shape)) @ R.T + rng.normal(0, 0.05, 3)
+        places.append((c, pl.feature, pl.wn_A @ R.T))
+    got = mfb.points_of_interest_batched(places)
+    for (c, f, n), p in zip(places, got):
+        alone = mfb.points_of_interest(c, f, n, batched=True)
+        assert p.holes == alone.holes and p.orientation == alone.orientation
+        for a in ("O_R", "O_M", "T_R_M"):
+            assert np.array_equal(getattr(p, a), getattr(alone, a)), a
+    assert not np.array_equal(got[0].O_R, got[1].O_R)  # each placement its own touches
+    with pytest.raises(ConfigError, match="non-finite"):
+        mfb.points_of_interest_batched([places[0], (np.full_like(places[1][0], np.nan),) + places[1][1:]])
