@@ -122,6 +122,17 @@ def left_jacobian_so3(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + b[..., None, None] * K + c[..., None, None] * (K @ K)
 
 
+def _exp_and_left_jacobian(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(:func:`exp_so3`, :func:`left_jacobian_so3`) of the same w, the angle's coefficients and
+    ``K @ K`` computed once for both (the same numbers as the two calls)."""
+    w = np.asarray(w, float)
+    a, b, c = _coeffs(np.linalg.norm(w, axis=-1))
+    K = skew(w)
+    KK = K @ K
+    return (np.eye(3) + a[..., None, None] * K + b[..., None, None] * KK,
+            np.eye(3) + b[..., None, None] * K + c[..., None, None] * KK)
+
+
 def _hom(R=None, t=None, n=1) -> np.ndarray:
     T = np.zeros((n, 4, 4))
     T[:, 3, 3] = 1.0
@@ -226,8 +237,8 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = 
         # the tool branch moves its carriage by E; the workpiece branch its
         # component by the exact inverse E^-1 (the tool relative to the part: E)
         mot, t_E, R_E, E, Jl_E = _motion_errors(a, values, n, inverse=side != "tool", derivs=derivs)
-        Jl_rel = left_jacobian_so3(rel) if derivs else None
-        L = _hom(exp_so3(rel), None, n)
+        R_rel, Jl_rel = _exp_and_left_jacobian(rel) if derivs else (exp_so3(rel), None)
+        L = _hom(R_rel, None, n)
 
         def add_rel(i):
             if not derivs:
@@ -338,12 +349,12 @@ def _motion_errors(a: str, values, n: int, inverse: bool = False, derivs: bool =
     mot = iso.symbols_of_axis(a, location=False)
     t_E = _vec(values, [m.name for m in mot[:3]], n)
     w_E = _vec(values, [m.name for m in mot[3:]], n)
-    R_E = exp_so3(w_E)
+    R_E, Jl_E = _exp_and_left_jacobian(w_E) if derivs else (exp_so3(w_E), None)
     if inverse:
         E = _hom(np.swapaxes(R_E, 1, 2), -np.einsum("nji,nj->ni", R_E, t_E), n)
     else:
         E = _hom(R_E, t_E, n)
-    return mot, t_E, R_E, E, (left_jacobian_so3(w_E) if derivs else None)
+    return mot, t_E, R_E, E, Jl_E
 
 
 def _inputs(geom, lin_m, rot_rad):
