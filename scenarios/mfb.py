@@ -919,7 +919,6 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         dJ = {st: np.asarray(stylus_dJ_m.get(st, np.zeros(3)), float) for st in styli}
     else:
         dJ = {st: (rng.standard_normal(3) * u_stylus_um * 1e-6 if u_stylus_um > 0 else np.zeros(3)) for st in styli}
-    art_nom = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
     O_A_cal = art.info["poi_nominal_m"] + E_cal_O
     if on_nodes:
         from sim.errorfuncs import SplineTable
