@@ -456,6 +456,9 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=T
     if prep is None:
         prep = _prepare_all(meas, chain, rotary_points, nodes)
     St_all, tip_all, at = _touch_kinematics(prep, theta, slices, exact, jacobian)
+    if jacobian and at:  # the touches' Jacobian rows (t_all, n), all measurements in one product
+        W_all = {a: np.concatenate([prep[i]["W"][a] for i in at]) for a in prep[next(iter(at))]["W"]}
+        Jt_all = _projected_error_jacobian(St_all, np.concatenate([prep[i]["d_W"] for i in at]), W_all, slices, n)
     for i, m in enumerate(meas):
         pm = prep[i]
         g, q, k, rot, T, W = pm["g"], pm["q"], pm["k"], pm["rot"], pm["T"], pm["W"]
@@ -466,8 +469,7 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=T
             t = len(qt)
             rows_t = slice(at[i], at[i] + t)
             if jacobian:
-                Jt = _projected_error_jacobian(St_all[rows_t], d_W, W, slices, n)
-                J = (GW.reshape(3 * k, t) @ Jt).reshape(k, 3, n)
+                J = (GW.reshape(3 * k, t) @ Jt_all[rows_t]).reshape(k, 3, n)
             pred = pm["pred0"]
             if exact:
                 e = np.einsum("tj,tj->t", d_W, tip_all[rows_t] - pm["tip0_t"])

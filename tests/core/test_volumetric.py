@@ -206,3 +206,18 @@ def test_touches_of_all_measurements_in_one_call_are_the_per_measurement_calls(m
             assert np.array_equal(pm["tip0_t"], vol.tip_W(g, pm["qt"], pm["rott"], None))
             assert np.array_equal(pm["pred0"], vol.tip_W(g, pm["q"], pm["rot"], None))
     assert vol._touch_kinematics(prep, theta, slices, False, False) == (None, None, {})
+    # the rows' Jacobian: the touches' rows projected and spread over the nodes for all measurements
+    # at once, against each measurement's own product (the path before), at the last theta
+    J, _, _ = vol._rows(meas, chain, rp, nodes, theta, slices, n, True, prep=prep)
+    r0 = 0
+    for i, (m, pm) in enumerate(zip(meas, prep)):
+        k, t = pm["k"], len(pm["qt"])
+        Jt = vol._projected_error_jacobian(S[at[i]:at[i] + t], pm["d_W"], pm["W"], slices, n)
+        own = (pm["GW"].reshape(3 * k, t) @ Jt).reshape(k, 3, n)
+        rows = J[r0:r0 + 3 * k].reshape(k, 3, n)
+        off = ~pm["off"]  # the placement's columns and the roll projection come after: compare the rest
+        mask = np.ones(n, bool)
+        sl = slices[m.placement]
+        mask[sl] = False
+        assert np.array_equal(rows[off][:, :, mask], own[off][:, :, mask]), m.name
+        r0 += 3 * k
