@@ -457,7 +457,7 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=T
         prep = _prepare_all(meas, chain, rotary_points, nodes)
     St_all, tip_all, at = _touch_kinematics(prep, theta, slices, exact, jacobian)
     if jacobian and at:  # the touches' Jacobian rows (t_all, n), all measurements in one product
-        W_all = {a: np.concatenate([prep[i]["W"][a] for i in at]) for a in prep[next(iter(at))]["W"]}
+        W_all = {a: np.concatenate([prep[i]["W"][a] for i in at]) for a in iso.LINEAR_AXES}
         Jt_all = _projected_error_jacobian(St_all, np.concatenate([prep[i]["d_W"] for i in at]), W_all, slices, n)
     for i, m in enumerate(meas):
         pm = prep[i]
