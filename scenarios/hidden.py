@@ -510,6 +510,11 @@ class Outcome:
     identifiable : bool
         The generator's word on the design: the part separable from smooth
         machine error fields (not the engine's own test).
+    shift_carried : bool
+        The extended U95 carries the real shift of an unnamed smooth (then
+        it reaches the baseline's answer at every target, and the check
+        ``wp_ext <= wp_base + U95`` holds by construction: such campaigns
+        are counted apart, ``workpiece_shift_carried``).
     """
 
     generator: str
@@ -528,6 +533,7 @@ class Outcome:
     visible_generator: float = float("nan")
     angle_to_baseline_deg: float = float("nan")
     identifiable: bool = True
+    shift_carried: bool = False
 
 
 def catalogue_names() -> set:
@@ -590,9 +596,11 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
     angle = float("nan")
     if effect_dq_um is not None:
         vis, angle = effect_outside_baseline(bl, np.asarray(effect_dq_um, float)[bl.rows] * UM, noise_um * UM)
+    carried = any((f["evidence"].get("workpiece_shift") or {}).get("carried_in_u95", False)
+                  for f in rep["findings"])
     return Outcome(generator, effect, int(seed), tuple(acceptable), rep["cause"],
                    tuple(f["cause"] for f in rep["findings"]), bool(conf), vis, float(noise_um), wb, we, wu, dt,
-                   vis_gen, angle, bool(identifiable))
+                   vis_gen, angle, bool(identifiable), bool(carried))
 
 
 def effect_outside_baseline(bl, e_m: np.ndarray, noise_m: float) -> tuple[float, float]:
@@ -655,6 +663,9 @@ def summarize(outcomes) -> dict:
       over every campaign that reports an extended estimate (one reported
       without a U95 counts as a failure); ``workpiece_ok_identifiable`` the
       same on the designs the generator calls identifiable;
+    - ``workpiece_shift_carried``: of ``workpiece_ok``'s campaigns, those
+      whose extended U95 carries an unnamed smooth's real shift (the check
+      holds by construction there);
     - ``workpiece_withheld``: campaigns whose extended workpiece the engine
       refused to report as an estimate (not identifiable from the data).
     """
@@ -684,6 +695,7 @@ def summarize(outcomes) -> dict:
     rate("workpiece_ok", wp, ok)
     wpi = [(o, k) for o, k in zip(wp, ok) if o.identifiable]
     rate("workpiece_ok_identifiable", wpi, [k for _, k in wpi])
+    rate("workpiece_shift_carried", wp, [o.shift_carried for o in wp])
     rate("workpiece_withheld", [o for o in outcomes if np.isfinite(o.wp_base_um)],
          [not np.isfinite(o.wp_ext_um) for o in outcomes if np.isfinite(o.wp_base_um)])
     if wp:
@@ -709,9 +721,9 @@ def format_study(outcomes, title: str = "") -> str:
         lines.append(f"{e:<{w}s} {row}   {np.median([o.visible_sigmas for o in sel]):9.2f}  {wp}")
     s = summarize(outcomes)
     for k in ("false_alarm", "catalogue", "out_of_catalogue", "confident_misnamed", "workpiece_ok",
-              "below_visibility"):
+              "workpiece_shift_carried", "below_visibility"):
         v = s[k]
-        if v["n"]:
+        if v["n"] and (k != "workpiece_shift_carried" or v["k"]):
             lines.append(f"{k:20s} {v['k']:3d}/{v['n']:<3d} = {v['rate']:.2f}  (95 % CI {v['ci95'][0]:.2f}-"
                          f"{v['ci95'][1]:.2f})")
     if s["absorbed"]:

@@ -114,7 +114,7 @@ def summary_lines(rep: dict) -> list[str]:
     for f in rep["findings"]:
         pu = f.get("params_u95", {})
         params = ", ".join(f"{k} {_fmt(v, pu.get(k))}" for k, v in list(f["params"].items())[:6])
-        flag = " (ambiguous: " + ", ".join(f["evidence"]["indistinguishable_from"]) + ")" \
+        flag = f" (ambiguous: {f['evidence'].get('confidence_reason', '')})" \
             if f["evidence"].get("confidence") == "ambiguous" else ""
         out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}")
     g = rep["gain"]

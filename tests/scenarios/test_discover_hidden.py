@@ -69,6 +69,14 @@ def _blind(name):
     return importlib.import_module(f"scenarios.blind.{name}")
 
 
+def _blind_case(gen, effect, seed):
+    """One blind generator's campaign, discovered and scored (skipped when the generator is absent)."""
+    mod = _blind(gen)
+    if mod is None:
+        pytest.skip(f"blind generator {gen} not present")
+    return blind_outcome(mod, effect, seed, generator=gen)
+
+
 GENERATORS = ["hidden"] + [g for g in ("gen_a", "gen_b") if _blind(g) is not None]
 
 
@@ -169,16 +177,41 @@ def test_a_smooth_that_moves_the_workpiece_is_checked():
     at the time of writing; before the smooth's gauge the engine's per-target
     U95 were about 3,000 um and the study gave none).
     """
-    mod = _blind("gen_b")
-    if mod is None:
-        pytest.skip("blind generator gen_b not present")
-    o = blind_outcome(mod, "fixture_slip", 301, generator="gen_b")
+    o = _blind_case("gen_b", "fixture_slip", 301)
     assert not o.identifiable and np.isfinite(o.wp_ext_um)
     assert abs(o.wp_ext_um - o.wp_base_um) > 0.3, (o.wp_base_um, o.wp_ext_um)  # the smooth did move it
     # a U95 of millimetres would pass any check: bound it (3 um, over ten noise sigmas: 0.26 um here)
     assert np.isfinite(o.wp_u95_um) and o.wp_u95_um < 3.0, o.wp_u95_um
     s = summarize([o])["workpiece_ok"]
     assert (s["k"], s["n"]) == (1, 1), (o.wp_base_um, o.wp_ext_um, o.wp_u95_um)
+
+
+def test_a_real_shift_by_an_unnamed_smooth_is_in_the_u95():
+    """gen_a thermal_bending 604: the unnamed smooth in C moves the workpiece 0.82 -> 1.98 um (truth outside its model).
+
+    The shift (1.71 um RMS of form) is real against its own scatter (p < 1e-6),
+    and an unnamed term's split of the effect between machine and part is its
+    assumption, not a measurement: the extended U95 must carry it. Before the
+    rule the U95 was 0.78 um and the check failed; the U95 is bounded too
+    (3 um: a U95 of millimetres would pass any check).
+    """
+    o = _blind_case("gen_a", "thermal_bending", 604)
+    assert o.cause == "unexplained" and abs(o.wp_ext_um - o.wp_base_um) > 0.5, (o.cause, o.wp_base_um, o.wp_ext_um)
+    assert np.isfinite(o.wp_u95_um) and o.wp_u95_um < 3.0, o.wp_u95_um
+    s = summarize([o])["workpiece_ok"]
+    assert (s["k"], s["n"]) == (1, 1), (o.wp_base_um, o.wp_ext_um, o.wp_u95_um)
+
+
+#: Out-of-catalogue campaigns once named with full confidence by a wrong catalogue cause, now reported with
+#: the name flagged ``ambiguous`` (the confidence rules of core.discover's step 8, not a threshold):
+#: - gen_a reseat_hysteresis 502: one outlier of 5 um (one event cannot tell a chip from a seat).
+NOW_AMBIGUOUS = [("gen_a", "reseat_hysteresis", 502, "outlier")]
+
+
+@pytest.mark.parametrize("gen, effect, seed, cause", NOW_AMBIGUOUS)
+def test_once_confident_misnamings_are_flagged(gen, effect, seed, cause):
+    o = _blind_case(gen, effect, seed)
+    assert o.cause == cause and not o.confident, (o.cause, o.confident)
 
 
 #: Campaigns once named wrongly, each fixed by a rule of the engine (not by a
@@ -195,8 +228,5 @@ REGRESSIONS = [("gen_a", "probe_lobing", 302, ("probe_lobing",)),
 
 @pytest.mark.parametrize("gen, effect, seed, expected", REGRESSIONS)
 def test_once_misnamed_campaigns_stay_fixed(gen, effect, seed, expected):
-    mod = _blind(gen)
-    if mod is None:
-        pytest.skip(f"blind generator {gen} not present")
-    o = blind_outcome(mod, effect, seed, generator=gen)
+    o = _blind_case(gen, effect, seed)
     assert o.cause in expected, (o.cause, o.findings)
