@@ -719,8 +719,10 @@ def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM, full=None)
     if len(rods) < 2:
         rods = {lo, lo + 1}
     is_hole, is_rod, number = _feature_numbers(full.feature)
-    keep = (is_hole & np.isin(number, list(holes))) | (is_rod & np.isin(number, list(rods)))
-    return full.select(np.flatnonzero(keep))
+    n = max(int(number.max()), max(holes), max(rods)) + 1
+    want_hole, want_rod = np.zeros(n, bool), np.zeros(n, bool)  # by number
+    want_hole[[h for h in holes if h >= 0]], want_rod[[r for r in rods if r >= 0]] = True, True
+    return full.select(np.flatnonzero((is_hole & want_hole[number]) | (is_rod & want_rod[number])))
 
 
 @functools.lru_cache(maxsize=16)
@@ -730,7 +732,7 @@ def _feature_numbers(features: tuple) -> tuple:
     is_hole = np.array([f.startswith("hole") for f in features], bool)
     is_rod = np.array([f.startswith(("rod", "face")) for f in features], bool)
     number = np.array([int(f[4:]) if f.startswith("hole") else int(f[3:]) if f.startswith("rod")
-                       else int(f[5:]) if f.startswith("face") else -1 for f in features], int)
+                       else int(f[5:]) if f.startswith("face") else 0 for f in features], int)
     for x in (is_hole, is_rod, number):
         x.flags.writeable = False
     return is_hole, is_rod, number
