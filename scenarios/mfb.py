@@ -563,10 +563,13 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     mach = Machine(MACHINES[plan.machine]())
     art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
     full = mfb_plan(art, clearance_m=max(2.0 * MM, margin), overshoot_m=max(3.0 * MM, margin))  # once per check
-    per, n_t, n_s = {}, 0, 0
+    per, n_t, n_s, table_poses = {}, 0, 0, {}
     for ms in plan.measurements:
-        rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
-        T_R_W = np.asarray(mach.T_R_W_nominal(rot), float).reshape(4, 4)
+        T_R_W = table_poses.get(tuple(ms.rot_rad))  # (one per set-up: measurements share them)
+        if T_R_W is None:
+            rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
+            T_R_W = table_poses[tuple(ms.rot_rad)] = np.asarray(mach.T_R_W_nominal(rot), float).reshape(4, 4)
+            T_R_W.flags.writeable = False  # shared: read only
         pl = _plan_for(art, ms.holes, full=full)
         r = check_measurement(ms.name, art, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m,
                               stylus_r_m, pl, FINGERS.get(ms.stylus, 0.0))
