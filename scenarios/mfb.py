@@ -109,6 +109,7 @@ temperature) and a Monte Carlo through the whole pipeline.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 
@@ -551,6 +552,7 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     from sim.machine import Machine
     from sim.machines import MACHINES
     from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurement
+    from sim.plans import mfb_plan
 
     margin = placement_margin_m(u_place)  # the program run() simulates for this placement tolerance
     key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
@@ -560,11 +562,15 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     t0 = time.time()
     mach = Machine(MACHINES[plan.machine]())
     art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
-    per, n_t, n_s = {}, 0, 0
+    full = mfb_plan(art, clearance_m=max(2.0 * MM, margin), overshoot_m=max(3.0 * MM, margin))  # once per check
+    per, n_t, n_s, table_poses = {}, 0, 0, {}
     for ms in plan.measurements:
-        rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
-        T_R_W = np.asarray(mach.T_R_W_nominal(rot), float).reshape(4, 4)
-        pl = _plan_for(art, ms.holes, clearance_m=max(2.0 * MM, margin), overshoot_m=max(3.0 * MM, margin))
+        T_R_W = table_poses.get(tuple(ms.rot_rad))  # (one per set-up: measurements share them)
+        if T_R_W is None:
+            rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
+            T_R_W = table_poses[tuple(ms.rot_rad)] = np.asarray(mach.T_R_W_nominal(rot), float).reshape(4, 4)
+            T_R_W.flags.writeable = False  # shared: read only
+        pl = _plan_for(art, ms.holes, full=full)
         r = check_measurement(ms.name, art, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m,
                               stylus_r_m, pl, FINGERS.get(ms.stylus, 0.0))
         if not r.ok:
@@ -644,6 +650,11 @@ def _check_touch_strokes(log, machine, name):
 PLACEMENT_MARGIN_K = 5.0
 
 
+#: placement_margin_m's answers by (u_place, k): a pure function of them, asked by every run
+#: and every check (it builds the nominal bar and its full plan)
+_MARGINS: dict = {}
+
+
 def placement_margin_m(u_place=U_PLACE, k: float = PLACEMENT_MARGIN_K) -> float:
     """Approach margin of the MFB program for a bar placed within ``u_place``, m.
 
@@ -658,6 +669,8 @@ def placement_margin_m(u_place=U_PLACE, k: float = PLACEMENT_MARGIN_K) -> float:
     2.93 mm at k = 5, so 3.0 mm. (A 2 mm clearance, 3.4 sigma there, let about
     one Monte Carlo run in 25 start a face touch inside the bar: seed 23 of
     the 3-axis budget.)
+
+    Kept per (``u_place``, ``k``) (:data:`_MARGINS`).
     """
     from sim import artefacts as A
     from sim.plans import mfb_plan
@@ -667,9 +680,16 @@ def placement_margin_m(u_place=U_PLACE, k: float = PLACEMENT_MARGIN_K) -> float:
         from core.exceptions import ConfigError
 
         raise ConfigError(f"u_place must be 6 standard deviations >= 0 (m, m, m, rad, rad, rad), got {u_place!r}")
-    pl = mfb_plan(A.multi_feature_bar(deviations_m=np.zeros((12, 3))))
-    s = np.sqrt(((u[:3] * pl.wn_A) ** 2).sum(axis=1) + ((u[3:] * np.cross(pl.w_A, pl.wn_A)) ** 2).sum(axis=1))
-    return float(np.ceil(k * s.max() / (0.5 * MM) - 1e-9) * 0.5 * MM)
+    key = (u.tobytes(), float(k))
+    hit = _MARGINS.get(key)
+    if hit is None:
+        pl = mfb_plan(A.multi_feature_bar(deviations_m=np.zeros((12, 3))))
+        s = np.sqrt(((u[:3] * pl.wn_A) ** 2).sum(axis=1) + ((u[3:] * np.cross(pl.w_A, pl.wn_A)) ** 2).sum(axis=1))
+        hit = float(np.ceil(k * s.max() / (0.5 * MM) - 1e-9) * 0.5 * MM)
+        if len(_MARGINS) >= 64:
+            _MARGINS.clear()
+        _MARGINS[key] = hit
+    return hit
 
 
 def _check_touches_ok(log, name, program):
@@ -696,21 +716,29 @@ def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM, full=None)
 
     if full is None:
         full = mfb_plan(art, clearance_m=clearance_m, overshoot_m=overshoot_m)
-    hs = set(holes)
     # the rods each probed hole's plane PL_i needs: (i-1, i), (1, 2) for hole 1
     lo, hi = min(holes), max(holes)
     rods = set(range(max(lo - 1, 1), min(hi, 11) + 1))
     if len(rods) < 2:
         rods = {lo, lo + 1}
-    keep = []
-    for k, f in enumerate(full.feature):
-        if f.startswith("hole") and int(f[4:]) in hs:
-            keep.append(k)
-        elif f.startswith("rod") and int(f[3:]) in rods:
-            keep.append(k)
-        elif f.startswith("face") and int(f[5:]) in rods:
-            keep.append(k)
-    return full.select(np.array(keep))
+    is_hole, is_rod, number = _feature_numbers(full.feature)
+    n = max(int(number.max()), max(holes), max(rods)) + 1
+    want_hole, want_rod = np.zeros(n, bool), np.zeros(n, bool)  # by number
+    want_hole[[h for h in holes if h >= 0]], want_rod[[r for r in rods if r >= 0]] = True, True
+    return full.select(np.flatnonzero((is_hole & want_hole[number]) | (is_rod & want_rod[number])))
+
+
+@functools.lru_cache(maxsize=16)
+def _feature_numbers(features: tuple) -> tuple:
+    """Per touch of an MFB plan's ``features``: (a hole's, a rod's or face's, its number), (n,)
+    arrays read only; computed once per plan (:func:`_plan_for` selects from it per measurement)."""
+    is_hole = np.array([f.startswith("hole") for f in features], bool)
+    is_rod = np.array([f.startswith(("rod", "face")) for f in features], bool)
+    number = np.array([int(f[4:]) if f.startswith("hole") else int(f[3:]) if f.startswith("rod")
+                       else int(f[5:]) if f.startswith("face") else 0 for f in features], int)
+    for x in (is_hole, is_rod, number):
+        x.flags.writeable = False
+    return is_hole, is_rod, number
 
 
 @dataclass(frozen=True)

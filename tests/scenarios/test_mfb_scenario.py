@@ -399,6 +399,60 @@ def test_placement_margin_known_answer():
         placement_margin_m((0.1, 0.2))
 
 
+def test_placement_margin_kept_answer_is_the_computed_one():
+    """placement_margin_m keeps its answers per (u_place, k): a kept answer equals the one
+    computed afresh, a different k is not answered from another's entry, and bad input is
+    refused whatever is kept."""
+    from core.exceptions import ConfigError
+    from scenarios import mfb
+
+    u = (0.1e-3, 0.3e-3, 0.05e-3, 0.2e-3, 0.4e-3, 0.7e-3)
+    first = mfb.placement_margin_m(u)
+    mfb._MARGINS.clear()
+    assert mfb.placement_margin_m(u) == first  # computed afresh
+    assert mfb.placement_margin_m(u) == first  # kept
+    assert mfb.placement_margin_m(u, k=1.0) < first
+    with pytest.raises(ConfigError, match="u_place"):
+        mfb.placement_margin_m((np.nan,) * 6)
+
+
+def _plan_for_by_names(full, holes):
+    """The touches _plan_for keeps, by the rule spelled on the feature names (the selection
+    before its per-plan number tables): the probed holes, and the rods and both faces of
+    the rods their planes need ((i - 1, i), (1, 2) for hole 1)."""
+    lo, hi = min(holes), max(holes)
+    rods = set(range(max(lo - 1, 1), min(hi, 11) + 1))
+    if len(rods) < 2:
+        rods = {lo, lo + 1}
+    keep = [k for k, f in enumerate(full.feature)
+            if (f.startswith("hole") and int(f[4:]) in set(holes)) or (f.startswith("rod") and int(f[3:]) in rods)
+            or (f.startswith("face") and int(f[5:]) in rods)]
+    return full.select(np.array(keep, int))
+
+
+def test_plan_for_selects_by_the_feature_names():
+    """_plan_for's selection (feature numbers computed once per full plan) equals the rule
+    spelled on the names, touch for touch and bit for bit, for every single hole, the
+    5-axis plan's hole sets and a few others, at two margins."""
+    from scenarios import mfb
+    from sim import artefacts as A
+    from sim.plans import mfb_plan
+
+    art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
+    sets = {(h,) for h in range(1, 13)} | {ms.holes for ms in mfb.plan_5axis().measurements} | {
+        (1, 2, 3), (11, 12), (5, 9), tuple(range(1, 13))}
+    for margin in (2.0e-3, 3.0e-3):
+        full = mfb_plan(art, clearance_m=margin, overshoot_m=margin)
+        for holes in sorted(sets):
+            got = mfb._plan_for(art, holes, clearance_m=margin, overshoot_m=margin)
+            ref = _plan_for_by_names(full, holes)
+            assert got.n > 0 and got.target == ref.target and got.feature == ref.feature, holes
+            for x, y in ((got.w_A, ref.w_A), (got.wn_A, ref.wn_A), (got.level, ref.level)):
+                assert np.array_equal(x, y)
+            assert (got.clearance_m, got.overshoot_m) == (margin, margin)
+            assert mfb._plan_for(art, holes, full=full).target == got.target
+
+
 def test_the_lost_budget_draw_is_touched_by_the_program():
     """Regression: run 23 of the 3-axis budget (seed 1) was lost, 'rod 10 has no faceL10
     touches'. Its draw put placement X3 (bar along X, 12 holes) at a y shift of -0.77 mm
