@@ -29,16 +29,12 @@ def test_mc_independent_of_grouping_and_agrees_with_linear(pocket):
     np.testing.assert_allclose(a.hi[free], 1.96 * a.u_linear[free], rtol=0.1)
 
 
-def test_dask_cluster_and_local_processes_give_identical_results(pocket):
-    distributed = pytest.importorskip("distributed")
+def test_dask_cluster_and_local_processes_give_identical_results(pocket, dask_cluster):
     w, wn = pocket
     serial = mc_study(w, wn, ANG, GRID, 1.38e-6, runs=3000, seed=42, block=500, blocks_per_task=2)
     local = mc_study(w, wn, ANG, GRID, 1.38e-6, runs=3000, seed=42, block=500, blocks_per_task=2, workers=2)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
-        dk = mc_study(w, wn, ANG, GRID, 1.38e-6, runs=3000, seed=42, block=500, blocks_per_task=2,
-                      dask=cluster.scheduler_address)
-        sweep = design_sweep(w, wn, [ANG, [0, 60, 150, 210]], GRID, 1.38e-6, dask=cluster.scheduler_address)
+    dk = mc_study(w, wn, ANG, GRID, 1.38e-6, runs=3000, seed=42, block=500, blocks_per_task=2, dask=dask_cluster)
+    sweep = design_sweep(w, wn, [ANG, [0, 60, 150, 210]], GRID, 1.38e-6, dask=dask_cluster)
     for k in ("mean", "u", "lo", "hi"):
         assert np.array_equal(getattr(serial, k), getattr(local, k)), k
         assert np.array_equal(getattr(serial, k), getattr(dk, k)), k
