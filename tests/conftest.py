@@ -22,21 +22,20 @@ import pytest
 
 #: The session fixtures of this conftest that several test files use: every file that names one
 #: runs on the same worker. Checked on every worker against the fixtures the tests really use.
-SHARED_SESSION_FIXTURES = ("mfb3_noise_free", "dask_cluster")
+SHARED_SESSION_FIXTURES = ("mfb3_noise_free",)
 
-#: The longest units, longest first (summed test durations of main on 2026-12-02 06:00, 1,223 tests on two
-#: workers at load 6-9, wall: the mfb3_noise_free unit 300 s, then 125, 89, 86, 80, 63, 59, 55, 55, 44,
-#: 41, 32, 29, 26, 26, 24, 23, 20 s; every other file under 20 s). Handed out first, so that no long file
-#: starts last and leaves one worker running alone; the others follow in collection order. A file
-#: missing here only loses its place in the queue.
+#: The longest units, longest first (summed test durations on two workers at load 6-9, 2026-12-02, wall:
+#: the mfb3_noise_free unit 300 s, then 125, 89, 80, 63, 59, 55, 55, 50, 44, 41, 36, 32, 29, 26, 26, 24, 23,
+#: 20 s; every other file under 20 s). Handed out first, so that no long file starts last and leaves one
+#: worker running alone; the others follow in collection order. A file missing here only loses its place.
 LONGEST_FIRST = ("fixture:mfb3_noise_free", "tests/scenarios/test_discover_hidden.py",
-                 "tests/scenarios/test_paper_scenarios.py", "fixture:dask_cluster", "tests/scenarios/test_demo.py",
+                 "tests/scenarios/test_paper_scenarios.py", "tests/scenarios/test_demo.py",
                  "tests/core/test_discover_engine.py", "tests/core/test_discover_generalisation.py",
-                 "tests/sim/test_clearance.py", "tests/core/test_fit.py", "tests/test_fuzz_cli.py",
-                 "tests/scenarios/test_blind_gen_a.py", "tests/viz/test_figures.py", "tests/test_architecture.py",
-                 "tests/hardware/test_emulator_sim.py", "tests/viz/test_mfb_figures.py",
-                 "tests/hardware/test_campaign.py", "tests/scenarios/test_regress.py",
-                 "tests/scenarios/test_selfcal_coverage.py")
+                 "tests/sim/test_clearance.py", "tests/core/test_fit.py", "tests/scenarios/test_vcmm_study.py",
+                 "tests/test_fuzz_cli.py", "tests/scenarios/test_blind_gen_a.py", "tests/scenarios/test_parallel.py",
+                 "tests/viz/test_figures.py", "tests/test_architecture.py", "tests/hardware/test_emulator_sim.py",
+                 "tests/viz/test_mfb_figures.py", "tests/hardware/test_campaign.py",
+                 "tests/scenarios/test_regress.py", "tests/scenarios/test_selfcal_coverage.py")
 
 _ROOT = Path(__file__).resolve().parents[1]
 
@@ -128,14 +127,3 @@ def mfb3_noise_free():
         V.identify_volumetric = orig
     return res, cap["m"]
 
-
-@pytest.fixture(scope="session")
-def dask_cluster():
-    """The scheduler address of one local Dask cluster (2 worker processes, 1 thread each) shared by the
-    files that check a study gives the same numbers on Dask: started once (about 10 s and 4.5 s of CPU
-    each time, plus each worker's imports of vmt), shut down at the end of the session."""
-    import distributed                      # a dependency (pyproject, requirements.lock): fails, never skips
-
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
-        yield cluster.scheduler_address

@@ -220,15 +220,3 @@ def test_points_not_on_one_feature_exit_2(tmp_path, capsys):
                     "quantity = \"flatness\"\nof = \"a\"\n")
     assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out)]) == 2
     assert "not on one plane" in capsys.readouterr().err
-
-
-def test_dask_gives_the_same_result_per_seed(machine, dask_cluster):
-    """The same study serially and on a 2-worker Dask cluster: identical values, run by run."""
-    task = loads_task(GAUGE_TASK.replace("batch_runs = 50", "batch_runs = 20").replace("noise_um = 0.0",
-                                                                                         "noise_um = 0.2"))
-    st = S.prepare(GAUGE, task, machine)
-    serial = S.study(st, 5, budget=False)
-    remote = S.study(st, 5, budget=False, dask=dask_cluster)
-    assert serial["runs"] == remote["runs"]
-    assert np.array_equal(serial["values_si"], remote["values_si"])
-    assert [t["u_dq_um"] for t in serial["touches_u"]] == [t["u_dq_um"] for t in remote["touches_u"]]
