@@ -53,6 +53,7 @@ from typing import Callable
 
 import numpy as np
 
+from .diagnosis import screen_phasors
 from .units import MM, UM, URAD
 
 
@@ -141,11 +142,15 @@ def _matmul_score(funcs: Callable, weights: np.ndarray):
 
     def score(r, rows):
         if not cache:
-            cache.append(funcs())
-        F = cache[0][rows]
+            F = funcs()
+            cache.append((F, F ** 2))
+        F, F2 = cache[0]
+        every = len(rows) == len(F) and np.array_equal(rows, np.arange(len(F)))
+        if not every:  # (every row: the table itself, not a copy of it)
+            F, F2 = F[rows], F2[rows]
         W = weights[rows]
         num = ((r[:, None] * W).T @ F) ** 2
-        den = (W ** 2).T @ (F ** 2)
+        den = (W ** 2).T @ F2
         return np.sum(num / np.maximum(den, 1e-300), axis=0)
     return score
 
@@ -324,9 +329,9 @@ def periodic_scans(bl):
         tries += span * (1 / p_lo - 1 / p_hi)
         ax = "XY"[axis]
 
-        def funcs(a=a, f=f):
-            ph = 2 * np.pi * a[:, None] * f[None, :]
-            return np.hstack([np.sin(ph), np.cos(ph)])
+        def funcs(a=a, f=f):  # the score's sines and cosines: it ranks trials, the columns tested are exact
+            Z = screen_phasors(2 * np.pi * a, f)
+            return np.hstack([Z.imag, Z.real])
 
         W = np.column_stack([-d.nx, -d.ny])
         base = _matmul_score(funcs, W)
@@ -561,7 +566,11 @@ def bending_magnitudes(info, coef, bl):
 
 
 def _hann(u):
-    return np.where(np.abs(u) < 1, np.cos(np.pi * u / 2) ** 2, 0.0)
+    u = np.asarray(u, float)
+    out = np.zeros(u.shape)
+    on = np.abs(u) < 1  # the window's support only (the rest is zero): the same values as evaluating everywhere
+    out[on] = np.cos(np.pi * u[on] / 2) ** 2
+    return out
 
 
 def _defect_cols(d, axis: int, x0, w):
@@ -740,7 +749,7 @@ def fixture_slip(bl) -> np.ndarray:
     d = bl.data
     t = d.touches
     M = np.column_stack([d.nx, d.ny, d.rot_m / max(d.L_m, 1e-9)])
-    out = []
+    masks = []
     for j in np.unique(t.setup):
         idx = np.flatnonzero(t.setup == j)
         idx = idx[np.argsort(t.t_s[idx], kind="stable")]
@@ -749,11 +758,13 @@ def fixture_slip(bl) -> np.ndarray:
         splits = np.arange(1, idx.size)
         if splits.size > SLIP_SPLITS:
             splits = np.unique(np.round(np.linspace(1, idx.size - 1, SLIP_SPLITS)).astype(int))
-        for s in splits:
-            m = np.zeros(t.n)
-            m[idx[s:]] = 1.0
-            out.append(M * m[:, None])
-    return np.array(out) if out else np.zeros((0, t.n, 3))
+        m = np.zeros((splits.size, t.n))  # (trials, n): 1 on the set-up's touches from each split on
+        after = np.arange(idx.size)[None, :] >= splits[:, None]
+        m[:, idx] = after
+        masks.append(m)
+    if not masks:
+        return np.zeros((0, t.n, 3))
+    return M[None, :, :] * np.concatenate(masks)[:, :, None]  # one product: the same values as trial by trial
 
 
 def finer_error_map(bl) -> np.ndarray:

@@ -315,16 +315,16 @@ def function_basis(cov: Covariate) -> np.ndarray:
 def term_bases(covariates, modes: np.ndarray) -> dict:
     """Every covariate's term basis over all rows, once (name -> (n, m)).
 
-    A spectral covariate has no basis: its entry is the sines and cosines of
-    the frequencies scanned, (S, C, f), kept for every diagnosis of a run.
+    A spectral covariate has no basis: its entry is its :class:`SpectralTable`
+    (the scan's frequencies and the pre-screen's tables), kept for every
+    diagnosis of a run.
     """
     out = {}
     for c in covariates:
         if c.kind == "spectral":
-            f = _frequencies(c)
-            if f is not None:
-                ph = 2 * np.pi * np.asarray(c.values, float)[:, None] * f[None, :]
-                out[c.name] = (np.sin(ph), np.cos(ph), f)
+            tab = spectral_table(c)
+            if tab is not None:
+                out[c.name] = tab
         else:
             out[c.name] = term_basis(c, modes)
     return out
@@ -339,35 +339,112 @@ def _frequencies(cov: Covariate):
     return np.arange(1 / p_hi, 1 / p_lo, 1 / (3 * span))
 
 
+#: Frequencies per block of the pre-screen's tables: each block starts from an
+#: exact sine and cosine, the others are rotations of it (error ~ BLOCK eps).
+_BLOCK = 32
+
+
+class SpectralTable(tuple):
+    """A spectral covariate's scan over all rows: ``(Z, S2, C2, f, w)``.
+
+    ``f`` (F,) the frequencies; ``w`` (n,) ``2 pi v``, so that a frequency's
+    exact columns are ``sin(w f_i)``, ``cos(w f_i)`` (:meth:`columns`, the
+    same floating-point operations as ``2 pi v f`` evaluated whole). ``Z``
+    (n, F) ``exp(i w f)`` for the periodogram-like pre-screen only, built by
+    rotation from an exact value every ``_BLOCK`` frequencies (within about
+    1e-14 of the exact one: it ranks frequencies, it enters no test);
+    ``S2``, ``C2`` its squared sine and cosine (the pre-screen's
+    denominators).
+    """
+
+    __slots__ = ()
+
+    def __new__(cls, Z, S2, C2, f, w):
+        return super().__new__(cls, (Z, S2, C2, f, w))
+
+    Z = property(lambda self: self[0])
+    S2 = property(lambda self: self[1])
+    C2 = property(lambda self: self[2])
+    f = property(lambda self: self[3])
+    w = property(lambda self: self[4])
+
+    def columns(self, i: int):
+        """Exact ``sin``, ``cos`` of frequency ``i`` over all rows, (n,) each."""
+        ph = self.w * self.f[i]
+        return np.sin(ph), np.cos(ph)
+
+
+def spectral_table(cov: Covariate):
+    """The :class:`SpectralTable` of a spectral covariate, or None (nothing to scan)."""
+    f = _frequencies(cov)
+    if f is None:
+        return None
+    w = 2 * np.pi * np.asarray(cov.values, float)
+    Z = screen_phasors(w, f)
+    return SpectralTable(Z, Z.imag ** 2, Z.real ** 2, f, w)
+
+
+def screen_phasors(w: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """(n, F) complex ``exp(i w f)`` on an evenly spaced ``f``, for ranking frequencies only.
+
+    Exact (``np.exp``) at every ``_BLOCK``-th frequency, rotations of it
+    by ``exp(i w df)`` between: within about ``_BLOCK * eps * |w f|`` of
+    the exact phasor (3e-13 on the campaigns seen), at a few complex
+    products per entry instead of a sine and a cosine. A pre-screen ranks
+    with it; every test uses exact columns.
+    """
+    heads = np.arange(0, len(f), _BLOCK)
+    E = np.exp(1j * (w[:, None] * f[heads][None, :]))  # (n, nb) exact at each block's first frequency
+    step = f[1] - f[0] if len(f) > 1 else 0.0
+    R = np.ones((len(w), _BLOCK), complex)  # exp(i w k step), k = 0 .. _BLOCK - 1
+    R[:, 1:] = np.exp(1j * w * step)[:, None]
+    R = np.cumprod(R, axis=1)
+    return (E[:, :, None] * R[:, None, :]).reshape(len(w), -1)[:, :len(f)]  # a view: products take its stride
+
+
 @dataclass(frozen=True)
 class _SpectralTest(NestedTest):
     period: float = 0.0
 
 
-def _spectral(cov: Covariate, Q, r, rss, dof, modes, rows, trig=None, shortlist: int = 4):
+def _spectral(cov: Covariate, Q, r, rss, dof, modes, rows, table=None, shortlist: int = 4):
     """The best sine of a covariate against the residuals (see :attr:`Covariate.period_range`)."""
+    tab = spectral_table(cov) if table is None else table
+    if tab is None:
+        return None
     v = np.asarray(cov.values, float)
-    M = modes[:, list(cov.modes)]
-    if trig is None:
-        f = _frequencies(cov)
-        if f is None:
-            return None
-        ph = 2 * np.pi * v[:, None] * f[None, :]
-        S, C = np.sin(ph), np.cos(ph)
+    Mf = modes[:, list(cov.modes)]
+    f = tab.f
+    # periodogram-like pre-screen (r is orthogonal to the model): per mode w and
+    # frequency, (r w . sin)^2 / (w^2 . sin^2) + the same with cos, the rows left
+    # out weighted by zero
+    rf = np.zeros(len(v))
+    rf[slice(None) if rows is None else rows] = r
+    if rows is None:
+        Mw = Mf
     else:
-        S, C, f = trig
+        keep = np.zeros(len(v), bool)
+        keep[rows] = True
+        Mw = np.where(keep[:, None], Mf, 0.0)
+    NZ = (rf[:, None] * Mw).T @ tab.Z
+    W2 = (Mw ** 2).T
+    dS, dC = W2 @ tab.S2, W2 @ tab.C2
+    num = np.zeros(len(f))
+    for m in range(Mf.shape[1]):
+        num += NZ[m].imag ** 2 / np.maximum(dS[m], 1e-300)
+        num += NZ[m].real ** 2 / np.maximum(dC[m], 1e-300)
     if rows is not None:
-        v, M, S, C = v[rows], M[rows], S[rows], C[rows]
+        v, M = v[rows], Mf[rows]
+    else:
+        M = Mf
     span = float(np.ptp(v))
     p_lo, p_hi = cov.period_range
-    num = np.zeros(len(f))
-    for m in range(M.shape[1]):  # periodogram-like pre-screen (r is orthogonal to the model)
-        w = M[:, m]
-        for F in (S, C):
-            num += ((r * w) @ F) ** 2 / np.maximum((w ** 2) @ (F ** 2), 1e-300)
     best = None
     for i in np.argsort(-num)[:shortlist]:
-        B = np.hstack([M * S[:, [i]], M * C[:, [i]]])
+        s, c = tab.columns(i)
+        if rows is not None:
+            s, c = s[rows], c[rows]
+        B = np.hstack([M * s[:, None], M * c[:, None]])
         U = new_basis(Q, B)
         if U.shape[1] == 0 or dof - U.shape[1] < 5:
             continue

@@ -1419,6 +1419,11 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows):
     return out, u95
 
 
+def _named_ss(so: _State, sf: _State, sigma: float) -> float:
+    """Debiased sum of squares a term explains: the model without it (``so``) against with it (``sf``)."""
+    return (so.rss - sf.rss) - (sf.Q.shape[1] - so.Q.shape[1]) * sigma ** 2
+
+
 def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> dict:
     """How much of what a smooth term in the cause's covariate explains the cause explains."""
     others = [o for o in terms if o is not tm]
@@ -1435,10 +1440,8 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     U = new_basis(so.Q, np.hstack([B, tm.columns[rows]]))
     ss_r = float(np.sum((U.T @ so.r) ** 2))
     k_r = U.shape[1]
-    ss_n = so.rss - sf.rss
-    k_n = sf.Q.shape[1] - so.Q.shape[1]
     s2 = sigma ** 2
-    d_n = ss_n - k_n * s2
+    d_n = _named_ss(so, sf, sigma)
     d_r = ss_r - k_r * s2
     share = d_n / d_r if d_r > 0 else 1.0
     m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
@@ -1487,7 +1490,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     return out
 
 
-def _alternatives(bl, tm: Term, named, Qb, y, rows, sigma, settings, bases) -> list:
+def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
     """Covariates of other families whose smooth term reproduces the cause's signal.
 
     The cause's signal is its contribution to the joint fit (its columns'
@@ -1499,7 +1502,7 @@ def _alternatives(bl, tm: Term, named, Qb, y, rows, sigma, settings, bases) -> l
     flagged as ambiguous.
     """
     fam = bl.covariate(tm.covariate).family if bl.covariate(tm.covariate) is not None else ""
-    so = _state(Qb, y, rows, [o for o in named if o is not tm])
+    rows = so.rows  # so: the model without the cause (the other named causes)
     E = tm.columns[rows]
     Ep = E - so.Q @ (so.Q.T @ E)
     c = np.linalg.lstsq(Ep, so.r, rcond=1e-12)[0]
@@ -1577,18 +1580,20 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             continue
         cause = tm.origin
         named = [t for t in terms if t.penalty is None]
-        Qo = _state(Qb, y, rows, [t for t in named if t is not tm]).Q
-        vals, u95 = _magnitudes(cause, bl, tm, Qo, rows)
+        others = [t for t in named if t is not tm]
+        so = _state(Qb, y, rows, others)
+        vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows)
         ev = dict(tm.evidence)
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
-        share = _rival_share(bl, tm, named, Qb, y, rows, sig, settings, bases)
-        ev["explained_ss_um2"] = share["explained_ss_um2"]
-        alt = _alternatives(bl, tm, named, Qb, y, rows, sig, settings, bases)
+        # what the cause explains beside the others (the rival check's own figure; its tests were made)
+        explained = max(_named_ss(so, _state(Qb, y, rows, others + [tm]), sig), 0.0) / UM ** 2
+        ev["explained_ss_um2"] = explained
+        alt = _alternatives(bl, tm, so, sig, settings, bases)
         ev["alternatives"] = alt
         ev["indistinguishable_from"] = [a["covariate"] for a in alt if a["indistinguishable"]]
         ev["confidence"] = "ambiguous" if ev["indistinguishable_from"] else "named"
-        ev["explained_rms_um"] = float(np.sqrt(share["explained_ss_um2"] / len(rows)))
+        ev["explained_rms_um"] = float(np.sqrt(explained / len(rows)))
         out.append(Finding(tm.cause, _clean(ev), {**_info_params(tm.info), **vals}, u95,
                            float(np.sqrt(st.rss / len(rows))) / UM, cause.books_to))
     if structure_e["present"]:

@@ -122,6 +122,17 @@ def left_jacobian_so3(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + b[..., None, None] * K + c[..., None, None] * (K @ K)
 
 
+def _exp_and_left_jacobian(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(:func:`exp_so3`, :func:`left_jacobian_so3`) of the same w, the angle's coefficients and
+    ``K @ K`` computed once for both (the same numbers as the two calls)."""
+    w = np.asarray(w, float)
+    a, b, c = _coeffs(np.linalg.norm(w, axis=-1))
+    K = skew(w)
+    KK = K @ K
+    return (np.eye(3) + a[..., None, None] * K + b[..., None, None] * KK,
+            np.eye(3) + b[..., None, None] * K + c[..., None, None] * KK)
+
+
 def _hom(R=None, t=None, n=1) -> np.ndarray:
     T = np.zeros((n, 4, 4))
     T[:, 3, 3] = 1.0
@@ -195,12 +206,13 @@ def _vec(values, names, n) -> np.ndarray:
     return np.stack([_col(values, nm, n) for nm in names], axis=-1)
 
 
-def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = True):
+def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = True, J=None):
     """Factors (n,4,4) of one branch, bed outward, and their derivative twists.
 
     Returns factors, dsym {symbol: [(i, xi (n,6))]}, dax {axis: [(i, xi)]};
     xi = (v, w) is the left-perturbation twist of factor i per unit change
-    (empty when ``derivs`` is False: the poses only). Per axis: its location errors (:func:`_location_errors`), the rotation they
+    (empty when ``derivs`` is False: the poses only); ``J`` (n, 3): per-pose probe
+    offsets instead of ``geom.J_m`` (:func:`_probe_offsets`). Per axis: its location errors (:func:`_location_errors`), the rotation they
     leave relative to the axes below (:func:`_carried_rotation`), its motion
     errors (:func:`_motion_errors`), then the factors in chain order.
     """
@@ -225,8 +237,8 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = 
         # the tool branch moves its carriage by E; the workpiece branch its
         # component by the exact inverse E^-1 (the tool relative to the part: E)
         mot, t_E, R_E, E, Jl_E = _motion_errors(a, values, n, inverse=side != "tool", derivs=derivs)
-        Jl_rel = left_jacobian_so3(rel) if derivs else None
-        L = _hom(exp_so3(rel), None, n)
+        R_rel, Jl_rel = _exp_and_left_jacobian(rel) if derivs else (exp_so3(rel), None)
+        L = _hom(R_rel, None, n)
 
         def add_rel(i):
             if not derivs:
@@ -254,7 +266,7 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = 
                 add(m.name, i, xi)
 
         if a in iso.LINEAR_AXES:
-            q = lin[:, ("X", "Y", "Z").index(a)] + geom.J_m[_E[a]]
+            q = lin[:, ("X", "Y", "Z").index(a)] + (geom.J_m[_E[a]] if J is None else J[:, _E[a]])
             add_rel(len(F))
             F.append(L)
             if side != "tool":  # E^-1 in the carrier's frame, before the motion
@@ -337,12 +349,12 @@ def _motion_errors(a: str, values, n: int, inverse: bool = False, derivs: bool =
     mot = iso.symbols_of_axis(a, location=False)
     t_E = _vec(values, [m.name for m in mot[:3]], n)
     w_E = _vec(values, [m.name for m in mot[3:]], n)
-    R_E = exp_so3(w_E)
+    R_E, Jl_E = _exp_and_left_jacobian(w_E) if derivs else (exp_so3(w_E), None)
     if inverse:
         E = _hom(np.swapaxes(R_E, 1, 2), -np.einsum("nji,nj->ni", R_E, t_E), n)
     else:
         E = _hom(R_E, t_E, n)
-    return mot, t_E, R_E, E, (left_jacobian_so3(w_E) if derivs else None)
+    return mot, t_E, R_E, E, Jl_E
 
 
 def _inputs(geom, lin_m, rot_rad):
@@ -358,13 +370,6 @@ def _inputs(geom, lin_m, rot_rad):
         if rot.shape != (n, nr):
             raise ConfigError(f"rot_rad must be (n, {nr}) for {geom.chain.rotary_axes}, got {np.shape(rot_rad)}")
     return lin, rot, n
-
-
-def _prod(F, n):
-    T = _hom(n=n)
-    for f in F:
-        T = T @ f
-    return T
 
 
 class _Pose:
@@ -431,7 +436,7 @@ def _exp_rows(w: np.ndarray) -> np.ndarray:
                      np.stack([bx * z - ay, by * z + ax, d + bz * z])])
 
 
-def _branch_pose(geom: ChainGeometry, side: str, lin, rot, values, n: int) -> _Pose:
+def _branch_pose(geom: ChainGeometry, side: str, lin, rot, values, n: int, J=None) -> _Pose:
     """The product of :func:`_branch`'s factors, composed directly (poses only, no derivatives)."""
     ch = geom.chain
     axes = ch.tool_axes if side == "tool" else ch.workpiece_from_bed
@@ -461,7 +466,7 @@ def _branch_pose(geom: ChainGeometry, side: str, lin, rot, values, n: int) -> _P
             P.rotate(R_E)
 
         if a in iso.LINEAR_AXES:
-            q = lin[:, ("X", "Y", "Z").index(a)] + geom.J_m[_E[a]]
+            q = lin[:, ("X", "Y", "Z").index(a)] + (geom.J_m[_E[a]] if J is None else J[:, _E[a]])
             P.rotate(L)
             if side != "tool":
                 apply_E()
@@ -492,7 +497,21 @@ def T_R_P(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     return P.matrix()
 
 
-def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
+def _probe_offsets(geom: ChainGeometry, J_m, n: int):
+    """None (``geom.J_m`` for every pose) or the per-pose probe offsets ``J_m`` as (n, 3) m.
+
+    Poses taken with different styli (their offsets J) in one batch: each
+    pose's numbers are the ones a call with ``geom.J_m`` = its row gives.
+    """
+    if J_m is None:
+        return None
+    J = np.asarray(J_m, float)
+    if J.shape != (n, 3) or not np.all(np.isfinite(J)):
+        raise ConfigError(f"J_m must be finite (n, 3) = ({n}, 3) probe offsets, got shape {J.shape}")
+    return J
+
+
+def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None, J_m=None) -> np.ndarray:
     """Actual stylus-tip centre in W, (n, 3) m (exact transform product, no derivatives).
 
     Parameters
@@ -504,12 +523,16 @@ def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
         Rotary positions in ``geom.chain.rotary_axes`` order, rad.
     values : mapping ISO symbol -> scalar or (n,) float, optional
         Error values (m, rad) at each pose; absent symbols are zero.
+    J_m : (n, 3) float, optional
+        Probe offsets of each pose (m), instead of ``geom.J_m`` for all:
+        several styli in one call.
     """
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
+    J = _probe_offsets(geom, J_m, n)
     values = values or {}
-    W = _branch_pose(geom, "workpiece", lin, rot, values, n)
-    P = _branch_pose(geom, "tool", lin, rot, values, n)
-    P.translate(-np.asarray(geom.J_m, float))
+    W = _branch_pose(geom, "workpiece", lin, rot, values, n, J)
+    P = _branch_pose(geom, "tool", lin, rot, values, n, J)
+    P.translate(-np.asarray(geom.J_m, float) if J is None else -J)
     d = P.t - W.t
     if W.R is None:
         return d.T.copy()
@@ -525,31 +548,34 @@ def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _derivs(geom, lin_m, rot_rad, values, which):
+def _derivs(geom, lin_m, rot_rad, values, which, J_m=None):
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
+    J = _probe_offsets(geom, J_m, n)
     values = values or {}
-    Fw, dsw, daw = _branch(geom, "workpiece", lin, rot, values, n)
-    Ft, dst, dat = _branch(geom, "tool", lin, rot, values, n)
-    Ft = Ft + [_hom(None, -np.asarray(geom.J_m), n)]
-    TW = _prod(Fw, n)
-    TP = _prod(Ft, n)
-    R_RW = TW[:, :3, :3]
-    tipW = np.einsum("nji,nj->ni", R_RW, TP[:, :3, 3] - TW[:, :3, 3])
-
-    def chain_terms(F, end_point):
+    Fw, dsw, daw = _branch(geom, "workpiece", lin, rot, values, n, J=J)
+    Ft, dst, dat = _branch(geom, "tool", lin, rot, values, n, J=J)
+    Ft = Ft + [_hom(None, -np.asarray(geom.J_m) if J is None else -J, n)]
+    def prefixes(F):  # I, F0, F0 F1, ...: the last is the branch's pose (the products of _prod)
         pre = [_hom(n=n)]
         for f in F:
             pre.append(pre[-1] @ f)
+        return pre
+
+    def suffixes(F, end_point):
         suf = [None] * (len(F) + 1)
         suf[len(F)] = end_point
         for i in range(len(F) - 1, -1, -1):
             suf[i] = np.einsum("nij,nj->ni", F[i], suf[i + 1])
-        return pre, suf
+        return suf
 
+    pre_w, pre_t = prefixes(Fw), prefixes(Ft)
+    TW, TP = pre_w[-1], pre_t[-1]
+    R_RW = TW[:, :3, :3]
+    tipW = np.einsum("nji,nj->ni", R_RW, TP[:, :3, 3] - TW[:, :3, 3])
     p_end_t = np.tile([0.0, 0, 0, 1], (n, 1))
     p_end_w = np.concatenate([tipW, np.ones((n, 1))], axis=1)
-    pre_t, suf_t = chain_terms(Ft, p_end_t)
-    pre_w, suf_w = chain_terms(Fw, p_end_w)
+    suf_t = suffixes(Ft, p_end_t)
+    suf_w = suffixes(Fw, p_end_w)
 
     # R_RW^T times the rotation before factor i: shared by every symbol entering at factor i
     to_W: dict = {}
@@ -575,7 +601,7 @@ def _derivs(geom, lin_m, rot_rad, values, which):
     return d_of, dat, daw, n
 
 
-def sensitivity(geom: ChainGeometry, lin_m, rot_rad=None, values=None, symbols=None) -> np.ndarray:
+def sensitivity(geom: ChainGeometry, lin_m, rot_rad=None, values=None, symbols=None, J_m=None) -> np.ndarray:
     """d tip_W / d(error value), analytic small displacement, (n, 3, m).
 
     Exact derivative of :func:`tip_W` at the given error values (not only at
@@ -587,11 +613,13 @@ def sensitivity(geom: ChainGeometry, lin_m, rot_rad=None, values=None, symbols=N
     symbols : sequence of str, optional
         Columns, default :func:`error_symbols` of the chain. Units: m/m for
         translations, m/rad for rotations.
+    J_m : (n, 3) float, optional
+        Per-pose probe offsets (m), as :func:`tip_W`.
     """
     symbols = tuple(symbols) if symbols is not None else error_symbols(geom.chain)
     for s in symbols:
         iso.symbol(s)
-    d_of, dt, dw, n = _derivs(geom, lin_m, rot_rad, values, "sym")
+    d_of, dt, dw, n = _derivs(geom, lin_m, rot_rad, values, "sym", J_m)
     out = np.zeros((n, 3, len(symbols)))
     for j, s in enumerate(symbols):
         out[:, :, j] = d_of(dt.get(s, []), dw.get(s, []))

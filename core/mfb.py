@@ -188,7 +188,7 @@ def _group(feature) -> dict:
     return {f: np.asarray(v) for f, v in out.items()}
 
 
-def fit_bar_features(p_R, feature, n_R, *, batched: bool = False) -> BarFeatures:
+def fit_bar_features(p_R, feature, n_R, *, batched: bool = False, fits: dict | None = None) -> BarFeatures:
     """Least-squares features of one placement (cylinders App. A, planes App. B).
 
     Parameters
@@ -208,6 +208,10 @@ def fit_bar_features(p_R, feature, n_R, *, batched: bool = False) -> BarFeatures
         for bit), without the single fits' checks (coincident or collinear
         points, rank): only for touches known good, e.g. simulated touches
         each checked to trigger on its target (:func:`scenarios.mfb.run`).
+    fits : dict, optional
+        Kept by the caller across calls (not batched): a feature whose touches
+        and hint were fitted before is taken from it (the same numbers, bit
+        for bit; ``fits`` of :func:`poi_noise_gain`).
     """
     if batched:
         return _fit_bar_features_batched(p_R, feature, n_R)
@@ -217,12 +221,12 @@ def fit_bar_features(p_R, feature, n_R, *, batched: bool = False) -> BarFeatures
     for f, idx in _group(feature).items():
         try:
             if (i := _num(f, "hole")) is not None:
-                hp[i], ha[i] = cylinder_point_axis(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
+                hp[i], ha[i] = _fit_once(fits, "cylinder", p_R[idx], _axis_hint(n_R[idx]))
             elif (j := _num(f, "rod")) is not None:
-                rp[j], ra[j] = cylinder_point_axis(p_R[idx], axis_hint=_axis_hint(n_R[idx]))
+                rp[j], ra[j] = _fit_once(fits, "cylinder", p_R[idx], _axis_hint(n_R[idx]))
                 rod_normals.append(n_R[idx])
             elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
-                fp[(f[4], j)], fn[(f[4], j)] = plane_point_normal(p_R[idx], normal_hint=n_R[idx].mean(axis=0))
+                fp[(f[4], j)], fn[(f[4], j)] = _fit_once(fits, "plane", p_R[idx], n_R[idx].mean(axis=0))
         except FitError as e:
             raise FitError(f"MFB feature {f!r}: {e}") from None
     side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
@@ -243,35 +247,50 @@ def _checked_touches(p_R, feature, n_R) -> tuple:
 
 def _fit_bar_features_batched(p_R, feature, n_R) -> BarFeatures:
     """:func:`fit_bar_features` with ``batched=True``."""
-    p_R, n_R = _checked_touches(p_R, feature, n_R)
-    groups: dict = {}  # (kind, touches, hint bytes) -> [(key, idx)]
-    rod_normals = []
-    for f, idx in _group(feature).items():
-        if (i := _num(f, "hole")) is not None:
-            kind, key, hint = "hole", i, _axis_hint(n_R[idx])
-        elif (j := _num(f, "rod")) is not None:
-            kind, key, hint = "rod", j, _axis_hint(n_R[idx])
-            rod_normals.append(n_R[idx])
-        elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
-            kind, key, hint = "face", (f[4], j), n_R[idx].mean(axis=0)
-        else:
-            continue
-        groups.setdefault((kind, len(idx), hint.tobytes()), []).append((key, idx, hint, f))
-    out = {"hole": ({}, {}), "rod": ({}, {}), "face": ({}, {})}
+    return _fit_placements_batched([(p_R, feature, n_R)])[0]
+
+
+def _fit_placements_batched(placements) -> list[BarFeatures]:
+    """:func:`fit_bar_features` (``batched=True``) of several placements ``[(p_R, feature, n_R)]``:
+    the features of all of them that share a kind, a touch count and a hint (the same bits: the
+    placements of one orientation) fitted in one call. Each set's iteration is its own (the batched
+    fits update a set only while it is active), so every feature gets the numbers its placement's
+    own batch gives, bit for bit (tests/core/test_mfb.py). A fit error is raised as the first
+    placement's own batch raises it."""
+    placements = [_checked_touches(p, f, n) + (f,) for p, f, n in placements]
+    groups: dict = {}  # (kind, touches, hint bytes) -> [(placement, key, idx, hint, feature)]
+    sides = []
+    for k, (p_R, n_R, feature) in enumerate(placements):
+        rod_normals = []
+        for f, idx in _group(feature).items():
+            if (i := _num(f, "hole")) is not None:
+                kind, key, hint = "hole", i, _axis_hint(n_R[idx])
+            elif (j := _num(f, "rod")) is not None:
+                kind, key, hint = "rod", j, _axis_hint(n_R[idx])
+                rod_normals.append(n_R[idx])
+            elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
+                kind, key, hint = "face", (f[4], j), n_R[idx].mean(axis=0)
+            else:
+                continue
+            groups.setdefault((kind, len(idx), hint.tobytes()), []).append((k, key, idx, hint, f))
+        sides.append(np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3))
+    out = [{"hole": ({}, {}), "rod": ({}, {}), "face": ({}, {})} for _ in placements]
     for (kind, _, _), items in groups.items():
-        pts = np.stack([p_R[idx] for _, idx, _, _ in items])
-        hint = items[0][2]
+        pts = np.stack([placements[k][0][idx] for k, _, idx, _, _ in items])
+        hint = items[0][3]
         try:
             if kind == "face":
                 pt, ax = planes_point_normal(pts, normal_hint=hint)
             else:
                 pt, ax = cylinders_point_axis(pts, axis_hint=hint)
         except FitError as e:
+            if len(placements) > 1:  # name the features as the placement's own batch does
+                for p_R, n_R, feature in placements:
+                    _fit_placements_batched([(p_R, feature, n_R)])
             raise FitError(f"MFB features {', '.join(f for *_, f in items)}: {e}") from None
-        for k, (key, *_) in enumerate(items):
-            out[kind][0][key], out[kind][1][key] = pt[k], ax[k]
-    side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
-    return BarFeatures(*out["hole"], *out["rod"], *out["face"], side)
+        for b, (k, key, *_) in enumerate(items):
+            out[k][kind][0][key], out[k][kind][1][key] = pt[b], ax[b]
+    return [BarFeatures(*o["hole"], *o["rod"], *o["face"], side) for o, side in zip(out, sides)]
 
 
 def _rod_points(bf: BarFeatures, j: int) -> np.ndarray:
@@ -359,6 +378,13 @@ def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str
     return poi
 
 
+def points_of_interest_batched(placements, geom: BarGeometry = MFB) -> list[PointsOfInterest]:
+    """:func:`points_of_interest` (``batched=True``) of several placements ``[(p_R, feature, n_R)]``,
+    their features fitted together (:func:`_fit_placements_batched`: each one's numbers bit for
+    bit; touches known good only, e.g. a campaign's simulated touches each checked to trigger)."""
+    return [poi_from_features(bf, geom, batched=True) for bf in _fit_placements_batched(placements)]
+
+
 def detect_orientation(O_M, holes, geom: BarGeometry = MFB) -> tuple[str, dict]:
     """Orientation of the bar from the y_M offsets of its holes (section 2.2).
 
@@ -403,7 +429,31 @@ def _meet_batch(p, d, q, n) -> np.ndarray:
     return p + (np.einsum("...j,...j->...", q - p, n) / den)[..., None] * d
 
 
-def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float = 1e-7) -> np.ndarray:
+#: The fits :func:`_fit_once` may keep: kind -> (function, name of its hint argument).
+_FITS = {"cylinder": (cylinder_point_axis, "axis_hint"), "plane": (plane_point_normal, "normal_hint"),
+         "cylinders": (cylinders_point_axis, "axis_hint"), "planes": (planes_point_normal, "normal_hint")}
+
+
+def _fit_once(fits: dict | None, kind: str, pts: np.ndarray, hint: np.ndarray) -> tuple:
+    """``fit(pts, hint)`` of :data:`_FITS` ``[kind]``, looked up first in ``fits`` (None: no
+    lookup) by the exact bytes of its inputs: the fits are pure functions, so a point set met
+    again (the same touches in another plan of a campaign) gives the same numbers, bit for bit."""
+    fit, arg = _FITS[kind]
+    if fits is None:
+        return fit(pts, **{arg: hint})
+    hint = np.asarray(hint, float)
+    key = (kind, pts.shape, pts.tobytes(), hint.tobytes())
+    out = fits.get(key)
+    if out is None:
+        out = fit(pts, **{arg: hint})
+        for a in out:
+            a.setflags(write=False)  # shared by every later lookup
+        fits[key] = out
+    return out
+
+
+def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float = 1e-7, *,
+                   fits: dict | None = None) -> np.ndarray:
     """d O_R / d e: change of the points of interest per touch displacement along d, (3k, n).
 
     Central differences (step ``h_m`` along each touch's approach direction
@@ -420,6 +470,11 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
     :func:`~core.fit.planes_point_normal`, no covariance); the features of
     the unperturbed touches are checked once, by the full fits
     (:func:`fit_bar_features`, :func:`poi_from_features`).
+
+    ``fits``: a dict the caller keeps across calls (e.g. the plans of one
+    campaign, whose hole sets share their features' touches): each batch of
+    perturbed sets already fitted is taken from it (same inputs bit for bit,
+    same numbers) and each new one added.
     """
     p_R = np.asarray(p_R, float)
     d_R = np.asarray(d_R, float)
@@ -427,7 +482,7 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
     feature = np.asarray(feature, dtype=object)
     if d_R.shape != p_R.shape or not np.all(np.isfinite(d_R)):
         raise ConfigError(f"MFB noise gain: d_R must be finite and shaped as p_R {p_R.shape}, got {d_R.shape}")
-    bf = fit_bar_features(p_R, feature, n_R)
+    bf = fit_bar_features(p_R, feature, n_R, fits=fits)
     holes = poi_from_features(bf, geom).holes  # validates the set (holes, rods, faces)
     rods = set(bf.rod_point)
     pair = {i: _rod_pair(i, rods) for i in holes}
@@ -437,6 +492,7 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
                                 validate=False) for i in holes}
     base = {i: _meet(bf.hole_point[i], bf.hole_axis[i], *PL[i]) for i in holes}
     G = np.zeros((3 * len(holes), len(p_R)))
+    planes = []  # (touches, hole h, perturbed point sets of PL_h) of the rods and faces
     for f, idx in _group(feature).items():
         i, j = _num(f, "hole"), _num(f, "rod")
         face = f[:5] in ("faceL", "faceR") and _num(f[5:], "") is not None
@@ -456,29 +512,36 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
         Q[2 * np.arange(nk), np.arange(nk)] += step
         Q[2 * np.arange(nk) + 1, np.arange(nk)] -= step
         if i is not None:
-            q, a = cylinders_point_axis(Q, axis_hint=bf.hole_axis[i])
-            new = {i: _meet_batch(q, a, *PL[i])}
+            q, a = _fit_once(fits, "cylinders", Q, bf.hole_axis[i])
+            _gain_rows(G, 3 * row[i], idx, _meet_batch(q, a, *PL[i]) - base[i], h_m)
         else:
             Pj = np.broadcast_to(P[j], (2 * nk, 2, 3)).copy()
             if not face:
-                q, a = cylinders_point_axis(Q, axis_hint=bf.rod_axis[j])
+                q, a = _fit_once(fits, "cylinders", Q, bf.rod_axis[j])
                 for k, sd in enumerate("LR"):
                     Pj[:, k] = _meet_batch(q, a, bf.face_point[(sd, j)], bf.face_normal[(sd, j)])
             else:
                 sd = f[4]
-                q, nrm = planes_point_normal(Q, normal_hint=bf.face_normal[(sd, j)])
+                q, nrm = _fit_once(fits, "planes", Q, bf.face_normal[(sd, j)])
                 Pj[:, "LR".index(sd)] = _meet_batch(bf.rod_point[j], bf.rod_axis[j], q, nrm)
-            new = {}
             for h in hs:
                 a, c = pair[h]
-                pts = np.concatenate([Pj if a == j else np.broadcast_to(P[a], Pj.shape),
-                                      Pj if c == j else np.broadcast_to(P[c], Pj.shape)], axis=1)
-                q, nrm = planes_point_normal(pts, normal_hint=bf.probe_side)
-                new[h] = _meet_batch(bf.hole_point[h], bf.hole_axis[h], q, nrm)
-        for h in hs:
-            dO = (new[h] - base[h]) / (2.0 * h_m)  # (2 nk, 3): +h then -h of each touch
-            G[3 * row[h]:3 * row[h] + 3, idx] = (dO[0::2] - dO[1::2]).T
+                planes.append((idx, h, np.concatenate([Pj if a == j else np.broadcast_to(P[a], Pj.shape),
+                                                       Pj if c == j else np.broadcast_to(P[c], Pj.shape)], axis=1)))
+    if planes:  # every perturbed plane PL_h in one batch (they share the hint)
+        q, nrm = planes_point_normal(np.concatenate([pts for *_, pts in planes]), normal_hint=bf.probe_side)
+        at = 0
+        for idx, h, pts in planes:
+            b = slice(at, at + len(pts))
+            at += len(pts)
+            _gain_rows(G, 3 * row[h], idx, _meet_batch(bf.hole_point[h], bf.hole_axis[h], q[b], nrm[b]) - base[h], h_m)
     return G
+
+
+def _gain_rows(G, r0: int, idx, dO, h_m: float) -> None:
+    """G[r0:r0 + 3, idx] from the shifts dO (2 n, 3) of a point of interest, +h then -h of each touch."""
+    dO = dO / (2.0 * h_m)
+    G[r0:r0 + 3, idx] = (dO[0::2] - dO[1::2]).T
 
 
 # --------------------------------------------------------------------------- reversal (eqs 5-7)

@@ -394,11 +394,58 @@ def _prepare(m, chain, rotary_points, nodes) -> dict:
         p["W"] = _axis_weights(nodes, qt)
         p["d_W"] = np.asarray(m.d_A, float) @ T[:3, :3].T
         p["GW"] = np.einsum("ij,kjt->kit", T[:3, :3], np.asarray(m.G_A, float).reshape(k, 3, t))  # (k, 3, t)
-        p["pred0"] = tip_W(g, q, rot, None)
-        p["tip0_t"] = tip_W(g, qt, p["rott"], None)
     else:
         p["W"] = _axis_weights(nodes, q)
     return p
+
+
+def _prepare_all(meas, chain, rotary_points, nodes) -> list:
+    """:func:`_prepare` of every measurement, with the error-free tips of the measurements with
+    touches (at their points of interest, ``pred0``, and at their touches, ``tip0_t``) each
+    in one kinematics call for all measurements (per-pose probe offsets, as :func:`_touch_kinematics`)."""
+    prep = [_prepare(m, chain, rotary_points, nodes) for m in meas]
+    idx = [i for i, pm in enumerate(prep) if pm["touches"]]
+    for q_key, rot_key, out in (("q", "rot", "pred0"), ("qt", "rott", "tip0_t")):
+        if not idx:
+            break
+        q = np.concatenate([prep[i][q_key] for i in idx])
+        rot = None if prep[idx[0]][rot_key] is None else np.concatenate([prep[i][rot_key] for i in idx])
+        J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i][q_key].shape) for i in idx])
+        tip = tip_W(prep[idx[0]]["g"], q, rot, None, J_m=J)
+        at = 0
+        for i in idx:
+            prep[i][out] = tip[at:at + len(prep[i][q_key])]
+            at += len(prep[i][q_key])
+    return prep
+
+
+def _touch_kinematics(prep, theta, slices, exact, jacobian):
+    """The touches of every measurement (:func:`_prepare`) in one kinematics call: their
+    sensitivity (t_all, 3, 21) when ``jacobian`` and exact tip positions (t_all, 3) when
+    ``exact`` (else None), and each measurement's first row in them.
+
+    The measurements share the chain and differ in their stylus: each touch carries
+    its own probe offsets J (``J_m`` of :func:`core.kinematics.tip_W`), so every row is
+    the number a call per measurement gives, bit for bit (tests/core/test_volumetric.py).
+    """
+    idx = [i for i, pm in enumerate(prep) if pm["touches"]]
+    if not idx or not (exact or jacobian):
+        return None, None, {}
+    at, t0 = {}, 0
+    for i in idx:
+        at[i] = t0
+        t0 += len(prep[i]["qt"])
+    qt = np.concatenate([prep[i]["qt"] for i in idx])
+    rott = None if prep[idx[0]]["rott"] is None else np.concatenate([prep[i]["rott"] for i in idx])
+    J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["qt"].shape) for i in idx])
+    vals = None
+    if exact:
+        each = [_values(theta, slices, prep[i]["W"], len(prep[i]["qt"])) for i in idx]
+        vals = {s: np.concatenate([v[s] for v in each]) for s in each[0]}
+    g = prep[idx[0]]["g"]
+    St = sensitivity(g, qt, rott, vals, symbols=MOTION + SQUARENESS, J_m=J) if jacobian else None
+    tip = tip_W(g, qt, rott, vals, J_m=J) if exact else None
+    return St, tip, at
 
 
 def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=True, prep=None):
@@ -406,22 +453,26 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=T
     the residual alone, the same numbers, Jacobian None: no sensitivity evaluated).
     ``prep``: :func:`_prepare` of each measurement (computed here when None)."""
     Jrows, res, rows = [], [], []
+    if prep is None:
+        prep = _prepare_all(meas, chain, rotary_points, nodes)
+    St_all, tip_all, at = _touch_kinematics(prep, theta, slices, exact, jacobian)
+    if jacobian and at:  # the touches' Jacobian rows (t_all, n), all measurements in one product
+        W_all = {a: np.concatenate([prep[i]["W"][a] for i in at]) for a in iso.LINEAR_AXES}
+        Jt_all = _projected_error_jacobian(St_all, np.concatenate([prep[i]["d_W"] for i in at]), W_all, slices, n)
     for i, m in enumerate(meas):
-        pm = _prepare(m, chain, rotary_points, nodes) if prep is None else prep[i]
+        pm = prep[i]
         g, q, k, rot, T, W = pm["g"], pm["q"], pm["k"], pm["rot"], pm["T"], pm["W"]
         if pm["touches"]:
             # model (3): the errors act at the touches; the extraction's gain
             # carries each touch's normal shift into the points of interest
-            qt, rott, d_W, GW = pm["qt"], pm["rott"], pm["d_W"], pm["GW"]
+            qt, d_W, GW = pm["qt"], pm["d_W"], pm["GW"]
             t = len(qt)
-            vals_t = _values(theta, slices, W, t) if exact else None
+            rows_t = slice(at[i], at[i] + t)
             if jacobian:
-                St = sensitivity(g, qt, rott, vals_t, symbols=MOTION + SQUARENESS)
-                Jt = _projected_error_jacobian(St, d_W, W, slices, n)
-                J = (GW.reshape(3 * k, t) @ Jt).reshape(k, 3, n)
+                J = (GW.reshape(3 * k, t) @ Jt_all[rows_t]).reshape(k, 3, n)
             pred = pm["pred0"]
             if exact:
-                e = np.einsum("tj,tj->t", d_W, tip_W(g, qt, rott, vals_t) - pm["tip0_t"])
+                e = np.einsum("tj,tj->t", d_W, tip_all[rows_t] - pm["tip0_t"])
                 pred = pred + GW @ e
         else:
             vals = _values(theta, slices, W, k) if exact else None
@@ -545,7 +596,7 @@ def _design(meas, chain, nodes, rotary_points_R_m, gauge) -> tuple:
     nodes = {a: np.asarray(v, float) for a, v in nodes.items()}
     _check(meas, nodes)
     names, slices, n, _ = _layout(meas, nodes)
-    prep = [_prepare(m, chain, rotary_points_R_m, nodes) for m in meas]
+    prep = _prepare_all(meas, chain, rotary_points_R_m, nodes)
     A, y, rows = _rows(meas, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False, prep=prep)
     key = _nominal_key(meas, chain, nodes, rotary_points_R_m, gauge, names)
     if key not in _NOMINAL:

@@ -611,17 +611,18 @@ def describe_collision_check(c: dict) -> str:
 _GAINS: dict = {}
 
 
-def _noise_gain(pl_ok, r_m):
+def _noise_gain(pl_ok, r_m, fits=None):
     """:func:`core.mfb.poi_noise_gain` of the touches ``pl_ok`` (a plan's nominal
     geometry and stylus radius only), kept for the next run of the same plan:
-    it is two thirds of a run's time and the same for every campaign."""
+    it is two thirds of a run's time and the same for every campaign. ``fits``:
+    the light fits of the run's other hole sets (``fits`` of :func:`core.mfb.poi_noise_gain`)."""
     from core import mfb
 
     key = (tuple(pl_ok.target), tuple(pl_ok.feature), pl_ok.w_A.tobytes(), pl_ok.wn_A.tobytes(), float(r_m))
     if key not in _GAINS:
         if len(_GAINS) >= 64:
             _GAINS.pop(next(iter(_GAINS)))
-        G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A)
+        G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A, fits=fits)
         G.setflags(write=False)  # shared between runs: read only
         _GAINS[key] = G
     return _GAINS[key]
@@ -918,7 +919,6 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         dJ = {st: np.asarray(stylus_dJ_m.get(st, np.zeros(3)), float) for st in styli}
     else:
         dJ = {st: (rng.standard_normal(3) * u_stylus_um * 1e-6 if u_stylus_um > 0 else np.zeros(3)) for st in styli}
-    art_nom = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
     O_A_cal = art.info["poi_nominal_m"] + E_cal_O
     if on_nodes:
         from sim.errorfuncs import SplineTable
@@ -937,6 +937,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     collision = check_plan(plan, u_place=u_place) if plan.fixtures else None  # after the inputs are checked
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
+    gain_fits: dict = {}  # the gains' light fits, shared by the hole sets of this run (same touches, same fits)
+    done = []  # (spec, J, touches, readings, plan of the valid touches) of each measurement simulated
     plans, full_plans = {}, {}  # full_plans holds each bar (its id is the key) for the run
     T_true = {}
     for p in plan.placements:  # bar placement errors (by hand on the table), roll included
@@ -961,7 +963,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         m = machines[ms.stylus]
         art_i, probe_i = art, probe
         if hook is not None:
-            art_i, probe_i, m = hook(len(meas), ms, art, probe, m)
+            art_i, probe_i, m = hook(k, ms, art, probe, m)
         if (id(art_i), ms.holes) not in plans:  # the bar's full program once per bar, its part per hole set
             if id(art_i) not in full_plans:
                 full_plans[id(art_i)] = (art_i, mfb_plan(art_i, **program))
@@ -978,14 +980,16 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         # this stylus is off by dJ (the tool does not turn on these chains). (A machine
         # built with J + dJ would move and read with the same offsets: no error at all.)
         p_R = t.p_R + dJ[ms.stylus]
-        # simulated touches, each checked to trigger on its target: fitted in batches (to rounding)
-        poi = mfb.points_of_interest(p_R, t.feature, t.n_R, batched=True)
-        # the touches that were fitted (valid ones, plan order) and the gain of the
-        # extraction at their nominal places (A frame, stylus centres)
-        pl_ok = pl.select(np.asarray(log.ok, bool))
+        # the touches that were fitted (valid ones, plan order)
+        done.append((ms, J, t, p_R, pl.select(np.asarray(log.ok, bool))))
+    # simulated touches, each checked to trigger on its target: fitted in batches (to rounding),
+    # the features of every measurement together (each one's numbers as its own batch gives)
+    pois = mfb.points_of_interest_batched([(p_R, t.feature, t.n_R) for _, _, t, p_R, _ in done])
+    for (ms, J, t, p_R, pl_ok), poi in zip(done, pois):
+        # the gain of the extraction at the nominal places of the touches (A frame, stylus centres)
         key = (tuple(pl_ok.target), probe.stylus_r_m)
         if key not in G_cache:
-            G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m)
+            G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m, gain_fits)
         idx = [h - 1 for h in poi.holes]
         meas.append(vol.Measurement(ms.name, ms.setup_key, poi.holes, poi.O_R, O_A_cal[idx], ms.T_W_A,
                                     tuple(ms.rot_rad), J, G_cache[key], q_R=p_R,

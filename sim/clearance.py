@@ -43,6 +43,7 @@ placement of the artefact turned the same way); tips are always given in R
 from __future__ import annotations
 
 import copy
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -175,16 +176,10 @@ class Clearance:
                  cert_pad_m: float = CERT_PAD_M):
         self.probe, self.table, self.ball = probe, table, int(ball)
         self.cert_pad_m = float(cert_pad_m)
-        self.feature = np.asarray(table_feature, dtype=object)
         self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
         plo, phi = probe.aabb()
-        tlo, thi = table.aabb()
         ng, nh = len(probe.kind), len(table.kind)
-        # clusters of table geoms (one per feature, one per geom without): pairs sorted by
-        # (probe geom, cluster, table geom), with the union of each cluster's boxes
-        key = [f if f else f"#{j}" for j, f in enumerate(self.feature)]
-        _, cl = np.unique(np.array(key, dtype=object).astype(str), return_inverse=True)
-        h_order = np.lexsort((np.arange(nh), cl))
+        self.feature, tlo, thi, cl, h_order, self._fid = _table_prep(table, table_feature)
         self.pair_probe, self.pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
         # the tip p puts geom g in collision range of h only if p lies in this box
         self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
@@ -197,6 +192,12 @@ class Clearance:
         ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
         self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
         self._ccount = np.diff(np.r_[self._cstart, len(ck)])
+        # each cluster's feature as a number (_fid) when it is the ball's (the clusters a touch
+        # of that feature may meet), else -1
+        first = self._cstart
+        fid = np.fromiter(map(self._fid.get, self.feature[self.pair_table[first]], itertools.repeat(-1)), int,
+                          len(first))
+        self._cballf = np.where(self.pair_probe[first] == self.ball, fid, -1)
         self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
         self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
 
@@ -254,11 +255,14 @@ class Clearance:
         ok = _overlap(q, q, self._lo[pair], self._hi[pair])
         return i[ok], pair[ok]
 
-    def _box_pairs(self, s_lo: np.ndarray, s_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _box_pairs(self, s_lo: np.ndarray, s_hi: np.ndarray, allow: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
         """(box index, pair index) of every pair in collision range of a tip somewhere in the
         boxes ``[s_lo, s_hi]`` (s,3): runs of :data:`_BLOCK` consecutive boxes (a path's
         neighbouring segments) against clusters, then each box against the clusters it
-        may meet, then against the clusters' pairs; each level a superset of the next."""
+        may meet, then against the clusters' pairs; each level a superset of the next.
+        ``allow`` (s,) int: per box, the feature (:meth:`feature_ids`) the ball may touch:
+        the ball's pairs with its geoms are left out (a cluster is one feature's geoms)."""
         n = len(s_lo)
         cut = np.arange(0, n, _BLOCK)
         b_lo, b_hi = np.minimum.reduceat(s_lo, cut, axis=0), np.maximum.reduceat(s_hi, cut, axis=0)
@@ -270,6 +274,8 @@ class Clearance:
         k, seg = _expand(cut[blk], np.minimum(_BLOCK, n - cut[blk]))
         cp = cp[k]
         ok = _overlap(s_lo[seg], s_hi[seg], self._clo[cp], self._chi[cp])
+        if allow is not None:
+            ok &= self._cballf[cp] != allow[seg]
         seg, cp = seg[ok], cp[ok]
         # -> (segment, pair) for the cluster's member geoms
         k, pair = _expand(self._cstart[cp], self._ccount[cp])
@@ -314,6 +320,12 @@ class Clearance:
             out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
         return out
 
+    def feature_ids(self, features) -> np.ndarray:
+        """(k,) int: the table features ``features`` (k,) of str as numbers (-2: "" or none of
+        the table's), the same for this broad phase and its moved copies."""
+        f = np.asarray(features, dtype=object).ravel()
+        return np.fromiter(map(self._fid.get, f, itertools.repeat(-2)), int, len(f))  # ("" is no key)
+
     def near_segments(self, sg: "Segments", allow_feature=None) -> np.ndarray:
         """Sorted sample numbers of ``sg`` where some probe/table pair may be closer than :data:`MARGIN_M`.
 
@@ -337,27 +349,21 @@ class Clearance:
         """
         a, b = self.to_frame(sg.a), self.to_frame(sg.b)
         n = len(a)
-        allow_seg = (np.full(n, "", dtype=object) if allow_feature is None
-                     else np.asarray(allow_feature, dtype=object)[sg.path])
-        r = np.full(n, -np.inf)  # the certificate of this call
+        allow_seg = np.full(n, -2) if allow_feature is None else self.feature_ids(allow_feature)[sg.path]
+        r = np.full(n, -np.inf)  # the certificates this call leaves
         r_old, moved = self._certs.lookup(a, b, allow_seg)
-        ok = moved < r_old
-        r[ok] = r_old[ok] - moved[ok]
-        todo = np.flatnonzero(~ok)
+        todo = np.flatnonzero(~(moved < r_old))  # the segments no certificate clears
         if todo.size:
             pad = self.cert_pad_m
-            seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - pad, np.maximum(a[todo], b[todo]) + pad)
+            seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - pad, np.maximum(a[todo], b[todo]) + pad,
+                                        allow_seg[todo])
             seg = todo[seg]
             r[todo] = pad
         else:
             seg = pair = np.zeros(0, int)
-        if seg.size:
-            f = self.feature[self.pair_table[pair]]
-            keep = ~((self.pair_probe[pair] == self.ball) & (f != "") & (f == allow_seg[seg]))
-            seg, pair = seg[keep], pair[keep]
         lb = self._swept(a[seg], b[seg], pair) if seg.size else np.zeros(0)
         np.minimum.at(r, seg, lb - MARGIN_M)
-        if self.cert_pad_m > 0:  # the segments bounded here (the others' certificates are derived)
+        if self.cert_pad_m > 0:  # the segments bounded here (the others are covered by the old ones)
             self._certs.add(a[todo], b[todo], allow_seg[todo], r[todo])
         open_ = lb <= MARGIN_M
         seg, pair = seg[open_], pair[open_]
@@ -375,14 +381,19 @@ class Clearance:
         close = self.bound(q_R, np.arange(len(q_R)), pair, enough=MARGIN_M) <= MARGIN_M
         return np.unique(idx[close])
 
-    def fixed_bound_grid(self, p_R: np.ndarray) -> np.ndarray:
-        """(n, pairs): the bound of every pair at every tip ``p_R`` (n,3) on the pairs' fixed
-        axes only (:meth:`bound` with ``enough=-inf``, without its row gathers)."""
-        p = self.to_frame(p_R)
-        U, E = self._axes(np.arange(len(self.pair_probe)))
-        d = self._d0[None, :, :] + p[:, None, :]  # (n, pairs, 3)
-        s = d[:, :, None, 0] * U[None, :, :, 0] + d[:, :, None, 1] * U[None, :, :, 1] + d[:, :, None, 2] * U[None, :, :, 2]
-        return np.max(np.abs(s) - E[None], axis=2)
+    def box_bound(self, p_R: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """(n, pairs): a lower bound (m) of the signed distance of each pair of ``pairs`` at every
+        tip ``p_R`` (n,3), from the two geoms' axis-aligned boxes (frame F): their distance when
+        apart, else their largest gap along a box axis (negative, at most the geoms' overlap
+        along that axis, so at most their penetration depth, as for :meth:`bound`'s axes).
+        Looser than :meth:`bound`, a few operations per row."""
+        p = self.to_frame(p_R)[:, None, :]
+        lo, hi = self._lo[pairs] + MARGIN_M, self._hi[pairs] - MARGIN_M  # the tip's box of contact
+        gap = np.maximum(lo - p, p - hi)  # (n, pairs, 3) the boxes' gap along x, y, z
+        worst = np.max(gap, axis=2)
+        out = np.maximum(gap, 0.0)
+        out = np.sqrt(out[:, :, 0] ** 2 + out[:, :, 1] ** 2 + out[:, :, 2] ** 2)
+        return np.where(worst > 0, out, worst)
 
     def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
         """Lower bound of the distance (m) of pair ``pair`` with the tip at sample ``i`` of ``p_R``.
@@ -396,6 +407,8 @@ class Clearance:
         out = np.max(np.abs(U[:, :, 0] * d[:, 0, None] + U[:, :, 1] * d[:, 1, None] + U[:, :, 2] * d[:, 2, None])
                      - E, axis=1)
         r = np.flatnonzero(out <= enough)
+        if not r.size:
+            return out
         g, h, d = self.pair_probe[pair[r]], self.pair_table[pair[r]], d[r]
         T = self.table.take(h)
         c_g = self.probe.centre[g] + p[i[r]]
@@ -426,6 +439,34 @@ class Clearance:
         return out
 
 
+#: The table side's part of :class:`Clearance` (boxes, clusters, feature numbers) by table
+#: Geoms and feature list objects (kept in the entry, so their ids stay theirs): the work
+#: zones of one placement (sim.mfb_scene) share their table's geoms, whatever the probe.
+_TABLE_PREP: dict = {}
+
+
+def _table_prep(table: Geoms, table_feature):
+    """(feature (k,) object, tlo, thi (k,3), cluster (k,) int, geoms in cluster order (k,),
+    feature -> number) of a table side; computed once per (table, table_feature) objects."""
+    key = (id(table), id(table_feature))
+    hit = _TABLE_PREP.get(key)
+    if hit is not None and hit[0] is table and hit[1] is table_feature:
+        return hit[2]
+    feature = np.asarray(table_feature, dtype=object)
+    tlo, thi = table.aabb()
+    # clusters of table geoms (one per feature, one per geom without): pairs sorted by
+    # (probe geom, cluster, table geom), with the union of each cluster's boxes
+    k = [f if f else f"#{j}" for j, f in enumerate(feature)]
+    _, cl = np.unique(np.array(k, dtype=object).astype(str), return_inverse=True)
+    h_order = np.lexsort((np.arange(len(feature)), cl))
+    fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
+    if len(_TABLE_PREP) >= 16:
+        _TABLE_PREP.clear()
+    out = (feature, tlo, thi, cl, h_order, fid)
+    _TABLE_PREP[key] = (table, table_feature, out)
+    return out
+
+
 class _Certificates:
     """Certificates of :meth:`Clearance.near_segments`: segments ``a -> b`` (geoms' frame, m),
     their allowed feature and the radius ``r`` (m) within which a segment is clear.
@@ -447,7 +488,10 @@ class _Certificates:
 
     def _key(self, a, b, allow) -> np.ndarray:
         """(n,) void: the grid cell of each segment and its allowed feature, as bytes."""
-        f = np.fromiter((self._ids.setdefault(x, len(self._ids)) for x in allow), np.int64, len(allow))
+        if np.issubdtype(np.asarray(allow).dtype, np.integer):  # features as numbers already
+            f = np.asarray(allow, np.int64)
+        else:
+            f = np.fromiter((self._ids.setdefault(x, len(self._ids)) for x in allow), np.int64, len(allow))
         k = np.column_stack([np.round(np.column_stack([a, b]) / _CERT_GRID_M).astype(np.int64), f])
         return np.ascontiguousarray(k).view(np.dtype((np.void, 8 * 7))).ravel()
 
@@ -572,7 +616,14 @@ def path_segments(polylines, steps_m, joints: bool) -> Segments:
     joints : bool
     """
     n_pt = np.fromiter(map(len, polylines), int, len(polylines))
-    P = np.concatenate(polylines, dtype=float).reshape(-1, 3)
+    return flat_path_segments(np.concatenate(polylines, dtype=float).reshape(-1, 3), n_pt, steps_m, joints)
+
+
+def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -> Segments:
+    """:func:`path_segments` of polylines given as one array: ``P`` (sum n_pt, 3) holds the
+    points of polyline 0, then 1, ...; ``n_pt`` (polylines,) int >= 2 their counts."""
+    P = np.asarray(P, float)
+    n_pt = np.asarray(n_pt, int)
     first = np.cumsum(n_pt) - n_pt
     starts = np.ones(len(P), bool)
     starts[first + n_pt - 1] = False

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .artefacts import apply_R, apply_T, inv_T, make_T
-from .clearance import path_segments
+from .clearance import flat_path_segments
 from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
 
 #: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
@@ -135,6 +135,40 @@ def _solid_poses(art) -> list:
     return hit[1]
 
 
+@dataclass(frozen=True)
+class _Solids:
+    """A bar's solids as table-side geoms of a work zone: MuJoCo type names, sizes (tuples
+    as the MJCF writes them, and (k,3) zero-padded), geom names, feature names, and the
+    solids that belong to the workholder (the bar's supports: ``holder``, indices)."""
+
+    kinds: list
+    sizes: list
+    names: list
+    features: list
+    size3: np.ndarray
+    holder: list
+
+
+def _solid_table(art) -> _Solids:
+    """:class:`_Solids` of ``art``, built once per artefact object (kept beside its poses):
+    every work zone of a plan holds the same bar."""
+    hit = _SOLID_POSES.get(("table", id(art)))
+    if hit is None or hit[0] is not art:
+        kinds, sizes, names, feats = [], [], [], []
+        for k, s in enumerate(art.solids):
+            if s.kind not in ("box", "cylinder", "sphere"):
+                raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
+            kinds.append(s.kind), sizes.append(tuple(np.ravel(s.size)))
+            names.append(f"{s.feature or ('support' if s.kind == 'cylinder' else 'body')}__{k}")
+            feats.append(s.feature)
+        size3 = np.zeros((len(sizes), 3))
+        for j, sz in enumerate(sizes):
+            size3[j, :len(sz)] = sz
+        holder = [k for k, n in enumerate(names) if n.startswith(("fix_", "support__"))]
+        hit = _SOLID_POSES[("table", id(art))] = (art, _Solids(kinds, sizes, names, feats, size3, holder))
+    return hit[1]
+
+
 def _solid_pose_stack(art) -> np.ndarray:
     """(k,4,4): :func:`_solid_poses` stacked (kept beside them)."""
     hit = _SOLID_POSES.get(("stack", id(art)))
@@ -171,16 +205,16 @@ class WorkZone:
             lo, hi = np.asarray(b.lo, float), np.asarray(b.hi, float)
             kinds.append("box"), sizes.append(tuple((hi - lo) / 2)), poses.append(make_T(None, (lo + hi) / 2))
             names.append(f"fix_{b.name}"), feats.append("")
-        for k, s in enumerate(artefact.solids):
-            if s.kind not in ("box", "cylinder", "sphere"):
-                raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
-            kinds.append(s.kind), sizes.append(tuple(np.ravel(s.size)))
-            names.append(f"{s.feature or ('support' if s.kind == 'cylinder' else 'body')}__{k}")
-            feats.append(s.feature)
+        sol = _solid_table(artefact)  # the bar's solids: the same for every placement
+        kinds += sol.kinds
+        sizes += sol.sizes
+        names += sol.names
+        feats += sol.features
         self._tkind, self._tsize, self._tpose0 = kinds, sizes, poses  # (the solids' poses: _pose)
         self._T_W_A = T_W_A
         nt = len(names)
-        holder = [j for j, n in enumerate(names) if n == "table_disc" or n.startswith(("fix_", "support__"))]
+        n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
+        holder = list(range(n0)) + [n0 + k for k in sol.holder]
         self._probe_mjcf = probe_geoms_mjcf(J_m, stylus_r_m, finger_m)
         self._names = names
         # the holder's model (table disc, blocks, bar supports; the probe): MuJoCo's distances for
@@ -191,12 +225,14 @@ class WorkZone:
         npg = hm.ngeom - len(holder)
         # geom ids of the full model (compiled when MuJoCo first needs it, self.model): the table
         # body's geoms in order, then the spindle's
-        self._names = names + [hm.geom(len(holder) + j).name for j in range(npg)]  # + the probe's
+        pnames = [hm.geom(len(holder) + j).name for j in range(npg)]
+        self._names = names + pnames  # + the probe's
         self._table = list(range(nt))
         self._probe = list(range(nt, nt + npg))
         self._holder = holder
         self._feature = dict(enumerate(feats))
-        self._ball = self._names.index("ball")
+        self._feats = feats  # (the same, as a list)
+        self._ball = nt + pnames.index("ball")
         self._tq = hm.jnt_qposadr[hm.joint("table").id]
         self._sq = hm.jnt_qposadr[hm.joint("spindle").id]
         self._hprobe = list(range(len(holder), hm.ngeom))
@@ -204,6 +240,9 @@ class WorkZone:
         self._tqpos = np.array([0.0, 0, 0, 1, 0, 0, 0])
         self._clr = {}
         self._axisym = None  # the probe's geoms all on its z axis (clearance)
+        self._probe_geoms = self._T_W_R = None  # (clearance)
+        #: what the work zones of this placement share (_work_zone): the table side's geoms in W
+        self._shared = {}
 
     def _pose(self, j: int) -> np.ndarray:
         """(4,4) pose in W of table-side geom j (a solid's: T_W_A times its pose on the bar)."""
@@ -250,6 +289,7 @@ class WorkZone:
     def set_table(self, T_R_W) -> None:
         T = np.asarray(T_R_W, float)
         self._tqpos = np.r_[T[:3, 3], _quat(T[:3, :3])]
+        self._T_W_R = None
         self._hdata.qpos[self._tq:self._tq + 7] = self._tqpos
         if self._data is not None:
             self._data.qpos[self._tq:self._tq + 7] = self._tqpos
@@ -286,9 +326,11 @@ class WorkZone:
         if not in_W:
             T = self._T_R_W() @ T
         code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
+        n0 = len(self._tpose0)
         size = np.zeros((len(self._tkind), 3))
-        for j, sz in enumerate(self._tsize):
+        for j, sz in enumerate(self._tsize[:n0]):  # the disc and the blocks; the bar's solids kept
             size[j, :len(sz)] = sz
+        size[n0:] = _solid_table(self._args[0]).size3
         kind = np.array([code[k] for k in self._tkind])
         rb = np.where(kind == _BOX_T, np.linalg.norm(size, axis=1),
                       np.where(kind == _CYLINDER_T, np.hypot(size[:, 0], size[:, 1]), size[:, 0]))
@@ -308,18 +350,23 @@ class WorkZone:
         """
         from .clearance import Clearance, Geoms, model_geoms
 
-        self._set_holder_tip(np.zeros(3))
         hm, hd = self._hmodel, self._hdata
-        probe = model_geoms(hm, hd, self._hprobe)  # about the tip, axes of R
+        if self._probe_geoms is None:  # about the tip, axes of R (whatever the table's pose)
+            self._set_holder_tip(np.zeros(3))
+            self._probe_geoms = model_geoms(hm, hd, self._hprobe)
+        probe = self._probe_geoms
         ball = self._probe.index(self._ball)
         if holder_only:
             key = (self._tqpos.tobytes(), True)
             if key not in self._clr:
+                self._set_holder_tip(np.zeros(3))
                 table = model_geoms(hm, hd, range(len(self._holder)))
                 self._clr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
                                            cert_pad_m=0.0)
             return self._clr[key]
-        T_W_R = inv_T(self._T_R_W())
+        if self._T_W_R is None:  # (the table's pose as MuJoCo has it, once per set_table)
+            self._T_W_R = inv_T(self._T_R_W())
+        T_W_R = self._T_W_R
         R = T_W_R[:3, :3]
         if self._axisym is None:
             self._axisym = bool(np.all(probe.centre[:, :2] == 0) and np.all(np.abs(probe.axes[:, 2, 2]) == 1)
@@ -328,8 +375,10 @@ class WorkZone:
         hit = self._clr.get(key)
         if hit is None:
             P = Geoms(probe.centre @ R.T, R @ probe.axes, probe.kind, probe.size, probe.rbound)  # axes of W
-            hit = self._clr[key] = Clearance(P, self.table_geoms(in_W=True),
-                                             [self._feature.get(i, "") for i in self._table], ball, T_F_R=T_W_R)
+            if "table_W" not in self._shared:  # (the same for every probe at this placement)
+                self._shared["table_W"], self._shared["features"] = self.table_geoms(in_W=True), self._feats
+            hit = self._clr[key] = Clearance(P, self._shared["table_W"], self._shared["features"], ball,
+                                             T_F_R=T_W_R)
         elif not np.array_equal(hit.T_F_R, T_W_R):
             hit = self._clr[key] = hit.moved(T_W_R)
         return hit
@@ -363,30 +412,40 @@ class WorkZone:
         from .clearance import MARGIN_M
 
         tips = np.asarray(tips_R, float).reshape(-1, 3)
-        clr = self.clearance(holder_only=True)
-        npair = len(clr.pair_probe)
-        i = np.repeat(np.arange(len(tips)), npair)
-        pair = np.tile(np.arange(npair), len(tips))
         best = distmax
         if not broad_phase:  # the reference: every triple in the whole work zone's model
-            for k in range(len(i)):
-                self.set_tip(tips[i[k]])
-                a, b = self._probe[clr.pair_probe[pair[k]]], self._holder[clr.pair_table[pair[k]]]
+            clr = self.clearance(holder_only=True)
+            for k in range(len(tips) * len(clr.pair_probe)):
+                i, p = divmod(k, len(clr.pair_probe))
+                self.set_tip(tips[i])
+                a, b = self._probe[clr.pair_probe[p]], self._holder[clr.pair_table[p]]
                 best = min(best, float(self._mj.mj_geomDistance(self.model, self.data, a, b, distmax, None)))
             return best
+        # the holder's pairs of the whole zone's broad phase (shared by the measurements of
+        # this zone turned the same way about the spindle axis; frame W)
+        clr = self.clearance()
+        hpos = np.full(len(self._table), -1)
+        hpos[self._holder] = np.arange(len(self._holder))  # table geom -> its holder model's geom
+        hp = np.flatnonzero(hpos[clr.pair_table] >= 0)
+        npair = len(hp)
+        i = np.repeat(np.arange(len(tips)), npair)
+        pair = np.tile(hp, len(tips))
         m, d = self._hmodel, self._hdata
 
         def dist(k):
             self._set_holder_tip(tips[i[k]])
-            a, b = self._hprobe[clr.pair_probe[pair[k]]], int(clr.pair_table[pair[k]])
+            a, b = self._hprobe[clr.pair_probe[pair[k]]], int(hpos[clr.pair_table[pair[k]]])
             return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
 
         # the result is min(distmax, every triple's distance) as in the reference: a triple is
         # left out only when a lower bound of its distance exceeds a distance already found by
-        # more than the margin (MuJoCo's distances err by far less). The fixed axes' bound of
-        # every triple; in its increasing order, chunks of triples get the full bound and MuJoCo
-        # in the full bound's order, while the chunk's fixed-axes bound may still be nearer
-        lb0 = clr.fixed_bound_grid(tips).ravel()  # rows (tip, pair) as i, pair
+        # more than the margin (MuJoCo's distances err by far less). The bound of the geoms'
+        # boxes of every triple; in its increasing order, chunks of triples get the full bound
+        # and MuJoCo in the full bound's order, while the chunk's box bound may still be nearer
+        # (a triple whose boxes lie farther than distmax cannot lower min(distmax, ...))
+        lb0 = clr.box_bound(tips, hp).ravel()  # rows (tip, pair) as i, pair
+        near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
+        i, pair, lb0 = i[near], pair[near], lb0[near]
         order = np.argsort(lb0, kind="stable")
         pos = 0
         while pos < len(order) and lb0[order[pos]] <= best + MARGIN_M:
@@ -424,7 +483,13 @@ def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
     if hit is None or hit[0] is not artefact:
         if len(_ZONES) >= 64:
             _ZONES.clear()
-        hit = _ZONES[key] = (artefact, WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m))
+        wz = WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
+        pkey = ("placement",) + key[:3]  # the artefact, its pose, the blocks
+        place = _ZONES.get(pkey)
+        if place is None or place[0] is not artefact:
+            place = _ZONES[pkey] = (artefact, {})
+        wz._shared = place[1]
+        hit = _ZONES[key] = (artefact, wz)
     return hit[1]
 
 
@@ -436,11 +501,18 @@ def link_paths(T_R_A, starts_R, features, levels, top_A_m):
     links' points go through one transform back to R (the same values, bit for bit, as
     transforming each link's points alone: tests/sim/test_clearance.py).
     """
-    T_A_R = inv_T(T_R_A)
-    s_A = apply_T(T_A_R, np.asarray(starts_R, float))
-    n = len(s_A)
+    n = len(starts_R)
     if n < 2:
         return [None] * n
+    P, cnt = link_points(T_R_A, starts_R, features, levels, top_A_m)
+    return [None] + np.split(P, np.cumsum(cnt)[:-1])
+
+
+def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`link_paths` as one array: (P (sum cnt, 3) R m, cnt (n - 1,) int), the points of
+    the link into start 1, then into start 2, ... (2 or 4 each); n >= 2 starts."""
+    T_A_R = inv_T(T_R_A)
+    s_A = apply_T(T_A_R, np.asarray(starts_R, float))
     a, b = s_A[:-1], s_A[1:]
     f, lv = np.asarray(features, dtype=object), np.asarray(levels)
     direct = (f[1:] == f[:-1]) & (lv[1:] == lv[:-1])
@@ -453,7 +525,35 @@ def link_paths(T_R_A, starts_R, features, levels, top_A_m):
     P[st + 1] = np.where(direct[:, None], b, up_a)
     P[(st + 2)[~direct]] = up_b[~direct]
     P[(st + 3)[~direct]] = b[~direct]
-    return [None] + np.split(apply_T(T_R_A, P), np.cumsum(cnt)[:-1])
+    return apply_T(T_R_A, P), cnt
+
+
+def _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m):
+    """(Segments, touch of each polyline (paths,), allowed feature of each (paths,) object) of
+    a measurement's polylines in the order checked: per touch i the link into ``start[i]``
+    (from touch i - 1's; none for the first) and the approach ``start[i] -> Xn[i]``."""
+    n = plan.n
+    feat = np.asarray(plan.feature, dtype=object)
+    if n > 1:
+        L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
+    else:
+        L, cnt = np.zeros((0, 3)), np.zeros(0, int)
+    # polylines: approach 0, then (link k, approach k) for k = 1 .. n-1
+    n_pt = np.full(2 * n - 1, 2)
+    n_pt[1::2] = cnt
+    first = np.cumsum(n_pt) - n_pt
+    P = np.empty((int(n_pt.sum()), 3))
+    app = first[0::2]  # each approach's first point
+    P[app], P[app + 1] = start, Xn
+    if n > 1:
+        into = np.repeat(first[1::2], cnt) + np.arange(len(L)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        P[into] = L
+    steps = np.full(2 * n - 1, float(approach_step_m))
+    steps[1::2] = link_step_m
+    allow = np.empty(2 * n - 1, dtype=object)
+    allow[0::2], allow[1::2] = feat, ""
+    touch = np.r_[0, np.repeat(np.arange(1, n), 2)]
+    return flat_path_segments(P, n_pt, steps, joints=False), touch, allow
 
 
 def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan, finger_m: float = 0.0,
@@ -499,19 +599,12 @@ def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, pla
     Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
     start = Xn + plan.clearance_m * apply_R(T_R_A, plan.wn_A)
     top = float(pts_A[:, 2].max()) + r
-    links = link_paths(T_R_A, start, plan.feature, plan.level, top)
-    # the samples of every path, in the order checked; MuJoCo only where the broad phase
-    # (sim.clearance) cannot prove them clear: the same first collision per touch
-    paths = []  # (touch, polyline, step, allowed feature), in the order checked
-    for i in range(plan.n):
-        if links[i] is not None:
-            paths.append((i, links[i], link_step_m, ""))
-        paths.append((i, np.array([start[i], Xn[i]]), approach_step_m, plan.feature[i]))
+    # the samples of every path, in the order checked (touch i: the link into its start,
+    # none for the first, then its approach/retract start -> contact); MuJoCo only where the
+    # broad phase (sim.clearance) cannot prove them clear: the same first collision per touch
     n_samp, bad_touch = 0, set()
-    if paths:
-        sg = path_segments([p[1] for p in paths], [p[2] for p in paths], joints=False)
-        path_touch = np.array([p[0] for p in paths])
-        allow = [p[3] for p in paths]
+    if plan.n:
+        sg, path_touch, allow = _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m)
         n_samp = sg.n_samples
         # one past the last sample of each touch (a touch's paths are consecutive)
         touch_end = np.zeros(plan.n, int)

@@ -204,7 +204,7 @@ class Scene:
         (:meth:`clearance`, in the artefact's frame) does not. Artefacts with mesh
         solids (which the compiler re-centres) cannot be moved: build a new :class:`Scene`.
         """
-        if any(s.kind not in ("box", "cylinder", "sphere") for s in self.artefact.solids):
+        if not self._movable:
             raise ValueError("Scene.place: an artefact with mesh solids needs a new Scene")
         self.T_W_A = np.array(T_W_A, float)  # (the broad phases kept in self._clr are in A: they stay valid)
 
@@ -215,10 +215,7 @@ class Scene:
             return
         T_W_A = self.T_W_A
         m = self.model
-        if self._local is None:  # each solid's pose on the artefact, (k,3,3) and (k,3)
-            self._local = (np.array([make_T(s.rot, s.pos)[:3, :3] for s in self.artefact.solids]).reshape(-1, 3, 3),
-                           np.array([make_T(s.rot, s.pos)[:3, 3] for s in self.artefact.solids]).reshape(-1, 3))
-        R_loc, p_loc = self._local
+        R_loc, p_loc = self._solid_local()
         R = np.einsum("ij,kjl->kil", T_W_A[:3, :3], R_loc)
         q = _quats(R)
         g = self._table_geoms
@@ -314,6 +311,13 @@ class Scene:
             hit = self._clr[key] = hit.moved(T_A_R)
         return hit
 
+    def _solid_local(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each solid's pose on the artefact, (k,3,3) and (k,3) (computed once)."""
+        if self._local is None:
+            T = np.array([make_T(s.rot, s.pos) for s in self.artefact.solids]).reshape(-1, 4, 4)
+            self._local = (T[:, :3, :3].copy(), T[:, :3, 3].copy())
+        return self._local
+
     def definition_geoms(self):
         """(probe, table) :class:`sim.clearance.Geoms` as :func:`scene_mjcf` defines them: the
         probe's about the tip, axes of R (stylus, shank, probe body); the table's in A."""
@@ -322,10 +326,7 @@ class Scene:
         if getattr(self, "_defs", None) is not None:
             return self._defs
         art, pr = self.artefact, self.probe
-        if self._local is None:  # each solid's pose on the artefact, (k,3,3) and (k,3)
-            self._local = (np.array([make_T(s.rot, s.pos)[:3, :3] for s in art.solids]).reshape(-1, 3, 3),
-                           np.array([make_T(s.rot, s.pos)[:3, 3] for s in art.solids]).reshape(-1, 3))
-        R_loc, p_loc = self._local
+        R_loc, p_loc = self._solid_local()
         code = {"sphere": 2, "cylinder": 5, "box": 6}
         kind = np.array([code[s.kind] for s in art.solids], int)
         size = np.zeros((len(kind), 3))
@@ -455,27 +456,50 @@ def check_touch_paths(scene: Scene, setup: str, targets, features, links, approa
     broad_phase : bool
         False: MuJoCo at every sample (the reference the tests compare with).
     """
-    key = _paths_key(scene, features, links, approach, link_step_m, approach_step_m)
+    n = len(targets)
+    approach = np.asarray(approach, float).reshape(n, 2, 3)
+    # the polylines in the order checked: per touch its link move (if it has one), then its
+    # approach/retract path; all their points in one array
+    try:  # (a campaign's links are all arrays: their lengths in one pass)
+        lens = np.fromiter(map(len, links), int, n)
+    except TypeError:  # some None
+        lens = np.fromiter((0 if ln is None else len(ln) for ln in links), int, n)
+    has = lens > 1
+    cnt = lens[has]
+    app = np.arange(n) + np.cumsum(has)  # each approach's polyline; its link (if any) just before
+    n_pt = np.full(n + int(has.sum()), 2)
+    n_pt[app[has] - 1] = cnt
+    first = np.cumsum(n_pt) - n_pt
+    P = np.empty((int(n_pt.sum()), 3))
+    P[first[app]], P[first[app] + 1] = approach[:, 0], approach[:, 1]
+    if cnt.size:
+        into = np.repeat(first[app[has] - 1] - (np.cumsum(cnt) - cnt), cnt) + np.arange(int(cnt.sum()))
+        used = links if has.all() else [links[i] for i in np.flatnonzero(has)]
+        P[into] = np.concatenate(used, dtype=float).reshape(-1, 3)
+    key = _paths_key(scene, features, has, n_pt, P, link_step_m, approach_step_m)
     if key in _PASSED:
         return
-    from .clearance import path_segments
+    from .clearance import flat_path_segments
 
-    paths = []  # (target index, phase, polyline, step, allowed feature), in the order checked
-    for i in range(len(targets)):
-        if links[i] is not None and len(links[i]) > 1:
-            paths.append((i, "link move", links[i], link_step_m, ""))
-        paths.append((i, "approach/retract path", approach[i], approach_step_m, features[i]))
-    sg = path_segments([p[2] for p in paths], [p[3] for p in paths], joints=True)
+    touch = np.empty(len(n_pt), int)
+    touch[app], touch[app[has] - 1] = np.arange(n), np.flatnonzero(has)
+    is_link = np.ones(len(n_pt), bool)
+    is_link[app] = False
+    steps = np.where(is_link, link_step_m, approach_step_m)
+    allow = np.full(len(n_pt), "", dtype=object)
+    allow[app] = np.asarray(features, dtype=object)
+    sg = flat_path_segments(P, n_pt, steps, joints=True)
     if broad_phase:
-        idx = scene.clearance().near_segments(sg, [p[4] for p in paths])
+        idx = scene.clearance().near_segments(sg, allow)
     else:
         idx = np.arange(sg.n_samples)
     pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
     for k in range(len(idx)):  # in path order
-        i, phase, _, _, feat = paths[which[k]]
-        c = scene.collisions(pts[k], feat)
+        j = which[k]
+        c = scene.collisions(pts[k], allow[j])
         if c:
-            raise PlanError(f"set-up {setup!r} target {targets[i]!r}: {phase} crashes: {c[0][0]} hits "
+            phase = "link move" if is_link[j] else "approach/retract path"
+            raise PlanError(f"set-up {setup!r} target {targets[touch[j]]!r}: {phase} crashes: {c[0][0]} hits "
                             f"{c[0][1]} at {np.round(pts[k] * 1e3, 3).tolist()} mm")
     _PASSED.add(key)
 
@@ -488,19 +512,19 @@ def check_touch_paths(scene: Scene, setup: str, targets, features, links, approa
 _PASSED: set[bytes] = set()
 
 
-def _paths_key(scene: Scene, features, links, approach, link_step_m: float, approach_step_m: float) -> bytes:
-    """Digest of everything :func:`check_touch_paths` reads except the names in its messages."""
+def _paths_key(scene: Scene, features, has_link: np.ndarray, n_pt: np.ndarray, P: np.ndarray,
+               link_step_m: float, approach_step_m: float) -> bytes:
+    """Digest of everything :func:`check_touch_paths` reads except the names in its messages:
+    the scene, its placement and table pose, the steps, the features, and the polylines
+    checked (which touches have a link move, ``has_link``; the polylines' point counts
+    ``n_pt``, links and approaches in turn; their points ``P``)."""
     h = hashlib.blake2b(digest_size=32)
     h.update(scene.digest())  # the scene as built (artefact, probe)
     h.update(np.ascontiguousarray(scene.T_W_A, float).tobytes())  # the placement (Scene.place)
     h.update(np.ascontiguousarray(scene.table_qpos(), float).tobytes())
     h.update(np.array([link_step_m, approach_step_m, COLLISION_TOL_M]).tobytes())
-    h.update("\0".join(str(f) for f in features).encode() + b"\1")
-    arrs = [ln for ln in links if ln is not None]  # (m,3) polylines
-    # each link's number of points (-1 for none), then all their points
-    h.update(np.array([-1 if ln is None else len(ln) for ln in links], np.int64).tobytes() + b"\1")
-    if arrs:
-        h.update(np.concatenate(arrs, dtype=float).reshape(-1, 3).tobytes())
-    a = np.ascontiguousarray(approach, float)
-    h.update(b"A" + np.array(a.shape, np.int64).tobytes() + a.tobytes())
+    h.update("\0".join(map(str, features)).encode() + b"\1")
+    h.update(np.ascontiguousarray(has_link, bool).tobytes() + b"\1")
+    h.update(np.ascontiguousarray(n_pt, np.int64).tobytes() + b"\1")
+    h.update(np.ascontiguousarray(P, float).tobytes())
     return h.digest()

@@ -23,6 +23,12 @@ TARGETS = {"discover_demo_wall_s": "< 0.2 s (issue 19 item 6)"}
 def demo_campaign():
     """The touches of ``vmt demo`` (same machine, probe, hidden effects and seed)."""
     from core.touches import from_log
+
+    return from_log(demo_campaign_log())
+
+
+def demo_campaign_log():
+    """The probe log of ``vmt demo``'s campaign (:func:`demo_campaign`'s touches)."""
     from scenarios.demo import LOBING_M, SCREW_MM, SCREW_UM
     from scenarios.hidden import drift_check_plan
     from sim import artefacts as A
@@ -40,7 +46,7 @@ def demo_campaign():
     art = A.cross_pocket()
     log = simulate_campaign(art, machine, probe, [0.0, 75.0, 130.0, 210.0], np.random.default_rng(seed + 1),
                             plan=drift_check_plan(art), check_collisions=False)
-    return from_log(log)
+    return log
 
 
 def _reference_s() -> float:

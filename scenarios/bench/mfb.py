@@ -13,7 +13,8 @@ Figures:
 - ``mfb_3axis_end_to_end_before_ref_s``: the same run in the same process by the path
   before issue 16's Monte Carlo work (:func:`before_shortcuts`: every design's nominal part
   from scratch, every Gauss-Newton row set recomputed whole with its Jacobian, the
-  features fitted one by one with their checks); ``mfb_3axis_end_to_end_max_theta_diff``
+  features fitted one by one with their checks, the kinematics of the rows one call per
+  measurement, the gains' fits not shared); ``mfb_3axis_end_to_end_max_theta_diff``
   between the two (m or rad).
 - ``mfb_3axis_budget_run_s``: one Monte Carlo run of the budget (:func:`scenarios.mfb.budget_run`,
   attempt 1: every source drawn, no Monte Carlo of its own), beside
@@ -23,7 +24,8 @@ Figures:
   same with its rows built as before issue 19 (:func:`identify_before`), and
   ``mfb_3axis_identify_max_theta_diff`` between the two (m or rad).
 - ``mfb_gain_s``: :func:`core.mfb.poi_noise_gain` of the three plans of
-  ``mfb-3axis`` (batched light fits), beside ``mfb_gain_refit_reference_s``:
+  ``mfb-3axis`` (batched light fits, shared between the plans as
+  :func:`scenarios.mfb.run` shares them), beside ``mfb_gain_refit_reference_s``:
   the same gains by the previous path (:func:`gain_by_single_refits`: every
   perturbed feature refitted alone by the full :func:`core.fit.fit_cylinder`
   / :func:`core.fit.fit_plane`), on the same inputs in the same run, and
@@ -124,20 +126,42 @@ class _WeightsEveryLookup(dict):
         return vol.spline_weights(self._nodes[a], self._q[:, iso.LINEAR_AXES.index(a)])
 
 
-def identify_before(args, kwargs):
-    """``core.volumetric.identify_volumetric`` with its rows built as before issue 19: spline
-    weights once per symbol, the (t, 3, n) Jacobian of the touches built then projected.
-    (The shared rotations in ``core.kinematics.sensitivity`` are in both paths.)"""
+def _touch_kinematics_each(prep, theta, slices, exact, jacobian):
+    """``core.volumetric._touch_kinematics`` as before it was batched: one sensitivity and
+    one tip_W call per measurement, each with its stylus's geometry (same outputs)."""
     from core import volumetric as vol
 
-    saved = vol._axis_weights, vol._projected_error_jacobian
+    idx = [i for i, pm in enumerate(prep) if pm["touches"]]
+    if not idx or not (exact or jacobian):
+        return None, None, {}
+    S, tip, at, t0 = [], [], {}, 0
+    for i in idx:
+        pm = prep[i]
+        at[i], t0 = t0, t0 + len(pm["qt"])
+        v = vol._values(theta, slices, pm["W"], len(pm["qt"])) if exact else None
+        if jacobian:
+            S.append(vol.sensitivity(pm["g"], pm["qt"], pm["rott"], v, symbols=vol.MOTION + vol.SQUARENESS))
+        if exact:
+            tip.append(vol.tip_W(pm["g"], pm["qt"], pm["rott"], v))
+    return (np.concatenate(S) if S else None), (np.concatenate(tip) if tip else None), at
+
+
+def identify_before(args, kwargs):
+    """``core.volumetric.identify_volumetric`` with its rows built as before issue 19: spline
+    weights once per symbol, the (t, 3, n) Jacobian of the touches built then projected, the
+    kinematics one call per measurement. (The shared rotations in ``core.kinematics.sensitivity``
+    and the error-free tips in one call, :func:`core.volumetric._prepare_all`, are in both paths.)"""
+    from core import volumetric as vol
+
+    saved = vol._axis_weights, vol._projected_error_jacobian, vol._touch_kinematics
+    vol._touch_kinematics = _touch_kinematics_each
     vol._axis_weights = _WeightsEveryLookup
     vol._projected_error_jacobian = lambda S, d, W, slices, n: np.einsum(
         "tj,tjn->tn", d, vol._error_jacobian(S, W, slices, n))
     try:
         return vol.identify_volumetric(*args, **kwargs)
     finally:
-        vol._axis_weights, vol._projected_error_jacobian = saved
+        vol._axis_weights, vol._projected_error_jacobian, vol._touch_kinematics = saved
 
 
 class _NeverKept(dict):
@@ -152,14 +176,17 @@ def before_shortcuts():
     reference of ``mfb_3axis_end_to_end_s``): the nominal design rebuilt at every
     identification, every ``_rows`` call recomputing its theta-independent parts and its
     Jacobian (also for the last residual), the bar's features fitted one by one by the
-    validated single fits. (The bar's program, now built once per run, is not undone.)"""
+    validated single fits, placement by placement, the rows' kinematics one call per
+    measurement, the gains' fits not shared between hole sets. (Not undone: the bar's program
+    built once per run, the error-free tips in one call, the gain's planes PL_h in one batch.)"""
     import contextlib
 
     from core import mfb, volumetric as vol
 
     @contextlib.contextmanager
     def ctx():
-        rows, nominal, poi = vol._rows, vol._NOMINAL, mfb.points_of_interest
+        rows, nominal, poi, pois = vol._rows, vol._NOMINAL, mfb.points_of_interest, mfb.points_of_interest_batched
+        kin, fit_once = vol._touch_kinematics, mfb._fit_once
 
         def rows_before(*a, **k):
             k.pop("prep", None)
@@ -168,10 +195,14 @@ def before_shortcuts():
 
         vol._rows, vol._NOMINAL = rows_before, _NeverKept()
         mfb.points_of_interest = lambda *a, **k: poi(*a, **{**k, "batched": False})
+        mfb.points_of_interest_batched = lambda places, geom=mfb.MFB: [poi(p, f, n, geom) for p, f, n in places]
+        vol._touch_kinematics = _touch_kinematics_each
+        mfb._fit_once = lambda fits, *a: fit_once(None, *a)  # no fit shared between hole sets
         try:
             yield
         finally:
-            vol._rows, vol._NOMINAL, mfb.points_of_interest = rows, nominal, poi
+            vol._rows, vol._NOMINAL, mfb.points_of_interest, mfb.points_of_interest_batched = rows, nominal, poi, pois
+            vol._touch_kinematics, mfb._fit_once = kin, fit_once
 
     return ctx()
 
@@ -196,7 +227,8 @@ def run() -> dict:
     out: dict = {}
     inputs = plan_gain_inputs()
     t0 = time.perf_counter()
-    G_new = [mfb.poi_noise_gain(*a) for a in inputs]
+    fits: dict = {}
+    G_new = [mfb.poi_noise_gain(*a, fits=fits) for a in inputs]
     t1 = time.perf_counter()
     G_ref = [gain_by_single_refits(*a) for a in inputs]
     t2 = time.perf_counter()

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from core import kinematics as K
+from core import iso, kinematics as K
 from core.chain import parse_chain
 from core.exceptions import ConfigError
 
@@ -89,3 +89,46 @@ def test_bad_values_shape():
         K.tip_W(g, np.zeros((3, 3)), None, {"EXX": np.zeros(4)})
     with pytest.raises(ConfigError, match="unknown ISO error symbol"):
         K.sensitivity(g, np.zeros((3, 3)), None, None, ["EQQ"])
+
+
+@pytest.mark.parametrize("name", ["vmc-3axis", "mikron-ucp710", "nmv3000"])
+def test_per_pose_probe_offsets(name, rng):
+    """Several styli in one call (``J_m`` per pose, as the volumetric identification batches its
+    measurements): each pose is bit for bit the per-stylus call, and equals Pinocchio's chain
+    (sim, independent of core) built with that stylus, to 1e-12 m (rounding of ~10 products),
+    with errors of 1 mm / 0.05 rad so that no offset can hide behind a small angle."""
+    from dataclasses import replace
+
+    from sim.errorfuncs import Constant
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+
+    cfg = MACHINES[name]()
+    chain_axes = Machine(cfg).chain.axes
+    big = {s.name: Constant(rng.uniform(-1, 1) * (0.05 if s.angular else 1e-3)) for s in iso.SYMBOLS
+           if s.axis in chain_axes and not (s.location and s.axis in iso.LINEAR_AXES
+                                            and s.name not in iso.SQUARENESS)}
+    styli = [(0.0, 0.0, 0.0), (0.0, -0.1, 0.25), (-0.1, 0.0, 0.19)]  # no offset, a star arm, a finger
+    machines = [Machine(replace(cfg, J_m=J)).with_errors(big) for J in styli]
+    n = 30
+    lin = np.column_stack([rng.uniform(*cfg.strokes[a], n) for a in "XYZ"])
+    rot = np.column_stack([rng.uniform(*cfg.strokes[a], n) for a in machines[0].rotary_axes]) \
+        if machines[0].rotary_axes else None
+    which = rng.integers(0, 3, n)
+    which[:3] = (0, 1, 2)
+    J = np.asarray(styli)[which]
+    vals = machines[0].error_values(lin, rot)
+    geom = machines[0].geometry()
+    tip = K.tip_W(geom, lin, rot, vals, J_m=J)
+    S = K.sensitivity(geom, lin, rot, vals, J_m=J)
+    for k, m in enumerate(machines):
+        rows = which == k
+        r = None if rot is None else rot[rows]
+        v = {s: a[rows] for s, a in vals.items()}
+        assert np.array_equal(tip[rows], K.tip_W(m.geometry(), lin[rows], r, v))
+        assert np.array_equal(S[rows], K.sensitivity(m.geometry(), lin[rows], r, v))
+        assert np.abs(tip[rows] - m.tip_W_pinocchio(lin[rows], r)).max() < 1e-12
+    with pytest.raises(ConfigError, match=r"J_m must be finite \(n, 3\)"):
+        K.tip_W(geom, lin, rot, vals, J_m=J[:-1])
+    with pytest.raises(ConfigError, match=r"J_m must be finite \(n, 3\)"):
+        K.sensitivity(geom, lin, rot, vals, J_m=np.full((n, 3), np.nan))

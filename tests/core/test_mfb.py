@@ -200,3 +200,54 @@ def test_batched_feature_fits_equal_the_single_fits():
     assert np.abs(mfb.points_of_interest(c2, pl.feature, n, batched=True).O_R[4] - poi2.O_R[4]).max() > 5e-7
     with pytest.raises(ConfigError, match="non-finite"):
         mfb.fit_bar_features(np.where(np.arange(len(c))[:, None] == 3, np.nan, c), pl.feature, n, batched=True)
+
+
+def test_noise_gain_fits_shared_between_hole_sets():
+    # the gains of a campaign's hole sets with their fits shared (the 12-hole plan first, then
+    # the 8- and 7-hole plans, as scenarios.mfb.run does): each bit for bit its gain alone, and
+    # the smaller plans found their features' fits (the same touches and hints) in the dict
+    from scenarios.bench.mfb import plan_gain_inputs
+
+    inputs = plan_gain_inputs("mfb-3axis")
+    assert [len(a[0]) for a in inputs] == sorted((len(a[0]) for a in inputs), reverse=True)
+    alone = [mfb.poi_noise_gain(*a) for a in inputs]
+    fits: dict = {}
+    seen = []
+    for a, G in zip(inputs, alone):
+        before = len(fits)
+        assert np.array_equal(mfb.poi_noise_gain(*a, fits=fits), G)
+        seen.append(len(fits) - before)
+    assert seen[0] > 0 and seen[1:] == [0, 0], seen  # every fit of the smaller plans found, none refitted
+    # a kept fit is found by its points AND its hint: the opposite hint flips the normal
+    pts = inputs[0][0][:6] * np.array([1.0, 1.0, 0.0])  # six points in z = 0
+    up = mfb._fit_once(fits, "plane", pts, np.array([0.0, 0.0, 1.0]))
+    down = mfb._fit_once(fits, "plane", pts, np.array([0.0, 0.0, -1.0]))
+    assert up[1][2] == 1.0 and down[1][2] == -1.0
+    assert mfb._fit_once(fits, "plane", pts.copy(), np.array([0.0, 0.0, 1.0])) is up
+
+
+def test_points_of_interest_of_several_placements_equal_each_placement_alone():
+    # points_of_interest_batched (the features of every placement together: three placements of
+    # one orientation share their hints, so their holes, rods and faces are fitted in one call)
+    # against each placement's own batched extraction: bit for bit, also beside a rotated bar
+    # and a smaller hole set
+    from scenarios.mfb import _plan_for
+    from sim import artefacts as A
+
+    art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
+    rng = np.random.default_rng(4)
+    places = []
+    for holes, R in ((range(1, 13), np.eye(3)), (range(1, 13), np.eye(3)), (range(1, 9), A.rot_z(0.3)),
+                     (range(1, 13), np.eye(3))):
+        pl = _plan_for(art, tuple(holes))
+        c = (pl.w_A + 3e-3 * pl.wn_A + rng.normal(0, 5e-7, pl.w_A.shape)) @ R.T + rng.normal(0, 0.05, 3)
+        places.append((c, pl.feature, pl.wn_A @ R.T))
+    got = mfb.points_of_interest_batched(places)
+    for (c, f, n), p in zip(places, got):
+        alone = mfb.points_of_interest(c, f, n, batched=True)
+        assert p.holes == alone.holes and p.orientation == alone.orientation
+        for a in ("O_R", "O_M", "T_R_M"):
+            assert np.array_equal(getattr(p, a), getattr(alone, a)), a
+    assert not np.array_equal(got[0].O_R, got[1].O_R)  # each placement its own touches
+    with pytest.raises(ConfigError, match="non-finite"):
+        mfb.points_of_interest_batched([places[0], (np.full_like(places[1][0], np.nan),) + places[1][1:]])

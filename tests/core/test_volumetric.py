@@ -183,3 +183,41 @@ def test_nominal_design_kept_per_plan(meas3):
     J, r1, _ = vol._rows(meas, chain, rp, nodes, th, slices, n, True)
     none, r2, _ = vol._rows(meas, chain, rp, nodes, th, slices, n, True, jacobian=False)
     assert none is None and J.shape == (len(r1), n) and np.array_equal(r1, r2)
+
+
+def test_touches_of_all_measurements_in_one_call_are_the_per_measurement_calls(meas3):
+    # the rows' kinematics batched over the measurements (7 styli in one call, per-pose J) against
+    # a call per measurement with its own stylus geometry, the path before: bit for bit, at a
+    # theta off zero (Gauss-Newton) and at zero (the design), tips at the touches and at the points
+    meas, chain, nodes, rp = meas3
+    nodes = {a: np.asarray(v, float) for a, v in nodes.items()}
+    names, slices, n, _ = vol._layout(meas, nodes)
+    assert len({m.J_m for m in meas}) >= 5  # several styli mixed in the batch
+    prep = vol._prepare_all(meas, chain, rp, nodes)
+    for theta in (np.zeros(n), np.random.default_rng(3).normal(0, 1e-5, n)):
+        S, tip, at = vol._touch_kinematics(prep, theta, slices, True, True)
+        for i, (m, pm) in enumerate(zip(meas, prep)):
+            g = vol._geom(chain, m.J_m, rp)
+            t = len(pm["qt"])
+            v = vol._values(theta, slices, pm["W"], t)
+            rows = slice(at[i], at[i] + t)
+            assert np.array_equal(S[rows], vol.sensitivity(g, pm["qt"], pm["rott"], v, symbols=vol.MOTION + vol.SQUARENESS))
+            assert np.array_equal(tip[rows], vol.tip_W(g, pm["qt"], pm["rott"], v))
+            assert np.array_equal(pm["tip0_t"], vol.tip_W(g, pm["qt"], pm["rott"], None))
+            assert np.array_equal(pm["pred0"], vol.tip_W(g, pm["q"], pm["rot"], None))
+    assert vol._touch_kinematics(prep, theta, slices, False, False) == (None, None, {})
+    # the rows' Jacobian: the touches' rows projected and spread over the nodes for all measurements
+    # at once, against each measurement's own product (the path before), at the last theta
+    J, _, _ = vol._rows(meas, chain, rp, nodes, theta, slices, n, True, prep=prep)
+    r0 = 0
+    for i, (m, pm) in enumerate(zip(meas, prep)):
+        k, t = pm["k"], len(pm["qt"])
+        Jt = vol._projected_error_jacobian(S[at[i]:at[i] + t], pm["d_W"], pm["W"], slices, n)
+        own = (pm["GW"].reshape(3 * k, t) @ Jt).reshape(k, 3, n)
+        rows = J[r0:r0 + 3 * k].reshape(k, 3, n)
+        off = ~pm["off"]  # the placement's columns and the roll projection come after: compare the rest
+        mask = np.ones(n, bool)
+        sl = slices[m.placement]
+        mask[sl] = False
+        assert np.array_equal(rows[off][:, :, mask], own[off][:, :, mask]), m.name
+        r0 += 3 * k

@@ -88,18 +88,20 @@ def test_bounds_never_exceed_mujoco_distances(A_deg, C_deg, J_m, finger):
     k_all = np.r_[k_c, k_o]
     i, pair = np.divmod(k_all, npair)
     lb = clr.bound(tips, i, pair)
-    worst, n_close = -np.inf, 0
+    lb_box = clr.box_bound(tips, np.arange(npair))[i, pair]  # (the least clearance's first pass)
+    worst, n_close, n_inside = -np.inf, 0, 0
     for k in range(len(k_all)):
         wz.set_tip(tips[i[k]])
         a, b = wz._probe[clr.pair_probe[pair[k]]], wz._table[clr.pair_table[pair[k]]]
         d = mujoco.mj_geomDistance(wz.model, wz.data, a, b, 1.0, None)
-        worst = max(worst, lb[k] - d)
+        worst = max(worst, lb[k] - d, lb_box[k] - d)
         n_close += d < 5e-3
+        n_inside += d < -1e-3  # penetrating pairs: the bounds are signed
         # a pair whose boxes are apart is farther than the margin
         assert cand[i[k], pair[k]] or d > MARGIN_M - 1e-6, (i[k], pair[k], d)
     # MuJoCo's distance of convex pairs is exact to its CCD tolerance (1e-6 m)
     assert worst <= 1e-6, worst
-    assert n_close > 50  # the draw reaches the geoms, not only far space
+    assert n_close > 50 and n_inside > 10  # the draw reaches the geoms, and into them
 
 
 def _random_paths(rng, T_R_A, n):
@@ -246,8 +248,8 @@ def test_certificates_across_placements_agree_with_every_sample_check(monkeypatc
     z_top = T0[2, 3] + probe.stylus_r_m
     boxes = [0]
     real = Clearance._box_pairs
-    monkeypatch.setattr(Clearance, "_box_pairs", lambda self, a, b: boxes.__setitem__(0, boxes[0] + len(a))
-                        or real(self, a, b))
+    monkeypatch.setattr(Clearance, "_box_pairs", lambda self, a, *r: boxes.__setitem__(0, boxes[0] + len(a))
+                        or real(self, a, *r))
     changed = reused = 0
     for trial in range(10):
         n = 4
@@ -368,20 +370,6 @@ def test_link_paths_are_the_one_by_one_links_bit_for_bit():
     assert link_paths(np.eye(4), np.zeros((1, 3)), ["a"], [0], 0.0) == [None]
 
 
-def test_fixed_bound_grid_is_the_rows_bound_on_fixed_axes():
-    """Clearance.fixed_bound_grid (the least clearance's first pass) equals bound() on every
-    (tip, pair) row with the closest-point axis left out, bit for bit, and never exceeds bound()."""
-    wz = _zone(-60, 30, (0.0, -0.100, 0.150))
-    tips = np.random.default_rng(0).uniform(-0.3, 0.3, (40, 3))
-    for holder_only in (True, False):
-        clr = wz.clearance(holder_only=holder_only)
-        npair = len(clr.pair_probe)
-        i, pair = np.repeat(np.arange(len(tips)), npair), np.tile(np.arange(npair), len(tips))
-        grid = clr.fixed_bound_grid(tips).ravel()
-        assert np.array_equal(grid, clr.bound(tips, i, pair, enough=-np.inf))
-        assert np.all(grid <= clr.bound(tips, i, pair))
-
-
 def _sphere_over_box(pad=0.5e-3):
     """A ball of radius R (the probe, tip at its centre) over a box whose top face is z = 0
     (feature "top"): the distance of the ball at height z is z - R, exactly."""
@@ -412,9 +400,9 @@ def test_certificates_clear_exactly_their_radius():
     calls = []
     real = Clearance._box_pairs
 
-    def counted(self, lo, hi):
+    def counted(self, lo, *rest):
         calls.append(len(lo))
-        return real(self, lo, hi)
+        return real(self, lo, *rest)
 
     for dz_a, dz_b, want_near in ((0.19e-3, 0.19e-3, False), (0.21e-3, 0.21e-3, True),
                                   (0.45e-3, 0.45e-3, True), (0.45e-3, 0.0, True), (0.0, 0.45e-3, True)):
@@ -499,8 +487,8 @@ def artefact_points_low():
 
 def test_least_holder_clearance_looks_past_loose_bounds():
     """Known answer: 108 tips 12 mm outside the table disc's rim, at half its thickness (the ball
-    9 mm from the rim; at oblique azimuths the fixed axes' bounds of those pairs are negative,
-    so they come first) and one tip with the ball 8 mm above the disc's face (its bound exact,
+    9 mm from the rim; at oblique azimuths they lie within the disc's bounding box, so the first
+    bounds of those pairs are at most 0 and they come first) and one tip with the ball 8 mm above the disc's face (its bound exact,
     8 mm, ranked after more than 64 loose rows). The least clearance is 8 mm, with the broad
     phase as without; a refinement that stops 5 mm short of the best distance found (9 mm) never
     reaches the 8 mm tip."""
@@ -540,3 +528,65 @@ def test_one_work_zone_at_many_table_poses_agrees_with_every_sample_check(J_m, f
         assert new == old, (A_deg, C_deg)
         n_bad += bool(new.collisions)
     assert n_bad >= 2
+
+
+def _same_segments(got, want):
+    for f in ("a", "b", "k", "m", "first", "path"):
+        assert np.array_equal(getattr(got, f), getattr(want, f)), f
+
+
+def test_measurement_paths_are_the_polylines_checked_one_by_one():
+    """check_measurement's polylines built in one array (sim.mfb_scene._touch_paths) are the ones
+    the list-of-polylines version built: per touch the link into its start (none for the first,
+    allowed feature none), then its approach (the touched feature allowed); the same segments,
+    bit for bit, the same touch and allowed feature per polyline."""
+    from sim.clearance import path_segments
+    from sim.mfb_scene import _touch_paths, link_paths
+
+    for holes, (A_deg, C_deg) in (((3, 4, 5), (0, 0)), ((1,), (-90, 45)), ((10, 11), (-45, 120))):
+        pl = _holes(*holes)
+        T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
+        Xn = A.apply_T(T_R_A, pl.w_A + R * pl.wn_A)
+        start = Xn + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)
+        top = 0.021
+        for n in (pl.n, 1, 2):
+            sub = pl.select(np.arange(n))
+            links = link_paths(T_R_A, start[:n], sub.feature, sub.level, top)
+            paths = []
+            for i in range(n):
+                if links[i] is not None:
+                    paths.append((i, links[i], 3e-3, ""))
+                paths.append((i, np.array([start[i], Xn[i]]), 0.5e-3, sub.feature[i]))
+            want = path_segments([p[1] for p in paths], [p[2] for p in paths], joints=False)
+            sg, touch, allow = _touch_paths(T_R_A, start[:n], Xn[:n], sub, top, 3e-3, 0.5e-3)
+            _same_segments(sg, want)
+            assert touch.tolist() == [p[0] for p in paths] and allow.tolist() == [p[3] for p in paths]
+
+
+def test_campaign_paths_are_the_polylines_checked_one_by_one(monkeypatch):
+    """check_touch_paths' polylines in one array are those of the list-of-polylines version: per
+    touch its link (when it has one of two points or more; none allowed), then its approach (its
+    feature allowed); the same segments bit for bit, as sim.clearance receives them."""
+    from sim import scene as S
+    from sim.clearance import Clearance, path_segments
+
+    seen = []
+    monkeypatch.setattr(Clearance, "near_segments", lambda self, sg, allow: seen.append((sg, list(allow))) or
+                        np.zeros(0, int))
+    art = A.cross_pocket()
+    scene = Scene(art, ProbeConfig())
+    rng = np.random.default_rng(9)
+    for links in ([None, np.zeros((1, 3)), rng.normal(0, 0.05, (3, 3)), rng.normal(0, 0.05, (2, 3))],
+                  [rng.normal(0, 0.05, (k, 3)) for k in (2, 4, 4, 3)]):
+        approach = rng.normal(0, 0.05, (4, 2, 3))
+        feats = ["pocket", "sphere1", "", "pocket"]
+        S._PASSED.clear()
+        seen.clear()
+        check_touch_paths(scene, "C0", ["a", "b", "c", "d"], feats, links, approach)
+        paths = []
+        for i in range(4):
+            if links[i] is not None and len(links[i]) > 1:
+                paths.append((links[i], 2e-3, ""))
+            paths.append((approach[i], 0.25e-3, feats[i]))
+        _same_segments(seen[0][0], path_segments([p[0] for p in paths], [p[1] for p in paths], joints=True))
+        assert seen[0][1] == [p[2] for p in paths]
