@@ -1051,9 +1051,14 @@ def paper_figures(folder, cpu: dict, pin: dict | None = None, seed: int = 1) -> 
     tables["case1"] = _case1_table(case1_comparison(seed, run), seed)
     rrd = _recording_path(folder)
     try:
+        # each figure rendered once (the slow part): the same PNG in the recording and in the folder
+        png = {n: S.figure_png_bytes(f) for n, f in figs.items()}
         with record.recording(rrd) as rec:
             _record_paper(rec, record, cpu, tables)
-            S.log_figures(rec, figs)
+            S.log_figures(rec, png)
+        for n, b in png.items():
+            figs[n] = rrd.parent / f"{n}.png"
+            figs[n].write_bytes(b)
         secs = [Section("Self-calibration paper: the one U95 reading", text=cpu["u95_reading"]),
                 Section("Paper vs vmt", tables=list(tables.values()))]
         groups = (("Case 1 profiles (Figs. 9(a-c), 10)", ("fig9a", "fig9b", "fig9c", "fig10")),

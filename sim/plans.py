@@ -15,9 +15,11 @@ Counts (asserted in the tests):
 - Cross pocket (Ibaraki section 4.2): 3 per end wall x 4 + 9 per side wall
   x 8 = 84 wall points 3 mm below the top, plus 4 equator points per
   sphere x 2 = 92 per C angle.
-- Pin circle (section 5): 4 per pin x 18 + 8 per sphere x 2 = 88 per C
-  angle (the paper writes "total 84", which its own counts do not give:
-  17 pins x 4 + 16 would).
+- Pin circle (section 5.1): 4 per pin x 18 + 8 per sphere x 2 = 88 per C
+  angle, the spheres' eight on the equator 45 deg apart, as in case 1
+  ("The points on the spheres are on their equator", 4.2), since the
+  planar model (eqs 1-3) takes normals in XY (the paper writes "total 84",
+  which its own counts do not give: 17 pins x 4 + 16 would).
 - Free-form plate: 64 contour points + 4 equator points per sphere x 2 = 72.
 """
 
@@ -188,7 +190,7 @@ def cross_pocket_plan(art: A.Artefact, clearance_m=2.0 * MM, overshoot_m=1.0 * M
 
 
 def pin_circle_plan(art: A.Artefact, clearance_m=2.0 * MM, overshoot_m=1.0 * MM) -> Plan:
-    """4 points per pin at mid-height, 8 per sphere (4 equator, 4 at 45 deg)."""
+    """4 points per pin at mid-height, 8 per sphere on its equator, 45 deg apart from +x (section 5.1)."""
     b = _Builder()
     for f in art.features:
         if f.kind == "rod":
@@ -199,7 +201,7 @@ def pin_circle_plan(art: A.Artefact, clearance_m=2.0 * MM, overshoot_m=1.0 * MM)
                       level=k)  # around a pin: via the safe height
     for f in art.features:
         if f.kind == "sphere":
-            _sphere_points(b, f, (0.0, 45.0), ((0, 90, 180, 270), (45, 135, 225, 315)))
+            _sphere_points(b, f, (0.0,), (tuple(range(0, 360, 45)),))
     return b.plan(art.name, clearance_m, overshoot_m)
 
 

@@ -24,17 +24,18 @@ import pytest
 #: runs on the same worker. Checked on every worker against the fixtures the tests really use.
 SHARED_SESSION_FIXTURES = ("mfb3_noise_free",)
 
-#: The longest units, longest first (summed test durations, 2026-12-02, 1,178 tests at load 13: the
-#: mfb3_noise_free unit 225 s, then 90, 48, 35, 33, 33, 31, 26, 23, 20, 20, 18, 17 s; every other file
-#: under 17 s). Handed out first, so that no long file starts last and leaves one worker running alone;
-#: the others follow in collection order. A file missing here only loses its place in the queue.
+#: The longest units, longest first (summed test durations on two workers at load 6-9, 2026-12-02, wall:
+#: the mfb3_noise_free unit 300 s, then 125, 89, 80, 63, 59, 55, 55, 50, 44, 41, 36, 32, 29, 26, 26, 24, 23,
+#: 20 s; every other file under 20 s). Handed out first, so that no long file starts last and leaves one
+#: worker running alone; the others follow in collection order. A file missing here only loses its place.
 LONGEST_FIRST = ("fixture:mfb3_noise_free", "tests/scenarios/test_discover_hidden.py",
                  "tests/scenarios/test_paper_scenarios.py", "tests/scenarios/test_demo.py",
-                 "tests/core/test_discover_generalisation.py", "tests/core/test_design.py",
-                 "tests/core/test_fit.py", "tests/scenarios/test_vcmm_study.py",
-                 "tests/core/test_discover_engine.py", "tests/scenarios/test_machine_file_cli.py",
-                 "tests/hardware/test_emulator_sim.py", "tests/scenarios/test_parallel.py",
-                 "tests/hardware/test_campaign.py")
+                 "tests/core/test_discover_engine.py", "tests/core/test_discover_generalisation.py",
+                 "tests/sim/test_clearance.py", "tests/core/test_fit.py", "tests/scenarios/test_vcmm_study.py",
+                 "tests/test_fuzz_cli.py", "tests/scenarios/test_blind_gen_a.py", "tests/scenarios/test_parallel.py",
+                 "tests/viz/test_figures.py", "tests/test_architecture.py", "tests/hardware/test_emulator_sim.py",
+                 "tests/viz/test_mfb_figures.py", "tests/hardware/test_campaign.py",
+                 "tests/scenarios/test_regress.py", "tests/scenarios/test_selfcal_coverage.py")
 
 _ROOT = Path(__file__).resolve().parents[1]
 
@@ -125,3 +126,4 @@ def mfb3_noise_free():
     finally:
         V.identify_volumetric = orig
     return res, cap["m"]
+

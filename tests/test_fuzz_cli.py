@@ -449,11 +449,13 @@ def test_real_process_exit_status_and_one_line(base, tmp_path):
     for argv in (["check", str(bad)],
                  ["identify", str(base["log"]), "--json", "/dev/full"],
                  ["import", "linuxcnc", str(base["lcnc"]), "--plan", str(base["plan"]), "--out", str(base["plan"])],
-                 ["design", str(base["plan"]), "--angles", "3", "--step-deg", "0"],
-                 ["check", str(base["dir"] / "folder")]):
+                 ["design", str(base["plan"]), "--angles", "3", "--step-deg", "0"]):
         r = _vmt(*argv)
         assert r.returncode == 2, (argv, r.stderr)
         assert r.stderr.count("\n") == 1 and r.stderr.startswith(f"vmt {argv[0]}: error: "), (argv, r.stderr)
+    # a folder given as the log: `check` has its real process above, so this one runs in-process
+    rc, _, e, problem = run_case(["check", str(base["dir"] / "folder")], tmp_path)
+    assert (rc, problem) == (2, None) and e.startswith("vmt check: error: "), e
 
 
 def test_real_process_closed_pipe_ends_quietly(tmp_path):

@@ -138,9 +138,9 @@ def figure_png_bytes(fig, *, dpi: int = 110) -> bytes:
 
 
 def log_figures(rec, figures: dict, *, path: str = "reports/figures") -> None:
-    """Log each ``{name: Figure}`` as a PNG image at ``path/name`` (static) in a rerun recording."""
+    """Log each ``{name: Figure or PNG bytes}`` as a PNG image at ``path/name`` (static) in a rerun recording."""
     import rerun as rr
 
     for name, fig in figures.items():
-        rec.log(f"{path}/{name}", rr.EncodedImage(contents=figure_png_bytes(fig), media_type="image/png"),
-                static=True)
+        png = fig if isinstance(fig, bytes) else figure_png_bytes(fig)
+        rec.log(f"{path}/{name}", rr.EncodedImage(contents=png, media_type="image/png"), static=True)

@@ -181,12 +181,3 @@ def test_progress_line_is_quiet_off_a_terminal_and_clears_on_one():
     text = bar.stream.getvalue()
     assert text.count("\r\033[K") == 1 and text.endswith("2/4 ( 50 %)  ~" + text.split("~")[-1])
     assert "left" in text
-
-
-def test_cross_pocket_uncertainty_reports_progress():
-    from scenarios.crosspocket import cross_pocket_uncertainty
-
-    calls = []
-    cross_pocket_uncertainty(runs=10, seed=1, progress=lambda d, t: calls.append((d, t)))
-    assert calls[0] == (0, 6) and calls[-1] == (6, 6)
-    assert [d for d, _ in calls] == sorted(d for d, _ in calls)

@@ -15,10 +15,37 @@ PAPER_G = {(0, 75): 6.5, (0, 75, 130): 3.0, (0, 75, 130, 210): 2.1}
 
 
 @pytest.fixture(scope="session")
-def cpu(tmp_path_factory):
+def cpu_run(tmp_path_factory):
+    """The study through the CLI, with the progress calls the study made to the CLI's progress line."""
+    import scenarios.crosspocket as cp
+
     out = tmp_path_factory.mktemp("cpu") / "cpu.json"
-    assert main(["scenario", "cross-pocket-uncertainty", "--json", str(out), "--mc", "400"]) == 0
-    return json.loads(out.read_text())
+    calls, orig = [], cp.cross_pocket_uncertainty
+
+    def spy(*a, progress=None, **kw):
+        def seen(d, t):
+            calls.append((d, t))
+            return progress(d, t)
+        return orig(*a, progress=seen, **kw)
+
+    cp.cross_pocket_uncertainty = spy
+    try:
+        assert main(["scenario", "cross-pocket-uncertainty", "--json", str(out), "--mc", "400"]) == 0
+    finally:
+        cp.cross_pocket_uncertainty = orig
+    return json.loads(out.read_text()), calls
+
+
+@pytest.fixture(scope="session")
+def cpu(cpu_run):
+    return cpu_run[0]
+
+
+def test_cross_pocket_uncertainty_reports_progress(cpu_run):
+    """The study tells its progress (the CLI draws it on a terminal): 6 cases, from 0 to 6, in order."""
+    calls = cpu_run[1]
+    assert calls[0] == (0, 6) and calls[-1] == (6, 6)
+    assert [d for d, _ in calls] == sorted(d for d, _ in calls)
 
 
 @pytest.fixture(scope="session")

@@ -1,4 +1,5 @@
-"""scenarios.parallel: identical Monte Carlo results on serial, local processes and a real Dask cluster."""
+"""Identical Monte Carlo results on serial, local processes and a real Dask cluster: scenarios.parallel's
+study and design sweep, and scenarios.vcmm's study (the virtual CMM's gauge of test_vcmm_study)."""
 
 import numpy as np
 import pytest
@@ -9,6 +10,18 @@ from scenarios.parallel import design_sweep, mc_study
 
 GRID = Grid.regular(-0.110, 0.110, 0.022)
 ANG = [0, 75, 130, 210]
+
+
+@pytest.fixture(scope="module")
+def dask_cluster():
+    """The scheduler address of one local Dask cluster (2 worker processes, 1 thread each) for this file's
+    tests: started once (about 10 s and 4.5 s of CPU, and its workers import vmt again each time) and shut
+    down when the file is done (an idle cluster still costs about 10 s of CPU a minute)."""
+    import distributed                      # a dependency (pyproject, requirements.lock): fails, never skips
+
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
 
 
 @pytest.fixture(scope="module")
@@ -29,16 +42,12 @@ def test_mc_independent_of_grouping_and_agrees_with_linear(pocket):
     np.testing.assert_allclose(a.hi[free], 1.96 * a.u_linear[free], rtol=0.1)
 
 
-def test_dask_cluster_and_local_processes_give_identical_results(pocket):
-    distributed = pytest.importorskip("distributed")
+def test_dask_cluster_and_local_processes_give_identical_results(pocket, dask_cluster):
     w, wn = pocket
     serial = mc_study(w, wn, ANG, GRID, 1.38e-6, runs=3000, seed=42, block=500, blocks_per_task=2)
     local = mc_study(w, wn, ANG, GRID, 1.38e-6, runs=3000, seed=42, block=500, blocks_per_task=2, workers=2)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
-        dk = mc_study(w, wn, ANG, GRID, 1.38e-6, runs=3000, seed=42, block=500, blocks_per_task=2,
-                      dask=cluster.scheduler_address)
-        sweep = design_sweep(w, wn, [ANG, [0, 60, 150, 210]], GRID, 1.38e-6, dask=cluster.scheduler_address)
+    dk = mc_study(w, wn, ANG, GRID, 1.38e-6, runs=3000, seed=42, block=500, blocks_per_task=2, dask=dask_cluster)
+    sweep = design_sweep(w, wn, [ANG, [0, 60, 150, 210]], GRID, 1.38e-6, dask=dask_cluster)
     for k in ("mean", "u", "lo", "hi"):
         assert np.array_equal(getattr(serial, k), getattr(local, k)), k
         assert np.array_equal(getattr(serial, k), getattr(dk, k)), k
@@ -48,3 +57,20 @@ def test_dask_cluster_and_local_processes_give_identical_results(pocket):
     # another seed gives other numbers
     other = mc_study(w, wn, ANG, GRID, 1.38e-6, runs=3000, seed=43, block=500)
     assert not np.array_equal(other.u, serial.u)
+
+
+def test_vcmm_dask_gives_the_same_result_per_seed(dask_cluster):
+    """vmt vcmm's study serially and on the Dask cluster: identical values, run by run."""
+    from core.vcmm import loads_task
+    from scenarios import vcmm as S
+    from sim.machinefile import resolve
+    from tests.scenarios.test_vcmm_study import GAUGE, GAUGE_TASK
+
+    task = loads_task(GAUGE_TASK.replace("batch_runs = 50", "batch_runs = 20").replace("noise_um = 0.0",
+                                                                                         "noise_um = 0.2"))
+    st = S.prepare(GAUGE, task, resolve("vmc-3axis"))
+    serial = S.study(st, 5, budget=False)
+    remote = S.study(st, 5, budget=False, dask=dask_cluster)
+    assert serial["runs"] == remote["runs"]
+    assert np.array_equal(serial["values_si"], remote["values_si"])
+    assert [t["u_dq_um"] for t in serial["touches_u"]] == [t["u_dq_um"] for t in remote["touches_u"]]

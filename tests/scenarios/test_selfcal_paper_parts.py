@@ -67,6 +67,11 @@ def test_pin_circle_plan_has_the_papers_eight_equator_touches_a_sphere():
     ref = pin_circle_plan(art)
     keep = [i for i, f in enumerate(ref.feature) if f.startswith("pin")]
     np.testing.assert_array_equal(plan.w_A[pins], ref.w_A[keep])  # the pins' touches are the standard plan's
+    # and so are the spheres' (`vmt simulate pin-circle` then `vmt identify` keeps all 88: none leaves XY);
+    # built apart (deg2rad(45 k) there, 2 pi k / 8 here), bit for bit the same
+    assert (ref.target, ref.feature) == (plan.target, plan.feature)
+    for a, b in ((ref.level, plan.level), (ref.w_A, plan.w_A), (ref.wn_A, plan.wn_A)):
+        np.testing.assert_array_equal(a, b)
     assert cp.pin_circle_paper_plan(art, 4).n == 80
     for bad in (2, 4.5, -1):
         with pytest.raises(ConfigError, match="sphere_touches must be an integer >= 3"):

@@ -220,19 +220,3 @@ def test_points_not_on_one_feature_exit_2(tmp_path, capsys):
                     "quantity = \"flatness\"\nof = \"a\"\n")
     assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out)]) == 2
     assert "not on one plane" in capsys.readouterr().err
-
-
-def test_dask_gives_the_same_result_per_seed(machine):
-    """The same study serially and on a 2-worker Dask cluster: identical values, run by run."""
-    import distributed
-
-    task = loads_task(GAUGE_TASK.replace("batch_runs = 50", "batch_runs = 20").replace("noise_um = 0.0",
-                                                                                         "noise_um = 0.2"))
-    st = S.prepare(GAUGE, task, machine)
-    serial = S.study(st, 5, budget=False)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
-        remote = S.study(st, 5, budget=False, dask=cluster.scheduler_address)
-    assert serial["runs"] == remote["runs"]
-    assert np.array_equal(serial["values_si"], remote["values_si"])
-    assert [t["u_dq_um"] for t in serial["touches_u"]] == [t["u_dq_um"] for t in remote["touches_u"]]
