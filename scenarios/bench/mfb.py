@@ -239,26 +239,43 @@ def run() -> dict:
     from core import volumetric as vol
 
     S.run("mfb-3axis", mc_runs=20)  # imports and first-use caches warm
-    stamps, ident = {}, {}
-    S._GAINS.clear()
+    ident = {}
     real = vol.identify_volumetric
 
     def spy(*a, **k):
         ident["args"] = (a, k)
         return real(*a, **k)
 
-    vol.identify_volumetric = spy
-    try:
-        t0 = time.perf_counter()
-        S.run("mfb-3axis", progress=lambda k, n: stamps.setdefault(k, time.perf_counter()))
-        t_end = time.perf_counter()
-    finally:
-        vol.identify_volumetric = real
+    # end to end (the gains' cache emptied each time) and the path before (as it ran: gains
+    # cached), interleaved, best of 3 each: one run of ~1 s on a shared virtual machine moved
+    # by 0.9-1.4 s between five back-to-back runs; the minimum is the run least disturbed
+    t_run, t_before, best = [], [], None
+    for _ in range(3):
+        stamps = {}
+        S._GAINS.clear()
+        vol.identify_volumetric = spy
+        try:
+            t0 = time.perf_counter()
+            S.run("mfb-3axis", progress=lambda k, n, st=stamps: st.setdefault(k, time.perf_counter()))
+            t_end = time.perf_counter()
+        finally:
+            vol.identify_volumetric = real
+        t_run.append(t_end - t0)
+        if best is None or t_run[-1] <= min(t_run):
+            best = (t0, t_end, stamps)
+        r_now = S.run("mfb-3axis")  # the gains cached, as the path before ran
+        with before_shortcuts():
+            t0 = time.perf_counter()
+            r_before = S.run("mfb-3axis")
+            t_before.append(time.perf_counter() - t0)
+    t0, t_end, stamps = best
     n = max(stamps)
     out["mfb_3axis_end_to_end_s"] = round(t_end - t0, 3)
     out["mfb_3axis_measure_s"] = round(stamps[n - 2] - t0, 3)
     out["mfb_3axis_identify_s"] = round(stamps[n - 1] - stamps[n - 2], 3)
     out["mfb_3axis_uncertainty_s"] = round(t_end - stamps[n - 1], 3)
+    out["mfb_3axis_end_to_end_before_ref_s"] = round(min(t_before), 3)
+    out["mfb_3axis_end_to_end_max_theta_diff"] = float(np.abs(r_now.result.theta - r_before.result.theta).max())
     # the identification alone on the run's own inputs, as it is and as before, side by side
     t_new, t_old = [], []
     for _ in range(2):
@@ -272,13 +289,8 @@ def run() -> dict:
     out["mfb_3axis_identify_rows_before_ref_s"] = round(min(t_old), 3)
     out["mfb_3axis_identify_max_theta_diff"] = float(np.abs(r_new.theta - r_old.theta).max())
     t0 = time.perf_counter()
-    r_now = S.run("mfb-3axis")  # the gains cached from the run above
+    S.run("mfb-3axis")  # the gains cached from the runs above
     out["mfb_3axis_gain_cached_s"] = round(time.perf_counter() - t0, 3)
-    with before_shortcuts():
-        t0 = time.perf_counter()
-        r_before = S.run("mfb-3axis")
-        out["mfb_3axis_end_to_end_before_ref_s"] = round(time.perf_counter() - t0, 3)
-    out["mfb_3axis_end_to_end_max_theta_diff"] = float(np.abs(r_now.result.theta - r_before.result.theta).max())
     # one Monte Carlo run of the budget, now and before, side by side (warm: the first was run above)
     S.budget_run("mfb-3axis", 2)
     t0 = time.perf_counter()
