@@ -96,6 +96,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from . import iso
+from .memo import Memo
 from .exceptions import ConfigError, IdentifiabilityError
 from .kinematics import ChainGeometry, exp_so3, sensitivity, skew, tip_W
 from .lsq import RANK_TOL, describe_direction, solve
@@ -600,8 +601,6 @@ def _design(meas, chain, nodes, rotary_points_R_m, gauge) -> tuple:
     A, y, rows = _rows(meas, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False, prep=prep)
     key = _nominal_key(meas, chain, nodes, rotary_points_R_m, gauge, names)
     if key not in _NOMINAL:
-        if len(_NOMINAL) >= 8:
-            _NOMINAL.pop(next(iter(_NOMINAL)))
         _NOMINAL[key] = _nominal_design(meas, chain, nodes, rotary_points_R_m, gauge, slices, n)
     C, words, null, left, sv_rel = _NOMINAL[key]
     return VolumetricDesign(A, y, tuple(names), slices, nodes, C, words, null, rows, left, sv_rel), prep
@@ -609,7 +608,9 @@ def _design(meas, chain, nodes, rotary_points_R_m, gauge) -> tuple:
 
 #: The plan's part of :func:`design` (null space, gauge, conditioning: nominal readings only),
 #: by :func:`_nominal_key`: the same for every campaign of a plan (a Monte Carlo's runs).
-_NOMINAL: dict = {}
+#: Safe: the key hashes the measurements, chain, nodes, rotary points, gauge and names the
+#: nominal design is made of; its arrays are only read. 8 plans (before: oldest dropped at 8).
+_NOMINAL = Memo(8)
 
 
 def _nominal_key(meas, chain, nodes, rotary_points_R_m, gauge, names) -> bytes:

@@ -115,6 +115,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.memo import Memo
 from core.units import MM
 
 
@@ -521,8 +522,11 @@ class _NoSafeHeight:
         return getattr(self._m, k)
 
 
-#: Collision checks already made (a pure function of the nominal plan).
-_CHECKS: dict = {}
+#: Collision checks already made (a pure function of the nominal plan): keyed by the machine,
+#: every measurement's name, set-up, holes and stylus position, the stylus radius and the
+#: program's margin; the summaries are only read (reports copy them into JSON). 64 checks
+#: (before: unbounded; a few kilobytes each, a session checks a handful of plans).
+_CHECKS = Memo(64)
 
 
 def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> dict:
@@ -557,8 +561,9 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     margin = placement_margin_m(u_place)  # the program run() simulates for this placement tolerance
     key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
            margin)
-    if key in _CHECKS:
-        return _CHECKS[key]
+    hit = _CHECKS.get(key)
+    if hit is not None:
+        return hit
     t0 = time.time()
     mach = Machine(MACHINES[plan.machine]())
     art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
@@ -613,8 +618,10 @@ def describe_collision_check(c: dict) -> str:
     return "\n".join(lines)
 
 
-#: The extraction's gains already computed (pure functions of the nominal plan).
-_GAINS: dict = {}
+#: The extraction's gains already computed (pure functions of the nominal plan): keyed by the
+#: touches' targets, features, points and normals (bytes) and the stylus radius; read-only
+#: arrays. 64 gains (before: oldest dropped at 64).
+_GAINS = Memo(64)
 
 
 def _noise_gain(pl_ok, r_m, fits=None):
@@ -626,8 +633,6 @@ def _noise_gain(pl_ok, r_m, fits=None):
 
     key = (tuple(pl_ok.target), tuple(pl_ok.feature), pl_ok.w_A.tobytes(), pl_ok.wn_A.tobytes(), float(r_m))
     if key not in _GAINS:
-        if len(_GAINS) >= 64:
-            _GAINS.pop(next(iter(_GAINS)))
         G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A, fits=fits)
         G.setflags(write=False)  # shared between runs: read only
         _GAINS[key] = G
@@ -651,8 +656,8 @@ PLACEMENT_MARGIN_K = 5.0
 
 
 #: placement_margin_m's answers by (u_place, k): a pure function of them, asked by every run
-#: and every check (it builds the nominal bar and its full plan)
-_MARGINS: dict = {}
+#: and every check (it builds the nominal bar and its full plan). Floats. 64 (before: cleared at 64).
+_MARGINS = Memo(64)
 
 
 def placement_margin_m(u_place=U_PLACE, k: float = PLACEMENT_MARGIN_K) -> float:
@@ -686,8 +691,6 @@ def placement_margin_m(u_place=U_PLACE, k: float = PLACEMENT_MARGIN_K) -> float:
         pl = mfb_plan(A.multi_feature_bar(deviations_m=np.zeros((12, 3))))
         s = np.sqrt(((u[:3] * pl.wn_A) ** 2).sum(axis=1) + ((u[3:] * np.cross(pl.w_A, pl.wn_A)) ** 2).sum(axis=1))
         hit = float(np.ceil(k * s.max() / (0.5 * MM) - 1e-9) * 0.5 * MM)
-        if len(_MARGINS) >= 64:
-            _MARGINS.clear()
         _MARGINS[key] = hit
     return hit
 

@@ -48,6 +48,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.memo import Memo
+
 #: A sample is skipped only when every probe/table geom pair is at least this far
 #: apart (m): 100x MuJoCo's default CCD tolerance (1e-6 m), far above any rounding
 #: of its narrow phase, far below the clearances of the plans (mm).
@@ -442,7 +444,9 @@ class Clearance:
 #: The table side's part of :class:`Clearance` (boxes, clusters, feature numbers) by table
 #: Geoms and feature list objects (kept in the entry, so their ids stay theirs): the work
 #: zones of one placement (sim.mfb_scene) share their table's geoms, whatever the probe.
-_TABLE_PREP: dict = {}
+#: Safe: keyed by the ids of the two objects the entry keeps (checked with ``is``); read only.
+#: 16 tables (before: cleared at 16).
+_TABLE_PREP = Memo(16)
 
 
 def _table_prep(table: Geoms, table_feature):
@@ -460,8 +464,6 @@ def _table_prep(table: Geoms, table_feature):
     _, cl = np.unique(np.array(k, dtype=object).astype(str), return_inverse=True)
     h_order = np.lexsort((np.arange(len(feature)), cl))
     fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
-    if len(_TABLE_PREP) >= 16:
-        _TABLE_PREP.clear()
     out = (feature, tlo, thi, cl, h_order, fid)
     _TABLE_PREP[key] = (table, table_feature, out)
     return out

@@ -33,6 +33,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.memo import Memo
+
 from .artefacts import apply_R, apply_T, inv_T, make_T
 from .clearance import flat_path_segments
 from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
@@ -122,15 +124,17 @@ def probe_geoms_mjcf(J_m, r_m: float, finger_m: float = 0.0) -> str:
     return "".join(g)
 
 
-#: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object.
-_SOLID_POSES: dict = {}
+#: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object,
+#: and beside them (keys ("table", id), ("stack", id)) the artefact's :class:`_Solids` and the
+#: poses stacked. Safe: the artefact is kept in each entry and checked with ``is``; the
+#: values are only read. 64 entries, up to three per artefact (before: cleared when the poses
+#: of a new artefact found more than 16 entries; the other two kinds were stored unchecked).
+_SOLID_POSES = Memo(64)
 
 
 def _solid_poses(art) -> list:
     hit = _SOLID_POSES.get(id(art))
     if hit is None or hit[0] is not art:  # the artefact is kept in the entry: its id stays its own
-        if len(_SOLID_POSES) > 16:
-            _SOLID_POSES.clear()
         hit = _SOLID_POSES[id(art)] = (art, [make_T(s.rot, s.pos) for s in art.solids])
     return hit[1]
 
@@ -472,7 +476,10 @@ class WorkZone:
 
 #: Compiled work zones by everything their model is made of (the artefact object kept, so
 #: its id stays its own): a plan's measurements that share a placement and a stylus share one.
-_ZONES: dict = {}
+#: Beside them, per placement (key ("placement", artefact id, pose, blocks)) the dict its zones
+#: share (their table geoms in W). Safe: the keys hold every input of the model; a zone that
+#: outlives its placement's entry keeps its dict. 64 entries (before: cleared at 64).
+_ZONES = Memo(64)
 
 
 def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
@@ -481,8 +488,6 @@ def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
            tuple(float(v) for v in J_m), float(stylus_r_m), float(finger_m))
     hit = _ZONES.get(key)
     if hit is None or hit[0] is not artefact:
-        if len(_ZONES) >= 64:
-            _ZONES.clear()
         wz = WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
         pkey = ("placement",) + key[:3]  # the artefact, its pose, the blocks
         place = _ZONES.get(pkey)

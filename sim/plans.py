@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.exceptions import ConfigError
+from core.memo import Memo
 
 from . import artefacts as A
 from core.units import MM
@@ -104,7 +105,9 @@ class _Builder:
                     np.array(self.lv), float(clearance_m), float(overshoot_m))
 
 
-_MFB_PLANS: dict = {}
+#: :func:`mfb_plan`'s plans by (artefact object, kept in the entry and checked with ``is``,
+#: clearance, overshoot); their arrays are read-only. 64 plans (before: cleared at 64).
+_MFB_PLANS = Memo(64)
 
 
 def mfb_plan(art: A.Artefact, clearance_m=2.0 * MM, overshoot_m=1.0 * MM) -> Plan:
@@ -120,8 +123,6 @@ def mfb_plan(art: A.Artefact, clearance_m=2.0 * MM, overshoot_m=1.0 * MM) -> Pla
     pl = _build_mfb_plan(art, clearance_m, overshoot_m)
     for x in (pl.w_A, pl.wn_A, pl.level):
         x.flags.writeable = False
-    if len(_MFB_PLANS) >= 64:
-        _MFB_PLANS.clear()
     _MFB_PLANS[key] = (art, pl)
     return pl
 

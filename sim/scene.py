@@ -32,6 +32,7 @@ import hashlib
 import numpy as np
 
 from core.exceptions import PlanError
+from core.memo import Memo
 
 from .artefacts import Artefact, inv_T, make_T, solid_points
 from .clearance import Geoms
@@ -381,26 +382,29 @@ class Scene:
 
 
 #: Every solid's points (A frame) of the artefacts seen last (the artefact is kept, so its id stays its own).
-_POINTS: dict = {}
+#: 17 artefacts (before: cleared when above 16, so 17 at most).
+_POINTS = Memo(17)
 
 
 def artefact_points(art: Artefact) -> np.ndarray:
     """All the points of ``art``'s solids (k,3), A frame, m (cached per artefact object)."""
     hit = _POINTS.get(id(art))
     if hit is None or hit[0] is not art:
-        if len(_POINTS) > 16:
-            _POINTS.clear()
         hit = _POINTS[id(art)] = (art, np.concatenate([solid_points(s) for s in art.solids]))
     return hit[1]
 
 
 #: Compiled scenes by (artefact object, probe): campaigns re-place them instead of compiling
 #: (a study's seeds, the same campaign with other machine errors, each set-up's placement).
-_SCENES: dict = {}
+#: Safe: keyed by the artefact object (kept in the entry) and the probe lengths the MJCF is made
+#: of (and the placement for an artefact with meshes); a scene is moved, never rebuilt, by its
+#: users. 64 scenes (before: cleared at 64).
+_SCENES = Memo(64)
 
 
 #: Whether each artefact seen last has only boxes, cylinders and spheres (by object, kept).
-_MOVABLE: dict = {}
+#: 65 artefacts (before: cleared when above 64, so 65 at most).
+_MOVABLE = Memo(65)
 
 
 def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
@@ -413,8 +417,6 @@ def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
     T = np.ascontiguousarray(T_W_A, float)
     hit = _MOVABLE.get(id(artefact))
     if hit is None or hit[0] is not artefact:
-        if len(_MOVABLE) > 64:
-            _MOVABLE.clear()
         hit = _MOVABLE[id(artefact)] = (artefact, all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids))
     movable = hit[1]
     # the probe's geoms are made of these three lengths (scene_mjcf)
@@ -422,8 +424,6 @@ def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
            None if movable else T.tobytes())
     hit = _SCENES.get(key)
     if hit is None or hit[0] is not artefact:  # the artefact is kept in the entry: its id stays its own
-        if len(_SCENES) >= 64:
-            _SCENES.clear()
         hit = _SCENES[key] = (artefact, Scene(artefact, probe, T))
     if not np.array_equal(hit[1].T_W_A, T):
         hit[1].place(T)

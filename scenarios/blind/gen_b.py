@@ -90,6 +90,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from core.exceptions import ConfigError
+from core.memo import Memo
 from core.probelog import ProbeLog, make_log
 from core.units import DEG, MM, UM, URAD
 
@@ -1326,7 +1327,9 @@ def _run_order(rng, angles, order):
     raise ConfigError(f"order {order!r}: expected 'random', 'sorted' or 'reversed'")
 
 
-_ANALYSES: "dict[tuple, tuple[Projector, dict[str, int]]]" = {}
+#: :func:`_analysis`'s answers by (schedule in run order, C-axis centre, placement, repeats),
+#: all they depend on; shared between campaigns, only read. 32 (before: oldest dropped at 32).
+_ANALYSES = Memo(32)
 
 
 def _analysis(lay: Layout, repeats: bool) -> tuple[Projector, dict[str, int]]:
@@ -1342,8 +1345,6 @@ def _analysis(lay: Layout, repeats: bool) -> tuple[Projector, dict[str, int]]:
         nodes = (grid_nodes_mm(lay.xn_R[:, 0]), grid_nodes_mm(lay.xn_R[:, 1]))
         proj = Projector(lay.xn_R[:, :2], lay.n_R, lay.setup, lay.target, lay.centre_mm, nodes=nodes)
         hit = (proj, workpiece_identifiability(lay, proj))
-        if len(_ANALYSES) >= 32:
-            _ANALYSES.pop(next(iter(_ANALYSES)))
         _ANALYSES[key] = hit
     return hit
 

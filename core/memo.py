@@ -1,0 +1,110 @@
+"""One bounded cache for the module-level memos of vmt (least recently used out first).
+
+Several modules keep answers that are pure functions of their inputs (a plan's
+nominal design, a compiled scene, a collision check already made) so that a
+study's runs, or the measurements of one plan, compute them once. Each of them
+holds a :class:`Memo` with a stated ``maxsize``: when a new key would make it
+larger, the entry used least recently goes (a hit, a look-up or a store counts
+as a use; ``in`` does not). Memory is thereby bounded by ``maxsize`` entries.
+
+What makes a memo safe is stated where it is declared, and is the caller's to
+keep:
+
+- the key holds everything the value depends on (a hash of arrays' bytes, the
+  floats, the names), or the identity of an object whose value cannot change
+  (a frozen artefact; the entry then keeps the object, so its ``id`` is not
+  reused while the entry lives, and the caller checks ``entry[0] is obj``);
+- a value handed to more than one caller is read-only (arrays with
+  ``writeable = False``, frozen dataclasses, or by the callers' contract).
+
+No locking: vmt runs these in one thread (parallel work is in processes, each
+with its own memos).
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Callable, Hashable
+from typing import Any
+
+_MISSING = object()
+
+
+class Memo:
+    """A mapping of at most ``maxsize`` entries; the least recently used one is dropped first.
+
+    Parameters
+    ----------
+    maxsize : int
+        Largest number of entries kept, >= 1.
+
+    Examples
+    --------
+    >>> m = Memo(2)
+    >>> m["a"], m["b"] = 1, 2
+    >>> m.get("a")          # "a" is now the most recently used
+    1
+    >>> m["c"] = 3          # drops "b", the least recently used
+    >>> sorted(m.keys())
+    ['a', 'c']
+    """
+
+    __slots__ = ("maxsize", "_d")
+
+    def __init__(self, maxsize: int):
+        if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
+            raise ValueError(f"Memo: maxsize must be an integer >= 1, got {maxsize!r}")
+        self.maxsize = maxsize
+        self._d: OrderedDict = OrderedDict()
+
+    def get(self, key: Hashable, default: Any = None) -> Any:
+        """The value kept for ``key`` (now the most recently used), else ``default``."""
+        v = self._d.get(key, _MISSING)
+        if v is _MISSING:
+            return default
+        self._d.move_to_end(key)
+        return v
+
+    def put(self, key: Hashable, value: Any) -> Any:
+        """Keep ``value`` for ``key`` as the most recently used; drop the least recently
+        used entry if there would be more than ``maxsize``. Returns ``value``."""
+        d = self._d
+        if key in d:
+            d.move_to_end(key)
+        elif len(d) >= self.maxsize:
+            d.popitem(last=False)
+        d[key] = value
+        return value
+
+    def get_or_compute(self, key: Hashable, compute: Callable[[], Any]) -> Any:
+        """The value kept for ``key``; on a miss ``compute()`` is called once and its answer kept."""
+        v = self.get(key, _MISSING)
+        if v is _MISSING:
+            v = self.put(key, compute())
+        return v
+
+    def __getitem__(self, key: Hashable) -> Any:
+        v = self.get(key, _MISSING)
+        if v is _MISSING:
+            raise KeyError(key)
+        return v
+
+    def __setitem__(self, key: Hashable, value: Any) -> None:
+        self.put(key, value)
+
+    def __contains__(self, key: Hashable) -> bool:
+        return key in self._d
+
+    def __len__(self) -> int:
+        return len(self._d)
+
+    def keys(self) -> list:
+        """The keys, least recently used first."""
+        return list(self._d)
+
+    def clear(self) -> None:
+        """Forget every entry."""
+        self._d.clear()
+
+    def __repr__(self) -> str:
+        return f"Memo(maxsize={self.maxsize}, {len(self._d)} kept)"
