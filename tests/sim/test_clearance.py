@@ -421,6 +421,44 @@ def test_certificates_clear_exactly_their_radius():
     assert clr.near_segments(*seg(R - 1e-3, R - 1e-3)).size > 0  # but nothing else may
 
 
+def test_a_segment_with_no_pair_in_its_padded_box_certifies_exactly_the_padding():
+    """Known answer for the other source of certificates: a segment whose box, padded by 0.5 mm,
+    meets no pair's box (pairs are inflated by the 0.1 mm margin) is clear by at least the padding,
+    so its certificate radius is the padding itself. Ball centre at R + 0.65 mm over the box: the
+    padded box misses the pair's box by 0.05 mm. Moved 0.49 mm down (0.16 mm from the box) it is
+    cleared by the certificate without a box test; moved 0.56 mm (0.09 mm: within the margin) it
+    must be bounded again and found near. A radius 0.07 mm larger than the padding clears the
+    second (checked by mutation: this test fails at +0.07, +0.1 and +0.3 mm; at +0.06 mm the radius
+    equals the 0.56 mm move and clears nothing). The gap was found by a mutation,
+    `r[todo] = pad + 0.3 mm`, that no test caught."""
+    from sim.clearance import Clearance, path_segments
+
+    pad = 0.5e-3
+
+    def seg(z):
+        return path_segments([np.array([[-0.02, 0, z], [0.02, 0, z]])], [0.5e-3], joints=False), [""]
+
+    z0 = R + pad + 0.15e-3
+    calls = []
+    real = Clearance._box_pairs
+
+    def counted(self, lo, *rest):
+        calls.append(len(lo))
+        return real(self, lo, *rest)
+
+    for dz, want_near in ((0.49e-3, False), (0.56e-3, True)):
+        clr = _sphere_over_box(pad)
+        assert clr.near_segments(*seg(z0)).size == 0
+        Clearance._box_pairs = counted
+        try:
+            calls.clear()
+            near = clr.near_segments(*seg(z0 - dz))
+        finally:
+            Clearance._box_pairs = real
+        assert (near.size > 0) == want_near, dz
+        assert (len(calls) == 0) == (not want_near)  # cleared by the certificate, not recomputed
+
+
 def test_certificates_by_place_and_by_segment_and_feature():
     """The certificate store finds a remembered segment within its radius for the same segments
     in the same order moved by less than their radii (another placement), and for the same
