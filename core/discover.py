@@ -116,7 +116,7 @@ from . import baseline as bl_mod
 from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
-from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f_batch, new_basis, orth,
+from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch, new_basis, orth,
                         replicate_scatter, term_bases)
 from .exceptions import ConfigError, IdentifiabilityError
 from .touches import Touches
@@ -1499,11 +1499,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
             d_ns = ss_ns - Un.shape[1] * s2
             # and whether it is still significant beside the slip (its F test with
             # the Bonferroni factor of its adoption)
-            dof_ns = len(rows) - Qs.shape[1] - Un.shape[1]
-            p_ns = 1.0
-            if Un.shape[1] and dof_ns > 0:
-                F_ns = (ss_ns / Un.shape[1]) / max((float(rs @ rs) - ss_ns) / dof_ns, 1e-300)
-                p_ns = min(1.0, float(stats.f.sf(F_ns, Un.shape[1], dof_ns)) * tm.tries)
+            p_ns = min(1.0, nested_f(Un, rs, float(rs @ rs), len(rows) - Qs.shape[1]).p_value * tm.tries)
             out["slip_explained_ss_um2"] = max(d_s, 0.0) / UM ** 2
             out["explained_beyond_slip_ss_um2"] = max(d_ns, 0.0) / UM ** 2
             out["p_adjusted_beyond_slip"] = p_ns
@@ -1599,11 +1595,12 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases) -> list:
     out = []
     sig = st.sigma
+    named = [t for t in terms if t.penalty is None]
+    sf = _state(Qb, y, rows, named) if named else None  # the model with every named cause
     for tm in terms:
         if tm.cause == causes_mod.UNEXPLAINED:
             continue
         cause = tm.origin
-        named = [t for t in terms if t.penalty is None]
         others = [t for t in named if t is not tm]
         so = _state(Qb, y, rows, others)
         vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows)
@@ -1611,7 +1608,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
         # what the cause explains beside the others (the rival check's own figure; its tests were made)
-        explained = max(_named_ss(so, _state(Qb, y, rows, others + [tm]), sig), 0.0) / UM ** 2
+        explained = max(_named_ss(so, sf, sig), 0.0) / UM ** 2
         ev["explained_ss_um2"] = explained
         alt = _alternatives(bl, tm, so, sig, settings, bases)
         ev["alternatives"] = alt
