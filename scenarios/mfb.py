@@ -558,16 +558,16 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurement
     from sim.plans import mfb_plan
 
-    margin = placement_margin_m(u_place)  # the program run() simulates for this placement tolerance
+    program = _program(u_place)  # the program run() simulates for this placement tolerance
     key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
-           margin)
+           program["clearance_m"], program["overshoot_m"])
     hit = _CHECKS.get(key)
     if hit is not None:
         return hit
     t0 = time.time()
     mach = Machine(MACHINES[plan.machine]())
     art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
-    full = mfb_plan(art, clearance_m=max(2.0 * MM, margin), overshoot_m=max(3.0 * MM, margin))  # once per check
+    full = mfb_plan(art, **program)  # once per check
     per, n_t, n_s, table_poses = {}, 0, 0, {}
     for ms in plan.measurements:
         T_R_W = table_poses.get(tuple(ms.rot_rad))  # (one per set-up: measurements share them)
@@ -599,8 +599,8 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
                       "star arm, extension, probe body, spindle nose; approach/retract and link moves; the bar "
                       "above the table face; touches within the strokes" % (TABLE_R_M / MM, TABLE_T_M / MM),
            "touches": n_t, "path_points": n_s, "seconds": round(time.time() - t0, 1), "measurements": per,
-           "program_mm": {"clearance": round(max(2.0 * MM, margin) / MM, 3),
-                          "overshoot": round(max(3.0 * MM, margin) / MM, 3)},
+           "program_mm": {"clearance": round(program["clearance_m"] / MM, 3),
+                          "overshoot": round(program["overshoot_m"] / MM, 3)},
            "fixtures": {p: [{"name": b.name, "lo_mm": [v / MM for v in b.lo], "hi_mm": [v / MM for v in b.hi]}
                             for b in bl] for p, bl in plan.fixtures.items()}}
     _CHECKS[key] = out
@@ -693,6 +693,15 @@ def placement_margin_m(u_place=U_PLACE, k: float = PLACEMENT_MARGIN_K) -> float:
         hit = float(np.ceil(k * s.max() / (0.5 * MM) - 1e-9) * 0.5 * MM)
         _MARGINS[key] = hit
     return hit
+
+
+def _program(u_place) -> dict:
+    """The MFB program's approach for a placement tolerance: ``clearance_m`` before the nominal
+    surface and ``overshoot_m`` beyond it (:func:`sim.plans.mfb_plan`), the plan's 2 / 3 mm or the
+    placement margin (:func:`placement_margin_m`) if larger. What :func:`run` simulates and
+    :func:`check_plan` checks."""
+    margin = placement_margin_m(u_place)
+    return {"clearance_m": max(2.0 * MM, margin), "overshoot_m": max(3.0 * MM, margin)}
 
 
 def _check_touches_ok(log, name, program):
@@ -963,8 +972,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         cfg, errors=thermal_scales(errs, machine_temperature_C))
 
     # the program's approach margins cover the declared placement tolerance (not the draw)
-    margin = placement_margin_m(u_place)
-    program = {"clearance_m": max(2.0 * MM, margin), "overshoot_m": max(3.0 * MM, margin)}
+    program = _program(u_place)
     collision = check_plan(plan, u_place=u_place) if plan.fixtures else None  # after the inputs are checked
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
