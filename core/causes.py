@@ -382,8 +382,8 @@ def lobing_scans(bl):
     phi = d.azimuth
     if np.unique(np.round(phi, 4)).size < 3:
         return [], 1.0
-    cols = np.column_stack([f(k * phi) for k in range(1, 5) for f in (np.cos, np.sin)])
-    return [_one(cols, [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")], {}, "approach_azimuth")], 1.0
+    return [_one(common_lobing(bl), [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")], {},
+                 "approach_azimuth")], 1.0
 
 
 def lobing_magnitudes(info, coef, bl):
