@@ -842,7 +842,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     # 0. baseline fit and a first outlier screen
-    Qall = orth(bl.A)
+    Qall = orth(bl.A, qr=bl.qr)  # the planar baseline's grid choice factored A already
     st0 = _state(Qall, y, all_rows, [])
     rows = np.setdiff1d(all_rows, outliers_of(bl.A, Qall))
     tick()
@@ -890,8 +890,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     smooth_covs = [c for c in bl.covariates if c.kind != "spectral"]  # later rounds: the smooth terms' families
 
-    def search(rows, st, folds, Qb, diag0, cv0):
-        """Greedy rounds from a set of rows; outliers re-judged after each adoption."""
+    def search(rows, st, folds, Qb, diag0, cv0, seen):
+        """Greedy rounds from a set of rows; outliers re-judged after each adoption.
+
+        ``seen``: (state, diagnoses) pairs, the diagnoses made against that
+        model; each round's is appended (a later test against the same
+        model takes its tests, :func:`_made_on`).
+        """
         terms: list[Term] = []
         cv_cur = cv0
         for rnd in range(settings.max_findings):
@@ -900,6 +905,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             diag_now = diag0 if rnd == 0 else diagnose(st.Q, st.r, st.dof, smooth_covs, bl.modes,
                                                        sigma_m=noise_sigma(st), material_sigma=settings.material_sigma,
                                                        rows=rows, bases=bases)
+            if rnd:
+                seen.append((st, diag_now))
             families = _family_ss(bl, diag_now, len(rows))
             for cause in catalogue:
                 if any(tm.cause == cause.name for tm in terms):
@@ -929,18 +936,21 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             cv_cur = folds.mse(y[rows], _stack(terms, rows))
         return terms, rows, st, folds, Qb
 
-    terms, rows, st, folds, Qb = search(rows, st, folds, Qb, diag_b, cv_b)
+    seen = [(st, diag_b)]
+    terms, rows, st, folds, Qb = search(rows, st, folds, Qb, diag_b, cv_b, seen)
     if len(rows) < N:
         # the rows called outliers may be a systematic effect's largest
         # residuals: search again with every row; if a cause is then adopted
         # and fewer outliers are left against it, the "outliers" it explains
         # were its structure
         Qa, fa, sa = model(all_rows, [])
+        seen2 = []  # (its first diagnosis is of every row, rows=None: not one the others can take)
         t2, r2, s2, f2, q2 = search(all_rows, sa, fa, Qa, diagnose(
             sa.Q, sa.r, sa.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(sa),
-            material_sigma=settings.material_sigma, bases=bases), fa.mse(y))
+            material_sigma=settings.material_sigma, bases=bases), fa.mse(y), seen2)
         if t2 and len(r2) > len(rows):  # a cause explains some of them: they were its structure
             terms, rows, st, folds, Qb = t2, r2, s2, f2, q2
+        seen += seen2
     tick()
 
     # 4. rival check: a named cause must explain its covariate's structure
@@ -962,7 +972,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 Qb, folds, st = model(rows, terms)
                 changed = True
                 break
-    if terms:
+    if terms and demoted:  # (none dropped: the search judged the outliers against these very terms last)
         X = np.hstack([bl.A, _stack(terms, all_rows)])
         rows = np.setdiff1d(all_rows, outliers_of(X))
     Qb, folds, st = model(rows, terms)
@@ -971,7 +981,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # 5. what remains
     sig = noise_sigma(st)
     diag_e = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=sig,
-                      material_sigma=settings.material_sigma, rows=rows, bases=bases)
+                      material_sigma=settings.material_sigma, rows=rows, bases=bases, known=_made_on(seen, st))
     E_named = _stack(terms, rows)
     gap_e = _cv_gap(folds, st, y, E_named, None, settings, rng) if terms else gap_b
     lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(bl.replicate[rows], E_named) else None
@@ -1010,7 +1020,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     tick()
 
     # 6. estimates
-    findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases)
+    findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
+                         seen + [(st, diag_e)])
     E_all = _stack(terms, rows)
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
@@ -1188,9 +1199,12 @@ def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> float:
     return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2
 
 
-def _candidate_ss(C: np.ndarray, st: _State) -> float:
-    """Debiased sum of squares a candidate's columns (1, n, k) explain beside the model."""
-    ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
+def _candidate_ss(test, st: _State) -> float:
+    """Debiased sum of squares a candidate's columns explain beside the model.
+
+    ``test``: :func:`core.diagnosis.nested_f_batch` of its columns (1, n, k) against ``st``.
+    """
+    ss, k, _, _ = test
     s2 = max(st.rss - ss[0], 1e-300) / max(st.dof - k[0], 1)
     return float(max(ss[0] - k[0] * s2, 0.0))
 
@@ -1243,6 +1257,20 @@ def _matches(key: str, pattern: str) -> bool:
     return re.fullmatch(re.escape(pattern).replace(r"\*", ".*"), key) is not None
 
 
+def _made_on(seen, st: _State) -> tuple:
+    """The diagnoses of ``seen`` ((state, diagnoses) pairs) made against the model ``st`` itself, else ().
+
+    Itself: the same rows, dof, basis and residuals bit for bit (a model
+    rebuilt from the same terms is), so every test they made is the test
+    that would be made again.
+    """
+    for s, diag in seen:
+        if s is st or (s.dof == st.dof and np.array_equal(s.rows, st.rows) and s.Q.shape == st.Q.shape
+                       and np.array_equal(s.Q, st.Q) and np.array_equal(s.r, st.r)):
+            return tuple(diag)
+    return ()
+
+
 def _family_ss(bl, diag, n) -> dict:
     """Largest debiased sum of squares a smooth term explains, per covariate family: {family: (ss, covariate)}."""
     out: dict = {}
@@ -1278,10 +1306,12 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     p_val, F_val, k_val, sc, i = best
     info = sc.infos[i]
     cols = sc.build([i])[0]
+    single = None  # the F test of the chosen trial's own columns, made once (refined, beside families, counter)
     if cause.nonlinear and cause.rebuild is not None and p_val * tries < 1.0:  # refining only helps a candidate
         info = _refine(cause, bl, info, st, rows)
         cols = cause.rebuild(bl, info)[0]
-        _, kk, FF, pp = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
+        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
+        _, kk, FF, pp = single
         p_val, F_val, k_val = float(pp[0]), float(FF[0]), int(kk[0])
     p_adj = min(1.0, p_val * tries)
     ev = {"F": F_val, "p_value": p_val, "p_adjusted": p_adj, "tries": float(tries), "k": k_val}
@@ -1290,7 +1320,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     # e. the structure must live where the cause says: a smooth function of a
     # covariate of another family may not explain materially more than it
     if families:
-        ss_n = _candidate_ss(cols[None, rows], st)
+        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof) if single is None else single
+        ss_n = _candidate_ss(single, st)
         cov = bl.covariate(sc.covariate)
         fam = cov.family if cov is not None else ""
         m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
@@ -1309,8 +1340,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # cause of the catalogue (the probe's fixed lobes for lobes turned per
         # set-up, which nest them) can win the round instead of the richer one
         # being adopted and then dropped to `unexplained` by the rival check
-        Cn = cols[None, rows]
-        ss_c, k_c, _, _ = nested_f_batch(Cn, st.Q, st.r, st.rss, st.dof)
+        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof) if single is None else single
+        ss_c, k_c, _, _ = single
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
         d_c = _counter_ss(bl, cause, st, rows, sigma)
         if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows):
@@ -1510,7 +1541,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     return out
 
 
-def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
+def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) -> list:
     """Covariates of other families whose smooth term reproduces the cause's signal.
 
     The cause's signal is its contribution to the joint fit (its columns'
@@ -1519,8 +1550,10 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
     that reproduces at least ``rival_share`` of it and explains at least
     ``rival_share`` as much (debiased) means the design cannot tell the
     cause from "something following that covariate": the name is then
-    flagged as ambiguous.
+    flagged as ambiguous. ``known``: diagnoses made against ``so`` itself
+    (their term bases outside it are taken, not projected again).
     """
+    have = {d.covariate: d.basis for d in known if d.basis is not None}
     fam = bl.covariate(tm.covariate).family if bl.covariate(tm.covariate) is not None else ""
     rows = so.rows  # so: the model without the cause (the other named causes)
     E = tm.columns[rows]
@@ -1535,7 +1568,7 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
     for cov in bl.covariates:
         if not cov.family or cov.family == fam or cov.name not in bases or isinstance(bases[cov.name], tuple):
             continue
-        U = new_basis(so.Q, bases[cov.name][rows])
+        U = have[cov.name] if cov.name in have else new_basis(so.Q, bases[cov.name][rows])
         if U.shape[1] == 0:
             continue
         overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
@@ -1592,7 +1625,8 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
                 cov.name, evidence=ev, penalty=lam * P1)
 
 
-def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases) -> list:
+def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
+              seen=()) -> list:
     out = []
     sig = st.sigma
     named = [t for t in terms if t.penalty is None]
@@ -1610,7 +1644,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         # what the cause explains beside the others (the rival check's own figure; its tests were made)
         explained = max(_named_ss(so, sf, sig), 0.0) / UM ** 2
         ev["explained_ss_um2"] = explained
-        alt = _alternatives(bl, tm, so, sig, settings, bases)
+        alt = _alternatives(bl, tm, so, sig, settings, bases, _made_on(seen, so))
         ev["alternatives"] = alt
         ev["indistinguishable_from"] = [a["covariate"] for a in alt if a["indistinguishable"]]
         # confident: no other family's covariate reproduces the signal
