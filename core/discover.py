@@ -931,9 +931,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             terms.append(best["term"])
             # outliers judged against the better model: a systematic effect is no dust
             X = np.hstack([bl.A, _stack(terms, all_rows)])
-            rows = np.setdiff1d(all_rows, outliers_of(X))
+            before, rows = rows, np.setdiff1d(all_rows, outliers_of(X))
             Qb, folds, st = model(rows, terms)
-            cv_cur = folds.mse(y[rows], _stack(terms, rows))
+            # the same rows: the winner's own cross-validation was of this very model
+            cv_cur = best["cv"] if np.array_equal(rows, before) else folds.mse(y[rows], _stack(terms, rows))
         return terms, rows, st, folds, Qb
 
     seen = [(st, diag_b)]
