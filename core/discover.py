@@ -548,15 +548,23 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         out.append(int(idx[k]))
         keep[idx[k]] = False
     if judged:
-        first = out
-        if events is not None:  # a negative key: a row of its own
-            ev = np.where(np.asarray(events)[out] >= 0, np.asarray(events)[out], -1 - np.arange(len(out)))
-            first = [out[i] for i in sorted(np.unique(ev, return_index=True)[1])]
+        first = out if events is None else first_per_event(out, events)
         if len(first) >= 2 and concentration_p(ranks, first, rng) < alpha_concentration:
             return []
         if slips is not None and events is not None and _slip_explains(X, y, out, np.asarray(events), slips, alpha):
             return []
     return sorted(out)
+
+
+def first_per_event(idx, events) -> list:
+    """The first of the rows ``idx`` (in their order) in each event of ``events``; a negative key: a row of its own.
+
+    What the concentration test counts: one piece of dust corrupts an
+    event's touches together (:func:`find_outliers`'s ``events``).
+    """
+    ev = np.asarray(events)[idx]
+    ev = np.where(ev >= 0, ev, -1 - np.arange(len(idx)))
+    return [idx[i] for i in sorted(np.unique(ev, return_index=True)[1])]
 
 
 def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, slips, alpha: float) -> bool:
@@ -1720,9 +1728,7 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha) -> Findi
     """
     r0 = st0.r[outliers]
     ss = float(np.sum(r0 ** 2))
-    ev = np.asarray(events)[outliers]
-    ev = np.where(ev >= 0, ev, -1 - np.arange(len(outliers)))
-    first = [outliers[i] for i in sorted(np.unique(ev, return_index=True)[1])]
+    first = first_per_event(outliers, events)
     if len(first) < 2 or ranks.shape[1] == 0:
         p_conc, why = None, ("one event (a touch, or one set-up's touches) cannot show whether it is dust or an "
                              "intermittent mechanism" if len(first) < 2 else "no covariate to test the pattern in")
@@ -1875,25 +1881,44 @@ def _smooth_gauge(A, C, d, rows, pen):
     pinned). Returns (C, d) with the rows appended.
     """
     p = A.shape[1]
-    if C.shape[0]:
-        _, sC, VtC = np.linalg.svd(C)
-        Z = VtC[int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300))):].T
-    else:
-        Z = np.eye(p)
-    M = A[rows] @ Z
-    sc = np.linalg.norm(M, axis=0)
-    sc = np.where(sc > 0, sc, 1.0)
-    _, s, Vt = np.linalg.svd(M / sc, full_matrices=False)
-    null = Vt[s <= 1e-6 * s.max()] if s.size else Vt[:0]
-    if M.shape[1] > s.size:  # more unknowns than rows: the rest is null too
-        null = np.vstack([null, np.linalg.svd(M / sc)[2][s.size:]])
-    Ns = (Z @ (null.T / sc[:, None]))[pen]
+    Ns = _gauge_svd(A[rows], C)[-1][pen]
     if Ns.shape[1] == 0:
         return C, d
     K = orth(Ns).T  # (r, n_pen)
     rows_K = np.zeros((K.shape[0], p))
     rows_K[:, pen] = K
     return np.vstack([C, rows_K]), np.concatenate([d, np.zeros(K.shape[0])])
+
+
+def _gauge_svd(Ar: np.ndarray, C: np.ndarray):
+    """The gauge's null space and the SVD of the design in it: what :func:`_constrained` and :func:`_smooth_gauge` solve by.
+
+    ``theta = theta0 + Z phi`` with ``C Z = 0`` (``Z`` from the SVD of
+    ``C``, rank at 1e-12 of its largest singular value; the identity
+    without gauge rows); ``M = Ar Z`` with its columns scaled by ``sc``;
+    its thin SVD ``U s Vt``; ``good`` the singular values above 1e-6 of
+    the largest. ``null`` (p, m): the parameter directions the rows do not
+    see, ``Z Vt[~good]^T / sc``, and, when ``M`` has more columns than rows
+    (a thin SVD has only as many directions as rows), every direction
+    beyond them as well (the full SVD's remaining rows of ``Vt``): those
+    are unseen too.
+
+    Returns (Z, sc, U, s, Vt, good, null).
+    """
+    p = Ar.shape[1]
+    _, sC, VtC = np.linalg.svd(C) if C.shape[0] else (None, np.zeros(0), np.eye(p))
+    rC = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))
+    Z = VtC[rC:].T
+    M = Ar @ Z
+    sc = np.linalg.norm(M, axis=0)
+    sc = np.where(sc > 0, sc, 1.0)
+    U, s, Vt = np.linalg.svd(M / sc, full_matrices=False)
+    good = s > (1e-6 * s.max() if s.size else 0.0)
+    Vn = Vt[~good]
+    if M.shape[1] > s.size:  # more unknowns than rows: the rest is null too
+        Vn = np.vstack([Vn, np.linalg.svd(M / sc)[2][s.size:]])
+    null = Z @ (Vn.T / sc[:, None]) if Vn.shape[0] else np.zeros((p, 0))
+    return Z, sc, U, s, Vt, good, null
 
 
 def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
@@ -1915,15 +1940,7 @@ def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
         Ar = np.vstack([Ar, np.hstack([np.zeros((k_ext, p - k_ext)), R])])
         yr = np.concatenate([yr, np.zeros(k_ext)])
     theta0 = np.linalg.lstsq(C, d, rcond=None)[0] if C.shape[0] else np.zeros(p)
-    _, sC, VtC = np.linalg.svd(C) if C.shape[0] else (None, np.zeros(0), np.eye(p))
-    rC = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))
-    Z = VtC[rC:].T
-    M = Ar @ Z
-    sc = np.linalg.norm(M, axis=0)
-    sc = np.where(sc > 0, sc, 1.0)
-    U, s, Vt = np.linalg.svd(M / sc, full_matrices=False)
-    tol = 1e-6 * s.max() if s.size else 0.0
-    good = s > tol
+    Z, sc, U, s, Vt, good, null = _gauge_svd(Ar, C)
     Vg = Vt[good].T / sc[:, None]  # (nz, r): phi = Vg diag(1/s) U^T b
     b = yr - Ar @ theta0
     phi = Vg @ ((U[:, good].T @ b) / s[good])
@@ -1933,7 +1950,6 @@ def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
     s2 = float(res[:len(rows)] @ res[:len(rows)]) / dof
     T = Z @ (Vg / s[good])  # theta per unit of U^T b
     cov = s2 * (T @ T.T)
-    null = Z @ (Vt[~good].T / sc[:, None]) if (~good).any() else np.zeros((p, 0))
     if null.shape[1]:
         Qn = orth(null)
         est = np.linalg.norm(Qn, axis=1) < 1e-6
