@@ -1306,20 +1306,22 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         else:
             idx = _coarse(sc.build(np.arange(sc.size))[:, rows, :], st.r, settings.shortlist)
         C = sc.build(idx)[:, rows, :]
-        _, k, F, p = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
+        test = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
+        _, k, F, p = test
         for j in np.flatnonzero(k > 0):
             if best is None or (p[j], -F[j]) < (best[0], -best[1]):
-                best = (float(p[j]), float(F[j]), int(k[j]), sc, int(idx[j]))
+                # a scan of one trial: its test is the F test of the trial's own columns
+                best = (float(p[j]), float(F[j]), int(k[j]), sc, int(idx[j]), test if len(idx) == 1 else None)
     if best is None:
         return {"reason": "no columns outside the model"}
-    p_val, F_val, k_val, sc, i = best
+    p_val, F_val, k_val, sc, i, single = best
     info = sc.infos[i]
     cols = sc.build([i])[0]
-    single = None  # the F test of the chosen trial's own columns, made once (refined, beside families, counter)
+    # single: the F test of the chosen trial's own columns, made once (refined, beside families, counter)
     if cause.nonlinear and cause.rebuild is not None and p_val * tries < 1.0:  # refining only helps a candidate
         info = _refine(cause, bl, info, st, rows)
         cols = cause.rebuild(bl, info)[0]
-        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
+        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)  # (the refined trial's)
         _, kk, FF, pp = single
         p_val, F_val, k_val = float(pp[0]), float(FF[0]), int(kk[0])
     p_adj = min(1.0, p_val * tries)
@@ -1639,7 +1641,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
     out = []
     sig = st.sigma
     named = [t for t in terms if t.penalty is None]
-    sf = _state(Qb, y, rows, named) if named else None  # the model with every named cause
+    # the model with every named cause: st itself when there is no unnamed smooth (same Qb, rows, terms)
+    sf = (st if len(named) == len(terms) else _state(Qb, y, rows, named)) if named else None
     for tm in terms:
         if tm.cause == causes_mod.UNEXPLAINED:
             continue
