@@ -964,11 +964,18 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     # 4. rival check: a named cause must explain its covariate's structure
     demoted = []
+    # the adopted causes' one-off alternatives (a fixture slip's trials): built once for the whole check
+    trials = {}
+    for tm in terms:
+        fn = tm.origin.counter_scan if tm.origin is not None else None
+        if fn is not None and fn not in trials:
+            Cs = fn(bl)
+            trials[fn] = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
     changed = True
     while changed and terms:
         changed = False
         for tm in list(terms):
-            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings, bases)
+            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings, bases, trials)
             tm.evidence.update(share)
             if not share["kept"]:
                 terms.remove(tm)
@@ -1490,8 +1497,12 @@ def _named_ss(so: _State, sf: _State, sigma: float) -> float:
     return (so.rss - sf.rss) - (sf.Q.shape[1] - so.Q.shape[1]) * sigma ** 2
 
 
-def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> dict:
-    """How much of what a smooth term in the cause's covariate explains the cause explains."""
+def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trials=None) -> dict:
+    """How much of what a smooth term in the cause's covariate explains the cause explains.
+
+    ``trials``: {counter_scan: its (T, n, k) trials, whitened}, when already
+    built (else built here).
+    """
     others = [o for o in terms if o is not tm]
     so = _state(Qb, y, rows, others)
     sf = _state(Qb, y, rows, others + [tm])
@@ -1525,10 +1536,12 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     if cause is not None and cause.counter_scan is not None and out["kept"]:
         # a one-off alternative chosen among T trials: its best sum of squares is
         # debiased by the median of the largest of T chi-squares (k dof) under noise
-        Cs = cause.counter_scan(bl)
+        if trials is not None and cause.counter_scan in trials:
+            Cs = trials[cause.counter_scan]
+        else:
+            Cs = cause.counter_scan(bl)
+            Cs = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
         if Cs.shape[0]:
-            if bl.whiten is not None:
-                Cs = np.einsum("ij,tjk->tik", bl.whiten, Cs)
             ss_s, k_s, _, _ = nested_f_batch(Cs[:, rows, :], so.Q, so.r, so.rss, so.dof)
             j = int(np.argmax(ss_s))
             null_max = float(stats.chi2.isf(np.log(2) / Cs.shape[0], max(int(k_s[j]), 1)))
