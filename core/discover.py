@@ -1088,7 +1088,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         baseline_n_params=int(Qall.shape[1]), findings=tuple(findings), extended_model=model_name,
         extended_rms_um=float(np.sqrt(st.rss / len(rows))) / UM, extended_cv_rms_um=float(np.sqrt(cv_e)) / UM,
         noise=_noise_report(rep, st0, gap_b, lof_b, sigma_rep, sig),
-        diagnosis=tuple(diag_b), diagnosis_extended=tuple(diag_e), workpiece=tuple(wp),
+        diagnosis=tuple(dataclasses.replace(d, basis=None) for d in diag_b),  # (the bases served this run's tests)
+        diagnosis_extended=tuple(dataclasses.replace(d, basis=None) for d in diag_e), workpiece=tuple(wp),
         outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
         residuals_extended_um=res_e / UM, conventions=tuple(conv), workpiece_identifiable=ident,
         G_baseline_m=Gb, G_extended_m=Ge, cov_G_baseline=cGb, cov_G_extended=cGe,
