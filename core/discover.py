@@ -277,7 +277,9 @@ class Folds:
             self.items.append((tr, te, U, P, Qo, Uf))
         if not self.items:
             raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
-        self.residuals(np.zeros(self.n))
+        # the baseline's held-out rows (residuals' count: a row alone supporting an own column is not one)
+        self.last_dof = sum(int(np.sum(np.sum(Qo ** 2, axis=1) < 1 - OWN_LEVERAGE)) if Qo.shape[1] else te.size
+                            for _, te, _, _, Qo, _ in self.items)
         self.dof = max(self.last_dof, 1)
 
     def residuals(self, Y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> np.ndarray:
