@@ -1119,11 +1119,13 @@ def _constant_within(key: np.ndarray, E: np.ndarray) -> bool:
     ok = key >= 0
     if not ok.any():
         return True
-    for k in np.unique(key[ok]):
-        m = key == k
-        if np.any(np.ptp(E[m], axis=0) > 1e-9 * np.maximum(np.abs(E).max(axis=0), 1e-300)):
-            return False
-    return True
+    # every group's range per column at once: rows sorted by group, max and min over each run
+    idx = np.flatnonzero(ok)
+    idx = idx[np.argsort(key[idx], kind="stable")]
+    Es = E[idx]
+    start = np.flatnonzero(np.r_[True, key[idx][1:] != key[idx][:-1]])
+    ptp = np.maximum.reduceat(Es, start, axis=0) - np.minimum.reduceat(Es, start, axis=0)
+    return not np.any(ptp > 1e-9 * np.maximum(np.abs(E).max(axis=0), 1e-300))
 
 
 def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: str = "") -> dict:

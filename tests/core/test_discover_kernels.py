@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from core.diagnosis import Covariate, diagnose, orth, pivoted_qr, term_bases
-from core.discover import _constrained, _smooth_gauge, first_per_event
+from core.discover import _constant_within, _constrained, _smooth_gauge, first_per_event
 
 
 def test_one_factorisation_cut_at_two_tolerances():
@@ -79,3 +79,32 @@ def test_diagnosis_taken_from_a_diagnosis_of_the_same_model_is_the_same():
     for a, b in zip(taken, fresh):
         assert a.test == b.test and np.array_equal(a.basis, b.basis) and np.array_equal(a.fitted_um, b.fitted_um)
     assert fresh[0].covariate == "time" and fresh[0].p_value < 1e-6  # not a vacuous comparison
+
+
+def test_constant_within_groups_known_answers_and_the_loop_it_replaced():
+    key = np.array([0, 1, 0, -1, 1, 2])
+    E = np.array([[1.0, 5.0], [2.0, 6.0], [1.0, 5.0], [9.0, 9.0], [2.0, 6.0], [3.0, 0.0]])
+    assert _constant_within(key, E)  # row 3 belongs to no group: it may differ
+    E[4, 1] += 1e-6  # group 1 varies in column 1 (1e-6 > 1e-9 of its largest entry, 9)
+    assert not _constant_within(key, E)
+    E[4, 1] -= 1e-6 - 1e-12  # within 1e-9 of the column's largest entry: constant
+    assert _constant_within(key, E)
+    assert _constant_within(np.full(6, -1), E) and _constant_within(key, np.zeros((6, 0)))
+
+    def loop(key, E):  # the per-group loop the vectorised version replaced
+        for k in np.unique(key[key >= 0]):
+            if np.any(np.ptp(E[key == k], axis=0) > 1e-9 * np.maximum(np.abs(E).max(axis=0), 1e-300)):
+                return False
+        return True
+
+    rng = np.random.default_rng(7)
+    seen = set()
+    for _ in range(300):
+        n, g = int(rng.integers(2, 40)), int(rng.integers(1, 8))
+        key = rng.integers(-1, g, n)
+        E = rng.normal(size=(g + 1, 3))[np.maximum(key, 0)]
+        if rng.random() < 0.5:
+            E[rng.integers(n), rng.integers(3)] += rng.choice([1e-13, 1e-6])
+        seen.add(loop(key, E))
+        assert _constant_within(key, E) == loop(key, E)
+    assert seen == {True, False}
