@@ -1790,7 +1790,9 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
     """
     q = bl.estimand
     A0 = bl.A
-    gb, cb, eb, Lb, _ = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=True)
+    # the linear maps (data -> parameters) serve only the unnamed smooth's shift test
+    smooth = any(t.penalty is not None for t in terms)
+    gb, cb, eb, *lin = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=smooth)
     # a named cause enters with the combinations the data determine (its map)
     E = np.hstack([t.columns @ t.map if t.map is not None else t.columns for t in terms]) if terms \
         else np.zeros((bl.n, 0))
@@ -1798,7 +1800,7 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
     C1 = np.hstack([bl.C, np.zeros((bl.C.shape[0], E.shape[1]))])
     P = None
     d1 = bl.d
-    if any(t.penalty is not None for t in terms):
+    if smooth:
         P = np.zeros((E.shape[1], E.shape[1]))
         pen = np.zeros(A1.shape[1], bool)
         o = A0.shape[1]
@@ -1809,14 +1811,14 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
                 pen[o:o + k] = True
             o += k
         C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen)
-    ge, ce, ee, Le, s2e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=True)
+    ge, ce, ee, *lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=smooth)
     shift = None
     if P is not None:
         # the penalty's ridge rows make every parameter formally estimable:
         # the extended workpiece is an estimate only where the data alone
         # determine it (else the penalty's strength, not the campaign, decides)
         ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
-        ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, Lb, Le, s2e, eb & ee[:len(eb)], alpha)
+        ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, lin[0], lin_e[0], lin_e[1], eb & ee[:len(eb)], alpha)
     out = []
     for i, tid in enumerate(bl.estimand_ids):
         j = q[i]
