@@ -412,6 +412,8 @@ class Term:
     labels_all: tuple = ()  # the scan's labels (the magnitudes' coefficient layout)
     map: np.ndarray | None = field(default=None, repr=False)  # (k_all, k): label coefficients per column
     cols_all: np.ndarray | None = field(default=None, repr=False)  # (N, k_all) the scan's columns
+    # (Qo, rows, magnitudes, u95) of the adoption test: the model it was judged beside
+    at_adoption: tuple | None = field(default=None, repr=False, compare=False)
 
 
 def _stack(terms, rows) -> np.ndarray:
@@ -1391,6 +1393,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
     # plausibility of the magnitudes (with their U95)
     vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows)
+    tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95))
     for key, v in vals.items():
         if not isinstance(v, float) or v is None:
             continue
@@ -1667,7 +1670,11 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         cause = tm.origin
         others = [t for t in named if t is not tm]
         so = _state(Qb, y, rows, others)
-        vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows)
+        a = tm.at_adoption  # judged beside this very model at its adoption: the same magnitudes
+        if a is not None and np.array_equal(a[1], rows) and a[0].shape == so.Q.shape and np.array_equal(a[0], so.Q):
+            vals, u95 = dict(a[2]), dict(a[3])
+        else:
+            vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows)
         ev = dict(tm.evidence)
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
