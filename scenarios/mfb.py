@@ -900,8 +900,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 
     from core.touches import from_log
     from sim import artefacts as A
-    from sim.campaign import simulate_campaign
-    from sim.plans import mfb_plan
+    from sim.campaign import simulate_measurements
     from sim.setups import Setup
     from sim.machine import Machine
     from sim.probe import ProbeConfig
@@ -977,8 +976,6 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
     gain_fits: dict = {}  # the gains' light fits, shared by the hole sets of this run (same touches, same fits)
-    done = []  # (spec, J, touches, readings, plan of the valid touches) of each measurement simulated
-    plans, full_plans = {}, {}  # full_plans holds each bar (its id is the key) for the run
     T_true = {}
     for p in plan.placements:  # bar placement errors (by hand on the table), roll included
         T = next(m.T_W_A for m in plan.measurements if m.placement == p)
@@ -991,6 +988,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         else:
             T_true[p] = None
     steps = len(plan.measurements) + 2
+    items, plans = [], {}  # (artefact, machine, probe, set-up, plan) of each measurement; plans by bar, holes
     for k, ms in enumerate(plan.measurements):
         if progress is not None:
             progress(k, steps)
@@ -1003,13 +1001,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         art_i, probe_i = art, probe
         if hook is not None:
             art_i, probe_i, m = hook(k, ms, art, probe, m)
-        if (id(art_i), ms.holes) not in plans:  # the bar's full program once per bar, its part per hole set
-            if id(art_i) not in full_plans:
-                full_plans[id(art_i)] = (art_i, mfb_plan(art_i, **program))
-            plans[id(art_i), ms.holes] = _plan_for(art_i, ms.holes, **program, full=full_plans[id(art_i)][1])
-        pl = plans[id(art_i), ms.holes]
-        log = simulate_campaign(art_i, _NoSafeHeight(m), probe_i, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
-                                rng if noisy else None, plan=pl, check_collisions=False)
+        if (id(art_i), ms.holes) not in plans:  # the bar's part per hole set (its program: mfb_plan's cache)
+            plans[id(art_i), ms.holes] = _plan_for(art_i, ms.holes, **program)
+        items.append((art_i, m, probe_i, Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement]),
+                      plans[id(art_i), ms.holes]))
+    # every measurement's touches in one simulation (its styli on one machine, sim.campaign);
+    # the links' safe height lies above a standing bar's Z stroke: the touches are checked instead
+    logs = simulate_measurements(items, rng if noisy else None, stroke_check=False)
+    done = []  # (spec, J, touches, readings, plan of the valid touches) of each measurement simulated
+    for ms, (_, m, _, _, pl), log in zip(plan.measurements, items, logs):
         _check_touch_strokes(log, m, ms.name)
         _check_touches_ok(log, ms.name, program)
         t = from_log(log)
@@ -1020,7 +1020,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         # built with J + dJ would move and read with the same offsets: no error at all.)
         p_R = t.p_R + dJ[ms.stylus]
         # the touches that were fitted (valid ones, plan order)
-        done.append((ms, J, t, p_R, pl.select(np.asarray(log.ok, bool))))
+        done.append((ms, tuple(ms.J_m), t, p_R, pl.select(np.asarray(log.ok, bool))))
     # simulated touches, each checked to trigger on its target: fitted in batches (to rounding),
     # the features of every measurement together (each one's numbers as its own batch gives)
     pois = mfb.points_of_interest_batched([(p_R, t.feature, t.n_R) for _, _, t, p_R, _ in done])
