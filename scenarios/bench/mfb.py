@@ -195,14 +195,13 @@ def before_shortcuts():
             return rows(*a, **k)
 
         vol._rows, vol._NOMINAL = rows_before, _NeverKept()
-        mfb.points_of_interest = lambda *a, **k: poi(*a, **{**k, "batched": False})
         mfb.points_of_interest_batched = lambda places, geom=mfb.MFB: [poi(p, f, n, geom) for p, f, n in places]
         vol._touch_kinematics = _touch_kinematics_each
         mfb._fit_once = lambda fits, *a: fit_once(None, *a)  # no fit shared between hole sets
         try:
             yield
         finally:
-            vol._rows, vol._NOMINAL, mfb.points_of_interest, mfb.points_of_interest_batched = rows, nominal, poi, pois
+            vol._rows, vol._NOMINAL, mfb.points_of_interest_batched = rows, nominal, pois
             vol._touch_kinematics, mfb._fit_once = kin, fit_once
 
     return ctx()
