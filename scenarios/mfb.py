@@ -109,7 +109,6 @@ temperature) and a Monte Carlo through the whole pipeline.
 
 from __future__ import annotations
 
-import functools
 import time
 from dataclasses import dataclass, field
 
@@ -556,7 +555,6 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     from sim.machine import Machine
     from sim.machines import MACHINES
     from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurement
-    from sim.plans import mfb_plan
 
     program = _program(u_place)  # the program run() simulates for this placement tolerance
     key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
@@ -567,7 +565,6 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     t0 = time.time()
     mach = Machine(MACHINES[plan.machine]())
     art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
-    full = mfb_plan(art, **program)  # once per check
     per, n_t, n_s, table_poses = {}, 0, 0, {}
     for ms in plan.measurements:
         T_R_W = table_poses.get(tuple(ms.rot_rad))  # (one per set-up: measurements share them)
@@ -575,7 +572,7 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
             rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
             T_R_W = table_poses[tuple(ms.rot_rad)] = np.asarray(mach.T_R_W_nominal(rot), float).reshape(4, 4)
             T_R_W.flags.writeable = False  # shared: read only
-        pl = _plan_for(art, ms.holes, full=full)
+        pl = _plan_for(art, ms.holes, **program)
         r = check_measurement(ms.name, art, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m,
                               stylus_r_m, pl, FINGERS.get(ms.stylus, 0.0))
         if not r.ok:
@@ -721,36 +718,22 @@ def _check_touches_ok(log, name, program):
                         f"{program['clearance_m'] / MM:g} mm, overshoot {program['overshoot_m'] / MM:g} mm)")
 
 
-def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM, full=None):
+def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM):
     """The touches of ``holes`` of the bar ``art`` (and of the rods and faces their planes need),
-    selected from ``full`` (default: :func:`sim.plans.mfb_plan` of ``art`` with these margins)."""
+    selected from its full program (:func:`sim.plans.mfb_plan` with these margins, kept per bar)."""
     from sim.plans import mfb_plan
 
-    if full is None:
-        full = mfb_plan(art, clearance_m=clearance_m, overshoot_m=overshoot_m)
-    # the rods each probed hole's plane PL_i needs: (i-1, i), (1, 2) for hole 1
+    full = mfb_plan(art, clearance_m=clearance_m, overshoot_m=overshoot_m)
+    # the rods each probed hole's plane PL_i needs: (i-1, i); (1, 2) for hole 1, (10, 11) for
+    # hole 12 alone (core.mfb._rod_pair)
     lo, hi = min(holes), max(holes)
     rods = set(range(max(lo - 1, 1), min(hi, 11) + 1))
     if len(rods) < 2:
-        rods = {lo, lo + 1}
-    is_hole, is_rod, number = _feature_numbers(full.feature)
-    n = max(int(number.max()), max(holes), max(rods)) + 1
-    want_hole, want_rod = np.zeros(n, bool), np.zeros(n, bool)  # by number
-    want_hole[[h for h in holes if h >= 0]], want_rod[[r for r in rods if r >= 0]] = True, True
-    return full.select(np.flatnonzero((is_hole & want_hole[number]) | (is_rod & want_rod[number])))
-
-
-@functools.lru_cache(maxsize=16)
-def _feature_numbers(features: tuple) -> tuple:
-    """Per touch of an MFB plan's ``features``: (a hole's, a rod's or face's, its number), (n,)
-    arrays read only; computed once per plan (:func:`_plan_for` selects from it per measurement)."""
-    is_hole = np.array([f.startswith("hole") for f in features], bool)
-    is_rod = np.array([f.startswith(("rod", "face")) for f in features], bool)
-    number = np.array([int(f[4:]) if f.startswith("hole") else int(f[3:]) if f.startswith("rod")
-                       else int(f[5:]) if f.startswith("face") else 0 for f in features], int)
-    for x in (is_hole, is_rod, number):
-        x.flags.writeable = False
-    return is_hole, is_rod, number
+        rods = {lo, lo + 1} if lo < 11 else {10, 11}
+    holes = set(holes)
+    return full.select([k for k, f in enumerate(full.feature)
+                        if (f.startswith("hole") and int(f[4:]) in holes)
+                        or (f.startswith(("rod", "face")) and int(f[3:] if f[0] == "r" else f[5:]) in rods)])
 
 
 @dataclass(frozen=True)
