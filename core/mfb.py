@@ -222,17 +222,27 @@ def fit_bar_features(p_R, feature, n_R, *, fits: dict | None = None) -> BarFeatu
     return BarFeatures(*out["hole"], *out["rod"], *out["face"], side)
 
 
-def _sorted_features(feature, n_R) -> tuple[list, np.ndarray]:
+def _sorted_features(feature, n_R, hints: dict | None = None) -> tuple[list, np.ndarray]:
     """The features of one placement's touches, in the order met: ``[(kind "hole" | "rod" |
     "face", key: the hole's or rod's number or (side, rod number), touch indices, hint, name)]``
     (the hint: a cylinder's axis from its normals, :func:`_axis_hint`, a face's mean normal;
-    other names ignored), and the probed side (mean outward normal of the rod touches)."""
+    other names ignored), and the probed side (mean outward normal of the rod touches).
+    ``hints``: axis hints already found, by the bytes of the normals (placements of one
+    orientation share their nominal normals: the same numbers)."""
+    def axis_hint(nrm):
+        if hints is None:
+            return _axis_hint(nrm)
+        key = nrm.tobytes()
+        if key not in hints:
+            hints[key] = _axis_hint(nrm)
+        return hints[key]
+
     out, rod_normals = [], []
     for f, idx in _group(feature).items():
         if (i := _num(f, "hole")) is not None:
-            out.append(("hole", i, idx, _axis_hint(n_R[idx]), f))
+            out.append(("hole", i, idx, axis_hint(n_R[idx]), f))
         elif (j := _num(f, "rod")) is not None:
-            out.append(("rod", j, idx, _axis_hint(n_R[idx]), f))
+            out.append(("rod", j, idx, axis_hint(n_R[idx]), f))
             rod_normals.append(n_R[idx])
         elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
             out.append(("face", (f[4], j), idx, n_R[idx].mean(axis=0), f))
@@ -262,9 +272,9 @@ def _fit_placements_batched(placements) -> list[BarFeatures]:
     A fit error is raised as the first placement alone raises it."""
     placements = [_checked_touches(p, f, n) + (f,) for p, f, n in placements]
     groups: dict = {}  # (kind, touches, hint bytes) -> [(placement, key, idx, hint, feature)]
-    sides = []
+    sides, hints = [], {}
     for k, (p_R, n_R, feature) in enumerate(placements):
-        feats, side = _sorted_features(feature, n_R)
+        feats, side = _sorted_features(feature, n_R, hints)
         for kind, key, idx, hint, f in feats:
             groups.setdefault((kind, len(idx), hint.tobytes()), []).append((k, key, idx, hint, f))
         sides.append(side)
