@@ -319,9 +319,8 @@ def simulate_measurements(items, rng: np.random.Generator | None = None, *,
     """
     items = list(items)
     if not _styli_of_one_machine(items):
-        return [simulate_campaign(a, m, p, [st], rng, plan=pl, feed_mps=feed_mps, rapid_mps=rapid_mps,
-                                  check_collisions=False, meta=meta, stroke_check=stroke_check)
-                for a, m, p, st, pl in items]
+        return _simulate_each_measurement(items, rng, feed_mps=feed_mps, rapid_mps=rapid_mps, meta=meta,
+                                          stroke_check=stroke_check)
     if not (np.isfinite(feed_mps) and feed_mps > 0 and np.isfinite(rapid_mps) and rapid_mps > 0):
         raise ConfigError("feed_mps and rapid_mps must be positive")
     art, machine, probe = items[0][:3]
@@ -355,6 +354,17 @@ def simulate_measurements(items, rng: np.random.Generator | None = None, *,
         columns = {c: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else v) for c, v in cols.items()}
         logs.append(make_log(columns, _campaign_meta(m, art, probe, feed_mps, meta)))
     return logs
+
+
+def _simulate_each_measurement(items, rng=None, *, feed_mps: float = PROBING_FEED_MPS,
+                               rapid_mps: float = RAPID_FEED_MPS, meta: dict | None = None,
+                               stroke_check: bool = True) -> list[ProbeLog]:
+    """:func:`simulate_measurements` one campaign per measurement (the path for measurements that
+    cannot share a kinematics call, and the path before: the oracle of the tests, the reference
+    of the bench)."""
+    return [simulate_campaign(a, m, p, [st], rng, plan=pl, feed_mps=feed_mps, rapid_mps=rapid_mps,
+                              check_collisions=False, meta=meta, stroke_check=stroke_check)
+            for a, m, p, st, pl in items]
 
 
 def _styli_of_one_machine(items) -> bool:

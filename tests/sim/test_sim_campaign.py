@@ -198,6 +198,7 @@ def test_measurements_of_several_styli_at_once_are_each_campaign(drifting_mikron
     from dataclasses import replace
 
     from scenarios.mfb import PLANS, U_PLACE, _plan_for, _program
+    from sim import campaign
     from sim.campaign import simulate_measurements
     from sim.machine import Machine
 
@@ -211,6 +212,8 @@ def test_measurements_of_several_styli_at_once_are_each_campaign(drifting_mikron
     rng = np.random.default_rng(3)
     old = [simulate_campaign(a, m, p, [st], rng, plan=pl, check_collisions=False, stroke_check=False)
            for a, m, p, st, pl in items]
+    assert all(a.positions_mm().tobytes() == b.positions_mm().tobytes() for a, b in zip(
+        old, campaign._simulate_each_measurement(items, np.random.default_rng(3), stroke_check=False)))
     assert len(new) == len(old) == 17
     for a, b in zip(new, old):
         assert a.meta == b.meta and a.n == b.n
