@@ -202,8 +202,9 @@ def fit_bar_features(p_R, feature, n_R, *, fits: dict | None = None) -> BarFeatu
         Nominal outward normals (used for the axis hints and the probed side).
     fits : dict, optional
         Kept by the caller across calls: a feature whose touches and hint were
-        fitted before is taken from it (the same numbers, bit for bit; ``fits``
-        of :func:`poi_noise_gain`).
+        fitted before is taken from it, and a cylinder's axis hint found before
+        for the same normals (the same numbers, bit for bit; ``fits`` of
+        :func:`poi_noise_gain`).
 
     Each feature by the validated single fits (:func:`core.fit.cylinder_point_axis`,
     :func:`core.fit.plane_point_normal`: coincident or collinear points refused by
@@ -211,7 +212,7 @@ def fit_bar_features(p_R, feature, n_R, *, fits: dict | None = None) -> BarFeatu
     be fitted in batches instead, :func:`points_of_interest_batched`.
     """
     p_R, n_R = _checked_touches(p_R, feature, n_R)
-    feats, side = _sorted_features(feature, n_R)
+    feats, side = _sorted_features(feature, n_R, fits)
     out = {"hole": ({}, {}), "rod": ({}, {}), "face": ({}, {})}
     for kind, key, idx, hint, f in feats:
         try:
@@ -228,13 +229,15 @@ def _sorted_features(feature, n_R, hints: dict | None = None) -> tuple[list, np.
     (the hint: a cylinder's axis from its normals, :func:`_axis_hint`, a face's mean normal;
     other names ignored), and the probed side (mean outward normal of the rod touches).
     ``hints``: axis hints already found, by the bytes of the normals (placements of one
-    orientation share their nominal normals: the same numbers)."""
+    orientation, or the plans of one campaign, share their nominal normals: the same numbers),
+    and new ones added."""
     def axis_hint(nrm):
         if hints is None:
             return _axis_hint(nrm)
-        key = nrm.tobytes()
+        key = ("axis hint", nrm.tobytes())
         if key not in hints:
             hints[key] = _axis_hint(nrm)
+            hints[key].setflags(write=False)  # shared by every later lookup
         return hints[key]
 
     out, rod_normals = [], []
