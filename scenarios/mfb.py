@@ -621,19 +621,61 @@ def describe_collision_check(c: dict) -> str:
 _GAINS = Memo(64)
 
 
-def _noise_gain(pl_ok, r_m, fits=None):
+def _noise_gain(pl_ok, r_m, fits=None, full=None):
     """:func:`core.mfb.poi_noise_gain` of the touches ``pl_ok`` (a plan's nominal
     geometry and stylus radius only), kept for the next run of the same plan:
     it is two thirds of a run's time and the same for every campaign. ``fits``:
-    the light fits of the run's other hole sets (``fits`` of :func:`core.mfb.poi_noise_gain`)."""
+    the light fits of the run's other hole sets (``fits`` of :func:`core.mfb.poi_noise_gain`).
+
+    ``full``: the bar's whole program (:func:`sim.plans.mfb_plan`) when ``pl_ok`` is a part of it
+    made of whole features (:func:`_plan_for`): the whole program's gain is computed once (and
+    kept) and ``pl_ok``'s is its rows of ``pl_ok``'s holes and columns of its touches (:func:`_part_of`:
+    a point of interest depends only on its hole's and its two rods' touches; the same numbers
+    bit for bit, tests/scenarios/test_mfb_scenario.py)."""
     from core import mfb
 
     key = (tuple(pl_ok.target), tuple(pl_ok.feature), pl_ok.w_A.tobytes(), pl_ok.wn_A.tobytes(), float(r_m))
     if key not in _GAINS:
-        G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A, fits=fits)
+        part = None if full is None else _part_of(full, pl_ok)
+        if part is not None:
+            rows, cols = part
+            G = _noise_gain(full, r_m, fits)[rows][:, cols]
+        else:
+            G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A, fits=fits)
         G.setflags(write=False)  # shared between runs: read only
         _GAINS[key] = G
     return _GAINS[key]
+
+
+def _part_of(full, pl) -> tuple | None:
+    """(rows, cols): where the gain of the plan ``pl`` stands in the gain of ``full`` (rows of
+    its holes' points of interest, columns of its touches), or None unless ``pl`` is a part of
+    ``full`` its gain can be cut from: each of its features with all of ``full``'s touches of
+    it at the same places, and each of its holes' plane PL_i through the rods ``full`` uses."""
+    from core import mfb
+    from core.exceptions import FitError
+
+    at = {t: k for k, t in enumerate(full.target)}
+    if any(t not in at for t in pl.target):
+        return None
+    cols = np.array([at[t] for t in pl.target], int)
+    f_full = np.asarray(full.feature, object)
+    if not (np.array_equal(pl.w_A, full.w_A[cols]) and np.array_equal(pl.wn_A, full.wn_A[cols])
+            and all(sum(f_full == f) == n for f, n in zip(*np.unique(np.asarray(pl.feature, object), return_counts=True)))):
+        return None
+
+    def holes_rods(features):
+        holes = sorted({int(f[4:]) for f in features if f.startswith("hole")})
+        return holes, {int(f[3:]) for f in features if f.startswith("rod")}
+
+    (h_full, r_full), (h_pl, r_pl) = holes_rods(full.feature), holes_rods(pl.feature)
+    try:
+        if any(mfb._rod_pair(i, r_pl) != mfb._rod_pair(i, r_full) for i in h_pl):
+            return None
+    except FitError:  # a hole without its two rods: the gain's own error, raised from the plan itself
+        return None
+    row = {h: k for k, h in enumerate(h_full)}
+    return np.concatenate([np.arange(3 * row[h], 3 * row[h] + 3) for h in h_pl]), cols
 
 
 def _check_touch_strokes(log, machine, name):
@@ -906,6 +948,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     from core.touches import from_log
     from sim import artefacts as A
     from sim.campaign import simulate_measurements
+    from sim.plans import mfb_plan
     from sim.setups import Setup
     from sim.machine import Machine
     from sim.probe import ProbeConfig
@@ -1028,11 +1071,12 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     # simulated touches, each checked to trigger on its target: fitted in batches (to rounding),
     # the features of every measurement together (each one's numbers as its own batch gives)
     pois = mfb.points_of_interest_batched([(p_R, t.feature, t.n_R) for _, _, t, p_R, _ in done])
-    for (ms, J, t, p_R, pl_ok), poi in zip(done, pois):
-        # the gain of the extraction at the nominal places of the touches (A frame, stylus centres)
+    for (ms, J, t, p_R, pl_ok), poi, item in zip(done, pois, items):
+        # the gain of the extraction at the nominal places of the touches (A frame, stylus centres),
+        # cut from the gain of the bar's whole program (kept by mfb_plan)
         key = (tuple(pl_ok.target), probe.stylus_r_m)
         if key not in G_cache:
-            G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m, gain_fits)
+            G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m, gain_fits, full=mfb_plan(item[0], **program))
         idx = [h - 1 for h in poi.holes]
         meas.append(vol.Measurement(ms.name, ms.setup_key, poi.holes, poi.O_R, O_A_cal[idx], ms.T_W_A,
                                     tuple(ms.rot_rad), J, G_cache[key], q_R=p_R,

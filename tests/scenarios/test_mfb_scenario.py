@@ -521,3 +521,33 @@ def test_the_collision_check_checks_the_program_run_simulates():
     assert c0["program_mm"] == {"clearance": 3.0, "overshoot": 3.0}
     assert c1["program_mm"] == {"clearance": 6.0, "overshoot": 6.0}
     assert c1["passed"] and c1["path_points"] > c0["path_points"]  # the longer approaches were checked
+
+
+def test_a_hole_sets_gain_is_cut_from_the_whole_programs():
+    """_noise_gain of a hole set with the bar's whole program: its rows and columns of the whole
+    program's gain, against poi_noise_gain of the hole set computed alone (bit for bit: a point of
+    interest depends only on its hole's and its two rods' touches), for every hole set of both
+    plans and a few others; a part that is not whole features (a touch dropped), or whose holes
+    would take other rods, is computed alone (the same answer as alone)."""
+    from core import mfb as M
+    from scenarios import mfb
+    from sim import artefacts as A
+    from sim.plans import mfb_plan
+
+    art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
+    full = mfb_plan(art)
+    r = 3e-3
+    sets = {ms.holes for p in mfb.PLANS.values() for ms in p().measurements} | {(1, 2), (5, 9), (11, 12)}
+    mfb._GAINS.clear()
+    for holes in sorted(sets):
+        pl = mfb._plan_for(art, holes)
+        alone = M.poi_noise_gain(pl.w_A + r * pl.wn_A, pl.feature, pl.wn_A, -pl.wn_A)
+        assert mfb._part_of(full, pl) is not None, holes
+        got = mfb._noise_gain(pl, r, full=full)
+        assert got.shape == alone.shape and got.tobytes() == alone.tobytes(), holes
+    pl = mfb._plan_for(art, (5, 9))
+    cut = pl.select(np.arange(pl.n) != 3)  # hole 5 without one of its touches
+    assert mfb._part_of(full, cut) is None
+    got = mfb._noise_gain(cut, r, full=full)
+    assert got.tobytes() == M.poi_noise_gain(cut.w_A + r * cut.wn_A, cut.feature, cut.wn_A, -cut.wn_A).tobytes()
+    mfb._GAINS.clear()
