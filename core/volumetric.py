@@ -433,7 +433,8 @@ def _prepare_all(meas, chain, rotary_points, nodes) -> _Prepared:
     rot = None if prep[idx[0]]["rot"] is None else np.concatenate([prep[i]["rot"] for i in idx])
     J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["q"].shape) for i in idx])
     g = prep[idx[0]]["g"]
-    for tip, key, rows in ((tip_W(g, q, rot, None, J_m=J), "pred0", "q"), (tip_W(g, b["qt"], b["rott"], None, J_m=b["J"]), "tip0_t", "qt")):
+    for tip, key, rows in ((tip_W(g, q, rot, None, J_m=J), "pred0", "q"),
+                           (tip_W(g, b["qt"], b["rott"], None, J_m=b["J"]), "tip0_t", "qt")):
         at = 0
         for i in idx:
             prep[i][key] = tip[at:at + len(prep[i][rows])]

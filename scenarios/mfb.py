@@ -623,8 +623,8 @@ _GAINS = Memo(64)
 
 def _noise_gain(pl_ok, r_m, fits=None, full=None):
     """:func:`core.mfb.poi_noise_gain` of the touches ``pl_ok`` (a plan's nominal
-    geometry and stylus radius only), kept for the next run of the same plan:
-    it is two thirds of a run's time and the same for every campaign. ``fits``:
+    geometry and stylus radius only), kept for the next run of the same plan
+    (the same for every campaign of it). ``fits``:
     the light fits of the run's other hole sets (``fits`` of :func:`core.mfb.poi_noise_gain`).
 
     ``full``: the bar's whole program (:func:`sim.plans.mfb_plan`) when ``pl_ok`` is a part of it
@@ -661,7 +661,8 @@ def _part_of(full, pl) -> tuple | None:
     cols = np.array([at[t] for t in pl.target], int)
     f_full = np.asarray(full.feature, object)
     if not (np.array_equal(pl.w_A, full.w_A[cols]) and np.array_equal(pl.wn_A, full.wn_A[cols])
-            and all(sum(f_full == f) == n for f, n in zip(*np.unique(np.asarray(pl.feature, object), return_counts=True)))):
+            and all(np.count_nonzero(f_full == f) == n
+                    for f, n in zip(*np.unique(np.asarray(pl.feature, object), return_counts=True)))):
         return None
 
     def holes_rods(features):

@@ -175,7 +175,8 @@ def test_noise_gain_bad_directions():
 
 def test_batched_feature_fits_equal_the_single_fits():
     # the batched light fits (mfb._fit_placements_batched: every hole, rod, left/right face of a
-    # placement in one call; points_of_interest_batched) against the single validated fits, on touches off the nominal (noise 0.5 um, a rotated bar):
+    # placement in one call; points_of_interest_batched) against the single validated fits, on
+    # touches off the nominal (noise 0.5 um, a rotated bar):
     # measured 1.4e-17 m (points) and 1.2e-16 (axes) on the 17 placements of a budget run; the
     # tolerance 1e-14 m / 1e-13 is rounding of a 0.5 m bar (1e-16 relative) times the fits' conditioning
     from scenarios.mfb import _plan_for

@@ -428,7 +428,8 @@ def test_plan_for_selects_the_holes_and_the_rods_their_planes_need():
 
     art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
     rods = lambda *js: {f"{k}{j:02d}" for j in js for k in ("rod", "faceL", "faceR")}  # noqa: E731
-    known = {(1,): {"hole01"} | rods(1, 2), (12,): {"hole12"} | rods(10, 11), (5, 9): {"hole05", "hole09"} | rods(4, 5, 6, 7, 8, 9),
+    known = {(1,): {"hole01"} | rods(1, 2), (12,): {"hole12"} | rods(10, 11),
+             (5, 9): {"hole05", "hole09"} | rods(4, 5, 6, 7, 8, 9),
              (1, 2, 3): {"hole01", "hole02", "hole03"} | rods(1, 2, 3),
              tuple(range(1, 13)): {f"hole{h:02d}" for h in range(1, 13)} | rods(*range(1, 12))}
     for margin in (2.0e-3, 3.0e-3):
