@@ -400,53 +400,68 @@ def _prepare(m, chain, rotary_points, nodes) -> dict:
     return p
 
 
-def _prepare_all(meas, chain, rotary_points, nodes) -> list:
+class _Prepared(list):
+    """:func:`_prepare` of each measurement (a list), and ``batch``: the touches of every
+    measurement with touches joined once (they do not depend on theta; every Gauss-Newton
+    step's :func:`_touch_kinematics` and :func:`_rows` read them): ``at`` {measurement: its
+    first row}, ``qt`` (t, 3) readings, ``rott`` (t, r) or None, ``J`` (t, 3) each touch's
+    probe offsets, ``W`` {axis: (t, k)} spline weights, ``d_W`` (t, 3) directions; None
+    without touches."""
+
+    batch: dict | None = None
+
+
+def _prepare_all(meas, chain, rotary_points, nodes) -> _Prepared:
     """:func:`_prepare` of every measurement, with the error-free tips of the measurements with
     touches (at their points of interest, ``pred0``, and at their touches, ``tip0_t``) each
     in one kinematics call for all measurements (per-pose probe offsets, as :func:`_touch_kinematics`)."""
-    prep = [_prepare(m, chain, rotary_points, nodes) for m in meas]
+    prep = _Prepared(_prepare(m, chain, rotary_points, nodes) for m in meas)
     idx = [i for i, pm in enumerate(prep) if pm["touches"]]
-    for q_key, rot_key, out in (("q", "rot", "pred0"), ("qt", "rott", "tip0_t")):
-        if not idx:
-            break
-        q = np.concatenate([prep[i][q_key] for i in idx])
-        rot = None if prep[idx[0]][rot_key] is None else np.concatenate([prep[i][rot_key] for i in idx])
-        J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i][q_key].shape) for i in idx])
-        tip = tip_W(prep[idx[0]]["g"], q, rot, None, J_m=J)
+    if not idx:
+        return prep
+    at, t0 = {}, 0
+    for i in idx:
+        at[i] = t0
+        t0 += len(prep[i]["qt"])
+    prep.batch = {"at": at, "qt": np.concatenate([prep[i]["qt"] for i in idx]),
+                  "rott": None if prep[idx[0]]["rott"] is None else np.concatenate([prep[i]["rott"] for i in idx]),
+                  "J": np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["qt"].shape) for i in idx]),
+                  "W": {a: np.concatenate([prep[i]["W"][a] for i in idx]) for a in iso.LINEAR_AXES},
+                  "d_W": np.concatenate([prep[i]["d_W"] for i in idx])}
+    b = prep.batch
+    q = np.concatenate([prep[i]["q"] for i in idx])
+    rot = None if prep[idx[0]]["rot"] is None else np.concatenate([prep[i]["rot"] for i in idx])
+    J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["q"].shape) for i in idx])
+    g = prep[idx[0]]["g"]
+    for tip, key, rows in ((tip_W(g, q, rot, None, J_m=J), "pred0", "q"),
+                           (tip_W(g, b["qt"], b["rott"], None, J_m=b["J"]), "tip0_t", "qt")):
         at = 0
         for i in idx:
-            prep[i][out] = tip[at:at + len(prep[i][q_key])]
-            at += len(prep[i][q_key])
+            prep[i][key] = tip[at:at + len(prep[i][rows])]
+            at += len(prep[i][rows])
     return prep
 
 
 def _touch_kinematics(prep, theta, slices, exact, jacobian):
-    """The touches of every measurement (:func:`_prepare`) in one kinematics call: their
-    sensitivity (t_all, 3, 21) when ``jacobian`` and exact tip positions (t_all, 3) when
-    ``exact`` (else None), and each measurement's first row in them.
+    """The touches of every measurement (:func:`_prepare_all`, its ``batch``) in one kinematics
+    call: their sensitivity (t_all, 3, 21) when ``jacobian`` and exact tip positions (t_all, 3)
+    when ``exact`` (else None), and each measurement's first row in them.
 
     The measurements share the chain and differ in their stylus: each touch carries
     its own probe offsets J (``J_m`` of :func:`core.kinematics.tip_W`), so every row is
     the number a call per measurement gives, bit for bit (tests/core/test_volumetric.py).
     """
-    idx = [i for i, pm in enumerate(prep) if pm["touches"]]
-    if not idx or not (exact or jacobian):
+    b = prep.batch
+    if b is None or not (exact or jacobian):
         return None, None, {}
-    at, t0 = {}, 0
-    for i in idx:
-        at[i] = t0
-        t0 += len(prep[i]["qt"])
-    qt = np.concatenate([prep[i]["qt"] for i in idx])
-    rott = None if prep[idx[0]]["rott"] is None else np.concatenate([prep[i]["rott"] for i in idx])
-    J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["qt"].shape) for i in idx])
     vals = None
     if exact:
-        each = [_values(theta, slices, prep[i]["W"], len(prep[i]["qt"])) for i in idx]
+        each = [_values(theta, slices, prep[i]["W"], len(prep[i]["qt"])) for i in b["at"]]
         vals = {s: np.concatenate([v[s] for v in each]) for s in each[0]}
-    g = prep[idx[0]]["g"]
-    St = sensitivity(g, qt, rott, vals, symbols=MOTION + SQUARENESS, J_m=J) if jacobian else None
-    tip = tip_W(g, qt, rott, vals, J_m=J) if exact else None
-    return St, tip, at
+    g = prep[next(iter(b["at"]))]["g"]
+    St = sensitivity(g, b["qt"], b["rott"], vals, symbols=MOTION + SQUARENESS, J_m=b["J"]) if jacobian else None
+    tip = tip_W(g, b["qt"], b["rott"], vals, J_m=b["J"]) if exact else None
+    return St, tip, b["at"]
 
 
 def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=True, prep=None):
@@ -458,8 +473,7 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=T
         prep = _prepare_all(meas, chain, rotary_points, nodes)
     St_all, tip_all, at = _touch_kinematics(prep, theta, slices, exact, jacobian)
     if jacobian and at:  # the touches' Jacobian rows (t_all, n), all measurements in one product
-        W_all = {a: np.concatenate([prep[i]["W"][a] for i in at]) for a in iso.LINEAR_AXES}
-        Jt_all = _projected_error_jacobian(St_all, np.concatenate([prep[i]["d_W"] for i in at]), W_all, slices, n)
+        Jt_all = _projected_error_jacobian(St_all, prep.batch["d_W"], prep.batch["W"], slices, n)
     for i, m in enumerate(meas):
         pm = prep[i]
         g, q, k, rot, T, W = pm["g"], pm["q"], pm["k"], pm["rot"], pm["T"], pm["W"]
