@@ -139,6 +139,15 @@ def _tmv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
     return A[:, 0, :] * v[:, 0, None] + A[:, 1, :] * v[:, 1, None] + A[:, 2, :] * v[:, 2, None]
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a_k x b_k for (k,3), (k,3) (numpy's cross, without its per-call overhead)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = np.linalg.norm(v, axis=-1)
     ok = n > 1e-12
@@ -167,6 +176,10 @@ class Clearance:
         The segment boxes' padding of :meth:`near_segments`, the largest radius of
         its certificates (0: fewer pairs bounded, no certificates; for a broad
         phase that will not see the same plan again).
+    pairs : (k_probe, k_table) bool, optional
+        The probe/table geom pairs this broad phase bounds (default: all). The
+        others are left to another broad phase (:class:`sim.mfb_scene.WorkZone`
+        bounds its stylus ball against the bar in one shared by every probe).
 
     Attributes
     ----------
@@ -175,7 +188,7 @@ class Clearance:
     """
 
     def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int, T_F_R=None,
-                 cert_pad_m: float = CERT_PAD_M):
+                 cert_pad_m: float = CERT_PAD_M, pairs: np.ndarray | None = None):
         self.probe, self.table, self.ball = probe, table, int(ball)
         self.cert_pad_m = float(cert_pad_m)
         self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
@@ -183,6 +196,9 @@ class Clearance:
         ng, nh = len(probe.kind), len(table.kind)
         self.feature, tlo, thi, cl, h_order, self._fid = _table_prep(table, table_feature)
         self.pair_probe, self.pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
+        if pairs is not None:  # (the order kept: by probe geom, cluster, table geom)
+            keep = np.asarray(pairs, bool)[self.pair_probe, self.pair_table]
+            self.pair_probe, self.pair_table = self.pair_probe[keep], self.pair_table[keep]
         # the tip p puts geom g in collision range of h only if p lies in this box
         self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
         self._hi = thi[self.pair_table] - plo[self.pair_probe] + MARGIN_M
@@ -207,12 +223,17 @@ class Clearance:
         """(U (r,7,3), E (r,7)): the fixed axes of pairs ``pair`` (the table geom's three, the
         probe geom's axis, their cross products) and the sum of the two extents on each
         (inf on a degenerate cross product: it proves nothing). Computed once per pair."""
-        need = np.unique(pair[~self._have[pair]])
+        want = np.zeros(len(self._have), bool)
+        want[pair] = True
+        need = np.flatnonzero(want & ~self._have)  # (sorted, once each)
         if need.size:
             g, h = self.pair_probe[need], self.pair_table[need]
             Ht, Pa = self.table.axes[h], self.probe.axes[g][:, :, 2]
-            U = np.stack([Ht[:, :, 0], Ht[:, :, 1], Ht[:, :, 2], Pa] + [np.cross(Pa, Ht[:, :, j]) for j in range(3)],
-                         axis=1)  # (need, 7, 3)
+            U = np.empty((len(need), 7, 3))
+            U[:, :3] = Ht.transpose(0, 2, 1)  # the table geom's three axes (rows)
+            U[:, 3] = Pa
+            for j in range(3):  # Pa x (table axis j)
+                U[:, 4 + j] = _cross(Pa, Ht[:, :, j])
             U, ok = _unit(U)
             P, T = self.probe.take(np.repeat(g, 7)), self.table.take(np.repeat(h, 7))
             flat = U.reshape(-1, 3)
@@ -441,6 +462,53 @@ class Clearance:
         return out
 
 
+def axisymmetric(probe: Geoms) -> bool:
+    """Whether the probe (about the tip, axes of R) is spheres, capsules and cylinders on its z
+    axis: it then looks the same from every direction about that axis."""
+    return bool(np.all(probe.centre[:, :2] == 0) and np.all(np.abs(probe.axes[:, 2, 2]) == 1)
+                and np.all(np.isin(probe.kind, (_SPHERE, _CAPSULE, _CYLINDER))))
+
+
+class ByOrientation:
+    """The broad phases of one probe against one table side given in a frame F fixed to the
+    table, one per orientation of F to R, each moved with the table (:meth:`Clearance.moved`).
+
+    A probe that translates sees the table side the same way whenever F has the same
+    rotation to R; an axisymmetric one (:func:`axisymmetric`) whenever F's image of the
+    spindle axis (R's z) is the same: placements that differ by a turn about the spindle
+    axis then share one broad phase, its pair data and its certificates. Used by
+    :meth:`sim.scene.Scene.clearance` (F = the artefact's frame) and
+    :class:`sim.mfb_scene.WorkZone` (F = the table's frame W).
+
+    Parameters
+    ----------
+    probe : Geoms
+        About the tip, axes of R.
+    build : callable (probe in F's axes: Geoms, T_F_R (4,4)) -> Clearance
+    maxsize : int
+        Orientations kept (least recently used out first).
+    """
+
+    def __init__(self, probe: Geoms, build, maxsize: int = 32):
+        self.probe, self._build = probe, build
+        self.axisym = axisymmetric(probe)
+        self._memo = Memo(maxsize)
+
+    def get(self, T_F_R: np.ndarray) -> Clearance:
+        """The broad phase with F at ``T_F_R`` (4,4) from R."""
+        T_F_R = np.asarray(T_F_R, float)
+        R = T_F_R[:3, :3]
+        key = np.ascontiguousarray((R[:, 2] if self.axisym else R) + 0.0).tobytes()  # (+0.0: -0 is +0)
+        hit = self._memo.get(key)
+        if hit is None:
+            P = self.probe
+            P = Geoms(P.centre @ R.T, R @ P.axes, P.kind, P.size, P.rbound)  # about the tip, axes of F
+            hit = self._memo[key] = self._build(P, T_F_R)
+        elif not np.array_equal(hit.T_F_R, T_F_R):
+            hit = self._memo[key] = hit.moved(T_F_R)
+        return hit
+
+
 #: The table side's part of :class:`Clearance` (boxes, clusters, feature numbers) by table
 #: Geoms and feature list objects (kept in the entry, so their ids stay theirs): the work
 #: zones of one placement (sim.mfb_scene) share their table's geoms, whatever the probe.
@@ -488,14 +556,22 @@ class _Certificates:
         self._keys = None
         self._n = 0
 
-    def _key(self, a, b, allow) -> np.ndarray:
-        """(n,) void: the grid cell of each segment and its allowed feature, as bytes."""
+    def _key(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
+        """(key (n,) uint64, allow (n,) int64): a hash of each segment's grid cell and allowed
+        feature, and the feature as a number. Different cells may share a hash: a match is
+        only a candidate (:meth:`lookup` checks its feature and its distance)."""
         if np.issubdtype(np.asarray(allow).dtype, np.integer):  # features as numbers already
             f = np.asarray(allow, np.int64)
         else:
             f = np.fromiter((self._ids.setdefault(x, len(self._ids)) for x in allow), np.int64, len(allow))
-        k = np.column_stack([np.round(np.column_stack([a, b]) / _CERT_GRID_M).astype(np.int64), f])
-        return np.ascontiguousarray(k).view(np.dtype((np.void, 8 * 7))).ravel()
+        k = np.round(np.column_stack([a, b]) / _CERT_GRID_M).astype(np.int64).view(np.uint64)
+        h = f.view(np.uint64)
+        for j in range(6):  # splitmix64's finalizer after each cell coordinate (wraps modulo 2^64)
+            h = h ^ k[:, j]
+            h = (h ^ (h >> _S30)) * _HASH[0]
+            h = (h ^ (h >> _S27)) * _HASH[1]
+            h = h ^ (h >> _S31)
+        return h, f
 
     def add(self, a, b, allow, r) -> None:
         keep = r > 0
@@ -525,13 +601,13 @@ class _Certificates:
                 A = np.concatenate([blk[0] for blk in self.blocks])
                 B = np.concatenate([blk[1] for blk in self.blocks])
                 F = np.concatenate([blk[2] for blk in self.blocks])
-                k = self._key(A, B, F)
+                k, f = self._key(A, B, F)
                 o = np.argsort(k, kind="stable")
-                self._keys, self._A, self._B = k[o], A[o], B[o]
+                self._keys, self._F, self._A, self._B = k[o], f[o], A[o], B[o]
                 self._R = np.concatenate([blk[3] for blk in self.blocks])[o]
-            q = self._key(a[rest], b[rest], allow[rest])
+            q, f = self._key(a[rest], b[rest], allow[rest])
             j = np.minimum(np.searchsorted(self._keys, q), len(self._keys) - 1)
-            hit = self._keys[j] == q
+            hit = (self._keys[j] == q) & (self._F[j] == f)  # (a hash match with another feature: none)
             rest, j = rest[hit], j[hit]
             mv = np.maximum(np.linalg.norm(a[rest] - self._A[j], axis=1), np.linalg.norm(b[rest] - self._B[j], axis=1))
             r0[rest], moved[rest] = self._R[j], mv
@@ -542,6 +618,9 @@ class _Certificates:
 _CERT_MAX = 200_000
 #: Grid (m) of the certificates' second lookup: segments whose ends round to the same cells.
 _CERT_GRID_M = 1.0e-6
+#: splitmix64's multipliers and shifts (the certificates' cell hash, :meth:`_Certificates._key`).
+_HASH = np.array([0xBF58476D1CE4E5B9, 0x94D049BB133111EB], dtype=np.uint64)
+_S30, _S27, _S31 = np.uint64(30), np.uint64(27), np.uint64(31)
 
 
 def _overlap(lo1, hi1, lo2, hi2) -> np.ndarray:
