@@ -218,6 +218,9 @@ class Clearance:
         self._cballf = np.where(self.pair_probe[first] == self.ball, fid, -1)
         self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
         self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
+        # the same boxes one coordinate a row (3, k), for _overlap_rows
+        self._loT, self._hiT = self._lo.T.copy(), self._hi.T.copy()
+        self._cloT, self._chiT = self._clo.T.copy(), self._chi.T.copy()
 
     def _axes(self, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(U (r,7,3), E (r,7)): the fixed axes of pairs ``pair`` (the table geom's three, the
@@ -296,14 +299,16 @@ class Clearance:
         blk, cp = np.nonzero(hit)
         k, seg = _expand(cut[blk], np.minimum(_BLOCK, n - cut[blk]))
         cp = cp[k]
-        ok = _overlap(s_lo[seg], s_hi[seg], self._clo[cp], self._chi[cp])
         if allow is not None:
-            ok &= self._cballf[cp] != allow[seg]
+            ok = self._cballf[cp] != allow[seg]
+            seg, cp = seg[ok], cp[ok]
+        sT_lo, sT_hi = s_lo.T.copy(), s_hi.T.copy()  # (3, s): one coordinate a row
+        ok = _overlap_rows(sT_lo, sT_hi, seg, self._cloT, self._chiT, cp)
         seg, cp = seg[ok], cp[ok]
         # -> (segment, pair) for the cluster's member geoms
         k, pair = _expand(self._cstart[cp], self._ccount[cp])
         seg = seg[k]
-        ok = _overlap(s_lo[seg], s_hi[seg], self._lo[pair], self._hi[pair])
+        ok = _overlap_rows(sT_lo, sT_hi, seg, self._loT, self._hiT, pair)
         return seg[ok], pair[ok]
 
     def swept_bound(self, a_R: np.ndarray, b_R: np.ndarray, pair: np.ndarray) -> np.ndarray:
@@ -410,12 +415,12 @@ class Clearance:
         apart, else their largest gap along a box axis (negative, at most the geoms' overlap
         along that axis, so at most their penetration depth, as for :meth:`bound`'s axes).
         Looser than :meth:`bound`, a few operations per row."""
-        p = self.to_frame(p_R)[:, None, :]
-        lo, hi = self._lo[pairs] + MARGIN_M, self._hi[pairs] - MARGIN_M  # the tip's box of contact
-        gap = np.maximum(lo - p, p - hi)  # (n, pairs, 3) the boxes' gap along x, y, z
-        worst = np.max(gap, axis=2)
-        out = np.maximum(gap, 0.0)
-        out = np.sqrt(out[:, :, 0] ** 2 + out[:, :, 1] ** 2 + out[:, :, 2] ** 2)
+        p = self.to_frame(p_R)
+        lo, hi = self._loT[:, pairs] + MARGIN_M, self._hiT[:, pairs] - MARGIN_M  # the tip's box of contact
+        # the boxes' gap along x, y, z, (n, pairs) each
+        gx, gy, gz = (np.maximum(lo[ax] - p[:, ax, None], p[:, ax, None] - hi[ax]) for ax in range(3))
+        worst = np.maximum(np.maximum(gx, gy), gz)
+        out = np.sqrt(np.maximum(gx, 0.0) ** 2 + np.maximum(gy, 0.0) ** 2 + np.maximum(gz, 0.0) ** 2)
         return np.where(worst > 0, out, worst)
 
     def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
@@ -629,6 +634,17 @@ def _overlap(lo1, hi1, lo2, hi2) -> np.ndarray:
     for ax in (1, 2):
         ok &= (hi1[:, ax] >= lo2[:, ax]) & (lo1[:, ax] <= hi2[:, ax])
     return ok
+
+
+def _overlap_rows(lo1, hi1, i1, lo2, hi2, i2) -> np.ndarray:
+    """Sorted positions r where boxes ``i1[r]`` of (lo1, hi1) and ``i2[r]`` of (lo2, hi2) intersect
+    (closed; boxes given one coordinate a row, (3, k)): :func:`_overlap` one axis at a time,
+    each on the rows the axes before left."""
+    r = np.flatnonzero((hi1[0][i1] >= lo2[0][i2]) & (lo1[0][i1] <= hi2[0][i2]))
+    for ax in (1, 2):
+        a, b = i1[r], i2[r]
+        r = r[(hi1[ax][a] >= lo2[ax][b]) & (lo1[ax][a] <= hi2[ax][b])]
+    return r
 
 
 def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
