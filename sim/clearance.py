@@ -569,14 +569,11 @@ class _Certificates:
             f = np.asarray(allow, np.int64)
         else:
             f = np.fromiter((self._ids.setdefault(x, len(self._ids)) for x in allow), np.int64, len(allow))
-        k = np.round(np.column_stack([a, b]) / _CERT_GRID_M).astype(np.int64).view(np.uint64)
-        h = f.view(np.uint64)
-        for j in range(6):  # splitmix64's finalizer after each cell coordinate (wraps modulo 2^64)
-            h = h ^ k[:, j]
-            h = (h ^ (h >> _S30)) * _HASH[0]
-            h = (h ^ (h >> _S27)) * _HASH[1]
-            h = h ^ (h >> _S31)
-        return h, f
+        k = np.round(np.column_stack([a, b, f]) * _CELLS).astype(np.int64).view(np.uint64)
+        h = k @ _HASH[2:]  # the cells and the feature weighted by random odd numbers (wraps modulo 2^64)
+        h = (h ^ (h >> _S30)) * _HASH[0]  # then splitmix64's finalizer
+        h = (h ^ (h >> _S27)) * _HASH[1]
+        return h ^ (h >> _S31), f
 
     def add(self, a, b, allow, r) -> None:
         keep = r > 0
@@ -597,7 +594,7 @@ class _Certificates:
             return r0, moved
         for a0, b0, allow0, rr in self.blocks:  # the same segments in order (another placement)
             if len(a0) == n and np.array_equal(allow0, allow):
-                mv = np.maximum(np.linalg.norm(a - a0, axis=1), np.linalg.norm(b - b0, axis=1))
+                mv = _moved(a, b, a0, b0)
                 better = rr - mv > r0 - moved
                 r0[better], moved[better] = rr[better], mv[better]
         rest = np.flatnonzero(~(moved < r0))
@@ -614,7 +611,7 @@ class _Certificates:
             j = np.minimum(np.searchsorted(self._keys, q), len(self._keys) - 1)
             hit = (self._keys[j] == q) & (self._F[j] == f)  # (a hash match with another feature: none)
             rest, j = rest[hit], j[hit]
-            mv = np.maximum(np.linalg.norm(a[rest] - self._A[j], axis=1), np.linalg.norm(b[rest] - self._B[j], axis=1))
+            mv = _moved(a[rest], b[rest], self._A[j], self._B[j])
             r0[rest], moved[rest] = self._R[j], mv
         return r0, moved
 
@@ -623,9 +620,14 @@ class _Certificates:
 _CERT_MAX = 200_000
 #: Grid (m) of the certificates' second lookup: segments whose ends round to the same cells.
 _CERT_GRID_M = 1.0e-6
-#: splitmix64's multipliers and shifts (the certificates' cell hash, :meth:`_Certificates._key`).
-_HASH = np.array([0xBF58476D1CE4E5B9, 0x94D049BB133111EB], dtype=np.uint64)
+#: The certificates' cell hash (:meth:`_Certificates._key`): splitmix64's two multipliers, then
+#: seven odd weights (drawn once) of the six cell coordinates and the feature; the shifts; the
+#: scale of each column (cells of _CERT_GRID_M, the feature number as it is).
+_HASH = np.array([0xBF58476D1CE4E5B9, 0x94D049BB133111EB, 0x8F1A6C3B5D2E4F71, 0xC6A4A7935BD1E995,
+                  0x2545F4914F6CDD1D, 0xD1B54A32D192ED03, 0xAEF17502108EF2D9, 0xF1357AEA2E62A9C5,
+                  0x9FB21C651E98DF25], dtype=np.uint64)
 _S30, _S27, _S31 = np.uint64(30), np.uint64(27), np.uint64(31)
+_CELLS = np.array([1.0 / _CERT_GRID_M] * 6 + [1.0])
 
 
 def _overlap(lo1, hi1, lo2, hi2) -> np.ndarray:
@@ -634,6 +636,13 @@ def _overlap(lo1, hi1, lo2, hi2) -> np.ndarray:
     for ax in (1, 2):
         ok &= (hi1[:, ax] >= lo2[:, ax]) & (lo1[:, ax] <= hi2[:, ax])
     return ok
+
+
+def _moved(a, b, a0, b0) -> np.ndarray:
+    """(n,) how far segments ``a0 -> b0`` moved to ``a -> b`` (n,3): the larger of their ends'
+    distances, which bounds every point's."""
+    da, db = a - a0, b - b0
+    return np.sqrt(np.maximum(np.einsum("ij,ij->i", da, da), np.einsum("ij,ij->i", db, db)))
 
 
 def _overlap_rows(lo1, hi1, i1, lo2, hi2, i2) -> np.ndarray:
@@ -695,6 +704,49 @@ class Segments:
         f = j * (1.0 / self.k[seg])
         f[j == self.k[seg]] = 1.0
         return self.a[seg] + f[:, None] * (self.b - self.a)[seg]
+
+
+def touch_polylines(starts, ends, has_link, link_points, link_counts) -> tuple:
+    """The polylines of a sequence of touches in the order a path check takes them, as one
+    array: per touch i its link move into ``starts[i]`` (if ``has_link[i]``), then its
+    approach/retract ``starts[i] -> ends[i]``.
+
+    Parameters
+    ----------
+    starts, ends : (n,3) float
+        Each touch's approach start and nominal contact (m).
+    has_link : (n,) bool
+    link_points : (sum link_counts, 3) float
+        The link polylines' points, the touches' with a link in order (m).
+    link_counts : (has_link.sum(),) int >= 2
+        Points of each link.
+
+    Returns
+    -------
+    P : (m,3) float
+        Every polyline's points in turn (for :func:`flat_path_segments`).
+    n_pt : (polylines,) int
+    touch : (polylines,) int
+        The touch of each polyline.
+    is_link : (polylines,) bool
+    """
+    has_link = np.asarray(has_link, bool)
+    cnt = np.asarray(link_counts, int)
+    n = len(has_link)
+    app = np.arange(n) + np.cumsum(has_link)  # each approach's polyline; its link (if any) just before
+    n_pt = np.full(n + int(has_link.sum()), 2)
+    n_pt[app[has_link] - 1] = cnt
+    first = np.cumsum(n_pt) - n_pt
+    P = np.empty((int(n_pt.sum()), 3))
+    P[first[app]], P[first[app] + 1] = starts, ends
+    if cnt.size:
+        into = np.repeat(first[app[has_link] - 1] - (np.cumsum(cnt) - cnt), cnt) + np.arange(int(cnt.sum()))
+        P[into] = link_points
+    touch = np.empty(len(n_pt), int)
+    touch[app], touch[app[has_link] - 1] = np.arange(n), np.flatnonzero(has_link)
+    is_link = np.ones(len(n_pt), bool)
+    is_link[app] = False
+    return P, n_pt, touch, is_link
 
 
 def path_segments(polylines, steps_m, joints: bool) -> Segments:

@@ -36,7 +36,7 @@ import numpy as np
 from core.memo import Memo
 
 from .artefacts import apply_R, apply_T, inv_T, make_T
-from .clearance import flat_path_segments
+from .clearance import flat_path_segments, touch_polylines
 from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
 
 #: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
@@ -619,24 +619,14 @@ def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
     return hit[1]
 
 
-def link_paths(T_R_A, starts_R, features, levels, top_A_m):
-    """Link polylines (R, m) between consecutive approach starts: direct within one
-    feature and level, else retract along ``z_A`` to ``top_A_m`` + clearance, across, plunge.
-
-    Returns a list (one per start; None for the first) of (2,3) or (4,3) arrays. All the
-    links' points go through one transform back to R (the same values, bit for bit, as
-    transforming each link's points alone: tests/sim/test_clearance.py).
-    """
-    n = len(starts_R)
-    if n < 2:
-        return [None] * n
-    P, cnt = link_points(T_R_A, starts_R, features, levels, top_A_m)
-    return [None] + np.split(P, np.cumsum(cnt)[:-1])
-
-
 def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`link_paths` as one array: (P (sum cnt, 3) R m, cnt (n - 1,) int), the points of
-    the link into start 1, then into start 2, ... (2 or 4 each); n >= 2 starts."""
+    """The link moves (R, m) between consecutive approach starts: direct within one feature
+    and level, else retract along ``z_A`` to ``top_A_m`` + clearance, across, plunge.
+
+    Returns (P (sum cnt, 3), cnt (n - 1,) int): the points of the link into start 1, then
+    into start 2, ... (2 or 4 each); n >= 2 starts. All the links' points go through one
+    transform back to R (the same values, bit for bit, as transforming each link's points
+    alone: tests/sim/test_clearance.py)."""
     T_A_R = inv_T(T_R_A)
     s_A = apply_T(T_A_R, np.asarray(starts_R, float))
     a, b = s_A[:-1], s_A[1:]
@@ -659,26 +649,14 @@ def _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m):
     a measurement's polylines in the order checked: per touch i the link into ``start[i]``
     (from touch i - 1's; none for the first) and the approach ``start[i] -> Xn[i]``."""
     n = plan.n
-    feat = np.asarray(plan.feature, dtype=object)
     if n > 1:
         L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
     else:
         L, cnt = np.zeros((0, 3)), np.zeros(0, int)
-    # polylines: approach 0, then (link k, approach k) for k = 1 .. n-1
-    n_pt = np.full(2 * n - 1, 2)
-    n_pt[1::2] = cnt
-    first = np.cumsum(n_pt) - n_pt
-    P = np.empty((int(n_pt.sum()), 3))
-    app = first[0::2]  # each approach's first point
-    P[app], P[app + 1] = start, Xn
-    if n > 1:
-        into = np.repeat(first[1::2], cnt) + np.arange(len(L)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        P[into] = L
-    steps = np.full(2 * n - 1, float(approach_step_m))
-    steps[1::2] = link_step_m
-    allow = np.empty(2 * n - 1, dtype=object)
-    allow[0::2], allow[1::2] = feat, ""
-    touch = np.r_[0, np.repeat(np.arange(1, n), 2)]
+    P, n_pt, touch, is_link = touch_polylines(start, Xn, np.arange(n) > 0, L, cnt)
+    steps = np.where(is_link, float(link_step_m), float(approach_step_m))
+    allow = np.full(len(n_pt), "", dtype=object)
+    allow[~is_link] = np.asarray(plan.feature, dtype=object)
     return flat_path_segments(P, n_pt, steps, joints=False), touch, allow
 
 

@@ -324,8 +324,8 @@ def test_a_tilted_spindle_axis_gets_its_own_broad_phase():
 
 
 def _link_paths_one_by_one(T_R_A, starts_R, features, levels, top_A_m):
-    """The link moves as sim.mfb_scene.link_paths wrote them before it batched them (one
-    transform per link)."""
+    """The link moves as sim.mfb_scene wrote them before it batched them (one transform per
+    link): a list, None for the first start."""
     from sim.mfb_scene import LINK_CLEAR_M
 
     T_A_R = A.inv_T(T_R_A)
@@ -348,7 +348,7 @@ def test_link_paths_are_the_one_by_one_links_bit_for_bit():
     from scenarios import mfb as S
     from sim.machine import Machine
     from sim.machines import MACHINES
-    from sim.mfb_scene import link_paths
+    from sim.mfb_scene import link_points
     from sim.scene import artefact_points
 
     plan = S.plan_5axis()
@@ -361,13 +361,13 @@ def test_link_paths_are_the_one_by_one_links_bit_for_bit():
         pl = _holes(*ms.holes)
         start = A.apply_T(T_R_A, pl.w_A + (R + pl.clearance_m) * pl.wn_A)
         for st in (start, start + rng.normal(0, 0.01, start.shape)):
-            got, want = link_paths(T_R_A, st, pl.feature, pl.level, top), _link_paths_one_by_one(T_R_A, st, pl.feature, pl.level, top)
-            assert got[0] is None and len(got) == len(want)
-            for g, w in zip(got[1:], want[1:]):
+            P, cnt = link_points(T_R_A, st, pl.feature, pl.level, top)
+            want = _link_paths_one_by_one(T_R_A, st, pl.feature, pl.level, top)
+            assert len(cnt) == len(want) - 1 and len(P) == cnt.sum()
+            for g, w in zip(np.split(P, np.cumsum(cnt)[:-1]), want[1:]):
                 assert g.shape == w.shape and np.array_equal(g, w)
-            n += len(got) - 1
+            n += len(cnt)
     assert n > 500
-    assert link_paths(np.eye(4), np.zeros((1, 3)), ["a"], [0], 0.0) == [None]
 
 
 def _sphere_over_box(pad=0.5e-3):
@@ -579,7 +579,7 @@ def test_measurement_paths_are_the_polylines_checked_one_by_one():
     allowed feature none), then its approach (the touched feature allowed); the same segments,
     bit for bit, the same touch and allowed feature per polyline."""
     from sim.clearance import path_segments
-    from sim.mfb_scene import _touch_paths, link_paths
+    from sim.mfb_scene import _touch_paths
 
     for holes, (A_deg, C_deg) in (((3, 4, 5), (0, 0)), ((1,), (-90, 45)), ((10, 11), (-45, 120))):
         pl = _holes(*holes)
@@ -589,7 +589,7 @@ def test_measurement_paths_are_the_polylines_checked_one_by_one():
         top = 0.021
         for n in (pl.n, 1, 2):
             sub = pl.select(np.arange(n))
-            links = link_paths(T_R_A, start[:n], sub.feature, sub.level, top)
+            links = _link_paths_one_by_one(T_R_A, start[:n], sub.feature, sub.level, top)
             paths = []
             for i in range(n):
                 if links[i] is not None:
