@@ -7,7 +7,7 @@ import pytest
 
 from core.exceptions import PlanError
 from sim import artefacts as A
-from sim.clearance import MARGIN_M, path_samples
+from sim.clearance import MARGIN_M, path_samples, path_segments
 from sim.mfb_scene import WorkZone, check_measurement
 from sim.probe import ProbeConfig
 from sim.scene import Scene, check_touch_paths
@@ -121,13 +121,21 @@ def test_broad_phase_skips_no_colliding_sample(A_deg, C_deg, J_m):
     wz = _zone(A_deg, C_deg, J_m)
     rng = np.random.default_rng(11 + abs(A_deg))
     T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
-    pts, seg, path = path_samples(_random_paths(rng, T_R_A, 40), np.full(40, 3e-3), joints=False)
+    paths = _random_paths(rng, T_R_A, 40)
+    pts, seg, path = path_samples(paths, np.full(40, 3e-3), joints=False)
     feats = np.array([f.name for f in BAR.features] + [""], dtype=object)
-    allow = feats[rng.integers(0, len(feats), 40)][path]
+    allow_path = feats[rng.integers(0, len(feats), 40)]
+    allow = allow_path[path]
     near = wz.clearance().near(pts, allow, seg)
     hit = np.array([bool(wz.collisions(p, f)) for p, f in zip(pts, allow)])
     assert hit.sum() > 20 and (~hit).sum() > 20  # both kinds drawn
     assert not np.any(hit & ~near)
+    # the path checks' two broad phases (the ball against the bar, shared by every zone of
+    # the bar, and the rest of this zone's), whole segments at once: no colliding sample left out
+    kept = np.zeros(len(pts), bool)
+    kept[wz.near_segments(path_segments(paths, np.full(40, 3e-3), joints=False), allow_path)] = True
+    assert not np.any(hit & ~kept)
+    assert (~kept).sum() > 0.3 * (~hit).sum()
     assert (~near).sum() > 0.3 * (~hit).sum()
 
 
