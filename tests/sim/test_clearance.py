@@ -429,6 +429,29 @@ def test_certificates_clear_exactly_their_radius():
     assert clr.near_segments(*seg(R - 1e-3, R - 1e-3)).size > 0  # but nothing else may
 
 
+@pytest.mark.parametrize("axis,sign", [(0, 1), (0, -1), (1, 1), (1, -1), (2, 1)])
+def test_a_move_toward_each_face_is_kept_within_the_margin(axis, sign):
+    """Known answer on every face the ball can reach (the box's top, x and y sides): a move
+    along the face's normal that ends 0.05 mm from the box (within the 0.1 mm margin) is kept,
+    one that ends 0.15 mm away is cleared (the swept bound along the box's axis is exact for a
+    sphere moving straight at a face). A box test that loses 1 mm of overlap along one axis
+    drops the first (checked by mutation, on each of x, y, z in turn)."""
+    from sim.clearance import path_segments
+
+    face = np.array([0.050, 0.050, 0.0])  # the faces' distance from the box's axis line (x, y), top z = 0
+    centre = np.array([0.0, 0.0, -0.010])
+    for gap, want_near in ((0.05e-3, True), (0.15e-3, False)):
+        n = np.zeros(3)
+        n[axis] = sign
+        on_face = centre + 0.0  # the point of the face nearest the approach, then out along n
+        on_face[axis] = sign * face[axis] if axis < 2 else 0.0
+        end = on_face + n * (R + gap)
+        start = end + n * 5e-3
+        sg = path_segments([np.array([start, end])], [0.5e-3], joints=False)
+        near = _sphere_over_box().near_segments(sg, [""])
+        assert (near.size > 0) == want_near, (axis, sign, gap)
+
+
 def test_a_segment_with_no_pair_in_its_padded_box_certifies_exactly_the_padding():
     """Known answer for the other source of certificates: a segment whose box, padded by 0.5 mm,
     meets no pair's box (pairs are inflated by the 0.1 mm margin) is clear by at least the padding,
@@ -636,3 +659,28 @@ def test_campaign_paths_are_the_polylines_checked_one_by_one(monkeypatch):
             paths.append((approach[i], 0.25e-3, feats[i]))
         _same_segments(seen[0][0], path_segments([p[0] for p in paths], [p[1] for p in paths], joints=True))
         assert seen[0][1] == [p[2] for p in paths]
+
+
+@pytest.mark.parametrize("weigh_feature", [True, False])
+def test_a_certificate_serves_only_segments_with_its_allowed_feature(monkeypatch, weigh_feature):
+    """An approach into a hole, checked with the hole allowed (the ball's pairs with it left out:
+    a certificate), then as a link (nothing allowed): the ball at the contact is on the hole's
+    geoms, so it must be kept. Without the feature in the cell hash (weigh_feature False) the
+    two segments share a key: the lookup's feature check alone keeps the certificate out."""
+    from sim import clearance as C
+    from sim import mfb_scene
+
+    if not weigh_feature:
+        monkeypatch.setattr(C, "_HASH", np.r_[C._HASH[:-1], np.uint64(0)])
+    mfb_scene._BALLS.clear()
+    wz = _zone(0, 0, (0, 0, 0.150))
+    pl = _holes(3)
+    T_R_A = _T_R_W(0, 0) @ FLAT
+    i = int(np.flatnonzero(np.char.startswith(np.asarray(pl.feature, str), "hole"))[0])
+    Xn = A.apply_T(T_R_A, pl.w_A[i] + R * pl.wn_A[i])
+    start = Xn + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A[i])
+    sg = path_segments([np.array([start, Xn])], [0.5e-3], joints=False)
+    clr = wz.ball_clearance()
+    assert clr.near_segments(sg, [pl.feature[i]]).size == 0  # cleared, certificates left
+    assert clr.near_segments(sg, [""]).size > 0  # the contact itself: on the hole's geoms
+    mfb_scene._BALLS.clear()
