@@ -48,6 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.kinematics import _cross_rows as _cross  # (a_k x b_k for (k,3) rows, without np.cross's overhead)
 from core.memo import Memo
 
 #: A sample is skipped only when every probe/table geom pair is at least this far
@@ -137,15 +138,6 @@ def _mv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
 def _tmv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
     """A_k^T v_k for (k,3,3), (k,3)."""
     return A[:, 0, :] * v[:, 0, None] + A[:, 1, :] * v[:, 1, None] + A[:, 2, :] * v[:, 2, None]
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a_k x b_k for (k,3), (k,3) (numpy's cross, without its per-call overhead)."""
-    out = np.empty_like(a)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
