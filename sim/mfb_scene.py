@@ -25,6 +25,12 @@ bar and the workholder lie on the table's side of its face. The tip ball
 may touch the geoms of the feature it probes (the exact primitives of
 :mod:`sim.probe` judge that contact); everything else is a collision.
 Not modelled: the A-axis cradle below the table, the machine's guards.
+
+MuJoCo judges every path sample the broad phase (:mod:`sim.clearance`) cannot
+prove clear; the broad phase has two parts (:meth:`WorkZone.near_segments`): the
+stylus ball against the bar, in the bar's frame and shared by every probe and
+placement of that bar (a sphere looks the same from every direction), and the rest
+of the probe and the holder, per work zone and orientation.
 """
 
 from __future__ import annotations
@@ -277,7 +283,8 @@ class WorkZone:
         n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
         holder = list(range(n0)) + [n0 + k for k in sol.holder]
         self._probe_mjcf = probe_geoms_mjcf(J_m, stylus_r_m, finger_m)
-        # the probe's geoms from their definitions (the broad phase's; the MJCF is written from them)
+        # the probe's geoms from their definitions (the broad phase's; the MJCF is written from the
+        # same parts, _probe_parts)
         pnames, self._probe_geoms = probe_geoms(J_m, stylus_r_m, finger_m)
         npg = len(pnames)
         # geom ids of the full model (compiled when MuJoCo first needs it, self.model): the table
