@@ -186,7 +186,7 @@ class Clearance:
         self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
         plo, phi = probe.aabb()
         ng, nh = len(probe.kind), len(table.kind)
-        self.feature, tlo, thi, cl, h_order, self._fid = _table_prep(table, table_feature)
+        self.feature, tlo, thi, cl, h_order, self._fid, tfid = _table_prep(table, table_feature)
         self.pair_probe, self.pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
         if pairs is not None:  # (the order kept: by probe geom, cluster, table geom)
             keep = np.asarray(pairs, bool)[self.pair_probe, self.pair_table]
@@ -205,9 +205,7 @@ class Clearance:
         # each cluster's feature as a number (_fid) when it is the ball's (the clusters a touch
         # of that feature may meet), else -1
         first = self._cstart
-        fid = np.fromiter(map(self._fid.get, self.feature[self.pair_table[first]], itertools.repeat(-1)), int,
-                          len(first))
-        self._cballf = np.where(self.pair_probe[first] == self.ball, fid, -1)
+        self._cballf = np.where(self.pair_probe[first] == self.ball, tfid[self.pair_table[first]], -1)
         self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
         self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
         # the same boxes one coordinate a row (3, k), for _overlap_rows
@@ -516,7 +514,8 @@ _TABLE_PREP = Memo(16)
 
 def _table_prep(table: Geoms, table_feature):
     """(feature (k,) object, tlo, thi (k,3), cluster (k,) int, geoms in cluster order (k,),
-    feature -> number) of a table side; computed once per (table, table_feature) objects."""
+    feature -> number, each geom's feature number (k,) int (-1: none)) of a table side; computed
+    once per (table, table_feature) objects."""
     key = (id(table), id(table_feature))
     hit = _TABLE_PREP.get(key)
     if hit is not None and hit[0] is table and hit[1] is table_feature:
@@ -529,7 +528,8 @@ def _table_prep(table: Geoms, table_feature):
     _, cl = np.unique(np.array(k, dtype=object).astype(str), return_inverse=True)
     h_order = np.lexsort((np.arange(len(feature)), cl))
     fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
-    out = (feature, tlo, thi, cl, h_order, fid)
+    tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
+    out = (feature, tlo, thi, cl, h_order, fid, tfid)
     _TABLE_PREP[key] = (table, table_feature, out)
     return out
 

@@ -152,23 +152,24 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     from them); poses agree with the compiled model's to rounding (1e-16 m)."""
     from .clearance import Geoms
 
+    from .clearance import _cross
+
     parts = _probe_parts(J_m, r_m, finger_m)
     k = len(parts)
-    centre, axes = np.zeros((k, 3)), np.tile(np.eye(3), (k, 1, 1))
-    kind, size = np.zeros(k, int), np.zeros((k, 3))
-    for j, (_, typ, ends, c, sz) in enumerate(parts):
-        kind[j] = {"sphere": _SPHERE_T, "capsule": _CAPSULE_T, "cylinder": _CYLINDER_T}[typ]
-        size[j, :len(sz)] = sz
-        if ends is None:
-            centre[j] = c
-            continue
-        d = ends[1] - ends[0]
-        centre[j], size[j, 1] = (ends[0] + ends[1]) / 2, np.linalg.norm(d) / 2
-        z = d / np.linalg.norm(d)
-        e = np.array([0.0, 1.0, 0.0]) if abs(z[2]) > 0.9 else np.array([0.0, 0.0, 1.0])
-        x = np.cross(e, z)
-        x /= np.linalg.norm(x)
-        axes[j] = np.column_stack([x, np.cross(z, x), z])
+    kind = np.array([{"sphere": _SPHERE_T, "capsule": _CAPSULE_T, "cylinder": _CYLINDER_T}[p[1]] for p in parts])
+    size = np.array([tuple(p[4]) + (0.0,) * (3 - len(p[4])) for p in parts])
+    cap = kind == _CAPSULE_T
+    centre = np.array([p[3] if p[2] is None else np.zeros(3) for p in parts])
+    axes = np.tile(np.eye(3), (k, 1, 1))
+    ends = np.array([p[2] for p in parts if p[2] is not None]).reshape(-1, 2, 3)  # the capsules'
+    d = ends[:, 1] - ends[:, 0]
+    L = np.sqrt(np.sum(d * d, axis=1))
+    centre[cap], size[cap, 1] = (ends[:, 0] + ends[:, 1]) / 2, L / 2
+    z = d / L[:, None]  # each capsule's frame: z its axis, x normal to it and to y (or z) of R
+    e = np.where((np.abs(z[:, 2]) > 0.9)[:, None], (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    x = _cross(e, z)
+    x /= np.sqrt(np.sum(x * x, axis=1))[:, None]
+    axes[cap] = np.stack([x, _cross(z, x), z], axis=2)
     rb = np.where(kind == _SPHERE_T, size[:, 0], np.where(kind == _CAPSULE_T, size[:, 0] + size[:, 1],
                                                           np.hypot(size[:, 0], size[:, 1])))
     return [p[0] for p in parts], Geoms(centre, axes, kind, size, rb)
