@@ -1044,8 +1044,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     res = vol.iso_view(res_g)
     if progress is not None:
         progress(steps - 1, steps)
+    cal_map = mfb.calibration_map()  # the bar's heights as its rods give them (the draw above is so)
     unc = (vol.uncertainty(res, meas, probe.sigma_m, u_cal, runs=mc_runs, rng=rng,
-                           u_place=np.asarray(u_place, float) if draw else None)
+                           u_place=np.asarray(u_place, float) if draw else None, cal_map=cal_map)
            if mc_runs or noisy else None)
     # truth in the same gauge
     d = res.design
@@ -1068,7 +1069,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, sigma_um, slopes)
     doc["estimate"] = vol.estimate(res_g, vol.covariance(res_g, meas, probe.sigma_m, u_cal,  # vmt-estimate/1
-                                                         np.asarray(u_place, float) if draw else None))
+                                                         np.asarray(u_place, float) if draw else None,
+                                                         cal_map=cal_map))
     doc["machine"] = cfg.name
     if unc is not None:
         doc["within_u95"] = within_u95(doc["errors"])
@@ -1533,9 +1535,10 @@ def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 
     component of each stylus (``u_stylus_um`` on it alone: 3 x the plan's styli runs), 2 x the
     root sum of squares of the changes: exact for a response linear in the offsets (the
     draws' share, ``stylus_runs`` random draws, is +-30 % from 6 of them)."""
-    from core import volumetric as vol
+    from core import mfb, volumetric as vol
 
     t_lo, t_hi = _budget_settings(2, stylus_runs, temperature_range_C)
+    cal_map = mfb.calibration_map()  # the heights as the rods give them (as run propagates them)
     styli = list(dict.fromkeys(ms.stylus for ms in PLANS[name]().measurements)) if name in PLANS else []
     total = 5 + (3 * len(styli) if stylus_components else int(stylus_runs))
     step = [0]
@@ -1556,8 +1559,9 @@ def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 
     for src, (sg, uc, up) in {"probing noise": (sigma, 0 * u_cal, None),
                               "bar calibration": (0.0, u_cal, None),
                               "placement": (0.0, 0 * u_cal, np.asarray(U_PLACE, float))}.items():
-        U[src] = vol.uncertainty(base.result, base.meas, sg, uc, runs=0, u_place=up).U95_lin
-    full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float))
+        U[src] = vol.uncertainty(base.result, base.meas, sg, uc, runs=0, u_place=up, cal_map=cal_map).U95_lin
+    full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float),
+                               cal_map=cal_map)
     gauge = full_lin.U95_lin <= 1e-12  # values the conventions fix (zero U95 whatever the input)
     th0 = base.result.theta
     if stylus_components:
