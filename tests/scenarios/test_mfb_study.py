@@ -171,3 +171,26 @@ def test_linear_calibration_share_is_the_simulated_bars_own():
     assert 1.09 < indep / sim_bar[ezx] < 1.11 and 3.6e-6 < sim_bar[ezx] < 3.7e-6
     # and the bar's own map is the rods' (core.mfb's reading of section 2.1, sim's built apart)
     assert np.allclose(mfb.calibration_map(), R, atol=1e-12)
+
+
+def test_within_u95_counts_and_what_the_model_expects_of_correlated_nodes():
+    # known answers: an error whose 4 nodes move together (one draw for all) is within everywhere or
+    # nowhere, 95 % of the time within: the count of values is 4 or 0 (expected 3.8, 2.5 % point 0);
+    # 4 independent nodes: binomial(4, 0.95), P(count <= 2) = 1.4 %, so the 2.5 % point is 3 (SE of
+    # the expected counts from 20,000 draws: 0.006 and 0.003)
+    z = 1.959964  # U95 / sigma of a normal value
+    errors = {"EXX": {"u95": [0.0, z, z, z, z], "identified": [0.0, 0.1, 2.5, 0.0, -3.0], "injected": [0.0] * 5},
+              "EYX": {"u95": [z] * 4, "identified": [0.2, 0.2, 0.2, 0.2], "injected": [0.0] * 4},
+              "EC0Y": {"u95": [0.0], "identified": [5.0], "injected": [0.0]}}  # fixed by a convention: not counted
+    w = S.within_u95(errors)
+    assert (w["inside"], w["total"], w["errors_inside"], w["errors_total"]) == (6, 8, 1, 2)
+    sl = {"EXX": slice(0, 5), "EYX": slice(5, 9), "EC0Y": slice(9, 10)}
+    cov = np.zeros((10, 10))
+    cov[:5, :5] = 1e-12  # sigma 1 um, the same draw at every node
+    cov[5:9, 5:9] = 1e-12 * np.eye(4)
+    for corr, ind in ((True, False), (False, True)):
+        e = {k: v for k, v in errors.items() if (k == "EXX" and corr) or (k == "EYX" and ind)}
+        m = S.within_u95(e, cov, sl, np.random.default_rng(5), draws=20000)
+        # the error within at every node: 0.95 when its nodes move together, 0.95^4 = 0.81 when not
+        assert abs(m["expected"] - 3.8) < 0.03 and abs(m["errors_expected"] - (0.95 if corr else 0.95 ** 4)) < 0.01
+        assert m["range95"] == ([0, 4] if corr else [3, 4])
