@@ -500,14 +500,23 @@ def within_u95(errors: dict, cov=None, slices: dict | None = None, rng: np.rando
     return out
 
 
-def _bar_doc(E_cal_m, u_cal_m, E_true_m, source: str) -> dict:
+def _bar_doc(E_cal_m, u_cal_m, E_true_m, source: str, cal_map=None) -> dict:
     """The bar block of the result JSON: calibrated and true deviations of the points
-    of interest in one gauge (:func:`bar_gauge`), um, U95 = 2 u."""
+    of interest in one gauge (:func:`bar_gauge`), um, U95 = 2 u. ``cal_map`` given
+    (:func:`core.mfb.calibration_map`): ``u_cal_m`` is each point's own (the declared
+    calibration, drawn through the map), and U95 is that of calibrated - true in the gauge:
+    every point referred to O_1 (and O_12), an inner height's u 0.41-0.46 um for a declared
+    0.35, the ends' 0. Without: ``u_cal_m`` is already in the gauge (a reversal's)."""
     from sim import artefacts as A
 
     cal, tru = bar_gauge(E_cal_m), bar_gauge(E_true_m)
+    u = np.asarray(u_cal_m, float)
+    if cal_map is not None:  # bar_gauge is linear: its matrix from the unit deviations
+        G = np.column_stack([bar_gauge(e.reshape(u.shape)).ravel() for e in np.eye(u.size)])
+        GM = G @ np.asarray(cal_map, float) * u.ravel()[None, :]
+        u = np.sqrt(np.einsum("ij,ij->i", GM, GM)).reshape(u.shape)
     return {"source": source, "x_mm": (np.arange(12) * A.MFB_PITCH_M * 1e3).tolist(),
-            "calibrated_um": (cal * 1e6).tolist(), "U95_um": (2.0 * np.asarray(u_cal_m) * 1e6).tolist(),
+            "calibrated_um": (cal * 1e6).tolist(), "U95_um": (2.0 * u * 1e6).tolist(),
             "true_um": (tru * 1e6).tolist(), "calibrated_minus_true_max_um": float(np.abs(cal - tru).max() * 1e6),
             "gauge": "Exx from O_1; Eyx, Ezx against the line O_1 O_12 (a rigid move of the bar, absorbed by "
                      "each set-up's pose)"}
@@ -1105,7 +1114,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
         doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
     doc["bar"] = _bar_doc(E_cal_O, u_cal, art.info["E_MFB_m"],
-                          "declared" if bar_calibration is None else "calibration given (e.g. reversal on a CMM)")
+                          "declared" if bar_calibration is None else "calibration given (e.g. reversal on a CMM)",
+                          cal_map if bar_calibration is None else None)
     if collision is not None:
         doc["collision_check"] = collision
     if progress is not None:
