@@ -66,7 +66,9 @@ over the end rods); 0.003 um / 0.03 urad for errors the tables represent
 
 Uncertainty: probing noise (0.125 um standard deviation, the paper's 0.25 um
 at k = 2), the bar's calibration (the
-true bar differs from its calibration by a draw of ``u_cal_um``) and the
+true bar differs from its calibration by a draw of ``u_cal_um``, its 12
+heights kept to what its 11 rods can give: :func:`core.mfb.calibration_map`,
+propagated alike) and the
 placement errors (:data:`U_PLACE`, roll included, drawn in the simulator),
 by linear propagation and Monte Carlo (JCGM 101) through the same
 estimator. At 0.25 um probing noise, over four seeded campaigns, U95 at

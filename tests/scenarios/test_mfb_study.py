@@ -171,6 +171,14 @@ def test_linear_calibration_share_is_the_simulated_bars_own():
     assert 1.09 < indep / sim_bar[ezx] < 1.11 and 3.6e-6 < sim_bar[ezx] < 3.7e-6
     # and the bar's own map is the rods' (core.mfb's reading of section 2.1, sim's built apart)
     assert np.allclose(mfb.calibration_map(), R, atol=1e-12)
+    # the run's bar block: calibrated - true in the gauge it is shown in (against O_1 and the line
+    # O_1 O_12, S.bar_gauge), from the simulator's response; Exx 2 x 0.2 x sqrt(2) from hole 2 on
+    G = np.column_stack([S.bar_gauge(e.reshape(12, 3)).ravel() for e in np.eye(36)])
+    GR = G @ R * u_cal.ravel()
+    U = 2e6 * np.sqrt(np.einsum("ij,ij->i", GR, GR)).reshape(12, 3)
+    assert np.allclose(r.doc["bar"]["U95_um"], U, rtol=1e-9, atol=1e-12)
+    assert np.allclose(U[1:, 0], 0.4 * np.sqrt(2.0)) and np.all(U[[0, 11], 1:] < 1e-12)
+    assert 0.82 < U[1:11, 2].min() and U[1:11, 2].max() < 0.93
 
 
 def test_within_u95_counts_and_what_the_model_expects_of_correlated_nodes():
