@@ -71,12 +71,12 @@ heights kept to what its 11 rods can give: :func:`core.mfb.calibration_map`,
 propagated alike) and the
 placement errors (:data:`U_PLACE`, roll included, drawn in the simulator),
 by linear propagation and Monte Carlo (JCGM 101) through the same
-estimator. At 0.25 um probing noise, over four seeded campaigns, U95 at
-the nodes: positioning median 0.8 um, max 2.1 um; straightness 1.3 / 4.3 um
-(EZX next to its end nodes, bar calibration dominated); angular 5.0 / 15.8
-urad (the EAX / EBY twist ramps); squareness 4.9 / 8.7 urad. 97 % of 504
-identified values within U95 (RMS error / U95 0.46); a noisy run is off by
-1-4 um / 5-11 urad. What is left weakest: ``observability(...).weakest``.
+estimator. At 0.25 um probing noise, over four seeded campaigns (seeds
+11-14), U95 at the nodes: positioning median 0.69 um, max 0.79 um;
+straightness 0.92 / 3.8 um (EZX next to its end nodes, bar calibration
+dominated); angular 3.7 / 13.8 urad (the EAX / EBY twist ramps); squareness
+3.8 / 5.1 urad. 94 % of 504 identified values within U95 (RMS error / U95
+0.53); a noisy run is off by 0.9-3.2 um / 4.8-12.7 urad. What is left weakest: ``observability(...).weakest``.
 
 The scenario injects ``sim.machines.realistic_errors`` of the machine's
 linear axes minus the 10 mm screw-pitch ripple: a bar of 50 mm pitch
@@ -92,11 +92,11 @@ collisions and reach in the MuJoCo work zone (:func:`check_plan`,
 :mod:`sim.mfb_scene`); the rotary axes' errors are absorbed by each
 set-up's pose. Noise-free on the realistic machine (rotary axes' errors
 included): 0.041 um / 0.49 urad (EBY). At 0.125 um probing noise (seed 1):
-U95 max 1.1 um positioning, 1.6 um straightness; the twists: EAX U95 30
+U95 max 0.73 um positioning, 1.6 um straightness; the twists: EAX U95 28.9
 urad on a 4.8 urad peak-to-peak signal (not resolved: on this tool-side
 chain a ramp of an angular error of X moves every bar along X rigidly, and
-only the diagonals' bend, ~0.1 um, sees it), EBY 7.8 urad on 5.95 (seen by
-T0 vs TXF in one pose, dJ_X 100 mm), ECZ 9.1 urad on 3.6 (dJ 50 mm star
+only the diagonals' bend, ~0.1 um, sees it), EBY 7.7 urad on 5.95 (seen by
+T0 vs TXF in one pose, dJ_X 100 mm), ECZ 8.5 urad on 3.6 (dJ 50 mm star
 arms; not resolved at this noise).
 
 The bar's calibration: declared (its default deviations, u_cal_um) or the
