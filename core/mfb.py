@@ -318,6 +318,47 @@ def _rod_pair(i: int, rods: set) -> tuple[int, int]:
     raise FitError(f"MFB: hole {i} has no two neighbouring rods measured (PL_{i} undefined)")
 
 
+def rod_height_map(geom: BarGeometry = MFB) -> np.ndarray:
+    """(N, N - 1) how the points of interest's heights follow the rods': ``z(O_i) = W @ h``.
+
+    ``h`` the heights (z_A) of rods 1..N-1, rod j's axis at x_A = (j - 1/2) L; ``PL_i`` passes
+    through the rods around hole i (:func:`_rod_pair`: (i-1, i), the end holes' two nearest) and
+    O_i is read on it at x_A = (i - 1) L (section 2.1): the two rods' mean for an inner hole,
+    1.5 / -0.5 for an end hole. N heights from N - 1 rods: one combination of the O_i's heights
+    (alternating in sign) is no shape a bar can take, and no calibration of it can err that way.
+    """
+    N = geom.n_holes
+    rods = set(range(1, N))
+    W = np.zeros((N, N - 1))
+    for i in range(1, N + 1):
+        a, b = _rod_pair(i, rods)
+        t = ((i - 1) - (a - 0.5)) / (b - a)  # hole i's place between rods a and b (0 at a, 1 at b)
+        W[i - 1, a - 1], W[i - 1, b - 1] = 1.0 - t, t
+    return W
+
+
+def calibration_map(geom: BarGeometry = MFB) -> np.ndarray:
+    """(3N, 3N) how a bar calibration's errors reach its points of interest
+    (``cal_map`` of :func:`core.volumetric.uncertainty`): the points' (x, y, z) deviations, point
+    by point, are off by ``calibration_map() @ (u_cal.ravel() * n)``, n independent standard normal.
+
+    x and y as declared, one independent error per point; the heights projected onto the ones
+    the rods can give (``P = W W^+``, :func:`rod_height_map`): a calibration that derives O_i from
+    the rods (the paper's, and the reversal on a CMM) errs only in the heights a bar can have,
+    and the simulated bar is built so (``sim.artefacts.multi_feature_bar``). For N = 12: 0.99
+    of the declared variance at holes 1 and 12, 0.94 at 2 and 11, 0.89 at 3-10, neighbours
+    correlated, none in the alternating combination; taken as independent, that combination
+    (which 9 nodes over 12 holes hardly tell from EZX) made the 3-axis plan's calibration
+    share of EZX's first free node 4.01 um U95 where the bar's draws give 3.65.
+    """
+    N = geom.n_holes
+    W = rod_height_map(geom)
+    M = np.eye(3 * N)
+    iz = 3 * np.arange(N) + 2
+    M[np.ix_(iz, iz)] = W @ np.linalg.pinv(W)
+    return M
+
+
 def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB, *, batched: bool = False) -> PointsOfInterest:
     """Points of interest and R_MFB from fitted features (section 2.1). ``batched``: the
     planes PL_i of all holes in one call (:func:`core.fit.planes_point_normal`, to rounding;

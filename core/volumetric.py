@@ -999,8 +999,20 @@ def _identified_pose(res: VolumetricResult, m) -> np.ndarray:
     return out
 
 
+def _cal_columns(K, B, u_cal, cal_map) -> np.ndarray:
+    """(n, 3N) ``K B cal_map diag(u_cal)``: the estimate's response to the calibration's
+    independent errors (``cal_map`` None: one per point and direction)."""
+    KB = K @ B
+    if cal_map is not None:
+        M = np.asarray(cal_map, float)
+        if M.shape != (B.shape[1], B.shape[1]) or not np.all(np.isfinite(M)):
+            raise ConfigError(f"cal_map must be a finite ({B.shape[1]}, {B.shape[1]}) matrix, got {M.shape}")
+        KB = KB @ M
+    return KB * u_cal.ravel()[None, :]
+
+
 def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, runs: int = 1000,
-                rng: np.random.Generator | None = None, u_place=None) -> VolumetricUncertainty:
+                rng: np.random.Generator | None = None, u_place=None, cal_map=None) -> VolumetricUncertainty:
     """Linear propagation and Monte Carlo (JCGM 101) of probing noise, bar calibration and placement.
 
     Parameters
@@ -1022,6 +1034,12 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
         estimated, moves the shifted holes along z_A (not used) and the
         points by roll x their calibrated offsets from the bar axis (um):
         a small share, propagated, not assumed.
+    cal_map : (3N, 3N) float, optional
+        How the calibration's errors reach the points: their (x, y, z)
+        deviations, point by point, are off by ``cal_map @ (u_cal.ravel() * n)``,
+        n independent standard normal (default: the identity, independent per
+        point and direction). A multi-feature bar's heights come from its rods:
+        :func:`core.mfb.calibration_map`.
 
     Linear propagation: ``u^2 = sum (K G)^2 sigma^2 + (K B u_cal)^2 +
     (K B_p u_place)^2`` (JCGM 100 eq. 13 for the linear estimator ``K``);
@@ -1043,7 +1061,7 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
     for r0, GR in blocks:
         KG = K[:, r0:r0 + GR.shape[0]] @ GR
         var += sigma_probe_m ** 2 * np.einsum("ij,ij->i", KG, KG)
-    KB = (K @ B) * u_cal.ravel()[None, :]
+    KB = _cal_columns(K, B, u_cal, cal_map)
     var += np.einsum("ij,ij->i", KB, KB)
     KP = (K @ Bp) * np.tile(up, Bp.shape[1] // 6)[None, :]
     var += np.einsum("ij,ij->i", KP, KP)
@@ -1064,10 +1082,12 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
     return VolumetricUncertainty(u, 2.0 * u, lo, hi, U, int(runs))
 
 
-def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None) -> np.ndarray:
+def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
+               cal_map=None) -> np.ndarray:
     """(n, n) covariance of ``res.theta`` by linear propagation, the same inputs as :func:`uncertainty`.
 
-    ``K G G^T K^T sigma^2`` per measurement plus ``(K B) diag(u_cal^2) (K B)^T`` plus the placements'
+    ``K G G^T K^T sigma^2`` per measurement plus ``(K B M) diag(u_cal^2) (K B M)^T`` (M = ``cal_map``,
+    default the identity) plus the placements'
     (JCGM 100 eq. 13 in matrix form); its diagonal is :func:`uncertainty`'s ``u_lin**2``.
     """
     u_cal = np.asarray(u_cal_m, float)
@@ -1080,7 +1100,7 @@ def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pla
     for r0, GR in blocks:
         KG = K[:, r0:r0 + GR.shape[0]] @ GR
         cov += sigma_probe_m ** 2 * (KG @ KG.T)
-    KB = (K @ B) * u_cal.ravel()[None, :]
+    KB = _cal_columns(K, B, u_cal, cal_map)
     KP = (K @ Bp) * np.tile(up, Bp.shape[1] // 6)[None, :]
     return cov + KB @ KB.T + KP @ KP.T
 

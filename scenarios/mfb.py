@@ -66,15 +66,17 @@ over the end rods); 0.003 um / 0.03 urad for errors the tables represent
 
 Uncertainty: probing noise (0.125 um standard deviation, the paper's 0.25 um
 at k = 2), the bar's calibration (the
-true bar differs from its calibration by a draw of ``u_cal_um``) and the
+true bar differs from its calibration by a draw of ``u_cal_um``, its 12
+heights kept to what its 11 rods can give: :func:`core.mfb.calibration_map`,
+propagated alike) and the
 placement errors (:data:`U_PLACE`, roll included, drawn in the simulator),
 by linear propagation and Monte Carlo (JCGM 101) through the same
-estimator. At 0.25 um probing noise, over four seeded campaigns, U95 at
-the nodes: positioning median 0.8 um, max 2.1 um; straightness 1.3 / 4.3 um
-(EZX next to its end nodes, bar calibration dominated); angular 5.0 / 15.8
-urad (the EAX / EBY twist ramps); squareness 4.9 / 8.7 urad. 97 % of 504
-identified values within U95 (RMS error / U95 0.46); a noisy run is off by
-1-4 um / 5-11 urad. What is left weakest: ``observability(...).weakest``.
+estimator. At 0.25 um probing noise, over four seeded campaigns (seeds
+11-14), U95 at the nodes: positioning median 0.69 um, max 0.79 um;
+straightness 0.92 / 3.8 um (EZX next to its end nodes, bar calibration
+dominated); angular 3.7 / 13.8 urad (the EAX / EBY twist ramps); squareness
+3.8 / 5.1 urad. 94 % of 504 identified values within U95 (RMS error / U95
+0.53); a noisy run is off by 0.9-3.2 um / 4.8-12.7 urad. What is left weakest: ``observability(...).weakest``.
 
 The scenario injects ``sim.machines.realistic_errors`` of the machine's
 linear axes minus the 10 mm screw-pitch ripple: a bar of 50 mm pitch
@@ -90,11 +92,11 @@ collisions and reach in the MuJoCo work zone (:func:`check_plan`,
 :mod:`sim.mfb_scene`); the rotary axes' errors are absorbed by each
 set-up's pose. Noise-free on the realistic machine (rotary axes' errors
 included): 0.041 um / 0.49 urad (EBY). At 0.125 um probing noise (seed 1):
-U95 max 1.1 um positioning, 1.6 um straightness; the twists: EAX U95 30
+U95 max 0.73 um positioning, 1.6 um straightness; the twists: EAX U95 28.9
 urad on a 4.8 urad peak-to-peak signal (not resolved: on this tool-side
 chain a ramp of an angular error of X moves every bar along X rigidly, and
-only the diagonals' bend, ~0.1 um, sees it), EBY 7.8 urad on 5.95 (seen by
-T0 vs TXF in one pose, dJ_X 100 mm), ECZ 9.1 urad on 3.6 (dJ 50 mm star
+only the diagonals' bend, ~0.1 um, sees it), EBY 7.7 urad on 5.95 (seen by
+T0 vs TXF in one pose, dJ_X 100 mm), ECZ 8.5 urad on 3.6 (dJ 50 mm star
 arms; not resolved at this noise).
 
 The bar's calibration: declared (its default deviations, u_cal_um) or the
@@ -454,11 +456,23 @@ def bar_gauge(E_m) -> np.ndarray:
     return E
 
 
-def within_u95(errors: dict) -> dict:
+def within_u95(errors: dict, cov=None, slices: dict | None = None, rng: np.random.Generator | None = None,
+               draws: int = 4000) -> dict:
     """How many identified values lie within their U95 of the injected ones (values the
-    conventions fix, U95 = 0, left out): ``{inside, total, text}``."""
-    inside = total = 0
-    for e in errors.values():
+    conventions fix, U95 = 0, left out): ``{inside, total, text, errors_inside, errors_total}``,
+    ``errors_inside`` counting the errors with every node within.
+
+    The values are the nodes of 21 errors, and an error's nodes miss together (the bar's
+    calibration, seen over its rods, moves a straightness everywhere at once): the count spreads far
+    wider than 126 independent values would. With ``cov`` (n, n) the reported values' covariance
+    (m^2, rad^2: the linear propagation in the report's gauge), ``slices`` ({symbol: slice} into it)
+    and ``rng``: what the model expects of the same counts over ``draws`` joint normal draws of the
+    errors, ``expected`` / ``errors_expected`` (means) and ``range95`` / ``errors_range95`` (2.5 and
+    97.5 % points).
+    """
+    inside = total = e_in = e_tot = 0
+    idx, U, group = [], [], []
+    for s, e in errors.items():
         if e.get("u95") is None or e.get("injected") is None:
             continue
         u = np.asarray(e["u95"], float)
@@ -466,17 +480,44 @@ def within_u95(errors: dict) -> dict:
         k = u > 1e-9
         inside += int(np.sum(dev[k] <= u[k]))
         total += int(np.sum(k))
-    return {"inside": inside, "total": total, "text": f"{inside}/{total}"}
+        if k.any():
+            e_in += int(np.all(dev[k] <= u[k]))
+            e_tot += 1
+        if cov is not None:
+            idx.extend(np.arange(slices[s].start, slices[s].stop)[k])
+            U.extend(u[k] * 1e-6)  # um / urad -> m / rad
+            group.extend([e_tot - 1] * int(np.sum(k)))
+    out = {"inside": inside, "total": total, "text": f"{inside}/{total}", "errors_inside": e_in, "errors_total": e_tot}
+    if cov is not None and idx:
+        C = np.asarray(cov, float)[np.ix_(idx, idx)]
+        w, V = np.linalg.eigh(0.5 * (C + C.T))
+        x = rng.standard_normal((int(draws), len(idx))) @ (V * np.sqrt(np.clip(w, 0.0, None))).T
+        hit = np.abs(x) <= np.asarray(U)
+        out_ = np.zeros((len(x), e_tot), int)  # per draw and error: nodes outside
+        np.add.at(out_.T, np.asarray(group), (~hit).T)
+        for key, n in (("", hit.sum(axis=1)), ("errors_", np.sum(out_ == 0, axis=1))):
+            out[key + "expected"] = float(n.mean())
+            out[key + "range95"] = [int(np.quantile(n, q, method="inverted_cdf")) for q in (0.025, 0.975)]
+    return out
 
 
-def _bar_doc(E_cal_m, u_cal_m, E_true_m, source: str) -> dict:
+def _bar_doc(E_cal_m, u_cal_m, E_true_m, source: str, cal_map=None) -> dict:
     """The bar block of the result JSON: calibrated and true deviations of the points
-    of interest in one gauge (:func:`bar_gauge`), um, U95 = 2 u."""
+    of interest in one gauge (:func:`bar_gauge`), um, U95 = 2 u. ``cal_map`` given
+    (:func:`core.mfb.calibration_map`): ``u_cal_m`` is each point's own (the declared
+    calibration, drawn through the map), and U95 is that of calibrated - true in the gauge:
+    every point referred to O_1 (and O_12), an inner height's u 0.41-0.46 um for a declared
+    0.35, the ends' 0. Without: ``u_cal_m`` is already in the gauge (a reversal's)."""
     from sim import artefacts as A
 
     cal, tru = bar_gauge(E_cal_m), bar_gauge(E_true_m)
+    u = np.asarray(u_cal_m, float)
+    if cal_map is not None:  # bar_gauge is linear: its matrix from the unit deviations
+        G = np.column_stack([bar_gauge(e.reshape(u.shape)).ravel() for e in np.eye(u.size)])
+        GM = G @ np.asarray(cal_map, float) * u.ravel()[None, :]
+        u = np.sqrt(np.einsum("ij,ij->i", GM, GM)).reshape(u.shape)
     return {"source": source, "x_mm": (np.arange(12) * A.MFB_PITCH_M * 1e3).tolist(),
-            "calibrated_um": (cal * 1e6).tolist(), "U95_um": (2.0 * np.asarray(u_cal_m) * 1e6).tolist(),
+            "calibrated_um": (cal * 1e6).tolist(), "U95_um": (2.0 * u * 1e6).tolist(),
             "true_um": (tru * 1e6).tolist(), "calibrated_minus_true_max_um": float(np.abs(cal - tru).max() * 1e6),
             "gauge": "Exx from O_1; Eyx, Ezx against the line O_1 O_12 (a rigid move of the bar, absorbed by "
                      "each set-up's pose)"}
@@ -1093,8 +1134,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     res = vol.iso_view(res_g)
     if progress is not None:
         progress(steps - 1, steps)
+    cal_map = mfb.calibration_map()  # the bar's heights as its rods give them (the draw above is so)
     unc = (vol.uncertainty(res, meas, probe.sigma_m, u_cal, runs=mc_runs, rng=rng,
-                           u_place=np.asarray(u_place, float) if draw else None)
+                           u_place=np.asarray(u_place, float) if draw else None, cal_map=cal_map)
            if mc_runs or noisy else None)
     # truth in the same gauge
     d = res.design
@@ -1116,13 +1158,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, sigma_um, slopes)
-    doc["estimate"] = vol.estimate(res_g, vol.covariance(res_g, meas, probe.sigma_m, u_cal,  # vmt-estimate/1
-                                                         np.asarray(u_place, float) if draw else None))
+    cov_g = vol.covariance(res_g, meas, probe.sigma_m, u_cal, np.asarray(u_place, float) if draw else None,
+                           cal_map=cal_map)
+    doc["estimate"] = vol.estimate(res_g, cov_g)  # vmt-estimate/1
     doc["machine"] = cfg.name
-    if unc is not None:
-        doc["within_u95"] = within_u95(doc["errors"])
+    if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
+        doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
     doc["bar"] = _bar_doc(E_cal_O, u_cal, art.info["E_MFB_m"],
-                          "declared" if bar_calibration is None else "calibration given (e.g. reversal on a CMM)")
+                          "declared" if bar_calibration is None else "calibration given (e.g. reversal on a CMM)",
+                          cal_map if bar_calibration is None else None)
     if collision is not None:
         doc["collision_check"] = collision
     if progress is not None:
@@ -1582,9 +1626,10 @@ def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 
     component of each stylus (``u_stylus_um`` on it alone: 3 x the plan's styli runs), 2 x the
     root sum of squares of the changes: exact for a response linear in the offsets (the
     draws' share, ``stylus_runs`` random draws, is +-30 % from 6 of them)."""
-    from core import volumetric as vol
+    from core import mfb, volumetric as vol
 
     t_lo, t_hi = _budget_settings(2, stylus_runs, temperature_range_C)
+    cal_map = mfb.calibration_map()  # the heights as the rods give them (as run propagates them)
     styli = list(dict.fromkeys(ms.stylus for ms in PLANS[name]().measurements)) if name in PLANS else []
     total = 5 + (3 * len(styli) if stylus_components else int(stylus_runs))
     step = [0]
@@ -1605,8 +1650,9 @@ def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 
     for src, (sg, uc, up) in {"probing noise": (sigma, 0 * u_cal, None),
                               "bar calibration": (0.0, u_cal, None),
                               "placement": (0.0, 0 * u_cal, np.asarray(U_PLACE, float))}.items():
-        U[src] = vol.uncertainty(base.result, base.meas, sg, uc, runs=0, u_place=up).U95_lin
-    full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float))
+        U[src] = vol.uncertainty(base.result, base.meas, sg, uc, runs=0, u_place=up, cal_map=cal_map).U95_lin
+    full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float),
+                               cal_map=cal_map)
     gauge = full_lin.U95_lin <= 1e-12  # values the conventions fix (zero U95 whatever the input)
     th0 = base.result.theta
     if stylus_components:

@@ -101,12 +101,12 @@ def test_u95_covers_the_truth_and_is_useful():
     # Coverage: the linear U95 (= 2 u) must hold the error of >= 90 % of them
     # (95 % expected; 90 % leaves ~3.6 binomial sigma for 252 values, and the
     # noise-free truncation, 0.074 um / 0.15 urad, is well inside the bands).
-    # Measured 99.2 % (97.4 % over seeds 11-14, 504 values).
+    # Measured 98.4 % (94.4 % over seeds 11-14, 504 values).
     # Not trivially wide: the RMS of error / U95 above 1/3 (0.5 for a calibrated
-    # band; measured 0.35 on these seeds, 0.46 over seeds 11-14), and the bands
-    # themselves small: max U95 over all nodes 2.1 um positioning, 4.3 um
-    # straightness, 15.8 urad angular, 8.7 urad squareness (medians 0.8 um,
-    # 1.3 um, 5.0 urad, 4.9 urad); bounds 3 / 5 um, 20 / 12 urad. (With nodes
+    # band; measured 0.40 on these seeds, 0.53 over seeds 11-14), and the bands
+    # themselves small: max U95 over all nodes (seeds 11-14) 0.79 um positioning,
+    # 3.8 um straightness, 13.8 urad angular, 5.1 urad squareness (medians
+    # 0.69 um, 0.92 um, 3.7 urad, 3.8 urad); bounds 3 / 5 um, 20 / 12 urad. (With nodes
     # spanning every touch and one diagonal per plane they reached 47 um and
     # 110 urad.)
     import numpy as np
@@ -197,8 +197,8 @@ def test_5axis_compensation_closes_the_loop(tmp_path):
         assert outside <= 3, (key, outside)
     assert loop["volumetric"]["volumetric_residual_um"]["rms"] < loop["before"]["volumetric_residual_um"]["rms"] / 5
     # the twists (issue 16 item 2), reported by name: at 0.125 um probing noise
-    # none is resolved (U95 above half its peak-to-peak signal; seed 1: EAX 30 urad
-    # on 4.8, EBY 7.8 on 6.0, ECZ 9.1 on 3.6), and each one's error is within U95
+    # none is resolved (U95 above half its peak-to-peak signal; seed 1: EAX 28.9 urad
+    # on 4.8, EBY 7.7 on 6.0, ECZ 8.5 on 3.6), and each one's error is within U95
     tw = d["twists"]
     assert set(tw) == {"EAX", "EBY", "ECZ"}
     for s, v in tw.items():
