@@ -612,7 +612,7 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     from sim import artefacts as A
     from sim.machine import nominal_T_R_W
     from sim.machines import MACHINES
-    from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurement
+    from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurement, share_ball_model
 
     program = _program(u_place)  # the program run() simulates for this placement tolerance
     key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
@@ -624,6 +624,8 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     cfg = MACHINES[plan.machine]()  # nominal: its table poses need no Machine (sim.machine.nominal_T_R_W)
     art = _nominal_bar()
     per, n_t, n_s, table_poses = {}, 0, 0, {}
+    share_ball_model(art, [(ms.T_W_A, plan.fixtures.get(ms.placement, ()), ms.J_m, FINGERS.get(ms.stylus, 0.0))
+                           for ms in plan.measurements], stylus_r_m)  # one MuJoCo model for the placements
     for ms in plan.measurements:
         T_R_W = table_poses.get(tuple(ms.rot_rad))  # (one per set-up: measurements share them)
         if T_R_W is None:
