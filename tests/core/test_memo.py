@@ -54,6 +54,15 @@ def test_get_or_compute_calls_once_per_miss():
     assert m.get_or_compute(1, f(1)) == 10 and calls == [1, 2, 3, 1]
 
 
+def test_get_or_compute_hit_is_a_use():
+    m = Memo(3)
+    for k in "abc":
+        m.get_or_compute(k, lambda k=k: k.upper())
+    assert m.get_or_compute("a", lambda: "not called") == "A"  # order b, c, a
+    m.get_or_compute("d", lambda: "D")  # drops b
+    assert m.keys() == ["c", "a", "d"]
+
+
 def test_none_and_falsy_values_are_kept():
     calls = []
     m = Memo(4)
