@@ -107,7 +107,7 @@ class Memo:
         -------
         The kept or computed value (``None`` and falsy values are kept like any other).
         """
-        d = self._d  # (get and put inline: a hit, lambda included, 0.37 us against 0.25-0.31 hand-written)
+        d = self._d  # (get and put inline: a hit, lambda included, ~0.1 us more than a hand-written look-up)
         if owner is None:
             v = d.get(key, _MISSING)
             if v is _MISSING:
@@ -115,10 +115,11 @@ class Memo:
             d.move_to_end(key)
             return v
         e = d.get(key)
-        if e is not None and (e[0] is owner or _same(e[0], owner)):
-            d.move_to_end(key)
-            return e[1]
-        return self.put(key, (owner, compute()))[1]  # (a mismatched entry is replaced: a use, nothing dropped)
+        if e is not None:
+            d.move_to_end(key)  # a use, as get's: also for an entry of another owner, replaced below
+            if e[0] is owner or _same(e[0], owner):
+                return e[1]
+        return self.put(key, (owner, compute()))[1]
 
     def __getitem__(self, key: Hashable) -> Any:
         v = self.get(key, _MISSING)

@@ -130,6 +130,22 @@ def test_owner_eviction_order_by_hand():
     assert m.keys() == [k[3], k[2], k[1]]
 
 
+def test_compute_may_use_the_same_memo():
+    # sim.mfb_scene._work_zone's pattern: building a zone looks up (and stores) its placement's
+    # entry in the same memo; the zone is stored after it, as the most recently used
+    m = Memo(3)
+    a = _Art()
+    m.get_or_compute("x", lambda: 0, owner=a)
+    m.get_or_compute("y", lambda: 0, owner=a)
+
+    def zone():
+        return ("zone", m.get_or_compute("place", dict, owner=a))
+
+    z = m.get_or_compute("zone", zone, owner=a)  # stores place (order x, y, place), then zone: drops x
+    assert m.keys() == ["y", "place", "zone"] and z[1] is m["place"][1]
+    assert m.get_or_compute("zone", zone, owner=a) is z
+
+
 def test_owner_kept_alive_while_its_entry_lives():
     # the entry holds the owner, so its id cannot go to another object until the entry goes
     m = Memo(1)
