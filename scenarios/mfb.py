@@ -694,8 +694,7 @@ def _noise_gain(pl_ok, r_m, fits=None, full=None):
     bit for bit, tests/scenarios/test_mfb_scenario.py)."""
     from core import mfb
 
-    key = (tuple(pl_ok.target), tuple(pl_ok.feature), pl_ok.w_A.tobytes(), pl_ok.wn_A.tobytes(), float(r_m))
-    if key not in _GAINS:
+    def gain():
         part = None if full is None else _part_of(full, pl_ok)
         if part is not None:
             rows, cols = part
@@ -703,8 +702,10 @@ def _noise_gain(pl_ok, r_m, fits=None, full=None):
         else:
             G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A, fits=fits)
         G.setflags(write=False)  # shared between runs: read only
-        _GAINS[key] = G
-    return _GAINS[key]
+        return G
+
+    key = (tuple(pl_ok.target), tuple(pl_ok.feature), pl_ok.w_A.tobytes(), pl_ok.wn_A.tobytes(), float(r_m))
+    return _GAINS.get_or_compute(key, gain)
 
 
 def _part_of(full, pl) -> tuple | None:
@@ -808,14 +809,12 @@ def placement_margin_m(u_place=U_PLACE, k: float = PLACEMENT_MARGIN_K) -> float:
         from core.exceptions import ConfigError
 
         raise ConfigError(f"u_place must be 6 standard deviations >= 0 (m, m, m, rad, rad, rad), got {u_place!r}")
-    key = (u.tobytes(), float(k))
-    hit = _MARGINS.get(key)
-    if hit is None:
+    def margin():
         pl = mfb_plan(_nominal_bar(), clearance_m=2.0 * MM, overshoot_m=3.0 * MM)
         s = np.sqrt(((u[:3] * pl.wn_A) ** 2).sum(axis=1) + ((u[3:] * np.cross(pl.w_A, pl.wn_A)) ** 2).sum(axis=1))
-        hit = float(np.ceil(k * s.max() / (0.5 * MM) - 1e-9) * 0.5 * MM)
-        _MARGINS[key] = hit
-    return hit
+        return float(np.ceil(k * s.max() / (0.5 * MM) - 1e-9) * 0.5 * MM)
+
+    return _MARGINS.get_or_compute((u.tobytes(), float(k)), margin)
 
 
 def _program(u_place) -> dict:
