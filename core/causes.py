@@ -23,8 +23,15 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   the Nyquist limit) and ``plausible(values, u95) -> reason or None`` after
   it (lobing amplitudes that differ between set-ups);
 - ``counter(baseline) -> (n, m)``: the plainer explanation's columns (a
-  finer error map for a non-rigid coupling): the cause is refused when
-  they explain as much as it does;
+  finer error map for a non-rigid coupling). When they explain as much as
+  the cause does and the cause explains nothing material and significant
+  beyond them, the design cannot tell the two apart: if the plainer
+  explanation is itself a catalogue cause (``counter_cause``, e.g. the
+  probe's fixed lobes for lobes turned per set-up) the cause is refused
+  and the plainer one is named in its own right; if it has no name (a
+  finer error map is no cause, only a finer baseline) the cause is named
+  ``ambiguous``, the plainer explanation given as the reason (refusing it
+  would leave ``unexplained`` a structure the catalogue does name);
 - ``rebuild(baseline, info) -> (T, n, k)``: the columns for changed
   nonlinear parameters ``nonlinear`` (a period, a position; arrays give T
   trials at once): the engine refines them and carries their uncertainty;
@@ -107,6 +114,7 @@ class Cause:
     plausible: Callable | None = None
     counter: Callable | None = None
     counter_scan: Callable | None = None
+    counter_cause: str | None = None
 
     @property
     def doc(self) -> str:
@@ -981,7 +989,8 @@ REGISTRY = (
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
           {"pretravel_variation_pv_um": (0, 50)}, counter_scan=fixture_slip),
     Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
-          {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter=common_lobing, counter_scan=fixture_slip),
+          {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter=common_lobing, counter_scan=fixture_slip,
+          counter_cause="probe_lobing"),
     Cause("stylus_bending", ("planar",), "probe", bending_scans, bending_magnitudes,
           {"pretravel_change_um": (-50, 50)}, counter_scan=fixture_slip),
     Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,

@@ -1188,6 +1188,33 @@ def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> float:
     return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2
 
 
+def _beyond_counter(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: float, settings) -> tuple:
+    """What the cause's columns ``E`` (rows used) explain once its plainer explanation is in the model.
+
+    The plainer explanation explaining as much does not make the cause's
+    own part vanish: a machine can have a finer rigid error map *and* a
+    non-separable coupling, or lobes that are partly fixed and partly
+    turned. The cause stands beside its counter when its columns, added to
+    model + counter, still explain a material amount (debiased, at least
+    ``(material_sigma * sigma)^2`` per row) that is significant (nested F
+    test with the Bonferroni factor of its adoption).
+
+    Returns
+    -------
+    (debiased sum of squares beyond the counter, m^2; its adjusted p-value; stands: bool)
+    """
+    Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
+    rows = st.rows
+    Uc = new_basis(st.Q, Bc[rows])
+    Qc = np.hstack([st.Q, Uc])
+    rc = st.r - Uc @ (Uc.T @ st.r)
+    Un = new_basis(Qc, E)
+    d = float(np.sum((Un.T @ rc) ** 2)) - Un.shape[1] * sigma ** 2
+    p = min(1.0, nested_f(Un, rc, float(rc @ rc), len(rows) - Qc.shape[1]).p_value * tries)
+    stands = bool(d >= (settings.material_sigma * sigma) ** 2 * len(rows) and p < settings.alpha_family)
+    return d, p, stands
+
+
 def _candidate_ss(C: np.ndarray, st: _State) -> float:
     """Debiased sum of squares a candidate's columns (1, n, k) explain beside the model."""
     ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
@@ -1313,7 +1340,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         ss_c, k_c, _, _ = nested_f_batch(Cn, st.Q, st.r, st.rss, st.dof)
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
         d_c = _counter_ss(bl, cause, st, rows, sigma)
-        if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows):
+        if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) and cause.counter_cause is not None \
+                and not _beyond_counter(bl, cause, st, cols[rows], sigma, tries, settings)[2]:
             return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
                               f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
                     "significant": True}
@@ -1479,7 +1507,14 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
         out["counter"] = cause.counter.__name__.replace("_", " ")
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
         if d_c > d_n - m_ss:
-            out["kept"] = False
+            d_b, p_b, stands = _beyond_counter(bl, cause, so, tm.columns[rows], sigma, tm.tries, settings)
+            out["explained_beyond_counter_ss_um2"] = max(d_b, 0.0) / UM ** 2
+            out["p_adjusted_beyond_counter"] = p_b
+            if not stands and cause.counter_cause is not None:
+                out["kept"] = False  # the plainer catalogue cause is named in its own right
+            elif not stands:
+                # a plainer explanation without a name does as well: named, but ambiguous
+                out["indistinguishable_counter"] = out["counter"]
     if cause is not None and cause.counter_scan is not None and out["kept"]:
         # a one-off alternative chosen among T trials: its best sum of squares is
         # debiased by the median of the largest of T chi-squares (k dof) under noise
@@ -1613,11 +1648,18 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         alt = _alternatives(bl, tm, so, sig, settings, bases)
         ev["alternatives"] = alt
         ev["indistinguishable_from"] = [a["covariate"] for a in alt if a["indistinguishable"]]
-        # confident: no other family's covariate reproduces the signal
-        ev["confidence"] = "ambiguous" if ev["indistinguishable_from"] else "named"
+        # confident: no other family's covariate reproduces the signal, and no
+        # plainer explanation without a name explains as much (rival check)
+        why = []
         if ev["indistinguishable_from"]:
-            ev["confidence_reason"] = ("indistinguishable from a smooth term in "
-                                       + ", ".join(ev["indistinguishable_from"]))
+            why.append("indistinguishable from a smooth term in " + ", ".join(ev["indistinguishable_from"]))
+        if ev.get("indistinguishable_counter"):
+            why.append(f"a {ev['indistinguishable_counter']} explains as much "
+                       f"({ev['counter_explained_ss_um2']:.3g} against {ev['explained_ss_um2']:.3g} um^2) and the "
+                       "cause nothing material beyond it: this design cannot tell them apart")
+        ev["confidence"] = "ambiguous" if why else "named"
+        if why:
+            ev["confidence_reason"] = "; ".join(why)
         ev["explained_rms_um"] = float(np.sqrt(explained / len(rows)))
         out.append(Finding(tm.cause, _clean(ev), {**_info_params(tm.info), **vals}, u95,
                            float(np.sqrt(st.rss / len(rows))) / UM, cause.books_to))
