@@ -912,7 +912,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                                  families)
                 if cand.get("reason"):
                     if cand.get("significant"):
-                        rejected.append({"cause": cause.name, "reason": cand["reason"]})
+                        rejected.append({"cause": cause.name, "reason": cand["reason"],
+                                         **({"undetermined": True} if cand.get("undetermined") else {})})
                     continue
                 margin = settings.material_sigma ** 2 * noise_sigma(st) ** 2
                 if best is None or cand["cv"] < best["cv"] - margin or (
@@ -1010,7 +1011,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     tick()
 
     # 6. estimates
-    findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases)
+    findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
+                         undetermined={r["cause"] for r in rejected if r.get("undetermined")})
     E_all = _stack(terms, rows)
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
@@ -1375,7 +1377,10 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
                     return {"reason": f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})", "significant": True}
     why = cause.plausible(vals, u95) if cause.plausible else None
     if why:
-        return {"reason": f"implausible: {why}", "significant": True}
+        # a magnitude the design cannot determine (None): the cause is significant
+        # and earns its gain, but this design cannot say what it is (step 8)
+        return {"reason": f"implausible: {why}", "significant": True,
+                "undetermined": any(v is None for v in vals.values())}
     return {"cv": cv, "term": tm}
 
 
@@ -1627,7 +1632,8 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
                 cov.name, evidence=ev, penalty=lam * P1)
 
 
-def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases) -> list:
+def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
+              undetermined=frozenset()) -> list:
     out = []
     sig = st.sigma
     named = [t for t in terms if t.penalty is None]
@@ -1657,6 +1663,15 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             why.append(f"a {ev['indistinguishable_counter']} explains as much "
                        f"({ev['counter_explained_ss_um2']:.3g} against {ev['explained_ss_um2']:.3g} um^2) and the "
                        "cause nothing material beyond it: this design cannot tell them apart")
+        # a richer catalogue cause that nests this one (its counter_cause is this
+        # one) was significant but not determined on this design: the data
+        # cannot tell the plainer cause from it (fixed lobes from lobes turned
+        # per set-up on a part whose own form absorbs the turned ones)
+        nest = [c.name for c in causes_mod.REGISTRY if c.counter_cause == tm.cause and c.name in undetermined]
+        if nest:
+            ev["ambiguous_with"] = nest
+            why.append(f"{', '.join(nest)}, which nests it, is significant here but not determined on this "
+                       "design: the data cannot tell the two apart")
         ev["confidence"] = "ambiguous" if why else "named"
         if why:
             ev["confidence_reason"] = "; ".join(why)

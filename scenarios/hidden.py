@@ -510,6 +510,11 @@ class Outcome:
     identifiable : bool
         The generator's word on the design: the part separable from smooth
         machine error fields (not the engine's own test).
+    alternatives : tuple of str
+        Catalogue causes the first finding names as indistinguishable from
+        its cause on this design (``ambiguous_with``; it is then flagged
+        ambiguous): scored apart (``catalogue_alternative``), never as the
+        cause itself.
     shift_carried : bool
         The extended U95 carries the real shift of an unnamed smooth (then
         it reaches the baseline's answer at every target, and the check
@@ -534,6 +539,7 @@ class Outcome:
     angle_to_baseline_deg: float = float("nan")
     identifiable: bool = True
     shift_carried: bool = False
+    alternatives: tuple = ()
 
 
 def catalogue_names() -> set:
@@ -598,9 +604,10 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
         vis, angle = effect_outside_baseline(bl, np.asarray(effect_dq_um, float)[bl.rows] * UM, noise_um * UM)
     carried = any((f["evidence"].get("workpiece_shift") or {}).get("carried_in_u95", False)
                   for f in rep["findings"])
+    alts = tuple(rep["findings"][0]["evidence"].get("ambiguous_with") or ()) if rep["findings"] else ()
     return Outcome(generator, effect, int(seed), tuple(acceptable), rep["cause"],
                    tuple(f["cause"] for f in rep["findings"]), bool(conf), vis, float(noise_um), wb, we, wu, dt,
-                   vis_gen, angle, bool(identifiable), bool(carried))
+                   vis_gen, angle, bool(identifiable), bool(carried), alts)
 
 
 def effect_outside_baseline(bl, e_m: np.ndarray, noise_m: float) -> tuple[float, float]:
@@ -644,7 +651,15 @@ def summarize(outcomes) -> dict:
 
     - ``false_alarm``: effect-free campaigns whose cause is not ``none``;
     - ``catalogue``: catalogue effects whose campaign kept at least one
-      noise sigma per touch after the baseline, named acceptably;
+      noise sigma per touch after the baseline, named acceptably (the
+      report's cause; flagged ambiguous or not);
+    - ``catalogue_ambiguous``: of those named acceptably, the ones whose
+      name is flagged ambiguous (the name holds, but the report says the
+      design or data cannot exclude something else);
+    - ``catalogue_alternative``: of the same campaigns, those whose cause
+      is not acceptable but is flagged ambiguous with an acceptable
+      catalogue cause among its ``alternatives`` (two causes this design
+      cannot tell apart, both named): not counted in ``catalogue``;
     - ``out_of_catalogue``: effects with no catalogue name among their
       acceptable causes that kept at least one noise sigma per touch after
       the baseline, reported ``unexplained`` or acceptably;
@@ -680,6 +695,10 @@ def summarize(outcomes) -> dict:
     rate("false_alarm", none, [o.cause != "none" for o in none])
     catl = [o for o in outcomes if set(o.acceptable) & cat and o.visible_sigmas >= 1.0]
     rate("catalogue", catl, [o.cause in o.acceptable for o in catl])
+    hit = [o for o in catl if o.cause in o.acceptable]
+    rate("catalogue_ambiguous", hit, [not o.confident for o in hit])
+    rate("catalogue_alternative", catl, [o.cause not in o.acceptable and not o.confident
+                                         and bool(set(o.alternatives) & set(o.acceptable)) for o in catl])
     ooc = [o for o in outcomes if o.acceptable != ("none",) and not set(o.acceptable) & cat]
     oocv = [o for o in ooc if o.visible_sigmas >= 1.0]
     rate("out_of_catalogue", oocv, [o.cause in o.acceptable or o.cause == "unexplained" for o in oocv])
@@ -720,10 +739,11 @@ def format_study(outcomes, title: str = "") -> str:
               f" ({np.nanmean([o.wp_u95_um for o in fin]):.2f})" if fin else "n/a")
         lines.append(f"{e:<{w}s} {row}   {np.median([o.visible_sigmas for o in sel]):9.2f}  {wp}")
     s = summarize(outcomes)
-    for k in ("false_alarm", "catalogue", "out_of_catalogue", "confident_misnamed", "workpiece_ok",
-              "workpiece_shift_carried", "below_visibility"):
+    for k in ("false_alarm", "catalogue", "catalogue_ambiguous", "catalogue_alternative", "out_of_catalogue",
+              "confident_misnamed", "workpiece_ok", "workpiece_shift_carried", "below_visibility"):
         v = s[k]
-        if v["n"] and (k != "workpiece_shift_carried" or v["k"]):
+        if v["n"] and (k not in ("workpiece_shift_carried", "catalogue_ambiguous", "catalogue_alternative")
+                       or v["k"]):
             lines.append(f"{k:20s} {v['k']:3d}/{v['n']:<3d} = {v['rate']:.2f}  (95 % CI {v['ci95'][0]:.2f}-"
                          f"{v['ci95'][1]:.2f})")
     if s["absorbed"]:
