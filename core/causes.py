@@ -40,6 +40,10 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   about as well as a catalogue-free smooth function of it, else it is a
   guess); ``rival(baseline, info) -> (n, m)`` overrides that smooth term;
 - the physics, in the docstring of its ``scans`` function (``doc``);
+- ``gradual``: the cause changes the readings gradually over the
+  campaign (a drift, a part that changes): the engine tests whether a
+  one-off event or the probe's size changing with time explains it as well
+  (then the name is ``ambiguous``);
 - ``counter(baseline) -> (n, m)``, ``counter_scan(baseline) -> (T, n, k)``:
   a plainer explanation the cause must beat (a finer error map for a
   coupling; the best of T trials of a one-off rigid step of the part,
@@ -115,6 +119,7 @@ class Cause:
     counter: Callable | None = None
     counter_scan: Callable | None = None
     counter_cause: str | None = None
+    gradual: bool = False
 
     @property
     def doc(self) -> str:
@@ -392,6 +397,22 @@ def lobing_scans(bl):
         return [], 1.0
     return [_one(common_lobing(bl), [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")], {},
                  "approach_azimuth")], 1.0
+
+
+def lobing_rival(bl, info) -> np.ndarray:
+    """The smooth term fixed lobes must rival: the approach azimuth's structure allowed to differ per set-up.
+
+    ``probe_lobing`` claims lobes fixed with the spindle, the same in every
+    set-up. Lobes that turn from set-up to set-up (an unoriented spindle)
+    have a common part that fixed lobes catch; the rest follows the
+    azimuth differently in each set-up. So the rival is the azimuth's
+    harmonics per set-up (the ``azimuth_by_setup`` covariate, beside the
+    cause's own columns): fixed lobes must explain at least ``rival_share``
+    of it, or fall short by an immaterial amount, else the name caught only
+    the common part of something that turns. One set-up: its own columns.
+    """
+    cov = bl.covariate("azimuth_by_setup")
+    return common_lobing(bl) if cov is None else np.asarray(cov.values, float)
 
 
 def lobing_magnitudes(info, coef, bl):
@@ -974,20 +995,20 @@ NONE = "none"
 REGISTRY = (
     Cause("thermal_drift", ("planar",), "machine", drift_scans, drift_magnitudes,
           {"x_offset_change_um": (-500, 500), "y_offset_change_um": (-500, 500),
-           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, counter_scan=fixture_slip),
+           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, counter_scan=fixture_slip, gradual=True),
     Cause("c_drift", ("planar",), "machine", c_drift_scans, c_drift_magnitudes,
           {"ECC_change_in_setup_urad": (-2000, 2000), "ECC_change_over_campaign_urad": (-2000, 2000),
            "ECC_change_rms_urad": (0, 2000), "ECC_change_urad[*]": (-2000, 2000)},
-          counter_scan=fixture_slip),
+          counter_scan=fixture_slip, gradual=True),
     Cause("temperature_expansion", ("planar",), "machine", expansion_scans, expansion_magnitudes,
           {"alpha_x_um_per_m_K": (-60, 60), "alpha_y_um_per_m_K": (-60, 60),
-           "x_offset_um_per_K": (-50, 50), "y_offset_um_per_K": (-50, 50)}, counter_scan=fixture_slip),
+           "x_offset_um_per_K": (-50, 50), "y_offset_um_per_K": (-50, 50)}, counter_scan=fixture_slip, gradual=True),
     Cause("periodic_axis_error", ("planar",), "machine", periodic_scans, periodic_magnitudes,
           {"EXX_amplitude_um": (0, 50), "EYX_amplitude_um": (0, 50), "EXY_amplitude_um": (0, 50),
            "EYY_amplitude_um": (0, 50)}, periodic_rebuild, ("period_m",), check=periodic_check,
           counter_scan=fixture_slip),
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
-          {"pretravel_variation_pv_um": (0, 50)}, counter_scan=fixture_slip),
+          {"pretravel_variation_pv_um": (0, 50)}, rival=lobing_rival, counter_scan=fixture_slip),
     Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
           {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter=common_lobing, counter_scan=fixture_slip,
           counter_cause="probe_lobing"),
@@ -996,7 +1017,7 @@ REGISTRY = (
     Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,
           {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
-          {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip),
+          {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
           {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,

@@ -1550,6 +1550,79 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     return out
 
 
+#: Moments tried for a one-off event by :func:`_time_alternatives` (quantiles of the touches' times).
+EVENT_SPLITS = 40
+
+
+def _time_alternatives(bl, tm: Term, so: _State, sigma, settings) -> list:
+    """Plainer explanations of a cause that changes with time, which the data may not tell from it.
+
+    A machine drift (thermal, a creeping C axis, a temperature) is not the
+    only thing that changes the readings over a campaign:
+
+    - ``event``: a one-off change at one moment that stays (a knock, the
+      probe re-seating): every response mode of the baseline (an offset and
+      an affine displacement of the tip) changing by a constant at one
+      moment, the best of :data:`EVENT_SPLITS`; a drift's columns correlate
+      with a step (a ramp with a step at its middle: 0.87);
+    - ``probe_size``: the probe's effective ball size changing with use
+      (dirt picked up, the probe warming): the scalar mode (every touch
+      triggers earlier or later by the same amount) times a Legendre
+      polynomial of time of degree 1-3, the best of the three; an equal
+      change of the X and Y scales reads on a part probed around its centre
+      much like a change of size.
+
+    Each alternative's best trial is debiased by the median of the largest
+    of that many chi-squares under noise (as the slip's). It does as well
+    when it explains as much as the cause (within materiality) and the
+    cause explains nothing material and significant beyond it (nested F,
+    the Bonferroni factor of its adoption): the data cannot tell the
+    drift from it, and the name is ``ambiguous``.
+
+    Returns
+    -------
+    list of dict: the alternatives that do as well, with their figures.
+    """
+    if bl.kind != "planar":
+        return []
+    rows = so.rows
+    t = np.asarray(bl.data.touches.t_s, float)[rows]
+    ts = np.unique(t)
+    if ts.size < 4:
+        return []
+    M = bl.modes[rows]
+    cut = np.unique(np.quantile(ts[1:], np.linspace(0, 1, EVENT_SPLITS)))
+    u = 2 * (t - t.min()) / max(np.ptp(t), 1e-300) - 1
+    P = causes_mod._legendre(u, 3)
+    trials = {"event": (M[None, :, :] * (t[None, :, None] >= cut[:, None, None]), cut),
+              "probe_size": (np.stack([np.hstack([M[:, :1] * P[:, :g], np.zeros((len(rows), 3 - g))])
+                                       for g in (1, 2, 3)]), np.arange(1, 4))}
+    s2 = sigma ** 2
+    E = tm.columns[rows]
+    Un = new_basis(so.Q, E)
+    d_n = float(np.sum((Un.T @ so.r) ** 2)) - Un.shape[1] * s2
+    m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
+    out = []
+    for name, (C, what) in trials.items():
+        ss, k, _, _ = nested_f_batch(C, so.Q, so.r, so.rss, so.dof)
+        j = int(np.argmax(ss))
+        d_a = float(ss[j]) - float(stats.chi2.isf(np.log(2) / C.shape[0], max(int(k[j]), 1))) * s2
+        if d_a < d_n - m_ss:
+            continue
+        Ua = new_basis(so.Q, C[j])
+        Qa = np.hstack([so.Q, Ua])
+        ra = so.r - Ua @ (Ua.T @ so.r)
+        Ub = new_basis(Qa, E)
+        d_b = float(np.sum((Ub.T @ ra) ** 2)) - Ub.shape[1] * s2
+        p_b = min(1.0, nested_f(Ub, ra, float(ra @ ra), len(rows) - Qa.shape[1]).p_value * tm.tries)
+        if d_b >= m_ss and p_b < settings.alpha_family:
+            continue
+        out.append({"alternative": name, ("at_s" if name == "event" else "degree"): float(what[j]),
+                    "explained_ss_um2": max(d_a, 0.0) / UM ** 2, "cause_beyond_it_ss_um2": max(d_b, 0.0) / UM ** 2,
+                    "p_adjusted_cause_beyond_it": p_b})
+    return out
+
+
 def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
     """Covariates of other families whose smooth term reproduces the cause's signal.
 
@@ -1672,6 +1745,16 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             ev["ambiguous_with"] = nest
             why.append(f"{', '.join(nest)}, which nests it, is significant here but not determined on this "
                        "design: the data cannot tell the two apart")
+        if cause.gradual:
+            talt = _time_alternatives(bl, tm, so, sig, settings)
+            if talt:
+                ev["time_alternatives"] = talt
+            for a in talt:
+                what = (f"a one-off change of the readings at t = {a['at_s']:.0f} s (an event: a knock, the probe "
+                        "re-seating)" if a["alternative"] == "event" else
+                        "the probe's effective size changing with time (dirt picked up, the probe warming)")
+                why.append(f"{what} explains as much ({a['explained_ss_um2']:.3g} um^2) and the cause nothing "
+                           "material beyond it")
         ev["confidence"] = "ambiguous" if why else "named"
         if why:
             ev["confidence_reason"] = "; ".join(why)
