@@ -1012,7 +1012,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     # 6. estimates
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-                         undetermined={r["cause"] for r in rejected if r.get("undetermined")})
+                         undetermined={r["cause"] for r in rejected if r.get("undetermined")},
+                         fixed={k: v[0][0].build([0])[0] for k, v in scans.items()
+                                if len(v[0]) == 1 and v[0][0].size == 1})
     E_all = _stack(terms, rows)
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
@@ -1623,6 +1625,50 @@ def _time_alternatives(bl, tm: Term, so: _State, sigma, settings) -> list:
     return out
 
 
+def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict) -> list:
+    """Other catalogue causes (one fixed layout each) whose columns reproduce the named cause's signal.
+
+    Two causes whose columns span nearly the same thing on a design are
+    one explanation under two names there: lost motion on touches that
+    each approach along the surface normal is a function of the approach
+    direction alone (``|n_x| / 2``: harmonics 0, 2, 4, ... of the azimuth,
+    99 % of it in harmonics 2 and 4), which a probe's lobing also is.
+    Parsimony picks one, but the data do not. The test is
+    :func:`_alternatives`' with the other cause's columns in place of a
+    smooth term: it reproduces at least ``rival_share`` of the signal and
+    explains at least ``rival_share`` as much (debiased). Causes that nest
+    one another (``counter_cause``) are judged by the counter check, not
+    here.
+
+    ``fixed``: {cause name: (n, k) columns, all rows} of the catalogue's
+    causes with a single trial.
+    """
+    rows = so.rows
+    E = tm.columns[rows]
+    Ep = E - so.Q @ (so.Q.T @ E)
+    c = np.linalg.lstsq(Ep, so.r, rcond=1e-12)[0]
+    sig_n = Ep @ c
+    s2 = sigma ** 2
+    d_n = float(sig_n @ sig_n) - E.shape[1] * s2
+    out = []
+    if d_n <= 0:
+        return out
+    cause = tm.origin
+    for name, B in fixed.items():
+        other = causes_mod.lookup(name, cause.kinds[0]) if cause is not None else None
+        if name == tm.cause or (cause is not None and cause.counter_cause == name) or (
+                other is not None and other.counter_cause == tm.cause):
+            continue
+        U = new_basis(so.Q, B[rows])
+        if U.shape[1] == 0:
+            continue
+        overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
+        d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * s2
+        if overlap >= settings.rival_share and d_w >= settings.rival_share * d_n:
+            out.append({"cause": name, "overlap": overlap, "explained_ratio": d_w / d_n})
+    return out
+
+
 def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
     """Covariates of other families whose smooth term reproduces the cause's signal.
 
@@ -1706,7 +1752,7 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
 
 
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-              undetermined=frozenset()) -> list:
+              undetermined=frozenset(), fixed=None) -> list:
     out = []
     sig = st.sigma
     named = [t for t in terms if t.penalty is None]
@@ -1742,9 +1788,15 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         # per set-up on a part whose own form absorbs the turned ones)
         nest = [c.name for c in causes_mod.REGISTRY if c.counter_cause == tm.cause and c.name in undetermined]
         if nest:
-            ev["ambiguous_with"] = nest
             why.append(f"{', '.join(nest)}, which nests it, is significant here but not determined on this "
                        "design: the data cannot tell the two apart")
+        calt = _cause_alternatives(tm, so, sig, settings, fixed or {})
+        if calt:
+            ev["cause_alternatives"] = calt
+            why.append(f"the columns of {', '.join(a['cause'] for a in calt)} reproduce its signal on this design "
+                       "and explain as much: one explanation under two names here")
+        if nest or calt:
+            ev["ambiguous_with"] = nest + [a["cause"] for a in calt if a["cause"] not in nest]
         if cause.gradual:
             talt = _time_alternatives(bl, tm, so, sig, settings)
             if talt:
