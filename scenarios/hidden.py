@@ -758,7 +758,31 @@ def hidden_outcome(effect: str, seed: int, **discover_kw) -> Outcome:
     """One campaign of :func:`hidden_campaign` with ``effect`` hidden, discovered and scored."""
     log, truth = hidden_campaign((effect,), seed)
     geo = {k: truth.g_true_m[k] for k in truth.g_true_m}
-    return run_campaign("hidden", effect, seed, log, truth.acceptable, geo, 0.3, **discover_kw)
+    return run_campaign("hidden", effect, seed, log, truth.acceptable, geo, 0.3,
+                        effect_dq_um=hidden_effect_um(log, effect, seed), **discover_kw)
+
+
+def hidden_effect_um(log, effect: str, seed: int) -> np.ndarray | None:
+    """The hidden effect alone per log row, um: the campaign's deviations less those of the same campaign without it.
+
+    :func:`hidden_campaign` draws the machine, the moves and the probing
+    noise from the seed independently of the effect, so the effect-free
+    campaign of the same seed differs from it by the effect only; the
+    study's visibility (the effect's part outside the baseline's column
+    space, :func:`effect_outside_baseline`) is then computed from the
+    truth, not from the baseline's residuals. None when the two campaigns
+    do not have the same touches.
+    """
+    from core.touches import from_log
+
+    if effect == "none":
+        return None
+    t1, t0 = from_log(log), from_log(hidden_campaign(("none",), seed)[0])
+    if not np.array_equal(np.asarray(t1.row), np.asarray(t0.row)):
+        return None
+    out = np.zeros(log.n)
+    out[np.asarray(t1.row)] = (t1.dq_m - t0.dq_m) / UM
+    return out
 
 
 def blind_outcome(module, effect: str, seed: int, generator: str = "", **discover_kw) -> Outcome:
