@@ -1688,6 +1688,7 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
     sig_n = Ep @ c
     s2 = sigma ** 2
     d_n = float(sig_n @ sig_n) - E.shape[1] * s2
+    m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
     out = []
     if d_n <= 0:
         return out
@@ -1700,9 +1701,14 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
         overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
         d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * s2
         ind = overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
+        # the structure lives there more than in the cause: it explains materially
+        # more than the cause (beyond 1 / rival_share of it) and reproduces at
+        # least half of the cause's signal, so the cause may have caught only
+        # the part of it that its columns can bend to
+        dom = overlap >= 0.5 and d_w >= d_n / settings.rival_share and d_w - d_n >= m_ss
         if overlap >= 0.5:
             out.append({"covariate": cov.name, "overlap": overlap, "explained_ratio": d_w / d_n,
-                        "indistinguishable": bool(ind)})
+                        "indistinguishable": bool(ind), "explains_more": bool(dom)})
     return out
 
 
@@ -1778,6 +1784,11 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         why = []
         if ev["indistinguishable_from"]:
             why.append("indistinguishable from a smooth term in " + ", ".join(ev["indistinguishable_from"]))
+        more = [a for a in alt if a.get("explains_more") and not a["indistinguishable"]]
+        if more:
+            why.append("a smooth term in " + ", ".join(f"{a['covariate']} (x{a['explained_ratio']:.2g}, reproducing "
+                                                        f"{a['overlap']:.0%} of its signal)" for a in more)
+                       + " explains materially more: the structure may live there, the cause catching part of it")
         if ev.get("indistinguishable_counter"):
             why.append(f"a {ev['indistinguishable_counter']} explains as much "
                        f"({ev['counter_explained_ss_um2']:.3g} against {ev['explained_ss_um2']:.3g} um^2) and the "
