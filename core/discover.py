@@ -46,9 +46,13 @@ What it does, in order, and the statistics behind each step
       than both the cause's columns and the best smooth function of a
       covariate of its own family (debiased sums of squares);
    f. its plainer counter-explanation (:attr:`core.causes.Cause.counter`)
-      does not explain as much (step 5's test, made before adoption too, so
+      does not explain as much, or the cause explains something material
+      and significant beyond it (step 5's test, made before adoption too, so
       that a plainer cause of the catalogue can win the round: the probe's
-      fixed lobes against lobes turned per set-up).
+      fixed lobes against lobes turned per set-up). Only a plainer
+      explanation that is itself a catalogue cause
+      (:attr:`core.causes.Cause.counter_cause`) refuses the cause; one
+      without a name (a finer error map) leaves it named, ``ambiguous``.
 
    Among those, the lowest cross-validated mean square wins; within the
    materiality margin of it, the fewest columns (parsimony).
@@ -82,7 +86,17 @@ What it does, in order, and the statistics behind each step
 8. **Confidence** (each finding's ``confidence``, ``named`` or
    ``ambiguous`` with ``confidence_reason``): ``named`` says the name holds
    against the alternatives the engine can test. A named cause: no smooth
-   term in a covariate of another family reproduces its signal (a rule
+   term in a covariate of another family reproduces its signal, nor
+   explains materially more while reproducing half of it; no plainer
+   explanation without a name explains as much (step 4f); no other
+   catalogue cause's fixed columns reproduce its signal and explain as much
+   (:func:`_cause_alternatives`: lost motion and lobing when every touch
+   approaches along the normal), and no richer cause nesting it was
+   significant but undetermined on the design (fixed lobes and lobes
+   turned per set-up on the cross pocket): the other cause is then listed
+   in ``ambiguous_with``; a gradual cause (:attr:`core.causes.Cause.gradual`)
+   is not matched by a one-off event or by the probe's size changing with
+   time (:func:`_time_alternatives`) (a rule
    "every combination of its columns inflated at most vif_max" was
    measured and withdrawn: on fresh seeds it flagged 20-23 % more right
    names and no wrong one; docs/discovery.md). Outliers: at least
