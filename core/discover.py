@@ -1639,6 +1639,18 @@ def _time_alternatives(bl, tm: Term, so: _State, sigma, settings) -> list:
     return out
 
 
+def _signal(tm: Term, so: _State, sigma) -> tuple:
+    """The cause's signal in the joint fit and its debiased sum of squares.
+
+    Its columns' part outside the rest of the model ``so`` (the other named
+    causes) times their coefficients: ``(sig (n_rows,), ss - k sigma^2)``.
+    """
+    E = tm.columns[so.rows]
+    Ep = E - so.Q @ (so.Q.T @ E)
+    sig = Ep @ np.linalg.lstsq(Ep, so.r, rcond=1e-12)[0]
+    return sig, float(sig @ sig) - E.shape[1] * sigma ** 2
+
+
 def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict) -> list:
     """Other catalogue causes (one fixed layout each) whose columns reproduce the named cause's signal.
 
@@ -1658,12 +1670,8 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict) -> l
     causes with a single trial.
     """
     rows = so.rows
-    E = tm.columns[rows]
-    Ep = E - so.Q @ (so.Q.T @ E)
-    c = np.linalg.lstsq(Ep, so.r, rcond=1e-12)[0]
-    sig_n = Ep @ c
+    sig_n, d_n = _signal(tm, so, sigma)
     s2 = sigma ** 2
-    d_n = float(sig_n @ sig_n) - E.shape[1] * s2
     out = []
     if d_n <= 0:
         return out
@@ -1696,12 +1704,8 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
     """
     fam = bl.covariate(tm.covariate).family if bl.covariate(tm.covariate) is not None else ""
     rows = so.rows  # so: the model without the cause (the other named causes)
-    E = tm.columns[rows]
-    Ep = E - so.Q @ (so.Q.T @ E)
-    c = np.linalg.lstsq(Ep, so.r, rcond=1e-12)[0]
-    sig_n = Ep @ c
+    sig_n, d_n = _signal(tm, so, sigma)
     s2 = sigma ** 2
-    d_n = float(sig_n @ sig_n) - E.shape[1] * s2
     m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
     out = []
     if d_n <= 0:
