@@ -995,7 +995,8 @@ NONE = "none"
 REGISTRY = (
     Cause("thermal_drift", ("planar",), "machine", drift_scans, drift_magnitudes,
           {"x_offset_change_um": (-500, 500), "y_offset_change_um": (-500, 500),
-           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, counter_scan=fixture_slip, gradual=True),
+           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, counter_scan=fixture_slip,
+          gradual=True),
     Cause("c_drift", ("planar",), "machine", c_drift_scans, c_drift_magnitudes,
           {"ECC_change_in_setup_urad": (-2000, 2000), "ECC_change_over_campaign_urad": (-2000, 2000),
            "ECC_change_rms_urad": (0, 2000), "ECC_change_urad[*]": (-2000, 2000)},
