@@ -548,10 +548,20 @@ def unoriented_magnitudes(info, coef, bl):
     return out
 
 
+class Undetermined(str):
+    """A plausibility answer that is no verdict: the magnitudes it needs are not determined on this design.
+
+    An implausible cause is refused; one whose magnitudes the design cannot
+    determine is not implausible, only unmeasured: the engine names it
+    ``ambiguous``, with this reason, and reports no magnitude it cannot
+    determine.
+    """
+
+
 def unoriented_plausible(vals, u95):
     a, res, spread = vals.get("amplitude_um"), vals.get("circle_residual_um"), vals.get("spread_um")
     if a is None or res is None or spread is None:
-        return "the set-ups' lobing not determined"
+        return Undetermined("the set-ups' lobing amplitude and orientations are not determined on this design")
     if res - (u95.get("circle_residual_um") or 0.0) > 0.3 * a:
         return f"the set-ups' lobing vectors lie off one circle ({res:.2g} um for {a:.2g} um): not one probe's lobes"
     if a > 3 * spread:

@@ -91,10 +91,12 @@ What it does, in order, and the statistics behind each step
    explanation without a name explains as much (step 4f); no other
    catalogue cause's fixed columns reproduce its signal and explain as much
    (:func:`_cause_alternatives`: lost motion and lobing when every touch
-   approaches along the normal), and no richer cause nesting it was
-   significant but undetermined on the design (fixed lobes and lobes
-   turned per set-up on the cross pocket): the other cause is then listed
-   in ``ambiguous_with``; a gradual cause (:attr:`core.causes.Cause.gradual`)
+   approaches along the normal; the other cause is then listed in
+   ``ambiguous_with``); its magnitudes are determined on the design (a
+   cause significant and earning its gain whose plausibility check cannot
+   be made because its magnitudes are not determined,
+   :class:`core.causes.Undetermined`, is named ``ambiguous``, and its
+   workpiece shift is tested and carried as an unnamed smooth's); a gradual cause (:attr:`core.causes.Cause.gradual`)
    is not matched by a one-off event or by the probe's size changing with
    time (:func:`_time_alternatives`) (a rule
    "every combination of its columns inflated at most vif_max" was
@@ -926,8 +928,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                                  families)
                 if cand.get("reason"):
                     if cand.get("significant"):
-                        rejected.append({"cause": cause.name, "reason": cand["reason"],
-                                         **({"undetermined": True} if cand.get("undetermined") else {})})
+                        rejected.append({"cause": cause.name, "reason": cand["reason"]})
                     continue
                 margin = settings.material_sigma ** 2 * noise_sigma(st) ** 2
                 if best is None or cand["cv"] < best["cv"] - margin or (
@@ -1026,7 +1027,6 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     # 6. estimates
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-                         undetermined={r["cause"] for r in rejected if r.get("undetermined")},
                          fixed={k: v[0][0].build([0])[0] for k, v in scans.items()
                                 if len(v[0]) == 1 and v[0][0].size == 1})
     E_all = _stack(terms, rows)
@@ -1058,11 +1058,16 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     "determine it")
     if shift is not None:
         for f in findings:
-            if f.cause == causes_mod.UNEXPLAINED and "smooth" in f.evidence:
+            if (f.cause == causes_mod.UNEXPLAINED and "smooth" in f.evidence) or f.evidence.get(
+                    "magnitudes_not_determined"):
                 f.evidence["workpiece_shift"] = _clean(shift)
-        conv.append(f"the unnamed smooth moves the workpiece by {shift['shift_rms_um']:.3g} um RMS (form only), "
+        smooth_in = any(t.penalty is not None for t in terms)
+        who = "the unnamed smooth" if smooth_in else "a cause whose magnitudes this design does not determine"
+        conv.append(f"{who} moves the workpiece by {shift['shift_rms_um']:.3g} um RMS (form only), "
                     f"{fmt_p(shift['p'])} against its own scatter: " + (
-                        "real, and the split of an unnamed effect between machine and part is the smooth's "
+                        ("real, and the split of an unnamed effect between machine and part is the smooth's "
+                         if smooth_in else "real, and the split of an undetermined effect between machine and "
+                         "part is the fit's ") +
                         "assumption: the extended U95 carries the shift (u = |shift| / 2 per target)"
                         if shift["carried_in_u95"] else "within the noise the extended U95 already carries"))
     lost = [w["target"] for w in wp if w["baseline_um"] is not None and w["extended_um"] is None]
@@ -1392,11 +1397,13 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
                 if v + u < lo or v - u > hi:
                     return {"reason": f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})", "significant": True}
     why = cause.plausible(vals, u95) if cause.plausible else None
-    if why:
-        # a magnitude the design cannot determine (None): the cause is significant
-        # and earns its gain, but this design cannot say what it is (step 8)
-        return {"reason": f"implausible: {why}", "significant": True,
-                "undetermined": any(v is None for v in vals.values())}
+    if isinstance(why, causes_mod.Undetermined):
+        # the magnitudes the check needs are not determined on this design: not
+        # implausible, only unmeasured; the cause is significant and earns its
+        # gain, so it is named, ambiguous (step 8)
+        tm.evidence["magnitudes_not_determined"] = str(why)
+    elif why:
+        return {"reason": f"implausible: {why}", "significant": True}
     return {"cv": cv, "term": tm}
 
 
@@ -1776,7 +1783,7 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
 
 
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-              undetermined=frozenset(), fixed=None) -> list:
+              fixed=None) -> list:
     out = []
     sig = st.sigma
     named = [t for t in terms if t.penalty is None]
@@ -1811,21 +1818,12 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             why.append(f"a {ev['indistinguishable_counter']} explains as much "
                        f"({ev['counter_explained_ss_um2']:.3g} against {ev['explained_ss_um2']:.3g} um^2) and the "
                        "cause nothing material beyond it: this design cannot tell them apart")
-        # a richer catalogue cause that nests this one (its counter_cause is this
-        # one) was significant but not determined on this design: the data
-        # cannot tell the plainer cause from it (fixed lobes from lobes turned
-        # per set-up on a part whose own form absorbs the turned ones)
-        nest = [c.name for c in causes_mod.REGISTRY if c.counter_cause == tm.cause and c.name in undetermined]
-        if nest:
-            why.append(f"{', '.join(nest)}, which nests it, is significant here but not determined on this "
-                       "design: the data cannot tell the two apart")
         calt = _cause_alternatives(tm, so, sig, settings, fixed or {})
         if calt:
             ev["cause_alternatives"] = calt
+            ev["ambiguous_with"] = [a["cause"] for a in calt]
             why.append(f"the columns of {', '.join(a['cause'] for a in calt)} reproduce its signal on this design "
                        "and explain as much: one explanation under two names here")
-        if nest or calt:
-            ev["ambiguous_with"] = nest + [a["cause"] for a in calt if a["cause"] not in nest]
         if cause.gradual:
             talt = _time_alternatives(bl, tm, so, sig, settings)
             if talt:
@@ -1836,6 +1834,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                         "the probe's effective size changing with time (dirt picked up, the probe warming)")
                 why.append(f"{what} explains as much ({a['explained_ss_um2']:.3g} um^2) and the cause nothing "
                            "material beyond it")
+        if ev.get("magnitudes_not_determined"):
+            why.append(ev["magnitudes_not_determined"])
         ev["confidence"] = "ambiguous" if why else "named"
         if why:
             ev["confidence_reason"] = "; ".join(why)
@@ -1970,11 +1970,16 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
         C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen)
     ge, ce, ee, Le, s2e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=True)
     shift = None
-    if P is not None:
-        # the penalty's ridge rows make every parameter formally estimable:
-        # the extended workpiece is an estimate only where the data alone
-        # determine it (else the penalty's strength, not the campaign, decides)
-        ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
+    # a named cause whose magnitudes this design does not determine has, here, no
+    # more physics than an unnamed smooth to say how its effect splits between
+    # machine and part: its shift of the workpiece is tested and carried alike
+    undetermined = any(t.evidence.get("magnitudes_not_determined") for t in terms)
+    if P is not None or undetermined:
+        if P is not None:
+            # the penalty's ridge rows make every parameter formally estimable:
+            # the extended workpiece is an estimate only where the data alone
+            # determine it (else the penalty's strength, not the campaign, decides)
+            ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
         ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, Lb, Le, s2e, eb & ee[:len(eb)], alpha)
     out = []
     for i, tid in enumerate(bl.estimand_ids):
