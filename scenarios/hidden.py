@@ -34,9 +34,10 @@ the right answer): a 2-lobe pattern turned per set-up on the cross
 pocket's four wall directions (plus two spheres) is confounded with the
 part's own 2-lobe form turning with the table (the per-set-up lobing
 vectors have two exact null directions against the baseline), so no
-orientation or amplitude per set-up can be determined; discovery reports
-the structure as unexplained and locates it ("the approach azimuth,
-differently in each set-up").
+orientation or amplitude per set-up can be determined; discovery names
+``lobing_per_setup`` flagged ambiguous (its magnitudes not determined) or
+reports the structure as unexplained and locates it ("the approach
+azimuth, differently in each set-up").
 
 Each set-up ends by re-probing sixteen pocket targets (four per wall
 direction), the drift check a careful metrologist adds: without repeated

@@ -267,14 +267,21 @@ def test_two_causes_this_design_cannot_tell_apart_are_both_named():
     assert (s["catalogue_alternative"]["k"], s["catalogue_alternative"]["n"]) == (1, 2)
 
 
-def test_fixed_lobes_named_ambiguous_when_turned_ones_are_not_determined():
-    """The cross pocket's own 2-lobe form absorbs lobes turned per set-up in two directions.
+def test_lobes_turned_per_set_up_named_ambiguous_when_their_magnitudes_are_not_determined():
+    """The cross pocket's own 2-lobe form turns with the table and absorbs two directions of lobes turned per set-up.
 
-    Turned lobes (the simulator's lobing_per_setup, seed 2706) leave mostly
-    their common part, which fixed lobes fit; lobing_per_setup is
-    significant but its magnitudes are not determined on this design, so
-    probe_lobing is named, flagged ambiguous with it (scored apart).
+    The simulator's turned lobes (seed 2706) were named probe_lobing (their
+    common part) because lobing_per_setup's amplitude and orientations are
+    not determined on this design and its plausibility check refused it.
+    Not determined is not implausible: the cause is named, flagged
+    ambiguous, and the shift of the workpiece it makes is tested and, when
+    real, carried in the extended U95 (seed 2703: 0.49 -> 0.83 um against
+    the truth; the U95 without the shift was 0.30 um, with it 0.76 um).
+    Visibility comes from the truth (the campaign less its effect-free twin).
     """
     o = hidden_outcome("lobing_per_setup", 2706)
-    assert o.cause == "probe_lobing" and not o.confident and "lobing_per_setup" in o.alternatives, o
-    assert o.visible_sigmas >= 1.0 and np.isfinite(o.angle_to_baseline_deg)  # from the truth, not the residuals
+    assert o.cause == "lobing_per_setup" and not o.confident, o
+    assert o.visible_sigmas >= 1.0 and np.isfinite(o.angle_to_baseline_deg)
+    o = hidden_outcome("lobing_per_setup", 2703)
+    assert o.cause == "lobing_per_setup" and o.shift_carried, o
+    assert o.wp_ext_um > o.wp_base_um + 0.3 and o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
