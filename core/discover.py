@@ -1795,6 +1795,12 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         others = [t for t in named if t is not tm]
         so = _state(Qb, y, rows, others)
         vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows)
+        if tm.evidence.get("magnitudes_not_determined"):
+            # the design does not determine the cause's magnitudes: none is reported
+            # (a value computed from the determined directions alone means nothing)
+            vals = {k: (None if isinstance(v, (float, int)) and not isinstance(v, bool) else v)
+                    for k, v in vals.items()}
+            u95 = {k: None for k in u95}
         ev = dict(tm.evidence)
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
