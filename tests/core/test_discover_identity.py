@@ -10,7 +10,10 @@ set-up, the confidence rules' new keys (``explains_more``,
 ``ambiguous_with``, ``time_alternatives``, the counter's figures, a
 rejection's ``undetermined``), gen_a nonrigid 2 named nonrigid (ambiguous,
 a finer error map explains as much) instead of periodic_axis_error, gen_b
-stylus_pickup 501's thermal_drift ambiguous; nothing else moved) on sixteen stored campaigns: the demo's, the hidden
+stylus_pickup 501's thermal_drift ambiguous, the simulator's lobing per
+set-up 1000 named lobing_per_setup (ambiguous, magnitudes not determined,
+its workpiece shift carried) instead of unexplained; nothing else moved)
+on sixteen stored campaigns: the demo's, the hidden
 simulator's (no effect, catalogue causes, an effect no cause can name) and
 both blind generators' (catalogue, newly named and out-of-catalogue
 effects), none made for this test (tests/core/data/discover_identity/make.py
