@@ -561,6 +561,28 @@ class Machine:
         return T
 
 
+class _Nominal:
+    """What :meth:`Machine.T_R_W_nominal` reads of a machine: its configuration, chain and rotary
+    axes (no Pinocchio model: those carry the truth errors, the nominal product does not)."""
+
+    def __init__(self, config: MachineConfig):
+        self.config = config
+        self.chain = config.parsed_chain
+
+    rotary_axes = Machine.rotary_axes
+    _inputs, _axes, _nominal_product = Machine._inputs, Machine._axes, Machine._nominal_product
+
+
+def nominal_T_R_W(config: MachineConfig, rot_rad=None, lin_m=None) -> np.ndarray:
+    """``Machine(config).T_R_W_nominal(rot_rad, lin_m)`` without building the machine, (n, 4, 4).
+
+    The same method on the configuration alone (bit for bit, tests/sim/test_machine.py): a
+    Machine builds two Pinocchio models (1.4 ms) that a nominal pose never reads. For callers
+    that need only nominal table poses (:func:`scenarios.mfb.check_plan`, one per set-up).
+    """
+    return Machine.T_R_W_nominal(_Nominal(config), rot_rad, lin_m)
+
+
 class _BatchFK:
     """Forward kinematics of a Pinocchio model for a batch of configurations, in numpy.
 

@@ -58,6 +58,25 @@ def test_zero_errors_is_nominal(name, rng):
     assert np.abs(m._nominal_fk_tip(lin, rot) - m.tip_W_nominal(lin, rot)).max() < 1e-12
 
 
+def test_nominal_T_R_W_without_the_machine_is_the_machines():
+    """sim.machine.nominal_T_R_W (the configuration alone, no Pinocchio model) gives
+    Machine.T_R_W_nominal bit for bit: 5-axis with off-centre rotary points and errors (which a
+    nominal pose must ignore), a 3-axis machine, table-side linear axes, and its input check."""
+    from sim.machine import nominal_T_R_W
+
+    rng = np.random.default_rng(3)
+    cfg = MACHINES["mikron-ucp710"](rotary_points_R_m={"A": (0.0, 0.01, -0.12), "C": (0.003, -0.02, 0.0)})
+    cfg = dataclasses.replace(cfg, errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes, rng=rng))
+    rot = rng.uniform(-1.5, 1.5, (7, 2))
+    m = Machine(cfg)
+    for args in ((rot,), (rot[:1],), (None,), (rot, rng.uniform(-0.2, 0.2, (7, 3)))):
+        assert np.array_equal(nominal_T_R_W(cfg, *args), m.T_R_W_nominal(*args))
+    c3 = MACHINES["vmc-3axis"]()
+    assert np.array_equal(nominal_T_R_W(c3), Machine(c3).T_R_W_nominal())
+    with pytest.raises(ConfigError, match="rot_rad given but"):  # the machine's own input check
+        nominal_T_R_W(c3, rot)
+
+
 def test_W_turns_by_minus_C_about_the_table_centre():
     cfg = MACHINES["nmv3000"](rotary_points_R_m={"C": (0.01, -0.02, 0.0)})
     m = Machine(cfg)

@@ -114,3 +114,42 @@ def test_ball_distances_from_the_placements_ball_model_are_the_zones_bit_for_bit
             assert d_zone == d_ball
             n += sum(v < 0.05 for v in d_zone)
     assert n > 20  # distances within reach, not only distmax
+
+
+def test_ball_distances_from_the_plans_shared_ball_model_are_each_placements_bit_for_bit():
+    """check_plan compiles one ball model for all its placements (share_ball_model): each
+    placement's holder geoms there give the ball's distances of the placement's own model to
+    the last bit, and each zone's ids point at its own holder (three placements, different blocks)."""
+    import mujoco
+
+    from sim import mfb_scene
+
+    place = ((FLAT, (Block("riser", (0.0, 0.0, 0.0), (0.02, 0.03, 0.01)),)),
+             (A.make_T(A.rot_z(np.pi / 2), (0.08, -0.175, 0.070)), ()),
+             (A.make_T(None, (-0.175, -0.05, 0.11)), (Block("a", (-0.2, -0.1, 0.0), (0.3, -0.06, 0.11)),
+                                                     Block("b", (-0.25, -0.09, 0.0), (-0.2, -0.01, 0.11)))))
+    J = (0.0, -0.100, 0.150)
+    own = []
+    for T, blocks in place:  # each placement's own model (nothing declared)
+        mfb_scene._ZONES.clear()
+        own.append(mfb_scene._work_zone(BAR, T, blocks, J, R, 0.0))
+    mfb_scene._ZONES.clear()
+    mfb_scene.share_ball_model(BAR, [(T, blocks, J, 0.0) for T, blocks in place], R)
+    shared = [mfb_scene._work_zone(BAR, T, blocks, J, R, 0.0) for T, blocks in place]
+    assert len({id(z._holder_model(ball_only=True)[0]) for z in shared}) == 1
+    rng = np.random.default_rng(5)
+    n = 0
+    for (T, _), z1, z2 in zip(place, own, shared):
+        T_R_W = _T_R_W(-30, 20)
+        z1.set_table(T_R_W)
+        z2.set_table(T_R_W)
+        (h1, b1), (h2, b2) = z1._ball_ids(), z2._ball_ids()
+        assert (h1, b1) == (0, len(z1._holder)) and b2 == sum(len(z._holder) for z in shared)
+        for p in A.apply_T(T_R_W @ T, rng.uniform([-0.05, -0.05, -0.07], [0.45, 0.10, 0.05], (40, 3))):
+            m1, d1 = z1._set_holder_tip(p, ball_only=True)
+            d_own = [mujoco.mj_geomDistance(m1, d1, b1, h1 + h, 0.05, None) for h in range(len(z1._holder))]
+            m2, d2 = z2._set_holder_tip(p, ball_only=True)
+            d_shared = [mujoco.mj_geomDistance(m2, d2, b2, h2 + h, 0.05, None) for h in range(len(z2._holder))]
+            assert d_own == d_shared
+            n += sum(v < 0.05 for v in d_own)
+    assert n > 20  # distances within reach, not only distmax
