@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import selfcal
-from .diagnosis import Covariate, orth
+from .diagnosis import Covariate, orth, pivoted_qr
 from .exceptions import ConfigError, IdentifiabilityError
 from .touches import Touches
 
@@ -94,6 +94,11 @@ class Baseline:
         covariance, scaled to keep the rows' mean size), and the engine
         multiplies every other column it builds (causes, smooth terms) by
         it too, so that the tests see independent rows of one variance.
+    qr : tuple or None
+        :func:`core.diagnosis.pivoted_qr` of ``A`` when the builder already
+        factored it (the planar grid choice does), so the engine does not
+        factor it again; it names the matrix it factors and is ignored for
+        any other (a replaced ``A``).
     """
 
     kind: str
@@ -120,6 +125,7 @@ class Baseline:
     info: dict = field(default_factory=dict)
     estimand_label: str = "workpiece"
     whiten: np.ndarray | None = field(default=None, repr=False)
+    qr: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def n(self) -> int:
@@ -505,8 +511,9 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
             C = np.vstack([C, rows_g])
             d = np.concatenate([d, np.zeros(len(hg))])
             names = names + hn
-        Q = orth(A, tol=RANK_TOL)
-        item = (st, des, A, C, d, names, levels, Q)
+        qr = pivoted_qr(A)
+        Q = orth(A, tol=RANK_TOL, qr=qr)
+        item = (st, des, A, C, d, names, levels, qr, Q)
         # identifiable beyond the gauge: the gauge rows fix exactly the null space
         nullity = A.shape[1] - Q.shape[1]
         if nullity > np.linalg.matrix_rank(C):
@@ -536,7 +543,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
     else:
         item, why = fallback
         ident = False
-    st, des, A, C, d, names, levels, _ = item
+    st, des, A, C, d, names, levels, qr, _ = item
     data = planar_data(t, st * MM, extra)
     G = des.slices["G"]
     key = np.full(t.n, -1)
@@ -558,7 +565,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         covariates=planar_covariates(data), modes=planar_modes(data), mode_names=PLANAR_MODES,
         rows=np.asarray(t.row), data=data, identifiable=ident, why=why, conventions=tuple(conv),
         info={"grid_step_mm": st, "z_levels_mm": [v / MM for v in levels], "yaw": des.yaw,
-              "design": des})
+              "design": des}, qr=qr)
 
 
 def workpiece_geometry(t: Touches, c0_m: np.ndarray):

@@ -55,20 +55,32 @@ IN_SPAN = 1e-6
 # ---------------------------------------------------------------------------
 # linear algebra
 # ---------------------------------------------------------------------------
-def orth(M: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-    """(n, r) orthonormal basis of the column space of ``M`` (columns scaled first).
+def pivoted_qr(M: np.ndarray):
+    """The factorisation :func:`orth` cuts: ``(Q, d, M)``, pivoted QR of ``M`` with columns scaled.
 
-    Pivoted QR; the rank is the number of ``|R_ii| > tol |R_00|``.
+    ``Q`` (n, p') its orthonormal factor over the non-zero columns, ``d``
+    (p',) the magnitudes of R's diagonal (decreasing), ``M`` the matrix
+    factored (so that a holder can tell which matrix it belongs to).
     """
     if M.ndim != 2 or M.shape[1] == 0:
-        return np.zeros((M.shape[0], 0))
+        return np.zeros((M.shape[0], 0)), np.zeros(0), M
     nrm = np.linalg.norm(M, axis=0)
     keep = nrm > 0
     if not keep.any():
-        return np.zeros((M.shape[0], 0))
+        return np.zeros((M.shape[0], 0)), np.zeros(0), M
     Ms = M[:, keep] / nrm[keep]
     Q, R, _ = sla.qr(Ms, mode="economic", pivoting=True)
-    d = np.abs(np.diag(R))
+    return Q, np.abs(np.diag(R)), M
+
+
+def orth(M: np.ndarray, tol: float = 1e-9, qr=None) -> np.ndarray:
+    """(n, r) orthonormal basis of the column space of ``M`` (columns scaled first).
+
+    Pivoted QR; the rank is the number of ``|R_ii| > tol |R_00|``.
+    ``qr``: :func:`pivoted_qr` of this very ``M``, when already computed
+    (one factorisation cut at two tolerances); ignored for another matrix.
+    """
+    Q, d, of = qr if qr is not None and qr[2] is M else pivoted_qr(M)
     r = int(np.sum(d > tol * d[0])) if d.size else 0
     return Q[:, :r]
 
@@ -488,6 +500,12 @@ class Diagnosis:
         Explained RMS at least the materiality threshold (a fraction of the noise).
     fitted_um : (n,) float or None
         The fitted smooth term at the rows tested, um (what a figure draws).
+    test : NestedTest or None
+        The unadjusted test behind the figures.
+    basis : (n, k) float or None
+        The term's orthonormal directions outside the model (rows tested),
+        ``new_basis(Q, B)``: what another test against the same model
+        (:func:`diagnose`'s ``known``) can take instead of projecting again.
     """
 
     covariate: str
@@ -498,6 +516,8 @@ class Diagnosis:
     words: str
     material: bool
     fitted_um: np.ndarray | None = field(default=None, repr=False, compare=False)
+    test: NestedTest | None = field(default=None, repr=False, compare=False)
+    basis: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def significant(self, alpha: float) -> bool:
         return self.p_value < alpha and self.material
@@ -508,7 +528,7 @@ class Diagnosis:
 
 
 def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarray, *,
-             sigma_m: float, material_sigma: float, rows=None, bases: dict | None = None) -> list:
+             sigma_m: float, material_sigma: float, rows=None, bases: dict | None = None, known=()) -> list:
     """Test every covariate's smooth term against the model, strongest first.
 
     Parameters
@@ -530,6 +550,11 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
     rows : index array or None
     bases : dict or None
         :func:`term_bases` of the covariates (computed when None).
+    known : sequence of Diagnosis
+        Diagnoses already made against this very model (the same ``Q``,
+        ``r``, ``dof`` and ``rows``, bit for bit: the caller's promise):
+        their covariates' tests are taken as they are, not made again (the
+        Holm adjustment is made over ``covariates``, as always).
 
     Returns
     -------
@@ -537,8 +562,12 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
         Sorted by adjusted p-value, then explained RMS (descending).
     """
     rss = float(r @ r)
+    have = {d.covariate: d for d in known if d.test is not None}
     raw = []
     for cov in covariates:
+        if cov.name in have:
+            raw.append((cov, have[cov.name].test, have[cov.name].basis))
+            continue
         if cov.kind == "spectral":
             res = _spectral(cov, Q, r, rss, dof, modes, rows, (bases or {}).get(cov.name))
             if res is not None:
@@ -563,7 +592,7 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
             words = cov.words
         out.append(Diagnosis(cov.name, rms_um, float(pa), t.p_value, t.k,
                              f"residuals follow {words}: {rms_um:.2g} µm, {fmt_p(float(pa))}",
-                             t.explained_rms_m >= material_sigma * sigma_m, (U @ (U.T @ r)) / UM))
+                             t.explained_rms_m >= material_sigma * sigma_m, (U @ (U.T @ r)) / UM, t, U))
     out.sort(key=lambda d: (d.p_value, -d.explained_rms_um))
     return out
 

@@ -277,7 +277,9 @@ class Folds:
             self.items.append((tr, te, U, P, Qo, Uf))
         if not self.items:
             raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
-        self.residuals(np.zeros(self.n))
+        # the baseline's held-out rows (residuals' count: a row alone supporting an own column is not one)
+        self.last_dof = sum(int(np.sum(np.sum(Qo ** 2, axis=1) < 1 - OWN_LEVERAGE)) if Qo.shape[1] else te.size
+                            for _, te, _, _, Qo, _ in self.items)
         self.dof = max(self.last_dof, 1)
 
     def residuals(self, Y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> np.ndarray:
@@ -410,6 +412,8 @@ class Term:
     labels_all: tuple = ()  # the scan's labels (the magnitudes' coefficient layout)
     map: np.ndarray | None = field(default=None, repr=False)  # (k_all, k): label coefficients per column
     cols_all: np.ndarray | None = field(default=None, repr=False)  # (N, k_all) the scan's columns
+    # (Qo, rows, magnitudes, u95) of the adoption test: the model it was judged beside
+    at_adoption: tuple | None = field(default=None, repr=False, compare=False)
 
 
 def _stack(terms, rows) -> np.ndarray:
@@ -548,15 +552,23 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         out.append(int(idx[k]))
         keep[idx[k]] = False
     if judged:
-        first = out
-        if events is not None:  # a negative key: a row of its own
-            ev = np.where(np.asarray(events)[out] >= 0, np.asarray(events)[out], -1 - np.arange(len(out)))
-            first = [out[i] for i in sorted(np.unique(ev, return_index=True)[1])]
+        first = out if events is None else first_per_event(out, events)
         if len(first) >= 2 and concentration_p(ranks, first, rng) < alpha_concentration:
             return []
         if slips is not None and events is not None and _slip_explains(X, y, out, np.asarray(events), slips, alpha):
             return []
     return sorted(out)
+
+
+def first_per_event(idx, events) -> list:
+    """The first of the rows ``idx`` (in their order) in each event of ``events``; a negative key: a row of its own.
+
+    What the concentration test counts: one piece of dust corrupts an
+    event's touches together (:func:`find_outliers`'s ``events``).
+    """
+    ev = np.asarray(events)[idx]
+    ev = np.where(ev >= 0, ev, -1 - np.arange(len(idx)))
+    return [idx[i] for i in sorted(np.unique(ev, return_index=True)[1])]
 
 
 def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, slips, alpha: float) -> bool:
@@ -842,7 +854,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     # 0. baseline fit and a first outlier screen
-    Qall = orth(bl.A)
+    Qall = orth(bl.A, qr=bl.qr)  # the planar baseline's grid choice factored A already
     st0 = _state(Qall, y, all_rows, [])
     rows = np.setdiff1d(all_rows, outliers_of(bl.A, Qall))
     tick()
@@ -890,8 +902,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     smooth_covs = [c for c in bl.covariates if c.kind != "spectral"]  # later rounds: the smooth terms' families
 
-    def search(rows, st, folds, Qb, diag0, cv0):
-        """Greedy rounds from a set of rows; outliers re-judged after each adoption."""
+    def search(rows, st, folds, Qb, diag0, cv0, seen):
+        """Greedy rounds from a set of rows; outliers re-judged after each adoption.
+
+        ``seen``: (state, diagnoses) pairs, the diagnoses made against that
+        model; each round's is appended (a later test against the same
+        model takes its tests, :func:`_made_on`).
+        """
         terms: list[Term] = []
         cv_cur = cv0
         for rnd in range(settings.max_findings):
@@ -900,6 +917,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             diag_now = diag0 if rnd == 0 else diagnose(st.Q, st.r, st.dof, smooth_covs, bl.modes,
                                                        sigma_m=noise_sigma(st), material_sigma=settings.material_sigma,
                                                        rows=rows, bases=bases)
+            if rnd:
+                seen.append((st, diag_now))
             families = _family_ss(bl, diag_now, len(rows))
             for cause in catalogue:
                 if any(tm.cause == cause.name for tm in terms):
@@ -924,32 +943,43 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             terms.append(best["term"])
             # outliers judged against the better model: a systematic effect is no dust
             X = np.hstack([bl.A, _stack(terms, all_rows)])
-            rows = np.setdiff1d(all_rows, outliers_of(X))
+            before, rows = rows, np.setdiff1d(all_rows, outliers_of(X))
             Qb, folds, st = model(rows, terms)
-            cv_cur = folds.mse(y[rows], _stack(terms, rows))
+            # the same rows: the winner's own cross-validation was of this very model
+            cv_cur = best["cv"] if np.array_equal(rows, before) else folds.mse(y[rows], _stack(terms, rows))
         return terms, rows, st, folds, Qb
 
-    terms, rows, st, folds, Qb = search(rows, st, folds, Qb, diag_b, cv_b)
+    seen = [(st, diag_b)]
+    terms, rows, st, folds, Qb = search(rows, st, folds, Qb, diag_b, cv_b, seen)
     if len(rows) < N:
         # the rows called outliers may be a systematic effect's largest
         # residuals: search again with every row; if a cause is then adopted
         # and fewer outliers are left against it, the "outliers" it explains
         # were its structure
         Qa, fa, sa = model(all_rows, [])
+        seen2 = []  # (its first diagnosis is of every row, rows=None: not one the others can take)
         t2, r2, s2, f2, q2 = search(all_rows, sa, fa, Qa, diagnose(
             sa.Q, sa.r, sa.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(sa),
-            material_sigma=settings.material_sigma, bases=bases), fa.mse(y))
+            material_sigma=settings.material_sigma, bases=bases), fa.mse(y), seen2)
         if t2 and len(r2) > len(rows):  # a cause explains some of them: they were its structure
             terms, rows, st, folds, Qb = t2, r2, s2, f2, q2
+        seen += seen2
     tick()
 
     # 4. rival check: a named cause must explain its covariate's structure
     demoted = []
+    # the adopted causes' one-off alternatives (a fixture slip's trials): built once for the whole check
+    trials = {}
+    for tm in terms:
+        fn = tm.origin.counter_scan if tm.origin is not None else None
+        if fn is not None and fn not in trials:
+            Cs = fn(bl)
+            trials[fn] = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
     changed = True
     while changed and terms:
         changed = False
         for tm in list(terms):
-            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings, bases)
+            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings, bases, trials)
             tm.evidence.update(share)
             if not share["kept"]:
                 terms.remove(tm)
@@ -962,7 +992,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 Qb, folds, st = model(rows, terms)
                 changed = True
                 break
-    if terms:
+    if terms and demoted:  # (none dropped: the search judged the outliers against these very terms last)
         X = np.hstack([bl.A, _stack(terms, all_rows)])
         rows = np.setdiff1d(all_rows, outliers_of(X))
     Qb, folds, st = model(rows, terms)
@@ -971,7 +1001,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # 5. what remains
     sig = noise_sigma(st)
     diag_e = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=sig,
-                      material_sigma=settings.material_sigma, rows=rows, bases=bases)
+                      material_sigma=settings.material_sigma, rows=rows, bases=bases, known=_made_on(seen, st))
     E_named = _stack(terms, rows)
     gap_e = _cv_gap(folds, st, y, E_named, None, settings, rng) if terms else gap_b
     lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(bl.replicate[rows], E_named) else None
@@ -1010,7 +1040,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     tick()
 
     # 6. estimates
-    findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases)
+    findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
+                         seen + [(st, diag_e)])
     E_all = _stack(terms, rows)
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
@@ -1061,7 +1092,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         baseline_n_params=int(Qall.shape[1]), findings=tuple(findings), extended_model=model_name,
         extended_rms_um=float(np.sqrt(st.rss / len(rows))) / UM, extended_cv_rms_um=float(np.sqrt(cv_e)) / UM,
         noise=_noise_report(rep, st0, gap_b, lof_b, sigma_rep, sig),
-        diagnosis=tuple(diag_b), diagnosis_extended=tuple(diag_e), workpiece=tuple(wp),
+        diagnosis=tuple(dataclasses.replace(d, basis=None) for d in diag_b),  # (the bases served this run's tests)
+        diagnosis_extended=tuple(dataclasses.replace(d, basis=None) for d in diag_e), workpiece=tuple(wp),
         outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
         residuals_extended_um=res_e / UM, conventions=tuple(conv), workpiece_identifiable=ident,
         G_baseline_m=Gb, G_extended_m=Ge, cov_G_baseline=cGb, cov_G_extended=cGe,
@@ -1089,11 +1121,13 @@ def _constant_within(key: np.ndarray, E: np.ndarray) -> bool:
     ok = key >= 0
     if not ok.any():
         return True
-    for k in np.unique(key[ok]):
-        m = key == k
-        if np.any(np.ptp(E[m], axis=0) > 1e-9 * np.maximum(np.abs(E).max(axis=0), 1e-300)):
-            return False
-    return True
+    # every group's range per column at once: rows sorted by group, max and min over each run
+    idx = np.flatnonzero(ok)
+    idx = idx[np.argsort(key[idx], kind="stable")]
+    Es = E[idx]
+    start = np.flatnonzero(np.r_[True, key[idx][1:] != key[idx][:-1]])
+    ptp = np.maximum.reduceat(Es, start, axis=0) - np.minimum.reduceat(Es, start, axis=0)
+    return not np.any(ptp > 1e-9 * np.maximum(np.abs(E).max(axis=0), 1e-300))
 
 
 def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: str = "") -> dict:
@@ -1188,9 +1222,12 @@ def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> float:
     return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2
 
 
-def _candidate_ss(C: np.ndarray, st: _State) -> float:
-    """Debiased sum of squares a candidate's columns (1, n, k) explain beside the model."""
-    ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
+def _candidate_ss(test, st: _State) -> float:
+    """Debiased sum of squares a candidate's columns explain beside the model.
+
+    ``test``: :func:`core.diagnosis.nested_f_batch` of its columns (1, n, k) against ``st``.
+    """
+    ss, k, _, _ = test
     s2 = max(st.rss - ss[0], 1e-300) / max(st.dof - k[0], 1)
     return float(max(ss[0] - k[0] * s2, 0.0))
 
@@ -1243,6 +1280,20 @@ def _matches(key: str, pattern: str) -> bool:
     return re.fullmatch(re.escape(pattern).replace(r"\*", ".*"), key) is not None
 
 
+def _made_on(seen, st: _State) -> tuple:
+    """The diagnoses of ``seen`` ((state, diagnoses) pairs) made against the model ``st`` itself, else ().
+
+    Itself: the same rows, dof, basis and residuals bit for bit (a model
+    rebuilt from the same terms is), so every test they made is the test
+    that would be made again.
+    """
+    for s, diag in seen:
+        if s is st or (s.dof == st.dof and np.array_equal(s.rows, st.rows) and s.Q.shape == st.Q.shape
+                       and np.array_equal(s.Q, st.Q) and np.array_equal(s.r, st.r)):
+            return tuple(diag)
+    return ()
+
+
 def _family_ss(bl, diag, n) -> dict:
     """Largest debiased sum of squares a smooth term explains, per covariate family: {family: (ss, covariate)}."""
     out: dict = {}
@@ -1269,19 +1320,23 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         else:
             idx = _coarse(sc.build(np.arange(sc.size))[:, rows, :], st.r, settings.shortlist)
         C = sc.build(idx)[:, rows, :]
-        _, k, F, p = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
+        test = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
+        _, k, F, p = test
         for j in np.flatnonzero(k > 0):
             if best is None or (p[j], -F[j]) < (best[0], -best[1]):
-                best = (float(p[j]), float(F[j]), int(k[j]), sc, int(idx[j]))
+                # a scan of one trial: its test is the F test of the trial's own columns
+                best = (float(p[j]), float(F[j]), int(k[j]), sc, int(idx[j]), test if len(idx) == 1 else None)
     if best is None:
         return {"reason": "no columns outside the model"}
-    p_val, F_val, k_val, sc, i = best
+    p_val, F_val, k_val, sc, i, single = best
     info = sc.infos[i]
     cols = sc.build([i])[0]
+    # single: the F test of the chosen trial's own columns, made once (refined, beside families, counter)
     if cause.nonlinear and cause.rebuild is not None and p_val * tries < 1.0:  # refining only helps a candidate
         info = _refine(cause, bl, info, st, rows)
         cols = cause.rebuild(bl, info)[0]
-        _, kk, FF, pp = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
+        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)  # (the refined trial's)
+        _, kk, FF, pp = single
         p_val, F_val, k_val = float(pp[0]), float(FF[0]), int(kk[0])
     p_adj = min(1.0, p_val * tries)
     ev = {"F": F_val, "p_value": p_val, "p_adjusted": p_adj, "tries": float(tries), "k": k_val}
@@ -1290,7 +1345,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     # e. the structure must live where the cause says: a smooth function of a
     # covariate of another family may not explain materially more than it
     if families:
-        ss_n = _candidate_ss(cols[None, rows], st)
+        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof) if single is None else single
+        ss_n = _candidate_ss(single, st)
         cov = bl.covariate(sc.covariate)
         fam = cov.family if cov is not None else ""
         m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
@@ -1309,8 +1365,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # cause of the catalogue (the probe's fixed lobes for lobes turned per
         # set-up, which nest them) can win the round instead of the richer one
         # being adopted and then dropped to `unexplained` by the rival check
-        Cn = cols[None, rows]
-        ss_c, k_c, _, _ = nested_f_batch(Cn, st.Q, st.r, st.rss, st.dof)
+        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof) if single is None else single
+        ss_c, k_c, _, _ = single
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
         d_c = _counter_ss(bl, cause, st, rows, sigma)
         if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows):
@@ -1337,6 +1393,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
     # plausibility of the magnitudes (with their U95)
     vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows)
+    tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95))
     for key, v in vals.items():
         if not isinstance(v, float) or v is None:
             continue
@@ -1448,8 +1505,12 @@ def _named_ss(so: _State, sf: _State, sigma: float) -> float:
     return (so.rss - sf.rss) - (sf.Q.shape[1] - so.Q.shape[1]) * sigma ** 2
 
 
-def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> dict:
-    """How much of what a smooth term in the cause's covariate explains the cause explains."""
+def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trials=None) -> dict:
+    """How much of what a smooth term in the cause's covariate explains the cause explains.
+
+    ``trials``: {counter_scan: its (T, n, k) trials, whitened}, when already
+    built (else built here).
+    """
     others = [o for o in terms if o is not tm]
     so = _state(Qb, y, rows, others)
     sf = _state(Qb, y, rows, others + [tm])
@@ -1483,10 +1544,12 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     if cause is not None and cause.counter_scan is not None and out["kept"]:
         # a one-off alternative chosen among T trials: its best sum of squares is
         # debiased by the median of the largest of T chi-squares (k dof) under noise
-        Cs = cause.counter_scan(bl)
+        if trials is not None and cause.counter_scan in trials:
+            Cs = trials[cause.counter_scan]
+        else:
+            Cs = cause.counter_scan(bl)
+            Cs = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
         if Cs.shape[0]:
-            if bl.whiten is not None:
-                Cs = np.einsum("ij,tjk->tik", bl.whiten, Cs)
             ss_s, k_s, _, _ = nested_f_batch(Cs[:, rows, :], so.Q, so.r, so.rss, so.dof)
             j = int(np.argmax(ss_s))
             null_max = float(stats.chi2.isf(np.log(2) / Cs.shape[0], max(int(k_s[j]), 1)))
@@ -1510,7 +1573,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases) -> di
     return out
 
 
-def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
+def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) -> list:
     """Covariates of other families whose smooth term reproduces the cause's signal.
 
     The cause's signal is its contribution to the joint fit (its columns'
@@ -1519,8 +1582,10 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
     that reproduces at least ``rival_share`` of it and explains at least
     ``rival_share`` as much (debiased) means the design cannot tell the
     cause from "something following that covariate": the name is then
-    flagged as ambiguous.
+    flagged as ambiguous. ``known``: diagnoses made against ``so`` itself
+    (their term bases outside it are taken, not projected again).
     """
+    have = {d.covariate: d.basis for d in known if d.basis is not None}
     fam = bl.covariate(tm.covariate).family if bl.covariate(tm.covariate) is not None else ""
     rows = so.rows  # so: the model without the cause (the other named causes)
     E = tm.columns[rows]
@@ -1535,7 +1600,7 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases) -> list:
     for cov in bl.covariates:
         if not cov.family or cov.family == fam or cov.name not in bases or isinstance(bases[cov.name], tuple):
             continue
-        U = new_basis(so.Q, bases[cov.name][rows])
+        U = have[cov.name] if cov.name in have else new_basis(so.Q, bases[cov.name][rows])
         if U.shape[1] == 0:
             continue
         overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
@@ -1592,25 +1657,31 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
                 cov.name, evidence=ev, penalty=lam * P1)
 
 
-def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases) -> list:
+def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
+              seen=()) -> list:
     out = []
     sig = st.sigma
     named = [t for t in terms if t.penalty is None]
-    sf = _state(Qb, y, rows, named) if named else None  # the model with every named cause
+    # the model with every named cause: st itself when there is no unnamed smooth (same Qb, rows, terms)
+    sf = (st if len(named) == len(terms) else _state(Qb, y, rows, named)) if named else None
     for tm in terms:
         if tm.cause == causes_mod.UNEXPLAINED:
             continue
         cause = tm.origin
         others = [t for t in named if t is not tm]
         so = _state(Qb, y, rows, others)
-        vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows)
+        a = tm.at_adoption  # judged beside this very model at its adoption: the same magnitudes
+        if a is not None and np.array_equal(a[1], rows) and a[0].shape == so.Q.shape and np.array_equal(a[0], so.Q):
+            vals, u95 = dict(a[2]), dict(a[3])
+        else:
+            vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows)
         ev = dict(tm.evidence)
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
         # what the cause explains beside the others (the rival check's own figure; its tests were made)
         explained = max(_named_ss(so, sf, sig), 0.0) / UM ** 2
         ev["explained_ss_um2"] = explained
-        alt = _alternatives(bl, tm, so, sig, settings, bases)
+        alt = _alternatives(bl, tm, so, sig, settings, bases, _made_on(seen, so))
         ev["alternatives"] = alt
         ev["indistinguishable_from"] = [a["covariate"] for a in alt if a["indistinguishable"]]
         # confident: no other family's covariate reproduces the signal
@@ -1685,9 +1756,7 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha) -> Findi
     """
     r0 = st0.r[outliers]
     ss = float(np.sum(r0 ** 2))
-    ev = np.asarray(events)[outliers]
-    ev = np.where(ev >= 0, ev, -1 - np.arange(len(outliers)))
-    first = [outliers[i] for i in sorted(np.unique(ev, return_index=True)[1])]
+    first = first_per_event(outliers, events)
     if len(first) < 2 or ranks.shape[1] == 0:
         p_conc, why = None, ("one event (a touch, or one set-up's touches) cannot show whether it is dust or an "
                              "intermittent mechanism" if len(first) < 2 else "no covariate to test the pattern in")
@@ -1728,7 +1797,9 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
     """
     q = bl.estimand
     A0 = bl.A
-    gb, cb, eb, Lb, _ = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=True)
+    # the linear maps (data -> parameters) serve only the unnamed smooth's shift test
+    smooth = any(t.penalty is not None for t in terms)
+    gb, cb, eb, *lin = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=smooth)
     # a named cause enters with the combinations the data determine (its map)
     E = np.hstack([t.columns @ t.map if t.map is not None else t.columns for t in terms]) if terms \
         else np.zeros((bl.n, 0))
@@ -1736,7 +1807,7 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
     C1 = np.hstack([bl.C, np.zeros((bl.C.shape[0], E.shape[1]))])
     P = None
     d1 = bl.d
-    if any(t.penalty is not None for t in terms):
+    if smooth:
         P = np.zeros((E.shape[1], E.shape[1]))
         pen = np.zeros(A1.shape[1], bool)
         o = A0.shape[1]
@@ -1747,14 +1818,14 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
                 pen[o:o + k] = True
             o += k
         C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen)
-    ge, ce, ee, Le, s2e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=True)
+    ge, ce, ee, *lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=smooth)
     shift = None
     if P is not None:
         # the penalty's ridge rows make every parameter formally estimable:
         # the extended workpiece is an estimate only where the data alone
         # determine it (else the penalty's strength, not the campaign, decides)
         ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
-        ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, Lb, Le, s2e, eb & ee[:len(eb)], alpha)
+        ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, lin[0], lin_e[0], lin_e[1], eb & ee[:len(eb)], alpha)
     out = []
     for i, tid in enumerate(bl.estimand_ids):
         j = q[i]
@@ -1840,25 +1911,44 @@ def _smooth_gauge(A, C, d, rows, pen):
     pinned). Returns (C, d) with the rows appended.
     """
     p = A.shape[1]
-    if C.shape[0]:
-        _, sC, VtC = np.linalg.svd(C)
-        Z = VtC[int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300))):].T
-    else:
-        Z = np.eye(p)
-    M = A[rows] @ Z
-    sc = np.linalg.norm(M, axis=0)
-    sc = np.where(sc > 0, sc, 1.0)
-    _, s, Vt = np.linalg.svd(M / sc, full_matrices=False)
-    null = Vt[s <= 1e-6 * s.max()] if s.size else Vt[:0]
-    if M.shape[1] > s.size:  # more unknowns than rows: the rest is null too
-        null = np.vstack([null, np.linalg.svd(M / sc)[2][s.size:]])
-    Ns = (Z @ (null.T / sc[:, None]))[pen]
+    Ns = _gauge_svd(A[rows], C)[-1][pen]
     if Ns.shape[1] == 0:
         return C, d
     K = orth(Ns).T  # (r, n_pen)
     rows_K = np.zeros((K.shape[0], p))
     rows_K[:, pen] = K
     return np.vstack([C, rows_K]), np.concatenate([d, np.zeros(K.shape[0])])
+
+
+def _gauge_svd(Ar: np.ndarray, C: np.ndarray):
+    """The gauge's null space and the SVD of the design in it: what :func:`_constrained` and :func:`_smooth_gauge` solve by.
+
+    ``theta = theta0 + Z phi`` with ``C Z = 0`` (``Z`` from the SVD of
+    ``C``, rank at 1e-12 of its largest singular value; the identity
+    without gauge rows); ``M = Ar Z`` with its columns scaled by ``sc``;
+    its thin SVD ``U s Vt``; ``good`` the singular values above 1e-6 of
+    the largest. ``null`` (p, m): the parameter directions the rows do not
+    see, ``Z Vt[~good]^T / sc``, and, when ``M`` has more columns than rows
+    (a thin SVD has only as many directions as rows), every direction
+    beyond them as well (the full SVD's remaining rows of ``Vt``): those
+    are unseen too.
+
+    Returns (Z, sc, U, s, Vt, good, null).
+    """
+    p = Ar.shape[1]
+    _, sC, VtC = np.linalg.svd(C) if C.shape[0] else (None, np.zeros(0), np.eye(p))
+    rC = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))
+    Z = VtC[rC:].T
+    M = Ar @ Z
+    sc = np.linalg.norm(M, axis=0)
+    sc = np.where(sc > 0, sc, 1.0)
+    U, s, Vt = np.linalg.svd(M / sc, full_matrices=False)
+    good = s > (1e-6 * s.max() if s.size else 0.0)
+    Vn = Vt[~good]
+    if M.shape[1] > s.size:  # more unknowns than rows: the rest is null too
+        Vn = np.vstack([Vn, np.linalg.svd(M / sc)[2][s.size:]])
+    null = Z @ (Vn.T / sc[:, None]) if Vn.shape[0] else np.zeros((p, 0))
+    return Z, sc, U, s, Vt, good, null
 
 
 def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
@@ -1880,15 +1970,7 @@ def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
         Ar = np.vstack([Ar, np.hstack([np.zeros((k_ext, p - k_ext)), R])])
         yr = np.concatenate([yr, np.zeros(k_ext)])
     theta0 = np.linalg.lstsq(C, d, rcond=None)[0] if C.shape[0] else np.zeros(p)
-    _, sC, VtC = np.linalg.svd(C) if C.shape[0] else (None, np.zeros(0), np.eye(p))
-    rC = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))
-    Z = VtC[rC:].T
-    M = Ar @ Z
-    sc = np.linalg.norm(M, axis=0)
-    sc = np.where(sc > 0, sc, 1.0)
-    U, s, Vt = np.linalg.svd(M / sc, full_matrices=False)
-    tol = 1e-6 * s.max() if s.size else 0.0
-    good = s > tol
+    Z, sc, U, s, Vt, good, null = _gauge_svd(Ar, C)
     Vg = Vt[good].T / sc[:, None]  # (nz, r): phi = Vg diag(1/s) U^T b
     b = yr - Ar @ theta0
     phi = Vg @ ((U[:, good].T @ b) / s[good])
@@ -1898,7 +1980,6 @@ def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
     s2 = float(res[:len(rows)] @ res[:len(rows)]) / dof
     T = Z @ (Vg / s[good])  # theta per unit of U^T b
     cov = s2 * (T @ T.T)
-    null = Z @ (Vt[~good].T / sc[:, None]) if (~good).any() else np.zeros((p, 0))
     if null.shape[1]:
         Qn = orth(null)
         est = np.linalg.norm(Qn, axis=1) < 1e-6

@@ -212,11 +212,13 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = 
     Returns factors, dsym {symbol: [(i, xi (n,6))]}, dax {axis: [(i, xi)]};
     xi = (v, w) is the left-perturbation twist of factor i per unit change
     (empty when ``derivs`` is False: the poses only); ``J`` (n, 3): per-pose probe
-    offsets instead of ``geom.J_m`` (:func:`_probe_offsets`). Per axis: its location errors (:func:`_location_errors`), the rotation they
-    leave relative to the axes below (:func:`_carried_rotation`), its motion
-    errors (:func:`_motion_errors`), then the factors in chain order.
+    offsets (default ``geom.J_m`` at every pose, :func:`_probe_offsets`). Per axis: its
+    location errors (:func:`_location_errors`), the rotation they leave relative to the
+    axes below (:func:`_carried_rotation`), its motion errors (:func:`_motion_errors`),
+    then the factors in chain order.
     """
     ch = geom.chain
+    J = _probe_offsets(geom, J, n)
     axes = ch.tool_axes if side == "tool" else ch.workpiece_from_bed
     s = 1.0 if side == "tool" else -1.0
     F: list[np.ndarray] = []
@@ -266,7 +268,7 @@ def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = 
                 add(m.name, i, xi)
 
         if a in iso.LINEAR_AXES:
-            q = lin[:, ("X", "Y", "Z").index(a)] + (geom.J_m[_E[a]] if J is None else J[:, _E[a]])
+            q = lin[:, ("X", "Y", "Z").index(a)] + J[:, _E[a]]
             add_rel(len(F))
             F.append(L)
             if side != "tool":  # E^-1 in the carrier's frame, before the motion
@@ -439,6 +441,7 @@ def _exp_rows(w: np.ndarray) -> np.ndarray:
 def _branch_pose(geom: ChainGeometry, side: str, lin, rot, values, n: int, J=None) -> _Pose:
     """The product of :func:`_branch`'s factors, composed directly (poses only, no derivatives)."""
     ch = geom.chain
+    J = _probe_offsets(geom, J, n)
     axes = ch.tool_axes if side == "tool" else ch.workpiece_from_bed
     s = 1.0 if side == "tool" else -1.0
     P = _Pose(n)
@@ -466,7 +469,7 @@ def _branch_pose(geom: ChainGeometry, side: str, lin, rot, values, n: int, J=Non
             P.rotate(R_E)
 
         if a in iso.LINEAR_AXES:
-            q = lin[:, ("X", "Y", "Z").index(a)] + (geom.J_m[_E[a]] if J is None else J[:, _E[a]])
+            q = lin[:, ("X", "Y", "Z").index(a)] + J[:, _E[a]]
             P.rotate(L)
             if side != "tool":
                 apply_E()
@@ -497,14 +500,15 @@ def T_R_P(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
     return P.matrix()
 
 
-def _probe_offsets(geom: ChainGeometry, J_m, n: int):
-    """None (``geom.J_m`` for every pose) or the per-pose probe offsets ``J_m`` as (n, 3) m.
+def _probe_offsets(geom: ChainGeometry, J_m, n: int) -> np.ndarray:
+    """The probe offsets of each pose, (n, 3) m: ``J_m``, or ``geom.J_m`` at every pose (None).
 
     Poses taken with different styli (their offsets J) in one batch: each
-    pose's numbers are the ones a call with ``geom.J_m`` = its row gives.
+    pose's numbers are the ones a call with ``geom.J_m`` = its row gives
+    (the same sums and products, a column of J where a number was).
     """
     if J_m is None:
-        return None
+        return np.broadcast_to(np.asarray(geom.J_m, float), (n, 3))
     J = np.asarray(J_m, float)
     if J.shape != (n, 3) or not np.all(np.isfinite(J)):
         raise ConfigError(f"J_m must be finite (n, 3) = ({n}, 3) probe offsets, got shape {J.shape}")
@@ -532,7 +536,7 @@ def tip_W(geom: ChainGeometry, lin_m, rot_rad=None, values=None, J_m=None) -> np
     values = values or {}
     W = _branch_pose(geom, "workpiece", lin, rot, values, n, J)
     P = _branch_pose(geom, "tool", lin, rot, values, n, J)
-    P.translate(-np.asarray(geom.J_m, float) if J is None else -J)
+    P.translate(-J)
     d = P.t - W.t
     if W.R is None:
         return d.T.copy()
@@ -554,7 +558,7 @@ def _derivs(geom, lin_m, rot_rad, values, which, J_m=None):
     values = values or {}
     Fw, dsw, daw = _branch(geom, "workpiece", lin, rot, values, n, J=J)
     Ft, dst, dat = _branch(geom, "tool", lin, rot, values, n, J=J)
-    Ft = Ft + [_hom(None, -np.asarray(geom.J_m) if J is None else -J, n)]
+    Ft = Ft + [_hom(None, -J, n)]
     def prefixes(F):  # I, F0, F0 F1, ...: the last is the branch's pose (the products of _prod)
         pre = [_hom(n=n)]
         for f in F:

@@ -188,7 +188,7 @@ def _group(feature) -> dict:
     return {f: np.asarray(v) for f, v in out.items()}
 
 
-def fit_bar_features(p_R, feature, n_R, *, batched: bool = False, fits: dict | None = None) -> BarFeatures:
+def fit_bar_features(p_R, feature, n_R, *, fits: dict | None = None) -> BarFeatures:
     """Least-squares features of one placement (cylinders App. A, planes App. B).
 
     Parameters
@@ -200,37 +200,56 @@ def fit_bar_features(p_R, feature, n_R, *, batched: bool = False, fits: dict | N
         (others ignored).
     n_R : (n, 3) float
         Nominal outward normals (used for the axis hints and the probed side).
-    batched : bool
-        Fit the features that share a kind, a touch count and a hint (every
-        hole, every rod, every left / right face of a placement) in one call
-        (:func:`core.fit.cylinders_point_axis`, :func:`core.fit.planes_point_normal`):
-        the same iteration per feature, the same answer to rounding (not bit
-        for bit), without the single fits' checks (coincident or collinear
-        points, rank): only for touches known good, e.g. simulated touches
-        each checked to trigger on its target (:func:`scenarios.mfb.run`).
     fits : dict, optional
-        Kept by the caller across calls (not batched): a feature whose touches
-        and hint were fitted before is taken from it (the same numbers, bit
-        for bit; ``fits`` of :func:`poi_noise_gain`).
+        Kept by the caller across calls: a feature whose touches and hint were
+        fitted before is taken from it, and a cylinder's axis hint found before
+        for the same normals (the same numbers, bit for bit; ``fits`` of
+        :func:`poi_noise_gain`).
+
+    Each feature by the validated single fits (:func:`core.fit.cylinder_point_axis`,
+    :func:`core.fit.plane_point_normal`: coincident or collinear points refused by
+    name). Touches known good (simulated, each checked to trigger on its target) may
+    be fitted in batches instead, :func:`points_of_interest_batched`.
     """
-    if batched:
-        return _fit_bar_features_batched(p_R, feature, n_R)
     p_R, n_R = _checked_touches(p_R, feature, n_R)
-    hp, ha, rp, ra, fp, fn = {}, {}, {}, {}, {}, {}
-    rod_normals = []
-    for f, idx in _group(feature).items():
+    feats, side = _sorted_features(feature, n_R, fits)
+    out = {"hole": ({}, {}), "rod": ({}, {}), "face": ({}, {})}
+    for kind, key, idx, hint, f in feats:
         try:
-            if (i := _num(f, "hole")) is not None:
-                hp[i], ha[i] = _fit_once(fits, "cylinder", p_R[idx], _axis_hint(n_R[idx]))
-            elif (j := _num(f, "rod")) is not None:
-                rp[j], ra[j] = _fit_once(fits, "cylinder", p_R[idx], _axis_hint(n_R[idx]))
-                rod_normals.append(n_R[idx])
-            elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
-                fp[(f[4], j)], fn[(f[4], j)] = _fit_once(fits, "plane", p_R[idx], n_R[idx].mean(axis=0))
+            out[kind][0][key], out[kind][1][key] = _fit_once(fits, "plane" if kind == "face" else "cylinder",
+                                                             p_R[idx], hint)
         except FitError as e:
             raise FitError(f"MFB feature {f!r}: {e}") from None
-    side = np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3)
-    return BarFeatures(hp, ha, rp, ra, fp, fn, side)
+    return BarFeatures(*out["hole"], *out["rod"], *out["face"], side)
+
+
+def _sorted_features(feature, n_R, hints: dict | None = None) -> tuple[list, np.ndarray]:
+    """The features of one placement's touches, in the order met: ``[(kind "hole" | "rod" |
+    "face", key: the hole's or rod's number or (side, rod number), touch indices, hint, name)]``
+    (the hint: a cylinder's axis from its normals, :func:`_axis_hint`, a face's mean normal;
+    other names ignored), and the probed side (mean outward normal of the rod touches).
+    ``hints``: axis hints already found, by the bytes of the normals (placements of one
+    orientation, or the plans of one campaign, share their nominal normals: the same numbers),
+    and new ones added."""
+    def axis_hint(nrm):
+        if hints is None:
+            return _axis_hint(nrm)
+        key = ("axis hint", nrm.tobytes())
+        if key not in hints:
+            hints[key] = _axis_hint(nrm)
+            hints[key].setflags(write=False)  # shared by every later lookup
+        return hints[key]
+
+    out, rod_normals = [], []
+    for f, idx in _group(feature).items():
+        if (i := _num(f, "hole")) is not None:
+            out.append(("hole", i, idx, axis_hint(n_R[idx]), f))
+        elif (j := _num(f, "rod")) is not None:
+            out.append(("rod", j, idx, axis_hint(n_R[idx]), f))
+            rod_normals.append(n_R[idx])
+        elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
+            out.append(("face", (f[4], j), idx, n_R[idx].mean(axis=0), f))
+    return out, (np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3))
 
 
 def _checked_touches(p_R, feature, n_R) -> tuple:
@@ -245,35 +264,23 @@ def _checked_touches(p_R, feature, n_R) -> tuple:
     return p_R, n_R
 
 
-def _fit_bar_features_batched(p_R, feature, n_R) -> BarFeatures:
-    """:func:`fit_bar_features` with ``batched=True``."""
-    return _fit_placements_batched([(p_R, feature, n_R)])[0]
-
-
 def _fit_placements_batched(placements) -> list[BarFeatures]:
-    """:func:`fit_bar_features` (``batched=True``) of several placements ``[(p_R, feature, n_R)]``:
-    the features of all of them that share a kind, a touch count and a hint (the same bits: the
-    placements of one orientation) fitted in one call. Each set's iteration is its own (the batched
-    fits update a set only while it is active), so every feature gets the numbers its placement's
-    own batch gives, bit for bit (tests/core/test_mfb.py). A fit error is raised as the first
-    placement's own batch raises it."""
+    """:func:`fit_bar_features` of several placements ``[(p_R, feature, n_R)]`` by the light batched
+    fits (:func:`core.fit.cylinders_point_axis`, :func:`core.fit.planes_point_normal`: the same
+    iteration per feature, the same answer to rounding, not bit for bit, without the single fits'
+    checks: touches known good only). The features of all placements that share a kind, a touch
+    count and a hint (the same bits: the placements of one orientation) are fitted in one call.
+    Each set's iteration is its own (the batched fits update a set only while it is active), so
+    every feature gets the numbers its placement alone gives, bit for bit (tests/core/test_mfb.py).
+    A fit error is raised as the first placement alone raises it."""
     placements = [_checked_touches(p, f, n) + (f,) for p, f, n in placements]
     groups: dict = {}  # (kind, touches, hint bytes) -> [(placement, key, idx, hint, feature)]
-    sides = []
+    sides, hints = [], {}
     for k, (p_R, n_R, feature) in enumerate(placements):
-        rod_normals = []
-        for f, idx in _group(feature).items():
-            if (i := _num(f, "hole")) is not None:
-                kind, key, hint = "hole", i, _axis_hint(n_R[idx])
-            elif (j := _num(f, "rod")) is not None:
-                kind, key, hint = "rod", j, _axis_hint(n_R[idx])
-                rod_normals.append(n_R[idx])
-            elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
-                kind, key, hint = "face", (f[4], j), n_R[idx].mean(axis=0)
-            else:
-                continue
+        feats, side = _sorted_features(feature, n_R, hints)
+        for kind, key, idx, hint, f in feats:
             groups.setdefault((kind, len(idx), hint.tobytes()), []).append((k, key, idx, hint, f))
-        sides.append(np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3))
+        sides.append(side)
     out = [{"hole": ({}, {}), "rod": ({}, {}), "face": ({}, {})} for _ in placements]
     for (kind, _, _), items in groups.items():
         pts = np.stack([placements[k][0][idx] for k, _, idx, _, _ in items])
@@ -311,10 +318,51 @@ def _rod_pair(i: int, rods: set) -> tuple[int, int]:
     raise FitError(f"MFB: hole {i} has no two neighbouring rods measured (PL_{i} undefined)")
 
 
+def rod_height_map(geom: BarGeometry = MFB) -> np.ndarray:
+    """(N, N - 1) how the points of interest's heights follow the rods': ``z(O_i) = W @ h``.
+
+    ``h`` the heights (z_A) of rods 1..N-1, rod j's axis at x_A = (j - 1/2) L; ``PL_i`` passes
+    through the rods around hole i (:func:`_rod_pair`: (i-1, i), the end holes' two nearest) and
+    O_i is read on it at x_A = (i - 1) L (section 2.1): the two rods' mean for an inner hole,
+    1.5 / -0.5 for an end hole. N heights from N - 1 rods: one combination of the O_i's heights
+    (alternating in sign) is no shape a bar can take, and no calibration of it can err that way.
+    """
+    N = geom.n_holes
+    rods = set(range(1, N))
+    W = np.zeros((N, N - 1))
+    for i in range(1, N + 1):
+        a, b = _rod_pair(i, rods)
+        t = ((i - 1) - (a - 0.5)) / (b - a)  # hole i's place between rods a and b (0 at a, 1 at b)
+        W[i - 1, a - 1], W[i - 1, b - 1] = 1.0 - t, t
+    return W
+
+
+def calibration_map(geom: BarGeometry = MFB) -> np.ndarray:
+    """(3N, 3N) how a bar calibration's errors reach its points of interest
+    (``cal_map`` of :func:`core.volumetric.uncertainty`): the points' (x, y, z) deviations, point
+    by point, are off by ``calibration_map() @ (u_cal.ravel() * n)``, n independent standard normal.
+
+    x and y as declared, one independent error per point; the heights projected onto the ones
+    the rods can give (``P = W W^+``, :func:`rod_height_map`): a calibration that derives O_i from
+    the rods (the paper's, and the reversal on a CMM) errs only in the heights a bar can have,
+    and the simulated bar is built so (``sim.artefacts.multi_feature_bar``). For N = 12: 0.99
+    of the declared variance at holes 1 and 12, 0.94 at 2 and 11, 0.89 at 3-10, neighbours
+    correlated, none in the alternating combination; taken as independent, that combination
+    (which 9 nodes over 12 holes hardly tell from EZX) made the 3-axis plan's calibration
+    share of EZX's first free node 4.01 um U95 where the bar's draws give 3.65.
+    """
+    N = geom.n_holes
+    W = rod_height_map(geom)
+    M = np.eye(3 * N)
+    iz = 3 * np.arange(N) + 2
+    M[np.ix_(iz, iz)] = W @ np.linalg.pinv(W)
+    return M
+
+
 def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB, *, batched: bool = False) -> PointsOfInterest:
     """Points of interest and R_MFB from fitted features (section 2.1). ``batched``: the
     planes PL_i of all holes in one call (:func:`core.fit.planes_point_normal`, to rounding;
-    without the single fit's checks: for features known good, :func:`fit_bar_features`)."""
+    without the single fit's checks: for features known good, :func:`points_of_interest_batched`)."""
     rods = set(bf.rod_point)
     holes = sorted(bf.hole_point)
     if len(holes) < 2 or len(rods) < 2:
@@ -349,8 +397,7 @@ def poi_from_features(bf: BarFeatures, geom: BarGeometry = MFB, *, batched: bool
     return PointsOfInterest(tuple(holes), O_R, O_M, T, (ia, ib), orient, found)
 
 
-def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str | None = None, *,
-                       batched: bool = False) -> PointsOfInterest:
+def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str | None = None) -> PointsOfInterest:
     """O_i of one placement from its touches (Viprey 2016, section 2.1).
 
     Parameters
@@ -365,23 +412,22 @@ def points_of_interest(p_R, feature, n_R, geom: BarGeometry = MFB, declared: str
     declared : str, optional
         Declared orientation; if given and the shifted holes say otherwise,
         :class:`OrientationError` names them.
-    batched : bool
-        The features fitted in batches (:func:`fit_bar_features`: touches known good only).
 
     Returns
     -------
     PointsOfInterest
     """
-    poi = poi_from_features(fit_bar_features(p_R, feature, n_R, batched=batched), geom, batched=batched)
+    poi = poi_from_features(fit_bar_features(p_R, feature, n_R), geom)
     if declared is not None:
         check_orientation(poi.orientation, poi.shifted_found, declared, geom)
     return poi
 
 
 def points_of_interest_batched(placements, geom: BarGeometry = MFB) -> list[PointsOfInterest]:
-    """:func:`points_of_interest` (``batched=True``) of several placements ``[(p_R, feature, n_R)]``,
-    their features fitted together (:func:`_fit_placements_batched`: each one's numbers bit for
-    bit; touches known good only, e.g. a campaign's simulated touches each checked to trigger)."""
+    """:func:`points_of_interest` of several placements ``[(p_R, feature, n_R)]`` by the light batched
+    fits, their features fitted together (:func:`_fit_placements_batched`: each placement's numbers
+    as it alone gives them, bit for bit; the single path's to rounding; touches known good only,
+    e.g. a campaign's simulated touches each checked to trigger)."""
     return [poi_from_features(bf, geom, batched=True) for bf in _fit_placements_batched(placements)]
 
 

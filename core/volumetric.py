@@ -400,53 +400,68 @@ def _prepare(m, chain, rotary_points, nodes) -> dict:
     return p
 
 
-def _prepare_all(meas, chain, rotary_points, nodes) -> list:
+class _Prepared(list):
+    """:func:`_prepare` of each measurement (a list), and ``batch``: the touches of every
+    measurement with touches joined once (they do not depend on theta; every Gauss-Newton
+    step's :func:`_touch_kinematics` and :func:`_rows` read them): ``at`` {measurement: its
+    first row}, ``qt`` (t, 3) readings, ``rott`` (t, r) or None, ``J`` (t, 3) each touch's
+    probe offsets, ``W`` {axis: (t, k)} spline weights, ``d_W`` (t, 3) directions; None
+    without touches."""
+
+    batch: dict | None = None
+
+
+def _prepare_all(meas, chain, rotary_points, nodes) -> _Prepared:
     """:func:`_prepare` of every measurement, with the error-free tips of the measurements with
     touches (at their points of interest, ``pred0``, and at their touches, ``tip0_t``) each
     in one kinematics call for all measurements (per-pose probe offsets, as :func:`_touch_kinematics`)."""
-    prep = [_prepare(m, chain, rotary_points, nodes) for m in meas]
+    prep = _Prepared(_prepare(m, chain, rotary_points, nodes) for m in meas)
     idx = [i for i, pm in enumerate(prep) if pm["touches"]]
-    for q_key, rot_key, out in (("q", "rot", "pred0"), ("qt", "rott", "tip0_t")):
-        if not idx:
-            break
-        q = np.concatenate([prep[i][q_key] for i in idx])
-        rot = None if prep[idx[0]][rot_key] is None else np.concatenate([prep[i][rot_key] for i in idx])
-        J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i][q_key].shape) for i in idx])
-        tip = tip_W(prep[idx[0]]["g"], q, rot, None, J_m=J)
+    if not idx:
+        return prep
+    at, t0 = {}, 0
+    for i in idx:
+        at[i] = t0
+        t0 += len(prep[i]["qt"])
+    prep.batch = {"at": at, "qt": np.concatenate([prep[i]["qt"] for i in idx]),
+                  "rott": None if prep[idx[0]]["rott"] is None else np.concatenate([prep[i]["rott"] for i in idx]),
+                  "J": np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["qt"].shape) for i in idx]),
+                  "W": {a: np.concatenate([prep[i]["W"][a] for i in idx]) for a in iso.LINEAR_AXES},
+                  "d_W": np.concatenate([prep[i]["d_W"] for i in idx])}
+    b = prep.batch
+    q = np.concatenate([prep[i]["q"] for i in idx])
+    rot = None if prep[idx[0]]["rot"] is None else np.concatenate([prep[i]["rot"] for i in idx])
+    J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["q"].shape) for i in idx])
+    g = prep[idx[0]]["g"]
+    for tip, key, rows in ((tip_W(g, q, rot, None, J_m=J), "pred0", "q"),
+                           (tip_W(g, b["qt"], b["rott"], None, J_m=b["J"]), "tip0_t", "qt")):
         at = 0
         for i in idx:
-            prep[i][out] = tip[at:at + len(prep[i][q_key])]
-            at += len(prep[i][q_key])
+            prep[i][key] = tip[at:at + len(prep[i][rows])]
+            at += len(prep[i][rows])
     return prep
 
 
 def _touch_kinematics(prep, theta, slices, exact, jacobian):
-    """The touches of every measurement (:func:`_prepare`) in one kinematics call: their
-    sensitivity (t_all, 3, 21) when ``jacobian`` and exact tip positions (t_all, 3) when
-    ``exact`` (else None), and each measurement's first row in them.
+    """The touches of every measurement (:func:`_prepare_all`, its ``batch``) in one kinematics
+    call: their sensitivity (t_all, 3, 21) when ``jacobian`` and exact tip positions (t_all, 3)
+    when ``exact`` (else None), and each measurement's first row in them.
 
     The measurements share the chain and differ in their stylus: each touch carries
     its own probe offsets J (``J_m`` of :func:`core.kinematics.tip_W`), so every row is
     the number a call per measurement gives, bit for bit (tests/core/test_volumetric.py).
     """
-    idx = [i for i, pm in enumerate(prep) if pm["touches"]]
-    if not idx or not (exact or jacobian):
+    b = prep.batch
+    if b is None or not (exact or jacobian):
         return None, None, {}
-    at, t0 = {}, 0
-    for i in idx:
-        at[i] = t0
-        t0 += len(prep[i]["qt"])
-    qt = np.concatenate([prep[i]["qt"] for i in idx])
-    rott = None if prep[idx[0]]["rott"] is None else np.concatenate([prep[i]["rott"] for i in idx])
-    J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["qt"].shape) for i in idx])
     vals = None
     if exact:
-        each = [_values(theta, slices, prep[i]["W"], len(prep[i]["qt"])) for i in idx]
+        each = [_values(theta, slices, prep[i]["W"], len(prep[i]["qt"])) for i in b["at"]]
         vals = {s: np.concatenate([v[s] for v in each]) for s in each[0]}
-    g = prep[idx[0]]["g"]
-    St = sensitivity(g, qt, rott, vals, symbols=MOTION + SQUARENESS, J_m=J) if jacobian else None
-    tip = tip_W(g, qt, rott, vals, J_m=J) if exact else None
-    return St, tip, at
+    g = prep[next(iter(b["at"]))]["g"]
+    St = sensitivity(g, b["qt"], b["rott"], vals, symbols=MOTION + SQUARENESS, J_m=b["J"]) if jacobian else None
+    tip = tip_W(g, b["qt"], b["rott"], vals, J_m=b["J"]) if exact else None
+    return St, tip, b["at"]
 
 
 def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=True, prep=None):
@@ -458,8 +473,7 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=T
         prep = _prepare_all(meas, chain, rotary_points, nodes)
     St_all, tip_all, at = _touch_kinematics(prep, theta, slices, exact, jacobian)
     if jacobian and at:  # the touches' Jacobian rows (t_all, n), all measurements in one product
-        W_all = {a: np.concatenate([prep[i]["W"][a] for i in at]) for a in iso.LINEAR_AXES}
-        Jt_all = _projected_error_jacobian(St_all, np.concatenate([prep[i]["d_W"] for i in at]), W_all, slices, n)
+        Jt_all = _projected_error_jacobian(St_all, prep.batch["d_W"], prep.batch["W"], slices, n)
     for i, m in enumerate(meas):
         pm = prep[i]
         g, q, k, rot, T, W = pm["g"], pm["q"], pm["k"], pm["rot"], pm["T"], pm["W"]
@@ -985,8 +999,20 @@ def _identified_pose(res: VolumetricResult, m) -> np.ndarray:
     return out
 
 
+def _cal_columns(K, B, u_cal, cal_map) -> np.ndarray:
+    """(n, 3N) ``K B cal_map diag(u_cal)``: the estimate's response to the calibration's
+    independent errors (``cal_map`` None: one per point and direction)."""
+    KB = K @ B
+    if cal_map is not None:
+        M = np.asarray(cal_map, float)
+        if M.shape != (B.shape[1], B.shape[1]) or not np.all(np.isfinite(M)):
+            raise ConfigError(f"cal_map must be a finite ({B.shape[1]}, {B.shape[1]}) matrix, got {M.shape}")
+        KB = KB @ M
+    return KB * u_cal.ravel()[None, :]
+
+
 def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, runs: int = 1000,
-                rng: np.random.Generator | None = None, u_place=None) -> VolumetricUncertainty:
+                rng: np.random.Generator | None = None, u_place=None, cal_map=None) -> VolumetricUncertainty:
     """Linear propagation and Monte Carlo (JCGM 101) of probing noise, bar calibration and placement.
 
     Parameters
@@ -1008,6 +1034,12 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
         estimated, moves the shifted holes along z_A (not used) and the
         points by roll x their calibrated offsets from the bar axis (um):
         a small share, propagated, not assumed.
+    cal_map : (3N, 3N) float, optional
+        How the calibration's errors reach the points: their (x, y, z)
+        deviations, point by point, are off by ``cal_map @ (u_cal.ravel() * n)``,
+        n independent standard normal (default: the identity, independent per
+        point and direction). A multi-feature bar's heights come from its rods:
+        :func:`core.mfb.calibration_map`.
 
     Linear propagation: ``u^2 = sum (K G)^2 sigma^2 + (K B u_cal)^2 +
     (K B_p u_place)^2`` (JCGM 100 eq. 13 for the linear estimator ``K``);
@@ -1029,7 +1061,7 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
     for r0, GR in blocks:
         KG = K[:, r0:r0 + GR.shape[0]] @ GR
         var += sigma_probe_m ** 2 * np.einsum("ij,ij->i", KG, KG)
-    KB = (K @ B) * u_cal.ravel()[None, :]
+    KB = _cal_columns(K, B, u_cal, cal_map)
     var += np.einsum("ij,ij->i", KB, KB)
     KP = (K @ Bp) * np.tile(up, Bp.shape[1] // 6)[None, :]
     var += np.einsum("ij,ij->i", KP, KP)
@@ -1050,10 +1082,12 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
     return VolumetricUncertainty(u, 2.0 * u, lo, hi, U, int(runs))
 
 
-def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None) -> np.ndarray:
+def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
+               cal_map=None) -> np.ndarray:
     """(n, n) covariance of ``res.theta`` by linear propagation, the same inputs as :func:`uncertainty`.
 
-    ``K G G^T K^T sigma^2`` per measurement plus ``(K B) diag(u_cal^2) (K B)^T`` plus the placements'
+    ``K G G^T K^T sigma^2`` per measurement plus ``(K B M) diag(u_cal^2) (K B M)^T`` (M = ``cal_map``,
+    default the identity) plus the placements'
     (JCGM 100 eq. 13 in matrix form); its diagonal is :func:`uncertainty`'s ``u_lin**2``.
     """
     u_cal = np.asarray(u_cal_m, float)
@@ -1066,7 +1100,7 @@ def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pla
     for r0, GR in blocks:
         KG = K[:, r0:r0 + GR.shape[0]] @ GR
         cov += sigma_probe_m ** 2 * (KG @ KG.T)
-    KB = (K @ B) * u_cal.ravel()[None, :]
+    KB = _cal_columns(K, B, u_cal, cal_map)
     KP = (K @ Bp) * np.tile(up, Bp.shape[1] // 6)[None, :]
     return cov + KB @ KB.T + KP @ KP.T
 

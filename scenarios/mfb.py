@@ -66,15 +66,17 @@ over the end rods); 0.003 um / 0.03 urad for errors the tables represent
 
 Uncertainty: probing noise (0.125 um standard deviation, the paper's 0.25 um
 at k = 2), the bar's calibration (the
-true bar differs from its calibration by a draw of ``u_cal_um``) and the
+true bar differs from its calibration by a draw of ``u_cal_um``, its 12
+heights kept to what its 11 rods can give: :func:`core.mfb.calibration_map`,
+propagated alike) and the
 placement errors (:data:`U_PLACE`, roll included, drawn in the simulator),
 by linear propagation and Monte Carlo (JCGM 101) through the same
-estimator. At 0.25 um probing noise, over four seeded campaigns, U95 at
-the nodes: positioning median 0.8 um, max 2.1 um; straightness 1.3 / 4.3 um
-(EZX next to its end nodes, bar calibration dominated); angular 5.0 / 15.8
-urad (the EAX / EBY twist ramps); squareness 4.9 / 8.7 urad. 97 % of 504
-identified values within U95 (RMS error / U95 0.46); a noisy run is off by
-1-4 um / 5-11 urad. What is left weakest: ``observability(...).weakest``.
+estimator. At 0.25 um probing noise, over four seeded campaigns (seeds
+11-14), U95 at the nodes: positioning median 0.69 um, max 0.79 um;
+straightness 0.92 / 3.8 um (EZX next to its end nodes, bar calibration
+dominated); angular 3.7 / 13.8 urad (the EAX / EBY twist ramps); squareness
+3.8 / 5.1 urad. 94 % of 504 identified values within U95 (RMS error / U95
+0.53); a noisy run is off by 0.9-3.2 um / 4.8-12.7 urad. What is left weakest: ``observability(...).weakest``.
 
 The scenario injects ``sim.machines.realistic_errors`` of the machine's
 linear axes minus the 10 mm screw-pitch ripple: a bar of 50 mm pitch
@@ -90,11 +92,11 @@ collisions and reach in the MuJoCo work zone (:func:`check_plan`,
 :mod:`sim.mfb_scene`); the rotary axes' errors are absorbed by each
 set-up's pose. Noise-free on the realistic machine (rotary axes' errors
 included): 0.041 um / 0.49 urad (EBY). At 0.125 um probing noise (seed 1):
-U95 max 1.1 um positioning, 1.6 um straightness; the twists: EAX U95 30
+U95 max 0.73 um positioning, 1.6 um straightness; the twists: EAX U95 28.9
 urad on a 4.8 urad peak-to-peak signal (not resolved: on this tool-side
 chain a ramp of an angular error of X moves every bar along X rigidly, and
-only the diagonals' bend, ~0.1 um, sees it), EBY 7.8 urad on 5.95 (seen by
-T0 vs TXF in one pose, dJ_X 100 mm), ECZ 9.1 urad on 3.6 (dJ 50 mm star
+only the diagonals' bend, ~0.1 um, sees it), EBY 7.7 urad on 5.95 (seen by
+T0 vs TXF in one pose, dJ_X 100 mm), ECZ 8.5 urad on 3.6 (dJ 50 mm star
 arms; not resolved at this noise).
 
 The bar's calibration: declared (its default deviations, u_cal_um) or the
@@ -109,7 +111,6 @@ temperature) and a Monte Carlo through the whole pipeline.
 
 from __future__ import annotations
 
-import functools
 import time
 from dataclasses import dataclass, field
 
@@ -455,11 +456,23 @@ def bar_gauge(E_m) -> np.ndarray:
     return E
 
 
-def within_u95(errors: dict) -> dict:
+def within_u95(errors: dict, cov=None, slices: dict | None = None, rng: np.random.Generator | None = None,
+               draws: int = 4000) -> dict:
     """How many identified values lie within their U95 of the injected ones (values the
-    conventions fix, U95 = 0, left out): ``{inside, total, text}``."""
-    inside = total = 0
-    for e in errors.values():
+    conventions fix, U95 = 0, left out): ``{inside, total, text, errors_inside, errors_total}``,
+    ``errors_inside`` counting the errors with every node within.
+
+    The values are the nodes of 21 errors, and an error's nodes miss together (the bar's
+    calibration, seen over its rods, moves a straightness everywhere at once): the count spreads far
+    wider than 126 independent values would. With ``cov`` (n, n) the reported values' covariance
+    (m^2, rad^2: the linear propagation in the report's gauge), ``slices`` ({symbol: slice} into it)
+    and ``rng``: what the model expects of the same counts over ``draws`` joint normal draws of the
+    errors, ``expected`` / ``errors_expected`` (means) and ``range95`` / ``errors_range95`` (2.5 and
+    97.5 % points).
+    """
+    inside = total = e_in = e_tot = 0
+    idx, U, group = [], [], []
+    for s, e in errors.items():
         if e.get("u95") is None or e.get("injected") is None:
             continue
         u = np.asarray(e["u95"], float)
@@ -467,17 +480,44 @@ def within_u95(errors: dict) -> dict:
         k = u > 1e-9
         inside += int(np.sum(dev[k] <= u[k]))
         total += int(np.sum(k))
-    return {"inside": inside, "total": total, "text": f"{inside}/{total}"}
+        if k.any():
+            e_in += int(np.all(dev[k] <= u[k]))
+            e_tot += 1
+        if cov is not None:
+            idx.extend(np.arange(slices[s].start, slices[s].stop)[k])
+            U.extend(u[k] * 1e-6)  # um / urad -> m / rad
+            group.extend([e_tot - 1] * int(np.sum(k)))
+    out = {"inside": inside, "total": total, "text": f"{inside}/{total}", "errors_inside": e_in, "errors_total": e_tot}
+    if cov is not None and idx:
+        C = np.asarray(cov, float)[np.ix_(idx, idx)]
+        w, V = np.linalg.eigh(0.5 * (C + C.T))
+        x = rng.standard_normal((int(draws), len(idx))) @ (V * np.sqrt(np.clip(w, 0.0, None))).T
+        hit = np.abs(x) <= np.asarray(U)
+        out_ = np.zeros((len(x), e_tot), int)  # per draw and error: nodes outside
+        np.add.at(out_.T, np.asarray(group), (~hit).T)
+        for key, n in (("", hit.sum(axis=1)), ("errors_", np.sum(out_ == 0, axis=1))):
+            out[key + "expected"] = float(n.mean())
+            out[key + "range95"] = [int(np.quantile(n, q, method="inverted_cdf")) for q in (0.025, 0.975)]
+    return out
 
 
-def _bar_doc(E_cal_m, u_cal_m, E_true_m, source: str) -> dict:
+def _bar_doc(E_cal_m, u_cal_m, E_true_m, source: str, cal_map=None) -> dict:
     """The bar block of the result JSON: calibrated and true deviations of the points
-    of interest in one gauge (:func:`bar_gauge`), um, U95 = 2 u."""
+    of interest in one gauge (:func:`bar_gauge`), um, U95 = 2 u. ``cal_map`` given
+    (:func:`core.mfb.calibration_map`): ``u_cal_m`` is each point's own (the declared
+    calibration, drawn through the map), and U95 is that of calibrated - true in the gauge:
+    every point referred to O_1 (and O_12), an inner height's u 0.41-0.46 um for a declared
+    0.35, the ends' 0. Without: ``u_cal_m`` is already in the gauge (a reversal's)."""
     from sim import artefacts as A
 
     cal, tru = bar_gauge(E_cal_m), bar_gauge(E_true_m)
+    u = np.asarray(u_cal_m, float)
+    if cal_map is not None:  # bar_gauge is linear: its matrix from the unit deviations
+        G = np.column_stack([bar_gauge(e.reshape(u.shape)).ravel() for e in np.eye(u.size)])
+        GM = G @ np.asarray(cal_map, float) * u.ravel()[None, :]
+        u = np.sqrt(np.einsum("ij,ij->i", GM, GM)).reshape(u.shape)
     return {"source": source, "x_mm": (np.arange(12) * A.MFB_PITCH_M * 1e3).tolist(),
-            "calibrated_um": (cal * 1e6).tolist(), "U95_um": (2.0 * np.asarray(u_cal_m) * 1e6).tolist(),
+            "calibrated_um": (cal * 1e6).tolist(), "U95_um": (2.0 * u * 1e6).tolist(),
             "true_um": (tru * 1e6).tolist(), "calibrated_minus_true_max_um": float(np.abs(cal - tru).max() * 1e6),
             "gauge": "Exx from O_1; Eyx, Ezx against the line O_1 O_12 (a rigid move of the bar, absorbed by "
                      "each set-up's pose)"}
@@ -556,7 +596,6 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     from sim.machine import Machine
     from sim.machines import MACHINES
     from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurement
-    from sim.plans import mfb_plan
 
     program = _program(u_place)  # the program run() simulates for this placement tolerance
     key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
@@ -567,7 +606,6 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     t0 = time.time()
     mach = Machine(MACHINES[plan.machine]())
     art = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
-    full = mfb_plan(art, **program)  # once per check
     per, n_t, n_s, table_poses = {}, 0, 0, {}
     for ms in plan.measurements:
         T_R_W = table_poses.get(tuple(ms.rot_rad))  # (one per set-up: measurements share them)
@@ -575,7 +613,7 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
             rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
             T_R_W = table_poses[tuple(ms.rot_rad)] = np.asarray(mach.T_R_W_nominal(rot), float).reshape(4, 4)
             T_R_W.flags.writeable = False  # shared: read only
-        pl = _plan_for(art, ms.holes, full=full)
+        pl = _plan_for(art, ms.holes, **program)
         r = check_measurement(ms.name, art, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m,
                               stylus_r_m, pl, FINGERS.get(ms.stylus, 0.0))
         if not r.ok:
@@ -624,19 +662,62 @@ def describe_collision_check(c: dict) -> str:
 _GAINS = Memo(64)
 
 
-def _noise_gain(pl_ok, r_m, fits=None):
+def _noise_gain(pl_ok, r_m, fits=None, full=None):
     """:func:`core.mfb.poi_noise_gain` of the touches ``pl_ok`` (a plan's nominal
-    geometry and stylus radius only), kept for the next run of the same plan:
-    it is two thirds of a run's time and the same for every campaign. ``fits``:
-    the light fits of the run's other hole sets (``fits`` of :func:`core.mfb.poi_noise_gain`)."""
+    geometry and stylus radius only), kept for the next run of the same plan
+    (the same for every campaign of it). ``fits``:
+    the light fits of the run's other hole sets (``fits`` of :func:`core.mfb.poi_noise_gain`).
+
+    ``full``: the bar's whole program (:func:`sim.plans.mfb_plan`) when ``pl_ok`` is a part of it
+    made of whole features (:func:`_plan_for`): the whole program's gain is computed once (and
+    kept) and ``pl_ok``'s is its rows of ``pl_ok``'s holes and columns of its touches (:func:`_part_of`:
+    a point of interest depends only on its hole's and its two rods' touches; the same numbers
+    bit for bit, tests/scenarios/test_mfb_scenario.py)."""
     from core import mfb
 
     key = (tuple(pl_ok.target), tuple(pl_ok.feature), pl_ok.w_A.tobytes(), pl_ok.wn_A.tobytes(), float(r_m))
     if key not in _GAINS:
-        G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A, fits=fits)
+        part = None if full is None else _part_of(full, pl_ok)
+        if part is not None:
+            rows, cols = part
+            G = _noise_gain(full, r_m, fits)[rows][:, cols]
+        else:
+            G = mfb.poi_noise_gain(pl_ok.w_A + r_m * pl_ok.wn_A, pl_ok.feature, pl_ok.wn_A, -pl_ok.wn_A, fits=fits)
         G.setflags(write=False)  # shared between runs: read only
         _GAINS[key] = G
     return _GAINS[key]
+
+
+def _part_of(full, pl) -> tuple | None:
+    """(rows, cols): where the gain of the plan ``pl`` stands in the gain of ``full`` (rows of
+    its holes' points of interest, columns of its touches), or None unless ``pl`` is a part of
+    ``full`` its gain can be cut from: each of its features with all of ``full``'s touches of
+    it at the same places, and each of its holes' plane PL_i through the rods ``full`` uses."""
+    from core import mfb
+    from core.exceptions import FitError
+
+    at = {t: k for k, t in enumerate(full.target)}
+    if any(t not in at for t in pl.target):
+        return None
+    cols = np.array([at[t] for t in pl.target], int)
+    f_full = np.asarray(full.feature, object)
+    if not (np.array_equal(pl.w_A, full.w_A[cols]) and np.array_equal(pl.wn_A, full.wn_A[cols])
+            and all(np.count_nonzero(f_full == f) == n
+                    for f, n in zip(*np.unique(np.asarray(pl.feature, object), return_counts=True)))):
+        return None
+
+    def holes_rods(features):
+        holes = sorted({int(f[4:]) for f in features if f.startswith("hole")})
+        return holes, {int(f[3:]) for f in features if f.startswith("rod")}
+
+    (h_full, r_full), (h_pl, r_pl) = holes_rods(full.feature), holes_rods(pl.feature)
+    try:
+        if any(mfb._rod_pair(i, r_pl) != mfb._rod_pair(i, r_full) for i in h_pl):
+            return None
+    except FitError:  # a hole without its two rods: the gain's own error, raised from the plan itself
+        return None
+    row = {h: k for k, h in enumerate(h_full)}
+    return np.concatenate([np.arange(3 * row[h], 3 * row[h] + 3) for h in h_pl]), cols
 
 
 def _check_touch_strokes(log, machine, name):
@@ -648,6 +729,28 @@ def _check_touch_strokes(log, machine, name):
         bad = (p[:, j] < lo - 1e-9) | (p[:, j] > hi + 1e-9)
         if bad.any():
             raise PlanError(f"measurement {name!r}: a touch at {ax} = {p[bad][0, j] / MM:.1f} mm is outside the stroke")
+
+
+#: _declared_poi_deviations's answers by the declared deviations' bytes (a pure function of them:
+#: every run with the declared calibration asks the same). Read-only (12, 3) arrays. 4 entries.
+_DECLARED_POI = Memo(4)
+
+
+def _declared_poi_deviations(E_cal) -> np.ndarray:
+    """(12, 3) deviations of the points of interest the declared bar deviations ``E_cal`` give, m:
+    Exx, Eyx as declared, Ezx through the rods (:func:`sim.artefacts.multi_feature_bar`'s
+    ``E_MFB_m``); kept per ``E_cal`` (:data:`_DECLARED_POI`: building the bar for it took a
+    tenth of a budget run's simulation)."""
+    from sim import artefacts as A
+
+    E_cal = np.asarray(E_cal, float)
+    key = E_cal.tobytes()
+    hit = _DECLARED_POI.get(key)
+    if hit is None:
+        hit = np.column_stack([E_cal[:, :2], A.multi_feature_bar(deviations_m=E_cal).info["E_MFB_m"][:, 2]])
+        hit.flags.writeable = False
+        _DECLARED_POI[key] = hit
+    return hit
 
 
 #: Coverage factor of the MFB program's approach margins against the placement
@@ -721,36 +824,22 @@ def _check_touches_ok(log, name, program):
                         f"{program['clearance_m'] / MM:g} mm, overshoot {program['overshoot_m'] / MM:g} mm)")
 
 
-def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM, full=None):
+def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM):
     """The touches of ``holes`` of the bar ``art`` (and of the rods and faces their planes need),
-    selected from ``full`` (default: :func:`sim.plans.mfb_plan` of ``art`` with these margins)."""
+    selected from its full program (:func:`sim.plans.mfb_plan` with these margins, kept per bar)."""
     from sim.plans import mfb_plan
 
-    if full is None:
-        full = mfb_plan(art, clearance_m=clearance_m, overshoot_m=overshoot_m)
-    # the rods each probed hole's plane PL_i needs: (i-1, i), (1, 2) for hole 1
+    full = mfb_plan(art, clearance_m=clearance_m, overshoot_m=overshoot_m)
+    # the rods each probed hole's plane PL_i needs: (i-1, i); (1, 2) for hole 1, (10, 11) for
+    # hole 12 alone (core.mfb._rod_pair)
     lo, hi = min(holes), max(holes)
     rods = set(range(max(lo - 1, 1), min(hi, 11) + 1))
     if len(rods) < 2:
-        rods = {lo, lo + 1}
-    is_hole, is_rod, number = _feature_numbers(full.feature)
-    n = max(int(number.max()), max(holes), max(rods)) + 1
-    want_hole, want_rod = np.zeros(n, bool), np.zeros(n, bool)  # by number
-    want_hole[[h for h in holes if h >= 0]], want_rod[[r for r in rods if r >= 0]] = True, True
-    return full.select(np.flatnonzero((is_hole & want_hole[number]) | (is_rod & want_rod[number])))
-
-
-@functools.lru_cache(maxsize=16)
-def _feature_numbers(features: tuple) -> tuple:
-    """Per touch of an MFB plan's ``features``: (a hole's, a rod's or face's, its number), (n,)
-    arrays read only; computed once per plan (:func:`_plan_for` selects from it per measurement)."""
-    is_hole = np.array([f.startswith("hole") for f in features], bool)
-    is_rod = np.array([f.startswith(("rod", "face")) for f in features], bool)
-    number = np.array([int(f[4:]) if f.startswith("hole") else int(f[3:]) if f.startswith("rod")
-                       else int(f[5:]) if f.startswith("face") else 0 for f in features], int)
-    for x in (is_hole, is_rod, number):
-        x.flags.writeable = False
-    return is_hole, is_rod, number
+        rods = {lo, lo + 1} if lo < 11 else {10, 11}
+    holes = set(holes)
+    return full.select([k for k, f in enumerate(full.feature)
+                        if (f.startswith("hole") and int(f[4:]) in holes)
+                        or (f.startswith(("rod", "face")) and int(f[3:] if f[0] == "r" else f[5:]) in rods)])
 
 
 @dataclass(frozen=True)
@@ -900,7 +989,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 
     from core.touches import from_log
     from sim import artefacts as A
-    from sim.campaign import simulate_campaign
+    from sim.campaign import simulate_measurements
     from sim.plans import mfb_plan
     from sim.setups import Setup
     from sim.machine import Machine
@@ -934,8 +1023,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     if bar_calibration is None:
         E_cal = A.mfb_default_deviations()
         u_cal = np.tile(np.asarray(u_cal_um, float) * 1e-6, (12, 1))
-        # the points of interest the declared deviations give (Ezx through the rods)
-        E_cal_O = np.column_stack([E_cal[:, :2], A.multi_feature_bar(deviations_m=E_cal).info["E_MFB_m"][:, 2]])
+        E_cal_O = _declared_poi_deviations(E_cal)
     else:
         E_cal = E_cal_O = np.asarray(bar_calibration.E_m, float)
         u_cal = np.asarray(bar_calibration.u_m, float)
@@ -977,8 +1065,6 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
     gain_fits: dict = {}  # the gains' light fits, shared by the hole sets of this run (same touches, same fits)
-    done = []  # (spec, J, touches, readings, plan of the valid touches) of each measurement simulated
-    plans, full_plans = {}, {}  # full_plans holds each bar (its id is the key) for the run
     T_true = {}
     for p in plan.placements:  # bar placement errors (by hand on the table), roll included
         T = next(m.T_W_A for m in plan.measurements if m.placement == p)
@@ -991,6 +1077,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         else:
             T_true[p] = None
     steps = len(plan.measurements) + 2
+    items, plans = [], {}  # (artefact, machine, probe, set-up, plan) of each measurement; plans by bar, holes
     for k, ms in enumerate(plan.measurements):
         if progress is not None:
             progress(k, steps)
@@ -1003,13 +1090,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         art_i, probe_i = art, probe
         if hook is not None:
             art_i, probe_i, m = hook(k, ms, art, probe, m)
-        if (id(art_i), ms.holes) not in plans:  # the bar's full program once per bar, its part per hole set
-            if id(art_i) not in full_plans:
-                full_plans[id(art_i)] = (art_i, mfb_plan(art_i, **program))
-            plans[id(art_i), ms.holes] = _plan_for(art_i, ms.holes, **program, full=full_plans[id(art_i)][1])
-        pl = plans[id(art_i), ms.holes]
-        log = simulate_campaign(art_i, _NoSafeHeight(m), probe_i, [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement])],
-                                rng if noisy else None, plan=pl, check_collisions=False)
+        if (id(art_i), ms.holes) not in plans:  # the bar's part per hole set (its program: mfb_plan's cache)
+            plans[id(art_i), ms.holes] = _plan_for(art_i, ms.holes, **program)
+        items.append((art_i, m, probe_i, Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement]),
+                      plans[id(art_i), ms.holes]))
+    # every measurement's touches in one simulation (its styli on one machine, sim.campaign);
+    # the links' safe height lies above a standing bar's Z stroke: the touches are checked instead
+    logs = simulate_measurements(items, rng if noisy else None, stroke_check=False)
+    done = []  # (spec, J, touches, readings, plan of the valid touches) of each measurement simulated
+    for ms, (_, m, _, _, pl), log in zip(plan.measurements, items, logs):
         _check_touch_strokes(log, m, ms.name)
         _check_touches_ok(log, ms.name, program)
         t = from_log(log)
@@ -1020,15 +1109,16 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         # built with J + dJ would move and read with the same offsets: no error at all.)
         p_R = t.p_R + dJ[ms.stylus]
         # the touches that were fitted (valid ones, plan order)
-        done.append((ms, J, t, p_R, pl.select(np.asarray(log.ok, bool))))
+        done.append((ms, tuple(ms.J_m), t, p_R, pl.select(np.asarray(log.ok, bool))))
     # simulated touches, each checked to trigger on its target: fitted in batches (to rounding),
     # the features of every measurement together (each one's numbers as its own batch gives)
     pois = mfb.points_of_interest_batched([(p_R, t.feature, t.n_R) for _, _, t, p_R, _ in done])
-    for (ms, J, t, p_R, pl_ok), poi in zip(done, pois):
-        # the gain of the extraction at the nominal places of the touches (A frame, stylus centres)
+    for (ms, J, t, p_R, pl_ok), poi, item in zip(done, pois, items):
+        # the gain of the extraction at the nominal places of the touches (A frame, stylus centres),
+        # cut from the gain of the bar's whole program (kept by mfb_plan)
         key = (tuple(pl_ok.target), probe.stylus_r_m)
         if key not in G_cache:
-            G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m, gain_fits)
+            G_cache[key] = _noise_gain(pl_ok, probe.stylus_r_m, gain_fits, full=mfb_plan(item[0], **program))
         idx = [h - 1 for h in poi.holes]
         meas.append(vol.Measurement(ms.name, ms.setup_key, poi.holes, poi.O_R, O_A_cal[idx], ms.T_W_A,
                                     tuple(ms.rot_rad), J, G_cache[key], q_R=p_R,
@@ -1044,8 +1134,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     res = vol.iso_view(res_g)
     if progress is not None:
         progress(steps - 1, steps)
+    cal_map = mfb.calibration_map()  # the bar's heights as its rods give them (the draw above is so)
     unc = (vol.uncertainty(res, meas, probe.sigma_m, u_cal, runs=mc_runs, rng=rng,
-                           u_place=np.asarray(u_place, float) if draw else None)
+                           u_place=np.asarray(u_place, float) if draw else None, cal_map=cal_map)
            if mc_runs or noisy else None)
     # truth in the same gauge
     d = res.design
@@ -1067,13 +1158,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, sigma_um, slopes)
-    doc["estimate"] = vol.estimate(res_g, vol.covariance(res_g, meas, probe.sigma_m, u_cal,  # vmt-estimate/1
-                                                         np.asarray(u_place, float) if draw else None))
+    cov_g = vol.covariance(res_g, meas, probe.sigma_m, u_cal, np.asarray(u_place, float) if draw else None,
+                           cal_map=cal_map)
+    doc["estimate"] = vol.estimate(res_g, cov_g)  # vmt-estimate/1
     doc["machine"] = cfg.name
-    if unc is not None:
-        doc["within_u95"] = within_u95(doc["errors"])
+    if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
+        doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
     doc["bar"] = _bar_doc(E_cal_O, u_cal, art.info["E_MFB_m"],
-                          "declared" if bar_calibration is None else "calibration given (e.g. reversal on a CMM)")
+                          "declared" if bar_calibration is None else "calibration given (e.g. reversal on a CMM)",
+                          cal_map if bar_calibration is None else None)
     if collision is not None:
         doc["collision_check"] = collision
     if progress is not None:
@@ -1533,9 +1626,10 @@ def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 
     component of each stylus (``u_stylus_um`` on it alone: 3 x the plan's styli runs), 2 x the
     root sum of squares of the changes: exact for a response linear in the offsets (the
     draws' share, ``stylus_runs`` random draws, is +-30 % from 6 of them)."""
-    from core import volumetric as vol
+    from core import mfb, volumetric as vol
 
     t_lo, t_hi = _budget_settings(2, stylus_runs, temperature_range_C)
+    cal_map = mfb.calibration_map()  # the heights as the rods give them (as run propagates them)
     styli = list(dict.fromkeys(ms.stylus for ms in PLANS[name]().measurements)) if name in PLANS else []
     total = 5 + (3 * len(styli) if stylus_components else int(stylus_runs))
     step = [0]
@@ -1556,8 +1650,9 @@ def budget_shares(name: str = "mfb-3axis", *, seed: int = 1, stylus_runs: int = 
     for src, (sg, uc, up) in {"probing noise": (sigma, 0 * u_cal, None),
                               "bar calibration": (0.0, u_cal, None),
                               "placement": (0.0, 0 * u_cal, np.asarray(U_PLACE, float))}.items():
-        U[src] = vol.uncertainty(base.result, base.meas, sg, uc, runs=0, u_place=up).U95_lin
-    full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float))
+        U[src] = vol.uncertainty(base.result, base.meas, sg, uc, runs=0, u_place=up, cal_map=cal_map).U95_lin
+    full_lin = vol.uncertainty(base.result, base.meas, sigma, u_cal, runs=0, u_place=np.asarray(U_PLACE, float),
+                               cal_map=cal_map)
     gauge = full_lin.U95_lin <= 1e-12  # values the conventions fix (zero U95 whatever the input)
     th0 = base.result.theta
     if stylus_components:

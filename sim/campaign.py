@@ -220,7 +220,7 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
                       rng: np.random.Generator | None = None, *, plan: Plan | None = None,
                       feed_mps: float = PROBING_FEED_MPS, rapid_mps: float = RAPID_FEED_MPS,
                       setup_change_s: float | None = None, check_collisions: bool = True,
-                      plan_only: bool = False, meta: dict | None = None) -> ProbeLog:
+                      plan_only: bool = False, meta: dict | None = None, stroke_check: bool = True) -> ProbeLog:
     """Simulate a campaign into a probe log (or write the plan only).
 
     Parameters
@@ -245,6 +245,10 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         Check every link, approach and retract path in the MuJoCo scene.
     plan_only : bool
         Write the plan: measured columns (X/Y/Z_mm, t_s) empty.
+    stroke_check : bool
+        Check every move against the machine's strokes (:func:`check_strokes`); False
+        when the caller checks its touches itself (a standing bar's links via the safe
+        height pass above the Z stroke where a real program retracts sideways).
 
     Returns
     -------
@@ -280,7 +284,8 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     moves = []  # (set-up, moves, approach start times) in order, every path checked first
     for si, st in enumerate(setups):
         mv = setup_moves(machine, art, plan, st, probe)
-        check_strokes(machine, st, plan, mv)
+        if stroke_check:
+            check_strokes(machine, st, plan, mv)
         if paths is not None:
             paths.check(st, plan, mv)
         if si > 0:
@@ -296,6 +301,93 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         _append_rows(cols, plan, st, mv, pos, status, t_s, _rotary_deg(machine, st), probe.stylus_r_m)
     columns = {k: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else v) for k, v in cols.items()}
     return make_log(columns, _campaign_meta(machine, art, probe, feed_mps, meta))
+
+
+def simulate_measurements(items, rng: np.random.Generator | None = None, *,
+                          feed_mps: float = PROBING_FEED_MPS, rapid_mps: float = RAPID_FEED_MPS,
+                          meta: dict | None = None, stroke_check: bool = True) -> list[ProbeLog]:
+    """One probe log per measurement ``(artefact, machine, probe, setup, plan)`` of ``items``: what
+    ``simulate_campaign(artefact, machine, probe, [setup], rng, plan=plan, check_collisions=False,
+    stroke_check=stroke_check)`` gives called for each in turn, the noise drawn in the same order.
+
+    Measurements of one artefact and one probe on machines that differ only in their probe
+    offsets (``Machine(replace(config, J_m=J))``, one per stylus: :func:`_styli_of_one_machine`)
+    are simulated in one :func:`sim.probe.simulate_touches` call, each touch with its stylus's
+    offsets (a call's cost is mostly fixed: a few ms per kinematics evaluation) and each plan
+    validated once; the logs are the same bit for bit (tests/sim/test_campaign.py). Others
+    (e.g. a compensated machine, a hook's own artefact): one campaign each.
+    """
+    items = list(items)
+    if not _styli_of_one_machine(items):
+        return _simulate_each_measurement(items, rng, feed_mps=feed_mps, rapid_mps=rapid_mps, meta=meta,
+                                          stroke_check=stroke_check)
+    if not (np.isfinite(feed_mps) and feed_mps > 0 and np.isfinite(rapid_mps) and rapid_mps > 0):
+        raise ConfigError("feed_mps and rapid_mps must be positive")
+    art, machine, probe = items[0][:3]
+    plans = {}  # id -> (plan, its travel); each plan validated once
+    feats = sorted({f for *_, pl in items for f in pl.feature})
+    at = {f: i for i, f in enumerate(feats)}
+    moves, parts = [], []
+    for _, m, _, st, pl in items:
+        if id(pl) not in plans:
+            validate_plan(art, pl, probe)
+            plans[id(pl)] = (pl, np.full(pl.n, pl.clearance_m + pl.overshoot_m))
+        travel = plans[id(pl)][1]
+        mv = setup_moves(m, art, pl, st, probe)
+        if stroke_check:
+            check_strokes(m, st, pl, mv)
+        t0, _ = _touch_start_times(mv, travel, 0.0, feed_mps, rapid_mps)
+        moves.append((m, st, pl, mv))
+        parts.append(_setup_touches(m, st, mv, t0) + (travel, np.array([at[f] for f in pl.feature], int),
+                                                       np.broadcast_to(np.asarray(m.config.J_m, float), (pl.n, 3))))
+    start, d, rot, t0, T_A_W, travel, grp, J = (None if parts[0][k] is None else np.concatenate([p[k] for p in parts])
+                                                for k in range(8))
+    res = simulate_touches(machine, probe, rng, start, d, travel, rot, t0, np.full(len(start), feed_mps),
+                           [art.feature(f).true.sdf for f in feats], grp, T_A_W, J_m=J)
+    pos, status, t_s = _result_rows(res)
+    logs, k = [], 0
+    for m, st, pl, mv in moves:
+        cols: dict[str, list] = {c: [] for c in LOG_COLUMNS}
+        b = slice(k, k + pl.n)
+        k += pl.n
+        _append_rows(cols, pl, st, mv, pos[b], status[b], t_s[b], _rotary_deg(m, st), probe.stylus_r_m)
+        columns = {c: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else v) for c, v in cols.items()}
+        logs.append(make_log(columns, _campaign_meta(m, art, probe, feed_mps, meta)))
+    return logs
+
+
+def _simulate_each_measurement(items, rng=None, *, feed_mps: float = PROBING_FEED_MPS,
+                               rapid_mps: float = RAPID_FEED_MPS, meta: dict | None = None,
+                               stroke_check: bool = True) -> list[ProbeLog]:
+    """:func:`simulate_measurements` one campaign per measurement (the path for measurements that
+    cannot share a kinematics call, and the path before: the oracle of the tests, the reference
+    of the bench)."""
+    return [simulate_campaign(a, m, p, [st], rng, plan=pl, feed_mps=feed_mps, rapid_mps=rapid_mps,
+                              check_collisions=False, meta=meta, stroke_check=stroke_check)
+            for a, m, p, st, pl in items]
+
+
+def _styli_of_one_machine(items) -> bool:
+    """Whether the measurements ``(artefact, machine, probe, setup, plan)`` share one artefact
+    and one probe (the same objects) and run on :class:`sim.machine.Machine` s whose configurations
+    differ at most in their probe offsets ``J_m`` (the same error functions, not copies)."""
+    from .machine import Machine
+
+    if not items:
+        return False
+    a0, m0, p0 = items[0][:3]
+    if not isinstance(a0, A.Artefact) or type(m0) is not Machine:
+        return False
+    c0 = m0.config
+    for a, m, p, *_ in items:
+        if a is not a0 or p is not p0 or type(m) is not Machine:
+            return False
+        c = m.config
+        if (c.name, c.chain, dict(c.strokes), dict(c.rotary_points_R_m)) != (
+                c0.name, c0.chain, dict(c0.strokes), dict(c0.rotary_points_R_m)) or list(c.errors) != list(c0.errors) \
+                or any(c.errors[e] is not c0.errors[e] for e in c0.errors):
+            return False
+    return True
 
 
 #: Every column a campaign writes, in the order of ``probe-log/1``.

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.kinematics import _cross_rows as _cross  # (a_k x b_k for (k,3) rows, without np.cross's overhead)
 from core.memo import Memo
 
 #: A sample is skipped only when every probe/table geom pair is at least this far
@@ -167,6 +168,10 @@ class Clearance:
         The segment boxes' padding of :meth:`near_segments`, the largest radius of
         its certificates (0: fewer pairs bounded, no certificates; for a broad
         phase that will not see the same plan again).
+    pairs : (k_probe, k_table) bool, optional
+        The probe/table geom pairs this broad phase bounds (default: all). The
+        others are left to another broad phase (:class:`sim.mfb_scene.WorkZone`
+        bounds its stylus ball against the bar in one shared by every probe).
 
     Attributes
     ----------
@@ -175,14 +180,17 @@ class Clearance:
     """
 
     def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int, T_F_R=None,
-                 cert_pad_m: float = CERT_PAD_M):
+                 cert_pad_m: float = CERT_PAD_M, pairs: np.ndarray | None = None):
         self.probe, self.table, self.ball = probe, table, int(ball)
         self.cert_pad_m = float(cert_pad_m)
         self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
         plo, phi = probe.aabb()
         ng, nh = len(probe.kind), len(table.kind)
-        self.feature, tlo, thi, cl, h_order, self._fid = _table_prep(table, table_feature)
+        self.feature, tlo, thi, cl, h_order, self._fid, tfid = _table_prep(table, table_feature)
         self.pair_probe, self.pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
+        if pairs is not None:  # (the order kept: by probe geom, cluster, table geom)
+            keep = np.asarray(pairs, bool)[self.pair_probe, self.pair_table]
+            self.pair_probe, self.pair_table = self.pair_probe[keep], self.pair_table[keep]
         # the tip p puts geom g in collision range of h only if p lies in this box
         self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
         self._hi = thi[self.pair_table] - plo[self.pair_probe] + MARGIN_M
@@ -197,22 +205,28 @@ class Clearance:
         # each cluster's feature as a number (_fid) when it is the ball's (the clusters a touch
         # of that feature may meet), else -1
         first = self._cstart
-        fid = np.fromiter(map(self._fid.get, self.feature[self.pair_table[first]], itertools.repeat(-1)), int,
-                          len(first))
-        self._cballf = np.where(self.pair_probe[first] == self.ball, fid, -1)
+        self._cballf = np.where(self.pair_probe[first] == self.ball, tfid[self.pair_table[first]], -1)
         self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
         self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
+        # the same boxes one coordinate a row (3, k), for _overlap_rows
+        self._loT, self._hiT = self._lo.T.copy(), self._hi.T.copy()
+        self._cloT, self._chiT = self._clo.T.copy(), self._chi.T.copy()
 
     def _axes(self, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(U (r,7,3), E (r,7)): the fixed axes of pairs ``pair`` (the table geom's three, the
         probe geom's axis, their cross products) and the sum of the two extents on each
         (inf on a degenerate cross product: it proves nothing). Computed once per pair."""
-        need = np.unique(pair[~self._have[pair]])
+        want = np.zeros(len(self._have), bool)
+        want[pair] = True
+        need = np.flatnonzero(want & ~self._have)  # (sorted, once each)
         if need.size:
             g, h = self.pair_probe[need], self.pair_table[need]
             Ht, Pa = self.table.axes[h], self.probe.axes[g][:, :, 2]
-            U = np.stack([Ht[:, :, 0], Ht[:, :, 1], Ht[:, :, 2], Pa] + [np.cross(Pa, Ht[:, :, j]) for j in range(3)],
-                         axis=1)  # (need, 7, 3)
+            U = np.empty((len(need), 7, 3))
+            U[:, :3] = Ht.transpose(0, 2, 1)  # the table geom's three axes (rows)
+            U[:, 3] = Pa
+            for j in range(3):  # Pa x (table axis j)
+                U[:, 4 + j] = _cross(Pa, Ht[:, :, j])
             U, ok = _unit(U)
             P, T = self.probe.take(np.repeat(g, 7)), self.table.take(np.repeat(h, 7))
             flat = U.reshape(-1, 3)
@@ -275,14 +289,16 @@ class Clearance:
         blk, cp = np.nonzero(hit)
         k, seg = _expand(cut[blk], np.minimum(_BLOCK, n - cut[blk]))
         cp = cp[k]
-        ok = _overlap(s_lo[seg], s_hi[seg], self._clo[cp], self._chi[cp])
         if allow is not None:
-            ok &= self._cballf[cp] != allow[seg]
+            ok = self._cballf[cp] != allow[seg]
+            seg, cp = seg[ok], cp[ok]
+        sT_lo, sT_hi = s_lo.T.copy(), s_hi.T.copy()  # (3, s): one coordinate a row
+        ok = _overlap_rows(sT_lo, sT_hi, seg, self._cloT, self._chiT, cp)
         seg, cp = seg[ok], cp[ok]
         # -> (segment, pair) for the cluster's member geoms
         k, pair = _expand(self._cstart[cp], self._ccount[cp])
         seg = seg[k]
-        ok = _overlap(s_lo[seg], s_hi[seg], self._lo[pair], self._hi[pair])
+        ok = _overlap_rows(sT_lo, sT_hi, seg, self._loT, self._hiT, pair)
         return seg[ok], pair[ok]
 
     def swept_bound(self, a_R: np.ndarray, b_R: np.ndarray, pair: np.ndarray) -> np.ndarray:
@@ -389,12 +405,12 @@ class Clearance:
         apart, else their largest gap along a box axis (negative, at most the geoms' overlap
         along that axis, so at most their penetration depth, as for :meth:`bound`'s axes).
         Looser than :meth:`bound`, a few operations per row."""
-        p = self.to_frame(p_R)[:, None, :]
-        lo, hi = self._lo[pairs] + MARGIN_M, self._hi[pairs] - MARGIN_M  # the tip's box of contact
-        gap = np.maximum(lo - p, p - hi)  # (n, pairs, 3) the boxes' gap along x, y, z
-        worst = np.max(gap, axis=2)
-        out = np.maximum(gap, 0.0)
-        out = np.sqrt(out[:, :, 0] ** 2 + out[:, :, 1] ** 2 + out[:, :, 2] ** 2)
+        p = self.to_frame(p_R)
+        lo, hi = self._loT[:, pairs] + MARGIN_M, self._hiT[:, pairs] - MARGIN_M  # the tip's box of contact
+        # the boxes' gap along x, y, z, (n, pairs) each
+        gx, gy, gz = (np.maximum(lo[ax] - p[:, ax, None], p[:, ax, None] - hi[ax]) for ax in range(3))
+        worst = np.maximum(np.maximum(gx, gy), gz)
+        out = np.sqrt(np.maximum(gx, 0.0) ** 2 + np.maximum(gy, 0.0) ** 2 + np.maximum(gz, 0.0) ** 2)
         return np.where(worst > 0, out, worst)
 
     def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
@@ -441,6 +457,53 @@ class Clearance:
         return out
 
 
+def axisymmetric(probe: Geoms) -> bool:
+    """Whether the probe (about the tip, axes of R) is spheres, capsules and cylinders on its z
+    axis: it then looks the same from every direction about that axis."""
+    return bool(np.all(probe.centre[:, :2] == 0) and np.all(np.abs(probe.axes[:, 2, 2]) == 1)
+                and np.all(np.isin(probe.kind, (_SPHERE, _CAPSULE, _CYLINDER))))
+
+
+class ByOrientation:
+    """The broad phases of one probe against one table side given in a frame F fixed to the
+    table, one per orientation of F to R, each moved with the table (:meth:`Clearance.moved`).
+
+    A probe that translates sees the table side the same way whenever F has the same
+    rotation to R; an axisymmetric one (:func:`axisymmetric`) whenever F's image of the
+    spindle axis (R's z) is the same: placements that differ by a turn about the spindle
+    axis then share one broad phase, its pair data and its certificates. Used by
+    :meth:`sim.scene.Scene.clearance` (F = the artefact's frame) and
+    :class:`sim.mfb_scene.WorkZone` (F = the table's frame W).
+
+    Parameters
+    ----------
+    probe : Geoms
+        About the tip, axes of R.
+    build : callable (probe in F's axes: Geoms, T_F_R (4,4)) -> Clearance
+    maxsize : int
+        Orientations kept (least recently used out first).
+    """
+
+    def __init__(self, probe: Geoms, build, maxsize: int = 32):
+        self.probe, self._build = probe, build
+        self.axisym = axisymmetric(probe)
+        self._memo = Memo(maxsize)
+
+    def get(self, T_F_R: np.ndarray) -> Clearance:
+        """The broad phase with F at ``T_F_R`` (4,4) from R."""
+        T_F_R = np.asarray(T_F_R, float)
+        R = T_F_R[:3, :3]
+        key = np.ascontiguousarray((R[:, 2] if self.axisym else R) + 0.0).tobytes()  # (+0.0: -0 is +0)
+        hit = self._memo.get(key)
+        if hit is None:
+            P = self.probe
+            P = Geoms(P.centre @ R.T, R @ P.axes, P.kind, P.size, P.rbound)  # about the tip, axes of F
+            hit = self._memo[key] = self._build(P, T_F_R)
+        elif not np.array_equal(hit.T_F_R, T_F_R):
+            hit = self._memo[key] = hit.moved(T_F_R)
+        return hit
+
+
 #: The table side's part of :class:`Clearance` (boxes, clusters, feature numbers) by table
 #: Geoms and feature list objects (kept in the entry, so their ids stay theirs): the work
 #: zones of one placement (sim.mfb_scene) share their table's geoms, whatever the probe.
@@ -451,7 +514,8 @@ _TABLE_PREP = Memo(16)
 
 def _table_prep(table: Geoms, table_feature):
     """(feature (k,) object, tlo, thi (k,3), cluster (k,) int, geoms in cluster order (k,),
-    feature -> number) of a table side; computed once per (table, table_feature) objects."""
+    feature -> number, each geom's feature number (k,) int (-1: none)) of a table side; computed
+    once per (table, table_feature) objects."""
     key = (id(table), id(table_feature))
     hit = _TABLE_PREP.get(key)
     if hit is not None and hit[0] is table and hit[1] is table_feature:
@@ -464,7 +528,8 @@ def _table_prep(table: Geoms, table_feature):
     _, cl = np.unique(np.array(k, dtype=object).astype(str), return_inverse=True)
     h_order = np.lexsort((np.arange(len(feature)), cl))
     fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
-    out = (feature, tlo, thi, cl, h_order, fid)
+    tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
+    out = (feature, tlo, thi, cl, h_order, fid, tfid)
     _TABLE_PREP[key] = (table, table_feature, out)
     return out
 
@@ -488,14 +553,19 @@ class _Certificates:
         self._keys = None
         self._n = 0
 
-    def _key(self, a, b, allow) -> np.ndarray:
-        """(n,) void: the grid cell of each segment and its allowed feature, as bytes."""
+    def _key(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
+        """(key (n,) uint64, allow (n,) int64): a hash of each segment's grid cell and allowed
+        feature, and the feature as a number. Different cells may share a hash: a match is
+        only a candidate (:meth:`lookup` checks its feature and its distance)."""
         if np.issubdtype(np.asarray(allow).dtype, np.integer):  # features as numbers already
             f = np.asarray(allow, np.int64)
         else:
             f = np.fromiter((self._ids.setdefault(x, len(self._ids)) for x in allow), np.int64, len(allow))
-        k = np.column_stack([np.round(np.column_stack([a, b]) / _CERT_GRID_M).astype(np.int64), f])
-        return np.ascontiguousarray(k).view(np.dtype((np.void, 8 * 7))).ravel()
+        k = np.round(np.column_stack([a, b, f]) * _CELLS).astype(np.int64).view(np.uint64)
+        h = k @ _HASH[2:]  # the cells and the feature weighted by random odd numbers (wraps modulo 2^64)
+        h = (h ^ (h >> _S30)) * _HASH[0]  # then splitmix64's finalizer
+        h = (h ^ (h >> _S27)) * _HASH[1]
+        return h ^ (h >> _S31), f
 
     def add(self, a, b, allow, r) -> None:
         keep = r > 0
@@ -516,7 +586,7 @@ class _Certificates:
             return r0, moved
         for a0, b0, allow0, rr in self.blocks:  # the same segments in order (another placement)
             if len(a0) == n and np.array_equal(allow0, allow):
-                mv = np.maximum(np.linalg.norm(a - a0, axis=1), np.linalg.norm(b - b0, axis=1))
+                mv = _moved(a, b, a0, b0)
                 better = rr - mv > r0 - moved
                 r0[better], moved[better] = rr[better], mv[better]
         rest = np.flatnonzero(~(moved < r0))
@@ -525,15 +595,15 @@ class _Certificates:
                 A = np.concatenate([blk[0] for blk in self.blocks])
                 B = np.concatenate([blk[1] for blk in self.blocks])
                 F = np.concatenate([blk[2] for blk in self.blocks])
-                k = self._key(A, B, F)
+                k, f = self._key(A, B, F)
                 o = np.argsort(k, kind="stable")
-                self._keys, self._A, self._B = k[o], A[o], B[o]
+                self._keys, self._F, self._A, self._B = k[o], f[o], A[o], B[o]
                 self._R = np.concatenate([blk[3] for blk in self.blocks])[o]
-            q = self._key(a[rest], b[rest], allow[rest])
+            q, f = self._key(a[rest], b[rest], allow[rest])
             j = np.minimum(np.searchsorted(self._keys, q), len(self._keys) - 1)
-            hit = self._keys[j] == q
+            hit = (self._keys[j] == q) & (self._F[j] == f)  # (a hash match with another feature: none)
             rest, j = rest[hit], j[hit]
-            mv = np.maximum(np.linalg.norm(a[rest] - self._A[j], axis=1), np.linalg.norm(b[rest] - self._B[j], axis=1))
+            mv = _moved(a[rest], b[rest], self._A[j], self._B[j])
             r0[rest], moved[rest] = self._R[j], mv
         return r0, moved
 
@@ -542,6 +612,14 @@ class _Certificates:
 _CERT_MAX = 200_000
 #: Grid (m) of the certificates' second lookup: segments whose ends round to the same cells.
 _CERT_GRID_M = 1.0e-6
+#: The certificates' cell hash (:meth:`_Certificates._key`): splitmix64's two multipliers, then
+#: seven odd weights (drawn once) of the six cell coordinates and the feature; the shifts; the
+#: scale of each column (cells of _CERT_GRID_M, the feature number as it is).
+_HASH = np.array([0xBF58476D1CE4E5B9, 0x94D049BB133111EB, 0x8F1A6C3B5D2E4F71, 0xC6A4A7935BD1E995,
+                  0x2545F4914F6CDD1D, 0xD1B54A32D192ED03, 0xAEF17502108EF2D9, 0xF1357AEA2E62A9C5,
+                  0x9FB21C651E98DF25], dtype=np.uint64)
+_S30, _S27, _S31 = np.uint64(30), np.uint64(27), np.uint64(31)
+_CELLS = np.array([1.0 / _CERT_GRID_M] * 6 + [1.0])
 
 
 def _overlap(lo1, hi1, lo2, hi2) -> np.ndarray:
@@ -550,6 +628,24 @@ def _overlap(lo1, hi1, lo2, hi2) -> np.ndarray:
     for ax in (1, 2):
         ok &= (hi1[:, ax] >= lo2[:, ax]) & (lo1[:, ax] <= hi2[:, ax])
     return ok
+
+
+def _moved(a, b, a0, b0) -> np.ndarray:
+    """(n,) how far segments ``a0 -> b0`` moved to ``a -> b`` (n,3): the larger of their ends'
+    distances, which bounds every point's."""
+    da, db = a - a0, b - b0
+    return np.sqrt(np.maximum(np.einsum("ij,ij->i", da, da), np.einsum("ij,ij->i", db, db)))
+
+
+def _overlap_rows(lo1, hi1, i1, lo2, hi2, i2) -> np.ndarray:
+    """Sorted positions r where boxes ``i1[r]`` of (lo1, hi1) and ``i2[r]`` of (lo2, hi2) intersect
+    (closed; boxes given one coordinate a row, (3, k)): :func:`_overlap` one axis at a time,
+    each on the rows the axes before left."""
+    r = np.flatnonzero((hi1[0][i1] >= lo2[0][i2]) & (lo1[0][i1] <= hi2[0][i2]))
+    for ax in (1, 2):
+        a, b = i1[r], i2[r]
+        r = r[(hi1[ax][a] >= lo2[ax][b]) & (lo1[ax][a] <= hi2[ax][b])]
+    return r
 
 
 def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -600,6 +696,49 @@ class Segments:
         f = j * (1.0 / self.k[seg])
         f[j == self.k[seg]] = 1.0
         return self.a[seg] + f[:, None] * (self.b - self.a)[seg]
+
+
+def touch_polylines(starts, ends, has_link, link_points, link_counts) -> tuple:
+    """The polylines of a sequence of touches in the order a path check takes them, as one
+    array: per touch i its link move into ``starts[i]`` (if ``has_link[i]``), then its
+    approach/retract ``starts[i] -> ends[i]``.
+
+    Parameters
+    ----------
+    starts, ends : (n,3) float
+        Each touch's approach start and nominal contact (m).
+    has_link : (n,) bool
+    link_points : (sum link_counts, 3) float
+        The link polylines' points, the touches' with a link in order (m).
+    link_counts : (has_link.sum(),) int >= 2
+        Points of each link.
+
+    Returns
+    -------
+    P : (m,3) float
+        Every polyline's points in turn (for :func:`flat_path_segments`).
+    n_pt : (polylines,) int
+    touch : (polylines,) int
+        The touch of each polyline.
+    is_link : (polylines,) bool
+    """
+    has_link = np.asarray(has_link, bool)
+    cnt = np.asarray(link_counts, int)
+    n = len(has_link)
+    app = np.arange(n) + np.cumsum(has_link)  # each approach's polyline; its link (if any) just before
+    n_pt = np.full(n + int(has_link.sum()), 2)
+    n_pt[app[has_link] - 1] = cnt
+    first = np.cumsum(n_pt) - n_pt
+    P = np.empty((int(n_pt.sum()), 3))
+    P[first[app]], P[first[app] + 1] = starts, ends
+    if cnt.size:
+        into = np.repeat(first[app[has_link] - 1] - (np.cumsum(cnt) - cnt), cnt) + np.arange(int(cnt.sum()))
+        P[into] = link_points
+    touch = np.empty(len(n_pt), int)
+    touch[app], touch[app[has_link] - 1] = np.arange(n), np.flatnonzero(has_link)
+    is_link = np.ones(len(n_pt), bool)
+    is_link[app] = False
+    return P, n_pt, touch, is_link
 
 
 def path_segments(polylines, steps_m, joints: bool) -> Segments:

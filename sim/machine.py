@@ -273,7 +273,7 @@ class Machine:
         stacks = [(i, tuple(k for k, _ in fs), SplineStack([f for _, f in fs])) for (i, _), fs in tables.items()]
         return tuple(plan), tuple(stacks)
 
-    def tip_W(self, lin_m, rot_rad=None, t_s=None, direction=None) -> np.ndarray:
+    def tip_W(self, lin_m, rot_rad=None, t_s=None, direction=None, J_m=None) -> np.ndarray:
         """ACTUAL stylus-tip centre in the workpiece frame W, (n, 3) m.
 
         Parameters
@@ -286,8 +286,14 @@ class Machine:
             Seconds since campaign start (time-dependent errors).
         direction : (n, 3) float, optional
             Signs (-1, 0, +1) of the X, Y, Z velocities (reversal errors).
+        J_m : (n, 3) float, optional
+            Probe offsets of each pose's stylus, m (default the configuration's
+            ``J_m`` at every pose): the tips of several styli on this machine in
+            one call, each as ``Machine(replace(config, J_m=J))`` gives it, bit
+            for bit (the offsets enter the axis positions q = reading + J and
+            the tip frame, nothing else).
         """
-        return self._poses(lin_m, rot_rad, t_s, direction, want="tip")[1]
+        return self._poses(lin_m, rot_rad, t_s, direction, want="tip", J=J_m)[1]
 
     def T_R_W(self, lin_m, rot_rad=None, t_s=None, direction=None) -> np.ndarray:
         """ACTUAL pose of W in R, (n, 4, 4)."""
@@ -417,6 +423,8 @@ class Machine:
                 frames["W"] = model.addFrame(pin.Frame("W", parent, 0, pending, pin.FrameType.OP_FRAME))
             else:
                 tip = pending * pin.SE3(np.eye(3), -J)
+                if with_errors:  # what J is appended to (per-pose offsets: :meth:`_tip_rows`)
+                    self._tip_pending = (np.array(pending.rotation, float), np.array(pending.translation, float))
                 frames["P"] = model.addFrame(pin.Frame("P", parent, 0, tip, pin.FrameType.OP_FRAME))
         return model, tuple(layout), frames["W"], frames["P"]
 
@@ -424,12 +432,13 @@ class Machine:
         """Pinocchio configurations (n, nq) of the poses: axis positions and error free-flyers."""
         return self._configurations_T(model, layout, lin, rot, vals, n).T
 
-    def _configurations_T(self, model, layout, lin, rot, vals, n):
-        """:meth:`_configurations` transposed, (nq, n), each coordinate a contiguous row."""
+    def _configurations_T(self, model, layout, lin, rot, vals, n, J=None):
+        """:meth:`_configurations` transposed, (nq, n), each coordinate a contiguous row
+        (``J`` (n, 3): each pose's probe offsets, default the configuration's)."""
         import pinocchio as pin
 
         QT = np.repeat(np.asarray(pin.neutral(model), float)[:, None], n, axis=1)
-        J = self.config.J_m
+        J = self.config.J_m if J is None else J.T
         zero = np.zeros(n)
         for kind, a, iq, s in layout:
             if kind == "lin":
@@ -447,27 +456,44 @@ class Machine:
                 QT[iq + 3:iq + 7] = quat
         return QT
 
-    def _poses(self, lin_m, rot_rad, t_s, direction, want):
-        """Poses of W, P or the tip by :class:`_BatchFK` (the Pinocchio model, all poses at once)."""
+    def _poses(self, lin_m, rot_rad, t_s, direction, want, J=None):
+        """Poses of W, P or the tip by :class:`_BatchFK` (the Pinocchio model, all poses at once);
+        ``J`` (n, 3): each pose's probe offsets (tip only; default the configuration's)."""
         lin, rot, n = self._inputs(lin_m, rot_rad)
         vals = self.error_values(lin, rot, t_s, direction)
+        tip_t = None
+        if J is not None:
+            J = np.broadcast_to(np.asarray(J, float), (n, 3))
+            if want != "tip" or not np.all(np.isfinite(J)):
+                raise ConfigError(f"per-pose probe offsets J_m: finite (n, 3), for the tip only, got {J.shape}")
+            tip_t = self._tip_rows(J)
         if want == "tip" and self._W_by_angles and n > 1:
             # the workpiece branch once per run of equal rotary positions (a campaign: one per
             # set-up), the tool branch at every pose
             first, inv = _runs(rot)
             vals_W = {k: v[first] for k, v in vals.items()}
-            QT_W = self._configurations_T(self._model, self._layout_W, lin[first], rot[first], vals_W, len(first))
+            QT_W = self._configurations_T(self._model, self._layout_W, lin[first], rot[first], vals_W, len(first),
+                                          None if J is None else J[first])
             (R_W, t_W), = self._fk_W.frames(QT_W)
-            (R_P, t_P), = self._fk_P.frames(self._configurations_T(self._model, self._layout_P, lin, rot, vals, n))
+            (R_P, t_P), = self._fk_P.frames(self._configurations_T(self._model, self._layout_P, lin, rot, vals, n, J),
+                                            None if tip_t is None else [tip_t])
             return None, np.einsum("nji,nj->ni", R_W[inv], t_P - t_W[inv])
-        QT = self._configurations_T(self._model, self._layout, lin, rot, vals, n)
-        (R_W, t_W), (R_P, t_P) = self._fk.frames(QT)
+        QT = self._configurations_T(self._model, self._layout, lin, rot, vals, n, J)
+        (R_W, t_W), (R_P, t_P) = self._fk.frames(QT, None if tip_t is None else [None, tip_t])
         if want == "tip":
             return None, np.einsum("nji,nj->ni", R_W, t_P - t_W)
         R, t = (R_W, t_W) if want == "W" else (R_P, t_P)
         out = np.zeros((n, 4, 4))
         out[:, :3, :3], out[:, :3, 3], out[:, 3, 3] = R, t, 1.0
         return (out, None) if want == "W" else (None, out)
+
+    def _tip_rows(self, J: np.ndarray) -> np.ndarray:
+        """(3, n) translation of the tip frame P in its joint for each pose's offsets J (n, 3): the
+        model's ``pending * SE3(I, -J)``, -J itself when nothing is pending (no tool-side rotary axis)."""
+        R, t = self._tip_pending
+        if np.array_equal(R, np.eye(3)) and not np.any(t):
+            return -J.T
+        return t[:, None] + R @ -J.T
 
     def tip_W_pinocchio(self, lin_m, rot_rad=None, t_s=None, direction=None) -> np.ndarray:
         """:meth:`tip_W` by Pinocchio's own ``forwardKinematics``, one pose at a time, (n, 3) m.
@@ -589,9 +615,10 @@ class _BatchFK:
             self.frames_.append((int(parent), None if np.array_equal(Rf, np.eye(3)) else Rf,
                                  np.array(fr.placement.translation, float)))
 
-    def frames(self, QT: np.ndarray) -> list:
+    def frames(self, QT: np.ndarray, frame_t: list | None = None) -> list:
         """[(R (n,3,3), t (n,3))] of the frames in the universe, for configurations QT (nq, n)
-        (transposed: each coordinate a row)."""
+        (transposed: each coordinate a row); ``frame_t``: per frame, None or (3, n) translations
+        of the frame in its joint, one per configuration, instead of the model's placement's."""
         QT = np.asarray(QT, float)
         n = QT.shape[1]
         # rotations as (3, 3, n) and translations as (3, n): every product is 9 or 3 rows of n
@@ -624,13 +651,15 @@ class _BatchFK:
                     R, t = _mm(Rb, Rq), t + _mv(Rb, QT[iq:iq + 3])
             oM.append((R, t))
         out = []
-        for parent, Rf, tf in self.frames_:
+        for k, (parent, Rf, tf) in enumerate(self.frames_):
             Ra, ta = oM[parent]
+            rows = None if frame_t is None else frame_t[k]
             if Ra is None:
                 R = np.broadcast_to((np.eye(3) if Rf is None else Rf)[:, :, None], (3, 3, n))
-                t = ta + tf[:, None]
+                t = ta + (tf[:, None] if rows is None else rows)
             else:
-                R, t = (Ra if Rf is None else _mm_const(Ra, Rf)), ta + _mv_const(Ra, tf)
+                R = Ra if Rf is None else _mm_const(Ra, Rf)
+                t = ta + (_mv_const(Ra, tf) if rows is None else _mv(Ra, rows))
             out.append((np.moveaxis(R, 2, 0), t.T))
         return out
 

@@ -25,6 +25,12 @@ bar and the workholder lie on the table's side of its face. The tip ball
 may touch the geoms of the feature it probes (the exact primitives of
 :mod:`sim.probe` judge that contact); everything else is a collision.
 Not modelled: the A-axis cradle below the table, the machine's guards.
+
+MuJoCo judges every path sample the broad phase (:mod:`sim.clearance`) cannot
+prove clear; the broad phase has two parts (:meth:`WorkZone.near_segments`): the
+stylus ball against the bar, in the bar's frame and shared by every probe and
+placement of that bar (a sphere looks the same from every direction), and the rest
+of the probe and the holder, per work zone and orientation.
 """
 
 from __future__ import annotations
@@ -36,7 +42,7 @@ import numpy as np
 from core.memo import Memo
 
 from .artefacts import apply_R, apply_T, inv_T, make_T
-from .clearance import flat_path_segments
+from .clearance import flat_path_segments, touch_polylines
 from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
 
 #: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
@@ -53,7 +59,7 @@ STEM_L_M = 0.050
 #: Clearance of the link moves above the bar's top (along z_A), m.
 LINK_CLEAR_M = 10.0e-3
 #: MuJoCo's geom type codes (mjtGeom).
-_SPHERE_T, _CYLINDER_T, _BOX_T = 2, 5, 6
+_SPHERE_T, _CAPSULE_T, _CYLINDER_T, _BOX_T = 2, 3, 5, 6
 
 
 @dataclass(frozen=True)
@@ -92,36 +98,81 @@ class CheckResult:
         return not self.collisions
 
 
-def probe_geoms_mjcf(J_m, r_m: float, finger_m: float = 0.0) -> str:
-    """MJCF geoms of the probe (spindle body frame: tip centre, axes of R) for offsets J.
-
-    ``finger_m``: a star stylus whose ball hangs on a vertical finger of this
-    length below its arm (0: the arm at the ball's height).
-    """
+def _probe_parts(J_m, r_m: float, finger_m: float = 0.0) -> list:
+    """The probe's geoms (spindle body frame: tip centre, axes of R) for offsets J: (name, type,
+    ends (2,3) of a capsule's axis or None, centre (3,) of a sphere or cylinder or None,
+    size tuple) each, in the model's order. :func:`probe_geoms_mjcf` writes them,
+    :func:`probe_geoms` gives them to the broad phase."""
     J = np.asarray(J_m, float)
-    g = [f'<geom name="ball" type="sphere" size="{r_m!r}" contype="0" conaffinity="1"/>']
+    r = float(r_m)
+    out = [("ball", "sphere", None, np.zeros(3), (r,))]
     h = np.hypot(J[0], J[1])
     z_body = J[2] - PROBE_BODY_H_M
     if h > 1e-9:  # star arm (on its finger), then the vertical extension
         u = np.array([J[0], J[1], 0.0]) / h
         z0 = float(finger_m)
         if z0 > 0:
-            g.append(f'<geom name="finger" type="capsule" fromto="0 0 {r_m!r} 0 0 {z0!r}" '
-                     f'size="{STEM_R_M!r}" contype="0" conaffinity="1"/>')
-        g.append(f'<geom name="arm" type="capsule" fromto="{_f((0.0 if z0 > 0 else r_m) * u + [0, 0, z0])} '
-                 f'{_f([J[0], J[1], z0])}" size="{STEM_R_M!r}" contype="0" conaffinity="1"/>')
+            out.append(("finger", "capsule", np.array([[0.0, 0, r], [0.0, 0, z0]]), None, (STEM_R_M,)))
+        out.append(("arm", "capsule", np.array([(0.0 if z0 > 0 else r) * u + [0, 0, z0], [J[0], J[1], z0]]), None,
+                    (STEM_R_M,)))
     else:
-        g.append(f'<geom name="stem" type="capsule" fromto="0 0 {r_m!r} 0 0 {STEM_L_M!r}" '
-                 f'size="{STEM_R_M!r}" contype="0" conaffinity="1"/>')
+        out.append(("stem", "capsule", np.array([[0.0, 0, r], [0.0, 0, STEM_L_M]]), None, (STEM_R_M,)))
         z0 = STEM_L_M
     if z_body - z0 > 1e-6:
-        g.append(f'<geom name="extension" type="capsule" fromto="{_f([J[0], J[1], z0])} '
-                 f'{_f([J[0], J[1], z_body])}" size="{EXTENSION_R_M!r}" contype="0" conaffinity="1"/>')
-    g.append(f'<geom name="probe_body" type="cylinder" pos="{_f([J[0], J[1], z_body + PROBE_BODY_H_M / 2])}" '
-             f'size="{PROBE_BODY_R_M!r} {PROBE_BODY_H_M / 2!r}" contype="0" conaffinity="1"/>')
-    g.append(f'<geom name="spindle" type="cylinder" pos="{_f([J[0], J[1], J[2] + SPINDLE_H_M / 2])}" '
-             f'size="{SPINDLE_R_M!r} {SPINDLE_H_M / 2!r}" contype="0" conaffinity="1"/>')
+        out.append(("extension", "capsule", np.array([[J[0], J[1], z0], [J[0], J[1], z_body]]), None,
+                    (EXTENSION_R_M,)))
+    out.append(("probe_body", "cylinder", None, np.array([J[0], J[1], z_body + PROBE_BODY_H_M / 2]),
+                (PROBE_BODY_R_M, PROBE_BODY_H_M / 2)))
+    out.append(("spindle", "cylinder", None, np.array([J[0], J[1], J[2] + SPINDLE_H_M / 2]),
+                (SPINDLE_R_M, SPINDLE_H_M / 2)))
+    return out
+
+
+def probe_geoms_mjcf(J_m, r_m: float, finger_m: float = 0.0, only=None) -> str:
+    """MJCF geoms of the probe (spindle body frame: tip centre, axes of R) for offsets J.
+
+    ``finger_m``: a star stylus whose ball hangs on a vertical finger of this
+    length below its arm (0: the arm at the ball's height). ``only``: the names of
+    the geoms to write (default: all).
+    """
+    g = []
+    for name, kind, ends, c, size in _probe_parts(J_m, r_m, finger_m):
+        if only is not None and name not in only:
+            continue
+        where = f'fromto="{_f(ends)}"' if ends is not None else ("" if kind == "sphere" else f'pos="{_f(c)}"')
+        g.append(f'<geom name="{name}" type="{kind}" {where + " " if where else ""}size="{_f(size)}" '
+                 f'contype="0" conaffinity="1"/>')
     return "".join(g)
+
+
+def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
+    """(names, :class:`sim.clearance.Geoms`) of the probe's geoms (:func:`probe_geoms_mjcf`) from
+    their definitions: about the tip centre, axes of R, in the model's order. A capsule's
+    frame has its axis as z (MuJoCo's own x, y about it differ: a capsule looks the same
+    from them); poses agree with the compiled model's to rounding (1e-16 m)."""
+    from .clearance import Geoms
+
+    from .clearance import _cross
+
+    parts = _probe_parts(J_m, r_m, finger_m)
+    k = len(parts)
+    kind = np.array([{"sphere": _SPHERE_T, "capsule": _CAPSULE_T, "cylinder": _CYLINDER_T}[p[1]] for p in parts])
+    size = np.array([tuple(p[4]) + (0.0,) * (3 - len(p[4])) for p in parts])
+    cap = kind == _CAPSULE_T
+    centre = np.array([p[3] if p[2] is None else np.zeros(3) for p in parts])
+    axes = np.tile(np.eye(3), (k, 1, 1))
+    ends = np.array([p[2] for p in parts if p[2] is not None]).reshape(-1, 2, 3)  # the capsules'
+    d = ends[:, 1] - ends[:, 0]
+    L = np.sqrt(np.sum(d * d, axis=1))
+    centre[cap], size[cap, 1] = (ends[:, 0] + ends[:, 1]) / 2, L / 2
+    z = d / L[:, None]  # each capsule's frame: z its axis, x normal to it and to y (or z) of R
+    e = np.where((np.abs(z[:, 2]) > 0.9)[:, None], (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    x = _cross(e, z)
+    x /= np.sqrt(np.sum(x * x, axis=1))[:, None]
+    axes[cap] = np.stack([x, _cross(z, x), z], axis=2)
+    rb = np.where(kind == _SPHERE_T, size[:, 0], np.where(kind == _CAPSULE_T, size[:, 0] + size[:, 1],
+                                                          np.hypot(size[:, 0], size[:, 1])))
+    return [p[0] for p in parts], Geoms(centre, axes, kind, size, rb)
 
 
 #: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object,
@@ -181,6 +232,19 @@ def _solid_pose_stack(art) -> np.ndarray:
     return hit[1]
 
 
+def _rbound(kind: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """(k,) bounding radii (MuJoCo's geom_rbound) of boxes, cylinders and spheres of sizes (k,3)."""
+    return np.where(kind == _BOX_T, np.linalg.norm(size, axis=1),
+                    np.where(kind == _CYLINDER_T, np.hypot(size[:, 0], size[:, 1]), size[:, 0]))
+
+
+#: The stylus ball's broad phase against a bar's own solids (frame A, :meth:`WorkZone.ball_clearance`)
+#: by (bar object, ball radius); the bar is kept in the entry (its id stays its own). Safe: a
+#: Clearance's geoms are fixed, its certificates hold segments in A (valid for any placement).
+#: 8 bars.
+_BALLS = Memo(8)
+
+
 class WorkZone:
     """One bar placement on the table with its workholder, one probe (offsets J).
 
@@ -220,16 +284,13 @@ class WorkZone:
         n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
         holder = list(range(n0)) + [n0 + k for k in sol.holder]
         self._probe_mjcf = probe_geoms_mjcf(J_m, stylus_r_m, finger_m)
-        self._names = names
-        # the holder's model (table disc, blocks, bar supports; the probe): MuJoCo's distances for
-        # the least clearance; its probe geoms are the broad phase's
-        self._hmodel = mujoco.MjModel.from_xml_string(self._xml(holder))
-        self._hdata = mujoco.MjData(self._hmodel)
-        hm = self._hmodel
-        npg = hm.ngeom - len(holder)
+        # the probe's geoms from their definitions (the broad phase's; the MJCF is written from the
+        # same parts, _probe_parts)
+        pnames, self._probe_geoms = probe_geoms(J_m, stylus_r_m, finger_m)
+        npg = len(pnames)
         # geom ids of the full model (compiled when MuJoCo first needs it, self.model): the table
-        # body's geoms in order, then the spindle's
-        pnames = [hm.geom(len(holder) + j).name for j in range(npg)]
+        # body's geoms in order, then the spindle's; of the holder's model (self._holder_model):
+        # the holder's geoms, then the spindle's
         self._names = names + pnames  # + the probe's
         self._table = list(range(nt))
         self._probe = list(range(nt, nt + npg))
@@ -237,14 +298,15 @@ class WorkZone:
         self._feature = dict(enumerate(feats))
         self._feats = feats  # (the same, as a list)
         self._ball = nt + pnames.index("ball")
-        self._tq = hm.jnt_qposadr[hm.joint("table").id]
-        self._sq = hm.jnt_qposadr[hm.joint("spindle").id]
-        self._hprobe = list(range(len(holder), hm.ngeom))
+        self._tq, self._sq = 0, 7  # the table's and the spindle's free joints in qpos (asserted on compiling)
+        self._hprobe = list(range(len(holder), len(holder) + npg))
+        self._hmodel = self._hdata = None
         self._model = self._data = None
         self._tqpos = np.array([0.0, 0, 0, 1, 0, 0, 0])
-        self._clr = {}
-        self._axisym = None  # the probe's geoms all on its z axis (clearance)
-        self._probe_geoms = self._T_W_R = None  # (clearance)
+        self._clr, self._hclr = {}, {}  # (clearance: by part, holder only by table pose)
+        self._T_W_R = None  # (clearance)
+        self._r = float(stylus_r_m)
+        self._A_W = inv_T(T_W_A)
         #: what the work zones of this placement share (_work_zone): the table side's geoms in W
         self._shared = {}
 
@@ -264,10 +326,11 @@ class WorkZone:
         return (f'<geom name="{name}" type="{kind}" size="{_f(size)}" '
                 f'pos="{_f(T[:3, 3])}" quat="{_f(_quat(T[:3, :3]))}" contype="1" conaffinity="0"/>')
 
-    def _xml(self, table_geoms) -> str:
+    def _xml(self, table_geoms, probe_mjcf: str | None = None) -> str:
+        probe_mjcf = self._probe_mjcf if probe_mjcf is None else probe_mjcf
         return (f'<mujoco model="vmt-mfb-workzone"><compiler angle="radian"/><option gravity="0 0 0"/><worldbody>'
                 f'<body name="table"><freejoint name="table"/>{"".join(self._geom_mjcf(j) for j in table_geoms)}</body>'
-                f'<body name="spindle"><freejoint name="spindle"/>{self._probe_mjcf}</body>'
+                f'<body name="spindle"><freejoint name="spindle"/>{probe_mjcf}</body>'
                 f'</worldbody></mujoco>')
 
     @property
@@ -275,15 +338,37 @@ class WorkZone:
         """The work zone's MJCF (table side, probe)."""
         return self._xml(self._table)
 
+    def _compile(self, xml: str, names: list):
+        """(model, data) of ``xml``, its geoms ``names`` and free joints where this zone expects them."""
+        m = self._mj.MjModel.from_xml_string(xml)
+        assert [m.geom(i).name for i in range(m.ngeom)] == names
+        assert m.jnt_qposadr[m.joint("table").id] == self._tq and m.jnt_qposadr[m.joint("spindle").id] == self._sq
+        return m, self._mj.MjData(m)
+
     @property
     def model(self):
         """The compiled MuJoCo model of the whole work zone (compiled on first use: the broad
         phase and the least clearance do not need it)."""
         if self._model is None:
-            m = self._mj.MjModel.from_xml_string(self.mjcf)
-            assert [m.geom(i).name for i in range(m.ngeom)] == self._names
-            self._model, self._data = m, self._mj.MjData(m)
+            self._model, self._data = self._compile(self.mjcf, self._names)
         return self._model
+
+    def _holder_model(self, ball_only: bool = False):
+        """(model, data): the holder's geoms (table disc, blocks, bar supports) and the probe's,
+        MuJoCo's distances for the least clearance (compiled on first use). ``ball_only``: the
+        probe's stylus ball alone, one model for every probe of this placement with that ball
+        (its distances are the full holder model's, bit for bit: the same geoms at the same
+        poses, the ball at the spindle body's origin)."""
+        if ball_only:
+            key = ("ball_model", self._r)
+            if key not in self._shared:
+                xml = self._xml(self._holder, probe_geoms_mjcf((0.0, 0.0, 1.0), self._r, only=("ball",)))
+                self._shared[key] = self._compile(xml, [self._names[j] for j in self._holder] + ["ball"])
+            return self._shared[key]
+        if self._hmodel is None:
+            self._hmodel, self._hdata = self._compile(self._xml(self._holder),
+                                                      [self._names[j] for j in self._holder + self._probe])
+        return self._hmodel, self._hdata
 
     @property
     def data(self):
@@ -294,9 +379,6 @@ class WorkZone:
         T = np.asarray(T_R_W, float)
         self._tqpos = np.r_[T[:3, 3], _quat(T[:3, :3])]
         self._T_W_R = None
-        self._hdata.qpos[self._tq:self._tq + 7] = self._tqpos
-        if self._data is not None:
-            self._data.qpos[self._tq:self._tq + 7] = self._tqpos
 
     def set_tip(self, p_R) -> None:
         """Place the stylus-tip centre at ``p_R`` (3,) m, R (spindle axes parallel to R)."""
@@ -306,18 +388,22 @@ class WorkZone:
         d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
         self._mj.mj_kinematics(self.model, d)
 
-    def _set_holder_tip(self, p_R) -> None:
-        d = self._hdata
+    def _set_holder_tip(self, p_R, ball_only: bool = False):
+        """(model, data) of :meth:`_holder_model` with the table placed and the tip at ``p_R``."""
+        m, d = self._holder_model(ball_only)
+        d.qpos[self._tq:self._tq + 7] = self._tqpos
         d.qpos[self._sq:self._sq + 3] = p_R
         d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
-        self._mj.mj_kinematics(self._hmodel, d)
+        self._mj.mj_kinematics(m, d)
+        return m, d
 
     def _T_R_W(self) -> np.ndarray:
-        """(4,4) the table's pose as MuJoCo has it (the holder model's, after set_table)."""
-        self._set_holder_tip(np.zeros(3))
-        d = self._hdata
-        body = self._hmodel.body("table").id
-        return make_T(np.array(d.xmat[body], float).reshape(3, 3), d.xpos[body])
+        """(4,4) the table's pose as MuJoCo computes it from its free joint (set_table's)."""
+        q = np.array(self._tqpos)
+        self._mj.mju_normalize4(q[3:])
+        R = np.zeros(9)
+        self._mj.mju_quat2Mat(R, q[3:])
+        return make_T(R.reshape(3, 3), q[:3])
 
     def table_geoms(self, in_W: bool = False):
         """The table side's geoms (:class:`sim.clearance.Geoms`, R; W if ``in_W``) at the current
@@ -336,56 +422,88 @@ class WorkZone:
             size[j, :len(sz)] = sz
         size[n0:] = _solid_table(self._args[0]).size3
         kind = np.array([code[k] for k in self._tkind])
-        rb = np.where(kind == _BOX_T, np.linalg.norm(size, axis=1),
-                      np.where(kind == _CYLINDER_T, np.hypot(size[:, 0], size[:, 1]), size[:, 0]))
-        return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rb)
+        return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, _rbound(kind, size))
 
-    def clearance(self, holder_only: bool = False):
-        """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose:
-        the probe against every table-side geom (indices of ``self._table``), or against
-        the holder's only (indices of ``self._holder``).
+    def clearance(self, holder_only: bool = False, part: str = "all"):
+        """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose.
 
-        The whole zone's is built in the table's frame W and kept per orientation of the
-        spindle to W (per spindle axis for a probe of spheres, capsules and cylinders on
-        its axis, which looks the same from every direction about it): the measurements
-        of one work zone at table poses that differ by a turn about the spindle axis (a
-        C turn on a vertical spindle) share it, its pair data and the certificates of
-        their moves (the same touches in W: :meth:`sim.clearance.Clearance.near_segments`).
+        ``part``: "all", the probe against every table-side geom (indices of
+        ``self._table``); "rest", the same without the stylus ball's pairs with the bar
+        (supports aside), which :meth:`ball_clearance` bounds for every probe at once.
+        ``holder_only``: the probe against the holder's geoms only (indices of
+        ``self._holder``; the reference of :meth:`least_holder_clearance`).
+
+        Built in the table's frame W and kept per orientation of the spindle to W (per
+        spindle axis for a probe of spheres, capsules and cylinders on its axis:
+        :class:`sim.clearance.ByOrientation`): the measurements of one work zone at table
+        poses that differ by a turn about the spindle axis (a C turn on a vertical
+        spindle) share it, its pair data and the certificates of their moves (the same
+        touches in W: :meth:`sim.clearance.Clearance.near_segments`).
         """
-        from .clearance import Clearance, Geoms, model_geoms
+        from .clearance import ByOrientation, Clearance, model_geoms
 
-        hm, hd = self._hmodel, self._hdata
-        if self._probe_geoms is None:  # about the tip, axes of R (whatever the table's pose)
-            self._set_holder_tip(np.zeros(3))
-            self._probe_geoms = model_geoms(hm, hd, self._hprobe)
-        probe = self._probe_geoms
+        probe = self._probe_geoms  # about the tip, axes of R (whatever the table's pose)
         ball = self._probe.index(self._ball)
         if holder_only:
-            key = (self._tqpos.tobytes(), True)
-            if key not in self._clr:
-                self._set_holder_tip(np.zeros(3))
+            key = self._tqpos.tobytes()
+            if key not in self._hclr:
+                hm, hd = self._set_holder_tip(np.zeros(3))
                 table = model_geoms(hm, hd, range(len(self._holder)))
-                self._clr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
-                                           cert_pad_m=0.0)
-            return self._clr[key]
-        if self._T_W_R is None:  # (the table's pose as MuJoCo has it, once per set_table)
-            self._T_W_R = inv_T(self._T_R_W())
-        T_W_R = self._T_W_R
-        R = T_W_R[:3, :3]
-        if self._axisym is None:
-            self._axisym = bool(np.all(probe.centre[:, :2] == 0) and np.all(np.abs(probe.axes[:, 2, 2]) == 1)
-                                and np.all(np.isin(probe.kind, (2, 3, 5))))
-        key = (np.ascontiguousarray((R[:, 2] if self._axisym else R) + 0.0).tobytes(), False)  # (-0 -> +0)
-        hit = self._clr.get(key)
-        if hit is None:
-            P = Geoms(probe.centre @ R.T, R @ probe.axes, probe.kind, probe.size, probe.rbound)  # axes of W
+                self._hclr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
+                                            cert_pad_m=0.0)
+            return self._hclr[key]
+        if part not in self._clr:
+            pairs = None
+            if part == "rest":  # the ball against the table disc, the blocks and the supports only
+                pairs = np.ones((len(self._probe), len(self._table)), bool)
+                pairs[ball] = False
+                pairs[ball, self._holder] = True
             if "table_W" not in self._shared:  # (the same for every probe at this placement)
                 self._shared["table_W"], self._shared["features"] = self.table_geoms(in_W=True), self._feats
-            hit = self._clr[key] = Clearance(P, self._shared["table_W"], self._shared["features"], ball,
-                                             T_F_R=T_W_R)
-        elif not np.array_equal(hit.T_F_R, T_W_R):
-            hit = self._clr[key] = hit.moved(T_W_R)
-        return hit
+
+            def build(P, T_F_R, pairs=pairs):
+                return Clearance(P, self._shared["table_W"], self._shared["features"], ball, T_F_R=T_F_R,
+                                 pairs=pairs)
+
+            self._clr[part] = ByOrientation(probe, build)
+        return self._clr[part].get(self._W_R())
+
+    def _W_R(self) -> np.ndarray:
+        """(4,4) T_W_R: R in the table's frame, from the table's pose as MuJoCo has it (once per set_table)."""
+        if self._T_W_R is None:
+            self._T_W_R = inv_T(self._T_R_W())
+        return self._T_W_R
+
+    def ball_clearance(self):
+        """The broad phase of the stylus ball against the bar's solids (its supports aside), in
+        the bar's frame A at the current table pose: one per bar and ball radius, shared by
+        every probe, work zone and placement of that bar (a sphere has no orientation), with
+        its pair data and certificates (:data:`_BALLS`)."""
+        art, r = self._args[0], self._r
+        hit = _BALLS.get((id(art), r))
+        if hit is None or hit[0] is not art:
+            from .clearance import Clearance, Geoms
+
+            sol = _solid_table(art)
+            bar = np.setdiff1d(np.arange(len(sol.kinds)), sol.holder)  # the bar's own solids
+            T = _solid_pose_stack(art)[bar]
+            code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
+            kind = np.array([code[sol.kinds[k]] for k in bar])
+            size = sol.size3[bar]
+            H = Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, _rbound(kind, size))
+            P = Geoms(np.zeros((1, 3)), np.eye(3)[None], np.array([_SPHERE_T]), np.array([[r, 0.0, 0.0]]),
+                      np.array([r]))
+            hit = _BALLS[(id(art), r)] = (art, Clearance(P, H, [sol.features[k] for k in bar], 0))
+        return hit[1].moved(self._A_W @ self._W_R())
+
+    def near_segments(self, sg, allow_feature=None) -> np.ndarray:
+        """Sorted sample numbers of the segments ``sg`` (R) that may come closer than
+        :data:`sim.clearance.MARGIN_M` to a table-side geom (:meth:`sim.clearance.Clearance.near_segments`):
+        those of the ball against the bar (:meth:`ball_clearance`) and of the rest
+        (:meth:`clearance`, ``part="rest"``)."""
+        a = self.ball_clearance().near_segments(sg, allow_feature)
+        b = self.clearance(part="rest").near_segments(sg, allow_feature)
+        return np.union1d(a, b) if a.size and b.size else (a if a.size else b)
 
     def collisions(self, p_R, allow_feature: str = "") -> list:
         """(probe geom, table-side geom, depth m) with the tip centre at ``p_R``."""
@@ -427,18 +545,19 @@ class WorkZone:
             return best
         # the holder's pairs of the whole zone's broad phase (shared by the measurements of
         # this zone turned the same way about the spindle axis; frame W)
-        clr = self.clearance()
+        clr = self.clearance(part="rest")  # (every pair with a holder geom)
         hpos = np.full(len(self._table), -1)
         hpos[self._holder] = np.arange(len(self._holder))  # table geom -> its holder model's geom
         hp = np.flatnonzero(hpos[clr.pair_table] >= 0)
         npair = len(hp)
         i = np.repeat(np.arange(len(tips)), npair)
         pair = np.tile(hp, len(tips))
-        m, d = self._hmodel, self._hdata
+        ball = self._probe.index(self._ball)
 
-        def dist(k):
-            self._set_holder_tip(tips[i[k]])
-            a, b = self._hprobe[clr.pair_probe[pair[k]]], int(hpos[clr.pair_table[pair[k]]])
+        def dist(k):  # (the ball's in the placement's model of the ball, the same distance)
+            g = clr.pair_probe[pair[k]]
+            m, d = self._set_holder_tip(tips[i[k]], ball_only=g == ball)
+            a, b = len(self._holder) if g == ball else self._hprobe[g], int(hpos[clr.pair_table[pair[k]]])
             return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
 
         # the result is min(distmax, every triple's distance) as in the reference: a triple is
@@ -452,6 +571,11 @@ class WorkZone:
         i, pair, lb0 = i[near], pair[near], lb0[near]
         order = np.argsort(lb0, kind="stable")
         pos = 0
+        # the first few straight to MuJoCo in the box bound's order (a distance costs less than
+        # the full bound of a chunk: in the MFB plans one or two triples are ever within reach)
+        while pos < min(len(order), _DIRECT) and lb0[order[pos]] <= best + MARGIN_M:
+            best = min(best, dist(order[pos]))
+            pos += 1
         while pos < len(order) and lb0[order[pos]] <= best + MARGIN_M:
             rows = order[pos:pos + 64]
             pos += 64
@@ -472,6 +596,11 @@ class WorkZone:
             for b in self._holder:
                 best = min(best, float(self._mj.mj_geomDistance(m, d, a, b, distmax, None)))
         return best
+
+
+#: Triples of the least holder clearance given to MuJoCo in the order of their box bound
+#: before the full bound (:meth:`sim.clearance.Clearance.bound`) orders the rest.
+_DIRECT = 8
 
 
 #: Compiled work zones by everything their model is made of (the artefact object kept, so
@@ -498,24 +627,14 @@ def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
     return hit[1]
 
 
-def link_paths(T_R_A, starts_R, features, levels, top_A_m):
-    """Link polylines (R, m) between consecutive approach starts: direct within one
-    feature and level, else retract along ``z_A`` to ``top_A_m`` + clearance, across, plunge.
-
-    Returns a list (one per start; None for the first) of (2,3) or (4,3) arrays. All the
-    links' points go through one transform back to R (the same values, bit for bit, as
-    transforming each link's points alone: tests/sim/test_clearance.py).
-    """
-    n = len(starts_R)
-    if n < 2:
-        return [None] * n
-    P, cnt = link_points(T_R_A, starts_R, features, levels, top_A_m)
-    return [None] + np.split(P, np.cumsum(cnt)[:-1])
-
-
 def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`link_paths` as one array: (P (sum cnt, 3) R m, cnt (n - 1,) int), the points of
-    the link into start 1, then into start 2, ... (2 or 4 each); n >= 2 starts."""
+    """The link moves (R, m) between consecutive approach starts: direct within one feature
+    and level, else retract along ``z_A`` to ``top_A_m`` + clearance, across, plunge.
+
+    Returns (P (sum cnt, 3), cnt (n - 1,) int): the points of the link into start 1, then
+    into start 2, ... (2 or 4 each); n >= 2 starts. All the links' points go through one
+    transform back to R (the same values, bit for bit, as transforming each link's points
+    alone: tests/sim/test_clearance.py)."""
     T_A_R = inv_T(T_R_A)
     s_A = apply_T(T_A_R, np.asarray(starts_R, float))
     a, b = s_A[:-1], s_A[1:]
@@ -538,26 +657,14 @@ def _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m):
     a measurement's polylines in the order checked: per touch i the link into ``start[i]``
     (from touch i - 1's; none for the first) and the approach ``start[i] -> Xn[i]``."""
     n = plan.n
-    feat = np.asarray(plan.feature, dtype=object)
     if n > 1:
         L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
     else:
         L, cnt = np.zeros((0, 3)), np.zeros(0, int)
-    # polylines: approach 0, then (link k, approach k) for k = 1 .. n-1
-    n_pt = np.full(2 * n - 1, 2)
-    n_pt[1::2] = cnt
-    first = np.cumsum(n_pt) - n_pt
-    P = np.empty((int(n_pt.sum()), 3))
-    app = first[0::2]  # each approach's first point
-    P[app], P[app + 1] = start, Xn
-    if n > 1:
-        into = np.repeat(first[1::2], cnt) + np.arange(len(L)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        P[into] = L
-    steps = np.full(2 * n - 1, float(approach_step_m))
-    steps[1::2] = link_step_m
-    allow = np.empty(2 * n - 1, dtype=object)
-    allow[0::2], allow[1::2] = feat, ""
-    touch = np.r_[0, np.repeat(np.arange(1, n), 2)]
+    P, n_pt, touch, is_link = touch_polylines(start, Xn, np.arange(n) > 0, L, cnt)
+    steps = np.where(is_link, float(link_step_m), float(approach_step_m))
+    allow = np.full(len(n_pt), "", dtype=object)
+    allow[~is_link] = np.asarray(plan.feature, dtype=object)
     return flat_path_segments(P, n_pt, steps, joints=False), touch, allow
 
 
@@ -614,7 +721,7 @@ def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, pla
         # one past the last sample of each touch (a touch's paths are consecutive)
         touch_end = np.zeros(plan.n, int)
         np.maximum.at(touch_end, path_touch[sg.path], sg.first + sg.m)
-        idx = wz.clearance().near_segments(sg, allow) if broad_phase else np.arange(n_samp)
+        idx = wz.near_segments(sg, allow) if broad_phase else np.arange(n_samp)
         pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
         for k in range(len(idx)):  # in path order
             i = int(path_touch[which[k]])

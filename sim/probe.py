@@ -131,16 +131,19 @@ def rotary_count(machine) -> int:
     return len(getattr(machine, "rotary_axes", ()) or ())
 
 
-def tip_W(machine, lin_m, rot_rad, t_s, direction) -> np.ndarray:
+def tip_W(machine, lin_m, rot_rad, t_s, direction, J_m=None) -> np.ndarray:
     """``machine.tip_W`` with ``rot_rad`` dropped for machines without rotary axes.
 
     ``direction`` (n,3) is passed as the signs (-1, 0, +1) of the X, Y, Z
-    velocities (what reversal errors depend on).
+    velocities (what reversal errors depend on); ``J_m`` (n, 3), when given,
+    each pose's probe offsets (``sim.machine.Machine.tip_W``).
     """
     rot = None if rot_rad is None or rotary_count(machine) == 0 else rot_rad
     d = np.asarray(direction, float)
     sgn = np.sign(np.where(np.abs(d) < 1e-12, 0.0, d))
-    return np.asarray(machine.tip_W(lin_m, rot, t_s, sgn), float)
+    if J_m is None:
+        return np.asarray(machine.tip_W(lin_m, rot, t_s, sgn), float)
+    return np.asarray(machine.tip_W(lin_m, rot, t_s, sgn, J_m=J_m), float)
 
 
 def T_R_W_nominal(machine, rot_rad: np.ndarray | None, n: int) -> np.ndarray:
@@ -361,7 +364,7 @@ def simulate_touches(machine, probe: ProbeConfig, rng: np.random.Generator | Non
                      rot_rad: np.ndarray | None, t0_s: np.ndarray, feed_mps: np.ndarray,
                      sdf_A: Sequence[Callable[[np.ndarray], np.ndarray]], group: np.ndarray,
                      T_A_W: np.ndarray, d_P: np.ndarray | None = None, n_coarse: int = 7,
-                     grouped_sdf: bool = True) -> TouchResult:
+                     grouped_sdf: bool = True, J_m: np.ndarray | None = None) -> TouchResult:
     """Simulate ``n`` touch-trigger moves at once.
 
     Parameters
@@ -397,6 +400,9 @@ def simulate_touches(machine, probe: ProbeConfig, rng: np.random.Generator | Non
         Evaluate the distances of all touches in one pass per primitive kind
         (:class:`sim.artefacts.GroupedSdf`, default) or feature by feature (the
         path before issue 19, kept as the reference of the bench and tests).
+    J_m : (n, 3) float, optional
+        Each touch's probe offsets (its stylus on ``machine``: ``Machine.tip_W``'s
+        ``J_m``), m; default the machine's own.
     """
     start_R = np.asarray(start_R, float)
     n = len(start_R)
@@ -407,10 +413,12 @@ def simulate_touches(machine, probe: ProbeConfig, rng: np.random.Generator | Non
     r = probe.stylus_r_m
     rot = None if rot_rad is None else np.asarray(rot_rad, float)
     dist = GroupedSdf(sdf_A) if grouped_sdf else _feature_by_feature(sdf_A)
+    J = None if J_m is None else np.broadcast_to(np.asarray(J_m, float), (n, 3))
 
     def g(idx, s):
         lin = start_R[idx] + s[:, None] * d_R[idx]
-        p_W = tip_W(machine, lin, None if rot is None else rot[idx], t0[idx] + s / feed[idx], d_R[idx])
+        p_W = tip_W(machine, lin, None if rot is None else rot[idx], t0[idx] + s / feed[idx], d_R[idx],
+                    None if J is None else J[idx])
         p_A = apply_T(T_A_W[idx], p_W)
         return dist(group[idx], p_A) - r
 

@@ -15,7 +15,8 @@ Figures:
   before issue 16's Monte Carlo work (:func:`before_shortcuts`: every design's nominal part
   from scratch, every Gauss-Newton row set recomputed whole with its Jacobian, the
   features fitted one by one with their checks, the kinematics of the rows one call per
-  measurement, the gains' fits not shared); ``mfb_3axis_end_to_end_max_theta_diff``
+  measurement, the gains' fits not shared, the measurements simulated one campaign each);
+  ``mfb_3axis_end_to_end_max_theta_diff``
   between the two (m or rad).
 - ``mfb_3axis_budget_run_s``: one Monte Carlo run of the budget (:func:`scenarios.mfb.budget_run`,
   attempt 1: every source drawn, no Monte Carlo of its own), beside
@@ -178,16 +179,18 @@ def before_shortcuts():
     identification, every ``_rows`` call recomputing its theta-independent parts and its
     Jacobian (also for the last residual), the bar's features fitted one by one by the
     validated single fits, placement by placement, the rows' kinematics one call per
-    measurement, the gains' fits not shared between hole sets. (Not undone: the bar's program
+    measurement, the gains' fits not shared between hole sets, the measurements simulated one
+    campaign each (each plan validated each time; issue 19). (Not undone: the bar's program
     built once per run, the error-free tips in one call, the gain's planes PL_h in one batch.)"""
     import contextlib
 
     from core import mfb, volumetric as vol
+    from sim import campaign
 
     @contextlib.contextmanager
     def ctx():
         rows, nominal, poi, pois = vol._rows, vol._NOMINAL, mfb.points_of_interest, mfb.points_of_interest_batched
-        kin, fit_once = vol._touch_kinematics, mfb._fit_once
+        kin, fit_once, sim_all = vol._touch_kinematics, mfb._fit_once, campaign.simulate_measurements
 
         def rows_before(*a, **k):
             k.pop("prep", None)
@@ -195,15 +198,15 @@ def before_shortcuts():
             return rows(*a, **k)
 
         vol._rows, vol._NOMINAL = rows_before, _NeverKept()
-        mfb.points_of_interest = lambda *a, **k: poi(*a, **{**k, "batched": False})
         mfb.points_of_interest_batched = lambda places, geom=mfb.MFB: [poi(p, f, n, geom) for p, f, n in places]
         vol._touch_kinematics = _touch_kinematics_each
         mfb._fit_once = lambda fits, *a: fit_once(None, *a)  # no fit shared between hole sets
+        campaign.simulate_measurements = campaign._simulate_each_measurement  # one campaign each
         try:
             yield
         finally:
-            vol._rows, vol._NOMINAL, mfb.points_of_interest, mfb.points_of_interest_batched = rows, nominal, poi, pois
-            vol._touch_kinematics, mfb._fit_once = kin, fit_once
+            vol._rows, vol._NOMINAL, mfb.points_of_interest_batched = rows, nominal, pois
+            vol._touch_kinematics, mfb._fit_once, campaign.simulate_measurements = kin, fit_once, sim_all
 
     return ctx()
 

@@ -255,6 +255,7 @@ def collision_figures() -> dict:
     t_meas = {}
     for bp in (True, False):
         mfb_scene._ZONES.clear()
+        mfb_scene._BALLS.clear()
         S._CHECKS.clear()
         real_cm, spent = mfb_scene.check_measurement, [0.0]
 

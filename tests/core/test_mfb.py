@@ -174,8 +174,9 @@ def test_noise_gain_bad_directions():
 
 
 def test_batched_feature_fits_equal_the_single_fits():
-    # fit_bar_features(batched=True) (every hole, rod, left/right face of a placement in one call)
-    # against the single validated fits, on touches off the nominal (noise 0.5 um, a rotated bar):
+    # the batched light fits (mfb._fit_placements_batched: every hole, rod, left/right face of a
+    # placement in one call; points_of_interest_batched) against the single validated fits, on
+    # touches off the nominal (noise 0.5 um, a rotated bar):
     # measured 1.4e-17 m (points) and 1.2e-16 (axes) on the 17 placements of a budget run; the
     # tolerance 1e-14 m / 1e-13 is rounding of a 0.5 m bar (1e-16 relative) times the fits' conditioning
     from scenarios.mfb import _plan_for
@@ -186,20 +187,20 @@ def test_batched_feature_fits_equal_the_single_fits():
     R = A.rot_z(0.3) @ A.rot_x(0.2)
     c = (pl.w_A + 3e-3 * pl.wn_A + np.random.default_rng(3).normal(0, 5e-7, pl.w_A.shape)) @ R.T
     n = pl.wn_A @ R.T
-    one, bat = mfb.fit_bar_features(c, pl.feature, n), mfb.fit_bar_features(c, pl.feature, n, batched=True)
+    one, bat = mfb.fit_bar_features(c, pl.feature, n), mfb._fit_placements_batched([(c, pl.feature, n)])[0]
     for f in ("hole_point", "rod_point", "face_point", "hole_axis", "rod_axis", "face_normal"):
         a, b = getattr(one, f), getattr(bat, f)
         assert set(a) == set(b) and len(a) >= 11
         assert max(np.abs(a[k] - b[k]).max() for k in a) <= (1e-14 if f.endswith("point") else 1e-13), f
     assert np.array_equal(one.probe_side, bat.probe_side)
-    poi1, poi2 = mfb.points_of_interest(c, pl.feature, n), mfb.points_of_interest(c, pl.feature, n, batched=True)
+    poi1, poi2 = mfb.points_of_interest(c, pl.feature, n), mfb.points_of_interest_batched([(c, pl.feature, n)])[0]
     assert np.abs(poi1.O_R - poi2.O_R).max() <= 1e-14
     # a mutation (one hole's touches shifted 1 um) is seen by both alike
     c2 = c.copy()
     c2[np.asarray(pl.feature) == "hole05"] += 1e-6
-    assert np.abs(mfb.points_of_interest(c2, pl.feature, n, batched=True).O_R[4] - poi2.O_R[4]).max() > 5e-7
+    assert np.abs(mfb.points_of_interest_batched([(c2, pl.feature, n)])[0].O_R[4] - poi2.O_R[4]).max() > 5e-7
     with pytest.raises(ConfigError, match="non-finite"):
-        mfb.fit_bar_features(np.where(np.arange(len(c))[:, None] == 3, np.nan, c), pl.feature, n, batched=True)
+        mfb.points_of_interest_batched([(np.where(np.arange(len(c))[:, None] == 3, np.nan, c), pl.feature, n)])
 
 
 def test_noise_gain_fits_shared_between_hole_sets():
@@ -229,7 +230,7 @@ def test_noise_gain_fits_shared_between_hole_sets():
 def test_points_of_interest_of_several_placements_equal_each_placement_alone():
     # points_of_interest_batched (the features of every placement together: three placements of
     # one orientation share their hints, so their holes, rods and faces are fitted in one call)
-    # against each placement's own batched extraction: bit for bit, also beside a rotated bar
+    # against each placement's own batched extraction (alone in the call): bit for bit, also beside a rotated bar
     # and a smaller hole set
     from scenarios.mfb import _plan_for
     from sim import artefacts as A
@@ -244,7 +245,7 @@ def test_points_of_interest_of_several_placements_equal_each_placement_alone():
         places.append((c, pl.feature, pl.wn_A @ R.T))
     got = mfb.points_of_interest_batched(places)
     for (c, f, n), p in zip(places, got):
-        alone = mfb.points_of_interest(c, f, n, batched=True)
+        alone, = mfb.points_of_interest_batched([(c, f, n)])
         assert p.holes == alone.holes and p.orientation == alone.orientation
         for a in ("O_R", "O_M", "T_R_M"):
             assert np.array_equal(getattr(p, a), getattr(alone, a)), a

@@ -7,7 +7,7 @@ import pytest
 
 from core.exceptions import PlanError
 from sim import artefacts as A
-from sim.clearance import MARGIN_M, path_samples
+from sim.clearance import MARGIN_M, path_samples, path_segments
 from sim.mfb_scene import WorkZone, check_measurement
 from sim.probe import ProbeConfig
 from sim.scene import Scene, check_touch_paths
@@ -121,13 +121,21 @@ def test_broad_phase_skips_no_colliding_sample(A_deg, C_deg, J_m):
     wz = _zone(A_deg, C_deg, J_m)
     rng = np.random.default_rng(11 + abs(A_deg))
     T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
-    pts, seg, path = path_samples(_random_paths(rng, T_R_A, 40), np.full(40, 3e-3), joints=False)
+    paths = _random_paths(rng, T_R_A, 40)
+    pts, seg, path = path_samples(paths, np.full(40, 3e-3), joints=False)
     feats = np.array([f.name for f in BAR.features] + [""], dtype=object)
-    allow = feats[rng.integers(0, len(feats), 40)][path]
+    allow_path = feats[rng.integers(0, len(feats), 40)]
+    allow = allow_path[path]
     near = wz.clearance().near(pts, allow, seg)
     hit = np.array([bool(wz.collisions(p, f)) for p, f in zip(pts, allow)])
     assert hit.sum() > 20 and (~hit).sum() > 20  # both kinds drawn
     assert not np.any(hit & ~near)
+    # the path checks' two broad phases (the ball against the bar, shared by every zone of
+    # the bar, and the rest of this zone's), whole segments at once: no colliding sample left out
+    kept = np.zeros(len(pts), bool)
+    kept[wz.near_segments(path_segments(paths, np.full(40, 3e-3), joints=False), allow_path)] = True
+    assert not np.any(hit & ~kept)
+    assert (~kept).sum() > 0.3 * (~hit).sum()
     assert (~near).sum() > 0.3 * (~hit).sum()
 
 
@@ -324,8 +332,8 @@ def test_a_tilted_spindle_axis_gets_its_own_broad_phase():
 
 
 def _link_paths_one_by_one(T_R_A, starts_R, features, levels, top_A_m):
-    """The link moves as sim.mfb_scene.link_paths wrote them before it batched them (one
-    transform per link)."""
+    """The link moves as sim.mfb_scene wrote them before it batched them (one transform per
+    link): a list, None for the first start."""
     from sim.mfb_scene import LINK_CLEAR_M
 
     T_A_R = A.inv_T(T_R_A)
@@ -348,7 +356,7 @@ def test_link_paths_are_the_one_by_one_links_bit_for_bit():
     from scenarios import mfb as S
     from sim.machine import Machine
     from sim.machines import MACHINES
-    from sim.mfb_scene import link_paths
+    from sim.mfb_scene import link_points
     from sim.scene import artefact_points
 
     plan = S.plan_5axis()
@@ -361,13 +369,13 @@ def test_link_paths_are_the_one_by_one_links_bit_for_bit():
         pl = _holes(*ms.holes)
         start = A.apply_T(T_R_A, pl.w_A + (R + pl.clearance_m) * pl.wn_A)
         for st in (start, start + rng.normal(0, 0.01, start.shape)):
-            got, want = link_paths(T_R_A, st, pl.feature, pl.level, top), _link_paths_one_by_one(T_R_A, st, pl.feature, pl.level, top)
-            assert got[0] is None and len(got) == len(want)
-            for g, w in zip(got[1:], want[1:]):
+            P, cnt = link_points(T_R_A, st, pl.feature, pl.level, top)
+            want = _link_paths_one_by_one(T_R_A, st, pl.feature, pl.level, top)
+            assert len(cnt) == len(want) - 1 and len(P) == cnt.sum()
+            for g, w in zip(np.split(P, np.cumsum(cnt)[:-1]), want[1:]):
                 assert g.shape == w.shape and np.array_equal(g, w)
-            n += len(got) - 1
+            n += len(cnt)
     assert n > 500
-    assert link_paths(np.eye(4), np.zeros((1, 3)), ["a"], [0], 0.0) == [None]
 
 
 def _sphere_over_box(pad=0.5e-3):
@@ -419,6 +427,29 @@ def test_certificates_clear_exactly_their_radius():
     clr = _sphere_over_box()
     assert clr.near_segments(*seg(R - 1e-3, R - 1e-3, "top")).size == 0  # the ball may touch "top"
     assert clr.near_segments(*seg(R - 1e-3, R - 1e-3)).size > 0  # but nothing else may
+
+
+@pytest.mark.parametrize("axis,sign", [(0, 1), (0, -1), (1, 1), (1, -1), (2, 1)])
+def test_a_move_toward_each_face_is_kept_within_the_margin(axis, sign):
+    """Known answer on every face the ball can reach (the box's top, x and y sides): a move
+    along the face's normal that ends 0.05 mm from the box (within the 0.1 mm margin) is kept,
+    one that ends 0.15 mm away is cleared (the swept bound along the box's axis is exact for a
+    sphere moving straight at a face). A box test that loses 1 mm of overlap along one axis
+    drops the first (checked by mutation, on each of x, y, z in turn)."""
+    from sim.clearance import path_segments
+
+    face = np.array([0.050, 0.050, 0.0])  # the faces' distance from the box's axis line (x, y), top z = 0
+    centre = np.array([0.0, 0.0, -0.010])
+    for gap, want_near in ((0.05e-3, True), (0.15e-3, False)):
+        n = np.zeros(3)
+        n[axis] = sign
+        on_face = centre + 0.0  # the point of the face nearest the approach, then out along n
+        on_face[axis] = sign * face[axis] if axis < 2 else 0.0
+        end = on_face + n * (R + gap)
+        start = end + n * 5e-3
+        sg = path_segments([np.array([start, end])], [0.5e-3], joints=False)
+        near = _sphere_over_box().near_segments(sg, [""])
+        assert (near.size > 0) == want_near, (axis, sign, gap)
 
 
 def test_a_segment_with_no_pair_in_its_padded_box_certifies_exactly_the_padding():
@@ -579,7 +610,7 @@ def test_measurement_paths_are_the_polylines_checked_one_by_one():
     allowed feature none), then its approach (the touched feature allowed); the same segments,
     bit for bit, the same touch and allowed feature per polyline."""
     from sim.clearance import path_segments
-    from sim.mfb_scene import _touch_paths, link_paths
+    from sim.mfb_scene import _touch_paths
 
     for holes, (A_deg, C_deg) in (((3, 4, 5), (0, 0)), ((1,), (-90, 45)), ((10, 11), (-45, 120))):
         pl = _holes(*holes)
@@ -589,7 +620,7 @@ def test_measurement_paths_are_the_polylines_checked_one_by_one():
         top = 0.021
         for n in (pl.n, 1, 2):
             sub = pl.select(np.arange(n))
-            links = link_paths(T_R_A, start[:n], sub.feature, sub.level, top)
+            links = _link_paths_one_by_one(T_R_A, start[:n], sub.feature, sub.level, top)
             paths = []
             for i in range(n):
                 if links[i] is not None:
@@ -628,3 +659,28 @@ def test_campaign_paths_are_the_polylines_checked_one_by_one(monkeypatch):
             paths.append((approach[i], 0.25e-3, feats[i]))
         _same_segments(seen[0][0], path_segments([p[0] for p in paths], [p[1] for p in paths], joints=True))
         assert seen[0][1] == [p[2] for p in paths]
+
+
+@pytest.mark.parametrize("weigh_feature", [True, False])
+def test_a_certificate_serves_only_segments_with_its_allowed_feature(monkeypatch, weigh_feature):
+    """An approach into a hole, checked with the hole allowed (the ball's pairs with it left out:
+    a certificate), then as a link (nothing allowed): the ball at the contact is on the hole's
+    geoms, so it must be kept. Without the feature in the cell hash (weigh_feature False) the
+    two segments share a key: the lookup's feature check alone keeps the certificate out."""
+    from sim import clearance as C
+    from sim import mfb_scene
+
+    if not weigh_feature:
+        monkeypatch.setattr(C, "_HASH", np.r_[C._HASH[:-1], np.uint64(0)])
+    mfb_scene._BALLS.clear()
+    wz = _zone(0, 0, (0, 0, 0.150))
+    pl = _holes(3)
+    T_R_A = _T_R_W(0, 0) @ FLAT
+    i = int(np.flatnonzero(np.char.startswith(np.asarray(pl.feature, str), "hole"))[0])
+    Xn = A.apply_T(T_R_A, pl.w_A[i] + R * pl.wn_A[i])
+    start = Xn + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A[i])
+    sg = path_segments([np.array([start, Xn])], [0.5e-3], joints=False)
+    clr = wz.ball_clearance()
+    assert clr.near_segments(sg, [pl.feature[i]]).size == 0  # cleared, certificates left
+    assert clr.near_segments(sg, [""]).size > 0  # the contact itself: on the hole's geoms
+    mfb_scene._BALLS.clear()

@@ -5,6 +5,7 @@ Tolerances: chains of ~10 4x4 products of O(1 m) magnitude round to a few
 """
 
 import doctest
+import dataclasses
 
 import numpy as np
 import pytest
@@ -378,3 +379,31 @@ def test_runs_of_equal_rows():
     first, inv = _runs(np.array([0.5, 0.5, 0.5]))
     assert first.tolist() == [0] and inv.tolist() == [0, 0, 0]
     assert _runs(np.zeros((0, 2)))[0].size == 0 and _runs(np.zeros((1, 2)))[1].tolist() == [0]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_per_pose_probe_offsets_are_each_stylus_machine(name, rng):
+    # issue 19 item 3: tip_W with each pose's offsets J_m (several styli in one call) against
+    # a machine built with each stylus's offsets (bit for bit: the same products on the same
+    # numbers) and against Pinocchio's own loop on it (1e-12 m, module docstring); on the
+    # Mikron both walks (W once per angle, and the full one)
+    m = _realistic(name, rng)
+    n = 120
+    lin, rot = _poses(m.config, m.rotary_axes, n, rng)
+    t, d = rng.uniform(0, 3e3, n), rng.choice([-1.0, 0.0, 1.0], (n, 3))
+    styli = rng.uniform(-0.06, 0.06, (4, 3)) + [0.0, 0.0, 0.15]
+    which = rng.integers(0, 4, n)
+    for by_angles in {m._W_by_angles, False}:
+        m._W_by_angles = by_angles
+        got = m.tip_W(lin, rot, t, d, J_m=styli[which])
+        # the offsets matter (they cancel nominally: through the angular errors, um here)
+        assert np.abs(got - m.tip_W(lin, rot, t, d)).max() > 1e-7
+        for k, J in enumerate(styli):
+            mk = Machine(dataclasses.replace(m.config, J_m=tuple(J)))
+            mk._W_by_angles = by_angles
+            sel = which == k
+            r = None if rot is None else rot[sel]
+            assert got[sel].tobytes() == mk.tip_W(lin[sel], r, t[sel], d[sel]).tobytes()
+            assert np.abs(got[sel] - mk.tip_W_pinocchio(lin[sel], r, t[sel], d[sel])).max() < 1e-12
+    with pytest.raises(ConfigError, match="per-pose probe offsets"):
+        m.tip_W(lin, rot, t, d, J_m=np.full((n, 3), np.nan))

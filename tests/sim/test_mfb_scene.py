@@ -64,3 +64,53 @@ def test_spindle_meets_a_tilted_table():
     assert wz.collisions(np.array([-0.330, -0.250, -0.200])) == []
     # the path checks' broad phase keeps the crash for MuJoCo (and may skip the clear tip)
     assert wz.clearance().near(np.array([[-0.100, -0.150, -0.200]]))[0]
+
+
+@pytest.mark.parametrize("J_m,finger", [((0, 0, 0.150), 0.0), ((0.0, -0.100, 0.150), 0.0), ((-0.100, 0.0, 0.190), 0.040),
+                                        ((0.030, 0.020, 0.045), 0.0), ((0.0, 0.0, 0.080), 0.0)])
+def test_probe_geoms_are_the_compiled_models(J_m, finger):
+    """The broad phase's probe geoms (sim.mfb_scene.probe_geoms, from their definitions) are
+    MuJoCo's compiled geoms: names, types, sizes, bounding radii, centres to 1e-15 m and axes
+    (a capsule's up to its sign) at a tip in R."""
+    import mujoco
+
+    from sim.mfb_scene import probe_geoms
+
+    wz = WorkZone(BAR, FLAT, (), J_m, R, finger)
+    wz.set_table(_T_R_W(-30, 40))
+    tip = np.array([0.01, -0.02, 0.03])
+    wz.set_tip(tip)
+    names, G = probe_geoms(J_m, R, finger)
+    m, d, ids = wz.model, wz.data, wz._probe
+    assert names == [m.geom(i).name for i in ids] and len(names) >= 4
+    assert np.array_equal(G.kind, m.geom_type[ids])
+    assert np.array_equal(G.size, m.geom_size[ids]) and np.allclose(G.rbound, m.geom_rbound[ids], rtol=0, atol=1e-15)
+    assert np.abs(G.centre + tip - d.geom_xpos[ids]).max() < 1e-15
+    z_mj = d.geom_xmat[ids].reshape(-1, 3, 3)[:, :, 2]
+    assert np.abs(np.abs(np.sum(G.axes[:, :, 2] * z_mj, axis=1)) - 1).max() < 1e-15
+    cyl = G.kind == 5  # (a cylinder's axes are all its own: the table's, the probe's R)
+    assert np.abs(G.axes[cyl] - d.geom_xmat[ids].reshape(-1, 3, 3)[cyl]).max() < 1e-15
+    del mujoco
+
+
+def test_ball_distances_from_the_placements_ball_model_are_the_zones_bit_for_bit():
+    """The least clearance takes the ball's distances from one model per placement (holder and
+    ball): MuJoCo's distances there equal those of the zone's own holder model to the last bit."""
+    import mujoco
+
+    blocks = (Block("riser", (0.0, 0.0, 0.0), (0.02, 0.03, 0.01)),)
+    rng = np.random.default_rng(4)
+    n = 0
+    for J_m, A_deg, C_deg in (((0, 0, 0.150), 0, 0), ((0.0, -0.100, 0.150), -90, 45), ((-0.1, 0.0, 0.19), -45, 0)):
+        wz = WorkZone(BAR, FLAT, blocks, J_m, R)
+        wz.set_table(_T_R_W(A_deg, C_deg))
+        T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
+        ball = wz._hprobe[wz._probe.index(wz._ball)]
+        for p in A.apply_T(T_R_A, rng.uniform([-0.05, -0.05, -0.07], [0.45, 0.10, 0.05], (60, 3))):
+            m1, d1 = wz._set_holder_tip(p)
+            d_zone = [mujoco.mj_geomDistance(m1, d1, ball, h, 0.05, None) for h in range(len(wz._holder))]
+            m2, d2 = wz._set_holder_tip(p, ball_only=True)
+            d_ball = [mujoco.mj_geomDistance(m2, d2, len(wz._holder), h, 0.05, None) for h in range(len(wz._holder))]
+            assert d_zone == d_ball
+            n += sum(v < 0.05 for v in d_zone)
+    assert n > 20  # distances within reach, not only distmax

@@ -188,3 +188,46 @@ def test_all_setups_at_once_is_the_setup_by_setup_path(art, drifting_mikron, mon
     assert np.nanmax(np.abs(pn - po)) * 1e-3 < 1e-12
     tn, to = np.asarray(new.col("t_s"), float), np.asarray(old.col("t_s"), float)
     assert np.array_equal(np.isnan(tn), np.isnan(to)) and np.nanmax(np.abs(tn - to)) < 1e-9
+
+
+def test_measurements_of_several_styli_at_once_are_each_campaign(drifting_mikron):
+    # issue 19 item 3: the 5-axis MFB plan's 17 measurements (7 styli, 9 table indexes, 3 hole
+    # sets) simulated in one call, each touch with its stylus's offsets, against one campaign per
+    # measurement on a machine built with those offsets: the same logs bit for bit (each touch's
+    # arithmetic is the same; the noise, drift and reversal draws the same), NaNs included.
+    from dataclasses import replace
+
+    from scenarios.mfb import PLANS, U_PLACE, _plan_for, _program
+    from sim import campaign
+    from sim.campaign import simulate_measurements
+    from sim.machine import Machine
+
+    plan, art, probe = PLANS["mfb-5axis"](), A.multi_feature_bar(), ProbeConfig()
+    program, machines, items = _program(U_PLACE), {}, []
+    for ms in plan.measurements:
+        m = machines.setdefault(ms.stylus, Machine(replace(drifting_mikron.config, J_m=tuple(ms.J_m))))
+        items.append((art, m, probe, Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad)), _plan_for(art, ms.holes, **program)))
+    assert len({id(m) for _, m, *_ in items}) == 7
+    new = simulate_measurements(items, np.random.default_rng(3), stroke_check=False)
+    rng = np.random.default_rng(3)
+    old = [simulate_campaign(a, m, p, [st], rng, plan=pl, check_collisions=False, stroke_check=False)
+           for a, m, p, st, pl in items]
+    assert all(a.positions_mm().tobytes() == b.positions_mm().tobytes() for a, b in zip(
+        old, campaign._simulate_each_measurement(items, np.random.default_rng(3), stroke_check=False)))
+    assert len(new) == len(old) == 17
+    for a, b in zip(new, old):
+        assert a.meta == b.meta and a.n == b.n
+        for c in ("setup", "target", "feature", "status"):
+            assert list(a.col(c)) == list(b.col(c))
+        for c in ("X_mm", "Y_mm", "Z_mm", "t_s", "Xn_mm", "nx", "C_deg", "A_deg"):
+            assert np.asarray(a.col(c), float).tobytes() == np.asarray(b.col(c), float).tobytes(), c
+    # a machine that differs in more than its offsets (here a compensated-like copy with other
+    # errors) is simulated campaign by campaign: still the same logs
+    other = Machine(replace(drifting_mikron.config, errors={}))
+    mixed = [items[0], (art, other) + items[1][2:]]
+    got = simulate_measurements(mixed, np.random.default_rng(5), stroke_check=False)
+    rng = np.random.default_rng(5)
+    ref = [simulate_campaign(a, m, p, [st], rng, plan=pl, check_collisions=False, stroke_check=False)
+           for a, m, p, st, pl in mixed]
+    for a, b in zip(got, ref):
+        assert a.positions_mm().tobytes() == b.positions_mm().tobytes()

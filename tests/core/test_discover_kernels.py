@@ -1,0 +1,110 @@
+"""discover's shared kernels (issue 19 item 6): known answers, and reuse equal to recomputation.
+
+The reports as a whole are held to main's by test_discover_identity; these
+tests pin the pieces that reuse rests on, each against a hand-worked
+answer or against computing the thing again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core.diagnosis import Covariate, diagnose, orth, pivoted_qr, term_bases
+from core.discover import _constant_within, _constrained, _smooth_gauge, first_per_event
+
+
+def test_one_factorisation_cut_at_two_tolerances():
+    """orth with a given pivoted QR equals orth computed afresh; a factorisation of another matrix is ignored."""
+    rng = np.random.default_rng(1)
+    M = rng.normal(size=(40, 6))
+    M[:, 4] = M[:, 0] + 1e-8 * M[:, 4]  # nearly dependent: rank 5 at 1e-9, 4 at 1e-7 (columns scaled first)
+    M[:, 5] = 0.0
+    f = pivoted_qr(M)
+    for tol in (1e-9, 1e-7):
+        assert np.array_equal(orth(M, tol, qr=f), orth(M, tol))
+    assert orth(M, 1e-9, qr=f).shape[1] == 5 and orth(M, 1e-7, qr=f).shape[1] == 4
+    other = rng.normal(size=(40, 6))
+    assert np.array_equal(orth(other, qr=f), orth(other))  # not other's factorisation: factored afresh
+
+
+def test_estimability_with_more_unknowns_than_rows():
+    """Known answer: 3 rows see parameters 0, 1 and 0 + 2; 5 unknowns, no gauge.
+
+    Parameters 0, 1, 2 are determined (1, 2, 3 - 1); 3 and 4 are seen by no
+    row. A thin SVD has 3 directions, all seen; the two beyond them are
+    unseen (they were missed, and 3 and 4 called estimable, before the
+    null-space code was shared with the smooth gauge's).
+    """
+    A = np.array([[1.0, 0, 0, 0, 0], [0, 1.0, 0, 0, 0], [1.0, 0, 1.0, 0, 0]])
+    y = np.array([1.0, 2.0, 3.0])
+    theta, cov, est = _constrained(A, y, np.zeros((0, 5)), np.zeros(0), np.arange(3), None, 0)
+    assert est.tolist() == [True, True, True, False, False]
+    np.testing.assert_allclose(theta[:3], [1.0, 2.0, 2.0], atol=1e-12)
+
+
+def test_smooth_gauge_pins_the_unseen_directions_of_the_penalised_block():
+    """Known answer: a smooth block that copies a model column is pinned to it; its free column is left free."""
+    x = np.linspace(0, 1, 8)
+    A = np.column_stack([np.ones(8), x, np.ones(8), x ** 2])  # model: 1, x; smooth: 1 (a copy), x^2
+    pen = np.array([False, False, True, True])
+    C, d = _smooth_gauge(A, np.zeros((0, 4)), np.zeros(0), np.arange(8), pen)
+    assert C.shape == (1, 4) and d.tolist() == [0.0]
+    np.testing.assert_allclose(np.abs(C[0]), [0, 0, 1, 0], atol=1e-12)  # the copy's coefficient fixed at 0
+
+
+def test_first_per_event_known_answer():
+    events = np.array([5, 5, -1, 7, -1, 5, 7])
+    assert first_per_event([1, 0, 2, 4, 6, 3], events) == [1, 2, 4, 6]
+    assert first_per_event(np.array([4, 2]), events).__len__() == 2  # negative keys: a row each
+
+
+def test_diagnosis_taken_from_a_diagnosis_of_the_same_model_is_the_same():
+    """diagnose(known=...) over more covariates equals diagnosing afresh (tests, Holm, words, fitted values)."""
+    rng = np.random.default_rng(3)
+    n = 120
+    t = np.sort(rng.uniform(0, 100, n))
+    covs = (Covariate("time", t, "smooth", 6, (0,), "time", "time"),
+            Covariate("x", rng.uniform(-1, 1, n), "smooth", 5, (0,), "x", "position"),
+            Covariate("setup", rng.integers(0, 3, n), "categorical", 0, (0,), "set-up", "time"))
+    modes = np.ones((n, 1))
+    Q = orth(np.column_stack([np.ones(n), rng.normal(size=n)]))
+    y = np.sin(t / 15) * 1e-6 + rng.normal(0, 3e-7, n)
+    r = y - Q @ (Q.T @ y)
+    bases = term_bases(covs, modes)
+    kw = dict(sigma_m=3e-7, material_sigma=0.3, rows=np.arange(n), bases=bases)
+    part = diagnose(Q, r, n - 2, covs[:2], modes, **kw)
+    fresh = diagnose(Q, r, n - 2, covs, modes, **kw)
+    taken = diagnose(Q, r, n - 2, covs, modes, known=part, **kw)
+    assert [d.to_dict() for d in taken] == [d.to_dict() for d in fresh]
+    for a, b in zip(taken, fresh):
+        assert a.test == b.test and np.array_equal(a.basis, b.basis) and np.array_equal(a.fitted_um, b.fitted_um)
+    assert fresh[0].covariate == "time" and fresh[0].p_value < 1e-6  # not a vacuous comparison
+
+
+def test_constant_within_groups_known_answers_and_the_loop_it_replaced():
+    key = np.array([0, 1, 0, -1, 1, 2])
+    E = np.array([[1.0, 5.0], [2.0, 6.0], [1.0, 5.0], [9.0, 9.0], [2.0, 6.0], [3.0, 0.0]])
+    assert _constant_within(key, E)  # row 3 belongs to no group: it may differ
+    E[4, 1] += 1e-6  # group 1 varies in column 1 (1e-6 > 1e-9 of its largest entry, 9)
+    assert not _constant_within(key, E)
+    E[4, 1] -= 1e-6 - 1e-12  # within 1e-9 of the column's largest entry: constant
+    assert _constant_within(key, E)
+    assert _constant_within(np.full(6, -1), E) and _constant_within(key, np.zeros((6, 0)))
+
+    def loop(key, E):  # the per-group loop the vectorised version replaced
+        for k in np.unique(key[key >= 0]):
+            if np.any(np.ptp(E[key == k], axis=0) > 1e-9 * np.maximum(np.abs(E).max(axis=0), 1e-300)):
+                return False
+        return True
+
+    rng = np.random.default_rng(7)
+    seen = set()
+    for _ in range(300):
+        n, g = int(rng.integers(2, 40)), int(rng.integers(1, 8))
+        key = rng.integers(-1, g, n)
+        E = rng.normal(size=(g + 1, 3))[np.maximum(key, 0)]
+        if rng.random() < 0.5:
+            E[rng.integers(n), rng.integers(3)] += rng.choice([1e-13, 1e-6])
+        seen.add(loop(key, E))
+        assert _constant_within(key, E) == loop(key, E)
+    assert seen == {True, False}
