@@ -34,7 +34,7 @@ import numpy as np
 from core.exceptions import PlanError
 from core.memo import Memo
 
-from .artefacts import Artefact, inv_T, make_T, solid_points
+from .artefacts import Artefact, inv_T, make_T, solids_points
 from .clearance import Geoms, flat_path_segments, touch_polylines
 from .probe import ProbeConfig
 
@@ -368,7 +368,7 @@ _POINTS = Memo(17)
 
 def artefact_points(art: Artefact) -> np.ndarray:
     """All the points of ``art``'s solids (k,3), A frame, m (cached per artefact object)."""
-    return _POINTS.get_or_compute(id(art), lambda: np.concatenate([solid_points(s) for s in art.solids]), owner=art)
+    return _POINTS.get_or_compute(id(art), lambda: solids_points(art.solids), owner=art)
 
 
 #: Compiled scenes by (artefact object, probe): campaigns re-place them instead of compiling

@@ -302,20 +302,22 @@ def _fresh_plan_check() -> None:
     """Clears what ``scenarios.mfb.check_plan`` computes and keeps, so its timing is its own work.
 
     Cleared: the checks (``_CHECKS``), the program's placement margin (``_MARGINS``), the bar's
-    touch programs (``sim.plans._MFB_PLANS``), its solids' points and poses, the work zones, their
-    table sides and the ball broad phases (``sim.mfb_scene``, ``sim.clearance``, ``sim.scene``).
-    Shared with the plan's making, so not timed again: the nominal bar (``_nominal_bar``: the plan
-    chooses each diagonal's holes on it) and its touch program at the plan's margins (rebuilt here,
-    as ``plan_5axis`` built it; the margin is then measured on it). Before, the check built its
-    own copies of both (and the margin a third bar and program): those were duplicates of the
-    plan's making's, which remains (in ``plan_5axis``, not timed here), so sharing removed them
-    rather than moved them out of the timing. What the plan's making builds is still built once.
+    touch programs (``sim.plans._MFB_PLANS``) and their touches (``_MFB_TOUCHES``), its solids'
+    points and poses, the work zones, their table sides and the ball broad phases
+    (``sim.mfb_scene``, ``sim.clearance``, ``sim.scene``). Shared with the plan's making, so not
+    timed again: the nominal bar (``_nominal_bar``: the plan chooses each diagonal's holes on it),
+    its touches and its touch program at the plan's margins (rebuilt here, as ``plan_5axis`` built
+    them; the margin is then measured on it, the check's program at its own margins set on those
+    touches). Before, the check built its own copies of both (and the margin a third bar and
+    program): those were duplicates of the plan's making's, which remains (in ``plan_5axis``, not
+    timed here), so sharing removed them rather than moved them out of the timing. What the plan's
+    making builds is still built once.
     """
     from scenarios import mfb as S
     from sim import clearance, mfb_scene, plans, scene
 
-    for memo in (S._CHECKS, S._MARGINS, plans._MFB_PLANS, scene._POINTS, mfb_scene._SOLID_POSES,
-                 mfb_scene._ZONES, mfb_scene._BALLS, clearance._TABLE_PREP):
+    for memo in (S._CHECKS, S._MARGINS, plans._MFB_PLANS, plans._MFB_TOUCHES, scene._POINTS,
+                 mfb_scene._SOLID_POSES, mfb_scene._ZONES, mfb_scene._BALLS, clearance._TABLE_PREP):
         memo.clear()
     S._plan_for(S._nominal_bar(), (1,))  # the plan's making's touch program (its _fit_holes)
 

@@ -74,6 +74,21 @@ def test_artefacts_build_and_mesh():
         assert len(m.vertices) > 0 and np.all(np.isfinite(m.bounds))
 
 
+def test_solids_points_are_each_solids_points_in_order():
+    # issue 19: the stacked corners (one product for every box/cylinder) are the one-solid-at-a-time
+    # ones bit for bit and in the same order, meshes (the freeform plate) kept in their place; an
+    # axis-aligned box's corners are its centre +- its half sizes (written apart from solid_points)
+    for name in CATALOG:
+        sol = make_artefact(name).solids
+        mixed = sol[::-1] + sol[:3]  # another order, meshes between boxes
+        for s in (sol, mixed):
+            assert A.solids_points(s).tobytes() == np.concatenate([A.solid_points(x) for x in s]).tobytes()
+    b = A._box((0.125, -0.25, 0.0), (0.5, 0.375, 0.0625))  # binary fractions: centre +- half exact
+    p = A.solids_points([b, b])
+    assert p.shape == (16, 3)
+    assert np.array_equal(p.min(axis=0), [0.125, -0.25, 0.0]) and np.array_equal(p.max(axis=0), [0.5, 0.375, 0.0625])
+
+
 @pytest.mark.parametrize("bad", [np.zeros((11, 3)), np.full((12, 3), np.nan)])
 def test_mfb_bad_deviations(bad):
     with pytest.raises(ConfigError, match="deviations_m"):

@@ -40,11 +40,18 @@ def test_mfb_plan_has_the_papers_touches_per_bar():
 
 def test_mfb_plan_cache_is_per_artefact_and_margins_and_read_only():
     P._MFB_PLANS.clear()
+    P._MFB_TOUCHES.clear()
     a, b = A.multi_feature_bar(), A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
     p = P.mfb_plan(a, clearance_m=2e-3, overshoot_m=3e-3)
     assert P.mfb_plan(a, clearance_m=2e-3, overshoot_m=3e-3) is p
     q = P.mfb_plan(a, clearance_m=2e-3, overshoot_m=4e-3)
     assert q is not p and q.overshoot_m == 4e-3
+    # the touches are built once per bar and shared by its plans at other margins; they are a
+    # fresh build's at those margins bit for bit
+    assert q.w_A is p.w_A and q.wn_A is p.wn_A and q.level is p.level and q.target is p.target
+    ref = P._build_mfb_plan(a, 2e-3, 4e-3)
+    assert (q.target, q.feature, q.clearance_m, q.overshoot_m) == (ref.target, ref.feature, 2e-3, 4e-3)
+    assert all(x.tobytes() == y.tobytes() for x, y in ((q.w_A, ref.w_A), (q.wn_A, ref.wn_A), (q.level, ref.level)))
     assert P.mfb_plan(b, clearance_m=2e-3, overshoot_m=3e-3) is not p  # another bar object, its own plan
     with pytest.raises(ValueError):
         p.w_A[0, 0] = 1.0  # a cached plan cannot be changed under its next user
