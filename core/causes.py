@@ -23,8 +23,15 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   the Nyquist limit) and ``plausible(values, u95) -> reason or None`` after
   it (lobing amplitudes that differ between set-ups);
 - ``counter(baseline) -> (n, m)``: the plainer explanation's columns (a
-  finer error map for a non-rigid coupling): the cause is refused when
-  they explain as much as it does;
+  finer error map for a non-rigid coupling). When they explain as much as
+  the cause does and the cause explains nothing material and significant
+  beyond them, the design cannot tell the two apart: if the plainer
+  explanation is itself a catalogue cause (``counter_cause``, e.g. the
+  probe's fixed lobes for lobes turned per set-up) the cause is refused
+  and the plainer one is named in its own right; if it has no name (a
+  finer error map is no cause, only a finer baseline) the cause is named
+  ``ambiguous``, the plainer explanation given as the reason (refusing it
+  would leave ``unexplained`` a structure the catalogue does name);
 - ``rebuild(baseline, info) -> (T, n, k)``: the columns for changed
   nonlinear parameters ``nonlinear`` (a period, a position; arrays give T
   trials at once): the engine refines them and carries their uncertainty;
@@ -33,6 +40,10 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   about as well as a catalogue-free smooth function of it, else it is a
   guess); ``rival(baseline, info) -> (n, m)`` overrides that smooth term;
 - the physics, in the docstring of its ``scans`` function (``doc``);
+- ``gradual``: the cause changes the readings gradually over the
+  campaign (a drift, a part that changes): the engine tests whether a
+  one-off event or the probe's size changing with time explains it as well
+  (then the name is ``ambiguous``);
 - ``counter(baseline) -> (n, m)``, ``counter_scan(baseline) -> (T, n, k)``:
   a plainer explanation the cause must beat (a finer error map for a
   coupling; the best of T trials of a one-off rigid step of the part,
@@ -107,6 +118,8 @@ class Cause:
     plausible: Callable | None = None
     counter: Callable | None = None
     counter_scan: Callable | None = None
+    counter_cause: str | None = None
+    gradual: bool = False
 
     @property
     def doc(self) -> str:
@@ -386,6 +399,22 @@ def lobing_scans(bl):
                  "approach_azimuth")], 1.0
 
 
+def lobing_rival(bl, info) -> np.ndarray:
+    """The smooth term fixed lobes must rival: the approach azimuth's structure allowed to differ per set-up.
+
+    ``probe_lobing`` claims lobes fixed with the spindle, the same in every
+    set-up. Lobes that turn from set-up to set-up (an unoriented spindle)
+    have a common part that fixed lobes catch; the rest follows the
+    azimuth differently in each set-up. So the rival is the azimuth's
+    harmonics per set-up (the ``azimuth_by_setup`` covariate, beside the
+    cause's own columns): fixed lobes must explain at least ``rival_share``
+    of it, or fall short by an immaterial amount, else the name caught only
+    the common part of something that turns. One set-up: its own columns.
+    """
+    cov = bl.covariate("azimuth_by_setup")
+    return common_lobing(bl) if cov is None else np.asarray(cov.values, float)
+
+
 def lobing_magnitudes(info, coef, bl):
     c = np.asarray(coef).reshape(4, 2)
     phi = np.linspace(-np.pi, np.pi, 721)
@@ -519,10 +548,20 @@ def unoriented_magnitudes(info, coef, bl):
     return out
 
 
+class Undetermined(str):
+    """A plausibility answer that is no verdict: the magnitudes it needs are not determined on this design.
+
+    An implausible cause is refused; one whose magnitudes the design cannot
+    determine is not implausible, only unmeasured: the engine names it
+    ``ambiguous``, with this reason, and reports no magnitude it cannot
+    determine.
+    """
+
+
 def unoriented_plausible(vals, u95):
     a, res, spread = vals.get("amplitude_um"), vals.get("circle_residual_um"), vals.get("spread_um")
     if a is None or res is None or spread is None:
-        return "the set-ups' lobing not determined"
+        return Undetermined("the set-ups' lobing amplitude and orientations are not determined on this design")
     if res - (u95.get("circle_residual_um") or 0.0) > 0.3 * a:
         return f"the set-ups' lobing vectors lie off one circle ({res:.2g} um for {a:.2g} um): not one probe's lobes"
     if a > 3 * spread:
@@ -966,28 +1005,30 @@ NONE = "none"
 REGISTRY = (
     Cause("thermal_drift", ("planar",), "machine", drift_scans, drift_magnitudes,
           {"x_offset_change_um": (-500, 500), "y_offset_change_um": (-500, 500),
-           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, counter_scan=fixture_slip),
+           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, counter_scan=fixture_slip,
+          gradual=True),
     Cause("c_drift", ("planar",), "machine", c_drift_scans, c_drift_magnitudes,
           {"ECC_change_in_setup_urad": (-2000, 2000), "ECC_change_over_campaign_urad": (-2000, 2000),
            "ECC_change_rms_urad": (0, 2000), "ECC_change_urad[*]": (-2000, 2000)},
-          counter_scan=fixture_slip),
+          counter_scan=fixture_slip, gradual=True),
     Cause("temperature_expansion", ("planar",), "machine", expansion_scans, expansion_magnitudes,
           {"alpha_x_um_per_m_K": (-60, 60), "alpha_y_um_per_m_K": (-60, 60),
-           "x_offset_um_per_K": (-50, 50), "y_offset_um_per_K": (-50, 50)}, counter_scan=fixture_slip),
+           "x_offset_um_per_K": (-50, 50), "y_offset_um_per_K": (-50, 50)}, counter_scan=fixture_slip, gradual=True),
     Cause("periodic_axis_error", ("planar",), "machine", periodic_scans, periodic_magnitudes,
           {"EXX_amplitude_um": (0, 50), "EYX_amplitude_um": (0, 50), "EXY_amplitude_um": (0, 50),
            "EYY_amplitude_um": (0, 50)}, periodic_rebuild, ("period_m",), check=periodic_check,
           counter_scan=fixture_slip),
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
-          {"pretravel_variation_pv_um": (0, 50)}, counter_scan=fixture_slip),
+          {"pretravel_variation_pv_um": (0, 50)}, rival=lobing_rival, counter_scan=fixture_slip),
     Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
-          {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter=common_lobing, counter_scan=fixture_slip),
+          {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter=common_lobing, counter_scan=fixture_slip,
+          counter_cause="probe_lobing"),
     Cause("stylus_bending", ("planar",), "probe", bending_scans, bending_magnitudes,
           {"pretravel_change_um": (-50, 50)}, counter_scan=fixture_slip),
     Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,
           {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
-          {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip),
+          {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
           {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,

@@ -46,9 +46,13 @@ What it does, in order, and the statistics behind each step
       than both the cause's columns and the best smooth function of a
       covariate of its own family (debiased sums of squares);
    f. its plainer counter-explanation (:attr:`core.causes.Cause.counter`)
-      does not explain as much (step 5's test, made before adoption too, so
+      does not explain as much, or the cause explains something material
+      and significant beyond it (step 5's test, made before adoption too, so
       that a plainer cause of the catalogue can win the round: the probe's
-      fixed lobes against lobes turned per set-up).
+      fixed lobes against lobes turned per set-up). Only a plainer
+      explanation that is itself a catalogue cause
+      (:attr:`core.causes.Cause.counter_cause`) refuses the cause; one
+      without a name (a finer error map) leaves it named, ``ambiguous``.
 
    Among those, the lowest cross-validated mean square wins; within the
    materiality margin of it, the fewest columns (parsimony).
@@ -82,7 +86,19 @@ What it does, in order, and the statistics behind each step
 8. **Confidence** (each finding's ``confidence``, ``named`` or
    ``ambiguous`` with ``confidence_reason``): ``named`` says the name holds
    against the alternatives the engine can test. A named cause: no smooth
-   term in a covariate of another family reproduces its signal (a rule
+   term in a covariate of another family reproduces its signal, nor
+   explains materially more while reproducing half of it; no plainer
+   explanation without a name explains as much (step 4f); no other
+   catalogue cause's fixed columns reproduce its signal and explain as much
+   (:func:`_cause_alternatives`: lost motion and lobing when every touch
+   approaches along the normal; the other cause is then listed in
+   ``ambiguous_with``); its magnitudes are determined on the design (a
+   cause significant and earning its gain whose plausibility check cannot
+   be made because its magnitudes are not determined,
+   :class:`core.causes.Undetermined`, is named ``ambiguous``, and its
+   workpiece shift is tested and carried as an unnamed smooth's); a gradual cause (:attr:`core.causes.Cause.gradual`)
+   is not matched by a one-off event or by the probe's size changing with
+   time (:func:`_time_alternatives`) (a rule
    "every combination of its columns inflated at most vif_max" was
    measured and withdrawn: on fresh seeds it flagged 20-23 % more right
    names and no wrong one; docs/discovery.md). Outliers: at least
@@ -1041,7 +1057,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     # 6. estimates
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-                         seen + [(st, diag_e)])
+                         seen + [(st, diag_e)],
+                         fixed={k: v[0][0].build([0])[0] for k, v in scans.items()
+                                if len(v[0]) == 1 and v[0][0].size == 1})
     E_all = _stack(terms, rows)
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
@@ -1071,11 +1089,16 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     "determine it")
     if shift is not None:
         for f in findings:
-            if f.cause == causes_mod.UNEXPLAINED and "smooth" in f.evidence:
+            if (f.cause == causes_mod.UNEXPLAINED and "smooth" in f.evidence) or f.evidence.get(
+                    "magnitudes_not_determined"):
                 f.evidence["workpiece_shift"] = _clean(shift)
-        conv.append(f"the unnamed smooth moves the workpiece by {shift['shift_rms_um']:.3g} um RMS (form only), "
+        smooth_in = any(t.penalty is not None for t in terms)
+        who = "the unnamed smooth" if smooth_in else "a cause whose magnitudes this design does not determine"
+        conv.append(f"{who} moves the workpiece by {shift['shift_rms_um']:.3g} um RMS (form only), "
                     f"{fmt_p(shift['p'])} against its own scatter: " + (
-                        "real, and the split of an unnamed effect between machine and part is the smooth's "
+                        ("real, and the split of an unnamed effect between machine and part is the smooth's "
+                         if smooth_in else "real, and the split of an undetermined effect between machine and "
+                         "part is the fit's ") +
                         "assumption: the extended U95 carries the shift (u = |shift| / 2 per target)"
                         if shift["carried_in_u95"] else "within the noise the extended U95 already carries"))
     lost = [w["target"] for w in wp if w["baseline_um"] is not None and w["extended_um"] is None]
@@ -1220,6 +1243,33 @@ def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> float:
     Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
     Uc = new_basis(st.Q, Bc[rows])
     return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2
+
+
+def _beyond_counter(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: float, settings) -> tuple:
+    """What the cause's columns ``E`` (rows used) explain once its plainer explanation is in the model.
+
+    The plainer explanation explaining as much does not make the cause's
+    own part vanish: a machine can have a finer rigid error map *and* a
+    non-separable coupling, or lobes that are partly fixed and partly
+    turned. The cause stands beside its counter when its columns, added to
+    model + counter, still explain a material amount (debiased, at least
+    ``(material_sigma * sigma)^2`` per row) that is significant (nested F
+    test with the Bonferroni factor of its adoption).
+
+    Returns
+    -------
+    (debiased sum of squares beyond the counter, m^2; its adjusted p-value; stands: bool)
+    """
+    Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
+    rows = st.rows
+    Uc = new_basis(st.Q, Bc[rows])
+    Qc = np.hstack([st.Q, Uc])
+    rc = st.r - Uc @ (Uc.T @ st.r)
+    Un = new_basis(Qc, E)
+    d = float(np.sum((Un.T @ rc) ** 2)) - Un.shape[1] * sigma ** 2
+    p = min(1.0, nested_f(Un, rc, float(rc @ rc), len(rows) - Qc.shape[1]).p_value * tries)
+    stands = bool(d >= (settings.material_sigma * sigma) ** 2 * len(rows) and p < settings.alpha_family)
+    return d, p, stands
 
 
 def _candidate_ss(test, st: _State) -> float:
@@ -1369,7 +1419,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         ss_c, k_c, _, _ = single
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
         d_c = _counter_ss(bl, cause, st, rows, sigma)
-        if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows):
+        if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) and cause.counter_cause is not None \
+                and not _beyond_counter(bl, cause, st, cols[rows], sigma, tries, settings)[2]:
             return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
                               f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
                     "significant": True}
@@ -1403,7 +1454,12 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
                 if v + u < lo or v - u > hi:
                     return {"reason": f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})", "significant": True}
     why = cause.plausible(vals, u95) if cause.plausible else None
-    if why:
+    if isinstance(why, causes_mod.Undetermined):
+        # the magnitudes the check needs are not determined on this design: not
+        # implausible, only unmeasured; the cause is significant and earns its
+        # gain, so it is named, ambiguous (step 8)
+        tm.evidence["magnitudes_not_determined"] = str(why)
+    elif why:
         return {"reason": f"implausible: {why}", "significant": True}
     return {"cv": cv, "term": tm}
 
@@ -1540,7 +1596,14 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
         out["counter"] = cause.counter.__name__.replace("_", " ")
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
         if d_c > d_n - m_ss:
-            out["kept"] = False
+            d_b, p_b, stands = _beyond_counter(bl, cause, so, tm.columns[rows], sigma, tm.tries, settings)
+            out["explained_beyond_counter_ss_um2"] = max(d_b, 0.0) / UM ** 2
+            out["p_adjusted_beyond_counter"] = p_b
+            if not stands and cause.counter_cause is not None:
+                out["kept"] = False  # the plainer catalogue cause is named in its own right
+            elif not stands:
+                # a plainer explanation without a name does as well: named, but ambiguous
+                out["indistinguishable_counter"] = out["counter"]
     if cause is not None and cause.counter_scan is not None and out["kept"]:
         # a one-off alternative chosen among T trials: its best sum of squares is
         # debiased by the median of the largest of T chi-squares (k dof) under noise
@@ -1573,6 +1636,131 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
     return out
 
 
+#: Moments tried for a one-off event by :func:`_time_alternatives` (quantiles of the touches' times).
+EVENT_SPLITS = 40
+
+
+def _time_alternatives(bl, tm: Term, so: _State, sigma, settings) -> list:
+    """Plainer explanations of a cause that changes with time, which the data may not tell from it.
+
+    A machine drift (thermal, a creeping C axis, a temperature) is not the
+    only thing that changes the readings over a campaign:
+
+    - ``event``: a one-off change at one moment that stays (a knock, the
+      probe re-seating): every response mode of the baseline (an offset and
+      an affine displacement of the tip) changing by a constant at one
+      moment, the best of :data:`EVENT_SPLITS`; a drift's columns correlate
+      with a step (a ramp with a step at its middle: 0.87);
+    - ``probe_size``: the probe's effective ball size changing with use
+      (dirt picked up, the probe warming): the scalar mode (every touch
+      triggers earlier or later by the same amount) times a Legendre
+      polynomial of time of degree 1-3, the best of the three; an equal
+      change of the X and Y scales reads on a part probed around its centre
+      much like a change of size.
+
+    Each alternative's best trial is debiased by the median of the largest
+    of that many chi-squares under noise (as the slip's). It does as well
+    when it explains as much as the cause (within materiality) and the
+    cause explains nothing material and significant beyond it (nested F,
+    the Bonferroni factor of its adoption): the data cannot tell the
+    drift from it, and the name is ``ambiguous``.
+
+    Returns
+    -------
+    list of dict: the alternatives that do as well, with their figures.
+    """
+    if bl.kind != "planar":
+        return []
+    rows = so.rows
+    t = np.asarray(bl.data.touches.t_s, float)[rows]
+    ts = np.unique(t)
+    if ts.size < 4:
+        return []
+    M = bl.modes[rows]
+    cut = np.unique(np.quantile(ts[1:], np.linspace(0, 1, EVENT_SPLITS)))
+    u = 2 * (t - t.min()) / max(np.ptp(t), 1e-300) - 1
+    P = causes_mod._legendre(u, 3)
+    trials = {"event": (M[None, :, :] * (t[None, :, None] >= cut[:, None, None]), cut),
+              "probe_size": (np.stack([np.hstack([M[:, :1] * P[:, :g], np.zeros((len(rows), 3 - g))])
+                                       for g in (1, 2, 3)]), np.arange(1, 4))}
+    s2 = sigma ** 2
+    E = tm.columns[rows]
+    Un = new_basis(so.Q, E)
+    d_n = float(np.sum((Un.T @ so.r) ** 2)) - Un.shape[1] * s2
+    m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
+    out = []
+    for name, (C, what) in trials.items():
+        ss, k, _, _ = nested_f_batch(C, so.Q, so.r, so.rss, so.dof)
+        j = int(np.argmax(ss))
+        d_a = float(ss[j]) - float(stats.chi2.isf(np.log(2) / C.shape[0], max(int(k[j]), 1))) * s2
+        if d_a < d_n - m_ss:
+            continue
+        Ua = new_basis(so.Q, C[j])
+        Qa = np.hstack([so.Q, Ua])
+        ra = so.r - Ua @ (Ua.T @ so.r)
+        Ub = new_basis(Qa, E)
+        d_b = float(np.sum((Ub.T @ ra) ** 2)) - Ub.shape[1] * s2
+        p_b = min(1.0, nested_f(Ub, ra, float(ra @ ra), len(rows) - Qa.shape[1]).p_value * tm.tries)
+        if d_b >= m_ss and p_b < settings.alpha_family:
+            continue
+        out.append({"alternative": name, ("at_s" if name == "event" else "degree"): float(what[j]),
+                    "explained_ss_um2": max(d_a, 0.0) / UM ** 2, "cause_beyond_it_ss_um2": max(d_b, 0.0) / UM ** 2,
+                    "p_adjusted_cause_beyond_it": p_b})
+    return out
+
+
+def _signal(tm: Term, so: _State, sigma) -> tuple:
+    """The cause's signal in the joint fit and its debiased sum of squares.
+
+    Its columns' part outside the rest of the model ``so`` (the other named
+    causes) times their coefficients: ``(sig (n_rows,), ss - k sigma^2)``.
+    """
+    E = tm.columns[so.rows]
+    Ep = E - so.Q @ (so.Q.T @ E)
+    sig = Ep @ np.linalg.lstsq(Ep, so.r, rcond=1e-12)[0]
+    return sig, float(sig @ sig) - E.shape[1] * sigma ** 2
+
+
+def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict) -> list:
+    """Other catalogue causes (one fixed layout each) whose columns reproduce the named cause's signal.
+
+    Two causes whose columns span nearly the same thing on a design are
+    one explanation under two names there: lost motion on touches that
+    each approach along the surface normal is a function of the approach
+    direction alone (``|n_x| / 2``: harmonics 0, 2, 4, ... of the azimuth,
+    99 % of it in harmonics 2 and 4), which a probe's lobing also is.
+    Parsimony picks one, but the data do not. The test is
+    :func:`_alternatives`' with the other cause's columns in place of a
+    smooth term: it reproduces at least ``rival_share`` of the signal and
+    explains at least ``rival_share`` as much (debiased). Causes that nest
+    one another (``counter_cause``) are judged by the counter check, not
+    here.
+
+    ``fixed``: {cause name: (n, k) columns, all rows} of the catalogue's
+    causes with a single trial.
+    """
+    rows = so.rows
+    sig_n, d_n = _signal(tm, so, sigma)
+    s2 = sigma ** 2
+    out = []
+    if d_n <= 0:
+        return out
+    cause = tm.origin
+    for name, B in fixed.items():
+        other = causes_mod.lookup(name, cause.kinds[0]) if cause is not None else None
+        if name == tm.cause or (cause is not None and cause.counter_cause == name) or (
+                other is not None and other.counter_cause == tm.cause):
+            continue
+        U = new_basis(so.Q, B[rows])
+        if U.shape[1] == 0:
+            continue
+        overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
+        d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * s2
+        if overlap >= settings.rival_share and d_w >= settings.rival_share * d_n:
+            out.append({"cause": name, "overlap": overlap, "explained_ratio": d_w / d_n})
+    return out
+
+
 def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) -> list:
     """Covariates of other families whose smooth term reproduces the cause's signal.
 
@@ -1588,12 +1776,9 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) ->
     have = {d.covariate: d.basis for d in known if d.basis is not None}
     fam = bl.covariate(tm.covariate).family if bl.covariate(tm.covariate) is not None else ""
     rows = so.rows  # so: the model without the cause (the other named causes)
-    E = tm.columns[rows]
-    Ep = E - so.Q @ (so.Q.T @ E)
-    c = np.linalg.lstsq(Ep, so.r, rcond=1e-12)[0]
-    sig_n = Ep @ c
+    sig_n, d_n = _signal(tm, so, sigma)
     s2 = sigma ** 2
-    d_n = float(sig_n @ sig_n) - E.shape[1] * s2
+    m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
     out = []
     if d_n <= 0:
         return out
@@ -1606,9 +1791,14 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) ->
         overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
         d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * s2
         ind = overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
+        # the structure lives there more than in the cause: it explains materially
+        # more than the cause (beyond 1 / rival_share of it) and reproduces at
+        # least half of the cause's signal, so the cause may have caught only
+        # the part of it that its columns can bend to
+        dom = overlap >= 0.5 and d_w >= d_n / settings.rival_share and d_w - d_n >= m_ss
         if overlap >= 0.5:
             out.append({"covariate": cov.name, "overlap": overlap, "explained_ratio": d_w / d_n,
-                        "indistinguishable": bool(ind)})
+                        "indistinguishable": bool(ind), "explains_more": bool(dom)})
     return out
 
 
@@ -1658,7 +1848,7 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
 
 
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-              seen=()) -> list:
+              seen=(), fixed=None) -> list:
     out = []
     sig = st.sigma
     named = [t for t in terms if t.penalty is None]
@@ -1675,6 +1865,12 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             vals, u95 = dict(a[2]), dict(a[3])
         else:
             vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows)
+        if tm.evidence.get("magnitudes_not_determined"):
+            # the design does not determine the cause's magnitudes: none is reported
+            # (a value computed from the determined directions alone means nothing)
+            vals = {k: (None if isinstance(v, (float, int)) and not isinstance(v, bool) else v)
+                    for k, v in vals.items()}
+            u95 = {k: None for k in u95}
         ev = dict(tm.evidence)
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
@@ -1684,11 +1880,41 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         alt = _alternatives(bl, tm, so, sig, settings, bases, _made_on(seen, so))
         ev["alternatives"] = alt
         ev["indistinguishable_from"] = [a["covariate"] for a in alt if a["indistinguishable"]]
-        # confident: no other family's covariate reproduces the signal
-        ev["confidence"] = "ambiguous" if ev["indistinguishable_from"] else "named"
+        # confident: no other family's covariate reproduces the signal, and no
+        # plainer explanation without a name explains as much (rival check)
+        why = []
         if ev["indistinguishable_from"]:
-            ev["confidence_reason"] = ("indistinguishable from a smooth term in "
-                                       + ", ".join(ev["indistinguishable_from"]))
+            why.append("indistinguishable from a smooth term in " + ", ".join(ev["indistinguishable_from"]))
+        more = [a for a in alt if a.get("explains_more") and not a["indistinguishable"]]
+        if more:
+            why.append("a smooth term in " + ", ".join(f"{a['covariate']} (x{a['explained_ratio']:.2g}, reproducing "
+                                                        f"{a['overlap']:.0%} of its signal)" for a in more)
+                       + " explains materially more: the structure may live there, the cause catching part of it")
+        if ev.get("indistinguishable_counter"):
+            why.append(f"a {ev['indistinguishable_counter']} explains as much "
+                       f"({ev['counter_explained_ss_um2']:.3g} against {ev['explained_ss_um2']:.3g} um^2) and the "
+                       "cause nothing material beyond it: this design cannot tell them apart")
+        calt = _cause_alternatives(tm, so, sig, settings, fixed or {})
+        if calt:
+            ev["cause_alternatives"] = calt
+            ev["ambiguous_with"] = [a["cause"] for a in calt]
+            why.append(f"the columns of {', '.join(a['cause'] for a in calt)} reproduce its signal on this design "
+                       "and explain as much: one explanation under two names here")
+        if cause.gradual:
+            talt = _time_alternatives(bl, tm, so, sig, settings)
+            if talt:
+                ev["time_alternatives"] = talt
+            for a in talt:
+                what = (f"a one-off change of the readings at t = {a['at_s']:.0f} s (an event: a knock, the probe "
+                        "re-seating)" if a["alternative"] == "event" else
+                        "the probe's effective size changing with time (dirt picked up, the probe warming)")
+                why.append(f"{what} explains as much ({a['explained_ss_um2']:.3g} um^2) and the cause nothing "
+                           "material beyond it")
+        if ev.get("magnitudes_not_determined"):
+            why.append(ev["magnitudes_not_determined"])
+        ev["confidence"] = "ambiguous" if why else "named"
+        if why:
+            ev["confidence_reason"] = "; ".join(why)
         ev["explained_rms_um"] = float(np.sqrt(explained / len(rows)))
         out.append(Finding(tm.cause, _clean(ev), {**_info_params(tm.info), **vals}, u95,
                            float(np.sqrt(st.rss / len(rows))) / UM, cause.books_to))
@@ -1797,9 +2023,13 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
     """
     q = bl.estimand
     A0 = bl.A
-    # the linear maps (data -> parameters) serve only the unnamed smooth's shift test
+    # the linear maps (data -> parameters) serve only the shift test of an unnamed smooth or of a
+    # named cause whose magnitudes this design does not determine: such a cause has, here, no more
+    # physics than an unnamed smooth to say how its effect splits between machine and part, so its
+    # shift of the workpiece is tested and carried alike
     smooth = any(t.penalty is not None for t in terms)
-    gb, cb, eb, *lin = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=smooth)
+    need_maps = smooth or any(t.evidence.get("magnitudes_not_determined") for t in terms)
+    gb, cb, eb, *lin = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=need_maps)
     # a named cause enters with the combinations the data determine (its map)
     E = np.hstack([t.columns @ t.map if t.map is not None else t.columns for t in terms]) if terms \
         else np.zeros((bl.n, 0))
@@ -1818,13 +2048,14 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
                 pen[o:o + k] = True
             o += k
         C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen)
-    ge, ce, ee, *lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=smooth)
+    ge, ce, ee, *lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=need_maps)
     shift = None
     if P is not None:
         # the penalty's ridge rows make every parameter formally estimable:
         # the extended workpiece is an estimate only where the data alone
         # determine it (else the penalty's strength, not the campaign, decides)
         ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
+    if need_maps:
         ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, lin[0], lin_e[0], lin_e[1], eb & ee[:len(eb)], alpha)
     out = []
     for i, tid in enumerate(bl.estimand_ids):

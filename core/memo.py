@@ -12,8 +12,9 @@ keep:
 
 - the key holds everything the value depends on (a hash of arrays' bytes, the
   floats, the names), or the identity of an object whose value cannot change
-  (a frozen artefact; the entry then keeps the object, so its ``id`` is not
-  reused while the entry lives, and the caller checks ``entry[0] is obj``);
+  (a frozen artefact; :meth:`Memo.get_or_compute` with ``owner=obj`` keeps the
+  object in the entry, so its ``id`` is not reused while the entry lives, and
+  checks that the entry's object *is* ``obj``);
 - a value handed to more than one caller is read-only (arrays with
   ``writeable = False``, frozen dataclasses, or by the callers' contract).
 
@@ -28,6 +29,14 @@ from collections.abc import Callable, Hashable
 from typing import Any
 
 _MISSING = object()
+
+
+def _same(kept: Any, owner: Any) -> bool:
+    """``kept is owner``, item by item for two tuples of the same length."""
+    if kept is owner:
+        return True
+    return (type(kept) is tuple and type(owner) is tuple and len(kept) == len(owner)
+            and all(a is b for a, b in zip(kept, owner)))
 
 
 class Memo:
@@ -76,12 +85,41 @@ class Memo:
         d[key] = value
         return value
 
-    def get_or_compute(self, key: Hashable, compute: Callable[[], Any]) -> Any:
-        """The value kept for ``key``; on a miss ``compute()`` is called once and its answer kept."""
-        v = self.get(key, _MISSING)
-        if v is _MISSING:
-            v = self.put(key, compute())
-        return v
+    def get_or_compute(self, key: Hashable, compute: Callable[[], Any], owner: Any = None) -> Any:
+        """The value kept for ``key``; on a miss ``compute()`` is called once and its answer kept.
+
+        Parameters
+        ----------
+        key : hashable
+            What the value depends on (see the module's notes).
+        compute : callable () -> value
+            Called on a miss only; its answer is kept and returned.
+        owner : object, tuple of objects, or None
+            For a key made of ``id(obj)`` (the value is a function of an object that
+            cannot change): the entry keeps ``owner`` beside the value, so no other
+            object can take its id while the entry lives, and the kept value is
+            returned only if the entry's owner *is* ``owner`` (each item with ``is``
+            for a tuple): an equal key from another object computes and replaces it.
+            None: no owner (the entry is the bare value). A memo is used with owners
+            at every call or at none.
+
+        Returns
+        -------
+        The kept or computed value (``None`` and falsy values are kept like any other).
+        """
+        d = self._d  # (get and put inline: a hit, lambda included, ~0.1 us more than a hand-written look-up)
+        if owner is None:
+            v = d.get(key, _MISSING)
+            if v is _MISSING:
+                return self.put(key, compute())
+            d.move_to_end(key)
+            return v
+        e = d.get(key)
+        if e is not None:
+            d.move_to_end(key)  # a use, as get's: also for an entry of another owner, replaced below
+            if e[0] is owner or _same(e[0], owner):
+                return e[1]
+        return self.put(key, (owner, compute()))[1]
 
     def __getitem__(self, key: Hashable) -> Any:
         v = self.get(key, _MISSING)

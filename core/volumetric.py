@@ -614,9 +614,8 @@ def _design(meas, chain, nodes, rotary_points_R_m, gauge) -> tuple:
     prep = _prepare_all(meas, chain, rotary_points_R_m, nodes)
     A, y, rows = _rows(meas, chain, rotary_points_R_m, nodes, np.zeros(n), slices, n, exact=False, prep=prep)
     key = _nominal_key(meas, chain, nodes, rotary_points_R_m, gauge, names)
-    if key not in _NOMINAL:
-        _NOMINAL[key] = _nominal_design(meas, chain, nodes, rotary_points_R_m, gauge, slices, n)
-    C, words, null, left, sv_rel = _NOMINAL[key]
+    C, words, null, left, sv_rel = _NOMINAL.get_or_compute(
+        key, lambda: _nominal_design(meas, chain, nodes, rotary_points_R_m, gauge, slices, n))
     return VolumetricDesign(A, y, tuple(names), slices, nodes, C, words, null, rows, left, sv_rel), prep
 
 

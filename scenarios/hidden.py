@@ -34,9 +34,10 @@ the right answer): a 2-lobe pattern turned per set-up on the cross
 pocket's four wall directions (plus two spheres) is confounded with the
 part's own 2-lobe form turning with the table (the per-set-up lobing
 vectors have two exact null directions against the baseline), so no
-orientation or amplitude per set-up can be determined; discovery reports
-the structure as unexplained and locates it ("the approach azimuth,
-differently in each set-up").
+orientation or amplitude per set-up can be determined; discovery names
+``lobing_per_setup`` flagged ambiguous (its magnitudes not determined) or
+reports the structure as unexplained and locates it ("the approach
+azimuth, differently in each set-up").
 
 Each set-up ends by re-probing sixteen pocket targets (four per wall
 direction), the drift check a careful metrologist adds: without repeated
@@ -510,6 +511,11 @@ class Outcome:
     identifiable : bool
         The generator's word on the design: the part separable from smooth
         machine error fields (not the engine's own test).
+    alternatives : tuple of str
+        Catalogue causes the first finding names as indistinguishable from
+        its cause on this design (``ambiguous_with``; it is then flagged
+        ambiguous): scored apart (``catalogue_alternative``), never as the
+        cause itself.
     shift_carried : bool
         The extended U95 carries the real shift of an unnamed smooth (then
         it reaches the baseline's answer at every target, and the check
@@ -534,6 +540,7 @@ class Outcome:
     angle_to_baseline_deg: float = float("nan")
     identifiable: bool = True
     shift_carried: bool = False
+    alternatives: tuple = ()
 
 
 def catalogue_names() -> set:
@@ -598,9 +605,10 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
         vis, angle = effect_outside_baseline(bl, np.asarray(effect_dq_um, float)[bl.rows] * UM, noise_um * UM)
     carried = any((f["evidence"].get("workpiece_shift") or {}).get("carried_in_u95", False)
                   for f in rep["findings"])
+    alts = tuple(rep["findings"][0]["evidence"].get("ambiguous_with") or ()) if rep["findings"] else ()
     return Outcome(generator, effect, int(seed), tuple(acceptable), rep["cause"],
                    tuple(f["cause"] for f in rep["findings"]), bool(conf), vis, float(noise_um), wb, we, wu, dt,
-                   vis_gen, angle, bool(identifiable), bool(carried))
+                   vis_gen, angle, bool(identifiable), bool(carried), alts)
 
 
 def effect_outside_baseline(bl, e_m: np.ndarray, noise_m: float) -> tuple[float, float]:
@@ -644,7 +652,15 @@ def summarize(outcomes) -> dict:
 
     - ``false_alarm``: effect-free campaigns whose cause is not ``none``;
     - ``catalogue``: catalogue effects whose campaign kept at least one
-      noise sigma per touch after the baseline, named acceptably;
+      noise sigma per touch after the baseline, named acceptably (the
+      report's cause; flagged ambiguous or not);
+    - ``catalogue_ambiguous``: of those named acceptably, the ones whose
+      name is flagged ambiguous (the name holds, but the report says the
+      design or data cannot exclude something else);
+    - ``catalogue_alternative``: of the same campaigns, those whose cause
+      is not acceptable but is flagged ambiguous with an acceptable
+      catalogue cause among its ``alternatives`` (two causes this design
+      cannot tell apart, both named): not counted in ``catalogue``;
     - ``out_of_catalogue``: effects with no catalogue name among their
       acceptable causes that kept at least one noise sigma per touch after
       the baseline, reported ``unexplained`` or acceptably;
@@ -680,6 +696,10 @@ def summarize(outcomes) -> dict:
     rate("false_alarm", none, [o.cause != "none" for o in none])
     catl = [o for o in outcomes if set(o.acceptable) & cat and o.visible_sigmas >= 1.0]
     rate("catalogue", catl, [o.cause in o.acceptable for o in catl])
+    hit = [o for o in catl if o.cause in o.acceptable]
+    rate("catalogue_ambiguous", hit, [not o.confident for o in hit])
+    rate("catalogue_alternative", catl, [o.cause not in o.acceptable and not o.confident
+                                         and bool(set(o.alternatives) & set(o.acceptable)) for o in catl])
     ooc = [o for o in outcomes if o.acceptable != ("none",) and not set(o.acceptable) & cat]
     oocv = [o for o in ooc if o.visible_sigmas >= 1.0]
     rate("out_of_catalogue", oocv, [o.cause in o.acceptable or o.cause == "unexplained" for o in oocv])
@@ -720,10 +740,11 @@ def format_study(outcomes, title: str = "") -> str:
               f" ({np.nanmean([o.wp_u95_um for o in fin]):.2f})" if fin else "n/a")
         lines.append(f"{e:<{w}s} {row}   {np.median([o.visible_sigmas for o in sel]):9.2f}  {wp}")
     s = summarize(outcomes)
-    for k in ("false_alarm", "catalogue", "out_of_catalogue", "confident_misnamed", "workpiece_ok",
-              "workpiece_shift_carried", "below_visibility"):
+    for k in ("false_alarm", "catalogue", "catalogue_ambiguous", "catalogue_alternative", "out_of_catalogue",
+              "confident_misnamed", "workpiece_ok", "workpiece_shift_carried", "below_visibility"):
         v = s[k]
-        if v["n"] and (k != "workpiece_shift_carried" or v["k"]):
+        if v["n"] and (k not in ("workpiece_shift_carried", "catalogue_ambiguous", "catalogue_alternative")
+                       or v["k"]):
             lines.append(f"{k:20s} {v['k']:3d}/{v['n']:<3d} = {v['rate']:.2f}  (95 % CI {v['ci95'][0]:.2f}-"
                          f"{v['ci95'][1]:.2f})")
     if s["absorbed"]:
@@ -738,7 +759,31 @@ def hidden_outcome(effect: str, seed: int, **discover_kw) -> Outcome:
     """One campaign of :func:`hidden_campaign` with ``effect`` hidden, discovered and scored."""
     log, truth = hidden_campaign((effect,), seed)
     geo = {k: truth.g_true_m[k] for k in truth.g_true_m}
-    return run_campaign("hidden", effect, seed, log, truth.acceptable, geo, 0.3, **discover_kw)
+    return run_campaign("hidden", effect, seed, log, truth.acceptable, geo, 0.3,
+                        effect_dq_um=hidden_effect_um(log, effect, seed), **discover_kw)
+
+
+def hidden_effect_um(log, effect: str, seed: int) -> np.ndarray | None:
+    """The hidden effect alone per log row, um: the campaign's deviations less those of the same campaign without it.
+
+    :func:`hidden_campaign` draws the machine, the moves and the probing
+    noise from the seed independently of the effect, so the effect-free
+    campaign of the same seed differs from it by the effect only; the
+    study's visibility (the effect's part outside the baseline's column
+    space, :func:`effect_outside_baseline`) is then computed from the
+    truth, not from the baseline's residuals. None when the two campaigns
+    do not have the same touches.
+    """
+    from core.touches import from_log
+
+    if effect == "none":
+        return None
+    t1, t0 = from_log(log), from_log(hidden_campaign(("none",), seed)[0])
+    if not np.array_equal(np.asarray(t1.row), np.asarray(t0.row)):
+        return None
+    out = np.zeros(log.n)
+    out[np.asarray(t1.row)] = (t1.dq_m - t0.dq_m) / UM
+    return out
 
 
 def blind_outcome(module, effect: str, seed: int, generator: str = "", **discover_kw) -> Outcome:

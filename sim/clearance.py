@@ -516,10 +516,12 @@ def _table_prep(table: Geoms, table_feature):
     """(feature (k,) object, tlo, thi (k,3), cluster (k,) int, geoms in cluster order (k,),
     feature -> number, each geom's feature number (k,) int (-1: none)) of a table side; computed
     once per (table, table_feature) objects."""
-    key = (id(table), id(table_feature))
-    hit = _TABLE_PREP.get(key)
-    if hit is not None and hit[0] is table and hit[1] is table_feature:
-        return hit[2]
+    return _TABLE_PREP.get_or_compute((id(table), id(table_feature)), lambda: _build_table_prep(table, table_feature),
+                                      owner=(table, table_feature))
+
+
+def _build_table_prep(table: Geoms, table_feature) -> tuple:
+    """:func:`_table_prep`'s answer, computed."""
     feature = np.asarray(table_feature, dtype=object)
     tlo, thi = table.aabb()
     # clusters of table geoms (one per feature, one per geom without): pairs sorted by
@@ -529,9 +531,7 @@ def _table_prep(table: Geoms, table_feature):
     h_order = np.lexsort((np.arange(len(feature)), cl))
     fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
     tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
-    out = (feature, tlo, thi, cl, h_order, fid, tfid)
-    _TABLE_PREP[key] = (table, table_feature, out)
-    return out
+    return feature, tlo, thi, cl, h_order, fid, tfid
 
 
 class _Certificates:

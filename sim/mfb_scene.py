@@ -184,10 +184,7 @@ _SOLID_POSES = Memo(64)
 
 
 def _solid_poses(art) -> list:
-    hit = _SOLID_POSES.get(id(art))
-    if hit is None or hit[0] is not art:  # the artefact is kept in the entry: its id stays its own
-        hit = _SOLID_POSES[id(art)] = (art, [make_T(s.rot, s.pos) for s in art.solids])
-    return hit[1]
+    return _SOLID_POSES.get_or_compute(id(art), lambda: [make_T(s.rot, s.pos) for s in art.solids], owner=art)
 
 
 @dataclass(frozen=True)
@@ -207,29 +204,29 @@ class _Solids:
 def _solid_table(art) -> _Solids:
     """:class:`_Solids` of ``art``, built once per artefact object (kept beside its poses):
     every work zone of a plan holds the same bar."""
-    hit = _SOLID_POSES.get(("table", id(art)))
-    if hit is None or hit[0] is not art:
-        kinds, sizes, names, feats = [], [], [], []
-        for k, s in enumerate(art.solids):
-            if s.kind not in ("box", "cylinder", "sphere"):
-                raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
-            kinds.append(s.kind), sizes.append(tuple(np.ravel(s.size)))
-            names.append(f"{s.feature or ('support' if s.kind == 'cylinder' else 'body')}__{k}")
-            feats.append(s.feature)
-        size3 = np.zeros((len(sizes), 3))
-        for j, sz in enumerate(sizes):
-            size3[j, :len(sz)] = sz
-        holder = [k for k, n in enumerate(names) if n.startswith(("fix_", "support__"))]
-        hit = _SOLID_POSES[("table", id(art))] = (art, _Solids(kinds, sizes, names, feats, size3, holder))
-    return hit[1]
+    return _SOLID_POSES.get_or_compute(("table", id(art)), lambda: _build_solid_table(art), owner=art)
+
+
+def _build_solid_table(art) -> _Solids:
+    """:func:`_solid_table`'s answer, computed."""
+    kinds, sizes, names, feats = [], [], [], []
+    for k, s in enumerate(art.solids):
+        if s.kind not in ("box", "cylinder", "sphere"):
+            raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
+        kinds.append(s.kind), sizes.append(tuple(np.ravel(s.size)))
+        names.append(f"{s.feature or ('support' if s.kind == 'cylinder' else 'body')}__{k}")
+        feats.append(s.feature)
+    size3 = np.zeros((len(sizes), 3))
+    for j, sz in enumerate(sizes):
+        size3[j, :len(sz)] = sz
+    holder = [k for k, n in enumerate(names) if n.startswith(("fix_", "support__"))]
+    return _Solids(kinds, sizes, names, feats, size3, holder)
 
 
 def _solid_pose_stack(art) -> np.ndarray:
     """(k,4,4): :func:`_solid_poses` stacked (kept beside them)."""
-    hit = _SOLID_POSES.get(("stack", id(art)))
-    if hit is None or hit[0] is not art:
-        hit = _SOLID_POSES[("stack", id(art))] = (art, np.array(_solid_poses(art)).reshape(-1, 4, 4))
-    return hit[1]
+    return _SOLID_POSES.get_or_compute(("stack", id(art)), lambda: np.array(_solid_poses(art)).reshape(-1, 4, 4),
+                                       owner=art)
 
 
 def _rbound(kind: np.ndarray, size: np.ndarray) -> np.ndarray:
@@ -243,6 +240,22 @@ def _rbound(kind: np.ndarray, size: np.ndarray) -> np.ndarray:
 #: Clearance's geoms are fixed, its certificates hold segments in A (valid for any placement).
 #: 8 bars.
 _BALLS = Memo(8)
+
+
+def _ball_clearance(art, r: float):
+    """The broad phase of a ball of radius ``r`` (m) at A's origin against ``art``'s own solids (its
+    supports aside), frame A (:meth:`WorkZone.ball_clearance` moves it)."""
+    from .clearance import Clearance, Geoms
+
+    sol = _solid_table(art)
+    bar = np.setdiff1d(np.arange(len(sol.kinds)), sol.holder)  # the bar's own solids
+    T = _solid_pose_stack(art)[bar]
+    code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
+    kind = np.array([code[sol.kinds[k]] for k in bar])
+    size = sol.size3[bar]
+    H = Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, _rbound(kind, size))
+    P = Geoms(np.zeros((1, 3)), np.eye(3)[None], np.array([_SPHERE_T]), np.array([[r, 0.0, 0.0]]), np.array([r]))
+    return Clearance(P, H, [sol.features[k] for k in bar], 0)
 
 
 class WorkZone:
@@ -480,21 +493,8 @@ class WorkZone:
         every probe, work zone and placement of that bar (a sphere has no orientation), with
         its pair data and certificates (:data:`_BALLS`)."""
         art, r = self._args[0], self._r
-        hit = _BALLS.get((id(art), r))
-        if hit is None or hit[0] is not art:
-            from .clearance import Clearance, Geoms
-
-            sol = _solid_table(art)
-            bar = np.setdiff1d(np.arange(len(sol.kinds)), sol.holder)  # the bar's own solids
-            T = _solid_pose_stack(art)[bar]
-            code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
-            kind = np.array([code[sol.kinds[k]] for k in bar])
-            size = sol.size3[bar]
-            H = Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, _rbound(kind, size))
-            P = Geoms(np.zeros((1, 3)), np.eye(3)[None], np.array([_SPHERE_T]), np.array([[r, 0.0, 0.0]]),
-                      np.array([r]))
-            hit = _BALLS[(id(art), r)] = (art, Clearance(P, H, [sol.features[k] for k in bar], 0))
-        return hit[1].moved(self._A_W @ self._W_R())
+        ball = _BALLS.get_or_compute((id(art), r), lambda: _ball_clearance(art, r), owner=art)
+        return ball.moved(self._A_W @ self._W_R())
 
     def near_segments(self, sg, allow_feature=None) -> np.ndarray:
         """Sorted sample numbers of the segments ``sg`` (R) that may come closer than
@@ -615,16 +615,14 @@ def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
     key = (id(artefact), np.ascontiguousarray(T_W_A, float).tobytes(),
            tuple((b.name, tuple(map(float, b.lo)), tuple(map(float, b.hi))) for b in blocks),
            tuple(float(v) for v in J_m), float(stylus_r_m), float(finger_m))
-    hit = _ZONES.get(key)
-    if hit is None or hit[0] is not artefact:
+
+    def build():
         wz = WorkZone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
-        pkey = ("placement",) + key[:3]  # the artefact, its pose, the blocks
-        place = _ZONES.get(pkey)
-        if place is None or place[0] is not artefact:
-            place = _ZONES[pkey] = (artefact, {})
-        wz._shared = place[1]
-        hit = _ZONES[key] = (artefact, wz)
-    return hit[1]
+        # the dict the placement's zones share: the artefact, its pose, the blocks
+        wz._shared = _ZONES.get_or_compute(("placement",) + key[:3], dict, owner=artefact)
+        return wz
+
+    return _ZONES.get_or_compute(key, build, owner=artefact)
 
 
 def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray, np.ndarray]:

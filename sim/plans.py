@@ -116,15 +116,13 @@ def mfb_plan(art: A.Artefact, clearance_m=2.0 * MM, overshoot_m=1.0 * MM) -> Pla
     Cached per (artefact object, clearance, overshoot): a collision check asks for the
     same bar's plan once per measurement. The cached plan's arrays are read-only.
     """
-    key = (id(art), float(clearance_m), float(overshoot_m))
-    hit = _MFB_PLANS.get(key)
-    if hit is not None and hit[0] is art:
-        return hit[1]
-    pl = _build_mfb_plan(art, clearance_m, overshoot_m)
-    for x in (pl.w_A, pl.wn_A, pl.level):
-        x.flags.writeable = False
-    _MFB_PLANS[key] = (art, pl)
-    return pl
+    def build():
+        pl = _build_mfb_plan(art, clearance_m, overshoot_m)
+        for x in (pl.w_A, pl.wn_A, pl.level):
+            x.flags.writeable = False
+        return pl
+
+    return _MFB_PLANS.get_or_compute((id(art), float(clearance_m), float(overshoot_m)), build, owner=art)
 
 
 def _build_mfb_plan(art: A.Artefact, clearance_m, overshoot_m) -> Plan:

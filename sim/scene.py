@@ -368,10 +368,7 @@ _POINTS = Memo(17)
 
 def artefact_points(art: Artefact) -> np.ndarray:
     """All the points of ``art``'s solids (k,3), A frame, m (cached per artefact object)."""
-    hit = _POINTS.get(id(art))
-    if hit is None or hit[0] is not art:
-        hit = _POINTS[id(art)] = (art, np.concatenate([solid_points(s) for s in art.solids]))
-    return hit[1]
+    return _POINTS.get_or_compute(id(art), lambda: np.concatenate([solid_points(s) for s in art.solids]), owner=art)
 
 
 #: Compiled scenes by (artefact object, probe): campaigns re-place them instead of compiling
@@ -394,12 +391,10 @@ def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
     # the probe's geoms are made of these three lengths (scene_mjcf)
     key = (id(artefact), float(probe.stylus_r_m), float(probe.shank_r_m), float(probe.shank_length_m),
            None if movable else T.tobytes())
-    hit = _SCENES.get(key)
-    if hit is None or hit[0] is not artefact:  # the artefact is kept in the entry: its id stays its own
-        hit = _SCENES[key] = (artefact, Scene(artefact, probe, T))
-    if not np.array_equal(hit[1].T_W_A, T):
-        hit[1].place(T)
-    return hit[1]
+    sc = _SCENES.get_or_compute(key, lambda: Scene(artefact, probe, T), owner=artefact)
+    if not np.array_equal(sc.T_W_A, T):
+        sc.place(T)
+    return sc
 
 
 def check_touch_paths(scene: Scene, setup: str, targets, features, links, approach,

@@ -169,8 +169,8 @@ def identify_before(args, kwargs):
 class _NeverKept(dict):
     """A cache that keeps nothing (core.volumetric's nominal designs before they were kept)."""
 
-    def __contains__(self, key):
-        return False
+    def get_or_compute(self, key, compute, owner=None):
+        return compute()
 
 
 def before_shortcuts():

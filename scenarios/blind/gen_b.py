@@ -1339,14 +1339,12 @@ def _analysis(lay: Layout, repeats: bool) -> tuple[Projector, dict[str, int]]:
     placement of the part and the repeats (not on timing or the effect), so
     every effect generated from one seed shares them.
     """
-    key = (lay.angles_deg, *map(float, lay.centre_mm), lay.placement, repeats)
-    hit = _ANALYSES.get(key)
-    if hit is None:
+    def build():
         nodes = (grid_nodes_mm(lay.xn_R[:, 0]), grid_nodes_mm(lay.xn_R[:, 1]))
         proj = Projector(lay.xn_R[:, :2], lay.n_R, lay.setup, lay.target, lay.centre_mm, nodes=nodes)
-        hit = (proj, workpiece_identifiability(lay, proj))
-        _ANALYSES[key] = hit
-    return hit
+        return proj, workpiece_identifiability(lay, proj)
+
+    return _ANALYSES.get_or_compute((lay.angles_deg, *map(float, lay.centre_mm), lay.placement, repeats), build)
 
 
 def generate(effect: str, seed: int, **options) -> tuple[ProbeLog, Truth]:

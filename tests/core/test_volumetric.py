@@ -146,8 +146,8 @@ def test_identify_shortcuts_give_the_reference_bit_for_bit(meas3, monkeypatch):
         return real_rows(*a, **k)
 
     class NeverKept(dict):
-        def __contains__(self, key):
-            return False
+        def get_or_compute(self, key, compute, owner=None):
+            return compute()
 
     monkeypatch.setattr(vol, "_rows", rows_reference)
     monkeypatch.setattr(vol, "_NOMINAL", NeverKept())

@@ -204,8 +204,15 @@ def test_a_real_shift_by_an_unnamed_smooth_is_in_the_u95():
 
 #: Out-of-catalogue campaigns once named with full confidence by a wrong catalogue cause, now reported with
 #: the name flagged ``ambiguous`` (the confidence rules of core.discover's step 8, not a threshold):
-#: - gen_a reseat_hysteresis 502: one outlier of 5 um (one event cannot tell a chip from a seat).
-NOW_AMBIGUOUS = [("gen_a", "reseat_hysteresis", 502, "outlier")]
+#: - gen_a reseat_hysteresis 502: one outlier of 5 um (one event cannot tell a chip from a seat);
+#: - gen_b stylus_pickup 501, 605 (thermal_drift) and gen_a probe_heating 707 (part_change): the probe's
+#:   size changing with time (and, for 707, a one-off event) explains as much and the cause nothing
+#:   material beyond it (a gradual cause's time alternatives);
+#: - gen_a reseat_hysteresis 409 (c_drift): a smooth term in the turn from the previous touch explains
+#:   1.8 times as much and reproduces 60 % of the cause's signal (the structure lives there).
+NOW_AMBIGUOUS = [("gen_a", "reseat_hysteresis", 502, "outlier"), ("gen_b", "stylus_pickup", 501, "thermal_drift"),
+                 ("gen_b", "stylus_pickup", 605, "thermal_drift"), ("gen_a", "probe_heating", 707, "part_change"),
+                 ("gen_a", "reseat_hysteresis", 409, "c_drift")]
 
 
 @pytest.mark.parametrize("gen, effect, seed, cause", NOW_AMBIGUOUS)
@@ -222,11 +229,59 @@ def test_once_confident_misnamings_are_flagged(gen, effect, seed, cause):
 #: - gen_b fixture_slip 500: a slip (5.0 sigma visible) named
 #:   temperature_expansion with nothing significant beyond the slip; a cause
 #:   must now stay significant beside it.
+#: - gen_a nonrigid 702: the coupling (2.8 sigma visible) left unexplained because a finer rigid error
+#:   map explains as much (on this part's geometry it represents the effect exactly); a plainer
+#:   explanation without a name now leaves the cause named, flagged ambiguous.
 REGRESSIONS = [("gen_a", "probe_lobing", 302, ("probe_lobing",)),
-               ("gen_b", "fixture_slip", 500, ("unexplained",))]
+               ("gen_b", "fixture_slip", 500, ("unexplained",)),
+               ("gen_a", "nonrigid", 702, ("nonrigid",))]
 
 
 @pytest.mark.parametrize("gen, effect, seed, expected", REGRESSIONS)
 def test_once_misnamed_campaigns_stay_fixed(gen, effect, seed, expected):
     o = _blind_case(gen, effect, seed)
     assert o.cause in expected, (o.cause, o.findings)
+
+
+def test_two_causes_this_design_cannot_tell_apart_are_both_named():
+    """Lost motion on touches that approach along the normal is a function of the approach direction.
+
+    ``-n_x sign(d_x) / 2 = |n_x| / 2``: its Fourier series in the azimuth has
+    harmonics 0, 2, 4, 6, ... with weights 1/(4k^2 - 1), so harmonics 2 and
+    4 (both in the probe's lobing columns) hold (1/9 + 1/225) / ((pi^2 - 8)
+    / 16) = 98.8 % of its variance: the simulator's reversal is named, and
+    flagged ambiguous with probe_lobing. And the study counts a wrong name
+    whose alternatives hold the right one apart (``catalogue_alternative``),
+    never in ``catalogue``.
+    """
+    assert (1 / 9 + 1 / 225) / ((np.pi ** 2 - 8) / 16) > 0.98
+    o = hidden_outcome("reversal", 2700)
+    assert o.cause == "reversal" and not o.confident and o.alternatives == ("probe_lobing",), o
+    a = Outcome("g", "reversal", 0, ("reversal",), "probe_lobing", ("probe_lobing",), False, 2.0, 0.3,
+                0.3, 0.3, 0.3, 0.1, alternatives=("reversal",))
+    b = Outcome("g", "reversal", 1, ("reversal",), "reversal", ("reversal",), False, 2.0, 0.3, 0.3, 0.3, 0.3, 0.1,
+                alternatives=("probe_lobing",))
+    s = summarize([a, b])
+    assert (s["catalogue"]["k"], s["catalogue"]["n"]) == (1, 2)
+    assert (s["catalogue_ambiguous"]["k"], s["catalogue_ambiguous"]["n"]) == (1, 1)
+    assert (s["catalogue_alternative"]["k"], s["catalogue_alternative"]["n"]) == (1, 2)
+
+
+def test_lobes_turned_per_set_up_named_ambiguous_when_their_magnitudes_are_not_determined():
+    """The cross pocket's own 2-lobe form turns with the table and absorbs two directions of lobes turned per set-up.
+
+    The simulator's turned lobes (seed 2706) were named probe_lobing (their
+    common part) because lobing_per_setup's amplitude and orientations are
+    not determined on this design and its plausibility check refused it.
+    Not determined is not implausible: the cause is named, flagged
+    ambiguous, and the shift of the workpiece it makes is tested and, when
+    real, carried in the extended U95 (seed 2703: 0.49 -> 0.83 um against
+    the truth; the U95 without the shift was 0.30 um, with it 0.76 um).
+    Visibility comes from the truth (the campaign less its effect-free twin).
+    """
+    o = hidden_outcome("lobing_per_setup", 2706)
+    assert o.cause == "lobing_per_setup" and not o.confident, o
+    assert o.visible_sigmas >= 1.0 and np.isfinite(o.angle_to_baseline_deg)
+    o = hidden_outcome("lobing_per_setup", 2703)
+    assert o.cause == "lobing_per_setup" and o.shift_carried, o
+    assert o.wp_ext_um > o.wp_base_um + 0.3 and o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
