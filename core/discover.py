@@ -122,6 +122,7 @@ on their part outside that span; the same for every model compared.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import re
 from dataclasses import dataclass, field
 
@@ -855,11 +856,18 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                           f"{settings.outlier_events!r}")
     per_setup = settings.outlier_events != "target" and bl.kind == "planar"
     events = bl.groups if per_setup else bl.replicate
-    slips = None
-    if per_setup and settings.outlier_events == "setup_slip":
-        def slips():
-            Cs = causes_mod.fixture_slip(bl)
-            return Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
+
+    @functools.cache
+    def scan_trials(fn):
+        """A one-off alternative's (T, n, k) trials (``fn(bl)``), whitened: built once in this run."""
+        Cs = fn(bl)
+        Cs = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
+        Cs.flags.writeable = False  # shared by every caller of this run
+        return Cs
+
+    # the outlier screen's steps are the rival check's fixture slips: the same trials
+    slips = (functools.partial(scan_trials, causes_mod.fixture_slip)
+             if per_setup and settings.outlier_events == "setup_slip" else None)
 
     def outliers_of(X, Q=None):
         # each call draws its own null from a generator seeded by the caller's: the
@@ -984,18 +992,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     # 4. rival check: a named cause must explain its covariate's structure
     demoted = []
-    # the adopted causes' one-off alternatives (a fixture slip's trials): built once for the whole check
-    trials = {}
-    for tm in terms:
-        fn = tm.origin.counter_scan if tm.origin is not None else None
-        if fn is not None and fn not in trials:
-            Cs = fn(bl)
-            trials[fn] = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
     changed = True
     while changed and terms:
         changed = False
         for tm in list(terms):
-            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings, bases, trials)
+            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings, bases, scan_trials)
             tm.evidence.update(share)
             if not share["kept"]:
                 terms.remove(tm)
@@ -1561,11 +1562,11 @@ def _named_ss(so: _State, sf: _State, sigma: float) -> float:
     return (so.rss - sf.rss) - (sf.Q.shape[1] - so.Q.shape[1]) * sigma ** 2
 
 
-def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trials=None) -> dict:
+def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trials) -> dict:
     """How much of what a smooth term in the cause's covariate explains the cause explains.
 
-    ``trials``: {counter_scan: its (T, n, k) trials, whitened}, when already
-    built (else built here).
+    ``trials``: ``trials(counter_scan) -> (T, n, k)``, that scan's trials,
+    whitened (built once per run, shared with the outlier screen's slips).
     """
     others = [o for o in terms if o is not tm]
     so = _state(Qb, y, rows, others)
@@ -1607,11 +1608,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
     if cause is not None and cause.counter_scan is not None and out["kept"]:
         # a one-off alternative chosen among T trials: its best sum of squares is
         # debiased by the median of the largest of T chi-squares (k dof) under noise
-        if trials is not None and cause.counter_scan in trials:
-            Cs = trials[cause.counter_scan]
-        else:
-            Cs = cause.counter_scan(bl)
-            Cs = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
+        Cs = trials(cause.counter_scan)
         if Cs.shape[0]:
             ss_s, k_s, _, _ = nested_f_batch(Cs[:, rows, :], so.Q, so.r, so.rss, so.dof)
             j = int(np.argmax(ss_s))
