@@ -1239,15 +1239,23 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     return info
 
 
-def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> float:
-    """Debiased sum of squares the cause's plainer explanation (``cause.counter``) explains beside the model ``st``."""
+def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> tuple:
+    """Debiased sum of squares the cause's plainer explanation (``cause.counter``) explains beside the model ``st``.
+
+    Returns
+    -------
+    (debiased sum of squares, m^2; Uc (len(rows), kc): its orthonormal basis outside ``st.Q``,
+    for :func:`_beyond_counter`)
+    """
     Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
     Uc = new_basis(st.Q, Bc[rows])
-    return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2
+    return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2, Uc
 
 
-def _beyond_counter(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: float, settings) -> tuple:
+def _beyond_counter(st: _State, Uc: np.ndarray, E: np.ndarray, sigma: float, tries: float, settings) -> tuple:
     """What the cause's columns ``E`` (rows used) explain once its plainer explanation is in the model.
+
+    ``Uc``: the plainer explanation's basis outside ``st.Q`` (:func:`_counter_ss`'s).
 
     The plainer explanation explaining as much does not make the cause's
     own part vanish: a machine can have a finer rigid error map *and* a
@@ -1261,9 +1269,7 @@ def _beyond_counter(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: f
     -------
     (debiased sum of squares beyond the counter, m^2; its adjusted p-value; stands: bool)
     """
-    Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
     rows = st.rows
-    Uc = new_basis(st.Q, Bc[rows])
     Qc = np.hstack([st.Q, Uc])
     rc = st.r - Uc @ (Uc.T @ st.r)
     Un = new_basis(Qc, E)
@@ -1419,9 +1425,9 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof) if single is None else single
         ss_c, k_c, _, _ = single
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
-        d_c = _counter_ss(bl, cause, st, rows, sigma)
+        d_c, Uc = _counter_ss(bl, cause, st, rows, sigma)
         if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) and cause.counter_cause is not None \
-                and not _beyond_counter(bl, cause, st, cols[rows], sigma, tries, settings)[2]:
+                and not _beyond_counter(st, Uc, cols[rows], sigma, tries, settings)[2]:
             return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
                               f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
                     "significant": True}
@@ -1593,11 +1599,11 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
            "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}
     if cause is not None and cause.counter is not None:
         # the plainer explanation (a finer error map for a coupling): it must not do as well
-        d_c = _counter_ss(bl, cause, so, rows, sigma)
+        d_c, Uc = _counter_ss(bl, cause, so, rows, sigma)
         out["counter"] = cause.counter.__name__.replace("_", " ")
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
         if d_c > d_n - m_ss:
-            d_b, p_b, stands = _beyond_counter(bl, cause, so, tm.columns[rows], sigma, tm.tries, settings)
+            d_b, p_b, stands = _beyond_counter(so, Uc, tm.columns[rows], sigma, tm.tries, settings)
             out["explained_beyond_counter_ss_um2"] = max(d_b, 0.0) / UM ** 2
             out["p_adjusted_beyond_counter"] = p_b
             if not stands and cause.counter_cause is not None:
