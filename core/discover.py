@@ -1245,36 +1245,38 @@ def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> tuple:
     Returns
     -------
     (debiased sum of squares, m^2; Uc (len(rows), kc): its orthonormal basis outside ``st.Q``,
-    for :func:`_beyond_counter`)
+    for :func:`_beyond`)
     """
     Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
     Uc = new_basis(st.Q, Bc[rows])
     return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2, Uc
 
 
-def _beyond_counter(st: _State, Uc: np.ndarray, E: np.ndarray, sigma: float, tries: float, settings) -> tuple:
-    """What the cause's columns ``E`` (rows used) explain once its plainer explanation is in the model.
+def _beyond(st: _State, U_alt: np.ndarray, E: np.ndarray, sigma: float, tries: float, settings) -> tuple:
+    """What the cause's columns ``E`` (rows used) explain once a plainer explanation is in the model.
 
-    ``Uc``: the plainer explanation's basis outside ``st.Q`` (:func:`_counter_ss`'s).
+    ``U_alt``: the plainer explanation's orthonormal basis outside ``st.Q``
+    (the cause's counter, :func:`_counter_ss`'s; a time alternative's best
+    trial).
 
     The plainer explanation explaining as much does not make the cause's
     own part vanish: a machine can have a finer rigid error map *and* a
     non-separable coupling, or lobes that are partly fixed and partly
-    turned. The cause stands beside its counter when its columns, added to
-    model + counter, still explain a material amount (debiased, at least
-    ``(material_sigma * sigma)^2`` per row) that is significant (nested F
-    test with the Bonferroni factor of its adoption).
+    turned. The cause stands beside it when its columns, added to
+    model + alternative, still explain a material amount (debiased, at
+    least ``(material_sigma * sigma)^2`` per row) that is significant
+    (nested F test with the Bonferroni factor ``tries`` of its adoption).
 
     Returns
     -------
-    (debiased sum of squares beyond the counter, m^2; its adjusted p-value; stands: bool)
+    (debiased sum of squares beyond the alternative, m^2; its adjusted p-value; stands: bool)
     """
     rows = st.rows
-    Qc = np.hstack([st.Q, Uc])
-    rc = st.r - Uc @ (Uc.T @ st.r)
-    Un = new_basis(Qc, E)
-    d = float(np.sum((Un.T @ rc) ** 2)) - Un.shape[1] * sigma ** 2
-    p = min(1.0, nested_f(Un, rc, float(rc @ rc), len(rows) - Qc.shape[1]).p_value * tries)
+    Qa = np.hstack([st.Q, U_alt])
+    ra = st.r - U_alt @ (U_alt.T @ st.r)
+    Un = new_basis(Qa, E)
+    d = float(np.sum((Un.T @ ra) ** 2)) - Un.shape[1] * sigma ** 2
+    p = min(1.0, nested_f(Un, ra, float(ra @ ra), len(rows) - Qa.shape[1]).p_value * tries)
     stands = bool(d >= (settings.material_sigma * sigma) ** 2 * len(rows) and p < settings.alpha_family)
     return d, p, stands
 
@@ -1427,7 +1429,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
         d_c, Uc = _counter_ss(bl, cause, st, rows, sigma)
         if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) and cause.counter_cause is not None \
-                and not _beyond_counter(st, Uc, cols[rows], sigma, tries, settings)[2]:
+                and not _beyond(st, Uc, cols[rows], sigma, tries, settings)[2]:
             return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
                               f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
                     "significant": True}
@@ -1603,7 +1605,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
         out["counter"] = cause.counter.__name__.replace("_", " ")
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
         if d_c > d_n - m_ss:
-            d_b, p_b, stands = _beyond_counter(so, Uc, tm.columns[rows], sigma, tm.tries, settings)
+            d_b, p_b, stands = _beyond(so, Uc, tm.columns[rows], sigma, tm.tries, settings)
             out["explained_beyond_counter_ss_um2"] = max(d_b, 0.0) / UM ** 2
             out["p_adjusted_beyond_counter"] = p_b
             if not stands and cause.counter_cause is not None:
@@ -1698,13 +1700,8 @@ def _time_alternatives(bl, tm: Term, so: _State, sigma, settings) -> list:
         d_a = float(ss[j]) - float(stats.chi2.isf(np.log(2) / C.shape[0], max(int(k[j]), 1))) * s2
         if d_a < d_n - m_ss:
             continue
-        Ua = new_basis(so.Q, C[j])
-        Qa = np.hstack([so.Q, Ua])
-        ra = so.r - Ua @ (Ua.T @ so.r)
-        Ub = new_basis(Qa, E)
-        d_b = float(np.sum((Ub.T @ ra) ** 2)) - Ub.shape[1] * s2
-        p_b = min(1.0, nested_f(Ub, ra, float(ra @ ra), len(rows) - Qa.shape[1]).p_value * tm.tries)
-        if d_b >= m_ss and p_b < settings.alpha_family:
+        d_b, p_b, stands = _beyond(so, new_basis(so.Q, C[j]), E, sigma, tm.tries, settings)
+        if stands:
             continue
         out.append({"alternative": name, ("at_s" if name == "event" else "degree"): float(what[j]),
                     "explained_ss_um2": max(d_a, 0.0) / UM ** 2, "cause_beyond_it_ss_um2": max(d_b, 0.0) / UM ** 2,
