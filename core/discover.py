@@ -1721,7 +1721,21 @@ def _signal(tm: Term, so: _State, sigma) -> tuple:
     return sig, float(sig @ sig) - E.shape[1] * sigma ** 2
 
 
-def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict) -> list:
+def _reproduces(U: np.ndarray, signal: tuple, so: _State, sigma, settings) -> tuple:
+    """Whether the columns ``U`` (orthonormal, outside ``so.Q``) reproduce a cause's signal and explain as much.
+
+    ``signal``: :func:`_signal`'s ``(sig, d_n)``. Returns ``(overlap, d_w,
+    ind)``: the share of the signal's square norm inside span(U), the
+    debiased sum of squares U explains beside ``so`` (m^2), and whether both
+    reach ``rival_share`` (of 1 and of ``d_n``).
+    """
+    sig_n, d_n = signal
+    overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
+    d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * sigma ** 2
+    return overlap, d_w, overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
+
+
+def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict, signal: tuple) -> list:
     """Other catalogue causes (one fixed layout each) whose columns reproduce the named cause's signal.
 
     Two causes whose columns span nearly the same thing on a design are
@@ -1738,10 +1752,10 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict) -> l
 
     ``fixed``: {cause name: (n, k) columns, all rows} of the catalogue's
     causes with a single trial.
+    ``signal``: :func:`_signal` of ``tm`` beside ``so``.
     """
     rows = so.rows
-    sig_n, d_n = _signal(tm, so, sigma)
-    s2 = sigma ** 2
+    d_n = signal[1]
     out = []
     if d_n <= 0:
         return out
@@ -1754,14 +1768,13 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict) -> l
         U = new_basis(so.Q, B[rows])
         if U.shape[1] == 0:
             continue
-        overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
-        d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * s2
-        if overlap >= settings.rival_share and d_w >= settings.rival_share * d_n:
+        overlap, d_w, ind = _reproduces(U, signal, so, sigma, settings)
+        if ind:
             out.append({"cause": name, "overlap": overlap, "explained_ratio": d_w / d_n})
     return out
 
 
-def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) -> list:
+def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, signal: tuple, known=()) -> list:
     """Covariates of other families whose smooth term reproduces the cause's signal.
 
     The cause's signal is its contribution to the joint fit (its columns'
@@ -1772,12 +1785,12 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) ->
     cause from "something following that covariate": the name is then
     flagged as ambiguous. ``known``: diagnoses made against ``so`` itself
     (their term bases outside it are taken, not projected again).
+    ``signal``: :func:`_signal` of ``tm`` beside ``so``.
     """
     have = {d.covariate: d.basis for d in known if d.basis is not None}
     fam = bl.covariate(tm.covariate).family if bl.covariate(tm.covariate) is not None else ""
     rows = so.rows  # so: the model without the cause (the other named causes)
-    sig_n, d_n = _signal(tm, so, sigma)
-    s2 = sigma ** 2
+    d_n = signal[1]
     m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
     out = []
     if d_n <= 0:
@@ -1788,9 +1801,7 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) ->
         U = have[cov.name] if cov.name in have else new_basis(so.Q, bases[cov.name][rows])
         if U.shape[1] == 0:
             continue
-        overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
-        d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * s2
-        ind = overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
+        overlap, d_w, ind = _reproduces(U, signal, so, sigma, settings)
         # the structure lives there more than in the cause: it explains materially
         # more than the cause (beyond 1 / rival_share of it) and reproduces at
         # least half of the cause's signal, so the cause may have caught only
@@ -1877,7 +1888,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         # what the cause explains beside the others (the rival check's own figure; its tests were made)
         explained = max(_named_ss(so, sf, sig), 0.0) / UM ** 2
         ev["explained_ss_um2"] = explained
-        alt = _alternatives(bl, tm, so, sig, settings, bases, _made_on(seen, so))
+        signal = _signal(tm, so, sig)  # (both alternative checks test it)
+        alt = _alternatives(bl, tm, so, sig, settings, bases, signal, _made_on(seen, so))
         ev["alternatives"] = alt
         ev["indistinguishable_from"] = [a["covariate"] for a in alt if a["indistinguishable"]]
         # confident: no other family's covariate reproduces the signal, and no
@@ -1894,7 +1906,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             why.append(f"a {ev['indistinguishable_counter']} explains as much "
                        f"({ev['counter_explained_ss_um2']:.3g} against {ev['explained_ss_um2']:.3g} um^2) and the "
                        "cause nothing material beyond it: this design cannot tell them apart")
-        calt = _cause_alternatives(tm, so, sig, settings, fixed or {})
+        calt = _cause_alternatives(tm, so, sig, settings, fixed or {}, signal)
         if calt:
             ev["cause_alternatives"] = calt
             ev["ambiguous_with"] = [a["cause"] for a in calt]
