@@ -1057,10 +1057,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     tick()
 
     # 6. estimates
+    @functools.cache
+    def fixed():
+        # every single-trial cause's columns (whitened), for the named causes' alternatives: built when first asked
+        return {k: v[0][0].build([0])[0] for k, v in scans.items() if len(v[0]) == 1 and v[0][0].size == 1}
+
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-                         seen + [(st, diag_e)],
-                         fixed={k: v[0][0].build([0])[0] for k, v in scans.items()
-                                if len(v[0]) == 1 and v[0][0].size == 1})
+                         seen + [(st, diag_e)], fixed=fixed)
     E_all = _stack(terms, rows)
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
@@ -1735,7 +1738,7 @@ def _reproduces(U: np.ndarray, signal: tuple, so: _State, sigma, settings) -> tu
     return overlap, d_w, overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
 
 
-def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict, signal: tuple) -> list:
+def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tuple) -> list:
     """Other catalogue causes (one fixed layout each) whose columns reproduce the named cause's signal.
 
     Two causes whose columns span nearly the same thing on a design are
@@ -1750,8 +1753,8 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict, sign
     one another (``counter_cause``) are judged by the counter check, not
     here.
 
-    ``fixed``: {cause name: (n, k) columns, all rows} of the catalogue's
-    causes with a single trial.
+    ``fixed``: ``fixed() -> {cause name: (n, k) columns, all rows}`` of
+    the catalogue's causes with a single trial (built when first asked).
     ``signal``: :func:`_signal` of ``tm`` beside ``so``.
     """
     rows = so.rows
@@ -1760,7 +1763,7 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict, sign
     if d_n <= 0:
         return out
     cause = tm.origin
-    for name, B in fixed.items():
+    for name, B in fixed().items():
         other = causes_mod.lookup(name, cause.kinds[0]) if cause is not None else None
         if name == tm.cause or (cause is not None and cause.counter_cause == name) or (
                 other is not None and other.counter_cause == tm.cause):
@@ -1906,7 +1909,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             why.append(f"a {ev['indistinguishable_counter']} explains as much "
                        f"({ev['counter_explained_ss_um2']:.3g} against {ev['explained_ss_um2']:.3g} um^2) and the "
                        "cause nothing material beyond it: this design cannot tell them apart")
-        calt = _cause_alternatives(tm, so, sig, settings, fixed or {}, signal)
+        calt = _cause_alternatives(tm, so, sig, settings, fixed if fixed is not None else dict, signal)
         if calt:
             ev["cause_alternatives"] = calt
             ev["ambiguous_with"] = [a["cause"] for a in calt]
