@@ -1404,10 +1404,11 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     ev = {"F": F_val, "p_value": p_val, "p_adjusted": p_adj, "tries": float(tries), "k": k_val}
     if p_adj >= settings.alpha_family:
         return {"reason": f"not significant ({fmt_p(p_adj)} after Bonferroni over {tries:.0f} tries)"}
+    if single is None and (families or cause.counter is not None):  # (both checks below take it)
+        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
     # e. the structure must live where the cause says: a smooth function of a
     # covariate of another family may not explain materially more than it
     if families:
-        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof) if single is None else single
         ss_n = _candidate_ss(single, st)
         cov = bl.covariate(sc.covariate)
         fam = cov.family if cov is not None else ""
@@ -1427,7 +1428,6 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # cause of the catalogue (the probe's fixed lobes for lobes turned per
         # set-up, which nest them) can win the round instead of the richer one
         # being adopted and then dropped to `unexplained` by the rival check
-        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof) if single is None else single
         ss_c, k_c, _, _ = single
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
         d_c, Uc = _counter_ss(bl, cause, st, rows, sigma)
