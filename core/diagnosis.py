@@ -355,6 +355,14 @@ def _frequencies(cov: Covariate):
 #: exact sine and cosine, the others are rotations of it (error ~ BLOCK eps).
 _BLOCK = 32
 
+#: Largest pre-screen table kept for a whole run (``Z``, ``S2``, ``C2``: 32
+#: bytes per row and frequency; the demo's is 23 MB). A larger scan (a long
+#: log: 1e5 rows scanning 1,659 frequencies would keep 5.3 GB) is computed
+#: afresh at each use, a block of frequencies at a time, in about
+#: :data:`SCAN_BLOCK_BYTES` (at least ``_BLOCK`` frequencies a block).
+TABLE_BYTES = 64 << 20
+SCAN_BLOCK_BYTES = 16 << 20
+
 
 class SpectralTable(tuple):
     """A spectral covariate's scan over all rows: ``(Z, S2, C2, f, w)``.
@@ -366,7 +374,9 @@ class SpectralTable(tuple):
     rotation from an exact value every ``_BLOCK`` frequencies (within about
     1e-14 of the exact one: it ranks frequencies, it enters no test);
     ``S2``, ``C2`` its squared sine and cosine (the pre-screen's
-    denominators).
+    denominators). ``Z``, ``S2``, ``C2`` are None when the table would
+    exceed :data:`TABLE_BYTES`: :meth:`blocks` then makes them a block of
+    frequencies at a time.
     """
 
     __slots__ = ()
@@ -385,6 +395,22 @@ class SpectralTable(tuple):
         ph = self.w * self.f[i]
         return np.sin(ph), np.cos(ph)
 
+    def blocks(self):
+        """``(cols, Z, S2, C2)`` over the frequencies: the kept table whole, or blocks of it.
+
+        A block's columns are bit for bit those of the whole table (each
+        block starts at a multiple of ``_BLOCK``, so from the same exact
+        phasors and the same rotations: :func:`screen_phasors`).
+        """
+        if self.Z is not None:
+            yield slice(None), self.Z, self.S2, self.C2
+            return
+        n, F = len(self.w), len(self.f)
+        step = max(1, SCAN_BLOCK_BYTES // (32 * max(n, 1) * _BLOCK)) * _BLOCK
+        for a in range(0, F, step):
+            Z = screen_phasors(self.w, self.f, a, min(F, a + step))
+            yield slice(a, a + step), Z, Z.imag ** 2, Z.real ** 2
+
 
 def spectral_table(cov: Covariate):
     """The :class:`SpectralTable` of a spectral covariate, or None (nothing to scan)."""
@@ -392,26 +418,33 @@ def spectral_table(cov: Covariate):
     if f is None:
         return None
     w = 2 * np.pi * np.asarray(cov.values, float)
+    if 32 * len(w) * len(f) > TABLE_BYTES:
+        return SpectralTable(None, None, None, f, w)
     Z = screen_phasors(w, f)
     return SpectralTable(Z, Z.imag ** 2, Z.real ** 2, f, w)
 
 
-def screen_phasors(w: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """(n, F) complex ``exp(i w f)`` on an evenly spaced ``f``, for ranking frequencies only.
+def screen_phasors(w: np.ndarray, f: np.ndarray, start: int = 0, stop: int | None = None) -> np.ndarray:
+    """(n, stop - start) complex ``exp(i w f)`` on an evenly spaced ``f``, for ranking frequencies only.
 
     Exact (``np.exp``) at every ``_BLOCK``-th frequency, rotations of it
     by ``exp(i w df)`` between: within about ``_BLOCK * eps * |w f|`` of
     the exact phasor (3e-13 on the campaigns seen), at a few complex
     products per entry instead of a sine and a cosine. A pre-screen ranks
-    with it; every test uses exact columns.
+    with it; every test uses exact columns. ``start:stop`` (``start`` a
+    multiple of ``_BLOCK``): those frequencies' columns only, bit for bit
+    the same as the whole table's.
     """
-    heads = np.arange(0, len(f), _BLOCK)
+    stop = len(f) if stop is None else min(stop, len(f))
+    if start % _BLOCK:
+        raise ValueError(f"screen_phasors: start {start} is not a multiple of {_BLOCK}")
+    heads = np.arange(start, stop, _BLOCK)
     E = np.exp(1j * (w[:, None] * f[heads][None, :]))  # (n, nb) exact at each block's first frequency
     step = f[1] - f[0] if len(f) > 1 else 0.0
     R = np.ones((len(w), _BLOCK), complex)  # exp(i w k step), k = 0 .. _BLOCK - 1
     R[:, 1:] = np.exp(1j * w * step)[:, None]
     R = np.cumprod(R, axis=1)
-    return (E[:, :, None] * R[:, None, :]).reshape(len(w), -1)[:, :len(f)]  # a view: products take its stride
+    return (E[:, :, None] * R[:, None, :]).reshape(len(w), -1)[:, :stop - start]  # a view: products take its stride
 
 
 @dataclass(frozen=True)
@@ -438,9 +471,11 @@ def _spectral(cov: Covariate, Q, r, rss, dof, modes, rows, table=None, shortlist
         keep = np.zeros(len(v), bool)
         keep[rows] = True
         Mw = np.where(keep[:, None], Mf, 0.0)
-    NZ = (rf[:, None] * Mw).T @ tab.Z
-    W2 = (Mw ** 2).T
-    dS, dC = W2 @ tab.S2, W2 @ tab.C2
+    A, W2 = (rf[:, None] * Mw).T, (Mw ** 2).T
+    NZ = np.empty((Mf.shape[1], len(f)), complex)
+    dS, dC = np.empty((2, Mf.shape[1], len(f)))
+    for cols, Z, S2, C2 in tab.blocks():
+        NZ[:, cols], dS[:, cols], dC[:, cols] = A @ Z, W2 @ S2, W2 @ C2
     num = np.zeros(len(f))
     for m in range(Mf.shape[1]):
         num += NZ[m].imag ** 2 / np.maximum(dS[m], 1e-300)

@@ -8,8 +8,10 @@ answer or against computing the thing again.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from core.diagnosis import Covariate, diagnose, orth, pivoted_qr, term_bases
+from core import diagnosis as D
+from core.diagnosis import Covariate, diagnose, orth, pivoted_qr, screen_phasors, spectral_table, term_bases
 from core.discover import _constant_within, _constrained, _smooth_gauge, first_per_event
 
 
@@ -108,3 +110,41 @@ def test_constant_within_groups_known_answers_and_the_loop_it_replaced():
         seen.add(loop(key, E))
         assert _constant_within(key, E) == loop(key, E)
     assert seen == {True, False}
+
+
+def test_spectral_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
+    """A scan too big to keep is made a block of frequencies at a time: the same columns, the same diagnosis.
+
+    Known answer first: a sine of period 7 s in the residuals is the scan's finding. Then the table is
+    refused (TABLE_BYTES 0) and blocks are the minimum, 32 frequencies (the last one short): every block
+    equals the kept table's columns bit for bit and the diagnosis (test, basis, fitted values) is equal.
+    """
+    rng = np.random.default_rng(5)
+    n = 300
+    t = np.sort(rng.uniform(0, 600, n))
+    cov = Covariate("time_periodic", t, "spectral", 0, (0,), "time periodically", "time", (3.0, 200.0))
+    modes = np.ones((n, 1))
+    Q = orth(np.ones((n, 1)))
+    y = 1e-6 * np.sin(2 * np.pi * t / 7.0 + 0.3) + rng.normal(0, 2e-7, n)
+    r = y - Q @ (Q.T @ y)
+    kw = dict(sigma_m=2e-7, material_sigma=0.3, rows=np.arange(n))
+    kept = spectral_table(cov)
+    assert kept.Z is not None and len(kept.f) % D._BLOCK  # a short last block
+    whole = diagnose(Q, r, n - 1, [cov], modes, bases={cov.name: kept}, **kw)
+    assert whole[0].p_value < 1e-6 and abs(whole[0].test.period - 7.0) < 0.05  # the sine is found
+    monkeypatch.setattr(D, "TABLE_BYTES", 0)
+    monkeypatch.setattr(D, "SCAN_BLOCK_BYTES", 1)
+    lazy = spectral_table(cov)
+    assert lazy.Z is None and np.array_equal(lazy.f, kept.f)
+    seen = 0
+    for cols, Z, S2, C2 in lazy.blocks():
+        assert Z.shape[1] <= D._BLOCK
+        assert np.array_equal(Z, kept.Z[:, cols]) and np.array_equal(S2, kept.S2[:, cols])
+        assert np.array_equal(C2, kept.C2[:, cols])
+        seen += Z.shape[1]
+    assert seen == len(kept.f)
+    blocked = diagnose(Q, r, n - 1, [cov], modes, bases={cov.name: lazy}, **kw)
+    assert [d.to_dict() for d in blocked] == [d.to_dict() for d in whole]
+    assert blocked[0].test == whole[0].test and np.array_equal(blocked[0].basis, whole[0].basis)
+    with pytest.raises(ValueError, match="multiple of 32"):
+        screen_phasors(kept.w, kept.f, 5)
