@@ -105,7 +105,9 @@ def write_png(fig, target, *, dpi: int = 110) -> None:
     (layout and paint in one draw) and the canvas written as savefig writes
     it (``matplotlib.image.imsave``, same metadata): the same PNG, byte for
     byte. ``target``: a path or a binary file object. The figure keeps its
-    dpi; any other figure goes through savefig.
+    dpi; any other figure goes through savefig. Written as drawn: the
+    ``savefig.*`` rcParams (facecolor, transparent, bbox) are not consulted
+    and animated artists are not drawn (viz sets none of them).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.image import imsave
