@@ -1216,7 +1216,7 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
         v0 = info[name]
         if name == "period_m":
             span = np.ptp((bl.data.x, bl.data.y)["XY".index(info["axis"])])
-            f0, df = 1 / v0, 1 / (3 * max(span, 1e-9))
+            f0, df = 1 / v0, info.get("scan_step_per_m", 1 / (3 * max(span, 1e-9)))  # one scan step
             lo, hi = 1 / (f0 + df), 1 / max(f0 - df, 1e-12)
         elif name == "half_width_m":
             lo, hi = v0 * 0.75, v0 * 1.33
