@@ -209,3 +209,30 @@ def test_ripple_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
     monkeypatch.setattr(C, "SCAN_BLOCK_BYTES", 1)
     lazy = C.periodic_scans(bl)[0][0]
     assert np.array_equal(lazy.score(r, rows), s_all) and np.array_equal(lazy.score(r[sub], sub), s_sub)
+
+
+def test_folds_lean_path_is_the_kept_spans_to_rounding(monkeypatch):
+    """Cross-validation of a long log keeps its spans' coefficients, not the spans: the same residuals.
+
+    A design of 8 groups (set-ups) with a column only one group sees, null draws (n, 5), and an
+    extension with and without a ridge penalty: held-out residuals and dof equal the kept spans' to
+    1e-12 relative (the sums are re-associated, nothing else), and the lean path keeps no (n_tr, r) table.
+    """
+    from core import discover as X
+
+    rng = np.random.default_rng(21)
+    n, p = 240, 12
+    groups = np.repeat(np.arange(8), n // 8)
+    A = rng.normal(size=(n, p))
+    A[:, -1] = (groups == 3) * rng.normal(size=n)  # seen by one group only: that fold's own column
+    Y = rng.normal(size=(n, 5))
+    E = np.column_stack([np.sin(np.arange(n) / 7.0), rng.normal(size=n), A[:, 0] + 1e-3 * rng.normal(size=n)])
+    pen = np.diag([0.0, 2.0, 5.0])
+    kept = X.Folds(A, groups, 1e-2)
+    monkeypatch.setattr(X, "FOLD_BYTES", 0)
+    lean = X.Folds(A, groups, 1e-2)
+    assert kept.A is None and lean.A is not None and all(it[2][1].shape[0] < p + 1 for it in lean.items)
+    for args in ((Y,), (Y, E), (Y, E, pen), (Y[:, 0], E[:, :1])):
+        a, b = kept.residuals(*args), lean.residuals(*args)
+        assert kept.last_dof == lean.last_dof
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
