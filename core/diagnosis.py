@@ -360,10 +360,10 @@ def _frequencies(cov: Covariate):
 #: range is scanned on an evenly spaced grid of this many frequencies (a
 #: coarser resolution, ``(1/p_lo - 1/p_hi) / MAX_SCAN_FREQUENCIES``) and
 #: the cause scans refine the best trials around it (discover's ``_refine``
-#: over one coarse step either side). A sine's peak is about ``2 / span``
-#: wide in frequency: a coarse step up to that width (logs up to about 4x
-#: the cap's fine grid) still samples every peak's main lobe; beyond it a
-#: peak narrower than the step can fall between two frequencies.
+#: over one coarse step either side). A sine's peak is about ``0.9 / span``
+#: wide at half power (2.7 fine steps): a coarse step up to that (fine grids
+#: up to about 11,000 frequencies) samples every peak near its top; beyond
+#: it a peak can fall between two frequencies and be missed.
 MAX_SCAN_FREQUENCIES = 4096
 
 
