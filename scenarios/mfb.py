@@ -564,21 +564,6 @@ def default_machine(name: str, ripple: bool = False, J_m=(0.0, 0.0, 0.150)):
     return MACHINES[name](errors=errs, J_m=J_m), errs
 
 
-class _NoSafeHeight:
-    """Adapter: the campaign's link moves go via a safe height above the
-    bar's top, which for a standing bar is above the Z stroke; a real
-    program would retract sideways. The touches themselves are checked
-    against the strokes by :func:`_check_touch_strokes` instead."""
-
-    def __init__(self, machine):
-        self._m = machine
-        self.config = type("Cfg", (), {"name": machine.config.name, "strokes": {},
-                                       "kinematic_chain": machine.config.chain})()
-
-    def __getattr__(self, k):
-        return getattr(self._m, k)
-
-
 #: Collision checks already made (a pure function of the nominal plan): keyed by the machine,
 #: every measurement's name, set-up, holes and stylus position, the stylus radius and the
 #: program's margin; the summaries are only read (reports copy them into JSON). 64 checks
