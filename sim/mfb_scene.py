@@ -42,7 +42,7 @@ import numpy as np
 from core.memo import Memo
 
 from .artefacts import apply_R, apply_T, inv_T, make_T
-from .clearance import flat_path_segments, touch_polylines
+from .clearance import GEOM_TYPE, flat_path_segments, rbound, touch_polylines
 from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
 
 #: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
@@ -58,8 +58,6 @@ EXTENSION_R_M = 5.0e-3
 STEM_L_M = 0.050
 #: Clearance of the link moves above the bar's top (along z_A), m.
 LINK_CLEAR_M = 10.0e-3
-#: MuJoCo's geom type codes (mjtGeom).
-_SPHERE_T, _CAPSULE_T, _CYLINDER_T, _BOX_T = 2, 3, 5, 6
 
 
 @dataclass(frozen=True)
@@ -150,15 +148,15 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     their definitions: about the tip centre, axes of R, in the model's order. A capsule's
     frame has its axis as z (MuJoCo's own x, y about it differ: a capsule looks the same
     from them); poses agree with the compiled model's to rounding (1e-16 m)."""
-    from .clearance import Geoms
+    from core.kinematics import _cross_rows as _cross
 
-    from .clearance import _cross
+    from .clearance import Geoms
 
     parts = _probe_parts(J_m, r_m, finger_m)
     k = len(parts)
-    kind = np.array([{"sphere": _SPHERE_T, "capsule": _CAPSULE_T, "cylinder": _CYLINDER_T}[p[1]] for p in parts])
+    kind = np.array([GEOM_TYPE[p[1]] for p in parts])
     size = np.array([tuple(p[4]) + (0.0,) * (3 - len(p[4])) for p in parts])
-    cap = kind == _CAPSULE_T
+    cap = kind == GEOM_TYPE["capsule"]
     centre = np.array([p[3] if p[2] is None else np.zeros(3) for p in parts])
     axes = np.tile(np.eye(3), (k, 1, 1))
     ends = np.array([p[2] for p in parts if p[2] is not None]).reshape(-1, 2, 3)  # the capsules'
@@ -170,9 +168,7 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     x = _cross(e, z)
     x /= np.sqrt(np.sum(x * x, axis=1))[:, None]
     axes[cap] = np.stack([x, _cross(z, x), z], axis=2)
-    rb = np.where(kind == _SPHERE_T, size[:, 0], np.where(kind == _CAPSULE_T, size[:, 0] + size[:, 1],
-                                                          np.hypot(size[:, 0], size[:, 1])))
-    return [p[0] for p in parts], Geoms(centre, axes, kind, size, rb)
+    return [p[0] for p in parts], Geoms(centre, axes, kind, size, rbound(kind, size))
 
 
 #: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object,
@@ -229,12 +225,6 @@ def _solid_pose_stack(art) -> np.ndarray:
                                        owner=art)
 
 
-def _rbound(kind: np.ndarray, size: np.ndarray) -> np.ndarray:
-    """(k,) bounding radii (MuJoCo's geom_rbound) of boxes, cylinders and spheres of sizes (k,3)."""
-    return np.where(kind == _BOX_T, np.linalg.norm(size, axis=1),
-                    np.where(kind == _CYLINDER_T, np.hypot(size[:, 0], size[:, 1]), size[:, 0]))
-
-
 #: The stylus ball's broad phase against a bar's own solids (frame A, :meth:`WorkZone.ball_clearance`)
 #: by (bar object, ball radius); the bar is kept in the entry (its id stays its own). Safe: a
 #: Clearance's geoms are fixed, its certificates hold segments in A (valid for any placement).
@@ -250,11 +240,10 @@ def _ball_clearance(art, r: float):
     sol = _solid_table(art)
     bar = np.setdiff1d(np.arange(len(sol.kinds)), sol.holder)  # the bar's own solids
     T = _solid_pose_stack(art)[bar]
-    code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
-    kind = np.array([code[sol.kinds[k]] for k in bar])
+    kind = np.array([GEOM_TYPE[sol.kinds[k]] for k in bar])
     size = sol.size3[bar]
-    H = Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, _rbound(kind, size))
-    P = Geoms(np.zeros((1, 3)), np.eye(3)[None], np.array([_SPHERE_T]), np.array([[r, 0.0, 0.0]]), np.array([r]))
+    H = Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rbound(kind, size))
+    P = Geoms(np.zeros((1, 3)), np.eye(3)[None], np.array([GEOM_TYPE["sphere"]]), np.array([[r, 0.0, 0.0]]), np.array([r]))
     return Clearance(P, H, [sol.features[k] for k in bar], 0)
 
 
@@ -438,14 +427,13 @@ class WorkZone:
         T[len(self._tpose0):] = self._T_W_A @ T[len(self._tpose0):]
         if not in_W:
             T = self._T_R_W() @ T
-        code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
         n0 = len(self._tpose0)
         size = np.zeros((len(self._tkind), 3))
         for j, sz in enumerate(self._tsize[:n0]):  # the disc and the blocks; the bar's solids kept
             size[j, :len(sz)] = sz
         size[n0:] = _solid_table(self._args[0]).size3
-        kind = np.array([code[k] for k in self._tkind])
-        return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, _rbound(kind, size))
+        kind = np.array([GEOM_TYPE[k] for k in self._tkind])
+        return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rbound(kind, size))
 
     def clearance(self, holder_only: bool = False, part: str = "all"):
         """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose.
