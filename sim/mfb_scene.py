@@ -43,7 +43,7 @@ from core.memo import Memo
 
 from .artefacts import apply_R, apply_T, inv_T, make_T
 from .clearance import GEOM_TYPE, flat_path_segments, rbound, touch_polylines
-from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
+from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _free_joint_T, _quat, artefact_points
 
 #: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
 TABLE_R_M = 0.300
@@ -411,11 +411,7 @@ class WorkZone:
 
     def _T_R_W(self) -> np.ndarray:
         """(4,4) the table's pose as MuJoCo computes it from its free joint (set_table's)."""
-        q = np.array(self._tqpos)
-        self._mj.mju_normalize4(q[3:])
-        R = np.zeros(9)
-        self._mj.mju_quat2Mat(R, q[3:])
-        return make_T(R.reshape(3, 3), q[:3])
+        return _free_joint_T(self._tqpos)
 
     def table_geoms(self, in_W: bool = False):
         """The table side's geoms (:class:`sim.clearance.Geoms`, R; W if ``in_W``) at the current

@@ -52,6 +52,18 @@ def _quat(R: np.ndarray) -> np.ndarray:
     return q
 
 
+def _free_joint_T(qpos) -> np.ndarray:
+    """(4,4) the pose of a free joint's ``qpos`` (7,) (position, quaternion w x y z) as MuJoCo
+    computes it (the quaternion normalised, ``mju_normalize4``, turned by ``mju_quat2Mat``)."""
+    import mujoco
+
+    q = np.array(qpos, float)
+    mujoco.mju_normalize4(q[3:])
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, q[3:])
+    return make_T(R.reshape(3, 3), q[:3])
+
+
 def _quats(R: np.ndarray) -> np.ndarray:
     """Unit quaternions (w, x, y, z) (k,4) of rotation matrices (k,3,3), w >= 0 (Shepperd)."""
     R = np.asarray(R, float)
@@ -281,11 +293,7 @@ class Scene:
         """
         from .clearance import ByOrientation, Clearance
 
-        q = np.array(self.table_qpos())
-        self._mj.mju_normalize4(q[3:])
-        R_R_W = np.zeros(9)
-        self._mj.mju_quat2Mat(R_R_W, q[3:])
-        T_A_R = inv_T(make_T(R_R_W.reshape(3, 3), q[:3]) @ self.T_W_A)
+        T_A_R = inv_T(_free_joint_T(self.table_qpos()) @ self.T_W_A)
         if self._clr is None:
             P, H = self.definition_geoms() if self._movable else self._model_geoms_A(T_A_R)
             feats = self.geom_feature[self._table_geoms]
