@@ -299,7 +299,8 @@ class WorkZone:
         self._holder = holder
         self._feature = dict(enumerate(feats))
         self._feats = feats  # (the same, as a list)
-        self._ball = nt + pnames.index("ball")
+        self._pball = pnames.index("ball")  # the ball among the probe's geoms
+        self._ball = nt + self._pball
         self._tq, self._sq = 0, 7  # the table's and the spindle's free joints in qpos (asserted on compiling)
         self._hprobe = list(range(len(holder), len(holder) + npg))
         self._hmodel = self._hdata = None
@@ -354,33 +355,27 @@ class WorkZone:
             self._model, self._data = self._compile(self.mjcf, self._names)
         return self._model
 
-    def _holder_model(self, ball_only: bool = False):
+    def _holder_model(self):
         """(model, data): the holder's geoms (table disc, blocks, bar supports) and the probe's,
-        MuJoCo's distances for the least clearance (compiled on first use). ``ball_only``: the
-        probe's stylus ball alone, one model for every probe of this placement with that ball
-        (its distances are the full holder model's, bit for bit: the same geoms at the same
-        poses, the ball at the spindle body's origin), or of every placement declared with this
-        one (:func:`share_ball_model`; this placement's holder geoms from :meth:`_ball_ids`)."""
-        if ball_only:
-            return self._ball_model()[:2]
+        MuJoCo's distances for the least clearance (compiled on first use)."""
         if self._hmodel is None:
             self._hmodel, self._hdata = self._compile(self._xml(self._holder),
                                                       [self._names[j] for j in self._holder + self._probe])
         return self._hmodel, self._hdata
 
     def _ball_model(self):
-        """(model, data, first holder geom, ball geom) of the placement's ball model."""
+        """(model, data, id of this placement's first holder geom, id of the ball) of the
+        placement's ball model: the holder's geoms and the probe's stylus ball alone, one model
+        for every probe of this placement with that ball (its distances are :meth:`_holder_model`'s,
+        bit for bit: the same geoms at the same poses, the ball at the spindle body's origin), or
+        of every placement declared with this one (:func:`share_ball_model`). The holder's geoms
+        follow the first in the order of ``self._holder``."""
         key = ("ball_model", self._r)
         if key not in self._shared:
             xml = self._xml(self._holder, probe_geoms_mjcf((0.0, 0.0, 1.0), self._r, only=("ball",)))
             names = [self._names[j] for j in self._holder] + ["ball"]
             self._shared[key] = self._compile(xml, names) + (0, len(self._holder))
         return self._shared[key]
-
-    def _ball_ids(self) -> tuple[int, int]:
-        """(id of this placement's first holder geom, id of the ball) in :meth:`_holder_model`'s
-        ball-only model; the holder's geoms follow the first in the order of ``self._holder``."""
-        return self._ball_model()[2:]
 
     @property
     def data(self):
@@ -394,20 +389,15 @@ class WorkZone:
 
     def set_tip(self, p_R) -> None:
         """Place the stylus-tip centre at ``p_R`` (3,) m, R (spindle axes parallel to R)."""
-        d = self.data
-        d.qpos[self._tq:self._tq + 7] = self._tqpos
-        d.qpos[self._sq:self._sq + 3] = p_R
-        d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
-        self._mj.mj_kinematics(self.model, d)
+        self._place(self.model, self.data, p_R)
 
-    def _set_holder_tip(self, p_R, ball_only: bool = False):
-        """(model, data) of :meth:`_holder_model` with the table placed and the tip at ``p_R``."""
-        m, d = self._holder_model(ball_only)
+    def _place(self, m, d, p_R) -> None:
+        """In ``(m, d)`` (the zone's model, its holder's or its ball's): the table at its pose, the
+        stylus-tip centre at ``p_R`` (3,) m, R."""
         d.qpos[self._tq:self._tq + 7] = self._tqpos
         d.qpos[self._sq:self._sq + 3] = p_R
         d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
         self._mj.mj_kinematics(m, d)
-        return m, d
 
     def _T_R_W(self) -> np.ndarray:
         """(4,4) the table's pose as MuJoCo computes it from its free joint (set_table's)."""
@@ -450,11 +440,12 @@ class WorkZone:
         from .clearance import ByOrientation, Clearance, model_geoms
 
         probe = self._probe_geoms  # about the tip, axes of R (whatever the table's pose)
-        ball = self._probe.index(self._ball)
+        ball = self._pball
         if holder_only:
             key = self._tqpos.tobytes()
             if key not in self._hclr:
-                hm, hd = self._set_holder_tip(np.zeros(3))
+                hm, hd = self._holder_model()
+                self._place(hm, hd, np.zeros(3))
                 table = model_geoms(hm, hd, range(len(self._holder)))
                 self._hclr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
                                             cert_pad_m=0.0)
@@ -546,15 +537,18 @@ class WorkZone:
         npair = len(hp)
         i = np.repeat(np.arange(len(tips)), npair)
         pair = np.tile(hp, len(tips))
-        ball = self._probe.index(self._ball)
-
-        h0, gball = self._ball_ids()
+        bm, bd, h0, gball = self._ball_model()
 
         def dist(k):  # (the ball's in the placement's model of the ball, the same distance)
             g = clr.pair_probe[pair[k]]
-            m, d = self._set_holder_tip(tips[i[k]], ball_only=g == ball)
             b = int(hpos[clr.pair_table[pair[k]]])
-            a, b = (gball, h0 + b) if g == ball else (self._hprobe[g], b)
+            if g == self._pball:
+                m, d = bm, bd
+                a, b = gball, h0 + b
+            else:
+                m, d = self._holder_model()
+                a = self._hprobe[g]
+            self._place(m, d, tips[i[k]])
             return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
 
         # the result is min(distmax, every triple's distance) as in the reference: a triple is
