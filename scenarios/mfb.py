@@ -749,13 +749,13 @@ def _declared_poi_deviations(E_cal) -> np.ndarray:
     from sim import artefacts as A
 
     E_cal = np.asarray(E_cal, float)
-    key = E_cal.tobytes()
-    hit = _DECLARED_POI.get(key)
-    if hit is None:
-        hit = np.column_stack([E_cal[:, :2], A.multi_feature_bar(deviations_m=E_cal).info["E_MFB_m"][:, 2]])
-        hit.flags.writeable = False
-        _DECLARED_POI[key] = hit
-    return hit
+
+    def compute():
+        out = np.column_stack([E_cal[:, :2], A.multi_feature_bar(deviations_m=E_cal).info["E_MFB_m"][:, 2]])
+        out.flags.writeable = False
+        return out
+
+    return _DECLARED_POI.get_or_compute(E_cal.tobytes(), compute)
 
 
 #: Coverage factor of the MFB program's approach margins against the placement
