@@ -122,6 +122,7 @@ on their part outside that span; the same for every model compared.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import re
 from dataclasses import dataclass, field
 
@@ -855,11 +856,18 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                           f"{settings.outlier_events!r}")
     per_setup = settings.outlier_events != "target" and bl.kind == "planar"
     events = bl.groups if per_setup else bl.replicate
-    slips = None
-    if per_setup and settings.outlier_events == "setup_slip":
-        def slips():
-            Cs = causes_mod.fixture_slip(bl)
-            return Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
+
+    @functools.cache
+    def scan_trials(fn):
+        """A one-off alternative's (T, n, k) trials (``fn(bl)``), whitened: built once in this run."""
+        Cs = fn(bl)
+        Cs = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
+        Cs.flags.writeable = False  # shared by every caller of this run
+        return Cs
+
+    # the outlier screen's steps are the rival check's fixture slips: the same trials
+    slips = (functools.partial(scan_trials, causes_mod.fixture_slip)
+             if per_setup and settings.outlier_events == "setup_slip" else None)
 
     def outliers_of(X, Q=None):
         # each call draws its own null from a generator seeded by the caller's: the
@@ -984,18 +992,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     # 4. rival check: a named cause must explain its covariate's structure
     demoted = []
-    # the adopted causes' one-off alternatives (a fixture slip's trials): built once for the whole check
-    trials = {}
-    for tm in terms:
-        fn = tm.origin.counter_scan if tm.origin is not None else None
-        if fn is not None and fn not in trials:
-            Cs = fn(bl)
-            trials[fn] = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
     changed = True
     while changed and terms:
         changed = False
         for tm in list(terms):
-            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings, bases, trials)
+            share = _rival_share(bl, tm, terms, Qb, y, rows, noise_sigma(st), settings, bases, scan_trials)
             tm.evidence.update(share)
             if not share["kept"]:
                 terms.remove(tm)
@@ -1056,10 +1057,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     tick()
 
     # 6. estimates
+    @functools.cache
+    def fixed():
+        # every single-trial cause's columns (whitened), for the named causes' alternatives: built when first asked
+        return {k: v[0][0].build([0])[0] for k, v in scans.items() if len(v[0]) == 1 and v[0][0].size == 1}
+
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-                         seen + [(st, diag_e)],
-                         fixed={k: v[0][0].build([0])[0] for k, v in scans.items()
-                                if len(v[0]) == 1 and v[0][0].size == 1})
+                         seen + [(st, diag_e)], fixed=fixed)
     E_all = _stack(terms, rows)
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
@@ -1238,36 +1242,44 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     return info
 
 
-def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> float:
-    """Debiased sum of squares the cause's plainer explanation (``cause.counter``) explains beside the model ``st``."""
+def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> tuple:
+    """Debiased sum of squares the cause's plainer explanation (``cause.counter``) explains beside the model ``st``.
+
+    Returns
+    -------
+    (debiased sum of squares, m^2; Uc (len(rows), kc): its orthonormal basis outside ``st.Q``,
+    for :func:`_beyond`)
+    """
     Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
     Uc = new_basis(st.Q, Bc[rows])
-    return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2
+    return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2, Uc
 
 
-def _beyond_counter(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: float, settings) -> tuple:
-    """What the cause's columns ``E`` (rows used) explain once its plainer explanation is in the model.
+def _beyond(st: _State, U_alt: np.ndarray, E: np.ndarray, sigma: float, tries: float, settings) -> tuple:
+    """What the cause's columns ``E`` (rows used) explain once a plainer explanation is in the model.
+
+    ``U_alt``: the plainer explanation's orthonormal basis outside ``st.Q``
+    (the cause's counter, :func:`_counter_ss`'s; a time alternative's best
+    trial).
 
     The plainer explanation explaining as much does not make the cause's
     own part vanish: a machine can have a finer rigid error map *and* a
     non-separable coupling, or lobes that are partly fixed and partly
-    turned. The cause stands beside its counter when its columns, added to
-    model + counter, still explain a material amount (debiased, at least
-    ``(material_sigma * sigma)^2`` per row) that is significant (nested F
-    test with the Bonferroni factor of its adoption).
+    turned. The cause stands beside it when its columns, added to
+    model + alternative, still explain a material amount (debiased, at
+    least ``(material_sigma * sigma)^2`` per row) that is significant
+    (nested F test with the Bonferroni factor ``tries`` of its adoption).
 
     Returns
     -------
-    (debiased sum of squares beyond the counter, m^2; its adjusted p-value; stands: bool)
+    (debiased sum of squares beyond the alternative, m^2; its adjusted p-value; stands: bool)
     """
-    Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
     rows = st.rows
-    Uc = new_basis(st.Q, Bc[rows])
-    Qc = np.hstack([st.Q, Uc])
-    rc = st.r - Uc @ (Uc.T @ st.r)
-    Un = new_basis(Qc, E)
-    d = float(np.sum((Un.T @ rc) ** 2)) - Un.shape[1] * sigma ** 2
-    p = min(1.0, nested_f(Un, rc, float(rc @ rc), len(rows) - Qc.shape[1]).p_value * tries)
+    Qa = np.hstack([st.Q, U_alt])
+    ra = st.r - U_alt @ (U_alt.T @ st.r)
+    Un = new_basis(Qa, E)
+    d = float(np.sum((Un.T @ ra) ** 2)) - Un.shape[1] * sigma ** 2
+    p = min(1.0, nested_f(Un, ra, float(ra @ ra), len(rows) - Qa.shape[1]).p_value * tries)
     stands = bool(d >= (settings.material_sigma * sigma) ** 2 * len(rows) and p < settings.alpha_family)
     return d, p, stands
 
@@ -1392,10 +1404,11 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     ev = {"F": F_val, "p_value": p_val, "p_adjusted": p_adj, "tries": float(tries), "k": k_val}
     if p_adj >= settings.alpha_family:
         return {"reason": f"not significant ({fmt_p(p_adj)} after Bonferroni over {tries:.0f} tries)"}
+    if single is None and (families or cause.counter is not None):  # (both checks below take it)
+        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
     # e. the structure must live where the cause says: a smooth function of a
     # covariate of another family may not explain materially more than it
     if families:
-        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof) if single is None else single
         ss_n = _candidate_ss(single, st)
         cov = bl.covariate(sc.covariate)
         fam = cov.family if cov is not None else ""
@@ -1415,12 +1428,11 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # cause of the catalogue (the probe's fixed lobes for lobes turned per
         # set-up, which nest them) can win the round instead of the richer one
         # being adopted and then dropped to `unexplained` by the rival check
-        single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof) if single is None else single
         ss_c, k_c, _, _ = single
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
-        d_c = _counter_ss(bl, cause, st, rows, sigma)
+        d_c, Uc = _counter_ss(bl, cause, st, rows, sigma)
         if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) and cause.counter_cause is not None \
-                and not _beyond_counter(bl, cause, st, cols[rows], sigma, tries, settings)[2]:
+                and not _beyond(st, Uc, cols[rows], sigma, tries, settings)[2]:
             return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
                               f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
                     "significant": True}
@@ -1561,11 +1573,11 @@ def _named_ss(so: _State, sf: _State, sigma: float) -> float:
     return (so.rss - sf.rss) - (sf.Q.shape[1] - so.Q.shape[1]) * sigma ** 2
 
 
-def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trials=None) -> dict:
+def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trials) -> dict:
     """How much of what a smooth term in the cause's covariate explains the cause explains.
 
-    ``trials``: {counter_scan: its (T, n, k) trials, whitened}, when already
-    built (else built here).
+    ``trials``: ``trials(counter_scan) -> (T, n, k)``, that scan's trials,
+    whitened (built once per run, shared with the outlier screen's slips).
     """
     others = [o for o in terms if o is not tm]
     so = _state(Qb, y, rows, others)
@@ -1592,11 +1604,11 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
            "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}
     if cause is not None and cause.counter is not None:
         # the plainer explanation (a finer error map for a coupling): it must not do as well
-        d_c = _counter_ss(bl, cause, so, rows, sigma)
+        d_c, Uc = _counter_ss(bl, cause, so, rows, sigma)
         out["counter"] = cause.counter.__name__.replace("_", " ")
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
         if d_c > d_n - m_ss:
-            d_b, p_b, stands = _beyond_counter(bl, cause, so, tm.columns[rows], sigma, tm.tries, settings)
+            d_b, p_b, stands = _beyond(so, Uc, tm.columns[rows], sigma, tm.tries, settings)
             out["explained_beyond_counter_ss_um2"] = max(d_b, 0.0) / UM ** 2
             out["p_adjusted_beyond_counter"] = p_b
             if not stands and cause.counter_cause is not None:
@@ -1607,11 +1619,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
     if cause is not None and cause.counter_scan is not None and out["kept"]:
         # a one-off alternative chosen among T trials: its best sum of squares is
         # debiased by the median of the largest of T chi-squares (k dof) under noise
-        if trials is not None and cause.counter_scan in trials:
-            Cs = trials[cause.counter_scan]
-        else:
-            Cs = cause.counter_scan(bl)
-            Cs = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
+        Cs = trials(cause.counter_scan)
         if Cs.shape[0]:
             ss_s, k_s, _, _ = nested_f_batch(Cs[:, rows, :], so.Q, so.r, so.rss, so.dof)
             j = int(np.argmax(ss_s))
@@ -1695,13 +1703,8 @@ def _time_alternatives(bl, tm: Term, so: _State, sigma, settings) -> list:
         d_a = float(ss[j]) - float(stats.chi2.isf(np.log(2) / C.shape[0], max(int(k[j]), 1))) * s2
         if d_a < d_n - m_ss:
             continue
-        Ua = new_basis(so.Q, C[j])
-        Qa = np.hstack([so.Q, Ua])
-        ra = so.r - Ua @ (Ua.T @ so.r)
-        Ub = new_basis(Qa, E)
-        d_b = float(np.sum((Ub.T @ ra) ** 2)) - Ub.shape[1] * s2
-        p_b = min(1.0, nested_f(Ub, ra, float(ra @ ra), len(rows) - Qa.shape[1]).p_value * tm.tries)
-        if d_b >= m_ss and p_b < settings.alpha_family:
+        d_b, p_b, stands = _beyond(so, new_basis(so.Q, C[j]), E, sigma, tm.tries, settings)
+        if stands:
             continue
         out.append({"alternative": name, ("at_s" if name == "event" else "degree"): float(what[j]),
                     "explained_ss_um2": max(d_a, 0.0) / UM ** 2, "cause_beyond_it_ss_um2": max(d_b, 0.0) / UM ** 2,
@@ -1721,7 +1724,21 @@ def _signal(tm: Term, so: _State, sigma) -> tuple:
     return sig, float(sig @ sig) - E.shape[1] * sigma ** 2
 
 
-def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict) -> list:
+def _reproduces(U: np.ndarray, signal: tuple, so: _State, sigma, settings) -> tuple:
+    """Whether the columns ``U`` (orthonormal, outside ``so.Q``) reproduce a cause's signal and explain as much.
+
+    ``signal``: :func:`_signal`'s ``(sig, d_n)``. Returns ``(overlap, d_w,
+    ind)``: the share of the signal's square norm inside span(U), the
+    debiased sum of squares U explains beside ``so`` (m^2), and whether both
+    reach ``rival_share`` (of 1 and of ``d_n``).
+    """
+    sig_n, d_n = signal
+    overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
+    d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * sigma ** 2
+    return overlap, d_w, overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
+
+
+def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tuple) -> list:
     """Other catalogue causes (one fixed layout each) whose columns reproduce the named cause's signal.
 
     Two causes whose columns span nearly the same thing on a design are
@@ -1736,17 +1753,17 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict) -> l
     one another (``counter_cause``) are judged by the counter check, not
     here.
 
-    ``fixed``: {cause name: (n, k) columns, all rows} of the catalogue's
-    causes with a single trial.
+    ``fixed``: ``fixed() -> {cause name: (n, k) columns, all rows}`` of
+    the catalogue's causes with a single trial (built when first asked).
+    ``signal``: :func:`_signal` of ``tm`` beside ``so``.
     """
     rows = so.rows
-    sig_n, d_n = _signal(tm, so, sigma)
-    s2 = sigma ** 2
+    d_n = signal[1]
     out = []
     if d_n <= 0:
         return out
     cause = tm.origin
-    for name, B in fixed.items():
+    for name, B in fixed().items():
         other = causes_mod.lookup(name, cause.kinds[0]) if cause is not None else None
         if name == tm.cause or (cause is not None and cause.counter_cause == name) or (
                 other is not None and other.counter_cause == tm.cause):
@@ -1754,14 +1771,13 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed: dict) -> l
         U = new_basis(so.Q, B[rows])
         if U.shape[1] == 0:
             continue
-        overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
-        d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * s2
-        if overlap >= settings.rival_share and d_w >= settings.rival_share * d_n:
+        overlap, d_w, ind = _reproduces(U, signal, so, sigma, settings)
+        if ind:
             out.append({"cause": name, "overlap": overlap, "explained_ratio": d_w / d_n})
     return out
 
 
-def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) -> list:
+def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, signal: tuple, known=()) -> list:
     """Covariates of other families whose smooth term reproduces the cause's signal.
 
     The cause's signal is its contribution to the joint fit (its columns'
@@ -1772,12 +1788,12 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) ->
     cause from "something following that covariate": the name is then
     flagged as ambiguous. ``known``: diagnoses made against ``so`` itself
     (their term bases outside it are taken, not projected again).
+    ``signal``: :func:`_signal` of ``tm`` beside ``so``.
     """
     have = {d.covariate: d.basis for d in known if d.basis is not None}
     fam = bl.covariate(tm.covariate).family if bl.covariate(tm.covariate) is not None else ""
     rows = so.rows  # so: the model without the cause (the other named causes)
-    sig_n, d_n = _signal(tm, so, sigma)
-    s2 = sigma ** 2
+    d_n = signal[1]
     m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
     out = []
     if d_n <= 0:
@@ -1788,9 +1804,7 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, known=()) ->
         U = have[cov.name] if cov.name in have else new_basis(so.Q, bases[cov.name][rows])
         if U.shape[1] == 0:
             continue
-        overlap = float(np.sum((U.T @ sig_n) ** 2) / max(sig_n @ sig_n, 1e-300))
-        d_w = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * s2
-        ind = overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
+        overlap, d_w, ind = _reproduces(U, signal, so, sigma, settings)
         # the structure lives there more than in the cause: it explains materially
         # more than the cause (beyond 1 / rival_share of it) and reproduces at
         # least half of the cause's signal, so the cause may have caught only
@@ -1877,7 +1891,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         # what the cause explains beside the others (the rival check's own figure; its tests were made)
         explained = max(_named_ss(so, sf, sig), 0.0) / UM ** 2
         ev["explained_ss_um2"] = explained
-        alt = _alternatives(bl, tm, so, sig, settings, bases, _made_on(seen, so))
+        signal = _signal(tm, so, sig)  # (both alternative checks test it)
+        alt = _alternatives(bl, tm, so, sig, settings, bases, signal, _made_on(seen, so))
         ev["alternatives"] = alt
         ev["indistinguishable_from"] = [a["covariate"] for a in alt if a["indistinguishable"]]
         # confident: no other family's covariate reproduces the signal, and no
@@ -1894,7 +1909,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             why.append(f"a {ev['indistinguishable_counter']} explains as much "
                        f"({ev['counter_explained_ss_um2']:.3g} against {ev['explained_ss_um2']:.3g} um^2) and the "
                        "cause nothing material beyond it: this design cannot tell them apart")
-        calt = _cause_alternatives(tm, so, sig, settings, fixed or {})
+        calt = _cause_alternatives(tm, so, sig, settings, fixed if fixed is not None else dict, signal)
         if calt:
             ev["cause_alternatives"] = calt
             ev["ambiguous_with"] = [a["cause"] for a in calt]

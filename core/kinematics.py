@@ -206,19 +206,18 @@ def _vec(values, names, n) -> np.ndarray:
     return np.stack([_col(values, nm, n) for nm in names], axis=-1)
 
 
-def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, derivs: bool = True, J=None):
+def _branch(geom: ChainGeometry, side: str, lin, rot, values, n, J, derivs: bool = True):
     """Factors (n,4,4) of one branch, bed outward, and their derivative twists.
 
     Returns factors, dsym {symbol: [(i, xi (n,6))]}, dax {axis: [(i, xi)]};
     xi = (v, w) is the left-perturbation twist of factor i per unit change
     (empty when ``derivs`` is False: the poses only); ``J`` (n, 3): per-pose probe
-    offsets (default ``geom.J_m`` at every pose, :func:`_probe_offsets`). Per axis: its
+    offsets, already checked (:func:`_probe_offsets`). Per axis: its
     location errors (:func:`_location_errors`), the rotation they leave relative to the
     axes below (:func:`_carried_rotation`), its motion errors (:func:`_motion_errors`),
     then the factors in chain order.
     """
     ch = geom.chain
-    J = _probe_offsets(geom, J, n)
     axes = ch.tool_axes if side == "tool" else ch.workpiece_from_bed
     s = 1.0 if side == "tool" else -1.0
     F: list[np.ndarray] = []
@@ -439,9 +438,11 @@ def _exp_rows(w: np.ndarray) -> np.ndarray:
 
 
 def _branch_pose(geom: ChainGeometry, side: str, lin, rot, values, n: int, J=None) -> _Pose:
-    """The product of :func:`_branch`'s factors, composed directly (poses only, no derivatives)."""
+    """The product of :func:`_branch`'s factors, composed directly (poses only, no derivatives).
+    ``J`` (n, 3) already checked (:func:`_probe_offsets`), or None: ``geom.J_m`` at every pose."""
     ch = geom.chain
-    J = _probe_offsets(geom, J, n)
+    if J is None:
+        J = _probe_offsets(geom, None, n)
     axes = ch.tool_axes if side == "tool" else ch.workpiece_from_bed
     s = 1.0 if side == "tool" else -1.0
     P = _Pose(n)
@@ -556,8 +557,8 @@ def _derivs(geom, lin_m, rot_rad, values, which, J_m=None):
     lin, rot, n = _inputs(geom, lin_m, rot_rad)
     J = _probe_offsets(geom, J_m, n)
     values = values or {}
-    Fw, dsw, daw = _branch(geom, "workpiece", lin, rot, values, n, J=J)
-    Ft, dst, dat = _branch(geom, "tool", lin, rot, values, n, J=J)
+    Fw, dsw, daw = _branch(geom, "workpiece", lin, rot, values, n, J)
+    Ft, dst, dat = _branch(geom, "tool", lin, rot, values, n, J)
     Ft = Ft + [_hom(None, -J, n)]
     def prefixes(F):  # I, F0, F0 F1, ...: the last is the branch's pose (the products of _prod)
         pre = [_hom(n=n)]

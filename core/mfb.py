@@ -223,14 +223,25 @@ def fit_bar_features(p_R, feature, n_R, *, fits: dict | None = None) -> BarFeatu
     return BarFeatures(*out["hole"], *out["rod"], *out["face"], side)
 
 
+def _classify(feature):
+    """The features of one placement's touches, in the order met: ``(kind "hole" | "rod" | "face",
+    key: the hole's or rod's number or (side "L" | "R", rod number), touch indices, name)`` for the
+    names ``holeNN``, ``rodNN``, ``faceLNN``, ``faceRNN`` (others ignored)."""
+    for f, idx in _group(feature).items():
+        if (i := _num(f, "hole")) is not None:
+            yield "hole", i, idx, f
+        elif (j := _num(f, "rod")) is not None:
+            yield "rod", j, idx, f
+        elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
+            yield "face", (f[4], j), idx, f
+
+
 def _sorted_features(feature, n_R, hints: dict | None = None) -> tuple[list, np.ndarray]:
-    """The features of one placement's touches, in the order met: ``[(kind "hole" | "rod" |
-    "face", key: the hole's or rod's number or (side, rod number), touch indices, hint, name)]``
-    (the hint: a cylinder's axis from its normals, :func:`_axis_hint`, a face's mean normal;
-    other names ignored), and the probed side (mean outward normal of the rod touches).
-    ``hints``: axis hints already found, by the bytes of the normals (placements of one
-    orientation, or the plans of one campaign, share their nominal normals: the same numbers),
-    and new ones added."""
+    """:func:`_classify` with each feature's hint, ``[(kind, key, touch indices, hint, name)]``
+    (a cylinder's axis from its normals, :func:`_axis_hint`, a face's mean normal), and the probed
+    side (mean outward normal of the rod touches). ``hints``: axis hints already found, by the
+    bytes of the normals (placements of one orientation, or the plans of one campaign, share their
+    nominal normals: the same numbers), and new ones added."""
     def axis_hint(nrm):
         if hints is None:
             return _axis_hint(nrm)
@@ -241,14 +252,13 @@ def _sorted_features(feature, n_R, hints: dict | None = None) -> tuple[list, np.
         return hints[key]
 
     out, rod_normals = [], []
-    for f, idx in _group(feature).items():
-        if (i := _num(f, "hole")) is not None:
-            out.append(("hole", i, idx, axis_hint(n_R[idx]), f))
-        elif (j := _num(f, "rod")) is not None:
-            out.append(("rod", j, idx, axis_hint(n_R[idx]), f))
-            rod_normals.append(n_R[idx])
-        elif f[:5] in ("faceL", "faceR") and (j := _num(f[5:], "")) is not None:
-            out.append(("face", (f[4], j), idx, n_R[idx].mean(axis=0), f))
+    for kind, key, idx, f in _classify(feature):
+        if kind == "face":
+            out.append((kind, key, idx, n_R[idx].mean(axis=0), f))
+        else:
+            out.append((kind, key, idx, axis_hint(n_R[idx]), f))
+            if kind == "rod":
+                rod_normals.append(n_R[idx])
     return out, (np.concatenate(rod_normals).mean(axis=0) if rod_normals else np.zeros(3))
 
 
@@ -539,16 +549,13 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
     base = {i: _meet(bf.hole_point[i], bf.hole_axis[i], *PL[i]) for i in holes}
     G = np.zeros((3 * len(holes), len(p_R)))
     planes = []  # (touches, hole h, perturbed point sets of PL_h) of the rods and faces
-    for f, idx in _group(feature).items():
-        i, j = _num(f, "hole"), _num(f, "rod")
-        face = f[:5] in ("faceL", "faceR") and _num(f[5:], "") is not None
-        if i is not None:
+    for kind, key, idx, _ in _classify(feature):
+        if kind == "hole":
+            i = key
             hs = [i] if i in row else []
-        elif j is not None or face:
-            j = j if j is not None else int(f[5:])
-            hs = [h for h in holes if j in pair[h]]
         else:
-            continue
+            j = key if kind == "rod" else key[1]
+            hs = [h for h in holes if j in pair[h]]
         if not hs:
             continue
         # the 2 n perturbed point sets of this feature: touch k moved by +h, then -h, along d
@@ -557,17 +564,17 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
         step = h_m * d_R[idx]
         Q[2 * np.arange(nk), np.arange(nk)] += step
         Q[2 * np.arange(nk) + 1, np.arange(nk)] -= step
-        if i is not None:
+        if kind == "hole":
             q, a = _fit_once(fits, "cylinders", Q, bf.hole_axis[i])
             _gain_rows(G, 3 * row[i], idx, _meet_batch(q, a, *PL[i]) - base[i], h_m)
         else:
             Pj = np.broadcast_to(P[j], (2 * nk, 2, 3)).copy()
-            if not face:
+            if kind == "rod":
                 q, a = _fit_once(fits, "cylinders", Q, bf.rod_axis[j])
                 for k, sd in enumerate("LR"):
                     Pj[:, k] = _meet_batch(q, a, bf.face_point[(sd, j)], bf.face_normal[(sd, j)])
             else:
-                sd = f[4]
+                sd = key[0]
                 q, nrm = _fit_once(fits, "planes", Q, bf.face_normal[(sd, j)])
                 Pj[:, "LR".index(sd)] = _meet_batch(bf.rod_point[j], bf.rod_axis[j], q, nrm)
             for h in hs:

@@ -404,8 +404,8 @@ class _Prepared(list):
     """:func:`_prepare` of each measurement (a list), and ``batch``: the touches of every
     measurement with touches joined once (they do not depend on theta; every Gauss-Newton
     step's :func:`_touch_kinematics` and :func:`_rows` read them): ``at`` {measurement: its
-    first row}, ``qt`` (t, 3) readings, ``rott`` (t, r) or None, ``J`` (t, 3) each touch's
-    probe offsets, ``W`` {axis: (t, k)} spline weights, ``d_W`` (t, 3) directions; None
+    first row}, ``g`` the kinematic chain they share, ``qt`` (t, 3) readings, ``rott`` (t, r) or
+    None, ``J`` (t, 3) each touch's probe offsets, ``W`` {axis: (t, k)} spline weights, ``d_W`` (t, 3) directions; None
     without touches."""
 
     batch: dict | None = None
@@ -419,26 +419,24 @@ def _prepare_all(meas, chain, rotary_points, nodes) -> _Prepared:
     idx = [i for i, pm in enumerate(prep) if pm["touches"]]
     if not idx:
         return prep
-    at, t0 = {}, 0
-    for i in idx:
-        at[i] = t0
-        t0 += len(prep[i]["qt"])
-    prep.batch = {"at": at, "qt": np.concatenate([prep[i]["qt"] for i in idx]),
-                  "rott": None if prep[idx[0]]["rott"] is None else np.concatenate([prep[i]["rott"] for i in idx]),
-                  "J": np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["qt"].shape) for i in idx]),
-                  "W": {a: np.concatenate([prep[i]["W"][a] for i in idx]) for a in iso.LINEAR_AXES},
-                  "d_W": np.concatenate([prep[i]["d_W"] for i in idx])}
-    b = prep.batch
-    q = np.concatenate([prep[i]["q"] for i in idx])
-    rot = None if prep[idx[0]]["rot"] is None else np.concatenate([prep[i]["rot"] for i in idx])
-    J = np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i]["q"].shape) for i in idx])
+
+    def join(key):  # the measurements' rows of prep[i][key], joined in order (None stays None)
+        return None if prep[idx[0]][key] is None else np.concatenate([prep[i][key] for i in idx])
+
+    def stylus(key):  # each of those rows' probe offsets J (its measurement's stylus)
+        return np.concatenate([np.broadcast_to(prep[i]["g"].J_m, prep[i][key].shape) for i in idx])
+
+    def starts(key):  # {measurement: its first row in join(key)}
+        return dict(zip(idx, np.cumsum([0] + [len(prep[i][key]) for i in idx[:-1]]).tolist()))
+
     g = prep[idx[0]]["g"]
-    for tip, key, rows in ((tip_W(g, q, rot, None, J_m=J), "pred0", "q"),
-                           (tip_W(g, b["qt"], b["rott"], None, J_m=b["J"]), "tip0_t", "qt")):
-        at = 0
-        for i in idx:
-            prep[i][key] = tip[at:at + len(prep[i][rows])]
-            at += len(prep[i][rows])
+    prep.batch = b = {"at": starts("qt"), "g": g, "qt": join("qt"), "rott": join("rott"), "J": stylus("qt"),
+                      "W": {a: np.concatenate([prep[i]["W"][a] for i in idx]) for a in iso.LINEAR_AXES},
+                      "d_W": join("d_W")}
+    for key, rows, at, tip in (("pred0", "q", starts("q"), tip_W(g, join("q"), join("rot"), None, J_m=stylus("q"))),
+                               ("tip0_t", "qt", b["at"], tip_W(g, b["qt"], b["rott"], None, J_m=b["J"]))):
+        for i, r0 in at.items():
+            prep[i][key] = tip[r0:r0 + len(prep[i][rows])]
     return prep
 
 
@@ -458,7 +456,7 @@ def _touch_kinematics(prep, theta, slices, exact, jacobian):
     if exact:
         each = [_values(theta, slices, prep[i]["W"], len(prep[i]["qt"])) for i in b["at"]]
         vals = {s: np.concatenate([v[s] for v in each]) for s in each[0]}
-    g = prep[next(iter(b["at"]))]["g"]
+    g = b["g"]
     St = sensitivity(g, b["qt"], b["rott"], vals, symbols=MOTION + SQUARENESS, J_m=b["J"]) if jacobian else None
     tip = tip_W(g, b["qt"], b["rott"], vals, J_m=b["J"]) if exact else None
     return St, tip, b["at"]

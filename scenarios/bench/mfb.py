@@ -166,11 +166,24 @@ def identify_before(args, kwargs):
         vol._axis_weights, vol._projected_error_jacobian, vol._touch_kinematics = saved
 
 
-class _NeverKept(dict):
+class NeverKept(dict):
     """A cache that keeps nothing (core.volumetric's nominal designs before they were kept)."""
 
     def get_or_compute(self, key, compute, owner=None):
         return compute()
+
+
+def rows_whole(rows):
+    """``core.volumetric._rows`` as before its theta-independent parts were kept: ``rows`` (the
+    real one) with no prepared parts and always with its Jacobian (also for the last residual).
+    With :class:`NeverKept` as ``_NOMINAL``, the reference of the identification's shortcuts
+    (here and tests/core/test_volumetric.py)."""
+    def rows_before(*a, **k):
+        k.pop("prep", None)
+        k["jacobian"] = True
+        return rows(*a, **k)
+
+    return rows_before
 
 
 def before_shortcuts():
@@ -192,12 +205,7 @@ def before_shortcuts():
         rows, nominal, poi, pois = vol._rows, vol._NOMINAL, mfb.points_of_interest, mfb.points_of_interest_batched
         kin, fit_once, sim_all = vol._touch_kinematics, mfb._fit_once, campaign.simulate_measurements
 
-        def rows_before(*a, **k):
-            k.pop("prep", None)
-            k["jacobian"] = True
-            return rows(*a, **k)
-
-        vol._rows, vol._NOMINAL = rows_before, _NeverKept()
+        vol._rows, vol._NOMINAL = rows_whole(rows), NeverKept()
         mfb.points_of_interest_batched = lambda places, geom=mfb.MFB: [poi(p, f, n, geom) for p, f, n in places]
         vol._touch_kinematics = _touch_kinematics_each
         mfb._fit_once = lambda fits, *a: fit_once(None, *a)  # no fit shared between hole sets

@@ -138,18 +138,9 @@ def test_identify_shortcuts_give_the_reference_bit_for_bit(meas3, monkeypatch):
     new = vol.identify_volumetric(meas, chain, nodes, rp)
     assert len(vol._NOMINAL) == 1
     again = vol.identify_volumetric(meas, chain, nodes, rp)  # from the kept nominal design
-    real_rows = vol._rows
+    from scenarios.bench.mfb import NeverKept, rows_whole  # the bench's reference path, the same
 
-    def rows_reference(*a, **k):
-        k.pop("prep", None)
-        k["jacobian"] = True
-        return real_rows(*a, **k)
-
-    class NeverKept(dict):
-        def get_or_compute(self, key, compute, owner=None):
-            return compute()
-
-    monkeypatch.setattr(vol, "_rows", rows_reference)
+    monkeypatch.setattr(vol, "_rows", rows_whole(vol._rows))
     monkeypatch.setattr(vol, "_NOMINAL", NeverKept())
     ref = vol.identify_volumetric(meas, chain, nodes, rp)
     for r in (new, again):

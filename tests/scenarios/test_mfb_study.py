@@ -184,14 +184,32 @@ def test_linear_calibration_share_is_the_simulated_bars_own():
     assert 1.09 < indep / sim_bar[ezx] < 1.11 and 3.6e-6 < sim_bar[ezx] < 3.7e-6
     # and the bar's own map is the rods' (core.mfb's reading of section 2.1, sim's built apart)
     assert np.allclose(mfb.calibration_map(), R, atol=1e-12)
-    # the run's bar block: calibrated - true in the gauge it is shown in (against O_1 and the line
-    # O_1 O_12, S.bar_gauge), from the simulator's response; Exx 2 x 0.2 x sqrt(2) from hole 2 on
-    G = np.column_stack([S.bar_gauge(e.reshape(12, 3)).ravel() for e in np.eye(36)])
-    GR = G @ R * u_cal.ravel()
-    U = 2e6 * np.sqrt(np.einsum("ij,ij->i", GR, GR)).reshape(12, 3)
-    assert np.allclose(r.doc["bar"]["U95_um"], U, rtol=1e-9, atol=1e-12)
-    assert np.allclose(U[1:, 0], 0.4 * np.sqrt(2.0)) and np.all(U[[0, 11], 1:] < 1e-12)
-    assert 0.82 < U[1:11, 2].min() and U[1:11, 2].max() < 0.93
+    # the run's bar block, U95 of calibrated - true in the gauge it is shown in (Exx from O_1; Eyx,
+    # Ezx against the line O_1 O_12). Hand-worked answers on the document itself: x and y are
+    # declared one independent error per point (u 0.2, 0.35 um), so Exx_i - Exx_1 has u 0.2 sqrt(2)
+    # from hole 2 on, and Eyx_i minus the line (weights 1 - t, t at t = i / 11) has
+    # u 0.35 sqrt(1 + (1 - t)^2 + t^2); the ends are 0 in y and z (they define the line); an inner
+    # height's u is 0.41-0.46 um (not the 0.35 sqrt(...) of independent heights, 0.43-0.47)
+    Ud = np.asarray(r.doc["bar"]["U95_um"], float)
+    t = np.arange(12) / 11.0
+    assert Ud.shape == (12, 3) and Ud[0, 0] == 0.0 and np.allclose(Ud[1:, 0], 0.4 * np.sqrt(2.0), rtol=1e-12)
+    assert np.allclose(Ud[1:11, 1], 0.7 * np.sqrt(1.0 + (1.0 - t[1:11]) ** 2 + t[1:11] ** 2), rtol=1e-12)
+    assert np.all(Ud[[0, 11], 1:] < 1e-12)
+    assert 0.82 < Ud[1:11, 2].min() and Ud[1:11, 2].max() < 0.93
+    # and against the simulated bar's own response, the gauge written here (not S.bar_gauge): each
+    # drawn calibration component (one of the 36, at its u) moves the simulated bar's points by a
+    # response (R's column, linear: one joint random draw through the simulator agrees with the sum
+    # of the responses to 1e-18 m), and the components are independent, so each gauge value's
+    # variance is the sum of its responses' squares
+    def gauge(E):
+        return np.column_stack([E[:, 0] - E[0, 0], *(E[:, c] - E[0, c] - t * (E[-1, c] - E[0, c]) for c in (1, 2))])
+
+    n = np.random.default_rng(7).standard_normal(36)
+    joint = A.multi_feature_bar(deviations_m=E0 + (u_cal.ravel() * n).reshape(12, 3)).info["E_MFB_m"] - base
+    assert np.allclose(joint.ravel(), R @ (u_cal.ravel() * n), rtol=0, atol=1e-18)
+    resp = [gauge((R[:, k] * u_cal.ravel()[k]).reshape(12, 3)) for k in range(36)]
+    U_sim = 2e6 * np.sqrt(sum(g ** 2 for g in resp))
+    assert np.allclose(Ud, U_sim, rtol=1e-9, atol=1e-12), np.max(np.abs(Ud - U_sim))
 
 
 def test_within_u95_counts_and_what_the_model_expects_of_correlated_nodes():
