@@ -243,7 +243,8 @@ def _ball_clearance(art, r: float):
     kind = np.array([GEOM_TYPE[sol.kinds[k]] for k in bar])
     size = sol.size3[bar]
     H = Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rbound(kind, size))
-    P = Geoms(np.zeros((1, 3)), np.eye(3)[None], np.array([GEOM_TYPE["sphere"]]), np.array([[r, 0.0, 0.0]]), np.array([r]))
+    P = Geoms(np.zeros((1, 3)), np.eye(3)[None], np.array([GEOM_TYPE["sphere"]]), np.array([[r, 0.0, 0.0]]),
+              np.array([r]))
     return Clearance(P, H, [sol.features[k] for k in bar], 0)
 
 
