@@ -64,7 +64,7 @@ from typing import Callable
 
 import numpy as np
 
-from .diagnosis import screen_phasors
+from .diagnosis import _BLOCK, SCAN_BLOCK_BYTES, TABLE_BYTES, scan_grid, screen_phasors
 from .units import MM, UM, URAD
 
 
@@ -145,26 +145,41 @@ def _one(cols: np.ndarray, labels, info: dict, cov: str) -> Scan:
     return Scan(tuple(labels), (info,), cov, lambda idx: arr[np.asarray(idx)])
 
 
-def _matmul_score(funcs: Callable, weights: np.ndarray):
+def _trial_scores(F, F2, r, W) -> np.ndarray:
+    """``sum_m (r . (w_m F_t))^2 / |w_m F_t|^2`` per column ``t`` of ``F`` (n, T), ``F2 = F ** 2``."""
+    num = ((r[:, None] * W).T @ F) ** 2
+    den = (W ** 2).T @ F2
+    return np.sum(num / np.maximum(den, 1e-300), axis=0)
+
+
+def _matmul_score(funcs: Callable, weights: np.ndarray, blocks: Callable | None = None):
     """Score of trials whose columns are ``weights[:, m] * F[:, t]`` for functions ``F = funcs()`` (n, T).
 
     ``sum_m (r . (w_m F_t))^2 / |w_m F_t|^2`` by two matrix products per mode;
-    ``F`` is computed once (all rows) and kept.
+    ``F`` is computed once (all rows) and kept. With ``blocks`` (a
+    callable giving ``(columns, combine)`` pairs: the functions of a block
+    of trials over all rows and how the block's column scores make its
+    trials' scores), the table is never kept whole: each call computes it
+    a block at a time, so memory stays at one block whatever the rows.
     """
     cache = []
 
     def score(r, rows):
+        every = len(rows) == len(weights) and np.array_equal(rows, np.arange(len(weights)))
+        W = weights[rows]
+        if blocks is not None:
+            out = []
+            for F, combine in blocks():
+                F = F if every else F[rows]
+                out.append(combine(_trial_scores(F, F ** 2, r, W)))
+            return np.concatenate(out)
         if not cache:
             F = funcs()
             cache.append((F, F ** 2))
         F, F2 = cache[0]
-        every = len(rows) == len(F) and np.array_equal(rows, np.arange(len(F)))
         if not every:  # (every row: the table itself, not a copy of it)
             F, F2 = F[rows], F2[rows]
-        W = weights[rows]
-        num = ((r[:, None] * W).T @ F) ** 2
-        den = (W ** 2).T @ F2
-        return np.sum(num / np.maximum(den, 1e-300), axis=0)
+        return _trial_scores(F, F2, r, W)
     return score
 
 
@@ -337,24 +352,35 @@ def periodic_scans(bl):
         p_lo, p_hi = 2 * gap, d.grid_step_m
         if span <= 0 or p_hi <= 1.2 * p_lo:
             continue
-        f = np.arange(1 / p_hi, 1 / p_lo, 1 / (3 * span))
+        f = scan_grid(p_lo, p_hi, span)
         P = 1 / f
         tries += span * (1 / p_lo - 1 / p_hi)
         ax = "XY"[axis]
+        # a grid coarser than the fine one (a long log, see MAX_SCAN_FREQUENCIES): the refinement
+        # searches one of its steps either side of the best trial
+        coarse = {"scan_step_per_m": float(f[1] - f[0])} if len(f) > 1 and f[1] - f[0] > 1.001 / (3 * span) else {}
 
         def funcs(a=a, f=f):  # the score's sines and cosines: it ranks trials, the columns tested are exact
             Z = screen_phasors(2 * np.pi * a, f)
             return np.hstack([Z.imag, Z.real])
 
-        W = np.column_stack([-d.nx, -d.ny])
-        base = _matmul_score(funcs, W)
+        def blocks(a=a, f=f):  # the same, a block of frequencies at a time (bit for bit: screen_phasors)
+            step = max(1, SCAN_BLOCK_BYTES // (32 * len(a) * _BLOCK)) * _BLOCK
+            for i in range(0, len(f), step):
+                Z = screen_phasors(2 * np.pi * a, f, i, i + step)
+                yield np.hstack([Z.imag, Z.real]), lambda s2, m=Z.shape[1]: s2[:m] + s2[m:]
 
-        def score(r, rows, base=base, T=len(P)):  # sin and cos of each period: one trial
+        W = np.column_stack([-d.nx, -d.ny])
+        big = 32 * len(a) * len(f) > TABLE_BYTES  # (the table and its square, sine and cosine)
+        base = _matmul_score(funcs, W, blocks if big else None)
+
+        def score(r, rows, base=base, T=len(P), big=big):  # sin and cos of each period: one trial
             s2 = base(r, rows)
-            return s2[:T] + s2[T:]
+            return s2 if big else s2[:T] + s2[T:]
 
         scans.append(Scan((f"EX{ax}_sin", f"EX{ax}_cos", f"EY{ax}_sin", f"EY{ax}_cos"),
-                          tuple({"axis": ax, "period_m": float(p), "nyquist_m": p_lo} for p in P), "xy"[axis],
+                          tuple({"axis": ax, "period_m": float(p), "nyquist_m": p_lo, **coarse} for p in P),
+                          "xy"[axis],
                           lambda idx, axis=axis, P=P: _periodic_cols(d, axis, P[np.asarray(idx)]), score))
     return scans, tries
 

@@ -348,7 +348,36 @@ def _frequencies(cov: Covariate):
     p_lo, p_hi = cov.period_range
     if span <= 0 or p_hi <= 1.2 * p_lo:
         return None
-    return np.arange(1 / p_hi, 1 / p_lo, 1 / (3 * span))
+    return scan_grid(p_lo, p_hi, span)
+
+
+#: Most frequencies one spectral scan tests (a ripple along x or y, an
+#: oscillation in time). The fine grid has three frequencies per independent
+#: one, ``1 / (3 span)`` apart: about 1.5 per distinct position (or per touch
+#: interval in time), so its size would grow with a long log's rows. Up to
+#: this many the fine grid is scanned whole (every stored campaign and the
+#: demo: at most 2,143, gen_b's head_tram 3 in time); beyond it the same
+#: range is scanned on an evenly spaced grid of this many frequencies (a
+#: coarser resolution, ``(1/p_lo - 1/p_hi) / MAX_SCAN_FREQUENCIES``) and
+#: the cause scans refine the best trials around it (discover's ``_refine``
+#: over one coarse step either side). A sine's peak is about ``0.9 / span``
+#: wide at half power (2.7 fine steps): a coarse step up to that (fine grids
+#: up to about 11,000 frequencies) samples every peak near its top; beyond
+#: it a peak can fall between two frequencies and be missed.
+MAX_SCAN_FREQUENCIES = 4096
+
+
+def scan_grid(p_lo: float, p_hi: float, span: float) -> np.ndarray:
+    """(F,) frequencies (1/unit) scanned for periods ``p_lo..p_hi`` over values spanning ``span``.
+
+    ``1 / (3 span)`` apart from ``1 / p_hi`` (three per independent
+    frequency), or, when that is more than :data:`MAX_SCAN_FREQUENCIES`,
+    that many evenly spaced over the same range (see its note).
+    """
+    step = 1 / (3 * span)
+    if (1 / p_lo - 1 / p_hi) / step > MAX_SCAN_FREQUENCIES:
+        step = (1 / p_lo - 1 / p_hi) / MAX_SCAN_FREQUENCIES
+    return np.arange(1 / p_hi, 1 / p_lo, step)
 
 
 #: Frequencies per block of the pre-screen's tables: each block starts from an

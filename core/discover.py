@@ -147,6 +147,15 @@ WEAK_SV = 1e-2
 #: Leverage within its group above which a row is the only support of one of
 #: the group's own columns (it cannot be predicted; left out of the CV).
 OWN_LEVERAGE = 1e-3
+
+#: Largest total of the cross-validation folds' kept training spans (:class:`Folds`: two
+#: tables of training rows by directions per group, about 16 bytes x groups x rows x
+#: parameters). Beyond it each fold keeps only its spans' coefficients over the design's
+#: columns (parameters x directions) and a product with the spans is made from the design
+#: (``A^T X`` once, less the held-out rows' part): the same numbers up to rounding
+#: (re-associated sums), memory linear in the rows. The stored campaigns (at most 432 rows,
+#: 24 MB) keep the tables.
+FOLD_BYTES = 256 << 20
 #: Families of tests sharing the false-alarm rate (Bonferroni split).
 FAMILIES = ("lack_of_fit", "cv_gap", "diagnosis", "causes")
 
@@ -273,7 +282,11 @@ class Folds:
         self.n = len(A)
         self.rcond = rcond
         self.items = []
-        for g in np.unique(groups):
+        gs = np.unique(groups)
+        # the training spans kept whole (two (n_tr, p) tables per group) while small; a long log's
+        # (groups x rows x parameters: 6.7 GB at 1e4 rows and 100 set-ups) as their (p, r) coefficients
+        self.A = A if 16 * len(gs) * A.size > FOLD_BYTES else None
+        for g in gs:
             te = np.flatnonzero(groups == g)
             tr = np.flatnonzero(groups != g)
             if te.size == 0 or tr.size == 0:
@@ -285,12 +298,16 @@ class Folds:
             w, V = np.linalg.eigh(As.T @ As)
             keep = w > rcond ** 2 * w[-1]
             Vs = V[:, keep] / np.sqrt(w[keep])
-            U = As @ Vs  # (n_tr, r) orthonormal: the retained training span
             P = (A[te][:, used] / sc[used]) @ Vs  # test rows' prediction per unit of U^T y
             full = w > 1e-12 * w[-1]
-            Uf = As @ (V[:, full] / np.sqrt(w[full]))  # the whole training span (weak directions too)
             Ao = A[te][:, ~used]
             Qo = orth(Ao) if Ao.shape[1] else np.zeros((te.size, 0))
+            if self.A is None:
+                U = As @ Vs  # (n_tr, r) orthonormal: the retained training span
+                Uf = As @ (V[:, full] / np.sqrt(w[full]))  # the whole training span (weak directions too)
+            else:  # U^T X = Vs^T (A_tr[:, used] / sc)^T X: the coefficients, (p_used, r)
+                U, Uf = (np.flatnonzero(used), Vs / sc[used][:, None]), V[:, full] / np.sqrt(w[full]) / sc[used][:, None]
+            del Atr, As
             self.items.append((tr, te, U, P, Qo, Uf))
         if not self.items:
             raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
@@ -309,9 +326,18 @@ class Folds:
         Y2 = Y[:, None] if one else Y
         out = np.zeros_like(Y2, dtype=float)
         self.last_dof = 0
+        lean = self.A is not None
+        if lean:  # A^T X over every row once; a fold's training part is it less the held-out rows'
+            AY = self.A.T @ Y2
+            AE = self.A.T @ E if E is not None and E.shape[1] else None
         for tr, te, U, P, Qo, Uf in self.items:
             ytr = Y2[tr]
-            z = U.T @ ytr
+            if lean:
+                cols, Vs = U
+                AYtr = (AY - self.A[te].T @ Y2[te])[cols]
+                z = Vs.T @ AYtr
+            else:
+                z = U.T @ ytr
             pred = P @ z
             own = Qo
             if E is not None and E.shape[1]:
@@ -323,18 +349,23 @@ class Folds:
                     # the extension is fitted on its part outside the whole training
                     # span (a direction the baseline has but weakly sees is the
                     # baseline's, not the extension's), then the baseline on the rest
-                    zf = Uf.T @ E1
+                    if lean:
+                        AE1 = (AE - self.A[te].T @ E[te])[cols][:, eu] / en[eu]
+                        zf, zy = Uf.T @ AE1, Uf.T @ AYtr
+                    else:
+                        zf, zy = Uf.T @ E1, Uf.T @ ytr
                     Gm = E1.T @ E1 - zf.T @ zf
                     if penalty is not None:
                         Gm = Gm + penalty[np.ix_(eu, eu)] / np.outer(en[eu], en[eu])
-                    rhs = E1.T @ ytr - zf.T @ (Uf.T @ ytr)
+                    rhs = E1.T @ ytr - zf.T @ zy
                     # truncated like the baseline: directions of the (normalised)
                     # extension that the training rows barely see beyond the
                     # baseline's span are not extrapolated
                     w, V = np.linalg.eigh(Gm)
                     good = w > self.rcond ** 2 * max(w.max(), 1.0) if penalty is None else w > 1e-12 * max(w.max(), 1e-300)
                     c = V[:, good] @ ((V[:, good].T @ rhs) / w[good][:, None])
-                    pred = P @ (U.T @ (ytr - E1 @ c)) + (E[te][:, eu] / en[eu]) @ c
+                    zc = z - Vs.T @ (AE1 @ c) if lean else U.T @ (ytr - E1 @ c)
+                    pred = P @ zc + (E[te][:, eu] / en[eu]) @ c
                 if (~eu).any():
                     own = orth(np.hstack([own, E[te][:, ~eu]]))
             e = Y2[te] - pred
@@ -1220,7 +1251,7 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
         v0 = info[name]
         if name == "period_m":
             span = np.ptp((bl.data.x, bl.data.y)["XY".index(info["axis"])])
-            f0, df = 1 / v0, 1 / (3 * max(span, 1e-9))
+            f0, df = 1 / v0, info.get("scan_step_per_m", 1 / (3 * max(span, 1e-9)))  # one scan step
             lo, hi = 1 / (f0 + df), 1 / max(f0 - df, 1e-12)
         elif name == "half_width_m":
             lo, hi = v0 * 0.75, v0 * 1.33

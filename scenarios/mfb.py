@@ -564,21 +564,6 @@ def default_machine(name: str, ripple: bool = False, J_m=(0.0, 0.0, 0.150)):
     return MACHINES[name](errors=errs, J_m=J_m), errs
 
 
-class _NoSafeHeight:
-    """Adapter: the campaign's link moves go via a safe height above the
-    bar's top, which for a standing bar is above the Z stroke; a real
-    program would retract sideways. The touches themselves are checked
-    against the strokes by :func:`_check_touch_strokes` instead."""
-
-    def __init__(self, machine):
-        self._m = machine
-        self.config = type("Cfg", (), {"name": machine.config.name, "strokes": {},
-                                       "kinematic_chain": machine.config.chain})()
-
-    def __getattr__(self, k):
-        return getattr(self._m, k)
-
-
 #: Collision checks already made (a pure function of the nominal plan): keyed by the machine,
 #: every measurement's name, set-up, holes and stylus position, the stylus radius and the
 #: program's margin; the summaries are only read (reports copy them into JSON). 64 checks
@@ -764,13 +749,13 @@ def _declared_poi_deviations(E_cal) -> np.ndarray:
     from sim import artefacts as A
 
     E_cal = np.asarray(E_cal, float)
-    key = E_cal.tobytes()
-    hit = _DECLARED_POI.get(key)
-    if hit is None:
-        hit = np.column_stack([E_cal[:, :2], A.multi_feature_bar(deviations_m=E_cal).info["E_MFB_m"][:, 2]])
-        hit.flags.writeable = False
-        _DECLARED_POI[key] = hit
-    return hit
+
+    def compute():
+        out = np.column_stack([E_cal[:, :2], A.multi_feature_bar(deviations_m=E_cal).info["E_MFB_m"][:, 2]])
+        out.flags.writeable = False
+        return out
+
+    return _DECLARED_POI.get_or_compute(E_cal.tobytes(), compute)
 
 
 #: Coverage factor of the MFB program's approach margins against the placement

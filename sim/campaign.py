@@ -266,8 +266,7 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     """
     art = make_artefact(artefact) if isinstance(artefact, str) else artefact
     probe = probe or ProbeConfig()
-    if not (np.isfinite(feed_mps) and feed_mps > 0 and np.isfinite(rapid_mps) and rapid_mps > 0):
-        raise ConfigError("feed_mps and rapid_mps must be positive")
+    _check_feeds(feed_mps, rapid_mps)
     plan = plan or make_plan(art)
     setups = _resolve_setups(machine, art, setups)
     if len({s.name for s in setups}) != len(setups):
@@ -279,7 +278,6 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     sdf_true = [art.feature(f).true.sdf for f in feats]
     travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
     paths = _PathChecker(art, probe) if check_collisions else None
-    cols: dict[str, list] = {k: [] for k in LOG_COLUMNS}
     t_cursor = 0.0
     moves = []  # (set-up, moves, approach start times) in order, every path checked first
     for si, st in enumerate(setups):
@@ -297,9 +295,23 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         touched = [empty] * len(moves)
     else:
         touched = _simulate_setups(machine, probe, rng, moves, travel, feed_mps, sdf_true, grp)
-    for (st, mv, _), (pos, status, t_s) in zip(moves, touched):
+    return _campaign_log([(plan, st, mv) + tuple(res) for (st, mv, _), res in zip(moves, touched)],
+                         machine, art, probe, feed_mps, meta)
+
+
+def _check_feeds(feed_mps: float, rapid_mps: float) -> None:
+    """ConfigError unless both feeds (m/s) are finite and positive."""
+    if not (np.isfinite(feed_mps) and feed_mps > 0 and np.isfinite(rapid_mps) and rapid_mps > 0):
+        raise ConfigError("feed_mps and rapid_mps must be positive")
+
+
+def _campaign_log(rows, machine, art, probe, feed_mps: float, meta) -> ProbeLog:
+    """The probe log of ``rows``, each set-up's ``(plan, setup, moves, positions, status, times)``
+    in order, on ``machine`` (its rotary positions and the log's metadata)."""
+    cols: dict[str, list] = {c: [] for c in LOG_COLUMNS}
+    for plan, st, mv, pos, status, t_s in rows:
         _append_rows(cols, plan, st, mv, pos, status, t_s, _rotary_deg(machine, st), probe.stylus_r_m)
-    columns = {k: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else v) for k, v in cols.items()}
+    columns = {c: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else v) for c, v in cols.items()}
     return make_log(columns, _campaign_meta(machine, art, probe, feed_mps, meta))
 
 
@@ -321,8 +333,7 @@ def simulate_measurements(items, rng: np.random.Generator | None = None, *,
     if not _styli_of_one_machine(items):
         return _simulate_each_measurement(items, rng, feed_mps=feed_mps, rapid_mps=rapid_mps, meta=meta,
                                           stroke_check=stroke_check)
-    if not (np.isfinite(feed_mps) and feed_mps > 0 and np.isfinite(rapid_mps) and rapid_mps > 0):
-        raise ConfigError("feed_mps and rapid_mps must be positive")
+    _check_feeds(feed_mps, rapid_mps)
     art, machine, probe = items[0][:3]
     plans = {}  # id -> (plan, its travel); each plan validated once
     feats = sorted({f for *_, pl in items for f in pl.feature})
@@ -347,12 +358,9 @@ def simulate_measurements(items, rng: np.random.Generator | None = None, *,
     pos, status, t_s = _result_rows(res)
     logs, k = [], 0
     for m, st, pl, mv in moves:
-        cols: dict[str, list] = {c: [] for c in LOG_COLUMNS}
         b = slice(k, k + pl.n)
         k += pl.n
-        _append_rows(cols, pl, st, mv, pos[b], status[b], t_s[b], _rotary_deg(m, st), probe.stylus_r_m)
-        columns = {c: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else v) for c, v in cols.items()}
-        logs.append(make_log(columns, _campaign_meta(m, art, probe, feed_mps, meta)))
+        logs.append(_campaign_log([(pl, st, mv, pos[b], status[b], t_s[b])], m, art, probe, feed_mps, meta))
     return logs
 
 

@@ -56,7 +56,9 @@ from core.memo import Memo
 #: of its narrow phase, far below the clearances of the plans (mm).
 MARGIN_M = 1.0e-4
 
-_SPHERE, _CAPSULE, _CYLINDER, _BOX = 2, 3, 5, 6
+#: MuJoCo's geom type codes (mjtGeom) by the type names the MJCF writes.
+GEOM_TYPE = {"sphere": 2, "capsule": 3, "cylinder": 5, "box": 6}
+_SPHERE, _CAPSULE, _CYLINDER, _BOX = (GEOM_TYPE[k] for k in ("sphere", "capsule", "cylinder", "box"))
 #: Consecutive segment boxes tested together against the clusters of table geoms first.
 _BLOCK = 16
 #: Segment boxes are padded by this much (m) before the pairs' boxes are tested: a pair left
@@ -64,6 +66,14 @@ _BLOCK = 16
 #: of :meth:`Clearance.near_segments`).
 CERT_PAD_M = 0.5e-3
 
+
+
+def rbound(kind: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """(k,) bounding radii (MuJoCo's geom_rbound) of spheres, capsules, cylinders and boxes of
+    types ``kind`` (k,) (:data:`GEOM_TYPE`) and sizes ``size`` (k,3) (MuJoCo's, zero-padded), m."""
+    return np.where(kind == _BOX, np.linalg.norm(size, axis=1),
+                    np.where(kind == _CYLINDER, np.hypot(size[:, 0], size[:, 1]),
+                             np.where(kind == _CAPSULE, size[:, 0] + size[:, 1], size[:, 0])))
 
 @dataclass(frozen=True)
 class Geoms:

@@ -42,8 +42,8 @@ import numpy as np
 from core.memo import Memo
 
 from .artefacts import apply_R, apply_T, inv_T, make_T
-from .clearance import flat_path_segments, touch_polylines
-from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _quat, artefact_points
+from .clearance import GEOM_TYPE, flat_path_segments, rbound, touch_polylines
+from .scene import COLLISION_TOL_M, PROBE_BODY_H_M, PROBE_BODY_R_M, _f, _free_joint_T, _quat, artefact_points
 
 #: Rotary table of the Mikron UCP710 (assumed: a disc of 600 mm, 60 mm thick).
 TABLE_R_M = 0.300
@@ -58,8 +58,6 @@ EXTENSION_R_M = 5.0e-3
 STEM_L_M = 0.050
 #: Clearance of the link moves above the bar's top (along z_A), m.
 LINK_CLEAR_M = 10.0e-3
-#: MuJoCo's geom type codes (mjtGeom).
-_SPHERE_T, _CAPSULE_T, _CYLINDER_T, _BOX_T = 2, 3, 5, 6
 
 
 @dataclass(frozen=True)
@@ -150,15 +148,15 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     their definitions: about the tip centre, axes of R, in the model's order. A capsule's
     frame has its axis as z (MuJoCo's own x, y about it differ: a capsule looks the same
     from them); poses agree with the compiled model's to rounding (1e-16 m)."""
-    from .clearance import Geoms
+    from core.kinematics import _cross_rows as _cross
 
-    from .clearance import _cross
+    from .clearance import Geoms
 
     parts = _probe_parts(J_m, r_m, finger_m)
     k = len(parts)
-    kind = np.array([{"sphere": _SPHERE_T, "capsule": _CAPSULE_T, "cylinder": _CYLINDER_T}[p[1]] for p in parts])
+    kind = np.array([GEOM_TYPE[p[1]] for p in parts])
     size = np.array([tuple(p[4]) + (0.0,) * (3 - len(p[4])) for p in parts])
-    cap = kind == _CAPSULE_T
+    cap = kind == GEOM_TYPE["capsule"]
     centre = np.array([p[3] if p[2] is None else np.zeros(3) for p in parts])
     axes = np.tile(np.eye(3), (k, 1, 1))
     ends = np.array([p[2] for p in parts if p[2] is not None]).reshape(-1, 2, 3)  # the capsules'
@@ -170,9 +168,7 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     x = _cross(e, z)
     x /= np.sqrt(np.sum(x * x, axis=1))[:, None]
     axes[cap] = np.stack([x, _cross(z, x), z], axis=2)
-    rb = np.where(kind == _SPHERE_T, size[:, 0], np.where(kind == _CAPSULE_T, size[:, 0] + size[:, 1],
-                                                          np.hypot(size[:, 0], size[:, 1])))
-    return [p[0] for p in parts], Geoms(centre, axes, kind, size, rb)
+    return [p[0] for p in parts], Geoms(centre, axes, kind, size, rbound(kind, size))
 
 
 #: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object,
@@ -229,12 +225,6 @@ def _solid_pose_stack(art) -> np.ndarray:
                                        owner=art)
 
 
-def _rbound(kind: np.ndarray, size: np.ndarray) -> np.ndarray:
-    """(k,) bounding radii (MuJoCo's geom_rbound) of boxes, cylinders and spheres of sizes (k,3)."""
-    return np.where(kind == _BOX_T, np.linalg.norm(size, axis=1),
-                    np.where(kind == _CYLINDER_T, np.hypot(size[:, 0], size[:, 1]), size[:, 0]))
-
-
 #: The stylus ball's broad phase against a bar's own solids (frame A, :meth:`WorkZone.ball_clearance`)
 #: by (bar object, ball radius); the bar is kept in the entry (its id stays its own). Safe: a
 #: Clearance's geoms are fixed, its certificates hold segments in A (valid for any placement).
@@ -250,11 +240,11 @@ def _ball_clearance(art, r: float):
     sol = _solid_table(art)
     bar = np.setdiff1d(np.arange(len(sol.kinds)), sol.holder)  # the bar's own solids
     T = _solid_pose_stack(art)[bar]
-    code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
-    kind = np.array([code[sol.kinds[k]] for k in bar])
+    kind = np.array([GEOM_TYPE[sol.kinds[k]] for k in bar])
     size = sol.size3[bar]
-    H = Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, _rbound(kind, size))
-    P = Geoms(np.zeros((1, 3)), np.eye(3)[None], np.array([_SPHERE_T]), np.array([[r, 0.0, 0.0]]), np.array([r]))
+    H = Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rbound(kind, size))
+    P = Geoms(np.zeros((1, 3)), np.eye(3)[None], np.array([GEOM_TYPE["sphere"]]), np.array([[r, 0.0, 0.0]]),
+              np.array([r]))
     return Clearance(P, H, [sol.features[k] for k in bar], 0)
 
 
@@ -310,7 +300,8 @@ class WorkZone:
         self._holder = holder
         self._feature = dict(enumerate(feats))
         self._feats = feats  # (the same, as a list)
-        self._ball = nt + pnames.index("ball")
+        self._pball = pnames.index("ball")  # the ball among the probe's geoms
+        self._ball = nt + self._pball
         self._tq, self._sq = 0, 7  # the table's and the spindle's free joints in qpos (asserted on compiling)
         self._hprobe = list(range(len(holder), len(holder) + npg))
         self._hmodel = self._hdata = None
@@ -365,33 +356,27 @@ class WorkZone:
             self._model, self._data = self._compile(self.mjcf, self._names)
         return self._model
 
-    def _holder_model(self, ball_only: bool = False):
+    def _holder_model(self):
         """(model, data): the holder's geoms (table disc, blocks, bar supports) and the probe's,
-        MuJoCo's distances for the least clearance (compiled on first use). ``ball_only``: the
-        probe's stylus ball alone, one model for every probe of this placement with that ball
-        (its distances are the full holder model's, bit for bit: the same geoms at the same
-        poses, the ball at the spindle body's origin), or of every placement declared with this
-        one (:func:`share_ball_model`; this placement's holder geoms from :meth:`_ball_ids`)."""
-        if ball_only:
-            return self._ball_model()[:2]
+        MuJoCo's distances for the least clearance (compiled on first use)."""
         if self._hmodel is None:
             self._hmodel, self._hdata = self._compile(self._xml(self._holder),
                                                       [self._names[j] for j in self._holder + self._probe])
         return self._hmodel, self._hdata
 
     def _ball_model(self):
-        """(model, data, first holder geom, ball geom) of the placement's ball model."""
+        """(model, data, id of this placement's first holder geom, id of the ball) of the
+        placement's ball model: the holder's geoms and the probe's stylus ball alone, one model
+        for every probe of this placement with that ball (its distances are :meth:`_holder_model`'s,
+        bit for bit: the same geoms at the same poses, the ball at the spindle body's origin), or
+        of every placement declared with this one (:func:`share_ball_model`). The holder's geoms
+        follow the first in the order of ``self._holder``."""
         key = ("ball_model", self._r)
         if key not in self._shared:
             xml = self._xml(self._holder, probe_geoms_mjcf((0.0, 0.0, 1.0), self._r, only=("ball",)))
             names = [self._names[j] for j in self._holder] + ["ball"]
             self._shared[key] = self._compile(xml, names) + (0, len(self._holder))
         return self._shared[key]
-
-    def _ball_ids(self) -> tuple[int, int]:
-        """(id of this placement's first holder geom, id of the ball) in :meth:`_holder_model`'s
-        ball-only model; the holder's geoms follow the first in the order of ``self._holder``."""
-        return self._ball_model()[2:]
 
     @property
     def data(self):
@@ -405,28 +390,19 @@ class WorkZone:
 
     def set_tip(self, p_R) -> None:
         """Place the stylus-tip centre at ``p_R`` (3,) m, R (spindle axes parallel to R)."""
-        d = self.data
-        d.qpos[self._tq:self._tq + 7] = self._tqpos
-        d.qpos[self._sq:self._sq + 3] = p_R
-        d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
-        self._mj.mj_kinematics(self.model, d)
+        self._place(self.model, self.data, p_R)
 
-    def _set_holder_tip(self, p_R, ball_only: bool = False):
-        """(model, data) of :meth:`_holder_model` with the table placed and the tip at ``p_R``."""
-        m, d = self._holder_model(ball_only)
+    def _place(self, m, d, p_R) -> None:
+        """In ``(m, d)`` (the zone's model, its holder's or its ball's): the table at its pose, the
+        stylus-tip centre at ``p_R`` (3,) m, R."""
         d.qpos[self._tq:self._tq + 7] = self._tqpos
         d.qpos[self._sq:self._sq + 3] = p_R
         d.qpos[self._sq + 3:self._sq + 7] = (1.0, 0.0, 0.0, 0.0)
         self._mj.mj_kinematics(m, d)
-        return m, d
 
     def _T_R_W(self) -> np.ndarray:
         """(4,4) the table's pose as MuJoCo computes it from its free joint (set_table's)."""
-        q = np.array(self._tqpos)
-        self._mj.mju_normalize4(q[3:])
-        R = np.zeros(9)
-        self._mj.mju_quat2Mat(R, q[3:])
-        return make_T(R.reshape(3, 3), q[:3])
+        return _free_joint_T(self._tqpos)
 
     def table_geoms(self, in_W: bool = False):
         """The table side's geoms (:class:`sim.clearance.Geoms`, R; W if ``in_W``) at the current
@@ -438,14 +414,13 @@ class WorkZone:
         T[len(self._tpose0):] = self._T_W_A @ T[len(self._tpose0):]
         if not in_W:
             T = self._T_R_W() @ T
-        code = {"sphere": _SPHERE_T, "cylinder": _CYLINDER_T, "box": _BOX_T}
         n0 = len(self._tpose0)
         size = np.zeros((len(self._tkind), 3))
         for j, sz in enumerate(self._tsize[:n0]):  # the disc and the blocks; the bar's solids kept
             size[j, :len(sz)] = sz
         size[n0:] = _solid_table(self._args[0]).size3
-        kind = np.array([code[k] for k in self._tkind])
-        return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, _rbound(kind, size))
+        kind = np.array([GEOM_TYPE[k] for k in self._tkind])
+        return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rbound(kind, size))
 
     def clearance(self, holder_only: bool = False, part: str = "all"):
         """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose.
@@ -466,11 +441,12 @@ class WorkZone:
         from .clearance import ByOrientation, Clearance, model_geoms
 
         probe = self._probe_geoms  # about the tip, axes of R (whatever the table's pose)
-        ball = self._probe.index(self._ball)
+        ball = self._pball
         if holder_only:
             key = self._tqpos.tobytes()
             if key not in self._hclr:
-                hm, hd = self._set_holder_tip(np.zeros(3))
+                hm, hd = self._holder_model()
+                self._place(hm, hd, np.zeros(3))
                 table = model_geoms(hm, hd, range(len(self._holder)))
                 self._hclr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
                                             cert_pad_m=0.0)
@@ -562,15 +538,18 @@ class WorkZone:
         npair = len(hp)
         i = np.repeat(np.arange(len(tips)), npair)
         pair = np.tile(hp, len(tips))
-        ball = self._probe.index(self._ball)
-
-        h0, gball = self._ball_ids()
+        bm, bd, h0, gball = self._ball_model()
 
         def dist(k):  # (the ball's in the placement's model of the ball, the same distance)
             g = clr.pair_probe[pair[k]]
-            m, d = self._set_holder_tip(tips[i[k]], ball_only=g == ball)
             b = int(hpos[clr.pair_table[pair[k]]])
-            a, b = (gball, h0 + b) if g == ball else (self._hprobe[g], b)
+            if g == self._pball:
+                m, d = bm, bd
+                a, b = gball, h0 + b
+            else:
+                m, d = self._holder_model()
+                a = self._hprobe[g]
+            self._place(m, d, tips[i[k]])
             return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
 
         # the result is min(distmax, every triple's distance) as in the reference: a triple is

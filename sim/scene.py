@@ -35,7 +35,7 @@ from core.exceptions import PlanError
 from core.memo import Memo
 
 from .artefacts import Artefact, inv_T, make_T, solids_points
-from .clearance import Geoms, flat_path_segments, touch_polylines
+from .clearance import GEOM_TYPE, Geoms, flat_path_segments, rbound, touch_polylines
 from .probe import ProbeConfig
 
 #: A contact deeper than this counts as a collision (m).
@@ -50,6 +50,18 @@ def _quat(R: np.ndarray) -> np.ndarray:
     q = np.zeros(4)
     mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, float).ravel())
     return q
+
+
+def _free_joint_T(qpos) -> np.ndarray:
+    """(4,4) the pose of a free joint's ``qpos`` (7,) (position, quaternion w x y z) as MuJoCo
+    computes it (the quaternion normalised, ``mju_normalize4``, turned by ``mju_quat2Mat``)."""
+    import mujoco
+
+    q = np.array(qpos, float)
+    mujoco.mju_normalize4(q[3:])
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, q[3:])
+    return make_T(R.reshape(3, 3), q[:3])
 
 
 def _quats(R: np.ndarray) -> np.ndarray:
@@ -281,11 +293,7 @@ class Scene:
         """
         from .clearance import ByOrientation, Clearance
 
-        q = np.array(self.table_qpos())
-        self._mj.mju_normalize4(q[3:])
-        R_R_W = np.zeros(9)
-        self._mj.mju_quat2Mat(R_R_W, q[3:])
-        T_A_R = inv_T(make_T(R_R_W.reshape(3, 3), q[:3]) @ self.T_W_A)
+        T_A_R = inv_T(_free_joint_T(self.table_qpos()) @ self.T_W_A)
         if self._clr is None:
             P, H = self.definition_geoms() if self._movable else self._model_geoms_A(T_A_R)
             feats = self.geom_feature[self._table_geoms]
@@ -302,27 +310,22 @@ class Scene:
     def definition_geoms(self):
         """(probe, table) :class:`sim.clearance.Geoms` as :func:`scene_mjcf` defines them: the
         probe's about the tip, axes of R (stylus, shank, probe body); the table's in A."""
-        from .clearance import Geoms
-
         if getattr(self, "_defs", None) is not None:
             return self._defs
         art, pr = self.artefact, self.probe
         R_loc, p_loc = self._solid_local()
-        code = {"sphere": 2, "cylinder": 5, "box": 6}
-        kind = np.array([code[s.kind] for s in art.solids], int)
+        kind = np.array([GEOM_TYPE[s.kind] for s in art.solids], int)
         size = np.zeros((len(kind), 3))
         for j, s in enumerate(art.solids):
             size[j, :np.size(s.size)] = np.ravel(s.size)
-        rb = np.where(kind == 6, np.linalg.norm(size, axis=1), np.where(kind == 5, np.hypot(size[:, 0], size[:, 1]),
-                                                                       size[:, 0]))
-        H = Geoms(p_loc.copy(), R_loc.copy(), kind, size, rb)
+        H = Geoms(p_loc.copy(), R_loc.copy(), kind, size, rbound(kind, size))
         r, rs, L = pr.stylus_r_m, pr.shank_r_m, pr.shank_length_m
         hb = PROBE_BODY_H_M / 2
         # (MuJoCo turns the shank's fromto +z into a frame whose z is -z: the same geom)
+        pkind = np.array([GEOM_TYPE[k] for k in ("sphere", "capsule", "cylinder")])
+        psize = np.array([[r, 0, 0], [rs, (L - r) / 2, 0], [PROBE_BODY_R_M, hb, 0]])
         P = Geoms(np.array([[0.0, 0, 0], [0.0, 0, (r + L) / 2], [0.0, 0, L + hb]]),
-                  np.array([np.eye(3), np.diag([1.0, -1.0, -1.0]), np.eye(3)]),
-                  np.array([2, 3, 5]), np.array([[r, 0, 0], [rs, (L - r) / 2, 0], [PROBE_BODY_R_M, hb, 0]]),
-                  np.array([r, rs + (L - r) / 2, np.hypot(PROBE_BODY_R_M, hb)]))
+                  np.array([np.eye(3), np.diag([1.0, -1.0, -1.0]), np.eye(3)]), pkind, psize, rbound(pkind, psize))
         self._defs = (P, H)
         return P, H
 

@@ -15,6 +15,12 @@ Speed: ``log_1e6_check_s`` (the whole ``vmt check``) beside
 ``log_1e6_csv_split_s`` (the same file split into cells by ``csv.reader``
 alone, no number parsing or validation, in this process), and their ratio.
 
+Discovery: ``log_1e5_discover_peak_mb`` and ``log_1e5_discover_s``, ``vmt
+discover`` of a 1e5-row campaign (1,000 targets at 100 C angles, the same
+generator) in a fresh interpreter limited to :data:`DISCOVER_GUARD_MB` of
+address space (the machine is shared): a run that does not fit reports
+None and the error in ``log_1e5_discover_error``.
+
 Writing: ``log_1e6_write_s``, the 1e6-row file written by
 :func:`core.probelog.write_probe_log` (streamed block by block). On the
 first 1e5 rows, beside the previous writer (:func:`previous_format`: one
@@ -46,11 +52,15 @@ REFERENCES = {
     "log_1e6_check_s": "log_1e6_csv_split_s",
     "log_1e6_check_peak_mb": "python_numpy_baseline_mb",
     "log_1e6_touches_peak_mb": "python_numpy_baseline_mb",
+    "log_1e5_discover_peak_mb": "python_numpy_baseline_mb",
     "log_1e5_write_s": "log_1e5_write_previous_s",
     "log_1e5_write_peak_mb": "log_1e5_write_previous_peak_mb",
 }
 TARGETS = {"log_1e6_check_peak_mb": "< 2048 MB (issue 19 item 2)",
-           "log_1e6_touches_peak_mb": "< 2048 MB (issue 19 item 2)"}
+           "log_1e6_touches_peak_mb": "< 2048 MB (issue 19 item 2)",
+           "log_1e5_discover_peak_mb": "< 2048 MB (issue 19 item 2)"}
+#: Address-space limit of the discover child (MB): beyond it the run stops with a MemoryError.
+DISCOVER_GUARD_MB = 6144
 
 
 def large_log(n_targets: int, n_angles: int, rng: np.random.Generator):
@@ -138,14 +148,16 @@ print(dt, hwm)
 _WORK = {
     "baseline": "import numpy",
     "check": "from scenarios.cli import main\nassert main(['check', sys.argv[1], '--json']) == 0",
+    "discover": ("import resource\nlim = int(sys.argv[2]) << 20\nresource.setrlimit(resource.RLIMIT_AS, (lim, lim))\n"
+                 "from scenarios.cli import main\nassert main(['discover', sys.argv[1], '--json', sys.argv[1] + '.json']) == 0"),
     "touches": ("from core.probelog import read_probe_log\nfrom core.touches import from_log\n"
                 "log = read_probe_log(sys.argv[1])\nt = from_log(log.select(abs(log.col('nz')) <= 0.01))"),
 }
 
 
-def _child(what: str, path) -> tuple[float, float]:
+def _child(what: str, path, *args) -> tuple[float, float]:
     """(wall time s, peak resident memory MB) of ``_WORK[what]`` in a fresh interpreter."""
-    out = subprocess.run([sys.executable, "-c", _CHILD.format(work=_WORK[what]), str(path)],
+    out = subprocess.run([sys.executable, "-c", _CHILD.format(work=_WORK[what]), str(path), *map(str, args)],
                          capture_output=True, text=True, check=True)
     t, kb = out.stdout.split()[-2:]
     return float(t), round(int(kb) / 1024, 1)
@@ -184,7 +196,22 @@ def run() -> dict:
         out["log_1e6_check_s"] = round(t_check, 2)
         out["log_1e6_check_over_csv_split"] = round(t_check / t_ref, 2)
         out["log_1e6_touches_s"] = round(t_touch, 2)
+        out.update(_discover_figures(Path(d) / "campaign-1e5.csv"))
     return out
+
+
+def _discover_figures(path) -> dict:
+    """``vmt discover`` of a 1e5-row campaign in a guarded fresh interpreter (see the module docstring)."""
+    from core.probelog import write_probe_log
+
+    write_probe_log(path, large_log(1_000, N_ANGLES, np.random.default_rng(19)))
+    try:
+        t, mb = _child("discover", path, DISCOVER_GUARD_MB)
+        return {"log_1e5_discover_s": round(t, 2), "log_1e5_discover_peak_mb": mb}
+    except subprocess.CalledProcessError as e:  # did not fit under the guard: no figure, the reason
+        last = (e.stderr or e.stdout or "").strip().splitlines()[-1:] or ["no output"]
+        return {"log_1e5_discover_s": None, "log_1e5_discover_peak_mb": None,
+                "log_1e5_discover_error": f"exit {e.returncode} under a {DISCOVER_GUARD_MB} MB limit: {last[0][:200]}"}
 
 
 if __name__ == "__main__":  # pragma: no cover - by hand: python -m scenarios.bench.probelog

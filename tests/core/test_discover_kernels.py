@@ -148,3 +148,91 @@ def test_spectral_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
     assert blocked[0].test == whole[0].test and np.array_equal(blocked[0].basis, whole[0].basis)
     with pytest.raises(ValueError, match="multiple of 32"):
         screen_phasors(kept.w, kept.f, 5)
+
+
+def _plane(x, y, rng, grid_step_m=0.04):
+    """The planar data periodic_scans reads: positions (m), in-plane normals, the error map's grid step."""
+    from types import SimpleNamespace
+
+    b = rng.uniform(0, 2 * np.pi, len(x))
+    return SimpleNamespace(data=SimpleNamespace(x=x, y=y, nx=np.cos(b), ny=np.sin(b), grid_step_m=grid_step_m))
+
+
+def test_ripple_scan_follows_the_distinct_positions_not_the_rows():
+    """Repeats add rows, not frequencies; and past MAX_SCAN_FREQUENCIES the grid stops growing.
+
+    200 distinct positions (1 mm apart along x, 0.5 mm along y) give the same trials whether each is
+    touched once or ten times (2,000 rows): along x, 3 * span * (1 / p_lo - 1 / p_hi) = 3 * 0.199 m *
+    (1 / 2 mm - 1 / 40 mm) = 283.6, so 284 frequencies. Known answer for the cap: 20,001 distinct
+    positions 5 um apart over 0.1 m would need 3 * 0.1 * (1 / 10 um - 1 / 40 mm) = 29,993 on the fine grid;
+    the scan keeps the cap's count over the same range, and a log twice as long scans no more.
+    """
+    from core.causes import periodic_scans
+
+    rng = np.random.default_rng(3)
+    x, y = np.arange(200) * 1e-3, np.arange(200) * 0.5e-3
+    once, _ = periodic_scans(_plane(x, y, rng))
+    rep, _ = periodic_scans(_plane(np.repeat(x, 10), np.repeat(y, 10), rng))
+    assert [len(s.infos) for s in once] == [len(s.infos) for s in rep] and len(once) == 2
+    assert [s.infos for s in once] == [s.infos for s in rep] and len(once[0].infos) == 284
+    cap = D.MAX_SCAN_FREQUENCIES
+    for n in (20_001, 40_001):
+        a = np.linspace(0.0, 0.1, n)
+        sc, _ = periodic_scans(_plane(a, a, rng))
+        f = 1 / np.array([i["period_m"] for i in sc[0].infos])
+        assert cap <= len(f) <= cap + 1  # (arange's last step may round either way)
+        assert f[0] == pytest.approx(1 / 0.04) and f[-1] <= 1 / sc[0].infos[0]["nyquist_m"]
+        assert sc[0].infos[0]["scan_step_per_m"] == pytest.approx(f[1] - f[0])  # the refinement's reach
+    assert "scan_step_per_m" not in once[0].infos[0]  # the fine grid: refined as before
+
+
+def test_ripple_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
+    """A ripple scan too big to keep is scored a block of frequencies at a time: the same scores, bit for bit.
+
+    Known answer first: a 7 mm ripple along x in the residuals scores best at the trial nearest 7 mm.
+    Then the table is refused (TABLE_BYTES 0, blocks of 32 frequencies): every score is equal, on all
+    rows and on a subset (the rows a cross-validation fold keeps).
+    """
+    from core import causes as C
+
+    rng = np.random.default_rng(11)
+    n = 400
+    x, y = np.sort(rng.uniform(0, 0.2, n)), rng.uniform(0, 0.2, n)
+    bl = _plane(x, y, rng)
+    r = -bl.data.nx * 1e-6 * np.sin(2 * np.pi * x / 7e-3 + 0.4) + rng.normal(0, 1e-7, n)
+    kept = C.periodic_scans(bl)[0][0]
+    rows, sub = np.arange(n), np.sort(rng.choice(n, 300, replace=False))
+    s_all, s_sub = kept.score(r, rows), kept.score(r[sub], sub)
+    P = np.array([i["period_m"] for i in kept.infos])
+    assert abs(P[np.argmax(s_all)] - 7e-3) <= np.min(np.abs(P - 7e-3)) + 1e-12 and len(P) % D._BLOCK
+    monkeypatch.setattr(C, "TABLE_BYTES", 0)
+    monkeypatch.setattr(C, "SCAN_BLOCK_BYTES", 1)
+    lazy = C.periodic_scans(bl)[0][0]
+    assert np.array_equal(lazy.score(r, rows), s_all) and np.array_equal(lazy.score(r[sub], sub), s_sub)
+
+
+def test_folds_lean_path_is_the_kept_spans_to_rounding(monkeypatch):
+    """Cross-validation of a long log keeps its spans' coefficients, not the spans: the same residuals.
+
+    A design of 8 groups (set-ups) with a column only one group sees, null draws (n, 5), and an
+    extension with and without a ridge penalty: held-out residuals and dof equal the kept spans' to
+    1e-12 relative (the sums are re-associated, nothing else), and the lean path keeps no (n_tr, r) table.
+    """
+    from core import discover as X
+
+    rng = np.random.default_rng(21)
+    n, p = 240, 12
+    groups = np.repeat(np.arange(8), n // 8)
+    A = rng.normal(size=(n, p))
+    A[:, -1] = (groups == 3) * rng.normal(size=n)  # seen by one group only: that fold's own column
+    Y = rng.normal(size=(n, 5))
+    E = np.column_stack([np.sin(np.arange(n) / 7.0), rng.normal(size=n), A[:, 0] + 1e-3 * rng.normal(size=n)])
+    pen = np.diag([0.0, 2.0, 5.0])
+    kept = X.Folds(A, groups, 1e-2)
+    monkeypatch.setattr(X, "FOLD_BYTES", 0)
+    lean = X.Folds(A, groups, 1e-2)
+    assert kept.A is None and lean.A is not None and all(it[2][1].shape[0] < p + 1 for it in lean.items)
+    for args in ((Y,), (Y, E), (Y, E, pen), (Y[:, 0], E[:, :1])):
+        a, b = kept.residuals(*args), lean.residuals(*args)
+        assert kept.last_dof == lean.last_dof
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())

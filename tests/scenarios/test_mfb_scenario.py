@@ -469,12 +469,13 @@ def test_the_lost_budget_draw_is_touched_by_the_program():
     cfg, _ = mfb.default_machine("vmc-3axis")
     from dataclasses import replace
 
-    m = mfb._NoSafeHeight(Machine(replace(cfg, J_m=tuple(ms.J_m))))
+    m = Machine(replace(cfg, J_m=tuple(ms.J_m)))
     setup = [Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), ms.T_W_A @ dT)]
 
     def touch(**program):
         pl = mfb._plan_for(art, ms.holes, **program)
-        return simulate_campaign(art, m, ProbeConfig(), setup, None, plan=pl, check_collisions=False)
+        return simulate_campaign(art, m, ProbeConfig(), setup, None, plan=pl, check_collisions=False,
+                                 stroke_check=False)
 
     old = {"clearance_m": 2.0e-3, "overshoot_m": 3.0e-3}
     log = touch(**old)

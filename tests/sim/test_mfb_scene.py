@@ -105,12 +105,15 @@ def test_ball_distances_from_the_placements_ball_model_are_the_zones_bit_for_bit
         wz = WorkZone(BAR, FLAT, blocks, J_m, R)
         wz.set_table(_T_R_W(A_deg, C_deg))
         T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
-        ball = wz._hprobe[wz._probe.index(wz._ball)]
+        ball = wz._hprobe[wz._pball]
+        m1, d1 = wz._holder_model()
+        m2, d2, h0, b2 = wz._ball_model()
+        assert (h0, b2) == (0, len(wz._holder))
         for p in A.apply_T(T_R_A, rng.uniform([-0.05, -0.05, -0.07], [0.45, 0.10, 0.05], (60, 3))):
-            m1, d1 = wz._set_holder_tip(p)
+            wz._place(m1, d1, p)
             d_zone = [mujoco.mj_geomDistance(m1, d1, ball, h, 0.05, None) for h in range(len(wz._holder))]
-            m2, d2 = wz._set_holder_tip(p, ball_only=True)
-            d_ball = [mujoco.mj_geomDistance(m2, d2, len(wz._holder), h, 0.05, None) for h in range(len(wz._holder))]
+            wz._place(m2, d2, p)
+            d_ball = [mujoco.mj_geomDistance(m2, d2, b2, h0 + h, 0.05, None) for h in range(len(wz._holder))]
             assert d_zone == d_ball
             n += sum(v < 0.05 for v in d_zone)
     assert n > 20  # distances within reach, not only distmax
@@ -136,19 +139,19 @@ def test_ball_distances_from_the_plans_shared_ball_model_are_each_placements_bit
     mfb_scene._ZONES.clear()
     mfb_scene.share_ball_model(BAR, [(T, blocks, J, 0.0) for T, blocks in place], R)
     shared = [mfb_scene._work_zone(BAR, T, blocks, J, R, 0.0) for T, blocks in place]
-    assert len({id(z._holder_model(ball_only=True)[0]) for z in shared}) == 1
+    assert len({id(z._ball_model()[0]) for z in shared}) == 1
     rng = np.random.default_rng(5)
     n = 0
     for (T, _), z1, z2 in zip(place, own, shared):
         T_R_W = _T_R_W(-30, 20)
         z1.set_table(T_R_W)
         z2.set_table(T_R_W)
-        (h1, b1), (h2, b2) = z1._ball_ids(), z2._ball_ids()
+        (m1, d1, h1, b1), (m2, d2, h2, b2) = z1._ball_model(), z2._ball_model()
         assert (h1, b1) == (0, len(z1._holder)) and b2 == sum(len(z._holder) for z in shared)
         for p in A.apply_T(T_R_W @ T, rng.uniform([-0.05, -0.05, -0.07], [0.45, 0.10, 0.05], (40, 3))):
-            m1, d1 = z1._set_holder_tip(p, ball_only=True)
+            z1._place(m1, d1, p)
             d_own = [mujoco.mj_geomDistance(m1, d1, b1, h1 + h, 0.05, None) for h in range(len(z1._holder))]
-            m2, d2 = z2._set_holder_tip(p, ball_only=True)
+            z2._place(m2, d2, p)
             d_shared = [mujoco.mj_geomDistance(m2, d2, b2, h2 + h, 0.05, None) for h in range(len(z2._holder))]
             assert d_own == d_shared
             n += sum(v < 0.05 for v in d_own)
