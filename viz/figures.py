@@ -95,6 +95,35 @@ def _scale_bar(ax, length_mm: float, text: str) -> None:
                       frameon=True, size_vertical=0))
 
 
+def write_png(fig, target, *, dpi: int = 110) -> None:
+    """``fig.savefig(target, dpi=dpi, format="png")``, drawn once instead of twice.
+
+    With a layout engine (our figures are ``constrained``) matplotlib's
+    savefig draws a figure twice: an invisible draw that lays it out, then
+    the draw that paints (every tick label and text measured again). On its
+    own Agg canvas (:func:`_figure`) the figure is drawn once at ``dpi``
+    (layout and paint in one draw) and the canvas written as savefig writes
+    it (``matplotlib.image.imsave``, same metadata): the same PNG, byte for
+    byte. ``target``: a path or a binary file object. The figure keeps its
+    dpi; any other figure goes through savefig. Written as drawn: the
+    ``savefig.*`` rcParams (facecolor, transparent, bbox) are not consulted
+    and animated artists are not drawn (viz sets none of them).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.image import imsave
+
+    if type(fig.canvas) is not FigureCanvasAgg or fig.get_layout_engine() is None:
+        fig.savefig(target, dpi=dpi, format="png")
+        return
+    old_dpi = fig.dpi
+    try:
+        fig.set_dpi(dpi)
+        fig.canvas.draw()
+        imsave(target, fig.canvas.buffer_rgba(), format="png", origin="upper", dpi=fig.dpi)
+    finally:
+        fig.set_dpi(old_dpi)
+
+
 def save_png(fig, path, *, dpi: int = 110) -> Path:
     """Write ``fig`` as a PNG at ``path``, complete or not at all (temp + rename)."""
     path = Path(path)
@@ -103,7 +132,7 @@ def save_png(fig, path, *, dpi: int = 110) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
     os.close(fd)
     try:
-        fig.savefig(tmp, dpi=dpi, format="png")
+        write_png(fig, tmp, dpi=dpi)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)

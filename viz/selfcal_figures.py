@@ -132,8 +132,10 @@ def figure_png_bytes(fig, *, dpi: int = 110) -> bytes:
     """The figure rendered as PNG bytes (what :func:`log_figures` records)."""
     import io
 
+    from viz.figures import write_png
+
     buf = io.BytesIO()
-    fig.savefig(buf, dpi=dpi, format="png")
+    write_png(fig, buf, dpi=dpi)
     return buf.getvalue()
 
 

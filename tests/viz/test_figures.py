@@ -125,3 +125,31 @@ def test_bad_input(call, match):
 def test_save_png_missing_folder(tmp_path):
     with pytest.raises(ConfigError, match="folder does not exist"):
         vf.save_png(vf.findings_figure({"baseline": {"rms_um": 1.0}}), tmp_path / "no" / "f.png")
+
+
+@pytest.mark.parametrize("build", [
+    lambda: vf.rotary_centre_figure([0, 75, 130, 210], [16, 14, 15, 13], [6, 7, 5, 6], ex0c_um=15.0, ey0c_um=6.0),
+    lambda: vf.grid_uncertainty_figure(X_MM, Y_MM, np.abs(GY) / 10 + 1),  # a colorbar
+    lambda: vf.error_motions_figure(AXES, truth={"EXX": 0.09 * X_MM}),  # panels, a hidden one
+], ids=["centre", "colorbar", "panels"])
+def test_written_png_is_what_savefig_writes(build):
+    # write_png draws once where savefig draws twice; matplotlib's own savefig is the reference:
+    # the same bytes, the first save and the second, and the figure keeps its dpi and its engine
+    import io
+
+    fig_a, fig_b = build(), build()
+    for _ in range(2):
+        a, b = io.BytesIO(), io.BytesIO()
+        fig_a.savefig(a, dpi=110, format="png")
+        vf.write_png(fig_b, b, dpi=110)
+        assert a.getvalue() == b.getvalue()
+    assert fig_b.dpi == 100 and type(fig_b.get_layout_engine()).__name__ == "ConstrainedLayoutEngine"
+
+
+def test_written_png_of_a_figure_without_agg_canvas_goes_through_savefig(tmp_path):
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(2, 2), layout="constrained")  # its canvas is FigureCanvasBase
+    fig.add_subplot().plot([0, 1], [1, 0])
+    vf.write_png(fig, tmp_path / "f.png", dpi=50)
+    assert (tmp_path / "f.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
