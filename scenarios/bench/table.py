@@ -52,9 +52,14 @@ def table_markdown(doc: dict) -> str:
              "| --- | ---: | --- | ---: | ---: | --- |"]
     rows = {k: r for k, r in doc["figures"].items()
             if isinstance(r, dict) and ("reference" in r or "target" in r)}
+    errors = [k[:-len("_error")] for k in doc["figures"] if k.endswith("_error")]
     for name in sorted(rows, key=lambda k: (str(rows[k].get("bench")), k)):
         r = rows[name]
-        lines.append(f"| `{name}` | {_cell(r.get('value'))} | "
+        value = _cell(r.get("value"))
+        if r.get("value") is None:  # a figure its run could not measure says where the reason is
+            failed = [e for e in errors if name.startswith(e + "_")]
+            value = f"failed: see `{failed[0]}_error`" if failed else "not measured"
+        lines.append(f"| `{name}` | {value} | "
                      f"{'`' + r['reference'] + '`' if r.get('reference') else ''} | "
                      f"{_cell(r.get('reference_value'))} | {_cell(r.get('ratio'))} | {_cell(r.get('target'))} |")
     if not rows:

@@ -49,6 +49,17 @@ def test_table_known_answer():
     ]
 
 
+def test_a_figure_its_run_could_not_measure_says_why_in_the_table():
+    # the run wrote None and the reason beside it (probelog's discover under a memory limit)
+    values = {"big_peak_mb": None, "big_s": None, "big_error": "exit 1 under a 6144 MB limit", "base_mb": 25.0,
+              "lone_s": None}
+    doc = document(META, values, {"big_peak_mb": "base_mb"}, {"big_peak_mb": "< 2048 MB", "lone_s": "< 1 s"},
+                   {k: "bench_one" for k in values})
+    rows = table_markdown(doc).splitlines()[4:]
+    assert rows == ["| `big_peak_mb` | failed: see `big_error` | `base_mb` | 25 |  | < 2048 MB |",
+                    "| `lone_s` | not measured |  |  |  | < 1 s |"]
+
+
 def test_replace_table_touches_only_the_marked_section():
     readme = f"# title\n\ntext before\n\n{BEGIN}\nold table\nmore\n{END}\n\ntext after\n"
     out = replace_table(readme, "NEW\n")
