@@ -64,7 +64,7 @@ from typing import Callable
 
 import numpy as np
 
-from .diagnosis import _BLOCK, SCAN_BLOCK_BYTES, TABLE_BYTES, scan_grid, screen_phasors
+from .diagnosis import TABLE_BYTES, phasor_blocks, scan_grid, screen_phasors
 from .units import MM, UM, URAD
 
 
@@ -152,34 +152,29 @@ def _trial_scores(F, F2, r, W) -> np.ndarray:
     return np.sum(num / np.maximum(den, 1e-300), axis=0)
 
 
-def _matmul_score(funcs: Callable, weights: np.ndarray, blocks: Callable | None = None):
-    """Score of trials whose columns are ``weights[:, m] * F[:, t]`` for functions ``F = funcs()`` (n, T).
+def _matmul_score(blocks: Callable, weights: np.ndarray, keep: bool = True):
+    """Score of trials whose columns are ``weights[:, m] * F[:, t]``, ``F`` the functions of the trials (n, T).
 
-    ``sum_m (r . (w_m F_t))^2 / |w_m F_t|^2`` by two matrix products per mode;
-    ``F`` is computed once (all rows) and kept. With ``blocks`` (a
-    callable giving ``(columns, combine)`` pairs: the functions of a block
-    of trials over all rows and how the block's column scores make its
-    trials' scores), the table is never kept whole: each call computes it
-    a block at a time, so memory stays at one block whatever the rows.
+    ``sum_m (r . (w_m F_t))^2 / |w_m F_t|^2`` by two matrix products per mode.
+    ``blocks()`` yields ``(F_b, combine)``: the functions of a block of trials
+    over all rows and how the block's column scores make its trials' scores.
+    ``keep``: the blocks computed once and kept (a small table: one block,
+    the table itself); else computed afresh at each call, a block at a time,
+    so memory stays at one block whatever the rows.
     """
-    cache = []
+    kept = []
 
     def score(r, rows):
         every = len(rows) == len(weights) and np.array_equal(rows, np.arange(len(weights)))
         W = weights[rows]
-        if blocks is not None:
-            out = []
-            for F, combine in blocks():
-                F = F if every else F[rows]
-                out.append(combine(_trial_scores(F, F ** 2, r, W)))
-            return np.concatenate(out)
-        if not cache:
-            F = funcs()
-            cache.append((F, F ** 2))
-        F, F2 = cache[0]
-        if not every:  # (every row: the table itself, not a copy of it)
-            F, F2 = F[rows], F2[rows]
-        return _trial_scores(F, F2, r, W)
+        if keep and not kept:
+            kept.extend((F, F ** 2, combine) for F, combine in blocks())
+        out = []
+        for F, F2, combine in kept if keep else ((F, F ** 2, c) for F, c in blocks()):
+            if not every:  # (every row: the table itself, not a copy of it)
+                F, F2 = F[rows], F2[rows]
+            out.append(combine(_trial_scores(F, F2, r, W)))
+        return out[0] if len(out) == 1 else np.concatenate(out)
     return score
 
 
@@ -352,34 +347,25 @@ def periodic_scans(bl):
         p_lo, p_hi = 2 * gap, d.grid_step_m
         if span <= 0 or p_hi <= 1.2 * p_lo:
             continue
-        f = scan_grid(p_lo, p_hi, span)
+        f, coarse = scan_grid(p_lo, p_hi, span)
         P = 1 / f
         tries += span * (1 / p_lo - 1 / p_hi)
         ax = "XY"[axis]
         # a grid coarser than the fine one (a long log, see MAX_SCAN_FREQUENCIES): the refinement
         # searches one of its steps either side of the best trial
-        coarse = {"scan_step_per_m": float(f[1] - f[0])} if len(f) > 1 and f[1] - f[0] > 1.001 / (3 * span) else {}
+        step = {"scan_step_per_m": float(f[1] - f[0])} if coarse and len(f) > 1 else {}
+        # the score's sines and cosines (it ranks trials, the columns tested are exact), sin and cos of a
+        # period one trial; the table kept whole while small, else a block of frequencies at a time
+        # (bit for bit: screen_phasors)
+        big = 32 * len(a) * len(f) > TABLE_BYTES  # (the table and its square, sine and cosine)
 
-        def funcs(a=a, f=f):  # the score's sines and cosines: it ranks trials, the columns tested are exact
-            Z = screen_phasors(2 * np.pi * a, f)
-            return np.hstack([Z.imag, Z.real])
-
-        def blocks(a=a, f=f):  # the same, a block of frequencies at a time (bit for bit: screen_phasors)
-            step = max(1, SCAN_BLOCK_BYTES // (32 * len(a) * _BLOCK)) * _BLOCK
-            for i in range(0, len(f), step):
-                Z = screen_phasors(2 * np.pi * a, f, i, i + step)
+        def blocks(w=2 * np.pi * a, f=f, big=big):
+            for _, Z in phasor_blocks(w, f) if big else [(None, screen_phasors(w, f))]:
                 yield np.hstack([Z.imag, Z.real]), lambda s2, m=Z.shape[1]: s2[:m] + s2[m:]
 
-        W = np.column_stack([-d.nx, -d.ny])
-        big = 32 * len(a) * len(f) > TABLE_BYTES  # (the table and its square, sine and cosine)
-        base = _matmul_score(funcs, W, blocks if big else None)
-
-        def score(r, rows, base=base, T=len(P), big=big):  # sin and cos of each period: one trial
-            s2 = base(r, rows)
-            return s2 if big else s2[:T] + s2[T:]
-
+        score = _matmul_score(blocks, np.column_stack([-d.nx, -d.ny]), keep=not big)
         scans.append(Scan((f"EX{ax}_sin", f"EX{ax}_cos", f"EY{ax}_sin", f"EY{ax}_cos"),
-                          tuple({"axis": ax, "period_m": float(p), "nyquist_m": p_lo, **coarse} for p in P),
+                          tuple({"axis": ax, "period_m": float(p), "nyquist_m": p_lo, **step} for p in P),
                           "xy"[axis],
                           lambda idx, axis=axis, P=P: _periodic_cols(d, axis, P[np.asarray(idx)]), score))
     return scans, tries
@@ -681,7 +667,7 @@ def defect_scans(bl):
             ax = "XY"[axis]
 
             def funcs(a=a, x0=x0, w=w):
-                return _hann((a[:, None] - x0[None, :]) / w)
+                yield _hann((a[:, None] - x0[None, :]) / w), lambda s2: s2
 
             scans.append(Scan((f"E{ax}{ax}_bump",),
                               tuple({"axis": ax, "centre_m": float(c), "half_width_m": w} for c in x0), "xy"[axis],

@@ -348,7 +348,7 @@ def _frequencies(cov: Covariate):
     p_lo, p_hi = cov.period_range
     if span <= 0 or p_hi <= 1.2 * p_lo:
         return None
-    return scan_grid(p_lo, p_hi, span)
+    return scan_grid(p_lo, p_hi, span)[0]
 
 
 #: Most frequencies one spectral scan tests (a ripple along x or y, an
@@ -367,17 +367,19 @@ def _frequencies(cov: Covariate):
 MAX_SCAN_FREQUENCIES = 4096
 
 
-def scan_grid(p_lo: float, p_hi: float, span: float) -> np.ndarray:
-    """(F,) frequencies (1/unit) scanned for periods ``p_lo..p_hi`` over values spanning ``span``.
+def scan_grid(p_lo: float, p_hi: float, span: float) -> tuple[np.ndarray, bool]:
+    """((F,) frequencies (1/unit) scanned for periods ``p_lo..p_hi`` over values spanning ``span``, coarse).
 
     ``1 / (3 span)`` apart from ``1 / p_hi`` (three per independent
     frequency), or, when that is more than :data:`MAX_SCAN_FREQUENCIES`,
-    that many evenly spaced over the same range (see its note).
+    that many evenly spaced over the same range (see its note): then
+    ``coarse`` is True.
     """
     step = 1 / (3 * span)
-    if (1 / p_lo - 1 / p_hi) / step > MAX_SCAN_FREQUENCIES:
+    coarse = (1 / p_lo - 1 / p_hi) / step > MAX_SCAN_FREQUENCIES
+    if coarse:
         step = (1 / p_lo - 1 / p_hi) / MAX_SCAN_FREQUENCIES
-    return np.arange(1 / p_hi, 1 / p_lo, step)
+    return np.arange(1 / p_hi, 1 / p_lo, step), coarse
 
 
 #: Frequencies per block of the pre-screen's tables: each block starts from an
@@ -434,11 +436,22 @@ class SpectralTable(tuple):
         if self.Z is not None:
             yield slice(None), self.Z, self.S2, self.C2
             return
-        n, F = len(self.w), len(self.f)
-        step = max(1, SCAN_BLOCK_BYTES // (32 * max(n, 1) * _BLOCK)) * _BLOCK
-        for a in range(0, F, step):
-            Z = screen_phasors(self.w, self.f, a, min(F, a + step))
-            yield slice(a, a + step), Z, Z.imag ** 2, Z.real ** 2
+        for cols, Z in phasor_blocks(self.w, self.f):
+            yield cols, Z, Z.imag ** 2, Z.real ** 2
+
+
+def phasor_blocks(w: np.ndarray, f: np.ndarray):
+    """``(slice, Z)``: :func:`screen_phasors` of ``w`` over ``f`` a block of frequencies at a time.
+
+    Blocks of about :data:`SCAN_BLOCK_BYTES` (a table row and frequency
+    costs 32 bytes with its squares), at least ``_BLOCK`` frequencies,
+    each starting at a multiple of ``_BLOCK``: bit for bit the columns of
+    the whole table.
+    """
+    n, F = len(w), len(f)
+    step = max(1, SCAN_BLOCK_BYTES // (32 * max(n, 1) * _BLOCK)) * _BLOCK
+    for a in range(0, F, step):
+        yield slice(a, a + step), screen_phasors(w, f, a, min(F, a + step))
 
 
 def spectral_table(cov: Covariate):

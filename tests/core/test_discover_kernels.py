@@ -206,7 +206,7 @@ def test_ripple_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
     P = np.array([i["period_m"] for i in kept.infos])
     assert abs(P[np.argmax(s_all)] - 7e-3) <= np.min(np.abs(P - 7e-3)) + 1e-12 and len(P) % D._BLOCK
     monkeypatch.setattr(C, "TABLE_BYTES", 0)
-    monkeypatch.setattr(C, "SCAN_BLOCK_BYTES", 1)
+    monkeypatch.setattr(D, "SCAN_BLOCK_BYTES", 1)
     lazy = C.periodic_scans(bl)[0][0]
     assert np.array_equal(lazy.score(r, rows), s_all) and np.array_equal(lazy.score(r[sub], sub), s_sub)
 
