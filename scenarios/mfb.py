@@ -903,6 +903,40 @@ def _check_machine_for_plan(cfg, plan, name):
                           f"{want.text!r} (the plan is designed for that structure)")
 
 
+def simulation_items(plan, art, probe, cfg_true, program: dict, machines: dict, T_true: dict | None = None, *,
+                     compensate=None, hook=None, progress=None) -> list:
+    """(artefact, machine, probe, set-up, plan) of each measurement of ``plan``, as :func:`run` simulates them
+    (``sim.campaign.simulate_measurements``).
+
+    One machine per stylus (``cfg_true`` with its offsets, through ``compensate`` if given; kept in
+    ``machines``, stylus -> Machine), one touch program per bar and hole set at ``program``'s margins
+    (:func:`_program`), the placement's true pose ``T_true[placement]`` (None: nominal); ``hook(k, ms,
+    art, probe, machine) -> (art, probe, machine)`` may change a measurement's; ``progress(k)`` before each.
+    """
+    from dataclasses import replace
+
+    from sim.machine import Machine
+    from sim.setups import Setup
+
+    items, plans = [], {}  # plans by bar and holes
+    for k, ms in enumerate(plan.measurements):
+        if progress is not None:
+            progress(k)
+        if ms.stylus not in machines:
+            machines[ms.stylus] = Machine(replace(cfg_true, J_m=tuple(ms.J_m)))
+            if compensate is not None:
+                machines[ms.stylus] = compensate(machines[ms.stylus])
+        m = machines[ms.stylus]
+        art_i, probe_i = art, probe
+        if hook is not None:
+            art_i, probe_i, m = hook(k, ms, art, probe, m)
+        if (id(art_i), ms.holes) not in plans:  # the bar's part per hole set (its program: mfb_plan's cache)
+            plans[id(art_i), ms.holes] = _plan_for(art_i, ms.holes, **program)
+        T = None if T_true is None else T_true[ms.placement]
+        items.append((art_i, m, probe_i, Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T), plans[id(art_i), ms.holes]))
+    return items
+
+
 def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None, mc_runs: int = 500,
         exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
         u_cal_um: tuple = (0.2, 0.35, 0.35), bar_cal_error: bool = True,
@@ -995,8 +1029,6 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     from sim import artefacts as A
     from sim.campaign import simulate_measurements
     from sim.plans import mfb_plan
-    from sim.setups import Setup
-    from sim.machine import Machine
     from sim.probe import ProbeConfig
 
     if name not in PLANS:
@@ -1081,23 +1113,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         else:
             T_true[p] = None
     steps = len(plan.measurements) + 2
-    items, plans = [], {}  # (artefact, machine, probe, set-up, plan) of each measurement; plans by bar, holes
-    for k, ms in enumerate(plan.measurements):
-        if progress is not None:
-            progress(k, steps)
-        J = tuple(ms.J_m)
-        if ms.stylus not in machines:
-            machines[ms.stylus] = Machine(replace(cfg_true, J_m=J))
-            if compensate is not None:
-                machines[ms.stylus] = compensate(machines[ms.stylus])
-        m = machines[ms.stylus]
-        art_i, probe_i = art, probe
-        if hook is not None:
-            art_i, probe_i, m = hook(k, ms, art, probe, m)
-        if (id(art_i), ms.holes) not in plans:  # the bar's part per hole set (its program: mfb_plan's cache)
-            plans[id(art_i), ms.holes] = _plan_for(art_i, ms.holes, **program)
-        items.append((art_i, m, probe_i, Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad), T_true[ms.placement]),
-                      plans[id(art_i), ms.holes]))
+    items = simulation_items(plan, art, probe, cfg_true, program, machines, T_true, compensate=compensate,
+                             hook=hook, progress=None if progress is None else (lambda k: progress(k, steps)))
     # every measurement's touches in one simulation (its styli on one machine, sim.campaign);
     # the links' safe height lies above a standing bar's Z stroke: the touches are checked instead
     logs = simulate_measurements(items, rng if noisy else None, stroke_check=False)

@@ -339,28 +339,16 @@ def _mfb5_simulation_s(plan) -> float:
     one machine per stylus, one touch program per hole set at the program's margins
     (``_program(U_PLACE)``), every measurement in one ``simulate_measurements`` call without the
     stroke check (run checks the touches' strokes itself)."""
-    from dataclasses import replace
-
     from scenarios import mfb as S
     from sim import artefacts as A
     from sim.campaign import simulate_measurements
-    from sim.machine import Machine
     from sim.probe import ProbeConfig
-    from sim.setups import Setup
 
     m0 = _mfb_machine()
     art = A.multi_feature_bar()
-    probe = ProbeConfig()
     program = S._program(S.U_PLACE)  # (kept by scenarios.mfb: run computes it before simulating too)
     t0 = time.perf_counter()
-    machines, plans, items = {}, {}, []
-    for ms in plan.measurements:
-        if ms.stylus not in machines:
-            machines[ms.stylus] = Machine(replace(m0.config, J_m=tuple(ms.J_m)))
-        if ms.holes not in plans:
-            plans[ms.holes] = S._plan_for(art, ms.holes, **program)
-        items.append((art, machines[ms.stylus], probe, Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad)),
-                      plans[ms.holes]))
+    items = S.simulation_items(plan, art, ProbeConfig(), m0.config, program, {})
     simulate_measurements(items, np.random.default_rng(1), stroke_check=False)
     return time.perf_counter() - t0
 
