@@ -67,13 +67,13 @@ _BLOCK = 16
 CERT_PAD_M = 0.5e-3
 
 
-
 def rbound(kind: np.ndarray, size: np.ndarray) -> np.ndarray:
     """(k,) bounding radii (MuJoCo's geom_rbound) of spheres, capsules, cylinders and boxes of
     types ``kind`` (k,) (:data:`GEOM_TYPE`) and sizes ``size`` (k,3) (MuJoCo's, zero-padded), m."""
     return np.where(kind == _BOX, np.linalg.norm(size, axis=1),
                     np.where(kind == _CYLINDER, np.hypot(size[:, 0], size[:, 1]),
                              np.where(kind == _CAPSULE, size[:, 0] + size[:, 1], size[:, 0])))
+
 
 @dataclass(frozen=True)
 class Geoms:
