@@ -5,7 +5,7 @@ simulator: :class:`SimMachine` adapts ``sim.probe.VirtualMachine`` to the
 ``probe_move`` duck type the emulator and :class:`hardware.backend.VirtualBackend`
 use, :func:`sim_machine` builds it for a named artefact, :func:`builtin_machine`
 is the small known-error scene (:class:`hardware.scene.SimpleScene`), and
-:func:`open_backend` turns a ``--machine`` URL into a probing backend.
+:func:`open_backend` turns a ``--controller`` URL into a probing backend.
 """
 
 from __future__ import annotations
@@ -95,7 +95,7 @@ def sim_machine(scene: str = "cross-pocket", noise_um: float | None = 0.0, seed:
 
 def open_backend(url: str, *, timeout_s: float = 60.0, rotary: bool = False, on_event=None,
                  transcript=None, axes: str | None = None, reset: bool = False):
-    """A probing backend for a ``--machine`` URL.
+    """A probing backend for a ``--controller`` URL.
 
     ``grbl://HOST:PORT``, ``tcp://...`` or ``serial:///dev/ttyX`` connect to a
     GRBL controller (:func:`hardware.grbl.connect`, with ``timeout_s``,
@@ -120,5 +120,5 @@ def open_backend(url: str, *, timeout_s: float = 60.0, rotary: bool = False, on_
     if url.startswith("virtual:") and url[len("virtual:"):].lstrip("/"):
         scene = url[len("virtual:"):].lstrip("/")
         return VirtualBackend(sim_machine(scene), name=f"virtual:{scene}")
-    raise HardwareError(f"--machine {url!r}: expected grbl://HOST:PORT, serial:///dev/ttyX, virtual: "
+    raise HardwareError(f"--controller {url!r}: expected grbl://HOST:PORT, serial:///dev/ttyX, virtual: "
                         "or virtual:SCENE (cross-pocket, pin-circle, freeform, mfb)")

@@ -63,6 +63,15 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message):  # noqa: D102 - argparse's hook
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+    def parse_known_args(self, args=None, namespace=None):  # noqa: D102
+        # a required option with an old name (scenarios.cli.options.option) is required here, not by
+        # argparse: either name satisfies it
+        ns, rest = super().parse_known_args(args, namespace)
+        missing = [name for dest, name in getattr(self, "vmt_required", ()) if getattr(ns, dest, None) is None]
+        if missing:
+            self.error(f"the following arguments are required: {', '.join(missing)}")
+        return ns, rest
+
 
 def _arg_paths(args, names) -> dict:
     """``{--option: path}`` of the arguments ``names`` that hold a path (skip flags and unset ones)."""
