@@ -34,7 +34,7 @@ from pathlib import Path
 #: command -> (input files, output files, output folders), as ``args`` attribute names.
 #: ``vmt probe --out`` is absent on purpose: an append-only log, continued by --resume.
 FILES = {
-    "check": (("log",), (), ()),
+    "check": (("log",), ("json",), ()),
     "identify": (("log",), ("json",), ()),
     "discover": (("log",), ("json_out",), ("report",)),
     "design": (("plan",), ("json",), ()),
@@ -78,7 +78,7 @@ def _arg_paths(args, names) -> dict:
     out = {}
     for name in names:
         v = getattr(args, name, None)
-        if isinstance(v, (str, os.PathLike)) and str(v) != "":
+        if isinstance(v, (str, os.PathLike)) and str(v) not in ("", "-") and not str(v).startswith("\0"):
             out[name] = str(v)
     return out
 
@@ -145,13 +145,16 @@ COMMON = {
     "seed": (lambda v: v >= 0, "must be >= 0"),
     "mc": (lambda v: v >= 0, "must be >= 0"),
     "noise_um": (lambda v: v >= 0 and v < float("inf"), "must be a finite number >= 0"),
-    "u_probe_um": (lambda v: 0 < v < float("inf"), "must be > 0"),
     "dt": (lambda v: 0 < v < float("inf"), "must be a positive number of seconds"),
     "step_deg": (lambda v: 0 < v <= 360, "must be > 0 and divide 360"),
     "angles": (lambda v: v >= 2, "must be >= 2"),
     "workers": (lambda v: v >= 1, "must be >= 1"),
     "delta_l_um": (lambda v: abs(v) < float("inf"), "must be a finite number"),
 }
+
+
+#: The option names of :data:`COMMON`'s entries whose ``args`` name is not the option's.
+FLAGS = {"dt": "--dt-s", "angles": "--n-angles"}
 
 
 def check_common_options(args) -> None:
@@ -161,7 +164,7 @@ def check_common_options(args) -> None:
     for name, (ok, rule) in COMMON.items():
         v = getattr(args, name, None)
         if isinstance(v, (int, float)) and not isinstance(v, bool) and not ok(v):
-            raise ConfigError(f"--{name.replace('_', '-')} {rule}, got {v:g}")
+            raise ConfigError(f"{FLAGS.get(name, '--' + name.replace('_', '-'))} {rule}, got {v:g}")
 
 
 def os_error_line(e: OSError) -> str:
