@@ -400,7 +400,7 @@ def argv_case(rng, b, out: Path) -> list:
         if len(a) == 2:
             a += ["--seed", "-1"]
         return a
-    return ["demo", "--out", pick([str(b["log"]), str(b["log"]) + "/x"]), "--seed", pick(["1", "-1"])] + \
+    return ["demo", "--out-dir", pick([str(b["log"]), str(b["log"]) + "/x"]), "--seed", pick(["1", "-1"])] + \
         pick([[], ["--bogus"], ["--seed"]])
 
 

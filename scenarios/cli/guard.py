@@ -41,7 +41,7 @@ FILES = {
     "import": (("file", "plan"), ("out",), ()),
     "simulate": ((), ("out",), ()),
     "scenario": ((), ("json",), ("comp", "report")),
-    "demo": ((), (), ("out",)),
+    "demo": ((), (), ("out_dir",)),
     "bench": ((), ("out",), ()),
     "probe": (("plan",), (), ()),
     "machine": (("plan",), ("out",), ()),

@@ -111,32 +111,10 @@ def add_machine_args(p, *, default: str | None, what: str, errors: bool = True, 
 
 
 def machine_spec(name: str, errors: str | None = None):
-    """The :class:`sim.machinefile.MachineSpec` ``--machine NAME|FILE --errors E`` names, in every command.
+    """``--machine NAME|FILE --errors E``: :func:`sim.machinefile.truth_machine` (the one rule, stated there)."""
+    from sim.machinefile import truth_machine
 
-    One rule: a machine file is the machine it describes, with the errors it
-    states (``--errors`` is refused for it). A built-in NAME is its shipped
-    file (``sim/data/machines/NAME.toml``) with the truth errors ``errors``
-    picks, ``realistic`` when not given (:func:`sim.machines.realistic_errors`
-    over its strokes, the papers' magnitudes) or ``none``. A command's default
-    machine is a built-in name, so omitting ``--machine`` is naming it.
-    """
-    from dataclasses import replace
-
-    from core.exceptions import ConfigError
-    from sim.machinefile import builtin_names, resolve
-    from sim.machines import realistic_errors
-
-    spec = resolve(name)
-    if name not in builtin_names():
-        if errors is not None:
-            raise ConfigError(f"--errors: the machine file {name} states its errors (errors = ..., [error.*])")
-        return spec
-    if (errors or "realistic") == "none":
-        return replace(spec, errors="none", seed=None, overrides=())
-    cfg = spec.config
-    axes = tuple(a for a in "XYZABC" if a in cfg.strokes)
-    return replace(spec, config=replace(cfg, errors=realistic_errors(axes, strokes=cfg.strokes)),
-                   errors="realistic", seed=None, overrides=())
+    return truth_machine(name, errors)
 
 
 def errors_text(name: str, spec) -> str:

@@ -89,11 +89,13 @@ def run(args) -> int:
     write_probe_log(args.out, log, special=True)
     from scenarios.cli.guard import said
 
-    where = (f"on {args.artefact}, machine {cfg.name}, {len(dict.fromkeys(log.col('setup')))} set-ups")
-    if args.plan_only:
-        print(f"{said(args.out)}: plan of {log.n} touches (nothing measured) {where}")
+    setups = f"{len(dict.fromkeys(log.col('setup')))} set-ups"
+    if args.plan_only:      # a plan measures nothing and has no truth errors: neither is described
+        print(f"{said(args.out)}: plan of {log.n} touches (nothing measured) on {args.artefact}, "
+              f"machine {cfg.name}, {setups}")
     else:
-        print(f"{said(args.out)}: campaign of {log.n} touches ({int(log.ok.sum())} ok) {where}, errors {errors}")
+        print(f"{said(args.out)}: campaign of {log.n} touches ({int(log.ok.sum())} ok) on {args.artefact}, "
+              f"machine {cfg.name}, errors {errors}, {setups}")
     return 0
 
 

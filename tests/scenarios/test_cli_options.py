@@ -46,6 +46,7 @@ RENAMED = [
     (["identify", "log.csv"], "--u-probe-um", "1.1", "--noise-um"),
     (["discover", "log.csv"], "--grid-mm", "30", "--grid-step-mm"),
     (["import", "grbl", "t.txt"], "--dt", "2", "--dt-s"),
+    (["demo"], "--out", "o", "--out-dir"),
 ]
 
 #: what each command needs besides the option under test, to parse
@@ -224,3 +225,29 @@ def test_simulate_plan_only_says_nothing_was_measured(tmp_path, capsys):
     assert main(["check", str(plan)]) == 0
     out = capsys.readouterr().out
     assert "touches  368 planned (nothing measured)" in out and "ok)" not in out
+
+
+def test_errors_name_things_in_english(tmp_path, capsys):
+    """A one-set-up log names its set-up as text (no numpy repr); a dangling link 'does not exist'."""
+    import os
+
+    log = tmp_path / "one.csv"
+    assert main(["simulate", "cross-pocket", "--c-angles-deg", "0", "--no-collision-check", "--out", str(log)]) == 0
+    capsys.readouterr()
+    assert main(["identify", str(log), "--json", str(tmp_path / "id.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "one set-up ('C0')" in err and "np." not in err, err
+    link = tmp_path / "out.json"
+    os.symlink(tmp_path / "gone" / "target.json", link)
+    assert main(["identify", str(log), "--json", str(link)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "target.json, which does not exist)" in err and "a missing" not in err, err
+
+
+def test_report_paths_have_no_double_slash(tmp_path, capsys):
+    from scenarios.cli import main as vmt
+
+    assert vmt(["iso230-2", "scenarios/data/positioning-sample.csv", "--json", str(tmp_path / "s.json"),
+                "--report", str(tmp_path / "s-report") + "/"]) == 0
+    out = capsys.readouterr().out
+    assert "s-report/index.html" in out and "//" not in out
