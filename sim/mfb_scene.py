@@ -722,45 +722,154 @@ def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, pla
         MuJoCo at every sample and every pair (the reference the tests and the
         benchmark compare with).
     """
-    T_W_A = np.asarray(T_W_A, float)
-    T_R_A = np.asarray(T_R_W, float) @ T_W_A
-    bad = []
-    # the bar and the workholder on the table's side of its face (W z >= 0)
+    return check_measurements(artefact, [(name, T_W_A, T_R_W, blocks, J_m, plan, finger_m)], stylus_r_m,
+                              link_step_m, approach_step_m, broad_phase=broad_phase)[0]
+
+
+def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 3.0e-3,
+                       approach_step_m: float = 0.5e-3, broad_phase: bool = True) -> list:
+    """:func:`check_measurement` of several measurements of one bar: a plan's, in one pass.
+
+    ``measurements``: (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m) each, as the
+    arguments of :func:`check_measurement`. Returns their :class:`CheckResult` in order, each
+    the one :func:`check_measurement` gives for it alone (the same samples to MuJoCo where
+    the broad phase cannot clear them, in the same order, so the same first collision; the
+    same least clearance).
+
+    The paths of every measurement are sampled in one :func:`sim.clearance.flat_path_segments`
+    and go through the broad phase together (:func:`sim.clearance.near_segments_many`): the
+    ball against the bar in A (one broad phase for every measurement; a measurement whose
+    holes an earlier one already probed is cleared by that one's certificates: the same
+    moves in A), the rest of each work zone in W. The work zones' ball models are shared
+    (:func:`share_ball_model`).
+    """
+    from .clearance import Segments, near_segments_many
+
+    r = float(stylus_r_m)
+    ms = [(name, np.asarray(T_W_A, float), np.asarray(T_R_W, float), tuple(blocks), J_m, plan, float(finger_m))
+          for name, T_W_A, T_R_W, blocks, J_m, plan, finger_m in measurements]
+    share_ball_model(artefact, [(m[1], m[3], m[4], m[6]) for m in ms], r)
     pts_A = artefact_points(artefact)
-    z_bar = float(apply_T(T_W_A, pts_A)[:, 2].min())
-    if z_bar < -1e-9:
-        bad.append(f"the bar reaches {z_bar * 1e3:.1f} mm below the table face")
-    for b in blocks:
-        if min(b.lo[2], b.hi[2]) < -1e-9:
-            bad.append(f"workholder block {b.name} below the table face")
-    wz = _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
-    wz.set_table(T_R_W)
-    r = stylus_r_m
-    Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
-    start = Xn + plan.clearance_m * apply_R(T_R_A, plan.wn_A)
     top = float(pts_A[:, 2].max()) + r
-    # the samples of every path, in the order checked (touch i: the link into its start,
-    # none for the first, then its approach/retract start -> contact); MuJoCo only where the
-    # broad phase (sim.clearance) cannot prove them clear: the same first collision per touch
-    n_samp, bad_touch = 0, set()
-    if plan.n:
-        sg, path_touch, allow = _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m)
-        n_samp = sg.n_samples
-        # one past the last sample of each touch (a touch's paths are consecutive)
-        touch_end = np.zeros(plan.n, int)
-        np.maximum.at(touch_end, path_touch[sg.path], sg.first + sg.m)
-        idx = wz.near_segments(sg, allow) if broad_phase else np.arange(n_samp)
-        pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
-        for k in range(len(idx)):  # in path order
-            i = int(path_touch[which[k]])
-            if i in bad_touch:
-                continue
-            hit = wz.collisions(pts[k], allow[which[k]])
-            if hit:  # the first collision of touch i: the rest of its samples are not checked
-                g, o, dep = hit[0]
-                bad.append(f"{plan.target[i]}: {g} hits {o} ({-dep * 1e3:.2f} mm deep) at "
-                           f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
-                bad_touch.add(i)
-                n_samp -= int(touch_end[i] - idx[k] - 1)
-    clear = wz.least_holder_clearance(start, broad_phase=broad_phase) if plan.n else np.inf
-    return CheckResult(name, int(plan.n), n_samp, tuple(bad), float(clear * 1e3))
+    z_bars = {}  # the bar's lowest point in W by placement
+    bad, zones, T_R_As, paths = [], [], [], []
+    for name, T_W_A, T_R_W, blocks, J_m, plan, finger_m in ms:
+        T_R_A = T_R_W @ T_W_A
+        b = []
+        # the bar and the workholder on the table's side of its face (W z >= 0)
+        key = T_W_A.tobytes()
+        if key not in z_bars:
+            z_bars[key] = float(apply_T(T_W_A, pts_A)[:, 2].min())
+        if z_bars[key] < -1e-9:
+            b.append(f"the bar reaches {z_bars[key] * 1e3:.1f} mm below the table face")
+        for blk in blocks:
+            if min(blk.lo[2], blk.hi[2]) < -1e-9:
+                b.append(f"workholder block {blk.name} below the table face")
+        wz = _work_zone(artefact, T_W_A, blocks, J_m, r, finger_m)
+        bad.append(b), zones.append(wz), T_R_As.append(T_R_A)
+        if plan.n:
+            Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
+            start = Xn + plan.clearance_m * apply_R(T_R_A, plan.wn_A)
+            if plan.n > 1:
+                L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
+            else:
+                L, cnt = np.zeros((0, 3)), np.zeros(0, int)
+            paths.append((start, Xn, L, cnt))
+        else:
+            paths.append(None)
+    # every measurement's polylines in the order checked (per touch i the link into its start,
+    # none for the first, then its approach/retract start -> contact), sampled at once
+    live = [i for i in range(len(ms)) if paths[i] is not None]
+    sgs = [None] * len(ms)
+    if live:
+        n_t = np.array([ms[i][5].n for i in live])
+        has = np.ones(int(n_t.sum()), bool)
+        has[np.cumsum(n_t) - n_t] = False
+        P, n_pt, touch, is_link = touch_polylines(np.concatenate([paths[i][0] for i in live]),
+                                                  np.concatenate([paths[i][1] for i in live]), has,
+                                                  np.concatenate([paths[i][2] for i in live]),
+                                                  np.concatenate([paths[i][3] for i in live]))
+        steps = np.where(is_link, float(link_step_m), float(approach_step_m))
+        sg = flat_path_segments(P, n_pt, steps, joints=False)
+        # each measurement's polylines, segments (n_pt each: joints=False) and samples
+        poly = np.searchsorted(touch, np.cumsum(n_t) - n_t)  # its first polyline (the first touch has no link)
+        poly = np.r_[poly, len(n_pt)]
+        seg0 = np.r_[0, np.cumsum(n_pt)][poly]
+        t0 = np.cumsum(n_t) - n_t
+        for j, i in enumerate(live):
+            p0, p1, s0, s1 = poly[j], poly[j + 1], seg0[j], seg0[j + 1]
+            plan = ms[i][5]
+            allow = np.full(p1 - p0, "", dtype=object)
+            allow[~is_link[p0:p1]] = np.asarray(plan.feature, dtype=object)
+            sgs[i] = (Segments(sg.a[s0:s1], sg.b[s0:s1], sg.k[s0:s1], sg.m[s0:s1], sg.first[s0:s1] - sg.first[s0],
+                               sg.path[s0:s1] - p0), touch[p0:p1] - t0[j], allow, ~is_link[p0:p1])
+    near = {}
+    if broad_phase and live:
+        near = _near_samples(ms, zones, live, sgs)
+    out = []
+    for i, (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m) in enumerate(ms):
+        wz, b = zones[i], bad[i]
+        wz.set_table(T_R_W)
+        n_samp = 0
+        if plan.n:
+            sg, path_touch, allow, _ = sgs[i]
+            n_samp = sg.n_samples
+            # one past the last sample of each touch (a touch's paths are consecutive)
+            touch_end = np.zeros(plan.n, int)
+            np.maximum.at(touch_end, path_touch[sg.path], sg.first + sg.m)
+            idx = near[i] if broad_phase else np.arange(n_samp)
+            pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
+            bad_touch = set()
+            for k in range(len(idx)):  # in path order
+                t = int(path_touch[which[k]])
+                if t in bad_touch:
+                    continue
+                hit = wz.collisions(pts[k], allow[which[k]])
+                if hit:  # the first collision of touch t: the rest of its samples are not checked
+                    g, o, dep = hit[0]
+                    b.append(f"{plan.target[t]}: {g} hits {o} ({-dep * 1e3:.2f} mm deep) at "
+                             f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
+                    bad_touch.add(t)
+                    n_samp -= int(touch_end[t] - idx[k] - 1)
+        clear = wz.least_holder_clearance(paths[i][0], broad_phase=broad_phase) if plan.n else np.inf
+        out.append(CheckResult(name, int(plan.n), n_samp, tuple(b), float(clear * 1e3)))
+    return out
+
+
+def _near_samples(ms, zones, live, sgs) -> dict:
+    """Per measurement (index in ``ms``), the sorted sample numbers of its paths (``sgs``, R) the
+    broad phase cannot prove clear (:meth:`WorkZone.near_segments`, every measurement at once).
+
+    Two passes of :func:`sim.clearance.near_segments_many`: first the ball against the bar
+    for the first measurement of each set of touches (the ball's broad phase is in A, so a
+    measurement of the same touches elsewhere has the same moves there) and the rest of
+    every measurement's work zone; then the ball for the other measurements, which the
+    first pass's certificates clear (what they do not is bounded)."""
+    from .clearance import Segments, near_segments_many
+
+    ball, rest, seen = {}, {}, {}
+    first, later = [], []
+    for i in live:
+        wz = zones[i]
+        wz.set_table(ms[i][2])
+        sg, _, allow, is_app = sgs[i]
+        for part, clr in (("ball", wz.ball_clearance()), ("rest", wz.clearance(part="rest"))):
+            T = clr.T_F_R
+            R, t = T[:3, :3].T, T[:3, 3]
+            ids = np.full(len(allow), -2)
+            ids[is_app] = clr.feature_ids(ms[i][5].feature)
+            item = (clr, Segments(sg.a @ R + t, sg.b @ R + t, sg.k, sg.m, sg.first, sg.path), ids[sg.path])
+            (ball if part == "ball" else rest)[i] = item
+        plan = ms[i][5]
+        key = (id(ball[i][0]._certs), len(plan.target), hash(tuple(plan.target)))
+        (later if key in seen else first).append(i)
+        seen.setdefault(key, i)
+    res1 = near_segments_many([ball[i] for i in first] + [rest[i] for i in live])
+    res2 = near_segments_many([ball[i] for i in later]) if later else []
+    nb = dict(zip(first, res1[:len(first)]))
+    nb.update(zip(later, res2))
+    out = {}
+    for i, nr in zip(live, res1[len(first):]):
+        a = nb[i]
+        out[i] = np.union1d(a, nr) if a.size and nr.size else (a if a.size else nr)
+    return out

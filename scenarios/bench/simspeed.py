@@ -262,7 +262,7 @@ def collision_figures() -> dict:
         if bp:
             t_sim5 = min(t_sim5, _mfb5_simulation_s(plan))
         _fresh_plan_check()
-        real_cm, spent = mfb_scene.check_measurement, [0.0]
+        real_cm, spent = mfb_scene.check_measurements, [0.0]
 
         def timed_cm(*a, _real=real_cm, _spent=spent, **k):
             t0 = time.perf_counter()
@@ -271,11 +271,11 @@ def collision_figures() -> dict:
             finally:
                 _spent[0] += time.perf_counter() - t0
 
-        mfb_scene.check_measurement = timed_cm
+        mfb_scene.check_measurements = timed_cm
         try:
-            t = _time_patched(mfb_scene, "check_measurement", bp, lambda: S.check_plan(plan))
+            t = _time_patched(mfb_scene, "check_measurements", bp, lambda: S.check_plan(plan))
         finally:
-            mfb_scene.check_measurement = real_cm
+            mfb_scene.check_measurements = real_cm
         if not bp or t < t_plan[True]:  # (the measurements' share of the same run)
             t_plan[bp], t_meas[bp] = t, spent[0]
     S._CHECKS.clear()
