@@ -195,12 +195,9 @@ class Clearance:
         self.cert_pad_m = float(cert_pad_m)
         self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
         plo, phi = probe.aabb()
-        ng, nh = len(probe.kind), len(table.kind)
         self.feature, tlo, thi, cl, h_order, self._fid, tfid = _table_prep(table, table_feature)
-        self.pair_probe, self.pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
-        if pairs is not None:  # (the order kept: by probe geom, cluster, table geom)
-            keep = np.asarray(pairs, bool)[self.pair_probe, self.pair_table]
-            self.pair_probe, self.pair_table = self.pair_probe[keep], self.pair_table[keep]
+        st = _pair_structure(table, table_feature, len(probe.kind), self.ball, pairs)
+        self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch = st
         # the tip p puts geom g in collision range of h only if p lies in this box
         self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
         self._hi = thi[self.pair_table] - plo[self.pair_probe] + MARGIN_M
@@ -209,15 +206,10 @@ class Clearance:
         self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
         self._have = np.zeros(npair, bool)
         self._certs = _Certificates()  # of near_segments (shared by the moved copies: same frame)
-        ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
-        self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
-        self._ccount = np.diff(np.r_[self._cstart, len(ck)])
-        # each cluster's feature as a number (_fid) when it is the ball's (the clusters a touch
-        # of that feature may meet), else -1
-        first = self._cstart
-        self._cballf = np.where(self.pair_probe[first] == self.ball, tfid[self.pair_table[first]], -1)
-        self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
-        self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
+        # each cluster's box: its table geoms' (ch, the union of their boxes) for its probe geom cg
+        # (the same numbers as the least and largest of its pairs' boxes: a difference is monotone)
+        self._clo = ch[0] - phi[cg] - MARGIN_M
+        self._chi = ch[1] - plo[cg] + MARGIN_M
         # the same boxes one coordinate a row (3, k), for _overlap_rows
         self._loT, self._hiT = self._lo.T.copy(), self._hi.T.copy()
         self._cloT, self._chiT = self._clo.T.copy(), self._chi.T.copy()
@@ -517,6 +509,40 @@ def _build_table_prep(table: Geoms, table_feature) -> tuple:
     fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
     tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
     return feature, tlo, thi, cl, h_order, fid, tfid
+
+
+#: The pair structure of :class:`Clearance` (pairs sorted by probe geom, cluster, table geom;
+#: clusters) by table side, number of probe geoms, ball and pair mask: the broad phases of one
+#: table side with the same probe's geom count (a work zone's orientations) share it. Safe: keyed
+#: by the ids of the table side's two objects (kept in the entry) and the other inputs; read only.
+_PAIRS = Memo(64)
+
+
+def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
+    """(pair_probe, pair_table (k,) int, cluster start, count (c,) int, each cluster's feature
+    number when it is the ball's else -1 (c,), its probe geom (c,), its table geoms' box
+    (2, c, 3): lo, hi) for ``ng`` probe geoms against ``table`` (:meth:`Clearance.__init__`)."""
+    mask = None if pairs is None else np.ascontiguousarray(pairs, bool)
+    key = (id(table), id(table_feature), int(ng), int(ball), None if mask is None else (mask.shape, mask.tobytes()))
+
+    def build():
+        _, tlo, thi, cl, h_order, _, tfid = _table_prep(table, table_feature)
+        nh = len(table.kind)
+        pair_probe, pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
+        if mask is not None:  # (the order kept: by probe geom, cluster, table geom)
+            keep = mask[pair_probe, pair_table]
+            pair_probe, pair_table = pair_probe[keep], pair_table[keep]
+        ck = pair_probe * (cl.max() + 1) + cl[pair_table]
+        cstart = np.flatnonzero(np.concatenate([[True], ck[1:] != ck[:-1]]))
+        ccount = np.diff(np.append(cstart, len(ck)))
+        # each cluster's feature as a number (_fid) when it is the ball's (the clusters a touch
+        # of that feature may meet), else -1
+        cballf = np.where(pair_probe[cstart] == ball, tfid[pair_table[cstart]], -1)
+        cbox = np.stack([np.minimum.reduceat(tlo[pair_table], cstart, axis=0),
+                         np.maximum.reduceat(thi[pair_table], cstart, axis=0)])
+        return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox
+
+    return _PAIRS.get_or_compute(key, build, owner=(table, table_feature))
 
 
 class _Certificates:

@@ -180,7 +180,9 @@ _SOLID_POSES = Memo(64)
 
 
 def _solid_poses(art) -> list:
-    return _SOLID_POSES.get_or_compute(id(art), lambda: [make_T(s.rot, s.pos) for s in art.solids], owner=art)
+    """Each solid's pose on the artefact, ``make_T(rot, pos)`` (4,4) of every solid (views of one
+    (k,4,4) array, :func:`_solid_pose_stack`)."""
+    return _SOLID_POSES.get_or_compute(id(art), lambda: list(_solid_pose_stack(art)), owner=art)
 
 
 @dataclass(frozen=True)
@@ -220,9 +222,18 @@ def _build_solid_table(art) -> _Solids:
 
 
 def _solid_pose_stack(art) -> np.ndarray:
-    """(k,4,4): :func:`_solid_poses` stacked (kept beside them)."""
-    return _SOLID_POSES.get_or_compute(("stack", id(art)), lambda: np.array(_solid_poses(art)).reshape(-1, 4, 4),
-                                       owner=art)
+    """(k,4,4): each solid's pose on the artefact, as ``make_T(rot, pos)`` writes it, in one array
+    (read only; kept beside :func:`_solid_poses`)."""
+    def build():
+        sol = art.solids
+        T = np.zeros((len(sol), 4, 4))
+        T[:, :3, :3] = [np.eye(3) if x.rot is None else x.rot for x in sol]
+        T[:, :3, 3] = [x.pos for x in sol]
+        T[:, 3, 3] = 1.0
+        T.flags.writeable = False
+        return T
+
+    return _SOLID_POSES.get_or_compute(("stack", id(art)), build, owner=art)
 
 
 #: The stylus ball's broad phase against a bar's own solids (frame A, :meth:`WorkZone.ball_clearance`)
@@ -539,6 +550,7 @@ class WorkZone:
         i = np.repeat(np.arange(len(tips)), npair)
         pair = np.tile(hp, len(tips))
         bm, bd, h0, gball = self._ball_model()
+        held = []  # the holder's model, fetched (and compiled) once a triple needs it
 
         def dist(k):  # (the ball's in the placement's model of the ball, the same distance)
             g = clr.pair_probe[pair[k]]
@@ -547,7 +559,9 @@ class WorkZone:
                 m, d = bm, bd
                 a, b = gball, h0 + b
             else:
-                m, d = self._holder_model()
+                if not held:
+                    held.append(self._holder_model())
+                m, d = held[0]
                 a = self._hprobe[g]
             self._place(m, d, tips[i[k]])
             return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
