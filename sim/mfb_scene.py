@@ -698,16 +698,48 @@ def _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m):
     """(Segments, touch of each polyline (paths,), allowed feature of each (paths,) object) of
     a measurement's polylines in the order checked: per touch i the link into ``start[i]``
     (from touch i - 1's; none for the first) and the approach ``start[i] -> Xn[i]``."""
-    n = plan.n
-    if n > 1:
+    if plan.n > 1:
         L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
     else:
         L, cnt = np.zeros((0, 3)), np.zeros(0, int)
-    P, n_pt, touch, is_link = touch_polylines(start, Xn, np.arange(n) > 0, L, cnt)
+    sg, touch, allow, _ = _paths_of([(start, Xn, L, cnt, plan)], link_step_m, approach_step_m)[0]
+    return sg, touch, allow
+
+
+def _paths_of(items, link_step_m, approach_step_m) -> list:
+    """The polylines of several measurements (:func:`_touch_paths` of each), sampled at once.
+
+    ``items``: per measurement (start (n,3), Xn (n,3), link points, link counts, plan) as
+    :func:`link_points` gives the links, n >= 1 touches. Returns per measurement (Segments,
+    touch of each polyline, allowed feature of each (object), whether each is an approach),
+    its segments and sample numbers its own; the same numbers bit for bit as one at a time
+    (one :func:`sim.clearance.touch_polylines` and :func:`sim.clearance.flat_path_segments`
+    for all: every value is computed row by row)."""
+    from .clearance import Segments
+
+    n_t = np.array([it[4].n for it in items])
+    t0 = np.cumsum(n_t) - n_t
+    has = np.ones(int(n_t.sum()), bool)
+    has[t0] = False  # (a measurement's first touch has no link)
+    P, n_pt, touch, is_link = touch_polylines(np.concatenate([it[0] for it in items]),
+                                              np.concatenate([it[1] for it in items]), has,
+                                              np.concatenate([it[2] for it in items]),
+                                              np.concatenate([it[3] for it in items]))
     steps = np.where(is_link, float(link_step_m), float(approach_step_m))
-    allow = np.full(len(n_pt), "", dtype=object)
-    allow[~is_link] = np.asarray(plan.feature, dtype=object)
-    return flat_path_segments(P, n_pt, steps, joints=False), touch, allow
+    sg = flat_path_segments(P, n_pt, steps, joints=False)
+    # each measurement's polylines (its first touch's approach first), their segments (n_pt
+    # each: joints=False)
+    poly = np.r_[np.searchsorted(touch, t0), len(n_pt)]
+    seg0 = np.r_[0, np.cumsum(n_pt)][poly]
+    out = []
+    for j, it in enumerate(items):
+        p0, p1, s0, s1 = poly[j], poly[j + 1], seg0[j], seg0[j + 1]
+        app = ~is_link[p0:p1]
+        allow = np.full(p1 - p0, "", dtype=object)
+        allow[app] = np.asarray(it[4].feature, dtype=object)
+        out.append((Segments(sg.a[s0:s1], sg.b[s0:s1], sg.k[s0:s1], sg.m[s0:s1], sg.first[s0:s1] - sg.first[s0],
+                             sg.path[s0:s1] - p0), touch[p0:p1] - t0[j], allow, app))
+    return out
 
 
 def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan, finger_m: float = 0.0,
@@ -757,8 +789,6 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     the rest of each work zone in W. The work zones' ball models are shared
     (:func:`share_ball_model`).
     """
-    from .clearance import Segments, near_segments_many
-
     r = float(stylus_r_m)
     ms = [(name, np.asarray(T_W_A, float), np.asarray(T_R_W, float), tuple(blocks), J_m, plan, float(finger_m))
           for name, T_W_A, T_R_W, blocks, J_m, plan, finger_m in measurements]
@@ -795,28 +825,9 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     # none for the first, then its approach/retract start -> contact), sampled at once
     live = [i for i in range(len(ms)) if paths[i] is not None]
     sgs = [None] * len(ms)
-    if live:
-        n_t = np.array([ms[i][5].n for i in live])
-        has = np.ones(int(n_t.sum()), bool)
-        has[np.cumsum(n_t) - n_t] = False
-        P, n_pt, touch, is_link = touch_polylines(np.concatenate([paths[i][0] for i in live]),
-                                                  np.concatenate([paths[i][1] for i in live]), has,
-                                                  np.concatenate([paths[i][2] for i in live]),
-                                                  np.concatenate([paths[i][3] for i in live]))
-        steps = np.where(is_link, float(link_step_m), float(approach_step_m))
-        sg = flat_path_segments(P, n_pt, steps, joints=False)
-        # each measurement's polylines, segments (n_pt each: joints=False) and samples
-        poly = np.searchsorted(touch, np.cumsum(n_t) - n_t)  # its first polyline (the first touch has no link)
-        poly = np.r_[poly, len(n_pt)]
-        seg0 = np.r_[0, np.cumsum(n_pt)][poly]
-        t0 = np.cumsum(n_t) - n_t
-        for j, i in enumerate(live):
-            p0, p1, s0, s1 = poly[j], poly[j + 1], seg0[j], seg0[j + 1]
-            plan = ms[i][5]
-            allow = np.full(p1 - p0, "", dtype=object)
-            allow[~is_link[p0:p1]] = np.asarray(plan.feature, dtype=object)
-            sgs[i] = (Segments(sg.a[s0:s1], sg.b[s0:s1], sg.k[s0:s1], sg.m[s0:s1], sg.first[s0:s1] - sg.first[s0],
-                               sg.path[s0:s1] - p0), touch[p0:p1] - t0[j], allow, ~is_link[p0:p1])
+    for i, p in zip(live, _paths_of([paths[i] + (ms[i][5],) for i in live], link_step_m, approach_step_m)
+                    if live else ()):
+        sgs[i] = p
     near = {}
     if broad_phase and live:
         near = _near_samples(ms, zones, live, sgs)
