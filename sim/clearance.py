@@ -593,41 +593,53 @@ class _Certificates:
     def lookup(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
         """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate
         chosen and how far its segment's ends are from the query's (r0 = -inf: none)."""
+        r0, moved = self.in_order(a, b, allow)
+        rest = np.flatnonzero(~(moved < r0))
+        if rest.size and self._n:
+            self.by_cell(a, b, allow, rest, r0, moved)
+        return r0, moved
+
+    def in_order(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`lookup`'s first part: (r0, moved) (n,) from the remembered calls of as many
+        segments with the same allowed features (the same plan at another placement)."""
         n = len(a)
         r0, moved = np.full(n, -np.inf), np.full(n, np.inf)
         if not self._n or not n:
             return r0, moved
-        for a0, b0, allow0, rr in self._by_len.get(n, ()):  # the same segments in order (another placement)
+        for a0, b0, allow0, rr in self._by_len.get(n, ()):
             if np.array_equal(allow0, allow):
                 mv = _moved(a, b, a0, b0)
                 better = rr - mv > r0 - moved
                 r0[better], moved[better] = rr[better], mv[better]
                 if (moved < r0).all():  # (every segment cleared: other blocks cannot clear more)
-                    return r0, moved
-        rest = np.flatnonzero(~(moved < r0))
-        if rest.size:  # the same move elsewhere in the remembered calls (its grid cell), block by block
-            q, f = self._key(a[rest], b[rest], allow[rest])
-            for j in range(len(self.blocks)):
-                if j == len(self._sorted):  # (each block's keys computed and sorted once)
-                    A, B, F, R = self.blocks[j]
-                    k, fk = self._key(A, B, F)
-                    o = np.argsort(k, kind="stable")
-                    self._sorted.append((k[o], fk[o], A[o], B[o], R[o]))
-                keys, F, A, B, R = self._sorted[j]
-                i = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
-                hit = np.flatnonzero((keys[i] == q) & (F[i] == f))  # (a hash match with another feature: none)
-                if not hit.size:
-                    continue
-                at, i = rest[hit], i[hit]
-                mv = _moved(a[at], b[at], A[i], B[i])
-                better = R[i] - mv > r0[at] - moved[at]
-                r0[at[better]], moved[at[better]] = R[i][better], mv[better]
-                left = ~(moved[rest] < r0[rest])
-                if not left.all():
-                    rest, q, f = rest[left], q[left], f[left]
-                    if not rest.size:
-                        break
+                    break
         return r0, moved
+
+    def by_cell(self, a, b, allow, rest, r0, moved) -> None:
+        """:meth:`lookup`'s second part, for the segments ``rest`` (sorted indices) only: the
+        remembered segment in the same grid cell (the same move elsewhere), block by block;
+        ``r0``, ``moved`` updated in place."""
+        q, f = self._key(a[rest], b[rest], allow[rest])
+        for j in range(len(self.blocks)):
+            if j == len(self._sorted):  # (each block's keys computed and sorted once)
+                A, B, F, R = self.blocks[j]
+                k, fk = self._key(A, B, F)
+                o = np.argsort(k, kind="stable")
+                self._sorted.append((k[o], fk[o], A[o], B[o], R[o]))
+            keys, F, A, B, R = self._sorted[j]
+            i = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
+            hit = np.flatnonzero((keys[i] == q) & (F[i] == f))  # (a hash match with another feature: none)
+            if not hit.size:
+                continue
+            at, i = rest[hit], i[hit]
+            mv = _moved(a[at], b[at], A[i], B[i])
+            better = R[i] - mv > r0[at] - moved[at]
+            r0[at[better]], moved[at[better]] = R[i][better], mv[better]
+            left = ~(moved[rest] < r0[rest])
+            if not left.all():
+                rest, q, f = rest[left], q[left], f[left]
+                if not rest.size:
+                    break
 
 
 #: Remembered segments per broad phase before the certificates are forgotten (memory).
@@ -701,25 +713,35 @@ def near_segments_many(parts) -> list:
         :data:`MARGIN_M`: every other sample is provably farther.
 
     Each part is first looked up in its broad phase's certificates (as they stand before
-    this call), then the segments no certificate clears go through the same three box
-    levels, swept bound and sample bounds as in :meth:`Clearance.near_segments`, the parts
-    of every broad phase together (one set of numpy operations for a whole plan, the first
-    box level and the bounds per broad phase); each part then leaves its certificates.
-    Parts of moved copies of one broad phase (:meth:`Clearance.moved`) share its pair data
-    and certificates.
+    this call; the grid-cell look-up for every part of a broad phase at once), then the
+    segments no certificate clears go through the same three box levels, swept bound and
+    sample bounds as in :meth:`Clearance.near_segments`, the parts of every broad phase
+    together (one set of numpy operations for a whole plan, the first box level and the
+    bounds per broad phase); each part then leaves its certificates. Parts of moved copies
+    of one broad phase (:meth:`Clearance.moved`) share its pair data and certificates.
     """
     n_parts = len(parts)
     out = [np.zeros(0, int)] * n_parts
     bases, base_of = [], []  # the distinct broad phases (moved copies share their certificates)
     where = {}
-    todo = []
     for clr, sg, allow in parts:
         b = where.setdefault(id(clr._certs), len(bases))
         if b == len(bases):
             bases.append(clr)
         base_of.append(b)
-        r_old, moved = clr._certs.lookup(sg.a, sg.b, allow)
-        todo.append(np.flatnonzero(~(moved < r_old)))  # the segments no certificate clears
+    # the certificates: per part in order, then by grid cell for every part of a broad phase at once
+    todo = [None] * n_parts
+    for b, clr in enumerate(bases):
+        js = [j for j in range(n_parts) if base_of[j] == b]
+        found = [clr._certs.in_order(parts[j][1].a, parts[j][1].b, parts[j][2]) for j in js]
+        cut = np.cumsum([0] + [len(x[0]) for x in found])
+        r_old, moved = np.concatenate([x[0] for x in found]), np.concatenate([x[1] for x in found])
+        rest = np.flatnonzero(~(moved < r_old))
+        if rest.size and clr._certs._n:
+            clr._certs.by_cell(np.concatenate([parts[j][1].a for j in js]), np.concatenate([parts[j][1].b for j in js]),
+                               np.concatenate([parts[j][2] for j in js]), rest, r_old, moved)
+        for k, j in enumerate(js):  # the segments no certificate clears
+            todo[j] = np.flatnonzero(~(moved[cut[k]:cut[k + 1]] < r_old[cut[k]:cut[k + 1]]))
     # the segments to bound, every part's in turn (the parts of one broad phase together): ends
     # (F), padded boxes, steps, samples
     live = sorted((j for j in range(n_parts) if len(todo[j])), key=lambda j: base_of[j])

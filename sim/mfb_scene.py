@@ -865,37 +865,35 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     """Per measurement (index in ``ms``), the sorted sample numbers of its paths (``sgs``, R) the
     broad phase cannot prove clear (:meth:`WorkZone.near_segments`, every measurement at once).
 
-    Two passes of :func:`sim.clearance.near_segments_many`: first the ball against the bar
-    for the measurement of the most touches and the rest of every measurement's work zone;
-    then the ball for the other measurements. The ball's broad phase is in A, where every
-    measurement of the same touches has the same moves: the first pass's certificates clear
-    what they share with it (the 5-axis plan: 2,408 of its 18,364 segments left to bound), the
-    rest is bounded."""
+    Each measurement has two parts, the ball against the bar (its broad phase in A, one per bar
+    and ball) and the rest of its work zone (in W, one per zone and orientation). Two passes of
+    :func:`sim.clearance.near_segments_many`: first, per broad phase, the part of its measurement
+    of the most touches; then every other part. A broad phase's frame moves with the bar (A) or
+    the table (W), so measurements of the same touches have the same moves there: the first
+    pass's certificates clear what they share (the 5-axis plan: the ball's 18,364 segments,
+    2,408 left to bound), the rest is bounded."""
     from .clearance import Segments, near_segments_many
 
-    ball, rest, seen = {}, {}, {}
+    parts, best = [], {}
     for i in live:
         wz = zones[i]
         wz.set_table(ms[i][2])
         sg, _, allow, is_app = sgs[i]
-        for part, clr in (("ball", wz.ball_clearance()), ("rest", wz.clearance(part="rest"))):
+        for clr in (wz.ball_clearance(), wz.clearance(part="rest")):
             T = clr.T_F_R
             R, t = T[:3, :3].T, T[:3, 3]
             ids = np.full(len(allow), -2)
             ids[is_app] = clr.feature_ids(ms[i][5].feature)
-            item = (clr, Segments(sg.a @ R + t, sg.b @ R + t, sg.k, sg.m, sg.first, sg.path), ids[sg.path])
-            (ball if part == "ball" else rest)[i] = item
-        j = seen.get(id(ball[i][0]._certs))  # (one ball broad phase per bar and radius)
-        if j is None or ms[i][5].n > ms[j][5].n:
-            seen[id(ball[i][0]._certs)] = i
-    first = sorted(seen.values())  # per ball broad phase its measurement of the most touches
-    later = [i for i in live if i not in first]
-    res1 = near_segments_many([ball[i] for i in first] + [rest[i] for i in live])
-    res2 = near_segments_many([ball[i] for i in later]) if later else []
-    nb = dict(zip(first, res1[:len(first)]))
-    nb.update(zip(later, res2))
+            parts.append((clr, Segments(sg.a @ R + t, sg.b @ R + t, sg.k, sg.m, sg.first, sg.path), ids[sg.path]))
+            j = best.get(id(clr._certs))  # (moved copies of one broad phase share its certificates)
+            if j is None or sg.n_samples > parts[j][1].n_samples:
+                best[id(clr._certs)] = len(parts) - 1
+    first = sorted(best.values())
+    later = sorted(set(range(len(parts))) - set(first))
+    res = dict(zip(first, near_segments_many([parts[k] for k in first])))
+    res.update(zip(later, near_segments_many([parts[k] for k in later]) if later else ()))
     out = {}
-    for i, nr in zip(live, res1[len(first):]):
-        a = nb[i]
-        out[i] = np.union1d(a, nr) if a.size and nr.size else (a if a.size else nr)
+    for n, i in enumerate(live):  # (the ball's part 2n, the rest's 2n + 1)
+        a, b = res[2 * n], res[2 * n + 1]
+        out[i] = np.union1d(a, b) if a.size and b.size else (a if a.size else b)
     return out

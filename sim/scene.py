@@ -198,12 +198,14 @@ class Scene:
             sol = self.artefact.solids
             h.update("".join(f"{s.kind}\0{s.feature}\0" for s in sol).encode() + b"\1")
             # every solid's size, rotation, position and vertices (none: empty), with their shapes
+            none = np.zeros(0)
             arrs = [np.ascontiguousarray(v, float) for s in sol
-                    for v in (s.size, s.rot, s.pos, np.zeros(0) if getattr(s, "vertices", None) is None else s.vertices)]
+                    for v in (s.size, s.rot, s.pos, none if getattr(s, "vertices", None) is None else s.vertices)]
             h.update(np.array([a.shape + (-1,) * (2 - a.ndim) for a in arrs], np.int64).tobytes())
             h.update(b"".join(a.tobytes() for a in arrs))
             pr = self.probe
-            h.update(np.array([pr.stylus_r_m, pr.shank_r_m, pr.shank_length_m, PROBE_BODY_R_M, PROBE_BODY_H_M]).tobytes())
+            h.update(np.array([pr.stylus_r_m, pr.shank_r_m, pr.shank_length_m, PROBE_BODY_R_M,
+                               PROBE_BODY_H_M]).tobytes())
             h.update(np.ascontiguousarray(self._T0, float).tobytes())
             self._digest = h.digest()
         return self._digest
