@@ -320,6 +320,7 @@ class WorkZone:
         self._tqpos = np.array([0.0, 0, 0, 1, 0, 0, 0])
         self._clr, self._hclr = {}, {}  # (clearance: by part, holder only by table pose)
         self._T_W_R = None  # (clearance)
+        self._tkey = None  # (set_table: the pose last set, bytes)
         self._r = float(stylus_r_m)
         self._A_W = inv_T(T_W_A)
         #: what the work zones of this placement share (_work_zone): the table side's geoms in W
@@ -396,6 +397,10 @@ class WorkZone:
 
     def set_table(self, T_R_W) -> None:
         T = np.asarray(T_R_W, float)
+        key = T.tobytes()
+        if key == self._tkey:  # (the same pose again: a plan's check sets it twice per measurement)
+            return
+        self._tkey = key
         self._tqpos = np.r_[T[:3, 3], _quat(T[:3, :3])]
         self._T_W_R = None
 
