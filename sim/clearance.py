@@ -32,7 +32,9 @@ bound), and only the pairs it cannot clear are bounded sample by sample.
 Each call leaves per-segment certificates (the radius within which the
 segment stays clear, since a distance moves no farther than the tip): the
 same plan at another placement turned the same way is cleared segment by
-segment in a few vector operations.
+segment in a few vector operations. :func:`near_segments_many` does the same
+for several broad phases and paths in one pass (a whole plan's measurements:
+one set of numpy operations instead of one per measurement and broad phase).
 
 Frames: the geoms may be given in any frame F fixed to the table (``T_F_R``;
 the scene uses the artefact's frame A, so one broad phase serves every

@@ -30,7 +30,10 @@ MuJoCo judges every path sample the broad phase (:mod:`sim.clearance`) cannot
 prove clear; the broad phase has two parts (:meth:`WorkZone.near_segments`): the
 stylus ball against the bar, in the bar's frame and shared by every probe and
 placement of that bar (a sphere looks the same from every direction), and the rest
-of the probe and the holder, per work zone and orientation.
+of the probe and the holder, per work zone and orientation. A plan's measurements
+are checked together (:func:`check_measurements`): their paths sampled at once,
+both parts of every measurement through one broad phase pass, then MuJoCo
+measurement by measurement, in path order.
 """
 
 from __future__ import annotations

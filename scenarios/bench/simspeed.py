@@ -290,8 +290,8 @@ def collision_figures() -> dict:
         "col_mfb5_plan_check_every_sample_ref_s": round(t_plan[False], 3),
         "col_mfb5_plan_check_over_simulation": round(t_plan[True] / t_sim5, 3),
         "col_mfb5_plan_check_speedup": round(t_plan[False] / t_plan[True], 2),
-        # the measurements' checks alone (sim.mfb_scene), without check_plan's building of each
-        # measurement's touch plan (scenarios.mfb._plan_for)
+        # the measurements' checks alone (sim.mfb_scene.check_measurements, all of them in one
+        # call), without check_plan's table poses and touch programs (scenarios.mfb._plan_for)
         "col_mfb5_measurement_checks_s": round(t_meas[True], 3),
         "col_mfb5_measurement_checks_over_simulation": round(t_meas[True] / t_sim5, 3),
         "col_mfb5_measurement_checks_every_sample_ref_s": round(t_meas[False], 3),
