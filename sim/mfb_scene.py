@@ -404,7 +404,7 @@ class WorkZone:
         if key == self._tkey:  # (the same pose again: a plan's check sets it twice per measurement)
             return
         self._tkey = key
-        self._tqpos = np.r_[T[:3, 3], _quat(T[:3, :3])]
+        self._tqpos = np.concatenate([T[:3, 3], _quat(T[:3, :3])])
         self._T_W_R = None
 
     def set_tip(self, p_R) -> None:
