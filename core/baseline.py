@@ -56,8 +56,12 @@ class Baseline:
         ``"planar"``, ``"volumetric"`` or ``"positioning"``: which causes apply.
     model : str
         The model in words (report key ``baseline.model``).
-    A : (n, p) float
-        Design, SI units per unit parameter.
+    A : (n, p) float, or core.lsq.BlockDesign
+        Design, SI units per unit parameter. A long planar log's (above
+        :data:`DENSE_DESIGN_BYTES` dense) is a :class:`core.lsq.BlockDesign`:
+        the targets' columns (one 1 per touch) kept as each row's target,
+        the machine's columns dense; the engine eliminates the targets
+        (means per target) instead of factoring ``n x p``.
     y : (n,) float
         Observations, m (or rad).
     names : tuple of str
@@ -103,7 +107,8 @@ class Baseline:
         :func:`core.diagnosis.pivoted_qr` of ``A`` when the builder already
         factored it (the planar grid choice does), so the engine does not
         factor it again; it names the matrix it factors and is ignored for
-        any other (a replaced ``A``).
+        any other (a replaced ``A``). None for a block design (it keeps its
+        own factorisation, :meth:`core.lsq.BlockDesign.basis`).
     """
 
     kind: str

@@ -116,7 +116,11 @@ there) are refitted on it, the rest predicted. The training fit solves the
 baseline by truncated SVD of the column-scaled design (relative singular
 values below :attr:`Settings.cv_rcond` dropped, so nodes the other set-ups
 barely see do not extrapolate) and the extension columns by least squares
-on their part outside that span; the same for every model compared.
+on their part outside that span; the same for every model compared. A
+long planar log's design (a :class:`core.lsq.BlockDesign`) is never formed
+rows by parameters: its targets are eliminated (means per target), the
+truncation acts on the machine's columns beside them (:class:`Folds`'
+``"blocks"`` mode) and the workpiece is solved from the normal matrix.
 """
 
 from __future__ import annotations
