@@ -401,8 +401,11 @@ class Folds:
             own = [(A.ids[te][:, None] == own_ids[None, :]).astype(float), Dte[:, ~used]]
             Ao = np.hstack(own)
             Qo = orth(Ao) if Ao.shape[1] else np.zeros((te.size, 0))
-            self.items.append(_Fold(tr, te, Qo, cols=cols, ctr=ctr, V=V[:, keep] / np.sqrt(w[keep]) / sc[cols][:, None],
-                                    Vf=V[:, full] / np.sqrt(w[full]) / sc[cols][:, None]))
+            Vf = V[:, full] / np.sqrt(w[full]) / sc[cols][:, None]
+            # the retained directions are the whole span's largest (eigh: ascending): a view, not a copy
+            Vr = Vf[:, Vf.shape[1] - int(keep.sum()):] if keep.sum() <= full.sum() else \
+                V[:, keep] / np.sqrt(w[keep]) / sc[cols][:, None]
+            self.items.append(_Fold(tr, te, Qo, cols=cols, ctr=ctr, V=Vr, Vf=Vf))
 
     def residuals(self, Y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> np.ndarray:
         """Held-out residuals of the baseline (plus extension columns ``E`` (n, k)).
