@@ -30,6 +30,13 @@ volumetric identification (:mod:`core.volumetric`) and model discovery
 directions (a shift, a rotation, a scale...) can explain is taken out of a
 vector by least squares; self-calibration uses it for the workpiece form
 and for comparing an error map with the truth.
+
+:class:`BlockDesign` and :class:`Basis` are a long log's design and its
+orthonormal basis for model discovery (:mod:`core.discover`): a block of
+indicator columns (a workpiece's targets, one per touch) kept as each
+row's id and eliminated by means per id, the other columns dense; they
+act as the matrices where discovery uses one and refuse any other numpy
+use (``np.asarray`` raises).
 """
 
 from __future__ import annotations
