@@ -140,7 +140,7 @@ from .baseline import Baseline
 from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch, new_basis, orth,
                         replicate_scatter, term_bases)
 from .exceptions import ConfigError, IdentifiabilityError
-from .lsq import BlockDesign, _group_sums, leverage, orth_of
+from .lsq import BlockDesign, group_sums, leverage, orth_of
 from .touches import Touches
 from .units import UM
 
@@ -341,7 +341,19 @@ class Folds:
         self.design = None if self.mode == "spans" else A
         if self.mode == "blocks":
             self._init_blocks(A, groups, gs)
-        for g in gs if self.mode != "blocks" else ():
+        else:
+            self._init_dense(A, groups, gs)
+        if not self.items:
+            raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
+        # the baseline's held-out rows (residuals' count: a row alone supporting an own column is not one)
+        self.last_dof = sum(int(np.sum(np.sum(f.Qo ** 2, axis=1) < 1 - OWN_LEVERAGE)) if f.Qo.shape[1] else f.te.size
+                            for f in self.items)
+        self.dof = max(self.last_dof, 1)
+
+    def _init_dense(self, A: np.ndarray, groups, gs) -> None:
+        """The folds of a dense design: per group, the truncated eigen-decomposition of the training normal matrix."""
+        rcond = self.rcond
+        for g in gs:
             te = np.flatnonzero(groups == g)
             tr = np.flatnonzero(groups != g)
             if te.size == 0 or tr.size == 0:
@@ -366,18 +378,12 @@ class Folds:
                              Vf=V[:, full] / np.sqrt(w[full]) / sc[used][:, None])
             del Atr, As
             self.items.append(item)
-        if not self.items:
-            raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
-        # the baseline's held-out rows (residuals' count: a row alone supporting an own column is not one)
-        self.last_dof = sum(int(np.sum(np.sum(f.Qo ** 2, axis=1) < 1 - OWN_LEVERAGE)) if f.Qo.shape[1] else f.te.size
-                            for f in self.items)
-        self.dof = max(self.last_dof, 1)
 
     def _init_blocks(self, A: BlockDesign, groups, gs) -> None:
         """The folds of a block design: per group, the Schur complement of the training rows' machine block."""
         g = A.g
         cnt = np.bincount(A.ids, minlength=g)
-        GD = _group_sums(A.ids, g, A.D)
+        GD = group_sums(A.ids, g, A.D)
         DD = A.D.T @ A.D
         for grp in gs:
             te = np.flatnonzero(groups == grp)
@@ -390,7 +396,7 @@ class Folds:
             used = sc > 1e-9 * max(sc.max(), np.sqrt(ctr.max()), 1e-300)
             cols = np.flatnonzero(used)
             gu = ctr > 0
-            gd = (GD - _group_sums(A.ids[te], g, Dte))[np.ix_(gu, cols)]
+            gd = (GD - group_sums(A.ids[te], g, Dte))[np.ix_(gu, cols)]
             S = (DD - Dte.T @ Dte)[np.ix_(cols, cols)] - gd.T @ (gd / ctr[gu][:, None])
             S = S / np.outer(sc[cols], sc[cols])
             w, V = np.linalg.eigh(S)
@@ -497,16 +503,16 @@ class Folds:
         g = A.g
         X = Y2 if E is None or not E.shape[1] else np.hstack([Y2, E])
         b = Y2.shape[1]
-        GX, DX = _group_sums(A.ids, g, X), A.D.T @ X
-        GD = _group_sums(A.ids, g, A.D)
+        GX, DX = group_sums(A.ids, g, X), A.D.T @ X
+        GD = group_sums(A.ids, g, A.D)
         EX = E.T @ X if X.shape[1] > b else None
         for f in self.items:
             te = f.te
             ids_te, Xte, Dte = A.ids[te], X[te], A.D[te]
             gu = f.ctr > 0
-            gx = (GX - _group_sums(ids_te, g, Xte))[gu]
+            gx = (GX - group_sums(ids_te, g, Xte))[gu]
             dx = (DX - Dte.T @ Xte)[f.cols]
-            gd = (GD - _group_sums(ids_te, g, Dte))[np.ix_(gu, f.cols)]
+            gd = (GD - group_sums(ids_te, g, Dte))[np.ix_(gu, f.cols)]
             inv = 1.0 / f.ctr[gu][:, None]
             s = dx - gd.T @ (gx * inv)  # the Schur complement's right-hand side: D^T (I - P_G) X over training rows
 

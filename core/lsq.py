@@ -638,7 +638,7 @@ def remove_span(v, B, rcond: float = 1e-12) -> np.ndarray:
 # ---------------------------------------------------------------------------
 # block designs: one indicator column per row, eliminated (long logs)
 # ---------------------------------------------------------------------------
-def _group_sums(ids: np.ndarray, g: int, X: np.ndarray) -> np.ndarray:
+def group_sums(ids: np.ndarray, g: int, X: np.ndarray) -> np.ndarray:
     """(g,) or (g, k): the rows of ``X`` summed per id (``G^T X`` for the indicator block ``G``)."""
     if X.ndim == 1:
         return np.bincount(ids, weights=X, minlength=g)
@@ -730,7 +730,7 @@ class BlockDesign:
     def rmatmul(self, X: np.ndarray) -> np.ndarray:
         """``A^T X``: (p,) or (p, k)."""
         out = np.zeros((self.shape[1],) + X.shape[1:])
-        out[self.g_cols] = _group_sums(self.ids, self.g, X)
+        out[self.g_cols] = group_sums(self.ids, self.g, X)
         out[self.d_cols] = self.D.T @ X
         return out
 
@@ -745,7 +745,7 @@ class BlockDesign:
         """(p, p) ``A^T A`` (dense: the parameters, not the rows)."""
         p = self.shape[1]
         N = np.zeros((p, p))
-        gd = _group_sums(self.ids, self.g, self.D)
+        gd = group_sums(self.ids, self.g, self.D)
         N[self.g_cols, self.g_cols] = np.bincount(self.ids, minlength=self.g)
         N[np.ix_(self.g_cols, self.d_cols)] = gd
         N[np.ix_(self.d_cols, self.g_cols)] = gd.T
@@ -773,7 +773,7 @@ class BlockDesign:
             nrm = np.linalg.norm(self.D, axis=0)
             keep = nrm > 0
             Ds = self.D[:, keep] / nrm[keep]
-            Ds -= (_group_sums(ids, self.g, Ds) / np.maximum(cnt, 1.0)[:, None])[ids]
+            Ds -= (group_sums(ids, self.g, Ds) / np.maximum(cnt, 1.0)[:, None])[ids]
             if Ds.shape[1]:
                 Q, R, _ = sla.qr(Ds, mode="economic", pivoting=True, overwrite_a=True)
                 d = np.abs(np.diag(R))
@@ -846,7 +846,7 @@ class Basis:
         return _Transposed(self)
 
     def rmatmul(self, X: np.ndarray) -> np.ndarray:
-        gs = _group_sums(self.ids, len(self.counts), X)[self._present]
+        gs = group_sums(self.ids, len(self.counts), X)[self._present]
         gs = gs * (self._scale if X.ndim == 1 else self._scale[:, None])
         return np.concatenate([gs, self.U.T @ X], axis=0)
 
@@ -906,7 +906,8 @@ def leverage(Q) -> np.ndarray:
 
 
 def orth_of(A, tol: float = 1e-9, qr=None):
-    """Orthonormal basis of ``A``'s columns: :func:`core.diagnosis.orth` for an array, :meth:`BlockDesign.basis` for a block design."""
+    """Orthonormal basis of ``A``'s columns: :func:`core.diagnosis.orth` of an array, :meth:`BlockDesign.basis` of a block
+    design."""
     if isinstance(A, BlockDesign):
         return A.basis(tol)
     from .diagnosis import orth

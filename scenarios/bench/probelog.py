@@ -166,7 +166,8 @@ _WORK = {
 
 
 def _child(what: str, path, *args, timeout: float | None = None) -> tuple[float, float]:
-    """(wall time s, peak resident memory MB) of ``_WORK[what]`` in a fresh interpreter (stopped after ``timeout`` s)."""
+    """(wall time s, peak resident memory MB) of ``_WORK[what]`` in a fresh interpreter (stopped after ``timeout``
+    s)."""
     out = subprocess.run([sys.executable, "-c", _CHILD.format(work=_WORK[what]), str(path), *map(str, args)],
                          capture_output=True, text=True, check=True, timeout=timeout)
     t, kb = out.stdout.split()[-2:]
