@@ -108,6 +108,9 @@ def run_serve(args) -> int:
 
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port {args.port}: not a TCP port")
+    for opt, v in (("--idle-timeout-s", args.idle_timeout), ("--stop-after-s", args.max_seconds)):
+        if v is not None and not v > 0:
+            raise ConfigError(f"{opt} must be > 0, got {v:g}")
     machine = served_machine(args)
     axes = args.axes or "XYZ" + "".join(a for a in "ABC" if a in getattr(machine, "rotary_axes", ()))
     config = ControllerConfig(axes=axes, home=_floats3(args.home, "--home-mm"), homing=args.homing,

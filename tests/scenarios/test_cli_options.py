@@ -443,3 +443,30 @@ def test_report_paths_have_no_double_slash(tmp_path, capsys):
                 "--report", str(tmp_path / "s-report") + "/"]) == 0
     out = capsys.readouterr().out
     assert "s-report/index.html" in out and "//" not in out
+
+
+def test_check_without_a_log_says_so_once(tmp_path, capsys):
+    """No LOG: one line, 'check' not doubled; a JSON file given to --json is not read as the log."""
+    out = tmp_path / "s.json"
+    out.write_text("{}")
+    for argv in (["check"], ["check", "--json", str(out)]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "give the LOG to check" in err and "check: check" not in err \
+            and "error: check:" not in err, err
+    assert out.read_text() == "{}"
+
+
+def test_negative_waits_are_refused(tmp_path, capsys):
+    plan = tmp_path / "plan.csv"
+    assert main(["simulate", "cross-pocket", "--plan-only", "--no-collision-check", "--out", str(plan)]) == 0
+    for argv, opt in ((["machine", "serve", "--port", "0", "--idle-timeout-s", "-1"], "--idle-timeout-s"),
+                      (["machine", "serve", "--port", "0", "--stop-after-s", "0"], "--stop-after-s"),
+                      (["probe", "--controller", "virtual:cross-pocket", "--plan", str(plan), "--out",
+                        str(tmp_path / "log.csv"), "--limits-mm", "X-250:250,Y-250:250,Z-100:200",
+                        "--timeout-s", "-5"], "--timeout-s")):
+        capsys.readouterr()
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{opt} must be > 0" in err, err
+    assert not (tmp_path / "log.csv").exists()
