@@ -470,3 +470,21 @@ def test_negative_waits_are_refused(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and f"{opt} must be > 0" in err, err
     assert not (tmp_path / "log.csv").exists()
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--from-json", "r.json", "--readme", "R.md", "--merge"], "--merge has no meaning"),
+    (["--from-json", "r.json", "--readme", "R.md", "--only", "x"], "--only has no meaning"),
+    (["--only", "bench_discover", "--readme", "R.md"], "add --merge"),
+])
+def test_bench_refuses_a_table_from_part_of_the_benchmarks(tmp_path, monkeypatch, capsys, argv, says):
+    import scenarios.bench as B
+
+    ran = []
+    monkeypatch.setattr(B, "run_all", lambda *a, **k: ran.append(1))
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "R.md").write_text("x\n<!-- bench-table -->\nrow\n<!-- /bench-table -->\n")
+    assert main(["bench", "--out", str(tmp_path / "o.json"), *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and says in err, err
+    assert not ran and "row" in (tmp_path / "R.md").read_text()
