@@ -224,12 +224,21 @@ def test_a_dropped_model_term_inside_the_estimator_is_caught(tmp_path, capsys):
     """``planar = true``: the self-calibration itself runs without its height terms (a different estimator,
     not a relabelled output). The spheres stand 25.7 mm above the walls, so the C axis's tilt and the
     tool's Abbe terms go unmodelled into the workpiece (and the tables): the study fails there and the
-    C axis's location, which the tilt does not move at the pocket's height, still passes."""
-    p = _mutated(tmp_path, SELFCAL, "planar = true")
+    C axis's location, which the tilt does not move at the pocket's height, still passes.
+
+    The leak is small: 1.34 x U95 at the worst target on seed 1, beyond each value's own U95 but inside
+    the shipped study's simultaneous band (k_sim 1.67 over its 149 values), which it passes. So this
+    mutation is checked at 1 x U95 per value (a rule a correct identification of this study also fails
+    on 50 of 60 seeds): the simultaneous band does not catch it on this study (README)."""
+    one = SELFCAL.read_text().replace('within_u95 = "simultaneous"', "within_u95 = 1.0")
+    src = tmp_path / "selfcal-1x.toml"
+    src.write_text(one)
+    p = _mutated(tmp_path, src, "planar = true")
     j = tmp_path / "r.json"
     assert main(["regress", str(p), "--json", str(j)]) == 1
     checks = {c["quantity"]: c for c in json.loads(j.read_text())["checks"]}
     assert not checks["workpiece"]["passed"] and checks["workpiece"]["margin"] < 0
+    assert 1.2 < checks["workpiece"]["deviation"] / checks["workpiece"]["u95"] < 1.67
     assert checks["EXC"]["passed"] and checks["EYC"]["passed"]
     assert "planar model" in capsys.readouterr().out
 
@@ -264,7 +273,7 @@ def test_assert_recovers_names_the_quantity_and_margin():
     study = replace(load_study(POSITIONING), seeds=(2,))
     res = assert_recovers(study)
     assert res.passed
-    with pytest.raises(AssertionError, match=r"reversal \(seed 2\) at P=.*exceeds <= 1 x U95 = .*margin -"):
+    with pytest.raises(AssertionError, match=r"reversal \(seed 2\) at P=.*exceeds <= 1.9\d\d x U95 \(simultaneous, 95% over 12 values\) = .*margin -"):
         assert_recovers(study, hook=Mutation(flip_sign=("reversal",)))
 
 
