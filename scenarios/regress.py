@@ -35,6 +35,8 @@ Study file
     c_angles_deg = [0, 75, 130, 210]
 
     [accept.EXX]                  # one table per quantity checked
+    within_u95 = "simultaneous"   # every value of the simultaneous quantities within k_sim x U95 at once
+    [accept.EYY]
     within_u95 = 1.0              # |identified - injected| <= 1.0 x U95 at every node
     [accept.EC0Y]
     tolerance_urad = 2.0          # or an absolute tolerance with its unit (um | urad)
@@ -86,7 +88,12 @@ Identifications, their quantities and ``[plan]`` keys:
     engine is being rewritten, its fitted magnitudes are not checked.
 
 Acceptance rules (``[accept.QUANTITY]``, exactly one key; discover:
-``expected``): ``within_u95 = k``
+``expected``): ``within_u95 = "simultaneous"`` (every element of every
+quantity so marked, together: ``|identified - injected| <= k_sim U95 +
+1e-6``, ``k_sim`` the 95 % point of the largest ``|identified - injected| /
+U95`` of them under the run's own joint covariance, :func:`simultaneous_k`:
+a correct identification passes with probability 95 % however many values
+are checked; per seed, printed with the number of values), ``within_u95 = k``
 (every element: ``|identified - injected| <= k U95 + 1e-6``; needs probing
 noise; the 1e-6 um / urad lets an element fixed by the ISO convention, U95
 0, match to rounding: :data:`GAUGE_FLOOR`), ``tolerance_um = t`` or ``tolerance_urad = t`` (every element:
