@@ -7,7 +7,9 @@ placements. Every value identified is compared with the injected truth (same con
 the run's own linear U95 (probing noise, bar calibration, placement), and the figures say whether
 that U95 is right (about 95 % of the values inside, each node's mean squared z near 1) and how
 often a whole run has every value inside k x U95 (what a regression study checks at once), beside
-what the linear model's joint normal distribution predicts for the same count::
+what the linear model's joint normal distribution predicts for the same count, and how many runs
+pass ``within_u95 = "simultaneous"`` (every value within the run's k_sim x U95, the very check ``vmt
+regress`` makes; about 95 % when the covariance is right) with its exact binomial interval::
 
     python -m scenarios.mfb_coverage scenarios/data/regress-mfb-5axis-mikron.toml --seeds 1 121 --workers 2
 
