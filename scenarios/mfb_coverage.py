@@ -7,7 +7,9 @@ placements. Every value identified is compared with the injected truth (same con
 the run's own linear U95 (probing noise, bar calibration, placement), and the figures say whether
 that U95 is right (about 95 % of the values inside, each node's mean squared z near 1) and how
 often a whole run has every value inside k x U95 (what a regression study checks at once), beside
-what the linear model's joint normal distribution predicts for the same count::
+what the linear model's joint normal distribution predicts for the same count, and how many runs
+pass ``within_u95 = "simultaneous"`` (every value within the run's k_sim x U95, the very check ``vmt
+regress`` makes; about 95 % when the covariance is right) with its exact binomial interval::
 
     python -m scenarios.mfb_coverage scenarios/data/regress-mfb-5axis-mikron.toml --seeds 1 121 --workers 2
 
@@ -26,17 +28,22 @@ K_LEVELS = (1.0, 1.25, 1.5, 1.75, 2.0)
 
 
 def one_run(study, seed: int) -> tuple:
-    """(dev, U95, names): identified - injected and the run's U95 of every value (um, urad), in the
-    report's order, values the conventions fix included (U95 0)."""
-    from scenarios import mfb
+    """(dev, U95, names, k_sim, passed): identified - injected and the run's U95 of every value (um,
+    urad), in the report's order, values the conventions fix included (U95 0); the run's simultaneous
+    band over all 21 errors (:func:`scenarios.regress.simultaneous_k`) and whether every value lies
+    within it, exactly as ``within_u95 = "simultaneous"`` checks it (:func:`scenarios.regress.check`)."""
+    from dataclasses import replace
 
-    r = mfb.run(study.identification, seed=seed, noise_um=study.noise_um, mc_runs=0, machine=study.machine)
-    errs = r.doc["errors"]
-    dev = np.concatenate([np.asarray(e["identified"], float) - np.asarray(e["injected"], float)
-                          for e in errs.values()])
-    U = np.concatenate([np.asarray(e["u95"], float) for e in errs.values()])
-    names = np.concatenate([[s] * len(e["identified"]) for s, e in errs.items()])
-    return dev, U, names
+    from scenarios.regress import RUNNERS, Rule, check, simultaneous_k
+
+    est = RUNNERS[study.identification](replace(study, plan=(("mc_runs", 0),)), seed)
+    dev = np.concatenate([e.identified - e.injected for e in est.values()])
+    U = np.concatenate([e.u95 for e in est.values()])
+    names = np.concatenate([[s] * len(e.identified) for s, e in est.items()])
+    k_sim, n = simultaneous_k(list(est.values()))
+    passed = all(check(Rule(s, None, None, e.unit, simultaneous=True), e, seed, k_sim, n).passed
+                 for s, e in est.items())
+    return dev, U, names, k_sim, passed
 
 
 def _task(args):
@@ -101,6 +108,19 @@ def summarize(dev: np.ndarray, U: np.ndarray, names: np.ndarray, rng=None) -> di
     return out
 
 
+def simultaneous_summary(k_sim, passed) -> dict:
+    """The runs a ``within_u95 = "simultaneous"`` study passes, with the exact (Clopper-Pearson) 95 %
+    interval of that rate, and the range of the runs' k_sim."""
+    from scipy import stats
+
+    passed = np.asarray(passed, bool)
+    n, x = len(passed), int(passed.sum())
+    lo = float(stats.beta.ppf(0.025, x, n - x + 1)) if x > 0 else 0.0
+    hi = float(stats.beta.ppf(0.975, x + 1, n - x)) if x < n else 1.0
+    return {"runs": n, "passed": x, "rate": x / n, "interval": [lo, hi],
+            "k_sim": [float(np.min(k_sim)), float(np.median(k_sim)), float(np.max(k_sim))]}
+
+
 def describe(s: dict, model: dict | None = None) -> str:
     w, (lo, hi) = s["within"]
     lines = [f"{s['runs']} runs x {s['values']} values: {w:.3f} within U95 (95 % interval over runs {lo:.3f}-{hi:.3f})",
@@ -141,9 +161,14 @@ def main(argv=None) -> int:
         runs = [_task(t) for t in tasks]
     dev, U = np.array([x[0] for x in runs]), np.array([x[1] for x in runs])
     names = runs[0][2]
+    k_sim, passed = np.array([x[3] for x in runs]), np.array([x[4] for x in runs])
     if a.out:
-        np.savez(a.out, dev=dev, U=U, names=names, seeds=np.arange(*a.seeds))
+        np.savez(a.out, dev=dev, U=U, names=names, seeds=np.arange(*a.seeds), k_sim=k_sim, passed=passed)
     print(describe(summarize(dev, U, names), model_all_within(study)))
+    sm = simultaneous_summary(k_sim, passed)
+    print(f"within_u95 = \"simultaneous\" (k_sim x U95, {sm['k_sim'][0]:.3f}-{sm['k_sim'][2]:.3f} over the runs, "
+          f"median {sm['k_sim'][1]:.3f}): {sm['passed']}/{sm['runs']} runs pass = {sm['rate']:.3f} "
+          f"(95 % interval {sm['interval'][0]:.3f}-{sm['interval'][1]:.3f}; the aim 0.95)")
     return 0
 
 

@@ -35,6 +35,8 @@ Study file
     c_angles_deg = [0, 75, 130, 210]
 
     [accept.EXX]                  # one table per quantity checked
+    within_u95 = "simultaneous"   # every value of the simultaneous quantities within k_sim x U95 at once
+    [accept.EYY]
     within_u95 = 1.0              # |identified - injected| <= 1.0 x U95 at every node
     [accept.EC0Y]
     tolerance_urad = 2.0          # or an absolute tolerance with its unit (um | urad)
@@ -86,7 +88,12 @@ Identifications, their quantities and ``[plan]`` keys:
     engine is being rewritten, its fitted magnitudes are not checked.
 
 Acceptance rules (``[accept.QUANTITY]``, exactly one key; discover:
-``expected``): ``within_u95 = k``
+``expected``): ``within_u95 = "simultaneous"`` (every element of every
+quantity so marked, together: ``|identified - injected| <= k_sim U95 +
+1e-6``, ``k_sim`` the 95 % point of the largest ``|identified - injected| /
+U95`` of them under the run's own joint covariance, :func:`simultaneous_k`:
+a correct identification passes with probability 95 % however many values
+are checked; per seed, printed with the number of values), ``within_u95 = k``
 (every element: ``|identified - injected| <= k U95 + 1e-6``; needs probing
 noise; the 1e-6 um / urad lets an element fixed by the ISO convention, U95
 0, match to rounding: :data:`GAUGE_FLOOR`), ``tolerance_um = t`` or ``tolerance_urad = t`` (every element:
@@ -102,7 +109,9 @@ the estimator and the comparison. ``flip_sign = [Q, ...]`` reports Q with
 the opposite sign: for these linear least-squares identifications that is
 exactly what a sign error in Q's columns of the model gives when Q's gauge
 conditions are homogeneous (the solution of the flipped model is Q
-negated, everything else unchanged). ``drop = [Q, ...]`` reports Q as
+negated, everything else unchanged). ``scale = {Q = c, ...}`` reports Q
+times c: a gain error in Q's columns (a wrong unit or lever arm; the
+solution of the model with Q's columns divided by c). ``drop = [Q, ...]`` reports Q as
 identically zero, what a model without the term assumes; unlike a real
 model without it, the other quantities do not absorb its effect here.
 ``planar = true`` (selfcal) is a change inside the estimator itself: the
@@ -146,6 +155,12 @@ QUANTITIES = {"selfcal": _SELFCAL_Q, "mfb-3axis": _MFB_Q, "mfb-5axis": _MFB_Q, "
 #: convention (its U95 is 0, e.g. EXX at the first node) must match the injected value in the same gauge to
 #: the rounding of the gauge transform (~1e-14), so a gauge or sign mismatch there fails.
 GAUGE_FLOOR = 1e-6
+#: ``within_u95 = "simultaneous"``: the probability, under the identification's joint normal model, that
+#: every value of every simultaneous quantity of a run lies within ``k_sim x U95`` (:func:`simultaneous_k`).
+JOINT_COVERAGE = 0.95
+#: Monte Carlo draws of :func:`simultaneous_k` and their fixed seed (the same k_sim for the same covariance).
+SIM_DRAWS = 100_000
+SIM_SEED = 20261202
 #: Quantities that have no U95 (absolute tolerance only).
 _NO_U95 = {"iso230-2": ("E", "M", "B")}
 _PLAN_KEYS = {"selfcal": ("c_angles_deg", "grid_mm"), "mfb-3axis": ("mc_runs",), "mfb-5axis": ("mc_runs",),
@@ -157,6 +172,62 @@ _INJECTED = ("errors", "seed", "ripple", "error", "probe")
 
 class StudyError(ConfigError):
     """A study file that cannot be run: the file, the key, what is wrong."""
+
+
+def _factor(cov) -> np.ndarray:
+    """A square-root factor ``F`` of a symmetric covariance, ``cov = F F^T`` (its non-negative eigen-decomposition)."""
+    C = np.asarray(cov, float)
+    w, V = np.linalg.eigh(0.5 * (C + C.T))
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def simultaneous_k(estimates, coverage: float = JOINT_COVERAGE, draws: int = SIM_DRAWS,
+                   seed: int = SIM_SEED) -> tuple[float, int]:
+    """``(k_sim, n)``: the ``coverage`` quantile of ``max_i |e_i| / U95_i`` over the ``n`` values with a U95
+    (> 0) of ``estimates``, ``e`` drawn from their joint normal distribution ``N(0, F F^T)``
+    (:attr:`Estimate.factor`, rows stacked): the band ``k_sim x U95`` holds every value of a run at once
+    with probability ``coverage`` when the model is right.
+
+    Monte Carlo with ``draws`` draws from a fixed seed (the same covariance gives the same k_sim; its
+    sampling error at 1e5 draws is about 0.01 in k). Between two bounds: one value's k (1, U95 = 2 u) when
+    the values move together, Sidak's ``Phi^-1((1 + coverage^(1/n)) / 2) / 2`` when they are independent.
+    With :attr:`Estimate.dof` (the U95 itself estimated from the run's scatter) each draw also draws the
+    sources' estimated variances (``chi2(dof) / dof`` times the given) and divides by the U95 they give
+    (the studentized maximum, the factor's scales taken as the true ones): wider than the normal band,
+    as a t quantile is wider than a normal one.
+    """
+    dofs = {tuple(np.asarray(e.dof, float)) for e in estimates if getattr(e, "dof", None) is not None}
+    if len(dofs) > 1 or (dofs and any(getattr(e, "dof", None) is None for e in estimates)):
+        raise ValueError("simultaneous_k: estimates with different degrees of freedom of their sources")
+    dof = np.asarray(dofs.pop(), float) if dofs else None
+    rows, U = [], []
+    for e in estimates:
+        if e.factor is None or e.u95 is None:
+            raise ValueError("simultaneous_k: an estimate without its covariance factor or U95")
+        u = np.asarray(e.u95, float)
+        k = u > 1e-9  # values a convention fixes (U95 0) are checked to GAUGE_FLOOR, not drawn
+        rows.append(np.asarray(e.factor, float)[k])
+        U.append(u[k])
+    F, U = np.vstack(rows), np.concatenate(U)
+    n = len(U)
+    if n == 0:
+        raise ValueError("simultaneous_k: no value with a U95")
+    if dof is None:
+        F = _factor(F @ F.T)  # the same distribution on n columns (fewer than the sources: faster draws)
+    elif dof.shape != (F.shape[1],) or not np.all(dof > 0):
+        raise ValueError("simultaneous_k: dof must be positive, one per column of the factor")
+    rng = np.random.default_rng(seed)
+    mx = np.empty(int(draws))
+    step = max(1, 2_000_000 // max(F.shape[1], 1))
+    for a in range(0, len(mx), step):
+        b = min(a + step, len(mx))
+        x = rng.standard_normal((b - a, F.shape[1])) @ F.T
+        if dof is None:
+            mx[a:b] = (np.abs(x) / U).max(axis=1)
+        else:  # the U95 this draw's scatter would give
+            w = rng.chisquare(dof, (b - a, len(dof))) / dof
+            mx[a:b] = (np.abs(x) / (2.0 * np.sqrt(w @ (F * F).T))).max(axis=1)
+    return float(np.quantile(mx, coverage)), n
 
 
 @dataclass(frozen=True)
@@ -174,6 +245,9 @@ class Rule:
         ``um`` or ``urad``: the quantity's unit (``cause`` for discover).
     expected : tuple of str
         Discover: the causes the findings must name.
+    simultaneous : bool
+        ``within_u95 = "simultaneous"``: pass when ``|identified - injected| <= k_sim U95``, ``k_sim``
+        from the seed's joint covariance of every simultaneous quantity (:func:`simultaneous_k`).
     """
 
     quantity: str
@@ -181,10 +255,14 @@ class Rule:
     tolerance: float | None
     unit: str
     expected: tuple[str, ...] = ()
+    simultaneous: bool = False
 
-    def text(self) -> str:
+    def text(self, k_sim: float | None = None, values: int = 0) -> str:
         if self.expected:
             return "names " + ", ".join(self.expected)
+        if self.simultaneous:
+            return ("<= k_sim x U95 (simultaneous)" if k_sim is None else
+                    f"<= {k_sim:.3f} x U95 (simultaneous, {JOINT_COVERAGE:.0%} over {values} values)")
         return f"<= {self.k:g} x U95" if self.k is not None else f"<= {self.tolerance:g} {self.unit}"
 
 
@@ -196,12 +274,16 @@ class Mutation:
     flip_sign: tuple[str, ...] = ()
     drop: tuple[str, ...] = ()
     planar: bool = False
+    scale: tuple = ()  # ((quantity, factor), ...)
 
     def __call__(self, identification: str, estimates: dict) -> dict:
         out = dict(estimates)
         for q in self.flip_sign:
             if q in out:
                 out[q] = out[q].replaced(identified=-out[q].identified)
+        for q, c in self.scale:
+            if q in out and not isinstance(out[q], Causes):
+                out[q] = out[q].replaced(identified=c * out[q].identified)
         for q in self.drop:
             if isinstance(out.get(q), Causes):
                 out[q] = Causes(())
@@ -247,6 +329,16 @@ class Estimate:
     labels : tuple of str
         What each element is (a node, a set-up, a target).
     unit : str
+    factor : (n, m) float or None
+        This quantity's rows of a square-root factor of the identification's joint covariance, in
+        ``unit``: the errors ``identified - injected`` of all quantities of one run are, to the
+        identification's linear model, normal with covariance ``F F^T`` (``F`` their rows stacked, one
+        column per independent source). None when the identification gives no joint covariance.
+    dof : (m,) float or None
+        Per column of ``factor``: the degrees of freedom with which that source's scale was estimated
+        from the run itself (ISO 230-2: a direction's scatter at a target from its ``n`` readings, ``n -
+        1``); the U95 then varies from run to run with it and :func:`simultaneous_k` draws it too. None:
+        the scales are known (declared probing noise, calibration, placements).
     """
 
     identified: np.ndarray
@@ -254,6 +346,8 @@ class Estimate:
     u95: np.ndarray | None
     labels: tuple[str, ...]
     unit: str
+    factor: np.ndarray | None = None
+    dof: np.ndarray | None = None
 
     def replaced(self, **kw) -> "Estimate":
         from dataclasses import replace
@@ -315,12 +409,14 @@ class Check:
 
 @dataclass(frozen=True)
 class StudyResult:
-    """Every check of a study, and the seconds each seed took."""
+    """Every check of a study, the seconds each seed took and, per seed, the simultaneous band
+    ``(seed, k_sim, values)`` (:func:`simultaneous_k`; empty without a simultaneous rule)."""
 
     study: Study
     checks: tuple[Check, ...]
     seconds: tuple[float, ...]
     estimates: dict = field(default=None, compare=False, repr=False)
+    simultaneous: tuple = ()
 
     @property
     def passed(self) -> bool:
@@ -338,9 +434,14 @@ class StudyResult:
                               "injected values in the identification's gauge",
                 "mutation": None if s.mutation is None else {"flip_sign": list(s.mutation.flip_sign),
                                                              "drop": list(s.mutation.drop),
+                                                             "scale": dict(s.mutation.scale),
                                                              "planar": s.mutation.planar},
                 "passed": self.passed, "n_checks": len(self.checks), "n_failed": len(self.failures),
-                "seconds": [round(t, 3) for t in self.seconds], "checks": [c.to_json() for c in self.checks]}
+                "seconds": [round(t, 3) for t in self.seconds],
+                "simultaneous": [{"seed": sd, "k_sim": k, "values": n, "coverage": JOINT_COVERAGE,
+                                  "method": f"Monte Carlo, {SIM_DRAWS} joint normal draws, seed {SIM_SEED}"}
+                                 for sd, k, n in self.simultaneous],
+                "checks": [c.to_json() for c in self.checks]}
 
     def table(self) -> str:
         """The printed table: quantity, seed, where, injected, identified, U95, limit, verdict."""
@@ -355,6 +456,10 @@ class StudyResult:
         w = [max(len(r[i]) for r in rows + [head]) for i in range(len(head))]
         lines = ["  ".join(h.ljust(w[i]) for i, h in enumerate(head))]
         lines += ["  ".join(v.ljust(w[i]) for i, v in enumerate(r)) for r in rows]
+        for sd, k, n in self.simultaneous:
+            lines.append(f"seed {sd}: simultaneous band k_sim = {k:.3f} x U95 over {n} values (every value within it "
+                         f"with probability {JOINT_COVERAGE:.0%} under the run's joint covariance; 1 x U95 is one "
+                         f"value's 95 %)")
         return "\n".join(lines)
 
 
@@ -478,7 +583,13 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
             if noise == 0:
                 r.fail(f"{key}.within_u95", "needs probing noise (noise_um > 0): a noise-free run's U95 is not "
                                             "a statement about noise; use an absolute tolerance")
-            rules.append(Rule(q, r.number(f"{key}.within_u95", body["within_u95"], positive=True), None, unit))
+            v = body["within_u95"]
+            if isinstance(v, str):
+                if v != "simultaneous":
+                    r.fail(f"{key}.within_u95", f"expected a number or \"simultaneous\", got {v!r}")
+                rules.append(Rule(q, None, None, unit, simultaneous=True))
+            else:
+                rules.append(Rule(q, r.number(f"{key}.within_u95", v, positive=True), None, unit))
         else:
             rules.append(Rule(q, None, r.number(f"{key}.tolerance_{unit}", body[f"tolerance_{unit}"],
                                                 positive=True), unit))
@@ -486,8 +597,8 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
     if "mutate" in doc:
         mt = r.table("mutate", doc["mutate"])
         for k in mt:
-            if k not in ("flip_sign", "drop", "planar"):
-                r.fail(f"mutate.{k}", "unknown key (expected flip_sign, drop, planar)")
+            if k not in ("flip_sign", "drop", "planar", "scale"):
+                r.fail(f"mutate.{k}", "unknown key (expected flip_sign, drop, planar, scale)")
         planar = mt.get("planar", False)
         if not isinstance(planar, bool):
             r.fail("mutate.planar", f"expected true or false, got {planar!r}")
@@ -495,8 +606,13 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
             r.fail("mutate.planar", "only for the self-calibration (its height terms)")
         if ident == "discover" and mt.get("flip_sign"):
             r.fail("mutate.flip_sign", "a cause has no sign (discover: drop only)")
+        sc = r.table("mutate.scale", mt.get("scale", {}))
+        if ident == "discover" and sc:
+            r.fail("mutate.scale", "a cause has no magnitude (discover: drop only)")
+        r.names("mutate.scale", list(sc), known)
+        scale = tuple((q, r.number(f"mutate.scale.{q}", c)) for q, c in sc.items())
         mutation = Mutation(r.names("mutate.flip_sign", mt.get("flip_sign", []), known),
-                            r.names("mutate.drop", mt.get("drop", []), known), planar)
+                            r.names("mutate.drop", mt.get("drop", []), known), planar, scale)
     desc = doc.get("description", "")
     if not isinstance(desc, str):
         r.fail("description", f"expected a string, got {desc!r}")
@@ -586,6 +702,7 @@ def _selfcal(study: Study, seed: int) -> dict:
     raw, _ = block_truth(Campaign(m, t, art, plan, seed, noise_m), des)
     truth = des.to_gauge(raw)
     U = 2.0 * res.std
+    F = None if res.cov is None else _factor(res.cov) * 1e6
     out = {}
     blocks = {q: q for q in _SELFCAL_Q}
     blocks["workpiece"] = "G"
@@ -593,22 +710,30 @@ def _selfcal(study: Study, seed: int) -> dict:
         if blk not in des.slices:
             continue
         sl = des.slices[blk]
-        out[q] = Estimate(res.theta[sl] * 1e6, truth[sl] * 1e6, U[sl] * 1e6, tuple(des.names[sl]), _SELFCAL_Q[q])
+        out[q] = Estimate(res.theta[sl] * 1e6, truth[sl] * 1e6, U[sl] * 1e6, tuple(des.names[sl]), _SELFCAL_Q[q],
+                          None if F is None else F[sl])
     return out
 
 
 def _mfb(study: Study, seed: int) -> dict:
+    from core import volumetric as vol
     from scenarios import mfb
 
     runs = int(study.plan_value("mc_runs", 0))
     r = mfb.run(study.identification, seed=seed, noise_um=study.noise_um, mc_runs=runs, machine=study.machine)
+    # the joint covariance of the reported values: the run's linear propagation (probing noise, bar
+    # calibration, placements; vmt-estimate/1, um^2 / urad^2, identification gauge) in the report's
+    # ISO 230-1 form (straightness against its end-point line)
+    d = r.result.design
+    L = vol.iso_map(d)
+    F = _factor(L @ np.asarray(r.doc["estimate"]["covariance"], float) @ L.T)
     out = {}
     for s, e in r.doc["errors"].items():
         n = len(e["identified"])
         labels = tuple(f"{s}@{x:g}mm" for x in e["nodes_mm"]) if "nodes_mm" in e else (s,) * n
         u = np.asarray(e["u95"], float) if "u95" in e else None
         out[s] = Estimate(np.asarray(e["identified"], float), np.asarray(e["injected"], float), u, labels,
-                          _MFB_Q[s])
+                          _MFB_Q[s], F[d.slices[s]])
     return out
 
 
@@ -636,13 +761,23 @@ def _positioning(study: Study, seed: int) -> dict:
     mu_dn = np.array([p["mean_down_um"] for p in pt])
     u_diff = np.sqrt(np.array([p["s_up_um"] ** 2 / p["n_up"] + p["s_down_um"] ** 2 / p["n_down"] for p in pt]))
     labels = tuple(f"P={p['target_mm']:g}mm" for p in pt)
+    # the joint distribution of the two estimates per target: each direction's mean off by a normal of
+    # variance s^2 / n (its own scatter), the targets independent: mean = (up + down) / 2, B_i = up - down
+    a = np.array([p["s_up_um"] / math.sqrt(p["n_up"]) for p in pt])
+    b = np.array([p["s_down_um"] / math.sqrt(p["n_down"]) for p in pt])
+    n_t = len(pt)
+    F_mean, F_rev = np.zeros((n_t, 2 * n_t)), np.zeros((n_t, 2 * n_t))
+    i = np.arange(n_t)
+    F_mean[i, 2 * i], F_mean[i, 2 * i + 1] = a / 2, b / 2
+    F_rev[i, 2 * i], F_rev[i, 2 * i + 1] = a, -b
+    dof = np.ravel([[p["n_up"] - 1, p["n_down"] - 1] for p in pt]).astype(float)
     # ISO 230-2 definitions: mean bidirectional deviation, B_i = up - down, B = max |B_i|, M = range of the
     # bidirectional means, E = max over both directions' means - min over them
     t_mean, t_rev = (up + dn) / 2, up - dn
     one = ("axis",)
     return {
-        "mean": Estimate((mu_up + mu_dn) / 2, t_mean, u_diff, labels, "um"),
-        "reversal": Estimate(mu_up - mu_dn, t_rev, 2.0 * u_diff, labels, "um"),
+        "mean": Estimate((mu_up + mu_dn) / 2, t_mean, u_diff, labels, "um", F_mean, dof),
+        "reversal": Estimate(mu_up - mu_dn, t_rev, 2.0 * u_diff, labels, "um", F_rev, dof),
         "E": Estimate(np.array([rep["E_um"]]), np.array([max(up.max(), dn.max()) - min(up.min(), dn.min())]),
                       None, one, "um"),
         "M": Estimate(np.array([rep["M_um"]]), np.array([np.ptp(t_mean)]), None, one, "um"),
@@ -675,32 +810,37 @@ RUNNERS = {"selfcal": _selfcal, "mfb-3axis": _mfb, "mfb-5axis": _mfb, "iso230-2"
 
 
 # --------------------------------------------------------------------------- comparing
-def check(rule: Rule, est: Estimate | None, seed: int) -> Check:
-    """The verdict of ``rule`` on one identified quantity (None: the identification did not give it)."""
+def check(rule: Rule, est: Estimate | None, seed: int, k_sim: float | None = None, values: int = 0) -> Check:
+    """The verdict of ``rule`` on one identified quantity (None: the identification did not give it);
+    a simultaneous rule needs ``k_sim`` (and ``values``, the count it holds over: :func:`simultaneous_k`)."""
+    text = rule.text(k_sim, values)
     if est is None:
-        return Check(seed, rule.quantity, rule.unit, rule.text(), False, note="not identified")
+        return Check(seed, rule.quantity, rule.unit, text, False, note="not identified")
     if rule.expected:
         named = est.named
         missing = [c for c in rule.expected if c not in named]
         note = ("named " + (", ".join(named) if named else "no cause")
                 + (f"; expected {', '.join(missing)} not named" if missing else ""))
-        return Check(seed, rule.quantity, rule.unit, rule.text(), not missing, "findings", n=len(named), note=note)
+        return Check(seed, rule.quantity, rule.unit, text, not missing, "findings", n=len(named), note=note)
     dev = np.abs(np.asarray(est.identified, float) - np.asarray(est.injected, float))
-    if rule.k is not None:
+    k = k_sim if rule.simultaneous else rule.k
+    if rule.simultaneous and k_sim is None:
+        return Check(seed, rule.quantity, rule.unit, text, False, note="no joint covariance from the identification")
+    if k is not None:
         if est.u95 is None:
-            return Check(seed, rule.quantity, rule.unit, rule.text(), False, note="no U95 from the identification")
-        lim = rule.k * np.asarray(est.u95, float) + GAUGE_FLOOR
+            return Check(seed, rule.quantity, rule.unit, text, False, note="no U95 from the identification")
+        lim = k * np.asarray(est.u95, float) + GAUGE_FLOOR
     else:
         lim = np.full(dev.shape, rule.tolerance)
     if dev.size == 0:
-        return Check(seed, rule.quantity, rule.unit, rule.text(), False, note="no free element identified")
+        return Check(seed, rule.quantity, rule.unit, text, False, note="no free element identified")
     if not (np.all(np.isfinite(dev)) and np.all(np.isfinite(lim))):
-        return Check(seed, rule.quantity, rule.unit, rule.text(), False, note="not finite")
+        return Check(seed, rule.quantity, rule.unit, text, False, note="not finite")
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(lim > 0, dev / np.where(lim > 0, lim, 1.0), np.where(dev > 0, np.inf, 0.0))
     i = int(np.argmax(ratio))
     u = math.nan if est.u95 is None else float(est.u95[i])
-    return Check(seed, rule.quantity, rule.unit, rule.text(), bool(np.all(dev <= lim)), est.labels[i],
+    return Check(seed, rule.quantity, rule.unit, text, bool(np.all(dev <= lim)), est.labels[i],
                  float(est.injected[i]), float(est.identified[i]), u, float(lim[i]), int(dev.size))
 
 
@@ -719,7 +859,7 @@ def run_study(study: Study, *, hook=None, progress=None) -> StudyResult:
     progress : callable, optional
         ``progress(done, total)`` once per seed.
     """
-    checks, secs, all_est = [], [], {}
+    checks, secs, all_est, sim = [], [], {}, []
     run = RUNNERS[study.identification]
     for j, seed in enumerate(study.seeds):
         if progress is not None:
@@ -732,10 +872,15 @@ def run_study(study: Study, *, hook=None, progress=None) -> StudyResult:
             est = hook(study.identification, est)
         secs.append(time.perf_counter() - t0)
         all_est[seed] = est
-        checks += [check(r, est.get(r.quantity), seed) for r in study.rules]
+        k_sim, n_sim = None, 0
+        joint = [est.get(r.quantity) for r in study.rules if r.simultaneous]
+        if joint and all(isinstance(e, Estimate) and e.factor is not None and e.u95 is not None for e in joint):
+            k_sim, n_sim = simultaneous_k(joint)
+            sim.append((seed, k_sim, n_sim))
+        checks += [check(r, est.get(r.quantity), seed, k_sim, n_sim) for r in study.rules]
     if progress is not None:
         progress(len(study.seeds), len(study.seeds))
-    return StudyResult(study, tuple(checks), tuple(secs), all_est)
+    return StudyResult(study, tuple(checks), tuple(secs), all_est, tuple(sim))
 
 
 # --------------------------------------------------------------------------- JUnit XML

@@ -33,6 +33,7 @@ def run(args) -> int:
     print(f"{args.study}: {study.name} ({study.identification} on {study.machine.config.name}, "
           f"seeds {', '.join(map(str, study.seeds))}, noise {study.noise_um:g} um k=1"
           + (", MUTATED: " + ", ".join([f"flip_sign {q}" for q in study.mutation.flip_sign]
+                                       + [f"scale {q} x {c:g}" for q, c in study.mutation.scale]
                                        + [f"drop {q}" for q in study.mutation.drop]
                                        + (["planar model"] if study.mutation.planar else [])) if study.mutation else "")
           + ")")

@@ -9,6 +9,7 @@ defect; the coverage over 120 seeds is ``python -m scenarios.mfb_coverage`` (REA
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 STUDY = Path(__file__).resolve().parents[2] / "scenarios" / "data" / "regress-mfb-5axis-mikron.toml"
 
@@ -71,6 +72,18 @@ def test_coverage_summary_known_answer():
     one = summarize(np.array([[1.5, 0.1]]), np.array([[1.0, 1.0]]), np.array(["EXX", "EXX"]))
     assert one["runs_all_within"]["1"] == 0 and one["runs_all_within"]["1.75"] == 1
     assert one["errors"]["EXX"]["max_ratio"] == 1.5
+
+
+def test_simultaneous_summary_known_answer():
+    """The pass rate of the simultaneous band over runs with its exact (Clopper-Pearson) interval: 19 of 20
+    is 0.95 in 0.751-0.999; none and all reach 0 and 1; k_sim's range and median."""
+    from scenarios.mfb_coverage import simultaneous_summary
+
+    s = simultaneous_summary([1.7, 1.8, 1.75] + [1.72] * 17, [True] * 19 + [False])
+    assert (s["runs"], s["passed"], s["rate"]) == (20, 19, 0.95)
+    assert s["interval"] == pytest.approx([0.7513, 0.9987], abs=1e-4) and s["k_sim"] == [1.7, 1.72, 1.8]
+    assert simultaneous_summary([1.0] * 5, [False] * 5)["interval"][0] == 0.0
+    assert simultaneous_summary([1.0] * 5, [True] * 5)["interval"] == pytest.approx([0.4782, 1.0], abs=1e-4)
 
 
 def test_coverage_refuses_a_study_that_is_not_mfb(capsys):

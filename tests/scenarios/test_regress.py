@@ -12,12 +12,13 @@ import pytest
 
 from scenarios.cli import main
 from scenarios.regress import (GAUGE_FLOOR, IDENTIFICATIONS, Causes, Estimate, Mutation, Rule, StudyError, check,
-                               junit_xml, load_study, loads_study, run_study)
+                               junit_xml, load_study, loads_study, run_study, simultaneous_k)
 from scenarios.testing import assert_recovers, regress_study  # noqa: F401 (the fixture, as a user imports it)
 
 STUDIES = Path(__file__).resolve().parents[2] / "scenarios" / "data"
 EXAMPLES = sorted(STUDIES.glob("regress-*.toml"))
 SELFCAL = STUDIES / "regress-selfcal-nmv3000.toml"
+MFB3 = STUDIES / "regress-mfb-3axis-vmc.toml"
 POSITIONING = STUDIES / "regress-iso230-2-vmc-x.toml"
 
 
@@ -141,6 +142,7 @@ def _mutated(tmp_path, src: Path, mutate: str) -> Path:
     (SELFCAL, 'drop = ["EXC"]', "EXC"),              # the C axis's X location error left out of the model
     (POSITIONING, 'flip_sign = ["reversal"]', "reversal"),
     (POSITIONING, 'drop = ["mean"]', "mean"),
+    (POSITIONING, 'scale = { mean = 1.5 }', "mean"),  # a gain error: the means 1.5 x what they are
 ])
 def test_a_mutated_identification_fails_on_that_quantity(tmp_path, capsys, src, mutate, quantity):
     p = _mutated(tmp_path, src, mutate)
@@ -160,16 +162,83 @@ def test_a_mutated_identification_fails_on_that_quantity(tmp_path, capsys, src, 
     assert f"FAIL {quantity} (seed" in out and "MUTATED" in out
 
 
+def test_the_simultaneous_band_still_catches_mutations_of_the_mfb(tmp_path, capsys):
+    """The 3-axis MFB study at its shipped within_u95 = "simultaneous" (k_sim ~1.72 over 126 values):
+    a flipped squareness, a dropped positioning error and a 1.2 x gain on a pitch each fail, and only they."""
+    p = _mutated(tmp_path, MFB3, 'flip_sign = ["EC0Y"]\ndrop = ["EXX"]\nscale = { EBX = 1.2 }')
+    j = tmp_path / "r.json"
+    assert main(["regress", str(p), "--json", str(j)]) == 1
+    rep = json.loads(j.read_text())
+    assert {c["quantity"] for c in rep["checks"] if not c["passed"]} == {"EC0Y", "EXX", "EBX"}
+    (sim,) = rep["simultaneous"]
+    assert sim["values"] == 126 and 1.5 < sim["k_sim"] < 2.0 and rep["mutation"]["scale"] == {"EBX": 1.2}
+    assert all("simultaneous, 95% over 126 values" in c["rule"] for c in rep["checks"])
+    out = capsys.readouterr().out
+    assert "scale EBX x 1.2" in out and "simultaneous band k_sim = " in out
+
+
+def test_simultaneous_k_known_answers():
+    """Independent values: Sidak's k; one value: the normal's 1.96 / 2; values that move together: one
+    value's; a U95 estimated from 5 readings (4 degrees of freedom): Student's t_4 97.5 % point / 2;
+    the same covariance gives the same k (fixed seed); an estimate without its factor is refused."""
+    from scipy import stats
+
+    def est(F, dof=None):
+        F = np.asarray(F, float)
+        return Estimate(np.zeros(len(F)), np.zeros(len(F)), 2.0 * np.sqrt((F * F).sum(axis=1)), ("v",) * len(F),
+                        "um", F, dof)
+
+    n = 40
+    k, m = simultaneous_k([est(np.diag(np.linspace(0.1, 3.0, n)))])
+    sidak = stats.norm.ppf((1 + 0.95 ** (1 / n)) / 2) / 2
+    assert m == n and k == pytest.approx(sidak, abs=0.015)
+    assert simultaneous_k([est([[0.7]])])[0] == pytest.approx(stats.norm.ppf(0.975) / 2, abs=0.01)
+    together = np.outer(np.linspace(1, 2, n), [1.0, 0.0])  # one source moves all n values
+    assert simultaneous_k([est(together)])[0] == pytest.approx(stats.norm.ppf(0.975) / 2, abs=0.01)
+    # correlated values lie between the two bounds; two estimates are one family (their rows stacked)
+    rho = np.hstack([np.full((n, 1), 0.8), np.diag(np.full(n, 0.6))])
+    k2, m2 = simultaneous_k([est(rho[:25]), est(rho[25:])])
+    assert m2 == n and stats.norm.ppf(0.975) / 2 + 0.05 < k2 < sidak - 0.05
+    assert simultaneous_k([est(rho[:25]), est(rho[25:])]) == (k2, m2)
+    t4 = simultaneous_k([est([[0.5]], np.array([4.0]))])[0]
+    assert t4 == pytest.approx(stats.t.ppf(0.975, 4) / 2, abs=0.015)
+    # a value fixed by a convention (U95 0) is left out of the family
+    fixed = est(np.vstack([np.zeros((1, n)), np.diag(np.full(n, 0.3))]))
+    assert simultaneous_k([fixed])[1] == n
+    with pytest.raises(ValueError, match="without its covariance factor"):
+        simultaneous_k([Estimate(np.zeros(2), np.zeros(2), np.ones(2), ("a", "b"), "um")])
+
+
+def test_check_by_hand_simultaneous():
+    """A simultaneous rule compares with k_sim x U95 (given), fails without one, and names k_sim and the count."""
+    est = Estimate(np.array([1.0, 2.0]), np.array([1.0, 2.5]), np.array([0.3, 0.3]), ("a", "b"), "um",
+                   np.eye(2) * 0.15)
+    rule = Rule("EXX", None, None, "um", simultaneous=True)
+    assert check(rule, est, 1, 1.7, 2).passed and not check(rule, est, 1, 1.6, 2).passed
+    c = check(rule, est, 1, 1.6, 2)
+    assert c.limit == pytest.approx(1.6 * 0.3 + GAUGE_FLOOR) and "1.600 x U95 (simultaneous, 95% over 2 values)" in c.rule
+    assert check(rule, est, 1).note == "no joint covariance from the identification"
+
+
 def test_a_dropped_model_term_inside_the_estimator_is_caught(tmp_path, capsys):
     """``planar = true``: the self-calibration itself runs without its height terms (a different estimator,
     not a relabelled output). The spheres stand 25.7 mm above the walls, so the C axis's tilt and the
     tool's Abbe terms go unmodelled into the workpiece (and the tables): the study fails there and the
-    C axis's location, which the tilt does not move at the pocket's height, still passes."""
-    p = _mutated(tmp_path, SELFCAL, "planar = true")
+    C axis's location, which the tilt does not move at the pocket's height, still passes.
+
+    The leak is small: 1.34 x U95 at the worst target on seed 1, beyond each value's own U95 but inside
+    the shipped study's simultaneous band (k_sim 1.67 over its 149 values), which it passes. So this
+    mutation is checked at 1 x U95 per value (a rule a correct identification of this study also fails
+    on 50 of 60 seeds): the simultaneous band does not catch it on this study (README)."""
+    one = SELFCAL.read_text().replace('within_u95 = "simultaneous"', "within_u95 = 1.0")
+    src = tmp_path / "selfcal-1x.toml"
+    src.write_text(one)
+    p = _mutated(tmp_path, src, "planar = true")
     j = tmp_path / "r.json"
     assert main(["regress", str(p), "--json", str(j)]) == 1
     checks = {c["quantity"]: c for c in json.loads(j.read_text())["checks"]}
     assert not checks["workpiece"]["passed"] and checks["workpiece"]["margin"] < 0
+    assert 1.2 < checks["workpiece"]["deviation"] / checks["workpiece"]["u95"] < 1.67
     assert checks["EXC"]["passed"] and checks["EYC"]["passed"]
     assert "planar model" in capsys.readouterr().out
 
@@ -204,7 +273,7 @@ def test_assert_recovers_names_the_quantity_and_margin():
     study = replace(load_study(POSITIONING), seeds=(2,))
     res = assert_recovers(study)
     assert res.passed
-    with pytest.raises(AssertionError, match=r"reversal \(seed 2\) at P=.*exceeds <= 1 x U95 = .*margin -"):
+    with pytest.raises(AssertionError, match=r"reversal \(seed 2\) at P=.*exceeds <= 1.9\d\d x U95 \(simultaneous, 95% over 12 values\) = .*margin -"):
         assert_recovers(study, hook=Mutation(flip_sign=("reversal",)))
 
 
@@ -291,10 +360,19 @@ BASE = 'identification = "iso230-2"\nmachine = "vmc-3axis"\nseeds = [1]\n[accept
     (BASE + "[mutate]\nplanar = true\n", "mutate.planar: only for the self-calibration"),
     (BASE + "[injected.error.EXX]\nslope_um = 1\n", "error.EXX"),
     (BASE.replace("[accept.mean]\nwithin_u95 = 1.0\n", ""), "accept: missing"),
+    (BASE.replace("within_u95 = 1.0", 'within_u95 = "joint"'), 'accept.mean.within_u95: expected a number or "simultaneous"'),
+    (BASE.replace("within_u95 = 1.0", 'within_u95 = "simultaneous"').replace('"iso230-2"', '"selfcal"').replace(
+        "[accept.mean]", "[accept.EXX]").replace('"vmc-3axis"', '"nmv3000"'), None),
+    (BASE + "[mutate]\nscale = { mean = \"x\" }\n", "mutate.scale.mean: expected a finite number"),
+    (BASE + "[mutate]\nscale = { EXX = 2 }\n", "mutate.scale: unknown quantity 'EXX'"),
 ])
 def test_bad_studies_are_refused_with_the_key(text, match):
-    with pytest.raises(StudyError, match=match):
+    if match is None:  # the good twin of a refused study: read without complaint
+        assert loads_study(text, "s.toml").rules[0].simultaneous
+        return
+    with pytest.raises(StudyError, match=match) as e:
         loads_study(text, "s.toml")
+    assert "\n" not in str(e.value)
 
 
 def test_bad_study_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys):
