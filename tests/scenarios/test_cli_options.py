@@ -35,6 +35,12 @@ RENAMED = [
     (["probe"], "--overtravel", "1", "--overtravel-mm"),
     (["probe"], "--safe-z", "80", "--safe-z-mm"),
     (["machine", "program"], "--limits", "X0:1,Y0:1,Z0:1", "--limits-mm"),
+    (["machine", "program"], "--feed", "50", "--feed-mm-min"),
+    (["machine", "program"], "--move-feed", "500", "--move-feed-mm-min"),
+    (["machine", "program"], "--max-feed", "900", "--max-feed-mm-min"),
+    (["machine", "program"], "--clearance", "1", "--clearance-mm"),
+    (["machine", "program"], "--overtravel", "1", "--overtravel-mm"),
+    (["machine", "program"], "--safe-z", "80", "--safe-z-mm"),
     (["machine", "serve"], "--home", "0,0,10", "--home-mm"),
     (["machine", "serve"], "--limits", "X0:1,Y0:1,Z0:1", "--limits-mm"),
     (["machine", "serve"], "--idle-timeout", "9", "--idle-timeout-s"),
@@ -488,3 +494,12 @@ def test_bench_refuses_a_table_from_part_of_the_benchmarks(tmp_path, monkeypatch
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and says in err, err
     assert not ran and "row" in (tmp_path / "R.md").read_text()
+
+
+def test_every_old_alias_is_exercised():
+    """RENAMED (the aliases the test above runs) lists every hidden old name of every command."""
+    listed = {(r[0][0] if r[0][0] != "machine" else "machine " + r[0][1], r[1]) for r in RENAMED}
+    found = {(" ".join(path[1:]), o) for path, a in _walk(build_parser()) if isinstance(a, Renamed)
+             for o in a.option_strings}
+    assert found - listed == set(), sorted(found - listed)
+    assert listed - found == set(), sorted(listed - found)
