@@ -29,6 +29,8 @@ from .atomic import input_problem, write_text_atomic
 from .exceptions import ProbeLogError
 
 FORMAT = "probe-log/1"
+#: Format of :func:`summary` (what ``vmt check --json`` prints).
+SUMMARY_FORMAT = "vmt-check/1"
 
 #: Required columns, in the spec's order.
 REQUIRED = ("setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm",
@@ -764,6 +766,7 @@ def summary(log: ProbeLog) -> dict:
     """Short numeric summary of a log (for ``vmt check``)."""
     ok = log.ok
     out = {
+        "format": SUMMARY_FORMAT,
         "touches": log.n,
         "ok": int(ok.sum()),
         "setups": len(dict.fromkeys(log.col("setup"))),
