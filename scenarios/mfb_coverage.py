@@ -1,0 +1,151 @@
+"""Coverage of an MFB identification's U95 against the exact simulator, at a fixed truth.
+
+One study file (``vmt regress``'s, an ``mfb-3axis`` or ``mfb-5axis`` identification) fixes the
+machine and its injected errors; each seed is one run of :func:`scenarios.mfb.run` with the study's
+probing noise and, as every noisy run, a fresh draw of the bar's calibration error and of the
+placements. Every value identified is compared with the injected truth (same conventions) against
+the run's own linear U95 (probing noise, bar calibration, placement), and the figures say whether
+that U95 is right (about 95 % of the values inside, each node's mean squared z near 1) and how
+often a whole run has every value inside k x U95 (what a regression study checks at once), beside
+what the linear model's joint normal distribution predicts for the same count::
+
+    python -m scenarios.mfb_coverage scenarios/data/regress-mfb-5axis-mikron.toml --seeds 1 121 --workers 2
+
+Seeds ``lo`` to ``hi - 1``; ``--out`` keeps the per-run arrays (npz). Minutes per hundred runs on
+two free cores (a 5-axis run is about 2.5 s of CPU).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+K_LEVELS = (1.0, 1.25, 1.5, 1.75, 2.0)
+
+
+def one_run(study, seed: int) -> tuple:
+    """(dev, U95, names): identified - injected and the run's U95 of every value (um, urad), in the
+    report's order, values the conventions fix included (U95 0)."""
+    from scenarios import mfb
+
+    r = mfb.run(study.identification, seed=seed, noise_um=study.noise_um, mc_runs=0, machine=study.machine)
+    errs = r.doc["errors"]
+    dev = np.concatenate([np.asarray(e["identified"], float) - np.asarray(e["injected"], float)
+                          for e in errs.values()])
+    U = np.concatenate([np.asarray(e["u95"], float) for e in errs.values()])
+    names = np.concatenate([[s] * len(e["identified"]) for s, e in errs.items()])
+    return dev, U, names
+
+
+def _task(args):
+    from scenarios.regress import load_study
+
+    path, seed = args
+    return one_run(load_study(path), seed)
+
+
+def model_all_within(study, seed: int = 1, draws: int = 200_000) -> dict:
+    """What the linear model predicts: the share of runs with every value within k x U95 (k of
+    :data:`K_LEVELS`), from joint normal draws with the covariance of run ``seed``."""
+    from core import mfb as cmfb, volumetric as vol
+    from scenarios import mfb
+
+    r = mfb.run(study.identification, seed=seed, noise_um=study.noise_um, mc_runs=0, machine=study.machine)
+    u_cal = np.tile(np.asarray((0.2, 0.35, 0.35)) * 1e-6, (12, 1))  # run's default declared calibration
+    cov = vol.covariance(r.result, r.meas, study.noise_um * 1e-6, u_cal, np.asarray(mfb.U_PLACE, float),
+                         cal_map=cmfb.calibration_map())
+    d = r.result.design
+    idx = [i for q in vol.MOTION + vol.SQUARENESS for i in range(d.slices[q].start, d.slices[q].stop)
+           if cov[i, i] > 1e-24]
+    C = cov[np.ix_(idx, idx)]
+    u = np.sqrt(np.diag(C))
+    w, V = np.linalg.eigh(0.5 * (C + C.T))
+    x = np.random.default_rng(0).standard_normal((int(draws), len(idx))) @ (V * np.sqrt(np.clip(w, 0, None))).T
+    mx = (np.abs(x) / (2.0 * u)).max(axis=1)
+    return {f"{k:g}": float(np.mean(mx <= k)) for k in K_LEVELS} | {"values": len(idx)}
+
+
+def summarize(dev: np.ndarray, U: np.ndarray, names: np.ndarray, rng=None) -> dict:
+    """Coverage figures of runs (rows) x values (columns): the share within U95 with a 95 %
+    interval by resampling whole runs (a run's values are correlated: a binomial interval over
+    values would be too narrow), per error the share, the runs with every node inside and the
+    range over its nodes of the mean squared z = dev / (U95 / 2) (1 when U95 is right; over n runs
+    its 95 % band is chi2(n) / n), and the runs with every value within k x U95."""
+    from scipy import stats
+
+    rng = np.random.default_rng(0) if rng is None else rng
+    dev, U, names = np.asarray(dev, float), np.asarray(U, float), np.asarray(names)
+    k = np.all(U > 1e-9, axis=0)  # the values the conventions fix (U95 0) are left out
+    r = np.abs(dev[:, k]) / U[:, k]
+    n = len(r)
+
+    def share(cols):
+        ins = (r[:, cols] <= 1.0).mean(axis=1)
+        boot = ins[rng.integers(0, n, (2000, n))].mean(axis=1)
+        return float(ins.mean()), [float(v) for v in np.quantile(boot, (0.025, 0.975))]
+
+    out = {"runs": n, "values": int(k.sum()), "within": share(np.ones(k.sum(), bool)),
+           "chi2_band": [float(stats.chi2.ppf(q, n) / n) for q in (0.025, 0.975)], "errors": {}}
+    nk = names[k]
+    for s in dict.fromkeys(nk):
+        c = nk == s
+        z2 = (2.0 * r[:, c]) ** 2
+        out["errors"][s] = {"nodes": int(c.sum()), "within": share(c),
+                            "runs_all_within": int(np.all(r[:, c] <= 1.0, axis=1).sum()),
+                            "mean_z2": [float(z2.mean(axis=0).min()), float(z2.mean(axis=0).max())],
+                            "max_ratio": float(r[:, c].max())}
+    mx = r.max(axis=1)
+    out["runs_all_within"] = {f"{q:g}": int(np.sum(mx <= q)) for q in K_LEVELS}
+    return out
+
+
+def describe(s: dict, model: dict | None = None) -> str:
+    w, (lo, hi) = s["within"]
+    lines = [f"{s['runs']} runs x {s['values']} values: {w:.3f} within U95 (95 % interval over runs {lo:.3f}-{hi:.3f})",
+             f"error  nodes  within [interval]      runs all nodes in  mean z^2 over nodes (band "
+             f"{s['chi2_band'][0]:.2f}-{s['chi2_band'][1]:.2f})  max |dev|/U95"]
+    for q, e in s["errors"].items():
+        (v, (a, b)) = e["within"]
+        lines.append(f"{q:5s} {e['nodes']:4d}   {v:.3f} [{a:.3f}-{b:.3f}]  {e['runs_all_within']:4d}/{s['runs']}"
+                     f"           {e['mean_z2'][0]:.2f}-{e['mean_z2'][1]:.2f}"
+                     f"                          {e['max_ratio']:.2f}")
+    for q, c in s["runs_all_within"].items():
+        m = f"; model {model[q]:.3f}" if model else ""
+        lines.append(f"every value within {q} x U95: {c}/{s['runs']} runs{m}")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    from concurrent.futures import ProcessPoolExecutor
+
+    from scenarios.regress import load_study
+
+    ap = argparse.ArgumentParser(prog="python -m scenarios.mfb_coverage", description=__doc__.split("\n")[0])
+    ap.add_argument("study")
+    ap.add_argument("--seeds", nargs=2, type=int, default=(1, 61), metavar=("LO", "HI"))
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--out", help="npz of the per-run arrays")
+    a = ap.parse_args(argv)
+    study = load_study(a.study)
+    if not study.identification.startswith("mfb"):
+        print(f"error: {a.study}: an mfb-3axis or mfb-5axis study is needed, got {study.identification}",
+              file=sys.stderr)
+        return 2
+    tasks = [(a.study, s) for s in range(*a.seeds)]
+    if a.workers > 1:
+        with ProcessPoolExecutor(a.workers) as ex:
+            runs = list(ex.map(_task, tasks))
+    else:
+        runs = [_task(t) for t in tasks]
+    dev, U = np.array([x[0] for x in runs]), np.array([x[1] for x in runs])
+    names = runs[0][2]
+    if a.out:
+        np.savez(a.out, dev=dev, U=U, names=names, seeds=np.arange(*a.seeds))
+    print(describe(summarize(dev, U, names), model_all_within(study)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

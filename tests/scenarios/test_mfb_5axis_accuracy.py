@@ -1,0 +1,82 @@
+"""The 5-axis MFB plan against the exact simulator: noise-free recovery of injected errors other than the
+scenario's, and the bar calibration's error reaching the identification as the U95 propagates it.
+
+The shipped study ``regress-mfb-5axis-mikron.toml`` at 1 x U95 fails seed 1 on EYY (0.86 um off, U95
+0.63), EBZ (3.94 urad, U95 3.30) and EXX, whatever errors are injected: the seed's first draws are the
+bar's calibration error. These tests pin down that this is the calibration's share at work, not a model
+defect; the coverage over 120 seeds is ``python -m scenarios.mfb_coverage`` (README, "Regression studies")."""
+
+from pathlib import Path
+
+import numpy as np
+
+STUDY = Path(__file__).resolve().parents[2] / "scenarios" / "data" / "regress-mfb-5axis-mikron.toml"
+
+
+def test_5axis_noise_free_recovery_and_the_bar_calibration_response():
+    """Noise-free, on the study's machine (realistic errors of seed 3, rotary axes' errors included),
+    with seed 1's bar: the bar's true deviations differ from its calibration by a draw of u_cal
+    (0.2, 0.35, 0.35 um) and nothing else is drawn. The identified errors are the injected ones plus
+    the linear response -K B dE to the calibration's error dE, the map whose K B M u_cal is the U95's
+    calibration share (core.volumetric._input_maps, the same one), to the bound the noise-free scenario
+    test allows (0.1 um / 0.5 urad, issue 6; without the draw 0.022 um / 0.149 urad): the model has nothing
+    the simulator's truth lacks at that level, and the calibration share moves the identification as the
+    simulator does. Without the response EYY is 0.73 um and EBZ 2.98 urad off (the fails of seed 1)."""
+    from core import iso, volumetric as vol
+    from scenarios import mfb
+    from scenarios.regress import load_study
+    from sim import artefacts as A
+
+    study = load_study(STUDY)
+    E_cal = A.mfb_default_deviations()
+    u_cal = np.tile(np.array((0.2, 0.35, 0.35)) * 1e-6, (12, 1))
+    E_true = E_cal + np.random.default_rng(1).standard_normal((12, 3)) * u_cal  # a run's first draws (seed 1)
+    r = mfb.run("mfb-5axis", seed=1, noise_um=0.0, mc_runs=0, machine=study.machine, bar_true_m=E_true)
+    dE = A.multi_feature_bar(deviations_m=E_true).info["E_MFB_m"] - A.multi_feature_bar(
+        deviations_m=E_cal).info["E_MFB_m"]
+    _, B, _ = vol._input_maps(r.result, r.meas, 12)
+    response = -r.result.K @ B @ dE.ravel()
+    d = r.result.design
+    dev = r.result.theta - r.truth
+    worst = {}
+    for s in vol.MOTION + vol.SQUARENESS:
+        sl = d.slices[s]
+        lim = 0.5e-6 if iso.symbol(s).angular else 0.1e-6
+        left = np.abs(dev[sl] - response[sl]).max()
+        assert left <= lim, (s, left * 1e6, lim * 1e6)
+        worst[s] = np.abs(dev[sl]).max() * 1e6
+    # the response is what the noise-free bound alone cannot explain: the draw moves the errors
+    assert worst["EYY"] > 0.6 and worst["EBZ"] > 2.5 and worst["EXX"] > 0.4, worst
+
+
+def test_coverage_summary_known_answer():
+    """summarize: normal deviations against their true U95 give 95 % within, against half of it ~68 %;
+    a run with one value beyond 1 x but within 2 x U95 is counted so; the fixed values (U95 0) are left out."""
+    from scenarios.mfb_coverage import summarize
+
+    rng = np.random.default_rng(3)
+    n, m = 400, 30
+    u = rng.uniform(0.2, 2.0, m)
+    dev = rng.standard_normal((n, m)) * u
+    U = np.tile(2.0 * u, (n, 1))
+    names = np.array(["EXX"] * 10 + ["EYY"] * 20)
+    dev[:, 0], U[:, 0] = 0.0, 0.0  # fixed by a convention
+    s = summarize(dev, U, names)
+    assert s["values"] == m - 1 and s["errors"]["EXX"]["nodes"] == 9
+    w, (lo, hi) = s["within"]
+    assert lo < 0.954 < hi and 0.93 < w < 0.97
+    assert 0.8 < s["errors"]["EYY"]["mean_z2"][0] and s["errors"]["EYY"]["mean_z2"][1] < 1.25
+    h = summarize(dev, U / 2.0, names)["within"][0]
+    assert 0.64 < h < 0.72
+    one = summarize(np.array([[1.5, 0.1]]), np.array([[1.0, 1.0]]), np.array(["EXX", "EXX"]))
+    assert one["runs_all_within"]["1"] == 0 and one["runs_all_within"]["1.75"] == 1
+    assert one["errors"]["EXX"]["max_ratio"] == 1.5
+
+
+def test_coverage_refuses_a_study_that_is_not_mfb(capsys):
+    from scenarios.mfb_coverage import main
+
+    src = STUDY.parent / "regress-iso230-2-vmc-x.toml"
+    assert main([str(src), "--seeds", "1", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "mfb-3axis or mfb-5axis" in err
