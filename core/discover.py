@@ -44,7 +44,11 @@ What it does, in order, and the statistics behind each step
       covariate of another family (time, position, direction, feature:
       :attr:`core.diagnosis.Covariate.family`) explains materially more
       than both the cause's columns and the best smooth function of a
-      covariate of its own family (debiased sums of squares);
+      covariate of its own family (debiased sums of squares); a family
+      whose term nests the cause's on the design (:data:`NESTING_FAMILIES`:
+      the feature per set-up, for a position cause) refuses it only when
+      the cause explains less than :attr:`Settings.rival_share` of it, as
+      its own covariate's smooth does in step 5;
    f. its plainer counter-explanation (:attr:`core.causes.Cause.counter`)
       does not explain as much, or the cause explains something material
       and significant beyond it (step 5's test, made before adoption too, so
@@ -1403,6 +1407,21 @@ def _family_ss(bl, diag, n) -> dict:
     return out
 
 
+#: Covariate families whose smooth term nests a cause of the key's family on a
+#: campaign's design, {cause family: (nesting families)}. A feature of the part
+#: in one set-up sits at one place of the machine, so a per-feature-per-set-up
+#: translation (the ``feature`` covariate) represents any machine error field
+#: that is smooth over a feature's extent: a position cause's structure, its
+#: imperfect form included, is inside it. Such a term explaining a few per cent
+#: more than a few-parameter position cause is the same structure, fitted more
+#: loosely, not structure that lives elsewhere; it refuses the cause at adoption
+#: (step 4e) only as a smooth of the cause's own covariate refuses it in the
+#: rival check (step 5): when the cause explains less than ``rival_share`` of
+#: it. The converse does not hold (a smooth of positions does not represent one
+#: feature changing per set-up), so a feature cause keeps the plain test.
+NESTING_FAMILIES = {"position": ("feature",)}
+
+
 def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, sigma, settings,
               families=None) -> dict:
     """One cause against the current model: the tests of adoption (module docstring 4a-e)."""
@@ -1449,7 +1468,10 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
         own = max(ss_n, families.get(fam, (0.0, ""))[0])
         for f, (ss_f, name) in families.items():
-            if f != fam and ss_f > own + m_ss:
+            # the feature-per-set-up term nests a position cause: it is judged
+            # as the cause's own covariate's smooth is (NESTING_FAMILIES)
+            nested = f in NESTING_FAMILIES.get(fam, ()) and own >= settings.rival_share * ss_f
+            if f != fam and ss_f > own + m_ss and not nested:
                 return {"reason": f"the structure follows {name} ({f}) more than this cause's form or its "
                                   f"family ({ss_f / UM ** 2:.3g} against {own / UM ** 2:.3g} um^2)",
                         "significant": True}

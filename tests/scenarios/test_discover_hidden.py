@@ -232,9 +232,15 @@ def test_once_confident_misnamings_are_flagged(gen, effect, seed, cause):
 #: - gen_a nonrigid 702: the coupling (2.8 sigma visible) left unexplained because a finer rigid error
 #:   map explains as much (on this part's geometry it represents the effect exactly); a plainer
 #:   explanation without a name now leaves the cause named, flagged ambiguous.
+#: - gen_a periodic_axis_error 703 and nonrigid 703 (1.8 and 2.9 sigma visible): left unexplained because
+#:   the per-feature-per-set-up term explained 2 % more (245 against 241 um^2); that term nests any machine
+#:   error smooth over a feature (each feature of each set-up is one place of the machine), so for a
+#:   position cause it is judged as the cause's own covariate's smooth (core.discover.NESTING_FAMILIES).
 REGRESSIONS = [("gen_a", "probe_lobing", 302, ("probe_lobing",)),
                ("gen_b", "fixture_slip", 500, ("unexplained",)),
-               ("gen_a", "nonrigid", 702, ("nonrigid",))]
+               ("gen_a", "nonrigid", 702, ("nonrigid",)),
+               ("gen_a", "periodic_axis_error", 703, ("periodic_axis_error",)),
+               ("gen_a", "nonrigid", 703, ("nonrigid",))]
 
 
 @pytest.mark.parametrize("gen, effect, seed, expected", REGRESSIONS)
