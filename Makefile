@@ -19,7 +19,7 @@ $(STAMP): requirements.lock pyproject.toml
 	@touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/vmt demo --out $(OUT)
+	$(VENV)/bin/vmt demo --out-dir $(OUT)
 
 # two workers (pytest-xdist); each test file on one worker, files sharing a session fixture together,
 # the longest first (tests/conftest.py): no costly fixture computed twice

@@ -128,7 +128,8 @@ def check_output(path, *, special: bool = False) -> str:
             real = "missing"
         if special and real in THROUGH_KINDS:
             return "through"
-        raise OutputError(f"{p}: is a symbolic link (to {target}, a {real}): refusing to replace a link "
+        what = "which does not exist" if real == "missing" else f"a {real}"
+        raise OutputError(f"{p}: is a symbolic link (to {target}, {what}): refusing to replace a link "
                           "with a file; give the path it points to")
     if kind == "directory":
         raise OutputError(f"{p}: is a directory, not a file")

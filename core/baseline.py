@@ -29,16 +29,21 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 
 from . import selfcal
 from .diagnosis import Covariate, orth, pivoted_qr
 from .exceptions import ConfigError, IdentifiabilityError
+from .lsq import BlockDesign
 from .touches import Touches
 
 from .units import MM
 #: Relative pivot of the column-scaled design below which a direction counts
 #: as unseen (singular-value ratio; core.lsq.solve uses 1e-6).
 RANK_TOL = 1e-7
+#: Largest dense planar design (bytes, n x p doubles); a larger one is kept as a
+#: :class:`core.lsq.BlockDesign`, the targets' columns eliminated (a 1e5-row log: 1.1 GB dense).
+DENSE_DESIGN_BYTES = 256 << 20
 
 
 @dataclass(frozen=True)
@@ -51,8 +56,12 @@ class Baseline:
         ``"planar"``, ``"volumetric"`` or ``"positioning"``: which causes apply.
     model : str
         The model in words (report key ``baseline.model``).
-    A : (n, p) float
-        Design, SI units per unit parameter.
+    A : (n, p) float, or core.lsq.BlockDesign
+        Design, SI units per unit parameter. A long planar log's (above
+        :data:`DENSE_DESIGN_BYTES` dense) is a :class:`core.lsq.BlockDesign`:
+        the targets' columns (one 1 per touch) kept as each row's target,
+        the machine's columns dense; the engine eliminates the targets
+        (means per target) instead of factoring ``n x p``.
     y : (n,) float
         Observations, m (or rad).
     names : tuple of str
@@ -98,7 +107,8 @@ class Baseline:
         :func:`core.diagnosis.pivoted_qr` of ``A`` when the builder already
         factored it (the planar grid choice does), so the engine does not
         factor it again; it names the matrix it factors and is ignored for
-        any other (a replaced ``A``).
+        any other (a replaced ``A``). None for a block design (it keeps its
+        own factorisation, :meth:`core.lsq.BlockDesign.basis`).
     """
 
     kind: str
@@ -480,7 +490,13 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
     steps = (grid_step_mm,) if grid_step_mm else tuple(grid_steps_mm)
     last = None
     fallback = None
-    cands = []
+    best: list = []
+
+    def bic(item):
+        Q = item[-1]
+        r = t.dq_m - Q @ (Q.T @ t.dq_m)
+        return _bic(float(r @ r), t.n, Q.shape[1])
+
     # the design in coordinates about the C axis (the campaign's own origin): the
     # same matrix wherever the campaign sits in the machine
     c0 = c_axis_centre(t)
@@ -496,14 +512,16 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         except IdentifiabilityError as e:
             last = e
             continue
-        A = des.A.toarray()
+        h = _height_columns(td, des)
+        p_all = des.A.shape[1] + (h[0].shape[1] if h is not None else 0)
+        big = 8 * t.n * p_all > DENSE_DESIGN_BYTES
+        A = des.A if big else des.A.toarray()
         C, d, names = des.C, des.d, tuple(des.names)
         levels = (float(np.median(t.pn_R[:, 2])),)
-        h = _height_columns(td, des)
         if h is not None:
             H, hn, _, hg, levels = h
             p = A.shape[1]
-            A = np.hstack([A, H])
+            A = sp.hstack([A, sp.csr_matrix(H)]) if big else np.hstack([A, H])
             C = np.hstack([C, np.zeros((C.shape[0], H.shape[1]))])
             rows_g = np.zeros((len(hg), A.shape[1]))
             for r, c in enumerate(hg):
@@ -511,8 +529,14 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
             C = np.vstack([C, rows_g])
             d = np.concatenate([d, np.zeros(len(hg))])
             names = names + hn
-        qr = pivoted_qr(A)
-        Q = orth(A, tol=RANK_TOL, qr=qr)
+        if big:  # the targets' columns eliminated, only the machine's factored (lsq.BlockDesign)
+            Gs = des.slices["G"]
+            A = BlockDesign.from_sparse(A, np.arange(Gs.start, Gs.stop))
+            qr = None
+            Q = A.basis(RANK_TOL)
+        else:
+            qr = pivoted_qr(A)
+            Q = orth(A, tol=RANK_TOL, qr=qr)
         item = (st, des, A, C, d, names, levels, qr, Q)
         # identifiable beyond the gauge: the gauge rows fix exactly the null space
         nullity = A.shape[1] - Q.shape[1]
@@ -520,25 +544,22 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
             last = IdentifiabilityError(f"grid {st:g} mm: the design leaves {nullity - np.linalg.matrix_rank(C)} "
                                         "combination(s) beyond the gauge unseen (e.g. a symmetric part at C "
                                         "angles 90 deg apart)")
-            if fallback is None:
+            if fallback is None and not best:
                 fallback = (item, str(last))
             continue
-        cands.append(item)
+        # the grid BIC chooses (the first on a tie), or the first: only the best kept so far
+        # (a long log's designs are large)
+        score = bic(item) if select_grid and len(steps) > 1 else 0.0
+        if not best or score < best[0]:
+            best = [score, item]
+            fallback = None
+        del item, A, Q, qr
+    cands = [best[1]] if best else []
     if not cands and fallback is None:
         raise IdentifiabilityError(f"no baseline: the 2D self-calibration does not meet eq 6 on grids of "
                                    f"{', '.join(f'{s:g}' for s in steps)} mm ({last})")
     if cands:
-        if len(cands) > 1 and select_grid:
-            y = t.dq_m
-
-            def bic(item):
-                Q = item[-1]
-                r = y - Q @ (Q.T @ y)
-                return _bic(float(r @ r), t.n, Q.shape[1])
-
-            item = min(cands, key=bic)
-        else:
-            item = cands[0]
+        item = cands[0]
         ident, why = True, ""
     else:
         item, why = fallback

@@ -120,7 +120,11 @@ there) are refitted on it, the rest predicted. The training fit solves the
 baseline by truncated SVD of the column-scaled design (relative singular
 values below :attr:`Settings.cv_rcond` dropped, so nodes the other set-ups
 barely see do not extrapolate) and the extension columns by least squares
-on their part outside that span; the same for every model compared.
+on their part outside that span; the same for every model compared. A
+long planar log's design (a :class:`core.lsq.BlockDesign`) is never formed
+rows by parameters: its targets are eliminated (means per target), the
+truncation acts on the machine's columns beside them (:class:`Folds`'
+``"blocks"`` mode) and the workpiece is solved from the normal matrix.
 """
 
 from __future__ import annotations
@@ -140,6 +144,7 @@ from .baseline import Baseline
 from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch, new_basis, orth,
                         replicate_scatter, term_bases)
 from .exceptions import ConfigError, IdentifiabilityError
+from .lsq import BlockDesign, group_sums, leverage, orth_of
 from .touches import Touches
 from .units import UM
 
@@ -274,6 +279,36 @@ class Settings:
 # ---------------------------------------------------------------------------
 # cross-validation
 # ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Fold:
+    """One held-out group of :class:`Folds` (internal); which fields are set depends on the mode.
+
+    Every mode: ``tr``, ``te`` (training and held-out rows), ``Qo`` (the
+    held-out rows' own columns, orthonormal: parameters no training row
+    sees). ``"spans"``: ``U`` (n_tr, r) the retained training span, ``Uf``
+    (n_tr, f) the whole one, ``P`` (n_te, r) the held-out rows' prediction
+    per unit of ``U^T y``. ``"coefficients"``: the same spans as
+    coefficients over the design's columns ``cols`` (``U = A_tr[:, cols] @
+    V``): ``V`` (p_used, r), ``Vf`` (p_used, f), and ``P``. ``"blocks"``
+    (a :class:`core.lsq.BlockDesign`, the indicator block eliminated):
+    ``ctr`` (g,) training rows per id (0: that id is the held-out rows'
+    own), ``cols`` the dense columns the training rows see, ``V`` and ``Vf``
+    the retained and whole maps of the Schur complement's right-hand side
+    to those columns' coefficients.
+    """
+
+    tr: np.ndarray
+    te: np.ndarray
+    Qo: np.ndarray
+    P: np.ndarray | None = None
+    U: np.ndarray | None = None
+    Uf: np.ndarray | None = None
+    cols: np.ndarray | None = None
+    V: np.ndarray | None = None
+    Vf: np.ndarray | None = None
+    ctr: np.ndarray | None = None
+
+
 class Folds:
     """Leave-one-group-out cross-validation of linear models over one design (rows fixed).
 
@@ -282,16 +317,48 @@ class Folds:
     columns are then solved on their part outside the retained span, so a
     candidate costs a few small products per fold. Linear in the
     observations: :meth:`residuals` takes (n,) or (n, B).
+
+    ``mode`` says how the folds keep their training spans: ``"spans"`` as
+    tables over the training rows (a short log), ``"coefficients"`` as
+    coefficients over the design's columns when the tables would pass
+    :data:`FOLD_BYTES` (products with a span then made from ``design``:
+    ``A^T X`` once, less the held-out rows' part; the same numbers up to
+    rounding), ``"blocks"`` for a :class:`core.lsq.BlockDesign` (a long
+    self-calibration log): the targets' columns eliminated (means per
+    target over the training rows), the truncation applied to the Schur
+    complement of the machine's columns, which is all a fold keeps; memory
+    linear in the rows, but the truncation acts on the machine's directions
+    after the targets are eliminated, not on the whole design's, so a
+    direction near :attr:`Settings.cv_rcond` may be cut differently from the
+    other modes.
     """
 
-    def __init__(self, A: np.ndarray, groups: np.ndarray, rcond: float):
+    def __init__(self, A, groups: np.ndarray, rcond: float):
         self.n = len(A)
         self.rcond = rcond
-        self.items = []
+        self.items: list[_Fold] = []
         gs = np.unique(groups)
-        # the training spans kept whole (two (n_tr, p) tables per group) while small; a long log's
-        # (groups x rows x parameters: 6.7 GB at 1e4 rows and 100 set-ups) as their (p, r) coefficients
-        self.A = A if 16 * len(gs) * A.size > FOLD_BYTES else None
+        if isinstance(A, BlockDesign):
+            self.mode = "blocks"
+        else:  # the training spans kept whole (two (n_tr, p) tables per group) while small; a long log's
+            # (groups x rows x parameters: 6.7 GB at 1e4 rows and 100 set-ups) as their (p, r) coefficients
+            self.mode = "coefficients" if 16 * len(gs) * A.size > FOLD_BYTES else "spans"
+        #: the design, kept where the folds' products are made from it (not "spans")
+        self.design = None if self.mode == "spans" else A
+        if self.mode == "blocks":
+            self._init_blocks(A, groups, gs)
+        else:
+            self._init_dense(A, groups, gs)
+        if not self.items:
+            raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
+        # the baseline's held-out rows (residuals' count: a row alone supporting an own column is not one)
+        self.last_dof = sum(int(np.sum(np.sum(f.Qo ** 2, axis=1) < 1 - OWN_LEVERAGE)) if f.Qo.shape[1] else f.te.size
+                            for f in self.items)
+        self.dof = max(self.last_dof, 1)
+
+    def _init_dense(self, A: np.ndarray, groups, gs) -> None:
+        """The folds of a dense design: per group, the truncated eigen-decomposition of the training normal matrix."""
+        rcond = self.rcond
         for g in gs:
             te = np.flatnonzero(groups == g)
             tr = np.flatnonzero(groups != g)
@@ -308,19 +375,49 @@ class Folds:
             full = w > 1e-12 * w[-1]
             Ao = A[te][:, ~used]
             Qo = orth(Ao) if Ao.shape[1] else np.zeros((te.size, 0))
-            if self.A is None:
+            if self.mode == "spans":
                 U = As @ Vs  # (n_tr, r) orthonormal: the retained training span
                 Uf = As @ (V[:, full] / np.sqrt(w[full]))  # the whole training span (weak directions too)
+                item = _Fold(tr, te, Qo, P=P, U=U, Uf=Uf)
             else:  # U^T X = Vs^T (A_tr[:, used] / sc)^T X: the coefficients, (p_used, r)
-                U, Uf = (np.flatnonzero(used), Vs / sc[used][:, None]), V[:, full] / np.sqrt(w[full]) / sc[used][:, None]
+                item = _Fold(tr, te, Qo, P=P, cols=np.flatnonzero(used), V=Vs / sc[used][:, None],
+                             Vf=V[:, full] / np.sqrt(w[full]) / sc[used][:, None])
             del Atr, As
-            self.items.append((tr, te, U, P, Qo, Uf))
-        if not self.items:
-            raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
-        # the baseline's held-out rows (residuals' count: a row alone supporting an own column is not one)
-        self.last_dof = sum(int(np.sum(np.sum(Qo ** 2, axis=1) < 1 - OWN_LEVERAGE)) if Qo.shape[1] else te.size
-                            for _, te, _, _, Qo, _ in self.items)
-        self.dof = max(self.last_dof, 1)
+            self.items.append(item)
+
+    def _init_blocks(self, A: BlockDesign, groups, gs) -> None:
+        """The folds of a block design: per group, the Schur complement of the training rows' machine block."""
+        g = A.g
+        cnt = np.bincount(A.ids, minlength=g)
+        GD = group_sums(A.ids, g, A.D)
+        DD = A.D.T @ A.D
+        for grp in gs:
+            te = np.flatnonzero(groups == grp)
+            tr = np.flatnonzero(groups != grp)
+            if te.size == 0 or tr.size == 0:
+                continue
+            Dte = A.D[te]
+            ctr = cnt - np.bincount(A.ids[te], minlength=g)
+            sc = np.sqrt(np.maximum(np.diag(DD) - np.sum(Dte ** 2, axis=0), 0.0))
+            used = sc > 1e-9 * max(sc.max(), np.sqrt(ctr.max()), 1e-300)
+            cols = np.flatnonzero(used)
+            gu = ctr > 0
+            gd = (GD - group_sums(A.ids[te], g, Dte))[np.ix_(gu, cols)]
+            S = (DD - Dte.T @ Dte)[np.ix_(cols, cols)] - gd.T @ (gd / ctr[gu][:, None])
+            S = S / np.outer(sc[cols], sc[cols])
+            w, V = np.linalg.eigh(S)
+            top = max(w[-1], 1e-300) if w.size else 1.0
+            keep = w > self.rcond ** 2 * top
+            full = w > 1e-12 * top
+            own_ids = np.flatnonzero(~gu & (np.bincount(A.ids[te], minlength=g) > 0))  # targets seen here only
+            own = [(A.ids[te][:, None] == own_ids[None, :]).astype(float), Dte[:, ~used]]
+            Ao = np.hstack(own)
+            Qo = orth(Ao) if Ao.shape[1] else np.zeros((te.size, 0))
+            Vf = V[:, full] / np.sqrt(w[full]) / sc[cols][:, None]
+            # the retained directions are the whole span's largest (eigh: ascending): a view, not a copy
+            Vr = Vf[:, Vf.shape[1] - int(keep.sum()):] if keep.sum() <= full.sum() else \
+                V[:, keep] / np.sqrt(w[keep]) / sc[cols][:, None]
+            self.items.append(_Fold(tr, te, Qo, cols=cols, ctr=ctr, V=Vr, Vf=Vf))
 
     def residuals(self, Y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> np.ndarray:
         """Held-out residuals of the baseline (plus extension columns ``E`` (n, k)).
@@ -332,20 +429,26 @@ class Folds:
         Y2 = Y[:, None] if one else Y
         out = np.zeros_like(Y2, dtype=float)
         self.last_dof = 0
-        lean = self.A is not None
+        if self.mode == "blocks":
+            fits = self._block_fits(Y2, E)
+        lean = self.mode == "coefficients"
         if lean:  # A^T X over every row once; a fold's training part is it less the held-out rows'
-            AY = self.A.T @ Y2
-            AE = self.A.T @ E if E is not None and E.shape[1] else None
-        for tr, te, U, P, Qo, Uf in self.items:
+            AY = self.design.T @ Y2
+            AE = self.design.T @ E if E is not None and E.shape[1] else None
+        for f in self.items:
+            tr, te = f.tr, f.te
             ytr = Y2[tr]
-            if lean:
-                cols, Vs = U
-                AYtr = (AY - self.A[te].T @ Y2[te])[cols]
-                z = Vs.T @ AYtr
+            if self.mode == "blocks":
+                fit = next(fits)
+                pred = fit["y"]
             else:
-                z = U.T @ ytr
-            pred = P @ z
-            own = Qo
+                if lean:
+                    AYtr = (AY - self.design[te].T @ Y2[te])[f.cols]
+                    z = f.V.T @ AYtr
+                else:
+                    z = f.U.T @ ytr
+                pred = f.P @ z
+            own = f.Qo
             if E is not None and E.shape[1]:
                 Etr = E[tr]
                 en = np.linalg.norm(Etr, axis=0)
@@ -355,23 +458,29 @@ class Folds:
                     # the extension is fitted on its part outside the whole training
                     # span (a direction the baseline has but weakly sees is the
                     # baseline's, not the extension's), then the baseline on the rest
-                    if lean:
-                        AE1 = (AE - self.A[te].T @ E[te])[cols][:, eu] / en[eu]
-                        zf, zy = Uf.T @ AE1, Uf.T @ AYtr
+                    if self.mode == "blocks":
+                        Gm, rhs = fit["EE"][np.ix_(eu, eu)] / np.outer(en[eu], en[eu]), fit["EY"][eu] / en[eu][:, None]
                     else:
-                        zf, zy = Uf.T @ E1, Uf.T @ ytr
-                    Gm = E1.T @ E1 - zf.T @ zf
+                        if lean:
+                            AE1 = (AE - self.design[te].T @ E[te])[f.cols][:, eu] / en[eu]
+                            zf, zy = f.Vf.T @ AE1, f.Vf.T @ AYtr
+                        else:
+                            zf, zy = f.Uf.T @ E1, f.Uf.T @ ytr
+                        Gm = E1.T @ E1 - zf.T @ zf
+                        rhs = E1.T @ ytr - zf.T @ zy
                     if penalty is not None:
                         Gm = Gm + penalty[np.ix_(eu, eu)] / np.outer(en[eu], en[eu])
-                    rhs = E1.T @ ytr - zf.T @ zy
                     # truncated like the baseline: directions of the (normalised)
                     # extension that the training rows barely see beyond the
                     # baseline's span are not extrapolated
                     w, V = np.linalg.eigh(Gm)
                     good = w > self.rcond ** 2 * max(w.max(), 1.0) if penalty is None else w > 1e-12 * max(w.max(), 1e-300)
                     c = V[:, good] @ ((V[:, good].T @ rhs) / w[good][:, None])
-                    zc = z - Vs.T @ (AE1 @ c) if lean else U.T @ (ytr - E1 @ c)
-                    pred = P @ zc + (E[te][:, eu] / en[eu]) @ c
+                    if self.mode == "blocks":
+                        pred = pred + (E[te][:, eu] / en[eu] - fit["E"][:, eu] / en[eu]) @ c
+                    else:
+                        zc = z - f.V.T @ (AE1 @ c) if lean else f.U.T @ (ytr - E1 @ c)
+                        pred = f.P @ zc + (E[te][:, eu] / en[eu]) @ c
                 if (~eu).any():
                     own = orth(np.hstack([own, E[te][:, ~eu]]))
             e = Y2[te] - pred
@@ -388,6 +497,49 @@ class Folds:
                 self.last_dof += te.size
             out[te] = e
         return out[:, 0] if one else out
+
+    def _block_fits(self, Y2: np.ndarray, E: np.ndarray | None):
+        """Per fold of a block design: the held-out rows' predictions of ``Y2`` and of ``E`` by the training fit,
+        and ``E``'s Gram matrix and cross-products with ``Y2`` outside the whole training span (unscaled).
+
+        Everything from the design's sums over all rows less the held-out rows' part: per id
+        (``G^T X``), over the dense columns (``D^T X``), ``E^T E`` and ``E^T Y``.
+        """
+        A = self.design
+        g = A.g
+        X = Y2 if E is None or not E.shape[1] else np.hstack([Y2, E])
+        b = Y2.shape[1]
+        GX, DX = group_sums(A.ids, g, X), A.D.T @ X
+        GD = group_sums(A.ids, g, A.D)
+        EX = E.T @ X if X.shape[1] > b else None
+        for f in self.items:
+            te = f.te
+            ids_te, Xte, Dte = A.ids[te], X[te], A.D[te]
+            gu = f.ctr > 0
+            gx = (GX - group_sums(ids_te, g, Xte))[gu]
+            dx = (DX - Dte.T @ Xte)[f.cols]
+            gd = (GD - group_sums(ids_te, g, Dte))[np.ix_(gu, f.cols)]
+            inv = 1.0 / f.ctr[gu][:, None]
+            s = dx - gd.T @ (gx * inv)  # the Schur complement's right-hand side: D^T (I - P_G) X over training rows
+
+            def fit(Wm):
+                th = Wm @ (Wm.T @ s)  # the dense columns' coefficients
+                gh = np.zeros((g, X.shape[1]))
+                gh[gu] = (gx - gd @ th) * inv  # each id's, given them
+                return th, gh
+
+            th, gh = fit(f.V)
+            pred = gh[ids_te] + Dte[:, f.cols] @ th
+            item = {"y": pred[:, :b], "E": pred[:, b:]}
+            if EX is not None:
+                thf, ghf = fit(f.Vf)
+                ge = gx[:, b:]  # G_tr^T E
+                de = dx[:, b:]  # D_tr^T E (seen columns)
+                EXtr = EX - Xte[:, b:].T @ Xte
+                # E^T (I - P_tr) X = E^T X - (G^T E)^T g_hat(X) - (D^T E)^T theta(X)
+                R = EXtr - ge.T @ ghf[gu] - de.T @ thf
+                item["EE"], item["EY"] = R[:, b:], R[:, :b]
+            yield item
 
     def mse(self, y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> float:
         """Held-out mean square over the rows that can be predicted."""
@@ -587,12 +739,12 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
     out: list[int] = []
     while True:
         idx = np.flatnonzero(keep)
-        Q = Q if (Q is not None and len(idx) == n) else orth(X[idx])
+        Q = Q if (Q is not None and len(idx) == n) else orth_of(X[idx])
         r = y[idx] - Q @ (Q.T @ y[idx])
         dof = len(idx) - Q.shape[1]
         if dof < 3:
             break
-        h = np.sum(Q ** 2, axis=1)
+        h = leverage(Q)
         ok = h < 0.99  # a row that (nearly) alone determines a parameter cannot be judged
         rss = float(r @ r)
         den = np.where(ok, 1 - h, 1.0)
@@ -643,7 +795,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
     if Cs.shape[0] == 0:
         return False
     on = np.any(Cs != 0, axis=2)  # (T, n) rows each trial moves
-    Q0 = orth(X)
+    Q0 = orth_of(X)
     n = len(y)
     for e in multi:
         trials = np.flatnonzero(np.all(~on[:, events != e], axis=1) & np.any(on[:, events == e], axis=1))
@@ -660,7 +812,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
         dof = n - Q.shape[1]
         if dof < 3:
             continue
-        h = np.sum(Q ** 2, axis=1)
+        h = leverage(Q)
         rows = out[ev == e]
         den = 1 - h[rows]
         if np.any(den < 0.01):
@@ -916,7 +1068,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     # 0. baseline fit and a first outlier screen
-    Qall = orth(bl.A, qr=bl.qr)  # the planar baseline's grid choice factored A already
+    Qall = orth_of(bl.A, qr=bl.qr)  # the planar baseline's grid choice factored A already
     st0 = _state(Qall, y, all_rows, [])
     rows = np.setdiff1d(all_rows, outliers_of(bl.A, Qall))
     tick()
@@ -926,7 +1078,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     def model(rows_, terms):
         key = tuple(rows_.tolist()) if len(rows_) != N else None
         if key not in cache:
-            Qb = orth(bl.A[rows_]) if key is not None else Qall
+            Qb = orth_of(bl.A[rows_]) if key is not None else Qall
             est = (Folds if use_cv else CpEstimate)(bl.A[rows_], bl.groups[rows_], settings.cv_rcond)
             if not use_cv:
                 est.set_sigma(y[rows_])
@@ -2241,6 +2393,8 @@ def _gauge_svd(Ar: np.ndarray, C: np.ndarray):
     _, sC, VtC = np.linalg.svd(C) if C.shape[0] else (None, np.zeros(0), np.eye(p))
     rC = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))
     Z = VtC[rC:].T
+    if isinstance(Ar, BlockDesign):
+        return _gauge_eig(Ar.gram(), Z)
     M = Ar @ Z
     sc = np.linalg.norm(M, axis=0)
     sc = np.where(sc > 0, sc, 1.0)
@@ -2253,6 +2407,66 @@ def _gauge_svd(Ar: np.ndarray, C: np.ndarray):
     return Z, sc, U, s, Vt, good, null
 
 
+def _gauge_eig(N: np.ndarray, Z: np.ndarray):
+    """:func:`_gauge_svd` from the normal matrix ``N = A^T A`` (p, p) of a block design (a long log).
+
+    The SVD of the column-scaled ``A Z`` from the eigen-decomposition of
+    ``Z^T N Z`` scaled: the same singular values (``s = sqrt(w)``) and right
+    vectors, no left ones (``U`` is None: the callers form what they need
+    from ``A^T``). Squaring the design costs precision: a direction near the
+    1e-6 cut keeps about 4 digits where the SVD keeps 10; the rows stay
+    unfactored (n x p never formed).
+    """
+    NZ = Z.T @ N @ Z
+    sc = np.sqrt(np.maximum(np.diag(NZ), 0.0))
+    sc = np.where(sc > 0, sc, 1.0)
+    w, V = np.linalg.eigh(NZ / np.outer(sc, sc))
+    w, V = w[::-1], V[:, ::-1]  # decreasing, as an SVD's
+    s = np.sqrt(np.maximum(w, 0.0))
+    good = s > (1e-6 * s.max() if s.size else 0.0)
+    Vt = V.T
+    null = Z @ (Vt[~good].T / sc[:, None]) if (~good).any() else np.zeros((Z.shape[0], 0))
+    return Z, sc, None, s, Vt, good, null
+
+
+def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_map=False):
+    """:func:`_constrained` for a block design: the same solution from its normal matrix (:func:`_gauge_eig`)."""
+    Ar = A[rows]
+    yr = y[rows]
+    p = A.shape[1]
+    N = Ar.gram()
+    if penalty is not None and k_ext:  # the ridge rows R (R^T R = the penalty's non-negative part)
+        w, V = np.linalg.eigh(penalty)
+        N[p - k_ext:, p - k_ext:] += (V * np.maximum(w, 0)) @ V.T
+    theta0 = np.linalg.lstsq(C, d, rcond=None)[0] if C.shape[0] else np.zeros(p)
+    Z, sc, _, s, Vt, good, null = _gauge_eig(N, _gauge_svd_z(C, p))
+    Vg = Vt[good].T / sc[:, None]
+    Atb = Ar.T @ yr - N @ theta0  # A^T (b) with b = y - A theta0 (the ridge rows' part included)
+    phi = Vg @ ((Vg.T @ (Z.T @ Atb)) / s[good] ** 2)
+    theta = theta0 + Z @ phi
+    res = yr - Ar @ theta
+    dof = max(len(rows) - int(good.sum()), 1)
+    s2 = float(res @ res) / dof
+    T = Z @ (Vg / s[good])
+    cov = s2 * (T @ T.T)
+    if null.shape[1]:
+        Qn = orth(null)
+        est = np.linalg.norm(Qn, axis=1) < 1e-6
+    else:
+        est = np.ones(p, bool)
+    if linear_map:  # theta per unit of y[rows]: (p, len(rows)), dense
+        W = T @ (Z @ (Vg / s[good])).T
+        return theta, cov, est, (Ar @ W.T).T, s2
+    return theta, cov, est
+
+
+def _gauge_svd_z(C: np.ndarray, p: int) -> np.ndarray:
+    """The null space ``Z`` of the gauge rows (as :func:`_gauge_svd` takes it)."""
+    _, sC, VtC = np.linalg.svd(C) if C.shape[0] else (None, np.zeros(0), np.eye(p))
+    rC = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))
+    return VtC[rC:].T
+
+
 def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
     """Gauge-constrained least squares with covariance and per-parameter estimability.
 
@@ -2262,7 +2476,11 @@ def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
     direction the data cannot see moves it. sigma from the residuals.
     With ``linear_map`` also ``L`` (p, len(rows)), ``theta = theta0 + L y[rows]``
     (the estimate is linear in the data, penalised or not), and ``s^2``.
+    A :class:`core.lsq.BlockDesign` (a long log) is solved from its normal
+    matrix (:func:`_constrained_blocks`).
     """
+    if isinstance(A, BlockDesign):
+        return _constrained_blocks(A, y, C, d, rows, penalty, k_ext, linear_map)
     Ar = A[rows]
     yr = y[rows]
     p = A.shape[1]

@@ -30,6 +30,13 @@ volumetric identification (:mod:`core.volumetric`) and model discovery
 directions (a shift, a rotation, a scale...) can explain is taken out of a
 vector by least squares; self-calibration uses it for the workpiece form
 and for comparing an error map with the truth.
+
+:class:`BlockDesign` and :class:`Basis` are a long log's design and its
+orthonormal basis for model discovery (:mod:`core.discover`): a block of
+indicator columns (a workpiece's targets, one per touch) kept as each
+row's id and eliminated by means per id, the other columns dense; they
+act as the matrices where discovery uses one and refuse any other numpy
+use (``np.asarray`` raises).
 """
 
 from __future__ import annotations
@@ -626,3 +633,283 @@ def remove_span(v, B, rcond: float = 1e-12) -> np.ndarray:
     U, s, _ = np.linalg.svd(B, full_matrices=False)
     Q = U[:, s > rcond * max(s.max(initial=0.0), 1e-300)]
     return v - Q @ (Q.T @ v)
+
+
+# ---------------------------------------------------------------------------
+# block designs: one indicator column per row, eliminated (long logs)
+# ---------------------------------------------------------------------------
+def group_sums(ids: np.ndarray, g: int, X: np.ndarray) -> np.ndarray:
+    """(g,) or (g, k): the rows of ``X`` summed per id (``G^T X`` for the indicator block ``G``)."""
+    if X.ndim == 1:
+        return np.bincount(ids, weights=X, minlength=g)
+    G = sp.csr_matrix((np.ones(len(ids)), (ids, np.arange(len(ids)))), shape=(g, len(ids)))
+    return np.asarray(G @ X)
+
+
+@dataclass(frozen=True, eq=False)
+class BlockDesign:
+    """A design ``[G | D]`` whose block ``G`` has one unit entry per row (a workpiece's target per touch).
+
+    The design of a long self-calibration log: ``n`` touches by ``p``
+    parameters, of which ``g`` are the targets' own columns (``G``, one 1
+    per row) and ``m`` the machine's (``D``, dense). Stored as the rows' ids
+    and ``D`` only: ``n * m`` numbers instead of ``n * p``, and the
+    projections discovery needs are formed by eliminating ``G`` (means per
+    id, Frisch-Waugh-Lovell) so that only ``D``'s part outside it is
+    factored densely (:meth:`basis`).
+
+    Attributes
+    ----------
+    ids : (n,) int
+        The ``G`` column (0..g-1) of each row.
+    D : (n, m) float
+    g_cols, d_cols : (g,), (m,) int
+        Where ``G``'s and ``D``'s columns sit among the design's ``p = g + m``.
+
+    Supports what :mod:`core.discover` does with a design: ``A[rows]``,
+    ``A @ theta``, ``A.T @ X``, ``np.hstack([A, E])`` (``E`` joins ``D``),
+    ``A.shape``, :meth:`gram` and :meth:`basis`; :meth:`toarray` for checks.
+    """
+
+    ids: np.ndarray
+    D: np.ndarray
+    g_cols: np.ndarray
+    d_cols: np.ndarray
+    _bases: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self):
+        ids = np.asarray(self.ids)
+        g, m = len(self.g_cols), len(self.d_cols)
+        if ids.ndim != 1 or self.D.ndim != 2 or self.D.shape != (len(ids), m):
+            raise ConfigError(f"BlockDesign: ids (n,) and D (n, {m}) needed, got {ids.shape} and {self.D.shape}")
+        if ids.size and (ids.min() < 0 or ids.max() >= g):
+            raise ConfigError(f"BlockDesign: ids must lie in 0..{g - 1}, got {ids.min()}..{ids.max()}")
+        cols = np.concatenate([self.g_cols, self.d_cols]).astype(int)
+        if not np.array_equal(np.sort(cols), np.arange(g + m)):
+            raise ConfigError("BlockDesign: g_cols and d_cols must number the columns 0..p-1 once each")
+
+    @classmethod
+    def from_sparse(cls, A, g_cols) -> "BlockDesign":
+        """Split a sparse (or dense) design whose columns ``g_cols`` hold one 1 per row and nothing else."""
+        A = sp.csc_matrix(A)
+        g_cols = np.asarray(g_cols, int)
+        G = A[:, g_cols].tocsr()
+        if np.any(np.diff(G.indptr) != 1) or np.any(G.data != 1.0):
+            raise ConfigError("BlockDesign: the indicator columns must hold exactly one 1 per row")
+        d_cols = np.setdiff1d(np.arange(A.shape[1]), g_cols)
+        return cls(G.indices.astype(np.int64), A[:, d_cols].toarray(), g_cols, d_cols)
+
+    @property
+    def shape(self) -> tuple:
+        return (len(self.ids), len(self.g_cols) + len(self.d_cols))
+
+    @property
+    def ndim(self) -> int:
+        return 2
+
+    @property
+    def g(self) -> int:
+        return len(self.g_cols)
+
+    @property
+    def T(self) -> "_Transposed":
+        return _Transposed(self)
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def __getitem__(self, rows) -> "BlockDesign":
+        if isinstance(rows, tuple):
+            raise ConfigError("BlockDesign: only rows can be selected (A[rows])")
+        return BlockDesign(self.ids[rows], self.D[rows], self.g_cols, self.d_cols)
+
+    def __matmul__(self, theta):
+        theta = np.asarray(theta, float)
+        return theta[self.g_cols][self.ids] + self.D @ theta[self.d_cols]
+
+    def rmatmul(self, X: np.ndarray) -> np.ndarray:
+        """``A^T X``: (p,) or (p, k)."""
+        out = np.zeros((self.shape[1],) + X.shape[1:])
+        out[self.g_cols] = group_sums(self.ids, self.g, X)
+        out[self.d_cols] = self.D.T @ X
+        return out
+
+    def hstack(self, E: np.ndarray) -> "BlockDesign":
+        """``[A | E]``: the new columns join the dense block."""
+        E = np.asarray(E, float).reshape(len(self.ids), -1)
+        p = self.shape[1]
+        return BlockDesign(self.ids, np.hstack([self.D, E]), self.g_cols,
+                           np.concatenate([self.d_cols, np.arange(p, p + E.shape[1])]))
+
+    def gram(self) -> np.ndarray:
+        """(p, p) ``A^T A`` (dense: the parameters, not the rows)."""
+        p = self.shape[1]
+        N = np.zeros((p, p))
+        gd = group_sums(self.ids, self.g, self.D)
+        N[self.g_cols, self.g_cols] = np.bincount(self.ids, minlength=self.g)
+        N[np.ix_(self.g_cols, self.d_cols)] = gd
+        N[np.ix_(self.d_cols, self.g_cols)] = gd.T
+        N[np.ix_(self.d_cols, self.d_cols)] = self.D.T @ self.D
+        return N
+
+    def toarray(self) -> np.ndarray:
+        A = np.zeros(self.shape)
+        A[np.arange(len(self.ids)), self.g_cols[self.ids]] = 1.0
+        A[:, self.d_cols] = self.D
+        return A
+
+    def basis(self, tol: float = 1e-9) -> "Basis":
+        """Orthonormal basis of the column space, rank cut at ``tol`` as :func:`core.diagnosis.orth` cuts it.
+
+        The indicator columns of the ids present, normalised (``1 / sqrt(count)``),
+        then ``D``'s columns scaled to unit norm, their means per id removed,
+        and a pivoted QR of what is left: its directions with ``|R_ii| > tol``
+        (a unit column's share outside the indicators) are kept. One
+        factorisation serves every ``tol``.
+        """
+        if "qr" not in self._bases:
+            ids = self.ids
+            cnt = np.bincount(ids, minlength=self.g).astype(float)
+            nrm = np.linalg.norm(self.D, axis=0)
+            keep = nrm > 0
+            Ds = self.D[:, keep] / nrm[keep]
+            Ds -= (group_sums(ids, self.g, Ds) / np.maximum(cnt, 1.0)[:, None])[ids]
+            if Ds.shape[1]:
+                Q, R, _ = sla.qr(Ds, mode="economic", pivoting=True, overwrite_a=True)
+                d = np.abs(np.diag(R))
+            else:
+                Q, d = Ds, np.zeros(0)
+            self._bases["qr"] = (cnt, Q, d)
+        cnt, Q, d = self._bases["qr"]
+        return Basis(self.ids, cnt, Q[:, :int(np.sum(d > tol))])
+
+
+class _Transposed:
+    """``A.T`` of a :class:`BlockDesign` or :class:`Basis`: only ``A.T @ X``."""
+
+    def __init__(self, of):
+        self.of = of
+
+    def __matmul__(self, X):
+        return self.of.rmatmul(np.asarray(X, float))
+
+
+def _hstack_blocks(arrays):
+    head, rest = arrays[0], [np.asarray(a, float) for a in arrays[1:]]
+    if any(isinstance(a, (BlockDesign, Basis)) for a in arrays[1:]):
+        raise ConfigError("hstack: a block design or basis can only come first")
+    if not rest:
+        return head
+    return head.hstack(np.hstack([r.reshape(head.shape[0], -1) for r in rest]))
+
+
+@dataclass(frozen=True, eq=False)
+class Basis:
+    """An orthonormal basis ``[G diag(count)^-1/2 | U]`` of a :class:`BlockDesign`'s column space.
+
+    The indicator columns of the ids present (those with ``count > 0``),
+    normalised, then ``U`` (n, r) dense, orthonormal and orthogonal to them
+    (zero mean per id). Acts like the (n, g' + r) matrix where
+    :mod:`core.discover` and :mod:`core.diagnosis` use one: ``Q @ c``,
+    ``Q.T @ X``, ``Q.shape``, ``np.hstack([Q, V])`` (``V`` orthonormal and
+    outside ``Q``, as :func:`core.diagnosis.new_basis` gives), ``Q[:, k:]``
+    for ``k`` at or beyond the indicators, ``np.array_equal``; the rows'
+    leverage by :func:`leverage`.
+    """
+
+    ids: np.ndarray
+    counts: np.ndarray
+    U: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "_present", np.flatnonzero(self.counts > 0))
+        object.__setattr__(self, "_scale", 1.0 / np.sqrt(self.counts[self._present]))
+        pos = np.full(len(self.counts), -1)
+        pos[self._present] = np.arange(len(self._present))
+        object.__setattr__(self, "_pos", pos)
+
+    @property
+    def k(self) -> int:
+        """Indicator columns (ids present)."""
+        return len(self._present)
+
+    @property
+    def shape(self) -> tuple:
+        return (len(self.ids), self.k + self.U.shape[1])
+
+    @property
+    def ndim(self) -> int:
+        return 2
+
+    @property
+    def T(self) -> _Transposed:
+        return _Transposed(self)
+
+    def rmatmul(self, X: np.ndarray) -> np.ndarray:
+        gs = group_sums(self.ids, len(self.counts), X)[self._present]
+        gs = gs * (self._scale if X.ndim == 1 else self._scale[:, None])
+        return np.concatenate([gs, self.U.T @ X], axis=0)
+
+    def __matmul__(self, c):
+        c = np.asarray(c, float)
+        cg = c[:self.k] * (self._scale if c.ndim == 1 else self._scale[:, None])
+        return cg[self._pos[self.ids]] + self.U @ c[self.k:]
+
+    def hstack(self, V: np.ndarray) -> "Basis":
+        return Basis(self.ids, self.counts, np.hstack([self.U, V]))
+
+    def __getitem__(self, key):
+        if (isinstance(key, tuple) and len(key) == 2 and key[0] == slice(None) and isinstance(key[1], slice)
+                and key[1].step is None and (key[1].start or 0) >= self.k):
+            s = key[1]
+            return self.U[:, (s.start or 0) - self.k:None if s.stop is None else s.stop - self.k]
+        raise ConfigError(f"Basis: only its dense columns can be taken (Q[:, k:] with k >= {self.k}), not {key!r}")
+
+    def leverage(self) -> np.ndarray:
+        return self._scale[self._pos[self.ids]] ** 2 + np.sum(self.U ** 2, axis=1)
+
+    def toarray(self) -> np.ndarray:
+        Q = np.zeros(self.shape)
+        Q[np.arange(len(self.ids)), self._pos[self.ids]] = self._scale[self._pos[self.ids]]
+        Q[:, self.k:] = self.U
+        return Q
+
+    def equals(self, other) -> bool:
+        return self is other or (isinstance(other, Basis) and np.array_equal(self.ids, other.ids)
+                                 and np.array_equal(self.counts, other.counts) and np.array_equal(self.U, other.U))
+
+
+def _array_function(self, func, types, args, kwargs):
+    """numpy's hstack and array_equal on a block design or basis (NEP 18); any other function refused."""
+    if func is np.hstack:
+        return _hstack_blocks(list(args[0]))
+    if func is np.array_equal and isinstance(self, Basis):
+        a, b = args[0], args[1]
+        return isinstance(a, Basis) and a.equals(b)
+    raise ConfigError(f"{type(self).__name__} is an operator, not an array: numpy.{func.__name__} is not defined "
+                      "on it")
+
+
+def _no_array(self, *a, **k):
+    raise ConfigError(f"{type(self).__name__} is an operator, not an array: use its toarray() where a dense "
+                      "matrix is meant")
+
+
+for _cls in (BlockDesign, Basis):
+    _cls.__array_function__ = _array_function
+    _cls.__array__ = _no_array
+
+
+def leverage(Q) -> np.ndarray:
+    """(n,) the rows' leverage ``sum(Q ** 2, axis=1)`` of an orthonormal basis (an array or a :class:`Basis`)."""
+    return Q.leverage() if isinstance(Q, Basis) else np.sum(Q ** 2, axis=1)
+
+
+def orth_of(A, tol: float = 1e-9, qr=None):
+    """Orthonormal basis of ``A``'s columns: :func:`core.diagnosis.orth` of an array, :meth:`BlockDesign.basis` of a block
+    design."""
+    if isinstance(A, BlockDesign):
+        return A.basis(tol)
+    from .diagnosis import orth
+
+    return orth(A, tol=tol, qr=qr)

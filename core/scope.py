@@ -89,6 +89,6 @@ def check_planar_scope(log: ProbeLog, command: str = "identify", *, min_touches:
     setups = np.unique(log.col("setup")[ok][planar].astype(str))
     if setups.size < 2:
         raise IdentifiabilityError(
-            f"{src}: every touch on a vertical wall is in one set-up ({setups[0]!r}): {command} "
+            f"{src}: every touch on a vertical wall is in one set-up ({str(setups[0])!r}): {command} "
             "separates the workpiece from the machine only with the same targets at two or more "
             "set-ups (C angles)")

@@ -41,21 +41,21 @@ ALARMS = {
 CRITICAL_ALARMS = frozenset({1, 2})
 
 #: What each alarm needs before motion, in vmt's options. GRBL keeps its alarm lock
-#: (``error:9`` for every G-code line) until ``$X`` (``--unlock``) or ``$H`` (``--home``);
+#: (``error:9`` for every G-code line) until ``$X`` (``--unlock``) or ``$H`` (``--home-cycle``);
 #: after a critical alarm it first needs a reset (``--reset`` sends Ctrl-X).
 ALARM_RECOVERY = {
-    1: "clear the limit switch, then re-run with --resume --reset --home "
+    1: "clear the limit switch, then re-run with --resume --reset --home-cycle "
        "(GRBL needs a reset first; re-home: the position is likely lost)",
     2: "re-run with --resume --reset --unlock (GRBL needs a reset first, then $X; the position "
        "was kept) after fixing the plan or the limits",
-    3: "re-run with --resume --home (the position is likely lost), or --unlock if it is known",
+    3: "re-run with --resume --home-cycle (the position is likely lost), or --unlock if it is known",
     4: "move the probe clear of the part, then re-run with --resume --unlock",
     5: "the miss is logged; re-run with --resume --unlock (or probe with --allow-miss)",
-    6: "re-run with --resume --home",
-    7: "close the door, then re-run with --resume --home",
-    8: "check the homing switches and pull-off ($27), then re-run with --resume --home",
-    9: "check the homing switches and travel ($130..), then re-run with --resume --home",
-    10: "check the dual-axis homing switches, then re-run with --resume --home",
+    6: "re-run with --resume --home-cycle",
+    7: "close the door, then re-run with --resume --home-cycle",
+    8: "check the homing switches and pull-off ($27), then re-run with --resume --home-cycle",
+    9: "check the homing switches and travel ($130..), then re-run with --resume --home-cycle",
+    10: "check the dual-axis homing switches, then re-run with --resume --home-cycle",
 }
 
 #: GRBL 1.1 error codes (``error:N``), in our words. The firmware's error_codes_en_US.csv,

@@ -93,12 +93,12 @@ def parse_limits(text: str) -> tuple:
             ax, rng = part[0].upper(), part[1:]
             lo, hi = (float(v) for v in rng.split(":"))
         except (ValueError, IndexError):
-            raise ConfigError(f"--limits {text!r}: {part!r} is not AXISmin:max (e.g. X-10:300)") from None
+            raise ConfigError(f"--limits-mm {text!r}: {part!r} is not AXISmin:max (e.g. X-10:300)") from None
         if ax not in "XYZ" or ax in out:
-            raise ConfigError(f"--limits {text!r}: axis {ax!r} unknown or repeated")
+            raise ConfigError(f"--limits-mm {text!r}: axis {ax!r} unknown or repeated")
         out[ax] = (lo, hi)
     if set(out) != set("XYZ"):
-        raise ConfigError(f"--limits {text!r}: give X, Y and Z")
+        raise ConfigError(f"--limits-mm {text!r}: give X, Y and Z")
     lim = tuple(out[a] for a in "XYZ")
     ProbeSettings(limits_mm=lim)
     return lim
@@ -170,7 +170,7 @@ def check_program(steps: list[Step], settings: ProbeSettings, *, require_limits:
             raise PlanError(f"{k} {getattr(settings, k):g} exceeds the maximum feed {mx:g} mm/min")
     if settings.limits_mm is None:
         if require_limits:
-            raise PlanError("no soft limits given (--limits X..:..,Y..:..,Z..:..): "
+            raise PlanError("no soft limits given (--limits-mm X..:..,Y..:..,Z..:..): "
                             "refusing to move a machine without them")
         return
     lim = np.asarray(settings.limits_mm, dtype=float)

@@ -15,7 +15,7 @@ The protocol, as this client uses it (GRBL 1.1 "simple send-response"):
   alarm wins, the report is stale and never taken for a position. Every
   G-code line then gets ``error:9`` (alarm lock) until ``$X`` or ``$H``,
   which this client sends only on the user's word (``--unlock``,
-  ``--home``). After ``ALARM:1`` (hard limit) or ``ALARM:2`` (soft limit)
+  ``--home-cycle``). After ``ALARM:1`` (hard limit) or ``ALARM:2`` (soft limit)
   the firmware answers nothing, not even ``?``, until a reset (Ctrl-X,
   ``--reset``), and only then ``$X`` or ``$H``;
 - a line holds at most 79 characters once spaces are removed (GRBL's
@@ -506,7 +506,7 @@ class GrblClient:
         after = f" after {describe_alarm(self.alarm)}" if self.alarm is not None else ""
         raise HardwareError(f"controller did not answer a status query within {timeout_s:g} s{after}; "
                             "GRBL answers nothing after a hard or soft limit alarm (ALARM:1/2) until "
-                            "a reset: re-run with --reset (then --unlock or --home)")
+                            "a reset: re-run with --reset (then --unlock or --home-cycle)")
 
     def reset(self, timeout_s: float = 5.0) -> list[str]:
         """Soft reset (Ctrl-X) and wait for the banner; returns the lines read."""
@@ -625,7 +625,7 @@ class GrblBackend:
             if not unlock and not home:
                 why = describe_alarm(c.alarm) if c.alarm is not None else (
                     "the controller is in alarm: clear the cause and re-run with --unlock "
-                    "(sends $X) or --home (sends $H)")
+                    "(sends $X) or --home-cycle (sends $H)")
                 raise HardwareError(f"controller in alarm, nothing sent: {why}")
         if home:
             c.expect_ok("$H", timeout_s=max(c.timeout_s, 120.0))

@@ -5,7 +5,7 @@ simulator: :class:`SimMachine` adapts ``sim.probe.VirtualMachine`` to the
 ``probe_move`` duck type the emulator and :class:`hardware.backend.VirtualBackend`
 use, :func:`sim_machine` builds it for a named artefact, :func:`builtin_machine`
 is the small known-error scene (:class:`hardware.scene.SimpleScene`), and
-:func:`open_backend` turns a ``--machine`` URL into a probing backend.
+:func:`open_backend` turns a ``--controller`` URL into a probing backend.
 """
 
 from __future__ import annotations
@@ -58,13 +58,14 @@ class SimMachine:
 
 
 def sim_machine(scene: str = "cross-pocket", noise_um: float | None = 0.0, seed: int = 0,
-                errors_seed: int = 1, spec=None) -> SimMachine:
+                spec=None) -> SimMachine:
     """The simulator's virtual machine with artefact ``scene`` on the table.
 
-    ``spec`` (a :class:`sim.machinefile.MachineSpec`, ``--machine FILE``) is
-    the machine and probe; default the nmv3000 with realistic errors (seeded
-    by ``errors_seed``). ``noise_um`` is the probing standard deviation (k=1)
-    along the approach, um (None: the spec's probe, else 0).
+    ``spec`` (a :class:`sim.machinefile.MachineSpec`, ``--machine NAME|FILE``)
+    is the machine and probe; default the nmv3000 as ``--machine nmv3000``
+    names it (:func:`sim.machinefile.truth_machine`: its realistic errors).
+    ``noise_um`` is the probing standard deviation (k=1) along the approach,
+    um (None: the spec's probe).
 
     Raises
     ------
@@ -75,18 +76,15 @@ def sim_machine(scene: str = "cross-pocket", noise_um: float | None = 0.0, seed:
 
     from sim.catalog import CATALOG, make_artefact
     from sim.machine import Machine
-    from sim.machines import MACHINES, realistic_errors
-    from sim.probe import ProbeConfig, VirtualMachine
+    from sim.machinefile import truth_machine
+    from sim.probe import VirtualMachine
 
     if scene not in CATALOG:
         raise ConfigError(f"--scene {scene!r}: expected simple or one of {', '.join(sorted(CATALOG))}")
     if spec is None:
-        m = Machine(MACHINES["nmv3000"](errors=realistic_errors(
-            ("X", "Y", "Z", "C"), rng=np.random.default_rng(errors_seed), ripple=False)))
-        probe = ProbeConfig(repeatability_k2_m=0.0)
-    else:
-        m = Machine(spec.config)
-        probe = spec.probe
+        spec = truth_machine("nmv3000")
+    m = Machine(spec.config)
+    probe = spec.probe
     if noise_um is not None:
         probe = replace(probe, repeatability_k2_m=2 * noise_um * UM)
     vm = VirtualMachine(m, make_artefact(scene), probe, np.random.default_rng(seed))
@@ -95,7 +93,7 @@ def sim_machine(scene: str = "cross-pocket", noise_um: float | None = 0.0, seed:
 
 def open_backend(url: str, *, timeout_s: float = 60.0, rotary: bool = False, on_event=None,
                  transcript=None, axes: str | None = None, reset: bool = False):
-    """A probing backend for a ``--machine`` URL.
+    """A probing backend for a ``--controller`` URL.
 
     ``grbl://HOST:PORT``, ``tcp://...`` or ``serial:///dev/ttyX`` connect to a
     GRBL controller (:func:`hardware.grbl.connect`, with ``timeout_s``,
@@ -120,5 +118,5 @@ def open_backend(url: str, *, timeout_s: float = 60.0, rotary: bool = False, on_
     if url.startswith("virtual:") and url[len("virtual:"):].lstrip("/"):
         scene = url[len("virtual:"):].lstrip("/")
         return VirtualBackend(sim_machine(scene), name=f"virtual:{scene}")
-    raise HardwareError(f"--machine {url!r}: expected grbl://HOST:PORT, serial:///dev/ttyX, virtual: "
+    raise HardwareError(f"--controller {url!r}: expected grbl://HOST:PORT, serial:///dev/ttyX, virtual: "
                         "or virtual:SCENE (cross-pocket, pin-circle, freeform, mfb)")

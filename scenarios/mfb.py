@@ -597,7 +597,7 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     from sim import artefacts as A
     from sim.machine import nominal_T_R_W
     from sim.machines import MACHINES
-    from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurement, share_ball_model
+    from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurements
 
     program = _program(u_place)  # the program run() simulates for this placement tolerance
     key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
@@ -608,18 +608,20 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     t0 = time.time()
     cfg = MACHINES[plan.machine]()  # nominal: its table poses need no Machine (sim.machine.nominal_T_R_W)
     art = _nominal_bar()
-    per, n_t, n_s, table_poses = {}, 0, 0, {}
-    share_ball_model(art, [(ms.T_W_A, plan.fixtures.get(ms.placement, ()), ms.J_m, FINGERS.get(ms.stylus, 0.0))
-                           for ms in plan.measurements], stylus_r_m)  # one MuJoCo model for the placements
+    per, n_t, n_s, table_poses, todo, programs = {}, 0, 0, {}, [], {}
     for ms in plan.measurements:
         T_R_W = table_poses.get(tuple(ms.rot_rad))  # (one per set-up: measurements share them)
         if T_R_W is None:
             rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
             T_R_W = table_poses[tuple(ms.rot_rad)] = np.asarray(nominal_T_R_W(cfg, rot), float).reshape(4, 4)
             T_R_W.flags.writeable = False  # shared: read only
-        pl = _plan_for(art, ms.holes, **program)
-        r = check_measurement(ms.name, art, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m,
-                              stylus_r_m, pl, FINGERS.get(ms.stylus, 0.0))
+        pl = programs.get(ms.holes)  # (one per set of holes: measurements share them, read only)
+        if pl is None:
+            pl = programs[ms.holes] = _plan_for(art, ms.holes, **program)
+        todo.append((ms.name, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m, pl,
+                     FINGERS.get(ms.stylus, 0.0)))
+    # every measurement's paths at once (sim.mfb_scene.check_measurements), then in order
+    for ms, (_, _, T_R_W, _, _, pl, _), r in zip(plan.measurements, todo, check_measurements(art, todo, stylus_r_m)):
         if not r.ok:
             raise PlanError(f"measurement {ms.name!r} ({ms.setup_key}, {ms.stylus}): {r.collisions[0]}")
         c = A.apply_T(T_R_W @ ms.T_W_A, pl.w_A + stylus_r_m * pl.wn_A)

@@ -32,7 +32,9 @@ bound), and only the pairs it cannot clear are bounded sample by sample.
 Each call leaves per-segment certificates (the radius within which the
 segment stays clear, since a distance moves no farther than the tip): the
 same plan at another placement turned the same way is cleared segment by
-segment in a few vector operations.
+segment in a few vector operations. :func:`near_segments_many` does the same
+for several broad phases and paths in one pass (a whole plan's measurements:
+one set of numpy operations instead of one per measurement and broad phase).
 
 Frames: the geoms may be given in any frame F fixed to the table (``T_F_R``;
 the scene uses the artefact's frame A, so one broad phase serves every
@@ -195,12 +197,9 @@ class Clearance:
         self.cert_pad_m = float(cert_pad_m)
         self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
         plo, phi = probe.aabb()
-        ng, nh = len(probe.kind), len(table.kind)
         self.feature, tlo, thi, cl, h_order, self._fid, tfid = _table_prep(table, table_feature)
-        self.pair_probe, self.pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
-        if pairs is not None:  # (the order kept: by probe geom, cluster, table geom)
-            keep = np.asarray(pairs, bool)[self.pair_probe, self.pair_table]
-            self.pair_probe, self.pair_table = self.pair_probe[keep], self.pair_table[keep]
+        st = _pair_structure(table, table_feature, len(probe.kind), self.ball, pairs)
+        self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch = st
         # the tip p puts geom g in collision range of h only if p lies in this box
         self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
         self._hi = thi[self.pair_table] - plo[self.pair_probe] + MARGIN_M
@@ -209,15 +208,10 @@ class Clearance:
         self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
         self._have = np.zeros(npair, bool)
         self._certs = _Certificates()  # of near_segments (shared by the moved copies: same frame)
-        ck = self.pair_probe * (cl.max() + 1) + cl[self.pair_table]
-        self._cstart = np.flatnonzero(np.r_[True, ck[1:] != ck[:-1]])
-        self._ccount = np.diff(np.r_[self._cstart, len(ck)])
-        # each cluster's feature as a number (_fid) when it is the ball's (the clusters a touch
-        # of that feature may meet), else -1
-        first = self._cstart
-        self._cballf = np.where(self.pair_probe[first] == self.ball, tfid[self.pair_table[first]], -1)
-        self._clo = np.minimum.reduceat(self._lo, self._cstart, axis=0)
-        self._chi = np.maximum.reduceat(self._hi, self._cstart, axis=0)
+        # each cluster's box: its table geoms' (ch, the union of their boxes) for its probe geom cg
+        # (the same numbers as the least and largest of its pairs' boxes: a difference is monotone)
+        self._clo = ch[0] - phi[cg] - MARGIN_M
+        self._chi = ch[1] - plo[cg] + MARGIN_M
         # the same boxes one coordinate a row (3, k), for _overlap_rows
         self._loT, self._hiT = self._lo.T.copy(), self._hi.T.copy()
         self._cloT, self._chiT = self._clo.T.copy(), self._chi.T.copy()
@@ -289,6 +283,15 @@ class Clearance:
         may meet, then against the clusters' pairs; each level a superset of the next.
         ``allow`` (s,) int: per box, the feature (:meth:`feature_ids`) the ball may touch:
         the ball's pairs with its geoms are left out (a cluster is one feature's geoms)."""
+        seg, cp = self._block_candidates(s_lo, s_hi, allow)
+        return _pair_candidates(s_lo.T.copy(), s_hi.T.copy(), seg, cp, self._cloT, self._chiT, self._cstart,
+                                self._ccount, self._loT, self._hiT)
+
+    def _block_candidates(self, s_lo: np.ndarray, s_hi: np.ndarray, allow: np.ndarray | None = None
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """(box index, cluster index) of :meth:`_box_pairs`'s first level: runs of :data:`_BLOCK`
+        consecutive boxes against the clusters (the ball's clusters of each box's ``allow``
+        feature left out)."""
         n = len(s_lo)
         cut = np.arange(0, n, _BLOCK)
         b_lo, b_hi = np.minimum.reduceat(s_lo, cut, axis=0), np.maximum.reduceat(s_hi, cut, axis=0)
@@ -302,14 +305,7 @@ class Clearance:
         if allow is not None:
             ok = self._cballf[cp] != allow[seg]
             seg, cp = seg[ok], cp[ok]
-        sT_lo, sT_hi = s_lo.T.copy(), s_hi.T.copy()  # (3, s): one coordinate a row
-        ok = _overlap_rows(sT_lo, sT_hi, seg, self._cloT, self._chiT, cp)
-        seg, cp = seg[ok], cp[ok]
-        # -> (segment, pair) for the cluster's member geoms
-        k, pair = _expand(self._cstart[cp], self._ccount[cp])
-        seg = seg[k]
-        ok = _overlap_rows(sT_lo, sT_hi, seg, self._loT, self._hiT, pair)
-        return seg[ok], pair[ok]
+        return seg, cp
 
     def swept_bound(self, a_R: np.ndarray, b_R: np.ndarray, pair: np.ndarray) -> np.ndarray:
         """Lower bound (m) of the distance of pair ``pair`` (r,) for every tip on the segment ``a_R -> b_R`` (r,3).
@@ -318,34 +314,34 @@ class Clearance:
         segment, so its least magnitude is 0 when its signs at the ends differ and
         the smaller end's otherwise; minus the two extents, it bounds the distance
         at every point of the segment (the separating-axis gap of the geom swept
-        along the segment). Axes: the pair's fixed ones and, for rows not yet
-        farther than :data:`MARGIN_M`, the direction from the table geom's point
-        nearest the probe geom's centre at the segment's middle.
+        along the segment). Axes: the direction from the table geom's point nearest
+        the probe geom's centre at the segment's middle and, for rows it does not
+        prove farther than :data:`MARGIN_M`, the pair's fixed ones.
         """
         return self._swept(self.to_frame(a_R), self.to_frame(b_R), pair)
 
     def _swept(self, a: np.ndarray, b: np.ndarray, pair: np.ndarray) -> np.ndarray:
         """:meth:`swept_bound` for ends already in the geoms' frame."""
-        U, E = self._axes(pair)
         d0 = self._d0[pair]
         da, db = d0 + a, d0 + b
 
-        def gap(U, E):  # U (r,j,3), E (r,j)
+        def gap(U, E, da, db):  # U (r,j,3), E (r,j)
             sa = U[:, :, 0] * da[:, 0, None] + U[:, :, 1] * da[:, 1, None] + U[:, :, 2] * da[:, 2, None]
             sb = U[:, :, 0] * db[:, 0, None] + U[:, :, 1] * db[:, 1, None] + U[:, :, 2] * db[:, 2, None]
             return np.where(sa * sb > 0, np.minimum(np.abs(sa), np.abs(sb)), 0.0) - E
 
-        out = np.max(gap(U, E), axis=1)
+        # the direction from the table geom's point nearest the probe geom's centre at the
+        # segment's middle: most pairs are cleared by it alone
+        g, h = self.pair_probe[pair], self.pair_table[pair]
+        T = self.table.take(h)
+        c_g = self.probe.centre[g] + 0.5 * (a + b)
+        u, ok = _unit(c_g - T.closest(c_g))
+        E = self.probe.take(g).extent(u) + T.extent(u)
+        out = np.where(ok, gap(u[:, None, :], E[:, None], da, db)[:, 0], -np.inf)
         r = np.flatnonzero(out <= MARGIN_M)
-        if r.size:
-            g, h = self.pair_probe[pair[r]], self.pair_table[pair[r]]
-            T = self.table.take(h)
-            c_g = self.probe.centre[g] + 0.5 * (a[r] + b[r])
-            u, ok = _unit(c_g - T.closest(c_g))
-            E = self.probe.take(g).extent(u) + T.extent(u)
-            da, db = da[r], db[r]
-            dyn = gap(u[:, None, :], E[:, None])[:, 0]
-            out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
+        if r.size:  # the pair's fixed axes (computed once per pair) for the rest
+            U, E = self._axes(pair[r])
+            out[r] = np.maximum(out[r], np.max(gap(U, E, da[r], db[r]), axis=1))
         return out
 
     def feature_ids(self, features) -> np.ndarray:
@@ -375,39 +371,9 @@ class Clearance:
 
         ``allow_feature`` (number of polylines,) of str: as in :meth:`near`, per polyline.
         """
-        a, b = self.to_frame(sg.a), self.to_frame(sg.b)
-        n = len(a)
-        allow_seg = np.full(n, -2) if allow_feature is None else self.feature_ids(allow_feature)[sg.path]
-        r = np.full(n, -np.inf)  # the certificates this call leaves
-        r_old, moved = self._certs.lookup(a, b, allow_seg)
-        todo = np.flatnonzero(~(moved < r_old))  # the segments no certificate clears
-        if todo.size:
-            pad = self.cert_pad_m
-            seg, pair = self._box_pairs(np.minimum(a[todo], b[todo]) - pad, np.maximum(a[todo], b[todo]) + pad,
-                                        allow_seg[todo])
-            seg = todo[seg]
-            r[todo] = pad
-        else:
-            seg = pair = np.zeros(0, int)
-        lb = self._swept(a[seg], b[seg], pair) if seg.size else np.zeros(0)
-        np.minimum.at(r, seg, lb - MARGIN_M)
-        if self.cert_pad_m > 0:  # the segments bounded here (the others are covered by the old ones)
-            self._certs.add(a[todo], b[todo], allow_seg[todo], r[todo])
-        open_ = lb <= MARGIN_M
-        seg, pair = seg[open_], pair[open_]
-        if not seg.size:
-            return np.zeros(0, int)
-        # sample by sample for the pairs the swept bound leaves open
-        k, idx = _expand(sg.first[seg], sg.m[seg])
-        pair = pair[k]
-        q_R = sg.points(idx)
-        q = self.to_frame(q_R)
-        ok = _overlap(q, q, self._lo[pair], self._hi[pair])
-        idx, pair, q_R = idx[ok], pair[ok], q_R[ok]
-        if not idx.size:
-            return np.zeros(0, int)
-        close = self.bound(q_R, np.arange(len(q_R)), pair, enough=MARGIN_M) <= MARGIN_M
-        return np.unique(idx[close])
+        sg_F = Segments(self.to_frame(sg.a), self.to_frame(sg.b), sg.k, sg.m, sg.first, sg.path)
+        allow_seg = np.full(len(sg.a), -2) if allow_feature is None else self.feature_ids(allow_feature)[sg.path]
+        return near_segments_many([(self, sg_F, allow_seg)])[0]
 
     def box_bound(self, p_R: np.ndarray, pairs: np.ndarray) -> np.ndarray:
         """(n, pairs): a lower bound (m) of the signed distance of each pair of ``pairs`` at every
@@ -429,8 +395,11 @@ class Clearance:
         ``enough``: rows whose fixed axes already prove more than this skip the
         closest-point axis (their bound is then that smaller, still valid, value).
         """
-        p = self.to_frame(p_R)
-        d = self._d0[pair] + p[i]
+        return self._bound_F(self.to_frame(p_R)[i], pair, enough)
+
+    def _bound_F(self, p: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
+        """:meth:`bound` of pair ``pair`` (r,) with the tip at ``p`` (r,3), already in the geoms' frame."""
+        d = self._d0[pair] + p
         U, E = self._axes(pair)
         out = np.max(np.abs(U[:, :, 0] * d[:, 0, None] + U[:, :, 1] * d[:, 1, None] + U[:, :, 2] * d[:, 2, None])
                      - E, axis=1)
@@ -439,7 +408,7 @@ class Clearance:
             return out
         g, h, d = self.pair_probe[pair[r]], self.pair_table[pair[r]], d[r]
         T = self.table.take(h)
-        c_g = self.probe.centre[g] + p[i[r]]
+        c_g = self.probe.centre[g] + p[r]
         u, ok = _unit(c_g - T.closest(c_g))
         dyn = np.abs(u[:, 0] * d[:, 0] + u[:, 1] * d[:, 1] + u[:, 2] * d[:, 2]) - self.probe.take(g).extent(u) - T.extent(u)
         out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
@@ -544,6 +513,40 @@ def _build_table_prep(table: Geoms, table_feature) -> tuple:
     return feature, tlo, thi, cl, h_order, fid, tfid
 
 
+#: The pair structure of :class:`Clearance` (pairs sorted by probe geom, cluster, table geom;
+#: clusters) by table side, number of probe geoms, ball and pair mask: the broad phases of one
+#: table side with the same probe's geom count (a work zone's orientations) share it. Safe: keyed
+#: by the ids of the table side's two objects (kept in the entry) and the other inputs; read only.
+_PAIRS = Memo(64)
+
+
+def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
+    """(pair_probe, pair_table (k,) int, cluster start, count (c,) int, each cluster's feature
+    number when it is the ball's else -1 (c,), its probe geom (c,), its table geoms' box
+    (2, c, 3): lo, hi) for ``ng`` probe geoms against ``table`` (:meth:`Clearance.__init__`)."""
+    mask = None if pairs is None else np.ascontiguousarray(pairs, bool)
+    key = (id(table), id(table_feature), int(ng), int(ball), None if mask is None else (mask.shape, mask.tobytes()))
+
+    def build():
+        _, tlo, thi, cl, h_order, _, tfid = _table_prep(table, table_feature)
+        nh = len(table.kind)
+        pair_probe, pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
+        if mask is not None:  # (the order kept: by probe geom, cluster, table geom)
+            keep = mask[pair_probe, pair_table]
+            pair_probe, pair_table = pair_probe[keep], pair_table[keep]
+        ck = pair_probe * (cl.max() + 1) + cl[pair_table]
+        cstart = np.flatnonzero(np.concatenate([[True], ck[1:] != ck[:-1]]))
+        ccount = np.diff(np.append(cstart, len(ck)))
+        # each cluster's feature as a number (_fid) when it is the ball's (the clusters a touch
+        # of that feature may meet), else -1
+        cballf = np.where(pair_probe[cstart] == ball, tfid[pair_table[cstart]], -1)
+        cbox = np.stack([np.minimum.reduceat(tlo[pair_table], cstart, axis=0),
+                         np.maximum.reduceat(thi[pair_table], cstart, axis=0)])
+        return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox
+
+    return _PAIRS.get_or_compute(key, build, owner=(table, table_feature))
+
+
 class _Certificates:
     """Certificates of :meth:`Clearance.near_segments`: segments ``a -> b`` (geoms' frame, m),
     their allowed feature and the radius ``r`` (m) within which a segment is clear.
@@ -559,8 +562,9 @@ class _Certificates:
 
     def __init__(self):
         self.blocks = []  # (a, b, allow, r) per call
+        self._by_len: dict = {}  # the blocks by their number of segments
+        self._sorted: list = []  # per block, once needed: (keys, feature, a, b, r) in the keys' order
         self._ids: dict = {}
-        self._keys = None
         self._n = 0
 
     def _key(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
@@ -583,39 +587,61 @@ class _Certificates:
             return
         if self._n + int(keep.sum()) > _CERT_MAX:
             self.__init__()
-        self.blocks.append((a[keep], b[keep], allow[keep], r[keep]))
+        blk = (a[keep], b[keep], allow[keep], r[keep])
+        self.blocks.append(blk)
+        self._by_len.setdefault(len(blk[0]), []).append(blk)
         self._n += int(keep.sum())
-        self._keys = None
 
     def lookup(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
         """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate
         chosen and how far its segment's ends are from the query's (r0 = -inf: none)."""
+        r0, moved = self.in_order(a, b, allow)
+        rest = np.flatnonzero(~(moved < r0))
+        if rest.size and self._n:
+            self.by_cell(a, b, allow, rest, r0, moved)
+        return r0, moved
+
+    def in_order(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`lookup`'s first part: (r0, moved) (n,) from the remembered calls of as many
+        segments with the same allowed features (the same plan at another placement)."""
         n = len(a)
         r0, moved = np.full(n, -np.inf), np.full(n, np.inf)
         if not self._n or not n:
             return r0, moved
-        for a0, b0, allow0, rr in self.blocks:  # the same segments in order (another placement)
-            if len(a0) == n and np.array_equal(allow0, allow):
+        for a0, b0, allow0, rr in self._by_len.get(n, ()):
+            if np.array_equal(allow0, allow):
                 mv = _moved(a, b, a0, b0)
                 better = rr - mv > r0 - moved
                 r0[better], moved[better] = rr[better], mv[better]
-        rest = np.flatnonzero(~(moved < r0))
-        if rest.size:  # the same move elsewhere in the remembered calls (its grid cell)
-            if self._keys is None:
-                A = np.concatenate([blk[0] for blk in self.blocks])
-                B = np.concatenate([blk[1] for blk in self.blocks])
-                F = np.concatenate([blk[2] for blk in self.blocks])
-                k, f = self._key(A, B, F)
-                o = np.argsort(k, kind="stable")
-                self._keys, self._F, self._A, self._B = k[o], f[o], A[o], B[o]
-                self._R = np.concatenate([blk[3] for blk in self.blocks])[o]
-            q, f = self._key(a[rest], b[rest], allow[rest])
-            j = np.minimum(np.searchsorted(self._keys, q), len(self._keys) - 1)
-            hit = (self._keys[j] == q) & (self._F[j] == f)  # (a hash match with another feature: none)
-            rest, j = rest[hit], j[hit]
-            mv = _moved(a[rest], b[rest], self._A[j], self._B[j])
-            r0[rest], moved[rest] = self._R[j], mv
+                if (moved < r0).all():  # (every segment cleared: other blocks cannot clear more)
+                    break
         return r0, moved
+
+    def by_cell(self, a, b, allow, rest, r0, moved) -> None:
+        """:meth:`lookup`'s second part, for the segments ``rest`` (sorted indices) only: the
+        remembered segment in the same grid cell (the same move elsewhere), block by block;
+        ``r0``, ``moved`` updated in place."""
+        q, f = self._key(a[rest], b[rest], allow[rest])
+        for j in range(len(self.blocks)):
+            if j == len(self._sorted):  # (each block's keys computed and sorted once)
+                A, B, F, R = self.blocks[j]
+                k, fk = self._key(A, B, F)
+                o = np.argsort(k, kind="stable")
+                self._sorted.append((k[o], fk[o], A[o], B[o], R[o]))
+            keys, F, A, B, R = self._sorted[j]
+            i = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
+            hit = np.flatnonzero((keys[i] == q) & (F[i] == f))  # (a hash match with another feature: none)
+            if not hit.size:
+                continue
+            at, i = rest[hit], i[hit]
+            mv = _moved(a[at], b[at], A[i], B[i])
+            better = R[i] - mv > r0[at] - moved[at]
+            r0[at[better]], moved[at[better]] = R[i][better], mv[better]
+            left = ~(moved[rest] < r0[rest])
+            if not left.all():
+                rest, q, f = rest[left], q[left], f[left]
+                if not rest.size:
+                    break
 
 
 #: Remembered segments per broad phase before the certificates are forgotten (memory).
@@ -656,6 +682,148 @@ def _overlap_rows(lo1, hi1, i1, lo2, hi2, i2) -> np.ndarray:
         a, b = i1[r], i2[r]
         r = r[(hi1[ax][a] >= lo2[ax][b]) & (lo1[ax][a] <= hi2[ax][b])]
     return r
+
+
+def _pair_candidates(sT_lo, sT_hi, seg, cp, cloT, chiT, cstart, ccount, loT, hiT) -> tuple[np.ndarray, np.ndarray]:
+    """(box index, pair index) of the (box ``seg``, cluster ``cp``) candidates whose boxes meet:
+    each box against its clusters' box, then against each pair of the cluster (:meth:`Clearance._box_pairs`'s
+    second and third levels). Boxes (3, s) one coordinate a row; clusters ``cloT``, ``chiT`` (3, c)
+    with their pairs ``cstart``, ``ccount`` (c,) among the pairs' boxes ``loT``, ``hiT`` (3, k)."""
+    ok = _overlap_rows(sT_lo, sT_hi, seg, cloT, chiT, cp)
+    seg, cp = seg[ok], cp[ok]
+    # -> (segment, pair) for the cluster's member geoms
+    k, pair = _expand(cstart[cp], ccount[cp])
+    seg = seg[k]
+    ok = _overlap_rows(sT_lo, sT_hi, seg, loT, hiT, pair)
+    return seg[ok], pair[ok]
+
+
+def near_segments_many(parts) -> list:
+    """:meth:`Clearance.near_segments` of several broad phases and paths at once.
+
+    Parameters
+    ----------
+    parts : sequence of (Clearance, Segments, (s,) int)
+        Per part a broad phase, the segments of its paths already in its geoms' frame
+        (:class:`Segments` whose ``a``, ``b`` are in F; the sample numbers are its own) and
+        each segment's allowed feature as a number (:meth:`Clearance.feature_ids`; -2: none).
+
+    Returns
+    -------
+    list of (k,) int
+        Per part, its sorted sample numbers where some pair may come closer than
+        :data:`MARGIN_M`: every other sample is provably farther.
+
+    Each part is first looked up in its broad phase's certificates (as they stand before
+    this call; the grid-cell look-up for every part of a broad phase at once), then the
+    segments no certificate clears go through the same three box levels, swept bound and
+    sample bounds as in :meth:`Clearance.near_segments`, the parts of every broad phase
+    together (one set of numpy operations for a whole plan, the first box level and the
+    bounds per broad phase); each part then leaves its certificates. Parts of moved copies
+    of one broad phase (:meth:`Clearance.moved`) share its pair data and certificates.
+    """
+    n_parts = len(parts)
+    out = [np.zeros(0, int)] * n_parts
+    bases, base_of = [], []  # the distinct broad phases (moved copies share their certificates)
+    where = {}
+    for clr, sg, allow in parts:
+        b = where.setdefault(id(clr._certs), len(bases))
+        if b == len(bases):
+            bases.append(clr)
+        base_of.append(b)
+    # the certificates: per part in order, then by grid cell for every part of a broad phase at once
+    todo = [None] * n_parts
+    for b, clr in enumerate(bases):
+        js = [j for j in range(n_parts) if base_of[j] == b]
+        found = [clr._certs.in_order(parts[j][1].a, parts[j][1].b, parts[j][2]) for j in js]
+        cut = np.cumsum([0] + [len(x[0]) for x in found])
+        r_old, moved = np.concatenate([x[0] for x in found]), np.concatenate([x[1] for x in found])
+        rest = np.flatnonzero(~(moved < r_old))
+        if rest.size and clr._certs._n:
+            clr._certs.by_cell(np.concatenate([parts[j][1].a for j in js]), np.concatenate([parts[j][1].b for j in js]),
+                               np.concatenate([parts[j][2] for j in js]), rest, r_old, moved)
+        for k, j in enumerate(js):  # the segments no certificate clears
+            todo[j] = np.flatnonzero(~(moved[cut[k]:cut[k + 1]] < r_old[cut[k]:cut[k + 1]]))
+    # the segments to bound, every part's in turn (the parts of one broad phase together): ends
+    # (F), padded boxes, steps, samples
+    live = sorted((j for j in range(n_parts) if len(todo[j])), key=lambda j: base_of[j])
+    if not live:
+        return out
+    cnt = np.zeros(n_parts, int)
+    cnt[live] = [len(todo[j]) for j in live]
+    row0 = np.zeros(n_parts, int)
+    row0[live] = np.cumsum(cnt[live]) - cnt[live]
+    A = np.concatenate([parts[j][1].a[todo[j]] for j in live])
+    B = np.concatenate([parts[j][1].b[todo[j]] for j in live])
+    pad = np.concatenate([np.full(cnt[j], parts[j][0].cert_pad_m) for j in live])
+    lo, hi = np.minimum(A, B) - pad[:, None], np.maximum(A, B) + pad[:, None]
+    # the pairs and clusters of every broad phase as one table
+    pair0 = np.cumsum([0] + [len(c.pair_probe) for c in bases])
+    cl0 = np.cumsum([0] + [len(c._cstart) for c in bases])
+    segs, cps = [], []
+    for b, js in itertools.groupby(live, key=lambda j: base_of[j]):  # the first box level, per broad phase
+        js = list(js)
+        r0, r1 = row0[js[0]], row0[js[-1]] + cnt[js[-1]]
+        allow = np.concatenate([parts[j][2][todo[j]] for j in js])
+        sl, cp = bases[b]._block_candidates(lo[r0:r1], hi[r0:r1], allow)
+        segs.append(sl + r0)
+        cps.append(cp + cl0[b])
+    seg, cp = np.concatenate(segs), np.concatenate(cps)
+    if len(bases) == 1:
+        U = bases[0]
+        cloT, chiT, cstart, ccount, loT, hiT = U._cloT, U._chiT, U._cstart, U._ccount, U._loT, U._hiT
+    else:
+        cloT = np.concatenate([c._cloT for c in bases], axis=1)
+        chiT = np.concatenate([c._chiT for c in bases], axis=1)
+        cstart = np.concatenate([c._cstart + pair0[b] for b, c in enumerate(bases)])
+        ccount = np.concatenate([c._ccount for c in bases])
+        loT = np.concatenate([c._loT for c in bases], axis=1)
+        hiT = np.concatenate([c._hiT for c in bases], axis=1)
+    seg, pair = _pair_candidates(lo.T.copy(), hi.T.copy(), seg, cp, cloT, chiT, cstart, ccount, loT, hiT)
+    # swept bounds, per broad phase
+    lb = np.empty(len(seg))
+    pb = np.searchsorted(pair0, pair, side="right") - 1 if len(bases) > 1 else np.zeros(len(seg), int)
+    for b, clr in enumerate(bases):
+        rows = np.flatnonzero(pb == b) if len(bases) > 1 else np.arange(len(seg))
+        if rows.size:
+            lb[rows] = clr._swept(A[seg[rows]], B[seg[rows]], pair[rows] - pair0[b])
+    # certificates: per bounded segment the radius within which it stays clear
+    r = pad.copy()
+    np.minimum.at(r, seg, lb - MARGIN_M)
+    for j in live:
+        clr, sg, allow = parts[j]
+        if clr.cert_pad_m > 0:
+            t = todo[j]
+            clr._certs.add(sg.a[t], sg.b[t], allow[t], r[row0[j]:row0[j] + cnt[j]])
+    open_ = lb <= MARGIN_M
+    seg, pair, pb = seg[open_], pair[open_], pb[open_]
+    if not seg.size:
+        return out
+    # sample by sample for the pairs the swept bound leaves open (points in F)
+    part = np.repeat(np.array(live), cnt[live])  # the part of each bounded segment
+    first = np.concatenate([parts[j][1].first[todo[j]] for j in live])
+    m = np.concatenate([parts[j][1].m[todo[j]] for j in live])
+    k_ = np.concatenate([parts[j][1].k[todo[j]] for j in live])
+    kk, idx = _expand(first[seg], m[seg])
+    seg, pair, pb = seg[kk], pair[kk], pb[kk]
+    i = idx - first[seg]
+    f = i * (1.0 / k_[seg])
+    f[i == k_[seg]] = 1.0
+    q = A[seg] + f[:, None] * (B - A)[seg]
+    ok = _overlap(q, q, loT.T[pair], hiT.T[pair])
+    seg, pair, pb, idx, q = seg[ok], pair[ok], pb[ok], idx[ok], q[ok]
+    if not seg.size:
+        return out
+    close = np.zeros(len(seg), bool)
+    for b, clr in enumerate(bases):
+        rows = np.flatnonzero(pb == b)
+        if rows.size:
+            close[rows] = clr._bound_F(q[rows], pair[rows] - pair0[b], enough=MARGIN_M) <= MARGIN_M
+    pj = part[seg[close]]
+    idx = idx[close]
+    for j in np.unique(pj):
+        out[j] = np.unique(idx[pj == j])
+    return out
 
 
 def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -162,6 +162,36 @@ def resolve(name_or_path: str) -> MachineSpec:
                            f"({', '.join(builtin_names())})")
 
 
+def truth_machine(name_or_path: str, errors: str | None = None) -> MachineSpec:
+    """The machine ``--machine NAME|FILE [--errors realistic|none]`` names, in every command.
+
+    One rule: a machine file is the machine it describes, with the errors it
+    states (``errors`` is refused for it). A built-in NAME is its shipped file
+    with the truth errors ``errors`` picks: ``"realistic"`` when not given
+    (:func:`sim.machines.realistic_errors` over its strokes, the papers'
+    magnitudes, nominal set) or ``"none"`` (the file as shipped). A command's
+    default machine is a built-in name, so omitting ``--machine`` is naming it.
+    """
+    from dataclasses import replace
+
+    from .machines import realistic_errors
+
+    spec = resolve(name_or_path)
+    if name_or_path not in builtin_names():
+        if errors is not None:
+            raise ConfigError(f"--errors: the machine file {name_or_path} states its errors "
+                              "(errors = ..., [error.*])")
+        return spec
+    if errors not in (None, "realistic", "none"):
+        raise ConfigError(f"--errors {errors!r}: expected realistic or none")
+    if errors == "none":
+        return replace(spec, errors="none", seed=None, overrides=())
+    cfg = spec.config
+    axes = tuple(a for a in "XYZABC" if a in cfg.strokes)
+    return replace(spec, config=replace(cfg, errors=realistic_errors(axes, strokes=cfg.strokes)),
+                   errors="realistic", seed=None, overrides=())
+
+
 def load(path) -> MachineSpec:
     """Read a machine file.
 

@@ -30,7 +30,10 @@ MuJoCo judges every path sample the broad phase (:mod:`sim.clearance`) cannot
 prove clear; the broad phase has two parts (:meth:`WorkZone.near_segments`): the
 stylus ball against the bar, in the bar's frame and shared by every probe and
 placement of that bar (a sphere looks the same from every direction), and the rest
-of the probe and the holder, per work zone and orientation.
+of the probe and the holder, per work zone and orientation. A plan's measurements
+are checked together (:func:`check_measurements`): their paths sampled at once,
+both parts of every measurement through one broad phase pass, then MuJoCo
+measurement by measurement, in path order.
 """
 
 from __future__ import annotations
@@ -180,7 +183,9 @@ _SOLID_POSES = Memo(64)
 
 
 def _solid_poses(art) -> list:
-    return _SOLID_POSES.get_or_compute(id(art), lambda: [make_T(s.rot, s.pos) for s in art.solids], owner=art)
+    """Each solid's pose on the artefact, ``make_T(rot, pos)`` (4,4) of every solid (views of one
+    (k,4,4) array, :func:`_solid_pose_stack`)."""
+    return _SOLID_POSES.get_or_compute(id(art), lambda: list(_solid_pose_stack(art)), owner=art)
 
 
 @dataclass(frozen=True)
@@ -220,9 +225,18 @@ def _build_solid_table(art) -> _Solids:
 
 
 def _solid_pose_stack(art) -> np.ndarray:
-    """(k,4,4): :func:`_solid_poses` stacked (kept beside them)."""
-    return _SOLID_POSES.get_or_compute(("stack", id(art)), lambda: np.array(_solid_poses(art)).reshape(-1, 4, 4),
-                                       owner=art)
+    """(k,4,4): each solid's pose on the artefact, as ``make_T(rot, pos)`` writes it, in one array
+    (read only; kept beside :func:`_solid_poses`)."""
+    def build():
+        sol = art.solids
+        T = np.zeros((len(sol), 4, 4))
+        T[:, :3, :3] = [np.eye(3) if x.rot is None else x.rot for x in sol]
+        T[:, :3, 3] = [x.pos for x in sol]
+        T[:, 3, 3] = 1.0
+        T.flags.writeable = False
+        return T
+
+    return _SOLID_POSES.get_or_compute(("stack", id(art)), build, owner=art)
 
 
 #: The stylus ball's broad phase against a bar's own solids (frame A, :meth:`WorkZone.ball_clearance`)
@@ -309,6 +323,7 @@ class WorkZone:
         self._tqpos = np.array([0.0, 0, 0, 1, 0, 0, 0])
         self._clr, self._hclr = {}, {}  # (clearance: by part, holder only by table pose)
         self._T_W_R = None  # (clearance)
+        self._tkey = None  # (set_table: the pose last set, bytes)
         self._r = float(stylus_r_m)
         self._A_W = inv_T(T_W_A)
         #: what the work zones of this placement share (_work_zone): the table side's geoms in W
@@ -385,7 +400,11 @@ class WorkZone:
 
     def set_table(self, T_R_W) -> None:
         T = np.asarray(T_R_W, float)
-        self._tqpos = np.r_[T[:3, 3], _quat(T[:3, :3])]
+        key = T.tobytes()
+        if key == self._tkey:  # (the same pose again: a plan's check sets it twice per measurement)
+            return
+        self._tkey = key
+        self._tqpos = np.concatenate([T[:3, 3], _quat(T[:3, :3])])
         self._T_W_R = None
 
     def set_tip(self, p_R) -> None:
@@ -539,6 +558,7 @@ class WorkZone:
         i = np.repeat(np.arange(len(tips)), npair)
         pair = np.tile(hp, len(tips))
         bm, bd, h0, gball = self._ball_model()
+        held = []  # the holder's model, fetched (and compiled) once a triple needs it
 
         def dist(k):  # (the ball's in the placement's model of the ball, the same distance)
             g = clr.pair_probe[pair[k]]
@@ -547,7 +567,9 @@ class WorkZone:
                 m, d = bm, bd
                 a, b = gball, h0 + b
             else:
-                m, d = self._holder_model()
+                if not held:
+                    held.append(self._holder_model())
+                m, d = held[0]
                 a = self._hprobe[g]
             self._place(m, d, tips[i[k]])
             return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
@@ -684,16 +706,48 @@ def _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m):
     """(Segments, touch of each polyline (paths,), allowed feature of each (paths,) object) of
     a measurement's polylines in the order checked: per touch i the link into ``start[i]``
     (from touch i - 1's; none for the first) and the approach ``start[i] -> Xn[i]``."""
-    n = plan.n
-    if n > 1:
+    if plan.n > 1:
         L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
     else:
         L, cnt = np.zeros((0, 3)), np.zeros(0, int)
-    P, n_pt, touch, is_link = touch_polylines(start, Xn, np.arange(n) > 0, L, cnt)
+    sg, touch, allow, _ = _paths_of([(start, Xn, L, cnt, plan)], link_step_m, approach_step_m)[0]
+    return sg, touch, allow
+
+
+def _paths_of(items, link_step_m, approach_step_m) -> list:
+    """The polylines of several measurements (:func:`_touch_paths` of each), sampled at once.
+
+    ``items``: per measurement (start (n,3), Xn (n,3), link points, link counts, plan) as
+    :func:`link_points` gives the links, n >= 1 touches. Returns per measurement (Segments,
+    touch of each polyline, allowed feature of each (object), whether each is an approach),
+    its segments and sample numbers its own; the same numbers bit for bit as one at a time
+    (one :func:`sim.clearance.touch_polylines` and :func:`sim.clearance.flat_path_segments`
+    for all: every value is computed row by row)."""
+    from .clearance import Segments
+
+    n_t = np.array([it[4].n for it in items])
+    t0 = np.cumsum(n_t) - n_t
+    has = np.ones(int(n_t.sum()), bool)
+    has[t0] = False  # (a measurement's first touch has no link)
+    P, n_pt, touch, is_link = touch_polylines(np.concatenate([it[0] for it in items]),
+                                              np.concatenate([it[1] for it in items]), has,
+                                              np.concatenate([it[2] for it in items]),
+                                              np.concatenate([it[3] for it in items]))
     steps = np.where(is_link, float(link_step_m), float(approach_step_m))
-    allow = np.full(len(n_pt), "", dtype=object)
-    allow[~is_link] = np.asarray(plan.feature, dtype=object)
-    return flat_path_segments(P, n_pt, steps, joints=False), touch, allow
+    sg = flat_path_segments(P, n_pt, steps, joints=False)
+    # each measurement's polylines (its first touch's approach first), their segments (n_pt
+    # each: joints=False)
+    poly = np.r_[np.searchsorted(touch, t0), len(n_pt)]
+    seg0 = np.r_[0, np.cumsum(n_pt)][poly]
+    out = []
+    for j, it in enumerate(items):
+        p0, p1, s0, s1 = poly[j], poly[j + 1], seg0[j], seg0[j + 1]
+        app = ~is_link[p0:p1]
+        allow = np.full(p1 - p0, "", dtype=object)
+        allow[app] = np.asarray(it[4].feature, dtype=object)
+        out.append((Segments(sg.a[s0:s1], sg.b[s0:s1], sg.k[s0:s1], sg.m[s0:s1], sg.first[s0:s1] - sg.first[s0],
+                             sg.path[s0:s1] - p0), touch[p0:p1] - t0[j], allow, app))
+    return out
 
 
 def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan, finger_m: float = 0.0,
@@ -722,45 +776,132 @@ def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, pla
         MuJoCo at every sample and every pair (the reference the tests and the
         benchmark compare with).
     """
-    T_W_A = np.asarray(T_W_A, float)
-    T_R_A = np.asarray(T_R_W, float) @ T_W_A
-    bad = []
-    # the bar and the workholder on the table's side of its face (W z >= 0)
+    return check_measurements(artefact, [(name, T_W_A, T_R_W, blocks, J_m, plan, finger_m)], stylus_r_m,
+                              link_step_m, approach_step_m, broad_phase=broad_phase)[0]
+
+
+def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 3.0e-3,
+                       approach_step_m: float = 0.5e-3, broad_phase: bool = True) -> list:
+    """:func:`check_measurement` of several measurements of one bar: a plan's, in one pass.
+
+    ``measurements``: (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m) each, as the
+    arguments of :func:`check_measurement`. Returns their :class:`CheckResult` in order, each
+    the one :func:`check_measurement` gives for it alone (MuJoCo at every sample the broad
+    phase cannot prove clear, in path order: the same first collision per touch; the same
+    least clearance).
+
+    The paths of every measurement are sampled in one :func:`sim.clearance.flat_path_segments`
+    and go through the broad phase together (:func:`sim.clearance.near_segments_many`): the
+    ball against the bar in A (one broad phase for every measurement: the certificates of the
+    measurement of the most touches clear the same moves of the others, :func:`_near_samples`),
+    the rest of each work zone in W. The work zones' ball models are shared
+    (:func:`share_ball_model`).
+    """
+    r = float(stylus_r_m)
+    ms = [(name, np.asarray(T_W_A, float), np.asarray(T_R_W, float), tuple(blocks), J_m, plan, float(finger_m))
+          for name, T_W_A, T_R_W, blocks, J_m, plan, finger_m in measurements]
+    share_ball_model(artefact, [(m[1], m[3], m[4], m[6]) for m in ms], r)
     pts_A = artefact_points(artefact)
-    z_bar = float(apply_T(T_W_A, pts_A)[:, 2].min())
-    if z_bar < -1e-9:
-        bad.append(f"the bar reaches {z_bar * 1e3:.1f} mm below the table face")
-    for b in blocks:
-        if min(b.lo[2], b.hi[2]) < -1e-9:
-            bad.append(f"workholder block {b.name} below the table face")
-    wz = _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
-    wz.set_table(T_R_W)
-    r = stylus_r_m
-    Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
-    start = Xn + plan.clearance_m * apply_R(T_R_A, plan.wn_A)
     top = float(pts_A[:, 2].max()) + r
-    # the samples of every path, in the order checked (touch i: the link into its start,
-    # none for the first, then its approach/retract start -> contact); MuJoCo only where the
-    # broad phase (sim.clearance) cannot prove them clear: the same first collision per touch
-    n_samp, bad_touch = 0, set()
-    if plan.n:
-        sg, path_touch, allow = _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m)
-        n_samp = sg.n_samples
-        # one past the last sample of each touch (a touch's paths are consecutive)
-        touch_end = np.zeros(plan.n, int)
-        np.maximum.at(touch_end, path_touch[sg.path], sg.first + sg.m)
-        idx = wz.near_segments(sg, allow) if broad_phase else np.arange(n_samp)
-        pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
-        for k in range(len(idx)):  # in path order
-            i = int(path_touch[which[k]])
-            if i in bad_touch:
-                continue
-            hit = wz.collisions(pts[k], allow[which[k]])
-            if hit:  # the first collision of touch i: the rest of its samples are not checked
-                g, o, dep = hit[0]
-                bad.append(f"{plan.target[i]}: {g} hits {o} ({-dep * 1e3:.2f} mm deep) at "
-                           f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
-                bad_touch.add(i)
-                n_samp -= int(touch_end[i] - idx[k] - 1)
-    clear = wz.least_holder_clearance(start, broad_phase=broad_phase) if plan.n else np.inf
-    return CheckResult(name, int(plan.n), n_samp, tuple(bad), float(clear * 1e3))
+    z_bars = {}  # the bar's lowest point in W by placement
+    bad, zones, T_R_As, paths = [], [], [], []
+    for name, T_W_A, T_R_W, blocks, J_m, plan, finger_m in ms:
+        T_R_A = T_R_W @ T_W_A
+        b = []
+        # the bar and the workholder on the table's side of its face (W z >= 0)
+        key = T_W_A.tobytes()
+        if key not in z_bars:
+            z_bars[key] = float(apply_T(T_W_A, pts_A)[:, 2].min())
+        if z_bars[key] < -1e-9:
+            b.append(f"the bar reaches {z_bars[key] * 1e3:.1f} mm below the table face")
+        for blk in blocks:
+            if min(blk.lo[2], blk.hi[2]) < -1e-9:
+                b.append(f"workholder block {blk.name} below the table face")
+        wz = _work_zone(artefact, T_W_A, blocks, J_m, r, finger_m)
+        bad.append(b), zones.append(wz), T_R_As.append(T_R_A)
+        if plan.n:
+            Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
+            start = Xn + plan.clearance_m * apply_R(T_R_A, plan.wn_A)
+            if plan.n > 1:
+                L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
+            else:
+                L, cnt = np.zeros((0, 3)), np.zeros(0, int)
+            paths.append((start, Xn, L, cnt))
+        else:
+            paths.append(None)
+    # every measurement's polylines in the order checked (per touch i the link into its start,
+    # none for the first, then its approach/retract start -> contact), sampled at once
+    live = [i for i in range(len(ms)) if paths[i] is not None]
+    sgs = [None] * len(ms)
+    for i, p in zip(live, _paths_of([paths[i] + (ms[i][5],) for i in live], link_step_m, approach_step_m)
+                    if live else ()):
+        sgs[i] = p
+    near = {}
+    if broad_phase and live:
+        near = _near_samples(ms, zones, live, sgs)
+    out = []
+    for i, (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m) in enumerate(ms):
+        wz, b = zones[i], bad[i]
+        wz.set_table(T_R_W)
+        n_samp = 0
+        if plan.n:
+            sg, path_touch, allow, _ = sgs[i]
+            n_samp = sg.n_samples
+            # one past the last sample of each touch (a touch's paths are consecutive)
+            touch_end = np.zeros(plan.n, int)
+            np.maximum.at(touch_end, path_touch[sg.path], sg.first + sg.m)
+            idx = near[i] if broad_phase else np.arange(n_samp)
+            pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
+            bad_touch = set()
+            for k in range(len(idx)):  # in path order
+                t = int(path_touch[which[k]])
+                if t in bad_touch:
+                    continue
+                hit = wz.collisions(pts[k], allow[which[k]])
+                if hit:  # the first collision of touch t: the rest of its samples are not checked
+                    g, o, dep = hit[0]
+                    b.append(f"{plan.target[t]}: {g} hits {o} ({-dep * 1e3:.2f} mm deep) at "
+                             f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
+                    bad_touch.add(t)
+                    n_samp -= int(touch_end[t] - idx[k] - 1)
+        clear = wz.least_holder_clearance(paths[i][0], broad_phase=broad_phase) if plan.n else np.inf
+        out.append(CheckResult(name, int(plan.n), n_samp, tuple(b), float(clear * 1e3)))
+    return out
+
+
+def _near_samples(ms, zones, live, sgs) -> dict:
+    """Per measurement (index in ``ms``), the sorted sample numbers of its paths (``sgs``, R) the
+    broad phase cannot prove clear (:meth:`WorkZone.near_segments`, every measurement at once).
+
+    Each measurement has two parts, the ball against the bar (its broad phase in A, one per bar
+    and ball) and the rest of its work zone (in W, one per zone and orientation). Two passes of
+    :func:`sim.clearance.near_segments_many`: first, per broad phase, the part of its measurement
+    of the most touches; then every other part. A broad phase's frame moves with the bar (A) or
+    the table (W), so measurements of the same touches have the same moves there: the first
+    pass's certificates clear what they share (the 5-axis plan: the ball's 18,364 segments,
+    2,408 left to bound), the rest is bounded."""
+    from .clearance import Segments, near_segments_many
+
+    parts, best = [], {}
+    for i in live:
+        wz = zones[i]
+        wz.set_table(ms[i][2])
+        sg, _, allow, is_app = sgs[i]
+        for clr in (wz.ball_clearance(), wz.clearance(part="rest")):
+            T = clr.T_F_R
+            R, t = T[:3, :3].T, T[:3, 3]
+            ids = np.full(len(allow), -2)
+            ids[is_app] = clr.feature_ids(ms[i][5].feature)
+            parts.append((clr, Segments(sg.a @ R + t, sg.b @ R + t, sg.k, sg.m, sg.first, sg.path), ids[sg.path]))
+            j = best.get(id(clr._certs))  # (moved copies of one broad phase share its certificates)
+            if j is None or sg.n_samples > parts[j][1].n_samples:
+                best[id(clr._certs)] = len(parts) - 1
+    first = sorted(best.values())
+    later = sorted(set(range(len(parts))) - set(first))
+    res = dict(zip(first, near_segments_many([parts[k] for k in first])))
+    res.update(zip(later, near_segments_many([parts[k] for k in later]) if later else ()))
+    out = {}
+    for n, i in enumerate(live):  # (the ball's part 2n, the rest's 2n + 1)
+        a, b = res[2 * n], res[2 * n + 1]
+        out[i] = np.union1d(a, b) if a.size and b.size else (a if a.size else b)
+    return out

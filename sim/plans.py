@@ -72,7 +72,8 @@ class Plan:
     def select(self, rows) -> "Plan":
         """A plan with only ``rows`` (indices or bool mask), order kept."""
         idx = np.arange(self.n)[rows]
-        return Plan(self.artefact, tuple(self.target[i] for i in idx), tuple(self.feature[i] for i in idx),
+        ids = idx.tolist()  # (Python ints index the tuples faster than numpy's)
+        return Plan(self.artefact, tuple([self.target[i] for i in ids]), tuple([self.feature[i] for i in ids]),
                     self.w_A[idx], self.wn_A[idx], self.level[idx], self.clearance_m, self.overshoot_m)
 
     def counts(self) -> dict:

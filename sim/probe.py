@@ -32,7 +32,7 @@ import numpy as np
 from core.exceptions import ConfigError
 from core.touches import ProbeStatus
 
-from .artefacts import Artefact, GroupedSdf, Solid, apply_T, inv_T, make_T, solid_points
+from .artefacts import Artefact, GroupedSdf, Solid, apply_T, inv_T, make_T, solids_points
 
 
 #: Root-finding tolerances (m): on |g| and on the bracket width.
@@ -298,8 +298,7 @@ def material_sdf(artefact: Artefact) -> Callable[[np.ndarray], np.ndarray]:
         sol = [s for s in artefact.solids if s.feature == f.name]
         prim = f.true
         if sol:
-            pts = [solid_points(s) for s in sol]
-            pts = np.vstack(pts)
+            pts = solids_points(sol)
             lo, hi = pts.min(axis=0), pts.max(axis=0)
             c, half = (lo + hi) / 2, (hi - lo) / 2 + 1e-9
             parts.append(lambda p, prim=prim, c=c, half=half: np.maximum(prim.sdf(p), _box_sdf(p - c, half)))

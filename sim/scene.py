@@ -194,14 +194,18 @@ class Scene:
         was built with, without writing it out: solids, probe, that placement)."""
         if getattr(self, "_digest", None) is None:
             h = hashlib.blake2b(digest_size=32)
-            h.update(b"vmt-scene/1\0")
-            for s in self.artefact.solids:
-                h.update(f"{s.kind}\0{s.feature}\0".encode())
-                for v in (s.size, s.rot, s.pos, getattr(s, "vertices", None)):
-                    a = np.zeros(0) if v is None else np.ascontiguousarray(v, float)
-                    h.update(np.array(a.shape, np.int64).tobytes() + a.tobytes())
+            h.update(b"vmt-scene/2\0")
+            sol = self.artefact.solids
+            h.update("".join(f"{s.kind}\0{s.feature}\0" for s in sol).encode() + b"\1")
+            # every solid's size, rotation, position and vertices (none: empty), with their shapes
+            none = np.zeros(0)
+            arrs = [np.ascontiguousarray(v, float) for s in sol
+                    for v in (s.size, s.rot, s.pos, none if getattr(s, "vertices", None) is None else s.vertices)]
+            h.update(np.array([a.shape + (-1,) * (2 - a.ndim) for a in arrs], np.int64).tobytes())
+            h.update(b"".join(a.tobytes() for a in arrs))
             pr = self.probe
-            h.update(np.array([pr.stylus_r_m, pr.shank_r_m, pr.shank_length_m, PROBE_BODY_R_M, PROBE_BODY_H_M]).tobytes())
+            h.update(np.array([pr.stylus_r_m, pr.shank_r_m, pr.shank_length_m, PROBE_BODY_R_M,
+                               PROBE_BODY_H_M]).tobytes())
             h.update(np.ascontiguousarray(self._T0, float).tobytes())
             self._digest = h.digest()
         return self._digest
@@ -302,9 +306,13 @@ class Scene:
 
     def _solid_local(self) -> tuple[np.ndarray, np.ndarray]:
         """Each solid's pose on the artefact, (k,3,3) and (k,3) (computed once)."""
-        if self._local is None:
-            T = np.array([make_T(s.rot, s.pos) for s in self.artefact.solids]).reshape(-1, 4, 4)
-            self._local = (T[:, :3, :3].copy(), T[:, :3, 3].copy())
+        if self._local is None:  # (make_T(rot, pos) of every solid)
+            sol = self.artefact.solids
+            R = np.zeros((len(sol), 3, 3))
+            R[:] = [np.eye(3) if s.rot is None else s.rot for s in sol]
+            p = np.zeros((len(sol), 3))
+            p[:] = [s.pos for s in sol]
+            self._local = (R, p)
         return self._local
 
     def definition_geoms(self):
@@ -316,8 +324,11 @@ class Scene:
         R_loc, p_loc = self._solid_local()
         kind = np.array([GEOM_TYPE[s.kind] for s in art.solids], int)
         size = np.zeros((len(kind), 3))
-        for j, s in enumerate(art.solids):
-            size[j, :np.size(s.size)] = np.ravel(s.size)
+        sz = [np.ravel(s.size) for s in art.solids]
+        n = np.array([len(v) for v in sz])
+        for k in np.unique(n):  # (the solids with k sizes at once)
+            j = np.flatnonzero(n == k)
+            size[j, :k] = [sz[i] for i in j]
         H = Geoms(p_loc.copy(), R_loc.copy(), kind, size, rbound(kind, size))
         r, rs, L = pr.stylus_r_m, pr.shank_r_m, pr.shank_length_m
         hb = PROBE_BODY_H_M / 2

@@ -264,7 +264,7 @@ def test_fuzz_corrupted_logs_through_check(base, tmp_path):
         content, what = corrupt(base["text"], rng)
         p = tmp_path / "case.csv"
         _write(p, content)
-        argv = ["check", str(p)] + (["--json"] if k % 3 == 0 else [])
+        argv = ["check", str(p)] + (["--json", "-"] if k % 3 == 0 else [])
         rc, o, e, problem = run_case(argv, tmp_path / "out")
         if problem is None and rc == 0 and "--json" in argv:
             try:
@@ -324,7 +324,7 @@ def argv_case(rng, b, out: Path) -> list:
                str(b["log"]), str(out / "r.csv")]
     cmd = int(rng.integers(0, 11))
     if cmd == 0:
-        return ["check", pick(inputs)] + (["--json"] if rng.random() < 0.3 else [])
+        return ["check", pick(inputs)] + (["--json", "-"] if rng.random() < 0.3 else [])
     if cmd == 9:        # plan grid: small grids only
         a = ["plan", "grid", "--x-mm", pick(["0:30:10", "0:30:0", "30:0:10", "a:b:c", "0:1e9:1", "nan:1:1"]),
              "--y-mm", pick(["0:20:10", "0:20:-1", ""]), "--out", pick(outputs)]
@@ -342,7 +342,7 @@ def argv_case(rng, b, out: Path) -> list:
         a = ["identify", pick(inputs), "--json", pick(outputs), "--grid-mm", "55"]
         for opt, pool in (("--grid-mm", ["55", "55", "22", "0", "-5", "nan", "abc", "-110:110:55", "1:1:1", "1e9"]),
                           ("--mc", ["0", "10", "-1", "3", "x"]), ("--seed", ["0", "-1", "7", "1.5"]),
-                          ("--u-probe-um", NUMBERS), ("--delta-l-um", NUMBERS)):
+                          ("--noise-um", NUMBERS), ("--delta-l-um", NUMBERS)):
             if rng.random() < 0.35:
                 a += [opt, pick(pool)]
         return a
@@ -353,21 +353,21 @@ def argv_case(rng, b, out: Path) -> list:
              "--plan", pick([str(b["plan"]), str(b["plan"]), str(b["log"]), str(d / "folder")]),
              "--out", pick(outputs + [str(b["plan"])])]
         if rng.random() < 0.5:
-            a += ["--dt", pick(NUMBERS)]
+            a += ["--dt-s", pick(NUMBERS)]
         if cmd == 2 and rng.random() < 0.3:
             a += ["--units", pick(["mm", "inch", "m"])]
         return a
     if cmd == 4:        # design: small searches only (step >= 90 deg, <= 3 angles)
         a = ["design", pick([str(b["plan"]), str(b["log"]), str(d / "folder"), str(d / "missing.csv")]),
-             "--angles", pick(["2", "3", "0", "1", "-1", "2.5", "x", "1000"]),
+             "--n-angles", pick(["2", "3", "0", "1", "-1", "2.5", "x", "1000"]),
              "--step-deg", pick(["90", "120", "180", "0", "-5", "nan", "inf", "7", "abc", "1e-9", "400"]),
              "--workers", "1"]
         if rng.random() < 0.4:
             a += ["--grid-mm", pick(["-110:110:44", "0", "abc", "1:1:1", "-110:110:0", "nan:1:1", "5"])]
         if rng.random() < 0.4:
-            a += ["--reference", pick(["0,90,180", "", "a,b", "nan", "0,75,130,210"])]
+            a += ["--reference-deg", pick(["0,90,180", "", "a,b", "nan", "0,75,130,210"])]
         if rng.random() < 0.4:
-            a += ["--u-probe-um", pick(NUMBERS)]
+            a += ["--noise-um", pick(NUMBERS)]
         if rng.random() < 0.5:
             a += ["--json", pick(outputs)]
         return a
@@ -376,7 +376,7 @@ def argv_case(rng, b, out: Path) -> list:
     if cmd == 5:
         a = ["simulate", pick(["cross-pocket", "mfb", "pin-circle", "freeform"]), "--out", str(out / "s.csv")]
         for opt, val in (("--noise-um", pick(["-1", "nan", "inf"])), ("--seed", "-3"),
-                         ("--machine", "nonesuch"), ("--c-angles", pick(["a,b", "nan", "0,0", "1e400"])),
+                         ("--machine", "nonesuch"), ("--c-angles-deg", pick(["a,b", "nan", "0,0", "1e400"])),
                          ("--out", bad_out)):
             if rng.random() < 0.5:
                 a += [opt, val]
@@ -400,7 +400,7 @@ def argv_case(rng, b, out: Path) -> list:
         if len(a) == 2:
             a += ["--seed", "-1"]
         return a
-    return ["demo", "--out", pick([str(b["log"]), str(b["log"]) + "/x"]), "--seed", pick(["1", "-1"])] + \
+    return ["demo", "--out-dir", pick([str(b["log"]), str(b["log"]) + "/x"]), "--seed", pick(["1", "-1"])] + \
         pick([[], ["--bogus"], ["--seed"]])
 
 
@@ -449,7 +449,7 @@ def test_real_process_exit_status_and_one_line(base, tmp_path):
     for argv in (["check", str(bad)],
                  ["identify", str(base["log"]), "--json", "/dev/full"],
                  ["import", "linuxcnc", str(base["lcnc"]), "--plan", str(base["plan"]), "--out", str(base["plan"])],
-                 ["design", str(base["plan"]), "--angles", "3", "--step-deg", "0"]):
+                 ["design", str(base["plan"]), "--n-angles", "3", "--step-deg", "0"]):
         r = _vmt(*argv)
         assert r.returncode == 2, (argv, r.stderr)
         assert r.stderr.count("\n") == 1 and r.stderr.startswith(f"vmt {argv[0]}: error: "), (argv, r.stderr)

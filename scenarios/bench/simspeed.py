@@ -262,7 +262,7 @@ def collision_figures() -> dict:
         if bp:
             t_sim5 = min(t_sim5, _mfb5_simulation_s(plan))
         _fresh_plan_check()
-        real_cm, spent = mfb_scene.check_measurement, [0.0]
+        real_cm, spent = mfb_scene.check_measurements, [0.0]
 
         def timed_cm(*a, _real=real_cm, _spent=spent, **k):
             t0 = time.perf_counter()
@@ -271,11 +271,11 @@ def collision_figures() -> dict:
             finally:
                 _spent[0] += time.perf_counter() - t0
 
-        mfb_scene.check_measurement = timed_cm
+        mfb_scene.check_measurements = timed_cm
         try:
-            t = _time_patched(mfb_scene, "check_measurement", bp, lambda: S.check_plan(plan))
+            t = _time_patched(mfb_scene, "check_measurements", bp, lambda: S.check_plan(plan))
         finally:
-            mfb_scene.check_measurement = real_cm
+            mfb_scene.check_measurements = real_cm
         if not bp or t < t_plan[True]:  # (the measurements' share of the same run)
             t_plan[bp], t_meas[bp] = t, spent[0]
     S._CHECKS.clear()
@@ -290,8 +290,8 @@ def collision_figures() -> dict:
         "col_mfb5_plan_check_every_sample_ref_s": round(t_plan[False], 3),
         "col_mfb5_plan_check_over_simulation": round(t_plan[True] / t_sim5, 3),
         "col_mfb5_plan_check_speedup": round(t_plan[False] / t_plan[True], 2),
-        # the measurements' checks alone (sim.mfb_scene), without check_plan's building of each
-        # measurement's touch plan (scenarios.mfb._plan_for)
+        # the measurements' checks alone (sim.mfb_scene.check_measurements, all of them in one
+        # call), without check_plan's table poses and touch programs (scenarios.mfb._plan_for)
         "col_mfb5_measurement_checks_s": round(t_meas[True], 3),
         "col_mfb5_measurement_checks_over_simulation": round(t_meas[True] / t_sim5, 3),
         "col_mfb5_measurement_checks_every_sample_ref_s": round(t_meas[False], 3),
@@ -303,7 +303,7 @@ def _fresh_plan_check() -> None:
 
     Cleared: the checks (``_CHECKS``), the program's placement margin (``_MARGINS``), the bar's
     touch programs (``sim.plans._MFB_PLANS``) and their touches (``_MFB_TOUCHES``), its solids'
-    points and poses, the work zones, their table sides and the ball broad phases
+    points and poses, the work zones, their table sides, pair structures and the ball broad phases
     (``sim.mfb_scene``, ``sim.clearance``, ``sim.scene``). Shared with the plan's making, so not
     timed again: the nominal bar (``_nominal_bar``: the plan chooses each diagonal's holes on it),
     its touches and its touch program at the plan's margins (rebuilt here, as ``plan_5axis`` built
@@ -317,7 +317,8 @@ def _fresh_plan_check() -> None:
     from sim import clearance, mfb_scene, plans, scene
 
     for memo in (S._CHECKS, S._MARGINS, plans._MFB_PLANS, plans._MFB_TOUCHES, scene._POINTS,
-                 mfb_scene._SOLID_POSES, mfb_scene._ZONES, mfb_scene._BALLS, clearance._TABLE_PREP):
+                 mfb_scene._SOLID_POSES, mfb_scene._ZONES, mfb_scene._BALLS, clearance._TABLE_PREP,
+                 clearance._PAIRS):
         memo.clear()
     S._plan_for(S._nominal_bar(), (1,))  # the plan's making's touch program (its _fit_holes)
 

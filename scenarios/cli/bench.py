@@ -12,7 +12,9 @@ def register(sub) -> None:
                    help="also rewrite FILE's performance table (between its bench-table markers) from the JSON")
     p.add_argument("--merge", action="store_true",
                    help="keep the --out file's figures of the benchmarks not run now (each keeps its own run's "
-                        "date and load); replace those run now")
+                        "date and load); replace those run now. The --out file must exist: with nothing to "
+                        "keep, --merge is refused before any benchmark runs (a table from this run alone would "
+                        "drop every other row of --readme)")
     p.add_argument("--from-json", metavar="FILE", default=None,
                    help="run nothing: take the figures of this earlier JSON (with --readme)")
     p.set_defaults(func=run)
@@ -35,7 +37,13 @@ def run(args) -> int:
 
         from scenarios.bench.table import read_results
 
-        old = read_results(args.out) if Path(args.out).exists() else {}
+        if not Path(args.out).exists():
+            from core.exceptions import ConfigError
+
+            raise ConfigError(f"--merge: {args.out} does not exist, so there are no figures to keep (a "
+                              "fresh clone has none): run `vmt bench` without --merge (all benchmarks), or "
+                              "--out the results file to merge into")
+        old = read_results(args.out)
     doc = run_all(args.only)
     out = write_figures(doc if old is None else merge_documents(old, doc), args.out)
     for k, r in sorted(doc["figures"].items()):

@@ -5,24 +5,48 @@ from __future__ import annotations
 import json
 
 
+#: ``--json`` given without a value: the old flag (print the JSON), now ``--json -``.
+_BARE = "\0bare"
+
+
 def register(sub) -> None:
     p = sub.add_parser("check", help="validate a probe-log/1 file and summarise it")
-    p.add_argument("log", help="probe-log/1 CSV file")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("log", nargs="?", help="probe-log/1 CSV file")
+    p.add_argument("--json", metavar="OUT", nargs="?", const=_BARE, default=None,
+                   help="also write the summary as JSON to OUT ('-': print it instead of the text)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from core.probelog import read_probe_log, summary
 
+    import sys
+
+    from core.exceptions import ConfigError
+
+    if args.json == _BARE or (args.log is None and args.json not in (None, "-")):
+        # the old flag: `check LOG --json` (or `check --json LOG`, where argparse took LOG as --json's value)
+        print("vmt: check --json with no file is renamed to --json - (print the JSON); --json FILE writes it",
+              file=sys.stderr, flush=True)
+        if args.json != _BARE:
+            args.log = args.json
+        args.json = "-"
+    if args.log is None:
+        raise ConfigError("check: give the LOG to check")
     log = read_probe_log(args.log)
     s = summary(log)
-    if args.json:
+    if args.json == "-":
         print(json.dumps(s, indent=2))
         return 0
+    if args.json is not None:
+        from core.atomic import write_json_atomic
+        from scenarios.cli.guard import said
+
+        write_json_atomic(args.json, s, special=True)
     kind = "plan" if s["plan"] else "campaign"
     print(f"{args.log}: valid probe-log/1 {kind}")
-    print(f"  touches  {s['touches']} ({s['ok']} ok)   set-ups {s['setups']}   targets {s['targets']}")
+    counted = f"{s['touches']} planned (nothing measured)" if s["plan"] else f"{s['touches']} ({s['ok']} ok)"
+    print(f"  touches  {counted}   set-ups {s['setups']}   targets {s['targets']}")
     print(f"  time     {s['time_span_s']:.1f} s")
     for ax in ("X", "Y", "Z"):
         r = s[f"{ax}_range_mm"]
@@ -43,4 +67,6 @@ def run(args) -> int:
               f"e.g. {ex}): two writers on one log, or a plan that repeats targets?")
     for w in s["warnings"]:
         print(f"  warning  {w}")
+    if args.json is not None:
+        print(f"wrote {said(args.json)}")
     return 0

@@ -9,7 +9,10 @@ from __future__ import annotations
 
 def register(sub) -> None:
     p = sub.add_parser("demo", help="run the main job end to end (simulate, identify, discover)")
-    p.add_argument("--out", default="out", help="folder for the logs, JSON, report and recording")
+    from scenarios.cli.options import option
+
+    option(p, "--out-dir", dest="out_dir", default="out", old=("--out",),
+           help="folder for the logs, JSON, report and recording (out)")
     p.add_argument("--seed", type=int, default=2026, help="seed of the simulated campaign")
     p.set_defaults(func=run)
 
@@ -19,4 +22,4 @@ def run(args) -> int:
     from scenarios.cli.guard import progress_line
 
     with progress_line("demo") as bar:
-        return main_job(out=args.out, seed=args.seed, progress=bar)
+        return main_job(out=args.out_dir, seed=args.seed, progress=bar)

@@ -1,4 +1,4 @@
-"""``vmt design PLAN --angles N``: choose C angles minimising the workpiece uncertainty (core.design)."""
+"""``vmt design PLAN --n-angles N``: choose C angles minimising the workpiece uncertainty (core.design)."""
 
 from __future__ import annotations
 
@@ -9,17 +9,33 @@ DESIGN_FORMAT = "vmt-design/1"
 def register(sub) -> None:
     p = sub.add_parser("design", help="choose the C angles of a 2D self-calibration (min max workpiece U95)")
     p.add_argument("plan", help="probe-log/1 plan or campaign with wx_mm.. and wnx.. (targets in W)")
-    p.add_argument("--angles", type=int, required=True, help="number of C angles")
-    p.add_argument("--grid-mm", default="-110:110:22", metavar="x0:x1:step", help="error-map grid, mm (write --grid-mm=-110:110:22)")
-    p.add_argument("--step-deg", type=float, default=5.0, help="angle search grid, degrees")
-    p.add_argument("--reference", default="0,75,130,210", help="reference C angles to compare, deg ('' = none)")
-    p.add_argument("--u-probe-um", type=float, default=1.38, help="probing standard uncertainty, um")
+    from scenarios.cli.options import GRID_HELP, add_noise_arg, option
+
+    option(p, "--n-angles", dest="angles", type=int, required=True, old=("--angles",), help="number of C angles")
+    p.add_argument("--grid-mm", default="-110:110:22", metavar="STEP|x0:x1:step",
+                   help=GRID_HELP.replace("covering the touches", "covering the targets at every C angle")
+                   + " (-110:110:22)")
+    p.add_argument("--step-deg", type=float, default=5.0, help="angle search grid, deg (5)")
+    option(p, "--reference-deg", dest="reference", default="0,75,130,210", old=("--reference",),
+           help="reference C angles to compare, comma-separated, deg ('' = none)")
+    add_noise_arg(p, "1.38: the self-calibration paper's", old=("--u-probe-um",), default=1.38)
     p.add_argument("--measure", choices=("gauge", "form"), default="gauge",
                    help="minimise U95 of G as identified (gauge, default: the paper's section-6 reading) or of its form")
     p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT", help="evaluate sweeps on this Dask cluster")
     p.add_argument("--workers", type=int, default=1, help="local processes when no --dask (1 = serial)")
     p.add_argument("--json", default=None, metavar="OUT", help="also write the result as JSON")
     p.set_defaults(func=run)
+
+
+def _swept(w):
+    """The targets ``w`` (n, 2+), m, turned through a full turn of C (each 1 deg): what a grid STEP must cover
+    whichever C angles the search picks."""
+    import numpy as np
+
+    a = np.deg2rad(np.arange(360.0))
+    x, y = np.asarray(w, float)[:, 0], np.asarray(w, float)[:, 1]
+    c, s = np.cos(a)[:, None], np.sin(a)[:, None]
+    return np.stack([(c * x - s * y).ravel(), (s * x + c * y).ravel()], axis=1)
 
 
 def run(args) -> int:
@@ -32,14 +48,14 @@ def run(args) -> int:
 
     log = read_probe_log(args.plan)
     w, wn, _ids = targets_from_log(log)
-    grid = parse_grid(args.grid_mm, None) if ":" in args.grid_mm else None
-    if grid is None:
-        raise ConfigError(f"--grid-mm: expected x0:x1:step, got {args.grid_mm!r}")
+    grid = parse_grid(args.grid_mm, _swept(w))
     try:
         ref = [float(v) for v in args.reference.split(",")] if args.reference.strip() else None
     except ValueError:
-        raise ConfigError(f"--reference: expected comma-separated degrees, got {args.reference!r}") from None
-    u = args.u_probe_um * 1e-6
+        raise ConfigError(f"--reference-deg: expected comma-separated degrees, got {args.reference!r}") from None
+    if not args.noise_um > 0:
+        raise ConfigError(f"--noise-um must be > 0, got {args.noise_um}")
+    u = args.noise_um * 1e-6
     from scenarios.cli.guard import progress_line
 
     ev = design_evaluator(w, wn, grid, u, args.measure, dask=args.dask, workers=args.workers)

@@ -13,8 +13,10 @@ def register(sub) -> None:
                                "and direction)")
     p.add_argument("--json", dest="json_out", required=True, help="discovery report (JSON) to write")
     p.add_argument("--report", help="folder for a readable report (index.html, PNG figures, rerun .rrd)")
-    p.add_argument("--grid-mm", type=float, default=None,
-                   help="error-map grid step of the baseline, mm (default: chosen by BIC among 22-80 mm)")
+    from scenarios.cli.options import option
+
+    option(p, "--grid-step-mm", dest="grid_mm", type=float, default=None, old=("--grid-mm",),
+           help="error-map grid step of the baseline, mm (default: chosen by BIC among 22-80 mm)")
     p.set_defaults(func=run)
 
 
@@ -83,7 +85,7 @@ def _discover_positioning(log_path, report, grid_mm):
     from core.positioning import read_positioning_log
 
     if grid_mm is not None:
-        raise ConfigError("--grid-mm: a positioning test has no error-map grid (its baseline is a mean per target "
+        raise ConfigError("--grid-step-mm: a positioning test has no error-map grid (its baseline is a mean per target "
                           "and direction)")
     if report:
         raise ConfigError("--report: not available for positioning tests yet (the JSON and the summary are; "
@@ -132,5 +134,5 @@ def run(args) -> int:
         rep = run_discover(args.log, args.json_out, args.report, args.grid_mm, progress=bar)
     for line in summary_lines(rep):
         print(line)
-    print(f"wrote {said(args.json_out)}" + (f" and {args.report}/index.html" if args.report else ""))
+    print(f"wrote {said(args.json_out)}" + (f" and {Path(args.report) / 'index.html'}" if args.report else ""))
     return 0

@@ -2,21 +2,19 @@
 
 from __future__ import annotations
 
-from scenarios.cli.options import parse_grid
+from scenarios.cli.options import GRID_HELP, add_noise_arg, parse_grid
 
 
 def register(sub) -> None:
     p = sub.add_parser("identify", help="2D self-calibration on a rotary table (workpiece, X/Y and C errors)")
     p.add_argument("log", help="probe-log/1 campaign: the same targets at several C angles")
     p.add_argument("--json", required=True, metavar="OUT", help="JSON report to write (atomically)")
-    p.add_argument("--grid-mm", default="22", metavar="STEP|x0:x1:step",
-                   help="grid step (nodes at multiples of it covering the touches) or x0:x1:step (both axes; write --grid-mm=-110:110:22 when x0 < 0)")
+    p.add_argument("--grid-mm", default="22", metavar="STEP|x0:x1:step", help=GRID_HELP + " (22)")
     p.add_argument("--delta-l-um", type=float, default=None,
                    help="X positioning error at the last x node, measured (eq 17); omitted = scale unknown")
     p.add_argument("--mc", type=int, default=0, metavar="N", help="also run N Monte Carlo runs (JCGM 101)")
     p.add_argument("--seed", type=int, default=0, help="seed of the Monte Carlo runs")
-    p.add_argument("--u-probe-um", type=float, default=None,
-                   help="probing standard uncertainty for U95 (default: sigma from the residuals)")
+    add_noise_arg(p, "for U95; default: sigma from the residuals", old=("--u-probe-um",))
     p.set_defaults(func=run)
 
 
@@ -52,10 +50,10 @@ def _run(args, bar) -> int:
     grid = parse_grid(args.grid_mm, t.pn_R)
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
     sigma = None
-    if args.u_probe_um is not None:
-        if not args.u_probe_um > 0:
-            raise ConfigError(f"--u-probe-um must be > 0, got {args.u_probe_um}")
-        sigma = args.u_probe_um * 1e-6
+    if args.noise_um is not None:
+        if not args.noise_um > 0:
+            raise ConfigError(f"--noise-um must be > 0, got {args.noise_um}")
+        sigma = args.noise_um * 1e-6
     if args.mc < 0:
         raise ConfigError(f"--mc must be >= 0, got {args.mc}")
     bar(1, steps)

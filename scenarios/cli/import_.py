@@ -12,8 +12,10 @@ def register(sub) -> None:
     p.add_argument("--plan", help="the probe-log/1 plan that was run; without it (linuxcnc) the file "
                    "is a surface probed along Z and the plan is built from it")
     p.add_argument("--out", required=True, help="probe-log/1 file to write")
-    p.add_argument("--dt", type=float, default=1.0,
-                   help="seconds between touches when the file has no clock (1)")
+    from scenarios.cli.options import option
+
+    option(p, "--dt-s", dest="dt", type=float, default=1.0, old=("--dt",),
+           help="time between touches when the file has no clock, s (1)")
     p.add_argument("--units", choices=("mm", "inch"), default="mm",
                    help="units of a LinuxCNC probe file (mm)")
     p.set_defaults(func=run)

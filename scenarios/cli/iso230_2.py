@@ -58,6 +58,8 @@ def run(args) -> int:
         extra = f"  (U {U[f'U_{name}_um']:.3f})" if U else ""
         pad = " " * (4 - len(symbol.replace("\u0304", "")))  # B̄ carries a combining macron
         print(f"  {symbol}{pad}{rep[f'{name}_{u}']:10.3f} {sym}{extra}   {meaning} [{clause}]")
-    print(f"wrote {args.json}" + (f" and {args.report}/index.html" if args.report else "")
+    from pathlib import Path
+
+    print(f"wrote {args.json}" + (f" and {Path(args.report) / 'index.html'}" if args.report else "")
           + (f" and {args.write_log}" if args.write_log else ""))
     return 0

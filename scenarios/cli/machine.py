@@ -1,8 +1,8 @@
 """``vmt machine show|serve|program``: a machine's definition, the virtual machine behind GRBL, LinuxCNC programs.
 
-    vmt machine show NAME|FILE
-    vmt machine serve --port N [--host 127.0.0.1] [--pty] [--machine NAME|FILE --scene ARTEFACT]
-    vmt machine program --plan PLAN.csv --out PROBE.ngc (--limits ... | --machine NAME|FILE)
+    vmt machine show NAME|FILE [--errors realistic|none]
+    vmt machine serve --port N [--host 127.0.0.1] [--pty] [--scene ARTEFACT [--machine NAME|FILE]]
+    vmt machine program --plan PLAN.csv --out PROBE.ngc (--limits-mm ... | --machine NAME|FILE)
 """
 
 from __future__ import annotations
@@ -24,10 +24,15 @@ def _floats3(text: str, name: str):
 
 
 def register(sub) -> None:
+    from scenarios.cli.options import add_machine_args, add_noise_arg, add_settings_args, option
+
     p = sub.add_parser("machine", help="show a machine; serve the virtual machine over GRBL; write LinuxCNC programs")
     msub = p.add_subparsers(dest="machine_command", metavar="ACTION")
     sh = msub.add_parser("show", help="print a machine's chain, strokes, errors and tip deviations")
     sh.add_argument("machine", metavar="NAME|FILE", help="a built-in machine or a machine file (TOML)")
+    sh.add_argument("--errors", choices=("realistic", "none"), default=None,
+                    help="truth errors of a built-in machine (default realistic: the papers' magnitudes); "
+                         "a machine file states its own")
     sh.set_defaults(func=run_show)
     s = msub.add_parser("serve", help="run a GRBL emulator of the virtual machine on localhost")
     s.add_argument("--port", type=int, required=True, help="TCP port (0: any free port)")
@@ -36,35 +41,32 @@ def register(sub) -> None:
     s.add_argument("--scene", default="simple",
                    help="simple (table + sphere, linear errors) or a simulated artefact on the virtual machine: "
                         "cross-pocket, pin-circle, freeform, mfb")
-    s.add_argument("--machine", default=None, metavar="NAME|FILE",
-                   help="the virtual machine under a simulated artefact: a built-in name or a machine file "
-                        "(default the nmv3000 with realistic errors)")
-    s.add_argument("--noise-um", type=float, default=None,
-                   help="probing noise, a standard deviation (k=1) along the approach, um "
-                        "(default 0, or the machine file's probe)")
+    add_machine_args(s, default="nmv3000", what="the virtual machine under a simulated artefact (--scene)")
+    add_noise_arg(s, "default: the machine's probe; 0 on the simple scene")
     s.add_argument("--seed", type=int, default=0, help="seed of the noise (0)")
     s.add_argument("--scale-ppm", default="0,0,0", help="scale errors of X,Y,Z, µm/m (0,0,0)")
     s.add_argument("--ec0y-urad", type=float, default=0.0, help="squareness EC0Y, µrad (0)")
-    s.add_argument("--limits", help="soft limits, mm: X-10:300,Y0:200,Z-100:0 (ALARM:2 beyond); "
-                   "GRBL allows them only with homing: the controller powers on in alarm")
+    option(s, "--limits-mm", dest="limits", old=("--limits",),
+           help="soft limits, machine frame, mm: X-10:300,Y0:200,Z-100:0 (ALARM:2 beyond); "
+                "GRBL allows them only with homing: the controller powers on in alarm")
     s.add_argument("--homing", action="store_true", help="homing enabled ($22=1): powers on in alarm, $H homes")
     s.add_argument("--axes", help="the controller's axes (default: the machine's, e.g. XYZAC for the nmv3000)")
-    s.add_argument("--home", default="0,0,50", help="power-on / $H position, mm (0,0,50)")
+    option(s, "--home-mm", dest="home", default="0,0,50", metavar="X,Y,Z", old=("--home",),
+           help="power-on / $H position, machine frame, mm (0,0,50)")
     s.add_argument("--time-scale", type=float, default=1.0,
                    help="emulated time per second of wall clock (1: a machine's pace; 10: ten times faster)")
-    s.add_argument("--idle-timeout", type=float, default=300.0,
-                   help="close a client that sends nothing this long while the machine is idle, s (300)")
-    s.add_argument("--max-seconds", type=float, help="stop after this long (default: until Ctrl-C)")
+    option(s, "--idle-timeout-s", dest="idle_timeout", type=float, default=300.0, old=("--idle-timeout",),
+           help="close a client that sends nothing this long while the machine is idle, s (300)")
+    option(s, "--stop-after-s", dest="max_seconds", type=float, old=("--max-seconds",),
+           help="stop after this long, s (default: until Ctrl-C)")
     s.set_defaults(func=run_serve)
     g = msub.add_parser("program", help="write a plan as a LinuxCNC part program (G38.2, PROBEOPEN)")
-    from scenarios.cli.options import add_settings_args
-
     add_settings_args(g, live=False)
     g.add_argument("--out", required=True, help="part program to write (.ngc)")
     g.add_argument("--probe-file", default="vmt-probe.txt", help="file named in (PROBEOPEN ...)")
     g.add_argument("--wcs", default="G59.3", help="work coordinate system zeroed and used (G59.3)")
-    g.add_argument("--machine", default=None, metavar="NAME|FILE",
-                   help="take the soft limits from this machine's X, Y, Z strokes (when --limits is not given)")
+    add_machine_args(g, default=None, errors=False,
+                     what="take the soft limits from this machine's X, Y, Z strokes (when --limits-mm is not given)")
     g.set_defaults(func=run_program)
     p.set_defaults(func=lambda a: (p.print_help(), 2)[1])
 
@@ -77,22 +79,20 @@ def run_serve(args) -> int:
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port {args.port}: not a TCP port")
     from hardware.virtual import builtin_machine, sim_machine
+    from scenarios.cli.options import machine_spec
 
     if args.scene == "simple":
-        if args.machine is not None:
-            raise ConfigError("--machine: the simple scene has its own errors (--scale-ppm, --ec0y-urad); "
-                              "give --scene ARTEFACT to probe an artefact on that machine")
+        for opt, v in (("--machine", args.machine), ("--errors", args.errors)):
+            if v is not None:
+                raise ConfigError(f"{opt}: the simple scene has its own errors (--scale-ppm, --ec0y-urad); "
+                                  "give --scene ARTEFACT to probe an artefact on a machine")
         machine = builtin_machine(args.noise_um or 0.0, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
                                   args.ec0y_urad)
     else:
-        spec = None
-        if args.machine is not None:
-            from sim.machinefile import resolve
-
-            spec = resolve(args.machine)
+        spec = machine_spec(args.machine or "nmv3000", args.errors)
         machine = sim_machine(args.scene, args.noise_um, args.seed, spec=spec)
     axes = args.axes or "XYZ" + "".join(a for a in "ABC" if a in getattr(machine, "rotary_axes", ()))
-    config = ControllerConfig(axes=axes, home=_floats3(args.home, "--home"), homing=args.homing,
+    config = ControllerConfig(axes=axes, home=_floats3(args.home, "--home-mm"), homing=args.homing,
                               travel=parse_limits(args.limits) if args.limits else None)
     emu = GrblEmulator(machine, config)
     runner = EmulatorRunner(emu, time_scale=args.time_scale)
@@ -133,11 +133,11 @@ def run_program(args) -> int:
         from dataclasses import replace
 
         from core.exceptions import ConfigError
-        from sim.machinefile import resolve
+        from scenarios.cli.options import machine_spec
 
         if args.limits:
-            raise ConfigError("--machine and --limits: give one (the machine's strokes are its limits)")
-        st = resolve(args.machine).config.strokes
+            raise ConfigError("--machine and --limits-mm: give one (the machine's strokes are its limits)")
+        st = machine_spec(args.machine).config.strokes
         settings = replace(settings, limits_mm=tuple((lo * 1e3, hi * 1e3) for lo, hi in (st[a] for a in "XYZ")))
     text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs)
     out = write_text_atomic(args.out, text)
@@ -151,9 +151,10 @@ def run_show(args) -> int:
     from core import iso
     from core.units import DEG, MM
     from sim.machine import Machine
-    from sim.machinefile import describe_error, resolve
+    from scenarios.cli.options import machine_spec
+    from sim.machinefile import describe_error
 
-    spec = resolve(args.machine)
+    spec = machine_spec(args.machine, args.errors)
     cfg = spec.config
     ch = cfg.parsed_chain
     print(f"machine {cfg.name} ({spec.source})" + (f": {spec.description}" if spec.description else ""))

@@ -1,11 +1,69 @@
 """Options shared by several ``vmt`` commands: one meaning per option name.
 
-``--grid-mm`` (``identify``, ``design``) and the probing settings
-(``probe``, ``machine program``) are parsed here, so the commands that take
-them agree.
+The CLI speaks one language: an option name means one thing in every command
+that takes it, and a name that carries a quantity says its unit
+(``--feed-mm-min``, ``--timeout-s``, ``--c-angles-deg``; the suffixes are
+:data:`UNIT_SUFFIXES`). ``tests/scenarios/test_cli_options.py`` walks every
+command's parser and holds the rule.
+
+Shared here: ``--grid-mm`` (``identify``, ``design``), the probing settings
+(``probe``, ``machine program``), ``--machine NAME|FILE`` with its truth
+errors (:func:`add_machine_args`, :func:`machine_spec`: one rule for every
+command), ``--noise-um`` and the old names kept as hidden aliases
+(:func:`add_renamed`: they work and say on stderr what they are now called).
 """
 
 from __future__ import annotations
+
+import argparse
+import sys
+
+#: The unit suffixes an option carrying a quantity ends with (``--travel-mm``, ``--drift-um-per-h``).
+UNIT_SUFFIXES = ("-mm", "-um", "-m", "-s", "-deg", "-urad", "-ppm", "-mm-min", "-um-per-h", "-um-per-m",
+                 "-per-k", "-k", "-c")
+
+
+class Renamed(argparse.Action):
+    """An old option name: still works (same destination), prints one line on stderr naming the new one."""
+
+    def __init__(self, option_strings, dest, new: str = "", **kw):
+        self.new = new
+        super().__init__(option_strings, dest, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"vmt: {option_string} is renamed to {self.new} (the old name works for now; use the new one)",
+              file=sys.stderr, flush=True)
+        setattr(namespace, self.dest, self.const if self.nargs == 0 else values)
+
+
+def add_renamed(p, old: str, new_action: argparse.Action) -> None:
+    """Keep ``old`` working on ``p`` as a hidden alias of the option ``new_action`` (same dest, type, choices)."""
+    a = new_action
+    flag = a.nargs == 0
+    p.add_argument(old, dest=a.dest, action=Renamed, new=a.option_strings[0], nargs=0 if flag else a.nargs,
+                   const=a.const if flag else None, type=None if flag else a.type,
+                   choices=None if flag else a.choices, default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+
+
+def option(p, name: str, *args, old: tuple[str, ...] = (), **kw) -> argparse.Action:
+    """``p.add_argument(name, ...)``, with each of ``old`` kept as a hidden renamed alias.
+
+    A required option with an old name is checked by the parser after parsing
+    (:class:`scenarios.cli.guard.OneLineParser`), so that either name satisfies it.
+    """
+    if kw.get("action") not in ("store_true", "store_false") and "metavar" not in kw:
+        kw["metavar"] = name.lstrip("-").upper().replace("-", "_")
+    if old and kw.get("required"):
+        kw["help"] = kw.get("help", "") + " (required)"
+        kw["required"] = False
+        kw.setdefault("default", None)
+        a = p.add_argument(name, *args, **kw)
+        p.vmt_required = (*getattr(p, "vmt_required", ()), (a.dest, name))
+    else:
+        a = p.add_argument(name, *args, **kw)
+    for o in old:
+        add_renamed(p, o, a)
+    return a
 
 
 def parse_grid(text: str, p_R):
@@ -28,17 +86,63 @@ def parse_grid(text: str, p_R):
     raise ConfigError(f"--grid-mm: expected STEP or x0:x1:step in mm, got {text!r}")
 
 
+GRID_HELP = ("error-map grid, mm: STEP (nodes at multiples of it covering the touches) or x0:x1:step (both axes; "
+             "write --grid-mm=-110:110:22 when x0 < 0)")
+
+
+def add_noise_arg(p, default_text: str, *, old: tuple[str, ...] = (), default=None) -> None:
+    """``--noise-um``: the probing noise, a standard deviation (k=1) along the approach, um (every command)."""
+    option(p, "--noise-um", type=float, default=default, dest="noise_um", old=old,
+           help=f"probing noise, a standard deviation (k=1) along the approach, um ({default_text})")
+
+
+def add_machine_args(p, *, default: str | None, what: str, errors: bool = True, required: bool = False) -> None:
+    """``--machine NAME|FILE`` (and ``--errors``): the same machine and truth errors in every command.
+
+    ``default``: the built-in name used when ``--machine`` is omitted (None: the command needs none).
+    """
+    d = f" (default {default})" if default else ""
+    p.add_argument("--machine", default=None, metavar="NAME|FILE", required=required,
+                   help=f"{what}: a built-in machine name or a machine file (TOML, README 'Your own machine'){d}")
+    if errors:
+        p.add_argument("--errors", choices=("realistic", "none"), default=None,
+                       help="truth errors of a built-in machine (default realistic: the papers' magnitudes); "
+                            "a machine file states its own")
+
+
+def machine_spec(name: str, errors: str | None = None):
+    """``--machine NAME|FILE --errors E``: :func:`sim.machinefile.truth_machine` (the one rule, stated there)."""
+    from sim.machinefile import truth_machine
+
+    return truth_machine(name, errors)
+
+
+def errors_text(name: str, spec) -> str:
+    """How a command names the truth errors of ``--machine name`` (built-in: the set; file: the file's)."""
+    from sim.machinefile import builtin_names
+
+    if name in builtin_names():
+        return spec.errors
+    return f"machine file ({spec.errors}" + (f", seed {spec.seed}" if spec.seed is not None else "") + ")"
+
+
 def add_settings_args(p, *, live: bool = True) -> None:
     """The probing settings shared by ``vmt probe`` and ``vmt machine program``."""
     p.add_argument("--plan", required=True, help="probe-log/1 plan (measured columns empty)")
-    p.add_argument("--limits", help="soft limits, machine frame, mm: X-10:300,Y0:200,Z-100:0 "
-                   "(required before any motion)")
-    p.add_argument("--feed", type=float, default=100.0, help="probing feed, mm/min (100)")
-    p.add_argument("--move-feed", type=float, default=1000.0, help="positioning feed, mm/min (1000)")
-    p.add_argument("--max-feed", type=float, default=2000.0, help="no feed above this, mm/min (2000)")
-    p.add_argument("--clearance", type=float, default=2.0, help="approach start before contact, mm (2)")
-    p.add_argument("--overtravel", type=float, default=2.0, help="probing end beyond contact, mm (2)")
-    p.add_argument("--safe-z", type=float, help="travel between touches at this machine Z, mm")
+    option(p, "--limits-mm", dest="limits", old=("--limits",),
+           help="soft limits, machine frame, mm: X-10:300,Y0:200,Z-100:0 (required before any motion)")
+    option(p, "--feed-mm-min", dest="feed", type=float, default=100.0, old=("--feed",),
+           help="probing feed, mm/min (100)")
+    option(p, "--move-feed-mm-min", dest="move_feed", type=float, default=1000.0, old=("--move-feed",),
+           help="positioning feed, mm/min (1000)")
+    option(p, "--max-feed-mm-min", dest="max_feed", type=float, default=2000.0, old=("--max-feed",),
+           help="no feed above this, mm/min (2000)")
+    option(p, "--clearance-mm", dest="clearance", type=float, default=2.0, old=("--clearance",),
+           help="approach start before contact, mm (2)")
+    option(p, "--overtravel-mm", dest="overtravel", type=float, default=2.0, old=("--overtravel",),
+           help="probing end beyond contact, mm (2)")
+    option(p, "--safe-z-mm", dest="safe_z", type=float, old=("--safe-z",),
+           help="travel between touches at this machine Z, mm")
     if live:
         p.add_argument("--allow-miss", action="store_true",
                        help="probe with G38.3: a miss is logged no_trigger and the campaign goes on")

@@ -1,7 +1,7 @@
 """``vmt probe``: run a probing plan on a machine, append-only and resumable.
 
-    vmt probe --machine grbl://HOST:PORT|serial:///dev/ttyX|virtual: --plan PLAN.csv
-              --out LOG.csv --limits X0:300,Y0:200,Z-100:0 [--dry-run] [--resume]
+    vmt probe --controller grbl://HOST:PORT|serial:///dev/ttyX|virtual: --plan PLAN.csv
+              --out LOG.csv --limits-mm X0:300,Y0:200,Z-100:0 [--dry-run] [--resume]
 
 Before any motion the program is checked against the soft limits and the
 maximum feed; ``--dry-run`` only prints it. Every touch is on disk (fsync)
@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import sys
 
-from scenarios.cli.options import add_settings_args, settings_from_args
+from scenarios.cli.options import add_settings_args, option, settings_from_args
 
 
 def register(sub) -> None:
     p = sub.add_parser("probe", help="run a probing plan on a machine (GRBL live or virtual)")
-    p.add_argument("--machine", required=True,
+    option(p, "--controller", metavar="URL", required=True, old=("--machine",),
                    help="grbl://HOST:PORT, serial:///dev/ttyX[?baud=115200], virtual: (built-in scene) "
                         "or virtual:cross-pocket (the simulator's nmv3000 and part)")
     p.add_argument("--out", required=True, help="campaign log (probe-log/1), append-only")
@@ -26,13 +26,15 @@ def register(sub) -> None:
     p.add_argument("--dry-run", action="store_true", help="print the program, move nothing")
     p.add_argument("--resume", action="store_true", help="continue the log --out where it stops")
     p.add_argument("--unlock", action="store_true", help="send $X if the controller is in alarm")
-    p.add_argument("--home", action="store_true", help="send $H (home) before probing")
+    option(p, "--home-cycle", dest="home", action="store_true", old=("--home",),
+           help="send $H (the homing cycle) before probing")
     p.add_argument("--rotary", action="store_true",
                    help="send the controller's rotary axes (plan's A_deg, B_deg, C_deg; only those it has)")
     p.add_argument("--axes", help="the controller's axes, e.g. XYZAC (default: from its reports)")
     p.add_argument("--reset", action="store_true",
                    help="soft-reset the controller (Ctrl-X) first: needed after a hard/soft limit alarm")
-    p.add_argument("--timeout", type=float, default=60.0, help="longest wait for one answer, s (60)")
+    option(p, "--timeout-s", dest="timeout", type=float, default=60.0, old=("--timeout",),
+           help="longest wait for one answer, s (60)")
     p.add_argument("--transcript", help="append the raw controller exchange to this file")
     p.set_defaults(func=run)
 
@@ -67,7 +69,7 @@ def _dry_run(steps, settings, args) -> int:
 
     check_program(steps, settings, require_limits=False)
     if settings.limits_mm is None:
-        _warn("no --limits: a live run will refuse to start")
+        _warn("no --limits-mm: a live run will refuse to start")
     rotary_axes = "ABC"
     if args.axes is not None:
         from hardware.grbl import check_axes
@@ -88,7 +90,7 @@ def _check_before_connecting(steps, args) -> None:
 
     from core.exceptions import PlanError
 
-    if not args.rotary and not args.machine.startswith("virtual"):
+    if not args.rotary and not args.controller.startswith("virtual"):
         moving = [s for s in steps if np.any(s.rot_deg != 0)]
         if moving:
             raise PlanError(f"{args.plan}: row {moving[0].row} needs rotary axes at "
@@ -105,7 +107,7 @@ def _probe(plan, settings, args):
 
     tr = open(args.transcript, "a", encoding="utf-8") if args.transcript else None
     try:
-        backend = open_backend(args.machine, timeout_s=args.timeout, rotary=args.rotary, on_event=_warn,
+        backend = open_backend(args.controller, timeout_s=args.timeout, rotary=args.rotary, on_event=_warn,
                                transcript=tr, axes=args.axes, reset=args.reset)
         try:
             with TerminalProgress("campaign") as progress:

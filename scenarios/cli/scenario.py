@@ -14,10 +14,15 @@ def _mfb(args) -> int:
     from scenarios.mfb import describe_budget
 
     spec = None
-    if args.machine is not None:
-        from sim.machinefile import resolve
+    if args.machine is not None or args.errors is not None:
+        from scenarios.cli.options import machine_spec
+        from scenarios.mfb import PLANS
 
-        spec = resolve(args.machine)
+        own = PLANS[args.name]().machine
+        name = args.machine or own
+        if name != own or (args.errors or "realistic") != "realistic":
+            spec = machine_spec(name, args.errors)
+        # else naming the plan's machine (with realistic errors) is omitting it: the study's own truth machine
     kw = dict(seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc, machine=spec)
     if args.bar_calibration:
         from scenarios.mfb import read_bar_calibration
@@ -177,13 +182,11 @@ def register(sub) -> None:
     p.add_argument("name", choices=sorted(SCENARIOS), help="scenario name")
     p.add_argument("--json", default=None, help="write the result JSON here")
     p.add_argument("--seed", type=int, default=1, help="seed of the simulated campaign")
-    p.add_argument("--noise-um", type=float, default=None, dest="noise_um",
-                   help="probing noise, a standard deviation (k=1) along the approach, um (default: mfb 0.125, "
-                        "the MFB paper's 0.25 um at k=2; pin-circle 0.9; 0 = noise-free)")
-    p.add_argument("--machine", default=None, metavar="NAME|FILE",
-                   help="mfb scenarios: the truth machine, a built-in name or a machine file (TOML, README "
-                        "'Your own machine'); its chain must be the plan's (default: the plan's machine with "
-                        "realistic errors)")
+    from scenarios.cli.options import add_machine_args, add_noise_arg
+
+    add_noise_arg(p, "default: mfb 0.125, the MFB paper's 0.25 um at k=2; pin-circle 0.9; 0 = noise-free")
+    add_machine_args(p, default=None, what="mfb scenarios: the truth machine, its chain the plan's (default: the "
+                                            "plan's machine, with the study's realistic errors)")
     p.add_argument("--comp", default=None, metavar="DIR",
                    help="mfb scenarios: write the LinuxCNC per-axis compensation files and the vmt JSON tables here")
     p.add_argument("--apply-comp", default=None, metavar="DIR", dest="apply_comp",
@@ -210,7 +213,7 @@ def _dispatch(args) -> int:
     from core.exceptions import ConfigError
 
     if args.name not in ("mfb-3axis", "mfb-5axis"):
-        for opt, v in (("--machine", args.machine), ("--comp", args.comp), ("--apply-comp", args.apply_comp),
+        for opt, v in (("--machine", args.machine), ("--errors", args.errors), ("--comp", args.comp), ("--apply-comp", args.apply_comp),
                        ("--bar-calibration", args.bar_calibration), ("--budget-runs", args.budget_runs or None)):
             if v is not None:
                 raise ConfigError(f"{opt}: only the mfb scenarios take it (not {args.name})")

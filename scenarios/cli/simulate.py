@@ -28,17 +28,14 @@ def register(sub) -> None:
                    help="artefact to probe, or 'positioning' for an ISO 230-2 test of one axis")
     p.add_argument("--out", required=True, help="probe-log/1 CSV to write (positioning-log/1 for positioning)")
     p.add_argument("--seed", type=int, default=0, help="seed of the probing noise (positioning: of the scatter and target spacing)")
-    p.add_argument("--machine", default=None, metavar="NAME|FILE",
-                   help="virtual machine: a built-in name (list below) or a machine file (TOML, README "
-                        "'Your own machine')")
-    p.add_argument("--errors", choices=("realistic", "none"), default=None,
-                   help="truth errors of a built-in machine (default realistic: the papers' magnitudes); "
-                        "a machine file states its own")
-    p.add_argument("--noise-um", type=float, default=None,
-                   help="probing noise, a standard deviation (k=1) along the approach, um (default: the "
-                        "machine's probe, 0.125 for the built-ins: the MFB paper's 0.25 um at k=2; 1.38 for the "
-                        "self-calibration paper; positioning: scatter of each reading, default 0.5)")
-    p.add_argument("--c-angles", default=None, help="comma-separated C angles, deg (not for a placed artefact: mfb)")
+    from scenarios.cli.options import add_machine_args, add_noise_arg, option
+
+    add_machine_args(p, default=None, what="virtual machine (default: the artefact's, list below; positioning: "
+                                            "vmc-3axis)")
+    add_noise_arg(p, "default: the machine's probe, 0.125 for the built-ins: the MFB paper's 0.25 um at k=2; "
+                     "1.38 for the self-calibration paper; not for positioning: --scatter-um")
+    option(p, "--c-angles-deg", dest="c_angles", default=None, old=("--c-angles",),
+           help="comma-separated C angles of the set-ups, deg (not for a placed artefact: mfb)")
     p.add_argument("--plan-only", action="store_true", help="write the plan only (measured columns empty)")
     p.add_argument("--no-collision-check", action="store_true", help="skip the MuJoCo path checks")
     _add_positioning_options(p)
@@ -52,7 +49,8 @@ def run(args) -> int:
 
     for name in POSITIONING_ONLY:
         if getattr(args, name, None) is not None:
-            raise ConfigError(f"--{name.replace('_', '-')} applies to 'vmt simulate positioning' only")
+            flag = "--move-feed-mm-min" if name == "move_feed" else f"--{name.replace('_', '-')}"
+            raise ConfigError(f"{flag} applies to 'vmt simulate positioning' only")
     import numpy as np
 
     from dataclasses import replace
@@ -62,22 +60,13 @@ def run(args) -> int:
     from sim.campaign import simulate_campaign
     from sim.catalog import CATALOG
     from sim.machine import Machine
-    from sim.machinefile import builtin_names, resolve
-    from sim.machines import realistic_errors
+    from scenarios.cli.options import errors_text, machine_spec
 
     rec = CATALOG[args.artefact]
     name = args.machine or rec.default_machine
-    spec = resolve(name)
+    spec = machine_spec(name, args.errors)
     cfg = spec.config
-    if name in builtin_names():
-        errors = args.errors or "realistic"
-        if errors == "realistic":
-            axes = tuple(a for a in "XYZABC" if a in cfg.strokes)
-            cfg = replace(cfg, errors=realistic_errors(axes, strokes=cfg.strokes))
-    elif args.errors is not None:
-        raise ConfigError(f"--errors: the machine file {name} states its errors (errors = ..., [error.*])")
-    else:
-        errors = f"machine file ({spec.errors}" + (f", seed {spec.seed}" if spec.seed is not None else "") + ")"
+    errors = errors_text(name, spec)
     machine = Machine(cfg)
     probe = spec.probe
     if args.noise_um is not None:
@@ -86,30 +75,33 @@ def run(args) -> int:
         probe = replace(probe, repeatability_k2_m=2 * args.noise_um * UM)
     if rec.placements is not None:
         if args.c_angles:
-            raise ConfigError(f"--c-angles: the {rec.name} campaign uses its {rec.setups_text()}, not C angles")
+            raise ConfigError(f"--c-angles-deg: the {rec.name} campaign uses its {rec.setups_text()}, not C angles")
         setups = None
     else:
         text = args.c_angles or (",".join(f"{c:g}" for c in rec.default_c_deg) if machine.rotary_axes else "0")
         try:
             setups = [float(v) for v in text.split(",") if v.strip()]
         except ValueError:
-            raise ConfigError(f"--c-angles {text!r} is not a comma-separated list of degrees") from None
+            raise ConfigError(f"--c-angles-deg {text!r} is not a comma-separated list of degrees") from None
     log = simulate_campaign(args.artefact, machine, probe, setups, np.random.default_rng(args.seed),
                             plan_only=args.plan_only, check_collisions=not args.no_collision_check,
                             meta={"errors": errors, "seed": str(args.seed)})
     write_probe_log(args.out, log, special=True)
-    ok = int(log.ok.sum())
-    kind = "plan" if args.plan_only else "campaign"
     from scenarios.cli.guard import said
 
-    print(f"{said(args.out)}: {kind} of {log.n} touches ({ok} ok) on {args.artefact}, machine {cfg.name}, "
-          f"errors {errors}, {len(dict.fromkeys(log.col('setup')))} set-ups")
+    setups = f"{len(dict.fromkeys(log.col('setup')))} set-ups"
+    if args.plan_only:      # a plan measures nothing and has no truth errors: neither is described
+        print(f"{said(args.out)}: plan of {log.n} touches (nothing measured) on {args.artefact}, "
+              f"machine {cfg.name}, {setups}")
+    else:
+        print(f"{said(args.out)}: campaign of {log.n} touches ({int(log.ok.sum())} ok) on {args.artefact}, "
+              f"machine {cfg.name}, errors {errors}, {setups}")
     return 0
 
 
 # --------------------------------------------------------------------------- vmt simulate positioning
 #: Options only ``vmt simulate positioning`` takes (dest names).
-POSITIONING_ONLY = ("axis", "targets", "travel_mm", "cycles", "cycle", "overrun_mm", "move_feed", "dwell_s",
+POSITIONING_ONLY = ("axis", "targets", "travel_mm", "cycles", "cycle", "overrun_mm", "move_feed", "dwell_s", "scatter_um",
                     "line_mm", "reversal_um", "drift_um_per_h", "drift_tau_s")
 
 
@@ -122,7 +114,11 @@ def _add_positioning_options(p) -> None:
     g.add_argument("--cycles", type=int, help="approaches per target and direction (5, as ISO 230-2 asks)")
     g.add_argument("--cycle", choices=("linear", "pilgrim"), help="ISO 230-2 test cycle (linear)")
     g.add_argument("--overrun-mm", type=float, help="overrun before each reversal, mm (5)")
-    g.add_argument("--move-feed", type=float, help="positioning feed, mm/min (2000)")
+    from scenarios.cli.options import option
+
+    option(g, "--move-feed-mm-min", dest="move_feed", type=float, old=("--move-feed",),
+           help="positioning feed, mm/min (2000)")
+    g.add_argument("--scatter-um", type=float, help="scatter of each reading, a standard deviation (k=1), um (0.5)")
     g.add_argument("--dwell-s", type=float, help="stop at each target before the reading, s (2)")
     g.add_argument("--line-mm", metavar="X,Y,Z", help="measuring line: readings of the other axes, mm "
                    "(the tested axis's entry is ignored; default mid-stroke)")
@@ -145,15 +141,24 @@ def _numbers(text: str, name: str, sep: str, count: int):
 
 def _run_positioning(args) -> int:
     """``vmt simulate positioning``: write the simulated test as positioning-log/1."""
+    import sys
+
     import numpy as np
 
     from core.exceptions import ConfigError
     from core.positioning import write_positioning_log
     from scenarios.positioning import simulate_test
 
+    if args.noise_um is not None:
+        if args.scatter_um is not None:
+            raise ConfigError("--noise-um and --scatter-um: a positioning test has one scatter, give --scatter-um")
+        print("vmt: --noise-um of a positioning test is renamed to --scatter-um (the scatter of each reading; "
+              "the old name works for now)", file=sys.stderr, flush=True)
+        args.scatter_um = args.noise_um
     for name in ("c_angles", "plan_only", "no_collision_check"):
         if getattr(args, name, None):
-            raise ConfigError(f"--{name.replace('_', '-')} does not apply to a positioning test")
+            flag = "--c-angles-deg" if name == "c_angles" else f"--{name.replace('_', '-')}"
+            raise ConfigError(f"{flag} does not apply to a positioning test")
 
     def opt(name, default):
         v = getattr(args, name, None)
@@ -164,7 +169,7 @@ def _run_positioning(args) -> int:
     name = args.machine or "vmc-3axis"
     log = simulate_test(
         name, opt("axis", "X"), np.random.default_rng(args.seed), errors=args.errors,
-        noise_um=opt("noise_um", 0.5), n_targets=opt("targets", 11), travel_mm=travel, cycles=opt("cycles", 5),
+        noise_um=opt("scatter_um", 0.5), n_targets=opt("targets", 11), travel_mm=travel, cycles=opt("cycles", 5),
         cycle_kind=opt("cycle", "linear"), overrun_mm=opt("overrun_mm", 5.0), feed_mm_min=opt("move_feed", 2000.0),
         dwell_s=opt("dwell_s", 2.0), line_mm=line, reversal_um=opt("reversal_um", 0.0),
         drift_um_per_h=opt("drift_um_per_h", 0.0), drift_tau_s=args.drift_tau_s)

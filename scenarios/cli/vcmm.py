@@ -1,4 +1,4 @@
-"""``vmt vcmm PLAN --machine MACHINE --task TASK.toml --json OUT``: the uncertainty of your own measurement.
+"""``vmt vcmm PLAN --machine NAME|FILE --task TASK.toml --json OUT``: the uncertainty of your own measurement.
 
 A virtual CMM (ISO 15530-4): the plan (probe-log/1, nominal points and
 normals) is probed on the machine again and again, each run with the
@@ -16,15 +16,14 @@ def register(sub) -> None:
     p = sub.add_parser("vcmm", help="Monte Carlo uncertainty of a user's measurands on a machine (virtual CMM)",
                        description=__doc__.split("\n\n")[1])
     p.add_argument("plan", metavar="PLAN", help="probe-log/1 plan (or log: its nominal columns are used)")
-    p.add_argument("--machine", required=True, metavar="NAME|FILE",
-                   help="the machine: a built-in name or a machine file; its errors are the best estimate")
+    from scenarios.cli.options import add_machine_args, add_noise_arg
+
+    add_machine_args(p, default=None, required=True, what="the machine, its errors the best estimate")
     p.add_argument("--task", required=True, metavar="TASK.toml", help="features, measurands, declared limits")
     p.add_argument("--json", required=True, metavar="OUT", help="result to write (JSON, atomically)")
     p.add_argument("--report", help="folder for a readable report (index.html, the budget chart)")
     p.add_argument("--seed", type=int, default=0, help="seed of the draws (0); same seed, same result")
-    p.add_argument("--noise-um", type=float, default=None,
-                   help="probing repeatability, a standard deviation (k=1), um (default: the task's [probe], "
-                        "else the machine's)")
+    add_noise_arg(p, "default: the task's [probe], else the machine's")
     p.add_argument("--tol-um", type=float, default=None,
                    help="JCGM 101 numerical tolerance on y, u and the interval ends, um "
                         "(default: the task's [mc], else 2 significant digits of u)")
@@ -54,7 +53,7 @@ def run(args) -> int:
     from core.vcmm import load_task
     from scenarios.cli.guard import progress_line, said
     from scenarios.vcmm import prepare, study
-    from sim.machinefile import resolve
+    from scenarios.cli.options import machine_spec
 
     task = load_task(args.task)
     if args.tol_um is not None:
@@ -63,7 +62,7 @@ def run(args) -> int:
         task = dataclasses.replace(task, mc=dataclasses.replace(task.mc, tolerance=args.tol_um * 1e-6))
     if args.sobol_runs < 0 or args.sobol_runs == 1:
         raise ConfigError(f"--sobol-runs must be 0 or >= 2, got {args.sobol_runs}")
-    spec = resolve(args.machine)
+    spec = machine_spec(args.machine, args.errors)
     plan = read_probe_log(args.plan)
     state = None
     if args.machine_state is not None:
@@ -95,5 +94,7 @@ def run(args) -> int:
 
         write_report(args.report, rep)
     write_json_atomic(args.json, json_safe(rep))
-    print(f"wrote {said(args.json)}" + (f" and {args.report}/index.html" if args.report else ""))
+    from pathlib import Path
+
+    print(f"wrote {said(args.json)}" + (f" and {Path(args.report) / 'index.html'}" if args.report else ""))
     return 0

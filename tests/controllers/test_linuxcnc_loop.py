@@ -38,8 +38,8 @@ LIMITS = "X-20:200,Y-20:200,Z-50:100"
 LIMITS_MM = ((-20, 200), (-20, 200), (-50, 100))
 SCALE = (40e-6, -25e-6, 10e-6)
 EC0Y = 30e-6
-COMMON = ["--limits", LIMITS, "--feed", str(FEED), "--move-feed", "2000", "--clearance", "1",
-          "--overtravel", "1", "--safe-z", "20"]
+COMMON = ["--limits-mm", LIMITS, "--feed-mm-min", str(FEED), "--move-feed-mm-min", "2000", "--clearance-mm", "1",
+          "--overtravel-mm", "1", "--safe-z-mm", "20"]
 #: the user's frames before the run: G54 selected, G59.3 shifted and rotated 30 deg, G92 on
 USER_PARAMS = {5220: 1, 5221: 1.0, 5222: 2.0, 5223: 0.5, 5381: 5.0, 5382: -3.0, 5383: 2.0, 5390: 30.0,
                5210: 1, 5211: 0.5, 5212: 0.25, 5213: 0.1}

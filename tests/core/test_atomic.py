@@ -29,7 +29,7 @@ def test_new_and_replaced_regular_files(tmp_path):
 
 @pytest.mark.parametrize("make, match", [
     (lambda p: p.mkdir(), r"x: is a directory, not a file"),
-    (lambda p: p.symlink_to("elsewhere.txt"), r"x: is a symbolic link \(to elsewhere.txt, a missing\)"),
+    (lambda p: p.symlink_to("elsewhere.txt"), r"x: is a symbolic link \(to elsewhere.txt, which does not exist\)"),
     (lambda p: os.mkfifo(p), r"x: is a FIFO \(named pipe\), not a regular file: refusing to replace it"),
 ])
 def test_refuses_to_replace_what_is_not_a_regular_file(tmp_path, make, match):

@@ -231,8 +231,69 @@ def test_folds_lean_path_is_the_kept_spans_to_rounding(monkeypatch):
     kept = X.Folds(A, groups, 1e-2)
     monkeypatch.setattr(X, "FOLD_BYTES", 0)
     lean = X.Folds(A, groups, 1e-2)
-    assert kept.A is None and lean.A is not None and all(it[2][1].shape[0] < p + 1 for it in lean.items)
+    assert (kept.mode, lean.mode) == ("spans", "coefficients")
+    assert kept.design is None and lean.design is A
+    assert all(f.U is None and f.Uf is None and f.V.shape[0] < p + 1 for f in lean.items)
     for args in ((Y,), (Y, E), (Y, E, pen), (Y[:, 0], E[:, :1])):
         a, b = kept.residuals(*args), lean.residuals(*args)
         assert kept.last_dof == lean.last_dof
         np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
+
+
+def _block_design(rng, n=600, g=30, m=6, groups=5):
+    """A block design with a target seen by one group only and a dense column seen by another only."""
+    from core.lsq import BlockDesign
+
+    ids = rng.integers(0, g - 1, n)
+    grp = rng.integers(0, groups, n)
+    D = rng.normal(size=(n, m))
+    D[:, -1] = (grp == 2) * rng.normal(size=n)  # group 2's own column
+    ids[(grp == 3) & (rng.random(n) < 0.2)] = g - 1  # target g-1: group 3's own
+    return BlockDesign(ids, D, np.arange(3, 3 + g), np.r_[0:3, 3 + g:3 + g + m - 3]), grp
+
+
+def test_folds_block_path_is_the_dense_one_on_a_well_posed_design():
+    """A long log's folds eliminate the targets (Schur complement): on a design whose training fits are unique
+    (no truncated direction), the held-out residuals and dof are the dense path's to rounding (1e-12 relative),
+    own target and own column included, with an extension, a penalty and one observation vector."""
+    from core import discover as X
+
+    rng = np.random.default_rng(5)
+    A, grp = _block_design(rng)
+    Y = rng.normal(size=(len(grp), 3))
+    E = np.column_stack([np.sin(np.arange(len(grp)) / 9.0), rng.normal(size=len(grp)), (grp == 1) * 1.0])
+    dense, blocks = X.Folds(A.toarray(), grp, 1e-2), X.Folds(A, grp, 1e-2)
+    assert blocks.mode == "blocks" and all(f.U is None and f.P is None for f in blocks.items)
+    assert [f.Qo.shape[1] for f in blocks.items] == [0, 0, 1, 1, 0]  # group 2's own column, group 3's own target
+    for args in ((Y,), (Y, E), (Y, E, np.diag([1.0, 0.0, 3.0])), (Y[:, 0], E[:, :1])):
+        a, b = dense.residuals(*args), blocks.residuals(*args)
+        assert dense.last_dof == blocks.last_dof
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
+
+
+def test_planar_block_design_and_its_constrained_fit_are_the_dense_ones(monkeypatch):
+    """A long planar log's baseline (forced here on 480 touches) keeps the same design as a BlockDesign (the
+    targets' block), chooses the same grid with the same rank, and its gauge-constrained workpiece fit (solved
+    from the normal matrix) gives the dense SVD's estimates, covariance, estimability and linear map to 1e-9
+    relative (the normal matrix squares the conditioning: about 1e-13 here)."""
+    from core import baseline as Bm
+    from core import discover as X
+    from core.diagnosis import orth
+    from core.lsq import BlockDesign
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    t = from_log(large_log(40, 12, np.random.default_rng(19)))
+    dense = Bm.planar(t)
+    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
+    block = Bm.planar(t)
+    assert isinstance(block.A, BlockDesign) and not isinstance(dense.A, BlockDesign)
+    assert block.info["grid_step_mm"] == dense.info["grid_step_mm"] and block.qr is None
+    assert np.array_equal(block.A.toarray(), dense.A) and block.names == dense.names
+    assert block.A.basis().shape == orth(dense.A).shape
+    rows = np.arange(3, dense.n)
+    for a, b in zip(X._constrained(dense.A, dense.y, dense.C, dense.d, rows, None, 0, True),
+                    X._constrained(block.A, block.y, block.C, block.d, rows, None, 0, True)):
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        assert np.array_equal(np.isfinite(a), np.isfinite(b))
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-9 * np.abs(a).max())

@@ -116,3 +116,80 @@ def test_block_elimination_bad_diagonal(monkeypatch, rng):
         solve(A, np.zeros(A.shape[0]), C, d, diagonal=slice(0, 41))
     with pytest.raises(ConfigError, match=r"diagonal: indices must lie in 0..51"):
         solve(A, np.zeros(A.shape[0]), C, d, diagonal=[3, 99])
+
+
+# --- block designs (a long self-calibration log's design, the targets' block eliminated) ---
+def _blocks(seed=3, n=240, g=12, m=5):
+    from core.lsq import BlockDesign
+
+    r = np.random.default_rng(seed)
+    ids = np.r_[np.arange(g), r.integers(0, g - 2, n - g)]  # every target present, two of them once only
+    D = r.normal(size=(n, m))
+    D[:, 2] = D[:, 0] - 2 * D[:, 1]  # a dependent column
+    D[:, 3] = np.eye(g)[ids] @ r.normal(size=g)  # a column inside the targets' block
+    return BlockDesign(ids, D, np.arange(2, 2 + g), np.r_[0:2, 2 + g:2 + g + m - 2]), r
+
+
+def test_block_design_round_trip_and_products():
+    """toarray / from_sparse round trip; A @ theta, A.T @ X, A[rows], hstack and gram equal the dense matrix's."""
+    import scipy.sparse as sp
+
+    from core.lsq import BlockDesign
+
+    A, r = _blocks()
+    Ad = A.toarray()
+    assert A.shape == Ad.shape and np.all(Ad[:, A.g_cols].sum(axis=1) == 1)
+    B = BlockDesign.from_sparse(sp.csr_matrix(Ad), A.g_cols)
+    assert np.array_equal(B.toarray(), Ad)
+    th, X, E = r.normal(size=A.shape[1]), r.normal(size=(A.shape[0], 3)), r.normal(size=(A.shape[0], 2))
+    np.testing.assert_allclose(A @ th, Ad @ th, atol=1e-13)
+    np.testing.assert_allclose(A.T @ X, Ad.T @ X, atol=1e-12)
+    np.testing.assert_allclose(A.gram(), Ad.T @ Ad, atol=1e-12)
+    rows = np.arange(0, A.shape[0], 3)
+    assert np.array_equal(A[rows].toarray(), Ad[rows])
+    assert np.array_equal(np.hstack([A, E]).toarray(), np.hstack([Ad, E]))
+
+
+def test_block_basis_is_the_dense_orth_span():
+    """The basis of a block design spans what diagnosis.orth spans (same rank at two cuts, same projector and
+    leverage), and behaves as a matrix where discovery uses one (hstack with new directions, Q[:, k:])."""
+    from core.diagnosis import new_basis, orth
+    from core.lsq import Basis, leverage
+
+    A, r = _blocks()
+    Ad = A.toarray()
+    for tol in (1e-9, 1e-7):
+        Q, Qd = A.basis(tol), orth(Ad, tol=tol)
+        assert Q.shape == Qd.shape == (A.shape[0], A.shape[1] - 2)  # the dependent and the in-block column
+        np.testing.assert_allclose(Q.toarray().T @ Q.toarray(), np.eye(Q.shape[1]), atol=1e-12)
+        X = r.normal(size=(A.shape[0], 4))
+        np.testing.assert_allclose(Q @ (Q.T @ X), Qd @ (Qd.T @ X), atol=1e-12)
+        np.testing.assert_allclose(leverage(Q), leverage(Qd), atol=1e-12)
+    U = new_basis(Q, X)
+    Q2 = np.hstack([Q, U])
+    assert isinstance(Q2, Basis) and Q2.shape[1] == Q.shape[1] + 4 and np.array_equal(Q2[:, Q.shape[1]:], U)
+    assert np.array_equal(Q2, Q2) and not np.array_equal(Q2, Q)
+
+
+def test_block_design_bad_input():
+    """Ids outside the block, a D of the wrong shape, columns numbered twice, an indicator column that is not one
+    1 per row, and densifying an operator: one-line ConfigErrors."""
+    import scipy.sparse as sp
+
+    from core.lsq import BlockDesign
+
+    A, _ = _blocks()
+    with pytest.raises(ConfigError, match="ids must lie"):
+        BlockDesign(A.ids + A.g, A.D, A.g_cols, A.d_cols)
+    with pytest.raises(ConfigError, match="D \\(n"):
+        BlockDesign(A.ids, A.D[:-1], A.g_cols, A.d_cols)
+    with pytest.raises(ConfigError, match="once each"):
+        BlockDesign(A.ids, A.D, A.g_cols, np.r_[A.d_cols[:-1], 0])
+    Ad = A.toarray()
+    Ad[0, A.g_cols[1]] = 1.0  # row 0 in two targets
+    with pytest.raises(ConfigError, match="one 1 per row"):
+        BlockDesign.from_sparse(sp.csr_matrix(Ad), A.g_cols)
+    with pytest.raises(ConfigError, match="not an array"):
+        np.asarray(A.basis())
+    with pytest.raises(ConfigError, match="not defined"):
+        np.vstack([A, A])

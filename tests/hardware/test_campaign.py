@@ -39,8 +39,8 @@ def serve(faults=None, noise_um=0.0, machine=None, homing=False):
 
 
 def probe_args(url, plan, out, *extra):
-    return ["probe", "--machine", url, "--plan", str(plan), "--out", str(out),
-            "--limits", LIMITS, "--safe-z", "30", "--timeout", "5", *extra]
+    return ["probe", "--controller", url, "--plan", str(plan), "--out", str(out),
+            "--limits-mm", LIMITS, "--safe-z-mm", "30", "--timeout-s", "5", *extra]
 
 
 def assert_complete(log, plan):
@@ -110,14 +110,14 @@ def test_hard_limit_alarm_needs_a_reset_then_the_users_word(tmp_path, plan_path,
     plan = read_probe_log(plan_path)
     emu, srv = serve(Faults(alarm_at_probe={5: 1}), homing=homing)    # a hard limit on probe 5
     out = tmp_path / "log.csv"
-    word = "--home" if homing else "--unlock"
+    word = "--home-cycle" if homing else "--unlock"
     try:
-        first = ["--home"] if homing else []
+        first = ["--home-cycle"] if homing else []
         assert main(probe_args(srv.url, plan_path, out, *first)) == 2
         err = capsys.readouterr().err
-        assert "ALARM:1 (hard limit" in err and "--resume --reset --home" in err
+        assert "ALARM:1 (hard limit" in err and "--resume --reset --home-cycle" in err
         # --unlock alone cannot help: the firmware answers nothing until a reset
-        assert main(probe_args(srv.url, plan_path, out, "--resume", word, "--timeout", "1")) == 2
+        assert main(probe_args(srv.url, plan_path, out, "--resume", word, "--timeout-s", "1")) == 2
         err = capsys.readouterr().err
         assert "did not answer a status query" in err and "--reset" in err and emu.state == "Alarm"
         assert read_probe_log(out).n == 4
@@ -234,16 +234,16 @@ def test_safety_checks_before_any_connection(tmp_path, plan_path, capsys):
     emu, srv = serve()
     out = tmp_path / "log.csv"
     try:
-        bad = [(["--limits", "X-20:200,Y-20:200,Z-1:100"], "outside the soft limits"),
-               (["--max-feed", "500"], "exceeds the maximum feed"),
-               (["--limits", "X1:0,Y0:1,Z0:1"], "min < max"),
-               (["--limits", "X0:1,Y0:1"], "give X, Y and Z")]
+        bad = [(["--limits-mm", "X-20:200,Y-20:200,Z-1:100"], "outside the soft limits"),
+               (["--max-feed-mm-min", "500"], "exceeds the maximum feed"),
+               (["--limits-mm", "X1:0,Y0:1,Z0:1"], "min < max"),
+               (["--limits-mm", "X0:1,Y0:1"], "give X, Y and Z")]
         for extra, msg in bad:
             assert main(probe_args(srv.url, plan_path, out, *extra)) == 2
             err = capsys.readouterr().err
             assert msg in err and err.count("\n") == 1
         args = probe_args(srv.url, plan_path, out)
-        i = args.index("--limits")
+        i = args.index("--limits-mm")
         assert main(args[:i] + args[i + 2:]) == 2
         assert "without them" in capsys.readouterr().err
         assert srv.connections == 0 and not out.exists()

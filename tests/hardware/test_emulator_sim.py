@@ -2,7 +2,7 @@
 
 ``vmt simulate cross-pocket --plan-only``, then ``vmt machine serve ...
 --scene cross-pocket`` (a process, as a user starts it) and ``vmt probe
---machine grbl://... --rotary``: the README's lines, except the port, which
+--controller grbl://... --rotary``: the README's lines, except the port, which
 the test picks free (5000 may be taken on a shared machine). The campaign
 through GRBL must give, touch by touch, the direct simulation's touches
 within GRBL's rounding: reports carry 3 decimals in mm (0.5 µm), commands 4
@@ -27,7 +27,6 @@ from scenarios.hidden import gauge_free_rms_m
 from sim import artefacts as A
 from sim.campaign import simulate_campaign
 from sim.machine import Machine
-from sim.machines import MACHINES, realistic_errors
 from sim.probe import ProbeConfig
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -37,7 +36,7 @@ QUANT_MM = 0.6e-3
 def readme_hardware_commands():
     """The plan, serve and probe lines of the README's command block (comments cut)."""
     return (readme_command("vmt simulate cross-pocket --plan-only"), readme_command("vmt machine serve"),
-            readme_command("vmt probe --machine grbl://"))
+            readme_command("vmt probe --controller grbl://"))
 
 
 def readme_command(prefix):
@@ -54,9 +53,10 @@ def _free_port():
 
 def test_readme_hardware_commands_as_written(tmp_path, monkeypatch, capsys):
     plan_cmd, serve_cmd, probe_cmd = readme_hardware_commands()
-    assert "--safe-z" in probe_cmd and "--rotary" in probe_cmd and "--scene cross-pocket" in serve_cmd
+    assert "--safe-z-mm" in probe_cmd and "--rotary" in probe_cmd and "--scene cross-pocket" in serve_cmd
     port = str(_free_port())
-    serve = [port if a == "5000" else a for a in shlex.split(serve_cmd)[1:]]
+    # noise-free (the README's line takes the nmv3000's probe), so the served log compares touch for touch
+    serve = [port if a == "5000" else a for a in shlex.split(serve_cmd)[1:]] + ["--noise-um", "0"]
     probe = [a.replace(":5000", f":{port}") for a in shlex.split(probe_cmd)[1:]]
     monkeypatch.chdir(tmp_path)
     assert main(shlex.split(plan_cmd)[1:]) == 0
@@ -99,10 +99,11 @@ def test_readme_hardware_commands_as_written(tmp_path, monkeypatch, capsys):
     log = read_probe_log(tmp_path / probe[probe.index("--out") + 1])   # the log the README's line names
     assert log.n == plan.n == 368 and log.ok.all()
 
-    # the same campaign simulated directly on the same machine (serve --scene cross-pocket:
-    # nmv3000, realistic errors of seed 1, no probing noise)
-    machine = Machine(MACHINES["nmv3000"](errors=realistic_errors(
-        ("X", "Y", "Z", "C"), rng=np.random.default_rng(1), ripple=False)))
+    # the same campaign simulated directly on the same machine (serve --scene cross-pocket: the
+    # nmv3000 as --machine nmv3000 names it, its realistic errors; no probing noise)
+    from scenarios.cli.options import machine_spec
+
+    machine = Machine(machine_spec("nmv3000").config)
     angles = sorted(set(plan.col("C_deg")))
     direct = simulate_campaign(A.cross_pocket(), machine, ProbeConfig(repeatability_k2_m=0.0), angles,
                                np.random.default_rng(0))

@@ -46,7 +46,7 @@ def test_tables_are_grbl_1_1s():
     # a hard or soft limit needs a reset before $X / $H: --unlock alone is not the advice
     for a in (1, 2):
         assert "--reset" in ALARM_RECOVERY[a]
-    assert "--home" in ALARM_RECOVERY[1] and "--unlock" in ALARM_RECOVERY[2]
+    assert "--home-cycle" in ALARM_RECOVERY[1] and "--unlock" in ALARM_RECOVERY[2]
     assert "--reset" not in ALARM_RECOVERY[5] and "--unlock" in ALARM_RECOVERY[5]
 
 

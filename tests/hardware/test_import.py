@@ -28,7 +28,7 @@ def measured(tmp_path, plan_path):
 def test_part_program_probes_every_row_between_probeopen_and_probeclose(plan_path, tmp_path, capsys):
     prog = tmp_path / "probe.ngc"
     assert main(["machine", "program", "--plan", str(plan_path), "--out", str(prog),
-                 "--limits", LIMITS, "--safe-z", "30", "--probe-file", "/tmp/p.txt"]) == 0
+                 "--limits-mm", LIMITS, "--safe-z-mm", "30", "--probe-file", "/tmp/p.txt"]) == 0
     text = prog.read_text()
     lines = text.splitlines()
     i0, i1 = lines.index("(PROBEOPEN /tmp/p.txt)"), lines.index("(PROBECLOSE)")
@@ -104,8 +104,8 @@ def test_grbl_transcript_of_a_live_campaign_imports_to_the_same_log(tmp_path, pl
     tr, out = tmp_path / "session.txt", tmp_path / "live.csv"
     emu = GrblEmulator(scene(), ControllerConfig(home=(0, 0, 50)))
     with TcpServer(emu, time_scale=200.0) as srv:
-        assert main(["probe", "--machine", srv.url, "--plan", str(plan_path), "--out", str(out),
-                     "--limits", LIMITS, "--safe-z", "30", "--transcript", str(tr)]) == 0
+        assert main(["probe", "--controller", srv.url, "--plan", str(plan_path), "--out", str(out),
+                     "--limits-mm", LIMITS, "--safe-z-mm", "30", "--transcript", str(tr)]) == 0
     imp = tmp_path / "imported.csv"
     assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(imp)]) == 0
     a, b = read_probe_log(out), read_probe_log(imp)

@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 @pytest.fixture
 def server():
     proc = subprocess.Popen([sys.executable, "-m", "scenarios.cli", "machine", "serve", "--port", "0",
-                             "--pty", "--max-seconds", "30", "--time-scale", "200"], cwd=ROOT, stdout=subprocess.PIPE,
+                             "--pty", "--stop-after-s", "30", "--time-scale", "200"], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     urls = []
     try:
@@ -35,8 +35,8 @@ def test_campaign_over_tcp_and_pty_of_a_served_machine(tmp_path, plan_path, serv
     logs = []
     for k, url in enumerate(server):
         out = tmp_path / f"log{k}.csv"
-        assert main(["probe", "--machine", url, "--plan", str(plan_path), "--out", str(out),
-                     "--limits", LIMITS, "--safe-z", "30", "--timeout", "5"]) == 0
+        assert main(["probe", "--controller", url, "--plan", str(plan_path), "--out", str(out),
+                     "--limits-mm", LIMITS, "--safe-z-mm", "30", "--timeout-s", "5"]) == 0
         logs.append(read_probe_log(out))
     assert logs[0].n == logs[1].n == 12
     # the built-in machine has no errors and no noise: both give the nominal points to 0.5 µm
@@ -49,6 +49,6 @@ def test_serve_bad_arguments_exit_2(capsys, plan_path, tmp_path):
     assert "not a TCP port" in capsys.readouterr().err
     assert main(["machine", "serve", "--port", "0", "--scale-ppm", "1,2"]) == 2
     assert "three numbers" in capsys.readouterr().err
-    assert main(["probe", "--machine", "http://x", "--plan", str(plan_path), "--out",
-                 str(tmp_path / "o.csv"), "--limits", LIMITS]) == 2
+    assert main(["probe", "--controller", "http://x", "--plan", str(plan_path), "--out",
+                 str(tmp_path / "o.csv"), "--limits-mm", LIMITS]) == 2
     assert "expected grbl://HOST:PORT" in capsys.readouterr().err

@@ -8,7 +8,7 @@ from scenarios.cli import main
 
 def test_demo_end_to_end(tmp_path, capsys):
     out = tmp_path / "out"
-    assert main(["demo", "--out", str(out)]) == 0
+    assert main(["demo", "--out-dir", str(out)]) == 0
     text = capsys.readouterr().out
     assert "both hidden effects named" in text
     # like with like: the identified EC0Y beside the injected one in identify's gauge

@@ -86,9 +86,9 @@ def test_output_that_is_an_input_is_refused(files, capsys):
 
 
 @pytest.mark.parametrize("extra, msg", [
-    (["--dt", "nan"], "--dt must be a positive number of seconds, got nan"),
-    (["--dt", "-1"], "--dt must be a positive number of seconds, got -1"),
-    (["--dt", "0"], "--dt must be a positive number of seconds, got 0"),
+    (["--dt-s", "nan"], "--dt-s must be a positive number of seconds, got nan"),
+    (["--dt-s", "-1"], "--dt-s must be a positive number of seconds, got -1"),
+    (["--dt-s", "0"], "--dt-s must be a positive number of seconds, got 0"),
 ])
 def test_import_dt_messages(files, capsys, extra, msg):
     out = files["dir"] / "o.csv"
@@ -99,12 +99,12 @@ def test_import_dt_messages(files, capsys, extra, msg):
 
 
 def test_design_step_zero_and_usage_errors_are_one_line(files, capsys):
-    assert main(["design", str(files["plan"]), "--angles", "4", "--step-deg", "0"]) == 2
+    assert main(["design", str(files["plan"]), "--n-angles", "4", "--step-deg", "0"]) == 2
     one_line(capsys, "vmt design: error: --step-deg must be > 0 and divide 360, got 0")
     with pytest.raises(SystemExit) as e:
-        main(["design", str(files["plan"]), "--angles", "four"])
+        main(["design", str(files["plan"]), "--n-angles", "four"])
     assert e.value.code == 2
-    one_line(capsys, "vmt design: error: argument --angles: invalid int value: 'four' (see vmt design --help)")
+    one_line(capsys, "vmt design: error: argument --n-angles: invalid int value: 'four' (see vmt design --help)")
 
 
 def test_failed_run_leaves_no_output(files, capsys, monkeypatch):

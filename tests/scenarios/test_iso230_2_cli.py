@@ -117,7 +117,7 @@ def test_simulate_positioning_then_evaluate_with_report(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv,match", [
     (["simulate", "mfb", "--out", "x.csv", "--axis", "X"], "--axis applies to 'vmt simulate positioning' only"),
-    (["simulate", "positioning", "--out", "x.csv", "--c-angles", "0"], "--c-angles does not apply"),
+    (["simulate", "positioning", "--out", "x.csv", "--c-angles-deg", "0"], "--c-angles-deg does not apply"),
     (["simulate", "positioning", "--out", "x.csv", "--machine", "nope"], "--machine 'nope': no such file, and not a built-in machine"),
     (["simulate", "positioning", "--out", "x.csv", "--travel-mm", "0-100"], "--travel-mm '0-100': expected 2"),
     (["simulate", "positioning", "--out", "x.csv", "--cycles", "1"], "cycles must be a whole number >= 2"),

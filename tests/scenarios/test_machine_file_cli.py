@@ -60,10 +60,10 @@ def test_program_limits_from_a_machine_file(my_file, tmp_path, capsys):
                  "--no-collision-check"]) == 0
     ngc = tmp_path / "p.ngc"
     assert main(["machine", "program", "--plan", str(plan), "--out", str(ngc), "--machine", str(my_file),
-                 "--safe-z", "50"]) == 0
+                 "--safe-z-mm", "50"]) == 0
     assert ngc.read_text().count("G38.2") > 50
     assert main(["machine", "program", "--plan", str(plan), "--out", str(ngc), "--machine", str(my_file),
-                 "--limits", "X-1:1,Y-1:1,Z-1:1"]) == 2
+                 "--limits-mm", "X-1:1,Y-1:1,Z-1:1"]) == 2
     assert "give one" in capsys.readouterr().err
 
 

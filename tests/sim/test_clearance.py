@@ -255,8 +255,8 @@ def test_certificates_across_placements_agree_with_every_sample_check(monkeypatc
     T0 = art.T_W_A
     z_top = T0[2, 3] + probe.stylus_r_m
     boxes = [0]
-    real = Clearance._box_pairs
-    monkeypatch.setattr(Clearance, "_box_pairs", lambda self, a, *r: boxes.__setitem__(0, boxes[0] + len(a))
+    real = Clearance._block_candidates
+    monkeypatch.setattr(Clearance, "_block_candidates", lambda self, a, *r: boxes.__setitem__(0, boxes[0] + len(a))
                         or real(self, a, *r))
     changed = reused = 0
     for trial in range(10):
@@ -406,7 +406,7 @@ def test_certificates_clear_exactly_their_radius():
 
     z0 = R + 0.3e-3
     calls = []
-    real = Clearance._box_pairs
+    real = Clearance._block_candidates
 
     def counted(self, lo, *rest):
         calls.append(len(lo))
@@ -415,13 +415,13 @@ def test_certificates_clear_exactly_their_radius():
     for dz_a, dz_b, want_near in ((0.19e-3, 0.19e-3, False), (0.21e-3, 0.21e-3, True),
                                   (0.45e-3, 0.45e-3, True), (0.45e-3, 0.0, True), (0.0, 0.45e-3, True)):
         clr = _sphere_over_box()
-        Clearance._box_pairs = counted
+        Clearance._block_candidates = counted
         try:
             assert clr.near_segments(*seg(z0, z0)).size == 0
             calls.clear()
             near = clr.near_segments(*seg(z0 - dz_a, z0 - dz_b))
         finally:
-            Clearance._box_pairs = real
+            Clearance._block_candidates = real
         assert (near.size > 0) == want_near, (dz_a, dz_b)
         assert (len(calls) == 0) == (not want_near)  # cleared by the certificate, not recomputed
     clr = _sphere_over_box()
@@ -471,7 +471,7 @@ def test_a_segment_with_no_pair_in_its_padded_box_certifies_exactly_the_padding(
 
     z0 = R + pad + 0.15e-3
     calls = []
-    real = Clearance._box_pairs
+    real = Clearance._block_candidates
 
     def counted(self, lo, *rest):
         calls.append(len(lo))
@@ -480,12 +480,12 @@ def test_a_segment_with_no_pair_in_its_padded_box_certifies_exactly_the_padding(
     for dz, want_near in ((0.49e-3, False), (0.56e-3, True)):
         clr = _sphere_over_box(pad)
         assert clr.near_segments(*seg(z0)).size == 0
-        Clearance._box_pairs = counted
+        Clearance._block_candidates = counted
         try:
             calls.clear()
             near = clr.near_segments(*seg(z0 - dz))
         finally:
-            Clearance._box_pairs = real
+            Clearance._block_candidates = real
         assert (near.size > 0) == want_near, dz
         assert (len(calls) == 0) == (not want_near)  # cleared by the certificate, not recomputed
 
@@ -684,3 +684,136 @@ def test_a_certificate_serves_only_segments_with_its_allowed_feature(monkeypatch
     assert clr.near_segments(sg, [pl.feature[i]]).size == 0  # cleared, certificates left
     assert clr.near_segments(sg, [""]).size > 0  # the contact itself: on the hole's geoms
     mfb_scene._BALLS.clear()
+
+
+def test_swept_bound_known_answer():
+    """Known answer: the ball (radius R) moved 20 mm along a box's top face with its lowest point
+    5 mm above it: the swept bound is that distance, 5 mm (the closest-point axis, the face's
+    normal, is exact for a sphere and a box). The same move ending with the ball 1 mm into the
+    box: the least signed distance over the move, -1 mm at its end (the offset along the normal
+    is linear along the move: its least value is an end's)."""
+    clr = _sphere_over_box()
+    a, b = np.array([[-0.01, 0.0, R + 5e-3]]), np.array([[0.01, 0.0, R + 5e-3]])
+    assert clr.swept_bound(a, b, np.array([0]))[0] == pytest.approx(5e-3, abs=1e-15)
+    lb = clr.swept_bound(a, np.array([[0.01, 0.0, R - 1e-3]]), np.array([0]))[0]
+    assert lb == pytest.approx(-1e-3, abs=1e-15)
+
+
+@pytest.mark.parametrize("A_deg,C_deg,J_m,finger", [(0, 0, (0, 0, 0.150), 0.0),
+                                                     (-60, 30, (0.0, -0.100, 0.150), 0.0)])
+def test_swept_bounds_never_exceed_mujoco_distances_along_the_segment(A_deg, C_deg, J_m, finger):
+    """The swept bound of a pair for a straight move (what clears a whole segment at once) is at
+    most MuJoCo's distance of the pair at every point of the move (21 points each), for random
+    short moves near the bar, the table and the supports, the pairs their boxes let through."""
+    import mujoco
+
+    wz = _zone(A_deg, C_deg, J_m, finger)
+    clr = wz.clearance()
+    rng = np.random.default_rng(abs(A_deg) + 11)
+    T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
+    a = A.apply_T(T_R_A, rng.uniform([-0.03, -0.03, -0.03], [0.40, 0.08, 0.06], (200, 3)))
+    b = a + rng.normal(0, 4e-3, a.shape)
+    i, pair = clr.candidates(np.r_[a, b], np.r_[np.arange(len(a)), np.arange(len(a))])
+    i = i % len(a)
+    key = np.unique(i * len(clr.pair_probe) + pair)
+    i, pair = np.divmod(key, len(clr.pair_probe))
+    lb = clr.swept_bound(a[i], b[i], pair)
+    worst, n_close = -np.inf, 0
+    for k in range(len(i)):
+        ga, gb = wz._probe[clr.pair_probe[pair[k]]], wz._table[clr.pair_table[pair[k]]]
+        d = np.inf
+        for f in np.linspace(0.0, 1.0, 21):
+            wz.set_tip(a[i[k]] + f * (b[i[k]] - a[i[k]]))
+            d = min(d, mujoco.mj_geomDistance(wz.model, wz.data, ga, gb, 1.0, None))
+        worst = max(worst, lb[k] - d)
+        n_close += d < 5e-3
+    assert worst <= 1e-6, worst  # (MuJoCo's distances: to its CCD tolerance, 1e-6 m)
+    assert len(i) > 100 and n_close > 30
+
+
+def test_near_segments_of_several_broad_phases_at_once_are_each_alone():
+    """near_segments_many on parts of several broad phases (the ball's in A and two work zones'
+    in W, moved copies sharing one) gives each part the samples its own near_segments gives it
+    (all fresh: no certificates), and leaves each broad phase the certificates it would."""
+    from sim import mfb_scene
+    from sim.clearance import Segments, near_segments_many
+
+    rng = np.random.default_rng(21)
+    made = []
+    for A_deg, C_deg, J_m in ((0, 0, (0, 0, 0.150)), (-90, 0, (0.0, -0.100, 0.150)), (0, 90, (0, 0, 0.150))):
+        T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
+        sg = path_segments(_random_paths(rng, T_R_A, 40), np.full(40, 3e-3), joints=False)
+        feats = np.array([f.name for f in BAR.features] + [""], dtype=object)
+        made.append((A_deg, C_deg, J_m, sg, feats[rng.integers(0, len(feats), 40)]))
+
+    def parts():
+        mfb_scene._BALLS.clear()
+        mfb_scene._ZONES.clear()
+        out = []
+        for A_deg, C_deg, J_m, sg, allow in made:
+            wz = mfb_scene._work_zone(BAR, FLAT, (), J_m, R, 0.0)
+            wz.set_table(_T_R_W(A_deg, C_deg))
+            for clr in (wz.ball_clearance(), wz.clearance(part="rest")):
+                sgF = Segments(clr.to_frame(sg.a), clr.to_frame(sg.b), sg.k, sg.m, sg.first, sg.path)
+                out.append((clr, sgF, clr.feature_ids(allow)[sg.path]))
+        return out
+
+    alone = []
+    for p in parts():  # each on fresh broad phases
+        alone.append(near_segments_many([p])[0])
+        p[0]._certs.__init__()
+    many = parts()
+    got = near_segments_many(many)
+    assert all(np.array_equal(x, y) for x, y in zip(got, alone))
+    assert sum(len(x) for x in got) > 20 and sum(len(x) > 0 for x in got) >= 4
+    assert all(p[0]._certs._n > 0 for p in many)
+
+
+def test_a_plans_measurements_checked_at_once_are_each_alone_and_every_sample():
+    """check_measurements of several measurements (placements, tables turned and tilted, straight
+    and star styli, some crashing, one hole set measured twice so its certificates clear the
+    other's ball moves) gives each the result of check_measurement alone and of MuJoCo at every
+    sample: collisions, path points, least clearance."""
+    from sim import mfb_scene
+    from sim.mfb_scene import Block, check_measurements
+
+    riser = (Block("riser", (-0.095, -0.045, 0.0), (0.295, 0.045, 0.150)),)
+    P2 = A.make_T(None, (-0.175, 0.000, 0.220))
+    items = [("a", FLAT, _T_R_W(0, 0), (), (0, 0, 0.150), _holes(3, 4), 0.0),
+             ("b", FLAT, _T_R_W(0, 90), (), (0, 0, 0.150), _holes(3, 4), 0.0),
+             ("c", FLAT, _T_R_W(-90, 0), (), (0.0, -0.100, 0.150), _holes(6), 0.0),
+             ("d", P2, _T_R_W(0, 0), riser, (0, 0, 0.150), _holes(1, 2), 0.0),
+             ("e", FLAT, _T_R_W(0, 0), (), (0.0, -0.100, 0.150), _holes(3), 0.0),  # the arm across the bar
+             ("f", FLAT, _T_R_W(-45, 0), (), (-0.100, 0.0, 0.190), _holes(10), 0.040)]
+    mfb_scene._ZONES.clear()
+    mfb_scene._BALLS.clear()
+    got = check_measurements(BAR, items, R)
+    ref = [check_measurement(it[0], BAR, *it[1:5], R, *it[5:], broad_phase=False) for it in items]
+    mfb_scene._ZONES.clear()
+    mfb_scene._BALLS.clear()
+    one = [check_measurement(it[0], BAR, *it[1:5], R, *it[5:]) for it in items]
+    assert got == ref == one
+    assert sum(bool(r.collisions) for r in got) >= 1 and sum(r.ok for r in got) >= 3
+
+
+def test_measurements_paths_sampled_at_once_are_each_alone():
+    """The polylines of several measurements sampled in one pass (sim.mfb_scene._paths_of, as
+    check_measurements does) are each measurement's alone (_touch_paths), bit for bit."""
+    from sim.mfb_scene import _paths_of, _touch_paths, link_points
+
+    items, want = [], []
+    for holes, (A_deg, C_deg) in (((3, 4, 5), (0, 0)), ((1,), (-90, 45)), ((10, 11), (-45, 120)), ((7,), (0, 0))):
+        pl = _holes(*holes)
+        for n in (pl.n, 1):
+            sub = pl.select(np.arange(n))
+            T_R_A = _T_R_W(A_deg, C_deg) @ FLAT
+            Xn = A.apply_T(T_R_A, sub.w_A + R * sub.wn_A)
+            start = Xn + sub.clearance_m * A.apply_R(T_R_A, sub.wn_A)
+            L, cnt = link_points(T_R_A, start, sub.feature, sub.level, 0.021) if n > 1 else (np.zeros((0, 3)),
+                                                                                              np.zeros(0, int))
+            items.append((start, Xn, L, cnt, sub))
+            want.append(_touch_paths(T_R_A, start, Xn, sub, 0.021, 3e-3, 0.5e-3))
+    for (sg, touch, allow, app), (sg1, touch1, allow1) in zip(_paths_of(items, 3e-3, 0.5e-3), want):
+        _same_segments(sg, sg1)
+        assert np.array_equal(touch, touch1) and allow.tolist() == allow1.tolist()
+        assert np.array_equal(app[:-1], touch[1:] != touch[:-1]) and app[-1]  # (each touch's last polyline)
