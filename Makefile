@@ -23,9 +23,12 @@ demo: $(STAMP)
 
 # two workers (pytest-xdist); each test file on one worker, files sharing a session fixture together,
 # the longest first (tests/conftest.py): no costly fixture computed twice
+# PYTHONDONTWRITEBYTECODE cleared: each worker's collection rewrites the asserts of every test file
+# (about 5 s of CPU) and each `vmt` subprocess compiles what it imports; kept in __pycache__ (ignored
+# by git) from the second run on
 TEST_WORKERS ?= 2
 test: $(STAMP)
-	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(VPY) -m pytest -q -p no:cacheprovider \
+	PYTHONDONTWRITEBYTECODE= OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(VPY) -m pytest -q -p no:cacheprovider \
 	  -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # Real controllers in the loop (tests/controllers): LinuxCNC 2.9 from Debian's packages,

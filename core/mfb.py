@@ -554,7 +554,7 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
             i = key
             hs = [i] if i in row else []
         else:
-            j = key if kind == "rod" else key[1]
+            sd, j = key if kind == "face" else (None, key)  # a face's key: (side, rod number)
             hs = [h for h in holes if j in pair[h]]
         if not hs:
             continue
@@ -571,11 +571,10 @@ def poi_noise_gain(p_R, feature, n_R, d_R, geom: BarGeometry = MFB, h_m: float =
             Pj = np.broadcast_to(P[j], (2 * nk, 2, 3)).copy()
             if kind == "rod":
                 q, a = _fit_once(fits, "cylinders", Q, bf.rod_axis[j])
-                for k, sd in enumerate("LR"):
-                    Pj[:, k] = _meet_batch(q, a, bf.face_point[(sd, j)], bf.face_normal[(sd, j)])
+                for k, side in enumerate("LR"):
+                    Pj[:, k] = _meet_batch(q, a, bf.face_point[(side, j)], bf.face_normal[(side, j)])
             else:
-                sd = key[0]
-                q, nrm = _fit_once(fits, "planes", Q, bf.face_normal[(sd, j)])
+                q, nrm = _fit_once(fits, "planes", Q, bf.face_normal[key])
                 Pj[:, "LR".index(sd)] = _meet_batch(bf.rod_point[j], bf.rod_axis[j], q, nrm)
             for h in hs:
                 a, c = pair[h]
