@@ -149,6 +149,8 @@ from .touches import Touches
 from .units import UM
 
 
+#: Format of :meth:`Discovery.to_report` (what ``vmt discover --json`` writes).
+REPORT_FORMAT = "vmt-discover/1"
 #: Singular value (columns normalised, outside the model) below which a
 #: direction of a cause's columns counts as unseen (variance inflation 1e4:
 #: a hundredfold loss of precision; its magnitudes are not reported).
@@ -933,6 +935,7 @@ class Discovery:
         b = self.baseline
         b_cv = self.baseline_cv_rms_um
         rep = {
+            "format": REPORT_FORMAT,
             "baseline": {"model": b.model, "n": int(b.n), "n_params": self.baseline_n_params,
                          "rms_um": self.baseline_rms_um, **{k: v for k, v in b.info.items()
                                                           if isinstance(v, (int, float, str, list))}},

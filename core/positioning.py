@@ -77,6 +77,8 @@ from .exceptions import VmtError
 from .probelog import step_back
 
 FORMAT = "positioning-log/1"
+#: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
+REPORT_FORMAT = "vmt-iso230-2/1"
 #: ISO 230-2 asks five approaches in each direction at every target for the
 #: full test (and at least five targets); fewer are evaluated with a warning.
 N_STANDARD = 5
@@ -979,7 +981,7 @@ class Iso2302Result:
         the band edges ``x̄ ± 2s`` as ``lower_up_um`` ... ``upper_down_um``).
         """
         ru, k = REPORT_UNIT[self.unit]
-        out: dict = {"standard": "ISO 230-2:2014", "axis": self.axis, "unit": ru,
+        out: dict = {"format": REPORT_FORMAT, "standard": "ISO 230-2:2014", "axis": self.axis, "unit": ru,
                      "cycle_kind": self.cycle_kind, "targets": int(self.targets.size),
                      "cycles": int(max(self.n_up.max(), self.n_down.max()))}
         for f in self.FIGURES:

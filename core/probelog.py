@@ -29,6 +29,8 @@ from .atomic import input_problem, write_text_atomic
 from .exceptions import ProbeLogError
 
 FORMAT = "probe-log/1"
+#: Format of :func:`summary` (what ``vmt check --json`` prints).
+SUMMARY_FORMAT = "vmt-check/1"
 
 #: Required columns, in the spec's order.
 REQUIRED = ("setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm",
@@ -58,8 +60,11 @@ ANGLE_MAX_DEG = 1e6
 TEMP_RANGE_C = (-273.15, 1000.0)
 
 _LENGTHS = ("X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "wx_mm", "wy_mm", "wz_mm")
-#: Statuses a writer may use; a torn last row ends in a proper prefix of one of them.
-KNOWN_STATUSES = ("ok", "no_trigger", "early_trigger", "alarm")
+#: The statuses vmt writes: a touch's outcome (:class:`core.touches.ProbeStatus`: ``ok``,
+#: ``no_trigger``, ``early_trigger``) and ``aborted`` (the rows of a stopped run that
+#: ``vmt import`` keeps). A last row without an end of line must end in one of them when
+#: ``status`` is its last column; any other word there (``abor``, ``ala``) may be cut short.
+KNOWN_STATUSES = ("ok", "no_trigger", "early_trigger", "aborted")
 
 _VECTORS = (("nx", "ny", "nz"), ("dx", "dy", "dz"), ("wnx", "wny", "wnz"))
 
@@ -340,10 +345,13 @@ def parse_probe_log(text: str, source: str = "<memory>") -> ProbeLog:
     """Parse probe-log text (see :func:`read_probe_log`).
 
     A last row without an end of line is where a writer that died would
-    have stopped. It is refused as torn when it is evidently cut short (too
-    few fields, a number cut to no number, an empty or cut ``status`` as
-    the last field) and kept with a warning (:attr:`ProbeLog.warnings`)
-    otherwise: a file written by hand may lack its last end of line.
+    have stopped. It is refused as torn when it may be cut short and the
+    cut would change its meaning: too few fields, a number cut to no number,
+    or a ``status`` last field that is not one of :data:`KNOWN_STATUSES`
+    (empty, or any other word: ``abor`` may be ``aborted`` cut short). A
+    last row that still reads whole (a number, a text column) is kept with a
+    warning (:attr:`ProbeLog.warnings`): a file written by hand may lack its
+    last end of line.
     """
     if "\x00" in text:
         raise ProbeLogError(f"{source}: holds NUL bytes: not a text file")
@@ -543,14 +551,14 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> 
     if unterminated and last_row is not None and last_ln == n_lines:
         last = cols.n - 1
         cell, name = last_row[-1].strip(), header[-1]
-        if name == "status" and (cell == "" or any(w.startswith(cell) and w != cell for w in KNOWN_STATUSES)):
-            raise _torn(src, last, last_ln, f"last field status {cell!r}")
+        if name == "status" and cell not in KNOWN_STATUSES:
+            raise _torn(src, last, last_ln, f"last field status {_shown(cell)} is no status vmt writes")
         if _spec_numeric(name) and cell:
             try:
                 float(cell)
             except ValueError:
                 raise _torn(src, last, last_ln, f"last field {name} {cell!r} is no number") from None
-        if not (name == "status" and cell in KNOWN_STATUSES):
+        if name != "status":  # a whole status word reads as written
             warnings.append(f"{src}: row {last} (line {last_ln}): the file ends without an end "
                             f"of line: if its writer was interrupted, the last field ({name} {_shown(cell)}) "
                             "may be cut short")
@@ -758,6 +766,7 @@ def summary(log: ProbeLog) -> dict:
     """Short numeric summary of a log (for ``vmt check``)."""
     ok = log.ok
     out = {
+        "format": SUMMARY_FORMAT,
         "touches": log.n,
         "ok": int(ok.sum()),
         "setups": len(dict.fromkeys(log.col("setup"))),

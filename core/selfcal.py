@@ -103,6 +103,8 @@ from .lsq import LinearEstimator, column_norms, remove_span, solve
 from .touches import Touches
 from .units import DEG, MM, UM
 
+#: Format of :meth:`SelfCalResult.to_report` (what ``vmt identify --json`` writes).
+REPORT_FORMAT = "vmt-identify/1"
 #: Tolerance (m) for a touch lying on the grid's edge.
 EDGE_TOL = 1e-9
 #: Largest |n_z| accepted: the model is planar (XY).
@@ -1029,6 +1031,7 @@ class SelfCalResult:
             return None if not np.isfinite(v) else v
 
         out = {
+            "format": REPORT_FORMAT,
             "method": "2D self-calibration, Ibaraki et al. eqs 15-18",
             "touches": res.n_touches,
             "n_params": des.n_params,

@@ -42,6 +42,9 @@ from core.units import MM, UM
 PAPER_G_U95_UM = {(0.0, 75.0): 6.5, (0.0, 75.0, 130.0): 3.0, (0.0, 75.0, 130.0, 210.0): 2.1}
 PAPER_TABLE2 = {75.0: (1.0, 0.9, 8.9), 130.0: (1.2, 1.1, 9.3), 210.0: (1.2, 1.2, 8.2)}
 U_PROBE_M = 1.38e-6
+#: Formats of :func:`cross_pocket_uncertainty`'s and :func:`pin_circle`'s documents (their ``--json``).
+UNCERTAINTY_FORMAT = "vmt-cross-pocket-uncertainty/1"
+PIN_CIRCLE_FORMAT = "vmt-pin-circle/1"
 
 
 def _plan_points(spheres: bool, heights: bool = False):
@@ -688,6 +691,7 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
         progress(total, total)
     fig19 = _sphere_effect(arrays)
     out = {
+        "format": UNCERTAINTY_FORMAT,
         "scenario": "cross-pocket-uncertainty",
         "method": f"Monte Carlo (JCGM 101), {runs} runs per case, linear propagation beside it",
         "u95_reading": U95_READING,
@@ -938,7 +942,7 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2, sphere_touches: int = P
         Cp = L @ res.cov[sg, sg] @ L.T
         v = np.diag(Cp).reshape(-1, 2)
         u95_pin = 2.0 * np.sqrt(v.sum(axis=1)) / UM
-    return {"scenario": "pin-circle", "machine": "mikron-ucp710 (realistic errors)", "kinematic_chain": chain,
+    return {"format": PIN_CIRCLE_FORMAT, "scenario": "pin-circle", "machine": "mikron-ucp710 (realistic errors)", "kinematic_chain": chain,
             "yaw": str(yaw), "yaw_rule": "core.selfcal.yaw_for_chain of the log's kinematic_chain",
             "c_angles_deg": angles,
             "grid_mm": f"{grid.x_m[0] / MM:g}..{grid.x_m[-1] / MM:g} step {PIN_STEP_M / MM:g}", "touches": t.n,

@@ -34,6 +34,9 @@ from core.units import MM, UM
 #: is invisible on a part probed in four directions 90 deg apart: it acts as a
 #: translation per set-up, absorbed by EXC/EYC,total, and harmless to G).
 LOBING_M = ((2, 1.2e-6, 0.9e-6), (3, 1.0e-6, -0.6e-6))
+#: Format of the demo's ``iso230-2.json``: the test's figures (``iso230_2``, ``vmt-iso230-2/1``) and
+#: discovery on it (``discover``, ``vmt-discover/1``).
+DEMO_POSITIONING_FORMAT = "vmt-demo-iso230-2/1"
 #: The hidden worn ball screw: a periodic EYY of this amplitude and pitch.
 SCREW_UM, SCREW_MM = 1.5, 8.0
 
@@ -250,7 +253,8 @@ def _positioning(machine, seed: int, outp: Path, say) -> None:
     path = write_positioning_log(outp / "positioning-Y.csv", log)
     r = iso230_2(log)
     rep = discover_baseline(positioning_from_log(log)).to_report()
-    write_json_atomic(outp / "iso230-2.json", json_safe({"iso230_2": r.to_report(), "discover": rep}))
+    write_json_atomic(outp / "iso230-2.json", json_safe({"format": DEMO_POSITIONING_FORMAT, "iso230_2": r.to_report(),
+                                                                "discover": rep}))
     say(f"{len(r.targets)} targets x {plan.cycles} cycles, both directions, 0.3 um scatter -> {path}: "
         f"E {r.E * 1e3:.2f} um, M {r.M * 1e3:.2f} um, R {r.R * 1e3:.2f} um, B {r.B * 1e3:.2f} um, "
         f"A {r.A * 1e3:.2f} um")

@@ -1252,7 +1252,7 @@ def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None)
             dev_urad = max(dev_urad, dmax)
         else:
             dev_um = max(dev_um, dmax)
-    return {"scenario": name, "machine": plan.machine, "seed": seed, "noise_um": sigma_um,
+    return {"format": MFB_FORMAT, "scenario": name, "machine": plan.machine, "seed": seed, "noise_um": sigma_um,
             "noise_note": "probing noise: a standard deviation (k = 1) along the approach",
             "placements": len(plan.placements), "setups": len(plan.setups),
             "measurements": len(plan.measurements),
@@ -1407,7 +1407,8 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw
         return {"positioning": pos,
                 "volumetric_residual_um": volumetric_residual_um(truth(STYLI[COMP_STYLUS], comp), r.plan.nodes)}
 
-    doc = {"scenario": name, "directory": str(directory), "seed_before": seed, "seed_after": seed + 1,
+    doc = {"format": CLOSED_LOOP_FORMAT, "scenario": name, "directory": str(directory), "seed_before": seed,
+           "seed_after": seed + 1,
            "criterion": "after compensation, the true positioning error (exact sim) within the U95 of the "
                         "identification the compensation came from, at every node (true_within_u95)",
            "before": block(before)}
@@ -1506,6 +1507,10 @@ def reversal_on_cmm(*, repeats: int = 5, seed: int = 1, noise_um: float = 0.05, 
 
 #: Format tag of the bar calibration file (:func:`bar_calibration_doc`).
 BAR_CALIBRATION_FORMAT = "vmt-bar-calibration/1"
+#: Format of a scenario's document (:attr:`ScenarioResult.doc`, ``vmt scenario mfb-3axis --json``).
+MFB_FORMAT = "vmt-mfb/1"
+#: Format of :func:`closed_loop`'s document (``closed_loop`` in the scenario's JSON).
+CLOSED_LOOP_FORMAT = "vmt-mfb-closed-loop/1"
 
 
 def bar_calibration_doc(rev: dict) -> dict:

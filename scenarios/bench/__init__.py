@@ -32,6 +32,8 @@ import tempfile
 import time
 from pathlib import Path
 
+#: Format of a bench document (``bench/results.json``: :func:`document`, :func:`merge_documents`).
+FORMAT = "vmt-bench/1"
 #: Benchmark modules, each with ``run() -> dict``.
 BENCHES: list[str] = [
     "scenarios.bench.fit",
@@ -116,7 +118,7 @@ def document(meta: dict, values: dict, refs: dict, targets: dict, origin: dict |
         if name in targets:
             rec["target"] = targets[name]
         figures[name] = rec
-    return {"meta": meta, "figures": figures}
+    return {"format": FORMAT, "meta": meta, "figures": figures}
 
 
 def merge_documents(old: dict, new: dict) -> dict:
@@ -138,7 +140,7 @@ def merge_documents(old: dict, new: dict) -> dict:
                                               "load_average_1min_at_end")}
     runs.update(new.get("meta", {}).get("runs", {}))
     meta = dict(new.get("meta", {}), runs=dict(sorted(runs.items())))
-    return {"meta": meta, "figures": figures}
+    return {"format": FORMAT, "meta": meta, "figures": figures}
 
 
 def write_figures(figures: dict, out) -> Path:

@@ -29,9 +29,13 @@ def _cell(v) -> str:
 
 def table_markdown(doc: dict) -> str:
     """The Markdown table (with its measured-on line) of a bench document ``{"meta", "figures"}``."""
+    from scenarios.bench import FORMAT
+
     if not isinstance(doc, dict) or not isinstance(doc.get("figures"), dict):
         raise ConfigError("bench results: not a vmt bench document (no 'figures' object; "
                           "re-run `make bench` to write one)")
+    if doc.get("format", FORMAT) != FORMAT:  # a document written before the key existed has none
+        raise ConfigError(f"bench results: format {doc['format']!r}, expected {FORMAT!r}")
     meta = doc.get("meta", {})
     runs = meta.get("runs") if isinstance(meta.get("runs"), dict) else {}
     if len({r.get("invocation_utc", r.get("date_utc")) for r in runs.values() if isinstance(r, dict)}) > 1:

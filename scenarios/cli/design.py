@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+#: Format of the JSON ``vmt design --json`` writes.
+DESIGN_FORMAT = "vmt-design/1"
+
 
 def register(sub) -> None:
     p = sub.add_parser("design", help="choose the C angles of a 2D self-calibration (min max workpiece U95)")
@@ -66,7 +69,7 @@ def run(args) -> int:
               f" gain x{r.gain:.3f}")
     if args.json:
         write_json_atomic(args.json, special=True, obj={
-            "c_deg": list(r.c_deg), "max_u95_um": round(r.max_U95_m * 1e6, 4), "measure": args.measure,
+            "format": DESIGN_FORMAT, "c_deg": list(r.c_deg), "max_u95_um": round(r.max_U95_m * 1e6, 4), "measure": args.measure,
             "reference_deg": list(r.reference_deg) if r.reference_deg else None,
             "reference_max_u95_um": None if r.reference_max_U95_m is None else round(r.reference_max_U95_m * 1e6, 4),
             "gain": r.gain, "evaluations": r.evaluations, "step_deg": r.step_deg})

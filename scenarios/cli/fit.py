@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+#: Format of the JSON ``vmt fit --json`` writes.
+FIT_FORMAT = "vmt-fit/1"
 FORM = {"plane": "flatness", "sphere": "sphericity", "circle": "roundness", "cylinder": "cylindricity"}
 
 
@@ -43,7 +45,7 @@ def run(args) -> int:
           f"probing noise included), rms {r.rms_um:.3f} um")
     if args.json:
         tg = log.col("target")[r.rows].astype(str).tolist()
-        rep = {"log": str(args.log), "kind": r.kind, "n": r.n, "feature": args.feature, "setup": args.setup,
+        rep = {"format": FIT_FORMAT, "log": str(args.log), "kind": r.kind, "n": r.n, "feature": args.feature, "setup": args.setup,
                "values": v, "u95": r.u95, "form": FORM[r.kind], "form_um": r.form_um, "rms_um": r.rms_um,
                "dof": r.dof, "stylus_r_mm": r.stylus_r_mm,
                "touches": [{"row": int(i), "target": t, "residual_um": float(e)}

@@ -291,6 +291,10 @@ def test_file_with_only_spec_columns_reads_exactly_as_the_spec_says(rng):
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,o", r"torn last row \(last field status 'o'"),
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,", r"torn last row \(last field status ''"),
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,no_tr", r"torn last row \(last field status 'no_tr'"),
+        # any word that is not a whole status vmt writes, whatever it is a prefix of
+        ("s1,p2,1,0,2,0,0,2,0,0,1,0,abor", r"torn last row \(last field status 'abor' is no status vmt writes"),
+        ("s1,p2,1,0,2,0,0,2,0,0,1,0,ala", r"torn last row \(last field status 'ala'"),
+        ("s1,p2,1,0,2,0,0,2,0,0,1,0,chip", r"torn last row \(last field status 'chip'"),
     ],
 )
 def test_torn_last_row_is_refused_as_torn(tail, match):
@@ -304,6 +308,37 @@ def test_torn_last_row_is_refused_as_torn(tail, match):
         assert "torn" not in str(e)
     else:
         assert log.n == 2
+
+
+@pytest.mark.parametrize("status", ["ok", "no_trigger", "early_trigger", "aborted"])
+def test_whole_status_words_vmt_writes_read_without_an_end_of_line(status):
+    # every status vmt writes (ProbeStatus, and `aborted` from `vmt import`) ends a file whole
+    from core.probelog import KNOWN_STATUSES
+    from core.touches import ProbeStatus
+
+    assert set(KNOWN_STATUSES) == {s.value for s in ProbeStatus} | {"aborted"}
+    measured = ["1", "0", "2", "0"] if status == "ok" else ["", "", "", ""]
+    tail = ",".join(["s1", "p2", *measured, "0", "2", "0", "0", "1", "0", status])
+    log = parse_probe_log(HEADER + ",status\n" + ROW + ",ok\n" + tail, "t.csv")
+    assert log.n == 2 and log.warnings == () and list(log.columns["status"]) == ["ok", status]
+
+
+def test_aborted_rows_of_an_import_read_back_and_a_cut_one_is_torn(tmp_path):
+    # `vmt import` of a stopped run: the plan's later rows get status aborted and empty measured cells
+    from hardware.linuxcnc import import_probe_file
+
+    plan = parse_probe_log(HEADER + "\ns1,p1,,,,,1,0,0,1,0,0\ns1,p2,,,,,0,2,0,0,1,0\ns1,p3,,,,,-1,0,0,-1,0,0\n",
+                           "plan.csv")
+    (tmp_path / "probe.txt").write_text("1.0 0.0 0.0 0 0 0 0 0 0\n")
+    log = import_probe_file(tmp_path / "probe.txt", plan)
+    text = (write_probe_log(tmp_path / "log.csv", log)).read_text()
+    assert text.endswith(",aborted\n") and list(log.columns)[-1] == "status"
+    for body in (text, text[:-1]):   # with its last end of line, and without: read whole, no warning
+        back = parse_probe_log(body, "log.csv")
+        assert list(back.columns["status"]) == ["ok", "aborted", "aborted"] and back.warnings == ()
+        assert from_log(back).n == 1                       # aborted touches stay out of the analysis
+    with pytest.raises(ProbeLogError, match=r"torn last row \(last field status 'abor'"):
+        parse_probe_log(text[:-len("ted\n")], "log.csv")
 
 
 def test_torn_number_in_last_field():

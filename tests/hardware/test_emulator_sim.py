@@ -96,7 +96,7 @@ def test_readme_hardware_commands_as_written(tmp_path, monkeypatch, capsys):
             out, err = proc.communicate()
             raise AssertionError(f"machine serve did not stop within 120 s of Ctrl-C: {err[-500:]}") from None
     assert f"stopped after {plan.n} probing moves" in out, err
-    log = read_probe_log(tmp_path / "log.csv")
+    log = read_probe_log(tmp_path / probe[probe.index("--out") + 1])   # the log the README's line names
     assert log.n == plan.n == 368 and log.ok.all()
 
     # the same campaign simulated directly on the same machine (serve --scene cross-pocket:

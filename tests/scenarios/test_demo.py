@@ -45,5 +45,10 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert 0.2 < pos["discover"]["noise_um"]["sigma_um"] < 0.4          # 0.3 um scatter, 40 dof
     assert (out / "positioning-Y.csv").read_text().startswith("# format: positioning-log/1")
     assert "ISO 230-2: a positioning test of the Y axis" in text
+    # every JSON names its format (docs/formats.md), the nested reports theirs
+    assert [ident["format"], disc["format"], mfb["format"], loop["format"], pos["format"]] == [
+        "vmt-identify/1", "vmt-discover/1", "vmt-mfb/1", "vmt-mfb-closed-loop/1", "vmt-demo-iso230-2/1"]
+    assert (iso["format"], pos["discover"]["format"]) == ("vmt-iso230-2/1", "vmt-discover/1")
+    assert json.loads((out / "comp" / "mfb-3axis-comp.json").read_text())["format"] == "vmt-comp/1"
     for f in ("index.html", "recording.rrd", "error_map.png", "residuals_baseline.png"):
         assert (out / "report" / f).stat().st_size > 1000

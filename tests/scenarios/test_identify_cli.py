@@ -52,6 +52,12 @@ def test_identify_writes_the_report(tmp_path, rng, capsys):
     assert r["axes"]["EXX"]["positions_mm"][0] == -110 and r["axes"]["EXX"]["values_um"][-1] == pytest.approx(2.0)
     assert r["monte_carlo"]["runs"] == 200
     assert "368 touches" in capsys.readouterr().out
+    # it names its format (docs/formats.md) and reads back as a machine state (vmt vcmm --machine-state)
+    from core.state import read_estimate
+
+    assert r["format"] == "vmt-identify/1" and r["estimate"]["format"] == "vmt-estimate/1"
+    machine = [p for p in r["estimate"]["parameters"] if p.get("symbol")]   # not the workpiece's, set-ups'
+    assert 0 < read_estimate(out).mean.size == len(machine) < len(r["estimate"]["parameters"])
 
 
 def test_identify_scale_unknown_and_auto_grid(tmp_path, rng):
@@ -82,6 +88,7 @@ def test_design_command(tmp_path, rng, capsys):
     assert main(["design", str(log), "--n-angles", "3", "--step-deg", "30", "--reference-deg", "0,60,150",
                  "--json", str(out)]) == 0
     r = json.loads(out.read_text())
+    assert r["format"] == "vmt-design/1"   # docs/formats.md
     assert r["c_deg"][0] == 0 and len(r["c_deg"]) == 3 and r["gain"] >= 1.0
     assert "gain x" in capsys.readouterr().out
 

@@ -41,6 +41,7 @@ def test_iso230_2_writes_the_contract(tmp_path, capsys):
     out = tmp_path / "r.json"
     assert main(["iso230-2", str(SAMPLE), "--json", str(out), "--eve-um", "0.6"]) == 0
     rep = json.loads(out.read_text())
+    assert rep["format"] == "vmt-iso230-2/1"   # docs/formats.md
     for k in CONTRACT:
         assert k in rep, k
     lib = iso230_2(read_positioning_log(SAMPLE)).to_report()  # the wiring: the library's figures, in um

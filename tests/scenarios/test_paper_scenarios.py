@@ -45,6 +45,7 @@ def test_cross_pocket_uncertainty_reports_progress(cpu_run):
     """The study tells its progress (the CLI draws it on a terminal): 6 cases, from 0 to 6, in order."""
     calls = cpu_run[1]
     assert calls[0] == (0, 6) and calls[-1] == (6, 6)
+    assert cpu_run[0]["format"] == "vmt-cross-pocket-uncertainty/1"   # docs/formats.md
     assert [d for d, _ in calls] == sorted(d for d, _ in calls)
 
 
@@ -185,6 +186,7 @@ def test_evaluation_points_what_moved(cpu):
 
 
 def test_pin_circle_the_papers_way(pin):
+    assert pin["format"] == "vmt-pin-circle/1"   # docs/formats.md
     assert pin["pins"] == 18
     assert pin["sphere_touches_each"] == 8 and pin["touches_per_setup"] == 88 and pin["touches"] == 8 * 88
     assert pin["kinematic_chain"] == "[w C' A' b X Y Z (C1) t]" and pin["yaw"] == "ECX"  # Y rides on X

@@ -155,6 +155,7 @@ def identify_json(tmp_path_factory, realistic):
 
 
 def test_cli_machine_state_end_to_end(tmp_path, identify_json, realistic, capsys):
+    assert json.loads(identify_json.read_text())["format"] == "vmt-identify/1"   # read with its format key
     plan, task, out = tmp_path / "plan.csv", tmp_path / "task.toml", tmp_path / "out.json"
     write_probe_log(plan, VS.coverage_plan(realistic[0].z_m * 1e3))
     task.write_text(VS.TASK.replace("batch_runs = 100\nmax_runs = 400", "batch_runs = 20\nmax_runs = 40")
