@@ -398,7 +398,9 @@ class Folds:
                 continue
             Dte = A.D[te]
             ctr = cnt - np.bincount(A.ids[te], minlength=g)
-            sc = np.sqrt(np.maximum(np.diag(DD) - np.sum(Dte ** 2, axis=0), 0.0))
+            # each column's norm on the training rows, from those rows: the total minus the held-out part leaves
+            # a rounding remainder where a held-out group's own column is zero on them (seen as trained)
+            sc = np.linalg.norm(A.D[tr], axis=0)
             used = sc > 1e-9 * max(sc.max(), np.sqrt(ctr.max()), 1e-300)
             cols = np.flatnonzero(used)
             gu = ctr > 0
