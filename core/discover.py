@@ -47,8 +47,9 @@ What it does, in order, and the statistics behind each step
       covariate of its own family (debiased sums of squares); a family
       whose term nests the cause's on the design (:data:`NESTING_FAMILIES`:
       the feature per set-up, for a position cause) refuses it only when
-      the cause explains less than :attr:`Settings.rival_share` of it, as
-      its own covariate's smooth does in step 5;
+      neither the cause's columns nor the best smooth of its own family
+      explain :attr:`Settings.rival_share` of it (the larger of the two,
+      as against any other family);
    f. its plainer counter-explanation (:attr:`core.causes.Cause.counter`)
       does not explain as much, or the cause explains something material
       and significant beyond it (step 5's test, made before adoption too, so
@@ -398,7 +399,9 @@ class Folds:
                 continue
             Dte = A.D[te]
             ctr = cnt - np.bincount(A.ids[te], minlength=g)
-            sc = np.sqrt(np.maximum(np.diag(DD) - np.sum(Dte ** 2, axis=0), 0.0))
+            # each column's norm on the training rows, from those rows: the total minus the held-out part leaves
+            # a rounding remainder where a held-out group's own column is zero on them (seen as trained)
+            sc = np.linalg.norm(A.D[tr], axis=0)
             used = sc > 1e-9 * max(sc.max(), np.sqrt(ctr.max()), 1e-300)
             cols = np.flatnonzero(used)
             gu = ctr > 0
@@ -1567,9 +1570,9 @@ def _family_ss(bl, diag, n) -> dict:
 #: imperfect form included, is inside it. Such a term explaining a few per cent
 #: more than a few-parameter position cause is the same structure, fitted more
 #: loosely, not structure that lives elsewhere; it refuses the cause at adoption
-#: (step 4e) only as a smooth of the cause's own covariate refuses it in the
-#: rival check (step 5): when the cause explains less than ``rival_share`` of
-#: it. The converse does not hold (a smooth of positions does not represent one
+#: (step 4e) only when neither the cause's columns nor the best smooth of its
+#: own family explain ``rival_share`` of it (the larger of the two: ``own`` in
+#: :func:`_evaluate`, as against any other family). The converse does not hold (a smooth of positions does not represent one
 #: feature changing per set-up), so a feature cause keeps the plain test.
 NESTING_FAMILIES = {"position": ("feature",)}
 

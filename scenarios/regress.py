@@ -810,9 +810,11 @@ RUNNERS = {"selfcal": _selfcal, "mfb-3axis": _mfb, "mfb-5axis": _mfb, "iso230-2"
 
 
 # --------------------------------------------------------------------------- comparing
-def check(rule: Rule, est: Estimate | None, seed: int, k_sim: float | None = None, values: int = 0) -> Check:
+def check(rule: Rule, est: Estimate | None, seed: int, k_sim: float | None = None, values: int = 0,
+          why: str = "") -> Check:
     """The verdict of ``rule`` on one identified quantity (None: the identification did not give it);
-    a simultaneous rule needs ``k_sim`` (and ``values``, the count it holds over: :func:`simultaneous_k`)."""
+    a simultaneous rule needs ``k_sim`` (and ``values``, the count it holds over: :func:`simultaneous_k`);
+    ``why``: when there is no ``k_sim``, which simultaneous quantities lacked a joint covariance."""
     text = rule.text(k_sim, values)
     if est is None:
         return Check(seed, rule.quantity, rule.unit, text, False, note="not identified")
@@ -825,7 +827,7 @@ def check(rule: Rule, est: Estimate | None, seed: int, k_sim: float | None = Non
     dev = np.abs(np.asarray(est.identified, float) - np.asarray(est.injected, float))
     k = k_sim if rule.simultaneous else rule.k
     if rule.simultaneous and k_sim is None:
-        return Check(seed, rule.quantity, rule.unit, text, False, note="no joint covariance from the identification")
+        return Check(seed, rule.quantity, rule.unit, text, False, note=why or "no joint covariance from the identification")
     if k is not None:
         if est.u95 is None:
             return Check(seed, rule.quantity, rule.unit, text, False, note="no U95 from the identification")
@@ -873,11 +875,15 @@ def run_study(study: Study, *, hook=None, progress=None) -> StudyResult:
         secs.append(time.perf_counter() - t0)
         all_est[seed] = est
         k_sim, n_sim = None, 0
-        joint = [est.get(r.quantity) for r in study.rules if r.simultaneous]
-        if joint and all(isinstance(e, Estimate) and e.factor is not None and e.u95 is not None for e in joint):
-            k_sim, n_sim = simultaneous_k(joint)
+        joint = {r.quantity: est.get(r.quantity) for r in study.rules if r.simultaneous}
+        lacking = [q for q, e in joint.items() if not (isinstance(e, Estimate) and e.factor is not None
+                                                       and e.u95 is not None)]
+        if joint and not lacking:
+            k_sim, n_sim = simultaneous_k(list(joint.values()))
             sim.append((seed, k_sim, n_sim))
-        checks += [check(r, est.get(r.quantity), seed, k_sim, n_sim) for r in study.rules]
+        why = (f"no joint band: {', '.join(lacking)} {'has' if len(lacking) == 1 else 'have'} no joint covariance"
+               if lacking else "")
+        checks += [check(r, est.get(r.quantity), seed, k_sim, n_sim, why=why) for r in study.rules]
     if progress is not None:
         progress(len(study.seeds), len(study.seeds))
     return StudyResult(study, tuple(checks), tuple(secs), all_est, tuple(sim))

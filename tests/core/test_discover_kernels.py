@@ -297,3 +297,21 @@ def test_planar_block_design_and_its_constrained_fit_are_the_dense_ones(monkeypa
         a, b = np.asarray(a, float), np.asarray(b, float)
         assert np.array_equal(np.isfinite(a), np.isfinite(b))
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-9 * np.abs(a).max())
+
+
+def test_folds_block_path_sees_a_large_own_column_as_unseen_by_training():
+    """A held-out group's own column that is large: its training norm is exactly zero, and the folds must find
+    it so (computed from the training rows, not as the total minus the held-out part, whose rounding remainder
+    made such a column look trained and extrapolated a fitted rounding error onto the held-out rows; a review
+    found it on a stored campaign's C-axis column). Held-out residuals and dof are the dense path's (1e-12)."""
+    from core import discover as X
+
+    rng = np.random.default_rng(7)
+    A, grp = _block_design(rng)
+    A.D[:, -1] *= 1e3  # group 2's own column, 1e3 larger than the others
+    Y = rng.normal(size=(len(grp), 2))
+    dense, blocks = X.Folds(A.toarray(), grp, 1e-2), X.Folds(A, grp, 1e-2)
+    assert [f.Qo.shape[1] for f in blocks.items] == [f.Qo.shape[1] for f in dense.items]
+    a, b = dense.residuals(Y), blocks.residuals(Y)
+    assert dense.last_dof == blocks.last_dof
+    np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())

@@ -268,6 +268,15 @@ def test_the_flip_is_exactly_a_negation(tmp_path):
     assert np.array_equal(f["reversal"].identified, b["reversal"].identified)
 
 
+def test_a_missing_simultaneous_quantity_is_named_in_the_others_verdicts():
+    """No joint band when one simultaneous quantity is missing: the others fail naming it (they were told they
+    had no joint covariance, which was not so)."""
+    study = replace(load_study(POSITIONING), seeds=(1,))
+    res = run_study(study, hook=lambda ident, est: {q: e for q, e in est.items() if q != "reversal"})
+    (mean,) = [c for c in res.checks if c.quantity == "mean"]
+    assert not mean.passed and mean.note == "no joint band: reversal has no joint covariance"
+
+
 # --------------------------------------------------------------------------- pytest face
 def test_assert_recovers_names_the_quantity_and_margin():
     study = replace(load_study(POSITIONING), seeds=(2,))
