@@ -338,7 +338,8 @@ def _scan(f, src: str) -> tuple[int, bool]:
 def _torn(src: str, r: int, ln: int, what: str) -> ProbeLogError:
     return ProbeLogError(
         f"{src}: row {r} (line {ln}): torn last row ({what}, and no end of line): its writer was "
-        "interrupted; `vmt probe --resume` cuts it off, or delete the line")
+        "interrupted; `vmt probe --resume` cuts it off, or delete the line (if the row is whole, written by "
+        "hand or another tool, correct it and end the file with a newline)")
 
 
 def parse_probe_log(text: str, source: str = "<memory>") -> ProbeLog:

@@ -230,8 +230,9 @@ def _solid_pose_stack(art) -> np.ndarray:
     def build():
         sol = art.solids
         T = np.zeros((len(sol), 4, 4))
-        T[:, :3, :3] = [np.eye(3) if x.rot is None else x.rot for x in sol]
-        T[:, :3, 3] = [x.pos for x in sol]
+        if sol:  # (an empty list does not broadcast into (0, 3, 3))
+            T[:, :3, :3] = [np.eye(3) if x.rot is None else x.rot for x in sol]
+            T[:, :3, 3] = [x.pos for x in sol]
         T[:, 3, 3] = 1.0
         T.flags.writeable = False
         return T

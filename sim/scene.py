@@ -309,9 +309,10 @@ class Scene:
         if self._local is None:  # (make_T(rot, pos) of every solid)
             sol = self.artefact.solids
             R = np.zeros((len(sol), 3, 3))
-            R[:] = [np.eye(3) if s.rot is None else s.rot for s in sol]
             p = np.zeros((len(sol), 3))
-            p[:] = [s.pos for s in sol]
+            if sol:  # (an empty list does not broadcast into (0, 3, 3))
+                R[:] = [np.eye(3) if s.rot is None else s.rot for s in sol]
+                p[:] = [s.pos for s in sol]
             self._local = (R, p)
         return self._local
 

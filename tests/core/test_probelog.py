@@ -301,6 +301,7 @@ def test_torn_last_row_is_refused_as_torn(tail, match):
     with pytest.raises(ProbeLogError, match=match) as ei:
         parse_probe_log(HEADER + ",status\n" + ROW + ",ok\n" + tail, "t.csv")
     assert "--resume" in str(ei.value)
+    assert "end the file with a newline" in str(ei.value)  # a whole row written by hand: not only "delete it"
     # the same cut with its end of line is an ordinary bad row or an invalid touch, not torn
     try:
         log = parse_probe_log(HEADER + ",status\n" + ROW + ",ok\n" + tail + "\n", "t.csv")

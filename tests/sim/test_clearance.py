@@ -817,3 +817,14 @@ def test_measurements_paths_sampled_at_once_are_each_alone():
         _same_segments(sg, sg1)
         assert np.array_equal(touch, touch1) and allow.tolist() == allow1.tolist()
         assert np.array_equal(app[:-1], touch[1:] != touch[:-1]) and app[-1]  # (each touch's last polyline)
+
+
+def test_an_artefact_without_solids_has_an_empty_pose_stack():
+    """Edge path (review): no solids gives empty pose arrays, as before the stacked form, not a broadcast error."""
+    import dataclasses
+
+    from sim import artefacts as A
+    from sim.mfb_scene import _solid_pose_stack
+
+    art = dataclasses.replace(A.multi_feature_bar(deviations_m=np.zeros((12, 3))), solids=())
+    assert _solid_pose_stack(art).shape == (0, 4, 4)
