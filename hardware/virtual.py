@@ -62,8 +62,9 @@ def sim_machine(scene: str = "cross-pocket", noise_um: float | None = 0.0, seed:
     """The simulator's virtual machine with artefact ``scene`` on the table.
 
     ``spec`` (a :class:`sim.machinefile.MachineSpec`, ``--machine NAME|FILE``)
-    is the machine and probe; default the nmv3000 as ``--machine nmv3000``
-    names it (:func:`sim.machinefile.truth_machine`: its realistic errors).
+    is the machine and probe; default the nmv3000 as ``machine serve
+    --scene`` names it (:func:`sim.machinefile.truth_machine`, error set
+    ``"drawn"``), so ``virtual:SCENE`` and the emulator are one machine.
     ``noise_um`` is the probing standard deviation (k=1) along the approach,
     um (None: the spec's probe).
 
@@ -82,7 +83,7 @@ def sim_machine(scene: str = "cross-pocket", noise_um: float | None = 0.0, seed:
     if scene not in CATALOG:
         raise ConfigError(f"--scene {scene!r}: expected simple or one of {', '.join(sorted(CATALOG))}")
     if spec is None:
-        spec = truth_machine("nmv3000")
+        spec = truth_machine("nmv3000", default="drawn")
     m = Machine(spec.config)
     probe = spec.probe
     if noise_um is not None:

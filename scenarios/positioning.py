@@ -155,8 +155,8 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
 
     ``machine_name``: a built-in machine or a machine file
     (:mod:`sim.machinefile`, whose errors are its own). ``errors`` for a
-    built-in: ``realistic`` (sim.machines.realistic_errors, the papers'
-    magnitudes, the default) or ``none``. ``reversal_um`` adds lost motion
+    built-in: an error set of :func:`sim.machinefile.truth_machine`
+    (``realistic``, the default, ``study``, ``drawn`` or ``none``). ``reversal_um`` adds lost motion
     (``Reversal``: +L/2 moving in +, -L/2 in -) and ``drift_um_per_h`` an
     offset drift (``Drift``, linear, or approaching its steady state with
     time constant ``drift_tau_s``) to the axis's positioning error
@@ -169,34 +169,26 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
     from dataclasses import replace
 
     from sim.machine import Machine
-    from sim.machinefile import builtin_names, resolve
-    from sim.machines import realistic_errors
+    from sim.machinefile import builtin_names, truth_machine
     from sim.positioning import positioning_plan, simulate_positioning
 
-    spec = resolve(machine_name)
+    spec = truth_machine(machine_name, errors)  # the one machine rule of every command
     if axis not in ("X", "Y", "Z"):
         raise ConfigError(f"--axis {axis!r}: expected X, Y or Z")
     cfg = spec.config
+    errs = dict(cfg.errors)
     if machine_name in builtin_names():
-        errors = errors or "realistic"
-        errs = {}
-        if errors == "realistic":
-            errs = realistic_errors(tuple(a for a in "XYZABC" if a in cfg.strokes), strokes=cfg.strokes)
-        elif errors != "none":
-            raise ConfigError(f"--errors {errors!r}: expected realistic or none")
-    elif errors is not None:
-        raise ConfigError(f"--errors: the machine file {machine_name} states its errors (errors = ..., [error.*])")
+        errors = spec.errors
     else:
-        errs = dict(cfg.errors)
-        errors = f"machine file ({spec.errors})"
-    for name, v in (("--noise-um", noise_um), ("--reversal-um", reversal_um), ("--overrun-mm", overrun_mm),
+        errors = f"machine file ({spec.errors}" + (f", seed {spec.seed}" if spec.seed is not None else "") + ")"
+    for name, v in (("--scatter-um", noise_um), ("--reversal-um", reversal_um), ("--overrun-mm", overrun_mm),
                     ("--dwell-s", dwell_s)):
         if not (np.isfinite(v) and v >= 0):
             raise ConfigError(f"{name} must be >= 0, got {v!r}")
     if not np.isfinite(drift_um_per_h):
         raise ConfigError(f"--drift-um-per-h must be finite, got {drift_um_per_h!r}")
     if not (np.isfinite(feed_mm_min) and feed_mm_min > 0):
-        raise ConfigError(f"--move-feed must be > 0, got {feed_mm_min!r}")
+        raise ConfigError(f"--move-feed-mm-min must be > 0, got {feed_mm_min!r}")
     sym = f"E{axis}{axis}"
     if reversal_um:
         errs = _error_fn_with(errs, sym, Reversal(reversal_um * 1e-6))

@@ -165,12 +165,11 @@ def one_seed(seed: int, *, noise_m: float = NOISE_M, ripple: bool = True, vcmm_s
     from core import vcmm as V
     from core.state import loads_estimate
     from scenarios.vcmm import prepare, study
-    from sim.machinefile import resolve
+    from sim.machinefile import truth_machine
 
     ident = ident if ident is not None else identify_campaign(seed, noise_m, ripple=ripple)
     state = loads_estimate(ident.report, source=f"identify seed {seed}")
-    spec = resolve(MACHINE)
-    spec = dataclasses.replace(spec, config=dataclasses.replace(spec.config, errors={}))
+    spec = truth_machine(MACHINE, "none")  # the best estimate before the state: no errors
     task = V.loads_task(task, source="coverage task")
     st = prepare(coverage_plan(ident.z_m * 1e3), task, spec, noise_um=noise_m * 1e6, state=state)
     rep = study(st, vcmm_seed, budget=False)
@@ -254,7 +253,7 @@ def crosspocket_comparison(seed: int = 1, nodes_mm=COMPARE_NODES_MM, vcmm_seed: 
     from scenarios import selfcal_coverage as SC
     from scenarios.vcmm import prepare, study
     from core import vcmm as V
-    from sim.machinefile import resolve
+    from sim.machinefile import truth_machine
 
     grid = Grid.regular(-0.110, 0.110, 0.022)
     w, wn, ids, z = CP._plan_points(True, heights=True)
@@ -274,8 +273,7 @@ def crosspocket_comparison(seed: int = 1, nodes_mm=COMPARE_NODES_MM, vcmm_seed: 
     maps = {"campaign design, probing 1.38 um": u95_map(est1.covariance(CP.U_PROBE_M)),
             f"campaign design, residual sigma {res.sigma_m * 1e6:.3f} um": u95_map(est1.covariance(res.sigma_m)),
             "identification's covariance (sigma + model error)": u95_map(res.cov)}
-    spec = resolve(MACHINE)
-    spec = dataclasses.replace(spec, config=dataclasses.replace(spec.config, errors={}))
+    spec = truth_machine(MACHINE, "none")  # the best estimate before the state: no errors
     st = prepare(_node_plan(nodes_mm, z_ref * 1e3), V.loads_task(_node_task(nodes_mm)), spec, noise_um=0.0,
                  state=loads_estimate(res.to_report(), source=f"identify seed {seed}"))
     rep = study(st, vcmm_seed, budget=False)

@@ -162,17 +162,36 @@ def resolve(name_or_path: str) -> MachineSpec:
                            f"({', '.join(builtin_names())})")
 
 
-def truth_machine(name_or_path: str, errors: str | None = None) -> MachineSpec:
-    """The machine ``--machine NAME|FILE [--errors realistic|none]`` names, in every command.
+#: The error sets ``--errors`` names for a built-in machine (:func:`truth_machine`).
+ERROR_SETS = ("realistic", "study", "drawn", "none")
+
+
+def truth_machine(name_or_path: str, errors: str | None = None, default: str = "realistic") -> MachineSpec:
+    """The machine ``--machine NAME|FILE [--errors SET]`` names, in every command.
 
     One rule: a machine file is the machine it describes, with the errors it
     states (``errors`` is refused for it). A built-in NAME is its shipped file
-    with the truth errors ``errors`` picks: ``"realistic"`` when not given
-    (:func:`sim.machines.realistic_errors` over its strokes, the papers'
-    magnitudes, nominal set) or ``"none"`` (the file as shipped). A command's
-    default machine is a built-in name, so omitting ``--machine`` is naming it.
+    with the error set ``errors`` names, ``default`` when not given (each
+    command states its default in its help):
+
+    - ``"realistic"``: :func:`sim.machines.realistic_errors` over its strokes,
+      the papers' magnitudes, nominal set, with the 10 mm screw ripple;
+    - ``"study"``: the same set without the screw ripple (the MFB studies'
+      truth, errors their smooth models represent);
+    - ``"drawn"``: a ripple-free set with magnitudes and phases drawn with
+      seed 1 over the machine's X, Y, Z and C axes and the default
+      (Mikron-like) strokes (``realistic_errors(rng=default_rng(1),
+      ripple=False)``): the virtual machine behind the GRBL emulator
+      (``machine serve --scene``) and ``probe --controller virtual:SCENE``
+      since they were written;
+    - ``"none"``: the file as shipped (no errors).
+
+    A command's default machine is a built-in name, so omitting ``--machine``
+    is naming it.
     """
     from dataclasses import replace
+
+    import numpy as np
 
     from .machines import realistic_errors
 
@@ -182,14 +201,33 @@ def truth_machine(name_or_path: str, errors: str | None = None) -> MachineSpec:
             raise ConfigError(f"--errors: the machine file {name_or_path} states its errors "
                               "(errors = ..., [error.*])")
         return spec
-    if errors not in (None, "realistic", "none"):
-        raise ConfigError(f"--errors {errors!r}: expected realistic or none")
+    errors = default if errors is None else errors
+    if errors not in ERROR_SETS:
+        raise ConfigError(f"--errors {errors!r}: expected {', '.join(ERROR_SETS)}")
     if errors == "none":
         return replace(spec, errors="none", seed=None, overrides=())
     cfg = spec.config
     axes = tuple(a for a in "XYZABC" if a in cfg.strokes)
-    return replace(spec, config=replace(cfg, errors=realistic_errors(axes, strokes=cfg.strokes)),
-                   errors="realistic", seed=None, overrides=())
+    if errors == "drawn":
+        errs = realistic_errors(tuple(a for a in "XYZC" if a in cfg.strokes), rng=np.random.default_rng(1),
+                                ripple=False)
+        return replace(spec, config=replace(cfg, errors=errs), errors="drawn", seed=1, overrides=())
+    errs = realistic_errors(axes, strokes=cfg.strokes)
+    if errors == "study":
+        errs = {k: strip_ripple(v) for k, v in errs.items()}
+    return replace(spec, config=replace(cfg, errors=errs), errors=errors, seed=None, overrides=())
+
+
+def strip_ripple(f):
+    """``f`` without its screw-pitch ripple (the ``Periodic`` terms of a sum; a purely periodic error stays)."""
+    from .errorfuncs import Periodic, Sum
+
+    if isinstance(f, Sum):
+        terms = tuple(t for t in f.terms if not isinstance(t, Periodic))
+        if not terms:  # a rotary axis' periodic motion, not a screw ripple
+            return f
+        return terms[0] if len(terms) == 1 else Sum(terms)
+    return f
 
 
 def load(path) -> MachineSpec:

@@ -24,13 +24,19 @@ def run(args) -> int:
     from scenarios.bench import merge_documents, run_all, write_figures
     from scenarios.bench.table import update_readme
 
+    from core.exceptions import ConfigError
+
     if args.from_json is not None:
         if args.readme is None:
-            from core.exceptions import ConfigError
-
             raise ConfigError("--from-json only feeds --readme: give --readme FILE")
+        if args.merge or args.only:
+            raise ConfigError(f"--from-json runs nothing: {'--merge' if args.merge else '--only'} has no meaning "
+                              "with it")
         print(f"wrote {update_readme(args.readme, args.from_json)}")
         return 0
+    if args.only and args.readme is not None and not args.merge:
+        raise ConfigError("--only with --readme: the table would hold only the benchmarks run now; add --merge "
+                          "to keep the others' figures from --out")
     old = None
     if args.merge:
         from pathlib import Path
@@ -38,8 +44,6 @@ def run(args) -> int:
         from scenarios.bench.table import read_results
 
         if not Path(args.out).exists():
-            from core.exceptions import ConfigError
-
             raise ConfigError(f"--merge: {args.out} does not exist, so there are no figures to keep (a "
                               "fresh clone has none): run `vmt bench` without --merge (all benchmarks), or "
                               "--out the results file to merge into")

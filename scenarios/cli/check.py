@@ -11,7 +11,7 @@ _BARE = "\0bare"
 
 def register(sub) -> None:
     p = sub.add_parser("check", help="validate a probe-log/1 file and summarise it")
-    p.add_argument("log", nargs="?", help="probe-log/1 CSV file")
+    p.add_argument("log", metavar="LOG", nargs="?", help="probe-log/1 CSV file (required)")
     p.add_argument("--json", metavar="OUT", nargs="?", const=_BARE, default=None,
                    help="also write the summary as JSON to OUT ('-': print it instead of the text)")
     p.set_defaults(func=run)
@@ -24,6 +24,8 @@ def run(args) -> int:
 
     from core.exceptions import ConfigError
 
+    if args.log is None and args.json not in (None, "-", _BARE) and args.json.lower().endswith(".json"):
+        raise ConfigError(f"give the LOG to check (--json {args.json} is where the summary goes)")
     if args.json == _BARE or (args.log is None and args.json not in (None, "-")):
         # the old flag: `check LOG --json` (or `check --json LOG`, where argparse took LOG as --json's value)
         print("vmt: check --json with no file is renamed to --json - (print the JSON); --json FILE writes it",
@@ -32,7 +34,7 @@ def run(args) -> int:
             args.log = args.json
         args.json = "-"
     if args.log is None:
-        raise ConfigError("check: give the LOG to check")
+        raise ConfigError("give the LOG to check: vmt check LOG")
     log = read_probe_log(args.log)
     s = summary(log)
     if args.json == "-":

@@ -58,7 +58,17 @@ EXIT_PIPE = 141
 
 
 class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose usage errors are one line, ``vmt CMD: error: ...``, exit 2."""
+    """An argument parser whose usage errors are one line, ``vmt CMD: error: ...``, exit 2.
+
+    Options are never abbreviated (``allow_abbrev=False``, every command's
+    parser is this class): an old option name kept as a hidden alias would
+    otherwise make a prefix ambiguous, and a prefix could change meaning
+    when an option is added.
+    """
+
+    def __init__(self, *args, **kw):
+        kw.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kw)
 
     def error(self, message):  # noqa: D102 - argparse's hook
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")

@@ -1,7 +1,7 @@
 """``vmt machine show|serve|program``: a machine's definition, the virtual machine behind GRBL, LinuxCNC programs.
 
     vmt machine show NAME|FILE [--errors realistic|none]
-    vmt machine serve --port N [--host 127.0.0.1] [--pty] [--scene ARTEFACT [--machine NAME|FILE]]
+    vmt machine serve --port N [--host 127.0.0.1] [--pty] [--scene ARTEFACT [--machine NAME|FILE] [--errors SET]]
     vmt machine program --plan PLAN.csv --out PROBE.ngc (--limits-mm ... | --machine NAME|FILE)
 """
 
@@ -24,15 +24,17 @@ def _floats3(text: str, name: str):
 
 
 def register(sub) -> None:
-    from scenarios.cli.options import add_machine_args, add_noise_arg, add_settings_args, option
+    from scenarios.cli.options import ERRORS_HELP, add_machine_args, add_noise_arg, add_settings_args, option
 
     p = sub.add_parser("machine", help="show a machine; serve the virtual machine over GRBL; write LinuxCNC programs")
     msub = p.add_subparsers(dest="machine_command", metavar="ACTION")
     sh = msub.add_parser("show", help="print a machine's chain, strokes, errors and tip deviations")
     sh.add_argument("machine", metavar="NAME|FILE", help="a built-in machine or a machine file (TOML)")
-    sh.add_argument("--errors", choices=("realistic", "none"), default=None,
-                    help="truth errors of a built-in machine (default realistic: the papers' magnitudes); "
-                         "a machine file states its own")
+    from sim.machinefile import ERROR_SETS
+
+    sh.add_argument("--errors", choices=ERROR_SETS, default=None,
+                    help="the error set of a built-in machine (default realistic: the papers' magnitudes, the "
+                         f"set simulate uses); {ERRORS_HELP}; a machine file states its own")
     sh.set_defaults(func=run_show)
     s = msub.add_parser("serve", help="run a GRBL emulator of the virtual machine on localhost")
     s.add_argument("--port", type=int, required=True, help="TCP port (0: any free port)")
@@ -41,8 +43,10 @@ def register(sub) -> None:
     s.add_argument("--scene", default="simple",
                    help="simple (table + sphere, linear errors) or a simulated artefact on the virtual machine: "
                         "cross-pocket, pin-circle, freeform, mfb")
-    add_machine_args(s, default="nmv3000", what="the virtual machine under a simulated artefact (--scene)")
-    add_noise_arg(s, "default: the machine's probe; 0 on the simple scene")
+    add_machine_args(s, default="nmv3000", what="the virtual machine under a simulated artefact (--scene)",
+                     errors_default="drawn", errors_why="the emulator's machine, the same as probe --controller "
+                                                        "virtual:SCENE")
+    add_noise_arg(s, "default 0 on a built-in machine, as probe --controller virtual:SCENE; a machine file's probe")
     s.add_argument("--seed", type=int, default=0, help="seed of the noise (0)")
     s.add_argument("--scale-ppm", default="0,0,0", help="scale errors of X,Y,Z, µm/m (0,0,0)")
     s.add_argument("--ec0y-urad", type=float, default=0.0, help="squareness EC0Y, µrad (0)")
@@ -71,6 +75,32 @@ def register(sub) -> None:
     p.set_defaults(func=lambda a: (p.print_help(), 2)[1])
 
 
+def served_machine(args):
+    """The machine ``vmt machine serve`` puts behind the emulator (``--scene``, ``--machine``, ``--errors``).
+
+    On an artefact scene: the built-in ``--machine`` (nmv3000) with the error
+    set ``drawn`` and no probing noise unless ``--errors``/``--noise-um`` say
+    otherwise, the machine ``probe --controller virtual:SCENE`` probes; a
+    machine file with its errors and its probe.
+    """
+    from core.exceptions import ConfigError
+    from hardware.virtual import builtin_machine, sim_machine
+    from scenarios.cli.options import machine_spec
+    from sim.machinefile import builtin_names
+
+    if args.scene == "simple":
+        for opt, v in (("--machine", args.machine), ("--errors", args.errors)):
+            if v is not None:
+                raise ConfigError(f"{opt}: the simple scene has its own errors (--scale-ppm, --ec0y-urad); "
+                                  "give --scene ARTEFACT to probe an artefact on a machine")
+        return builtin_machine(args.noise_um or 0.0, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
+                               args.ec0y_urad)
+    name = args.machine or "nmv3000"
+    spec = machine_spec(name, args.errors, "drawn")
+    noise = args.noise_um if args.noise_um is not None else (0.0 if name in builtin_names() else None)
+    return sim_machine(args.scene, noise, args.seed, spec=spec)
+
+
 def run_serve(args) -> int:
     from core.exceptions import ConfigError
     from hardware.campaign import parse_limits
@@ -78,19 +108,10 @@ def run_serve(args) -> int:
 
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port {args.port}: not a TCP port")
-    from hardware.virtual import builtin_machine, sim_machine
-    from scenarios.cli.options import machine_spec
-
-    if args.scene == "simple":
-        for opt, v in (("--machine", args.machine), ("--errors", args.errors)):
-            if v is not None:
-                raise ConfigError(f"{opt}: the simple scene has its own errors (--scale-ppm, --ec0y-urad); "
-                                  "give --scene ARTEFACT to probe an artefact on a machine")
-        machine = builtin_machine(args.noise_um or 0.0, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
-                                  args.ec0y_urad)
-    else:
-        spec = machine_spec(args.machine or "nmv3000", args.errors)
-        machine = sim_machine(args.scene, args.noise_um, args.seed, spec=spec)
+    for opt, v in (("--idle-timeout-s", args.idle_timeout), ("--stop-after-s", args.max_seconds)):
+        if v is not None and not v > 0:
+            raise ConfigError(f"{opt} must be > 0, got {v:g}")
+    machine = served_machine(args)
     axes = args.axes or "XYZ" + "".join(a for a in "ABC" if a in getattr(machine, "rotary_axes", ()))
     config = ControllerConfig(axes=axes, home=_floats3(args.home, "--home-mm"), homing=args.homing,
                               travel=parse_limits(args.limits) if args.limits else None)

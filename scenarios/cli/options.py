@@ -96,25 +96,38 @@ def add_noise_arg(p, default_text: str, *, old: tuple[str, ...] = (), default=No
            help=f"probing noise, a standard deviation (k=1) along the approach, um ({default_text})")
 
 
-def add_machine_args(p, *, default: str | None, what: str, errors: bool = True, required: bool = False) -> None:
-    """``--machine NAME|FILE`` (and ``--errors``): the same machine and truth errors in every command.
+#: What each error set ``--errors`` names is (:func:`sim.machinefile.truth_machine`), for the help texts.
+ERRORS_HELP = ("realistic: the papers' magnitudes with the screw ripple; study: the same without the ripple; "
+               "drawn: a ripple-free set drawn with seed 1; none: the file as shipped")
+
+
+def add_machine_args(p, *, default: str | None, what: str, errors: bool = True, required: bool = False,
+                     errors_default: str = "realistic", errors_why: str = "") -> None:
+    """``--machine NAME|FILE`` (and ``--errors``): the same machine and error set in every command.
 
     ``default``: the built-in name used when ``--machine`` is omitted (None: the command needs none).
+    ``errors_default``: the error set of a built-in machine when ``--errors`` is omitted; ``--errors``
+    means the same in every command (the error set of the machine the command runs on), only its
+    default follows the command's meaning, said in words by ``errors_why``.
     """
+    from sim.machinefile import ERROR_SETS
+
     d = f" (default {default})" if default else ""
     p.add_argument("--machine", default=None, metavar="NAME|FILE", required=required,
                    help=f"{what}: a built-in machine name or a machine file (TOML, README 'Your own machine'){d}")
     if errors:
-        p.add_argument("--errors", choices=("realistic", "none"), default=None,
-                       help="truth errors of a built-in machine (default realistic: the papers' magnitudes); "
-                            "a machine file states its own")
+        why = f": {errors_why}" if errors_why else ""
+        p.add_argument("--errors", choices=ERROR_SETS, default=None,
+                       help=f"the error set of a built-in machine (default {errors_default}{why}); "
+                            f"{ERRORS_HELP}; a machine file states its own")
+        p.set_defaults(errors_default=errors_default)
 
 
-def machine_spec(name: str, errors: str | None = None):
+def machine_spec(name: str, errors: str | None = None, default: str = "realistic"):
     """``--machine NAME|FILE --errors E``: :func:`sim.machinefile.truth_machine` (the one rule, stated there)."""
     from sim.machinefile import truth_machine
 
-    return truth_machine(name, errors)
+    return truth_machine(name, errors, default)
 
 
 def errors_text(name: str, spec) -> str:

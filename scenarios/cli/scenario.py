@@ -20,9 +20,9 @@ def _mfb(args) -> int:
 
         own = PLANS[args.name]().machine
         name = args.machine or own
-        if name != own or (args.errors or "realistic") != "realistic":
-            spec = machine_spec(name, args.errors)
-        # else naming the plan's machine (with realistic errors) is omitting it: the study's own truth machine
+        if name != own or (args.errors or "study") != "study":
+            spec = machine_spec(name, args.errors, "study")
+        # else naming the plan's machine (error set study) is omitting it: the study's own truth machine
     kw = dict(seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc, machine=spec)
     if args.bar_calibration:
         from scenarios.mfb import read_bar_calibration
@@ -186,7 +186,9 @@ def register(sub) -> None:
 
     add_noise_arg(p, "default: mfb 0.125, the MFB paper's 0.25 um at k=2; pin-circle 0.9; 0 = noise-free")
     add_machine_args(p, default=None, what="mfb scenarios: the truth machine, its chain the plan's (default: the "
-                                            "plan's machine, with the study's realistic errors)")
+                                            "plan's machine)",
+                     errors_default="study", errors_why="the MFB studies' truth: the realistic set without the "
+                                                        "screw ripple, which their smooth models represent")
     p.add_argument("--comp", default=None, metavar="DIR",
                    help="mfb scenarios: write the LinuxCNC per-axis compensation files and the vmt JSON tables here")
     p.add_argument("--apply-comp", default=None, metavar="DIR", dest="apply_comp",

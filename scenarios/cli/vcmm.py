@@ -18,7 +18,9 @@ def register(sub) -> None:
     p.add_argument("plan", metavar="PLAN", help="probe-log/1 plan (or log: its nominal columns are used)")
     from scenarios.cli.options import add_machine_args, add_noise_arg
 
-    add_machine_args(p, default=None, required=True, what="the machine, its errors the best estimate")
+    add_machine_args(p, default=None, required=True, what="the machine, its errors your best estimate",
+                     errors_default="none", errors_why="best-estimate errors: a built-in machine's as its file "
+                                                       "states them, none; name a set to take it as your estimate")
     p.add_argument("--task", required=True, metavar="TASK.toml", help="features, measurands, declared limits")
     p.add_argument("--json", required=True, metavar="OUT", help="result to write (JSON, atomically)")
     p.add_argument("--report", help="folder for a readable report (index.html, the budget chart)")
@@ -62,7 +64,7 @@ def run(args) -> int:
         task = dataclasses.replace(task, mc=dataclasses.replace(task.mc, tolerance=args.tol_um * 1e-6))
     if args.sobol_runs < 0 or args.sobol_runs == 1:
         raise ConfigError(f"--sobol-runs must be 0 or >= 2, got {args.sobol_runs}")
-    spec = machine_spec(args.machine, args.errors)
+    spec = machine_spec(args.machine, args.errors, "none")
     plan = read_probe_log(args.plan)
     state = None
     if args.machine_state is not None:

@@ -27,6 +27,7 @@ from scenarios.hidden import gauge_free_rms_m
 from sim import artefacts as A
 from sim.campaign import simulate_campaign
 from sim.machine import Machine
+from sim.machines import MACHINES, realistic_errors
 from sim.probe import ProbeConfig
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -55,8 +56,7 @@ def test_readme_hardware_commands_as_written(tmp_path, monkeypatch, capsys):
     plan_cmd, serve_cmd, probe_cmd = readme_hardware_commands()
     assert "--safe-z-mm" in probe_cmd and "--rotary" in probe_cmd and "--scene cross-pocket" in serve_cmd
     port = str(_free_port())
-    # noise-free (the README's line takes the nmv3000's probe), so the served log compares touch for touch
-    serve = [port if a == "5000" else a for a in shlex.split(serve_cmd)[1:]] + ["--noise-um", "0"]
+    serve = [port if a == "5000" else a for a in shlex.split(serve_cmd)[1:]]
     probe = [a.replace(":5000", f":{port}") for a in shlex.split(probe_cmd)[1:]]
     monkeypatch.chdir(tmp_path)
     assert main(shlex.split(plan_cmd)[1:]) == 0
@@ -99,11 +99,11 @@ def test_readme_hardware_commands_as_written(tmp_path, monkeypatch, capsys):
     log = read_probe_log(tmp_path / probe[probe.index("--out") + 1])   # the log the README's line names
     assert log.n == plan.n == 368 and log.ok.all()
 
-    # the same campaign simulated directly on the same machine (serve --scene cross-pocket: the
-    # nmv3000 as --machine nmv3000 names it, its realistic errors; no probing noise)
-    from scenarios.cli.options import machine_spec
-
-    machine = Machine(machine_spec("nmv3000").config)
+    # the same campaign simulated directly on the same machine (serve --scene cross-pocket:
+    # nmv3000, realistic errors of seed 1 without the ripple, no probing noise), built here
+    # as it was before --errors named it "drawn"
+    machine = Machine(MACHINES["nmv3000"](errors=realistic_errors(
+        ("X", "Y", "Z", "C"), rng=np.random.default_rng(1), ripple=False)))
     angles = sorted(set(plan.col("C_deg")))
     direct = simulate_campaign(A.cross_pocket(), machine, ProbeConfig(repeatability_k2_m=0.0), angles,
                                np.random.default_rng(0))

@@ -7,10 +7,11 @@ option that breaks the rule fails here, not in a user's script.
 import argparse
 import re
 
+import numpy as np
 import pytest
 
 from scenarios.cli import build_parser, main
-from scenarios.cli.options import UNIT_SUFFIXES
+from scenarios.cli.options import UNIT_SUFFIXES, Renamed
 
 #: The unit a help text states (``..., mm (2)``, ``..., µm/h``) -> the suffixes its option name may end with.
 UNIT_NAMES = {"mm": ("-mm",), "mm/min": ("-mm-min",), "um": ("-um",), "µm": ("-um",),
@@ -34,6 +35,12 @@ RENAMED = [
     (["probe"], "--overtravel", "1", "--overtravel-mm"),
     (["probe"], "--safe-z", "80", "--safe-z-mm"),
     (["machine", "program"], "--limits", "X0:1,Y0:1,Z0:1", "--limits-mm"),
+    (["machine", "program"], "--feed", "50", "--feed-mm-min"),
+    (["machine", "program"], "--move-feed", "500", "--move-feed-mm-min"),
+    (["machine", "program"], "--max-feed", "900", "--max-feed-mm-min"),
+    (["machine", "program"], "--clearance", "1", "--clearance-mm"),
+    (["machine", "program"], "--overtravel", "1", "--overtravel-mm"),
+    (["machine", "program"], "--safe-z", "80", "--safe-z-mm"),
     (["machine", "serve"], "--home", "0,0,10", "--home-mm"),
     (["machine", "serve"], "--limits", "X0:1,Y0:1,Z0:1", "--limits-mm"),
     (["machine", "serve"], "--idle-timeout", "9", "--idle-timeout-s"),
@@ -65,11 +72,11 @@ def _walk(p, path=("vmt",)):
             yield path, a
 
 
-def _options():
-    """{--name: [(command, action)]} of every visible long option of every command."""
+def _options(parser=None, hidden: bool = False):
+    """{--name: [(command, action)]} of every long option of every command (``hidden``: the old aliases too)."""
     out = {}
-    for path, a in _walk(build_parser()):
-        if a.help == argparse.SUPPRESS:
+    for path, a in _walk(build_parser() if parser is None else parser):
+        if a.help == argparse.SUPPRESS and not (hidden and isinstance(a, Renamed)):
             continue
         for o in a.option_strings:
             if o.startswith("--") and o not in ("--help", "--version"):
@@ -82,36 +89,95 @@ def _unit(help_text: str) -> str | None:
     return m.group(1) if m else None
 
 
-def test_each_option_name_has_one_meaning_across_commands():
-    opts = _options()
-    assert len(opts) > 80                                  # the walk reached the sub-commands
-    bad = []
-    for name, uses in opts.items():
-        kinds = {(type(a).__name__, getattr(a.type, "__name__", a.type)) for _c, a in uses}
-        units = {_unit(a.help) for _c, a in uses}
-        if len(kinds) > 1 or len(units) > 1:
-            bad.append(f"{name}: {[(c, type(a).__name__, _unit(a.help)) for c, a in uses]}")
-    assert not bad, "\n".join(bad)
+def _meaning(a, actions) -> tuple:
+    """What an option means: flag or value, type, choices, unit and name (an old alias: its new option's)."""
+    if isinstance(a, Renamed):
+        a = next(n for n in actions if a.new in n.option_strings)
+    return (a.nargs == 0, getattr(a.type, "__name__", a.type), tuple(a.choices or ()), _unit(a.help),
+            a.option_strings[0])
 
 
-def test_a_quantity_carries_its_unit_in_its_name():
+def meaning_problems(parser=None, hidden: bool = True) -> list:
+    """Option names used with two meanings across the commands of ``parser`` (default: vmt's)."""
+    parser = build_parser() if parser is None else parser
+    acts = {}
+    for path, a in _walk(parser):
+        acts.setdefault(" ".join(path), []).append(a)
     bad = []
-    for name, uses in _options().items():
+    for name, uses in _options(parser, hidden).items():
+        meanings = {_meaning(a, acts[c]) for c, a in uses}
+        if len(meanings) > 1:
+            bad.append(f"{name}: {sorted((c, *map(str, _meaning(a, acts[c]))) for c, a in uses)}")
+    return bad
+
+
+def unit_problems(parser=None) -> list:
+    """Options of ``parser`` (default: vmt's) whose help states a unit their name lacks, or numbers without one."""
+    bad = []
+    for name, uses in _options(parser).items():
         for command, a in uses:
             unit = _unit(a.help)
             if unit is not None and not name.endswith(UNIT_NAMES[unit]):
                 bad.append(f"{command} {name}: help says {unit!r}, the name does not end with {UNIT_NAMES[unit]}")
             if a.type is float and name not in DIMENSIONLESS and not name.endswith(UNIT_SUFFIXES):
                 bad.append(f"{command} {name}: a number without a unit suffix {UNIT_SUFFIXES}")
+    return bad
+
+
+#: Old names kept as aliases whose old meaning differs from the same name's meaning elsewhere (they work,
+#: print their new name, and go when the aliases go); any other name with two meanings fails the walk.
+OLD_MEANINGS = {"--out", "--machine", "--home", "--grid-mm"}
+
+
+def test_each_option_name_has_one_meaning_across_commands():
+    assert len(_options()) > 80                                  # the walk reached the sub-commands
+    visible = meaning_problems(hidden=False)
+    assert not visible, "\n".join(visible)
+    both = meaning_problems(hidden=True)
+    assert {b.split(":")[0] for b in both} == OLD_MEANINGS, "\n".join(both)
+
+
+def test_a_quantity_carries_its_unit_in_its_name():
+    bad = unit_problems()
     assert not bad, "\n".join(bad)
 
 
-def test_the_rule_catches_a_unitless_quantity():
-    """The checks above can fail: an option like the old ``--feed`` is caught."""
-    p = argparse.ArgumentParser()
-    a = p.add_argument("--feed", type=float, help="probing feed, mm/min (100)")
-    assert _unit(a.help) == "mm/min" and not "--feed".endswith(UNIT_NAMES["mm/min"] + UNIT_SUFFIXES)
-    assert _unit("longest wait, s (60)") == "s" and _unit("seed of the draws (0); same seed") is None
+def _fabricated():
+    from scenarios.cli.guard import OneLineParser
+    from scenarios.cli.options import option
+
+    p = OneLineParser(prog="x")
+    sub = p.add_subparsers()
+    a, b = sub.add_parser("a"), sub.add_parser("b")
+    a.add_argument("--depth-mm", type=float, help="depth, mm (1)")
+    b.add_argument("--depth-mm", type=float, help="depth, mm (1)")
+    option(b, "--wait-s", dest="wait", type=float, old=("--wait",), help="wait, s (1)")
+    return p, a, b
+
+
+def test_the_walk_fails_on_a_unitless_quantity():
+    """The unit check itself, on a made-up parser: clean, then with an option like the old ``--feed``."""
+    p, a, _b = _fabricated()
+    assert unit_problems(p) == []
+    a.add_argument("--feed", type=float, help="probing feed, mm/min (100)")
+    bad = unit_problems(p)
+    assert len(bad) == 2 and all("--feed" in x for x in bad), bad       # unit in the help, and a bare number
+    q, a2, _ = _fabricated()
+    a2.add_argument("--ratio", type=float, help="a ratio (1)")          # a number, no unit named
+    assert unit_problems(q) == ["vmt a --ratio: a number without a unit suffix " + str(UNIT_SUFFIXES)]
+
+
+def test_the_walk_fails_on_a_name_with_two_meanings():
+    """The meaning check itself, on a made-up parser: two visible meanings, then a hidden alias's."""
+    p, a, b = _fabricated()
+    assert meaning_problems(p) == []
+    a.add_argument("--mode", choices=("x", "y"))
+    b.add_argument("--mode", choices=("x", "z"))
+    assert [x.split(":")[0] for x in meaning_problems(p)] == ["--mode"]
+    q, a, b = _fabricated()
+    a.add_argument("--wait", action="store_true", help="wait for the machine")   # b's old --wait is a number
+    assert meaning_problems(q, hidden=False) == []
+    assert [x.split(":")[0] for x in meaning_problems(q)] == ["--wait"]
 
 
 @pytest.mark.parametrize("words, old, value, new", RENAMED, ids=[f"{' '.join(r[0][:1])}{r[1]}" for r in RENAMED])
@@ -176,15 +242,147 @@ def test_simulate_positioning_noise_is_now_scatter(tmp_path, capsys):
     assert main(["simulate", "positioning", "--out", str(b), "--noise-um", "0.3", "--scatter-um", "0.3"]) == 2
 
 
-def test_naming_the_default_machine_is_omitting_it():
-    """One rule: a built-in name carries realistic errors unless --errors none, whichever command reads it."""
-    from scenarios.cli.options import machine_spec
-    from sim.machinefile import resolve
+def test_naming_the_default_machine_is_omitting_it(tmp_path, capsys):
+    """A command run with and without its default --machine (and default --errors) writes the same bytes."""
+    outs = {}
+    for tag, extra in (("omitted", []), ("named", ["--machine", "vmc-3axis"]),
+                       ("both", ["--machine", "vmc-3axis", "--errors", "realistic"]),
+                       ("other", ["--machine", "vmc-3axis", "--errors", "none"])):
+        out = tmp_path / f"{tag}.csv"
+        assert main(["simulate", "positioning", "--targets", "5", "--cycles", "2", "--out", str(out), *extra]) == 0
+        outs[tag] = out.read_bytes()
+    capsys.readouterr()
+    assert outs["omitted"] == outs["named"] == outs["both"] != outs["other"]
 
-    real, none = machine_spec("nmv3000"), machine_spec("nmv3000", "none")
-    assert real.errors == "realistic" and real.config.errors and not none.config.errors
-    assert machine_spec("nmv3000", "realistic").config.errors.keys() == real.config.errors.keys()
-    assert none.config.chain == real.config.chain == resolve("nmv3000").config.chain
+
+def test_simulate_an_artefact_on_its_named_default_machine_is_the_same(tmp_path, capsys):
+    from sim.catalog import CATALOG
+
+    base = ["simulate", "cross-pocket", "--c-angles-deg", "0", "--no-collision-check"]
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert main([*base, "--out", str(a)]) == 0
+    assert main([*base, "--out", str(b), "--machine", CATALOG["cross-pocket"].default_machine]) == 0
+    capsys.readouterr()
+    assert a.read_bytes() == b.read_bytes()
+
+
+def _serve_args(*extra):
+    from scenarios.cli import build_parser
+
+    return build_parser().parse_args(["machine", "serve", "--port", "0", "--scene", "cross-pocket", *extra])
+
+
+def _touches(machine):
+    """Touches of a few probing moves on the pocket (rotary C at 0 and 75 deg), m."""
+    rot = [None, np.array([0.0, 0.0, np.deg2rad(75.0)])]
+    out = []
+    for y in (-0.009, 0.0, 0.009):
+        for r in rot:
+            hit, p = machine.probe_move(np.array([0.08, y, 0.027]), np.array([0.11, y, 0.027]), r)
+            assert hit
+            out.append(p)
+    return np.array(out)
+
+
+def test_serve_and_virtual_scene_are_one_machine_with_the_old_truth():
+    """machine serve --scene X and probe --controller virtual:X: one machine, no noise, the old 'drawn' truth."""
+    from hardware.virtual import open_backend
+    from scenarios.cli.machine import served_machine
+    from sim.machinefile import truth_machine
+    from sim.machines import MACHINES, realistic_errors
+
+    virt = _touches(open_backend("virtual:cross-pocket").machine)
+    for extra in ((), ("--machine", "nmv3000"), ("--errors", "drawn"), ("--noise-um", "0")):
+        assert np.array_equal(_touches(served_machine(_serve_args(*extra))), virt), extra
+    noisy = _touches(served_machine(_serve_args("--noise-um", "0.5")))
+    assert not np.array_equal(noisy, virt)
+    realistic = _touches(served_machine(_serve_args("--errors", "realistic")))
+    assert np.abs(realistic - virt).max() > 1e-6                        # another truth, micrometres away
+    old = MACHINES["nmv3000"](errors=realistic_errors(("X", "Y", "Z", "C"), rng=np.random.default_rng(1),
+                                                      ripple=False))
+    drawn = truth_machine("nmv3000", "drawn").config
+    assert drawn.errors.keys() == old.errors.keys()
+    for k in old.errors:
+        for x in (-0.1, 0.0, 0.07, 1.0):
+            assert drawn.errors[k](x) == old.errors[k](x), k
+
+
+def test_scenario_names_its_default_machine_and_errors_as_omitting_them(monkeypatch, capsys):
+    """scenario mfb-3axis: --machine vmc-3axis (the plan's) and --errors study are the study's own truth."""
+    import scenarios.mfb as M
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def fake_run(name, **kw):
+        seen.append(kw["machine"])
+        raise Stop
+
+    monkeypatch.setattr(M, "run", fake_run)
+    assert M.PLANS["mfb-3axis"]().machine == "vmc-3axis"
+    for extra in ([], ["--machine", "vmc-3axis"], ["--errors", "study"], ["--machine", "vmc-3axis", "--errors", "study"],
+                  ["--errors", "none"], ["--errors", "realistic"]):
+        with pytest.raises(Stop):
+            main(["scenario", "mfb-3axis", *extra])
+    assert seen[:4] == [None] * 4                                      # the study's own truth machine
+    assert seen[4].errors == "none" and not seen[4].config.errors       # the file as shipped (before the merge)
+    assert seen[5].errors == "realistic" and seen[5].config.errors
+
+
+def test_errors_means_one_set_everywhere():
+    """study is the realistic set without its ripple, the MFB studies' truth; none is the shipped file."""
+    from scenarios.mfb import default_machine
+    from sim.machinefile import resolve, truth_machine
+
+    study, real = truth_machine("vmc-3axis", "study").config, truth_machine("vmc-3axis", "realistic").config
+    _cfg, own = default_machine("vmc-3axis")
+    assert study.errors.keys() == own.keys() == real.errors.keys()
+    for k in own:
+        for x in (-0.2, 0.013, 0.3):
+            assert study.errors[k](x) == own[k](x), k
+    assert any(study.errors[k](0.013) != real.errors[k](0.013) for k in own)   # the ripple
+    assert truth_machine("vmc-3axis", "none") == resolve("vmc-3axis")
+    with pytest.raises(Exception, match="expected realistic, study, drawn, none"):
+        truth_machine("vmc-3axis", "nominal")
+
+
+def test_vcmm_errors_default_is_the_shipped_file(tmp_path, capsys):
+    """vcmm: a built-in machine's best-estimate errors are its file's (none), as --errors none names them."""
+    from scenarios.cli.options import machine_spec
+
+    assert machine_spec("vmc-3axis", None, "none") == machine_spec("vmc-3axis", "none")
+    p = build_parser()
+    args = p.parse_args(["vcmm", "plan.csv", "--machine", "vmc-3axis", "--task", "t.toml", "--json", "o.json"])
+    assert args.errors is None and args.errors_default == "none"
+    assert "best-estimate errors" in " ".join(a.help for a in p._subparsers._group_actions[0].choices["vcmm"]._actions
+                                              if a.dest == "errors")
+
+
+def test_no_option_is_abbreviated(capsys):
+    """A prefix of an option is refused (allow_abbrev=False on every parser): no ambiguity with old aliases."""
+    base = ["probe", "--controller", "virtual:", "--plan", "p.csv", "--out", "o.csv"]
+    p = build_parser()
+    assert p.parse_args([*base, "--safe-z-mm", "80"]).safe_z == 80.0           # the full new name
+    assert p.parse_args([*base, "--safe-z", "80"]).safe_z == 80.0              # the full old name
+    capsys.readouterr()
+    for prefix in ("--safe", "--safe-z-m", "--contr"):
+        with pytest.raises(SystemExit) as e:
+            p.parse_args([*base, prefix, "80"])
+        assert e.value.code == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "unrecognized arguments" in err and "ambiguous" not in err, err
+    every = list(_parsers(p))
+    assert len(every) > 20 and not any(sp.allow_abbrev for sp in every)
+
+
+def _parsers(p):
+    yield p
+    for a in p._actions:
+        if isinstance(a, argparse._SubParsersAction):
+            for sp in a.choices.values():
+                yield from _parsers(sp)
 
 
 def test_machine_show_and_simulate_agree_on_a_built_in(tmp_path, capsys):
@@ -251,3 +449,57 @@ def test_report_paths_have_no_double_slash(tmp_path, capsys):
                 "--report", str(tmp_path / "s-report") + "/"]) == 0
     out = capsys.readouterr().out
     assert "s-report/index.html" in out and "//" not in out
+
+
+def test_check_without_a_log_says_so_once(tmp_path, capsys):
+    """No LOG: one line, 'check' not doubled; a JSON file given to --json is not read as the log."""
+    out = tmp_path / "s.json"
+    out.write_text("{}")
+    for argv in (["check"], ["check", "--json", str(out)]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "give the LOG to check" in err and "check: check" not in err \
+            and "error: check:" not in err, err
+    assert out.read_text() == "{}"
+
+
+def test_negative_waits_are_refused(tmp_path, capsys):
+    plan = tmp_path / "plan.csv"
+    assert main(["simulate", "cross-pocket", "--plan-only", "--no-collision-check", "--out", str(plan)]) == 0
+    for argv, opt in ((["machine", "serve", "--port", "0", "--idle-timeout-s", "-1"], "--idle-timeout-s"),
+                      (["machine", "serve", "--port", "0", "--stop-after-s", "0"], "--stop-after-s"),
+                      (["probe", "--controller", "virtual:cross-pocket", "--plan", str(plan), "--out",
+                        str(tmp_path / "log.csv"), "--limits-mm", "X-250:250,Y-250:250,Z-100:200",
+                        "--timeout-s", "-5"], "--timeout-s")):
+        capsys.readouterr()
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{opt} must be > 0" in err, err
+    assert not (tmp_path / "log.csv").exists()
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--from-json", "r.json", "--readme", "R.md", "--merge"], "--merge has no meaning"),
+    (["--from-json", "r.json", "--readme", "R.md", "--only", "x"], "--only has no meaning"),
+    (["--only", "bench_discover", "--readme", "R.md"], "add --merge"),
+])
+def test_bench_refuses_a_table_from_part_of_the_benchmarks(tmp_path, monkeypatch, capsys, argv, says):
+    import scenarios.bench as B
+
+    ran = []
+    monkeypatch.setattr(B, "run_all", lambda *a, **k: ran.append(1))
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "R.md").write_text("x\n<!-- bench-table -->\nrow\n<!-- /bench-table -->\n")
+    assert main(["bench", "--out", str(tmp_path / "o.json"), *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and says in err, err
+    assert not ran and "row" in (tmp_path / "R.md").read_text()
+
+
+def test_every_old_alias_is_exercised():
+    """RENAMED (the aliases the test above runs) lists every hidden old name of every command."""
+    listed = {(r[0][0] if r[0][0] != "machine" else "machine " + r[0][1], r[1]) for r in RENAMED}
+    found = {(" ".join(path[1:]), o) for path, a in _walk(build_parser()) if isinstance(a, Renamed)
+             for o in a.option_strings}
+    assert found - listed == set(), sorted(found - listed)
+    assert listed - found == set(), sorted(listed - found)
