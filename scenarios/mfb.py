@@ -540,27 +540,17 @@ def _bar_doc(E_cal_m, u_cal_m, E_true_m, source: str, cal_map=None) -> dict:
                      "each set-up's pose)"}
 
 
-def _strip_ripple(f):
-    from sim.errorfuncs import Periodic, Sum
-
-    if isinstance(f, Sum):
-        terms = tuple(t for t in f.terms if not isinstance(t, Periodic))
-        if not terms:  # a rotary axis' periodic motion, not a screw ripple
-            return f
-        return terms[0] if len(terms) == 1 else Sum(terms)
-    return f
-
-
 def default_machine(name: str, ripple: bool = False, J_m=(0.0, 0.0, 0.150)):
     """The realistic truth machine of a scenario (sim), ripple removed unless asked."""
     from sim.machine import Machine
+    from sim.machinefile import strip_ripple
     from sim.machines import MACHINES, realistic_errors
 
     cfg = MACHINES[name]()
     axes = tuple(a for a in ("X", "Y", "Z", "A", "C") if a in cfg.strokes)
     errs = realistic_errors(axes, strokes=cfg.strokes)
     if not ripple:
-        errs = {k: _strip_ripple(v) for k, v in errs.items()}
+        errs = {k: strip_ripple(v) for k, v in errs.items()}
     return MACHINES[name](errors=errs, J_m=J_m), errs
 
 
