@@ -828,3 +828,54 @@ def test_an_artefact_without_solids_has_an_empty_pose_stack():
 
     art = dataclasses.replace(A.multi_feature_bar(deviations_m=np.zeros((12, 3))), solids=())
     assert _solid_pose_stack(art).shape == (0, 4, 4)
+
+
+def test_no_sample_the_one_pass_check_skips_collides():
+    """Soundness of the one-pass broad phase (certificates reused between measurements): every sample it skips
+    is clear in MuJoCo. Seven measurements in four orientations, each beside a subset of its holes (so the
+    second's moves are cleared from the first's certificates), a finger on two; checked twice (the second
+    pass from certificates only). The check can fail: MuJoCo sees a tip sunk in the bar."""
+    from sim import mfb_scene
+    from sim.mfb_scene import _near_samples, _paths_of, _work_zone, link_points
+
+    rng = np.random.default_rng(11)
+    items = []
+    for k, (a_deg, c_deg) in enumerate([(0, 0), (0, 90), (-90, 0), (-60, 30)]):
+        holes = tuple(sorted(rng.choice(np.arange(1, 13), size=3, replace=False).tolist()))
+        fin = 0.040 if k % 2 else 0.0
+        items.append((np.asarray(FLAT, float), np.asarray(_T_R_W(a_deg, c_deg), float), (), (0, 0, 0.150),
+                      _holes(*holes), fin))
+        items.append((items[-1][0], items[-1][1], (), (0, 0, 0.150), _holes(*holes[:1]), fin))
+    items = items[:7]
+    mfb_scene._ZONES.clear()
+    mfb_scene._BALLS.clear()
+    ms = [(f"m{i}", a, b, tuple(c), d, p, float(f)) for i, (a, b, c, d, p, f) in enumerate(items)]
+    mfb_scene.share_ball_model(BAR, [(m[1], m[3], m[4], m[6]) for m in ms], R)
+    top = float(mfb_scene.artefact_points(BAR)[:, 2].max()) + R
+    zones, paths = [], []
+    for _, T_W_A, T_R_W, blocks, J, plan, fin in ms:
+        T_R_A = T_R_W @ T_W_A
+        zones.append(_work_zone(BAR, T_W_A, blocks, J, R, fin))
+        Xn = A.apply_T(T_R_A, plan.w_A + R * plan.wn_A)
+        start = Xn + plan.clearance_m * A.apply_R(T_R_A, plan.wn_A)
+        L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
+        paths.append((start, Xn, L, cnt, plan))
+    live = list(range(len(ms)))
+    sgs = _paths_of(paths, 3e-3, 0.5e-3)
+    skipped = 0
+    for _ in range(2):
+        near = _near_samples(ms, zones, live, sgs)
+        for i in live:
+            wz = zones[i]
+            wz.set_table(ms[i][2])
+            sg, _, allow, _ = sgs[i]
+            skip = np.setdiff1d(np.arange(sg.n_samples), near[i])
+            skipped += skip.size
+            pts, which = sg.points(skip), sg.path[sg.segment_of(skip)]
+            hit = [k for k in range(skip.size) if wz.collisions(pts[k], allow[which[k]])]
+            assert not hit, f"measurement {i}: skipped samples collide: {pts[hit[:3]]}"
+    assert skipped > 1000  # the broad phase skipped most samples: the check above tested something
+    wz = zones[0]
+    wz.set_table(ms[0][2])
+    inside = A.apply_T(ms[0][2] @ ms[0][1], mfb_scene.artefact_points(BAR)[:1] - np.array([0.0, 0.0, 0.01]))
+    assert wz.collisions(inside[0])  # a tip 10 mm inside the bar's material collides
