@@ -442,6 +442,9 @@ PLANS = {"mfb-3axis": plan_3axis, "mfb-5axis": plan_5axis}
 #: 0.2 mm along x_A, y_A, 0.1 mm along z_A; 0.5 mrad roll and pitch, 1 mrad yaw.
 U_PLACE = (0.2e-3, 0.2e-3, 0.1e-3, 0.5e-3, 0.5e-3, 1.0e-3)
 
+#: Default declared calibration uncertainty of the bar's 12 points (standard, um): x_A, y_A, z_A.
+U_CAL_UM = (0.2, 0.35, 0.35)
+
 
 #: Thermal expansion of the machine's scales (steel ball screws and their encoders, cast
 #: iron frame; not Invar), 1/degC: an assumption of the budget, the paper gives none.
@@ -931,7 +934,7 @@ def simulation_items(plan, art, probe, cfg_true, program: dict, machines: dict, 
 
 def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None, mc_runs: int = 500,
         exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
-        u_cal_um: tuple = (0.2, 0.35, 0.35), bar_cal_error: bool = True,
+        u_cal_um: tuple = U_CAL_UM, bar_cal_error: bool = True,
         u_place: tuple = U_PLACE, machine=None, compensate=None, bar_seed: int | None = None,
         u_stylus_um: float = 0.0, bar_temperature_C: float = 20.0, hook=None, progress=None,
         bar_calibration=None, bar_true_m=None, draw_inputs: bool | None = None, lobing_m: tuple = (),

@@ -60,7 +60,7 @@ def model_all_within(study, seed: int = 1, draws: int = 200_000) -> dict:
     from scenarios import mfb
 
     r = mfb.run(study.identification, seed=seed, noise_um=study.noise_um, mc_runs=0, machine=study.machine)
-    u_cal = np.tile(np.asarray((0.2, 0.35, 0.35)) * 1e-6, (12, 1))  # run's default declared calibration
+    u_cal = np.tile(np.asarray(mfb.U_CAL_UM) * 1e-6, (12, 1))  # run's default declared calibration
     cov = vol.covariance(r.result, r.meas, study.noise_um * 1e-6, u_cal, np.asarray(mfb.U_PLACE, float),
                          cal_map=cmfb.calibration_map())
     d = r.result.design

@@ -30,7 +30,7 @@ def test_5axis_noise_free_recovery_and_the_bar_calibration_response():
 
     study = load_study(STUDY)
     E_cal = A.mfb_default_deviations()
-    u_cal = np.tile(np.array((0.2, 0.35, 0.35)) * 1e-6, (12, 1))
+    u_cal = np.tile(np.array(mfb.U_CAL_UM) * 1e-6, (12, 1))
     E_true = E_cal + np.random.default_rng(1).standard_normal((12, 3)) * u_cal  # a run's first draws (seed 1)
     r = mfb.run("mfb-5axis", seed=1, noise_um=0.0, mc_runs=0, machine=study.machine, bar_true_m=E_true)
     dE = A.multi_feature_bar(deviations_m=E_true).info["E_MFB_m"] - A.multi_feature_bar(
