@@ -390,7 +390,7 @@ class Folds:
         """The folds of a block design: per group, the Schur complement of the training rows' machine block."""
         g = A.g
         cnt = np.bincount(A.ids, minlength=g)
-        GD = group_sums(A.ids, g, A.D)
+        GD = self._GD = group_sums(A.ids, g, A.D)  # G^T D, also what every residuals call starts from
         DD = A.D.T @ A.D
         for grp in gs:
             te = np.flatnonzero(groups == grp)
@@ -398,7 +398,8 @@ class Folds:
             if te.size == 0 or tr.size == 0:
                 continue
             Dte = A.D[te]
-            ctr = cnt - np.bincount(A.ids[te], minlength=g)
+            cte = np.bincount(A.ids[te], minlength=g)
+            ctr = cnt - cte
             # each column's norm on the training rows, from those rows: the total minus the held-out part leaves
             # a rounding remainder where a held-out group's own column is zero on them (seen as trained)
             sc = np.linalg.norm(A.D[tr], axis=0)
@@ -412,7 +413,7 @@ class Folds:
             top = max(w[-1], 1e-300) if w.size else 1.0
             keep = w > self.rcond ** 2 * top
             full = w > 1e-12 * top
-            own_ids = np.flatnonzero(~gu & (np.bincount(A.ids[te], minlength=g) > 0))  # targets seen here only
+            own_ids = np.flatnonzero(~gu & (cte > 0))  # targets seen here only
             own = [(A.ids[te][:, None] == own_ids[None, :]).astype(float), Dte[:, ~used]]
             Ao = np.hstack(own)
             Qo = orth(Ao) if Ao.shape[1] else np.zeros((te.size, 0))
@@ -513,7 +514,7 @@ class Folds:
         X = Y2 if E is None or not E.shape[1] else np.hstack([Y2, E])
         b = Y2.shape[1]
         GX, DX = group_sums(A.ids, g, X), A.D.T @ X
-        GD = group_sums(A.ids, g, A.D)
+        GD = self._GD
         EX = E.T @ X if X.shape[1] > b else None
         for f in self.items:
             te = f.te
@@ -2393,9 +2394,7 @@ def _gauge_svd(Ar: np.ndarray, C: np.ndarray):
     Returns (Z, sc, U, s, Vt, good, null).
     """
     p = Ar.shape[1]
-    _, sC, VtC = np.linalg.svd(C) if C.shape[0] else (None, np.zeros(0), np.eye(p))
-    rC = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))
-    Z = VtC[rC:].T
+    Z = _gauge_svd_z(C, p)
     if isinstance(Ar, BlockDesign):
         return _gauge_eig(Ar.gram(), Z)
     M = Ar @ Z
@@ -2452,15 +2451,18 @@ def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_ma
     s2 = float(res @ res) / dof
     T = Z @ (Vg / s[good])
     cov = s2 * (T @ T.T)
-    if null.shape[1]:
-        Qn = orth(null)
-        est = np.linalg.norm(Qn, axis=1) < 1e-6
-    else:
-        est = np.ones(p, bool)
+    est = _estimable(null, p)
     if linear_map:  # theta per unit of y[rows]: (p, len(rows)), dense
         W = T @ (Z @ (Vg / s[good])).T
         return theta, cov, est, (Ar @ W.T).T, s2
     return theta, cov, est
+
+
+def _estimable(null: np.ndarray, p: int) -> np.ndarray:
+    """(p,) bool: the parameters no unseen direction (``null``'s columns) moves."""
+    if not null.shape[1]:
+        return np.ones(p, bool)
+    return np.linalg.norm(orth(null), axis=1) < 1e-6
 
 
 def _gauge_svd_z(C: np.ndarray, p: int) -> np.ndarray:
@@ -2503,11 +2505,7 @@ def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
     s2 = float(res[:len(rows)] @ res[:len(rows)]) / dof
     T = Z @ (Vg / s[good])  # theta per unit of U^T b
     cov = s2 * (T @ T.T)
-    if null.shape[1]:
-        Qn = orth(null)
-        est = np.linalg.norm(Qn, axis=1) < 1e-6
-    else:
-        est = np.ones(p, bool)
+    est = _estimable(null, p)
     if linear_map:
         return theta, cov, est, T @ U[:len(rows), good].T, s2
     return theta, cov, est
