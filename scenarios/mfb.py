@@ -544,16 +544,13 @@ def _bar_doc(E_cal_m, u_cal_m, E_true_m, source: str, cal_map=None) -> dict:
 
 
 def default_machine(name: str, ripple: bool = False, J_m=(0.0, 0.0, 0.150)):
-    """The realistic truth machine of a scenario (sim), ripple removed unless asked."""
-    from sim.machine import Machine
-    from sim.machinefile import strip_ripple
-    from sim.machines import MACHINES, realistic_errors
+    """The realistic truth machine of a scenario (sim), ripple removed unless asked: the error set
+    ``study`` (``realistic`` with the ripple) of :func:`sim.machinefile.truth_machine`, the rule every
+    command's ``--errors`` follows, on the built-in machine with the probe offset ``J_m``."""
+    from sim.machinefile import truth_machine
+    from sim.machines import MACHINES
 
-    cfg = MACHINES[name]()
-    axes = tuple(a for a in ("X", "Y", "Z", "A", "C") if a in cfg.strokes)
-    errs = realistic_errors(axes, strokes=cfg.strokes)
-    if not ripple:
-        errs = {k: strip_ripple(v) for k, v in errs.items()}
+    errs = dict(truth_machine(name, "realistic" if ripple else "study").config.errors)
     return MACHINES[name](errors=errs, J_m=J_m), errs
 
 
