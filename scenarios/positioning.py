@@ -169,7 +169,7 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
     from dataclasses import replace
 
     from sim.machine import Machine
-    from sim.machinefile import builtin_names, truth_machine
+    from sim.machinefile import errors_label, truth_machine
     from sim.positioning import positioning_plan, simulate_positioning
 
     spec = truth_machine(machine_name, errors)  # the one machine rule of every command
@@ -177,10 +177,7 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
         raise ConfigError(f"--axis {axis!r}: expected X, Y or Z")
     cfg = spec.config
     errs = dict(cfg.errors)
-    if machine_name in builtin_names():
-        errors = spec.errors
-    else:
-        errors = f"machine file ({spec.errors}" + (f", seed {spec.seed}" if spec.seed is not None else "") + ")"
+    errors = errors_label(machine_name, spec)
     for name, v in (("--scatter-um", noise_um), ("--reversal-um", reversal_um), ("--overrun-mm", overrun_mm),
                     ("--dwell-s", dwell_s)):
         if not (np.isfinite(v) and v >= 0):

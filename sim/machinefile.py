@@ -218,6 +218,14 @@ def truth_machine(name_or_path: str, errors: str | None = None, default: str = "
     return replace(spec, config=replace(cfg, errors=errs), errors=errors, seed=None, overrides=())
 
 
+def errors_label(name_or_path: str, spec: MachineSpec) -> str:
+    """How a command names the truth errors of ``--machine name_or_path`` (:func:`truth_machine`'s ``spec``):
+    a built-in machine's error set, or ``machine file (SET[, seed N])``."""
+    if name_or_path in builtin_names():
+        return spec.errors
+    return f"machine file ({spec.errors}" + (f", seed {spec.seed}" if spec.seed is not None else "") + ")"
+
+
 def strip_ripple(f):
     """``f`` without its screw-pitch ripple (the ``Periodic`` terms of a sum; a purely periodic error stays)."""
     from .errorfuncs import Periodic, Sum

@@ -85,7 +85,7 @@ def served_machine(args):
     """
     from core.exceptions import ConfigError
     from hardware.virtual import builtin_machine, sim_machine
-    from scenarios.cli.options import machine_spec
+    from sim.machinefile import truth_machine
     from sim.machinefile import builtin_names
 
     if args.scene == "simple":
@@ -96,7 +96,7 @@ def served_machine(args):
         return builtin_machine(args.noise_um or 0.0, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
                                args.ec0y_urad)
     name = args.machine or "nmv3000"
-    spec = machine_spec(name, args.errors, "drawn")
+    spec = truth_machine(name, args.errors, "drawn")
     noise = args.noise_um if args.noise_um is not None else (0.0 if name in builtin_names() else None)
     return sim_machine(args.scene, noise, args.seed, spec=spec)
 
@@ -154,11 +154,11 @@ def run_program(args) -> int:
         from dataclasses import replace
 
         from core.exceptions import ConfigError
-        from scenarios.cli.options import machine_spec
+        from sim.machinefile import truth_machine
 
         if args.limits:
             raise ConfigError("--machine and --limits-mm: give one (the machine's strokes are its limits)")
-        st = machine_spec(args.machine).config.strokes
+        st = truth_machine(args.machine).config.strokes
         settings = replace(settings, limits_mm=tuple((lo * 1e3, hi * 1e3) for lo, hi in (st[a] for a in "XYZ")))
     text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs)
     out = write_text_atomic(args.out, text)
@@ -172,10 +172,10 @@ def run_show(args) -> int:
     from core import iso
     from core.units import DEG, MM
     from sim.machine import Machine
-    from scenarios.cli.options import machine_spec
+    from sim.machinefile import truth_machine
     from sim.machinefile import describe_error
 
-    spec = machine_spec(args.machine, args.errors)
+    spec = truth_machine(args.machine, args.errors)
     cfg = spec.config
     ch = cfg.parsed_chain
     print(f"machine {cfg.name} ({spec.source})" + (f": {spec.description}" if spec.description else ""))

@@ -8,7 +8,7 @@ command's parser and holds the rule.
 
 Shared here: ``--grid-mm`` (``identify``, ``design``), the probing settings
 (``probe``, ``machine program``), ``--machine NAME|FILE`` with its truth
-errors (:func:`add_machine_args`, :func:`machine_spec`: one rule for every
+errors (:func:`add_machine_args`, :func:`sim.machinefile.truth_machine`: one rule for every
 command), ``--noise-um`` and the old names kept as hidden aliases
 (:func:`add_renamed`: they work and say on stderr what they are now called).
 """
@@ -121,22 +121,6 @@ def add_machine_args(p, *, default: str | None, what: str, errors: bool = True, 
                        help=f"the error set of a built-in machine (default {errors_default}{why}); "
                             f"{ERRORS_HELP}; a machine file states its own")
         p.set_defaults(errors_default=errors_default)
-
-
-def machine_spec(name: str, errors: str | None = None, default: str = "realistic"):
-    """``--machine NAME|FILE --errors E``: :func:`sim.machinefile.truth_machine` (the one rule, stated there)."""
-    from sim.machinefile import truth_machine
-
-    return truth_machine(name, errors, default)
-
-
-def errors_text(name: str, spec) -> str:
-    """How a command names the truth errors of ``--machine name`` (built-in: the set; file: the file's)."""
-    from sim.machinefile import builtin_names
-
-    if name in builtin_names():
-        return spec.errors
-    return f"machine file ({spec.errors}" + (f", seed {spec.seed}" if spec.seed is not None else "") + ")"
 
 
 def add_settings_args(p, *, live: bool = True) -> None:

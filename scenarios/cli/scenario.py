@@ -15,13 +15,13 @@ def _mfb(args) -> int:
 
     spec = None
     if args.machine is not None or args.errors is not None:
-        from scenarios.cli.options import machine_spec
+        from sim.machinefile import truth_machine
         from scenarios.mfb import PLANS
 
         own = PLANS[args.name]().machine
         name = args.machine or own
         if name != own or (args.errors or "study") != "study":
-            spec = machine_spec(name, args.errors, "study")
+            spec = truth_machine(name, args.errors, "study")
         # else naming the plan's machine (error set study) is omitting it: the study's own truth machine
     kw = dict(seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc, machine=spec)
     if args.bar_calibration:

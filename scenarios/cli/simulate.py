@@ -60,13 +60,13 @@ def run(args) -> int:
     from sim.campaign import simulate_campaign
     from sim.catalog import CATALOG
     from sim.machine import Machine
-    from scenarios.cli.options import errors_text, machine_spec
+    from sim.machinefile import errors_label, truth_machine
 
     rec = CATALOG[args.artefact]
     name = args.machine or rec.default_machine
-    spec = machine_spec(name, args.errors)
+    spec = truth_machine(name, args.errors)
     cfg = spec.config
-    errors = errors_text(name, spec)
+    errors = errors_label(name, spec)
     machine = Machine(cfg)
     probe = spec.probe
     if args.noise_um is not None:

@@ -55,7 +55,7 @@ def run(args) -> int:
     from core.vcmm import load_task
     from scenarios.cli.guard import progress_line, said
     from scenarios.vcmm import prepare, study
-    from scenarios.cli.options import machine_spec
+    from sim.machinefile import truth_machine
 
     task = load_task(args.task)
     if args.tol_um is not None:
@@ -64,7 +64,7 @@ def run(args) -> int:
         task = dataclasses.replace(task, mc=dataclasses.replace(task.mc, tolerance=args.tol_um * 1e-6))
     if args.sobol_runs < 0 or args.sobol_runs == 1:
         raise ConfigError(f"--sobol-runs must be 0 or >= 2, got {args.sobol_runs}")
-    spec = machine_spec(args.machine, args.errors, "none")
+    spec = truth_machine(args.machine, args.errors, "none")
     plan = read_probe_log(args.plan)
     state = None
     if args.machine_state is not None:

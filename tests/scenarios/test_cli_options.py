@@ -350,9 +350,9 @@ def test_errors_means_one_set_everywhere():
 
 def test_vcmm_errors_default_is_the_shipped_file(tmp_path, capsys):
     """vcmm: a built-in machine's best-estimate errors are its file's (none), as --errors none names them."""
-    from scenarios.cli.options import machine_spec
+    from sim.machinefile import truth_machine
 
-    assert machine_spec("vmc-3axis", None, "none") == machine_spec("vmc-3axis", "none")
+    assert truth_machine("vmc-3axis", None, "none") == truth_machine("vmc-3axis", "none")
     p = build_parser()
     args = p.parse_args(["vcmm", "plan.csv", "--machine", "vmc-3axis", "--task", "t.toml", "--json", "o.json"])
     assert args.errors is None and args.errors_default == "none"
