@@ -506,7 +506,8 @@ def _build_table_prep(table: Geoms, table_feature) -> tuple:
     # clusters of table geoms (one per feature, one per geom without): pairs sorted by
     # (probe geom, cluster, table geom), with the union of each cluster's boxes
     k = [f if f else f"#{j}" for j, f in enumerate(feature)]
-    _, cl = np.unique(np.array(k, dtype=object).astype(str), return_inverse=True)
+    rank = {x: i for i, x in enumerate(sorted(set(k)))}  # (np.unique's inverse: keys in code-point order)
+    cl = np.fromiter(map(rank.__getitem__, k), int, len(k))
     h_order = np.lexsort((np.arange(len(feature)), cl))
     fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
     tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)

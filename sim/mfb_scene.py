@@ -174,6 +174,25 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     return [p[0] for p in parts], Geoms(centre, axes, kind, size, rbound(kind, size))
 
 
+#: Each probe's (MJCF, geom names, Geoms) by (J_m, stylus radius, finger): a plan's work zones share
+#: a handful of probes (the 5-axis plan: 9 zones, 7 probes). Safe: the key is every input (floats);
+#: the Geoms' arrays are read only. 32 probes.
+_PROBES = Memo(32)
+
+
+def _probe(J_m, r_m: float, finger_m: float = 0.0) -> tuple:
+    """(:func:`probe_geoms_mjcf`, then :func:`probe_geoms`'s names and Geoms) of a probe, kept (:data:`_PROBES`)."""
+    key = (tuple(float(v) for v in J_m), float(r_m), float(finger_m))
+
+    def build():
+        names, g = probe_geoms(*key)
+        for a in (g.centre, g.axes, g.kind, g.size, g.rbound):
+            a.flags.writeable = False
+        return probe_geoms_mjcf(*key), names, g
+
+    return _PROBES.get_or_compute(key, build)
+
+
 #: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object,
 #: and beside them (keys ("table", id), ("stack", id)) the artefact's :class:`_Solids` and the
 #: poses stacked. Safe: the artefact is kept in each entry and checked with ``is``; the
@@ -301,10 +320,9 @@ class WorkZone:
         nt = len(names)
         n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
         holder = list(range(n0)) + [n0 + k for k in sol.holder]
-        self._probe_mjcf = probe_geoms_mjcf(J_m, stylus_r_m, finger_m)
-        # the probe's geoms from their definitions (the broad phase's; the MJCF is written from the
-        # same parts, _probe_parts)
-        pnames, self._probe_geoms = probe_geoms(J_m, stylus_r_m, finger_m)
+        # the probe's MJCF and its geoms from their definitions (the broad phase's; both written from
+        # the same parts, _probe_parts), once per probe (_PROBES)
+        self._probe_mjcf, pnames, self._probe_geoms = _probe(J_m, stylus_r_m, finger_m)
         npg = len(pnames)
         # geom ids of the full model (compiled when MuJoCo first needs it, self.model): the table
         # body's geoms in order, then the spindle's; of the holder's model (self._holder_model):
@@ -875,24 +893,38 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     broad phase cannot prove clear (:meth:`WorkZone.near_segments`, every measurement at once).
 
     Each measurement has two parts, the ball against the bar (its broad phase in A, one per bar
-    and ball) and the rest of its work zone (in W, one per zone and orientation). Two passes of
-    :func:`sim.clearance.near_segments_many`: first, per broad phase, the part of its measurement
-    of the most touches; then every other part. A broad phase's frame moves with the bar (A) or
-    the table (W), so measurements of the same touches have the same moves there: the first
-    pass's certificates clear what they share (the 5-axis plan: the ball's 18,364 segments,
-    2,408 left to bound), the rest is bounded."""
+    and ball) and the rest of its work zone (in W, one per zone and orientation). Measurements
+    whose part has the same broad phase, the same touch program (plan object) and the same
+    segments' steps, and for the rest the same placement (``T_W_A``), have the same segments in
+    that broad phase's frame (A or W: both fixed to the bar) to rounding (1e-16 m, far below
+    :data:`sim.clearance.MARGIN_M`), the same features and the same sample numbers: the part is
+    bounded once and its near samples serve them all (the 5-axis plan: 17 ball parts, 9
+    programs). Two passes of :func:`sim.clearance.near_segments_many` over the distinct parts:
+    first, per broad phase, the part of the most samples; then every other part. A broad
+    phase's frame moves with the bar (A) or the table (W), so measurements of the same touches
+    have the same moves there: the first pass's certificates clear what they share (the 5-axis
+    plan: the ball's 18,364 segments, 2,408 left to bound), the rest is bounded."""
     from .clearance import Segments, near_segments_many
 
-    parts, best = [], {}
+    parts, best, where, of = [], {}, {}, []
     for i in live:
         wz = zones[i]
         wz.set_table(ms[i][2])
         sg, _, allow, is_app = sgs[i]
-        for clr in (wz.ball_clearance(), wz.clearance(part="rest")):
+        plan = ms[i][5]
+        for clr, place in ((wz.ball_clearance(), b""), (wz.clearance(part="rest"), ms[i][1].tobytes())):
+            # (a part the same as one already listed: the same broad phase, program, placement, steps)
+            key = (id(clr._certs), id(plan), place, len(sg.k))
+            j = where.get(key)
+            if j is not None and np.array_equal(parts[j][1].k, sg.k):
+                of.append(j)
+                continue
             T = clr.T_F_R
             R, t = T[:3, :3].T, T[:3, 3]
             ids = np.full(len(allow), -2)
-            ids[is_app] = clr.feature_ids(ms[i][5].feature)
+            ids[is_app] = clr.feature_ids(plan.feature)
+            where.setdefault(key, len(parts))
+            of.append(len(parts))
             parts.append((clr, Segments(sg.a @ R + t, sg.b @ R + t, sg.k, sg.m, sg.first, sg.path), ids[sg.path]))
             j = best.get(id(clr._certs))  # (moved copies of one broad phase share its certificates)
             if j is None or sg.n_samples > parts[j][1].n_samples:
@@ -902,7 +934,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     res = dict(zip(first, near_segments_many([parts[k] for k in first])))
     res.update(zip(later, near_segments_many([parts[k] for k in later]) if later else ()))
     out = {}
-    for n, i in enumerate(live):  # (the ball's part 2n, the rest's 2n + 1)
-        a, b = res[2 * n], res[2 * n + 1]
+    for n, i in enumerate(live):  # (the ball's part of(2n), the rest's of(2n + 1))
+        a, b = res[of[2 * n]], res[of[2 * n + 1]]
         out[i] = np.union1d(a, b) if a.size and b.size else (a if a.size else b)
     return out
