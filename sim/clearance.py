@@ -383,11 +383,13 @@ class Clearance:
         Looser than :meth:`bound`, a few operations per row."""
         p = self.to_frame(p_R)
         lo, hi = self._loT[:, pairs] + MARGIN_M, self._hiT[:, pairs] - MARGIN_M  # the tip's box of contact
-        # the boxes' gap along x, y, z, (n, pairs) each
-        gx, gy, gz = (np.maximum(lo[ax] - p[:, ax, None], p[:, ax, None] - hi[ax]) for ax in range(3))
-        worst = np.maximum(np.maximum(gx, gy), gz)
-        out = np.sqrt(np.maximum(gx, 0.0) ** 2 + np.maximum(gy, 0.0) ** 2 + np.maximum(gz, 0.0) ** 2)
-        return np.where(worst > 0, out, worst)
+        # the boxes' gap along x, y, z, (3, n, pairs)
+        pT = p.T[:, :, None]
+        g = np.maximum(lo[:, None, :] - pT, pT - hi[:, None, :])
+        worst = np.maximum(np.maximum(g[0], g[1]), g[2])
+        m = np.maximum(g, 0.0)
+        m *= m
+        return np.where(worst > 0, np.sqrt(m[0] + m[1] + m[2]), worst)
 
     def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
         """Lower bound of the distance (m) of pair ``pair`` with the tip at sample ``i`` of ``p_R``.
@@ -552,11 +554,11 @@ class _Certificates:
     """Certificates of :meth:`Clearance.near_segments`: segments ``a -> b`` (geoms' frame, m),
     their allowed feature and the radius ``r`` (m) within which a segment is clear.
 
-    :meth:`lookup` finds, per query segment, a remembered one with the same allowed feature
-    whose ends are nearest: first the segment at the same place in a remembered call of as
-    many segments (the same plan at another placement), then, for the rest, the remembered
-    segment in the same cell of a :data:`_CERT_GRID_M` grid in (a, b) (the same move in
-    another measurement). A certificate applies when ``moved = max(|a - a0|, |b - b0|) < r``
+    :func:`near_segments_many` finds, per query segment, a remembered one with the same allowed
+    feature whose ends are nearest: first the segment at the same place in a remembered call of
+    as many segments (:meth:`in_order`: the same plan at another placement), then, for the rest,
+    the remembered segment in the same cell of a :data:`_CERT_GRID_M` grid in (a, b)
+    (:meth:`by_cell`: the same move in another measurement). A certificate applies when ``moved = max(|a - a0|, |b - b0|) < r``
     (a segment whose ends moved by at most ``moved`` has every point moved by at most that);
     a segment whose neighbour lies in another cell is only bounded again.
     """
@@ -571,7 +573,7 @@ class _Certificates:
     def _key(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
         """(key (n,) uint64, allow (n,) int64): a hash of each segment's grid cell and allowed
         feature, and the feature as a number. Different cells may share a hash: a match is
-        only a candidate (:meth:`lookup` checks its feature and its distance)."""
+        only a candidate (:meth:`by_cell` checks its feature and its distance)."""
         if np.issubdtype(np.asarray(allow).dtype, np.integer):  # features as numbers already
             f = np.asarray(allow, np.int64)
         else:
@@ -593,18 +595,11 @@ class _Certificates:
         self._by_len.setdefault(len(blk[0]), []).append(blk)
         self._n += int(keep.sum())
 
-    def lookup(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
-        """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate
-        chosen and how far its segment's ends are from the query's (r0 = -inf: none)."""
-        r0, moved = self.in_order(a, b, allow)
-        rest = np.flatnonzero(~(moved < r0))
-        if rest.size and self._n:
-            self.by_cell(a, b, allow, rest, r0, moved)
-        return r0, moved
-
     def in_order(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`lookup`'s first part: (r0, moved) (n,) from the remembered calls of as many
-        segments with the same allowed features (the same plan at another placement)."""
+        """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate chosen
+        and how far its segment's ends are from the query's (r0 = -inf: none), from the remembered
+        calls of as many segments with the same allowed features (the same plan at another
+        placement)."""
         n = len(a)
         r0, moved = np.full(n, -np.inf), np.full(n, np.inf)
         if not self._n or not n:
@@ -619,7 +614,7 @@ class _Certificates:
         return r0, moved
 
     def by_cell(self, a, b, allow, rest, r0, moved) -> None:
-        """:meth:`lookup`'s second part, for the segments ``rest`` (sorted indices) only: the
+        """After :meth:`in_order`, for the segments ``rest`` (sorted indices) only: the
         remembered segment in the same grid cell (the same move elsewhere), block by block;
         ``r0``, ``moved`` updated in place."""
         q, f = self._key(a[rest], b[rest], allow[rest])

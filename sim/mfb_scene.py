@@ -343,6 +343,8 @@ class WorkZone:
         self._clr, self._hclr = {}, {}  # (clearance: by part, holder only by table pose)
         self._T_W_R = None  # (clearance)
         self._tkey = None  # (set_table: the pose last set, bytes)
+        self._at = {}  # the broad phases at the pose last set (ball_clearance, clearance), by part
+        self._hpairs = {}  # the holder's pairs of each rest broad phase (least_holder_clearance), by its certificates
         self._r = float(stylus_r_m)
         self._A_W = inv_T(T_W_A)
         #: what the work zones of this placement share (_work_zone): the table side's geoms in W
@@ -425,6 +427,7 @@ class WorkZone:
         self._tkey = key
         self._tqpos = np.concatenate([T[:3, 3], _quat(T[:3, :3])])
         self._T_W_R = None
+        self._at = {}
 
     def set_tip(self, p_R) -> None:
         """Place the stylus-tip centre at ``p_R`` (3,) m, R (spindle axes parallel to R)."""
@@ -489,6 +492,9 @@ class WorkZone:
                 self._hclr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
                                             cert_pad_m=0.0)
             return self._hclr[key]
+        hit = self._at.get(part)  # (asked twice per measurement at one pose: its paths, its least clearance)
+        if hit is not None:
+            return hit
         if part not in self._clr:
             pairs = None
             if part == "rest":  # the ball against the table disc, the blocks and the supports only
@@ -503,7 +509,8 @@ class WorkZone:
                                  pairs=pairs)
 
             self._clr[part] = ByOrientation(probe, build)
-        return self._clr[part].get(self._W_R())
+        hit = self._at[part] = self._clr[part].get(self._W_R())
+        return hit
 
     def _W_R(self) -> np.ndarray:
         """(4,4) T_W_R: R in the table's frame, from the table's pose as MuJoCo has it (once per set_table)."""
@@ -516,9 +523,12 @@ class WorkZone:
         the bar's frame A at the current table pose: one per bar and ball radius, shared by
         every probe, work zone and placement of that bar (a sphere has no orientation), with
         its pair data and certificates (:data:`_BALLS`)."""
-        art, r = self._args[0], self._r
-        ball = _BALLS.get_or_compute((id(art), r), lambda: _ball_clearance(art, r), owner=art)
-        return ball.moved(self._A_W @ self._W_R())
+        hit = self._at.get("ball")
+        if hit is None:
+            art, r = self._args[0], self._r
+            ball = _BALLS.get_or_compute((id(art), r), lambda: _ball_clearance(art, r), owner=art)
+            hit = self._at["ball"] = ball.moved(self._A_W @ self._W_R())
+        return hit
 
     def near_segments(self, sg, allow_feature=None) -> np.ndarray:
         """Sorted sample numbers of the segments ``sg`` (R) that may come closer than
@@ -570,12 +580,13 @@ class WorkZone:
         # the holder's pairs of the whole zone's broad phase (shared by the measurements of
         # this zone turned the same way about the spindle axis; frame W)
         clr = self.clearance(part="rest")  # (every pair with a holder geom)
-        hpos = np.full(len(self._table), -1)
-        hpos[self._holder] = np.arange(len(self._holder))  # table geom -> its holder model's geom
-        hp = np.flatnonzero(hpos[clr.pair_table] >= 0)
+        hp = self._hpairs.get(id(clr._certs))  # (the same pairs for the moved copies of a broad phase)
+        if hp is None:
+            hpos = np.full(len(self._table), -1)
+            hpos[self._holder] = np.arange(len(self._holder))  # table geom -> its holder model's geom
+            hp = self._hpairs[id(clr._certs)] = (np.flatnonzero(hpos[clr.pair_table] >= 0), hpos, clr._certs)
+        hp, hpos = hp[0], hp[1]
         npair = len(hp)
-        i = np.repeat(np.arange(len(tips)), npair)
-        pair = np.tile(hp, len(tips))
         bm, bd, h0, gball = self._ball_model()
         held = []  # the holder's model, fetched (and compiled) once a triple needs it
 
@@ -599,9 +610,9 @@ class WorkZone:
         # boxes of every triple; in its increasing order, chunks of triples get the full bound
         # and MuJoCo in the full bound's order, while the chunk's box bound may still be nearer
         # (a triple whose boxes lie farther than distmax cannot lower min(distmax, ...))
-        lb0 = clr.box_bound(tips, hp).ravel()  # rows (tip, pair) as i, pair
+        lb0 = clr.box_bound(tips, hp).ravel()  # rows (tip, pair): tip i = row // npair, pair hp[row % npair]
         near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
-        i, pair, lb0 = i[near], pair[near], lb0[near]
+        i, pair, lb0 = near // npair, hp[near % npair], lb0[near]
         order = np.argsort(lb0, kind="stable")
         pos = 0
         # the first few straight to MuJoCo in the box bound's order (a distance costs less than
@@ -721,20 +732,10 @@ def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray,
     return apply_T(T_R_A, P), cnt
 
 
-def _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m):
-    """(Segments, touch of each polyline (paths,), allowed feature of each (paths,) object) of
-    a measurement's polylines in the order checked: per touch i the link into ``start[i]``
-    (from touch i - 1's; none for the first) and the approach ``start[i] -> Xn[i]``."""
-    if plan.n > 1:
-        L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
-    else:
-        L, cnt = np.zeros((0, 3)), np.zeros(0, int)
-    sg, touch, allow, _ = _paths_of([(start, Xn, L, cnt, plan)], link_step_m, approach_step_m)[0]
-    return sg, touch, allow
-
-
 def _paths_of(items, link_step_m, approach_step_m) -> list:
-    """The polylines of several measurements (:func:`_touch_paths` of each), sampled at once.
+    """The polylines of several measurements in the order checked, sampled at once: per touch i
+    the link into ``start[i]`` (from touch i - 1's; none for the first) and the approach
+    ``start[i] -> Xn[i]``.
 
     ``items``: per measurement (start (n,3), Xn (n,3), link points, link counts, plan) as
     :func:`link_points` gives the links, n >= 1 touches. Returns per measurement (Segments,
