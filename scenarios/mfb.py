@@ -620,16 +620,17 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
         if not r.ok:
             raise PlanError(f"measurement {ms.name!r} ({ms.setup_key}, {ms.stylus}): {r.collisions[0]}")
         c = A.apply_T(T_R_W @ ms.T_W_A, pl.w_A + stylus_r_m * pl.wn_A)
+        c_lo, c_hi = c.min(axis=0).tolist(), c.max(axis=0).tolist()  # (the touches' range per axis)
         for j, ax in enumerate("XYZ"):
             lo, hi = cfg.strokes[ax]
-            if c[:, j].min() < lo - 1e-9 or c[:, j].max() > hi + 1e-9:
+            if c_lo[j] < lo - 1e-9 or c_hi[j] > hi + 1e-9:
                 raise PlanError(f"measurement {ms.name!r}: a touch at {ax} outside the stroke [{lo / MM:g}, "
                                 f"{hi / MM:g}] mm")
         per[ms.name] = {"placement": ms.placement, "setup": ms.setup_key, "stylus": ms.stylus,
                         "J_mm": [round(v / MM, 3) for v in ms.J_m], "holes": list(ms.holes),
                         "touches": r.touches, "path_points": r.samples, "collisions": len(r.collisions),
                         "min_clearance_from_table_side_mm": round(r.min_table_clearance_mm, 2),
-                        "touch_range_mm": {ax: [round(float(c[:, j].min()) / MM, 1), round(float(c[:, j].max()) / MM, 1)]
+                        "touch_range_mm": {ax: [round(c_lo[j] / MM, 1), round(c_hi[j] / MM, 1)]
                                            for j, ax in enumerate("XYZ")}}
         n_t += r.touches
         n_s += r.samples

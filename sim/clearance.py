@@ -201,8 +201,10 @@ class Clearance:
         st = _pair_structure(table, table_feature, len(probe.kind), self.ball, pairs)
         self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch = st
         # the tip p puts geom g in collision range of h only if p lies in this box
-        self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
-        self._hi = thi[self.pair_table] - plo[self.pair_probe] + MARGIN_M
+        # (one coordinate a row, (3, k), for _overlap_rows and box_bound; _lo, _hi (k, 3) are their views)
+        self._loT = tlo.T[:, self.pair_table] - phi.T[:, self.pair_probe] - MARGIN_M
+        self._hiT = thi.T[:, self.pair_table] - plo.T[:, self.pair_probe] + MARGIN_M
+        self._lo, self._hi = self._loT.T, self._hiT.T
         self._d0 = probe.centre[self.pair_probe] - table.centre[self.pair_table]  # centre offset at p = 0
         npair = len(self.pair_probe)
         self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
@@ -212,8 +214,7 @@ class Clearance:
         # (the same numbers as the least and largest of its pairs' boxes: a difference is monotone)
         self._clo = ch[0] - phi[cg] - MARGIN_M
         self._chi = ch[1] - plo[cg] + MARGIN_M
-        # the same boxes one coordinate a row (3, k), for _overlap_rows
-        self._loT, self._hiT = self._lo.T.copy(), self._hi.T.copy()
+        # the cluster boxes one coordinate a row (3, c), for _overlap_rows and _block_candidates
         self._cloT, self._chiT = self._clo.T.copy(), self._chi.T.copy()
 
     def _axes(self, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -295,10 +296,12 @@ class Clearance:
         n = len(s_lo)
         cut = np.arange(0, n, _BLOCK)
         b_lo, b_hi = np.minimum.reduceat(s_lo, cut, axis=0), np.maximum.reduceat(s_hi, cut, axis=0)
-        hit = np.ones((len(cut), len(self._clo)), bool)
+        b_lo, b_hi = b_lo.T[:, :, None], b_hi.T[:, :, None]  # (3, blocks, 1): one coordinate a row
+        hit = b_hi[0] >= self._cloT[0]
         for ax in range(3):  # (a reduction over a last axis of 3 is slow in numpy)
-            hit &= b_hi[:, ax, None] >= self._clo[None, :, ax]
-            hit &= b_lo[:, ax, None] <= self._chi[None, :, ax]
+            if ax:
+                hit &= b_hi[ax] >= self._cloT[ax]
+            hit &= b_lo[ax] <= self._chiT[ax]
         blk, cp = np.nonzero(hit)
         k, seg = _expand(cut[blk], np.minimum(_BLOCK, n - cut[blk]))
         cp = cp[k]

@@ -907,7 +907,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     plan: the ball's 18,364 segments, 2,408 left to bound), the rest is bounded."""
     from .clearance import Segments, near_segments_many
 
-    parts, best, where, of = [], {}, {}, []
+    parts, best, where, of, fids = [], {}, {}, [], {}
     for i in live:
         wz = zones[i]
         wz.set_table(ms[i][2])
@@ -923,7 +923,10 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             T = clr.T_F_R
             R, t = T[:3, :3].T, T[:3, 3]
             ids = np.full(len(allow), -2)
-            ids[is_app] = clr.feature_ids(plan.feature)
+            fk = (id(clr._fid), id(plan))  # (the program's features as the broad phase's numbers: once each)
+            if fk not in fids:
+                fids[fk] = clr.feature_ids(plan.feature)
+            ids[is_app] = fids[fk]
             where.setdefault(key, len(parts))
             of.append(len(parts))
             parts.append((clr, Segments(sg.a @ R + t, sg.b @ R + t, sg.k, sg.m, sg.first, sg.path), ids[sg.path]))
