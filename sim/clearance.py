@@ -44,7 +44,6 @@ placement of the artefact turned the same way); tips are always given in R
 
 from __future__ import annotations
 
-import copy
 import itertools
 from dataclasses import dataclass
 
@@ -243,7 +242,8 @@ class Clearance:
     def moved(self, T_F_R) -> "Clearance":
         """The same geoms in F, F now at ``T_F_R`` from R (the table moved with its artefact);
         the pair data (computed or to be) is shared."""
-        out = copy.copy(self)
+        out = object.__new__(type(self))  # (a shallow copy: copy.copy's protocol costs more)
+        out.__dict__.update(self.__dict__)
         out.T_F_R = np.array(T_F_R, float)
         return out
 
