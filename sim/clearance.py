@@ -731,9 +731,13 @@ def near_segments_many(parts) -> list:
             bases.append(clr)
         base_of.append(b)
     # the certificates: per part in order, then by grid cell for every part of a broad phase at once
-    todo = [None] * n_parts
+    todo, full = [None] * n_parts, [False] * n_parts  # (full: every segment of the part, no gather)
     for b, clr in enumerate(bases):
         js = [j for j in range(n_parts) if base_of[j] == b]
+        if not clr._certs._n:  # (no certificate yet: every segment is bounded)
+            for j in js:
+                todo[j], full[j] = np.arange(len(parts[j][1].a)), True
+            continue
         found = [clr._certs.in_order(parts[j][1].a, parts[j][1].b, parts[j][2]) for j in js]
         cut = np.cumsum([0] + [len(x[0]) for x in found])
         r_old, moved = np.concatenate([x[0] for x in found]), np.concatenate([x[1] for x in found])
@@ -752,9 +756,12 @@ def near_segments_many(parts) -> list:
     cnt[live] = [len(todo[j]) for j in live]
     row0 = np.zeros(n_parts, int)
     row0[live] = np.cumsum(cnt[live]) - cnt[live]
-    A = np.concatenate([parts[j][1].a[todo[j]] for j in live])
-    B = np.concatenate([parts[j][1].b[todo[j]] for j in live])
-    pad = np.concatenate([np.full(cnt[j], parts[j][0].cert_pad_m) for j in live])
+    def pick(x, j):  # part j's rows of x to bound
+        return x if full[j] else x[todo[j]]
+
+    A = np.concatenate([pick(parts[j][1].a, j) for j in live])
+    B = np.concatenate([pick(parts[j][1].b, j) for j in live])
+    pad = np.repeat([parts[j][0].cert_pad_m for j in live], cnt[live])
     lo, hi = np.minimum(A, B) - pad[:, None], np.maximum(A, B) + pad[:, None]
     # the pairs and clusters of every broad phase as one table
     pair0 = np.cumsum([0] + [len(c.pair_probe) for c in bases])
@@ -763,7 +770,7 @@ def near_segments_many(parts) -> list:
     for b, js in itertools.groupby(live, key=lambda j: base_of[j]):  # the first box level, per broad phase
         js = list(js)
         r0, r1 = row0[js[0]], row0[js[-1]] + cnt[js[-1]]
-        allow = np.concatenate([parts[j][2][todo[j]] for j in js])
+        allow = np.concatenate([pick(parts[j][2], j) for j in js])
         sl, cp = bases[b]._block_candidates(lo[r0:r1], hi[r0:r1], allow)
         segs.append(sl + r0)
         cps.append(cp + cl0[b])
@@ -792,17 +799,16 @@ def near_segments_many(parts) -> list:
     for j in live:
         clr, sg, allow = parts[j]
         if clr.cert_pad_m > 0:
-            t = todo[j]
-            clr._certs.add(sg.a[t], sg.b[t], allow[t], r[row0[j]:row0[j] + cnt[j]])
+            clr._certs.add(pick(sg.a, j), pick(sg.b, j), pick(allow, j), r[row0[j]:row0[j] + cnt[j]])
     open_ = lb <= MARGIN_M
     seg, pair, pb = seg[open_], pair[open_], pb[open_]
     if not seg.size:
         return out
     # sample by sample for the pairs the swept bound leaves open (points in F)
     part = np.repeat(np.array(live), cnt[live])  # the part of each bounded segment
-    first = np.concatenate([parts[j][1].first[todo[j]] for j in live])
-    m = np.concatenate([parts[j][1].m[todo[j]] for j in live])
-    k_ = np.concatenate([parts[j][1].k[todo[j]] for j in live])
+    first = np.concatenate([pick(parts[j][1].first, j) for j in live])
+    m = np.concatenate([pick(parts[j][1].m, j) for j in live])
+    k_ = np.concatenate([pick(parts[j][1].k, j) for j in live])
     kk, idx = _expand(first[seg], m[seg])
     seg, pair, pb = seg[kk], pair[kk], pb[kk]
     i = idx - first[seg]
