@@ -958,18 +958,13 @@ def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -
     L = np.linalg.norm(b - a, axis=1)
     k = np.maximum(1, np.ceil(L / step).astype(int))
     if not joints:  # the last point of each polyline: a segment of one sample at fraction 0
-        last = first + n_pt - 1
-        pos = np.arange(len(a)) + np.repeat(np.arange(len(n_pt)), n_pt - 1)  # room for the ends
-        order = np.empty(len(a) + len(n_pt), int)
-        order[pos] = np.arange(len(a))
-        free = np.ones(len(order), bool)
-        free[pos] = False
-        order[free] = len(a) + np.arange(len(n_pt))
-        a = np.concatenate([a, P[last]])[order]
-        b = np.concatenate([b, P[last]])[order]
-        m = np.concatenate([k, np.ones(len(n_pt), int)])[order]
-        k = np.concatenate([k, np.ones(len(n_pt), int)])[order]
-        path_of_seg = np.concatenate([path_of_seg, np.arange(len(n_pt))])[order]
+        # segments in point order: the one starting at point i is number i (a polyline's last
+        # point starts its closing segment, from that point to itself)
+        k_all = np.ones(len(P), int)
+        k_all[a_idx] = k
+        a, b = P.copy(), P[np.arange(len(P)) + starts]
+        k, m = k_all, k_all.copy()
+        path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt)
     else:
         m = k + 1
     return Segments(a, b, k, m, np.cumsum(m) - m, path_of_seg)

@@ -233,7 +233,8 @@ def _build_solid_table(art) -> _Solids:
     for k, s in enumerate(art.solids):
         if s.kind not in ("box", "cylinder", "sphere"):
             raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
-        kinds.append(s.kind), sizes.append(tuple(np.ravel(s.size)))
+        sz = s.size  # (a flat tuple of numbers as it is, else flattened: the same numbers)
+        kinds.append(s.kind), sizes.append(sz if type(sz) is tuple and all(map(_is_number, sz)) else tuple(np.ravel(sz)))
         names.append(f"{s.feature or ('support' if s.kind == 'cylinder' else 'body')}__{k}")
         feats.append(s.feature)
     size3 = np.zeros((len(sizes), 3))
@@ -241,6 +242,10 @@ def _build_solid_table(art) -> _Solids:
         size3[j, :len(sz)] = sz
     holder = [k for k, n in enumerate(names) if n.startswith(("fix_", "support__"))]
     return _Solids(kinds, sizes, names, feats, size3, holder)
+
+
+def _is_number(v) -> bool:
+    return type(v) in (float, np.float64, int)
 
 
 def _solid_pose_stack(art) -> np.ndarray:
