@@ -615,6 +615,15 @@ class WorkZone:
         # boxes of every triple; in its increasing order, chunks of triples get the full bound
         # and MuJoCo in the full bound's order, while the chunk's box bound may still be nearer
         # (a triple whose boxes lie farther than distmax cannot lower min(distmax, ...))
+        # pairs whose box lies farther than distmax from the box of every tip: no row of theirs is kept
+        # below (the distance between two boxes bounds that of any point of one from the other)
+        pF = clr.to_frame(tips)
+        t_lo, t_hi = pF.min(axis=0)[:, None], pF.max(axis=0)[:, None]
+        # (box_bound's operations on the tips' box: each tip's bound is at least this, rounding included)
+        gap = np.maximum(np.maximum(clr._loT[:, hp] + MARGIN_M - t_hi, t_lo - (clr._hiT[:, hp] - MARGIN_M)), 0.0)
+        gap *= gap
+        hp = hp[np.sqrt(gap[0] + gap[1] + gap[2]) <= distmax + MARGIN_M]
+        npair = len(hp)
         lb0 = clr.box_bound(tips, hp).ravel()  # rows (tip, pair): tip i = row // npair, pair hp[row % npair]
         near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
         i, pair, lb0 = near // npair, hp[near % npair], lb0[near]
