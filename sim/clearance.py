@@ -303,8 +303,12 @@ class Clearance:
                 hit &= b_hi[ax] >= self._cloT[ax]
             hit &= b_lo[ax] <= self._chiT[ax]
         blk, cp = np.nonzero(hit)
-        k, seg = _expand(cut[blk], np.minimum(_BLOCK, n - cut[blk]))
-        cp = cp[k]
+        # (the boxes of each block hit: _expand's runs, all of _BLOCK boxes but the last block's)
+        seg = (cut[blk][:, None] + np.arange(_BLOCK)).ravel()
+        cp = np.repeat(cp, _BLOCK)
+        if n % _BLOCK:
+            ok = seg < n
+            seg, cp = seg[ok], cp[ok]
         if allow is not None:
             ok = self._cballf[cp] != allow[seg]
             seg, cp = seg[ok], cp[ok]
