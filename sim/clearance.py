@@ -198,13 +198,15 @@ class Clearance:
         plo, phi = probe.aabb()
         self.feature, tlo, thi, cl, h_order, self._fid, tfid = _table_prep(table, table_feature)
         st = _pair_structure(table, table_feature, len(probe.kind), self.ball, pairs)
-        self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch = st
+        self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch, (tloT, thiT, tc, pn) = st
         # the tip p puts geom g in collision range of h only if p lies in this box
-        # (one coordinate a row, (3, k), for _overlap_rows and box_bound; _lo, _hi (k, 3) are their views)
-        self._loT = tlo.T[:, self.pair_table] - phi.T[:, self.pair_probe] - MARGIN_M
-        self._hiT = thi.T[:, self.pair_table] - plo.T[:, self.pair_probe] + MARGIN_M
+        # (one coordinate a row, (3, k), for _overlap_rows and box_bound; _lo, _hi (k, 3) are their views).
+        # The table side's rows are the pair structure's (tlo.T[:, pair_table], ...); the probe's
+        # repeated per probe geom (pair_probe runs through the probe geoms in order, pn pairs each)
+        self._loT = tloT - np.repeat(phi.T, pn, axis=1) - MARGIN_M
+        self._hiT = thiT - np.repeat(plo.T, pn, axis=1) + MARGIN_M
         self._lo, self._hi = self._loT.T, self._hiT.T
-        self._d0 = probe.centre[self.pair_probe] - table.centre[self.pair_table]  # centre offset at p = 0
+        self._d0 = np.repeat(probe.centre, pn, axis=0) - tc  # centre offset at p = 0
         npair = len(self.pair_probe)
         self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
         self._have = np.zeros(npair, bool)
@@ -533,7 +535,9 @@ _PAIRS = Memo(64)
 def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
     """(pair_probe, pair_table (k,) int, cluster start, count (c,) int, each cluster's feature
     number when it is the ball's else -1 (c,), its probe geom (c,), its table geoms' box
-    (2, c, 3): lo, hi) for ``ng`` probe geoms against ``table`` (:meth:`Clearance.__init__`)."""
+    (2, c, 3): lo, hi, and the table side's rows (tlo.T, thi.T (3, k) and centre (k, 3) of each
+    pair's table geom, the pairs of each probe geom (ng,))) for ``ng`` probe geoms against
+    ``table`` (:meth:`Clearance.__init__`)."""
     mask = None if pairs is None else np.ascontiguousarray(pairs, bool)
     key = (id(table), id(table_feature), int(ng), int(ball), None if mask is None else (mask.shape, mask.tobytes()))
 
@@ -552,7 +556,11 @@ def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
         cballf = np.where(pair_probe[cstart] == ball, tfid[pair_table[cstart]], -1)
         cbox = np.stack([np.minimum.reduceat(tlo[pair_table], cstart, axis=0),
                          np.maximum.reduceat(thi[pair_table], cstart, axis=0)])
-        return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox
+        # the table side of every pair's rows (whatever the probe's orientation) and the pairs of
+        # each probe geom (pair_probe is sorted)
+        rows = (tlo.T[:, pair_table], thi.T[:, pair_table], table.centre[pair_table],
+                np.bincount(pair_probe, minlength=ng))
+        return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox, rows
 
     return _PAIRS.get_or_compute(key, build, owner=(table, table_feature))
 
