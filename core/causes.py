@@ -447,10 +447,20 @@ def lobing_rival(bl, info) -> np.ndarray:
     return common_lobing(bl) if cov is None else np.asarray(cov.values, float)
 
 
+#: cos k phi, sin k phi (k = 1..4) on the azimuths where lobing_magnitudes takes the peak-to-valley
+#: (721 over one turn): the same arrays at every call (the delta method calls it per coefficient)
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+_LOBE_PHI = np.linspace(-np.pi, np.pi, 721)
+_LOBE_TRIG = tuple((_frozen(np.cos(k * _LOBE_PHI)), _frozen(np.sin(k * _LOBE_PHI))) for k in range(1, 5))
+
+
 def lobing_magnitudes(info, coef, bl):
     c = np.asarray(coef).reshape(4, 2)
-    phi = np.linspace(-np.pi, np.pi, 721)
-    f = sum(c[k - 1, 0] * np.cos(k * phi) + c[k - 1, 1] * np.sin(k * phi) for k in range(2, 5))
+    f = sum(c[k - 1, 0] * _LOBE_TRIG[k - 1][0] + c[k - 1, 1] * _LOBE_TRIG[k - 1][1] for k in range(2, 5))
     out = {f"k{k}_amplitude_um": float(np.hypot(*c[k - 1])) / UM for k in range(1, 5)}
     # the first harmonic acts as a probe offset (a translation, usually in the
     # set-ups' own offsets and the stylus calibration): the variation is of k = 2..4

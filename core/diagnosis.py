@@ -180,13 +180,14 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
         ``IN_SPAN^2``), the F statistic and its p-value.
     """
     T, n, k = C.shape
-    nrm = np.sqrt(np.einsum("tnk,tnk->tk", C, C))
-    Cn = C / np.maximum(nrm, 1e-300)[:, None, :]
-    if Q.shape[1]:  # one matrix product for every trial: (n, T k)
-        C2 = np.moveaxis(Cn, 0, 1).reshape(n, T * k)
+    nrm = np.maximum(np.sqrt(np.einsum("tnk,tnk->tk", C, C)), 1e-300)
+    if Q.shape[1]:  # one matrix product for every trial: (n, T k), normalised straight into that layout
+        C2 = np.empty((n, T, k))
+        np.divide(np.moveaxis(C, 0, 1), nrm[None, :, :], out=C2)
+        C2 = C2.reshape(n, T * k)
         P = np.moveaxis((C2 - Q @ (Q.T @ C2)).reshape(n, T, k), 1, 0)
     else:
-        P = Cn
+        P = C / nrm[:, None, :]
     Pt = np.swapaxes(P, 1, 2)
     G = Pt @ P
     b = Pt @ r
