@@ -180,13 +180,14 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
         ``IN_SPAN^2``), the F statistic and its p-value.
     """
     T, n, k = C.shape
-    nrm = np.sqrt(np.einsum("tnk,tnk->tk", C, C))
-    Cn = C / np.maximum(nrm, 1e-300)[:, None, :]
-    if Q.shape[1]:  # one matrix product for every trial: (n, T k)
-        C2 = np.moveaxis(Cn, 0, 1).reshape(n, T * k)
+    nrm = np.maximum(np.sqrt(np.einsum("tnk,tnk->tk", C, C)), 1e-300)
+    if Q.shape[1]:  # one matrix product for every trial: (n, T k), normalised straight into that layout
+        C2 = np.empty((n, T, k))
+        np.divide(np.moveaxis(C, 0, 1), nrm[None, :, :], out=C2)
+        C2 = C2.reshape(n, T * k)
         P = np.moveaxis((C2 - Q @ (Q.T @ C2)).reshape(n, T, k), 1, 0)
     else:
-        P = Cn
+        P = C / nrm[:, None, :]
     Pt = np.swapaxes(P, 1, 2)
     G = Pt @ P
     b = Pt @ r
@@ -410,10 +411,10 @@ class SpectralTable(tuple):
     frequencies at a time.
     """
 
-    __slots__ = ()
-
     def __new__(cls, Z, S2, C2, f, w):
-        return super().__new__(cls, (Z, S2, C2, f, w))
+        self = super().__new__(cls, (Z, S2, C2, f, w))
+        self._dens = {}  # the pre-screen's denominators per (rows, modes): see screen()
+        return self
 
     Z = property(lambda self: self[0])
     S2 = property(lambda self: self[1])
@@ -426,18 +427,49 @@ class SpectralTable(tuple):
         ph = self.w * self.f[i]
         return np.sin(ph), np.cos(ph)
 
-    def blocks(self):
+    def blocks(self, squares: bool = True):
         """``(cols, Z, S2, C2)`` over the frequencies: the kept table whole, or blocks of it.
 
         A block's columns are bit for bit those of the whole table (each
         block starts at a multiple of ``_BLOCK``, so from the same exact
         phasors and the same rotations: :func:`screen_phasors`).
+        ``squares=False``: ``S2``, ``C2`` not made for the blocks (None).
         """
         if self.Z is not None:
             yield slice(None), self.Z, self.S2, self.C2
             return
         for cols, Z in phasor_blocks(self.w, self.f):
-            yield cols, Z, Z.imag ** 2, Z.real ** 2
+            yield (cols, Z, Z.imag ** 2, Z.real ** 2) if squares else (cols, Z, None, None)
+
+    def screen(self, A: np.ndarray, W2: np.ndarray, key=None, owner=None):
+        """The pre-screen's products ``(A @ Z, W2 @ S2, W2 @ C2)``, (m, F) each.
+
+        ``A`` (m, n) the weighted residuals, ``W2`` (m, n) the squared
+        weights. The denominators ``W2 @ S2``, ``W2 @ C2`` do not depend on
+        the residuals: with a ``key`` (what ``W2`` was made from: the rows
+        and the modes' columns) and its ``owner`` (the modes array itself,
+        held with them so that the key names it) they are kept for the next
+        diagnosis on the same rows (the last few keys): the same products
+        on the same operands, so the same numbers bit for bit.
+        """
+        F = len(self.f)
+        NZ = np.empty((A.shape[0], F), complex)
+        have = self._dens.pop(key, None) if key is not None else None
+        if have is not None and have[0] is not owner:
+            have = None
+        if have is None:
+            dS, dC = np.empty((2, W2.shape[0], F))
+        else:
+            _, dS, dC = have
+        for cols, Z, S2, C2 in self.blocks(squares=have is None):
+            NZ[:, cols] = A @ Z
+            if have is None:
+                dS[:, cols], dC[:, cols] = W2 @ S2, W2 @ C2
+        if key is not None:
+            self._dens[key] = (owner, dS, dC)
+            while len(self._dens) > 4:
+                self._dens.pop(next(iter(self._dens)))
+        return NZ, dS, dC
 
 
 def phasor_blocks(w: np.ndarray, f: np.ndarray):
@@ -514,10 +546,10 @@ def _spectral(cov: Covariate, Q, r, rss, dof, modes, rows, table=None, shortlist
         keep[rows] = True
         Mw = np.where(keep[:, None], Mf, 0.0)
     A, W2 = (rf[:, None] * Mw).T, (Mw ** 2).T
-    NZ = np.empty((Mf.shape[1], len(f)), complex)
-    dS, dC = np.empty((2, Mf.shape[1], len(f)))
-    for cols, Z, S2, C2 in tab.blocks():
-        NZ[:, cols], dS[:, cols], dC[:, cols] = A @ Z, W2 @ S2, W2 @ C2
+    # the denominators kept on the table per rows and modes (a table of this run's bases)
+    key = (None if rows is None else np.asarray(rows).tobytes(), id(modes), tuple(cov.modes)) if table is not None \
+        else None
+    NZ, dS, dC = tab.screen(A, W2, key, modes)
     num = np.zeros(len(f))
     for m in range(Mf.shape[1]):
         num += NZ[m].imag ** 2 / np.maximum(dS[m], 1e-300)

@@ -211,6 +211,63 @@ def test_ripple_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
     assert np.array_equal(lazy.score(r, rows), s_all) and np.array_equal(lazy.score(r[sub], sub), s_sub)
 
 
+def test_kept_denominators_give_the_scores_computed_afresh(monkeypatch):
+    """The pre-screens keep their denominators per set of rows: every later score equals a fresh scorer's.
+
+    The ripple scorer (kept table and blocks) and a spectral covariate's table are used in turn with
+    other residuals, a subset of the rows, other modes and the first residuals again; each answer is
+    bit for bit what a scorer or table made for that call alone gives. A table keeps a key's
+    denominators only for the modes array it was given with them (another array under the same key is
+    computed afresh); under the same key and array the kept ones are used, whatever the weights passed.
+    """
+    from core import causes as C
+
+    rng = np.random.default_rng(12)
+    n = 400
+    x, y = np.sort(rng.uniform(0, 0.2, n)), rng.uniform(0, 0.2, n)
+    bl = _plane(x, y, rng)
+    r1 = -bl.data.nx * 1e-6 * np.sin(2 * np.pi * x / 7e-3 + 0.4) + rng.normal(0, 1e-7, n)
+    r2 = rng.normal(0, 1e-7, n)
+    rows, sub = np.arange(n), np.sort(rng.choice(n, 300, replace=False))
+    calls = [(r1, rows), (r2, rows), (r2[sub], sub), (r1, rows), (r1[sub], sub)]
+    for big in (False, True):
+        if big:
+            monkeypatch.setattr(C, "TABLE_BYTES", 0)
+            monkeypatch.setattr(D, "SCAN_BLOCK_BYTES", 1)
+        sc = C.periodic_scans(bl)[0][0]
+        for r, rw in calls:
+            assert np.array_equal(sc.score(r, rw), C.periodic_scans(bl)[0][0].score(r, rw))
+    monkeypatch.undo()
+    t = np.sort(rng.uniform(0, 600, n))
+    cov = Covariate("time_periodic", t, "spectral", 0, (0, 1), "time periodically", "time", (3.0, 200.0))
+    modes = np.column_stack([np.ones(n), rng.uniform(0.5, 1.5, n)])
+    Q = orth(np.ones((n, 1)))
+    ys = [1e-6 * np.sin(2 * np.pi * t / 7.0 + 0.3) + rng.normal(0, 2e-7, n), rng.normal(0, 2e-7, n)]
+    tab = spectral_table(cov)
+
+    def diag(table, y, rw, m):
+        Qr = Q if rw is None else orth(np.ones((len(rw), 1)))
+        yr = y if rw is None else y[rw]
+        return diagnose(Qr, yr - Qr @ (Qr.T @ yr), len(yr) - 1, [cov], m, bases={cov.name: table}, sigma_m=2e-7,
+                        material_sigma=0.3, rows=rw)
+
+    other = np.column_stack([np.ones(n), rng.uniform(0.5, 1.5, n)])
+    for y, rw, m in [(ys[0], None, modes), (ys[1], None, modes), (ys[1], sub, modes), (ys[0], None, modes),
+                     (ys[0], None, other)]:
+        kept, fresh = diag(tab, y, rw, m), diag(spectral_table(cov), y, rw, m)
+        assert [d.to_dict() for d in kept] == [d.to_dict() for d in fresh]
+        assert kept[0].test == fresh[0].test and np.array_equal(kept[0].basis, fresh[0].basis)
+    # the subset's own denominators were made (rows outside it weighted by zero), not the first rows' taken
+    Mw = np.where(np.isin(np.arange(n), sub)[:, None], modes, 0.0)
+    assert any(np.array_equal(dS, (Mw ** 2).T @ tab.S2) for _, dS, _ in tab._dens.values())
+    A, W2 = rng.normal(size=(2, n)), rng.uniform(0.5, 1.5, (2, n))
+    first = tab.screen(A, W2, "key", modes)
+    moved = tab.screen(A, 2 * W2, "key", other)  # the same key, another modes array: made afresh
+    assert np.array_equal(moved[1], spectral_table(cov).screen(A, 2 * W2)[1]) and not np.array_equal(moved[1], first[1])
+    again = tab.screen(A, 0 * W2, "key", other)  # the same key and array: the kept denominators
+    assert np.array_equal(again[1], moved[1]) and np.array_equal(again[0], first[0])
+
+
 def test_folds_lean_path_is_the_kept_spans_to_rounding(monkeypatch):
     """Cross-validation of a long log keeps its spans' coefficients, not the spans: the same residuals.
 
