@@ -85,9 +85,16 @@ def orth(M: np.ndarray, tol: float = 1e-9, qr=None) -> np.ndarray:
     return Q[:, :r]
 
 
-def project_out(Q: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``B`` less its projection on the orthonormal columns ``Q``."""
-    return B - Q @ (Q.T @ B) if Q.shape[1] else B.copy()
+def project_out(Q: np.ndarray, B: np.ndarray, inplace: bool = False) -> np.ndarray:
+    """``B`` less its projection on the orthonormal columns ``Q``.
+
+    ``inplace``: ``B`` (a temporary of the caller's) is overwritten with
+    the result (the same numbers, one array fewer).
+    """
+    if not Q.shape[1]:
+        return B if inplace else B.copy()
+    QB = Q @ (Q.T @ B)
+    return np.subtract(B, QB, out=B) if inplace else B - QB
 
 
 def new_basis(Q: np.ndarray, B: np.ndarray, tol: float = IN_SPAN) -> np.ndarray:
@@ -104,7 +111,8 @@ def new_basis(Q: np.ndarray, B: np.ndarray, tol: float = IN_SPAN) -> np.ndarray:
     keep = nrm > 0
     if not keep.any():
         return np.zeros((B.shape[0], 0))
-    P = project_out(Q, B[:, keep] / nrm[keep])
+    whole = keep.all() and B.flags.c_contiguous  # (B itself divided: the layout B[:, keep] would have)
+    P = project_out(Q, B / nrm if whole else B[:, keep] / nrm[keep], inplace=True)
     w, V = np.linalg.eigh(P.T @ P)
     good = w > max(tol, 1e-5) ** 2
     return (P @ V[:, good]) / np.sqrt(w[good])
@@ -181,11 +189,12 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
     """
     T, n, k = C.shape
     nrm = np.maximum(np.sqrt(np.einsum("tnk,tnk->tk", C, C)), 1e-300)
-    if Q.shape[1]:  # one matrix product for every trial: (n, T k), normalised straight into that layout
+    if Q.shape[1]:  # one matrix product for every trial: (n, T k), normalised in that layout (a copy, then in place)
         C2 = np.empty((n, T, k))
-        np.divide(np.moveaxis(C, 0, 1), nrm[None, :, :], out=C2)
+        C2[...] = np.moveaxis(C, 0, 1)
+        C2 /= nrm[None, :, :]
         C2 = C2.reshape(n, T * k)
-        P = np.moveaxis((C2 - Q @ (Q.T @ C2)).reshape(n, T, k), 1, 0)
+        P = np.moveaxis(project_out(Q, C2, inplace=True).reshape(n, T, k), 1, 0)
     else:
         P = C / nrm[:, None, :]
     Pt = np.swapaxes(P, 1, 2)
