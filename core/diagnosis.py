@@ -97,6 +97,19 @@ def project_out(Q: np.ndarray, B: np.ndarray, inplace: bool = False) -> np.ndarr
     return np.subtract(B, QB, out=B) if inplace else B - QB
 
 
+def take_rows(M: np.ndarray, rows, axis: int = 0) -> np.ndarray:
+    """``M``'s rows ``rows`` along ``axis`` (``M[rows]``, ``M[:, rows]`` ...), for reading only.
+
+    Every row in order (``rows`` is ``arange(len)``) of a C-contiguous
+    ``M``: ``M`` itself, not a copy (the same values in the same layout a
+    copy would have); otherwise the indexed copy.
+    """
+    n = M.shape[axis]
+    if M.flags.c_contiguous and len(rows) == n and np.array_equal(rows, np.arange(n)):
+        return M
+    return M[(slice(None),) * axis + (np.asarray(rows),)]
+
+
 def new_basis(Q: np.ndarray, B: np.ndarray, tol: float = IN_SPAN) -> np.ndarray:
     """Orthonormal basis of the part of span(B) outside span(Q).
 
@@ -692,7 +705,7 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
                 raw.append(res)
             continue
         B = bases[cov.name] if bases is not None else term_basis(cov, modes)
-        U = new_basis(Q, B if rows is None else B[rows])
+        U = new_basis(Q, B if rows is None else take_rows(B, rows))
         if U.shape[1] == 0 or dof - U.shape[1] < 5:
             continue
         raw.append((cov, nested_f(U, r, rss, dof), U))
