@@ -202,11 +202,14 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
     """
     T, n, k = C.shape
     nrm = np.maximum(np.sqrt(np.einsum("tnk,tnk->tk", C, C)), 1e-300)
-    if Q.shape[1]:  # one matrix product for every trial: (n, T k), normalised in that layout (a copy, then in place)
-        C2 = np.empty((n, T, k))
-        C2[...] = np.moveaxis(C, 0, 1)
-        C2 /= nrm[None, :, :]
-        C2 = C2.reshape(n, T * k)
+    if Q.shape[1]:  # one matrix product for every trial: (n, T k), normalised in that layout
+        if T == 1:
+            C2 = C[0] / nrm[0]
+        else:  # (a copy into the layout, then divided in place: a strided divide is slower)
+            C2 = np.empty((n, T, k))
+            C2[...] = np.moveaxis(C, 0, 1)
+            C2 /= nrm[None, :, :]
+            C2 = C2.reshape(n, T * k)
         P = np.moveaxis(project_out(Q, C2, inplace=True).reshape(n, T, k), 1, 0)
     else:
         P = C / nrm[:, None, :]
@@ -216,10 +219,14 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
     w, V = np.linalg.eigh(G)
     good = w > IN_SPAN ** 2
     proj = (np.swapaxes(V, 1, 2) @ b[..., None])[..., 0]
-    ss = np.sum(np.where(good, proj ** 2 / np.where(good, w, 1.0), 0.0), axis=1)
     k = good.sum(axis=1)
     d2 = dof - k
     ok = (k > 0) & (d2 >= 1)
+    if good.all() and ok.all():  # (the usual case: the same values as the masked expressions below, fewer passes)
+        ss = np.sum(proj ** 2 / w, axis=1)
+        F = (ss / k) / (np.maximum(rss - ss, 1e-300) / d2)
+        return ss, k, F, special.fdtrc(k, d2, F)
+    ss = np.sum(np.where(good, proj ** 2 / np.where(good, w, 1.0), 0.0), axis=1)
     F = np.where(ok, (ss / np.maximum(k, 1)) / (np.maximum(rss - ss, 1e-300) / np.maximum(d2, 1)), 0.0)
     p = np.where(ok, special.fdtrc(np.maximum(k, 1), np.maximum(d2, 1), F), 1.0)
     return ss, k, F, p

@@ -29,6 +29,79 @@ def test_one_factorisation_cut_at_two_tolerances():
     assert np.array_equal(orth(other, qr=f), orth(other))  # not other's factorisation: factored afresh
 
 
+def test_take_rows_is_the_array_itself_only_for_every_row_of_a_c_contiguous_one():
+    """Known answers: every row in order of a C-contiguous array is that array (no copy); anything else is the copy."""
+    from core.diagnosis import take_rows
+
+    rng = np.random.default_rng(3)
+    M = rng.normal(size=(6, 5, 2))
+    every = np.arange(5)
+    M0 = M[0]
+    assert take_rows(M, every, 1) is M and take_rows(M0, every) is M0
+    for rows in (np.array([0, 2, 4]), np.array([1, 0, 2, 3, 4]), np.array([0, 1, 2, 3, 3])):
+        got = take_rows(M, rows, 1)
+        assert got is not M and np.array_equal(got, M[:, rows, :])
+    F = np.asfortranarray(M[0])  # every row, but not C-contiguous: the copy (the layout the callers were given)
+    got = take_rows(F, every)
+    assert got is not F and got.flags.c_contiguous and np.array_equal(got, F)
+
+
+def test_nested_f_batch_usual_case_is_the_masked_expressions_bit_for_bit():
+    """The usual case (every trial's directions outside the model, F defined) takes fewer passes; the same numbers.
+
+    Without model columns every trial is computed on its own (no product mixes trials), so a trial's
+    figures in a batch that holds a degenerate trial (a repeated column: one direction not counted;
+    the masked expressions) equal its figures in a batch without it (the usual case), bit for bit;
+    and a known answer: a trial's columns exactly in the data's direction remove the whole sum of squares.
+    """
+    from core.diagnosis import nested_f_batch
+
+    rng = np.random.default_rng(5)
+    n, k = 60, 3
+    r = rng.normal(size=n)
+    C = rng.normal(size=(4, n, k))
+    bad = C[:1].copy()
+    bad[0, :, 2] = bad[0, :, 1]  # a repeated column: k = 2 for that trial
+    Q0 = np.zeros((n, 0))
+    plain = nested_f_batch(C, Q0, r, float(r @ r), n - 5)
+    mixed = nested_f_batch(np.concatenate([bad, C]), Q0, r, float(r @ r), n - 5)
+    assert mixed[1].tolist() == [2, 3, 3, 3, 3]
+    two = nested_f_batch(bad[:, :, :2], Q0, r, float(r @ r), n - 5)  # the degenerate trial without its copy
+    np.testing.assert_allclose([mixed[0][0], mixed[2][0], mixed[3][0]], [two[0][0], two[2][0], two[3][0]],
+                               rtol=1e-10)
+    for a, b in zip(plain, mixed):
+        assert np.array_equal(a, b[1:])
+    # the masked path with every trial usual (dof too small for one: F and p of that trial 0 and 1)
+    few = nested_f_batch(C, Q0, r, float(r @ r), 3)
+    assert few[2].tolist() == [0.0] * 4 and few[3].tolist() == [1.0] * 4 and np.array_equal(few[0], plain[0])
+    # known answer: r itself among a trial's columns, against a model r is orthogonal to
+    Q = orth(rng.normal(size=(n, 4)))
+    r1 = r - Q @ (Q.T @ r)
+    Ct = np.stack([np.column_stack([r1, rng.normal(size=n)])])
+    ss, kk, F, p = nested_f_batch(Ct, Q, r1, float(r1 @ r1), n - 4)
+    assert kk.tolist() == [2]
+    np.testing.assert_allclose(ss, [r1 @ r1], rtol=1e-12)
+    # a column inside the model to 1e-9 (a direction not counted) that the residuals follow: left out of
+    # the sum of squares (the trial removes what its other column alone removes), not divided by its ~0 eigenvalue
+    z = rng.normal(size=n)
+    Cn = np.stack([np.column_stack([C[0, :, 0], Q[:, 0] + 1e-9 * (z + 50 * r1)])])
+    ss_n, k_n, _, _ = nested_f_batch(Cn, Q, r1, float(r1 @ r1), n - 4)
+    ss_1, k_1, _, _ = nested_f_batch(Cn[:, :, :1], Q, r1, float(r1 @ r1), n - 4)
+    assert k_n.tolist() == [1] and k_1.tolist() == [1]
+    np.testing.assert_allclose(ss_n, ss_1, rtol=1e-6)
+
+
+def test_new_basis_of_a_zero_column_is_the_basis_without_it():
+    """A zero column is left out (the kept columns copied) and a whole basis divided as it is: the same numbers."""
+    from core.diagnosis import new_basis
+
+    rng = np.random.default_rng(7)
+    Q = orth(rng.normal(size=(50, 6)))
+    B = rng.normal(size=(50, 4))
+    Bz = np.column_stack([B[:, :2], np.zeros(50), B[:, 2:]])
+    assert np.array_equal(new_basis(Q, Bz), new_basis(Q, B))
+
+
 def test_estimability_with_more_unknowns_than_rows():
     """Known answer: 3 rows see parameters 0, 1 and 0 + 2; 5 unknowns, no gauge.
 
