@@ -55,12 +55,19 @@ IN_SPAN = 1e-6
 # ---------------------------------------------------------------------------
 # linear algebra
 # ---------------------------------------------------------------------------
-def pivoted_qr(M: np.ndarray):
+def pivoted_qr(M: np.ndarray, q: bool = True):
     """The factorisation :func:`orth` cuts: ``(Q, d, M)``, pivoted QR of ``M`` with columns scaled.
 
     ``Q`` (n, p') its orthonormal factor over the non-zero columns, ``d``
     (p',) the magnitudes of R's diagonal (decreasing), ``M`` the matrix
     factored (so that a holder can tell which matrix it belongs to).
+
+    ``q=False``: ``Q`` not formed yet (a :class:`HouseholderQ`, LAPACK's
+    reflectors): :func:`qr_formed` forms it, bit for bit the ``Q`` of
+    ``pivoted_qr(M)`` (the same factorisation, then the same ``orgqr``
+    call as scipy's economic mode), and :func:`qr_rss` gives a vector's
+    residual sum of squares from the reflectors without it (what the planar
+    baseline's grid choice needs of the grids it does not choose).
     """
     if M.ndim != 2 or M.shape[1] == 0:
         return np.zeros((M.shape[0], 0)), np.zeros(0), M
@@ -69,8 +76,54 @@ def pivoted_qr(M: np.ndarray):
     if not keep.any():
         return np.zeros((M.shape[0], 0)), np.zeros(0), M
     Ms = M[:, keep] / nrm[keep]
+    if not q:
+        (H, tau), R, _ = sla.qr(Ms, mode="raw", pivoting=True)
+        return HouseholderQ(H, tau), np.abs(np.diag(R)), M
     Q, R, _ = sla.qr(Ms, mode="economic", pivoting=True)
     return Q, np.abs(np.diag(R)), M
+
+
+@dataclass(frozen=True)
+class HouseholderQ:
+    """The orthonormal factor of a :func:`pivoted_qr` not yet formed: LAPACK's reflectors ``H`` (n, p') and ``tau``."""
+
+    H: np.ndarray
+    tau: np.ndarray
+
+
+def _lapack(name: str, f, *args, **kw):
+    """``f(*args, lwork=..., **kw)`` with the workspace LAPACK asks for, as scipy's own QR calls it."""
+    ret = f(*args, lwork=-1, **kw)
+    ret = f(*args, lwork=ret[-2][0].real.astype(np.int_), **kw)
+    if ret[-1] < 0:
+        raise ValueError(f"illegal value in {-ret[-1]}th argument of internal {name}")
+    return ret[:-2]
+
+
+def qr_formed(qr):
+    """:func:`pivoted_qr` ``(Q, d, M)`` with ``Q`` formed: bit for bit ``pivoted_qr(M)`` (one made with ``q=False``)."""
+    Q, d, M = qr
+    if not isinstance(Q, HouseholderQ):
+        return qr
+    orgqr, = sla.get_lapack_funcs(("orgqr",), (Q.H,))
+    H = Q.H[:, :Q.H.shape[0]] if Q.H.shape[0] < Q.H.shape[1] else Q.H  # (fewer rows than columns: scipy's first M)
+    return _lapack("orgqr", orgqr, H.copy(), Q.tau, overwrite_a=1)[0], d, M
+
+
+def qr_rss(qr, y: np.ndarray, r: int) -> float:
+    """``|y - Q_r Q_r^T y|^2`` for the first ``r`` columns of a :func:`pivoted_qr`'s ``Q``, formed or not.
+
+    From the reflectors: ``c = Q_full^T y`` (an orthogonal transformation),
+    the sum of ``c[r:] ** 2``; the same number to rounding as from the
+    formed ``Q``, not bit for bit.
+    """
+    Q = qr[0]
+    if not isinstance(Q, HouseholderQ):
+        e = y - Q[:, :r] @ (Q[:, :r].T @ y)
+        return float(e @ e)
+    ormqr, = sla.get_lapack_funcs(("ormqr",), (Q.H,))
+    c = _lapack("ormqr", ormqr, "L", "T", Q.H[:, :len(Q.tau)], Q.tau, np.asarray(y, float)[:, None].copy())[0][:, 0]
+    return float(c[r:] @ c[r:])
 
 
 def orth(M: np.ndarray, tol: float = 1e-9, qr=None) -> np.ndarray:

@@ -429,6 +429,76 @@ def test_planar_block_design_and_its_constrained_fit_are_the_dense_ones(monkeypa
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-9 * np.abs(a).max())
 
 
+def test_pivoted_qr_formed_later_is_the_one_formed_at_once():
+    """Known answers: Q formed from the reflectors is pivoted_qr's bit for bit (more rows or more columns than the
+    other, a zero column); the residual sum of squares from the reflectors is the formed Q's to rounding."""
+    from core.diagnosis import qr_formed, qr_rss
+
+    rng = np.random.default_rng(11)
+    for shape in ((120, 30), (20, 26), (40, 40)):
+        M = rng.normal(size=shape)
+        M[:, 3] = M[:, 1] + 2 * M[:, 2]
+        M[:, 5] = 0.0
+        a, raw = pivoted_qr(M), pivoted_qr(M, q=False)
+        b = qr_formed(raw)
+        assert all(np.array_equal(x, y) for x, y in zip(a[:2], b[:2])) and b[2] is M
+        assert np.array_equal(orth(M, 1e-9, qr=b), orth(M, 1e-9))
+        y = rng.normal(size=shape[0])
+        for r in (0, 4, a[0].shape[1]):
+            e = y - a[0][:, :r] @ (a[0][:, :r].T @ y)
+            np.testing.assert_allclose(qr_rss(raw, y, r), e @ e, rtol=1e-12, atol=1e-12 * (y @ y))
+            assert qr_rss(a, y, r) == float(e @ e)  # a formed Q: its own sum
+
+
+def _grid_by_formed_bic(Bm, t):
+    """The grid the planar baseline chose before the reflectors' BIC: every grid's Q formed, BIC from it."""
+    best = None
+    for st in (22.0, 30.0, 40.0, 55.0, 80.0):
+        bl = Bm.planar(t, st)
+        Q = orth(bl.A, tol=Bm.RANK_TOL, qr=bl.qr)
+        if bl.A.shape[1] - Q.shape[1] > np.linalg.matrix_rank(bl.C):
+            continue
+        r = t.dq_m - Q @ (Q.T @ t.dq_m)
+        score = Bm._bic(float(r @ r), t.n, Q.shape[1])
+        if best is None or score < best[0]:
+            best = (score, st)
+    return best[1]
+
+
+def test_planar_grid_choice_forms_one_q_and_chooses_as_the_formed_bic(monkeypatch):
+    """The planar baseline forms the Q of the grid it chooses only, and chooses the grid the formed BICs choose.
+
+    On a noisy campaign the reflectors' BIC decides (one Q formed); on one whose readings a 40 mm map
+    reproduces to rounding (its residual sum of squares is rounding, so its BIC is not known to better than
+    its bound) the grids are compared by their formed BICs, as before; the kept factorisation is pivoted_qr's
+    of the design, bit for bit.
+    """
+    import dataclasses
+
+    from core import baseline as Bm
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    formed = []
+    real = Bm.qr_formed
+    monkeypatch.setattr(Bm, "qr_formed", lambda qr: formed.append(1) or real(qr))
+    t = from_log(large_log(40, 12, np.random.default_rng(19)))
+    exact = Bm.planar(t, 40.0)
+    theta = np.random.default_rng(2).normal(size=exact.A.shape[1]) * 1e-6
+    dq = exact.A @ theta  # what a 40 mm map reproduces exactly
+    t0 = dataclasses.replace(t, p_R=t.p_R + t.n_R * (dq - t.dq_m)[:, None])  # readings n . (p - pn) = dq
+    for tt, n_formed in ((t, 1), (t0, None)):
+        formed.clear()
+        bl = Bm.planar(tt)
+        if n_formed is not None:
+            assert len(formed) == n_formed
+        else:
+            assert len(formed) > 1  # near ties by the bounds: the formed BICs decided
+        assert bl.info["grid_step_mm"] == _grid_by_formed_bic(Bm, tt)
+        ref = pivoted_qr(bl.A)
+        assert all(np.array_equal(x, y) for x, y in zip(bl.qr[:2], ref[:2]))
+
+
 def test_folds_block_path_sees_a_large_own_column_as_unseen_by_training():
     """A held-out group's own column that is large: its training norm is exactly zero, and the folds must find
     it so (computed from the training rows, not as the total minus the held-out part, whose rounding remainder
