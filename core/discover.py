@@ -1533,7 +1533,13 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
 
 def _matches(key: str, pattern: str) -> bool:
     """``*`` in a bound's key pattern stands for any text (brackets are literal)."""
-    return re.fullmatch(re.escape(pattern).replace(r"\*", ".*"), key) is not None
+    return _key_pattern(pattern).fullmatch(key) is not None
+
+
+@functools.lru_cache(maxsize=256)
+def _key_pattern(pattern: str) -> re.Pattern:
+    """A bound's key pattern compiled once (:func:`_matches`)."""
+    return re.compile(re.escape(pattern).replace(r"\*", ".*"))
 
 
 def _made_on(seen, st: _State) -> tuple:

@@ -102,6 +102,15 @@ def test_new_basis_of_a_zero_column_is_the_basis_without_it():
     assert np.array_equal(new_basis(Q, Bz), new_basis(Q, B))
 
 
+def test_bound_key_patterns_known_answers():
+    """``*`` stands for any text, brackets are literal; a pattern compiled once answers as often as asked."""
+    from core.discover import _matches
+
+    for _ in range(2):
+        assert _matches("k2_amplitude_um", "k*_amplitude_um") and not _matches("k2_amplitude_umx", "k*_amplitude_um")
+        assert _matches("a[1]", "a[1]") and not _matches("a1", "a[1]") and _matches("EXX_bump", "E*_bump")
+
+
 def test_estimability_with_more_unknowns_than_rows():
     """Known answer: 3 rows see parameters 0, 1 and 0 + 2; 5 unknowns, no gauge.
 
