@@ -914,7 +914,8 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     that broad phase's frame (A or W: both fixed to the bar) to rounding (1e-16 m, far below
     :data:`sim.clearance.MARGIN_M`), the same features and the same sample numbers: the part is
     bounded once and its near samples serve them all (the 5-axis plan: 17 ball parts, 9
-    programs). Two passes of :func:`sim.clearance.near_segments_many` over the distinct parts:
+    programs, 13 parts: at another table pose a program's segment of exactly 6 steps may round
+    to 7, and the samples differ). Two passes of :func:`sim.clearance.near_segments_many` over the distinct parts:
     first, per broad phase, the part of the most samples; then every other part. A broad
     phase's frame moves with the bar (A) or the table (W), so measurements of the same touches
     have the same moves there: the first pass's certificates clear what they share (the 5-axis
