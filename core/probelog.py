@@ -60,11 +60,15 @@ ANGLE_MAX_DEG = 1e6
 TEMP_RANGE_C = (-273.15, 1000.0)
 
 _LENGTHS = ("X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "wx_mm", "wy_mm", "wz_mm")
-#: The statuses vmt writes: a touch's outcome (:class:`core.touches.ProbeStatus`: ``ok``,
-#: ``no_trigger``, ``early_trigger``) and ``aborted`` (the rows of a stopped run that
-#: ``vmt import`` keeps). A last row without an end of line must end in one of them when
-#: ``status`` is its last column; any other word there (``abor``, ``ala``) may be cut short.
-KNOWN_STATUSES = ("ok", "no_trigger", "early_trigger", "aborted")
+#: The statuses the spec names (``ok``, and why a touch is not valid: ``no_trigger``,
+#: ``early_trigger``, ``alarm``, the controller stopped the touch with an alarm) and the one
+#: vmt adds, ``aborted`` (the rows of a stopped run that ``vmt import`` keeps). Every status
+#: but ``ok`` (or an empty cell, the spec's default) marks a touch that is not valid: it is
+#: kept in the log and left out of every fit (:attr:`ProbeLog.ok`); the spec's list is open,
+#: so any other word reads the same way. A last row without an end of line must end in one
+#: of these when ``status`` is its last column; any other word there (``abor``, ``ala``)
+#: may be cut short.
+KNOWN_STATUSES = ("ok", "no_trigger", "early_trigger", "alarm", "aborted")
 
 _VECTORS = (("nx", "ny", "nz"), ("dx", "dy", "dz"), ("wnx", "wny", "wnz"))
 
@@ -169,7 +173,7 @@ class ProbeLog:
     # ---- derived -------------------------------------------------------
     @property
     def ok(self) -> np.ndarray:
-        """(n,) bool: rows whose status is ``ok`` (the rows fits use)."""
+        """(n,) bool: rows whose status is ``ok`` or empty (the spec's default; the rows fits use)."""
         st = self.col("status")
         return np.array([s in ("", "ok") for s in st], dtype=bool)
 
@@ -553,7 +557,8 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> 
         last = cols.n - 1
         cell, name = last_row[-1].strip(), header[-1]
         if name == "status" and cell not in KNOWN_STATUSES:
-            raise _torn(src, last, last_ln, f"last field status {_shown(cell)} is no status vmt writes")
+            raise _torn(src, last, last_ln, f"last field status {_shown(cell)} is no status the spec names "
+                        "or vmt writes")
         if _spec_numeric(name) and cell:
             try:
                 float(cell)
@@ -572,6 +577,14 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> 
 def _shown(cell: str, n: int = 40) -> str:
     """``repr`` of a cell, cut to ``n`` characters (a message stays one short line)."""
     return repr(cell if len(cell) <= n else cell[:n] + "...")
+
+
+def _num(x) -> str:
+    """A value for a message: 6 significant digits when they are the value, else every digit it has
+    (``100000.001`` next to a bound of ``100000`` must not print as ``100000``)."""
+    x = float(x)
+    g = f"{x:.6g}"
+    return g if float(g) == x else repr(x)
 
 
 def _xyz(v) -> str:
@@ -616,7 +629,7 @@ def _validate(log: ProbeLog, lines: np.ndarray | None) -> None:
                 out = (v < lo) | (v > hi)
             if out.any():
                 r = int(np.argmax(out))
-                raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r}: {float(v[r]):.6g} is out of "
+                raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r}: {_num(v[r])} is out of "
                                     f"range (must be >= {lo:g} and <= {hi:g}{' ' + unit if unit else ''}"
                                     f"{': ' + why if why else ''})")
     ok = log.ok
