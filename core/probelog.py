@@ -339,11 +339,50 @@ def _scan(f, src: str) -> tuple[int, bool]:
     return n, not last.endswith(("\n", "\r"))
 
 
-def _torn(src: str, r: int, ln: int, what: str) -> ProbeLogError:
-    return ProbeLogError(
+#: What a user does about a torn last row of a probe log.
+PROBE_LOG_REMEDY = "`vmt probe --resume` cuts it off, or delete the line"
+
+
+def _torn(src: str, r: int, ln: int, what: str, error: type = ProbeLogError,
+          remedy: str = PROBE_LOG_REMEDY) -> Exception:
+    return error(
         f"{src}: row {r} (line {ln}): torn last row ({what}, and no end of line): its writer was "
-        "interrupted; `vmt probe --resume` cuts it off, or delete the line (if the row is whole, written by "
-        "hand or another tool, correct it and end the file with a newline)")
+        f"interrupted; {remedy} (if the row is whole, written by hand or another tool, correct it and end "
+        "the file with a newline)")
+
+
+def last_row_check(src: str, header: list, row: list, r: int, ln: int, *, numeric, width: int | None = None,
+                   statuses: tuple = KNOWN_STATUSES, error: type = ProbeLogError,
+                   remedy: str = PROBE_LOG_REMEDY) -> str | None:
+    """The torn-row rule for the last row of a CSV log that ends without an end of line.
+
+    Where a writer that died would have stopped. ``row`` (its cells) is
+    refused as torn (``error``, one line naming ``src``, data row ``r`` and
+    file line ``ln``) when a cut would change its meaning: fewer fields than
+    ``width`` (default the header's), a last field in a column that
+    ``numeric(name)`` says holds numbers cut to no number, or a last
+    ``status`` field that is not one of ``statuses`` (empty, or any other
+    word: ``abor`` may be ``aborted`` cut short). A row that still reads
+    whole gives a warning (returned; a file written by hand may lack its
+    last end of line), a whole status word none (it reads as written). The
+    probe-log and positioning-log readers share it.
+    """
+    width = len(header) if width is None else width
+    if len(row) < width:
+        raise _torn(src, r, ln, f"{len(row)} of {width} fields", error, remedy)
+    cell, name = row[-1].strip(), header[len(row) - 1] if len(row) <= len(header) else ""
+    if name == "status":
+        if cell not in statuses:
+            raise _torn(src, r, ln, f"last field status {_shown(cell)} is no status the spec names or vmt writes",
+                        error, remedy)
+        return None
+    if numeric(name) and cell:
+        try:
+            float(cell)
+        except ValueError:
+            raise _torn(src, r, ln, f"last field {name} {cell!r} is no number", error, remedy) from None
+    return (f"{src}: row {r} (line {ln}): the file ends without an end of line: if its writer was "
+            f"interrupted, the last field ({name} {_shown(cell)}) may be cut short")
 
 
 def parse_probe_log(text: str, source: str = "<memory>") -> ProbeLog:
@@ -538,7 +577,7 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> 
                 continue
             if len(row) != width:
                 if unterminated and ln == n_lines and len(row) < width:
-                    raise _torn(src, cols.n + len(block), ln, f"{len(row)} of {width} fields")
+                    last_row_check(src, header, row, cols.n + len(block), ln, numeric=_spec_numeric)
                 raise ProbeLogError(
                     f"{src}: row {cols.n + len(block)} (line {ln}): {len(row)} fields, header has {width}")
             block.append(row)
@@ -554,20 +593,9 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> 
     # the last row ends the file without an end of line: torn, or written by hand?
     warnings = []
     if unterminated and last_row is not None and last_ln == n_lines:
-        last = cols.n - 1
-        cell, name = last_row[-1].strip(), header[-1]
-        if name == "status" and cell not in KNOWN_STATUSES:
-            raise _torn(src, last, last_ln, f"last field status {_shown(cell)} is no status the spec names "
-                        "or vmt writes")
-        if _spec_numeric(name) and cell:
-            try:
-                float(cell)
-            except ValueError:
-                raise _torn(src, last, last_ln, f"last field {name} {cell!r} is no number") from None
-        if name != "status":  # a whole status word reads as written
-            warnings.append(f"{src}: row {last} (line {last_ln}): the file ends without an end "
-                            f"of line: if its writer was interrupted, the last field ({name} {_shown(cell)}) "
-                            "may be cut short")
+        w = last_row_check(src, header, last_row, cols.n - 1, last_ln, numeric=_spec_numeric)
+        if w is not None:
+            warnings.append(w)
     line_of_row = cols.line_of_row()
     log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings))
     _validate(log, lines=line_of_row)
