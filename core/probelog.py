@@ -373,8 +373,8 @@ def last_row_check(src: str, header: list, row: list, r: int, ln: int, *, numeri
     cell, name = row[-1].strip(), header[len(row) - 1] if len(row) <= len(header) else ""
     if name == "status":
         if cell not in statuses:
-            raise _torn(src, r, ln, f"last field status {_shown(cell)} is no status the spec names or vmt writes",
-                        error, remedy)
+            raise _torn(src, r, ln, f"last field status {_shown(cell)} is not a whole status word "
+                        f"({', '.join(statuses)})", error, remedy)
         return None
     if numeric(name) and cell:
         try:

@@ -292,7 +292,7 @@ def test_file_with_only_spec_columns_reads_exactly_as_the_spec_says(rng):
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,", r"torn last row \(last field status ''"),
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,no_tr", r"torn last row \(last field status 'no_tr'"),
         # any word that is not a whole status vmt writes, whatever it is a prefix of
-        ("s1,p2,1,0,2,0,0,2,0,0,1,0,abor", r"torn last row \(last field status 'abor' is no status the spec names or vmt writes"),
+        ("s1,p2,1,0,2,0,0,2,0,0,1,0,abor", r"torn last row \(last field status 'abor' is not a whole status word \(ok, no_trigger, early_trigger, alarm, aborted\)"),
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,ala", r"torn last row \(last field status 'ala'"),
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,chip", r"torn last row \(last field status 'chip'"),
     ],
