@@ -320,8 +320,8 @@ def centre_label(cx: float, cy: float, axis: str = "C") -> str:
     the centre, seen from the tool at the grid origin (eq 16's gauge).
     """
     a = axis.upper()
-    return (f"centre ({cx:.1f}, {cy:.1f}) µm: (EX0{a}, EY0{a}) = ({-cx + 0.0:.1f}, {-cy + 0.0:.1f}) µm "
-            "from the tool at x = y = 0")
+    return (f"centre ({cx:.1f}, {cy:.1f}) µm:\n(EX0{a}, EY0{a}) = ({-cx + 0.0:.1f}, {-cy + 0.0:.1f}) µm "
+            "\nfrom the tool at x = y = 0")
 
 
 def rotary_centre_figure(c_deg, exc_um, eyc_um, *, centre_um=None, true_centre_um=None,
@@ -369,7 +369,7 @@ def rotary_centre_figure(c_deg, exc_um, eyc_um, *, centre_um=None, true_centre_u
     if true_centre_um is not None:
         tx, ty = _arr("true_centre_um", true_centre_um, (2,))
         ax.plot([tx], [ty], "*", color=_C_TRUE, ms=12,
-                label=f"true centre ({tx:.1f}, {ty:.1f}) µm: (EX0{a}, EY0{a}) = ({-tx + 0.0:.1f}, {-ty + 0.0:.1f}) µm")
+                label=f"the truth's centre, same gauge:\n({tx:.1f}, {ty:.1f}) µm")
     ax.set_xlabel(f"EX{a}({a}) / µm")
     ax.set_ylabel(f"EY{a}({a}) / µm")
     ax.set_aspect("equal", adjustable="datalim")

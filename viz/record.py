@@ -454,7 +454,7 @@ def log_rotary(rec, c_deg, exc_um, eyc_um, *, ecc_urad=None, u95_exc_um=None,
 
         cx, cy = _arr("centre_um", centre_um, (2,))
         rec.log(f"{base}/centre", rr.Points2D([[float(cx), float(cy)]], colors=[_RED], radii=[0.5],
-                                              labels=[centre_label(cx, cy, a)]), static=True)
+                                              labels=[centre_label(cx, cy, a).replace("\n", " ")]), static=True)
     timeline = f"{a}_mdeg"
     ticks = np.round(c * 1000.0).astype(np.int64)
     series = [(f"EX{a}", ex, u95_exc_um, "µm"), (f"EY{a}", ey, u95_eyc_um, "µm")]
