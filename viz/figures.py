@@ -333,7 +333,8 @@ def rotary_centre_figure(c_deg, exc_um, eyc_um, *, centre_um=None, true_centre_u
     c_deg : (n,) float
         Indexed angles, degrees.
     exc_um, eyc_um : (n,) float
-        Radial error motions at each angle, µm.
+        The tool's displacement relative to the part due to the axis at each
+        angle (``EXC,total``, ``EYC,total``: radial motion and line position), µm.
     centre_um : (2,) float, optional
         Centre of the circle fitted to the trajectory, µm. The values are the
         tool relative to the part (ISO 230-1), so a table's axis line at
