@@ -45,6 +45,7 @@ import scipy.linalg as sla
 from scipy import special, stats
 from scipy.interpolate import BSpline
 
+from .exceptions import ConfigError
 from .units import UM
 
 #: Relative column norm (after projection out of the model) below which a
@@ -716,6 +717,10 @@ def replicate_scatter(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None =
     nothing, a drift's curvature over a group's time span still does.
     """
     key = np.asarray(key)
+    if key.shape != np.shape(y):
+        raise ConfigError(f"replicate_scatter: key {key.shape} and y {np.shape(y)} must have one entry per row")
+    if trend is not None and (np.ndim(trend) != 2 or len(trend) != len(key)):
+        raise ConfigError(f"replicate_scatter: trend must be ({len(key)}, q), got {np.shape(trend)}")
     ok = key >= 0
     if not ok.any():
         return Replicates(0.0, 0, 0)
