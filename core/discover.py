@@ -1120,8 +1120,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     Qb, folds, st = model(rows, [])
     rep = replicate_scatter(bl.replicate[rows], y[rows])  # the plain pure error: the lack-of-fit test's
-    # the noise: the repeats' scatter once what drifts linearly in time within a set-up is taken out
-    rep_t = replicate_scatter(bl.replicate[rows], y[rows], drift_trend(bl, rows))
+    # the noise: the repeats' scatter once what drifts linearly in time within a set-up is taken out (a rate
+    # per set-up, else one rate shared by the set-ups, else none: the first that leaves 10 degrees of freedom)
+    trend, rep_t = next(((k, r) for k, r in ((k, replicate_scatter(bl.replicate[rows], y[rows],
+                                                                   drift_trend(bl, rows, k == "shared")))
+                                              for k in ("per set-up", "shared")) if r.dof >= 10), ("none", rep))
     sigma_rep = rep_t.sigma_m if rep_t.dof >= 10 else None
 
     def noise_sigma(s: _State) -> float:
@@ -1342,7 +1345,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         baseline=bl, baseline_rms_um=float(np.sqrt(st0.rss / N)) / UM, baseline_cv_rms_um=float(np.sqrt(cv_b)) / UM,
         baseline_n_params=int(Qall.shape[1]), findings=tuple(findings), extended_model=model_name,
         extended_rms_um=float(np.sqrt(st.rss / len(rows))) / UM, extended_cv_rms_um=float(np.sqrt(cv_e)) / UM,
-        noise=_noise_report(rep_t, rep, st0, gap_b, lof_b, sigma_rep, sig),
+        noise=_noise_report(rep_t, rep, trend, st0, gap_b, lof_b, sigma_rep, sig),
         diagnosis=tuple(dataclasses.replace(d, basis=None) for d in diag_b),  # (the bases served this run's tests)
         diagnosis_extended=tuple(dataclasses.replace(d, basis=None) for d in diag_e), workpiece=tuple(wp),
         outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
@@ -1429,23 +1432,26 @@ def _no_covariate_words(structure: dict, settings) -> str:
 DRIFT_MODES = 3
 
 
-def drift_trend(bl: Baseline, rows: np.ndarray) -> np.ndarray:
-    """(len(rows), q) columns of a drift linear in time within each group (set-up): time x mode x group.
+def drift_trend(bl: Baseline, rows: np.ndarray, shared: bool = False) -> np.ndarray:
+    """(len(rows), q) columns of a drift linear in time within each group (set-up): time x mode (x group).
 
     What :func:`core.diagnosis.replicate_scatter` removes from the repeats
     before their scatter is the noise: a drift-check target touched minutes
-    apart moves with whatever drifts in between. Time is centred within
-    each group (only its variation within a replicate group counts); the
-    first :data:`DRIFT_MODES` response modes of a planar baseline (the
-    scalar mode and the x and y translations), the first mode of others.
+    apart moves with whatever drifts in between. Only time's variation
+    within a replicate group counts; the first :data:`DRIFT_MODES` response
+    modes of a planar baseline (the scalar mode and the x and y
+    translations), the first mode of others; one rate per group, or with
+    ``shared`` one rate for all (fewer columns, for logs with few repeats).
     A baseline without a ``time`` covariate gets none (q = 0).
     """
     cov = bl.covariate("time")
     if cov is None:
         return np.zeros((len(rows), 0))
     t = np.asarray(cov.values, float)[rows]
-    g = bl.groups[rows]
     m = bl.modes[rows][:, :DRIFT_MODES if bl.kind == "planar" else 1]
+    if shared:
+        return (t - t.mean())[:, None] * m
+    g = bl.groups[rows]
     cols = []
     for gg in np.unique(g):
         sel = g == gg
@@ -1454,9 +1460,10 @@ def drift_trend(bl: Baseline, rows: np.ndarray) -> np.ndarray:
     return np.hstack(cols) if cols else np.zeros((len(rows), 0))
 
 
-def _noise_report(rep, rep_plain, st0, gap, lof, sigma_rep, sigma) -> dict:
+def _noise_report(rep, rep_plain, trend, st0, gap, lof, sigma_rep, sigma) -> dict:
     out = {"sigma_um": sigma / UM, "method": "repeats" if sigma_rep is not None else "residuals",
            "repeats": {"sigma_um": rep.sigma_m / UM if rep.dof else None, "dof": rep.dof, "groups": rep.groups,
+                       "time_trend": trend,
                        "sigma_plain_um": rep_plain.sigma_m / UM if rep_plain.dof else None,
                        "dof_plain": rep_plain.dof},
            "in_sample": {"sigma_um": st0.sigma / UM, "dof": st0.dof},
