@@ -16,10 +16,12 @@ What it does, in order, and the statistics behind each step
    until it is set up again), unless one rigid step of the part within
    that set-up explains them (a fixture slip: structure).
 2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
-   error), the lack-of-fit F test of the baseline against it, and the gap
-   between held-out and in-sample residuals: ``cv_ss / rss`` against its
-   exact null distribution (standard normal draws through the same linear
-   fit and folds; the ratio does not depend on the noise level).
+   error) after a time trend per set-up (:func:`drift_trend`: a drift
+   between drift-check repeats is not noise), the lack-of-fit F test of the
+   baseline against the plain pure error, and the gap between held-out and
+   in-sample residuals: ``cv_ss / rss`` against its parametric bootstrap
+   (the fitted model plus noise at the estimated sigma through the same
+   fit and folds, :func:`_cv_gap`).
 3. **Diagnosis** (catalogue-free, :mod:`core.diagnosis`): for every
    covariate a smooth term is tested against the model (nested F test,
    Holm over the covariates); its debiased explained RMS says how much of
