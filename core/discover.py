@@ -257,6 +257,15 @@ class Settings:
         ``sigma^2 / (1 - c^2)``), so no held-out residual amplifies the
         noise more than twofold, and the rule depends on the column space
         only, not on how its columns are scaled or mixed.
+    cv_seen_extension : float
+        The same share for an extension's directions outside the baseline
+        (their training share beyond the baseline's training image): 0.1,
+        noise amplified at most 99 times along one direction. Below it a
+        direction predicts nothing on the held-out rows (the extension is
+        on trial: no credit, no loss); one no training row sees at all is
+        the held-out group's own. Measured: 1/sqrt(2) here left the
+        synthetic thermal drift and part change unnamed, 0.3 named a
+        pre-travel settling ``thermal_drift`` (docs/discovery.md).
     shortlist : int
         Trials of a scan evaluated exactly after the periodogram-like
         pre-screen.
