@@ -688,7 +688,7 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
                   Q: np.ndarray | None = None, ranks: np.ndarray | None = None,
                   rng: np.random.Generator | None = None, max_frac_dust: float = 0.05,
                   alpha_concentration: float = 0.0025, events: np.ndarray | None = None,
-                  slips=None) -> list[int]:
+                  slips=None, places: Places | None = None) -> list[int]:
     """Indices (into y) of gross outliers: studentized deleted residuals, one at a time.
 
     Each pass removes the most extreme row if its studentized deleted
@@ -735,6 +735,12 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         outliers of one event are no dust when the best trial (least
         residual sum of squares, every row in the fit) leaves none of them
         beyond the bound: they were that step's touches.
+    places : Places, optional
+        Where on the part each row touches (feature, target) and what one
+        piece of dust corrupts at one place (:func:`places_of`): the
+        concentration test also asks whether the outliers, one per place
+        unit, share a feature or a target more than dust would
+        (:func:`concentration_p`).
     """
     n = len(y)
     judged = ranks is not None and ranks.shape[1] > 0 and rng is not None
@@ -763,7 +769,9 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         keep[idx[k]] = False
     if judged:
         first = out if events is None else first_per_event(out, events)
-        if len(first) >= 2 and concentration_p(ranks, first, rng) < alpha_concentration:
+        at = None if places is None else first_per_event(out, places.units)
+        if (len(first) >= 2 or (at is not None and len(at) >= 2)) and concentration_p(
+                ranks, first, rng, places=places, place_idx=at) < alpha_concentration:
             return []
         if slips is not None and events is not None and _slip_explains(X, y, out, np.asarray(events), slips, alpha):
             return []
@@ -835,7 +843,8 @@ CONCENTRATION_DRAWS = 20000
 def covariate_ranks(covariates) -> np.ndarray:
     """(n, m) normalised ranks ``(rank - 1/2) / n`` (ties averaged) of the scalar covariates that vary.
 
-    Smooth covariates only: a category has no order, an angle no ends.
+    Smooth covariates only: a category has no order, an angle no ends
+    (categories are tested as places, :class:`Places`).
     """
     cols = []
     for c in covariates:
@@ -846,7 +855,52 @@ def covariate_ranks(covariates) -> np.ndarray:
     return np.column_stack(cols) if cols else np.zeros((0, 0))
 
 
-def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int = CONCENTRATION_DRAWS) -> float:
+@dataclass(frozen=True)
+class Places:
+    """Where on the part each row touches, for the concentration test's categories.
+
+    Attributes
+    ----------
+    codes : (n, c) int
+        Per row its category in each of ``names`` (the feature; the target,
+        the same place of the part in every set-up).
+    names : tuple of str
+    units : (n,) int
+        What one piece of dust corrupts at one place: the target within its
+        set-up (a chip corrupts the touches of the place it sits on, in that
+        set-up, and nothing else; two chips of one set-up sit at independent
+        places). Negative: a row of its own.
+    """
+
+    codes: np.ndarray = field(repr=False)
+    names: tuple
+    units: np.ndarray = field(repr=False)
+
+
+def places_of(bl: Baseline) -> Places | None:
+    """The places of a planar campaign's rows (feature, target; units per target and set-up); None for others."""
+    if bl.kind != "planar":
+        return None
+    t = bl.data.touches
+    cols, names = [], []
+    for name, v in (("feature", np.asarray(t.feature, dtype=object)), ("target", np.asarray(t.target))):
+        codes = np.unique(v.astype(str), return_inverse=True)[1]
+        if codes.max(initial=0) >= 1:  # a category that varies
+            cols.append(codes)
+            names.append(name)
+    if not cols:
+        return None
+    units = np.asarray(t.setup, int) * (int(np.max(t.target)) + 1) + np.asarray(t.target, int)
+    return Places(np.column_stack(cols), tuple(names), units)
+
+
+def _max_share(codes: np.ndarray) -> np.ndarray:
+    """(..., k) category codes -> (...,) the largest number of them equal to one another."""
+    return np.max(np.sum(codes[..., :, None] == codes[..., None, :], axis=-1), axis=-1)
+
+
+def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int = CONCENTRATION_DRAWS,
+                    places: Places | None = None, place_idx=None) -> float:
     """Bonferroni-adjusted p-value that the rows ``idx`` fall at random over every covariate.
 
     Two statistics per covariate: the shift ``|mean rank of the rows -
@@ -857,18 +911,39 @@ def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int
     (with replacement: a slightly wider null than without, so the test is
     conservative), ``draws`` Monte Carlo draws, p = (1 + exceedances) /
     (draws + 1); the smallest over the ``2 m`` statistics times ``2 m``.
+
+    With ``places``, one statistic per category as well (the feature, the
+    target: :class:`Places`): the largest number of the rows ``place_idx``
+    (one per dust unit) that share one category. Dust falls at random
+    places; a feature that changes, a wall that relaxes, leaves its largest
+    residuals on that feature, set-up after set-up. Null: as many units
+    drawn at random (with replacement) from all the campaign's units;
+    the Bonferroni factor counts these statistics too.
     """
     idx = np.asarray(idx, int)
-    n, m = ranks.shape
-    if m == 0 or idx.size < 2:
+    n, m = ranks.shape if ranks.ndim == 2 else (0, 0)
+    ps = []
+    if m and idx.size >= 2:
+        mu = ranks.mean(axis=0)
+        R = ranks[idx]
+        shift, spread = np.abs(R.mean(axis=0) - mu), np.ptp(R, axis=0)
+        Rn = ranks[rng.integers(0, n, (draws, idx.size))]  # (draws, k, m)
+        ps.append((1 + np.sum(np.abs(Rn.mean(axis=1) - mu) >= shift - 1e-12, axis=0)) / (draws + 1))
+        ps.append((1 + np.sum(np.ptp(Rn, axis=1) <= spread + 1e-12, axis=0)) / (draws + 1))
+    n_stats = 2 * m if ps else 0
+    if places is not None and place_idx is not None and len(place_idx) >= 2:
+        pi = np.asarray(place_idx, int)
+        u = np.where(places.units >= 0, places.units, -1 - np.arange(len(places.units)))
+        reps = np.unique(u, return_index=True)[1]  # one row per unit: the null's draws
+        pick = reps[rng.integers(0, reps.size, (draws, pi.size))]
+        for c in range(places.codes.shape[1]):
+            code = places.codes[:, c]
+            obs = _max_share(code[pi])
+            ps.append(np.atleast_1d((1 + np.sum(_max_share(code[pick]) >= obs)) / (draws + 1)))
+        n_stats += places.codes.shape[1]
+    if not ps:
         return 1.0
-    mu = ranks.mean(axis=0)
-    R = ranks[idx]
-    shift, spread = np.abs(R.mean(axis=0) - mu), np.ptp(R, axis=0)
-    Rn = ranks[rng.integers(0, n, (draws, idx.size))]  # (draws, k, m)
-    p_shift = (1 + np.sum(np.abs(Rn.mean(axis=1) - mu) >= shift - 1e-12, axis=0)) / (draws + 1)
-    p_spread = (1 + np.sum(np.ptp(Rn, axis=1) <= spread + 1e-12, axis=0)) / (draws + 1)
-    return float(min(1.0, min(p_shift.min(), p_spread.min()) * 2 * m))
+    return float(min(1.0, min(float(np.min(p)) for p in ps) * n_stats))
 
 
 # ---------------------------------------------------------------------------
@@ -1045,6 +1120,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
 
     ranks = covariate_ranks(bl.covariates)
+    places = places_of(bl)
     if settings.outlier_events not in ("target", "setup", "setup_slip"):
         raise ConfigError("Settings.outlier_events must be 'target', 'setup' or 'setup_slip', not "
                           f"{settings.outlier_events!r}")
@@ -1068,7 +1144,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         # answer does not depend on how many other tests drew before it
         return find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac, Q, ranks=ranks,
                              rng=np.random.default_rng(outlier_seed), max_frac_dust=settings.outlier_max_frac_dust,
-                             alpha_concentration=settings.alpha_family, events=events, slips=slips)
+                             alpha_concentration=settings.alpha_family, events=events, slips=slips,
+                             places=places)
 
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     # 0. baseline fit and a first outlier screen
@@ -1262,12 +1339,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
     if outliers.size:
-        findings.append(_outlier_finding(bl, outliers, st0, st, ranks, events, outlier_seed, settings.alpha))
+        findings.append(_outlier_finding(bl, outliers, st0, st, ranks, events, outlier_seed, settings.alpha, places))
     if not findings and structure_b["present"]:
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
-    # best first: the systematic findings by what they explain; removed
-    # touches (outliers) after them, as data set aside rather than a cause
-    findings.sort(key=lambda f: (f.cause == causes_mod.OUTLIER, -f.evidence.get("explained_ss_um2", 0.0)))
+    findings = _ordered(findings)
     tick()
     wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family)
     res_e = np.full(N, np.nan)
@@ -2127,6 +2202,20 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             ev["ambiguous_with"] = [a["cause"] for a in calt]
             why.append(f"the columns of {', '.join(a['cause'] for a in calt)} reproduce its signal on this design "
                        "and explain as much: one explanation under two names here")
+        if cause.richer is not None:
+            # a richer cause nesting this one (lobes turned per set-up for fixed lobes): seen, or not excludable
+            rich = cause.richer(bl, so.Q, y[rows], rows, tm.columns[rows], sig, WEAK_SV)
+            if rich is not None:
+                ev["richer"] = {"cause": cause.richer_cause, **rich}
+                seen_r = rich["p_value"] < settings.alpha_family
+                if seen_r or rich["p_turned"] >= settings.alpha:
+                    why.append(f"{cause.richer_cause} explains {rich['beyond_ss_um2']:.3g} um^2 beyond it "
+                               f"({fmt_p(rich['p_value'])}, {rich['dof']} directions): the data show it, if not "
+                               "materially" if seen_r else
+                               f"{cause.richer_cause} at the magnitudes fitted here would look as little different "
+                               f"in a share {rich['p_turned']:.2g} of draws ({rich['dof']} directions tell them apart on "
+                               "this design): the data cannot exclude it")
+                    ev["ambiguous_with"] = list(ev.get("ambiguous_with", [])) + [cause.richer_cause]
         if cause.gradual:
             talt = _time_alternatives(bl, tm, so, sig, settings)
             if talt:
@@ -2193,7 +2282,37 @@ def _clean(d):
     return d
 
 
-def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha) -> Finding:
+def _ordered(findings: list) -> list:
+    """The findings best first; the first is the report's cause.
+
+    The systematic findings by the sum of squares they explain. The
+    outliers (touches set aside, with the sum of squares of their baseline
+    residuals) after them, as data set aside rather than a cause, unless
+    they are the campaign's story: they carry most of what the findings
+    take out (more than every systematic finding together), and they are
+    in no more doubt than those (confidently dust, or no systematic finding
+    is confidently named: ``unexplained`` or ``ambiguous`` only). Then the
+    outliers lead: a held-out gap or a 1 um^2 bump beside 1,400 um^2 of
+    chips is not what the campaign shows, and a confidently named cause
+    keeps the lead over outliers that may be its own largest residuals.
+    """
+    def ss(f):
+        return f.evidence.get("explained_ss_um2") or 0.0
+
+    out = sorted(findings, key=lambda f: (f.cause == causes_mod.OUTLIER, -ss(f)))
+    dust = [f for f in out if f.cause == causes_mod.OUTLIER]
+    rest = [f for f in out if f.cause != causes_mod.OUTLIER]
+    if dust and rest:
+        d = dust[0]
+        named = any(f.evidence.get("confidence") == "named" for f in rest)
+        if ss(d) > sum(max(ss(f), 0.0) for f in rest) and (d.evidence.get("confidence") == "named" or not named):
+            d.evidence["leads"] = ("the outliers carry most of the sum of squares the findings take out "
+                                   f"({ss(d):.3g} against {sum(max(ss(f), 0.0) for f in rest):.3g} um^2)")
+            out = [d] + rest
+    return out
+
+
+def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha, places=None) -> Finding:
     """The outliers as a finding, with how confidently they are dust.
 
     Calling touches outliers says they are dust: a chip or a bad trigger,
@@ -2203,9 +2322,10 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha) -> Findi
     the two apart. So the finding is ``named`` (confident) only when that
     test could have seen a pattern and saw none: at least two independent
     events (one touch, or one set-up's touches, cannot show a pattern), and
-    the concentration p-value (:func:`concentration_p`) at least the
-    engine's overall false-alarm rate ``alpha``, not only the family level
-    that decides the removal. Otherwise ``ambiguous``, with the reason.
+    the concentration p-value (:func:`concentration_p`, over the covariates
+    and the places ``places``) at least the engine's overall false-alarm
+    rate ``alpha``, not only the family level that decides the removal.
+    Otherwise ``ambiguous``, with the reason.
     """
     r0 = st0.r[outliers]
     ss = float(np.sum(r0 ** 2))
@@ -2214,9 +2334,11 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha) -> Findi
         p_conc, why = None, ("one event (a touch, or one set-up's touches) cannot show whether it is dust or an "
                              "intermittent mechanism" if len(first) < 2 else "no covariate to test the pattern in")
     else:
-        p_conc = concentration_p(ranks, first, np.random.default_rng(seed))
+        at = None if places is None else first_per_event(list(outliers), places.units)
+        p_conc = concentration_p(ranks, first, np.random.default_rng(seed), places=places, place_idx=at)
         why = (None if p_conc >= alpha else
-               f"the outliers gather in a covariate (concentration {fmt_p(p_conc)}, below the overall "
+               f"the outliers gather in a covariate or on one place of the part (concentration {fmt_p(p_conc)}, "
+               f"below the overall "
                f"false-alarm rate {alpha:g}): they may be an intermittent mechanism, not dust")
     return Finding(causes_mod.OUTLIER, {
         "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) / UM for v in r0],
