@@ -14,7 +14,10 @@ What it does, in order, and the statistics behind each step
    are dust, up to :attr:`Settings.outlier_max_frac_dust` of the rows.
    One set-up's outliers count as one event (a chip stays on the part
    until it is set up again), unless one rigid step of the part within
-   that set-up explains them (a fixture slip: structure).
+   that set-up explains them (a fixture slip: structure). Where on the
+   part they fall is tested too (:class:`Places`: outliers that share a
+   feature or a target, set-up after set-up, more than chips at random
+   places would, are that feature's structure).
 2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
    error), the lack-of-fit F test of the baseline against it, and the gap
    between held-out and in-sample residuals: ``cv_ss / rss`` against its
@@ -103,7 +106,12 @@ What it does, in order, and the statistics behind each step
    :class:`core.causes.Undetermined`, is named ``ambiguous``, and its
    workpiece shift is tested and carried as an unnamed smooth's); a gradual cause (:attr:`core.causes.Cause.gradual`)
    is not matched by a one-off event or by the probe's size changing with
-   time (:func:`_time_alternatives`) (a rule
+   time (:func:`_time_alternatives`); a richer catalogue cause that nests
+   it (:attr:`core.causes.Cause.richer`: lobes turned per set-up for fixed
+   lobes) is neither significant beyond it by its own F test nor left
+   possible by the design (:func:`core.causes.turned_lobes`: fixed lobes
+   are confident only where a turn of the fitted lobes would have shown)
+   (a rule
    "every combination of its columns inflated at most vif_max" was
    measured and withdrawn: on fresh seeds it flagged 20-23 % more right
    names and no wrong one; docs/discovery.md). Outliers: at least
@@ -111,6 +119,10 @@ What it does, in order, and the statistics behind each step
    the overall :attr:`Settings.alpha` (one event cannot tell a chip from
    an intermittent mechanism). A name reported ``ambiguous`` is the best
    the catalogue offers, not a claim that the mechanism is known.
+9. **Order**: the findings best first, the first the report's cause
+   (:func:`_ordered`): the systematic ones by what they explain, the
+   outliers after them unless they carry most of the sum of squares the
+   findings take out and are in no more doubt than those.
 
 Family-wise false-alarm rate: :attr:`Settings.alpha`, split equally over
 the four families of tests (lack of fit, CV gap, diagnosis, named causes).
@@ -836,6 +848,50 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
     return False
 
 
+def _place_carries(Q: np.ndarray, r: np.ndarray, kept: np.ndarray, out, events: np.ndarray, places: Places,
+                   alpha: float, material_sigma: float) -> dict | None:
+    """The feature holding outliers of two or more events whose other touches carry structure, if any.
+
+    Dust corrupts the touches it sits under and nothing else: the rest of
+    the feature it fell on is as clean as any. A feature that changes (a
+    wall relaxing, a boss growing) moves all its touches, and the outliers
+    are only its largest residuals, set-up after set-up. So, per feature
+    holding outliers of at least two events (one set-up's chips cannot
+    tell), its other touches are tested with the outliers set aside: any
+    pattern of that feature set-up by set-up (``places.columns``) against
+    the model (``Q`` orthonormal on the rows ``kept``, ``r`` their
+    residuals), nested F test, Bonferroni over the features tested at
+    ``alpha``, and material (debiased, ``material_sigma`` noise sigmas per
+    touch of the feature). Under dust the outliers' places are independent
+    of the other touches' noise, so the test keeps its level whichever
+    feature they picked. Returns ``{feature, F, p_adjusted, k,
+    explained_ss_um2}`` of the first such feature, or None.
+    """
+    if places.feature is None or places.columns is None:
+        return None
+    out = np.asarray(out, int)
+    feats = places.feature
+    tested = []
+    for f in dict.fromkeys(feats[out].tolist()):
+        on = out[feats[out] == f]
+        if np.unique(events[on][events[on] >= 0]).size + int(np.sum(events[on] < 0)) >= 2:
+            tested.append(f)
+    dof = len(kept) - Q.shape[1]
+    for f in tested:
+        W = new_basis(Q, np.asarray(places.columns(f), float)[kept])
+        k = W.shape[1]
+        if k == 0 or dof - k < 3:
+            continue
+        ss = float(np.sum((W.T @ r) ** 2))
+        s2 = (float(r @ r) - ss) / (dof - k)
+        F = (ss / k) / max(s2, 1e-300)
+        p = float(stats.f.sf(F, k, dof - k)) * len(tested)
+        if p < alpha and ss - k * s2 >= material_sigma ** 2 * s2 * int(np.sum(feats[kept] == f)):
+            return {"feature": str(f), "F": F, "p_adjusted": min(p, 1.0), "k": int(k),
+                    "explained_ss_um2": (ss - k * s2) / UM ** 2}
+    return None
+
+
 #: Draws of the concentration test's null (its smallest p-value is 1 / (draws + 1)).
 CONCENTRATION_DRAWS = 20000
 
@@ -870,11 +926,19 @@ class Places:
         set-up (a chip corrupts the touches of the place it sits on, in that
         set-up, and nothing else; two chips of one set-up sit at independent
         places). Negative: a row of its own.
+    feature : (n,) object, optional
+        Each row's feature (the :func:`find_outliers` place check).
+    columns : callable(feature) -> (n, m), optional
+        Any pattern of that feature's touches set-up by set-up (each wall
+        of it in each set-up: :func:`core.causes.part_change_rival`), what
+        a feature that changes could do.
     """
 
     codes: np.ndarray = field(repr=False)
     names: tuple
     units: np.ndarray = field(repr=False)
+    feature: np.ndarray | None = field(default=None, repr=False)
+    columns: object = field(default=None, repr=False)
 
 
 def places_of(bl: Baseline) -> Places | None:
@@ -891,7 +955,9 @@ def places_of(bl: Baseline) -> Places | None:
     if not cols:
         return None
     units = np.asarray(t.setup, int) * (int(np.max(t.target)) + 1) + np.asarray(t.target, int)
-    return Places(np.column_stack(cols), tuple(names), units)
+    feats = np.asarray(t.feature, dtype=object)
+    return Places(np.column_stack(cols), tuple(names), units, feats,
+                  lambda f: causes_mod.part_change_rival(bl, {"feature": f}))
 
 
 def _max_share(codes: np.ndarray) -> np.ndarray:
@@ -1339,7 +1405,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
     if outliers.size:
-        findings.append(_outlier_finding(bl, outliers, st0, st, ranks, events, outlier_seed, settings.alpha, places))
+        findings.append(_outlier_finding(bl, outliers, st0, st, ranks, events, outlier_seed, settings, places))
     if not findings and structure_b["present"]:
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
     findings = _ordered(findings)
@@ -2312,7 +2378,7 @@ def _ordered(findings: list) -> list:
     return out
 
 
-def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha, places=None) -> Finding:
+def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, places=None) -> Finding:
     """The outliers as a finding, with how confidently they are dust.
 
     Calling touches outliers says they are dust: a chip or a bad trigger,
@@ -2324,9 +2390,12 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha, places=N
     events (one touch, or one set-up's touches, cannot show a pattern), and
     the concentration p-value (:func:`concentration_p`, over the covariates
     and the places ``places``) at least the engine's overall false-alarm
-    rate ``alpha``, not only the family level that decides the removal.
-    Otherwise ``ambiguous``, with the reason.
+    rate ``alpha``, not only the family level that decides the removal;
+    and the feature they sit on carries no structure in its other touches
+    (:func:`_place_carries`: then they may be that structure's largest
+    residuals). Otherwise ``ambiguous``, with the reason.
     """
+    alpha = settings.alpha
     r0 = st0.r[outliers]
     ss = float(np.sum(r0 ** 2))
     first = first_per_event(outliers, events)
@@ -2340,9 +2409,19 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha, places=N
                f"the outliers gather in a covariate or on one place of the part (concentration {fmt_p(p_conc)}, "
                f"below the overall "
                f"false-alarm rate {alpha:g}): they may be an intermittent mechanism, not dust")
+    place = None
+    if places is not None and len(first) >= 2:
+        place = _place_carries(st.Q, st.r, st.rows, outliers, np.asarray(events), places, settings.alpha_family,
+                               settings.material_sigma)
+        if place is not None:
+            why = "; ".join(w for w in (why, (
+                f"the feature {place['feature']} they sit on carries structure in its other touches "
+                f"({place['explained_ss_um2']:.3g} um^2, {fmt_p(place['p_adjusted'])}): they may be its largest "
+                "residuals, not dust")) if w)
     return Finding(causes_mod.OUTLIER, {
         "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) / UM for v in r0],
         "explained_ss_um2": ss / UM ** 2, "events": len(first), "concentration_p": p_conc,
+        **({"place_structure": _clean(place)} if place is not None else {}),
         "confidence": "ambiguous" if why else "named", **({"confidence_reason": why} if why else {}),
         "test": "studentized deleted residual beyond the Bonferroni t bound"},
         {"n_outliers": int(len(outliers)), "max_deviation_um": float(np.max(np.abs(r0))) / UM},

@@ -164,3 +164,45 @@ def test_outliers_lead_when_they_are_the_story(findings, first):
     assert out[0].cause == first
     assert sorted(f.cause for f in out) == sorted(f.cause for f in findings)
     assert ("leads" in out[0].evidence) == (first == "outlier")
+
+
+def test_outliers_on_a_feature_that_moves_are_not_confidently_dust():
+    """_place_carries: two outliers in two set-ups on a feature whose other touches step set-up by set-up
+    (a wall relaxing): the feature carries structure beyond them; the same outliers on a still feature, or
+    in one set-up only, say nothing."""
+    from core.discover import _place_carries
+    from core.lsq import orth_of as orth
+
+    pl, _, feat, setup = _places()
+    pl = dataclasses.replace(pl, feature=feat.astype(object), columns=lambda f: np.column_stack(
+        [(feat == f) & (setup == s) for s in range(6)]).astype(float))
+    rng = np.random.default_rng(3)
+    n = setup.size
+    out = [int(np.flatnonzero((feat == 3) & (setup == s))[0]) for s in (4, 5)]
+    noise = rng.normal(0, 1e-6, n)
+    for step_m, rows, found in ((0.8e-6, out, True), (0.0, out, False),
+                                (0.8e-6, [out[0], out[0] + 1], False)):  # (the last: one set-up)
+        y = noise + step_m * (feat == 3) * setup
+        k = np.setdiff1d(np.arange(n), rows)
+        Qk = orth(np.ones((k.size, 1)))
+        r = y[k] - Qk @ (Qk.T @ y[k])
+        got = _place_carries(Qk, r, k, rows, setup, pl, 0.0025, 0.3)
+        assert (got is not None) == found, (step_m, rows, got)
+        if found:
+            assert got["feature"] == "3" and got["p_adjusted"] < 1e-6
+
+
+def test_gen_a_part_change_904_outliers_not_confidently_dust():
+    """The development miss this rule was written from: gen_a part_change 904, the relaxing boss's three
+    largest residuals (two set-ups) judged dust, `outlier`, confident; its other touches carry the
+    structure (the boss's walls per set-up, p < 1e-6), so the outliers are ambiguous now."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+
+    log, _ = gen_a.generate("part_change", 904)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
+    assert f["evidence"]["place_structure"]["feature"] == "boss"
