@@ -960,9 +960,22 @@ def places_of(bl: Baseline) -> Places | None:
                   lambda f: causes_mod.part_change_rival(bl, {"feature": f}))
 
 
+#: Elements of one block of :func:`_max_share`'s draws (memory stays at a few tens of MB whatever the count).
+SHARE_BLOCK = 1 << 21
+
+
 def _max_share(codes: np.ndarray) -> np.ndarray:
-    """(..., k) category codes -> (...,) the largest number of them equal to one another."""
-    return np.max(np.sum(codes[..., :, None] == codes[..., None, :], axis=-1), axis=-1)
+    """(d, k) category codes -> (d,) the largest number of each row's codes equal to one another (sorted runs)."""
+    codes = np.atleast_2d(codes)
+    d, k = codes.shape
+    out = np.empty(d, int)
+    step = max(1, SHARE_BLOCK // max(k, 1))
+    pos = np.arange(k)
+    for a in range(0, d, step):
+        S = np.sort(codes[a:a + step], axis=1)
+        start = np.where(np.concatenate([np.ones((len(S), 1), bool), S[:, 1:] != S[:, :-1]], axis=1), pos, 0)
+        out[a:a + step] = np.max(pos - np.maximum.accumulate(start, axis=1), axis=1) + 1
+    return out
 
 
 def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int = CONCENTRATION_DRAWS,
@@ -1001,11 +1014,13 @@ def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int
         pi = np.asarray(place_idx, int)
         u = np.where(places.units >= 0, places.units, -1 - np.arange(len(places.units)))
         reps = np.unique(u, return_index=True)[1]  # one row per unit: the null's draws
-        pick = reps[rng.integers(0, reps.size, (draws, pi.size))]
-        for c in range(places.codes.shape[1]):
-            code = places.codes[:, c]
-            obs = _max_share(code[pi])
-            ps.append(np.atleast_1d((1 + np.sum(_max_share(code[pick]) >= obs)) / (draws + 1)))
+        obs = [_max_share(places.codes[pi, c][None])[0] for c in range(places.codes.shape[1])]
+        exceed = np.zeros(len(obs))
+        step = max(1, SHARE_BLOCK // pi.size)  # (one block of draws for any campaign's outliers but a huge one)
+        for a in range(0, draws, step):
+            pick = reps[rng.integers(0, reps.size, (min(step, draws - a), pi.size))]
+            exceed += [np.sum(_max_share(places.codes[pick, c]) >= o) for c, o in enumerate(obs)]
+        ps.append((1 + exceed) / (draws + 1))
         n_stats += places.codes.shape[1]
     if not ps:
         return 1.0
