@@ -752,7 +752,10 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         piece of dust corrupts at one place (:func:`places_of`): the
         concentration test also asks whether the outliers, one per place
         unit, share a feature or a target more than dust would
-        (:func:`concentration_p`).
+        (:func:`concentration_p`), when they span two or more events (one
+        set-up's chips may gather where its swarf fell; a place that
+        collects outliers set-up after set-up, the part cleaned and set up
+        again in between, is no chip).
     """
     n = len(y)
     judged = ranks is not None and ranks.shape[1] > 0 and rng is not None
@@ -781,9 +784,9 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         keep[idx[k]] = False
     if judged:
         first = out if events is None else first_per_event(out, events)
-        at = None if places is None else first_per_event(out, places.units)
-        if (len(first) >= 2 or (at is not None and len(at) >= 2)) and concentration_p(
-                ranks, first, rng, places=places, place_idx=at) < alpha_concentration:
+        # places only across events: one set-up's chips may gather where its swarf fell
+        at = None if places is None or len(first) < 2 else first_per_event(out, places.units)
+        if len(first) >= 2 and concentration_p(ranks, first, rng, places=places, place_idx=at) < alpha_concentration:
             return []
         if slips is not None and events is not None and _slip_explains(X, y, out, np.asarray(events), slips, alpha):
             return []

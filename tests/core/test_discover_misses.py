@@ -127,7 +127,7 @@ def test_concentration_sees_places():
 
 def test_outliers_on_one_feature_are_structure():
     """find_outliers: five gross residuals, one per set-up, all on one feature: not removed (structure on
-    that feature); the same five on five features: dust, removed."""
+    that feature); the same five on five features, or on one feature in one set-up: dust, removed."""
     pl, ranks, feat, setup = _places()
     rng = np.random.default_rng(1)
     n = setup.size
@@ -135,7 +135,8 @@ def test_outliers_on_one_feature_are_structure():
     y = rng.normal(0, 1, n)
     same = [int(np.flatnonzero((feat == 3) & (setup == s))[s % 5]) for s in range(5)]
     spread = [int(np.flatnonzero((feat == 2 * s) & (setup == s))[1]) for s in range(5)]
-    for rows, expect in ((same, []), (spread, sorted(spread))):
+    one_setup = [int(i) for i in np.flatnonzero((feat == 3) & (setup == 2))]  # where one set-up's swarf fell
+    for rows, expect in ((same, []), (spread, sorted(spread)), (one_setup, sorted(one_setup))):
         yy = y.copy()
         yy[rows] += 9.0
         got = find_outliers(X, yy, ranks=ranks, rng=np.random.default_rng(0), events=setup, places=pl)
