@@ -2374,11 +2374,13 @@ def _ordered(findings: list) -> list:
     residuals) after them, as data set aside rather than a cause, unless
     they are the campaign's story: they carry most of what the findings
     take out (more than every systematic finding together), and they are
-    in no more doubt than those (confidently dust, or no systematic finding
-    is confidently named: ``unexplained`` or ``ambiguous`` only). Then the
-    outliers lead: a held-out gap or a 1 um^2 bump beside 1,400 um^2 of
-    chips is not what the campaign shows, and a confidently named cause
-    keeps the lead over outliers that may be its own largest residuals.
+    in no more doubt than those: confidently dust, or beside structure left
+    unnamed only (``unexplained``). Then the outliers lead: a held-out gap
+    or a 1 um^2 bump beside 1,400 um^2 of chips is not what the campaign
+    shows. Outliers that may not be dust (``ambiguous``: they gather
+    somewhere, or one event cannot tell) never displace a named cause,
+    flagged or not: they may be its own largest residuals (gen_a
+    part_change 1000: four on the changing feature in one set-up).
     """
     def ss(f):
         return f.evidence.get("explained_ss_um2") or 0.0
@@ -2388,8 +2390,8 @@ def _ordered(findings: list) -> list:
     rest = [f for f in out if f.cause != causes_mod.OUTLIER]
     if dust and rest:
         d = dust[0]
-        named = any(f.evidence.get("confidence") == "named" for f in rest)
-        if ss(d) > sum(max(ss(f), 0.0) for f in rest) and (d.evidence.get("confidence") == "named" or not named):
+        unnamed = all(f.cause == causes_mod.UNEXPLAINED for f in rest)
+        if ss(d) > sum(max(ss(f), 0.0) for f in rest) and (d.evidence.get("confidence") == "named" or unnamed):
             d.evidence["leads"] = ("the outliers carry most of the sum of squares the findings take out "
                                    f"({ss(d):.3g} against {sum(max(ss(f), 0.0) for f in rest):.3g} um^2)")
             out = [d] + rest

@@ -157,6 +157,7 @@ def _f(cause, ss, conf=None):
     ([_f("unexplained", 3.8), _f("outlier", 12.4, "ambiguous")], "outlier"),  # 903: nothing named beside them
     ([_f("local_scale_defect", 1.4, "named"), _f("outlier", 1436.0, "named")], "outlier"),  # gen_b 908
     ([_f("part_change", 6.5, "named"), _f("outlier", 27.2, "ambiguous")], "part_change"),  # gen_a part_change 909
+    ([_f("part_change", 9.0, "ambiguous"), _f("outlier", 40.0, "ambiguous")], "part_change"),  # gen_a 1000
     ([_f("reversal", 907.7, "ambiguous"), _f("outlier", 24.5, "named")], "reversal"),  # a cause that explains more
     ([_f("unexplained", 341.5), _f("outlier", 70.4, "ambiguous")], "unexplained"),  # gen_a knock 900
 ])
