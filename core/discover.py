@@ -121,8 +121,8 @@ What it does, in order, and the statistics behind each step
    the catalogue offers, not a claim that the mechanism is known.
 9. **Order**: the findings best first, the first the report's cause
    (:func:`_ordered`): the systematic ones by what they explain, the
-   outliers after them unless they carry most of the sum of squares the
-   findings take out and are in no more doubt than those.
+   outliers after them unless beside them only unnamed structure that
+   explains less than they carry, with no noise excess.
 
 Family-wise false-alarm rate: :attr:`Settings.alpha`, split equally over
 the four families of tests (lack of fit, CV gap, diagnosis, named causes).
@@ -2372,15 +2372,14 @@ def _ordered(findings: list) -> list:
     The systematic findings by the sum of squares they explain. The
     outliers (touches set aside, with the sum of squares of their baseline
     residuals) after them, as data set aside rather than a cause, unless
-    they are the campaign's story: they carry most of what the findings
-    take out (more than every systematic finding together), and they are
-    in no more doubt than those: confidently dust, or beside structure left
-    unnamed only (``unexplained``). Then the outliers lead: a held-out gap
-    or a 1 um^2 bump beside 1,400 um^2 of chips is not what the campaign
-    shows. Outliers that may not be dust (``ambiguous``: they gather
-    somewhere, or one event cannot tell) never displace a named cause,
-    flagged or not: they may be its own largest residuals (gen_a
-    part_change 1000: four on the changing feature in one set-up).
+    they are the campaign's story: beside them only structure left unnamed
+    (``unexplained``), which explains less than they carry (a held-out gap,
+    0.1 um following one covariate, beside 75 um^2 of chips), and what
+    remains after them within a probe's noise (an ``unexplained`` noise
+    excess says the scatter left is itself no probe's: the outliers are not
+    the whole story). A named cause, flagged or not, keeps the lead:
+    outliers beside it may be its own largest residuals (a local scale
+    defect's, whose bump the cause's form follows only in part).
     """
     def ss(f):
         return f.evidence.get("explained_ss_um2") or 0.0
@@ -2388,11 +2387,11 @@ def _ordered(findings: list) -> list:
     out = sorted(findings, key=lambda f: (f.cause == causes_mod.OUTLIER, -ss(f)))
     dust = [f for f in out if f.cause == causes_mod.OUTLIER]
     rest = [f for f in out if f.cause != causes_mod.OUTLIER]
-    if dust and rest:
+    if dust and rest and all(f.cause == causes_mod.UNEXPLAINED and not f.evidence.get("noise_excess")
+                             for f in rest):
         d = dust[0]
-        unnamed = all(f.cause == causes_mod.UNEXPLAINED for f in rest)
-        if ss(d) > sum(max(ss(f), 0.0) for f in rest) and (d.evidence.get("confidence") == "named" or unnamed):
-            d.evidence["leads"] = ("the outliers carry most of the sum of squares the findings take out "
+        if ss(d) > sum(max(ss(f), 0.0) for f in rest):
+            d.evidence["leads"] = ("the outliers carry more sum of squares than the structure left unnamed "
                                    f"({ss(d):.3g} against {sum(max(ss(f), 0.0) for f in rest):.3g} um^2)")
             out = [d] + rest
     return out

@@ -6,8 +6,10 @@
 - the outliers' concentration test sees places on the part (feature,
   target): outliers that share a feature set-up after set-up are no dust
   (:func:`core.discover.concentration_p` with :class:`core.discover.Places`);
-- the outliers lead the findings when they carry most of the sum of squares
-  the findings take out and are in no more doubt than the systematic ones
+- outliers on a feature whose other touches carry structure are not
+  confidently dust (:func:`core.discover._place_carries`);
+- the outliers lead the findings when beside them is only unnamed
+  structure that explains less than they carry, with no noise excess
   (:func:`core.discover._ordered`).
 """
 
@@ -145,8 +147,8 @@ def test_outliers_on_one_feature_are_structure():
         assert find_outliers(X, yy, ranks=ranks, rng=np.random.default_rng(0), events=setup) == sorted(rows)
 
 
-def _f(cause, ss, conf=None):
-    ev = {"explained_ss_um2": ss}
+def _f(cause, ss, conf=None, **ev):
+    ev = {"explained_ss_um2": ss, **ev}
     if conf:
         ev["confidence"] = conf
     return Finding(cause, ev, {}, {}, 0.3, "data" if cause == "outlier" else "machine")
@@ -154,14 +156,16 @@ def _f(cause, ss, conf=None):
 
 @pytest.mark.parametrize("findings, first", [
     ([_f("unexplained", 0.0), _f("outlier", 75.0, "named")], "outlier"),  # gen_a outlier 902: a held-out gap only
-    ([_f("unexplained", 3.8), _f("outlier", 12.4, "ambiguous")], "outlier"),  # 903: nothing named beside them
-    ([_f("local_scale_defect", 1.4, "named"), _f("outlier", 1436.0, "named")], "outlier"),  # gen_b 908
-    ([_f("part_change", 6.5, "named"), _f("outlier", 27.2, "ambiguous")], "part_change"),  # gen_a part_change 909
+    ([_f("unexplained", 3.8), _f("outlier", 12.4, "ambiguous")], "outlier"),  # 903: one event, 0.13 um beside
+    ([_f("unexplained", 0.0, noise_excess=True), _f("outlier", 155.0, "named")], "unexplained"),  # reseat 801
+    ([_f("local_scale_defect", 1.8, "named"), _f("outlier", 18.9, "named")], "local_scale_defect"),  # gen_b 905
     ([_f("part_change", 9.0, "ambiguous"), _f("outlier", 40.0, "ambiguous")], "part_change"),  # gen_a 1000
     ([_f("reversal", 907.7, "ambiguous"), _f("outlier", 24.5, "named")], "reversal"),  # a cause that explains more
     ([_f("unexplained", 341.5), _f("outlier", 70.4, "ambiguous")], "unexplained"),  # gen_a knock 900
 ])
 def test_outliers_lead_when_they_are_the_story(findings, first):
+    """The outliers lead only beside unnamed structure that explains less than they carry and leaves no noise
+    excess (the development cases of each row: the lead they took, and those where they must not)."""
     out = _ordered(findings)
     assert out[0].cause == first
     assert sorted(f.cause for f in out) == sorted(f.cause for f in findings)
