@@ -121,8 +121,9 @@ What it does, in order, and the statistics behind each step
    the catalogue offers, not a claim that the mechanism is known.
 9. **Order**: the findings best first, the first the report's cause
    (:func:`_ordered`): the systematic ones by what they explain, the
-   outliers after them unless beside them only unnamed structure that
-   explains less than they carry, with no noise excess.
+   outliers after them unless they are material and beside them is only
+   unnamed structure that explains less than they carry, with no noise
+   excess.
 
 Family-wise false-alarm rate: :attr:`Settings.alpha`, split equally over
 the four families of tests (lack of fit, CV gap, diagnosis, named causes).
@@ -1426,7 +1427,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         findings.append(_outlier_finding(bl, outliers, st0, st, ranks, events, outlier_seed, settings, places))
     if not findings and structure_b["present"]:
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
-    findings = _ordered(findings)
+    findings = _ordered(findings, (settings.material_sigma * sig) ** 2 * len(rows) / UM ** 2)
     tick()
     wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family)
     res_e = np.full(N, np.nan)
@@ -2366,15 +2367,17 @@ def _clean(d):
     return d
 
 
-def _ordered(findings: list) -> list:
+def _ordered(findings: list, material_ss_um2: float = 0.0) -> list:
     """The findings best first; the first is the report's cause.
 
     The systematic findings by the sum of squares they explain. The
     outliers (touches set aside, with the sum of squares of their baseline
     residuals) after them, as data set aside rather than a cause, unless
-    they are the campaign's story: beside them only structure left unnamed
-    (``unexplained``), which explains less than they carry (a held-out gap,
-    0.1 um following one covariate, beside 75 um^2 of chips), and what
+    they are the campaign's story: they carry a material sum of squares
+    (``material_ss_um2``: the materiality over the campaign's rows), beside
+    them only structure left unnamed (``unexplained``), which explains less
+    than they carry (a held-out gap, 0.1 um following one covariate, beside
+    75 um^2 of chips), and what
     remains after them within a probe's noise (an ``unexplained`` noise
     excess says the scatter left is itself no probe's: the outliers are not
     the whole story). A named cause, flagged or not, keeps the lead:
@@ -2390,7 +2393,7 @@ def _ordered(findings: list) -> list:
     if dust and rest and all(f.cause == causes_mod.UNEXPLAINED and not f.evidence.get("noise_excess")
                              for f in rest):
         d = dust[0]
-        if ss(d) > sum(max(ss(f), 0.0) for f in rest):
+        if ss(d) > max(sum(max(ss(f), 0.0) for f in rest), material_ss_um2):
             d.evidence["leads"] = ("the outliers carry more sum of squares than the structure left unnamed "
                                    f"({ss(d):.3g} against {sum(max(ss(f), 0.0) for f in rest):.3g} um^2)")
             out = [d] + rest

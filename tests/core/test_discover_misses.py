@@ -8,9 +8,9 @@
   (:func:`core.discover.concentration_p` with :class:`core.discover.Places`);
 - outliers on a feature whose other touches carry structure are not
   confidently dust (:func:`core.discover._place_carries`);
-- the outliers lead the findings when beside them is only unnamed
-  structure that explains less than they carry, with no noise excess
-  (:func:`core.discover._ordered`).
+- the outliers lead the findings when they are material and beside them is
+  only unnamed structure that explains less than they carry, with no noise
+  excess (:func:`core.discover._ordered`).
 """
 
 from __future__ import annotations
@@ -162,11 +162,13 @@ def _f(cause, ss, conf=None, **ev):
     ([_f("part_change", 9.0, "ambiguous"), _f("outlier", 40.0, "ambiguous")], "part_change"),  # gen_a 1000
     ([_f("reversal", 907.7, "ambiguous"), _f("outlier", 24.5, "named")], "reversal"),  # a cause that explains more
     ([_f("unexplained", 341.5), _f("outlier", 70.4, "ambiguous")], "unexplained"),  # gen_a knock 900
+    ([_f("unexplained", 0.0), _f("outlier", 0.34, "ambiguous")], "unexplained"),  # gen_b stylus_bending 804
 ])
 def test_outliers_lead_when_they_are_the_story(findings, first):
-    """The outliers lead only beside unnamed structure that explains less than they carry and leaves no noise
-    excess (the development cases of each row: the lead they took, and those where they must not)."""
-    out = _ordered(findings)
+    """The outliers lead only when material, beside unnamed structure that explains less than they carry and
+    leaves no noise excess (the development cases of each row: the lead they took, and those where they
+    must not; materiality 2 um^2, about (0.3 sigma)^2 over 270 touches at 0.3 um)."""
+    out = _ordered(findings, 2.0)
     assert out[0].cause == first
     assert sorted(f.cause for f in out) == sorted(f.cause for f in findings)
     assert ("leads" in out[0].evidence) == (first == "outlier")
