@@ -346,8 +346,13 @@ def touch_history(t_s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return since, turn
 
 
-def planar_covariates(d: PlanarData) -> tuple:
-    """The covariates of a planar campaign (those that vary), with their bases."""
+def planar_covariates(d: PlanarData, sparse: bool = False) -> tuple:
+    """The covariates of a planar campaign (those that vary), with their bases.
+
+    ``sparse`` (a long log's, beside a :class:`core.lsq.BlockDesign`): the
+    approach azimuth per set-up (``azimuth_by_setup``, rows x 6 per set-up,
+    each column non-zero on one set-up's rows) is kept as a sparse matrix.
+    """
     t = d.touches
     allm = tuple(range(7))
     pos = (0, 1, 2)
@@ -364,7 +369,13 @@ def planar_covariates(d: PlanarData) -> tuple:
     su = np.unique(t.setup)
     if su.size >= 2:
         F = np.column_stack([f(k * d.azimuth) for k in (2, 3, 4) for f in (np.cos, np.sin)])
-        B = np.hstack([F * (t.setup == j)[:, None] for j in su])
+        if sparse:
+            pos = np.searchsorted(su, t.setup)
+            B = sp.csr_matrix((F.ravel(), (np.repeat(np.arange(t.n), F.shape[1]),
+                                           (pos[:, None] * F.shape[1] + np.arange(F.shape[1])).ravel())),
+                              shape=(t.n, F.shape[1] * su.size))
+        else:
+            B = np.hstack([F * (t.setup == j)[:, None] for j in su])
         covs.append(Covariate("azimuth_by_setup", B, "basis", B.shape[1], (0,),
                               "the approach azimuth, differently in each set-up", "direction"))
     xy = _xy_basis(d.xs, d.ys)
@@ -583,7 +594,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         kind="planar", model=model, A=A, y=t.dq_m, names=names, groups=t.setup.copy(),
         group_ids=tuple(t.setup_ids), C=C, d=d, estimand=np.arange(G.start, G.stop),
         estimand_ids=tuple(des.target_ids), geometry=workpiece_geometry(t, data.c0_m), replicate=key,
-        covariates=planar_covariates(data), modes=planar_modes(data), mode_names=PLANAR_MODES,
+        covariates=planar_covariates(data, sparse=isinstance(A, BlockDesign)), modes=planar_modes(data), mode_names=PLANAR_MODES,
         rows=np.asarray(t.row), data=data, identifiable=ident, why=why, conventions=tuple(conv),
         info={"grid_step_mm": st, "z_levels_mm": [v / MM for v in levels], "yaw": des.yaw,
               "design": des}, qr=qr)

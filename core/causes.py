@@ -424,7 +424,9 @@ def lobing_rival(bl, info) -> np.ndarray:
     the common part of something that turns. One set-up: its own columns.
     """
     cov = bl.covariate("azimuth_by_setup")
-    return common_lobing(bl) if cov is None else np.asarray(cov.values, float)
+    if cov is None:
+        return common_lobing(bl)
+    return cov.values.toarray() if hasattr(cov.values, "toarray") else np.asarray(cov.values, float)  # (sparse: a long log)
 
 
 def lobing_magnitudes(info, coef, bl):

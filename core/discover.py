@@ -1042,7 +1042,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     all_rows = np.arange(N)
     white = (lambda M: M) if bl.whiten is None else (lambda M: bl.whiten @ M)
     use_cv = bool(bl.info.get("cv", True))
-    bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
+    if isinstance(bl.A, BlockDesign):  # a long log: bases built when asked for, not kept (never whitened: planar)
+        bases = term_bases(bl.covariates, bl.modes, lazy=True)
+    else:
+        bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
 
     ranks = covariate_ranks(bl.covariates)
     if settings.outlier_events not in ("target", "setup", "setup_slip"):
