@@ -613,7 +613,7 @@ def _basis_rmatmul_rows(Q, pos: np.ndarray, X) -> np.ndarray:
     ids = Q.ids[pos]
     G = sp.csr_matrix((Q._scale[Q._pos[ids]], (Q._pos[ids], np.arange(len(pos)))), shape=(Q.k, len(pos)))
     top = G @ X
-    Up = Q.U[pos]
+    Up = Q.dense_rows(pos)
     bot = (X.T @ Up).T if sp.issparse(X) else Up.T @ X
     return np.vstack([top.toarray() if sp.issparse(top) else np.asarray(top), np.asarray(bot)])
 
