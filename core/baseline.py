@@ -542,6 +542,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
             names = names + hn
         if big:  # the targets' columns eliminated, only the machine's factored (lsq.BlockDesign)
             Gs = des.slices["G"]
+            A_sparse = A
             A = BlockDesign.from_sparse(A, np.arange(Gs.start, Gs.stop))
             qr = None
             Q = A.basis(RANK_TOL)
@@ -551,16 +552,21 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         item = (st, des, A, C, d, names, levels, qr, Q)
         # identifiable beyond the gauge: the gauge rows fix exactly the null space
         nullity = A.shape[1] - Q.shape[1]
-        if nullity > np.linalg.matrix_rank(C):
+        ident_here = nullity <= np.linalg.matrix_rank(C)
+        # the grid BIC chooses (the first on a tie), or the first: only the best kept so far
+        # (a long log's designs are large: kept as the sparse design, the block design made again for the one
+        # chosen, so that one dense block at a time is held)
+        score = bic(item) if ident_here and select_grid and len(steps) > 1 else 0.0
+        if big:
+            item = (st, des, A_sparse, C, d, names, levels, None, None)
+        if not ident_here:
             last = IdentifiabilityError(f"grid {st:g} mm: the design leaves {nullity - np.linalg.matrix_rank(C)} "
                                         "combination(s) beyond the gauge unseen (e.g. a symmetric part at C "
                                         "angles 90 deg apart)")
             if fallback is None and not best:
                 fallback = (item, str(last))
+            del item, A, Q, qr
             continue
-        # the grid BIC chooses (the first on a tie), or the first: only the best kept so far
-        # (a long log's designs are large)
-        score = bic(item) if select_grid and len(steps) > 1 else 0.0
         if not best or score < best[0]:
             best = [score, item]
             fallback = None
@@ -576,6 +582,8 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         item, why = fallback
         ident = False
     st, des, A, C, d, names, levels, qr, _ = item
+    if sp.issparse(A):  # a long log's design, kept sparse while the grids were compared
+        A = BlockDesign.from_sparse(A, np.arange(des.slices["G"].start, des.slices["G"].stop))
     data = planar_data(t, st * MM, extra)
     G = des.slices["G"]
     key = np.full(t.n, -1)

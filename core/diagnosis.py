@@ -186,6 +186,16 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
     """
     T, n, k = C.shape
     nrm = np.sqrt(np.einsum("tnk,tnk->tk", C, C))
+    if isinstance(Q, Basis):  # a long log: P^T P and P^T r from the Gram matrices (no (n, T k) projection formed)
+        inv = 1.0 / np.maximum(nrm, 1e-300)
+        G = np.empty((T, k, k))
+        b = np.empty((T, k))
+        Qr = Q.T @ r
+        for t in range(T):
+            QC = (Q.T @ C[t]) * inv[t]
+            G[t] = (C[t].T @ C[t]) * np.outer(inv[t], inv[t]) - QC.T @ QC
+            b[t] = (C[t].T @ r) * inv[t] - QC.T @ Qr
+        return _batch_tests(G, b, rss, dof)
     Cn = C / np.maximum(nrm, 1e-300)[:, None, :]
     if Q.shape[1]:  # one matrix product for every trial: (n, T k)
         C2 = np.moveaxis(Cn, 0, 1).reshape(n, T * k)
@@ -193,8 +203,11 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
     else:
         P = Cn
     Pt = np.swapaxes(P, 1, 2)
-    G = Pt @ P
-    b = Pt @ r
+    return _batch_tests(Pt @ P, Pt @ r, rss, dof)
+
+
+def _batch_tests(G: np.ndarray, b: np.ndarray, rss: float, dof: int):
+    """:func:`nested_f_batch` from each trial's projected Gram matrix ``G`` (T, k, k) and ``P^T r`` (T, k)."""
     w, V = np.linalg.eigh(G)
     good = w > IN_SPAN ** 2
     proj = (np.swapaxes(V, 1, 2) @ b[..., None])[..., 0]

@@ -145,7 +145,7 @@ from .baseline import Baseline
 from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch, new_basis, orth,
                         replicate_scatter, term_bases)
 from .exceptions import ConfigError, IdentifiabilityError
-from .lsq import BlockDesign, group_sums, leverage, orth_of
+from .lsq import BlockDesign, group_sums, leverage, orth_of, row_column_norms
 from .touches import Touches
 from .units import UM
 
@@ -402,7 +402,7 @@ class Folds:
             ctr = cnt - cte
             # each column's norm on the training rows, from those rows: the total minus the held-out part leaves
             # a rounding remainder where a held-out group's own column is zero on them (seen as trained)
-            sc = np.linalg.norm(A.D[tr], axis=0)
+            sc = row_column_norms(A.D, tr)
             used = sc > 1e-9 * max(sc.max(), np.sqrt(ctr.max()), 1e-300)
             cols = np.flatnonzero(used)
             gu = ctr > 0
@@ -2436,7 +2436,8 @@ def _gauge_eig(N: np.ndarray, Z: np.ndarray):
 
 def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_map=False):
     """:func:`_constrained` for a block design: the same solution from its normal matrix (:func:`_gauge_eig`)."""
-    Ar = A[rows]
+    every = len(rows) == len(A) and np.array_equal(rows, np.arange(len(A)))
+    Ar = A if every else A[rows]  # (every row: no copy of the dense block)
     yr = y[rows]
     p = A.shape[1]
     N = Ar.gram()

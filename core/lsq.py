@@ -737,6 +737,8 @@ class BlockDesign:
     def hstack(self, E: np.ndarray) -> "BlockDesign":
         """``[A | E]``: the new columns join the dense block."""
         E = np.asarray(E, float).reshape(len(self.ids), -1)
+        if not E.shape[1]:  # nothing joins: the same design (not a copy of D)
+            return self
         p = self.shape[1]
         return BlockDesign(self.ids, np.hstack([self.D, E]), self.g_cols,
                            np.concatenate([self.d_cols, np.arange(p, p + E.shape[1])]))
@@ -808,12 +810,19 @@ def _chunks(n: int, width: int):
     return [slice(a, min(a + step, n)) for a in range(0, n, step)]
 
 
-def _col_sumsq(D: np.ndarray) -> np.ndarray:
-    """(m,) each column's sum of squares, a block of rows at a time (no n x m temporary)."""
+def _col_sumsq(D: np.ndarray, rows=None) -> np.ndarray:
+    """(m,) each column's sum of squares over ``rows`` (all), a block of rows at a time (no n x m temporary)."""
     out = np.zeros(D.shape[1])
-    for c in _chunks(D.shape[0], D.shape[1]):
-        out += np.einsum("ij,ij->j", D[c], D[c])
+    rows = np.arange(D.shape[0]) if rows is None else np.asarray(rows)
+    for c in _chunks(len(rows), D.shape[1]):
+        Dc = D[rows[c]]
+        out += np.einsum("ij,ij->j", Dc, Dc)
     return out
+
+
+def row_column_norms(D: np.ndarray, rows=None) -> np.ndarray:
+    """(m,) the columns' norms over ``rows`` (all rows when None) of a tall ``D``, without copying those rows whole."""
+    return np.sqrt(_col_sumsq(D, rows))
 
 
 class CentredSpan:
