@@ -844,8 +844,14 @@ class CentredSpan:
     def rows(self, pos) -> np.ndarray:
         return self.D[pos] @ self.T - self.MT[self.ids[pos]]
 
-    def matmul(self, c: np.ndarray) -> np.ndarray:
-        return self.D @ (self.T @ c) - (self.MT @ c)[self.ids]
+    def matmul(self, c: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """``U @ c``, added to ``out`` when given (a block of rows at a time: no rows x k temporaries)."""
+        Tc, Mc = self.T @ c, self.MT @ c
+        if out is None:
+            out = np.zeros((len(self.ids),) + np.shape(c)[1:])
+        for ch in _chunks(len(self.ids), self.D.shape[1] + (Tc.shape[1] if Tc.ndim == 2 else 1)):
+            out[ch] += self.D[ch] @ Tc - Mc[self.ids[ch]]
+        return out
 
     def rmatmul(self, X: np.ndarray) -> np.ndarray:
         return self.T.T @ (self.D.T @ X) - self.MT.T @ group_sums(self.ids, len(self.MT), X)
@@ -944,8 +950,10 @@ class Basis:
         c = np.asarray(c, float)
         k, r = self.k, self._r
         cg = c[:k] * (self._scale if c.ndim == 1 else self._scale[:, None])
-        out = cg[self._pos[self.ids]] + self.U @ c[k + r:]
-        return out + self.span.matmul(c[k:k + r]) if r else out
+        out = cg[self._pos[self.ids]]
+        if self.U.shape[1]:
+            out += self.U @ c[k + r:]
+        return self.span.matmul(c[k:k + r], out) if r else out
 
     def hstack(self, V: np.ndarray) -> "Basis":
         return Basis(self.ids, self.counts, np.hstack([self.U, V]), self.span)
