@@ -697,7 +697,8 @@ class BlockDesign:
         if np.any(np.diff(G.indptr) != 1) or np.any(G.data != 1.0):
             raise ConfigError("BlockDesign: the indicator columns must hold exactly one 1 per row")
         d_cols = np.setdiff1d(np.arange(A.shape[1]), g_cols)
-        return cls(G.indices.astype(np.int64), A[:, d_cols].toarray(), g_cols, d_cols)
+        # D in row order (a CSC matrix's toarray is column-major: every pass over rows would copy it)
+        return cls(G.indices.astype(np.int64), A[:, d_cols].tocsr().toarray(), g_cols, d_cols)
 
     @property
     def shape(self) -> tuple:
@@ -782,9 +783,15 @@ class BlockDesign:
             keep = np.flatnonzero(nrm > 0)
             mean = group_sums(ids, self.g, D) / np.maximum(cnt, 1.0)[:, None]  # (g, m): D's means per id
             R = np.zeros((0, keep.size))
-            for c in _chunks(len(ids), D.shape[1]):
-                Ds = (D[c][:, keep] - mean[ids[c]][:, keep]) / nrm[keep]
-                R = sla.qr(np.vstack([R, Ds]), mode="r")[0][:keep.size]
+            mk, sk = mean[:, keep], 1.0 / nrm[keep]
+            for c in _chunks(len(ids), 4 * D.shape[1]):  # (a block, its means, the stack and its R: 4 blocks held)
+                W = np.empty((R.shape[0] + c.stop - c.start, keep.size))
+                W[:R.shape[0]] = R
+                Ds = W[R.shape[0]:]
+                np.take(D[c], keep, axis=1, out=Ds)
+                Ds -= mk[ids[c]]
+                Ds *= sk
+                R = sla.qr(W, mode="r", overwrite_a=True)[0][:keep.size]
             if keep.size:
                 _, R2, piv = sla.qr(R, pivoting=True)
                 d = np.abs(np.diag(R2))
