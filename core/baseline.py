@@ -32,7 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import selfcal
-from .diagnosis import Covariate, orth, pivoted_qr
+from .diagnosis import Covariate, orth, pivoted_qr, qr_formed, qr_rss
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import BlockDesign
 from .touches import Touches
@@ -503,10 +503,40 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
     fallback = None
     best: list = []
 
+    def basis(item):
+        """The grid's orthonormal basis (a dense design's Q formed when first asked: qr_formed)."""
+        if item[-1] is None and not sp.issparse(item[2]):  # (a long log's sparse design: made again, Q by it)
+            item[7] = qr_formed(item[7])
+            item[-1] = orth(item[2], tol=RANK_TOL, qr=item[7])
+        return item[-1]
+
     def bic(item):
-        Q = item[-1]
+        Q = basis(item)
         r = t.dq_m - Q @ (Q.T @ t.dq_m)
         return _bic(float(r @ r), t.n, Q.shape[1])
+
+    def better(item, rank, best):
+        """Whether the grid of ``item`` is BIC's choice over ``best`` ([score, item, bound]): its score, bound too.
+
+        A dense design's Q is formed only for the grid chosen: its BIC is
+        first taken from the reflectors (:func:`core.diagnosis.qr_rss`, the
+        same number to rounding), with a bound on that rounding (the
+        residual's error at most 1e5 eps |y|, both ways); only where two
+        grids' BICs differ by less than their bounds are both formed and
+        compared as ever. The choice is the one the formed BICs make.
+        """
+        if item[-1] is not None:  # (a block design's basis: its BIC formed; the first on a tie, the best kept sparse)
+            score = bic(item)
+            return (not best or score < best[0]), score, 0.0
+        else:
+            rss = qr_rss(item[7], t.dq_m, rank)
+            score = _bic(rss, t.n, rank)
+            bound = t.n * 4e5 * np.finfo(float).eps * np.linalg.norm(t.dq_m) / np.sqrt(max(rss, 1e-300))
+        if not best:
+            return True, score, bound
+        if abs(score - best[0]) > bound + best[2]:
+            return score < best[0], score, bound
+        return bic(item) < bic(best[1]), score, bound
 
     # the design in coordinates about the C axis (the campaign's own origin): the
     # same matrix wherever the campaign sits in the machine
@@ -546,19 +576,20 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
             A = BlockDesign.from_sparse(A, np.arange(Gs.start, Gs.stop))
             qr = None
             Q = A.basis(RANK_TOL)
-        else:
-            qr = pivoted_qr(A)
-            Q = orth(A, tol=RANK_TOL, qr=qr)
-        item = (st, des, A, C, d, names, levels, qr, Q)
+            rank = Q.shape[1]
+        else:  # (Q formed only for the grid chosen: basis)
+            qr = pivoted_qr(A, q=False)
+            Q = None
+            rank = int(np.sum(qr[1] > RANK_TOL * qr[1][0])) if qr[1].size else 0  # (orth's rank)
+        item = [st, des, A, C, d, names, levels, qr, Q]
         # identifiable beyond the gauge: the gauge rows fix exactly the null space
-        nullity = A.shape[1] - Q.shape[1]
+        nullity = A.shape[1] - rank
         ident_here = nullity <= np.linalg.matrix_rank(C)
-        # the grid BIC chooses (the first on a tie), or the first: only the best kept so far
-        # (a long log's designs are large: kept as the sparse design, the block design made again for the one
-        # chosen, so that one dense block at a time is held)
-        score = bic(item) if ident_here and select_grid and len(steps) > 1 else 0.0
-        if big:
-            item = (st, des, A_sparse, C, d, names, levels, None, None)
+        if ident_here:  # the grid BIC chooses (the first on a tie), or the first: only the best kept so far
+            win, score, bound = better(item, rank, best) if select_grid and len(steps) > 1 else (not best, 0.0, 0.0)
+        if big:  # a long log's: kept as the sparse design, the block design made again for the grid chosen (one
+            # dense block held at a time)
+            item = [st, des, A_sparse, C, d, names, levels, None, None]
         if not ident_here:
             last = IdentifiabilityError(f"grid {st:g} mm: the design leaves {nullity - np.linalg.matrix_rank(C)} "
                                         "combination(s) beyond the gauge unseen (e.g. a symmetric part at C "
@@ -567,8 +598,8 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
                 fallback = (item, str(last))
             del item, A, Q, qr
             continue
-        if not best or score < best[0]:
-            best = [score, item]
+        if win:
+            best = [score, item, bound]
             fallback = None
         del item, A, Q, qr
     cands = [best[1]] if best else []
@@ -581,6 +612,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
     else:
         item, why = fallback
         ident = False
+    basis(item)  # (the chosen grid's Q formed: the engine starts from it)
     st, des, A, C, d, names, levels, qr, _ = item
     if sp.issparse(A):  # a long log's design, kept sparse while the grids were compared
         A = BlockDesign.from_sparse(A, np.arange(des.slices["G"].start, des.slices["G"].stop))

@@ -145,10 +145,14 @@ def _one(cols: np.ndarray, labels, info: dict, cov: str) -> Scan:
     return Scan(tuple(labels), (info,), cov, lambda idx: arr[np.asarray(idx)])
 
 
-def _trial_scores(F, F2, r, W) -> np.ndarray:
-    """``sum_m (r . (w_m F_t))^2 / |w_m F_t|^2`` per column ``t`` of ``F`` (n, T), ``F2 = F ** 2``."""
+def _trial_scores(F, F2, r, W, den=None) -> np.ndarray:
+    """``sum_m (r . (w_m F_t))^2 / |w_m F_t|^2`` per column ``t`` of ``F`` (n, T), ``F2 = F ** 2``.
+
+    ``den``: ``(W ** 2).T @ F2`` when already computed (it does not depend on ``r``).
+    """
     num = ((r[:, None] * W).T @ F) ** 2
-    den = (W ** 2).T @ F2
+    if den is None:
+        den = (W ** 2).T @ F2
     return np.sum(num / np.maximum(den, 1e-300), axis=0)
 
 
@@ -161,19 +165,35 @@ def _matmul_score(blocks: Callable, weights: np.ndarray, keep: bool = True):
     ``keep``: the blocks computed once and kept (a small table: one block,
     the table itself); else computed afresh at each call, a block at a time,
     so memory stays at one block whatever the rows.
+
+    The denominators ``|w_m F_t|^2`` depend on the rows, not on the
+    residuals: they are computed once per set of rows (the engine scores
+    every round's residuals on the same rows) and kept, (modes, T) each,
+    for the last few sets of rows; the same products on the same operands,
+    so the same numbers bit for bit.
     """
     kept = []
+    dens: dict = {}  # rows (bytes) -> per block (modes, T) denominators, most recent last
 
     def score(r, rows):
         every = len(rows) == len(weights) and np.array_equal(rows, np.arange(len(weights)))
         W = weights[rows]
         if keep and not kept:
             kept.extend((F, F ** 2, combine) for F, combine in blocks())
+        key = b"" if every else np.asarray(rows).tobytes()
+        have = dens.pop(key, None)
+        new = []
         out = []
-        for F, F2, combine in kept if keep else ((F, F ** 2, c) for F, c in blocks()):
+        for b, (F, F2, combine) in enumerate(kept if keep else ((F, None, c) for F, c in blocks())):
             if not every:  # (every row: the table itself, not a copy of it)
-                F, F2 = F[rows], F2[rows]
-            out.append(combine(_trial_scores(F, F2, r, W)))
+                F = F[rows]
+            if have is None:
+                F2 = F ** 2 if F2 is None else (F2 if every else F2[rows])
+                new.append((W ** 2).T @ F2)
+            out.append(combine(_trial_scores(F, None, r, W, have[b] if have is not None else new[b])))
+        dens[key] = have if have is not None else new
+        while len(dens) > 4:  # the last few sets of rows (a new outlier set starts another)
+            dens.pop(next(iter(dens)))
         return out[0] if len(out) == 1 else np.concatenate(out)
     return score
 
@@ -429,10 +449,20 @@ def lobing_rival(bl, info) -> np.ndarray:
     return cov.values.toarray() if hasattr(cov.values, "toarray") else np.asarray(cov.values, float)  # (sparse: a long log)
 
 
+#: cos k phi, sin k phi (k = 1..4) on the azimuths where lobing_magnitudes takes the peak-to-valley
+#: (721 over one turn): the same arrays at every call (the delta method calls it per coefficient)
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+_LOBE_PHI = np.linspace(-np.pi, np.pi, 721)
+_LOBE_TRIG = tuple((_frozen(np.cos(k * _LOBE_PHI)), _frozen(np.sin(k * _LOBE_PHI))) for k in range(1, 5))
+
+
 def lobing_magnitudes(info, coef, bl):
     c = np.asarray(coef).reshape(4, 2)
-    phi = np.linspace(-np.pi, np.pi, 721)
-    f = sum(c[k - 1, 0] * np.cos(k * phi) + c[k - 1, 1] * np.sin(k * phi) for k in range(2, 5))
+    f = sum(c[k - 1, 0] * _LOBE_TRIG[k - 1][0] + c[k - 1, 1] * _LOBE_TRIG[k - 1][1] for k in range(2, 5))
     out = {f"k{k}_amplitude_um": float(np.hypot(*c[k - 1])) / UM for k in range(1, 5)}
     # the first harmonic acts as a probe offset (a translation, usually in the
     # set-ups' own offsets and the stylus calibration): the variation is of k = 2..4

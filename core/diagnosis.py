@@ -57,12 +57,19 @@ IN_SPAN = 1e-6
 # ---------------------------------------------------------------------------
 # linear algebra
 # ---------------------------------------------------------------------------
-def pivoted_qr(M: np.ndarray):
+def pivoted_qr(M: np.ndarray, q: bool = True):
     """The factorisation :func:`orth` cuts: ``(Q, d, M)``, pivoted QR of ``M`` with columns scaled.
 
     ``Q`` (n, p') its orthonormal factor over the non-zero columns, ``d``
     (p',) the magnitudes of R's diagonal (decreasing), ``M`` the matrix
     factored (so that a holder can tell which matrix it belongs to).
+
+    ``q=False``: ``Q`` not formed yet (a :class:`HouseholderQ`, LAPACK's
+    reflectors): :func:`qr_formed` forms it, bit for bit the ``Q`` of
+    ``pivoted_qr(M)`` (the same factorisation, then the same ``orgqr``
+    call as scipy's economic mode), and :func:`qr_rss` gives a vector's
+    residual sum of squares from the reflectors without it (what the planar
+    baseline's grid choice needs of the grids it does not choose).
     """
     if M.ndim != 2 or M.shape[1] == 0:
         return np.zeros((M.shape[0], 0)), np.zeros(0), M
@@ -71,8 +78,54 @@ def pivoted_qr(M: np.ndarray):
     if not keep.any():
         return np.zeros((M.shape[0], 0)), np.zeros(0), M
     Ms = M[:, keep] / nrm[keep]
+    if not q:
+        (H, tau), R, _ = sla.qr(Ms, mode="raw", pivoting=True)
+        return HouseholderQ(H, tau), np.abs(np.diag(R)), M
     Q, R, _ = sla.qr(Ms, mode="economic", pivoting=True)
     return Q, np.abs(np.diag(R)), M
+
+
+@dataclass(frozen=True)
+class HouseholderQ:
+    """The orthonormal factor of a :func:`pivoted_qr` not yet formed: LAPACK's reflectors ``H`` (n, p') and ``tau``."""
+
+    H: np.ndarray
+    tau: np.ndarray
+
+
+def _lapack(name: str, f, *args, **kw):
+    """``f(*args, lwork=..., **kw)`` with the workspace LAPACK asks for, as scipy's own QR calls it."""
+    ret = f(*args, lwork=-1, **kw)
+    ret = f(*args, lwork=ret[-2][0].real.astype(np.int_), **kw)
+    if ret[-1] < 0:
+        raise ValueError(f"illegal value in {-ret[-1]}th argument of internal {name}")
+    return ret[:-2]
+
+
+def qr_formed(qr):
+    """:func:`pivoted_qr` ``(Q, d, M)`` with ``Q`` formed: bit for bit ``pivoted_qr(M)`` (one made with ``q=False``)."""
+    Q, d, M = qr
+    if not isinstance(Q, HouseholderQ):
+        return qr
+    orgqr, = sla.get_lapack_funcs(("orgqr",), (Q.H,))
+    H = Q.H[:, :Q.H.shape[0]] if Q.H.shape[0] < Q.H.shape[1] else Q.H  # (fewer rows than columns: scipy's first M)
+    return _lapack("orgqr", orgqr, H.copy(), Q.tau, overwrite_a=1)[0], d, M
+
+
+def qr_rss(qr, y: np.ndarray, r: int) -> float:
+    """``|y - Q_r Q_r^T y|^2`` for the first ``r`` columns of a :func:`pivoted_qr`'s ``Q``, formed or not.
+
+    From the reflectors: ``c = Q_full^T y`` (an orthogonal transformation),
+    the sum of ``c[r:] ** 2``; the same number to rounding as from the
+    formed ``Q``, not bit for bit.
+    """
+    Q = qr[0]
+    if not isinstance(Q, HouseholderQ):
+        e = y - Q[:, :r] @ (Q[:, :r].T @ y)
+        return float(e @ e)
+    ormqr, = sla.get_lapack_funcs(("ormqr",), (Q.H,))
+    c = _lapack("ormqr", ormqr, "L", "T", Q.H[:, :len(Q.tau)], Q.tau, np.asarray(y, float)[:, None].copy())[0][:, 0]
+    return float(c[r:] @ c[r:])
 
 
 def orth(M: np.ndarray, tol: float = 1e-9, qr=None) -> np.ndarray:
@@ -87,9 +140,29 @@ def orth(M: np.ndarray, tol: float = 1e-9, qr=None) -> np.ndarray:
     return Q[:, :r]
 
 
-def project_out(Q: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``B`` less its projection on the orthonormal columns ``Q``."""
-    return B - Q @ (Q.T @ B) if Q.shape[1] else B.copy()
+def project_out(Q: np.ndarray, B: np.ndarray, inplace: bool = False) -> np.ndarray:
+    """``B`` less its projection on the orthonormal columns ``Q``.
+
+    ``inplace``: ``B`` (a temporary of the caller's) is overwritten with
+    the result (the same numbers, one array fewer).
+    """
+    if not Q.shape[1]:
+        return B if inplace else B.copy()
+    QB = Q @ (Q.T @ B)
+    return np.subtract(B, QB, out=B) if inplace else B - QB
+
+
+def take_rows(M: np.ndarray, rows, axis: int = 0) -> np.ndarray:
+    """``M``'s rows ``rows`` along ``axis`` (``M[rows]``, ``M[:, rows]`` ...), for reading only.
+
+    Every row in order (``rows`` is ``arange(len)``) of a C-contiguous
+    ``M``: ``M`` itself, not a copy (the same values in the same layout a
+    copy would have); otherwise the indexed copy.
+    """
+    n = M.shape[axis]
+    if M.flags.c_contiguous and len(rows) == n and np.array_equal(rows, np.arange(n)):
+        return M
+    return M[(slice(None),) * axis + (np.asarray(rows),)]
 
 
 def new_basis(Q: np.ndarray, B: np.ndarray, tol: float = IN_SPAN) -> np.ndarray:
@@ -106,7 +179,8 @@ def new_basis(Q: np.ndarray, B: np.ndarray, tol: float = IN_SPAN) -> np.ndarray:
     keep = nrm > 0
     if not keep.any():
         return np.zeros((B.shape[0], 0))
-    P = project_out(Q, B[:, keep] / nrm[keep])
+    whole = keep.all() and B.flags.c_contiguous  # (B itself divided: the layout B[:, keep] would have)
+    P = project_out(Q, B / nrm if whole else B[:, keep] / nrm[keep], inplace=True)
     w, V = np.linalg.eigh(P.T @ P)
     good = w > max(tol, 1e-5) ** 2
     return (P @ V[:, good]) / np.sqrt(w[good])
@@ -185,9 +259,9 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
         ``IN_SPAN^2``), the F statistic and its p-value.
     """
     T, n, k = C.shape
-    nrm = np.sqrt(np.einsum("tnk,tnk->tk", C, C))
+    nrm = np.maximum(np.sqrt(np.einsum("tnk,tnk->tk", C, C)), 1e-300)
     if isinstance(Q, Basis):  # a long log: P^T P and P^T r from the Gram matrices (no (n, T k) projection formed)
-        inv = 1.0 / np.maximum(nrm, 1e-300)
+        inv = 1.0 / nrm
         G = np.empty((T, k, k))
         b = np.empty((T, k))
         Qr = Q.T @ r
@@ -196,12 +270,17 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
             G[t] = (C[t].T @ C[t]) * np.outer(inv[t], inv[t]) - QC.T @ QC
             b[t] = (C[t].T @ r) * inv[t] - QC.T @ Qr
         return _batch_tests(G, b, rss, dof)
-    Cn = C / np.maximum(nrm, 1e-300)[:, None, :]
-    if Q.shape[1]:  # one matrix product for every trial: (n, T k)
-        C2 = np.moveaxis(Cn, 0, 1).reshape(n, T * k)
-        P = np.moveaxis((C2 - Q @ (Q.T @ C2)).reshape(n, T, k), 1, 0)
+    if Q.shape[1]:  # one matrix product for every trial: (n, T k), normalised in that layout
+        if T == 1:
+            C2 = C[0] / nrm[0]
+        else:  # (a copy into the layout, then divided in place: a strided divide is slower)
+            C2 = np.empty((n, T, k))
+            C2[...] = np.moveaxis(C, 0, 1)
+            C2 /= nrm[None, :, :]
+            C2 = C2.reshape(n, T * k)
+        P = np.moveaxis(project_out(Q, C2, inplace=True).reshape(n, T, k), 1, 0)
     else:
-        P = Cn
+        P = C / nrm[:, None, :]
     Pt = np.swapaxes(P, 1, 2)
     return _batch_tests(Pt @ P, Pt @ r, rss, dof)
 
@@ -211,10 +290,14 @@ def _batch_tests(G: np.ndarray, b: np.ndarray, rss: float, dof: int):
     w, V = np.linalg.eigh(G)
     good = w > IN_SPAN ** 2
     proj = (np.swapaxes(V, 1, 2) @ b[..., None])[..., 0]
-    ss = np.sum(np.where(good, proj ** 2 / np.where(good, w, 1.0), 0.0), axis=1)
     k = good.sum(axis=1)
     d2 = dof - k
     ok = (k > 0) & (d2 >= 1)
+    if good.all() and ok.all():  # (the usual case: the same values as the masked expressions below, fewer passes)
+        ss = np.sum(proj ** 2 / w, axis=1)
+        F = (ss / k) / (np.maximum(rss - ss, 1e-300) / d2)
+        return ss, k, F, special.fdtrc(k, d2, F)
+    ss = np.sum(np.where(good, proj ** 2 / np.where(good, w, 1.0), 0.0), axis=1)
     F = np.where(ok, (ss / np.maximum(k, 1)) / (np.maximum(rss - ss, 1e-300) / np.maximum(d2, 1)), 0.0)
     p = np.where(ok, special.fdtrc(np.maximum(k, 1), np.maximum(d2, 1), F), 1.0)
     return ss, k, F, p
@@ -453,10 +536,10 @@ class SpectralTable(tuple):
     frequencies at a time.
     """
 
-    __slots__ = ()
-
     def __new__(cls, Z, S2, C2, f, w):
-        return super().__new__(cls, (Z, S2, C2, f, w))
+        self = super().__new__(cls, (Z, S2, C2, f, w))
+        self._dens = {}  # the pre-screen's denominators per (rows, modes): see screen()
+        return self
 
     Z = property(lambda self: self[0])
     S2 = property(lambda self: self[1])
@@ -469,18 +552,49 @@ class SpectralTable(tuple):
         ph = self.w * self.f[i]
         return np.sin(ph), np.cos(ph)
 
-    def blocks(self):
+    def blocks(self, squares: bool = True):
         """``(cols, Z, S2, C2)`` over the frequencies: the kept table whole, or blocks of it.
 
         A block's columns are bit for bit those of the whole table (each
         block starts at a multiple of ``_BLOCK``, so from the same exact
         phasors and the same rotations: :func:`screen_phasors`).
+        ``squares=False``: ``S2``, ``C2`` not made for the blocks (None).
         """
         if self.Z is not None:
             yield slice(None), self.Z, self.S2, self.C2
             return
         for cols, Z in phasor_blocks(self.w, self.f):
-            yield cols, Z, Z.imag ** 2, Z.real ** 2
+            yield (cols, Z, Z.imag ** 2, Z.real ** 2) if squares else (cols, Z, None, None)
+
+    def screen(self, A: np.ndarray, W2: np.ndarray, key=None, owner=None):
+        """The pre-screen's products ``(A @ Z, W2 @ S2, W2 @ C2)``, (m, F) each.
+
+        ``A`` (m, n) the weighted residuals, ``W2`` (m, n) the squared
+        weights. The denominators ``W2 @ S2``, ``W2 @ C2`` do not depend on
+        the residuals: with a ``key`` (what ``W2`` was made from: the rows
+        and the modes' columns) and its ``owner`` (the modes array itself,
+        held with them so that the key names it) they are kept for the next
+        diagnosis on the same rows (the last few keys): the same products
+        on the same operands, so the same numbers bit for bit.
+        """
+        F = len(self.f)
+        NZ = np.empty((A.shape[0], F), complex)
+        have = self._dens.pop(key, None) if key is not None else None
+        if have is not None and have[0] is not owner:
+            have = None
+        if have is None:
+            dS, dC = np.empty((2, W2.shape[0], F))
+        else:
+            _, dS, dC = have
+        for cols, Z, S2, C2 in self.blocks(squares=have is None):
+            NZ[:, cols] = A @ Z
+            if have is None:
+                dS[:, cols], dC[:, cols] = W2 @ S2, W2 @ C2
+        if key is not None:
+            self._dens[key] = (owner, dS, dC)
+            while len(self._dens) > 4:
+                self._dens.pop(next(iter(self._dens)))
+        return NZ, dS, dC
 
 
 def phasor_blocks(w: np.ndarray, f: np.ndarray):
@@ -557,10 +671,10 @@ def _spectral(cov: Covariate, Q, r, rss, dof, modes, rows, table=None, shortlist
         keep[rows] = True
         Mw = np.where(keep[:, None], Mf, 0.0)
     A, W2 = (rf[:, None] * Mw).T, (Mw ** 2).T
-    NZ = np.empty((Mf.shape[1], len(f)), complex)
-    dS, dC = np.empty((2, Mf.shape[1], len(f)))
-    for cols, Z, S2, C2 in tab.blocks():
-        NZ[:, cols], dS[:, cols], dC[:, cols] = A @ Z, W2 @ S2, W2 @ C2
+    # the denominators kept on the table per rows and modes (a table of this run's bases)
+    key = (None if rows is None else np.asarray(rows).tobytes(), id(modes), tuple(cov.modes)) if table is not None \
+        else None
+    NZ, dS, dC = tab.screen(A, W2, key, modes)
     num = np.zeros(len(f))
     for m in range(Mf.shape[1]):
         num += NZ[m].imag ** 2 / np.maximum(dS[m], 1e-300)
@@ -793,7 +907,7 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
                 fits[cov.name] = res[1] / UM
             continue
         B = bases[cov.name] if bases is not None else term_basis(cov, modes)
-        U = new_basis(Q, B if rows is None else B[rows])
+        U = new_basis(Q, B if rows is None else take_rows(B, rows))
         if U.shape[1] == 0 or dof - U.shape[1] < 5:
             continue
         raw.append((cov, nested_f(U, r, rss, dof), U))

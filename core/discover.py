@@ -143,7 +143,7 @@ from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
 from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch, new_basis, orth,
-                        replicate_scatter, term_bases)
+                        replicate_scatter, take_rows, term_bases)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import BlockDesign, group_sums, leverage, orth_of, row_column_norms
 from .touches import Touches
@@ -1424,12 +1424,12 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
         else:
             h = info.get("half_width_m", abs(v0)) / 4
             lo, hi = v0 - h, v0 + h
-        best_v, best_ss = v0, nested_f_batch(cause.rebuild(bl, info)[:, rows], st.Q, st.r, st.rss, st.dof)[0][0]
+        best_v, best_ss = v0, nested_f_batch(take_rows(cause.rebuild(bl, info), rows, 1), st.Q, st.r, st.rss, st.dof)[0][0]
         for _ in range(2):
             grid = np.linspace(lo, hi, 11 if _ == 0 else 9)
             inf = dict(info)
             inf[name] = grid
-            ss = nested_f_batch(cause.rebuild(bl, inf)[:, rows], st.Q, st.r, st.rss, st.dof)[0]
+            ss = nested_f_batch(take_rows(cause.rebuild(bl, inf), rows, 1), st.Q, st.r, st.rss, st.dof)[0]
             i = int(np.argmax(ss))
             if ss[i] > best_ss:
                 best_v, best_ss = float(grid[i]), float(ss[i])
@@ -1536,7 +1536,13 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
 
 def _matches(key: str, pattern: str) -> bool:
     """``*`` in a bound's key pattern stands for any text (brackets are literal)."""
-    return re.fullmatch(re.escape(pattern).replace(r"\*", ".*"), key) is not None
+    return _key_pattern(pattern).fullmatch(key) is not None
+
+
+@functools.lru_cache(maxsize=256)
+def _key_pattern(pattern: str) -> re.Pattern:
+    """A bound's key pattern compiled once (:func:`_matches`)."""
+    return re.compile(re.escape(pattern).replace(r"\*", ".*"))
 
 
 def _made_on(seen, st: _State) -> tuple:
@@ -1593,7 +1599,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
             idx = np.argsort(-sc.score(st.r, rows))[:settings.shortlist]
         else:
             idx = _coarse(sc.build(np.arange(sc.size))[:, rows, :], st.r, settings.shortlist)
-        C = sc.build(idx)[:, rows, :]
+        C = take_rows(sc.build(idx), rows, 1)
         test = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
         _, k, F, p = test
         for j in np.flatnonzero(k > 0):
@@ -1836,7 +1842,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
         # debiased by the median of the largest of T chi-squares (k dof) under noise
         Cs = trials(cause.counter_scan)
         if Cs.shape[0]:
-            ss_s, k_s, _, _ = nested_f_batch(Cs[:, rows, :], so.Q, so.r, so.rss, so.dof)
+            ss_s, k_s, _, _ = nested_f_batch(take_rows(Cs, rows, 1), so.Q, so.r, so.rss, so.dof)
             j = int(np.argmax(ss_s))
             null_max = float(stats.chi2.isf(np.log(2) / Cs.shape[0], max(int(k_s[j]), 1)))
             d_s = float(ss_s[j]) - null_max * s2

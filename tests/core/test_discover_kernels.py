@@ -29,6 +29,88 @@ def test_one_factorisation_cut_at_two_tolerances():
     assert np.array_equal(orth(other, qr=f), orth(other))  # not other's factorisation: factored afresh
 
 
+def test_take_rows_is_the_array_itself_only_for_every_row_of_a_c_contiguous_one():
+    """Known answers: every row in order of a C-contiguous array is that array (no copy); anything else is the copy."""
+    from core.diagnosis import take_rows
+
+    rng = np.random.default_rng(3)
+    M = rng.normal(size=(6, 5, 2))
+    every = np.arange(5)
+    M0 = M[0]
+    assert take_rows(M, every, 1) is M and take_rows(M0, every) is M0
+    for rows in (np.array([0, 2, 4]), np.array([1, 0, 2, 3, 4]), np.array([0, 1, 2, 3, 3])):
+        got = take_rows(M, rows, 1)
+        assert got is not M and np.array_equal(got, M[:, rows, :])
+    F = np.asfortranarray(M[0])  # every row, but not C-contiguous: the copy (the layout the callers were given)
+    got = take_rows(F, every)
+    assert got is not F and got.flags.c_contiguous and np.array_equal(got, F)
+
+
+def test_nested_f_batch_usual_case_is_the_masked_expressions_bit_for_bit():
+    """The usual case (every trial's directions outside the model, F defined) takes fewer passes; the same numbers.
+
+    Without model columns every trial is computed on its own (no product mixes trials), so a trial's
+    figures in a batch that holds a degenerate trial (a repeated column: one direction not counted;
+    the masked expressions) equal its figures in a batch without it (the usual case), bit for bit;
+    and a known answer: a trial's columns exactly in the data's direction remove the whole sum of squares.
+    """
+    from core.diagnosis import nested_f_batch
+
+    rng = np.random.default_rng(5)
+    n, k = 60, 3
+    r = rng.normal(size=n)
+    C = rng.normal(size=(4, n, k))
+    bad = C[:1].copy()
+    bad[0, :, 2] = bad[0, :, 1]  # a repeated column: k = 2 for that trial
+    Q0 = np.zeros((n, 0))
+    plain = nested_f_batch(C, Q0, r, float(r @ r), n - 5)
+    mixed = nested_f_batch(np.concatenate([bad, C]), Q0, r, float(r @ r), n - 5)
+    assert mixed[1].tolist() == [2, 3, 3, 3, 3]
+    two = nested_f_batch(bad[:, :, :2], Q0, r, float(r @ r), n - 5)  # the degenerate trial without its copy
+    np.testing.assert_allclose([mixed[0][0], mixed[2][0], mixed[3][0]], [two[0][0], two[2][0], two[3][0]],
+                               rtol=1e-10)
+    for a, b in zip(plain, mixed):
+        assert np.array_equal(a, b[1:])
+    # the masked path with every trial usual (dof too small for one: F and p of that trial 0 and 1)
+    few = nested_f_batch(C, Q0, r, float(r @ r), 3)
+    assert few[2].tolist() == [0.0] * 4 and few[3].tolist() == [1.0] * 4 and np.array_equal(few[0], plain[0])
+    # known answer: r itself among a trial's columns, against a model r is orthogonal to
+    Q = orth(rng.normal(size=(n, 4)))
+    r1 = r - Q @ (Q.T @ r)
+    Ct = np.stack([np.column_stack([r1, rng.normal(size=n)])])
+    ss, kk, F, p = nested_f_batch(Ct, Q, r1, float(r1 @ r1), n - 4)
+    assert kk.tolist() == [2]
+    np.testing.assert_allclose(ss, [r1 @ r1], rtol=1e-12)
+    # a column inside the model to 1e-9 (a direction not counted) that the residuals follow: left out of
+    # the sum of squares (the trial removes what its other column alone removes), not divided by its ~0 eigenvalue
+    z = rng.normal(size=n)
+    Cn = np.stack([np.column_stack([C[0, :, 0], Q[:, 0] + 1e-9 * (z + 50 * r1)])])
+    ss_n, k_n, _, _ = nested_f_batch(Cn, Q, r1, float(r1 @ r1), n - 4)
+    ss_1, k_1, _, _ = nested_f_batch(Cn[:, :, :1], Q, r1, float(r1 @ r1), n - 4)
+    assert k_n.tolist() == [1] and k_1.tolist() == [1]
+    np.testing.assert_allclose(ss_n, ss_1, rtol=1e-6)
+
+
+def test_new_basis_of_a_zero_column_is_the_basis_without_it():
+    """A zero column is left out (the kept columns copied) and a whole basis divided as it is: the same numbers."""
+    from core.diagnosis import new_basis
+
+    rng = np.random.default_rng(7)
+    Q = orth(rng.normal(size=(50, 6)))
+    B = rng.normal(size=(50, 4))
+    Bz = np.column_stack([B[:, :2], np.zeros(50), B[:, 2:]])
+    assert np.array_equal(new_basis(Q, Bz), new_basis(Q, B))
+
+
+def test_bound_key_patterns_known_answers():
+    """``*`` stands for any text, brackets are literal; a pattern compiled once answers as often as asked."""
+    from core.discover import _matches
+
+    for _ in range(2):
+        assert _matches("k2_amplitude_um", "k*_amplitude_um") and not _matches("k2_amplitude_umx", "k*_amplitude_um")
+        assert _matches("a[1]", "a[1]") and not _matches("a1", "a[1]") and _matches("EXX_bump", "E*_bump")
+
+
 def test_estimability_with_more_unknowns_than_rows():
     """Known answer: 3 rows see parameters 0, 1 and 0 + 2; 5 unknowns, no gauge.
 
@@ -211,6 +293,63 @@ def test_ripple_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
     assert np.array_equal(lazy.score(r, rows), s_all) and np.array_equal(lazy.score(r[sub], sub), s_sub)
 
 
+def test_kept_denominators_give_the_scores_computed_afresh(monkeypatch):
+    """The pre-screens keep their denominators per set of rows: every later score equals a fresh scorer's.
+
+    The ripple scorer (kept table and blocks) and a spectral covariate's table are used in turn with
+    other residuals, a subset of the rows, other modes and the first residuals again; each answer is
+    bit for bit what a scorer or table made for that call alone gives. A table keeps a key's
+    denominators only for the modes array it was given with them (another array under the same key is
+    computed afresh); under the same key and array the kept ones are used, whatever the weights passed.
+    """
+    from core import causes as C
+
+    rng = np.random.default_rng(12)
+    n = 400
+    x, y = np.sort(rng.uniform(0, 0.2, n)), rng.uniform(0, 0.2, n)
+    bl = _plane(x, y, rng)
+    r1 = -bl.data.nx * 1e-6 * np.sin(2 * np.pi * x / 7e-3 + 0.4) + rng.normal(0, 1e-7, n)
+    r2 = rng.normal(0, 1e-7, n)
+    rows, sub = np.arange(n), np.sort(rng.choice(n, 300, replace=False))
+    calls = [(r1, rows), (r2, rows), (r2[sub], sub), (r1, rows), (r1[sub], sub)]
+    for big in (False, True):
+        if big:
+            monkeypatch.setattr(C, "TABLE_BYTES", 0)
+            monkeypatch.setattr(D, "SCAN_BLOCK_BYTES", 1)
+        sc = C.periodic_scans(bl)[0][0]
+        for r, rw in calls:
+            assert np.array_equal(sc.score(r, rw), C.periodic_scans(bl)[0][0].score(r, rw))
+    monkeypatch.undo()
+    t = np.sort(rng.uniform(0, 600, n))
+    cov = Covariate("time_periodic", t, "spectral", 0, (0, 1), "time periodically", "time", (3.0, 200.0))
+    modes = np.column_stack([np.ones(n), rng.uniform(0.5, 1.5, n)])
+    Q = orth(np.ones((n, 1)))
+    ys = [1e-6 * np.sin(2 * np.pi * t / 7.0 + 0.3) + rng.normal(0, 2e-7, n), rng.normal(0, 2e-7, n)]
+    tab = spectral_table(cov)
+
+    def diag(table, y, rw, m):
+        Qr = Q if rw is None else orth(np.ones((len(rw), 1)))
+        yr = y if rw is None else y[rw]
+        return diagnose(Qr, yr - Qr @ (Qr.T @ yr), len(yr) - 1, [cov], m, bases={cov.name: table}, sigma_m=2e-7,
+                        material_sigma=0.3, rows=rw)
+
+    other = np.column_stack([np.ones(n), rng.uniform(0.5, 1.5, n)])
+    for y, rw, m in [(ys[0], None, modes), (ys[1], None, modes), (ys[1], sub, modes), (ys[0], None, modes),
+                     (ys[0], None, other)]:
+        kept, fresh = diag(tab, y, rw, m), diag(spectral_table(cov), y, rw, m)
+        assert [d.to_dict() for d in kept] == [d.to_dict() for d in fresh]
+        assert kept[0].test == fresh[0].test and np.array_equal(kept[0].basis, fresh[0].basis)
+    # the subset's own denominators were made (rows outside it weighted by zero), not the first rows' taken
+    Mw = np.where(np.isin(np.arange(n), sub)[:, None], modes, 0.0)
+    assert any(np.array_equal(dS, (Mw ** 2).T @ tab.S2) for _, dS, _ in tab._dens.values())
+    A, W2 = rng.normal(size=(2, n)), rng.uniform(0.5, 1.5, (2, n))
+    first = tab.screen(A, W2, "key", modes)
+    moved = tab.screen(A, 2 * W2, "key", other)  # the same key, another modes array: made afresh
+    assert np.array_equal(moved[1], spectral_table(cov).screen(A, 2 * W2)[1]) and not np.array_equal(moved[1], first[1])
+    again = tab.screen(A, 0 * W2, "key", other)  # the same key and array: the kept denominators
+    assert np.array_equal(again[1], moved[1]) and np.array_equal(again[0], first[0])
+
+
 def test_folds_lean_path_is_the_kept_spans_to_rounding(monkeypatch):
     """Cross-validation of a long log keeps its spans' coefficients, not the spans: the same residuals.
 
@@ -297,6 +436,76 @@ def test_planar_block_design_and_its_constrained_fit_are_the_dense_ones(monkeypa
         a, b = np.asarray(a, float), np.asarray(b, float)
         assert np.array_equal(np.isfinite(a), np.isfinite(b))
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-9 * np.abs(a).max())
+
+
+def test_pivoted_qr_formed_later_is_the_one_formed_at_once():
+    """Known answers: Q formed from the reflectors is pivoted_qr's bit for bit (more rows or more columns than the
+    other, a zero column); the residual sum of squares from the reflectors is the formed Q's to rounding."""
+    from core.diagnosis import qr_formed, qr_rss
+
+    rng = np.random.default_rng(11)
+    for shape in ((120, 30), (20, 26), (40, 40)):
+        M = rng.normal(size=shape)
+        M[:, 3] = M[:, 1] + 2 * M[:, 2]
+        M[:, 5] = 0.0
+        a, raw = pivoted_qr(M), pivoted_qr(M, q=False)
+        b = qr_formed(raw)
+        assert all(np.array_equal(x, y) for x, y in zip(a[:2], b[:2])) and b[2] is M
+        assert np.array_equal(orth(M, 1e-9, qr=b), orth(M, 1e-9))
+        y = rng.normal(size=shape[0])
+        for r in (0, 4, a[0].shape[1]):
+            e = y - a[0][:, :r] @ (a[0][:, :r].T @ y)
+            np.testing.assert_allclose(qr_rss(raw, y, r), e @ e, rtol=1e-12, atol=1e-12 * (y @ y))
+            assert qr_rss(a, y, r) == float(e @ e)  # a formed Q: its own sum
+
+
+def _grid_by_formed_bic(Bm, t):
+    """The grid the planar baseline chose before the reflectors' BIC: every grid's Q formed, BIC from it."""
+    best = None
+    for st in (22.0, 30.0, 40.0, 55.0, 80.0):
+        bl = Bm.planar(t, st)
+        Q = orth(bl.A, tol=Bm.RANK_TOL, qr=bl.qr)
+        if bl.A.shape[1] - Q.shape[1] > np.linalg.matrix_rank(bl.C):
+            continue
+        r = t.dq_m - Q @ (Q.T @ t.dq_m)
+        score = Bm._bic(float(r @ r), t.n, Q.shape[1])
+        if best is None or score < best[0]:
+            best = (score, st)
+    return best[1]
+
+
+def test_planar_grid_choice_forms_one_q_and_chooses_as_the_formed_bic(monkeypatch):
+    """The planar baseline forms the Q of the grid it chooses only, and chooses the grid the formed BICs choose.
+
+    On a noisy campaign the reflectors' BIC decides (one Q formed); on one whose readings a 40 mm map
+    reproduces to rounding (its residual sum of squares is rounding, so its BIC is not known to better than
+    its bound) the grids are compared by their formed BICs, as before; the kept factorisation is pivoted_qr's
+    of the design, bit for bit.
+    """
+    import dataclasses
+
+    from core import baseline as Bm
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    formed = []
+    real = Bm.qr_formed
+    monkeypatch.setattr(Bm, "qr_formed", lambda qr: formed.append(1) or real(qr))
+    t = from_log(large_log(40, 12, np.random.default_rng(19)))
+    exact = Bm.planar(t, 40.0)
+    theta = np.random.default_rng(2).normal(size=exact.A.shape[1]) * 1e-6
+    dq = exact.A @ theta  # what a 40 mm map reproduces exactly
+    t0 = dataclasses.replace(t, p_R=t.p_R + t.n_R * (dq - t.dq_m)[:, None])  # readings n . (p - pn) = dq
+    for tt, n_formed in ((t, 1), (t0, None)):
+        formed.clear()
+        bl = Bm.planar(tt)
+        if n_formed is not None:
+            assert len(formed) == n_formed
+        else:
+            assert len(formed) > 1  # near ties by the bounds: the formed BICs decided
+        assert bl.info["grid_step_mm"] == _grid_by_formed_bic(Bm, tt)
+        ref = pivoted_qr(bl.A)
+        assert all(np.array_equal(x, y) for x, y in zip(bl.qr[:2], ref[:2]))
 
 
 def test_folds_block_path_sees_a_large_own_column_as_unseen_by_training():
