@@ -74,7 +74,7 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .exceptions import VmtError
-from .probelog import step_back
+from .probelog import last_row_check, step_back
 
 FORMAT = "positioning-log/1"
 #: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
@@ -128,6 +128,10 @@ class PositioningLog:
         Other columns: ``temp_<name>_C`` as float, anything else as text.
     source : str
         Where the log came from, for error messages.
+    warnings : tuple of str
+        What reading found doubtful but not wrong (one line each): a last
+        row without an end of line that may be cut short
+        (:func:`core.probelog.last_row_check`). :func:`arrange` passes them on.
     """
 
     meta: dict[str, str]
@@ -139,6 +143,7 @@ class PositioningLog:
     status: np.ndarray | None = None
     extra: dict[str, np.ndarray] = field(default_factory=dict)
     source: str = "<memory>"
+    warnings: tuple = ()
 
     @property
     def n(self) -> int:
@@ -276,7 +281,10 @@ def read_positioning_log(path: str | os.PathLike) -> PositioningLog:
         value that is not a number, a cycle that is not a whole number
         >= 1, a direction that is not ``+`` or ``-``, time going
         backwards, the same (target, cycle, direction) twice among valid
-        readings.
+        readings, a torn last row (the probe log's rule,
+        :func:`core.probelog.last_row_check`: a last row without an end of
+        line with too few fields, a number cut to no number, or a status
+        other than ``ok``; one that still reads whole is kept with a warning).
     """
     text, src = _read_text(path, "a positioning log")
     return parse_positioning_log(text, source=src)
@@ -334,18 +342,31 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
     raw: list[list[str]] = []
     line_of_row: list[int] = []
     k = 0
+    unterminated, n_lines = not text.endswith(("\n", "\r")), len(lines)
+
+    def last_row(row, r, ln):  # where a writer that died would have stopped: the probe log's rule
+        return last_row_check(src, header, row, r, ln, error=PositioningLogError, statuses=("ok",),
+                              remedy="delete the line",
+                              numeric=lambda h: h in (tname, mname, "cycle", "t_s") or _is_temp(h))
+
     try:
         for k, row in enumerate(reader):
             ln = header_line + 1 + k
             if not row or all(not c.strip() for c in row):
                 continue
             if len(row) != len(header):
+                if unterminated and ln == n_lines and len(row) < len(header):
+                    last_row(row, len(raw), ln)
                 raise PositioningLogError(
                     f"{src}: row {len(raw)} (line {ln}): {len(row)} fields, header has {len(header)}")
             raw.append([c.strip() for c in row])
             line_of_row.append(ln)
     except csv.Error as e:
         raise PositioningLogError(f"{src}: line {header_line + 1 + k}: {e}") from None
+    warnings = ()
+    if unterminated and raw and line_of_row[-1] == n_lines:
+        w = last_row(raw[-1], len(raw) - 1, n_lines)
+        warnings = () if w is None else (w,)
     col = {h: [r[j] for r in raw] for j, h in enumerate(header)}
 
     def where(r: int) -> str:
@@ -387,7 +408,7 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
             continue
         extra[h] = numbers(h, allow_empty=True) if _is_temp(h) else np.array(col[h], dtype=object)
     log = PositioningLog(meta=meta, target=target, cycle=cyc.astype(np.int64), direction=direction,
-                         measured=measured, t_s=t_s, status=status, extra=extra, source=src)
+                         measured=measured, t_s=t_s, status=status, extra=extra, source=src, warnings=warnings)
     _validate(log, line_of_row)
     return log
 
@@ -891,7 +912,7 @@ def arrange(log: PositioningLog) -> PositioningTest:
         D[i, c] = dev[r]
         T[i, c] = t[r]
         R[i, c] = r
-    warnings = []
+    warnings = list(log.warnings)
     for d, name in ((1, "+"), (-1, "-")):
         cnt = np.sum(~np.isnan(out[d][0]), axis=1)
         other = np.sum(~np.isnan(out[-d][0]), axis=1)

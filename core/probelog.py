@@ -60,11 +60,15 @@ ANGLE_MAX_DEG = 1e6
 TEMP_RANGE_C = (-273.15, 1000.0)
 
 _LENGTHS = ("X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "wx_mm", "wy_mm", "wz_mm")
-#: The statuses vmt writes: a touch's outcome (:class:`core.touches.ProbeStatus`: ``ok``,
-#: ``no_trigger``, ``early_trigger``) and ``aborted`` (the rows of a stopped run that
-#: ``vmt import`` keeps). A last row without an end of line must end in one of them when
-#: ``status`` is its last column; any other word there (``abor``, ``ala``) may be cut short.
-KNOWN_STATUSES = ("ok", "no_trigger", "early_trigger", "aborted")
+#: The statuses the spec names (``ok``, and why a touch is not valid: ``no_trigger``,
+#: ``early_trigger``, ``alarm``, the controller stopped the touch with an alarm) and the one
+#: vmt adds, ``aborted`` (the rows of a stopped run that ``vmt import`` keeps). Every status
+#: but ``ok`` (or an empty cell, the spec's default) marks a touch that is not valid: it is
+#: kept in the log and left out of every fit (:attr:`ProbeLog.ok`); the spec's list is open,
+#: so any other word reads the same way. A last row without an end of line must end in one
+#: of these when ``status`` is its last column; any other word there (``abor``, ``ala``)
+#: may be cut short.
+KNOWN_STATUSES = ("ok", "no_trigger", "early_trigger", "alarm", "aborted")
 
 _VECTORS = (("nx", "ny", "nz"), ("dx", "dy", "dz"), ("wnx", "wny", "wnz"))
 
@@ -169,7 +173,7 @@ class ProbeLog:
     # ---- derived -------------------------------------------------------
     @property
     def ok(self) -> np.ndarray:
-        """(n,) bool: rows whose status is ``ok`` (the rows fits use)."""
+        """(n,) bool: rows whose status is ``ok`` or empty (the spec's default; the rows fits use)."""
         st = self.col("status")
         return np.array([s in ("", "ok") for s in st], dtype=bool)
 
@@ -335,11 +339,50 @@ def _scan(f, src: str) -> tuple[int, bool]:
     return n, not last.endswith(("\n", "\r"))
 
 
-def _torn(src: str, r: int, ln: int, what: str) -> ProbeLogError:
-    return ProbeLogError(
+#: What a user does about a torn last row of a probe log.
+PROBE_LOG_REMEDY = "`vmt probe --resume` cuts it off, or delete the line"
+
+
+def _torn(src: str, r: int, ln: int, what: str, error: type = ProbeLogError,
+          remedy: str = PROBE_LOG_REMEDY) -> Exception:
+    return error(
         f"{src}: row {r} (line {ln}): torn last row ({what}, and no end of line): its writer was "
-        "interrupted; `vmt probe --resume` cuts it off, or delete the line (if the row is whole, written by "
-        "hand or another tool, correct it and end the file with a newline)")
+        f"interrupted; {remedy} (if the row is whole, written by hand or another tool, correct it and end "
+        "the file with a newline)")
+
+
+def last_row_check(src: str, header: list, row: list, r: int, ln: int, *, numeric, width: int | None = None,
+                   statuses: tuple = KNOWN_STATUSES, error: type = ProbeLogError,
+                   remedy: str = PROBE_LOG_REMEDY) -> str | None:
+    """The torn-row rule for the last row of a CSV log that ends without an end of line.
+
+    Where a writer that died would have stopped. ``row`` (its cells) is
+    refused as torn (``error``, one line naming ``src``, data row ``r`` and
+    file line ``ln``) when a cut would change its meaning: fewer fields than
+    ``width`` (default the header's), a last field in a column that
+    ``numeric(name)`` says holds numbers cut to no number, or a last
+    ``status`` field that is not one of ``statuses`` (empty, or any other
+    word: ``abor`` may be ``aborted`` cut short). A row that still reads
+    whole gives a warning (returned; a file written by hand may lack its
+    last end of line), a whole status word none (it reads as written). The
+    probe-log and positioning-log readers share it.
+    """
+    width = len(header) if width is None else width
+    if len(row) < width:
+        raise _torn(src, r, ln, f"{len(row)} of {width} fields", error, remedy)
+    cell, name = row[-1].strip(), header[len(row) - 1] if len(row) <= len(header) else ""
+    if name == "status":
+        if cell not in statuses:
+            raise _torn(src, r, ln, f"last field status {_shown(cell)} is not a whole status word "
+                        f"({', '.join(statuses)})", error, remedy)
+        return None
+    if numeric(name) and cell:
+        try:
+            float(cell)
+        except ValueError:
+            raise _torn(src, r, ln, f"last field {name} {cell!r} is no number", error, remedy) from None
+    return (f"{src}: row {r} (line {ln}): the file ends without an end of line: if its writer was "
+            f"interrupted, the last field ({name} {_shown(cell)}) may be cut short")
 
 
 def parse_probe_log(text: str, source: str = "<memory>") -> ProbeLog:
@@ -534,7 +577,7 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> 
                 continue
             if len(row) != width:
                 if unterminated and ln == n_lines and len(row) < width:
-                    raise _torn(src, cols.n + len(block), ln, f"{len(row)} of {width} fields")
+                    last_row_check(src, header, row, cols.n + len(block), ln, numeric=_spec_numeric)
                 raise ProbeLogError(
                     f"{src}: row {cols.n + len(block)} (line {ln}): {len(row)} fields, header has {width}")
             block.append(row)
@@ -550,19 +593,9 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> 
     # the last row ends the file without an end of line: torn, or written by hand?
     warnings = []
     if unterminated and last_row is not None and last_ln == n_lines:
-        last = cols.n - 1
-        cell, name = last_row[-1].strip(), header[-1]
-        if name == "status" and cell not in KNOWN_STATUSES:
-            raise _torn(src, last, last_ln, f"last field status {_shown(cell)} is no status vmt writes")
-        if _spec_numeric(name) and cell:
-            try:
-                float(cell)
-            except ValueError:
-                raise _torn(src, last, last_ln, f"last field {name} {cell!r} is no number") from None
-        if name != "status":  # a whole status word reads as written
-            warnings.append(f"{src}: row {last} (line {last_ln}): the file ends without an end "
-                            f"of line: if its writer was interrupted, the last field ({name} {_shown(cell)}) "
-                            "may be cut short")
+        w = last_row_check(src, header, last_row, cols.n - 1, last_ln, numeric=_spec_numeric)
+        if w is not None:
+            warnings.append(w)
     line_of_row = cols.line_of_row()
     log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings))
     _validate(log, lines=line_of_row)
@@ -572,6 +605,14 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> 
 def _shown(cell: str, n: int = 40) -> str:
     """``repr`` of a cell, cut to ``n`` characters (a message stays one short line)."""
     return repr(cell if len(cell) <= n else cell[:n] + "...")
+
+
+def _num(x) -> str:
+    """A value for a message: 6 significant digits when they are the value, else every digit it has
+    (``100000.001`` next to a bound of ``100000`` must not print as ``100000``)."""
+    x = float(x)
+    g = f"{x:.6g}"
+    return g if float(g) == x else repr(x)
 
 
 def _xyz(v) -> str:
@@ -616,7 +657,7 @@ def _validate(log: ProbeLog, lines: np.ndarray | None) -> None:
                 out = (v < lo) | (v > hi)
             if out.any():
                 r = int(np.argmax(out))
-                raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r}: {float(v[r]):.6g} is out of "
+                raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r}: {_num(v[r])} is out of "
                                     f"range (must be >= {lo:g} and <= {hi:g}{' ' + unit if unit else ''}"
                                     f"{': ' + why if why else ''})")
     ok = log.ok

@@ -1193,7 +1193,12 @@ def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float 
                                  covariance=covariance)
     std, cov, sigma, src, budget = sol.std, sol.cov, sol.sigma, sol.sigma_source, None
     notes = [("scale known: EXX(x_N) = delta_L" if des.scale_known else "scale unknown: delta_L not given, fixed to 0"),
-             "ECC is the right-handed rotation error of the table about Z (eq 13)",
+             "ECC is the C axis's angular positioning error: actual minus commanded C of the tool relative "
+             "to the part, positive a right-handed rotation of the tool relative to the part about Z (eq 13's "
+             "table rotation with the opposite sign); 0 at the reference set-up",
+             "EXC, EYC are the tool's displacement relative to the part due to the C axis (eq 13's table "
+             "displacement with the opposite sign), 0 at the reference set-up: a C line at (EX0C, EY0C) puts "
+             "them on a circle centred on -(EX0C, EY0C), the line as seen from the tool at the grid origin",
              "G is the workpiece deviation along the outward normal (eq 7)"]
     if des.heights is not None:
         ht = des.heights

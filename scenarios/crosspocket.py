@@ -1273,7 +1273,35 @@ def case1_comparison(seed: int = 1, run: dict | None = None) -> dict:
             "map_error_kgm_max_um": round(float(d[(np.abs(X) <= 60) & (np.abs(Y) <= 90)].max()), 3),
             "map_error_edge_max_um": round(float(d[np.abs(Y) > 100].max()), 3),
             "EC0Y_urad": round(res.EC0Y * 1e6, 2)}
+    out["c_axis"] = c_axis_comparison(run["res"], machine, z)
     return out
+
+
+def c_axis_comparison(res, machine, z_m: float) -> dict:
+    """Fig. 13's circle centre against the truth, um (:func:`scenarios.reports.c_axis_centre_um`).
+
+    ``c_line_um`` is the identified C line seen from the tool at the grid
+    origin (minus the centre), ``true_c_line_um`` the same from the
+    simulator (:func:`scenarios.reports.true_c_centre_um`), ``true_EX0C_EY0C_um``
+    the injected line position and ``true_linear_at_origin_um`` the linear
+    axes' error at the grid origin that the gauge adds to it.
+    """
+    from scenarios.reports import c_axis_centre_um, true_c_centre_um
+
+    c = c_axis_centre_um(res)
+    tc = true_c_centre_um(machine, res, z_m)
+    e = machine.config.errors
+    loc = np.array([e[k](np.zeros(1))[0] if k in e else 0.0 for k in ("EX0C", "EY0C")]) / UM
+
+    def r(v):
+        return None if v is None else [round(float(x) + 0.0, 3) for x in v]
+
+    return {"centre_um": r(c), "c_line_um": r(None if c is None else -c), "true_c_line_um": r(-tc),
+            "true_EX0C_EY0C_um": r(loc), "true_linear_at_origin_um": r(tc + loc)}
+
+
+def _pair(v) -> str:
+    return "-" if v is None else f"({v[0]:.1f}, {v[1]:.1f})"
 
 
 def _case1_table(c: dict, seed: int):
@@ -1288,16 +1316,20 @@ def _case1_table(c: dict, seed: int):
                   ["map error inside X120 x Y180 mm (Fig. 12)", w["map_error_kgm_max_um"],
                    wo["map_error_kgm_max_um"], "matches the 2D scale well"],
                   ["map error at Y = +-110 mm (Fig. 12)", w["map_error_edge_max_um"], wo["map_error_edge_max_um"],
-                   "clearly larger; larger without spheres"]],
+                   "clearly larger; larger without spheres"],
+                  ["C line from the tool at x = y = 0 (Fig. 13: minus the circle's centre)",
+                   _pair(c["c_axis"]["c_line_um"]), "", "(15, 6) read as the table's (+)"],
+                  ["  the truth: injected (EX0C, EY0C) minus the linear axes' error at the origin",
+                   f"{_pair(c['c_axis']['true_c_line_um'])} = {_pair(c['c_axis']['true_EX0C_EY0C_um'])} - "
+                   f"{_pair(c['c_axis']['true_linear_at_origin_um'])}", "", ""]],
                  caption=f"Case 1 against the simulator's truth (seed {seed}; forms: shift, rotation, scale removed)")
 
 
 def _case1_figures(t, res, res0, P, N, pocket, ref_um, machine) -> dict:
     """Figs. 9(a), 9(c), 11, 12(a, b), 13 from the simulated case-1 campaign; the simulator's truth plays the CMM
     (Fig. 9) and the 2D digital scale (Fig. 12: the whole grid, the paper's KGM only X120 x Y180 mm)."""
-    from core.fit import fit_circle_2d
     from core.selfcal import workpiece_form
-    from scenarios.reports import error_map_um, true_error_map
+    from scenarios.reports import c_axis_centre_um, error_map_um, true_c_centre_um, true_error_map
     from viz import figures as F
 
     out = {}
@@ -1326,8 +1358,8 @@ def _case1_figures(t, res, res0, P, N, pocket, ref_um, machine) -> dict:
               f"± {ax['EC0Y']['u95_urad']:.1f} µrad; bars U95)")
     c_deg = np.degrees(res.design.c_rad)
     exc, eyc = res.EXC / UM, res.EYC / UM
-    centre = fit_circle_2d(np.column_stack([exc, eyc])).centre
-    out["fig13"] = F.rotary_centre_figure(c_deg, exc, eyc, ex0c_um=float(centre[0]), ey0c_um=float(centre[1]),
+    out["fig13"] = F.rotary_centre_figure(c_deg, exc, eyc, centre_um=c_axis_centre_um(res),
+                                          true_centre_um=true_c_centre_um(machine, res, z),
                                           u95_exc_um=2 * res.std[res.design.slices["EXC"]] / UM,
                                           u95_eyc_um=2 * res.std[res.design.slices["EYC"]] / UM,
                                           title="Fig. 13: C-axis centre trajectory, with spheres")

@@ -172,6 +172,56 @@ def true_error_map(machine, x_mm, y_mm, z_m: float, ex_um, ey_um):
     return tex / UM, tey / UM
 
 
+def c_axis_centre_um(res) -> np.ndarray | None:
+    """(2,) centre of the circle fitted to the identified ``(EXC, EYC,total)`` trajectory (Fig. 13), um.
+
+    None with fewer than three angles or a degenerate trajectory. The values
+    are the tool relative to the part (ISO 230-1), so a table-side C whose
+    line is at ``(EX0C, EY0C)`` moves the tool relative to the part by
+    ``(R(-C) - I) (EX0C, EY0C)``: a circle centred on ``-(EX0C, EY0C)``
+    (the paper's Fig. 13 reads ``+`` because its eq 13 is the table's own
+    motion). In the identification's gauge (eq 16: the X/Y tables zero at the
+    grid origin, the C terms zero at the reference set-up) the constant part
+    of the trajectory also holds the linear axes' error at the grid origin, so
+    the centre is ``E(x_o, y_o) - (EX0C, EY0C)``: minus the C line as seen
+    from the tool at the origin (:func:`c_line_um`), which self-calibration
+    cannot split (a gauge direction). A once-per-revolution radial motion of
+    C moves it too.
+    """
+    from core.exceptions import VmtError
+    from core.fit import fit_circle_2d
+
+    if len(res.design.c_rad) < 3:
+        return None
+    try:
+        return fit_circle_2d(np.column_stack([res.EXC / UM, res.EYC / UM])).centre
+    except VmtError:  # a degenerate trajectory has no circle
+        return None
+
+
+def c_line_um(res) -> np.ndarray | None:
+    """(2,) the C axis line ``(EX0C, EY0C)`` seen from the tool at the grid origin, um: minus
+    :func:`c_axis_centre_um` (None when it is None)."""
+    c = c_axis_centre_um(res)
+    return None if c is None else -c + 0.0
+
+
+def true_c_centre_um(machine, res, z_m: float) -> np.ndarray:
+    """(2,) the truth's :func:`c_axis_centre_um` in the identification's gauge, um.
+
+    The exact simulator's tip deviation (the tool relative to the part) at the
+    grid origin ``(x_o, y_o)``, height ``z_m``, C = 0: the C line's ``-(EX0C,
+    EY0C)`` (the part rides on the line) plus every linear-axis error there,
+    the constant part eq 16 moves into the C terms. The C axis's radial
+    motion and tilt are not in it (a few tenths of a um on the realistic
+    machines).
+    """
+    xo, yo = res.design.grid.origin_m
+    lin = np.array([[xo, yo, float(z_m)]])
+    rot = np.zeros((1, len(machine.rotary_axes)))
+    return (machine.tip_W(lin, rot) - machine.tip_W_nominal(lin, rot))[0, :2] / UM
+
+
 def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, machine=None,
                 g_true: dict | None = None) -> Path:
     """The demo's report: campaign, identification, discovery; PNGs and a recording.
@@ -222,34 +272,24 @@ class _DemoView:
     exc: np.ndarray
     eyc: np.ndarray
     centre: np.ndarray | None
+    true_centre: np.ndarray | None = None
 
     @classmethod
     def of(cls, t, res, ident: dict, machine=None) -> "_DemoView":
-        from core.fit import fit_circle_2d
-
         x_mm, y_mm, ex_um, ey_um = error_map_um(res)
-        tex = tey = None
+        tex = tey = true_centre = None
         if machine is not None:
-            tex, tey = true_error_map(machine, x_mm, y_mm, float(np.median(t.pn_R[:, 2])), ex_um, ey_um)
+            z_m = float(np.median(t.pn_R[:, 2]))
+            tex, tey = true_error_map(machine, x_mm, y_mm, z_m, ex_um, ey_um)
+            true_centre = true_c_centre_um(machine, res, z_m)
         first = {}
         for k in range(t.n):
             first.setdefault(int(t.target[k]), k)
         idx = [first[i] for i in range(len(res.design.target_ids))]
         u95 = np.array([w["u95_um"] if w["u95_um"] is not None else np.nan for w in ident["workpiece"]])
         c_deg = np.degrees(res.design.c_rad)
-        exc, eyc = res.EXC / UM, res.EYC / UM
-        centre = None
-        if len(c_deg) >= 3:
-            try:
-                centre = fit_circle_2d(np.column_stack([exc, eyc])).centre
-            except Exception:  # a degenerate trajectory has no circle: draw none
-                centre = None
         return cls(x_mm, y_mm, ex_um, ey_um, tex, tey, idx, t.w_A[idx, :2] / MM, t.wn_A[idx, :2], res.G / UM, u95,
-                   c_deg, exc, eyc, centre)
-
-    def centre_um(self, i: int):
-        """EX0C (i = 0) or EY0C (i = 1) of the fitted circle, um, or None."""
-        return None if self.centre is None else float(self.centre[i])
+                   c_deg, res.EXC / UM, res.EYC / UM, c_axis_centre_um(res), true_centre)
 
 
 def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art) -> None:
@@ -268,9 +308,21 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art) -> None:
 
     record.log_workpiece(rec, t.w_A[v.idx], t.wn_A[v.idx], workpiece_form(v.g_um, v.w_mm * MM, v.wn),
                          u95_um=v.u95_um)
-    record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, ex0c_um=v.centre_um(0),
-                      ey0c_um=v.centre_um(1))
+    record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, centre_um=v.centre)
     record.log_error_motions(rec, {k: e for k, e in ident["axes"].items() if k != "EC0Y"})
+
+
+#: What the C-axis figure shows (the demo's report and the paper's Fig. 13).
+C_AXIS_TEXT = (
+    "(EXC, EYC,total) at each C: the tool's displacement relative to the part due to the C axis (ISO 230-1; "
+    "the paper's eq 13 has the table's, the opposite sign), 0 at the reference set-up. A table's C line at "
+    "(EX0C, EY0C) moves the tool relative to the part on a circle centred on -(EX0C, EY0C). The X/Y tables "
+    "are 0 at the grid origin (eq 16), so the linear axes' error there is in the centre too: the line is "
+    "placed as seen from the tool at x = y = 0, which self-calibration cannot tell apart.")
+#: Added when the truth is known (a simulation).
+C_AXIS_TRUTH_TEXT = (" The star is the simulator's truth in the same gauge: its tip deviation at the grid origin "
+                     "at C = 0 (the C line plus the linear axes' error there; the C axis's radial motion and "
+                     "tilt are not in it).")
 
 
 def _demo_sections(figures, v: _DemoView, t, res, ident: dict, g_true, art=None) -> list:
@@ -292,8 +344,9 @@ def _demo_sections(figures, v: _DemoView, t, res, ident: dict, g_true, art=None)
                 tables=[Table(["symbol", "value", "U95 (k=2)"],
                               [["EC0Y / µrad", ident["axes"]["EC0Y"]["value_urad"],
                                 ident["axes"]["EC0Y"]["u95_urad"]]])]),
-        Section("C axis (Fig. 13)", figures={"c_axis": figures.rotary_centre_figure(
-            v.c_deg, v.exc, v.eyc, ex0c_um=v.centre_um(0), ey0c_um=v.centre_um(1))}),
+        Section("C axis (Fig. 13)", text=C_AXIS_TEXT + (C_AXIS_TRUTH_TEXT if v.true_centre is not None else ""),
+                figures={"c_axis": figures.rotary_centre_figure(v.c_deg, v.exc, v.eyc, centre_um=v.centre,
+                                                                true_centre_um=v.true_centre)}),
         Section("Workpiece uncertainty (Figs. 18-19)", figures={"workpiece_u95": _u95_outline_figure(v, art)}),
     ]
 

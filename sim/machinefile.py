@@ -219,11 +219,21 @@ def truth_machine(name_or_path: str, errors: str | None = None, default: str = "
 
 
 def errors_label(name_or_path: str, spec: MachineSpec) -> str:
-    """How a command names the truth errors of ``--machine name_or_path`` (:func:`truth_machine`'s ``spec``):
-    a built-in machine's error set, or ``machine file (SET[, seed N])``."""
+    """How a command names the truth errors of ``--machine name_or_path`` (:func:`truth_machine`'s ``spec``).
+
+    A built-in machine's error set (``realistic``, ...), or for a machine
+    file what errors its machine has: ``machine file FILE: EXX, ECC set on
+    base none`` (the ``[error.*]`` tables on the base set, seed when drawn),
+    ``machine file FILE: base realistic, seed 3`` without tables. Logs carry
+    it as free text (metadata ``errors``); nothing parses it, so logs written
+    with the earlier ``machine file (SET)`` read as before.
+    """
     if name_or_path in builtin_names():
         return spec.errors
-    return f"machine file ({spec.errors}" + (f", seed {spec.seed}" if spec.seed is not None else "") + ")"
+    base = f"base {spec.errors}" + (f", seed {spec.seed}" if spec.seed is not None else "")
+    if spec.overrides:
+        return f"machine file {name_or_path}: {', '.join(spec.overrides)} set on {base}"
+    return f"machine file {name_or_path}: {base}"
 
 
 def strip_ripple(f):

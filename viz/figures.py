@@ -313,9 +313,19 @@ def workpiece_uncertainty_figure(points_mm, u95_um, *, g_um=None, normals=None,
     return fig
 
 
-def rotary_centre_figure(c_deg, exc_um, eyc_um, *, ex0c_um: float | None = None,
-                         ey0c_um: float | None = None, u95_exc_um=None, u95_eyc_um=None,
-                         axis: str = "C", title: str | None = None):
+def centre_label(cx: float, cy: float, axis: str = "C") -> str:
+    """Legend of a rotary axis's fitted centre ``(cx, cy)`` µm: the centre and the axis line it places.
+
+    The trajectory is the tool relative to the part, so the line sits at minus
+    the centre, seen from the tool at the grid origin (eq 16's gauge).
+    """
+    a = axis.upper()
+    return (f"centre ({cx:.1f}, {cy:.1f}) µm:\n(EX0{a}, EY0{a}) = ({-cx + 0.0:.1f}, {-cy + 0.0:.1f}) µm "
+            "\nfrom the tool at x = y = 0")
+
+
+def rotary_centre_figure(c_deg, exc_um, eyc_um, *, centre_um=None, true_centre_um=None,
+                         u95_exc_um=None, u95_eyc_um=None, axis: str = "C", title: str | None = None):
     """Trajectory of the rotary axis's centre, ``(EXC(C), EYC(C))`` (Fig. 13).
 
     Parameters
@@ -323,10 +333,17 @@ def rotary_centre_figure(c_deg, exc_um, eyc_um, *, ex0c_um: float | None = None,
     c_deg : (n,) float
         Indexed angles, degrees.
     exc_um, eyc_um : (n,) float
-        Radial error motions at each angle, µm.
-    ex0c_um, ey0c_um : float, optional
-        Position of the axis average line (the best-fit circle's centre, as
-        identified by core), µm.
+        The tool's displacement relative to the part due to the axis at each
+        angle (``EXC,total``, ``EYC,total``: radial motion and line position), µm.
+    centre_um : (2,) float, optional
+        Centre of the circle fitted to the trajectory, µm. The values are the
+        tool relative to the part (ISO 230-1), so a table's axis line at
+        ``(EX0C, EY0C)`` puts the centre at ``-(EX0C, EY0C)``; in the
+        identification's gauge (eq 16: the X/Y tables zero at the grid
+        origin) it is the line seen from the tool at that origin
+        (:func:`scenarios.reports.c_line_um`). The label gives both.
+    true_centre_um : (2,) float, optional
+        The truth's centre in the same gauge (a simulation), drawn beside it.
     u95_exc_um, u95_eyc_um : (n,) float, optional
         Expanded uncertainties (k = 2), drawn as error bars.
     """
@@ -347,11 +364,13 @@ def rotary_centre_figure(c_deg, exc_um, eyc_um, *, ex0c_um: float | None = None,
         ax.annotate(f"{a}={ci:g}°", (xi, yi), textcoords="offset points", xytext=(4, 4),
                     fontsize="small")
     ax.plot([0], [0], "+", color="k", ms=10, label="no error")
-    if (ex0c_um is None) != (ey0c_um is None):
-        raise ConfigError("ex0c_um and ey0c_um: give both or neither")
-    if ex0c_um is not None:
-        ax.plot([ex0c_um], [ey0c_um], "x", color=_C_BAD, ms=10, mew=2,
-                label=f"(EX0{a}, EY0{a}) = ({ex0c_um:.1f}, {ey0c_um:.1f}) µm")
+    if centre_um is not None:
+        cx, cy = _arr("centre_um", centre_um, (2,))
+        ax.plot([cx], [cy], "x", color=_C_BAD, ms=10, mew=2, label=centre_label(cx, cy, a))
+    if true_centre_um is not None:
+        tx, ty = _arr("true_centre_um", true_centre_um, (2,))
+        ax.plot([tx], [ty], "*", color=_C_TRUE, ms=12,
+                label=f"the truth's centre, same gauge:\n({tx:.1f}, {ty:.1f}) µm")
     ax.set_xlabel(f"EX{a}({a}) / µm")
     ax.set_ylabel(f"EY{a}({a}) / µm")
     ax.set_aspect("equal", adjustable="datalim")

@@ -414,14 +414,14 @@ def log_error_motions(rec, axes: Mapping[str, Mapping], *, truth: Mapping | None
 
 
 def log_rotary(rec, c_deg, exc_um, eyc_um, *, ecc_urad=None, u95_exc_um=None,
-               u95_eyc_um=None, u95_ecc_urad=None, ex0c_um: float | None = None,
-               ey0c_um: float | None = None, axis: str = "C") -> None:
+               u95_eyc_um=None, u95_ecc_urad=None, centre_um=None, axis: str = "C") -> None:
     """Log the rotary-axis error motions and the trajectory of its centre.
 
     ``rotary/<axis>/centre_trajectory`` is the self-calibration paper's
     Figure 13: the points ``(EXC, EYC)`` at each indexed angle in µm (2D),
-    joined in angle order, with the average-line position ``(EX0C, EY0C)``
-    (the best-fit circle's centre, as core identified it) when given. The
+    joined in angle order, with the best-fit circle's centre ``centre_um``
+    when given (labelled as :func:`viz.figures.centre_label`: the axis line
+    sits at minus the centre, the values being the tool relative to the part). The
     values are also plotted against the angle on timeline ``<axis>_mdeg``
     (Figure 14 for ``ECC``), with their U95 bands.
 
@@ -449,12 +449,12 @@ def log_rotary(rec, c_deg, exc_um, eyc_um, *, ecc_urad=None, u95_exc_um=None,
     rec.log(base, rr.Points2D(xy, colors=[_BLUE], radii=[0.3],
                               labels=[f"{a}={v:g}°" for v in c]), static=True)
     rec.log(f"{base}/path", rr.LineStrips2D([xy[order]], colors=[_BLUE]), static=True)
-    if (ex0c_um is None) != (ey0c_um is None):
-        raise ConfigError("ex0c_um and ey0c_um: give both or neither")
-    if ex0c_um is not None:
-        rec.log(f"{base}/centre", rr.Points2D(
-            [[float(ex0c_um), float(ey0c_um)]], colors=[_RED], radii=[0.5],
-            labels=[f"(EX0{a}, EY0{a}) = ({ex0c_um:.1f}, {ey0c_um:.1f}) µm"]), static=True)
+    if centre_um is not None:
+        from viz.figures import centre_label
+
+        cx, cy = _arr("centre_um", centre_um, (2,))
+        rec.log(f"{base}/centre", rr.Points2D([[float(cx), float(cy)]], colors=[_RED], radii=[0.5],
+                                              labels=[centre_label(cx, cy, a).replace("\n", " ")]), static=True)
     timeline = f"{a}_mdeg"
     ticks = np.round(c * 1000.0).astype(np.int64)
     series = [(f"EX{a}", ex, u95_exc_um, "µm"), (f"EY{a}", ey, u95_eyc_um, "µm")]

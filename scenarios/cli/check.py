@@ -10,7 +10,10 @@ _BARE = "\0bare"
 
 
 def register(sub) -> None:
-    p = sub.add_parser("check", help="validate a probe-log/1 file and summarise it")
+    # LOG is required (run refuses without it); it is optional to argparse only so that the old
+    # `check --json LOG` (argparse gives LOG to --json) still reads: the usage line says what is asked
+    p = sub.add_parser("check", help="validate a probe-log/1 file and summarise it",
+                       usage="%(prog)s [-h] [--json [OUT]] LOG")
     p.add_argument("log", metavar="LOG", nargs="?", help="probe-log/1 CSV file (required)")
     p.add_argument("--json", metavar="OUT", nargs="?", const=_BARE, default=None,
                    help="also write the summary as JSON to OUT ('-': print it instead of the text)")

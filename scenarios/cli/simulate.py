@@ -33,7 +33,8 @@ def register(sub) -> None:
     add_machine_args(p, default=None, what="virtual machine (default: the artefact's, list below; positioning: "
                                             "vmc-3axis)")
     add_noise_arg(p, "default: the machine's probe, 0.125 for the built-ins: the MFB paper's 0.25 um at k=2; "
-                     "1.38 for the self-calibration paper; not for positioning: --scatter-um")
+                     "1.38 for the self-calibration paper; positioning: the old name of --scatter-um, the same "
+                     "k=1 scatter of each reading, with a line naming it")
     option(p, "--c-angles-deg", dest="c_angles", default=None, old=("--c-angles",),
            help="comma-separated C angles of the set-ups, deg (not for a placed artefact: mfb)")
     p.add_argument("--plan-only", action="store_true", help="write the plan only (measured columns empty)")

@@ -133,6 +133,28 @@ def test_invalid_readings_are_excluded_and_may_repeat():
     assert abs(r.E - 12e-3) < TOL_MM
 
 
+def test_a_last_row_without_an_end_of_line_follows_the_probe_logs_torn_row_rule():
+    # the probe log's rule (core.probelog.last_row_check), not a copy: a row cut to too few fields, a number cut
+    # to no number or a status other than ok is refused as torn; one that still reads whole is kept with a
+    # warning that the evaluation passes on (it was read silently: 0.001 cut to 0.00 moved E up unnoticed)
+    text = hand_text()
+    assert text.endswith("0.0,5,-,0.001\n")
+    for cut in ("0.0,5,-", "0.0,5", "0.0,5,-,-"):
+        with pytest.raises(PositioningLogError, match=r"row 29 \(line 33\): torn last row .*delete the line"):
+            parse_positioning_log(text[: -len("0.0,5,-,0.001\n")] + cut)
+    log = parse_positioning_log(text[:-1])
+    assert log.n == 30 and len(log.warnings) == 1
+    assert "row 29 (line 33): the file ends without an end of line" in log.warnings[0]
+    assert "measured_mm '0.001'" in log.warnings[0]
+    r = iso230_2(log)
+    assert abs(r.E - 12e-3) < TOL_MM and log.warnings[0] in r.warnings
+    assert parse_positioning_log(text).warnings == ()
+    st = hand_text([r + ("ok",) for r in hand_rows()], header="target_mm,cycle,direction,measured_mm,status")
+    assert parse_positioning_log(st[:-1]).warnings == ()               # a whole status word reads as written
+    with pytest.raises(PositioningLogError, match="torn last row \\(last field status 'o'"):
+        parse_positioning_log(st[:-2])
+
+
 def test_optional_columns_kept(tmp_path):
     rows = [r + (float(k), 20.0 + k / 100) for k, r in enumerate(hand_rows())]
     text = hand_text(rows, header="target_mm,cycle,direction,measured_mm,t_s,temp_scale_C")

@@ -219,7 +219,7 @@ def _one(extra_cols="", extra=""):
     "text, match",
     [
         (_one().replace("s1,p1,0,1,", "s1,p1,0,1e200,"), r"column 'X_mm': 1e\+200 is out of range \(must be >= -100000 and <= 100000 mm"),
-        (_one().replace(",1,0,0,1,0,0\n", ",-100000.001,0,0,1,0,0\n"), r"column 'Xn_mm': -100000 is out of range"),
+        (_one().replace(",1,0,0,1,0,0\n", ",-100000.001,0,0,1,0,0\n"), r"column 'Xn_mm': -100000.001 is out of range"),
         (_one(",stylus_r_mm", ",-3"), r"column 'stylus_r_mm': -3 is out of range \(must be >= 0 and <= 100 mm: "
          r"a tip radius is not negative"),
         (_one(",stylus_r_mm", ",100.5"), r"column 'stylus_r_mm': 100.5 is out of range"),
@@ -292,7 +292,7 @@ def test_file_with_only_spec_columns_reads_exactly_as_the_spec_says(rng):
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,", r"torn last row \(last field status ''"),
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,no_tr", r"torn last row \(last field status 'no_tr'"),
         # any word that is not a whole status vmt writes, whatever it is a prefix of
-        ("s1,p2,1,0,2,0,0,2,0,0,1,0,abor", r"torn last row \(last field status 'abor' is no status vmt writes"),
+        ("s1,p2,1,0,2,0,0,2,0,0,1,0,abor", r"torn last row \(last field status 'abor' is not a whole status word \(ok, no_trigger, early_trigger, alarm, aborted\)"),
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,ala", r"torn last row \(last field status 'ala'"),
         ("s1,p2,1,0,2,0,0,2,0,0,1,0,chip", r"torn last row \(last field status 'chip'"),
     ],
@@ -311,17 +311,36 @@ def test_torn_last_row_is_refused_as_torn(tail, match):
         assert log.n == 2
 
 
-@pytest.mark.parametrize("status", ["ok", "no_trigger", "early_trigger", "aborted"])
+@pytest.mark.parametrize("status", ["ok", "no_trigger", "early_trigger", "alarm", "aborted"])
 def test_whole_status_words_vmt_writes_read_without_an_end_of_line(status):
-    # every status vmt writes (ProbeStatus, and `aborted` from `vmt import`) ends a file whole
+    # every status the spec names (ok, no_trigger, early_trigger, alarm) and vmt writes (ProbeStatus, and
+    # `aborted` from `vmt import`) ends a file whole
     from core.probelog import KNOWN_STATUSES
     from core.touches import ProbeStatus
 
-    assert set(KNOWN_STATUSES) == {s.value for s in ProbeStatus} | {"aborted"}
+    assert set(KNOWN_STATUSES) == {s.value for s in ProbeStatus} | {"aborted", "alarm"}
     measured = ["1", "0", "2", "0"] if status == "ok" else ["", "", "", ""]
     tail = ",".join(["s1", "p2", *measured, "0", "2", "0", "0", "1", "0", status])
     log = parse_probe_log(HEADER + ",status\n" + ROW + ",ok\n" + tail, "t.csv")
     assert log.n == 2 and log.warnings == () and list(log.columns["status"]) == ["ok", status]
+
+
+def test_alarm_rows_are_touches_that_are_not_valid_and_an_empty_status_is_ok():
+    # spec: status is `ok` or why the touch is not valid (no_trigger, early_trigger, alarm, ...); the column is
+    # optional with default ok, so an empty cell is ok. An alarm row is kept and left out of every fit, even
+    # with positions in it; its word ends a file whole, and `ala` (alarm cut short) is torn
+    from core.probelog import summary
+
+    body = (HEADER + ",status\n" + ROW + ",ok\n" + "s1,p3,1,-1,0,0,-1,0,0,-1,0,0,\n"
+            + "s1,p2,2,0,2,0,0,2,0,0,1,0,alarm")
+    for text in (body, body + "\n"):
+        log = parse_probe_log(text, "t.csv")
+        assert list(log.columns["status"]) == ["ok", "", "alarm"] and list(log.ok) == [True, True, False]
+        assert list(from_log(log).row) == [0, 1] and log.warnings == ()
+        assert summary(log)["status"] == {"ok": 2, "alarm": 1}
+    parse_probe_log(HEADER + ",status\n" + ROW + ",alarm", "t.csv")     # whole: read, no torn row
+    with pytest.raises(ProbeLogError, match=r"row 0 \(line 2\): torn last row \(last field status 'ala'"):
+        parse_probe_log(HEADER + ",status\n" + ROW + ",ala", "t.csv")
 
 
 def test_aborted_rows_of_an_import_read_back_and_a_cut_one_is_torn(tmp_path):

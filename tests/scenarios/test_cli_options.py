@@ -503,3 +503,18 @@ def test_every_old_alias_is_exercised():
              for o in a.option_strings}
     assert found - listed == set(), sorted(found - listed)
     assert listed - found == set(), sorted(listed - found)
+
+
+def test_check_usage_says_log_is_required_and_noise_help_says_what_it_does_in_positioning(capsys):
+    # `vmt check` refuses to run without LOG: its usage line may not show it optional (it showed [LOG]);
+    # `--noise-um` of `vmt simulate positioning` is --scatter-um's old name (same bytes, test above): the help
+    # says so (it said "not for positioning")
+    with pytest.raises(SystemExit):
+        main(["check", "--help"])
+    usage = capsys.readouterr().out.splitlines()[0]
+    assert usage.endswith(" LOG") and "[LOG]" not in usage
+    with pytest.raises(SystemExit):
+        main(["simulate", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "positioning: the old name of --scatter-um, the same k=1 scatter of each reading" in text
+    assert main(["check"]) == 2 and "give the LOG to check" in capsys.readouterr().err

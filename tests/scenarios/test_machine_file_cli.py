@@ -44,7 +44,11 @@ def test_simulate_with_a_machine_file_reads_minus_one_um_on_x_faces(my_file, tmp
     out, ref = tmp_path / "log.csv", tmp_path / "ref.csv"
     assert main(["simulate", "cross-pocket", "--machine", str(my_file), "--out", str(out),
                  "--no-collision-check"]) == 0
-    assert "machine my-vmc" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "machine my-vmc" in said
+    # the log says what errors the machine has: the file's EXX on its base's none (was "machine file (none)")
+    assert read_probe_log(out).meta["errors"] == f"machine file {my_file}: EXX set on base none"
+    assert f"errors machine file {my_file}: EXX set on base none" in said
     assert main(["simulate", "cross-pocket", "--machine", "vmc-3axis", "--errors", "none", "--noise-um", "0",
                  "--out", str(ref), "--no-collision-check"]) == 0
     log, base = read_probe_log(out), read_probe_log(ref)

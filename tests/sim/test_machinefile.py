@@ -162,3 +162,17 @@ def test_missing_file_and_unknown_name(tmp_path):
         load(tmp_path / "nope.toml")
     with pytest.raises(MachineFileError, match="not a built-in machine"):
         resolve("nope")
+
+
+def test_errors_label_says_what_errors_a_machine_file_has(tmp_path):
+    # a file on base set none with [error.*] tables has those errors, not "none" (the label said
+    # "machine file (none)"); a drawn set names its seed; a built-in machine names its set
+    from sim.machinefile import errors_label, truth_machine
+
+    p = tmp_path / "m.toml"
+    p.write_text('base = "vmc-3axis"\nerrors = "none"\n[error.EXX]\nconstant_um = 1.0\n'
+                 '[error.EC0Y]\nconstant_urad = 5.0\n')
+    assert errors_label(str(p), truth_machine(str(p))) == f"machine file {p}: EXX, EC0Y set on base none"
+    p.write_text('base = "nmv3000"\nerrors = "realistic"\nseed = 3\n')
+    assert errors_label(str(p), truth_machine(str(p))) == f"machine file {p}: base realistic, seed 3"
+    assert errors_label("nmv3000", truth_machine("nmv3000", "study")) == "study"

@@ -46,7 +46,7 @@ CASES = [
                                          "EC0Y": {"injected": 10, "identified": 11, "u95": 2}}),
      (["error", "µm"], ["ISO 230-1"])),
     ("centre", lambda: vf.rotary_centre_figure([0, 75, 130, 210], [16, 14, 15, 13], [6, 7, 5, 6],
-                                               ex0c_um=15.0, ey0c_um=6.0),
+                                               centre_um=(15.0, 6.0)),
      (["EXC(C)", "µm"], ["EYC(C)", "µm"])),
     ("rotary", lambda: vf.rotary_motions_figure([0, 75, 130, 210], {"ECC": [0, 2, 1, 3]},
                                                 {"ECC": [1, 1, 1, 1]}),
@@ -128,7 +128,7 @@ def test_save_png_missing_folder(tmp_path):
 
 
 @pytest.mark.parametrize("build", [
-    lambda: vf.rotary_centre_figure([0, 75, 130, 210], [16, 14, 15, 13], [6, 7, 5, 6], ex0c_um=15.0, ey0c_um=6.0),
+    lambda: vf.rotary_centre_figure([0, 75, 130, 210], [16, 14, 15, 13], [6, 7, 5, 6], centre_um=(15.0, 6.0)),
     lambda: vf.grid_uncertainty_figure(X_MM, Y_MM, np.abs(GY) / 10 + 1),  # a colorbar
     lambda: vf.error_motions_figure(AXES, truth={"EXX": 0.09 * X_MM}),  # panels, a hidden one
 ], ids=["centre", "colorbar", "panels"])

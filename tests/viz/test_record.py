@@ -170,7 +170,7 @@ def test_rotary_centre_trajectory_and_workpiece(tmp_path, rng):
     c = [0.0, 75.0, 130.0, 210.0]
     with vr.recording(p) as rec:
         vr.log_rotary(rec, c, [16, 14, 15, 13], [6, 7, 5, 6], ecc_urad=[0, 2, 1, 3],
-                      u95_exc_um=[1, 1, 1, 1], ex0c_um=15.0, ey0c_um=6.0)
+                      u95_exc_um=[1, 1, 1, 1], centre_um=(15.0, 6.0))
         n = 12
         vr.log_workpiece(rec, rng.random((n, 3)), np.tile([1.0, 0, 0], (n, 1)),
                          rng.normal(size=n), u95_um=rng.random(n))
