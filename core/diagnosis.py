@@ -261,7 +261,7 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
     T, n, k = C.shape
     nrm = np.maximum(np.sqrt(np.einsum("tnk,tnk->tk", C, C)), 1e-300)
     if isinstance(Q, Basis):  # a long log: P^T P and P^T r from the Gram matrices (no (n, T k) projection formed)
-        inv = 1.0 / nrm
+        inv = np.where(nrm > 1e-300, 1.0 / nrm, 0.0)  # (a zero column stays zero, as C / nrm leaves it)
         G = np.empty((T, k, k))
         b = np.empty((T, k))
         Qr = Q.T @ r

@@ -73,9 +73,11 @@ def test_nested_f_batch_beside_a_block_basis_is_the_dense_one():
     C = r.normal(size=(3, len(y), 4))
     C[1, :, 0] = A.D[:, 1]  # a column inside the model
     C[2, :, 3] = C[2, :, 2] * 2.0  # a dependent one
+    C = np.concatenate([C, C[:1]])
+    C[3, :, 1] = 0.0  # a column that is zero on these rows (a set-up's own column, its rows out)
     a = Dg.nested_f_batch(C, Q, res, float(res @ res), len(y) - Qd.shape[1])
     b = Dg.nested_f_batch(C, Qd, res, float(res @ res), len(y) - Qd.shape[1])
-    assert np.array_equal(a[1], b[1]) and list(a[1]) == [4, 3, 3]
+    assert np.array_equal(a[1], b[1]) and list(a[1]) == [4, 3, 3, 3] and np.all(np.isfinite(a[0]))
     for x, z in zip(a, b):
         np.testing.assert_allclose(x, z, rtol=1e-10)
 
