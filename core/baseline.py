@@ -370,9 +370,9 @@ def planar_covariates(d: PlanarData, sparse: bool = False) -> tuple:
     if su.size >= 2:
         F = np.column_stack([f(k * d.azimuth) for k in (2, 3, 4) for f in (np.cos, np.sin)])
         if sparse:
-            pos = np.searchsorted(su, t.setup)
+            at = np.searchsorted(su, t.setup)  # each row's set-up's place among su
             B = sp.csr_matrix((F.ravel(), (np.repeat(np.arange(t.n), F.shape[1]),
-                                           (pos[:, None] * F.shape[1] + np.arange(F.shape[1])).ravel())),
+                                           (at[:, None] * F.shape[1] + np.arange(F.shape[1])).ravel())),
                               shape=(t.n, F.shape[1] * su.size))
         else:
             B = np.hstack([F * (t.setup == j)[:, None] for j in su])

@@ -46,6 +46,7 @@ import scipy.sparse as sp
 from scipy import special, stats
 from scipy.interpolate import BSpline
 
+from .exceptions import ConfigError
 from .lsq import Basis
 from .units import UM
 
@@ -762,6 +763,11 @@ def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.
     """
     n = len(r)
     rows = np.arange(n) if rows is None else np.asarray(rows)
+    if sparse_function_basis(cov).shape[1] * len(cov.modes) >= n:  # more columns than rows: B^T B is the larger
+        U = new_basis(Q, term_basis(cov, modes, rows), tol)
+        if U.shape[1] == 0 or dof - U.shape[1] < 5:
+            return None
+        return nested_f(U, r, rss, dof), U @ (U.T @ r), U.shape[1]
     BB = QB = Br = None
     for pos, Bc in _term_chunks(cov, modes, rows):
         bb = Bc.T @ Bc
@@ -957,9 +963,26 @@ class Replicates:
         return float(np.sqrt(self.ss / self.dof)) if self.dof else float("nan")
 
 
-def replicate_scatter(key: np.ndarray, y: np.ndarray) -> Replicates:
-    """Pure replicate scatter of ``y`` within groups of equal ``key`` (``key < 0``: no group)."""
+def replicate_scatter(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None = None) -> Replicates:
+    """Pure replicate scatter of ``y`` within groups of equal ``key`` (``key < 0``: no group).
+
+    ``trend`` (n, q), optional: columns whose variation within the groups is
+    removed first. Repeats of one target minutes apart differ by whatever
+    drifts in between (a thermal drift, a probe warming); with ``trend`` the
+    within-group deviations of ``y`` (``y`` less its group mean, the
+    contrasts of the group) are regressed on the same deviations of these
+    columns, and ``ss`` is what is left, ``dof`` the contrasts less the rank
+    of that regression. Under pure Gaussian noise ``ss / sigma^2`` is then
+    exactly chi-square with ``dof`` degrees of freedom (unbiased, like the
+    plain estimate); a drift the columns represent (discovery: a rate per
+    set-up and response mode, :func:`core.discover.drift_trend`) adds
+    nothing, a drift's curvature over a group's time span still does.
+    """
     key = np.asarray(key)
+    if key.shape != np.shape(y):
+        raise ConfigError(f"replicate_scatter: key {key.shape} and y {np.shape(y)} must have one entry per row")
+    if trend is not None and (np.ndim(trend) != 2 or len(trend) != len(key)):
+        raise ConfigError(f"replicate_scatter: trend must be ({len(key)}, q), got {np.shape(trend)}")
     ok = key >= 0
     if not ok.any():
         return Replicates(0.0, 0, 0)
@@ -967,8 +990,18 @@ def replicate_scatter(key: np.ndarray, y: np.ndarray) -> Replicates:
     yy = y[ok]
     s = np.bincount(inv, yy)
     mean = s / cnt
-    ss = float(np.sum((yy - mean[inv]) ** 2))
-    return Replicates(ss, int(np.sum(cnt - 1)), int(np.sum(cnt > 1)))
+    res = yy - mean[inv]
+    dof = int(np.sum(cnt - 1))
+    if trend is not None and trend.shape[1] and dof:
+        T = trend[ok]
+        Tc = T - (np.stack([np.bincount(inv, T[:, j]) for j in range(T.shape[1])], axis=1) / cnt[:, None])[inv]
+        nrm = np.linalg.norm(Tc, axis=0)
+        big = nrm > 1e-9 * np.maximum(np.linalg.norm(T, axis=0), 1e-300)
+        if big.any():
+            B = orth(Tc[:, big])
+            res = res - B @ (B.T @ res)
+            dof -= B.shape[1]
+    return Replicates(float(res @ res), max(dof, 0), int(np.sum(cnt > 1)))
 
 
 @dataclass(frozen=True)
@@ -1005,10 +1038,10 @@ class CvGap:
     ratio : float
         ``cv_ss / rss`` observed.
     expected : float
-        Its mean under pure noise (same model, same folds).
+        Its mean under the null (same model, same folds).
     p_value : float
-        Upper tail of the observed ratio under a normal law with the draws'
-        mean and standard deviation.
+        Upper tail of the observed ratio under a chi-square scaled to the
+        draws' mean and variance (Satterthwaite).
     sigma_cv_m : float
         Noise level that would explain the cross-validated residuals:
         ``sqrt(cv_ss / E||M z||^2)`` (M the linear CV map, z standard normal).
@@ -1022,13 +1055,16 @@ class CvGap:
     draws: int
 
 
-def cv_gap(cv_ss: float, rss: float, null_cv_ss: np.ndarray, null_rss: np.ndarray) -> CvGap:
+def cv_gap(cv_ss: float, rss: float, null_cv_ss: np.ndarray, null_rss: np.ndarray, scale: float = 1.0) -> CvGap:
     """The CV-gap test from the observed sums and their null draws.
 
-    Under pure Gaussian noise the ratio ``cv_ss / rss`` does not depend on
-    the noise level, so the draws (standard normal observations through the
-    same linear fit and folds) give its exact distribution up to Monte
-    Carlo error.
+    The draws are observations through the same linear fit and folds:
+    standard normal noise (``scale`` 1), or a parametric bootstrap (the
+    fitted model plus noise of standard deviation ``scale``,
+    :func:`core.discover._cv_gap`). Under Gaussian noise, and when the folds
+    predict the model's own fitted field exactly, the ratio ``cv_ss / rss``
+    does not depend on the noise level, and the draws give its distribution
+    up to Monte Carlo error.
     """
     null = null_cv_ss / np.maximum(null_rss, 1e-300)
     ratio = cv_ss / max(rss, 1e-300)
@@ -1048,5 +1084,5 @@ def cv_gap(cv_ss: float, rss: float, null_cv_ss: np.ndarray, null_rss: np.ndarra
         p = 1.0 if ratio <= mu * (1 + 1e-9) else 0.0
     else:  # fewer than two draws: no test
         p = 1.0
-    return CvGap(float(ratio), float(np.mean(null)), p, float(np.sqrt(cv_ss / max(np.mean(null_cv_ss), 1e-300))),
-                 int(len(null)))
+    return CvGap(float(ratio), float(np.mean(null)), p,
+                 float(np.sqrt(cv_ss / max(np.mean(null_cv_ss) / scale ** 2, 1e-300))), int(len(null)))

@@ -16,10 +16,12 @@ What it does, in order, and the statistics behind each step
    until it is set up again), unless one rigid step of the part within
    that set-up explains them (a fixture slip: structure).
 2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
-   error), the lack-of-fit F test of the baseline against it, and the gap
-   between held-out and in-sample residuals: ``cv_ss / rss`` against its
-   exact null distribution (standard normal draws through the same linear
-   fit and folds; the ratio does not depend on the noise level).
+   error) after a time trend per set-up (:func:`drift_trend`: a drift
+   between drift-check repeats is not noise), the lack-of-fit F test of the
+   baseline against the plain pure error, and the gap between held-out and
+   in-sample residuals: ``cv_ss / rss`` against its parametric bootstrap
+   (the fitted model plus noise at the estimated sigma through the same
+   fit and folds, :func:`_cv_gap`).
 3. **Diagnosis** (catalogue-free, :mod:`core.diagnosis`): for every
    covariate a smooth term is tested against the model (nested F test,
    Holm over the covariates); its debiased explained RMS says how much of
@@ -116,16 +118,22 @@ Family-wise false-alarm rate: :attr:`Settings.alpha`, split equally over
 the four families of tests (lack of fit, CV gap, diagnosis, named causes).
 
 Cross-validation: leave one group out (set-ups for the planar baseline);
-the held-out group's own columns (its C-axis errors, targets seen only
-there) are refitted on it, the rest predicted. The training fit solves the
-baseline by truncated SVD of the column-scaled design (relative singular
-values below :attr:`Settings.cv_rcond` dropped, so nodes the other set-ups
-barely see do not extrapolate) and the extension columns by least squares
-on their part outside that span; the same for every model compared. A
-long planar log's design (a :class:`core.lsq.BlockDesign`) is never formed
-rows by parameters: its targets are eliminated (means per target), the
-truncation acts on the machine's columns beside them (:class:`Folds`'
-``"blocks"`` mode) and the workpiece is solved from the normal matrix.
+every direction of the model's column space is predicted from the other
+groups' rows when they see at least :attr:`Settings.cv_seen` of it (its
+training share, a cosine: a property of the column space, not of its
+columns), by exact least squares; the others, and the held-out group's
+own columns (its C-axis errors, targets seen only there), are refitted on
+the held-out group (leave one row out). The extension columns are fitted
+on their part outside the baseline's span by the same rule (:class:`Folds`);
+the same for every model compared, so the held-out residuals do not change
+when the same span is reparametrised, the campaign moved or its set-ups
+reordered, and the baseline's own fitted field predicts itself exactly (no
+extrapolation bias). A long planar log's design (a
+:class:`core.lsq.BlockDesign`) is never formed rows by parameters: its
+targets are eliminated (means per target), the same rule acts on the
+held-out group's targets and the machine's columns beside them
+(:class:`Folds`' ``"blocks"`` mode) and the workpiece is solved from the
+normal matrix.
 """
 
 from __future__ import annotations
@@ -145,7 +153,7 @@ from .baseline import Baseline
 from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch, new_basis, orth,
                         replicate_scatter, take_rows, term_bases)
 from .exceptions import ConfigError, IdentifiabilityError
-from .lsq import BlockDesign, group_sums, leverage, orth_of, row_column_norms
+from .lsq import BlockDesign, group_sums, leverage, orth_of
 from .touches import Touches
 from .units import UM
 
@@ -239,9 +247,25 @@ class Settings:
     cv_draws : int
         Monte Carlo draws of the CV-gap null distribution (its mean and
         spread; the p-value is the tail of a chi-square scaled to them).
-    cv_rcond : float
-        Relative singular value below which the training fit of a
-        cross-validation fold drops a direction.
+    cv_seen : float
+        Training share (cosine: ``|s_tr| / |s|``) from which a direction
+        ``s`` of the model's column space is predicted from a fold's
+        training rows; below it the held-out group's own rows fit it
+        (:class:`Folds`). ``1/sqrt(2)``: a direction is predicted from the
+        rows that see more of it (the training estimate's variance
+        ``sigma^2 / c^2`` is then at most the held-out rows' own
+        ``sigma^2 / (1 - c^2)``), so no held-out residual amplifies the
+        noise more than twofold, and the rule depends on the column space
+        only, not on how its columns are scaled or mixed.
+    cv_seen_extension : float
+        The same share for an extension's directions outside the baseline
+        (their training share beyond the baseline's training image): 0.1,
+        noise amplified at most 99 times along one direction. Below it a
+        direction predicts nothing on the held-out rows (the extension is
+        on trial: no credit, no loss); one no training row sees at all is
+        the held-out group's own. Measured: 1/sqrt(2) here left the
+        synthetic thermal drift and part change unnamed, 0.3 named a
+        pre-travel settling ``thermal_drift`` (docs/discovery.md).
     shortlist : int
         Trials of a scan evaluated exactly after the periodogram-like
         pre-screen.
@@ -268,7 +292,8 @@ class Settings:
     select_grid: bool = True
     max_findings: int = 3
     cv_draws: int = 99
-    cv_rcond: float = 1e-2
+    cv_seen: float = float(np.sqrt(0.5))
+    cv_seen_extension: float = 0.1
     shortlist: int = 8
     noise_max_um: float = 1.5
 
@@ -282,146 +307,207 @@ class Settings:
 # ---------------------------------------------------------------------------
 @dataclass(frozen=True)
 class _Fold:
-    """One held-out group of :class:`Folds` (internal); which fields are set depends on the mode.
+    """One held-out group of :class:`Folds` (internal).
 
-    Every mode: ``tr``, ``te`` (training and held-out rows), ``Qo`` (the
-    held-out rows' own columns, orthonormal: parameters no training row
-    sees). ``"spans"``: ``U`` (n_tr, r) the retained training span, ``Uf``
-    (n_tr, f) the whole one, ``P`` (n_te, r) the held-out rows' prediction
-    per unit of ``U^T y``. ``"coefficients"``: the same spans as
-    coefficients over the design's columns ``cols`` (``U = A_tr[:, cols] @
-    V``): ``V`` (p_used, r), ``Vf`` (p_used, f), and ``P``. ``"blocks"``
-    (a :class:`core.lsq.BlockDesign`, the indicator block eliminated):
-    ``ctr`` (g,) training rows per id (0: that id is the held-out rows'
-    own), ``cols`` the dense columns the training rows see, ``V`` and ``Vf``
-    the retained and whole maps of the Schur complement's right-hand side
-    to those columns' coefficients.
+    ``tr``, ``te``: training and held-out rows. ``Qo`` (n_te, o): the
+    held-out group's own directions (orthonormal): the model's directions
+    the training rows see less than :attr:`Folds.seen` of. ``c`` (f,): the
+    training share (cosine) of each direction the training rows see at all,
+    largest first; the first ``k`` (``c >= seen``) are predicted. ``W`` maps
+    the training coordinates ``t`` of a matrix (dense: ``Q^T X`` over the
+    training rows; blocks: its indicator part for the held-out group's ids
+    ``J``, then ``Qd^T X``) to the directions: ``z = W^T t / c`` are the
+    coordinates of ``X``'s training rows on the orthonormal training image
+    ``U``; ``Ut`` (dense, short logs) is that image itself (n_tr, f).
+    ``P`` (dense) the held-out rows' prediction per unit of ``z[:k]``.
     """
 
     tr: np.ndarray
     te: np.ndarray
     Qo: np.ndarray
+    c: np.ndarray
+    k: int
+    W: np.ndarray
     P: np.ndarray | None = None
-    U: np.ndarray | None = None
-    Uf: np.ndarray | None = None
-    cols: np.ndarray | None = None
-    V: np.ndarray | None = None
-    Vf: np.ndarray | None = None
-    ctr: np.ndarray | None = None
+    Ut: np.ndarray | None = None
+    J: np.ndarray | None = None
+    jinv: np.ndarray | None = None
+
+
+#: Training share (cosine) below which a direction of the model counts as unseen by a fold's training rows:
+#: they hold less than 1e-10 of its squared norm (the eigenvalues of the training Gram are exact to about 1e-16).
+SEEN_ZERO = 1e-5
+#: Squared shares within this of a threshold count as reaching it: designs put directions exactly at simple
+#: fractions (a target probed in two of four set-ups is half seen, c^2 = 1/2 = cv_seen^2), which rounding
+#: (about 1e-15) must not split two ways.
+SEEN_TIE = 1e-9
 
 
 class Folds:
     """Leave-one-group-out cross-validation of linear models over one design (rows fixed).
 
-    The baseline part of each training fit is factored once (truncated
-    eigen-decomposition of the column-scaled normal matrix); extension
-    columns are then solved on their part outside the retained span, so a
-    candidate costs a few small products per fold. Linear in the
-    observations: :meth:`residuals` takes (n,) or (n, B).
+    Every decision is made on the model's column space, not on its columns
+    (so the same span, reparametrised, scaled or mixed, gives the same
+    held-out residuals to rounding). ``Q`` is an orthonormal basis of the
+    design's column space over the model's rows. For a held-out group, each
+    direction ``s`` of that space has a training share ``c = |s_tr| / |s|``
+    (the cosines of the principal angles between the column space and the
+    training rows' coordinates: the eigenvalues of ``Q_tr^T Q_tr`` are
+    ``c^2``). A direction with ``c >= seen`` is predicted from the training
+    rows by exact least squares (its coefficient ``u^T y_tr / c``, its noise
+    amplified on the held-out rows by ``(1 - c^2) / c^2``, at most 1 at the
+    default ``seen = 1/sqrt(2)``); one with ``c < seen`` is seen better by
+    the held-out group itself and is the group's own: fitted on its other
+    rows (leave-one-row-out), as a set-up's own columns (its C-axis errors,
+    targets only it sees) always were. Nothing is truncated to zero: the
+    held-out prediction of any element of the column space is exact, so the
+    baseline's own fitted field adds nothing to the held-out residuals (no
+    extrapolation bias for the CV-gap null to miss).
 
-    ``mode`` says how the folds keep their training spans: ``"spans"`` as
-    tables over the training rows (a short log), ``"coefficients"`` as
-    coefficients over the design's columns when the tables would pass
-    :data:`FOLD_BYTES` (products with a span then made from ``design``:
-    ``A^T X`` once, less the held-out rows' part; the same numbers up to
-    rounding), ``"blocks"`` for a :class:`core.lsq.BlockDesign` (a long
-    self-calibration log): the targets' columns eliminated (means per
-    target over the training rows), the truncation applied to the Schur
-    complement of the machine's columns, which is all a fold keeps; memory
-    linear in the rows, but the truncation acts on the machine's directions
-    after the targets are eliminated, not on the whole design's, so a
-    direction near :attr:`Settings.cv_rcond` may be cut differently from the
-    other modes.
+    Extension columns ``E`` (not penalised) are replaced by an orthonormal
+    basis ``F`` of their part outside the column space (the model's span is
+    then ``span(Q) + span(F)``); per fold ``F``'s training part outside the
+    training image of ``Q`` has Gram eigenvalues ``lambda`` (its training
+    share beyond the baseline, between 0 and 1), and the same rule applies:
+    directions with ``lambda >= seen^2`` are fitted on the training rows,
+    the others are the held-out group's own. A penalised term (the unnamed
+    smooth) is a ridge in its own coefficients, not a span: it is fitted on
+    the training rows (columns scaled to unit training norm, the penalty
+    scaled with them), its columns that no training row sees being the
+    group's own.
+
+    Linear in the observations: :meth:`residuals` takes (n,) or (n, B).
+    ``mode``: ``"spans"`` keeps each fold's training image as a table
+    (short logs), ``"coefficients"`` as coefficients over ``Q``'s columns
+    when the tables would pass :data:`FOLD_BYTES` (products from ``Q^T X``
+    once less the held-out rows' part; the same numbers up to rounding),
+    ``"blocks"`` for a :class:`core.lsq.BlockDesign` (a long self-calibration
+    log): the column space as its targets' indicators beside ``Qd``, the
+    design's other columns' part outside them (:meth:`BlockDesign.basis`);
+    a fold's eigen-problem is over the held-out group's targets and
+    ``Qd``'s columns only (every other target lies wholly in the training
+    rows, ``c = 1``), memory linear in the rows but quadratic in the targets
+    one set-up sees. The same rule in every mode: dense and block paths give
+    the same residuals to rounding.
     """
 
-    def __init__(self, A, groups: np.ndarray, rcond: float):
-        self.n = len(A)
-        self.rcond = rcond
+    def __init__(self, A, groups: np.ndarray, seen: float, seen_extension: float | None = None):
+        seen_extension = seen if seen_extension is None else seen_extension
+        for v in (seen, seen_extension):
+            if not 0.0 < v < 1.0:
+                raise ConfigError(f"Folds: the training share of a predicted direction must lie in (0, 1), not {v!r}")
+        self.n = A.shape[0]
+        self.seen = float(seen)
+        self.seen_extension = float(seen_extension)
         self.items: list[_Fold] = []
         gs = np.unique(groups)
         if isinstance(A, BlockDesign):
             self.mode = "blocks"
-        else:  # the training spans kept whole (two (n_tr, p) tables per group) while small; a long log's
-            # (groups x rows x parameters: 6.7 GB at 1e4 rows and 100 set-ups) as their (p, r) coefficients
-            self.mode = "coefficients" if 16 * len(gs) * A.size > FOLD_BYTES else "spans"
-        #: the design, kept where the folds' products are made from it (not "spans")
-        self.design = None if self.mode == "spans" else A
-        if self.mode == "blocks":
-            self._init_blocks(A, groups, gs)
+            self.Q = A.basis()
         else:
-            self._init_dense(A, groups, gs)
-        if not self.items:
-            raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
-        # the baseline's held-out rows (residuals' count: a row alone supporting an own column is not one)
-        self.last_dof = sum(int(np.sum(np.sum(f.Qo ** 2, axis=1) < 1 - OWN_LEVERAGE)) if f.Qo.shape[1] else f.te.size
-                            for f in self.items)
-        self.dof = max(self.last_dof, 1)
-
-    def _init_dense(self, A: np.ndarray, groups, gs) -> None:
-        """The folds of a dense design: per group, the truncated eigen-decomposition of the training normal matrix."""
-        rcond = self.rcond
+            self.Q = orth(A)
+            # the training images kept whole (an (n_tr, f) table per group) while small; a long log's
+            # (groups x rows x parameters: 6.7 GB at 1e4 rows and 100 set-ups) as (p, f) coefficients
+            self.mode = "coefficients" if 16 * len(gs) * self.Q.size > FOLD_BYTES else "spans"
         for g in gs:
             te = np.flatnonzero(groups == g)
             tr = np.flatnonzero(groups != g)
             if te.size == 0 or tr.size == 0:
                 continue
-            Atr = A[tr]
-            sc = np.linalg.norm(Atr, axis=0)
-            used = sc > 1e-9 * max(sc.max(), 1e-300)
-            As = Atr[:, used] / sc[used]
-            w, V = np.linalg.eigh(As.T @ As)
-            keep = w > rcond ** 2 * w[-1]
-            Vs = V[:, keep] / np.sqrt(w[keep])
-            P = (A[te][:, used] / sc[used]) @ Vs  # test rows' prediction per unit of U^T y
-            full = w > 1e-12 * w[-1]
-            Ao = A[te][:, ~used]
-            Qo = orth(Ao) if Ao.shape[1] else np.zeros((te.size, 0))
-            if self.mode == "spans":
-                U = As @ Vs  # (n_tr, r) orthonormal: the retained training span
-                Uf = As @ (V[:, full] / np.sqrt(w[full]))  # the whole training span (weak directions too)
-                item = _Fold(tr, te, Qo, P=P, U=U, Uf=Uf)
-            else:  # U^T X = Vs^T (A_tr[:, used] / sc)^T X: the coefficients, (p_used, r)
-                item = _Fold(tr, te, Qo, P=P, cols=np.flatnonzero(used), V=Vs / sc[used][:, None],
-                             Vf=V[:, full] / np.sqrt(w[full]) / sc[used][:, None])
-            del Atr, As
-            self.items.append(item)
+            self.items.append(self._fold_blocks(tr, te) if self.mode == "blocks" else self._fold_dense(tr, te))
+        if not self.items:
+            raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
+        # the baseline's held-out rows (residuals' count: a row alone supporting an own direction is not one)
+        self.last_dof = sum(int(np.sum(np.sum(f.Qo ** 2, axis=1) < 1 - OWN_LEVERAGE)) if f.Qo.shape[1] else f.te.size
+                            for f in self.items)
+        self.dof = max(self.last_dof, 1)
 
-    def _init_blocks(self, A: BlockDesign, groups, gs) -> None:
-        """The folds of a block design: per group, the Schur complement of the training rows' machine block."""
-        g = A.g
-        cnt = np.bincount(A.ids, minlength=g)
-        GD = self._GD = group_sums(A.ids, g, A.D)  # G^T D, also what every residuals call starts from
-        DD = A.D.T @ A.D
-        for grp in gs:
-            te = np.flatnonzero(groups == grp)
-            tr = np.flatnonzero(groups != grp)
-            if te.size == 0 or tr.size == 0:
-                continue
-            Dte = A.D[te]
-            cte = np.bincount(A.ids[te], minlength=g)
-            ctr = cnt - cte
-            # each column's norm on the training rows, from those rows: the total minus the held-out part leaves
-            # a rounding remainder where a held-out group's own column is zero on them (seen as trained)
-            sc = row_column_norms(A.D, tr)
-            used = sc > 1e-9 * max(sc.max(), np.sqrt(ctr.max()), 1e-300)
-            cols = np.flatnonzero(used)
-            gu = ctr > 0
-            gd = (GD - group_sums(A.ids[te], g, Dte))[np.ix_(gu, cols)]
-            S = (DD - Dte.T @ Dte)[np.ix_(cols, cols)] - gd.T @ (gd / ctr[gu][:, None])
-            S = S / np.outer(sc[cols], sc[cols])
-            w, V = np.linalg.eigh(S)
-            top = max(w[-1], 1e-300) if w.size else 1.0
-            keep = w > self.rcond ** 2 * top
-            full = w > 1e-12 * top
-            own_ids = np.flatnonzero(~gu & (cte > 0))  # targets seen here only
-            own = [(A.ids[te][:, None] == own_ids[None, :]).astype(float), Dte[:, ~used]]
-            Ao = np.hstack(own)
-            Qo = orth(Ao) if Ao.shape[1] else np.zeros((te.size, 0))
-            Vf = V[:, full] / np.sqrt(w[full]) / sc[cols][:, None]
-            # the retained directions are the whole span's largest (eigh: ascending): a view, not a copy
-            Vr = Vf[:, Vf.shape[1] - int(keep.sum()):] if keep.sum() <= full.sum() else \
-                V[:, keep] / np.sqrt(w[keep]) / sc[cols][:, None]
-            self.items.append(_Fold(tr, te, Qo, cols=cols, ctr=ctr, V=Vr, Vf=Vf))
+    def _split(self, G: np.ndarray):
+        """Eigen-decomposition of a fold's training Gram (in an orthonormal basis): shares, kept and seen counts."""
+        w, V = np.linalg.eigh(G)
+        w, V = w[::-1], V[:, ::-1]  # largest share first
+        c2 = np.clip(w, 0.0, 1.0)
+        k = int(np.sum(c2 >= self.seen ** 2 - SEEN_TIE))
+        f = int(np.sum(c2 > SEEN_ZERO ** 2))
+        return np.sqrt(c2), V, k, f
+
+    def _fold_dense(self, tr, te) -> _Fold:
+        Q = self.Q
+        Qtr, Qte = Q[tr], Q[te]
+        c, V, k, f = self._split(Qtr.T @ Qtr)
+        own = Qte @ V[:, k:]  # orthogonal columns of norm sqrt(1 - c^2) >= sqrt(1 - seen^2)
+        Qo = own / np.linalg.norm(own, axis=0) if own.shape[1] else np.zeros((te.size, 0))
+        W = V[:, :f]
+        P = Qte @ (W[:, :k] / c[:k])
+        Ut = (Qtr @ W) / c[:f] if self.mode == "spans" else None
+        return _Fold(tr, te, Qo, c[:f], k, W, P=P, Ut=Ut)
+
+    def _fold_blocks(self, tr, te) -> _Fold:
+        B = self.Q
+        ids_te = B.ids[te]
+        J, jinv = np.unique(ids_te, return_inverse=True)
+        cte = np.bincount(jinv, minlength=len(J)).astype(float)
+        sj = 1.0 / np.sqrt(B.counts[J])
+        Ute = B.dense_rows(te)  # (the basis outside the ids: its mapped directions, then any kept columns)
+        KGD = group_sums(jinv, len(J), Ute) * sj[:, None]
+        K = np.block([[np.diag(cte * sj ** 2), KGD], [KGD.T, Ute.T @ Ute]])  # Q_te^T Q_te on the ids J and U
+        c, V, k, f = self._split(np.eye(len(K)) - K)
+        own = self._te_times(J, jinv, Ute, V[:, k:])
+        Qo = own / np.linalg.norm(own, axis=0) if own.shape[1] else np.zeros((te.size, 0))
+        return _Fold(tr, te, Qo, c[:f], k, V[:, :f], J=J, jinv=jinv)
+
+    def _te_times(self, J, jinv, Ute, M):
+        """``Q_te[:, L] @ M`` of a block fold (L: the ids J, then U's columns)."""
+        sj = 1.0 / np.sqrt(self.Q.counts[J])
+        return (M[:len(J)] * sj[:, None])[jinv] + Ute @ M[len(J):]
+
+    def _pre(self, X: np.ndarray):
+        """What every fold's training coordinates of ``X`` (n, b) start from: sums over every row."""
+        if self.mode == "spans":
+            return None
+        if self.mode == "coefficients":
+            return self.Q.T @ X
+        B = self.Q
+        GX = group_sums(B.ids, len(B.counts), X)
+        cnt = B.counts
+        inv = np.where(cnt > 0, 1.0 / np.maximum(cnt, 1), 0.0)
+        return GX, B.dense_rmatmul(X), inv
+
+    def _coords(self, f: _Fold, X: np.ndarray, pre):
+        """``z`` (f_dirs, b): ``X``'s training rows on the fold's orthonormal training image."""
+        if self.mode == "spans":
+            return f.Ut.T @ X[f.tr]
+        if self.mode == "coefficients":
+            t = pre - self.Q[f.te].T @ X[f.te]
+        else:
+            GX, UX, _ = pre
+            B = self.Q
+            sj = 1.0 / np.sqrt(B.counts[f.J])
+            gte = group_sums(f.jinv, len(f.J), X[f.te])
+            t = np.vstack([(GX[f.J] - gte) * sj[:, None], UX - B.dense_rows(f.te).T @ X[f.te]])
+        return (f.W.T @ t) / f.c[:, None]
+
+    def _outside_image(self, f: _Fold, X, Y, zX, zY, pre_X, pre_Y):
+        """``X_tr^T (I - P) Y_tr``, P the projection on the fold's whole training image."""
+        out = X[f.tr].T @ Y[f.tr] - zX.T @ zY
+        if self.mode == "blocks":  # the ids the held-out group does not touch: wholly in the training rows
+            GX, _, inv = pre_X
+            GY = pre_Y[0]
+            w = inv.copy()
+            w[f.J] = 0.0
+            out = out - (GX * w[:, None]).T @ GY
+        return out
+
+    def _predict(self, f: _Fold, z: np.ndarray) -> np.ndarray:
+        """The held-out rows' prediction from training coordinates ``z`` (the kept directions only)."""
+        beta = z[:f.k] / f.c[:f.k, None]
+        if self.mode == "blocks":
+            return self._te_times(f.J, f.jinv, self.Q.dense_rows(f.te), f.W[:, :f.k] @ beta)
+        return f.P @ z[:f.k]
+
+    def outside(self, E: np.ndarray) -> np.ndarray:
+        """Orthonormal basis (n, k') of ``E``'s part outside the design's column space."""
+        return new_basis(self.Q, E)
 
     def residuals(self, Y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> np.ndarray:
         """Held-out residuals of the baseline (plus extension columns ``E`` (n, k)).
@@ -433,65 +519,60 @@ class Folds:
         Y2 = Y[:, None] if one else Y
         out = np.zeros_like(Y2, dtype=float)
         self.last_dof = 0
-        if self.mode == "blocks":
-            fits = self._block_fits(Y2, E)
-        lean = self.mode == "coefficients"
-        if lean:  # A^T X over every row once; a fold's training part is it less the held-out rows'
-            AY = self.design.T @ Y2
-            AE = self.design.T @ E if E is not None and E.shape[1] else None
+        has_e = E is not None and E.shape[1] > 0
+        X = (self.outside(E) if penalty is None else E) if has_e else None
+        if X is not None and X.shape[1] == 0:
+            X = None
+        b = Y2.shape[1]
+        XY = Y2 if X is None else np.hstack([Y2, X])
+        pre = self._pre(XY)
+        split = (lambda p, s: None if p is None else (
+            p[s] if self.mode == "coefficients" else (p[0][:, s], p[1][s], p[2])))
+        preY = split(pre, slice(0, b)) if pre is not None else None
+        preX = split(pre, slice(b, None)) if pre is not None and X is not None else None
         for f in self.items:
             tr, te = f.tr, f.te
-            ytr = Y2[tr]
-            if self.mode == "blocks":
-                fit = next(fits)
-                pred = fit["y"]
-            else:
-                if lean:
-                    AYtr = (AY - self.design[te].T @ Y2[te])[f.cols]
-                    z = f.V.T @ AYtr
-                else:
-                    z = f.U.T @ ytr
-                pred = f.P @ z
+            zall = self._coords(f, XY, pre)
+            zY = zall[:, :b]
             own = f.Qo
-            if E is not None and E.shape[1]:
-                Etr = E[tr]
-                en = np.linalg.norm(Etr, axis=0)
-                eu = en > 1e-9 * max(en.max(), 1e-300)
-                if eu.any():
-                    E1 = Etr[:, eu] / en[eu]
-                    # the extension is fitted on its part outside the whole training
-                    # span (a direction the baseline has but weakly sees is the
-                    # baseline's, not the extension's), then the baseline on the rest
-                    if self.mode == "blocks":
-                        Gm, rhs = fit["EE"][np.ix_(eu, eu)] / np.outer(en[eu], en[eu]), fit["EY"][eu] / en[eu][:, None]
-                    else:
-                        if lean:
-                            AE1 = (AE - self.design[te].T @ E[te])[f.cols][:, eu] / en[eu]
-                            zf, zy = f.Vf.T @ AE1, f.Vf.T @ AYtr
-                        else:
-                            zf, zy = f.Uf.T @ E1, f.Uf.T @ ytr
-                        Gm = E1.T @ E1 - zf.T @ zf
-                        rhs = E1.T @ ytr - zf.T @ zy
-                    if penalty is not None:
-                        Gm = Gm + penalty[np.ix_(eu, eu)] / np.outer(en[eu], en[eu])
-                    # truncated like the baseline: directions of the (normalised)
-                    # extension that the training rows barely see beyond the
-                    # baseline's span are not extrapolated
+            if X is None:
+                pred = self._predict(f, zY)
+            else:
+                zX = zall[:, b:]
+                G = self._outside_image(f, X, X, zX, zX, preX, preX)
+                rhs = self._outside_image(f, X, Y2, zX, zY, preX, preY)
+                if penalty is None:
+                    # F's directions by their training share beyond the baseline (lambda in [0, 1]): fitted on
+                    # the training rows, not predicted (too little seen), or the held-out group's own (unseen)
+                    w, V = np.linalg.eigh(G)
+                    keep = w >= self.seen_extension ** 2 - SEEN_TIE
+                    coef = V[:, keep] @ ((V[:, keep].T @ rhs) / w[keep][:, None])
+                    unseen = w < SEEN_ZERO ** 2
+                    if unseen.any():
+                        own = np.hstack([own, X[te] @ V[:, unseen]])
+                    Xf = X
+                else:
+                    en = np.linalg.norm(X[tr], axis=0)
+                    eu = en > 1e-9 * max(en.max(), 1e-300)
+                    s = np.where(eu, 1.0 / np.where(eu, en, 1.0), 0.0)
+                    Gm = (G * np.outer(s, s))[np.ix_(eu, eu)] + (penalty * np.outer(s, s))[np.ix_(eu, eu)]
                     w, V = np.linalg.eigh(Gm)
-                    good = w > self.rcond ** 2 * max(w.max(), 1.0) if penalty is None else w > 1e-12 * max(w.max(), 1e-300)
-                    c = V[:, good] @ ((V[:, good].T @ rhs) / w[good][:, None])
-                    if self.mode == "blocks":
-                        pred = pred + (E[te][:, eu] / en[eu] - fit["E"][:, eu] / en[eu]) @ c
-                    else:
-                        zc = z - f.V.T @ (AE1 @ c) if lean else f.U.T @ (ytr - E1 @ c)
-                        pred = f.P @ zc + (E[te][:, eu] / en[eu]) @ c
-                if (~eu).any():
-                    own = orth(np.hstack([own, E[te][:, ~eu]]))
+                    good = w > 1e-12 * max(w.max(), 1e-300) if w.size else w > 0
+                    cs = V[:, good] @ ((V[:, good].T @ (rhs[eu] * s[eu][:, None])) / w[good][:, None])
+                    coef = np.zeros((X.shape[1], b))
+                    coef[eu] = cs * s[eu][:, None]
+                    if (~eu).any():
+                        own = np.hstack([own, X[te][:, ~eu]])
+                    Xf = X
+                # the baseline on what the extension leaves of the training rows, the extension on the held-out rows
+                pred = self._predict(f, zY - zX @ coef) + Xf[te] @ coef
+            if own.shape[1] > f.Qo.shape[1]:
+                own = orth(own)
             e = Y2[te] - pred
             if own.shape[1]:
-                # the held-out group's own columns, fitted on its other rows:
+                # the held-out group's own directions, fitted on its other rows:
                 # leave-one-row-out residuals within the group, e / (1 - h);
-                # a row that alone supports an own column (h = 1) says nothing
+                # a row that alone supports an own direction (h = 1) says nothing
                 h = np.sum(own ** 2, axis=1)
                 ok = h < 1 - OWN_LEVERAGE
                 e = (e - own @ (own.T @ e)) / np.where(ok, 1 - h, 1.0)[:, None]
@@ -501,49 +582,6 @@ class Folds:
                 self.last_dof += te.size
             out[te] = e
         return out[:, 0] if one else out
-
-    def _block_fits(self, Y2: np.ndarray, E: np.ndarray | None):
-        """Per fold of a block design: the held-out rows' predictions of ``Y2`` and of ``E`` by the training fit,
-        and ``E``'s Gram matrix and cross-products with ``Y2`` outside the whole training span (unscaled).
-
-        Everything from the design's sums over all rows less the held-out rows' part: per id
-        (``G^T X``), over the dense columns (``D^T X``), ``E^T E`` and ``E^T Y``.
-        """
-        A = self.design
-        g = A.g
-        X = Y2 if E is None or not E.shape[1] else np.hstack([Y2, E])
-        b = Y2.shape[1]
-        GX, DX = group_sums(A.ids, g, X), A.D.T @ X
-        GD = self._GD
-        EX = E.T @ X if X.shape[1] > b else None
-        for f in self.items:
-            te = f.te
-            ids_te, Xte, Dte = A.ids[te], X[te], A.D[te]
-            gu = f.ctr > 0
-            gx = (GX - group_sums(ids_te, g, Xte))[gu]
-            dx = (DX - Dte.T @ Xte)[f.cols]
-            gd = (GD - group_sums(ids_te, g, Dte))[np.ix_(gu, f.cols)]
-            inv = 1.0 / f.ctr[gu][:, None]
-            s = dx - gd.T @ (gx * inv)  # the Schur complement's right-hand side: D^T (I - P_G) X over training rows
-
-            def fit(Wm):
-                th = Wm @ (Wm.T @ s)  # the dense columns' coefficients
-                gh = np.zeros((g, X.shape[1]))
-                gh[gu] = (gx - gd @ th) * inv  # each id's, given them
-                return th, gh
-
-            th, gh = fit(f.V)
-            pred = gh[ids_te] + Dte[:, f.cols] @ th
-            item = {"y": pred[:, :b], "E": pred[:, b:]}
-            if EX is not None:
-                thf, ghf = fit(f.Vf)
-                ge = gx[:, b:]  # G_tr^T E
-                de = dx[:, b:]  # D_tr^T E (seen columns)
-                EXtr = EX - Xte[:, b:].T @ Xte
-                # E^T (I - P_tr) X = E^T X - (G^T E)^T g_hat(X) - (D^T E)^T theta(X)
-                R = EXtr - ge.T @ ghf[gu] - de.T @ thf
-                item["EE"], item["EY"] = R[:, b:], R[:, :b]
-            yield item
 
     def mse(self, y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> float:
         """Held-out mean square over the rows that can be predicted."""
@@ -563,14 +601,13 @@ class CpEstimate:
     compared (Mallows 1973).
     """
 
-    def __init__(self, A: np.ndarray, groups: np.ndarray, rcond: float):
+    def __init__(self, A: np.ndarray, groups: np.ndarray, seen: float = 0.5, seen_extension: float | None = None):
+        """``groups``, ``seen`` and ``seen_extension`` are :class:`Folds`' (no folds here: unused)."""
         self.n = len(A)
         self.Q = orth(A)
-        r = None
         self.s2 = None
         self.dof = self.n
         self.last_dof = self.n
-        del r, groups, rcond
 
     def set_sigma(self, y: np.ndarray) -> None:
         r = y - self.Q @ (self.Q.T @ y)
@@ -1074,6 +1111,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                              alpha_concentration=settings.alpha_family, events=events, slips=slips)
 
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
+    gap_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # the held-out gap's bootstrap draws
     # 0. baseline fit and a first outlier screen
     Qall = orth_of(bl.A, qr=bl.qr)  # the planar baseline's grid choice factored A already
     st0 = _state(Qall, y, all_rows, [])
@@ -1086,7 +1124,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         key = tuple(rows_.tolist()) if len(rows_) != N else None
         if key not in cache:
             Qb = orth_of(bl.A[rows_]) if key is not None else Qall
-            est = (Folds if use_cv else CpEstimate)(bl.A[rows_], bl.groups[rows_], settings.cv_rcond)
+            est = (Folds if use_cv else CpEstimate)(bl.A[rows_], bl.groups[rows_], settings.cv_seen,
+                                                       settings.cv_seen_extension)
             if not use_cv:
                 est.set_sigma(y[rows_])
             cache[key] = (Qb, est)
@@ -1094,8 +1133,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return Qb, folds, _state(Qb, y, rows_, terms)
 
     Qb, folds, st = model(rows, [])
-    rep = replicate_scatter(bl.replicate[rows], y[rows])
-    sigma_rep = rep.sigma_m if rep.dof >= 10 else None
+    rep = replicate_scatter(bl.replicate[rows], y[rows])  # the plain pure error: the lack-of-fit test's
+    # the noise: the repeats' scatter once what drifts linearly in time within a set-up is taken out (a rate
+    # per set-up, else one rate shared by the set-ups, else none: the first that leaves 10 degrees of freedom)
+    trend, rep_t = next(((k, r) for k, r in ((k, replicate_scatter(bl.replicate[rows], y[rows],
+                                                                   drift_trend(bl, rows, k == "shared")))
+                                              for k in ("per set-up", "shared")) if r.dof >= 10), ("none", rep))
+    sigma_rep = rep_t.sigma_m if rep_t.dof >= 10 else None
 
     def noise_sigma(s: _State) -> float:
         return sigma_rep if sigma_rep is not None else s.sigma
@@ -1104,7 +1148,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # the baseline's prediction error as every candidate's is measured (Mallows'
     # Cp includes its 2 k s^2 / n where there is no cross-validation)
     cv_b = folds.mse(y[rows])
-    gap_b = _cv_gap(folds, st, y, None, None, settings, rng)
+    gap_b = _cv_gap(folds, st, y, None, None, settings, gap_seed, noise_sigma(st))
     lof_b = lack_of_fit(st.rss, st.dof, rep)
     tick()
     # 2. diagnosis of the baseline
@@ -1217,7 +1261,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     diag_e = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=sig,
                       material_sigma=settings.material_sigma, rows=rows, bases=bases, known=_made_on(seen, st))
     E_named = _stack(terms, rows)
-    gap_e = _cv_gap(folds, st, y, E_named, None, settings, rng) if terms else gap_b
+    gap_e = _cv_gap(folds, st, y, E_named, None, settings, gap_seed, sig) if terms else gap_b
     lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(bl.replicate[rows], E_named) else None
     structure_e = _structure(diag_e, gap_e, lof_e, st, sig, settings, bl.kind)
     cv_named = folds.mse(y[rows], E_named) if terms else cv_b
@@ -1315,7 +1359,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         baseline=bl, baseline_rms_um=float(np.sqrt(st0.rss / N)) / UM, baseline_cv_rms_um=float(np.sqrt(cv_b)) / UM,
         baseline_n_params=int(Qall.shape[1]), findings=tuple(findings), extended_model=model_name,
         extended_rms_um=float(np.sqrt(st.rss / len(rows))) / UM, extended_cv_rms_um=float(np.sqrt(cv_e)) / UM,
-        noise=_noise_report(rep, st0, gap_b, lof_b, sigma_rep, sig),
+        noise=_noise_report(rep_t, rep, trend, st0, gap_b, lof_b, sigma_rep, sig),
         diagnosis=tuple(dataclasses.replace(d, basis=None) for d in diag_b),  # (the bases served this run's tests)
         diagnosis_extended=tuple(dataclasses.replace(d, basis=None) for d in diag_e), workpiece=tuple(wp),
         outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
@@ -1327,15 +1371,30 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 # ---------------------------------------------------------------------------
 # steps
 # ---------------------------------------------------------------------------
-def _cv_gap(folds: Folds, st: _State, y, E, penalty, settings, rng) -> CvGap:
+def _cv_gap(folds: Folds, st: _State, y, E, penalty, settings, seed: int, sigma: float) -> CvGap:
+    """The held-out gap against its parametric bootstrap: the fitted model plus noise at ``sigma``, same folds.
+
+    Each draw is the model's in-sample fit plus ``sigma`` times standard
+    normal noise, put through the same folds and the same in-sample fit, so
+    the null's held-out inflation holds whatever the folds do to the fitted
+    field itself (its extrapolation) as well as to the noise. With
+    :class:`Folds` the held-out prediction of any element of the model's
+    column space is exact (what a fold cannot predict is the held-out
+    group's own), so the fitted part cancels to rounding and the null is
+    that of the noise alone; the bootstrap keeps the test honest if a fold
+    ever truncates. ``seed`` fixes the draws (the answer does not depend on
+    what else drew before).
+    """
     if isinstance(folds, CpEstimate):  # no cross-validation: no gap to test
         return CvGap(float("nan"), float("nan"), 1.0, float("nan"), 0)
     yr = y[st.rows]
     e = folds.residuals(yr, E, penalty)
-    Z = rng.standard_normal((len(yr), settings.cv_draws))
-    eZ = folds.residuals(Z, E, penalty)
-    rZ = Z - st.Q @ (st.Q.T @ Z)
-    return cv_gap(float(e @ e), st.rss, np.sum(eZ ** 2, axis=0), np.sum(rZ ** 2, axis=0))
+    Z = np.random.default_rng(seed).standard_normal((len(yr), settings.cv_draws))
+    fit = (yr - st.r)[:, None]
+    Ys = fit + sigma * Z
+    eZ = folds.residuals(Ys, E, penalty)
+    rZ = Ys - st.Q @ (st.Q.T @ Ys)
+    return cv_gap(float(e @ e), st.rss, np.sum(eZ ** 2, axis=0), np.sum(rZ ** 2, axis=0), scale=sigma)
 
 
 def _constant_within(key: np.ndarray, E: np.ndarray) -> bool:
@@ -1382,9 +1441,45 @@ def _no_covariate_words(structure: dict, settings) -> str:
     return "no single covariate carries it: " + ", ".join(why)
 
 
-def _noise_report(rep, st0, gap, lof, sigma_rep, sigma) -> dict:
+#: Response modes whose rate of change within a set-up the noise estimate removes from the repeats (planar: the
+#: scalar mode and the two translations, a part or probe moving during the set-up; the first mode elsewhere).
+DRIFT_MODES = 3
+
+
+def drift_trend(bl: Baseline, rows: np.ndarray, shared: bool = False) -> np.ndarray:
+    """(len(rows), q) columns of a drift linear in time within each group (set-up): time x mode (x group).
+
+    What :func:`core.diagnosis.replicate_scatter` removes from the repeats
+    before their scatter is the noise: a drift-check target touched minutes
+    apart moves with whatever drifts in between. Only time's variation
+    within a replicate group counts; the first :data:`DRIFT_MODES` response
+    modes of a planar baseline (the scalar mode and the x and y
+    translations), the first mode of others; one rate per group, or with
+    ``shared`` one rate for all (fewer columns, for logs with few repeats).
+    A baseline without a ``time`` covariate gets none (q = 0).
+    """
+    cov = bl.covariate("time")
+    if cov is None:
+        return np.zeros((len(rows), 0))
+    t = np.asarray(cov.values, float)[rows]
+    m = bl.modes[rows][:, :DRIFT_MODES if bl.kind == "planar" else 1]
+    if shared:
+        return (t - t.mean())[:, None] * m
+    g = bl.groups[rows]
+    cols = []
+    for gg in np.unique(g):
+        sel = g == gg
+        tc = np.where(sel, t - t[sel].mean(), 0.0)
+        cols.append(tc[:, None] * m)
+    return np.hstack(cols) if cols else np.zeros((len(rows), 0))
+
+
+def _noise_report(rep, rep_plain, trend, st0, gap, lof, sigma_rep, sigma) -> dict:
     out = {"sigma_um": sigma / UM, "method": "repeats" if sigma_rep is not None else "residuals",
-           "repeats": {"sigma_um": rep.sigma_m / UM if rep.dof else None, "dof": rep.dof, "groups": rep.groups},
+           "repeats": {"sigma_um": rep.sigma_m / UM if rep.dof else None, "dof": rep.dof, "groups": rep.groups,
+                       "time_trend": trend,
+                       "sigma_plain_um": rep_plain.sigma_m / UM if rep_plain.dof else None,
+                       "dof_plain": rep_plain.dof},
            "in_sample": {"sigma_um": st0.sigma / UM, "dof": st0.dof},
            "cv_gap": {"sigma_cv_um": gap.sigma_cv_m / UM, "ratio": gap.ratio, "expected_ratio": gap.expected,
                       "p_value": gap.p_value, "draws": gap.draws}}

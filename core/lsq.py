@@ -977,6 +977,10 @@ class Basis:
         """(len(pos), r + dense columns): the rows ``pos`` of the basis outside its indicator columns."""
         return np.hstack([self.span.rows(pos), self.U[pos]]) if self._r else self.U[pos]
 
+    def dense_rmatmul(self, X: np.ndarray) -> np.ndarray:
+        """``X``'s products with the basis's columns outside the indicators: ``dense_rows(all).T @ X``."""
+        return np.concatenate([self.span.rmatmul(X), self.U.T @ X], axis=0) if self._r else self.U.T @ X
+
     def leverage(self) -> np.ndarray:
         h = self._scale[self._pos[self.ids]] ** 2 + np.sum(self.U ** 2, axis=1)
         return h + self.span.sq_rows() if self._r else h

@@ -598,13 +598,18 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     t0 = time.time()
     cfg = MACHINES[plan.machine]()  # nominal: its table poses need no Machine (sim.machine.nominal_T_R_W)
     art = _nominal_bar()
-    per, n_t, n_s, table_poses, todo, programs = {}, 0, 0, {}, [], {}
+    per, n_t, n_s, todo, programs = {}, 0, 0, [], {}
+    # the table pose of every set-up in one call (measurements share them; row by row the
+    # numbers of one call per set-up: every operation of the nominal product is per row)
+    rots = list(dict.fromkeys(tuple(ms.rot_rad) for ms in plan.measurements))
+    if rots and len(rots[0]):
+        poses = np.asarray(nominal_T_R_W(cfg, np.asarray(rots, float)), float).reshape(-1, 4, 4)
+    else:
+        poses = np.asarray(nominal_T_R_W(cfg, None), float).reshape(-1, 4, 4)[[0] * len(rots)]
+    poses.flags.writeable = False  # shared: read only
+    table_poses = dict(zip(rots, poses))
     for ms in plan.measurements:
-        T_R_W = table_poses.get(tuple(ms.rot_rad))  # (one per set-up: measurements share them)
-        if T_R_W is None:
-            rot = np.asarray(ms.rot_rad, float)[None, :] if len(ms.rot_rad) else None
-            T_R_W = table_poses[tuple(ms.rot_rad)] = np.asarray(nominal_T_R_W(cfg, rot), float).reshape(4, 4)
-            T_R_W.flags.writeable = False  # shared: read only
+        T_R_W = table_poses[tuple(ms.rot_rad)]
         pl = programs.get(ms.holes)  # (one per set of holes: measurements share them, read only)
         if pl is None:
             pl = programs[ms.holes] = _plan_for(art, ms.holes, **program)
@@ -615,16 +620,17 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
         if not r.ok:
             raise PlanError(f"measurement {ms.name!r} ({ms.setup_key}, {ms.stylus}): {r.collisions[0]}")
         c = A.apply_T(T_R_W @ ms.T_W_A, pl.w_A + stylus_r_m * pl.wn_A)
+        c_lo, c_hi = c.min(axis=0).tolist(), c.max(axis=0).tolist()  # (the touches' range per axis)
         for j, ax in enumerate("XYZ"):
             lo, hi = cfg.strokes[ax]
-            if c[:, j].min() < lo - 1e-9 or c[:, j].max() > hi + 1e-9:
+            if c_lo[j] < lo - 1e-9 or c_hi[j] > hi + 1e-9:
                 raise PlanError(f"measurement {ms.name!r}: a touch at {ax} outside the stroke [{lo / MM:g}, "
                                 f"{hi / MM:g}] mm")
         per[ms.name] = {"placement": ms.placement, "setup": ms.setup_key, "stylus": ms.stylus,
                         "J_mm": [round(v / MM, 3) for v in ms.J_m], "holes": list(ms.holes),
                         "touches": r.touches, "path_points": r.samples, "collisions": len(r.collisions),
                         "min_clearance_from_table_side_mm": round(r.min_table_clearance_mm, 2),
-                        "touch_range_mm": {ax: [round(float(c[:, j].min()) / MM, 1), round(float(c[:, j].max()) / MM, 1)]
+                        "touch_range_mm": {ax: [round(c_lo[j] / MM, 1), round(c_hi[j] / MM, 1)]
                                            for j, ax in enumerate("XYZ")}}
         n_t += r.touches
         n_s += r.samples

@@ -44,7 +44,6 @@ placement of the artefact turned the same way); tips are always given in R
 
 from __future__ import annotations
 
-import copy
 import itertools
 from dataclasses import dataclass
 
@@ -199,11 +198,15 @@ class Clearance:
         plo, phi = probe.aabb()
         self.feature, tlo, thi, cl, h_order, self._fid, tfid = _table_prep(table, table_feature)
         st = _pair_structure(table, table_feature, len(probe.kind), self.ball, pairs)
-        self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch = st
+        self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch, (tloT, thiT, tc, pn) = st
         # the tip p puts geom g in collision range of h only if p lies in this box
-        self._lo = tlo[self.pair_table] - phi[self.pair_probe] - MARGIN_M
-        self._hi = thi[self.pair_table] - plo[self.pair_probe] + MARGIN_M
-        self._d0 = probe.centre[self.pair_probe] - table.centre[self.pair_table]  # centre offset at p = 0
+        # (one coordinate a row, (3, k), for _overlap_rows and box_bound; _lo, _hi (k, 3) are their views).
+        # The table side's rows are the pair structure's (tlo.T[:, pair_table], ...); the probe's
+        # repeated per probe geom (pair_probe runs through the probe geoms in order, pn pairs each)
+        self._loT = tloT - np.repeat(phi.T, pn, axis=1) - MARGIN_M
+        self._hiT = thiT - np.repeat(plo.T, pn, axis=1) + MARGIN_M
+        self._lo, self._hi = self._loT.T, self._hiT.T
+        self._d0 = np.repeat(probe.centre, pn, axis=0) - tc  # centre offset at p = 0
         npair = len(self.pair_probe)
         self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
         self._have = np.zeros(npair, bool)
@@ -212,8 +215,7 @@ class Clearance:
         # (the same numbers as the least and largest of its pairs' boxes: a difference is monotone)
         self._clo = ch[0] - phi[cg] - MARGIN_M
         self._chi = ch[1] - plo[cg] + MARGIN_M
-        # the same boxes one coordinate a row (3, k), for _overlap_rows
-        self._loT, self._hiT = self._lo.T.copy(), self._hi.T.copy()
+        # the cluster boxes one coordinate a row (3, c), for _overlap_rows and _block_candidates
         self._cloT, self._chiT = self._clo.T.copy(), self._chi.T.copy()
 
     def _axes(self, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -242,7 +244,8 @@ class Clearance:
     def moved(self, T_F_R) -> "Clearance":
         """The same geoms in F, F now at ``T_F_R`` from R (the table moved with its artefact);
         the pair data (computed or to be) is shared."""
-        out = copy.copy(self)
+        out = object.__new__(type(self))  # (a shallow copy: copy.copy's protocol costs more)
+        out.__dict__.update(self.__dict__)
         out.T_F_R = np.array(T_F_R, float)
         return out
 
@@ -295,13 +298,19 @@ class Clearance:
         n = len(s_lo)
         cut = np.arange(0, n, _BLOCK)
         b_lo, b_hi = np.minimum.reduceat(s_lo, cut, axis=0), np.maximum.reduceat(s_hi, cut, axis=0)
-        hit = np.ones((len(cut), len(self._clo)), bool)
+        b_lo, b_hi = b_lo.T[:, :, None], b_hi.T[:, :, None]  # (3, blocks, 1): one coordinate a row
+        hit = b_hi[0] >= self._cloT[0]
         for ax in range(3):  # (a reduction over a last axis of 3 is slow in numpy)
-            hit &= b_hi[:, ax, None] >= self._clo[None, :, ax]
-            hit &= b_lo[:, ax, None] <= self._chi[None, :, ax]
+            if ax:
+                hit &= b_hi[ax] >= self._cloT[ax]
+            hit &= b_lo[ax] <= self._chiT[ax]
         blk, cp = np.nonzero(hit)
-        k, seg = _expand(cut[blk], np.minimum(_BLOCK, n - cut[blk]))
-        cp = cp[k]
+        # (the boxes of each block hit: _expand's runs, all of _BLOCK boxes but the last block's)
+        seg = (cut[blk][:, None] + np.arange(_BLOCK)).ravel()
+        cp = np.repeat(cp, _BLOCK)
+        if n % _BLOCK:
+            ok = seg < n
+            seg, cp = seg[ok], cp[ok]
         if allow is not None:
             ok = self._cballf[cp] != allow[seg]
             seg, cp = seg[ok], cp[ok]
@@ -383,11 +392,13 @@ class Clearance:
         Looser than :meth:`bound`, a few operations per row."""
         p = self.to_frame(p_R)
         lo, hi = self._loT[:, pairs] + MARGIN_M, self._hiT[:, pairs] - MARGIN_M  # the tip's box of contact
-        # the boxes' gap along x, y, z, (n, pairs) each
-        gx, gy, gz = (np.maximum(lo[ax] - p[:, ax, None], p[:, ax, None] - hi[ax]) for ax in range(3))
-        worst = np.maximum(np.maximum(gx, gy), gz)
-        out = np.sqrt(np.maximum(gx, 0.0) ** 2 + np.maximum(gy, 0.0) ** 2 + np.maximum(gz, 0.0) ** 2)
-        return np.where(worst > 0, out, worst)
+        # the boxes' gap along x, y, z, (3, n, pairs)
+        pT = p.T[:, :, None]
+        g = np.maximum(lo[:, None, :] - pT, pT - hi[:, None, :])
+        worst = np.maximum(np.maximum(g[0], g[1]), g[2])
+        m = np.maximum(g, 0.0)
+        m *= m
+        return np.where(worst > 0, np.sqrt(m[0] + m[1] + m[2]), worst)
 
     def bound(self, p_R: np.ndarray, i: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
         """Lower bound of the distance (m) of pair ``pair`` with the tip at sample ``i`` of ``p_R``.
@@ -506,7 +517,8 @@ def _build_table_prep(table: Geoms, table_feature) -> tuple:
     # clusters of table geoms (one per feature, one per geom without): pairs sorted by
     # (probe geom, cluster, table geom), with the union of each cluster's boxes
     k = [f if f else f"#{j}" for j, f in enumerate(feature)]
-    _, cl = np.unique(np.array(k, dtype=object).astype(str), return_inverse=True)
+    rank = {x: i for i, x in enumerate(sorted(set(k)))}  # (np.unique's inverse: keys in code-point order)
+    cl = np.fromiter(map(rank.__getitem__, k), int, len(k))
     h_order = np.lexsort((np.arange(len(feature)), cl))
     fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
     tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
@@ -523,7 +535,9 @@ _PAIRS = Memo(64)
 def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
     """(pair_probe, pair_table (k,) int, cluster start, count (c,) int, each cluster's feature
     number when it is the ball's else -1 (c,), its probe geom (c,), its table geoms' box
-    (2, c, 3): lo, hi) for ``ng`` probe geoms against ``table`` (:meth:`Clearance.__init__`)."""
+    (2, c, 3): lo, hi, and the table side's rows (tlo.T, thi.T (3, k) and centre (k, 3) of each
+    pair's table geom, the pairs of each probe geom (ng,))) for ``ng`` probe geoms against
+    ``table`` (:meth:`Clearance.__init__`)."""
     mask = None if pairs is None else np.ascontiguousarray(pairs, bool)
     key = (id(table), id(table_feature), int(ng), int(ball), None if mask is None else (mask.shape, mask.tobytes()))
 
@@ -542,7 +556,11 @@ def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
         cballf = np.where(pair_probe[cstart] == ball, tfid[pair_table[cstart]], -1)
         cbox = np.stack([np.minimum.reduceat(tlo[pair_table], cstart, axis=0),
                          np.maximum.reduceat(thi[pair_table], cstart, axis=0)])
-        return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox
+        # the table side of every pair's rows (whatever the probe's orientation) and the pairs of
+        # each probe geom (pair_probe is sorted)
+        rows = (tlo.T[:, pair_table], thi.T[:, pair_table], table.centre[pair_table],
+                np.bincount(pair_probe, minlength=ng))
+        return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox, rows
 
     return _PAIRS.get_or_compute(key, build, owner=(table, table_feature))
 
@@ -551,11 +569,11 @@ class _Certificates:
     """Certificates of :meth:`Clearance.near_segments`: segments ``a -> b`` (geoms' frame, m),
     their allowed feature and the radius ``r`` (m) within which a segment is clear.
 
-    :meth:`lookup` finds, per query segment, a remembered one with the same allowed feature
-    whose ends are nearest: first the segment at the same place in a remembered call of as
-    many segments (the same plan at another placement), then, for the rest, the remembered
-    segment in the same cell of a :data:`_CERT_GRID_M` grid in (a, b) (the same move in
-    another measurement). A certificate applies when ``moved = max(|a - a0|, |b - b0|) < r``
+    :func:`near_segments_many` finds, per query segment, a remembered one with the same allowed
+    feature whose ends are nearest: first the segment at the same place in a remembered call of
+    as many segments (:meth:`in_order`: the same plan at another placement), then, for the rest,
+    the remembered segment in the same cell of a :data:`_CERT_GRID_M` grid in (a, b)
+    (:meth:`by_cell`: the same move in another measurement). A certificate applies when ``moved = max(|a - a0|, |b - b0|) < r``
     (a segment whose ends moved by at most ``moved`` has every point moved by at most that);
     a segment whose neighbour lies in another cell is only bounded again.
     """
@@ -570,7 +588,7 @@ class _Certificates:
     def _key(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
         """(key (n,) uint64, allow (n,) int64): a hash of each segment's grid cell and allowed
         feature, and the feature as a number. Different cells may share a hash: a match is
-        only a candidate (:meth:`lookup` checks its feature and its distance)."""
+        only a candidate (:meth:`by_cell` checks its feature and its distance)."""
         if np.issubdtype(np.asarray(allow).dtype, np.integer):  # features as numbers already
             f = np.asarray(allow, np.int64)
         else:
@@ -592,18 +610,11 @@ class _Certificates:
         self._by_len.setdefault(len(blk[0]), []).append(blk)
         self._n += int(keep.sum())
 
-    def lookup(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
-        """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate
-        chosen and how far its segment's ends are from the query's (r0 = -inf: none)."""
-        r0, moved = self.in_order(a, b, allow)
-        rest = np.flatnonzero(~(moved < r0))
-        if rest.size and self._n:
-            self.by_cell(a, b, allow, rest, r0, moved)
-        return r0, moved
-
     def in_order(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`lookup`'s first part: (r0, moved) (n,) from the remembered calls of as many
-        segments with the same allowed features (the same plan at another placement)."""
+        """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate chosen
+        and how far its segment's ends are from the query's (r0 = -inf: none), from the remembered
+        calls of as many segments with the same allowed features (the same plan at another
+        placement)."""
         n = len(a)
         r0, moved = np.full(n, -np.inf), np.full(n, np.inf)
         if not self._n or not n:
@@ -618,7 +629,7 @@ class _Certificates:
         return r0, moved
 
     def by_cell(self, a, b, allow, rest, r0, moved) -> None:
-        """:meth:`lookup`'s second part, for the segments ``rest`` (sorted indices) only: the
+        """After :meth:`in_order`, for the segments ``rest`` (sorted indices) only: the
         remembered segment in the same grid cell (the same move elsewhere), block by block;
         ``r0``, ``moved`` updated in place."""
         q, f = self._key(a[rest], b[rest], allow[rest])
@@ -732,9 +743,13 @@ def near_segments_many(parts) -> list:
             bases.append(clr)
         base_of.append(b)
     # the certificates: per part in order, then by grid cell for every part of a broad phase at once
-    todo = [None] * n_parts
+    todo, full = [None] * n_parts, [False] * n_parts  # (full: every segment of the part, no gather)
     for b, clr in enumerate(bases):
         js = [j for j in range(n_parts) if base_of[j] == b]
+        if not clr._certs._n:  # (no certificate yet: every segment is bounded)
+            for j in js:
+                todo[j], full[j] = np.arange(len(parts[j][1].a)), True
+            continue
         found = [clr._certs.in_order(parts[j][1].a, parts[j][1].b, parts[j][2]) for j in js]
         cut = np.cumsum([0] + [len(x[0]) for x in found])
         r_old, moved = np.concatenate([x[0] for x in found]), np.concatenate([x[1] for x in found])
@@ -753,9 +768,12 @@ def near_segments_many(parts) -> list:
     cnt[live] = [len(todo[j]) for j in live]
     row0 = np.zeros(n_parts, int)
     row0[live] = np.cumsum(cnt[live]) - cnt[live]
-    A = np.concatenate([parts[j][1].a[todo[j]] for j in live])
-    B = np.concatenate([parts[j][1].b[todo[j]] for j in live])
-    pad = np.concatenate([np.full(cnt[j], parts[j][0].cert_pad_m) for j in live])
+    def pick(x, j):  # part j's rows of x to bound
+        return x if full[j] else x[todo[j]]
+
+    A = np.concatenate([pick(parts[j][1].a, j) for j in live])
+    B = np.concatenate([pick(parts[j][1].b, j) for j in live])
+    pad = np.repeat([parts[j][0].cert_pad_m for j in live], cnt[live])
     lo, hi = np.minimum(A, B) - pad[:, None], np.maximum(A, B) + pad[:, None]
     # the pairs and clusters of every broad phase as one table
     pair0 = np.cumsum([0] + [len(c.pair_probe) for c in bases])
@@ -764,7 +782,7 @@ def near_segments_many(parts) -> list:
     for b, js in itertools.groupby(live, key=lambda j: base_of[j]):  # the first box level, per broad phase
         js = list(js)
         r0, r1 = row0[js[0]], row0[js[-1]] + cnt[js[-1]]
-        allow = np.concatenate([parts[j][2][todo[j]] for j in js])
+        allow = np.concatenate([pick(parts[j][2], j) for j in js])
         sl, cp = bases[b]._block_candidates(lo[r0:r1], hi[r0:r1], allow)
         segs.append(sl + r0)
         cps.append(cp + cl0[b])
@@ -793,17 +811,16 @@ def near_segments_many(parts) -> list:
     for j in live:
         clr, sg, allow = parts[j]
         if clr.cert_pad_m > 0:
-            t = todo[j]
-            clr._certs.add(sg.a[t], sg.b[t], allow[t], r[row0[j]:row0[j] + cnt[j]])
+            clr._certs.add(pick(sg.a, j), pick(sg.b, j), pick(allow, j), r[row0[j]:row0[j] + cnt[j]])
     open_ = lb <= MARGIN_M
     seg, pair, pb = seg[open_], pair[open_], pb[open_]
     if not seg.size:
         return out
     # sample by sample for the pairs the swept bound leaves open (points in F)
     part = np.repeat(np.array(live), cnt[live])  # the part of each bounded segment
-    first = np.concatenate([parts[j][1].first[todo[j]] for j in live])
-    m = np.concatenate([parts[j][1].m[todo[j]] for j in live])
-    k_ = np.concatenate([parts[j][1].k[todo[j]] for j in live])
+    first = np.concatenate([pick(parts[j][1].first, j) for j in live])
+    m = np.concatenate([pick(parts[j][1].m, j) for j in live])
+    k_ = np.concatenate([pick(parts[j][1].k, j) for j in live])
     kk, idx = _expand(first[seg], m[seg])
     seg, pair, pb = seg[kk], pair[kk], pb[kk]
     i = idx - first[seg]
@@ -953,18 +970,13 @@ def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -
     L = np.linalg.norm(b - a, axis=1)
     k = np.maximum(1, np.ceil(L / step).astype(int))
     if not joints:  # the last point of each polyline: a segment of one sample at fraction 0
-        last = first + n_pt - 1
-        pos = np.arange(len(a)) + np.repeat(np.arange(len(n_pt)), n_pt - 1)  # room for the ends
-        order = np.empty(len(a) + len(n_pt), int)
-        order[pos] = np.arange(len(a))
-        free = np.ones(len(order), bool)
-        free[pos] = False
-        order[free] = len(a) + np.arange(len(n_pt))
-        a = np.concatenate([a, P[last]])[order]
-        b = np.concatenate([b, P[last]])[order]
-        m = np.concatenate([k, np.ones(len(n_pt), int)])[order]
-        k = np.concatenate([k, np.ones(len(n_pt), int)])[order]
-        path_of_seg = np.concatenate([path_of_seg, np.arange(len(n_pt))])[order]
+        # segments in point order: the one starting at point i is number i (a polyline's last
+        # point starts its closing segment, from that point to itself)
+        k_all = np.ones(len(P), int)
+        k_all[a_idx] = k
+        a, b = P.copy(), P[np.arange(len(P)) + starts]
+        k, m = k_all, k_all.copy()
+        path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt)
     else:
         m = k + 1
     return Segments(a, b, k, m, np.cumsum(m) - m, path_of_seg)

@@ -174,6 +174,25 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     return [p[0] for p in parts], Geoms(centre, axes, kind, size, rbound(kind, size))
 
 
+#: Each probe's (MJCF, geom names, Geoms) by (J_m, stylus radius, finger): a plan's work zones share
+#: a handful of probes (the 5-axis plan: 9 zones, 7 probes). Safe: the key is every input (floats);
+#: the Geoms' arrays are read only. 32 probes.
+_PROBES = Memo(32)
+
+
+def _probe(J_m, r_m: float, finger_m: float = 0.0) -> tuple:
+    """(:func:`probe_geoms_mjcf`, then :func:`probe_geoms`'s names and Geoms) of a probe, kept (:data:`_PROBES`)."""
+    key = (tuple(float(v) for v in J_m), float(r_m), float(finger_m))
+
+    def build():
+        names, g = probe_geoms(*key)
+        for a in (g.centre, g.axes, g.kind, g.size, g.rbound):
+            a.flags.writeable = False
+        return probe_geoms_mjcf(*key), names, g
+
+    return _PROBES.get_or_compute(key, build)
+
+
 #: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object,
 #: and beside them (keys ("table", id), ("stack", id)) the artefact's :class:`_Solids` and the
 #: poses stacked. Safe: the artefact is kept in each entry and checked with ``is``; the
@@ -214,7 +233,8 @@ def _build_solid_table(art) -> _Solids:
     for k, s in enumerate(art.solids):
         if s.kind not in ("box", "cylinder", "sphere"):
             raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
-        kinds.append(s.kind), sizes.append(tuple(np.ravel(s.size)))
+        sz = s.size  # (a flat tuple of numbers as it is, else flattened: the same numbers)
+        kinds.append(s.kind), sizes.append(sz if type(sz) is tuple and all(map(_is_number, sz)) else tuple(np.ravel(sz)))
         names.append(f"{s.feature or ('support' if s.kind == 'cylinder' else 'body')}__{k}")
         feats.append(s.feature)
     size3 = np.zeros((len(sizes), 3))
@@ -222,6 +242,10 @@ def _build_solid_table(art) -> _Solids:
         size3[j, :len(sz)] = sz
     holder = [k for k, n in enumerate(names) if n.startswith(("fix_", "support__"))]
     return _Solids(kinds, sizes, names, feats, size3, holder)
+
+
+def _is_number(v) -> bool:
+    return type(v) in (float, np.float64, int)
 
 
 def _solid_pose_stack(art) -> np.ndarray:
@@ -301,10 +325,9 @@ class WorkZone:
         nt = len(names)
         n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
         holder = list(range(n0)) + [n0 + k for k in sol.holder]
-        self._probe_mjcf = probe_geoms_mjcf(J_m, stylus_r_m, finger_m)
-        # the probe's geoms from their definitions (the broad phase's; the MJCF is written from the
-        # same parts, _probe_parts)
-        pnames, self._probe_geoms = probe_geoms(J_m, stylus_r_m, finger_m)
+        # the probe's MJCF and its geoms from their definitions (the broad phase's; both written from
+        # the same parts, _probe_parts), once per probe (_PROBES)
+        self._probe_mjcf, pnames, self._probe_geoms = _probe(J_m, stylus_r_m, finger_m)
         npg = len(pnames)
         # geom ids of the full model (compiled when MuJoCo first needs it, self.model): the table
         # body's geoms in order, then the spindle's; of the holder's model (self._holder_model):
@@ -325,6 +348,8 @@ class WorkZone:
         self._clr, self._hclr = {}, {}  # (clearance: by part, holder only by table pose)
         self._T_W_R = None  # (clearance)
         self._tkey = None  # (set_table: the pose last set, bytes)
+        self._at = {}  # the broad phases at the pose last set (ball_clearance, clearance), by part
+        self._hpairs = {}  # the holder's pairs of each rest broad phase (least_holder_clearance), by its certificates
         self._r = float(stylus_r_m)
         self._A_W = inv_T(T_W_A)
         #: what the work zones of this placement share (_work_zone): the table side's geoms in W
@@ -407,6 +432,7 @@ class WorkZone:
         self._tkey = key
         self._tqpos = np.concatenate([T[:3, 3], _quat(T[:3, :3])])
         self._T_W_R = None
+        self._at = {}
 
     def set_tip(self, p_R) -> None:
         """Place the stylus-tip centre at ``p_R`` (3,) m, R (spindle axes parallel to R)."""
@@ -471,6 +497,9 @@ class WorkZone:
                 self._hclr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
                                             cert_pad_m=0.0)
             return self._hclr[key]
+        hit = self._at.get(part)  # (asked twice per measurement at one pose: its paths, its least clearance)
+        if hit is not None:
+            return hit
         if part not in self._clr:
             pairs = None
             if part == "rest":  # the ball against the table disc, the blocks and the supports only
@@ -485,7 +514,8 @@ class WorkZone:
                                  pairs=pairs)
 
             self._clr[part] = ByOrientation(probe, build)
-        return self._clr[part].get(self._W_R())
+        hit = self._at[part] = self._clr[part].get(self._W_R())
+        return hit
 
     def _W_R(self) -> np.ndarray:
         """(4,4) T_W_R: R in the table's frame, from the table's pose as MuJoCo has it (once per set_table)."""
@@ -498,9 +528,12 @@ class WorkZone:
         the bar's frame A at the current table pose: one per bar and ball radius, shared by
         every probe, work zone and placement of that bar (a sphere has no orientation), with
         its pair data and certificates (:data:`_BALLS`)."""
-        art, r = self._args[0], self._r
-        ball = _BALLS.get_or_compute((id(art), r), lambda: _ball_clearance(art, r), owner=art)
-        return ball.moved(self._A_W @ self._W_R())
+        hit = self._at.get("ball")
+        if hit is None:
+            art, r = self._args[0], self._r
+            ball = _BALLS.get_or_compute((id(art), r), lambda: _ball_clearance(art, r), owner=art)
+            hit = self._at["ball"] = ball.moved(self._A_W @ self._W_R())
+        return hit
 
     def near_segments(self, sg, allow_feature=None) -> np.ndarray:
         """Sorted sample numbers of the segments ``sg`` (R) that may come closer than
@@ -552,12 +585,13 @@ class WorkZone:
         # the holder's pairs of the whole zone's broad phase (shared by the measurements of
         # this zone turned the same way about the spindle axis; frame W)
         clr = self.clearance(part="rest")  # (every pair with a holder geom)
-        hpos = np.full(len(self._table), -1)
-        hpos[self._holder] = np.arange(len(self._holder))  # table geom -> its holder model's geom
-        hp = np.flatnonzero(hpos[clr.pair_table] >= 0)
+        hp = self._hpairs.get(id(clr._certs))  # (the same pairs for the moved copies of a broad phase)
+        if hp is None:
+            hpos = np.full(len(self._table), -1)
+            hpos[self._holder] = np.arange(len(self._holder))  # table geom -> its holder model's geom
+            hp = self._hpairs[id(clr._certs)] = (np.flatnonzero(hpos[clr.pair_table] >= 0), hpos, clr._certs)
+        hp, hpos = hp[0], hp[1]
         npair = len(hp)
-        i = np.repeat(np.arange(len(tips)), npair)
-        pair = np.tile(hp, len(tips))
         bm, bd, h0, gball = self._ball_model()
         held = []  # the holder's model, fetched (and compiled) once a triple needs it
 
@@ -581,9 +615,18 @@ class WorkZone:
         # boxes of every triple; in its increasing order, chunks of triples get the full bound
         # and MuJoCo in the full bound's order, while the chunk's box bound may still be nearer
         # (a triple whose boxes lie farther than distmax cannot lower min(distmax, ...))
-        lb0 = clr.box_bound(tips, hp).ravel()  # rows (tip, pair) as i, pair
+        # pairs whose box lies farther than distmax from the box of every tip: no row of theirs is kept
+        # below (the distance between two boxes bounds that of any point of one from the other)
+        pF = clr.to_frame(tips)
+        t_lo, t_hi = pF.min(axis=0)[:, None], pF.max(axis=0)[:, None]
+        # (box_bound's operations on the tips' box: each tip's bound is at least this, rounding included)
+        gap = np.maximum(np.maximum(clr._loT[:, hp] + MARGIN_M - t_hi, t_lo - (clr._hiT[:, hp] - MARGIN_M)), 0.0)
+        gap *= gap
+        hp = hp[np.sqrt(gap[0] + gap[1] + gap[2]) <= distmax + MARGIN_M]
+        npair = len(hp)
+        lb0 = clr.box_bound(tips, hp).ravel()  # rows (tip, pair): tip i = row // npair, pair hp[row % npair]
         near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
-        i, pair, lb0 = i[near], pair[near], lb0[near]
+        i, pair, lb0 = near // npair, hp[near % npair], lb0[near]
         order = np.argsort(lb0, kind="stable")
         pos = 0
         # the first few straight to MuJoCo in the box bound's order (a distance costs less than
@@ -703,20 +746,10 @@ def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray,
     return apply_T(T_R_A, P), cnt
 
 
-def _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m):
-    """(Segments, touch of each polyline (paths,), allowed feature of each (paths,) object) of
-    a measurement's polylines in the order checked: per touch i the link into ``start[i]``
-    (from touch i - 1's; none for the first) and the approach ``start[i] -> Xn[i]``."""
-    if plan.n > 1:
-        L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
-    else:
-        L, cnt = np.zeros((0, 3)), np.zeros(0, int)
-    sg, touch, allow, _ = _paths_of([(start, Xn, L, cnt, plan)], link_step_m, approach_step_m)[0]
-    return sg, touch, allow
-
-
 def _paths_of(items, link_step_m, approach_step_m) -> list:
-    """The polylines of several measurements (:func:`_touch_paths` of each), sampled at once.
+    """The polylines of several measurements in the order checked, sampled at once: per touch i
+    the link into ``start[i]`` (from touch i - 1's; none for the first) and the approach
+    ``start[i] -> Xn[i]``.
 
     ``items``: per measurement (start (n,3), Xn (n,3), link points, link counts, plan) as
     :func:`link_points` gives the links, n >= 1 touches. Returns per measurement (Segments,
@@ -875,24 +908,42 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     broad phase cannot prove clear (:meth:`WorkZone.near_segments`, every measurement at once).
 
     Each measurement has two parts, the ball against the bar (its broad phase in A, one per bar
-    and ball) and the rest of its work zone (in W, one per zone and orientation). Two passes of
-    :func:`sim.clearance.near_segments_many`: first, per broad phase, the part of its measurement
-    of the most touches; then every other part. A broad phase's frame moves with the bar (A) or
-    the table (W), so measurements of the same touches have the same moves there: the first
-    pass's certificates clear what they share (the 5-axis plan: the ball's 18,364 segments,
-    2,408 left to bound), the rest is bounded."""
+    and ball) and the rest of its work zone (in W, one per zone and orientation). Measurements
+    whose part has the same broad phase, the same touch program (plan object) and the same
+    segments' steps, and for the rest the same placement (``T_W_A``), have the same segments in
+    that broad phase's frame (A or W: both fixed to the bar) to rounding (1e-16 m, far below
+    :data:`sim.clearance.MARGIN_M`), the same features and the same sample numbers: the part is
+    bounded once and its near samples serve them all (the 5-axis plan: 17 ball parts, 9
+    programs, 13 parts: at another table pose a program's segment of exactly 6 steps may round
+    to 7, and the samples differ). Two passes of :func:`sim.clearance.near_segments_many` over the distinct parts:
+    first, per broad phase, the part of the most samples; then every other part. A broad
+    phase's frame moves with the bar (A) or the table (W), so measurements of the same touches
+    have the same moves there: the first pass's certificates clear what they share (the 5-axis
+    plan: the ball's 18,364 segments, 2,408 left to bound), the rest is bounded."""
     from .clearance import Segments, near_segments_many
 
-    parts, best = [], {}
+    parts, best, where, of, fids = [], {}, {}, [], {}
     for i in live:
         wz = zones[i]
         wz.set_table(ms[i][2])
         sg, _, allow, is_app = sgs[i]
-        for clr in (wz.ball_clearance(), wz.clearance(part="rest")):
+        plan = ms[i][5]
+        for clr, place in ((wz.ball_clearance(), b""), (wz.clearance(part="rest"), ms[i][1].tobytes())):
+            # (a part the same as one already listed: the same broad phase, program, placement, steps)
+            key = (id(clr._certs), id(plan), place, len(sg.k))
+            j = where.get(key)
+            if j is not None and np.array_equal(parts[j][1].k, sg.k):
+                of.append(j)
+                continue
             T = clr.T_F_R
             R, t = T[:3, :3].T, T[:3, 3]
             ids = np.full(len(allow), -2)
-            ids[is_app] = clr.feature_ids(ms[i][5].feature)
+            fk = (id(clr._fid), id(plan))  # (the program's features as the broad phase's numbers: once each)
+            if fk not in fids:
+                fids[fk] = clr.feature_ids(plan.feature)
+            ids[is_app] = fids[fk]
+            where.setdefault(key, len(parts))
+            of.append(len(parts))
             parts.append((clr, Segments(sg.a @ R + t, sg.b @ R + t, sg.k, sg.m, sg.first, sg.path), ids[sg.path]))
             j = best.get(id(clr._certs))  # (moved copies of one broad phase share its certificates)
             if j is None or sg.n_samples > parts[j][1].n_samples:
@@ -902,7 +953,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     res = dict(zip(first, near_segments_many([parts[k] for k in first])))
     res.update(zip(later, near_segments_many([parts[k] for k in later]) if later else ()))
     out = {}
-    for n, i in enumerate(live):  # (the ball's part 2n, the rest's 2n + 1)
-        a, b = res[2 * n], res[2 * n + 1]
+    for n, i in enumerate(live):  # (the ball's part of(2n), the rest's of(2n + 1))
+        a, b = res[of[2 * n]], res[of[2 * n + 1]]
         out[i] = np.union1d(a, b) if a.size and b.size else (a if a.size else b)
     return out

@@ -303,7 +303,7 @@ def _fresh_plan_check() -> None:
 
     Cleared: the checks (``_CHECKS``), the program's placement margin (``_MARGINS``), the bar's
     touch programs (``sim.plans._MFB_PLANS``) and their touches (``_MFB_TOUCHES``), its solids'
-    points and poses, the work zones, their table sides, pair structures and the ball broad phases
+    points and poses, the work zones, their probes, table sides, pair structures and the ball broad phases
     (``sim.mfb_scene``, ``sim.clearance``, ``sim.scene``). Shared with the plan's making, so not
     timed again: the nominal bar (``_nominal_bar``: the plan chooses each diagonal's holes on it),
     its touches and its touch program at the plan's margins (rebuilt here, as ``plan_5axis`` built
@@ -317,8 +317,8 @@ def _fresh_plan_check() -> None:
     from sim import clearance, mfb_scene, plans, scene
 
     for memo in (S._CHECKS, S._MARGINS, plans._MFB_PLANS, plans._MFB_TOUCHES, scene._POINTS,
-                 mfb_scene._SOLID_POSES, mfb_scene._ZONES, mfb_scene._BALLS, clearance._TABLE_PREP,
-                 clearance._PAIRS):
+                 mfb_scene._SOLID_POSES, mfb_scene._ZONES, mfb_scene._BALLS, mfb_scene._PROBES,
+                 clearance._TABLE_PREP, clearance._PAIRS):
         memo.clear()
     S._plan_for(S._nominal_bar(), (1,))  # the plan's making's touch program (its _fit_holes)
 

@@ -103,3 +103,22 @@ def test_sparse_per_setup_azimuth_is_the_dense_one():
     dense = {c.name: c for c in Bm.planar_covariates(d)}["azimuth_by_setup"].values
     lean = {c.name: c for c in Bm.planar_covariates(d, sparse=True)}["azimuth_by_setup"].values
     assert sp.issparse(lean) and np.array_equal(lean.toarray(), dense)
+
+
+def test_sparse_covariates_leave_the_others_as_they_are():
+    """Every other covariate of a long log (sparse=True) is the dense build's: name, kind, size, modes and values
+    (a local name of the sparse build once replaced the position modes of the feature covariate)."""
+    from core import baseline as Bm
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    t = from_log(large_log(12, 8, np.random.default_rng(3)))
+    t = t.__class__(**{**t.__dict__, "feature": np.array([f"f{i % 3}" for i in range(t.n)], dtype=object)})
+    d = Bm.planar_data(t, 0.04)
+    dense, lean = Bm.planar_covariates(d), Bm.planar_covariates(d, sparse=True)
+    assert [c.name for c in dense] == [c.name for c in lean] and "feature" in [c.name for c in lean]
+    for a, b in zip(dense, lean):
+        assert (a.kind, a.size, tuple(a.modes), a.words, a.family) == (b.kind, b.size, tuple(b.modes), b.words,
+                                                                       b.family)
+        if a.name != "azimuth_by_setup":
+            assert np.array_equal(np.asarray(a.values), np.asarray(b.values))

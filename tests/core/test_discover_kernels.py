@@ -367,12 +367,12 @@ def test_folds_lean_path_is_the_kept_spans_to_rounding(monkeypatch):
     Y = rng.normal(size=(n, 5))
     E = np.column_stack([np.sin(np.arange(n) / 7.0), rng.normal(size=n), A[:, 0] + 1e-3 * rng.normal(size=n)])
     pen = np.diag([0.0, 2.0, 5.0])
-    kept = X.Folds(A, groups, 1e-2)
+    kept = X.Folds(A, groups, X.Settings().cv_seen)
     monkeypatch.setattr(X, "FOLD_BYTES", 0)
-    lean = X.Folds(A, groups, 1e-2)
+    lean = X.Folds(A, groups, X.Settings().cv_seen)
     assert (kept.mode, lean.mode) == ("spans", "coefficients")
-    assert kept.design is None and lean.design is A
-    assert all(f.U is None and f.Uf is None and f.V.shape[0] < p + 1 for f in lean.items)
+    assert all(f.Ut is not None for f in kept.items)
+    assert all(f.Ut is None and f.W.shape[0] < p + 1 for f in lean.items)
     for args in ((Y,), (Y, E), (Y, E, pen), (Y[:, 0], E[:, :1])):
         a, b = kept.residuals(*args), lean.residuals(*args)
         assert kept.last_dof == lean.last_dof
@@ -401,8 +401,9 @@ def test_folds_block_path_is_the_dense_one_on_a_well_posed_design():
     A, grp = _block_design(rng)
     Y = rng.normal(size=(len(grp), 3))
     E = np.column_stack([np.sin(np.arange(len(grp)) / 9.0), rng.normal(size=len(grp)), (grp == 1) * 1.0])
-    dense, blocks = X.Folds(A.toarray(), grp, 1e-2), X.Folds(A, grp, 1e-2)
-    assert blocks.mode == "blocks" and all(f.U is None and f.P is None for f in blocks.items)
+    seen = X.Settings().cv_seen
+    dense, blocks = X.Folds(A.toarray(), grp, seen), X.Folds(A, grp, seen)
+    assert blocks.mode == "blocks" and all(f.Ut is None and f.P is None for f in blocks.items)
     assert [f.Qo.shape[1] for f in blocks.items] == [0, 0, 1, 1, 0]  # group 2's own column, group 3's own target
     for args in ((Y,), (Y, E), (Y, E, np.diag([1.0, 0.0, 3.0])), (Y[:, 0], E[:, :1])):
         a, b = dense.residuals(*args), blocks.residuals(*args)
@@ -519,7 +520,8 @@ def test_folds_block_path_sees_a_large_own_column_as_unseen_by_training():
     A, grp = _block_design(rng)
     A.D[:, -1] *= 1e3  # group 2's own column, 1e3 larger than the others
     Y = rng.normal(size=(len(grp), 2))
-    dense, blocks = X.Folds(A.toarray(), grp, 1e-2), X.Folds(A, grp, 1e-2)
+    seen = X.Settings().cv_seen
+    dense, blocks = X.Folds(A.toarray(), grp, seen), X.Folds(A, grp, seen)
     assert [f.Qo.shape[1] for f in blocks.items] == [f.Qo.shape[1] for f in dense.items]
     a, b = dense.residuals(Y), blocks.residuals(Y)
     assert dense.last_dof == blocks.last_dof

@@ -490,6 +490,15 @@ def test_a_segment_with_no_pair_in_its_padded_box_certifies_exactly_the_padding(
         assert (len(calls) == 0) == (not want_near)  # cleared by the certificate, not recomputed
 
 
+def _lookup(st, a, b, allow):
+    """(r0, moved) of each segment as near_segments_many looks it up: in order, then by grid cell."""
+    r0, moved = st.in_order(a, b, allow)
+    rest = np.flatnonzero(~(moved < r0))
+    if rest.size and st._n:
+        st.by_cell(a, b, allow, rest, r0, moved)
+    return r0, moved
+
+
 def test_certificates_by_place_and_by_segment_and_feature():
     """The certificate store finds a remembered segment within its radius for the same segments
     in the same order moved by less than their radii (another placement), and for the same
@@ -508,18 +517,18 @@ def test_certificates_by_place_and_by_segment_and_feature():
     u = rng.normal(size=(500, 3))
     u /= np.linalg.norm(u, axis=1)[:, None]
     f = rng.uniform(0, 1.5, 500)
-    r0, moved = st.lookup(a + (f * r)[:, None] * u, b, allow)  # in order, moved 0 to 1.5 radii
+    r0, moved = _lookup(st, a + (f * r)[:, None] * u, b, allow)  # in order, moved 0 to 1.5 radii
     assert np.array_equal(moved < r0, f < 1) and np.allclose(moved, f * r, rtol=0, atol=1e-15)
     p = rng.permutation(500)[:300]
-    r0, moved = st.lookup(a[p] + rng.normal(0, 1e-15, (300, 3)), b[p], allow[p])  # shuffled, 300
+    r0, moved = _lookup(st, a[p] + rng.normal(0, 1e-15, (300, 3)), b[p], allow[p])  # shuffled, 300
     assert np.all(moved < r0) and np.all(moved < 1e-14) and np.array_equal(r0, r[p])
     other = np.where(allow[p] == "", "rod02", "").astype(object)
-    r0, moved = st.lookup(a[p], b[p], other)  # the same segments with another allowed feature
+    r0, moved = _lookup(st, a[p], b[p], other)  # the same segments with another allowed feature
     assert not np.any(moved < r0)
     # within one grid cell (1 um) but beyond a 0.2 um radius: the distance is still measured
     c = np.array([[0.012, -0.034, 0.056]])
     st.add(c, c + [0.01, 0, 0], np.array([""], dtype=object), np.array([0.2e-6]))
-    r0, moved = st.lookup(np.r_[a[:3], c + [0.4e-6, 0, 0]], np.r_[b[:3], c + [0.01, 0, 0]],
+    r0, moved = _lookup(st, np.r_[a[:3], c + [0.4e-6, 0, 0]], np.r_[b[:3], c + [0.01, 0, 0]],
                           np.r_[allow[:3], np.array([""], dtype=object)])
     assert r0[3] == 0.2e-6 and abs(moved[3] - 0.4e-6) < 1e-15 and not moved[3] < r0[3]
 
@@ -604,13 +613,25 @@ def _same_segments(got, want):
         assert np.array_equal(getattr(got, f), getattr(want, f)), f
 
 
+def _touch_paths(T_R_A, start, Xn, plan, top, link_step_m, approach_step_m):
+    """(Segments, touch of each polyline, allowed feature of each) of one measurement's polylines,
+    sim.mfb_scene._paths_of of that measurement alone."""
+    from sim.mfb_scene import _paths_of, link_points
+
+    if plan.n > 1:
+        L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
+    else:
+        L, cnt = np.zeros((0, 3)), np.zeros(0, int)
+    sg, touch, allow, _ = _paths_of([(start, Xn, L, cnt, plan)], link_step_m, approach_step_m)[0]
+    return sg, touch, allow
+
+
 def test_measurement_paths_are_the_polylines_checked_one_by_one():
-    """check_measurement's polylines built in one array (sim.mfb_scene._touch_paths) are the ones
+    """check_measurement's polylines built in one array (sim.mfb_scene._paths_of) are the ones
     the list-of-polylines version built: per touch the link into its start (none for the first,
     allowed feature none), then its approach (the touched feature allowed); the same segments,
     bit for bit, the same touch and allowed feature per polyline."""
     from sim.clearance import path_segments
-    from sim.mfb_scene import _touch_paths
 
     for holes, (A_deg, C_deg) in (((3, 4, 5), (0, 0)), ((1,), (-90, 45)), ((10, 11), (-45, 120))):
         pl = _holes(*holes)
@@ -799,7 +820,7 @@ def test_a_plans_measurements_checked_at_once_are_each_alone_and_every_sample():
 def test_measurements_paths_sampled_at_once_are_each_alone():
     """The polylines of several measurements sampled in one pass (sim.mfb_scene._paths_of, as
     check_measurements does) are each measurement's alone (_touch_paths), bit for bit."""
-    from sim.mfb_scene import _paths_of, _touch_paths, link_points
+    from sim.mfb_scene import _paths_of, link_points
 
     items, want = [], []
     for holes, (A_deg, C_deg) in (((3, 4, 5), (0, 0)), ((1,), (-90, 45)), ((10, 11), (-45, 120)), ((7,), (0, 0))):
@@ -830,26 +851,17 @@ def test_an_artefact_without_solids_has_an_empty_pose_stack():
     assert _solid_pose_stack(art).shape == (0, 4, 4)
 
 
-def test_no_sample_the_one_pass_check_skips_collides():
-    """Soundness of the one-pass broad phase (certificates reused between measurements): every sample it skips
-    is clear in MuJoCo. Seven measurements in four orientations, each beside a subset of its holes (so the
-    second's moves are cleared from the first's certificates), a finger on two; checked twice (the second
-    pass from certificates only). The check can fail: MuJoCo sees a tip sunk in the bar."""
+def _skipped_colliding(items, passes=2):
+    """(samples skipped, skipped samples MuJoCo finds colliding, near samples) of measurements
+    ``items`` (T_W_A, T_R_W, blocks, J, plan, finger) checked by the one-pass broad phase
+    (sim.mfb_scene._near_samples) ``passes`` times (later passes from certificates), fresh caches."""
     from sim import mfb_scene
     from sim.mfb_scene import _near_samples, _paths_of, _work_zone, link_points
 
-    rng = np.random.default_rng(11)
-    items = []
-    for k, (a_deg, c_deg) in enumerate([(0, 0), (0, 90), (-90, 0), (-60, 30)]):
-        holes = tuple(sorted(rng.choice(np.arange(1, 13), size=3, replace=False).tolist()))
-        fin = 0.040 if k % 2 else 0.0
-        items.append((np.asarray(FLAT, float), np.asarray(_T_R_W(a_deg, c_deg), float), (), (0, 0, 0.150),
-                      _holes(*holes), fin))
-        items.append((items[-1][0], items[-1][1], (), (0, 0, 0.150), _holes(*holes[:1]), fin))
-    items = items[:7]
     mfb_scene._ZONES.clear()
     mfb_scene._BALLS.clear()
-    ms = [(f"m{i}", a, b, tuple(c), d, p, float(f)) for i, (a, b, c, d, p, f) in enumerate(items)]
+    ms = [(f"m{i}", np.asarray(a, float), np.asarray(b, float), tuple(c), d, p, float(f))
+          for i, (a, b, c, d, p, f) in enumerate(items)]
     mfb_scene.share_ball_model(BAR, [(m[1], m[3], m[4], m[6]) for m in ms], R)
     top = float(mfb_scene.artefact_points(BAR)[:, 2].max()) + R
     zones, paths = [], []
@@ -862,20 +874,64 @@ def test_no_sample_the_one_pass_check_skips_collides():
         paths.append((start, Xn, L, cnt, plan))
     live = list(range(len(ms)))
     sgs = _paths_of(paths, 3e-3, 0.5e-3)
-    skipped = 0
-    for _ in range(2):
+    skipped, bad, n_near = 0, [], 0
+    for _ in range(passes):
         near = _near_samples(ms, zones, live, sgs)
         for i in live:
             wz = zones[i]
             wz.set_table(ms[i][2])
             sg, _, allow, _ = sgs[i]
+            n_near += near[i].size
             skip = np.setdiff1d(np.arange(sg.n_samples), near[i])
             skipped += skip.size
             pts, which = sg.points(skip), sg.path[sg.segment_of(skip)]
-            hit = [k for k in range(skip.size) if wz.collisions(pts[k], allow[which[k]])]
-            assert not hit, f"measurement {i}: skipped samples collide: {pts[hit[:3]]}"
+            bad += [(i, pts[k]) for k in range(skip.size) if wz.collisions(pts[k], allow[which[k]])]
+    return skipped, bad, n_near
+
+
+def test_no_sample_the_one_pass_check_skips_collides():
+    """Soundness of the one-pass broad phase (certificates reused between measurements): every sample it skips
+    is clear in MuJoCo. Seven measurements in four orientations, each beside a subset of its holes (so the
+    second's moves are cleared from the first's certificates), a finger on two; checked twice (the second
+    pass from certificates only). The check can fail: MuJoCo sees a tip sunk in the bar."""
+    from sim import mfb_scene
+
+    rng = np.random.default_rng(11)
+    items = []
+    for k, (a_deg, c_deg) in enumerate([(0, 0), (0, 90), (-90, 0), (-60, 30)]):
+        holes = tuple(sorted(rng.choice(np.arange(1, 13), size=3, replace=False).tolist()))
+        fin = 0.040 if k % 2 else 0.0
+        items.append((FLAT, _T_R_W(a_deg, c_deg), (), (0, 0, 0.150), _holes(*holes), fin))
+        items.append((FLAT, items[-1][1], (), (0, 0, 0.150), _holes(*holes[:1]), fin))
+    skipped, bad, _ = _skipped_colliding(items[:7])
+    assert not bad, f"skipped samples collide: {bad[:3]}"
     assert skipped > 1000  # the broad phase skipped most samples: the check above tested something
-    wz = zones[0]
-    wz.set_table(ms[0][2])
-    inside = A.apply_T(ms[0][2] @ ms[0][1], mfb_scene.artefact_points(BAR)[:1] - np.array([0.0, 0.0, 0.01]))
+    wz = mfb_scene._work_zone(BAR, FLAT, (), (0, 0, 0.150), R, 0.0)
+    wz.set_table(items[0][1])
+    inside = A.apply_T(items[0][1] @ FLAT, mfb_scene.artefact_points(BAR)[:1] - np.array([0.0, 0.0, 0.01]))
     assert wz.collisions(inside[0])  # a tip 10 mm inside the bar's material collides
+
+
+def test_no_sample_a_shared_part_skips_collides():
+    """Soundness of the parts measurements share (sim.mfb_scene._near_samples): one program (plan object)
+    at three table poses shares its ball part (frame A), and at a turn about the spindle axis with the
+    straight stylus its work zone's part too (frame W); a copy of the program moved 4 mm along x_A (the
+    same steps, the same features: only the program object differs) at the same pose collides in MuJoCo
+    and must get its own parts. No skipped sample collides; the moved copy's collisions are found
+    (check_measurements reports them, as MuJoCo at every sample does). Keyed without the program, the
+    moved copy would take the first's near samples and this test fails (tried)."""
+    import dataclasses
+
+    from sim.mfb_scene import check_measurement, check_measurements
+
+    pl = _holes(3, 4)
+    moved = dataclasses.replace(pl, w_A=pl.w_A + np.array([4e-3, 0.0, 0.0]))
+    J0 = (0, 0, 0.150)
+    items = [(FLAT, _T_R_W(0, 0), (), J0, pl, 0.0), (FLAT, _T_R_W(0, 45), (), J0, pl, 0.0),
+             (FLAT, _T_R_W(-90, 0), (), (0.0, -0.100, 0.150), pl, 0.0), (FLAT, _T_R_W(0, 0), (), J0, moved, 0.0)]
+    skipped, bad, n_near = _skipped_colliding(items, passes=1)
+    assert not bad, f"skipped samples collide: {bad[:3]}"
+    assert skipped > 1000 and n_near > 0
+    got = check_measurements(BAR, [(f"m{i}", *it[:2], it[2], it[3], it[4], it[5]) for i, it in enumerate(items)], R)
+    ref = check_measurement("m3", BAR, FLAT, items[3][1], (), J0, R, moved, broad_phase=False)
+    assert got[3].collisions and got[3] == ref and all(r.ok for r in got[:3])

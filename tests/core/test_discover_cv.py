@@ -1,0 +1,206 @@
+"""Cross-validation that depends on the model's column space only, its gap's null, the noise floor (issue 13 items 1, 2, 6).
+
+A stored campaign (tests/core/data/discover_identity) goes through
+discovery five ways: (a) the design as built, (b) the design's machine
+columns times a random invertible matrix (scaled over four decades, then
+mixed: the same span, other columns), (c) the campaign moved 350 mm /
+-220 mm in X / Y, (d) its set-ups run in another order (rows permuted
+by set-up, each set-up's times shifted as a block), (e) the long-log
+block path forced (targets eliminated). The held-out figures must agree
+to ``REL``, the cause and the gauge-free workpiece exactly as decisions
+and to ``REL`` as numbers.
+
+Why ``REL = 1e-6``: the folds' eigen-decompositions are exact to about
+1e-15 of the training Gram, the mixing matrix's condition number is about
+1e4, and the gauge-free workpiece goes through a constrained solve
+conditioned to about 1e3 more; 1e-6 holds all that with room, while a rule
+that depends on the columns (a truncation relative to the largest scaled
+singular value, as before) moves the held-out figures by percent to
+several times (the failure prints them).
+
+The held-out gap's null draws (:func:`core.discover._cv_gap`) go through
+the same folds, so (b), (c) and (e) give the same p-value too; (d)
+permutes the rows the draws fall on, so its p-value is another Monte Carlo
+sample of the same null and is compared only as a decision.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import pathlib
+
+import numpy as np
+import pytest
+
+_spec = importlib.util.spec_from_file_location(
+    "discover_identity_make", pathlib.Path(__file__).parent / "data" / "discover_identity" / "make.py")
+make = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(make)
+
+REL = 1e-6
+#: three-set-up and four-set-up campaigns of both blind generators and the simulator, one effect-free
+CAMPAIGNS = ("gen_b-fixture_slip-301", "gen_a-knock-1", "hidden-none-1000")
+
+
+def _touches(name):
+    from core.baseline import extra_columns
+    from core.touches import from_log
+
+    log = make.read_log(name)
+    t = from_log(log)
+    return t, log.meta.get("kinematic_chain"), extra_columns(log, t.row)
+
+
+def _mixed(bl, rng):
+    """The same baseline with its machine columns scaled over four decades and mixed (the gauge follows)."""
+    m = np.setdiff1d(np.arange(bl.A.shape[1]), bl.estimand)
+    T = np.diag(10.0 ** rng.uniform(-2, 2, m.size)) @ (np.eye(m.size) + 0.3 * rng.normal(size=(m.size, m.size))
+                                                      / np.sqrt(m.size))
+    A, C = bl.A.copy(), bl.C.copy()
+    A[:, m], C[:, m] = bl.A[:, m] @ T, bl.C[:, m] @ T
+    return dataclasses.replace(bl, A=A, C=C, qr=None)
+
+
+def _figures(d) -> dict:
+    rep = d.to_report()
+    n = rep["noise_um"]
+    return {"baseline_cv_rms_um": rep["baseline_cv_rms_um"], "extended_cv_rms_um": rep["extended"]["cv_rms_um"],
+            "gap_ratio": n["cv_gap"]["ratio"], "gap_expected": n["cv_gap"]["expected_ratio"],
+            "gap_p": n["cv_gap"]["p_value"], "sigma_cv_um": n["cv_gap"]["sigma_cv_um"], "noise_um": n["sigma_um"]}
+
+
+def _form(d, ids):
+    from core.lsq import remove_span
+    from core.selfcal import workpiece_gauge_basis
+
+    G = dict(zip(d.baseline.estimand_ids, d.G_extended_m))
+    P, N = d.baseline.geometry
+    return remove_span(np.array([G[k] for k in ids]), workpiece_gauge_basis(P, N))
+
+
+@pytest.mark.parametrize("name", CAMPAIGNS)
+def test_cross_validation_depends_on_the_column_space_only(name, monkeypatch):
+    from core import baseline as Bm
+    from core.discover import discover, discover_baseline
+
+    t, chain, extra = _touches(name)
+    d0 = discover(t, chain=chain, extra=extra)
+    runs = {"mixed": discover_baseline(_mixed(d0.baseline, np.random.default_rng(3)))}
+    shift = np.array([0.350, -0.220, 0.0])
+    runs["moved"] = discover(dataclasses.replace(t, pn_R=t.pn_R + shift, p_R=t.p_R + shift), chain=chain, extra=extra)
+    # the set-ups in reverse order, each set-up's touches keeping their spacing in time
+    order = np.unique(t.setup)[::-1]
+    rows = np.concatenate([np.flatnonzero(t.setup == j) for j in order])
+    t2 = t.subset(rows, reindex=False)
+    ts, start = np.empty(t2.n), 0.0
+    for j in order:
+        sel = t2.setup == j
+        ts[sel] = t2.t_s[sel] - t2.t_s[sel].min() + start
+        start = ts[sel].max() + 300.0
+    runs["reordered"] = discover(dataclasses.replace(t2, t_s=ts), chain=chain,
+                                 extra={k: v[rows] for k, v in extra.items()})
+    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
+    runs["blocks"] = discover(t, chain=chain, extra=extra)
+    assert isinstance(runs["blocks"].baseline.A, Bm.BlockDesign)
+
+    f0, ids = _figures(d0), list(d0.baseline.estimand_ids)
+    for how, d in runs.items():
+        f = _figures(d)
+        bad = {k: (f0[k], f[k]) for k in f0 if not (how == "reordered" and k in ("gap_p", "gap_expected", "sigma_cv_um"))
+               and not abs(f[k] - f0[k]) <= REL * abs(f0[k])}
+        assert not bad, f"{name}, {how}: held-out figures differ {bad}"
+        assert d.cause == d0.cause, (name, how, d0.cause, d.cause)
+        assert [x.cause for x in d.findings] == [x.cause for x in d0.findings], (name, how)
+        assert (d.structure["baseline"]["present"], d.structure["baseline"]["cv_gap"]) == \
+            (d0.structure["baseline"]["present"], d0.structure["baseline"]["cv_gap"]), (name, how)
+        a, b = _form(d0, ids), _form(d, ids)  # NaN where the design does not identify the workpiece
+        assert np.array_equal(np.isnan(a), np.isnan(b)), (name, how)
+        ok = ~np.isnan(a)
+        if ok.any():
+            assert np.max(np.abs(b - a)[ok]) <= REL * np.max(np.abs(a[ok])), (name, how, np.max(np.abs(b - a)[ok]))
+
+
+def test_folds_predict_the_column_space_exactly():
+    """Every element of the design's column space has zero held-out residual (to rounding), also along directions
+    a held-out group sees almost alone: two columns that differ almost only in group 1 (their difference's training
+    share about 0.002 when group 1 is held out) make that difference group 1's own, fitted on its other rows, not
+    truncated to zero (the former rule, relative to the largest scaled singular value, left 12 % of an element of
+    the column space on the held-out rows here: the baseline's own field counted as held-out error). The same
+    with extension columns beside it."""
+    from core import discover as X
+
+    rng = np.random.default_rng(4)
+    n, p = 200, 8
+    groups = np.repeat(np.arange(4), n // 4)
+    A = rng.normal(size=(n, p))
+    A[:, -1] = A[:, 0] + np.where(groups == 1, 1.0, 1e-3) * rng.normal(size=n)  # beside column 0, off it in group 1
+    folds = X.Folds(A, groups, X.Settings().cv_seen, X.Settings().cv_seen_extension)
+    assert folds.items[1].Qo.shape[1] == 1 and all(f.Qo.shape[1] == 0 for i, f in enumerate(folds.items) if i != 1)
+    Y = A @ rng.normal(size=(p, 3)) * 1e-6
+    assert np.max(np.abs(folds.residuals(Y))) < 1e-12 * np.max(np.abs(Y))
+    E = np.column_stack([np.sin(np.arange(n) / 11.0), rng.normal(size=n)])
+    Y = (A @ rng.normal(size=(p, 3)) + E @ rng.normal(size=(2, 3))) * 1e-6
+    assert np.max(np.abs(folds.residuals(Y, E))) < 1e-12 * np.max(np.abs(Y))
+
+
+@pytest.mark.parametrize("gen, seed", [("gen_a", 902), ("gen_b", 904)])
+def test_no_held_out_gap_when_a_set_up_alone_covers_a_stretch(gen, seed):
+    """Development-seed false alarms: effect-free campaigns whose generator's machine lies inside the baseline's
+    model, where leaving one set-up out asks the others to predict the stretch of the error map it covers mostly
+    alone. The former folds truncated those directions (held-out gap ratio 22 against 6.0 expected on gen_a 902,
+    6.7 against 3.7 on gen_b 904: `unexplained`). Now the gap is pure noise's and the answer `none`."""
+    from core.baseline import extra_columns
+    from core.discover import discover
+    from core.touches import from_log
+    from scenarios.blind import gen_a, gen_b
+
+    log = {"gen_a": gen_a, "gen_b": gen_b}[gen].generate("none", seed)[0]
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    gap = rep["noise_um"]["cv_gap"]
+    assert rep["cause"] == "none" and not rep["structure"]["baseline"]["cv_gap"], (rep["cause"], gap)
+    assert gap["ratio"] < 1.5 * gap["expected_ratio"] and gap["p_value"] > 0.01, gap
+
+
+def test_replicate_scatter_after_a_trend_known_answer_and_round_trip():
+    """Known answer: repeats drifting linearly in time (a rate per set-up) give, with the trend columns, exactly the
+    scatter of the same repeats without the drift less nothing (the drift is removed, the noise kept: the same
+    residual as the drift-free data's, dof = contrasts - 2 set-ups' rates). Round trip: over 2,000 pure-noise
+    draws the mean of ss / dof is sigma^2 (unbiased: within 3 standard errors of the mean). Bad input: one-line
+    errors naming the argument."""
+    from core.diagnosis import replicate_scatter
+    from core.exceptions import ConfigError
+
+    rng = np.random.default_rng(8)
+    key = np.repeat(np.arange(12), 4)  # twelve targets touched four times
+    setup = key // 6  # two set-ups
+    t = np.tile([0.0, 60.0, 180.0, 200.0], 12) + setup * 900.0
+    trend = np.column_stack([(setup == s) * (t - t[setup == s].mean()) for s in (0, 1)])
+    noise = rng.normal(0, 0.3e-6, key.size)
+    drift = np.where(setup == 0, 4e-9, -7e-9) * t  # 0.8 um over a 200 s set-up
+    clean = replicate_scatter(key, noise, trend)
+    drifted = replicate_scatter(key, noise + drift, trend)
+    assert drifted.dof == clean.dof == 36 - 2 and abs(drifted.ss - clean.ss) < 1e-12 * clean.ss
+    assert replicate_scatter(key, noise + drift).sigma_m > 2 * drifted.sigma_m  # the plain scatter holds the drift
+    ratios = [replicate_scatter(key, rng.normal(0, 1.0, key.size), trend).ss / 34 for _ in range(2000)]
+    assert abs(np.mean(ratios) - 1.0) < 3 * np.sqrt(2 / 34 / 2000)
+    with pytest.raises(ConfigError, match="trend must be"):
+        replicate_scatter(key, noise, trend[:-1])
+    with pytest.raises(ConfigError, match="one entry per row"):
+        replicate_scatter(key[:-1], noise)
+
+
+def test_noise_from_repeats_ignores_a_drift_within_set_ups():
+    """A pre-travel settling after each indexing (discover_synth's pretravel_warmup, 2 um decaying within every
+    set-up) moves the drift-check repeats: their plain scatter is 1.04 um against the true 0.3 um, which made every
+    materiality threshold ten times too lax in variance. After the time trend per set-up and mode the noise is
+    within 3 standard deviations of 0.3 um (56 degrees of freedom: 0.28 relative), and the plain figure stays in
+    the report."""
+    import discover_synth as S
+    from core.discover import discover
+
+    t, _ = S.campaign("pretravel_warmup", 100, 2e-6)
+    nz = discover(t).to_report()["noise_um"]
+    assert nz["method"] == "repeats" and abs(nz["sigma_um"] - 0.3) < 0.3 * 3 * np.sqrt(1 / (2 * 56)), nz["repeats"]
+    assert nz["repeats"]["dof"] >= 56 and nz["repeats"]["sigma_plain_um"] > 0.9
