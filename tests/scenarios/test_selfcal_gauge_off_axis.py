@@ -61,12 +61,10 @@ def case(request):
 def test_null_space_is_exact_and_complete_off_axis(case, heights):
     from scipy.linalg import null_space
 
-    from core.selfcal import Grid, build_design, c_axis_xy
+    from core.selfcal import Grid, build_design
 
-    c_point, t, *_ = case
-    grid = Grid.from_extent(t.pn_R, 0.044)
-    des = build_design(t, grid, heights=heights)
-    np.testing.assert_allclose(c_axis_xy(t, des.c_rad), c_point[:2], atol=1e-12)  # the axis read from the touches
+    _, t, *_ = case
+    des = build_design(t, Grid.from_extent(t.pn_R, 0.044), heights=heights)
     A = des.A.toarray()
     assert np.max(np.abs(A @ des.N)) < 1e-14
     sc = np.linalg.norm(A, axis=0)
@@ -74,6 +72,27 @@ def test_null_space_is_exact_and_complete_off_axis(case, heights):
     assert null_space(A / sc).shape[1] == des.N.shape[1]       # no null direction missed, none extra
     assert np.linalg.matrix_rank(des.N) == des.N.shape[1]
     assert np.linalg.matrix_rank(des.C @ des.N) == des.N.shape[1]  # the gauge fixes every one
+
+
+def test_c_axis_read_from_the_touches(case):
+    """The axis's position from the nominal positions alone (to rounding: 1e-12 m against 0.1 m positions)."""
+    from core.selfcal import c_axis_xy
+
+    c_point, t, *_ = case
+    c_rad = np.array([t.rot_rad[t.setup == j, 2][0] for j in range(len(t.setup_ids))])
+    np.testing.assert_allclose(c_axis_xy(t, c_rad), c_point[:2], rtol=0, atol=1e-12)
+    one = t.setup == 0  # one angle: nothing places the axis
+    assert c_axis_xy(_subset(t, one), c_rad[:1]) == (0.0, 0.0)
+
+
+def _subset(t, keep):
+    import dataclasses
+
+    fields = {f.name: getattr(t, f.name) for f in dataclasses.fields(t)}
+    out = {k: (v[keep] if isinstance(v, np.ndarray) and v.shape[:1] == keep.shape else v) for k, v in fields.items()}
+    out["temps_C"] = {k: v[keep] for k, v in t.temps_C.items()}
+    out["setup_ids"] = t.setup_ids[:1]
+    return type(t)(**out)
 
 
 def test_noise_free_identification_is_the_truth_in_the_gauge_off_axis(case):
