@@ -12,10 +12,11 @@ leaves a few 1e-16; main's 0.04 is 13 orders above). Closed loop: the
 identification is first order, the simulator exact; the terms it leaves out
 are of order e^2 / L (errors of ~10 um and 20 urad over the pocket's 0.1 m
 lever: ~1 nm), so 0.01 um on lengths and G, 0.05 urad on EC0Y and ECC (0.01
-um over the 0.2 m between the grid's end nodes). ECY is not compared: its
-end nodes are seen by few touches (0.18 urad off at C = (22, 0) mm, on main as
-on the branch). Main's gauge with C at (22, 0) mm puts EXC,total 2.05 um
-and EYC,total 1.06 um away and |A N| at 0.041.
+um over the 0.2 m between the grid's end nodes; measured <= 0.004 um, 0.007
+urad). ECY is not compared: its end nodes are seen by few touches (0.10 urad
+off at (22, 0) mm, 0.04 at (-35, 15) mm, main and branch alike). Main's gauge
+puts EXC,total 2.05 um and EYC,total 1.06 um away at (22, 0) mm (3.45, 2.28
+at (-35, 15) mm) and leaves |A N| at 0.041 (0.073).
 """
 
 from __future__ import annotations
