@@ -601,7 +601,7 @@ class CpEstimate:
     compared (Mallows 1973).
     """
 
-    def __init__(self, A: np.ndarray, groups: np.ndarray, seen: float = 0.5, seen_extension: float | None = None):
+    def __init__(self, A: np.ndarray, groups: np.ndarray, seen: float, seen_extension: float | None = None):
         """``groups``, ``seen`` and ``seen_extension`` are :class:`Folds`' (no folds here: unused)."""
         self.n = len(A)
         self.Q = orth(A)
