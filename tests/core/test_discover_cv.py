@@ -253,24 +253,26 @@ def _reference_folds(A, groups, Y, E=None, seen=np.sqrt(0.5), seen_extension=0.1
 def _design_with_every_kind_of_direction():
     """Four set-ups of 40 rows: shared columns, one column beside another (weakly seen away from set-up 1),
     a column set-up 2 alone sees (its own), an extension column in the band (1e-10 <= lambda < 0.01 for set-up
-    1), a per-set-up extension column (unseen by set-up 3's training rows) and an ordinary one."""
+    1), a per-set-up extension column (unseen by set-up 3's training rows), one barely seen beyond set-up 0
+    (lambda about 0.03 there) and an ordinary one."""
     rng = np.random.default_rng(1)
     n, p = 160, 10
     groups = np.repeat(np.arange(4), 40)
     A = rng.normal(size=(n, p))
     A[:, 8] = A[:, 0] + np.where(groups == 1, 1.0, 0.05) * rng.normal(size=n)
     A[:, 9] = (groups == 2) * rng.normal(size=n)
-    A[:, 7] = A[:, 1] + np.where(groups == 3, 1.0, 0.3) * rng.normal(size=n)
+    A[:, 7] = A[:, 1] + np.where(groups == 3, 1.0, 0.5) * rng.normal(size=n)
     E = np.column_stack([np.where(groups == 1, 1.0, 0.02) * rng.normal(size=n),
-                         (groups == 3) * rng.normal(size=n), np.sin(np.arange(n) / 7.0)])
-    Y = A @ rng.normal(size=(p, 3)) + E @ rng.normal(size=(3, 3)) + 0.3 * rng.normal(size=(n, 3))
+                         (groups == 3) * rng.normal(size=n), np.sin(np.arange(n) / 7.0),
+                         np.where(groups == 0, 1.0, 0.1) * rng.normal(size=n)])
+    Y = A @ rng.normal(size=(p, 3)) + E @ rng.normal(size=(4, 3)) + 0.3 * rng.normal(size=(n, 3))
     return A, groups, E, Y
 
 
 def test_folds_match_a_brute_force_reference():
     """Folds' held-out residuals, baseline alone and with an extension (band, per-set-up and ordinary columns),
     equal an explicit least-squares-then-leave-one-row-out reference to 1e-10 relative; the design is one where
-    another threshold (cv_seen 0.4 or 0.8) or no refit of the own directions moves them by percent, so the comparison
+    another threshold (cv_seen 0.6 or 0.8, cv_seen_extension 0.3) or no refit of the own directions moves them by percent, so the comparison
     would catch either change."""
     from core import discover as X
     from core.exceptions import ConfigError
@@ -279,16 +281,18 @@ def test_folds_match_a_brute_force_reference():
     st = X.Settings()
     folds = X.Folds(A, groups, st.cv_seen, st.cv_seen_extension)
     c2 = np.concatenate([f.c ** 2 for f in folds.items])
-    assert np.any((c2 > 0.16) & (c2 < 0.5)) and np.any((c2 > 0.5) & (c2 < 0.8 ** 2))  # 0.4 and 0.8 decide otherwise
+    assert np.any((c2 > 0.36) & (c2 < 0.5)) and np.any((c2 > 0.5) & (c2 < 0.64))  # 0.6 and 0.8 decide otherwise
     scale = np.max(np.abs(Y))
     for Ex in (None, E):
         got = folds.residuals(Y, Ex)
-        ref = _reference_folds(A, groups, Y, Ex, st.cv_seen, st.cv_seen_extension)
+        ref = _reference_folds(A, groups, Y, Ex, np.sqrt(0.5), 0.1)  # the rule as documented, not as configured
         assert np.max(np.abs(got - ref)) < 1e-10 * scale, np.max(np.abs(got - ref)) / scale
-        for other in (_reference_folds(A, groups, Y, Ex, 0.4, st.cv_seen_extension),
+        for other in (_reference_folds(A, groups, Y, Ex, 0.6, st.cv_seen_extension),
                       _reference_folds(A, groups, Y, Ex, 0.8, st.cv_seen_extension),
                       _reference_folds(A, groups, Y, Ex, st.cv_seen, st.cv_seen_extension, refit_own=False)):
             assert np.max(np.abs(got - other)) > 1e-2 * scale
+    other = _reference_folds(A, groups, Y, E, st.cv_seen, 0.3)
+    assert np.max(np.abs(folds.residuals(Y, E) - other)) > 1e-2 * scale
     with pytest.raises(ConfigError, match="training share"):
         X.Folds(A, groups, 1.0)
 
