@@ -315,8 +315,8 @@ def test_extension_band_between_unseen_and_seen_extension():
     y = A @ rng.normal(size=p) + Eg @ rng.normal(size=4) * 2 + 0.3 * rng.normal(size=n)
     folds = X.Folds(A, groups, np.sqrt(0.5), 0.1)
     cvb = folds.mse(y)
-    gain = {d: cvb - folds.mse(y, Eg + d * rng.normal(size=(n, 4))) for d in (0.0, 1e-4, 0.2)}
-    assert gain[0.0] > 3.0 and gain[1e-4] < 0.5 and gain[0.2] > gain[1e-4], gain
+    gain = {d: cvb - folds.mse(y, Eg + d * rng.normal(size=(n, 4))) for d in (0.0, 1e-4)}
+    assert gain[0.0] > 3.0 and gain[1e-4] < 0.5, gain
     # one per-set-up column on set-up 0: its fold sees it not at all (own) or through the leak (band: nothing)
     e0 = (groups == 0) * base
     te = groups == 0
