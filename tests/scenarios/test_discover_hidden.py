@@ -89,15 +89,40 @@ def _blind_case(gen, effect, seed):
 GENERATORS = ["hidden"] + [g for g in ("gen_a", "gen_b") if _blind(g) is not None]
 
 
+def _effect_free_once(hidden_campaign):
+    """``hidden_campaign`` simulating each effect-free campaign (seed, options) once.
+
+    Every hidden outcome of a seed compares its campaign with the effect-free
+    campaign of that seed (``hidden_effect_um``), so the study of one seed ran
+    the same deterministic simulation once per effect (12 times). The log is
+    read, never changed, by its users (``from_log``, ``discover``).
+    """
+    kept = {}
+
+    def once(causes=("none",), seed=0, **kw):
+        if tuple(causes) != ("none",):
+            return hidden_campaign(causes, seed, **kw)
+        key = (int(seed), tuple(sorted(kw.items())))
+        if key not in kept:
+            kept[key] = hidden_campaign(causes, seed, **kw)
+        return kept[key]
+
+    return once
+
+
 @pytest.fixture(scope="module")
 def studies():
+    import scenarios.hidden as H
+
     out = {}
-    for g in GENERATORS:
-        if g == "hidden":
-            out[g] = [hidden_outcome(e, s) for e in HIDDEN_CAUSES for s in SEEDS[g]]
-        else:
-            mod = _blind(g)
-            out[g] = [blind_outcome(mod, e, s, generator=g) for e in mod.effects() for s in SEEDS[g]]
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(H, "hidden_campaign", _effect_free_once(H.hidden_campaign))
+        for g in GENERATORS:
+            if g == "hidden":
+                out[g] = [hidden_outcome(e, s) for e in HIDDEN_CAUSES for s in SEEDS[g]]
+            else:
+                mod = _blind(g)
+                out[g] = [blind_outcome(mod, e, s, generator=g) for e in mod.effects() for s in SEEDS[g]]
     return out
 
 

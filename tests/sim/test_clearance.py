@@ -854,7 +854,9 @@ def test_an_artefact_without_solids_has_an_empty_pose_stack():
 def _skipped_colliding(items, passes=2):
     """(samples skipped, skipped samples MuJoCo finds colliding, near samples) of measurements
     ``items`` (T_W_A, T_R_W, blocks, J, plan, finger) checked by the one-pass broad phase
-    (sim.mfb_scene._near_samples) ``passes`` times (later passes from certificates), fresh caches."""
+    (sim.mfb_scene._near_samples) ``passes`` times (later passes from certificates), fresh caches. MuJoCo
+    is asked once per skipped sample: a later pass keeps an earlier pass's verdict (the same sample of the
+    same measurement), and checks every sample it newly skips."""
     from sim import mfb_scene
     from sim.mfb_scene import _near_samples, _paths_of, _work_zone, link_points
 
@@ -875,6 +877,7 @@ def _skipped_colliding(items, passes=2):
     live = list(range(len(ms)))
     sgs = _paths_of(paths, 3e-3, 0.5e-3)
     skipped, bad, n_near = 0, [], 0
+    asked = [set() for _ in ms]  # samples MuJoCo judged in an earlier pass: the same sample, the same answer
     for _ in range(passes):
         near = _near_samples(ms, zones, live, sgs)
         for i in live:
@@ -884,8 +887,10 @@ def _skipped_colliding(items, passes=2):
             n_near += near[i].size
             skip = np.setdiff1d(np.arange(sg.n_samples), near[i])
             skipped += skip.size
-            pts, which = sg.points(skip), sg.path[sg.segment_of(skip)]
-            bad += [(i, pts[k]) for k in range(skip.size) if wz.collisions(pts[k], allow[which[k]])]
+            new = np.array([s for s in skip.tolist() if s not in asked[i]], dtype=int)
+            pts, which = sg.points(new), sg.path[sg.segment_of(new)]
+            bad += [(i, pts[k]) for k in range(new.size) if wz.collisions(pts[k], allow[which[k]])]
+            asked[i].update(new.tolist())
     return skipped, bad, n_near
 
 
