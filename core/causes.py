@@ -44,6 +44,14 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   campaign (a drift, a part that changes): the engine tests whether a
   one-off event or the probe's size changing with time explains it as well
   (then the name is ``ambiguous``);
+- ``richer(baseline, Q, y, rows, columns, sigma, weak_sv) -> dict or None``:
+  a richer catalogue cause (``richer_cause``) that nests this one, and
+  whether the design tells them apart: its own F test beyond this
+  cause's columns (``p_value``) and the chance that the richer cause, at
+  the magnitudes fitted here, would look as little different as the data
+  do (``p_turned``); the engine names the cause ``ambiguous`` with the
+  richer one when that is significant or cannot be excluded
+  (:func:`turned_lobes`: fixed lobes against lobes turned per set-up);
 - ``counter(baseline) -> (n, m)``, ``counter_scan(baseline) -> (T, n, k)``:
   a plainer explanation the cause must beat (a finer error map for a
   coupling; the best of T trials of a one-off rigid step of the part,
@@ -120,6 +128,8 @@ class Cause:
     counter_scan: Callable | None = None
     counter_cause: str | None = None
     gradual: bool = False
+    richer: Callable | None = None
+    richer_cause: str | None = None
 
     @property
     def doc(self) -> str:
@@ -511,6 +521,112 @@ def common_lobing(bl) -> np.ndarray:
     """
     phi = bl.data.azimuth
     return np.column_stack([f(k * phi) for k in range(1, 5) for f in (np.cos, np.sin)])
+
+
+#: Monte Carlo draws of :func:`turned_lobes`' null (the fitted lobes turned at random in every set-up).
+TURN_DRAWS = 4000
+#: Harmonics of the approach azimuth that turn with the probe (the first is a translation, in each
+#: set-up's own offsets).
+TURN_HARMONICS = (2, 3, 4)
+
+
+def turned_lobes(bl, Q: np.ndarray, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigma: float,
+                 weak_sv: float, rng: np.random.Generator | None = None, draws: int = TURN_DRAWS) -> dict | None:
+    """Can this campaign tell a probe whose lobes stay fixed from one whose lobes turn in every set-up?
+
+    Physics: a touch-trigger probe's pre-travel is a pattern fixed in the
+    probe, ``p(phi) = sum_k a_k cos k phi + b_k sin k phi``. With the
+    spindle oriented (M19) before probing, the pattern keeps its
+    orientation in the machine frame in every set-up (``probe_lobing``);
+    with an unoriented spindle each set-up leaves the probe at another
+    angle ``psi_j`` (wherever the spindle stopped: uniform over the turn),
+    and set-up j reads ``p(phi - psi_j)``: harmonic k's vector turned by
+    ``k psi_j`` (``lobing_per_setup``). The turned lobes nest the fixed
+    ones; their common part is what the fixed model fits, and the rest
+    (each set-up's vector less the common one) is all that tells the two
+    apart. On a part whose touches approach from a few directions much of
+    that rest is absorbed by the baseline (the part's own form turns with
+    the table, a set-up's offsets and the probe's size take harmonics that
+    alias onto them): on the simulator's cross pocket, four wall directions
+    90 deg apart, a set-up sees one combination of ``cos 2 phi`` and
+    ``sin 2 phi``, and four set-ups leave one direction beyond the part's
+    form and the common lobes.
+
+    Two tests, on the model ``Q`` (orthonormal: the baseline and any other
+    named cause on ``rows``) with the fixed lobes' columns ``cols``:
+
+    1. the per-set-up phase model against the common one: the columns
+       ``cos k phi``, ``sin k phi`` per set-up (k = 2-4) beyond the model
+       with the fixed lobes, their determined directions only (singular
+       value of the normalised columns above ``weak_sv``), nested F test
+       (``p_value``, ``dof``, ``beyond_ss_um2``): significant, the lobes
+       turn;
+    2. could a turn have been seen? ``H_turned``: the fitted fixed lobes
+       (harmonics 2-4, determined directions) turned by an independent
+       uniform angle in every set-up, plus the noise ``sigma``; the
+       statistic is the sum of squares test 1 projects (what the
+       per-set-up columns explain beyond the fixed ones, each direction
+       weighted by ``lam / (sigma^2 + lam)``, ``lam`` the variance a turn
+       puts there: the most powerful test were the turn Gaussian);
+       ``p_turned`` =
+       P(statistic <= observed | H_turned), ``draws`` Monte Carlo draws,
+       (1 + count) / (draws + 1). Small: a turn would have shown and did
+       not, the probe is oriented. Not small: this design cannot tell the
+       two (the fitted common lobes are at most the turned lobes'
+       amplitude, so the null's signal is if anything too small and
+       ``p_turned`` too large: the test leans to "cannot tell").
+
+    Returns None with fewer than two set-ups (nothing turns).
+    """
+    from scipy import stats
+
+    from .diagnosis import new_basis, project_out
+
+    t = bl.data.touches
+    setup = np.asarray(t.setup)[rows]
+    su = np.unique(setup)
+    if su.size < 2:
+        return None
+    phi = np.asarray(bl.data.azimuth)[rows]
+    K = TURN_HARMONICS
+    U = np.column_stack([(setup == j) * f(k * phi) for j in su for k in K for f in (np.cos, np.sin)])
+    Qc = np.hstack([Q, new_basis(Q, cols, weak_sv)])
+    W = new_basis(Qc, U, weak_sv)
+    m = W.shape[1]
+    r = yr - Qc @ (Qc.T @ yr)
+    dof = len(yr) - Qc.shape[1]
+    out = {"setups": int(su.size), "dof": int(m)}
+    if m == 0 or dof - m < 1:
+        return {**out, "beyond_ss_um2": 0.0, "F": None, "p_value": 1.0, "p_turned": 1.0, "turned_ss_um2": 0.0}
+    ss = float(np.sum((W.T @ r) ** 2))
+    F = (ss / m) / max((float(r @ r) - ss) / (dof - m), 1e-300)
+    p = float(stats.f.sf(F, m, dof - m))
+    # the fixed lobes as fitted (min-norm over their determined directions)
+    P = project_out(Q, cols)
+    nrm = np.linalg.norm(P, axis=0)
+    nrm = np.where(nrm > 0, nrm, 1.0)
+    Uu, s, Vt = np.linalg.svd(P / nrm, full_matrices=False)
+    good = s > weak_sv
+    coef = (Vt[good].T @ ((Uu[:, good].T @ (yr - Q @ (Q.T @ yr))) / s[good])) / nrm
+    a = np.asarray(coef).reshape(-1, 2)[[k - 1 for k in K]]  # (len(K), 2): cos, sin of each turning harmonic
+    rng = np.random.default_rng(0) if rng is None else rng
+    psi = rng.uniform(0.0, 2 * np.pi, (draws, su.size))
+    ang = psi[:, :, None] * np.asarray(K, float)[None, None, :]  # (draws, S, K)
+    c, sn = np.cos(ang), np.sin(ang)
+    C = np.stack([a[:, 0] * c - a[:, 1] * sn, a[:, 0] * sn + a[:, 1] * c], axis=-1).reshape(draws, -1)
+    M = W.T @ U
+    T = C @ M.T  # (draws, m): the turned lobes' part beyond the model with the fixed ones
+    # the statistic weights each direction by what a turn puts there against the noise (the likelihood
+    # ratio of the two models with the turn taken as Gaussian: lam / (sigma^2 + lam) in the eigenbasis of
+    # the turn's covariance M diag(|a_k|^2 / 2) M^T); directions a turn barely reaches add only noise
+    D = np.tile(np.repeat(np.sum(a ** 2, axis=1) / 2, 2), su.size)
+    lam, V = np.linalg.eigh((M * D) @ M.T)
+    w = np.maximum(lam, 0.0) / (sigma ** 2 + np.maximum(lam, 0.0))
+    obs = float(w @ (V.T @ (W.T @ r)) ** 2)
+    sim = ((T + sigma * rng.standard_normal(T.shape)) @ V) ** 2 @ w
+    return {**out, "beyond_ss_um2": ss / UM ** 2, "F": float(F), "p_value": p,
+            "p_turned": float((1 + np.sum(sim <= obs)) / (draws + 1)),
+            "turned_ss_um2": float(np.median(np.sum(T ** 2, axis=1))) / UM ** 2}
 
 
 def _circle(P: np.ndarray):
@@ -1061,7 +1177,8 @@ REGISTRY = (
            "EYY_amplitude_um": (0, 50)}, periodic_rebuild, ("period_m",), check=periodic_check,
           counter_scan=fixture_slip),
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
-          {"pretravel_variation_pv_um": (0, 50)}, rival=lobing_rival, counter_scan=fixture_slip),
+          {"pretravel_variation_pv_um": (0, 50)}, rival=lobing_rival, counter_scan=fixture_slip,
+          richer=turned_lobes, richer_cause="lobing_per_setup"),
     Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
           {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter=common_lobing, counter_scan=fixture_slip,
           counter_cause="probe_lobing"),

@@ -14,7 +14,10 @@ What it does, in order, and the statistics behind each step
    are dust, up to :attr:`Settings.outlier_max_frac_dust` of the rows.
    One set-up's outliers count as one event (a chip stays on the part
    until it is set up again), unless one rigid step of the part within
-   that set-up explains them (a fixture slip: structure).
+   that set-up explains them (a fixture slip: structure). Where on the
+   part they fall is tested too (:class:`Places`: outliers that share a
+   feature or a target, set-up after set-up, more than chips at random
+   places would, are that feature's structure).
 2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
    error) after a time trend per set-up (:func:`drift_trend`: a drift
    between drift-check repeats is not noise), the lack-of-fit F test of the
@@ -105,7 +108,12 @@ What it does, in order, and the statistics behind each step
    :class:`core.causes.Undetermined`, is named ``ambiguous``, and its
    workpiece shift is tested and carried as an unnamed smooth's); a gradual cause (:attr:`core.causes.Cause.gradual`)
    is not matched by a one-off event or by the probe's size changing with
-   time (:func:`_time_alternatives`) (a rule
+   time (:func:`_time_alternatives`); a richer catalogue cause that nests
+   it (:attr:`core.causes.Cause.richer`: lobes turned per set-up for fixed
+   lobes) is neither significant beyond it by its own F test nor left
+   possible by the design (:func:`core.causes.turned_lobes`: fixed lobes
+   are confident only where a turn of the fitted lobes would have shown)
+   (a rule
    "every combination of its columns inflated at most vif_max" was
    measured and withdrawn: on fresh seeds it flagged 20-23 % more right
    names and no wrong one; docs/discovery.md). Outliers: at least
@@ -113,6 +121,11 @@ What it does, in order, and the statistics behind each step
    the overall :attr:`Settings.alpha` (one event cannot tell a chip from
    an intermittent mechanism). A name reported ``ambiguous`` is the best
    the catalogue offers, not a claim that the mechanism is known.
+9. **Order**: the findings best first, the first the report's cause
+   (:func:`_ordered`): the systematic ones by what they explain, the
+   outliers after them unless they are material and beside them is only
+   unnamed structure that explains less than they carry, with no noise
+   excess.
 
 Family-wise false-alarm rate: :attr:`Settings.alpha`, split equally over
 the four families of tests (lack of fit, CV gap, diagnosis, named causes).
@@ -757,7 +770,7 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
                   Q: np.ndarray | None = None, ranks: np.ndarray | None = None,
                   rng: np.random.Generator | None = None, max_frac_dust: float = 0.05,
                   alpha_concentration: float = 0.0025, events: np.ndarray | None = None,
-                  slips=None) -> list[int]:
+                  slips=None, places: Places | None = None) -> list[int]:
     """Indices (into y) of gross outliers: studentized deleted residuals, one at a time.
 
     Each pass removes the most extreme row if its studentized deleted
@@ -804,6 +817,15 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         outliers of one event are no dust when the best trial (least
         residual sum of squares, every row in the fit) leaves none of them
         beyond the bound: they were that step's touches.
+    places : Places, optional
+        Where on the part each row touches (feature, target) and what one
+        piece of dust corrupts at one place (:func:`places_of`): the
+        concentration test also asks whether the outliers, one per place
+        unit, share a feature or a target more than dust would
+        (:func:`concentration_p`), when they span two or more events (one
+        set-up's chips may gather where its swarf fell; a place that
+        collects outliers set-up after set-up, the part cleaned and set up
+        again in between, is no chip).
     """
     n = len(y)
     judged = ranks is not None and ranks.shape[1] > 0 and rng is not None
@@ -832,7 +854,9 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         keep[idx[k]] = False
     if judged:
         first = out if events is None else first_per_event(out, events)
-        if len(first) >= 2 and concentration_p(ranks, first, rng) < alpha_concentration:
+        # places only across events: one set-up's chips may gather where its swarf fell
+        at = None if places is None or len(first) < 2 else first_per_event(out, places.units)
+        if len(first) >= 2 and concentration_p(ranks, first, rng, places=places, place_idx=at) < alpha_concentration:
             return []
         if slips is not None and events is not None and _slip_explains(X, y, out, np.asarray(events), slips, alpha):
             return []
@@ -897,6 +921,50 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
     return False
 
 
+def _place_carries(Q: np.ndarray, r: np.ndarray, kept: np.ndarray, out, events: np.ndarray, places: Places,
+                   alpha: float, material_sigma: float) -> dict | None:
+    """The feature holding outliers of two or more events whose other touches carry structure, if any.
+
+    Dust corrupts the touches it sits under and nothing else: the rest of
+    the feature it fell on is as clean as any. A feature that changes (a
+    wall relaxing, a boss growing) moves all its touches, and the outliers
+    are only its largest residuals, set-up after set-up. So, per feature
+    holding outliers of at least two events (one set-up's chips cannot
+    tell), its other touches are tested with the outliers set aside: any
+    pattern of that feature set-up by set-up (``places.columns``) against
+    the model (``Q`` orthonormal on the rows ``kept``, ``r`` their
+    residuals), nested F test, Bonferroni over the features tested at
+    ``alpha``, and material (debiased, ``material_sigma`` noise sigmas per
+    touch of the feature). Under dust the outliers' places are independent
+    of the other touches' noise, so the test keeps its level whichever
+    feature they picked. Returns ``{feature, F, p_adjusted, k,
+    explained_ss_um2}`` of the first such feature, or None.
+    """
+    if places.feature is None or places.columns is None:
+        return None
+    out = np.asarray(out, int)
+    feats = places.feature
+    tested = []
+    for f in dict.fromkeys(feats[out].tolist()):
+        on = out[feats[out] == f]
+        if np.unique(events[on][events[on] >= 0]).size + int(np.sum(events[on] < 0)) >= 2:
+            tested.append(f)
+    dof = len(kept) - Q.shape[1]
+    for f in tested:
+        W = new_basis(Q, np.asarray(places.columns(f), float)[kept])
+        k = W.shape[1]
+        if k == 0 or dof - k < 3:
+            continue
+        ss = float(np.sum((W.T @ r) ** 2))
+        s2 = (float(r @ r) - ss) / (dof - k)
+        F = (ss / k) / max(s2, 1e-300)
+        p = float(stats.f.sf(F, k, dof - k)) * len(tested)
+        if p < alpha and ss - k * s2 >= material_sigma ** 2 * s2 * int(np.sum(feats[kept] == f)):
+            return {"feature": str(f), "F": F, "p_adjusted": min(p, 1.0), "k": int(k),
+                    "explained_ss_um2": (ss - k * s2) / UM ** 2}
+    return None
+
+
 #: Draws of the concentration test's null (its smallest p-value is 1 / (draws + 1)).
 CONCENTRATION_DRAWS = 20000
 
@@ -904,7 +972,8 @@ CONCENTRATION_DRAWS = 20000
 def covariate_ranks(covariates) -> np.ndarray:
     """(n, m) normalised ranks ``(rank - 1/2) / n`` (ties averaged) of the scalar covariates that vary.
 
-    Smooth covariates only: a category has no order, an angle no ends.
+    Smooth covariates only: a category has no order, an angle no ends
+    (categories are tested as places, :class:`Places`).
     """
     cols = []
     for c in covariates:
@@ -915,7 +984,75 @@ def covariate_ranks(covariates) -> np.ndarray:
     return np.column_stack(cols) if cols else np.zeros((0, 0))
 
 
-def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int = CONCENTRATION_DRAWS) -> float:
+@dataclass(frozen=True)
+class Places:
+    """Where on the part each row touches, for the concentration test's categories.
+
+    Attributes
+    ----------
+    codes : (n, c) int
+        Per row its category in each of ``names`` (the feature; the target,
+        the same place of the part in every set-up).
+    names : tuple of str
+    units : (n,) int
+        What one piece of dust corrupts at one place: the target within its
+        set-up (a chip corrupts the touches of the place it sits on, in that
+        set-up, and nothing else; two chips of one set-up sit at independent
+        places). Negative: a row of its own.
+    feature : (n,) object, optional
+        Each row's feature (the :func:`find_outliers` place check).
+    columns : callable(feature) -> (n, m), optional
+        Any pattern of that feature's touches set-up by set-up (each wall
+        of it in each set-up: :func:`core.causes.part_change_rival`), what
+        a feature that changes could do.
+    """
+
+    codes: np.ndarray = field(repr=False)
+    names: tuple
+    units: np.ndarray = field(repr=False)
+    feature: np.ndarray | None = field(default=None, repr=False)
+    columns: object = field(default=None, repr=False)
+
+
+def places_of(bl: Baseline) -> Places | None:
+    """The places of a planar campaign's rows (feature, target; units per target and set-up); None for others."""
+    if bl.kind != "planar":
+        return None
+    t = bl.data.touches
+    cols, names = [], []
+    for name, v in (("feature", np.asarray(t.feature, dtype=object)), ("target", np.asarray(t.target))):
+        codes = np.unique(v.astype(str), return_inverse=True)[1]
+        if codes.max(initial=0) >= 1:  # a category that varies
+            cols.append(codes)
+            names.append(name)
+    if not cols:
+        return None
+    units = np.asarray(t.setup, int) * (int(np.max(t.target)) + 1) + np.asarray(t.target, int)
+    feats = np.asarray(t.feature, dtype=object)
+    return Places(np.column_stack(cols), tuple(names), units, feats,
+                  lambda f: causes_mod.part_change_rival(bl, {"feature": f}))
+
+
+#: Elements of one block of :func:`_max_share`'s draws (memory stays at a few tens of MB whatever the count).
+SHARE_BLOCK = 1 << 21
+
+
+def _max_share(codes: np.ndarray) -> np.ndarray:
+    """(d, k) category codes -> (d,) the largest number of each row's codes equal to one another (sorted runs)."""
+    codes = np.atleast_2d(codes)
+    d, k = codes.shape
+    out = np.empty(d, int)
+    step = max(1, SHARE_BLOCK // max(k, 1))
+    pos = np.arange(k)
+    for a in range(0, d, step):
+        S = np.sort(codes[a:a + step], axis=1)
+        start = np.where(np.concatenate([np.ones((len(S), 1), bool), S[:, 1:] != S[:, :-1]], axis=1), pos, 0)
+        out[a:a + step] = np.max(pos - np.maximum.accumulate(start, axis=1), axis=1) + 1
+    return out
+
+
+def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int = CONCENTRATION_DRAWS,
+                    places: Places | None = None, place_idx=None) -> float:
     """Bonferroni-adjusted p-value that the rows ``idx`` fall at random over every covariate.
 
     Two statistics per covariate: the shift ``|mean rank of the rows -
@@ -926,18 +1063,41 @@ def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int
     (with replacement: a slightly wider null than without, so the test is
     conservative), ``draws`` Monte Carlo draws, p = (1 + exceedances) /
     (draws + 1); the smallest over the ``2 m`` statistics times ``2 m``.
+
+    With ``places``, one statistic per category as well (the feature, the
+    target: :class:`Places`): the largest number of the rows ``place_idx``
+    (one per dust unit) that share one category. Dust falls at random
+    places; a feature that changes, a wall that relaxes, leaves its largest
+    residuals on that feature, set-up after set-up. Null: as many units
+    drawn at random (with replacement) from all the campaign's units;
+    the Bonferroni factor counts these statistics too.
     """
     idx = np.asarray(idx, int)
-    n, m = ranks.shape
-    if m == 0 or idx.size < 2:
+    n, m = ranks.shape if ranks.ndim == 2 else (0, 0)
+    ps = []
+    if m and idx.size >= 2:
+        mu = ranks.mean(axis=0)
+        R = ranks[idx]
+        shift, spread = np.abs(R.mean(axis=0) - mu), np.ptp(R, axis=0)
+        Rn = ranks[rng.integers(0, n, (draws, idx.size))]  # (draws, k, m)
+        ps.append((1 + np.sum(np.abs(Rn.mean(axis=1) - mu) >= shift - 1e-12, axis=0)) / (draws + 1))
+        ps.append((1 + np.sum(np.ptp(Rn, axis=1) <= spread + 1e-12, axis=0)) / (draws + 1))
+    n_stats = 2 * m if ps else 0
+    if places is not None and place_idx is not None and len(place_idx) >= 2:
+        pi = np.asarray(place_idx, int)
+        u = np.where(places.units >= 0, places.units, -1 - np.arange(len(places.units)))
+        reps = np.unique(u, return_index=True)[1]  # one row per unit: the null's draws
+        obs = [_max_share(places.codes[pi, c][None])[0] for c in range(places.codes.shape[1])]
+        exceed = np.zeros(len(obs))
+        step = max(1, SHARE_BLOCK // pi.size)  # (one block of draws for any campaign's outliers but a huge one)
+        for a in range(0, draws, step):
+            pick = reps[rng.integers(0, reps.size, (min(step, draws - a), pi.size))]
+            exceed += [np.sum(_max_share(places.codes[pick, c]) >= o) for c, o in enumerate(obs)]
+        ps.append((1 + exceed) / (draws + 1))
+        n_stats += places.codes.shape[1]
+    if not ps:
         return 1.0
-    mu = ranks.mean(axis=0)
-    R = ranks[idx]
-    shift, spread = np.abs(R.mean(axis=0) - mu), np.ptp(R, axis=0)
-    Rn = ranks[rng.integers(0, n, (draws, idx.size))]  # (draws, k, m)
-    p_shift = (1 + np.sum(np.abs(Rn.mean(axis=1) - mu) >= shift - 1e-12, axis=0)) / (draws + 1)
-    p_spread = (1 + np.sum(np.ptp(Rn, axis=1) <= spread + 1e-12, axis=0)) / (draws + 1)
-    return float(min(1.0, min(p_shift.min(), p_spread.min()) * 2 * m))
+    return float(min(1.0, min(float(np.min(p)) for p in ps) * n_stats))
 
 
 # ---------------------------------------------------------------------------
@@ -1114,6 +1274,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
 
     ranks = covariate_ranks(bl.covariates)
+    places = places_of(bl)
     if settings.outlier_events not in ("target", "setup", "setup_slip"):
         raise ConfigError("Settings.outlier_events must be 'target', 'setup' or 'setup_slip', not "
                           f"{settings.outlier_events!r}")
@@ -1137,7 +1298,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         # answer does not depend on how many other tests drew before it
         return find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac, Q, ranks=ranks,
                              rng=np.random.default_rng(outlier_seed), max_frac_dust=settings.outlier_max_frac_dust,
-                             alpha_concentration=settings.alpha_family, events=events, slips=slips)
+                             alpha_concentration=settings.alpha_family, events=events, slips=slips,
+                             places=places)
 
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     gap_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # the held-out gap's bootstrap draws
@@ -1338,12 +1500,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     cv_e = folds.mse(y[rows], E_all, _penalty(terms)) if terms else cv_b
     outliers = np.setdiff1d(all_rows, rows)
     if outliers.size:
-        findings.append(_outlier_finding(bl, outliers, st0, st, ranks, events, outlier_seed, settings.alpha))
+        findings.append(_outlier_finding(bl, outliers, st0, st, ranks, events, outlier_seed, settings, places))
     if not findings and structure_b["present"]:
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
-    # best first: the systematic findings by what they explain; removed
-    # touches (outliers) after them, as data set aside rather than a cause
-    findings.sort(key=lambda f: (f.cause == causes_mod.OUTLIER, -f.evidence.get("explained_ss_um2", 0.0)))
+    findings = _ordered(findings, (settings.material_sigma * sig) ** 2 * len(rows) / UM ** 2)
     tick()
     wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family)
     res_e = np.full(N, np.nan)
@@ -2264,6 +2424,20 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             ev["ambiguous_with"] = [a["cause"] for a in calt]
             why.append(f"the columns of {', '.join(a['cause'] for a in calt)} reproduce its signal on this design "
                        "and explain as much: one explanation under two names here")
+        if cause.richer is not None:
+            # a richer cause nesting this one (lobes turned per set-up for fixed lobes): seen, or not excludable
+            rich = cause.richer(bl, so.Q, y[rows], rows, tm.columns[rows], sig, WEAK_SV)
+            if rich is not None:
+                ev["richer"] = {"cause": cause.richer_cause, **rich}
+                seen_r = rich["p_value"] < settings.alpha_family
+                if seen_r or rich["p_turned"] >= settings.alpha:
+                    why.append(f"{cause.richer_cause} explains {rich['beyond_ss_um2']:.3g} um^2 beyond it "
+                               f"({fmt_p(rich['p_value'])}, {rich['dof']} directions): the data show it, if not "
+                               "materially" if seen_r else
+                               f"{cause.richer_cause} at the magnitudes fitted here would look as little different "
+                               f"in a share {rich['p_turned']:.2g} of draws ({rich['dof']} directions tell them apart on "
+                               "this design): the data cannot exclude it")
+                    ev["ambiguous_with"] = list(ev.get("ambiguous_with", [])) + [cause.richer_cause]
         if cause.gradual:
             talt = _time_alternatives(bl, tm, so, sig, settings)
             if talt:
@@ -2330,7 +2504,40 @@ def _clean(d):
     return d
 
 
-def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha) -> Finding:
+def _ordered(findings: list, material_ss_um2: float = 0.0) -> list:
+    """The findings best first; the first is the report's cause.
+
+    The systematic findings by the sum of squares they explain. The
+    outliers (touches set aside, with the sum of squares of their baseline
+    residuals) after them, as data set aside rather than a cause, unless
+    they are the campaign's story: they carry a material sum of squares
+    (``material_ss_um2``: the materiality over the campaign's rows), beside
+    them only structure left unnamed (``unexplained``), which explains less
+    than they carry (a held-out gap, 0.1 um following one covariate, beside
+    75 um^2 of chips), and what
+    remains after them within a probe's noise (an ``unexplained`` noise
+    excess says the scatter left is itself no probe's: the outliers are not
+    the whole story). A named cause, flagged or not, keeps the lead:
+    outliers beside it may be its own largest residuals (a local scale
+    defect's, whose bump the cause's form follows only in part).
+    """
+    def ss(f):
+        return f.evidence.get("explained_ss_um2") or 0.0
+
+    out = sorted(findings, key=lambda f: (f.cause == causes_mod.OUTLIER, -ss(f)))
+    dust = [f for f in out if f.cause == causes_mod.OUTLIER]
+    rest = [f for f in out if f.cause != causes_mod.OUTLIER]
+    if dust and rest and all(f.cause == causes_mod.UNEXPLAINED and not f.evidence.get("noise_excess")
+                             for f in rest):
+        d = dust[0]
+        if ss(d) > max(sum(max(ss(f), 0.0) for f in rest), material_ss_um2):
+            d.evidence["leads"] = ("the outliers carry more sum of squares than the structure left unnamed "
+                                   f"({ss(d):.3g} against {sum(max(ss(f), 0.0) for f in rest):.3g} um^2)")
+            out = [d] + rest
+    return out
+
+
+def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, places=None) -> Finding:
     """The outliers as a finding, with how confidently they are dust.
 
     Calling touches outliers says they are dust: a chip or a bad trigger,
@@ -2340,10 +2547,14 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha) -> Findi
     the two apart. So the finding is ``named`` (confident) only when that
     test could have seen a pattern and saw none: at least two independent
     events (one touch, or one set-up's touches, cannot show a pattern), and
-    the concentration p-value (:func:`concentration_p`) at least the
-    engine's overall false-alarm rate ``alpha``, not only the family level
-    that decides the removal. Otherwise ``ambiguous``, with the reason.
+    the concentration p-value (:func:`concentration_p`, over the covariates
+    and the places ``places``) at least the engine's overall false-alarm
+    rate ``alpha``, not only the family level that decides the removal;
+    and the feature they sit on carries no structure in its other touches
+    (:func:`_place_carries`: then they may be that structure's largest
+    residuals). Otherwise ``ambiguous``, with the reason.
     """
+    alpha = settings.alpha
     r0 = st0.r[outliers]
     ss = float(np.sum(r0 ** 2))
     first = first_per_event(outliers, events)
@@ -2351,13 +2562,25 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, alpha) -> Findi
         p_conc, why = None, ("one event (a touch, or one set-up's touches) cannot show whether it is dust or an "
                              "intermittent mechanism" if len(first) < 2 else "no covariate to test the pattern in")
     else:
-        p_conc = concentration_p(ranks, first, np.random.default_rng(seed))
+        at = None if places is None else first_per_event(list(outliers), places.units)
+        p_conc = concentration_p(ranks, first, np.random.default_rng(seed), places=places, place_idx=at)
         why = (None if p_conc >= alpha else
-               f"the outliers gather in a covariate (concentration {fmt_p(p_conc)}, below the overall "
+               f"the outliers gather in a covariate or on one place of the part (concentration {fmt_p(p_conc)}, "
+               f"below the overall "
                f"false-alarm rate {alpha:g}): they may be an intermittent mechanism, not dust")
+    place = None
+    if places is not None and len(first) >= 2:
+        place = _place_carries(st.Q, st.r, st.rows, outliers, np.asarray(events), places, settings.alpha_family,
+                               settings.material_sigma)
+        if place is not None:
+            why = "; ".join(w for w in (why, (
+                f"the feature {place['feature']} they sit on carries structure in its other touches "
+                f"({place['explained_ss_um2']:.3g} um^2, {fmt_p(place['p_adjusted'])}): they may be its largest "
+                "residuals, not dust")) if w)
     return Finding(causes_mod.OUTLIER, {
         "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) / UM for v in r0],
         "explained_ss_um2": ss / UM ** 2, "events": len(first), "concentration_p": p_conc,
+        **({"place_structure": _clean(place)} if place is not None else {}),
         "confidence": "ambiguous" if why else "named", **({"confidence_reason": why} if why else {}),
         "test": "studentized deleted residual beyond the Bonferroni t bound"},
         {"n_outliers": int(len(outliers)), "max_deviation_um": float(np.max(np.abs(r0))) / UM},

@@ -1280,13 +1280,15 @@ def case1_comparison(seed: int = 1, run: dict | None = None) -> dict:
 def c_axis_comparison(res, machine, z_m: float) -> dict:
     """Fig. 13's circle centre against the truth, um (:func:`scenarios.reports.c_axis_centre_um`).
 
-    ``c_line_um`` is the identified C line seen from the tool at the grid
-    origin (minus the centre), ``true_c_line_um`` the same from the
-    simulator (:func:`scenarios.reports.true_c_centre_um`), ``true_EX0C_EY0C_um``
-    the injected line position and ``true_linear_at_origin_um`` the linear
-    axes' error at the grid origin that the gauge adds to it.
+    ``c_line_um`` is the identified C line (minus the centre,
+    :func:`viz.figures.line_from_centre`), ``true_c_line_um`` the same from
+    the simulator's trajectory in the identification's gauge
+    (:func:`scenarios.reports.true_c_centre_um`: the linear axes' error, the
+    C line and its radial motion, mixed as eqs 16-17 mix them) and
+    ``true_EX0C_EY0C_um`` the injected line position alone, for reference.
     """
     from scenarios.reports import c_axis_centre_um, true_c_centre_um
+    from viz.figures import line_from_centre
 
     c = c_axis_centre_um(res)
     tc = true_c_centre_um(machine, res, z_m)
@@ -1296,8 +1298,8 @@ def c_axis_comparison(res, machine, z_m: float) -> dict:
     def r(v):
         return None if v is None else [round(float(x) + 0.0, 3) for x in v]
 
-    return {"centre_um": r(c), "c_line_um": r(None if c is None else -c), "true_c_line_um": r(-tc),
-            "true_EX0C_EY0C_um": r(loc), "true_linear_at_origin_um": r(tc + loc)}
+    return {"centre_um": r(c), "c_line_um": r(None if c is None else line_from_centre(c)),
+            "true_c_line_um": r(None if tc is None else line_from_centre(tc)), "true_EX0C_EY0C_um": r(loc)}
 
 
 def _pair(v) -> str:
@@ -1317,11 +1319,11 @@ def _case1_table(c: dict, seed: int):
                    wo["map_error_kgm_max_um"], "matches the 2D scale well"],
                   ["map error at Y = +-110 mm (Fig. 12)", w["map_error_edge_max_um"], wo["map_error_edge_max_um"],
                    "clearly larger; larger without spheres"],
-                  ["C line from the tool at x = y = 0 (Fig. 13: minus the circle's centre)",
+                  ["C line in the gauge of eqs 16-17 (Fig. 13: minus the circle's centre)",
                    _pair(c["c_axis"]["c_line_um"]), "", "(15, 6) read as the table's (+)"],
-                  ["  the truth: injected (EX0C, EY0C) minus the linear axes' error at the origin",
-                   f"{_pair(c['c_axis']['true_c_line_um'])} = {_pair(c['c_axis']['true_EX0C_EY0C_um'])} - "
-                   f"{_pair(c['c_axis']['true_linear_at_origin_um'])}", "", ""]],
+                  ["  the truth in that gauge (injected EX0C, EY0C alone)",
+                   f"{_pair(c['c_axis']['true_c_line_um'])} ({_pair(c['c_axis']['true_EX0C_EY0C_um'])})", "",
+                   ""]],
                  caption=f"Case 1 against the simulator's truth (seed {seed}; forms: shift, rotation, scale removed)")
 
 

@@ -180,13 +180,13 @@ def c_axis_centre_um(res) -> np.ndarray | None:
     line is at ``(EX0C, EY0C)`` moves the tool relative to the part by
     ``(R(-C) - I) (EX0C, EY0C)``: a circle centred on ``-(EX0C, EY0C)``
     (the paper's Fig. 13 reads ``+`` because its eq 13 is the table's own
-    motion). In the identification's gauge (eq 16: the X/Y tables zero at the
-    grid origin, the C terms zero at the reference set-up) the constant part
-    of the trajectory also holds the linear axes' error at the grid origin, so
-    the centre is ``E(x_o, y_o) - (EX0C, EY0C)``: minus the C line as seen
-    from the tool at the origin (:func:`c_line_um`), which self-calibration
-    cannot split (a gauge direction). A once-per-revolution radial motion of
-    C moves it too.
+    motion). In the identification's gauge (eqs 16-17: the X/Y tables zero
+    at the grid origin, the C terms zero at the reference set-up, scale and
+    squareness fixed at the grid's last nodes) the trajectory also holds the
+    linear axes' error and the radial motion of C at every angle, which
+    self-calibration cannot split off (:func:`true_c_centre_um` computes the
+    truth's centre the same way). With the C axis on the grid origin and no
+    radial motion the centre is ``E(x_o, y_o) - (EX0C, EY0C)``.
     """
     from core.exceptions import VmtError
     from core.fit import fit_circle_2d
@@ -200,26 +200,65 @@ def c_axis_centre_um(res) -> np.ndarray | None:
 
 
 def c_line_um(res) -> np.ndarray | None:
-    """(2,) the C axis line ``(EX0C, EY0C)`` seen from the tool at the grid origin, um: minus
-    :func:`c_axis_centre_um` (None when it is None)."""
+    """(2,) the C line ``(EX0C, EY0C)`` as the identification places it, um: minus :func:`c_axis_centre_um`
+    (:func:`viz.figures.line_from_centre`; None when the centre is None)."""
+    from viz.figures import line_from_centre
+
     c = c_axis_centre_um(res)
-    return None if c is None else -c + 0.0
+    return None if c is None else line_from_centre(c)
 
 
-def true_c_centre_um(machine, res, z_m: float) -> np.ndarray:
-    """(2,) the truth's :func:`c_axis_centre_um` in the identification's gauge, um.
+def true_c_terms_um(machine, des, z_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """((n_c,), (n_c,)) the simulator's EXC,total and EYC,total in the identification's gauge, um.
 
-    The exact simulator's tip deviation (the tool relative to the part) at the
-    grid origin ``(x_o, y_o)``, height ``z_m``, C = 0: the C line's ``-(EX0C,
-    EY0C)`` (the part rides on the line) plus every linear-axis error there,
-    the constant part eq 16 moves into the C terms. The C axis's radial
-    motion and tilt are not in it (a few tenths of a um on the realistic
-    machines).
+    The machine's exact values of the planar model's terms
+    (:func:`scenarios.selfcal_coverage.machine_truth`: the X/Y tables from the
+    tool side's tip deviation at height ``z_m``, the C terms from the table
+    side's displacement and rotation at x = y = 0 at each set-up, radial
+    motion included) moved into ``des``'s gauge (eqs 16-17,
+    :meth:`core.selfcal.SelfCalDesign.to_gauge`): the linear axes' error, the
+    C line and the radial motion at every angle, mixed as the identification
+    mixes them, whatever the grid origin or the C axis's position. The null
+    directions are ``des.A``'s own (SVD of the column-scaled matrix), not the
+    analytic ``des.N``: that basis assumes the C axis on x = y = 0 (with it
+    at (22, 0) mm its rotation and scale columns leave ``A N`` at 0.04).
     """
-    xo, yo = res.design.grid.origin_m
-    lin = np.array([[xo, yo, float(z_m)]])
-    rot = np.zeros((1, len(machine.rotary_axes)))
-    return (machine.tip_W(lin, rot) - machine.tip_W_nominal(lin, rot))[0, :2] / UM
+    from scipy.linalg import null_space
+
+    from core.exceptions import ConfigError
+    from scenarios.selfcal_coverage import machine_truth
+
+    raw = machine_truth(machine, des, float(z_m))[0]
+    A = des.A.toarray() if hasattr(des.A, "toarray") else np.asarray(des.A, float)
+    sc = np.linalg.norm(A, axis=0)
+    sc[sc == 0] = 1.0
+    N = null_space(A / sc) / sc[:, None]
+    if N.shape[1] != des.N.shape[1]:
+        raise ConfigError(f"truth in the gauge: the design has {N.shape[1]} null directions, its gauge fixes "
+                          f"{des.N.shape[1]}")
+    th = raw + N @ np.linalg.solve(des.C @ N, des.d - des.C @ raw)
+    s = des.slices
+    return th[s["EXC"]] / UM, th[s["EYC"]] / UM
+
+
+def true_c_centre_um(machine, res, z_m: float) -> np.ndarray | None:
+    """(2,) the truth's :func:`c_axis_centre_um` in the identification's gauge, um (None as it is None).
+
+    The same circle fitted to the simulator's trajectory in that gauge
+    (:func:`true_c_terms_um`). On a C axis without radial motion and on the
+    grid origin it is ``E(x_o, y_o) - (EX0C, EY0C)``; the radial motion at
+    every angle moves it, and so, off the origin, do the gauge's rotation and
+    scale (fixed at the grid's last nodes).
+    """
+    from core.exceptions import VmtError
+    from core.fit import fit_circle_2d
+
+    if len(res.design.c_rad) < 3:
+        return None
+    try:
+        return fit_circle_2d(np.column_stack(true_c_terms_um(machine, res.design, z_m))).centre
+    except VmtError:  # a degenerate trajectory has no circle
+        return None
 
 
 def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, machine=None,
@@ -316,13 +355,14 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art) -> None:
 C_AXIS_TEXT = (
     "(EXC, EYC,total) at each C: the tool's displacement relative to the part due to the C axis (ISO 230-1; "
     "the paper's eq 13 has the table's, the opposite sign), 0 at the reference set-up. A table's C line at "
-    "(EX0C, EY0C) moves the tool relative to the part on a circle centred on -(EX0C, EY0C). The X/Y tables "
-    "are 0 at the grid origin (eq 16), so the linear axes' error there is in the centre too: the line is "
-    "placed as seen from the tool at x = y = 0, which self-calibration cannot tell apart.")
+    "(EX0C, EY0C) moves the tool relative to the part on a circle centred on -(EX0C, EY0C). In the gauge of "
+    "eqs 16-17 (X/Y tables 0 at the grid origin, scale and squareness fixed at the last nodes) the linear "
+    "axes' error and the C axis's radial motion are in the centre too, which self-calibration cannot tell "
+    "apart: the line is placed in that gauge.")
 #: Added when the truth is known (a simulation).
-C_AXIS_TRUTH_TEXT = (" The star is the simulator's truth in the same gauge: its tip deviation at the grid origin "
-                     "at C = 0 (the C line plus the linear axes' error there; the C axis's radial motion and "
-                     "tilt are not in it).")
+C_AXIS_TRUTH_TEXT = (" The star is the simulator's truth in the same gauge: the circle fitted to its own "
+                     "EXC, EYC,total (radial motion included) with the linear axes' error, moved into eqs "
+                     "16-17's gauge.")
 
 
 def _demo_sections(figures, v: _DemoView, t, res, ident: dict, g_true, art=None) -> list:

@@ -127,29 +127,45 @@ def _tool_tables(mt, des, z_m: float) -> tuple[np.ndarray, float]:
     return th, float(np.abs(M[:, used] @ sol - b).max())
 
 
+def machine_truth(machine, des, z_m: float) -> tuple[np.ndarray, float, np.ndarray]:
+    """The machine's part of :func:`block_truth`: (theta raw, split misfit m, table tilt (n_c, 2) rad).
+
+    theta holds the X/Y tables, EC0Y and the yaw (the tool side's exact tip
+    deviation at height ``z_m``, C = 0, split over the node pairs) and per
+    set-up EXC,total, EYC,total, ECC (the table side's exact displacement and
+    rotation at the machine's x = y = 0, height ``z_m``: where eq 13's terms
+    act); the workpiece and height terms are 0. ``tilt`` is each set-up's
+    table rotation about Y and about X.
+    """
+    mt, mw = _split(machine)
+    th, misfit = _tool_tables(mt, des, z_m)
+    s = des.slices
+    ic = machine.rotary_axes.index("C")
+    tilt = np.zeros((len(des.c_rad), 2))
+    for j, cj in enumerate(des.c_rad):
+        rv = np.zeros((1, len(machine.rotary_axes)))
+        rv[0, ic] = cj
+        Ta, Tn = mw.T_R_W(np.zeros((1, 3)), rv)[0], mw.T_R_W_nominal(rv)[0]
+        q = np.array([0.0, 0.0, z_m, 1.0])
+        d = Ta @ np.linalg.solve(Tn, q) - q
+        Rr = Ta[:3, :3] @ Tn[:3, :3].T
+        # ISO 230-1 sign (core.selfcal): the tool relative to the part, the opposite of the table's motion
+        th[s["EXC"].start + j], th[s["EYC"].start + j], th[s["ECC"].start + j] = -d[0], -d[1], -Rr[1, 0]
+        tilt[j] = (Rr[0, 2], Rr[2, 1])  # rotation about Y (EBC), about X (EAC)
+    return th, misfit, tilt
+
+
 def block_truth(c: Campaign, des) -> tuple[np.ndarray, float]:
     """(theta (n_params,), split misfit m): every parameter's truth from the simulator (module docstring), raw
     (not yet in the design's gauge: :meth:`core.selfcal.SelfCalDesign.to_gauge` does that)."""
     from core.selfcal import probing_levels
     from scenarios.hidden import workpiece_truth
 
-    mt, mw = _split(c.machine)
+    mt, _ = _split(c.machine)
     t = c.touches
     _, z_ref = probing_levels(t.pn_R[:, 2])
-    th, misfit = _tool_tables(mt, des, z_ref)
+    th, misfit, tilt = machine_truth(c.machine, des, z_ref)
     s = des.slices
-    ic = c.machine.rotary_axes.index("C")
-    tilt = np.zeros((len(des.c_rad), 2))
-    for j, cj in enumerate(des.c_rad):
-        rv = np.zeros((1, len(c.machine.rotary_axes)))
-        rv[0, ic] = cj
-        Ta, Tn = mw.T_R_W(np.zeros((1, 3)), rv)[0], mw.T_R_W_nominal(rv)[0]
-        q = np.array([0.0, 0.0, z_ref, 1.0])
-        d = Ta @ np.linalg.solve(Tn, q) - q
-        Rr = Ta[:3, :3] @ Tn[:3, :3].T
-        # ISO 230-1 sign (core.selfcal): the tool relative to the part, the opposite of the table's motion
-        th[s["EXC"].start + j], th[s["EYC"].start + j], th[s["ECC"].start + j] = -d[0], -d[1], -Rr[1, 0]
-        tilt[j] = (Rr[0, 2], Rr[2, 1])  # rotation about Y (EBC), about X (EAC)
     g = workpiece_truth(c.art, c.plan)
     th[s["G"]] = [g[k] for k in des.target_ids]
     ht = des.heights

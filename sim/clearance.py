@@ -593,8 +593,12 @@ class _Certificates:
             f = np.asarray(allow, np.int64)
         else:
             f = np.fromiter((self._ids.setdefault(x, len(self._ids)) for x in allow), np.int64, len(allow))
-        k = np.round(np.column_stack([a, b, f]) * _CELLS).astype(np.int64).view(np.uint64)
-        h = k @ _HASH[2:]  # the cells and the feature weighted by random odd numbers (wraps modulo 2^64)
+        # the cells and the feature weighted by random odd numbers (wraps modulo 2^64), a column
+        # at a time: the same sum modulo 2^64 as the row-by-weights product, which numpy does
+        # more slowly for integers (the 5-axis plan's check hashes 18,652 rows: 1.0 -> 0.84 ms)
+        h = np.round(a[:, 0] * _CELLS[0]).astype(np.int64).view(np.uint64) * _HASH[2]
+        for j, x in enumerate((a[:, 1], a[:, 2], b[:, 0], b[:, 1], b[:, 2], f), start=1):
+            h += np.round(x * _CELLS[j]).astype(np.int64).view(np.uint64) * _HASH[2 + j]
         h = (h ^ (h >> _S30)) * _HASH[0]  # then splitmix64's finalizer
         h = (h ^ (h >> _S27)) * _HASH[1]
         return h ^ (h >> _S31), f

@@ -76,6 +76,7 @@ file, the key and what is wrong.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -222,18 +223,23 @@ def errors_label(name_or_path: str, spec: MachineSpec) -> str:
     """How a command names the truth errors of ``--machine name_or_path`` (:func:`truth_machine`'s ``spec``).
 
     A built-in machine's error set (``realistic``, ...), or for a machine
-    file what errors its machine has: ``machine file FILE: EXX, ECC set on
-    base none`` (the ``[error.*]`` tables on the base set, seed when drawn),
-    ``machine file FILE: base realistic, seed 3`` without tables. Logs carry
-    it as free text (metadata ``errors``); nothing parses it, so logs written
-    with the earlier ``machine file (SET)`` read as before.
+    file what errors its machine has: ``machine file m.toml (sha256
+    1a2b3c4d5e6f): EXX, ECC set on base none`` (the ``[error.*]`` tables on
+    the base set, seed when drawn), ``machine file m.toml (sha256 ...): base
+    realistic, seed 3`` without tables. The file's name only (a log should
+    not carry the writer's directories) and the first 12 hex digits of the
+    SHA-256 of its bytes, so which file made the log is still exact. Logs
+    carry it as free text (metadata ``errors``); nothing parses it, so logs
+    written with earlier labels read as before.
     """
     if name_or_path in builtin_names():
         return spec.errors
+    p = Path(name_or_path)
+    file = f"machine file {p.name} (sha256 {hashlib.sha256(p.read_bytes()).hexdigest()[:12]})"
     base = f"base {spec.errors}" + (f", seed {spec.seed}" if spec.seed is not None else "")
     if spec.overrides:
-        return f"machine file {name_or_path}: {', '.join(spec.overrides)} set on {base}"
-    return f"machine file {name_or_path}: {base}"
+        return f"{file}: {', '.join(spec.overrides)} set on {base}"
+    return f"{file}: {base}"
 
 
 def strip_ripple(f):

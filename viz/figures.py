@@ -313,15 +313,28 @@ def workpiece_uncertainty_figure(points_mm, u95_um, *, g_um=None, normals=None,
     return fig
 
 
+def line_from_centre(centre_um) -> np.ndarray:
+    """(2,) a table-side rotary axis's line ``(EX0C, EY0C)`` from its fitted trajectory's centre, µm.
+
+    The trajectory is the tool relative to the part (ISO 230-1): a line at
+    ``c`` moves it on ``(R(-C) - I) c``, a circle centred on ``-c``. The one
+    place this sign is written (``+ 0.0``: no ``-0.0`` in labels and JSON).
+    """
+    return -np.asarray(centre_um, float) + 0.0
+
+
 def centre_label(cx: float, cy: float, axis: str = "C") -> str:
     """Legend of a rotary axis's fitted centre ``(cx, cy)`` µm: the centre and the axis line it places.
 
     The trajectory is the tool relative to the part, so the line sits at minus
-    the centre, seen from the tool at the grid origin (eq 16's gauge).
+    the centre (:func:`line_from_centre`), in the identification's gauge
+    (eqs 16-17): with the linear axes' error folded in, seen from the tool at
+    the grid origin when the axis is on it (elsewhere the gauge's rotation
+    and scale, fixed at the grid's last nodes, mix in too).
     """
     a = axis.upper()
-    return (f"centre ({cx:.1f}, {cy:.1f}) µm:\n(EX0{a}, EY0{a}) = ({-cx + 0.0:.1f}, {-cy + 0.0:.1f}) µm "
-            "\nfrom the tool at x = y = 0")
+    lx, ly = line_from_centre((cx, cy))
+    return f"centre ({cx:.1f}, {cy:.1f}) µm:\n(EX0{a}, EY0{a}) = ({lx:.1f}, {ly:.1f}) µm\nin the gauge of eqs 16-17"
 
 
 def rotary_centre_figure(c_deg, exc_um, eyc_um, *, centre_um=None, true_centre_um=None,
@@ -338,10 +351,10 @@ def rotary_centre_figure(c_deg, exc_um, eyc_um, *, centre_um=None, true_centre_u
     centre_um : (2,) float, optional
         Centre of the circle fitted to the trajectory, µm. The values are the
         tool relative to the part (ISO 230-1), so a table's axis line at
-        ``(EX0C, EY0C)`` puts the centre at ``-(EX0C, EY0C)``; in the
-        identification's gauge (eq 16: the X/Y tables zero at the grid
-        origin) it is the line seen from the tool at that origin
-        (:func:`scenarios.reports.c_line_um`). The label gives both.
+        ``(EX0C, EY0C)`` puts the centre at ``-(EX0C, EY0C)``, in the
+        identification's gauge (eqs 16-17: the linear axes' error at the
+        grid origin and the radial motion mix in;
+        :func:`scenarios.reports.c_line_um`). The label gives both.
     true_centre_um : (2,) float, optional
         The truth's centre in the same gauge (a simulation), drawn beside it.
     u95_exc_um, u95_eyc_um : (n,) float, optional

@@ -24,8 +24,9 @@ from core.units import DEG, UM, URAD
 TOL_UM = 0.01
 
 
-def _identify(errors: dict):
-    """A noise-free case-1 campaign (cross pocket at eq 19's angles, nmv3000) with ``errors`` only."""
+def _identify(errors: dict, rotary_points=None, grid=(-0.110, 0.110, 0.022)):
+    """A noise-free case-1 campaign (cross pocket at eq 19's angles, nmv3000) with ``errors`` only
+    (``rotary_points``: the C axis's position in R, m; ``grid`` None: identify's own)."""
     from core.selfcal import Grid, self_calibrate
     from core.touches import from_log
     from scenarios.crosspocket import CROSS_ANGLES_DEG
@@ -36,12 +37,14 @@ def _identify(errors: dict):
     from sim.machines import MACHINES
     from sim.probe import ProbeConfig
 
-    machine = Machine(MACHINES["nmv3000"](errors=errors))
+    kw = {} if rotary_points is None else {"rotary_points_R_m": {"C": rotary_points}}
+    machine = Machine(MACHINES["nmv3000"](errors=errors, **kw))
     art = A.cross_pocket()
     log = simulate_campaign(art, machine, ProbeConfig(repeatability_k2_m=0.0), list(CROSS_ANGLES_DEG),
                             np.random.default_rng(0), plan=make_plan(art), check_collisions=False)
     t = from_log(log.select(np.abs(log.col("nz")) < 0.01))
-    return t, self_calibrate(t, Grid.regular(-0.110, 0.110, 0.022), model_error=False), machine
+    g = None if grid is None else Grid.regular(*grid)
+    return t, self_calibrate(t, g, model_error=False), machine
 
 
 @pytest.mark.parametrize("ex0c_um, ey0c_um", [(12.0, 0.0), (-5.0, 9.0)])
@@ -80,3 +83,42 @@ def test_ecc_sign_and_the_linear_axes_in_the_centre():
     note = [n for n in res.to_report()["conventions"]["notes"] if n.startswith("ECC")]
     assert note and "right-handed rotation of the tool relative to the part" in note[0]
     assert "rotation error of the table" not in note[0]  # main's note: the table's sign, the opposite one
+
+
+def _radial(amp_um: float):
+    """A once-per-revolution radial motion of C (the tool relative to the part)."""
+    from sim.errorfuncs import Periodic
+
+    return {"EXC": Periodic(amp_um * UM, 2 * np.pi, 0.3), "EYC": Periodic(amp_um * UM, 2 * np.pi, 0.3 + np.pi / 2)}
+
+
+@pytest.mark.parametrize("case", ["radial", "linear_slope"])
+def test_true_centre_holds_radial_motion_and_non_constant_linear_errors(case):
+    """The truth's centre in the gauge against the identified one where main's star (the tip deviation at the
+    grid origin at C = 0) is wrong: a 3 um once-per-revolution radial motion with the C line (main's star:
+    -(12, 0) + the radial motion at C = 0 = (-11.1, 2.9) um, 3 um off the fitted (-12, 0): the radial motion's
+    circle through the four angles has no offset), and EXX = 3 um + 50 um/m x with the C axis at (22, 0) mm
+    (the gauge's scale, fixed at the last node, folds the slope into the centre: 4.1 um, main's star 3.0)."""
+    from scenarios.reports import c_axis_centre_um, true_c_centre_um
+    from sim.errorfuncs import Constant, Polynomial
+
+    if case == "radial":
+        t, res, machine = _identify({"EX0C": Constant(12 * UM), **_radial(3.0)})
+    else:
+        t, res, machine = _identify({"EXX": Polynomial((3 * UM, 50e-6))}, (0.022, 0.0, 0.0), None)
+    z = float(np.median(t.pn_R[:, 2]))
+    truth = true_c_centre_um(machine, res, z)
+    np.testing.assert_allclose(c_axis_centre_um(res), truth, atol=TOL_UM)
+    xo, yo = res.design.grid.origin_m
+    lin, rot = np.array([[xo, yo, z]]), np.zeros((1, len(machine.rotary_axes)))
+    star = (machine.tip_W(lin, rot) - machine.tip_W_nominal(lin, rot))[0, :2] / UM   # main's star
+    assert np.hypot(*(star - truth)) > 1.0   # 3.0 / 1.1 um: main's star fails here
+
+
+def test_c_line_label_names_the_gauge():
+    from viz.figures import centre_label, line_from_centre
+
+    np.testing.assert_array_equal(line_from_centre([0.0, -2.5]), [0.0, 2.5])
+    assert str(line_from_centre([0.0, 1.0])[0]) == "0.0"   # no -0.0 in labels and JSON
+    lab = centre_label(4.1, -0.04)
+    assert "(EX0C, EY0C) = (-4.1, 0.0) µm" in lab and "gauge of eqs 16-17" in lab and "x = y = 0" not in lab

@@ -1,5 +1,6 @@
 """``--machine FILE`` wherever a machine is named, and ``vmt machine show``."""
 
+import hashlib
 import subprocess
 import sys
 
@@ -47,8 +48,10 @@ def test_simulate_with_a_machine_file_reads_minus_one_um_on_x_faces(my_file, tmp
     said = capsys.readouterr().out
     assert "machine my-vmc" in said
     # the log says what errors the machine has: the file's EXX on its base's none (was "machine file (none)")
-    assert read_probe_log(out).meta["errors"] == f"machine file {my_file}: EXX set on base none"
-    assert f"errors machine file {my_file}: EXX set on base none" in said
+    # (the file's name and SHA-256 prefix, not the path it was given by)
+    label = f"machine file {my_file.name} (sha256 {hashlib.sha256(my_file.read_bytes()).hexdigest()[:12]})"
+    assert read_probe_log(out).meta["errors"] == f"{label}: EXX set on base none"
+    assert f"errors {label}: EXX set on base none" in said
     assert main(["simulate", "cross-pocket", "--machine", "vmc-3axis", "--errors", "none", "--noise-um", "0",
                  "--out", str(ref), "--no-collision-check"]) == 0
     log, base = read_probe_log(out), read_probe_log(ref)

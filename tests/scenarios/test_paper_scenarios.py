@@ -339,11 +339,12 @@ def test_case1_closed_loop_against_the_truth():
         assert r[k]["map_error_kgm_max_um"] < 5.0  # seed 1: 4.27 / 3.73 um
         assert r[k]["map_error_edge_max_um"] > 4 * r[k]["map_error_kgm_max_um"]  # 23.3 / 32.8 um
     assert r["with_spheres"]["map_error_edge_max_um"] < r["without_spheres"]["map_error_edge_max_um"]
-    # Fig. 13: the C line seen from the tool at the grid origin (minus the circle's centre) against the truth
-    # in that gauge (injected EX0C, EY0C minus the linear axes' error at the origin; seed 1: (-23.7, -9.7) =
-    # (-12.2, -5.3) - (11.6, 4.4) um). Within 3 um: the U95 of EXC/EYC,total is 3.2-4.9 um per angle (Table 2
-    # row) and the C axis's 1.5 um once-per-revolution radial motion is not in the truth (seed 1: 1.5, 1.8 um)
+    # Fig. 13: the C line in the gauge of eqs 16-17 (minus the circle's centre) against the truth in that gauge
+    # (the simulator's C terms and linear axes moved into it: scenarios.reports.true_c_centre_um). Noise-free, the
+    # two agree to 0.01 um on seeds 1-3 (tests/scenarios/test_c_axis_signs.py holds the exact cases); here the
+    # probing noise (1.38 um) moves the fitted centre: seed 1 (-22.25, -11.48) against (-23.32, -11.05) um, 1.15
+    # um off. Bound 2 um: below the per-angle U95 of EXC/EYC,total (3.3-5.1 um in this run), which the centre
+    # averages over four angles (not a computed U95 of the centre); main's star (the tip deviation at the origin
+    # at C = 0, radial motion at C = 0 in it) was 2.3 um off and fails it
     c = r["c_axis"]
-    assert np.hypot(*np.subtract(c["c_line_um"], c["true_c_line_um"])) < 3.0
-    np.testing.assert_allclose(np.subtract(c["true_EX0C_EY0C_um"], c["true_linear_at_origin_um"]),
-                               c["true_c_line_um"], atol=2e-3)
+    assert np.hypot(*np.subtract(c["c_line_um"], c["true_c_line_um"])) < 2.0

@@ -533,6 +533,33 @@ def test_certificates_by_place_and_by_segment_and_feature():
     assert r0[3] == 0.2e-6 and abs(moved[3] - 0.4e-6) < 1e-15 and not moved[3] < r0[3]
 
 
+def test_certificate_cell_hash_known_answer():
+    """The certificates' cell hash (:meth:`sim.clearance._Certificates._key`) is its definition,
+    computed here with Python's integers: each end's cells (1 um, half to even) and the feature number weighted
+    by the odd constants, summed modulo 2^64 (negative cells as their two's complement), then
+    splitmix64's finalizer; the features as numbers in order of first appearance."""
+    from sim.clearance import _CELLS, _HASH, _Certificates
+
+    M = 2 ** 64
+    w = [int(x) for x in _HASH]
+    rng = np.random.default_rng(11)
+    a = rng.uniform(-0.4, 0.4, (40, 3))
+    b = a + rng.normal(0, 0.02, (40, 3))
+    a[0], b[0] = 0.0, -0.0  # (a zero cell, either sign)
+    allow = np.array(["", "hole01", "rod02"], dtype=object)[rng.integers(0, 3, 40)]
+    h, f = _Certificates()._key(a, b, allow)
+    first = {x: n for n, x in enumerate(dict.fromkeys(allow))}
+    assert f.tolist() == [first[x] for x in allow]
+    for j in range(40):
+        cells = [round(float(v) * float(s)) for v, s in zip((*a[j], *b[j]), _CELLS)] + [first[allow[j]]]
+        x = sum(c * wk for c, wk in zip(cells, w[2:])) % M
+        x = ((x ^ (x >> 30)) * w[0]) % M
+        x = ((x ^ (x >> 27)) * w[1]) % M
+        assert int(h[j]) == x ^ (x >> 31), j
+    h2, f2 = _Certificates()._key(a, b, f)  # features already numbers: the same keys
+    assert np.array_equal(h2, h) and np.array_equal(f2, f)
+
+
 def test_least_holder_clearance_refines_to_the_every_triple_minimum():
     """Tips scattered 0-20 mm around the bar's supports and the table, a star stylus at a tilted
     table (its arm's and finger's bounds loose by millimetres): the branch and bound gives

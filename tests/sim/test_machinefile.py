@@ -1,5 +1,6 @@
 """Machine files (TOML, vmt-machine/1): built-ins, units, overrides, bad input."""
 
+import hashlib
 import math
 import re
 from pathlib import Path
@@ -172,7 +173,13 @@ def test_errors_label_says_what_errors_a_machine_file_has(tmp_path):
     p = tmp_path / "m.toml"
     p.write_text('base = "vmc-3axis"\nerrors = "none"\n[error.EXX]\nconstant_um = 1.0\n'
                  '[error.EC0Y]\nconstant_urad = 5.0\n')
-    assert errors_label(str(p), truth_machine(str(p))) == f"machine file {p}: EXX, EC0Y set on base none"
+    # the file's name and its bytes' SHA-256 prefix, not the writer's directories
+    sha = hashlib.sha256(p.read_bytes()).hexdigest()[:12]
+    label = errors_label(str(p), truth_machine(str(p)))
+    assert label == f"machine file m.toml (sha256 {sha}): EXX, EC0Y set on base none"
+    assert str(tmp_path) not in label
     p.write_text('base = "nmv3000"\nerrors = "realistic"\nseed = 3\n')
-    assert errors_label(str(p), truth_machine(str(p))) == f"machine file {p}: base realistic, seed 3"
+    sha2 = hashlib.sha256(p.read_bytes()).hexdigest()[:12]
+    assert sha2 != sha
+    assert errors_label(str(p), truth_machine(str(p))) == f"machine file m.toml (sha256 {sha2}): base realistic, seed 3"
     assert errors_label("nmv3000", truth_machine("nmv3000", "study")) == "study"
