@@ -346,8 +346,13 @@ def touch_history(t_s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return since, turn
 
 
-def planar_covariates(d: PlanarData) -> tuple:
-    """The covariates of a planar campaign (those that vary), with their bases."""
+def planar_covariates(d: PlanarData, sparse: bool = False) -> tuple:
+    """The covariates of a planar campaign (those that vary), with their bases.
+
+    ``sparse`` (a long log's, beside a :class:`core.lsq.BlockDesign`): the
+    approach azimuth per set-up (``azimuth_by_setup``, rows x 6 per set-up,
+    each column non-zero on one set-up's rows) is kept as a sparse matrix.
+    """
     t = d.touches
     allm = tuple(range(7))
     pos = (0, 1, 2)
@@ -364,7 +369,13 @@ def planar_covariates(d: PlanarData) -> tuple:
     su = np.unique(t.setup)
     if su.size >= 2:
         F = np.column_stack([f(k * d.azimuth) for k in (2, 3, 4) for f in (np.cos, np.sin)])
-        B = np.hstack([F * (t.setup == j)[:, None] for j in su])
+        if sparse:
+            at = np.searchsorted(su, t.setup)  # each row's set-up's place among su
+            B = sp.csr_matrix((F.ravel(), (np.repeat(np.arange(t.n), F.shape[1]),
+                                           (at[:, None] * F.shape[1] + np.arange(F.shape[1])).ravel())),
+                              shape=(t.n, F.shape[1] * su.size))
+        else:
+            B = np.hstack([F * (t.setup == j)[:, None] for j in su])
         covs.append(Covariate("azimuth_by_setup", B, "basis", B.shape[1], (0,),
                               "the approach azimuth, differently in each set-up", "direction"))
     xy = _xy_basis(d.xs, d.ys)
@@ -494,7 +505,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
 
     def basis(item):
         """The grid's orthonormal basis (a dense design's Q formed when first asked: qr_formed)."""
-        if item[-1] is None:
+        if item[-1] is None and not sp.issparse(item[2]):  # (a long log's sparse design: made again, Q by it)
             item[7] = qr_formed(item[7])
             item[-1] = orth(item[2], tol=RANK_TOL, qr=item[7])
         return item[-1]
@@ -518,8 +529,9 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         grids' BICs differ by less than their margins are both formed and
         compared as ever. The choice is the one the formed BICs make.
         """
-        if item[-1] is not None:  # (a block design's basis)
-            score, bound = bic(item), 0.0
+        if item[-1] is not None:  # (a block design's basis: its BIC formed; the first on a tie, the best kept sparse)
+            score = bic(item)
+            return (not best or score < best[0]), score, 0.0
         else:
             rss = qr_rss(item[7], t.dq_m, rank)
             score = _bic(rss, t.n, rank)
@@ -564,6 +576,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
             names = names + hn
         if big:  # the targets' columns eliminated, only the machine's factored (lsq.BlockDesign)
             Gs = des.slices["G"]
+            A_sparse = A
             A = BlockDesign.from_sparse(A, np.arange(Gs.start, Gs.stop))
             qr = None
             Q = A.basis(RANK_TOL)
@@ -575,16 +588,20 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         item = [st, des, A, C, d, names, levels, qr, Q]
         # identifiable beyond the gauge: the gauge rows fix exactly the null space
         nullity = A.shape[1] - rank
-        if nullity > np.linalg.matrix_rank(C):
+        ident_here = nullity <= np.linalg.matrix_rank(C)
+        if ident_here:  # the grid BIC chooses (the first on a tie), or the first: only the best kept so far
+            win, score, bound = better(item, rank, best) if select_grid and len(steps) > 1 else (not best, 0.0, 0.0)
+        if big:  # a long log's: kept as the sparse design, the block design made again for the grid chosen (one
+            # dense block held at a time)
+            item = [st, des, A_sparse, C, d, names, levels, None, None]
+        if not ident_here:
             last = IdentifiabilityError(f"grid {st:g} mm: the design leaves {nullity - np.linalg.matrix_rank(C)} "
                                         "combination(s) beyond the gauge unseen (e.g. a symmetric part at C "
                                         "angles 90 deg apart)")
             if fallback is None and not best:
                 fallback = (item, str(last))
+            del item, A, Q, qr
             continue
-        # the grid BIC chooses (the first on a tie), or the first: only the best kept so far
-        # (a long log's designs are large)
-        win, score, bound = better(item, rank, best) if select_grid and len(steps) > 1 else (not best, 0.0, 0.0)
         if win:
             best = [score, item, bound]
             fallback = None
@@ -601,6 +618,8 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         ident = False
     basis(item)  # (the chosen grid's Q formed: the engine starts from it)
     st, des, A, C, d, names, levels, qr, _ = item
+    if sp.issparse(A):  # a long log's design, kept sparse while the grids were compared
+        A = BlockDesign.from_sparse(A, np.arange(des.slices["G"].start, des.slices["G"].stop))
     data = planar_data(t, st * MM, extra)
     G = des.slices["G"]
     key = np.full(t.n, -1)
@@ -619,7 +638,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         kind="planar", model=model, A=A, y=t.dq_m, names=names, groups=t.setup.copy(),
         group_ids=tuple(t.setup_ids), C=C, d=d, estimand=np.arange(G.start, G.stop),
         estimand_ids=tuple(des.target_ids), geometry=workpiece_geometry(t, data.c0_m), replicate=key,
-        covariates=planar_covariates(data), modes=planar_modes(data), mode_names=PLANAR_MODES,
+        covariates=planar_covariates(data, sparse=isinstance(A, BlockDesign)), modes=planar_modes(data), mode_names=PLANAR_MODES,
         rows=np.asarray(t.row), data=data, identifiable=ident, why=why, conventions=tuple(conv),
         info={"grid_step_mm": st, "z_levels_mm": [v / MM for v in levels], "yaw": des.yaw,
               "design": des}, qr=qr)

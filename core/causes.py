@@ -454,7 +454,9 @@ def lobing_rival(bl, info) -> np.ndarray:
     the common part of something that turns. One set-up: its own columns.
     """
     cov = bl.covariate("azimuth_by_setup")
-    return common_lobing(bl) if cov is None else np.asarray(cov.values, float)
+    if cov is None:
+        return common_lobing(bl)
+    return cov.values.toarray() if hasattr(cov.values, "toarray") else np.asarray(cov.values, float)  # (sparse: a long log)
 
 
 #: cos k phi, sin k phi (k = 1..4) on the azimuths where lobing_magnitudes takes the peak-to-valley
@@ -501,13 +503,18 @@ def unoriented_scans(bl):
         return [], 1.0
     ids = tuple(d.touches.setup_ids[j] for j in su)
     scans = []
-    for k in (2, 3, 4):
-        cols, labels = [], []
-        for j, sid in zip(su, ids):
+
+    def columns(k):  # rows x 2 per set-up: built when a trial is (not held for the run: 160 MB at 1e5 rows)
+        cols = []
+        for j in su:
             m = (d.touches.setup == j).astype(float)
             cols += [m * np.cos(k * phi), m * np.sin(k * phi)]
-            labels += [f"cos{k}[{sid}]", f"sin{k}[{sid}]"]
-        scans.append(_one(np.column_stack(cols), labels, {"harmonic": k, "setups": ids}, "approach_azimuth"))
+        return np.column_stack(cols)[None]
+
+    for k in (2, 3, 4):
+        labels = [lab for sid in ids for lab in (f"cos{k}[{sid}]", f"sin{k}[{sid}]")]
+        scans.append(Scan(tuple(labels), ({"harmonic": k, "setups": ids},), "approach_azimuth",
+                          lambda idx, k=k: columns(k)[np.asarray(idx)]))
     return scans, 3.0
 
 

@@ -42,11 +42,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sp
 from scipy import special, stats
 from scipy.interpolate import BSpline
 
 from .exceptions import ConfigError
-from .lsq import group_sums
+from .lsq import Basis, group_sums
 from .units import UM
 
 #: Relative column norm (after projection out of the model) below which a
@@ -226,10 +227,13 @@ def nested_f(U: np.ndarray, r: np.ndarray, rss: float, dof: int) -> NestedTest:
         Residual degrees of freedom of the model.
     """
     k = U.shape[1]
-    n = len(r)
     if k == 0 or dof - k < 1:
         return NestedTest(0, 0.0, 0.0, 1.0, 0.0)
-    ss = float(np.sum((U.T @ r) ** 2))
+    return _nested_f_ss(k, float(np.sum((U.T @ r) ** 2)), len(r), rss, dof)
+
+
+def _nested_f_ss(k: int, ss: float, n: int, rss: float, dof: int) -> NestedTest:
+    """:func:`nested_f` from the sum of squares ``ss`` that ``k`` directions (``dof - k >= 1``) remove."""
     s2 = max(rss - ss, 1e-300) / (dof - k)
     F = (ss / k) / s2
     p = float(special.fdtrc(k, dof - k, F))
@@ -257,6 +261,16 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
     """
     T, n, k = C.shape
     nrm = np.maximum(np.sqrt(np.einsum("tnk,tnk->tk", C, C)), 1e-300)
+    if isinstance(Q, Basis):  # a long log: P^T P and P^T r from the Gram matrices (no (n, T k) projection formed)
+        inv = np.where(nrm > 1e-300, 1.0 / nrm, 0.0)  # (a zero column stays zero, as C / nrm leaves it)
+        G = np.empty((T, k, k))
+        b = np.empty((T, k))
+        Qr = Q.T @ r
+        for t in range(T):
+            QC = (Q.T @ C[t]) * inv[t]
+            G[t] = (C[t].T @ C[t]) * np.outer(inv[t], inv[t]) - QC.T @ QC
+            b[t] = (C[t].T @ r) * inv[t] - QC.T @ Qr
+        return _batch_tests(G, b, rss, dof)
     if Q.shape[1]:  # one matrix product for every trial: (n, T k), normalised in that layout
         if T == 1:
             C2 = C[0] / nrm[0]
@@ -269,8 +283,11 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
     else:
         P = C / nrm[:, None, :]
     Pt = np.swapaxes(P, 1, 2)
-    G = Pt @ P
-    b = Pt @ r
+    return _batch_tests(Pt @ P, Pt @ r, rss, dof)
+
+
+def _batch_tests(G: np.ndarray, b: np.ndarray, rss: float, dof: int):
+    """:func:`nested_f_batch` from each trial's projected Gram matrix ``G`` (T, k, k) and ``P^T r`` (T, k)."""
     w, V = np.linalg.eigh(G)
     good = w > IN_SPAN ** 2
     proj = (np.swapaxes(V, 1, 2) @ b[..., None])[..., 0]
@@ -396,6 +413,8 @@ def category_basis(v: np.ndarray) -> np.ndarray:
 
 def function_basis(cov: Covariate) -> np.ndarray:
     """(n, m) basis functions of the covariate alone (before the modes)."""
+    if cov.kind == "basis" and sp.issparse(cov.values):  # a long log's per-set-up functions (kept sparse)
+        return cov.values.toarray()
     if cov.kind == "smooth":
         return spline_basis(cov.values, cov.size)
     if cov.kind == "circular":
@@ -409,22 +428,45 @@ def function_basis(cov: Covariate) -> np.ndarray:
     raise ValueError(f"covariate {cov.name!r}: unknown kind {cov.kind!r}")
 
 
-def term_bases(covariates, modes: np.ndarray) -> dict:
+def term_bases(covariates, modes: np.ndarray, lazy: bool = False) -> dict:
     """Every covariate's term basis over all rows, once (name -> (n, m)).
 
     A spectral covariate has no basis: its entry is its :class:`SpectralTable`
     (the scan's frequencies and the pre-screen's tables), kept for every
-    diagnosis of a run.
+    diagnosis of a run. ``lazy`` (a long log, :class:`LazyBases`): the other
+    covariates' bases are built when asked for and not kept (the set-up by
+    every response mode is rows x 700 numbers); :func:`diagnose` then tests
+    from the covariates themselves (:func:`gram_test`).
     """
-    out = {}
+    out = LazyBases(covariates, modes) if lazy else {}
     for c in covariates:
         if c.kind == "spectral":
             tab = spectral_table(c)
             if tab is not None:
-                out[c.name] = tab
-        else:
+                dict.__setitem__(out, c.name, tab)
+        elif not lazy:
             out[c.name] = term_basis(c, modes)
     return out
+
+
+class LazyBases(dict):
+    """:func:`term_bases` of a long log: spectral tables held, every other covariate's basis built on each access."""
+
+    def __init__(self, covariates, modes: np.ndarray):
+        super().__init__()
+        self.covs = {c.name: c for c in covariates if c.kind != "spectral"}
+        self.modes = modes
+
+    def __missing__(self, name):
+        if name not in self.covs:
+            raise KeyError(name)
+        return term_basis(self.covs[name], self.modes)
+
+    def __contains__(self, name) -> bool:
+        return dict.__contains__(self, name) or name in self.covs
+
+    def get(self, name, default=None):
+        return self[name] if name in self else default
 
 
 def _frequencies(cov: Covariate):
@@ -663,6 +705,101 @@ def _spectral(cov: Covariate, Q, r, rss, dof, modes, rows, table=None, shortlist
     return cov, _SpectralTest(t.k, t.ss, t.F, min(1.0, t.p_value * tries), t.explained_rms_m, float(P)), U
 
 
+def sparse_function_basis(cov: Covariate):
+    """:func:`function_basis` with the indicators of a category, and a long log's sparse given functions, as a
+    sparse (CSR) matrix: a column that is non-zero on one set-up's rows only is stored on those rows only."""
+    if cov.kind == "categorical":
+        _, inv = np.unique(np.asarray(cov.values), return_inverse=True)
+        inv = inv.ravel()
+        return sp.csr_matrix((np.ones(len(inv)), (np.arange(len(inv)), inv)), shape=(len(inv), inv.max() + 1))
+    if cov.kind == "basis" and sp.issparse(cov.values):
+        return sp.csr_matrix(cov.values)
+    return function_basis(cov)
+
+
+#: Rows of a covariate's term basis formed at once by :func:`gram_test` (dense chunks; sparse ones are cheap).
+GRAM_CHUNK_ROWS = 8192
+
+
+def _term_chunks(cov: Covariate, modes: np.ndarray, rows: np.ndarray):
+    """``term_basis(cov, modes)[rows]`` a block of rows at a time: (positions, block), sparse for sparse functions."""
+    F = sparse_function_basis(cov)
+    M = modes[:, list(cov.modes)]
+    for a in range(0, len(rows), GRAM_CHUNK_ROWS):
+        pos = np.arange(a, min(a + GRAM_CHUNK_ROWS, len(rows)))
+        idx = rows[pos]
+        if sp.issparse(F):
+            Fc = F[idx]
+            yield pos, sp.hstack([Fc.multiply(M[idx, j][:, None]) for j in range(M.shape[1])], format="csr")
+        else:
+            Fc, Mc = F[idx], M[idx]
+            yield pos, (Mc[:, :, None] * Fc[:, None, :]).reshape(len(idx), -1)
+
+
+def _basis_rmatmul_rows(Q, pos: np.ndarray, X) -> np.ndarray:
+    """``Q[pos].T @ X`` for a :class:`core.lsq.Basis` ``Q`` and rows ``pos`` of it, ``X`` dense or sparse."""
+    ids = Q.ids[pos]
+    G = sp.csr_matrix((Q._scale[Q._pos[ids]], (Q._pos[ids], np.arange(len(pos)))), shape=(Q.k, len(pos)))
+    top = G @ X
+    Up = Q.dense_rows(pos)
+    bot = (X.T @ Up).T if sp.issparse(X) else Up.T @ X
+    return np.vstack([top.toarray() if sp.issparse(top) else np.asarray(top), np.asarray(bot)])
+
+
+def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.ndarray, rows=None,
+              tol: float = IN_SPAN):
+    """:func:`new_basis` and :func:`nested_f` of a covariate's term without forming its basis outside ``Q``.
+
+    For a long log (``Q`` a :class:`core.lsq.Basis`): the term's columns
+    ``B`` (normalised) are met a block of rows at a time (sparse where they
+    are: a per-set-up column lives on one set-up's rows) and only ``B^T B``,
+    ``Q^T B`` and ``B^T r`` kept; the part outside ``Q`` is ``P = B - Q Q^T B``
+    with ``P^T P = B^T B - (Q^T B)^T Q^T B``, whose eigen-decomposition keeps
+    the directions :func:`new_basis` keeps (singular value above
+    ``max(tol, 1e-5)``: the difference of the Gram matrices loses about
+    1e-16 of a unit column's square, 1e-6 of the cut). Returns (test, fitted
+    (n,) m, k) or None when the term has no direction outside the model (or
+    too few degrees of freedom are left), as :func:`diagnose` skips it.
+    """
+    n = len(r)
+    rows = np.arange(n) if rows is None else np.asarray(rows)
+    if sparse_function_basis(cov).shape[1] * len(cov.modes) >= n:  # more columns than rows: B^T B is the larger
+        U = new_basis(Q, term_basis(cov, modes, rows), tol)
+        if U.shape[1] == 0 or dof - U.shape[1] < 5:
+            return None
+        return nested_f(U, r, rss, dof), U @ (U.T @ r), U.shape[1]
+    BB = QB = Br = None
+    for pos, Bc in _term_chunks(cov, modes, rows):
+        bb = Bc.T @ Bc
+        bb = bb.toarray() if sp.issparse(bb) else bb
+        qb = _basis_rmatmul_rows(Q, pos, Bc)
+        br = np.asarray(Bc.T @ r[pos]).ravel()
+        BB, QB, Br = (bb, qb, br) if BB is None else (BB + bb, QB + qb, Br + br)
+    if BB is None:
+        return None
+    nrm = np.sqrt(np.maximum(np.diag(BB), 0.0))
+    keep = nrm > 0
+    if not keep.any():
+        return None
+    nk = nrm[keep]
+    QBn = QB[:, keep] / nk
+    G = BB[np.ix_(keep, keep)] / np.outer(nk, nk) - QBn.T @ QBn
+    w, V = np.linalg.eigh(G)
+    good = w > max(tol, 1e-5) ** 2
+    k = int(good.sum())
+    if k == 0 or dof - k < 5:
+        return None
+    W = V[:, good] / np.sqrt(w[good])
+    z = W.T @ (Br[keep] / nk - QBn.T @ (Q.T @ r))  # U^T r, U = P W orthonormal
+    test = _nested_f_ss(k, float(np.sum(z ** 2)), n, rss, dof)
+    c = np.zeros(len(nrm))
+    c[keep] = (W @ z) / nk  # U U^T r = B c - Q (Q^T B c)
+    fitted = -(Q @ (QB @ c))
+    for pos, Bc in _term_chunks(cov, modes, rows):
+        fitted[pos] += np.asarray(Bc @ c).ravel()
+    return test, fitted, k
+
+
 def term_basis(cov: Covariate, modes: np.ndarray, rows=None) -> np.ndarray:
     """(n, len(cov.modes) * m) columns of a smooth term: each mode times each basis function."""
     F = function_basis(cov)
@@ -756,15 +893,24 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
     """
     rss = float(r @ r)
     have = {d.covariate: d for d in known if d.test is not None}
-    raw = []
+    lean = isinstance(Q, Basis)  # a long log: no term basis formed or kept (gram_test)
+    raw, fits = [], {}
     for cov in covariates:
         if cov.name in have:
             raw.append((cov, have[cov.name].test, have[cov.name].basis))
+            if have[cov.name].basis is None:
+                fits[cov.name] = have[cov.name].fitted_um
             continue
         if cov.kind == "spectral":
             res = _spectral(cov, Q, r, rss, dof, modes, rows, (bases or {}).get(cov.name))
             if res is not None:
                 raw.append(res)
+            continue
+        if lean:
+            res = gram_test(cov, Q, r, rss, dof, modes, rows)
+            if res is not None:
+                raw.append((cov, res[0], None))
+                fits[cov.name] = res[1] / UM
             continue
         B = bases[cov.name] if bases is not None else term_basis(cov, modes)
         U = new_basis(Q, B if rows is None else take_rows(B, rows))
@@ -785,7 +931,8 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
             words = cov.words
         out.append(Diagnosis(cov.name, rms_um, float(pa), t.p_value, t.k,
                              f"residuals follow {words}: {rms_um:.2g} µm, {fmt_p(float(pa))}",
-                             t.explained_rms_m >= material_sigma * sigma_m, (U @ (U.T @ r)) / UM, t, U))
+                             t.explained_rms_m >= material_sigma * sigma_m,
+                             fits[cov.name] if U is None else (U @ (U.T @ r)) / UM, t, U))
     out.sort(key=lambda d: (d.p_value, -d.explained_rms_um))
     return out
 

@@ -493,7 +493,7 @@ class Folds:
         J, jinv = np.unique(ids_te, return_inverse=True)
         cte = np.bincount(jinv, minlength=len(J)).astype(float)
         sj = 1.0 / np.sqrt(B.counts[J])
-        Ute = B.U[te]
+        Ute = B.dense_rows(te)  # (the basis outside the ids: its mapped directions, then any kept columns)
         KGD = group_sums(jinv, len(J), Ute) * sj[:, None]
         K = np.block([[np.diag(cte * sj ** 2), KGD], [KGD.T, Ute.T @ Ute]])  # Q_te^T Q_te on the ids J and U
         c, V, k, f = self._split(np.eye(len(K)) - K)
@@ -516,7 +516,7 @@ class Folds:
         GX = group_sums(B.ids, len(B.counts), X)
         cnt = B.counts
         inv = np.where(cnt > 0, 1.0 / np.maximum(cnt, 1), 0.0)
-        return GX, B.U.T @ X, inv
+        return GX, B.dense_rmatmul(X), inv
 
     def _coords(self, f: _Fold, X: np.ndarray, pre):
         """``z`` (f_dirs, b): ``X``'s training rows on the fold's orthonormal training image."""
@@ -529,7 +529,7 @@ class Folds:
             B = self.Q
             sj = 1.0 / np.sqrt(B.counts[f.J])
             gte = group_sums(f.jinv, len(f.J), X[f.te])
-            t = np.vstack([(GX[f.J] - gte) * sj[:, None], UX - B.U[f.te].T @ X[f.te]])
+            t = np.vstack([(GX[f.J] - gte) * sj[:, None], UX - B.dense_rows(f.te).T @ X[f.te]])
         return (f.W.T @ t) / f.c[:, None]
 
     def _outside_image(self, f: _Fold, X, Y, zX, zY, pre_X, pre_Y):
@@ -547,7 +547,7 @@ class Folds:
         """The held-out rows' prediction from training coordinates ``z`` (the kept directions only)."""
         beta = z[:f.k] / f.c[:f.k, None]
         if self.mode == "blocks":
-            return self._te_times(f.J, f.jinv, self.Q.U[f.te], f.W[:, :f.k] @ beta)
+            return self._te_times(f.J, f.jinv, self.Q.dense_rows(f.te), f.W[:, :f.k] @ beta)
         return f.P @ z[:f.k]
 
     def outside(self, E: np.ndarray) -> np.ndarray:
@@ -1271,7 +1271,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     all_rows = np.arange(N)
     white = (lambda M: M) if bl.whiten is None else (lambda M: bl.whiten @ M)
     use_cv = bool(bl.info.get("cv", True))
-    bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
+    if isinstance(bl.A, BlockDesign):  # a long log: bases built when asked for, not kept (never whitened: planar)
+        bases = term_bases(bl.covariates, bl.modes, lazy=True)
+    else:
+        bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
 
     ranks = covariate_ranks(bl.covariates)
     places = places_of(bl)
@@ -2793,7 +2796,8 @@ def _gauge_eig(N: np.ndarray, Z: np.ndarray):
 
 def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_map=False):
     """:func:`_constrained` for a block design: the same solution from its normal matrix (:func:`_gauge_eig`)."""
-    Ar = A[rows]
+    every = len(rows) == len(A) and np.array_equal(rows, np.arange(len(A)))
+    Ar = A if every else A[rows]  # (every row: no copy of the dense block)
     yr = y[rows]
     p = A.shape[1]
     N = Ar.gram()

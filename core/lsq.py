@@ -697,7 +697,8 @@ class BlockDesign:
         if np.any(np.diff(G.indptr) != 1) or np.any(G.data != 1.0):
             raise ConfigError("BlockDesign: the indicator columns must hold exactly one 1 per row")
         d_cols = np.setdiff1d(np.arange(A.shape[1]), g_cols)
-        return cls(G.indices.astype(np.int64), A[:, d_cols].toarray(), g_cols, d_cols)
+        # D in row order (a CSC matrix's toarray is column-major: every pass over rows would copy it)
+        return cls(G.indices.astype(np.int64), A[:, d_cols].tocsr().toarray(), g_cols, d_cols)
 
     @property
     def shape(self) -> tuple:
@@ -737,6 +738,8 @@ class BlockDesign:
     def hstack(self, E: np.ndarray) -> "BlockDesign":
         """``[A | E]``: the new columns join the dense block."""
         E = np.asarray(E, float).reshape(len(self.ids), -1)
+        if not E.shape[1]:  # nothing joins: the same design (not a copy of D)
+            return self
         p = self.shape[1]
         return BlockDesign(self.ids, np.hstack([self.D, E]), self.g_cols,
                            np.concatenate([self.d_cols, np.arange(p, p + E.shape[1])]))
@@ -762,26 +765,123 @@ class BlockDesign:
         """Orthonormal basis of the column space, rank cut at ``tol`` as :func:`core.diagnosis.orth` cuts it.
 
         The indicator columns of the ids present, normalised (``1 / sqrt(count)``),
-        then ``D``'s columns scaled to unit norm, their means per id removed,
-        and a pivoted QR of what is left: its directions with ``|R_ii| > tol``
-        (a unit column's share outside the indicators) are kept. One
-        factorisation serves every ``tol``.
+        then ``D``'s columns scaled to unit norm, their means per id removed
+        (``Ds``), and a pivoted QR of what is left: its directions with
+        ``|R_ii| > tol`` (a unit column's share outside the indicators) are
+        kept. ``Ds`` is never formed: its ``R`` is stacked from the QR of a
+        block of rows at a time (TSQR), the pivoted QR is of that ``R``
+        (the same ``|R_ii|`` as ``Ds``'s own, to rounding), and the basis is
+        ``Ds P R^-1`` kept as a map of ``D``'s columns (:class:`CentredSpan`,
+        re-orthonormalised once, CholeskyQR2), so that it costs ``m x r``
+        numbers beside ``D`` instead of ``n x r``. One factorisation serves
+        every ``tol``.
         """
         if "qr" not in self._bases:
-            ids = self.ids
+            ids, D = self.ids, self.D
             cnt = np.bincount(ids, minlength=self.g).astype(float)
-            nrm = np.linalg.norm(self.D, axis=0)
-            keep = nrm > 0
-            Ds = self.D[:, keep] / nrm[keep]
-            Ds -= (group_sums(ids, self.g, Ds) / np.maximum(cnt, 1.0)[:, None])[ids]
-            if Ds.shape[1]:
-                Q, R, _ = sla.qr(Ds, mode="economic", pivoting=True, overwrite_a=True)
-                d = np.abs(np.diag(R))
+            nrm = np.sqrt(_col_sumsq(D))
+            keep = np.flatnonzero(nrm > 0)
+            mean = group_sums(ids, self.g, D) / np.maximum(cnt, 1.0)[:, None]  # (g, m): D's means per id
+            R = np.zeros((0, keep.size))
+            mk, sk = mean[:, keep], 1.0 / nrm[keep]
+            for c in _chunks(len(ids), 4 * D.shape[1]):  # (a block, its means, the stack and its R: 4 blocks held)
+                W = np.empty((R.shape[0] + c.stop - c.start, keep.size))
+                W[:R.shape[0]] = R
+                Ds = W[R.shape[0]:]
+                np.take(D[c], keep, axis=1, out=Ds)
+                Ds -= mk[ids[c]]
+                Ds *= sk
+                R = sla.qr(W, mode="r", overwrite_a=True)[0][:keep.size]
+            if keep.size:
+                _, R2, piv = sla.qr(R, pivoting=True)
+                d = np.abs(np.diag(R2))
             else:
-                Q, d = Ds, np.zeros(0)
-            self._bases["qr"] = (cnt, Q, d)
-        cnt, Q, d = self._bases["qr"]
-        return Basis(self.ids, cnt, Q[:, :int(np.sum(d > tol))])
+                R2, piv, d = np.zeros((0, 0)), np.zeros(0, int), np.zeros(0)
+            self._bases["qr"] = (cnt, mean, nrm, keep, R2, piv, d, {})
+        cnt, mean, nrm, keep, R2, piv, d, made = self._bases["qr"]
+        r = int(np.sum(d > tol))
+        if r not in made:
+            T = np.zeros((self.D.shape[1], r))
+            T[keep[piv[:r]]] = sla.solve_triangular(R2[:r, :r], np.eye(r)) / nrm[keep[piv[:r]]][:, None]
+            made[r] = CentredSpan(self.ids, self.D, mean, T).orthonormalised()
+        return Basis(self.ids, cnt, np.zeros((len(self.ids), 0)), made[r])
+
+
+#: Bytes of a block of rows formed at once by the block design's and its basis's row-wise passes.
+CHUNK_BYTES = 32 << 20
+
+
+def _chunks(n: int, width: int):
+    """Slices of ``n`` rows, each about :data:`CHUNK_BYTES` at ``width`` doubles a row."""
+    step = max(CHUNK_BYTES // (8 * max(width, 1)), 1)
+    return [slice(a, min(a + step, n)) for a in range(0, n, step)]
+
+
+def _col_sumsq(D: np.ndarray, rows=None) -> np.ndarray:
+    """(m,) each column's sum of squares over ``rows`` (all), a block of rows at a time (no n x m temporary)."""
+    out = np.zeros(D.shape[1])
+    rows = np.arange(D.shape[0]) if rows is None else np.asarray(rows)
+    for c in _chunks(len(rows), D.shape[1]):
+        Dc = D[rows[c]]
+        out += np.einsum("ij,ij->j", Dc, Dc)
+    return out
+
+
+def row_column_norms(D: np.ndarray, rows=None) -> np.ndarray:
+    """(m,) the columns' norms over ``rows`` (all rows when None) of a tall ``D``, without copying those rows whole."""
+    return np.sqrt(_col_sumsq(D, rows))
+
+
+class CentredSpan:
+    """The (n, r) matrix ``(D - mean[ids]) T`` as an operator: a block design's basis outside its indicators.
+
+    ``D`` (n, m) the design's dense block, ``mean`` (g, m) its columns' means
+    per id, ``T`` (m, r). Products ``U @ c``, ``U.T @ X``, its rows
+    (:meth:`rows`) and their squares' sums, without forming ``U``.
+    """
+
+    def __init__(self, ids: np.ndarray, D: np.ndarray, mean: np.ndarray, T: np.ndarray):
+        self.ids, self.D, self.mean, self.T = ids, D, mean, T
+        self.MT = mean @ T  # (g, r)
+
+    @property
+    def r(self) -> int:
+        return self.T.shape[1]
+
+    def rows(self, pos) -> np.ndarray:
+        return self.D[pos] @ self.T - self.MT[self.ids[pos]]
+
+    def matmul(self, c: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """``U @ c``, added to ``out`` when given (a block of rows at a time: no rows x k temporaries)."""
+        Tc, Mc = self.T @ c, self.MT @ c
+        if out is None:
+            out = np.zeros((len(self.ids),) + np.shape(c)[1:])
+        for ch in _chunks(len(self.ids), self.D.shape[1] + (Tc.shape[1] if Tc.ndim == 2 else 1)):
+            out[ch] += self.D[ch] @ Tc - Mc[self.ids[ch]]
+        return out
+
+    def rmatmul(self, X: np.ndarray) -> np.ndarray:
+        return self.T.T @ (self.D.T @ X) - self.MT.T @ group_sums(self.ids, len(self.MT), X)
+
+    def sq_rows(self) -> np.ndarray:
+        out = np.empty(len(self.ids))
+        for c in _chunks(len(self.ids), self.r):
+            out[c] = np.sum(self.rows(c) ** 2, axis=1)
+        return out
+
+    def gram(self) -> np.ndarray:
+        G = np.zeros((self.r, self.r))
+        for c in _chunks(len(self.ids), max(self.r, self.D.shape[1])):
+            U = self.rows(c)
+            G += U.T @ U
+        return G
+
+    def orthonormalised(self) -> "CentredSpan":
+        """The same span with ``T`` corrected by the Cholesky factor of ``U^T U`` (orthonormal to rounding)."""
+        if not self.r:
+            return self
+        L = np.linalg.cholesky(self.gram())
+        return CentredSpan(self.ids, self.D, self.mean, sla.solve_triangular(L, self.T.T, lower=True).T)
 
 
 class _Transposed:
@@ -820,8 +920,10 @@ class Basis:
     ids: np.ndarray
     counts: np.ndarray
     U: np.ndarray
+    span: CentredSpan | None = None  # the design's own directions, kept as a map (before U's columns)
 
     def __post_init__(self):
+        object.__setattr__(self, "_r", self.span.r if self.span is not None else 0)
         object.__setattr__(self, "_present", np.flatnonzero(self.counts > 0))
         object.__setattr__(self, "_scale", 1.0 / np.sqrt(self.counts[self._present]))
         pos = np.full(len(self.counts), -1)
@@ -835,7 +937,7 @@ class Basis:
 
     @property
     def shape(self) -> tuple:
-        return (len(self.ids), self.k + self.U.shape[1])
+        return (len(self.ids), self.k + self._r + self.U.shape[1])
 
     @property
     def ndim(self) -> int:
@@ -848,34 +950,50 @@ class Basis:
     def rmatmul(self, X: np.ndarray) -> np.ndarray:
         gs = group_sums(self.ids, len(self.counts), X)[self._present]
         gs = gs * (self._scale if X.ndim == 1 else self._scale[:, None])
-        return np.concatenate([gs, self.U.T @ X], axis=0)
+        parts = [gs] + ([self.span.rmatmul(X)] if self._r else []) + [self.U.T @ X]
+        return np.concatenate(parts, axis=0)
 
     def __matmul__(self, c):
         c = np.asarray(c, float)
-        cg = c[:self.k] * (self._scale if c.ndim == 1 else self._scale[:, None])
-        return cg[self._pos[self.ids]] + self.U @ c[self.k:]
+        k, r = self.k, self._r
+        cg = c[:k] * (self._scale if c.ndim == 1 else self._scale[:, None])
+        out = cg[self._pos[self.ids]]
+        if self.U.shape[1]:
+            out += self.U @ c[k + r:]
+        return self.span.matmul(c[k:k + r], out) if r else out
 
     def hstack(self, V: np.ndarray) -> "Basis":
-        return Basis(self.ids, self.counts, np.hstack([self.U, V]))
+        return Basis(self.ids, self.counts, np.hstack([self.U, V]), self.span)
 
     def __getitem__(self, key):
+        k = self.k + self._r
         if (isinstance(key, tuple) and len(key) == 2 and key[0] == slice(None) and isinstance(key[1], slice)
-                and key[1].step is None and (key[1].start or 0) >= self.k):
+                and key[1].step is None and (key[1].start or 0) >= k):
             s = key[1]
-            return self.U[:, (s.start or 0) - self.k:None if s.stop is None else s.stop - self.k]
-        raise ConfigError(f"Basis: only its dense columns can be taken (Q[:, k:] with k >= {self.k}), not {key!r}")
+            return self.U[:, (s.start or 0) - k:None if s.stop is None else s.stop - k]
+        raise ConfigError(f"Basis: only its dense columns can be taken (Q[:, k:] with k >= {k}), not {key!r}")
+
+    def dense_rows(self, pos) -> np.ndarray:
+        """(len(pos), r + dense columns): the rows ``pos`` of the basis outside its indicator columns."""
+        return np.hstack([self.span.rows(pos), self.U[pos]]) if self._r else self.U[pos]
+
+    def dense_rmatmul(self, X: np.ndarray) -> np.ndarray:
+        """``X``'s products with the basis's columns outside the indicators: ``dense_rows(all).T @ X``."""
+        return np.concatenate([self.span.rmatmul(X), self.U.T @ X], axis=0) if self._r else self.U.T @ X
 
     def leverage(self) -> np.ndarray:
-        return self._scale[self._pos[self.ids]] ** 2 + np.sum(self.U ** 2, axis=1)
+        h = self._scale[self._pos[self.ids]] ** 2 + np.sum(self.U ** 2, axis=1)
+        return h + self.span.sq_rows() if self._r else h
 
     def toarray(self) -> np.ndarray:
         Q = np.zeros(self.shape)
         Q[np.arange(len(self.ids)), self._pos[self.ids]] = self._scale[self._pos[self.ids]]
-        Q[:, self.k:] = self.U
+        Q[:, self.k:] = self.dense_rows(slice(None))
         return Q
 
     def equals(self, other) -> bool:
-        return self is other or (isinstance(other, Basis) and np.array_equal(self.ids, other.ids)
+        return self is other or (isinstance(other, Basis) and self.span is other.span
+                                 and np.array_equal(self.ids, other.ids)
                                  and np.array_equal(self.counts, other.counts) and np.array_equal(self.U, other.U))
 
 

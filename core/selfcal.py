@@ -45,10 +45,45 @@ checked numerically in the tests (:func:`null_space`):
   constant split EXX/EXY and EYX/EYY; the workpiece shifted in X / in Y in W
   (G changes by ``wn . t``, EXC/EYC,total by ``-R(-C_j) t``);
 - rotational (4): the machine frame rotated (EC0Y, EYX slope, all ECC); the
-  workpiece rotated in W (G by ``n . R90 p``, all ECC); a constant ECY traded
-  for an EYX slope; an EXY slope traded for EC0Y;
-- scale (1): EXX and EYY slopes with G by ``n . pn`` (a machine scale error
-  is indistinguishable from a scaled workpiece).
+  workpiece rotated in W about the C axis (G by ``n . R90 (p - c)``, all ECC,
+  and every set-up's EXC/EYC,total by ``-R90 c``); a constant ECY traded for
+  an EYX slope; an EXY slope traded for EC0Y;
+- scale (1): EXX and EYY slopes with G by ``n . (p - c)`` and every set-up's
+  EXC/EYC,total by ``-c`` (a machine scale error is indistinguishable from a
+  workpiece scaled about the C axis).
+
+``c = (cx, cy)`` is where the C axis meets the XY plane in R (nominal). The
+workpiece's rotation and scale must be taken about a point of W that every
+set-up puts in the same place of R, so that ``G`` (one value per target) is
+the same in every set-up: the C axis is that point. Worked by hand: a target
+at ``u`` from the axis in W is at ``p_j = c + R(-C_j) u`` in set-up j (eq 1
+about the axis). Rotating the part by ``phi`` about the axis moves it by
+``phi R90 (p_j - c)`` (R90 commutes with R(-C_j)), so ``G`` changes by
+``phi n . R90 (p_j - c) = phi wn . R90 u``, the same in every set-up. The
+model's ``ECC`` column is a rotation about R's origin, ``-(R90 p) . n``,
+so ``ECC = phi`` removes ``phi n . R90 p``; the rest, ``-phi n . R90 c``,
+is the same translation ``-phi R90 c`` in every set-up, which
+``EXC,total = phi cy``, ``EYC,total = -phi cx`` (entering as ``-n . (EXC,
+EYC)``) give back. Check: ``phi [n . R90 (p - c) - n . R90 p + n . R90 c] = 0``.
+Scaling the part by ``s`` about the axis moves a target by ``s (p_j - c)``:
+``G`` by ``s n . (p - c)`` (the same in every set-up), the EXX and EYY
+slopes ``E = s p`` remove ``s n . p``, and ``EXC,total = -s cx``,
+``EYC,total = -s cy`` give back ``s n . c``. Translations need no ``c``: a
+shift ``t`` in W is ``R(-C_j) t`` in R wherever the axis is. With ``c = 0``
+these are the paper's columns; with the axis elsewhere the paper's (rotation
+and scale about R's origin) are not null: with C at (22, 0) mm they left
+``|A N|`` at 0.04.
+
+``c`` is read from the touches, not given: a target seen at ``C_f`` and at
+``C_k`` satisfies ``p_k - c = R(C_f - C_k) (p_f - c)``, so ``(I - R(D)) c =
+p_k - R(D) p_f`` with ``D = C_f - C_k``; every touch against its target's
+first touch, least squares (``(I - R)^T (I - R) = 2 (1 - cos D) I``, so the
+solution is a weighted sum, linear in the touches). ``c`` is taken as 0
+where it is within its own standard error (three times the residual's, or
+1e3 eps of the positions, whichever is larger) of 0, or where no target is
+seen at two angles: the nominal positions then do not place the axis apart
+from R's origin, and the columns are the paper's bit for bit
+(:func:`c_axis_xy`).
 
 The eleven gauge conditions (eq 16, printed garbled in the paper, and eq 17)
 fix them: ``EXX(x_o) = EYX(x_o) = EXY(y_o) = EYY(y_o) = ECY(y_o) = 0`` at the
@@ -543,9 +578,52 @@ def _gauge_conditions(grid: Grid, s: dict, c_rad: np.ndarray, cn: list, delta_L_
     return C, d, gauge, ref
 
 
+def c_axis_xy(touches: Touches, c_rad: np.ndarray) -> tuple[float, float]:
+    """(cx, cy), m: where the nominal C axis meets the XY plane in R, read from the touches' nominal positions.
+
+    Every touch against its target's first touch at another angle (module
+    docstring, "Null space and gauge"): ``c = sum_i (I - R(D_i))^T b_i /
+    sum_i 2 (1 - cos D_i)`` with ``b_i = p_i - R(D_i) p_f``. (0, 0) when no
+    target is seen at two angles, or when ``|c|`` is within max(3 standard
+    errors of the fit, 1e3 eps max|p|) of 0: the positions do not tell the
+    axis from R's origin.
+
+    Parameters
+    ----------
+    touches : Touches
+        Uses ``pn_R[:, :2]`` (m, R), ``target``, ``setup``.
+    c_rad : (N_c,) float
+        C angle of each set-up, rad.
+    """
+    Nw = len(touches.target_ids)
+    first = np.full(Nw, touches.n)
+    np.minimum.at(first, touches.target, np.arange(touches.n))
+    f = first[touches.target]
+    p = touches.pn_R[:, :2]
+    D = c_rad[touches.setup[f]] - c_rad[touches.setup]
+    cd, sd = np.cos(D), np.sin(D)
+    w = 2.0 * (1.0 - cd)
+    use = w > 1e-12
+    if not np.any(use):
+        return 0.0, 0.0
+    pf, pk, cd, sd, w = p[f[use]], p[use], cd[use], sd[use], w[use]
+    b = pk - np.column_stack([cd * pf[:, 0] - sd * pf[:, 1], sd * pf[:, 0] + cd * pf[:, 1]])  # p_k - R(D) p_f
+    # (I - R(D))^T b, R(D) = [[cd, -sd], [sd, cd]]
+    rhs = np.column_stack([(1 - cd) * b[:, 0] - sd * b[:, 1], sd * b[:, 0] + (1 - cd) * b[:, 1]])
+    c = rhs.sum(axis=0) / w.sum()
+    r = b - np.column_stack([(1 - cd) * c[0] + sd * c[1], -sd * c[0] + (1 - cd) * c[1]])  # b - (I - R(D)) c
+    dof = max(2 * len(w) - 2, 1)
+    se = np.sqrt(np.sum(r * r) / dof / w.sum())
+    tol = max(3.0 * se, 1e3 * np.finfo(float).eps * float(np.max(np.abs(p))))
+    if np.hypot(c[0], c[1]) <= tol:
+        return 0.0, 0.0
+    return float(c[0]), float(c[1])
+
+
 def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
-    """The eleven analytic null directions of A (see module docstring)."""
+    """The eleven analytic null directions of A (see module docstring; C axis at :func:`c_axis_xy`)."""
     N = np.zeros((n_par, 11))
+    cx, cy = c_axis_xy(touches, c_rad)
     Nw = s["G"].stop - s["G"].start
     first = np.full(Nw, touches.n)
     np.minimum.at(first, touches.target, np.arange(touches.n))
@@ -575,9 +653,12 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
     N[s["EC0Y"], 6] = 1
     N[s["EYX"], 6] = gx
     N[s["ECC"], 6] = -1
-    # 7: workpiece rotated in W
-    N[s["G"], 7] = -nR[:, 0] * pn[:, 1] + nR[:, 1] * pn[:, 0]
+    # 7: workpiece rotated in W about the C axis: G by n . R90 (p - c), ECC, EXC/EYC,total by -R90 c
+    # (0.0 - cx, not -cx: a C axis at the origin gives +0.0, main's entries bit for bit)
+    N[s["G"], 7] = -nR[:, 0] * (pn[:, 1] - cy) + nR[:, 1] * (pn[:, 0] - cx)
     N[s["ECC"], 7] = 1
+    N[s["EXC"], 7] = cy
+    N[s["EYC"], 7] = 0.0 - cx
     # 8: yaw offset vs a straightness slope (ECY vs EYX; ECX vs EXY); 9: EXY slope vs EC0Y
     if yaw == Yaw.ECY:
         N[s["ECY"], 8] = 1
@@ -590,7 +671,9 @@ def _null_basis(touches, s, gx, gy, c_rad, n_par, yaw=Yaw.ECY) -> np.ndarray:
     # 10: scale
     N[s["EXX"], 10] = gx
     N[s["EYY"], 10] = gy
-    N[s["G"], 10] = np.einsum("ij,ij->i", nR, pn)
+    N[s["G"], 10] = np.einsum("ij,ij->i", nR, pn - (cx, cy))  # about the C axis: EXC/EYC,total by -c
+    N[s["EXC"], 10] = 0.0 - cx
+    N[s["EYC"], 10] = 0.0 - cy
     return N
 
 
@@ -632,7 +715,7 @@ class HeightTerms:
     What no set of touches can see (the gauge, :attr:`C`): a tilt of the
     part on the table (every raised target moved by ``dz`` times a vector in
     W): the reference set-up's tilt is set to 0, like its EXC/EYC/ECC by
-    eq 16; a twist of the raised targets about Z and a growth of their
+    eq 16; a twist of the raised targets about the C axis and a growth of their
     radius in proportion to their height: the rotation and scale parts of
     the Abbe terms are set to 0 (only their two shear parts are seen). The
     raised targets' G carry those parts instead, so a comparison of G with
@@ -781,10 +864,16 @@ def height_terms(touches: Touches, design: SelfCalDesign, *, abbe: bool | str = 
         Ck[3, 2 * q + 3] = -1.0
         gauge += ["dEB/dy + dEA/dx = 0: a twist of the raised targets about Z in proportion to their height is not seen",
                   "dEB/dx - dEA/dy = 0: a growth of the raised targets' radius in proportion to their height is not seen"]
-        NG[:, 2] = dzt * (-nR[:, 0] * pn[:, 1] + nR[:, 1] * pn[:, 0])  # twist: n . R90 p
+        # twist and growth about the C axis (c, module docstring "Null space and gauge"): the Abbe part
+        # removes dz n . R90 p (dz n . p), G gives dz n . R90 (p - c) (dz n . (p - c)), and every raised
+        # set-up's tilt gives back -dz n . R90 c (-dz n . c): EBC, EAC = cy, cx (-cx, cy); 0 with c = 0
+        cx, cy = c_axis_xy(touches, design.c_rad)
+        NG[:, 2] = dzt * (-nR[:, 0] * (pn[:, 1] - cy) + nR[:, 1] * (pn[:, 0] - cx))  # twist: n . R90 (p - c)
         NH[2 * q:, 2] = (0.0, -1.0, -1.0, 0.0)
-        NG[:, 3] = dzt * np.einsum("ij,ij->i", nR, pn)  # growth: n . p
+        NH[:q, 2], NH[q:2 * q, 2] = cy, cx
+        NG[:, 3] = dzt * np.einsum("ij,ij->i", nR, pn - (cx, cy))  # growth: n . (p - c)
         NH[2 * q:, 3] = (1.0, 0.0, 0.0, -1.0)
+        NH[:q, 3], NH[q:2 * q, 3] = 0.0 - cx, cy
         null_names += ["raised targets twisted about Z in proportion to height",
                        "raised targets' radius grown in proportion to height"]
     own = tuple(np.array([np.flatnonzero(setups == j)[0], q + np.flatnonzero(setups == j)[0]])

@@ -219,9 +219,10 @@ def true_c_terms_um(machine, des, z_m: float) -> tuple[np.ndarray, np.ndarray]:
     :meth:`core.selfcal.SelfCalDesign.to_gauge`): the linear axes' error, the
     C line and the radial motion at every angle, mixed as the identification
     mixes them, whatever the grid origin or the C axis's position. The null
-    directions are ``des.A``'s own (SVD of the column-scaled matrix), not the
-    analytic ``des.N``: that basis assumes the C axis on x = y = 0 (with it
-    at (22, 0) mm its rotation and scale columns leave ``A N`` at 0.04).
+    directions are ``des.A``'s own (SVD of the column-scaled matrix). The
+    analytic ``des.N`` spans the same space since s7_gauge (its rotation and
+    scale now about the C axis, wherever it is); the SVD is kept because
+    switching would move these figures at rounding level, not bit for bit.
     """
     from scipy.linalg import null_space
 

@@ -24,6 +24,14 @@ in ``log_1e5_discover_error``. ``log_1e6_discover_peak_mb`` likewise on the
 1e6-row file under the target itself (:data:`DISCOVER_1E6_GUARD_MB`): its
 figure, or None and the reason in ``log_1e6_discover_error``.
 
+The long-log path against the dense one, on a 1e4-row campaign (100
+targets at 100 C angles: its design, 33 MB, is below
+:data:`core.baseline.DENSE_DESIGN_BYTES`, so ``vmt discover`` takes it
+dense): ``log_1e4_discover_blocks_peak_mb`` and ``_s``, the same command
+forced through the block design (the threshold set to 0 in the child),
+read against ``log_1e4_discover_dense_peak_mb`` and ``_s``; both children
+must write the same findings (else the figure is refused).
+
 Writing: ``log_1e6_write_s``, the 1e6-row file written by
 :func:`core.probelog.write_probe_log` (streamed block by block). On the
 1e5-row campaign (written once: the streamed writer's file is the one
@@ -59,6 +67,8 @@ REFERENCES = {
     "log_1e5_discover_peak_mb": "python_numpy_baseline_mb",
     "log_1e6_discover_peak_mb": "python_numpy_baseline_mb",
     "log_1e5_write_s": "log_1e5_write_previous_s",
+    "log_1e4_discover_blocks_peak_mb": "log_1e4_discover_dense_peak_mb",
+    "log_1e4_discover_blocks_s": "log_1e4_discover_dense_s",
     "log_1e5_write_peak_mb": "log_1e5_write_previous_peak_mb",
 }
 TARGETS = {"log_1e6_check_peak_mb": "< 2048 MB (issue 19 item 2)",
@@ -160,6 +170,9 @@ _WORK = {
     "check": "from scenarios.cli import main\nassert main(['check', sys.argv[1], '--json']) == 0",
     "discover": ("import resource\nlim = int(sys.argv[2]) << 20\nresource.setrlimit(resource.RLIMIT_AS, (lim, lim))\n"
                  "from scenarios.cli import main\nassert main(['discover', sys.argv[1], '--json', sys.argv[1] + '.json']) == 0"),
+    # argv: log, json out, the dense design's threshold (bytes; 0 forces the block design)
+    "discover_at": ("import core.baseline\ncore.baseline.DENSE_DESIGN_BYTES = int(sys.argv[3])\n"
+                    "from scenarios.cli import main\nassert main(['discover', sys.argv[1], '--json', sys.argv[2]]) == 0"),
     "touches": ("from core.probelog import read_probe_log\nfrom core.touches import from_log\n"
                 "log = read_probe_log(sys.argv[1])\nt = from_log(log.select(abs(log.col('nz')) <= 0.01))"),
 }
@@ -198,6 +211,7 @@ def run() -> dict:
         log5 = large_log(1_000, N_ANGLES, np.random.default_rng(19))
         out.update(_write_figures(log5, d))
         del log5
+        out.update(_dense_and_blocks(Path(d)))
         out["log_1e6_rows"] = n
         out["log_1e6_file_mb"] = round(os.path.getsize(path) / 2**20, 1)
         t0 = time.perf_counter()
@@ -212,6 +226,27 @@ def run() -> dict:
         out["log_1e6_touches_s"] = round(t_touch, 2)
         out.update(_discover_figures(Path(d) / "new.csv", "log_1e5", DISCOVER_GUARD_MB, DISCOVER_TIMEOUT_S))
         out.update(_discover_figures(path, "log_1e6", DISCOVER_1E6_GUARD_MB, DISCOVER_TIMEOUT_S))
+    return out
+
+
+def _findings(path) -> list:
+    rep = json.loads(Path(path).read_text(encoding="utf-8"))
+    return [(f["cause"], f.get("confidence")) for f in rep["findings"]] + [rep["structure"]["baseline"]["present"]]
+
+
+def _dense_and_blocks(d: Path) -> dict:
+    """``vmt discover`` of a 1e4-row campaign dense and forced through the block design (module docstring)."""
+    from core.baseline import DENSE_DESIGN_BYTES
+    from core.probelog import write_probe_log
+
+    path = d / "campaign-1e4.csv"
+    write_probe_log(path, large_log(100, N_ANGLES, np.random.default_rng(19)))
+    out = {}
+    for name, limit in (("dense", DENSE_DESIGN_BYTES), ("blocks", 0)):
+        t, out[f"log_1e4_discover_{name}_peak_mb"] = _child("discover_at", path, d / f"{name}.json", limit)
+        out[f"log_1e4_discover_{name}_s"] = round(t, 2)
+    if _findings(d / "dense.json") != _findings(d / "blocks.json"):
+        raise RuntimeError("discover forced through the block design finds otherwise than dense on the 1e4-row log")
     return out
 
 

@@ -193,3 +193,38 @@ def test_block_design_bad_input():
         np.asarray(A.basis())
     with pytest.raises(ConfigError, match="not defined"):
         np.vstack([A, A])
+
+
+def test_block_basis_from_blocks_of_rows_is_one_factorisation(monkeypatch):
+    """The block basis's R stacked from blocks of a few rows (TSQR) gives the span, rank and leverage of one block
+    and of the dense orth (1e-12), its kept map is orthonormal, and its rows, products and toarray agree."""
+    from core import lsq
+    from core.diagnosis import orth
+
+    A, r = _blocks(n=300)
+    one = A.basis(1e-9)
+    monkeypatch.setattr(lsq, "CHUNK_BYTES", 8 * 5 * 7)  # 7 rows a block
+    B = lsq.BlockDesign(A.ids, A.D, A.g_cols, A.d_cols)
+    Q, Qd = B.basis(1e-9), orth(A.toarray(), tol=1e-9)
+    assert Q.span is not None and Q.shape == one.shape == Qd.shape
+    X = r.normal(size=(A.shape[0], 3))
+    for P in (one, Qd):
+        np.testing.assert_allclose(Q @ (Q.T @ X), P @ (P.T @ X), atol=1e-12)
+    Qa = Q.toarray()
+    np.testing.assert_allclose(Qa.T @ Qa, np.eye(Q.shape[1]), atol=1e-13)
+    np.testing.assert_allclose(lsq.leverage(Q), np.sum(Qa ** 2, axis=1), atol=1e-13)
+    c = r.normal(size=Q.shape[1])
+    np.testing.assert_allclose(Q @ c, Qa @ c, atol=1e-13)
+    np.testing.assert_allclose(Q.dense_rows(np.arange(5, 40)), Qa[5:40, Q.k:], atol=1e-14)
+    np.testing.assert_allclose(lsq.row_column_norms(A.D, np.arange(0, 300, 2)), np.linalg.norm(A.D[::2], axis=0),
+                               rtol=1e-14)
+
+
+def test_block_basis_span_columns_cannot_be_taken():
+    """Q[:, j] inside the basis's own (mapped) directions is refused with a one-line ConfigError naming the first
+    column that can be taken; an empty hstack leaves the design itself."""
+    A, _ = _blocks()
+    Q = A.basis()
+    with pytest.raises(ConfigError, match=f"k >= {Q.shape[1]}"):
+        Q[:, Q.k:]
+    assert np.hstack([A, np.zeros((A.shape[0], 0))]) is A

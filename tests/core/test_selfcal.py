@@ -58,6 +58,58 @@ def test_null_space_is_eleven_dimensional_and_fixed_by_the_gauge():
     assert len(des.gauge) == 11 and "scale unknown" in des.gauge[10]
 
 
+def _off_axis(t, c_xy):
+    """``t`` with the C axis at ``c_xy`` (m) in R: each set-up's tip centres p -> c + R(-C) (w - c), i.e.
+    p + (I - R(-C_j)) c (eq 1 about the axis); normals unchanged."""
+    from dataclasses import replace
+    c = np.asarray(c_xy, float)
+    sh = c - np.einsum("jab,b->ja", rot2(-t.rot_rad[:, 2]), c)  # (I - R(-C_j)) c per touch
+    pn = t.pn_R.copy()
+    pn[:, :2] += sh
+    return replace(t, pn_R=pn, p_R=pn + (t.p_R - t.pn_R))
+
+
+@pytest.mark.parametrize("c_mm", [(22.0, 0.0), (-35.0, 15.0)])
+def test_null_space_and_gauge_with_the_c_axis_off_the_origin(c_mm):
+    """Known answer and round trip with C at (cx, cy): the rotation and scale directions about the axis.
+
+    The axis is read back from the nominal positions (1e-12 m: rounding of 0.1 m positions); |A N| at
+    rounding (1e-14: O(1) entries, a dozen terms a row; the paper's columns about R's origin leave 0.041
+    at (22, 0) mm); the null space is all of A's (eleven); a truth in the model space, identified
+    noise-free, is ``to_gauge(truth)`` to 1e-6 um (the solve's rounding on um-size values)."""
+    from core.selfcal import c_axis_xy
+    w, wn, ids = example_cross_pocket()
+    t = _off_axis(nominal_touches(w, wn, ANGLES, stylus_r_m=0.003, target_ids=ids), np.array(c_mm) * 1e-3)
+    p = t.pn_R  # 11 x 11 nodes over the touches' extent: every node seen by touches both ways
+    grid = Grid(np.linspace(p[:, 0].min(), p[:, 0].max(), 11), np.linspace(p[:, 1].min(), p[:, 1].max(), 11))
+    des = build_design(t, grid)
+    np.testing.assert_allclose(c_axis_xy(t, des.c_rad), np.array(c_mm) * 1e-3, rtol=0, atol=1e-12)
+    A = des.A.toarray()
+    assert np.abs(A @ des.N).max() < 1e-14
+    sc = np.linalg.norm(A, axis=0)
+    sc[sc == 0] = 1.0
+    sv = np.linalg.svd(A / sc, compute_uv=False)
+    assert (sv > 1e-8 * sv[0]).sum() == des.n_params - 11
+    assert np.linalg.matrix_rank(des.C @ des.N) == 11
+    truth = random_truth(des, np.random.default_rng(3))
+    tg = des.to_gauge(truth)
+    np.testing.assert_allclose(A @ tg, A @ truth, rtol=0, atol=1e-15)   # the gauge moves nothing the touches see
+    np.testing.assert_allclose(des.C @ tg, des.d, rtol=0, atol=1e-18)
+    res = self_calibrate(with_dq(t, A @ truth), grid, model_error=False)
+    np.testing.assert_allclose(res.theta, tg, rtol=0, atol=1e-6 * UM)
+
+
+def test_c_axis_at_the_origin_or_unplaced_reads_as_zero():
+    """Bit-identity's condition: C at the origin gives exactly (0, 0) (so the paper's columns, bit for bit);
+    one angle places no axis."""
+    from core.selfcal import c_axis_xy
+    w, wn, ids = example_cross_pocket()
+    t = nominal_touches(w, wn, ANGLES, stylus_r_m=0.003, target_ids=ids)
+    assert c_axis_xy(t, np.radians(ANGLES)) == (0.0, 0.0)
+    t1 = _off_axis(nominal_touches(w, wn, [75], target_ids=ids), (0.022, 0.0))
+    assert c_axis_xy(t1, np.radians([75.0])) == (0.0, 0.0)
+
+
 def test_names_and_order():
     w, wn = freeform(40)
     t = nominal_touches(w, wn, ANGLES)
