@@ -47,7 +47,7 @@ from scipy import special, stats
 from scipy.interpolate import BSpline
 
 from .exceptions import ConfigError
-from .lsq import Basis
+from .lsq import Basis, group_sums
 from .units import UM
 
 #: Relative column norm (after projection out of the model) below which a
@@ -988,13 +988,13 @@ def replicate_scatter(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None =
         return Replicates(0.0, 0, 0)
     k, inv, cnt = np.unique(key[ok], return_inverse=True, return_counts=True)
     yy = y[ok]
-    s = np.bincount(inv, yy)
+    s = group_sums(inv, len(k), yy)
     mean = s / cnt
     res = yy - mean[inv]
     dof = int(np.sum(cnt - 1))
     if trend is not None and trend.shape[1] and dof:
         T = trend[ok]
-        Tc = T - (np.stack([np.bincount(inv, T[:, j]) for j in range(T.shape[1])], axis=1) / cnt[:, None])[inv]
+        Tc = T - (group_sums(inv, len(k), T) / cnt[:, None])[inv]
         nrm = np.linalg.norm(Tc, axis=0)
         big = nrm > 1e-9 * np.maximum(np.linalg.norm(T, axis=0), 1e-300)
         if big.any():

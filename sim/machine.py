@@ -59,6 +59,7 @@ import numpy as np
 from core import iso
 from core.chain import Chain, parse_chain
 from core.exceptions import ConfigError
+from core.memo import Memo
 from sim.errorfuncs import Constant, ErrorFunction, SplineStack, SplineTable, Zero
 
 _E = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
@@ -193,12 +194,13 @@ class Machine:
         self.chain = config.parsed_chain
         self._motion = {a: tuple(s.name for s in iso.symbols_of_axis(a, location=False)) for a in self.chain.axes}
         self._error_plan, self._spline_stacks = self._compile_errors()
-        self._model, self._layout, self._fW, self._fP = self._build(with_errors=True)
-        self._data = self._model.createData()
-        self._nmodel, self._nlayout, self._nfW, self._nfP = self._build(with_errors=False)
+        # the Pinocchio models read the geometry and the location errors only (motion errors enter
+        # the configurations, :meth:`_configurations_T`): built once per such key (_MODELS)
+        (self._model, self._layout, self._fW, self._fP, self._tip_pending, self._nmodel, self._nlayout,
+         self._nfW, self._nfP, self._fk, self._fk_W, self._fk_P) = _MODELS.get_or_compute(
+            self._models_key(), self._build_models)
+        self._data = self._model.createData()     # scratch of tip_W_pinocchio: one per machine
         self._ndata = self._nmodel.createData()
-        self._fk = _BatchFK(self._model, (self._fW, self._fP))
-        self._fk_W, self._fk_P = _BatchFK(self._model, (self._fW,)), _BatchFK(self._model, (self._fP,))
         self._layout_W = tuple(e for e in self._layout if e[3] < 0)  # the workpiece branch's joints
         self._layout_P = tuple(e for e in self._layout if e[3] > 0)  # the tool branch's
         # W's pose depends on the rotary angles alone when its branch holds only rotary axes
@@ -369,6 +371,25 @@ class Machine:
         f = self.config.errors.get(name)
         return 0.0 if f is None else float(f(np.zeros(1))[0])
 
+    def _models_key(self) -> tuple:
+        """Everything :meth:`_build` reads: the chain, the probe offsets, the rotary axes' points and
+        the location errors' values (as ``float.hex``, so -0.0 and 0.0 stay apart), in chain order."""
+        cfg = self.config
+        locs = tuple((sy.name, self._loc(sy.name).hex()) for a in self.chain.axes
+                     for sy in iso.symbols_of_axis(a, location=True)
+                     if a not in iso.LINEAR_AXES or sy.name in iso.SQUARENESS)
+        pts = tuple((a, tuple(v.hex() for v in cfg.rotary_points_R_m[a])) for a in self.chain.rotary_axes)
+        return cfg.chain, tuple(v.hex() for v in cfg.J_m), pts, locs
+
+    def _build_models(self) -> tuple:
+        """The model with errors (its layout, W and P frames, the tip's pending placement), the
+        error-free one (its layout and frames) and the batched kinematics of the first. Read-only
+        once built (several machines share them through :data:`_MODELS`)."""
+        model, layout, fW, fP = self._build(with_errors=True)
+        nmodel, nlayout, nfW, nfP = self._build(with_errors=False)
+        return (model, layout, fW, fP, self._tip_pending, nmodel, nlayout, nfW, nfP,
+                _BatchFK(model, (fW, fP)), _BatchFK(model, (fW,)), _BatchFK(model, (fP,)))
+
     def _build(self, with_errors: bool):
         import pinocchio as pin
 
@@ -424,7 +445,7 @@ class Machine:
             else:
                 tip = pending * pin.SE3(np.eye(3), -J)
                 if with_errors:  # what J is appended to (per-pose offsets: :meth:`_tip_rows`)
-                    self._tip_pending = (np.array(pending.rotation, float), np.array(pending.translation, float))
+                    self._tip_pending = tuple(_read_only(np.array(v, float)) for v in (pending.rotation, pending.translation))
                 frames["P"] = model.addFrame(pin.Frame("P", parent, 0, tip, pin.FrameType.OP_FRAME))
         return model, tuple(layout), frames["W"], frames["P"]
 
@@ -559,6 +580,14 @@ class Machine:
                 M[:, :3, 3] = c - R @ c
             T = T @ M
         return T
+
+
+#: The Pinocchio models of machines, by :meth:`Machine._models_key` (geometry and location errors):
+#: a Monte Carlo study builds a machine per run with new motion errors on the same geometry
+#: (scenarios.vcmm.simulate_run). Safe: the key holds everything the models are built from, and
+#: the models and batched kinematics are never written after their build (each machine has its
+#: own Pinocchio ``Data``).
+_MODELS = Memo(32)
 
 
 class _Nominal:
@@ -735,3 +764,9 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
     R[2, 1] = 2 * (y * z + x * w)
     R[2, 2] = 1 - 2 * (x * x + y * y)
     return R
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """``a`` made read-only (shared between machines through :data:`_MODELS`)."""
+    a.flags.writeable = False
+    return a

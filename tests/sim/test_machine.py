@@ -426,3 +426,57 @@ def test_per_pose_probe_offsets_are_each_stylus_machine(name, rng):
             assert np.abs(got[sel] - mk.tip_W_pinocchio(lin[sel], r, t[sel], d[sel])).max() < 1e-12
     with pytest.raises(ConfigError, match="per-pose probe offsets"):
         m.tip_W(lin, rot, t, d, J_m=np.full((n, 3), np.nan))
+
+
+def _through_models_cache(monkeypatch, configs, fresh: bool):
+    """tip_W, T_R_W, T_R_P and Pinocchio's own tip of each config's machine, built one after the
+    other through one models cache (``fresh``: the cache emptied before each build), and the machines."""
+    from core.memo import Memo
+
+    monkeypatch.setattr(sim.machine, "_MODELS", Memo(32))
+    rng = np.random.default_rng(11)
+    lin, rot = _poses(configs[0], Machine(configs[0]).rotary_axes, 40, rng)
+    out, machines = [], []
+    for cfg in configs:
+        if fresh:
+            sim.machine._MODELS.clear()
+        m = Machine(cfg)
+        out.append((m.tip_W(lin, rot), m.T_R_W(lin, rot), m.T_R_P(lin, rot), m.tip_W_pinocchio(lin[:5], rot[:5])))
+        machines.append(m)
+    return out, machines
+
+
+def _cache_configs():
+    """nmv3000 with two sets of location errors (squareness, the C line) and motion errors, then the
+    first's location errors with other motion errors (the Monte Carlo's case: same models)."""
+    cfg = MACHINES["nmv3000"]()
+    a = {"EC0Y": Constant(-43e-6), "EX0C": Constant(5e-6), "EA0C": Constant(20e-6), "EXX": Polynomial((1e-6, 2e-5))}
+    b = {"EC0Y": Constant(31e-6), "EX0C": Constant(-7e-6), "EA0C": Constant(-9e-6), "EXX": Polynomial((-2e-6, 1e-5))}
+    c = {**a, "EXX": Polynomial((3e-6, -4e-5)), "ECC": Constant(15e-6)}
+    return [dataclasses.replace(cfg, errors=e) for e in (a, b, c)]
+
+
+def test_models_cache_gives_what_fresh_builds_give_bit_for_bit(monkeypatch):
+    """Machines with different errors built one after the other through the models cache (one per
+    geometry and location errors, issue 19 item 5) give what fresh builds give, bit for bit: the
+    location errors are in the key, the motion errors in each machine's own configurations."""
+    configs = _cache_configs()
+    cached, ms = _through_models_cache(monkeypatch, configs, fresh=False)
+    fresh, _ = _through_models_cache(monkeypatch, configs, fresh=True)
+    for got, want in zip(cached, fresh):
+        for g, w in zip(got, want):
+            assert np.array_equal(g, w)
+    assert ms[2]._model is ms[0]._model and ms[1]._model is not ms[0]._model   # the cache is used
+    assert ms[2]._data is not ms[0]._data                                       # scratch not shared
+    assert not np.array_equal(cached[0][0], cached[1][0]) and not np.array_equal(cached[0][0], cached[2][0])
+
+
+def test_models_cache_key_without_the_location_errors_would_be_caught(monkeypatch):
+    """The test above fails if the key omits the errors: with a key of the geometry alone the
+    second machine reuses the first's location errors and its tips differ from a fresh build's."""
+    key = Machine._models_key
+    monkeypatch.setattr(Machine, "_models_key", lambda self: key(self)[:3])
+    configs = _cache_configs()
+    cached, _ = _through_models_cache(monkeypatch, configs, fresh=False)
+    fresh, _ = _through_models_cache(monkeypatch, configs, fresh=True)
+    assert not np.array_equal(cached[1][0], fresh[1][0])
