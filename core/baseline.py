@@ -512,6 +512,9 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
 
     def bic(item):
         Q = basis(item)
+        if Q is None:  # (a long log's grid kept sparse as the best so far: its block basis made again to compare)
+            Gs = item[1].slices["G"]
+            Q = BlockDesign.from_sparse(item[2], np.arange(Gs.start, Gs.stop)).basis(RANK_TOL)
         r = t.dq_m - Q @ (Q.T @ t.dq_m)
         return _bic(float(r @ r), t.n, Q.shape[1])
 

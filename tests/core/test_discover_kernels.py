@@ -526,3 +526,25 @@ def test_folds_block_path_sees_a_large_own_column_as_unseen_by_training():
     a, b = dense.residuals(Y), blocks.residuals(Y)
     assert dense.last_dof == blocks.last_dof
     np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
+
+
+def test_planar_grid_choice_compares_a_kept_block_design_with_a_dense_tie(monkeypatch):
+    """A block design kept sparse as the best grid so far, then a dense grid whose BIC is within the margin of it
+    (an exact fit: every grid's span holds a translation of the whole campaign, the margin is then huge): the tie
+    is settled by both grids' formed BICs (main: AttributeError, the kept grid's basis None), and the grid chosen
+    is the one chosen when both are dense."""
+    from core import baseline as Bm
+    from scenarios.bench.probelog import large_log
+    from core.touches import from_log
+    import dataclasses
+
+    t = from_log(large_log(40, 12, np.random.default_rng(19)))
+    t = dataclasses.replace(t, p_R=t.pn_R + np.array([1e-6, -0.5e-6, 0.0]))  # every touch moved as one: exact fit
+    steps = (30.0, 55.0)  # (both identifiable on this log; 22 mm is not)
+    one = [Bm.planar(t, s) for s in steps]
+    p = [b.A.shape[1] for b in one]
+    assert p[0] > p[1] and all(b.identifiable for b in one)
+    dense = Bm.planar(t, grid_steps_mm=steps)
+    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 8 * t.n * (p[0] + p[1]) // 2)  # 30 mm blocks, 55 dense
+    mixed = Bm.planar(t, grid_steps_mm=steps)
+    assert mixed.info["grid_step_mm"] == dense.info["grid_step_mm"]
