@@ -775,6 +775,15 @@ class BlockDesign:
         re-orthonormalised once, CholeskyQR2), so that it costs ``m x r``
         numbers beside ``D`` instead of ``n x r``. One factorisation serves
         every ``tol``.
+
+        Because the basis is recomputed as ``D T - mean T`` on every use, with
+        ``|T|`` about ``1 / |R_rr|``, it is orthonormal only to about
+        ``eps cond(R)``, not to rounding as a formed ``Q`` is: ``U^T U - I``
+        measured 2e-10 (nearly collinear columns, tol 1e-7), 5e-7 (least
+        singular value 1e-10, tol 1e-12), 1.9e-5 (2e-12, tol 1e-12) on 3,000 x 12
+        test matrices, where a formed ``Q`` keeps 7e-16. On the benchmark's
+        1e4-row log (a well-conditioned design) the reports of this path and
+        the dense one differ by at most 9e-12 relative, with the same findings.
         """
         if "qr" not in self._bases:
             ids, D = self.ids, self.D
@@ -877,7 +886,7 @@ class CentredSpan:
         return G
 
     def orthonormalised(self) -> "CentredSpan":
-        """The same span with ``T`` corrected by the Cholesky factor of ``U^T U`` (orthonormal to rounding)."""
+        """The same span with ``T`` corrected by the Cholesky factor of ``U^T U`` (orthonormal to about eps cond(R): see :meth:`BlockDesign.basis`)."""
         if not self.r:
             return self
         L = np.linalg.cholesky(self.gram())
