@@ -654,17 +654,17 @@ class _BatchFK:
             if name not in self._KINDS:
                 raise ConfigError(f"batched kinematics: joint type {name} is not supported")
             M = model.jointPlacements[j]
-            R = np.array(M.rotation, float)
+            R = _read_only(np.array(M.rotation, float))  # shared between machines through _MODELS
             self.joints.append((*self._KINDS[name], int(model.parents[j]), int(model.joints[j].idx_q), R,
-                                None if not np.any(M.translation) else np.array(M.translation, float),
+                                None if not np.any(M.translation) else _read_only(np.array(M.translation, float)),
                                 bool(np.array_equal(R, np.eye(3)))))  # None: no translation
         self.frames_ = []
         for f in frame_ids:
             fr = model.frames[f]
             parent = fr.parentJoint if hasattr(fr, "parentJoint") else fr.parent
-            Rf = np.array(fr.placement.rotation, float)
+            Rf = _read_only(np.array(fr.placement.rotation, float))
             self.frames_.append((int(parent), None if np.array_equal(Rf, np.eye(3)) else Rf,
-                                 np.array(fr.placement.translation, float)))
+                                 _read_only(np.array(fr.placement.translation, float))))
 
     def frames(self, QT: np.ndarray, frame_t: list | None = None) -> list:
         """[(R (n,3,3), t (n,3))] of the frames in the universe, for configurations QT (nq, n)

@@ -480,3 +480,29 @@ def test_models_cache_key_without_the_location_errors_would_be_caught(monkeypatc
     cached, _ = _through_models_cache(monkeypatch, configs, fresh=False)
     fresh, _ = _through_models_cache(monkeypatch, configs, fresh=True)
     assert not np.array_equal(cached[1][0], fresh[1][0])
+
+
+def test_shared_batched_kinematics_arrays_are_read_only():
+    """The batched kinematics' joint and frame placements are shared by every Machine with the same
+    model key (sim.machine._MODELS): writing one must fail, not change another machine's tips."""
+    mm = sim.machine
+    m = Machine(MACHINES["nmv3000"]())
+    fks = [v for v in vars(m).values() if isinstance(v, mm._BatchFK)]
+    assert fks, "no batched kinematics found on the machine"
+    n = 0
+    for fk in fks:
+        for jt in fk.joints:
+            if jt is None:
+                continue
+            for a in jt:
+                if isinstance(a, np.ndarray):
+                    with pytest.raises(ValueError):
+                        a[...] = 0.0
+                    n += 1
+        for _, Rf, tf in fk.frames_:
+            for a in (Rf, tf):
+                if a is not None:
+                    with pytest.raises(ValueError):
+                        a[...] = 0.0
+                    n += 1
+    assert n > 0
