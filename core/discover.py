@@ -2311,9 +2311,12 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, signal: tupl
     if d_n <= 0:
         return out
     for cov in bl.covariates:
-        if not cov.family or cov.family == fam or cov.name not in bases or isinstance(bases[cov.name], tuple):
+        if not cov.family or cov.family == fam or cov.name not in bases:
             continue
-        U = have[cov.name] if cov.name in have else new_basis(so.Q, bases[cov.name][rows])
+        B = bases[cov.name]  # built once: a long log's LazyBases builds it on every access
+        if isinstance(B, tuple):
+            continue
+        U = have[cov.name] if cov.name in have else new_basis(so.Q, B[rows])
         if U.shape[1] == 0:
             continue
         overlap, d_w, ind = _reproduces(U, signal, so, sigma, settings)
@@ -2340,24 +2343,29 @@ def _pspline_penalty(cov, n_modes: int, m: int) -> np.ndarray:
 
 def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings, bases) -> Term | None:
     """The penalised smooth term in the strongest remaining covariate, if it earns its keep."""
-    top = next((d for d in diag if d.significant(settings.alpha_family) and d.covariate in bases
-                and not isinstance(bases[d.covariate], tuple)), None)
+    top = B = None
+    for d in diag:  # each basis fetched once: a long log's LazyBases builds it on every access
+        if d.significant(settings.alpha_family) and d.covariate in bases:
+            B = bases[d.covariate]  # all rows
+            if not isinstance(B, tuple):
+                top = d
+                break
     if top is None:
         return None
     cov = bl.covariate(top.covariate)
     if cov is None:
         return None
-    B = bases[cov.name]  # all rows
     m = B.shape[1] // len(cov.modes)
     P1 = _pspline_penalty(cov, len(cov.modes), m)
     E_named = _stack(terms, rows)
-    Bp = B[rows] - st.Q @ (st.Q.T @ B[rows])
+    Br = B[rows]
+    Bp = Br - st.Q @ (st.Q.T @ Br)
     scale = float(np.trace(Bp.T @ Bp)) / max(B.shape[1], 1)
     best = None
     for lam in scale * np.logspace(-4, 2, 7):
         Pm = np.zeros((E_named.shape[1] + B.shape[1],) * 2)
         Pm[E_named.shape[1]:, E_named.shape[1]:] = lam * P1
-        cv = folds.mse(y[rows], np.hstack([E_named, B[rows]]), Pm)
+        cv = folds.mse(y[rows], np.hstack([E_named, Br]), Pm)
         if best is None or cv < best[0]:
             best = (cv, lam)
     cv, lam = best
