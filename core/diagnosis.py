@@ -721,9 +721,9 @@ def sparse_function_basis(cov: Covariate):
 GRAM_CHUNK_ROWS = 8192
 
 
-def _term_chunks(cov: Covariate, modes: np.ndarray, rows: np.ndarray):
-    """``term_basis(cov, modes)[rows]`` a block of rows at a time: (positions, block), sparse for sparse functions."""
-    F = sparse_function_basis(cov)
+def _term_chunks(cov: Covariate, F, modes: np.ndarray, rows: np.ndarray):
+    """``term_basis(cov, modes)[rows]`` a block of rows at a time: (positions, block), sparse for sparse functions
+    (``F``: :func:`sparse_function_basis` of ``cov``, made once by the caller)."""
     M = modes[:, list(cov.modes)]
     for a in range(0, len(rows), GRAM_CHUNK_ROWS):
         pos = np.arange(a, min(a + GRAM_CHUNK_ROWS, len(rows)))
@@ -763,13 +763,14 @@ def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.
     """
     n = len(r)
     rows = np.arange(n) if rows is None else np.asarray(rows)
-    if sparse_function_basis(cov).shape[1] * len(cov.modes) >= n:  # more columns than rows: B^T B is the larger
+    F = sparse_function_basis(cov)
+    if F.shape[1] * len(cov.modes) >= n:  # more columns than rows: B^T B is the larger
         U = new_basis(Q, term_basis(cov, modes, rows), tol)
         if U.shape[1] == 0 or dof - U.shape[1] < 5:
             return None
         return nested_f(U, r, rss, dof), U @ (U.T @ r), U.shape[1]
     BB = QB = Br = None
-    for pos, Bc in _term_chunks(cov, modes, rows):
+    for pos, Bc in _term_chunks(cov, F, modes, rows):
         bb = Bc.T @ Bc
         bb = bb.toarray() if sp.issparse(bb) else bb
         qb = _basis_rmatmul_rows(Q, pos, Bc)
@@ -795,7 +796,7 @@ def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.
     c = np.zeros(len(nrm))
     c[keep] = (W @ z) / nk  # U U^T r = B c - Q (Q^T B c)
     fitted = -(Q @ (QB @ c))
-    for pos, Bc in _term_chunks(cov, modes, rows):
+    for pos, Bc in _term_chunks(cov, F, modes, rows):
         fitted[pos] += np.asarray(Bc @ c).ravel()
     return test, fitted, k
 
