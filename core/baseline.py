@@ -32,7 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import selfcal
-from .diagnosis import Covariate, orth, pivoted_qr, qr_formed, qr_rss
+from .diagnosis import Covariate, orth, pivoted_qr, qr_formed, qr_rank, qr_rss
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import BlockDesign
 from .touches import Touches
@@ -587,7 +587,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         else:  # (Q formed only for the grid chosen: basis)
             qr = pivoted_qr(A, q=False)
             Q = None
-            rank = int(np.sum(qr[1] > RANK_TOL * qr[1][0])) if qr[1].size else 0  # (orth's rank)
+            rank = qr_rank(qr[1], RANK_TOL)
         item = [st, des, A, C, d, names, levels, qr, Q]
         # identifiable beyond the gauge: the gauge rows fix exactly the null space
         nullity = A.shape[1] - rank

@@ -137,8 +137,12 @@ def orth(M: np.ndarray, tol: float = 1e-9, qr=None) -> np.ndarray:
     (one factorisation cut at two tolerances); ignored for another matrix.
     """
     Q, d, of = qr if qr is not None and qr[2] is M else pivoted_qr(M)
-    r = int(np.sum(d > tol * d[0])) if d.size else 0
-    return Q[:, :r]
+    return Q[:, :qr_rank(d, tol)]
+
+
+def qr_rank(d: np.ndarray, tol: float) -> int:
+    """The rank :func:`orth` cuts a :func:`pivoted_qr`'s ``|R_ii|`` (``d``) at: the number above ``tol |R_00|``."""
+    return int(np.sum(d > tol * d[0])) if d.size else 0
 
 
 def project_out(Q: np.ndarray, B: np.ndarray, inplace: bool = False) -> np.ndarray:
