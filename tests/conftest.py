@@ -105,6 +105,30 @@ def rng():
     return np.random.default_rng(20261122)
 
 
+@pytest.fixture
+def figures_not_drawn(monkeypatch):
+    """viz's PNG writer (:func:`viz.figures.write_png`, behind every report figure and recording image)
+    replaced, for one test, by one that does not draw: each figure is recorded and a fixed 1 x 1 PNG
+    written in its place, through the same atomic path (``save_png``'s temporary and rename). Drawing
+    is about 90 % of a figure's cost (constrained layout and text; encoding the PNG the rest; the
+    three MFB report figures take 1.4 s of CPU). For a test that checks a report's data, page and files but not its
+    pixels, whose figures another test renders from the same data (the test says which). Returns the
+    list of ``(figure, target)`` given to the writer, in order."""
+    import matplotlib.image
+
+    import viz.figures
+
+    seen = []
+
+    def not_drawn(fig, target, *, dpi: int = 110) -> None:
+        assert hasattr(fig, "savefig"), f"not a matplotlib figure: {fig!r}"
+        seen.append((fig, target))
+        matplotlib.image.imsave(target, np.ones((1, 1, 4)), format="png")
+
+    monkeypatch.setattr(viz.figures, "write_png", not_drawn)
+    return seen
+
+
 @pytest.fixture(scope="session")
 def mfb3_noise_free():
     """One noise-free ``mfb-3axis`` run on the default realistic machine, shared by the test files

@@ -3,10 +3,11 @@ nothing left behind when the run fails after the report was written.
 
 The shared noise-free run (conftest ``mfb3_noise_free``) stands in for the campaign, so the test
 exercises the command's wiring and the report, not a second simulation. A report takes ~3.5 s of
-CPU (matplotlib's layout of three figures), so it is rendered twice in this file: once by a
-successful command with ``--budget-runs`` (:func:`budget_report`, shared by three tests: its
+CPU (matplotlib's layout of three figures), so it is written twice in this file and drawn once:
+by a successful command with ``--budget-runs`` (:func:`budget_report`, shared by three tests: its
 page is byte for byte the one ``mfb_report`` writes for the same document, figures included),
-once by the failing command, which checks the page without a budget before it is removed.
+and by the failing command, which checks the page without a budget before it is removed, its
+figures (the same document's) not drawn (conftest ``figures_not_drawn``).
 """
 
 import contextlib
@@ -15,6 +16,7 @@ import dataclasses
 import io
 import json
 import re
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -89,9 +91,11 @@ def test_report_folder_has_the_page_figures_and_recording(budget_report, mfb3_no
     assert not [p for p in b.tmp.iterdir() if p.name.startswith(".")]  # no temporaries left beside it
 
 
-def test_a_failing_run_leaves_no_report(tmp_path, monkeypatch, mfb3_noise_free, capsys):
+def test_a_failing_run_leaves_no_report(tmp_path, monkeypatch, mfb3_noise_free, capsys, figures_not_drawn):
     """The JSON is written after the report: failing there removes the report. When the JSON is written
-    the report is complete, and without --budget-runs it has no budget section."""
+    the report is complete, and without --budget-runs it has no budget section. Its three figures are
+    not drawn (``figures_not_drawn``, about 1.4 s of CPU): they are those of the same shared run's
+    document, which :func:`budget_report` draws (the PNGs were the same bytes in both tests)."""
     import core.atomic
 
     _use_shared_run(monkeypatch, mfb3_noise_free)
@@ -109,6 +113,8 @@ def test_a_failing_run_leaves_no_report(tmp_path, monkeypatch, mfb3_noise_free, 
     assert not rep.exists() and list(tmp_path.iterdir()) == []
     assert len(pages) == 1
     _page_has_the_21_errors_and_the_figures(pages[0], mfb3_noise_free[0].doc)
+    assert [Path(t).name.split(".")[1] for _, t in figures_not_drawn] == ["error-curves", "squareness",
+                                                                          "bar-calibration"]
     assert len(re.findall(r"<tr><td>([A-Z0-9]+)</td>", pages[0])) == 21 and "budget" not in pages[0].lower()
 
 
