@@ -535,9 +535,18 @@ TURN_DRAWS = 4000
 #: Harmonics of the approach azimuth that turn with the probe (the first is a translation, in each
 #: set-up's own offsets).
 TURN_HARMONICS = (2, 3, 4)
+#: Draws of :func:`turned_lobes` whose statistic is computed at once (its arrays are draws x the per-set-up
+#: columns: 4,000 x 600 doubles, 19 MB, per array at 100 set-ups).
+TURN_CHUNK = 500
+#: ``cos k phi`` or ``sin k phi`` smaller than this is a node of the function, its value the rounding of
+#: zero (about 1e-16 for k phi up to 4 pi; 1e-12 is an azimuth 1e-12 rad from the node)
+TRIG_ZERO = 1e-12
+#: The fixed lobes' columns :func:`turned_lobes` takes: ``cos k phi``, ``sin k phi`` for k = 1..4
+#: (:func:`common_lobing`'s).
+FIXED_LOBE_COLUMNS = 8
 
 
-def turned_lobes(bl, Q: np.ndarray, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigma: float,
+def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigma: float,
                  weak_sv: float, rng: np.random.Generator | None = None, draws: int = TURN_DRAWS) -> dict | None:
     """Can this campaign tell a probe whose lobes stay fixed from one whose lobes turn in every set-up?
 
@@ -583,57 +592,213 @@ def turned_lobes(bl, Q: np.ndarray, yr: np.ndarray, rows: np.ndarray, cols: np.n
        amplitude, so the null's signal is if anything too small and
        ``p_turned`` too large: the test leans to "cannot tell").
 
-    Returns None with fewer than two set-ups (nothing turns).
+    The draws depend on the campaign, not on how it is written down
+    (issue 13 item 6): the set-ups' turn angles and noise are drawn in the
+    order of the set-ups' ids (not the order they ran in, nor their index),
+    and the noise in the per-set-up columns' own coordinates (one standard
+    normal per set-up, harmonic, cos/sin), carried into the directions
+    tested by ``(M M^T)^-1/2 M`` (``M``: the columns' coordinates on those
+    directions), a unit Gaussian there whatever orthonormal basis of them
+    the data happen to give. So the same campaign moved in the machine's
+    coordinates, its set-ups run in another order, or the model handed in
+    as another orthonormal basis of its span gives the same draws and the
+    same ``p_turned`` (to the statistic's rounding).
+
+    A per-set-up column's value at a node of its function (``sin 2 phi`` of
+    an approach along an axis: the rounding of zero) is zero, not a
+    direction of rounding (:func:`_per_setup_lobes`); the fixed lobes'
+    determined directions are judged on their columns normalised before
+    they are projected (as :func:`core.diagnosis.new_basis` does).
+
+    The per-set-up columns are kept sparse (each non-zero on one set-up's
+    rows) and met through their Gram matrices, as
+    :func:`core.diagnosis.gram_test` meets a covariate's: nothing rows x
+    set-ups is formed (``Q`` may be a :class:`core.lsq.Basis`, a long
+    log's, met a block of rows at a time).
+
+    Parameters
+    ----------
+    bl : Baseline
+        The planar baseline (its touches' set-ups and ids, the approach azimuth).
+    Q : (n, q) float or core.lsq.Basis
+        Orthonormal basis of the model on ``rows``.
+    yr : (n,) float
+        The readings on ``rows``, m.
+    rows : (n,) int
+        Distinct indices of the baseline's rows used.
+    cols : (n, 8) float
+        The fixed lobes' columns on ``rows`` (:func:`common_lobing`).
+    sigma : float
+        Noise (1 sigma), m, finite and >= 0.
+    weak_sv : float
+        Singular value below which a normalised direction is not determined, >= 0.
+    rng : numpy.random.Generator or None
+        The draws' generator (``default_rng(0)`` when None).
+    draws : int
+        Monte Carlo draws, >= 1.
+
+    Returns None with fewer than two set-ups (nothing turns). Raises
+    :class:`core.exceptions.ConfigError` (a ``ValueError``) naming the
+    input when one is malformed.
     """
+    import scipy.sparse as sp
     from scipy import stats
 
     from .diagnosis import new_basis, project_out
 
+    yr, rows, cols, rng = _turned_inputs(bl, Q, yr, rows, cols, sigma, weak_sv, rng, draws)
     t = bl.data.touches
     setup = np.asarray(t.setup)[rows]
     su = np.unique(setup)
     if su.size < 2:
         return None
-    phi = np.asarray(bl.data.azimuth)[rows]
+    su = su[np.argsort([str(t.setup_ids[j]) for j in su], kind="stable")]  # by id: the draws' order
+    phi = np.asarray(bl.data.azimuth, float)[rows]
     K = TURN_HARMONICS
-    U = np.column_stack([(setup == j) * f(k * phi) for j in su for k in K for f in (np.cos, np.sin)])
-    Qc = np.hstack([Q, new_basis(Q, cols, weak_sv)])
-    W = new_basis(Qc, U, weak_sv)
-    m = W.shape[1]
-    r = yr - Qc @ (Qc.T @ yr)
-    dof = len(yr) - Qc.shape[1]
-    out = {"setups": int(su.size), "dof": int(m)}
+    U = _per_setup_lobes(setup, su, phi, K)  # sparse (n, 2 len(K) S), columns (set-up, k, cos/sin)
+    Wc = new_basis(Q, cols, weak_sv)  # the fixed lobes beyond the model
+    r = yr - Q @ (Q.T @ yr) - Wc @ (Wc.T @ yr)
+    dof = len(yr) - Q.shape[1] - Wc.shape[1]
+    # U's normalised columns less their part in the model: P = Un - Q Q^T Un - Wc Wc^T Un, met by its Gram
+    nrm = np.sqrt(np.asarray(U.multiply(U).sum(axis=0)).ravel())
+    keep = np.flatnonzero(nrm > 0)
+    Un = (U[:, keep] @ sp.diags(1.0 / nrm[keep])).tocsr()
+    QB = _rmatmul_sparse(Q, Un)  # (q, p')
+    WB = np.asarray((Un.T @ Wc).T)
+    G = (Un.T @ Un).toarray() - QB.T @ QB - WB.T @ WB
+    g, V = np.linalg.eigh(G)
+    good = g > max(weak_sv, 1e-5) ** 2  # the directions new_basis keeps
+    m = int(good.sum())
+    out = {"setups": int(su.size), "dof": m}
     if m == 0 or dof - m < 1:
         return {**out, "beyond_ss_um2": 0.0, "F": None, "p_value": 1.0, "p_turned": 1.0, "turned_ss_um2": 0.0}
-    ss = float(np.sum((W.T @ r) ** 2))
+    s, V = np.sqrt(g[good]), V[:, good]
+    # coordinates on the orthonormal directions P V / s: of the residuals, and of U's columns (P^T Un = G)
+    x = (V.T @ (np.asarray(Un.T @ r).ravel() - QB.T @ (Q.T @ r) - WB.T @ (Wc.T @ r))) / s
+    M = np.zeros((m, U.shape[1]))
+    M[:, keep] = (s[:, None] * V.T) * nrm[keep]
+    ss = float(x @ x)
     F = (ss / m) / max((float(r @ r) - ss) / (dof - m), 1e-300)
     p = float(stats.f.sf(F, m, dof - m))
-    # the fixed lobes as fitted (min-norm over their determined directions)
-    P = project_out(Q, cols)
-    nrm = np.linalg.norm(P, axis=0)
-    nrm = np.where(nrm > 0, nrm, 1.0)
-    Uu, s, Vt = np.linalg.svd(P / nrm, full_matrices=False)
-    good = s > weak_sv
-    coef = (Vt[good].T @ ((Uu[:, good].T @ (yr - Q @ (Q.T @ yr))) / s[good])) / nrm
+    # the fixed lobes as fitted: min-norm over their determined directions, those retaining more than
+    # weak_sv of a unit column outside the model (the columns normalised before they are projected, as
+    # new_basis does: normalised after, a column inside the model is its rounding made a unit column, and
+    # its "coefficient" that rounding over 1e-16: 1e7 m seen on the cross pocket, where cos 3 phi is cos phi)
+    cn = np.linalg.norm(cols, axis=0)
+    cn = np.where(cn > 0, cn, 1.0)
+    Uu, sv, Vt = np.linalg.svd(project_out(Q, cols / cn, inplace=True), full_matrices=False)
+    ok = sv > max(weak_sv, 1e-5)
+    coef = (Vt[ok].T @ ((Uu[:, ok].T @ (yr - Q @ (Q.T @ yr))) / sv[ok])) / cn
     a = np.asarray(coef).reshape(-1, 2)[[k - 1 for k in K]]  # (len(K), 2): cos, sin of each turning harmonic
-    rng = np.random.default_rng(0) if rng is None else rng
-    psi = rng.uniform(0.0, 2 * np.pi, (draws, su.size))
-    ang = psi[:, :, None] * np.asarray(K, float)[None, None, :]  # (draws, S, K)
-    c, sn = np.cos(ang), np.sin(ang)
-    C = np.stack([a[:, 0] * c - a[:, 1] * sn, a[:, 0] * sn + a[:, 1] * c], axis=-1).reshape(draws, -1)
-    M = W.T @ U
-    T = C @ M.T  # (draws, m): the turned lobes' part beyond the model with the fixed ones
+    # the noise on the tested directions: (M M^T)^-1/2 M e (M's polar factor A B^T, M = A S B^T: unique, M
+    # having full row rank) is a unit normal there, and turns with any change of their basis as T does
+    # (M -> O^T M), so the draws do not depend on the basis
+    A, _, Bt = np.linalg.svd(M, full_matrices=False)
+    Pm = A @ Bt
     # the statistic weights each direction by what a turn puts there against the noise (the likelihood
     # ratio of the two models with the turn taken as Gaussian: lam / (sigma^2 + lam) in the eigenbasis of
     # the turn's covariance M diag(|a_k|^2 / 2) M^T); directions a turn barely reaches add only noise
     D = np.tile(np.repeat(np.sum(a ** 2, axis=1) / 2, 2), su.size)
-    lam, V = np.linalg.eigh((M * D) @ M.T)
-    w = np.maximum(lam, 0.0) / (sigma ** 2 + np.maximum(lam, 0.0))
-    obs = float(w @ (V.T @ (W.T @ r)) ** 2)
-    sim = ((T + sigma * rng.standard_normal(T.shape)) @ V) ** 2 @ w
+    lam, V2 = np.linalg.eigh((M * D) @ M.T)
+    lam = np.maximum(lam, 0.0)
+    w = np.divide(lam, sigma ** 2 + lam, out=np.zeros_like(lam), where=lam > 0)
+    obs = float(w @ (V2.T @ x) ** 2)
+    # the draws, in the set-ups' id order: the turn angles, then a unit normal per column of U (drawn
+    # whole, used TURN_CHUNK at a time: the statistic's arrays are draws x columns)
+    psi = rng.uniform(0.0, 2 * np.pi, (draws, su.size))
+    e = rng.standard_normal((draws, U.shape[1]))
+    kf = np.asarray(K, float)[None, None, :]
+    sim, size = np.empty(draws), np.empty(draws)
+    for d0 in range(0, draws, TURN_CHUNK):
+        sl = slice(d0, min(d0 + TURN_CHUNK, draws))
+        ang = psi[sl, :, None] * kf  # (chunk, S, K)
+        c, sn = np.cos(ang), np.sin(ang)
+        C = np.stack([a[:, 0] * c - a[:, 1] * sn, a[:, 0] * sn + a[:, 1] * c], axis=-1).reshape(len(ang), -1)
+        T = C @ M.T  # (chunk, m): the turned lobes' part beyond the model with the fixed ones
+        size[sl] = np.sum(T ** 2, axis=1)
+        sim[sl] = ((T + sigma * (e[sl] @ Pm.T)) @ V2) ** 2 @ w
     return {**out, "beyond_ss_um2": ss / UM ** 2, "F": float(F), "p_value": p,
             "p_turned": float((1 + np.sum(sim <= obs)) / (draws + 1)),
-            "turned_ss_um2": float(np.median(np.sum(T ** 2, axis=1))) / UM ** 2}
+            "turned_ss_um2": float(np.median(size)) / UM ** 2}
+
+
+def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K) -> "scipy.sparse.csr_matrix":
+    """(n, 2 len(K) len(su)) sparse: ``cos k phi``, ``sin k phi`` (k in ``K``) of each row in its set-up's columns.
+
+    Set-up ``su[i]``'s columns are ``2 len(K) i`` onwards, (k, cos/sin) order.
+    A value within :data:`TRIG_ZERO` of zero is zero: the rounding of a node
+    of the function (``sin 2 phi`` at an approach along an axis, about
+    1e-16), which normalised would be a unit column of rounding noise (the
+    demo's set-up C=0 approaches along the axes only: its ``sin 2 phi`` and
+    ``sin 4 phi`` were two of the four directions the F test counted).
+    """
+    import scipy.sparse as sp
+
+    n, w = len(setup), 2 * len(K)
+    at = np.full(int(su.max()) + 1, -1)
+    at[su] = np.arange(su.size)
+    Fm = np.column_stack([f(k * phi) for k in K for f in (np.cos, np.sin)])
+    Fm[np.abs(Fm) < TRIG_ZERO] = 0.0
+    cidx = at[setup][:, None] * w + np.arange(w)
+    return sp.csr_matrix((Fm.ravel(), (np.repeat(np.arange(n), w), cidx.ravel())), shape=(n, w * su.size))
+
+
+def _rmatmul_sparse(Q, X) -> np.ndarray:
+    """``Q^T X``, (q, p) dense, for an orthonormal basis ``Q`` (an array or a :class:`core.lsq.Basis`, a block of
+    rows at a time) and a sparse ``X``."""
+    from .lsq import Basis
+
+    if isinstance(Q, Basis):
+        from .diagnosis import GRAM_CHUNK_ROWS, _basis_rmatmul_rows
+
+        n = Q.shape[0]
+        out = np.zeros((Q.shape[1], X.shape[1]))
+        for s0 in range(0, n, GRAM_CHUNK_ROWS):
+            pos = np.arange(s0, min(s0 + GRAM_CHUNK_ROWS, n))
+            out += _basis_rmatmul_rows(Q, pos, X[pos])
+        return out
+    return np.asarray(X.T @ Q).T
+
+
+def _turned_inputs(bl, Q, yr, rows, cols, sigma, weak_sv, rng, draws):
+    """:func:`turned_lobes`' inputs checked: (yr, rows, cols, rng) as arrays and a generator, or ConfigError."""
+    from .exceptions import ConfigError
+
+    def bad(what):
+        raise ConfigError(f"turned_lobes: {what}")
+
+    n_all = len(bl.data.touches.setup)
+    rows = np.asarray(rows)
+    if rows.ndim != 1 or not (np.issubdtype(rows.dtype, np.integer) or rows.size == 0):
+        bad(f"rows must be a 1-D array of row indices, got shape {rows.shape} of {rows.dtype}")
+    rows = rows.astype(np.intp)
+    if rows.size and (rows.min() < 0 or rows.max() >= n_all):
+        bad(f"rows must index the baseline's {n_all} rows, got {rows.min()}..{rows.max()}")
+    if np.unique(rows).size != rows.size:
+        bad(f"rows must be distinct, got {rows.size - np.unique(rows).size} repeated")
+    n = rows.size
+    yr = np.asarray(yr, float)
+    if yr.shape != (n,):
+        bad(f"yr must hold one reading per row, shape ({n},), got {yr.shape}")
+    if not np.all(np.isfinite(yr)):
+        bad("yr must be finite")
+    if getattr(Q, "ndim", None) != 2 or Q.shape[0] != n:
+        bad(f"Q must be a basis of the model on the {n} rows, shape ({n}, q), got {getattr(Q, 'shape', type(Q))}")
+    cols = np.asarray(cols, float)
+    if cols.shape != (n, FIXED_LOBE_COLUMNS):
+        bad(f"cols must be the fixed lobes' {FIXED_LOBE_COLUMNS} columns on the rows (cos k phi, sin k phi, "
+            f"k = 1..4), shape ({n}, {FIXED_LOBE_COLUMNS}), got {cols.shape}")
+    if not np.all(np.isfinite(cols)):
+        bad("cols must be finite")
+    for name, v in (("sigma", sigma), ("weak_sv", weak_sv)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v) \
+                or v < 0:
+            bad(f"{name} must be a finite number >= 0, got {v!r}")
+    if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) or draws < 1:
+        bad(f"draws must be a whole number >= 1, got {draws!r}")
+    if rng is not None and not isinstance(rng, np.random.Generator):
+        bad(f"rng must be a numpy.random.Generator or None, got {type(rng).__name__}")
+    return yr, rows, cols, (np.random.default_rng(0) if rng is None else rng)
 
 
 def _circle(P: np.ndarray):

@@ -34,6 +34,16 @@ both blind generators' (catalogue, newly named and out-of-catalogue
 effects), none made for this test (tests/core/data/discover_identity/make.py
 wrote them).
 
+Refreshed for the turned lobes' test made independent of how the campaign is
+written down (issue 13 item 6, :func:`core.causes.turned_lobes`): the demo's
+``richer`` evidence (2 directions instead of 4: two were the rounding of
+``sin 2 phi`` and ``sin 4 phi`` on its C=0 set-up, which approaches along the
+axes only; F, p-value and the sum of squares with them; ``p_turned`` 0.0130 ->
+0.0152, its reason's text with it; still ambiguous) and gen_a probe_lobing
+302's ``turned_ss_um2`` (179.59 -> 179.29, another Monte Carlo sample). Only
+the leaves where this engine's report differed from main's, both run on one
+machine, took this engine's values; every other leaf is as stored.
+
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within
 ``ABS`` of a number that is zero in the reference's own units). Why 1e-9:
