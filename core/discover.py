@@ -171,7 +171,7 @@ from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
 from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch, new_basis, orth,
-                        replicate_scatter, take_rows, term_bases)
+                        replicate_scatter, take_rows, term_bases, tied)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import BlockDesign, group_sums, leverage, orth_of
 from .touches import Touches
@@ -1878,12 +1878,26 @@ def _family_ss(bl, diag, n) -> dict:
 NESTING_FAMILIES = {"position": ("feature",)}
 
 
+def _better_trial(cand, best, rss: float) -> bool:
+    """Whether trial ``cand`` beats ``best`` (tuples ``(p, F, k, ..., ss, (scan, trial))``) against one model.
+
+    The smaller p-value, then the larger F; two trials that tie
+    (:func:`core.diagnosis.tied`: the same span outside the model, so equal
+    but for rounding, e.g. a campaign-long C drift and one within each
+    set-up beside the set-ups' own angles) go to the one first in the
+    catalogue's order (its scans', then the trials' index in the scan).
+    """
+    if tied(cand[6], cand[2], best[6], best[2], rss):
+        return cand[7] < best[7]
+    return (cand[0], -cand[1]) < (best[0], -best[1])
+
+
 def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, sigma, settings,
               families=None) -> dict:
     """One cause against the current model: the tests of adoption (module docstring 4a-e)."""
     rows = st.rows
     best = None
-    for sc in scans:
+    for si, sc in enumerate(scans):
         if sc.size <= settings.shortlist:
             idx = np.arange(sc.size)
         elif sc.score is not None:
@@ -1892,14 +1906,16 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
             idx = _coarse(sc.build(np.arange(sc.size))[:, rows, :], st.r, settings.shortlist)
         C = take_rows(sc.build(idx), rows, 1)
         test = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
-        _, k, F, p = test
+        ss, k, F, p = test
         for j in np.flatnonzero(k > 0):
-            if best is None or (p[j], -F[j]) < (best[0], -best[1]):
+            cand = (float(p[j]), float(F[j]), int(k[j]), sc, int(idx[j]), test if len(idx) == 1 else None,
+                    float(ss[j]), (si, int(idx[j])))
+            if best is None or _better_trial(cand, best, st.rss):
                 # a scan of one trial: its test is the F test of the trial's own columns
-                best = (float(p[j]), float(F[j]), int(k[j]), sc, int(idx[j]), test if len(idx) == 1 else None)
+                best = cand
     if best is None:
         return {"reason": "no columns outside the model"}
-    p_val, F_val, k_val, sc, i, single = best
+    p_val, F_val, k_val, sc, i, single = best[:6]
     info = sc.infos[i]
     cols = sc.build([i])[0]
     # single: the F test of the chosen trial's own columns, made once (refined, beside families, counter)
