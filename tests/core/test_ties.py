@@ -11,6 +11,7 @@ the machine's BLAS and SIMD loops (gen_a thermal_bending 604, gen_a nonrigid
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from core.diagnosis import TIE_RTOL, Covariate, diagnose, nested_f_batch, orth, rank_with_ties, tied
 from core.discover import _better_trial
@@ -92,3 +93,49 @@ def test_better_trial_takes_the_catalogue_first_of_tied_trials():
                 if best is None or _better_trial(cands[j], best, rss):
                     best = cands[j]
             assert best[7] == (0, 0), (seed, seq)  # a and b tie; a is first in the catalogue; c explains less
+
+
+def test_family_ss_keeps_the_first_of_tied_terms():
+    """Fails on main: of two tied terms of one family the one rounding made larger named the family.
+
+    (gen_a nonrigid 2 under OPENBLAS_CORETYPE=Sandybridge: 'the structure follows y' against 'xy'.)
+    """
+    from core.diagnosis import Diagnosis, NestedTest
+    from core.discover import _family_ss
+
+    class Bl:
+        covs = {"y": Covariate("y", np.zeros(3), "smooth", 5, (0,), "y", "position"),
+                "xy": Covariate("xy", np.zeros(3), "smooth", 5, (0,), "xy", "position"),
+                "time": Covariate("time", np.zeros(3), "smooth", 5, (0,), "time", "time")}
+
+        def covariate(self, name):
+            return self.covs.get(name)
+
+    def diag(name, rms_um, ss, k=5):
+        return Diagnosis(name, rms_um, 1e-9, 1e-9, k, name, True, test=NestedTest(k, ss, 10.0, 1e-9, rms_um * 1e-6))
+
+    rss, n = 1e-8, 100
+    tie = [diag("y", 0.7086747750483215, 4.0e-9), diag("xy", 0.7086747750483222, 4.0e-9 * (1 + 1e-14)),
+           diag("time", 0.3, 1e-9)]
+    assert _family_ss(Bl(), tie, n, rss)["position"][1] == "y"  # the first in diagnose's order, not the larger
+    assert _family_ss(Bl(), tie, n, rss)["time"][1] == "time"
+    apart = [diag("y", 0.70, 4.0e-9), diag("xy", 0.71, 4.1e-9)]  # 1e-11 apart: 1e-3 of rss, no tie
+    assert _family_ss(Bl(), apart, n, rss)["position"] == (pytest.approx((0.71e-6) ** 2 * n), "xy")
+    assert _family_ss(Bl(), tie, n)["position"][1] == "xy"  # without rss (no model to judge a tie): the larger
+
+
+def test_smallest_angle_known_answers():
+    """Fails on main (no helper; its arccos gave 8.5e-7 deg for a span inside the model under Sandybridge kernels)."""
+    from core.discover import _smallest_angle_deg
+
+    n = 50
+    Q = np.eye(n)[:, :3]
+    for deg in (0.0, 1e-9, 1e-3, 4.6, 45.0, 89.0):
+        t = np.radians(deg)
+        e = np.zeros((n, 1))
+        e[0, 0], e[5, 0] = np.cos(t), np.sin(t)
+        assert _smallest_angle_deg(Q, e) == pytest.approx(deg, rel=1e-12, abs=1e-13), deg
+    rng = np.random.default_rng(2)
+    inside = orth(Q @ rng.normal(size=(3, 2)))  # a span inside the model: exactly zero, to rounding
+    assert _smallest_angle_deg(Q, inside) < 1e-12
+    assert _smallest_angle_deg(Q, np.zeros((n, 0))) == 90.0  # no span: nothing is aligned (as before)
