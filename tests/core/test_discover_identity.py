@@ -52,7 +52,9 @@ its unnamed smooth is in the set-up, workpiece shift 0.379 um; gen_a nonrigid
 among tied trials the catalogue's first (gen_b stylus_pickup 501: c_drift's
 ECC_in_setup_P1 before ECC_P1, as stored), the family a smooth term names the
 first of tied terms, and a principal angle near zero (atan2 of sine and
-cosine, 4e-14 deg instead of 0 or 8.5e-7 deg).
+cosine, 4e-14 deg instead of 0 or 8.5e-7 deg). This time make.py rewrote
+every leaf (default kernels of a SkylakeX machine); the spread below is what
+that leaves to another machine's kernels.
 
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within
