@@ -308,6 +308,49 @@ def _batch_tests(G: np.ndarray, b: np.ndarray, rss: float, dof: int):
     return ss, k, F, p
 
 
+#: Two tests of terms against the same model tie when they add the same number
+#: of dimensions and their sums of squares differ by at most ``TIE_RTOL`` of
+#: the model's residual sum of squares: equal in exact arithmetic (the same
+#: span outside the model, e.g. the set-up's term and the C angle's when each
+#: set-up has its own C; a campaign-long drift and one within each set-up
+#: beside per-set-up constants), so the order the floating-point kernels give
+#: them is rounding, and a tie is broken by a fixed order instead (the
+#: caller's: the covariate registry's, the catalogue's scans and trials). Why
+#: 1e-8: a term's sum of squares ``sum (V^T P^T r)^2 / w`` carries a rounding
+#: error of about ``eps sqrt(ss rss / w)`` (times a small constant), at most
+#: ``eps rss / IN_SPAN`` = 2e-10 rss for the weakest direction a test keeps;
+#: a difference that means anything is of the order of the noise's variance,
+#: ``rss / dof``, 1e-5 rss or more for any log up to 1e5 rows (1e-6 at 1e6).
+TIE_RTOL = 1e-8
+
+
+def tied(ss_a: float, k_a: int, ss_b: float, k_b: int, rss: float) -> bool:
+    """Whether two tests against one model (residual sum of squares ``rss``) tie (:data:`TIE_RTOL`)."""
+    return int(k_a) == int(k_b) and abs(float(ss_a) - float(ss_b)) <= TIE_RTOL * float(rss)
+
+
+def rank_with_ties(items, key, ss_k, rss: float) -> list:
+    """``items`` sorted by ``key``, each set of tied items (:func:`tied`) in its input order.
+
+    ``ss_k(item)`` gives ``(ss, k)``. A tie set takes the place of its
+    member that sorts first and is judged against it: members sorted apart
+    only by rounding come out in the same order whatever the rounding.
+    """
+    items = list(items)
+    order = sorted(range(len(items)), key=lambda i: key(items[i]))
+    sk = [ss_k(it) for it in items]
+    done = [False] * len(items)
+    out = []
+    for i in order:
+        if done[i]:
+            continue
+        group = [j for j in range(len(items)) if not done[j] and (j == i or tied(*sk[i], *sk[j], rss))]
+        for j in group:  # (input order)
+            done[j] = True
+            out.append(items[j])
+    return out
+
+
 def holm(p) -> np.ndarray:
     """Holm step-down adjusted p-values (family-wise error rate, any dependence)."""
     p = np.asarray(p, float)
@@ -894,7 +937,9 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
     Returns
     -------
     list of Diagnosis
-        Sorted by adjusted p-value, then explained RMS (descending).
+        Sorted by adjusted p-value, then explained RMS (descending); tests
+        that tie (:func:`tied`: the same span outside the model, so equal
+        but for rounding) in the order of ``covariates``.
     """
     rss = float(r @ r)
     have = {d.covariate: d for d in known if d.test is not None}
@@ -938,8 +983,8 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
                              f"residuals follow {words}: {rms_um:.2g} µm, {fmt_p(float(pa))}",
                              t.explained_rms_m >= material_sigma * sigma_m,
                              fits[cov.name] if U is None else (U @ (U.T @ r)) / UM, t, U))
-    out.sort(key=lambda d: (d.p_value, -d.explained_rms_um))
-    return out
+    # ties (the same span outside the model) in the covariates' order, not the kernels' rounding
+    return rank_with_ties(out, lambda d: (d.p_value, -d.explained_rms_um), lambda d: (d.test.ss, d.test.k), rss)
 
 
 # ---------------------------------------------------------------------------

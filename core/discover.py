@@ -171,7 +171,7 @@ from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
 from .diagnosis import (CvGap, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch, new_basis, orth,
-                        replicate_scatter, take_rows, term_bases)
+                        replicate_scatter, take_rows, term_bases, tied)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import BlockDesign, group_sums, leverage, orth_of
 from .touches import Touches
@@ -1378,7 +1378,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                                                        rows=rows, bases=bases)
             if rnd:
                 seen.append((st, diag_now))
-            families = _family_ss(bl, diag_now, len(rows))
+            families = _family_ss(bl, diag_now, len(rows), st.rss)
             for cause in catalogue:
                 if any(tm.cause == cause.name for tm in terms):
                     continue
@@ -1782,6 +1782,22 @@ def _candidate_ss(test, st: _State) -> float:
     return float(max(ss[0] - k[0] * s2, 0.0))
 
 
+def _smallest_angle_deg(Q: np.ndarray, Qe: np.ndarray) -> float:
+    """Smallest principal angle between the spans of orthonormal ``Q`` and ``Qe``, degrees.
+
+    ``atan2(sin, cos)`` of the pair (Bjorck and Golub): the sine, the
+    smallest singular value of ``Qe``'s part outside ``Q``, carries a small
+    angle to full relative precision, where ``arccos`` of the cosine alone
+    gives ``sqrt(2 eps)`` rad (1e-6 deg) for a span inside the model, a
+    different figure on every floating-point kernel.
+    """
+    if not (Qe.shape[1] and Q.shape[1]):
+        return 90.0
+    c = np.linalg.svd(Q.T @ Qe, compute_uv=False)
+    s = np.linalg.svd(Qe - Q @ (Q.T @ Qe), compute_uv=False)
+    return float(np.degrees(np.arctan2(s.min(), c.max())))
+
+
 def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
     """The combinations of a cause's columns the data determine beside the model.
 
@@ -1816,8 +1832,7 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
     good = (w >= WEAK_SV ** 2) & (np.abs(V[~nz]).max(axis=0, initial=0.0) < 1e-12)
     M = V[:, good] / np.where(nz, nrm, 1.0)[:, None]
     Qe = orth(En)
-    sv = np.linalg.svd(Q.T @ Qe, compute_uv=False) if Qe.shape[1] and Q.shape[1] else np.zeros(1)
-    ang = float(np.degrees(np.arccos(np.clip(sv.max(), 0, 1))))
+    ang = _smallest_angle_deg(Q, Qe)
     best = float(1.0 / w.max()) if w.size and w.max() > 0 else np.inf
     worst = float(1.0 / w[good].min()) if good.any() else np.inf
     if best > vif_max:
@@ -1850,16 +1865,29 @@ def _made_on(seen, st: _State) -> tuple:
     return ()
 
 
-def _family_ss(bl, diag, n) -> dict:
-    """Largest debiased sum of squares a smooth term explains, per covariate family: {family: (ss, covariate)}."""
+def _family_ss(bl, diag, n, rss: float | None = None) -> dict:
+    """Largest debiased sum of squares a smooth term explains, per covariate family: {family: (ss, covariate)}.
+
+    ``rss``: the residual sum of squares the diagnoses were made against;
+    given, a term that ties with the family's current one
+    (:func:`core.diagnosis.tied`: the same span outside the model) does not
+    displace it, so the first in ``diag``'s order (the registry's, for a
+    tie) names the family whatever the rounding.
+    """
     out: dict = {}
+    lead: dict = {}
     for d in diag:
         cov = bl.covariate(d.covariate)
         if cov is None or not cov.family:
             continue
         ss = (d.explained_rms_um * UM) ** 2 * n
+        cur = lead.get(cov.family)
+        if rss is not None and cur is not None and d.test is not None and cur.test is not None \
+                and tied(d.test.ss, d.test.k, cur.test.ss, cur.test.k, rss):
+            continue
         if ss > out.get(cov.family, (-1.0, ""))[0]:
             out[cov.family] = (ss, d.covariate)
+            lead[cov.family] = d
     return out
 
 
@@ -1878,12 +1906,26 @@ def _family_ss(bl, diag, n) -> dict:
 NESTING_FAMILIES = {"position": ("feature",)}
 
 
+def _better_trial(cand, best, rss: float) -> bool:
+    """Whether trial ``cand`` beats ``best`` (tuples ``(p, F, k, ..., ss, (scan, trial))``) against one model.
+
+    The smaller p-value, then the larger F; two trials that tie
+    (:func:`core.diagnosis.tied`: the same span outside the model, so equal
+    but for rounding, e.g. a campaign-long C drift and one within each
+    set-up beside the set-ups' own angles) go to the one first in the
+    catalogue's order (its scans', then the trials' index in the scan).
+    """
+    if tied(cand[6], cand[2], best[6], best[2], rss):
+        return cand[7] < best[7]
+    return (cand[0], -cand[1]) < (best[0], -best[1])
+
+
 def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, sigma, settings,
               families=None) -> dict:
     """One cause against the current model: the tests of adoption (module docstring 4a-e)."""
     rows = st.rows
     best = None
-    for sc in scans:
+    for si, sc in enumerate(scans):
         if sc.size <= settings.shortlist:
             idx = np.arange(sc.size)
         elif sc.score is not None:
@@ -1892,14 +1934,16 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
             idx = _coarse(sc.build(np.arange(sc.size))[:, rows, :], st.r, settings.shortlist)
         C = take_rows(sc.build(idx), rows, 1)
         test = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
-        _, k, F, p = test
+        ss, k, F, p = test
         for j in np.flatnonzero(k > 0):
-            if best is None or (p[j], -F[j]) < (best[0], -best[1]):
+            cand = (float(p[j]), float(F[j]), int(k[j]), sc, int(idx[j]), test if len(idx) == 1 else None,
+                    float(ss[j]), (si, int(idx[j])))
+            if best is None or _better_trial(cand, best, st.rss):
                 # a scan of one trial: its test is the F test of the trial's own columns
-                best = (float(p[j]), float(F[j]), int(k[j]), sc, int(idx[j]), test if len(idx) == 1 else None)
+                best = cand
     if best is None:
         return {"reason": "no columns outside the model"}
-    p_val, F_val, k_val, sc, i, single = best
+    p_val, F_val, k_val, sc, i, single = best[:6]
     info = sc.infos[i]
     cols = sc.build([i])[0]
     # single: the F test of the chosen trial's own columns, made once (refined, beside families, counter)
