@@ -278,11 +278,16 @@ def test_once_confident_misnamings_are_flagged(gen, effect, seed, cause):
 #:   the per-feature-per-set-up term explained 2 % more (245 against 241 um^2); that term nests any machine
 #:   error smooth over a feature (each feature of each set-up is one place of the machine), so for a
 #:   position cause it is judged as the cause's own covariate's smooth (core.discover.NESTING_FAMILIES).
+#: - gen_b outlier 908 (issue 13 item 7, a development seed): local_scale_defect named confidently ahead of
+#:   1,436 um^2 of chips, explaining 1.40 um^2 of the 1.90 um^2 a smooth in y explains (share 0.73), kept
+#:   because the shortfall was below materiality (2.29 um^2) though the structure in y was too: a shortfall
+#:   is now forgiven only of material structure (core.discover._rival_share).
 REGRESSIONS = [("gen_a", "probe_lobing", 302, ("probe_lobing",)),
                ("gen_b", "fixture_slip", 500, ("unexplained",)),
                ("gen_a", "nonrigid", 702, ("nonrigid",)),
                ("gen_a", "periodic_axis_error", 703, ("periodic_axis_error",)),
-               ("gen_a", "nonrigid", 703, ("nonrigid",))]
+               ("gen_a", "nonrigid", 703, ("nonrigid",)),
+               ("gen_b", "outlier", 908, ("outlier",))]
 
 
 @pytest.mark.parametrize("gen, effect, seed, expected", REGRESSIONS)
