@@ -252,9 +252,18 @@ def test_a_real_shift_by_an_unnamed_smooth_is_in_the_u95():
 #: Since the folds decide on the column space and the repeats' noise is taken after a time trend, the last four
 #: are no longer named at all: ``unexplained`` (stylus_pickup 501: noise 1.01 -> 0.30 um once the drift between
 #: its repeats is a trend), the honest answer for an effect outside the catalogue.
+#: Issue 13 item 7 (development seeds): a drift and a temperature that follows the clock, one explanation under
+#: two names (core.discover._cause_alternatives, every fixed layout of a cause): gen_a thermal_drift 1109, gen_b
+#: thermal_drift 1001 and 1008 read temperature_expansion (the drift's columns reproduce 98-99.5 % of its signal
+#: and explain 1.01-1.2 times as much), gen_a reseat_hysteresis 1006 reads c_drift (the drift's columns 80 %,
+#: 1.06 times as much); main named all four confidently.
 NOW_AMBIGUOUS = [("gen_a", "reseat_hysteresis", 502, "outlier"), ("gen_b", "stylus_pickup", 501, "unexplained"),
                  ("gen_b", "stylus_pickup", 605, "unexplained"), ("gen_a", "probe_heating", 707, "unexplained"),
-                 ("gen_a", "reseat_hysteresis", 409, "unexplained")]
+                 ("gen_a", "reseat_hysteresis", 409, "unexplained"),
+                 ("gen_a", "thermal_drift", 1109, "temperature_expansion"),
+                 ("gen_b", "thermal_drift", 1001, "temperature_expansion"),
+                 ("gen_b", "thermal_drift", 1008, "temperature_expansion"),
+                 ("gen_a", "reseat_hysteresis", 1006, "c_drift")]
 
 
 @pytest.mark.parametrize("gen, effect, seed, cause", NOW_AMBIGUOUS)
@@ -303,13 +312,16 @@ def test_two_causes_this_design_cannot_tell_apart_are_both_named():
     harmonics 0, 2, 4, 6, ... with weights 1/(4k^2 - 1), so harmonics 2 and
     4 (both in the probe's lobing columns) hold (1/9 + 1/225) / ((pi^2 - 8)
     / 16) = 98.8 % of its variance: the simulator's reversal is named, and
-    flagged ambiguous with probe_lobing. And the study counts a wrong name
+    flagged ambiguous with probe_lobing (and, since a cause of several fixed
+    layouts is an alternative too, with lobing_per_setup, whose lobes turned
+    per set-up nest the probe's fixed ones). And the study counts a wrong name
     whose alternatives hold the right one apart (``catalogue_alternative``),
     never in ``catalogue``.
     """
     assert (1 / 9 + 1 / 225) / ((np.pi ** 2 - 8) / 16) > 0.98
     o = hidden_outcome("reversal", 2700)
-    assert o.cause == "reversal" and not o.confident and o.alternatives == ("probe_lobing",), o
+    assert o.cause == "reversal" and not o.confident and o.alternatives[0] == "probe_lobing", o
+    assert set(o.alternatives) <= {"probe_lobing", "lobing_per_setup"}, o
     a = Outcome("g", "reversal", 0, ("reversal",), "probe_lobing", ("probe_lobing",), False, 2.0, 0.3,
                 0.3, 0.3, 0.3, 0.1, alternatives=("reversal",))
     b = Outcome("g", "reversal", 1, ("reversal",), "reversal", ("reversal",), False, 2.0, 0.3, 0.3, 0.3, 0.3, 0.1,
