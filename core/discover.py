@@ -69,9 +69,11 @@ What it does, in order, and the statistics behind each step
 5. **Rival check**: a named cause must explain the structure in its own
    covariate at least :attr:`Settings.rival_share` as well as a
    catalogue-free smooth function of that covariate does (debiased sums of
-   squares), or fall short of it by an immaterial amount where that
-   structure is itself material (where it is not, every shortfall is
-   immaterial and the share decides); and its plainer
+   squares), or fall short of it by an immaterial amount while itself
+   explaining a material amount (where it explains less, the share
+   decides: forgiving any immaterial shortfall would keep a cause that
+   explains almost nothing of a structure just above materiality); and
+   its plainer
    counter-explanation (:attr:`core.causes.Cause.counter`, e.g. a finer
    error map against a non-rigid coupling) must not explain as much; and
    it must explain something material beyond the best trial of its
@@ -2118,10 +2120,14 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
     d_r = ss_r - k_r * s2
     share = d_n / d_r if d_r > 0 else 1.0
     m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
-    # a shortfall below materiality is forgiven only where the structure in the
-    # covariate is itself material: where it is not, every shortfall is (the
-    # exemption would keep any fit) and the share decides
-    immaterial = (d_r - d_n) < m_ss and d_r >= m_ss
+    # a shortfall below materiality is forgiven only where the cause itself
+    # explains a material amount: it then holds the covariate's material
+    # structure but for an immaterial rest. Where it explains less, the
+    # share decides (forgiving it there would keep a cause that explains
+    # almost nothing of a structure just above materiality, share ~0: the
+    # check must be able to fail). The allowance steps from 0.25 d_n to
+    # materiality where d_n reaches materiality.
+    immaterial = (d_r - d_n) < m_ss and d_n >= m_ss
     out = {"kept": bool(share >= settings.rival_share or immaterial), "rival_share": float(share),
            "rival": tm.covariate, "explained_ss_um2": max(d_n, 0.0) / UM ** 2,
            "rival_explained_ss_um2": max(d_r, 0.0) / UM ** 2}

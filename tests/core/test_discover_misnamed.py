@@ -9,9 +9,9 @@
   columns. Where the temperature does not follow the clock (a chiller's
   cycle) the name stays confident.
 - The rival check forgives a cause that falls short of the smooth term in
-  its covariate by less than materiality only where that structure is
-  itself material (:func:`core.discover._rival_share`): where it is not,
-  every shortfall is, and the share decides.
+  its covariate by less than materiality only where the cause itself
+  explains a material amount (:func:`core.discover._rival_share`): where
+  it does not, the share decides.
 
 The campaigns are tests/core/discover_synth.py's (not the simulator, not
 the blind generators), with the temperature columns written here.
@@ -168,19 +168,29 @@ class _Bl:
 
 
 @pytest.mark.parametrize("a2, c2, kept", [
-    (3.0, 2.0, False),    # d_n 2, d_r 3 (immaterial, 9): share 0.67, the shortfall no longer forgiven (main: kept)
-    (20.0, 6.0, True),    # d_n 19, d_r 24 (material): share 0.79, a shortfall of 5 < 9 forgiven
+    (3.0, 2.0, False),    # d_n 2, d_r 3: share 0.67, the cause immaterial (9): no shortfall forgiven (main: kept)
+    (1.2, 9.7, False),    # d_n 0.2, d_r 8.9: share 0.02 (main: kept, shortfall 8.7 < 9)
+    (1.2, 9.9, False),    # d_n 0.2, d_r 9.1: share 0.02 (main and 38aa2dc: kept, the structure 9.1 >= 9)
+    (2.5, 9.5, False),    # d_n 1.5, d_r 10: share 0.15 (main and 38aa2dc: kept)
+    (9.9, 4.1, False),    # d_n 8.9, d_r 12: share 0.74, the cause just immaterial (main and 38aa2dc: kept)
+    (11.0, 9.5, True),    # d_n 10 (material), d_r 18.5: share 0.54, a shortfall of 8.5 < 9 forgiven
+    (11.0, 10.5, False),  # d_n 10, d_r 19.5: share 0.51, a shortfall of 9.5 >= 9 not forgiven
+    (20.0, 6.0, True),    # d_n 19, d_r 24: share 0.79, a shortfall of 5 < 9 forgiven
     (20.0, 1.5, True),    # share 19 / 19.5 >= 0.8
     (3.0, 0.5, True),     # immaterial but share 2 / 1.5 >= 0.8: the share decides, and keeps it
 ])
-def test_rival_check_forgives_a_shortfall_only_of_material_structure(a2, c2, kept):
+def test_rival_check_forgives_a_shortfall_only_of_a_material_cause(a2, c2, kept):
     """Known answers, noise-free, sigma 1, 100 rows (materiality (0.3 sigma)^2 x 100 = 9): the cause's one
     column ``b1``, the smooth of its covariate ``b1, b2`` (orthonormal, outside an intercept), the data
-    ``a b1 + c b2``: the cause explains ``a^2 - 1`` (debiased), the smooth ``a^2 + c^2 - 2``. Main kept a
-    cause whose share fell short of rival_share (0.8) whenever the shortfall was below materiality, also
-    where the covariate's whole structure was immaterial, so that every shortfall was (the check could
-    not fail: gen_b outlier 908, local_scale_defect explaining 1.40 um^2 of 1.90 in y, materiality 2.29,
-    named confidently beside 1,436 um^2 of chips). Main kept all four."""
+    ``a b1 + c b2``: the cause explains ``d_n = a^2 - 1`` (debiased), the smooth ``d_r = a^2 + c^2 - 2``.
+    Main kept a cause whose share fell short of rival_share (0.8) whenever the shortfall was below
+    materiality, also where the covariate's whole structure was immaterial, so that every shortfall was
+    (the check could not fail: gen_b outlier 908, local_scale_defect explaining 1.40 um^2 of 1.90 in y,
+    materiality 2.29, named confidently beside 1,436 um^2 of chips). 38aa2dc forgave it only where
+    ``d_r`` was material, which still kept a cause explaining almost nothing of a structure just above
+    materiality (0.2 of 9.1); the shortfall is now forgiven only where the cause itself explains a
+    material amount, so the check fails wherever the cause explains less than both 0.8 of the structure
+    and materiality."""
     n = 100
     rng = np.random.default_rng(0)
     Qb = orth(np.ones((n, 1)))
