@@ -257,19 +257,23 @@ def test_a_real_shift_by_an_unnamed_smooth_is_in_the_u95():
 #: thermal_drift 1001 and 1008 read temperature_expansion (the drift's columns reproduce 98-99.5 % of its signal
 #: and explain 1.01-1.2 times as much), gen_a reseat_hysteresis 1006 reads c_drift (the drift's columns 80 %,
 #: 1.06 times as much); main named all four confidently.
-NOW_AMBIGUOUS = [("gen_a", "reseat_hysteresis", 502, "outlier"), ("gen_b", "stylus_pickup", 501, "unexplained"),
-                 ("gen_b", "stylus_pickup", 605, "unexplained"), ("gen_a", "probe_heating", 707, "unexplained"),
-                 ("gen_a", "reseat_hysteresis", 409, "unexplained"),
-                 ("gen_a", "thermal_drift", 1109, "temperature_expansion"),
-                 ("gen_b", "thermal_drift", 1001, "temperature_expansion"),
-                 ("gen_b", "thermal_drift", 1008, "temperature_expansion"),
-                 ("gen_a", "reseat_hysteresis", 1006, "c_drift")]
+NOW_AMBIGUOUS = [("gen_a", "reseat_hysteresis", 502, "outlier", None),
+                 ("gen_b", "stylus_pickup", 501, "unexplained", None),
+                 ("gen_b", "stylus_pickup", 605, "unexplained", None),
+                 ("gen_a", "probe_heating", 707, "unexplained", None),
+                 ("gen_a", "reseat_hysteresis", 409, "unexplained", None),
+                 ("gen_a", "thermal_drift", 1109, "temperature_expansion", "thermal_drift"),
+                 ("gen_b", "thermal_drift", 1001, "temperature_expansion", "thermal_drift"),
+                 ("gen_b", "thermal_drift", 1008, "temperature_expansion", "thermal_drift"),
+                 ("gen_a", "reseat_hysteresis", 1006, "c_drift", "thermal_drift")]
 
 
-@pytest.mark.parametrize("gen, effect, seed, cause", NOW_AMBIGUOUS)
-def test_once_confident_misnamings_are_flagged(gen, effect, seed, cause):
+@pytest.mark.parametrize("gen, effect, seed, cause, alternative", NOW_AMBIGUOUS)
+def test_once_confident_misnamings_are_flagged(gen, effect, seed, cause, alternative):
     o = _blind_case(gen, effect, seed)
     assert o.cause == cause and (cause == "unexplained" or not o.confident), (o.cause, o.confident)
+    # the other catalogue cause that reads the same (issue 13 item 7: the drift) is listed
+    assert alternative is None or alternative in o.alternatives, o.alternatives
 
 
 #: Campaigns once named wrongly, each fixed by a rule of the engine (not by a
@@ -320,8 +324,7 @@ def test_two_causes_this_design_cannot_tell_apart_are_both_named():
     """
     assert (1 / 9 + 1 / 225) / ((np.pi ** 2 - 8) / 16) > 0.98
     o = hidden_outcome("reversal", 2700)
-    assert o.cause == "reversal" and not o.confident and o.alternatives[0] == "probe_lobing", o
-    assert set(o.alternatives) <= {"probe_lobing", "lobing_per_setup"}, o
+    assert o.cause == "reversal" and not o.confident and o.alternatives == ("probe_lobing", "lobing_per_setup"), o
     a = Outcome("g", "reversal", 0, ("reversal",), "probe_lobing", ("probe_lobing",), False, 2.0, 0.3,
                 0.3, 0.3, 0.3, 0.1, alternatives=("reversal",))
     b = Outcome("g", "reversal", 1, ("reversal",), "reversal", ("reversal",), False, 2.0, 0.3, 0.3, 0.3, 0.3, 0.1,
