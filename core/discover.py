@@ -1502,9 +1502,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     @functools.cache
     def fixed():
         # the columns of every cause whose scans are all single trials (a few fixed layouts: degrees of a
-        # drift, one per temperature sensor, one per feature), each layout's (whitened), for the named
-        # causes' alternatives: built when first asked
-        return {k: [sc.build([0])[0] for sc in v[0]] for k, v in scans.items()
+        # drift, one per temperature sensor, one per feature), each layout's (whitened) with its choices,
+        # for the named causes' alternatives: built when first asked
+        return {k: [(sc.infos[0], sc.build([0])[0]) for sc in v[0]] for k, v in scans.items()
                 if v[0] and all(sc.size == 1 for sc in v[0])}
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
@@ -2267,6 +2267,11 @@ def _reproduces(U: np.ndarray, signal: tuple, so: _State, sigma, settings) -> tu
     return overlap, d_w, overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
 
 
+def _layout_label(info) -> dict:
+    """The choices naming a layout (a drift's degree, a sensor, a feature, a form): its text and integer items."""
+    return {k: v for k, v in (info or {}).items() if isinstance(v, (str, int)) and not isinstance(v, bool)}
+
+
 def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tuple) -> list:
     """Other catalogue causes (a few fixed layouts each) whose columns reproduce the named cause's signal.
 
@@ -2291,10 +2296,13 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
     fitting the noise. Causes that nest one another (``counter_cause``)
     are judged by the counter check, not here.
 
-    ``fixed``: ``fixed() -> {cause name: [(n, k) columns, all rows, per
-    layout]}`` of the catalogue's causes whose scans are all single
-    trials (built when first asked). ``signal``: :func:`_signal` of ``tm``
-    beside ``so``.
+    ``fixed``: ``fixed() -> {cause name: layouts}`` of the catalogue's
+    causes whose scans are all single trials, the layouts a sequence of
+    ``(info, (n, k) columns, all rows)``; a bare ``(n, k)`` array is one
+    layout without a label.
+    ``signal``: :func:`_signal` of ``tm`` beside ``so``. Each alternative
+    names the layout that matched (``layout``: its degree, sensor,
+    feature or form).
     """
     rows = so.rows
     d_n = signal[1]
@@ -2308,7 +2316,7 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
                 other is not None and other.counter_cause == tm.cause):
             continue
         best = None
-        for B in layouts:
+        for info, B in ([({}, layouts)] if isinstance(layouts, np.ndarray) else layouts):
             U = new_basis(so.Q, B[rows])
             if U.shape[1] == 0:
                 continue
@@ -2317,10 +2325,11 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
                 continue
             d_b, p_b, stands = _beyond(so, U, tm.columns[rows], sigma, tm.tries, settings)
             if not stands:  # (standing beside it, material and significant, the data would tell them apart)
-                best = (overlap, d_w, d_b, p_b)
+                best = (overlap, d_w, d_b, p_b, info)
         if best is not None:
-            out.append({"cause": name, "overlap": best[0], "explained_ratio": best[1] / d_n,
-                        "cause_beyond_it_ss_um2": max(best[2], 0.0) / UM ** 2, "p_adjusted_cause_beyond_it": best[3]})
+            out.append({"cause": name, "layout": _layout_label(best[4]), "overlap": best[0],
+                        "explained_ratio": best[1] / d_n, "cause_beyond_it_ss_um2": max(best[2], 0.0) / UM ** 2,
+                        "p_adjusted_cause_beyond_it": best[3]})
     return out
 
 

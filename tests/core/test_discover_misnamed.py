@@ -93,6 +93,9 @@ def test_a_drift_and_a_temperature_that_follows_the_clock_are_one_explanation(ki
     assert other in f["evidence"]["ambiguous_with"], f["evidence"]
     alt = next(a for a in f["evidence"]["cause_alternatives"] if a["cause"] == other)
     assert alt["overlap"] >= Settings().rival_share and alt["explained_ratio"] >= Settings().rival_share
+    # the layout that matched is named: a drift's degree, or the bed sensor
+    assert alt["layout"] == ({"sensor": "temp_bed_C"} if other == "temperature_expansion" else
+                             {"degree": alt["layout"].get("degree")}) and alt["layout"] != {"degree": None}, alt
 
 
 @pytest.mark.parametrize("kind, cause", [("drift_coolant", "thermal_drift"), ("coolant", "temperature_expansion")])
@@ -130,32 +133,41 @@ def test_cause_alternatives_known_answers():
     """The named cause's signal is a cubic of time: the drift's degree-3 layout reproduces it exactly
     (overlap 1 to the noise, as much explained), its degree-1 layout does not (P1 holds about 17 % of
     the curve's square norm, 0.03 of 0.181): a cause with several layouts is an alternative when one of
-    them is, and not when none is. A cause with no layout, or the named cause itself, is no alternative;
-    nor is one beyond which the named cause explains something material and significant."""
+    them is, named with the layout that matched, and not when none is. A cause with no layout, or the
+    named cause itself, is no alternative; nor is one beyond which the named cause explains something
+    material and significant.
+
+    The first part calls with one bare (n, k) array per cause, the form main's interface took too: on
+    main it fails on the rule (main flags the cubic layout beside the P4 part), not on the call."""
+    s = Settings()
     tm, so, u, sigma = _toy(lambda T, u: 2.0 * T)
-    sig = _signal(tm, so, sigma)
     P = causes._legendre(u, 3)
     lay1, lay3 = P[:, :1], P
-    s = Settings()
-    got = _cause_alternatives(tm, so, sigma, s, lambda: {"thermal_drift": [lay1, lay3]}, sig)
-    assert [a["cause"] for a in got] == ["thermal_drift"]
-    assert got[0]["overlap"] > 0.999 and abs(got[0]["explained_ratio"] - 1.0) < 0.02, got
-    assert _cause_alternatives(tm, so, sigma, s, lambda: {"thermal_drift": [lay1]}, sig) == []
-    assert _cause_alternatives(tm, so, sigma, s, lambda: {"thermal_drift": []}, sig) == []
-    assert _cause_alternatives(tm, so, sigma, s, lambda: {"temperature_expansion": [tm.columns]}, sig) == []
     # a P4 part (0.4 P4: about 9 % of the curve's square norm) the cubic layout cannot follow: the layout still
     # reproduces >= 0.8 and explains >= 0.8 as much, but the named cause explains ~28 (x noise 0.01 per row,
     # materiality 0.36) beyond it, p ~ 0: the data tell them apart (main: flagged)
-    tmq, soq, u, _ = _toy(lambda T, u: 2.0 * T, quartic=0.4)
+    tmq, soq, _, _ = _toy(lambda T, u: 2.0 * T, quartic=0.4)
     sigq = _signal(tmq, soq, sigma)
-    Uq = new_basis(soq.Q, lay3)
-    assert _reproduces(Uq, sigq, soq, sigma, s)[2]
-    assert _cause_alternatives(tmq, soq, sigma, s, lambda: {"thermal_drift": [lay3]}, sigq) == []
+    assert _reproduces(new_basis(soq.Q, lay3), sigq, soq, sigma, s)[2]
+    assert _cause_alternatives(tmq, soq, sigma, s, lambda: {"thermal_drift": lay3}, sigq) == []
+    # without the P4 part the cubic is an alternative (both interfaces), the named cause itself is none
+    sig = _signal(tm, so, sigma)
+    got = _cause_alternatives(tm, so, sigma, s, lambda: {"thermal_drift": lay3}, sig)
+    assert [a["cause"] for a in got] == ["thermal_drift"] and got[0]["overlap"] > 0.999, got
+    assert _cause_alternatives(tm, so, sigma, s, lambda: {"temperature_expansion": tm.columns}, sig) == []
     # no signal (the cause explains nothing beyond the noise): no alternative is looked for
     tm0, so0, _, _ = _toy(lambda T, u: 0.0 * T, seed=1)
     sig0 = _signal(tm0, so0, sigma)
-    if sig0[1] <= 0:
-        assert _cause_alternatives(tm0, so0, sigma, s, lambda: {"thermal_drift": [lay3]}, sig0) == []
+    assert sig0[1] <= 0, sig0
+    assert _cause_alternatives(tm0, so0, sigma, s, lambda: {"thermal_drift": lay3}, sig0) == []
+    # several layouts, each labelled (the form the engine gives)
+    lays = [({"degree": 1}, lay1), ({"degree": 3}, lay3)]
+    got = _cause_alternatives(tm, so, sigma, s, lambda: {"thermal_drift": lays}, sig)
+    assert [a["cause"] for a in got] == ["thermal_drift"] and got[0]["layout"] == {"degree": 3}, got
+    assert got[0]["overlap"] > 0.999 and abs(got[0]["explained_ratio"] - 1.0) < 0.02, got
+    assert _cause_alternatives(tm, so, sigma, s, lambda: {"thermal_drift": lays[:1]}, sig) == []
+    assert _cause_alternatives(tm, so, sigma, s, lambda: {"thermal_drift": []}, sig) == []
+    assert _cause_alternatives(tm, so, sigma, s, lambda: {"temperature_expansion": [({}, tm.columns)]}, sig) == []
 
 
 class _Bl:
