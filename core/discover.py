@@ -168,6 +168,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -1499,13 +1500,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     tick()
 
     # 6. estimates
-    @functools.cache
     def fixed():
-        # the columns of every cause whose scans are all single trials (a few fixed layouts: degrees of a
-        # drift, one per temperature sensor, one per feature), each layout's (whitened) with its choices,
-        # for the named causes' alternatives: built when first asked
-        return {k: [(sc.infos[0], sc.build([0])[0]) for sc in v[0]] for k, v in scans.items()
-                if v[0] and all(sc.size == 1 for sc in v[0])}
+        # every cause whose scans are all single trials (a few fixed layouts: degrees of a drift, one per
+        # temperature sensor, one per feature), for the named causes' alternatives: each layout's columns
+        # (whitened) built when that layout is tested and not kept (held all at once they were 105 columns
+        # per row on gen_a, ~84 MB more on a 1e5-row log)
+        return {k: _Layouts(v[0]) for k, v in scans.items() if v[0] and all(sc.size == 1 for sc in v[0])}
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
                          seen + [(st, diag_e)], fixed=fixed)
@@ -2267,6 +2267,20 @@ def _reproduces(U: np.ndarray, signal: tuple, so: _State, sigma, settings) -> tu
     return overlap, d_w, overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
 
 
+class _Layouts(Sequence):
+    """A cause's fixed layouts (single-trial scans) as ``(info, (n, k) columns)``, each built when asked, not kept."""
+
+    def __init__(self, scans):
+        self._scans = list(scans)
+
+    def __len__(self):
+        return len(self._scans)
+
+    def __getitem__(self, i):
+        sc = self._scans[i]
+        return sc.infos[0], sc.build([0])[0]
+
+
 def _layout_label(info) -> dict:
     """The choices naming a layout (a drift's degree, a sensor, a feature, a form): its text and integer items."""
     return {k: v for k, v in (info or {}).items() if isinstance(v, (str, int)) and not isinstance(v, bool)}
@@ -2298,8 +2312,8 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
 
     ``fixed``: ``fixed() -> {cause name: layouts}`` of the catalogue's
     causes whose scans are all single trials, the layouts a sequence of
-    ``(info, (n, k) columns, all rows)``; a bare ``(n, k)`` array is one
-    layout without a label.
+    ``(info, (n, k) columns, all rows)`` (:class:`_Layouts`: built when
+    tested); a bare ``(n, k)`` array is one layout without a label.
     ``signal``: :func:`_signal` of ``tm`` beside ``so``. Each alternative
     names the layout that matched (``layout``: its degree, sensor,
     feature or form).

@@ -160,7 +160,7 @@ def test_cause_alternatives_known_answers():
     sig0 = _signal(tm0, so0, sigma)
     assert sig0[1] <= 0, sig0
     assert _cause_alternatives(tm0, so0, sigma, s, lambda: {"thermal_drift": lay3}, sig0) == []
-    # several layouts, each labelled (the form the engine gives)
+    # several layouts, each labelled (the form the engine gives: core.discover._Layouts)
     lays = [({"degree": 1}, lay1), ({"degree": 3}, lay3)]
     got = _cause_alternatives(tm, so, sigma, s, lambda: {"thermal_drift": lays}, sig)
     assert [a["cause"] for a in got] == ["thermal_drift"] and got[0]["layout"] == {"degree": 3}, got
@@ -168,6 +168,26 @@ def test_cause_alternatives_known_answers():
     assert _cause_alternatives(tm, so, sigma, s, lambda: {"thermal_drift": lays[:1]}, sig) == []
     assert _cause_alternatives(tm, so, sigma, s, lambda: {"thermal_drift": []}, sig) == []
     assert _cause_alternatives(tm, so, sigma, s, lambda: {"temperature_expansion": [({}, tm.columns)]}, sig) == []
+
+
+def test_layouts_are_built_when_tested_and_labelled():
+    """The engine's layouts (core.discover._Layouts): each scan's columns built on access, not held; the
+    label keeps a layout's text and integer choices only (a stylus scan's info holds its columns)."""
+    from core.discover import _layout_label, _Layouts  # (here: the module's other tests also run on main)
+    calls = []
+
+    def build(idx, c=np.arange(6.0).reshape(3, 2)):
+        calls.append(tuple(idx))
+        return c[None]
+
+    sc = causes.Scan(("a", "b"), ({"degree": 2, "columns": np.ones(3), "range_K": 0.5, "sensor": "t"},), "time",
+                     build)
+    lays = _Layouts([sc, sc])
+    assert calls == [] and len(lays) == 2
+    info, B = lays[1]
+    assert calls == [(0,)] and np.array_equal(B, np.arange(6.0).reshape(3, 2))
+    assert _layout_label(info) == {"degree": 2, "sensor": "t"}
+    assert len(list(lays)) == 2 and len(calls) == 3
 
 
 class _Bl:
