@@ -252,15 +252,28 @@ def test_a_real_shift_by_an_unnamed_smooth_is_in_the_u95():
 #: Since the folds decide on the column space and the repeats' noise is taken after a time trend, the last four
 #: are no longer named at all: ``unexplained`` (stylus_pickup 501: noise 1.01 -> 0.30 um once the drift between
 #: its repeats is a trend), the honest answer for an effect outside the catalogue.
-NOW_AMBIGUOUS = [("gen_a", "reseat_hysteresis", 502, "outlier"), ("gen_b", "stylus_pickup", 501, "unexplained"),
-                 ("gen_b", "stylus_pickup", 605, "unexplained"), ("gen_a", "probe_heating", 707, "unexplained"),
-                 ("gen_a", "reseat_hysteresis", 409, "unexplained")]
+#: Issue 13 item 7 (development seeds): a drift and a temperature that follows the clock, one explanation under
+#: two names (core.discover._cause_alternatives, every fixed layout of a cause): gen_a thermal_drift 1109, gen_b
+#: thermal_drift 1001 and 1008 read temperature_expansion (the drift's columns reproduce 98-99.5 % of its signal
+#: and explain 1.01-1.2 times as much), gen_a reseat_hysteresis 1006 reads c_drift (the drift's columns 80 %,
+#: 1.06 times as much); main named all four confidently.
+NOW_AMBIGUOUS = [("gen_a", "reseat_hysteresis", 502, "outlier", None),
+                 ("gen_b", "stylus_pickup", 501, "unexplained", None),
+                 ("gen_b", "stylus_pickup", 605, "unexplained", None),
+                 ("gen_a", "probe_heating", 707, "unexplained", None),
+                 ("gen_a", "reseat_hysteresis", 409, "unexplained", None),
+                 ("gen_a", "thermal_drift", 1109, "temperature_expansion", "thermal_drift"),
+                 ("gen_b", "thermal_drift", 1001, "temperature_expansion", "thermal_drift"),
+                 ("gen_b", "thermal_drift", 1008, "temperature_expansion", "thermal_drift"),
+                 ("gen_a", "reseat_hysteresis", 1006, "c_drift", "thermal_drift")]
 
 
-@pytest.mark.parametrize("gen, effect, seed, cause", NOW_AMBIGUOUS)
-def test_once_confident_misnamings_are_flagged(gen, effect, seed, cause):
+@pytest.mark.parametrize("gen, effect, seed, cause, alternative", NOW_AMBIGUOUS)
+def test_once_confident_misnamings_are_flagged(gen, effect, seed, cause, alternative):
     o = _blind_case(gen, effect, seed)
     assert o.cause == cause and (cause == "unexplained" or not o.confident), (o.cause, o.confident)
+    # the other catalogue cause that reads the same (issue 13 item 7: the drift) is listed
+    assert alternative is None or alternative in o.alternatives, o.alternatives
 
 
 #: Campaigns once named wrongly, each fixed by a rule of the engine (not by a
@@ -278,11 +291,16 @@ def test_once_confident_misnamings_are_flagged(gen, effect, seed, cause):
 #:   the per-feature-per-set-up term explained 2 % more (245 against 241 um^2); that term nests any machine
 #:   error smooth over a feature (each feature of each set-up is one place of the machine), so for a
 #:   position cause it is judged as the cause's own covariate's smooth (core.discover.NESTING_FAMILIES).
+#: - gen_b outlier 908 (issue 13 item 7, a development seed): local_scale_defect named confidently ahead of
+#:   1,436 um^2 of chips, explaining 1.40 um^2 of the 1.90 um^2 a smooth in y explains (share 0.73), kept
+#:   because the shortfall was below materiality (2.29 um^2) though the structure in y was too: a shortfall
+#:   is now forgiven only of material structure (core.discover._rival_share).
 REGRESSIONS = [("gen_a", "probe_lobing", 302, ("probe_lobing",)),
                ("gen_b", "fixture_slip", 500, ("unexplained",)),
                ("gen_a", "nonrigid", 702, ("nonrigid",)),
                ("gen_a", "periodic_axis_error", 703, ("periodic_axis_error",)),
-               ("gen_a", "nonrigid", 703, ("nonrigid",))]
+               ("gen_a", "nonrigid", 703, ("nonrigid",)),
+               ("gen_b", "outlier", 908, ("outlier",))]
 
 
 @pytest.mark.parametrize("gen, effect, seed, expected", REGRESSIONS)
@@ -298,13 +316,15 @@ def test_two_causes_this_design_cannot_tell_apart_are_both_named():
     harmonics 0, 2, 4, 6, ... with weights 1/(4k^2 - 1), so harmonics 2 and
     4 (both in the probe's lobing columns) hold (1/9 + 1/225) / ((pi^2 - 8)
     / 16) = 98.8 % of its variance: the simulator's reversal is named, and
-    flagged ambiguous with probe_lobing. And the study counts a wrong name
+    flagged ambiguous with probe_lobing (and, since a cause of several fixed
+    layouts is an alternative too, with lobing_per_setup, whose lobes turned
+    per set-up nest the probe's fixed ones). And the study counts a wrong name
     whose alternatives hold the right one apart (``catalogue_alternative``),
     never in ``catalogue``.
     """
     assert (1 / 9 + 1 / 225) / ((np.pi ** 2 - 8) / 16) > 0.98
     o = hidden_outcome("reversal", 2700)
-    assert o.cause == "reversal" and not o.confident and o.alternatives == ("probe_lobing",), o
+    assert o.cause == "reversal" and not o.confident and o.alternatives == ("probe_lobing", "lobing_per_setup"), o
     a = Outcome("g", "reversal", 0, ("reversal",), "probe_lobing", ("probe_lobing",), False, 2.0, 0.3,
                 0.3, 0.3, 0.3, 0.1, alternatives=("reversal",))
     b = Outcome("g", "reversal", 1, ("reversal",), "reversal", ("reversal",), False, 2.0, 0.3, 0.3, 0.3, 0.3, 0.1,
