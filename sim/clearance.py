@@ -298,13 +298,24 @@ class Clearance:
         n = len(s_lo)
         cut = np.arange(0, n, _BLOCK)
         b_lo, b_hi = np.minimum.reduceat(s_lo, cut, axis=0), np.maximum.reduceat(s_hi, cut, axis=0)
+        # the clusters the box of all the boxes meets (a cluster no block meets is left out: it
+        # meets no block either; the rest keep their order, so the output is the same): a work
+        # zone's paths meet a fifth of its ~300 clusters' boxes, and the dense test below costs
+        # blocks x clusters
+        a_lo, a_hi = b_lo.min(axis=0), b_hi.max(axis=0)
+        cloT, chiT = self._cloT, self._chiT
+        near = (a_hi[0] >= cloT[0]) & (a_lo[0] <= chiT[0]) & (a_hi[1] >= cloT[1]) & (a_lo[1] <= chiT[1]) \
+            & (a_hi[2] >= cloT[2]) & (a_lo[2] <= chiT[2])
+        cl = np.flatnonzero(near)
+        cloT, chiT = cloT[:, cl], chiT[:, cl]
         b_lo, b_hi = b_lo.T[:, :, None], b_hi.T[:, :, None]  # (3, blocks, 1): one coordinate a row
-        hit = b_hi[0] >= self._cloT[0]
+        hit = b_hi[0] >= cloT[0]
         for ax in range(3):  # (a reduction over a last axis of 3 is slow in numpy)
             if ax:
-                hit &= b_hi[ax] >= self._cloT[ax]
-            hit &= b_lo[ax] <= self._chiT[ax]
+                hit &= b_hi[ax] >= cloT[ax]
+            hit &= b_lo[ax] <= chiT[ax]
         blk, cp = np.nonzero(hit)
+        cp = cl[cp]
         # (the boxes of each block hit: _expand's runs, all of _BLOCK boxes but the last block's)
         seg = (cut[blk][:, None] + np.arange(_BLOCK)).ravel()
         cp = np.repeat(cp, _BLOCK)
