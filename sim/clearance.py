@@ -747,6 +747,13 @@ def near_segments_many(parts) -> list:
     together (one set of numpy operations for a whole plan, the first box level and the
     bounds per broad phase); each part then leaves its certificates. Parts of moved copies
     of one broad phase (:meth:`Clearance.moved`) share its pair data and certificates.
+
+    A polyline's closing point (a segment of one sample where the segment before ends, the
+    same feature allowed: :func:`_covered`; two in five of a plan's rows) is neither looked
+    up nor bounded nor remembered: it lies on the segment before, so it is clear when that
+    one is (cleared by a certificate, or every pair's swept bound above the margin); when that
+    one may come near, the point is bounded after it on its own. The set of samples
+    returned may differ from bounding the point itself only by samples proven clear.
     """
     n_parts = len(parts)
     out = [np.zeros(0, int)] * n_parts
@@ -757,23 +764,32 @@ def near_segments_many(parts) -> list:
         if b == len(bases):
             bases.append(clr)
         base_of.append(b)
+    # the rows covered by the row before them (:func:`_covered`: a polyline's closing point, the
+    # end of its last segment) are neither looked up nor bounded: the row before clears them
+    # (every point of a segment proven clear is clear) or they are bounded after it (below)
+    n_of = np.fromiter((len(p[1].a) for p in parts), int, n_parts)
+    off = np.r_[0, np.cumsum(n_of)]
+    cov = _covered(np.concatenate([p[1].a for p in parts]), np.concatenate([p[1].b for p in parts]),
+                   np.concatenate([p[2] for p in parts]), off)
+    own = [np.flatnonzero(~cov[off[j]:off[j + 1]]) for j in range(n_parts)]  # (each part's rows looked up)
     # the certificates: per part in order, then by grid cell for every part of a broad phase at once
-    todo, full = [None] * n_parts, [False] * n_parts  # (full: every segment of the part, no gather)
+    todo = [None] * n_parts
     for b, clr in enumerate(bases):
         js = [j for j in range(n_parts) if base_of[j] == b]
         if not clr._certs._n:  # (no certificate yet: every segment is bounded)
             for j in js:
-                todo[j], full[j] = np.arange(len(parts[j][1].a)), True
+                todo[j] = own[j]
             continue
-        found = [clr._certs.in_order(parts[j][1].a, parts[j][1].b, parts[j][2]) for j in js]
+        qa, qb, qf = ([parts[j][1].a[own[j]] for j in js], [parts[j][1].b[own[j]] for j in js],
+                      [parts[j][2][own[j]] for j in js])
+        found = [clr._certs.in_order(x, y, f) for x, y, f in zip(qa, qb, qf)]
         cut = np.cumsum([0] + [len(x[0]) for x in found])
         r_old, moved = np.concatenate([x[0] for x in found]), np.concatenate([x[1] for x in found])
         rest = np.flatnonzero(~(moved < r_old))
         if rest.size and clr._certs._n:
-            clr._certs.by_cell(np.concatenate([parts[j][1].a for j in js]), np.concatenate([parts[j][1].b for j in js]),
-                               np.concatenate([parts[j][2] for j in js]), rest, r_old, moved)
+            clr._certs.by_cell(np.concatenate(qa), np.concatenate(qb), np.concatenate(qf), rest, r_old, moved)
         for k, j in enumerate(js):  # the segments no certificate clears
-            todo[j] = np.flatnonzero(~(moved[cut[k]:cut[k + 1]] < r_old[cut[k]:cut[k + 1]]))
+            todo[j] = own[j][~(moved[cut[k]:cut[k + 1]] < r_old[cut[k]:cut[k + 1]])]
     # the segments to bound, every part's in turn (the parts of one broad phase together): ends
     # (F), padded boxes, steps, samples
     live = sorted((j for j in range(n_parts) if len(todo[j])), key=lambda j: base_of[j])
@@ -784,7 +800,7 @@ def near_segments_many(parts) -> list:
     row0 = np.zeros(n_parts, int)
     row0[live] = np.cumsum(cnt[live]) - cnt[live]
     def pick(x, j):  # part j's rows of x to bound
-        return x if full[j] else x[todo[j]]
+        return x[todo[j]]
 
     A = np.concatenate([pick(parts[j][1].a, j) for j in live])
     B = np.concatenate([pick(parts[j][1].b, j) for j in live])
@@ -829,6 +845,26 @@ def near_segments_many(parts) -> list:
             clr._certs.add(pick(sg.a, j), pick(sg.b, j), pick(allow, j), r[row0[j]:row0[j] + cnt[j]])
     open_ = lb <= MARGIN_M
     seg, pair, pb = seg[open_], pair[open_], pb[open_]
+    # the covered rows after a bounded row that may come near (an open pair): bounded themselves
+    # (a second call: they are not covered there, their row before is not in it)
+    if cov.any():
+        at = np.full(len(cov), -1)  # row -> its bounded position
+        at[np.concatenate([off[j] + todo[j] for j in live])] = np.arange(len(A))
+        gc = np.flatnonzero(cov)
+        prev = at[gc - 1]
+        gc = gc[prev >= 0]
+        gc = gc[np.isin(prev[prev >= 0], seg)]  # (the row before has an open pair)
+        if gc.size:
+            pj = np.searchsorted(off, gc, side="right") - 1
+            js = np.unique(pj)
+            sub = []
+            for j in js:
+                i = gc[pj == j] - off[j]
+                sg = parts[j][1]
+                sub.append((parts[j][0], Segments(sg.a[i], sg.b[i], sg.k[i], sg.m[i], sg.first[i], sg.path[i]),
+                            parts[j][2][i]))
+            for j, x in zip(js, near_segments_many(sub)):
+                out[j] = x
     if not seg.size:
         return out
     # sample by sample for the pairs the swept bound leaves open (points in F)
@@ -854,8 +890,23 @@ def near_segments_many(parts) -> list:
     pj = part[seg[close]]
     idx = idx[close]
     for j in np.unique(pj):
-        out[j] = np.unique(idx[pj == j])
+        out[j] = np.union1d(idx[pj == j], out[j])
     return out
+
+
+def _covered(a: np.ndarray, b: np.ndarray, allow: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """(n,) bool: the rows of segments ``a -> b`` (n,3) (parts' rows one after another, part j's
+    ``off[j] .. off[j + 1] - 1``) that are a point (``a == b``) where the row before in the same
+    part, not a point, ends, with the same allowed feature ``allow`` (n,): a polyline's closing
+    sample (:func:`flat_path_segments` without joints). Such a point lies on the segment before:
+    if that one is proven clear (every pair farther than the margin at each of its points), so
+    is the point (a certificate of its segment covers it too)."""
+    pt = (a[:, 0] == b[:, 0]) & (a[:, 1] == b[:, 1]) & (a[:, 2] == b[:, 2])
+    cov = np.zeros(len(a), bool)
+    cov[1:] = pt[1:] & ~pt[:-1] & (b[:-1, 0] == a[1:, 0]) & (b[:-1, 1] == a[1:, 1]) & (b[:-1, 2] == a[1:, 2]) \
+        & (allow[:-1] == allow[1:])
+    cov[off[:-1][off[:-1] < len(a)]] = False  # (a part's first row: the row before is another part's)
+    return cov
 
 
 def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
