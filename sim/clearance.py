@@ -769,19 +769,24 @@ def near_segments_many(parts) -> list:
     # (every point of a segment proven clear is clear) or they are bounded after it (below)
     n_of = np.fromiter((len(p[1].a) for p in parts), int, n_parts)
     off = np.r_[0, np.cumsum(n_of)]
-    cov = _covered(np.concatenate([p[1].a for p in parts]), np.concatenate([p[1].b for p in parts]),
-                   np.concatenate([p[2] for p in parts]), off)
-    own = [np.flatnonzero(~cov[off[j]:off[j + 1]]) for j in range(n_parts)]  # (each part's rows looked up)
+    if n_parts == 1:
+        cov = _covered(parts[0][1].a, parts[0][1].b, parts[0][2], off)
+    else:
+        cov = _covered(np.concatenate([p[1].a for p in parts]), np.concatenate([p[1].b for p in parts]),
+                       np.concatenate([p[2] for p in parts]), off)
+    # each part's rows looked up (None: all of them, as they are)
+    own = [np.flatnonzero(~cov[off[j]:off[j + 1]]) for j in range(n_parts)] if cov.any() else [None] * n_parts
     # the certificates: per part in order, then by grid cell for every part of a broad phase at once
     todo = [None] * n_parts
     for b, clr in enumerate(bases):
         js = [j for j in range(n_parts) if base_of[j] == b]
         if not clr._certs._n:  # (no certificate yet: every segment is bounded)
             for j in js:
-                todo[j] = own[j]
+                todo[j] = np.arange(n_of[j]) if own[j] is None else own[j]
             continue
-        qa, qb, qf = ([parts[j][1].a[own[j]] for j in js], [parts[j][1].b[own[j]] for j in js],
-                      [parts[j][2][own[j]] for j in js])
+        qa, qb, qf = ([x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][1].a for j in js))],
+                      [x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][1].b for j in js))],
+                      [x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][2] for j in js))])
         found = [clr._certs.in_order(x, y, f) for x, y, f in zip(qa, qb, qf)]
         cut = np.cumsum([0] + [len(x[0]) for x in found])
         r_old, moved = np.concatenate([x[0] for x in found]), np.concatenate([x[1] for x in found])
@@ -789,7 +794,8 @@ def near_segments_many(parts) -> list:
         if rest.size and clr._certs._n:
             clr._certs.by_cell(np.concatenate(qa), np.concatenate(qb), np.concatenate(qf), rest, r_old, moved)
         for k, j in enumerate(js):  # the segments no certificate clears
-            todo[j] = own[j][~(moved[cut[k]:cut[k + 1]] < r_old[cut[k]:cut[k + 1]])]
+            left = np.flatnonzero(~(moved[cut[k]:cut[k + 1]] < r_old[cut[k]:cut[k + 1]]))
+            todo[j] = left if own[j] is None else own[j][left]
     # the segments to bound, every part's in turn (the parts of one broad phase together): ends
     # (F), padded boxes, steps, samples
     live = sorted((j for j in range(n_parts) if len(todo[j])), key=lambda j: base_of[j])
@@ -903,6 +909,8 @@ def _covered(a: np.ndarray, b: np.ndarray, allow: np.ndarray, off: np.ndarray) -
     is the point (a certificate of its segment covers it too)."""
     pt = (a[:, 0] == b[:, 0]) & (a[:, 1] == b[:, 1]) & (a[:, 2] == b[:, 2])
     cov = np.zeros(len(a), bool)
+    if not pt.any():  # (a campaign's paths, with joints: no point segments)
+        return cov
     cov[1:] = pt[1:] & ~pt[:-1] & (b[:-1, 0] == a[1:, 0]) & (b[:-1, 1] == a[1:, 1]) & (b[:-1, 2] == a[1:, 2]) \
         & (allow[:-1] == allow[1:])
     cov[off[:-1][off[:-1] < len(a)]] = False  # (a part's first row: the row before is another part's)
