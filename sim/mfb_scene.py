@@ -919,7 +919,9 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     first, per broad phase, the part of the most samples; then every other part. A broad
     phase's frame moves with the bar (A) or the table (W), so measurements of the same touches
     have the same moves there: the first pass's certificates clear what they share (the 5-axis
-    plan: the ball's 18,364 segments, 2,408 left to bound), the rest is bounded."""
+    plan: the second pass's 12 ball parts hold 12,876 segments, 7,872 once the polylines'
+    closing points are left to the segments before them, of which 304 are left to bound), the
+    rest is bounded."""
     from .clearance import Segments, near_segments_many
 
     parts, best, where, of, fids = [], {}, {}, [], {}
