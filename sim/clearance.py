@@ -757,6 +757,8 @@ def near_segments_many(parts) -> list:
     """
     n_parts = len(parts)
     out = [np.zeros(0, int)] * n_parts
+    if not n_parts:
+        return out
     bases, base_of = [], []  # the distinct broad phases (moved copies share their certificates)
     where = {}
     for clr, sg, allow in parts:
@@ -777,12 +779,12 @@ def near_segments_many(parts) -> list:
     # each part's rows looked up (None: all of them, as they are)
     own = [np.flatnonzero(~cov[off[j]:off[j + 1]]) for j in range(n_parts)] if cov.any() else [None] * n_parts
     # the certificates: per part in order, then by grid cell for every part of a broad phase at once
-    todo = [None] * n_parts
+    todo, full = [None] * n_parts, [False] * n_parts  # (full: every segment of the part, no gather)
     for b, clr in enumerate(bases):
         js = [j for j in range(n_parts) if base_of[j] == b]
         if not clr._certs._n:  # (no certificate yet: every segment is bounded)
             for j in js:
-                todo[j] = np.arange(n_of[j]) if own[j] is None else own[j]
+                todo[j], full[j] = (np.arange(n_of[j]), True) if own[j] is None else (own[j], False)
             continue
         qa, qb, qf = ([x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][1].a for j in js))],
                       [x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][1].b for j in js))],
@@ -806,7 +808,7 @@ def near_segments_many(parts) -> list:
     row0 = np.zeros(n_parts, int)
     row0[live] = np.cumsum(cnt[live]) - cnt[live]
     def pick(x, j):  # part j's rows of x to bound
-        return x[todo[j]]
+        return x if full[j] else x[todo[j]]
 
     A = np.concatenate([pick(parts[j][1].a, j) for j in live])
     B = np.concatenate([pick(parts[j][1].b, j) for j in live])
