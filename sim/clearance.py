@@ -401,7 +401,10 @@ class Clearance:
         apart, else their largest gap along a box axis (negative, at most the geoms' overlap
         along that axis, so at most their penetration depth, as for :meth:`bound`'s axes).
         Looser than :meth:`bound`, a few operations per row."""
-        p = self.to_frame(p_R)
+        return self._box_bound_F(self.to_frame(p_R), pairs)
+
+    def _box_bound_F(self, p: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """:meth:`box_bound` of tips ``p`` (n,3) already in the geoms' frame."""
         lo, hi = self._loT[:, pairs] + MARGIN_M, self._hiT[:, pairs] - MARGIN_M  # the tip's box of contact
         # the boxes' gap along x, y, z, (3, n, pairs)
         pT = p.T[:, :, None]
