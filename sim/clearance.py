@@ -298,13 +298,24 @@ class Clearance:
         n = len(s_lo)
         cut = np.arange(0, n, _BLOCK)
         b_lo, b_hi = np.minimum.reduceat(s_lo, cut, axis=0), np.maximum.reduceat(s_hi, cut, axis=0)
+        # the clusters the box of all the boxes meets (a cluster no block meets is left out: it
+        # meets no block either; the rest keep their order, so the output is the same): a work
+        # zone's paths meet a fifth of its ~300 clusters' boxes, and the dense test below costs
+        # blocks x clusters
+        a_lo, a_hi = b_lo.min(axis=0), b_hi.max(axis=0)
+        cloT, chiT = self._cloT, self._chiT
+        near = (a_hi[0] >= cloT[0]) & (a_lo[0] <= chiT[0]) & (a_hi[1] >= cloT[1]) & (a_lo[1] <= chiT[1]) \
+            & (a_hi[2] >= cloT[2]) & (a_lo[2] <= chiT[2])
+        cl = np.flatnonzero(near)
+        cloT, chiT = cloT[:, cl], chiT[:, cl]
         b_lo, b_hi = b_lo.T[:, :, None], b_hi.T[:, :, None]  # (3, blocks, 1): one coordinate a row
-        hit = b_hi[0] >= self._cloT[0]
+        hit = b_hi[0] >= cloT[0]
         for ax in range(3):  # (a reduction over a last axis of 3 is slow in numpy)
             if ax:
-                hit &= b_hi[ax] >= self._cloT[ax]
-            hit &= b_lo[ax] <= self._chiT[ax]
+                hit &= b_hi[ax] >= cloT[ax]
+            hit &= b_lo[ax] <= chiT[ax]
         blk, cp = np.nonzero(hit)
+        cp = cl[cp]
         # (the boxes of each block hit: _expand's runs, all of _BLOCK boxes but the last block's)
         seg = (cut[blk][:, None] + np.arange(_BLOCK)).ravel()
         cp = np.repeat(cp, _BLOCK)
@@ -390,7 +401,10 @@ class Clearance:
         apart, else their largest gap along a box axis (negative, at most the geoms' overlap
         along that axis, so at most their penetration depth, as for :meth:`bound`'s axes).
         Looser than :meth:`bound`, a few operations per row."""
-        p = self.to_frame(p_R)
+        return self._box_bound_F(self.to_frame(p_R), pairs)
+
+    def _box_bound_F(self, p: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """:meth:`box_bound` of tips ``p`` (n,3) already in the geoms' frame."""
         lo, hi = self._loT[:, pairs] + MARGIN_M, self._hiT[:, pairs] - MARGIN_M  # the tip's box of contact
         # the boxes' gap along x, y, z, (3, n, pairs)
         pT = p.T[:, :, None]
@@ -736,9 +750,18 @@ def near_segments_many(parts) -> list:
     together (one set of numpy operations for a whole plan, the first box level and the
     bounds per broad phase); each part then leaves its certificates. Parts of moved copies
     of one broad phase (:meth:`Clearance.moved`) share its pair data and certificates.
+
+    A polyline's closing point (a segment of one sample where the segment before ends, the
+    same feature allowed: :func:`_covered`; two in five of a plan's rows) is neither looked
+    up nor bounded nor remembered: it lies on the segment before, so it is clear when that
+    one is (cleared by a certificate, or every pair's swept bound above the margin); when that
+    one may come near, the point is bounded after it on its own. The set of samples
+    returned may differ from bounding the point itself only by samples proven clear.
     """
     n_parts = len(parts)
     out = [np.zeros(0, int)] * n_parts
+    if not n_parts:
+        return out
     bases, base_of = [], []  # the distinct broad phases (moved copies share their certificates)
     where = {}
     for clr, sg, allow in parts:
@@ -746,23 +769,38 @@ def near_segments_many(parts) -> list:
         if b == len(bases):
             bases.append(clr)
         base_of.append(b)
+    # the rows covered by the row before them (:func:`_covered`: a polyline's closing point, the
+    # end of its last segment) are neither looked up nor bounded: the row before clears them
+    # (every point of a segment proven clear is clear) or they are bounded after it (below)
+    n_of = np.fromiter((len(p[1].a) for p in parts), int, n_parts)
+    off = np.r_[0, np.cumsum(n_of)]
+    if n_parts == 1:
+        cov = _covered(parts[0][1].a, parts[0][1].b, parts[0][2], off)
+    else:
+        cov = _covered(np.concatenate([p[1].a for p in parts]), np.concatenate([p[1].b for p in parts]),
+                       np.concatenate([p[2] for p in parts]), off)
+    # each part's rows looked up (None: all of them, as they are)
+    own = [np.flatnonzero(~cov[off[j]:off[j + 1]]) for j in range(n_parts)] if cov.any() else [None] * n_parts
     # the certificates: per part in order, then by grid cell for every part of a broad phase at once
     todo, full = [None] * n_parts, [False] * n_parts  # (full: every segment of the part, no gather)
     for b, clr in enumerate(bases):
         js = [j for j in range(n_parts) if base_of[j] == b]
         if not clr._certs._n:  # (no certificate yet: every segment is bounded)
             for j in js:
-                todo[j], full[j] = np.arange(len(parts[j][1].a)), True
+                todo[j], full[j] = (np.arange(n_of[j]), True) if own[j] is None else (own[j], False)
             continue
-        found = [clr._certs.in_order(parts[j][1].a, parts[j][1].b, parts[j][2]) for j in js]
+        qa, qb, qf = ([x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][1].a for j in js))],
+                      [x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][1].b for j in js))],
+                      [x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][2] for j in js))])
+        found = [clr._certs.in_order(x, y, f) for x, y, f in zip(qa, qb, qf)]
         cut = np.cumsum([0] + [len(x[0]) for x in found])
         r_old, moved = np.concatenate([x[0] for x in found]), np.concatenate([x[1] for x in found])
         rest = np.flatnonzero(~(moved < r_old))
         if rest.size and clr._certs._n:
-            clr._certs.by_cell(np.concatenate([parts[j][1].a for j in js]), np.concatenate([parts[j][1].b for j in js]),
-                               np.concatenate([parts[j][2] for j in js]), rest, r_old, moved)
+            clr._certs.by_cell(np.concatenate(qa), np.concatenate(qb), np.concatenate(qf), rest, r_old, moved)
         for k, j in enumerate(js):  # the segments no certificate clears
-            todo[j] = np.flatnonzero(~(moved[cut[k]:cut[k + 1]] < r_old[cut[k]:cut[k + 1]]))
+            left = np.flatnonzero(~(moved[cut[k]:cut[k + 1]] < r_old[cut[k]:cut[k + 1]]))
+            todo[j] = left if own[j] is None else own[j][left]
     # the segments to bound, every part's in turn (the parts of one broad phase together): ends
     # (F), padded boxes, steps, samples
     live = sorted((j for j in range(n_parts) if len(todo[j])), key=lambda j: base_of[j])
@@ -818,6 +856,26 @@ def near_segments_many(parts) -> list:
             clr._certs.add(pick(sg.a, j), pick(sg.b, j), pick(allow, j), r[row0[j]:row0[j] + cnt[j]])
     open_ = lb <= MARGIN_M
     seg, pair, pb = seg[open_], pair[open_], pb[open_]
+    # the covered rows after a bounded row that may come near (an open pair): bounded themselves
+    # (a second call: they are not covered there, their row before is not in it)
+    if cov.any():
+        at = np.full(len(cov), -1)  # row -> its bounded position
+        at[np.concatenate([off[j] + todo[j] for j in live])] = np.arange(len(A))
+        gc = np.flatnonzero(cov)
+        prev = at[gc - 1]
+        gc = gc[prev >= 0]
+        gc = gc[np.isin(prev[prev >= 0], seg)]  # (the row before has an open pair)
+        if gc.size:
+            pj = np.searchsorted(off, gc, side="right") - 1
+            js = np.unique(pj)
+            sub = []
+            for j in js:
+                i = gc[pj == j] - off[j]
+                sg = parts[j][1]
+                sub.append((parts[j][0], Segments(sg.a[i], sg.b[i], sg.k[i], sg.m[i], sg.first[i], sg.path[i]),
+                            parts[j][2][i]))
+            for j, x in zip(js, near_segments_many(sub)):
+                out[j] = x
     if not seg.size:
         return out
     # sample by sample for the pairs the swept bound leaves open (points in F)
@@ -843,8 +901,25 @@ def near_segments_many(parts) -> list:
     pj = part[seg[close]]
     idx = idx[close]
     for j in np.unique(pj):
-        out[j] = np.unique(idx[pj == j])
+        out[j] = np.union1d(idx[pj == j], out[j])
     return out
+
+
+def _covered(a: np.ndarray, b: np.ndarray, allow: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """(n,) bool: the rows of segments ``a -> b`` (n,3) (parts' rows one after another, part j's
+    ``off[j] .. off[j + 1] - 1``) that are a point (``a == b``) where the row before in the same
+    part, not a point, ends, with the same allowed feature ``allow`` (n,): a polyline's closing
+    sample (:func:`flat_path_segments` without joints). Such a point lies on the segment before:
+    if that one is proven clear (every pair farther than the margin at each of its points), so
+    is the point (a certificate of its segment covers it too)."""
+    pt = (a[:, 0] == b[:, 0]) & (a[:, 1] == b[:, 1]) & (a[:, 2] == b[:, 2])
+    cov = np.zeros(len(a), bool)
+    if not pt.any():  # (a campaign's paths, with joints: no point segments)
+        return cov
+    cov[1:] = pt[1:] & ~pt[:-1] & (b[:-1, 0] == a[1:, 0]) & (b[:-1, 1] == a[1:, 1]) & (b[:-1, 2] == a[1:, 2]) \
+        & (allow[:-1] == allow[1:])
+    cov[off[:-1][off[:-1] < len(a)]] = False  # (a part's first row: the row before is another part's)
+    return cov
 
 
 def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -624,7 +624,7 @@ class WorkZone:
         gap *= gap
         hp = hp[np.sqrt(gap[0] + gap[1] + gap[2]) <= distmax + MARGIN_M]
         npair = len(hp)
-        lb0 = clr.box_bound(tips, hp).ravel()  # rows (tip, pair): tip i = row // npair, pair hp[row % npair]
+        lb0 = clr._box_bound_F(pF, hp).ravel()  # rows (tip, pair): tip i = row // npair, pair hp[row % npair]
         near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
         i, pair, lb0 = near // npair, hp[near % npair], lb0[near]
         order = np.argsort(lb0, kind="stable")
@@ -670,7 +670,7 @@ def _zone_xml(table_mjcf: str, probe_mjcf: str) -> str:
             f'</worldbody></mujoco>')
 
 
-def share_ball_model(artefact, measurements, stylus_r_m: float) -> None:
+def share_ball_model(artefact, measurements, stylus_r_m: float) -> list:
     """One MuJoCo model of the stylus ball and the holders of every placement of ``measurements``
     for the least holder clearances of their work zones (instead of one per placement: a compile
     costs about 0.6 ms whatever its few geoms; the 5-axis plan's four placements in one, 0.7 ms).
@@ -679,14 +679,16 @@ def share_ball_model(artefact, measurements, stylus_r_m: float) -> None:
     :func:`check_measurement` on ``artefact`` with ``stylus_r_m``. Placements that already have
     their ball model keep it. The distances are the same bit for bit: each holder geom is written
     as in its placement's own model (its name prefixed), at the same pose in the table body.
+    Returns each measurement's work zone (:func:`_work_zone`), in order.
     """
-    zones = {}
+    zones, each = {}, []
     for T_W_A, blocks, J_m, finger_m in measurements:
         wz = _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
+        each.append(wz)
         if ("ball_model", wz._r) not in wz._shared:
             zones.setdefault(id(wz._shared), wz)  # one zone per placement
     if len(zones) < 2:
-        return
+        return each
     parts, names, first = [], [], []
     for k, wz in enumerate(zones.values()):
         first.append(len(names))
@@ -697,6 +699,7 @@ def share_ball_model(artefact, measurements, stylus_r_m: float) -> None:
     m, d = wz._compile(xml, names + ["ball"])
     for h0, wz in zip(first, zones.values()):
         wz._shared[("ball_model", wz._r)] = (m, d, h0, len(names))
+    return each
 
 
 #: Compiled work zones by everything their model is made of (the artefact object kept, so
@@ -834,12 +837,12 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     r = float(stylus_r_m)
     ms = [(name, np.asarray(T_W_A, float), np.asarray(T_R_W, float), tuple(blocks), J_m, plan, float(finger_m))
           for name, T_W_A, T_R_W, blocks, J_m, plan, finger_m in measurements]
-    share_ball_model(artefact, [(m[1], m[3], m[4], m[6]) for m in ms], r)
+    each = share_ball_model(artefact, [(m[1], m[3], m[4], m[6]) for m in ms], r)  # (every work zone)
     pts_A = artefact_points(artefact)
     top = float(pts_A[:, 2].max()) + r
     z_bars = {}  # the bar's lowest point in W by placement
     bad, zones, T_R_As, paths = [], [], [], []
-    for name, T_W_A, T_R_W, blocks, J_m, plan, finger_m in ms:
+    for (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m), wz in zip(ms, each):
         T_R_A = T_R_W @ T_W_A
         b = []
         # the bar and the workholder on the table's side of its face (W z >= 0)
@@ -851,7 +854,6 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
         for blk in blocks:
             if min(blk.lo[2], blk.hi[2]) < -1e-9:
                 b.append(f"workholder block {blk.name} below the table face")
-        wz = _work_zone(artefact, T_W_A, blocks, J_m, r, finger_m)
         bad.append(b), zones.append(wz), T_R_As.append(T_R_A)
         if plan.n:
             Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
@@ -881,11 +883,12 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
         if plan.n:
             sg, path_touch, allow, _ = sgs[i]
             n_samp = sg.n_samples
-            # one past the last sample of each touch (a touch's paths are consecutive)
-            touch_end = np.zeros(plan.n, int)
-            np.maximum.at(touch_end, path_touch[sg.path], sg.first + sg.m)
             idx = near[i] if broad_phase else np.arange(n_samp)
-            pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
+            if idx.size:
+                # one past the last sample of each touch (a touch's paths are consecutive)
+                touch_end = np.zeros(plan.n, int)
+                np.maximum.at(touch_end, path_touch[sg.path], sg.first + sg.m)
+                pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
             bad_touch = set()
             for k in range(len(idx)):  # in path order
                 t = int(path_touch[which[k]])
@@ -919,7 +922,9 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     first, per broad phase, the part of the most samples; then every other part. A broad
     phase's frame moves with the bar (A) or the table (W), so measurements of the same touches
     have the same moves there: the first pass's certificates clear what they share (the 5-axis
-    plan: the ball's 18,364 segments, 2,408 left to bound), the rest is bounded."""
+    plan: the second pass's 12 ball parts hold 12,876 segments, 7,872 once the polylines'
+    closing points are left to the segments before them, of which 304 are left to bound), the
+    rest is bounded."""
     from .clearance import Segments, near_segments_many
 
     parts, best, where, of, fids = [], {}, {}, [], {}

@@ -490,6 +490,29 @@ def test_a_segment_with_no_pair_in_its_padded_box_certifies_exactly_the_padding(
         assert (len(calls) == 0) == (not want_near)  # cleared by the certificate, not recomputed
 
 
+def test_a_closing_point_is_cleared_by_its_segment_or_bounded_after_it(monkeypatch):
+    """Known answer for the rows near_segments_many leaves to the row before them (a polyline's
+    closing point, without joints: the end of its last segment, a sample of its own). One step
+    per segment, so a segment's only sample is its start: a move from 5 mm above the box (sample
+    0) down to the ball 1 mm into it (sample 1, the closing point) is near at sample 1 only; the
+    same move ending 0.3 mm above the box is clear, and its closing point is not bounded (the box
+    test sees one row of the two). With the closing point taken as cleared whenever its segment
+    is (the second bounding left out) the first case returns nothing: this test fails then."""
+    from sim.clearance import Clearance, path_segments
+
+    seen = []
+    real = Clearance._block_candidates
+    monkeypatch.setattr(Clearance, "_block_candidates", lambda self, lo, *r: seen.append(len(lo)) or real(self, lo, *r))
+    for z_end, want in ((R - 1e-3, [1]), (R + 0.3e-3, [])):
+        sg = path_segments([np.array([[-0.02, 0, R + 5e-3], [0.02, 0, z_end]])], [1.0], joints=False)
+        assert sg.n_samples == 2 and len(sg.a) == 2  # the segment (its start), the closing point
+        seen.clear()
+        near = _sphere_over_box().near_segments(sg, [""])
+        assert near.tolist() == want, (z_end, near)
+        assert seen[0] == 1  # the segment alone; (the closing point again only when it may be near)
+        assert len(seen) == (2 if want else 1)
+
+
 def _lookup(st, a, b, allow):
     """(r0, moved) of each segment as near_segments_many looks it up: in order, then by grid cell."""
     r0, moved = st.in_order(a, b, allow)
