@@ -53,6 +53,17 @@ FILES = {
     "vcmm": (("plan", "task"), ("json",), ("report",)),
 }
 
+#: command -> arguments that name an input file only sometimes (``--machine NAME|FILE``: a built-in
+#: name or a machine file), or that the command reads and checks itself (``--bar-calibration``,
+#: ``--machine-state``): not checked before the run, but an output on the same existing file is
+#: refused like an output on an input of :data:`FILES`.
+OTHER_INPUTS = {
+    "simulate": ("machine",),
+    "scenario": ("machine", "bar_calibration"),
+    "machine": ("machine",),
+    "vcmm": ("machine", "machine_state"),
+}
+
 #: Exit status of a command killed by SIGPIPE (128 + 13), as a shell reports it.
 EXIT_PIPE = 141
 
@@ -213,7 +224,9 @@ def run_command(args) -> int:
             for path in inputs.values():
                 check_input(path)
             files, folders = _arg_paths(args, outs), _arg_paths(args, dirs)
-            check_outputs(inputs, files, folders)
+            others = {k: v for k, v in _arg_paths(args, OTHER_INPUTS.get(args.command, ())).items()
+                      if os.path.isfile(v)}
+            check_outputs({**inputs, **others}, files, folders)
             outputs = RunOutputs(list(files.values()) + list(folders.values()))
             # an output on our own stdout (--out /dev/stdout): the command's messages go to stderr
             said_to = sys.stderr if any(own_descriptor(p) == 1 for p in files.values()) else None

@@ -181,3 +181,50 @@ def test_progress_line_is_quiet_off_a_terminal_and_clears_on_one():
     text = bar.stream.getvalue()
     assert text.count("\r\033[K") == 1 and text.endswith("2/4 ( 50 %)  ~" + text.split("~")[-1])
     assert "left" in text
+
+
+MACHINE_TOML = 'format = "vmt-machine/1"\nname = "mine"\nbase = "vmc-3axis"\nerrors = "none"\n'
+
+
+@pytest.mark.parametrize("cmd", [
+    ["simulate", "cross-pocket", "--machine", "{f}", "--out", "{f}"],
+    ["machine", "program", "--plan", "{plan}", "--machine", "{f}", "--safe-z-mm", "80", "--out", "{f}"],
+    ["vcmm", "scenarios/data/vcmm-block-plan.csv", "--task", "scenarios/data/vcmm-block-task.toml",
+     "--machine", "{f}", "--json", "{f}"],
+])
+def test_machine_file_given_as_the_output_is_refused(files, capsys, cmd):
+    """``--machine FILE`` is an input like any other: an output on the same path would replace the
+    user's machine file with a probe log, a part program or a JSON report (main: all three ran and
+    overwrote it, exit 0)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    machine = files["dir"] / "mine.toml"
+    machine.write_text(MACHINE_TOML)
+    argv = [a.format(f=machine, plan=files["plan"]) for a in cmd]
+    argv = [str(root / a) if a.startswith("scenarios/data/") else a for a in argv]
+    assert main(argv) == 2
+    err = one_line(capsys, f"vmt {' '.join(cmd[:2]) if cmd[0] == 'machine' else cmd[0]}: error: ")
+    assert f"is the input --machine {machine}: refusing to overwrite an input" in err
+    assert machine.read_text() == MACHINE_TOML
+
+
+def test_bar_calibration_given_as_the_output_is_refused(files, capsys):
+    """``scenario mfb-3axis --bar-calibration CAL --json CAL`` would replace the calibration it reads
+    with the run's report (main: ran and overwrote it, exit 0)."""
+    cal = files["dir"] / "cal.json"
+    assert main(["scenario", "mfb-reversal", "--json", str(cal)]) == 0
+    capsys.readouterr()
+    before = cal.read_bytes()
+    assert main(["scenario", "mfb-3axis", "--bar-calibration", str(cal), "--json", str(cal)]) == 2
+    err = one_line(capsys, "vmt scenario: error: --json ")
+    assert f"is the input --bar-calibration {cal}: refusing to overwrite an input" in err
+    assert cal.read_bytes() == before
+
+
+def test_a_built_in_machine_name_is_no_file_to_guard(files, capsys, monkeypatch):
+    """The guard compares ``--machine`` with the outputs only when it names an existing file: a
+    built-in name (no such file here) runs as before."""
+    monkeypatch.chdir(files["dir"])
+    assert main(["simulate", "cross-pocket", "--plan-only", "--machine", "nmv3000", "--out", "p.csv"]) == 0
+    assert (files["dir"] / "p.csv").is_file()
