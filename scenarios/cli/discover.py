@@ -118,12 +118,21 @@ def summary_lines(rep: dict) -> list[str]:
         params = ", ".join(f"{k} {_fmt(v, pu.get(k))}" for k, v in list(f["params"].items())[:6])
         flag = f" (ambiguous: {f['evidence'].get('confidence_reason', '')})" \
             if f["evidence"].get("confidence") == "ambiguous" else ""
-        out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}")
+        said_u95 = " (value +- U95, k = 2)" if any(isinstance(u, float) for u in pu.values()) else ""
+        out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}{said_u95}")
     g = rep["gain"]
     out.append(f"extended   {rep['extended']['model']}: rms {rep['extended']['rms_um']:.3f} um "
                f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um (x{g['cv_rms_ratio']:.2f})")
     if not rep["workpiece_identifiable"] and rep.get("workpiece") is not None:
         out.append("workpiece  not identifiable by this design (reported as null)")
+    elif rep.get("workpiece") and rep["findings"]:
+        w = [r for r in rep["workpiece"] if isinstance(r.get("extended_u95_um"), float)
+             and isinstance(r.get("baseline_u95_um"), float)]
+        if w:
+            moved = max(w, key=lambda r: abs(r["extended_um"] - r["baseline_um"]))
+            out.append(f"workpiece  U95 max {max(r['baseline_u95_um'] for r in w):.3f} -> "
+                       f"{max(r['extended_u95_um'] for r in w):.3f} um (baseline -> extended, {len(w)} targets); "
+                       f"largest change {moved['extended_um'] - moved['baseline_um']:+.3f} um at {moved['target']}")
     return out
 
 
