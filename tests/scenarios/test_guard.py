@@ -228,3 +228,15 @@ def test_a_built_in_machine_name_is_no_file_to_guard(files, capsys, monkeypatch)
     monkeypatch.chdir(files["dir"])
     assert main(["simulate", "cross-pocket", "--plan-only", "--machine", "nmv3000", "--out", "p.csv"]) == 0
     assert (files["dir"] / "p.csv").is_file()
+
+
+@pytest.mark.parametrize("cmd", [["machine", "show", "{d}"], ["simulate", "cross-pocket", "--machine", "{d}",
+                                                             "--out", "{o}"]])
+def test_a_folder_given_as_the_machine_file_is_named_a_folder(files, capsys, cmd):
+    """main said 'DIR: no such machine file' of a folder that exists; now what is wrong with it."""
+    d = files["dir"] / "machines"
+    d.mkdir()
+    assert main([a.format(d=d, o=files["dir"] / "o.csv") for a in cmd]) == 2
+    one_line(capsys, f"vmt {' '.join(cmd[:2]) if cmd[0] == 'machine' else cmd[0]}: error: "
+                     f"{d}: is a directory, not a machine file")
+    assert not (files["dir"] / "o.csv").exists()
