@@ -104,9 +104,15 @@ def _arg_paths(args, names) -> dict:
     return out
 
 
-def _opt(name: str) -> str:
-    return {"json_out": "--json", "log": "LOG", "plan": "--plan", "file": "FILE", "rrd": "RRD"}.get(
-        name, "--" + name.replace("_", "-"))
+#: commands whose plan is a positional argument (elsewhere ``--plan``)
+PLAN_POSITIONAL = ("design", "vcmm")
+
+
+def _opt(name: str, command: str | None = None) -> str:
+    if name == "plan" and command in PLAN_POSITIONAL:
+        return "PLAN"
+    return {"json_out": "--json", "log": "LOG", "plan": "--plan", "file": "FILE", "rrd": "RRD",
+            "study": "STUDY"}.get(name, "--" + name.replace("_", "-"))
 
 
 def check_input(path: str) -> None:
@@ -135,29 +141,30 @@ def _writable_folder(path: Path, *, folder: bool = False) -> None:
         raise OutputError(f"{path}: cannot write in {q}: {e.strerror}") from None
 
 
-def check_outputs(inputs: dict, files: dict, folders: dict) -> None:
-    """Refuse outputs that would overwrite an input, or that cannot be written as files/folders."""
+def check_outputs(inputs: dict, files: dict, folders: dict, command: str | None = None) -> None:
+    """Refuse outputs that would overwrite an input, or that cannot be written as files/folders
+    (``command`` names a positional argument as its usage does)."""
     from core.atomic import check_output, output_kind, same_file
     from core.exceptions import OutputError
 
     for oname, out in {**files, **folders}.items():
         for iname, inp in inputs.items():
             if os.path.exists(out) and same_file(out, inp):
-                raise OutputError(f"{_opt(oname)} {out} is the input {_opt(iname)} {inp}: "
+                raise OutputError(f"{_opt(oname, command)} {out} is the input {_opt(iname, command)} {inp}: "
                                   "refusing to overwrite an input; choose another output")
     for other, out in files.items():
         for oname2, out2 in {**files, **folders}.items():
             if oname2 != other and os.path.abspath(out) == os.path.abspath(out2):
-                raise OutputError(f"{_opt(other)} and {_opt(oname2)} are the same path {out}")
+                raise OutputError(f"{_opt(other, command)} and {_opt(oname2, command)} are the same path {out}")
     for name, out in files.items():
         if check_output(out, special=True) == "replace":
             _writable_folder(Path(out))
     for name, out in folders.items():
         kind = output_kind(out)
         if kind not in ("missing", "directory", "symbolic link"):
-            raise OutputError(f"{_opt(name)} {out}: is a {kind}, not a folder")
+            raise OutputError(f"{_opt(name, command)} {out}: is a {kind}, not a folder")
         if kind != "missing" and not os.path.isdir(out):
-            raise OutputError(f"{_opt(name)} {out}: is not a folder")
+            raise OutputError(f"{_opt(name, command)} {out}: is not a folder")
         _writable_folder(Path(out), folder=True)
 
 
@@ -226,7 +233,7 @@ def run_command(args) -> int:
             files, folders = _arg_paths(args, outs), _arg_paths(args, dirs)
             others = {k: v for k, v in _arg_paths(args, OTHER_INPUTS.get(args.command, ())).items()
                       if os.path.isfile(v)}
-            check_outputs({**inputs, **others}, files, folders)
+            check_outputs({**inputs, **others}, files, folders, args.command)
             outputs = RunOutputs(list(files.values()) + list(folders.values()))
             # an output on our own stdout (--out /dev/stdout): the command's messages go to stderr
             said_to = sys.stderr if any(own_descriptor(p) == 1 for p in files.values()) else None

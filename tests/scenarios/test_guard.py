@@ -240,3 +240,21 @@ def test_a_folder_given_as_the_machine_file_is_named_a_folder(files, capsys, cmd
     one_line(capsys, f"vmt {' '.join(cmd[:2]) if cmd[0] == 'machine' else cmd[0]}: error: "
                      f"{d}: is a directory, not a machine file")
     assert not (files["dir"] / "o.csv").exists()
+
+
+@pytest.mark.parametrize("cmd, named", [
+    (["regress", "{s}", "--junit", "{s}"], "STUDY"),
+    (["design", "{p}", "--n-angles", "3", "--json", "{p}"], "PLAN"),
+    (["vcmm", "{p}", "--machine", "vmc-3axis", "--task", "t.toml", "--json", "{p}"], "PLAN"),
+])
+def test_a_positional_input_is_named_as_the_usage_names_it(files, capsys, cmd, named):
+    """main named these inputs '--study', '--plan': options the commands do not have."""
+    study = files["dir"] / "s.toml"
+    study.write_text('format = "vmt-study/1"\\n')
+    (files["dir"] / "t.toml").write_text('format = "vmt-task/1"\\n')
+    argv = [a.format(s=study, p=files["plan"]) for a in cmd]
+    argv = [str(files["dir"] / a) if a == "t.toml" else a for a in argv]
+    assert main(argv) == 2
+    path = study if named == "STUDY" else files["plan"]
+    err = one_line(capsys, f"vmt {cmd[0]}: error: ")
+    assert f"is the input {named} {path}: refusing to overwrite an input" in err, err
