@@ -16,7 +16,9 @@
 - a closed pipe (``vmt check log.csv | head -2``) ends quietly, status 141
   like any program killed by SIGPIPE; Ctrl-C ends with one line, status 130;
 - an output named ``/dev/stdout`` is written on standard output itself (never
-  replaced) and the command's own messages then go to stderr.
+  replaced) and the command's own messages then go to stderr; an output file
+  named ``-`` is the same (:data:`DASH_OWN`: ``check --json -`` prints its JSON
+  instead of its text).
 
 Which argument of which command is an input or an output is the table
 :data:`FILES`; a command missing there gets only the error handling.
@@ -63,6 +65,10 @@ OTHER_INPUTS = {
     "machine": ("machine",),
     "vcmm": ("machine", "machine_state"),
 }
+
+#: commands that read ``-`` as an output themselves (``check --json -``: the JSON instead of the
+#: text); in every other command an output file ``-`` is standard output, as ``/dev/stdout``.
+DASH_OWN = ("check",)
 
 #: Exit status of a command killed by SIGPIPE (128 + 13), as a shell reports it.
 EXIT_PIPE = 141
@@ -227,6 +233,10 @@ def run_command(args) -> int:
     try:
         try:
             check_common_options(args)
+            if args.command not in DASH_OWN:
+                for out in outs:
+                    if getattr(args, out, None) == "-":
+                        setattr(args, out, "/dev/stdout")
             inputs = _arg_paths(args, ins)
             for path in inputs.values():
                 check_input(path)

@@ -269,6 +269,27 @@ def _heights(files):
     return write_probe_log(heights, make_log(cols))
 
 
+@pytest.mark.parametrize("cmd, starts", [
+    (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", "-"], "# format: probe-log/1"),
+    (["fit", "plane", "{heights}", "--json", "-"], "{"),
+    (["import", "linuxcnc", "{probe}", "--plan", "{plan}", "--out", "-"], "# format: probe-log/1"),
+])
+def test_dash_is_standard_output_in_every_command(files, capfd, monkeypatch, cmd, starts):
+    """'--json -' printed the JSON in 'vmt check' but made a file named '-' in every other command
+    (main: exit 0, a file '-' in the working folder, nothing on stdout); now it is standard
+    output everywhere, the messages on stderr."""
+    monkeypatch.chdir(files["dir"])
+    argv = [a.format(heights=_heights(files), probe=files["probe"], plan=files["plan"]) for a in cmd]
+    capfd.readouterr()
+    rc = main(argv)
+    out, err = capfd.readouterr()
+    assert rc == 0, err
+    assert not (files["dir"] / "-").exists()
+    assert out.startswith(starts), out[:200]
+    if starts == "{":
+        assert json.loads(out)["format"] == "vmt-fit/1"
+    assert "/dev/stdout" in err          # the command's own message, on stderr
+
 STDOUT_CASES = [
     (["fit", "plane", "{heights}", "--json", "/dev/stdout"], "{"),
     (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", "/dev/stdout"], "# format: probe-log/1"),
