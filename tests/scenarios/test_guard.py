@@ -339,3 +339,18 @@ def test_bench_never_replaces_a_link_or_device(files, capfd, monkeypatch):
     assert main(["bench", "--out", str(out)]) == 0
     assert json.loads(out.read_text())["figures"] == {"x_s": {"value": 1.0}}
     assert out.read_text() == json.dumps(json.loads(out.read_text()), indent=2, sort_keys=True)   # as before
+
+
+@pytest.mark.parametrize("cmd, msg", [
+    (["cross-pocket-uncertainty", "--noise-um", "0.5", "--mc", "10"],
+     "--noise-um: cross-pocket-uncertainty does not take it (its probing u is the paper's 1.38 um)"),
+    (["pin-circle", "--mc", "5"], "--mc: pin-circle does not take it"),
+    (["mfb-reversal", "--mc", "5"], "--mc: mfb-reversal does not take it"),
+    (["mfb-reversal", "--report", "{dir}/rr"], "--report: mfb-reversal does not take it"),
+])
+def test_scenario_refuses_an_option_it_would_ignore(files, capsys, cmd, msg):
+    """main ran these and ignored the option (cross-pocket-uncertainty printed 'u_probe 1.38 um'
+    under --noise-um 0.5; mfb-reversal wrote no report; exit 0 each)."""
+    assert main(["scenario"] + [a.format(dir=files["dir"]) for a in cmd]) == 2
+    one_line(capsys, f"vmt scenario: error: {msg}")
+    assert not (files["dir"] / "rr").exists()
