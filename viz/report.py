@@ -113,6 +113,27 @@ code { background: #f3f3f3; padding: 0 .25em; }
 """
 
 
+def replace_problem(folder) -> str | None:
+    """Why an existing ``folder`` may not be replaced whole by a report, or None.
+
+    A report replaces its folder whole (:func:`write_report`), so an existing
+    folder must be an earlier report (it holds ``index.html``) or empty: a
+    folder of the user's own files (``--report results/``) or the working
+    folder (``--report .``) would be lost with it.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        return None
+    here = Path.cwd().resolve()
+    if folder.resolve() in (here, *here.parents):
+        return "is the working folder or one above it: a report replaces its folder whole; give a new folder"
+    entries = sum(1 for _ in folder.iterdir())
+    if entries and not (folder / "index.html").is_file():
+        return (f"exists and holds {entries} entries but no index.html, so it is no earlier report: a report "
+                "replaces its folder whole; give a new folder (or remove this one)")
+    return None
+
+
 def write_report(folder, title: str, sections: Sequence, *, recording=None,
                  overwrite: bool = True, dpi: int = 110) -> Path:
     """Write a report folder: ``index.html``, one PNG per figure, the recording.
@@ -128,7 +149,9 @@ def write_report(folder, title: str, sections: Sequence, *, recording=None,
         A ``.rrd`` file; copied into the folder and linked, with the
         ``vmt view`` command that opens it.
     overwrite : bool
-        Replace an existing report folder (default); otherwise refuse.
+        Replace an existing report folder (default; only an earlier report, one
+        holding ``index.html``, or an empty folder: :func:`replace_problem`);
+        otherwise refuse.
 
     Returns
     -------
@@ -150,6 +173,9 @@ def write_report(folder, title: str, sections: Sequence, *, recording=None,
         raise ConfigError(f"report folder {str(folder)!r} exists (overwrite=False)")
     if folder.exists() and not folder.is_dir():
         raise ConfigError(f"report folder {str(folder)!r} exists and is not a folder")
+    problem = replace_problem(folder)
+    if problem:
+        raise ConfigError(f"report folder {str(folder)!r} {problem}")
     rrd = None
     if recording is not None:
         rrd = Path(recording)

@@ -244,6 +244,15 @@ def run_command(args) -> int:
             others = {k: v for k, v in _arg_paths(args, OTHER_INPUTS.get(args.command, ())).items()
                       if os.path.isfile(v)}
             check_outputs({**inputs, **others}, files, folders, args.command)
+            report = folders.get("report")
+            if report and not (args.command == "scenario" and getattr(args, "name", None) == "pin-circle"):
+                from viz.report import replace_problem   # a report replaces its folder whole: checked now
+
+                problem = replace_problem(report)
+                if problem:
+                    from core.exceptions import OutputError
+
+                    raise OutputError(f"--report {report}: {problem}")
             outputs = RunOutputs(list(files.values()) + list(folders.values()))
             # an output on our own stdout (--out /dev/stdout): the command's messages go to stderr
             said_to = sys.stderr if any(own_descriptor(p) == 1 for p in files.values()) else None

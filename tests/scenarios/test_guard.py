@@ -354,3 +354,20 @@ def test_scenario_refuses_an_option_it_would_ignore(files, capsys, cmd, msg):
     assert main(["scenario"] + [a.format(dir=files["dir"]) for a in cmd]) == 2
     one_line(capsys, f"vmt scenario: error: {msg}")
     assert not (files["dir"] / "rr").exists()
+
+
+def test_report_into_a_folder_of_the_users_files_is_refused_before_the_run(files, capsys, monkeypatch):
+    """'vmt iso230-2 LOG --json J --report results/' where results/ holds the user's files: main ran,
+    then replaced the folder whole (the files gone, exit 0). Now refused before the work, exit 2."""
+    from pathlib import Path
+
+    sample = Path(__file__).resolve().parents[2] / "scenarios" / "data" / "positioning-sample.csv"
+    mine = files["dir"] / "results"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    j = files["dir"] / "s.json"
+    assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(mine)]) == 2
+    one_line(capsys, f"vmt iso230-2: error: --report {mine}: exists and holds 1 entries but no index.html")
+    assert (mine / "notes.txt").read_text() == "mine" and not j.exists()
+    assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(files["dir"] / "new")]) == 0
+    assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(files["dir"] / "new")]) == 0  # replaced

@@ -86,3 +86,23 @@ def test_table_checks_row_length_and_no_overwrite(tmp_path):
     os.umask(umask)
     # the folder gets the user's usual permissions, not mkdtemp's 0700
     assert os.stat(tmp_path / "r").st_mode & 0o777 == 0o777 & ~umask
+
+
+def test_a_folder_of_other_files_or_the_working_folder_is_never_replaced(tmp_path, monkeypatch):
+    """A report replaces its folder whole: main did so for any folder, so '--report results/' deleted
+    the user's files in it (the old folder removed after the swap). Now only an earlier report
+    (with index.html) or an empty folder is replaced."""
+    mine = tmp_path / "results"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    with pytest.raises(ConfigError, match="holds 1 entries but no index.html"):
+        write_report(mine, "x", [])
+    assert (mine / "notes.txt").read_text() == "mine" and not (mine / "index.html").exists()
+    (tmp_path / "empty").mkdir()
+    assert (write_report(tmp_path / "empty", "x", []) / "index.html").is_file()
+    write_report(tmp_path / "empty", "again", [])                       # an earlier report: replaced
+    assert "again" in (tmp_path / "empty" / "index.html").read_text()
+    monkeypatch.chdir(mine)
+    with pytest.raises(ConfigError, match="working folder"):
+        write_report(tmp_path, "x", [])
+    assert (mine / "notes.txt").exists()
