@@ -730,7 +730,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
             return False
 
     cols: dict[str, int]
-    if not is_number(first[0]) or not is_number(first[-1]):
+    if not is_number(first[0]):     # a header names its first column; a data row starts with its target
         lookup = {}
         for j, name in enumerate(first):
             key = name.strip().lower()
