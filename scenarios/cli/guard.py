@@ -174,6 +174,30 @@ def check_outputs(inputs: dict, files: dict, folders: dict, command: str | None 
         _writable_folder(Path(out), folder=True)
 
 
+def _inside(path: str, folder: str) -> bool:
+    """``path`` (links resolved) is ``folder`` or lies in it."""
+    p, f = os.path.realpath(path), os.path.realpath(folder)
+    return p == f or p.startswith(f.rstrip(os.sep) + os.sep)
+
+
+def check_report_folder(report: str, inputs: dict, outputs: dict, command: str | None = None) -> None:
+    """A report replaces its folder whole (:func:`viz.report.write_report`): refuse, before the run,
+    a folder that is no earlier report of vmt or holds anything else (:func:`viz.report.replace_problem`),
+    and an input or another output lying in it (it would be lost with the folder, or written and then
+    swept away)."""
+    from core.exceptions import OutputError
+    from viz.report import replace_problem
+
+    for kind, paths in (("the input", inputs), ("the output", outputs)):
+        for name, path in paths.items():
+            if name != "report" and _inside(path, report):
+                raise OutputError(f"{_opt(name, command)} {path} lies in --report {report}, a folder the report "
+                                  f"replaces whole: {kind} would be lost; put it elsewhere")
+    problem = replace_problem(report)
+    if problem:
+        raise OutputError(f"--report {report}: {problem}")
+
+
 #: Options that mean the same in every command that has them (``args`` name: test, rule).
 COMMON = {
     "seed": (lambda v: v >= 0, "must be >= 0"),
@@ -246,13 +270,7 @@ def run_command(args) -> int:
             check_outputs({**inputs, **others}, files, folders, args.command)
             report = folders.get("report")
             if report and not (args.command == "scenario" and getattr(args, "name", None) == "pin-circle"):
-                from viz.report import replace_problem   # a report replaces its folder whole: checked now
-
-                problem = replace_problem(report)
-                if problem:
-                    from core.exceptions import OutputError
-
-                    raise OutputError(f"--report {report}: {problem}")
+                check_report_folder(report, {**inputs, **others}, {**files, **folders}, args.command)
             outputs = RunOutputs(list(files.values()) + list(folders.values()))
             # an output on our own stdout (--out /dev/stdout): the command's messages go to stderr
             said_to = sys.stderr if any(own_descriptor(p) == 1 for p in files.values()) else None

@@ -367,7 +367,73 @@ def test_report_into_a_folder_of_the_users_files_is_refused_before_the_run(files
     (mine / "notes.txt").write_text("mine")
     j = files["dir"] / "s.json"
     assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(mine)]) == 2
-    one_line(capsys, f"vmt iso230-2: error: --report {mine}: exists and holds 1 entries but no index.html")
+    one_line(capsys, f"vmt iso230-2: error: --report {mine}: exists and holds 1 entries but no report of vmt")
     assert (mine / "notes.txt").read_text() == "mine" and not j.exists()
     assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(files["dir"] / "new")]) == 0
     assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(files["dir"] / "new")]) == 0  # replaced
+
+
+def _sample():
+    from pathlib import Path
+
+    return Path(__file__).resolve().parents[2] / "scenarios" / "data" / "positioning-sample.csv"
+
+
+def test_a_folder_with_an_index_html_of_its_own_is_no_report(files, capsys):
+    """Reviewer's case a): site/ holds index.html, thesis.tex and img/; main (b7ce9a1) took any folder
+    with an index.html for an earlier report and replaced it whole (thesis.tex and img/ gone, exit 0)."""
+    site = files["dir"] / "site"
+    (site / "img").mkdir(parents=True)
+    (site / "index.html").write_text("x\n")
+    (site / "thesis.tex").write_text("precious\n")
+    j = files["dir"] / "a.json"
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(site)]) == 2
+    one_line(capsys, f"vmt iso230-2: error: --report {site}: exists and holds 3 entries but no report of vmt")
+    assert (site / "thesis.tex").read_text() == "precious\n" and (site / "img").is_dir() and not j.exists()
+
+
+def test_a_users_file_in_an_earlier_report_is_never_swept_away(files, capsys):
+    """Reviewer's case b): rep/ an earlier report plus the user's mylog.csv, given as the input: main
+    replaced rep/ whole after reading it (the input log gone, exit 0). Refused before the run, as
+    is an earlier report to which the user added a file."""
+    import shutil
+
+    rep, j = files["dir"] / "rep", files["dir"] / "c.json"
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 0
+    capsys.readouterr()
+    shutil.copy(_sample(), rep / "mylog.csv")
+    j.unlink()
+    assert main(["iso230-2", str(rep / "mylog.csv"), "--json", str(j), "--report", str(rep)]) == 2
+    one_line(capsys, f"vmt iso230-2: error: LOG {rep / 'mylog.csv'} lies in --report {rep}, a folder the "
+                     "report replaces whole: the input would be lost")
+    assert (rep / "mylog.csv").read_bytes() == _sample().read_bytes() and not j.exists()
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 2
+    one_line(capsys, f"vmt iso230-2: error: --report {rep}: is an earlier report but also holds mylog.csv, "
+                     "which the report did not write")
+    assert (rep / "mylog.csv").exists() and not j.exists()
+    (rep / "mylog.csv").unlink()
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 0   # replaced
+
+
+@pytest.mark.parametrize("opt, name", [("--json", "inner.json"), ("--write-log", "log2.csv")])
+@pytest.mark.parametrize("earlier", [True, False])
+def test_an_output_inside_the_report_folder_is_refused_before_the_run(files, capsys, opt, name, earlier):
+    """Reviewer's cases c) and d): '--json rep/inner.json --report rep' said 'wrote rep/inner.json'
+    (exit 0) but the report then replaced rep/ whole, the file gone; with rep/ new, the run went to
+    its end and then said 'holds 1 entries but no index.html' (exit 2). Now refused before any work."""
+    rep, j = files["dir"] / "rep", files["dir"] / "j.json"
+    if earlier:
+        assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 0
+        j.unlink()
+        before = sorted(p.name for p in rep.iterdir())
+    capsys.readouterr()
+    argv = ["iso230-2", str(_sample())] + ([] if opt == "--json" else ["--json", str(j)]) + [
+        opt, str(rep / name), "--report", str(rep)]
+    assert main(argv) == 2
+    one_line(capsys, f"vmt iso230-2: error: {opt} {rep / name} lies in --report {rep}, a folder the report "
+                     "replaces whole: the output would be lost")
+    assert not (rep / name).exists() and not j.exists()
+    if earlier:
+        assert sorted(p.name for p in rep.iterdir()) == before
+    else:
+        assert not rep.exists()
