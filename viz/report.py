@@ -154,9 +154,13 @@ def replace_problem(folder) -> str | None:
     nothing else in it, so that a user's file added to a report, a folder
     of the user's own (``--report results/``, also one holding an
     ``index.html`` of its own) or the working folder (``--report .``) is
-    never lost with it.
+    never lost with it. A symbolic link is refused: the report would replace
+    the link by a folder (and leave the link's old target as it was).
     """
     folder = Path(folder)
+    if folder.is_symlink():
+        return (f"is a symbolic link (to {os.readlink(folder)}): a report replaces its folder whole and would "
+                "replace the link by a folder; give the folder it points to")
     if not folder.is_dir():
         return None
     here = Path.cwd().resolve()

@@ -437,3 +437,17 @@ def test_an_output_inside_the_report_folder_is_refused_before_the_run(files, cap
         assert sorted(p.name for p in rep.iterdir()) == before
     else:
         assert not rep.exists()
+
+
+def test_a_link_given_as_the_report_folder_is_refused_before_the_run(files, capsys):
+    """README: a link given as an output is refused. main replaced '--report lnk' (a link to an earlier
+    report) by a real folder after the run and left a stale '.lnk.XXXX.old' link (exit 0)."""
+    rep, j = files["dir"] / "rep", files["dir"] / "j.json"
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 0
+    j.unlink()
+    capsys.readouterr()
+    (files["dir"] / "lnk").symlink_to("rep")
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(files["dir"] / "lnk")]) == 2
+    one_line(capsys, f"vmt iso230-2: error: --report {files['dir'] / 'lnk'}: is a symbolic link (to rep)")
+    assert (files["dir"] / "lnk").is_symlink() and not j.exists()
+    assert not [p for p in files["dir"].iterdir() if p.name.startswith(".")]

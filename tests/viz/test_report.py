@@ -141,3 +141,17 @@ def test_only_a_report_vmt_wrote_holding_nothing_else_is_replaced(tmp_path):
     (rep / "f_1.png").rmdir()
     write_report(rep, "again", [])                      # an earlier report, less a figure: replaced
     assert sorted(p.name for p in rep.iterdir()) == ["index.html"]
+
+
+def test_a_link_given_as_the_report_folder_is_refused(tmp_path, monkeypatch):
+    """main replaced a link to an earlier report by a real folder and left the link, renamed
+    '.lnk.XXXX.old', beside it (shutil.rmtree does not remove a link). Refused, all left as it was."""
+    rep = write_report(tmp_path / "rep", "old", [])
+    before = rep.joinpath("index.html").read_text()
+    (tmp_path / "lnk").symlink_to("rep")
+    (tmp_path / "dangling").symlink_to("nowhere")
+    for link in ("lnk", "dangling"):
+        with pytest.raises(ConfigError, match="is a symbolic link .* give the folder it points to"):
+            write_report(tmp_path / link, "new", [])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling", "lnk", "rep"]
+    assert (tmp_path / "lnk").is_symlink() and rep.joinpath("index.html").read_text() == before
