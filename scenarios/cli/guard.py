@@ -18,7 +18,9 @@
 - an output named ``/dev/stdout`` is written on standard output itself (never
   replaced) and the command's own messages then go to stderr; an output file
   named ``-`` is the same (:data:`DASH_OWN`: ``check --json -`` prints its JSON
-  instead of its text).
+  instead of its text), but where a command appends to a file or rewrites it
+  in place (:data:`NO_DASH`: ``probe --out``, ``probe --transcript``, ``bench
+  --readme``) and for a folder (``--report -``), which refuse it.
 
 Which argument of which command is an input or an output is the table
 :data:`FILES`; a command missing there gets only the error handling.
@@ -70,6 +72,14 @@ OTHER_INPUTS = {
 #: text); in every other command an output file ``-`` is standard output, as ``/dev/stdout``.
 DASH_OWN = ("check",)
 
+#: command -> {option: why it cannot be ``-``}: files a command appends to or rewrites in place, never
+#: standard output (a folder option refuses ``-`` in every command: :func:`map_dash`).
+NO_DASH = {
+    "probe": {"out": "the campaign log is appended to, locked and continued by --resume, so it must be a file",
+              "transcript": "the transcript is appended to a file; give a file"},
+    "bench": {"readme": "the file is read and its table rewritten in place; give a file"},
+}
+
 #: Exit status of a command killed by SIGPIPE (128 + 13), as a shell reports it.
 EXIT_PIPE = 141
 
@@ -119,6 +129,24 @@ def _opt(name: str, command: str | None = None) -> str:
         return "PLAN"
     return {"json_out": "--json", "log": "LOG", "plan": "--plan", "file": "FILE", "rrd": "RRD",
             "study": "STUDY"}.get(name, "--" + name.replace("_", "-"))
+
+
+def map_dash(args, outs, dirs) -> None:
+    """An output file ``-`` becomes ``/dev/stdout`` (but in :data:`DASH_OWN`); refuse ``-`` where it
+    cannot be standard output: a folder option, or an option of :data:`NO_DASH`."""
+    from core.exceptions import ConfigError
+
+    for name, why in NO_DASH.get(args.command, {}).items():
+        if getattr(args, name, None) == "-":
+            raise ConfigError(f"{_opt(name, args.command)} -: '-' (standard output) cannot be it: {why}")
+    for name in dirs:
+        if getattr(args, name, None) == "-":
+            raise ConfigError(f"{_opt(name, args.command)} -: names a folder, and '-' (standard output) is "
+                              "for an output file; give a folder")
+    if args.command not in DASH_OWN:
+        for out in outs:
+            if getattr(args, out, None) == "-":
+                setattr(args, out, "/dev/stdout")
 
 
 def check_input(path: str) -> None:
@@ -257,10 +285,7 @@ def run_command(args) -> int:
     try:
         try:
             check_common_options(args)
-            if args.command not in DASH_OWN:
-                for out in outs:
-                    if getattr(args, out, None) == "-":
-                        setattr(args, out, "/dev/stdout")
+            map_dash(args, outs, dirs)
             inputs = _arg_paths(args, ins)
             for path in inputs.values():
                 check_input(path)

@@ -451,3 +451,27 @@ def test_a_link_given_as_the_report_folder_is_refused_before_the_run(files, caps
     one_line(capsys, f"vmt iso230-2: error: --report {files['dir'] / 'lnk'}: is a symbolic link (to rep)")
     assert (files["dir"] / "lnk").is_symlink() and not j.exists()
     assert not [p for p in files["dir"].iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("cmd, msg", [
+    (["probe", "--controller", "virtual:", "--plan", "{plan}", "--out", "-", "--limits-mm", "X-9:9,Y-9:9,Z-9:9"],
+     "vmt probe: error: --out -: '-' (standard output) cannot be it: the campaign log is appended to"),
+    (["probe", "--controller", "virtual:", "--plan", "{plan}", "--out", "{dir}/p.csv", "--limits-mm",
+      "X-9:9,Y-9:9,Z-9:9", "--transcript", "-"],
+     "vmt probe: error: --transcript -: '-' (standard output) cannot be it: the transcript is appended"),
+    (["iso230-2", "{sample}", "--json", "{dir}/j.json", "--report", "-"],
+     "vmt iso230-2: error: --report -: names a folder, and '-' (standard output) is for an output file"),
+    (["demo", "--out-dir", "-"], "vmt demo: error: --out-dir -: names a folder"),
+    (["scenario", "mfb-3axis", "--comp", "-"], "vmt scenario: error: --comp -: names a folder"),
+    (["bench", "--from-json", "{dir}/x.json", "--readme", "-"], "vmt bench: error: --readme -: '-' (standard "
+                                                                   "output) cannot be it"),
+])
+def test_dash_where_it_cannot_be_standard_output_is_refused(files, capsys, monkeypatch, cmd, msg):
+    """main (f8658e3) made '-' standard output for the guarded files only: 'probe --out -' made a log
+    file named '-' (and --transcript - a transcript '-'), '--report -' and the other folder options
+    made a folder named '-' (the guard skipped '-', so nothing was checked before the run)."""
+    monkeypatch.chdir(files["dir"])
+    argv = [a.format(plan=files["plan"], dir=files["dir"], sample=_sample()) for a in cmd]
+    assert main(argv) == 2
+    one_line(capsys, msg)
+    assert not (files["dir"] / "-").exists() and not (files["dir"] / "p.csv").exists()
