@@ -475,3 +475,25 @@ def test_dash_where_it_cannot_be_standard_output_is_refused(files, capsys, monke
     assert main(argv) == 2
     one_line(capsys, msg)
     assert not (files["dir"] / "-").exists() and not (files["dir"] / "p.csv").exists()
+
+
+def test_bench_merge_refuses_an_output_it_cannot_read_back(files, capsys, monkeypatch):
+    """'vmt bench --merge --out - | cat' hung on main: --merge read the figures to keep from --out,
+    here /dev/stdout, the pipe's writing end. Refused before any benchmark runs: --merge needs a
+    regular file to read back."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import scenarios.bench as sb
+
+    monkeypatch.setattr(sb, "run_all", lambda only=None: pytest.fail("a benchmark ran"))
+    for out, kind in (("-", "symbolic link (standard output)"), ("/dev/null", "character device")):
+        assert main(["bench", "--merge", "--out", out]) == 2
+        one_line(capsys, f"vmt bench: error: --merge reads the figures to keep from --out, so --out must be a "
+                         f"regular file; {'/dev/stdout' if out == '-' else out} is a {kind}")
+    root = Path(__file__).resolve().parents[2]
+    p = subprocess.run(f"{sys.executable} -m scenarios.cli bench --merge --out - | cat", shell=True, cwd=root,
+                       capture_output=True, text=True, timeout=120,
+                       env={**os.environ, "PYTHONPATH": str(root)})
+    assert "--merge reads the figures to keep from --out" in p.stderr, p.stderr
