@@ -10,9 +10,9 @@
   device or socket where a file goes, in a folder that can be written), so a
   ten-minute run never ends in "cannot write";
 - a run that fails leaves no output behind: what it wrote at its outputs
-  (files, report folders, hidden temporaries) is removed
-  (:class:`core.atomic.RunOutputs`); the append-only log of ``vmt probe``
-  is kept, it is what ``--resume`` continues;
+  (files, report folders, hidden temporaries) is removed, and an earlier
+  output it replaced is put back (:class:`core.atomic.RunOutputs`); the
+  append-only log of ``vmt probe`` is kept, it is what ``--resume`` continues;
 - a closed pipe (``vmt check log.csv | head -2``) ends quietly, status 141
   like any program killed by SIGPIPE; Ctrl-C ends with one line, status 130;
 - an output named ``/dev/stdout`` is written on standard output itself (never
@@ -302,8 +302,11 @@ def run_command(args) -> int:
             with contextlib.redirect_stdout(said_to) if said_to else contextlib.nullcontext():
                 rc = int(args.func(args) or 0)
             sys.stdout.flush()
+            outputs.commit()
             return rc
         except BrokenPipeError:
+            if outputs is not None:
+                outputs.commit()
             raise           # the reader went away: what was written is complete, keep it
         except BaseException:
             if outputs is not None:

@@ -497,3 +497,37 @@ def test_bench_merge_refuses_an_output_it_cannot_read_back(files, capsys, monkey
                        capture_output=True, text=True, timeout=120,
                        env={**os.environ, "PYTHONPATH": str(root)})
     assert "--merge reads the figures to keep from --out" in p.stderr, p.stderr
+
+
+def test_a_failed_run_puts_back_the_users_earlier_outputs(files, capsys, monkeypatch):
+    """The reviewer's case: an existing j.json, 'iso230-2 S --json j.json --report rep' failing in its
+    report: main exit 2 and j.json gone (RunOutputs removed a file the run had replaced: 'its old
+    content was gone'). Now the earlier JSON and the earlier report are back as they were, also when
+    the run fails after replacing the report, or on Ctrl-C; nothing hidden is left behind."""
+    import scenarios.positioning as sp
+    from core.exceptions import OutputError
+
+    j, rep = files["dir"] / "j.json", files["dir"] / "rep"
+    argv = ["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]
+    assert main(argv) == 0
+    j.write_text('{"mine": 1}\n')                   # the user's earlier output, told apart from a new one
+    page = (rep / "index.html").read_bytes()
+    listing = sorted(p.name for p in files["dir"].iterdir())
+    real = sp.positioning_report
+
+    def fail_before(*a, **k):
+        raise OutputError("report: disk full")
+
+    def fail_after(*a, **k):
+        real(*a, **k)
+        raise error
+
+    for fake, error, rc in ((fail_before, None, 2), (fail_after, OutputError("later: disk full"), 2),
+                            (fail_after, KeyboardInterrupt(), 130)):
+        monkeypatch.setattr(sp, "positioning_report", fake)
+        capsys.readouterr()
+        assert main(argv) == rc
+        capsys.readouterr()
+        assert j.read_text() == '{"mine": 1}\n'
+        assert (rep / "index.html").read_bytes() == page
+        assert sorted(p.name for p in files["dir"].iterdir()) == listing
