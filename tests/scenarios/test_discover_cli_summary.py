@@ -49,3 +49,41 @@ def test_workpiece_line_when_not_identifiable_or_nothing_found():
     rep = _report(WP)
     rep["findings"] = []
     assert not [ln for ln in summary_lines(rep) if ln.startswith("workpiece")]
+
+
+def test_u95_label_only_when_a_printed_parameter_has_one():
+    """Only the first 6 parameters are printed; main said '(value +- U95, k = 2)' when only a 7th,
+    unprinted one had a U95 (no printed value carried a +-)."""
+    rep = _report(WP)
+    rep["findings"][0]["params"] = {f"p{i}": float(i) for i in range(7)}
+    rep["findings"][0]["params_u95"] = {"p6": 0.5}
+    f = next(ln for ln in summary_lines(rep) if ln.startswith("finding"))
+    assert f == "finding    periodic_axis_error: p0 0, p1 1, p2 2, p3 3, p4 4, p5 5"
+    rep["findings"][0]["params_u95"] = {"p5": 0.5}
+    f = next(ln for ln in summary_lines(rep) if ln.startswith("finding"))
+    assert f.endswith("p5 5 +- 0.5 (value +- U95, k = 2)")
+
+
+def test_an_iso230_2_test_says_deviation_not_workpiece():
+    """On an ISO 230-2 log the estimand is the mean deviation per target and direction (ids such as
+    'P=-295mm-'), not a workpiece: main printed 'workpiece  U95 max ... 22 targets'."""
+    w = [ln for ln in summary_lines(_report(WP), "positioning") if ln.startswith(("workpiece", "deviation"))]
+    assert w == ["deviation  U95 max 2.000 -> 1.250 um (baseline -> extended, 2 means per target and direction); "
+                 "largest change -2.000 um at b"]
+    nulls = [{k: (v if k == "target" else None) for k, v in r.items()} for r in WP]
+    assert [ln for ln in summary_lines(_report(nulls, identifiable=False), "positioning")
+            if ln.startswith(("workpiece", "deviation"))] == \
+        ["deviation  not identifiable by this design (reported as null)"]
+
+
+def test_vmt_discover_on_a_positioning_log_words_its_estimand(tmp_path, capsys):
+    """The command itself: a simulated ISO 230-2 test with a drift (seed 2801, a development seed)."""
+    from scenarios.cli import main
+
+    log = tmp_path / "p.csv"
+    assert main(["simulate", "positioning", "--out", str(log), "--seed", "2801", "--drift-um-per-h", "20"]) == 0
+    capsys.readouterr()
+    assert main(["discover", str(log), "--json", str(tmp_path / "d.json")]) == 0
+    out = capsys.readouterr().out
+    assert "finding    thermal_drift" in out, out
+    assert "\ndeviation  U95 max " in out and "means per target and direction" in out and "workpiece" not in out
