@@ -294,7 +294,7 @@ def run_command(args) -> int:
                       if os.path.isfile(v)}
             check_outputs({**inputs, **others}, files, folders, args.command)
             report = folders.get("report")
-            if report and not (args.command == "scenario" and getattr(args, "name", None) == "pin-circle"):
+            if report:
                 check_report_folder(report, {**inputs, **others}, {**files, **folders}, args.command)
             outputs = RunOutputs(list(files.values()) + list(folders.values()))
             # an output on our own stdout (--out /dev/stdout): the command's messages go to stderr

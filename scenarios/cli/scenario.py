@@ -161,7 +161,7 @@ def _pin_circle(args) -> int:
 
         from scenarios.crosspocket import pin_figure
 
-        print(f"figure fig17 -> {pin_figure(Path(args.report), r)}")
+        print(f"report (index.html, fig17) -> {pin_figure(Path(args.report), r).parent}")
     if args.json:
         write_json_atomic(args.json, r, special=True)
     return 0
@@ -197,9 +197,9 @@ def register(sub) -> None:
                         "vmt-comp/1 tables as a volumetric controller) to the virtual machine, re-run, identify "
                         "again; the JSON gets closed_loop (before/after per axis)")
     p.add_argument("--report", default=None, metavar="DIR",
-                   help="write the paper's figures (PNG) here: cross-pocket-uncertainty and the mfb scenarios "
-                        "as a report folder (index.html, figures, the error table, recording.rrd), pin-circle "
-                        "its figure (not for mfb-reversal)")
+                   help="report folder (index.html, the paper's figures as PNG; cross-pocket-uncertainty and "
+                        "the mfb scenarios also the tables and recording.rrd, pin-circle its Fig. 17); not for "
+                        "mfb-reversal")
     p.add_argument("--bar-calibration", default=None, metavar="FILE", dest="bar_calibration",
                    help="mfb scenarios: identify with this bar calibration (vmt-bar-calibration/1 JSON, as "
                         "'vmt scenario mfb-reversal --json FILE' writes it) instead of the declared one; a "

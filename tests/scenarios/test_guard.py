@@ -531,3 +531,16 @@ def test_a_failed_run_puts_back_the_users_earlier_outputs(files, capsys, monkeyp
         assert j.read_text() == '{"mine": 1}\n'
         assert (rep / "index.html").read_bytes() == page
         assert sorted(p.name for p in files["dir"].iterdir()) == listing
+
+
+def test_pin_circle_report_is_a_report_folder_like_every_other(files, capsys):
+    """--report had two meanings: a report folder replaced whole, except in pin-circle, which added
+    fig17.png into any folder (the guard exempted it by name: main ran 'pin-circle --report mine/'
+    into a folder of the user's files, exit 0). Now pin-circle writes a report folder (index.html,
+    fig17.png) and the guard's rule holds for it: a folder of the user's files is refused before the run."""
+    mine = files["dir"] / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    assert main(["scenario", "pin-circle", "--report", str(mine)]) == 2
+    one_line(capsys, f"vmt scenario: error: --report {mine}: exists and holds 1 entries but no report of vmt")
+    assert sorted(p.name for p in mine.iterdir()) == ["notes.txt"]
