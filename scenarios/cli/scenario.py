@@ -216,15 +216,14 @@ def register(sub) -> None:
 def _dispatch(args) -> int:
     from core.exceptions import ConfigError
 
-    if args.name not in ("mfb-3axis", "mfb-5axis"):
-        for opt, v in (("--machine", args.machine), ("--errors", args.errors), ("--comp", args.comp), ("--apply-comp", args.apply_comp),
-                       ("--bar-calibration", args.bar_calibration), ("--budget-runs", args.budget_runs or None)):
-            if v is not None:
-                raise ConfigError(f"{opt}: only the mfb scenarios take it (not {args.name})")
-    # what the other studies do not read: refused, never silently ignored
-    for opt, v, takers in (("--noise-um", args.noise_um, ("mfb-reversal", "pin-circle")),
-                           ("--mc", args.mc, ("cross-pocket-uncertainty",)),
-                           ("--report", args.report, ("cross-pocket-uncertainty", "pin-circle"))):
+    # what a study does not read: refused in one phrasing, never silently ignored
+    mfb_only = tuple((opt, v, ()) for opt, v in (
+        ("--machine", args.machine), ("--errors", args.errors), ("--comp", args.comp),
+        ("--apply-comp", args.apply_comp), ("--bar-calibration", args.bar_calibration),
+        ("--budget-runs", args.budget_runs or None)))
+    for opt, v, takers in mfb_only + (("--noise-um", args.noise_um, ("mfb-reversal", "pin-circle")),
+                                      ("--mc", args.mc, ("cross-pocket-uncertainty",)),
+                                      ("--report", args.report, ("cross-pocket-uncertainty", "pin-circle"))):
         if v is not None and args.name not in ("mfb-3axis", "mfb-5axis") + takers:
             why = " (its probing u is the paper's 1.38 um)" if args.name == "cross-pocket-uncertainty" else ""
             raise ConfigError(f"{opt}: {args.name} does not take it{why}; "

@@ -250,8 +250,8 @@ def test_a_folder_given_as_the_machine_file_is_named_a_folder(files, capsys, cmd
 def test_a_positional_input_is_named_as_the_usage_names_it(files, capsys, cmd, named):
     """main named these inputs '--study', '--plan': options the commands do not have."""
     study = files["dir"] / "s.toml"
-    study.write_text('format = "vmt-study/1"\\n')
-    (files["dir"] / "t.toml").write_text('format = "vmt-task/1"\\n')
+    study.write_text('format = "vmt-study/1"\n')
+    (files["dir"] / "t.toml").write_text('format = "vmt-task/1"\n')
     argv = [a.format(s=study, p=files["plan"]) for a in cmd]
     argv = [str(files["dir"] / a) if a == "t.toml" else a for a in argv]
     assert main(argv) == 2
@@ -347,6 +347,10 @@ def test_bench_never_replaces_a_link_or_device(files, capfd, monkeypatch):
     (["pin-circle", "--mc", "5"], "--mc: pin-circle does not take it"),
     (["mfb-reversal", "--mc", "5"], "--mc: mfb-reversal does not take it"),
     (["mfb-reversal", "--report", "{dir}/rr"], "--report: mfb-reversal does not take it"),
+    # the mfb-only options in the same phrasing (main: '--comp: only the mfb scenarios take it (not pin-circle)')
+    (["pin-circle", "--comp", "{dir}/rr"], "--comp: pin-circle does not take it; it is for mfb-3axis, mfb-5axis"),
+    (["mfb-reversal", "--budget-runs", "3"],
+     "--budget-runs: mfb-reversal does not take it; it is for mfb-3axis, mfb-5axis"),
 ])
 def test_scenario_refuses_an_option_it_would_ignore(files, capsys, cmd, msg):
     """main ran these and ignored the option (cross-pocket-uncertainty printed 'u_probe 1.38 um'
