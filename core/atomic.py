@@ -19,7 +19,8 @@ Three promises, for every file vmt writes:
    available" converts such values to ``None`` itself (:func:`json_safe`).
 
 :class:`RunOutputs` removes what a failed run wrote (files, report folders,
-leftover temporaries), for the command line to use; :func:`same_file`
+leftover temporaries) and puts back the earlier outputs it replaced, for the
+command line to use; :func:`same_file`
 finds an output that would overwrite an input.
 """
 
@@ -317,17 +318,32 @@ def _remove(path: Path) -> None:
         pass
 
 
+def _link_or_copy(src, dst) -> None:
+    """``dst`` a second name of the file ``src`` (a hard link: no copy), or a copy where links fail."""
+    try:
+        os.link(src, dst, follow_symlinks=False)
+    except OSError:
+        shutil.copy2(src, dst, follow_symlinks=False)
+
+
 class RunOutputs:
     """The outputs a run may write, and how to take them back if it fails.
 
     Give the paths before the run (files or folders, e.g. ``--json``,
-    ``--report``, ``--out``). :meth:`remove_written` then removes what the
-    run created or changed there: a new file or folder, a file it
-    replaced, new or replaced entries of a folder that existed, the hidden
-    temporaries ``.NAME.*`` it left beside an output, and the folders it
-    created on the way to one. What was there before and was not touched
-    stays. (A file the run replaced is removed, not brought back: its old
-    content was gone when the new one was renamed into place.)
+    ``--report``, ``--out``). An output that exists then (a regular file or
+    a folder) is kept aside: a hidden folder ``.vmt-kept.NAME.*`` beside it
+    holds a second name of the file, or of each file of the folder (hard
+    links, so nothing is copied; a copy where links fail). vmt replaces an
+    output by renaming a new file over it, so the kept name still holds
+    the old content.
+
+    :meth:`remove_written` (the run failed) removes what the run created or
+    changed there: a new file or folder, new or replaced entries of a
+    folder that existed, the hidden temporaries ``.NAME.*`` it left beside
+    an output, and the folders it created on the way to one; and it puts
+    back what the run replaced or removed from the kept copy, so a failed
+    run loses none of the user's earlier outputs. :meth:`commit` (the run
+    succeeded) drops the kept copies.
 
     Examples
     --------
@@ -337,27 +353,49 @@ class RunOutputs:
     ... except BaseException:
     ...     outs.remove_written()
     ...     raise
+    >>> outs.commit()                                # doctest: +SKIP
     """
 
     def __init__(self, paths):
         self.paths = [Path(p) for p in paths if p not in (None, "")]
         self._before = {}
-        for p in self.paths:
-            ident = _ident(p)
-            inside = _entries(p) if ident is not None and stat.S_ISDIR(ident[4]) else None
-            siblings = {k for k in _entries(p.parent) if k.startswith(f".{p.name}.")}
-            first_new = None
-            q = p.parent
-            while str(q) not in ("", ".", "/") and _ident(q) is None:
-                first_new = q
-                q = q.parent
-            self._before[p] = (ident, inside, siblings, first_new)
+        self._kept = {}
+        try:
+            for p in self.paths:
+                ident = _ident(p)
+                inside = _entries(p) if ident is not None and stat.S_ISDIR(ident[4]) else None
+                siblings = {k for k in _entries(p.parent) if k.startswith(f".{p.name}.")}
+                first_new = None
+                q = p.parent
+                while str(q) not in ("", ".", "/") and _ident(q) is None:
+                    first_new = q
+                    q = q.parent
+                self._before[p] = (ident, inside, siblings, first_new)
+                if ident is not None and (stat.S_ISREG(ident[4]) or stat.S_ISDIR(ident[4])) and p not in self._kept:
+                    keep = Path(tempfile.mkdtemp(prefix=f".vmt-kept.{p.name}.", dir=p.parent))
+                    self._kept[p] = keep
+                    if inside is None:
+                        _link_or_copy(p, keep / p.name)
+                    else:
+                        shutil.copytree(p, keep / p.name, symlinks=True, copy_function=_link_or_copy)
+        except BaseException:
+            self.commit()
+            raise
+
+    def commit(self) -> None:
+        """The run succeeded: drop the kept copies of the earlier outputs."""
+        for keep in self._kept.values():
+            shutil.rmtree(keep, ignore_errors=True)
+        self._kept = {}
 
     def remove_written(self) -> list[Path]:
-        """Remove what the run wrote at the outputs; return the paths removed."""
+        """Remove what the run wrote at the outputs and put back what it replaced; return the
+        paths removed."""
         removed = []
         for p, (ident, inside, siblings, first_new) in self._before.items():
             now = _ident(p)
+            kept = self._kept.get(p)
+            old = kept / p.name if kept is not None else None
             if now is not None:
                 if ident is None or now[:2] != ident[:2] or (inside is None and now != ident):
                     _remove(p)          # new, or a different file/folder in its place
@@ -367,6 +405,11 @@ class RunOutputs:
                         if inside.get(name) != e:
                             _remove(p / name)
                             removed.append(p / name)
+                    for name in inside:   # and put back those it replaced or removed
+                        if old is not None and name not in _entries(p) and os.path.lexists(old / name):
+                            os.replace(old / name, p / name)
+            if old is not None and not os.path.lexists(p) and os.path.lexists(old):
+                os.replace(old, p)      # the earlier file or folder, as it was
             for name in _entries(p.parent):
                 if name.startswith(f".{p.name}.") and name not in siblings:
                     _remove(p.parent / name)
@@ -382,4 +425,5 @@ class RunOutputs:
                     if q == first_new:
                         break
                     q = q.parent
+        self.commit()
         return removed

@@ -59,12 +59,18 @@ class KeyReader:
 
 def read_text_file(path, error_class: type[VmtError], what: str) -> str:
     """The UTF-8 text of a file (TOML documents, LinuxCNC's probe and compensation files), or
-    ``error_class`` naming the path: ``no such <what>``, or not UTF-8 (with the byte)."""
+    ``error_class`` naming the path: ``no such <what>``, ``is a directory, not a <what>``, cannot
+    read it, or not UTF-8 (with the byte)."""
     from pathlib import Path
 
+    from core.atomic import input_problem
+
     p = Path(path)
-    if not p.is_file():
+    problem = input_problem(p, what)
+    if problem == "no such file":
         raise error_class(f"{p}: no such {what}")
+    if problem:
+        raise error_class(f"{p}: {problem}")
     try:
         return p.read_text(encoding="utf-8")
     except UnicodeDecodeError as e:

@@ -516,9 +516,10 @@ def format_positioning_log(log: PositioningLog) -> str:
     return buf.getvalue()
 
 
-def write_positioning_log(path: str | os.PathLike, log: PositioningLog) -> Path:
-    """Write ``log`` atomically; reading it back gives the same log."""
-    return write_text_atomic(path, format_positioning_log(log))
+def write_positioning_log(path: str | os.PathLike, log: PositioningLog, *, special: bool = False) -> Path:
+    """Write ``log`` atomically; reading it back gives the same log. ``special``: the user named a
+    device or pipe (``/dev/stdout``): written through (:func:`core.atomic.check_output`)."""
+    return write_text_atomic(path, format_positioning_log(log), special=special)
 
 
 # ---------------------------------------------------------------------------
@@ -729,7 +730,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
             return False
 
     cols: dict[str, int]
-    if not is_number(first[0]) or not is_number(first[-1]):
+    if not is_number(first[0]):     # a header names its first column; a data row starts with its target
         lookup = {}
         for j, name in enumerate(first):
             key = name.strip().lower()

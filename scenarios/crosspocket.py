@@ -1375,11 +1375,16 @@ def _pin_figure_object(pin: dict):
 
 
 def pin_figure(folder, pin: dict):
-    """Fig. 17 from a :func:`pin_circle` result, as ``folder/fig17.png``; returns the path."""
+    """Fig. 17 from a :func:`pin_circle` result, as a report folder (``index.html``, ``fig17.png``;
+    :func:`viz.report.write_report`: replaces only an empty folder or an earlier report); returns the
+    figure's path."""
     from pathlib import Path
 
-    from viz.figures import save_png
+    from viz.report import Section, write_report
 
-    Path(folder).mkdir(parents=True, exist_ok=True)
-    return save_png(_pin_figure_object(pin), Path(folder) / "fig17.png")
-
+    text = (f"{pin['pins']} pins, {pin['touches']} touches; pin position error, max: raw at C=0 "
+            f"{pin['raw_c0_pin_error_max_um']:.2f} um -> self-calibrated {pin['selfcal_pin_error_max_um']:.2f} um "
+            f"(paper: {pin['paper']}).")
+    write_report(folder, "Pin circle (Fig. 17), reproduced",
+                 [Section("Pin circle (Fig. 17)", text=text, figures={"fig17": _pin_figure_object(pin)})])
+    return Path(folder) / "fig17.png"

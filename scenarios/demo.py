@@ -313,7 +313,11 @@ def _finding_text(f: dict) -> str:
         return (f"axis {ax}, period {p['period_mm']:.2f} mm, E{ax}{ax} amplitude "
                 f"{p[f'E{ax}{ax}_amplitude_um']:.2f} +/- {f['params_u95'][f'E{ax}{ax}_amplitude_um']:.2f} um (U95)")
     if f["cause"] == "probe_lobing":
-        return f"pre-travel varies {p['pretravel_variation_pv_um']:.2f} um peak-to-valley with the approach azimuth"
+        # the peak-to-valley is of the lobes k = 2..4 this design determines: say which it cannot
+        nd = [str(k) for k in (2, 3, 4) if p.get(f"k{k}_amplitude_um", 0.0) is None]
+        tail = f" (of the lobes this design determines; k = {', '.join(nd)} not determined)" if nd else ""
+        return (f"pre-travel varies {p['pretravel_variation_pv_um']:.2f} um peak-to-valley with the approach "
+                f"azimuth{tail}")
     if f["cause"] == "outlier":
         return f"{p['n_outliers']} touches, up to {p['max_deviation_um']:.1f} um"
     shown = [f"{k} {v:.3g}" for k, v in p.items() if isinstance(v, float) and not k.endswith("_u_um")][:4]

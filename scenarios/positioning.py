@@ -73,8 +73,8 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
                        "n_params": base.n_params, "dof": base.dof, f"rms_{ru}": base.rms * k,
                        f"s_up_pooled_{ru}": base.s_up_pooled * k, f"s_down_pooled_{ru}": base.s_down_pooled * k}
     if write_log:
-        write_positioning_log(write_log, log)
-    write_json_atomic(json_out, rep)
+        write_positioning_log(write_log, log, special=True)
+    write_json_atomic(json_out, rep, special=True)
     if report:
         positioning_report(report, rep, log, budget=budget, title=f"ISO 230-2: {Path(path).name}")
     return rep, list(result.warnings)

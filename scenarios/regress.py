@@ -529,7 +529,12 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
             r.fail(k, f"unknown key (expected one of {', '.join(_TOP)})")
     if doc.get("format", FORMAT) != FORMAT:
         r.fail("format", f"expected {FORMAT!r}, got {doc.get('format')!r}")
+    if not doc:
+        raise StudyError(f"{source}: empty study (no keys; a study needs format, identification, machine, "
+                         "seeds and [accept.*]: README 'Regression studies')")
     ident = doc.get("identification")
+    if ident is None:
+        r.fail("identification", f"missing (one of {', '.join(IDENTIFICATIONS)})")
     if ident not in IDENTIFICATIONS:
         r.fail("identification", f"expected one of {', '.join(IDENTIFICATIONS)}, got {ident!r}")
     known = QUANTITIES[ident]

@@ -2,7 +2,10 @@
 
 The folder is self-contained (inline CSS, relative links, the recording
 copied in) and appears complete or not at all: it is built in a temporary
-folder beside ``folder`` and renamed into place.
+folder beside ``folder`` and renamed into place. Its ``index.html`` names
+vmt as its generator and lists the files the report wrote (``<meta>``): a
+report replaces only an empty folder or such an earlier report holding
+nothing else (:func:`replace_problem`), never a folder of the user's files.
 
 Examples
 --------
@@ -17,6 +20,7 @@ Examples
 from __future__ import annotations
 
 import html
+import json
 import os
 import re
 import shutil
@@ -113,6 +117,70 @@ code { background: #f3f3f3; padding: 0 .25em; }
 """
 
 
+#: How ``index.html`` says vmt wrote its folder, and which other files the report wrote there.
+_META = re.compile(r'<meta name="generator" content="vmt report">\s*'
+                   r'<meta name="vmt-report-entries" content="([^"]*)">')
+
+
+def report_entries(folder) -> list[str] | None:
+    """The entries of an earlier report in ``folder`` (``index.html`` first), as its index.html lists
+    them; None when ``folder`` holds no index.html that vmt wrote."""
+    index = Path(folder) / "index.html"
+    try:
+        if not index.is_file() or index.is_symlink():
+            return None
+        with open(index, encoding="utf-8", errors="replace") as f:
+            head = f.read(65536)
+    except OSError:
+        return None
+    m = _META.search(head)
+    if m is None:
+        return None
+    try:
+        names = json.loads(html.unescape(m.group(1)))
+    except ValueError:
+        return None
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        return None
+    return ["index.html"] + names
+
+
+def replace_problem(folder) -> str | None:
+    """Why an existing ``folder`` may not be replaced whole by a report, or None.
+
+    A report replaces its folder whole (:func:`write_report`), so an existing
+    folder must be empty or an earlier report: its ``index.html`` written by
+    vmt (a generator ``<meta>`` naming the files the report wrote) and
+    nothing else in it, so that a user's file added to a report, a folder
+    of the user's own (``--report results/``, also one holding an
+    ``index.html`` of its own) or the working folder (``--report .``) is
+    never lost with it. A symbolic link is refused: the report would replace
+    the link by a folder (and leave the link's old target as it was).
+    """
+    folder = Path(folder)
+    if folder.is_symlink():
+        return (f"is a symbolic link (to {os.readlink(folder)}): a report replaces its folder whole and would "
+                "replace the link by a folder; give the folder it points to")
+    if not folder.is_dir():
+        return None
+    here = Path.cwd().resolve()
+    if folder.resolve() in (here, *here.parents):
+        return "is the working folder or one above it: a report replaces its folder whole; give a new folder"
+    entries = sorted(e.name for e in os.scandir(folder))
+    if not entries:
+        return None
+    wrote = report_entries(folder)
+    if wrote is None:
+        return (f"exists and holds {len(entries)} entries but no report of vmt (no index.html vmt wrote): a "
+                "report replaces its folder whole; give a new folder (or remove this one)")
+    other = [n for n in entries if n not in wrote or not (folder / n).is_file() or (folder / n).is_symlink()]
+    if other:
+        shown = ", ".join(other[:3]) + (f" and {len(other) - 3} more" if len(other) > 3 else "")
+        return (f"is an earlier report but also holds {shown}, which the report did not write: a report "
+                "replaces its folder whole; move them out or give a new folder")
+    return None
+
+
 def write_report(folder, title: str, sections: Sequence, *, recording=None,
                  overwrite: bool = True, dpi: int = 110) -> Path:
     """Write a report folder: ``index.html``, one PNG per figure, the recording.
@@ -128,7 +196,9 @@ def write_report(folder, title: str, sections: Sequence, *, recording=None,
         A ``.rrd`` file; copied into the folder and linked, with the
         ``vmt view`` command that opens it.
     overwrite : bool
-        Replace an existing report folder (default); otherwise refuse.
+        Replace an existing report folder (default; only an earlier report of
+        vmt holding nothing else, or an empty folder: :func:`replace_problem`);
+        otherwise refuse.
 
     Returns
     -------
@@ -150,6 +220,9 @@ def write_report(folder, title: str, sections: Sequence, *, recording=None,
         raise ConfigError(f"report folder {str(folder)!r} exists (overwrite=False)")
     if folder.exists() and not folder.is_dir():
         raise ConfigError(f"report folder {str(folder)!r} exists and is not a folder")
+    problem = replace_problem(folder)
+    if problem:
+        raise ConfigError(f"report folder {str(folder)!r} {problem}")
     rrd = None
     if recording is not None:
         rrd = Path(recording)
@@ -159,6 +232,9 @@ def write_report(folder, title: str, sections: Sequence, *, recording=None,
     tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".tmp", dir=folder.parent))
     try:
         body = _build(tmp, title, secs, rrd, dpi)
+        wrote = sorted(e.name for e in os.scandir(tmp))
+        body = body.replace("<!--entries-->", '<meta name="generator" content="vmt report">'
+                            f'<meta name="vmt-report-entries" content="{html.escape(json.dumps(wrote))}">', 1)
         (tmp / "index.html").write_text(body, encoding="utf-8")
         umask = os.umask(0)
         os.umask(umask)
@@ -190,7 +266,7 @@ def _build(tmp: Path, title: str, secs: list[Section], rrd: Path | None, dpi: in
     from .figures import save_png
 
     used: set[str] = set()
-    out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+    out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8"><!--entries-->',
            f"<title>{html.escape(title)}</title>", f"<style>{_CSS}</style></head><body>",
            f"<h1>{html.escape(title)}</h1>"]
     if secs:

@@ -28,7 +28,6 @@ import importlib
 import json
 import os
 import platform
-import tempfile
 import time
 from pathlib import Path
 
@@ -144,11 +143,11 @@ def merge_documents(old: dict, new: dict) -> dict:
 
 
 def write_figures(figures: dict, out) -> Path:
-    """Write the document ``figures`` as sorted, indented JSON to ``out`` atomically; return the path."""
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=".bench.")
-    with os.fdopen(fd, "w") as f:
-        json.dump(figures, f, indent=2, sort_keys=True)
-    os.replace(tmp, out)
-    return out
+    """Write the document ``figures`` as sorted, indented JSON to ``out`` atomically; return the path.
+
+    Through :func:`core.atomic.write_text_atomic`: only a regular file is replaced, a device or pipe
+    (``/dev/stdout``, ``/dev/null``) is written through and a link to anything else refused.
+    """
+    from core.atomic import write_text_atomic
+
+    return write_text_atomic(Path(out), json.dumps(figures, indent=2, sort_keys=True), special=True)

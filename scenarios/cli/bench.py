@@ -43,6 +43,13 @@ def run(args) -> int:
 
         from scenarios.bench.table import read_results
 
+        from core.atomic import output_kind
+
+        kind = output_kind(args.out)
+        if kind not in ("missing", "file"):
+            # /dev/stdout, a pipe or a device: reading the figures to keep from it would hang or read nothing
+            raise ConfigError(f"--merge reads the figures to keep from --out, so --out must be a regular file; "
+                              f"{args.out} is a {kind}{' (standard output)' if args.out == '/dev/stdout' else ''}")
         if not Path(args.out).exists():
             raise ConfigError(f"--merge: {args.out} does not exist, so there are no figures to keep (a "
                               "fresh clone has none): run `vmt bench` without --merge (all benchmarks), or "

@@ -99,8 +99,18 @@ def _fmt(v, u=None) -> str:
     return "n/d" if v is None else str(v)
 
 
-def summary_lines(rep: dict) -> list[str]:
-    """The lines ``vmt discover`` prints for a report: baseline, noise, diagnosis, cause, gain."""
+#: baseline kind -> (what its estimand is called, the noun of its rows) in the summary
+ESTIMAND_WORDS = {"planar": ("workpiece", "targets"),
+                  "positioning": ("deviation", "means per target and direction")}
+
+
+def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
+    """The lines ``vmt discover`` prints for a report: baseline, noise, diagnosis, cause, gain.
+
+    ``kind`` is the baseline's (``planar``: a probe-log campaign, its estimand the workpiece;
+    ``positioning``: an ISO 230-2 test, its estimand the mean deviation per target and direction).
+    """
+    label, rows = ESTIMAND_WORDS[kind]
     b, nz = rep["baseline"], rep["noise_um"]
     out = [f"baseline   {b['model']}: rms {b['rms_um']:.3f} um, cv rms {rep['baseline_cv_rms_um']:.3f} um "
            f"({b['n']} touches, {b['n_params']} parameters)",
@@ -115,15 +125,25 @@ def summary_lines(rep: dict) -> list[str]:
         out.append("cause      none: the baseline explains the data within the probing noise")
     for f in rep["findings"]:
         pu = f.get("params_u95", {})
-        params = ", ".join(f"{k} {_fmt(v, pu.get(k))}" for k, v in list(f["params"].items())[:6])
+        shown_params = list(f["params"].items())[:6]
+        params = ", ".join(f"{k} {_fmt(v, pu.get(k))}" for k, v in shown_params)
         flag = f" (ambiguous: {f['evidence'].get('confidence_reason', '')})" \
             if f["evidence"].get("confidence") == "ambiguous" else ""
-        out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}")
+        said_u95 = " (value +- U95, k = 2)" if any(isinstance(pu.get(k), float) for k, _ in shown_params) else ""
+        out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}{said_u95}")
     g = rep["gain"]
     out.append(f"extended   {rep['extended']['model']}: rms {rep['extended']['rms_um']:.3f} um "
                f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um (x{g['cv_rms_ratio']:.2f})")
     if not rep["workpiece_identifiable"] and rep.get("workpiece") is not None:
-        out.append("workpiece  not identifiable by this design (reported as null)")
+        out.append(f"{label:10s} not identifiable by this design (reported as null)")
+    elif rep.get("workpiece") and rep["findings"]:
+        w = [r for r in rep["workpiece"] if isinstance(r.get("extended_u95_um"), float)
+             and isinstance(r.get("baseline_u95_um"), float)]
+        if w:
+            moved = max(w, key=lambda r: abs(r["extended_um"] - r["baseline_um"]))
+            out.append(f"{label:10s} U95 max {max(r['baseline_u95_um'] for r in w):.3f} -> "
+                       f"{max(r['extended_u95_um'] for r in w):.3f} um (baseline -> extended, {len(w)} {rows}); "
+                       f"largest change {moved['extended_um'] - moved['baseline_um']:+.3f} um at {moved['target']}")
     return out
 
 
@@ -132,7 +152,7 @@ def run(args) -> int:
 
     with progress_line("discover") as bar:
         rep = run_discover(args.log, args.json_out, args.report, args.grid_mm, progress=bar)
-    for line in summary_lines(rep):
+    for line in summary_lines(rep, "positioning" if _is_positioning_log(args.log) else "planar"):
         print(line)
     print(f"wrote {said(args.json_out)}" + (f" and {Path(args.report) / 'index.html'}" if args.report else ""))
     return 0

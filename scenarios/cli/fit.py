@@ -50,6 +50,6 @@ def run(args) -> int:
                "dof": r.dof, "stylus_r_mm": r.stylus_r_mm,
                "touches": [{"row": int(i), "target": t, "residual_um": float(e)}
                            for i, t, e in zip(r.rows, tg, r.residuals_um)]}
-        write_json_atomic(args.json, json_safe(rep))
+        write_json_atomic(args.json, json_safe(rep), special=True)
         print(f"wrote {args.json}")
     return 0

@@ -10,13 +10,17 @@
   device or socket where a file goes, in a folder that can be written), so a
   ten-minute run never ends in "cannot write";
 - a run that fails leaves no output behind: what it wrote at its outputs
-  (files, report folders, hidden temporaries) is removed
-  (:class:`core.atomic.RunOutputs`); the append-only log of ``vmt probe``
-  is kept, it is what ``--resume`` continues;
+  (files, report folders, hidden temporaries) is removed, and an earlier
+  output it replaced is put back (:class:`core.atomic.RunOutputs`); the
+  append-only log of ``vmt probe`` is kept, it is what ``--resume`` continues;
 - a closed pipe (``vmt check log.csv | head -2``) ends quietly, status 141
   like any program killed by SIGPIPE; Ctrl-C ends with one line, status 130;
 - an output named ``/dev/stdout`` is written on standard output itself (never
-  replaced) and the command's own messages then go to stderr.
+  replaced) and the command's own messages then go to stderr; an output file
+  named ``-`` is the same (:data:`DASH_OWN`: ``check --json -`` prints its JSON
+  instead of its text), but where a command appends to a file or rewrites it
+  in place (:data:`NO_DASH`: ``probe --out``, ``probe --transcript``, ``bench
+  --readme``) and for a folder (``--report -``), which refuse it.
 
 Which argument of which command is an input or an output is the table
 :data:`FILES`; a command missing there gets only the error handling.
@@ -51,6 +55,29 @@ FILES = {
     "iso230-2": (("log",), ("json", "write_log"), ("report",)),
     "regress": (("study",), ("json", "junit"), ()),
     "vcmm": (("plan", "task"), ("json",), ("report",)),
+}
+
+#: command -> arguments that name an input file only sometimes (``--machine NAME|FILE``: a built-in
+#: name or a machine file), or that the command reads and checks itself (``--bar-calibration``,
+#: ``--machine-state``): not checked before the run, but an output on the same existing file is
+#: refused like an output on an input of :data:`FILES`.
+OTHER_INPUTS = {
+    "simulate": ("machine",),
+    "scenario": ("machine", "bar_calibration"),
+    "machine": ("machine",),
+    "vcmm": ("machine", "machine_state"),
+}
+
+#: commands that read ``-`` as an output themselves (``check --json -``: the JSON instead of the
+#: text); in every other command an output file ``-`` is standard output, as ``/dev/stdout``.
+DASH_OWN = ("check",)
+
+#: command -> {option: why it cannot be ``-``}: files a command appends to or rewrites in place, never
+#: standard output (a folder option refuses ``-`` in every command: :func:`map_dash`).
+NO_DASH = {
+    "probe": {"out": "the campaign log is appended to, locked and continued by --resume, so it must be a file",
+              "transcript": "the transcript is appended to a file; give a file"},
+    "bench": {"readme": "the file is read and its table rewritten in place; give a file"},
 }
 
 #: Exit status of a command killed by SIGPIPE (128 + 13), as a shell reports it.
@@ -93,9 +120,33 @@ def _arg_paths(args, names) -> dict:
     return out
 
 
-def _opt(name: str) -> str:
-    return {"json_out": "--json", "log": "LOG", "plan": "--plan", "file": "FILE", "rrd": "RRD"}.get(
-        name, "--" + name.replace("_", "-"))
+#: commands whose plan is a positional argument (elsewhere ``--plan``)
+PLAN_POSITIONAL = ("design", "vcmm")
+
+
+def _opt(name: str, command: str | None = None) -> str:
+    if name == "plan" and command in PLAN_POSITIONAL:
+        return "PLAN"
+    return {"json_out": "--json", "log": "LOG", "plan": "--plan", "file": "FILE", "rrd": "RRD",
+            "study": "STUDY"}.get(name, "--" + name.replace("_", "-"))
+
+
+def map_dash(args, outs, dirs) -> None:
+    """An output file ``-`` becomes ``/dev/stdout`` (but in :data:`DASH_OWN`); refuse ``-`` where it
+    cannot be standard output: a folder option, or an option of :data:`NO_DASH`."""
+    from core.exceptions import ConfigError
+
+    for name, why in NO_DASH.get(args.command, {}).items():
+        if getattr(args, name, None) == "-":
+            raise ConfigError(f"{_opt(name, args.command)} -: '-' (standard output) cannot be it: {why}")
+    for name in dirs:
+        if getattr(args, name, None) == "-":
+            raise ConfigError(f"{_opt(name, args.command)} -: names a folder, and '-' (standard output) is "
+                              "for an output file; give a folder")
+    if args.command not in DASH_OWN:
+        for out in outs:
+            if getattr(args, out, None) == "-":
+                setattr(args, out, "/dev/stdout")
 
 
 def check_input(path: str) -> None:
@@ -124,30 +175,55 @@ def _writable_folder(path: Path, *, folder: bool = False) -> None:
         raise OutputError(f"{path}: cannot write in {q}: {e.strerror}") from None
 
 
-def check_outputs(inputs: dict, files: dict, folders: dict) -> None:
-    """Refuse outputs that would overwrite an input, or that cannot be written as files/folders."""
+def check_outputs(inputs: dict, files: dict, folders: dict, command: str | None = None) -> None:
+    """Refuse outputs that would overwrite an input, or that cannot be written as files/folders
+    (``command`` names a positional argument as its usage does)."""
     from core.atomic import check_output, output_kind, same_file
     from core.exceptions import OutputError
 
     for oname, out in {**files, **folders}.items():
         for iname, inp in inputs.items():
             if os.path.exists(out) and same_file(out, inp):
-                raise OutputError(f"{_opt(oname)} {out} is the input {_opt(iname)} {inp}: "
+                raise OutputError(f"{_opt(oname, command)} {out} is the input {_opt(iname, command)} {inp}: "
                                   "refusing to overwrite an input; choose another output")
     for other, out in files.items():
         for oname2, out2 in {**files, **folders}.items():
             if oname2 != other and os.path.abspath(out) == os.path.abspath(out2):
-                raise OutputError(f"{_opt(other)} and {_opt(oname2)} are the same path {out}")
+                raise OutputError(f"{_opt(other, command)} and {_opt(oname2, command)} are the same path {out}")
     for name, out in files.items():
         if check_output(out, special=True) == "replace":
             _writable_folder(Path(out))
     for name, out in folders.items():
         kind = output_kind(out)
         if kind not in ("missing", "directory", "symbolic link"):
-            raise OutputError(f"{_opt(name)} {out}: is a {kind}, not a folder")
+            raise OutputError(f"{_opt(name, command)} {out}: is a {kind}, not a folder")
         if kind != "missing" and not os.path.isdir(out):
-            raise OutputError(f"{_opt(name)} {out}: is not a folder")
+            raise OutputError(f"{_opt(name, command)} {out}: is not a folder")
         _writable_folder(Path(out), folder=True)
+
+
+def _inside(path: str, folder: str) -> bool:
+    """``path`` (links resolved) is ``folder`` or lies in it."""
+    p, f = os.path.realpath(path), os.path.realpath(folder)
+    return p == f or p.startswith(f.rstrip(os.sep) + os.sep)
+
+
+def check_report_folder(report: str, inputs: dict, outputs: dict, command: str | None = None) -> None:
+    """A report replaces its folder whole (:func:`viz.report.write_report`): refuse, before the run,
+    a folder that is no earlier report of vmt or holds anything else (:func:`viz.report.replace_problem`),
+    and an input or another output lying in it (it would be lost with the folder, or written and then
+    swept away)."""
+    from core.exceptions import OutputError
+    from viz.report import replace_problem
+
+    for kind, paths in (("the input", inputs), ("the output", outputs)):
+        for name, path in paths.items():
+            if name != "report" and _inside(path, report):
+                raise OutputError(f"{_opt(name, command)} {path} lies in --report {report}, a folder the report "
+                                  f"replaces whole: {kind} would be lost; put it elsewhere")
+    problem = replace_problem(report)
+    if problem:
+        raise OutputError(f"--report {report}: {problem}")
 
 
 #: Options that mean the same in every command that has them (``args`` name: test, rule).
@@ -209,19 +285,28 @@ def run_command(args) -> int:
     try:
         try:
             check_common_options(args)
+            map_dash(args, outs, dirs)
             inputs = _arg_paths(args, ins)
             for path in inputs.values():
                 check_input(path)
             files, folders = _arg_paths(args, outs), _arg_paths(args, dirs)
-            check_outputs(inputs, files, folders)
+            others = {k: v for k, v in _arg_paths(args, OTHER_INPUTS.get(args.command, ())).items()
+                      if os.path.isfile(v)}
+            check_outputs({**inputs, **others}, files, folders, args.command)
+            report = folders.get("report")
+            if report:
+                check_report_folder(report, {**inputs, **others}, {**files, **folders}, args.command)
             outputs = RunOutputs(list(files.values()) + list(folders.values()))
             # an output on our own stdout (--out /dev/stdout): the command's messages go to stderr
             said_to = sys.stderr if any(own_descriptor(p) == 1 for p in files.values()) else None
             with contextlib.redirect_stdout(said_to) if said_to else contextlib.nullcontext():
                 rc = int(args.func(args) or 0)
             sys.stdout.flush()
+            outputs.commit()
             return rc
         except BrokenPipeError:
+            if outputs is not None:
+                outputs.commit()
             raise           # the reader went away: what was written is complete, keep it
         except BaseException:
             if outputs is not None:

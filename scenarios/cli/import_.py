@@ -16,8 +16,8 @@ def register(sub) -> None:
 
     option(p, "--dt-s", dest="dt", type=float, default=1.0, old=("--dt",),
            help="time between touches when the file has no clock, s (1)")
-    p.add_argument("--units", choices=("mm", "inch"), default="mm",
-                   help="units of a LinuxCNC probe file (mm)")
+    p.add_argument("--units", choices=("mm", "inch"), default=None,
+                   help="units of a LinuxCNC probe file (mm); not for grbl, whose reports are read as mm")
     p.set_defaults(func=run)
 
 
@@ -30,12 +30,15 @@ def run(args) -> int:
     if args.kind == "linuxcnc":
         from hardware.linuxcnc import import_probe_file
 
-        log = import_probe_file(args.file, plan, dt_s=args.dt, units=args.units)
+        log = import_probe_file(args.file, plan, dt_s=args.dt, units=args.units or "mm")
     else:
         from hardware.transcript import import_transcript
 
         if plan is None:
             raise ConfigError("import grbl: --plan is required (a transcript does not say what was probed)")
+        if args.units is not None:
+            raise ConfigError("import grbl: --units is for LinuxCNC probe files; a GRBL transcript's reports are "
+                              "read as mm (GRBL's $13=0): inch reports are not converted")
 
         log = import_transcript(args.file, plan, dt_s=args.dt)
     write_probe_log(args.out, log, special=True)

@@ -161,7 +161,7 @@ def run_program(args) -> int:
         st = truth_machine(args.machine).config.strokes
         settings = replace(settings, limits_mm=tuple((lo * 1e3, hi * 1e3) for lo, hi in (st[a] for a in "XYZ")))
     text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs)
-    out = write_text_atomic(args.out, text)
+    out = write_text_atomic(args.out, text, special=True)
     print(f"{out}: LinuxCNC program, {plan.n} touches, probe file {args.probe_file}")
     return 0
 

@@ -161,7 +161,7 @@ def _pin_circle(args) -> int:
 
         from scenarios.crosspocket import pin_figure
 
-        print(f"figure fig17 -> {pin_figure(Path(args.report), r)}")
+        print(f"report (index.html, fig17) -> {pin_figure(Path(args.report), r).parent}")
     if args.json:
         write_json_atomic(args.json, r, special=True)
     return 0
@@ -184,7 +184,8 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=1, help="seed of the simulated campaign")
     from scenarios.cli.options import add_machine_args, add_noise_arg
 
-    add_noise_arg(p, "default: mfb 0.125, the MFB paper's 0.25 um at k=2; pin-circle 0.9; 0 = noise-free")
+    add_noise_arg(p, "default: mfb 0.125, the MFB paper's 0.25 um at k=2; pin-circle 0.9; 0 = noise-free; "
+                     "cross-pocket-uncertainty does not take it")
     add_machine_args(p, default=None, what="mfb scenarios: the truth machine, its chain the plan's (default: the "
                                             "plan's machine)",
                      errors_default="study", errors_why="the MFB studies' truth: the realistic set without the "
@@ -196,9 +197,9 @@ def register(sub) -> None:
                         "vmt-comp/1 tables as a volumetric controller) to the virtual machine, re-run, identify "
                         "again; the JSON gets closed_loop (before/after per axis)")
     p.add_argument("--report", default=None, metavar="DIR",
-                   help="write the paper's figures (PNG) here: cross-pocket-uncertainty and the mfb scenarios "
-                        "as a report folder (index.html, figures, the error table, recording.rrd), pin-circle "
-                        "its figure")
+                   help="report folder (index.html, the paper's figures as PNG; cross-pocket-uncertainty and "
+                        "the mfb scenarios also the tables and recording.rrd, pin-circle its Fig. 17); not for "
+                        "mfb-reversal")
     p.add_argument("--bar-calibration", default=None, metavar="FILE", dest="bar_calibration",
                    help="mfb scenarios: identify with this bar calibration (vmt-bar-calibration/1 JSON, as "
                         "'vmt scenario mfb-reversal --json FILE' writes it) instead of the declared one; a "
@@ -207,18 +208,26 @@ def register(sub) -> None:
                    help="mfb scenarios: add the uncertainty budget (each source's share per error, and N "
                         "Monte Carlo runs of the whole pipeline with every source; about 8 s of CPU a run)")
     p.add_argument("--mc", type=int, default=None,
-                   help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty)")
+                   help="Monte Carlo trials (default 500 for mfb, 1000 for cross-pocket-uncertainty; not for "
+                        "mfb-reversal, pin-circle)")
     p.set_defaults(func=_dispatch)
 
 
 def _dispatch(args) -> int:
     from core.exceptions import ConfigError
 
-    if args.name not in ("mfb-3axis", "mfb-5axis"):
-        for opt, v in (("--machine", args.machine), ("--errors", args.errors), ("--comp", args.comp), ("--apply-comp", args.apply_comp),
-                       ("--bar-calibration", args.bar_calibration), ("--budget-runs", args.budget_runs or None)):
-            if v is not None:
-                raise ConfigError(f"{opt}: only the mfb scenarios take it (not {args.name})")
+    # what a study does not read: refused in one phrasing, never silently ignored
+    mfb_only = tuple((opt, v, ()) for opt, v in (
+        ("--machine", args.machine), ("--errors", args.errors), ("--comp", args.comp),
+        ("--apply-comp", args.apply_comp), ("--bar-calibration", args.bar_calibration),
+        ("--budget-runs", args.budget_runs or None)))
+    for opt, v, takers in mfb_only + (("--noise-um", args.noise_um, ("mfb-reversal", "pin-circle")),
+                                      ("--mc", args.mc, ("cross-pocket-uncertainty",)),
+                                      ("--report", args.report, ("cross-pocket-uncertainty", "pin-circle"))):
+        if v is not None and args.name not in ("mfb-3axis", "mfb-5axis") + takers:
+            why = " (its probing u is the paper's 1.38 um)" if args.name == "cross-pocket-uncertainty" else ""
+            raise ConfigError(f"{opt}: {args.name} does not take it{why}; "
+                              f"it is for {', '.join(('mfb-3axis', 'mfb-5axis') + takers)}")
     if args.budget_runs and args.budget_runs < 2:
         raise ConfigError(f"--budget-runs must be >= 2 (a Monte Carlo spread), got {args.budget_runs}")
     return SCENARIOS[args.name](args)

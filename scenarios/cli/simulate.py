@@ -174,7 +174,7 @@ def _run_positioning(args) -> int:
         cycle_kind=opt("cycle", "linear"), overrun_mm=opt("overrun_mm", 5.0), feed_mm_min=opt("move_feed", 2000.0),
         dwell_s=opt("dwell_s", 2.0), line_mm=line, reversal_um=opt("reversal_um", 0.0),
         drift_um_per_h=opt("drift_um_per_h", 0.0), drift_tau_s=args.drift_tau_s)
-    write_positioning_log(args.out, log)
+    write_positioning_log(args.out, log, special=True)
     m = len(set(log.target.tolist()))
     print(f"{args.out}: ISO 230-2 test of {log.axis} on {name}, {m} targets x {int(log.cycle.max())} cycles, "
           f"{log.meta['cycle_kind']} cycle, {log.n} readings over {log.t_s[-1]:.0f} s, errors {log.meta['errors']}")

@@ -95,7 +95,7 @@ def run(args) -> int:
         from scenarios.vcmm import write_report
 
         write_report(args.report, rep)
-    write_json_atomic(args.json, json_safe(rep))
+    write_json_atomic(args.json, json_safe(rep), special=True)
     from pathlib import Path
 
     print(f"wrote {said(args.json)}" + (f" and {Path(args.report) / 'index.html'}" if args.report else ""))

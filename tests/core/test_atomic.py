@@ -154,9 +154,48 @@ def test_run_outputs_takes_back_what_a_failed_run_wrote(tmp_path):
     removed = outs.remove_written()
     assert keep.read_text() == "old"
     assert (folder / "mine.txt").read_text() == "user's"
-    assert listing(tmp_path) == [".rep.before", "keep.json", "out"]
+    assert listing(tmp_path) == [".rep.before", "keep.json", "out", "replaced.json"]
+    assert replaced.read_text() == "old"                  # put back (main removed it: the user's data lost)
     assert listing(folder) == ["mine.txt"]
     assert tmp_path / "a" in removed and tmp_path / ".rep.x1y2" in removed
+
+
+def test_run_outputs_puts_back_replaced_folders_and_entries_and_commit_drops_the_kept_copies(tmp_path):
+    """A report folder replaced whole, an entry of a folder replaced or removed, a file removed: each
+    back as it was after a failed run (main lost them all); after a run that succeeded the kept
+    copies (hard links) are dropped and the new outputs stay."""
+    import shutil
+
+    rep, comp, j = tmp_path / "rep", tmp_path / "comp", tmp_path / "j.json"
+    rep.mkdir()
+    (rep / "index.html").write_text("old page")
+    (rep / "sub").mkdir()
+    (rep / "sub" / "f.png").write_text("old fig")
+    comp.mkdir()
+    (comp / "X.comp").write_text("old X")
+    (comp / "Y.comp").write_text("old Y")
+    j.write_text("old json")
+    outs = RunOutputs([rep, comp, j])
+    assert os.stat(j).st_nlink == 2                       # kept by a hard link, not a copy
+    new = tmp_path / ".rep.new"
+    new.mkdir()
+    (new / "index.html").write_text("new page")
+    shutil.rmtree(rep)
+    os.replace(new, rep)                                  # the report's swap
+    write_text_atomic(comp / "X.comp", "new X")
+    (comp / "Y.comp").unlink()
+    write_text_atomic(comp / "Z.comp", "new Z")
+    j.unlink()
+    outs.remove_written()
+    assert (rep / "index.html").read_text() == "old page" and (rep / "sub" / "f.png").read_text() == "old fig"
+    assert listing(comp) == ["X.comp", "Y.comp"] and (comp / "X.comp").read_text() == "old X"
+    assert (comp / "Y.comp").read_text() == "old Y" and j.read_text() == "old json"
+    assert listing(tmp_path) == ["comp", "j.json", "rep"]
+    outs = RunOutputs([rep, j])
+    write_text_atomic(j, "new json")
+    outs.commit()
+    assert listing(tmp_path) == ["comp", "j.json", "rep"] and j.read_text() == "new json"
+    assert os.stat(rep / "index.html").st_nlink == 1
 
 
 def test_run_outputs_keeps_everything_when_nothing_was_written(tmp_path):

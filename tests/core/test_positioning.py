@@ -453,6 +453,9 @@ def test_table_csv_header_any_order_and_deviation_column():
     ("0 x + 0\n", "cycle 'x' is not a number"),
     ("0 1 + 0\n0 1 + 0.1\n", "already measured in row 0"),
     ("# only comments\n", "no data rows"),
+    # a headerless row cut short: a data row (it starts with its target), not a header (main:
+    # "header has no 'target' column (got 0, 1, +)")
+    ("0 1 +\n0 1 - 0.1\n", "line 1: 3 fields, expected 4"),
 ])
 def test_table_bad_input(text, match):
     with pytest.raises(PositioningLogError, match=match):

@@ -288,3 +288,17 @@ def test_contact_server_answers_like_the_virtual_machine(monkeypatch):
     monkeypatch.setattr(loop.shutil, "which", lambda name: None)
     with pytest.raises(HardwareError, match="apt-get install -y linuxcnc-uspace"):
         loop.linuxcnc_path()
+
+
+def test_grbl_import_refuses_units_it_would_ignore(tmp_path, capsys):
+    """'vmt import grbl T --units inch' read the transcript's reports as mm regardless (main: exit 0,
+    every touch 25.4 times too small were the reports in inches); --units is LinuxCNC's."""
+    plan_path = write_probe_log(tmp_path / "plan.csv", plan_log(n_sphere=0))
+    tr = tmp_path / "t.txt"
+    tr.write_text("\n".join(["[PRB:10.000,10.000,0.001:1]", "[PRB:90.000,10.000,-0.002:1]",
+                             "[PRB:90.000,90.000,0.000:1]", "[PRB:10.000,90.000,0.000:1]"]) + "\n")
+    out = tmp_path / "o.csv"
+    assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(out), "--units", "inch"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--units is for LinuxCNC probe files" in err and not out.exists()
+    assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(out)]) == 0   # without: as before

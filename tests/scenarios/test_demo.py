@@ -52,3 +52,19 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert json.loads((out / "comp" / "mfb-3axis-comp.json").read_text())["format"] == "vmt-comp/1"
     for f in ("index.html", "recording.rrd", "error_map.png", "residuals_baseline.png"):
         assert (out / "report" / f).stat().st_size > 1000
+
+
+def test_lobing_text_says_which_lobes_it_cannot_see():
+    """The demo's probe has 2 lobes of 1.5 um and 3 lobes of 1.17 um (4.87 um peak-to-valley); its
+    four approach directions 90 deg apart cannot see the 3 lobes (discover reports k3 n/d), and the
+    reported peak-to-valley (2.97 um, about 2 x 1.48) is of the 2 lobes alone. main printed
+    'pre-travel varies 2.97 um peak-to-valley with the approach azimuth' as if it were the probe's."""
+    from scenarios.demo import _finding_text
+
+    f = {"cause": "probe_lobing", "params": {"k1_amplitude_um": None, "k2_amplitude_um": 1.48,
+                                             "k3_amplitude_um": None, "k4_amplitude_um": 0.06,
+                                             "pretravel_variation_pv_um": 2.97}}
+    assert _finding_text(f) == ("pre-travel varies 2.97 um peak-to-valley with the approach azimuth "
+                                "(of the lobes this design determines; k = 3 not determined)")
+    f["params"]["k3_amplitude_um"] = 1.2
+    assert _finding_text(f) == "pre-travel varies 2.97 um peak-to-valley with the approach azimuth"

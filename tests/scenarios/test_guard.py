@@ -181,3 +181,370 @@ def test_progress_line_is_quiet_off_a_terminal_and_clears_on_one():
     text = bar.stream.getvalue()
     assert text.count("\r\033[K") == 1 and text.endswith("2/4 ( 50 %)  ~" + text.split("~")[-1])
     assert "left" in text
+
+
+MACHINE_TOML = 'format = "vmt-machine/1"\nname = "mine"\nbase = "vmc-3axis"\nerrors = "none"\n'
+
+
+@pytest.mark.parametrize("cmd", [
+    ["simulate", "cross-pocket", "--machine", "{f}", "--out", "{f}"],
+    ["machine", "program", "--plan", "{plan}", "--machine", "{f}", "--safe-z-mm", "80", "--out", "{f}"],
+    ["vcmm", "scenarios/data/vcmm-block-plan.csv", "--task", "scenarios/data/vcmm-block-task.toml",
+     "--machine", "{f}", "--json", "{f}"],
+])
+def test_machine_file_given_as_the_output_is_refused(files, capsys, cmd):
+    """``--machine FILE`` is an input like any other: an output on the same path would replace the
+    user's machine file with a probe log, a part program or a JSON report (main: all three ran and
+    overwrote it, exit 0)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    machine = files["dir"] / "mine.toml"
+    machine.write_text(MACHINE_TOML)
+    argv = [a.format(f=machine, plan=files["plan"]) for a in cmd]
+    argv = [str(root / a) if a.startswith("scenarios/data/") else a for a in argv]
+    assert main(argv) == 2
+    err = one_line(capsys, f"vmt {' '.join(cmd[:2]) if cmd[0] == 'machine' else cmd[0]}: error: ")
+    assert f"is the input --machine {machine}: refusing to overwrite an input" in err
+    assert machine.read_text() == MACHINE_TOML
+
+
+def test_bar_calibration_given_as_the_output_is_refused(files, capsys):
+    """``scenario mfb-3axis --bar-calibration CAL --json CAL`` would replace the calibration it reads
+    with the run's report (main: ran and overwrote it, exit 0)."""
+    cal = files["dir"] / "cal.json"
+    assert main(["scenario", "mfb-reversal", "--json", str(cal)]) == 0
+    capsys.readouterr()
+    before = cal.read_bytes()
+    assert main(["scenario", "mfb-3axis", "--bar-calibration", str(cal), "--json", str(cal)]) == 2
+    err = one_line(capsys, "vmt scenario: error: --json ")
+    assert f"is the input --bar-calibration {cal}: refusing to overwrite an input" in err
+    assert cal.read_bytes() == before
+
+
+def test_a_built_in_machine_name_is_no_file_to_guard(files, capsys, monkeypatch):
+    """The guard compares ``--machine`` with the outputs only when it names an existing file: a
+    built-in name (no such file here) runs as before."""
+    monkeypatch.chdir(files["dir"])
+    assert main(["simulate", "cross-pocket", "--plan-only", "--machine", "nmv3000", "--out", "p.csv"]) == 0
+    assert (files["dir"] / "p.csv").is_file()
+
+
+@pytest.mark.parametrize("cmd", [["machine", "show", "{d}"], ["simulate", "cross-pocket", "--machine", "{d}",
+                                                             "--out", "{o}"]])
+def test_a_folder_given_as_the_machine_file_is_named_a_folder(files, capsys, cmd):
+    """main said 'DIR: no such machine file' of a folder that exists; now what is wrong with it."""
+    d = files["dir"] / "machines"
+    d.mkdir()
+    assert main([a.format(d=d, o=files["dir"] / "o.csv") for a in cmd]) == 2
+    one_line(capsys, f"vmt {' '.join(cmd[:2]) if cmd[0] == 'machine' else cmd[0]}: error: "
+                     f"{d}: is a directory, not a machine file")
+    assert not (files["dir"] / "o.csv").exists()
+
+
+@pytest.mark.parametrize("cmd, named", [
+    (["regress", "{s}", "--junit", "{s}"], "STUDY"),
+    (["design", "{p}", "--n-angles", "3", "--json", "{p}"], "PLAN"),
+    (["vcmm", "{p}", "--machine", "vmc-3axis", "--task", "t.toml", "--json", "{p}"], "PLAN"),
+])
+def test_a_positional_input_is_named_as_the_usage_names_it(files, capsys, cmd, named):
+    """main named these inputs '--study', '--plan': options the commands do not have."""
+    study = files["dir"] / "s.toml"
+    study.write_text('format = "vmt-study/1"\n')
+    (files["dir"] / "t.toml").write_text('format = "vmt-task/1"\n')
+    argv = [a.format(s=study, p=files["plan"]) for a in cmd]
+    argv = [str(files["dir"] / a) if a == "t.toml" else a for a in argv]
+    assert main(argv) == 2
+    path = study if named == "STUDY" else files["plan"]
+    err = one_line(capsys, f"vmt {cmd[0]}: error: ")
+    assert f"is the input {named} {path}: refusing to overwrite an input" in err, err
+
+
+def _heights(files):
+    heights = files["dir"] / "h.csv"
+    cols = {"setup": ["s"] * 4, "target": list("abcd"), "t_s": [0, 1, 2, 3],
+            "X_mm": [0, 1, 0, 1], "Y_mm": [0, 0, 1, 1], "Z_mm": [0, 0.001, 0, 0.001],
+            "Xn_mm": [0, 1, 0, 1], "Yn_mm": [0, 0, 1, 1], "Zn_mm": [0, 0, 0, 0],
+            "nx": [0] * 4, "ny": [0] * 4, "nz": [1] * 4}
+    return write_probe_log(heights, make_log(cols))
+
+
+@pytest.mark.parametrize("cmd, starts", [
+    (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", "-"], "# format: probe-log/1"),
+    (["fit", "plane", "{heights}", "--json", "-"], "{"),
+    (["import", "linuxcnc", "{probe}", "--plan", "{plan}", "--out", "-"], "# format: probe-log/1"),
+])
+def test_dash_is_standard_output_in_every_command(files, capfd, monkeypatch, cmd, starts):
+    """'--json -' printed the JSON in 'vmt check' but made a file named '-' in every other command
+    (main: exit 0, a file '-' in the working folder, nothing on stdout); now it is standard
+    output everywhere, the messages on stderr."""
+    monkeypatch.chdir(files["dir"])
+    argv = [a.format(heights=_heights(files), probe=files["probe"], plan=files["plan"]) for a in cmd]
+    capfd.readouterr()
+    rc = main(argv)
+    out, err = capfd.readouterr()
+    assert rc == 0, err
+    assert not (files["dir"] / "-").exists()
+    assert out.startswith(starts), out[:200]
+    if starts == "{":
+        assert json.loads(out)["format"] == "vmt-fit/1"
+    assert "/dev/stdout" in err          # the command's own message, on stderr
+
+STDOUT_CASES = [
+    (["fit", "plane", "{heights}", "--json", "/dev/stdout"], "{"),
+    (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", "/dev/stdout"], "# format: probe-log/1"),
+    (["simulate", "positioning", "--out", "/dev/stdout"], "# format: positioning-log/1"),
+    (["iso230-2", "{sample}", "--json", "/dev/stdout"], "{"),
+    (["iso230-2", "{sample}", "--json", "{dir}/s.json", "--write-log", "/dev/stdout"], "# format: positioning-log/1"),
+    (["machine", "program", "--plan", "{plan}", "--out", "/dev/stdout", "--limits-mm", "X-9:9,Y-9:9,Z-9:99",
+      "--safe-z-mm", "50"], "%"),
+    (["vcmm", "{vplan}", "--machine", "vmc-3axis", "--task", "{vtask}", "--no-budget", "--tol-um", "2",
+      "--json", "/dev/stdout"], "{"),
+]
+
+
+@pytest.mark.parametrize("cmd, starts", STDOUT_CASES)
+def test_dev_stdout_redirected_to_a_file_is_written_through(files, capfd, cmd, starts):
+    """README: '--out /dev/stdout writes on standard output'. With standard output a file (here
+    pytest's capture; 'vmt ... > f' alike) main refused these after the run: '/dev/stdout: is a
+    symbolic link (to /proc/self/fd/1, a file): refusing to replace a link' (exit 2; vcmm after its
+    whole Monte Carlo). identify, discover, simulate cross-pocket, import already wrote through."""
+    from pathlib import Path
+
+    data = Path(__file__).resolve().parents[2] / "scenarios" / "data"
+    argv = [a.format(heights=_heights(files), plan=files["plan"], dir=files["dir"],
+                     sample=data / "positioning-sample.csv", vplan=data / "vcmm-block-plan.csv",
+                     vtask=data / "vcmm-block-task.toml") for a in cmd]
+    capfd.readouterr()
+    rc = main(argv)
+    out, err = capfd.readouterr()
+    assert rc == 0, err
+    assert out.startswith(starts), out[:200]
+    assert "Traceback" not in err
+
+
+def test_bench_never_replaces_a_link_or_device(files, capfd, monkeypatch):
+    """'vmt bench --out LINK' where LINK points to /dev/null: the guard lets a link to a device
+    through (written through, README), but main's writer then renamed a temporary file over the
+    link (as it would over /dev/null itself, run as root). Now written through, the link kept."""
+    import scenarios.bench as sb
+
+    monkeypatch.setattr(sb, "run_all", lambda only=None: {"format": sb.FORMAT, "meta": {}, "figures": {
+        "x_s": {"value": 1.0}}})
+    link = files["dir"] / "null-link"
+    link.symlink_to("/dev/null")
+    assert main(["bench", "--out", str(link)]) == 0, capfd.readouterr().err
+    assert link.is_symlink() and os.readlink(link) == "/dev/null"
+    out = files["dir"] / "r.json"
+    assert main(["bench", "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["figures"] == {"x_s": {"value": 1.0}}
+    assert out.read_text() == json.dumps(json.loads(out.read_text()), indent=2, sort_keys=True)   # as before
+
+
+@pytest.mark.parametrize("cmd, msg", [
+    (["cross-pocket-uncertainty", "--noise-um", "0.5", "--mc", "10"],
+     "--noise-um: cross-pocket-uncertainty does not take it (its probing u is the paper's 1.38 um)"),
+    (["pin-circle", "--mc", "5"], "--mc: pin-circle does not take it"),
+    (["mfb-reversal", "--mc", "5"], "--mc: mfb-reversal does not take it"),
+    (["mfb-reversal", "--report", "{dir}/rr"], "--report: mfb-reversal does not take it"),
+    # the mfb-only options in the same phrasing (main: '--comp: only the mfb scenarios take it (not pin-circle)')
+    (["pin-circle", "--comp", "{dir}/rr"], "--comp: pin-circle does not take it; it is for mfb-3axis, mfb-5axis"),
+    (["mfb-reversal", "--budget-runs", "3"],
+     "--budget-runs: mfb-reversal does not take it; it is for mfb-3axis, mfb-5axis"),
+])
+def test_scenario_refuses_an_option_it_would_ignore(files, capsys, cmd, msg):
+    """main ran these and ignored the option (cross-pocket-uncertainty printed 'u_probe 1.38 um'
+    under --noise-um 0.5; mfb-reversal wrote no report; exit 0 each)."""
+    assert main(["scenario"] + [a.format(dir=files["dir"]) for a in cmd]) == 2
+    one_line(capsys, f"vmt scenario: error: {msg}")
+    assert not (files["dir"] / "rr").exists()
+
+
+def test_report_into_a_folder_of_the_users_files_is_refused_before_the_run(files, capsys, monkeypatch):
+    """'vmt iso230-2 LOG --json J --report results/' where results/ holds the user's files: main ran,
+    then replaced the folder whole (the files gone, exit 0). Now refused before the work, exit 2."""
+    from pathlib import Path
+
+    sample = Path(__file__).resolve().parents[2] / "scenarios" / "data" / "positioning-sample.csv"
+    mine = files["dir"] / "results"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    j = files["dir"] / "s.json"
+    assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(mine)]) == 2
+    one_line(capsys, f"vmt iso230-2: error: --report {mine}: exists and holds 1 entries but no report of vmt")
+    assert (mine / "notes.txt").read_text() == "mine" and not j.exists()
+    assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(files["dir"] / "new")]) == 0
+    assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(files["dir"] / "new")]) == 0  # replaced
+
+
+def _sample():
+    from pathlib import Path
+
+    return Path(__file__).resolve().parents[2] / "scenarios" / "data" / "positioning-sample.csv"
+
+
+def test_a_folder_with_an_index_html_of_its_own_is_no_report(files, capsys):
+    """Reviewer's case a): site/ holds index.html, thesis.tex and img/; main (b7ce9a1) took any folder
+    with an index.html for an earlier report and replaced it whole (thesis.tex and img/ gone, exit 0)."""
+    site = files["dir"] / "site"
+    (site / "img").mkdir(parents=True)
+    (site / "index.html").write_text("x\n")
+    (site / "thesis.tex").write_text("precious\n")
+    j = files["dir"] / "a.json"
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(site)]) == 2
+    one_line(capsys, f"vmt iso230-2: error: --report {site}: exists and holds 3 entries but no report of vmt")
+    assert (site / "thesis.tex").read_text() == "precious\n" and (site / "img").is_dir() and not j.exists()
+
+
+def test_a_users_file_in_an_earlier_report_is_never_swept_away(files, capsys):
+    """Reviewer's case b): rep/ an earlier report plus the user's mylog.csv, given as the input: main
+    replaced rep/ whole after reading it (the input log gone, exit 0). Refused before the run, as
+    is an earlier report to which the user added a file."""
+    import shutil
+
+    rep, j = files["dir"] / "rep", files["dir"] / "c.json"
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 0
+    capsys.readouterr()
+    shutil.copy(_sample(), rep / "mylog.csv")
+    j.unlink()
+    assert main(["iso230-2", str(rep / "mylog.csv"), "--json", str(j), "--report", str(rep)]) == 2
+    one_line(capsys, f"vmt iso230-2: error: LOG {rep / 'mylog.csv'} lies in --report {rep}, a folder the "
+                     "report replaces whole: the input would be lost")
+    assert (rep / "mylog.csv").read_bytes() == _sample().read_bytes() and not j.exists()
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 2
+    one_line(capsys, f"vmt iso230-2: error: --report {rep}: is an earlier report but also holds mylog.csv, "
+                     "which the report did not write")
+    assert (rep / "mylog.csv").exists() and not j.exists()
+    (rep / "mylog.csv").unlink()
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 0   # replaced
+
+
+@pytest.mark.parametrize("opt, name", [("--json", "inner.json"), ("--write-log", "log2.csv")])
+@pytest.mark.parametrize("earlier", [True, False])
+def test_an_output_inside_the_report_folder_is_refused_before_the_run(files, capsys, opt, name, earlier):
+    """Reviewer's cases c) and d): '--json rep/inner.json --report rep' said 'wrote rep/inner.json'
+    (exit 0) but the report then replaced rep/ whole, the file gone; with rep/ new, the run went to
+    its end and then said 'holds 1 entries but no index.html' (exit 2). Now refused before any work."""
+    rep, j = files["dir"] / "rep", files["dir"] / "j.json"
+    if earlier:
+        assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 0
+        j.unlink()
+        before = sorted(p.name for p in rep.iterdir())
+    capsys.readouterr()
+    argv = ["iso230-2", str(_sample())] + ([] if opt == "--json" else ["--json", str(j)]) + [
+        opt, str(rep / name), "--report", str(rep)]
+    assert main(argv) == 2
+    one_line(capsys, f"vmt iso230-2: error: {opt} {rep / name} lies in --report {rep}, a folder the report "
+                     "replaces whole: the output would be lost")
+    assert not (rep / name).exists() and not j.exists()
+    if earlier:
+        assert sorted(p.name for p in rep.iterdir()) == before
+    else:
+        assert not rep.exists()
+
+
+def test_a_link_given_as_the_report_folder_is_refused_before_the_run(files, capsys):
+    """README: a link given as an output is refused. main replaced '--report lnk' (a link to an earlier
+    report) by a real folder after the run and left a stale '.lnk.XXXX.old' link (exit 0)."""
+    rep, j = files["dir"] / "rep", files["dir"] / "j.json"
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 0
+    j.unlink()
+    capsys.readouterr()
+    (files["dir"] / "lnk").symlink_to("rep")
+    assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(files["dir"] / "lnk")]) == 2
+    one_line(capsys, f"vmt iso230-2: error: --report {files['dir'] / 'lnk'}: is a symbolic link (to rep)")
+    assert (files["dir"] / "lnk").is_symlink() and not j.exists()
+    assert not [p for p in files["dir"].iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("cmd, msg", [
+    (["probe", "--controller", "virtual:", "--plan", "{plan}", "--out", "-", "--limits-mm", "X-9:9,Y-9:9,Z-9:9"],
+     "vmt probe: error: --out -: '-' (standard output) cannot be it: the campaign log is appended to"),
+    (["probe", "--controller", "virtual:", "--plan", "{plan}", "--out", "{dir}/p.csv", "--limits-mm",
+      "X-9:9,Y-9:9,Z-9:9", "--transcript", "-"],
+     "vmt probe: error: --transcript -: '-' (standard output) cannot be it: the transcript is appended"),
+    (["iso230-2", "{sample}", "--json", "{dir}/j.json", "--report", "-"],
+     "vmt iso230-2: error: --report -: names a folder, and '-' (standard output) is for an output file"),
+    (["demo", "--out-dir", "-"], "vmt demo: error: --out-dir -: names a folder"),
+    (["scenario", "mfb-3axis", "--comp", "-"], "vmt scenario: error: --comp -: names a folder"),
+    (["bench", "--from-json", "{dir}/x.json", "--readme", "-"], "vmt bench: error: --readme -: '-' (standard "
+                                                                   "output) cannot be it"),
+])
+def test_dash_where_it_cannot_be_standard_output_is_refused(files, capsys, monkeypatch, cmd, msg):
+    """main (f8658e3) made '-' standard output for the guarded files only: 'probe --out -' made a log
+    file named '-' (and --transcript - a transcript '-'), '--report -' and the other folder options
+    made a folder named '-' (the guard skipped '-', so nothing was checked before the run)."""
+    monkeypatch.chdir(files["dir"])
+    argv = [a.format(plan=files["plan"], dir=files["dir"], sample=_sample()) for a in cmd]
+    assert main(argv) == 2
+    one_line(capsys, msg)
+    assert not (files["dir"] / "-").exists() and not (files["dir"] / "p.csv").exists()
+
+
+def test_bench_merge_refuses_an_output_it_cannot_read_back(files, capsys, monkeypatch):
+    """'vmt bench --merge --out - | cat' hung on main: --merge read the figures to keep from --out,
+    here /dev/stdout, the pipe's writing end. Refused before any benchmark runs: --merge needs a
+    regular file to read back."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import scenarios.bench as sb
+
+    monkeypatch.setattr(sb, "run_all", lambda only=None: pytest.fail("a benchmark ran"))
+    for out, kind in (("-", "symbolic link (standard output)"), ("/dev/null", "character device")):
+        assert main(["bench", "--merge", "--out", out]) == 2
+        one_line(capsys, f"vmt bench: error: --merge reads the figures to keep from --out, so --out must be a "
+                         f"regular file; {'/dev/stdout' if out == '-' else out} is a {kind}")
+    root = Path(__file__).resolve().parents[2]
+    p = subprocess.run(f"{sys.executable} -m scenarios.cli bench --merge --out - | cat", shell=True, cwd=root,
+                       capture_output=True, text=True, timeout=120,
+                       env={**os.environ, "PYTHONPATH": str(root)})
+    assert "--merge reads the figures to keep from --out" in p.stderr, p.stderr
+
+
+def test_a_failed_run_puts_back_the_users_earlier_outputs(files, capsys, monkeypatch):
+    """The reviewer's case: an existing j.json, 'iso230-2 S --json j.json --report rep' failing in its
+    report: main exit 2 and j.json gone (RunOutputs removed a file the run had replaced: 'its old
+    content was gone'). Now the earlier JSON and the earlier report are back as they were, also when
+    the run fails after replacing the report, or on Ctrl-C; nothing hidden is left behind."""
+    import scenarios.positioning as sp
+    from core.exceptions import OutputError
+
+    j, rep = files["dir"] / "j.json", files["dir"] / "rep"
+    argv = ["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]
+    assert main(argv) == 0
+    j.write_text('{"mine": 1}\n')                   # the user's earlier output, told apart from a new one
+    page = (rep / "index.html").read_bytes()
+    listing = sorted(p.name for p in files["dir"].iterdir())
+    real = sp.positioning_report
+
+    def fail_before(*a, **k):
+        raise OutputError("report: disk full")
+
+    def fail_after(*a, **k):
+        real(*a, **k)
+        raise error
+
+    for fake, error, rc in ((fail_before, None, 2), (fail_after, OutputError("later: disk full"), 2),
+                            (fail_after, KeyboardInterrupt(), 130)):
+        monkeypatch.setattr(sp, "positioning_report", fake)
+        capsys.readouterr()
+        assert main(argv) == rc
+        capsys.readouterr()
+        assert j.read_text() == '{"mine": 1}\n'
+        assert (rep / "index.html").read_bytes() == page
+        assert sorted(p.name for p in files["dir"].iterdir()) == listing
+
+
+def test_pin_circle_report_is_a_report_folder_like_every_other(files, capsys):
+    """--report had two meanings: a report folder replaced whole, except in pin-circle, which added
+    fig17.png into any folder (the guard exempted it by name: main ran 'pin-circle --report mine/'
+    into a folder of the user's files, exit 0). Now pin-circle writes a report folder (index.html,
+    fig17.png) and the guard's rule holds for it: a folder of the user's files is refused before the run."""
+    mine = files["dir"] / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    assert main(["scenario", "pin-circle", "--report", str(mine)]) == 2
+    one_line(capsys, f"vmt scenario: error: --report {mine}: exists and holds 1 entries but no report of vmt")
+    assert sorted(p.name for p in mine.iterdir()) == ["notes.txt"]

@@ -365,7 +365,7 @@ def test_budget_refuses_bad_settings_before_any_run(capsys):
     with pytest.raises(ConfigError, match="temperature_range_C"):
         budget("mfb-3axis", temperature_range_C=(22.0, 19.0))
     assert main(["scenario", "pin-circle", "--budget-runs", "3"]) == 2
-    assert "--budget-runs: only the mfb scenarios" in capsys.readouterr().err
+    assert "--budget-runs: pin-circle does not take it; it is for mfb-3axis, mfb-5axis" in capsys.readouterr().err
     assert main(["scenario", "mfb-3axis", "--budget-runs", "-1"]) == 2  # before any touch
     assert "--budget-runs must be >= 2" in capsys.readouterr().err
 

@@ -52,9 +52,9 @@ def test_cross_pocket_uncertainty_reports_progress(cpu_run):
 @pytest.fixture(scope="session")
 def pin(tmp_path_factory):
     d = tmp_path_factory.mktemp("pin")
-    assert main(["scenario", "pin-circle", "--json", str(d / "pc.json"), "--report", str(d)]) == 0
+    assert main(["scenario", "pin-circle", "--json", str(d / "pc.json"), "--report", str(d / "rep")]) == 0
     r = json.loads((d / "pc.json").read_text())
-    r["_folder"] = d
+    r["_folder"] = d / "rep"
     return r
 
 
@@ -201,6 +201,7 @@ def test_pin_circle_the_papers_way(pin):
     assert u[0] == 0 and np.all(np.array(pin["selfcal_pin_error_um"]) <= u)
     assert 3.0 < pin["selfcal_pin_u95_max_um"] < 5.0  # the paper's "within 2 um" is one draw of this spread
     assert (pin["_folder"] / "fig17.png").stat().st_size > 10_000
+    assert sorted(p.name for p in pin["_folder"].iterdir()) == ["fig17.png", "index.html"]   # a report folder
 
 
 def test_scenario_mc_too_small(capsys):

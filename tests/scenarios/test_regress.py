@@ -374,6 +374,10 @@ BASE = 'identification = "iso230-2"\nmachine = "vmc-3axis"\nseeds = [1]\n[accept
         "[accept.mean]", "[accept.EXX]").replace('"vmc-3axis"', '"nmv3000"'), None),
     (BASE + "[mutate]\nscale = { mean = \"x\" }\n", "mutate.scale.mean: expected a finite number"),
     (BASE + "[mutate]\nscale = { EXX = 2 }\n", "mutate.scale: unknown quantity 'EXX'"),
+    # main: "identification: expected one of selfcal, ..., got None" of an empty file or a missing key
+    ("", "s.toml: empty study"),
+    ("# nothing but a comment\n", "s.toml: empty study"),
+    (BASE.replace('identification = "iso230-2"\n', ""), "identification: missing"),
 ])
 def test_bad_studies_are_refused_with_the_key(text, match):
     if match is None:  # the good twin of a refused study: read without complaint

@@ -86,3 +86,72 @@ def test_table_checks_row_length_and_no_overwrite(tmp_path):
     os.umask(umask)
     # the folder gets the user's usual permissions, not mkdtemp's 0700
     assert os.stat(tmp_path / "r").st_mode & 0o777 == 0o777 & ~umask
+
+
+def test_a_folder_of_other_files_or_the_working_folder_is_never_replaced(tmp_path, monkeypatch):
+    """A report replaces its folder whole: main did so for any folder, so '--report results/' deleted
+    the user's files in it (the old folder removed after the swap). Now only an earlier report
+    (with index.html) or an empty folder is replaced."""
+    mine = tmp_path / "results"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    with pytest.raises(ConfigError, match="holds 1 entries but no report of vmt"):
+        write_report(mine, "x", [])
+    assert (mine / "notes.txt").read_text() == "mine" and not (mine / "index.html").exists()
+    (tmp_path / "empty").mkdir()
+    assert (write_report(tmp_path / "empty", "x", []) / "index.html").is_file()
+    write_report(tmp_path / "empty", "again", [])                       # an earlier report: replaced
+    assert "again" in (tmp_path / "empty" / "index.html").read_text()
+    monkeypatch.chdir(mine)
+    with pytest.raises(ConfigError, match="working folder"):
+        write_report(tmp_path, "x", [])
+    assert (mine / "notes.txt").exists()
+
+
+def test_only_a_report_vmt_wrote_holding_nothing_else_is_replaced(tmp_path):
+    """main (b7ce9a1) took any folder with an index.html for an earlier report: a site/ of the user's
+    (index.html, thesis.tex, img/) was replaced whole, and so was a report to which the user had added
+    a file. Now index.html must name vmt as its generator and list the report's files, and the folder
+    hold nothing else."""
+    from viz.report import report_entries
+
+    site = tmp_path / "site"
+    (site / "img").mkdir(parents=True)
+    (site / "index.html").write_text("<html><head><title>mine</title></head></html>\n")
+    (site / "thesis.tex").write_text("precious")
+    assert report_entries(site) is None
+    with pytest.raises(ConfigError, match="holds 3 entries but no report of vmt"):
+        write_report(site, "x", [])
+    assert (site / "thesis.tex").read_text() == "precious" and (site / "img").is_dir()
+
+    png = tmp_path / "given.png"
+    png.write_bytes(b"\x89PNG\r\n\x1a\n")
+    rrd = tmp_path / "my run.rrd"
+    rrd.write_bytes(b"rrd")
+    rep = write_report(tmp_path / "rep", 'a "title"', [Section("a", figures={"f 1": png})], recording=rrd)
+    assert report_entries(rep) == ["index.html", "f_1.png", "my run.rrd"]          # as listed by hand
+    (rep / "notes.txt").write_text("mine")
+    with pytest.raises(ConfigError, match="is an earlier report but also holds notes.txt"):
+        write_report(rep, "again", [])
+    (rep / "notes.txt").unlink()
+    (rep / "f_1.png").unlink()
+    (rep / "f_1.png").mkdir()                           # a listed name that is now a folder: not the report's
+    with pytest.raises(ConfigError, match="also holds f_1.png"):
+        write_report(rep, "again", [])
+    (rep / "f_1.png").rmdir()
+    write_report(rep, "again", [])                      # an earlier report, less a figure: replaced
+    assert sorted(p.name for p in rep.iterdir()) == ["index.html"]
+
+
+def test_a_link_given_as_the_report_folder_is_refused(tmp_path, monkeypatch):
+    """main replaced a link to an earlier report by a real folder and left the link, renamed
+    '.lnk.XXXX.old', beside it (shutil.rmtree does not remove a link). Refused, all left as it was."""
+    rep = write_report(tmp_path / "rep", "old", [])
+    before = rep.joinpath("index.html").read_text()
+    (tmp_path / "lnk").symlink_to("rep")
+    (tmp_path / "dangling").symlink_to("nowhere")
+    for link in ("lnk", "dangling"):
+        with pytest.raises(ConfigError, match="is a symbolic link .* give the folder it points to"):
+            write_report(tmp_path / link, "new", [])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling", "lnk", "rep"]
+    assert (tmp_path / "lnk").is_symlink() and rep.joinpath("index.html").read_text() == before

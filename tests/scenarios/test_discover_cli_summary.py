@@ -1,0 +1,89 @@
+"""What ``vmt discover`` prints: a finding's +- is said to be its U95, and the workpiece's U95 before
+and after the extension is printed beside the gain (the report's figures, read by hand here)."""
+
+from scenarios.cli.discover import summary_lines
+
+
+def _report(workpiece, identifiable=True, u95=0.25):
+    return {
+        "baseline": {"model": "m", "rms_um": 1.0, "n": 10, "n_params": 3},
+        "baseline_cv_rms_um": 1.5,
+        "noise_um": {"sigma_um": 0.3, "method": "repeats",
+                     "cv_gap": {"ratio": 2.0, "expected_ratio": 2.0, "p_value": 0.5}},
+        "diagnosis": [],
+        "findings": [{"cause": "periodic_axis_error", "params": {"axis": "X", "period_mm": 8.0},
+                      "params_u95": {"period_mm": u95}, "evidence": {"confidence": "named"}}],
+        "gain": {"rms_ratio": 0.5, "cv_rms_ratio": 0.4},
+        "extended": {"model": "m + periodic_axis_error", "rms_um": 0.5, "cv_rms_um": 0.6},
+        "workpiece": workpiece, "workpiece_identifiable": identifiable,
+    }
+
+
+WP = [{"target": "a", "baseline_um": 1.0, "extended_um": 1.5, "baseline_u95_um": 2.0, "extended_u95_um": 0.75},
+      {"target": "b", "baseline_um": -1.0, "extended_um": -3.0, "baseline_u95_um": 1.0, "extended_u95_um": 1.25}]
+
+
+def test_finding_says_its_plus_minus_is_u95():
+    lines = summary_lines(_report(WP))
+    f = next(ln for ln in lines if ln.startswith("finding"))
+    assert f == "finding    periodic_axis_error: axis X, period_mm 8 +- 0.25 (value +- U95, k = 2)"
+
+
+def test_no_u95_label_without_an_uncertainty():
+    f = next(ln for ln in summary_lines(_report(WP, u95=None)) if ln.startswith("finding"))
+    assert f == "finding    periodic_axis_error: axis X, period_mm 8"
+
+
+def test_workpiece_u95_before_and_after():
+    # U95 max: baseline max(2.0, 1.0) = 2.0, extended max(0.75, 1.25) = 1.25; the largest change is b's
+    # -3.0 - (-1.0) = -2.0 (a's is +0.5)
+    w = [ln for ln in summary_lines(_report(WP)) if ln.startswith("workpiece")]
+    assert w == ["workpiece  U95 max 2.000 -> 1.250 um (baseline -> extended, 2 targets); "
+                 "largest change -2.000 um at b"]
+
+
+def test_workpiece_line_when_not_identifiable_or_nothing_found():
+    nulls = [{k: (v if k == "target" else None) for k, v in r.items()} for r in WP]
+    assert [ln for ln in summary_lines(_report(nulls, identifiable=False)) if ln.startswith("workpiece")] == \
+        ["workpiece  not identifiable by this design (reported as null)"]
+    rep = _report(WP)
+    rep["findings"] = []
+    assert not [ln for ln in summary_lines(rep) if ln.startswith("workpiece")]
+
+
+def test_u95_label_only_when_a_printed_parameter_has_one():
+    """Only the first 6 parameters are printed; main said '(value +- U95, k = 2)' when only a 7th,
+    unprinted one had a U95 (no printed value carried a +-)."""
+    rep = _report(WP)
+    rep["findings"][0]["params"] = {f"p{i}": float(i) for i in range(7)}
+    rep["findings"][0]["params_u95"] = {"p6": 0.5}
+    f = next(ln for ln in summary_lines(rep) if ln.startswith("finding"))
+    assert f == "finding    periodic_axis_error: p0 0, p1 1, p2 2, p3 3, p4 4, p5 5"
+    rep["findings"][0]["params_u95"] = {"p5": 0.5}
+    f = next(ln for ln in summary_lines(rep) if ln.startswith("finding"))
+    assert f.endswith("p5 5 +- 0.5 (value +- U95, k = 2)")
+
+
+def test_an_iso230_2_test_says_deviation_not_workpiece():
+    """On an ISO 230-2 log the estimand is the mean deviation per target and direction (ids such as
+    'P=-295mm-'), not a workpiece: main printed 'workpiece  U95 max ... 22 targets'."""
+    w = [ln for ln in summary_lines(_report(WP), "positioning") if ln.startswith(("workpiece", "deviation"))]
+    assert w == ["deviation  U95 max 2.000 -> 1.250 um (baseline -> extended, 2 means per target and direction); "
+                 "largest change -2.000 um at b"]
+    nulls = [{k: (v if k == "target" else None) for k, v in r.items()} for r in WP]
+    assert [ln for ln in summary_lines(_report(nulls, identifiable=False), "positioning")
+            if ln.startswith(("workpiece", "deviation"))] == \
+        ["deviation  not identifiable by this design (reported as null)"]
+
+
+def test_vmt_discover_on_a_positioning_log_words_its_estimand(tmp_path, capsys):
+    """The command itself: a simulated ISO 230-2 test with a drift (seed 2801, a development seed)."""
+    from scenarios.cli import main
+
+    log = tmp_path / "p.csv"
+    assert main(["simulate", "positioning", "--out", str(log), "--seed", "2801", "--drift-um-per-h", "20"]) == 0
+    capsys.readouterr()
+    assert main(["discover", str(log), "--json", str(tmp_path / "d.json")]) == 0
+    out = capsys.readouterr().out
+    assert "finding    thermal_drift" in out, out
+    assert "\ndeviation  U95 max " in out and "means per target and direction" in out and "workpiece" not in out
