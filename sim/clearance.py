@@ -789,9 +789,12 @@ def near_segments_many(parts) -> list:
             for j in js:
                 todo[j], full[j] = (np.arange(n_of[j]), True) if own[j] is None else (own[j], False)
             continue
-        qa, qb, qf = ([x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][1].a for j in js))],
-                      [x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][1].b for j in js))],
-                      [x if own[j] is None else x[own[j]] for j, x in zip(js, (parts[j][2] for j in js))])
+        def looked_up(j, x):  # (part j's rows of x that are looked up)
+            return x if own[j] is None else x[own[j]]
+
+        qa = [looked_up(j, parts[j][1].a) for j in js]
+        qb = [looked_up(j, parts[j][1].b) for j in js]
+        qf = [looked_up(j, parts[j][2]) for j in js]
         found = [clr._certs.in_order(x, y, f) for x, y, f in zip(qa, qb, qf)]
         cut = np.cumsum([0] + [len(x[0]) for x in found])
         r_old, moved = np.concatenate([x[0] for x in found]), np.concatenate([x[1] for x in found])
