@@ -602,6 +602,21 @@ def test_an_unnamed_smooths_workpiece_shift_is_tested_and_carried(drift_um):
         assert np.all(u95 >= np.abs(D))  # the U95 reaches the baseline's answer at every target
 
 
+def test_a_knock_whose_every_later_touch_is_an_outlier_is_not_dust():
+    """gen_a knock 811: the part knocked in set-up C198 with a quarter of its touches (12 of 48) left; all 12
+    touches after the knock are beyond the outlier bound, so none is left for the set-up's other touches to
+    show the step. Twelve outliers that one rigid step (three parameters) leaves all within the bound agree
+    with it beyond what chips would: structure, kept, 'unexplained' (the generator's truth: out of the
+    catalogue). Requiring the other touches to see the step in every case called them dust ('outlier')."""
+    from scenarios.blind import gen_a
+
+    log, truth = gen_a.generate("knock", 811)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    assert rep["cause"] in truth.acceptable_causes, rep["cause"]
+    assert rep["outlier_rows"] == [], rep["outlier_rows"]
+
+
 def test_a_cause_rejected_without_its_largest_touches_is_judged_with_them():
     """gen_b local_scale_defect 829 and 1003: the bump's largest touches (6 at 829, residuals 1-4.6 um at
     0.21 um noise) are set aside as outliers, the local scale defect adopted on the rest, then refused by
