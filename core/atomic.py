@@ -281,6 +281,22 @@ def input_problem(path, noun: str = "file") -> str | None:
     return None
 
 
+#: Magic numbers of compressed files handed to vmt where it reads text: (first bytes, format,
+#: the command that decompresses it keeping the original).
+_COMPRESSED = ((b"\x1f\x8b", "gzip", "gunzip -k"), (b"BZh", "bzip2", "bunzip2 -k"),
+               (b"\xfd7zXZ\x00", "xz", "unxz -k"), (b"(\xb5/\xfd", "zstd", "unzstd"), (b"PK\x03\x04", "zip", "unzip"))
+
+
+def compressed_problem(path, head: bytes) -> str | None:
+    """Why a file whose text could not be decoded is not text, when its first bytes ``head`` are
+    a compressed format's (``"gzip-compressed, not text: decompress it first (gunzip -k
+    log.csv.gz)"``), else None. vmt's text formats are plain UTF-8 (docs/formats.md)."""
+    for magic, kind, cmd in _COMPRESSED:
+        if head.startswith(magic):
+            return f"{kind}-compressed, not text: decompress it first ({cmd} {path})"
+    return None
+
+
 def same_file(a, b) -> bool:
     """True when paths ``a`` and ``b`` name the same file (links and ``..`` resolved)."""
     try:

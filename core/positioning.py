@@ -258,7 +258,10 @@ def _read_text(path, what: str) -> tuple[str, str]:
     try:
         return p.read_text(encoding="utf-8-sig"), src
     except UnicodeDecodeError as e:
-        raise PositioningLogError(f"{src}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+        from core.atomic import compressed_problem
+
+        raise PositioningLogError(f"{src}: " + (compressed_problem(src, e.object[:8])
+                                                or f"not UTF-8 text ({e.reason} at byte {e.start})")) from None
 
 
 def read_positioning_log(path: str | os.PathLike) -> PositioningLog:

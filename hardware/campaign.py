@@ -380,7 +380,9 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
-        raise ProbeLogError(f"{p}: not UTF-8 text at byte {e.start}") from None
+        from core.atomic import compressed_problem
+
+        raise ProbeLogError(f"{p}: " + (compressed_problem(p, data[:8]) or f"not UTF-8 text at byte {e.start}")) from None
     log = parse_probe_log(text, source=str(p))
     header = next(line for line in text.splitlines() if line and not line.startswith("#"))
     columns = next(csv.reader([header]))
