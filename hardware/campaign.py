@@ -425,7 +425,8 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
                  unlock: bool = False, home: bool = False, plan_path: str | None = None,
                  clock: Callable[[], float] = time.time,
                  on_touch: Callable[[int, ProbeResult], None] | None = None,
-                 require_limits: bool = True) -> CampaignResult:
+                 require_limits: bool = True,
+                 on_start: Callable[[int, int], None] | None = None) -> CampaignResult:
     """Probe ``plan`` on ``backend`` and append every touch to the log ``out``.
 
     Parameters
@@ -443,6 +444,9 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         Wall-clock seconds (``t_s`` is ``clock() - started_unix``, never going backwards).
     on_touch : callable(row, ProbeResult) or None
         Called after each touch is on disk.
+    on_start : callable(rows_on_disk, rows_of_plan) or None
+        Called once, when the log is recovered (or found absent), before any motion: a resumed
+        run's progress starts at the rows already done, not at zero.
 
     Raises
     ------
@@ -476,6 +480,8 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         done, last_t, started = 0, 0.0, None
     statuses: dict[str, int] = {}
     before = done
+    if on_start is not None:  # (rows already on disk, rows of the plan): a resumed run's progress starts there
+        on_start(before, plan.n)
     if done >= plan.n:
         if fd is not None:
             os.close(fd)
