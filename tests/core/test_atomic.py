@@ -163,7 +163,7 @@ def test_run_outputs_takes_back_what_a_failed_run_wrote(tmp_path):
 def test_run_outputs_puts_back_replaced_folders_and_entries_and_commit_drops_the_kept_copies(tmp_path):
     """A report folder replaced whole, an entry of a folder replaced or removed, a file removed: each
     back as it was after a failed run (main lost them all); after a run that succeeded the kept
-    copies (hard links) are dropped and the new outputs stay."""
+    copies are dropped and the new outputs stay."""
     import shutil
 
     rep, comp, j = tmp_path / "rep", tmp_path / "comp", tmp_path / "j.json"
@@ -176,7 +176,7 @@ def test_run_outputs_puts_back_replaced_folders_and_entries_and_commit_drops_the
     (comp / "Y.comp").write_text("old Y")
     j.write_text("old json")
     outs = RunOutputs([rep, comp, j])
-    assert os.stat(j).st_nlink == 2                       # kept by a hard link, not a copy
+    assert os.stat(j).st_nlink == 1                       # kept as a copy, not a second name of it
     new = tmp_path / ".rep.new"
     new.mkdir()
     (new / "index.html").write_text("new page")
@@ -196,6 +196,24 @@ def test_run_outputs_puts_back_replaced_folders_and_entries_and_commit_drops_the
     outs.commit()
     assert listing(tmp_path) == ["comp", "j.json", "rep"] and j.read_text() == "new json"
     assert os.stat(rep / "index.html").st_nlink == 1
+
+
+def test_run_outputs_survives_a_writer_that_writes_in_place(tmp_path):
+    """A writer that opens an output and rewrites it in place (truncate, write, fail half way),
+    a file and an entry of an output folder: after the failed run both hold the user's content
+    again. On main the kept copy was a hard link, the same inode: truncating the output truncated
+    it too, and the failed run's half-written file was what got 'put back'."""
+    j, comp = tmp_path / "j.json", tmp_path / "comp"
+    j.write_text("user's json")
+    comp.mkdir()
+    (comp / "X.comp").write_text("user's X")
+    outs = RunOutputs([j, comp])
+    for p in (j, comp / "X.comp"):
+        with open(p, "w") as f:                          # in place: the same inode, truncated
+            f.write("ha")                               # ... and the run fails here
+    outs.remove_written()
+    assert j.read_text() == "user's json" and (comp / "X.comp").read_text() == "user's X"
+    assert listing(tmp_path) == ["comp", "j.json"] and listing(comp) == ["X.comp"]
 
 
 def test_run_outputs_keeps_everything_when_nothing_was_written(tmp_path):
