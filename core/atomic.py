@@ -347,8 +347,8 @@ class RunOutputs:
     would write through a link into the kept content too, and a failed run
     would then "put back" its own half-written file; with a copy nothing a
     run does at the output reaches what is kept. The price: the bytes of
-    the earlier outputs are copied once per run (the kernel's copy,
-    ``shutil.copy2``; a 240 MB log about 0.3 s).
+    the earlier outputs are copied once per run (``shutil.copy2``: a
+    48.5 MB probe log of 2e5 rows kept in 0.16 s at load 12 on 2 cores).
 
     :meth:`remove_written` (the run failed) removes what the run created or
     changed there: a new file or folder, new or replaced entries of a
