@@ -47,7 +47,8 @@ def register(sub) -> None:
                      errors_default="drawn", errors_why="the emulator's machine, the same as probe --controller "
                                                         "virtual:SCENE")
     add_noise_arg(s, "default 0 on a built-in machine, as probe --controller virtual:SCENE; a machine file's probe")
-    s.add_argument("--seed", type=int, default=0, help="seed of the noise (0)")
+    s.add_argument("--seed", type=int, default=None,
+                   help="seed of the probing noise (0); only where there is noise: --noise-um, or a machine file's")
     s.add_argument("--scale-ppm", default="0,0,0", help="scale errors of X,Y,Z, µm/m (0,0,0)")
     s.add_argument("--ec0y-urad", type=float, default=0.0, help="squareness EC0Y, µrad (0)")
     option(s, "--limits-mm", dest="limits", old=("--limits",),
@@ -84,6 +85,7 @@ def served_machine(args):
     machine file with its errors and its probe.
     """
     from core.exceptions import ConfigError
+    from core.units import UM
     from hardware.virtual import builtin_machine, sim_machine
     from sim.machinefile import truth_machine
     from sim.machinefile import builtin_names
@@ -93,12 +95,24 @@ def served_machine(args):
             if v is not None:
                 raise ConfigError(f"{opt}: the simple scene has its own errors (--scale-ppm, --ec0y-urad); "
                                   "give --scene ARTEFACT to probe an artefact on a machine")
-        return builtin_machine(args.noise_um or 0.0, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
+        _seed_needs_noise(args, args.noise_um or 0.0)
+        return builtin_machine(args.noise_um or 0.0, args.seed or 0, _floats3(args.scale_ppm, "--scale-ppm"),
                                args.ec0y_urad)
     name = args.machine or "nmv3000"
     spec = truth_machine(name, args.errors, "drawn")
     noise = args.noise_um if args.noise_um is not None else (0.0 if name in builtin_names() else None)
-    return sim_machine(args.scene, noise, args.seed, spec=spec)
+    _seed_needs_noise(args, spec.probe.sigma_m / UM if noise is None else noise)
+    return sim_machine(args.scene, noise, args.seed or 0, spec=spec)
+
+
+def _seed_needs_noise(args, noise_um: float) -> None:
+    """--seed seeds the probing noise only (the served machine draws nothing else): refused, not
+    ignored, where the noise is zero."""
+    from core.exceptions import ConfigError
+
+    if args.seed is not None and not noise_um > 0:
+        raise ConfigError(f"--seed {args.seed}: it seeds the probing noise, and the served machine has none; "
+                          "give --noise-um (a built-in machine is served noise-free)")
 
 
 def run_serve(args) -> int:

@@ -284,6 +284,33 @@ def _touches(machine):
     return np.array(out)
 
 
+def test_serve_seed_only_where_there_is_noise(tmp_path):
+    """machine serve --seed seeds the probing noise only: on a noise-free machine (a built-in one
+    by default, --noise-um 0, the simple scene) it is refused, not ignored; with noise (--noise-um,
+    a machine file's probe) it is taken, and another seed draws other touches."""
+    from core.exceptions import ConfigError
+    from scenarios.cli.machine import served_machine
+
+    for extra in ((), ("--noise-um", "0"), ("--machine", "nmv3000")):
+        with pytest.raises(ConfigError, match=r"^--seed 3: it seeds the probing noise, and the served machine has "
+                                              r"none; give --noise-um"):
+            served_machine(_serve_args("--seed", "3", *extra))
+    from scenarios.cli import build_parser
+
+    simple = build_parser().parse_args(["machine", "serve", "--port", "0", "--scene", "simple", "--seed", "3"])
+    with pytest.raises(ConfigError, match="--seed 3: it seeds the probing noise"):
+        served_machine(simple)
+    a = _touches(served_machine(_serve_args("--noise-um", "0.5", "--seed", "3")))
+    b = _touches(served_machine(_serve_args("--noise-um", "0.5", "--seed", "4")))
+    assert not np.array_equal(a, b)
+    assert np.array_equal(_touches(served_machine(_serve_args("--noise-um", "0.5"))),
+                          _touches(served_machine(_serve_args("--noise-um", "0.5", "--seed", "0"))))
+    f = tmp_path / "m.toml"  # a machine file whose probe has noise: the seed is taken
+    f.write_text('format = "vmt-machine/1"\nname = "m"\nbase = "nmv3000"\nerrors = "none"\n'
+                 '[probe]\nnoise_um = 0.3\n')
+    served_machine(_serve_args("--machine", str(f), "--seed", "3"))
+
+
 def test_serve_and_virtual_scene_are_one_machine_with_the_old_truth():
     """machine serve --scene X and probe --controller virtual:X: one machine, no noise, the old 'drawn' truth."""
     from hardware.virtual import open_backend
