@@ -47,6 +47,7 @@ def test_a_resumed_run_estimates_from_its_own_items():
     p = TerminalProgress("campaign", stream=s, clock=clock, min_interval_s=0.0)
     clock.t = 100.0  # connecting, recovering the log: not this run's touches
     p.begin(60, 100)
+    assert p.done_before == 60  # a count of items, named as one (it was 'start', which reads as a time)
     assert s.getvalue().endswith("60/100 ( 60 %)")  # drawn at once, no estimate before a touch
     clock.t = 110.0
     p(65, 100)
