@@ -89,30 +89,24 @@ def served_machine(args):
     from hardware.virtual import builtin_machine, sim_machine
     from sim.machinefile import truth_machine
     from sim.machinefile import builtin_names
+    from scenarios.cli.options import refuse_seed_without_noise
 
     if args.scene == "simple":
         for opt, v in (("--machine", args.machine), ("--errors", args.errors)):
             if v is not None:
                 raise ConfigError(f"{opt}: the simple scene has its own errors (--scale-ppm, --ec0y-urad); "
                                   "give --scene ARTEFACT to probe an artefact on a machine")
-        _seed_needs_noise(args, args.noise_um or 0.0)
+        refuse_seed_without_noise(args.seed, args.noise_um, 0.0, "the simple scene is served noise-free")
         return builtin_machine(args.noise_um or 0.0, args.seed or 0, _floats3(args.scale_ppm, "--scale-ppm"),
                                args.ec0y_urad)
     name = args.machine or "nmv3000"
     spec = truth_machine(name, args.errors, "drawn")
-    noise = args.noise_um if args.noise_um is not None else (0.0 if name in builtin_names() else None)
-    _seed_needs_noise(args, spec.probe.sigma_m / UM if noise is None else noise)
+    builtin = name in builtin_names()
+    noise = args.noise_um if args.noise_um is not None else (0.0 if builtin else None)
+    refuse_seed_without_noise(args.seed, args.noise_um, 0.0 if builtin else spec.probe.sigma_m / UM,
+                              "a built-in machine is served noise-free" if builtin
+                              else f"the probe of machine file {name} has none")
     return sim_machine(args.scene, noise, args.seed or 0, spec=spec)
-
-
-def _seed_needs_noise(args, noise_um: float) -> None:
-    """--seed seeds the probing noise only (the served machine draws nothing else): refused, not
-    ignored, where the noise is zero."""
-    from core.exceptions import ConfigError
-
-    if args.seed is not None and not noise_um > 0:
-        raise ConfigError(f"--seed {args.seed}: it seeds the probing noise, and the served machine has none; "
-                          "give --noise-um (a built-in machine is served noise-free)")
 
 
 def run_serve(args) -> int:
