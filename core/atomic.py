@@ -281,20 +281,31 @@ def input_problem(path, noun: str = "file") -> str | None:
     return None
 
 
-#: Magic numbers of compressed files handed to vmt where it reads text: (first bytes, format,
-#: the command that decompresses it keeping the original).
-_COMPRESSED = ((b"\x1f\x8b", "gzip", "gunzip -k"), (b"BZh", "bzip2", "bunzip2 -k"),
-               (b"\xfd7zXZ\x00", "xz", "unxz -k"), (b"(\xb5/\xfd", "zstd", "unzstd"), (b"PK\x03\x04", "zip", "unzip"))
+#: Magic numbers of compressed files handed to vmt where it reads text: (first bytes, format, the
+#: command that writes the decompressed bytes on stdout, whatever the file's name ends with).
+_COMPRESSED = ((b"\x1f\x8b", "gzip", "gzip -dc"), (b"BZh", "bzip2", "bzip2 -dc"), (b"\xfd7zXZ\x00", "xz", "xz -dc"),
+               (b"(\xb5/\xfd", "zstd", "zstd -dc"), (b"PK\x03\x04", "zip", "unzip -p"))
 
 
-def compressed_problem(path, head: bytes) -> str | None:
-    """Why a file whose text could not be decoded is not text, when its first bytes ``head`` are
-    a compressed format's (``"gzip-compressed, not text: decompress it first (gunzip -k
-    log.csv.gz)"``), else None. vmt's text formats are plain UTF-8 (docs/formats.md)."""
+def not_text_problem(path, head: bytes, err: UnicodeDecodeError, offset: int = 0) -> str:
+    """Why the file ``path`` is not text, in one line, for every reader of vmt's text formats
+    (plain UTF-8, docs/formats.md) that failed to decode it with ``err``.
+
+    ``head`` is the file's first bytes (b"" where the bad bytes are not at its start): a compressed
+    format's magic number there gives ``"gzip-compressed, not text: decompress it first (gzip -dc
+    log.csv.gz > log.csv.gz.txt)"``, a command that works whatever the name ends with (``gunzip
+    -k`` refuses a name without ``.gz``), the paths quoted for a POSIX shell. Else ``"not UTF-8
+    text (REASON at byte N)"``, N counted from the file's first byte (``offset`` is where the
+    bytes ``err`` decoded start in the file).
+    """
+    import shlex
+
     for magic, kind, cmd in _COMPRESSED:
         if head.startswith(magic):
-            return f"{kind}-compressed, not text: decompress it first ({cmd} {path})"
-    return None
+            src = shlex.quote(str(path))
+            dst = shlex.quote(f"{path}.txt")
+            return f"{kind}-compressed, not text: decompress it first ({cmd} {src} > {dst})"
+    return f"not UTF-8 text ({err.reason} at byte {offset + err.start})"
 
 
 def same_file(a, b) -> bool:

@@ -330,10 +330,9 @@ def _scan(f, src: str) -> tuple[int, bool]:
         try:
             s = raw[bom:].decode("utf-8")
         except UnicodeDecodeError as e:
-            from core.atomic import compressed_problem
+            from core.atomic import not_text_problem
 
-            raise ProbeLogError(f"{src}: " + ((off == 0 and compressed_problem(src, raw))
-                                              or f"not UTF-8 text ({e.reason} at byte {off + bom + e.start})")) from None
+            raise ProbeLogError(f"{src}: {not_text_problem(src, raw if off == 0 else b'', e, off + bom)}") from None
         off += len(raw)
         nul = nul or "\x00" in s
         blank = blank and not s.strip()

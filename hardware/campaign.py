@@ -380,9 +380,9 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
-        from core.atomic import compressed_problem
+        from core.atomic import not_text_problem
 
-        raise ProbeLogError(f"{p}: " + (compressed_problem(p, data[:8]) or f"not UTF-8 text at byte {e.start}")) from None
+        raise ProbeLogError(f"{p}: {not_text_problem(p, data[:8], e)}") from None
     log = parse_probe_log(text, source=str(p))
     header = next(line for line in text.splitlines() if line and not line.startswith("#"))
     columns = next(csv.reader([header]))
