@@ -348,8 +348,10 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
     """Find where a campaign stopped: complete rows on disk, checked against the plan.
 
     A last line without its newline (the process died while writing it) is
-    cut off the file. Every complete row must be the plan row of the same
-    index (same ``setup``, ``target`` and nominal point). Unless the caller
+    cut off the file, once the rest is found a log of this plan (a file that
+    is not, e.g. a compressed log, is refused and left as it was). Every
+    complete row must be the plan row of the same index (same ``setup``,
+    ``target`` and nominal point). Unless the caller
     holds the writer's lock (``locked``), it is taken for the recovery, so
     a line another client is writing is never cut.
 
@@ -371,18 +373,15 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
     data = p.read_bytes()
     keep = data.rfind(b"\n") + 1
     torn = len(data) - keep
-    if torn:
-        with open(p, "r+b") as f:
-            f.truncate(keep)
-            f.flush()
-            os.fsync(f.fileno())
-        data = data[:keep]
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
-        from core.atomic import not_text_problem
+        if e.start < keep or e.reason != "unexpected end of data":  # more than a character cut by the tear
+            from core.atomic import not_text_problem
 
-        raise ProbeLogError(f"{p}: {not_text_problem(p, data[:8], e)}") from None
+            raise ProbeLogError(f"{p}: {not_text_problem(p, data[:8], e)}") from None
+    if torn:
+        text = data[:keep].decode("utf-8")
     log = parse_probe_log(text, source=str(p))
     header = next(line for line in text.splitlines() if line and not line.startswith("#"))
     columns = next(csv.reader([header]))
@@ -400,6 +399,11 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
         if not same:
             raise PlanError(f"{p}: row {i} (setup {log.columns['setup'][i]!r}, target "
                             f"{log.columns['target'][i]!r}) is not plan row {i}: not a log of this plan")
+    if torn:  # cut only now, the rows before it found a log of this plan: another file is left whole
+        with open(p, "r+b") as f:
+            f.truncate(keep)
+            f.flush()
+            os.fsync(f.fileno())
     t = log.columns["t_s"]
     t = t[~np.isnan(t)]
     return Recovered(log.n, columns, dict(log.meta), float(t.max()) if t.size else 0.0, torn)

@@ -53,8 +53,6 @@ def test_a_file_that_is_not_text_is_refused_in_the_same_words_by_every_reader(tm
         with pytest.raises(VmtError) as e:
             read(bad)
         assert str(e.value) == f"{prefix}{bad}: not UTF-8 text (invalid start byte at byte {k + 3})"
-    if reader == "recover_log":
-        return  # recover_log cuts a compressed file before it reads it: the next commit
     packed = tmp_path / "log.csv"  # compressed, under a name that does not say so
     packed.write_bytes(gzip.compress(body))
     with pytest.raises(VmtError) as e:

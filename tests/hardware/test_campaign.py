@@ -273,6 +273,44 @@ def test_recover_cuts_a_torn_line_and_refuses_another_plan(tmp_path, plan_path):
         recover_log(ref_path, other)
 
 
+def test_recover_leaves_a_file_that_is_not_a_log_of_the_plan_whole(tmp_path, plan_path, capsys):
+    """recover_log cut the last line without its newline before it looked at the file: a gzip
+    log lost the bytes after its last newline byte, a log of another plan lost its last
+    line, and only then were they refused. Now each is refused and its bytes are as they were;
+    a torn line that ends inside a UTF-8 character is still cut (and its rows recovered)."""
+    import gzip
+
+    plan = read_probe_log(plan_path)
+    direct_log(tmp_path, plan)
+    text = (tmp_path / "direct.csv").read_text()
+    torn = text[: text.index("sphere,s3")] + "sphere,s3,0.1"
+    packed = tmp_path / "packed.csv"
+    body = gzip.compress(torn.encode(), mtime=0)
+    assert not body.endswith(b"\n")  # the bytes after its last newline byte were cut as a "torn line"
+    packed.write_bytes(body)
+    with pytest.raises(ProbeLogError, match="gzip-compressed, not text"):
+        recover_log(packed, plan)
+    assert packed.read_bytes() == body
+    other = tmp_path / "other.csv"
+    other.write_text(torn)
+    with pytest.raises(PlanError, match="not plan row 5"):
+        recover_log(other, plan_log(n_sphere=6))
+    assert other.read_text() == torn
+    cut = torn.encode() + "\u00b5".encode()[:1]  # the first byte of a 2-byte character
+    other.write_bytes(cut)
+    rec = recover_log(other, plan)
+    assert rec.rows_done == 7 and rec.torn_bytes == len("sphere,s3,0.1") + 1
+    assert other.read_text() == text[: text.index("sphere,s3")]
+    emu, srv = serve()  # the CLI: vmt probe --resume on it, one line, exit 2, the file whole
+    try:
+        assert main(probe_args(srv.url, plan_path, packed, "--resume")) == 2
+    finally:
+        srv.stop()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "gzip-compressed, not text" in err and emu.probes == 0
+    assert packed.read_bytes() == body
+
+
 def test_safety_checks_before_any_connection(tmp_path, plan_path, capsys):
     emu, srv = serve()
     out = tmp_path / "log.csv"
