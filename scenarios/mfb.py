@@ -1545,12 +1545,18 @@ def read_bar_calibration(path):
     from core.exceptions import ConfigError
     from core.mfb import BarCalibration
 
+    from core.atomic import not_text_problem
+
     try:
-        with open(path, encoding="utf-8") as f:
-            doc = json.load(f)
+        with open(path, "rb") as f:
+            data = f.read()
     except OSError as e:
         raise ConfigError(f"bar calibration {path}: cannot read ({e.strerror or e})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+    try:
+        doc = json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as e:  # e.g. a compressed file: which compression, how to decompress it
+        raise ConfigError(f"bar calibration {path}: {not_text_problem(path, data[:8], e)}") from None
+    except json.JSONDecodeError as e:
         raise ConfigError(f"bar calibration {path}: not JSON ({e})") from None
     if not isinstance(doc, dict) or doc.get("format") != BAR_CALIBRATION_FORMAT:
         raise ConfigError(f"bar calibration {path}: format must be {BAR_CALIBRATION_FORMAT!r}")
