@@ -1321,8 +1321,10 @@ def compensators(directory, name: str):
         out["per_axis_files"] = lambda m: AxisCompensation(m, joints, joint_offset_m=off)
     pj = d / f"{name}-comp.json"
     if pj.is_file():
-        try:
-            doc = json.loads(pj.read_text(encoding="utf-8"))
+        from core.keyreader import read_text_file
+
+        try:  # not UTF-8 (e.g. compressed): one line naming it, as every text reader (was a traceback)
+            doc = json.loads(read_text_file(pj, ConfigError, "compensation file"))
         except json.JSONDecodeError as e:
             raise ConfigError(f"{pj}: not JSON ({e.msg}, line {e.lineno})") from None
         chain, tables, const, pts = comp_tables(doc)

@@ -90,10 +90,14 @@ def test_the_commands_say_it_in_one_line(tmp_path, capsys):
     cal.write_bytes(gzip.compress(b'{"format": "vmt-bar-calibration/1"}'))
     readme = tmp_path / "README.md"
     readme.write_text("x\n")
-    for argv in (["scenario", "mfb-3axis", "--bar-calibration", str(cal)],
-                 ["bench", "--from-json", str(cal), "--readme", str(readme)]):
+    comp = tmp_path / "comp"  # vmt scenario --apply-comp DIR: its volumetric table, gzip-compressed (was a traceback)
+    comp.mkdir()
+    (comp / "mfb-3axis-comp.json").write_bytes(gzip.compress(b"{}"))
+    for argv, bad in ((["scenario", "mfb-3axis", "--bar-calibration", str(cal)], cal),
+                      (["bench", "--from-json", str(cal), "--readme", str(readme)], cal),
+                      (["scenario", "mfb-3axis", "--apply-comp", str(comp)], comp / "mfb-3axis-comp.json")):
         capsys.readouterr()
         assert main(argv) == 2
         err = capsys.readouterr().err
-        assert err.count("\n") == 1 and f"{cal}: gzip-compressed, not text: decompress it first (gzip -dc " in err
+        assert err.count("\n") == 1 and f"{bad}: gzip-compressed, not text: decompress it first (gzip -dc " in err
     assert readme.read_text() == "x\n"
