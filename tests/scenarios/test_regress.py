@@ -10,6 +10,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 import pytest
 
+from scenarios import regress
 from scenarios.cli import main
 from scenarios.regress import (GAUGE_FLOOR, IDENTIFICATIONS, Causes, Estimate, Mutation, Rule, StudyError, check,
                                junit_xml, load_study, loads_study, run_study, simultaneous_k)
@@ -199,9 +200,17 @@ def test_simultaneous_k_known_answers():
     rho = np.hstack([np.full((n, 1), 0.8), np.diag(np.full(n, 0.6))])
     k2, m2 = simultaneous_k([est(rho[:25]), est(rho[25:])])
     assert m2 == n and stats.norm.ppf(0.975) / 2 + 0.05 < k2 < sidak - 0.05
-    assert simultaneous_k([est(rho[:25]), est(rho[25:])]) == (k2, m2)
+    assert simultaneous_k([est(rho[:25]), est(rho[25:])]) == (k2, m2)   # from the memo
+    regress._SIMULTANEOUS_K.clear()
+    assert simultaneous_k([est(rho[:25]), est(rho[25:])]) == (k2, m2)   # drawn again: the fixed seed
     t4 = simultaneous_k([est([[0.5]], np.array([4.0]))])[0]
     assert t4 == pytest.approx(stats.t.ppf(0.975, 4) / 2, abs=0.015)
+    # the memo's key holds what the draws read: the same factor without dof, or another factor, is drawn anew
+    k1 = simultaneous_k([est([[0.5]])])[0]
+    assert k1 == pytest.approx(stats.norm.ppf(0.975) / 2, abs=0.01) and k1 < t4 - 0.1   # (0.98 against 1.39)
+    rho2 = rho.copy()
+    rho2[0, 0] = 0.0  # the first value now independent of the others
+    assert simultaneous_k([est(rho2[:25]), est(rho2[25:])])[0] != k2
     # a value fixed by a convention (U95 0) is left out of the family
     fixed = est(np.vstack([np.zeros((1, n)), np.diag(np.full(n, 0.3))]))
     assert simultaneous_k([fixed])[1] == n
