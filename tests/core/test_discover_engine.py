@@ -184,6 +184,58 @@ def test_outliers_found_by_row():
     assert find_outliers(np.ones((200, 1)), rng.normal(0, 1, 200)) == []
 
 
+def test_outlier_passes_downdate_the_basis_as_a_fresh_factorisation_would():
+    """find_outliers takes each pass's basis as the previous one less the removed row (discover's
+    _without_row, O(n r) instead of a pivoted QR of the rows left). Against a fresh factorisation of
+    the rows left, on the cross pocket's baseline design (432 x 158) less rows of leverage up to 0.97:
+    orthonormal and the same projection to 1e-12 (rounding of a few products; a wrong downdate
+    factor is off by the row's leverage, 1e-2 or more), and the same outliers as a loop that factors
+    afresh on a campaign with five planted ones."""
+    from core.baseline import planar
+    from core.discover import _without_row
+
+    t, _ = S.campaign("none", 3)
+    bl = planar(t, None, Settings().grid_steps_mm, yaw=selfcal.yaw_for_chain(None), extra={})
+    X, y = np.asarray(bl.A), bl.y
+    Q = orth(X)
+    h = np.sum(Q ** 2, axis=1)
+    keep = np.ones(len(X), bool)
+    for k in (int(np.argmax(np.where(h < 0.97, h, 0))), 5, 200, 431):  # the highest leverage first
+        pos = int(np.sum(keep[:k]))
+        keep[k] = False
+        Q = _without_row(Q, pos)
+        F = orth(X[keep])
+        assert Q.shape == F.shape
+        assert np.abs(Q.T @ Q - np.eye(Q.shape[1])).max() < 1e-12
+        assert np.abs(Q @ (Q.T @ y[keep]) - F @ (F.T @ y[keep])).max() < 1e-12 * np.abs(y).max()
+    dq = t.dq_m.copy()
+    planted = [7, 90, 150, 300, 410]
+    dq[planted] += [6e-6, -5e-6, 8e-6, 7e-6, -6e-6]
+    y = dq
+
+    def fresh(X, y, alpha=0.001):  # find_outliers' loop as it was: a pivoted QR of the rows left every pass
+        from scipy import stats
+
+        keep, out = np.ones(len(y), bool), []
+        while True:
+            idx = np.flatnonzero(keep)
+            Qf = orth(X[idx])
+            r = y[idx] - Qf @ (Qf.T @ y[idx])
+            dof = len(idx) - Qf.shape[1]
+            hh = np.sum(Qf ** 2, axis=1)
+            ok = hh < 0.99
+            den = np.where(ok, 1 - hh, 1.0)
+            s2 = (float(r @ r) - np.where(ok, r ** 2 / den, 0.0)) / (dof - 1)
+            ts = np.where(ok, np.abs(r) / np.sqrt(np.maximum(s2, 1e-300) * den), 0.0)
+            k = int(np.argmax(ts))
+            if ts[k] <= stats.t.isf(alpha / (2 * len(idx)), dof - 1):
+                return sorted(out)
+            out.append(int(idx[k]))
+            keep[idx[k]] = False
+
+    assert find_outliers(X, y) == fresh(X, y) == planted
+
+
 def test_outliers_are_confidently_dust_only_when_their_pattern_could_be_seen():
     """Three chips in three set-ups at random (concentration p 0.74) are dust, ``named``; one alone is
     ``ambiguous`` with its reason: one event cannot tell a chip from an intermittent mechanism (a seat
