@@ -214,6 +214,8 @@ def simultaneous_k(estimates, coverage: float = JOINT_COVERAGE, draws: int = SIM
     n = len(U)
     if n == 0:
         raise ValueError("simultaneous_k: no value with a U95")
+    if seed is None:  # fresh entropy: draws that are not to be repeated, nothing kept
+        return _simultaneous_k(F, U, dof, coverage, draws, seed)
     key = (hashlib.sha256(b"".join(np.ascontiguousarray(a, float).tobytes() + repr(a.shape).encode()
                                    for a in (F, U) + (() if dof is None else (dof,)))).hexdigest(),
            dof is None, float(coverage), int(draws), int(seed))

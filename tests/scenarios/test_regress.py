@@ -211,6 +211,10 @@ def test_simultaneous_k_known_answers():
     rho2 = rho.copy()
     rho2[0, 0] = 0.0  # the first value now independent of the others
     assert simultaneous_k([est(rho2[:25]), est(rho2[25:])])[0] != k2
+    kept = len(regress._SIMULTANEOUS_K)   # no seed: fresh draws, never kept nor served from the memo
+    # (another sample of the same band: k within 0.05, five times its sampling error at 1e5 draws)
+    assert abs(simultaneous_k([est(rho[:25]), est(rho[25:])], seed=None)[0] - k2) < 0.05
+    assert len(regress._SIMULTANEOUS_K) == kept
     # a value fixed by a convention (U95 0) is left out of the family
     fixed = est(np.vstack([np.zeros((1, n)), np.diag(np.full(n, 0.3))]))
     assert simultaneous_k([fixed])[1] == n
