@@ -258,6 +258,15 @@ def test_simultaneous_k_memo_key_holds_what_the_draws_read(monkeypatch):
     # no seed: drawn each time, not kept (the fixed seed's band is still the one served)
     assert drawn([est()], seed=None)[1] and drawn([est()], seed=None)[1]
     assert drawn([est()]) == (k0, False)
+    # a seed that is not a plain int is not keyed by int(seed): a Generator or a SeedSequence is drawn
+    # from (not refused), every call, not kept; 1.5 is refused by numpy, not served the band of seed 1
+    for s in (np.random.default_rng(1), np.random.SeedSequence(1)):
+        assert drawn([est()], seed=s)[1] and drawn([est()], seed=s)[1]
+    k1, _ = drawn([est()], seed=1)
+    with pytest.raises(TypeError, match="SeedSequence expects int"):
+        simultaneous_k([est()], seed=1.5)
+    assert drawn([est()], seed=np.int64(1)) == (k1, False)   # a numpy int is a plain int's key
+    assert drawn([est()]) == (k0, False)
 
 
 def test_check_by_hand_simultaneous():
