@@ -885,7 +885,11 @@ def _without_row(Q: np.ndarray, k: int) -> np.ndarray:
     of the rows left (O(n r^2)). The same span to rounding, so the same
     residuals and leverages (``find_outliers`` removes only rows of leverage
     below 0.99: the factor ``1 / sqrt(1 - s)`` stays below 10 and the rank
-    is kept).
+    is kept). Not always the rank a fresh factorisation would find: ``orth``
+    cuts a pivoted QR at ``|R_ii| <= 1e-9 |R_00|``, so a direction of the rows
+    left lying near that cut-off could be dropped by a fresh ``orth`` where the
+    downdate keeps it (the basis then one column wider: y's share along that
+    direction is projected out too, and the dof one fewer).
     """
     q = Q[k].copy()
     s = float(q @ q)
