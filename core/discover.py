@@ -1166,7 +1166,7 @@ class Discovery:
     cov_G_extended: np.ndarray | None = field(default=None, repr=False)
     structure: dict = field(default_factory=dict)
     rejected: tuple = ()
-    cv_rms_ratio_u95: float | None = None
+    cv_rms_ratio_95: list | None = None
 
     @property
     def cause(self) -> str:
@@ -1190,7 +1190,7 @@ class Discovery:
             "baseline_cv_rms_um": b_cv,
             "gain": {"rms_ratio": self.extended_rms_um / max(self.baseline_rms_um, 1e-300),
                      "cv_rms_ratio": self.extended_cv_rms_um / max(b_cv, 1e-300),
-                     "cv_rms_ratio_u95": self.cv_rms_ratio_u95},
+                     "cv_rms_ratio_95": self.cv_rms_ratio_95},
             "noise_um": self.noise,
             "diagnosis": [d.to_dict() for d in self.diagnosis],
             "diagnosis_extended": [d.to_dict() for d in self.diagnosis_extended],
@@ -1530,8 +1530,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         f"false-alarm rate {settings.alpha:g} split over {', '.join(FAMILIES)}; "
         f"materiality {settings.material_sigma:g} sigma per row",
         "U95: k = 2, sigma from each model's residuals",
-        "gain's cv_rms_ratio_u95: delete-one-set-up jackknife of the ratio, Student's t at 97.5 % with "
-        "set-ups - 1 degrees of freedom (none without an extension, cross-validation or three set-ups)"]
+        "gain's cv_rms_ratio_95: 95 % interval over set-ups (delete-one-set-up jackknife of the ratio's "
+        "logarithm, Student's t at 97.5 % with set-ups - 1 degrees of freedom); none without an extension, "
+        "cross-validation or three set-ups"]
     smooth_terms = [t for t in terms if t.penalty is not None]
     if smooth_terms:
         conv.append("extended workpiece beside an unnamed smooth: the smooth takes no combination the baseline "
@@ -1572,23 +1573,23 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         residuals_extended_um=res_e / UM, conventions=tuple(conv), workpiece_identifiable=ident,
         G_baseline_m=Gb, G_extended_m=Ge, cov_G_baseline=cGb, cov_G_extended=cGe,
         structure={"baseline": structure_b, "extended": structure_e}, rejected=tuple(rejected),
-        cv_rms_ratio_u95=_ratio_u95(held_b, held_e))
+        cv_rms_ratio_95=_ratio_interval(held_b, held_e, float(np.sqrt(cv_e / cv_b)) if cv_b > 0 else float("nan")))
 
 
 # ---------------------------------------------------------------------------
 # steps
 # ---------------------------------------------------------------------------
 def cv_ratio_text(gain: dict) -> str:
-    """The report's cross-validated RMS ratio as words: ``x0.27 +- 0.03 (U95)``, the U95 where there is one."""
-    u = gain.get("cv_rms_ratio_u95")
-    return f"x{gain['cv_rms_ratio']:.2f}" + (f" +- {u:.2f} (U95)" if u is not None else "")
+    """The report's cross-validated RMS ratio as words: ``x0.27, 95 %: 0.20-0.36``, the interval where there is one."""
+    iv = gain.get("cv_rms_ratio_95")
+    return f"x{gain['cv_rms_ratio']:.2f}" + (f", 95 %: {iv[0]:.2f}-{iv[1]:.2f}" if iv is not None else "")
 
 
 def _held_out(folds, y: np.ndarray, groups: np.ndarray, E: np.ndarray | None = None,
               penalty: np.ndarray | None = None) -> tuple[float, dict | None]:
     """The held-out mean square (``folds.mse``) and, per group, its sum of squares and rows.
 
-    The per-group sums are what :func:`_ratio_u95` resamples; None where
+    The per-group sums are what :func:`_ratio_interval` resamples; None where
     there is no cross-validation (Mallows' Cp is one in-sample figure: no
     held-out group to leave out).
     """
@@ -1603,22 +1604,24 @@ def _held_out(folds, y: np.ndarray, groups: np.ndarray, E: np.ndarray | None = N
     return float(e @ e) / max(folds.last_dof, 1), {g.item(): (a, b) for g, a, b in zip(gs, ss, nd)}
 
 
-def _ratio_u95(held_b: dict | None, held_e: dict | None) -> float | None:
-    """U95 of the cross-validated RMS ratio (extended / baseline): the delete-one-group jackknife.
+def _ratio_interval(held_b: dict | None, held_e: dict | None, ratio: float) -> list | None:
+    """95 % interval of the cross-validated RMS ratio (extended / baseline) over set-ups: [low, high].
 
-    The ratio is sqrt((S_e / n_e) / (S_b / n_b)) with S the held-out sums of
-    squares and n the predicted rows over every group (set-up); the
-    groups are the experiment's independent units (the rows of one set-up
-    share its placement, its C angle and its time), so the ratio is
-    recomputed with each group left out in turn and its jackknife variance
-    ``(G - 1) / G * sum (R_-g - mean)^2`` (Efron & Stein 1981) scaled by
-    Student's t at 97.5 % with G - 1 degrees of freedom. None when there is
-    no extension, no cross-validation, or fewer than three groups (two
-    leave-one-out values do not estimate a spread). Its coverage of the
-    ratio that repeated campaigns give is checked against the repeated
-    experiment itself in ``tests/core/test_discover_gain_u95.py``.
+    The measurand is the ratio that new set-ups of the same kind would
+    give: the set-ups are the sampled units (the rows of one share its
+    placement, its C angle and its time). The ratio ``sqrt((S_e / n_e) /
+    (S_b / n_b))`` (S the held-out sums of squares, n the predicted rows)
+    is recomputed with each set-up left out in turn; the jackknife
+    (Efron & Stein 1981) runs on its logarithm, whose standard deviation
+    times Student's t at 97.5 % with G - 1 degrees of freedom gives the
+    factor ``f`` of the interval ``[ratio / f, ratio * f]`` (a ratio is
+    positive: a symmetric U95 gave negative lower limits). On set-ups that
+    differ from each other more than by noise (other C angles, other
+    times) it is wider than the spread of repeated campaigns of the same
+    set-ups: it includes the set-up-to-set-up variation. None when there is
+    no extension, no cross-validation, or fewer than three set-ups.
     """
-    if held_b is None or held_e is None or held_b is held_e:
+    if held_b is None or held_e is None or held_b is held_e or not ratio > 0:
         return None
     gs = sorted(set(held_b) & set(held_e))
     if len(gs) < 3:
@@ -1626,11 +1629,12 @@ def _ratio_u95(held_b: dict | None, held_e: dict | None) -> float | None:
     sb, nb = (np.array([held_b[g][k] for g in gs]) for k in (0, 1))
     se, ne = (np.array([held_e[g][k] for g in gs]) for k in (0, 1))
     with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.sqrt(((se.sum() - se) / (ne.sum() - ne)) / ((sb.sum() - sb) / (nb.sum() - nb)))
-    if not np.all(np.isfinite(r)):
+        lr = 0.5 * np.log(((se.sum() - se) / (ne.sum() - ne)) / ((sb.sum() - sb) / (nb.sum() - nb)))
+    if not np.all(np.isfinite(lr)):
         return None
     G = len(gs)
-    return float(stats.t.ppf(0.975, G - 1) * np.sqrt((G - 1) / G * np.sum((r - r.mean()) ** 2)))
+    f = float(np.exp(stats.t.ppf(0.975, G - 1) * np.sqrt((G - 1) / G * np.sum((lr - lr.mean()) ** 2))))
+    return [float(ratio / f), float(ratio * f)]
 
 
 def _cv_gap(folds: Folds, st: _State, y, E, penalty, settings, seed: int, sigma: float) -> CvGap:
