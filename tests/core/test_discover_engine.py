@@ -683,7 +683,8 @@ def test_a_cause_rejected_without_its_largest_touches_is_judged_with_them():
     """gen_b local_scale_defect 829 and 1003: the bump's largest touches (6 at 829, residuals 1-4.6 um at
     0.21 um noise) are set aside as outliers, the local scale defect adopted on the rest, then refused by
     the rival check (a fixture slip 'explains as much' of what is left). Judged again with the touches put
-    back it stands: they were its structure, every row stays in, and the report says how many came back.
+    back (those whose residual it cuts by a quarter or more) it stands: they were its structure, and the
+    report says how many came back.
     The generator's truth names the defect. Without the re-judging (commit a206ffa) both read 'outlier',
     confidently."""
     from scenarios.blind import gen_b
@@ -693,5 +694,44 @@ def test_a_cause_rejected_without_its_largest_touches_is_judged_with_them():
         t = from_log(log)
         rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
         assert rep["cause"] in truth.acceptable_causes, (seed, rep["cause"])
-        assert rep["outlier_rows"] == [], (seed, rep["outlier_rows"])
+        # put back: the touches the defect reaches; any left set aside is one it does not reach (1003: row
+        # 151, residual 1.9 um, the defect's true effect there 0.0 um, cut 15 %: not its structure)
+        e = np.abs(truth.effect_dq_um)
+        assert all(e[r] < 0.05 * e.max() for r in rep["outlier_rows"]), (seed, rep["outlier_rows"])
         assert rep["findings"][0]["evidence"]["outliers_put_back"] >= 1, rep["findings"][0]["evidence"]
+        # the baseline judged on the rows the report keeps: the touches put back are structure
+        assert rep["structure"]["baseline"]["present"], (seed, rep["structure"]["baseline"])
+
+
+def test_a_chip_beside_a_cause_put_back_stays_an_outlier():
+    """gen_b local_scale_defect 829 with a 5 um chip on row 87, where the defect is nil (the reviewer's
+    chip.py): the put-back was all or nothing, so the chip came back with the bump's touches and was
+    reported as the defect's structure (outlier_rows []). Only the set-aside touches whose residual the
+    defect cuts by a quarter or more come back (the bump's 6: cut 47-82 %; the chip's: 5 %): the defect
+    is named, the chip stays an outlier, the 6 are put back."""
+    from scenarios.blind import gen_b
+
+    log, truth = gen_b.generate("local_scale_defect", 829)
+    assert abs(truth.effect_dq_um[87]) < 0.01  # the defect does not reach the chip's touch
+    t = from_log(log)
+    i = np.flatnonzero(t.row == 87)[0]
+    t.p_R[i] += t.n_R[i] * 5e-6
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    assert rep["cause"] in truth.acceptable_causes, rep["cause"]
+    assert rep["outlier_rows"] == [87], rep["outlier_rows"]
+    assert rep["findings"][0]["evidence"]["outliers_put_back"] == 6, rep["findings"][0]["evidence"]
+    assert rep["structure"]["baseline"]["present"], rep["structure"]["baseline"]
+
+
+def test_the_baseline_is_judged_on_the_rows_the_report_keeps():
+    """gen_b outlier 945: the report keeps other rows than the first screen's (15, 25, 31 set aside in
+    the end) and the baseline's structure was reported from the first screen's rows: 'present': False
+    beside a named cause. Judged again on the final rows, it is present. (The cause named here is not the
+    generator's 'outlier': a wrong answer this test does not pin; it pins the report's consistency.)"""
+    from scenarios.blind import gen_b
+
+    log, truth = gen_b.generate("outlier", 945)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    assert rep["cause"] not in ("outlier", "unexplained", None), rep["cause"]
+    assert rep["structure"]["baseline"]["present"], rep["structure"]["baseline"]
