@@ -960,8 +960,10 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
 
     1. the outliers outnumber the step's free parameters (its columns:
        two translations and a turn): their agreement with one rigid motion
-       is then itself a test (as many constraints as outliers beyond the
-       parameters, each at the outlier bound). A knock of 5-25 um moves
+       then constrains it (as many constraints as outliers beyond the
+       parameters, each at the outlier bound). A heuristic, not a test of
+       known level: its false-alarm rate under dust is not computed (the
+       best of the set-up's trials is chosen on the same rows). A knock of 5-25 um moves
        every touch after it beyond the bound (gen_a knock 811: the 12
        touches after it, all outliers, nothing else left to see it);
     2. or, fewer outliers than the step has parameters (the step can fit
