@@ -52,6 +52,19 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   do (``p_turned``); the engine names the cause ``ambiguous`` with the
   richer one when that is significant or cannot be excluded
   (:func:`turned_lobes`: fixed lobes against lobes turned per set-up);
+- ``smooth(baseline) -> (n, m)``: for a cause confined in a covariate (a
+  local defect), the same error as a smooth function over the covariate's
+  whole range (:func:`smooth_axis_errors`). A confined cause is refused,
+  never named, when the smooth form explains about as much (the rival
+  check's share) and the cause adds nothing significant beyond it (its F
+  test with the Bonferroni factor of its adoption): the structure is then
+  the baseline's grid failing to follow a smooth error, not a confined
+  one (the engine's ``_smooth_verdict``);
+- ``support(baseline, info) -> (n,) int``: the units (labels per touch)
+  the evidence of a confined cause must spread over: named only when what
+  it explains comes from two effective units or more, no one unit carrying
+  more than half of it (:func:`defect_support`: positions along an axis;
+  the engine's ``_support``);
 - ``counter(baseline) -> (n, m)``, ``counter_scan(baseline) -> (T, n, k)``:
   a plainer explanation the cause must beat (a finer error map for a
   coupling; the best of T trials of a one-off rigid step of the part,
@@ -130,6 +143,8 @@ class Cause:
     gradual: bool = False
     richer: Callable | None = None
     richer_cause: str | None = None
+    smooth: Callable | None = None
+    support: Callable | None = None
 
     @property
     def doc(self) -> str:
@@ -963,6 +978,21 @@ def defect_scans(bl):
     needs four distinct positions under its bump. ``tries`` counts the
     independent bumps (extent over half-width, per width and axis).
     Parameters: axis, centre and half-width (mm), peak amplitude (um).
+
+    Two things the bump must show to be named (the physics of a scale):
+
+    - support (``support``, :func:`defect_support`): an axis error is a
+      function of the axis position, seen wherever the axis passes. The
+      bump is named only where what it explains comes from two effective
+      positions along the axis or more (no one position carries more than
+      half of it); carried by one, it is the signature of one spot (a
+      chip, a burr, a bad datum at one target in one set-up), which a bump
+      cannot tell from a scale;
+    - confinement (``smooth``, :func:`smooth_axis_errors`): the grid's
+      linear interpolation leaves a smooth error's curvature as cusps at
+      its nodes, a bump a fifth to a half of a grid step wide. A defect
+      must explain what smooth axis errors over the whole axes, at the
+      grid's own resolution, do not.
     """
     d = bl.data
     scans, tries = [], 1.0
@@ -992,6 +1022,49 @@ def defect_scans(bl):
                               lambda idx, axis=axis, x0=x0, w=w: _defect_cols(d, axis, x0[np.asarray(idx)], w),
                               _matmul_score(funcs, (-d.nx, -d.ny)[axis][:, None])))
     return scans, tries
+
+
+def defect_support(bl, info) -> np.ndarray:
+    """(n,) the distinct positions along the bump's axis (to 1 um), as labels: the units its evidence must spread over.
+
+    The touches of one target in one set-up share one position: a chip or
+    a burr there is one unit, however many times it is touched.
+    """
+    a = (bl.data.x, bl.data.y)["XY".index(info["axis"])]
+    return np.unique(np.round(a / 1e-6), return_inverse=True)[1]
+
+
+def _node_spline(v: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """(n, len(nodes) + 2) cubic B-splines of ``v`` with their knots at ``nodes`` (clamped at the ends)."""
+    from scipy.interpolate import BSpline
+
+    lo, hi = float(min(nodes[0], v.min())), float(max(nodes[-1], v.max()))
+    t = np.concatenate([[lo] * 4, nodes[1:-1], [hi] * 4])
+    B = BSpline.design_matrix(np.clip(v, lo, hi), t, 3, extrapolate=False).toarray()
+    B[v >= hi, -1] = 1.0  # the right end belongs to the last function
+    B[v >= hi, :-1] = 0.0
+    return B
+
+
+def smooth_axis_errors(bl) -> np.ndarray:
+    """The error map's four tables as cubic splines with their knots at the baseline's grid nodes.
+
+    ``E_XX``, ``E_YX`` smooth in x, ``E_XY``, ``E_YY`` in y (``-n_x F(x)``,
+    ``-n_y F(x)``, ``-n_x F(y)``, ``-n_y F(y)``), ``F`` the cubic B-splines
+    on the nodes of the error map (:class:`core.selfcal.Grid`, in the
+    design's coordinates about the C axis): the smooth twin of the grid's
+    piecewise linear map. A smooth axis error leaves, after the linear
+    map, its curvature between the nodes, cusps at them, which these
+    columns follow (a quadratic exactly); a bump narrower than half a grid
+    step they cannot follow.
+    """
+    d = bl.data
+    grid = bl.info["design"].grid
+    c0 = d.c0_m if np.all(np.isfinite(d.c0_m)) else np.array([(d.x.max() + d.x.min()) / 2,
+                                                                (d.y.max() + d.y.min()) / 2])
+    Fx = _node_spline(d.x, np.asarray(grid.x_m) + c0[0])
+    Fy = _node_spline(d.y, np.asarray(grid.y_m) + c0[1])
+    return np.hstack([-d.nx[:, None] * Fx, -d.ny[:, None] * Fx, -d.nx[:, None] * Fy, -d.ny[:, None] * Fy])
 
 
 def defect_rebuild(bl, info):
@@ -1357,7 +1430,8 @@ REGISTRY = (
     Cause("stylus_bending", ("planar",), "probe", bending_scans, bending_magnitudes,
           {"pretravel_change_um": (-50, 50)}, counter_scan=fixture_slip),
     Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,
-          {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip),
+          {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip,
+          smooth=smooth_axis_errors, support=defect_support),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
           {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,

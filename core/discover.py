@@ -1444,7 +1444,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if not share["kept"]:
                 terms.remove(tm)
                 demoted.append({"cause": tm.cause, **share})
-                why = (f"a plainer explanation ({share['counter']}) explains as much"
+                why = (share["not_supported"] if "not_supported" in share else
+                       f"a plainer explanation ({share['counter']}) explains as much"
                        if "counter_explained_ss_um2" in share and share["rival_share"] >= settings.rival_share else
                        f"explains only part of the structure in {tm.covariate} (share {share['rival_share']:.2f} of "
                        "a smooth term's)")
@@ -1753,6 +1754,69 @@ def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> tuple:
     return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2, Uc
 
 
+#: Effective units the evidence of a confined cause must come from (:attr:`core.causes.Cause.support`).
+MIN_SUPPORT = 2.0
+
+
+def _support(bl, cause, info, st: _State, E: np.ndarray) -> dict:
+    """Over how many units (``cause.support``: positions along an axis) the cause's evidence spreads.
+
+    What the columns ``E`` (rows used) explain beside the model ``st``,
+    ``f . r`` (``f`` the fitted part), summed per unit, ``s_u``; the
+    effective number of units is the total over the largest,
+    ``sum s_u / max s_u``: 1 when one unit carries it all, 2 when the
+    largest carries half. Below :data:`MIN_SUPPORT` the cause is refused:
+    what it explains is mostly one unit's, and dropping that unit would
+    leave less than half of it. Returns the evidence, with ``refused`` and
+    ``reason``.
+    """
+    rows = st.rows
+    U = new_basis(st.Q, E)
+    f = U @ (U.T @ st.r)
+    lab = np.asarray(cause.support(bl, info))[rows]
+    s = np.bincount(lab, weights=f * st.r)
+    top = float(s.max()) if s.size else 0.0
+    n_eff = float(s.sum()) / top if top > 0 else 0.0
+    return {"refused": bool(n_eff < MIN_SUPPORT), "support_units": n_eff,
+            "reason": f"not seen at two places: one position carries {top / max(float(s.sum()), 1e-300):.0%} of "
+                      f"what it explains ({n_eff:.2g} effective positions, at least {MIN_SUPPORT:g})"}
+
+
+def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: float, settings) -> dict:
+    """A confined cause (columns ``E``, rows used) against the same error smooth over its covariate (``cause.smooth``).
+
+    The cause is refused when the smooth form, beside the model ``st``,
+    explains about as much as it does (debiased: at least
+    :attr:`Settings.rival_share` of it, the ratio by which a cause must
+    match a smooth term in the rival check, here the other way round) and
+    the cause's columns add nothing significant beyond the smooth form
+    (nested F test with the Bonferroni factor ``tries`` of its adoption):
+    the structure is then
+    spread along the covariate, which the baseline's grid did not follow,
+    not confined where the cause puts it. Returns the evidence, with
+    ``refused`` (bool) and ``reason``.
+    """
+    rows = st.rows
+    s2 = sigma ** 2
+    Bs = cause.smooth(bl) if bl.whiten is None else bl.whiten @ cause.smooth(bl)
+    Us = new_basis(st.Q, Bs[rows])
+    d_s = float(np.sum((Us.T @ st.r) ** 2)) - Us.shape[1] * s2
+    Un = new_basis(st.Q, E)
+    d_n = float(np.sum((Un.T @ st.r) ** 2)) - Un.shape[1] * s2
+    Qa = np.hstack([st.Q, Us])
+    ra = st.r - Us @ (Us.T @ st.r)
+    Ub = new_basis(Qa, E)
+    d_b = float(np.sum((Ub.T @ ra) ** 2)) - Ub.shape[1] * s2
+    p_b = min(1.0, nested_f(Ub, ra, float(ra @ ra), len(rows) - Qa.shape[1]).p_value * tries) if Ub.shape[1] else 1.0
+    name = cause.smooth.__name__.replace("_", " ")
+    refused = bool(d_s >= settings.rival_share * d_n and p_b >= settings.alpha_family)
+    return {"refused": refused, "smooth": name, "smooth_explained_ss_um2": max(d_s, 0.0) / UM ** 2,
+            "explained_beyond_smooth_ss_um2": max(d_b, 0.0) / UM ** 2, "p_adjusted_beyond_smooth": p_b,
+            "reason": f"not confined: {name} explain as much ({max(d_s, 0.0) / UM ** 2:.3g} against "
+                      f"{max(d_n, 0.0) / UM ** 2:.3g} um^2) and it adds nothing significant beyond them "
+                      f"({fmt_p(p_b)} after Bonferroni over {tries:.0f} tries)"}
+
+
 def _beyond(st: _State, U_alt: np.ndarray, E: np.ndarray, sigma: float, tries: float, settings) -> tuple:
     """What the cause's columns ``E`` (rows used) explain once a plainer explanation is in the model.
 
@@ -2002,6 +2066,14 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
             return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
                               f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
                     "significant": True}
+    if cause.support is not None:
+        sp = _support(bl, cause, info, st, cols[rows])
+        if sp["refused"]:
+            return {"reason": sp["reason"], "significant": True}
+    if cause.smooth is not None:
+        sm = _smooth_verdict(bl, cause, st, cols[rows], sigma, tries, settings)
+        if sm["refused"]:
+            return {"reason": sm["reason"], "significant": True}
     M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max)
     ev.update({"vif": vif, "max_vif": vif_worst, "principal_angle_deg": ang, "weak_directions": weak})
     if M.shape[1] == 0:
@@ -2189,6 +2261,19 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
             elif not stands:
                 # a plainer explanation without a name does as well: named, but ambiguous
                 out["indistinguishable_counter"] = out["counter"]
+    if cause is not None and cause.support is not None and out["kept"]:
+        sp = _support(bl, cause, tm.info, so, tm.columns[rows])
+        out["support_units"] = sp["support_units"]
+        if sp["refused"]:
+            out["kept"] = False
+            out["not_supported"] = sp["reason"]
+    if cause is not None and cause.smooth is not None and out["kept"]:
+        sm = _smooth_verdict(bl, cause, so, tm.columns[rows], sigma, tm.tries, settings)
+        out.update({k: v for k, v in sm.items() if k not in ("refused", "reason")})
+        if sm["refused"]:
+            out["kept"] = False
+            out["counter"] = sm["smooth"]
+            out["counter_explained_ss_um2"] = sm["smooth_explained_ss_um2"]
     if cause is not None and cause.counter_scan is not None and out["kept"]:
         # a one-off alternative chosen among T trials: its best sum of squares is
         # debiased by the median of the largest of T chi-squares (k dof) under noise
