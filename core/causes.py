@@ -34,7 +34,9 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   would leave ``unexplained`` a structure the catalogue does name);
 - ``rebuild(baseline, info) -> (T, n, k)``: the columns for changed
   nonlinear parameters ``nonlinear`` (a period, a position; arrays give T
-  trials at once): the engine refines them and carries their uncertainty;
+  trials at once): the engine refines them and carries their uncertainty
+  (a layout whose ``info`` lacks one has none: a drift's polynomials beside
+  its warm-ups' time constants);
 - the scan's ``covariate``: where the cause's structure lives, for the
   rival check (a named cause must explain the structure in its covariate
   about as well as a catalogue-free smooth function of it, else it is a
@@ -233,6 +235,10 @@ def _pv(vals) -> float:
 _DRIFT_MODES = ("x_offset", "y_offset", "x_scale", "y_scale")
 
 
+#: Time constants of the warm-up layouts of a thermal drift, as fractions of the campaign's duration.
+DRIFT_TAU_FRACTIONS = tuple(np.geomspace(1 / 20, 1 / 2, 8))
+
+
 def drift_scans(bl):
     """Thermal drift: offsets and scales of the X and Y axes changing with time.
 
@@ -240,12 +246,21 @@ def drift_scans(bl):
     zero shifts (``EXX``/``EYX`` constant parts) and its scale stretches
     (``EXX`` slope: a steel scale grows 11.5 um/m per K). The tip error is
     ``E_X = a_x(t) + s_x(t) (x - x_c)``, ``E_Y = a_y(t) + s_y(t) (y - y_c)``
-    with smooth ``a``, ``s`` of time: Legendre polynomials of degree 1, 2
-    or 3 over the campaign (the degree is part of the scan). Within one
-    set-up most of a drift looks like the machine's error map or the
-    set-up's own C-axis offsets; it is seen by the touches repeated later
-    in the set-up and by the change between set-ups. Parameters: the
-    change of each offset (um) and scale (ppm) from the first to the last touch.
+    with smooth ``a``, ``s`` of time, in two forms (each one layout of the
+    scan): a slow drift over the campaign, Legendre polynomials of degree
+    1, 2 or 3; and a warm-up that settles within it, the structure being a
+    first-order thermal system (heat flowing into a mass through a
+    resistance), ``a(t) = a_inf + (a_0 - a_inf) exp(-t / T)``, the time
+    constant ``T`` one of :data:`DRIFT_TAU_FRACTIONS` (a twentieth to a
+    half of the campaign; slower is a polynomial's, faster is over within
+    the first set-up). A polynomial of degree 3 cannot follow a warm-up
+    that settles in a fifth of the campaign: what it leaves reads as a
+    step early on (a fixture slip). Within one set-up most of a drift
+    looks like the machine's error map or the set-up's own C-axis offsets;
+    it is seen by the touches repeated later in the set-up and by the
+    change between set-ups. Parameters: the change of each offset (um) and
+    scale (ppm) from the first to the last touch (and the warm-up's time
+    constant, s).
     """
     d = bl.data
     modes = np.column_stack([-d.nx, -d.ny, -d.nx * d.xs, -d.ny * d.ys])
@@ -255,18 +270,41 @@ def drift_scans(bl):
         cols = _outer(modes, _legendre(u, deg))
         labels = [f"{m}_P{j}" for m in _DRIFT_MODES for j in range(1, deg + 1)]
         scans.append(_one(cols, labels, {"degree": deg}, "time"))
-    return scans, 3.0
+    span = float(np.ptp(d.tau)) * d.span_s
+    if span > 0:
+        for f in DRIFT_TAU_FRACTIONS:
+            info = {"form": "warm-up", "tau_s": float(f * d.span_s)}
+            scans.append(_one(drift_rebuild(bl, info)[0], [f"{m}_exp" for m in _DRIFT_MODES], info, "time"))
+    # the polynomials' three degrees, and the warm-ups' time constants over a factor 10 counted as
+    # independent hypotheses every factor 1.5 (neighbouring constants' columns correlate; warm_up_scans')
+    return scans, 3.0 + (float(np.log(10) / np.log(1.5)) if span > 0 else 0.0)
+
+
+def drift_rebuild(bl, info):
+    """(T, n, k) a drift layout's columns: a warm-up's for time constants ``tau_s`` (arrays give T trials), a polynomial's."""
+    d = bl.data
+    modes = np.column_stack([-d.nx, -d.ny, -d.nx * d.xs, -d.ny * d.ys])
+    if "tau_s" not in info:
+        return _outer(modes, _legendre(2 * d.tau - 1, info["degree"]))[None]
+    f = np.atleast_1d(np.asarray(info["tau_s"], float)) / d.span_s
+    return modes[None, :, :] * np.exp(-d.tau[None, :] / f[:, None])[:, :, None]
 
 
 def drift_magnitudes(info, coef, bl):
-    deg = info["degree"]
-    c = np.asarray(coef).reshape(4, deg)
-    dP = np.array([1.0 - (-1.0) ** j for j in range(1, deg + 1)])  # P_j(1) - P_j(-1)
-    ch = c @ dP
     L = bl.data.L_m
+    if "tau_s" in info:  # a warm-up: the change from the first to the last touch
+        c = np.asarray(coef)
+        ch = c * (np.exp(-bl.data.span_s / info["tau_s"]) - 1.0)
+        extra = {"time_constant_s": float(info["tau_s"])}
+    else:
+        deg = info["degree"]
+        c = np.asarray(coef).reshape(4, deg)
+        dP = np.array([1.0 - (-1.0) ** j for j in range(1, deg + 1)])  # P_j(1) - P_j(-1)
+        ch = c @ dP
+        extra = {}
     return {"x_offset_change_um": ch[0] / UM, "y_offset_change_um": ch[1] / UM,
             "x_scale_change_ppm": ch[2] / L * 1e6, "y_scale_change_ppm": ch[3] / L * 1e6,
-            "over_h": bl.data.span_s / 3600.0}
+            "over_h": bl.data.span_s / 3600.0, **extra}
 
 
 def c_drift_scans(bl):
@@ -1408,8 +1446,8 @@ NONE = "none"
 REGISTRY = (
     Cause("thermal_drift", ("planar",), "machine", drift_scans, drift_magnitudes,
           {"x_offset_change_um": (-500, 500), "y_offset_change_um": (-500, 500),
-           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, counter_scan=fixture_slip,
-          gradual=True),
+           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, drift_rebuild, ("tau_s",),
+          counter_scan=fixture_slip, gradual=True),
     Cause("c_drift", ("planar",), "machine", c_drift_scans, c_drift_magnitudes,
           {"ECC_change_in_setup_urad": (-2000, 2000), "ECC_change_over_campaign_urad": (-2000, 2000),
            "ECC_change_rms_urad": (0, 2000), "ECC_change_urad[*]": (-2000, 2000)},

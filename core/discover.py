@@ -745,6 +745,7 @@ class _State:
     r: np.ndarray
     rss: float
     dof: int
+    k_base: int = 0
 
     @property
     def sigma(self) -> float:
@@ -768,7 +769,7 @@ def _state(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _State:
         r = r - Sp @ c
         edf = float(np.trace(np.linalg.lstsq(M, Sp.T @ Sp, rcond=1e-12)[0]))
         dof = int(round(len(rows) - Q.shape[1] - edf))
-    return _State(rows, Q, r, float(r @ r), max(dof, 1))
+    return _State(rows, Q, r, float(r @ r), max(dof, 1), Qb.shape[1])
 
 
 # ---------------------------------------------------------------------------
@@ -1342,9 +1343,38 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                                                                    drift_trend(bl, rows, k == "shared")))
                                               for k in ("per set-up", "shared")) if r.dof >= 10), ("none", rep))
     sigma_rep = rep_t.sigma_m if rep_t.dof >= 10 else None
+    rep_of: dict = {}
 
     def noise_sigma(s: _State) -> float:
-        return sigma_rep if sigma_rep is not None else s.sigma
+        """The repeats' scatter beyond the model ``s``: what its named terms vary within a repeat group goes too.
+
+        A drift's curvature within a set-up stays in the repeats' scatter
+        when only a rate per set-up is taken out (a warm-up settling within
+        a set-up read 2.4 um of noise where the probe had 0.3 um, gen_a
+        thermal_drift 1204); once a term represents it, its columns'
+        variation within the groups is removed with the rates
+        (:func:`core.diagnosis.replicate_scatter`: unbiased under pure
+        noise, its degrees of freedom reduced by their rank). A term
+        constant within each group (a lobing: one target, one set-up, one
+        direction) changes nothing. When that leaves fewer than 10 degrees
+        of freedom (gen_a 1204: 5 groups of 3), the repeats cannot tell the
+        noise from the terms: the model's in-sample scatter is taken where
+        it is the smaller (both hold the noise, each with its own excess).
+        """
+        if sigma_rep is None:
+            return s.sigma
+        if s.Q.shape[1] <= s.k_base:
+            return sigma_rep
+        key = (tuple(s.rows.tolist()), s.Q.shape[1], float(s.rss))
+        if key not in rep_of:
+            rates = drift_trend(bl, s.rows, trend == "shared") if trend != "none" else np.zeros((len(s.rows), 0))
+            T = np.hstack([rates, s.Q[:, s.k_base:]])
+            r = replicate_scatter(bl.replicate[s.rows], y[s.rows], T)
+            if r.dof >= 10 or r.dof == rep_t.dof:  # (the terms constant within the groups: the same estimate)
+                rep_of[key] = r.sigma_m if r.dof >= 10 else sigma_rep
+            else:  # too few repeats to take the terms out: the model's own scatter where it is the smaller
+                rep_of[key] = min(sigma_rep, s.sigma)
+        return rep_of[key]
 
     # 1. noise floor of the baseline
     # the baseline's prediction error as every candidate's is measured (Mallows'
@@ -1716,6 +1746,8 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     """
     info = dict(info)
     for name in cause.nonlinear:
+        if name not in info:  # (a layout without it: a drift's polynomial)
+            continue
         v0 = info[name]
         if name == "period_m":
             span = np.ptp((bl.data.x, bl.data.y)["XY".index(info["axis"])])
@@ -2135,7 +2167,7 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows):
     s2 = float(res @ res) / dof
     k_all = len(labels_all)
     coef = M @ c_red
-    nl = list(cause.nonlinear) if cause.rebuild is not None else []
+    nl = [nm for nm in cause.nonlinear if nm in tm.info] if cause.rebuild is not None else []
     # Jacobian columns of the nonlinear parameters at the fit
     J = []
     for name in nl:
