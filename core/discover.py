@@ -1370,10 +1370,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             rates = drift_trend(bl, s.rows, trend == "shared") if trend != "none" else np.zeros((len(s.rows), 0))
             T = np.hstack([rates, s.Q[:, s.k_base:]])
             r = replicate_scatter(bl.replicate[s.rows], y[s.rows], T)
-            if r.dof >= 10 or r.dof == rep_t.dof:  # (the terms constant within the groups: the same estimate)
-                rep_of[key] = r.sigma_m if r.dof >= 10 else sigma_rep
-            else:  # too few repeats to take the terms out: the model's own scatter where it is the smaller
-                rep_of[key] = min(sigma_rep, s.sigma)
+            # (terms constant within the groups leave the estimate and its degrees of freedom as they were)
+            rep_of[key] = r.sigma_m if r.dof >= 10 else min(sigma_rep, s.sigma)
         return rep_of[key]
 
     # 1. noise floor of the baseline
@@ -1474,7 +1472,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if not share["kept"]:
                 terms.remove(tm)
                 demoted.append({"cause": tm.cause, **share})
-                why = (share["not_supported"] if "not_supported" in share else
+                why = (share.get("not_supported") or share.get("not_confined") or
                        f"a plainer explanation ({share['counter']}) explains as much"
                        if "counter_explained_ss_um2" in share and share["rival_share"] >= settings.rival_share else
                        f"explains only part of the structure in {tm.covariate} (share {share['rival_share']:.2f} of "
@@ -2304,8 +2302,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
         out.update({k: v for k, v in sm.items() if k not in ("refused", "reason")})
         if sm["refused"]:
             out["kept"] = False
-            out["counter"] = sm["smooth"]
-            out["counter_explained_ss_um2"] = sm["smooth_explained_ss_um2"]
+            out["not_confined"] = sm["reason"]
     if cause is not None and cause.counter_scan is not None and out["kept"]:
         # a one-off alternative chosen among T trials: its best sum of squares is
         # debiased by the median of the largest of T chi-squares (k dof) under noise
