@@ -56,12 +56,14 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   (:func:`turned_lobes`: fixed lobes against lobes turned per set-up);
 - ``smooth(baseline) -> (n, m)``: for a cause confined in a covariate (a
   local defect), the same error as a smooth function over the covariate's
-  whole range (:func:`smooth_axis_errors`). A confined cause is refused,
+  whole range (:func:`smooth_error_map`). A confined cause is refused,
   never named, when the smooth form explains about as much (the rival
   check's share) and the cause adds nothing significant beyond it (its F
   test with the Bonferroni factor of its adoption): the structure is then
   the baseline's grid failing to follow a smooth error, not a confined
-  one (the engine's ``_smooth_verdict``);
+  one (the engine's ``_smooth_verdict``). Where the cause's columns lie
+  inside the model and the smooth form (too few positions to tell), it is
+  named ambiguous instead;
 - ``support(baseline, info) -> (n,) int``: the units (labels per touch)
   the evidence of a confined cause must spread over: named only when what
   it explains comes from two effective units or more, no one unit carrying
@@ -1026,7 +1028,7 @@ def defect_scans(bl):
       half of it); carried by one, it is the signature of one spot (a
       chip, a burr, a bad datum at one target in one set-up), which a bump
       cannot tell from a scale;
-    - confinement (``smooth``, :func:`smooth_axis_errors`): the grid's
+    - confinement (``smooth``, :func:`smooth_error_map`): the grid's
       linear interpolation leaves a smooth error's curvature as cusps at
       its nodes, a bump a fifth to a half of a grid step wide. A defect
       must explain what smooth axis errors over the whole axes, at the
@@ -1084,7 +1086,7 @@ def _node_spline(v: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     return B
 
 
-def smooth_axis_errors(bl) -> np.ndarray:
+def smooth_error_map(bl) -> np.ndarray:
     """The error map's four tables as cubic splines with their knots at the baseline's grid nodes.
 
     ``E_XX``, ``E_YX`` smooth in x, ``E_XY``, ``E_YY`` in y (``-n_x F(x)``,
@@ -1469,7 +1471,7 @@ REGISTRY = (
           {"pretravel_change_um": (-50, 50)}, counter_scan=fixture_slip),
     Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,
           {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip,
-          smooth=smooth_axis_errors, support=defect_support),
+          smooth=smooth_error_map, support=defect_support),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
           {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,

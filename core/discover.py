@@ -1823,8 +1823,13 @@ def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: f
     (nested F test with the Bonferroni factor ``tries`` of its adoption):
     the structure is then
     spread along the covariate, which the baseline's grid did not follow,
-    not confined where the cause puts it. Returns the evidence, with
-    ``refused`` (bool) and ``reason``.
+    not confined where the cause puts it. Where the cause's columns lie
+    inside the model and the smooth form (a few positions along the axis,
+    which the smooth form passes through whatever their values: gen_a's
+    parts), the design cannot tell confined from smooth at all: the cause
+    is not refused but ``indistinguishable`` (named ambiguous, the smooth
+    form given as the reason). Returns the evidence, with ``refused`` and
+    ``indistinguishable`` (bool) and ``reason``.
     """
     rows = st.rows
     s2 = sigma ** 2
@@ -1837,13 +1842,17 @@ def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: f
     ra = st.r - Us @ (Us.T @ st.r)
     Ub = new_basis(Qa, E)
     d_b = float(np.sum((Ub.T @ ra) ** 2)) - Ub.shape[1] * s2
-    p_b = min(1.0, nested_f(Ub, ra, float(ra @ ra), len(rows) - Qa.shape[1]).p_value * tries) if Ub.shape[1] else 1.0
+    dof = len(rows) - Qa.shape[1]
+    p_b = min(1.0, nested_f(Ub, ra, float(ra @ ra), dof).p_value * tries) if Ub.shape[1] else 1.0
     name = cause.smooth.__name__.replace("_", " ")
-    refused = bool(d_s >= settings.rival_share * d_n and p_b >= settings.alpha_family)
+    as_much = d_s >= settings.rival_share * d_n
+    inside = Ub.shape[1] == 0  # (the cause's columns inside model + smooth form: nothing to test)
+    refused = bool(as_much and not inside and p_b >= settings.alpha_family)
     return {"refused": refused, "smooth": name, "smooth_explained_ss_um2": max(d_s, 0.0) / UM ** 2,
             "explained_beyond_smooth_ss_um2": max(d_b, 0.0) / UM ** 2, "p_adjusted_beyond_smooth": p_b,
-            "reason": f"not confined: {name} explain as much ({max(d_s, 0.0) / UM ** 2:.3g} against "
-                      f"{max(d_n, 0.0) / UM ** 2:.3g} um^2) and it adds nothing significant beyond them "
+            "indistinguishable": bool(as_much and inside),
+            "reason": f"not confined: a {name} explains as much ({max(d_s, 0.0) / UM ** 2:.3g} against "
+                      f"{max(d_n, 0.0) / UM ** 2:.3g} um^2) and it adds nothing significant beyond it "
                       f"({fmt_p(p_b)} after Bonferroni over {tries:.0f} tries)"}
 
 
@@ -2299,10 +2308,13 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
             out["not_supported"] = sp["reason"]
     if cause is not None and cause.smooth is not None and out["kept"]:
         sm = _smooth_verdict(bl, cause, so, tm.columns[rows], sigma, tm.tries, settings)
-        out.update({k: v for k, v in sm.items() if k not in ("refused", "reason")})
+        out.update({k: v for k, v in sm.items() if k not in ("refused", "reason", "indistinguishable")})
         if sm["refused"]:
             out["kept"] = False
             out["not_confined"] = sm["reason"]
+        elif sm["indistinguishable"]:  # named, ambiguous: the design cannot tell it from smooth axis errors
+            out["indistinguishable_counter"] = sm["smooth"]
+            out["counter_explained_ss_um2"] = sm["smooth_explained_ss_um2"]
     if cause is not None and cause.counter_scan is not None and out["kept"]:
         # a one-off alternative chosen among T trials: its best sum of squares is
         # debiased by the median of the largest of T chi-squares (k dof) under noise

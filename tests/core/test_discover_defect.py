@@ -10,7 +10,7 @@ bump without being one, and both were named ``local_scale_defect`` before:
   errors the 55 mm grid cannot follow: seeds 8, 42, 135 and 140 of 0-199
   were named ``local_scale_defect``). The bump must explain what the same
   errors smooth over the whole axes (cubic splines on the grid's nodes,
-  :func:`core.causes.smooth_axis_errors`) do not;
+  :func:`core.causes.smooth_error_map`) do not;
 - a chip at one target in one set-up: what the bump explains comes from
   one position. It must come from two effective positions or more
   (:func:`core.discover._support`).
@@ -94,9 +94,9 @@ def test_support_hand_worked():
     assert MIN_SUPPORT == 2.0
 
 
-def test_smooth_axis_errors_follow_a_quadratic_exactly():
+def test_smooth_error_map_follows_a_quadratic_exactly():
     """A quadratic error of each table (E_XX(x), E_YX(x), E_XY(y), E_YY(y)) beyond the grid's linear map
-    is inside span(baseline, smooth_axis_errors): the cubic splines on the grid's nodes hold any quadratic.
+    is inside span(baseline, smooth_error_map): the cubic splines on the grid's nodes hold any quadratic.
     Residual below 1e-9 of the error's norm (rounding of a 500-row least squares); the grid alone leaves
     a residual of several per cent of it."""
     t, _ = S.campaign("none", 0)
@@ -108,6 +108,6 @@ def test_smooth_axis_errors_follow_a_quadratic_exactly():
     Q = orth_of(A)
     r0 = e - Q @ (Q.T @ e)
     assert np.linalg.norm(r0) > 0.02 * np.linalg.norm(e)  # the linear map alone does not follow it
-    Qs = orth(np.hstack([Q, causes.smooth_axis_errors(bl)]))
+    Qs = orth(np.hstack([Q, causes.smooth_error_map(bl)]))
     r = e - Qs @ (Qs.T @ e)
     assert np.linalg.norm(r) < 1e-9 * np.linalg.norm(e)
