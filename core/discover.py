@@ -1823,13 +1823,16 @@ def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: f
     (nested F test with the Bonferroni factor ``tries`` of its adoption):
     the structure is then
     spread along the covariate, which the baseline's grid did not follow,
-    not confined where the cause puts it. Where the cause's columns lie
-    inside the model and the smooth form (a few positions along the axis,
-    which the smooth form passes through whatever their values: gen_a's
-    parts), the design cannot tell confined from smooth at all: the cause
-    is not refused but ``indistinguishable`` (named ambiguous, the smooth
-    form given as the reason). Returns the evidence, with ``refused`` and
-    ``indistinguishable`` (bool) and ``reason``.
+    not confined where the cause puts it. Only where the test can tell:
+    the part of the cause's fitted signal outside the smooth form (what a
+    true cause of the fitted size leaves beyond it) must reach one noise
+    variance per column (an expected F of 1). Below that (a few positions
+    along the axis, which the smooth form passes through whatever their
+    values: gen_a's parts keep 0.0 % of the bump's signal outside it, a
+    gen_b defect 0.4 %), the design cannot tell confined from smooth: the
+    cause is not refused but ``indistinguishable`` (named ambiguous, the
+    smooth form given as the reason). Returns the evidence, with
+    ``refused`` and ``indistinguishable`` (bool) and ``reason``.
     """
     rows = st.rows
     s2 = sigma ** 2
@@ -1846,7 +1849,9 @@ def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: f
     p_b = min(1.0, nested_f(Ub, ra, float(ra @ ra), dof).p_value * tries) if Ub.shape[1] else 1.0
     name = cause.smooth.__name__.replace("_", " ")
     as_much = d_s >= settings.rival_share * d_n
-    inside = Ub.shape[1] == 0  # (the cause's columns inside model + smooth form: nothing to test)
+    f = Un @ (Un.T @ st.r)  # the cause's fitted signal, and its part outside the smooth form
+    f_out = f - Us @ (Us.T @ f)
+    inside = float(f_out @ f_out) < max(Un.shape[1], 1) * s2  # (a true cause could not show beyond it)
     refused = bool(as_much and not inside and p_b >= settings.alpha_family)
     return {"refused": refused, "smooth": name, "smooth_explained_ss_um2": max(d_s, 0.0) / UM ** 2,
             "explained_beyond_smooth_ss_um2": max(d_b, 0.0) / UM ** 2, "p_adjusted_beyond_smooth": p_b,
