@@ -172,7 +172,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
+from scipy import optimize, stats
 
 from . import baseline as bl_mod
 from . import causes as causes_mod
@@ -1477,12 +1477,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if not share["kept"]:
                 terms.remove(tm)
                 demoted.append({"cause": tm.cause, **share})
-                why = (share.get("not_supported") or share.get("not_confined") or
-                       f"a plainer explanation ({share['counter']}) explains as much"
-                       if "counter_explained_ss_um2" in share and share["rival_share"] >= settings.rival_share else
-                       f"explains only part of the structure in {tm.covariate} (share {share['rival_share']:.2f} of "
-                       "a smooth term's)")
-                rejected.append({"cause": tm.cause, "reason": why})
+                rejected.append({"cause": tm.cause, "reason": _demotion_reason(share, tm.covariate, settings)})
                 Qb, folds, st = model(rows, terms)
                 changed = True
                 break
@@ -1942,6 +1937,33 @@ def _support(bl, cause, info, st: _State, E: np.ndarray) -> dict:
                       f"what it explains ({n_eff:.2g} effective positions, at least {MIN_SUPPORT:g})"}
 
 
+def _demotion_reason(share: dict, covariate: str, settings) -> str:
+    """Why the rival step (:func:`_rival_share`'s verdict ``share``) dropped an adopted cause.
+
+    A support or confinement refusal is its own reason whatever the
+    rival share; otherwise a plainer explanation that explains as much,
+    else the cause explaining only part of its covariate's structure.
+    """
+    return (share.get("not_supported") or share.get("not_confined") or
+            (f"a plainer explanation ({share['counter']}) explains as much"
+             if "counter_explained_ss_um2" in share and share["rival_share"] >= settings.rival_share else
+             f"explains only part of the structure in {covariate} (share {share['rival_share']:.2f} of "
+             "a smooth term's)"))
+
+
+def _half_power_nc(k: int, alpha: float) -> float:
+    """The noncentrality at which a chi-square test on ``k`` dof at level ``alpha`` has 50 % power.
+
+    ``P(ncx2(k, lam) > chi2.isf(alpha, k)) = 0.5``, solved for ``lam``
+    (the noise variance known: the nested F test's denominator has many
+    degrees of freedom on these campaigns). Hand values: k = 1,
+    alpha = 0.05 gives 3.84 (the critical value itself: the noncentral
+    chi-square with one dof has its median close to ``lam`` there).
+    """
+    crit = float(stats.chi2.isf(alpha, k))
+    return float(optimize.brentq(lambda lam: float(stats.ncx2.sf(crit, k, lam)) - 0.5, 1e-9, 10 * crit + 100))
+
+
 def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: float, settings) -> dict:
     """A confined cause (columns ``E``, rows used) against the same error smooth over its covariate (``cause.smooth``).
 
@@ -1953,15 +1975,19 @@ def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: f
     (nested F test with the Bonferroni factor ``tries`` of its adoption):
     the structure is then
     spread along the covariate, which the baseline's grid did not follow,
-    not confined where the cause puts it. Only where the test can tell:
+    not confined where the cause puts it. Only where the test has power:
     the part of the cause's fitted signal outside the smooth form (what a
-    true cause of the fitted size leaves beyond it) must reach one noise
-    variance per column (an expected F of 1). Below that (a few positions
-    along the axis, which the smooth form passes through whatever their
-    values: gen_a's parts keep 0.0 % of the bump's signal outside it, a
-    gen_b defect 0.4 %), the design cannot tell confined from smooth: the
-    cause is not refused but ``indistinguishable`` (named ambiguous, the
-    smooth form given as the reason). Returns the evidence, with
+    true cause of the fitted size leaves beyond it), in noise variances,
+    must reach the noncentrality at which that test has 50 % power at
+    its level ``alpha_family / tries`` (:func:`_half_power_nc`; 16.6 for
+    3 columns at 0.01 / 30). Below that (a few positions along the axis,
+    which the smooth form passes through whatever their values: gen_a's
+    parts keep 0.0 % of the bump's signal outside it, a gen_b defect
+    0.4 %; the simulator's defects, seeds 1, 5, 14), failing to find the
+    bump beyond the smooth form says nothing: the cause is not refused
+    but ``indistinguishable`` (named ambiguous, the smooth form given as
+    the reason). The fitted signal is the selected trial's, larger than
+    the true one on average, so this power is if anything optimistic. Returns the evidence, with
     ``refused`` and ``indistinguishable`` (bool) and ``reason``.
     """
     rows = st.rows
@@ -1981,7 +2007,8 @@ def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: f
     as_much = d_s >= settings.rival_share * d_n
     f = Un @ (Un.T @ st.r)  # the cause's fitted signal, and its part outside the smooth form
     f_out = f - Us @ (Us.T @ f)
-    inside = float(f_out @ f_out) < max(Un.shape[1], 1) * s2  # (a true cause could not show beyond it)
+    lam = float(f_out @ f_out) / s2 if s2 > 0 else np.inf  # its noncentrality beside the smooth form
+    inside = lam < _half_power_nc(max(Ub.shape[1], 1), settings.alpha_family / tries)  # (the test cannot tell)
     refused = bool(as_much and not inside and p_b >= settings.alpha_family)
     return {"refused": refused, "smooth": name, "smooth_explained_ss_um2": max(d_s, 0.0) / UM ** 2,
             "explained_beyond_smooth_ss_um2": max(d_b, 0.0) / UM ** 2, "p_adjusted_beyond_smooth": p_b,

@@ -279,6 +279,17 @@ def test_once_misnamed_now_named(gen, effect, seed):
     assert o.cause == effect and o.confident, (o.cause, o.confident)
 
 
+@pytest.mark.parametrize("seed", [1, 5, 14])
+def test_a_simulated_local_scale_defect_is_not_refused_where_confinement_cannot_be_tested(seed):
+    """The simulator's local scale defects, seeds 1, 5, 14: named on main, refused as 'not confined' by the
+    first confinement rule (a fitted signal beyond the smooth error map of one noise variance per column was
+    taken as power). The rule now refuses only where the bump's signal outside the smooth map reaches the
+    noncentrality of 50 % power at the adoption's level (core.discover._half_power_nc); here it does not,
+    and the defect is named (ambiguous: the design cannot tell it from a smooth error map)."""
+    o = hidden_outcome("local_scale_defect", seed)
+    assert o.cause == "local_scale_defect", o.cause
+
+
 @pytest.mark.parametrize("gen, effect, seed, cause, alternative", NOW_AMBIGUOUS)
 def test_once_confident_misnamings_are_flagged(gen, effect, seed, cause, alternative):
     o = _blind_case(gen, effect, seed)
