@@ -1350,34 +1350,40 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if short is not None and short["used"]:
         sigma_rep = short["sigma_m"]
 
-    def noise_sigma(s: _State) -> float:
-        """The repeats' scatter beyond the model ``s``: what its named terms vary within a repeat group goes too.
+    def noise_of(s: _State) -> tuple[float, str, int]:
+        """The noise beside the model ``s``: (sigma, method, degrees of freedom).
 
-        A drift's curvature within a set-up stays in the repeats' scatter
-        when only a rate per set-up is taken out (a warm-up settling within
-        a set-up read 2.4 um of noise where the probe had 0.3 um, gen_a
-        thermal_drift 1204); once a term represents it, its columns'
-        variation within the groups is removed with the rates
-        (:func:`core.diagnosis.replicate_scatter`: unbiased under pure
-        noise, its degrees of freedom reduced by their rank). A term
-        constant within each group (a lobing: one target, one set-up, one
-        direction) changes nothing. When that leaves fewer than 10 degrees
-        of freedom (gen_a 1204: 5 groups of 3), the repeats cannot tell the
-        noise from the terms: the model's in-sample scatter is taken where
-        it is the smaller (both hold the noise, each with its own excess).
+        The short-term pairs' scatter when their test fired (they see the
+        probing noise alone: nothing of a model to take out of them).
+        Otherwise the repeats' scatter beyond the model: a drift's
+        curvature within a set-up stays in the repeats' scatter when only
+        a rate per set-up is taken out; once a term represents it, its
+        columns' variation within the groups is removed with the rates
+        (:func:`core.diagnosis.replicate_scatter`, its degrees of freedom
+        reduced by their rank). A term constant within each group (a
+        lobing: one target, one set-up, one direction) changes nothing.
+        Only where that leaves at least 10 degrees of freedom; else the
+        repeats' scatter with the rates alone is kept (the repeats cannot
+        tell the noise from the terms there).
         """
         if sigma_rep is None:
-            return s.sigma
-        if (short is not None and short["used"]) or s.Q.shape[1] <= s.k_base:
-            return sigma_rep
+            return s.sigma, "residuals", s.dof
+        if short is not None and short["used"]:
+            return sigma_rep, "short-term repeats", short["dof"]
+        if s.Q.shape[1] <= s.k_base:
+            return sigma_rep, "repeats", rep_t.dof
         key = (tuple(s.rows.tolist()), s.Q.shape[1], float(s.rss))
         if key not in rep_of:
             rates = drift_trend(bl, s.rows, trend == "shared") if trend != "none" else np.zeros((len(s.rows), 0))
             T = np.hstack([rates, s.Q[:, s.k_base:]])
             r = replicate_scatter(bl.replicate[s.rows], y[s.rows], T)
             # (terms constant within the groups leave the estimate and its degrees of freedom as they were)
-            rep_of[key] = r.sigma_m if r.dof >= 10 else min(sigma_rep, s.sigma)
+            rep_of[key] = ((r.sigma_m, "repeats beyond the model's terms", r.dof) if r.dof >= 10 else
+                           (sigma_rep, "repeats", rep_t.dof))
         return rep_of[key]
+
+    def noise_sigma(s: _State) -> float:
+        return noise_of(s)[0]
 
     # 1. noise floor of the baseline
     # the baseline's prediction error as every candidate's is measured (Mallows'
@@ -1593,7 +1599,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         baseline=bl, baseline_rms_um=float(np.sqrt(st0.rss / N)) / UM, baseline_cv_rms_um=float(np.sqrt(cv_b)) / UM,
         baseline_n_params=int(Qall.shape[1]), findings=tuple(findings), extended_model=model_name,
         extended_rms_um=float(np.sqrt(st.rss / len(rows))) / UM, extended_cv_rms_um=float(np.sqrt(cv_e)) / UM,
-        noise=_noise_report(rep_t, rep, trend, st0, gap_b, lof_b, sigma_rep, sig, short),
+        noise=_noise_report(rep_t, rep, trend, st0, gap_b, lof_b, noise_of(st), short),
         diagnosis=tuple(dataclasses.replace(d, basis=None) for d in diag_b),  # (the bases served this run's tests)
         diagnosis_extended=tuple(dataclasses.replace(d, basis=None) for d in diag_e), workpiece=tuple(wp),
         outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
@@ -1829,10 +1835,11 @@ def _short_term(bl: Baseline, rows: np.ndarray, y: np.ndarray, rep) -> dict | No
             "used": bool(cp.dof >= SHORT_TERM_MIN_PAIRS and p < SHORT_TERM_ALPHA)}
 
 
-def _noise_report(rep, rep_plain, trend, st0, gap, lof, sigma_rep, sigma, short=None) -> dict:
+def _noise_report(rep, rep_plain, trend, st0, gap, lof, used_noise, short=None) -> dict:
+    """``used_noise``: (sigma, method, dof) of the noise the final model was judged with."""
     used = short is not None and short["used"]
-    out = {"sigma_um": sigma / UM, "method": ("short-term repeats" if used else "repeats") if sigma_rep is not None
-           else "residuals",
+    sigma, method, dof = used_noise
+    out = {"sigma_um": sigma / UM, "method": method, "dof": int(dof),
            "repeats": {"sigma_um": rep.sigma_m / UM if rep.dof else None, "dof": rep.dof, "groups": rep.groups,
                        "time_trend": trend,
                        "sigma_plain_um": rep_plain.sigma_m / UM if rep_plain.dof else None,
