@@ -1377,8 +1377,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             rates = drift_trend(bl, s.rows, trend == "shared") if trend != "none" else np.zeros((len(s.rows), 0))
             T = np.hstack([rates, s.Q[:, s.k_base:]])
             r = replicate_scatter(bl.replicate[s.rows], y[s.rows], T)
-            # (terms constant within the groups leave the estimate and its degrees of freedom as they were)
-            rep_of[key] = ((r.sigma_m, "repeats beyond the model's terms", r.dof) if r.dof >= 10 else
+            # (terms constant within the groups leave the estimate and its degrees of freedom as they were:
+            # the repeats' own, said so)
+            rep_of[key] = ((r.sigma_m, "repeats beyond the model's terms", r.dof) if 10 <= r.dof < rep_t.dof else
                            (sigma_rep, "repeats", rep_t.dof))
         return rep_of[key]
 
