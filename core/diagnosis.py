@@ -1054,6 +1054,47 @@ def replicate_scatter(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None =
     return Replicates(float(res @ res), max(dof, 0), int(np.sum(cnt > 1)))
 
 
+#: Repeats no further apart in time than this share of their set-up's time
+#: span are a short-term pair (:func:`close_pair_scatter`).
+CLOSE_PAIR_FRACTION = 0.05
+
+
+def close_pair_scatter(key: np.ndarray, y: np.ndarray, t_s: np.ndarray, setup: np.ndarray,
+                       fraction: float = CLOSE_PAIR_FRACTION) -> Replicates:
+    """Short-term repeatability: the scatter of repeats touched one right after the other.
+
+    Repeats of one target (equal ``key >= 0``) are taken in time order; each
+    two consecutive ones whose gap is at most ``fraction`` of their
+    set-up's time span (the span of every row of that ``setup`` given) form
+    a pair, and ``ss = sum(d^2) / 2`` over the pairs' differences ``d``,
+    ``dof`` the number of pairs. ``E[d^2] = 2 sigma^2`` for every pair under
+    pure noise, so ``ss / dof`` is unbiased (pairs sharing a touch are
+    correlated: ``ss / sigma^2`` is then only near chi-square with ``dof``
+    degrees of freedom). A drift moves such a pair by its rate times a gap
+    a twentieth of the set-up at most; repeats minutes apart (a drift check)
+    measure the drift as well, which is what they are for: their scatter is
+    not the probing noise when the drift is not linear in time
+    (:func:`replicate_scatter` with a trend removes only a linear one).
+    ``groups`` counts the targets with at least one pair.
+    """
+    key, y, t_s, setup = (np.asarray(a) for a in (key, y, t_s, setup))
+    if not (key.shape == y.shape == t_s.shape == setup.shape):
+        raise ConfigError("close_pair_scatter: key, y, t_s and setup must have one entry per row, got "
+                          f"{key.shape}, {y.shape}, {t_s.shape}, {setup.shape}")
+    su, sinv = np.unique(setup, return_inverse=True)
+    lo = np.full(su.size, np.inf)
+    hi = np.full(su.size, -np.inf)
+    np.minimum.at(lo, sinv, t_s)
+    np.maximum.at(hi, sinv, t_s)
+    span = (hi - lo)[sinv]
+    ok = np.flatnonzero(key >= 0)
+    order = ok[np.lexsort((t_s[ok], key[ok]))]  # by target, then time
+    a, b = order[:-1], order[1:]
+    pair = (key[a] == key[b]) & (setup[a] == setup[b]) & (t_s[b] - t_s[a] <= fraction * span[a])
+    d = y[b[pair]] - y[a[pair]]
+    return Replicates(float(d @ d) / 2.0, int(pair.sum()), int(np.unique(key[a[pair]]).size))
+
+
 @dataclass(frozen=True)
 class LackOfFit:
     """Classical lack-of-fit F test: residual scatter beyond the replicates' scatter."""

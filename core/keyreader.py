@@ -74,4 +74,6 @@ def read_text_file(path, error_class: type[VmtError], what: str) -> str:
     try:
         return p.read_text(encoding="utf-8")
     except UnicodeDecodeError as e:
-        raise error_class(f"{p}: not UTF-8 text (byte {e.start})") from None
+        from core.atomic import not_text_problem
+
+        raise error_class(f"{p}: {not_text_problem(p, e.object[:8], e)}") from None

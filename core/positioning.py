@@ -258,7 +258,12 @@ def _read_text(path, what: str) -> tuple[str, str]:
     try:
         return p.read_text(encoding="utf-8-sig"), src
     except UnicodeDecodeError as e:
-        raise PositioningLogError(f"{src}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+        from core.atomic import not_text_problem
+
+        with open(p, "rb") as f:  # the decoded bytes e.object start after a byte-order mark
+            head = f.read(8)
+        bom = 3 if head.startswith(b"\xef\xbb\xbf") else 0
+        raise PositioningLogError(f"{src}: {not_text_problem(src, head, e, bom)}") from None
 
 
 def read_positioning_log(path: str | os.PathLike) -> PositioningLog:

@@ -260,7 +260,7 @@ def _ordered(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 # reading
 
 
-def read_probe_log(path: str | os.PathLike) -> ProbeLog:
+def read_probe_log(path: str | os.PathLike, *, progress=None) -> ProbeLog:
     """Read and validate a ``probe-log/1`` file.
 
     The file is read line by line and its columns are built in blocks of
@@ -274,6 +274,10 @@ def read_probe_log(path: str | os.PathLike) -> ProbeLog:
     ----------
     path : path-like
         The CSV file (a regular file, or a pipe).
+    progress : callable, optional
+        ``progress(lines_done, lines)`` after each block of rows parsed and once
+        when the log is validated (``lines_done == lines``): a 1e6-row file
+        takes some 20 s.
 
     Returns
     -------
@@ -301,7 +305,7 @@ def read_probe_log(path: str | os.PathLike) -> ProbeLog:
                 f = io.BytesIO(f.read())
             n_lines, unterminated = _scan(f, src)
             f.seek(0)
-            return _parse(_file_lines(f), n_lines, unterminated, src)
+            return _parse(_file_lines(f), n_lines, unterminated, src, progress)
     except OSError as e:
         raise ProbeLogError(f"{src}: cannot read: {e.strerror or e}") from None
     except UnicodeDecodeError:  # the first pass found it UTF-8: another program wrote to it since
@@ -326,7 +330,9 @@ def _scan(f, src: str) -> tuple[int, bool]:
         try:
             s = raw[bom:].decode("utf-8")
         except UnicodeDecodeError as e:
-            raise ProbeLogError(f"{src}: not UTF-8 text ({e.reason} at byte {off + bom + e.start})") from None
+            from core.atomic import not_text_problem
+
+            raise ProbeLogError(f"{src}: {not_text_problem(src, raw if off == 0 else b'', e, off + bom)}") from None
         off += len(raw)
         nul = nul or "\x00" in s
         blank = blank and not s.strip()
@@ -524,8 +530,9 @@ class _Columns:
         return np.concatenate(self.lines) if self.lines else np.empty(0, dtype=np.int64)
 
 
-def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> ProbeLog:
-    """Parse the lines of a probe log (``n_lines`` in all; the last without an end of line when ``unterminated``)."""
+def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, progress=None) -> ProbeLog:
+    """Parse the lines of a probe log (``n_lines`` in all; the last without an end of line when ``unterminated``);
+    ``progress(lines_done, n_lines)`` after each block and when validated (:func:`read_probe_log`)."""
     meta: dict[str, str] = {}
     i, first = 0, None
     for s in lines:
@@ -586,6 +593,8 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> 
             if len(block) == CHUNK_ROWS:
                 cols.add(block, block_lines)
                 block, block_lines = [], []
+                if progress is not None:
+                    progress(ln, n_lines)
     except csv.Error as e:
         raise ProbeLogError(f"{src}: line {header_line + 1 + k}: {e}") from None
     cols.add(block, block_lines)
@@ -599,6 +608,8 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str) -> 
     line_of_row = cols.line_of_row()
     log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings))
     _validate(log, lines=line_of_row)
+    if progress is not None:
+        progress(n_lines, n_lines)
     return log
 
 

@@ -348,8 +348,10 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
     """Find where a campaign stopped: complete rows on disk, checked against the plan.
 
     A last line without its newline (the process died while writing it) is
-    cut off the file. Every complete row must be the plan row of the same
-    index (same ``setup``, ``target`` and nominal point). Unless the caller
+    cut off the file, once the rest is found a log of this plan (a file that
+    is not, e.g. a compressed log, is refused and left as it was). Every
+    complete row must be the plan row of the same index (same ``setup``,
+    ``target`` and nominal point). Unless the caller
     holds the writer's lock (``locked``), it is taken for the recovery, so
     a line another client is writing is never cut.
 
@@ -371,16 +373,15 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
     data = p.read_bytes()
     keep = data.rfind(b"\n") + 1
     torn = len(data) - keep
-    if torn:
-        with open(p, "r+b") as f:
-            f.truncate(keep)
-            f.flush()
-            os.fsync(f.fileno())
-        data = data[:keep]
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
-        raise ProbeLogError(f"{p}: not UTF-8 text at byte {e.start}") from None
+        if e.start < keep or e.reason != "unexpected end of data":  # more than a character cut by the tear
+            from core.atomic import not_text_problem
+
+            raise ProbeLogError(f"{p}: {not_text_problem(p, data[:8], e)}") from None
+    if torn:
+        text = data[:keep].decode("utf-8")
     log = parse_probe_log(text, source=str(p))
     header = next(line for line in text.splitlines() if line and not line.startswith("#"))
     columns = next(csv.reader([header]))
@@ -398,6 +399,11 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
         if not same:
             raise PlanError(f"{p}: row {i} (setup {log.columns['setup'][i]!r}, target "
                             f"{log.columns['target'][i]!r}) is not plan row {i}: not a log of this plan")
+    if torn:  # cut only now, the rows before it found a log of this plan: another file is left whole
+        with open(p, "r+b") as f:
+            f.truncate(keep)
+            f.flush()
+            os.fsync(f.fileno())
     t = log.columns["t_s"]
     t = t[~np.isnan(t)]
     return Recovered(log.n, columns, dict(log.meta), float(t.max()) if t.size else 0.0, torn)
@@ -423,7 +429,8 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
                  unlock: bool = False, home: bool = False, plan_path: str | None = None,
                  clock: Callable[[], float] = time.time,
                  on_touch: Callable[[int, ProbeResult], None] | None = None,
-                 require_limits: bool = True) -> CampaignResult:
+                 require_limits: bool = True,
+                 on_start: Callable[[int, int], None] | None = None) -> CampaignResult:
     """Probe ``plan`` on ``backend`` and append every touch to the log ``out``.
 
     Parameters
@@ -441,6 +448,9 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         Wall-clock seconds (``t_s`` is ``clock() - started_unix``, never going backwards).
     on_touch : callable(row, ProbeResult) or None
         Called after each touch is on disk.
+    on_start : callable(rows_on_disk, rows_of_plan) or None
+        Called once, when the log is recovered (or found absent), before any motion: a resumed
+        run's progress starts at the rows already done, not at zero.
 
     Raises
     ------
@@ -474,6 +484,8 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         done, last_t, started = 0, 0.0, None
     statuses: dict[str, int] = {}
     before = done
+    if on_start is not None:  # (rows already on disk, rows of the plan): a resumed run's progress starts there
+        on_start(before, plan.n)
     if done >= plan.n:
         if fd is not None:
             os.close(fd)

@@ -178,7 +178,7 @@ def _identify(t, truth: _Truth, errs, seed: int, outp: Path, say):
 def _discover(t, truth: _Truth, log_path, outp: Path, say):
     """Step 4: discovery; its findings against the two hidden effects. Returns (d, report, all named)."""
     from core.atomic import json_safe, write_json_atomic
-    from core.discover import discover
+    from core.discover import cv_ratio_text, discover
 
     d = discover(t, **_progress_kw(discover, say.within))
     rep = json_safe(d.to_report())
@@ -190,7 +190,7 @@ def _discover(t, truth: _Truth, log_path, outp: Path, say):
         say(f"found {f['cause']}: " + _finding_text(f))
     g = rep["gain"]
     say(f"extended {rep['extended']['model']}: RMS {rep['extended']['rms_um']:.3f} um (x{g['rms_ratio']:.2f}),"
-        f" cross-validated {rep['extended']['cv_rms_um']:.3f} um (x{g['cv_rms_ratio']:.2f})")
+        f" cross-validated {rep['extended']['cv_rms_um']:.3f} um ({cv_ratio_text(g)})")
     ids = [w["target"] for w in rep["workpiece"]]
     gb = np.array([w["baseline_um"] for w in rep["workpiece"]]) * UM
     ge = np.array([w["extended_um"] for w in rep["workpiece"]]) * UM

@@ -1321,8 +1321,10 @@ def compensators(directory, name: str):
         out["per_axis_files"] = lambda m: AxisCompensation(m, joints, joint_offset_m=off)
     pj = d / f"{name}-comp.json"
     if pj.is_file():
-        try:
-            doc = json.loads(pj.read_text(encoding="utf-8"))
+        from core.keyreader import read_text_file
+
+        try:  # not UTF-8 (e.g. compressed): one line naming it, as every text reader (was a traceback)
+            doc = json.loads(read_text_file(pj, ConfigError, "compensation file"))
         except json.JSONDecodeError as e:
             raise ConfigError(f"{pj}: not JSON ({e.msg}, line {e.lineno})") from None
         chain, tables, const, pts = comp_tables(doc)
@@ -1545,12 +1547,18 @@ def read_bar_calibration(path):
     from core.exceptions import ConfigError
     from core.mfb import BarCalibration
 
+    from core.atomic import not_text_problem
+
     try:
-        with open(path, encoding="utf-8") as f:
-            doc = json.load(f)
+        with open(path, "rb") as f:
+            data = f.read()
     except OSError as e:
         raise ConfigError(f"bar calibration {path}: cannot read ({e.strerror or e})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+    try:
+        doc = json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as e:  # e.g. a compressed file: which compression, how to decompress it
+        raise ConfigError(f"bar calibration {path}: {not_text_problem(path, data[:8], e)}") from None
+    except json.JSONDecodeError as e:
         raise ConfigError(f"bar calibration {path}: not JSON ({e})") from None
     if not isinstance(doc, dict) or doc.get("format") != BAR_CALIBRATION_FORMAT:
         raise ConfigError(f"bar calibration {path}: format must be {BAR_CALIBRATION_FORMAT!r}")

@@ -495,9 +495,9 @@ def _machine(r: _Reader, doc: dict, base_dir: Path):
         if not p.is_file():
             r.fail("machine", f"{m!r}: no such machine file and not a built-in machine "
                               f"({', '.join(mf.builtin_names())})")
-        try:
-            mdoc = tomllib.loads(p.read_text(encoding="utf-8"))
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        try:  # not UTF-8 (e.g. compressed): read_text_file says so, as every text reader
+            mdoc = tomllib.loads(read_text_file(p, mf.MachineFileError, "machine file"))
+        except tomllib.TOMLDecodeError as e:
             raise mf.MachineFileError(f"{p}: not a TOML machine file: {e}") from None
         src = str(p)
     mdoc = dict(mdoc)

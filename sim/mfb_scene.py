@@ -850,7 +850,7 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
         if key not in z_bars:
             z_bars[key] = float(apply_T(T_W_A, pts_A)[:, 2].min())
         if z_bars[key] < -1e-9:
-            b.append(f"the bar reaches {z_bars[key] * 1e3:.1f} mm below the table face")
+            b.append(f"the bar reaches {-z_bars[key] * 1e3:.1f} mm below the table face")
         for blk in blocks:
             if min(blk.lo[2], blk.hi[2]) < -1e-9:
                 b.append(f"workholder block {blk.name} below the table face")

@@ -58,8 +58,11 @@ class TerminalProgress:
 
     Notes
     -----
-    The estimate is the mean rate so far: ``left = elapsed / done *
-    (total - done)``; no estimate before the first item is done.
+    The estimate is the mean rate so far: ``left = elapsed / (done -
+    done_before) * (total - done)``; no estimate before the first item is
+    done. ``done_before`` (a count of items) is 0 unless :meth:`begin` says
+    how many were done before this run (a resumed campaign: their time is
+    not in ``elapsed``).
     """
 
     def __init__(self, label: str, *, stream: TextIO | None = None,
@@ -74,6 +77,14 @@ class TerminalProgress:
         self._last_draw = -float("inf")
         self._width = 0
         self._drawn = False
+        self.done_before = 0
+
+    def begin(self, done: int, total: int) -> None:
+        """This run starts with ``done`` of ``total`` already done (a resumed campaign): the time
+        left counts from now, at the rate of the items this run does; the line is drawn."""
+        self.done_before = int(done)
+        self._t0 = self._clock()
+        self(done, total)
 
     def line(self, done: int, total: int) -> str:
         """The text of the progress line for ``done`` of ``total``."""
@@ -86,8 +97,8 @@ class TerminalProgress:
             head = f"{self.label}: {done}"
         if done >= total > 0:
             return f"{head}  done in {format_duration(elapsed)}"
-        if done > 0 and total > 0:
-            left = elapsed / done * (total - done)
+        if done > self.done_before and total > 0:
+            left = elapsed / (done - self.done_before) * (total - done)
             return f"{head}  ~{format_duration(left)} left"
         return head
 

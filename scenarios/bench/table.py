@@ -82,12 +82,17 @@ def replace_table(readme: str, table: str, source: str = "README") -> str:
 
 def read_results(path) -> dict:
     """The bench document in ``path``, or a ConfigError naming the file and the problem."""
+    from core.atomic import not_text_problem
+
     p = Path(path)
     try:
-        return json.loads(p.read_text(encoding="utf-8"))
+        data = p.read_bytes()
+        return json.loads(data.decode("utf-8"))
     except FileNotFoundError:
         raise ConfigError(f"{p}: no such file (run `make bench` first)") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+    except UnicodeDecodeError as e:  # e.g. a compressed file: which compression, how to decompress it
+        raise ConfigError(f"{p}: {not_text_problem(p, data[:8], e)}") from None
+    except (OSError, json.JSONDecodeError) as e:
         raise ConfigError(f"{p}: not a readable JSON file ({e})") from None
 
 

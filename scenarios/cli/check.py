@@ -38,8 +38,10 @@ def run(args) -> int:
         args.json = "-"
     if args.log is None:
         raise ConfigError("give the LOG to check: vmt check LOG")
-    log = read_probe_log(args.log)
-    s = summary(log)
+    from scenarios.cli.guard import progress_line
+
+    with progress_line("check: lines read") as bar:  # a 1e6-row log takes some 20 s
+        s = summary(read_probe_log(args.log, progress=bar))
     if args.json == "-":
         print(json.dumps(s, indent=2))
         return 0

@@ -110,6 +110,8 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     ``kind`` is the baseline's (``planar``: a probe-log campaign, its estimand the workpiece;
     ``positioning``: an ISO 230-2 test, its estimand the mean deviation per target and direction).
     """
+    from core.discover import cv_ratio_text
+
     label, rows = ESTIMAND_WORDS[kind]
     b, nz = rep["baseline"], rep["noise_um"]
     out = [f"baseline   {b['model']}: rms {b['rms_um']:.3f} um, cv rms {rep['baseline_cv_rms_um']:.3f} um "
@@ -133,7 +135,7 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
         out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}{said_u95}")
     g = rep["gain"]
     out.append(f"extended   {rep['extended']['model']}: rms {rep['extended']['rms_um']:.3f} um "
-               f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um (x{g['cv_rms_ratio']:.2f})")
+               f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um ({cv_ratio_text(g)})")
     if not rep["workpiece_identifiable"] and rep.get("workpiece") is not None:
         out.append(f"{label:10s} not identifiable by this design (reported as null)")
     elif rep.get("workpiece") and rep["findings"]:

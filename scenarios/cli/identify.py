@@ -13,7 +13,8 @@ def register(sub) -> None:
     p.add_argument("--delta-l-um", type=float, default=None,
                    help="X positioning error at the last x node, measured (eq 17); omitted = scale unknown")
     p.add_argument("--mc", type=int, default=0, metavar="N", help="also run N Monte Carlo runs (JCGM 101)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the Monte Carlo runs")
+    p.add_argument("--seed", type=int, default=None,
+                   help="seed of the Monte Carlo runs (0); only with --mc: without it nothing is drawn")
     add_noise_arg(p, "for U95; default: sigma from the residuals", old=("--u-probe-um",))
     p.set_defaults(func=run)
 
@@ -35,6 +36,8 @@ def _run(args, bar) -> int:
     from core.touches import from_log
     from core.uncertainty import monte_carlo_touches
 
+    if args.seed is not None and not args.mc:  # refused, not ignored: without --mc nothing is drawn
+        raise ConfigError(f"--seed {args.seed}: it seeds the Monte Carlo runs, and there are none; add --mc N")
     steps = 4 if args.mc else 3
     bar(0, steps)
     log = read_probe_log(args.log)
@@ -61,7 +64,7 @@ def _run(args, bar) -> int:
     bar(2, steps)
     mc = None
     if args.mc and res.sigma_m > 0:
-        mc = monte_carlo_touches(t, grid, res.sigma_m, runs=args.mc, rng=np.random.default_rng(args.seed),
+        mc = monte_carlo_touches(t, grid, res.sigma_m, runs=args.mc, rng=np.random.default_rng(args.seed or 0),
                                  delta_L_m=dL, yaw=yaw)
         bar(3, steps)
     from core.atomic import write_json_atomic

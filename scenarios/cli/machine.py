@@ -47,7 +47,8 @@ def register(sub) -> None:
                      errors_default="drawn", errors_why="the emulator's machine, the same as probe --controller "
                                                         "virtual:SCENE")
     add_noise_arg(s, "default 0 on a built-in machine, as probe --controller virtual:SCENE; a machine file's probe")
-    s.add_argument("--seed", type=int, default=0, help="seed of the noise (0)")
+    s.add_argument("--seed", type=int, default=None,
+                   help="seed of the probing noise (0); only where there is noise: --noise-um, or a machine file's")
     s.add_argument("--scale-ppm", default="0,0,0", help="scale errors of X,Y,Z, µm/m (0,0,0)")
     s.add_argument("--ec0y-urad", type=float, default=0.0, help="squareness EC0Y, µrad (0)")
     option(s, "--limits-mm", dest="limits", old=("--limits",),
@@ -84,21 +85,28 @@ def served_machine(args):
     machine file with its errors and its probe.
     """
     from core.exceptions import ConfigError
+    from core.units import UM
     from hardware.virtual import builtin_machine, sim_machine
     from sim.machinefile import truth_machine
     from sim.machinefile import builtin_names
+    from scenarios.cli.options import refuse_seed_without_noise
 
     if args.scene == "simple":
         for opt, v in (("--machine", args.machine), ("--errors", args.errors)):
             if v is not None:
                 raise ConfigError(f"{opt}: the simple scene has its own errors (--scale-ppm, --ec0y-urad); "
                                   "give --scene ARTEFACT to probe an artefact on a machine")
-        return builtin_machine(args.noise_um or 0.0, args.seed, _floats3(args.scale_ppm, "--scale-ppm"),
+        refuse_seed_without_noise(args.seed, args.noise_um, 0.0, "the simple scene is served noise-free")
+        return builtin_machine(args.noise_um or 0.0, args.seed or 0, _floats3(args.scale_ppm, "--scale-ppm"),
                                args.ec0y_urad)
     name = args.machine or "nmv3000"
     spec = truth_machine(name, args.errors, "drawn")
-    noise = args.noise_um if args.noise_um is not None else (0.0 if name in builtin_names() else None)
-    return sim_machine(args.scene, noise, args.seed, spec=spec)
+    builtin = name in builtin_names()
+    noise = args.noise_um if args.noise_um is not None else (0.0 if builtin else None)
+    refuse_seed_without_noise(args.seed, args.noise_um, 0.0 if builtin else spec.probe.sigma_m / UM,
+                              "a built-in machine is served noise-free" if builtin
+                              else f"the probe of machine file {name} has none")
+    return sim_machine(args.scene, noise, args.seed or 0, spec=spec)
 
 
 def run_serve(args) -> int:

@@ -96,6 +96,22 @@ def add_noise_arg(p, default_text: str, *, old: tuple[str, ...] = (), default=No
            help=f"probing noise, a standard deviation (k=1) along the approach, um ({default_text})")
 
 
+def refuse_seed_without_noise(seed: int | None, noise_um: float | None, default_um: float, default_why: str) -> None:
+    """``--seed`` where it seeds the probing noise only (``simulate ARTEFACT``, ``machine serve``):
+    given where there is no noise it would change nothing, so it is refused in one line, not ignored.
+
+    ``noise_um`` is the ``--noise-um`` given (None: not given), ``default_um`` the noise without it
+    and ``default_why`` why that one is zero (``"a built-in machine is served noise-free"``).
+    """
+    from core.exceptions import ConfigError
+
+    noise = default_um if noise_um is None else noise_um
+    if seed is not None and not noise > 0:
+        why = default_why if noise_um is None else f"--noise-um {noise_um:g}"
+        raise ConfigError(f"--seed {seed}: it seeds the probing noise, and there is none ({why}); "
+                          "give --noise-um above 0, or leave --seed out")
+
+
 #: What each error set ``--errors`` names is (:func:`sim.machinefile.truth_machine`), for the help texts.
 ERRORS_HELP = ("realistic: the papers' magnitudes with the screw ripple; study: the same without the ripple; "
                "drawn: a ripple-free set drawn with seed 1; none: the file as shipped")

@@ -59,7 +59,7 @@ def run(args) -> int:
     extra = f", cut a torn last line ({res.torn_bytes} bytes)" if res.torn_bytes else ""
     st = ", ".join(f"{k}: {v}" for k, v in sorted(res.statuses.items())) or "none"
     print(f"{args.out}: {res.rows_done} of {res.rows_total} touches "
-          f"({new} new, {res.rows_before} before{extra}; {st})")
+          f"({new} new, {res.rows_before} before{extra}; the new ones: {st})")
     return 0
 
 
@@ -115,7 +115,8 @@ def _probe(plan, settings, args):
             with TerminalProgress("campaign") as progress:
                 return run_campaign(backend, plan, args.out, settings, resume=args.resume,
                                     unlock=args.unlock, home=args.home, plan_path=args.plan,
-                                    on_touch=lambda row, _r: progress(row + 1, plan.n))
+                                    on_touch=lambda row, _r: progress(row + 1, plan.n),
+                                    on_start=progress.begin)  # resumed: time left at this run's rate
         finally:
             backend.close()
     finally:

@@ -27,7 +27,9 @@ def register(sub) -> None:
     p.add_argument("artefact", choices=tuple(catalog.CATALOG) + ("positioning",),
                    help="artefact to probe, or 'positioning' for an ISO 230-2 test of one axis")
     p.add_argument("--out", required=True, help="probe-log/1 CSV to write (positioning-log/1 for positioning)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the probing noise (positioning: of the scatter and target spacing)")
+    p.add_argument("--seed", type=int, default=None,
+                   help="seed of the probing noise (0); only where there is noise (positioning: of the scatter "
+                        "and target spacing)")
     from scenarios.cli.options import add_machine_args, add_noise_arg, option
 
     add_machine_args(p, default=None, what="virtual machine (default: the artefact's, list below; positioning: "
@@ -74,6 +76,10 @@ def run(args) -> int:
         if not (np.isfinite(args.noise_um) and args.noise_um >= 0):
             raise ConfigError(f"--noise-um must be >= 0, got {args.noise_um!r}")
         probe = replace(probe, repeatability_k2_m=2 * args.noise_um * UM)
+    from scenarios.cli.options import refuse_seed_without_noise
+
+    refuse_seed_without_noise(args.seed, args.noise_um, spec.probe.sigma_m / UM,
+                              f"the probe of machine {name} has none")
     if rec.placements is not None:
         if args.c_angles:
             raise ConfigError(f"--c-angles-deg: the {rec.name} campaign uses its {rec.setups_text()}, not C angles")
@@ -84,9 +90,10 @@ def run(args) -> int:
             setups = [float(v) for v in text.split(",") if v.strip()]
         except ValueError:
             raise ConfigError(f"--c-angles-deg {text!r} is not a comma-separated list of degrees") from None
-    log = simulate_campaign(args.artefact, machine, probe, setups, np.random.default_rng(args.seed),
+    seed = args.seed or 0
+    log = simulate_campaign(args.artefact, machine, probe, setups, np.random.default_rng(seed),
                             plan_only=args.plan_only, check_collisions=not args.no_collision_check,
-                            meta={"errors": errors, "seed": str(args.seed)})
+                            meta={"errors": errors, "seed": str(seed)})
     write_probe_log(args.out, log, special=True)
     from scenarios.cli.guard import said
 
@@ -169,7 +176,7 @@ def _run_positioning(args) -> int:
     line = _numbers(args.line_mm, "--line-mm", ",", 3) if args.line_mm else None
     name = args.machine or "vmc-3axis"
     log = simulate_test(
-        name, opt("axis", "X"), np.random.default_rng(args.seed), errors=args.errors,
+        name, opt("axis", "X"), np.random.default_rng(args.seed or 0), errors=args.errors,
         noise_um=opt("scatter_um", 0.5), n_targets=opt("targets", 11), travel_mm=travel, cycles=opt("cycles", 5),
         cycle_kind=opt("cycle", "linear"), overrun_mm=opt("overrun_mm", 5.0), feed_mm_min=opt("move_feed", 2000.0),
         dwell_s=opt("dwell_s", 2.0), line_mm=line, reversal_um=opt("reversal_um", 0.0),

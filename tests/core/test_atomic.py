@@ -163,7 +163,7 @@ def test_run_outputs_takes_back_what_a_failed_run_wrote(tmp_path):
 def test_run_outputs_puts_back_replaced_folders_and_entries_and_commit_drops_the_kept_copies(tmp_path):
     """A report folder replaced whole, an entry of a folder replaced or removed, a file removed: each
     back as it was after a failed run (main lost them all); after a run that succeeded the kept
-    copies (hard links) are dropped and the new outputs stay."""
+    copies are dropped and the new outputs stay."""
     import shutil
 
     rep, comp, j = tmp_path / "rep", tmp_path / "comp", tmp_path / "j.json"
@@ -176,7 +176,7 @@ def test_run_outputs_puts_back_replaced_folders_and_entries_and_commit_drops_the
     (comp / "Y.comp").write_text("old Y")
     j.write_text("old json")
     outs = RunOutputs([rep, comp, j])
-    assert os.stat(j).st_nlink == 2                       # kept by a hard link, not a copy
+    assert os.stat(j).st_nlink == 1                       # kept as a copy, not a second name of it
     new = tmp_path / ".rep.new"
     new.mkdir()
     (new / "index.html").write_text("new page")
@@ -196,6 +196,24 @@ def test_run_outputs_puts_back_replaced_folders_and_entries_and_commit_drops_the
     outs.commit()
     assert listing(tmp_path) == ["comp", "j.json", "rep"] and j.read_text() == "new json"
     assert os.stat(rep / "index.html").st_nlink == 1
+
+
+def test_run_outputs_survives_a_writer_that_writes_in_place(tmp_path):
+    """A writer that opens an output and rewrites it in place (truncate, write, fail half way),
+    a file and an entry of an output folder: after the failed run both hold the user's content
+    again. On main the kept copy was a hard link, the same inode: truncating the output truncated
+    it too, and the failed run's half-written file was what got 'put back'."""
+    j, comp = tmp_path / "j.json", tmp_path / "comp"
+    j.write_text("user's json")
+    comp.mkdir()
+    (comp / "X.comp").write_text("user's X")
+    outs = RunOutputs([j, comp])
+    for p in (j, comp / "X.comp"):
+        with open(p, "w") as f:                          # in place: the same inode, truncated
+            f.write("ha")                               # ... and the run fails here
+    outs.remove_written()
+    assert j.read_text() == "user's json" and (comp / "X.comp").read_text() == "user's X"
+    assert listing(tmp_path) == ["comp", "j.json"] and listing(comp) == ["X.comp"]
 
 
 def test_run_outputs_keeps_everything_when_nothing_was_written(tmp_path):
@@ -225,3 +243,46 @@ def test_dev_stdout_is_written_through_never_replaced(tmp_path):
     with pytest.raises(OutputError, match="symbolic link"):
         write_text_atomic("/dev/stdout", "x")             # not asked: refused, never replaced
     assert os.path.islink("/dev/stdout")
+
+
+@pytest.mark.parametrize("kind, tool, pack", [
+    ("gzip", "gzip", ["gzip", "-c"]), ("bzip2", "bzip2", ["bzip2", "-c"]), ("xz", "xz", ["xz", "-c"]),
+    ("zstd", "zstd", ["zstd", "-q", "-c"]), ("zip", "unzip", None)])
+def test_not_text_problem_names_the_compression_and_a_command_that_decompresses_it(tmp_path, kind, tool, pack):
+    """A compressed file under a name that does not say so (a space in it, no .gz/.xz suffix: the
+    old advice 'gunzip -k FILE' refuses such a name, 'unknown suffix'): the message names the
+    format, and its command, run by a POSIX shell as printed, writes the original bytes."""
+    import shlex
+    import shutil
+    import subprocess
+    import zipfile
+
+    if shutil.which(tool) is None or (pack and shutil.which(pack[0]) is None):
+        pytest.skip(f"{tool} not installed")
+    body = b"setup,target\ns1,1\n"
+    p = tmp_path / "my log.csv"
+    if pack is None:
+        with zipfile.ZipFile(p, "w") as z:
+            z.writestr("log.csv", body)
+    else:
+        p.write_bytes(subprocess.run(pack, input=body, capture_output=True, check=True).stdout)
+    data = p.read_bytes()
+    with pytest.raises(UnicodeDecodeError) as e:
+        data.decode("utf-8")
+    msg = at.not_text_problem(p, data[:8], e.value)
+    prefix = f"{kind}-compressed, not text: decompress it first ("
+    assert msg.startswith(prefix) and msg.endswith(f" > {shlex.quote(str(p) + '.txt')})")
+    subprocess.run(["sh", "-c", msg[len(prefix):-1]], cwd=tmp_path, check=True)
+    assert (tmp_path / "my log.csv.txt").read_bytes() == body
+
+
+def test_not_text_problem_says_the_byte_counted_from_the_file_start():
+    """Not compressed: 'not UTF-8 text (REASON at byte N)', N from the file's first byte (the decoded
+    bytes start at ``offset``); bad bytes away from the file's start are not taken for a magic number."""
+    with pytest.raises(UnicodeDecodeError) as e:
+        b"ab\xffc".decode("utf-8")
+    assert at.not_text_problem("f.csv", b"ab\xffc", e.value) == "not UTF-8 text (invalid start byte at byte 2)"
+    assert at.not_text_problem("f.csv", b"", e.value, 100) == "not UTF-8 text (invalid start byte at byte 102)"
+    with pytest.raises(UnicodeDecodeError) as e:
+        b"\x1f\x8b\x08".decode("utf-8")  # a gzip header, but given as bytes not at the file's start
+    assert at.not_text_problem("f.csv", b"", e.value, 40) == "not UTF-8 text (invalid start byte at byte 41)"

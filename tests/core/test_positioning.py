@@ -207,6 +207,12 @@ def test_missing_and_directory_files(tmp_path):
     (tmp_path / "bin.csv").write_bytes(b"\xff\xfe\x00bad")
     with pytest.raises(PositioningLogError, match="not UTF-8"):
         read_positioning_log(tmp_path / "bin.csv")
+    import gzip  # a compressed log named as such (docs/formats.md: plain UTF-8 text)
+
+    (tmp_path / "x.csv.gz").write_bytes(gzip.compress(b"axis,target_mm\n"))
+    with pytest.raises(PositioningLogError, match=r"x\.csv\.gz: gzip-compressed, not text: decompress it first "
+                                                  r"\(gzip -dc .*x\.csv\.gz > .*x\.csv\.gz\.txt\)$"):
+        read_positioning_log(tmp_path / "x.csv.gz")
 
 
 def _only(rows, keep):

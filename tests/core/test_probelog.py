@@ -1,4 +1,5 @@
 import math
+import re
 
 import numpy as np
 import pytest
@@ -464,6 +465,24 @@ def test_unknown_column_turns_text_on_a_late_block(tmp_path, monkeypatch, chunk)
     rows[-1] = rows[-1].rsplit(",", 1)[0] + ",G-12"
     p.write_text(HEADER + ",gauge\n" + "\n".join(rows) + "\n")
     assert read_probe_log(p).columns["gauge"].tolist() == ["0", "1", "2", "3", "4", "5", "G-12"]
+
+
+def test_compressed_log_refused_naming_the_compression(tmp_path):
+    """A gzip/xz/bzip2 log is not probe-log/1 (plain UTF-8 text, docs/formats.md): one line says
+    it is compressed and how to decompress it (was: 'not UTF-8 text (invalid start byte at byte 1)')."""
+    import bz2
+    import gzip
+    import lzma
+
+    body = (HEADER + "\n" + ROW + "\n").encode()
+    for ext, pack, kind, cmd in ((".gz", gzip.compress, "gzip", "gzip -dc"), (".xz", lzma.compress, "xz", "xz -dc"),
+                                 (".bz2", bz2.compress, "bzip2", "bzip2 -dc")):
+        p = tmp_path / f"log.csv{ext}"
+        p.write_bytes(pack(body))
+        with pytest.raises(ProbeLogError, match=rf"^{re.escape(str(p))}: {kind}-compressed, not text: decompress it "
+                                                rf"first \({re.escape(cmd)} {re.escape(str(p))} > "
+                                                rf"{re.escape(str(p))}\.txt\)$"):
+            read_probe_log(p)
 
 
 def test_not_utf8_names_the_byte_of_the_file(tmp_path):

@@ -104,6 +104,49 @@ def test_lost_connection_then_resume_is_complete_and_duplicate_free(tmp_path, pl
     assert emu.probes == plan.n + 2          # the two lost probes were made again
 
 
+def test_resumed_progress_starts_at_the_rows_on_disk(tmp_path, plan_path, monkeypatch):
+    """An interrupted run on the emulator (connection lost before probe 5: 4 rows on disk),
+    then --resume: its progress line starts at 4/12 (run_campaign's on_start, before any motion)
+    and counts on, so the time left is from this run's rate (viz.progress.TerminalProgress.begin);
+    on main the first line was 5/12 and the estimate counted the 4 earlier touches as this run's."""
+    import io
+
+    import viz.progress
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    drawn = []
+
+    class Recorded(viz.progress.TerminalProgress):
+        def __init__(self, label, **kw):
+            super().__init__(label, stream=Tty(), min_interval_s=0.0)
+            drawn.append(self.stream)
+
+    monkeypatch.setattr(viz.progress, "TerminalProgress", Recorded)
+    plan = read_probe_log(plan_path)
+    starts = []
+    emu, srv = serve(Faults(drop_before_probe=(5,)))
+    out = tmp_path / "log.csv"
+    try:
+        assert main(probe_args(srv.url, plan_path, out)) == 2
+        assert read_probe_log(out).n == 4
+        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 0
+        # the library's side: on_start once, with the rows on disk and the plan's, before any touch
+        out2 = tmp_path / "again.csv"
+        run_campaign(VirtualBackend(scene(), home_m=(0, 0, 0.05)), plan, out2, ProbeSettings(limits_mm=LIMITS_MM),
+                     on_start=lambda d, n: starts.append((d, n)), on_touch=lambda row, _r: starts.append(row))
+    finally:
+        srv.stop()
+    assert_complete(read_probe_log(out), plan)
+    assert starts == [(0, 12)] + list(range(12))
+    lines = [[x.strip() for x in t.getvalue().split("\r") if x.strip()] for t in drawn]
+    counts = [[x.split("] ")[1].split(" ")[0] for x in run] for run in lines]
+    assert counts == [[f"{k}/12" for k in range(0, 5)], [f"{k}/12" for k in range(4, 13)]]
+    assert "left" not in lines[1][0] and "left" in lines[1][1] and "done in" in lines[1][-1]
+
+
 @pytest.mark.parametrize("homing", [False, True])
 def test_hard_limit_alarm_needs_a_reset_then_the_users_word(tmp_path, plan_path, capsys, homing):
     """ALARM:1, as GRBL: nothing answered until a reset, then $X or $H; vmt says so."""
@@ -228,6 +271,44 @@ def test_recover_cuts_a_torn_line_and_refuses_another_plan(tmp_path, plan_path):
     other = plan_log(n_sphere=6)
     with pytest.raises(PlanError, match="not plan row 5"):
         recover_log(ref_path, other)
+
+
+def test_recover_leaves_a_file_that_is_not_a_log_of_the_plan_whole(tmp_path, plan_path, capsys):
+    """recover_log cut the last line without its newline before it looked at the file: a gzip
+    log lost the bytes after its last newline byte, a log of another plan lost its last
+    line, and only then were they refused. Now each is refused and its bytes are as they were;
+    a torn line that ends inside a UTF-8 character is still cut (and its rows recovered)."""
+    import gzip
+
+    plan = read_probe_log(plan_path)
+    direct_log(tmp_path, plan)
+    text = (tmp_path / "direct.csv").read_text()
+    torn = text[: text.index("sphere,s3")] + "sphere,s3,0.1"
+    packed = tmp_path / "packed.csv"
+    body = gzip.compress(torn.encode(), mtime=0)
+    assert not body.endswith(b"\n")  # the bytes after its last newline byte were cut as a "torn line"
+    packed.write_bytes(body)
+    with pytest.raises(ProbeLogError, match="gzip-compressed, not text"):
+        recover_log(packed, plan)
+    assert packed.read_bytes() == body
+    other = tmp_path / "other.csv"
+    other.write_text(torn)
+    with pytest.raises(PlanError, match="not plan row 5"):
+        recover_log(other, plan_log(n_sphere=6))
+    assert other.read_text() == torn
+    cut = torn.encode() + "\u00b5".encode()[:1]  # the first byte of a 2-byte character
+    other.write_bytes(cut)
+    rec = recover_log(other, plan)
+    assert rec.rows_done == 7 and rec.torn_bytes == len("sphere,s3,0.1") + 1
+    assert other.read_text() == text[: text.index("sphere,s3")]
+    emu, srv = serve()  # the CLI: vmt probe --resume on it, one line, exit 2, the file whole
+    try:
+        assert main(probe_args(srv.url, plan_path, packed, "--resume")) == 2
+    finally:
+        srv.stop()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "gzip-compressed, not text" in err and emu.probes == 0
+    assert packed.read_bytes() == body
 
 
 def test_safety_checks_before_any_connection(tmp_path, plan_path, capsys):

@@ -28,6 +28,39 @@ def test_check_summarises_a_valid_log(tmp_path, capsys):
     assert "touches  3 (3 ok)" in out and "set-ups 2" in out and "0, 90 deg" in out
 
 
+def test_check_shows_progress_with_time_left(tmp_path, capsys, monkeypatch):
+    """vmt check draws the shared progress line (viz.progress: time left) while it reads: a
+    1e6-row log takes some 20 s. Blocks of 2 rows here (core.probelog.CHUNK_ROWS), so a
+    7-row log reports after each block, then once validated, on a terminal."""
+    import io
+
+    import core.probelog
+    import scenarios.cli.guard as guard
+    from viz.progress import TerminalProgress
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    tty = Tty()
+    monkeypatch.setattr(core.probelog, "CHUNK_ROWS", 2)
+    monkeypatch.setattr(guard, "progress_line", lambda label: TerminalProgress(label, stream=tty, min_interval_s=0))
+    n = 7
+    cols = {"setup": ["a"] * n, "target": [str(i) for i in range(n)], "t_s": list(range(n)),
+            "X_mm": list(range(n)), "Y_mm": [0] * n, "Z_mm": [0] * n, "Xn_mm": list(range(n)), "Yn_mm": [0] * n,
+            "Zn_mm": [0] * n, "nx": [1] * n, "ny": [0] * n, "nz": [0] * n}
+    p = write_probe_log(tmp_path / "ok.csv", make_log(cols))
+    lines = p.read_text().splitlines()
+    assert main(["check", str(p)]) == 0
+    drawn = [s.rstrip() for s in tty.getvalue().split("\r") if s.strip()]
+    first_row = len(lines) - n + 1  # the file line of the first row (after metadata and header)
+    done = [first_row + 1, first_row + 3, first_row + 5]  # the last line of each full block of 2 rows
+    assert [d.split("] ")[1].split(" ")[0] for d in drawn] == [f"{k}/{len(lines)}" for k in done + [len(lines)]]
+    assert all(d.startswith("check: lines read: [") for d in drawn)
+    assert "left" in drawn[0] and "done in" in drawn[-1]
+    assert "touches  7 (7 ok)" in capsys.readouterr().out
+
+
 def test_check_bad_log_one_line_exit_2_no_traceback(tmp_path):
     p = tmp_path / "bad.csv"
     p.write_text("setup,target\n")

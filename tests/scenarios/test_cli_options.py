@@ -284,6 +284,64 @@ def _touches(machine):
     return np.array(out)
 
 
+def test_serve_seed_only_where_there_is_noise(tmp_path):
+    """machine serve --seed seeds the probing noise only: on a noise-free machine (a built-in one
+    by default, --noise-um 0, the simple scene) it is refused, not ignored; with noise (--noise-um,
+    a machine file's probe) it is taken, and another seed draws other touches."""
+    from core.exceptions import ConfigError
+    from scenarios.cli.machine import served_machine
+
+    zero = tmp_path / "z.toml"  # a machine file whose probe has no noise
+    zero.write_text('format = "vmt-machine/1"\nname = "z"\nbase = "nmv3000"\nerrors = "none"\n'
+                    '[probe]\nnoise_um = 0\n')
+    for extra, why in (((), "a built-in machine is served noise-free"), (("--noise-um", "0"), "--noise-um 0"),
+                       (("--machine", "nmv3000"), "a built-in machine is served noise-free"),
+                       (("--machine", str(zero)), f"the probe of machine file {zero} has none")):
+        with pytest.raises(ConfigError) as e:
+            served_machine(_serve_args("--seed", "3", *extra))
+        assert str(e.value) == (f"--seed 3: it seeds the probing noise, and there is none ({why}); "
+                                "give --noise-um above 0, or leave --seed out")
+    from scenarios.cli import build_parser
+
+    simple = build_parser().parse_args(["machine", "serve", "--port", "0", "--scene", "simple", "--seed", "3"])
+    with pytest.raises(ConfigError, match=r"--seed 3: .* \(the simple scene is served noise-free\)"):
+        served_machine(simple)
+    a = _touches(served_machine(_serve_args("--noise-um", "0.5", "--seed", "3")))
+    b = _touches(served_machine(_serve_args("--noise-um", "0.5", "--seed", "4")))
+    assert not np.array_equal(a, b)
+    assert np.array_equal(_touches(served_machine(_serve_args("--noise-um", "0.5"))),
+                          _touches(served_machine(_serve_args("--noise-um", "0.5", "--seed", "0"))))
+    f = tmp_path / "m.toml"  # a machine file whose probe has noise: the seed is taken
+    f.write_text('format = "vmt-machine/1"\nname = "m"\nbase = "nmv3000"\nerrors = "none"\n'
+                 '[probe]\nnoise_um = 0.3\n')
+    served_machine(_serve_args("--machine", str(f), "--seed", "3"))
+
+
+def test_simulate_seed_only_where_there_is_noise(tmp_path, capsys):
+    """simulate ARTEFACT --seed seeds the probing noise only, as machine serve --seed (one meaning per
+    option name, the same helper): with --noise-um 0, or a machine file whose probe has none, it is
+    refused (one line, exit 2), not ignored; without --seed the same run goes through, and with noise
+    another seed draws another log."""
+    base = ["simulate", "cross-pocket", "--c-angles-deg", "0", "--no-collision-check"]
+    zero = tmp_path / "z.toml"
+    zero.write_text('format = "vmt-machine/1"\nname = "z"\nbase = "nmv3000"\nerrors = "none"\n'
+                    '[probe]\nnoise_um = 0\n')
+    for extra, why in ((("--noise-um", "0"), "--noise-um 0"),
+                       (("--machine", str(zero)), f"the probe of machine {zero} has none")):
+        capsys.readouterr()
+        out = tmp_path / f"x{len(why)}.csv"
+        assert main([*base, "--out", str(out), "--seed", "5", *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.splitlines() == [f"vmt simulate: error: --seed 5: it seeds the probing noise, and there is none ({why}); "
+                                    "give --noise-um above 0, or leave --seed out"]
+        assert not out.exists()
+        assert main([*base, "--out", str(out), *extra]) == 0
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert main([*base, "--out", str(a), "--seed", "5"]) == 0
+    assert main([*base, "--out", str(b), "--seed", "6"]) == 0
+    assert a.read_bytes() != b.read_bytes()
+
+
 def test_serve_and_virtual_scene_are_one_machine_with_the_old_truth():
     """machine serve --scene X and probe --controller virtual:X: one machine, no noise, the old 'drawn' truth."""
     from hardware.virtual import open_backend

@@ -81,6 +81,19 @@ def test_identify_bad_input_one_line_exit_2(tmp_path, rng):
     assert main(["identify", str(log), "--json", str(tmp_path / "y.json"), "--grid-mm", "a:b"]) == 2
 
 
+def test_identify_seed_without_mc_refused(tmp_path, rng):
+    # --seed seeds the Monte Carlo runs: without --mc nothing is drawn, so it is refused in one
+    # line (exit 2, before the log is read, nothing written), not silently ignored
+    log = tmp_path / "camp.csv"
+    write_campaign(log, rng)
+    for extra in (["--seed", "3"], ["--seed", "0", "--mc", "0"]):
+        r = subprocess.run([sys.executable, "-m", "scenarios.cli", "identify", str(log), "--json",
+                            str(tmp_path / "x.json"), *extra], capture_output=True, text=True)
+        assert r.returncode == 2 and "Traceback" not in r.stderr and r.stderr.count("\n") == 1, r.stderr
+        assert "--seed" in r.stderr and "--mc" in r.stderr
+        assert not (tmp_path / "x.json").exists()
+
+
 def test_design_command(tmp_path, rng, capsys):
     log = tmp_path / "camp.csv"
     write_campaign(log, rng)

@@ -6,6 +6,8 @@ import numpy as np
 
 import pytest
 
+from core.exceptions import PlanError
+
 
 def test_cli_json_keys_and_the_compensation_closes_the_loop(tmp_path):
     """--comp writes LinuxCNC files and vmt-comp/1; --apply-comp applies them to the
@@ -381,6 +383,58 @@ def test_describe_budget_prints_every_source_and_the_ratio():
     t = describe_budget(b)
     assert "T mach" in t and "    0.70    0.65    1.40    1.50    1.07" in t
     assert "100/104" in t and "80/104" in t and "1 of 13 runs lost" in t
+
+
+def test_the_5axis_plan_passes_the_plan_check():
+    # every bar above the table face, no collision, every touch within the strokes (check_plan)
+    import scenarios.mfb as S
+
+    c = S.check_plan(S.plan_5axis())
+    assert c["passed"] and c["touches"] > 0
+
+
+def test_the_3axis_plan_stands_its_bars_in_the_table_a_known_defect():
+    """Pins THIS defect of plan_3axis (not any PlanError): its flat bars' hole line at z = 60 mm
+    on 70 mm supports stands them 10.0 mm into the table (R's origin is at the table surface,
+    sim/machines.py): X1, X3, Y1, Y3, DXY, AXY; the anti-diagonals AXZ, AYZ, falling 400 mm along
+    the bar from z = 345 mm, 75.7 mm; nothing else is wrong with it (no collision, no stroke), and
+    check_plan refuses it on the first, X1. The simulation has no fixtures, so collisions do not
+    enter its results, but the placement is not physical (docs/papers-mfb.md says so).
+
+    A plan fix (one exists on the branch s9_small_wip) makes this test fail. It must then replace
+    it by plan_3axis passing check_plan (as the 5-axis test above), and regenerate what the plan
+    moves: the stored 1,000-run budget study scenarios/data/mfb-3axis-budget-study.npz
+    (scenarios.mfb.budget_study, test_stored_study_is_this_pipeline...) and the 3-axis figures of
+    the docs/papers-mfb.md tables, and drop the known-defect line there."""
+    import numpy as np
+
+    import scenarios.mfb as S
+    from sim import artefacts as A
+    from sim.machine import nominal_T_R_W
+    from sim.machines import MACHINES
+    from sim.mfb_scene import check_measurement
+
+    plan = S.plan_3axis()
+    with pytest.raises(PlanError) as e:
+        S.check_plan(plan)
+    assert str(e.value) == "measurement 'X1' (X1, T0): the bar reaches 10.0 mm below the table face"
+    # what the check says of every measurement, each checked alone as check_plan checks it
+    art, cfg, program = S._nominal_bar(), MACHINES[plan.machine](), S._program(S.U_PLACE)
+    said = {}
+    for ms in plan.measurements:
+        T_R_W = np.asarray(nominal_T_R_W(cfg, np.asarray([ms.rot_rad], float) if len(ms.rot_rad) else None),
+                           float).reshape(-1, 4, 4)[0]
+        touches = S._plan_for(art, ms.holes, **program)
+        r = check_measurement(ms.name, art, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m, 3.0e-3,
+                              touches, S.FINGERS.get(ms.stylus, 0.0))
+        if not r.ok:
+            said[ms.name] = list(r.collisions)
+        c = A.apply_T(T_R_W @ ms.T_W_A, touches.w_A + 3.0e-3 * touches.wn_A)  # the ball centres, as check_plan
+        for j, ax in enumerate("XYZ"):  # ... every touch within the strokes, here too
+            assert cfg.strokes[ax][0] <= c[:, j].min() and c[:, j].max() <= cfg.strokes[ax][1], (ms.name, ax)
+    below = "the bar reaches {} mm below the table face"
+    assert said == {**{m: [below.format("10.0")] for m in ("X1", "X3", "Y1", "Y3", "DXY", "AXY")},
+                    **{m: [below.format("75.7")] for m in ("AXZ", "AYZ")}}
 
 
 def test_placement_margin_known_answer():

@@ -54,6 +54,15 @@ def test_bar_behind_the_table_face_is_refused():
     assert not r.ok and "below the table face" in r.collisions[0]
 
 
+def test_a_bar_through_the_table_says_how_deep():
+    # the flat bar 10 mm lower than on its supports (their bottoms at W z = 0 in FLAT, above):
+    # 10 mm into the table, said as a depth (was "reaches -10.0 mm below", a double negative)
+    low = FLAT.copy()
+    low[2, 3] -= 0.010
+    r = check_measurement("X1-low", BAR, low, _T_R_W(0, 0), (), (0, 0, 0.150), R, _holes(1))
+    assert not r.ok and r.collisions[0] == "the bar reaches 10.0 mm below the table face"
+
+
 def test_spindle_meets_a_tilted_table():
     # straight probe over the table edge with the table tilted A = -90 (face vertical at
     # y = -120 mm): the spindle nose (radius 60 mm) at y = -150 mm reaches into the table

@@ -39,6 +39,24 @@ def test_estimate_of_time_left_on_a_terminal():
     assert out.endswith("done in 40 s\n") and out.count("\r") == 2
 
 
+def test_a_resumed_run_estimates_from_its_own_items():
+    """A campaign resumed with 60 of 100 touches on disk: after 10 s this run has done 5
+    (2 s each), so 35 left take 70 s. Counting the 60 done before as done in those 10 s gave
+    10 / 65 * 35 = 5 s (vmt probe --resume)."""
+    s, clock = FakeTTY(), Clock()
+    p = TerminalProgress("campaign", stream=s, clock=clock, min_interval_s=0.0)
+    clock.t = 100.0  # connecting, recovering the log: not this run's touches
+    p.begin(60, 100)
+    assert p.done_before == 60  # a count of items, named as one (it was 'start', which reads as a time)
+    assert s.getvalue().endswith("60/100 ( 60 %)")  # drawn at once, no estimate before a touch
+    clock.t = 110.0
+    p(65, 100)
+    assert s.getvalue().endswith("65/100 ( 65 %)  ~1 min 10 s left")
+    clock.t = 170.0
+    p(100, 100)
+    assert s.getvalue().endswith("done in 1 min 10 s")
+
+
 def test_redraws_are_throttled_but_the_last_one_is_drawn():
     s, clock = FakeTTY(), Clock()
     p = TerminalProgress("hardware", stream=s, clock=clock, min_interval_s=1.0)
