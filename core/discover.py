@@ -344,8 +344,12 @@ class _Fold:
     direction), largest first: the first ``k`` (``c2 >= seen^2``) are
     predicted, the first ``f`` (``c2 > SEEN_ZERO^2``) are in the training
     image, the others from ``k`` on are the held-out group's own (``Qo``).
-    ``Z`` (n_tr, f - k): the unit training parts of the own directions the
-    training rows see (``Q_tr v / |Q_tr v|``; None when there are none).
+    ``C`` (p', f - k): the own directions the training rows see, ``v`` up
+    to scale over the basis columns ``cols`` the held-out rows reach (None:
+    all, in order; ``C`` None when there are none). Their training parts
+    ``Q_tr v`` (training rows x ``f - k``) are formed only while a fold is
+    used, never kept: kept, they grow as rows x rows when most targets are
+    seen mostly by one set-up.
     """
 
     tr: np.ndarray
@@ -354,7 +358,8 @@ class _Fold:
     c2: np.ndarray
     k: int
     f: int
-    Z: np.ndarray | None = None
+    C: np.ndarray | None = None
+    cols: np.ndarray | None = None
 
     @property
     def Qo(self) -> np.ndarray:
@@ -434,7 +439,10 @@ class Folds:
     reach has ``c = 1``), so a fold keeps the left ones ``U`` only (the
     eigenvectors of the hat matrix's held-out block ``H_te = Q_te Q_te^T``,
     from its eigh when it is the smaller problem, else from the SVD of
-    ``Q_te``; ``n_te x min(n_te, p)`` numbers: at most rows x parameters in all), and
+    ``Q_te``; ``n_te x min(n_te, p')`` numbers, ``p'`` the columns the
+    held-out rows reach), beside the own directions the training rows see a
+    little over those ``p'`` columns (``v`` up to scale, at most ``p' x
+    min(n_te, p')``; their training parts are formed only while used), and
     the held-out residuals follow from the full fit's residuals ``R``:
     along a predicted ``u``, ``u^T R_te / c^2`` (the training rows' fit
     predicted on the held-out rows, ``(I - H_te)^-1`` on those directions);
@@ -494,15 +502,20 @@ class Folds:
         c2 = np.clip(1.0 - s2, 0.0, 1.0)
         k = int(np.sum(c2 >= self.seen ** 2 - SEEN_TIE))
         f = int(np.sum(c2 > SEEN_ZERO ** 2))
-        Z = None
-        if f > k:  # own directions the training rows see a little: their unit training parts, from those rows
-            C = Qte.T @ U[:, k:f]  # the directions v (Q_te v = s u), up to their scale
-            if cols is not None:
-                C = np.zeros((self.Q.shape[1], f - k))
-                C[cols] = Qte.T @ U[:, k:f]
-            Z = (self.Q @ C)[tr]
-            Z = Z / np.linalg.norm(Z, axis=0)  # its own norm, not sqrt(c2): 1 - s^2 is exact to 1e-16 absolute only
-        return _Fold(tr, te, np.ascontiguousarray(U), c2, k, f, Z)
+        # own directions the training rows see a little: the directions v (Q_te v = s u) up to their scale, over
+        # the columns the held-out rows reach (their training parts are formed when used: _own_seen)
+        C = Qte.T @ U[:, k:f] if f > k else None
+        return _Fold(tr, te, np.ascontiguousarray(U), c2, k, f, C, cols)
+
+    def _own_seen(self, f: _Fold) -> np.ndarray:
+        """(n_tr, f - k) the unit training parts ``Q_tr v / |Q_tr v|`` of the fold's own directions the training
+        rows see (transient: rows x directions, not kept per fold)."""
+        C = f.C
+        if f.cols is not None:
+            C = np.zeros((self.Q.shape[1], f.C.shape[1]))
+            C[f.cols] = f.C
+        Z = (self.Q @ C)[f.tr]
+        return Z / np.linalg.norm(Z, axis=0)  # its own norm, not sqrt(c2): 1 - s^2 is exact to 1e-16 absolute only
 
     def _fitted(self, X: np.ndarray) -> np.ndarray:
         """``Q Q^T X``: the model's full fit of ``X`` (every row)."""
@@ -529,8 +542,8 @@ class Folds:
             beta = f.U[:, k:].T @ V[f.te]
             alpha = (beta - Gam[k:]) / np.sqrt(1.0 - f.c2[k:])[:, None]
             out = out + alpha[:, b:].T @ alpha - beta[:, b:].T @ beta
-            if f.Z is not None:
-                z = f.Z.T @ V[f.tr]
+            if f.C is not None:
+                z = self._own_seen(f).T @ V[f.tr]
                 out = out - z[:, b:].T @ z
         return out
 
