@@ -490,7 +490,7 @@ class Folds:
         J, jinv = np.unique(Q.ids[te], return_inverse=True)
         G = np.zeros((te.size, len(J)))
         G[np.arange(te.size), jinv] = 1.0 / np.sqrt(Q.counts[J][jinv])
-        return np.hstack([G, Q.dense_rows(te)]), np.concatenate([Q._pos[J], np.arange(Q.k, Q.shape[1])])
+        return np.hstack([G, Q.dense_rows(te)]), np.concatenate([Q.indicator_columns(J), np.arange(Q.k, Q.shape[1])])
 
     def _fold(self, tr, te) -> _Fold:
         Qte, cols = self._q_rows(te)
