@@ -574,8 +574,7 @@ class Folds:
             Z = self._own_seen(f)
             zV = Z.T @ V[tr]
             P = P + zV[:, b:].T @ zV
-        Xt = X[tr]
-        return Xt.T @ V[tr] - P
+        return Xz.T @ V - P  # X_tr^T V_tr: the held-out rows are exact zeros in Xz (no copy of V's training rows)
 
     def residuals(self, Y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> np.ndarray:
         """Held-out residuals of the baseline (plus extension columns ``E`` (n, k)).
