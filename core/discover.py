@@ -864,7 +864,10 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
     out: list[int] = []
     while True:
         idx = np.flatnonzero(keep)
-        Q = Q if (Q is not None and len(idx) == n) else orth_of(X[idx])
+        if Q is None or (len(idx) != n and not isinstance(Q, np.ndarray)):
+            Q = orth_of(X[idx])  # (a long log's Basis: factored afresh without the row)
+        elif len(idx) != n:
+            Q = _without_row(Q, k)  # the previous pass's basis less its row k: X[idx]'s column space
         r = y[idx] - Q @ (Q.T @ y[idx])
         dof = len(idx) - Q.shape[1]
         if dof < 3:
@@ -891,6 +894,32 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         if slips is not None and events is not None and _slip_explains(X, y, out, np.asarray(events), slips, alpha):
             return []
     return sorted(out)
+
+
+def _without_row(Q: np.ndarray, k: int) -> np.ndarray:
+    """An orthonormal basis of the column space ``Q`` (n, r) spans on its rows but row ``k``, (n - 1, r).
+
+    The rows left have the Gram matrix ``I - q q^T`` (``q = Q[k]``, ``s = q . q``
+    its leverage, below 1): ``Q' = Q_rest (I + c q q^T)`` with
+    ``c = (1 / sqrt(1 - s) - 1) / s`` is orthonormal (``(1 + c s)^2 (1 - s) = 1``
+    along ``q``, the identity across it) and spans the same space: the
+    downdate of the factorisation by one row, O(n r) instead of a pivoted QR
+    of the rows left (O(n r^2)). The same span to rounding, so the same
+    residuals and leverages (``find_outliers`` removes only rows of leverage
+    below 0.99: the factor ``1 / sqrt(1 - s)`` stays below 10 and the rank
+    is kept). Not always the rank a fresh factorisation would find: ``orth``
+    cuts a pivoted QR at ``|R_ii| <= 1e-9 |R_00|``, so a direction of the rows
+    left lying near that cut-off could be dropped by a fresh ``orth`` where the
+    downdate keeps it (the basis then one column wider: y's share along that
+    direction is projected out too, and the dof one fewer).
+    """
+    q = Q[k].copy()
+    s = float(q @ q)
+    rest = np.delete(Q, k, axis=0)
+    if s == 0.0:
+        return rest
+    c = (1.0 / np.sqrt(1.0 - s) - 1.0) / s
+    return rest + (rest @ q)[:, None] * (c * q)[None, :]
 
 
 def first_per_event(idx, events) -> list:

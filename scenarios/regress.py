@@ -127,6 +127,7 @@ Bad input (a malformed study, an unknown key, quantity or machine) raises
 
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 import tomllib
@@ -137,6 +138,7 @@ import numpy as np
 
 from core.exceptions import ConfigError
 from core.keyreader import KeyReader, read_text_file
+from core.memo import Memo
 
 FORMAT = "vmt-study/1"
 #: The identifications a study can run.
@@ -182,7 +184,7 @@ def _factor(cov) -> np.ndarray:
 
 
 def simultaneous_k(estimates, coverage: float = JOINT_COVERAGE, draws: int = SIM_DRAWS,
-                   seed: int = SIM_SEED) -> tuple[float, int]:
+                   seed: int | None = SIM_SEED) -> tuple[float, int]:
     """``(k_sim, n)``: the ``coverage`` quantile of ``max_i |e_i| / U95_i`` over the ``n`` values with a U95
     (> 0) of ``estimates``, ``e`` drawn from their joint normal distribution ``N(0, F F^T)``
     (:attr:`Estimate.factor`, rows stacked): the band ``k_sim x U95`` holds every value of a run at once
@@ -195,6 +197,9 @@ def simultaneous_k(estimates, coverage: float = JOINT_COVERAGE, draws: int = SIM
     sources' estimated variances (``chi2(dof) / dof`` times the given) and divides by the U95 they give
     (the studentized maximum, the factor's scales taken as the true ones): wider than the normal band,
     as a t quantile is wider than a normal one.
+
+    ``seed``: an int (the band is kept by its inputs and served again) or None (fresh entropy: drawn on
+    every call, never kept).
     """
     dofs = {tuple(np.asarray(e.dof, float)) for e in estimates if getattr(e, "dof", None) is not None}
     if len(dofs) > 1 or (dofs and any(getattr(e, "dof", None) is None for e in estimates)):
@@ -212,6 +217,25 @@ def simultaneous_k(estimates, coverage: float = JOINT_COVERAGE, draws: int = SIM
     n = len(U)
     if n == 0:
         raise ValueError("simultaneous_k: no value with a U95")
+    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool):
+        # None (fresh entropy: draws not to be repeated) or anything numpy takes that an int key would not
+        # name (a Generator, a SeedSequence: drawn from their state; 1.5 is numpy's to refuse): nothing kept
+        return _simultaneous_k(F, U, dof, coverage, draws, seed)
+    key = (hashlib.sha256(b"".join(np.ascontiguousarray(a, float).tobytes() + repr(a.shape).encode()
+                                   for a in (F, U) + (() if dof is None else (dof,)))).hexdigest(),
+           dof is None, float(coverage), int(draws), int(seed))
+    return _SIMULTANEOUS_K.get_or_compute(key, lambda: _simultaneous_k(F, U, dof, coverage, draws, seed))
+
+
+#: :func:`simultaneous_k` by its inputs (the factor rows and U95 drawn, the sources' dof, the coverage, draws and
+#: seed: everything the draws read, hashed): a study's mutated runs and a file's repeated checks ask for the same
+#: band again (1e5 draws, 0.06-0.3 s each). Safe: a pure function of the key; the value is an immutable tuple.
+_SIMULTANEOUS_K = Memo(64)
+
+
+def _simultaneous_k(F: np.ndarray, U: np.ndarray, dof, coverage: float, draws: int, seed) -> tuple[float, int]:
+    """:func:`simultaneous_k`'s draws from the stacked factor rows ``F`` (n, m), U95 ``U`` (n,) and ``dof`` (m,) or None."""
+    n = len(U)
     if dof is None:
         F = _factor(F @ F.T)  # the same distribution on n columns (fewer than the sources: faster draws)
     elif dof.shape != (F.shape[1],) or not np.all(dof > 0):

@@ -50,6 +50,7 @@ readings (the probe-log positions). Units: SI.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import types
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -196,11 +197,8 @@ class Machine:
         self._error_plan, self._spline_stacks = self._compile_errors()
         # the Pinocchio models read the geometry and the location errors only (motion errors enter
         # the configurations, :meth:`_configurations_T`): built once per such key (_MODELS)
-        (self._model, self._layout, self._fW, self._fP, self._tip_pending, self._nmodel, self._nlayout,
-         self._nfW, self._nfP, self._fk, self._fk_W, self._fk_P) = _MODELS.get_or_compute(
-            self._models_key(), self._build_models)
-        self._data = self._model.createData()     # scratch of tip_W_pinocchio: one per machine
-        self._ndata = self._nmodel.createData()
+        (self._model, self._layout, self._fW, self._fP, self._tip_pending, self._fk, self._fk_W,
+         self._fk_P) = _MODELS.get_or_compute(self._models_key(), self._build_models)
         self._layout_W = tuple(e for e in self._layout if e[3] < 0)  # the workpiece branch's joints
         self._layout_P = tuple(e for e in self._layout if e[3] > 0)  # the tool branch's
         # W's pose depends on the rotary angles alone when its branch holds only rotary axes
@@ -382,13 +380,24 @@ class Machine:
         return cfg.chain, tuple(v.hex() for v in cfg.J_m), pts, locs
 
     def _build_models(self) -> tuple:
-        """The model with errors (its layout, W and P frames, the tip's pending placement), the
-        error-free one (its layout and frames) and the batched kinematics of the first. Read-only
-        once built (several machines share them through :data:`_MODELS`)."""
+        """The model with errors (its layout, W and P frames, the tip's pending placement) and its
+        batched kinematics. Read-only once built (several machines share them through :data:`_MODELS`)."""
         model, layout, fW, fP = self._build(with_errors=True)
-        nmodel, nlayout, nfW, nfP = self._build(with_errors=False)
-        return (model, layout, fW, fP, self._tip_pending, nmodel, nlayout, nfW, nfP,
+        return (model, layout, fW, fP, self._tip_pending,
                 _BatchFK(model, (fW, fP)), _BatchFK(model, (fW,)), _BatchFK(model, (fP,)))
+
+    @functools.cached_property
+    def _data(self):
+        """Scratch of :meth:`tip_W_pinocchio` (the oracle): one per machine, made at its first use
+        (0.3 ms; a Monte Carlo run's machine never calls the oracle)."""
+        return self._model.createData()
+
+    @functools.cached_property
+    def _nominal_model(self) -> tuple:
+        """``(model, layout, fW, fP, data)``: the error-free Pinocchio model of :meth:`_nominal_fk_tip`
+        (a benchmark's reference), built at its first use; it reads the geometry only, not the errors."""
+        nmodel, nlayout, nfW, nfP = self._build(with_errors=False)
+        return nmodel, nlayout, nfW, nfP, nmodel.createData()
 
     def _build(self, with_errors: bool):
         import pinocchio as pin
@@ -551,13 +560,13 @@ class Machine:
         import pinocchio as pin
 
         lin, rot, n = self._inputs(lin_m, rot_rad)
-        model, data = self._nmodel, self._ndata
-        Q = self._configurations(model, self._nlayout, lin, rot, {}, n)
+        model, nlayout, nfW, nfP, data = self._nominal_model
+        Q = self._configurations(model, nlayout, lin, rot, {}, n)
         fk, ufp = pin.forwardKinematics, pin.updateFramePlacement
         out = np.empty((n, 3))
         for i in range(n):
             fk(model, data, Q[i])
-            out[i] = ufp(model, data, self._nfW).actInv(ufp(model, data, self._nfP).translation)
+            out[i] = ufp(model, data, nfW).actInv(ufp(model, data, nfP).translation)
         return out
 
     def _nominal_product(self, side, lin, rot, n):

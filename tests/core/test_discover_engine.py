@@ -184,6 +184,70 @@ def test_outliers_found_by_row():
     assert find_outliers(np.ones((200, 1)), rng.normal(0, 1, 200)) == []
 
 
+def test_outlier_passes_downdate_the_basis_as_a_fresh_factorisation_would():
+    """find_outliers takes each pass's basis as the previous one less the removed row (discover's
+    _without_row, O(n r) instead of a pivoted QR of the rows left). Against a fresh factorisation of
+    the rows left, on the cross pocket's baseline design (432 x 158) less rows of leverage up to 0.97:
+    orthonormal and the same projection to 1e-12 (rounding of a few products; a wrong downdate
+    factor is off by the row's leverage, 1e-2 or more)."""
+    from core.baseline import planar
+    from core.discover import _without_row
+
+    t, _ = S.campaign("none", 3)
+    bl = planar(t, None, Settings().grid_steps_mm, yaw=selfcal.yaw_for_chain(None), extra={})
+    X, y = np.asarray(bl.A), bl.y
+    Q = orth(X)
+    h = np.sum(Q ** 2, axis=1)
+    keep = np.ones(len(X), bool)
+    for k in (int(np.argmax(np.where(h < 0.97, h, 0))), 5, 200, 431):  # the highest leverage first
+        pos = int(np.sum(keep[:k]))
+        keep[k] = False
+        Q = _without_row(Q, pos)
+        F = orth(X[keep])
+        assert Q.shape == F.shape
+        assert np.abs(Q.T @ Q - np.eye(Q.shape[1])).max() < 1e-12
+        assert np.abs(Q @ (Q.T @ y[keep]) - F @ (F.T @ y[keep])).max() < 1e-12 * np.abs(y).max()
+
+
+@pytest.mark.parametrize("seed", [2, 8, 9])
+def test_outliers_near_the_bound_after_a_high_leverage_one(seed):
+    """The passes after the first stand on the downdated basis: a wrong one moves the residuals of
+    the rows left and so the answer. 60 rows, 6 columns, N(0, 1) noise; row 0 scaled 6x (leverage
+    0.79-0.88) carries an outlier at 25 of its own scale. Each other value is set by hand from a
+    plain least-squares fit (numpy's lstsq, no QR basis of find_outliers') of the rows that pass
+    would hold without it: row 10 at 1.03 times the bound of the second pass (59 rows, Bonferroni
+    0.001, Student's t on 59 - 6 - 1 dof) in its externally studentized residual, row 20 at 0.97
+    times the third pass's. So the answer is [0, 10]. Verified to fail with _without_row returning
+    the rows left uncorrected, with the factor 1 / (1 - s) for 1 / sqrt(1 - s), with the correction's
+    sign flipped and with the wrong row removed (each seed: another answer for each)."""
+    from scipy import stats
+
+    n, p = 60, 6
+    rng = np.random.default_rng(seed)
+    X = rng.normal(size=(n, p))
+    X[0] *= 6.0
+    y = X @ rng.normal(size=p) + rng.normal(size=n)
+
+    def fit_without(i, rows):  # the fit of ``rows`` less i: (x_i b, the scale of y_i - x_i b)
+        R = [j for j in rows if j != i]
+        b, *_ = np.linalg.lstsq(X[R], y[R], rcond=None)
+        e = y[R] - X[R] @ b
+        g = X[i] @ np.linalg.solve(X[R].T @ X[R], X[i])
+        return X[i] @ b, np.sqrt(e @ e / (len(R) - p) * (1 + g))
+
+    def bound(m):  # find_outliers' bound on m rows
+        return stats.t.isf(0.001 / (2 * m), m - p - 1)
+
+    rows = list(range(n))
+    fit, sc = fit_without(20, [j for j in rows if j not in (0, 10)])
+    y[20] = fit + 0.97 * bound(n - 2) * sc
+    fit, sc = fit_without(10, rows[1:])
+    y[10] = fit + 1.03 * bound(n - 1) * sc
+    fit, sc = fit_without(0, rows)
+    y[0] = fit + 25.0 * sc
+    assert find_outliers(X, y) == [0, 10]
+
+
 def test_outliers_are_confidently_dust_only_when_their_pattern_could_be_seen():
     """Three chips in three set-ups at random (concentration p 0.74) are dust, ``named``; one alone is
     ``ambiguous`` with its reason: one event cannot tell a chip from an intermittent mechanism (a seat

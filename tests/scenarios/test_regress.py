@@ -10,6 +10,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 import pytest
 
+from scenarios import regress
 from scenarios.cli import main
 from scenarios.regress import (GAUGE_FLOOR, IDENTIFICATIONS, Causes, Estimate, Mutation, Rule, StudyError, check,
                                junit_xml, load_study, loads_study, run_study, simultaneous_k)
@@ -199,14 +200,73 @@ def test_simultaneous_k_known_answers():
     rho = np.hstack([np.full((n, 1), 0.8), np.diag(np.full(n, 0.6))])
     k2, m2 = simultaneous_k([est(rho[:25]), est(rho[25:])])
     assert m2 == n and stats.norm.ppf(0.975) / 2 + 0.05 < k2 < sidak - 0.05
-    assert simultaneous_k([est(rho[:25]), est(rho[25:])]) == (k2, m2)
+    regress._SIMULTANEOUS_K.clear()
+    assert simultaneous_k([est(rho[:25]), est(rho[25:])]) == (k2, m2)   # drawn again: the fixed seed
     t4 = simultaneous_k([est([[0.5]], np.array([4.0]))])[0]
     assert t4 == pytest.approx(stats.t.ppf(0.975, 4) / 2, abs=0.015)
+    # the memo's key holds what the draws read: the same factor without dof, or another factor, is drawn anew
+    k1 = simultaneous_k([est([[0.5]])])[0]
+    assert k1 == pytest.approx(stats.norm.ppf(0.975) / 2, abs=0.01) and k1 < t4 - 0.1   # (0.98 against 1.39)
+    rho2 = rho.copy()
+    rho2[0, 0] = 0.0  # the first value now independent of the others
+    assert simultaneous_k([est(rho2[:25]), est(rho2[25:])])[0] != k2
+    # no seed: another sample of the same band (k within 0.05, five times its sampling error at 1e5 draws)
+    assert abs(simultaneous_k([est(rho[:25]), est(rho[25:])], seed=None)[0] - k2) < 0.05
     # a value fixed by a convention (U95 0) is left out of the family
     fixed = est(np.vstack([np.zeros((1, n)), np.diag(np.full(n, 0.3))]))
     assert simultaneous_k([fixed])[1] == n
     with pytest.raises(ValueError, match="without its covariance factor"):
         simultaneous_k([Estimate(np.zeros(2), np.zeros(2), np.ones(2), ("a", "b"), "um")])
+
+
+def test_simultaneous_k_memo_key_holds_what_the_draws_read(monkeypatch):
+    """The memo of simultaneous_k serves a band only for the same factor rows, U95, dof, coverage, draws
+    and seed: each other input is drawn anew (the private draws counted, on an empty memo), a repeat is
+    served from the memo (no draw), and no seed (fresh entropy) is drawn every time and never kept."""
+    from core.memo import Memo
+
+    calls = []
+    draw = regress._simultaneous_k
+
+    def counted(*a):
+        calls.append(a)
+        return draw(*a)
+
+    monkeypatch.setattr(regress, "_simultaneous_k", counted)
+    monkeypatch.setattr(regress, "_SIMULTANEOUS_K", Memo(64))
+    F = np.array([[0.5, 0.2], [0.1, 0.4], [0.3, 0.3]])
+
+    def est(dof=None):
+        return Estimate(np.zeros(3), np.zeros(3), 2.0 * np.sqrt((F * F).sum(axis=1)), ("v",) * 3, "um", F, dof)
+
+    def drawn(*a, **kw):  # (k, whether it was drawn now)
+        before = len(calls)
+        k = simultaneous_k(*a, **kw)[0]
+        assert len(calls) - before in (0, 1)
+        return k, len(calls) > before
+
+    k0, new = drawn([est()])
+    assert new and drawn([est()]) == (k0, False)   # the same inputs: from the memo
+    # the same factor with dof 4 and with dof 10: two bands (t_4 wider than t_10), neither the normal one
+    k4, new4 = drawn([est(np.array([4.0, 4.0]))])
+    k10, new10 = drawn([est(np.array([10.0, 10.0]))])
+    assert new4 and new10 and k4 > k10 + 0.05 > k0 + 0.05   # (1.53, 1.27, 1.12: sampling error about 0.01)
+    # another coverage, another number of draws, another seed: drawn anew
+    k90, new90 = drawn([est()], coverage=0.9)
+    assert new90 and k90 < k0 - 0.1   # (0.96 against 1.12)
+    assert drawn([est()], draws=20_000)[1] and drawn([est()], seed=2)[1]
+    # no seed: drawn each time, not kept (the fixed seed's band is still the one served)
+    assert drawn([est()], seed=None)[1] and drawn([est()], seed=None)[1]
+    assert drawn([est()]) == (k0, False)
+    # a seed that is not a plain int is not keyed by int(seed): a Generator or a SeedSequence is drawn
+    # from (not refused), every call, not kept; 1.5 is refused by numpy, not served the band of seed 1
+    for s in (np.random.default_rng(1), np.random.SeedSequence(1)):
+        assert drawn([est()], seed=s)[1] and drawn([est()], seed=s)[1]
+    k1, _ = drawn([est()], seed=1)
+    with pytest.raises(TypeError, match="SeedSequence expects int"):
+        simultaneous_k([est()], seed=1.5)
+    assert drawn([est()], seed=np.int64(1)) == (k1, False)   # a numpy int is a plain int's key
+    assert drawn([est()]) == (k0, False)
 
 
 def test_check_by_hand_simultaneous():
