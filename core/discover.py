@@ -449,7 +449,10 @@ class Folds:
     outside ``U``, ``R_te``'s own part. An extension's training Gram outside
     the training image is ``R_X^T R`` less the held-out rows' part by the
     same algebra, an own direction's training part (the few the training
-    rows see below ``seen``) taken from the training rows themselves. For a
+    rows see below ``seen``) taken from the training rows themselves; a
+    penalised extension's (not projected outside the design, so it may be
+    small on the training rows, where that difference would cancel) is
+    formed from the training rows' products instead. For a
     :class:`core.lsq.BlockDesign` (a long self-calibration log) ``Q_te`` is
     formed over the indicators of the targets the held-out group touches
     and the basis's dense columns only (the other targets are zero on its
