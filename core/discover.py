@@ -181,7 +181,7 @@ from .baseline import Baseline
 from .diagnosis import (CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch,
                         new_basis, orth, replicate_scatter, take_rows, term_bases, tied)
 from .exceptions import ConfigError, IdentifiabilityError
-from .lsq import BlockDesign, group_sums, leverage, orth_of
+from .lsq import Basis, BlockDesign, group_sums, leverage, orth_of
 from .touches import Touches
 from .units import UM
 
@@ -196,14 +196,6 @@ WEAK_SV = 1e-2
 #: the group's own columns (it cannot be predicted; left out of the CV).
 OWN_LEVERAGE = 1e-3
 
-#: Largest total of the cross-validation folds' kept training spans (:class:`Folds`: two
-#: tables of training rows by directions per group, about 16 bytes x groups x rows x
-#: parameters). Beyond it each fold keeps only its spans' coefficients over the design's
-#: columns (parameters x directions) and a product with the spans is made from the design
-#: (``A^T X`` once, less the held-out rows' part): the same numbers up to rounding
-#: (re-associated sums), memory linear in the rows. The stored campaigns (at most 432 rows,
-#: 24 MB) keep the tables.
-FOLD_BYTES = 256 << 20
 #: Families of tests sharing the false-alarm rate (Bonferroni split).
 FAMILIES = ("lack_of_fit", "cv_gap", "diagnosis", "causes")
 
@@ -343,29 +335,40 @@ class Settings:
 class _Fold:
     """One held-out group of :class:`Folds` (internal).
 
-    ``tr``, ``te``: training and held-out rows. ``Qo`` (n_te, o): the
-    held-out group's own directions (orthonormal): the model's directions
-    the training rows see less than :attr:`Folds.seen` of. ``c`` (f,): the
-    training share (cosine) of each direction the training rows see at all,
-    largest first; the first ``k`` (``c >= seen``) are predicted. ``W`` maps
-    the training coordinates ``t`` of a matrix (dense: ``Q^T X`` over the
-    training rows; blocks: its indicator part for the held-out group's ids
-    ``J``, then ``Qd^T X``) to the directions: ``z = W^T t / c`` are the
-    coordinates of ``X``'s training rows on the orthonormal training image
-    ``U``; ``Ut`` (dense, short logs) is that image itself (n_tr, f).
-    ``P`` (dense) the held-out rows' prediction per unit of ``z[:k]``.
+    ``tr``, ``te``: training and held-out rows. ``U`` (n_te, r): the left
+    singular vectors of the held-out rows ``Q_te`` of the model's
+    orthonormal basis (the eigenvectors of the hat matrix's held-out block
+    ``H_te = Q_te Q_te^T``; ``r = min(n_te, p)``), ordered by ``c2`` (r,),
+    the training share squared of the direction each stands for
+    (``1 - s^2``, ``s`` its singular value; 1 where ``Q_te`` reaches no
+    direction), largest first: the first ``k`` (``c2 >= seen^2``) are
+    predicted, the first ``f`` (``c2 > SEEN_ZERO^2``) are in the training
+    image, the others from ``k`` on are the held-out group's own (``Qo``).
+    ``C`` (p', f - k): the own directions the training rows see, ``v`` up
+    to scale over the basis columns ``cols`` the held-out rows reach (None:
+    all, in order; ``C`` None when there are none). Their training parts
+    ``Q_tr v`` (training rows x ``f - k``) are formed only while a fold is
+    used, never kept: kept, they grow as rows x rows when most targets are
+    seen mostly by one set-up.
     """
 
     tr: np.ndarray
     te: np.ndarray
-    Qo: np.ndarray
-    c: np.ndarray
+    U: np.ndarray
+    c2: np.ndarray
     k: int
-    W: np.ndarray
-    P: np.ndarray | None = None
-    Ut: np.ndarray | None = None
-    J: np.ndarray | None = None
-    jinv: np.ndarray | None = None
+    f: int
+    C: np.ndarray | None = None
+    cols: np.ndarray | None = None
+
+    @property
+    def Qo(self) -> np.ndarray:
+        return self.U[:, self.k:]
+
+    @property
+    def c(self) -> np.ndarray:
+        """The training shares (cosines) of the directions the training rows see, largest first."""
+        return np.sqrt(self.c2[:self.f])
 
 
 #: Training share (cosine) below which a direction of the model counts as unseen by a fold's training rows:
@@ -430,18 +433,30 @@ class Folds:
     group's own.
 
     Linear in the observations: :meth:`residuals` takes (n,) or (n, B).
-    ``mode``: ``"spans"`` keeps each fold's training image as a table
-    (short logs), ``"coefficients"`` as coefficients over ``Q``'s columns
-    when the tables would pass :data:`FOLD_BYTES` (products from ``Q^T X``
-    once less the held-out rows' part; the same numbers up to rounding),
-    ``"blocks"`` for a :class:`core.lsq.BlockDesign` (a long self-calibration
-    log): the column space as its targets' indicators beside ``Qd``, the
-    design's other columns' part outside them (:meth:`BlockDesign.basis`);
-    a fold's eigen-problem is over the held-out group's targets and
-    ``Qd``'s columns only (every other target lies wholly in the training
-    rows, ``c = 1``), memory linear in the rows but quadratic in the targets
-    one set-up sees. The same rule in every mode: dense and block paths give
-    the same residuals to rounding.
+    Computed without refitting (case deletion): the directions ``v`` of a
+    fold are the right singular vectors of the held-out rows ``Q_te``
+    (``Q_te v = s u``, ``c^2 = 1 - s^2``; every direction ``Q_te`` does not
+    reach has ``c = 1``), so a fold keeps the left ones ``U`` only (the
+    eigenvectors of the hat matrix's held-out block ``H_te = Q_te Q_te^T``,
+    from its eigh when it is the smaller problem, else from the SVD of
+    ``Q_te``; ``n_te x min(n_te, p')`` numbers, ``p'`` the columns the
+    held-out rows reach), beside the own directions the training rows see a
+    little over those ``p'`` columns (``v`` up to scale, at most ``p' x
+    min(n_te, p')``; their training parts are formed only while used), and
+    the held-out residuals follow from the full fit's residuals ``R``:
+    along a predicted ``u``, ``u^T R_te / c^2`` (the training rows' fit
+    predicted on the held-out rows, ``(I - H_te)^-1`` on those directions);
+    outside ``U``, ``R_te``'s own part. An extension's training Gram outside
+    the training image is ``R_X^T R`` less the held-out rows' part by the
+    same algebra, an own direction's training part (the few the training
+    rows see below ``seen``) taken from the training rows themselves; a
+    penalised extension's (not projected outside the design, so it may be
+    small on the training rows, where that difference would cancel) is
+    formed from the training rows' products instead. For a
+    :class:`core.lsq.BlockDesign` (a long self-calibration log) ``Q_te`` is
+    formed over the indicators of the targets the held-out group touches
+    and the basis's dense columns only (the other targets are zero on its
+    rows). The same rule for every design: exact algebra, rounding apart.
     """
 
     def __init__(self, A, groups: np.ndarray, seen: float, seen_extension: float | None = None):
@@ -454,20 +469,13 @@ class Folds:
         self.seen_extension = float(seen_extension)
         self.items: list[_Fold] = []
         gs = np.unique(groups)
-        if isinstance(A, BlockDesign):
-            self.mode = "blocks"
-            self.Q = A.basis()
-        else:
-            self.Q = orth(A)
-            # the training images kept whole (an (n_tr, f) table per group) while small; a long log's
-            # (groups x rows x parameters: 6.7 GB at 1e4 rows and 100 set-ups) as (p, f) coefficients
-            self.mode = "coefficients" if 16 * len(gs) * self.Q.size > FOLD_BYTES else "spans"
+        self.Q = A.basis() if isinstance(A, BlockDesign) else orth(A)
         for g in gs:
             te = np.flatnonzero(groups == g)
             tr = np.flatnonzero(groups != g)
             if te.size == 0 or tr.size == 0:
                 continue
-            self.items.append(self._fold_blocks(tr, te) if self.mode == "blocks" else self._fold_dense(tr, te))
+            self.items.append(self._fold(tr, te))
         if not self.items:
             raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
         # the baseline's held-out rows (residuals' count: a row alone supporting an own direction is not one)
@@ -475,98 +483,117 @@ class Folds:
                             for f in self.items)
         self.dof = max(self.last_dof, 1)
 
-    def _split(self, G: np.ndarray):
-        """Eigen-decomposition of a fold's training Gram (in an orthonormal basis): shares, kept and seen counts."""
-        w, V = np.linalg.eigh(G)
-        w, V = w[::-1], V[:, ::-1]  # largest share first
-        c2 = np.clip(w, 0.0, 1.0)
+    def _q_rows(self, te):
+        """``Q_te`` (n_te, p') dense: the held-out rows of the basis over the columns they reach (a block basis: the
+        indicators of the ids they touch, then its dense columns; the other indicators are zero on them), and
+        where those columns sit among the basis's (None: all of them, in order)."""
+        Q = self.Q
+        if not isinstance(Q, Basis):
+            return Q[te], None
+        J, jinv = np.unique(Q.ids[te], return_inverse=True)
+        G = np.zeros((te.size, len(J)))
+        G[np.arange(te.size), jinv] = 1.0 / np.sqrt(Q.counts[J][jinv])
+        return np.hstack([G, Q.dense_rows(te)]), np.concatenate([Q.indicator_columns(J), np.arange(Q.k, Q.shape[1])])
+
+    def _fold(self, tr, te) -> _Fold:
+        Qte, cols = self._q_rows(te)
+        if Qte.shape[0] <= Qte.shape[1]:  # the hat block is the smaller problem (a long log's set-up): its eigh
+            s2, U = np.linalg.eigh(Qte @ Qte.T)  # s^2 ascending: largest training share first
+        else:
+            U, sv, _ = np.linalg.svd(Qte, full_matrices=False)
+            U, s2 = U[:, ::-1], sv[::-1] ** 2
+        c2 = np.clip(1.0 - s2, 0.0, 1.0)
         k = int(np.sum(c2 >= self.seen ** 2 - SEEN_TIE))
         f = int(np.sum(c2 > SEEN_ZERO ** 2))
-        return np.sqrt(c2), V, k, f
+        # own directions the training rows see a little: the directions v (Q_te v = s u) up to their scale, over
+        # the columns the held-out rows reach (their training parts are formed when used: _own_seen)
+        C = Qte.T @ U[:, k:f] if f > k else None
+        return _Fold(tr, te, np.ascontiguousarray(U), c2, k, f, C, cols)
 
-    def _fold_dense(self, tr, te) -> _Fold:
-        Q = self.Q
-        Qtr, Qte = Q[tr], Q[te]
-        c, V, k, f = self._split(Qtr.T @ Qtr)
-        own = Qte @ V[:, k:]  # orthogonal columns of norm sqrt(1 - c^2) >= sqrt(1 - seen^2)
-        Qo = own / np.linalg.norm(own, axis=0) if own.shape[1] else np.zeros((te.size, 0))
-        W = V[:, :f]
-        P = Qte @ (W[:, :k] / c[:k])
-        Ut = (Qtr @ W) / c[:f] if self.mode == "spans" else None
-        return _Fold(tr, te, Qo, c[:f], k, W, P=P, Ut=Ut)
+    def _own_seen(self, f: _Fold) -> np.ndarray:
+        """(n_tr, f - k) the unit training parts ``Q_tr v / |Q_tr v|`` of the fold's own directions the training
+        rows see (transient: rows x directions, not kept per fold)."""
+        C = f.C
+        if f.cols is not None:
+            C = np.zeros((self.Q.shape[1], f.C.shape[1]))
+            C[f.cols] = f.C
+        Z = (self.Q @ C)[f.tr]
+        return Z / np.linalg.norm(Z, axis=0)  # its own norm, not sqrt(c2): 1 - s^2 is exact to 1e-16 absolute only
 
-    def _fold_blocks(self, tr, te) -> _Fold:
-        B = self.Q
-        ids_te = B.ids[te]
-        J, jinv = np.unique(ids_te, return_inverse=True)
-        cte = np.bincount(jinv, minlength=len(J)).astype(float)
-        sj = 1.0 / np.sqrt(B.counts[J])
-        Ute = B.dense_rows(te)  # (the basis outside the ids: its mapped directions, then any kept columns)
-        KGD = group_sums(jinv, len(J), Ute) * sj[:, None]
-        K = np.block([[np.diag(cte * sj ** 2), KGD], [KGD.T, Ute.T @ Ute]])  # Q_te^T Q_te on the ids J and U
-        c, V, k, f = self._split(np.eye(len(K)) - K)
-        own = self._te_times(J, jinv, Ute, V[:, k:])
-        Qo = own / np.linalg.norm(own, axis=0) if own.shape[1] else np.zeros((te.size, 0))
-        return _Fold(tr, te, Qo, c[:f], k, V[:, :f], J=J, jinv=jinv)
-
-    def _te_times(self, J, jinv, Ute, M):
-        """``Q_te[:, L] @ M`` of a block fold (L: the ids J, then U's columns)."""
-        sj = 1.0 / np.sqrt(self.Q.counts[J])
-        return (M[:len(J)] * sj[:, None])[jinv] + Ute @ M[len(J):]
-
-    def _pre(self, X: np.ndarray):
-        """What every fold's training coordinates of ``X`` (n, b) start from: sums over every row."""
-        if self.mode == "spans":
-            return None
-        if self.mode == "coefficients":
-            return self.Q.T @ X
-        B = self.Q
-        GX = group_sums(B.ids, len(B.counts), X)
-        cnt = B.counts
-        inv = np.where(cnt > 0, 1.0 / np.maximum(cnt, 1), 0.0)
-        return GX, B.dense_rmatmul(X), inv
-
-    def _coords(self, f: _Fold, X: np.ndarray, pre):
-        """``z`` (f_dirs, b): ``X``'s training rows on the fold's orthonormal training image."""
-        if self.mode == "spans":
-            return f.Ut.T @ X[f.tr]
-        if self.mode == "coefficients":
-            t = pre - self.Q[f.te].T @ X[f.te]
-        else:
-            GX, UX, _ = pre
-            B = self.Q
-            sj = 1.0 / np.sqrt(B.counts[f.J])
-            gte = group_sums(f.jinv, len(f.J), X[f.te])
-            t = np.vstack([(GX[f.J] - gte) * sj[:, None], UX - B.dense_rows(f.te).T @ X[f.te]])
-        return (f.W.T @ t) / f.c[:, None]
-
-    def _outside_image(self, f: _Fold, X, Y, zX, zY, pre_X, pre_Y):
-        """``X_tr^T (I - P) Y_tr``, P the projection on the fold's whole training image."""
-        out = X[f.tr].T @ Y[f.tr] - zX.T @ zY
-        if self.mode == "blocks":  # the ids the held-out group does not touch: wholly in the training rows
-            GX, _, inv = pre_X
-            GY = pre_Y[0]
-            w = inv.copy()
-            w[f.J] = 0.0
-            out = out - (GX * w[:, None]).T @ GY
-        return out
-
-    def _predict(self, f: _Fold, z: np.ndarray) -> np.ndarray:
-        """The held-out rows' prediction from training coordinates ``z`` (the kept directions only)."""
-        beta = z[:f.k] / f.c[:f.k, None]
-        if self.mode == "blocks":
-            return self._te_times(f.J, f.jinv, self.Q.dense_rows(f.te), f.W[:, :f.k] @ beta)
-        return f.P @ z[:f.k]
+    def _fitted(self, X: np.ndarray) -> np.ndarray:
+        """``Q Q^T X``: the model's full fit of ``X`` (every row)."""
+        return self.Q @ (self.Q.T @ X)
 
     def outside(self, E: np.ndarray) -> np.ndarray:
         """Orthonormal basis (n, k') of ``E``'s part outside the design's column space."""
         return new_basis(self.Q, E)
+
+    def _outside_image(self, f: _Fold, RXR: np.ndarray, R_te: np.ndarray, Gam: np.ndarray, V: np.ndarray,
+                       b: int) -> np.ndarray:
+        """``X_tr^T (I - P) V_tr`` (kx, b + kx), ``P`` the projection on the fold's training image, ``V = [Y, X]``.
+
+        From the full fit (case deletion): ``R_X^T R_V`` over every row (``RXR``) less the held-out rows' part,
+        where ``R_te`` are the full fit's held-out residuals and ``Gam = U^T R_te``: outside ``U`` as they are,
+        along a predicted direction divided by ``c2``. Along an own direction (``beta = u^T V_te``, ``alpha =
+        (beta - u^T R_te) / s`` its coefficient in the full fit) ``alpha alpha' - beta beta'``, less its part in
+        the training image if the training rows see it (``z z'``, ``z`` the training rows' coordinates on its
+        unit training part, from those rows: ``u^T R_te / c2`` would carry R's rounding divided by ``c``).
+        """
+        Gx, k = Gam[:, b:], f.k
+        out = RXR - R_te[:, b:].T @ R_te + Gx.T @ Gam - (Gx[:k] / f.c2[:k, None]).T @ Gam[:k]
+        if k < f.U.shape[1]:
+            beta = f.U[:, k:].T @ V[f.te]
+            alpha = (beta - Gam[k:]) / np.sqrt(1.0 - f.c2[k:])[:, None]
+            out = out + alpha[:, b:].T @ alpha - beta[:, b:].T @ beta
+            if f.C is not None:
+                z = self._own_seen(f).T @ V[f.tr]
+                out = out - z[:, b:].T @ z
+        return out
+
+    def _outside_image_direct(self, f: _Fold, X: np.ndarray, V: np.ndarray, QtY: np.ndarray, b: int) -> np.ndarray:
+        """``X_tr^T (I - P) V_tr`` as :meth:`_outside_image`, from the training rows themselves: ``X_tr^T V_tr``
+        less ``a^T M d`` (``a = Q_tr^T X_tr`` from ``X`` with the held-out rows zeroed, ``d = Q_tr^T V_tr``, ``M``
+        the pseudo-inverse of ``Q_tr^T Q_tr = I - Q_te^T Q_te`` on the training image: ``1 / c2`` along a
+        predicted direction; an own direction's training part taken from the training rows as there).
+        For a penalised extension, which is not projected outside the design first: one mostly inside the
+        held-out group is small on the training rows, and the full fit less the held-out rows' part cancels
+        (a review: relative error 7e-7 where refitting gives 3e-14). ``QtY = Q^T Y`` (every row)."""
+        tr, te, k = f.tr, f.te, f.k
+        Xz = X.copy()
+        Xz[te] = 0.0
+        a = self.Q.T @ Xz  # (p, kx) the training rows' own products: small when X is there
+        Qte, cols = self._q_rows(te)
+        ac = a if cols is None else a[cols]
+        QA = Qte @ ac  # Q_te a
+        dY = (QtY if cols is None else QtY[cols]) - Qte.T @ V[te, :b]  # Q_tr^T Y_tr over the held-out rows' columns
+        # a^T d; then along each direction w = Q_te^T u = s v of the fold: + w w^T / c2 (predicted: M's 1 / c2 - 1 =
+        # s^2 / c2), - w w^T / s^2 (own: out of M, the training part of a seen one added back from the rows below)
+        ad = np.hstack([a.T @ QtY - QA.T @ V[te, :b], a.T @ a])
+        Ga = f.U.T @ QA
+        Gd = np.hstack([f.U.T @ (Qte @ dY), Ga])
+        wt = np.concatenate([1.0 / f.c2[:k], -1.0 / np.maximum(1.0 - f.c2[k:], 1e-300)])
+        P = ad + (Ga * wt[:, None]).T @ Gd
+        if f.C is not None:
+            Z = self._own_seen(f)
+            zV = Z.T @ V[tr]
+            P = P + zV[:, b:].T @ zV
+        return Xz.T @ V - P  # X_tr^T V_tr: the held-out rows are exact zeros in Xz (no copy of V's training rows)
 
     def residuals(self, Y: np.ndarray, E: np.ndarray | None = None, penalty: np.ndarray | None = None) -> np.ndarray:
         """Held-out residuals of the baseline (plus extension columns ``E`` (n, k)).
 
         ``penalty`` (k, k): a ridge penalty on the extension's coefficients
         (a penalised smooth term).
+
+        From the full fit's residuals ``R`` by the hat matrix's held-out
+        block (case deletion): along a predicted direction ``u`` (a column of
+        the fold's ``U``), the held-out residual of the training rows' fit is
+        ``u^T R_te / c2`` (``(I - H_te)^-1 R_te`` restricted to the predicted
+        directions); outside ``U`` it is ``R_te``'s (the held-out rows' part
+        no direction of the model reaches); along the own directions it is
+        the data's, then fitted on the group's other rows. The same algebra
+        as refitting on the training rows, with nothing (rows x directions)
+        kept per fold beyond ``U``.
         """
         one = Y.ndim == 1
         Y2 = Y[:, None] if one else Y
@@ -577,51 +604,49 @@ class Folds:
         if X is not None and X.shape[1] == 0:
             X = None
         b = Y2.shape[1]
-        XY = Y2 if X is None else np.hstack([Y2, X])
-        pre = self._pre(XY)
-        split = (lambda p, s: None if p is None else (
-            p[s] if self.mode == "coefficients" else (p[0][:, s], p[1][s], p[2])))
-        preY = split(pre, slice(0, b)) if pre is not None else None
-        preX = split(pre, slice(b, None)) if pre is not None and X is not None else None
+        V = Y2 if X is None else np.hstack([Y2, X])
+        R = self._fitted(V)
+        np.subtract(V, R, out=R)  # in place: with the null draws V is rows x 99 (80 MB at 1e5 rows)
+        RXR = None if X is None or penalty is not None else R[:, b:].T @ R
+        QtY = self.Q.T @ Y2 if X is not None and penalty is not None else None
         for f in self.items:
             tr, te = f.tr, f.te
-            zall = self._coords(f, XY, pre)
-            zY = zall[:, :b]
+            V_te, R_te = V[te], R[te]
+            Gam = f.U.T @ R_te
             own = f.Qo
             if X is None:
-                pred = self._predict(f, zY)
+                W, GW = V_te, Gam
             else:
-                zX = zall[:, b:]
-                G = self._outside_image(f, X, X, zX, zX, preX, preX)
-                rhs = self._outside_image(f, X, Y2, zX, zY, preX, preY)
+                O = (self._outside_image(f, RXR, R_te, Gam, V, b) if penalty is None
+                     else self._outside_image_direct(f, X, V, QtY, b))
+                G, rhs = O[:, b:], O[:, :b]
                 if penalty is None:
                     # F's directions by their training share beyond the baseline (lambda in [0, 1]): fitted on
                     # the training rows, not predicted (too little seen), or the held-out group's own (unseen)
-                    w, V = np.linalg.eigh(G)
+                    w, Vg = np.linalg.eigh(G)
                     keep = w >= self.seen_extension ** 2 - SEEN_TIE
-                    coef = V[:, keep] @ ((V[:, keep].T @ rhs) / w[keep][:, None])
+                    coef = Vg[:, keep] @ ((Vg[:, keep].T @ rhs) / w[keep][:, None])
                     unseen = w < SEEN_ZERO ** 2
                     if unseen.any():
-                        own = np.hstack([own, X[te] @ V[:, unseen]])
-                    Xf = X
+                        own = np.hstack([own, X[te] @ Vg[:, unseen]])
                 else:
                     en = np.linalg.norm(X[tr], axis=0)
                     eu = en > 1e-9 * max(en.max(), 1e-300)
-                    s = np.where(eu, 1.0 / np.where(eu, en, 1.0), 0.0)
-                    Gm = (G * np.outer(s, s))[np.ix_(eu, eu)] + (penalty * np.outer(s, s))[np.ix_(eu, eu)]
-                    w, V = np.linalg.eigh(Gm)
+                    sc = np.where(eu, 1.0 / np.where(eu, en, 1.0), 0.0)
+                    Gm = (G * np.outer(sc, sc))[np.ix_(eu, eu)] + (penalty * np.outer(sc, sc))[np.ix_(eu, eu)]
+                    w, Vg = np.linalg.eigh(Gm)
                     good = w > 1e-12 * max(w.max(), 1e-300) if w.size else w > 0
-                    cs = V[:, good] @ ((V[:, good].T @ (rhs[eu] * s[eu][:, None])) / w[good][:, None])
+                    cs = Vg[:, good] @ ((Vg[:, good].T @ (rhs[eu] * sc[eu][:, None])) / w[good][:, None])
                     coef = np.zeros((X.shape[1], b))
-                    coef[eu] = cs * s[eu][:, None]
+                    coef[eu] = cs * sc[eu][:, None]
                     if (~eu).any():
                         own = np.hstack([own, X[te][:, ~eu]])
-                    Xf = X
                 # the baseline on what the extension leaves of the training rows, the extension on the held-out rows
-                pred = self._predict(f, zY - zX @ coef) + Xf[te] @ coef
+                W, GW = V_te[:, :b] - V_te[:, b:] @ coef, Gam[:, :b] - Gam[:, b:] @ coef
+            Uk, k = f.U[:, :f.k], f.k
+            e = W + Uk @ (GW[:k] / f.c2[:k, None] - Uk.T @ W)
             if own.shape[1] > f.Qo.shape[1]:
                 own = orth(own)
-            e = Y2[te] - pred
             if own.shape[1]:
                 # the held-out group's own directions, fitted on its other rows:
                 # leave-one-row-out residuals within the group, e / (1 - h);
@@ -1722,12 +1747,16 @@ def _cv_gap(folds: Folds, st: _State, y, E, penalty, settings, seed: int, sigma:
         return CvGap(float("nan"), float("nan"), 1.0, float("nan"), 0)
     yr = y[st.rows]
     e = folds.residuals(yr, E, penalty)
-    Z = np.random.default_rng(seed).standard_normal((len(yr), settings.cv_draws))
-    fit = (yr - st.r)[:, None]
-    Ys = fit + sigma * Z
+    # the draws (rows x cv_draws: 80 MB at 1e5 rows) and what is made of them in place, one table at a time
+    Ys = np.random.default_rng(seed).standard_normal((len(yr), settings.cv_draws))
+    Ys *= sigma
+    Ys += (yr - st.r)[:, None]
     eZ = folds.residuals(Ys, E, penalty)
-    rZ = Ys - st.Q @ (st.Q.T @ Ys)
-    return cv_gap(float(e @ e), st.rss, np.sum(eZ ** 2, axis=0), np.sum(rZ ** 2, axis=0), scale=sigma)
+    cv_ss = np.sum(np.square(eZ, out=eZ), axis=0)
+    del eZ
+    rZ = st.Q @ (st.Q.T @ Ys)
+    np.subtract(Ys, rZ, out=rZ)
+    return cv_gap(float(e @ e), st.rss, cv_ss, np.sum(np.square(rZ, out=rZ), axis=0), scale=sigma)
 
 
 def _constant_within(key: np.ndarray, E: np.ndarray) -> bool:
