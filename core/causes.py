@@ -34,7 +34,9 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   would leave ``unexplained`` a structure the catalogue does name);
 - ``rebuild(baseline, info) -> (T, n, k)``: the columns for changed
   nonlinear parameters ``nonlinear`` (a period, a position; arrays give T
-  trials at once): the engine refines them and carries their uncertainty;
+  trials at once): the engine refines them and carries their uncertainty
+  (a layout whose ``info`` lacks one has none: a drift's polynomials beside
+  its warm-ups' time constants);
 - the scan's ``covariate``: where the cause's structure lives, for the
   rival check (a named cause must explain the structure in its covariate
   about as well as a catalogue-free smooth function of it, else it is a
@@ -52,6 +54,21 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   do (``p_turned``); the engine names the cause ``ambiguous`` with the
   richer one when that is significant or cannot be excluded
   (:func:`turned_lobes`: fixed lobes against lobes turned per set-up);
+- ``smooth(baseline) -> (n, m)``: for a cause confined in a covariate (a
+  local defect), the same error as a smooth function over the covariate's
+  whole range (:func:`smooth_error_map`). A confined cause is refused,
+  never named, when the smooth form explains about as much (the rival
+  check's share) and the cause adds nothing significant beyond it (its F
+  test with the Bonferroni factor of its adoption): the structure is then
+  the baseline's grid failing to follow a smooth error, not a confined
+  one (the engine's ``_smooth_verdict``). Where the cause's columns lie
+  inside the model and the smooth form (too few positions to tell), it is
+  named ambiguous instead;
+- ``support(baseline, info) -> (n,) int``: the units (labels per touch)
+  the evidence of a confined cause must spread over: named only when what
+  it explains comes from two effective units or more, no one unit carrying
+  more than half of it (:func:`defect_support`: positions along an axis;
+  the engine's ``_support``);
 - ``counter(baseline) -> (n, m)``, ``counter_scan(baseline) -> (T, n, k)``:
   a plainer explanation the cause must beat (a finer error map for a
   coupling; the best of T trials of a one-off rigid step of the part,
@@ -130,6 +147,8 @@ class Cause:
     gradual: bool = False
     richer: Callable | None = None
     richer_cause: str | None = None
+    smooth: Callable | None = None
+    support: Callable | None = None
 
     @property
     def doc(self) -> str:
@@ -218,6 +237,10 @@ def _pv(vals) -> float:
 _DRIFT_MODES = ("x_offset", "y_offset", "x_scale", "y_scale")
 
 
+#: Time constants of the warm-up layouts of a thermal drift, as fractions of the campaign's duration.
+DRIFT_TAU_FRACTIONS = tuple(np.geomspace(1 / 20, 1 / 2, 8))
+
+
 def drift_scans(bl):
     """Thermal drift: offsets and scales of the X and Y axes changing with time.
 
@@ -225,12 +248,21 @@ def drift_scans(bl):
     zero shifts (``EXX``/``EYX`` constant parts) and its scale stretches
     (``EXX`` slope: a steel scale grows 11.5 um/m per K). The tip error is
     ``E_X = a_x(t) + s_x(t) (x - x_c)``, ``E_Y = a_y(t) + s_y(t) (y - y_c)``
-    with smooth ``a``, ``s`` of time: Legendre polynomials of degree 1, 2
-    or 3 over the campaign (the degree is part of the scan). Within one
-    set-up most of a drift looks like the machine's error map or the
-    set-up's own C-axis offsets; it is seen by the touches repeated later
-    in the set-up and by the change between set-ups. Parameters: the
-    change of each offset (um) and scale (ppm) from the first to the last touch.
+    with smooth ``a``, ``s`` of time, in two forms (each one layout of the
+    scan): a slow drift over the campaign, Legendre polynomials of degree
+    1, 2 or 3; and a warm-up that settles within it, the structure being a
+    first-order thermal system (heat flowing into a mass through a
+    resistance), ``a(t) = a_inf + (a_0 - a_inf) exp(-t / T)``, the time
+    constant ``T`` one of :data:`DRIFT_TAU_FRACTIONS` (a twentieth to a
+    half of the campaign; slower is a polynomial's, faster is over within
+    the first set-up). A polynomial of degree 3 cannot follow a warm-up
+    that settles in a fifth of the campaign: what it leaves reads as a
+    step early on (a fixture slip). Within one set-up most of a drift
+    looks like the machine's error map or the set-up's own C-axis offsets;
+    it is seen by the touches repeated later in the set-up and by the
+    change between set-ups. Parameters: the change of each offset (um) and
+    scale (ppm) from the first to the last touch (and the warm-up's time
+    constant, s).
     """
     d = bl.data
     modes = np.column_stack([-d.nx, -d.ny, -d.nx * d.xs, -d.ny * d.ys])
@@ -240,18 +272,41 @@ def drift_scans(bl):
         cols = _outer(modes, _legendre(u, deg))
         labels = [f"{m}_P{j}" for m in _DRIFT_MODES for j in range(1, deg + 1)]
         scans.append(_one(cols, labels, {"degree": deg}, "time"))
-    return scans, 3.0
+    span = float(np.ptp(d.tau)) * d.span_s
+    if span > 0:
+        for f in DRIFT_TAU_FRACTIONS:
+            info = {"form": "warm-up", "tau_s": float(f * d.span_s)}
+            scans.append(_one(drift_rebuild(bl, info)[0], [f"{m}_exp" for m in _DRIFT_MODES], info, "time"))
+    # the polynomials' three degrees, and the warm-ups' time constants over a factor 10 counted as
+    # independent hypotheses every factor 1.5 (neighbouring constants' columns correlate; warm_up_scans')
+    return scans, 3.0 + (float(np.log(10) / np.log(1.5)) if span > 0 else 0.0)
+
+
+def drift_rebuild(bl, info):
+    """(T, n, k) a drift layout's columns: a warm-up's for time constants ``tau_s`` (arrays give T trials), a polynomial's."""
+    d = bl.data
+    modes = np.column_stack([-d.nx, -d.ny, -d.nx * d.xs, -d.ny * d.ys])
+    if "tau_s" not in info:
+        return _outer(modes, _legendre(2 * d.tau - 1, info["degree"]))[None]
+    f = np.atleast_1d(np.asarray(info["tau_s"], float)) / d.span_s
+    return modes[None, :, :] * np.exp(-d.tau[None, :] / f[:, None])[:, :, None]
 
 
 def drift_magnitudes(info, coef, bl):
-    deg = info["degree"]
-    c = np.asarray(coef).reshape(4, deg)
-    dP = np.array([1.0 - (-1.0) ** j for j in range(1, deg + 1)])  # P_j(1) - P_j(-1)
-    ch = c @ dP
     L = bl.data.L_m
+    if "tau_s" in info:  # a warm-up: the change from the first to the last touch
+        c = np.asarray(coef)
+        ch = c * (np.exp(-bl.data.span_s / info["tau_s"]) - 1.0)
+        extra = {"time_constant_s": float(info["tau_s"])}
+    else:
+        deg = info["degree"]
+        c = np.asarray(coef).reshape(4, deg)
+        dP = np.array([1.0 - (-1.0) ** j for j in range(1, deg + 1)])  # P_j(1) - P_j(-1)
+        ch = c @ dP
+        extra = {}
     return {"x_offset_change_um": ch[0] / UM, "y_offset_change_um": ch[1] / UM,
             "x_scale_change_ppm": ch[2] / L * 1e6, "y_scale_change_ppm": ch[3] / L * 1e6,
-            "over_h": bl.data.span_s / 3600.0}
+            "over_h": bl.data.span_s / 3600.0, **extra}
 
 
 def c_drift_scans(bl):
@@ -963,6 +1018,21 @@ def defect_scans(bl):
     needs four distinct positions under its bump. ``tries`` counts the
     independent bumps (extent over half-width, per width and axis).
     Parameters: axis, centre and half-width (mm), peak amplitude (um).
+
+    Two things the bump must show to be named (the physics of a scale):
+
+    - support (``support``, :func:`defect_support`): an axis error is a
+      function of the axis position, seen wherever the axis passes. The
+      bump is named only where what it explains comes from two effective
+      positions along the axis or more (no one position carries more than
+      half of it); carried by one, it is the signature of one spot (a
+      chip, a burr, a bad datum at one target in one set-up), which a bump
+      cannot tell from a scale;
+    - confinement (``smooth``, :func:`smooth_error_map`): the grid's
+      linear interpolation leaves a smooth error's curvature as cusps at
+      its nodes, a bump a fifth to a half of a grid step wide. A defect
+      must explain what smooth axis errors over the whole axes, at the
+      grid's own resolution, do not.
     """
     d = bl.data
     scans, tries = [], 1.0
@@ -992,6 +1062,49 @@ def defect_scans(bl):
                               lambda idx, axis=axis, x0=x0, w=w: _defect_cols(d, axis, x0[np.asarray(idx)], w),
                               _matmul_score(funcs, (-d.nx, -d.ny)[axis][:, None])))
     return scans, tries
+
+
+def defect_support(bl, info) -> np.ndarray:
+    """(n,) the distinct positions along the bump's axis (to 1 um), as labels: the units its evidence must spread over.
+
+    The touches of one target in one set-up share one position: a chip or
+    a burr there is one unit, however many times it is touched.
+    """
+    a = (bl.data.x, bl.data.y)["XY".index(info["axis"])]
+    return np.unique(np.round(a / 1e-6), return_inverse=True)[1]
+
+
+def _node_spline(v: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """(n, len(nodes) + 2) cubic B-splines of ``v`` with their knots at ``nodes`` (clamped at the ends)."""
+    from scipy.interpolate import BSpline
+
+    lo, hi = float(min(nodes[0], v.min())), float(max(nodes[-1], v.max()))
+    t = np.concatenate([[lo] * 4, nodes[1:-1], [hi] * 4])
+    B = BSpline.design_matrix(np.clip(v, lo, hi), t, 3, extrapolate=False).toarray()
+    B[v >= hi, -1] = 1.0  # the right end belongs to the last function
+    B[v >= hi, :-1] = 0.0
+    return B
+
+
+def smooth_error_map(bl) -> np.ndarray:
+    """The error map's four tables as cubic splines with their knots at the baseline's grid nodes.
+
+    ``E_XX``, ``E_YX`` smooth in x, ``E_XY``, ``E_YY`` in y (``-n_x F(x)``,
+    ``-n_y F(x)``, ``-n_x F(y)``, ``-n_y F(y)``), ``F`` the cubic B-splines
+    on the nodes of the error map (:class:`core.selfcal.Grid`, in the
+    design's coordinates about the C axis): the smooth twin of the grid's
+    piecewise linear map. A smooth axis error leaves, after the linear
+    map, its curvature between the nodes, cusps at them, which these
+    columns follow (a quadratic exactly); a bump narrower than half a grid
+    step they cannot follow.
+    """
+    d = bl.data
+    grid = bl.info["design"].grid
+    c0 = d.c0_m if np.all(np.isfinite(d.c0_m)) else np.array([(d.x.max() + d.x.min()) / 2,
+                                                                (d.y.max() + d.y.min()) / 2])
+    Fx = _node_spline(d.x, np.asarray(grid.x_m) + c0[0])
+    Fy = _node_spline(d.y, np.asarray(grid.y_m) + c0[1])
+    return np.hstack([-d.nx[:, None] * Fx, -d.ny[:, None] * Fx, -d.nx[:, None] * Fy, -d.ny[:, None] * Fy])
 
 
 def defect_rebuild(bl, info):
@@ -1335,8 +1448,8 @@ NONE = "none"
 REGISTRY = (
     Cause("thermal_drift", ("planar",), "machine", drift_scans, drift_magnitudes,
           {"x_offset_change_um": (-500, 500), "y_offset_change_um": (-500, 500),
-           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, counter_scan=fixture_slip,
-          gradual=True),
+           "x_scale_change_ppm": (-1000, 1000), "y_scale_change_ppm": (-1000, 1000)}, drift_rebuild, ("tau_s",),
+          counter_scan=fixture_slip, gradual=True),
     Cause("c_drift", ("planar",), "machine", c_drift_scans, c_drift_magnitudes,
           {"ECC_change_in_setup_urad": (-2000, 2000), "ECC_change_over_campaign_urad": (-2000, 2000),
            "ECC_change_rms_urad": (0, 2000), "ECC_change_urad[*]": (-2000, 2000)},
@@ -1357,7 +1470,8 @@ REGISTRY = (
     Cause("stylus_bending", ("planar",), "probe", bending_scans, bending_magnitudes,
           {"pretravel_change_um": (-50, 50)}, counter_scan=fixture_slip),
     Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,
-          {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip),
+          {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip,
+          smooth=smooth_error_map, support=defect_support),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
           {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,

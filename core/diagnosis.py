@@ -1146,6 +1146,16 @@ class CvGap:
     draws: int
 
 
+#: Relative spread (standard deviation over mean) of the CV-gap draws' ratios below which the draws are alike:
+#: the ratio does not vary with the noise (every held-out residual a fixed multiple of an in-sample one, as
+#: in a positioning test's leave-one-cycle-out: 1.5625 = (5/4)^2 for every draw) and what spread there is
+#: is rounding (about 1e-15 relative). A gamma tail fitted to that spread (shape about 1e30) turns the
+#: observed ratio's own rounding into any p-value between 0 and 1 (0.09 on an effect-free positioning
+#: run, where the answer is 1). 1e-9: six orders above rounding, far below a noise-driven spread
+#: (3.6e-3 relative with one gross reading in that positioning test).
+NULL_ALIKE = 1e-9
+
+
 def cv_gap(cv_ss: float, rss: float, null_cv_ss: np.ndarray, null_rss: np.ndarray, scale: float = 1.0) -> CvGap:
     """The CV-gap test from the observed sums and their null draws.
 
@@ -1169,10 +1179,10 @@ def cv_gap(cv_ss: float, rss: float, null_cv_ss: np.ndarray, null_rss: np.ndarra
     # would call its ordinary excursions structure).
     mu = float(np.mean(null)) if len(null) else float("nan")
     var = float(np.var(null, ddof=1)) if len(null) > 1 else float("nan")
-    if var > 0 and mu > 0:
+    if mu > 0 and var <= (NULL_ALIKE * mu) ** 2:  # every draw alike: the ratio does not vary with the noise
+        p = 1.0 if ratio <= mu * (1 + NULL_ALIKE) else 0.0
+    elif var > 0 and mu > 0:
         p = float(stats.gamma.sf(ratio, mu * mu / var, scale=var / mu))
-    elif var == 0 and mu > 0:  # every draw alike: the ratio does not vary with the noise
-        p = 1.0 if ratio <= mu * (1 + 1e-9) else 0.0
     else:  # fewer than two draws: no test
         p = 1.0
     return CvGap(float(ratio), float(np.mean(null)), p,

@@ -982,6 +982,10 @@ class Basis:
             return self.U[:, (s.start or 0) - k:None if s.stop is None else s.stop - k]
         raise ConfigError(f"Basis: only its dense columns can be taken (Q[:, k:] with k >= {k}), not {key!r}")
 
+    def indicator_columns(self, ids) -> np.ndarray:
+        """The columns of ``ids``' indicators among the basis's (-1 for an id with no rows)."""
+        return self._pos[ids]
+
     def dense_rows(self, pos) -> np.ndarray:
         """(len(pos), r + dense columns): the rows ``pos`` of the basis outside its indicator columns."""
         return np.hstack([self.span.rows(pos), self.U[pos]]) if self._r else self.U[pos]

@@ -329,6 +329,102 @@ def test_extension_band_between_unseen_and_seen_extension():
     assert np.sum(r_own[te] ** 2) < 0.5 * np.sum(r_band[te] ** 2)
 
 
+def _plain_refit(A, groups, Y, E=None, penalty=None, own_col=None):
+    """Leave-one-group-out held-out residuals by brute force (independent of Folds' algebra): per group, numpy's
+    lstsq on the design with the group's rows deleted (the extension's columns beside it; a ridge ``penalty`` on
+    their coefficients as extra rows ``sqrt(penalty)``), predicted on the group's rows. ``own_col``: a column of
+    ``A`` zero outside one group; when that group is held out its training fit cannot see it (lstsq's minimum
+    norm leaves it out), so it is fitted on the group's own other rows: each held-out row's residual regressed
+    on that column over the group's rows without it (leave one row out, a scalar lstsq per row)."""
+    D = A if E is None else np.hstack([A, E])
+    out = np.zeros_like(Y)
+    for g in np.unique(groups):
+        tr, te = groups != g, groups == g
+        Dtr, Ytr = D[tr], Y[tr]
+        if penalty is not None:
+            w, V = np.linalg.eigh(penalty)
+            ridge = np.hstack([np.zeros((len(w), A.shape[1])), (V * np.sqrt(np.clip(w, 0, None))).T])
+            Dtr, Ytr = np.vstack([Dtr, ridge]), np.vstack([Ytr, np.zeros((len(w), Y.shape[1]))])
+        e = Y[te] - D[te] @ np.linalg.lstsq(Dtr, Ytr, rcond=1e-12)[0]
+        if own_col is not None and not np.any(A[tr, own_col]):
+            a, idx = A[te, own_col], np.arange(te.sum())
+            e = np.vstack([e[i] - a[i] * np.linalg.lstsq(a[idx != i, None], e[idx != i], rcond=None)[0][0]
+                           for i in idx])
+        out[te] = e
+    return out
+
+
+def _every_direction_seen(rng, n=240, p=10, groups=8):
+    """Eight groups of a random design: every direction of every fold seen by its training rows far beyond
+    cv_seen (no own direction), so Folds' rule is plain leave-one-group-out refitting."""
+    return rng.normal(size=(n, p)), np.repeat(np.arange(groups), n // groups)
+
+
+def test_folds_are_a_plain_refit_per_held_out_group():
+    """Folds' held-out residuals (computed from the full fit by the hat matrix's held-out block, no refit) equal a
+    brute-force refit per held-out group (numpy lstsq on the design with its rows deleted) to 1e-9 relative:
+    the baseline alone, with extension columns, with a ridge on them, one and several observation vectors, and a
+    baseline with two columns 1e-6 apart (condition about 1e6: lstsq's own rounding is about 1e-16 x 1e6; 1e-9
+    holds it with room). A wrong share (``c`` in place of ``c^2`` dividing the held-out residual) moves them by
+    several percent (checked on the same design)."""
+    from core import discover as X
+
+    rng = np.random.default_rng(11)
+    A, groups = _every_direction_seen(rng)
+    n = len(A)
+    E = np.column_stack([np.sin(np.arange(n) / 9.0), rng.normal(size=n)])
+    pen = np.diag([0.5, 3.0])
+    Y = A @ rng.normal(size=(A.shape[1], 3)) + E @ rng.normal(size=(2, 3)) + 0.3 * rng.normal(size=(n, 3))
+    A_ill = A.copy()
+    A_ill[:, 1] = A[:, 0] + 1e-6 * rng.normal(size=n)
+    for M in (A, A_ill):
+        folds = X.Folds(M, groups, X.Settings().cv_seen, X.Settings().cv_seen_extension)
+        assert all(f.Qo.shape[1] == 0 for f in folds.items)  # nothing own: plain refitting is the rule here
+        for args, ref in (((Y,), _plain_refit(M, groups, Y)), ((Y, E), _plain_refit(M, groups, Y, E)),
+                          ((Y, E, pen), _plain_refit(M, groups, Y, E, pen)),
+                          ((Y[:, 0], E[:, :1]), _plain_refit(M, groups, Y[:, :1], E[:, :1])[:, 0])):
+            got = folds.residuals(*args)
+            scale = np.max(np.abs(ref))
+            assert np.max(np.abs(got - ref)) < 1e-9 * scale, np.max(np.abs(got - ref)) / scale
+            assert folds.last_dof == n
+
+
+def test_folds_refit_a_rank_deficient_fold_on_its_own_rows():
+    """A column only group 3 sees makes that fold's training design rank-deficient: the held-out residuals are
+    the training fit's (lstsq, minimum norm) with that column fitted on the group's other rows (leave one row
+    out), to 1e-9 relative, with an extension beside it; every other fold a plain refit. The same through the
+    long-log block design (the targets' indicators eliminated), whose fold for a target one group alone touches
+    is rank-deficient the same way."""
+    from core import discover as X
+    from core.lsq import BlockDesign
+
+    rng = np.random.default_rng(12)
+    A, groups = _every_direction_seen(rng)
+    n = len(A)
+    A[:, -1] = (groups == 3) * rng.normal(size=n)
+    E = np.column_stack([np.cos(np.arange(n) / 5.0)])
+    Y = A @ rng.normal(size=(A.shape[1], 2)) + 0.3 * rng.normal(size=(n, 2))
+    folds = X.Folds(A, groups, X.Settings().cv_seen, X.Settings().cv_seen_extension)
+    assert [f.Qo.shape[1] for f in folds.items] == [0, 0, 0, 1, 0, 0, 0, 0]
+    for args, ref in (((Y,), _plain_refit(A, groups, Y, own_col=A.shape[1] - 1)),
+                      ((Y, E), _plain_refit(A, groups, Y, E, own_col=A.shape[1] - 1))):
+        got = folds.residuals(*args)
+        scale = np.max(np.abs(ref))
+        assert np.max(np.abs(got - ref)) < 1e-9 * scale, np.max(np.abs(got - ref)) / scale
+    # block design: 20 targets each probed in every group, one (id 20) by group 5 only; dense machine columns
+    ids = np.tile(np.arange(20), n // 20)
+    ids[(groups == 5) & (np.arange(n) % 3 == 0)] = 20
+    D = rng.normal(size=(n, 4))
+    B = BlockDesign(ids, D, np.arange(4, 25), np.arange(4))
+    Ad = B.toarray()
+    Y = Ad @ rng.normal(size=Ad.shape[1]) + 0.3 * rng.normal(size=n)
+    folds = X.Folds(B, groups, X.Settings().cv_seen)
+    assert [f.Qo.shape[1] for f in folds.items] == [0, 0, 0, 0, 0, 1, 0, 0]
+    ref = _plain_refit(Ad, groups, Y[:, None], own_col=4 + 20)[:, 0]
+    got = folds.residuals(Y)
+    assert np.max(np.abs(got - ref)) < 1e-9 * np.max(np.abs(ref)), np.max(np.abs(got - ref)) / np.max(np.abs(ref))
+
+
 def test_close_pair_scatter_known_answer_round_trip_and_bad_input():
     """Known answer by hand: target 0 touched at 0, 1 and 100 s (set-up span 100 s: pairs at most 5 s apart),
     values 0, 0.2, 5: one pair (0, 1 s), d = 0.2, ss = d^2 / 2 = 0.02; target 1 at 50 and 52 s, values 1 and 1.6:
@@ -416,3 +512,53 @@ def test_short_term_test_holds_its_level_under_pure_noise():
     assert np.mean([fires(drift + rng.normal(0, 1.0, key.size)) for _ in range(2000)]) > 0.3  # 0.47 measured
     F, p = short_term_test(Replicates(1.0, 5, 5), Replicates(1.0, 5, 5))
     assert np.isnan(F) and p == 1.0
+
+
+def test_fold_storage_bounded_when_targets_are_seen_mostly_by_one_setup():
+    """A review's design: 20 set-ups, each target probed three times in one set-up and once in another, so a held-out
+    set-up's targets are own directions its training rows see a little (c2 = 1/4). A fold keeps ``U`` (held-out rows
+    x columns they reach at most) and those directions over the same columns, never their training parts (training
+    rows x directions: 32.9 MB here before, 805 MB at 20,000 rows). Bound: twice held-out rows x columns reached,
+    summed over folds (4.7 MB kept against a 7.6 MB bound here; the old storage fails it)."""
+    from core import discover as X
+    from core.lsq import BlockDesign
+
+    rng = np.random.default_rng(1)
+    S, T = 20, 200
+    ids, grp = [], []
+    for t in range(S * T // 4):
+        a, b = rng.choice(S, 2, replace=False)
+        ids += [t] * 4
+        grp += [a, a, a, b]
+    ids, grp = np.array(ids), np.array(grp)
+    n = len(ids)
+    B = BlockDesign(ids, rng.normal(size=(n, 6)), np.arange(6, 6 + ids.max() + 1), np.arange(6))
+    folds = X.Folds(B, grp, X.Settings().cv_seen)
+    assert sum(f.C is not None for f in folds.items) == S  # every fold has own directions its training rows see
+    kept = sum(v.nbytes for f in folds.items for v in vars(f).values() if isinstance(v, np.ndarray))
+    bound = sum(2 * 8 * f.te.size * (len(np.unique(ids[f.te])) + 6) + 16 * n for f in folds.items)
+    assert kept < bound, (kept, bound)
+
+
+@pytest.mark.parametrize("p0", [0.0, 1e-4, 0.5])
+def test_penalised_extension_mostly_inside_one_group_against_brute_force(p0):
+    """A review's case: a ridge-penalised extension whose first column is N(0, 1) in group 2 and ``sc`` times that
+    elsewhere (the smooth term is not projected outside the design first). Held out group 2, its training rows'
+    Gram is ``sc^2`` of the full one: formed as the full fit less the held-out rows' part it cancelled (relative
+    error 3.4e-5 at sc = 1e-6, p0 = 0; 7.3e-7 in the review). Against lstsq refits (``_plain_refit``); tolerance
+    1e-10 of the largest residual: Folds against the refits measured at most 2.3e-12 over these cases (main's
+    refitting Folds the same), the cancelling algebra fails it from sc = 1e-4 on."""
+    from core import discover as X
+
+    rng = np.random.default_rng(3)
+    n, p = 240, 6
+    groups = np.repeat(np.arange(8), 30)
+    A = rng.normal(size=(n, p))
+    for sc in (1e-2, 1e-4, 1e-6, 1e-7):
+        E = np.column_stack([np.where(groups == 2, 1.0, sc) * rng.normal(size=n), np.sin(np.arange(n) / 9.0)])
+        Y = A @ rng.normal(size=p) + E @ np.array([1.0, 0.5]) + 0.3 * rng.normal(size=n)
+        pen = np.diag([p0, 0.2])
+        f = X.Folds(A, groups, X.Settings().cv_seen, X.Settings().cv_seen_extension)
+        got = f.residuals(Y, E, pen)
+        ref = _plain_refit(A, groups, Y[:, None], E, pen)[:, 0]
+        assert np.max(np.abs(got - ref)) < 1e-10 * np.max(np.abs(ref)), (sc, np.max(np.abs(got - ref)))

@@ -100,7 +100,8 @@ def test_report_keys_follow_the_spec(runs):
     assert set(rep["findings"][0]) >= {"cause", "evidence", "params", "params_u95", "rms_um"}
     assert set(rep["diagnosis"][0]) >= {"covariate", "explained_rms_um", "p_value"}
     assert set(rep["workpiece"][0]) >= {"target", "baseline_um", "extended_um", "baseline_u95_um", "extended_u95_um"}
-    assert rep["noise_um"]["method"] in ("repeats", "residuals")
+    assert rep["noise_um"]["method"] in ("repeats", "repeats beyond the model's terms", "short-term repeats", "residuals")
+    assert rep["noise_um"]["dof"] > 0
     for w in rep["workpiece"]:
         assert w["extended_u95_um"] > 0
 

@@ -79,3 +79,22 @@ def test_positioning_log_through_core_positioning():
     rep = discover_baseline(positioning_from_log(log)).to_report()
     assert rep["cause"] == "thermal_drift", [f["cause"] for f in rep["findings"]]
     assert rep["baseline"]["n"] == log.n
+
+
+def test_held_out_gap_of_alike_draws_is_one():
+    """A positioning test's baseline (the mean per target and direction over five cycles) has every held-out
+    residual a fixed multiple of an in-sample one (leave one cycle out: (5/4)^2 = 1.5625 for every draw), so its
+    CV-gap draws are alike up to rounding (about 1e-15 relative) and the observed ratio is the same number: the
+    p-value is 1, not a gamma tail fitted to the rounding (which gave 0.28 here, 0.09 on the cycle-parity run:
+    the observed ratio's last bit against a spread of 5e-16). The same from the figures alone, and a ratio
+    beyond the alike draws is 0."""
+    from core.diagnosis import NULL_ALIKE, cv_gap
+
+    for effect in ("none", "cycle_parity"):
+        gap = discover_baseline(_run(effect, 3)).to_report()["noise_um"]["cv_gap"]
+        assert gap["p_value"] == 1.0 and abs(gap["ratio"] - 1.5625) < 1e-12, (effect, gap)
+    rng = np.random.default_rng(0)
+    rss = rng.uniform(1.0, 2.0, 99)
+    cv = 1.5625 * rss * (1 + 2e-16 * rng.normal(size=99))
+    assert cv_gap(1.5625 * (1 + 4e-16), 1.0, cv, rss).p_value == 1.0
+    assert cv_gap(1.5625 * (1 + 10 * NULL_ALIKE), 1.0, cv, rss).p_value == 0.0

@@ -216,6 +216,9 @@ def test_block_basis_from_blocks_of_rows_is_one_factorisation(monkeypatch):
     c = r.normal(size=Q.shape[1])
     np.testing.assert_allclose(Q @ c, Qa @ c, atol=1e-13)
     np.testing.assert_allclose(Q.dense_rows(np.arange(5, 40)), Qa[5:40, Q.k:], atol=1e-14)
+    # each row's one nonzero indicator entry sits in its id's column
+    jc = Q.indicator_columns(Q.ids)
+    assert np.all(jc >= 0) and np.array_equal(np.argmax(np.abs(Qa[:, :Q.k]), axis=1), jc)
     np.testing.assert_allclose(lsq.row_column_norms(A.D, np.arange(0, 300, 2)), np.linalg.norm(A.D[::2], axis=0),
                                rtol=1e-14)
 

@@ -1,0 +1,148 @@
+"""``local_scale_defect`` named only when the structure is one: confined along an axis, seen at two places.
+
+A local scale defect is an axis' positioning error confined to a stretch
+of the axis (:func:`core.causes.defect_scans`). Two things read like its
+bump without being one, and both were named ``local_scale_defect`` before:
+
+- the grid's piecewise linear map leaves a smooth error's curvature as
+  cusps at its nodes, bumps a fifth to a half of a grid step wide
+  (effect-free campaigns of tests/core/discover_synth.py, whose smooth
+  errors the 55 mm grid cannot follow: seeds 8, 42, 135 and 140 of 0-199
+  were named ``local_scale_defect``). The bump must explain what the same
+  errors smooth over the whole axes (cubic splines on the grid's nodes,
+  :func:`core.causes.smooth_error_map`) do not;
+- a chip at one target in one set-up: what the bump explains comes from
+  one position. It must come from two effective positions or more
+  (:func:`core.discover._support`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from core import baseline, causes
+from core.diagnosis import orth
+from core.discover import MIN_SUPPORT, Settings, _State, _demotion_reason, _half_power_nc, _support, discover
+from core.lsq import orth_of
+import discover_synth as S
+
+
+@pytest.mark.parametrize("seed", [8, 42, 135, 140])
+def test_a_smooth_residual_is_not_confidently_a_local_defect(seed):
+    """Effect-free campaigns named local_scale_defect, confidently, before (main of 2026-12-03): now at most ambiguous.
+
+    These seeds are the ones of 0-199 that failed; a test over all 200
+    would take minutes. On these the confinement test has no power (the
+    bump's signal outside the smooth error map is below the noncentrality
+    giving 50 % power, :func:`core.discover._half_power_nc`), so the
+    cause is not refused but named ambiguous, the smooth error map given
+    as what the design cannot tell it from."""
+    t, _ = S.campaign("none", seed)
+    rep = discover(t).to_report()
+    for f in rep["findings"]:
+        if f["cause"] == "local_scale_defect":
+            assert f["evidence"]["confidence"] == "ambiguous", f["evidence"].get("confidence_reason")
+            assert f["evidence"]["indistinguishable_counter"] == "smooth error map"
+    why = [r["reason"] for r in rep["rejected"] if r["cause"] == "local_scale_defect"]
+    assert all(w.startswith("not confined") for w in why), why
+
+
+def test_half_power_noncentrality_by_hand():
+    """k = 1: the test |Z + sqrt(lam)| > z(alpha/2) has power Phi(sqrt(lam) - z) + Phi(-sqrt(lam) - z); solved
+    with that normal form (not ncx2) it gives the same lam to 1e-6; more dof or a smaller alpha need more."""
+    from scipy import optimize, stats
+    for a in (0.05, 0.01 / 30):
+        z = stats.norm.isf(a / 2)
+        lam = optimize.brentq(lambda l: stats.norm.cdf(np.sqrt(l) - z) + stats.norm.cdf(-np.sqrt(l) - z) - 0.5, 1e-9, 100)
+        assert _half_power_nc(1, a) == pytest.approx(lam, rel=1e-6)
+    assert _half_power_nc(1, 0.05) < _half_power_nc(3, 0.05) < _half_power_nc(3, 0.001)
+
+
+def test_a_rival_step_refusal_says_its_own_reason():
+    """A support or confinement refusal is the reason whatever the rival share (the old inline expression,
+    ``A or B or C if cond else D``, parsed as ``(A or B or C) if cond else D`` and gave the share text)."""
+    st = Settings()
+    low = {"kept": False, "rival_share": 0.1}
+    assert _demotion_reason({**low, "not_supported": "not seen at two places: x"}, "x_R", st).startswith(
+        "not seen at two places")
+    assert _demotion_reason({**low, "not_confined": "not confined: y"}, "x_R", st).startswith("not confined")
+    assert _demotion_reason(low, "x_R", st).startswith("explains only part of the structure in x_R")
+    high = {"kept": False, "rival_share": 1.0, "counter": "finer grid", "counter_explained_ss_um2": 3.0}
+    assert _demotion_reason(high, "x_R", st) == "a plainer explanation (finer grid) explains as much"
+    assert _demotion_reason({**high, "not_confined": "not confined: y"}, "x_R", st) == "not confined: y"
+
+
+def _chip(seed: int, amp_m: float):
+    """An effect-free synthetic campaign with a chip on one target in one set-up (every touch of it there)."""
+    rng = np.random.default_rng(1000 + seed)
+    t, _ = S.campaign("none", seed)
+    j = rng.integers(4)
+    m = t.setup == j
+    tg = rng.choice(np.unique(t.target[m]))
+    dq = np.where(m & (t.target == tg), amp_m, 0.0)
+    return dataclasses.replace(t, p_R=t.p_R + dq[:, None] * t.n_R)
+
+
+def test_a_chip_at_one_position_is_not_a_local_defect():
+    """A 2 um chip (6.7 sigma) on the touches of one target in one set-up, seeds 0-9: before, seeds 2 and 9
+    were named local_scale_defect (main of 2026-12-03); now none is confidently. Seed 2 is named ambiguous:
+    not for the chip (its bump's evidence spreads over 15 effective positions) but for the campaign's smooth
+    residual, which the confinement test has no power to refuse there (as the effect-free seeds above)."""
+    named = [(s, f.evidence["confidence"]) for s in range(10) for f in discover(_chip(s, 2e-6)).findings
+             if f.cause == "local_scale_defect"]
+    assert all(c == "ambiguous" for _, c in named), named
+
+
+@pytest.mark.parametrize("mag_um", [1.2, 2.0])
+def test_a_true_defect_is_still_named(mag_um):
+    """The synthetic Gaussian bump (sigma 3 mm, written apart from the Hann columns) at 1.2 and 2 um over
+    0.3 um noise, seeds 0-4: named on every one, as before."""
+    for s in range(5):
+        t, _ = S.campaign("local_scale_defect", s, mag_um * 1e-6)
+        assert discover(t).cause == "local_scale_defect", s
+
+
+def test_support_hand_worked():
+    """Four positions; the evidence f . r per position summed: all at one -> 1 unit, split evenly over two -> 2."""
+    lab = np.array([0, 0, 1, 1, 2, 2, 3, 3])
+    E = np.array([[1.0, 1.0, 0.5, 0.5, 0.25, 0.25, 0.1, 0.1]]).T
+    cause = causes.Cause("c", ("planar",), "machine", None, None, {}, support=lambda bl, info: lab)
+    Q = np.zeros((8, 0))
+    rows = np.arange(8)
+
+    def units(r):
+        return _support(None, cause, {}, _State(rows, Q, r, float(r @ r), 8), E)
+
+    # the residual on position 0 only: f . r = (u . r) u_i r_i, all of it at position 0
+    one = units(np.array([1.0, 1.0, 0, 0, 0, 0, 0, 0]))
+    assert one["support_units"] == pytest.approx(1.0, rel=1e-12) and one["refused"]
+    # r = E (the bump itself): f = r, the evidence r_i^2 per position 2, 0.5, 0.125, 0.02 -> 2.645 / 2
+    full = units(E[:, 0].copy())
+    assert full["support_units"] == pytest.approx(2.645 / 2.0, rel=1e-12) and full["refused"]
+    # equal residuals at positions 0 and 1 on a column equal there: the two carry half each
+    E2 = np.array([[1.0, 1.0, 1.0, 1.0, 0, 0, 0, 0]]).T
+    two = _support(None, cause, {}, _State(rows, Q, E2[:, 0].copy(), 4.0, 8), E2)
+    assert two["support_units"] == pytest.approx(2.0, rel=1e-12) and not two["refused"]
+    assert MIN_SUPPORT == 2.0
+
+
+def test_smooth_error_map_follows_a_quadratic_exactly():
+    """A quadratic error of each table (E_XX(x), E_YX(x), E_XY(y), E_YY(y)) beyond the grid's linear map
+    is inside span(baseline, smooth_error_map): the cubic splines on the grid's nodes hold any quadratic.
+    Residual below 1e-9 of the error's norm (rounding of a 500-row least squares); the grid alone leaves
+    a residual of several per cent of it."""
+    t, _ = S.campaign("none", 0)
+    bl = baseline.planar(t, grid_step_mm=55.0)
+    d = bl.data
+    u, v = (d.x - d.x.mean()) / 0.1, (d.y - d.y.mean()) / 0.1
+    e = -d.nx * (u ** 2 + 0.3 * v ** 2) - d.ny * (0.7 * u ** 2 - v ** 2)
+    A = bl.A.toarray() if hasattr(bl.A, "toarray") else np.asarray(bl.A)
+    Q = orth_of(A)
+    r0 = e - Q @ (Q.T @ e)
+    assert np.linalg.norm(r0) > 0.02 * np.linalg.norm(e)  # the linear map alone does not follow it
+    Qs = orth(np.hstack([Q, causes.smooth_error_map(bl)]))
+    r = e - Qs @ (Qs.T @ e)
+    assert np.linalg.norm(r) < 1e-9 * np.linalg.norm(e)
