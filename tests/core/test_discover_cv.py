@@ -594,6 +594,17 @@ def _brute_folds(A, grp, Y, E, pen, seen):
     return out
 
 
+def _targets_seen_mostly_by_one_setup(rng, G, T):
+    """T targets over G set-ups, four rows each: three in one set-up and one in another (c^2 = 1/4 when the first
+    is held out), every third target two and two (c^2 = 1/2, the rule's tie). Row ids and set-ups (lists)."""
+    ids, grp = [], []
+    for t in range(T):
+        a, b = rng.choice(G, 2, replace=False)
+        ids += [t] * 4
+        grp += [a, a, a, b] if t % 3 else [a, b, b, a]
+    return ids, grp
+
+
 @pytest.mark.parametrize("sc", [1e-2, 1e-4, 1e-6])
 @pytest.mark.parametrize("p0", [0.0, 1e-4, 0.5])
 def test_folds_with_weakly_seen_targets_and_a_penalised_extension_equal_a_brute_force_refit(sc, p0):
@@ -607,11 +618,7 @@ def test_folds_with_weakly_seen_targets_and_a_penalised_extension_equal_a_brute_
     S = X.Settings()
     rng = np.random.default_rng(1)
     G, T = 8, 40
-    ids, grp = [], []
-    for t in range(T):
-        a, b = rng.choice(G, 2, replace=False)
-        ids += [t] * 4
-        grp += [a, a, a, b] if t % 3 else [a, b, b, a]
+    ids, grp = _targets_seen_mostly_by_one_setup(rng, G, T)
     for t in range(T, T + 5):
         ids += [t] * 3
         grp += [int(rng.integers(G))] * 3
@@ -645,12 +652,7 @@ def test_folds_own_directions_seen_very_little_by_the_training_rows(sc, monkeypa
 
     S = X.Settings()
     rng = np.random.default_rng(1)
-    G, T = 8, 40
-    ids, grp = [], []
-    for t in range(T):
-        a, b = rng.choice(G, 2, replace=False)
-        ids += [t] * 4
-        grp += [a, a, a, b] if t % 3 else [a, b, b, a]
+    ids, grp = _targets_seen_mostly_by_one_setup(rng, 8, 40)
     ids, grp = np.array(ids), np.array(grp)
     n = len(ids)
     D = rng.normal(size=(n, 4))
