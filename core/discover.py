@@ -354,9 +354,10 @@ class _Fold:
     ``C`` (p', f - k): the own directions the training rows see, ``v`` up
     to scale over the basis columns ``cols`` the held-out rows reach (None:
     all, in order; ``C`` None when there are none). Their training parts
-    ``Q_tr v`` (training rows x ``f - k``) are formed only while a fold is
-    used, never kept: kept, they grow as rows x rows when most targets are
-    seen mostly by one set-up.
+    ``Q_tr v`` are never formed but for directions with ``c2`` below
+    :data:`OWN_SEEN_DIRECT` (only their products with the data are needed,
+    :meth:`Folds._own_seen`), never kept: kept, they grow as rows x rows
+    when most targets are seen mostly by one set-up.
     """
 
     tr: np.ndarray
@@ -386,8 +387,10 @@ SEEN_ZERO = 1e-5
 #: (about 1e-15) must not split two ways.
 SEEN_TIE = 1e-9
 #: An own direction the training rows see with c^2 below this takes its training part from those rows
-#: (Folds._own_seen): |Q_tr v|^2 as a difference would carry eps / c^2 relative error.
-OWN_SEEN_DIRECT = 1e-6
+#: (Folds._own_seen): |Q_tr v|^2 as a difference carries eps / c^2 relative error, which must stay well
+#: below SEEN_ZERO^2 (the own / band decision on the extension's training Gram): at 1e-6 a reviewer saw
+#: that Gram's eigenvalues moved by 3e-10 (above 1e-10); at 1e-4 by less than 1e-13.
+OWN_SEEN_DIRECT = 1e-4
 
 
 class Folds:
