@@ -354,9 +354,10 @@ class _Fold:
     ``C`` (p', f - k): the own directions the training rows see, ``v`` up
     to scale over the basis columns ``cols`` the held-out rows reach (None:
     all, in order; ``C`` None when there are none). Their training parts
-    ``Q_tr v`` (training rows x ``f - k``) are formed only while a fold is
-    used, never kept: kept, they grow as rows x rows when most targets are
-    seen mostly by one set-up.
+    ``Q_tr v`` are never formed but for directions with ``c2`` below
+    :data:`OWN_SEEN_DIRECT` (only their products with the data are needed,
+    :meth:`Folds._own_seen`), never kept: kept, they grow as rows x rows
+    when most targets are seen mostly by one set-up.
     """
 
     tr: np.ndarray
@@ -385,6 +386,11 @@ SEEN_ZERO = 1e-5
 #: fractions (a target probed in two of four set-ups is half seen, c^2 = 1/2 = cv_seen^2), which rounding
 #: (about 1e-15) must not split two ways.
 SEEN_TIE = 1e-9
+#: An own direction the training rows see with c^2 below this takes its training part from those rows
+#: (Folds._own_seen): |Q_tr v|^2 as a difference carries eps / c^2 relative error, which must stay well
+#: below SEEN_ZERO^2 (the own / band decision on the extension's training Gram): at 1e-6 a reviewer saw
+#: that Gram's eigenvalues moved by 3e-10 (above 1e-10); at 1e-4 by less than 1e-13.
+OWN_SEEN_DIRECT = 1e-4
 
 
 class Folds:
@@ -449,14 +455,16 @@ class Folds:
     ``Q_te``; ``n_te x min(n_te, p')`` numbers, ``p'`` the columns the
     held-out rows reach), beside the own directions the training rows see a
     little over those ``p'`` columns (``v`` up to scale, at most ``p' x
-    min(n_te, p')``; their training parts are formed only while used), and
+    min(n_te, p')``; their training products come from ``Q^T V`` less the
+    held-out rows' part, no rows x directions array per fold), and
     the held-out residuals follow from the full fit's residuals ``R``:
     along a predicted ``u``, ``u^T R_te / c^2`` (the training rows' fit
     predicted on the held-out rows, ``(I - H_te)^-1`` on those directions);
     outside ``U``, ``R_te``'s own part. An extension's training Gram outside
     the training image is ``R_X^T R`` less the held-out rows' part by the
-    same algebra, an own direction's training part (the few the training
-    rows see below ``seen``) taken from the training rows themselves; a
+    same algebra, an own direction's training products (the few the training
+    rows see below ``seen``) from ``Q_tr^T V_tr`` over the held-out rows'
+    columns (the training rows' own form where ``c^2 < OWN_SEEN_DIRECT``); a
     penalised extension's (not projected outside the design, so it may be
     small on the training rows, where that difference would cancel) is
     formed from the training rows' products instead. For a
@@ -513,30 +521,36 @@ class Folds:
         k = int(np.sum(c2 >= self.seen ** 2 - SEEN_TIE))
         f = int(np.sum(c2 > SEEN_ZERO ** 2))
         # own directions the training rows see a little: the directions v (Q_te v = s u) up to their scale, over
-        # the columns the held-out rows reach (their training parts are formed when used: _own_seen)
+        # the columns the held-out rows reach (their training products are formed when used: _own_seen)
         C = Qte.T @ U[:, k:f] if f > k else None
         return _Fold(tr, te, np.ascontiguousarray(U), c2, k, f, C, cols)
 
-    def _own_seen(self, f: _Fold) -> np.ndarray:
-        """(n_tr, f - k) the unit training parts ``Q_tr v / |Q_tr v|`` of the fold's own directions the training
-        rows see (transient: rows x directions, not kept per fold)."""
+    def _own_seen(self, f: _Fold, Qte: np.ndarray, D: np.ndarray, V: np.ndarray) -> np.ndarray:
+        """(f - k, b') ``Z^T V_tr``, ``Z`` the unit training parts ``Q_tr v / |Q_tr v|`` of the fold's own
+        directions the training rows see, from ``D = Q_tr^T V_tr`` over the columns the held-out rows reach
+        (``Qte`` those rows there): ``C^T D / |Q_tr v|`` with ``|Q_tr v|^2 = |C|^2 - |Q_te C|^2`` (``Q``
+        orthonormal), no rows x directions product per fold and call. That difference cancels (error about
+        eps / c^2 relative), so a direction with ``c^2 < OWN_SEEN_DIRECT`` takes its training part from the
+        training rows themselves, normalised by its own norm (``1 - s^2`` is exact to 1e-16 absolute only)."""
         C = f.C
-        if f.cols is not None:
-            C = np.zeros((self.Q.shape[1], f.C.shape[1]))
-            C[f.cols] = f.C
-        Z = (self.Q @ C)[f.tr]
-        return Z / np.linalg.norm(Z, axis=0)  # its own norm, not sqrt(c2): 1 - s^2 is exact to 1e-16 absolute only
-
-    def _fitted(self, X: np.ndarray) -> np.ndarray:
-        """``Q Q^T X``: the model's full fit of ``X`` (every row)."""
-        return self.Q @ (self.Q.T @ X)
+        n2 = np.sum(C ** 2, axis=0) - np.sum((Qte @ C) ** 2, axis=0)
+        low = f.c2[f.k:f.k + C.shape[1]] < OWN_SEEN_DIRECT
+        out = (C.T @ D) / np.sqrt(np.where(low, 1.0, n2))[:, None]
+        if low.any():
+            Cl = C[:, low]
+            if f.cols is not None:
+                Cl = np.zeros((self.Q.shape[1], Cl.shape[1]))
+                Cl[f.cols] = C[:, low]
+            Z = (self.Q @ Cl)[f.tr]
+            out[low] = (Z / np.linalg.norm(Z, axis=0)).T @ V[f.tr]
+        return out
 
     def outside(self, E: np.ndarray) -> np.ndarray:
         """Orthonormal basis (n, k') of ``E``'s part outside the design's column space."""
         return new_basis(self.Q, E)
 
     def _outside_image(self, f: _Fold, RXR: np.ndarray, R_te: np.ndarray, Gam: np.ndarray, V: np.ndarray,
-                       b: int) -> np.ndarray:
+                       QtV: np.ndarray, b: int) -> np.ndarray:
         """``X_tr^T (I - P) V_tr`` (kx, b + kx), ``P`` the projection on the fold's training image, ``V = [Y, X]``.
 
         From the full fit (case deletion): ``R_X^T R_V`` over every row (``RXR``) less the held-out rows' part,
@@ -544,7 +558,8 @@ class Folds:
         along a predicted direction divided by ``c2``. Along an own direction (``beta = u^T V_te``, ``alpha =
         (beta - u^T R_te) / s`` its coefficient in the full fit) ``alpha alpha' - beta beta'``, less its part in
         the training image if the training rows see it (``z z'``, ``z`` the training rows' coordinates on its
-        unit training part, from those rows: ``u^T R_te / c2`` would carry R's rounding divided by ``c``).
+        unit training part, by :meth:`_own_seen` from ``Q^T V`` less the held-out rows' part: ``u^T R_te / c2``
+        would carry R's rounding divided by ``c``). ``QtV = Q^T V`` (every row).
         """
         Gx, k = Gam[:, b:], f.k
         out = RXR - R_te[:, b:].T @ R_te + Gx.T @ Gam - (Gx[:k] / f.c2[:k, None]).T @ Gam[:k]
@@ -553,7 +568,8 @@ class Folds:
             alpha = (beta - Gam[k:]) / np.sqrt(1.0 - f.c2[k:])[:, None]
             out = out + alpha[:, b:].T @ alpha - beta[:, b:].T @ beta
             if f.C is not None:
-                z = self._own_seen(f).T @ V[f.tr]
+                Qte, cols = self._q_rows(f.te)
+                z = self._own_seen(f, Qte, (QtV if cols is None else QtV[cols]) - Qte.T @ V[f.te], V)
                 out = out - z[:, b:].T @ z
         return out
 
@@ -561,7 +577,7 @@ class Folds:
         """``X_tr^T (I - P) V_tr`` as :meth:`_outside_image`, from the training rows themselves: ``X_tr^T V_tr``
         less ``a^T M d`` (``a = Q_tr^T X_tr`` from ``X`` with the held-out rows zeroed, ``d = Q_tr^T V_tr``, ``M``
         the pseudo-inverse of ``Q_tr^T Q_tr = I - Q_te^T Q_te`` on the training image: ``1 / c2`` along a
-        predicted direction; an own direction's training part taken from the training rows as there).
+        predicted direction; an own direction's training products by :meth:`_own_seen` from ``[d, a]``).
         For a penalised extension, which is not projected outside the design first: one mostly inside the
         held-out group is small on the training rows, and the full fit less the held-out rows' part cancels
         (a review: relative error 7e-7 where refitting gives 3e-14). ``QtY = Q^T Y`` (every row)."""
@@ -581,8 +597,7 @@ class Folds:
         wt = np.concatenate([1.0 / f.c2[:k], -1.0 / np.maximum(1.0 - f.c2[k:], 1e-300)])
         P = ad + (Ga * wt[:, None]).T @ Gd
         if f.C is not None:
-            Z = self._own_seen(f)
-            zV = Z.T @ V[tr]
+            zV = self._own_seen(f, Qte, np.hstack([dY, ac]), V)  # Q_tr^T V_tr: [dY, a] over those columns
             P = P + zV[:, b:].T @ zV
         return Xz.T @ V - P  # X_tr^T V_tr: the held-out rows are exact zeros in Xz (no copy of V's training rows)
 
@@ -612,7 +627,8 @@ class Folds:
             X = None
         b = Y2.shape[1]
         V = Y2 if X is None else np.hstack([Y2, X])
-        R = self._fitted(V)
+        QtV = self.Q.T @ V  # kept for the own directions' training products (_own_seen)
+        R = self.Q @ QtV  # the full fit Q Q^T V (every row)
         np.subtract(V, R, out=R)  # in place: with the null draws V is rows x 99 (80 MB at 1e5 rows)
         RXR = None if X is None or penalty is not None else R[:, b:].T @ R
         QtY = self.Q.T @ Y2 if X is not None and penalty is not None else None
@@ -624,7 +640,7 @@ class Folds:
             if X is None:
                 W, GW = V_te, Gam
             else:
-                O = (self._outside_image(f, RXR, R_te, Gam, V, b) if penalty is None
+                O = (self._outside_image(f, RXR, R_te, Gam, V, QtV, b) if penalty is None
                      else self._outside_image_direct(f, X, V, QtY, b))
                 G, rhs = O[:, b:], O[:, :b]
                 if penalty is None:

@@ -594,6 +594,17 @@ def _brute_folds(A, grp, Y, E, pen, seen):
     return out
 
 
+def _targets_seen_mostly_by_one_setup(rng, G, T):
+    """T targets over G set-ups, four rows each: three in one set-up and one in another (c^2 = 1/4 when the first
+    is held out), every third target two and two (c^2 = 1/2, the rule's tie). Row ids and set-ups (lists)."""
+    ids, grp = [], []
+    for t in range(T):
+        a, b = rng.choice(G, 2, replace=False)
+        ids += [t] * 4
+        grp += [a, a, a, b] if t % 3 else [a, b, b, a]
+    return ids, grp
+
+
 @pytest.mark.parametrize("sc", [1e-2, 1e-4, 1e-6])
 @pytest.mark.parametrize("p0", [0.0, 1e-4, 0.5])
 def test_folds_with_weakly_seen_targets_and_a_penalised_extension_equal_a_brute_force_refit(sc, p0):
@@ -607,11 +618,7 @@ def test_folds_with_weakly_seen_targets_and_a_penalised_extension_equal_a_brute_
     S = X.Settings()
     rng = np.random.default_rng(1)
     G, T = 8, 40
-    ids, grp = [], []
-    for t in range(T):
-        a, b = rng.choice(G, 2, replace=False)
-        ids += [t] * 4
-        grp += [a, a, a, b] if t % 3 else [a, b, b, a]
+    ids, grp = _targets_seen_mostly_by_one_setup(rng, G, T)
     for t in range(T, T + 5):
         ids += [t] * 3
         grp += [int(rng.integers(G))] * 3
@@ -628,3 +635,43 @@ def test_folds_with_weakly_seen_targets_and_a_penalised_extension_equal_a_brute_
     for design in (B, A):
         r = X.Folds(design, grp, S.cv_seen, S.cv_seen_extension).residuals(Y, E, pen)
         assert np.abs(r - ref).max() <= 1e-10 * m, (type(design).__name__, np.abs(r - ref).max() / m)
+
+
+@pytest.mark.parametrize("sc", [1e-2, 1e-4, 3e-5])
+def test_folds_own_directions_seen_very_little_by_the_training_rows(sc, monkeypatch):
+    """A dense column of the design almost only in one set-up (share ``sc`` elsewhere: own directions with training
+    share c^2 down to 6.4e-9) beside targets seen mostly by one set-up. The own directions' training products come
+    from ``Q^T V`` less the held-out rows' part, their norm from ``|C|^2 - |Q_te C|^2``, which cancels (error about
+    eps / c^2): below ``OWN_SEEN_DIRECT`` (1e-6) the training rows' own form is kept. Penalised: block and dense
+    against an independent refit (``_brute_folds``) to 1e-10 of the largest residual (measured at most 1.8e-12);
+    unpenalised: against the training rows' form for every direction (the previous code's, OWN_SEEN_DIRECT = 2)
+    to 1e-10 (measured 6e-14). With the cancelling form everywhere (OWN_SEEN_DIRECT = 0) sc = 3e-5 fails both
+    (dense 9.6e-10 and 1.2e-9)."""
+    from core import discover as X
+    from core.lsq import BlockDesign
+
+    S = X.Settings()
+    rng = np.random.default_rng(1)
+    ids, grp = _targets_seen_mostly_by_one_setup(rng, 8, 40)
+    ids, grp = np.array(ids), np.array(grp)
+    n = len(ids)
+    D = rng.normal(size=(n, 4))
+    D[:, 3] *= np.where(grp == 2, 1.0, sc)
+    B = BlockDesign(ids, D, np.arange(4, 4 + ids.max() + 1), np.arange(4))
+    A = B.toarray()
+    Y = (A @ rng.normal(size=A.shape[1]) + 0.3 * rng.normal(size=n))[:, None]
+    E = np.column_stack([rng.normal(size=n), np.sin(np.arange(n) / 9.0)])
+    pen = np.diag([0.1, 0.2])
+    ref = _brute_folds(A, grp, Y, E, pen, S.cv_seen)
+    m = np.abs(ref).max()
+    for design in (B, A):
+        folds = X.Folds(design, grp, S.cv_seen, S.cv_seen_extension)
+        assert any(f.C is not None for f in folds.items)
+        r = folds.residuals(Y, E, pen)
+        assert np.abs(r - ref).max() <= 1e-10 * m, (type(design).__name__, np.abs(r - ref).max() / m)
+        r = folds.residuals(Y, E)
+        with monkeypatch.context() as mp:
+            mp.setattr(X, "OWN_SEEN_DIRECT", 2.0)
+            rd = folds.residuals(Y, E)
+        md = np.abs(rd).max()
+        assert np.abs(r - rd).max() <= 1e-10 * md, (type(design).__name__, np.abs(r - rd).max() / md)
