@@ -1038,6 +1038,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
     on = np.any(Cs != 0, axis=2)  # (T, n) rows each trial moves
     n = len(y)
     Q0 = orth_of(X)
+    r0 = y - Q0 @ (Q0.T @ y)
     kept = np.setdiff1d(np.arange(n), out)
     Qk = rk = None
 
@@ -1061,13 +1062,10 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
         trials = np.flatnonzero(np.all(~on[:, events != e], axis=1) & np.any(on[:, events == e], axis=1))
         if trials.size == 0:
             continue
-        # 1. the step that fits every row best: more outliers than its parameters, all its own
-        rss = []
-        for tr in trials:
-            Q = np.hstack([Q0, new_basis(Q0, Cs[tr])])
-            r = y - Q @ (Q.T @ y)
-            rss.append(float(r @ r))
-        q, ok = fits(trials[int(np.argmin(rss))], rows)
+        # 1. the step that fits every row best (removes most of the residual): more outliers than its
+        # parameters, all its own
+        ss0, _, _, _ = nested_f_batch(Cs[trials], Q0, r0, float(r0 @ r0), n - Q0.shape[1])
+        q, ok = fits(trials[int(np.argmax(ss0))], rows)
         if not ok:
             continue
         if rows.size > q:
@@ -1077,18 +1075,9 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
             Qk = orth_of(X[kept])
             rk = y[kept] - Qk @ (Qk.T @ y[kept])
         dof_k = len(kept) - Qk.shape[1]
-        best, best_p = None, np.inf
-        for tr in trials:
-            W = new_basis(Qk, Cs[tr][kept])
-            k = W.shape[1]
-            if k == 0 or dof_k - k < 3:
-                continue
-            ss = float(np.sum((W.T @ rk) ** 2))
-            F = (ss / k) / max((float(rk @ rk) - ss) / (dof_k - k), 1e-300)
-            p = float(stats.f.sf(F, k, dof_k - k))
-            if p < best_p:
-                best, best_p = tr, p
-        if best is not None and best_p * len(trials) * len(multi) < alpha_step:
+        _, k, _, p = nested_f_batch(take_rows(Cs[trials], kept, 1), Qk, rk, float(rk @ rk), dof_k)
+        p = np.where((k > 0) & (dof_k - k >= 3), p, np.inf)
+        if p.min() * len(trials) * len(multi) < alpha_step:
             return True
     return False
 
