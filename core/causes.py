@@ -265,13 +265,10 @@ def drift_scans(bl):
     constant, s).
     """
     d = bl.data
-    modes = np.column_stack([-d.nx, -d.ny, -d.nx * d.xs, -d.ny * d.ys])
-    u = 2 * d.tau - 1
     scans = []
     for deg in (1, 2, 3):
-        cols = _outer(modes, _legendre(u, deg))
         labels = [f"{m}_P{j}" for m in _DRIFT_MODES for j in range(1, deg + 1)]
-        scans.append(_one(cols, labels, {"degree": deg}, "time"))
+        scans.append(_one(drift_rebuild(bl, {"degree": deg})[0], labels, {"degree": deg}, "time"))
     span = float(np.ptp(d.tau)) * d.span_s
     if span > 0:
         for f in DRIFT_TAU_FRACTIONS:
