@@ -675,3 +675,26 @@ def test_folds_own_directions_seen_very_little_by_the_training_rows(sc, monkeypa
             rd = folds.residuals(Y, E)
         md = np.abs(rd).max()
         assert np.abs(r - rd).max() <= 1e-10 * md, (type(design).__name__, np.abs(r - rd).max() / md)
+
+
+def test_held_out_counts_the_rows_predicted_not_the_nonzero_residuals():
+    """``_held_out``'s rows per set-up are the rows the folds predicted (``Folds.last_predicted``), also where a
+    predicted row's held-out residual is exactly 0 (the data inside the design: here y = 0); a row that alone
+    supports a direction of the design (a column nonzero on it only) is not predicted, whatever its residual. The
+    former count (``e != 0``) gave 0 rows to every set-up at y = 0."""
+    from core import discover as X
+
+    rng = np.random.default_rng(7)
+    n, p = 120, 5
+    groups = np.repeat(np.arange(4), n // 4)
+    A = rng.normal(size=(n, p))
+    lone = 7  # a row of set-up 0 that alone supports the last column
+    A[:, -1] = 0.0
+    A[lone, -1] = 1.0
+    folds = X.Folds(A, groups, X.Settings().cv_seen, X.Settings().cv_seen_extension)
+    want = {g: float(np.sum(groups == g)) - (g == 0) for g in range(4)}
+    for y in (np.zeros(n), rng.normal(size=n) * 1e-6):
+        mse, per = X._held_out(folds, y, groups)
+        assert {g: b for g, (_, b) in per.items()} == want, per
+        assert folds.last_dof == n - 1 and not folds.last_predicted[lone] and folds.last_predicted.sum() == n - 1
+    assert X.Folds(A, groups, X.Settings().cv_seen).last_predicted.sum() == n - 1  # before any residuals call
