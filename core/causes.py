@@ -1114,6 +1114,14 @@ def defect_magnitudes(info, coef, bl):
             "half_width_mm": info["half_width_m"] / MM, "amplitude_um": float(coef[0]) / UM}
 
 
+#: A wall's targets must span this share of their feature's extent (in the part's frame) for the wall's turn
+#: to be a column of :func:`part_change_scans`: below it the turn's column is the shift's times a number within
+#: rounding of 0 at every target (one place: a pin's or a bore's 45 deg sector), a direction that holds nothing.
+#: Any value well above rounding and well below the shortest real wall (a slot's wall spans half the slot or
+#: more) says the same: 1e-3.
+WALL_TURN_MIN = 1e-3
+
+
 def part_change_scans(bl):
     """The part itself changing during the campaign: one feature's form drifting with time.
 
@@ -1122,12 +1130,26 @@ def part_change_scans(bl):
     Each wall (the targets of the feature whose normal in the part's frame
     points into one 45 deg sector; two targets at least on a feature of
     eight or more, any on a smaller one) moves linearly with the time since
-    the first touch: ``dq_i += v_wall t``. Set-up by set-up a rigid motion of
+    the first touch: ``dq_i += (v_wall + w_wall a_i) t``, ``a_i`` the target's
+    place along the wall (its nominal contact point in the part's frame on
+    the sector's tangent, centred on the wall's targets and scaled to -1..1).
+    ``v`` is the wall shifting, ``w`` the wall turning: the two normal
+    displacements a straight wall moving in the plane has (a slot's wall
+    relaxing more at its open end than at its closed one; gen_b's slot
+    closes 0.1 to 1 times its closure from one end to the other, and a
+    shift alone explained 45-70 % of that part change's signal outside the
+    baseline at seeds 1000-1013, a one-off slip of the part 76-85 %, so
+    the slip was adopted as the plainer explanation; with the turn 97-100 %).
+    The turn is a column only where the wall's targets span a length
+    (``WALL_TURN_MIN`` of the feature's extent: a pin's or a bore's sector
+    holds one target, no length). Set-up by set-up a rigid motion of
     the part is the set-up's own C-axis offsets; a wall moving against the
     others is not. This is an error of the workpiece, never of the machine:
     the extended model's workpiece is the form at the first touch.
     One trial per feature. Parameters: each wall's change over the
-    campaign (um, positive outwards: material growing towards the stylus).
+    campaign (um, positive outwards: material growing towards the stylus)
+    at its middle, and its turn (the change at the wall's ends less that at
+    its middle, um: + at the end of larger ``a``).
     """
     d = bl.data
     t = d.touches
@@ -1139,15 +1161,26 @@ def part_change_scans(bl):
         nt = np.unique(t.target[m]).size
         if nt < 2 or np.unique(t.setup[m]).size < 2:
             continue
-        cols, labels, walls = [], [], []
+        cols, labels, walls, turns = [], [], [], []
+        w = np.asarray(t.w_A, float)[:, :2]
+        ext = float(np.max(np.ptp(w[m], axis=0))) if np.all(np.isfinite(w[m])) else 0.0
         for s in range(8):
             ms = m & (sector == s)
             if np.unique(t.target[ms]).size >= (2 if nt >= 8 else 1):  # a small feature: every direction it has
                 cols.append(ms * d.tau)
                 labels.append(f"{f}@{45 * s}deg")
                 walls.append(45 * s)
+                # the wall turning: its targets' place along the sector's tangent
+                a = w[ms] @ np.array([-np.sin(np.pi / 4 * s), np.cos(np.pi / 4 * s)]) if ext > 0 else np.zeros(1)
+                if ext > 0 and np.ptp(a) > WALL_TURN_MIN * ext:
+                    c = np.zeros(t.n)
+                    c[ms] = d.tau[ms] * (2 * (a - a.min()) / np.ptp(a) - 1)
+                    cols.append(c)
+                    labels.append(f"{f}@{45 * s}deg turn")
+                    turns.append(45 * s)
         if cols:
-            scans.append(_one(np.column_stack(cols), labels, {"feature": str(f), "walls_deg": tuple(walls)}, "feature"))
+            scans.append(_one(np.column_stack(cols), labels,
+                              {"feature": str(f), "walls_deg": tuple(walls), "turns_deg": tuple(turns)}, "feature"))
     return scans, float(max(len(scans), 1))
 
 
@@ -1163,8 +1196,13 @@ def part_change_rival(bl, info):
 
 def part_change_magnitudes(info, coef, bl):
     out = {"feature": info["feature"]}
-    for w, c in zip(info["walls_deg"], np.asarray(coef)):
-        out[f"wall{w}deg_change_um"] = float(c) / UM
+    keys = []
+    for w in info["walls_deg"]:  # the columns' order: each wall's shift, then its turn where it has one
+        keys.append(f"wall{w}deg_change_um")
+        if w in info.get("turns_deg", ()):
+            keys.append(f"wall{w}deg_turn_um")
+    for k, c in zip(keys, np.asarray(coef)):
+        out[k] = float(c) / UM
     return out
 
 
@@ -1470,7 +1508,7 @@ REGISTRY = (
           {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip,
           smooth=smooth_error_map, support=defect_support),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
-          {"wall*deg_change_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
+          {"wall*deg_change_um": (-200, 200), "wall*deg_turn_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
           {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,
