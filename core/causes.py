@@ -1138,7 +1138,7 @@ def part_change_scans(bl):
     relaxing more at its open end than at its closed one; gen_b's slot
     closes 0.1 to 1 times its closure from one end to the other, and a
     shift alone explained 45-70 % of that part change's signal outside the
-    baseline at seeds 1000-1013, a one-off slip of the part 76-85 %, so
+    baseline at seeds 1000-1013, a one-off slip of the part 76-84 %, so
     the slip was adopted as the plainer explanation; with the turn 97-100 %).
     The turn is a column only where the wall's targets span a length
     (``WALL_TURN_MIN`` of the feature's extent: a pin's or a bore's sector
