@@ -1121,6 +1121,14 @@ def defect_magnitudes(info, coef, bl):
 #: more) says the same: 1e-3.
 WALL_TURN_MIN = 1e-3
 
+#: ... and its targets' nominal normals must agree to this (rad): a flat wall, whose in-plane motion is a shift and
+#: a turn. A curved surface's 45 deg sector is no wall (gen_b's blade: its sectors' normals spread 4.5-28 deg),
+#: and a change varying along it is a smooth form of the feature, not this cause's (with it, gen_b
+#: local_scale_defect 1077's bump, touched on the blade in one set-up, was named part_change, confident). A flat
+#: wall's normals agree to the log's rounding (eight decimals: 1e-8 rad); a wall whose normal turns by 1e-4 rad
+#: over 50 mm departs from flat by 0.6 um. Any value between says the same: 1e-4.
+FLAT_WALL_RAD = 1e-4
+
 
 def part_change_scans(bl):
     """The part itself changing during the campaign: one feature's form drifting with time.
@@ -1142,7 +1150,8 @@ def part_change_scans(bl):
     the slip was adopted as the plainer explanation; with the turn 97-100 %).
     The turn is a column only where the wall's targets span a length
     (``WALL_TURN_MIN`` of the feature's extent: a pin's or a bore's sector
-    holds one target, no length). Set-up by set-up a rigid motion of
+    holds one target, no length) and share one normal (``FLAT_WALL_RAD``:
+    a flat wall, not a curved surface's sector). Set-up by set-up a rigid motion of
     the part is the set-up's own C-axis offsets; a wall moving against the
     others is not. This is an error of the workpiece, never of the machine:
     the extended model's workpiece is the form at the first touch.
@@ -1172,7 +1181,8 @@ def part_change_scans(bl):
                 walls.append(45 * s)
                 # the wall turning: its targets' place along the sector's tangent
                 a = w[ms] @ np.array([-np.sin(np.pi / 4 * s), np.cos(np.pi / 4 * s)]) if ext > 0 else np.zeros(1)
-                if ext > 0 and np.ptp(a) > WALL_TURN_MIN * ext:
+                if ext > 0 and np.ptp(a) > WALL_TURN_MIN * ext and np.ptp(np.angle(
+                        np.exp(1j * (d.wn_az[ms] - d.wn_az[ms][0])))) <= FLAT_WALL_RAD:
                     c = np.zeros(t.n)
                     c[ms] = d.tau[ms] * (2 * (a - a.min()) / np.ptp(a) - 1)
                     cols.append(c)
