@@ -232,7 +232,8 @@ def test_part_change_wall_turns():
     The wall's direction here is the principal axis of its own nominal contact points (not the sector the
     scan uses), the time the log's. Before the turn columns the turn was not in the span (its residual
     outside it 1.17 of 1.17: the turn is all but orthogonal to the shifts); a pin (one target per 45 deg
-    sector) gets no turn column."""
+    sector) gets no turn column, nor does a curved surface's sector (the blade's: a turn there is the
+    feature's smooth form, and with it gen_b local_scale_defect 1077 was named part_change, confident)."""
     _, _, t, bl = _gen_b_baseline("none", 1010)
     sc = {s.infos[0]["feature"]: s for s in causes.part_change_scans(bl)[0]}
     C = sc["slot"].build([0])[0]
@@ -250,6 +251,14 @@ def test_part_change_wall_turns():
             y[w] = tau[w] * form
             assert np.linalg.norm(y - Qc @ (Qc.T @ y)) < 1e-9 * np.linalg.norm(y)
     assert not any("turn" in lb for f, s in sc.items() if f.startswith("pin") for lb in s.labels)
+    # a curved surface's sector is no wall: the blade's sectors whose normals spread (by the log's own normals)
+    # get no turn; its flat ones (one normal, two places or more) would
+    feat = np.asarray(t.feature)
+    blade = feat == "blade"
+    sector = np.mod(np.round(az / (np.pi / 4)).astype(int), 8)
+    curved = [45 * k for k in np.unique(sector[blade]) if np.ptp(np.degrees(az[blade & (sector == k)])) > 1.0]
+    assert len(curved) >= 2
+    assert not set(curved) & set(sc["blade"].infos[0]["turns_deg"]), sc["blade"].labels
 
 
 def test_gen_b_part_change_1010_named_beside_the_slip():
