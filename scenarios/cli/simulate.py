@@ -78,6 +78,11 @@ def run(args) -> int:
         probe = replace(probe, repeatability_k2_m=2 * args.noise_um * UM)
     from scenarios.cli.options import refuse_seed_without_noise
 
+    if args.plan_only:      # a plan touches nothing, so nothing is drawn: an option that draws would be ignored
+        for given, opt in ((args.seed, "--seed"), (args.noise_um, "--noise-um")):
+            if given is not None:
+                raise ConfigError(f"{opt} {given:g}: --plan-only measures nothing, so there is no probing noise "
+                                  f"to draw; leave {opt} out")
     refuse_seed_without_noise(args.seed, args.noise_um, spec.probe.sigma_m / UM,
                               f"the probe of machine {name} has none")
     if rec.placements is not None:

@@ -336,6 +336,15 @@ def test_simulate_seed_only_where_there_is_noise(tmp_path, capsys):
                                     "give --noise-um above 0, or leave --seed out"]
         assert not out.exists()
         assert main([*base, "--out", str(out), *extra]) == 0
+    # a plan draws nothing: --seed and --noise-um with --plan-only would be ignored, so they are refused
+    for opt, val in (("--seed", "5"), ("--noise-um", "0.3")):
+        capsys.readouterr()
+        out = tmp_path / "plan.csv"
+        assert main([*base, "--out", str(out), "--plan-only", opt, val]) == 2
+        assert capsys.readouterr().err.splitlines() == [
+            f"vmt simulate: error: {opt} {float(val):g}: --plan-only measures nothing, so there is no probing "
+            f"noise to draw; leave {opt} out"]
+        assert not out.exists()
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
     assert main([*base, "--out", str(a), "--seed", "5"]) == 0
     assert main([*base, "--out", str(b), "--seed", "6"]) == 0
