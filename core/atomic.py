@@ -298,6 +298,13 @@ def not_text_problem(path, head: bytes, err: UnicodeDecodeError, offset: int = 0
     text (REASON at byte N)"``, N counted from the file's first byte (``offset`` is where the
     bytes ``err`` decoded start in the file).
     """
+    return compressed_problem(path, head) or f"not UTF-8 text ({err.reason} at byte {offset + err.start})"
+
+
+def compressed_problem(path, head: bytes) -> str | None:
+    """:func:`not_text_problem`'s words for a file whose first bytes ``head`` are a compressed
+    format's magic number, or None. For readers that tolerate stray bytes (a controller's
+    transcript, decoded with replacement) but not a whole file that is compressed."""
     import shlex
 
     for magic, kind, cmd in _COMPRESSED:
@@ -305,7 +312,7 @@ def not_text_problem(path, head: bytes, err: UnicodeDecodeError, offset: int = 0
             src = shlex.quote(str(path))
             dst = shlex.quote(f"{path}.txt")
             return f"{kind}-compressed, not text: decompress it first ({cmd} {src} > {dst})"
-    return f"not UTF-8 text ({err.reason} at byte {offset + err.start})"
+    return None
 
 
 def same_file(a, b) -> bool:

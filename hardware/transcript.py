@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from core.atomic import compressed_problem
 from core.exceptions import PlanError, ProbeLogError
 from core.probelog import ProbeLog
 
@@ -71,7 +72,13 @@ def read_transcript(path):
     p = Path(path)
     if not p.is_file():
         raise ProbeLogError(f"{p}: no such file")
-    text = p.read_bytes().decode("utf-8", errors="replace")
+    data = p.read_bytes()
+    packed = compressed_problem(p, data[:8])
+    if packed:
+        raise ProbeLogError(f"{p}: {packed}")
+    # a stray byte of serial noise in a line that is not a probe report is harmless: decoded with
+    # replacement (a probe report it garbles is refused as malformed, below)
+    text = data.decode("utf-8", errors="replace")
     pos, touched, stamps, where = [], [], [], []
     t0 = None
     prev_info = False

@@ -101,3 +101,23 @@ def test_the_commands_say_it_in_one_line(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and f"{bad}: gzip-compressed, not text: decompress it first (gzip -dc " in err
     assert readme.read_text() == "x\n"
+
+
+
+def test_a_compressed_controller_transcript_is_named_as_such(tmp_path):
+    """A controller's transcript tolerates stray bytes (decoded with replacement: serial noise in a
+    line that is not a probe report), but a whole transcript that is compressed is refused in the
+    same words as every other reader, not as "no probe reports" (session-9 finding)."""
+    from hardware.transcript import read_transcript
+
+    body = b"ok\n[PRB:1.000,2.000,3.000:1]\nok\n"
+    plain = tmp_path / "plain.txt"
+    plain.write_bytes(body[:2] + b"\xff" + body[2:])  # a stray byte outside the report: tolerated
+    pos, touched, _, _ = read_transcript(plain)
+    assert pos.tolist() == [[1.0, 2.0, 3.0]] and touched.tolist() == [True]
+    packed = tmp_path / "session.txt"
+    packed.write_bytes(gzip.compress(body))
+    with pytest.raises(VmtError) as e:
+        read_transcript(packed)
+    assert str(e.value) == (f"{packed}: gzip-compressed, not text: decompress it first "
+                            f"(gzip -dc {packed} > {packed}.txt)")
