@@ -85,7 +85,10 @@ class CheckResult:
         First collision of each colliding touch, in words (empty: passed).
     min_table_clearance_mm : float
         Least distance of the probe (ball, stylus, body, spindle) from the
-        table, the workholder and the bar's supports over all checked points.
+        table, the workholder and the bar's supports at the touches' approach
+        starts (where the probe waits before each touch). The paths between are
+        checked for collision at every sample, not measured for clearance: a
+        path may pass closer than this without touching.
     """
 
     measurement: str
