@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.atomic import compressed_problem
+from core.atomic import head_problem, input_problem
 from core.exceptions import PlanError, ProbeLogError
 from core.probelog import ProbeLog
 
@@ -70,12 +70,13 @@ def read_transcript(path):
         lines only, time going backwards.
     """
     p = Path(path)
-    if not p.is_file():
-        raise ProbeLogError(f"{p}: no such file")
+    problem = input_problem(p, "transcript")  # (a pipe is read too: vmt import grbl /dev/stdin)
+    if problem:
+        raise ProbeLogError(f"{p}: {problem}")
     data = p.read_bytes()
-    packed = compressed_problem(p, data[:8])
-    if packed:
-        raise ProbeLogError(f"{p}: {packed}")
+    problem = head_problem(p, data[:8])
+    if problem:
+        raise ProbeLogError(f"{p}: {problem}")
     # a stray byte of serial noise in a line that is not a probe report is harmless: decoded with
     # replacement (a probe report it garbles is refused as malformed, below)
     text = data.decode("utf-8", errors="replace")

@@ -173,6 +173,8 @@ def test_block_basis_is_the_dense_orth_span():
     U = new_basis(Q, X)
     Q2 = np.hstack([Q, U])
     assert isinstance(Q2, Basis) and Q2.shape[1] == Q.shape[1] + 4 and np.array_equal(Q2[:, Q.shape[1]:], U)
+    # a basis widened with new directions, as discovery extends it
+    np.testing.assert_allclose(Q2.rows_rmatmul(rows, X[rows]), Q2.toarray()[rows].T @ X[rows], atol=1e-12)
     assert np.array_equal(Q2, Q2) and not np.array_equal(Q2, Q)
 
 
