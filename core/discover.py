@@ -492,7 +492,9 @@ class Folds:
     eigenvectors of the hat matrix's held-out block ``H_te = Q_te Q_te^T``,
     from its eigh when it is the smaller problem, else from the SVD of
     ``Q_te``; ``n_te x min(n_te, p')`` numbers, ``p'`` the columns the
-    held-out rows reach), beside the own directions the training rows see a
+    held-out rows reach, less the largest cluster of predicted directions
+    sharing one share, kept as the projection on what the others leave:
+    :class:`_Fold`), beside the own directions the training rows see a
     little over those ``p'`` columns (``v`` up to scale, at most ``p' x
     min(n_te, p')``; their training products come from ``Q^T V`` less the
     held-out rows' part, no rows x directions array per fold), and
