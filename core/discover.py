@@ -365,8 +365,9 @@ class _Fold:
     complement of the kept columns, so every product along them is a
     projection ``I - U U^T`` (:meth:`Folds.residuals`). A long log whose
     targets are touched once per set-up has most of its directions there
-    (``H_te = I / set-ups + D D^T``): 644 of 1,000 per fold on the
-    benchmark's 1e5-row log, 5 MB of 8 MB. ``U``, ``c2``, ``k``, ``f``
+    (``H_te = I / set-ups + D D^T``): all but at most the machine's 326
+    columns of 1,000 per fold on the benchmark's 1e5-row log (at most 2.6 of
+    8 MB kept). ``U``, ``c2``, ``k``, ``f``
     describe the kept columns. The training rows ``tr`` are the held-out
     rows' complement in ``range(n)``, formed when asked for (kept, they
     were rows x 8 bytes per fold: 79 MB at 1e5 rows).
