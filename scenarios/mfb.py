@@ -14,11 +14,11 @@ bar shifted on the table changes the arm only along axes that carry the X
 carriage (y, z for X; z for Y); the x arm of Y's errors must come from the
 stylus (J_X). Placements (14), measurements (17):
 
-- X1, X2, X3: bar along X at (y, z) = (-40, 60), (-40, 260), (110, 60) mm,
+- X1, X2, X3: bar along X at (y, z) = (-40, 70), (-40, 270), (110, 70) mm,
   straight stylus T0 (J_Z 150 mm): EXX, EYX, EZX; X2-X1 (dz 200 mm): EBX
   (positioning), EAX (horizontal straightness); X3-X1 (dy 150 mm): ECX
   (positioning), EAX (vertical straightness);
-- Y1, Y2: bar along Y at (x, z) = (-25, 60), (-25, 260) mm, T0: EYY, EXY,
+- Y1, Y2: bar along Y at (x, z) = (-25, 70), (-25, 270) mm, T0: EYY, EXY,
   EZY; Y2-Y1 (dz): EAY, EBY;
 - Y3: along Y at x = 125 mm with TXF (star arm 100 mm along X with a
   40 mm finger): Y3-Y1 (dJ_X 100 mm) gives ECY by differential positioning
@@ -33,14 +33,21 @@ stylus (J_X). Placements (14), measurements (17):
   -Y, TY1), DYZ (tilted 45 deg in YZ, holes facing -X, TX1): the
   squarenesses EC0Y, EB0Z, EA0Z (a bar parallel to an axis absorbs the
   slope into its pose);
-- AXY, AXZ, AYZ: the anti-diagonals (x_A along X-Y, X-Z, Y-Z; the tilted
-  ones start at z = 345 mm and fall). A linear twist of the table (an EAX
+- AXY, AXZ, AYZ: the anti-diagonals (x_A along X-Y, Z-X, Z-Y; the tilted
+  ones rise from z = 97.5 to 345 mm, the bar's unprobed holes 9-12 above,
+  so no part of the bar is below the table face). A linear twist of the table (an EAX
   ramp, an EBY ramp) moves every bar parallel to an axis rigidly, so only
   the diagonals see it, as a bend ``a s^2 / 2`` that the bar's own bow
   (calibrated, to ``u_cal``) imitates; the anti-diagonal bends the other
   way under the same bow. With one diagonal per plane the twist was the
   plan's largest uncertainty (EAX / EBY U95 36 / 44 urad), with the pairs
   14 / 11 urad; the squarenesses gain alike (EB0Z 14 -> 5 urad).
+
+Every bar stands on or above the table face (W z = 0, R's origin at the
+table surface: sim/machines.py): the flat bars' hole line at z = 70 mm on
+their 70 mm supports (:func:`check_plan` passes; the earlier plan had them
+at 60 mm, 10 mm into the table, and its anti-diagonals falling from 345 mm
+to 75.7 mm below the face).
 
 Each bar is probed over the holes that fit the strokes (12 along X, 8
 along Y, 7 standing), with the rods and faces the planes PL_i need (rod k
@@ -214,15 +221,15 @@ def plan_3axis() -> MfbPlan:
                                       STYLI[st], tuple(holes), senses, st))
 
     h12, h8, h7 = tuple(range(1, 13)), tuple(range(1, 9)), tuple(range(1, 8))
-    add("X1", _X, _Z, (-0.275, -0.040, 0.060), h12, senses="EXX, EYX, EZX (tables along X at y=-40, z=60 mm)")
-    add("X2", _X, _Z, (-0.275, -0.040, 0.260), h12,
+    add("X1", _X, _Z, (-0.275, -0.040, 0.070), h12, senses="EXX, EYX, EZX (tables along X at y=-40, z=70 mm)")
+    add("X2", _X, _Z, (-0.275, -0.040, 0.270), h12,
         senses="with X1 (arm dz = 200 mm): EBX by differential positioning, EAX by differential horizontal straightness")
-    add("X3", _X, _Z, (-0.275, 0.110, 0.060), h12,
+    add("X3", _X, _Z, (-0.275, 0.110, 0.070), h12,
         senses="with X1 (arm dy = 150 mm): ECX by differential positioning, EAX by differential vertical straightness")
-    add("Y1", _Y, _Z, (-0.025, -0.190, 0.060), h8, senses="EYY, EXY, EZY (tables along Y at x=-25, z=60 mm)")
-    add("Y2", _Y, _Z, (-0.025, -0.190, 0.260), h8,
+    add("Y1", _Y, _Z, (-0.025, -0.190, 0.070), h8, senses="EYY, EXY, EZY (tables along Y at x=-25, z=70 mm)")
+    add("Y2", _Y, _Z, (-0.025, -0.190, 0.270), h8,
         senses="with Y1 (arm dz = 200 mm): EAY by differential positioning, EBY by differential horizontal straightness")
-    add("Y3", _Y, _Z, (0.125, -0.190, 0.060), h8, ("TXF",),
+    add("Y3", _Y, _Z, (0.125, -0.190, 0.070), h8, ("TXF",),
         senses="with Y1, Abbe arm dJ_X = 100 mm: ECY by differential positioning, EBY by differential "
                "vertical straightness (the table does not move in X under the tool when Y moves, so a bar "
                "shifted in x gives no arm: the arm must come from the stylus)")
@@ -232,7 +239,7 @@ def plan_3axis() -> MfbPlan:
     add("VX", _Z, -_X, (-0.025, -0.040, 0.060), h7, ("TX1", "TX2"),
         senses="standing bar, holes facing -X, star stylus arm along +X: arm 100 vs 150 mm: ECZ (y), EBZ (z); "
                "EXZ / EYZ again with the other Abbe arm")
-    add("DXY", (_X + _Y) * _S2, _Z, (-0.125, -0.140, 0.060), h8, senses="EC0Y (face diagonal in XY)")
+    add("DXY", (_X + _Y) * _S2, _Z, (-0.125, -0.140, 0.070), h8, senses="EC0Y (face diagonal in XY)")
     add("DXZ", (_X + _Z) * _S2, -_Y, (-0.125, -0.040, 0.060), h8, ("TY1",),
         senses="EB0Z (face diagonal in XZ, tilted 45 deg, holes facing -Y, star stylus arm along +Y)")
     add("DYZ", (_Y + _Z) * _S2, -_X, (-0.025, -0.140, 0.060), h8, ("TX1",),
@@ -243,12 +250,12 @@ def plan_3axis() -> MfbPlan:
     # to u_cal) imitates; the anti-diagonal bends the other way under the
     # same bow, so the pair separates twist from bar (and the squarenesses
     # from the bar's length): EAX / EBY ramps 36 / 44 -> 14 / 11 urad U95
-    add("AXY", (_X - _Y) * _S2, _Z, (-0.125, 0.107, 0.060), h8,
+    add("AXY", (_X - _Y) * _S2, _Z, (-0.125, 0.107, 0.070), h8,
         senses="with DXY: twist of X and Y (EAX, EBY ramps) and EC0Y, free of the bar's bow")
-    add("AXZ", (_X - _Z) * _S2, -_Y, (-0.125, -0.040, 0.345), h8, ("TY1",),
-        senses="with DXZ: EAX ramp and EB0Z, free of the bar's bow (z falls along the bar)")
-    add("AYZ", (_Y - _Z) * _S2, -_X, (-0.025, -0.140, 0.345), h8, ("TX1",),
-        senses="with DYZ: EBY ramp and EA0Z, free of the bar's bow (z falls along the bar)")
+    add("AXZ", (-_X + _Z) * _S2, -_Y, (-0.125 + 0.35 * _S2, -0.040, 0.345 - 0.35 * _S2), h8, ("TY1",),
+        senses="with DXZ: EAX ramp and EB0Z, free of the bar's bow (z rises along the bar)")
+    add("AYZ", (-_Y + _Z) * _S2, -_X, (-0.025, -0.140 + 0.35 * _S2, 0.345 - 0.35 * _S2), h8, ("TX1",),
+        senses="with DYZ: EBY ramp and EA0Z, free of the bar's bow (z rises along the bar)")
     # table nodes at the points of interest, where the bar senses every
     # direction: the end nodes at the first and last holes (X +-275 mm, Y
     # -190 / 160 mm, Z 60 / 360 mm), the tables continued along their end
