@@ -39,15 +39,18 @@ stylus (J_X). Placements (14), measurements (17):
   ramp, an EBY ramp) moves every bar parallel to an axis rigidly, so only
   the diagonals see it, as a bend ``a s^2 / 2`` that the bar's own bow
   (calibrated, to ``u_cal``) imitates; the anti-diagonal bends the other
-  way under the same bow. With one diagonal per plane the twist was the
-  plan's largest uncertainty (EAX / EBY U95 36 / 44 urad), with the pairs
-  14 / 11 urad; the squarenesses gain alike (EB0Z 14 -> 5 urad).
+  way under the same bow. With one diagonal per plane the twist is the
+  plan's largest uncertainty (EAX / EBY U95 33 / 30 urad, seed 1 without
+  AXY, AXZ, AYZ), with the pairs 14 / 13 urad; the squarenesses gain alike
+  (EB0Z 13 -> 6 urad).
 
 Every bar stands on or above the table face (W z = 0, R's origin at the
-table surface: sim/machines.py): the flat bars' hole line at z = 70 mm on
-their 70 mm supports (:func:`check_plan` passes; the earlier plan had them
-at 60 mm, 10 mm into the table, and its anti-diagonals falling from 345 mm
-to 75.7 mm below the face).
+table surface: sim/machines.py): the flat bars' hole line at z = 70 mm, the
+bar's 10 mm half thickness on its 60 mm supports standing on the table
+(:func:`check_plan` passes; the earlier plan had the hole line at 60 mm,
+10 mm into the table, and its anti-diagonals falling from 345 mm to 75.7 mm
+below the face; the tests compute every bar's lowest point apart from
+check_plan).
 
 Each bar is probed over the holes that fit the strokes (12 along X, 8
 along Y, 7 standing), with the rods and faces the planes PL_i need (rod k
@@ -66,9 +69,9 @@ Identification (:mod:`core.volumetric`): the machine errors enter through
 the touches, carried into the points of interest by the extraction's gain;
 then Gauss-Newton on the exact chain; reported in the ISO 230-1 form
 (straightness against its end-point line, the slope kept beside it).
-Noise-free on the default realistic machine: 0.074 um / 0.15 urad (the
+Noise-free on the default realistic machine: 0.045 um / 0.17 urad (the
 tables' interpolation of its 9-knot profiles and the tangent continuation
-over the end rods); 0.003 um / 0.03 urad for errors the tables represent
+over the end rods); 0.003 um / 0.025 urad for errors the tables represent
 (``on_nodes=True``).
 
 Uncertainty: probing noise (0.125 um standard deviation, the paper's 0.25 um
@@ -78,12 +81,12 @@ heights kept to what its 11 rods can give: :func:`core.mfb.calibration_map`,
 propagated alike) and the
 placement errors (:data:`U_PLACE`, roll included, drawn in the simulator),
 by linear propagation and Monte Carlo (JCGM 101) through the same
-estimator. At 0.25 um probing noise, over four seeded campaigns (seeds
-11-14), U95 at the nodes: positioning median 0.69 um, max 0.79 um;
-straightness 0.92 / 3.8 um (EZX next to its end nodes, bar calibration
-dominated); angular 3.7 / 13.8 urad (the EAX / EBY twist ramps); squareness
-3.8 / 5.1 urad. 94 % of 504 identified values within U95 (RMS error / U95
-0.53); a noisy run is off by 0.9-3.2 um / 4.8-12.7 urad. What is left weakest: ``observability(...).weakest``.
+estimator. At 0.25 um probing noise (k = 2), over four seeded campaigns
+(seeds 11-14), U95 at the nodes: positioning median 0.67 um, max 0.84 um;
+straightness 0.90 / 3.6 um (EZX next to its end nodes, bar calibration
+dominated); angular 3.5 / 13.7 urad (the EAX / EBY twist ramps); squareness
+3.6 / 5.8 urad. 94 % of 504 identified values within U95 (RMS error / U95
+0.51); a noisy run is off by 0.9-2.9 um / 6.8-9.2 urad. What is left weakest: ``observability(...).weakest``.
 
 The scenario injects ``sim.machines.realistic_errors`` of the machine's
 linear axes minus the 10 mm screw-pitch ripple: a bar of 50 mm pitch
@@ -249,7 +252,7 @@ def plan_3axis() -> MfbPlan:
     # and bends a diagonal by a s^2 / 2, which the bar's own bow (calibrated,
     # to u_cal) imitates; the anti-diagonal bends the other way under the
     # same bow, so the pair separates twist from bar (and the squarenesses
-    # from the bar's length): EAX / EBY ramps 36 / 44 -> 14 / 11 urad U95
+    # from the bar's length): EAX / EBY ramps 33 / 30 -> 14 / 13 urad U95 (seed 1)
     add("AXY", (_X - _Y) * _S2, _Z, (-0.125, 0.107, 0.070), h8,
         senses="with DXY: twist of X and Y (EAX, EBY ramps) and EC0Y, free of the bar's bow")
     add("AXZ", (-_X + _Z) * _S2, -_Y, (-0.125 + 0.35 * _S2, -0.040, 0.345 - 0.35 * _S2), h8, ("TY1",),
