@@ -147,8 +147,9 @@ def test_5axis_budget_covers_the_injected_errors_and_meets_the_hand_values():
     assert 0.93 <= a / b <= 0.975
     # the sum of one-source shares against the Monte Carlo, per error: 1,000 runs give each U95 to
     # 2.2 % (1 SE); the per-error value is a ratio of maxima over ~6-9 nodes, and the 3-axis study
-    # (same sources, same estimator) came to 0.90-1.02: 6 SE either way (set before the 5-axis
-    # study ended; a share missing or doubled moves the ratio by far more)
+    # (same sources, same estimator; its first study, of the plan before session 10) came to
+    # 0.90-1.02: 6 SE either way (set before the 5-axis study ended; a share missing or doubled
+    # moves the ratio by far more)
     for s, c in rep["per_error"].items():
         assert 0.87 <= c["mc_over_quadrature"] <= 1.13, (s, c["mc_over_quadrature"])
     # JCGM 101 7.9 by halves: most nodes' halves within 2 standard errors
@@ -168,7 +169,8 @@ def test_linear_calibration_share_is_the_simulated_bars_own():
     # combination (alternating in sign) never occurs. Exact reference, no Monte Carlo error: the
     # simulator's response to each of the 36 drawn components (its construction is linear in them),
     # pushed through the same estimator. Both budget studies measured it through the whole pipeline:
-    # EZX's first free node MC / sum 0.90 (3-axis) and 0.89 (5-axis), the other nodes 0.93-1.01.
+    # EZX's first free node MC / sum 0.90 (3-axis, its first study: the plan before session 10, bars
+    # in the table) and 0.89 (5-axis), the other nodes 0.93-1.01.
     from core import mfb, volumetric as vol
     from sim import artefacts as A
 
