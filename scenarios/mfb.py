@@ -44,13 +44,19 @@ stylus (J_X). Placements (14), measurements (17):
   AXY, AXZ, AYZ), with the pairs 14 / 13 urad; the squarenesses gain alike
   (EB0Z 13 -> 6 urad).
 
-Every bar stands on or above the table face (W z = 0, R's origin at the
-table surface: sim/machines.py): the flat bars' hole line at z = 70 mm, the
-bar's 10 mm half thickness on its 60 mm supports standing on the table
-(:func:`check_plan` passes; the earlier plan had the hole line at 60 mm,
-10 mm into the table, and its anti-diagonals falling from 345 mm to 75.7 mm
-below the face; the tests compute every bar's lowest point apart from
-check_plan).
+No bar reaches below the table face (W z = 0, R's origin at the table
+surface: sim/machines.py): the flat bars' hole line at z = 70 mm, the bar's
+10 mm half thickness on its 60 mm supports standing on the table (the
+earlier plan had the hole line at 60 mm, 10 mm into the table, and its
+anti-diagonals falling from 345 mm to 75.7 mm below the face; the tests
+compute every bar's lowest point apart from :func:`check_plan`, which passes
+the plan when called). Not yet a physical plan: only the 6 bars flat on the
+table (X1, X3, Y1, Y3, DXY, AXY) stand on anything; the other 11 float, their
+supports' feet on nothing (X2, Y2 at z = 200 mm; the standing VYa-c, VXa-b at
+174-496 mm; DXZ, DYZ at 141-368 mm; AXZ, AYZ at 178-406 mm): the plan has no
+fixtures (a 200 mm riser, an angle plate, 45 deg blocks would carry them),
+and :func:`run` collision-checks only a plan with fixtures, so the 3-axis
+runs are not collision-checked.
 
 Each bar is probed over the holes that fit the strokes (12 along X, 8
 along Y, 7 standing), with the rods and faces the planes PL_i need (rod k
