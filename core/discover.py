@@ -2481,7 +2481,13 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max)
     ev.update({"vif": vif, "max_vif": vif_worst, "principal_angle_deg": ang, "weak_directions": weak})
     if M.shape[1] == 0:
-        return {"reason": f"confounded with the baseline (principal angle {ang:.2g} deg)", "significant": True}
+        # (the model it is confounded with: the baseline and the causes adopted in earlier rounds; gen_a
+        # reversal 1208: determined beside the baseline alone, best variance inflation 9, confounded beside
+        # the baseline and probe_lobing, 151; the decision is the best direction's inflation, the smallest
+        # principal angle that of the worst direction)
+        model_words = "the baseline" + "".join(f" + {t.cause}" for t in terms)
+        return {"reason": f"confounded with {model_words} (best variance inflation {vif:.3g} > {settings.vif_max:g}, "
+                          f"principal angle {ang:.2g} deg)", "significant": True}
     # prediction and CV use the cause's own columns (a held-out set-up refits the
     # columns that are its own); the determined combinations M carry the
     # magnitudes and the extended workpiece

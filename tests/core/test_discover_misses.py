@@ -214,3 +214,23 @@ def test_gen_a_part_change_904_outliers_not_confidently_dust():
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
     assert f["evidence"]["place_structure"]["feature"] == "boss"
+
+
+def test_a_cause_confounded_in_a_later_round_names_the_model():
+    """gen_a reversal 1208: the reversal's columns (``-n_x sign(d_x) / 2``: about ``|n_x| / 2`` when the
+    approach is along the normal, even harmonics of the azimuth) are determined beside the baseline alone
+    (best variance inflation about 9) but not beside the baseline and the probe's lobes (harmonics 1-4,
+    adopted first on a lower held-out mean square), where the best inflation is about 151 > 100. The
+    refusal said "confounded with the baseline"; it names the model it is confounded with, and the
+    inflation that decides it (the engine before this change fails the test)."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+
+    log, _ = gen_a.generate("reversal", 1208)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    why = [r["reason"] for r in rep["rejected"] if r["cause"] == "reversal"]
+    assert why and why[0].startswith("confounded with the baseline + probe_lobing (best variance inflation "), why
+    assert rep["findings"][0]["cause"] == "probe_lobing" and "reversal" in rep["findings"][0]["evidence"][
+        "ambiguous_with"]
