@@ -287,7 +287,8 @@ def test_gen_a_reseat_hysteresis_876_outliers_not_confidently_dust():
     outliers in three set-ups, ten of them touches after a turn of the approach of 86 deg or more (a probe
     re-seating, out of the catalogue), read `outlier` confidently (one event per set-up: concentration
     p = 0.069). Counted one per place in the touch's history covariates they gather at one end: the finding
-    is ambiguous, history_p below the overall rate 0.01 (main fails: confident, no history_p)."""
+    is ambiguous, its concentration p (one family: covariates per event, places, history per place, 0.0024)
+    below the overall rate 0.01 (main fails: confident, p = 0.069)."""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a

@@ -247,8 +247,8 @@ def test_a_real_shift_by_an_unnamed_smooth_is_in_the_u95():
 #: the name flagged ``ambiguous`` (the confidence rules of core.discover's step 8, not a threshold):
 #: - gen_a reseat_hysteresis 502: one outlier of 5 um (one event cannot tell a chip from a seat);
 #: - gen_a reseat_hysteresis 0 (session 10): six outliers in four set-ups, at one end of the touches'
-#:   history counted one per place (history_p 5e-4) (core.discover._outlier_finding's history check: a probe that re-seats
-#:   after a turn);
+#:   history counted one per place (concentration p 0.0078 with it, one family) (core.discover._outlier_finding's
+#:   history check: a probe that re-seats after a turn);
 #: - gen_b stylus_pickup 501, 605 (thermal_drift) and gen_a probe_heating 707 (part_change): the probe's
 #:   size changing with time (and, for 707, a one-off event) explains as much and the cause nothing
 #:   material beyond it (a gradual cause's time alternatives);
