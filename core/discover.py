@@ -620,6 +620,12 @@ class Folds:
         the data's, then fitted on the group's other rows. The same algebra
         as refitting on the training rows, with nothing (rows x directions)
         kept per fold beyond ``U``.
+
+        Sets ``last_predicted`` (n,) (the rows predicted: the others' residuals
+        are 0, a row alone supporting a direction of the held-out set-up,
+        the extension's unseen columns included; a predicted row's may be 0
+        too) and ``last_dof`` (their count): state of this call, valid until
+        the next ``residuals`` or ``mse`` call on the same object.
         """
         one = Y.ndim == 1
         Y2 = Y[:, None] if one else Y
