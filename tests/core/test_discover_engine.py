@@ -779,3 +779,56 @@ def test_a_slip_explains_outliers_only_where_the_other_touches_see_that_slip():
     L[[45, 46, 47]] = [1.5, -1.5, 1.2]  # the turn's centre elsewhere: touches 45-47 move with 48-49
     turn = np.where((events == 0) & (k >= 45), 20.0 / 3.0 * L, 0.0)
     assert D._slip_explains(X, noise + turn, out, events, slips, 0.001, 0.0025)
+    # a moderate turn: touches 45-47 moved by 4.0, -4.0 and 3.2 sigma, the outliers 48-49 by +-8 sigma
+    turn = np.where((events == 0) & (k >= 45), 8.0 / 3.0 * L, 0.0)
+    assert D._slip_explains(X, noise + turn, out, events, slips, 0.001, 0.0025)
+
+
+def _one_setup_of_steps(levers: dict):
+    """Four set-ups of 50 touches, one offset each, the trial steps (translation and turn from every fifth touch)
+    as in the test above; ``levers``: lever arms fixed by hand (touch -> L), the others N(0, 1)."""
+    rng = np.random.default_rng(11)
+    G, m = 4, 50
+    n = G * m
+    events = np.repeat(np.arange(G), m)
+    k = np.arange(n) % m
+    X = (events[:, None] == np.arange(G)).astype(float)
+    L = rng.normal(size=n)
+    L[list(levers)] = list(levers.values())
+    starts = [(g, t) for g in range(G) for t in range(5, m, 5)]
+
+    def slips():
+        C = np.zeros((len(starts), n, 2))
+        for i, (g, t) in enumerate(starts):
+            on = ((events == g) & (k >= t)).astype(float)
+            C[i, :, 0], C[i, :, 1] = on, on * L
+        return C
+
+    return X, rng.normal(size=n), events, k, slips
+
+
+def test_a_slip_explains_only_outliers_it_moves_and_that_the_other_touches_predict():
+    """``_slip_explains``: the step adopted must move every outlier of the event, and the fit of the model and
+    that step on the other touches must predict each outlier within the bound (the same motion).
+
+    1. A real translation of 8 sigma from touch 45 of set-up 0; two touches before it, 41 and 43, +4 sigma each,
+       passed as the event's outliers. The adopted step (from 45, the best trial on every row) leaves them where
+       they were, and with the step in the model their residuals fall inside the bound: the former test said the
+       step explained them.
+    2. A real translation of 5 sigma from touch 45 (touches 45-47 at levers 1.5, -1.5, 1.2 see it, the turn about
+       0 determined by them); the outliers 48 and 49 share one lever (3.0) and sit at +20 sigma. Fitted on every
+       row the step's turn bends to them and each, deleted alone, is predicted by the other (within the bound):
+       the former test said the step explained them. Fitted on the other touches the step predicts them at about
+       5 sigma, 15 sigma short. Both decided True by the former code (checked), False now."""
+    from core import discover as D
+
+    X, noise, events, k, slips = _one_setup_of_steps({45: 1.5, 46: -1.5, 47: 1.2, 48: 3.0, 49: -3.0})
+    y = noise + np.where((events == 0) & (k >= 45), 8.0, 0.0)
+    y[[41, 43]] += 4.0
+    assert not D._slip_explains(X, y, [41, 43], events, slips, 0.001, 0.0025)
+    X, noise, events, k, slips = _one_setup_of_steps({45: 1.5, 46: -1.5, 47: 1.2, 48: 3.0, 49: 3.0})
+    y = noise + np.where((events == 0) & (k >= 45), 5.0, 0.0)
+    y[[48, 49]] += 15.0
+    assert not D._slip_explains(X, y, [48, 49], events, slips, 0.001, 0.0025)
+    y[[48, 49]] -= 12.0  # at 8 sigma, 3 beyond the step: the other touches' fit predicts them (extrapolated)
+    assert D._slip_explains(X, y, [48, 49], events, slips, 0.001, 0.0025)
