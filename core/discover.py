@@ -1022,23 +1022,16 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
        every touch after it beyond the bound (gen_a knock 811: the 12
        touches after it, all outliers, nothing else left to see it);
     2. or, fewer outliers than the step has parameters (the step can fit
-       any of their values), the set-up's other touches see that step:
-       with every outlier set aside, the step adopted (the best trial on
-       every row) is significant on the rest (nested F test against the
-       model ``X``) at ``alpha_step``, Bonferroni over that event's trials
-       and the events tested. A slip moves the touches after it by the
-       slip's own motion, so only the adopted step seen on them is
-       evidence that it explains the outliers; another step of the set-up
-       seen there (a real drift, another slip) is not (the former test, the
-       other touches' best trial, took it as such). The trial is chosen on
-       every row, these included, so the test keeps the Bonferroni factor
-       over the event's trials: a union bound whatever the choice, so under
-       dust (the outliers' rows independent of the other touches' noise)
-       the level holds whichever rows the chips hit, and the test is never
-       looser than the former one. The step adopted is the best trial on
-       every row (the other touches' own best trial left an outlier beyond
-       the bound at gen_b fixture_slip 929 and gen_a knock 818 and 828,
-       all real slips).
+       any of their values), the set-up's other touches see a step: with
+       every outlier set aside, the trial confined to that event that
+       explains most of the rest (nested F test against the model ``X``)
+       is significant at ``alpha_step``, Bonferroni over that event's
+       trials and the events tested. Under dust the outliers' rows are
+       independent of the other touches' noise, so this keeps its level
+       whichever rows the chips hit. The step adopted is still the best
+       trial on every row (the other touches' own best trial left an
+       outlier beyond the bound at gen_b fixture_slip 929 and gen_a knock
+       818 and 828, all real slips).
 
     Without the second condition's test, the step's three parameters placed
     next to two chips of one set-up absorbed them with nothing else moving
@@ -1085,8 +1078,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
         # 1. the step that fits every row best (removes most of the residual): more outliers than its
         # parameters, all its own
         ss0, _, _, _ = nested_f_batch(Cs[trials], Q0, r0, float(r0 @ r0), n - Q0.shape[1])
-        a = int(np.argmax(ss0))
-        q, ok = fits(trials[a], rows)
+        q, ok = fits(trials[int(np.argmax(ss0))], rows)
         if not ok:
             continue
         if rows.size > q:
@@ -1098,7 +1090,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
         dof_k = len(kept) - Qk.shape[1]
         _, k, _, p = nested_f_batch(take_rows(Cs[trials], kept, 1), Qk, rk, float(rk @ rk), dof_k)
         p = np.where((k > 0) & (dof_k - k >= 3), p, np.inf)
-        if p[a] * len(trials) * len(multi) < alpha_step:
+        if p.min() * len(trials) * len(multi) < alpha_step:
             return True
     return False
 
