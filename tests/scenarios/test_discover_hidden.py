@@ -388,3 +388,13 @@ def test_lobes_turned_per_set_up_named_ambiguous_when_their_magnitudes_are_not_d
     o = hidden_outcome("lobing_per_setup", 2703)
     assert o.cause == "lobing_per_setup" and o.shift_carried, o
     assert o.wp_ext_um > o.wp_base_um + 0.3 and o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
+
+
+def test_an_effect_free_simulated_campaign_is_not_a_local_defect_by_an_undercounted_scan():
+    """The simulator's effect-free campaign 3301: main (ac5a07d) named local_scale_defect, confidently (a
+    0.54 um bump at Y -29 mm, p = 3.7e-6 per trial, adjusted 0.0013 over 38 counted bumps times 9 causes,
+    below alpha_family 0.0025). Beside the baseline the scan's 150 trials trace a path of length 86; Davies'
+    bound (core.discover._path_tries) at the adoption's level (0.0025 / 9) counts 176 bumps: adjusted
+    0.0058, not significant, and the campaign is `none`."""
+    o = hidden_outcome("none", 3301)
+    assert o.cause == "none", o.cause
