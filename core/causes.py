@@ -58,12 +58,14 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   local defect), the same error as a smooth function over the covariate's
   whole range (:func:`smooth_error_map`). A confined cause is refused,
   never named, when the smooth form explains about as much (the rival
-  check's share) and the cause adds nothing significant beyond it (its F
-  test with the Bonferroni factor of its adoption): the structure is then
+  check's share), the cause adds nothing significant beyond it (its F
+  test with the Bonferroni factor of its adoption) and the smooth form
+  explains something significant beyond the cause: the structure is then
   the baseline's grid failing to follow a smooth error, not a confined
   one (the engine's ``_smooth_verdict``). Where the cause's columns lie
-  inside the model and the smooth form (too few positions to tell), it is
-  named ambiguous instead;
+  inside the model and the smooth form (too few positions to tell), or
+  neither adds significantly beyond the other, it is named ambiguous
+  instead;
 - ``support(baseline, info) -> (n,) int``: the units (labels per touch)
   the evidence of a confined cause must spread over: named only when what
   it explains comes from two effective units or more, no one unit carrying
