@@ -1514,9 +1514,17 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         (:func:`core.diagnosis.replicate_scatter`, its degrees of freedom
         reduced by their rank). A term constant within each group (a
         lobing: one target, one set-up, one direction) changes nothing.
-        Only where that leaves at least 10 degrees of freedom; else the
-        repeats' scatter with the rates alone is kept (the repeats cannot
-        tell the noise from the terms there).
+        Only where that leaves at least 10 degrees of freedom, or at least
+        :data:`SHORT_TERM_MIN_PAIRS` where what the terms take out of the
+        repeats is shown to be more than noise (:func:`short_term_test`
+        of the repeats against their scatter beyond the terms, at
+        :data:`SHORT_TERM_ALPHA`, as the short-term pairs are judged); else
+        the repeats' scatter with the rates alone is kept (the repeats
+        cannot tell the noise from the terms there). gen_a thermal_drift
+        1201: 5 repeat groups, 10 degrees of freedom, no rate taken out
+        (either leaves fewer than 10), 0.84 um for a true 0.35 um; beyond
+        the adopted drift's 4 columns 8 degrees of freedom at 0.32 um,
+        what they take out F = 30 (p = 2e-4); the floor of 10 kept 0.84.
         """
         if sigma_rep is None:
             return s.sigma, "residuals", s.dof
@@ -1531,8 +1539,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             r = replicate_scatter(bl.replicate[s.rows], y[s.rows], T)
             # (terms constant within the groups leave the estimate and its degrees of freedom as they were:
             # the repeats' own, said so)
-            rep_of[key] = ((r.sigma_m, "repeats beyond the model's terms", r.dof) if 10 <= r.dof < rep_t.dof else
-                           (sigma_rep, "repeats", rep_t.dof))
+            shown = (SHORT_TERM_MIN_PAIRS <= r.dof < rep_t.dof
+                     and short_term_test(rep_t, r)[1] < SHORT_TERM_ALPHA)
+            rep_of[key] = ((r.sigma_m, "repeats beyond the model's terms", r.dof) if 10 <= r.dof < rep_t.dof or shown
+                           else (sigma_rep, "repeats", rep_t.dof))
         return rep_of[key]
 
     def noise_sigma(s: _State) -> float:
