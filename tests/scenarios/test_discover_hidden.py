@@ -295,8 +295,8 @@ def test_a_simulated_local_scale_defect_is_not_refused_for_what_the_smooth_map_e
     """The simulator's Gaussian defects 45 and 57 (EYY 3.5 um and EXX 2.4 um, sigma 4 mm): refused as 'not
     confined' by main (ac5a07d), `unexplained`: the smooth error map's 36 and 28 columns explained as much as
     the one bump column (29.8 against 31.9, 11.4 against 11.6 um^2) because they hold most of the bump itself
-    (93 % and 80 % of its fitted signal), and the bump beside them stayed just short of significance after
-    Bonferroni (p = 0.049, 0.035). The smooth map explains nothing significant beyond the bump (p = 0.96,
+    (93 % and 80 % of its fitted signal), and the bump beside them was not significant after Bonferroni
+    (p = 0.049, 0.035 against alpha_family 0.0025). The smooth map explains nothing significant beyond the bump (p = 0.96,
     0.12): it is refused only when it does (core.discover._smooth_verdict), else the two are indistinguishable
     and the defect is named, ambiguous."""
     o = hidden_outcome("local_scale_defect", seed)
