@@ -291,21 +291,32 @@ def not_text_problem(path, head: bytes, err: UnicodeDecodeError, offset: int = 0
     """Why the file ``path`` is not text, in one line, for every reader of vmt's text formats
     (plain UTF-8, docs/formats.md) that failed to decode it with ``err``.
 
-    ``head`` is the file's first bytes (b"" where the bad bytes are not at its start): a compressed
-    format's magic number there gives ``"gzip-compressed, not text: decompress it first (gzip -dc
+    ``head`` is the file's first bytes (b"" where the bad bytes are not at its start): a UTF-16
+    byte-order mark there gives a conversion command (:func:`head_problem`), a compressed
+    format's magic number ``"gzip-compressed, not text: decompress it first (gzip -dc
     log.csv.gz > log.csv.gz.txt)"``, a command that works whatever the name ends with (``gunzip
     -k`` refuses a name without ``.gz``), the paths quoted for a POSIX shell. Else ``"not UTF-8
     text (REASON at byte N)"``, N counted from the file's first byte (``offset`` is where the
     bytes ``err`` decoded start in the file).
     """
+    return head_problem(path, head) or f"not UTF-8 text ({err.reason} at byte {offset + err.start})"
+
+
+def head_problem(path, head: bytes) -> str | None:
+    """:func:`not_text_problem`'s words for a file whose first bytes ``head`` show it is not UTF-8
+    text as a whole (a compressed format's magic number, or a UTF-16 byte-order mark, as Windows
+    PowerShell 5.1's ``>`` writes), or None. Also for readers that tolerate stray bytes (a
+    controller's transcript, decoded with replacement) but not a whole file in another form."""
     import shlex
 
+    src = shlex.quote(str(path))
+    dst = shlex.quote(f"{path}.txt")
     for magic, kind, cmd in _COMPRESSED:
         if head.startswith(magic):
-            src = shlex.quote(str(path))
-            dst = shlex.quote(f"{path}.txt")
             return f"{kind}-compressed, not text: decompress it first ({cmd} {src} > {dst})"
-    return f"not UTF-8 text ({err.reason} at byte {offset + err.start})"
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return f"UTF-16 text, not UTF-8: convert it first (iconv -f UTF-16 -t UTF-8 {src} > {dst})"
+    return None
 
 
 def same_file(a, b) -> bool:

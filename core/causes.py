@@ -809,13 +809,13 @@ def _rmatmul_sparse(Q, X) -> np.ndarray:
     from .lsq import Basis
 
     if isinstance(Q, Basis):
-        from .diagnosis import GRAM_CHUNK_ROWS, _basis_rmatmul_rows
+        from .diagnosis import GRAM_CHUNK_ROWS
 
         n = Q.shape[0]
         out = np.zeros((Q.shape[1], X.shape[1]))
         for s0 in range(0, n, GRAM_CHUNK_ROWS):
             pos = np.arange(s0, min(s0 + GRAM_CHUNK_ROWS, n))
-            out += _basis_rmatmul_rows(Q, pos, X[pos])
+            out += Q.rows_rmatmul(pos, X[pos])
         return out
     return np.asarray(X.T @ Q).T
 

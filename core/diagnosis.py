@@ -783,16 +783,6 @@ def _term_chunks(cov: Covariate, F, modes: np.ndarray, rows: np.ndarray):
             yield pos, (Mc[:, :, None] * Fc[:, None, :]).reshape(len(idx), -1)
 
 
-def _basis_rmatmul_rows(Q, pos: np.ndarray, X) -> np.ndarray:
-    """``Q[pos].T @ X`` for a :class:`core.lsq.Basis` ``Q`` and rows ``pos`` of it, ``X`` dense or sparse."""
-    ids = Q.ids[pos]
-    G = sp.csr_matrix((Q._scale[Q._pos[ids]], (Q._pos[ids], np.arange(len(pos)))), shape=(Q.k, len(pos)))
-    top = G @ X
-    Up = Q.dense_rows(pos)
-    bot = (X.T @ Up).T if sp.issparse(X) else Up.T @ X
-    return np.vstack([top.toarray() if sp.issparse(top) else np.asarray(top), np.asarray(bot)])
-
-
 def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.ndarray, rows=None,
               tol: float = IN_SPAN):
     """:func:`new_basis` and :func:`nested_f` of a covariate's term without forming its basis outside ``Q``.
@@ -820,7 +810,7 @@ def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.
     for pos, Bc in _term_chunks(cov, F, modes, rows):
         bb = Bc.T @ Bc
         bb = bb.toarray() if sp.issparse(bb) else bb
-        qb = _basis_rmatmul_rows(Q, pos, Bc)
+        qb = Q.rows_rmatmul(pos, Bc)
         br = np.asarray(Bc.T @ r[pos]).ravel()
         BB, QB, Br = (bb, qb, br) if BB is None else (BB + bb, QB + qb, Br + br)
     if BB is None:

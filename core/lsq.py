@@ -986,6 +986,15 @@ class Basis:
         """The columns of ``ids``' indicators among the basis's (-1 for an id with no rows)."""
         return self._pos[ids]
 
+    def rows_rmatmul(self, pos: np.ndarray, X) -> np.ndarray:
+        """``Q[pos].T @ X`` for rows ``pos`` of the basis and ``X`` (len(pos), m) dense or sparse, without
+        forming ``Q[pos]``: the indicator part as a sparse (k, len(pos)) matrix, then the dense part."""
+        col = self._pos[self.ids[pos]]
+        top = sp.csr_matrix((self._scale[col], (col, np.arange(len(pos)))), shape=(self.k, len(pos))) @ X
+        Up = self.dense_rows(pos)
+        bot = (X.T @ Up).T if sp.issparse(X) else Up.T @ X
+        return np.vstack([top.toarray() if sp.issparse(top) else np.asarray(top), np.asarray(bot)])
+
     def dense_rows(self, pos) -> np.ndarray:
         """(len(pos), r + dense columns): the rows ``pos`` of the basis outside its indicator columns."""
         return np.hstack([self.span.rows(pos), self.U[pos]]) if self._r else self.U[pos]

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from core.atomic import head_problem, input_problem
 from core.exceptions import PlanError, ProbeLogError
 from core.probelog import ProbeLog
 
@@ -69,9 +70,16 @@ def read_transcript(path):
         lines only, time going backwards.
     """
     p = Path(path)
-    if not p.is_file():
-        raise ProbeLogError(f"{p}: no such file")
-    text = p.read_bytes().decode("utf-8", errors="replace")
+    problem = input_problem(p, "transcript")  # (a pipe is read too: vmt import grbl /dev/stdin)
+    if problem:
+        raise ProbeLogError(f"{p}: {problem}")
+    data = p.read_bytes()
+    problem = head_problem(p, data[:8])
+    if problem:
+        raise ProbeLogError(f"{p}: {problem}")
+    # a stray byte of serial noise in a line that is not a probe report is harmless: decoded with
+    # replacement (a probe report it garbles is refused as malformed, below)
+    text = data.decode("utf-8", errors="replace")
     pos, touched, stamps, where = [], [], [], []
     t0 = None
     prev_info = False

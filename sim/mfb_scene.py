@@ -85,7 +85,8 @@ class CheckResult:
         First collision of each colliding touch, in words (empty: passed).
     min_table_clearance_mm : float
         Least distance of the probe (ball, stylus, body, spindle) from the
-        table, the workholder and the bar's supports over all checked points.
+        table, the workholder and the bar's supports over every sampled path
+        point (approach starts, link moves, approaches and retracts).
     """
 
     measurement: str
@@ -901,7 +902,9 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
                              f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
                     bad_touch.add(t)
                     n_samp -= int(touch_end[t] - idx[k] - 1)
-        clear = wz.least_holder_clearance(paths[i][0], broad_phase=broad_phase) if plan.n else np.inf
+        # the least clearance along every sampled path point (approach starts, links, approaches)
+        clear = wz.least_holder_clearance(sgs[i][0].points(np.arange(sgs[i][0].n_samples)),
+                                          broad_phase=broad_phase) if plan.n else np.inf
         out.append(CheckResult(name, int(plan.n), n_samp, tuple(b), float(clear * 1e3)))
     return out
 

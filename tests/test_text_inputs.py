@@ -79,6 +79,12 @@ def test_a_file_that_is_not_text_is_refused_in_the_same_words_by_every_reader(tm
         read(packed)
     assert str(e.value) == (f"{prefix}{packed}: gzip-compressed, not text: decompress it first "
                             f"(gzip -dc {packed} > {packed}.txt)")
+    wide = tmp_path / "wide.csv"  # UTF-16 with its byte-order mark (Windows PowerShell 5.1's `>`)
+    wide.write_bytes(body.decode().encode("utf-16"))
+    with pytest.raises(VmtError) as e:
+        read(wide)
+    assert str(e.value) == (f"{prefix}{wide}: UTF-16 text, not UTF-8: convert it first "
+                            f"(iconv -f UTF-16 -t UTF-8 {wide} > {wide}.txt)")
 
 
 def test_the_commands_say_it_in_one_line(tmp_path, capsys):
@@ -101,3 +107,38 @@ def test_the_commands_say_it_in_one_line(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and f"{bad}: gzip-compressed, not text: decompress it first (gzip -dc " in err
     assert readme.read_text() == "x\n"
+
+
+def test_a_controller_transcript_that_is_not_text_is_named_as_such(tmp_path, capsys):
+    """A controller's transcript tolerates stray bytes (decoded with replacement: serial noise in a
+    line that is not a probe report), but a whole transcript that is compressed or UTF-16 is refused
+    in the same words as every other reader, not as "no probe reports" (session-9 finding), through
+    `vmt import grbl` too (exit 2, one line); and a transcript on a pipe is read."""
+    import subprocess
+    import sys
+
+    from hardware.transcript import read_transcript
+    from scenarios.cli import main
+
+    body = b"ok\n[PRB:1.000,2.000,3.000:1]\nok\n"
+    plain = tmp_path / "plain.txt"
+    plain.write_bytes(body[:2] + b"\xff" + body[2:])  # a stray byte outside the report: tolerated
+    pos, touched, _, _ = read_transcript(plain)
+    assert pos.tolist() == [[1.0, 2.0, 3.0]] and touched.tolist() == [True]
+    packed, wide = tmp_path / "session.txt", tmp_path / "ps.txt"
+    packed.write_bytes(gzip.compress(body))
+    wide.write_bytes(body.decode().encode("utf-16"))
+    plan = tmp_path / "plan.csv"
+    assert main(["simulate", "cross-pocket", "--plan-only", "--no-collision-check", "--c-angles-deg", "0",
+                 "--out", str(plan)]) == 0
+    for bad, words in ((packed, f"gzip-compressed, not text: decompress it first (gzip -dc {packed} > {packed}.txt)"),
+                       (wide, f"UTF-16 text, not UTF-8: convert it first (iconv -f UTF-16 -t UTF-8 {wide} > {wide}.txt)")):
+        with pytest.raises(VmtError) as e:
+            read_transcript(bad)
+        assert str(e.value) == f"{bad}: {words}"
+        capsys.readouterr()
+        assert main(["import", "grbl", str(bad), "--plan", str(plan), "--out", str(tmp_path / "o.csv")]) == 2
+        assert capsys.readouterr().err.splitlines() == [f"vmt import: error: {bad}: {words}"]
+    got = subprocess.run([sys.executable, "-c", "from hardware.transcript import read_transcript as r; "
+                          "print(r('/dev/stdin')[0].tolist())"], input=body, capture_output=True)
+    assert got.returncode == 0 and got.stdout.decode().strip() == "[[1.0, 2.0, 3.0]]", got.stderr.decode()

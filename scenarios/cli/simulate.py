@@ -78,6 +78,14 @@ def run(args) -> int:
         probe = replace(probe, repeatability_k2_m=2 * args.noise_um * UM)
     from scenarios.cli.options import refuse_seed_without_noise
 
+    if args.plan_only:      # a plan touches nothing, so nothing is drawn: an option that draws would be ignored
+        for given, opt in ((args.seed, "--seed"), (args.noise_um, "--noise-um")):
+            if given is not None:
+                raise ConfigError(f"{opt} {given:g}: --plan-only measures nothing, so there is no probing noise "
+                                  f"to draw; leave {opt} out")
+        if args.errors is not None:
+            raise ConfigError(f"--errors {args.errors}: --plan-only measures nothing, so the machine's errors "
+                              "change nothing in it; leave --errors out")
     refuse_seed_without_noise(args.seed, args.noise_um, spec.probe.sigma_m / UM,
                               f"the probe of machine {name} has none")
     if rec.placements is not None:
@@ -93,7 +101,7 @@ def run(args) -> int:
     seed = args.seed or 0
     log = simulate_campaign(args.artefact, machine, probe, setups, np.random.default_rng(seed),
                             plan_only=args.plan_only, check_collisions=not args.no_collision_check,
-                            meta={"errors": errors, "seed": str(seed)})
+                            meta={} if args.plan_only else {"errors": errors, "seed": str(seed)})
     write_probe_log(args.out, log, special=True)
     from scenarios.cli.guard import said
 

@@ -5,6 +5,7 @@ test_volumetric.py, test_discover_*.py): round trips, rank messages, sparse path
 """
 
 import numpy as np
+import scipy.sparse as sp
 import pytest
 
 from core.exceptions import ConfigError, IdentifiabilityError
@@ -165,9 +166,15 @@ def test_block_basis_is_the_dense_orth_span():
         X = r.normal(size=(A.shape[0], 4))
         np.testing.assert_allclose(Q @ (Q.T @ X), Qd @ (Qd.T @ X), atol=1e-12)
         np.testing.assert_allclose(leverage(Q), leverage(Qd), atol=1e-12)
+    rows = np.arange(1, A.shape[0], 4)  # a subset of rows: Q[rows].T @ X, dense and sparse X
+    np.testing.assert_allclose(Q.rows_rmatmul(rows, X[rows]), Q.toarray()[rows].T @ X[rows], atol=1e-12)
+    np.testing.assert_allclose(Q.rows_rmatmul(rows, sp.csr_matrix(X[rows])), Q.toarray()[rows].T @ X[rows],
+                               atol=1e-12)
     U = new_basis(Q, X)
     Q2 = np.hstack([Q, U])
     assert isinstance(Q2, Basis) and Q2.shape[1] == Q.shape[1] + 4 and np.array_equal(Q2[:, Q.shape[1]:], U)
+    # a basis widened with new directions, as discovery extends it
+    np.testing.assert_allclose(Q2.rows_rmatmul(rows, X[rows]), Q2.toarray()[rows].T @ X[rows], atol=1e-12)
     assert np.array_equal(Q2, Q2) and not np.array_equal(Q2, Q)
 
 

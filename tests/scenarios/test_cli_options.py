@@ -336,6 +336,21 @@ def test_simulate_seed_only_where_there_is_noise(tmp_path, capsys):
                                     "give --noise-um above 0, or leave --seed out"]
         assert not out.exists()
         assert main([*base, "--out", str(out), *extra]) == 0
+    # a plan draws nothing: --seed and --noise-um with --plan-only would be ignored, so they are refused
+    for opt, val, why in (("--seed", "5", "there is no probing noise to draw"),
+                          ("--noise-um", "0.3", "there is no probing noise to draw"),
+                          ("--errors", "none", "the machine's errors change nothing in it")):
+        capsys.readouterr()
+        out = tmp_path / "plan.csv"
+        assert main([*base, "--out", str(out), "--plan-only", opt, val]) == 2
+        shown = val if opt == "--errors" else f"{float(val):g}"
+        assert capsys.readouterr().err.splitlines() == [
+            f"vmt simulate: error: {opt} {shown}: --plan-only measures nothing, so {why}; leave {opt} out"]
+        assert not out.exists()
+    plan = tmp_path / "plan.csv"  # nor does the plan claim an error set or a seed it did not use
+    assert main([*base, "--out", str(plan), "--plan-only"]) == 0
+    head = [ln for ln in plan.read_text().splitlines() if ln.startswith("#")]
+    assert not any(ln.startswith(("# errors:", "# seed:")) for ln in head), head
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
     assert main([*base, "--out", str(a), "--seed", "5"]) == 0
     assert main([*base, "--out", str(b), "--seed", "6"]) == 0

@@ -990,3 +990,56 @@ def test_no_sample_a_shared_part_skips_collides():
     got = check_measurements(BAR, [(f"m{i}", *it[:2], it[2], it[3], it[4], it[5]) for i, it in enumerate(items)], R)
     ref = check_measurement("m3", BAR, FLAT, items[3][1], (), J0, R, moved, broad_phase=False)
     assert got[3].collisions and got[3] == ref and all(r.ok for r in got[:3])
+
+
+@pytest.mark.parametrize("gap_um", [3.0, -3.0, 150.0])
+def test_a_near_miss_block_under_a_link_move_is_judged_as_mujoco_at_every_sample(gap_um):
+    """Exactness of the plan check (sim.mfb_scene.check_measurements, what scenarios.mfb.check_plan
+    calls) at a near miss: a workholder pillar 1 mm square whose top lies ``gap_um`` below the stylus
+    ball's lowest point at one sample of a link move across the bar (the ball straight above it: the
+    distance is the gap, a hand-worked answer). 3 um: inside the broad phase's margin (100 um), so
+    MuJoCo judges it: no collision, the least clearance along the paths 0.003 mm (asserted); -3 um: the ball
+    sinks 3 um into it (far beyond MuJoCo's 1e-9 m tolerance): a collision with the pillar; 150 um:
+    cleared by the broad phase. Each time beside two other measurements (a clear one and one whose
+    arm crosses the bar) checked in the same pass, and each result equal to MuJoCo at every sample
+    and every pair (broad_phase=False): collisions, path points, least clearance."""
+    from sim import mfb_scene
+    from sim.mfb_scene import Block, _paths_of, check_measurements, link_points
+
+    T_R_W, J0, pl = _T_R_W(0, 0), (0, 0, 0.150), _holes(3, 4)
+    T_R_A = T_R_W @ FLAT
+    Xn = A.apply_T(T_R_A, pl.w_A + R * pl.wn_A)
+    start = Xn + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)
+    top = float(mfb_scene.artefact_points(BAR)[:, 2].max()) + R
+    L, cnt = link_points(T_R_A, start, pl.feature, pl.level, top)
+    sg, _, _, is_app = _paths_of([(start, Xn, L, cnt, pl)], 3e-3, 0.5e-3)[0]
+    # the longest level segment of a link move (the move across, at the clearance plane) and its middle sample
+    link_seg = ~is_app[sg.path] & (sg.a[:, 2] == sg.b[:, 2]) & (sg.m > 2)
+    j = np.flatnonzero(link_seg)[np.argmax(np.linalg.norm((sg.b - sg.a)[link_seg], axis=1))]
+    p_R = sg.points(np.array([sg.first[j] + sg.m[j] // 2]))[0]
+    p_W = A.apply_T(A.inv_T(T_R_W), p_R[None])[0]
+    top_W = p_W[2] - R - gap_um * 1e-6
+    pillar = (Block("pillar", (p_W[0] - 0.5e-3, p_W[1] - 0.5e-3, 0.0), (p_W[0] + 0.5e-3, p_W[1] + 0.5e-3, top_W)),)
+    items = [("near", FLAT, T_R_W, pillar, J0, pl, 0.0),
+             ("clear", FLAT, _T_R_W(0, 90), (), J0, _holes(6), 0.0),
+             ("arm", FLAT, T_R_W, (), (0.0, -0.100, 0.150), _holes(3), 0.0)]  # the arm across the bar
+    mfb_scene._ZONES.clear()
+    mfb_scene._BALLS.clear()
+    got = check_measurements(BAR, items, R)
+    ref = [check_measurement(it[0], BAR, *it[1:5], R, *it[5:], broad_phase=False) for it in items]
+    assert got == ref
+    near, clear, arm = got
+    assert clear.ok and not arm.ok
+    # the construction: MuJoCo's distance of the ball from the pillar at that sample is the gap (1e-12 m)
+    import mujoco
+
+    wz = mfb_scene._work_zone(BAR, FLAT, pillar, J0, R, 0.0)
+    wz.set_table(T_R_W)
+    wz.set_tip(p_R)
+    d = mujoco.mj_geomDistance(wz.model, wz.data, wz._names.index("ball"), wz._names.index("fix_pillar"), 0.01, None)
+    assert abs(d - gap_um * 1e-6) <= 1e-12
+    assert near.ok == (gap_um > 0)
+    if gap_um > 0:  # the least clearance is measured along the paths: the pillar under the link move
+        assert abs(near.min_table_clearance_mm - gap_um * 1e-3) <= 1e-9
+    if gap_um < 0:
+        assert any("ball hits fix_pillar" in c for c in near.collisions), near.collisions

@@ -143,7 +143,7 @@ def test_cli_simulate_writes_a_readable_log(tmp_path, capsys):
     assert main(["simulate", "cross-pocket", "--out", str(out), "--seed", "4", "--c-angles-deg", "0,75"]) == 0
     log = read_probe_log(out)
     assert log.n == 184 and log.meta["artefact"] == "cross-pocket" and log.meta["seed"] == "4"
-    assert main(["simulate", "cross-pocket", "--out", str(out), "--plan-only", "--errors", "none"]) == 0
+    assert main(["simulate", "cross-pocket", "--out", str(out), "--plan-only"]) == 0
     assert read_probe_log(out).is_plan
     assert main(["simulate", "mfb", "--out", str(out), "--c-angles-deg", "0"]) == 2
     assert "placements" in capsys.readouterr().err
