@@ -2099,9 +2099,16 @@ def _path_tries(scans, st: _State, level: float) -> float:
     there gave a 1 % quantile of the scan's least p-value that this bound
     puts at 0.015 and the count at 0.0039 (gen_a local_scale_defect 801,
     300 draws: 0.0079 and 0.0022). The widths are counted as separate
-    paths (conservative); the refinement of a width between and beyond
-    them (:func:`_refine`, 0.7 to 1.4 times the scanned one) is not
-    counted. Cost: every trial's column projected once, in blocks of
+    paths; the refinement of a width between and beyond them
+    (:func:`_refine`, 0.75 to 1.33 times the scanned one) is not counted,
+    and it matters: a reviewer's 20,000 draws of pure noise beside the
+    effect-free synthetic seed 0's baseline had the scanned grid's least
+    p-value times this count below 0.05 3.3 % of the time (0.67 % below
+    0.01), but the engine's statistic, with the width refined, 6.25 %
+    (1.49 % below 0.01, 0.83 % below 0.0056): about 1.5 times the
+    nominal level at the small levels, still anticonservative (the scan's
+    own count with refined widths: 17 %, 4.6 %, 2.9 %). Bounding the
+    (centre, width) field is not done. Cost: every trial's column projected once, in blocks of
     :data:`PATH_CHUNK` trials; the engine asks for it only where the
     scan's own count finds the candidate significant.
     """
@@ -2110,7 +2117,10 @@ def _path_tries(scans, st: _State, level: float) -> float:
     for sc in scans:
         V = 0.0
         for a in range(0, sc.size, PATH_CHUNK):  # each block from the previous block's last trial
-            M = take_rows(sc.build(np.arange(max(a - 1, 0), min(a + PATH_CHUNK, sc.size))), rows, 1)[:, :, 0].T
+            C = take_rows(sc.build(np.arange(max(a - 1, 0), min(a + PATH_CHUNK, sc.size))), rows, 1)
+            if C.shape[2] != 1:
+                raise ValueError(f"_path_tries: a path scan's trials must be one column each, got {C.shape[2]}")
+            M = C[:, :, 0].T
             M = M - st.Q @ (st.Q.T @ M)
             nrm = np.linalg.norm(M, axis=0)
             M = M[:, nrm > 0] / nrm[nrm > 0]
@@ -2126,7 +2136,9 @@ def _path_tries(scans, st: _State, level: float) -> float:
     hi = lo
     while excess(hi) > 0 and hi > -700:  # ...and below it far enough out
         hi -= 5.0
-    if excess(hi) > 0 or excess(lo) <= 0:
+    if excess(hi) > 0:  # the bound above level even at p = exp(-700): a count as large as that says
+        return float(level / np.exp(hi))
+    if excess(lo) <= 0:  # no length: one trial per scan
         return float(len(Vs))
     return float(level / np.exp(optimize.brentq(excess, hi, lo, xtol=1e-6)))
 
