@@ -1515,9 +1515,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         reduced by their rank). A term constant within each group (a
         lobing: one target, one set-up, one direction) changes nothing.
         Only where that leaves at least 10 degrees of freedom, or at least
-        :data:`SHORT_TERM_MIN_PAIRS` where what the terms take out of the
-        repeats is shown to be more than noise (:func:`short_term_test`
-        of the repeats against their scatter beyond the terms, at
+        :data:`NOISE_BEYOND_TERMS_MIN_DOF` where what the terms take out of
+        the repeats is shown to be more than noise (:func:`short_term_test`
+        of the repeats with the rates alone, on the same rows, against
+        their scatter beyond the terms, at
         :data:`SHORT_TERM_ALPHA`, as the short-term pairs are judged); else
         the repeats' scatter with the rates alone is kept (the repeats
         cannot tell the noise from the terms there). gen_a thermal_drift
@@ -1539,9 +1540,15 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             r = replicate_scatter(bl.replicate[s.rows], y[s.rows], T)
             # (terms constant within the groups leave the estimate and its degrees of freedom as they were:
             # the repeats' own, said so)
-            shown = (SHORT_TERM_MIN_PAIRS <= r.dof < rep_t.dof
-                     and short_term_test(rep_t, r)[1] < SHORT_TERM_ALPHA)
-            rep_of[key] = ((r.sigma_m, "repeats beyond the model's terms", r.dof) if 10 <= r.dof < rep_t.dof or shown
+            terms_hold_structure = False
+            if NOISE_BEYOND_TERMS_MIN_DOF <= r.dof < 10:
+                # the rates-only scatter on the same rows (rep_t is on the first screen's: after the outlier
+                # re-screen or the put-back its sum of squares would hold the touches dropped or added too)
+                rep_s = replicate_scatter(bl.replicate[s.rows], y[s.rows], rates if trend != "none" else None)
+                terms_hold_structure = (r.dof < rep_s.dof
+                                        and short_term_test(rep_s, r)[1] < SHORT_TERM_ALPHA)
+            rep_of[key] = ((r.sigma_m, "repeats beyond the model's terms", r.dof)
+                           if 10 <= r.dof < rep_t.dof or terms_hold_structure
                            else (sigma_rep, "repeats", rep_t.dof))
         return rep_of[key]
 
@@ -1985,6 +1992,12 @@ def drift_trend(bl: Baseline, rows: np.ndarray, shared: bool = False) -> np.ndar
 
 #: Short-term pairs needed before their scatter may replace the repeats' (:func:`_short_term`).
 SHORT_TERM_MIN_PAIRS = 5
+#: Fewest degrees of freedom of the repeats' scatter beyond the model's terms (fewer than 10) that may be the
+#: noise, and then only where what the terms take out of the repeats is shown to be structure (discovery's
+#: ``noise_of``). A scatter on 5 degrees of freedom gives sigma within about +-30 % (1 s.d., 1 / sqrt(2 dof));
+#: below that the F test of the terms' share has little power and a false firing (at SHORT_TERM_ALPHA) would
+#: rest on an estimate that can be half the truth. gen_a thermal_drift 1201 has 8.
+NOISE_BEYOND_TERMS_MIN_DOF = 5
 #: Level of the F test that the repeats' scatter exceeds the short-term pairs' (:func:`_short_term`).
 SHORT_TERM_ALPHA = 0.01
 
