@@ -2322,16 +2322,18 @@ def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: f
     lam = float(f_out @ f_out) / s2 if s2 > 0 else np.inf  # its noncentrality beside the smooth form
     inside = lam < _half_power_nc(max(Ub.shape[1], 1), settings.alpha_family / tries)  # (the test cannot tell)
     # the smooth form beyond the cause: is there structure the cause does not hold?
-    Qn = np.hstack([st.Q, Un])
-    rn = st.r - Un @ (Un.T @ st.r)
-    Us_b = new_basis(Qn, Bs[rows])
-    p_s = nested_f(Us_b, rn, float(rn @ rn), len(rows) - Qn.shape[1]).p_value if Us_b.shape[1] else 1.0
-    spread = p_s < settings.alpha_family
-    refused = bool(as_much and not inside and p_b >= settings.alpha_family and spread)
+    Q_with_cause = np.hstack([st.Q, Un])
+    r_beyond_cause = st.r - Un @ (Un.T @ st.r)
+    U_smooth_beyond_cause = new_basis(Q_with_cause, Bs[rows])
+    p_s = (nested_f(U_smooth_beyond_cause, r_beyond_cause, float(r_beyond_cause @ r_beyond_cause),
+                    len(rows) - Q_with_cause.shape[1]).p_value if U_smooth_beyond_cause.shape[1] else 1.0)
+    smooth_beyond_cause_significant = p_s < settings.alpha_family
+    refused = bool(as_much and not inside and p_b >= settings.alpha_family and smooth_beyond_cause_significant)
     return {"refused": refused, "smooth": name, "smooth_explained_ss_um2": max(d_s, 0.0) / UM ** 2,
             "explained_beyond_smooth_ss_um2": max(d_b, 0.0) / UM ** 2, "p_adjusted_beyond_smooth": p_b,
             "p_smooth_beyond_cause": float(p_s),
-            "indistinguishable": bool(as_much and (inside or (p_b >= settings.alpha_family and not spread))),
+            "indistinguishable": bool(as_much and (inside or (p_b >= settings.alpha_family
+                                                            and not smooth_beyond_cause_significant))),
             "reason": f"not confined: a {name} explains as much ({max(d_s, 0.0) / UM ** 2:.3g} against "
                       f"{max(d_n, 0.0) / UM ** 2:.3g} um^2), it adds nothing significant beyond it "
                       f"({fmt_p(p_b)} after Bonferroni over {tries:.0f} tries) and it explains structure "
