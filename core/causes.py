@@ -1068,10 +1068,13 @@ def defect_scans(bl):
             def funcs(a=a, x0=x0, w=w):
                 yield _hann((a[:, None] - x0[None, :]) / w), lambda s2: s2
 
+            # the bumps' table (rows x centres) and its square kept while small, else made afresh at each score
+            # (the same numbers bit for bit: _matmul_score); kept whole they were 16 bytes per row and centre
             scans.append(Scan((f"E{ax}{ax}_bump",),
                               tuple({"axis": ax, "centre_m": float(c), "half_width_m": w} for c in x0), "xy"[axis],
                               lambda idx, axis=axis, x0=x0, w=w: _defect_cols(d, axis, x0[np.asarray(idx)], w),
-                              _matmul_score(funcs, (-d.nx, -d.ny)[axis][:, None]), path=True))
+                              _matmul_score(funcs, (-d.nx, -d.ny)[axis][:, None],
+                                            keep=16 * len(a) * len(x0) <= TABLE_BYTES), path=True))
     return scans, tries
 
 

@@ -345,7 +345,8 @@ class _Fold:
     ``tr``, ``te``: training and held-out rows. ``U`` (n_te, r): the left
     singular vectors of the held-out rows ``Q_te`` of the model's
     orthonormal basis (the eigenvectors of the hat matrix's held-out block
-    ``H_te = Q_te Q_te^T``; ``r = min(n_te, p)``), ordered by ``c2`` (r,),
+    ``H_te = Q_te Q_te^T``; ``r = min(n_te, p)``, less the largest cluster
+    of equal shares of a square fold, kept implicit: ``m``), ordered by ``c2`` (r,),
     the training share squared of the direction each stands for
     (``1 - s^2``, ``s`` its singular value; 1 where ``Q_te`` reaches no
     direction), largest first: the first ``k`` (``c2 >= seen^2``) are
@@ -358,9 +359,22 @@ class _Fold:
     :data:`OWN_SEEN_DIRECT` (only their products with the data are needed,
     :meth:`Folds._own_seen`), never kept: kept, they grow as rows x rows
     when most targets are seen mostly by one set-up.
+
+    ``m`` predicted directions sharing one training share ``c2m`` (a cluster
+    of equal eigenvalues of ``H_te``, :data:`FOLD_CLUSTER_TOL`) are not kept
+    as columns when ``U`` would be square (``n_te <= p'``): they span the
+    complement of the kept columns, so every product along them is a
+    projection ``I - U U^T`` (:meth:`Folds.residuals`). A long log whose
+    targets are touched once per set-up has most of its directions there
+    (``H_te = I / set-ups + D D^T``): all but at most the machine's 326
+    columns of 1,000 per fold on the benchmark's 1e5-row log (at most 2.6 of
+    8 MB kept). ``U``, ``c2``, ``k``, ``f``
+    describe the kept columns. The training rows ``tr`` are the held-out
+    rows' complement in ``range(n)``, formed when asked for (kept, they
+    were rows x 8 bytes per fold: 79 MB at 1e5 rows).
     """
 
-    tr: np.ndarray
+    n: int
     te: np.ndarray
     U: np.ndarray
     c2: np.ndarray
@@ -368,6 +382,14 @@ class _Fold:
     f: int
     C: np.ndarray | None = None
     cols: np.ndarray | None = None
+    m: int = 0
+    c2m: float = 1.0
+
+    @property
+    def tr(self) -> np.ndarray:
+        keep = np.ones(self.n, dtype=bool)
+        keep[self.te] = False
+        return np.flatnonzero(keep)
 
     @property
     def Qo(self) -> np.ndarray:
@@ -391,6 +413,29 @@ SEEN_TIE = 1e-9
 #: below SEEN_ZERO^2 (the own / band decision on the extension's training Gram): at 1e-6 a reviewer saw
 #: that Gram's eigenvalues moved by 3e-10 (above 1e-10); at 1e-4 by less than 1e-13.
 OWN_SEEN_DIRECT = 1e-4
+#: Predicted directions of a fold whose squared training shares lie within this of each other form one cluster
+#: (_Fold.m): treated as sharing their mean share, 1 / c2 moves by at most 4e-13 absolute (2e-13 relative,
+#: c2 >= 1/2), and the outputs by that times the fold's conditioning (a reviewer's ill-conditioned penalised
+#: fold, shares 1e-12 apart merged: 2.4e-5 against lstsq where keeping them apart gave 9.3e-8, so the
+#: tolerance is no looser than needed). eigh's eigenvalues of the hat block (norm at most 1) are exact to
+#: about 1e-15 (spreads of exact multiple eigenvalues measured at most 1.9e-15 on the demo, gen_a, gen_b and
+#: 1e4-row logs), so an exact multiple eigenvalue of the design (equal counts per target) is one cluster,
+#: with a margin of about 50.
+FOLD_CLUSTER_TOL = 1e-13
+#: The fewest directions a cluster must hold to be kept implicit (a projection) rather than as columns.
+FOLD_CLUSTER_MIN = 2
+
+
+def _largest_cluster(c2: np.ndarray) -> tuple[int, int]:
+    """``(a, b)``: the longest run ``c2[a:b]`` of a sorted array whose values lie within :data:`FOLD_CLUSTER_TOL`
+    of each other (the first of equal length)."""
+    best, a = (0, 0), 0
+    for i in range(1, len(c2) + 1):
+        if i == len(c2) or abs(c2[a] - c2[i]) > FOLD_CLUSTER_TOL:
+            if i - a > best[1] - best[0]:
+                best = (a, i)
+            a = i
+    return best
 
 
 class Folds:
@@ -453,14 +498,17 @@ class Folds:
     eigenvectors of the hat matrix's held-out block ``H_te = Q_te Q_te^T``,
     from its eigh when it is the smaller problem, else from the SVD of
     ``Q_te``; ``n_te x min(n_te, p')`` numbers, ``p'`` the columns the
-    held-out rows reach), beside the own directions the training rows see a
+    held-out rows reach, less the largest cluster of predicted directions
+    sharing one share, kept as the projection on what the others leave:
+    :class:`_Fold`), beside the own directions the training rows see a
     little over those ``p'`` columns (``v`` up to scale, at most ``p' x
     min(n_te, p')``; their training products come from ``Q^T V`` less the
     held-out rows' part, no rows x directions array per fold), and
     the held-out residuals follow from the full fit's residuals ``R``:
     along a predicted ``u``, ``u^T R_te / c^2`` (the training rows' fit
     predicted on the held-out rows, ``(I - H_te)^-1`` on those directions);
-    outside ``U``, ``R_te``'s own part. An extension's training Gram outside
+    outside ``U``, ``R_te``'s own part (for a square fold, less the cluster's
+    part ``P R_te / c2m``, ``P`` the projection on what ``U`` leaves). An extension's training Gram outside
     the training image is ``R_X^T R`` less the held-out rows' part by the
     same algebra, an own direction's training products (the few the training
     rows see below ``seen``) from ``Q_tr^T V_tr`` over the held-out rows'
@@ -520,10 +568,17 @@ class Folds:
         c2 = np.clip(1.0 - s2, 0.0, 1.0)
         k = int(np.sum(c2 >= self.seen ** 2 - SEEN_TIE))
         f = int(np.sum(c2 > SEEN_ZERO ** 2))
+        m, c2m = 0, 1.0
+        if U.shape[1] == U.shape[0] and k:  # square: the largest cluster of predicted directions kept implicit
+            a, b = _largest_cluster(c2[:k])
+            if b - a >= FOLD_CLUSTER_MIN:
+                m, c2m = b - a, float(np.mean(c2[a:b]))
+                U, c2 = np.delete(U, np.s_[a:b], axis=1), np.delete(c2, np.s_[a:b])
+                k, f = k - m, f - m
         # own directions the training rows see a little: the directions v (Q_te v = s u) up to their scale, over
         # the columns the held-out rows reach (their training products are formed when used: _own_seen)
         C = Qte.T @ U[:, k:f] if f > k else None
-        return _Fold(tr, te, np.ascontiguousarray(U), c2, k, f, C, cols)
+        return _Fold(self.n, te, np.ascontiguousarray(U), c2, k, f, C, cols, m, c2m)
 
     def _own_seen(self, f: _Fold, Qte: np.ndarray, D: np.ndarray, V: np.ndarray) -> np.ndarray:
         """(f - k, b') ``Z^T V_tr``, ``Z`` the unit training parts ``Q_tr v / |Q_tr v|`` of the fold's own
@@ -563,6 +618,8 @@ class Folds:
         """
         Gx, k = Gam[:, b:], f.k
         out = RXR - R_te[:, b:].T @ R_te + Gx.T @ Gam - (Gx[:k] / f.c2[:k, None]).T @ Gam[:k]
+        if f.m:  # the implicit cluster (predicted, c2m): R_X^T P R (1 - 1 / c2m), P = I - U U^T its projection
+            out = out + (1.0 - 1.0 / f.c2m) * (R_te[:, b:].T @ (R_te - f.U @ Gam))
         if k < f.U.shape[1]:
             beta = f.U[:, k:].T @ V[f.te]
             alpha = (beta - Gam[k:]) / np.sqrt(1.0 - f.c2[k:])[:, None]
@@ -596,6 +653,9 @@ class Folds:
         Gd = np.hstack([f.U.T @ (Qte @ dY), Ga])
         wt = np.concatenate([1.0 / f.c2[:k], -1.0 / np.maximum(1.0 - f.c2[k:], 1e-300)])
         P = ad + (Ga * wt[:, None]).T @ Gd
+        if f.m:  # the implicit cluster (predicted): (Q_te a)^T P [Q_te dY, Q_te a] / c2m, P = I - U U^T
+            Z = np.hstack([Qte @ dY, QA])
+            P = P + QA.T @ (Z - f.U @ Gd) / f.c2m
         if f.C is not None:
             zV = self._own_seen(f, Qte, np.hstack([dY, ac]), V)  # Q_tr^T V_tr: [dY, a] over those columns
             P = P + zV[:, b:].T @ zV
@@ -611,7 +671,9 @@ class Folds:
         block (case deletion): along a predicted direction ``u`` (a column of
         the fold's ``U``), the held-out residual of the training rows' fit is
         ``u^T R_te / c2`` (``(I - H_te)^-1 R_te`` restricted to the predicted
-        directions); outside ``U`` it is ``R_te``'s (the held-out rows' part
+        directions; for a square fold, the largest cluster of equal shares
+        ``c2m`` is the projection ``P`` on what ``U`` leaves: ``P R_te / c2m``);
+        outside those it is ``R_te``'s (the held-out rows' part
         no direction of the model reaches); along the own directions it is
         the data's, then fitted on the group's other rows. The same algebra
         as refitting on the training rows, with nothing (rows x directions)
@@ -668,6 +730,9 @@ class Folds:
                 W, GW = V_te[:, :b] - V_te[:, b:] @ coef, Gam[:, :b] - Gam[:, b:] @ coef
             Uk, k = f.U[:, :f.k], f.k
             e = W + Uk @ (GW[:k] / f.c2[:k, None] - Uk.T @ W)
+            if f.m:  # the implicit cluster (predicted, c2m): P (W' / c2m - W), W' what GW is U^T of
+                Dm = (R_te if X is None else R_te[:, :b] - R_te[:, b:] @ coef) / f.c2m - W
+                e += Dm - f.U @ (f.U.T @ Dm)
             if own.shape[1] > f.Qo.shape[1]:
                 own = orth(own)
             if own.shape[1]:

@@ -14,11 +14,11 @@ bar shifted on the table changes the arm only along axes that carry the X
 carriage (y, z for X; z for Y); the x arm of Y's errors must come from the
 stylus (J_X). Placements (14), measurements (17):
 
-- X1, X2, X3: bar along X at (y, z) = (-40, 60), (-40, 260), (110, 60) mm,
+- X1, X2, X3: bar along X at (y, z) = (-40, 70), (-40, 270), (110, 70) mm,
   straight stylus T0 (J_Z 150 mm): EXX, EYX, EZX; X2-X1 (dz 200 mm): EBX
   (positioning), EAX (horizontal straightness); X3-X1 (dy 150 mm): ECX
   (positioning), EAX (vertical straightness);
-- Y1, Y2: bar along Y at (x, z) = (-25, 60), (-25, 260) mm, T0: EYY, EXY,
+- Y1, Y2: bar along Y at (x, z) = (-25, 70), (-25, 270) mm, T0: EYY, EXY,
   EZY; Y2-Y1 (dz): EAY, EBY;
 - Y3: along Y at x = 125 mm with TXF (star arm 100 mm along X with a
   40 mm finger): Y3-Y1 (dJ_X 100 mm) gives ECY by differential positioning
@@ -33,14 +33,30 @@ stylus (J_X). Placements (14), measurements (17):
   -Y, TY1), DYZ (tilted 45 deg in YZ, holes facing -X, TX1): the
   squarenesses EC0Y, EB0Z, EA0Z (a bar parallel to an axis absorbs the
   slope into its pose);
-- AXY, AXZ, AYZ: the anti-diagonals (x_A along X-Y, X-Z, Y-Z; the tilted
-  ones start at z = 345 mm and fall). A linear twist of the table (an EAX
+- AXY, AXZ, AYZ: the anti-diagonals (x_A along X-Y, Z-X, Z-Y; the tilted
+  ones rise from z = 97.5 to 345 mm, the bar's unprobed holes 9-12 above,
+  so no part of the bar is below the table face). A linear twist of the table (an EAX
   ramp, an EBY ramp) moves every bar parallel to an axis rigidly, so only
   the diagonals see it, as a bend ``a s^2 / 2`` that the bar's own bow
   (calibrated, to ``u_cal``) imitates; the anti-diagonal bends the other
-  way under the same bow. With one diagonal per plane the twist was the
-  plan's largest uncertainty (EAX / EBY U95 36 / 44 urad), with the pairs
-  14 / 11 urad; the squarenesses gain alike (EB0Z 14 -> 5 urad).
+  way under the same bow. With one diagonal per plane the twist is the
+  plan's largest uncertainty (EAX / EBY U95 33 / 30 urad, seed 1 without
+  AXY, AXZ, AYZ), with the pairs 14 / 13 urad; the squarenesses gain alike
+  (EB0Z 13 -> 6 urad).
+
+No bar reaches below the table face (W z = 0, R's origin at the table
+surface: sim/machines.py): the flat bars' hole line at z = 70 mm, the bar's
+10 mm half thickness on its 60 mm supports standing on the table (the
+earlier plan had the hole line at 60 mm, 10 mm into the table, and its
+anti-diagonals falling from 345 mm to 75.7 mm below the face; the tests
+compute every bar's lowest point apart from :func:`check_plan`, which passes
+the plan when called). Not yet a physical plan: only the 6 bars flat on the
+table (X1, X3, Y1, Y3, DXY, AXY) stand on anything; the other 11 float, their
+supports' feet on nothing (X2, Y2 at z = 200 mm; the standing VYa-c, VXa-b at
+174-496 mm; DXZ, DYZ at 141-368 mm; AXZ, AYZ at 178-406 mm): the plan has no
+fixtures (a 200 mm riser, an angle plate, 45 deg blocks would carry them),
+and :func:`run` collision-checks only a plan with fixtures, so the 3-axis
+runs are not collision-checked.
 
 Each bar is probed over the holes that fit the strokes (12 along X, 8
 along Y, 7 standing), with the rods and faces the planes PL_i need (rod k
@@ -59,9 +75,9 @@ Identification (:mod:`core.volumetric`): the machine errors enter through
 the touches, carried into the points of interest by the extraction's gain;
 then Gauss-Newton on the exact chain; reported in the ISO 230-1 form
 (straightness against its end-point line, the slope kept beside it).
-Noise-free on the default realistic machine: 0.074 um / 0.15 urad (the
+Noise-free on the default realistic machine: 0.045 um / 0.17 urad (the
 tables' interpolation of its 9-knot profiles and the tangent continuation
-over the end rods); 0.003 um / 0.03 urad for errors the tables represent
+over the end rods); 0.003 um / 0.025 urad for errors the tables represent
 (``on_nodes=True``).
 
 Uncertainty: probing noise (0.125 um standard deviation, the paper's 0.25 um
@@ -71,12 +87,12 @@ heights kept to what its 11 rods can give: :func:`core.mfb.calibration_map`,
 propagated alike) and the
 placement errors (:data:`U_PLACE`, roll included, drawn in the simulator),
 by linear propagation and Monte Carlo (JCGM 101) through the same
-estimator. At 0.25 um probing noise, over four seeded campaigns (seeds
-11-14), U95 at the nodes: positioning median 0.69 um, max 0.79 um;
-straightness 0.92 / 3.8 um (EZX next to its end nodes, bar calibration
-dominated); angular 3.7 / 13.8 urad (the EAX / EBY twist ramps); squareness
-3.8 / 5.1 urad. 94 % of 504 identified values within U95 (RMS error / U95
-0.53); a noisy run is off by 0.9-3.2 um / 4.8-12.7 urad. What is left weakest: ``observability(...).weakest``.
+estimator. At 0.25 um probing noise (k = 2), over four seeded campaigns
+(seeds 11-14), U95 at the nodes: positioning median 0.67 um, max 0.84 um;
+straightness 0.90 / 3.6 um (EZX next to its end nodes, bar calibration
+dominated); angular 3.5 / 13.7 urad (the EAX / EBY twist ramps); squareness
+3.6 / 5.8 urad. 94 % of 504 identified values within U95 (RMS error / U95
+0.51); a noisy run is off by 0.9-2.9 um / 6.8-9.2 urad. What is left weakest: ``observability(...).weakest``.
 
 The scenario injects ``sim.machines.realistic_errors`` of the machine's
 linear axes minus the 10 mm screw-pitch ripple: a bar of 50 mm pitch
@@ -214,15 +230,15 @@ def plan_3axis() -> MfbPlan:
                                       STYLI[st], tuple(holes), senses, st))
 
     h12, h8, h7 = tuple(range(1, 13)), tuple(range(1, 9)), tuple(range(1, 8))
-    add("X1", _X, _Z, (-0.275, -0.040, 0.060), h12, senses="EXX, EYX, EZX (tables along X at y=-40, z=60 mm)")
-    add("X2", _X, _Z, (-0.275, -0.040, 0.260), h12,
+    add("X1", _X, _Z, (-0.275, -0.040, 0.070), h12, senses="EXX, EYX, EZX (tables along X at y=-40, z=70 mm)")
+    add("X2", _X, _Z, (-0.275, -0.040, 0.270), h12,
         senses="with X1 (arm dz = 200 mm): EBX by differential positioning, EAX by differential horizontal straightness")
-    add("X3", _X, _Z, (-0.275, 0.110, 0.060), h12,
+    add("X3", _X, _Z, (-0.275, 0.110, 0.070), h12,
         senses="with X1 (arm dy = 150 mm): ECX by differential positioning, EAX by differential vertical straightness")
-    add("Y1", _Y, _Z, (-0.025, -0.190, 0.060), h8, senses="EYY, EXY, EZY (tables along Y at x=-25, z=60 mm)")
-    add("Y2", _Y, _Z, (-0.025, -0.190, 0.260), h8,
+    add("Y1", _Y, _Z, (-0.025, -0.190, 0.070), h8, senses="EYY, EXY, EZY (tables along Y at x=-25, z=70 mm)")
+    add("Y2", _Y, _Z, (-0.025, -0.190, 0.270), h8,
         senses="with Y1 (arm dz = 200 mm): EAY by differential positioning, EBY by differential horizontal straightness")
-    add("Y3", _Y, _Z, (0.125, -0.190, 0.060), h8, ("TXF",),
+    add("Y3", _Y, _Z, (0.125, -0.190, 0.070), h8, ("TXF",),
         senses="with Y1, Abbe arm dJ_X = 100 mm: ECY by differential positioning, EBY by differential "
                "vertical straightness (the table does not move in X under the tool when Y moves, so a bar "
                "shifted in x gives no arm: the arm must come from the stylus)")
@@ -232,7 +248,7 @@ def plan_3axis() -> MfbPlan:
     add("VX", _Z, -_X, (-0.025, -0.040, 0.060), h7, ("TX1", "TX2"),
         senses="standing bar, holes facing -X, star stylus arm along +X: arm 100 vs 150 mm: ECZ (y), EBZ (z); "
                "EXZ / EYZ again with the other Abbe arm")
-    add("DXY", (_X + _Y) * _S2, _Z, (-0.125, -0.140, 0.060), h8, senses="EC0Y (face diagonal in XY)")
+    add("DXY", (_X + _Y) * _S2, _Z, (-0.125, -0.140, 0.070), h8, senses="EC0Y (face diagonal in XY)")
     add("DXZ", (_X + _Z) * _S2, -_Y, (-0.125, -0.040, 0.060), h8, ("TY1",),
         senses="EB0Z (face diagonal in XZ, tilted 45 deg, holes facing -Y, star stylus arm along +Y)")
     add("DYZ", (_Y + _Z) * _S2, -_X, (-0.025, -0.140, 0.060), h8, ("TX1",),
@@ -242,13 +258,13 @@ def plan_3axis() -> MfbPlan:
     # and bends a diagonal by a s^2 / 2, which the bar's own bow (calibrated,
     # to u_cal) imitates; the anti-diagonal bends the other way under the
     # same bow, so the pair separates twist from bar (and the squarenesses
-    # from the bar's length): EAX / EBY ramps 36 / 44 -> 14 / 11 urad U95
-    add("AXY", (_X - _Y) * _S2, _Z, (-0.125, 0.107, 0.060), h8,
+    # from the bar's length): EAX / EBY ramps 33 / 30 -> 14 / 13 urad U95 (seed 1)
+    add("AXY", (_X - _Y) * _S2, _Z, (-0.125, 0.107, 0.070), h8,
         senses="with DXY: twist of X and Y (EAX, EBY ramps) and EC0Y, free of the bar's bow")
-    add("AXZ", (_X - _Z) * _S2, -_Y, (-0.125, -0.040, 0.345), h8, ("TY1",),
-        senses="with DXZ: EAX ramp and EB0Z, free of the bar's bow (z falls along the bar)")
-    add("AYZ", (_Y - _Z) * _S2, -_X, (-0.025, -0.140, 0.345), h8, ("TX1",),
-        senses="with DYZ: EBY ramp and EA0Z, free of the bar's bow (z falls along the bar)")
+    add("AXZ", (-_X + _Z) * _S2, -_Y, (-0.125 + 0.35 * _S2, -0.040, 0.345 - 0.35 * _S2), h8, ("TY1",),
+        senses="with DXZ: EAX ramp and EB0Z, free of the bar's bow (z rises along the bar)")
+    add("AYZ", (-_Y + _Z) * _S2, -_X, (-0.025, -0.140 + 0.35 * _S2, 0.345 - 0.35 * _S2), h8, ("TX1",),
+        senses="with DYZ: EBY ramp and EA0Z, free of the bar's bow (z rises along the bar)")
     # table nodes at the points of interest, where the bar senses every
     # direction: the end nodes at the first and last holes (X +-275 mm, Y
     # -190 / 160 mm, Z 60 / 360 mm), the tables continued along their end

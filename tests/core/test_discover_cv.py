@@ -675,3 +675,36 @@ def test_folds_own_directions_seen_very_little_by_the_training_rows(sc, monkeypa
             rd = folds.residuals(Y, E)
         md = np.abs(rd).max()
         assert np.abs(r - rd).max() <= 1e-10 * md, (type(design).__name__, np.abs(r - rd).max() / md)
+
+
+def test_folds_cluster_of_equal_shares_kept_implicit_is_a_plain_refit():
+    """A long log's layout: every target touched once per set-up (8 set-ups, 40 targets, 6 dense columns), so a
+    held-out set-up's hat block is ``I / 8 + D D^T`` and 34 of its 40 directions share one training share
+    (c^2 = 7/8): Folds keeps them implicit (_Fold.m, a projection) instead of as columns. Its held-out residuals,
+    block and dense, equal a brute-force refit per held-out group (lstsq, _plain_refit) to 1e-9 relative (as the
+    plain-refit test above: lstsq's rounding on a condition-10 design is far below), with an extension, a ridge on
+    it and one observation vector. Dropping the cluster's correction in residuals (the cluster then counted as
+    the held-out rows' data) moves them by order one (checked by hand)."""
+    from core import discover as X
+    from core.lsq import BlockDesign
+
+    rng = np.random.default_rng(23)
+    g, S, m = 40, 8, 6
+    ids, groups = np.tile(np.arange(g), S), np.repeat(np.arange(S), g)
+    n = len(ids)
+    A = BlockDesign(ids, rng.normal(size=(n, m)), np.arange(g), np.arange(g, g + m))
+    E = np.column_stack([np.sin(np.arange(n) / 9.0), rng.normal(size=n)])
+    pen = np.diag([0.5, 3.0])
+    Y = A.toarray() @ rng.normal(size=(g + m, 3)) + E @ rng.normal(size=(2, 3)) + 0.3 * rng.normal(size=(n, 3))
+    st = X.Settings()
+    for M in (A, A.toarray()):
+        folds = X.Folds(M, groups, st.cv_seen, st.cv_seen_extension)
+        assert all(f.m == g - m and f.U.shape == (g, m) and f.Qo.shape[1] == 0 for f in folds.items)
+        for args, ref in (((Y,), _plain_refit(A.toarray(), groups, Y)),
+                          ((Y, E), _plain_refit(A.toarray(), groups, Y, E)),
+                          ((Y, E, pen), _plain_refit(A.toarray(), groups, Y, E, pen)),
+                          ((Y[:, 0], E[:, :1]), _plain_refit(A.toarray(), groups, Y[:, :1], E[:, :1])[:, 0])):
+            got = folds.residuals(*args)
+            scale = np.max(np.abs(ref))
+            assert np.max(np.abs(got - ref)) < 1e-9 * scale, np.max(np.abs(got - ref)) / scale
+            assert folds.last_dof == n

@@ -276,3 +276,22 @@ def test_a_spread_smooth_error_is_still_refused_as_not_confined(seed):
     out = _smooth_verdict(bl, cause, st, C[:, [best]], 0.3e-6, tries, settings)
     assert out["p_smooth_beyond_cause"] < settings.alpha_family
     assert out["refused"] and not out["indistinguishable"]
+
+
+def test_defect_scores_made_afresh_are_the_kept_table_ones(monkeypatch):
+    """A local defect's score table (rows x centres and its square) is kept only while it is small
+    (core.diagnosis.TABLE_BYTES: a 1e5-row log's 72 centres were 110 MB); made afresh at each call instead, the
+    scores are the same numbers bit for bit (the same products on the same operands), on every row and on a
+    subset, twice (the kept denominators)."""
+    t, _ = S.campaign("local_scale_defect", 3, 2e-6)
+    bl = baseline.planar(t, grid_step_mm=55.0)
+    rng = np.random.default_rng(4)
+    r = rng.normal(size=bl.n)
+    sub = np.sort(rng.choice(bl.n, bl.n - 7, replace=False))
+    kept = causes.defect_scans(bl)[0]
+    monkeypatch.setattr(causes, "TABLE_BYTES", 0)
+    fresh = causes.defect_scans(bl)[0]
+    assert len(kept) == len(fresh) > 0
+    for a, b in zip(kept, fresh):
+        for rows in (np.arange(bl.n), sub, sub):
+            assert np.array_equal(a.score(r[rows], rows), b.score(r[rows], rows))
