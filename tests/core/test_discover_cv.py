@@ -677,6 +677,56 @@ def test_folds_own_directions_seen_very_little_by_the_training_rows(sc, monkeypa
         assert np.abs(r - rd).max() <= 1e-10 * md, (type(design).__name__, np.abs(r - rd).max() / md)
 
 
+def test_held_out_counts_the_rows_predicted_not_the_nonzero_residuals():
+    """``_held_out``'s rows per set-up are the rows the folds predicted (``Folds.last_predicted``), also where a
+    predicted row's held-out residual is exactly 0 (the data inside the design: here y = 0); a row that alone
+    supports a direction of the design (a column nonzero on it only) is not predicted, whatever its residual. The
+    former count (``e != 0``) gave 0 rows to every set-up at y = 0."""
+    from core import discover as X
+
+    rng = np.random.default_rng(7)
+    n, p = 120, 5
+    groups = np.repeat(np.arange(4), n // 4)
+    A = rng.normal(size=(n, p))
+    lone = 7  # a row of set-up 0 that alone supports the last column
+    A[:, -1] = 0.0
+    A[lone, -1] = 1.0
+    folds = X.Folds(A, groups, X.Settings().cv_seen, X.Settings().cv_seen_extension)
+    want = {g: float(np.sum(groups == g)) - (g == 0) for g in range(4)}
+    for y in (np.zeros(n), rng.normal(size=n) * 1e-6):
+        mse, per = X._held_out(folds, y, groups)
+        assert {g: b for g, (_, b) in per.items()} == want, per
+        assert folds.last_dof == n - 1 and not folds.last_predicted[lone] and folds.last_predicted.sum() == n - 1
+    assert X.Folds(A, groups, X.Settings().cv_seen).last_predicted.sum() == n - 1  # before any residuals call
+
+
+def test_held_out_rows_follow_the_extensions_unseen_rows():
+    """With extension columns the rows predicted follow the extension too: a column of ``E`` nonzero on one row
+    only (row 40, set-up 1) is unseen by the training rows of set-up 1's fold, so that row alone supports it there
+    and is not predicted. By hand: 120 rows in 4 set-ups of 30, the baseline's lone row 7 (set-up 0) and the
+    extension's lone row 40 (set-up 1) not predicted: 29, 29, 30, 30 rows, 118 in all, at y = 0 (every residual
+    exactly 0: the former count, ``e != 0``, gave 0) and at y random. Penalised (a ridge on the columns): the
+    column is then zero on the fold's training rows and joins the held-out set-up's own directions as it is."""
+    from core import discover as X
+
+    rng = np.random.default_rng(11)
+    n, p = 120, 5
+    groups = np.repeat(np.arange(4), n // 4)
+    A = rng.normal(size=(n, p))
+    A[:, -1] = 0.0
+    A[7, -1] = 1.0
+    E = np.zeros((n, 2))
+    E[:, 0] = rng.normal(size=n)  # a column every set-up sees
+    E[40, 1] = 1.0  # seen by row 40 only
+    pen = np.diag([0.5, 0.5])
+    folds = X.Folds(A, groups, X.Settings().cv_seen, X.Settings().cv_seen_extension)
+    want = {0: 29.0, 1: 29.0, 2: 30.0, 3: 30.0}
+    for y in (np.zeros(n), rng.normal(size=n)):
+        _, per = X._held_out(folds, y, groups, E, pen)
+        assert {g: b for g, (_, b) in per.items()} == want, per
+        assert folds.last_dof == 118 and not folds.last_predicted[[7, 40]].any()
+
+
 def test_folds_cluster_of_equal_shares_kept_implicit_is_a_plain_refit():
     """A long log's layout: every target touched once per set-up (8 set-ups, 40 targets, 6 dense columns), so a
     held-out set-up's hat block is ``I / 8 + D D^T`` and 34 of its 40 directions share one training share

@@ -736,3 +736,42 @@ def test_the_baseline_is_judged_on_the_rows_the_report_keeps():
     rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
     assert rep["cause"] not in ("outlier", "unexplained", None), rep["cause"]
     assert rep["structure"]["baseline"]["present"], rep["structure"]["baseline"]
+
+
+def test_a_slips_turn_explains_its_outliers_and_dust_alone_does_not():
+    """``_slip_explains``' second condition (no more outliers than the step's parameters), hand-built: four set-ups
+    of 50 touches in time order, one offset per set-up; a trial step (every fifth touch a start) moves every touch
+    of its set-up from its start on by a translation and a turn, ``a + b L`` (L the touch's lever arm about the
+    turn's centre). Two outliers on set-up 0's touches 48 and 49 (levers +3 and -3).
+
+    Dust: chips of +20 and -20 sigma, touches 45-47 near the turn's centre and unmoved: not explained. A real turn
+    from touch 45 (levers 1.5, -1.5, 1.2 for 45-47, moved with 48-49): explained, at +-20 sigma on the outliers
+    (10, -10, 8 sigma on 45-47) and at a moderate +-8 (4.0, -4.0, 3.2 sigma on 45-47)."""
+    from core import discover as D
+
+    rng = np.random.default_rng(11)
+    G, m = 4, 50
+    n = G * m
+    events = np.repeat(np.arange(G), m)
+    k = np.arange(n) % m
+    X = (events[:, None] == np.arange(G)).astype(float)
+    L = rng.normal(size=n)
+    L[[45, 46, 47, 48, 49]] = [0.1, -0.1, 0.05, 3.0, -3.0]
+    starts = [(g, t) for g in range(G) for t in range(5, m, 5)]
+
+    def slips():
+        C = np.zeros((len(starts), n, 2))
+        for i, (g, t) in enumerate(starts):
+            on = ((events == g) & (k >= t)).astype(float)
+            C[i, :, 0], C[i, :, 1] = on, on * L
+        return C
+
+    noise = rng.normal(size=n)
+    chips = np.zeros(n)
+    chips[[48, 49]] = [20.0, -20.0]
+    out = [48, 49]
+    assert not D._slip_explains(X, noise + chips, out, events, slips, 0.001, 0.0025)
+    L[[45, 46, 47]] = [1.5, -1.5, 1.2]  # the turn's centre elsewhere: touches 45-47 move with 48-49
+    for b in (20.0 / 3.0, 8.0 / 3.0):
+        turn = np.where((events == 0) & (k >= 45), b * L, 0.0)
+        assert D._slip_explains(X, noise + turn, out, events, slips, 0.001, 0.0025), b
