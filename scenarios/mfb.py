@@ -591,7 +591,7 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     set-up's rotary positions, and the touches against the strokes of the
     readings. Returns the summary for the report (``passed``, per
     measurement: set-up, stylus, holes, touches, path points, collisions,
-    least clearance of the probe from the table side along every sampled path point).
+    least clearance of the probe from the table side at the approach starts).
 
     Raises
     ------
@@ -645,7 +645,7 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
         per[ms.name] = {"placement": ms.placement, "setup": ms.setup_key, "stylus": ms.stylus,
                         "J_mm": [round(v / MM, 3) for v in ms.J_m], "holes": list(ms.holes),
                         "touches": r.touches, "path_points": r.samples, "collisions": len(r.collisions),
-                        "min_clearance_along_paths_mm": round(r.min_table_clearance_mm, 2),
+                        "min_clearance_at_approach_starts_mm": round(r.min_table_clearance_mm, 2),
                         "touch_range_mm": {ax: [round(c_lo[j] / MM, 1), round(c_hi[j] / MM, 1)]
                                            for j, ax in enumerate("XYZ")}}
         n_t += r.touches

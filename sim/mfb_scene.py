@@ -85,8 +85,11 @@ class CheckResult:
         First collision of each colliding touch, in words (empty: passed).
     min_table_clearance_mm : float
         Least distance of the probe (ball, stylus, body, spindle) from the
-        table, the workholder and the bar's supports over every sampled path
-        point (approach starts, link moves, approaches and retracts).
+        table, the workholder and the bar's supports at the touches' approach
+        starts (where the probe waits before each touch). The paths between are
+        checked for collision at every sample, not measured for clearance: a
+        path may pass closer than this (plan_5axis: 3.68 mm at the starts, 2.2 mm
+        along the paths) without touching.
     """
 
     measurement: str
@@ -902,9 +905,10 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
                              f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
                     bad_touch.add(t)
                     n_samp -= int(touch_end[t] - idx[k] - 1)
-        # the least clearance along every sampled path point (approach starts, links, approaches)
-        clear = wz.least_holder_clearance(sgs[i][0].points(np.arange(sgs[i][0].n_samples)),
-                                          broad_phase=broad_phase) if plan.n else np.inf
+        # the least clearance at the approach starts: along every sampled path point it would be
+        # exact too, but cost 2.3x this check (bench col_mfb5_measurement_checks_s 0.029 -> 0.069 s
+        # against a 0.097 s simulation); the paths between are checked for collision at every sample
+        clear = wz.least_holder_clearance(paths[i][0], broad_phase=broad_phase) if plan.n else np.inf
         out.append(CheckResult(name, int(plan.n), n_samp, tuple(b), float(clear * 1e3)))
     return out
 
