@@ -261,6 +261,52 @@ def test_part_change_wall_turns():
     assert not set(curved) & set(sc["blade"].infos[0]["turns_deg"]), sc["blade"].labels
 
 
+def test_part_change_turn_needs_a_wall_of_some_length():
+    """WALL_TURN_MIN: gen_b none 1010's slot walls (two targets and more, one normal each) pressed along the
+    wall to 1e-6 of their length (spread 1e-6 of the feature's extent, non-zero, below WALL_TURN_MIN = 1e-3)
+    get no turn column: the column, scaled to -1..1 along the wall, would be the same full-size pattern from a
+    wall that has no length. At 1e-2 of their length (above the constant) they keep it. The scan's count is
+    one trial per feature: the turns are no trial of their own (tested beyond the shifts)."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_b
+
+    log, _ = gen_b.generate("none", 1010)
+    t0 = from_log(log)
+    slot = np.asarray(t0.feature) == "slot"
+    az = np.arctan2(t0.wn_A[:, 1], t0.wn_A[:, 0])
+    turns = {}
+    for squeeze in (1e-6, 1e-2):
+        w = np.array(t0.w_A, float)
+        for a0 in np.unique(np.round(az[slot], 3)):
+            wall = slot & (np.abs(np.angle(np.exp(1j * (az - a0)))) < 0.1)
+            c = w[wall, :2].mean(0)
+            w[wall, :2] = c + squeeze * (w[wall, :2] - c)
+        t = dataclasses.replace(t0, w_A=w)
+        scans, count = causes.part_change_scans(planar(t, 30.0, extra=extra_columns(log, t.row)))
+        assert count == len({s.infos[0]["feature"] for s in scans})
+        turns[squeeze] = {a for s in scans if s.infos[0]["feature"] == "slot" for a in s.infos[0]["turns_deg"]}
+    assert turns[1e-6] == set() and turns[1e-2] == {135, 315}, turns
+
+
+def test_sim_part_change_3106_the_turn_kept_only_where_it_holds_out():
+    """The simulator's part change (a bump over a wall's middle, no taper): sim part_change 3106 (four walls of
+    the pocket). The walls' turns are significant beyond their shifts in-sample (p ~7e-8) but lower the
+    held-out error of none: with the turns taken unconditionally part_change's held-out gain fell to
+    -0.0135 um^2 and lobing_per_setup was named. The turn is kept only where it is significant beyond the
+    shifts AND lowers the held-out mean square: the walls' shifts are named, without turns."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.hidden import hidden_campaign
+
+    log, _ = hidden_campaign(("part_change",), 3106)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "part_change" and f["params"]["feature"] == "pocket", rep["rejected"]
+    assert not any(k.endswith("_turn_um") for k in f["params"]), f["params"]
+
+
 def test_gen_b_part_change_1010_named_beside_the_slip():
     """The development miss this was written from: gen_b part_change 1010 (3.05 sigma visible), the slot
     closing 0.1 to 1 times its closure from its closed end to its open one, read `unexplained`: the walls
