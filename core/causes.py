@@ -1215,8 +1215,9 @@ def part_change_scans(bl):
                     labels.append(f"{f}@{45 * s}deg turn")
                     turns.append(45 * s)
         if cols:
-            # nested: the walls shifting alone, and (where a wall can turn) shifting and turning, two trials
-            # counted as such; the smaller p-value wins, so a turn that explains nothing costs no dof
+            # nested: the walls shifting alone (the trial), and (where a wall can turn) shifting and turning as a
+            # richer scan that is no trial of its own (not counted below): the engine takes it only where the
+            # turns are significant beyond the shifts and lower the held-out mean square
             shift = [j for j, lab in enumerate(labels) if not lab.endswith(" turn")]
             scans.append(_one(np.column_stack(cols)[:, shift], [labels[j] for j in shift],
                               {"feature": str(f), "walls_deg": tuple(walls), "turns_deg": ()}, "feature"))

@@ -2674,14 +2674,15 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # of its own (not counted in the scan's tries): taken when its extra columns are significant beyond the
         # chosen trial's at alpha_family, its own F test then the candidate's
         rich = scans[si + 1]
-        t_p = nested_f_batch(take_rows(sc.build([i]), rows, 1), st.Q, st.r, st.rss, st.dof)
-        t_f = nested_f_batch(take_rows(rich.build([0]), rows, 1), st.Q, st.r, st.rss, st.dof)
+        plain_cols, rich_cols = sc.build([i])[0], rich.build([0])[0]
+        t_p = single if single is not None else nested_f_batch(plain_cols[None, rows], st.Q, st.r, st.rss, st.dof)
+        t_f = nested_f_batch(rich_cols[None, rows], st.Q, st.r, st.rss, st.dof)
         k_x = int(t_f[1][0]) - int(t_p[1][0])
         dof_f = st.dof - int(t_f[1][0])
         if k_x > 0 and dof_f > 0:
             F_x = (float(t_f[0][0]) - float(t_p[0][0])) / k_x / ((st.rss - float(t_f[0][0])) / dof_f)
             held = [folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), C[rows]]) if terms else C[rows])
-                    for C in (sc.build([i])[0], rich.build([0])[0])]
+                    for C in (plain_cols, rich_cols)]
             if float(stats.f.sf(F_x, k_x, dof_f)) < settings.alpha_family and held[1] < held[0]:
                 p_val, F_val, k_val, sc, i, single = (float(t_f[3][0]), float(t_f[2][0]), int(t_f[1][0]), rich,
                                                       0, t_f)
