@@ -188,6 +188,11 @@ class MfbPlan:
     def placements(self) -> tuple:
         return tuple(dict.fromkeys(m.placement for m in self.measurements))
 
+    @property
+    def rotary(self) -> bool:
+        """Whether rotary axes present the bars (the set-ups have rotary positions: a 5-axis plan)."""
+        return any(len(m.rot_rad) for m in self.measurements)
+
     def without(self, placement: str) -> "MfbPlan":
         return MfbPlan(self.machine, tuple(m for m in self.measurements if m.placement != placement), self.nodes,
                        {k: v for k, v in self.fixtures.items() if k != placement})
@@ -276,7 +281,36 @@ def plan_3axis() -> MfbPlan:
     # profiles to < 0.08 um.
     nodes = {"X": np.linspace(-0.275, 0.275, 9), "Y": np.linspace(-0.190, 0.160, 8),
              "Z": np.linspace(0.060, 0.360, 7)}
-    return MfbPlan("vmc-3axis", tuple(ms), nodes)
+    return MfbPlan("vmc-3axis", tuple(ms), nodes, _fixtures_3axis())
+
+
+def _fixtures_3axis() -> dict:
+    """The workholding of the 3-axis placements (:class:`sim.mfb_scene.Block`, W, m): what each
+    bar's two supports stand on or are bolted to (their feet: 8 mm discs 70 mm from the hole line,
+    at x_A = 114.43 and 435.57 mm; module doc). The 6 bars flat on the table need none.
+
+    - X2, Y2: a 200 mm riser under the feet (hole line at 270 mm = 200 + 60 + 10), 90 mm wide,
+      reaching 39.4 mm beyond each foot's centre;
+    - the bars whose holes face -Y (VY standing, DXZ and AXZ tilted 45 deg in XZ): their
+      supports point +Y, feet in the plane y = 30 mm, bolted to the face of an angle plate
+      (30 mm thick, behind the bar); the tilt is within the plate's face, so no tilted block is
+      needed; likewise the bars facing -X (VX, DYZ, AYZ) on a plate whose face is x = 45 mm.
+      Each plate reaches 35-42 mm beyond the feet (535 mm high for the standing bars, whose
+      upper foot is at 495.6 mm); the plates' base legs (behind them) are not modelled.
+    """
+    from sim.mfb_scene import Block
+
+    def b(name, lo_mm, hi_mm):
+        return (Block(name, tuple(v * MM for v in lo_mm), tuple(v * MM for v in hi_mm)),)
+
+    return {"X2": b("riser", (-200, -85, 0), (200, 5, 200)),
+            "Y2": b("riser", (-70, -115, 0), (20, 285, 200)),
+            "VY": b("angle_plate", (-70, 30, 0), (20, 60, 535)),
+            "VX": b("angle_plate", (45, -85, 0), (75, 5, 535)),
+            "DXZ": b("angle_plate", (-85, 30, 0), (225, 60, 410)),
+            "AXZ": b("angle_plate", (-225, 30, 0), (85, 60, 445)),
+            "DYZ": b("angle_plate", (45, -100, 0), (75, 210, 410)),
+            "AYZ": b("angle_plate", (45, -240, 0), (75, 70, 445))}
 
 
 #: Star styli of the 5-axis plan besides :data:`STYLI` (none needed: the bar's
@@ -571,8 +605,9 @@ def default_machine(name: str, ripple: bool = False, J_m=(0.0, 0.0, 0.150)):
 
 
 #: Collision checks already made (a pure function of the nominal plan): keyed by the machine,
-#: every measurement's name, set-up, holes and stylus position, the stylus radius and the
-#: program's margin; the summaries are only read (reports copy them into JSON). 64 checks
+#: every measurement's name, set-up, holes, stylus (name, position), rotary positions, bar pose
+#: and workholder, the stylus radius and the program's margin (before: without the poses and
+#: workholder, so a plan of the same names with other fixtures got the first one's answer); the summaries are only read (reports copy them into JSON). 64 checks
 #: (before: unbounded; a few kilobytes each, a session checks a handful of plans).
 _CHECKS = Memo(64)
 
@@ -606,8 +641,12 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurements
 
     program = _program(u_place)  # the program run() simulates for this placement tolerance
-    key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
-           program["clearance_m"], program["overshoot_m"])
+    # (every input of the check: a plan of the same names with other poses or fixtures is another plan)
+    key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m, m.stylus, tuple(m.rot_rad),
+                                np.asarray(m.T_W_A, float).tobytes(),
+                                tuple((b.name, tuple(map(float, b.lo)), tuple(map(float, b.hi)))
+                                      for b in plan.fixtures.get(m.placement, ())))
+                               for m in plan.measurements), stylus_r_m, program["clearance_m"], program["overshoot_m"])
     hit = _CHECKS.get(key)
     if hit is not None:
         return hit
@@ -667,7 +706,8 @@ def describe_collision_check(c: dict) -> str:
     """The collision check's summary for the terminal: one line per placement, then the verdict."""
     by = {}
     for name, m in c["measurements"].items():
-        by.setdefault(m["placement"], []).append(f"{name}({m['setup'].split('@')[1]}, {m['stylus']})")
+        rot = m["setup"].partition("@")[2]  # (the rotary positions of a 5-axis set-up; none on a 3-axis plan)
+        by.setdefault(m["placement"], []).append(f"{name}({rot + ', ' if rot else ''}{m['stylus']})")
     lines = [f"  {p}: {', '.join(v)}" for p, v in by.items()]
     lines.append(f"collision check ({c['engine']}): {'passed' if c['passed'] else 'FAILED'}, "
                  f"{c['touches']} touches, {c['path_points']} path points, {c['seconds']} s")
@@ -1111,7 +1151,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 
     # the program's approach margins cover the declared placement tolerance (not the draw)
     program = _program(u_place)
-    collision = check_plan(plan, u_place=u_place) if plan.fixtures else None  # after the inputs are checked
+    collision = check_plan(plan, u_place=u_place)  # after the inputs are checked
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
     gain_fits: dict = {}  # the gains' light fits, shared by the hole sets of this run (same touches, same fits)
@@ -1272,7 +1312,7 @@ def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None)
             if res.iterations else "first order (eqs 8-12)", "gauss_newton_iterations": res.iterations,
             "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6,
             "errors": errors, "max_dev_um": dev_um, "max_dev_urad": dev_urad,
-            "twists": _twists(errors) if plan.fixtures else {},
+            "twists": _twists(errors) if plan.rotary else {},  # (TWIST_SENSING: the 5-axis plan's sensing)
             "injected_note": "truth at the nodes, expressed in the same ISO 230-1 conventions (gauge)"}
 
 

@@ -4,9 +4,10 @@ Figures:
 
 - ``mfb_3axis_end_to_end_s``: :func:`scenarios.mfb.run` of ``mfb-3axis``
   (simulation of the 17 measurements, points of interest, the extraction's
-  gain, identification, Monte Carlo uncertainty, report), imports warm and
-  the gain cache empty, as ``vmt scenario mfb-3axis`` spends it after its
-  imports; split by the run's progress steps into ``mfb_3axis_measure_s``
+  gain, identification, Monte Carlo uncertainty, report, and since session 11 the
+  plan's collision check), imports and the check's MuJoCo work zones warm, the gain
+  and plan-check caches empty, as ``vmt scenario mfb-3axis`` spends it after its
+  imports (and the zones' compiling); split by the run's progress steps into ``mfb_3axis_measure_s``
   (simulation + points of interest + gain), ``mfb_3axis_identify_s`` and
   ``mfb_3axis_uncertainty_s`` (Monte Carlo + report). Reference: the same
   run with the gain already cached (``mfb_3axis_gain_cached_s``). Each of these
@@ -265,6 +266,7 @@ def run() -> dict:
     for _ in range(3):
         stamps = {}
         S._GAINS.clear()
+        S._CHECKS.clear()  # (run checks the 3-axis plan since session 11: its check counted, its zones kept warm)
         vol.identify_volumetric = spy
         try:
             t0 = time.perf_counter()
