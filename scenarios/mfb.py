@@ -49,14 +49,20 @@ surface: sim/machines.py): the flat bars' hole line at z = 70 mm, the bar's
 10 mm half thickness on its 60 mm supports standing on the table (the
 earlier plan had the hole line at 60 mm, 10 mm into the table, and its
 anti-diagonals falling from 345 mm to 75.7 mm below the face; the tests
-compute every bar's lowest point apart from :func:`check_plan`, which passes
-the plan when called). Not yet a physical plan: only the 6 bars flat on the
-table (X1, X3, Y1, Y3, DXY, AXY) stand on anything; the other 11 float, their
-supports' feet on nothing (X2, Y2 at z = 200 mm; the standing VYa-c, VXa-b at
-174-496 mm; DXZ, DYZ at 141-368 mm; AXZ, AYZ at 178-406 mm): the plan has no
-fixtures (a 200 mm riser, an angle plate, 45 deg blocks would carry them),
-and :func:`run` collision-checks only a plan with fixtures, so the 3-axis
-runs are not collision-checked.
+compute every bar's lowest point apart from :func:`check_plan`). Every bar
+stands on something (:func:`_fixtures_3axis`): the 6 flat bars (X1, X3, Y1,
+Y3, DXY, AXY) on the table; X2 and Y2 on a 200 mm riser; the bars whose
+holes face -Y (VY standing, DXZ, AXZ tilted 45 deg in XZ) have their
+supports, pointing +Y, bolted to an angle plate whose face is y = 30 mm,
+those facing -X (VX, DYZ, AYZ) to one at x = 45 mm (the tilt lies in the
+plate's face: no tilted block is needed); a test checks by hand geometry
+that every support's foot lies on the table or on a fixture's face. Every
+run is collision-checked (:func:`check_plan`: 3,944 touches, fixtures
+included; the probe never nears them: a fixture's face moved toward the bar
+is first met 60.9 mm in, 0.9 mm inside the bar's body). Until session 11
+the plan had no fixtures, 11 of its measurements' bars floating with their
+supports' feet on nothing, and :func:`run` did not check it; the bar poses
+and every figure of its results are the same.
 
 Each bar is probed over the holes that fit the strokes (12 along X, 8
 along Y, 7 standing), with the rods and faces the planes PL_i need (rod k
