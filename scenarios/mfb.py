@@ -184,7 +184,9 @@ class MfbPlan:
     machine: str
     measurements: tuple
     nodes: dict = field(compare=False)
-    fixtures: dict = field(default_factory=dict, compare=False)
+    # (compared: plans of other workholding are other plans; not hashed, a dict: the hash is the
+    # measurements', equal plans still hash equal)
+    fixtures: dict = field(default_factory=dict, hash=False)
 
     @property
     def setups(self) -> tuple:
@@ -301,8 +303,11 @@ def _fixtures_3axis() -> dict:
       supports point +Y, feet in the plane y = 30 mm, bolted to the face of an angle plate
       (30 mm thick, behind the bar); the tilt is within the plate's face, so no tilted block is
       needed; likewise the bars facing -X (VX, DYZ, AYZ) on a plate whose face is x = 45 mm.
-      Each plate reaches 35-42 mm beyond the feet (535 mm high for the standing bars, whose
-      upper foot is at 495.6 mm); the plates' base legs (behind them) are not modelled.
+      Each plate's edges nearest the feet are 39.4-45.0 mm from the feet's centres (measured:
+      39.4 VY/VX's top, 535 mm high above the upper foot at 495.6 mm; 45.0 their sides; 40.9 and
+      42.0 DXZ/DYZ; 39.5 and 43.4 AXZ/AYZ), 31.4-37.0 mm beyond the 8 mm discs; the risers' 39.4
+      mm along the bar, 45.0 mm across. Each plate is its upright alone: its base and ribs
+      (behind it, away from the bar) are not modelled.
     """
     from sim.mfb_scene import Block
 
@@ -612,14 +617,16 @@ def default_machine(name: str, ripple: bool = False, J_m=(0.0, 0.0, 0.150)):
 
 #: Collision checks already made (a pure function of the nominal plan): keyed by the machine,
 #: every measurement's name, set-up, holes, stylus (name, position), rotary positions, bar pose
-#: and workholder, the stylus radius and the program's margin (before: without the poses and
-#: workholder, so a plan of the same names with other fixtures got the first one's answer); the summaries are only read (reports copy them into JSON). 64 checks
+#: and workholder (its sim.mfb_scene.Block objects: frozen, compared and hashed by value), the
+#: stylus radius and the program's margin (before: without the poses and workholder, so a plan
+#: of the same names with other fixtures got the first one's answer); the summaries are only
+#: read (reports copy them into JSON). 64 checks
 #: (before: unbounded; a few kilobytes each, a session checks a handful of plans).
 _CHECKS = Memo(64)
 
 
 def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> dict:
-    """Collision and reach check of every measurement of a plan with a workholder (MuJoCo).
+    """Collision and reach check of every measurement of a plan, its workholder included (MuJoCo).
 
     The program checked is the one :func:`run` simulates for the placement
     tolerance ``u_place`` (its approach margins, :func:`placement_margin_m`):
@@ -629,15 +636,18 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     Each measurement's touches, approach/retract and link moves are checked
     in :class:`sim.mfb_scene.WorkZone` (table, workholder, bar and its
     supports; stylus ball, star arm, extension, probe body, spindle) at the
-    set-up's rotary positions, and the touches against the strokes of the
-    readings. Returns the summary for the report (``passed``, per
+    set-up's rotary positions, the workholder blocks against the bar and its
+    supports (:func:`sim.mfb_scene.block_overlaps`: a block running into them
+    is a collision; a foot on a block's face is not), and the touches
+    against the strokes of the readings. Returns the summary for the report (``passed``, per
     measurement: set-up, stylus, holes, touches, path points, collisions,
     least clearance of the probe from the table side at the approach starts).
 
     Raises
     ------
     PlanError
-        A collision, the bar below the table face, or a touch outside a stroke
+        A collision, the bar below the table face, a workholder block running
+        into the bar or a support, or a touch outside a stroke
         (measurement and what hits what named).
     """
     from core.exceptions import PlanError
@@ -649,9 +659,7 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     program = _program(u_place)  # the program run() simulates for this placement tolerance
     # (every input of the check: a plan of the same names with other poses or fixtures is another plan)
     key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m, m.stylus, tuple(m.rot_rad),
-                                np.asarray(m.T_W_A, float).tobytes(),
-                                tuple((b.name, tuple(map(float, b.lo)), tuple(map(float, b.hi)))
-                                      for b in plan.fixtures.get(m.placement, ())))
+                                np.asarray(m.T_W_A, float).tobytes(), tuple(plan.fixtures.get(m.placement, ())))
                                for m in plan.measurements), stylus_r_m, program["clearance_m"], program["overshoot_m"])
     hit = _CHECKS.get(key)
     if hit is not None:
@@ -698,7 +706,8 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     out = {"passed": True, "engine": "MuJoCo (sim.mfb_scene.WorkZone)",
            "checked": "table disc (R %g mm, %g mm thick), workholder blocks, bar and its supports vs stylus ball, "
                       "star arm, extension, probe body, spindle nose; approach/retract and link moves; the bar "
-                      "above the table face; touches within the strokes" % (TABLE_R_M / MM, TABLE_T_M / MM),
+                      "above the table face; the workholder blocks clear of the bar and its supports "
+                      "(separating axes, a support or rod as its square prism); touches within the strokes" % (TABLE_R_M / MM, TABLE_T_M / MM),
            "touches": n_t, "path_points": n_s, "seconds": round(time.time() - t0, 1), "measurements": per,
            "program_mm": {"clearance": round(program["clearance_m"] / MM, 3),
                           "overshoot": round(program["overshoot_m"] / MM, 3)},

@@ -549,6 +549,9 @@ def test_every_3axis_bar_stands_on_or_above_the_table_face():
 # A support's foot, by hand (the drawing above): the end disc of radius _SUPPORT_R_MM at
 # (x_s, 0, -(10 + 60)) mm in A, its outward normal -z_A (it presses along -z_A into what carries it).
 _FOOT_Z_MM = -_BAR_HALF_Z_MM - _SUPPORT_H_MM
+#: The table: the Mikron UCP710's rotary table, a 600 mm disc (W z = 0 its face, centred on W's z axis),
+#: for the 3-axis machine too (vmc-3axis has no table model; a VMC's rectangular table is not modelled)
+_TABLE_R_MM = 300.0
 
 
 def _feet_rest_on(plan):
@@ -557,7 +560,9 @@ def _feet_rest_on(plan):
     face (W z = 0, within 1e-9 m) pressing down; a fixture block's name if the disc lies in the face
     of that block (an axis-aligned box, W) whose outward normal is z_A (the face turned to the bar:
     a riser's top, an angle plate's front) within 1e-9 m, the whole disc on the face; None: on
-    nothing. Also checks that every block stands on the table face (its bottom at W z = 0)."""
+    nothing. Also checks that every block stands on the table face (its bottom at W z = 0), and
+    that every block's corners and every foot's disc (seen from above: within its radius of its
+    centre) lie within the table's disc (:data:`_TABLE_R_MM`)."""
     out = {}
     tol = 1e-9 / MM  # 1e-9 m, in mm (rounding of poses built from mm figures, ~1e-13 m)
     for pl in plan.placements:
@@ -567,9 +572,13 @@ def _feet_rest_on(plan):
         blocks = plan.fixtures.get(pl, ())
         for b in blocks:
             assert abs(min(b.lo[2], b.hi[2])) <= 1e-9, (pl, b.name, "not standing on the table face")
+            lo, hi = np.array(b.lo) / MM, np.array(b.hi) / MM
+            assert max(np.hypot(x, y) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])) <= _TABLE_R_MM + tol, \
+                (pl, b.name, "off the table")
         rests = []
         for xs in _SUPPORT_X_MM:
             c = R @ np.array((xs, 0.0, _FOOT_Z_MM)) + p
+            assert np.hypot(c[0], c[1]) + _SUPPORT_R_MM <= _TABLE_R_MM + tol, (pl, "a foot off the table")
             on = None
             if np.allclose(z_A, (0.0, 0.0, 1.0), atol=1e-12) and abs(c[2]) <= tol:
                 on = "table"
@@ -667,6 +676,16 @@ def test_the_feet_check_sees_the_old_3axis_plan_floating():
     fx["X2"] = (dataclasses.replace(r, hi=(r.hi[0], r.hi[1], r.hi[2] + 1e-3)),)
     high = dataclasses.replace(S.plan_3axis(), fixtures=fx)
     assert _feet_rest_on(high)["X2"] == (None, None) and _fixtures_overlapping_the_bar(high) == [("X2", "riser")]
+    # a fixture off the table: Y2's riser (x -70..20, y -115..285 mm: its far corners 293.5 mm from the
+    # centre) moved 10 mm along +Y, still under both feet, its corner (-70, 295) 303.2 mm out
+    fx = dict(S.plan_3axis().fixtures)
+    r, = fx["Y2"]
+    fx["Y2"] = (dataclasses.replace(r, lo=(r.lo[0], r.lo[1] + 10 * MM, 0.0), hi=(r.hi[0], r.hi[1] + 10 * MM, r.hi[2])),)
+    with pytest.raises(AssertionError, match="off the table"):
+        _feet_rest_on(dataclasses.replace(S.plan_3axis(), fixtures=fx))
+    # and the table's radius by hand is the scene's (sim.mfb_scene's assumed Mikron disc)
+    from sim.mfb_scene import TABLE_R_M
+    assert _TABLE_R_MM * MM == TABLE_R_M
     # the gap by hand: unit half-size cubes 2.5 apart (0.5); one turned 45 deg about z, 3 apart: its
     # half extent along x is sqrt 2, so 3 - 1 - sqrt 2 (the axes of the turned one give less)
     I, c = np.eye(3), np.sqrt(0.5)
@@ -678,9 +697,46 @@ def test_the_feet_check_sees_the_old_3axis_plan_floating():
 
 
 def test_the_plan_check_sees_the_3axis_fixtures():
-    # a riser 75 mm taller (its top at 275 mm, above the bar's bottom face at 260 mm) is where the
-    # stylus passes on X2's rods: check_plan must fail it, not answer from the plan checked before
-    # (its kept checks were keyed by the measurements' names alone before session 11)
+    # a physically possible fault: a stop block on X2's riser (its top, 200 mm, to 275 mm: 5 mm below
+    # the bar's top face) 6 mm beside the bar's side face y = -10 mm, clear of the bar and its supports,
+    # where the stylus comes down to probe that face (ball 3 mm, approach start 3 mm out): check_plan
+    # must fail it, not answer from the plan checked before (its kept checks were keyed by the
+    # measurements' names alone before session 11)
+    import dataclasses
+
+    import scenarios.mfb as S
+    from sim.mfb_scene import Block
+
+    plan = S.plan_3axis()
+    assert S.check_plan(plan)["passed"]
+    fx = dict(plan.fixtures)
+    stop = Block("stop", (-10 * MM, -4 * MM, 200 * MM), (10 * MM, 5 * MM, 275 * MM))
+    fx["X2"] = fx["X2"] + (stop,)
+    with pytest.raises(PlanError, match="'X2'.*ball hits fix_stop"):
+        S.check_plan(dataclasses.replace(plan, fixtures=fx))
+
+
+def test_plans_of_other_workholding_are_other_plans():
+    # MfbPlan compares its fixtures (before session 11's review it did not: a plan without them
+    # compared equal to plan_3axis); equal plans hash equal (the hash leaves the dict out)
+    import dataclasses
+
+    import scenarios.mfb as S
+
+    plan = S.plan_3axis()
+    assert plan == S.plan_3axis() and hash(plan) == hash(S.plan_3axis())
+    assert plan != dataclasses.replace(plan, fixtures={})
+    fx = dict(plan.fixtures)
+    r, = fx["X2"]
+    fx["X2"] = (dataclasses.replace(r, hi=(r.hi[0], r.hi[1], r.hi[2] + 1e-6)),)
+    assert plan != dataclasses.replace(plan, fixtures=fx)
+
+
+def test_the_plan_check_refuses_a_fixture_running_into_the_bar():
+    # the workholding itself: X2's riser 1 mm too high (201 mm) runs 1 mm into both supports (their
+    # feet at 200 mm); 61 mm too high it passes through them and 1 mm into the bar. Neither is met by
+    # the probe (the fixtures are 60 mm from its paths), so before this check both passed. At its own
+    # height (the feet on its top face: touching, gap 0) the plan passes.
     import dataclasses
 
     import scenarios.mfb as S
@@ -689,9 +745,14 @@ def test_the_plan_check_sees_the_3axis_fixtures():
     assert S.check_plan(plan)["passed"]
     fx = dict(plan.fixtures)
     r, = fx["X2"]
-    fx["X2"] = (dataclasses.replace(r, hi=(r.hi[0], r.hi[1], 0.275)),)
-    with pytest.raises(PlanError, match="'X2'.*hits fix_riser"):
-        S.check_plan(dataclasses.replace(plan, fixtures=fx))
+    # the depth: the least overlap over the separating axes, by hand: 1 mm along z at 201 mm; at 261 mm
+    # the riser (x -200..200 mm) overlaps the support at x = 160.57 mm (radius 8) by 200 - 152.57 = 47.43
+    # mm along x, less than along y (53 mm) or z (60 mm)
+    for dz_mm, deep in ((1.0, "1.00"), (61.0, "47.43")):
+        fx["X2"] = (dataclasses.replace(r, hi=(r.hi[0], r.hi[1], r.hi[2] + dz_mm * MM)),)
+        with pytest.raises(PlanError, match=f"'X2'.*workholder block riser runs into the bar's support__\\d+ "
+                                            f"\\({deep} mm deep\\)"):
+            S.check_plan(dataclasses.replace(plan, fixtures=fx))
 
 
 def test_every_5axis_bar_stands_on_or_above_the_table_face_in_every_setup():
