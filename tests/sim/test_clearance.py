@@ -992,6 +992,24 @@ def test_no_sample_a_shared_part_skips_collides():
     assert got[3].collisions and got[3] == ref and all(r.ok for r in got[:3])
 
 
+def _longest_link_move(T_R_W, pl):
+    """(the measurement's segments (R), the longest level segment of its link moves (the move across
+    the bar at the clearance plane), that segment's middle sample (3,) R) of program ``pl`` on the
+    bar at FLAT with the table at ``T_R_W``, as sim.mfb_scene.check_measurements samples its paths."""
+    from sim import mfb_scene
+    from sim.mfb_scene import _paths_of, link_points
+
+    T_R_A = T_R_W @ FLAT
+    Xn = A.apply_T(T_R_A, pl.w_A + R * pl.wn_A)
+    start = Xn + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)
+    top = float(mfb_scene.artefact_points(BAR)[:, 2].max()) + R
+    L, cnt = link_points(T_R_A, start, pl.feature, pl.level, top)
+    sg, _, _, is_app = _paths_of([(start, Xn, L, cnt, pl)], 3e-3, 0.5e-3)[0]
+    link_seg = ~is_app[sg.path] & (sg.a[:, 2] == sg.b[:, 2]) & (sg.m > 2)
+    j = np.flatnonzero(link_seg)[np.argmax(np.linalg.norm((sg.b - sg.a)[link_seg], axis=1))]
+    return sg, j, sg.points(np.array([sg.first[j] + sg.m[j] // 2]))[0]
+
+
 @pytest.mark.parametrize("gap_um", [3.0, -3.0, 150.0])
 def test_a_near_miss_block_under_a_link_move_is_judged_as_mujoco_at_every_sample(gap_um):
     """Exactness of the plan check (sim.mfb_scene.check_measurements, what scenarios.mfb.check_plan
@@ -1004,19 +1022,10 @@ def test_a_near_miss_block_under_a_link_move_is_judged_as_mujoco_at_every_sample
     arm crosses the bar) checked in the same pass, and each result equal to MuJoCo at every sample
     and every pair (broad_phase=False): collisions, path points, least clearance."""
     from sim import mfb_scene
-    from sim.mfb_scene import Block, _paths_of, check_measurements, link_points
+    from sim.mfb_scene import Block, check_measurements
 
     T_R_W, J0, pl = _T_R_W(0, 0), (0, 0, 0.150), _holes(3, 4)
-    T_R_A = T_R_W @ FLAT
-    Xn = A.apply_T(T_R_A, pl.w_A + R * pl.wn_A)
-    start = Xn + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)
-    top = float(mfb_scene.artefact_points(BAR)[:, 2].max()) + R
-    L, cnt = link_points(T_R_A, start, pl.feature, pl.level, top)
-    sg, _, _, is_app = _paths_of([(start, Xn, L, cnt, pl)], 3e-3, 0.5e-3)[0]
-    # the longest level segment of a link move (the move across, at the clearance plane) and its middle sample
-    link_seg = ~is_app[sg.path] & (sg.a[:, 2] == sg.b[:, 2]) & (sg.m > 2)
-    j = np.flatnonzero(link_seg)[np.argmax(np.linalg.norm((sg.b - sg.a)[link_seg], axis=1))]
-    p_R = sg.points(np.array([sg.first[j] + sg.m[j] // 2]))[0]
+    _, _, p_R = _longest_link_move(T_R_W, pl)
     p_W = A.apply_T(A.inv_T(T_R_W), p_R[None])[0]
     top_W = p_W[2] - R - gap_um * 1e-6
     pillar = (Block("pillar", (p_W[0] - 0.5e-3, p_W[1] - 0.5e-3, 0.0), (p_W[0] + 0.5e-3, p_W[1] + 0.5e-3, top_W)),)
@@ -1063,18 +1072,10 @@ def test_a_pillar_touched_only_inside_a_link_move_by_the_extension_is_judged_as_
     import mujoco
 
     from sim import mfb_scene
-    from sim.mfb_scene import EXTENSION_R_M, Block, _paths_of, check_measurements, link_points
+    from sim.mfb_scene import EXTENSION_R_M, Block, check_measurements
 
     T_R_W, J0, pl = _T_R_W(0, 0), (0, 0, 0.150), _holes(3, 4)
-    T_R_A = T_R_W @ FLAT
-    Xn = A.apply_T(T_R_A, pl.w_A + R * pl.wn_A)
-    start = Xn + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)
-    top = float(mfb_scene.artefact_points(BAR)[:, 2].max()) + R
-    L, cnt = link_points(T_R_A, start, pl.feature, pl.level, top)
-    sg, _, _, is_app = _paths_of([(start, Xn, L, cnt, pl)], 3e-3, 0.5e-3)[0]
-    link_seg = ~is_app[sg.path] & (sg.a[:, 2] == sg.b[:, 2]) & (sg.m > 2)
-    j = np.flatnonzero(link_seg)[np.argmax(np.linalg.norm((sg.b - sg.a)[link_seg], axis=1))]
-    p_R = sg.points(np.array([sg.first[j] + sg.m[j] // 2]))[0]
+    sg, j, p_R = _longest_link_move(T_R_W, pl)
     W_R = A.inv_T(T_R_W)
     p_W, a_W, b_W = A.apply_T(W_R, np.array([p_R, sg.a[j], sg.b[j]]))
     u = (b_W - a_W) / np.linalg.norm(b_W - a_W)
