@@ -72,6 +72,12 @@ class Block:
     lo: tuple
     hi: tuple
 
+    def __post_init__(self):
+        # corners kept as tuples of floats whatever they were given as (numpy arrays too): the block
+        # is hashed as a key of the plan-check and work-zone caches
+        object.__setattr__(self, "lo", tuple(map(float, self.lo)))
+        object.__setattr__(self, "hi", tuple(map(float, self.hi)))
+
 
 @dataclass(frozen=True)
 class CheckResult:

@@ -204,6 +204,16 @@ def _turned(deg_y, deg_z, pos):
     return A.make_T(Rz @ Ry, pos)
 
 
+def test_a_block_given_numpy_corners_is_hashable_and_checked():
+    # the corners kept as tuples of floats: the block keys the work-zone and plan-check caches
+    lo, hi = np.array((-0.040, 0.060, 0.0)), np.array((0.240, 0.100, 0.060))
+    b = Block("b", lo, hi)
+    assert hash(b) == hash(Block("b", tuple(lo), tuple(hi))) and b == Block("b", tuple(lo), tuple(hi))
+    assert type(b.lo) is tuple and all(type(v) is float for v in b.lo + b.hi)
+    r = check_measurement("X1", BAR, FLAT, _T_R_W(0, 0), (b,), (0, 0, 0.150), R, _holes(1))
+    assert r.ok, r.collisions  # (under the body between the supports, touching its bottom face)
+
+
 @pytest.mark.parametrize("pose", ["flat", "turned"])
 def test_block_overlaps_agree_with_mujocos_distances(pose):
     # truth apart from the separating axes: MuJoCo's signed distance (mj_geomDistance) of each block to
