@@ -742,9 +742,10 @@ def block_overlaps(artefact, T_W_A, blocks) -> list:
     a block overlaps a solid when along every axis their projections overlap by more than
     :data:`sim.scene.COLLISION_TOL_M`; the depth is the least of those overlaps. A foot standing
     on a block's face touches it (0 m): not an overlap. A cylinder (a support, a rod) is taken as
-    its square prism (side 2 r, on its axis): never cleared when it overlaps; a block may be
-    refused when an edge of it passes obliquely within r (sqrt 2 - 1) of the round side (3.3 mm
-    for the MFB's 8 mm supports)."""
+    its square prism (side 2 r, on its axis), a sphere as its cube (side 2 r): never cleared when
+    it overlaps; a block may be refused when an edge of it passes obliquely within r (sqrt 2 - 1)
+    of a cylinder's round side (3.3 mm for the MFB's 8 mm supports), within r (sqrt 3 - 1) of a
+    sphere."""
     if not blocks:
         return []
     sol = _solid_table(artefact)
@@ -753,6 +754,8 @@ def block_overlaps(artefact, T_W_A, blocks) -> list:
     cyl = np.array([k == "cylinder" for k in sol.kinds])
     H = sol.size3.copy()
     H[cyl] = sol.size3[cyl][:, [0, 0, 1]]  # (r, h/2) -> the prism's half sizes (r, r, h/2)
+    sph = np.array([k == "sphere" for k in sol.kinds])
+    H[sph] = sol.size3[sph][:, [0, 0, 0]]  # (r, 0, 0) -> the cube's half sizes (r, r, r)
     I = np.broadcast_to(np.eye(3), Rs.shape)
     # per solid the 15 axes (rows): the block's normals (W axes), the solid's, their cross products
     L = np.concatenate([I, np.swapaxes(Rs, 1, 2), np.cross(np.eye(3)[None, :, None, :],

@@ -204,6 +204,28 @@ def _turned(deg_y, deg_z, pos):
     return A.make_T(Rz @ Ry, pos)
 
 
+def test_block_overlaps_takes_a_sphere_as_its_cube():
+    # the cross pocket's precision sphere 1 (r 12.7 mm; A = W): a 2 mm cube centred 0.5 r above the
+    # sphere's centre runs into it 0.5 r + 1 mm = 7.35 mm deep (the sphere's top r above the centre, the
+    # cube's bottom 0.5 r - 1 mm: the real sphere's depth too, as its radius at the cube's bottom,
+    # sqrt(r^2 - (0.5 r - 1 mm)^2) = 11.5 mm, + 1 mm is more); the cube 0.5 mm above the sphere's top is
+    # clear. Before, a sphere was taken as a segment (half sizes (r, 0, 0)): the first case was clear
+    from sim.mfb_scene import _solid_table, block_overlaps
+
+    cp = A.cross_pocket()
+    k = _solid_table(cp).names.index("sphere1__9")
+    r, c0, h = _solid_table(cp).size3[k, 0], np.array(cp.solids[k].pos), 1e-3
+    assert cp.solids[k].kind == "sphere" and r == pytest.approx(12.7e-3)
+
+    def ov(dz):
+        c = c0 + (0.0, 0.0, dz)
+        return block_overlaps(cp, np.eye(4), (Block("cube", tuple(c - h), tuple(c + h)),))
+
+    (_, solid, dep), = ov(0.5 * r)
+    assert solid == "sphere1__9" and dep == pytest.approx(0.5 * r + h, abs=1e-12)
+    assert ov(r + h + 0.5e-3) == []
+
+
 def test_a_block_given_numpy_corners_is_hashable_and_checked():
     # the corners kept as tuples of floats: the block keys the work-zone and plan-check caches
     lo, hi = np.array((-0.040, 0.060, 0.0)), np.array((0.240, 0.100, 0.060))
