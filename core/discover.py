@@ -2644,7 +2644,11 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     independent trials, ``scan_tries``, times the causes tried); where
     the scans are paths (:attr:`core.causes.Scan.path`) and the candidate
     is significant, the scans' count is raised to :func:`_path_tries`'s
-    where that is larger.
+    where that is larger. Scans marked ``extends_previous`` follow the scan
+    they nest (part_change's walls shifting, then turning, then bowing) and
+    are no trials: each is tested only beyond the one before it (F test at
+    ``alpha_family``) and taken where it also lowers the held-out mean
+    square below the layout taken so far.
     """
     rows = st.rows
     best = None
