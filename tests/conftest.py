@@ -101,16 +101,19 @@ def pytest_sessionstart(session):
     if state is None:  # --assert=plain
         return
     patterns, skip = config.getini("python_files"), config.getini("norecursedirs")
-    for fn in sorted((_ROOT / "tests").rglob("*.py")):
-        if any(fnmatch.fnmatch(part, pat) for part in fn.relative_to(_ROOT / "tests").parts[:-1] for pat in skip):
-            continue
-        if fn.name != "conftest.py" and not any(fnmatch.fnmatch(fn.name, pat) for pat in patterns):
-            continue
-        cache = get_cache_dir(fn)
-        pyc = cache / (fn.name[:-3] + PYC_TAIL)
-        if try_makedirs(cache) and _read_pyc(fn, pyc) is None:
-            source_hash, co = _rewrite_test(fn, config)
-            _write_pyc(state, co, source_hash, pyc)
+    try:  # a speed-up only: a private function whose signature changed must not stop the run
+        for fn in sorted((_ROOT / "tests").rglob("*.py")):
+            if any(fnmatch.fnmatch(part, pat) for part in fn.relative_to(_ROOT / "tests").parts[:-1] for pat in skip):
+                continue
+            if fn.name != "conftest.py" and not any(fnmatch.fnmatch(fn.name, pat) for pat in patterns):
+                continue
+            cache = get_cache_dir(fn)
+            pyc = cache / (fn.name[:-3] + PYC_TAIL)
+            if try_makedirs(cache) and _read_pyc(fn, pyc) is None:
+                source_hash, co = _rewrite_test(fn, config)
+                _write_pyc(state, co, source_hash, pyc)
+    except (TypeError, AttributeError, ValueError) as e:
+        warnings.warn(pytest.PytestWarning(f"test files' asserts not rewritten before the workers start: {e!r}"))
 
 
 def _conftest_session_fixtures(item) -> set:
