@@ -204,9 +204,9 @@ def test_gen_a_part_change_904_outliers_not_confidently_dust():
     """The development miss the outliers' place rule was written from: gen_a part_change 904, the relaxing
     boss's three largest residuals (two set-ups) judged dust, `outlier`, confident; its other touches carry
     the structure (the boss's walls per set-up, p < 1e-6), so the outliers were made ambiguous (the rule
-    itself: test_outliers_on_a_feature_that_moves_are_not_confidently_dust). The boss (eight targets, one per 45 deg sector) had no part_change
-    column; with the ring's size and ovalisation columns the change is named on the boss, and no outlier is
-    called dust confidently."""
+    itself: test_outliers_on_a_feature_that_moves_are_not_confidently_dust). The boss (eight targets, one
+    per 45 deg sector) had no part_change column; with the ring's ovalisation columns the change is named
+    on the boss, and no outlier is called dust confidently."""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
@@ -486,9 +486,10 @@ def test_gen_a_reseat_hysteresis_876_outliers_not_confidently_dust():
 
 def test_part_change_ring_columns():
     """A ring (a boss or a bore) whose 45 deg sectors do not each hold two targets has no wall column; its
-    size and ovalisation changing with time are its columns instead (``tau``, ``tau cos 2 theta``, ``tau sin 2
-    theta`` on its touches, theta its normal's azimuth in the part's frame). gen_a none 1017's boss (eight
-    targets, one per sector): one scan, those three columns' span exactly (to 1e-9 of their norm: rounding).
+    ovalisation changing with time is its columns instead (``tau cos 2 theta``, ``tau sin 2 theta`` on its
+    touches, theta its normal's azimuth in the part's frame), its size not (a probe's pre-travel drifting
+    changes every feature's size). gen_a none 1017's boss (eight targets, one per sector): one scan, an
+    ovalisation of any axis in its span (to 1e-9 of its norm: rounding), a size change mostly not.
     Hand-made rings: eight points on a circle are one; the same points moved along one normal by 1 % of the
     radius are not (a flat wall's places, a blade's curve); four points 90 deg apart are a ring whose
     ovalisation's axis cannot be seen (``cos 2 theta`` and ``sin 2 theta`` one column up to sign), no ring
@@ -507,8 +508,10 @@ def test_part_change_ring_columns():
     tau = (t.t_s - t.t_s.min()) / np.ptp(t.t_s)
     th = np.arctan2(t.wn_A[:, 1], t.wn_A[:, 0])
     Q = orth_of(scans[0].build([0])[0])
-    for y in (boss * tau, boss * tau * np.cos(2 * th - 0.4)):
-        assert np.linalg.norm(y - Q @ (Q.T @ y)) < 1e-9 * np.linalg.norm(y)
+    y = boss * tau * np.cos(2 * th - 0.4)
+    assert np.linalg.norm(y - Q @ (Q.T @ y)) < 1e-9 * np.linalg.norm(y)
+    y = boss * tau
+    assert np.linalg.norm(y - Q @ (Q.T @ y)) > 0.9 * np.linalg.norm(y)
     a = np.linspace(0, 2 * np.pi, 8, endpoint=False) + 0.3
     n = np.column_stack([np.cos(a), np.sin(a)])
     w = np.array([3.0, -2.0]) + 12.0 * n
@@ -530,12 +533,12 @@ def test_part_change_ring_columns():
 
 def test_gen_a_part_change_1017_a_boss_ovalising_named():
     """The tuning miss this was written from: gen_a part_change 1017 (5.6 sigma visible), the boss (eight
-    targets, one per 45 deg sector) ovalising, read as something else: part_change had no column on it (two
-    targets per sector were needed on a feature of eight or more). Noise-free, the ring's size and
-    ovalisation growing with time explain 97 % of the change outside the baseline, the best one-off slip 6 %.
-    With the ring's columns the change is named on the boss, and its ovalisation, its axis and its size
-    agree with the generator's (the second harmonic and the mean of its change at the boss's targets at the
-    campaign's end, from the truth's workpiece at the start and the end: 8.86 um at 117.9 deg, size 0)
+    targets, one per 45 deg sector) ovalising, read `outlier`: part_change had no column on it (two
+    targets per sector were needed on a feature of eight or more). Noise-free, the ring's
+    ovalisation growing with time explains 97 % of the change outside the baseline, the best one-off slip 6 %.
+    With the ring's columns the change is named on the boss, and its ovalisation and its axis agree with the
+    generator's (the second harmonic of its change at the boss's targets at the campaign's end, from the
+    truth's workpiece at the start and the end, fitted here beside a size: 8.86 um at 117.9 deg, size 0)
     within their U95."""
     from core.baseline import extra_columns
     from core.touches import from_log
@@ -554,7 +557,6 @@ def test_gen_a_part_change_1017_a_boss_ovalising_named():
     c = np.linalg.lstsq(np.column_stack([np.ones_like(th), np.cos(2 * th), np.sin(2 * th)]),
                         np.array([d[k] for k in ids]), rcond=None)[0]
     p, u = f["params"], f["params_u95"]
-    assert abs(p["size_change_um"] - c[0]) <= u["size_change_um"], (p, c)
     assert abs(p["ovalisation_um"] - np.hypot(c[1], c[2])) <= u["ovalisation_um"], (p, c)
     axis = np.degrees(0.5 * np.arctan2(c[2], c[1])) % 180.0
     assert abs((p["ovalisation_axis_deg"] - axis + 90.0) % 180.0 - 90.0) <= u["ovalisation_axis_deg"], (p, axis)
