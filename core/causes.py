@@ -1149,6 +1149,9 @@ FLAT_WALL_RAD = 1e-4
 #: A flat wall bows (:func:`part_change_scans`) only where its targets sit at this many distinct places along it
 #: (places closer than ``WALL_TURN_MIN`` of the feature's extent are one): a second-order displacement along the
 #: wall needs three places to differ from a shift and a turn; on two the bow's column is a combination of theirs.
+#: On exactly three places shift, turn and bow are three numbers for three places: they fit any separate linear
+#: drift of the three targets, so the bow is there a change of form, not a shape tested; from four places on the
+#: parabola is over-determined (tests/core/test_discover_misses.py: a six-target wall).
 WALL_BOW_PLACES = 3
 
 #: A feature is a ring (:func:`part_change_scans`: a boss or a bore) when its targets' nominal contact points
@@ -1202,8 +1205,10 @@ def part_change_scans(bl):
     turn 97-100 %). ``b`` is the wall bowing: a thin wall held at its ends
     (by the part's corners) that relaxes deflects most in its middle, like a
     beam between its supports, a normal displacement of second order along
-    the wall (the parabola is a beam's deflection to first order, and any
-    smooth deflection's even part to second order). Noise-free, on gen_a's
+    the wall (any smooth deflection's even part to second order: a parabola
+    explains 99.7 % of a simply supported beam's deflection under an even
+    load and 95 % of a clamped one's; shift and turn are free, so the form
+    is a general quadratic, the ends not held). Noise-free, on gen_a's
     bowing walls at tuning seeds 1000-1049 the shifts explained 31-76 % of
     the change outside the baseline, the shifts and turns 48-99 %, with the
     bows 74-100 % (95-100 % on six of seven); on the simulator's bump over a
@@ -1244,9 +1249,10 @@ def part_change_scans(bl):
     the shifts with the turns follow as a richer scan (``extends_previous``),
     and where one can bow, the shifts, turns and bows as a richer one still,
     neither a trial of its own: :func:`core.discover._evaluate` takes each
-    only where its new columns are significant beyond the scan it extends
-    (F test at ``alpha_family``) and it lowers the held-out mean square
-    below the layout taken so far. Taken unconditionally the turns fitted a
+    only where its new columns are significant beyond the layout taken so
+    far (F test at ``alpha_family``: the bows with the turns when the turns
+    were not taken) and it lowers the held-out mean square below that
+    layout. Taken unconditionally the turns fitted a
     bow's asymmetric part in-sample and lost out of it (sim part_change
     3106: held-out gain -0.0135 um^2, lobing_per_setup named). Parameters:
     each wall's change over the campaign (um, positive outwards: material
@@ -1307,8 +1313,8 @@ def part_change_scans(bl):
         if cols:
             # nested: the walls shifting alone (the trial); where a wall can turn, shifting and turning; where one
             # can bow, shifting, turning and bowing: richer scans that are no trials of their own (not counted
-            # below), each taken only where its new columns are significant beyond the scan it extends and it
-            # lowers the held-out mean square
+            # below), each taken only where its new columns are significant beyond the layout taken so far and
+            # it lowers the held-out mean square
             info = {"feature": str(f), "walls_deg": tuple(walls)}
             layouts = [(0, (), ())] + ([(1, tuple(turns), ())] if turns else []) + (
                 [(2, tuple(turns), tuple(bows))] if bows else [])

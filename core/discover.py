@@ -2646,9 +2646,9 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     is significant, the scans' count is raised to :func:`_path_tries`'s
     where that is larger. Scans marked ``extends_previous`` follow the scan
     they nest (part_change's walls shifting, then turning, then bowing) and
-    are no trials: each is tested only beyond the one before it (F test at
-    ``alpha_family``) and taken where it also lowers the held-out mean
-    square below the layout taken so far.
+    are no trials: each is tested beyond the layout taken so far (F test at
+    ``alpha_family`` of all its columns that layout lacks) and taken where
+    it also lowers the held-out mean square below that same layout.
     """
     rows = st.rows
     best = None
@@ -2676,8 +2676,10 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     si = best[7][0]
     # richer trials nesting the chosen one (part_change's walls turning beside their shifting, then bowing as
     # well), no trials of their own (not counted in the scan's tries): each is taken when its new columns are
-    # significant beyond the scan it extends at alpha_family and it lowers the held-out mean square below the
-    # layout taken so far; its own F test is then the candidate's
+    # significant beyond the layout taken so far at alpha_family (where the turns were not taken, the bows are
+    # tested with the turns, both new) and it lowers the held-out mean square below that same layout; its own F
+    # test is then the candidate's. Each such step is one test at alpha_family with no correction (two per
+    # feature at most): the held-out condition bounds what a chance pass can do
     ext_test, ext_cols = single, sc.build([i])[0]
     cur_cols = ext_cols
     held_cur = None
@@ -2697,7 +2699,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
                     p_val, F_val, k_val, sc, i, single = (float(t_f[3][0]), float(t_f[2][0]), int(t_f[1][0]), rich,
                                                           0, t_f)
                     cur_cols, held_cur = rich_cols, held[-1]
-        ext_test, ext_cols = t_f, rich_cols
+                    ext_test, ext_cols = t_f, rich_cols  # the next richer scan is tested beyond this layout
     info = sc.infos[i]
     cols = sc.build([i])[0]
     # single: the F test of the chosen trial's own columns, made once (refined, beside families, counter)
