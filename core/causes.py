@@ -1169,8 +1169,9 @@ RING_FIT_REL = 1e-3
 #: theta`` and ``sin 2 theta`` one column up to sign (singular value 0): the axis of an ovalisation is not
 #: seen there. Five or more azimuths spread over the circle give 0.5-1; 0.1 refuses only designs close to
 #: that degenerate one. Defensive: the ring's columns are tried only where a sector lacks a wall, and a
-#: feature of fewer than eight targets has every sector holding a target a wall, so the four-azimuth
-#: design never reaches this test from part_change_scans today.
+#: feature of fewer than eight targets has every sector holding a target a wall, so a four-target pin or
+#: bore never reaches this test; only a feature of eight targets or more on few azimuths, one sector
+#: holding a single target, could.
 RING_HARMONIC_SV = 0.1
 
 
