@@ -1598,7 +1598,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         key = tuple(rows_.tolist()) if len(rows_) != N else None
         if key not in cache:
             Qb = orth_of(bl.A[rows_]) if key is not None else Qall
-            est = (Folds if use_cv else CpEstimate)(bl.A[rows_], bl.groups[rows_], settings.cv_seen,
+            # every row of a long log's block design: the design itself, whose basis (Qall's, kept by the design)
+            # the folds share, not a copy of its rows factored again (the same numbers: the same rows in order)
+            A_r = bl.A if key is None and isinstance(bl.A, BlockDesign) else bl.A[rows_]
+            est = (Folds if use_cv else CpEstimate)(A_r, bl.groups[rows_], settings.cv_seen,
                                                        settings.cv_seen_extension)
             if not use_cv:
                 est.set_sigma(y[rows_])
