@@ -407,6 +407,39 @@ def test_folds_block_path_is_the_dense_one_on_a_well_posed_design():
         np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
 
 
+def test_folds_of_a_log_probed_once_per_target_and_setup_by_the_svd_of_the_dense_rows(monkeypatch):
+    """A long log probed once per target and set-up (the benchmark's generator: 150 targets at 8 C angles, forced
+    through the block design): every fold is made from the SVD of the basis's dense rows (the hat block's
+    indicator part is a multiple of the identity), not the eigh of the hat block, and gives the same held-out
+    residuals and dof as the dense design's folds (a different algorithm: orth of the formed matrix, each
+    fold's eigh) and as the block path's general fold, to 1e-12 relative, with and without an extension."""
+    from core import baseline as Bm
+    from core import discover as X
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    t = from_log(large_log(150, 8, np.random.default_rng(19)))
+    dense = Bm.planar(t)
+    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
+    block = Bm.planar(t)
+    seen = X.Settings().cv_seen
+    made = []
+    quick = X.Folds._fold_indicators_scalar
+    monkeypatch.setattr(X.Folds, "_fold_indicators_scalar", lambda self, te: made.append(quick(self, te)) or made[-1])
+    fast = X.Folds(block.A, block.groups, seen)
+    assert len(made) == 8 and all(f is not None and f.m > 0 for f in made)  # every fold, a cluster kept implicit
+    monkeypatch.setattr(X.Folds, "_fold_indicators_scalar", lambda self, te: None)
+    general, ref = X.Folds(block.A, block.groups, seen), X.Folds(dense.A, dense.groups, seen)
+    rng = np.random.default_rng(3)
+    Y, E = rng.normal(size=(t.n, 2)), rng.normal(size=(t.n, 2))
+    for args in ((Y,), (Y, E), (block.y,)):
+        a = ref.residuals(*args)
+        for folds in (fast, general):
+            b = folds.residuals(*args)
+            assert folds.last_dof == ref.last_dof
+            np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
+
+
 def test_planar_block_design_and_its_constrained_fit_are_the_dense_ones(monkeypatch):
     """A long planar log's baseline (forced here on 480 touches) keeps the same design as a BlockDesign (the
     targets' block), chooses the same grid with the same rank, and its gauge-constrained workpiece fit (solved
