@@ -992,6 +992,24 @@ def test_no_sample_a_shared_part_skips_collides():
     assert got[3].collisions and got[3] == ref and all(r.ok for r in got[:3])
 
 
+def _longest_link_move(T_R_W, pl):
+    """(the measurement's segments (R), the longest level segment of its link moves (the move across
+    the bar at the clearance plane), that segment's middle sample (3,) R) of program ``pl`` on the
+    bar at FLAT with the table at ``T_R_W``, as sim.mfb_scene.check_measurements samples its paths."""
+    from sim import mfb_scene
+    from sim.mfb_scene import _paths_of, link_points
+
+    T_R_A = T_R_W @ FLAT
+    Xn = A.apply_T(T_R_A, pl.w_A + R * pl.wn_A)
+    start = Xn + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)
+    top = float(mfb_scene.artefact_points(BAR)[:, 2].max()) + R
+    L, cnt = link_points(T_R_A, start, pl.feature, pl.level, top)
+    sg, _, _, is_app = _paths_of([(start, Xn, L, cnt, pl)], 3e-3, 0.5e-3)[0]
+    link_seg = ~is_app[sg.path] & (sg.a[:, 2] == sg.b[:, 2]) & (sg.m > 2)
+    j = np.flatnonzero(link_seg)[np.argmax(np.linalg.norm((sg.b - sg.a)[link_seg], axis=1))]
+    return sg, j, sg.points(np.array([sg.first[j] + sg.m[j] // 2]))[0]
+
+
 @pytest.mark.parametrize("gap_um", [3.0, -3.0, 150.0])
 def test_a_near_miss_block_under_a_link_move_is_judged_as_mujoco_at_every_sample(gap_um):
     """Exactness of the plan check (sim.mfb_scene.check_measurements, what scenarios.mfb.check_plan
@@ -1004,19 +1022,10 @@ def test_a_near_miss_block_under_a_link_move_is_judged_as_mujoco_at_every_sample
     arm crosses the bar) checked in the same pass, and each result equal to MuJoCo at every sample
     and every pair (broad_phase=False): collisions, path points, least clearance."""
     from sim import mfb_scene
-    from sim.mfb_scene import Block, _paths_of, check_measurements, link_points
+    from sim.mfb_scene import Block, check_measurements
 
     T_R_W, J0, pl = _T_R_W(0, 0), (0, 0, 0.150), _holes(3, 4)
-    T_R_A = T_R_W @ FLAT
-    Xn = A.apply_T(T_R_A, pl.w_A + R * pl.wn_A)
-    start = Xn + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)
-    top = float(mfb_scene.artefact_points(BAR)[:, 2].max()) + R
-    L, cnt = link_points(T_R_A, start, pl.feature, pl.level, top)
-    sg, _, _, is_app = _paths_of([(start, Xn, L, cnt, pl)], 3e-3, 0.5e-3)[0]
-    # the longest level segment of a link move (the move across, at the clearance plane) and its middle sample
-    link_seg = ~is_app[sg.path] & (sg.a[:, 2] == sg.b[:, 2]) & (sg.m > 2)
-    j = np.flatnonzero(link_seg)[np.argmax(np.linalg.norm((sg.b - sg.a)[link_seg], axis=1))]
-    p_R = sg.points(np.array([sg.first[j] + sg.m[j] // 2]))[0]
+    _, _, p_R = _longest_link_move(T_R_W, pl)
     p_W = A.apply_T(A.inv_T(T_R_W), p_R[None])[0]
     top_W = p_W[2] - R - gap_um * 1e-6
     pillar = (Block("pillar", (p_W[0] - 0.5e-3, p_W[1] - 0.5e-3, 0.0), (p_W[0] + 0.5e-3, p_W[1] + 0.5e-3, top_W)),)
@@ -1043,3 +1052,61 @@ def test_a_near_miss_block_under_a_link_move_is_judged_as_mujoco_at_every_sample
         assert near.min_table_clearance_mm > 1.0
     if gap_um < 0:
         assert any("ball hits fix_pillar" in c for c in near.collisions), near.collisions
+
+
+@pytest.mark.parametrize("gap_um", [3.0, -3.0, 150.0])
+def test_a_pillar_touched_only_inside_a_link_move_by_the_extension_is_judged_as_mujoco_at_every_sample(gap_um):
+    """Exactness of the plan check for a geom of the probe other than the ball (the rest broad phase,
+    sim.mfb_scene.WorkZone.clearance(part="rest")) where only the inside of a swept segment comes near:
+    a workholder pillar 1 mm square beside the longest level link move across the bar (along x_W or
+    y_W), its near face
+    ``gap_um`` from the side of the probe's vertical extension (a capsule of EXTENSION_R_M about the
+    tip's vertical, 50-110 mm above the tip) at the move's middle sample, the pillar's top 80 mm above
+    the tip (below the probe body, beside the stem and ball). Hand-worked: at that sample MuJoCo's
+    distance extension-pillar is the gap (capsule against box: exact primitives); at the samples 3 mm
+    either side it is about 0.6 mm, and at the segment's two ends (the link move's corners) more than
+    10 mm, so a broad phase that bounded a segment by its ends, or skipped it because its ends are
+    clear, misses it. -3 um: a collision of the extension with the pillar, reported; 3 um: no
+    collision (MuJoCo judges it: inside the margin); 150 um: clear. Each time the result is MuJoCo's at
+    every sample and every pair (broad_phase=False): collisions, path points, least clearance."""
+    import mujoco
+
+    from sim import mfb_scene
+    from sim.mfb_scene import EXTENSION_R_M, Block, check_measurements
+
+    T_R_W, J0, pl = _T_R_W(0, 0), (0, 0, 0.150), _holes(3, 4)
+    sg, j, p_R = _longest_link_move(T_R_W, pl)
+    W_R = A.inv_T(T_R_W)
+    p_W, a_W, b_W = A.apply_T(W_R, np.array([p_R, sg.a[j], sg.b[j]]))
+    u = (b_W - a_W) / np.linalg.norm(b_W - a_W)
+    ax = int(np.argmax(np.abs(u[:2])))  # the move runs along x_W or y_W (the construction), the pillar beside it
+    assert abs(u[ax]) == pytest.approx(1.0, abs=1e-12)
+    lo, hi = np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, p_W[2] + 0.080])
+    lo[ax], hi[ax] = p_W[ax] - 0.5e-3, p_W[ax] + 0.5e-3
+    hi[1 - ax] = p_W[1 - ax] - EXTENSION_R_M - gap_um * 1e-6  # the near face, beside the extension's side
+    lo[1 - ax] = hi[1 - ax] - 1e-3
+    pillar = (Block("pillar", tuple(lo), tuple(hi)),)
+    items = [("near", FLAT, T_R_W, pillar, J0, pl, 0.0),
+             ("clear", FLAT, _T_R_W(0, 90), (), J0, _holes(6), 0.0)]
+    mfb_scene._ZONES.clear()
+    mfb_scene._BALLS.clear()
+    got = check_measurements(BAR, items, R)
+    ref = [check_measurement(it[0], BAR, *it[1:5], R, *it[5:], broad_phase=False) for it in items]
+    assert got == ref
+    near, clear = got
+    assert clear.ok
+    wz = mfb_scene._work_zone(BAR, FLAT, pillar, J0, R, 0.0)
+    wz.set_table(T_R_W)
+
+    def dist(q_R):
+        wz.set_tip(q_R)
+        return mujoco.mj_geomDistance(wz.model, wz.data, wz._names.index("extension"), wz._names.index("fix_pillar"),
+                                      0.05, None)
+
+    assert abs(dist(p_R) - gap_um * 1e-6) <= 1e-12
+    step = (sg.b[j] - sg.a[j]) / sg.k[j]
+    assert min(dist(p_R - step), dist(p_R + step)) > 0.5e-3
+    assert min(dist(sg.a[j]), dist(sg.b[j])) > 10e-3  # only the segment's inside comes near
+    assert near.ok == (gap_um > 0)
+    if gap_um < 0:
+        assert near.collisions == ref[0].collisions and "extension hits fix_pillar" in near.collisions[0]
