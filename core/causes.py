@@ -1146,6 +1146,14 @@ WALL_TURN_MIN = 1e-3
 #: over 50 mm departs from flat by 0.6 um. Any value between says the same: 1e-4.
 FLAT_WALL_RAD = 1e-4
 
+#: A flat wall bows (:func:`part_change_scans`) only where its targets sit at this many distinct places along it
+#: (places closer than ``WALL_TURN_MIN`` of the feature's extent are one): a second-order displacement along the
+#: wall needs three places to differ from a shift and a turn; on two the bow's column is a combination of theirs.
+#: On exactly three places shift, turn and bow are three numbers for three places: they fit any separate linear
+#: drift of the three targets, so the bow is there a change of form, not a shape tested; from four places on the
+#: parabola is over-determined (tests/core/test_discover_misses.py: a six-target wall).
+WALL_BOW_PLACES = 3
+
 
 def part_change_scans(bl):
     """The part itself changing during the campaign: one feature's form drifting with time.
@@ -1155,36 +1163,51 @@ def part_change_scans(bl):
     Each wall (the targets of the feature whose normal in the part's frame
     points into one 45 deg sector; two targets at least on a feature of
     eight or more, any on a smaller one) moves linearly with the time since
-    the first touch: ``dq_i += (v_wall + w_wall a_i) t``, ``a_i`` the target's
-    place along the wall (its nominal contact point in the part's frame on
-    the sector's tangent, centred on the wall's targets and scaled to -1..1).
-    ``v`` is the wall shifting, ``w`` the wall turning: the two normal
-    displacements a straight wall moving in the plane has (a slot's wall
-    relaxing more at its open end than at its closed one; gen_b's slot
-    closes 0.1 to 1 times its closure from one end to the other, and a
-    shift alone explained 45-70 % of that part change's signal outside the
-    baseline at seeds 1000-1013, a one-off slip of the part 76-84 %, so
-    the slip was adopted as the plainer explanation; with the turn 97-100 %).
+    the first touch: ``dq_i += (v_wall + w_wall a_i - b_wall a_i^2) t``,
+    ``a_i`` the target's place along the wall (its nominal contact point in
+    the part's frame on the sector's tangent, scaled to -1..1 over the
+    wall's targets). ``v`` is the wall shifting, ``w`` the wall turning: the
+    two normal displacements a straight wall moving in the plane has (a
+    slot's wall relaxing more at its open end than at its closed one;
+    gen_b's slot closes 0.1 to 1 times its closure from one end to the
+    other, and a shift alone explained 45-70 % of that part change's signal
+    outside the baseline at seeds 1000-1013, a one-off slip of the part
+    76-84 %, so the slip was adopted as the plainer explanation; with the
+    turn 97-100 %). ``b`` is the wall bowing: a thin wall held at its ends
+    (by the part's corners) that relaxes deflects most in its middle, like a
+    beam between its supports, a normal displacement of second order along
+    the wall (any smooth deflection's even part to second order: a parabola
+    explains 99.7 % of a simply supported beam's deflection under an even
+    load and 95 % of a clamped one's; shift and turn are free, so the form
+    is a general quadratic, the ends not held). Noise-free, on gen_a's
+    bowing walls at tuning seeds 1000-1049 the shifts explained 31-76 % of
+    the change outside the baseline, the shifts and turns 48-99 %, with the
+    bows 74-100 % (95-100 % on six of seven); on the simulator's bump over a
+    wall's middle 66-67 %, 77-81 %, 87-90 % (seeds 3000-3005, 3106, 3113).
     The turn is a column only where the wall's targets span a length
     (``WALL_TURN_MIN`` of the feature's extent: a pin's or a bore's sector
     holds one target, no length) and share one normal (``FLAT_WALL_RAD``:
-    a flat wall, not a curved surface's sector). Set-up by set-up a rigid motion of
-    the part is the set-up's own C-axis offsets; a wall moving against the
-    others is not. This is an error of the workpiece, never of the machine:
-    the extended model's workpiece is the form at the first touch.
+    a flat wall, not a curved surface's sector); the bow only where a wall
+    that turns has ``WALL_BOW_PLACES`` distinct places. Set-up by set-up a
+    rigid motion of the part is the set-up's own C-axis offsets; a wall
+    moving against the others is not. This is an error of the workpiece,
+    never of the machine: the extended model's workpiece is the form at the
+    first touch.
     One trial per feature: the walls shifting. Where a flat wall can turn,
     the shifts with the turns follow as a richer scan (``extends_previous``),
-    no trial of its own: :func:`core.discover._evaluate` takes it only where
-    the turns are significant beyond the shifts (F test at ``alpha_family``)
-    and lower the held-out mean square. The turn is exactly gen_b's form
-    (a shift and a linear taper along the wall); a wall that bows (second
-    order: gen_a's parabolic bow, the simulator's bump over the wall's
-    middle) is not covered, and there an unconditional turn fitted the bow's
-    asymmetric part in-sample and lost out of it (sim part_change 3106: held-out
-    gain -0.0135 um^2, lobing_per_setup named). Parameters: each wall's change over the
-    campaign (um, positive outwards: material growing towards the stylus)
-    at its middle, and its turn (the change at the wall's ends less that at
-    its middle, um: + at the end of larger ``a``).
+    and where one can bow, the shifts, turns and bows as a richer one still,
+    neither a trial of its own: :func:`core.discover._evaluate` takes each
+    only where its new columns are significant beyond the layout taken so
+    far (F test at ``alpha_family``: the bows with the turns when the turns
+    were not taken) and it lowers the held-out mean square below that
+    layout. Taken unconditionally the turns fitted a
+    bow's asymmetric part in-sample and lost out of it (sim part_change
+    3106: held-out gain -0.0135 um^2, lobing_per_setup named). Parameters:
+    each wall's change over the campaign (um, positive outwards: material
+    growing towards the stylus) at its middle (``a = 0``), its turn (half
+    the difference of the changes at its two ends, um: + where the end of
+    larger ``a`` moves more) and its bow (the change at its middle less the
+    mean of its ends', um).
     """
     d = bl.data
     t = d.touches
@@ -1196,35 +1219,47 @@ def part_change_scans(bl):
         nt = np.unique(t.target[m]).size
         if nt < 2 or np.unique(t.setup[m]).size < 2:
             continue
-        cols, labels, walls, turns = [], [], [], []
+        cols, kinds, labels, walls, turns, bows = [], [], [], [], [], []
         w = np.asarray(t.w_A, float)[:, :2]
         ext = float(np.max(np.ptp(w[m], axis=0))) if np.all(np.isfinite(w[m])) else 0.0
         for s in range(8):
             ms = m & (sector == s)
             if np.unique(t.target[ms]).size >= (2 if nt >= 8 else 1):  # a small feature: every direction it has
                 cols.append(ms * d.tau)
+                kinds.append(0)
                 labels.append(f"{f}@{45 * s}deg")
                 walls.append(45 * s)
-                # the wall turning: its targets' place along the sector's tangent
+                # the wall turning and bowing: its targets' place along the sector's tangent
                 a = w[ms] @ np.array([-np.sin(np.pi / 4 * s), np.cos(np.pi / 4 * s)]) if ext > 0 else np.zeros(1)
                 if ext > 0 and np.ptp(a) > WALL_TURN_MIN * ext and np.ptp(np.angle(
                         np.exp(1j * (d.wn_az[ms] - d.wn_az[ms][0])))) <= FLAT_WALL_RAD:
+                    u = 2 * (a - a.min()) / np.ptp(a) - 1
                     c = np.zeros(t.n)
-                    c[ms] = d.tau[ms] * (2 * (a - a.min()) / np.ptp(a) - 1)
+                    c[ms] = d.tau[ms] * u
                     cols.append(c)
+                    kinds.append(1)
                     labels.append(f"{f}@{45 * s}deg turn")
                     turns.append(45 * s)
+                    if 1 + int(np.sum(np.diff(np.sort(a)) > WALL_TURN_MIN * ext)) >= WALL_BOW_PLACES:
+                        c = np.zeros(t.n)
+                        c[ms] = -d.tau[ms] * u ** 2
+                        cols.append(c)
+                        kinds.append(2)
+                        labels.append(f"{f}@{45 * s}deg bow")
+                        bows.append(45 * s)
         if cols:
-            # nested: the walls shifting alone (the trial), and (where a wall can turn) shifting and turning as a
-            # richer scan that is no trial of its own (not counted below): the engine takes it only where the
-            # turns are significant beyond the shifts and lower the held-out mean square
-            shift = [j for j, lab in enumerate(labels) if not lab.endswith(" turn")]
-            scans.append(_one(np.column_stack(cols)[:, shift], [labels[j] for j in shift],
-                              {"feature": str(f), "walls_deg": tuple(walls), "turns_deg": ()}, "feature"))
-            if turns:
-                scans.append(_one(np.column_stack(cols), labels,
-                                  {"feature": str(f), "walls_deg": tuple(walls), "turns_deg": tuple(turns),
-                                   "extends_previous": True}, "feature"))
+            # nested: the walls shifting alone (the trial); where a wall can turn, shifting and turning; where one
+            # can bow, shifting, turning and bowing: richer scans that are no trials of their own (not counted
+            # below), each taken only where its new columns are significant beyond the layout taken so far and
+            # it lowers the held-out mean square
+            info = {"feature": str(f), "walls_deg": tuple(walls)}
+            layouts = [(0, (), ())] + ([(1, tuple(turns), ())] if turns else []) + (
+                [(2, tuple(turns), tuple(bows))] if bows else [])
+            for j, (top, tu, bo) in enumerate(layouts):
+                keep = [i for i, k in enumerate(kinds) if k <= top]
+                scans.append(_one(np.column_stack(cols)[:, keep], [labels[i] for i in keep],
+                                  {**info, "turns_deg": tu, "bows_deg": bo, **({"extends_previous": True} if j else {})},
+                                  "feature"))
     return scans, float(max(sum(not s.infos[0].get("extends_previous") for s in scans), 1))
 
 
@@ -1241,10 +1276,12 @@ def part_change_rival(bl, info):
 def part_change_magnitudes(info, coef, bl):
     out = {"feature": info["feature"]}
     keys = []
-    for w in info["walls_deg"]:  # the columns' order: each wall's shift, then its turn where it has one
+    for w in info["walls_deg"]:  # the columns' order: each wall's shift, then its turn and bow where it has them
         keys.append(f"wall{w}deg_change_um")
         if w in info.get("turns_deg", ()):
             keys.append(f"wall{w}deg_turn_um")
+        if w in info.get("bows_deg", ()):
+            keys.append(f"wall{w}deg_bow_um")
     for k, c in zip(keys, np.asarray(coef)):
         out[k] = float(c) / UM
     return out
@@ -1552,7 +1589,8 @@ REGISTRY = (
           {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip,
           smooth=smooth_error_map, support=defect_support),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
-          {"wall*deg_change_um": (-200, 200), "wall*deg_turn_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
+          {"wall*deg_change_um": (-200, 200), "wall*deg_turn_um": (-200, 200),
+           "wall*deg_bow_um": (-200, 200)}, rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
           {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,

@@ -172,6 +172,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import itertools
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -2687,7 +2688,11 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     independent trials, ``scan_tries``, times the causes tried); where
     the scans are paths (:attr:`core.causes.Scan.path`) and the candidate
     is significant, the scans' count is raised to :func:`_path_tries`'s
-    where that is larger.
+    where that is larger. Scans marked ``extends_previous`` follow the scan
+    they nest (part_change's walls shifting, then turning, then bowing) and
+    are no trials: each is tested beyond the layout taken so far (F test at
+    ``alpha_family`` of all its columns that layout lacks) and taken where
+    it also lowers the held-out mean square below that same layout.
     """
     rows = st.rows
     best = None
@@ -2713,23 +2718,32 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         return {"reason": "no columns outside the model"}
     p_val, F_val, k_val, sc, i, single = best[:6]
     si = best[7][0]
-    if si + 1 < len(scans) and scans[si + 1].infos[0].get("extends_previous"):
-        # a richer trial nesting the chosen one (part_change's walls turning beside their shifting), not a trial
-        # of its own (not counted in the scan's tries): taken when its extra columns are significant beyond the
-        # chosen trial's at alpha_family, its own F test then the candidate's
-        rich = scans[si + 1]
-        plain_cols, rich_cols = sc.build([i])[0], rich.build([0])[0]
-        t_p = single if single is not None else nested_f_batch(plain_cols[None, rows], st.Q, st.r, st.rss, st.dof)
+    # richer trials nesting the chosen one (part_change's walls turning beside their shifting, then bowing as
+    # well), no trials of their own (not counted in the scan's tries): each is taken when its new columns are
+    # significant beyond the layout taken so far at alpha_family (where the turns were not taken, the bows are
+    # tested with the turns, both new) and it lowers the held-out mean square below that same layout; its own F
+    # test is then the candidate's. Each such step is one test at alpha_family with no correction (two per
+    # feature at most): the held-out condition bounds what a chance pass can do
+    ext_test, ext_cols = single, sc.build([i])[0]
+    cur_cols = ext_cols
+    held_cur = None
+    for rich in itertools.takewhile(lambda r: r.infos[0].get("extends_previous"), scans[si + 1:]):
+        rich_cols = rich.build([0])[0]
+        t_p = ext_test if ext_test is not None else nested_f_batch(ext_cols[None, rows], st.Q, st.r, st.rss, st.dof)
         t_f = nested_f_batch(rich_cols[None, rows], st.Q, st.r, st.rss, st.dof)
         k_x = int(t_f[1][0]) - int(t_p[1][0])
         dof_f = st.dof - int(t_f[1][0])
         if k_x > 0 and dof_f > 0:
             F_x = (float(t_f[0][0]) - float(t_p[0][0])) / k_x / ((st.rss - float(t_f[0][0])) / dof_f)
-            held = [folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), C[rows]]) if terms else C[rows])
-                    for C in (plain_cols, rich_cols)]
-            if float(stats.f.sf(F_x, k_x, dof_f)) < settings.alpha_family and held[1] < held[0]:
-                p_val, F_val, k_val, sc, i, single = (float(t_f[3][0]), float(t_f[2][0]), int(t_f[1][0]), rich,
-                                                      0, t_f)
+            if float(stats.f.sf(F_x, k_x, dof_f)) < settings.alpha_family:
+                held = [folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), C[rows]]) if terms else C[rows])
+                        for C in ((cur_cols,) if held_cur is None else ()) + (rich_cols,)]
+                held_cur = held[0] if held_cur is None else held_cur
+                if held[-1] < held_cur:
+                    p_val, F_val, k_val, sc, i, single = (float(t_f[3][0]), float(t_f[2][0]), int(t_f[1][0]), rich,
+                                                          0, t_f)
+                    cur_cols, held_cur = rich_cols, held[-1]
+                    ext_test, ext_cols = t_f, rich_cols  # the next richer scan is tested beyond this layout
     info = sc.infos[i]
     cols = sc.build([i])[0]
     # single: the F test of the chosen trial's own columns, made once (refined, beside families, counter)

@@ -49,14 +49,20 @@ surface: sim/machines.py): the flat bars' hole line at z = 70 mm, the bar's
 10 mm half thickness on its 60 mm supports standing on the table (the
 earlier plan had the hole line at 60 mm, 10 mm into the table, and its
 anti-diagonals falling from 345 mm to 75.7 mm below the face; the tests
-compute every bar's lowest point apart from :func:`check_plan`, which passes
-the plan when called). Not yet a physical plan: only the 6 bars flat on the
-table (X1, X3, Y1, Y3, DXY, AXY) stand on anything; the other 11 float, their
-supports' feet on nothing (X2, Y2 at z = 200 mm; the standing VYa-c, VXa-b at
-174-496 mm; DXZ, DYZ at 141-368 mm; AXZ, AYZ at 178-406 mm): the plan has no
-fixtures (a 200 mm riser, an angle plate, 45 deg blocks would carry them),
-and :func:`run` collision-checks only a plan with fixtures, so the 3-axis
-runs are not collision-checked.
+compute every bar's lowest point apart from :func:`check_plan`). Every bar
+stands on something (:func:`_fixtures_3axis`): the 6 flat bars (X1, X3, Y1,
+Y3, DXY, AXY) on the table; X2 and Y2 on a 200 mm riser; the bars whose
+holes face -Y (VY standing, DXZ, AXZ tilted 45 deg in XZ) have their
+supports, pointing +Y, bolted to an angle plate whose face is y = 30 mm,
+those facing -X (VX, DYZ, AYZ) to one at x = 45 mm (the tilt lies in the
+plate's face: no tilted block is needed); a test checks by hand geometry
+that every support's foot lies on the table or on a fixture's face. Every
+run is collision-checked (:func:`check_plan`: 3,944 touches, fixtures
+included; the probe never nears them: a fixture's face moved toward the bar
+is first met 60.9 mm in, 0.9 mm inside the bar's body). Until session 11
+the plan had no fixtures, 11 of its measurements' bars floating with their
+supports' feet on nothing, and :func:`run` did not check it; the bar poses
+and every figure of its results are the same.
 
 Each bar is probed over the holes that fit the strokes (12 along X, 8
 along Y, 7 standing), with the rods and faces the planes PL_i need (rod k
@@ -178,7 +184,9 @@ class MfbPlan:
     machine: str
     measurements: tuple
     nodes: dict = field(compare=False)
-    fixtures: dict = field(default_factory=dict, compare=False)
+    # (compared: plans of other workholding are other plans; not hashed, a dict: the hash is the
+    # measurements', equal plans still hash equal)
+    fixtures: dict = field(default_factory=dict, hash=False)
 
     @property
     def setups(self) -> tuple:
@@ -187,6 +195,11 @@ class MfbPlan:
     @property
     def placements(self) -> tuple:
         return tuple(dict.fromkeys(m.placement for m in self.measurements))
+
+    @property
+    def rotary(self) -> bool:
+        """Whether rotary axes present the bars (the set-ups have rotary positions: a 5-axis plan)."""
+        return any(len(m.rot_rad) for m in self.measurements)
 
     def without(self, placement: str) -> "MfbPlan":
         return MfbPlan(self.machine, tuple(m for m in self.measurements if m.placement != placement), self.nodes,
@@ -276,7 +289,39 @@ def plan_3axis() -> MfbPlan:
     # profiles to < 0.08 um.
     nodes = {"X": np.linspace(-0.275, 0.275, 9), "Y": np.linspace(-0.190, 0.160, 8),
              "Z": np.linspace(0.060, 0.360, 7)}
-    return MfbPlan("vmc-3axis", tuple(ms), nodes)
+    return MfbPlan("vmc-3axis", tuple(ms), nodes, _fixtures_3axis())
+
+
+def _fixtures_3axis() -> dict:
+    """The workholding of the 3-axis placements (:class:`sim.mfb_scene.Block`, W, m): what each
+    bar's two supports stand on or are bolted to (their feet: 8 mm discs 70 mm from the hole line,
+    at x_A = 114.43 and 435.57 mm; module doc). The 6 bars flat on the table need none.
+
+    - X2, Y2: a 200 mm riser under the feet (hole line at 270 mm = 200 + 60 + 10), 90 mm wide,
+      reaching 39.4 mm beyond each foot's centre;
+    - the bars whose holes face -Y (VY standing, DXZ and AXZ tilted 45 deg in XZ): their
+      supports point +Y, feet in the plane y = 30 mm, bolted to the face of an angle plate
+      (30 mm thick, behind the bar); the tilt is within the plate's face, so no tilted block is
+      needed; likewise the bars facing -X (VX, DYZ, AYZ) on a plate whose face is x = 45 mm.
+      Each plate's edges nearest the feet are 39.4-45.0 mm from the feet's centres (measured:
+      39.4 VY/VX's top, 535 mm high above the upper foot at 495.6 mm; 45.0 their sides; 40.9 and
+      42.0 DXZ/DYZ; 39.5 and 43.4 AXZ/AYZ), 31.4-37.0 mm beyond the 8 mm discs; the risers' 39.4
+      mm along the bar, 45.0 mm across. Each plate is its upright alone: its base and ribs
+      (behind it, away from the bar) are not modelled.
+    """
+    from sim.mfb_scene import Block
+
+    def b(name, lo_mm, hi_mm):
+        return (Block(name, tuple(v * MM for v in lo_mm), tuple(v * MM for v in hi_mm)),)
+
+    return {"X2": b("riser", (-200, -85, 0), (200, 5, 200)),
+            "Y2": b("riser", (-70, -115, 0), (20, 285, 200)),
+            "VY": b("angle_plate", (-70, 30, 0), (20, 60, 535)),
+            "VX": b("angle_plate", (45, -85, 0), (75, 5, 535)),
+            "DXZ": b("angle_plate", (-85, 30, 0), (225, 60, 410)),
+            "AXZ": b("angle_plate", (-225, 30, 0), (85, 60, 445)),
+            "DYZ": b("angle_plate", (45, -100, 0), (75, 210, 410)),
+            "AYZ": b("angle_plate", (45, -240, 0), (75, 70, 445))}
 
 
 #: Star styli of the 5-axis plan besides :data:`STYLI` (none needed: the bar's
@@ -571,14 +616,17 @@ def default_machine(name: str, ripple: bool = False, J_m=(0.0, 0.0, 0.150)):
 
 
 #: Collision checks already made (a pure function of the nominal plan): keyed by the machine,
-#: every measurement's name, set-up, holes and stylus position, the stylus radius and the
-#: program's margin; the summaries are only read (reports copy them into JSON). 64 checks
+#: every measurement's name, set-up, holes, stylus (name, position), rotary positions, bar pose
+#: and workholder (its sim.mfb_scene.Block objects: frozen, compared and hashed by value), the
+#: stylus radius and the program's margin (before: without the poses and workholder, so a plan
+#: of the same names with other fixtures got the first one's answer); the summaries are only
+#: read (reports copy them into JSON). 64 checks
 #: (before: unbounded; a few kilobytes each, a session checks a handful of plans).
 _CHECKS = Memo(64)
 
 
 def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> dict:
-    """Collision and reach check of every measurement of a plan with a workholder (MuJoCo).
+    """Collision and reach check of every measurement of a plan, its workholder included (MuJoCo).
 
     The program checked is the one :func:`run` simulates for the placement
     tolerance ``u_place`` (its approach margins, :func:`placement_margin_m`):
@@ -588,15 +636,18 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     Each measurement's touches, approach/retract and link moves are checked
     in :class:`sim.mfb_scene.WorkZone` (table, workholder, bar and its
     supports; stylus ball, star arm, extension, probe body, spindle) at the
-    set-up's rotary positions, and the touches against the strokes of the
-    readings. Returns the summary for the report (``passed``, per
+    set-up's rotary positions, the workholder blocks against the bar and its
+    supports (:func:`sim.mfb_scene.block_overlaps`: a block running into them
+    is a collision; a foot on a block's face is not), and the touches
+    against the strokes of the readings. Returns the summary for the report (``passed``, per
     measurement: set-up, stylus, holes, touches, path points, collisions,
     least clearance of the probe from the table side at the approach starts).
 
     Raises
     ------
     PlanError
-        A collision, the bar below the table face, or a touch outside a stroke
+        A collision, the bar below the table face, a workholder block running
+        into the bar or a support, or a touch outside a stroke
         (measurement and what hits what named).
     """
     from core.exceptions import PlanError
@@ -606,8 +657,10 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     from sim.mfb_scene import TABLE_R_M, TABLE_T_M, check_measurements
 
     program = _program(u_place)  # the program run() simulates for this placement tolerance
-    key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m) for m in plan.measurements), stylus_r_m,
-           program["clearance_m"], program["overshoot_m"])
+    # (every input of the check: a plan of the same names with other poses or fixtures is another plan)
+    key = (plan.machine, tuple((m.name, m.setup_key, m.holes, m.J_m, m.stylus, tuple(m.rot_rad),
+                                np.asarray(m.T_W_A, float).tobytes(), tuple(plan.fixtures.get(m.placement, ())))
+                               for m in plan.measurements), stylus_r_m, program["clearance_m"], program["overshoot_m"])
     hit = _CHECKS.get(key)
     if hit is not None:
         return hit
@@ -653,7 +706,8 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     out = {"passed": True, "engine": "MuJoCo (sim.mfb_scene.WorkZone)",
            "checked": "table disc (R %g mm, %g mm thick), workholder blocks, bar and its supports vs stylus ball, "
                       "star arm, extension, probe body, spindle nose; approach/retract and link moves; the bar "
-                      "above the table face; touches within the strokes" % (TABLE_R_M / MM, TABLE_T_M / MM),
+                      "above the table face; the workholder blocks clear of the bar and its supports "
+                      "(separating axes, a support or rod as its square prism); touches within the strokes" % (TABLE_R_M / MM, TABLE_T_M / MM),
            "touches": n_t, "path_points": n_s, "seconds": round(time.time() - t0, 1), "measurements": per,
            "program_mm": {"clearance": round(program["clearance_m"] / MM, 3),
                           "overshoot": round(program["overshoot_m"] / MM, 3)},
@@ -667,7 +721,8 @@ def describe_collision_check(c: dict) -> str:
     """The collision check's summary for the terminal: one line per placement, then the verdict."""
     by = {}
     for name, m in c["measurements"].items():
-        by.setdefault(m["placement"], []).append(f"{name}({m['setup'].split('@')[1]}, {m['stylus']})")
+        rot = m["setup"].partition("@")[2]  # (the rotary positions of a 5-axis set-up; none on a 3-axis plan)
+        by.setdefault(m["placement"], []).append(f"{name}({rot + ', ' if rot else ''}{m['stylus']})")
     lines = [f"  {p}: {', '.join(v)}" for p, v in by.items()]
     lines.append(f"collision check ({c['engine']}): {'passed' if c['passed'] else 'FAILED'}, "
                  f"{c['touches']} touches, {c['path_points']} path points, {c['seconds']} s")
@@ -1111,7 +1166,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 
     # the program's approach margins cover the declared placement tolerance (not the draw)
     program = _program(u_place)
-    collision = check_plan(plan, u_place=u_place) if plan.fixtures else None  # after the inputs are checked
+    collision = check_plan(plan, u_place=u_place)  # after the inputs are checked
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
     gain_fits: dict = {}  # the gains' light fits, shared by the hole sets of this run (same touches, same fits)
@@ -1272,7 +1327,7 @@ def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None)
             if res.iterations else "first order (eqs 8-12)", "gauss_newton_iterations": res.iterations,
             "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6,
             "errors": errors, "max_dev_um": dev_um, "max_dev_urad": dev_urad,
-            "twists": _twists(errors) if plan.fixtures else {},
+            "twists": _twists(errors) if plan.rotary else {},  # (TWIST_SENSING: the 5-axis plan's sensing)
             "injected_note": "truth at the nodes, expressed in the same ISO 230-1 conventions (gauge)"}
 
 

@@ -20,8 +20,9 @@ collision engine):
 What is checked (:func:`check_measurement`): every touch's approach and
 retract (start point -> nominal contact), every link move between touches
 (retract along the bar's ``z_A`` to a clearance plane above the bar, move
-across, plunge: a part program for a bar in any orientation), and that the
-bar and the workholder lie on the table's side of its face. The tip ball
+across, plunge: a part program for a bar in any orientation), that the
+bar and the workholder lie on the table's side of its face, and that no
+workholder block runs into the bar or its supports (:func:`block_overlaps`). The tip ball
 may touch the geoms of the feature it probes (the exact primitives of
 :mod:`sim.probe` judge that contact); everything else is a collision.
 Not modelled: the A-axis cradle below the table, the machine's guards.
@@ -70,6 +71,12 @@ class Block:
     name: str
     lo: tuple
     hi: tuple
+
+    def __post_init__(self):
+        # corners kept as tuples of floats whatever they were given as (numpy arrays too): the block
+        # is hashed as a key of the plan-check and work-zone caches
+        object.__setattr__(self, "lo", tuple(map(float, self.lo)))
+        object.__setattr__(self, "hi", tuple(map(float, self.hi)))
 
 
 @dataclass(frozen=True)
@@ -715,8 +722,7 @@ _ZONES = Memo(64)
 
 
 def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
-    key = (id(artefact), np.ascontiguousarray(T_W_A, float).tobytes(),
-           tuple((b.name, tuple(map(float, b.lo)), tuple(map(float, b.hi))) for b in blocks),
+    key = (id(artefact), np.ascontiguousarray(T_W_A, float).tobytes(), tuple(blocks),  # (Block: frozen, hashable)
            tuple(float(v) for v in J_m), float(stylus_r_m), float(finger_m))
 
     def build():
@@ -726,6 +732,66 @@ def _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m) -> WorkZone:
         return wz
 
     return _ZONES.get_or_compute(key, build, owner=artefact)
+
+
+def block_overlaps(artefact, T_W_A, blocks) -> list:
+    """The workholder blocks that run into the bar or its supports at the pose ``T_W_A`` (W, m):
+    [(block name, solid name, depth m)], the deepest solid of each overlapping block.
+
+    Separating axes (exact for two boxes: the 3 face normals of each and their 9 cross products):
+    a block overlaps a solid when along every axis their projections overlap by more than
+    :data:`sim.scene.COLLISION_TOL_M`; the depth is the least of those overlaps. A foot standing
+    on a block's face touches it (0 m): not an overlap. A cylinder (a support, a rod) is taken as
+    its square prism (side 2 r, on its axis), a sphere as its cube (side 2 r): never cleared when
+    it overlaps; a block may be refused when an edge of it passes obliquely within r (sqrt 2 - 1)
+    of a cylinder's round side (3.3 mm for the MFB's 8 mm supports), within r (sqrt 3 - 1) of a
+    sphere. First the solids' bounding boxes in W (``|R| H`` about the centre) against each block:
+    the W axes are the block's face normals, three of the 15, so a solid whose box is clear of the
+    block there is clear by the same test; the 15 axes are built only for the solids left."""
+    if not blocks:
+        return []
+    sol = _solid_table(artefact)
+    T = np.asarray(T_W_A, float) @ _solid_pose_stack(artefact)  # each solid in W
+    C, Rs = T[:, :3, 3], T[:, :3, :3]
+    H = _half_sizes(sol)
+    e = np.einsum("sjk,sk->sj", np.abs(Rs), H)  # each solid's half extents along the W axes
+    out = []
+    for b in blocks:
+        lo, hi = np.asarray(b.lo, float), np.asarray(b.hi, float)
+        hb, cb = (hi - lo) / 2, (lo + hi) / 2
+        near = np.flatnonzero((np.abs(C - cb) - hb - e).max(axis=1) < -COLLISION_TOL_M)
+        if not near.size:
+            continue
+        sep = _box_separations(Rs[near], C[near] - cb, H[near], hb)
+        j = int(np.argmin(sep))
+        if sep[j] < -COLLISION_TOL_M:
+            out.append((b.name, sol.names[near[j]], float(-sep[j])))
+    return out
+
+
+def _half_sizes(sol) -> np.ndarray:
+    """(k,3) half sizes of the boxes :func:`block_overlaps` tests for the solids: a box's own, a
+    cylinder's square prism (r, r, h/2), a sphere's cube (r, r, r)."""
+    kinds = np.array(sol.kinds)
+    H = sol.size3.copy()
+    H[kinds == "cylinder"] = sol.size3[kinds == "cylinder"][:, [0, 0, 1]]
+    H[kinds == "sphere"] = sol.size3[kinds == "sphere"][:, [0, 0, 0]]
+    return H
+
+
+def _box_separations(Rs, d, H, hb) -> np.ndarray:
+    """The largest separation of each box (rotation Rs (s,3,3), centre ``d`` (s,3) from the block's
+    centre, half sizes H (s,3)) from an axis-aligned block of half sizes ``hb`` over the 15 axes:
+    the block's normals (W axes), the box's, their cross products (negative: they overlap)."""
+    I = np.broadcast_to(np.eye(3), Rs.shape)
+    Rt = np.swapaxes(Rs, 1, 2)
+    L = np.concatenate([I, Rt, np.cross(np.eye(3)[None, :, None, :], Rt[:, None, :, :]).reshape(-1, 9, 3)], 1)
+    n = np.linalg.norm(L, axis=2)
+    ok = n > 1e-9  # (a cross product of parallel edges: that axis is a face normal already)
+    L = L / np.where(ok, n, 1.0)[..., None]
+    r_s = np.einsum("saj,sj->sa", np.abs(np.einsum("sak,skj->saj", L, Rs)), H)  # each box's half extent on each axis
+    sep = np.abs(np.einsum("sak,sk->sa", L, d)) - np.abs(L) @ hb - r_s
+    return np.where(ok, sep, -np.inf).max(axis=1)
 
 
 def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray, np.ndarray]:
@@ -794,7 +860,7 @@ def _paths_of(items, link_step_m, approach_step_m) -> list:
 def check_measurement(name, artefact, T_W_A, T_R_W, blocks, J_m, stylus_r_m, plan, finger_m: float = 0.0,
                       link_step_m: float = 3.0e-3, approach_step_m: float = 0.5e-3,
                       broad_phase: bool = True) -> CheckResult:
-    """Collision check of one measurement: every approach/retract and link move, and the bar on the table.
+    """Collision check of one measurement: every approach/retract and link move, the bar on the table, the workholder clear of the bar.
 
     Parameters
     ----------
@@ -845,6 +911,7 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     pts_A = artefact_points(artefact)
     top = float(pts_A[:, 2].max()) + r
     z_bars = {}  # the bar's lowest point in W by placement
+    overlaps = {}  # block_overlaps by placement and workholder
     bad, zones, T_R_As, paths = [], [], [], []
     for (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m), wz in zip(ms, each):
         T_R_A = T_R_W @ T_W_A
@@ -858,6 +925,11 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
         for blk in blocks:
             if min(blk.lo[2], blk.hi[2]) < -1e-9:
                 b.append(f"workholder block {blk.name} below the table face")
+        # the workholder clear of the bar and its supports (a foot on a block's face touches it)
+        okey = (key, blocks)
+        if okey not in overlaps:
+            overlaps[okey] = block_overlaps(artefact, T_W_A, blocks)
+        b += [f"workholder block {o} runs into the bar's {g} ({dep * 1e3:.2f} mm deep)" for o, g, dep in overlaps[okey]]
         bad.append(b), zones.append(wz), T_R_As.append(T_R_A)
         if plan.n:
             Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)

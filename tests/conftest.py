@@ -12,8 +12,11 @@ pytest 9.2 and xdist 3.8 the marks are silently ignored: xdist rewrites
 ``item._nodeid``, which pytest no longer reads; pytest-xdist issue 1386.)
 """
 
+import compileall
+import fnmatch
 import functools
 import inspect
+import sys
 import warnings
 from pathlib import Path
 
@@ -68,6 +71,49 @@ def pytest_xdist_make_scheduler(config, log):
             return unit_of(nodeid.split("::", 1)[0])
 
     return SharedFixtureScheduling(config, log)
+
+
+#: The project's packages, compiled once by :func:`pytest_sessionstart` (the workers and the ``vmt`` processes import them).
+PACKAGES = ("core", "sim", "hardware", "scenarios", "viz")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionstart(session):
+    """On the xdist controller, before the workers start (xdist's own hook is ``trylast``): the caches
+    the workers would otherwise both fill on a fresh clone, filled once. Each worker collects every
+    test file, and a test file's import rewrites its asserts (``_pytest.assertion.rewrite``, about
+    4 s of CPU for the suite, cached in ``__pycache__`` by the source's hash): without this, both
+    workers rewrite every file at once. The same for the packages' byte code (``compileall``, the
+    timestamp pyc an import writes). Nothing to do on a second run (about 0.1 s to check); nothing
+    done without workers, under ``PYTHONDONTWRITEBYTECODE`` or ``--assert=plain``."""
+    config = session.config
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None) or sys.dont_write_bytecode:
+        return
+    for pkg in PACKAGES:
+        compileall.compile_dir(_ROOT / pkg, quiet=2)
+    try:  # pytest's own rewriting, as its import hook does it (a private API: skipped, with a warning, if it moved)
+        from _pytest.assertion.rewrite import (PYC_TAIL, _read_pyc, _rewrite_test, _write_pyc, assertstate_key,
+                                               get_cache_dir, try_makedirs)
+    except ImportError as e:
+        warnings.warn(pytest.PytestWarning(f"test files' asserts not rewritten before the workers start: {e}"))
+        return
+    state = config.stash.get(assertstate_key, None)
+    if state is None:  # --assert=plain
+        return
+    patterns, skip = config.getini("python_files"), config.getini("norecursedirs")
+    try:  # a speed-up only: a private function whose signature changed must not stop the run
+        for fn in sorted((_ROOT / "tests").rglob("*.py")):
+            if any(fnmatch.fnmatch(part, pat) for part in fn.relative_to(_ROOT / "tests").parts[:-1] for pat in skip):
+                continue
+            if fn.name != "conftest.py" and not any(fnmatch.fnmatch(fn.name, pat) for pat in patterns):
+                continue
+            cache = get_cache_dir(fn)
+            pyc = cache / (fn.name[:-3] + PYC_TAIL)
+            if try_makedirs(cache) and _read_pyc(fn, pyc) is None:
+                source_hash, co = _rewrite_test(fn, config)
+                _write_pyc(state, co, source_hash, pyc)
+    except (TypeError, AttributeError, ValueError) as e:
+        warnings.warn(pytest.PytestWarning(f"test files' asserts not rewritten before the workers start: {e!r}"))
 
 
 def _conftest_session_fixtures(item) -> set:

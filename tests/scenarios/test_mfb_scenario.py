@@ -34,6 +34,10 @@ def test_cli_json_keys_and_the_compensation_closes_the_loop(tmp_path):
         assert k in d
     assert d["placements"] == 14 and d["measurements"] == 17 and d["touches"] > 3000
     assert d["noise_um"] == pytest.approx(0.125) and len(d["errors"]) == 21
+    # the 3-axis plan is collision-checked too (with its risers and angle plates), and reported
+    assert d["collision_check"]["passed"] and d["collision_check"]["touches"] == d["touches"]
+    assert set(d["collision_check"]["fixtures"]) == {"X2", "Y2", "VY", "VX", "DXZ", "AXZ", "DYZ", "AYZ"}
+    assert d["twists"] == {}  # (the twists' sensing is the 5-axis plan's: TWIST_SENSING)
     for e in d["errors"].values():
         assert {"injected", "identified", "u95"} <= set(e)
     # the files: LinuxCNC TYPE 0 (nominal, forward, reverse, mm, ascending, at
@@ -62,6 +66,17 @@ def test_cli_json_keys_and_the_compensation_closes_the_loop(tmp_path):
     # deviation over the node box (rigid motion removed), before -> after
     v0, v1 = loop["before"]["volumetric_residual_um"], loop["volumetric"]["volumetric_residual_um"]
     assert v1["rms"] < v0["rms"] / 5
+
+
+def test_describe_collision_check_names_the_setups_of_either_plan():
+    # a 5-axis set-up is named with its rotary positions, a 3-axis one (no rotary axes) by its stylus
+    from scenarios.mfb import describe_collision_check
+
+    m = {"VYa": {"placement": "VY", "setup": "VY", "stylus": "TY1"},
+         "X3": {"placement": "P1", "setup": "P1@A-90,C0", "stylus": "TY1"}}
+    t = describe_collision_check({"measurements": m, "engine": "MuJoCo", "passed": True, "touches": 3,
+                                  "path_points": 9, "seconds": 0.1})
+    assert "  VY: VYa(TY1)" in t and "  P1: X3(A-90,C0, TY1)" in t and "passed, 3 touches" in t
 
 
 def test_unknown_scenario_exit_2(capsys):
@@ -514,12 +529,10 @@ def test_the_independent_table_check_sees_the_old_3axis_plan_in_the_table():
 def test_every_3axis_bar_stands_on_or_above_the_table_face():
     # the independent check (not check_plan's): the flat bars stand on the table (their supports'
     # feet at the face, 0.0 mm: a hole line at 70 mm = 60 mm supports + 10 mm half thickness), X2 and
-    # Y2 200 mm higher (no riser modelled: the plan has no fixtures), the standing bars' lower end at
-    # 60 - 15 = 45 mm, the diagonals DXZ / DYZ 60 - (15 + 30) / sqrt 2 = 28.2 mm, the anti-diagonals
-    # 65.7 mm (above); nothing below the face. Not a physical plan yet: only the 6 flat bars on the
-    # table (X1, X3, Y1, Y3, DXY, AXY) stand on anything; the other 11 (X2, Y2, VYa-c, VXa-b, DXZ,
-    # DYZ, AXZ, AYZ) float, nothing under their feet (plan_3axis has no fixtures, so run() does not
-    # collision-check it either: docs/papers-mfb.md says so)
+    # Y2 200 mm higher (on their 200 mm risers), the standing bars' lower end at 60 - 15 = 45 mm, the
+    # diagonals DXZ / DYZ 60 - (15 + 30) / sqrt 2 = 28.2 mm, the anti-diagonals 65.7 mm (above; these
+    # bars are bolted to angle plates); nothing below the face. What each bar's feet rest on:
+    # test_every_bars_supports_rest_on_the_table_or_a_fixture
     import scenarios.mfb as S
 
     s2 = np.sqrt(0.5)
@@ -531,6 +544,215 @@ def test_every_3axis_bar_stands_on_or_above_the_table_face():
     for m, v in hand.items():
         assert low[m] == pytest.approx(v, abs=1e-9), (m, low[m], v)
     assert min(low.values()) >= -1e-9
+
+
+# A support's foot, by hand (the drawing above): the end disc of radius _SUPPORT_R_MM at
+# (x_s, 0, -(10 + 60)) mm in A, its outward normal -z_A (it presses along -z_A into what carries it).
+_FOOT_Z_MM = -_BAR_HALF_Z_MM - _SUPPORT_H_MM
+#: The table: the Mikron UCP710's rotary table, a 600 mm disc (W z = 0 its face, centred on W's z axis),
+#: for the 3-axis machine too (vmc-3axis has no table model; a VMC's rectangular table is not modelled)
+_TABLE_R_MM = 300.0
+
+
+def _feet_rest_on(plan):
+    """{placement: what each of its bar's two supports' feet rests on}, in the table frame W by hand
+    geometry (apart from check_plan and sim.mfb_scene): "table" if the foot's disc lies in the table
+    face (W z = 0, within 1e-9 m) pressing down; a fixture block's name if the disc lies in the face
+    of that block (an axis-aligned box, W) whose outward normal is z_A (the face turned to the bar:
+    a riser's top, an angle plate's front) within 1e-9 m, the whole disc on the face; None: on
+    nothing. Also checks that every block stands on the table face (its bottom at W z = 0), and
+    that every block's corners and every foot's disc (seen from above: within its radius of its
+    centre) lie within the table's disc (:data:`_TABLE_R_MM`)."""
+    out = {}
+    tol = 1e-9 / MM  # 1e-9 m, in mm (rounding of poses built from mm figures, ~1e-13 m)
+    for pl in plan.placements:
+        T = next(ms.T_W_A for ms in plan.measurements if ms.placement == pl)
+        R, p = T[:3, :3], T[:3, 3] / MM
+        z_A = R[:, 2]
+        blocks = plan.fixtures.get(pl, ())
+        for b in blocks:
+            assert abs(min(b.lo[2], b.hi[2])) <= 1e-9, (pl, b.name, "not standing on the table face")
+            lo, hi = np.array(b.lo) / MM, np.array(b.hi) / MM
+            assert max(np.hypot(x, y) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])) <= _TABLE_R_MM + tol, \
+                (pl, b.name, "off the table")
+        rests = []
+        for xs in _SUPPORT_X_MM:
+            c = R @ np.array((xs, 0.0, _FOOT_Z_MM)) + p
+            assert np.hypot(c[0], c[1]) + _SUPPORT_R_MM <= _TABLE_R_MM + tol, (pl, "a foot off the table")
+            on = None
+            if np.allclose(z_A, (0.0, 0.0, 1.0), atol=1e-12) and abs(c[2]) <= tol:
+                on = "table"
+            for b in blocks:
+                lo, hi = np.array(b.lo) / MM, np.array(b.hi) / MM
+                for ax in range(3):
+                    for sgn, face in ((1.0, hi[ax]), (-1.0, lo[ax])):
+                        n = np.zeros(3)
+                        n[ax] = sgn
+                        if not np.allclose(z_A, n, atol=1e-12) or abs(c[ax] - face) > tol:
+                            continue
+                        other = [k for k in range(3) if k != ax]  # the disc within the face's rectangle
+                        if all(lo[k] + _SUPPORT_R_MM - tol <= c[k] <= hi[k] - _SUPPORT_R_MM + tol for k in other):
+                            on = b.name
+            rests.append(on)
+        out[pl] = tuple(rests)
+    return out
+
+
+def _box_gap_mm(c1, R1, h1, c2, R2, h2):
+    """The largest separation (mm) of two boxes (centre, axes as columns, half sizes) over the 15
+    axes of the separating-axis theorem: >= 0 apart or touching, < 0 overlapping by at least that
+    along every axis."""
+    axes = [R1[:, i] for i in range(3)] + [R2[:, j] for j in range(3)]
+    axes += [np.cross(R1[:, i], R2[:, j]) for i in range(3) for j in range(3)]
+    best = -np.inf
+    for L in axes:
+        n = np.linalg.norm(L)
+        if n < 1e-9:  # (parallel edges: that axis is one of the faces' already)
+            continue
+        L = L / n
+        r1, r2 = np.sum(h1 * np.abs(L @ R1)), np.sum(h2 * np.abs(L @ R2))
+        best = max(best, abs(float(L @ (c2 - c1))) - r1 - r2)
+    return best
+
+
+def _fixtures_overlapping_the_bar(plan):
+    """[(placement, block name)] of the fixture blocks that overlap the bar's body (its 580 x 60 x 20
+    mm envelope) or a support (its 16 x 16 x 60 mm bounding box) by more than 1e-9 m, by hand
+    geometry (:func:`_box_gap_mm`): touching (a foot on a face) is not overlapping."""
+    out = []
+    body = (np.array(((_BAR_X_MM[0] + _BAR_X_MM[1]) / 2, 0.0, 0.0)),
+            np.array(((_BAR_X_MM[1] - _BAR_X_MM[0]) / 2, _BAR_HALF_Y_MM, _BAR_HALF_Z_MM)))
+    sup = [(np.array((x, 0.0, _FOOT_Z_MM + _SUPPORT_H_MM / 2)), np.array((_SUPPORT_R_MM, _SUPPORT_R_MM,
+                                                                          _SUPPORT_H_MM / 2)))
+           for x in _SUPPORT_X_MM]
+    for pl, blocks in plan.fixtures.items():
+        T = next(ms.T_W_A for ms in plan.measurements if ms.placement == pl)
+        R, p = T[:3, :3], T[:3, 3] / MM
+        for b in blocks:
+            lo, hi = np.array(b.lo) / MM, np.array(b.hi) / MM
+            if any(_box_gap_mm(R @ c + p, R, h, (lo + hi) / 2, np.eye(3), (hi - lo) / 2) < -1e-9 / MM
+                   for c, h in [body] + sup):
+                out.append((pl, b.name))
+    return out
+
+
+@pytest.mark.parametrize("plan", ["plan_3axis", "plan_5axis"])
+def test_every_bars_supports_rest_on_the_table_or_a_fixture(plan):
+    # hand-worked: the 3-axis plan's flat bars on the table (feet at 70 - 10 - 60 = 0 mm), X2 / Y2 on
+    # 200 mm risers (270 - 70 = 200 mm), the bars whose holes face -Y (VY, DXZ, AXZ) bolted to an angle
+    # plate whose face is y = -40 + 10 + 60 = 30 mm, those facing -X (VX, DYZ, AYZ) to one at x = -25 +
+    # 70 = 45 mm; the 5-axis plan's P2 on its 150 mm riser, P3 on its angle plate (x = 10 mm)
+    import scenarios.mfb as S
+
+    on = _feet_rest_on(getattr(S, plan)())
+    if plan == "plan_3axis":
+        hand = {**{p: "table" for p in ("X1", "X3", "Y1", "Y3", "DXY", "AXY")}, "X2": "riser", "Y2": "riser",
+                **{p: "angle_plate" for p in ("VY", "VX", "DXZ", "AXZ", "DYZ", "AYZ")}}
+    else:
+        hand = {"P1": "table", "P2": "riser", "P3": "angle_plate", "P4": "table"}
+    assert on == {p: (v, v) for p, v in hand.items()}
+    assert _fixtures_overlapping_the_bar(getattr(S, plan)()) == []
+
+
+def test_the_feet_check_sees_the_old_3axis_plan_floating():
+    # the plan before its fixtures (session 11): 8 of its 14 placements (11 of 17 measurements)
+    # had their supports' feet on nothing (X2, Y2 at z = 200 mm; VY, VX, DXZ, DYZ, AXZ, AYZ with
+    # their feet in the air at y = 30 / x = 45 mm)
+    import dataclasses
+
+    import scenarios.mfb as S
+
+    on = _feet_rest_on(dataclasses.replace(S.plan_3axis(), fixtures={}))
+    floating = {p for p, v in on.items() if None in v}
+    assert floating == {"X2", "Y2", "VY", "VX", "DXZ", "DYZ", "AXZ", "AYZ"}
+    assert all(v == ("table", "table") for p, v in on.items() if p not in floating)
+    # a fixture 1 mm short of the feet (the X2 riser 199 mm high) is not carrying them either
+    fx = dict(S.plan_3axis().fixtures)
+    r, = fx["X2"]
+    fx["X2"] = (dataclasses.replace(r, hi=(r.hi[0], r.hi[1], r.hi[2] - 1e-3)),)
+    assert _feet_rest_on(dataclasses.replace(S.plan_3axis(), fixtures=fx))["X2"] == (None, None)
+    # and one 1 mm too high runs 1 mm into the supports: carrying nothing, overlapping the bar
+    # (hand-worked boxes: the supports' bounding boxes span z = 200-260 mm under X2)
+    fx["X2"] = (dataclasses.replace(r, hi=(r.hi[0], r.hi[1], r.hi[2] + 1e-3)),)
+    high = dataclasses.replace(S.plan_3axis(), fixtures=fx)
+    assert _feet_rest_on(high)["X2"] == (None, None) and _fixtures_overlapping_the_bar(high) == [("X2", "riser")]
+    # a fixture off the table: Y2's riser (x -70..20, y -115..285 mm: its far corners 293.5 mm from the
+    # centre) moved 10 mm along +Y, still under both feet, its corner (-70, 295) 303.2 mm out
+    fx = dict(S.plan_3axis().fixtures)
+    r, = fx["Y2"]
+    fx["Y2"] = (dataclasses.replace(r, lo=(r.lo[0], r.lo[1] + 10 * MM, 0.0), hi=(r.hi[0], r.hi[1] + 10 * MM, r.hi[2])),)
+    with pytest.raises(AssertionError, match="off the table"):
+        _feet_rest_on(dataclasses.replace(S.plan_3axis(), fixtures=fx))
+    # and the table's radius by hand is the scene's (sim.mfb_scene's assumed Mikron disc)
+    from sim.mfb_scene import TABLE_R_M
+    assert _TABLE_R_MM * MM == TABLE_R_M
+    # the gap by hand: unit half-size cubes 2.5 apart (0.5); one turned 45 deg about z, 3 apart: its
+    # half extent along x is sqrt 2, so 3 - 1 - sqrt 2 (the axes of the turned one give less)
+    I, c = np.eye(3), np.sqrt(0.5)
+    Rz = np.array(((c, -c, 0.0), (c, c, 0.0), (0.0, 0.0, 1.0)))
+    assert _box_gap_mm(np.zeros(3), I, np.ones(3), np.array((2.5, 0, 0)), I, np.ones(3)) == 0.5
+    assert _box_gap_mm(np.zeros(3), I, np.ones(3), np.array((3.0, 0, 0)), Rz, np.ones(3)) == pytest.approx(
+        2.0 - np.sqrt(2.0), abs=1e-12)
+    assert _box_gap_mm(np.zeros(3), I, np.ones(3), np.array((2.0, 0, 0)), Rz, np.ones(3)) < 0
+
+
+def test_the_plan_check_sees_the_3axis_fixtures():
+    # a physically possible fault: a stop block on X2's riser (its top, 200 mm, to 275 mm: 5 mm below
+    # the bar's top face) 6 mm beside the bar's side face y = -10 mm, clear of the bar and its supports,
+    # where the stylus comes down to probe that face (ball 3 mm, approach start 3 mm out): check_plan
+    # must fail it, not answer from the plan checked before (its kept checks were keyed by the
+    # measurements' names alone before session 11)
+    import dataclasses
+
+    import scenarios.mfb as S
+    from sim.mfb_scene import Block
+
+    plan = S.plan_3axis()
+    assert S.check_plan(plan)["passed"]
+    fx = dict(plan.fixtures)
+    stop = Block("stop", (-10 * MM, -4 * MM, 200 * MM), (10 * MM, 5 * MM, 275 * MM))
+    fx["X2"] = fx["X2"] + (stop,)
+    with pytest.raises(PlanError, match="'X2'.*ball hits fix_stop"):
+        S.check_plan(dataclasses.replace(plan, fixtures=fx))
+
+
+def test_plans_of_other_workholding_are_other_plans():
+    # MfbPlan compares its fixtures (before session 11's review it did not: a plan without them
+    # compared equal to plan_3axis); equal plans hash equal (the hash leaves the dict out)
+    import dataclasses
+
+    import scenarios.mfb as S
+
+    plan = S.plan_3axis()
+    assert plan == S.plan_3axis() and hash(plan) == hash(S.plan_3axis())
+    assert plan != dataclasses.replace(plan, fixtures={})
+    fx = dict(plan.fixtures)
+    r, = fx["X2"]
+    fx["X2"] = (dataclasses.replace(r, hi=(r.hi[0], r.hi[1], r.hi[2] + 1e-6)),)
+    assert plan != dataclasses.replace(plan, fixtures=fx)
+
+
+def test_the_plan_check_refuses_a_fixture_running_into_the_bar():
+    # the workholding itself: X2's riser 1 mm too high (201 mm) runs 1 mm into both supports (their
+    # feet at 200 mm); 61 mm too high it passes through them and 1 mm into the bar. Neither is met by
+    # the probe (the fixtures are 60 mm from its paths), so before this check both passed. At its own
+    # height (the feet on its top face: touching, gap 0) the plan passes.
+    import dataclasses
+
+    import scenarios.mfb as S
+
+    plan = S.plan_3axis()
+    assert S.check_plan(plan)["passed"]
+    fx = dict(plan.fixtures)
+    r, = fx["X2"]
+    # the depth: the least overlap over the separating axes, by hand: 1 mm along z at 201 mm; at 261 mm
+    # the riser (x -200..200 mm) overlaps the support at x = 160.57 mm (radius 8) by 200 - 152.57 = 47.43
+    # mm along x, less than along y (53 mm) or z (60 mm)
+    for dz_mm, deep in ((1.0, "1.00"), (61.0, "47.43")):
+        fx["X2"] = (dataclasses.replace(r, hi=(r.hi[0], r.hi[1], r.hi[2] + dz_mm * MM)),)
+        with pytest.raises(PlanError, match=f"'X2'.*workholder block riser runs into the bar's support__\\d+ "
+                                            f"\\({deep} mm deep\\)"):
+            S.check_plan(dataclasses.replace(plan, fixtures=fx))
 
 
 def test_every_5axis_bar_stands_on_or_above_the_table_face_in_every_setup():
