@@ -499,8 +499,8 @@ class Folds:
     eigenvectors of the hat matrix's held-out block ``H_te = Q_te Q_te^T``,
     from its eigh when it is the smaller problem, else from the SVD of
     ``Q_te``; a long log probed once per target and set-up from the SVD of
-    the basis's dense rows alone, :meth:`_fold_indicators_scalar`; ``n_te x min(n_te, p')`` numbers, ``p'`` the columns the
-    held-out rows reach, less the largest cluster of predicted directions
+    the basis's dense rows alone, :meth:`_fold_one_touch_per_target`;
+    ``n_te x min(n_te, p')`` numbers, ``p'`` the columns the held-out rows reach, less the largest cluster of predicted directions
     sharing one share, kept as the projection on what the others leave:
     :class:`_Fold`), beside the own directions the training rows see a
     little over those ``p'`` columns (``v`` up to scale, at most ``p' x
@@ -564,7 +564,7 @@ class Folds:
         G[np.arange(te.size), jinv] = 1.0 / np.sqrt(Q.counts[J][jinv])
         return np.hstack([G, Q.dense_rows(te)]), np.concatenate([Q.indicator_columns(J), np.arange(Q.k, Q.shape[1])])
 
-    def _fold_indicators_scalar(self, te) -> _Fold | None:
+    def _fold_one_touch_per_target(self, te) -> _Fold | None:
         """:meth:`_fold` of a block basis whose held-out rows each touch their own target, every target with one
         count (a long log probed once per target and set-up), from the SVD of the basis's dense rows ``W``
         (n_te, r) instead of the eigh of ``H_te`` (n_te, n_te); None where that does not hold (:meth:`_fold`).
@@ -602,7 +602,7 @@ class Folds:
         return _Fold(self.n, te, U, c2, k, f, C, cols, m, c2m)
 
     def _fold(self, tr, te) -> _Fold:
-        quick = self._fold_indicators_scalar(te)
+        quick = self._fold_one_touch_per_target(te)
         if quick is not None:
             return quick
         Qte, cols = self._q_rows(te)
