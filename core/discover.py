@@ -1639,10 +1639,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     def model(rows_, terms):
         key = tuple(rows_.tolist()) if len(rows_) != N else None
         if key not in cache:
-            Qb = orth_of(bl.A[rows_]) if key is not None else Qall
             # every row of a long log's block design: the design itself, whose basis (Qall's, kept by the design)
-            # the folds share, not a copy of its rows factored again (the same numbers: the same rows in order)
+            # the folds share, not a copy of its rows factored again (the same numbers: the same rows in order);
+            # after an outlier removal one copy of the rows, whose block basis the folds share with Qb
             A_r = bl.A if key is None and isinstance(bl.A, BlockDesign) else bl.A[rows_]
+            Qb = orth_of(A_r) if key is not None else Qall
             est = (Folds if use_cv else CpEstimate)(A_r, bl.groups[rows_], settings.cv_seen,
                                                        settings.cv_seen_extension)
             if not use_cv:
