@@ -682,7 +682,7 @@ class BlockDesign:
     """
 
     ids: np.ndarray
-    D: np.ndarray
+    D: np.ndarray | sp.csr_matrix
     g_cols: np.ndarray
     d_cols: np.ndarray
     _bases: dict = field(default_factory=dict, repr=False, compare=False)
@@ -840,7 +840,7 @@ def _chunks(n: int, width: int):
     return [slice(a, min(a + step, n)) for a in range(0, n, step)]
 
 
-def _col_sumsq(D: np.ndarray, rows=None) -> np.ndarray:
+def _col_sumsq(D: np.ndarray | sp.spmatrix, rows=None) -> np.ndarray:
     """(m,) each column's sum of squares over ``rows`` (all), a block of rows at a time (no n x m temporary)."""
     out = np.zeros(D.shape[1])
     rows = np.arange(D.shape[0]) if rows is None else np.asarray(rows)
@@ -858,12 +858,12 @@ def row_column_norms(D: np.ndarray, rows=None) -> np.ndarray:
 class CentredSpan:
     """The (n, r) matrix ``(D - mean[ids]) T`` as an operator: a block design's basis outside its indicators.
 
-    ``D`` (n, m) the design's dense block, ``mean`` (g, m) its columns' means
+    ``D`` (n, m) the design's machine block (dense or sparse CSR), ``mean`` (g, m) its columns' means
     per id, ``T`` (m, r). Products ``U @ c``, ``U.T @ X``, its rows
     (:meth:`rows`) and their squares' sums, without forming ``U``.
     """
 
-    def __init__(self, ids: np.ndarray, D: np.ndarray, mean: np.ndarray, T: np.ndarray):
+    def __init__(self, ids: np.ndarray, D: np.ndarray | sp.spmatrix, mean: np.ndarray, T: np.ndarray):
         self.ids, self.D, self.mean, self.T = ids, D, mean, T
         self.MT = mean @ T  # (g, r)
 
@@ -1007,7 +1007,7 @@ class Basis:
         top = sp.csr_matrix((self._scale[col], (col, np.arange(len(pos)))), shape=(self.k, len(pos))) @ X
         Up = self.dense_rows(pos)
         bot = (X.T @ Up).T if sp.issparse(X) else Up.T @ X
-        return np.vstack([top.toarray() if sp.issparse(top) else np.asarray(top), np.asarray(bot)])
+        return np.vstack([_dense(top), np.asarray(bot)])
 
     def dense_rows(self, pos) -> np.ndarray:
         """(len(pos), r + dense columns): the rows ``pos`` of the basis outside its indicator columns."""
