@@ -407,25 +407,41 @@ def test_folds_block_path_is_the_dense_one_on_a_well_posed_design():
         np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
 
 
+def _bench_log_dense_and_block(monkeypatch, cut=lambda log: log):
+    """The benchmark generator's 150 x 8 log (``cut`` of it) as touches, its planar baseline with a dense design
+    and forced through the block design (DENSE_DESIGN_BYTES 0)."""
+    from core import baseline as Bm
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    t = from_log(cut(large_log(150, 8, np.random.default_rng(19))))
+    dense = Bm.planar(t)
+    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
+    return t, dense, Bm.planar(t)
+
+
+def _quick_folds_made(monkeypatch) -> list:
+    """The list to which every later call of Folds._fold_one_touch_per_target appends its answer (a fold or None)."""
+    from core import discover as X
+
+    made = []
+    quick = X.Folds._fold_one_touch_per_target
+    monkeypatch.setattr(X.Folds, "_fold_one_touch_per_target",
+                        lambda self, te: made.append(quick(self, te)) or made[-1])
+    return made
+
+
 def test_folds_of_a_log_probed_once_per_target_and_setup_by_the_svd_of_the_dense_rows(monkeypatch):
     """A long log probed once per target and set-up (the benchmark's generator: 150 targets at 8 C angles, forced
     through the block design): every fold is made from the SVD of the basis's dense rows (the hat block's
     indicator part is a multiple of the identity), not the eigh of the hat block, and gives the same held-out
     residuals and dof as the dense design's folds (a different algorithm: orth of the formed matrix, each
     fold's eigh) and as the block path's general fold, to 1e-12 relative, with and without an extension."""
-    from core import baseline as Bm
     from core import discover as X
-    from core.touches import from_log
-    from scenarios.bench.probelog import large_log
 
-    t = from_log(large_log(150, 8, np.random.default_rng(19)))
-    dense = Bm.planar(t)
-    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
-    block = Bm.planar(t)
+    t, dense, block = _bench_log_dense_and_block(monkeypatch)
     seen = X.Settings().cv_seen
-    made = []
-    quick = X.Folds._fold_one_touch_per_target
-    monkeypatch.setattr(X.Folds, "_fold_one_touch_per_target", lambda self, te: made.append(quick(self, te)) or made[-1])
+    made = _quick_folds_made(monkeypatch)
     fast = X.Folds(block.A, block.groups, seen)
     assert len(made) == 8 and all(f is not None and f.m > 0 for f in made)  # every fold, a cluster kept implicit
     monkeypatch.setattr(X.Folds, "_fold_one_touch_per_target", lambda self, te: None)
@@ -465,20 +481,11 @@ def test_folds_of_a_log_off_the_one_touch_per_target_form_take_the_general_fold(
     is wrong (measured: residuals 0.16 of their largest off with 10 % dropped; dof 915 against 880 with 40
     targets probed once). 1e-12
     relative: the same algebra by other routes, worst measured 9.6e-15 on these logs."""
-    from core import baseline as Bm
     from core import discover as X
-    from core.touches import from_log
-    from scenarios.bench.probelog import large_log
 
-    t = from_log(cut(large_log(150, 8, np.random.default_rng(19))))
-    dense = Bm.planar(t)
-    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
-    block = Bm.planar(t)
+    t, dense, block = _bench_log_dense_and_block(monkeypatch, cut)
     seen = X.Settings().cv_seen
-    made = []
-    quick = X.Folds._fold_one_touch_per_target
-    monkeypatch.setattr(X.Folds, "_fold_one_touch_per_target",
-                        lambda self, te: made.append(quick(self, te)) or made[-1])
+    made = _quick_folds_made(monkeypatch)
     folds = X.Folds(block.A, block.groups, seen)
     assert len(made) == 8 and all(f is None for f in made)
     ref = X.Folds(dense.A, dense.groups, seen)
@@ -512,10 +519,7 @@ def test_folds_where_the_largest_cluster_is_not_the_indicators_take_the_general_
     groups = np.array([g for _, g in rows])
     assert np.linalg.matrix_rank(A) == T + r
     seen = X.Settings().cv_seen
-    made = []
-    quick = X.Folds._fold_one_touch_per_target
-    monkeypatch.setattr(X.Folds, "_fold_one_touch_per_target",
-                        lambda self, te: made.append(quick(self, te)) or made[-1])
+    made = _quick_folds_made(monkeypatch)
     folds = X.Folds(BlockDesign.from_sparse(A, np.arange(T)), groups, seen)
     assert len(made) == S and any(f is None for f in made)
     ref = X.Folds(A, groups, seen)
