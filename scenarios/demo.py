@@ -214,7 +214,11 @@ def _mfb(seed: int, outp: Path, say) -> None:
     doc = res.doc
     write_json_atomic(outp / "mfb-3axis.json", json_safe(doc))
     w = doc["within_u95"]  # the nodes of 21 errors, which miss together: the model's count beside it
-    say(f"{doc['placements']} placements, {doc['measurements']} measurements, {doc['touches']} touches; "
+    c = doc.get("collision_check") or {}
+    fx = sorted({b["name"] for bl in c.get("fixtures", {}).values() for b in bl})
+    say(f"{doc['placements']} placements, {doc['measurements']} measurements, {doc['touches']} touches "
+        f"(bars on the table{' and on workholders: ' + ', '.join(fx) if fx else ''}; collision check "
+        f"{'passed' if c.get('passed') else 'NOT passed'}, {c.get('path_points', 0)} path points); "
         f"largest deviation from the injected errors {doc['max_dev_um']:.2f} um / {doc['max_dev_urad']:.1f} urad; "
         f"{w['inside']} of {w['total']} identified values within their U95 (model: {w['expected']:.0f}, 95 % of runs "
         f"{w['range95'][0]}-{w['range95'][1]}, as an error's nodes miss together); {w['errors_inside']} of "

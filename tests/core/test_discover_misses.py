@@ -200,16 +200,27 @@ def test_outliers_on_a_feature_that_moves_are_not_confidently_dust():
             assert got["feature"] == "3" and got["p_adjusted"] < 1e-6
 
 
-def test_gen_a_part_change_904_outliers_not_confidently_dust():
-    """The development miss this rule was written from: gen_a part_change 904, the relaxing boss's three
-    largest residuals (two set-ups) judged dust, `outlier`, confident; its other touches carry the
-    structure (the boss's walls per set-up, p < 1e-6), so the outliers are ambiguous now."""
+def test_gen_a_part_change_904_outliers_not_confidently_dust(monkeypatch):
+    """The development miss the outliers' place rule was written from: gen_a part_change 904, the relaxing
+    boss's three largest residuals (two set-ups) judged dust, `outlier`, confident; its other touches carry
+    the structure (the boss's walls per set-up, p < 1e-6), so the outliers were made ambiguous (the rule
+    itself: test_outliers_on_a_feature_that_moves_are_not_confidently_dust). The boss (eight targets, one
+    per 45 deg sector) had no part_change column; with the ring's ovalisation columns the change is named
+    on the changing feature, and no outlier is called dust confidently. With the ring switched off
+    (RING_FIT_REL 0: no feature is a ring) the place rule still does its part end to end: the outliers
+    are ambiguous, their structure placed on the boss."""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
 
-    log, _ = gen_a.generate("part_change", 904)
+    log, tr = gen_a.generate("part_change", 904)
     t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "part_change" and f["params"]["feature"] == tr.params["feature"], rep["findings"]
+    assert not any(g["cause"] == "outlier" and g["evidence"].get("confidence") != "ambiguous"
+                   for g in rep["findings"]), rep["findings"]
+    monkeypatch.setattr(causes, "RING_FIT_REL", 0.0)
     rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
@@ -484,3 +495,98 @@ def test_gen_a_reseat_hysteresis_876_outliers_not_confidently_dust():
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
     assert f["evidence"]["concentration_p"] < 0.01 and f["evidence"]["events"] == 3
+
+
+def test_part_change_ring_columns():
+    """A ring (a boss or a bore) whose 45 deg sectors do not each hold two targets has no wall column; its
+    ovalisation changing with time is its columns instead (``tau cos 2 theta``, ``tau sin 2 theta`` on its
+    touches, theta its normal's azimuth in the part's frame), its size not (a probe's pre-travel drifting
+    changes every feature's size). gen_a none 1017's boss (eight targets, one per sector): one scan, an
+    ovalisation of any axis in its span (to 1e-9 of its norm: rounding), a size change mostly not.
+    Hand-made rings: eight points on a circle are one; the same points moved along one normal by 1 % of the
+    radius are not (a flat wall's places, a blade's curve); four points 90 deg apart are a ring whose
+    ovalisation's axis cannot be seen (``cos 2 theta`` and ``sin 2 theta`` one column up to sign), no ring
+    columns. gen_b none 1000: its blade (a curve of changing radius) is no ring, its pins (four targets, each
+    sector a wall) keep their walls: no ring columns there."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+
+    log, _ = gen_a.generate("none", 1017)
+    t = from_log(log)
+    bl = planar(t, 30.0, extra=extra_columns(log, t.row))
+    scans = [s for s in causes.part_change_scans(bl)[0] if s.infos[0]["feature"] == "boss"]
+    assert len(scans) == 1 and scans[0].infos[0].get("ring"), [s.labels for s in scans]
+    boss = np.asarray(t.feature) == "boss"
+    tau = (t.t_s - t.t_s.min()) / np.ptp(t.t_s)
+    th = np.arctan2(t.wn_A[:, 1], t.wn_A[:, 0])
+    Q = orth_of(scans[0].build([0])[0])
+    y = boss * tau * np.cos(2 * th - 0.4)
+    assert np.linalg.norm(y - Q @ (Q.T @ y)) < 1e-9 * np.linalg.norm(y)
+    y = boss * tau
+    assert np.linalg.norm(y - Q @ (Q.T @ y)) > 0.9 * np.linalg.norm(y)
+    a = np.linspace(0, 2 * np.pi, 8, endpoint=False) + 0.3
+    n = np.column_stack([np.cos(a), np.sin(a)])
+    w = np.array([3.0, -2.0]) + 12.0 * n
+    assert causes._ring(w, n) and causes._ring(w, -n)  # a boss, and a bore (normals to the centre)
+    w2 = w.copy()
+    w2[2] += 0.12 * n[2]
+    assert not causes._ring(w2, n)
+    from types import SimpleNamespace
+    for k, sees in ((4, False), (5, True)):  # four azimuths 90 deg apart: the ovalisation's axis unseen
+        az = np.linspace(0, 2 * np.pi, k, endpoint=False) + 0.3
+        p = np.column_stack([12.0 * np.cos(az), 12.0 * np.sin(az), np.zeros(k)])
+        d = SimpleNamespace(touches=SimpleNamespace(target=np.arange(k), w_A=p), wn_az=az, tau=np.linspace(0, 1, k))
+        assert causes._ring(p[:, :2], p[:, :2] / 12.0)
+        assert (causes._ring_columns(d, np.ones(k, bool)) is not None) == sees, k
+    # a bore by hand: nine targets (uneven azimuths) on a 12 mm circle, normals to the centre, changing by
+    # 5 um cos 2(theta - phi) at the end (theta the normal's azimuth), phi 250 deg: the axis is phi mod 180
+    a = np.radians([3.0, 41.0, 77.0, 128.0, 160.0, 199.0, 236.0, 281.0, 322.0])
+    p = np.column_stack([3.0 + 12.0 * np.cos(a), -2.0 + 12.0 * np.sin(a), np.zeros(a.size)])
+    az = a + np.pi
+    tau = np.linspace(0.0, 1.0, a.size)
+    d = SimpleNamespace(touches=SimpleNamespace(target=np.arange(a.size), w_A=p), wn_az=az, tau=tau)
+    cols = causes._ring_columns(d, np.ones(a.size, bool))
+    y = 5.0 * causes.UM * tau * np.cos(2 * (az - np.radians(250.0)))
+    got = causes.part_change_magnitudes({"feature": "bore", "ring": True}, np.linalg.lstsq(cols, y, rcond=None)[0], None)
+    assert abs(got["ovalisation_axis_deg"] - 70.0) < 1e-9 and abs(got["ovalisation_um"] - 5.0) < 1e-9, got
+    _, _, tb, blb = _gen_b_baseline("none", 1000)
+    assert not any(s.infos[0].get("ring") for s in causes.part_change_scans(blb)[0])
+    assert causes._ring_columns(blb.data, np.asarray(tb.feature) == "blade") is None
+
+
+@pytest.mark.parametrize("seed", [1017, 1026, 1059, 1090, 1086])
+def test_gen_a_part_change_a_boss_ovalising_named(seed):
+    """The tuning misses this was written from: gen_a part_change 1017 (5.6 sigma visible), the boss (eight
+    targets, one per 45 deg sector) ovalising, read `outlier` (1059, 1090 too; 1086 `unexplained`): part_change had no column on it (two targets per sector were needed on a
+    feature of eight or more). Noise-free, 1017's ovalisation growing with time explains 97 % of the change
+    outside the baseline, the best one-off slip 6 %. With the ring's columns the change is named on the
+    changing feature, and its axis agrees with the generator's (the second harmonic of its change at the
+    boss's targets at the campaign's end, from the truth's workpiece at the start and the end, fitted here
+    beside a size) within 3 deg: the columns' linear-in-time form scales the ovalisation's two parts alike,
+    so the axis (their ratio) is not biased by it, only by noise (its U95 2.3-3.1 deg on these seeds; the
+    largest miss measured 2.0 deg, 1017). The magnitude is biased low by that form (the generator grows as
+    1 - exp(-t/tau)) and its U95 covers noise only: found/truth 0.68-0.98 on these seeds (1059, tau 718 s
+    against a 2188 s campaign, 0.68; core/causes.py part_change_scans); within 25 % is checked on 1017
+    (0.955), the form's bias bound met where tau is not short against the campaign."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+
+    log, tr = gen_a.generate("part_change", seed)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "part_change" and f["params"]["feature"] == tr.params["feature"], rep["rejected"]
+    d = dict(zip(map(str, tr.targets), np.asarray(tr.workpiece_end_um) - np.asarray(tr.workpiece_um)))
+    names = np.asarray(log.col("target")).astype(str)
+    ids = np.unique(names[np.asarray(log.col("feature")).astype(str) == tr.params["feature"]])
+    first = np.array([np.flatnonzero(names == k)[0] for k in ids])
+    th = np.arctan2(np.asarray(log.col("wny"), float)[first], np.asarray(log.col("wnx"), float)[first])
+    c = np.linalg.lstsq(np.column_stack([np.ones_like(th), np.cos(2 * th), np.sin(2 * th)]),
+                        np.array([d[k] for k in ids]), rcond=None)[0]
+    p = f["params"]
+    axis = np.degrees(0.5 * np.arctan2(c[2], c[1])) % 180.0
+    assert abs((p["ovalisation_axis_deg"] - axis + 90.0) % 180.0 - 90.0) <= 3.0, (p, axis)
+    if seed == 1017:
+        assert abs(p["ovalisation_um"] / np.hypot(c[1], c[2]) - 1.0) <= 0.25, (p, c)
