@@ -47,7 +47,7 @@ from scipy import special, stats
 from scipy.interpolate import BSpline
 
 from .exceptions import ConfigError
-from .lsq import Basis, group_sums
+from .lsq import Basis, _dense, group_sums
 from .units import UM
 
 #: Relative column norm (after projection out of the model) below which a
@@ -808,8 +808,7 @@ def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.
         return nested_f(U, r, rss, dof), U @ (U.T @ r), U.shape[1]
     BB = QB = Br = None
     for pos, Bc in _term_chunks(cov, F, modes, rows):
-        bb = Bc.T @ Bc
-        bb = bb.toarray() if sp.issparse(bb) else bb
+        bb = _dense(Bc.T @ Bc)
         qb = Q.rows_rmatmul(pos, Bc)
         br = np.asarray(Bc.T @ r[pos]).ravel()
         BB, QB, Br = (bb, qb, br) if BB is None else (BB + bb, QB + qb, Br + br)

@@ -643,7 +643,12 @@ def group_sums(ids: np.ndarray, g: int, X: np.ndarray) -> np.ndarray:
     if X.ndim == 1:
         return np.bincount(ids, weights=X, minlength=g)
     G = sp.csr_matrix((np.ones(len(ids)), (ids, np.arange(len(ids)))), shape=(g, len(ids)))
-    return np.asarray(G @ X)
+    return _dense(G @ X)
+
+
+def _dense(X) -> np.ndarray:
+    """``X`` as a dense array (a sparse matrix formed: a block of rows, a product's small result)."""
+    return X.toarray() if sp.issparse(X) else np.asarray(X)
 
 
 @dataclass(frozen=True, eq=False)
@@ -652,8 +657,11 @@ class BlockDesign:
 
     The design of a long self-calibration log: ``n`` touches by ``p``
     parameters, of which ``g`` are the targets' own columns (``G``, one 1
-    per row) and ``m`` the machine's (``D``, dense). Stored as the rows' ids
-    and ``D`` only: ``n * m`` numbers instead of ``n * p``, and the
+    per row) and ``m`` the machine's (``D``). Stored as the rows' ids
+    and ``D`` only: ``n * m`` numbers instead of ``n * p`` (``D`` dense, or
+    sparse CSR as :meth:`from_sparse` keeps it: a log's machine columns are
+    grid functions of local support and per-set-up columns, 14 of 326
+    non-zero per row on the benchmark's logs), and the
     projections discovery needs are formed by eliminating ``G`` (means per
     id, Frisch-Waugh-Lovell) so that only ``D``'s part outside it is
     factored densely (:meth:`basis`).
@@ -662,7 +670,9 @@ class BlockDesign:
     ----------
     ids : (n,) int
         The ``G`` column (0..g-1) of each row.
-    D : (n, m) float
+    D : (n, m) float array, or scipy.sparse CSR matrix
+        Every pass over its rows forms a block of them at a time
+        (:data:`CHUNK_BYTES`), products with it are dense.
     g_cols, d_cols : (g,), (m,) int
         Where ``G``'s and ``D``'s columns sit among the design's ``p = g + m``.
 
@@ -672,7 +682,7 @@ class BlockDesign:
     """
 
     ids: np.ndarray
-    D: np.ndarray
+    D: np.ndarray | sp.csr_matrix
     g_cols: np.ndarray
     d_cols: np.ndarray
     _bases: dict = field(default_factory=dict, repr=False, compare=False)
@@ -697,8 +707,11 @@ class BlockDesign:
         if np.any(np.diff(G.indptr) != 1) or np.any(G.data != 1.0):
             raise ConfigError("BlockDesign: the indicator columns must hold exactly one 1 per row")
         d_cols = np.setdiff1d(np.arange(A.shape[1]), g_cols)
-        # D in row order (a CSC matrix's toarray is column-major: every pass over rows would copy it)
-        return cls(G.indices.astype(np.int64), A[:, d_cols].tocsr().toarray(), g_cols, d_cols)
+        # D kept sparse, in row order (CSR: a block of rows is a slice of its arrays); dense it was n x m numbers
+        # (2.8 GB at 1e6 rows and 356 machine columns, where its 14 non-zeros a row take 170 MB)
+        D = A[:, d_cols].tocsr()
+        D.sort_indices()
+        return cls(G.indices.astype(np.int64), D, g_cols, d_cols)
 
     @property
     def shape(self) -> tuple:
@@ -741,7 +754,8 @@ class BlockDesign:
         if not E.shape[1]:  # nothing joins: the same design (not a copy of D)
             return self
         p = self.shape[1]
-        return BlockDesign(self.ids, np.hstack([self.D, E]), self.g_cols,
+        D = sp.hstack([self.D, sp.csr_matrix(E)], format="csr") if sp.issparse(self.D) else np.hstack([self.D, E])
+        return BlockDesign(self.ids, D, self.g_cols,
                            np.concatenate([self.d_cols, np.arange(p, p + E.shape[1])]))
 
     def gram(self) -> np.ndarray:
@@ -752,13 +766,13 @@ class BlockDesign:
         N[self.g_cols, self.g_cols] = np.bincount(self.ids, minlength=self.g)
         N[np.ix_(self.g_cols, self.d_cols)] = gd
         N[np.ix_(self.d_cols, self.g_cols)] = gd.T
-        N[np.ix_(self.d_cols, self.d_cols)] = self.D.T @ self.D
+        N[np.ix_(self.d_cols, self.d_cols)] = _dense(self.D.T @ self.D)
         return N
 
     def toarray(self) -> np.ndarray:
         A = np.zeros(self.shape)
         A[np.arange(len(self.ids)), self.g_cols[self.ids]] = 1.0
-        A[:, self.d_cols] = self.D
+        A[:, self.d_cols] = _dense(self.D)
         return A
 
     def basis(self, tol: float = 1e-9) -> "Basis":
@@ -797,7 +811,7 @@ class BlockDesign:
                 W = np.empty((R.shape[0] + c.stop - c.start, keep.size))
                 W[:R.shape[0]] = R
                 Ds = W[R.shape[0]:]
-                np.take(D[c], keep, axis=1, out=Ds)
+                np.take(_dense(D[c]), keep, axis=1, out=Ds)
                 Ds -= mk[ids[c]]
                 Ds *= sk
                 R = sla.qr(W, mode="r", overwrite_a=True)[0][:keep.size]
@@ -826,12 +840,12 @@ def _chunks(n: int, width: int):
     return [slice(a, min(a + step, n)) for a in range(0, n, step)]
 
 
-def _col_sumsq(D: np.ndarray, rows=None) -> np.ndarray:
+def _col_sumsq(D: np.ndarray | sp.spmatrix, rows=None) -> np.ndarray:
     """(m,) each column's sum of squares over ``rows`` (all), a block of rows at a time (no n x m temporary)."""
     out = np.zeros(D.shape[1])
     rows = np.arange(D.shape[0]) if rows is None else np.asarray(rows)
     for c in _chunks(len(rows), D.shape[1]):
-        Dc = D[rows[c]]
+        Dc = _dense(D[rows[c]])
         out += np.einsum("ij,ij->j", Dc, Dc)
     return out
 
@@ -844,12 +858,12 @@ def row_column_norms(D: np.ndarray, rows=None) -> np.ndarray:
 class CentredSpan:
     """The (n, r) matrix ``(D - mean[ids]) T`` as an operator: a block design's basis outside its indicators.
 
-    ``D`` (n, m) the design's dense block, ``mean`` (g, m) its columns' means
+    ``D`` (n, m) the design's machine block (dense or sparse CSR), ``mean`` (g, m) its columns' means
     per id, ``T`` (m, r). Products ``U @ c``, ``U.T @ X``, its rows
     (:meth:`rows`) and their squares' sums, without forming ``U``.
     """
 
-    def __init__(self, ids: np.ndarray, D: np.ndarray, mean: np.ndarray, T: np.ndarray):
+    def __init__(self, ids: np.ndarray, D: np.ndarray | sp.spmatrix, mean: np.ndarray, T: np.ndarray):
         self.ids, self.D, self.mean, self.T = ids, D, mean, T
         self.MT = mean @ T  # (g, r)
 
@@ -993,7 +1007,7 @@ class Basis:
         top = sp.csr_matrix((self._scale[col], (col, np.arange(len(pos)))), shape=(self.k, len(pos))) @ X
         Up = self.dense_rows(pos)
         bot = (X.T @ Up).T if sp.issparse(X) else Up.T @ X
-        return np.vstack([top.toarray() if sp.issparse(top) else np.asarray(top), np.asarray(bot)])
+        return np.vstack([_dense(top), np.asarray(bot)])
 
     def dense_rows(self, pos) -> np.ndarray:
         """(len(pos), r + dense columns): the rows ``pos`` of the basis outside its indicator columns."""

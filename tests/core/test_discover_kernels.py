@@ -407,6 +407,129 @@ def test_folds_block_path_is_the_dense_one_on_a_well_posed_design():
         np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
 
 
+def _bench_log_dense_and_block(monkeypatch, cut=lambda log: log):
+    """The benchmark generator's 150 x 8 log (``cut`` of it) as touches, its planar baseline with a dense design
+    and forced through the block design (DENSE_DESIGN_BYTES 0)."""
+    from core import baseline as Bm
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    t = from_log(cut(large_log(150, 8, np.random.default_rng(19))))
+    dense = Bm.planar(t)
+    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
+    return t, dense, Bm.planar(t)
+
+
+def _quick_folds_made(monkeypatch) -> list:
+    """The list to which every later call of Folds._fold_one_touch_per_target appends its answer (a fold or None)."""
+    from core import discover as X
+
+    made = []
+    quick = X.Folds._fold_one_touch_per_target
+    monkeypatch.setattr(X.Folds, "_fold_one_touch_per_target",
+                        lambda self, te: made.append(quick(self, te)) or made[-1])
+    return made
+
+
+def test_folds_of_a_log_probed_once_per_target_and_setup_by_the_svd_of_the_dense_rows(monkeypatch):
+    """A long log probed once per target and set-up (the benchmark's generator: 150 targets at 8 C angles, forced
+    through the block design): every fold is made from the SVD of the basis's dense rows (the hat block's
+    indicator part is a multiple of the identity), not the eigh of the hat block, and gives the same held-out
+    residuals and dof as the dense design's folds (a different algorithm: orth of the formed matrix, each
+    fold's eigh) and as the block path's general fold, to 1e-12 relative, with and without an extension."""
+    from core import discover as X
+
+    t, dense, block = _bench_log_dense_and_block(monkeypatch)
+    seen = X.Settings().cv_seen
+    made = _quick_folds_made(monkeypatch)
+    fast = X.Folds(block.A, block.groups, seen)
+    assert len(made) == 8 and all(f is not None and f.m > 0 for f in made)  # every fold, a cluster kept implicit
+    monkeypatch.setattr(X.Folds, "_fold_one_touch_per_target", lambda self, te: None)
+    general, ref = X.Folds(block.A, block.groups, seen), X.Folds(dense.A, dense.groups, seen)
+    rng = np.random.default_rng(3)
+    Y, E = rng.normal(size=(t.n, 2)), rng.normal(size=(t.n, 2))
+    for args in ((Y,), (Y, E), (block.y,)):
+        a = ref.residuals(*args)
+        for folds in (fast, general):
+            b = folds.residuals(*args)
+            assert folds.last_dof == ref.last_dof
+            np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
+
+
+def _log_with_unequal_counts(log):
+    """The benchmark log with 10 % of its touches dropped at random: targets touched 6 to 8 times."""
+    return log.select(np.random.default_rng(5).random(len(log.columns["target"])) > 0.1)
+
+
+def _log_with_targets_probed_once(log):
+    """The benchmark log with its first 40 targets probed in one set-up only (one touch each, a different set-up
+    target by target): their set-ups hold targets touched once beside targets touched 8 times."""
+    tg = log.columns["target"]
+    ut = np.unique(tg)
+    keep = ~np.isin(tg, ut[:40])
+    for i, target in enumerate(ut[:40]):
+        idx = np.flatnonzero(tg == target)
+        keep[idx[i % len(idx)]] = True
+    return log.select(keep)
+
+
+@pytest.mark.parametrize("cut", [_log_with_unequal_counts, _log_with_targets_probed_once])
+def test_folds_of_a_log_off_the_one_touch_per_target_form_take_the_general_fold(monkeypatch, cut):
+    """The quick fold (:meth:`Folds._fold_one_touch_per_target`) declines (None) where the held-out set-up's
+    targets have unequal counts (its equal-count guard: 10 % of touches dropped; 40 targets probed once), and the
+    folds' held-out residuals and dof are the dense design's. Without that guard the quick fold is taken there and
+    is wrong (measured: residuals 0.16 of their largest off with 10 % dropped; dof 915 against 880 with 40
+    targets probed once). 1e-12
+    relative: the same algebra by other routes, worst measured 9.6e-15 on these logs."""
+    from core import discover as X
+
+    t, dense, block = _bench_log_dense_and_block(monkeypatch, cut)
+    seen = X.Settings().cv_seen
+    made = _quick_folds_made(monkeypatch)
+    folds = X.Folds(block.A, block.groups, seen)
+    assert len(made) == 8 and all(f is None for f in made)
+    ref = X.Folds(dense.A, dense.groups, seen)
+    rng = np.random.default_rng(3)
+    Y, E = rng.normal(size=(t.n, 2)), rng.normal(size=(t.n, 2))
+    for args in ((Y,), (Y, E), (block.y,)):
+        a, b = ref.residuals(*args), folds.residuals(*args)
+        assert folds.last_dof == ref.last_dof
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
+
+
+def test_folds_where_the_largest_cluster_is_not_the_indicators_take_the_general_fold(monkeypatch):
+    """Hand-made: 5 targets, each probed once in each of 3 set-ups (equal counts, one touch per target: the quick
+    fold's form), and 4 machine columns, column j touching target (j - g) mod 5 in set-up g (a cyclic design).
+    A held-out set-up's dense rows W (5 x 4) leave one direction (n0 = 1, share delta = 1/3), and the cyclic
+    symmetry pairs W's singular values: in one fold the largest cluster of equal shares is such a pair, not the
+    indicators' delta, and the quick fold (which drops the cluster as if it were delta's) declines there (its
+    cluster guard); the held-out residuals and dof are the dense design's. Without that guard the quick fold is
+    taken and the residuals are 0.41 of their largest off (measured). 1e-12 relative: the same algebra by other
+    routes, worst measured 6.1e-15."""
+    from core import discover as X
+    from core.lsq import BlockDesign
+
+    S, T, r = 3, 5, 4
+    rows = [(t, g) for g in range(S) for t in range(T)]
+    A = np.zeros((len(rows), T + r))
+    for i, (t, g) in enumerate(rows):
+        A[i, t] = 1.0
+        if (t + g) % T < r:
+            A[i, T + (t + g) % T] = 1.0
+    groups = np.array([g for _, g in rows])
+    assert np.linalg.matrix_rank(A) == T + r
+    seen = X.Settings().cv_seen
+    made = _quick_folds_made(monkeypatch)
+    folds = X.Folds(BlockDesign.from_sparse(A, np.arange(T)), groups, seen)
+    assert len(made) == S and any(f is None for f in made)
+    ref = X.Folds(A, groups, seen)
+    Y = np.random.default_rng(1).normal(size=(len(rows), 2))
+    for args in ((Y,), (Y[:, 0], Y[:, 1:])):
+        a, b = ref.residuals(*args), folds.residuals(*args)
+        assert folds.last_dof == ref.last_dof
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
+
+
 def test_planar_block_design_and_its_constrained_fit_are_the_dense_ones(monkeypatch):
     """A long planar log's baseline (forced here on 480 touches) keeps the same design as a BlockDesign (the
     targets' block), chooses the same grid with the same rank, and its gauge-constrained workpiece fit (solved

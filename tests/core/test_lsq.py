@@ -142,13 +142,21 @@ def test_block_design_round_trip_and_products():
     assert A.shape == Ad.shape and np.all(Ad[:, A.g_cols].sum(axis=1) == 1)
     B = BlockDesign.from_sparse(sp.csr_matrix(Ad), A.g_cols)
     assert np.array_equal(B.toarray(), Ad)
+    assert sp.issparse(B.D) and not sp.issparse(A.D)  # from_sparse keeps the machine block sparse
     th, X, E = r.normal(size=A.shape[1]), r.normal(size=(A.shape[0], 3)), r.normal(size=(A.shape[0], 2))
-    np.testing.assert_allclose(A @ th, Ad @ th, atol=1e-13)
-    np.testing.assert_allclose(A.T @ X, Ad.T @ X, atol=1e-12)
-    np.testing.assert_allclose(A.gram(), Ad.T @ Ad, atol=1e-12)
     rows = np.arange(0, A.shape[0], 3)
-    assert np.array_equal(A[rows].toarray(), Ad[rows])
-    assert np.array_equal(np.hstack([A, E]).toarray(), np.hstack([Ad, E]))
+    for M in (A, B):  # D dense and D sparse: the same matrix
+        np.testing.assert_allclose(M @ th, Ad @ th, atol=1e-13)
+        np.testing.assert_allclose(M.T @ X, Ad.T @ X, atol=1e-12)
+        np.testing.assert_allclose(M.T @ X[:, 0], Ad.T @ X[:, 0], atol=1e-12)
+        np.testing.assert_allclose(M.gram(), Ad.T @ Ad, atol=1e-12)
+        assert np.array_equal(M[rows].toarray(), Ad[rows])
+        ME = np.hstack([M, E])
+        assert np.array_equal(ME.toarray(), np.hstack([Ad, E])) and sp.issparse(ME.D) == sp.issparse(M.D)
+        Q, QA = M.basis(1e-9), A.basis(1e-9)  # the basis of either: the same span, rank and leverage
+        assert Q.shape == QA.shape
+        np.testing.assert_allclose(Q @ (Q.T @ X), QA @ (QA.T @ X), atol=1e-12)
+        np.testing.assert_allclose(Q.leverage(), QA.leverage(), atol=1e-12)
 
 
 def test_block_basis_is_the_dense_orth_span():
