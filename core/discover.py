@@ -1121,7 +1121,10 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
     the step's), and that agreement is evidence, one of:
 
     1. the outliers outnumber the step's free parameters (its columns:
-       two translations and a turn): their agreement with one rigid motion
+       two translations and a turn; counted among those it judges: an
+       outlier it fits exactly, leverage 1, has no deleted residual and is
+       neither left beyond the bound nor agreeing; gen_a knock 1609's
+       first touch of its set-up): their agreement with one rigid motion
        then constrains it (as many constraints as outliers beyond the
        parameters, each at the outlier bound). A heuristic, not a test of
        known level: its false-alarm rate under dust is not computed (the
@@ -1172,19 +1175,29 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
     Qk = rk = None
 
     def fits(tr, rows):
-        """(the trial's parameters, whether adopted on every row it leaves none of ``rows`` beyond the bound)."""
+        """(the trial's parameters, whether adopted on every row it leaves none of ``rows`` beyond the bound,
+        how many of ``rows`` it judges).
+
+        A row the trial fits exactly (leverage 1: the step's turn fixed by
+        that one touch, the set-up's other touches before the step all on a
+        bore, blind to a turn about its axis: gen_a knock 1609's first touch
+        of its set-up) has no deleted residual: it is neither left beyond the
+        bound nor evidence of agreement, and is not counted as judged.
+        """
         W = new_basis(Q0, Cs[tr])
         Q = np.hstack([Q0, W])
         r = y - Q @ (Q.T @ y)
         dof = n - Q.shape[1]
         if dof < 3:
-            return W.shape[1], False
+            return W.shape[1], False, 0
         den = 1 - leverage(Q)[rows]
-        if np.any(den < 0.01):
-            return W.shape[1], False
-        s2 = (float(r @ r) - r[rows] ** 2 / den) / (dof - 1)
-        tstat = np.abs(r[rows]) / np.sqrt(np.maximum(s2, 1e-300) * den)
-        return W.shape[1], bool(np.all(tstat <= stats.t.isf(alpha / (2 * n), dof - 1)))
+        judged = den >= 0.01
+        if not np.any(judged):
+            return W.shape[1], False, 0
+        rj, dj = r[rows][judged], den[judged]
+        s2 = (float(r @ r) - rj ** 2 / dj) / (dof - 1)
+        tstat = np.abs(rj) / np.sqrt(np.maximum(s2, 1e-300) * dj)
+        return W.shape[1], bool(np.all(tstat <= stats.t.isf(alpha / (2 * n), dof - 1))), int(judged.sum())
 
     for e in multi:
         rows = out[ev == e]
@@ -1194,10 +1207,10 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
         # 1. the step that fits every row best (removes most of the residual): more outliers than its
         # parameters, all its own
         ss0, _, _, _ = nested_f_batch(Cs[trials], Q0, r0, float(r0 @ r0), n - Q0.shape[1])
-        q, ok = fits(trials[int(np.argmax(ss0))], rows)
+        q, ok, judged = fits(trials[int(np.argmax(ss0))], rows)
         if not ok:
             continue
-        if rows.size > q:
+        if judged > q:
             return True
         # 2. fewer outliers than parameters: the other touches must see a step in this event
         if Qk is None:
