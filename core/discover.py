@@ -3399,12 +3399,6 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                            "material beyond it")
         if ev.get("magnitudes_not_determined"):
             why.append(ev["magnitudes_not_determined"])
-        if structure_e.get("noise_excess"):
-            # the scatter the model leaves is no probe's noise: something it misses is larger than the noise the
-            # rival and slip checks are debiased with, so they cannot exclude a rival (gen_a reseat_hysteresis
-            # 1609: the repeats' noise 1.52 um against a true 0.363 read c_drift confidently)
-            why.append(f"the scatter left ({structure_e['noise_um']:.2g} um) is above any touch-trigger probe's "
-                       f"noise ({settings.noise_max_um:g} um): something the model misses may carry part of the signal")
         ev["confidence"] = "ambiguous" if why else "named"
         if why:
             ev["confidence_reason"] = "; ".join(why)

@@ -516,26 +516,6 @@ def test_gen_a_knock_1609_slip_veto_judges_what_the_step_does_not_fit_exactly():
     assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o  # the issue's check: never worse beyond U95
 
 
-def test_gen_a_reseat_hysteresis_1609_not_confident_beside_a_noise_excess():
-    """gen_a reseat_hysteresis 1609 (out of the catalogue, 2.46 sigma; fresh seed, examined in session 11): the
-    probe re-seats after each turn of approach, so the drift-check repeats mix affected and normal touches and
-    the noise read from them is 1.52 um (true 0.363); against it the rival and slip checks are debiased to
-    nothing, c_drift's one column (which follows the plan's order) passes, and main named it confidently, the
-    issue's "never confidently misnamed" broken. The scatter the model leaves is above any touch-trigger
-    probe's noise (Settings.noise_max_um): a finding beside it is ambiguous, with that reason. (main: c_drift
-    confident.)"""
-    from core.baseline import extra_columns
-    from core.touches import from_log
-    from scenarios.blind import gen_a
-
-    log, tr = gen_a.generate("reseat_hysteresis", 1609)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
-    f = rep["findings"][0]
-    assert f["cause"] in tr.acceptable_causes or f["evidence"]["confidence"] == "ambiguous", f
-    assert "touch-trigger probe's noise" in f["evidence"].get("confidence_reason", ""), f["evidence"]
-
-
 def test_part_change_ring_columns():
     """A ring (a boss or a bore) whose 45 deg sectors do not each hold two targets has no wall column; its
     ovalisation changing with time is its columns instead (``tau cos 2 theta``, ``tau sin 2 theta`` on its
