@@ -1122,9 +1122,12 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
 
     1. the outliers outnumber the step's free parameters (its columns:
        two translations and a turn; counted among those it judges: an
-       outlier it fits exactly, leverage 1, has no deleted residual and is
-       neither left beyond the bound nor agreeing; gen_a knock 1609's
-       first touch of its set-up): their agreement with one rigid motion
+       outlier it fits exactly (leverage above 0.99), has no deleted
+       residual and is neither left beyond the bound nor agreeing; gen_a
+       knock 1609's first touch of its set-up. Such a row is explained by
+       the step without evidence of its own, beside judged outliers that
+       agree; with none judged the step explains nothing): their agreement
+       with one rigid motion
        then constrains it (as many constraints as outliers beyond the
        parameters, each at the outlier bound). A heuristic, not a test of
        known level: its false-alarm rate under dust is not computed (the

@@ -775,3 +775,32 @@ def test_a_slips_turn_explains_its_outliers_and_dust_alone_does_not():
     for b in (20.0 / 3.0, 8.0 / 3.0):
         turn = np.where((events == 0) & (k >= 45), b * L, 0.0)
         assert D._slip_explains(X, noise + turn, out, events, slips, 0.001, 0.0025), b
+
+
+def test_slip_explains_judges_only_what_the_step_does_not_fit_exactly():
+    """core.discover._slip_explains, condition 1 (hand-built, noise 1): outliers a step's columns fit
+    exactly (leverage 1: an indicator column each) have no deleted residual and are not judged; with every
+    outlier so, the step explains nothing (the old code refused it for any such row). One such row (a 50
+    sigma chip) beside four outliers that a real step moves (20 sigma, rows 11-19) is explained along with
+    them, without evidence of its own (s11_diag; the old code refused the whole step for the one row)."""
+    from core.discover import _slip_explains
+
+    rng = np.random.default_rng(0)
+    n = 60
+    X, y = np.ones((n, 1)), rng.normal(0, 1, n)
+    events = np.repeat([0, 1, 2], 20)
+    ind = lambda i: (np.arange(n) == i).astype(float)  # noqa: E731
+
+    def slips(*cols):
+        C = np.zeros((1, n, 3))
+        for j, c in enumerate(cols):
+            C[0, :, j] = c
+        return lambda: C
+
+    y1 = y.copy()
+    y1[[10, 11]] += [30, -25]
+    assert not _slip_explains(X, y1, [10, 11], events, slips(ind(10), ind(11), 0 * y), 0.05, 0.05)
+    step = ((np.arange(n) >= 11) & (np.arange(n) < 20)).astype(float)
+    y2 = y + 20 * step
+    y2[10] += 50
+    assert _slip_explains(X, y2, [10, 11, 12, 13, 14], events, slips(ind(10), step, step * np.arange(n)), 0.05, 0.05)
