@@ -1290,6 +1290,7 @@ def part_change_scans(bl):
         if nt < 2 or np.unique(t.setup[m]).size < 2:
             continue
         cols, kinds, labels, walls, turns, bows = [], [], [], [], [], []
+        covered = np.zeros(t.n, bool)  # the feature's touches on a wall
         w = np.asarray(t.w_A, float)[:, :2]
         ext = float(np.max(np.ptp(w[m], axis=0))) if np.all(np.isfinite(w[m])) else 0.0
         for s in range(8):
@@ -1299,9 +1300,12 @@ def part_change_scans(bl):
                 kinds.append(0)
                 labels.append(f"{f}@{45 * s}deg")
                 walls.append(45 * s)
+                covered |= ms
+                if ext <= 0:
+                    continue
                 # the wall turning and bowing: its targets' place along the sector's tangent
-                a = w[ms] @ np.array([-np.sin(np.pi / 4 * s), np.cos(np.pi / 4 * s)]) if ext > 0 else np.zeros(1)
-                if ext > 0 and np.ptp(a) > WALL_TURN_MIN * ext and np.ptp(np.angle(
+                a = w[ms] @ np.array([-np.sin(np.pi / 4 * s), np.cos(np.pi / 4 * s)])
+                if np.ptp(a) > WALL_TURN_MIN * ext and np.ptp(np.angle(
                         np.exp(1j * (d.wn_az[ms] - d.wn_az[ms][0])))) <= FLAT_WALL_RAD:
                     u = 2 * (a - a.min()) / np.ptp(a) - 1
                     c = np.zeros(t.n)
@@ -1317,9 +1321,6 @@ def part_change_scans(bl):
                         kinds.append(2)
                         labels.append(f"{f}@{45 * s}deg bow")
                         bows.append(45 * s)
-        covered = np.zeros(t.n, bool)
-        for s in walls:
-            covered |= m & (sector == s // 45)
         if not covered[m].all():
             # some of the feature's targets have no wall: a ring (a boss or a bore) with one target per sector is
             # described by its ovalisation changing with time instead
@@ -1336,9 +1337,10 @@ def part_change_scans(bl):
             info = {"feature": str(f), "walls_deg": tuple(walls)}
             layouts = [(0, (), ())] + ([(1, tuple(turns), ())] if turns else []) + (
                 [(2, tuple(turns), tuple(bows))] if bows else [])
+            every = np.column_stack(cols)
             for j, (top, tu, bo) in enumerate(layouts):
                 keep = [i for i, k in enumerate(kinds) if k <= top]
-                scans.append(_one(np.column_stack(cols)[:, keep], [labels[i] for i in keep],
+                scans.append(_one(every[:, keep], [labels[i] for i in keep],
                                   {**info, "turns_deg": tu, "bows_deg": bo, **({"extends_previous": True} if j else {})},
                                   "feature"))
     return scans, float(max(sum(not s.infos[0].get("extends_previous") for s in scans), 1))

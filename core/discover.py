@@ -537,10 +537,9 @@ class Folds:
         self.Q = A.basis() if isinstance(A, BlockDesign) else orth(A)
         for g in gs:
             te = np.flatnonzero(groups == g)
-            tr = np.flatnonzero(groups != g)
-            if te.size == 0 or tr.size == 0:
+            if te.size == 0 or te.size == self.n:  # (no held-out rows, or no training rows)
                 continue
-            self.items.append(self._fold(tr, te))
+            self.items.append(self._fold(te))
         if not self.items:
             raise IdentifiabilityError("cross-validation needs at least two groups (set-ups)")
         # the baseline's held-out rows (residuals' count: a row alone supporting an own direction is not one)
@@ -601,7 +600,7 @@ class Folds:
         C = self._q_rows(te)[0].T @ U[:, k:f] if f > k else None
         return _Fold(self.n, te, U, c2, k, f, C, cols, m, c2m)
 
-    def _fold(self, tr, te) -> _Fold:
+    def _fold(self, te) -> _Fold:
         quick = self._fold_one_touch_per_target(te)
         if quick is not None:
             return quick
@@ -2746,7 +2745,9 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     held_cur = None
     for rich in itertools.takewhile(lambda r: r.infos[0].get("extends_previous"), scans[si + 1:]):
         rich_cols = rich.build([0])[0]
-        t_p = ext_test if ext_test is not None else nested_f_batch(ext_cols[None, rows], st.Q, st.r, st.rss, st.dof)
+        if ext_test is None:  # (the plain trial's test, made once when its scan's batch did not make it)
+            ext_test = nested_f_batch(ext_cols[None, rows], st.Q, st.r, st.rss, st.dof)
+        t_p = ext_test
         t_f = nested_f_batch(rich_cols[None, rows], st.Q, st.r, st.rss, st.dof)
         k_x = int(t_f[1][0]) - int(t_p[1][0])
         dof_f = st.dof - int(t_f[1][0])
@@ -2762,7 +2763,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
                     cur_cols, held_cur = rich_cols, held[-1]
                     ext_test, ext_cols = t_f, rich_cols  # the next richer scan is tested beyond this layout
     info = sc.infos[i]
-    cols = sc.build([i])[0]
+    cols = cur_cols  # (the chosen trial's columns, built above)
     # single: the F test of the chosen trial's own columns, made once (refined, beside families, counter)
     if cause.nonlinear and cause.rebuild is not None and p_val * tries < 1.0:  # refining only helps a candidate
         info = _refine(cause, bl, info, st, rows)
