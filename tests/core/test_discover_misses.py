@@ -295,7 +295,7 @@ def test_part_change_turn_needs_a_wall_of_some_length():
             w[wall, :2] = c + squeeze * (w[wall, :2] - c)
         t = dataclasses.replace(t0, w_A=w)
         scans, count = causes.part_change_scans(planar(t, 30.0, extra=extra_columns(log, t.row)))
-        assert count == len({s.infos[0]["feature"] for s in scans})
+        assert count == len(scans)  # every layout a trial (core.discover._grown picks a feature's by its p-value)
         turns[squeeze] = {a for s in scans if s.infos[0]["feature"] == "slot" for a in s.infos[0]["turns_deg"]}
     assert turns[1e-6] == set() and turns[1e-2] == {135, 315}, turns
 
@@ -338,7 +338,7 @@ def test_part_change_wall_bows():
     assert not any(s.infos[0]["bows_deg"] for s in sc2)
 
 
-@pytest.mark.parametrize("seed", [1049, 1064])
+@pytest.mark.parametrize("seed", [1049, 1064, 1503])
 def test_gen_a_part_change_named_with_the_bow(seed):
     """The tuning miss this was written from: gen_a part_change 1049 (3.1 sigma visible), one wall of the
     part bowing into the pocket, most in its middle (a parabola along the wall growing with time), read
@@ -350,7 +350,10 @@ def test_gen_a_part_change_named_with_the_bow(seed):
     targets: shift, turn and bow are three numbers for three places (core.causes.WALL_BOW_PLACES), so the
     bow is a change of form there, not a shape tested; gen_a part_change 1064 (a tuning gain of the bow,
     `outlier` second finding dropped) has six targets on its wall, where the parabola is over-determined
-    and fitted here by least squares."""
+    and fitted here by least squares. gen_a part_change 1503 (4.6 sigma visible, a fresh seed of session 11,
+    opened to diagnose it) read `none`: its wall's shift alone (p = 0.068) lost to another wall's (0.0029)
+    before any wall's bow was tried, so the bow (p = 1e-22) never was (core.discover._grown: every feature's
+    layout is grown before the features are compared); it fails on a3ba8ad."""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
@@ -367,7 +370,7 @@ def test_gen_a_part_change_named_with_the_bow(seed):
     d = dict(zip(map(str, tr.targets), np.asarray(tr.workpiece_end_um) - np.asarray(tr.workpiece_um)))
     names = np.asarray(log.col("target")).astype(str)
     ids = np.unique(names[np.asarray(log.col("feature")).astype(str) == tr.params["feature"]])
-    assert len(ids) == {1049: 3, 1064: 6}[seed]
+    assert len(ids) == {1049: 3, 1064: 6, 1503: 4}[seed]
     first = np.array([np.flatnonzero(names == k)[0] for k in ids])
     p = np.column_stack([np.asarray(log.col("wx_mm"), float)[first], np.asarray(log.col("wy_mm"), float)[first]])
     p = p - p.mean(0)
