@@ -1930,7 +1930,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return {k: _Layouts(v[0]) for k, v in scans.items() if v[0] and all(sc.size == 1 for sc in v[0])}
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-                         seen + [(st, diag_e)], fixed=fixed)
+                         seen + [(st, diag_e)], fixed=fixed, repeats=_repeats_excess(noise_of(st), st, settings))
     E_all = _stack(terms, rows)
     cv_e, held_e = _held_out(folds, y[rows], bl.groups[rows], E_all, _penalty(terms)) if terms else (cv_b, held_b)
     outliers = np.setdiff1d(all_rows, rows)
@@ -3323,8 +3323,39 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
                 cov.name, evidence=ev, penalty=lam * P1)
 
 
+def _repeats_excess(noise: tuple, st: _State, settings) -> dict | None:
+    """The repeats scattering significantly more than the extended model's residuals: figures, else None.
+
+    ``noise`` is :func:`discover_baseline`'s ``noise_of(st)`` (sigma, method,
+    degrees of freedom): the noise every adoption's materiality, debias and
+    rival check was judged with. When it comes from the repeats (touches of
+    one target in one set-up, beyond the model's terms), honest repeats
+    cannot scatter more than the whole residual: the residual holds that
+    same noise plus whatever the model misses. A repeats' mean square
+    significantly above the extended model's in-sample one (one-sided F
+    test, ``dof`` and ``st.dof`` degrees of freedom, at ``settings.alpha``)
+    says touches of one place vary with something the model does not hold
+    (a touch's history: the approach's turn, a re-seat), and that the
+    noise the named causes were judged with is that something, not the
+    probe's. The repeats' sum of squares is itself part of the residual's,
+    so the two mean squares correlate positively under the null and the
+    test is conservative (it fires less often than ``alpha``). The
+    short-term pairs' noise (their own test chose them as the probe's) and
+    the residuals' own are not tested.
+    """
+    sigma, method, dof = noise
+    if not method.startswith("repeats") or dof < 1 or st.dof < 1 or not st.rss > 0:
+        return None
+    F = (sigma / st.sigma) ** 2
+    p = float(stats.f.sf(F, dof, st.dof))
+    if p >= settings.alpha:
+        return None
+    return {"repeats_sigma_um": sigma / UM, "repeats_dof": int(dof), "model_sigma_um": st.sigma / UM,
+            "model_dof": int(st.dof), "F": float(F), "p_value": p}
+
+
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-              seen=(), fixed=None) -> list:
+              seen=(), fixed=None, repeats=None) -> list:
     out = []
     sig = st.sigma
     named = [t for t in terms if t.penalty is None]
@@ -3403,6 +3434,12 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                            "material beyond it")
         if ev.get("magnitudes_not_determined"):
             why.append(ev["magnitudes_not_determined"])
+        if repeats is not None:
+            ev["repeats_excess"] = repeats
+            why.append(f"the repeats scatter more than the model's residuals ({repeats['repeats_sigma_um']:.3g} "
+                       f"against {repeats['model_sigma_um']:.3g} um, F = {repeats['F']:.3g}, {fmt_p(repeats['p_value'])}): "
+                       "touches of one place vary with something the model does not hold, and the noise its "
+                       "checks were judged with is that, not the probe's")
         ev["confidence"] = "ambiguous" if why else "named"
         if why:
             ev["confidence_reason"] = "; ".join(why)

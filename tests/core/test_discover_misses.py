@@ -22,7 +22,7 @@ import pytest
 
 from core import causes
 from core.baseline import planar
-from core.discover import Finding, Places, _ordered, concentration_p, discover, find_outliers
+from core.discover import Finding, Places, Settings, _State, _ordered, concentration_p, discover, find_outliers
 from core.lsq import orth_of
 import discover_synth as S
 
@@ -514,6 +514,52 @@ def test_gen_a_knock_1609_slip_veto_judges_what_the_step_does_not_fit_exactly():
     assert "outlier" not in o.findings, o
     assert o.cause in o.acceptable, o  # unexplained: the knock is out of the catalogue
     assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o  # the issue's check: never worse beyond U95
+
+
+@pytest.mark.parametrize("sigmas", [None, 1.0])
+def test_gen_a_reseat_hysteresis_1609_repeats_above_the_model_is_not_confident(sigmas):
+    """gen_a reseat_hysteresis 1609 (fresh seed, examined in session 11; out of catalogue): 46 of 216
+    touches, each the first after the approach turned by more than 90 deg, read 2.72 um short (noise
+    0.363 um). 9 of the 18 drift-check repeats follow a turn, so the repeats scatter 1.57 um (11 degrees
+    of freedom beyond the model's terms) and every check of c_drift's adoption was judged with that; main
+    named c_drift confidently. The extended model's residuals scatter 0.73 um (148 dof): repeats of one
+    place cannot honestly scatter more than the whole residual (F = 4.7, p = 4e-6), so c_drift is at most
+    ambiguous, for that reason. At the generator's ``sigmas`` 1.0 the same campaign (repeats 1.02 um,
+    residuals 0.54 um, p = 2e-4) was c_drift confident on main as well (the withdrawn noise-excess rule
+    of session 11 kept it confident: 1.02 um is under its 1.5 um ceiling). Main fails both."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+
+    log, _ = gen_a.generate("reseat_hysteresis", 1609, **({} if sigmas is None else {"sigmas": sigmas}))
+    t = from_log(log)
+    d = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    f = d.findings[0]
+    assert f.cause != "unexplained" and f.evidence["confidence"] == "ambiguous", f.evidence
+    x = f.evidence["repeats_excess"]
+    assert x["p_value"] < Settings().alpha and x["repeats_sigma_um"] > x["model_sigma_um"], x
+    assert "repeats scatter more than the model's residuals" in f.evidence["confidence_reason"]
+
+
+def test_repeats_excess_f_test():
+    """:func:`core.discover._repeats_excess` by hand: the one-sided F test of the repeats' mean square
+    against the extended model's in-sample one, at ``Settings.alpha`` (0.01). Repeats at 1.0 um on 11
+    dof against residuals at 0.5 um on 148 dof: F = 4, p = stats.f.sf(4, 11, 148) (about 3e-5), fired;
+    at 0.6 um (F = 1.44, p about 0.16) not; the residuals' own noise and the short-term pairs' are never
+    tested (the first is the denominator itself, the second was chosen as the probe's by its own test)."""
+    from scipy import stats
+
+    from core.discover import _repeats_excess
+    from core.units import UM
+
+    st = _State(rows=np.arange(160), Q=np.zeros((160, 12)), r=np.zeros(160), rss=148 * (0.5 * UM) ** 2, dof=148)
+    x = _repeats_excess((1.0 * UM, "repeats beyond the model's terms", 11), st, Settings())
+    assert x is not None and x["F"] == pytest.approx(4.0, rel=1e-12), x
+    assert x["p_value"] == pytest.approx(stats.f.sf(4.0, 11, 148), rel=1e-12)
+    assert _repeats_excess((1.0 * UM, "repeats", 11), st, Settings()) is not None
+    assert _repeats_excess((0.6 * UM, "repeats", 11), st, Settings()) is None
+    assert _repeats_excess((1.0 * UM, "short-term repeats", 6), st, Settings()) is None
+    assert _repeats_excess((1.0 * UM, "residuals", 148), st, Settings()) is None
 
 
 def test_part_change_ring_columns():
