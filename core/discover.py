@@ -124,7 +124,13 @@ What it does, in order, and the statistics behind each step
    it (:attr:`core.causes.Cause.richer`: lobes turned per set-up for fixed
    lobes) is neither significant beyond it by its own F test nor left
    possible by the design (:func:`core.causes.turned_lobes`: fixed lobes
-   are confident only where a turn of the fitted lobes would have shown)
+   are confident only where a turn of the fitted lobes would have shown);
+   and the extended model's residuals do not scatter significantly more
+   within repeats than overall (:func:`_repeats_excess`: a one-sided F
+   test at :attr:`Settings.alpha`; touches of one place that vary more
+   than the whole residual vary with something the model does not hold,
+   and every check of the cause's adoption took that for the probe's
+   noise)
    (a rule
    "every combination of its columns inflated at most vif_max" was
    measured and withdrawn: on fresh seeds it flagged 20-23 % more right
@@ -1930,7 +1936,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return {k: _Layouts(v[0]) for k, v in scans.items() if v[0] and all(sc.size == 1 for sc in v[0])}
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-                         seen + [(st, diag_e)], fixed=fixed, repeats=_repeats_excess(noise_of(st), st, settings))
+                         seen + [(st, diag_e)], fixed=fixed, repeats=_repeats_excess(bl.replicate[rows], st, settings))
     E_all = _stack(terms, rows)
     cv_e, held_e = _held_out(folds, y[rows], bl.groups[rows], E_all, _penalty(terms)) if terms else (cv_b, held_b)
     outliers = np.setdiff1d(all_rows, rows)
@@ -3323,35 +3329,38 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
                 cov.name, evidence=ev, penalty=lam * P1)
 
 
-def _repeats_excess(noise: tuple, st: _State, settings) -> dict | None:
-    """The repeats scattering significantly more than the extended model's residuals: figures, else None.
+def _repeats_excess(key: np.ndarray, st: _State, settings) -> dict | None:
+    """The model's residuals scattering significantly more within repeats than overall: figures, else None.
 
-    ``noise`` is :func:`discover_baseline`'s ``noise_of(st)`` (sigma, method,
-    degrees of freedom): the noise every adoption's materiality, debias and
-    rival check was judged with. When it comes from the repeats (touches of
-    one target in one set-up, beyond the model's terms), honest repeats
-    cannot scatter more than the whole residual: the residual holds that
-    same noise plus whatever the model misses. A repeats' mean square
-    significantly above the extended model's in-sample one (one-sided F
-    test, ``dof`` and ``st.dof`` degrees of freedom, at ``settings.alpha``)
-    says touches of one place vary with something the model does not hold
-    (a touch's history: the approach's turn, a re-seat), and that the
-    noise the named causes were judged with is that something, not the
-    probe's. The repeats' sum of squares is itself part of the residual's,
-    so the two mean squares correlate positively under the null and the
-    test is conservative (it fires less often than ``alpha``). The
-    short-term pairs' noise (their own test chose them as the probe's) and
-    the residuals' own are not tested.
+    ``key`` is the replicate group of each of ``st.rows``
+    (:attr:`core.baseline.Baseline.replicate`: touches of one target in one
+    set-up, the same design row; ``< 0`` none). The extended model's
+    residuals at repeats, less their group's mean, are what the model
+    leaves varying between touches of one place (the baseline is the same
+    there; a term that varies within the group, a drift, a lobing under
+    approaches a few degrees apart, has taken its share). Honest repeats
+    cannot scatter more than the whole residual, which holds the same noise
+    plus whatever the model misses: a within-repeats mean square
+    significantly above the model's in-sample one (one-sided F test, the
+    groups' sum of (size - 1) and ``st.dof`` degrees of freedom, at
+    ``settings.alpha``) says touches of one place vary with something the
+    model does not hold (a touch's history: the approach's turn, a
+    re-seat), and the repeats the noise was taken from carry it: the
+    materiality, debias and rival checks of an adoption judged with that
+    noise took it for the probe's. The within-repeats sum of squares is
+    part of the residual's, so the two mean squares correlate positively
+    under the null and the test is conservative (at 11 and 148 degrees of
+    freedom it fires in 0.4 % of null draws, not 1 %).
     """
-    sigma, method, dof = noise
-    if not method.startswith("repeats") or dof < 1 or st.dof < 1 or not st.rss > 0:
+    rep = replicate_scatter(key, st.r)
+    if rep.dof < 1 or st.dof < 1 or not st.rss > 0:
         return None
-    F = (sigma / st.sigma) ** 2
-    p = float(stats.f.sf(F, dof, st.dof))
+    F = (rep.ss / rep.dof) / (st.rss / st.dof)
+    p = float(stats.f.sf(F, rep.dof, st.dof))
     if p >= settings.alpha:
         return None
-    return {"repeats_sigma_um": sigma / UM, "repeats_dof": int(dof), "model_sigma_um": st.sigma / UM,
-            "model_dof": int(st.dof), "F": float(F), "p_value": p}
+    return {"repeats_sigma_um": float(np.sqrt(rep.ss / rep.dof)) / UM, "repeats_dof": int(rep.dof),
+            "model_sigma_um": st.sigma / UM, "model_dof": int(st.dof), "F": float(F), "p_value": p}
 
 
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
@@ -3436,10 +3445,10 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             why.append(ev["magnitudes_not_determined"])
         if repeats is not None:
             ev["repeats_excess"] = repeats
-            why.append(f"the repeats scatter more than the model's residuals ({repeats['repeats_sigma_um']:.3g} "
-                       f"against {repeats['model_sigma_um']:.3g} um, F = {repeats['F']:.3g}, {fmt_p(repeats['p_value'])}): "
-                       "touches of one place vary with something the model does not hold, and the noise its "
-                       "checks were judged with is that, not the probe's")
+            why.append(f"the model's residuals scatter more within repeats than overall "
+                       f"({repeats['repeats_sigma_um']:.3g} against {repeats['model_sigma_um']:.3g} um, "
+                       f"F = {repeats['F']:.3g}, {fmt_p(repeats['p_value'])}): touches of one place vary with "
+                       "something the model does not hold, and the noise its checks were judged with carries it")
         ev["confidence"] = "ambiguous" if why else "named"
         if why:
             ev["confidence_reason"] = "; ".join(why)

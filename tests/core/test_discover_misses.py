@@ -522,11 +522,12 @@ def test_gen_a_reseat_hysteresis_1609_repeats_above_the_model_is_not_confident(s
     touches, each the first after the approach turned by more than 90 deg, read 2.72 um short (noise
     0.363 um). 9 of the 18 drift-check repeats follow a turn, so the repeats scatter 1.57 um (11 degrees
     of freedom beyond the model's terms) and every check of c_drift's adoption was judged with that; main
-    named c_drift confidently. The extended model's residuals scatter 0.73 um (148 dof): repeats of one
-    place cannot honestly scatter more than the whole residual (F = 4.7, p = 4e-6), so c_drift is at most
-    ambiguous, for that reason. At the generator's ``sigmas`` 1.0 the same campaign (repeats 1.02 um,
-    residuals 0.54 um, p = 2e-4) was c_drift confident on main as well (the withdrawn noise-excess rule
-    of session 11 kept it confident: 1.02 um is under its 1.5 um ceiling). Main fails both."""
+    named c_drift confidently. The extended model's residuals scatter 1.53 um within the six repeat groups
+    (12 dof) and 0.73 um overall (148 dof): repeats of one place cannot honestly scatter more than the
+    whole residual (F = 4.4, p = 5e-6), so c_drift is at most ambiguous, for that reason. At the
+    generator's ``sigmas`` 1.0 the same campaign was c_drift confident on main as well (the withdrawn
+    noise-excess rule of session 11 kept it confident: its repeats, 1.02 um, are under its 1.5 um
+    ceiling). Main fails both."""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
@@ -538,28 +539,40 @@ def test_gen_a_reseat_hysteresis_1609_repeats_above_the_model_is_not_confident(s
     assert f.cause != "unexplained" and f.evidence["confidence"] == "ambiguous", f.evidence
     x = f.evidence["repeats_excess"]
     assert x["p_value"] < Settings().alpha and x["repeats_sigma_um"] > x["model_sigma_um"], x
-    assert "repeats scatter more than the model's residuals" in f.evidence["confidence_reason"]
+    assert "scatter more within repeats than overall" in f.evidence["confidence_reason"]
 
 
 def test_repeats_excess_f_test():
-    """:func:`core.discover._repeats_excess` by hand: the one-sided F test of the repeats' mean square
-    against the extended model's in-sample one, at ``Settings.alpha`` (0.01). Repeats at 1.0 um on 11
-    dof against residuals at 0.5 um on 148 dof: F = 4, p = stats.f.sf(4, 11, 148) (about 3e-5), fired;
-    at 0.6 um (F = 1.44, p about 0.16) not; the residuals' own noise and the short-term pairs' are never
-    tested (the first is the denominator itself, the second was chosen as the probe's by its own test)."""
+    """:func:`core.discover._repeats_excess` by hand: the one-sided F test of the model's residuals' mean square
+    within repeat groups (about each group's mean) against its in-sample mean square, at ``Settings.alpha``
+    (0.01). Six groups of three residuals (12 dof) at +-1.5 um about their means and 142 other residuals of
+    +-0.5 um: within-repeats mean square 1.5^2 x 6 x 2 / 12, in-sample (SS of all) / 148 dof, F and p
+    computed here from those sums; fired (F about 4, p about 1e-5). With the repeats at +-0.5 um (F about
+    0.97) not; with no group of two (every key < 0) not; the groups' means are not scatter (the same
+    residuals shifted by a constant per group give the same F)."""
     from scipy import stats
 
     from core.discover import _repeats_excess
     from core.units import UM
 
-    st = _State(rows=np.arange(160), Q=np.zeros((160, 12)), r=np.zeros(160), rss=148 * (0.5 * UM) ** 2, dof=148)
-    x = _repeats_excess((1.0 * UM, "repeats beyond the model's terms", 11), st, Settings())
-    assert x is not None and x["F"] == pytest.approx(4.0, rel=1e-12), x
-    assert x["p_value"] == pytest.approx(stats.f.sf(4.0, 11, 148), rel=1e-12)
-    assert _repeats_excess((1.0 * UM, "repeats", 11), st, Settings()) is not None
-    assert _repeats_excess((0.6 * UM, "repeats", 11), st, Settings()) is None
-    assert _repeats_excess((1.0 * UM, "short-term repeats", 6), st, Settings()) is None
-    assert _repeats_excess((1.0 * UM, "residuals", 148), st, Settings()) is None
+    n, dof = 160, 148
+    key = np.full(n, -1)
+    key[:18] = np.repeat(np.arange(6), 3)
+    r = np.tile([0.5, -0.5], n // 2) * UM
+    r[:18] = np.tile([1.5, 0.0, -1.5], 6) * UM
+    st = _State(rows=np.arange(n), Q=np.zeros((n, 12)), r=r, rss=float(r @ r), dof=dof)
+    x = _repeats_excess(key, st, Settings())
+    F = (6 * 2 * 1.5 ** 2 / 12) / (float(r @ r) / UM ** 2 / dof)
+    assert x is not None and x["F"] == pytest.approx(F, rel=1e-9) and x["repeats_dof"] == 12, x
+    assert x["p_value"] == pytest.approx(stats.f.sf(F, 12, dof), rel=1e-9) and x["p_value"] < 0.01, x
+    shifted = r.copy()
+    shifted[:18] += np.repeat(np.arange(6) * 0.7, 3) * UM  # a constant per group: no scatter within it
+    x2 = _repeats_excess(key, dataclasses.replace(st, r=shifted, rss=float(r @ r)), Settings())
+    assert x2 is not None and x2["F"] == pytest.approx(F, rel=1e-9), x2
+    quiet = r.copy()
+    quiet[:18] = np.tile([0.5, 0.0, -0.5], 6) * UM
+    assert _repeats_excess(key, dataclasses.replace(st, r=quiet, rss=float(quiet @ quiet)), Settings()) is None
+    assert _repeats_excess(np.full(n, -1), st, Settings()) is None
 
 
 def test_part_change_ring_columns():
