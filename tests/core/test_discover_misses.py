@@ -538,14 +538,14 @@ def test_gen_a_reseat_hysteresis_1609_repeats_above_the_model_is_not_confident(s
     f = d.findings[0]
     assert f.cause != "unexplained" and f.evidence["confidence"] == "ambiguous", f.evidence
     x = f.evidence["repeats_excess"]
-    assert x["p_value"] < Settings().alpha and x["repeats_sigma_um"] > x["model_sigma_um"], x
+    assert x["p_value"] < Settings().alpha_family and x["repeats_sigma_um"] > x["model_sigma_um"], x
     assert "scatter more within repeats than overall" in f.evidence["confidence_reason"]
 
 
 def test_repeats_excess_f_test():
     """:func:`core.discover._repeats_excess` by hand: the one-sided F test of the model's residuals' mean square
-    within repeat groups (about each group's mean) against its in-sample mean square, at ``Settings.alpha``
-    (0.01). Six groups of three residuals (12 dof) at +-1.5 um about their means and 142 other residuals of
+    within repeat groups (about each group's mean) against its in-sample mean square, at the lack-of-fit
+    family's level (``Settings.alpha_family``, 0.0025). Six groups of three residuals (12 dof) at +-1.5 um about their means and 142 other residuals of
     +-0.5 um: within-repeats mean square 1.5^2 x 6 x 2 / 12, in-sample (SS of all) / 148 dof, F and p
     computed here from those sums; fired (F about 4, p about 1e-5). With the repeats at +-0.5 um (F about
     0.97) not; with no group of two (every key < 0) not; the groups' means are not scatter (the same
@@ -564,7 +564,7 @@ def test_repeats_excess_f_test():
     x = _repeats_excess(key, st, Settings())
     F = (6 * 2 * 1.5 ** 2 / 12) / (float(r @ r) / UM ** 2 / dof)
     assert x is not None and x["F"] == pytest.approx(F, rel=1e-9) and x["repeats_dof"] == 12, x
-    assert x["p_value"] == pytest.approx(stats.f.sf(F, 12, dof), rel=1e-9) and x["p_value"] < 0.01, x
+    assert x["p_value"] == pytest.approx(stats.f.sf(F, 12, dof), rel=1e-9) and x["p_value"] < 0.0025, x
     shifted = r.copy()
     shifted[:18] += np.repeat(np.arange(6) * 0.7, 3) * UM  # a constant per group: no scatter within it
     x2 = _repeats_excess(key, dataclasses.replace(st, r=shifted, rss=float(r @ r)), Settings())
