@@ -126,7 +126,7 @@ What it does, in order, and the statistics behind each step
    possible by the design (:func:`core.causes.turned_lobes`: fixed lobes
    are confident only where a turn of the fitted lobes would have shown);
    and the extended model's residuals do not scatter significantly more
-   within repeats than overall (:func:`_repeats_excess`: a one-sided F
+   within repeats than overall (:func:`_repeats_beyond_residual`: a one-sided F
    test at the lack-of-fit family's level, whose other tail it is; touches of one place that vary more
    than the whole residual vary with something the model does not hold,
    and every check of the cause's adoption took that for the probe's
@@ -1937,7 +1937,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return {k: _Layouts(v[0]) for k, v in scans.items() if v[0] and all(sc.size == 1 for sc in v[0])}
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-                         seen + [(st, diag_e)], fixed=fixed, repeats=_repeats_excess(bl.replicate[rows], st, settings))
+                         seen + [(st, diag_e)], fixed=fixed,
+                         repeats=_repeats_beyond_residual(bl.replicate[rows], st, settings))
     E_all = _stack(terms, rows)
     cv_e, held_e = _held_out(folds, y[rows], bl.groups[rows], E_all, _penalty(terms)) if terms else (cv_b, held_b)
     outliers = np.setdiff1d(all_rows, rows)
@@ -3330,7 +3331,7 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
                 cov.name, evidence=ev, penalty=lam * P1)
 
 
-def _repeats_excess(key: np.ndarray, st: _State, settings) -> dict | None:
+def _repeats_beyond_residual(key: np.ndarray, st: _State, settings) -> dict | None:
     """The model's residuals scattering significantly more within repeats than overall: figures, else None.
 
     ``key`` is the replicate group of each of ``st.rows``
@@ -3356,7 +3357,7 @@ def _repeats_excess(key: np.ndarray, st: _State, settings) -> dict | None:
     greedy search's choice of the terms that most lower the residual works
     the other way, a few degrees of freedom's worth).
 
-    ``excess_ss_um2``: the within-repeats mean square above the model's, over
+    ``beyond_residual_ss_um2``: the within-repeats mean square above the model's, over
     the model's rows: what the structure varying between touches of one
     place would amount to over the campaign if the repeats are typical of
     its touches. :func:`_findings` makes a named cause ambiguous by it only
@@ -3385,7 +3386,7 @@ def _repeats_excess(key: np.ndarray, st: _State, settings) -> dict | None:
         return None
     return {"repeats_sigma_um": float(np.sqrt(rep.ss / rep.dof)) / UM, "repeats_dof": int(rep.dof),
             "model_sigma_um": st.sigma / UM, "model_dof": int(st.dof), "F": float(F), "p_value": p,
-            "excess_ss_um2": float((rep.ss / rep.dof - st.rss / st.dof) * len(st.rows)) / UM ** 2}
+            "beyond_residual_ss_um2": float((rep.ss / rep.dof - st.rss / st.dof) * len(st.rows)) / UM ** 2}
 
 
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
@@ -3468,12 +3469,12 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                            "material beyond it")
         if ev.get("magnitudes_not_determined"):
             why.append(ev["magnitudes_not_determined"])
-        if repeats is not None and repeats["excess_ss_um2"] >= explained:
-            ev["repeats_excess"] = repeats
+        if repeats is not None and repeats["beyond_residual_ss_um2"] >= explained:
+            ev["repeats_beyond_residual"] = repeats
             why.append(f"the model's residuals scatter more within repeats than overall "
                        f"({repeats['repeats_sigma_um']:.3g} against {repeats['model_sigma_um']:.3g} um, "
                        f"F = {repeats['F']:.3g}, {fmt_p(repeats['p_value'])}): touches of one place vary with "
-                       f"something the model does not hold, worth {repeats['excess_ss_um2']:.3g} um^2 over the "
+                       f"something the model does not hold, worth {repeats['beyond_residual_ss_um2']:.3g} um^2 over the "
                        f"campaign against the {explained:.3g} um^2 the cause explains, and the noise its checks "
                        "were judged with carries it")
         ev["confidence"] = "ambiguous" if why else "named"

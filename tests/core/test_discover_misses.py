@@ -538,13 +538,13 @@ def test_gen_a_reseat_hysteresis_1609_repeats_above_the_model_is_not_confident(s
     d = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
     f = d.findings[0]
     assert f.cause != "unexplained" and f.evidence["confidence"] == "ambiguous", f.evidence
-    x = f.evidence["repeats_excess"]
+    x = f.evidence["repeats_beyond_residual"]
     assert x["p_value"] < Settings().alpha_family and x["repeats_sigma_um"] > x["model_sigma_um"], x
-    assert x["excess_ss_um2"] >= f.evidence["explained_ss_um2"], x
+    assert x["beyond_residual_ss_um2"] >= f.evidence["explained_ss_um2"], x
     assert "scatter more within repeats than overall" in f.evidence["confidence_reason"]
 
 
-def test_gen_b_thermal_drift_1072_a_smaller_repeats_excess_leaves_the_name():
+def test_gen_b_thermal_drift_1072_repeats_beyond_residual_below_explained_leaves_the_name():
     """gen_b thermal_drift 1072 (a tuning seed): the drift moves repeats 200 s apart by 3-7 um and the
     catalogue's drift form follows it but for 0.73 um within the 24 repeat pairs against 0.48 um overall
     (F = 2.3, p = 6.5e-4, below the lack-of-fit family's 0.0025): an excess of 117 um^2 over the campaign
@@ -559,11 +559,11 @@ def test_gen_b_thermal_drift_1072_a_smaller_repeats_excess_leaves_the_name():
     d = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
     f = d.findings[0]
     assert f.cause == "thermal_drift" and f.evidence["confidence"] == "named", f.evidence
-    assert "repeats_excess" not in f.evidence
+    assert "repeats_beyond_residual" not in f.evidence
 
 
-def test_repeats_excess_f_test():
-    """:func:`core.discover._repeats_excess` by hand: the one-sided F test of the model's residuals' mean square
+def test_repeats_beyond_residual_f_test():
+    """:func:`core.discover._repeats_beyond_residual` by hand: the one-sided F test of the model's residuals' mean square
     within repeat groups (about each group's mean) against its in-sample mean square, at the lack-of-fit
     family's level (``Settings.alpha_family``, 0.0025). Six groups of three residuals (12 dof) at +-1.5 um about their means and 142 other residuals of
     +-0.5 um: within-repeats mean square 1.5^2 x 6 x 2 / 12, in-sample (SS of all) / 148 dof, F and p
@@ -572,7 +572,7 @@ def test_repeats_excess_f_test():
     residuals shifted by a constant per group give the same F)."""
     from scipy import stats
 
-    from core.discover import _repeats_excess
+    from core.discover import _repeats_beyond_residual
     from core.units import UM
 
     n, dof = 160, 148
@@ -581,19 +581,19 @@ def test_repeats_excess_f_test():
     r = np.tile([0.5, -0.5], n // 2) * UM
     r[:18] = np.tile([1.5, 0.0, -1.5], 6) * UM
     st = _State(rows=np.arange(n), Q=np.zeros((n, 12)), r=r, rss=float(r @ r), dof=dof)
-    x = _repeats_excess(key, st, Settings())
+    x = _repeats_beyond_residual(key, st, Settings())
     F = (6 * 2 * 1.5 ** 2 / 12) / (float(r @ r) / UM ** 2 / dof)
     assert x is not None and x["F"] == pytest.approx(F, rel=1e-9) and x["repeats_dof"] == 12, x
-    assert x["excess_ss_um2"] == pytest.approx((6 * 2 * 1.5 ** 2 / 12 - float(r @ r) / UM ** 2 / dof) * n, rel=1e-9)
+    assert x["beyond_residual_ss_um2"] == pytest.approx((6 * 2 * 1.5 ** 2 / 12 - float(r @ r) / UM ** 2 / dof) * n, rel=1e-9)
     assert x["p_value"] == pytest.approx(stats.f.sf(F, 12, dof), rel=1e-9) and x["p_value"] < 0.0025, x
     shifted = r.copy()
     shifted[:18] += np.repeat(np.arange(6) * 0.7, 3) * UM  # a constant per group: no scatter within it
-    x2 = _repeats_excess(key, dataclasses.replace(st, r=shifted, rss=float(r @ r)), Settings())
+    x2 = _repeats_beyond_residual(key, dataclasses.replace(st, r=shifted, rss=float(r @ r)), Settings())
     assert x2 is not None and x2["F"] == pytest.approx(F, rel=1e-9), x2
     quiet = r.copy()
     quiet[:18] = np.tile([0.5, 0.0, -0.5], 6) * UM
-    assert _repeats_excess(key, dataclasses.replace(st, r=quiet, rss=float(quiet @ quiet)), Settings()) is None
-    assert _repeats_excess(np.full(n, -1), st, Settings()) is None
+    assert _repeats_beyond_residual(key, dataclasses.replace(st, r=quiet, rss=float(quiet @ quiet)), Settings()) is None
+    assert _repeats_beyond_residual(np.full(n, -1), st, Settings()) is None
 
 
 def test_part_change_ring_columns():
