@@ -523,9 +523,9 @@ def test_gen_a_reseat_hysteresis_1609_repeats_above_the_model_is_not_confident(s
     0.363 um). 9 of the 18 drift-check repeats follow a turn, so the repeats scatter 1.57 um (11 degrees
     of freedom beyond the model's terms) and every check of c_drift's adoption was judged with that; main
     named c_drift confidently. The extended model's residuals scatter 1.53 um within the six repeat groups
-    (12 dof) and 0.73 um overall (148 dof): repeats of one place cannot honestly scatter more than the
-    whole residual (F = 4.4, p = 5e-6), and that excess over the campaign's rows (394 um^2) is more than
-    c_drift explains (30 um^2), so c_drift is at most ambiguous, for that reason. At the
+    (12 dof) and 0.73 um overall (148 dof) (F = 4.4, p = 5e-6 by the rule's conservative statistic), and
+    that surplus over the campaign's rows (394 um^2) is more than c_drift explains (30 um^2), so c_drift
+    is at most ambiguous, for that reason only. The rule was designed on this campaign. At the
     generator's ``sigmas`` 1.0 the same campaign was c_drift confident on main as well (the withdrawn
     noise-excess rule of session 11 kept it confident: its repeats, 1.02 um, are under its 1.5 um
     ceiling). Main fails both."""
