@@ -1266,7 +1266,7 @@ def part_change_scans(bl):
     One trial per feature: the walls shifting, or the ring ovalising. Where a flat wall can turn,
     the shifts with the turns follow as a richer scan (``extends_previous``),
     and where one can bow, the shifts, turns and bows as a richer one still:
-    :func:`core.discover._grown` takes each only where its new columns are
+    :func:`core.discover._grow_layout` takes each only where its new columns are
     significant beyond the layout taken so far (F test at
     ``alpha_family``: the bows with the turns when the turns were not
     taken) and it lowers the held-out mean square below that layout, for
@@ -1336,7 +1336,7 @@ def part_change_scans(bl):
         if cols:
             # nested: the walls shifting alone; where a wall can turn, shifting and turning; where one can bow,
             # shifting, turning and bowing: richer scans, each taken only where its new columns are significant
-            # beyond the layout taken so far and it lowers the held-out mean square (core.discover._grown); each
+            # beyond the layout taken so far and it lowers the held-out mean square (core.discover._grow_layout); each
             # layout is a trial in the count below (the feature's layout is chosen by its own p-value)
             info = {"feature": str(f), "walls_deg": tuple(walls)}
             layouts = [(0, (), ())] + ([(1, tuple(turns), ())] if turns else []) + (
