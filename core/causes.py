@@ -1265,12 +1265,16 @@ def part_change_scans(bl):
     the axis within 2.0 deg of the generator's on all seven.
     One trial per feature: the walls shifting, or the ring ovalising. Where a flat wall can turn,
     the shifts with the turns follow as a richer scan (``extends_previous``),
-    and where one can bow, the shifts, turns and bows as a richer one still,
-    neither a trial of its own: :func:`core.discover._evaluate` takes each
-    only where its new columns are significant beyond the layout taken so
-    far (F test at ``alpha_family``: the bows with the turns when the turns
-    were not taken) and it lowers the held-out mean square below that
-    layout. Taken unconditionally the turns fitted a
+    and where one can bow, the shifts, turns and bows as a richer one still:
+    :func:`core.discover._grow_layout` takes each only where its new columns are
+    significant beyond the layout taken so far (F test at
+    ``alpha_family``: the bows with the turns when the turns were not
+    taken) and it lowers the held-out mean square below that layout, for
+    every feature before the features are compared (a bowing wall's shift
+    alone can be weak: gen_a part_change 1503, p = 0.068 against another
+    wall's 0.0029, its bow 1e-22). Each layout counts as a trial (the
+    count returned: every scan), since the feature's grown layout is
+    judged by its own p-value. Taken unconditionally the turns fitted a
     bow's asymmetric part in-sample and lost out of it (sim part_change
     3106: held-out gain -0.0135 um^2, lobing_per_setup named). Parameters:
     each wall's change over the campaign (um, positive outwards: material
@@ -1330,10 +1334,10 @@ def part_change_scans(bl):
                                   {"feature": str(f), "walls_deg": (), "ring": True}, "feature"))
                 continue
         if cols:
-            # nested: the walls shifting alone (the trial); where a wall can turn, shifting and turning; where one
-            # can bow, shifting, turning and bowing: richer scans that are no trials of their own (not counted
-            # below), each taken only where its new columns are significant beyond the layout taken so far and
-            # it lowers the held-out mean square
+            # nested: the walls shifting alone; where a wall can turn, shifting and turning; where one can bow,
+            # shifting, turning and bowing: richer scans, each taken only where its new columns are significant
+            # beyond the layout taken so far and it lowers the held-out mean square (core.discover._grow_layout); each
+            # layout is a trial in the count below (the feature's layout is chosen by its own p-value)
             info = {"feature": str(f), "walls_deg": tuple(walls)}
             layouts = [(0, (), ())] + ([(1, tuple(turns), ())] if turns else []) + (
                 [(2, tuple(turns), tuple(bows))] if bows else [])
@@ -1343,7 +1347,7 @@ def part_change_scans(bl):
                 scans.append(_one(every[:, keep], [labels[i] for i in keep],
                                   {**info, "turns_deg": tu, "bows_deg": bo, **({"extends_previous": True} if j else {})},
                                   "feature"))
-    return scans, float(max(sum(not s.infos[0].get("extends_previous") for s in scans), 1))
+    return scans, float(max(len(scans), 1))
 
 
 def _ring_columns(d, m: np.ndarray) -> np.ndarray | None:

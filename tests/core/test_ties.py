@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from core.diagnosis import TIE_RTOL, Covariate, diagnose, nested_f_batch, orth, rank_with_ties, tied
-from core.discover import _better_trial
+from core.discover import _better_trial, _Trial
 
 
 def test_tied_known_answers():
@@ -85,14 +85,14 @@ def test_better_trial_takes_the_catalogue_first_of_tied_trials():
         r = yy - Q @ (Q.T @ yy)
         rss = float(r @ r)
         ss, k, F, p = nested_f_batch(np.stack([a, b, c])[:, :, None], Q, r, rss, n - 2)
-        cands = [(float(p[j]), float(F[j]), int(k[j]), None, j, None, float(ss[j]), (j, 0)) for j in range(3)]
+        cands = [_Trial(float(p[j]), float(F[j]), int(k[j]), None, j, None, float(ss[j]), (j, 0)) for j in range(3)]
         assert tied(ss[0], k[0], ss[1], k[1], rss) and not tied(ss[0], k[0], ss[2], k[2], rss)
         for seq in ([0, 1, 2], [1, 0, 2], [2, 1, 0], [2, 0, 1]):
             best = None
             for j in seq:
                 if best is None or _better_trial(cands[j], best, rss):
                     best = cands[j]
-            assert best[7] == (0, 0), (seed, seq)  # a and b tie; a is first in the catalogue; c explains less
+            assert best.order == (0, 0), (seed, seq)  # a and b tie; a is first in the catalogue; c explains less
 
 
 def test_family_ss_keeps_the_first_of_tied_terms():
