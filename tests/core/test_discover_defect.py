@@ -325,7 +325,7 @@ def _gen_b_defect_1047(chips_um: float = 0.0):
 def test_a_narrow_bump_cut_in_two_set_ups_is_not_read_as_outliers():
     """gen_b local_scale_defect 1047: the bump (2 mm wide) is narrower than the narrowest scanned one (half-width
     0.2 grid steps, 5 mm), so the first outlier screen took its three largest touches (4.6, 4.0 and -4.3 um, in
-    three set-ups) and the search on every row, which adopts the defect, left the same three beyond the bound
+    two set-ups) and the search on every row, which adopts the defect, left the same three beyond the bound
     beside it: 'fewer outliers left' failed and the report was `outlier`, confident (a3ba8ad). The defect
     adopted on every row cuts their residuals by a quarter or more in two set-ups or more
     (core.discover._explains_set_aside): they are its structure. Named, none left set aside, the three put
