@@ -1843,8 +1843,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if len(rows) < N:
         # the rows called outliers may be a systematic effect's largest
         # residuals: search again with every row; if a cause is then adopted
-        # and fewer outliers are left against it, the "outliers" it explains
-        # were its structure
+        # and fewer outliers are left against it, or it cuts theirs in two
+        # set-ups (_explains_set_aside: a bump its form follows only in part
+        # leaves as many), the "outliers" it explains were its structure
         Qa, fa, sa = model(all_rows, [])
         seen2 = []  # (its first diagnosis is of every row, rows=None: not one the others can take)
         t2, r2, s2, f2, q2 = search(all_rows, sa, fa, Qa, diagnose(
