@@ -947,20 +947,24 @@ def _explained_outliers(Qall: np.ndarray, y: np.ndarray, all_rows: np.ndarray, r
 
 
 def _explains_set_aside(Qall: np.ndarray, y: np.ndarray, all_rows: np.ndarray, rows: np.ndarray, terms,
-                        events: np.ndarray) -> bool:
-    """Whether one of ``terms`` (adopted on every row) explains the touches set aside (not in ``rows``) in two events.
+                        events: np.ndarray, rows_beside: np.ndarray) -> bool:
+    """Whether one of ``terms`` (adopted on every row) follows the touches set aside (not in ``rows``) in two events.
 
-    Its :func:`_explained_outliers` (residual cut by a quarter or more)
-    fall in two events or more (set-ups: two pieces of dust). A bump the
+    The touches it follows in part: its :func:`_explained_outliers`
+    (residual cut by a quarter or more) that stay beyond the bound beside
+    it (not in ``rows_beside``, the rows its own outlier screen kept),
+    in two events or more (set-ups: two pieces of dust). A bump the
     catalogue's form follows only in part (narrower than its narrowest
     scanned half-width) leaves its largest touches beyond the bound beside
     it, as many as before: they are still its structure when it cuts them,
-    in set-up after set-up, which one chip under one touch cannot show.
+    in set-up after set-up, which one chip under one touch cannot show. A
+    touch it takes in whole (no longer beyond the bound: a bump fitted on a
+    chip) does not count: that is a trial placed on the chip.
     """
     for tm in terms:
         if tm.penalty is not None:
             continue
-        ex = _explained_outliers(Qall, y, all_rows, rows, tm, terms)
+        ex = np.setdiff1d(_explained_outliers(Qall, y, all_rows, rows, tm, terms), rows_beside)
         if len(first_per_event(list(ex), events)) >= 2:
             return True
     return False
@@ -1851,7 +1855,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         t2, r2, s2, f2, q2 = search(all_rows, sa, fa, Qa, diagnose(
             sa.Q, sa.r, sa.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(sa),
             material_sigma=settings.material_sigma, bases=bases), fa.mse(y), seen2)
-        if t2 and (len(r2) > len(rows) or _explains_set_aside(Qall, y, all_rows, rows, t2, events)):
+        if t2 and (len(r2) > len(rows) or _explains_set_aside(Qall, y, all_rows, rows, t2, events, r2)):
             # a cause explains some of them: they were its structure
             terms, rows, st, folds, Qb = t2, r2, s2, f2, q2
         seen += seen2
@@ -1860,6 +1864,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # 4. rival check: a named cause must explain its covariate's structure
     demoted = []
     put_back = False  # the outliers were a named cause's structure: never set aside again in this run
+    put_back_by = None  # the cause that put them back: if it is dropped later, they are judged again
+    undone = False  # a put-back undone (its cause dropped)
     changed = True
     while changed and terms:
         changed = False
@@ -1881,7 +1887,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                                         scan_trials)
                     if back["kept"]:
                         share = {**back, "outliers_put_back": int(len(back_rows) - len(rows))}
-                        rows, put_back = back_rows, True
+                        rows, put_back, put_back_by = back_rows, True, tm
                         Qb, folds, st = model(rows, terms)
                         changed = True
             tm.evidence.update(share)
@@ -1889,14 +1895,19 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 break  # (every term judged again on every row)
             if not share["kept"]:
                 terms.remove(tm)
+                if tm is put_back_by:  # what it put back was its structure only if it stays named
+                    put_back, put_back_by = False, None
+                    undone = True
                 demoted.append({"cause": tm.cause, **share})
                 rejected.append({"cause": tm.cause, "reason": _demotion_reason(share, tm.covariate, settings)})
                 Qb, folds, st = model(rows, terms)
                 changed = True
                 break
-    if terms and demoted and not put_back:  # (none dropped: the search judged the outliers against these terms last)
-        X = np.hstack([bl.A, _stack(terms, all_rows)])
-        rows = np.setdiff1d(all_rows, outliers_of(X))
+    if (terms or undone) and demoted and not put_back:
+        # (none dropped: the search judged the outliers against these terms last; a put-back undone: its touches
+        # are judged again, against the baseline alone when no cause is left)
+        rows = np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(terms, all_rows)])) if terms
+                            else outliers_of(bl.A, Qall))
     rows_b = judge_rows_again(rows)
     Qb, folds, st = model(rows, terms)
     tick()
