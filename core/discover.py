@@ -976,8 +976,13 @@ def _explains_set_aside(Qall: np.ndarray, y: np.ndarray, all_rows: np.ndarray, r
     0.05 on these campaigns, is too thin to set a threshold on).
 
     Guards: a touch it takes in whole (no longer beyond the bound beside
-    it: a bump fitted on a chip, gen_b outlier 1175) does not count.
+    it: a bump fitted on a chip, gen_b outlier 1175) does not count; and
+    the touches set aside beside it must be among those set aside before
+    (the same outliers, none new: otherwise the caller's count of
+    outliers, not this rule, decides).
     """
+    if not np.all(np.isin(np.setdiff1d(all_rows, rows_kept_beside_cause), np.setdiff1d(all_rows, rows))):
+        return False  # a touch set aside beside the cause that was kept before: not the same outliers, fewer or not
     for tm in terms:
         if tm.penalty is not None:
             continue

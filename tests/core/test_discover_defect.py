@@ -25,7 +25,8 @@ import pytest
 
 from core import baseline, causes
 from core.diagnosis import orth
-from core.discover import MIN_SUPPORT, Settings, _State, _demotion_reason, _half_power_nc, _support, discover
+from core.discover import (MIN_SUPPORT, Settings, Term, _State, _demotion_reason, _explains_set_aside, _half_power_nc,
+                           _support, discover)
 from core.lsq import orth_of
 import discover_synth as S
 
@@ -335,6 +336,30 @@ def test_a_narrow_bump_cut_in_two_set_ups_is_not_read_as_outliers():
     assert rep["findings"][0]["evidence"]["confidence"] == "named", rep["findings"][0]["evidence"]
     assert rep["outlier_rows"] == [], rep["outlier_rows"]
     assert rep["findings"][0]["evidence"]["outliers_put_back"] == 3, rep["findings"][0]["evidence"]
+
+
+
+
+def test_the_narrow_bump_rule_needs_the_same_touches_set_aside_beside_the_cause():
+    """Hand-built: 40 touches in two set-ups (rows 0-19, 20-39), noise 0.01, 5 on rows 10 and 30 (set aside
+    before); one cause whose column is 1 on rows 9, 10, 29, 30 (a form that follows the two in part: fitted
+    on every row it takes about 2.5 of each, a cut of about half, above the quarter). With the same two set
+    aside beside the cause, the rule fires (two set-ups); in one set-up only, it does not. With a third touch
+    (row 5) set aside beside the cause that was kept before, it does not fire: the touches set aside beside the
+    cause must be among those set aside before (the two counted are the same; without that guard it fires)."""
+    n = 40
+    y = 0.01 * np.random.default_rng(0).standard_normal(n)
+    y[[10, 30]] += 5.0
+    c = np.zeros((n, 1))
+    c[[9, 10, 29, 30], 0] = 1.0
+    tm = Term("local_scale_defect", c, ("bump",), {}, "X")
+    Qall = np.full((n, 1), 1 / np.sqrt(n))
+    all_rows = np.arange(n)
+    rows = np.setdiff1d(all_rows, [10, 30])
+    setups = np.repeat([0, 1], n // 2)
+    assert _explains_set_aside(Qall, y, all_rows, rows, [tm], setups, rows)
+    assert not _explains_set_aside(Qall, y, all_rows, rows, [tm], np.zeros(n, int), rows)
+    assert not _explains_set_aside(Qall, y, all_rows, rows, [tm], setups, np.setdiff1d(all_rows, [5, 10, 30]))
 
 
 def test_chips_beside_a_narrow_bump_stay_outliers():
