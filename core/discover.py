@@ -960,7 +960,11 @@ def _explains_set_aside(Qall: np.ndarray, y: np.ndarray, all_rows: np.ndarray, r
     :func:`_explained_outliers` (residual cut by a quarter or more, fitted
     on every row) that stay beyond the bound beside it (not in
     ``rows_kept_beside_cause``, the rows its own outlier screen kept), in
-    two events or more (set-ups). A bump the catalogue's form follows
+    two events or more. The caller asks only on a planar log with
+    set-ups as events (``per_setup``): elsewhere the events are
+    ``bl.replicate``, -1 on a volumetric log (every row its own event:
+    "two events" would be any two rows) and the target and direction on
+    an ISO 230-2 one, neither a set-up. A bump the catalogue's form follows
     only in part (narrower than its narrowest scanned half-width) leaves
     its largest touches beyond the bound beside it, as many as before,
     and cuts them set-up after set-up (gen_a local_scale_defect 1021 by
@@ -1877,7 +1881,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         t2, r2, s2, f2, q2 = search(all_rows, sa, fa, Qa, diagnose(
             sa.Q, sa.r, sa.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(sa),
             material_sigma=settings.material_sigma, bases=bases), fa.mse(y), seen2)
-        if t2 and (len(r2) > len(rows) or _explains_set_aside(Qall, y, all_rows, rows, t2, events, r2)):
+        if t2 and (len(r2) > len(rows) or per_setup and _explains_set_aside(Qall, y, all_rows, rows, t2, events, r2)):
             # a cause explains some of them: they were its structure
             terms, rows, st, folds, Qb = t2, r2, s2, f2, q2
         seen += seen2
