@@ -1893,7 +1893,6 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     dropped = []  # the terms the rival check dropped (their columns re-tested beyond the final model, step 5)
     put_back = False  # the outliers were a named cause's structure: never set aside again in this run
     put_back_by = None  # the cause that put them back: if it is dropped later, they are judged again
-    undone = False  # a put-back undone (its cause dropped)
     changed = True
     while changed and terms:
         changed = False
@@ -1926,15 +1925,17 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 dropped.append(tm)
                 if tm is put_back_by:  # what it put back was its structure only if it stays named
                     put_back, put_back_by = False, None
-                    undone = True
                 demoted.append({"cause": tm.cause, **share})
                 rejected.append({"cause": tm.cause, "reason": _demotion_reason(share, tm.covariate, settings)})
                 Qb, folds, st = model(rows, terms)
                 changed = True
                 break
-    if (terms or undone) and demoted and not put_back:
-        # (none dropped: the search judged the outliers against these terms last; a put-back undone: its touches
-        # are judged again, against the baseline alone when no cause is left)
+    if demoted and not put_back:
+        # a cause dropped: the rows were last judged against it (in the search, or the search on every row), so
+        # they are judged again against the causes left, the baseline alone when none is (a put-back undone
+        # too: its touches judged again). Before session 13 the rows stayed as the dropped cause left them
+        # when no cause was left: gen_a outlier 1163, part_change on every row dropped, kept one 5.6-13 um
+        # chip in the fit (extended workpiece 0.57 um against 0.24)
         rows = np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(terms, all_rows)])) if terms
                             else outliers_of(bl.A, Qall))
     rows_b = judge_rows_again(rows)
