@@ -187,7 +187,7 @@ from .baseline import Baseline
 from .diagnosis import (CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch,
                         new_basis, orth, replicate_scatter, take_rows, term_bases, tied)
 from .exceptions import ConfigError, IdentifiabilityError
-from .lsq import Basis, BlockDesign, group_sums, leverage, orth_of
+from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .touches import Touches
 from .units import UM
 
@@ -3633,16 +3633,20 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
     if need_maps:
         ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, lin[0], lin_e[0], lin_e[1], eb & ee[:len(eb)], alpha)
     out = []
+    vb, ve = cb.diagonal(), ce.diagonal()
     for i, tid in enumerate(bl.estimand_ids):
         j = q[i]
         out.append({"target": tid,
                     "baseline_um": float(gb[j]) / UM if eb[j] else None,
                     "extended_um": float(ge[j]) / UM if ee[j] else None,
-                    "baseline_u95_um": float(2 * np.sqrt(max(cb[j, j], 0))) / UM if eb[j] else None,
-                    "extended_u95_um": float(2 * np.sqrt(max(ce[j, j], 0))) / UM if ee[j] else None})
+                    "baseline_u95_um": float(2 * np.sqrt(max(vb[j], 0))) / UM if eb[j] else None,
+                    "extended_u95_um": float(2 * np.sqrt(max(ve[j], 0))) / UM if ee[j] else None})
     ident = bool(np.all(eb[q]) and np.all(ee[q]))
-    return (out, ident, np.where(eb[q], gb[q], np.nan), np.where(ee[q], ge[q], np.nan),
-            cb[np.ix_(q, q)], ce[np.ix_(q, q)], shift)
+
+    def on_q(c):  # the estimand's block (a long log's kept factored: q x q is 800 MB at 10,000 targets)
+        return c.take(q) if isinstance(c, DiagLowRank) else c[np.ix_(q, q)]
+
+    return (out, ident, np.where(eb[q], gb[q], np.nan), np.where(ee[q], ge[q], np.nan), on_q(cb), on_q(ce), shift)
 
 
 def _unnamed_shift(bl, rows, gb, ge, ce, Lb, Le, s2, est, alpha):
@@ -3780,11 +3784,20 @@ def _gauge_eig(N: np.ndarray, Z: np.ndarray):
 
 
 def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_map=False):
-    """:func:`_constrained` for a block design: the same solution from its normal matrix (:func:`_gauge_eig`)."""
+    """:func:`_constrained` for a block design: the same solution from its normal matrix.
+
+    Without the linear map, the targets eliminated (:func:`_constrained_schur`) where the
+    system is well posed in the gauge; else (and for the map) from the whole normal
+    matrix (:func:`_gauge_eig`), ``p x p`` numbers several times over.
+    """
     every = len(rows) == len(A) and np.array_equal(rows, np.arange(len(A)))
     Ar = A if every else A[rows]  # (every row: no copy of the dense block)
     yr = y[rows]
     p = A.shape[1]
+    if not linear_map:
+        out = _constrained_schur(Ar, yr, C, d, penalty, k_ext)
+        if out is not None:
+            return out
     N = Ar.gram()
     if penalty is not None and k_ext:  # the ridge rows R (R^T R = the penalty's non-negative part)
         w, V = np.linalg.eigh(penalty)
@@ -3805,6 +3818,84 @@ def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_ma
         W = T @ (Z @ (Vg / s[good])).T
         return theta, cov, est, (Ar @ W.T).T, s2
     return theta, cov, est
+
+
+#: :func:`_constrained_schur` solves by eliminating the targets only where the equilibrated reduced system's
+#: condition number is below this; above it (near the 1e12 of :func:`_gauge_eig`'s singular-value cut, 1e-6
+#: squared) the whole normal matrix decides which directions are unseen, as before.
+SCHUR_COND_MAX = 1e8
+
+
+def _constrained_schur(Ar: BlockDesign, yr, C, d, penalty, k_ext):
+    """:func:`_constrained_blocks` with the targets eliminated: (theta, cov, est), or None where it does not apply.
+
+    The gauge-constrained least squares is the saddle-point system
+    ``[[N, C^T], [C, 0]] [theta; lam] = [A^T y; d]`` (``C`` reduced to its
+    row space, the rows of :func:`_gauge_svd_z`'s complement). ``N``'s
+    target block is diagonal (each target's count of rows), so the targets
+    eliminate exactly: the Schur complement ``S`` over the machine's columns
+    and the gauge's multipliers (``m + r`` square: 366 at the bench's 1e6 rows
+    against 10,356 parameters). Where the system is well posed in the gauge
+    (every target seen, ``S``'s equilibrated condition number below
+    :data:`SCHUR_COND_MAX`) the null-space method of :func:`_constrained`
+    keeps every direction (nothing below its cut) and has this unique
+    solution; the covariance ``s^2 Z (Z^T N Z)^-1 Z^T`` is the top-left block
+    of the saddle matrix's inverse, ``s^2 (diag(1 / count) + L S^-1 L^T)``
+    on the targets and the machine (:class:`core.lsq.DiagLowRank`, never
+    ``p x p``); every parameter estimable. Else None: the caller decides
+    from the whole normal matrix which directions are unseen.
+    """
+    p, g = Ar.shape[1], Ar.g
+    gc, dc = Ar.g_cols, Ar.d_cols
+    cnt = np.bincount(Ar.ids, minlength=g).astype(float)
+    if np.any(cnt == 0):  # a target no row sees: unseen, the whole normal matrix says which
+        return None
+    theta0 = np.linalg.lstsq(C, d, rcond=None)[0] if C.shape[0] else np.zeros(p)
+    _, sC, VtC = np.linalg.svd(C, full_matrices=False) if C.shape[0] else (None, np.zeros(0), np.zeros((0, p)))
+    r = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))  # C's rank as _gauge_svd_z cuts it
+    Cr = VtC[:r]  # (r, p) orthonormal rows: C theta = d is Cr theta = Cr theta0
+    dr = Cr @ theta0
+    m = len(dc)
+    M = _dense(Ar.D.T @ Ar.D)
+    pos, Pen = np.zeros(0, int), np.zeros((0, 0))
+    if penalty is not None and k_ext:  # the ridge rows on the design's last k_ext columns (the extension's)
+        w, V = np.linalg.eigh(penalty)
+        at = np.empty(p, int)
+        at[dc] = np.arange(m)
+        pos = at[p - k_ext:]  # where the design's columns p - k_ext .. p - 1 sit in the machine block
+        Pen = (V * np.maximum(w, 0)) @ V.T
+        M[np.ix_(pos, pos)] += Pen
+    F = np.hstack([group_sums(Ar.ids, g, Ar.D), Cr[:, gc].T])  # (g, m + r)
+    H = np.zeros((m + r, m + r))
+    H[:m, :m] = M
+    H[:m, m:] = Cr[:, dc].T
+    H[m:, :m] = Cr[:, dc]
+    Fc = F / cnt[:, None]
+    S = H - F.T @ Fc
+    sc = 1.0 / np.sqrt(np.maximum(np.abs(S).max(axis=1), 1e-300))  # rows and columns equilibrated (a multiplier's
+    # diagonal is zero where its gauge row holds no target)
+    if not np.isfinite(S).all() or np.linalg.cond(S * np.outer(sc, sc)) > SCHUR_COND_MAX:
+        return None
+    Si = np.linalg.inv(S)
+    theta = np.zeros(p)
+    res = yr
+    for _ in range(2):  # the solve, then once more on its residuals (one step of refinement: the normal
+        # equations square the conditioning; the step takes the rows' own residuals back to the dense SVD's)
+        bt = group_sums(Ar.ids, g, res)
+        bm = _dense(Ar.D.T @ res)
+        bm[pos] -= Pen @ theta[dc][pos]  # the ridge rows' residuals (their data are zeros)
+        z = Si @ (np.concatenate([bm, dr - Cr @ theta]) - Fc.T @ bt)
+        theta[gc] += bt / cnt - Fc @ z
+        theta[dc] += z[:m]
+        res = yr - Ar @ theta
+    dof = max(len(yr) - (p - r), 1)
+    s2 = float(res @ res) / dof
+    L = np.zeros((p, m + r))
+    L[gc] = -Fc
+    L[dc, np.arange(m)] = 1.0
+    dg = np.zeros(p)
+    dg[gc] = 1.0 / cnt
+    return theta, DiagLowRank(dg, L, (Si + Si.T) / 2, s2), np.ones(p, bool)
 
 
 def _estimable(null: np.ndarray, p: int) -> np.ndarray:

@@ -558,6 +558,81 @@ def test_planar_block_design_and_its_constrained_fit_are_the_dense_ones(monkeypa
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-9 * np.abs(a).max())
 
 
+def _planar_dense_and_block(monkeypatch, n_targets=40, n_angles=12):
+    """The bench generator's log (``n_targets`` at ``n_angles`` C angles): its planar baseline dense and forced
+    through the block design."""
+    from core import baseline as Bm
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    t = from_log(large_log(n_targets, n_angles, np.random.default_rng(19)))
+    dense = Bm.planar(t)
+    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
+    return dense, Bm.planar(t)
+
+
+def _same_fit(a, b, tol):
+    """Two (theta, cov, est) of _constrained equal: theta and cov to ``tol`` of their largest, est exactly."""
+    from core.lsq import DiagLowRank
+
+    for u, v in zip(a[:2], b[:2]):
+        u, v = (w.toarray() if isinstance(w, DiagLowRank) else w for w in (u, v))
+        np.testing.assert_allclose(v, u, rtol=0, atol=tol * np.abs(u).max())
+    assert np.array_equal(a[2], b[2])
+
+
+def test_workpiece_fit_of_a_long_log_eliminates_the_targets(monkeypatch):
+    """The block design's gauge-constrained fit without the linear map (the workpiece's baseline and extended
+    fits) eliminates the targets (a Schur complement over the machine's columns and the gauge rows): its
+    covariance is kept factored (diag + low rank, never p x p) and equals the dense SVD's, with the estimate,
+    to 1e-12 of their largest (measured 1.9e-15 and 2.7e-15 here; the normal equations square a condition
+    number of about 700, and one step of refinement on the rows' residuals brings the estimate back), every
+    parameter estimable; also on rows leaving some out and with an extension's penalty (its ridge rows)."""
+    from core import discover as X
+    from core.lsq import DiagLowRank
+
+    dense, block = _planar_dense_and_block(monkeypatch)
+    n = dense.n
+    for rows in (np.arange(n), np.arange(3, n)):
+        a = X._constrained(dense.A, dense.y, dense.C, dense.d, rows, None, 0)
+        b = X._constrained(block.A, block.y, block.C, block.d, rows, None, 0)
+        assert isinstance(b[1], DiagLowRank) and b[2].all()
+        _same_fit(a, b, 1e-12)
+        q = block.estimand
+        np.testing.assert_allclose(b[1].take(q)[np.ix_(np.arange(7), np.arange(3, 9))], a[1][np.ix_(q, q)][:7, 3:9], rtol=0,
+                                   atol=1e-12 * np.abs(a[1]).max())
+        np.testing.assert_allclose(b[1].diagonal(), np.diag(a[1]), rtol=0, atol=1e-12 * np.abs(a[1]).max())
+        assert b[1][5, 7] == pytest.approx(a[1][5, 7], rel=0, abs=1e-12 * np.abs(a[1]).max())
+    # an extension with a penalty: two columns, a ridge on them
+    E = np.random.default_rng(3).normal(size=(n, 2))
+    P = np.array([[2.0, 0.5], [0.5, 1.0]])
+    C1 = np.hstack([dense.C, np.zeros((dense.C.shape[0], 2))])
+    a = X._constrained(np.hstack([dense.A, E]), dense.y, C1, dense.d, np.arange(n), P, 2)
+    b = X._constrained(np.hstack([block.A, E]), block.y, C1, block.d, np.arange(n), P, 2)
+    assert isinstance(b[1], DiagLowRank)
+    _same_fit(a, b, 1e-12)
+
+
+def test_workpiece_fit_of_a_long_log_not_well_posed_takes_the_whole_normal_matrix(monkeypatch):
+    """Where the targets' elimination does not apply, the block design's fit is the dense one's as before
+    (a formed p x p covariance, the unseen parameters not estimable): rows that leave a target unseen (its
+    count zero: the elimination would divide by it), and a gauge short of one row (the saddle system is
+    singular: the elimination would invert a matrix of condition number 1e17 or more)."""
+    from core import discover as X
+
+    dense, block = _planar_dense_and_block(monkeypatch)
+    rows = np.flatnonzero(block.A.ids != 5)  # target 5 left out
+    a = X._constrained(dense.A, dense.y, dense.C, dense.d, rows, None, 0)
+    b = X._constrained(block.A, block.y, block.C, block.d, rows, None, 0)
+    assert isinstance(b[1], np.ndarray) and not b[2].all()
+    _same_fit(a, b, 1e-9)
+    C, d = dense.C[1:], dense.d[1:]
+    a = X._constrained(dense.A, dense.y, C, d, np.arange(dense.n), None, 0)
+    b = X._constrained(block.A, block.y, C, d, np.arange(dense.n), None, 0)
+    assert isinstance(b[1], np.ndarray) and not b[2].all()
+    _same_fit(a, b, 1e-9)
+
+
 def test_pivoted_qr_formed_later_is_the_one_formed_at_once():
     """Known answers: Q formed from the reflectors is pivoted_qr's bit for bit (more rows or more columns than the
     other, a zero column); the residual sum of squares from the reflectors is the formed Q's to rounding."""
