@@ -178,6 +178,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sps
 from scipy import optimize, stats
 
 from . import baseline as bl_mod
@@ -427,6 +428,12 @@ FOLD_CLUSTER_TOL = 1e-13
 FOLD_CLUSTER_MIN = 2
 
 
+#: A held-out set-up's rows of a block basis (:meth:`Folds._q_rows`) are formed dense while their indicator part
+#: is at most this many bytes (every stored campaign's and the bench's 1e5-row log's: 8 MB a set-up); larger, they
+#: are kept sparse (a set-up of the 1e6-row log: 10,000 rows by 10,000 targets).
+FOLD_ROWS_DENSE_BYTES = 64 << 20
+
+
 def _largest_cluster(c2: np.ndarray) -> tuple[int, int]:
     """``(a, b)``: the longest run ``c2[a:b]`` of a sorted array whose values lie within :data:`FOLD_CLUSTER_TOL`
     of each other (the first of equal length)."""
@@ -552,16 +559,24 @@ class Folds:
         self.dof = max(self.last_dof, 1)
 
     def _q_rows(self, te):
-        """``Q_te`` (n_te, p') dense: the held-out rows of the basis over the columns they reach (a block basis: the
+        """``Q_te`` (n_te, p'): the held-out rows of the basis over the columns they reach (a block basis: the
         indicators of the ids they touch, then its dense columns; the other indicators are zero on them), and
-        where those columns sit among the basis's (None: all of them, in order)."""
+        where those columns sit among the basis's (None: all of them, in order). A block basis's indicator part
+        has one entry a row: formed when it is at most :data:`FOLD_ROWS_DENSE_BYTES`, else the whole is kept
+        sparse (CSR; products with it dense, the same to rounding: 800 MB per set-up of the bench's 1e6-row log
+        when formed)."""
         Q = self.Q
         if not isinstance(Q, Basis):
             return Q[te], None
         J, jinv = np.unique(Q.ids[te], return_inverse=True)
+        cols = np.concatenate([Q.indicator_columns(J), np.arange(Q.k, Q.shape[1])])
+        scale = 1.0 / np.sqrt(Q.counts[J][jinv])
+        if 8 * te.size * len(J) > FOLD_ROWS_DENSE_BYTES:
+            G = sps.csr_matrix((scale, (np.arange(te.size), jinv)), shape=(te.size, len(J)))
+            return sps.hstack([G, sps.csr_matrix(Q.dense_rows(te))], format="csr"), cols
         G = np.zeros((te.size, len(J)))
-        G[np.arange(te.size), jinv] = 1.0 / np.sqrt(Q.counts[J][jinv])
-        return np.hstack([G, Q.dense_rows(te)]), np.concatenate([Q.indicator_columns(J), np.arange(Q.k, Q.shape[1])])
+        G[np.arange(te.size), jinv] = scale
+        return np.hstack([G, Q.dense_rows(te)]), cols
 
     def _fold_one_touch_per_target(self, te) -> _Fold | None:
         """:meth:`_fold` of a block basis whose held-out rows each touch their own target, every target with one
@@ -605,6 +620,7 @@ class Folds:
         if quick is not None:
             return quick
         Qte, cols = self._q_rows(te)
+        Qte = Qte.toarray() if sps.issparse(Qte) else Qte  # (its eigenvectors are n_te^2 numbers anyway)
         if Qte.shape[0] <= Qte.shape[1]:  # the hat block is the smaller problem (a long log's set-up): its eigh
             s2, U = np.linalg.eigh(Qte @ Qte.T)  # s^2 ascending: largest training share first
         else:
@@ -1753,8 +1769,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # 3. named causes, greedily
     scans = {c.name: c.scans(bl) for c in catalogue}
     if bl.whiten is not None:  # every column the causes build goes through the baseline's whitening
-        scans = {k: ([dataclasses.replace(sc, build=(lambda idx, b=sc.build: bl.whiten @ b(idx)), score=None)
-                      for sc in v[0]], v[1]) for k, v in scans.items()}
+        scans = {k: ([dataclasses.replace(sc, build=(lambda idx, b=sc.build: bl.whiten @ b(idx)), score=None,
+                                          build_sparse=None) for sc in v[0]], v[1]) for k, v in scans.items()}
     n_causes = max(sum(1 for c in catalogue if scans[c.name][0]), 1)
     rejected: list[dict] = []
 
@@ -2696,6 +2712,12 @@ def _better_trial(cand, best, rss: float) -> bool:
     return (cand[0], -cand[1]) < (best[0], -best[1])
 
 
+def _trials(sc, idx, st: _State):
+    """The scan's trials ``idx`` (T, n, k): kept sparse (:class:`core.diagnosis.SparseTrials`) where the scan can
+    and the model's basis is a long log's (its test then takes their Gram matrices), else dense."""
+    return sc.build_sparse(idx) if sc.build_sparse is not None and isinstance(st.Q, Basis) else sc.build(idx)
+
+
 def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, sigma, settings,
               families=None, scan_tries: float | None = None) -> dict:
     """One cause against the current model: the tests of adoption (module docstring 4a-e).
@@ -2721,7 +2743,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
             idx = np.argsort(-sc.score(st.r, rows))[:settings.shortlist]
         else:
             idx = _coarse(sc.build(np.arange(sc.size))[:, rows, :], st.r, settings.shortlist)
-        C = take_rows(sc.build(idx), rows, 1)
+        C = take_rows(_trials(sc, idx, st), rows, 1)
         test = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
         ss, k, F, p = test
         for j in np.flatnonzero(k > 0):
@@ -2740,7 +2762,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     # tested with the turns, both new) and it lowers the held-out mean square below that same layout; its own F
     # test is then the candidate's. Each such step is one test at alpha_family with no correction (two per
     # feature at most): the held-out condition bounds what a chance pass can do
-    ext_test, ext_cols = single, sc.build([i])[0]
+    richer = bool(scans[si + 1:]) and bool(scans[si + 1].infos[0].get("extends_previous"))
+    ext_test, ext_cols = single, (sc.build([i]) if richer else _trials(sc, [i], st))[0]
     cur_cols = ext_cols
     held_cur = None
     for rich in itertools.takewhile(lambda r: r.infos[0].get("extends_previous"), scans[si + 1:]):
@@ -2778,6 +2801,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     ev = {"F": F_val, "p_value": p_val, "p_adjusted": p_adj, "tries": float(tries), "k": k_val}
     if p_adj >= settings.alpha_family:
         return {"reason": f"not significant ({fmt_p(p_adj)} after Bonferroni over {tries:.0f} tries)"}
+    cols = cols.toarray() if sps.issparse(cols) else cols  # (a trial kept sparse, formed once it is significant)
     if single is None and (families or cause.counter is not None):  # (both checks below take it)
         single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
     # e. the structure must live where the cause says: a smooth function of a

@@ -456,6 +456,69 @@ def test_folds_of_a_log_probed_once_per_target_and_setup_by_the_svd_of_the_dense
             np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
 
 
+@pytest.mark.parametrize("cut", [lambda log: log, lambda log: _log_with_unequal_counts(log)])
+def test_folds_of_a_long_log_keep_the_held_out_rows_sparse(monkeypatch, cut):
+    """A held-out set-up's rows of a block basis kept sparse (:meth:`Folds._q_rows` above
+    FOLD_ROWS_DENSE_BYTES, here 0: every set-up; the 1e6-row log's 10,000 x 10,000 indicator block, 800 MB
+    formed): one entry a row in the indicator part, and the held-out residuals and dof of the dense design's
+    folds to 1e-12 relative (the same products summed in another order) with and without an extension and a
+    penalty on it (the direct route), by the quick fold (the bench log) and the general one (unequal counts)."""
+    import scipy.sparse as sp
+
+    from core import discover as X
+
+    t, dense, block = _bench_log_dense_and_block(monkeypatch, cut)
+    monkeypatch.setattr(X, "FOLD_ROWS_DENSE_BYTES", 0)
+    seen = X.Settings().cv_seen
+    folds, ref = X.Folds(block.A, block.groups, seen), X.Folds(dense.A, dense.groups, seen)
+    te = folds.items[0].te
+    Qte, cols = folds._q_rows(te)
+    k = np.unique(block.A.ids[te]).size
+    assert sp.issparse(Qte) and Qte.shape == (te.size, cols.size)
+    assert np.array_equal(np.diff(Qte[:, :k].tocsr().indptr), np.ones(te.size))
+    rng = np.random.default_rng(3)
+    Y, E = rng.normal(size=(t.n, 2)), rng.normal(size=(t.n, 2))
+    for args in ((Y,), (Y, E), (Y, E, np.diag([1.0, 3.0])), (block.y,)):
+        a, b = ref.residuals(*args), folds.residuals(*args)
+        assert folds.last_dof == ref.last_dof
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
+
+
+def test_turned_lobes_trials_kept_sparse_test_as_the_dense_ones(monkeypatch):
+    """lobing_per_setup's trials (cos k phi, sin k phi per set-up) kept sparse for a long log hold the dense
+    trials' values exactly, and their nested F test against the block basis (from their Gram matrices) is the
+    dense trials' to 1e-12 relative (the same sums in another order), on all rows and on some; engine's
+    choice: sparse for a block basis, dense otherwise. Dense, they were n x 2 set-ups (1.6 GB at 1e6 rows)."""
+    import scipy.sparse as sp
+
+    from core import causes as K
+    from core import discover as X
+    from core.diagnosis import SparseTrials, nested_f_batch, take_rows
+
+    t, dense, block = _bench_log_dense_and_block(monkeypatch)
+    scans, _ = K.unoriented_scans(block)
+    assert len(scans) == 3 and all(sc.build_sparse is not None for sc in scans)
+    Q = block.A.basis()
+    r = np.random.default_rng(4).normal(size=t.n)
+    r -= Q @ (Q.T @ r)
+    for sc in scans:
+        S, D = sc.build_sparse([0]), sc.build([0])
+        assert isinstance(S, SparseTrials) and sp.issparse(S[0]) and S.shape == D.shape
+        assert np.array_equal(S[0].toarray(), D[0]) and S[0].nnz == 2 * t.n
+        for rows in (np.arange(t.n), np.arange(0, t.n, 3)):
+            Qr = Q if len(rows) == t.n else block.A[rows].basis()
+            rr = r[rows] - Qr @ (Qr.T @ r[rows])
+            a = nested_f_batch(take_rows(D, rows, 1), Qr, rr, float(rr @ rr), len(rows) - Qr.shape[1])
+            b = nested_f_batch(take_rows(S, rows, 1), Qr, rr, float(rr @ rr), len(rows) - Qr.shape[1])
+            assert np.array_equal(a[1], b[1])
+            for u, v in zip(a, b):
+                np.testing.assert_allclose(v, u, rtol=1e-12, atol=0)
+    st = X._State(rows=np.arange(t.n), Q=Q, r=r, rss=float(r @ r), dof=10)
+    assert isinstance(X._trials(scans[0], [0], st), SparseTrials)
+    st = X._State(rows=np.arange(t.n), Q=orth(dense.A), r=r, rss=float(r @ r), dof=10)
+    assert isinstance(X._trials(scans[0], [0], st), np.ndarray)
+
+
 def _log_with_unequal_counts(log):
     """The benchmark log with 10 % of its touches dropped at random: targets touched 6 to 8 times."""
     return log.select(np.random.default_rng(5).random(len(log.columns["target"])) > 0.1)
