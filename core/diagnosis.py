@@ -1073,7 +1073,7 @@ def replicate_scatter(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None =
     key = np.asarray(key)
     if key.shape != np.shape(y):
         raise ConfigError(f"replicate_scatter: key {key.shape} and y {np.shape(y)} must have one entry per row")
-    if trend is not None and (np.ndim(trend) != 2 or len(trend) != len(key)):
+    if trend is not None and (len(trend.shape) != 2 or trend.shape[0] != len(key)):
         raise ConfigError(f"replicate_scatter: trend must be ({len(key)}, q), got {np.shape(trend)}")
     ok = key >= 0
     if not ok.any():
@@ -1085,7 +1085,7 @@ def replicate_scatter(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None =
     res = yy - mean[inv]
     dof = int(np.sum(cnt - 1))
     if trend is not None and trend.shape[1] and dof:
-        T = trend[ok]
+        T = _dense(trend[ok])  # (a sparse trend: its repeated rows formed, the same values)
         Tc = T - (group_sums(inv, len(k), T) / cnt[:, None])[inv]
         nrm = np.linalg.norm(Tc, axis=0)
         big = nrm > 1e-9 * np.maximum(np.linalg.norm(T, axis=0), 1e-300)

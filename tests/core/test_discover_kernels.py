@@ -519,6 +519,42 @@ def test_turned_lobes_trials_kept_sparse_test_as_the_dense_ones(monkeypatch):
     assert isinstance(X._trials(scans[0], [0], st), np.ndarray)
 
 
+def test_drift_trend_kept_sparse_is_the_dense_one(monkeypatch):
+    """The noise's per-set-up time trend (discover_baseline's first screen) kept sparse holds the dense columns'
+    values exactly, and the repeats' scatter with it is the dense one's (only the repeated rows are formed: the
+    same numbers, dof equal, the sum of squares to 1e-12 relative: the BLAS kernels may round otherwise on
+    another copy's alignment). Dense it was rows x 3 modes x set-ups: 2.4 GB at the bench's 1e6 rows and 100 set-ups, where the
+    1e6-row discover stopped after the workpiece fit, folds and lobing trials were made to fit. The bench log
+    with 10 % of its touches repeated (a copy 1 um noise off, 1000 s later): repeats in every set-up."""
+    import scipy.sparse as sp
+
+    from core import baseline as Bm
+    from core import discover as X
+    from core.diagnosis import replicate_scatter
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    log = large_log(40, 12, np.random.default_rng(19))
+    pick = np.flatnonzero(np.random.default_rng(2).random(log.n) < 0.1)
+    cols = {k: np.concatenate([v, v[pick]]) for k, v in log.columns.items()}
+    cols["t_s"][log.n:] += 1000.0
+    e = np.random.default_rng(6).normal(0, 1e-3, pick.size)
+    cols["X_mm"][log.n:] += e * cols["nx"][log.n:]
+    cols["Y_mm"][log.n:] += e * cols["ny"][log.n:]
+    order = np.argsort(cols["t_s"], kind="stable")
+    from core.probelog import make_log
+
+    bl = Bm.planar(from_log(make_log({k: v[order] for k, v in cols.items()}, dict(log.meta), validate=False)))
+    assert (bl.replicate >= 0).sum() > 0
+    for rows in (np.arange(bl.n), np.arange(5, bl.n)):
+        a, b = X.drift_trend(bl, rows), X.drift_trend(bl, rows, sparse=True)
+        assert sp.issparse(b) and np.array_equal(b.toarray(), a) and b.nnz <= 3 * len(rows)
+        ra = replicate_scatter(bl.replicate[rows], bl.y[rows], a)
+        rb = replicate_scatter(bl.replicate[rows], bl.y[rows], b)
+        assert ra.dof > 0 and (ra.dof, ra.groups) == (rb.dof, rb.groups) and ra.ss > 0
+        assert rb.ss == pytest.approx(ra.ss, rel=1e-12, abs=0)
+
+
 def _log_with_unequal_counts(log):
     """The benchmark log with 10 % of its touches dropped at random: targets touched 6 to 8 times."""
     return log.select(np.random.default_rng(5).random(len(log.columns["target"])) > 0.1)
