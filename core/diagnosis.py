@@ -1073,7 +1073,7 @@ def replicate_scatter(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None =
     key = np.asarray(key)
     if key.shape != np.shape(y):
         raise ConfigError(f"replicate_scatter: key {key.shape} and y {np.shape(y)} must have one entry per row")
-    if trend is not None and (len(trend.shape) != 2 or trend.shape[0] != len(key)):
+    if trend is not None and (len(np.shape(trend)) != 2 or np.shape(trend)[0] != len(key)):
         raise ConfigError(f"replicate_scatter: trend must be ({len(key)}, q), got {np.shape(trend)}")
     ok = key >= 0
     if not ok.any():
