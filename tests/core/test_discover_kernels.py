@@ -710,6 +710,16 @@ def test_workpiece_fit_of_a_long_log_eliminates_the_targets(monkeypatch):
     b = X._constrained(np.hstack([block.A, E]), block.y, C1, block.d, np.arange(n), P, 2)
     assert isinstance(b[1], DiagLowRank)
     _same_fit(a, b, 1e-12)
+    # a near-collinear extension (its second column the first plus 1e-3 of another): the equilibrated Schur
+    # complement's condition number is 1.0e7 (below SCHUR_COND_MAX, so eliminated), the normal equations lose
+    # about that factor, and the refinement step carries the estimate back: 6.0e-13 of its largest with it,
+    # 1.0e-9 without it (range(1) in _constrained_schur), so 1e-11 here fails without the step
+    e = np.random.default_rng(3).normal(size=n)
+    E = np.column_stack([e, e + 1e-3 * np.random.default_rng(4).normal(size=n)])
+    a = X._constrained(np.hstack([dense.A, E]), dense.y, C1, dense.d, np.arange(n), None, 0)
+    b = X._constrained(np.hstack([block.A, E]), block.y, C1, block.d, np.arange(n), None, 0)
+    assert isinstance(b[1], DiagLowRank)
+    np.testing.assert_allclose(b[0], a[0], rtol=0, atol=1e-11 * np.abs(a[0]).max())
 
 
 def test_workpiece_fit_of_a_long_log_not_well_posed_takes_the_whole_normal_matrix(monkeypatch):
