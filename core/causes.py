@@ -586,10 +586,14 @@ def unoriented_scans(bl):
         return sp.csr_matrix((vals, np.column_stack([c, c + 1]).ravel(), np.arange(0, 2 * n + 1, 2)),
                              shape=(n, 2 * su.size))
 
-    def sparse_trials(k, idx):  # the scan's one trial, as columns(k)[idx] takes it
+    def sparse_trials(k, idx):  # the scan's one trial, as columns(k)[idx] takes it (0 or -1, each a copy)
         from .diagnosis import SparseTrials
+        from .exceptions import ConfigError
 
-        return SparseTrials([sparse_columns(k) for _ in np.arange(1)[np.asarray(idx)]])
+        idx = np.asarray(idx)
+        if idx.ndim != 1 or (idx.size and idx.dtype.kind not in "iu") or np.any((idx < -1) | (idx > 0)):
+            raise ConfigError(f"lobing_per_setup's scan has one trial (index 0 or -1), not {idx.tolist()}")
+        return SparseTrials([sparse_columns(k) for _ in range(idx.size)])
 
     for k in (2, 3, 4):
         labels = [lab for sid in ids for lab in (f"cos{k}[{sid}]", f"sin{k}[{sid}]")]

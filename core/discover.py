@@ -430,7 +430,11 @@ FOLD_CLUSTER_MIN = 2
 
 #: A held-out set-up's rows of a block basis (:meth:`Folds._q_rows`) are formed dense while their indicator part
 #: is at most this many bytes (every stored campaign's and the bench's 1e5-row log's: 8 MB a set-up); larger, they
-#: are kept sparse (a set-up of the 1e6-row log: 10,000 rows by 10,000 targets).
+#: are kept sparse (a set-up of the 1e6-row log: 10,000 rows by 10,000 targets). Small ones stay dense because the
+#: sparse products round differently: with this at 0 (every set-up sparse) the 16 identity campaigns forced through
+#: the block design kept every decision and text, but gen_a knock 1's smooth cv_gain_um2 moved 7.6e-9 relative
+#: (a difference of held-out mean squares from a penalised system; the identity test measures 1.6e-8 for it across
+#: BLAS kernels), so the stored campaigns' reports stay those of the dense products.
 FOLD_ROWS_DENSE_BYTES = 64 << 20
 
 
@@ -1505,8 +1509,8 @@ class Discovery:
     workpiece_identifiable: bool = True
     G_baseline_m: np.ndarray | None = field(default=None, repr=False)
     G_extended_m: np.ndarray | None = field(default=None, repr=False)
-    cov_G_baseline: np.ndarray | None = field(default=None, repr=False)
-    cov_G_extended: np.ndarray | None = field(default=None, repr=False)
+    cov_G_baseline: np.ndarray | DiagLowRank | None = field(default=None, repr=False)  # (a long log's: factored)
+    cov_G_extended: np.ndarray | DiagLowRank | None = field(default=None, repr=False)
     structure: dict = field(default_factory=dict)
     rejected: tuple = ()
     cv_rms_ratio_95: list | None = None
@@ -2157,7 +2161,8 @@ def _no_covariate_words(structure: dict, settings) -> str:
 DRIFT_MODES = 3
 
 
-def drift_trend(bl: Baseline, rows: np.ndarray, shared: bool = False, sparse: bool = False) -> np.ndarray:
+def drift_trend(bl: Baseline, rows: np.ndarray, shared: bool = False,
+                sparse: bool = False) -> np.ndarray | sps.csr_matrix:
     """(len(rows), q) columns of a drift linear in time within each group (set-up): time x mode (x group).
 
     What :func:`core.diagnosis.replicate_scatter` removes from the repeats
@@ -2775,6 +2780,10 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     # tested with the turns, both new) and it lowers the held-out mean square below that same layout; its own F
     # test is then the candidate's. Each such step is one test at alpha_family with no correction (two per
     # feature at most): the held-out condition bounds what a chance pass can do
+    # (the chosen trial's columns dense where a richer scan follows: the loop below stacks and folds them with the
+    # richer ones; else as its scan's test took them, sparse on a long log's basis. Defensive: no scan of the
+    # catalogue has both build_sparse and a richer scan after it (part_change's walls are dense, lobing per
+    # set-up has no richer scans), and bool(scans[si + 1:]) guards the last scan's index)
     richer = bool(scans[si + 1:]) and bool(scans[si + 1].infos[0].get("extends_previous"))
     ext_test, ext_cols = single, (sc.build([i]) if richer else _trials(sc, [i], st))[0]
     cur_cols = ext_cols
@@ -3888,8 +3897,7 @@ def _constrained_schur(Ar: BlockDesign, yr, C, d, penalty, k_ext):
     if np.any(cnt == 0):  # a target no row sees: unseen, the whole normal matrix says which
         return None
     theta0 = np.linalg.lstsq(C, d, rcond=None)[0] if C.shape[0] else np.zeros(p)
-    _, sC, VtC = np.linalg.svd(C, full_matrices=False) if C.shape[0] else (None, np.zeros(0), np.zeros((0, p)))
-    r = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))  # C's rank as _gauge_svd_z cuts it
+    VtC, r = _gauge_rows_svd(C, p, full=False)
     Cr = VtC[:r]  # (r, p) orthonormal rows: C theta = d is Cr theta = Cr theta0
     dr = Cr @ theta0
     m = len(dc)
@@ -3942,10 +3950,20 @@ def _estimable(null: np.ndarray, p: int) -> np.ndarray:
     return np.linalg.norm(orth(null), axis=1) < 1e-6
 
 
+def _gauge_rows_svd(C: np.ndarray, p: int, full: bool = True) -> tuple[np.ndarray, int]:
+    """The gauge rows ``C`` (r0, p) by their SVD: ``(Vt, r)``, ``r`` the rank at 1e-12 of the largest singular
+    value, ``Vt[:r]`` orthonormal rows spanning ``C``'s row space and, with ``full`` (p x p), ``Vt[r:]`` its null
+    space (the identity without gauge rows); without ``full`` only ``min(r0, p)`` rows (a long log's ``p`` is
+    10,356: the full ``Vt`` would be 858 MB)."""
+    if not C.shape[0]:
+        return (np.eye(p) if full else np.zeros((0, p))), 0
+    _, sC, VtC = np.linalg.svd(C, full_matrices=full)
+    return VtC, int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))
+
+
 def _gauge_svd_z(C: np.ndarray, p: int) -> np.ndarray:
     """The null space ``Z`` of the gauge rows (as :func:`_gauge_svd` takes it)."""
-    _, sC, VtC = np.linalg.svd(C) if C.shape[0] else (None, np.zeros(0), np.eye(p))
-    rC = int(np.sum(sC > 1e-12 * max(sC.max(initial=0), 1e-300)))
+    VtC, rC = _gauge_rows_svd(C, p)
     return VtC[rC:].T
 
 

@@ -682,10 +682,17 @@ class DiagLowRank:
         return 2
 
     def diagonal(self) -> np.ndarray:
-        return self.scale * (self.d + np.einsum("ij,jk,ik->i", self.L, self.K, self.L))
+        # one (p, k) product and a row-wise sum (einsum's three-operand loop took 3.19 s at p 10,356, k 366; 0.21 s)
+        return self.scale * (self.d + np.sum((self.L @ self.K) * self.L, axis=1))
 
     def take(self, idx) -> "DiagLowRank":
+        """The matrix on rows and columns ``idx`` (distinct integers: a repeated index would need the diagonal
+        term off the diagonal too, which this form cannot hold; ConfigError)."""
         idx = np.asarray(idx)
+        if idx.ndim != 1 or (idx.size and idx.dtype.kind not in "iu"):
+            raise ConfigError("DiagLowRank.take: a 1-d array of integer indices")
+        if np.unique(idx % len(self.d) if idx.size else idx).size != idx.size:
+            raise ConfigError("DiagLowRank.take: the indices must be distinct")
         return DiagLowRank(self.d[idx], self.L[idx], self.K, self.scale)
 
     def __getitem__(self, key):

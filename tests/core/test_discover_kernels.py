@@ -13,6 +13,7 @@ import pytest
 from core import diagnosis as D
 from core.diagnosis import Covariate, diagnose, orth, pivoted_qr, screen_phasors, spectral_table, term_bases
 from core.discover import _constant_within, _constrained, _smooth_gauge, first_per_event
+from core.exceptions import ConfigError
 
 
 def test_one_factorisation_cut_at_two_tolerances():
@@ -505,6 +506,10 @@ def test_turned_lobes_trials_kept_sparse_test_as_the_dense_ones(monkeypatch):
         S, D = sc.build_sparse([0]), sc.build([0])
         assert isinstance(S, SparseTrials) and sp.issparse(S[0]) and S.shape == D.shape
         assert np.array_equal(S[0].toarray(), D[0]) and S[0].nnz == 2 * t.n
+        assert sc.build_sparse([0, -1]).shape == sc.build([0, -1]).shape  # (as the dense scan indexes)
+        for bad in ([1], [0.0], 0, [[0]]):  # the scan has one trial: another index is refused, not copied
+            with pytest.raises(ConfigError):
+                sc.build_sparse(bad)
         for rows in (np.arange(t.n), np.arange(0, t.n, 3)):
             Qr = Q if len(rows) == t.n else block.A[rows].basis()
             rr = r[rows] - Qr @ (Qr.T @ r[rows])
@@ -702,6 +707,8 @@ def test_workpiece_fit_of_a_long_log_eliminates_the_targets(monkeypatch):
                                    atol=1e-12 * np.abs(a[1]).max())
         np.testing.assert_allclose(b[1].diagonal(), np.diag(a[1]), rtol=0, atol=1e-12 * np.abs(a[1]).max())
         assert b[1][5, 7] == pytest.approx(a[1][5, 7], rel=0, abs=1e-12 * np.abs(a[1]).max())
+        with pytest.raises(ConfigError):  # a repeated index: its diagonal term belongs off the diagonal too
+            b[1].take(np.array([3, 4, 3]))
     # an extension with a penalty: two columns, a ridge on them
     E = np.random.default_rng(3).normal(size=(n, 2))
     P = np.array([[2.0, 0.5], [0.5, 1.0]])
