@@ -1891,6 +1891,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     seen = [(st, diag_b)]
     terms, rows, st, folds, Qb = search(rows, st, folds, Qb, diag_b, cv_b, seen)
+    took_every_row = []  # the causes of the search on every row, when it was taken (step 3)
     if len(rows) < N:
         # the rows called outliers may be a systematic effect's largest
         # residuals: search again with every row; if a cause is then adopted
@@ -1905,6 +1906,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         if t2 and (len(r2) > len(rows) or per_setup and _explains_set_aside(Qall, y, all_rows, rows, t2, events, r2)):
             # a cause explains some of them: they were its structure
             terms, rows, st, folds, Qb = t2, r2, s2, f2, q2
+            took_every_row = list(t2)
         seen += seen2
     tick()
 
@@ -1913,6 +1915,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     dropped = []  # the terms the rival check dropped (their columns re-tested beyond the final model, step 5)
     put_back = False  # the outliers were a named cause's structure: never set aside again in this run
     put_back_by = None  # the cause that put them back: if it is dropped later, they are judged again
+    undone = False  # a put-back undone (its cause dropped)
     changed = True
     while changed and terms:
         changed = False
@@ -1945,17 +1948,21 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 dropped.append(tm)
                 if tm is put_back_by:  # what it put back was its structure only if it stays named
                     put_back, put_back_by = False, None
+                    undone = True
+                if took_every_row and not any(t is u for t in took_every_row for u in terms):
+                    # the search on every row was taken because its causes explained the set-aside touches: with
+                    # all of them dropped that is undone as a put-back is (gen_a outlier 1163: part_change on every
+                    # row left one of four chips in the fit, extended workpiece 0.567 um against 0.236, then was
+                    # dropped)
+                    undone = True
                 demoted.append({"cause": tm.cause, **share})
                 rejected.append({"cause": tm.cause, "reason": _demotion_reason(share, tm.covariate, settings)})
                 Qb, folds, st = model(rows, terms)
                 changed = True
                 break
-    if demoted and not put_back:
-        # a cause dropped: the rows were last judged against it (in the search, or the search on every row), so
-        # they are judged again against the causes left, the baseline alone when none is (a put-back undone
-        # too: its touches judged again). Before session 13 the rows stayed as the dropped cause left them
-        # when no cause was left: gen_a outlier 1163, part_change on every row dropped, kept one 5.6-13 um
-        # chip in the fit (extended workpiece 0.57 um against 0.24)
+    if (terms or undone) and demoted and not put_back:
+        # (none dropped: the search judged the outliers against these terms last; a put-back undone, or the search
+        # on every row undone: its touches are judged again, against the baseline alone when no cause is left)
         rows = np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(terms, all_rows)])) if terms
                             else outliers_of(bl.A, Qall))
     rows_b = judge_rows_again(rows)
