@@ -1891,7 +1891,6 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     seen = [(st, diag_b)]
     terms, rows, st, folds, Qb = search(rows, st, folds, Qb, diag_b, cv_b, seen)
-    took_every_row = []  # the causes of the search on every row, when it was taken (step 3)
     if len(rows) < N:
         # the rows called outliers may be a systematic effect's largest
         # residuals: search again with every row; if a cause is then adopted
@@ -1906,7 +1905,6 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         if t2 and (len(r2) > len(rows) or per_setup and _explains_set_aside(Qall, y, all_rows, rows, t2, events, r2)):
             # a cause explains some of them: they were its structure
             terms, rows, st, folds, Qb = t2, r2, s2, f2, q2
-            took_every_row = list(t2)
         seen += seen2
     tick()
 
@@ -1949,20 +1947,14 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 if tm is put_back_by:  # what it put back was its structure only if it stays named
                     put_back, put_back_by = False, None
                     undone = True
-                if took_every_row and not any(t is u for t in took_every_row for u in terms):
-                    # the search on every row was taken because its causes explained the set-aside touches: with
-                    # all of them dropped that is undone as a put-back is (gen_a outlier 1163: part_change on every
-                    # row left one of four chips in the fit, extended workpiece 0.567 um against 0.236, then was
-                    # dropped)
-                    undone = True
                 demoted.append({"cause": tm.cause, **share})
                 rejected.append({"cause": tm.cause, "reason": _demotion_reason(share, tm.covariate, settings)})
                 Qb, folds, st = model(rows, terms)
                 changed = True
                 break
     if (terms or undone) and demoted and not put_back:
-        # (none dropped: the search judged the outliers against these terms last; a put-back undone, or the search
-        # on every row undone: its touches are judged again, against the baseline alone when no cause is left)
+        # (none dropped: the search judged the outliers against these terms last; a put-back undone: its touches
+        # are judged again, against the baseline alone when no cause is left)
         rows = np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(terms, all_rows)])) if terms
                             else outliers_of(bl.A, Qall))
     rows_b = judge_rows_again(rows)
