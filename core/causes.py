@@ -119,6 +119,9 @@ class Scan:
         parameter (a bump's centre): the engine checks the scan's count of
         independent trials against Davies' upcrossing bound on the path
         the trials' columns trace (``core.discover._path_tries``).
+    build_sparse : callable(idx) -> core.diagnosis.SparseTrials, optional
+        ``build``'s trials kept sparse (the same values), for a long log's
+        test of a trial (``core.discover._evaluate``).
     """
 
     labels: tuple
@@ -127,6 +130,7 @@ class Scan:
     build: Callable = field(repr=False)
     score: Callable | None = field(default=None, repr=False)
     path: bool = False
+    build_sparse: Callable | None = field(default=None, repr=False)
 
     @property
     def size(self) -> int:
@@ -571,10 +575,31 @@ def unoriented_scans(bl):
             cols += [m * np.cos(k * phi), m * np.sin(k * phi)]
         return np.column_stack(cols)[None]
 
+    def sparse_columns(k):  # the same values on their set-up's rows only (2 a row: 1.6 GB dense at 1e6 rows)
+        import scipy.sparse as sp
+
+        n = len(phi)
+        at = np.full(int(su.max()) + 1, -1)
+        at[su] = np.arange(su.size)
+        c = 2 * at[d.touches.setup]
+        vals = np.column_stack([np.cos(k * phi), np.sin(k * phi)]).ravel()
+        return sp.csr_matrix((vals, np.column_stack([c, c + 1]).ravel(), np.arange(0, 2 * n + 1, 2)),
+                             shape=(n, 2 * su.size))
+
+    def sparse_trials(k, idx):  # the scan's one trial, as columns(k)[idx] takes it (0 or -1, each a copy)
+        from .diagnosis import SparseTrials
+        from .exceptions import ConfigError
+
+        idx = np.asarray(idx)
+        if idx.ndim != 1 or (idx.size and idx.dtype.kind not in "iu") or np.any((idx < -1) | (idx > 0)):
+            raise ConfigError(f"lobing_per_setup's scan has one trial (index 0 or -1), not {idx.tolist()}")
+        return SparseTrials([sparse_columns(k) for _ in range(idx.size)])
+
     for k in (2, 3, 4):
         labels = [lab for sid in ids for lab in (f"cos{k}[{sid}]", f"sin{k}[{sid}]")]
         scans.append(Scan(tuple(labels), ({"harmonic": k, "setups": ids},), "approach_azimuth",
-                          lambda idx, k=k: columns(k)[np.asarray(idx)]))
+                          lambda idx, k=k: columns(k)[np.asarray(idx)],
+                          build_sparse=lambda idx, k=k: sparse_trials(k, idx)))
     return scans, 3.0
 
 

@@ -13,6 +13,7 @@ import pytest
 from core import diagnosis as D
 from core.diagnosis import Covariate, diagnose, orth, pivoted_qr, screen_phasors, spectral_table, term_bases
 from core.discover import _constant_within, _constrained, _smooth_gauge, first_per_event
+from core.exceptions import ConfigError
 
 
 def test_one_factorisation_cut_at_two_tolerances():
@@ -456,6 +457,109 @@ def test_folds_of_a_log_probed_once_per_target_and_setup_by_the_svd_of_the_dense
             np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
 
 
+@pytest.mark.parametrize("cut", [lambda log: log, lambda log: _log_with_unequal_counts(log)])
+def test_folds_of_a_long_log_keep_the_held_out_rows_sparse(monkeypatch, cut):
+    """A held-out set-up's rows of a block basis kept sparse (:meth:`Folds._q_rows` above
+    FOLD_ROWS_DENSE_BYTES, here 0: every set-up; the 1e6-row log's 10,000 x 10,000 indicator block, 800 MB
+    formed): one entry a row in the indicator part, and the held-out residuals and dof of the dense design's
+    folds to 1e-12 relative (the same products summed in another order) with and without an extension and a
+    penalty on it (the direct route), by the quick fold (the bench log) and the general one (unequal counts)."""
+    import scipy.sparse as sp
+
+    from core import discover as X
+
+    t, dense, block = _bench_log_dense_and_block(monkeypatch, cut)
+    monkeypatch.setattr(X, "FOLD_ROWS_DENSE_BYTES", 0)
+    seen = X.Settings().cv_seen
+    folds, ref = X.Folds(block.A, block.groups, seen), X.Folds(dense.A, dense.groups, seen)
+    te = folds.items[0].te
+    Qte, cols = folds._q_rows(te)
+    k = np.unique(block.A.ids[te]).size
+    assert sp.issparse(Qte) and Qte.shape == (te.size, cols.size)
+    assert np.array_equal(np.diff(Qte[:, :k].tocsr().indptr), np.ones(te.size))
+    rng = np.random.default_rng(3)
+    Y, E = rng.normal(size=(t.n, 2)), rng.normal(size=(t.n, 2))
+    for args in ((Y,), (Y, E), (Y, E, np.diag([1.0, 3.0])), (block.y,)):
+        a, b = ref.residuals(*args), folds.residuals(*args)
+        assert folds.last_dof == ref.last_dof
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
+
+
+def test_turned_lobes_trials_kept_sparse_test_as_the_dense_ones(monkeypatch):
+    """lobing_per_setup's trials (cos k phi, sin k phi per set-up) kept sparse for a long log hold the dense
+    trials' values exactly, and their nested F test against the block basis (from their Gram matrices) is the
+    dense trials' to 1e-12 relative (the same sums in another order), on all rows and on some; engine's
+    choice: sparse for a block basis, dense otherwise. Dense, they were n x 2 set-ups (1.6 GB at 1e6 rows)."""
+    import scipy.sparse as sp
+
+    from core import causes as K
+    from core import discover as X
+    from core.diagnosis import SparseTrials, nested_f_batch, take_rows
+
+    t, dense, block = _bench_log_dense_and_block(monkeypatch)
+    scans, _ = K.unoriented_scans(block)
+    assert len(scans) == 3 and all(sc.build_sparse is not None for sc in scans)
+    Q = block.A.basis()
+    r = np.random.default_rng(4).normal(size=t.n)
+    r -= Q @ (Q.T @ r)
+    for sc in scans:
+        S, D = sc.build_sparse([0]), sc.build([0])
+        assert isinstance(S, SparseTrials) and sp.issparse(S[0]) and S.shape == D.shape
+        assert np.array_equal(S[0].toarray(), D[0]) and S[0].nnz == 2 * t.n
+        assert sc.build_sparse([0, -1]).shape == sc.build([0, -1]).shape  # (as the dense scan indexes)
+        for bad in ([1], [0.0], 0, [[0]]):  # the scan has one trial: another index is refused, not copied
+            with pytest.raises(ConfigError):
+                sc.build_sparse(bad)
+        for rows in (np.arange(t.n), np.arange(0, t.n, 3)):
+            Qr = Q if len(rows) == t.n else block.A[rows].basis()
+            rr = r[rows] - Qr @ (Qr.T @ r[rows])
+            a = nested_f_batch(take_rows(D, rows, 1), Qr, rr, float(rr @ rr), len(rows) - Qr.shape[1])
+            b = nested_f_batch(take_rows(S, rows, 1), Qr, rr, float(rr @ rr), len(rows) - Qr.shape[1])
+            assert np.array_equal(a[1], b[1])
+            for u, v in zip(a, b):
+                np.testing.assert_allclose(v, u, rtol=1e-12, atol=0)
+    st = X._State(rows=np.arange(t.n), Q=Q, r=r, rss=float(r @ r), dof=10)
+    assert isinstance(X._trials(scans[0], [0], st), SparseTrials)
+    st = X._State(rows=np.arange(t.n), Q=orth(dense.A), r=r, rss=float(r @ r), dof=10)
+    assert isinstance(X._trials(scans[0], [0], st), np.ndarray)
+
+
+def test_drift_trend_kept_sparse_is_the_dense_one(monkeypatch):
+    """The noise's per-set-up time trend (discover_baseline's first screen) kept sparse holds the dense columns'
+    values exactly, and the repeats' scatter with it is the dense one's (only the repeated rows are formed: the
+    same numbers, dof equal, the sum of squares to 1e-12 relative: the BLAS kernels may round otherwise on
+    another copy's alignment). Dense it was rows x 3 modes x set-ups: 2.4 GB at the bench's 1e6 rows and 100 set-ups, where the
+    1e6-row discover stopped after the workpiece fit, folds and lobing trials were made to fit. The bench log
+    with 10 % of its touches repeated (a copy 1 um noise off, 1000 s later): repeats in every set-up."""
+    import scipy.sparse as sp
+
+    from core import baseline as Bm
+    from core import discover as X
+    from core.diagnosis import replicate_scatter
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    log = large_log(40, 12, np.random.default_rng(19))
+    pick = np.flatnonzero(np.random.default_rng(2).random(log.n) < 0.1)
+    cols = {k: np.concatenate([v, v[pick]]) for k, v in log.columns.items()}
+    cols["t_s"][log.n:] += 1000.0
+    e = np.random.default_rng(6).normal(0, 1e-3, pick.size)
+    cols["X_mm"][log.n:] += e * cols["nx"][log.n:]
+    cols["Y_mm"][log.n:] += e * cols["ny"][log.n:]
+    order = np.argsort(cols["t_s"], kind="stable")
+    from core.probelog import make_log
+
+    bl = Bm.planar(from_log(make_log({k: v[order] for k, v in cols.items()}, dict(log.meta), validate=False)))
+    assert (bl.replicate >= 0).sum() > 0
+    for rows in (np.arange(bl.n), np.arange(5, bl.n)):
+        a, b = X.drift_trend(bl, rows), X.drift_trend(bl, rows, sparse=True)
+        assert sp.issparse(b) and np.array_equal(b.toarray(), a) and b.nnz <= 3 * len(rows)
+        ra = replicate_scatter(bl.replicate[rows], bl.y[rows], a)
+        rb = replicate_scatter(bl.replicate[rows], bl.y[rows], b)
+        assert ra.dof > 0 and (ra.dof, ra.groups) == (rb.dof, rb.groups) and ra.ss > 0
+        assert rb.ss == pytest.approx(ra.ss, rel=1e-12, abs=0)
+
+
 def _log_with_unequal_counts(log):
     """The benchmark log with 10 % of its touches dropped at random: targets touched 6 to 8 times."""
     return log.select(np.random.default_rng(5).random(len(log.columns["target"])) > 0.1)
@@ -556,6 +660,93 @@ def test_planar_block_design_and_its_constrained_fit_are_the_dense_ones(monkeypa
         a, b = np.asarray(a, float), np.asarray(b, float)
         assert np.array_equal(np.isfinite(a), np.isfinite(b))
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-9 * np.abs(a).max())
+
+
+def _planar_dense_and_block(monkeypatch, n_targets=40, n_angles=12):
+    """The bench generator's log (``n_targets`` at ``n_angles`` C angles): its planar baseline dense and forced
+    through the block design."""
+    from core import baseline as Bm
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    t = from_log(large_log(n_targets, n_angles, np.random.default_rng(19)))
+    dense = Bm.planar(t)
+    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
+    return dense, Bm.planar(t)
+
+
+def _same_fit(a, b, tol):
+    """Two (theta, cov, est) of _constrained equal: theta and cov to ``tol`` of their largest, est exactly."""
+    from core.lsq import DiagLowRank
+
+    for u, v in zip(a[:2], b[:2]):
+        u, v = (w.toarray() if isinstance(w, DiagLowRank) else w for w in (u, v))
+        np.testing.assert_allclose(v, u, rtol=0, atol=tol * np.abs(u).max())
+    assert np.array_equal(a[2], b[2])
+
+
+def test_workpiece_fit_of_a_long_log_eliminates_the_targets(monkeypatch):
+    """The block design's gauge-constrained fit without the linear map (the workpiece's baseline and extended
+    fits) eliminates the targets (a Schur complement over the machine's columns and the gauge rows): its
+    covariance is kept factored (diag + low rank, never p x p) and equals the dense SVD's, with the estimate,
+    to 1e-12 of their largest (measured 1.9e-15 and 2.7e-15 here; the normal equations square a condition
+    number of about 700, and one step of refinement on the rows' residuals brings the estimate back), every
+    parameter estimable; also on rows leaving some out and with an extension's penalty (its ridge rows)."""
+    from core import discover as X
+    from core.lsq import DiagLowRank
+
+    dense, block = _planar_dense_and_block(monkeypatch)
+    n = dense.n
+    for rows in (np.arange(n), np.arange(3, n)):
+        a = X._constrained(dense.A, dense.y, dense.C, dense.d, rows, None, 0)
+        b = X._constrained(block.A, block.y, block.C, block.d, rows, None, 0)
+        assert isinstance(b[1], DiagLowRank) and b[2].all()
+        _same_fit(a, b, 1e-12)
+        q = block.estimand
+        np.testing.assert_allclose(b[1].take(q)[np.ix_(np.arange(7), np.arange(3, 9))], a[1][np.ix_(q, q)][:7, 3:9], rtol=0,
+                                   atol=1e-12 * np.abs(a[1]).max())
+        np.testing.assert_allclose(b[1].diagonal(), np.diag(a[1]), rtol=0, atol=1e-12 * np.abs(a[1]).max())
+        assert b[1][5, 7] == pytest.approx(a[1][5, 7], rel=0, abs=1e-12 * np.abs(a[1]).max())
+        with pytest.raises(ConfigError):  # a repeated index: its diagonal term belongs off the diagonal too
+            b[1].take(np.array([3, 4, 3]))
+    # an extension with a penalty: two columns, a ridge on them
+    E = np.random.default_rng(3).normal(size=(n, 2))
+    P = np.array([[2.0, 0.5], [0.5, 1.0]])
+    C1 = np.hstack([dense.C, np.zeros((dense.C.shape[0], 2))])
+    a = X._constrained(np.hstack([dense.A, E]), dense.y, C1, dense.d, np.arange(n), P, 2)
+    b = X._constrained(np.hstack([block.A, E]), block.y, C1, block.d, np.arange(n), P, 2)
+    assert isinstance(b[1], DiagLowRank)
+    _same_fit(a, b, 1e-12)
+    # a near-collinear extension (its second column the first plus 1e-3 of another): the equilibrated Schur
+    # complement's condition number is 1.0e7 (below SCHUR_COND_MAX, so eliminated), the normal equations lose
+    # about that factor, and the refinement step carries the estimate back: 6.0e-13 of its largest with it,
+    # 1.0e-9 without it (range(1) in _constrained_schur), so 1e-11 here fails without the step
+    e = np.random.default_rng(3).normal(size=n)
+    E = np.column_stack([e, e + 1e-3 * np.random.default_rng(4).normal(size=n)])
+    a = X._constrained(np.hstack([dense.A, E]), dense.y, C1, dense.d, np.arange(n), None, 0)
+    b = X._constrained(np.hstack([block.A, E]), block.y, C1, block.d, np.arange(n), None, 0)
+    assert isinstance(b[1], DiagLowRank)
+    np.testing.assert_allclose(b[0], a[0], rtol=0, atol=1e-11 * np.abs(a[0]).max())
+
+
+def test_workpiece_fit_of_a_long_log_not_well_posed_takes_the_whole_normal_matrix(monkeypatch):
+    """Where the targets' elimination does not apply, the block design's fit is the dense one's as before
+    (a formed p x p covariance, the unseen parameters not estimable): rows that leave a target unseen (its
+    count zero: the elimination would divide by it), and a gauge short of one row (the saddle system is
+    singular: the elimination would invert a matrix of condition number 1e17 or more)."""
+    from core import discover as X
+
+    dense, block = _planar_dense_and_block(monkeypatch)
+    rows = np.flatnonzero(block.A.ids != 5)  # target 5 left out
+    a = X._constrained(dense.A, dense.y, dense.C, dense.d, rows, None, 0)
+    b = X._constrained(block.A, block.y, block.C, block.d, rows, None, 0)
+    assert isinstance(b[1], np.ndarray) and not b[2].all()
+    _same_fit(a, b, 1e-9)
+    C, d = dense.C[1:], dense.d[1:]
+    a = X._constrained(dense.A, dense.y, C, d, np.arange(dense.n), None, 0)
+    b = X._constrained(block.A, block.y, C, d, np.arange(dense.n), None, 0)
+    assert isinstance(b[1], np.ndarray) and not b[2].all()
+    _same_fit(a, b, 1e-9)
 
 
 def test_pivoted_qr_formed_later_is_the_one_formed_at_once():
