@@ -1511,29 +1511,46 @@ def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int
 TURN_DRAWS = 100_000
 
 
-def centred_turn(bl: Baseline) -> np.ndarray | None:
+def centred_turn_of(t_s, d, target) -> np.ndarray:
     """(n,) each touch's turn of the approach less the mean turn of its target's touches (all set-ups), deg.
 
-    The turn is the engine's history covariate (:func:`core.baseline.touch_history`:
-    the angle between the approach and the previous touch's, in time order).
-    The campaign's first touch has no previous touch: its turn is that
-    covariate's convention, 0 (no turn), and it enters its target's mean as
-    such (a probe fresh from its qualification has not re-seated; the test's
-    level does not rest on it, as the null draws touches whatever their
-    turns). A target touched once has its centred turn 0. None for a
-    campaign without targets (not planar) or where every centred turn is 0
-    (no target's touches differ in their turn: nothing to test).
+    ``t_s`` (n,) touch times, ``d`` (n, 3) unit approach directions, ``target``
+    (n,) the place of the part each touch measures (the same in every
+    set-up). The turn is the engine's history covariate
+    (:func:`core.baseline.touch_history`: the angle between the approach and
+    the previous touch's, in time order). The campaign's first touch has no
+    previous touch: its turn is that covariate's convention, 0 (no turn), and
+    it enters its target's mean as such (a probe fresh from its
+    qualification has not re-seated; the test's level does not rest on it, as
+    the null draws touches whatever their turns). A target touched once has
+    its centred turn 0.
     """
+    t_s = np.asarray(t_s, float)
+    d = np.asarray(d, float)
+    target = np.asarray(target)
+    n = len(t_s)
+    if d.shape != (n, 3) or target.shape != (n,):
+        raise ValueError(f"centred_turn_of: t_s (n,), d (n, 3), target (n,) expected, got {t_s.shape}, "
+                         f"{d.shape}, {target.shape}")
+    if not (np.all(np.isfinite(t_s)) and np.all(np.isfinite(d))):
+        raise ValueError("centred_turn_of: touch times and approach directions must be finite")
+    if n == 0:
+        return np.zeros(0)
+    _, turn = bl_mod.touch_history(t_s, d)
+    tg = np.unique(target, return_inverse=True)[1].ravel()
+    mean = np.bincount(tg, weights=turn) / np.bincount(tg)
+    return turn - mean[tg]
+
+
+def centred_turn(bl: Baseline) -> np.ndarray | None:
+    """:func:`centred_turn_of` of a planar campaign's touches; None for a campaign without targets (not
+    planar) or where every centred turn is 0 (no target's touches differ in their turn: nothing to test)."""
     if bl.kind != "planar":
         return None
     t = bl.data.touches
-    n = len(np.asarray(t.t_s))
-    if n < 2 or n != len(bl.y):
+    if len(np.asarray(t.t_s)) != len(bl.y):
         return None
-    _, turn = bl_mod.touch_history(t.t_s, t.d_R)
-    tg = np.unique(np.asarray(t.target), return_inverse=True)[1].ravel()
-    mean = np.bincount(tg, weights=turn) / np.bincount(tg)
-    c = turn - mean[tg]
+    c = centred_turn_of(t.t_s, t.d_R, t.target)
     return c if np.any(np.abs(c) > 1e-9) else None
 
 
