@@ -137,7 +137,10 @@ What it does, in order, and the statistics behind each step
    Outliers: at least
    two independent events, falling at random by the concentration test at
    the overall :attr:`Settings.alpha` (one event cannot tell a chip from
-   an intermittent mechanism). A name reported ``ambiguous`` is the best
+   an intermittent mechanism), and, two or more of them on a planar
+   campaign, residuals that do not follow the turn of the approach taken
+   relative to their target's other touches (:func:`centred_turn_p` at
+   ``alpha_family``: a re-seat a target's parameter half absorbs). A name reported ``ambiguous`` is the best
    the catalogue offers, not a claim that the mechanism is known.
 9. **Order**: the findings best first, the first the report's cause
    (:func:`_ordered`): the systematic ones by what they explain, the
