@@ -137,7 +137,10 @@ What it does, in order, and the statistics behind each step
    Outliers: at least
    two independent events, falling at random by the concentration test at
    the overall :attr:`Settings.alpha` (one event cannot tell a chip from
-   an intermittent mechanism). A name reported ``ambiguous`` is the best
+   an intermittent mechanism), and, two or more of them on a planar
+   campaign, residuals that do not follow the turn of the approach taken
+   relative to their target's other touches (:func:`centred_turn_p` at
+   ``alpha_family``: a re-seat a target's parameter half absorbs). A name reported ``ambiguous`` is the best
    the catalogue offers, not a claim that the mechanism is known.
 9. **Order**: the findings best first, the first the report's cause
    (:func:`_ordered`): the systematic ones by what they explain, the
@@ -1504,6 +1507,85 @@ def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int
     if not ps:
         return 1.0
     return float(min(1.0, min(float(np.min(p)) for p in ps) * n_stats))
+
+
+#: Draws of the centred-turn test's null (:func:`centred_turn_p`): Monte Carlo SE of a p-value of 0.0025
+#: (``alpha_family``) sqrt(0.0025 * 0.9975 / 1e5) = 1.6e-4, 6 % of it; smallest p 1e-5.
+TURN_DRAWS = 100_000
+
+
+def centred_turn_of(t_s, d, target) -> np.ndarray:
+    """(n,) each touch's turn of the approach less the mean turn of its target's touches (all set-ups), deg.
+
+    ``t_s`` (n,) touch times, ``d`` (n, 3) unit approach directions, ``target``
+    (n,) the place of the part each touch measures (the same in every
+    set-up). The turn is the engine's history covariate
+    (:func:`core.baseline.touch_history`: the angle between the approach and
+    the previous touch's, in time order). The campaign's first touch has no
+    previous touch: its turn is that covariate's convention, 0 (no turn), and
+    it enters its target's mean as such (a probe fresh from its
+    qualification has not re-seated; the test's level does not rest on it, as
+    the null draws touches whatever their turns). A target touched once has
+    its centred turn 0.
+    """
+    t_s = np.asarray(t_s, float)
+    d = np.asarray(d, float)
+    target = np.asarray(target)
+    n = len(t_s)
+    if d.shape != (n, 3) or target.shape != (n,):
+        raise ValueError(f"centred_turn_of: t_s (n,), d (n, 3), target (n,) expected, got {t_s.shape}, "
+                         f"{d.shape}, {target.shape}")
+    if not (np.all(np.isfinite(t_s)) and np.all(np.isfinite(d))):
+        raise ValueError("centred_turn_of: touch times and approach directions must be finite")
+    if n == 0:
+        return np.zeros(0)
+    _, turn = bl_mod.touch_history(t_s, d)
+    tg = np.unique(target, return_inverse=True)[1].ravel()
+    mean = np.bincount(tg, weights=turn) / np.bincount(tg)
+    return turn - mean[tg]
+
+
+def centred_turn(bl: Baseline) -> np.ndarray | None:
+    """:func:`centred_turn_of` of a planar campaign's touches; None for a campaign without targets (not
+    planar) or where every centred turn is 0 (no target's touches differ in their turn: nothing to test)."""
+    if bl.kind != "planar":
+        return None
+    t = bl.data.touches
+    if len(np.asarray(t.t_s)) != len(bl.y):
+        return None
+    c = centred_turn_of(t.t_s, t.d_R, t.target)
+    return c if np.any(np.abs(c) > 1e-9) else None
+
+
+def centred_turn_p(c: np.ndarray, idx, r: np.ndarray, rng: np.random.Generator, draws: int = TURN_DRAWS) -> float:
+    """Monte Carlo p-value that the residuals ``r`` of the rows ``idx`` do not follow the centred turn ``c``.
+
+    Statistic ``S = |sum_i r_i c_i|`` over the rows (``c``: :func:`centred_turn`).
+    A move-driven effect that a target's parameter half absorbs (a seat that
+    reads short after a turn: the target takes the mean of its readings) leaves
+    as outliers the minority readings, short where a touch turned more than its
+    target's other touches, long where it turned less: ``r`` and ``c`` of opposite
+    signs, both kinds adding to ``S``. Null: dust, as many touches drawn at random
+    (with replacement) from all the campaign's, each carrying one of the observed
+    residuals; p = (1 + exceedances) / (draws + 1). Two-sided.
+    """
+    c = np.asarray(c, float)
+    idx = np.asarray(idx, int)
+    r = np.asarray(r, float)
+    if c.ndim != 1 or idx.ndim != 1 or r.shape != idx.shape:
+        raise ValueError(f"centred_turn_p: c (n,), idx (k,), r (k,) expected, got {c.shape}, {idx.shape}, {r.shape}")
+    if idx.size < 2 or not np.all(np.isfinite(r)) or not np.all(np.isfinite(c)):
+        raise ValueError("centred_turn_p: at least two rows with finite residuals and centred turns")
+    if np.any(idx < 0) or np.any(idx >= c.size):
+        raise ValueError("centred_turn_p: row index outside the campaign")
+    s = abs(float(r @ c[idx]))
+    tol = 1e-9 * (float(np.sum(np.abs(r))) * float(np.max(np.abs(c))) + 1e-300)
+    exceed = 0
+    step = max(1, SHARE_BLOCK // idx.size)
+    for a in range(0, draws, step):
+        pick = rng.integers(0, c.size, (min(step, draws - a), idx.size))
+        exceed += int(np.sum(np.abs(c[pick] @ r) >= s - tol))
+    return (1 + exceed) / (draws + 1)
 
 
 # ---------------------------------------------------------------------------
@@ -3811,8 +3893,18 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
     all touches 0.007-0.010; a reviewer's measurement, 300 draws each); drawing the null within the outliers' feature is no clean
     cure (it loses gen_a reseat_hysteresis 860 and keeps gen_a outlier 1406
     flagged). So an ``ambiguous`` flag from it reads "a mechanism of the
-    move, or dust on one feature whose touches share their moves". Otherwise
-    ``ambiguous``, with the reason.
+    move, or dust on one feature whose touches share their moves". Besides,
+    for two or more outlier rows on a planar campaign, the centred turn
+    (:func:`centred_turn_p`, at ``alpha_family``, its own test): a mechanism
+    of the move that each target's parameter half absorbs (gen_a
+    reseat_hysteresis: the baseline takes a target's mean reading, so a
+    re-seat where most set-ups are clean reads short, a clean touch where
+    most re-seat reads long) leaves outliers at both ends of the turn at
+    once, which the shift of the mean rank above does not see; their
+    residuals follow the turn taken relative to the target's other touches
+    (gen_a reseat_hysteresis 1012, 1088, 1262: `outlier` confident before,
+    centred-turn p 1.2e-4, 1.0e-5, 1.5e-4). Otherwise ``ambiguous``, with
+    the reason.
     """
     alpha = settings.alpha
     r0 = st0.r[outliers]
@@ -3844,9 +3936,20 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
                 f"the feature {place['feature']} they sit on carries structure in its other touches "
                 f"({place['explained_ss_um2']:.3g} um^2, {fmt_p(place['p_adjusted'])}): they may be its largest "
                 "residuals, not dust")) if w)
+    p_turn = None
+    c = centred_turn(bl) if len(outliers) >= 2 else None
+    if c is not None:
+        p_turn = centred_turn_p(c, outliers, r0 / UM, np.random.default_rng([seed, 1]))
+        if p_turn < settings.alpha_family:
+            why = "; ".join(w for w in (why, (
+                "the outliers read short or long as their touch's turn of the approach differs from its target's "
+                f"other touches (centred turn {fmt_p(p_turn)}, below {settings.alpha_family:g}): a mechanism of "
+                "the move that the target's parameter half absorbed, or dust of one sign on touches whose turns "
+                "differ alike from their targets', not dust at random touches")) if w)
     return Finding(causes_mod.OUTLIER, {
         "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) / UM for v in r0],
         "explained_ss_um2": ss / UM ** 2, "events": len(first), "concentration_p": p_conc,
+        **({"centred_turn_p": p_turn} if p_turn is not None else {}),
         **({"place_structure": _clean(place)} if place is not None else {}),
         "confidence": "ambiguous" if why else "named", **({"confidence_reason": why} if why else {}),
         "test": "studentized deleted residual beyond the Bonferroni t bound"},

@@ -56,6 +56,13 @@ cosine, 4e-14 deg instead of 0 or 8.5e-7 deg). This time make.py rewrote
 every leaf (default kernels of a SkylakeX machine); the spread below is what
 that leaves to another machine's kernels.
 
+Refreshed for the centred-turn test of an outlier finding (issue 13, session
+13: :func:`core.discover.centred_turn_p`): one leaf added, the simulator's
+outlier 1002's ``centred_turn_p`` (1.0: its outliers' centred turns are 0;
+the finding's confidence unchanged). make.py's full rewrite on this machine
+moved nothing else beyond REL/ABS (5,213 leaves within 1e-7 relative, three
+zero angles within ABS); those kept their stored values.
+
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within
 ``ABS`` of a number that is zero in the reference's own units).
