@@ -1533,10 +1533,10 @@ def centred_turn_of(t_s, d, target) -> np.ndarray:
     target = np.asarray(target)
     n = len(t_s)
     if d.shape != (n, 3) or target.shape != (n,):
-        raise ValueError(f"centred_turn_of: t_s (n,), d (n, 3), target (n,) expected, got {t_s.shape}, "
+        raise ConfigError(f"centred_turn_of: t_s (n,), d (n, 3), target (n,) expected, got {t_s.shape}, "
                          f"{d.shape}, {target.shape}")
     if not (np.all(np.isfinite(t_s)) and np.all(np.isfinite(d))):
-        raise ValueError("centred_turn_of: touch times and approach directions must be finite")
+        raise ConfigError("centred_turn_of: touch times and approach directions must be finite")
     if n == 0:
         return np.zeros(0)
     _, turn = bl_mod.touch_history(t_s, d)
@@ -1547,7 +1547,9 @@ def centred_turn_of(t_s, d, target) -> np.ndarray:
 
 def centred_turn(bl: Baseline) -> np.ndarray | None:
     """:func:`centred_turn_of` of a planar campaign's touches; None for a campaign without targets (not
-    planar) or where every centred turn is 0 (no target's touches differ in their turn: nothing to test)."""
+    planar) or where every centred turn is 0 (no target's touches differ in their turn: nothing to test), and
+    None where the touches do not map one to one onto the baseline's rows (the test is then off, with no
+    key in the evidence; met on no campaign of the session-13 studies)."""
     if bl.kind != "planar":
         return None
     t = bl.data.touches
@@ -1558,7 +1560,7 @@ def centred_turn(bl: Baseline) -> np.ndarray | None:
 
 
 def centred_turn_p(c: np.ndarray, idx, r: np.ndarray, rng: np.random.Generator, draws: int = TURN_DRAWS) -> float:
-    """Monte Carlo p-value that the residuals ``r`` of the rows ``idx`` do not follow the centred turn ``c``.
+    """Monte Carlo p-value of the residuals ``r`` of the rows ``idx`` against the centred turn ``c``, under the null that they do not follow it.
 
     Statistic ``S = |sum_i r_i c_i|`` over the rows (``c``: :func:`centred_turn`).
     A move-driven effect that a target's parameter half absorbs (a seat that
@@ -1573,11 +1575,11 @@ def centred_turn_p(c: np.ndarray, idx, r: np.ndarray, rng: np.random.Generator, 
     idx = np.asarray(idx, int)
     r = np.asarray(r, float)
     if c.ndim != 1 or idx.ndim != 1 or r.shape != idx.shape:
-        raise ValueError(f"centred_turn_p: c (n,), idx (k,), r (k,) expected, got {c.shape}, {idx.shape}, {r.shape}")
+        raise ConfigError(f"centred_turn_p: c (n,), idx (k,), r (k,) expected, got {c.shape}, {idx.shape}, {r.shape}")
     if idx.size < 2 or not np.all(np.isfinite(r)) or not np.all(np.isfinite(c)):
-        raise ValueError("centred_turn_p: at least two rows with finite residuals and centred turns")
+        raise ConfigError("centred_turn_p: at least two rows with finite residuals and centred turns")
     if np.any(idx < 0) or np.any(idx >= c.size):
-        raise ValueError("centred_turn_p: row index outside the campaign")
+        raise ConfigError("centred_turn_p: row index outside the campaign")
     s = abs(float(r @ c[idx]))
     tol = 1e-9 * (float(np.sum(np.abs(r))) * float(np.max(np.abs(c))) + 1e-300)
     exceed = 0

@@ -519,6 +519,28 @@ def test_gen_a_reseat_hysteresis_outliers_a_baseline_half_absorbs_not_confidentl
     assert not (o.confident and o.cause not in o.acceptable), (o.cause, o.confident, o.acceptable)
 
 
+@pytest.mark.parametrize("gen, effect, seed, p, confidence", [
+    ("gen_a", "reseat_hysteresis", 1262, 0.00014999850001499985, "ambiguous"),
+    ("gen_b", "outlier", 1134, 0.00911990880091199, "named")])
+def test_centred_turn_p_pinned_on_a_campaign(gen, effect, seed, p, confidence):
+    """The centred turn's p on two tuning campaigns, exactly (review of s13_rhturn, finding 1: nothing pinned
+    the seeding, the residuals' signs in the wiring or the threshold): gen_a reseat_hysteresis 1262 below
+    alpha_family (0.0025: ambiguous), gen_b outlier 1134, the generator's chips, between it and 0.05 (named:
+    a threshold of 0.05 would make it ambiguous). The review's mutations that survived the other tests (an
+    unseeded generator, |r| passed for r, p < 0.05 as the rule) each fail here."""
+    import importlib
+
+    from core.baseline import extra_columns
+    from core.touches import from_log
+
+    log, _ = importlib.import_module(f"scenarios.blind.{gen}").generate(effect, seed)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = next(f for f in rep["findings"] if f["cause"] == "outlier")
+    assert f["evidence"]["centred_turn_p"] == p, f["evidence"]
+    assert f["evidence"]["confidence"] == confidence, f["evidence"]
+
+
 def test_gen_a_knock_1609_slip_veto_judges_what_the_step_does_not_fit_exactly():
     """gen_a knock 1609 (fresh seed, examined in session 11): the part moves 15.9 um and turns 264 urad at
     log row 49 of set-up C355.5 (rows 36-71); the set-up's pose takes the 23 moved touches, so the outliers
@@ -823,26 +845,27 @@ def test_centred_turn_known_answers():
 def test_centred_turn_bad_input():
     """A target touched once has centred turn 0; the first touch (no previous one) takes the covariate's
     turn 0 and enters its target's mean; fewer than two rows, residuals or turns not finite, rows outside
-    the campaign, shapes that do not match: ValueError; a campaign whose targets are each touched once
+    the campaign, shapes that do not match: ConfigError; a campaign whose targets are each touched once
     (every centred turn 0) has nothing to test: centred_turn is None (the outlier finding then carries no
     centred_turn_p and keeps its confidence)."""
     from core.baseline import planar
     from core.discover import centred_turn, centred_turn_of, centred_turn_p
+    from core.exceptions import ConfigError
 
     d = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0]], float)
     assert np.allclose(centred_turn_of([0.0, 1.0, 2.0], d, [0, 0, 1]), [-90, 90, 0])
     assert centred_turn_of([], np.zeros((0, 3)), []).shape == (0,)
-    with pytest.raises(ValueError):
+    with pytest.raises(ConfigError):
         centred_turn_of([0.0, 1.0], d, [0, 0, 1])
-    with pytest.raises(ValueError):
+    with pytest.raises(ConfigError):
         centred_turn_of([0.0, np.nan, 2.0], d, [0, 0, 1])
     c = np.array([-1.0, 1.0, 0.0, 2.0])
     rng = np.random.default_rng(0)
     for idx, r in (([1], [1.0]), ([0, 1], [1.0, np.nan]), ([0, 4], [1.0, 1.0]), ([0, -1], [1.0, 1.0]),
                    ([0, 1], [1.0]), ([[0, 1]], [[1.0, 1.0]])):
-        with pytest.raises(ValueError):
+        with pytest.raises(ConfigError):
             centred_turn_p(c, idx, np.asarray(r), rng, draws=10)
-    with pytest.raises(ValueError):
+    with pytest.raises(ConfigError):
         centred_turn_p(np.array([0.0, np.inf, 1.0]), [0, 1], np.ones(2), rng, draws=10)
     t = S.plan()
     assert centred_turn(planar(t, 30.0)) is not None
