@@ -2190,9 +2190,12 @@ def _cv_gap(folds: Folds, st: _State, y, E, penalty, settings, seed: int, sigma:
 
 
 #: The CV gap's null draws (:func:`_cv_gap`) are put through the folds this many bytes at a time (a block of
-#: draws over every row): all 99 at once below about 170,000 rows (the stored campaigns, the bench's 1e5-row log);
-#: 16 at a time at the bench's 1e6 rows, where all of them were 792 MB, with the folds' tables as large beside.
-CV_DRAWS_BLOCK_BYTES = 128 << 20
+#: draws over every row; the folds' tables of them, two or three, as large): all 99 at once below about 42,000
+#: rows (every stored campaign), 41 at a time at the bench's 1e5 rows, 4 at its 1e6, where all 99 were 792 MB
+#: (755 MiB). Below the 64 MiB above which vmt's allocator maps an array afresh (``scenarios.cli.MALLOPT``):
+#: smaller ones reuse the freed heap it keeps (248 MiB of it free, 221 MiB mapped, when the 1e6-row log's
+#: discover reached the draws at 1,936 MiB of address space: 16 draws at a time, 122 MiB, stopped there).
+CV_DRAWS_BLOCK_BYTES = 32 << 20
 #: Rows of the null draws generated at a time when only some of their columns are kept (:func:`_null_draws`).
 NULL_DRAW_ROWS = 4096
 
