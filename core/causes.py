@@ -840,7 +840,7 @@ def _rmatmul_sparse(Q, X) -> np.ndarray:
         out = np.zeros((Q.shape[1], X.shape[1]))
         for s0 in range(0, n, GRAM_CHUNK_ROWS):
             pos = np.arange(s0, min(s0 + GRAM_CHUNK_ROWS, n))
-            out += Q.rows_rmatmul(pos, X[pos])
+            Q.rows_rmatmul(pos, X[pos], out=out)
         return out
     return np.asarray(X.T @ Q).T
 

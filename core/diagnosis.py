@@ -336,7 +336,7 @@ def _sparse_batch(C: SparseTrials, Q: Basis, r: np.ndarray, rss: float, dof: int
         QC = np.zeros((Q.shape[1], k))
         for a in range(0, n, GRAM_CHUNK_ROWS):
             pos = np.arange(a, min(a + GRAM_CHUNK_ROWS, n))
-            QC += Q.rows_rmatmul(pos, Ct[pos])
+            Q.rows_rmatmul(pos, Ct[pos], out=QC)
         QC *= inv
         G[t] = CC * np.outer(inv, inv) - QC.T @ QC
         b[t] = np.asarray(Ct.T @ r).ravel() * inv - QC.T @ Qr
@@ -862,9 +862,12 @@ def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.
     BB = QB = Br = None
     for pos, Bc in _term_chunks(cov, F, modes, rows):
         bb = _dense(Bc.T @ Bc)
-        qb = Q.rows_rmatmul(pos, Bc)
         br = np.asarray(Bc.T @ r[pos]).ravel()
-        BB, QB, Br = (bb, qb, br) if BB is None else (BB + bb, QB + qb, Br + br)
+        if BB is None:  # (zeros plus the first block's share: that share, bit for bit)
+            BB, QB, Br = bb, np.zeros((Q.shape[1], bb.shape[1])), br
+        else:
+            BB, Br = BB + bb, Br + br
+        Q.rows_rmatmul(pos, Bc, out=QB)  # in place: (q, columns), 55 MiB for the 700 per-set-up ones at 1e6 rows
     if BB is None:
         return None
     nrm = np.sqrt(np.maximum(np.diag(BB), 0.0))
