@@ -199,8 +199,10 @@ def test_spectral_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
     """A scan too big to keep is made a block of frequencies at a time: the same columns, the same diagnosis.
 
     Known answer first: a sine of period 7 s in the residuals is the scan's finding. Then the table is
-    refused (TABLE_BYTES 0) and blocks are the minimum, 32 frequencies (the last one short): every block
-    equals the kept table's columns bit for bit and the diagnosis (test, basis, fitted values) is equal.
+    refused (TABLE_BYTES 0) and blocks are the minimum, 32 frequencies (the last one short) by one row (a long
+    log's scan, a block of rows at a time): every block equals the kept table's entries bit for bit, each entry
+    met once, the screen's products summed over the blocks equal the whole table's to 1e-12 (the order of the
+    sums over rows changes), and the diagnosis (test, basis, fitted values) is equal.
     """
     rng = np.random.default_rng(5)
     n = 300
@@ -219,13 +221,17 @@ def test_spectral_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
     monkeypatch.setattr(D, "SCAN_BLOCK_BYTES", 1)
     lazy = spectral_table(cov)
     assert lazy.Z is None and np.array_equal(lazy.f, kept.f)
-    seen = 0
-    for cols, Z, S2, C2 in lazy.blocks():
-        assert Z.shape[1] <= D._BLOCK
-        assert np.array_equal(Z, kept.Z[:, cols]) and np.array_equal(S2, kept.S2[:, cols])
-        assert np.array_equal(C2, kept.C2[:, cols])
-        seen += Z.shape[1]
-    assert seen == len(kept.f)
+    seen = np.zeros(kept.Z.shape, int)
+    for cols, rows, Z, S2, C2 in lazy.blocks():  # (blocks of one row: SCAN_BLOCK_BYTES 1)
+        assert Z.shape[1] <= D._BLOCK and Z.shape[0] == 1
+        assert np.array_equal(Z, kept.Z[rows, cols]) and np.array_equal(S2, kept.S2[rows, cols])
+        assert np.array_equal(C2, kept.C2[rows, cols])
+        seen[rows, cols] += 1
+    assert np.all(seen == 1)
+    # the screen's products summed over the blocks of rows: the whole table's to rounding
+    A, W2 = (r[:, None] * modes).T, (modes ** 2).T
+    for a, b in zip(lazy.screen(A, W2), kept.screen(A, W2)):
+        assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(b))
     blocked = diagnose(Q, r, n - 1, [cov], modes, bases={cov.name: lazy}, **kw)
     assert [d.to_dict() for d in blocked] == [d.to_dict() for d in whole]
     assert blocked[0].test == whole[0].test and np.array_equal(blocked[0].basis, whole[0].basis)
