@@ -530,6 +530,47 @@ def test_turned_lobes_trials_kept_sparse_test_as_the_dense_ones(monkeypatch):
     assert isinstance(X._trials(scans[0], [0], st), np.ndarray)
 
 
+def test_c_drift_per_setup_trial_kept_sparse_tests_as_the_dense_one(monkeypatch):
+    """c_drift's rate per set-up (the table's angle creeping within each set-up: rows x set-ups, held for the run
+    they were 760 MB at the bench's 1e6 rows) is built when its trial is: kept sparse for a long log it holds the
+    dense columns' values exactly, one a row, and its nested F test against the block basis is the dense one's to
+    1e-12 relative (the same sums in another order), on all rows and on some; another trial index is refused;
+    the engine takes it sparse for a block basis, dense otherwise."""
+    import scipy.sparse as sp
+
+    from core import causes as K
+    from core import discover as X
+    from core.diagnosis import SparseTrials, nested_f_batch, take_rows
+
+    t, dense, block = _bench_log_dense_and_block(monkeypatch)
+    scans, _ = K.c_drift_scans(block)
+    sc, = [sc for sc in scans if sc.infos[0]["form"] == "per set-up"]
+    assert all(o.build_sparse is None for o in scans if o is not sc)
+    S, D = sc.build_sparse([0]), sc.build([0])
+    assert isinstance(S, SparseTrials) and sp.issparse(S[0]) and S.shape == D.shape == (1, t.n, 8)
+    assert np.array_equal(S[0].toarray(), D[0]) and S[0].nnz == t.n
+    assert np.array_equal(D[0], K.c_drift_scans(dense)[0][2].build([0])[0])  # the dense baseline's scan
+    assert sc.build_sparse([0, -1]).shape == sc.build([0, -1]).shape  # (as the dense scan indexes)
+    for bad in ([1], [0.0], 0, [[0]]):
+        with pytest.raises(ConfigError):
+            sc.build_sparse(bad)
+    Q = block.A.basis()
+    r = np.random.default_rng(4).normal(size=t.n)
+    r -= Q @ (Q.T @ r)
+    for rows in (np.arange(t.n), np.arange(0, t.n, 3)):
+        Qr = Q if len(rows) == t.n else block.A[rows].basis()
+        rr = r[rows] - Qr @ (Qr.T @ r[rows])
+        a = nested_f_batch(take_rows(D, rows, 1), Qr, rr, float(rr @ rr), len(rows) - Qr.shape[1])
+        b = nested_f_batch(take_rows(S, rows, 1), Qr, rr, float(rr @ rr), len(rows) - Qr.shape[1])
+        assert np.array_equal(a[1], b[1]) and a[1][0] > 0
+        for u, v in zip(a, b):
+            np.testing.assert_allclose(v, u, rtol=1e-12, atol=0)
+    st = X._State(rows=np.arange(t.n), Q=Q, r=r, rss=float(r @ r), dof=10)
+    assert isinstance(X._trials(sc, [0], st), SparseTrials)
+    st = X._State(rows=np.arange(t.n), Q=orth(dense.A), r=r, rss=float(r @ r), dof=10)
+    assert isinstance(X._trials(sc, [0], st), np.ndarray)
+
+
 def test_drift_trend_kept_sparse_is_the_dense_one(monkeypatch):
     """The noise's per-set-up time trend (discover_baseline's first screen) kept sparse holds the dense columns'
     values exactly, and the repeats' scatter with it is the dense one's (only the repeated rows are formed: the
