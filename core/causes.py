@@ -342,10 +342,28 @@ def c_drift_scans(bl):
                           {"form": "after each indexing", "degree": deg}, "time_in_setup"))
     su = np.unique(d.touches.setup)
     if su.size >= 2:
-        cols = np.column_stack([rot * s * (d.touches.setup == j) for j in su])
         ids = [d.touches.setup_ids[j] for j in su]
-        scans.append(_one(cols, [f"ECC_rate[{i}]" for i in ids], {"form": "per set-up", "setups": tuple(ids)},
-                          "time_in_setup"))
+
+        def per_setup():  # rows x set-ups: built when a trial is (held for the run they were 760 MB at 1e6 rows)
+            return np.column_stack([rot * s * (d.touches.setup == j) for j in su])[None]
+
+        def per_setup_sparse(idx):  # the same values on their set-up's rows only, as per_setup()[idx] takes them
+            import scipy.sparse as sp
+
+            from .diagnosis import SparseTrials
+            from .exceptions import ConfigError
+
+            idx = np.asarray(idx)
+            if idx.ndim != 1 or (idx.size and idx.dtype.kind not in "iu") or np.any((idx < -1) | (idx > 0)):
+                raise ConfigError(f"c_drift's per-set-up scan has one trial (index 0 or -1), not {idx.tolist()}")
+            at = np.full(int(su.max()) + 1, -1)
+            at[su] = np.arange(su.size)
+            n = len(rot)
+            return SparseTrials([sp.csr_matrix((rot * s, at[d.touches.setup], np.arange(n + 1)), shape=(n, su.size))
+                                 for _ in range(idx.size)])
+
+        scans.append(Scan(tuple(f"ECC_rate[{i}]" for i in ids), ({"form": "per set-up", "setups": tuple(ids)},),
+                          "time_in_setup", lambda idx: per_setup()[np.asarray(idx)], build_sparse=per_setup_sparse))
     u = 2 * d.tau - 1
     for deg in (1, 2, 3):
         scans.append(_one(_outer(rot[:, None], _legendre(u, deg)), [f"ECC_P{j}" for j in range(1, deg + 1)],
@@ -840,7 +858,7 @@ def _rmatmul_sparse(Q, X) -> np.ndarray:
         out = np.zeros((Q.shape[1], X.shape[1]))
         for s0 in range(0, n, GRAM_CHUNK_ROWS):
             pos = np.arange(s0, min(s0 + GRAM_CHUNK_ROWS, n))
-            out += Q.rows_rmatmul(pos, X[pos])
+            Q.rows_rmatmul(pos, X[pos], out=out)
         return out
     return np.asarray(X.T @ Q).T
 

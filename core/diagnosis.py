@@ -336,7 +336,7 @@ def _sparse_batch(C: SparseTrials, Q: Basis, r: np.ndarray, rss: float, dof: int
         QC = np.zeros((Q.shape[1], k))
         for a in range(0, n, GRAM_CHUNK_ROWS):
             pos = np.arange(a, min(a + GRAM_CHUNK_ROWS, n))
-            QC += Q.rows_rmatmul(pos, Ct[pos])
+            Q.rows_rmatmul(pos, Ct[pos], out=QC)
         QC *= inv
         G[t] = CC * np.outer(inv, inv) - QC.T @ QC
         b[t] = np.asarray(Ct.T @ r).ravel() * inv - QC.T @ Qr
@@ -654,18 +654,21 @@ class SpectralTable(tuple):
         return np.sin(ph), np.cos(ph)
 
     def blocks(self, squares: bool = True):
-        """``(cols, Z, S2, C2)`` over the frequencies: the kept table whole, or blocks of it.
+        """``(cols, rows, Z, S2, C2)`` over the frequencies: the kept table whole, or blocks of it.
 
-        A block's columns are bit for bit those of the whole table (each
+        A block's entries are bit for bit those of the whole table (each
         block starts at a multiple of ``_BLOCK``, so from the same exact
-        phasors and the same rotations: :func:`screen_phasors`).
+        phasors and the same rotations: :func:`screen_phasors`; a row's
+        phasors are its own). ``rows``: a slice, every row (``slice(None)``)
+        but where ``_BLOCK`` frequencies over every row exceed
+        :data:`SCAN_BLOCK_BYTES` (:func:`phasor_blocks`' ``row_blocks``).
         ``squares=False``: ``S2``, ``C2`` not made for the blocks (None).
         """
         if self.Z is not None:
-            yield slice(None), self.Z, self.S2, self.C2
+            yield slice(None), slice(None), self.Z, self.S2, self.C2
             return
-        for cols, Z in phasor_blocks(self.w, self.f):
-            yield (cols, Z, Z.imag ** 2, Z.real ** 2) if squares else (cols, Z, None, None)
+        for cols, rows, Z in phasor_blocks(self.w, self.f, row_blocks=True):
+            yield (cols, rows, Z, Z.imag ** 2, Z.real ** 2) if squares else (cols, rows, Z, None, None)
 
     def screen(self, A: np.ndarray, W2: np.ndarray, key=None, owner=None):
         """The pre-screen's products ``(A @ Z, W2 @ S2, W2 @ C2)``, (m, F) each.
@@ -676,21 +679,24 @@ class SpectralTable(tuple):
         and the modes' columns) and its ``owner`` (the modes array itself,
         held with them so that the key names it) they are kept for the next
         diagnosis on the same rows (the last few keys): the same products
-        on the same operands, so the same numbers bit for bit.
+        on the same operands, so the same numbers bit for bit. A table made
+        a block of rows at a time (a long log) sums the blocks' products:
+        the same to rounding (the order of the sums over rows changes).
         """
         F = len(self.f)
-        NZ = np.empty((A.shape[0], F), complex)
+        NZ = np.zeros((A.shape[0], F), complex)
         have = self._dens.pop(key, None) if key is not None else None
         if have is not None and have[0] is not owner:
             have = None
         if have is None:
-            dS, dC = np.empty((2, W2.shape[0], F))
+            dS, dC = np.zeros((2, W2.shape[0], F))
         else:
             _, dS, dC = have
-        for cols, Z, S2, C2 in self.blocks(squares=have is None):
-            NZ[:, cols] = A @ Z
+        for cols, rows, Z, S2, C2 in self.blocks(squares=have is None):
+            NZ[:, cols] += A[:, rows] @ Z  # (zeros plus the whole table's product: that product, bit for bit)
             if have is None:
-                dS[:, cols], dC[:, cols] = W2 @ S2, W2 @ C2
+                dS[:, cols] += W2[:, rows] @ S2
+                dC[:, cols] += W2[:, rows] @ C2
         if key is not None:
             self._dens[key] = (owner, dS, dC)
             while len(self._dens) > 4:
@@ -698,18 +704,28 @@ class SpectralTable(tuple):
         return NZ, dS, dC
 
 
-def phasor_blocks(w: np.ndarray, f: np.ndarray):
+def phasor_blocks(w: np.ndarray, f: np.ndarray, row_blocks: bool = False):
     """``(slice, Z)``: :func:`screen_phasors` of ``w`` over ``f`` a block of frequencies at a time.
 
     Blocks of about :data:`SCAN_BLOCK_BYTES` (a table row and frequency
     costs 32 bytes with its squares), at least ``_BLOCK`` frequencies,
     each starting at a multiple of ``_BLOCK``: bit for bit the columns of
-    the whole table.
+    the whole table. With ``row_blocks``: ``(cols, rows, Z)``, and where
+    ``_BLOCK`` frequencies over every row exceed that (more than 16,384
+    rows: 1 GiB with its squares at the bench's 1e6 rows), a block of rows
+    at a time too (``rows`` a slice; every row's phasors are its own, so
+    bit for bit the whole table's rows).
     """
     n, F = len(w), len(f)
     step = max(1, SCAN_BLOCK_BYTES // (32 * max(n, 1) * _BLOCK)) * _BLOCK
+    rb = max(1, SCAN_BLOCK_BYTES // (32 * step)) if row_blocks else n
     for a in range(0, F, step):
-        yield slice(a, a + step), screen_phasors(w, f, a, min(F, a + step))
+        if not row_blocks:
+            yield slice(a, a + step), screen_phasors(w, f, a, min(F, a + step))
+            continue
+        for r0 in range(0, max(n, 1), rb):
+            rows = slice(None) if rb >= n else slice(r0, r0 + rb)
+            yield slice(a, a + step), rows, screen_phasors(w[rows], f, a, min(F, a + step))
 
 
 def spectral_table(cov: Covariate):
@@ -862,9 +878,12 @@ def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.
     BB = QB = Br = None
     for pos, Bc in _term_chunks(cov, F, modes, rows):
         bb = _dense(Bc.T @ Bc)
-        qb = Q.rows_rmatmul(pos, Bc)
         br = np.asarray(Bc.T @ r[pos]).ravel()
-        BB, QB, Br = (bb, qb, br) if BB is None else (BB + bb, QB + qb, Br + br)
+        if BB is None:  # (zeros plus the first block's share: that share, bit for bit)
+            BB, QB, Br = bb, np.zeros((Q.shape[1], bb.shape[1])), br
+        else:
+            BB, Br = BB + bb, Br + br
+        Q.rows_rmatmul(pos, Bc, out=QB)  # in place: (q, columns), 55 MiB for the 700 per-set-up ones at 1e6 rows
     if BB is None:
         return None
     nrm = np.sqrt(np.maximum(np.diag(BB), 0.0))
@@ -872,7 +891,11 @@ def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.
     if not keep.any():
         return None
     nk = nrm[keep]
-    QBn = QB[:, keep] / nk
+    # the normalised products in place of the sums when every column is kept (a copy was another 55 MiB at 1e6
+    # rows): the same numbers; the fitted term below is then Q^T B's part as QBn (W z), the same to rounding
+    QBn = QB if keep.all() else QB[:, keep]
+    QBn /= nk
+    del QB
     G = BB[np.ix_(keep, keep)] / np.outer(nk, nk) - QBn.T @ QBn
     w, V = np.linalg.eigh(G)
     good = w > max(tol, 1e-5) ** 2
@@ -882,9 +905,10 @@ def gram_test(cov: Covariate, Q, r: np.ndarray, rss: float, dof: int, modes: np.
     W = V[:, good] / np.sqrt(w[good])
     z = W.T @ (Br[keep] / nk - QBn.T @ (Q.T @ r))  # U^T r, U = P W orthonormal
     test = _nested_f_ss(k, float(np.sum(z ** 2)), n, rss, dof)
+    cw = W @ z
     c = np.zeros(len(nrm))
-    c[keep] = (W @ z) / nk  # U U^T r = B c - Q (Q^T B c)
-    fitted = -(Q @ (QB @ c))
+    c[keep] = cw / nk  # U U^T r = B c - Q (Q^T B c), Q^T B c = QBn cw
+    fitted = -(Q @ (QBn @ cw))
     for pos, Bc in _term_chunks(cov, F, modes, rows):
         fitted[pos] += np.asarray(Bc @ c).ravel()
     return test, fitted, k

@@ -2250,16 +2250,56 @@ def _cv_gap(folds: Folds, st: _State, y, E, penalty, settings, seed: int, sigma:
         return CvGap(float("nan"), float("nan"), 1.0, float("nan"), 0)
     yr = y[st.rows]
     e = folds.residuals(yr, E, penalty)
-    # the draws (rows x cv_draws: 80 MB at 1e5 rows) and what is made of them in place, one table at a time
-    Ys = np.random.default_rng(seed).standard_normal((len(yr), settings.cv_draws))
-    Ys *= sigma
-    Ys += (yr - st.r)[:, None]
-    eZ = folds.residuals(Ys, E, penalty)
-    cv_ss = np.sum(np.square(eZ, out=eZ), axis=0)
-    del eZ
-    rZ = st.Q @ (st.Q.T @ Ys)
-    np.subtract(Ys, rZ, out=rZ)
-    return cv_gap(float(e @ e), st.rss, cv_ss, np.sum(np.square(rZ, out=rZ), axis=0), scale=sigma)
+    fit = yr - st.r
+    n, B = len(yr), settings.cv_draws
+    # the draws (rows x cv_draws: 80 MB at 1e5 rows, 792 MB at 1e6) a block of draws at a time, at most
+    # CV_DRAWS_BLOCK_BYTES, and what is made of them in place, one table at a time (the fits are linear:
+    # a draw's sums do not depend on the others drawn beside it)
+    width = max(1, min(B, CV_DRAWS_BLOCK_BYTES // max(8 * n, 1)))
+    cv_ss, null_rss = np.empty(B), np.empty(B)
+    for j0 in range(0, B, width):
+        j1 = min(B, j0 + width)
+        Ys = _null_draws(seed, n, B, j0, j1)
+        Ys *= sigma
+        Ys += fit[:, None]
+        eZ = folds.residuals(Ys, E, penalty)
+        cv_ss[j0:j1] = np.sum(np.square(eZ, out=eZ), axis=0)
+        del eZ
+        rZ = st.Q @ (st.Q.T @ Ys)
+        np.subtract(Ys, rZ, out=rZ)
+        null_rss[j0:j1] = np.sum(np.square(rZ, out=rZ), axis=0)
+        del Ys, rZ
+    return cv_gap(float(e @ e), st.rss, cv_ss, null_rss, scale=sigma)
+
+
+#: The CV gap's null draws (:func:`_cv_gap`) are put through the folds this many bytes at a time (a block of
+#: draws over every row; the folds' tables of them, two or three, as large): all 99 at once below about 42,000
+#: rows (every stored campaign), 41 at a time at the bench's 1e5 rows, 4 at its 1e6, where all 99 were 792 MB
+#: (755 MiB). Below the 64 MiB above which vmt's allocator maps an array afresh (``scenarios.cli.MALLOPT``):
+#: smaller ones reuse the freed heap it keeps (248 MiB of it free, 221 MiB mapped, when the 1e6-row log's
+#: discover reached the draws at 1,936 MiB of address space: 16 draws at a time, 122 MiB, stopped there).
+CV_DRAWS_BLOCK_BYTES = 32 << 20
+#: Rows of the null draws generated at a time when only some of their columns are kept (:func:`_null_draws`).
+NULL_DRAW_ROWS = 4096
+
+
+def _null_draws(seed: int, n: int, B: int, j0: int, j1: int) -> np.ndarray:
+    """Columns ``j0:j1`` of ``default_rng(seed).standard_normal((n, B))``, the same numbers, without the rest.
+
+    The generator fills its array in C order, one value after the other from one stream, so blocks of rows
+    drawn in sequence are the same stream: a block of columns is taken from each block of rows as it is drawn
+    (the whole stream is drawn again for each block of columns; all at once when ``j0:j1`` is every column).
+    """
+    if not (n >= 0 and 0 <= j0 < j1 <= B):
+        raise ValueError(f"_null_draws: columns {j0}:{j1} of {B} over {n} rows is no block of draws")
+    rng = np.random.default_rng(seed)
+    if j0 == 0 and j1 == B:
+        return rng.standard_normal((n, B))
+    out = np.empty((n, j1 - j0))
+    for r0 in range(0, n, NULL_DRAW_ROWS):
+        r1 = min(n, r0 + NULL_DRAW_ROWS)
+        out[r0:r1] = rng.standard_normal((r1 - r0, B))[:, j0:j1]
+    return out
 
 
 def _constant_within(key: np.ndarray, E: np.ndarray) -> bool:

@@ -758,3 +758,69 @@ def test_folds_cluster_of_equal_shares_kept_implicit_is_a_plain_refit():
             scale = np.max(np.abs(ref))
             assert np.max(np.abs(got - ref)) < 1e-9 * scale, np.max(np.abs(got - ref)) / scale
             assert folds.last_dof == n
+
+
+def test_null_draws_in_blocks_are_the_one_shot_draws(monkeypatch):
+    """The CV gap's null draws a block of columns at a time (:func:`core.discover._null_draws`) are the numbers
+    ``default_rng(seed).standard_normal((n, B))`` holds there, bit for bit: rows drawn a few at a time (7, so the
+    last block of rows is partial) continue one stream. A block of columns that is no block raises."""
+    from core import discover as D
+
+    monkeypatch.setattr(D, "NULL_DRAW_ROWS", 7)
+    full = np.random.default_rng(5).standard_normal((100, 99))
+    for j0, j1 in ((0, 1), (5, 12), (90, 99), (0, 98), (0, 99)):
+        assert np.array_equal(D._null_draws(5, 100, 99, j0, j1), full[:, j0:j1]), (j0, j1)
+    for j0, j1 in ((3, 3), (5, 2), (-1, 4), (0, 100)):
+        with pytest.raises(ValueError, match="no block of draws"):
+            D._null_draws(5, 100, 99, j0, j1)
+
+
+def test_cv_gap_in_blocks_of_draws_equals_all_at_once(monkeypatch):
+    """:func:`core.discover._cv_gap` with its null draws put through the folds one and seven at a time (the block
+    forced small: a long log's path; 99 = 14 x 7 + 1, so the last block is partial) gives the null sums it gives
+    with all 99 at once, on the demo's baseline and on its model with a named cause (extension columns): to
+    1e-12 relative, not bit for bit, since the BLAS products' order of summation depends on the block's width
+    (measured up to 9.5e-14)."""
+    from core import discover as D
+    from core.baseline import extra_columns
+    from core.touches import from_log
+
+    orig, cvg, draws, got, seen = D._cv_gap, D.cv_gap, D._null_draws, [], []
+    blocks = []
+
+    def count(seed, n, B, j0, j1):
+        blocks.append(j1 - j0)
+        return draws(seed, n, B, j0, j1)
+
+    def record(*a, **k):
+        got.append((a[2].copy(), a[3].copy(), cvg(*a, **k)))
+        return got[-1][2]
+
+    def both(folds, st, y, E, penalty, settings, seed, sigma):
+        n = len(st.rows)
+        monkeypatch.setattr(D, "CV_DRAWS_BLOCK_BYTES", 8 * n * settings.cv_draws)
+        got.clear()
+        out = orig(folds, st, y, E, penalty, settings, seed, sigma)
+        (cv0, rss0, g0), = got
+        for width in (1, 7):
+            monkeypatch.setattr(D, "CV_DRAWS_BLOCK_BYTES", 8 * n * width)
+            got.clear()
+            blocks.clear()
+            orig(folds, st, y, E, penalty, settings, seed, sigma)
+            B = settings.cv_draws
+            assert blocks == [width] * (B // width) + [B % width] * (B % width > 0), blocks  # the blocked path
+            (cv1, rss1, g1), = got
+            assert cv1.shape == cv0.shape == (settings.cv_draws,)
+            for a, b in ((cv0, cv1), (rss0, rss1), (np.array([g0.ratio, g0.expected, g0.p_value, g0.sigma_cv_m]),
+                                                   np.array([g1.ratio, g1.expected, g1.p_value, g1.sigma_cv_m]))):
+                assert np.all(np.abs(b - a) <= 1e-12 * np.abs(a)), (E is not None, width, a, b)
+        seen.append(E is not None)
+        return out
+
+    monkeypatch.setattr(D, "_null_draws", count)
+    monkeypatch.setattr(D, "cv_gap", record)
+    monkeypatch.setattr(D, "_cv_gap", both)
+    log = make.read_log("demo")
+    t = from_log(log)
+    D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    assert seen == [False, True], seen  # the baseline's gap and the named cause's

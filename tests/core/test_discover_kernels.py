@@ -199,8 +199,10 @@ def test_spectral_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
     """A scan too big to keep is made a block of frequencies at a time: the same columns, the same diagnosis.
 
     Known answer first: a sine of period 7 s in the residuals is the scan's finding. Then the table is
-    refused (TABLE_BYTES 0) and blocks are the minimum, 32 frequencies (the last one short): every block
-    equals the kept table's columns bit for bit and the diagnosis (test, basis, fitted values) is equal.
+    refused (TABLE_BYTES 0) and blocks are the minimum, 32 frequencies (the last one short) by one row (a long
+    log's scan, a block of rows at a time): every block equals the kept table's entries bit for bit, each entry
+    met once, the screen's products summed over the blocks equal the whole table's to 1e-12 (the order of the
+    sums over rows changes), and the diagnosis (test, basis, fitted values) is equal.
     """
     rng = np.random.default_rng(5)
     n = 300
@@ -219,13 +221,17 @@ def test_spectral_scan_in_blocks_is_the_kept_table_bit_for_bit(monkeypatch):
     monkeypatch.setattr(D, "SCAN_BLOCK_BYTES", 1)
     lazy = spectral_table(cov)
     assert lazy.Z is None and np.array_equal(lazy.f, kept.f)
-    seen = 0
-    for cols, Z, S2, C2 in lazy.blocks():
-        assert Z.shape[1] <= D._BLOCK
-        assert np.array_equal(Z, kept.Z[:, cols]) and np.array_equal(S2, kept.S2[:, cols])
-        assert np.array_equal(C2, kept.C2[:, cols])
-        seen += Z.shape[1]
-    assert seen == len(kept.f)
+    seen = np.zeros(kept.Z.shape, int)
+    for cols, rows, Z, S2, C2 in lazy.blocks():  # (blocks of one row: SCAN_BLOCK_BYTES 1)
+        assert Z.shape[1] <= D._BLOCK and Z.shape[0] == 1
+        assert np.array_equal(Z, kept.Z[rows, cols]) and np.array_equal(S2, kept.S2[rows, cols])
+        assert np.array_equal(C2, kept.C2[rows, cols])
+        seen[rows, cols] += 1
+    assert np.all(seen == 1)
+    # the screen's products summed over the blocks of rows: the whole table's to rounding
+    A, W2 = (r[:, None] * modes).T, (modes ** 2).T
+    for a, b in zip(lazy.screen(A, W2), kept.screen(A, W2)):
+        assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(b))
     blocked = diagnose(Q, r, n - 1, [cov], modes, bases={cov.name: lazy}, **kw)
     assert [d.to_dict() for d in blocked] == [d.to_dict() for d in whole]
     assert blocked[0].test == whole[0].test and np.array_equal(blocked[0].basis, whole[0].basis)
@@ -522,6 +528,47 @@ def test_turned_lobes_trials_kept_sparse_test_as_the_dense_ones(monkeypatch):
     assert isinstance(X._trials(scans[0], [0], st), SparseTrials)
     st = X._State(rows=np.arange(t.n), Q=orth(dense.A), r=r, rss=float(r @ r), dof=10)
     assert isinstance(X._trials(scans[0], [0], st), np.ndarray)
+
+
+def test_c_drift_per_setup_trial_kept_sparse_tests_as_the_dense_one(monkeypatch):
+    """c_drift's rate per set-up (the table's angle creeping within each set-up: rows x set-ups, held for the run
+    they were 760 MB at the bench's 1e6 rows) is built when its trial is: kept sparse for a long log it holds the
+    dense columns' values exactly, one a row, and its nested F test against the block basis is the dense one's to
+    1e-12 relative (the same sums in another order), on all rows and on some; another trial index is refused;
+    the engine takes it sparse for a block basis, dense otherwise."""
+    import scipy.sparse as sp
+
+    from core import causes as K
+    from core import discover as X
+    from core.diagnosis import SparseTrials, nested_f_batch, take_rows
+
+    t, dense, block = _bench_log_dense_and_block(monkeypatch)
+    scans, _ = K.c_drift_scans(block)
+    sc, = [sc for sc in scans if sc.infos[0]["form"] == "per set-up"]
+    assert all(o.build_sparse is None for o in scans if o is not sc)
+    S, D = sc.build_sparse([0]), sc.build([0])
+    assert isinstance(S, SparseTrials) and sp.issparse(S[0]) and S.shape == D.shape == (1, t.n, 8)
+    assert np.array_equal(S[0].toarray(), D[0]) and S[0].nnz == t.n
+    assert np.array_equal(D[0], K.c_drift_scans(dense)[0][2].build([0])[0])  # the dense baseline's scan
+    assert sc.build_sparse([0, -1]).shape == sc.build([0, -1]).shape  # (as the dense scan indexes)
+    for bad in ([1], [0.0], 0, [[0]]):
+        with pytest.raises(ConfigError):
+            sc.build_sparse(bad)
+    Q = block.A.basis()
+    r = np.random.default_rng(4).normal(size=t.n)
+    r -= Q @ (Q.T @ r)
+    for rows in (np.arange(t.n), np.arange(0, t.n, 3)):
+        Qr = Q if len(rows) == t.n else block.A[rows].basis()
+        rr = r[rows] - Qr @ (Qr.T @ r[rows])
+        a = nested_f_batch(take_rows(D, rows, 1), Qr, rr, float(rr @ rr), len(rows) - Qr.shape[1])
+        b = nested_f_batch(take_rows(S, rows, 1), Qr, rr, float(rr @ rr), len(rows) - Qr.shape[1])
+        assert np.array_equal(a[1], b[1]) and a[1][0] > 0
+        for u, v in zip(a, b):
+            np.testing.assert_allclose(v, u, rtol=1e-12, atol=0)
+    st = X._State(rows=np.arange(t.n), Q=Q, r=r, rss=float(r @ r), dof=10)
+    assert isinstance(X._trials(sc, [0], st), SparseTrials)
+    st = X._State(rows=np.arange(t.n), Q=orth(dense.A), r=r, rss=float(r @ r), dof=10)
+    assert isinstance(X._trials(sc, [0], st), np.ndarray)
 
 
 def test_drift_trend_kept_sparse_is_the_dense_one(monkeypatch):

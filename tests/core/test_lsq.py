@@ -186,6 +186,32 @@ def test_block_basis_is_the_dense_orth_span():
     assert np.array_equal(Q2, Q2) and not np.array_equal(Q2, Q)
 
 
+def test_basis_rows_rmatmul_into_a_sum_is_the_sum_bit_for_bit():
+    """``rows_rmatmul(pos, X, out=S)`` (a block of rows' share added in place, only the indicators the rows touch
+    formed) holds what ``S + rows_rmatmul(pos, X)`` does, bit for bit, for dense and sparse ``X`` (sparse with
+    some columns empty on the block), over blocks whose rows repeat targets (ten targets on 240 rows), and a sum
+    over blocks started from zeros is the sum started from the first block's share."""
+    import scipy.sparse as sp
+
+    A, r = _blocks()
+    Q = A.basis(1e-9)
+    X = r.normal(size=(A.shape[0], 6))
+    Xs = X * (r.random(X.shape) < 0.3)
+    Xs[:, 4] = 0.0
+    for Y in (X, sp.csr_matrix(Xs)):
+        ref, got = None, np.zeros((Q.shape[1], 6))
+        for a in range(0, A.shape[0], 50):
+            pos = np.arange(a, min(a + 50, A.shape[0]))
+            assert len(np.unique(A.ids[pos])) < len(pos)  # repeated targets within the block
+            share = Q.rows_rmatmul(pos, Y[pos])
+            ref = share if ref is None else ref + share
+            before = got.copy()
+            assert Q.rows_rmatmul(pos, Y[pos], out=got) is got
+            assert np.array_equal(got, before + share)
+        assert np.array_equal(got, ref)
+        np.testing.assert_allclose(got, Q.toarray().T @ (Y.toarray() if sp.issparse(Y) else Y), atol=1e-12)
+
+
 def test_block_design_bad_input():
     """Ids outside the block, a D of the wrong shape, columns numbered twice, an indicator column that is not one
     1 per row, and densifying an operator: one-line ConfigErrors."""
