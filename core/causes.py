@@ -344,7 +344,7 @@ def c_drift_scans(bl):
     if su.size >= 2:
         ids = [d.touches.setup_ids[j] for j in su]
 
-        def per_setup():  # rows x set-ups: built when a trial is (held for the run they were 760 MB at 1e6 rows)
+        def per_setup():  # rows x set-ups: built when a trial is (held for the run they were 800 MB at 1e6 rows)
             return np.column_stack([rot * s * (d.touches.setup == j) for j in su])[None]
 
         def per_setup_sparse(idx):  # the same values on their set-up's rows only, as per_setup()[idx] takes them

@@ -231,7 +231,7 @@ def run() -> dict:
 
 def _findings(path) -> list:
     rep = json.loads(Path(path).read_text(encoding="utf-8"))
-    return [(f["cause"], f.get("confidence")) for f in rep["findings"]] + [rep["structure"]["baseline"]["present"]]
+    return [(f["cause"], f["evidence"].get("confidence")) for f in rep["findings"]] + [rep["structure"]["baseline"]["present"]]
 
 
 def _dense_and_blocks(d: Path) -> dict:

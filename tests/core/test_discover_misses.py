@@ -950,3 +950,27 @@ def test_a_named_cause_beside_turned_outliers_is_in_doubt(seed, cause):
     assert "centred turn" in first["evidence"]["confidence_reason"], first["evidence"]["confidence_reason"]
     out = next(f for f in rep["findings"] if f["cause"] == "outlier")
     assert out["evidence"]["centred_turn_p"] < 0.0025, out["evidence"]
+
+
+def test_doubt_beside_turned_outliers_unit():
+    """_doubt_beside_turned_outliers on made-up findings (review finding 11): no outlier finding below
+    alpha_family leaves every named cause named; one below it makes every named cause ambiguous, the first
+    and a secondary one alike, with the turn in the reason; an already ambiguous cause keeps its own reason;
+    outlier and unexplained findings are not touched."""
+    from core.discover import Finding, Settings, _doubt_beside_turned_outliers
+
+    def f(cause, **ev):
+        return Finding(cause, dict(ev), {}, {}, 0.1)
+
+    st = Settings()
+    fs = [f("stylus_bending", confidence="named"), f("outlier", confidence="named", centred_turn_p=0.01)]
+    _doubt_beside_turned_outliers(fs, st)
+    assert fs[0].evidence["confidence"] == "named" and "confidence_reason" not in fs[0].evidence
+    fs = [f("stylus_bending", confidence="named"), f("c_drift", confidence="ambiguous", confidence_reason="own"),
+          f("unexplained", confidence="named"), f("thermal_drift", confidence="named"),
+          f("outlier", confidence="ambiguous", centred_turn_p=1e-4)]
+    _doubt_beside_turned_outliers(fs, st)
+    assert [x.evidence["confidence"] for x in fs] == ["ambiguous", "ambiguous", "named", "ambiguous", "ambiguous"]
+    assert "centred turn" in fs[0].evidence["confidence_reason"] and "centred turn" in fs[3].evidence["confidence_reason"]
+    assert fs[1].evidence["confidence_reason"] == "own"
+    assert "confidence_reason" not in fs[2].evidence
