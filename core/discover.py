@@ -2417,22 +2417,16 @@ def drift_trend(bl: Baseline, rows: np.ndarray, shared: bool = False,
     if shared:
         return (t - t.mean())[:, None] * m
     g = bl.groups[rows]
-    if sparse:
-        ug, gi = np.unique(g, return_inverse=True)
-        tc = np.empty(len(t))
-        for gg in ug:  # each group's times less their mean, as the dense columns below
-            sel = g == gg
-            tc[sel] = t[sel] - t[sel].mean()
-        q = m.shape[1]
-        idx = gi.ravel()[:, None] * q + np.arange(q)
-        return sps.csr_matrix(((tc[:, None] * m).ravel(), idx.ravel(), np.arange(0, q * len(t) + 1, q)),
-                              shape=(len(t), q * len(ug)))
-    cols = []
-    for gg in np.unique(g):
+    ug, gi = np.unique(g, return_inverse=True)
+    tc = np.empty(len(t))
+    for gg in ug:  # each group's times less their mean
         sel = g == gg
-        tc = np.where(sel, t - t[sel].mean(), 0.0)
-        cols.append(tc[:, None] * m)
-    return np.hstack(cols) if cols else np.zeros((len(rows), 0))
+        tc[sel] = t[sel] - t[sel].mean()
+    q = m.shape[1]
+    idx = gi.ravel()[:, None] * q + np.arange(q)
+    T = sps.csr_matrix(((tc[:, None] * m).ravel(), idx.ravel(), np.arange(0, q * len(t) + 1, q)),
+                       shape=(len(t), q * len(ug)))
+    return T if sparse else T.toarray()
 
 
 #: Short-term pairs needed before their scatter may replace the repeats' (:func:`_short_term`).
