@@ -852,14 +852,9 @@ def _rmatmul_sparse(Q, X) -> np.ndarray:
     from .lsq import Basis
 
     if isinstance(Q, Basis):
-        from .diagnosis import GRAM_CHUNK_ROWS
+        from .diagnosis import basis_rmatmul
 
-        n = Q.shape[0]
-        out = np.zeros((Q.shape[1], X.shape[1]))
-        for s0 in range(0, n, GRAM_CHUNK_ROWS):
-            pos = np.arange(s0, min(s0 + GRAM_CHUNK_ROWS, n))
-            Q.rows_rmatmul(pos, X[pos], out=out)
-        return out
+        return basis_rmatmul(Q, X)
     return np.asarray(X.T @ Q).T
 
 

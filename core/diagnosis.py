@@ -324,7 +324,7 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
 def _sparse_batch(C: SparseTrials, Q: Basis, r: np.ndarray, rss: float, dof: int):
     """:func:`nested_f_batch`'s block-basis branch for sparse trials: ``C^T C``, ``C^T r`` sparse products, ``Q^T C``
     a block of rows at a time (:data:`GRAM_CHUNK_ROWS`), nothing rows x columns formed dense."""
-    T, n, k = C.shape
+    T, _, k = C.shape
     G = np.empty((T, k, k))
     b = np.empty((T, k))
     Qr = Q.T @ r
@@ -333,10 +333,7 @@ def _sparse_batch(C: SparseTrials, Q: Basis, r: np.ndarray, rss: float, dof: int
         CC = _dense(Ct.T @ Ct)
         nrm = np.maximum(np.sqrt(np.maximum(np.diag(CC), 0.0)), 1e-300)
         inv = np.where(nrm > 1e-300, 1.0 / nrm, 0.0)
-        QC = np.zeros((Q.shape[1], k))
-        for a in range(0, n, GRAM_CHUNK_ROWS):
-            pos = np.arange(a, min(a + GRAM_CHUNK_ROWS, n))
-            Q.rows_rmatmul(pos, Ct[pos], out=QC)
+        QC = basis_rmatmul(Q, Ct)
         QC *= inv
         G[t] = CC * np.outer(inv, inv) - QC.T @ QC
         b[t] = np.asarray(Ct.T @ r).ravel() * inv - QC.T @ Qr
@@ -835,6 +832,18 @@ def sparse_function_basis(cov: Covariate):
 
 #: Rows of a covariate's term basis formed at once by :func:`gram_test` (dense chunks; sparse ones are cheap).
 GRAM_CHUNK_ROWS = 8192
+
+
+def basis_rmatmul(Q: Basis, X) -> np.ndarray:
+    """``Q^T X`` (q, m) dense for a block basis ``Q`` (n rows) and ``X`` (n, m) dense or sparse: each block of
+    :data:`GRAM_CHUNK_ROWS` rows' share added into the sum in place (:meth:`core.lsq.Basis.rows_rmatmul`),
+    nothing rows x columns formed."""
+    n = Q.shape[0]
+    out = np.zeros((Q.shape[1], X.shape[1]))
+    for a in range(0, n, GRAM_CHUNK_ROWS):
+        pos = np.arange(a, min(a + GRAM_CHUNK_ROWS, n))
+        Q.rows_rmatmul(pos, X[pos], out=out)
+    return out
 
 
 def _term_chunks(cov: Covariate, F, modes: np.ndarray, rows: np.ndarray):
