@@ -348,19 +348,8 @@ def c_drift_scans(bl):
             return np.column_stack([rot * s * (d.touches.setup == j) for j in su])[None]
 
         def per_setup_sparse(idx):  # the same values on their set-up's rows only, as per_setup()[idx] takes them
-            import scipy.sparse as sp
-
-            from .diagnosis import SparseTrials
-            from .exceptions import ConfigError
-
-            idx = np.asarray(idx)
-            if idx.ndim != 1 or (idx.size and idx.dtype.kind not in "iu") or np.any((idx < -1) | (idx > 0)):
-                raise ConfigError(f"c_drift's per-set-up scan has one trial (index 0 or -1), not {idx.tolist()}")
-            at = np.full(int(su.max()) + 1, -1)
-            at[su] = np.arange(su.size)
-            n = len(rot)
-            return SparseTrials([sp.csr_matrix((rot * s, at[d.touches.setup], np.arange(n + 1)), shape=(n, su.size))
-                                 for _ in range(idx.size)])
+            return _one_sparse_trial("c_drift's per-set-up scan", idx,
+                                     lambda: _setup_csr(rot * s, d.touches.setup, su))
 
         scans.append(Scan(tuple(f"ECC_rate[{i}]" for i in ids), ({"form": "per set-up", "setups": tuple(ids)},),
                           "time_in_setup", lambda idx: per_setup()[np.asarray(idx)], build_sparse=per_setup_sparse))
@@ -593,25 +582,10 @@ def unoriented_scans(bl):
             cols += [m * np.cos(k * phi), m * np.sin(k * phi)]
         return np.column_stack(cols)[None]
 
-    def sparse_columns(k):  # the same values on their set-up's rows only (2 a row: 1.6 GB dense at 1e6 rows)
-        import scipy.sparse as sp
-
-        n = len(phi)
-        at = np.full(int(su.max()) + 1, -1)
-        at[su] = np.arange(su.size)
-        c = 2 * at[d.touches.setup]
-        vals = np.column_stack([np.cos(k * phi), np.sin(k * phi)]).ravel()
-        return sp.csr_matrix((vals, np.column_stack([c, c + 1]).ravel(), np.arange(0, 2 * n + 1, 2)),
-                             shape=(n, 2 * su.size))
-
-    def sparse_trials(k, idx):  # the scan's one trial, as columns(k)[idx] takes it (0 or -1, each a copy)
-        from .diagnosis import SparseTrials
-        from .exceptions import ConfigError
-
-        idx = np.asarray(idx)
-        if idx.ndim != 1 or (idx.size and idx.dtype.kind not in "iu") or np.any((idx < -1) | (idx > 0)):
-            raise ConfigError(f"lobing_per_setup's scan has one trial (index 0 or -1), not {idx.tolist()}")
-        return SparseTrials([sparse_columns(k) for _ in range(idx.size)])
+    def sparse_trials(k, idx):  # the scan's one trial, as columns(k)[idx] takes it (0 or -1, each a copy); the
+        # same values on their set-up's rows only (2 a row: 1.6 GB dense at 1e6 rows)
+        return _one_sparse_trial("lobing_per_setup's scan", idx, lambda: _setup_csr(
+            np.column_stack([np.cos(k * phi), np.sin(k * phi)]), d.touches.setup, su))
 
     for k in (2, 3, 4):
         labels = [lab for sid in ids for lab in (f"cos{k}[{sid}]", f"sin{k}[{sid}]")]
@@ -844,6 +818,32 @@ def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K) -> "
     Fm[np.abs(Fm) < TRIG_ZERO] = 0.0
     cidx = at[setup][:, None] * w + np.arange(w)
     return sp.csr_matrix((Fm.ravel(), (np.repeat(np.arange(n), w), cidx.ravel())), shape=(n, w * su.size))
+
+
+def _setup_csr(vals: np.ndarray, setup: np.ndarray, su: np.ndarray):
+    """(n, w len(su)) CSR: row i's ``w`` values ``vals[i]`` in its set-up's ``w`` columns (the set-ups ``su`` in
+    order; ``vals`` (n,) or (n, w)): a column block per set-up, zero off it, without forming the zeros."""
+    import scipy.sparse as sp
+
+    vals = np.asarray(vals, float).reshape(len(setup), -1)
+    n, w = vals.shape
+    at = np.full(int(su.max()) + 1, -1)
+    at[su] = np.arange(su.size)
+    c = w * at[setup]
+    return sp.csr_matrix((vals.ravel(), (c[:, None] + np.arange(w)).ravel(), np.arange(0, w * n + 1, w)),
+                         shape=(n, w * su.size))
+
+
+def _one_sparse_trial(scan: str, idx, build):
+    """A scan of one trial kept sparse: ``build()`` once per index of ``idx`` (0 or -1, as a dense scan's
+    ``[idx]`` takes its one trial), as :class:`core.diagnosis.SparseTrials`; any other index a ConfigError."""
+    from .diagnosis import SparseTrials
+    from .exceptions import ConfigError
+
+    idx = np.asarray(idx)
+    if idx.ndim != 1 or (idx.size and idx.dtype.kind not in "iu") or np.any((idx < -1) | (idx > 0)):
+        raise ConfigError(f"{scan} has one trial (index 0 or -1), not {idx.tolist()}")
+    return SparseTrials([build() for _ in range(idx.size)])
 
 
 def _rmatmul_sparse(Q, X) -> np.ndarray:
