@@ -1069,6 +1069,8 @@ class Basis:
         bench's 1e6 rows for the 700 per-set-up columns), each as the whole product has it, so ``out`` holds
         what ``out + rows_rmatmul(pos, X)`` would, bit for bit (the other rows of the product are zeros)."""
         col = self._pos[self.ids[pos]]
+        if col.size and col.min() < 0:  # out[-1] would take it silently
+            raise ValueError("rows_rmatmul: a row's id has no indicator column (its count is 0)")
         Up = self.dense_rows(pos)
         bot = (X.T @ Up).T if sp.issparse(X) else Up.T @ X
         if out is None:

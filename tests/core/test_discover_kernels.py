@@ -532,7 +532,7 @@ def test_turned_lobes_trials_kept_sparse_test_as_the_dense_ones(monkeypatch):
 
 def test_c_drift_per_setup_trial_kept_sparse_tests_as_the_dense_one(monkeypatch):
     """c_drift's rate per set-up (the table's angle creeping within each set-up: rows x set-ups, held for the run
-    they were 760 MB at the bench's 1e6 rows) is built when its trial is: kept sparse for a long log it holds the
+    they were 800 MB at the bench's 1e6 rows) is built when its trial is: kept sparse for a long log it holds the
     dense columns' values exactly, one a row, and its nested F test against the block basis is the dense one's to
     1e-12 relative (the same sums in another order), on all rows and on some; another trial index is refused;
     the engine takes it sparse for a block basis, dense otherwise."""

@@ -210,6 +210,12 @@ def test_basis_rows_rmatmul_into_a_sum_is_the_sum_bit_for_bit():
             assert np.array_equal(got, before + share)
         assert np.array_equal(got, ref)
         np.testing.assert_allclose(got, Q.toarray().T @ (Y.toarray() if sp.issparse(Y) else Y), atol=1e-12)
+    # counts that leave a row's id without a column: refused on both paths (into a sum, out[-1] took it silently)
+    from core.lsq import Basis
+    bad = Basis(Q.ids, np.where(np.arange(len(Q.counts)) == Q.ids[0], 0, Q.counts), Q.U, Q.span)
+    for out in (None, np.zeros((bad.shape[1], 6))):
+        with pytest.raises(ValueError, match="no indicator column"):
+            bad.rows_rmatmul(np.arange(5), X[:5], out=out)
 
 
 def test_block_design_bad_input():
