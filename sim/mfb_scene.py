@@ -185,21 +185,23 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     return [p[0] for p in parts], Geoms(centre, axes, kind, size, rbound(kind, size))
 
 
-#: Each probe's (MJCF, geom names, Geoms) by (J_m, stylus radius, finger): a plan's work zones share
+#: Each probe's (key, geom names, Geoms) by (J_m, stylus radius, finger): a plan's work zones share
 #: a handful of probes (the 5-axis plan: 9 zones, 7 probes). Safe: the key is every input (floats);
 #: the Geoms' arrays are read only. 32 probes.
 _PROBES = Memo(32)
 
 
 def _probe(J_m, r_m: float, finger_m: float = 0.0) -> tuple:
-    """(:func:`probe_geoms_mjcf`, then :func:`probe_geoms`'s names and Geoms) of a probe, kept (:data:`_PROBES`)."""
+    """(the probe's key (J_m, r_m, finger_m as floats: :func:`probe_geoms_mjcf`'s arguments, its MJCF
+    written when a model is compiled), then :func:`probe_geoms`'s names and Geoms) of a probe, kept
+    (:data:`_PROBES`)."""
     key = (tuple(float(v) for v in J_m), float(r_m), float(finger_m))
 
     def build():
         names, g = probe_geoms(*key)
         for a in (g.centre, g.axes, g.kind, g.size, g.rbound):
             a.flags.writeable = False
-        return probe_geoms_mjcf(*key), names, g
+        return key, names, g
 
     return _PROBES.get_or_compute(key, build)
 
@@ -240,14 +242,15 @@ def _solid_table(art) -> _Solids:
 
 def _build_solid_table(art) -> _Solids:
     """:func:`_solid_table`'s answer, computed."""
-    kinds, sizes, names, feats = [], [], [], []
-    for k, s in enumerate(art.solids):
-        if s.kind not in ("box", "cylinder", "sphere"):
-            raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
-        sz = s.size  # (a flat tuple of numbers as it is, else flattened: the same numbers)
-        kinds.append(s.kind), sizes.append(sz if type(sz) is tuple and all(map(_is_number, sz)) else tuple(np.ravel(sz)))
-        names.append(f"{s.feature or ('support' if s.kind == 'cylinder' else 'body')}__{k}")
-        feats.append(s.feature)
+    sol = art.solids
+    kinds = [s.kind for s in sol]
+    if not set(kinds) <= {"box", "cylinder", "sphere"}:
+        raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
+    # (a flat tuple of numbers as it is, else flattened: the same numbers)
+    sizes = [sz if type(sz) is tuple and all(type(v) in _NUMBER for v in sz) else tuple(np.ravel(sz))
+             for sz in (s.size for s in sol)]
+    feats = [s.feature for s in sol]
+    names = [f"{f or ('support' if kd == 'cylinder' else 'body')}__{k}" for k, (f, kd) in enumerate(zip(feats, kinds))]
     size3 = np.zeros((len(sizes), 3))
     for j, sz in enumerate(sizes):
         size3[j, :len(sz)] = sz
@@ -255,8 +258,8 @@ def _build_solid_table(art) -> _Solids:
     return _Solids(kinds, sizes, names, feats, size3, holder)
 
 
-def _is_number(v) -> bool:
-    return type(v) in (float, np.float64, int)
+#: The number types a solid's size tuple is kept as it is with (_build_solid_table).
+_NUMBER = frozenset((float, np.float64, int))
 
 
 def _solid_pose_stack(art) -> np.ndarray:
@@ -336,9 +339,9 @@ class WorkZone:
         nt = len(names)
         n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
         holder = list(range(n0)) + [n0 + k for k in sol.holder]
-        # the probe's MJCF and its geoms from their definitions (the broad phase's; both written from
-        # the same parts, _probe_parts), once per probe (_PROBES)
-        self._probe_mjcf, pnames, self._probe_geoms = _probe(J_m, stylus_r_m, finger_m)
+        # the probe's geoms from their definitions (the broad phase's), once per probe (_PROBES); its
+        # MJCF (written from the same parts, _probe_parts) when a model of the zone is compiled
+        self._probe_key, pnames, self._probe_geoms = _probe(J_m, stylus_r_m, finger_m)
         npg = len(pnames)
         # geom ids of the full model (compiled when MuJoCo first needs it, self.model): the table
         # body's geoms in order, then the spindle's; of the holder's model (self._holder_model):
@@ -386,7 +389,7 @@ class WorkZone:
 
     def _xml(self, table_geoms, probe_mjcf: str | None = None) -> str:
         return _zone_xml("".join(self._geom_mjcf(j) for j in table_geoms),
-                         self._probe_mjcf if probe_mjcf is None else probe_mjcf)
+                         probe_geoms_mjcf(*self._probe_key) if probe_mjcf is None else probe_mjcf)
 
     @property
     def mjcf(self) -> str:
@@ -1049,6 +1052,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     segs_A = dict(zip(map(id, plans), _segments_A(plans, r, float(artefact_points(zones[live[0]]._args[0])[:, 2].max())
                                                     + r)))
     rows_F = {}  # per (broad phase, program, placement): (a, b, allowed feature ids) in its frame
+    fids = {}  # per (feature numbering, program): each row's allowed feature
     bases = {}  # per broad phase (its certificates): [a Clearance, [its part keys]]
     keys = []  # per live measurement: its two part keys (ball, rest)
     for i in live:
@@ -1067,9 +1071,12 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             if place is not None:
                 R, t = place[:3, :3].T, place[:3, 3]
                 a, b = a @ R + t, b @ R + t
-            ids = np.full(len(allow), -2)
-            ids[is_app] = clr.feature_ids(plan.feature)
-            rows_F[key] = (a, b, ids[sg.path])
+            fk = (id(clr._fid), id(plan))  # (the program's features as the broad phase's numbers: once each)
+            if fk not in fids:
+                ids = np.full(len(allow), -2)
+                ids[is_app] = clr.feature_ids(plan.feature)
+                fids[fk] = ids[sg.path]
+            rows_F[key] = (a, b, fids[fk])
             bases.setdefault(key[0], [clr, []])[1].append(key)
         keys.append(own)
     # each broad phase's distinct rows, all bounded in one pass: which stay open
