@@ -810,11 +810,18 @@ def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray,
     return apply_T(T_R_A, P), cnt
 
 
-def _link_points_A(s_A, features, levels, top_A_m) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`link_points` in A: the links between the starts ``s_A`` (n,3), A, n >= 2."""
-    a, b = s_A[:-1], s_A[1:]
+def _direct_links(features, levels) -> np.ndarray:
+    """(n - 1,) bool: which links between consecutive touches are direct (the same feature and level)."""
     f, lv = np.asarray(features, dtype=object), np.asarray(levels)
-    direct = (f[1:] == f[:-1]) & (lv[1:] == lv[:-1])
+    return (f[1:] == f[:-1]) & (lv[1:] == lv[:-1])
+
+
+def _link_points_A(s_A, features, levels, top_A_m, direct=None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`link_points` in A: the links between the starts ``s_A`` (n,3), A, n >= 2 (``direct``:
+    :func:`_direct_links` of ``features``, ``levels`` if already known)."""
+    a, b = s_A[:-1], s_A[1:]
+    if direct is None:
+        direct = _direct_links(features, levels)
     zc = np.maximum(np.maximum(top_A_m + LINK_CLEAR_M, a[:, 2]), b[:, 2])
     up_a, up_b = np.column_stack([a[:, :2], zc]), np.column_stack([b[:, :2], zc])
     cnt = np.where(direct, 2, 4)
@@ -954,6 +961,7 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     top = float(pts_A[:, 2].max()) + r
     z_bars = {}  # the bar's lowest point in W by placement
     overlaps = {}  # block_overlaps by placement and workholder
+    direct = {}  # per program (plan object): its direct links (_direct_links)
     bad, zones, T_R_As, paths = [], [], [], []
     for (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m), wz in zip(ms, each):
         T_R_A = T_R_W @ T_W_A
@@ -977,7 +985,11 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
             Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
             start = Xn + plan.clearance_m * apply_R(T_R_A, plan.wn_A)
             if plan.n > 1:
-                L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
+                dl = direct.get(id(plan))  # (per program: its features compared once)
+                if dl is None:
+                    dl = direct[id(plan)] = _direct_links(plan.feature, plan.level)
+                L, cnt = _link_points_A(apply_T(inv_T(T_R_A), start), None, None, top, dl)
+                L = apply_T(T_R_A, L)  # (link_points' numbers, bit for bit)
             else:
                 L, cnt = np.zeros((0, 3)), np.zeros(0, int)
             paths.append((start, Xn, L, cnt))
