@@ -33,8 +33,9 @@ stylus ball against the bar, in the bar's frame and shared by every probe and
 placement of that bar (a sphere looks the same from every direction), and the rest
 of the probe and the holder, per work zone and orientation. A plan's measurements
 are checked together (:func:`check_measurements`): their paths sampled at once,
-both parts of every measurement through one broad phase pass, then MuJoCo
-measurement by measurement, in path order.
+each broad phase's distinct moves (in its frame, computed from the programs in A)
+bounded in one pass, the samples of the moves it leaves open bounded one by one,
+then MuJoCo measurement by measurement, in path order.
 """
 
 from __future__ import annotations
@@ -948,10 +949,9 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
 
     The paths of every measurement are sampled in one :func:`sim.clearance.flat_path_segments`
     and go through the broad phase together (:func:`sim.clearance.near_segments_many`): the
-    ball against the bar in A (one broad phase for every measurement: the certificates of the
-    measurement of the most touches clear the same moves of the others, :func:`_near_samples`),
-    the rest of each work zone in W. The work zones' ball models are shared
-    (:func:`share_ball_model`).
+    ball against the bar in A (one broad phase for every measurement, each distinct move bounded
+    once: :func:`_near_samples`), the rest of each work zone in W. The work zones' ball models
+    are shared (:func:`share_ball_model`).
     """
     r = float(stylus_r_m)
     ms = [(name, np.asarray(T_W_A, float), np.asarray(T_R_W, float), tuple(blocks), J_m, plan, float(finger_m))
