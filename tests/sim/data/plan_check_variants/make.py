@@ -15,8 +15,9 @@ rewrites them once it is reviewed; a change of its speed must leave them as they
 The variants (:func:`variants`): the MFB 5-axis plan as ``scenarios.mfb.check_plan`` checks it; the
 same turned 30 deg in C, tilted 30 deg more in A, each measurement with the next stylus (star arms
 through walls); the bar sunk 80 mm into the table; a star arm through a hole's wall and a finger
-stylus; the riser block raised into the bar; the touches moved at random by up to 3 mm at random
-table poses and styli, or by up to 0.2 mm with the measurement's stylus, turned by up to 10 deg. Clean and colliding measurements both (counted by the test).
+stylus, programs of one and two touches; the riser block raised into the bar; the touches moved at
+random by up to 3 mm at random table poses and styli, or by up to 0.2 mm with the measurement's
+stylus, turned by up to 10 deg. Clean and colliding measurements both (counted by the test).
 """
 
 from __future__ import annotations
@@ -89,7 +90,9 @@ def variants():
         ("arm_h34", flat, pose((0.0, 0.0)), (), (0.0, -0.100, 0.150), holes[(3, 4)], 0.0),
         ("tilt_h17", flat, pose((np.deg2rad(-60.0), np.deg2rad(30.0))), (), (0.0, 0.0, 0.150), holes[(1, 7)], 0.0),
         ("finger_h29", flat, pose((np.deg2rad(-90.0), 0.0)), (), (0.030, 0.0, 0.150), holes[(2, 9)], 0.020),
-        ("turn_h6", flat, pose((np.deg2rad(45.0), np.deg2rad(-90.0))), (), (0.0, 0.0, 0.150), holes[(6,)], 0.0)]))
+        ("turn_h6", flat, pose((np.deg2rad(45.0), np.deg2rad(-90.0))), (), (0.0, 0.0, 0.150), holes[(6,)], 0.0),
+        ("one_touch", flat, pose((0.0, 0.0)), (), (0.0, 0.0, 0.150), holes[(6,)].select([0]), 0.0),
+        ("two_touches", flat, pose((0.0, 0.0)), (), (0.0, -0.100, 0.150), holes[(3,)].select([0, 5]), 0.0)]))
     riser = (Block("riser", (-0.095, -0.045, 0.0), (0.295, 0.045, 0.175)),)  # 25 mm into the bar on P2
     out.append(("riser_in_bar", [(n, T, TR, riser if b else b, J, pl, f)
                                  for n, T, TR, b, J, pl, f, _, _ in base if n in ("X2", "Y2", "X1")]))
