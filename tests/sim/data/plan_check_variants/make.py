@@ -8,7 +8,7 @@ the plan check at c08d3ff, before the broad phase bounded each distinct move onc
 
 ``results.json.gz`` holds, per variant (one ``check_measurements`` call: a plan's measurements checked
 together), per measurement: touches, path points, collisions (the messages) and the least clearance
-at the approach starts (mm, the float as Python writes it). tests/sim/test_plan_check_variants.py
+at the approach starts (mm, the float as Python writes it). tests/sim/test_mfb_scene.py
 checks the code against them. A change meant to change the check's answers (what is modelled)
 rewrites them once it is reviewed; a change of its speed must leave them as they are.
 
