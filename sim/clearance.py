@@ -683,7 +683,7 @@ _CERT_GRID_M = 1.0e-6
 _HASH = np.array([0xBF58476D1CE4E5B9, 0x94D049BB133111EB, 0x8F1A6C3B5D2E4F71, 0xC6A4A7935BD1E995,
                   0x2545F4914F6CDD1D, 0xD1B54A32D192ED03, 0xAEF17502108EF2D9, 0xF1357AEA2E62A9C5,
                   0x9FB21C651E98DF25], dtype=np.uint64)
-_S30, _S27, _S31 = np.uint64(30), np.uint64(27), np.uint64(31)
+_S30, _S27, _S31, _S29 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(29)
 _CELLS = np.array([1.0 / _CERT_GRID_M] * 6 + [1.0])
 
 
@@ -727,7 +727,7 @@ def _pair_candidates(sT_lo, sT_hi, seg, cp, cloT, chiT, cstart, ccount, loT, hiT
     return seg[ok], pair[ok]
 
 
-def near_segments_many(parts) -> list:
+def near_segments_many(parts, samples: bool = True) -> list:
     """:meth:`Clearance.near_segments` of several broad phases and paths at once.
 
     Parameters
@@ -737,11 +737,17 @@ def near_segments_many(parts) -> list:
         (:class:`Segments` whose ``a``, ``b`` are in F; the sample numbers are its own) and
         each segment's allowed feature as a number (:meth:`Clearance.feature_ids`; -2: none).
 
+    samples : bool
+        False: stop before the samples and return, per part, which segments are left open.
+
     Returns
     -------
     list of (k,) int
         Per part, its sorted sample numbers where some pair may come closer than
-        :data:`MARGIN_M`: every other sample is provably farther.
+        :data:`MARGIN_M`: every other sample is provably farther. With ``samples=False``, per
+        part a (s,) bool: the segments that no certificate and no swept bound proves clear
+        (a covered row, below, as the row before it); every point of the others is provably
+        farther (their ``k``, ``m``, ``first`` are not read: any sampling of them is clear).
 
     Each part is first looked up in its broad phase's certificates (as they stand before
     this call; the grid-cell look-up for every part of a broad phase at once), then the
@@ -808,7 +814,7 @@ def near_segments_many(parts) -> list:
     # (F), padded boxes, steps, samples
     live = sorted((j for j in range(n_parts) if len(todo[j])), key=lambda j: base_of[j])
     if not live:
-        return out
+        return out if samples else [np.zeros(n, bool) for n in n_of]
     cnt = np.zeros(n_parts, int)
     cnt[live] = [len(todo[j]) for j in live]
     row0 = np.zeros(n_parts, int)
@@ -859,6 +865,8 @@ def near_segments_many(parts) -> list:
             clr._certs.add(pick(sg.a, j), pick(sg.b, j), pick(allow, j), r[row0[j]:row0[j] + cnt[j]])
     open_ = lb <= MARGIN_M
     seg, pair, pb = seg[open_], pair[open_], pb[open_]
+    if not samples:
+        return _open_rows(n_of, off, cov, live, todo, full, row0, cnt, np.unique(seg))
     # the covered rows after a bounded row that may come near (an open pair): bounded themselves
     # (a second call: they are not covered there, their row before is not in it)
     if cov.any():
@@ -908,6 +916,23 @@ def near_segments_many(parts) -> list:
     return out
 
 
+def _open_rows(n_of, off, cov, live, todo, full, row0, cnt, rows) -> list:
+    """:func:`near_segments_many`'s answer with ``samples=False``: per part a (s,) bool, True on the
+    rows it bounded whose positions ``rows`` (sorted, in its bounded rows' order) have an open
+    pair, and on each covered row (:func:`_covered`) whose row before is open."""
+    res = [np.zeros(n, bool) for n in n_of]
+    part = np.repeat(np.array(live), cnt[live])[rows]
+    for j in np.unique(part):
+        loc = rows[part == j] - row0[j]
+        res[j][loc if full[j] else todo[j][loc]] = True
+    if cov.any():
+        for j in range(len(n_of)):
+            c = np.flatnonzero(cov[off[j]:off[j + 1]])  # (never a part's first row)
+            if c.size:
+                res[j][c] = res[j][c - 1]
+    return res
+
+
 def _covered(a: np.ndarray, b: np.ndarray, allow: np.ndarray, off: np.ndarray) -> np.ndarray:
     """(n,) bool: the rows of segments ``a -> b`` (n,3) (parts' rows one after another, part j's
     ``off[j] .. off[j + 1] - 1``) that are a point (``a == b``) where the row before in the same
@@ -923,6 +948,49 @@ def _covered(a: np.ndarray, b: np.ndarray, allow: np.ndarray, off: np.ndarray) -
         & (allow[:-1] == allow[1:])
     cov[off[:-1][off[:-1] < len(a)]] = False  # (a part's first row: the row before is another part's)
     return cov
+
+
+def unique_segments(a: np.ndarray, b: np.ndarray, allow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(first (u,) int, inverse (n,) int): the distinct rows of segments ``a -> b`` (n,3) with
+    allowed feature ``allow`` (n,) int, rows equal bit for bit (-0.0 and 0.0 differ): ``first``
+    holds each distinct row's first occurrence, increasing, and row i equals row
+    ``first[inverse[i]]`` (``np.unique(..., axis=0, return_index=True)``'s rows, in the order of
+    their first occurrence). Found by a hash of the rows' bits (each word's high bits folded onto
+    its low ones, weighted, summed, splitmix64's finalizer), sorted: a few times faster than
+    sorting the rows. Rows whose hash equals a different
+    row's (a collision) are told apart by ``np.unique`` among themselves."""
+    a, b = np.ascontiguousarray(a, float), np.ascontiguousarray(b, float)
+    f = np.ascontiguousarray(allow, np.int64)
+    n = len(f)
+    if not n:
+        return np.zeros(0, int), np.zeros(0, int)
+    au, bu = a.view(np.uint64), b.view(np.uint64)
+    bits = [au[:, 0], au[:, 1], au[:, 2], bu[:, 0], bu[:, 1], bu[:, 2], f.view(np.uint64)]
+    h = (bits[0] ^ (bits[0] >> _S29)) * _HASH[2]
+    for j in range(1, 7):  # (each word's high bits folded onto its low ones: round numbers end in zeros)
+        h += (bits[j] ^ (bits[j] >> _S29)) * _HASH[2 + j]
+    h = (h ^ (h >> _S30)) * _HASH[0]  # (splitmix64's finalizer)
+    h = (h ^ (h >> _S27)) * _HASH[1]
+    h ^= h >> _S31
+    order = np.argsort(h)
+    hs = h[order]
+    new = np.empty(n, bool)
+    new[0] = True
+    np.not_equal(hs[1:], hs[:-1], out=new[1:])
+    run = np.flatnonzero(new)
+    rep = np.minimum.reduceat(order, run)[np.cumsum(new) - 1]  # per sorted row, its run's first row
+    same = np.ones(n, bool)
+    for x in bits:
+        same &= x[order] == x[rep]
+    to = np.empty(n, int)
+    to[order] = rep
+    if not same.all():  # (a collision: rows unlike their run's first, grouped among themselves)
+        odd = np.sort(order[~same])
+        rows = np.column_stack(bits)[odd]
+        _, i0, inv = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+        to[odd] = odd[i0][inv.ravel()]
+    first = np.flatnonzero(to == np.arange(n))
+    return first, np.searchsorted(first, to)
 
 
 def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

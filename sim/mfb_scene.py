@@ -33,8 +33,9 @@ stylus ball against the bar, in the bar's frame and shared by every probe and
 placement of that bar (a sphere looks the same from every direction), and the rest
 of the probe and the holder, per work zone and orientation. A plan's measurements
 are checked together (:func:`check_measurements`): their paths sampled at once,
-both parts of every measurement through one broad phase pass, then MuJoCo
-measurement by measurement, in path order.
+each broad phase's distinct moves (in its frame, computed from the programs in A)
+bounded in one pass, the samples of the moves it leaves open bounded one by one,
+then MuJoCo measurement by measurement, in path order.
 """
 
 from __future__ import annotations
@@ -185,21 +186,23 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     return [p[0] for p in parts], Geoms(centre, axes, kind, size, rbound(kind, size))
 
 
-#: Each probe's (MJCF, geom names, Geoms) by (J_m, stylus radius, finger): a plan's work zones share
+#: Each probe's (key, geom names, Geoms) by (J_m, stylus radius, finger): a plan's work zones share
 #: a handful of probes (the 5-axis plan: 9 zones, 7 probes). Safe: the key is every input (floats);
 #: the Geoms' arrays are read only. 32 probes.
 _PROBES = Memo(32)
 
 
 def _probe(J_m, r_m: float, finger_m: float = 0.0) -> tuple:
-    """(:func:`probe_geoms_mjcf`, then :func:`probe_geoms`'s names and Geoms) of a probe, kept (:data:`_PROBES`)."""
+    """(the probe's key (J_m, r_m, finger_m as floats: :func:`probe_geoms_mjcf`'s arguments, its MJCF
+    written when a model is compiled), then :func:`probe_geoms`'s names and Geoms) of a probe, kept
+    (:data:`_PROBES`)."""
     key = (tuple(float(v) for v in J_m), float(r_m), float(finger_m))
 
     def build():
         names, g = probe_geoms(*key)
         for a in (g.centre, g.axes, g.kind, g.size, g.rbound):
             a.flags.writeable = False
-        return probe_geoms_mjcf(*key), names, g
+        return key, names, g
 
     return _PROBES.get_or_compute(key, build)
 
@@ -240,14 +243,15 @@ def _solid_table(art) -> _Solids:
 
 def _build_solid_table(art) -> _Solids:
     """:func:`_solid_table`'s answer, computed."""
-    kinds, sizes, names, feats = [], [], [], []
-    for k, s in enumerate(art.solids):
-        if s.kind not in ("box", "cylinder", "sphere"):
-            raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
-        sz = s.size  # (a flat tuple of numbers as it is, else flattened: the same numbers)
-        kinds.append(s.kind), sizes.append(sz if type(sz) is tuple and all(map(_is_number, sz)) else tuple(np.ravel(sz)))
-        names.append(f"{s.feature or ('support' if s.kind == 'cylinder' else 'body')}__{k}")
-        feats.append(s.feature)
+    sol = art.solids
+    kinds = [s.kind for s in sol]
+    if not set(kinds) <= {"box", "cylinder", "sphere"}:
+        raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
+    # (a flat tuple of numbers as it is, else flattened: the same numbers)
+    sizes = [sz if type(sz) is tuple and all(type(v) in _NUMBER for v in sz) else tuple(np.ravel(sz))
+             for sz in (s.size for s in sol)]
+    feats = [s.feature for s in sol]
+    names = [f"{f or ('support' if kd == 'cylinder' else 'body')}__{k}" for k, (f, kd) in enumerate(zip(feats, kinds))]
     size3 = np.zeros((len(sizes), 3))
     for j, sz in enumerate(sizes):
         size3[j, :len(sz)] = sz
@@ -255,8 +259,8 @@ def _build_solid_table(art) -> _Solids:
     return _Solids(kinds, sizes, names, feats, size3, holder)
 
 
-def _is_number(v) -> bool:
-    return type(v) in (float, np.float64, int)
+#: The number types a solid's size tuple is kept as it is with (_build_solid_table).
+_NUMBER = frozenset((float, np.float64, int))
 
 
 def _solid_pose_stack(art) -> np.ndarray:
@@ -336,9 +340,9 @@ class WorkZone:
         nt = len(names)
         n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
         holder = list(range(n0)) + [n0 + k for k in sol.holder]
-        # the probe's MJCF and its geoms from their definitions (the broad phase's; both written from
-        # the same parts, _probe_parts), once per probe (_PROBES)
-        self._probe_mjcf, pnames, self._probe_geoms = _probe(J_m, stylus_r_m, finger_m)
+        # the probe's geoms from their definitions (the broad phase's), once per probe (_PROBES); its
+        # MJCF (written from the same parts, _probe_parts) when a model of the zone is compiled
+        self._probe_key, pnames, self._probe_geoms = _probe(J_m, stylus_r_m, finger_m)
         npg = len(pnames)
         # geom ids of the full model (compiled when MuJoCo first needs it, self.model): the table
         # body's geoms in order, then the spindle's; of the holder's model (self._holder_model):
@@ -386,7 +390,7 @@ class WorkZone:
 
     def _xml(self, table_geoms, probe_mjcf: str | None = None) -> str:
         return _zone_xml("".join(self._geom_mjcf(j) for j in table_geoms),
-                         self._probe_mjcf if probe_mjcf is None else probe_mjcf)
+                         probe_geoms_mjcf(*self._probe_key) if probe_mjcf is None else probe_mjcf)
 
     @property
     def mjcf(self) -> str:
@@ -803,10 +807,22 @@ def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray,
     transform back to R (the same values, bit for bit, as transforming each link's points
     alone: tests/sim/test_clearance.py)."""
     T_A_R = inv_T(T_R_A)
-    s_A = apply_T(T_A_R, np.asarray(starts_R, float))
-    a, b = s_A[:-1], s_A[1:]
+    P, cnt = _link_points_A(apply_T(T_A_R, np.asarray(starts_R, float)), features, levels, top_A_m)
+    return apply_T(T_R_A, P), cnt
+
+
+def _direct_links(features, levels) -> np.ndarray:
+    """(n - 1,) bool: which links between consecutive touches are direct (the same feature and level)."""
     f, lv = np.asarray(features, dtype=object), np.asarray(levels)
-    direct = (f[1:] == f[:-1]) & (lv[1:] == lv[:-1])
+    return (f[1:] == f[:-1]) & (lv[1:] == lv[:-1])
+
+
+def _link_points_A(s_A, features, levels, top_A_m, direct=None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`link_points` in A: the links between the starts ``s_A`` (n,3), A, n >= 2 (``direct``:
+    :func:`_direct_links` of ``features``, ``levels`` if already known)."""
+    a, b = s_A[:-1], s_A[1:]
+    if direct is None:
+        direct = _direct_links(features, levels)
     zc = np.maximum(np.maximum(top_A_m + LINK_CLEAR_M, a[:, 2]), b[:, 2])
     up_a, up_b = np.column_stack([a[:, :2], zc]), np.column_stack([b[:, :2], zc])
     cnt = np.where(direct, 2, 4)
@@ -816,7 +832,41 @@ def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray,
     P[st + 1] = np.where(direct[:, None], b, up_a)
     P[(st + 2)[~direct]] = up_b[~direct]
     P[(st + 3)[~direct]] = b[~direct]
-    return apply_T(T_R_A, P), cnt
+    return P, cnt
+
+
+def _segments_A(plans, r: float, top_A_m: float) -> list:
+    """Per touch program of ``plans`` (n >= 1 touches each), (a, b) (s,3): the ends, in A, of the
+    segments :func:`_paths_of` gives a measurement of that program (rows in the same order),
+    computed in A from the program (the stylus-centre contacts ``w_A + r wn_A``, the starts
+    ``clearance_m`` out along ``wn_A``, the links of :func:`_link_points_A`) rather than brought
+    back from R: every measurement of a program has the same rows bit for bit, and a touch's
+    approach, or a link between the same two touches, the same row in every program (every value
+    is computed row by row). They differ from the R rows moved to A by rounding (1e-16 m, far
+    below :data:`sim.clearance.MARGIN_M`)."""
+    from .clearance import touch_polylines
+
+    n_t = np.array([pl.n for pl in plans])
+    t0 = np.cumsum(n_t) - n_t
+    Xn = np.concatenate([pl.w_A + r * pl.wn_A for pl in plans])
+    start = Xn + np.concatenate([pl.clearance_m * pl.wn_A for pl in plans])
+    has = np.ones(len(Xn), bool)
+    has[t0] = False  # (a program's first touch has no link)
+    feats = np.concatenate([np.asarray(pl.feature, dtype=object) for pl in plans])
+    levels = np.concatenate([np.asarray(pl.level) for pl in plans])
+    if len(Xn) > 1:  # the links of consecutive starts, those across two programs dropped
+        L, cnt = _link_points_A(start, feats, levels, top_A_m)
+        keep = has[1:]
+        L, cnt = L[np.repeat(keep, cnt)], cnt[keep]
+    else:
+        L, cnt = np.zeros((0, 3)), np.zeros(0, int)
+    P, n_pt, touch, _ = touch_polylines(start, Xn, has, L, cnt)
+    nxt = np.arange(1, len(P) + 1)
+    nxt[np.cumsum(n_pt) - 1] -= 1  # (a polyline's last point: its closing segment, to itself)
+    b = P[nxt]
+    # each program's polylines (its first touch's approach first) and their points
+    cut = np.r_[0, np.cumsum(n_pt)][np.r_[np.searchsorted(touch, t0), len(n_pt)]]
+    return [(P[cut[j]:cut[j + 1]], b[cut[j]:cut[j + 1]]) for j in range(len(plans))]
 
 
 def _paths_of(items, link_step_m, approach_step_m) -> list:
@@ -899,10 +949,9 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
 
     The paths of every measurement are sampled in one :func:`sim.clearance.flat_path_segments`
     and go through the broad phase together (:func:`sim.clearance.near_segments_many`): the
-    ball against the bar in A (one broad phase for every measurement: the certificates of the
-    measurement of the most touches clear the same moves of the others, :func:`_near_samples`),
-    the rest of each work zone in W. The work zones' ball models are shared
-    (:func:`share_ball_model`).
+    ball against the bar in A (one broad phase for every measurement, each distinct move bounded
+    once: :func:`_near_samples`), the rest of each work zone in W. The work zones' ball models
+    are shared (:func:`share_ball_model`).
     """
     r = float(stylus_r_m)
     ms = [(name, np.asarray(T_W_A, float), np.asarray(T_R_W, float), tuple(blocks), J_m, plan, float(finger_m))
@@ -912,6 +961,7 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     top = float(pts_A[:, 2].max()) + r
     z_bars = {}  # the bar's lowest point in W by placement
     overlaps = {}  # block_overlaps by placement and workholder
+    direct = {}  # per program (plan object): its direct links (_direct_links)
     bad, zones, T_R_As, paths = [], [], [], []
     for (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m), wz in zip(ms, each):
         T_R_A = T_R_W @ T_W_A
@@ -935,7 +985,11 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
             Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
             start = Xn + plan.clearance_m * apply_R(T_R_A, plan.wn_A)
             if plan.n > 1:
-                L, cnt = link_points(T_R_A, start, plan.feature, plan.level, top)
+                dl = direct.get(id(plan))  # (per program: its features compared once)
+                if dl is None:
+                    dl = direct[id(plan)] = _direct_links(plan.feature, plan.level)
+                L, cnt = _link_points_A(apply_T(inv_T(T_R_A), start), None, None, top, dl)
+                L = apply_T(T_R_A, L)  # (link_points' numbers, bit for bit)
             else:
                 L, cnt = np.zeros((0, 3)), np.zeros(0, int)
             paths.append((start, Xn, L, cnt))
@@ -990,54 +1044,84 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     broad phase cannot prove clear (:meth:`WorkZone.near_segments`, every measurement at once).
 
     Each measurement has two parts, the ball against the bar (its broad phase in A, one per bar
-    and ball) and the rest of its work zone (in W, one per zone and orientation). Measurements
-    whose part has the same broad phase, the same touch program (plan object) and the same
-    segments' steps, and for the rest the same placement (``T_W_A``), have the same segments in
-    that broad phase's frame (A or W: both fixed to the bar) to rounding (1e-16 m, far below
-    :data:`sim.clearance.MARGIN_M`), the same features and the same sample numbers: the part is
-    bounded once and its near samples serve them all (the 5-axis plan: 17 ball parts, 9
-    programs, 13 parts: at another table pose a program's segment of exactly 6 steps may round
-    to 7, and the samples differ). Two passes of :func:`sim.clearance.near_segments_many` over the distinct parts:
-    first, per broad phase, the part of the most samples; then every other part. A broad
-    phase's frame moves with the bar (A) or the table (W), so measurements of the same touches
-    have the same moves there: the first pass's certificates clear what they share (the 5-axis
-    plan: the second pass's 12 ball parts hold 12,876 segments, 7,872 once the polylines'
-    closing points are left to the segments before them, of which 304 are left to bound), the
-    rest is bounded."""
-    from .clearance import Segments, near_segments_many
+    and ball) and the rest of its work zone (in W, one per zone and orientation). A part's
+    segments are computed in its broad phase's frame from the program in A (:func:`_segments_A`;
+    in W through the placement ``T_W_A``), so the measurements of a program, and the touches and
+    links programs share, have equal rows there bit for bit. Each broad phase bounds each distinct
+    row once (:func:`sim.clearance.unique_segments`; the 5-axis plan's ball: 18,364 rows, 1,616
+    distinct), every broad phase in one :func:`sim.clearance.near_segments_many` pass that says
+    which rows stay open (no certificate of an earlier call, no swept bound proves them clear).
+    Only those are then bounded sample by sample, measurement by measurement, with the
+    measurement's own samples (its segments' steps, in R, moved to the frame: the points MuJoCo
+    would judge), in a second pass over those rows alone. A sample is skipped only when its row's
+    segment, or the sample itself, is proven farther than :data:`sim.clearance.MARGIN_M` from every
+    pair: the rows in A or W and the R samples moved there differ by rounding (1e-16 m)."""
+    from .clearance import Segments, near_segments_many, unique_segments
 
-    parts, best, where, of, fids = [], {}, {}, [], {}
+    # (a, b) in A per program (plan object; one bar and ball radius for all: check_measurements')
+    plans = list({id(ms[i][5]): ms[i][5] for i in live}.values())
+    r = zones[live[0]]._r
+    segs_A = dict(zip(map(id, plans), _segments_A(plans, r, float(artefact_points(zones[live[0]]._args[0])[:, 2].max())
+                                                    + r)))
+    rows_F = {}  # per (broad phase, program, placement): (a, b, allowed feature ids) in its frame
+    fids = {}  # per (feature numbering, program): each row's allowed feature
+    bases = {}  # per broad phase (its certificates): [a Clearance, [its part keys]]
+    keys = []  # per live measurement: its two part keys (ball, rest)
     for i in live:
         wz = zones[i]
         wz.set_table(ms[i][2])
         sg, _, allow, is_app = sgs[i]
-        plan = ms[i][5]
-        for clr, place in ((wz.ball_clearance(), b""), (wz.clearance(part="rest"), ms[i][1].tobytes())):
-            # (a part the same as one already listed: the same broad phase, program, placement, steps)
-            key = (id(clr._certs), id(plan), place, len(sg.k))
-            j = where.get(key)
-            if j is not None and np.array_equal(parts[j][1].k, sg.k):
-                of.append(j)
+        plan, T_W_A = ms[i][5], ms[i][1]
+        assert len(segs_A[id(plan)][0]) == len(sg.a)  # (the same polylines, row for row)
+        own = []
+        for clr, place in ((wz.ball_clearance(), None), (wz.clearance(part="rest"), T_W_A)):
+            key = (id(clr._certs), id(plan), b"" if place is None else place.tobytes())
+            own.append(key)
+            if key in rows_F:
                 continue
-            T = clr.T_F_R
-            R, t = T[:3, :3].T, T[:3, 3]
-            ids = np.full(len(allow), -2)
+            a, b = segs_A[id(plan)]
+            if place is not None:
+                R, t = place[:3, :3].T, place[:3, 3]
+                a, b = a @ R + t, b @ R + t
             fk = (id(clr._fid), id(plan))  # (the program's features as the broad phase's numbers: once each)
             if fk not in fids:
-                fids[fk] = clr.feature_ids(plan.feature)
-            ids[is_app] = fids[fk]
-            where.setdefault(key, len(parts))
-            of.append(len(parts))
-            parts.append((clr, Segments(sg.a @ R + t, sg.b @ R + t, sg.k, sg.m, sg.first, sg.path), ids[sg.path]))
-            j = best.get(id(clr._certs))  # (moved copies of one broad phase share its certificates)
-            if j is None or sg.n_samples > parts[j][1].n_samples:
-                best[id(clr._certs)] = len(parts) - 1
-    first = sorted(best.values())
-    later = sorted(set(range(len(parts))) - set(first))
-    res = dict(zip(first, near_segments_many([parts[k] for k in first])))
-    res.update(zip(later, near_segments_many([parts[k] for k in later]) if later else ()))
-    out = {}
-    for n, i in enumerate(live):  # (the ball's part of(2n), the rest's of(2n + 1))
-        a, b = res[of[2 * n]], res[of[2 * n + 1]]
-        out[i] = np.union1d(a, b) if a.size and b.size else (a if a.size else b)
+                ids = np.full(len(allow), -2)
+                ids[is_app] = clr.feature_ids(plan.feature)
+                fids[fk] = ids[sg.path]
+            rows_F[key] = (a, b, fids[fk])
+            bases.setdefault(key[0], [clr, []])[1].append(key)
+        keys.append(own)
+    # each broad phase's distinct rows, all bounded in one pass: which stay open
+    parts, inv = [], {}
+    for clr, ks in bases.values():
+        a = np.concatenate([rows_F[k][0] for k in ks])
+        b = np.concatenate([rows_F[k][1] for k in ks])
+        f = np.concatenate([rows_F[k][2] for k in ks])
+        if len(ks) > 1:
+            first, back = unique_segments(a, b, f)
+            a, b, f = a[first], b[first], f[first]
+        else:  # (one program's rows: few repeat)
+            back = np.arange(len(f))
+        n = len(f)
+        parts.append((clr, Segments(a, b, np.ones(n, int), np.ones(n, int), np.arange(n), np.zeros(n, int)), f))
+        off = np.cumsum([0] + [len(rows_F[k][0]) for k in ks])
+        for j, k in enumerate(ks):
+            inv[k] = (len(parts) - 1, back[off[j]:off[j + 1]])
+    is_open = near_segments_many(parts, samples=False)
+    # the open rows of each measurement, sample by sample (its own samples), in one pass
+    sub, who = [], []
+    for n, i in enumerate(live):
+        sg = sgs[i][0]
+        for key in keys[n]:
+            p, back = inv[key]
+            rows = np.flatnonzero(is_open[p][back])
+            if rows.size:
+                a, b, f = rows_F[key]
+                sub.append((parts[p][0], Segments(a[rows], b[rows], sg.k[rows], sg.m[rows], sg.first[rows],
+                                                  sg.path[rows]), f[rows]))
+                who.append(i)
+    out = {i: np.zeros(0, int) for i in live}
+    for i, x in zip(who, near_segments_many(sub) if sub else ()):
+        if x.size:
+            out[i] = np.union1d(out[i], x) if out[i].size else x
     return out

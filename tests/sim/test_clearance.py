@@ -1112,3 +1112,50 @@ def test_a_pillar_touched_only_inside_a_link_move_by_the_extension_is_judged_as_
     assert near.ok == (gap_um > 0)
     if gap_um < 0:
         assert near.collisions == ref[0].collisions and "extension hits fix_pillar" in near.collisions[0]
+
+
+@pytest.mark.parametrize("collide", [False, True])
+def test_unique_segments_are_numpys_unique_rows(monkeypatch, collide):
+    """Known answer: the distinct rows (a, b, allowed feature) of segments, bit for bit, are those
+    np.unique finds (first occurrences, in their order), -0.0 apart from 0.0 (another row), rows
+    of round numbers (whose words end in zeros) and of random ones. With every hash equal
+    (collide: the weights zeroed) the rows are told apart by comparison alone, with the same
+    answer: a hash match is never taken for equality."""
+    from sim import clearance
+    from sim.clearance import unique_segments
+
+    if collide:
+        monkeypatch.setattr(clearance, "_HASH", np.zeros_like(clearance._HASH))
+    rng = np.random.default_rng(3)
+    a = rng.integers(0, 3, (3000, 3)).astype(float)
+    b = np.where(rng.random((3000, 3)) < 0.5, rng.normal(size=(3000, 3)).round(1), 0.0)
+    f = rng.integers(-2, 2, 3000)
+    a[::7, 0] = -0.0  # (-0.0 == 0.0, other bits: another row)
+    first, inv = unique_segments(a, b, f)
+    rows = np.column_stack([a, b, f])
+    bits = np.ascontiguousarray(rows).view(np.uint64)
+    _, i0 = np.unique(bits, axis=0, return_index=True)
+    assert np.array_equal(first, np.sort(i0))
+    assert np.array_equal(bits[first][inv], bits)
+    assert 100 < len(first) < 3000
+    assert np.array_equal(unique_segments(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int))[0], [])
+
+
+def test_open_rows_are_the_segments_that_may_come_near():
+    """Known answer of near_segments_many(samples=False): the ball moving 0.3 mm above the box (clear:
+    0.2 mm beyond the margin) is not open, moving 0.05 mm above (within the 0.1 mm margin) and sinking
+    1 mm into it are, and so is the closing point after the sinking move (left to its segment, which
+    is open) but not the one after the clear move; the samples of the open rows are the near samples
+    near_segments_many(samples=True) gives. Fails if open rows are taken from the samples (a clear
+    sampling of an open segment) or the closing points are left clear."""
+    from sim.clearance import near_segments_many, path_segments
+
+    polys = [np.array([[-0.02, 0, R + z0], [0.02, 0, R + z1]]) for z0, z1 in
+             ((0.3e-3, 0.3e-3), (0.05e-3, 0.05e-3), (5e-3, -1e-3))]
+    sg = path_segments(polys, [1e-3] * 3, joints=False)
+    clr = _sphere_over_box(0.0)
+    parts = [(clr, sg, np.full(len(sg.a), -2))]
+    got = near_segments_many(parts, samples=False)[0]
+    assert got.tolist() == [False, False, True, True, True, True]  # (segment, closing point) x 3
+    near = near_segments_many(parts)[0]
+    assert np.array_equal(np.unique(sg.segment_of(near)), np.flatnonzero(got))
