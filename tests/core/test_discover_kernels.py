@@ -905,3 +905,37 @@ def test_planar_grid_choice_compares_a_kept_block_design_with_a_dense_tie(monkey
     monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 8 * t.n * (p[0] + p[1]) // 2)  # 30 mm blocks, 55 dense
     mixed = Bm.planar(t, grid_steps_mm=steps)
     assert mixed.info["grid_step_mm"] == dense.info["grid_step_mm"]
+
+
+def test_scores_made_a_block_of_rows_at_a_time_are_the_whole_table_s_to_rounding(monkeypatch):
+    """A ripple or bump table too big to keep is made afresh a block of rows at a time (SCORE_ROWS_BYTES): with
+    blocks forced to one row, every score on all rows and on a subset equals the kept table's to 1e-12 relative
+    of the largest score, the best trial is the same (known answers: a 7 mm ripple, a bump at 60 mm), and the
+    denominators kept for a set of rows give the same scores again, bit for bit. One block of rows: bit for bit."""
+    from core import causes as C
+
+    rng = np.random.default_rng(21)
+    n = 500
+    x, y = np.sort(rng.uniform(0, 0.2, n)), rng.uniform(0, 0.2, n)
+    bl = _plane(x, y, rng)
+    ripple = -bl.data.nx * 1e-6 * np.sin(2 * np.pi * x / 7e-3 + 0.4)
+    bump = -bl.data.nx * 2e-6 * C._hann((x - 0.06) / 0.004)
+    rows, sub = np.arange(n), np.sort(rng.choice(n, 350, replace=False))
+    for make, sig, pick in ((lambda: C.periodic_scans(bl)[0][0], ripple, "period_m"),
+                            (lambda: C.defect_scans(bl)[0][0], bump, "centre_m")):
+        r = sig + rng.normal(0, 1e-7, n)
+        kept = make()
+        s_all, s_sub = kept.score(r, rows), kept.score(r[sub], sub)
+        monkeypatch.setattr(C, "TABLE_BYTES", 0)
+        one = make()  # one block of rows (SCORE_ROWS_BYTES whole): the whole products
+        assert np.array_equal(one.score(r, rows), s_all) and np.array_equal(one.score(r[sub], sub), s_sub)
+        monkeypatch.setattr(C, "SCORE_ROWS_BYTES", 1)
+        lazy = make()
+        a_all, a_sub = lazy.score(r, rows), lazy.score(r[sub], sub)
+        assert np.max(np.abs(a_all - s_all)) <= 1e-12 * np.max(s_all) and not np.array_equal(a_all, s_all)
+        assert np.max(np.abs(a_sub - s_sub)) <= 1e-12 * np.max(s_sub)
+        assert np.argmax(a_all) == np.argmax(s_all) and np.argmax(a_sub) == np.argmax(s_sub)
+        assert np.array_equal(lazy.score(r, rows), a_all)  # (its kept denominators: the same numbers)
+        best = kept.infos[int(np.argmax(s_all))][pick]
+        assert abs(best - (7e-3 if pick == "period_m" else 0.06)) < (2e-4 if pick == "period_m" else 2e-3)
+        monkeypatch.undo()
