@@ -939,3 +939,38 @@ def test_scores_made_a_block_of_rows_at_a_time_are_the_whole_table_s_to_rounding
         best = kept.infos[int(np.argmax(s_all))][pick]
         assert abs(best - (7e-3 if pick == "period_m" else 0.06)) < (2e-4 if pick == "period_m" else 2e-3)
         monkeypatch.undo()
+
+
+def test_long_log_trials_tested_in_groups_are_the_whole_batch_bit_for_bit(monkeypatch):
+    """A long log's shortlisted dense trials (the basis a core.lsq.Basis) are built and tested a group at a time
+    (TRIALS_BLOCK_BYTES): forced to one trial a group, every sum of squares, dimension, F and p-value equals the
+    one batch's bit for bit, on every row and on a subset; known answer: the 7 mm ripple's trial is the best; an
+    array basis (a short log) takes the one batch whatever the groups' size."""
+    from types import SimpleNamespace
+
+    from core import causes as C
+    from core import discover as Dc
+    from core.lsq import BlockDesign
+
+    rng = np.random.default_rng(23)
+    n, g = 600, 40
+    x, y = np.sort(rng.uniform(0, 0.2, n)), rng.uniform(0, 0.2, n)
+    bl = _plane(x, y, rng)
+    sc = C.periodic_scans(bl)[0][0]
+    ids = rng.integers(0, g, n)
+    A = BlockDesign(ids, rng.normal(size=(n, 3)), np.arange(g), np.arange(g, g + 3))
+    obs = -bl.data.nx * 1e-6 * np.sin(2 * np.pi * x / 7e-3 + 0.4) + rng.normal(0, 1e-7, n)
+    P = np.array([i["period_m"] for i in sc.infos])
+    idx = np.concatenate([[int(np.argmin(np.abs(P - 7e-3)))], rng.choice(len(P), 7, replace=False)])
+    for rows in (np.arange(n), np.sort(rng.choice(n, 450, replace=False))):
+        Q = A[rows].basis()
+        Qd = Q.toarray()
+        r = obs[rows] - Qd @ (Qd.T @ obs[rows])
+        for basis in (Q, Qd):
+            st = SimpleNamespace(Q=basis, rows=rows, r=r, rss=float(r @ r), dof=len(rows) - Qd.shape[1])
+            whole = Dc._test_trials(sc, idx, st)
+            monkeypatch.setattr(Dc, "TRIALS_BLOCK_BYTES", 1)
+            parts = Dc._test_trials(sc, idx, st)
+            monkeypatch.undo()
+            assert all(np.array_equal(a, b) for a, b in zip(whole, parts)) and len(whole[0]) == 8
+            assert np.argmax(whole[0]) == 0 and whole[3][0] < 1e-6
