@@ -181,7 +181,21 @@ def _outer(modes: np.ndarray, funcs: np.ndarray) -> np.ndarray:
     return (modes[:, :, None] * funcs[:, None, :]).reshape(len(modes), -1)
 
 
-def _one(cols: np.ndarray, labels, info: dict, cov: str) -> Scan:
+#: A scan of one trial whose columns take more than this many bytes does not hold them: they are made again at
+#: each build (:func:`_one`). Every cause's scans are made once and held for the run; at 1e6 rows the bench's log's
+#: one-trial scans held 89 columns, 712 MB (the thermal drift's eleven layouts 56 of them).
+ONE_SCAN_KEEP_BYTES = 16 << 20
+
+
+def _one(cols, labels, info: dict, cov: str) -> Scan:
+    """A scan of one trial, its columns ``cols`` (n, k), or a callable making them: made once here and held while
+    at most :data:`ONE_SCAN_KEEP_BYTES`, else made again (the same operations: the same numbers) at each build."""
+    if callable(cols):
+        make = cols
+        cols = make()
+        if cols.nbytes > ONE_SCAN_KEEP_BYTES:
+            del cols
+            return Scan(tuple(labels), (info,), cov, lambda idx: make()[None][np.asarray(idx)])
     arr = cols[None]
     return Scan(tuple(labels), (info,), cov, lambda idx: arr[np.asarray(idx)])
 
@@ -336,12 +350,13 @@ def drift_scans(bl):
     scans = []
     for deg in (1, 2, 3):
         labels = [f"{m}_P{j}" for m in _DRIFT_MODES for j in range(1, deg + 1)]
-        scans.append(_one(drift_rebuild(bl, {"degree": deg})[0], labels, {"degree": deg}, "time"))
+        scans.append(_one(lambda deg=deg: drift_rebuild(bl, {"degree": deg})[0], labels, {"degree": deg}, "time"))
     span = float(np.ptp(d.tau)) * d.span_s
     if span > 0:
         for f in DRIFT_TAU_FRACTIONS:
             info = {"form": "warm-up", "tau_s": float(f * d.span_s)}
-            scans.append(_one(drift_rebuild(bl, info)[0], [f"{m}_exp" for m in _DRIFT_MODES], info, "time"))
+            scans.append(_one(lambda info=info: drift_rebuild(bl, info)[0], [f"{m}_exp" for m in _DRIFT_MODES], info,
+                              "time"))
     # the polynomials' three degrees, and the warm-ups' time constants over a factor 10 counted as
     # independent hypotheses every factor 1.5 (neighbouring constants' columns correlate; warm_up_scans')
     return scans, 3.0 + (float(np.log(10) / np.log(1.5)) if span > 0 else 0.0)
@@ -394,7 +409,8 @@ def c_drift_scans(bl):
     s = 2 * d.t_in - 1
     scans = []
     for deg in (1, 2):
-        scans.append(_one(_outer(rot[:, None], _legendre(s, deg)), [f"ECC_in_setup_P{j}" for j in range(1, deg + 1)],
+        scans.append(_one(lambda deg=deg: _outer(rot[:, None], _legendre(s, deg)),
+                          [f"ECC_in_setup_P{j}" for j in range(1, deg + 1)],
                           {"form": "after each indexing", "degree": deg}, "time_in_setup"))
     su = np.unique(d.touches.setup)
     if su.size >= 2:
@@ -411,7 +427,7 @@ def c_drift_scans(bl):
                           "time_in_setup", lambda idx: per_setup()[np.asarray(idx)], build_sparse=per_setup_sparse))
     u = 2 * d.tau - 1
     for deg in (1, 2, 3):
-        scans.append(_one(_outer(rot[:, None], _legendre(u, deg)), [f"ECC_P{j}" for j in range(1, deg + 1)],
+        scans.append(_one(lambda deg=deg: _outer(rot[:, None], _legendre(u, deg)), [f"ECC_P{j}" for j in range(1, deg + 1)],
                           {"form": "over the campaign", "degree": deg}, "time"))
     return scans, float(len(scans))
 
@@ -574,7 +590,7 @@ def lobing_scans(bl):
     phi = d.azimuth
     if np.unique(np.round(phi, 4)).size < 3:
         return [], 1.0
-    return [_one(common_lobing(bl), [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")], {},
+    return [_one(lambda: common_lobing(bl), [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")], {},
                  "approach_azimuth")], 1.0
 
 
@@ -1516,9 +1532,11 @@ def reversal_scans(bl):
     it moves: ``E_X = -sign(d_x) B_x / 2``. Parameters: ``B_x``, ``B_y`` (um).
     """
     d = bl.data
-    dR = d.touches.d_R
-    s = np.where(np.abs(dR) > 1e-9, np.sign(dR), 0.0)
-    cols = np.column_stack([-d.nx * s[:, 0] / 2, -d.ny * s[:, 1] / 2])
+
+    def cols():
+        dR = d.touches.d_R
+        s = np.where(np.abs(dR) > 1e-9, np.sign(dR), 0.0)
+        return np.column_stack([-d.nx * s[:, 0] / 2, -d.ny * s[:, 1] / 2])
     return [_one(cols, ["x_lost_motion", "y_lost_motion"], {}, "approach_azimuth")], 1.0
 
 
@@ -1542,8 +1560,10 @@ def nonrigid_scans(bl):
     """
     d = bl.data
     xs, ys = d.xs, d.ys
-    cols = np.column_stack([-d.nx * xs * ys, -d.ny * xs * ys, -d.nx * xs * xs * ys, -d.ny * xs * ys * ys,
-                            -d.nx * xs * ys * ys, -d.ny * xs * xs * ys])
+
+    def cols():
+        return np.column_stack([-d.nx * xs * ys, -d.ny * xs * ys, -d.nx * xs * xs * ys, -d.ny * xs * ys * ys,
+                                -d.nx * xs * ys * ys, -d.ny * xs * xs * ys])
     return [_one(cols, _NONRIGID, {}, "xy")], 1.0
 
 

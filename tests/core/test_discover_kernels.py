@@ -974,3 +974,29 @@ def test_long_log_trials_tested_in_groups_are_the_whole_batch_bit_for_bit(monkey
             monkeypatch.undo()
             assert all(np.array_equal(a, b) for a, b in zip(whole, parts)) and len(whole[0]) == 8
             assert np.argmax(whole[0]) == 0 and whole[3][0] < 1e-6
+
+
+def test_one_trial_scans_made_again_at_each_build_are_the_held_ones_bit_for_bit(monkeypatch):
+    """Every planar cause's scans of one trial hold their columns while small; above ONE_SCAN_KEEP_BYTES (forced
+    to 0) they hold no rows-long array and each build makes the same columns again, bit for bit (the thermal
+    drift's polynomials and warm-ups, c_drift's, the lobes', the reversal's, the non-rigid terms)."""
+    from core import baseline as Bm
+    from core import causes as C
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    bl = Bm.planar(from_log(large_log(40, 12, np.random.default_rng(4))))
+    held = {c.name: c.scans(bl)[0] for c in C.for_kind(bl.kind)}
+    monkeypatch.setattr(C, "ONE_SCAN_KEEP_BYTES", 0)
+    again = {c.name: c.scans(bl)[0] for c in C.for_kind(bl.kind)}
+    made = set()
+    for name, scans in held.items():
+        assert [s.infos for s in scans] == [s.infos for s in again[name]]
+        for a, b in zip(scans, again[name]):
+            x, y = a.build([0]), b.build([0])
+            assert np.array_equal(x, y) and x.shape[:2] == (1, bl.n)
+            cells = [c.cell_contents for c in (b.build.__closure__ or ())]
+            if not any(isinstance(v, np.ndarray) and v.ndim >= 2 for v in cells) and len(a.infos) == 1 and \
+                    any(isinstance(v, np.ndarray) and v.ndim == 3 for v in (c.cell_contents for c in a.build.__closure__)):
+                made.add(name)
+    assert {"thermal_drift", "c_drift", "probe_lobing", "reversal", "nonrigid"} <= made
