@@ -91,7 +91,7 @@ from typing import Callable
 
 import numpy as np
 
-from .diagnosis import TABLE_BYTES, phasor_blocks, scan_grid, screen_phasors
+from .diagnosis import TABLE_BYTES, scan_grid, screen_phasors
 from .units import MM, UM, URAD
 
 
@@ -181,7 +181,21 @@ def _outer(modes: np.ndarray, funcs: np.ndarray) -> np.ndarray:
     return (modes[:, :, None] * funcs[:, None, :]).reshape(len(modes), -1)
 
 
-def _one(cols: np.ndarray, labels, info: dict, cov: str) -> Scan:
+#: A scan of one trial whose columns take more than this many bytes does not hold them: they are made again at
+#: each build (:func:`_one`). Every cause's scans are made once and held for the run; at 1e6 rows the bench's log's
+#: one-trial scans held 89 columns, 712 MB (the thermal drift's eleven layouts 56 of them).
+ONE_SCAN_KEEP_BYTES = 16 << 20
+
+
+def _one(cols, labels, info: dict, cov: str) -> Scan:
+    """A scan of one trial, its columns ``cols`` (n, k), or a callable making them: made once here and held while
+    at most :data:`ONE_SCAN_KEEP_BYTES`, else made again (the same operations: the same numbers) at each build."""
+    if callable(cols):
+        make = cols
+        cols = make()
+        if cols.nbytes > ONE_SCAN_KEEP_BYTES:
+            del cols
+            return Scan(tuple(labels), (info,), cov, lambda idx: make()[None][np.asarray(idx)])
     arr = cols[None]
     return Scan(tuple(labels), (info,), cov, lambda idx: arr[np.asarray(idx)])
 
@@ -197,6 +211,11 @@ def _trial_scores(F, F2, r, W, den=None) -> np.ndarray:
     return np.sum(num / np.maximum(den, 1e-300), axis=0)
 
 
+#: Bytes of one block of rows of a score's functions made afresh (a table too big to keep, :func:`_matmul_score`):
+#: the rows of every trial's functions are made and used this many bytes at a time.
+SCORE_ROWS_BYTES = 16 << 20
+
+
 def _matmul_score(blocks: Callable, weights: np.ndarray, keep: bool = True):
     """Score of trials whose columns are ``weights[:, m] * F[:, t]``, ``F`` the functions of the trials (n, T).
 
@@ -206,6 +225,15 @@ def _matmul_score(blocks: Callable, weights: np.ndarray, keep: bool = True):
     ``keep``: the blocks computed once and kept (a small table: one block,
     the table itself); else computed afresh at each call, a block at a time,
     so memory stays at one block whatever the rows.
+
+    ``F_b`` may instead be a callable: ``F_b(idx)`` the block's functions on
+    the rows ``idx`` only (each row's values its own: bit for bit those rows
+    of the whole block). Made afresh at each call (``keep`` False), they are
+    then made a block of rows at a time (about :data:`SCORE_ROWS_BYTES`;
+    the whole block over a 1e6-row log was 512 MB for a ripple's 32
+    frequencies and gigabytes for a bump's centres) and the two products
+    summed over the blocks of rows: the same to rounding (the order of the
+    sums over rows changes; one block of rows: the whole product).
 
     The denominators ``|w_m F_t|^2`` depend on the rows, not on the
     residuals: they are computed once per set of rows (the engine scores
@@ -226,6 +254,13 @@ def _matmul_score(blocks: Callable, weights: np.ndarray, keep: bool = True):
         new = []
         out = []
         for b, (F, F2, combine) in enumerate(kept if keep else ((F, None, c) for F, c in blocks())):
+            if callable(F):  # made a block of rows at a time
+                num, den = _row_block_products(F, r, W, np.asarray(rows), have is None)
+                if have is None:
+                    new.append(den)
+                d = have[b] if have is not None else den
+                out.append(combine(np.sum(num ** 2 / np.maximum(d, 1e-300), axis=0)))
+                continue
             if not every:  # (every row: the table itself, not a copy of it)
                 F = F[rows]
             if have is None:
@@ -237,6 +272,41 @@ def _matmul_score(blocks: Callable, weights: np.ndarray, keep: bool = True):
             dens.pop(next(iter(dens)))
         return out[0] if len(out) == 1 else np.concatenate(out)
     return score
+
+
+def _row_block_products(make: Callable, r: np.ndarray, W: np.ndarray, rows: np.ndarray, with_den: bool):
+    """``((r W)^T F, (W^2)^T F^2 or None)`` of the functions ``F = make(rows)`` a block of rows at a time
+    (:data:`SCORE_ROWS_BYTES` of ``F``), each block's products added into the sums in place (the first block's
+    products the sums themselves: one block gives the whole products bit for bit)."""
+    num = den = None
+    step = None
+    a = 0
+    while a < len(rows):
+        if step is None:  # (the block's width from its first row)
+            F = make(rows[:1])
+            step = max(1, SCORE_ROWS_BYTES // max(8 * F.shape[1], 1))
+        sl = slice(a, a + step)
+        F = make(rows[sl])
+        Wc = W[sl]
+        p = (r[sl, None] * Wc).T @ F
+        if num is None:
+            num = p
+        else:
+            num += p
+        if with_den:
+            F **= 2
+            q = (Wc ** 2).T @ F
+            if den is None:
+                den = q
+            else:
+                den += q
+        del F
+        a += step
+    if num is None:  # no rows
+        F = make(rows)
+        num = (r[:, None] * W).T @ F
+        den = (W ** 2).T @ (F ** 2) if with_den else None
+    return num, den
 
 
 def _pv(vals) -> float:
@@ -280,12 +350,13 @@ def drift_scans(bl):
     scans = []
     for deg in (1, 2, 3):
         labels = [f"{m}_P{j}" for m in _DRIFT_MODES for j in range(1, deg + 1)]
-        scans.append(_one(drift_rebuild(bl, {"degree": deg})[0], labels, {"degree": deg}, "time"))
+        scans.append(_one(lambda deg=deg: drift_rebuild(bl, {"degree": deg})[0], labels, {"degree": deg}, "time"))
     span = float(np.ptp(d.tau)) * d.span_s
     if span > 0:
         for f in DRIFT_TAU_FRACTIONS:
             info = {"form": "warm-up", "tau_s": float(f * d.span_s)}
-            scans.append(_one(drift_rebuild(bl, info)[0], [f"{m}_exp" for m in _DRIFT_MODES], info, "time"))
+            scans.append(_one(lambda info=info: drift_rebuild(bl, info)[0], [f"{m}_exp" for m in _DRIFT_MODES], info,
+                              "time"))
     # the polynomials' three degrees, and the warm-ups' time constants over a factor 10 counted as
     # independent hypotheses every factor 1.5 (neighbouring constants' columns correlate; warm_up_scans')
     return scans, 3.0 + (float(np.log(10) / np.log(1.5)) if span > 0 else 0.0)
@@ -338,7 +409,8 @@ def c_drift_scans(bl):
     s = 2 * d.t_in - 1
     scans = []
     for deg in (1, 2):
-        scans.append(_one(_outer(rot[:, None], _legendre(s, deg)), [f"ECC_in_setup_P{j}" for j in range(1, deg + 1)],
+        scans.append(_one(lambda deg=deg: _outer(rot[:, None], _legendre(s, deg)),
+                          [f"ECC_in_setup_P{j}" for j in range(1, deg + 1)],
                           {"form": "after each indexing", "degree": deg}, "time_in_setup"))
     su = np.unique(d.touches.setup)
     if su.size >= 2:
@@ -355,7 +427,7 @@ def c_drift_scans(bl):
                           "time_in_setup", lambda idx: per_setup()[np.asarray(idx)], build_sparse=per_setup_sparse))
     u = 2 * d.tau - 1
     for deg in (1, 2, 3):
-        scans.append(_one(_outer(rot[:, None], _legendre(u, deg)), [f"ECC_P{j}" for j in range(1, deg + 1)],
+        scans.append(_one(lambda deg=deg: _outer(rot[:, None], _legendre(u, deg)), [f"ECC_P{j}" for j in range(1, deg + 1)],
                           {"form": "over the campaign", "degree": deg}, "time"))
     return scans, float(len(scans))
 
@@ -426,6 +498,11 @@ def _periodic_cols(d, axis: int, P):
     return np.stack([-d.nx * s, -d.nx * c, -d.ny * s, -d.ny * c], axis=-1)
 
 
+def _sin_cos(Z: np.ndarray) -> np.ndarray:
+    """``[Z.imag, Z.real]`` side by side, (n, 2 F), for phasors ``Z`` (n, F)."""
+    return np.hstack([Z.imag, Z.real])
+
+
 def periodic_scans(bl):
     """Periodic axis error: a screw-pitch or scale ripple shorter than the error map's grid.
 
@@ -456,13 +533,18 @@ def periodic_scans(bl):
         # searches one of its steps either side of the best trial
         step = {"scan_step_per_m": float(f[1] - f[0])} if coarse and len(f) > 1 else {}
         # the score's sines and cosines (it ranks trials, the columns tested are exact), sin and cos of a
-        # period one trial; the table kept whole while small, else a block of frequencies at a time
-        # (bit for bit: screen_phasors)
+        # period one trial; the table kept whole while small, else every frequency made afresh a block of rows at
+        # a time (each row's phasors bit for bit the table's: screen_phasors; the products over the rows summed
+        # block by block, the same to rounding: _matmul_score). A block of 32 frequencies over every row was
+        # 512 MB at 1e6 rows, with its sines and cosines side by side and their squares four times that
         big = 32 * len(a) * len(f) > TABLE_BYTES  # (the table and its square, sine and cosine)
 
         def blocks(w=2 * np.pi * a, f=f, big=big):
-            for _, Z in phasor_blocks(w, f) if big else [(None, screen_phasors(w, f))]:
-                yield np.hstack([Z.imag, Z.real]), lambda s2, m=Z.shape[1]: s2[:m] + s2[m:]
+            if big:  # every frequency's sine and cosine a block of rows at a time (_matmul_score)
+                yield (lambda idx: _sin_cos(screen_phasors(w[idx], f))), lambda s2, m=len(f): s2[:m] + s2[m:]
+                return
+            Z = screen_phasors(w, f)
+            yield np.hstack([Z.imag, Z.real]), lambda s2, m=Z.shape[1]: s2[:m] + s2[m:]
 
         score = _matmul_score(blocks, np.column_stack([-d.nx, -d.ny]), keep=not big)
         scans.append(Scan((f"EX{ax}_sin", f"EX{ax}_cos", f"EY{ax}_sin", f"EY{ax}_cos"),
@@ -508,7 +590,7 @@ def lobing_scans(bl):
     phi = d.azimuth
     if np.unique(np.round(phi, 4)).size < 3:
         return [], 1.0
-    return [_one(common_lobing(bl), [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")], {},
+    return [_one(lambda: common_lobing(bl), [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")], {},
                  "approach_azimuth")], 1.0
 
 
@@ -1103,16 +1185,21 @@ def defect_scans(bl):
             tries += span / w
             ax = "XY"[axis]
 
-            def funcs(a=a, x0=x0, w=w):
+            big = 16 * len(a) * len(x0) > TABLE_BYTES
+
+            def funcs(a=a, x0=x0, w=w, big=big):
+                if big:  # made afresh a block of rows at a time (_matmul_score)
+                    yield (lambda idx: _hann((a[idx, None] - x0[None, :]) / w)), lambda s2: s2
+                    return
                 yield _hann((a[:, None] - x0[None, :]) / w), lambda s2: s2
 
-            # the bumps' table (rows x centres) and its square kept while small, else made afresh at each score
-            # (the same numbers bit for bit: _matmul_score); kept whole they were 16 bytes per row and centre
+            # the bumps' table (rows x centres) and its square kept while small, else made afresh at each score a
+            # block of rows at a time (the same to rounding: _matmul_score); kept whole they were 16 bytes per row
+            # and centre, made whole at each score 8 (about 550 MB on the bench's 1e5-row log)
             scans.append(Scan((f"E{ax}{ax}_bump",),
                               tuple({"axis": ax, "centre_m": float(c), "half_width_m": w} for c in x0), "xy"[axis],
                               lambda idx, axis=axis, x0=x0, w=w: _defect_cols(d, axis, x0[np.asarray(idx)], w),
-                              _matmul_score(funcs, (-d.nx, -d.ny)[axis][:, None],
-                                            keep=16 * len(a) * len(x0) <= TABLE_BYTES), path=True))
+                              _matmul_score(funcs, (-d.nx, -d.ny)[axis][:, None], keep=not big), path=True))
     return scans, tries
 
 
@@ -1445,9 +1532,11 @@ def reversal_scans(bl):
     it moves: ``E_X = -sign(d_x) B_x / 2``. Parameters: ``B_x``, ``B_y`` (um).
     """
     d = bl.data
-    dR = d.touches.d_R
-    s = np.where(np.abs(dR) > 1e-9, np.sign(dR), 0.0)
-    cols = np.column_stack([-d.nx * s[:, 0] / 2, -d.ny * s[:, 1] / 2])
+
+    def cols():
+        dR = d.touches.d_R
+        s = np.where(np.abs(dR) > 1e-9, np.sign(dR), 0.0)
+        return np.column_stack([-d.nx * s[:, 0] / 2, -d.ny * s[:, 1] / 2])
     return [_one(cols, ["x_lost_motion", "y_lost_motion"], {}, "approach_azimuth")], 1.0
 
 
@@ -1471,8 +1560,10 @@ def nonrigid_scans(bl):
     """
     d = bl.data
     xs, ys = d.xs, d.ys
-    cols = np.column_stack([-d.nx * xs * ys, -d.ny * xs * ys, -d.nx * xs * xs * ys, -d.ny * xs * ys * ys,
-                            -d.nx * xs * ys * ys, -d.ny * xs * xs * ys])
+
+    def cols():
+        return np.column_stack([-d.nx * xs * ys, -d.ny * xs * ys, -d.nx * xs * xs * ys, -d.ny * xs * ys * ys,
+                                -d.nx * xs * ys * ys, -d.ny * xs * xs * ys])
     return [_one(cols, _NONRIGID, {}, "xy")], 1.0
 
 

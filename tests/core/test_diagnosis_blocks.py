@@ -122,3 +122,64 @@ def test_sparse_covariates_leave_the_others_as_they_are():
                                                                        b.family)
         if a.name != "azimuth_by_setup":
             assert np.array_equal(np.asarray(a.values), np.asarray(b.values))
+
+
+def _old_new_basis(Q, B):
+    """new_basis as it was before it worked in place (session 13): the reference of the bit-for-bit tests."""
+    nrm = np.linalg.norm(B, axis=0)
+    P = B / nrm
+    P -= Q @ (Q.T @ P)
+    w, V = np.linalg.eigh(P.T @ P)
+    good = w > max(Dg.IN_SPAN, 1e-5) ** 2
+    return (P @ V[:, good]) / np.sqrt(w[good])
+
+
+def test_new_basis_in_place_is_the_copying_one_bit_for_bit():
+    """new_basis(inplace=True) writes the normalised, projected columns into the caller's B and returns the
+    copying path's basis bit for bit (an array Q and a block basis); a B it may not write (read-only, or with a
+    zero column) is left as it was, and a zero column is dropped as before."""
+    A, y, covs, modes, r = _case(seed=11)
+    Qb = A.basis()
+    for Q in (Qb, Qb.toarray()):
+        B = r.normal(size=(len(y), 5))
+        ref = _old_new_basis(Q, B)
+        kept = B.copy()
+        assert np.array_equal(Dg.new_basis(Q, B), ref) and np.array_equal(B, kept)  # the copying path
+        U = Dg.new_basis(Q, B, inplace=True)
+        assert np.array_equal(U, ref) and not np.array_equal(B, kept)  # the same basis, B overwritten
+        ro = kept.copy()
+        ro.flags.writeable = False
+        assert np.array_equal(Dg.new_basis(Q, ro, inplace=True), ref) and np.array_equal(ro, kept)
+        z = np.column_stack([kept, np.zeros(len(y))])
+        z0 = z.copy()
+        assert np.array_equal(Dg.new_basis(Q, z, inplace=True), ref) and np.array_equal(z, z0)
+
+
+def test_spectral_diagnosis_beside_a_block_basis_keeps_the_fitted_term_not_the_basis(monkeypatch):
+    """A long log's spectral diagnosis (Q a block basis) keeps its fitted term, not the sine's basis outside the
+    model (rows x 2 to 6, up to 46 MiB at 1e6 rows, held for the run): the term is U U^T r of the basis the
+    copying new_basis gives for the found sine's columns [M sin, M cos], bit for bit, and the test the same as
+    with that basis kept (an array Q: the basis is still kept there). Known answer: a sine of period 9 s."""
+    A, y, covs, modes, r = _case(seed=12)
+    n = len(y)
+    t = np.sort(r.uniform(0, 600, n))
+    y = y + 2.0 * np.sin(2 * np.pi * t / 9.0 + 0.4)
+    cov = Dg.Covariate("time_periodic", t, "spectral", 0, (0, 1), "time periodically", "time", (3.0, 200.0))
+    for rows in (np.arange(n), np.arange(0, n, 2)):
+        Q = A[rows].basis()
+        Qd = Q.toarray()
+        res = y[rows] - Qd @ (Qd.T @ y[rows])
+        dof = len(rows) - Qd.shape[1]
+        kw = dict(sigma_m=1.0, material_sigma=0.1, rows=rows, bases={cov.name: Dg.spectral_table(cov)})
+        lean, = Dg.diagnose(Q, res, dof, [cov], modes, **kw)
+        dense, = Dg.diagnose(Qd, res, dof, [cov], modes, **kw)
+        assert lean.basis is None and dense.basis is not None and abs(lean.test.period - 9.0) < 0.05
+        assert lean.p_value < 1e-6 and lean.test.period == dense.test.period and lean.k == dense.k == 4
+        f = Dg.spectral_table(cov).f
+        i = int(np.flatnonzero(1 / f == lean.test.period)[0])
+        s, c = np.sin(2 * np.pi * t * f[i])[rows], np.cos(2 * np.pi * t * f[i])[rows]
+        M = modes[:, [0, 1]][rows]  # (as _spectral takes them: C-contiguous, whose products round as its own)
+        U = _old_new_basis(Q, np.hstack([M * s[:, None], M * c[:, None]]))
+        assert np.array_equal(lean.fitted_um, (U @ (U.T @ res)) / Dg.UM)
+        ref = Dg.nested_f(U, res, float(res @ res), dof)
+        assert (lean.test.ss, lean.test.F, lean.test.k) == (ref.ss, ref.F, ref.k)

@@ -905,3 +905,98 @@ def test_planar_grid_choice_compares_a_kept_block_design_with_a_dense_tie(monkey
     monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 8 * t.n * (p[0] + p[1]) // 2)  # 30 mm blocks, 55 dense
     mixed = Bm.planar(t, grid_steps_mm=steps)
     assert mixed.info["grid_step_mm"] == dense.info["grid_step_mm"]
+
+
+def test_scores_made_a_block_of_rows_at_a_time_are_the_whole_table_s_to_rounding(monkeypatch):
+    """A ripple or bump table too big to keep is made afresh a block of rows at a time (SCORE_ROWS_BYTES): with
+    blocks forced to one row, every score on all rows and on a subset equals the kept table's to 1e-12 relative
+    of the largest score, the best trial is the same (known answers: a 7 mm ripple, a bump at 60 mm), and the
+    denominators kept for a set of rows give the same scores again, bit for bit. One block of rows: bit for bit."""
+    from core import causes as C
+
+    rng = np.random.default_rng(21)
+    n = 500
+    x, y = np.sort(rng.uniform(0, 0.2, n)), rng.uniform(0, 0.2, n)
+    bl = _plane(x, y, rng)
+    ripple = -bl.data.nx * 1e-6 * np.sin(2 * np.pi * x / 7e-3 + 0.4)
+    bump = -bl.data.nx * 2e-6 * C._hann((x - 0.06) / 0.004)
+    rows, sub = np.arange(n), np.sort(rng.choice(n, 350, replace=False))
+    for make, sig, pick in ((lambda: C.periodic_scans(bl)[0][0], ripple, "period_m"),
+                            (lambda: C.defect_scans(bl)[0][0], bump, "centre_m")):
+        r = sig + rng.normal(0, 1e-7, n)
+        kept = make()
+        s_all, s_sub = kept.score(r, rows), kept.score(r[sub], sub)
+        monkeypatch.setattr(C, "TABLE_BYTES", 0)
+        one = make()  # one block of rows (SCORE_ROWS_BYTES whole): the whole products
+        assert np.array_equal(one.score(r, rows), s_all) and np.array_equal(one.score(r[sub], sub), s_sub)
+        monkeypatch.setattr(C, "SCORE_ROWS_BYTES", 1)
+        lazy = make()
+        a_all, a_sub = lazy.score(r, rows), lazy.score(r[sub], sub)
+        assert np.max(np.abs(a_all - s_all)) <= 1e-12 * np.max(s_all) and not np.array_equal(a_all, s_all)
+        assert np.max(np.abs(a_sub - s_sub)) <= 1e-12 * np.max(s_sub)
+        assert np.argmax(a_all) == np.argmax(s_all) and np.argmax(a_sub) == np.argmax(s_sub)
+        assert np.array_equal(lazy.score(r, rows), a_all)  # (its kept denominators: the same numbers)
+        best = kept.infos[int(np.argmax(s_all))][pick]
+        assert abs(best - (7e-3 if pick == "period_m" else 0.06)) < (2e-4 if pick == "period_m" else 2e-3)
+        monkeypatch.undo()
+
+
+def test_long_log_trials_tested_in_groups_are_the_whole_batch_bit_for_bit(monkeypatch):
+    """A long log's shortlisted dense trials (the basis a core.lsq.Basis) are built and tested a group at a time
+    (TRIALS_BLOCK_BYTES): forced to one trial a group, every sum of squares, dimension, F and p-value equals the
+    one batch's bit for bit, on every row and on a subset; known answer: the 7 mm ripple's trial is the best; an
+    array basis (a short log) takes the one batch whatever the groups' size."""
+    from types import SimpleNamespace
+
+    from core import causes as C
+    from core import discover as Dc
+    from core.lsq import BlockDesign
+
+    rng = np.random.default_rng(23)
+    n, g = 600, 40
+    x, y = np.sort(rng.uniform(0, 0.2, n)), rng.uniform(0, 0.2, n)
+    bl = _plane(x, y, rng)
+    sc = C.periodic_scans(bl)[0][0]
+    ids = rng.integers(0, g, n)
+    A = BlockDesign(ids, rng.normal(size=(n, 3)), np.arange(g), np.arange(g, g + 3))
+    obs = -bl.data.nx * 1e-6 * np.sin(2 * np.pi * x / 7e-3 + 0.4) + rng.normal(0, 1e-7, n)
+    P = np.array([i["period_m"] for i in sc.infos])
+    idx = np.concatenate([[int(np.argmin(np.abs(P - 7e-3)))], rng.choice(len(P), 7, replace=False)])
+    for rows in (np.arange(n), np.sort(rng.choice(n, 450, replace=False))):
+        Q = A[rows].basis()
+        Qd = Q.toarray()
+        r = obs[rows] - Qd @ (Qd.T @ obs[rows])
+        for basis in (Q, Qd):
+            st = SimpleNamespace(Q=basis, rows=rows, r=r, rss=float(r @ r), dof=len(rows) - Qd.shape[1])
+            whole = Dc._test_trials(sc, idx, st)
+            monkeypatch.setattr(Dc, "TRIALS_BLOCK_BYTES", 1)
+            parts = Dc._test_trials(sc, idx, st)
+            monkeypatch.undo()
+            assert all(np.array_equal(a, b) for a, b in zip(whole, parts)) and len(whole[0]) == 8
+            assert np.argmax(whole[0]) == 0 and whole[3][0] < 1e-6
+
+
+def test_one_trial_scans_made_again_at_each_build_are_the_held_ones_bit_for_bit(monkeypatch):
+    """Every planar cause's scans of one trial hold their columns while small; above ONE_SCAN_KEEP_BYTES (forced
+    to 0) they hold no rows-long array and each build makes the same columns again, bit for bit (the thermal
+    drift's polynomials and warm-ups, c_drift's, the lobes', the reversal's, the non-rigid terms)."""
+    from core import baseline as Bm
+    from core import causes as C
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    bl = Bm.planar(from_log(large_log(40, 12, np.random.default_rng(4))))
+    held = {c.name: c.scans(bl)[0] for c in C.for_kind(bl.kind)}
+    monkeypatch.setattr(C, "ONE_SCAN_KEEP_BYTES", 0)
+    again = {c.name: c.scans(bl)[0] for c in C.for_kind(bl.kind)}
+    made = set()
+    for name, scans in held.items():
+        assert [s.infos for s in scans] == [s.infos for s in again[name]]
+        for a, b in zip(scans, again[name]):
+            x, y = a.build([0]), b.build([0])
+            assert np.array_equal(x, y) and x.shape[:2] == (1, bl.n)
+            cells = [c.cell_contents for c in (b.build.__closure__ or ())]
+            if not any(isinstance(v, np.ndarray) and v.ndim >= 2 for v in cells) and len(a.infos) == 1 and \
+                    any(isinstance(v, np.ndarray) and v.ndim == 3 for v in (c.cell_contents for c in a.build.__closure__)):
+                made.add(name)
+    assert {"thermal_drift", "c_drift", "probe_lobing", "reversal", "nonrigid"} <= made
