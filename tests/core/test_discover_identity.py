@@ -70,15 +70,7 @@ positions' resolution): one leaf moved, the simulator's outlier 1002's
 refused by its support rule (one position carries 60 % of what it explains,
 1.7 effective positions); its finding stays ``outlier``. make.py's full
 rewrite moved nothing else beyond 1e-9 relative; those kept their stored
-values. Then for the defect's support counted only where its bump reaches
-(:func:`core.causes.defect_support`): that refusal's figures (95 %, 1.1
-effective positions), and gen_a nonrigid 2's secondary `unexplained`
-finding: local_scale_defect is refused at adoption by its support (64 %
-and 54 % at one position) and the finding's partly consistent cause (and
-the dropped-still-significant cause of the extended structure) is
-periodic_axis_error, dropped for a fixture slip, instead of
-local_scale_defect; its first finding stays nonrigid. Only those leaves
-took the new values.
+values.
 
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within
