@@ -70,8 +70,7 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   the evidence of a confined cause must spread over: named only when what
   it explains comes from two effective units or more, no one unit carrying
   more than half of it (:func:`defect_support`: positions along an axis;
-  the engine's ``_support``); a label below 0 marks a touch the cause does
-  not reach, whose share is no evidence of it;
+  the engine's ``_support``);
 - ``counter(baseline) -> (n, m)``, ``counter_scan(baseline) -> (T, n, k)``:
   a plainer explanation the cause must beat (a finer error map for a
   coupling; the best of T trials of a one-off rigid step of the part,
@@ -1132,19 +1131,10 @@ def defect_support(bl, info) -> np.ndarray:
     """(n,) the distinct positions along the bump's axis (to 1 um), as labels: the units its evidence must spread over.
 
     The touches of one target in one set-up share one position: a chip or
-    a burr there is one unit, however many times it is touched. Touches
-    outside the bump (``|x - x0| >= w``, where it is zero) are labelled -1:
-    what the fit explains there is the model's answer to the bump (its
-    column with the baseline's part taken out spreads over every touch),
-    not the axis seen at another place. Counted there, a bump centred
-    beside one chip passed as seen at 2.4 positions, the largest under it
-    carrying 42 %, the next two 13 mm either side of a 1.5 mm half-width
-    (gen_b outlier 1175: a -87 um bump named local_scale_defect on the
-    finer half-widths).
+    a burr there is one unit, however many times it is touched.
     """
     a = (bl.data.x, bl.data.y)["XY".index(info["axis"])]
-    lab = np.unique(np.round(a / 1e-6), return_inverse=True)[1]
-    return np.where(np.abs(a - info["centre_m"]) < info["half_width_m"], lab, -1)
+    return np.unique(np.round(a / 1e-6), return_inverse=True)[1]
 
 
 def _node_spline(v: np.ndarray, nodes: np.ndarray) -> np.ndarray:

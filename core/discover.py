@@ -2657,16 +2657,14 @@ def _support(bl, cause, info, st: _State, E: np.ndarray) -> dict:
     ``sum s_u / max s_u``: 1 when one unit carries it all, 2 when the
     largest carries half. Below :data:`MIN_SUPPORT` the cause is refused:
     what it explains is mostly one unit's, and dropping that unit would
-    leave less than half of it. Touches labelled below 0 (where the cause
-    does not reach) count for no unit. Returns the evidence, with
-    ``refused`` and ``reason``.
+    leave less than half of it. Returns the evidence, with ``refused`` and
+    ``reason``.
     """
     rows = st.rows
     U = new_basis(st.Q, E)
     f = U @ (U.T @ st.r)
     lab = np.asarray(cause.support(bl, info))[rows]
-    on = lab >= 0
-    s = np.bincount(lab[on], weights=(f * st.r)[on])
+    s = np.bincount(lab, weights=f * st.r)
     top = float(s.max()) if s.size else 0.0
     n_eff = float(s.sum()) / top if top > 0 else 0.0
     return {"refused": bool(n_eff < MIN_SUPPORT), "support_units": n_eff,
