@@ -63,6 +63,15 @@ the finding's confidence unchanged). make.py's full rewrite on this machine
 moved nothing else beyond REL/ABS (5,213 leaves within 1e-7 relative, three
 zero angles within ABS); those kept their stored values.
 
+Refreshed for the local scale defect's finer half-widths (issue 13, session
+14: :data:`core.causes.DEFECT_WIDTHS`, 0.4 grid steps halved down to the
+positions' resolution): one leaf moved, the simulator's outlier 1002's
+``rejected`` gains local_scale_defect, now significant on a narrow trial and
+refused by its support rule (one position carries 60 % of what it explains,
+1.7 effective positions); its finding stays ``outlier``. make.py's full
+rewrite moved nothing else beyond 1e-9 relative; those kept their stored
+values.
+
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within
 ``ABS`` of a number that is zero in the reference's own units).
