@@ -1248,7 +1248,7 @@ def smooth_error_map(bl) -> np.ndarray:
     step they cannot follow.
     """
     d = bl.data
-    grid = bl.info["design"].grid
+    grid = bl.info["grid"]
     c0 = d.c0_m if np.all(np.isfinite(d.c0_m)) else np.array([(d.x.max() + d.x.min()) / 2,
                                                                 (d.y.max() + d.y.min()) / 2])
     Fx = _node_spline(d.x, np.asarray(grid.x_m) + c0[0])
