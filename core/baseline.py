@@ -94,7 +94,8 @@ class Baseline:
         When not: the combinations the data cannot see.
     conventions : tuple of str
     info : dict
-        Kind-specific figures for the report (grid step ...).
+        Kind-specific figures for the report (grid step ...); a planar one also
+        its error map's ``grid`` (:class:`core.selfcal.Grid`, the smooth causes' knots).
     estimand_label : str
     whiten : (n, n) float or None
         When the rows' noise is correlated or of unequal size (the points of
@@ -644,7 +645,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         covariates=planar_covariates(data, sparse=isinstance(A, BlockDesign)), modes=planar_modes(data), mode_names=PLANAR_MODES,
         rows=np.asarray(t.row), data=data, identifiable=ident, why=why, conventions=tuple(conv),
         info={"grid_step_mm": st, "z_levels_mm": [v / MM for v in levels], "yaw": des.yaw,
-              "design": des}, qr=qr)
+              "grid": des.grid}, qr=qr)  # the grid, not the design: its sparse A (177 MiB at 1e6 rows) read by none
 
 
 def workpiece_geometry(t: Touches, c0_m: np.ndarray):

@@ -195,9 +195,19 @@ def _one(cols, labels, info: dict, cov: str) -> Scan:
         cols = make()
         if cols.nbytes > ONE_SCAN_KEEP_BYTES:
             del cols
-            return Scan(tuple(labels), (info,), cov, lambda idx: make()[None][np.asarray(idx)])
+            return Scan(tuple(labels), (info,), cov, lambda idx: _one_made(make(), idx))
     arr = cols[None]
     return Scan(tuple(labels), (info,), cov, lambda idx: arr[np.asarray(idx)])
+
+
+def _one_made(cols: np.ndarray, idx) -> np.ndarray:
+    """``cols[None][idx]`` for columns made afresh: the one trial taken once (``idx`` a single 0 or -1, C-ordered
+    columns) as a view of the fresh array, not copied (at 1e6 rows the thermal drift's degree-2 layout was a
+    second 61 MiB); any other ``idx`` indexed as before."""
+    idx = np.asarray(idx)
+    if idx.shape == (1,) and idx.dtype.kind in "iu" and idx[0] in (0, -1) and cols.flags.c_contiguous:
+        return cols[None]
+    return cols[None][idx]
 
 
 def _trial_scores(F, F2, r, W, den=None) -> np.ndarray:
@@ -1249,7 +1259,7 @@ def smooth_error_map(bl) -> np.ndarray:
     step they cannot follow.
     """
     d = bl.data
-    grid = bl.info["design"].grid
+    grid = bl.info["grid"]
     c0 = d.c0_m if np.all(np.isfinite(d.c0_m)) else np.array([(d.x.max() + d.x.min()) / 2,
                                                                 (d.y.max() + d.y.min()) / 2])
     Fx = _node_spline(d.x, np.asarray(grid.x_m) + c0[0])

@@ -959,6 +959,12 @@ def term_basis(cov: Covariate, modes: np.ndarray, rows=None) -> np.ndarray:
     return (M[:, :, None] * F[:, None, :]).reshape(len(F), -1)
 
 
+#: A figure draws a diagnosis's fitted term only below this adjusted p-value (the report's diagnosis panels). On a
+#: long log (:func:`diagnose` given a :class:`core.lsq.Basis`) a term at or above it is not kept: each is a rows-long
+#: array held for the run (the bench's 1e6-row log: 14 covariates, 8 MB each).
+FIGURE_P = 0.01
+
+
 @dataclass(frozen=True)
 class Diagnosis:
     """Residual structure along one covariate.
@@ -979,7 +985,8 @@ class Diagnosis:
     material : bool
         Explained RMS at least the materiality threshold (a fraction of the noise).
     fitted_um : (n,) float or None
-        The fitted smooth term at the rows tested, um (what a figure draws).
+        The fitted smooth term at the rows tested, um (what a figure draws);
+        None on a long log when ``p_value >= FIGURE_P`` (no figure draws it).
     test : NestedTest or None
         The unadjusted test behind the figures.
     basis : (n, k) float or None
@@ -1087,7 +1094,8 @@ def diagnose(Q: np.ndarray, r: np.ndarray, dof: int, covariates, modes: np.ndarr
         out.append(Diagnosis(cov.name, rms_um, float(pa), t.p_value, t.k,
                              f"residuals follow {words}: {rms_um:.2g} µm, {fmt_p(float(pa))}",
                              t.explained_rms_m >= material_sigma * sigma_m,
-                             fits[cov.name] if U is None else (U @ (U.T @ r)) / UM, t, U))
+                             (fits[cov.name] if pa < FIGURE_P else None) if U is None else (U @ (U.T @ r)) / UM,
+                             t, U))
     # ties (the same span outside the model) in the covariates' order, not the kernels' rounding
     return rank_with_ties(out, lambda d: (d.p_value, -d.explained_rms_um), lambda d: (d.test.ss, d.test.k), rss)
 

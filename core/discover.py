@@ -1683,7 +1683,6 @@ class Discovery:
             "rejected": list(self.rejected),
             "conventions": list(self.conventions),
         }
-        rep["baseline"].pop("design", None)
         return rep
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from core.diagnosis import FIGURE_P
 from core.units import MM, UM, URAD
 
 
@@ -68,7 +69,7 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
     ]
     panels = []
     for dg in d.diagnosis:
-        if dg.p_value >= 0.01 or dg.fitted_um is None or len(panels) >= 6:
+        if dg.p_value >= FIGURE_P or dg.fitted_um is None or len(panels) >= 6:
             continue
         cov = bl.covariate(_PLOT_AS.get(dg.covariate, dg.covariate))
         if cov is None:

@@ -47,6 +47,7 @@ def test_diagnose_beside_a_block_basis_is_the_dense_diagnosis(monkeypatch, rows_
     res = y[rows] - Qd @ (Qd.T @ y[rows])
     dof = len(rows) - Qd.shape[1]
     monkeypatch.setattr(Dg, "GRAM_CHUNK_ROWS", 64)
+    monkeypatch.setattr(Dg, "FIGURE_P", 2.0)  # every fitted term kept, to compare (test_long_log_keeps_...)
     lean = Dg.diagnose(Q, res, dof, covs, modes, sigma_m=1.0, material_sigma=0.1, rows=rows)
     dense = Dg.diagnose(Qd, res, dof, covs, modes, sigma_m=1.0, material_sigma=0.1, rows=rows)
     assert sorted(d.covariate for d in lean) == sorted(d.covariate for d in dense) and len(lean) == 4
@@ -62,6 +63,42 @@ def test_diagnose_beside_a_block_basis_is_the_dense_diagnosis(monkeypatch, rows_
     for a in again:
         b = by[a.covariate]
         assert a.test is b.test and np.array_equal(a.fitted_um, b.fitted_um)
+
+
+@pytest.mark.parametrize("rows_every", [1, 3])
+def test_long_log_keeps_only_the_fitted_terms_a_figure_draws(monkeypatch, rows_every):
+    """Beside a block basis a diagnosis keeps its fitted term only when ``p_value < FIGURE_P`` (the report's
+    panels draw no other; each is a rows-long array held for the run): those kept bit for bit the terms kept
+    when every one is (FIGURE_P 2), the others None; the tests and figures are the same. The case has both
+    (every 1: two azimuth terms at p 0.004 kept, two dropped; every 3: none kept). The dense path keeps all."""
+    A, y, covs, modes, r = _case()
+    rows = np.arange(0, len(y), rows_every)
+    Q = A[rows].basis()
+    Qd = Q.toarray()
+    res = y[rows] - Qd @ (Qd.T @ y[rows])
+    dof = len(rows) - Qd.shape[1]
+    kw = dict(sigma_m=1.0, material_sigma=0.1, rows=rows)
+    lean = Dg.diagnose(Q, res, dof, covs, modes, **kw)
+    with monkeypatch.context() as m:
+        m.setattr(Dg, "FIGURE_P", 2.0)
+        every = Dg.diagnose(Q, res, dof, covs, modes, **kw)
+    assert Dg.FIGURE_P == 0.01 and [d.covariate for d in lean] == [d.covariate for d in every]
+    kept = 0
+    for a, b in zip(lean, every):
+        assert (a.p_value, a.p_raw, a.k, a.words, a.explained_rms_um) == (b.p_value, b.p_raw, b.k, b.words,
+                                                                           b.explained_rms_um)
+        assert b.fitted_um is not None
+        if a.p_value < 0.01:
+            kept += 1
+            assert np.array_equal(a.fitted_um, b.fitted_um)
+        else:
+            assert a.fitted_um is None
+    assert kept == (2 if rows_every == 1 else 0)
+    # taken as known, a dropped term stays dropped, a kept one is the same array
+    again = Dg.diagnose(Q, res, dof, covs, modes, known=lean, **kw)
+    for a, b in zip(again, lean):
+        assert a.covariate == b.covariate and (a.fitted_um is b.fitted_um or np.array_equal(a.fitted_um, b.fitted_um))
+    assert all(d.fitted_um is not None for d in Dg.diagnose(Qd, res, dof, covs, modes, **kw))
 
 
 def test_nested_f_batch_beside_a_block_basis_is_the_dense_one():

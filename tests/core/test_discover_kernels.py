@@ -1000,3 +1000,80 @@ def test_one_trial_scans_made_again_at_each_build_are_the_held_ones_bit_for_bit(
                     any(isinstance(v, np.ndarray) and v.ndim == 3 for v in (c.cell_contents for c in a.build.__closure__)):
                 made.add(name)
     assert {"thermal_drift", "c_drift", "probe_lobing", "reversal", "nonrigid"} <= made
+
+
+def test_a_one_trial_scan_made_again_is_not_copied_at_its_build(monkeypatch):
+    """A one-trial scan made again at each build (above ONE_SCAN_KEEP_BYTES, forced to 0) gives its one trial
+    (index [0] or [-1]) as a view of the columns just made, not a copy of them (at 1e6 rows the thermal drift's
+    degree-2 layout was a second 61 MiB there): bit for bit the held scan's build; other indices as before
+    ([0, 0] two copies, [1] an IndexError). Fails on cd76bae: the build copied (its own data)."""
+    from core import baseline as Bm
+    from core import causes as C
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    bl = Bm.planar(from_log(large_log(40, 12, np.random.default_rng(4))))
+    cause = next(c for c in C.for_kind(bl.kind) if c.name == "thermal_drift")
+    held = cause.scans(bl)[0]
+    monkeypatch.setattr(C, "ONE_SCAN_KEEP_BYTES", 0)
+    again = cause.scans(bl)[0]
+    ones = [(a, b) for a, b in zip(held, again) if len(a.infos) == 1]
+    assert len(ones) >= 3
+    for a, b in ones:
+        ref = a.build([0])
+        for idx in ([0], [-1], np.array([0]), (0,)):
+            x = b.build(idx)
+            assert not x.flags.owndata and x.flags.c_contiguous
+            assert np.array_equal(x, ref) and x.dtype == ref.dtype and x.shape == ref.shape
+        two = b.build([0, 0])
+        assert two.flags.owndata or two.base.shape == two.shape  # indexed: its own array
+        assert two.shape == (2,) + ref.shape[1:] and np.array_equal(two[1], ref[0])
+        assert b.build(np.array([], int)).shape == (0,) + ref.shape[1:]
+        with pytest.raises(IndexError):
+            b.build([1])
+
+
+def test_planar_baseline_info_holds_the_grid_not_the_design(monkeypatch):
+    """A planar baseline's ``info`` holds its error map's grid, not the self-calibration design: the design's
+    sparse A (one row per touch, 177 MiB at 1e6 rows, a copy beside the baseline's own A) was held for the run
+    and read only for its grid. No array reachable from ``info`` has a row per touch (a long log's and a short
+    one's); the grid is the design's, node for node, and the smooth error map built from it. Fails on cd76bae
+    (``info["design"]``)."""
+    import dataclasses
+
+    import scipy.sparse as sp
+
+    from core import baseline as Bm
+    from core import causes as C
+    from core import selfcal
+    from core.touches import from_log
+    from scenarios.bench.probelog import large_log
+
+    t = from_log(large_log(40, 12, np.random.default_rng(19)))
+
+    def arrays(o, depth=0):
+        if isinstance(o, np.ndarray) or sp.issparse(o):
+            yield o
+        elif depth < 4 and isinstance(o, dict):
+            for v in o.values():
+                yield from arrays(v, depth + 1)
+        elif depth < 4 and isinstance(o, (list, tuple)):
+            for v in o:
+                yield from arrays(v, depth + 1)
+        elif depth < 4 and dataclasses.is_dataclass(o) and not isinstance(o, type):
+            for f in dataclasses.fields(o):
+                yield from arrays(getattr(o, f.name), depth + 1)
+
+    short = Bm.planar(t)
+    monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
+    long_ = Bm.planar(t)
+    for bl in (short, long_):
+        assert "design" not in bl.info and isinstance(bl.info["grid"], selfcal.Grid)
+        assert all(a.shape[0] != bl.n for a in arrays(bl.info) if a.ndim)
+    st = short.info["grid_step_mm"]
+    assert long_.info["grid_step_mm"] == st
+    g = short.info["grid"]
+    assert np.array_equal(g.x_m, long_.info["grid"].x_m) and np.array_equal(g.y_m, long_.info["grid"].y_m)
+    assert np.all(np.diff(g.x_m) > 0) and np.allclose(np.diff(g.x_m), st * 1e-3)
+    E = C.smooth_error_map(short)
+    assert E.shape[0] == short.n and np.array_equal(E, C.smooth_error_map(long_))
