@@ -520,14 +520,18 @@ def test_gen_a_reseat_hysteresis_outliers_a_baseline_half_absorbs_not_confidentl
 
 
 @pytest.mark.parametrize("gen, effect, seed, p, confidence", [
-    ("gen_a", "reseat_hysteresis", 1262, 0.00014999850001499985, "ambiguous"),
+    ("gen_a", "reseat_hysteresis", 1262, 0.00037999620003799963, "ambiguous"),
     ("gen_b", "outlier", 1134, 0.00911990880091199, "named")])
 def test_centred_turn_p_pinned_on_a_campaign(gen, effect, seed, p, confidence):
     """The centred turn's p on two tuning campaigns, exactly (review of s13_rhturn, finding 1: nothing pinned
     the seeding, the residuals' signs in the wiring or the threshold): gen_a reseat_hysteresis 1262 below
     alpha_family (0.0025: ambiguous), gen_b outlier 1134, the generator's chips, between it and 0.05 (named:
     a threshold of 0.05 would make it ambiguous). The review's mutations that survived the other tests (an
-    unseeded generator, |r| passed for r, p < 0.05 as the rule) each fail here."""
+    unseeded generator, |r| passed for r, p < 0.05 as the rule) each fail here. 1262's p moved 1.5e-4 ->
+    3.8e-4 in session 14 (still below alpha_family) with the local defect's finer half-widths
+    (core.causes.DEFECT_WIDTHS): a 1-2 mm bump takes its re-seat at row 2 before the fixture slip drops it,
+    and the row stays in the fit (outliers rows 2, 5, 95 -> 5, 95, an `unexplained` second finding), the
+    put-back left as gen_a outlier 1163's (tests/core/test_discover_defect.py)."""
     import importlib
 
     from core.baseline import extra_columns
