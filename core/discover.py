@@ -3195,7 +3195,11 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak, origin=cause,
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
     # plausibility of the magnitudes (with their U95)
-    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows)
+    wide = []
+    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows, wide)
+    if wide:  # named at most ambiguous (step 8): the data do not say how large it is
+        tm.evidence["magnitude_undetermined"] = "; ".join(
+            f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
     tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95))
     for key, v in vals.items():
         if not isinstance(v, float) or v is None:
@@ -3216,8 +3220,12 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     return {"cv": cv, "term": tm}
 
 
-def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows):
+def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None):
     """Magnitudes of a term and their U95 (delta method over coefficients and nonlinear parameters).
+
+    A bounded magnitude whose U95 is wider than its whole plausible range is
+    reported as no value (it determines nothing); its key, the value and
+    the U95 are appended to ``wide`` when given.
 
     ``Qo``: orthonormal basis of the model without the term (rows used).
     By Frisch-Waugh-Lovell the term's coefficients in the joint fit are the
@@ -3303,6 +3311,8 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows):
         # an uncertainty wider than the whole plausible range determines nothing
         for pat, (lo, hi) in cause.bounds.items():
             if _matches(key, pat) and u95[key] > hi - lo:
+                if wide is not None:
+                    wide.append((key, out[key], u95[key], lo, hi))
                 out[key], u95[key] = None, None
                 break
     return out, u95
@@ -3838,6 +3848,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                            "material beyond it")
         if ev.get("magnitudes_not_determined"):
             why.append(ev["magnitudes_not_determined"])
+        if ev.get("magnitude_undetermined"):
+            why.append("its size is not determined on this design: " + ev["magnitude_undetermined"])
         if repeats is not None and repeats["beyond_residual_ss_um2"] >= explained:
             ev["repeats_beyond_residual"] = repeats
             why.append(f"the model's residuals scatter more within repeats than overall "
