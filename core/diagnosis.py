@@ -671,13 +671,13 @@ class SpectralTable(tuple):
         phasors and the same rotations: :func:`screen_phasors`; a row's
         phasors are its own). ``rows``: a slice, every row (``slice(None)``)
         but where ``_BLOCK`` frequencies over every row exceed
-        :data:`SCAN_BLOCK_BYTES` (:func:`phasor_blocks`' ``row_blocks``).
+        :data:`SCAN_BLOCK_BYTES` (:func:`phasor_blocks`).
         ``squares=False``: ``S2``, ``C2`` not made for the blocks (None).
         """
         if self.Z is not None:
             yield slice(None), slice(None), self.Z, self.S2, self.C2
             return
-        for cols, rows, Z in phasor_blocks(self.w, self.f, row_blocks=True):
+        for cols, rows, Z in phasor_blocks(self.w, self.f):
             yield (cols, rows, Z, Z.imag ** 2, Z.real ** 2) if squares else (cols, rows, Z, None, None)
 
     def screen(self, A: np.ndarray, W2: np.ndarray, key=None, owner=None):
@@ -714,25 +714,22 @@ class SpectralTable(tuple):
         return NZ, dS, dC
 
 
-def phasor_blocks(w: np.ndarray, f: np.ndarray, row_blocks: bool = False):
-    """``(slice, Z)``: :func:`screen_phasors` of ``w`` over ``f`` a block of frequencies at a time.
+def phasor_blocks(w: np.ndarray, f: np.ndarray):
+    """``(cols, rows, Z)``: :func:`screen_phasors` of ``w`` over ``f`` a block of frequencies at a time.
 
     Blocks of about :data:`SCAN_BLOCK_BYTES` (a table row and frequency
     costs 32 bytes with its squares), at least ``_BLOCK`` frequencies,
     each starting at a multiple of ``_BLOCK``: bit for bit the columns of
-    the whole table. With ``row_blocks``: ``(cols, rows, Z)``, and where
-    ``_BLOCK`` frequencies over every row exceed that (more than 16,384
-    rows: 1 GiB with its squares at the bench's 1e6 rows), a block of rows
-    at a time too (``rows`` a slice; every row's phasors are its own, so
-    bit for bit the whole table's rows).
+    the whole table. Where ``_BLOCK`` frequencies over every row exceed
+    that (more than 16,384 rows: 1 GiB with its squares at the bench's 1e6
+    rows), a block of rows at a time too (``rows`` a slice, else
+    ``slice(None)``; every row's phasors are its own, so bit for bit the
+    whole table's rows).
     """
     n, F = len(w), len(f)
     step = max(1, SCAN_BLOCK_BYTES // (32 * max(n, 1) * _BLOCK)) * _BLOCK
-    rb = max(1, SCAN_BLOCK_BYTES // (32 * step)) if row_blocks else n
+    rb = max(1, SCAN_BLOCK_BYTES // (32 * step))
     for a in range(0, F, step):
-        if not row_blocks:
-            yield slice(a, a + step), screen_phasors(w, f, a, min(F, a + step))
-            continue
         for r0 in range(0, max(n, 1), rb):
             rows = slice(None) if rb >= n else slice(r0, r0 + rb)
             yield slice(a, a + step), rows, screen_phasors(w[rows], f, a, min(F, a + step))
