@@ -2656,8 +2656,8 @@ def _support(bl, cause, info, st: _State, E: np.ndarray, reached_only: bool = Fa
     ``sum s_u / max s_u``: 1 when one unit carries it all, 2 when the
     largest carries half. Below :data:`MIN_SUPPORT` the cause is refused:
     what it explains is mostly one unit's, and dropping that unit would
-    leave less than half of it. Returns the evidence, with ``refused`` and
-    ``reason``.
+    leave less than half of it. Returns the evidence, with ``refused``,
+    ``reason`` and ``where`` (the count in words, without the verdict).
 
     ``reached_only``: the units counted only at the touches the cause's own
     columns reach (a row of ``E`` not all zero): beside the model, the
@@ -2679,9 +2679,10 @@ def _support(bl, cause, info, st: _State, E: np.ndarray, reached_only: bool = Fa
     s = np.bincount(lab, weights=w)
     top = float(s.max()) if s.size else 0.0
     n_eff = float(s.sum()) / top if top > 0 else 0.0
-    return {"refused": bool(n_eff < MIN_SUPPORT), "support_units": n_eff,
-            "reason": f"not seen at two places: one position carries {top / max(float(s.sum()), 1e-300):.0%} of "
-                      f"what it explains ({n_eff:.2g} effective positions, at least {MIN_SUPPORT:g})"}
+    where = (f"one position carries {top / max(float(s.sum()), 1e-300):.0%} of what it explains ({n_eff:.2g} "
+             f"effective positions, at least {MIN_SUPPORT:g})")
+    return {"refused": bool(n_eff < MIN_SUPPORT), "support_units": n_eff, "where": where,
+            "reason": f"not seen at two places: {where}"}
 
 
 def _demotion_reason(share: dict, covariate: str, settings) -> str:
@@ -3819,8 +3820,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             reach = _support(bl, cause, tm.info, so, tm.columns[rows], reached_only=True)
             ev["support_units_reached"] = reach["support_units"]
             if reach["refused"]:
-                why.append("where it reaches, " + reach["reason"].replace("not seen at two places: ", "") +
-                           ": a gross error at that one place (outlier) could do as much")
+                why.append(f"where it reaches, {reach['where']}: a gross error at that one place (outlier) could do "
+                           "as much")
                 ev["ambiguous_with"] = list(ev.get("ambiguous_with", [])) + [causes_mod.OUTLIER]
         if cause.richer is not None:
             # a richer cause nesting this one (lobes turned per set-up for fixed lobes): seen, or not excludable
