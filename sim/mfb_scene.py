@@ -798,16 +798,17 @@ def _box_separations(Rs, d, H, hb) -> np.ndarray:
     return np.where(ok, sep, -np.inf).max(axis=1)
 
 
-def link_points(T_R_A, starts_R, features, levels, top_A_m) -> tuple[np.ndarray, np.ndarray]:
+def link_points(T_R_A, starts_R, features, levels, top_A_m, direct=None) -> tuple[np.ndarray, np.ndarray]:
     """The link moves (R, m) between consecutive approach starts: direct within one feature
     and level, else retract along ``z_A`` to ``top_A_m`` + clearance, across, plunge.
 
     Returns (P (sum cnt, 3), cnt (n - 1,) int): the points of the link into start 1, then
     into start 2, ... (2 or 4 each); n >= 2 starts. All the links' points go through one
     transform back to R (the same values, bit for bit, as transforming each link's points
-    alone: tests/sim/test_clearance.py)."""
+    alone: tests/sim/test_clearance.py). ``direct``: :func:`_direct_links` of ``features``,
+    ``levels`` when already known (then neither is read)."""
     T_A_R = inv_T(T_R_A)
-    P, cnt = _link_points_A(apply_T(T_A_R, np.asarray(starts_R, float)), features, levels, top_A_m)
+    P, cnt = _link_points_A(apply_T(T_A_R, np.asarray(starts_R, float)), features, levels, top_A_m, direct)
     return apply_T(T_R_A, P), cnt
 
 
@@ -988,8 +989,7 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
                 dl = direct.get(id(plan))  # (per program: its features compared once)
                 if dl is None:
                     dl = direct[id(plan)] = _direct_links(plan.feature, plan.level)
-                L, cnt = _link_points_A(apply_T(inv_T(T_R_A), start), None, None, top, dl)
-                L = apply_T(T_R_A, L)  # (link_points' numbers, bit for bit)
+                L, cnt = link_points(T_R_A, start, None, None, top, dl)
             else:
                 L, cnt = np.zeros((0, 3)), np.zeros(0, int)
             paths.append((start, Xn, L, cnt))
