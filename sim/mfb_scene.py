@@ -597,68 +597,33 @@ class WorkZone:
                 a, b = self._probe[clr.pair_probe[p]], self._holder[clr.pair_table[p]]
                 best = min(best, float(self._mj.mj_geomDistance(self.model, self.data, a, b, distmax, None)))
             return best
-        # the holder's pairs of the whole zone's broad phase (shared by the measurements of
-        # this zone turned the same way about the spindle axis; frame W)
-        clr = self.clearance(part="rest")  # (every pair with a holder geom)
-        hp = self._hpairs.get(id(clr._certs))  # (the same pairs for the moved copies of a broad phase)
+        return float(least_holder_clearances([(self, None, tips)], distmax)[0])
+
+    def _holder_pairs(self, clr) -> tuple:
+        """(the pairs of the rest broad phase ``clr`` with a holder geom (indices of its pairs),
+        each table geom's index in the holder's model (-1: not the holder's)): shared by the moved
+        copies of a broad phase (kept by its certificates)."""
+        hp = self._hpairs.get(id(clr._certs))
         if hp is None:
             hpos = np.full(len(self._table), -1)
             hpos[self._holder] = np.arange(len(self._holder))  # table geom -> its holder model's geom
             hp = self._hpairs[id(clr._certs)] = (np.flatnonzero(hpos[clr.pair_table] >= 0), hpos, clr._certs)
-        hp, hpos = hp[0], hp[1]
-        npair = len(hp)
-        bm, bd, h0, gball = self._ball_model()
-        held = []  # the holder's model, fetched (and compiled) once a triple needs it
+        return hp[0], hp[1]
 
-        def dist(k):  # (the ball's in the placement's model of the ball, the same distance)
-            g = clr.pair_probe[pair[k]]
-            b = int(hpos[clr.pair_table[pair[k]]])
-            if g == self._pball:
-                m, d = bm, bd
-                a, b = gball, h0 + b
-            else:
-                if not held:
-                    held.append(self._holder_model())
-                m, d = held[0]
-                a = self._hprobe[g]
-            self._place(m, d, tips[i[k]])
-            return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
-
-        # the result is min(distmax, every triple's distance) as in the reference: a triple is
-        # left out only when a lower bound of its distance exceeds a distance already found by
-        # more than the margin (MuJoCo's distances err by far less). The bound of the geoms'
-        # boxes of every triple; in its increasing order, chunks of triples get the full bound
-        # and MuJoCo in the full bound's order, while the chunk's box bound may still be nearer
-        # (a triple whose boxes lie farther than distmax cannot lower min(distmax, ...))
-        # pairs whose box lies farther than distmax from the box of every tip: no row of theirs is kept
-        # below (the distance between two boxes bounds that of any point of one from the other)
-        pF = clr.to_frame(tips)
-        t_lo, t_hi = pF.min(axis=0)[:, None], pF.max(axis=0)[:, None]
-        # (box_bound's operations on the tips' box: each tip's bound is at least this, rounding included)
-        gap = np.maximum(np.maximum(clr._loT[:, hp] + MARGIN_M - t_hi, t_lo - (clr._hiT[:, hp] - MARGIN_M)), 0.0)
-        gap *= gap
-        hp = hp[np.sqrt(gap[0] + gap[1] + gap[2]) <= distmax + MARGIN_M]
-        npair = len(hp)
-        lb0 = clr._box_bound_F(pF, hp).ravel()  # rows (tip, pair): tip i = row // npair, pair hp[row % npair]
-        near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
-        i, pair, lb0 = near // npair, hp[near % npair], lb0[near]
-        order = np.argsort(lb0, kind="stable")
-        pos = 0
-        # the first few straight to MuJoCo in the box bound's order (a distance costs less than
-        # the full bound of a chunk: in the MFB plans one or two triples are ever within reach)
-        while pos < min(len(order), _DIRECT) and lb0[order[pos]] <= best + MARGIN_M:
-            best = min(best, dist(order[pos]))
-            pos += 1
-        while pos < len(order) and lb0[order[pos]] <= best + MARGIN_M:
-            rows = order[pos:pos + 64]
-            pos += 64
-            rows = rows[lb0[rows] <= best + MARGIN_M]
-            lb = clr.bound(tips, i[rows], pair[rows])
-            for j in np.argsort(lb, kind="stable"):
-                if lb[j] > best + MARGIN_M:
-                    break
-                best = min(best, dist(rows[j]))
-        return best
+    def _holder_distance(self, clr, hpos, tip, pair: int, distmax: float) -> float:
+        """MuJoCo's distance of pair ``pair`` of the rest broad phase ``clr`` with the tip centre at
+        ``tip`` (R) at the current table pose: the ball's in the placement's ball model, the other
+        probe geoms' in the holder's model (the same distance as in the whole zone's)."""
+        g = clr.pair_probe[pair]
+        b = int(hpos[clr.pair_table[pair]])
+        if g == self._pball:
+            m, d, h0, a = self._ball_model()
+            b = h0 + b
+        else:
+            m, d = self._holder_model()
+            a = self._hprobe[g]
+        self._place(m, d, tip)
+        return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
 
     def holder_clearance(self, distmax: float = 0.05) -> float:
         """Least distance (m) of the probe's geoms from the table, the workholder and the
@@ -674,6 +639,101 @@ class WorkZone:
 #: Triples of the least holder clearance given to MuJoCo in the order of their box bound
 #: before the full bound (:meth:`sim.clearance.Clearance.bound`) orders the rest.
 _DIRECT = 8
+
+
+def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
+    """:meth:`WorkZone.least_holder_clearance` of several measurements at once: ``items`` (work zone,
+    table pose T_R_W (4,4) or None for the zone's current one, tips (n,3) R, n >= 1) each; returns
+    (len(items),) m.
+
+    Branch and bound, as :meth:`WorkZone.least_holder_clearance` says: each (tip, probe geom, holder
+    geom) triple has a lower bound from :mod:`sim.clearance`; MuJoCo's ``mj_geomDistance`` runs in
+    increasing order of bound while the bound is below the least distance found (plus
+    :data:`sim.clearance.MARGIN_M`). The vector part is done for every measurement in one pass: the
+    holder pairs whose box lies farther than ``distmax`` from the box of every tip of the
+    measurement dropped, then the box bound of every remaining (tip, pair) row of every measurement
+    in one vectorised expression, sorted by (measurement, bound). MuJoCo's distances and the full
+    bound of the rows the box bound leaves close stay per measurement. Each answer is min(distmax,
+    every triple's distance) as in the reference (every triple): a triple is left out only when a
+    lower bound of its distance exceeds a distance already found by more than the margin, so the
+    triple of the least distance is always given to MuJoCo: the same float whatever the order.
+    """
+    from .clearance import MARGIN_M
+
+    n = len(items)
+    out = np.full(n, float(distmax))
+    if not n:
+        return out
+    pre = []  # per item: (zone, its pose, broad phase, holder pairs, hpos, tips R, tips F)
+    for wz, T_R_W, tips in items:
+        if T_R_W is not None:
+            wz.set_table(T_R_W)
+        clr = wz.clearance(part="rest")  # (every pair with a holder geom; frame W)
+        hp, hpos = wz._holder_pairs(clr)
+        tips = np.asarray(tips, float).reshape(-1, 3)
+        pre.append((wz, wz._tkey, clr, hp, hpos, tips, clr.to_frame(tips)))
+    # the holder pairs of every item, with the box of its tips: those farther than distmax dropped
+    # (the distance between two boxes bounds that of any point of one from the other)
+    npair = np.array([len(x[3]) for x in pre])
+    loT = np.concatenate([x[2]._loT[:, x[3]] for x in pre], axis=1)
+    hiT = np.concatenate([x[2]._hiT[:, x[3]] for x in pre], axis=1)
+    pFs = [x[6] for x in pre]
+    t_lo = np.repeat(np.array([p.min(axis=0) for p in pFs]).T, npair, axis=1)
+    t_hi = np.repeat(np.array([p.max(axis=0) for p in pFs]).T, npair, axis=1)
+    gap = np.maximum(np.maximum(loT + MARGIN_M - t_hi, t_lo - (hiT - MARGIN_M)), 0.0)
+    gap *= gap
+    keep = np.sqrt(gap[0] + gap[1] + gap[2]) <= distmax + MARGIN_M
+    item_of = np.repeat(np.arange(n), npair)[keep]  # per kept pair: its item
+    pair_of = np.concatenate([x[3] for x in pre])[keep]  # its pair in its item's broad phase
+    loT, hiT = loT[:, keep] + MARGIN_M, hiT[:, keep] - MARGIN_M  # (the tip's box of contact)
+    q = np.bincount(item_of, minlength=n)  # kept pairs per item
+    q0 = np.cumsum(q) - q
+    nt = np.array([len(p) for p in pFs])
+    t0 = np.cumsum(nt) - nt
+    # every (tip, kept pair) row of every item, tip-major within an item
+    cnt = nt * q
+    tot = int(cnt.sum())
+    if not tot:
+        return out
+    item = np.repeat(np.arange(n), cnt)
+    local = np.arange(tot) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    qk = q[item]
+    tip, prow = local // qk + t0[item], local % qk + q0[item]
+    pT = np.concatenate(pFs).T[:, tip]
+    g = np.maximum(loT[:, prow] - pT, pT - hiT[:, prow])  # the boxes' gap along x, y, z
+    worst = np.maximum(np.maximum(g[0], g[1]), g[2])
+    m = np.maximum(g, 0.0)
+    m *= m
+    lb0 = np.where(worst > 0, np.sqrt(m[0] + m[1] + m[2]), worst)
+    near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
+    order = near[np.lexsort((lb0[near], item[near]))]  # by item, then bound (stable: tip-major on ties)
+    cut = np.searchsorted(item[order], np.arange(n + 1))
+    for k in range(n):
+        rows_k = order[cut[k]:cut[k + 1]]
+        if not rows_k.size:
+            continue
+        wz, tkey, clr, _, hpos, tips, _ = pre[k]
+        if wz._tkey != tkey:  # (another item of this zone set another pose since)
+            wz.set_table(np.frombuffer(tkey).reshape(4, 4))
+        i, pair, lb = tip[rows_k] - t0[k], pair_of[prow[rows_k]], lb0[rows_k]
+        best = float(distmax)
+        pos = 0
+        # the first few straight to MuJoCo in the box bound's order (a distance costs less than
+        # the full bound of a chunk: in the MFB plans one or two triples are ever within reach)
+        while pos < min(len(lb), _DIRECT) and lb[pos] <= best + MARGIN_M:
+            best = min(best, wz._holder_distance(clr, hpos, tips[i[pos]], pair[pos], distmax))
+            pos += 1
+        while pos < len(lb) and lb[pos] <= best + MARGIN_M:
+            rows = np.arange(pos, min(pos + 64, len(lb)))
+            pos += 64
+            rows = rows[lb[rows] <= best + MARGIN_M]
+            full = clr.bound(tips, i[rows], pair[rows])
+            for j in np.argsort(full, kind="stable"):
+                if full[j] > best + MARGIN_M:
+                    break
+                best = min(best, wz._holder_distance(clr, hpos, tips[i[rows[j]]], pair[rows[j]], distmax))
+        out[k] = best
+    return out
 
 
 def _zone_xml(table_mjcf: str, probe_mjcf: str) -> str:
@@ -1031,12 +1091,19 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
                              f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
                     bad_touch.add(t)
                     n_samp -= int(touch_end[t] - idx[k] - 1)
-        # the least clearance at the approach starts: along every sampled path point it would be
-        # exact too, but cost 2.3x this check (bench col_mfb5_measurement_checks_s 0.029 -> 0.069 s
-        # against a 0.097 s simulation); the paths between are checked for collision at every sample
-        clear = wz.least_holder_clearance(paths[i][0], broad_phase=broad_phase) if plan.n else np.inf
-        out.append(CheckResult(name, int(plan.n), n_samp, tuple(b), float(clear * 1e3)))
-    return out
+        out.append([name, int(plan.n), n_samp, tuple(b)])
+    # the least clearance at the approach starts: along every sampled path point it would be
+    # exact too, but cost 2.3x this check (bench col_mfb5_measurement_checks_s 0.029 -> 0.069 s
+    # against a 0.097 s simulation); the paths between are checked for collision at every sample.
+    # Every measurement's in one least_holder_clearances (its vector part in one pass)
+    clear = np.full(len(ms), np.inf)
+    if broad_phase and live:
+        clear[live] = least_holder_clearances([(zones[i], ms[i][2], paths[i][0]) for i in live])
+    else:
+        for i in live:
+            zones[i].set_table(ms[i][2])
+            clear[i] = zones[i].least_holder_clearance(paths[i][0], broad_phase=broad_phase)
+    return [CheckResult(*r, float(c * 1e3)) for r, c in zip(out, clear)]
 
 
 def _near_samples(ms, zones, live, sgs) -> dict:
