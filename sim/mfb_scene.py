@@ -1024,7 +1024,8 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     overlaps = {}  # block_overlaps by placement and workholder
     direct = {}  # per program (plan object): its direct links (_direct_links)
     bad, zones, T_R_As, paths = [], [], [], []
-    for (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m), wz in zip(ms, each):
+    linked = []  # (measurement, starts in A, direct links) of the measurements with links
+    for i, ((name, T_W_A, T_R_W, blocks, J_m, plan, finger_m), wz) in enumerate(zip(ms, each)):
         T_R_A = T_R_W @ T_W_A
         b = []
         # the bar and the workholder on the table's side of its face (W z >= 0)
@@ -1049,12 +1050,25 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
                 dl = direct.get(id(plan))  # (per program: its features compared once)
                 if dl is None:
                     dl = direct[id(plan)] = _direct_links(plan.feature, plan.level)
-                L, cnt = link_points(T_R_A, start, None, None, top, dl)
-            else:
-                L, cnt = np.zeros((0, 3)), np.zeros(0, int)
-            paths.append((start, Xn, L, cnt))
+                # (link_points' starts in A; the links of every measurement computed together below)
+                linked.append((i, apply_T(inv_T(T_R_A), start), dl))
+            paths.append((start, Xn, np.zeros((0, 3)), np.zeros(0, int)))
         else:
             paths.append(None)
+    # the links of every measurement as link_points gives them (the same operations row by row):
+    # the starts in A, _link_points_A on all of them at once (the links across two measurements
+    # computed and dropped), each measurement's points back to R through its own transform
+    if linked:
+        n_s = np.array([len(x[1]) for x in linked])
+        s0 = np.cumsum(n_s) - n_s
+        dl_all = np.ones(int(n_s.sum()) - 1, bool)  # (a dropped link: direct, two points)
+        for (_, _, dl), k in zip(linked, s0):
+            dl_all[k:k + len(dl)] = dl
+        P, cnt = _link_points_A(np.concatenate([x[1] for x in linked]), None, None, top, dl_all)
+        p0 = np.r_[0, np.cumsum(cnt)]
+        for (i, _, _), k, n in zip(linked, s0, n_s):
+            start, Xn = paths[i][:2]
+            paths[i] = (start, Xn, apply_T(T_R_As[i], P[p0[k]:p0[k + n - 1]]), cnt[k:k + n - 1])
     # every measurement's polylines in the order checked (per touch i the link into its start,
     # none for the first, then its approach/retract start -> contact), sampled at once
     live = [i for i in range(len(ms)) if paths[i] is not None]
