@@ -534,7 +534,7 @@ def _build_table_prep(table: Geoms, table_feature) -> tuple:
     rank = {x: i for i, x in enumerate(sorted(set(k)))}  # (np.unique's inverse: keys in code-point order)
     cl = np.fromiter(map(rank.__getitem__, k), int, len(k))
     h_order = np.lexsort((np.arange(len(feature)), cl))
-    fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
+    fid = {f: n for n, f in enumerate(dict.fromkeys(filter(None, feature)))}  # features as numbers
     tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
     return feature, tlo, thi, cl, h_order, fid, tfid
 

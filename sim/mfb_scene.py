@@ -163,11 +163,19 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     their definitions: about the tip centre, axes of R, in the model's order. A capsule's
     frame has its axis as z (MuJoCo's own x, y about it differ: a capsule looks the same
     from them); poses agree with the compiled model's to rounding (1e-16 m)."""
+    return _probe_geoms_many([(J_m, r_m, finger_m)])[0]
+
+
+def _probe_geoms_many(keys) -> list:
+    """:func:`probe_geoms` of several probes ((J_m, r_m, finger_m) each), their geoms' arrays computed
+    in one pass (every value row by row: the same numbers as one probe at a time); each probe's
+    Geoms holds views of the common arrays."""
     from core.kinematics import _cross_rows as _cross
 
     from .clearance import Geoms
 
-    parts = _probe_parts(J_m, r_m, finger_m)
+    each = [_probe_parts(*k) for k in keys]
+    parts = [p for ps in each for p in ps]
     k = len(parts)
     kind = np.array([GEOM_TYPE[p[1]] for p in parts])
     size = np.array([tuple(p[4]) + (0.0,) * (3 - len(p[4])) for p in parts])
@@ -183,7 +191,13 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     x = _cross(e, z)
     x /= np.sqrt(np.sum(x * x, axis=1))[:, None]
     axes[cap] = np.stack([x, _cross(z, x), z], axis=2)
-    return [p[0] for p in parts], Geoms(centre, axes, kind, size, rbound(kind, size))
+    rb = rbound(kind, size)
+    out, j = [], 0
+    for ps in each:
+        sl = slice(j, j + len(ps))
+        j += len(ps)
+        out.append(([p[0] for p in ps], Geoms(centre[sl], axes[sl], kind[sl], size[sl], rb[sl])))
+    return out
 
 
 #: Each probe's (key, geom names, Geoms) by (J_m, stylus radius, finger): a plan's work zones share
@@ -192,25 +206,40 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
 _PROBES = Memo(32)
 
 
+def _probe_key(J_m, r_m: float, finger_m: float = 0.0) -> tuple:
+    """A probe's key: (J_m, r_m, finger_m) as floats (:func:`probe_geoms_mjcf`'s arguments)."""
+    return (tuple(float(v) for v in J_m), float(r_m), float(finger_m))
+
+
 def _probe(J_m, r_m: float, finger_m: float = 0.0) -> tuple:
-    """(the probe's key (J_m, r_m, finger_m as floats: :func:`probe_geoms_mjcf`'s arguments, its MJCF
-    written when a model is compiled), then :func:`probe_geoms`'s names and Geoms) of a probe, kept
-    (:data:`_PROBES`)."""
-    key = (tuple(float(v) for v in J_m), float(r_m), float(finger_m))
+    """(the probe's key (:func:`_probe_key`: its MJCF written when a model is compiled), then
+    :func:`probe_geoms`'s names and Geoms) of a probe, kept (:data:`_PROBES`)."""
+    key = _probe_key(J_m, r_m, finger_m)
+    return _PROBES.get_or_compute(key, lambda: _kept_probe(key, probe_geoms(*key)))
 
-    def build():
-        names, g = probe_geoms(*key)
-        for a in (g.centre, g.axes, g.kind, g.size, g.rbound):
-            a.flags.writeable = False
-        return key, names, g
 
-    return _PROBES.get_or_compute(key, build)
+def _kept_probe(key, built) -> tuple:
+    """(key, names, Geoms) of a probe as :data:`_PROBES` keeps it (its arrays read only)."""
+    names, g = built
+    for a in (g.centre, g.axes, g.kind, g.size, g.rbound):
+        a.flags.writeable = False
+    return key, names, g
+
+
+def _probes_ahead(keys) -> None:
+    """The probes of ``keys`` (:func:`_probe_key`) not kept yet built in one :func:`_probe_geoms_many`
+    and kept (:data:`_PROBES`): a plan's work zones ask for several."""
+    todo = list(dict.fromkeys(k for k in keys if _PROBES.get(k) is None))
+    for key, built in zip(todo, _probe_geoms_many(todo) if todo else ()):
+        _PROBES.get_or_compute(key, lambda key=key, built=built: _kept_probe(key, built))
 
 
 #: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object,
 #: and beside them (keys ("table", id), ("stack", id)) the artefact's :class:`_Solids` and the
-#: poses stacked. Safe: the artefact is kept in each entry and checked with ``is``; the
-#: values are only read. 64 entries, up to three per artefact (before: cleared when the poses
+#: poses stacked, and (keys ("side", id, blocks)) its work zones' table sides per workholder
+#: (:func:`_table_side`). Safe: the artefact is kept in each entry and checked with ``is``; the
+#: blocks are in the key (frozen, compared by value); the values are only read. 64 entries,
+#: three per artefact and one per workholder it sits on (before: cleared when the poses
 #: of a new artefact found more than 16 entries; the other two kinds were stored unchecked).
 _SOLID_POSES = Memo(64)
 
@@ -248,7 +277,7 @@ def _build_solid_table(art) -> _Solids:
     if not set(kinds) <= {"box", "cylinder", "sphere"}:
         raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
     # (a flat tuple of numbers as it is, else flattened: the same numbers)
-    sizes = [sz if type(sz) is tuple and all(type(v) in _NUMBER for v in sz) else tuple(np.ravel(sz))
+    sizes = [sz if type(sz) is tuple and _NUMBER.issuperset(map(type, sz)) else tuple(np.ravel(sz))
              for sz in (s.size for s in sol)]
     feats = [s.feature for s in sol]
     names = [f"{f or ('support' if kd == 'cylinder' else 'body')}__{k}" for k, (f, kd) in enumerate(zip(feats, kinds))]
@@ -302,6 +331,31 @@ def _ball_clearance(art, r: float):
     return Clearance(P, H, [sol.features[k] for k in bar], 0)
 
 
+def _table_side(art, blocks: tuple) -> tuple:
+    """(kinds, sizes, poses of the disc and the blocks, names, features, the holder's geoms, table
+    geom -> feature) of a work zone's table side for the bar ``art`` on the workholder ``blocks``:
+    the table disc, the blocks, the bar's solids, in the model's order. Built once per bar and
+    workholder (kept beside the bar's solids, :data:`_SOLID_POSES`) and shared, read only, by the
+    zones of every placement and probe (the bar's pose enters through ``T_W_A`` alone)."""
+    def build():
+        kinds, sizes, poses, names, feats = ["cylinder"], [(TABLE_R_M, TABLE_T_M / 2, 0.0)], \
+            [make_T(None, (0.0, 0.0, -TABLE_T_M / 2))], ["table_disc"], [""]
+        for b in blocks:
+            lo, hi = np.asarray(b.lo, float), np.asarray(b.hi, float)
+            kinds.append("box"), sizes.append(tuple((hi - lo) / 2)), poses.append(make_T(None, (lo + hi) / 2))
+            names.append(f"fix_{b.name}"), feats.append("")
+        sol = _solid_table(art)  # the bar's solids: the same for every placement
+        kinds += sol.kinds
+        sizes += sol.sizes
+        names += sol.names
+        feats += sol.features
+        n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
+        holder = list(range(n0)) + [n0 + k for k in sol.holder]
+        return kinds, sizes, poses, names, feats, holder, dict(enumerate(feats))
+
+    return _SOLID_POSES.get_or_compute(("side", id(art), blocks), build, owner=art)
+
+
 class WorkZone:
     """One bar placement on the table with its workholder, one probe (offsets J).
 
@@ -323,23 +377,12 @@ class WorkZone:
         T_W_A = np.asarray(T_W_A, float)
         self._args = (artefact, T_W_A, tuple(blocks))
         # the table side in W, as numpy geoms (kind, size, pose) in the model's order: the
-        # disc, the blocks, the bar's solids (the MJCF of self.mjcf is written from these)
-        kinds, sizes, poses, names, feats = ["cylinder"], [(TABLE_R_M, TABLE_T_M / 2, 0.0)], \
-            [make_T(None, (0.0, 0.0, -TABLE_T_M / 2))], ["table_disc"], [""]
-        for b in blocks:
-            lo, hi = np.asarray(b.lo, float), np.asarray(b.hi, float)
-            kinds.append("box"), sizes.append(tuple((hi - lo) / 2)), poses.append(make_T(None, (lo + hi) / 2))
-            names.append(f"fix_{b.name}"), feats.append("")
-        sol = _solid_table(artefact)  # the bar's solids: the same for every placement
-        kinds += sol.kinds
-        sizes += sol.sizes
-        names += sol.names
-        feats += sol.features
+        # disc, the blocks, the bar's solids (the MJCF of self.mjcf is written from these); the
+        # same lists for every zone of this bar and workholder (_table_side; read only)
+        kinds, sizes, poses, names, feats, holder, feature = _table_side(artefact, self._args[2])
         self._tkind, self._tsize, self._tpose0 = kinds, sizes, poses  # (the solids' poses: _pose)
         self._T_W_A = T_W_A
         nt = len(names)
-        n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
-        holder = list(range(n0)) + [n0 + k for k in sol.holder]
         # the probe's geoms from their definitions (the broad phase's), once per probe (_PROBES); its
         # MJCF (written from the same parts, _probe_parts) when a model of the zone is compiled
         self._probe_key, pnames, self._probe_geoms = _probe(J_m, stylus_r_m, finger_m)
@@ -351,7 +394,7 @@ class WorkZone:
         self._table = list(range(nt))
         self._probe = list(range(nt, nt + npg))
         self._holder = holder
-        self._feature = dict(enumerate(feats))
+        self._feature = feature  # (table geom -> its feature)
         self._feats = feats  # (the same, as a list)
         self._pball = pnames.index("ball")  # the ball among the probe's geoms
         self._ball = nt + self._pball
@@ -757,6 +800,7 @@ def share_ball_model(artefact, measurements, stylus_r_m: float) -> list:
     Returns each measurement's work zone (:func:`_work_zone`), in order.
     """
     zones, each = {}, []
+    _probes_ahead([_probe_key(J_m, stylus_r_m, finger_m) for _, _, J_m, finger_m in measurements])
     for T_W_A, blocks, J_m, finger_m in measurements:
         wz = _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
         each.append(wz)
