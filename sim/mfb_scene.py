@@ -331,6 +331,13 @@ def _ball_clearance(art, r: float):
     return Clearance(P, H, [sol.features[k] for k in bar], 0)
 
 
+#: Per table pose (T_R_W's bytes, :meth:`WorkZone.set_table`): [the table's free-joint qpos (7,), its
+#: T_W_R as MuJoCo's pose gives it (:meth:`WorkZone._W_R`, None until asked)], shared by every work
+#: zone set to that pose (a plan's zones share a handful of table poses). Safe: each value is a
+#: function of the key alone; only read. 64 poses.
+_TABLE_POSES = Memo(64)
+
+
 def _table_side(art, blocks: tuple) -> tuple:
     """(kinds, sizes, poses of the disc and the blocks, names, features, the holder's geoms, table
     geom -> feature) of a work zone's table side for the bar ``art`` on the workholder ``blocks``:
@@ -405,6 +412,7 @@ class WorkZone:
         self._tqpos = np.array([0.0, 0, 0, 1, 0, 0, 0])
         self._clr, self._hclr = {}, {}  # (clearance: by part, holder only by table pose)
         self._T_W_R = None  # (clearance)
+        self._tpose = [self._tqpos, None]  # (set_table: the pose's entry in _TABLE_POSES)
         self._tkey = None  # (set_table: the pose last set, bytes)
         self._at = {}  # the broad phases at the pose last set (ball_clearance, clearance), by part
         self._hpairs = {}  # the holder's pairs of each rest broad phase (least_holder_clearance), by its certificates
@@ -488,7 +496,9 @@ class WorkZone:
         if key == self._tkey:  # (the same pose again: a plan's check sets it twice per measurement)
             return
         self._tkey = key
-        self._tqpos = np.concatenate([T[:3, 3], _quat(T[:3, :3])])
+        # (per pose, whatever the zone: its free joint's qpos, and T_W_R once a zone asks, _W_R)
+        self._tpose = _TABLE_POSES.get_or_compute(key, lambda: [np.concatenate([T[:3, 3], _quat(T[:3, :3])]), None])
+        self._tqpos = self._tpose[0]
         self._T_W_R = None
         self._at = {}
 
@@ -578,7 +588,9 @@ class WorkZone:
     def _W_R(self) -> np.ndarray:
         """(4,4) T_W_R: R in the table's frame, from the table's pose as MuJoCo has it (once per set_table)."""
         if self._T_W_R is None:
-            self._T_W_R = inv_T(self._T_R_W())
+            if self._tpose[1] is None:  # (the same for every zone at this pose)
+                self._tpose[1] = inv_T(self._T_R_W())
+            self._T_W_R = self._tpose[1]
         return self._T_W_R
 
     def ball_clearance(self):

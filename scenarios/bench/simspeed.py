@@ -345,7 +345,7 @@ def _fresh_plan_check() -> None:
 
     for memo in (S._CHECKS, S._MARGINS, plans._MFB_PLANS, plans._MFB_TOUCHES, scene._POINTS,
                  mfb_scene._SOLID_POSES, mfb_scene._ZONES, mfb_scene._BALLS, mfb_scene._PROBES,
-                 clearance._TABLE_PREP, clearance._PAIRS):
+                 mfb_scene._TABLE_POSES, clearance._TABLE_PREP, clearance._PAIRS):
         memo.clear()
     S._plan_for(S._nominal_bar(), (1,))  # the plan's making's touch program (its _fit_holes)
 

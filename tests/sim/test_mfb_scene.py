@@ -334,7 +334,7 @@ def _fresh_variants():
     from sim import clearance, mfb_scene, scene
 
     for memo in (scene._POINTS, mfb_scene._SOLID_POSES, mfb_scene._ZONES, mfb_scene._BALLS, mfb_scene._PROBES,
-                 clearance._TABLE_PREP, clearance._PAIRS):
+                 mfb_scene._TABLE_POSES, clearance._TABLE_PREP, clearance._PAIRS):
         memo.clear()
 
 
