@@ -1245,9 +1245,10 @@ def _near_samples(ms, zones, live, sgs) -> dict:
         for j, k in enumerate(ks):
             inv[k] = (len(parts) - 1, back[off[j]:off[j + 1]])
     is_open = near_segments_many(parts, samples=False)
-    # the open rows of each measurement, sample by sample (its own samples), in one pass
+    # the open rows of each measurement, sample by sample (its own samples), in one pass (none
+    # when no distinct row of any broad phase is open: the 5-axis plan's case)
     sub, who = [], []
-    for n, i in enumerate(live):
+    for n, i in enumerate(live if any(o.any() for o in is_open) else ()):
         sg = sgs[i][0]
         for key in keys[n]:
             p, back = inv[key]
