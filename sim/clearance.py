@@ -493,8 +493,10 @@ class ByOrientation:
         self.axisym = axisymmetric(probe)
         self._memo = Memo(maxsize)
 
-    def get(self, T_F_R: np.ndarray) -> Clearance:
-        """The broad phase with F at ``T_F_R`` (4,4) from R."""
+    def get(self, T_F_R: np.ndarray, move: bool = True) -> Clearance:
+        """The broad phase with F at ``T_F_R`` (4,4) from R. ``move=False``: the broad phase of that
+        orientation wherever it was last placed (its geoms in F, pairs and certificates, all a
+        caller with segments already in F uses; its ``T_F_R`` may be another pose's)."""
         T_F_R = np.asarray(T_F_R, float)
         R = T_F_R[:3, :3]
         key = np.ascontiguousarray((R[:, 2] if self.axisym else R) + 0.0).tobytes()  # (+0.0: -0 is +0)
@@ -503,7 +505,7 @@ class ByOrientation:
             P = self.probe
             P = Geoms(P.centre @ R.T, R @ P.axes, P.kind, P.size, P.rbound)  # about the tip, axes of F
             hit = self._memo[key] = self._build(P, T_F_R)
-        elif not np.array_equal(hit.T_F_R, T_F_R):
+        elif move and not np.array_equal(hit.T_F_R, T_F_R):
             hit = self._memo[key] = hit.moved(T_F_R)
         return hit
 

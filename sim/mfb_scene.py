@@ -536,7 +536,7 @@ class WorkZone:
         kind = np.array([GEOM_TYPE[k] for k in self._tkind])
         return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rbound(kind, size))
 
-    def clearance(self, holder_only: bool = False, part: str = "all"):
+    def clearance(self, holder_only: bool = False, part: str = "all", moved: bool = True):
         """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose.
 
         ``part``: "all", the probe against every table-side geom (indices of
@@ -550,7 +550,9 @@ class WorkZone:
         :class:`sim.clearance.ByOrientation`): the measurements of one work zone at table
         poses that differ by a turn about the spindle axis (a C turn on a vertical
         spindle) share it, its pair data and the certificates of their moves (the same
-        touches in W: :meth:`sim.clearance.Clearance.near_segments`).
+        touches in W: :meth:`sim.clearance.Clearance.near_segments`). ``moved=False``: that
+        orientation's broad phase wherever it was last placed (for segments already in W: its
+        ``T_F_R`` may be another pose's).
         """
         from .clearance import ByOrientation, Clearance, model_geoms
 
@@ -565,7 +567,7 @@ class WorkZone:
                 self._hclr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
                                             cert_pad_m=0.0)
             return self._hclr[key]
-        hit = self._at.get(part)  # (asked twice per measurement at one pose: its paths, its least clearance)
+        hit = self._at.get(part) if moved else None  # (asked twice per measurement at one pose)
         if hit is not None:
             return hit
         if part not in self._clr:
@@ -582,6 +584,8 @@ class WorkZone:
                                  pairs=pairs)
 
             self._clr[part] = ByOrientation(probe, build)
+        if not moved:
+            return self._clr[part].get(self._W_R(), move=False)
         hit = self._at[part] = self._clr[part].get(self._W_R())
         return hit
 
@@ -600,10 +604,13 @@ class WorkZone:
         its pair data and certificates (:data:`_BALLS`)."""
         hit = self._at.get("ball")
         if hit is None:
-            art, r = self._args[0], self._r
-            ball = _BALLS.get_or_compute((id(art), r), lambda: _ball_clearance(art, r), owner=art)
-            hit = self._at["ball"] = ball.moved(self._A_W @ self._W_R())
+            hit = self._at["ball"] = self._ball_base().moved(self._A_W @ self._W_R())
         return hit
+
+    def _ball_base(self):
+        """:meth:`ball_clearance` in A, unplaced (``T_F_R`` None: for segments already in A)."""
+        art, r = self._args[0], self._r
+        return _BALLS.get_or_compute((id(art), r), lambda: _ball_clearance(art, r), owner=art)
 
     def near_segments(self, sg, allow_feature=None) -> np.ndarray:
         """Sorted sample numbers of the segments ``sg`` (R) that may come closer than
@@ -1211,7 +1218,8 @@ def _near_samples(ms, zones, live, sgs) -> dict:
         plan, T_W_A = ms[i][5], ms[i][1]
         assert len(segs_A[id(plan)][0]) == len(sg.a)  # (the same polylines, row for row)
         own = []
-        for clr, place in ((wz.ball_clearance(), None), (wz.clearance(part="rest"), T_W_A)):
+        # (the two broad phases as kept, not moved to this pose: the rows are given in their frames)
+        for clr, place in ((wz._ball_base(), None), (wz.clearance(part="rest", moved=False), T_W_A)):
             key = (id(clr._certs), id(plan), b"" if place is None else place.tobytes())
             own.append(key)
             if key in rows_F:
