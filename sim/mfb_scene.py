@@ -35,7 +35,9 @@ of the probe and the holder, per work zone and orientation. A plan's measurement
 are checked together (:func:`check_measurements`): their paths sampled at once,
 each broad phase's distinct moves (in its frame, computed from the programs in A)
 bounded in one pass, the samples of the moves it leaves open bounded one by one,
-then MuJoCo measurement by measurement, in path order.
+then MuJoCo measurement by measurement, in path order; the least clearances at the
+approach starts of every measurement are bounded in one pass too
+(:func:`least_holder_clearances`), MuJoCo's distances per measurement.
 """
 
 from __future__ import annotations
@@ -1075,7 +1077,10 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     and go through the broad phase together (:func:`sim.clearance.near_segments_many`): the
     ball against the bar in A (one broad phase for every measurement, each distinct move bounded
     once: :func:`_near_samples`), the rest of each work zone in W. The work zones' ball models
-    are shared (:func:`share_ball_model`).
+    are shared (:func:`share_ball_model`). The links of every measurement are computed in A at
+    once (:func:`_link_points_A`, each measurement's back in R through its own transform, as
+    :func:`link_points` does), and the least clearances of every measurement go through one
+    :func:`least_holder_clearances` (its vector part in one pass, MuJoCo per measurement).
     """
     r = float(stylus_r_m)
     ms = [(name, np.asarray(T_W_A, float), np.asarray(T_R_W, float), tuple(blocks), J_m, plan, float(finger_m))
