@@ -493,8 +493,10 @@ class ByOrientation:
         self.axisym = axisymmetric(probe)
         self._memo = Memo(maxsize)
 
-    def get(self, T_F_R: np.ndarray) -> Clearance:
-        """The broad phase with F at ``T_F_R`` (4,4) from R."""
+    def get(self, T_F_R: np.ndarray, move: bool = True) -> Clearance:
+        """The broad phase with F at ``T_F_R`` (4,4) from R. ``move=False``: the broad phase of that
+        orientation wherever it was last placed (its geoms in F, pairs and certificates, all a
+        caller with segments already in F uses; its ``T_F_R`` may be another pose's)."""
         T_F_R = np.asarray(T_F_R, float)
         R = T_F_R[:3, :3]
         key = np.ascontiguousarray((R[:, 2] if self.axisym else R) + 0.0).tobytes()  # (+0.0: -0 is +0)
@@ -503,7 +505,7 @@ class ByOrientation:
             P = self.probe
             P = Geoms(P.centre @ R.T, R @ P.axes, P.kind, P.size, P.rbound)  # about the tip, axes of F
             hit = self._memo[key] = self._build(P, T_F_R)
-        elif not np.array_equal(hit.T_F_R, T_F_R):
+        elif move and not np.array_equal(hit.T_F_R, T_F_R):
             hit = self._memo[key] = hit.moved(T_F_R)
         return hit
 
@@ -534,7 +536,7 @@ def _build_table_prep(table: Geoms, table_feature) -> tuple:
     rank = {x: i for i, x in enumerate(sorted(set(k)))}  # (np.unique's inverse: keys in code-point order)
     cl = np.fromiter(map(rank.__getitem__, k), int, len(k))
     h_order = np.lexsort((np.arange(len(feature)), cl))
-    fid = {f: n for n, f in enumerate(dict.fromkeys(f for f in feature if f))}  # features as numbers
+    fid = {f: n for n, f in enumerate(dict.fromkeys(filter(None, feature)))}  # features as numbers
     tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
     return feature, tlo, thi, cl, h_order, fid, tfid
 
@@ -568,12 +570,12 @@ def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
         # each cluster's feature as a number (_fid) when it is the ball's (the clusters a touch
         # of that feature may meet), else -1
         cballf = np.where(pair_probe[cstart] == ball, tfid[pair_table[cstart]], -1)
-        cbox = np.stack([np.minimum.reduceat(tlo[pair_table], cstart, axis=0),
-                         np.maximum.reduceat(thi[pair_table], cstart, axis=0)])
         # the table side of every pair's rows (whatever the probe's orientation) and the pairs of
-        # each probe geom (pair_probe is sorted)
+        # each probe geom (pair_probe is sorted); each cluster's box reduced along those rows (one
+        # coordinate a row: the same least and largest values, reduceat along a row being faster)
         rows = (tlo.T[:, pair_table], thi.T[:, pair_table], table.centre[pair_table],
                 np.bincount(pair_probe, minlength=ng))
+        cbox = np.stack([np.minimum.reduceat(rows[0], cstart, axis=1).T, np.maximum.reduceat(rows[1], cstart, axis=1).T])
         return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox, rows
 
     return _PAIRS.get_or_compute(key, build, owner=(table, table_feature))

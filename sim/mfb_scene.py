@@ -35,7 +35,9 @@ of the probe and the holder, per work zone and orientation. A plan's measurement
 are checked together (:func:`check_measurements`): their paths sampled at once,
 each broad phase's distinct moves (in its frame, computed from the programs in A)
 bounded in one pass, the samples of the moves it leaves open bounded one by one,
-then MuJoCo measurement by measurement, in path order.
+then MuJoCo measurement by measurement, in path order; the least clearances at the
+approach starts of every measurement are bounded in one pass too
+(:func:`least_holder_clearances`), MuJoCo's distances per measurement.
 """
 
 from __future__ import annotations
@@ -163,11 +165,19 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     their definitions: about the tip centre, axes of R, in the model's order. A capsule's
     frame has its axis as z (MuJoCo's own x, y about it differ: a capsule looks the same
     from them); poses agree with the compiled model's to rounding (1e-16 m)."""
+    return _probe_geoms_many([(J_m, r_m, finger_m)])[0]
+
+
+def _probe_geoms_many(keys) -> list:
+    """:func:`probe_geoms` of several probes ((J_m, r_m, finger_m) each), their geoms' arrays computed
+    in one pass (every value row by row: the same numbers as one probe at a time); each probe's
+    Geoms holds views of the common arrays."""
     from core.kinematics import _cross_rows as _cross
 
     from .clearance import Geoms
 
-    parts = _probe_parts(J_m, r_m, finger_m)
+    each = [_probe_parts(*k) for k in keys]
+    parts = [p for ps in each for p in ps]
     k = len(parts)
     kind = np.array([GEOM_TYPE[p[1]] for p in parts])
     size = np.array([tuple(p[4]) + (0.0,) * (3 - len(p[4])) for p in parts])
@@ -183,7 +193,13 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
     x = _cross(e, z)
     x /= np.sqrt(np.sum(x * x, axis=1))[:, None]
     axes[cap] = np.stack([x, _cross(z, x), z], axis=2)
-    return [p[0] for p in parts], Geoms(centre, axes, kind, size, rbound(kind, size))
+    rb = rbound(kind, size)
+    out, j = [], 0
+    for ps in each:
+        sl = slice(j, j + len(ps))
+        j += len(ps)
+        out.append(([p[0] for p in ps], Geoms(centre[sl], axes[sl], kind[sl], size[sl], rb[sl])))
+    return out
 
 
 #: Each probe's (key, geom names, Geoms) by (J_m, stylus radius, finger): a plan's work zones share
@@ -192,25 +208,40 @@ def probe_geoms(J_m, r_m: float, finger_m: float = 0.0):
 _PROBES = Memo(32)
 
 
+def _probe_key(J_m, r_m: float, finger_m: float = 0.0) -> tuple:
+    """A probe's key: (J_m, r_m, finger_m) as floats (:func:`probe_geoms_mjcf`'s arguments)."""
+    return (tuple(float(v) for v in J_m), float(r_m), float(finger_m))
+
+
 def _probe(J_m, r_m: float, finger_m: float = 0.0) -> tuple:
-    """(the probe's key (J_m, r_m, finger_m as floats: :func:`probe_geoms_mjcf`'s arguments, its MJCF
-    written when a model is compiled), then :func:`probe_geoms`'s names and Geoms) of a probe, kept
-    (:data:`_PROBES`)."""
-    key = (tuple(float(v) for v in J_m), float(r_m), float(finger_m))
+    """(the probe's key (:func:`_probe_key`: its MJCF written when a model is compiled), then
+    :func:`probe_geoms`'s names and Geoms) of a probe, kept (:data:`_PROBES`)."""
+    key = _probe_key(J_m, r_m, finger_m)
+    return _PROBES.get_or_compute(key, lambda: _kept_probe(key, probe_geoms(*key)))
 
-    def build():
-        names, g = probe_geoms(*key)
-        for a in (g.centre, g.axes, g.kind, g.size, g.rbound):
-            a.flags.writeable = False
-        return key, names, g
 
-    return _PROBES.get_or_compute(key, build)
+def _kept_probe(key, built) -> tuple:
+    """(key, names, Geoms) of a probe as :data:`_PROBES` keeps it (its arrays read only)."""
+    names, g = built
+    for a in (g.centre, g.axes, g.kind, g.size, g.rbound):
+        a.flags.writeable = False
+    return key, names, g
+
+
+def _probes_ahead(keys) -> None:
+    """The probes of ``keys`` (:func:`_probe_key`) not kept yet built in one :func:`_probe_geoms_many`
+    and kept (:data:`_PROBES`): a plan's work zones ask for several."""
+    todo = list(dict.fromkeys(k for k in keys if _PROBES.get(k) is None))
+    for key, built in zip(todo, _probe_geoms_many(todo) if todo else ()):
+        _PROBES.get_or_compute(key, lambda key=key, built=built: _kept_probe(key, built))
 
 
 #: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object,
 #: and beside them (keys ("table", id), ("stack", id)) the artefact's :class:`_Solids` and the
-#: poses stacked. Safe: the artefact is kept in each entry and checked with ``is``; the
-#: values are only read. 64 entries, up to three per artefact (before: cleared when the poses
+#: poses stacked, and (keys ("side", id, blocks)) its work zones' table sides per workholder
+#: (:func:`_table_side`). Safe: the artefact is kept in each entry and checked with ``is``; the
+#: blocks are in the key (frozen, compared by value); the values are only read. 64 entries,
+#: three per artefact and one per workholder it sits on (before: cleared when the poses
 #: of a new artefact found more than 16 entries; the other two kinds were stored unchecked).
 _SOLID_POSES = Memo(64)
 
@@ -248,7 +279,7 @@ def _build_solid_table(art) -> _Solids:
     if not set(kinds) <= {"box", "cylinder", "sphere"}:
         raise ValueError("WorkZone: mesh solids are not supported (the MFB has none)")
     # (a flat tuple of numbers as it is, else flattened: the same numbers)
-    sizes = [sz if type(sz) is tuple and all(type(v) in _NUMBER for v in sz) else tuple(np.ravel(sz))
+    sizes = [sz if type(sz) is tuple and _NUMBER.issuperset(map(type, sz)) else tuple(np.ravel(sz))
              for sz in (s.size for s in sol)]
     feats = [s.feature for s in sol]
     names = [f"{f or ('support' if kd == 'cylinder' else 'body')}__{k}" for k, (f, kd) in enumerate(zip(feats, kinds))]
@@ -302,6 +333,38 @@ def _ball_clearance(art, r: float):
     return Clearance(P, H, [sol.features[k] for k in bar], 0)
 
 
+#: Per table pose (T_R_W's bytes, :meth:`WorkZone.set_table`): [the table's free-joint qpos (7,), its
+#: T_W_R as MuJoCo's pose gives it (:meth:`WorkZone._W_R`, None until asked)], shared by every work
+#: zone set to that pose (a plan's zones share a handful of table poses). Safe: each value is a
+#: function of the key alone; only read. 64 poses.
+_TABLE_POSES = Memo(64)
+
+
+def _table_side(art, blocks: tuple) -> tuple:
+    """(kinds, sizes, poses of the disc and the blocks, names, features, the holder's geoms, table
+    geom -> feature) of a work zone's table side for the bar ``art`` on the workholder ``blocks``:
+    the table disc, the blocks, the bar's solids, in the model's order. Built once per bar and
+    workholder (kept beside the bar's solids, :data:`_SOLID_POSES`) and shared, read only, by the
+    zones of every placement and probe (the bar's pose enters through ``T_W_A`` alone)."""
+    def build():
+        kinds, sizes, poses, names, feats = ["cylinder"], [(TABLE_R_M, TABLE_T_M / 2, 0.0)], \
+            [make_T(None, (0.0, 0.0, -TABLE_T_M / 2))], ["table_disc"], [""]
+        for b in blocks:
+            lo, hi = np.asarray(b.lo, float), np.asarray(b.hi, float)
+            kinds.append("box"), sizes.append(tuple((hi - lo) / 2)), poses.append(make_T(None, (lo + hi) / 2))
+            names.append(f"fix_{b.name}"), feats.append("")
+        sol = _solid_table(art)  # the bar's solids: the same for every placement
+        kinds += sol.kinds
+        sizes += sol.sizes
+        names += sol.names
+        feats += sol.features
+        n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
+        holder = list(range(n0)) + [n0 + k for k in sol.holder]
+        return kinds, sizes, poses, names, feats, holder, dict(enumerate(feats))
+
+    return _SOLID_POSES.get_or_compute(("side", id(art), blocks), build, owner=art)
+
+
 class WorkZone:
     """One bar placement on the table with its workholder, one probe (offsets J).
 
@@ -323,23 +386,12 @@ class WorkZone:
         T_W_A = np.asarray(T_W_A, float)
         self._args = (artefact, T_W_A, tuple(blocks))
         # the table side in W, as numpy geoms (kind, size, pose) in the model's order: the
-        # disc, the blocks, the bar's solids (the MJCF of self.mjcf is written from these)
-        kinds, sizes, poses, names, feats = ["cylinder"], [(TABLE_R_M, TABLE_T_M / 2, 0.0)], \
-            [make_T(None, (0.0, 0.0, -TABLE_T_M / 2))], ["table_disc"], [""]
-        for b in blocks:
-            lo, hi = np.asarray(b.lo, float), np.asarray(b.hi, float)
-            kinds.append("box"), sizes.append(tuple((hi - lo) / 2)), poses.append(make_T(None, (lo + hi) / 2))
-            names.append(f"fix_{b.name}"), feats.append("")
-        sol = _solid_table(artefact)  # the bar's solids: the same for every placement
-        kinds += sol.kinds
-        sizes += sol.sizes
-        names += sol.names
-        feats += sol.features
+        # disc, the blocks, the bar's solids (the MJCF of self.mjcf is written from these); the
+        # same lists for every zone of this bar and workholder (_table_side; read only)
+        kinds, sizes, poses, names, feats, holder, feature = _table_side(artefact, self._args[2])
         self._tkind, self._tsize, self._tpose0 = kinds, sizes, poses  # (the solids' poses: _pose)
         self._T_W_A = T_W_A
         nt = len(names)
-        n0 = 1 + len(blocks)  # the disc, the blocks (all the holder's), then the bar's solids
-        holder = list(range(n0)) + [n0 + k for k in sol.holder]
         # the probe's geoms from their definitions (the broad phase's), once per probe (_PROBES); its
         # MJCF (written from the same parts, _probe_parts) when a model of the zone is compiled
         self._probe_key, pnames, self._probe_geoms = _probe(J_m, stylus_r_m, finger_m)
@@ -351,7 +403,7 @@ class WorkZone:
         self._table = list(range(nt))
         self._probe = list(range(nt, nt + npg))
         self._holder = holder
-        self._feature = dict(enumerate(feats))
+        self._feature = feature  # (table geom -> its feature)
         self._feats = feats  # (the same, as a list)
         self._pball = pnames.index("ball")  # the ball among the probe's geoms
         self._ball = nt + self._pball
@@ -362,6 +414,7 @@ class WorkZone:
         self._tqpos = np.array([0.0, 0, 0, 1, 0, 0, 0])
         self._clr, self._hclr = {}, {}  # (clearance: by part, holder only by table pose)
         self._T_W_R = None  # (clearance)
+        self._tpose = [self._tqpos, None]  # (set_table: the pose's entry in _TABLE_POSES)
         self._tkey = None  # (set_table: the pose last set, bytes)
         self._at = {}  # the broad phases at the pose last set (ball_clearance, clearance), by part
         self._hpairs = {}  # the holder's pairs of each rest broad phase (least_holder_clearance), by its certificates
@@ -445,7 +498,9 @@ class WorkZone:
         if key == self._tkey:  # (the same pose again: a plan's check sets it twice per measurement)
             return
         self._tkey = key
-        self._tqpos = np.concatenate([T[:3, 3], _quat(T[:3, :3])])
+        # (per pose, whatever the zone: its free joint's qpos, and T_W_R once a zone asks, _W_R)
+        self._tpose = _TABLE_POSES.get_or_compute(key, lambda: [np.concatenate([T[:3, 3], _quat(T[:3, :3])]), None])
+        self._tqpos = self._tpose[0]
         self._T_W_R = None
         self._at = {}
 
@@ -483,7 +538,7 @@ class WorkZone:
         kind = np.array([GEOM_TYPE[k] for k in self._tkind])
         return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rbound(kind, size))
 
-    def clearance(self, holder_only: bool = False, part: str = "all"):
+    def clearance(self, holder_only: bool = False, part: str = "all", moved: bool = True):
         """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose.
 
         ``part``: "all", the probe against every table-side geom (indices of
@@ -497,7 +552,9 @@ class WorkZone:
         :class:`sim.clearance.ByOrientation`): the measurements of one work zone at table
         poses that differ by a turn about the spindle axis (a C turn on a vertical
         spindle) share it, its pair data and the certificates of their moves (the same
-        touches in W: :meth:`sim.clearance.Clearance.near_segments`).
+        touches in W: :meth:`sim.clearance.Clearance.near_segments`). ``moved=False``: that
+        orientation's broad phase wherever it was last placed (for segments already in W: its
+        ``T_F_R`` may be another pose's).
         """
         from .clearance import ByOrientation, Clearance, model_geoms
 
@@ -512,7 +569,7 @@ class WorkZone:
                 self._hclr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
                                             cert_pad_m=0.0)
             return self._hclr[key]
-        hit = self._at.get(part)  # (asked twice per measurement at one pose: its paths, its least clearance)
+        hit = self._at.get(part) if moved else None  # (asked twice per measurement at one pose)
         if hit is not None:
             return hit
         if part not in self._clr:
@@ -529,13 +586,17 @@ class WorkZone:
                                  pairs=pairs)
 
             self._clr[part] = ByOrientation(probe, build)
+        if not moved:
+            return self._clr[part].get(self._W_R(), move=False)
         hit = self._at[part] = self._clr[part].get(self._W_R())
         return hit
 
     def _W_R(self) -> np.ndarray:
         """(4,4) T_W_R: R in the table's frame, from the table's pose as MuJoCo has it (once per set_table)."""
         if self._T_W_R is None:
-            self._T_W_R = inv_T(self._T_R_W())
+            if self._tpose[1] is None:  # (the same for every zone at this pose)
+                self._tpose[1] = inv_T(self._T_R_W())
+            self._T_W_R = self._tpose[1]
         return self._T_W_R
 
     def ball_clearance(self):
@@ -545,10 +606,13 @@ class WorkZone:
         its pair data and certificates (:data:`_BALLS`)."""
         hit = self._at.get("ball")
         if hit is None:
-            art, r = self._args[0], self._r
-            ball = _BALLS.get_or_compute((id(art), r), lambda: _ball_clearance(art, r), owner=art)
-            hit = self._at["ball"] = ball.moved(self._A_W @ self._W_R())
+            hit = self._at["ball"] = self._ball_base().moved(self._A_W @ self._W_R())
         return hit
+
+    def _ball_base(self):
+        """:meth:`ball_clearance` in A, unplaced (``T_F_R`` None: for segments already in A)."""
+        art, r = self._args[0], self._r
+        return _BALLS.get_or_compute((id(art), r), lambda: _ball_clearance(art, r), owner=art)
 
     def near_segments(self, sg, allow_feature=None) -> np.ndarray:
         """Sorted sample numbers of the segments ``sg`` (R) that may come closer than
@@ -597,68 +661,33 @@ class WorkZone:
                 a, b = self._probe[clr.pair_probe[p]], self._holder[clr.pair_table[p]]
                 best = min(best, float(self._mj.mj_geomDistance(self.model, self.data, a, b, distmax, None)))
             return best
-        # the holder's pairs of the whole zone's broad phase (shared by the measurements of
-        # this zone turned the same way about the spindle axis; frame W)
-        clr = self.clearance(part="rest")  # (every pair with a holder geom)
-        hp = self._hpairs.get(id(clr._certs))  # (the same pairs for the moved copies of a broad phase)
+        return float(least_holder_clearances([(self, None, tips)], distmax)[0])
+
+    def _holder_pairs(self, clr) -> tuple:
+        """(the pairs of the rest broad phase ``clr`` with a holder geom (indices of its pairs),
+        each table geom's index in the holder's model (-1: not the holder's)): shared by the moved
+        copies of a broad phase (kept by its certificates)."""
+        hp = self._hpairs.get(id(clr._certs))
         if hp is None:
             hpos = np.full(len(self._table), -1)
             hpos[self._holder] = np.arange(len(self._holder))  # table geom -> its holder model's geom
             hp = self._hpairs[id(clr._certs)] = (np.flatnonzero(hpos[clr.pair_table] >= 0), hpos, clr._certs)
-        hp, hpos = hp[0], hp[1]
-        npair = len(hp)
-        bm, bd, h0, gball = self._ball_model()
-        held = []  # the holder's model, fetched (and compiled) once a triple needs it
+        return hp[0], hp[1]
 
-        def dist(k):  # (the ball's in the placement's model of the ball, the same distance)
-            g = clr.pair_probe[pair[k]]
-            b = int(hpos[clr.pair_table[pair[k]]])
-            if g == self._pball:
-                m, d = bm, bd
-                a, b = gball, h0 + b
-            else:
-                if not held:
-                    held.append(self._holder_model())
-                m, d = held[0]
-                a = self._hprobe[g]
-            self._place(m, d, tips[i[k]])
-            return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
-
-        # the result is min(distmax, every triple's distance) as in the reference: a triple is
-        # left out only when a lower bound of its distance exceeds a distance already found by
-        # more than the margin (MuJoCo's distances err by far less). The bound of the geoms'
-        # boxes of every triple; in its increasing order, chunks of triples get the full bound
-        # and MuJoCo in the full bound's order, while the chunk's box bound may still be nearer
-        # (a triple whose boxes lie farther than distmax cannot lower min(distmax, ...))
-        # pairs whose box lies farther than distmax from the box of every tip: no row of theirs is kept
-        # below (the distance between two boxes bounds that of any point of one from the other)
-        pF = clr.to_frame(tips)
-        t_lo, t_hi = pF.min(axis=0)[:, None], pF.max(axis=0)[:, None]
-        # (box_bound's operations on the tips' box: each tip's bound is at least this, rounding included)
-        gap = np.maximum(np.maximum(clr._loT[:, hp] + MARGIN_M - t_hi, t_lo - (clr._hiT[:, hp] - MARGIN_M)), 0.0)
-        gap *= gap
-        hp = hp[np.sqrt(gap[0] + gap[1] + gap[2]) <= distmax + MARGIN_M]
-        npair = len(hp)
-        lb0 = clr._box_bound_F(pF, hp).ravel()  # rows (tip, pair): tip i = row // npair, pair hp[row % npair]
-        near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
-        i, pair, lb0 = near // npair, hp[near % npair], lb0[near]
-        order = np.argsort(lb0, kind="stable")
-        pos = 0
-        # the first few straight to MuJoCo in the box bound's order (a distance costs less than
-        # the full bound of a chunk: in the MFB plans one or two triples are ever within reach)
-        while pos < min(len(order), _DIRECT) and lb0[order[pos]] <= best + MARGIN_M:
-            best = min(best, dist(order[pos]))
-            pos += 1
-        while pos < len(order) and lb0[order[pos]] <= best + MARGIN_M:
-            rows = order[pos:pos + 64]
-            pos += 64
-            rows = rows[lb0[rows] <= best + MARGIN_M]
-            lb = clr.bound(tips, i[rows], pair[rows])
-            for j in np.argsort(lb, kind="stable"):
-                if lb[j] > best + MARGIN_M:
-                    break
-                best = min(best, dist(rows[j]))
-        return best
+    def _holder_distance(self, clr, hpos, tip, pair: int, distmax: float) -> float:
+        """MuJoCo's distance of pair ``pair`` of the rest broad phase ``clr`` with the tip centre at
+        ``tip`` (R) at the current table pose: the ball's in the placement's ball model, the other
+        probe geoms' in the holder's model (the same distance as in the whole zone's)."""
+        g = clr.pair_probe[pair]
+        b = int(hpos[clr.pair_table[pair]])
+        if g == self._pball:
+            m, d, h0, a = self._ball_model()
+            b = h0 + b
+        else:
+            m, d = self._holder_model()
+            a = self._hprobe[g]
+        self._place(m, d, tip)
+        return float(self._mj.mj_geomDistance(m, d, a, b, distmax, None))
 
     def holder_clearance(self, distmax: float = 0.05) -> float:
         """Least distance (m) of the probe's geoms from the table, the workholder and the
@@ -674,6 +703,101 @@ class WorkZone:
 #: Triples of the least holder clearance given to MuJoCo in the order of their box bound
 #: before the full bound (:meth:`sim.clearance.Clearance.bound`) orders the rest.
 _DIRECT = 8
+
+
+def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
+    """:meth:`WorkZone.least_holder_clearance` of several measurements at once: ``items`` (work zone,
+    table pose T_R_W (4,4) or None for the zone's current one, tips (n,3) R, n >= 1) each; returns
+    (len(items),) m.
+
+    Branch and bound, as :meth:`WorkZone.least_holder_clearance` says: each (tip, probe geom, holder
+    geom) triple has a lower bound from :mod:`sim.clearance`; MuJoCo's ``mj_geomDistance`` runs in
+    increasing order of bound while the bound is below the least distance found (plus
+    :data:`sim.clearance.MARGIN_M`). The vector part is done for every measurement in one pass: the
+    holder pairs whose box lies farther than ``distmax`` from the box of every tip of the
+    measurement dropped, then the box bound of every remaining (tip, pair) row of every measurement
+    in one vectorised expression, sorted by (measurement, bound). MuJoCo's distances and the full
+    bound of the rows the box bound leaves close stay per measurement. Each answer is min(distmax,
+    every triple's distance) as in the reference (every triple): a triple is left out only when a
+    lower bound of its distance exceeds a distance already found by more than the margin, so the
+    triple of the least distance is always given to MuJoCo: the same float whatever the order.
+    """
+    from .clearance import MARGIN_M
+
+    n = len(items)
+    out = np.full(n, float(distmax))
+    if not n:
+        return out
+    pre = []  # per item: (zone, its pose, broad phase, holder pairs, hpos, tips R, tips F)
+    for wz, T_R_W, tips in items:
+        if T_R_W is not None:
+            wz.set_table(T_R_W)
+        clr = wz.clearance(part="rest")  # (every pair with a holder geom; frame W)
+        hp, hpos = wz._holder_pairs(clr)
+        tips = np.asarray(tips, float).reshape(-1, 3)
+        pre.append((wz, wz._tkey, clr, hp, hpos, tips, clr.to_frame(tips)))
+    # the holder pairs of every item, with the box of its tips: those farther than distmax dropped
+    # (the distance between two boxes bounds that of any point of one from the other)
+    npair = np.array([len(x[3]) for x in pre])
+    loT = np.concatenate([x[2]._loT[:, x[3]] for x in pre], axis=1)
+    hiT = np.concatenate([x[2]._hiT[:, x[3]] for x in pre], axis=1)
+    pFs = [x[6] for x in pre]
+    t_lo = np.repeat(np.array([p.min(axis=0) for p in pFs]).T, npair, axis=1)
+    t_hi = np.repeat(np.array([p.max(axis=0) for p in pFs]).T, npair, axis=1)
+    gap = np.maximum(np.maximum(loT + MARGIN_M - t_hi, t_lo - (hiT - MARGIN_M)), 0.0)
+    gap *= gap
+    keep = np.sqrt(gap[0] + gap[1] + gap[2]) <= distmax + MARGIN_M
+    item_of = np.repeat(np.arange(n), npair)[keep]  # per kept pair: its item
+    pair_of = np.concatenate([x[3] for x in pre])[keep]  # its pair in its item's broad phase
+    loT, hiT = loT[:, keep] + MARGIN_M, hiT[:, keep] - MARGIN_M  # (the tip's box of contact)
+    q = np.bincount(item_of, minlength=n)  # kept pairs per item
+    q0 = np.cumsum(q) - q
+    nt = np.array([len(p) for p in pFs])
+    t0 = np.cumsum(nt) - nt
+    # every (tip, kept pair) row of every item, tip-major within an item
+    cnt = nt * q
+    tot = int(cnt.sum())
+    if not tot:
+        return out
+    item = np.repeat(np.arange(n), cnt)
+    local = np.arange(tot) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    qk = q[item]
+    tip, prow = local // qk + t0[item], local % qk + q0[item]
+    pT = np.concatenate(pFs).T[:, tip]
+    g = np.maximum(loT[:, prow] - pT, pT - hiT[:, prow])  # the boxes' gap along x, y, z
+    worst = np.maximum(np.maximum(g[0], g[1]), g[2])
+    m = np.maximum(g, 0.0)
+    m *= m
+    lb0 = np.where(worst > 0, np.sqrt(m[0] + m[1] + m[2]), worst)
+    near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
+    order = near[np.lexsort((lb0[near], item[near]))]  # by item, then bound (stable: tip-major on ties)
+    cut = np.searchsorted(item[order], np.arange(n + 1))
+    for k in range(n):
+        rows_k = order[cut[k]:cut[k + 1]]
+        if not rows_k.size:
+            continue
+        wz, tkey, clr, _, hpos, tips, _ = pre[k]
+        if wz._tkey != tkey:  # (another item of this zone set another pose since)
+            wz.set_table(np.frombuffer(tkey).reshape(4, 4))
+        i, pair, lb = tip[rows_k] - t0[k], pair_of[prow[rows_k]], lb0[rows_k]
+        best = float(distmax)
+        pos = 0
+        # the first few straight to MuJoCo in the box bound's order (a distance costs less than
+        # the full bound of a chunk: in the MFB plans one or two triples are ever within reach)
+        while pos < min(len(lb), _DIRECT) and lb[pos] <= best + MARGIN_M:
+            best = min(best, wz._holder_distance(clr, hpos, tips[i[pos]], pair[pos], distmax))
+            pos += 1
+        while pos < len(lb) and lb[pos] <= best + MARGIN_M:
+            rows = np.arange(pos, min(pos + 64, len(lb)))
+            pos += 64
+            rows = rows[lb[rows] <= best + MARGIN_M]
+            full = clr.bound(tips, i[rows], pair[rows])
+            for j in np.argsort(full, kind="stable"):
+                if full[j] > best + MARGIN_M:
+                    break
+                best = min(best, wz._holder_distance(clr, hpos, tips[i[rows[j]]], pair[rows[j]], distmax))
+        out[k] = best
+    return out
 
 
 def _zone_xml(table_mjcf: str, probe_mjcf: str) -> str:
@@ -697,6 +821,7 @@ def share_ball_model(artefact, measurements, stylus_r_m: float) -> list:
     Returns each measurement's work zone (:func:`_work_zone`), in order.
     """
     zones, each = {}, []
+    _probes_ahead([_probe_key(J_m, stylus_r_m, finger_m) for _, _, J_m, finger_m in measurements])
     for T_W_A, blocks, J_m, finger_m in measurements:
         wz = _work_zone(artefact, T_W_A, blocks, J_m, stylus_r_m, finger_m)
         each.append(wz)
@@ -952,7 +1077,10 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     and go through the broad phase together (:func:`sim.clearance.near_segments_many`): the
     ball against the bar in A (one broad phase for every measurement, each distinct move bounded
     once: :func:`_near_samples`), the rest of each work zone in W. The work zones' ball models
-    are shared (:func:`share_ball_model`).
+    are shared (:func:`share_ball_model`). The links of every measurement are computed in A at
+    once (:func:`_link_points_A`, each measurement's back in R through its own transform, as
+    :func:`link_points` does), and the least clearances of every measurement go through one
+    :func:`least_holder_clearances` (its vector part in one pass, MuJoCo per measurement).
     """
     r = float(stylus_r_m)
     ms = [(name, np.asarray(T_W_A, float), np.asarray(T_R_W, float), tuple(blocks), J_m, plan, float(finger_m))
@@ -964,7 +1092,8 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     overlaps = {}  # block_overlaps by placement and workholder
     direct = {}  # per program (plan object): its direct links (_direct_links)
     bad, zones, T_R_As, paths = [], [], [], []
-    for (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m), wz in zip(ms, each):
+    linked = []  # (measurement, starts in A, direct links) of the measurements with links
+    for i, ((name, T_W_A, T_R_W, blocks, J_m, plan, finger_m), wz) in enumerate(zip(ms, each)):
         T_R_A = T_R_W @ T_W_A
         b = []
         # the bar and the workholder on the table's side of its face (W z >= 0)
@@ -989,12 +1118,25 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
                 dl = direct.get(id(plan))  # (per program: its features compared once)
                 if dl is None:
                     dl = direct[id(plan)] = _direct_links(plan.feature, plan.level)
-                L, cnt = link_points(T_R_A, start, None, None, top, dl)
-            else:
-                L, cnt = np.zeros((0, 3)), np.zeros(0, int)
-            paths.append((start, Xn, L, cnt))
+                # (link_points' starts in A; the links of every measurement computed together below)
+                linked.append((i, apply_T(inv_T(T_R_A), start), dl))
+            paths.append((start, Xn, np.zeros((0, 3)), np.zeros(0, int)))
         else:
             paths.append(None)
+    # the links of every measurement as link_points gives them (the same operations row by row):
+    # the starts in A, _link_points_A on all of them at once (the links across two measurements
+    # computed and dropped), each measurement's points back to R through its own transform
+    if linked:
+        n_s = np.array([len(x[1]) for x in linked])
+        s0 = np.cumsum(n_s) - n_s
+        dl_all = np.ones(int(n_s.sum()) - 1, bool)  # (a dropped link: direct, two points)
+        for (_, _, dl), k in zip(linked, s0):
+            dl_all[k:k + len(dl)] = dl
+        P, cnt = _link_points_A(np.concatenate([x[1] for x in linked]), None, None, top, dl_all)
+        p0 = np.r_[0, np.cumsum(cnt)]
+        for (i, _, _), k, n in zip(linked, s0, n_s):
+            start, Xn = paths[i][:2]
+            paths[i] = (start, Xn, apply_T(T_R_As[i], P[p0[k]:p0[k + n - 1]]), cnt[k:k + n - 1])
     # every measurement's polylines in the order checked (per touch i the link into its start,
     # none for the first, then its approach/retract start -> contact), sampled at once
     live = [i for i in range(len(ms)) if paths[i] is not None]
@@ -1031,12 +1173,19 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
                              f"{np.round(pts[k] * 1e3, 1).tolist()} mm")
                     bad_touch.add(t)
                     n_samp -= int(touch_end[t] - idx[k] - 1)
-        # the least clearance at the approach starts: along every sampled path point it would be
-        # exact too, but cost 2.3x this check (bench col_mfb5_measurement_checks_s 0.029 -> 0.069 s
-        # against a 0.097 s simulation); the paths between are checked for collision at every sample
-        clear = wz.least_holder_clearance(paths[i][0], broad_phase=broad_phase) if plan.n else np.inf
-        out.append(CheckResult(name, int(plan.n), n_samp, tuple(b), float(clear * 1e3)))
-    return out
+        out.append([name, int(plan.n), n_samp, tuple(b)])
+    # the least clearance at the approach starts: along every sampled path point it would be
+    # exact too, but cost 2.3x this check (bench col_mfb5_measurement_checks_s 0.029 -> 0.069 s
+    # against a 0.097 s simulation); the paths between are checked for collision at every sample.
+    # Every measurement's in one least_holder_clearances (its vector part in one pass)
+    clear = np.full(len(ms), np.inf)
+    if broad_phase and live:
+        clear[live] = least_holder_clearances([(zones[i], ms[i][2], paths[i][0]) for i in live])
+    else:
+        for i in live:
+            zones[i].set_table(ms[i][2])
+            clear[i] = zones[i].least_holder_clearance(paths[i][0], broad_phase=broad_phase)
+    return [CheckResult(*r, float(c * 1e3)) for r, c in zip(out, clear)]
 
 
 def _near_samples(ms, zones, live, sgs) -> dict:
@@ -1074,7 +1223,8 @@ def _near_samples(ms, zones, live, sgs) -> dict:
         plan, T_W_A = ms[i][5], ms[i][1]
         assert len(segs_A[id(plan)][0]) == len(sg.a)  # (the same polylines, row for row)
         own = []
-        for clr, place in ((wz.ball_clearance(), None), (wz.clearance(part="rest"), T_W_A)):
+        # (the two broad phases as kept, not moved to this pose: the rows are given in their frames)
+        for clr, place in ((wz._ball_base(), None), (wz.clearance(part="rest", moved=False), T_W_A)):
             key = (id(clr._certs), id(plan), b"" if place is None else place.tobytes())
             own.append(key)
             if key in rows_F:
@@ -1108,9 +1258,10 @@ def _near_samples(ms, zones, live, sgs) -> dict:
         for j, k in enumerate(ks):
             inv[k] = (len(parts) - 1, back[off[j]:off[j + 1]])
     is_open = near_segments_many(parts, samples=False)
-    # the open rows of each measurement, sample by sample (its own samples), in one pass
+    # the open rows of each measurement, sample by sample (its own samples), in one pass (none
+    # when no distinct row of any broad phase is open: the 5-axis plan's case)
     sub, who = [], []
-    for n, i in enumerate(live):
+    for n, i in enumerate(live if any(o.any() for o in is_open) else ()):
         sg = sgs[i][0]
         for key in keys[n]:
             p, back = inv[key]

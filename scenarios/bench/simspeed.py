@@ -43,6 +43,28 @@ strokes) 2.6 ms. No path sample reaches MuJoCo. With every structure kept (a sec
 the plan: broad phases, certificates) it takes 21-23 ms against 39-45 ms fresh (best of 8 each,
 interleaved): about half of a fresh check is building what the check keeps, the rest numpy over
 small arrays (about 9,500 Python-level calls a check, cProfile).
+
+Session 15 (issue 19 item 4, continued; cProfile with ``time.thread_time`` as its clock, 20 fresh
+checks after one warm-up, load 8-11 on 2 cores; times under the profiler, about 2.8x the bare
+check): 17,033 calls and 139 ms a check before, 13,025 calls and 105 ms after. Before, per check:
+``_near_samples`` 70 ms (building the 13 rest broad phases and the ball's, ``WorkZone.clearance``,
+28 ms, of which 14 ``Clearance`` 19 ms; ``near_segments_many`` 19 ms; the 17 ball copies moved
+to each pose 8.5 ms), ``share_ball_model`` 22 ms (9 work zones 16 ms, 7 probes 5.7 ms), 17
+``least_holder_clearance`` 16 ms, 17 ``link_points`` 8.4 ms, ``_paths_of`` 5.5 ms. What changed:
+the links of every measurement in one ``_link_points_A``; the least clearances in one
+``least_holder_clearances`` (the box bound of every (tip, pair) row of every measurement in one
+vectorised pass, MuJoCo per measurement); the probes built in one pass; each work zone's table
+side once per bar and workholder; each table pose's qpos and ``T_W_R`` once per pose; the broad
+phases of the moves taken as kept rather than moved to each pose; the clusters' boxes reduced
+along contiguous rows. After, per check: ``_near_samples`` 59 ms (``WorkZone.clearance`` 22 ms,
+``near_segments_many`` 21 ms), ``share_ball_model`` 14 ms, ``least_holder_clearances`` 9.5 ms,
+``_paths_of`` 4.8 ms. What remains is mostly one-off structures per placement and orientation
+(14 ``Clearance``, 6 pair structures, 5 table preps: a few hundred microseconds each, numpy over
+a few thousand rows) and the broad phase's pass over the 15,640 distinct rows. This collision
+figure, 6 runs interleaved with the code before (thread CPU, the bench's own best of 5 each):
+the plan check 0.0551 -> 0.0366 s (medians; median ratio of the paired runs 0.73; wall 0.71), its
+share of the simulation 0.358 -> 0.309 (the simulation's CPU moved by 0.7-1.3x between runs at
+that load): the target, under 0.25, is not reached.
 """
 
 from __future__ import annotations
@@ -345,7 +367,7 @@ def _fresh_plan_check() -> None:
 
     for memo in (S._CHECKS, S._MARGINS, plans._MFB_PLANS, plans._MFB_TOUCHES, scene._POINTS,
                  mfb_scene._SOLID_POSES, mfb_scene._ZONES, mfb_scene._BALLS, mfb_scene._PROBES,
-                 clearance._TABLE_PREP, clearance._PAIRS):
+                 mfb_scene._TABLE_POSES, clearance._TABLE_PREP, clearance._PAIRS):
         memo.clear()
     S._plan_for(S._nominal_bar(), (1,))  # the plan's making's touch program (its _fit_holes)
 
