@@ -3166,9 +3166,9 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         for f, (ss_f, name) in families.items():
             # the feature-per-set-up term nests a position cause: it is judged
             # as the cause's own covariate's smooth is (NESTING_FAMILIES)
-            nested = (f in NESTING_FAMILIES.get(fam, ()) or f != fam and _spans_exactly(bl, name, cols[rows], rows)) \
-                and own >= settings.rival_share * ss_f
-            if f != fam and ss_f > own + m_ss and not nested:
+            # (the design's exact nesting measured only where it decides: a refusal otherwise)
+            if f != fam and ss_f > own + m_ss and not (own >= settings.rival_share * ss_f and (
+                    f in NESTING_FAMILIES.get(fam, ()) or _spans_exactly(bl, name, cols[rows], rows))):
                 return {"reason": f"the structure follows {name} ({f}) more than this cause's form or its "
                                   f"family ({ss_f / UM ** 2:.3g} against {own / UM ** 2:.3g} um^2)",
                         "significant": True}
