@@ -51,7 +51,10 @@ What it does, in order, and the statistics behind each step
       than both the cause's columns and the best smooth function of a
       covariate of its own family (debiased sums of squares); a family
       whose term nests the cause's on the design (:data:`NESTING_FAMILIES`:
-      the feature per set-up, for a position cause) refuses it only when
+      the feature per set-up, for a position cause; or a categorical term
+      that holds the cause's columns exactly, :func:`_spans_exactly`: the
+      feature per set-up, for the stylus's bending where each feature of a
+      set-up is probed at one elevation) refuses it only when
       neither the cause's columns nor the best smooth of its own family
       explain :attr:`Settings.rival_share` of it (the larger of the two,
       as against any other family);
@@ -2955,6 +2958,28 @@ def _family_ss(bl, diag, n, rss: float | None = None) -> dict:
 NESTING_FAMILIES = {"position": ("feature",)}
 
 
+def _spans_exactly(bl, covariate: str, E: np.ndarray, rows) -> bool:
+    """Whether a categorical covariate's term spans the columns ``E`` (rows ``rows``) exactly on this design.
+
+    A categorical term acting through the scalar mode (mode 0, a column of
+    ones on a planar baseline) holds every column that is constant within
+    each of its categories: on a design that probes each feature of a set-up
+    at one approach elevation (gen_b), the feature-per-set-up term is any
+    function of the elevation, a stylus's bending included, and its form
+    error besides. Such a term nests the cause as it nests a position cause
+    (:data:`NESTING_FAMILIES`), measured here on the design rather than
+    assumed for a family.
+    """
+    cov = bl.covariate(covariate)
+    if cov is None or cov.kind != "categorical" or 0 not in cov.modes or E.ndim != 2 or E.shape[1] == 0:
+        return False
+    m0 = bl.modes[rows, 0]
+    if not np.all(m0 == m0[0]) or m0[0] == 0:
+        return False
+    codes = np.unique(np.asarray(cov.values)[rows], return_inverse=True)[1]
+    return _constant_within(codes, E)
+
+
 class _Trial(NamedTuple):
     """One trial of a cause's scan against the current model (:func:`_evaluate`).
 
@@ -3141,8 +3166,9 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         for f, (ss_f, name) in families.items():
             # the feature-per-set-up term nests a position cause: it is judged
             # as the cause's own covariate's smooth is (NESTING_FAMILIES)
-            nested = f in NESTING_FAMILIES.get(fam, ()) and own >= settings.rival_share * ss_f
-            if f != fam and ss_f > own + m_ss and not nested:
+            # (the design's exact nesting measured only where it decides: a refusal otherwise)
+            if f != fam and ss_f > own + m_ss and not (own >= settings.rival_share * ss_f and (
+                    f in NESTING_FAMILIES.get(fam, ()) or _spans_exactly(bl, name, cols[rows], rows))):
                 return {"reason": f"the structure follows {name} ({f}) more than this cause's form or its "
                                   f"family ({ss_f / UM ** 2:.3g} against {own / UM ** 2:.3g} um^2)",
                         "significant": True}
