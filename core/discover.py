@@ -968,7 +968,19 @@ def _penalised_fit(Eo: np.ndarray, r: np.ndarray, P: np.ndarray, dof0: int):
     penalised fit's Bayesian covariance (Wahba 1983; the extended
     workpiece's), ``s^2`` on ``dof0`` less the fit's effective degrees of
     freedom ``tr((E^T E + P)^-1 E^T E)``. Returns (c, cov, s2, edf).
+
+    Raises ValueError on inconsistent shapes, non-finite values or a
+    penalty that is not symmetric non-negative (a ridge has no negative
+    eigenvalue: one would reward large coefficients).
     """
+    Eo, r, P = np.asarray(Eo, float), np.asarray(r, float), np.asarray(P, float)
+    k = Eo.shape[1] if Eo.ndim == 2 else -1
+    if Eo.ndim != 2 or r.shape != (Eo.shape[0],) or P.shape != (k, k):
+        raise ValueError(f"penalised fit: columns {Eo.shape}, residuals {r.shape}, penalty {P.shape} do not match")
+    if not (np.all(np.isfinite(Eo)) and np.all(np.isfinite(r)) and np.all(np.isfinite(P))):
+        raise ValueError("penalised fit: non-finite columns, residuals or penalty")
+    if k and (not np.allclose(P, P.T) or np.linalg.eigvalsh((P + P.T) / 2).min() < -1e-12 * max(np.abs(P).max(), 1)):
+        raise ValueError("penalised fit: the penalty is not symmetric non-negative")
     G = Eo.T @ Eo
     M = G + P
     Mi = np.linalg.pinv(M, rcond=1e-12, hermitian=True)
@@ -3483,12 +3495,30 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
         if cov is None:
             return {"kept": True, "rival_share": 1.0, "rival": None}
         B = bases[cov.name][rows]
-    U = new_basis(so.Q, np.hstack([B, tm.columns[rows]]))
-    ss_r = float(np.sum((U.T @ so.r) ** 2))
-    k_r = U.shape[1]
     s2 = sigma ** 2
     d_n = _named_ss(so, sf, sigma)
-    d_r = ss_r - k_r * s2
+    if tm.penalty is not None and not tm.unnamed:
+        # a penalised cause against its rival by the same estimator: the rival is the cause's columns and the
+        # smooth's directions beyond them (orthonormal, scaled to the columns' mean norm outside the model), all
+        # with the cause's ridge, each debiased by its effective degrees of freedom (an unpenalised rival beside a
+        # penalised cause measures the penalty's shrinkage, not the form: the synthetic x y coupling of
+        # tests/core/test_discover_generalisation.py seed 4, share 0.62 so)
+        E = tm.columns[rows]
+        Eo = E - so.Q @ (so.Q.T @ E)
+        Ub = new_basis(np.hstack([so.Q, new_basis(so.Q, E)]), B)
+        lam = float(np.mean(np.diag(tm.penalty)))
+        scale = float(np.trace(Eo.T @ Eo)) / max(E.shape[1], 1)
+        R = np.hstack([Eo, np.sqrt(scale) * Ub])
+        _, _, _, edf_n = _penalised_fit(Eo, so.r, tm.penalty, so.dof)
+        c_r, _, _, edf_r = _penalised_fit(R, so.r, lam * np.eye(R.shape[1]), so.dof)
+        rr = so.r - R @ c_r
+        d_n = (so.rss - sf.rss) - edf_n * s2
+        d_r = (so.rss - float(rr @ rr)) - edf_r * s2
+    else:
+        U = new_basis(so.Q, np.hstack([B, tm.columns[rows]]))
+        ss_r = float(np.sum((U.T @ so.r) ** 2))
+        k_r = U.shape[1]
+        d_r = ss_r - k_r * s2
     share = d_n / d_r if d_r > 0 else 1.0
     m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
     # a shortfall below materiality is forgiven only where the cause itself
