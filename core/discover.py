@@ -66,6 +66,12 @@ What it does, in order, and the statistics behind each step
 
    Among those, the lowest cross-validated mean square wins; within the
    materiality margin of it, the fewest columns (parsimony).
+   A penalised cause (:attr:`core.causes.Cause.penalised`: the non-rigid
+   field) is fitted with a ridge on its columns, the penalty chosen by
+   the held-out mean square (:func:`_evaluate_penalised`); that one fit
+   gives its held-out gain, magnitudes, residuals and workpiece, and it is
+   not refused as confounded (the penalty decides what the baseline's
+   span keeps).
 5. **Rival check**: a named cause must explain the structure in its own
    covariate at least :attr:`Settings.rival_share` as well as a
    catalogue-free smooth function of that covariate does (debiased sums of
@@ -101,7 +107,10 @@ What it does, in order, and the statistics behind each step
    unknown effect splits between machine and part is the smooth's form),
    the workpiece shift the smooth makes is tested against its own scatter
    (Hausman) and, when real, carried in the extended U95
-   (:func:`_unnamed_shift`).
+   (:func:`_unnamed_shift`); beside a penalised named cause likewise (its
+   penalty, not the data, splits what the baseline's span holds). A
+   penalised cause's magnitudes take their U95 from the penalised
+   covariance ``s^2 (E^T E + P)^-1`` (:func:`_penalised_fit`).
 8. **Confidence** (each finding's ``confidence``, ``named`` or
    ``ambiguous`` with ``confidence_reason``): ``named`` says the name holds
    against the alternatives the engine can test. A named cause: no smooth
@@ -2184,6 +2193,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         "logarithm, Student's t at 97.5 % with set-ups - 1 degrees of freedom); none without an extension, "
         "cross-validation or three set-ups"]
     smooth_terms = [t for t in terms if t.unnamed]
+    if any(t.penalty is not None and not t.unnamed for t in terms):
+        conv.append("a penalised named cause (" + ", ".join(t.cause for t in terms if t.penalty is not None
+                                                             and not t.unnamed) +
+                    "): its ridge chosen by the held-out mean square; the same penalised fit gives its held-out "
+                    "gain, magnitudes (U95 from s^2 (E^T E + P)^-1), residuals and extended workpiece")
     if smooth_terms:
         conv.append("extended workpiece beside an unnamed smooth: the smooth takes no combination the baseline "
                     "spans exactly; U95 from the penalised fit's covariance s^2 (A^T A + P)^-1 (the Bayesian "
