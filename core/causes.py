@@ -161,6 +161,10 @@ class Cause:
     richer_cause: str | None = None
     smooth: Callable | None = None
     support: Callable | None = None
+    #: the cause's columns are fitted with a ridge penalty chosen by the held-out mean square (a field of many
+    #: columns, partly inside the baseline's span): one penalised fit gives its held-out gain, magnitudes (U95 from
+    #: the penalised covariance), residuals and workpiece (core.discover; session 15)
+    penalised: bool = False
 
     @property
     def doc(self) -> str:
@@ -1566,7 +1570,30 @@ def reversal_magnitudes(info, coef, bl):
     return {"x_lost_motion_um": c[0] / UM, "y_lost_motion_um": c[1] / UM}
 
 
-_NONRIGID = ("EX~xy", "EY~xy", "EX~x2y", "EY~xy2", "EX~xy2", "EY~x2y")
+#: The axes whose error the penalised non-rigid field enters: "carried" (the axis the chain's yaw term says rides
+#: on the other: X when the yaw is ECY, Y when ECX) or "both" (session 15: measured both; docs/discovery.md).
+NONRIGID_AXES = "both"
+
+
+def _xy_products(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """(n, 6) the non-separable Legendre products ``P_i(xs) P_j(ys)``, i, j >= 1, i + j <= 4.
+
+    The products the unnamed smooth in ``xy`` uses (core.baseline's
+    covariate ``xy``), so a named field and the smooth span the same
+    functions of position.
+    """
+    P = [np.ones_like(xs), xs, (3 * xs ** 2 - 1) / 2, (5 * xs ** 3 - 3 * xs) / 2]
+    R = [np.ones_like(ys), ys, (3 * ys ** 2 - 1) / 2, (5 * ys ** 3 - 3 * ys) / 2]
+    return np.column_stack([P[i] * R[j] for i in range(1, 4) for j in range(1, 4) if i + j <= 4])
+
+
+_XY_LABELS = tuple(f"P{i}P{j}" for i in range(1, 4) for j in range(1, 4) if i + j <= 4)
+
+
+def _nonrigid_axes(bl) -> tuple:
+    if NONRIGID_AXES == "both":
+        return ("X", "Y")
+    return ("X",) if bl.info.get("yaw", "ECY") == "ECY" else ("Y",)
 
 
 def nonrigid_scans(bl):
@@ -1574,18 +1601,29 @@ def nonrigid_scans(bl):
 
     A rigid-body machine has errors of X that depend on x only; a table
     that sags as the saddle moves, a twisted guideway or a column that
-    leans with the load makes ``E_X`` depend on x and y jointly: low-order
-    products ``xs ys``, ``xs^2 ys``, ``xs ys^2`` of the centred, scaled
-    positions in both directions. Parameters: each term's value at the
-    corner of the probed extent (um).
+    leans with the load makes ``E_X`` depend on x and y jointly. The field
+    is the non-separable Legendre products ``P_i(xs) P_j(ys)`` (i, j >= 1,
+    i + j <= 4) of the centred, scaled positions in each axis' error
+    (:data:`NONRIGID_AXES`), fitted with a ridge penalty chosen by the
+    held-out mean square (:attr:`Cause.penalised`): a deflection that
+    changes sign along a stroke needs the higher products, and a set-up's
+    own corner of the machine is seen by that set-up only, where an
+    unpenalised polynomial extrapolates. Parameters: the field's RMS and
+    peak over the probed extent per axis (um).
     """
     d = bl.data
     xs, ys = d.xs, d.ys
+    axes = _nonrigid_axes(bl)
 
     def cols():
-        return np.column_stack([-d.nx * xs * ys, -d.ny * xs * ys, -d.nx * xs * xs * ys, -d.ny * xs * ys * ys,
-                                -d.nx * xs * ys * ys, -d.ny * xs * xs * ys])
-    return [_one(cols, _NONRIGID, {}, "xy")], 1.0
+        B = _xy_products(xs, ys)
+        return np.hstack([-(d.nx if a == "X" else d.ny)[:, None] * B for a in axes])
+    labels = tuple(f"E{a}~{lab}" for a in axes for lab in _XY_LABELS)
+    return [_one(cols, labels, {"axes": "".join(axes)}, "xy")], 1.0
+
+
+#: Grid points per side over which the non-rigid field's RMS and peak are taken (the probed extent's rectangle).
+NONRIGID_GRID = 21
 
 
 #: Split points tried per set-up by :func:`fixture_slip` (quantiles of its touches when it has more).
@@ -1646,7 +1684,19 @@ def finer_error_map(bl) -> np.ndarray:
 
 
 def nonrigid_magnitudes(info, coef, bl):
-    return {f"{k}_um": float(c) / UM for k, c in zip(_NONRIGID, coef)}
+    """The field's RMS and signed peak over the probed extent (the rectangle of xs, ys the touches span), per axis."""
+    d = bl.data
+    u = np.linspace(float(np.min(d.xs)), float(np.max(d.xs)), NONRIGID_GRID)
+    v = np.linspace(float(np.min(d.ys)), float(np.max(d.ys)), NONRIGID_GRID)
+    U, V = np.meshgrid(u, v)
+    B = _xy_products(U.ravel(), V.ravel())
+    c = np.asarray(coef, float)
+    out = {}
+    for j, a in enumerate(info.get("axes", "XY")):
+        f = B @ c[6 * j:6 * j + 6] / UM
+        out[f"E{a}_field_rms_um"] = float(np.sqrt(np.mean(f ** 2)))
+        out[f"E{a}_field_peak_um"] = float(f[np.argmax(np.abs(f))])
+    return out
 
 
 # ---------------------------------------------------------------------------
@@ -1858,7 +1908,7 @@ REGISTRY = (
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
           {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,
-          {f"{k}_um": (-200, 200) for k in _NONRIGID}, counter=finer_error_map),
+          {"E*_field_rms_um": (0, 200), "E*_field_peak_um": (-200, 200)}, counter=finer_error_map, penalised=True),
     Cause(OUTLIER, ("planar", "volumetric", "positioning"), "data", None, None, {},
           summary="A few observations deviate grossly (a chip or dust on the surface, a bad trigger, a "
                   "misread): studentized deleted residuals beyond a Bonferroni bound, removed one at a time."),

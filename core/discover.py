@@ -69,6 +69,12 @@ What it does, in order, and the statistics behind each step
 
    Among those, the lowest cross-validated mean square wins; within the
    materiality margin of it, the fewest columns (parsimony).
+   A penalised cause (:attr:`core.causes.Cause.penalised`: the non-rigid
+   field) is fitted with a ridge on its columns, the penalty chosen by
+   the held-out mean square (:func:`_evaluate_penalised`); that one fit
+   gives its held-out gain, magnitudes, residuals and workpiece, and it is
+   not refused as confounded (the penalty decides what the baseline's
+   span keeps).
 5. **Rival check**: a named cause must explain the structure in its own
    covariate at least :attr:`Settings.rival_share` as well as a
    catalogue-free smooth function of that covariate does (debiased sums of
@@ -104,7 +110,10 @@ What it does, in order, and the statistics behind each step
    unknown effect splits between machine and part is the smooth's form),
    the workpiece shift the smooth makes is tested against its own scatter
    (Hausman) and, when real, carried in the extended U95
-   (:func:`_unnamed_shift`).
+   (:func:`_unnamed_shift`); beside a penalised named cause likewise (its
+   penalty, not the data, splits what the baseline's span holds). A
+   penalised cause's magnitudes take their U95 from the penalised
+   covariance ``s^2 (E^T E + P)^-1`` (:func:`_penalised_fit`).
 8. **Confidence** (each finding's ``confidence``, ``named`` or
    ``ambiguous`` with ``confidence_reason``): ``named`` says the name holds
    against the alternatives the engine can test. A named cause: no smooth
@@ -897,7 +906,13 @@ class CpEstimate:
 # ---------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Term:
-    """Columns added to the baseline: a named cause, or the unnamed smooth term."""
+    """Columns added to the baseline: a named cause, or the unnamed smooth term.
+
+    ``penalty`` (k, k): the term's columns are fitted with this ridge
+    penalty (the unnamed smooth; a named cause marked
+    :attr:`core.causes.Cause.penalised`); ``unnamed``: the term is the
+    unnamed smooth (no physics), whatever its penalty.
+    """
 
     cause: str
     columns: np.ndarray = field(repr=False)  # (N, k) over all baseline rows
@@ -914,6 +929,7 @@ class Term:
     cols_all: np.ndarray | None = field(default=None, repr=False)  # (N, k_all) the scan's columns
     # (Qo, rows, magnitudes, u95) of the adoption test: the model it was judged beside
     at_adoption: tuple | None = field(default=None, repr=False, compare=False)
+    unnamed: bool = False
 
 
 def _stack(terms, rows) -> np.ndarray:
@@ -934,6 +950,57 @@ def _penalty(terms) -> np.ndarray | None:
             P[o:o + kk, o:o + kk] = t.penalty
         o += kk
     return P
+
+
+def _penalty_beside(terms, k: int, P: np.ndarray | None = None) -> np.ndarray | None:
+    """The penalty of ``terms``' columns followed by ``k`` more (penalised by ``P``, else not); None if none is."""
+    Pt = _penalty(terms)
+    if Pt is None and P is None:
+        return None
+    kt = sum(t.columns.shape[1] for t in terms)
+    out = np.zeros((kt + k, kt + k))
+    if Pt is not None:
+        out[:kt, :kt] = Pt
+    if P is not None:
+        out[kt:, kt:] = P
+    return out
+
+
+#: The ridge penalties tried for a penalised named cause, times its columns' mean squared norm outside the model
+#: (the unnamed smooth's grid, :func:`_unnamed_smooth`).
+PENALTY_GRID = tuple(np.logspace(-4, 2, 7))
+
+
+def _penalised_fit(Eo: np.ndarray, r: np.ndarray, P: np.ndarray, dof0: int):
+    """The ridge fit of residuals ``r`` on columns ``Eo`` (projected out of the model): coefficients, covariance.
+
+    The joint fit of the model and the columns with the penalty ``P`` on
+    the columns' coefficients only (Frisch-Waugh-Lovell holds for it: the
+    model's part is unpenalised). Covariance ``s^2 (E^T E + P)^-1``, the
+    penalised fit's Bayesian covariance (Wahba 1983; the extended
+    workpiece's), ``s^2`` on ``dof0`` less the fit's effective degrees of
+    freedom ``tr((E^T E + P)^-1 E^T E)``. Returns (c, cov, s2, edf).
+
+    Raises ValueError on inconsistent shapes, non-finite values or a
+    penalty that is not symmetric non-negative (a ridge has no negative
+    eigenvalue: one would reward large coefficients).
+    """
+    Eo, r, P = np.asarray(Eo, float), np.asarray(r, float), np.asarray(P, float)
+    k = Eo.shape[1] if Eo.ndim == 2 else -1
+    if Eo.ndim != 2 or r.shape != (Eo.shape[0],) or P.shape != (k, k):
+        raise ValueError(f"penalised fit: columns {Eo.shape}, residuals {r.shape}, penalty {P.shape} do not match")
+    if not (np.all(np.isfinite(Eo)) and np.all(np.isfinite(r)) and np.all(np.isfinite(P))):
+        raise ValueError("penalised fit: non-finite columns, residuals or penalty")
+    if k and (not np.allclose(P, P.T) or np.linalg.eigvalsh((P + P.T) / 2).min() < -1e-12 * max(np.abs(P).max(), 1)):
+        raise ValueError("penalised fit: the penalty is not symmetric non-negative")
+    G = Eo.T @ Eo
+    M = G + P
+    Mi = np.linalg.pinv(M, rcond=1e-12, hermitian=True)
+    c = Mi @ (Eo.T @ r)
+    res = r - Eo @ c
+    edf = float(np.trace(Mi @ G))
+    s2 = float(res @ res) / max(dof0 - edf, 1.0)
+    return c, s2 * Mi, s2, edf
 
 
 @dataclass
@@ -1015,7 +1082,7 @@ def _explains_set_aside(Qall: np.ndarray, y: np.ndarray, all_rows: np.ndarray, r
     if not np.all(np.isin(np.setdiff1d(all_rows, rows_kept_beside_cause), np.setdiff1d(all_rows, rows))):
         return False  # a touch set aside beside the cause that was kept before: not the same outliers, fewer or not
     for tm in terms:
-        if tm.penalty is not None:
+        if tm.unnamed:
             continue
         ex = np.setdiff1d(_explained_outliers(Qall, y, all_rows, rows, tm, terms), rows_kept_beside_cause)
         if len(first_per_event(list(ex), events)) >= 2:
@@ -1961,7 +2028,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             before, rows = rows, np.setdiff1d(all_rows, outliers_of(X))
             Qb, folds, st = model(rows, terms)
             # the same rows: the winner's own cross-validation was of this very model
-            cv_cur = best["cv"] if np.array_equal(rows, before) else folds.mse(y[rows], _stack(terms, rows))
+            cv_cur = best["cv"] if np.array_equal(rows, before) else folds.mse(y[rows], _stack(terms, rows),
+                                                                                _penalty(terms))
         return terms, rows, st, folds, Qb
 
     rows_b = rows  # the rows the baseline was judged on
@@ -2052,13 +2120,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     diag_e = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=sig,
                       material_sigma=settings.material_sigma, rows=rows, bases=bases, known=_made_on(seen, st))
     E_named = _stack(terms, rows)
-    gap_e = _cv_gap(folds, st, y, E_named, None, settings, gap_seed, sig) if terms else gap_b
+    gap_e = _cv_gap(folds, st, y, E_named, _penalty(terms), settings, gap_seed, sig) if terms else gap_b
     lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(bl.replicate[rows], E_named) else None
     structure_e = _structure(diag_e, gap_e, lof_e, st, sig, settings, bl.kind)
     left = _dropped_still_significant(dropped, st, rows, y, folds, terms, sig, settings)
     if left:
         structure_e = {**structure_e, "present": True, "dropped_still_significant": left}
-    cv_named = folds.mse(y[rows], E_named) if terms else cv_b
+    cv_named = folds.mse(y[rows], E_named, _penalty(terms)) if terms else cv_b
     tick()
     smooth = None
     if structure_e["present"]:
@@ -2127,7 +2195,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         "gain's cv_rms_ratio_95: 95 % interval over set-ups (delete-one-set-up jackknife of the ratio's "
         "logarithm, Student's t at 97.5 % with set-ups - 1 degrees of freedom); none without an extension, "
         "cross-validation or three set-ups"]
-    smooth_terms = [t for t in terms if t.penalty is not None]
+    smooth_terms = [t for t in terms if t.unnamed]
+    if any(t.penalty is not None and not t.unnamed for t in terms):
+        conv.append("a penalised named cause (" + ", ".join(t.cause for t in terms if t.penalty is not None
+                                                             and not t.unnamed) +
+                    "): its ridge chosen by the held-out mean square; the same penalised fit gives its held-out "
+                    "gain, magnitudes (U95 from s^2 (E^T E + P)^-1), residuals and extended workpiece")
     if smooth_terms:
         conv.append("extended workpiece beside an unnamed smooth: the smooth takes no combination the baseline "
                     "spans exactly; U95 from the penalised fit's covariance s^2 (A^T A + P)^-1 (the Bayesian "
@@ -2138,7 +2211,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if (f.cause == causes_mod.UNEXPLAINED and "smooth" in f.evidence) or f.evidence.get(
                     "magnitudes_not_determined"):
                 f.evidence["workpiece_shift"] = _clean(shift)
-        smooth_in = any(t.penalty is not None for t in terms)
+        smooth_in = any(t.unnamed for t in terms)
         who = "the unnamed smooth" if smooth_in else "a cause whose magnitudes this design does not determine"
         conv.append(f"{who} moves the workpiece by {shift['shift_rms_um']:.3g} um RMS (form only), "
                     f"{fmt_p(shift['p'])} against its own scatter: " + (
@@ -2150,9 +2223,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     lost = [w["target"] for w in wp if w["baseline_um"] is not None and w["extended_um"] is None]
     if lost:
         conv.append(f"extended workpiece not reported at {len(lost)} target(s) (e.g. {lost[0]}): the data alone "
-                    "do not determine it beside " + ", ".join(t.cause if t.penalty is None else
+                    "do not determine it beside " + ", ".join(t.cause if not t.unnamed else
                                                                f"the unnamed smooth in {t.covariate}" for t in terms))
-    named = [t.cause if t.penalty is None else f"unnamed smooth in {t.covariate}" for t in terms]
+    named = [t.cause if not t.unnamed else f"unnamed smooth in {t.covariate}" for t in terms]
     model_name = bl.model.split(" (")[0] + "".join(f" + {c}" for c in named) + (" - outliers" if outliers.size else "")
     if progress is not None:
         progress(total, total)
@@ -2365,12 +2438,12 @@ def _dropped_still_significant(dropped, st: _State, rows, y, folds: Folds, terms
     if not dropped:
         return out
     E = _stack(terms, rows)
-    cv0 = folds.mse(y[rows], E) if terms else folds.mse(y[rows])
+    cv0 = folds.mse(y[rows], E, _penalty(terms)) if terms else folds.mse(y[rows])
     for tm in dropped:
         ss, k, _, p = nested_f_batch(tm.columns[None, rows], st.Q, st.r, st.rss, st.dof)
         if not (k[0] > 0 and p[0] * tm.tries < settings.alpha_family):
             continue
-        gain = cv0 - folds.mse(y[rows], np.hstack([E, tm.columns[rows]]))
+        gain = cv0 - folds.mse(y[rows], np.hstack([E, tm.columns[rows]]), _penalty(terms + [tm]))
         if gain >= (settings.material_sigma * sigma) ** 2:
             out.append({"cause": tm.cause, "dropped_because": _demotion_reason(tm.evidence, tm.covariate, settings),
                         "p_adjusted": float(min(1.0, p[0] * tm.tries)),
@@ -3047,7 +3120,8 @@ def _grow_layout(own: _Trial, scans, si: int, rows, bl, st: _State, folds: Folds
         F_x = (float(t_f[0][0]) - float(ext_test[0][0])) / k_x / ((st.rss - float(t_f[0][0])) / dof_f)
         if float(stats.f.sf(F_x, k_x, dof_f)) >= settings.alpha_family:
             continue
-        held = [folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), C[rows]]) if terms else C[rows])
+        held = [folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), C[rows]]) if terms else C[rows],
+                          _penalty_beside(terms, C.shape[1]))
                 for C in ((cur_cols,) if held_cur is None else ()) + (rich_cols,)]
         held_cur = held[0] if held_cur is None else held_cur
         if held[-1] < held_cur:
@@ -3199,6 +3273,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
             return {"reason": sm["reason"], "significant": True}
     M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max)
     ev.update({"vif": vif, "max_vif": vif_worst, "principal_angle_deg": ang, "weak_directions": weak})
+    if cause.penalised:
+        return _evaluate_penalised(cause, sc, info, cols, tries, bl, st, folds, terms, cv_cur, sigma, settings, ev)
     if M.shape[1] == 0:
         # (the model it is confounded with: the baseline and the causes adopted in earlier rounds; gen_a
         # reversal 1208: determined beside the baseline alone, best variance inflation 9, confounded beside
@@ -3247,6 +3323,63 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     return {"cv": cv, "term": tm}
 
 
+def _evaluate_penalised(cause, sc, info, cols, tries, bl, st: _State, folds: Folds, terms, cv_cur, sigma, settings,
+                        ev: dict) -> dict:
+    """The held-out gain and magnitudes of a penalised named cause (:attr:`core.causes.Cause.penalised`).
+
+    One estimator: the ridge penalty on the cause's columns is chosen by the
+    held-out mean square over :data:`PENALTY_GRID` (times the columns' mean
+    squared norm outside the model, as the unnamed smooth's), and that
+    penalised fit gives the held-out gain, the magnitudes and their U95
+    (:func:`_magnitudes`' penalised branch), and, adopted, the in-sample
+    residuals (:func:`_state`) and the extended workpiece (:func:`_workpiece`).
+    Not refused as confounded: a penalised field spans in part what the
+    baseline spans, and the penalty decides the split (the joint fit leaves
+    the baseline's span to the baseline where the penalty makes the field's
+    coefficients cost more); the variance inflation and principal angle of
+    the unpenalised columns are reported only. The gain is the gate.
+    """
+    rows = st.rows
+    E = cols[rows]
+    Eo = E - st.Q @ (st.Q.T @ E)
+    scale = float(np.trace(Eo.T @ Eo)) / max(E.shape[1], 1)
+    if not scale > 0:
+        return {"reason": "no columns outside the model"}
+    En = _stack(terms, rows)
+    best = None
+    for f in PENALTY_GRID:
+        P = f * scale * np.eye(E.shape[1])
+        cv = folds.mse(bl.y[rows], np.hstack([En, E]) if terms else E, _penalty_beside(terms, E.shape[1], P))
+        if best is None or cv < best[0]:
+            best = (cv, f)
+    cv, f = best
+    gain = cv_cur - cv
+    m2 = (settings.material_sigma * sigma) ** 2
+    ev.update({"cv_rms_before_um": float(np.sqrt(cv_cur)) / UM, "cv_rms_after_um": float(np.sqrt(cv)) / UM,
+               "cv_gain_um2": gain / UM ** 2, "materiality_um2": m2 / UM ** 2, "penalty": float(f)})
+    if gain < m2:
+        return {"reason": f"cross-validated gain {gain / UM ** 2:.3g} um^2 below materiality {m2 / UM ** 2:.3g} um^2",
+                "significant": True}
+    k = cols.shape[1]
+    tm = Term(cause.name, cols, tuple(sc.labels), info, sc.covariate, tries, ev, penalty=f * scale * np.eye(k),
+              origin=cause, labels_all=tuple(sc.labels), map=np.eye(k), cols_all=cols)
+    wide = []
+    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows, wide)
+    if wide:
+        tm.evidence["magnitude_undetermined"] = "; ".join(
+            f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
+    tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95))
+    for key, v in vals.items():
+        if not isinstance(v, float) or v is None:
+            continue
+        for pat, (lo, hi) in cause.bounds.items():
+            if _matches(key, pat):
+                u = u95.get(key) or 0.0
+                if v + u < lo or v - u > hi:
+                    return {"reason": f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})", "significant": True}
+    return {"cv": cv, "term": tm}
+
+
 def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None):
     """Magnitudes of a term and their U95 (delta method over coefficients and nonlinear parameters).
 
@@ -3266,11 +3399,38 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
     yr = bl.y[rows]
     ro = yr - Qo @ (Qo.T @ yr)
     Ep = E - Qo @ (Qo.T @ E)
+    k_all = len(labels_all)
+    if tm.penalty is not None and not tm.unnamed:
+        # a penalised named cause: the ridge fit's coefficients and its covariance s^2 (E^T E + P)^-1; every
+        # direction is determined by the penalty (none is reported weak: the penalty, chosen by the held-out
+        # mean square, decides what the baseline's span keeps)
+        c_red, cov, _, _ = _penalised_fit(Ep, ro, tm.penalty, len(rows) - Qo.shape[1])
+        vals = cause.magnitudes(tm.info, c_red, bl)
+        u95, out = {}, {}
+        for key, v in vals.items():
+            if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
+                out[key] = v
+                continue
+            g = np.zeros(k_all)
+            for j in range(k_all):
+                h = max(np.sqrt(max(cov[j, j], 0.0)) * 1e-3, abs(c_red[j]) * 1e-6, 1e-12)
+                cp, cm = c_red.copy(), c_red.copy()
+                cp[j] += h
+                cm[j] -= h
+                g[j] = (cause.magnitudes(tm.info, cp, bl)[key] - cause.magnitudes(tm.info, cm, bl)[key]) / (2 * h)
+            out[key] = float(v)
+            u95[key] = float(2 * np.sqrt(max(g @ cov @ g, 0.0)))
+            for pat, (lo, hi) in cause.bounds.items():
+                if _matches(key, pat) and u95[key] > hi - lo:
+                    if wide is not None:
+                        wide.append((key, out[key], u95[key], lo, hi))
+                    out[key], u95[key] = None, None
+                    break
+        return out, u95
     c_red = np.linalg.lstsq(Ep, ro, rcond=1e-12)[0]
     res = ro - Ep @ c_red
     dof = max(len(rows) - Qo.shape[1] - E.shape[1], 1)
     s2 = float(res @ res) / dof
-    k_all = len(labels_all)
     coef = M @ c_red
     nl = [nm for nm in cause.nonlinear if nm in tm.info] if cause.rebuild is not None else []
     # Jacobian columns of the nonlinear parameters at the fit
@@ -3346,8 +3506,16 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
 
 
 def _named_ss(so: _State, sf: _State, sigma: float) -> float:
-    """Debiased sum of squares a term explains: the model without it (``so``) against with it (``sf``)."""
-    return (so.rss - sf.rss) - (sf.Q.shape[1] - so.Q.shape[1]) * sigma ** 2
+    """Debiased sum of squares a term explains: the model without it (``so``) against with it (``sf``).
+
+    The parameters it adds are its columns outside the model, or, for a
+    penalised term (not in ``Q``), its effective degrees of freedom (the
+    states' residual degrees of freedom differ by them, rounded).
+    """
+    k = sf.Q.shape[1] - so.Q.shape[1]
+    if k == 0 and sf.dof < so.dof:
+        k = so.dof - sf.dof
+    return (so.rss - sf.rss) - k * sigma ** 2
 
 
 def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trials) -> dict:
@@ -3367,12 +3535,30 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
         if cov is None:
             return {"kept": True, "rival_share": 1.0, "rival": None}
         B = bases[cov.name][rows]
-    U = new_basis(so.Q, np.hstack([B, tm.columns[rows]]))
-    ss_r = float(np.sum((U.T @ so.r) ** 2))
-    k_r = U.shape[1]
     s2 = sigma ** 2
     d_n = _named_ss(so, sf, sigma)
-    d_r = ss_r - k_r * s2
+    if tm.penalty is not None and not tm.unnamed:
+        # a penalised cause against its rival by the same estimator: the rival is the cause's columns and the
+        # smooth's directions beyond them (orthonormal, scaled to the columns' mean norm outside the model), all
+        # with the cause's ridge, each debiased by its effective degrees of freedom (an unpenalised rival beside a
+        # penalised cause measures the penalty's shrinkage, not the form: the synthetic x y coupling of
+        # tests/core/test_discover_generalisation.py seed 4, share 0.62 so)
+        E = tm.columns[rows]
+        Eo = E - so.Q @ (so.Q.T @ E)
+        Ub = new_basis(np.hstack([so.Q, new_basis(so.Q, E)]), B)
+        lam = float(np.mean(np.diag(tm.penalty)))
+        scale = float(np.trace(Eo.T @ Eo)) / max(E.shape[1], 1)
+        R = np.hstack([Eo, np.sqrt(scale) * Ub])
+        _, _, _, edf_n = _penalised_fit(Eo, so.r, tm.penalty, so.dof)
+        c_r, _, _, edf_r = _penalised_fit(R, so.r, lam * np.eye(R.shape[1]), so.dof)
+        rr = so.r - R @ c_r
+        d_n = (so.rss - sf.rss) - edf_n * s2
+        d_r = (so.rss - float(rr @ rr)) - edf_r * s2
+    else:
+        U = new_basis(so.Q, np.hstack([B, tm.columns[rows]]))
+        ss_r = float(np.sum((U.T @ so.r) ** 2))
+        k_r = U.shape[1]
+        d_r = ss_r - k_r * s2
     share = d_n / d_r if d_r > 0 else 1.0
     m_ss = (settings.material_sigma * sigma) ** 2 * len(rows)
     # a shortfall below materiality is forgiven only where the cause itself
@@ -3692,6 +3878,9 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
     best = None
     for lam in scale * np.logspace(-4, 2, 7):
         Pm = np.zeros((E_named.shape[1] + B.shape[1],) * 2)
+        Pn = _penalty(terms)
+        if Pn is not None:  # a penalised named cause keeps its own penalty
+            Pm[:E_named.shape[1], :E_named.shape[1]] = Pn
         Pm[E_named.shape[1]:, E_named.shape[1]:] = lam * P1
         cv = folds.mse(y[rows], np.hstack([E_named, Br]), Pm)
         if best is None or cv < best[0]:
@@ -3704,9 +3893,9 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
           "adopted": bool(gain >= m2)}
     if gain < m2:
         return Term(causes_mod.UNEXPLAINED, np.zeros((bl.n, 0)), (), {}, cov.name, evidence=ev,
-                    penalty=np.zeros((0, 0)))
+                    penalty=np.zeros((0, 0)), unnamed=True)
     return Term(causes_mod.UNEXPLAINED, B, tuple(f"smooth[{i}]" for i in range(B.shape[1])), {"covariate": cov.name},
-                cov.name, evidence=ev, penalty=lam * P1)
+                cov.name, evidence=ev, penalty=lam * P1, unnamed=True)
 
 
 def _repeats_beyond_residual(key: np.ndarray, st: _State, settings) -> dict | None:
@@ -3791,7 +3980,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
               seen=(), fixed=None, repeats=None) -> list:
     out = []
     sig = st.sigma
-    named = [t for t in terms if t.penalty is None]
+    named = [t for t in terms if not t.unnamed]
     # the model with every named cause: st itself when there is no unnamed smooth (same Qb, rows, terms)
     sf = (st if len(named) == len(terms) else _state(Qb, y, rows, named)) if named else None
     for tm in terms:

@@ -102,6 +102,9 @@ def effect(name: str, t, rng, mag_m: float, c0=(0.0, 0.0)) -> tuple[np.ndarray, 
         e = -nx * np.sign(t.d_R[:, 0]) * mag_m / 2
     elif name == "nonrigid":
         e = -nx * mag_m * (x / 0.09) * (y / 0.09) ** 2
+    elif name == "nonrigid_field":  # the non-rigid field in its own form: P2(xs) P2(ys) in the error of X
+        xs, ys = nonrigid_scaled(t)
+        e = -nx * mag_m * (3 * xs ** 2 - 1) / 2 * (3 * ys ** 2 - 1) / 2
     elif name == "feature_offset_per_setup":  # out of catalogue: the spheres re-seated per set-up
         jump = rng.normal(0, 1, len(np.unique(t.setup)))
         sph = np.array([str(f).startswith("sphere") for f in t.feature])
@@ -111,6 +114,13 @@ def effect(name: str, t, rng, mag_m: float, c0=(0.0, 0.0)) -> tuple[np.ndarray, 
     else:
         raise ValueError(name)
     return e, kw
+
+
+def nonrigid_scaled(t):
+    """The positions centred on their extent and scaled by its larger half (the planar baseline's xs, ys)."""
+    x, y = t.pn_R[:, 0], t.pn_R[:, 1]
+    L = max(np.ptp(x), np.ptp(y)) / 2
+    return (x - (x.max() + x.min()) / 2) / L, (y - (y.max() + y.min()) / 2) / L
 
 
 def campaign(name: str, seed: int, mag_m: float = 2e-6, sigma_m: float = SIG, shift_m=(0.0, 0.0), t=None,

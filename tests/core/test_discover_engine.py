@@ -808,3 +808,42 @@ def test_slip_explains_judges_only_what_the_step_does_not_fit_exactly():
     y2 = y + 20 * step
     y2[10] += 50
     assert _slip_explains(X, y2, [10, 11, 12, 13, 14], events, slips(ind(10), step, step * np.arange(n)), 0.05, 0.05)
+
+
+def test_nonrigid_field_known_answer():
+    """A non-rigid field in the form the penalised named term fits (P2(xs) P2(ys) in E_X, 6 um at the corner,
+    0.3 um noise): named nonrigid, its field's RMS and peak over the probed extent within their U95 of the truth
+    (the same magnitudes of the true coefficients), the other axis' field within its U95 of zero."""
+    from core import causes
+
+    t, _ = S.campaign("nonrigid_field", 100, 6e-6)
+    d = discover(t)
+    rep = d.to_report()
+    assert rep["cause"] == "nonrigid", [(f["cause"], f["evidence"].get("reason")) for f in rep["findings"]]
+    f = rep["findings"][0]
+    axes = f["params"]["axes"]
+    coef = np.zeros(6 * len(axes))
+    coef[6 * axes.index("X") + 4] = 6e-6  # the P2 P2 product of X (labels P1P1, P1P2, P1P3, P2P1, P2P2, P3P1)
+    truth = causes.nonrigid_magnitudes({"axes": axes}, coef, d.baseline)
+    assert abs(truth["EX_field_peak_um"]) > 4.0  # (the probed extent reaches near a corner)
+    for k, v in truth.items():
+        u = f["params_u95"][k]
+        assert u is not None and abs(f["params"][k] - v) <= u, (k, f["params"][k], v, u)
+    assert f["params_u95"]["EX_field_peak_um"] < 0.5 * abs(truth["EX_field_peak_um"])  # a determined magnitude
+
+
+def test_penalised_fit_bad_input():
+    from core.discover import _penalised_fit
+
+    E = np.random.default_rng(0).normal(size=(20, 3))
+    r = E @ np.array([1.0, -2.0, 0.5])
+    c, cov, s2, edf = _penalised_fit(E, r, 1e-9 * np.eye(3), 20)
+    assert np.allclose(c, [1.0, -2.0, 0.5], atol=1e-6) and 2.99 < edf <= 3.0  # (a known answer: no noise)
+    with pytest.raises(ValueError, match="do not match"):
+        _penalised_fit(E, r[:-1], np.eye(3), 20)
+    with pytest.raises(ValueError, match="do not match"):
+        _penalised_fit(E, r, np.eye(2), 20)
+    with pytest.raises(ValueError, match="non-finite"):
+        _penalised_fit(E, np.where(np.arange(20) == 3, np.nan, r), np.eye(3), 20)
+    with pytest.raises(ValueError, match="non-negative"):
+        _penalised_fit(E, r, -np.eye(3), 20)
