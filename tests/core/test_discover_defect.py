@@ -18,7 +18,9 @@ bump without being one, and both were named ``local_scale_defect`` before:
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import functools
 
 import numpy as np
 import pytest
@@ -488,6 +490,24 @@ def test_defect_widths_stop_at_the_positions_resolution():
     assert {w for w in ws if w < 2 * gap}  # (widths the full layout scans that the sparse one must not)
 
 
+@functools.cache
+def _blind_report_once(gen: str, effect: str, seed: int) -> dict:
+    import importlib
+
+    from core.baseline import extra_columns
+    from core.touches import from_log
+
+    log, _ = importlib.import_module(f"scenarios.blind.{gen}").generate(effect, seed)
+    t = from_log(log)
+    return discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+
+
+def _blind_report(gen: str, effect: str, seed: int) -> dict:
+    """A blind generator's campaign discovered with the default settings, its report (a copy): discovered once
+    for the module (gen_a outlier 1083 is read by two tests). For tests that change no setting."""
+    return copy.deepcopy(_blind_report_once(gen, effect, int(seed)))
+
+
 @pytest.mark.parametrize("gen, seed", [("gen_a", 1083), ("gen_b", 1015)])
 def test_a_bump_seen_at_one_place_where_it_reaches_is_ambiguous_with_outlier(gen, seed):
     """Two tuning campaigns of chips (the generators' outliers) read `local_scale_defect` confidently on the finer
@@ -498,14 +518,7 @@ def test_a_bump_seen_at_one_place_where_it_reaches_is_ambiguous_with_outlier(gen
     ambiguous with `outlier`, the reason said. Measured on gen_a/gen_b outlier and local_scale_defect 1000-1099
     (400 campaigns): no cause changes, these two and 7 real defects named ambiguous instead of confident. Both
     named confidently on main before (bb56e91)."""
-    import importlib
-
-    from core.baseline import extra_columns
-    from core.touches import from_log
-
-    log, _ = importlib.import_module(f"scenarios.blind.{gen}").generate("outlier", seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = _blind_report(gen, "outlier", seed)
     f = next(f for f in rep["findings"] if f["cause"] == "local_scale_defect")
     ev = f["evidence"]
     assert ev["confidence"] == "ambiguous", ev.get("confidence_reason")
@@ -519,14 +532,7 @@ def test_a_named_cause_whose_size_is_not_determined_is_ambiguous():
     beside it is at most ambiguous, the value, U95 and range said (review of s14_lsd: gen_a outlier 1083's
     refined bump, fitted at +473 um against bounds of -50..50 um, was named with no amplitude and no flag;
     the bounds check had nothing to hold). Fails on main before (no such evidence or reason)."""
-    import importlib
-
-    from core.baseline import extra_columns
-    from core.touches import from_log
-
-    log, _ = importlib.import_module("scenarios.blind.gen_a").generate("outlier", 1083)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = _blind_report("gen_a", "outlier", 1083)
     f = next(f for f in rep["findings"] if f["cause"] == "local_scale_defect")
     ev = f["evidence"]
     assert "amplitude_um = " in ev["magnitude_undetermined"] and "-50..50" in ev["magnitude_undetermined"]

@@ -80,12 +80,25 @@ def _blind(name):
     return importlib.import_module(f"scenarios.blind.{name}")
 
 
+#: Blind outcomes by (generator, effect, seed), shared by the study and the single-campaign tests of this module
+#: (an Outcome is frozen; blind_outcome is deterministic in its arguments): gen_a reseat_hysteresis 0 is both
+#: in the study and in NOW_AMBIGUOUS, and was generated and discovered twice.
+_BLIND_OUTCOMES: dict = {}
+
+
+def _blind_outcome_once(mod, gen, effect, seed):
+    key = (gen, effect, int(seed))
+    if key not in _BLIND_OUTCOMES:
+        _BLIND_OUTCOMES[key] = blind_outcome(mod, effect, seed, generator=gen)
+    return _BLIND_OUTCOMES[key]
+
+
 def _blind_case(gen, effect, seed):
     """One blind generator's campaign, discovered and scored (skipped when the generator is absent)."""
     mod = _blind(gen)
     if mod is None:
         pytest.skip(f"blind generator {gen} not present")
-    return blind_outcome(mod, effect, seed, generator=gen)
+    return _blind_outcome_once(mod, gen, effect, seed)
 
 
 GENERATORS = ["hidden"] + [g for g in ("gen_a", "gen_b") if _blind(g) is not None]
@@ -124,7 +137,7 @@ def studies():
                 out[g] = [hidden_outcome(e, s) for e in HIDDEN_CAUSES for s in SEEDS[g]]
             else:
                 mod = _blind(g)
-                out[g] = [blind_outcome(mod, e, s, generator=g) for e in mod.effects() for s in SEEDS[g]]
+                out[g] = [_blind_outcome_once(mod, g, e, s) for e in mod.effects() for s in SEEDS[g]]
     return out
 
 

@@ -63,12 +63,14 @@ def test_png_path_is_copied(tmp_path):
 @pytest.mark.parametrize("kwargs,match", [
     (dict(folder="nofolder/sub/r"), "parent folder does not exist"),
     (dict(recording="missing.rrd"), "no such file"),
-    (dict(sections=[Section("a", figures={"f": fig(), "f ": fig()})]), "used twice"),
+    (dict(sections=lambda: [Section("a", figures={"f": fig(), "f ": fig()})]), "used twice"),
     (dict(sections=[42]), "expected Section or dict"),
 ])
 def test_bad_input(tmp_path, kwargs, match):
+    # figures are made here, not at collection (each xdist worker collects every file: a figure made in the
+    # parameter list was made with pyplot on both workers, even the one that never runs this test)
     args = dict(folder=tmp_path / "r", title="t", sections=[])
-    args.update(kwargs)
+    args.update({k: v() if callable(v) else v for k, v in kwargs.items()})
     if "recording" in kwargs:
         args["recording"] = tmp_path / kwargs["recording"]
     with pytest.raises(ConfigError, match=match):
