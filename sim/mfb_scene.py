@@ -284,8 +284,11 @@ def _build_solid_table(art) -> _Solids:
     feats = [s.feature for s in sol]
     names = [f"{f or ('support' if kd == 'cylinder' else 'body')}__{k}" for k, (f, kd) in enumerate(zip(feats, kinds))]
     size3 = np.zeros((len(sizes), 3))
-    for j, sz in enumerate(sizes):
-        size3[j, :len(sz)] = sz
+    lens = np.fromiter(map(len, sizes), int, len(sizes))
+    for n in np.unique(lens):  # (one assignment per size length, not one per solid: the same floats)
+        j = np.flatnonzero(lens == n)
+        if n:
+            size3[j, :n] = [sizes[k] for k in j]
     holder = [k for k, n in enumerate(names) if n.startswith(("fix_", "support__"))]
     return _Solids(kinds, sizes, names, feats, size3, holder)
 
@@ -426,7 +429,7 @@ class WorkZone:
     def _pose(self, j: int) -> np.ndarray:
         """(4,4) pose in W of table-side geom j (a solid's: T_W_A times its pose on the bar)."""
         n0 = len(self._tpose0)
-        return self._tpose0[j] if j < n0 else self._T_W_A @ _solid_poses(self._args[0])[j - n0]
+        return self._tpose0[j] if j < n0 else self._T_W_A @ _solid_pose_stack(self._args[0])[j - n0]
 
     def _geom_mjcf(self, j: int, prefix: str = "") -> str:
         """Table-side geom j's MJCF (its name after ``prefix``)."""
