@@ -464,8 +464,9 @@ class Clearance:
 def axisymmetric(probe: Geoms) -> bool:
     """Whether the probe (about the tip, axes of R) is spheres, capsules and cylinders on its z
     axis: it then looks the same from every direction about that axis."""
+    k = probe.kind
     return bool(np.all(probe.centre[:, :2] == 0) and np.all(np.abs(probe.axes[:, 2, 2]) == 1)
-                and np.all(np.isin(probe.kind, (_SPHERE, _CAPSULE, _CYLINDER))))
+                and np.all((k == _SPHERE) | (k == _CAPSULE) | (k == _CYLINDER)))
 
 
 class ByOrientation:
@@ -974,8 +975,14 @@ def unique_segments(a: np.ndarray, b: np.ndarray, allow: np.ndarray) -> tuple[np
     h = (h ^ (h >> _S30)) * _HASH[0]  # (splitmix64's finalizer)
     h = (h ^ (h >> _S27)) * _HASH[1]
     h ^= h >> _S31
-    order = np.argsort(h)
-    hs = h[order]
+    # sorted by hash with each row's number in the low bits of its key (one sort of the keys, not
+    # an argsort: 18,364 rows 0.56 -> 0.24 ms); rows whose hashes agree above those bits run
+    # together, in row order, and are compared bit for bit below as any run is
+    nb = max(int(n - 1).bit_length(), 1)
+    low = np.uint64((1 << nb) - 1)
+    keys = np.sort((h & ~low) | np.arange(n, dtype=np.uint64))
+    order = (keys & low).astype(np.intp)
+    hs = keys & ~low
     new = np.empty(n, bool)
     new[0] = True
     np.not_equal(hs[1:], hs[:-1], out=new[1:])
