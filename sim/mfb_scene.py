@@ -1217,6 +1217,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
                                                     + r)))
     rows_F = {}  # per (broad phase, program, placement): (a, b, allowed feature ids) in its frame
     fids = {}  # per (feature numbering, program): each row's allowed feature
+    in_W = {}  # per (program, placement): its rows in W
     bases = {}  # per broad phase (its certificates): [a Clearance, [its part keys]]
     keys = []  # per live measurement: its two part keys (ball, rest)
     for i in live:
@@ -1233,9 +1234,12 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             if key in rows_F:
                 continue
             a, b = segs_A[id(plan)]
-            if place is not None:
-                R, t = place[:3, :3].T, place[:3, 3]
-                a, b = a @ R + t, b @ R + t
+            if place is not None:  # (in W: the same rows for every orientation of this program and placement)
+                pk = (id(plan), key[2])
+                if pk not in in_W:
+                    R, t = place[:3, :3].T, place[:3, 3]
+                    in_W[pk] = (a @ R + t, b @ R + t)
+                a, b = in_W[pk]
             fk = (id(clr._fid), id(plan))  # (the program's features as the broad phase's numbers: once each)
             if fk not in fids:
                 ids = np.full(len(allow), -2)
