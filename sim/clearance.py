@@ -757,8 +757,9 @@ def near_segments_many(parts, samples: bool = True) -> list:
     segments no certificate clears go through the same three box levels, swept bound and
     sample bounds as in :meth:`Clearance.near_segments`, the parts of every broad phase
     together (one set of numpy operations for a whole plan, the first box level too:
-    :func:`_block_candidates_many`; the swept and sample bounds per broad phase); each part then leaves its certificates. Parts of moved copies
-    of one broad phase (:meth:`Clearance.moved`) share its pair data and certificates.
+    :func:`_block_candidates_many`; the swept and sample bounds per broad phase); each part
+    then leaves its certificates. Parts of moved copies of one broad phase
+    (:meth:`Clearance.moved`) share its pair data and certificates.
 
     A polyline's closing point (a segment of one sample where the segment before ends, the
     same feature allowed: :func:`_covered`; two in five of a plan's rows) is neither looked
