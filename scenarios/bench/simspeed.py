@@ -75,11 +75,14 @@ it more than the change). Per check after: ``_near_samples`` 55 ms (the rest bro
 changed: ``unique_segments`` sorts keys (hash above, row number below) instead of an argsort; a
 program's rows are moved to W once per placement, not per measurement; the solid table's sizes are
 filled one assignment per size length. Every change gives the same arrays, so the same answers.
-Measured (thread CPU): the session's fresh-check script (40 fresh checks a process, the least of
-them; 6 processes of each, interleaved) 34.25 -> 33.71 ms (medians; paired median ratio 0.99); this
-collision figure, 5 runs interleaved with the code before: the plan check 0.0357 -> 0.0338 s
-(medians; paired ratios 0.72-1.20, median 0.96), its share of the simulation 0.311 -> 0.295. The
-change is about the size of the noise at that load; the target is not reached. What is left is a
+Measured (thread CPU, load 5-9 on 2 cores): the session's fresh-check script, 6 pairs of processes
+run side by side (60 fresh checks each): the median check 0.96 of the code before's (paired ratios
+0.94-0.98, every pair lower), the least 1.01 (0.86-1.09); 6 processes of each one after the other
+(40 checks, the least) 34.25 -> 33.71 ms (medians; paired median ratio 0.99); this collision figure,
+5 runs interleaved with the code before: the plan check 0.0357 -> 0.0338 s (medians; paired ratios
+0.72-1.20, median 0.96), its share of the simulation 0.311 -> 0.295. About 4 %, the size of the
+noise at that load; the target is not reached. Tried and removed: the swept bounds of every broad
+phase in one call (their geoms concatenated: slower than the 14 calls on 644 rows). What is left is a
 long tail of one-off structures per placement and orientation (5 table preps and 6 pair
 structures, ~0.25 ms each; 13 orientation builds, ~0.12 ms each), the one MuJoCo compile of the
 shared ball model (timeit: the XML parsed and compiled 0.8-1 ms, its ``MjData`` 0.45-0.55 ms; its
