@@ -284,8 +284,11 @@ def _build_solid_table(art) -> _Solids:
     feats = [s.feature for s in sol]
     names = [f"{f or ('support' if kd == 'cylinder' else 'body')}__{k}" for k, (f, kd) in enumerate(zip(feats, kinds))]
     size3 = np.zeros((len(sizes), 3))
-    for j, sz in enumerate(sizes):
-        size3[j, :len(sz)] = sz
+    lens = np.fromiter(map(len, sizes), int, len(sizes))
+    for n in np.unique(lens):  # (one assignment per size length, not one per solid: the same floats)
+        j = np.flatnonzero(lens == n)
+        if n:
+            size3[j, :n] = [sizes[k] for k in j]
     holder = [k for k, n in enumerate(names) if n.startswith(("fix_", "support__"))]
     return _Solids(kinds, sizes, names, feats, size3, holder)
 
@@ -426,7 +429,7 @@ class WorkZone:
     def _pose(self, j: int) -> np.ndarray:
         """(4,4) pose in W of table-side geom j (a solid's: T_W_A times its pose on the bar)."""
         n0 = len(self._tpose0)
-        return self._tpose0[j] if j < n0 else self._T_W_A @ _solid_poses(self._args[0])[j - n0]
+        return self._tpose0[j] if j < n0 else self._T_W_A @ _solid_pose_stack(self._args[0])[j - n0]
 
     def _geom_mjcf(self, j: int, prefix: str = "") -> str:
         """Table-side geom j's MJCF (its name after ``prefix``)."""
@@ -1214,6 +1217,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
                                                     + r)))
     rows_F = {}  # per (broad phase, program, placement): (a, b, allowed feature ids) in its frame
     fids = {}  # per (feature numbering, program): each row's allowed feature
+    in_W = {}  # per (program, placement): its rows in W
     bases = {}  # per broad phase (its certificates): [a Clearance, [its part keys]]
     keys = []  # per live measurement: its two part keys (ball, rest)
     for i in live:
@@ -1230,9 +1234,12 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             if key in rows_F:
                 continue
             a, b = segs_A[id(plan)]
-            if place is not None:
-                R, t = place[:3, :3].T, place[:3, 3]
-                a, b = a @ R + t, b @ R + t
+            if place is not None:  # (in W: the same rows for every orientation of this program and placement)
+                pk = (id(plan), key[2])
+                if pk not in in_W:
+                    R, t = place[:3, :3].T, place[:3, 3]
+                    in_W[pk] = (a @ R + t, b @ R + t)
+                a, b = in_W[pk]
             fk = (id(clr._fid), id(plan))  # (the program's features as the broad phase's numbers: once each)
             if fk not in fids:
                 ids = np.full(len(allow), -2)

@@ -65,6 +65,28 @@ figure, 6 runs interleaved with the code before (thread CPU, the bench's own bes
 the plan check 0.0551 -> 0.0366 s (medians; median ratio of the paired runs 0.73; wall 0.71), its
 share of the simulation 0.358 -> 0.309 (the simulation's CPU moved by 0.7-1.3x between runs at
 that load): the target, under 0.25, is not reached.
+
+Session 15, round two (same profiler, 20 fresh checks each, code before and after run one after the
+other at load ~9): 13,026 -> 12,350 calls a check (101 and 105 ms under the profiler: the load moves
+it more than the change). Per check after: ``_near_samples`` 55 ms (the rest broad phases' builds,
+``WorkZone.clearance``, 22 ms; ``near_segments_many`` 16 ms, its first box level now one
+``_block_candidates_many`` for every broad phase, 2.6 ms, instead of 14 ``_block_candidates``,
+4.4 ms), ``share_ball_model`` 14 ms, ``least_holder_clearances`` 11 ms, ``_paths_of`` 5 ms. Also
+changed: ``unique_segments`` sorts keys (hash above, row number below) instead of an argsort; a
+program's rows are moved to W once per placement, not per measurement; the solid table's sizes are
+filled one assignment per size length. Every change gives the same arrays, so the same answers.
+Measured (thread CPU, load 5-9 on 2 cores): the session's fresh-check script, 6 pairs of processes
+run side by side (60 fresh checks each): the median check 0.96 of the code before's (paired ratios
+0.94-0.98, every pair lower), the least 1.01 (0.86-1.09); 6 processes of each one after the other
+(40 checks, the least) 34.25 -> 33.71 ms (medians; paired median ratio 0.99); this collision figure,
+5 runs interleaved with the code before: the plan check 0.0357 -> 0.0338 s (medians; paired ratios
+0.72-1.20, median 0.96), its share of the simulation 0.311 -> 0.295. About 4 %, the size of the
+noise at that load; the target is not reached. Tried and removed: the swept bounds of every broad
+phase in one call (their geoms concatenated: slower than the 14 calls on 644 rows). What is left is a
+long tail of one-off structures per placement and orientation (5 table preps and 6 pair
+structures, ~0.25 ms each; 13 orientation builds, ~0.12 ms each), the one MuJoCo compile of the
+shared ball model (timeit: the XML parsed and compiled 0.8-1 ms, its ``MjData`` 0.45-0.55 ms; its
+21 distances need it), and numpy calls on arrays of a few thousand rows.
 """
 
 from __future__ import annotations

@@ -1159,3 +1159,47 @@ def test_open_rows_are_the_segments_that_may_come_near():
     assert got.tolist() == [False, False, True, True, True, True]  # (segment, closing point) x 3
     near = near_segments_many(parts)[0]
     assert np.array_equal(np.unique(sg.segment_of(near)), np.flatnonzero(got))
+
+
+def test_broad_phases_at_once_are_each_broad_phase_alone():
+    """Known answer: near_segments_many's first box level for the rows of several broad phases at
+    once (_block_candidates_many) is that of one broad phase at a time (Clearance._block_candidates),
+    bit for bit and in the same order: three rest broad phases (two probes, three table poses,
+    frame W) and the ball's (frame A), random rows around the bar, half of them through a pair's
+    two geoms, allowed features at random, groups of rows that do not fill their last block."""
+    from sim.clearance import _block_candidates_many
+
+    rng = np.random.default_rng(11)
+    zones = [WorkZone(BAR, FLAT, (), J, R) for J in ((0.0, 0.0, 0.08), (0.03, 0.0, 0.08))]
+    bases = []
+    for wz, (a_deg, c_deg) in ((zones[0], (0, 0)), (zones[0], (-30, 45)), (zones[1], (0, 90))):
+        wz.set_table(_T_R_W(a_deg, c_deg))
+        bases.append(wz.clearance(part="rest", moved=False))
+    bases.append(zones[0]._ball_base())
+    A_, B_, F_, P_, groups, pair0, cl0 = [], [], [], [], [], [0], [0]
+    for k, c in enumerate(bases):
+        n = int(rng.integers(40, 300)) | 1  # (odd: the last block of 16 not full)
+        p = rng.integers(0, len(c.pair_probe), n)
+        # a tip where the pair's probe geom sits on its table geom, give or take 2 mm, or anywhere near
+        a = c.table.centre[c.pair_table[p]] - c.probe.centre[c.pair_probe[p]] + rng.normal(0, 2e-3, (n, 3))
+        far = rng.random(n) < 0.5
+        a[far] += rng.normal(0, 0.03, (int(far.sum()), 3))
+        b = a + rng.normal(0, 3e-3, (n, 3))
+        A_.append(a), B_.append(b), P_.append(p + pair0[-1])
+        F_.append(rng.integers(-2, max(len(c._fid), 1), n))
+        groups.append((k, sum(len(x) for x in A_[:-1]), sum(len(x) for x in A_)))
+        pair0.append(pair0[-1] + len(c.pair_probe))
+        cl0.append(cl0[-1] + len(c._cstart))
+    a, b, allow, pair = map(np.concatenate, (A_, B_, F_, P_))
+    pb = np.repeat(np.arange(len(bases)), [len(x) for x in A_])
+    pad = np.array([bases[k].cert_pad_m for k in pb])[:, None]
+    lo, hi = np.minimum(a, b) - pad, np.maximum(a, b) + pad
+    # the first box level
+    seg, cp = _block_candidates_many(groups, np.array(cl0), lo, hi, allow,
+                                     np.concatenate([c._cloT for c in bases], axis=1),
+                                     np.concatenate([c._chiT for c in bases], axis=1),
+                                     np.concatenate([c._cballf for c in bases]))
+    want = [c._block_candidates(lo[r0:r1], hi[r0:r1], allow[r0:r1]) for c, (_, r0, r1) in zip(bases, groups)]
+    assert np.array_equal(seg, np.concatenate([s + r0 for (s, _), (_, r0, _) in zip(want, groups)]))
+    assert np.array_equal(cp, np.concatenate([x + cl0[k] for k, (_, x) in enumerate(want)]))
+    assert len(seg) > 1000
