@@ -91,6 +91,7 @@ from typing import Callable
 
 import numpy as np
 
+from .baseline import _xy_basis  # the products the unnamed smooth in xy uses: a named field spans the same functions
 from .diagnosis import TABLE_BYTES, scan_grid, screen_phasors
 from .units import MM, UM, URAD
 
@@ -1575,18 +1576,6 @@ def reversal_magnitudes(info, coef, bl):
 NONRIGID_AXES = "both"
 
 
-def _xy_products(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-    """(n, 6) the non-separable Legendre products ``P_i(xs) P_j(ys)``, i, j >= 1, i + j <= 4.
-
-    The products the unnamed smooth in ``xy`` uses (core.baseline's
-    covariate ``xy``), so a named field and the smooth span the same
-    functions of position.
-    """
-    P = [np.ones_like(xs), xs, (3 * xs ** 2 - 1) / 2, (5 * xs ** 3 - 3 * xs) / 2]
-    R = [np.ones_like(ys), ys, (3 * ys ** 2 - 1) / 2, (5 * ys ** 3 - 3 * ys) / 2]
-    return np.column_stack([P[i] * R[j] for i in range(1, 4) for j in range(1, 4) if i + j <= 4])
-
-
 _XY_LABELS = tuple(f"P{i}P{j}" for i in range(1, 4) for j in range(1, 4) if i + j <= 4)
 
 
@@ -1616,7 +1605,7 @@ def nonrigid_scans(bl):
     axes = _nonrigid_axes(bl)
 
     def cols():
-        B = _xy_products(xs, ys)
+        B = _xy_basis(xs, ys)
         return np.hstack([-(d.nx if a == "X" else d.ny)[:, None] * B for a in axes])
     labels = tuple(f"E{a}~{lab}" for a in axes for lab in _XY_LABELS)
     return [_one(cols, labels, {"axes": "".join(axes)}, "xy")], 1.0
@@ -1689,7 +1678,7 @@ def nonrigid_magnitudes(info, coef, bl):
     u = np.linspace(float(np.min(d.xs)), float(np.max(d.xs)), NONRIGID_GRID)
     v = np.linspace(float(np.min(d.ys)), float(np.max(d.ys)), NONRIGID_GRID)
     U, V = np.meshgrid(u, v)
-    B = _xy_products(U.ravel(), V.ravel())
+    B = _xy_basis(U.ravel(), V.ravel())
     c = np.asarray(coef, float)
     out = {}
     for j, a in enumerate(info.get("axes", "XY")):
