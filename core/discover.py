@@ -1734,6 +1734,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     bl_mod.check_planar(t)
     bl = bl_mod.planar(t, grid_step_mm, settings.grid_steps_mm, select_grid=settings.select_grid,
                        yaw=selfcal.yaw_for_chain(chain), extra=extra)
+    del t, extra  # (the baseline holds what the search reads: the caller's touches can go, core.baseline.planar_data)
     if left_out:
         bl = _with_convention(bl, f"{left_out} touches with normals out of the XY plane left out of the planar "
                                   "baseline")
