@@ -305,7 +305,8 @@ def planar_data(t: Touches, grid_step_m: float, extra: dict | None = None) -> Pl
         wn_az = np.arctan2(t.n_R[:, 1], t.n_R[:, 0]) + t.rot_rad[:, 2]
     d = t.d_R
     return PlanarData(
-        touches=dataclasses.replace(t, **dict.fromkeys(PLANAR_TOUCHES_DROPPED)), x=x, y=y, xs=(x - xc) / L, ys=(y - yc) / L, L_m=float(L), nx=t.n_R[:, 0], ny=t.n_R[:, 1],
+        touches=dataclasses.replace(t, **dict.fromkeys(PLANAR_TOUCHES_DROPPED)), x=x, y=y, xs=(x - xc) / L,
+        ys=(y - yc) / L, L_m=float(L), nx=t.n_R[:, 0], ny=t.n_R[:, 1],
         azimuth=np.arctan2(d[:, 1], d[:, 0]), elevation=np.arcsin(np.clip(-d[:, 2], -1, 1)),
         tau=(t.t_s - t0) / span, t_in=tin, c0_m=c0, rot_m=rot, wn_az=np.angle(np.exp(1j * wn_az)),
         grid_step_m=float(grid_step_m), span_s=span,
