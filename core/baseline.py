@@ -160,7 +160,8 @@ class PlanarData:
     Attributes
     ----------
     touches : Touches
-        The planar touches (rows of the baseline).
+        The planar touches (rows of the baseline), without the arrays no
+        step after the baseline reads (:data:`PLANAR_TOUCHES_DROPPED`: None).
     x, y : (n,) float
         Nominal tip centre, m.
     xs, ys : (n,) float
@@ -275,8 +276,15 @@ def extra_columns(log, rows) -> dict:
     return out
 
 
+#: Arrays of the touches a planar baseline's data does not hold (None there): read only while the baseline is
+#: built (the observations ``dq_m`` from ``p_R``, the workpiece's geometry and the normals' azimuths from ``wn_A``),
+#: by no cause, test or report after it; 46 MiB at 1e6 rows, once the caller lets its touches go.
+PLANAR_TOUCHES_DROPPED = ("p_R", "wn_A")
+
+
 def planar_data(t: Touches, grid_step_m: float, extra: dict | None = None) -> PlanarData:
-    """The centred, scaled geometry and times the planar causes use."""
+    """The centred, scaled geometry and times the planar causes use (the touches held without
+    :data:`PLANAR_TOUCHES_DROPPED`)."""
     x, y = t.pn_R[:, 0], t.pn_R[:, 1]
     xc, yc = (x.max() + x.min()) / 2, (y.max() + y.min()) / 2
     L = max(np.ptp(x), np.ptp(y), 1e-3) / 2
@@ -297,7 +305,8 @@ def planar_data(t: Touches, grid_step_m: float, extra: dict | None = None) -> Pl
         wn_az = np.arctan2(t.n_R[:, 1], t.n_R[:, 0]) + t.rot_rad[:, 2]
     d = t.d_R
     return PlanarData(
-        touches=t, x=x, y=y, xs=(x - xc) / L, ys=(y - yc) / L, L_m=float(L), nx=t.n_R[:, 0], ny=t.n_R[:, 1],
+        touches=dataclasses.replace(t, **dict.fromkeys(PLANAR_TOUCHES_DROPPED)), x=x, y=y, xs=(x - xc) / L,
+        ys=(y - yc) / L, L_m=float(L), nx=t.n_R[:, 0], ny=t.n_R[:, 1],
         azimuth=np.arctan2(d[:, 1], d[:, 0]), elevation=np.arcsin(np.clip(-d[:, 2], -1, 1)),
         tau=(t.t_s - t0) / span, t_in=tin, c0_m=c0, rot_m=rot, wn_az=np.angle(np.exp(1j * wn_az)),
         grid_step_m=float(grid_step_m), span_s=span,

@@ -1804,6 +1804,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     bl_mod.check_planar(t)
     bl = bl_mod.planar(t, grid_step_mm, settings.grid_steps_mm, select_grid=settings.select_grid,
                        yaw=selfcal.yaw_for_chain(chain), extra=extra)
+    del t, extra  # (the baseline holds what the search reads: the caller's touches can go, core.baseline.planar_data)
     if left_out:
         bl = _with_convention(bl, f"{left_out} touches with normals out of the XY plane left out of the planar "
                                   "baseline")
@@ -2670,6 +2671,47 @@ def _path_tries(scans, st: _State, level: float) -> float:
     return float(level / np.exp(optimize.brentq(excess, hi, lo, xtol=1e-6)))
 
 
+#: A long log's refinement (:func:`_refine`) builds and tests this many bytes of one grid's trials at a time (at
+#: least one trial).
+REFINE_BLOCK_BYTES = 16 << 20
+
+
+def _refine_group(st: _State, n: int, k: int) -> int | None:
+    """Trials of a refinement's grid built at once: all (None) against an array basis (a short log), else about
+    :data:`REFINE_BLOCK_BYTES` of ``n`` rows by ``k`` columns (at least one)."""
+    return None if not isinstance(st.Q, Basis) else max(1, REFINE_BLOCK_BYTES // max(8 * n * k, 1))
+
+
+def _refine_ss(cause, bl, info: dict, name: str, grid: np.ndarray, st: _State, rows, g: int | None) -> np.ndarray:
+    """Sums of squares of the trials ``info`` with ``name`` each value of ``grid`` (beside the model ``st``).
+
+    ``g`` None (an array basis, a short log): the grid's trials built and
+    tested at once. Else (a long log's block basis, :func:`_refine_group`)
+    ``g`` of them built at a time and each tested on its own, from its
+    own C-contiguous copy: ``rebuild`` makes a trial's columns from its own
+    parameter value, and a trial tested alone is summed the same way
+    whatever the trials built beside it, so every group size gives the same
+    sums bit for bit (the whole grid in one :func:`nested_f_batch` does
+    not: its column norms are one ``einsum`` over the grid, whose buffered
+    sums over rows split where the grid's size puts them, a few units of
+    the last place). The local defect's 11 centres over 1e6 rows were
+    84 MiB of bump columns, with as much again of the window's temporaries.
+    """
+    if g is None:
+        inf = dict(info)
+        inf[name] = grid
+        return nested_f_batch(take_rows(cause.rebuild(bl, inf), rows, 1), st.Q, st.r, st.rss, st.dof)[0]
+    out = np.empty(len(grid))
+    for a in range(0, len(grid), g):
+        inf = dict(info)
+        inf[name] = grid[a:a + g]
+        C = take_rows(cause.rebuild(bl, inf), rows, 1)
+        for t in range(C.shape[0]):
+            out[a + t] = nested_f_batch(np.array(C[t:t + 1], order="C"), st.Q, st.r, st.rss, st.dof)[0][0]
+        del C
+    return out
+
+
 def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     """Refine the nonlinear parameters of a trial on two nested grids (exact sums of squares).
 
@@ -2691,12 +2733,15 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
         else:
             h = info.get("half_width_m", abs(v0)) / 4
             lo, hi = v0 - h, v0 + h
-        best_v, best_ss = v0, nested_f_batch(take_rows(cause.rebuild(bl, info), rows, 1), st.Q, st.r, st.rss, st.dof)[0][0]
+        C0 = take_rows(cause.rebuild(bl, info), rows, 1)
+        g = _refine_group(st, C0.shape[1], C0.shape[2])
+        if g is not None:  # (tested as the grid's trials are: alone, from a C-contiguous copy)
+            C0 = np.array(C0, order="C")
+        best_v, best_ss = v0, nested_f_batch(C0, st.Q, st.r, st.rss, st.dof)[0][0]
+        del C0
         for _ in range(2):
             grid = np.linspace(lo, hi, 11 if _ == 0 else 9)
-            inf = dict(info)
-            inf[name] = grid
-            ss = nested_f_batch(take_rows(cause.rebuild(bl, inf), rows, 1), st.Q, st.r, st.rss, st.dof)[0]
+            ss = _refine_ss(cause, bl, info, name, grid, st, rows, g)
             i = int(np.argmax(ss))
             if ss[i] > best_ss:
                 best_v, best_ss = float(grid[i]), float(ss[i])

@@ -62,7 +62,10 @@ def _discover_probe_log(log_path, grid_mm, progress):
     t = from_log(log)
     chain, extra = log.meta.get("kinematic_chain"), extra_columns(log, t.row)
     del log  # the file's columns are not the search's: 152 MiB held through it at the bench's 1e6 rows
-    return discover(t, grid_step_mm=grid_mm, chain=chain, progress=progress, extra=extra)
+    # the touches handed over, not held here: the search keeps only what it reads (core.baseline.planar_data)
+    held = [t]
+    del t
+    return discover(held.pop(), grid_step_mm=grid_mm, chain=chain, progress=progress, extra=extra)
 
 
 def _is_positioning_log(path) -> bool:

@@ -131,3 +131,44 @@ def test_discover_command_lets_the_probe_log_go_before_the_search(monkeypatch, t
     ref = extra_columns(log, from_log(log).row)
     assert t.n == log.n and kw["chain"] == "xyc" and kw["grid_step_mm"] == 5.0 and list(kw["extra"]) == ["spindle_load"]
     assert all(np.array_equal(kw["extra"][k], ref[k]) for k in ref)
+
+
+def test_discover_command_lets_the_touches_go_before_the_search(monkeypatch, tmp_path):
+    """``vmt discover`` of a probe log: once the planar baseline is built, the search runs with no touches alive
+    but the baseline's own, which hold neither the measured tip centres nor the part-frame normals
+    (core.baseline.PLANAR_TOUCHES_DROPPED: read only while the baseline is built; 46 MiB at the bench's 1e6 rows,
+    held through the search by the command's and discover's frames before). Known answer: the baseline is the
+    one built from the whole touches (the same observations, design columns and workpiece geometry)."""
+    import gc
+
+    import numpy as np
+
+    import core.baseline as Bm
+    import core.discover as X
+    import core.probelog as P
+    from core.touches import Touches, from_log
+    from scenarios.bench.probelog import large_log
+    from scenarios.cli import discover as C
+
+    path = tmp_path / "log.csv"
+    P.write_probe_log(path, large_log(20, 4, np.random.default_rng(1)))
+    seen = []
+
+    def search(bl, **kw):
+        gc.collect()
+        alive = [o for o in gc.get_objects() if isinstance(o, Touches)]
+        seen.append((bl, alive))
+        return "found"
+
+    monkeypatch.setattr(X, "discover_baseline", search)
+    assert C._discover_probe_log(path, 30.0, None) == "found"
+    (bl, alive), = seen
+    assert alive == [bl.data.touches], f"{len(alive)} touches alive while the search runs"
+    assert all(getattr(bl.data.touches, k) is None for k in Bm.PLANAR_TOUCHES_DROPPED)
+    t = from_log(P.read_probe_log(path))
+    ref = Bm.planar(t, 30.0)
+    assert np.array_equal(bl.y, ref.y) and np.array_equal(bl.y, t.dq_m)
+    assert all(np.array_equal(a, b) for a, b in zip(bl.geometry, ref.geometry))
+    assert np.array_equal(bl.A.toarray() if hasattr(bl.A, "toarray") else bl.A,
+                          ref.A.toarray() if hasattr(ref.A, "toarray") else ref.A)
+    assert np.array_equal(bl.data.touches.pn_R, t.pn_R) and np.array_equal(bl.data.touches.d_R, t.d_R)
