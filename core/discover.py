@@ -3327,7 +3327,10 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     # columns that are its own); the determined combinations M carry the
     # magnitudes and the extended workpiece
     kept = cols
-    cv = folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), kept[rows]]) if terms else kept[rows])
+    # an adopted penalised cause keeps its ridge here (cv_cur is its penalised figure; refitted unpenalised it
+    # would be another model, and the winner's figure the next cv_cur): the candidate's columns are not penalised
+    cv = folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), kept[rows]]) if terms else kept[rows],
+                   _penalty_beside(terms, kept.shape[1]))
     gain = cv_cur - cv
     m2 = (settings.material_sigma * sigma) ** 2
     ev.update({"cv_rms_before_um": float(np.sqrt(cv_cur)) / UM, "cv_rms_after_um": float(np.sqrt(cv)) / UM,

@@ -177,3 +177,41 @@ def test_penalty_bad_input():
     neg[0, 0] = -1.0
     with pytest.raises(ValueError, match="penalty"):
         folds.mse(Y[:, 0], E, neg)
+
+
+def test_every_held_out_call_keeps_an_adopted_penalised_cause_penalised(monkeypatch):
+    """Once ``nonrigid`` (a penalised named cause) is adopted, every held-out figure of a stack holding its columns
+    passes its penalty (the review's bug B: a candidate's figure beside it refitted it unpenalised while cv_cur was
+    its penalised figure). On gen_a nonrigid 1012 (the review's campaign: named nonrigid, candidates evaluated
+    beside it): the penalised terms' columns recorded as stacked, then every Folds.residuals call with extension
+    columns and no penalty checked for none of them. Without the penalty in _evaluate's call this finds two such
+    calls, shape (192, 16) (gen_a nonrigid 1000 has none beside it, so it would not test this)."""
+    from core import discover as X
+    from scenarios.blind import gen_a
+    from scenarios.hidden import blind_outcome
+
+    pen_cols, bad, calls = [], [], [0]
+    stack0, res0 = X._stack, X.Folds.residuals
+
+    def stack(terms, rows):
+        for t in terms:
+            if t.penalty is not None and t.columns.shape[1]:
+                pen_cols.append(np.ascontiguousarray(t.columns[rows]))
+        return stack0(terms, rows)
+
+    def residuals(self, Y, E=None, penalty=None):
+        if E is not None and E.shape[1] and penalty is None:
+            calls[0] += 1
+            for C in pen_cols:
+                if C.shape[0] == E.shape[0] and any(np.array_equal(C[:, j], E[:, i]) for j in range(C.shape[1])
+                                                    for i in range(E.shape[1])):
+                    bad.append(E.shape)
+                    break
+        return res0(self, Y, E, penalty)
+
+    monkeypatch.setattr(X, "_stack", stack)
+    monkeypatch.setattr(X.Folds, "residuals", residuals)
+    o = blind_outcome(gen_a, "nonrigid", 1012, generator="gen_a")
+    assert o.cause == "nonrigid", o.cause
+    assert pen_cols and calls[0], (len(pen_cols), calls[0])  # the check saw penalised stacks and unpenalised calls
+    assert not bad, bad
