@@ -522,7 +522,11 @@ class Folds:
     smooth) is a ridge in its own coefficients, not a span: it is fitted on
     the training rows (columns scaled to unit training norm, the penalty
     scaled with them), its columns that no training row sees being the
-    group's own.
+    group's own. Columns a penalised call leaves unpenalised (zero rows and
+    columns of the penalty: a candidate beside an adopted penalised cause,
+    named terms beside the unnamed smooth) follow the unpenalised rule above,
+    their kept directions fitted jointly with the ridge's columns; a penalty
+    that is zero throughout is no penalty.
 
     Linear in the observations: :meth:`residuals` takes (n,) or (n, B).
     Computed without refitting (case deletion): the directions ``v`` of a
@@ -752,7 +756,8 @@ class Folds:
         """Held-out residuals of the baseline (plus extension columns ``E`` (n, k)).
 
         ``penalty`` (k, k): a ridge penalty on the extension's coefficients
-        (a penalised smooth term).
+        (a penalised smooth term), symmetric non-negative (else ValueError);
+        its columns with zero penalty follow the unpenalised rule.
 
         From the full fit's residuals ``R`` by the hat matrix's held-out
         block (case deletion): along a predicted direction ``u`` (a column of
@@ -778,6 +783,22 @@ class Folds:
         self.last_dof = 0
         self.last_predicted = np.zeros(self.n, bool)
         has_e = E is not None and E.shape[1] > 0
+        ku = 0  # a penalised call's unpenalised columns: the last ku of X, their part outside the design
+        if has_e and penalty is not None:
+            penalty = np.asarray(penalty, dtype=float)
+            if penalty.shape != (E.shape[1],) * 2 or not np.all(np.isfinite(penalty)):
+                raise ValueError(f"Folds: penalty {penalty.shape} for {E.shape[1]} extension columns, or not finite")
+            if not np.allclose(penalty, penalty.T) or \
+                    np.linalg.eigvalsh((penalty + penalty.T) / 2).min() < -1e-12 * max(np.abs(penalty).max(), 1):
+                raise ValueError("Folds: the penalty is not symmetric non-negative")
+            free = ~(np.any(penalty != 0, axis=0) | np.any(penalty != 0, axis=1))
+            if free.all():  # no column penalised: the unpenalised rule
+                penalty = None
+            elif free.any():  # the penalised columns by the ridge, the others by the seen-share rule (below)
+                Xu = self.outside(E[:, free])
+                ku = Xu.shape[1]
+                E = np.hstack([E[:, ~free], Xu])
+                penalty = np.pad(penalty[np.ix_(~free, ~free)], ((0, ku), (0, ku)))
         X = (self.outside(E) if penalty is None else E) if has_e else None
         if X is not None and X.shape[1] == 0:
             X = None
@@ -809,17 +830,36 @@ class Folds:
                     if unseen.any():
                         own = np.hstack([own, X[te] @ Vg[:, unseen]])
                 else:
-                    en = np.linalg.norm(X[tr], axis=0)
+                    Xtr, Pf, T = X[tr], penalty, None
+                    if ku:
+                        # the unpenalised columns (orthonormal outside the design) as without a penalty: their
+                        # directions by the training share beyond the baseline, kept ones fitted beside the
+                        # penalised columns (coefficients T c), unseen ones the held-out group's own, the band
+                        # neither
+                        kp = X.shape[1] - ku
+                        wu, Vu = np.linalg.eigh(G[kp:, kp:])
+                        keep = wu >= self.seen_extension ** 2 - SEEN_TIE
+                        unseen = wu < SEEN_ZERO ** 2
+                        if unseen.any():
+                            own = np.hstack([own, X[te][:, kp:] @ Vu[:, unseen]])
+                        T = np.zeros((X.shape[1], kp + int(keep.sum())))
+                        T[:kp, :kp] = np.eye(kp)
+                        T[kp:, kp:] = Vu[:, keep]
+                        G, rhs, Pf = T.T @ G @ T, T.T @ rhs, T.T @ penalty @ T
+                        Xtr = np.hstack([Xtr[:, :kp], Xtr[:, kp:] @ Vu[:, keep]])
+                    en = np.linalg.norm(Xtr, axis=0)
                     eu = en > 1e-9 * max(en.max(), 1e-300)
                     sc = np.where(eu, 1.0 / np.where(eu, en, 1.0), 0.0)
-                    Gm = (G * np.outer(sc, sc))[np.ix_(eu, eu)] + (penalty * np.outer(sc, sc))[np.ix_(eu, eu)]
+                    Gm = (G * np.outer(sc, sc))[np.ix_(eu, eu)] + (Pf * np.outer(sc, sc))[np.ix_(eu, eu)]
                     w, Vg = np.linalg.eigh(Gm)
                     good = w > 1e-12 * max(w.max(), 1e-300) if w.size else w > 0
                     cs = Vg[:, good] @ ((Vg[:, good].T @ (rhs[eu] * sc[eu][:, None])) / w[good][:, None])
-                    coef = np.zeros((X.shape[1], b))
+                    coef = np.zeros((Xtr.shape[1], b))
                     coef[eu] = cs * sc[eu][:, None]
-                    if (~eu).any():
-                        own = np.hstack([own, X[te][:, ~eu]])
+                    if (~eu).any():  # a column no training row holds (the penalised ones: the kept are seen)
+                        own = np.hstack([own, (X[te] if T is None else X[te] @ T)[:, ~eu]])
+                    if T is not None:
+                        coef = T @ coef
                 # the baseline on what the extension leaves of the training rows, the extension on the held-out rows
                 W, GW = V_te[:, :b] - V_te[:, b:] @ coef, Gam[:, :b] - Gam[:, b:] @ coef
             Uk, k = f.U[:, :f.k], f.k
@@ -3332,7 +3372,10 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     # columns that are its own); the determined combinations M carry the
     # magnitudes and the extended workpiece
     kept = cols
-    cv = folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), kept[rows]]) if terms else kept[rows])
+    # an adopted penalised cause keeps its ridge here (cv_cur is its penalised figure; refitted unpenalised it
+    # would be another model, and the winner's figure the next cv_cur): the candidate's columns are not penalised
+    cv = folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), kept[rows]]) if terms else kept[rows],
+                   _penalty_beside(terms, kept.shape[1]))
     gain = cv_cur - cv
     m2 = (settings.material_sigma * sigma) ** 2
     ev.update({"cv_rms_before_um": float(np.sqrt(cv_cur)) / UM, "cv_rms_after_um": float(np.sqrt(cv)) / UM,
