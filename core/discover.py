@@ -3129,7 +3129,8 @@ def _spans_exactly(bl, covariate: str, E: np.ndarray, rows) -> bool:
     assumed for a family.
     """
     cov = bl.covariate(covariate)
-    if cov is None or cov.kind != "categorical" or 0 not in cov.modes or E.ndim != 2 or E.shape[1] == 0:
+    if (cov is None or cov.kind != "categorical" or 0 not in cov.modes or E.ndim != 2 or E.shape[1] == 0
+            or len(E) == 0 or not np.all(np.isfinite(E))):  # (a NaN column is no function of anything)
         return False
     m0 = bl.modes[rows, 0]
     if not np.all(m0 == m0[0]) or m0[0] == 0:
@@ -3964,7 +3965,7 @@ def _unnamed_smooth(bl, diag, terms, folds, st, y, rows, cv_cur, sigma, settings
     Bp = Br - st.Q @ (st.Q.T @ Br)
     scale = float(np.trace(Bp.T @ Bp)) / max(B.shape[1], 1)
     best = None
-    for lam in scale * np.logspace(-4, 2, 7):
+    for lam in scale * np.asarray(PENALTY_GRID):
         Pm = np.zeros((E_named.shape[1] + B.shape[1],) * 2)
         Pn = _penalty(terms)
         if Pn is not None:  # a penalised named cause keeps its own penalty

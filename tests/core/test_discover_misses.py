@@ -1006,6 +1006,11 @@ def test_a_categorical_term_spans_what_is_constant_in_its_categories():
     bend2 = bend.copy()
     bend2[5] += 0.1
     assert not _spans_exactly(bl, "feature", bend2, rows)
+    # a NaN column is constant within nothing (it compared equal to itself before the review's guard), and no rows
+    bend3 = bend.copy()
+    bend3[:, 0] = np.nan
+    assert not _spans_exactly(bl, "feature", bend3, rows)
+    assert not _spans_exactly(bl, "feature", bend[:0], rows[:0])
 
 
 def test_gen_b_stylus_bending_1041_named_where_the_feature_term_nests_it():
