@@ -2711,8 +2711,9 @@ def _path_tries(scans, st: _State, level: float) -> float:
     return float(level / np.exp(optimize.brentq(excess, hi, lo, xtol=1e-6)))
 
 
-#: A long log's refinement (:func:`_refine`) builds and tests this many bytes of one grid's trials at a time (at
-#: least one trial).
+#: A long log's refinement (:func:`_refine`) builds this many bytes of one grid's trials at a time (at least one
+#: trial), counted on the rows tested; the peak per group is about two to three times it (the rebuild makes every
+#: row, the rows taken are a copy, each trial tested from its own contiguous copy).
 REFINE_BLOCK_BYTES = 16 << 20
 
 

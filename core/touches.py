@@ -51,7 +51,10 @@ class Touches:
     row : (n,) int
         0-based row of each touch in the source log.
     p_R : (n, 3) float
-        Reported stylus-tip centre, machine frame, m.
+        Reported stylus-tip centre, machine frame, m. None on the copy a
+        planar baseline keeps (``core.baseline.PLANAR_TOUCHES_DROPPED``, as
+        ``wn_A``: read only while the baseline is built); ``dq_m`` then
+        refuses.
     pn_R : (n, 3) float
         Nominal stylus-tip centre at contact, machine frame, m.
     n_R : (n, 3) float
@@ -102,6 +105,9 @@ class Touches:
     @property
     def dq_m(self) -> np.ndarray:
         """(n,) measured normal deviation ``n . (p - pn)``, m (spec's ``dq``)."""
+        if self.p_R is None:
+            raise ValueError("touches: no measured tip centres (p_R) here: a planar baseline's copy drops them "
+                             "once built (core.baseline.PLANAR_TOUCHES_DROPPED); use the baseline's y")
         return np.einsum("ij,ij->i", self.n_R, self.p_R - self.pn_R)
 
     def subset(self, mask: np.ndarray, *, reindex: bool = False) -> "Touches":

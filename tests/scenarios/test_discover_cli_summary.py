@@ -1,6 +1,8 @@
 """What ``vmt discover`` prints: a finding's +- is said to be its U95, and the workpiece's U95 before
 and after the extension is printed beside the gain (the report's figures, read by hand here)."""
 
+import pytest
+
 from scenarios.cli.discover import summary_lines
 
 
@@ -163,7 +165,9 @@ def test_discover_command_lets_the_touches_go_before_the_search(monkeypatch, tmp
     monkeypatch.setattr(X, "discover_baseline", search)
     assert C._discover_probe_log(path, 30.0, None) == "found"
     (bl, alive), = seen
-    assert alive == [bl.data.touches], f"{len(alive)} touches alive while the search runs"
+    assert len(alive) == 1 and alive[0] is bl.data.touches, f"{len(alive)} touches alive while the search runs"
+    with pytest.raises(ValueError, match="no measured tip centres"):
+        bl.data.touches.dq_m
     assert all(getattr(bl.data.touches, k) is None for k in Bm.PLANAR_TOUCHES_DROPPED)
     t = from_log(P.read_probe_log(path))
     ref = Bm.planar(t, 30.0)
