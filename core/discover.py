@@ -3387,7 +3387,13 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
                 "significant": True}
     tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak, origin=cause,
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
-    # plausibility of the magnitudes (with their U95)
+    return _plausible(cause, bl, tm, st, rows, cv)
+
+
+def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float) -> dict:
+    """The last gate of :func:`_evaluate` and :func:`_evaluate_penalised`: the term's magnitudes (with their U95,
+    :func:`_magnitudes`, the penalised branch for a penalised term) within the cause's bounds and its own
+    plausibility check. ``{"cv", "term"}`` (the term with its magnitudes at adoption), or a refusal."""
     wide = []
     vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows, wide)
     if wide:  # named at most ambiguous (step 8): the data do not say how large it is
@@ -3453,21 +3459,7 @@ def _evaluate_penalised(cause, sc, info, cols, tries, bl, st: _State, folds: Fol
     k = cols.shape[1]
     tm = Term(cause.name, cols, tuple(sc.labels), info, sc.covariate, tries, ev, penalty=f * scale * np.eye(k),
               origin=cause, labels_all=tuple(sc.labels), map=np.eye(k), cols_all=cols)
-    wide = []
-    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows, wide)
-    if wide:
-        tm.evidence["magnitude_undetermined"] = "; ".join(
-            f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
-    tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95))
-    for key, v in vals.items():
-        if not isinstance(v, float) or v is None:
-            continue
-        for pat, (lo, hi) in cause.bounds.items():
-            if _matches(key, pat):
-                u = u95.get(key) or 0.0
-                if v + u < lo or v - u > hi:
-                    return {"reason": f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})", "significant": True}
-    return {"cv": cv, "term": tm}
+    return _plausible(cause, bl, tm, st, rows, cv)
 
 
 def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None):
