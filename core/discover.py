@@ -729,7 +729,7 @@ class Folds:
         For a penalised extension, which is not projected outside the design first: one mostly inside the
         held-out group is small on the training rows, and the full fit less the held-out rows' part cancels
         (a review: relative error 7e-7 where refitting gives 3e-14). ``QtY = Q^T Y`` (every row)."""
-        tr, te, k = f.tr, f.te, f.k
+        te, k = f.te, f.k
         Xz = X.copy()
         Xz[te] = 0.0
         a = self.Q.T @ Xz  # (p, kx) the training rows' own products: small when X is there

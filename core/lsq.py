@@ -416,7 +416,7 @@ def _factor_schur(A: sp.csr_matrix, DZ: sp.csr_matrix, names, rank_tol: float, g
     keep = np.ones(n, bool)
     keep[gth] = False
     rth = np.flatnonzero(keep)
-    nr, ng = len(r), len(g)
+    ng = len(g)
     DZc = DZ.tocsc()
     Zr = DZc[:, r][rth].tocsc()  # (n - ng, nr): the other parameters from the free ones
     Dg = np.asarray(DZ[gth, g]).ravel()  # the diagonal block's column scales

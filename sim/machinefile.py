@@ -77,7 +77,6 @@ file, the key and what is wrong.
 from __future__ import annotations
 
 import hashlib
-import math
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources

@@ -652,7 +652,6 @@ class WorkZone:
         found (plus :data:`sim.clearance.MARGIN_M`, MuJoCo's tolerance being far smaller).
         ``broad_phase=False``: every triple (the reference).
         """
-        from .clearance import MARGIN_M
 
         tips = np.asarray(tips_R, float).reshape(-1, 3)
         best = distmax
