@@ -2248,17 +2248,24 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     "covariance of a penalised spline, Wahba 1983); an estimate only where the data alone "
                     "determine it")
     if shift is not None:
+        pen_named = [t.cause for t in terms if t.penalty is not None and not t.unnamed]
         for f in findings:
             if (f.cause == causes_mod.UNEXPLAINED and "smooth" in f.evidence) or f.evidence.get(
-                    "magnitudes_not_determined"):
+                    "magnitudes_not_determined") or f.cause in pen_named:
                 f.evidence["workpiece_shift"] = _clean(shift)
         smooth_in = any(t.unnamed for t in terms)
-        who = "the unnamed smooth" if smooth_in else "a cause whose magnitudes this design does not determine"
+        # who moves the workpiece, and whose assumption splits the effect between machine and part: the
+        # smooth's (no physics), a penalised cause's penalty (its field spans part of what the baseline spans,
+        # the penalty deciding the split), or the fit's (a cause whose magnitudes the design does not determine)
+        who, split = (("the unnamed smooth", "an unnamed effect between machine and part is the smooth's")
+                      if smooth_in else
+                      (f"the penalised {', '.join(pen_named)}", "what both the cause and the baseline span between "
+                       "machine and part is the penalty's") if pen_named else
+                      ("a cause whose magnitudes this design does not determine",
+                       "an undetermined effect between machine and part is the fit's"))
         conv.append(f"{who} moves the workpiece by {shift['shift_rms_um']:.3g} um RMS (form only), "
                     f"{fmt_p(shift['p'])} against its own scatter: " + (
-                        ("real, and the split of an unnamed effect between machine and part is the smooth's "
-                         if smooth_in else "real, and the split of an undetermined effect between machine and "
-                         "part is the fit's ") +
+                        f"real, and the split of {split} "
                         "assumption: the extended U95 carries the shift (u = |shift| / 2 per target)"
                         if shift["carried_in_u95"] else "within the noise the extended U95 already carries"))
     lost = [w["target"] for w in wp if w["baseline_um"] is not None and w["extended_um"] is None]
