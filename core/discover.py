@@ -788,10 +788,13 @@ class Folds:
             penalty = np.asarray(penalty, dtype=float)
             if penalty.shape != (E.shape[1],) * 2 or not np.all(np.isfinite(penalty)):
                 raise ValueError(f"Folds: penalty {penalty.shape} for {E.shape[1]} extension columns, or not finite")
-            if not np.allclose(penalty, penalty.T) or \
-                    np.linalg.eigvalsh((penalty + penalty.T) / 2).min() < -1e-12 * max(np.abs(penalty).max(), 1):
+            # non-negative relative to the penalty's own size (a ridge on columns in metres is ~1e-12 and below:
+            # an absolute floor would pass any such matrix); a column with no penalty of its own (a zero diagonal)
+            # coupled to another is not non-negative either, whatever the rounding of the eigenvalues says
+            free = np.diag(penalty) == 0
+            if not np.allclose(penalty, penalty.T) or np.any(penalty[free] != 0) or np.any(penalty[:, free] != 0) or \
+                    np.linalg.eigvalsh((penalty + penalty.T) / 2).min() < -1e-12 * np.abs(penalty).max():
                 raise ValueError("Folds: the penalty is not symmetric non-negative")
-            free = ~(np.any(penalty != 0, axis=0) | np.any(penalty != 0, axis=1))
             if free.all():  # no column penalised: the unpenalised rule
                 penalty = None
             elif free.any():  # the penalised columns by the ridge, the others by the seen-share rule (below)
@@ -1031,7 +1034,7 @@ def _penalised_fit(Eo: np.ndarray, r: np.ndarray, P: np.ndarray, dof0: int):
         raise ValueError(f"penalised fit: columns {Eo.shape}, residuals {r.shape}, penalty {P.shape} do not match")
     if not (np.all(np.isfinite(Eo)) and np.all(np.isfinite(r)) and np.all(np.isfinite(P))):
         raise ValueError("penalised fit: non-finite columns, residuals or penalty")
-    if k and (not np.allclose(P, P.T) or np.linalg.eigvalsh((P + P.T) / 2).min() < -1e-12 * max(np.abs(P).max(), 1)):
+    if k and (not np.allclose(P, P.T) or np.linalg.eigvalsh((P + P.T) / 2).min() < -1e-12 * np.abs(P).max()):
         raise ValueError("penalised fit: the penalty is not symmetric non-negative")
     G = Eo.T @ Eo
     M = G + P

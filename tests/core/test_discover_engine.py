@@ -870,3 +870,5 @@ def test_penalised_fit_bad_input():
         _penalised_fit(E, np.where(np.arange(20) == 3, np.nan, r), np.eye(3), 20)
     with pytest.raises(ValueError, match="non-negative"):
         _penalised_fit(E, r, -np.eye(3), 20)
+    with pytest.raises(ValueError, match="non-negative"):  # negative beyond its own size (no absolute floor)
+        _penalised_fit(E, r, -1e-13 * np.eye(3), 20)

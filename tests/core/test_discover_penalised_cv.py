@@ -199,6 +199,15 @@ def test_penalty_bad_input():
     neg[0, 0] = -1.0
     with pytest.raises(ValueError, match="penalty"):
         folds.mse(Y[:, 0], E, neg)
+    # (the second review) a column with no penalty of its own coupled to another: within the old absolute
+    # tolerance's rounding it was taken as penalised and fitted by the ridge, 0.74 of the largest observation
+    # away from the free column's answer; and a penalty on metre-scaled columns negative beyond its own size
+    coupled = np.diag([0.0, 1e5, 1e5, 1e5, 0, 0, 0])
+    coupled[0, 1] = coupled[1, 0] = 1e-7
+    with pytest.raises(ValueError, match="penalty"):
+        folds.residuals(Y, E, coupled)
+    with pytest.raises(ValueError, match="penalty"):
+        folds.residuals(Y, E, -1e-13 * np.eye(7))
 
 
 def test_every_held_out_call_keeps_an_adopted_penalised_cause_penalised(monkeypatch):
