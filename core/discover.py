@@ -3510,14 +3510,8 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
                 cp[j] += h
                 cm[j] -= h
                 g[j] = (cause.magnitudes(tm.info, cp, bl)[key] - cause.magnitudes(tm.info, cm, bl)[key]) / (2 * h)
-            out[key] = float(v)
-            u95[key] = float(2 * np.sqrt(max(g @ cov @ g, 0.0)))
-            for pat, (lo, hi) in cause.bounds.items():
-                if _matches(key, pat) and u95[key] > hi - lo:
-                    if wide is not None:
-                        wide.append((key, out[key], u95[key], lo, hi))
-                    out[key], u95[key] = None, None
-                    break
+            out[key], u95[key] = _within_range(cause, key, float(v), float(2 * np.sqrt(max(g @ cov @ g, 0.0))),
+                                               wide)
         return out, u95
     c_red = np.linalg.lstsq(Ep, ro, rcond=1e-12)[0]
     res = ro - Ep @ c_red
@@ -3585,16 +3579,19 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         if weak.shape[0] and np.max(np.abs(weak @ gn)) > 1e-2 * max(np.linalg.norm(gn), 1e-300):
             out[key], u95[key] = None, None
             continue
-        out[key] = float(v)
-        u95[key] = float(2 * np.sqrt(max(g @ cov @ g, 0.0)))
-        # an uncertainty wider than the whole plausible range determines nothing
-        for pat, (lo, hi) in cause.bounds.items():
-            if _matches(key, pat) and u95[key] > hi - lo:
-                if wide is not None:
-                    wide.append((key, out[key], u95[key], lo, hi))
-                out[key], u95[key] = None, None
-                break
+        out[key], u95[key] = _within_range(cause, key, float(v), float(2 * np.sqrt(max(g @ cov @ g, 0.0))), wide)
     return out, u95
+
+
+def _within_range(cause, key: str, v: float, u: float, wide: list | None) -> tuple:
+    """``(v, u)``, or ``(None, None)`` when the U95 ``u`` is wider than the whole plausible range of a bounded
+    magnitude (it determines nothing; ``(key, v, u, lo, hi)`` appended to ``wide`` when given)."""
+    for pat, (lo, hi) in cause.bounds.items():
+        if _matches(key, pat) and u > hi - lo:
+            if wide is not None:
+                wide.append((key, v, u, lo, hi))
+            return None, None
+    return v, u
 
 
 def _named_ss(so: _State, sf: _State, sigma: float) -> float:
