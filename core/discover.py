@@ -2240,9 +2240,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         "logarithm, Student's t at 97.5 % with set-ups - 1 degrees of freedom); none without an extension, "
         "cross-validation or three set-ups"]
     smooth_terms = [t for t in terms if t.unnamed]
-    if any(t.penalty is not None and not t.unnamed for t in terms):
-        conv.append("a penalised named cause (" + ", ".join(t.cause for t in terms if t.penalty is not None
-                                                             and not t.unnamed) +
+    pen_named = [t.cause for t in terms if t.penalty is not None and not t.unnamed]
+    if pen_named:
+        conv.append("a penalised named cause (" + ", ".join(pen_named) +
                     "): its ridge chosen by the held-out mean square; the same penalised fit gives its held-out "
                     "gain, magnitudes (U95 from s^2 (E^T E + P)^-1), residuals and extended workpiece")
     if smooth_terms:
@@ -2251,7 +2251,6 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     "covariance of a penalised spline, Wahba 1983); an estimate only where the data alone "
                     "determine it")
     if shift is not None:
-        pen_named = [t.cause for t in terms if t.penalty is not None and not t.unnamed]
         for f in findings:
             if (f.cause == causes_mod.UNEXPLAINED and "smooth" in f.evidence) or f.evidence.get(
                     "magnitudes_not_determined") or f.cause in pen_named:
@@ -3498,18 +3497,23 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         # mean square, decides what the baseline's span keeps)
         c_red, cov, _, _ = _penalised_fit(Ep, ro, tm.penalty, len(rows) - Qo.shape[1])
         vals = cause.magnitudes(tm.info, c_red, bl)
+        num = [key for key, v in vals.items() if isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)]
+        # central differences, each coefficient's pair of magnitudes made once for every key
+        grads = {key: np.zeros(k_all) for key in num}
+        for j in range(k_all):
+            h = max(np.sqrt(max(cov[j, j], 0.0)) * 1e-3, abs(c_red[j]) * 1e-6, 1e-12)
+            cp, cm = c_red.copy(), c_red.copy()
+            cp[j] += h
+            cm[j] -= h
+            mp, mm = cause.magnitudes(tm.info, cp, bl), cause.magnitudes(tm.info, cm, bl)
+            for key in num:
+                grads[key][j] = (mp[key] - mm[key]) / (2 * h)
         u95, out = {}, {}
         for key, v in vals.items():
-            if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
+            if key not in grads:
                 out[key] = v
                 continue
-            g = np.zeros(k_all)
-            for j in range(k_all):
-                h = max(np.sqrt(max(cov[j, j], 0.0)) * 1e-3, abs(c_red[j]) * 1e-6, 1e-12)
-                cp, cm = c_red.copy(), c_red.copy()
-                cp[j] += h
-                cm[j] -= h
-                g[j] = (cause.magnitudes(tm.info, cp, bl)[key] - cause.magnitudes(tm.info, cm, bl)[key]) / (2 * h)
+            g = grads[key]
             out[key], u95[key] = _within_range(cause, key, float(v), float(2 * np.sqrt(max(g @ cov @ g, 0.0))),
                                                wide)
         return out, u95
@@ -3625,7 +3629,6 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
             return {"kept": True, "rival_share": 1.0, "rival": None}
         B = bases[cov.name][rows]
     s2 = sigma ** 2
-    d_n = _named_ss(so, sf, sigma)
     if tm.penalty is not None and not tm.unnamed:
         # a penalised cause against its rival by the same estimator: the rival is the cause's columns and the
         # smooth's directions beyond them (orthonormal, scaled to the columns' mean norm outside the model), all
@@ -3644,6 +3647,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
         d_n = (so.rss - sf.rss) - edf_n * s2
         d_r = (so.rss - float(rr @ rr)) - edf_r * s2
     else:
+        d_n = _named_ss(so, sf, sigma)
         U = new_basis(so.Q, np.hstack([B, tm.columns[rows]]))
         ss_r = float(np.sum((U.T @ so.r) ** 2))
         k_r = U.shape[1]
