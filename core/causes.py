@@ -1682,7 +1682,8 @@ def nonrigid_magnitudes(info, coef, bl):
     c = np.asarray(coef, float)
     out = {}
     for j, a in enumerate(info.get("axes", "XY")):
-        f = B @ c[6 * j:6 * j + 6] / UM
+        k = len(_XY_LABELS)
+        f = B @ c[k * j:k * (j + 1)] / UM
         out[f"E{a}_field_rms_um"] = float(np.sqrt(np.mean(f ** 2)))
         out[f"E{a}_field_peak_um"] = float(f[np.argmax(np.abs(f))])
     return out
