@@ -1981,16 +1981,22 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             return sigma_rep, "repeats", rep_t.dof
         key = (tuple(s.rows.tolist()), s.Q.shape[1], float(s.rss))
         if key not in rep_of:
-            rates = drift_trend(bl, s.rows, trend == "shared") if trend != "none" else np.zeros((len(s.rows), 0))
-            T = np.hstack([rates, s.Q[:, s.k_base:]])
-            r = replicate_scatter(bl.replicate[s.rows], y[s.rows], T)
+            # only the repeats' rows hold anything of the scatter: the rates formed dense there alone (dense on
+            # every row they were rows x modes x set-ups, 2.4 GB at the bench's 1e6 rows and 100 set-ups); the
+            # same values in the same order as on every row
+            rep_rows = np.flatnonzero(bl.replicate[s.rows] >= 0)
+            key_r, y_r = bl.replicate[s.rows][rep_rows], y[s.rows][rep_rows]
+            rates = (_dense(drift_trend(bl, s.rows, trend == "shared", True)[rep_rows]) if trend != "none"
+                     else np.zeros((len(rep_rows), 0)))
+            T = np.hstack([rates, s.Q[:, s.k_base:][rep_rows]])
+            r = replicate_scatter(key_r, y_r, T)
             # (terms constant within the groups leave the estimate and its degrees of freedom as they were:
             # the repeats' own, said so)
             terms_hold_structure = False
             if NOISE_BEYOND_TERMS_MIN_DOF <= r.dof < 10:
                 # the rates-only scatter on the same rows (rep_t is on the first screen's: after the outlier
                 # re-screen or the put-back its sum of squares would hold the touches dropped or added too)
-                rep_s = replicate_scatter(bl.replicate[s.rows], y[s.rows], rates if trend != "none" else None)
+                rep_s = replicate_scatter(key_r, y_r, rates if trend != "none" else None)
                 terms_hold_structure = (r.dof < rep_s.dof
                                         and short_term_test(rep_s, r)[1] < SHORT_TERM_ALPHA)
             rep_of[key] = ((r.sigma_m, "repeats beyond the model's terms", r.dof)
@@ -2650,8 +2656,12 @@ def _coarse(Ecols: np.ndarray, r: np.ndarray, keep: int) -> np.ndarray:
     return np.argsort(-score)[:keep]
 
 
-#: Trials per block when :func:`_path_tries` projects a scan's columns out of the model (bounds its memory).
+#: Trials per block when :func:`_path_tries` projects a scan's columns out of the model (bounds its memory),
+#: at most; fewer on a long log, so that one block's columns hold at most :data:`PATH_BLOCK_BYTES`.
 PATH_CHUNK = 64
+#: Bytes of one block of :func:`_path_tries`' trial columns (rows x trials x 8): at the bench's 1e6-row log
+#: 64 trials were 512 MB a copy, and a block is copied about four times (built, taken, projected, normalised).
+PATH_BLOCK_BYTES = 32 << 20
 
 
 def _path_tries(scans, st: _State, level: float) -> float:
@@ -2686,15 +2696,17 @@ def _path_tries(scans, st: _State, level: float) -> float:
     nominal level at the small levels, still anticonservative (the scan's
     own count with refined widths: 17 %, 4.6 %, 2.9 %). Bounding the
     (centre, width) field is not done. Cost: every trial's column projected once, in blocks of
-    :data:`PATH_CHUNK` trials; the engine asks for it only where the
-    scan's own count finds the candidate significant.
+    :data:`PATH_CHUNK` trials (fewer on a long log, :data:`PATH_BLOCK_BYTES`: the same angles summed
+    in other groups); the engine asks for it only where the scan's own count finds the candidate
+    significant.
     """
     rows = st.rows
+    chunk = max(1, min(PATH_CHUNK, PATH_BLOCK_BYTES // max(8 * len(rows), 1)))
     Vs = []
     for sc in scans:
         V = 0.0
-        for a in range(0, sc.size, PATH_CHUNK):  # each block from the previous block's last trial
-            C = take_rows(sc.build(np.arange(max(a - 1, 0), min(a + PATH_CHUNK, sc.size))), rows, 1)
+        for a in range(0, sc.size, chunk):  # each block from the previous block's last trial
+            C = take_rows(sc.build(np.arange(max(a - 1, 0), min(a + chunk, sc.size))), rows, 1)
             if C.shape[2] != 1:
                 raise ValueError(f"_path_tries: a path scan's trials must be one column each, got {C.shape[2]}")
             M = C[:, :, 0].T

@@ -247,6 +247,28 @@ def test_path_count_exact_arcs_beside_a_model():
             assert _path_tries([sc], st, level) == pytest.approx(level / p, rel=1e-5)
 
 
+@pytest.mark.parametrize("block_bytes", [1, 8 * 6 * 2, 8 * 6 * 3, 32 << 20])
+def test_path_count_does_not_depend_on_its_blocks(monkeypatch, block_bytes):
+    """A long log's blocks hold fewer trials (PATH_BLOCK_BYTES; 6 rows here: 1, 2, 3 and 64 trials a block):
+    the arc's length and so the count are the same. Nine columns at 0, 10, ..., 80 degrees in a plane beside
+    the model q: V = 4 pi / 9 in eight steps, whichever steps fall across a block's edge (each block starts at
+    the previous one's last trial); the count against the closed form level / p (rel 1e-5, the solver's xtol)."""
+    from scipy import stats
+    from core import discover as D
+    monkeypatch.setattr(D, "PATH_BLOCK_BYTES", block_bytes)
+    n = 6
+    q = np.zeros((n, 1))
+    q[5, 0] = 1.0
+    a = np.radians(np.arange(0.0, 81.0, 10.0))
+    cols = np.zeros((len(a), n, 1))
+    cols[:, 0, 0], cols[:, 1, 0], cols[:, 5, 0] = np.cos(a), np.sin(a), 2.0
+    st = _State(np.arange(n), q, np.zeros(n), 1.0, n - 1)
+    sc = causes.Scan(("b",), tuple({} for _ in cols), "x", lambda idx: cols[np.asarray(idx)], path=True)
+    p = stats.chi2.sf(14.0, 1)
+    level = p + (4 * np.pi / 9) * np.exp(-14.0 / 2) / np.pi
+    assert D._path_tries([sc], st, level) == pytest.approx(level / p, rel=1e-5)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_spread_smooth_error_is_still_refused_as_not_confined(seed):
     """A quadratic error of the tables (E_XX, E_YX, E_XY, E_YY; 10.6 um RMS, 0.54 um RMS beyond the 55 mm grid's
