@@ -12,21 +12,16 @@ thermal_drift candidate's held-out mean square 6.74 um^2 unpenalised, 7213 um^2 
 import numpy as np
 import pytest
 
+from tests.core.test_discover_cv import _design_with_every_kind_of_direction
+
 
 def _design():
-    """Four set-ups of 40 rows; unpenalised columns of every kind (test_discover_cv's design: one column mostly in
-    set-up 1 (the band for that fold), one only in set-up 3 (its own), an ordinary one, one barely seen beyond
-    set-up 0), a baseline column set-up 2 alone sees, and a penalised block of three smooth columns."""
-    rng = np.random.default_rng(1)
-    n, p = 160, 10
-    groups = np.repeat(np.arange(4), 40)
-    A = rng.normal(size=(n, p))
-    A[:, 8] = A[:, 0] + np.where(groups == 1, 1.0, 0.05) * rng.normal(size=n)
-    A[:, 9] = (groups == 2) * rng.normal(size=n)
-    A[:, 7] = A[:, 1] + np.where(groups == 3, 1.0, 0.5) * rng.normal(size=n)
-    Eu = np.column_stack([np.where(groups == 1, 1.0, 0.02) * rng.normal(size=n),
-                          (groups == 3) * rng.normal(size=n), np.sin(np.arange(n) / 7.0),
-                          np.where(groups == 0, 1.0, 0.1) * rng.normal(size=n)])
+    """test_discover_cv's design (four set-ups of 40 rows; unpenalised columns of every kind: one mostly in set-up 1
+    (the band for that fold), one only in set-up 3 (its own), an ordinary one, one barely seen beyond set-up 0; a
+    baseline column set-up 2 alone sees) and a penalised block of three smooth columns beside it."""
+    A, groups, Eu, _ = _design_with_every_kind_of_direction()
+    rng = np.random.default_rng(11)
+    n, p = A.shape
     t = np.linspace(-1, 1, n)
     Ep = np.column_stack([np.cos(3 * t), t ** 2 - 1 / 3, np.sin(5 * t) * (1 + 0.3 * rng.normal(size=n))])
     Y = (A @ rng.normal(size=(p, 3)) + Eu @ rng.normal(size=(4, 3)) + Ep @ rng.normal(size=(3, 3))
