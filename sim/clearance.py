@@ -87,7 +87,13 @@ class Geoms:
     rbound: np.ndarray
 
     def take(self, idx) -> "Geoms":
-        return Geoms(self.centre[idx], self.axes[idx], self.kind[idx], self.size[idx], self.rbound[idx])
+        """The geoms ``idx`` (indices, or a bool mask) in that order: ``np.take`` along the first axis
+        (the same values as indexing, a few times faster on rows of several numbers)."""
+        idx = np.asarray(idx)
+        if idx.dtype == bool:
+            idx = np.flatnonzero(idx)
+        return Geoms(self.centre.take(idx, axis=0), self.axes.take(idx, axis=0), self.kind.take(idx),
+                     self.size.take(idx, axis=0), self.rbound.take(idx))
 
     def extent(self, u: np.ndarray) -> np.ndarray:
         """Support function about the centre, ``ext(u) = max_x (x - c) . u``, (k,) for unit u (k,3)."""
@@ -227,7 +233,7 @@ class Clearance:
         need = np.flatnonzero(want & ~self._have)  # (sorted, once each)
         if need.size:
             g, h = self.pair_probe[need], self.pair_table[need]
-            Ht, Pa = self.table.axes[h], self.probe.axes[g][:, :, 2]
+            Ht, Pa = self.table.axes.take(h, axis=0), self.probe.axes.take(g, axis=0)[:, :, 2]
             U = np.empty((len(need), 7, 3))
             U[:, :3] = Ht.transpose(0, 2, 1)  # the table geom's three axes (rows)
             U[:, 3] = Pa
@@ -239,7 +245,7 @@ class Clearance:
             E = (P.extent(flat) + T.extent(flat)).reshape(len(need), 7)
             self._U[need], self._E[need] = U, np.where(ok, E, np.inf)
             self._have[need] = True
-        return self._U[pair], self._E[pair]
+        return self._U.take(pair, axis=0), self._E.take(pair, axis=0)
 
     def moved(self, T_F_R) -> "Clearance":
         """The same geoms in F, F now at ``T_F_R`` from R (the table moved with its artefact);
@@ -274,8 +280,8 @@ class Clearance:
         # -> (sample, pair)
         k, i = _expand(cut[seg], s_cnt[seg])
         pair = pair[k]
-        q = p_R[i]
-        ok = _overlap(q, q, self._lo[pair], self._hi[pair])
+        q = p_R.take(i, axis=0)
+        ok = _overlap(q, q, self._lo.take(pair, axis=0), self._hi.take(pair, axis=0))
         return i[ok], pair[ok]
 
     def _box_pairs(self, s_lo: np.ndarray, s_hi: np.ndarray, allow: np.ndarray | None = None
@@ -342,7 +348,7 @@ class Clearance:
 
     def _swept(self, a: np.ndarray, b: np.ndarray, pair: np.ndarray) -> np.ndarray:
         """:meth:`swept_bound` for ends already in the geoms' frame."""
-        d0 = self._d0[pair]
+        d0 = self._d0.take(pair, axis=0)
         da, db = d0 + a, d0 + b
 
         def gap(U, E, da, db):  # U (r,j,3), E (r,j)
@@ -354,14 +360,14 @@ class Clearance:
         # segment's middle: most pairs are cleared by it alone
         g, h = self.pair_probe[pair], self.pair_table[pair]
         T = self.table.take(h)
-        c_g = self.probe.centre[g] + 0.5 * (a + b)
+        c_g = self.probe.centre.take(g, axis=0) + 0.5 * (a + b)
         u, ok = _unit(c_g - T.closest(c_g))
         E = self.probe.take(g).extent(u) + T.extent(u)
         out = np.where(ok, gap(u[:, None, :], E[:, None], da, db)[:, 0], -np.inf)
         r = np.flatnonzero(out <= MARGIN_M)
         if r.size:  # the pair's fixed axes (computed once per pair) for the rest
             U, E = self._axes(pair[r])
-            out[r] = np.maximum(out[r], np.max(gap(U, E, da[r], db[r]), axis=1))
+            out[r] = np.maximum(out[r], np.max(gap(U, E, da.take(r, axis=0), db.take(r, axis=0)), axis=1))
         return out
 
     def feature_ids(self, features) -> np.ndarray:
@@ -405,7 +411,7 @@ class Clearance:
 
     def _box_bound_F(self, p: np.ndarray, pairs: np.ndarray) -> np.ndarray:
         """:meth:`box_bound` of tips ``p`` (n,3) already in the geoms' frame."""
-        lo, hi = self._loT[:, pairs] + MARGIN_M, self._hiT[:, pairs] - MARGIN_M  # the tip's box of contact
+        lo, hi = self._loT.take(pairs, axis=1) + MARGIN_M, self._hiT.take(pairs, axis=1) - MARGIN_M  # the tip's box of contact
         # the boxes' gap along x, y, z, (3, n, pairs)
         pT = p.T[:, :, None]
         g = np.maximum(lo[:, None, :] - pT, pT - hi[:, None, :])
@@ -420,20 +426,20 @@ class Clearance:
         ``enough``: rows whose fixed axes already prove more than this skip the
         closest-point axis (their bound is then that smaller, still valid, value).
         """
-        return self._bound_F(self.to_frame(p_R)[i], pair, enough)
+        return self._bound_F(self.to_frame(p_R).take(i, axis=0), pair, enough)
 
     def _bound_F(self, p: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
         """:meth:`bound` of pair ``pair`` (r,) with the tip at ``p`` (r,3), already in the geoms' frame."""
-        d = self._d0[pair] + p
+        d = self._d0.take(pair, axis=0) + p
         U, E = self._axes(pair)
         out = np.max(np.abs(U[:, :, 0] * d[:, 0, None] + U[:, :, 1] * d[:, 1, None] + U[:, :, 2] * d[:, 2, None])
                      - E, axis=1)
         r = np.flatnonzero(out <= enough)
         if not r.size:
             return out
-        g, h, d = self.pair_probe[pair[r]], self.pair_table[pair[r]], d[r]
+        g, h, d = self.pair_probe[pair[r]], self.pair_table[pair[r]], d.take(r, axis=0)
         T = self.table.take(h)
-        c_g = self.probe.centre[g] + p[r]
+        c_g = self.probe.centre.take(g, axis=0) + p.take(r, axis=0)
         u, ok = _unit(c_g - T.closest(c_g))
         dyn = np.abs(u[:, 0] * d[:, 0] + u[:, 1] * d[:, 1] + u[:, 2] * d[:, 2]) - self.probe.take(g).extent(u) - T.extent(u)
         out[r] = np.maximum(out[r], np.where(ok, dyn, -np.inf))
@@ -574,7 +580,7 @@ def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
         # the table side of every pair's rows (whatever the probe's orientation) and the pairs of
         # each probe geom (pair_probe is sorted); each cluster's box reduced along those rows (one
         # coordinate a row: the same least and largest values, reduceat along a row being faster)
-        rows = (tlo.T[:, pair_table], thi.T[:, pair_table], table.centre[pair_table],
+        rows = (tlo.T.take(pair_table, axis=1), thi.T.take(pair_table, axis=1), table.centre.take(pair_table, axis=0),
                 np.bincount(pair_probe, minlength=ng))
         cbox = np.stack([np.minimum.reduceat(rows[0], cstart, axis=1).T, np.maximum.reduceat(rows[1], cstart, axis=1).T])
         return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox, rows
@@ -626,7 +632,7 @@ class _Certificates:
             return
         if self._n + int(keep.sum()) > _CERT_MAX:
             self.__init__()
-        blk = (a[keep], b[keep], allow[keep], r[keep])
+        blk = (a.compress(keep, axis=0), b.compress(keep, axis=0), allow.compress(keep), r.compress(keep))
         self.blocks.append(blk)
         self._by_len.setdefault(len(blk[0]), []).append(blk)
         self._n += int(keep.sum())
@@ -653,20 +659,20 @@ class _Certificates:
         """After :meth:`in_order`, for the segments ``rest`` (sorted indices) only: the
         remembered segment in the same grid cell (the same move elsewhere), block by block;
         ``r0``, ``moved`` updated in place."""
-        q, f = self._key(a[rest], b[rest], allow[rest])
+        q, f = self._key(a.take(rest, axis=0), b.take(rest, axis=0), allow[rest])
         for j in range(len(self.blocks)):
             if j == len(self._sorted):  # (each block's keys computed and sorted once)
                 A, B, F, R = self.blocks[j]
                 k, fk = self._key(A, B, F)
                 o = np.argsort(k, kind="stable")
-                self._sorted.append((k[o], fk[o], A[o], B[o], R[o]))
+                self._sorted.append((k[o], fk[o], A.take(o, axis=0), B.take(o, axis=0), R[o]))
             keys, F, A, B, R = self._sorted[j]
             i = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
             hit = np.flatnonzero((keys[i] == q) & (F[i] == f))  # (a hash match with another feature: none)
             if not hit.size:
                 continue
             at, i = rest[hit], i[hit]
-            mv = _moved(a[at], b[at], A[i], B[i])
+            mv = _moved(a.take(at, axis=0), b.take(at, axis=0), A.take(i, axis=0), B.take(i, axis=0))
             better = R[i] - mv > r0[at] - moved[at]
             r0[at[better]], moved[at[better]] = R[i][better], mv[better]
             left = ~(moved[rest] < r0[rest])
@@ -800,7 +806,7 @@ def near_segments_many(parts, samples: bool = True) -> list:
                 todo[j], full[j] = (np.arange(n_of[j]), True) if own[j] is None else (own[j], False)
             continue
         def looked_up(j, x):  # (part j's rows of x that are looked up)
-            return x if own[j] is None else x[own[j]]
+            return x if own[j] is None else x.take(own[j], axis=0)
 
         qa = [looked_up(j, parts[j][1].a) for j in js]
         qb = [looked_up(j, parts[j][1].b) for j in js]
@@ -824,7 +830,7 @@ def near_segments_many(parts, samples: bool = True) -> list:
     row0 = np.zeros(n_parts, int)
     row0[live] = np.cumsum(cnt[live]) - cnt[live]
     def pick(x, j):  # part j's rows of x to bound
-        return x if full[j] else x[todo[j]]
+        return x if full[j] else x.take(todo[j], axis=0)
 
     A = np.concatenate([pick(parts[j][1].a, j) for j in live])
     B = np.concatenate([pick(parts[j][1].b, j) for j in live])
@@ -863,7 +869,8 @@ def near_segments_many(parts, samples: bool = True) -> list:
     for b, clr in enumerate(bases):
         rows = np.flatnonzero(pb == b) if len(bases) > 1 else np.arange(len(seg))
         if rows.size:
-            lb[rows] = clr._swept(A[seg[rows]], B[seg[rows]], pair[rows] - pair0[b])
+            sr = seg[rows]
+            lb[rows] = clr._swept(A.take(sr, axis=0), B.take(sr, axis=0), pair[rows] - pair0[b])
     # certificates: per bounded segment the radius within which it stays clear
     r = pad.copy()
     np.minimum.at(r, seg, lb - MARGIN_M)
@@ -891,7 +898,8 @@ def near_segments_many(parts, samples: bool = True) -> list:
             for j in js:
                 i = gc[pj == j] - off[j]
                 sg = parts[j][1]
-                sub.append((parts[j][0], Segments(sg.a[i], sg.b[i], sg.k[i], sg.m[i], sg.first[i], sg.path[i]),
+                sub.append((parts[j][0], Segments(sg.a.take(i, axis=0), sg.b.take(i, axis=0), sg.k[i], sg.m[i],
+                                                  sg.first[i], sg.path[i]),
                             parts[j][2][i]))
             for j, x in zip(js, near_segments_many(sub)):
                 out[j] = x
@@ -907,16 +915,16 @@ def near_segments_many(parts, samples: bool = True) -> list:
     i = idx - first[seg]
     f = i * (1.0 / k_[seg])
     f[i == k_[seg]] = 1.0
-    q = A[seg] + f[:, None] * (B - A)[seg]
-    ok = _overlap(q, q, loT.T[pair], hiT.T[pair])
-    seg, pair, pb, idx, q = seg[ok], pair[ok], pb[ok], idx[ok], q[ok]
+    q = A.take(seg, axis=0) + f[:, None] * (B - A).take(seg, axis=0)
+    ok = _overlap(q, q, loT.T.take(pair, axis=0), hiT.T.take(pair, axis=0))
+    seg, pair, pb, idx, q = seg[ok], pair[ok], pb[ok], idx[ok], q.compress(ok, axis=0)
     if not seg.size:
         return out
     close = np.zeros(len(seg), bool)
     for b, clr in enumerate(bases):
         rows = np.flatnonzero(pb == b)
         if rows.size:
-            close[rows] = clr._bound_F(q[rows], pair[rows] - pair0[b], enough=MARGIN_M) <= MARGIN_M
+            close[rows] = clr._bound_F(q.take(rows, axis=0), pair[rows] - pair0[b], enough=MARGIN_M) <= MARGIN_M
     pj = part[seg[close]]
     idx = idx[close]
     for j in np.unique(pj):
@@ -1094,7 +1102,7 @@ class Segments:
         j = idx - self.first[seg]
         f = j * (1.0 / self.k[seg])
         f[j == self.k[seg]] = 1.0
-        return self.a[seg] + f[:, None] * (self.b - self.a)[seg]
+        return self.a.take(seg, axis=0) + f[:, None] * (self.b - self.a).take(seg, axis=0)
 
 
 def touch_polylines(starts, ends, has_link, link_points, link_counts) -> tuple:
@@ -1128,11 +1136,15 @@ def touch_polylines(starts, ends, has_link, link_points, link_counts) -> tuple:
     n_pt = np.full(n + int(has_link.sum()), 2)
     n_pt[app[has_link] - 1] = cnt
     first = np.cumsum(n_pt) - n_pt
-    P = np.empty((int(n_pt.sum()), 3))
-    P[first[app]], P[first[app] + 1] = starts, ends
+    # every point taken from the starts, ends and link points one after another (np.take: the
+    # same rows as assigning them in place, a few times faster)
+    src = np.empty(int(n_pt.sum()), int)  # each point's row of (starts, ends, link_points)
+    src[first[app]], src[first[app] + 1] = np.arange(n), np.arange(n, 2 * n)
     if cnt.size:
         into = np.repeat(first[app[has_link] - 1] - (np.cumsum(cnt) - cnt), cnt) + np.arange(int(cnt.sum()))
-        P[into] = link_points
+        src[into] = np.arange(2 * n, 2 * n + int(cnt.sum()))
+    P = np.concatenate([np.asarray(starts, float).reshape(-1, 3), np.asarray(ends, float).reshape(-1, 3),
+                        np.asarray(link_points, float).reshape(-1, 3)]).take(src, axis=0)
     touch = np.empty(len(n_pt), int)
     touch[app], touch[app[has_link] - 1] = np.arange(n), np.flatnonzero(has_link)
     is_link = np.ones(len(n_pt), bool)
@@ -1169,7 +1181,7 @@ def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -
     starts[first + n_pt - 1] = False
     a_idx = np.flatnonzero(starts)  # every point that starts a segment
     path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt - 1)
-    a, b = P[a_idx], P[a_idx + 1]
+    a, b = P.take(a_idx, axis=0), P.take(a_idx + 1, axis=0)
     step = np.asarray(steps_m, float)[path_of_seg]
     L = np.linalg.norm(b - a, axis=1)
     k = np.maximum(1, np.ceil(L / step).astype(int))
@@ -1178,7 +1190,7 @@ def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -
         # point starts its closing segment, from that point to itself)
         k_all = np.ones(len(P), int)
         k_all[a_idx] = k
-        a, b = P.copy(), P[np.arange(len(P)) + starts]
+        a, b = P.copy(), P.take(np.arange(len(P)) + starts, axis=0)
         k, m = k_all, k_all.copy()
         path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt)
     else:

@@ -741,8 +741,8 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     # the holder pairs of every item, with the box of its tips: those farther than distmax dropped
     # (the distance between two boxes bounds that of any point of one from the other)
     npair = np.array([len(x[3]) for x in pre])
-    loT = np.concatenate([x[2]._loT[:, x[3]] for x in pre], axis=1)
-    hiT = np.concatenate([x[2]._hiT[:, x[3]] for x in pre], axis=1)
+    loT = np.concatenate([x[2]._loT.take(x[3], axis=1) for x in pre], axis=1)
+    hiT = np.concatenate([x[2]._hiT.take(x[3], axis=1) for x in pre], axis=1)
     pFs = [x[6] for x in pre]
     t_lo = np.repeat(np.array([p.min(axis=0) for p in pFs]).T, npair, axis=1)
     t_hi = np.repeat(np.array([p.max(axis=0) for p in pFs]).T, npair, axis=1)
@@ -751,7 +751,7 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     keep = np.sqrt(gap[0] + gap[1] + gap[2]) <= distmax + MARGIN_M
     item_of = np.repeat(np.arange(n), npair)[keep]  # per kept pair: its item
     pair_of = np.concatenate([x[3] for x in pre])[keep]  # its pair in its item's broad phase
-    loT, hiT = loT[:, keep] + MARGIN_M, hiT[:, keep] - MARGIN_M  # (the tip's box of contact)
+    loT, hiT = loT.compress(keep, axis=1) + MARGIN_M, hiT.compress(keep, axis=1) - MARGIN_M  # (the tip's box of contact)
     q = np.bincount(item_of, minlength=n)  # kept pairs per item
     q0 = np.cumsum(q) - q
     nt = np.array([len(p) for p in pFs])
@@ -765,8 +765,8 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     local = np.arange(tot) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     qk = q[item]
     tip, prow = local // qk + t0[item], local % qk + q0[item]
-    pT = np.concatenate(pFs).T[:, tip]
-    g = np.maximum(loT[:, prow] - pT, pT - hiT[:, prow])  # the boxes' gap along x, y, z
+    pT = np.ascontiguousarray(np.concatenate(pFs).T).take(tip, axis=1)
+    g = np.maximum(loT.take(prow, axis=1) - pT, pT - hiT.take(prow, axis=1))  # the boxes' gap along x, y, z
     worst = np.maximum(np.maximum(g[0], g[1]), g[2])
     m = np.maximum(g, 0.0)
     m *= m
@@ -954,13 +954,17 @@ def _link_points_A(s_A, features, levels, top_A_m, direct=None) -> tuple[np.ndar
     zc = np.maximum(np.maximum(top_A_m + LINK_CLEAR_M, a[:, 2]), b[:, 2])
     up_a, up_b = np.column_stack([a[:, :2], zc]), np.column_stack([b[:, :2], zc])
     cnt = np.where(direct, 2, 4)
-    P = np.empty((int(cnt.sum()), 3))
     st = np.cumsum(cnt) - cnt
-    P[st] = a
-    P[st + 1] = np.where(direct[:, None], b, up_a)
-    P[(st + 2)[~direct]] = up_b[~direct]
-    P[(st + 3)[~direct]] = b[~direct]
-    return P, cnt
+    # each point a row of (a, b, up_a, up_b), m rows each, taken in one np.take (the same rows as
+    # assigning them in place, a few times faster): a, then b (direct) or up_a, up_b, b
+    m = len(a)
+    j = np.arange(m)
+    src = np.empty(int(cnt.sum()), int)
+    src[st] = j
+    src[st + 1] = np.where(direct, m + j, 2 * m + j)
+    nd = np.flatnonzero(~direct)
+    src[st[nd] + 2], src[st[nd] + 3] = 3 * m + nd, m + nd
+    return np.concatenate([a, b, up_a, up_b]).take(src, axis=0), cnt
 
 
 def _segments_A(plans, r: float, top_A_m: float) -> list:
@@ -991,7 +995,7 @@ def _segments_A(plans, r: float, top_A_m: float) -> list:
     P, n_pt, touch, _ = touch_polylines(start, Xn, has, L, cnt)
     nxt = np.arange(1, len(P) + 1)
     nxt[np.cumsum(n_pt) - 1] -= 1  # (a polyline's last point: its closing segment, to itself)
-    b = P[nxt]
+    b = P.take(nxt, axis=0)
     # each program's polylines (its first touch's approach first) and their points
     cut = np.r_[0, np.cumsum(n_pt)][np.r_[np.searchsorted(touch, t0), len(n_pt)]]
     return [(P[cut[j]:cut[j + 1]], b[cut[j]:cut[j + 1]]) for j in range(len(plans))]
@@ -1255,7 +1259,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
         f = np.concatenate([rows_F[k][2] for k in ks])
         if len(ks) > 1:
             first, back = unique_segments(a, b, f)
-            a, b, f = a[first], b[first], f[first]
+            a, b, f = a.take(first, axis=0), b.take(first, axis=0), f[first]
         else:  # (one program's rows: few repeat)
             back = np.arange(len(f))
         n = len(f)
@@ -1274,7 +1278,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             rows = np.flatnonzero(is_open[p][back])
             if rows.size:
                 a, b, f = rows_F[key]
-                sub.append((parts[p][0], Segments(a[rows], b[rows], sg.k[rows], sg.m[rows], sg.first[rows],
+                sub.append((parts[p][0], Segments(a.take(rows, axis=0), b.take(rows, axis=0), sg.k[rows], sg.m[rows], sg.first[rows],
                                                   sg.path[rows]), f[rows]))
                 who.append(i)
     out = {i: np.zeros(0, int) for i in live}
