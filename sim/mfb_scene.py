@@ -422,7 +422,7 @@ class WorkZone:
         self._at = {}  # the broad phases at the pose last set (ball_clearance, clearance), by part
         self._hpairs = {}  # the holder's pairs of each rest broad phase (least_holder_clearance), by its certificates
         self._r = float(stylus_r_m)
-        self._A_W = inv_T(T_W_A)
+        self._A_W = None  # (T_A_W: computed when ball_clearance first needs it)
         #: what the work zones of this placement share (_work_zone): the table side's geoms in W
         self._shared = {}
 
@@ -609,6 +609,8 @@ class WorkZone:
         its pair data and certificates (:data:`_BALLS`)."""
         hit = self._at.get("ball")
         if hit is None:
+            if self._A_W is None:
+                self._A_W = inv_T(self._T_W_A)
             hit = self._at["ball"] = self._ball_base().moved(self._A_W @ self._W_R())
         return hit
 
