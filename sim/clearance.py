@@ -800,20 +800,23 @@ def near_segments_many(parts, samples: bool = True) -> list:
     n_of = np.fromiter((len(p[1].a) for p in parts), int, n_parts)
     off = np.r_[0, np.cumsum(n_of)]
     if n_parts == 1:
-        cov = _covered(parts[0][1].a, parts[0][1].b, parts[0][2], off)
+        cat = (parts[0][1].a, parts[0][1].b, parts[0][2])
     else:
-        cov = _covered(np.concatenate([p[1].a for p in parts]), np.concatenate([p[1].b for p in parts]),
-                       np.concatenate([p[2] for p in parts]), off)
+        cat = (np.concatenate([p[1].a for p in parts]), np.concatenate([p[1].b for p in parts]),
+               np.concatenate([p[2] for p in parts]))
+    cov = _covered(*cat, off)
     # each part's rows looked up (None: all of them, as they are)
     own = [np.flatnonzero(~cov[off[j]:off[j + 1]]) for j in range(n_parts)] if cov.any() else [None] * n_parts
     # the certificates: per part in order, then by grid cell for every part of a broad phase at once
     todo, full = [None] * n_parts, [False] * n_parts  # (full: every segment of the part, no gather)
+    plain = True  # (no certificate: every part's rows looked up are bounded)
     for b, clr in enumerate(bases):
         js = [j for j in range(n_parts) if base_of[j] == b]
         if not clr._certs._n:  # (no certificate yet: every segment is bounded)
             for j in js:
                 todo[j], full[j] = (np.arange(n_of[j]), True) if own[j] is None else (own[j], False)
             continue
+        plain = False
         def looked_up(j, x):  # (part j's rows of x that are looked up)
             return x if own[j] is None else x.take(own[j], axis=0)
 
@@ -841,8 +844,12 @@ def near_segments_many(parts, samples: bool = True) -> list:
     def pick(x, j):  # part j's rows of x to bound
         return x if full[j] else x.take(todo[j], axis=0)
 
-    A = np.concatenate([pick(parts[j][1].a, j) for j in live])
-    B = np.concatenate([pick(parts[j][1].b, j) for j in live])
+    if plain and live == list(range(n_parts)):  # (the rows not covered, as they are: one gather of all)
+        A, B, allow = cat if not cov.any() else (x.compress(~cov, axis=0) for x in cat)
+    else:
+        A = np.concatenate([pick(parts[j][1].a, j) for j in live])
+        B = np.concatenate([pick(parts[j][1].b, j) for j in live])
+        allow = np.concatenate([pick(parts[j][2], j) for j in live])
     pad = np.repeat([parts[j][0].cert_pad_m for j in live], cnt[live])
     lo, hi = np.minimum(A, B) - pad[:, None], np.maximum(A, B) + pad[:, None]
     # the pairs and clusters of every broad phase as one table
@@ -861,7 +868,6 @@ def near_segments_many(parts, samples: bool = True) -> list:
     # the first box level (blocks of rows against clusters), every broad phase's rows at once
     groups = [(b, row0[js[0]], row0[js[-1]] + cnt[js[-1]])
               for b, js in ((b, list(js)) for b, js in itertools.groupby(live, key=lambda j: base_of[j]))]
-    allow = np.concatenate([pick(parts[j][2], j) for j in live])
     if len(groups) == 1:
         b, r0, r1 = groups[0]
         seg, cp = bases[b]._block_candidates(lo[r0:r1], hi[r0:r1], allow[r0:r1])
@@ -1049,10 +1055,10 @@ def unique_segments(a: np.ndarray, b: np.ndarray, allow: np.ndarray) -> tuple[np
     new[0] = True
     np.not_equal(hs[1:], hs[:-1], out=new[1:])
     run = np.flatnonzero(new)
-    rep = np.minimum.reduceat(order, run)[np.cumsum(new) - 1]  # per sorted row, its run's first row
-    same = np.ones(n, bool)
-    for x in bits:
-        same &= x[order] == x[rep]
+    rep = np.minimum.reduceat(order, run).take(np.cumsum(new) - 1)  # per sorted row, its run's first row
+    # (whole rows compared, taken with np.take: faster than the seven words gathered one by one)
+    ea, eb = au.take(order, axis=0) == au.take(rep, axis=0), bu.take(order, axis=0) == bu.take(rep, axis=0)
+    same = ea[:, 0] & ea[:, 1] & ea[:, 2] & eb[:, 0] & eb[:, 1] & eb[:, 2] & (bits[6].take(order) == bits[6].take(rep))
     to = np.empty(n, int)
     to[order] = rep
     if not same.all():  # (a collision: rows unlike their run's first, grouped among themselves)
@@ -1060,8 +1066,9 @@ def unique_segments(a: np.ndarray, b: np.ndarray, allow: np.ndarray) -> tuple[np
         rows = np.column_stack(bits)[odd]
         _, i0, inv = np.unique(rows, axis=0, return_index=True, return_inverse=True)
         to[odd] = odd[i0][inv.ravel()]
-    first = np.flatnonzero(to == np.arange(n))
-    return first, np.searchsorted(first, to)
+    isfirst = to == np.arange(n)
+    first = np.flatnonzero(isfirst)
+    return first, (np.cumsum(isfirst) - 1).take(to)  # (each row's first occurrence's rank among the first)
 
 
 def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

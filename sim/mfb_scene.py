@@ -1010,7 +1010,8 @@ def _paths_of(items, link_step_m, approach_step_m) -> list:
 
     ``items``: per measurement (start (n,3), Xn (n,3), link points, link counts, plan) as
     :func:`link_points` gives the links, n >= 1 touches. Returns per measurement (Segments,
-    touch of each polyline, allowed feature of each (object), whether each is an approach),
+    touch of each polyline, allowed feature of each (object; one array for the measurements of one
+    program, read only), whether each is an approach),
     its segments and sample numbers its own; the same numbers bit for bit as one at a time
     (one :func:`sim.clearance.touch_polylines` and :func:`sim.clearance.flat_path_segments`
     for all: every value is computed row by row)."""
@@ -1031,11 +1032,14 @@ def _paths_of(items, link_step_m, approach_step_m) -> list:
     poly = np.r_[np.searchsorted(touch, t0), len(n_pt)]
     seg0 = np.r_[0, np.cumsum(n_pt)][poly]
     out = []
+    allows = {}  # per program (plan object): each polyline's allowed feature (the same for its measurements)
     for j, it in enumerate(items):
         p0, p1, s0, s1 = poly[j], poly[j + 1], seg0[j], seg0[j + 1]
         app = ~is_link[p0:p1]
-        allow = np.full(p1 - p0, "", dtype=object)
-        allow[app] = np.asarray(it[4].feature, dtype=object)
+        allow = allows.get(id(it[4]))
+        if allow is None:
+            allow = allows[id(it[4])] = np.full(p1 - p0, "", dtype=object)
+            allow[app] = np.asarray(it[4].feature, dtype=object)
         out.append((Segments(sg.a[s0:s1], sg.b[s0:s1], sg.k[s0:s1], sg.m[s0:s1], sg.first[s0:s1] - sg.first[s0],
                              sg.path[s0:s1] - p0), touch[p0:p1] - t0[j], allow, app))
     return out
