@@ -745,9 +745,12 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     npair = np.array([len(x[3]) for x in pre])
     loT = np.concatenate([x[2]._loT.take(x[3], axis=1) for x in pre], axis=1)
     hiT = np.concatenate([x[2]._hiT.take(x[3], axis=1) for x in pre], axis=1)
-    pFs = [x[6] for x in pre]
-    t_lo = np.repeat(np.array([p.min(axis=0) for p in pFs]).T, npair, axis=1)
-    t_hi = np.repeat(np.array([p.max(axis=0) for p in pFs]).T, npair, axis=1)
+    pF = np.concatenate([x[6] for x in pre])  # every item's tips (F), one after another
+    nt = np.array([len(x[6]) for x in pre])
+    t0 = np.cumsum(nt) - nt
+    # (each item's box of tips: one reduceat over all of them, the same least and largest values)
+    t_lo = np.repeat(np.minimum.reduceat(pF, t0, axis=0).T, npair, axis=1)
+    t_hi = np.repeat(np.maximum.reduceat(pF, t0, axis=0).T, npair, axis=1)
     gap = np.maximum(np.maximum(loT + MARGIN_M - t_hi, t_lo - (hiT - MARGIN_M)), 0.0)
     gap *= gap
     keep = np.sqrt(gap[0] + gap[1] + gap[2]) <= distmax + MARGIN_M
@@ -756,8 +759,6 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     loT, hiT = loT.compress(keep, axis=1) + MARGIN_M, hiT.compress(keep, axis=1) - MARGIN_M  # (the tip's box of contact)
     q = np.bincount(item_of, minlength=n)  # kept pairs per item
     q0 = np.cumsum(q) - q
-    nt = np.array([len(p) for p in pFs])
-    t0 = np.cumsum(nt) - nt
     # every (tip, kept pair) row of every item, tip-major within an item
     cnt = nt * q
     tot = int(cnt.sum())
@@ -767,7 +768,7 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     local = np.arange(tot) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     qk = q[item]
     tip, prow = local // qk + t0[item], local % qk + q0[item]
-    pT = np.ascontiguousarray(np.concatenate(pFs).T).take(tip, axis=1)
+    pT = np.ascontiguousarray(pF.T).take(tip, axis=1)
     g = np.maximum(loT.take(prow, axis=1) - pT, pT - hiT.take(prow, axis=1))  # the boxes' gap along x, y, z
     worst = np.maximum(np.maximum(g[0], g[1]), g[2])
     m = np.maximum(g, 0.0)
