@@ -308,7 +308,11 @@ class Clearance:
                           ) -> tuple[np.ndarray, np.ndarray]:
         """(box index, cluster index) of :meth:`_box_pairs`'s first level: runs of :data:`_BLOCK`
         consecutive boxes against the clusters (the ball's clusters of each box's ``allow``
-        feature left out)."""
+        feature left out).
+
+        :func:`_block_candidates_many` gives the same for several broad phases at once; for one
+        it is slower (its row-by-row test against this dense blocks x clusters one: a campaign's
+        path checks, 2 calls of 986 and 222 rows, 0.233 -> 0.349 ms), so both are kept."""
         n = len(s_lo)
         cut = np.arange(0, n, _BLOCK)
         b_lo, b_hi = np.minimum.reduceat(s_lo, cut, axis=0), np.maximum.reduceat(s_hi, cut, axis=0)
