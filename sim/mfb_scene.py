@@ -422,7 +422,7 @@ class WorkZone:
         self._at = {}  # the broad phases at the pose last set (ball_clearance, clearance), by part
         self._hpairs = {}  # the holder's pairs of each rest broad phase (least_holder_clearance), by its certificates
         self._r = float(stylus_r_m)
-        self._A_W = inv_T(T_W_A)
+        self._A_W = None  # (T_A_W: computed when ball_clearance first needs it)
         #: what the work zones of this placement share (_work_zone): the table side's geoms in W
         self._shared = {}
 
@@ -609,6 +609,8 @@ class WorkZone:
         its pair data and certificates (:data:`_BALLS`)."""
         hit = self._at.get("ball")
         if hit is None:
+            if self._A_W is None:
+                self._A_W = inv_T(self._T_W_A)
             hit = self._at["ball"] = self._ball_base().moved(self._A_W @ self._W_R())
         return hit
 
@@ -741,21 +743,22 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     # the holder pairs of every item, with the box of its tips: those farther than distmax dropped
     # (the distance between two boxes bounds that of any point of one from the other)
     npair = np.array([len(x[3]) for x in pre])
-    loT = np.concatenate([x[2]._loT[:, x[3]] for x in pre], axis=1)
-    hiT = np.concatenate([x[2]._hiT[:, x[3]] for x in pre], axis=1)
-    pFs = [x[6] for x in pre]
-    t_lo = np.repeat(np.array([p.min(axis=0) for p in pFs]).T, npair, axis=1)
-    t_hi = np.repeat(np.array([p.max(axis=0) for p in pFs]).T, npair, axis=1)
+    loT = np.concatenate([x[2]._loT.take(x[3], axis=1) for x in pre], axis=1)
+    hiT = np.concatenate([x[2]._hiT.take(x[3], axis=1) for x in pre], axis=1)
+    pF = np.concatenate([x[6] for x in pre])  # every item's tips (F), one after another
+    nt = np.array([len(x[6]) for x in pre])
+    t0 = np.cumsum(nt) - nt
+    # (each item's box of tips: one reduceat over all of them, the same least and largest values)
+    t_lo = np.repeat(np.minimum.reduceat(pF, t0, axis=0).T, npair, axis=1)
+    t_hi = np.repeat(np.maximum.reduceat(pF, t0, axis=0).T, npair, axis=1)
     gap = np.maximum(np.maximum(loT + MARGIN_M - t_hi, t_lo - (hiT - MARGIN_M)), 0.0)
     gap *= gap
     keep = np.sqrt(gap[0] + gap[1] + gap[2]) <= distmax + MARGIN_M
     item_of = np.repeat(np.arange(n), npair)[keep]  # per kept pair: its item
     pair_of = np.concatenate([x[3] for x in pre])[keep]  # its pair in its item's broad phase
-    loT, hiT = loT[:, keep] + MARGIN_M, hiT[:, keep] - MARGIN_M  # (the tip's box of contact)
+    loT, hiT = loT.compress(keep, axis=1) + MARGIN_M, hiT.compress(keep, axis=1) - MARGIN_M  # (the tip's box of contact)
     q = np.bincount(item_of, minlength=n)  # kept pairs per item
     q0 = np.cumsum(q) - q
-    nt = np.array([len(p) for p in pFs])
-    t0 = np.cumsum(nt) - nt
     # every (tip, kept pair) row of every item, tip-major within an item
     cnt = nt * q
     tot = int(cnt.sum())
@@ -765,8 +768,8 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     local = np.arange(tot) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     qk = q[item]
     tip, prow = local // qk + t0[item], local % qk + q0[item]
-    pT = np.concatenate(pFs).T[:, tip]
-    g = np.maximum(loT[:, prow] - pT, pT - hiT[:, prow])  # the boxes' gap along x, y, z
+    pT = np.ascontiguousarray(pF.T).take(tip, axis=1)
+    g = np.maximum(loT.take(prow, axis=1) - pT, pT - hiT.take(prow, axis=1))  # the boxes' gap along x, y, z
     worst = np.maximum(np.maximum(g[0], g[1]), g[2])
     m = np.maximum(g, 0.0)
     m *= m
@@ -954,13 +957,17 @@ def _link_points_A(s_A, features, levels, top_A_m, direct=None) -> tuple[np.ndar
     zc = np.maximum(np.maximum(top_A_m + LINK_CLEAR_M, a[:, 2]), b[:, 2])
     up_a, up_b = np.column_stack([a[:, :2], zc]), np.column_stack([b[:, :2], zc])
     cnt = np.where(direct, 2, 4)
-    P = np.empty((int(cnt.sum()), 3))
     st = np.cumsum(cnt) - cnt
-    P[st] = a
-    P[st + 1] = np.where(direct[:, None], b, up_a)
-    P[(st + 2)[~direct]] = up_b[~direct]
-    P[(st + 3)[~direct]] = b[~direct]
-    return P, cnt
+    # each point a row of (a, b, up_a, up_b), m rows each, taken in one np.take (the same rows as
+    # assigning them in place, a few times faster): a, then b (direct) or up_a, up_b, b
+    m = len(a)
+    j = np.arange(m)
+    src = np.empty(int(cnt.sum()), int)
+    src[st] = j
+    src[st + 1] = np.where(direct, m + j, 2 * m + j)
+    nd = np.flatnonzero(~direct)
+    src[st[nd] + 2], src[st[nd] + 3] = 3 * m + nd, m + nd
+    return np.concatenate([a, b, up_a, up_b]).take(src, axis=0), cnt
 
 
 def _segments_A(plans, r: float, top_A_m: float) -> list:
@@ -991,7 +998,7 @@ def _segments_A(plans, r: float, top_A_m: float) -> list:
     P, n_pt, touch, _ = touch_polylines(start, Xn, has, L, cnt)
     nxt = np.arange(1, len(P) + 1)
     nxt[np.cumsum(n_pt) - 1] -= 1  # (a polyline's last point: its closing segment, to itself)
-    b = P[nxt]
+    b = P.take(nxt, axis=0)
     # each program's polylines (its first touch's approach first) and their points
     cut = np.r_[0, np.cumsum(n_pt)][np.r_[np.searchsorted(touch, t0), len(n_pt)]]
     return [(P[cut[j]:cut[j + 1]], b[cut[j]:cut[j + 1]]) for j in range(len(plans))]
@@ -1004,7 +1011,8 @@ def _paths_of(items, link_step_m, approach_step_m) -> list:
 
     ``items``: per measurement (start (n,3), Xn (n,3), link points, link counts, plan) as
     :func:`link_points` gives the links, n >= 1 touches. Returns per measurement (Segments,
-    touch of each polyline, allowed feature of each (object), whether each is an approach),
+    touch of each polyline, allowed feature of each (object; one array for the measurements of one
+    program, read only), whether each is an approach),
     its segments and sample numbers its own; the same numbers bit for bit as one at a time
     (one :func:`sim.clearance.touch_polylines` and :func:`sim.clearance.flat_path_segments`
     for all: every value is computed row by row)."""
@@ -1025,11 +1033,14 @@ def _paths_of(items, link_step_m, approach_step_m) -> list:
     poly = np.r_[np.searchsorted(touch, t0), len(n_pt)]
     seg0 = np.r_[0, np.cumsum(n_pt)][poly]
     out = []
+    allows = {}  # per program (plan object): each polyline's allowed feature (the same for its measurements)
     for j, it in enumerate(items):
         p0, p1, s0, s1 = poly[j], poly[j + 1], seg0[j], seg0[j + 1]
         app = ~is_link[p0:p1]
-        allow = np.full(p1 - p0, "", dtype=object)
-        allow[app] = np.asarray(it[4].feature, dtype=object)
+        allow = allows.get(id(it[4]))
+        if allow is None:
+            allow = allows[id(it[4])] = np.full(p1 - p0, "", dtype=object)
+            allow[app] = np.asarray(it[4].feature, dtype=object)
         out.append((Segments(sg.a[s0:s1], sg.b[s0:s1], sg.k[s0:s1], sg.m[s0:s1], sg.first[s0:s1] - sg.first[s0],
                              sg.path[s0:s1] - p0), touch[p0:p1] - t0[j], allow, app))
     return out
@@ -1255,7 +1266,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
         f = np.concatenate([rows_F[k][2] for k in ks])
         if len(ks) > 1:
             first, back = unique_segments(a, b, f)
-            a, b, f = a[first], b[first], f[first]
+            a, b, f = a.take(first, axis=0), b.take(first, axis=0), f[first]
         else:  # (one program's rows: few repeat)
             back = np.arange(len(f))
         n = len(f)
@@ -1274,7 +1285,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             rows = np.flatnonzero(is_open[p][back])
             if rows.size:
                 a, b, f = rows_F[key]
-                sub.append((parts[p][0], Segments(a[rows], b[rows], sg.k[rows], sg.m[rows], sg.first[rows],
+                sub.append((parts[p][0], Segments(a.take(rows, axis=0), b.take(rows, axis=0), sg.k[rows], sg.m[rows], sg.first[rows],
                                                   sg.path[rows]), f[rows]))
                 who.append(i)
     out = {i: np.zeros(0, int) for i in live}

@@ -87,6 +87,39 @@ long tail of one-off structures per placement and orientation (5 table preps and
 structures, ~0.25 ms each; 13 orientation builds, ~0.12 ms each), the one MuJoCo compile of the
 shared ball model (timeit: the XML parsed and compiled 0.8-1 ms, its ``MjData`` 0.45-0.55 ms; its
 21 distances need it), and numpy calls on arrays of a few thousand rows.
+
+Session 16 (issue 19 item 4, continued; each function timed with ``time.thread_time`` around it,
+40 fresh checks, the code before and after one after the other at load ~11 on 2 cores; with the
+timers 32.3 ms a check before, 27.3 ms after). Before, per check: ``_near_samples`` 18.1 ms (the 13
+rest broad phases and the ball's built, ``WorkZone.clearance`` and ``_ball_base``, 7.5 ms, of
+which 14 ``Clearance`` 4.3 ms with 5 table preps 1.4 ms and 6 pair structures 1.3 ms;
+``near_segments_many`` 5.9 ms: its first box level 1.2, the second and third 1.0, the swept bounds
+0.9, the certificates kept 0.6; ``unique_segments`` 1.6; ``_segments_A`` 1.0),
+``least_holder_clearances`` 3.4, ``share_ball_model`` 3.3 (its MuJoCo compile 1.4), ``_paths_of``
+2.2, ``check_measurements``' own loop and links about 3, ``check_plan``'s own 2.3 (its programs,
+``_plan_for``, 0.8). Found: numpy 2.4 gathers rows of a (k,3) or (k,3,3) array 3-5x faster with
+``take(idx, axis=0)`` than with ``a[idx]`` (15,000 rows 225 -> 50 us; rows by a bool mask
+188 -> 40 us with ``compress``; timeit), and fancy assignment of rows is as slow. What changed:
+the row gathers of the hot paths by ``take``/``compress``; a polyline's points assembled by one
+``take`` from the stacked sources (``touch_polylines``, ``_link_points_A``); a geom's extent and
+box computed for the types present only (``_by_kind``); the box levels' index gathers by
+``take``/``compress``; ``unique_segments`` comparing whole rows; ``near_segments_many`` gathering
+its rows once when no certificate applies; one allowed-feature array per program; a work zone's
+``T_A_W`` only when its ball broad phase is moved (never in the plan check); the least
+clearances' boxes of tips in one ``reduceat``. Every change gives the same values: a hash of
+every path, broad-phase sample set and answer (the 5-axis plan fresh and again, the plan-check
+variants and fuzz sets fresh and again, the campaigns' path checks) equal to the code before's.
+After, per check: ``_near_samples`` 15.6 ms (builds 6.8, ``near_segments_many`` 4.9,
+``unique_segments`` 1.4, ``_segments_A`` 0.7), ``share_ball_model`` 2.9, ``least_holder_clearances``
+2.5, ``_paths_of`` 1.5. This collision figure, 8 runs interleaved with the code before (thread
+CPU, the bench's own best of 5 each, load 10-11): the plan check 0.0273 -> 0.0234 s (medians;
+paired ratios 0.83-0.90, median 0.86), its share of the simulation 0.322 -> 0.271 (paired ratios
+0.80-0.94, median 0.84; the simulation 0.085-0.087 s, lower than session 15's, so both shares
+higher than its 0.295); wall 0.306 -> 0.260. The target, under 0.25, is not reached. Tried and
+not kept: ``_block_candidates_many`` serving the one-group calls too (``Clearance._block_candidates``,
+its docstring): 1.5x slower there. Left: the builds of the rest broad phases (13 orientations,
+5 table preps, 6 pair structures, ~0.1 ms each), the one MuJoCo compile, and the per-measurement
+Python of ``check_measurements``, ``_near_samples`` and ``check_plan`` (17 measurements).
 """
 
 from __future__ import annotations
