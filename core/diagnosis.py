@@ -48,6 +48,7 @@ from scipy.interpolate import BSpline
 
 from .exceptions import ConfigError
 from .lsq import Basis, _dense, group_sums
+from .memo import Memo
 from .units import UM
 
 #: Relative column norm (after projection out of the model) below which a
@@ -150,11 +151,80 @@ def project_out(Q: np.ndarray, B: np.ndarray, inplace: bool = False) -> np.ndarr
 
     ``inplace``: ``B`` (a temporary of the caller's) is overwritten with
     the result (the same numbers, one array fewer).
+
+    A model basis declared by :func:`extends` (``Q = [Qb, U]``, the
+    engine's states: the baseline's basis and the terms' directions beyond
+    it) projects in two steps, ``Pb = B - Qb Qb^T B`` then ``Pb - U U^T Pb``,
+    and keeps ``Pb`` (:data:`_OUTSIDE_BASE`): the same columns projected
+    again against the same baseline (every round tests the catalogue's
+    trials and the covariates' terms again beside a few more directions)
+    pay for ``U`` only. Against ``Qb`` itself the numbers are the one-step
+    product's bit for bit; beside ``U`` the same to rounding (``U`` is
+    orthogonal to ``Qb``).
     """
     if not Q.shape[1]:
         return B if inplace else B.copy()
+    ext = _extension_of(Q, B)
+    if ext is not None:
+        return _project_out_extended(Q, ext, B, inplace)
     QB = Q @ (Q.T @ B)
     return np.subtract(B, QB, out=B) if inplace else B - QB
+
+
+#: :func:`extends`' declarations, ``id(Q) -> (Q, Qb)`` (Q held: its id is not reused while declared).
+_EXTENDS = Memo(64)
+#: ``B - Qb Qb^T B`` per baseline basis ``Qb`` and columns ``B`` (:func:`project_out`): ``(id(Qb), shape, a
+#: fingerprint of B) -> (Qb, B, Pb)``, ``B`` kept to check a hit is these very numbers (both read-only). Columns of
+#: at most :data:`OUTSIDE_BASE_BYTES` in the first (256 of them: 128 MiB with their copies), up to
+#: :data:`OUTSIDE_BASE_BIG_BYTES` in the second (4: the outlier screen's and rival check's slips, 480 columns on the
+#: demo; 64 MiB), none larger.
+_OUTSIDE_BASE = Memo(256)
+_OUTSIDE_BASE_BIG = Memo(4)
+OUTSIDE_BASE_BYTES = 256 << 10
+OUTSIDE_BASE_BIG_BYTES = 8 << 20
+
+
+def extends(Q: np.ndarray, Qb: np.ndarray) -> np.ndarray:
+    """Declare ``Q[:, :Qb.shape[1]]`` to be ``Qb`` bit for bit and ``Q``'s other columns orthogonal to it (an
+    engine state's model basis: the baseline's, then the terms' directions beyond it); ``Q`` may be ``Qb``.
+    :func:`project_out` then keeps the columns' part outside ``Qb`` for the next basis extending it. Returns ``Q``.
+    Neither array may be written to afterwards (the caller's promise)."""
+    if isinstance(Q, np.ndarray) and isinstance(Qb, np.ndarray) and Q.ndim == 2 and Qb.ndim == 2:
+        _EXTENDS.put(id(Q), (Q, Qb))
+    return Q
+
+
+def _extension_of(Q, B):
+    """The declared ``Qb`` of ``Q`` (:func:`extends`) where ``B`` is small enough to keep its part outside, else
+    None."""
+    if not isinstance(Q, np.ndarray) or not isinstance(B, np.ndarray) or B.ndim != 2 or \
+            B.nbytes > OUTSIDE_BASE_BIG_BYTES:
+        return None
+    ent = _EXTENDS.get(id(Q))
+    return ent[1] if ent is not None and ent[0] is Q else None
+
+
+def _project_out_extended(Q: np.ndarray, Qb: np.ndarray, B: np.ndarray, inplace: bool) -> np.ndarray:
+    """:func:`project_out` against a declared ``Q = [Qb, U]``: ``B``'s part outside ``Qb`` kept or taken."""
+    key = (id(Qb), B.shape, B[0].tobytes(), np.einsum("ij->j", B).tobytes())  # (a fingerprint: a hit is checked)
+    memo = _OUTSIDE_BASE if B.nbytes <= OUTSIDE_BASE_BYTES else _OUTSIDE_BASE_BIG
+    hit = memo.get(key)
+    if hit is not None and hit[0] is Qb and np.array_equal(hit[1], B):
+        Pb = hit[2]
+    else:
+        Bk = np.array(B)  # (kept: the caller's B may be a temporary written over)
+        Pb = Bk - Qb @ (Qb.T @ Bk)
+        Bk.flags.writeable = Pb.flags.writeable = False
+        memo.put(key, (Qb, Bk, Pb))
+    kb = Qb.shape[1]
+    if Q.shape[1] == kb:  # the baseline's basis itself: the one-step product, bit for bit
+        if not inplace:
+            return Pb.copy()
+        np.copyto(B, Pb)
+        return B
+    U = Q[:, kb:]
+    UP = U @ (U.T @ Pb)
+    return np.subtract(Pb, UP, out=B) if inplace else Pb - UP
 
 
 class SparseTrials:

@@ -208,7 +208,7 @@ from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
 from .diagnosis import (CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch,
-                        new_basis, orth, replicate_scatter, take_rows, term_bases, tied)
+                        new_basis, orth, replicate_scatter, take_rows, term_bases, tied, extends)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .touches import Touches
@@ -1135,7 +1135,8 @@ def _explains_set_aside(Qall: np.ndarray, y: np.ndarray, all_rows: np.ndarray, r
 
 def _state(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _State:
     E = _stack([t for t in terms if t.penalty is None], rows)
-    Q = Qb if E.shape[1] == 0 else np.hstack([Qb, new_basis(Qb, E)])
+    extends(Qb, Qb)  # (the columns' parts outside Qb kept for the next state beside it: project_out)
+    Q = Qb if E.shape[1] == 0 else extends(np.hstack([Qb, new_basis(Qb, E)]), Qb)
     yr = y[rows]
     r = yr - Q @ (Q.T @ yr)
     # a penalised term: its fitted part removed by the ridge solution
