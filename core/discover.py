@@ -561,7 +561,9 @@ class Folds:
     rows). The same rule for every design: exact algebra, rounding apart.
     """
 
-    def __init__(self, A, groups: np.ndarray, seen: float, seen_extension: float | None = None):
+    def __init__(self, A, groups: np.ndarray, seen: float, seen_extension: float | None = None, basis=None):
+        """``basis``: ``orth(A)`` already made by the caller (the same numbers: the engine's model basis of
+        these rows), not factored again; ignored for a block design (its own basis)."""
         seen_extension = seen if seen_extension is None else seen_extension
         for v in (seen, seen_extension):
             if not 0.0 < v < 1.0:
@@ -571,7 +573,9 @@ class Folds:
         self.seen_extension = float(seen_extension)
         self.items: list[_Fold] = []
         gs = np.unique(groups)
-        self.Q = A.basis() if isinstance(A, BlockDesign) else orth(A)
+        if basis is not None and not isinstance(A, BlockDesign) and np.shape(basis)[0] != self.n:
+            raise ConfigError(f"Folds: a basis of {np.shape(basis)[0]} rows for a design of {self.n}")
+        self.Q = A.basis() if isinstance(A, BlockDesign) else orth(A) if basis is None else basis
         for g in gs:
             te = np.flatnonzero(groups == g)
             if te.size == 0 or te.size == self.n:  # (no held-out rows, or no training rows)
@@ -906,10 +910,12 @@ class CpEstimate:
     compared (Mallows 1973).
     """
 
-    def __init__(self, A: np.ndarray, groups: np.ndarray, seen: float, seen_extension: float | None = None):
-        """``groups``, ``seen`` and ``seen_extension`` are :class:`Folds`' (no folds here: unused)."""
+    def __init__(self, A: np.ndarray, groups: np.ndarray, seen: float, seen_extension: float | None = None,
+                 basis=None):
+        """``groups``, ``seen``, ``seen_extension`` and ``basis`` are :class:`Folds`' (no folds here: unused but
+        ``basis``, ``orth(A)`` already made)."""
         self.n = len(A)
-        self.Q = orth(A)
+        self.Q = orth(A) if basis is None else basis
         self.s2 = None
         self.dof = self.n
         self.last_dof = self.n
@@ -1928,8 +1934,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             # after an outlier removal one copy of the rows, whose block basis the folds share with Qb
             A_r = bl.A if key is None and isinstance(bl.A, BlockDesign) else bl.A[rows_]
             Qb = orth_of(A_r) if key is not None else Qall
+            # (the model's basis of these rows is orth(A_r), the numbers the estimate would factor again)
             est = (Folds if use_cv else CpEstimate)(A_r, bl.groups[rows_], settings.cv_seen,
-                                                       settings.cv_seen_extension)
+                                                       settings.cv_seen_extension,
+                                                       basis=Qb if isinstance(Qb, np.ndarray) else None)
             if not use_cv:
                 est.set_sigma(y[rows_])
             cache[key] = (Qb, est)

@@ -1191,3 +1191,25 @@ def test_projection_beside_a_declared_baseline_basis_is_the_one_step_projection(
     for a, b in zip(D.nested_f_batch(C, Q, r, float(r @ r), n - 15), D.nested_f_batch(C, undeclared, r, float(r @ r),
                                                                                         n - 15)):
         assert np.allclose(a, b, rtol=1e-10, atol=0)
+
+
+def test_folds_given_the_basis_they_would_make_are_the_folds_made_afresh():
+    """Known answer: Folds (and CpEstimate) given ``orth(A)`` (the engine's model basis of the rows) hold that very
+    array and give the held-out residuals of the folds that factor ``A`` themselves, bit for bit. Bad input: a
+    basis of other rows is refused."""
+    import core.discover as X
+
+    rng = np.random.default_rng(11)
+    n = 48
+    groups = np.repeat(np.arange(4), n // 4)
+    A = np.hstack([np.eye(4)[groups], rng.normal(size=(n, 5))])
+    y, E = rng.normal(size=n), rng.normal(size=(n, 2))
+    seen = X.Settings().cv_seen
+    Qa = orth(A)
+    given, made = X.Folds(A, groups, seen, basis=Qa), X.Folds(A, groups, seen)
+    assert given.Q is Qa
+    assert np.array_equal(given.residuals(y), made.residuals(y))
+    assert np.array_equal(given.residuals(y, E), made.residuals(y, E))
+    assert X.CpEstimate(A, groups, seen, basis=Qa).Q is Qa
+    with pytest.raises(ConfigError, match="basis of 47 rows"):
+        X.Folds(A, groups, seen, basis=Qa[:-1])
