@@ -394,13 +394,13 @@ def nested_f_batch(C: np.ndarray, Q: np.ndarray, r: np.ndarray, rss: float, dof:
             C2 = C[0] / nrm[0]
         else:  # (a copy into the layout, then divided in place: a strided divide is slower)
             C2 = np.empty((n, T, k))
-            C2[...] = np.moveaxis(C, 0, 1)
+            C2[...] = C.transpose(1, 0, 2)  # (np.moveaxis(C, 0, 1): the same view, without its checks)
             C2 /= nrm[None, :, :]
             C2 = C2.reshape(n, T * k)
-        P = np.moveaxis(project_out(Q, C2, inplace=True).reshape(n, T, k), 1, 0)
+        P = project_out(Q, C2, inplace=True).reshape(n, T, k).transpose(1, 0, 2)
     else:
         P = C / nrm[:, None, :]
-    Pt = np.swapaxes(P, 1, 2)
+    Pt = P.transpose(0, 2, 1)
     return _batch_tests(Pt @ P, Pt @ r, rss, dof)
 
 
@@ -427,7 +427,7 @@ def _batch_tests(G: np.ndarray, b: np.ndarray, rss: float, dof: int):
     """:func:`nested_f_batch` from each trial's projected Gram matrix ``G`` (T, k, k) and ``P^T r`` (T, k)."""
     w, V = np.linalg.eigh(G)
     good = w > IN_SPAN ** 2
-    proj = (np.swapaxes(V, 1, 2) @ b[..., None])[..., 0]
+    proj = (V.transpose(0, 2, 1) @ b[..., None])[..., 0]
     k = good.sum(axis=1)
     d2 = dof - k
     ok = (k > 0) & (d2 >= 1)
