@@ -194,6 +194,13 @@ def extends(Q: np.ndarray, Qb: np.ndarray) -> np.ndarray:
     return Q
 
 
+def release_projections() -> None:
+    """Forget :func:`extends`' declarations and the parts outside their bases kept (the end of an engine run: a
+    later run's bases are other arrays, so nothing kept would be taken again; up to 192 MiB freed)."""
+    for m in (_EXTENDS, _OUTSIDE_BASE, _OUTSIDE_BASE_BIG):
+        m.clear()
+
+
 def _extension_of(Q, B):
     """The declared ``Qb`` of ``Q`` (:func:`extends`) where ``B`` is small enough to keep its part outside, else
     None."""

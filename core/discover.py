@@ -208,7 +208,8 @@ from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
 from .diagnosis import (CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch,
-                        new_basis, orth, replicate_scatter, take_rows, term_bases, tied, extends)
+                        new_basis, orth, release_projections, replicate_scatter, take_rows, term_bases, tied,
+                        extends)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .touches import Touches
@@ -2286,6 +2287,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                                                                f"the unnamed smooth in {t.covariate}" for t in terms))
     named = [t.cause if not t.unnamed else f"unnamed smooth in {t.covariate}" for t in terms]
     model_name = bl.model.split(" (")[0] + "".join(f" + {c}" for c in named) + (" - outliers" if outliers.size else "")
+    release_projections()  # (the parts outside this run's bases: no later run takes them)
     if progress is not None:
         progress(total, total)
     return Discovery(

@@ -1213,3 +1213,28 @@ def test_folds_given_the_basis_they_would_make_are_the_folds_made_afresh():
     assert X.CpEstimate(A, groups, seen, basis=Qa).Q is Qa
     with pytest.raises(ConfigError, match="basis of 47 rows"):
         X.Folds(A, groups, seen, basis=Qa[:-1])
+
+
+def test_a_discover_run_leaves_no_projection_kept(monkeypatch):
+    """The parts outside a run's bases are forgotten when the run ends (later runs' bases are other arrays): after
+    discover nothing is declared or kept; during it the rounds did keep some (the memo is used at all)."""
+    import gzip
+    import pathlib
+
+    from core.discover import discover
+    from core.probelog import parse_probe_log
+    from core.touches import from_log
+
+    path = pathlib.Path(__file__).parent / "data" / "discover_identity" / "demo.csv.gz"
+    t = from_log(parse_probe_log(gzip.decompress(path.read_bytes()).decode(), "demo"))
+    kept = []
+    real = D._project_out_extended
+
+    def spy(*a):
+        kept.append(len(D._OUTSIDE_BASE) + len(D._OUTSIDE_BASE_BIG))
+        return real(*a)
+
+    monkeypatch.setattr(D, "_project_out_extended", spy)
+    discover(t)
+    assert max(kept) > 0
+    assert len(D._EXTENDS) == len(D._OUTSIDE_BASE) == len(D._OUTSIDE_BASE_BIG) == 0
