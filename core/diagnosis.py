@@ -175,13 +175,11 @@ def project_out(Q: np.ndarray, B: np.ndarray, inplace: bool = False) -> np.ndarr
 _EXTENDS = Memo(64)
 #: ``B - Qb Qb^T B`` per baseline basis ``Qb`` and columns ``B`` (:func:`project_out`): ``(id(Qb), shape, a
 #: fingerprint of B) -> (Qb, B, Pb)``, ``B`` kept to check a hit is these very numbers (both read-only). Columns of
-#: at most :data:`OUTSIDE_BASE_BYTES` in the first (256 of them: 128 MiB with their copies), up to
-#: :data:`OUTSIDE_BASE_BIG_BYTES` in the second (4: the outlier screen's and rival check's slips, 480 columns on the
-#: demo; 64 MiB), none larger.
+#: at most :data:`OUTSIDE_BASE_BYTES` only (256 of them: 128 MiB with their copies). Larger ones are projected in
+#: one step: keeping them cost as much as taking them saved (the rival check's 480 slip columns on the demo, made
+#: twice: 3.8 + 3.0 ms in one step, 6.0 + 1.5 ms kept and taken, their fresh arrays' page faults).
 _OUTSIDE_BASE = Memo(256)
-_OUTSIDE_BASE_BIG = Memo(4)
 OUTSIDE_BASE_BYTES = 256 << 10
-OUTSIDE_BASE_BIG_BYTES = 8 << 20
 
 
 def extends(Q: np.ndarray, Qb: np.ndarray) -> np.ndarray:
@@ -196,16 +194,15 @@ def extends(Q: np.ndarray, Qb: np.ndarray) -> np.ndarray:
 
 def release_projections() -> None:
     """Forget :func:`extends`' declarations and the parts outside their bases kept (the end of an engine run: a
-    later run's bases are other arrays, so nothing kept would be taken again; up to 192 MiB freed)."""
-    for m in (_EXTENDS, _OUTSIDE_BASE, _OUTSIDE_BASE_BIG):
+    later run's bases are other arrays, so nothing kept would be taken again; up to 128 MiB freed)."""
+    for m in (_EXTENDS, _OUTSIDE_BASE):
         m.clear()
 
 
 def _extension_of(Q, B):
     """The declared ``Qb`` of ``Q`` (:func:`extends`) where ``B`` is small enough to keep its part outside, else
     None."""
-    if not isinstance(Q, np.ndarray) or not isinstance(B, np.ndarray) or B.ndim != 2 or \
-            B.nbytes > OUTSIDE_BASE_BIG_BYTES:
+    if not isinstance(Q, np.ndarray) or not isinstance(B, np.ndarray) or B.ndim != 2 or B.nbytes > OUTSIDE_BASE_BYTES:
         return None
     ent = _EXTENDS.get(id(Q))
     return ent[1] if ent is not None and ent[0] is Q else None
@@ -214,15 +211,15 @@ def _extension_of(Q, B):
 def _project_out_extended(Q: np.ndarray, Qb: np.ndarray, B: np.ndarray, inplace: bool) -> np.ndarray:
     """:func:`project_out` against a declared ``Q = [Qb, U]``: ``B``'s part outside ``Qb`` kept or taken."""
     key = (id(Qb), B.shape, B[0].tobytes(), np.einsum("ij->j", B).tobytes())  # (a fingerprint: a hit is checked)
-    memo = _OUTSIDE_BASE if B.nbytes <= OUTSIDE_BASE_BYTES else _OUTSIDE_BASE_BIG
-    hit = memo.get(key)
+    hit = _OUTSIDE_BASE.get(key)
     if hit is not None and hit[0] is Qb and np.array_equal(hit[1], B):
         Pb = hit[2]
     else:
         Bk = np.array(B)  # (kept: the caller's B may be a temporary written over)
-        Pb = Bk - Qb @ (Qb.T @ Bk)
+        Pb = Qb @ (Qb.T @ Bk)
+        np.subtract(Bk, Pb, out=Pb)  # (Bk - Qb Qb^T Bk written over the product: one rows x columns array fewer)
         Bk.flags.writeable = Pb.flags.writeable = False
-        memo.put(key, (Qb, Bk, Pb))
+        _OUTSIDE_BASE.put(key, (Qb, Bk, Pb))
     kb = Qb.shape[1]
     if Q.shape[1] == kb:  # the baseline's basis itself: the one-step product, bit for bit
         if not inplace:
@@ -231,7 +228,7 @@ def _project_out_extended(Q: np.ndarray, Qb: np.ndarray, B: np.ndarray, inplace:
         return B
     U = Q[:, kb:]
     UP = U @ (U.T @ Pb)
-    return np.subtract(Pb, UP, out=B) if inplace else Pb - UP
+    return np.subtract(Pb, UP, out=B if inplace else UP)
 
 
 class SparseTrials:

@@ -1231,10 +1231,10 @@ def test_a_discover_run_leaves_no_projection_kept(monkeypatch):
     real = D._project_out_extended
 
     def spy(*a):
-        kept.append(len(D._OUTSIDE_BASE) + len(D._OUTSIDE_BASE_BIG))
+        kept.append(len(D._OUTSIDE_BASE))
         return real(*a)
 
     monkeypatch.setattr(D, "_project_out_extended", spy)
     discover(t)
     assert max(kept) > 0
-    assert len(D._EXTENDS) == len(D._OUTSIDE_BASE) == len(D._OUTSIDE_BASE_BIG) == 0
+    assert len(D._EXTENDS) == len(D._OUTSIDE_BASE) == 0
