@@ -208,7 +208,8 @@ from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
 from .diagnosis import (CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch,
-                        new_basis, orth, replicate_scatter, take_rows, term_bases, tied)
+                        new_basis, orth, release_projections, replicate_scatter, take_rows, term_bases, tied,
+                        extends)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .touches import Touches
@@ -561,7 +562,9 @@ class Folds:
     rows). The same rule for every design: exact algebra, rounding apart.
     """
 
-    def __init__(self, A, groups: np.ndarray, seen: float, seen_extension: float | None = None):
+    def __init__(self, A, groups: np.ndarray, seen: float, seen_extension: float | None = None, basis=None):
+        """``basis``: ``orth(A)`` already made by the caller (the same numbers: the engine's model basis of
+        these rows), not factored again; ignored for a block design (its own basis)."""
         seen_extension = seen if seen_extension is None else seen_extension
         for v in (seen, seen_extension):
             if not 0.0 < v < 1.0:
@@ -571,7 +574,9 @@ class Folds:
         self.seen_extension = float(seen_extension)
         self.items: list[_Fold] = []
         gs = np.unique(groups)
-        self.Q = A.basis() if isinstance(A, BlockDesign) else orth(A)
+        if basis is not None and not isinstance(A, BlockDesign) and np.shape(basis)[0] != self.n:
+            raise ConfigError(f"Folds: a basis of {np.shape(basis)[0]} rows for a design of {self.n}")
+        self.Q = A.basis() if isinstance(A, BlockDesign) else orth(A) if basis is None else basis
         for g in gs:
             te = np.flatnonzero(groups == g)
             if te.size == 0 or te.size == self.n:  # (no held-out rows, or no training rows)
@@ -906,10 +911,12 @@ class CpEstimate:
     compared (Mallows 1973).
     """
 
-    def __init__(self, A: np.ndarray, groups: np.ndarray, seen: float, seen_extension: float | None = None):
-        """``groups``, ``seen`` and ``seen_extension`` are :class:`Folds`' (no folds here: unused)."""
+    def __init__(self, A: np.ndarray, groups: np.ndarray, seen: float, seen_extension: float | None = None,
+                 basis=None):
+        """``groups``, ``seen``, ``seen_extension`` and ``basis`` are :class:`Folds`' (no folds here: unused but
+        ``basis``, ``orth(A)`` already made)."""
         self.n = len(A)
-        self.Q = orth(A)
+        self.Q = orth(A) if basis is None else basis
         self.s2 = None
         self.dof = self.n
         self.last_dof = self.n
@@ -1135,7 +1142,8 @@ def _explains_set_aside(Qall: np.ndarray, y: np.ndarray, all_rows: np.ndarray, r
 
 def _state(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _State:
     E = _stack([t for t in terms if t.penalty is None], rows)
-    Q = Qb if E.shape[1] == 0 else np.hstack([Qb, new_basis(Qb, E)])
+    extends(Qb, Qb)  # (the columns' parts outside Qb kept for the next state beside it: project_out)
+    Q = Qb if E.shape[1] == 0 else extends(np.hstack([Qb, new_basis(Qb, E)]), Qb)
     yr = y[rows]
     r = yr - Q @ (Q.T @ yr)
     # a penalised term: its fitted part removed by the ridge solution
@@ -1927,8 +1935,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             # after an outlier removal one copy of the rows, whose block basis the folds share with Qb
             A_r = bl.A if key is None and isinstance(bl.A, BlockDesign) else bl.A[rows_]
             Qb = orth_of(A_r) if key is not None else Qall
+            # (the model's basis of these rows is orth(A_r), the numbers the estimate would factor again)
             est = (Folds if use_cv else CpEstimate)(A_r, bl.groups[rows_], settings.cv_seen,
-                                                       settings.cv_seen_extension)
+                                                       settings.cv_seen_extension,
+                                                       basis=Qb if isinstance(Qb, np.ndarray) else None)
             if not use_cv:
                 est.set_sigma(y[rows_])
             cache[key] = (Qb, est)
@@ -2283,6 +2293,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                                                                f"the unnamed smooth in {t.covariate}" for t in terms))
     named = [t.cause if not t.unnamed else f"unnamed smooth in {t.covariate}" for t in terms]
     model_name = bl.model.split(" (")[0] + "".join(f" + {c}" for c in named) + (" - outliers" if outliers.size else "")
+    release_projections()  # (the parts outside this run's bases: no later run takes them)
     if progress is not None:
         progress(total, total)
     return Discovery(

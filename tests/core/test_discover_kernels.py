@@ -1142,3 +1142,99 @@ def test_planar_baseline_info_holds_the_grid_not_the_design(monkeypatch):
     assert np.all(np.diff(g.x_m) > 0) and np.allclose(np.diff(g.x_m), st * 1e-3)
     E = C.smooth_error_map(short)
     assert E.shape[0] == short.n and np.array_equal(E, C.smooth_error_map(long_))
+
+
+def test_projection_beside_a_declared_baseline_basis_is_the_one_step_projection():
+    """project_out against a basis declared by extends (``[Qb, U]``): the part outside ``Qb`` kept and taken again.
+
+    Known answers: against ``Qb`` itself the one-step product bit for bit; beside ``U`` (orthogonal to ``Qb``) the
+    one-step product to rounding, and again the same numbers whether the kept part is taken (a hit) or made (the
+    memo emptied); the result orthogonal to ``Q``. Bad inputs: columns with the same fingerprint (first row and
+    column sums) but other numbers are not taken for the kept ones; a result written to (a caller's in-place
+    temporary) does not change what is kept; an undeclared basis projects in one step.
+    """
+    rng = np.random.default_rng(7)
+    n = 60
+    Qb = np.linalg.qr(rng.normal(size=(n, 12)))[0]
+    U = D.new_basis(Qb, rng.normal(size=(n, 3)))
+    Q = np.hstack([Qb, U])
+    B = np.round(rng.normal(size=(n, 5)) * 8) / 8  # (eighths: the column sums below are exact)
+
+    def one_step(Qm, X):
+        return X - Qm @ (Qm.T @ X)
+
+    undeclared = np.array(Q)
+    assert np.array_equal(D.project_out(undeclared, B), one_step(undeclared, B))
+    D.extends(Qb, Qb)
+    D.extends(Q, Qb)
+    base = D.project_out(Qb, B)
+    assert np.array_equal(base, one_step(Qb, B))  # made: bit for bit the one-step product
+    base[:] = 0.0  # a caller writes over its result: the kept part is not touched
+    assert np.array_equal(D.project_out(Qb, B), one_step(Qb, B))  # taken: the same numbers
+    tmp = np.array(B)
+    assert D.project_out(Qb, tmp, inplace=True) is tmp and np.array_equal(tmp, one_step(Qb, B))
+    ext = D.project_out(Q, B)  # taken beside U
+    assert np.allclose(ext, one_step(Q, B), rtol=0, atol=1e-13)
+    assert np.abs(Q.T @ ext).max() < 1e-13
+    D._OUTSIDE_BASE._d.clear()
+    assert np.array_equal(D.project_out(Q, B), ext)  # made afresh: the same numbers as taken
+    # the same first row and column sums, other numbers: a fingerprint's collision is not a hit
+    B2 = np.array(B)
+    B2[1:3, 0] += np.array([1.0, -1.0])
+    assert np.array_equal(B2[0], B[0]) and np.array_equal(np.einsum("ij->j", B2), np.einsum("ij->j", B))
+    assert np.allclose(D.project_out(Q, B2), one_step(Q, B2), rtol=0, atol=1e-13)
+    assert not np.allclose(D.project_out(Q, B2), ext)
+    # new_basis and nested_f_batch through it: as through the one-step projection
+    assert np.allclose(D.new_basis(Q, B), D.new_basis(undeclared, B), rtol=0, atol=1e-12)
+    r = one_step(Q, rng.normal(size=n))
+    C = rng.normal(size=(4, n, 2))
+    for a, b in zip(D.nested_f_batch(C, Q, r, float(r @ r), n - 15), D.nested_f_batch(C, undeclared, r, float(r @ r),
+                                                                                        n - 15)):
+        assert np.allclose(a, b, rtol=1e-10, atol=0)
+
+
+def test_folds_given_the_basis_they_would_make_are_the_folds_made_afresh():
+    """Known answer: Folds (and CpEstimate) given ``orth(A)`` (the engine's model basis of the rows) hold that very
+    array and give the held-out residuals of the folds that factor ``A`` themselves, bit for bit. Bad input: a
+    basis of other rows is refused."""
+    import core.discover as X
+
+    rng = np.random.default_rng(11)
+    n = 48
+    groups = np.repeat(np.arange(4), n // 4)
+    A = np.hstack([np.eye(4)[groups], rng.normal(size=(n, 5))])
+    y, E = rng.normal(size=n), rng.normal(size=(n, 2))
+    seen = X.Settings().cv_seen
+    Qa = orth(A)
+    given, made = X.Folds(A, groups, seen, basis=Qa), X.Folds(A, groups, seen)
+    assert given.Q is Qa
+    assert np.array_equal(given.residuals(y), made.residuals(y))
+    assert np.array_equal(given.residuals(y, E), made.residuals(y, E))
+    assert X.CpEstimate(A, groups, seen, basis=Qa).Q is Qa
+    with pytest.raises(ConfigError, match="basis of 47 rows"):
+        X.Folds(A, groups, seen, basis=Qa[:-1])
+
+
+def test_a_discover_run_leaves_no_projection_kept(monkeypatch):
+    """The parts outside a run's bases are forgotten when the run ends (later runs' bases are other arrays): after
+    discover nothing is declared or kept; during it the rounds did keep some (the memo is used at all)."""
+    import gzip
+    import pathlib
+
+    from core.discover import discover
+    from core.probelog import parse_probe_log
+    from core.touches import from_log
+
+    path = pathlib.Path(__file__).parent / "data" / "discover_identity" / "demo.csv.gz"
+    t = from_log(parse_probe_log(gzip.decompress(path.read_bytes()).decode(), "demo"))
+    kept = []
+    real = D._project_out_extended
+
+    def spy(*a):
+        kept.append(len(D._OUTSIDE_BASE))
+        return real(*a)
+
+    monkeypatch.setattr(D, "_project_out_extended", spy)
+    discover(t)
+    assert max(kept) > 0
+    assert len(D._EXTENDS) == len(D._OUTSIDE_BASE) == 0
