@@ -2214,7 +2214,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
                          seen + [(st, diag_e)], fixed=fixed,
-                         repeats=_repeats_beyond_residual(bl.replicate[rows], st, settings))
+                         repeats=_repeats_beyond_residual(bl.replicate[rows], st, settings), folds=folds)
     E_all = _stack(terms, rows)
     cv_e, held_e = _held_out(folds, y[rows], bl.groups[rows], E_all, _penalty(terms)) if terms else (cv_b, held_b)
     outliers = np.setdiff1d(all_rows, rows)
@@ -3018,8 +3018,32 @@ def _smallest_angle_deg(Q: np.ndarray, Qe: np.ndarray) -> float:
     return float(np.degrees(np.arctan2(s.min(), c.max())))
 
 
-def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
+def _gram_beside(Pn: np.ndarray, Q: np.ndarray, pen: tuple | None) -> np.ndarray:
+    """``Pn^T Pn`` (columns already out of ``Q``), or, beside penalised columns ``pen = (S, P)``, what is left of it
+    after their ridge fit: ``Pn^T Pn - Pn^T S_p (S_p^T S_p + P)^-1 S_p^T Pn`` (``S_p``: S out of ``Q``)."""
+    G = Pn.T @ Pn
+    if pen is None or not pen[0].shape[1]:
+        return G
+    Sp = pen[0] - Q @ (Q.T @ pen[0])
+    B = Sp.T @ Pn
+    return G - B.T @ np.linalg.pinv(Sp.T @ Sp + pen[1], rcond=1e-12, hermitian=True) @ B
+
+
+def _pen_of(terms, rows) -> tuple | None:
+    """``(S, P)`` of the penalised terms among ``terms`` (rows used), or None: the nuisance a cause adopted beside
+    them is fitted with (:func:`_determined`, :func:`_magnitudes`)."""
+    pen = [t for t in terms if t.penalty is not None]
+    return (_stack(pen, rows), _penalty(pen)) if pen else None
+
+
+def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float, pen: tuple | None = None):
     """The combinations of a cause's columns the data determine beside the model.
+
+    ``pen`` ``(S, P)``: penalised columns of the model (an adopted penalised
+    cause, rows used) and their penalty: the Gram matrix is then the one
+    left beside their ridge fit (the Schur complement
+    ``P_E^T (I - S_p (S_p^T S_p + P)^-1 S_p^T) P_E``, session 16), as the
+    cause's coefficients are fitted beside them (:func:`_magnitudes`).
 
     Columns normalised, projected out of the model; eigen-decomposition of
     their Gram matrix. A direction with eigenvalue ``w`` has its coefficient
@@ -3048,7 +3072,7 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
     nz = nrm > 0
     En = E / np.where(nz, nrm, 1.0)
     P = En - Q @ (Q.T @ En)
-    w, V = np.linalg.eigh(P.T @ P)
+    w, V = np.linalg.eigh(_gram_beside(P, Q, pen))
     good = (w >= WEAK_SV ** 2) & (np.abs(V[~nz]).max(axis=0, initial=0.0) < 1e-12)
     M = V[:, good] / np.where(nz, nrm, 1.0)[:, None]
     Qe = orth(En)
@@ -3367,7 +3391,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         sm = _smooth_verdict(bl, cause, st, cols[rows], sigma, tries, settings)
         if sm["refused"]:
             return {"reason": sm["reason"], "significant": True}
-    M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max)
+    M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max,
+                                               None if cause.penalised else _pen_of(terms, rows))
     ev.update({"vif": vif, "max_vif": vif_worst, "principal_angle_deg": ang, "weak_directions": weak})
     if cause.penalised:
         return _evaluate_penalised(cause, sc, info, cols, tries, bl, st, folds, terms, cv_cur, sigma, settings, ev)
@@ -3396,15 +3421,15 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
                 "significant": True}
     tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak, origin=cause,
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
-    return _plausible(cause, bl, tm, st, rows, cv)
+    return _plausible(cause, bl, tm, st, rows, cv, boot=(folds, terms))
 
 
-def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float) -> dict:
+def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float, boot: tuple | None = None) -> dict:
     """The last gate of :func:`_evaluate` and :func:`_evaluate_penalised`: the term's magnitudes (with their U95,
     :func:`_magnitudes`, the penalised branch for a penalised term) within the cause's bounds and its own
     plausibility check. ``{"cv", "term"}`` (the term with its magnitudes at adoption), or a refusal."""
     wide = []
-    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows, wide)
+    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows, wide, boot=boot)
     if wide:  # named at most ambiguous (step 8): the data do not say how large it is
         tm.evidence["magnitude_undetermined"] = "; ".join(
             f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
@@ -3468,11 +3493,90 @@ def _evaluate_penalised(cause, sc, info, cols, tries, bl, st: _State, folds: Fol
     k = cols.shape[1]
     tm = Term(cause.name, cols, tuple(sc.labels), info, sc.covariate, tries, ev, penalty=f * scale * np.eye(k),
               origin=cause, labels_all=tuple(sc.labels), map=np.eye(k), cols_all=cols)
-    return _plausible(cause, bl, tm, st, rows, cv)
+    return _plausible(cause, bl, tm, st, rows, cv, boot=(folds, terms))
 
 
-def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None):
+#: Parametric bootstrap refits of a penalised named cause's magnitudes (:func:`_penalised_bootstrap`), and the seed of
+#: their draws (fixed: one campaign, one U95).
+PENALISED_BOOT = 200
+PENALISED_BOOT_SEED = 16
+
+
+def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, others, c_hat, s2, vals, num) -> dict:
+    """U95 of a penalised named cause's magnitudes by a parametric bootstrap with the ridge chosen again (session 16).
+
+    The ridge's Bayesian covariance ``s^2 (E^T E + P)^-1`` ignores the
+    shrinkage's bias and, through the delta method, treats a field's RMS
+    near zero and its signed peak (a maximum over the extent) as linear in
+    the coefficients. Here :data:`PENALISED_BOOT` data sets are drawn from
+    the fitted model (the fitted values plus normal noise of the fit's
+    ``s``; the draws fixed by :data:`PENALISED_BOOT_SEED`); each chooses its
+    own penalty over :data:`PENALTY_GRID` by the same held-out mean square
+    as the search (the folds, beside the other terms with their
+    penalties) and is refitted as the magnitudes are. From the refits'
+    deviations ``d = m* - m`` around the fitted magnitude ``m``, the basic
+    (bias-corrected) 95 % interval ``[m - q97.5(d), m - q2.5(d)]``: the
+    refits' mean shortfall is the shrinkage's bias and is put back on the
+    other side. The U95 reported beside ``m`` is the larger of its two
+    sides. A magnitude bounded below by zero (an RMS) whose interval
+    reaches zero is not distinguishable from none: its upper one-sided 95 %
+    bound ``m - q5(d)`` is given and the U95 reaches from zero to it.
+    The intervals go to the term's evidence (``magnitude_interval95``).
+
+    Returns {key: U95 or None (a refit gave a non-finite magnitude)}.
+    """
+    E = tm.columns[rows]
+    k = E.shape[1]
+    n = len(rows)
+    G = Ep.T @ Ep
+    scale = float(np.trace(G)) / max(k, 1)
+    fit = Ep @ c_hat
+    rng = np.random.default_rng(PENALISED_BOOT_SEED)
+    Z = rng.standard_normal((n, PENALISED_BOOT)) * np.sqrt(max(s2, 0.0))
+    Y = (yr - (ro - fit))[:, None] + Z  # the fitted values (y less the fit's residuals) plus noise
+    Ro = fit[:, None] + (Z - Qo @ (Qo.T @ Z))
+    X = np.hstack([_stack(others, rows), E]) if others else E
+    best = np.full(PENALISED_BOOT, np.inf)
+    C = np.zeros((k, PENALISED_BOOT))
+    ErO = Ep.T @ Ro
+    for f in PENALTY_GRID:
+        P = f * scale * np.eye(k)
+        e = folds.residuals(Y, X, _penalty_beside(others, k, P))
+        cv = np.sum(e ** 2, axis=0) / max(folds.last_dof, 1)
+        won = cv < best
+        best[won] = cv[won]
+        C[:, won] = np.linalg.solve(G + P, ErO[:, won])
+    draws = [cause.magnitudes(tm.info, C[:, b], bl) for b in range(PENALISED_BOOT)]
+    out, iv = {}, {}
+    for key in num:
+        m = float(vals[key])
+        d = np.array([float(dr.get(key, np.nan)) for dr in draws]) - m
+        if not np.all(np.isfinite(d)):
+            out[key] = None
+            continue
+        lo, hi = m - np.quantile(d, 0.975), m - np.quantile(d, 0.025)
+        if lo <= 0 and any(_matches(key, pat) and b[0] == 0 for pat, b in cause.bounds.items()):
+            up = m - float(np.quantile(d, 0.05))
+            out[key] = max(up - m, m)
+            iv[key] = {"upper_one_sided": up}
+        else:
+            out[key] = float(max(hi - m, m - lo))
+            iv[key] = {"low": float(lo), "high": float(hi)}
+    tm.evidence["magnitude_interval95"] = {"method": f"parametric bootstrap, {PENALISED_BOOT} refits, the ridge chosen "
+                                                    "again on each", **iv}
+    return out
+
+
+def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None, boot: tuple | None = None):
     """Magnitudes of a term and their U95 (delta method over coefficients and nonlinear parameters).
+
+    ``boot`` ``(folds, others)``: the folds the model's held-out figures use
+    and the other terms of the model (``Qo`` spans the baseline and the
+    unpenalised ones). With it a penalised named cause's U95 comes from
+    :func:`_penalised_bootstrap` (else the ridge's Bayesian covariance, by
+    the delta method), and an unpenalised cause's coefficients are fitted
+    beside the penalised others with their penalty (session 16: before,
+    beside ``Qo`` alone, as if the penalised cause were not in the model).
 
     A bounded magnitude whose U95 is wider than its whole plausible range is
     reported as no value (it determines nothing); its key, the value and
@@ -3495,9 +3599,20 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         # a penalised named cause: the ridge fit's coefficients and its covariance s^2 (E^T E + P)^-1; every
         # direction is determined by the penalty (none is reported weak: the penalty, chosen by the held-out
         # mean square, decides what the baseline's span keeps)
-        c_red, cov, _, _ = _penalised_fit(Ep, ro, tm.penalty, len(rows) - Qo.shape[1])
+        c_red, cov, s2, _ = _penalised_fit(Ep, ro, tm.penalty, len(rows) - Qo.shape[1])
         vals = cause.magnitudes(tm.info, c_red, bl)
         num = [key for key, v in vals.items() if isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)]
+        if boot is not None and isinstance(boot[0], Folds):
+            u95b = _penalised_bootstrap(cause, bl, tm, Ep, ro, yr, Qo, rows, boot[0], boot[1], c_red, s2, vals, num)
+            out, u95 = {}, {}
+            for key, v in vals.items():
+                if key not in num:
+                    out[key] = v
+                elif u95b.get(key) is None:
+                    out[key], u95[key] = float(v), None
+                else:
+                    out[key], u95[key] = _within_range(cause, key, float(v), u95b[key], wide)
+            return out, u95
         # central differences, each coefficient's pair of magnitudes made once for every key
         grads = {key: np.zeros(k_all) for key in num}
         for j in range(k_all):
@@ -3517,10 +3632,19 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
             out[key], u95[key] = _within_range(cause, key, float(v), float(2 * np.sqrt(max(g @ cov @ g, 0.0))),
                                                wide)
         return out, u95
-    c_red = np.linalg.lstsq(Ep, ro, rcond=1e-12)[0]
-    res = ro - Ep @ c_red
-    dof = max(len(rows) - Qo.shape[1] - E.shape[1], 1)
-    s2 = float(res @ res) / dof
+    # penalised terms of the model (an adopted nonrigid): fitted with the cause's columns, with their penalty (Qo spans
+    # only the baseline and the unpenalised terms)
+    pen = _pen_of(boot[1], rows) if boot is not None else None
+    if pen is not None:
+        Sp = pen[0] - Qo @ (Qo.T @ pen[0])
+        c_red, _, s2, _ = _penalised_fit(np.hstack([Ep, Sp]), ro, np.pad(pen[1], ((Ep.shape[1], 0),) * 2),
+                                         len(rows) - Qo.shape[1])
+        c_red = c_red[:Ep.shape[1]]
+    else:
+        c_red = np.linalg.lstsq(Ep, ro, rcond=1e-12)[0]
+        res = ro - Ep @ c_red
+        dof = max(len(rows) - Qo.shape[1] - E.shape[1], 1)
+        s2 = float(res @ res) / dof
     coef = M @ c_red
     nl = [nm for nm in cause.nonlinear if nm in tm.info] if cause.rebuild is not None else []
     # Jacobian columns of the nonlinear parameters at the fit
@@ -3532,10 +3656,15 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         im[name] -= h
         J.append((cause.rebuild(bl, ip)[0][rows] - cause.rebuild(bl, im)[0][rows]) @ coef / (2 * h))
     X = np.hstack([Ep] + [(j - Qo @ (Qo.T @ j))[:, None] for j in J]) if J else Ep
-    try:
-        cov_all = s2 * np.linalg.inv(X.T @ X)
-    except np.linalg.LinAlgError:
-        cov_all = s2 * np.linalg.pinv(X.T @ X)
+    if pen is not None:  # the block of the joint penalised fit's Bayesian covariance (as _penalised_fit's)
+        nx = X.shape[1]
+        Xa = np.hstack([X, Sp])
+        cov_all = s2 * np.linalg.pinv(Xa.T @ Xa + np.pad(pen[1], ((nx, 0),) * 2), rcond=1e-12, hermitian=True)[:nx, :nx]
+    else:
+        try:
+            cov_all = s2 * np.linalg.inv(X.T @ X)
+        except np.linalg.LinAlgError:
+            cov_all = s2 * np.linalg.pinv(X.T @ X)
     vec0 = np.concatenate([coef, [tm.info[nm] for nm in nl]])  # label coefficients, then nl
 
     def f(vec):
@@ -3568,8 +3697,12 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
     Eall = tm.cols_all[rows] if tm.cols_all is not None else E
     nrm = np.maximum(np.linalg.norm(Eall, axis=0), 1e-300)
     Pn = Eall / nrm - Qo @ (Qo.T @ (Eall / nrm))
-    _, sv, Vt = np.linalg.svd(Pn, full_matrices=False)
-    weak = Vt[sv < WEAK_SV]
+    if pen is not None:  # what the penalised terms' ridge leaves of the columns (_gram_beside)
+        w, V = np.linalg.eigh(_gram_beside(Pn, Qo, pen))
+        weak = V.T[np.sqrt(np.maximum(w, 0.0)) < WEAK_SV]
+    else:
+        _, sv, Vt = np.linalg.svd(Pn, full_matrices=False)
+        weak = Vt[sv < WEAK_SV]
     u95, out = {}, {}
     for key, v in vals.items():
         if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
@@ -4070,7 +4203,7 @@ def _repeats_beyond_residual(key: np.ndarray, st: _State, settings) -> dict | No
 
 
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-              seen=(), fixed=None, repeats=None) -> list:
+              seen=(), fixed=None, repeats=None, folds=None) -> list:
     out = []
     sig = st.sigma
     named = [t for t in terms if not t.unnamed]
@@ -4086,7 +4219,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         if a is not None and np.array_equal(a[1], rows) and a[0].shape == so.Q.shape and np.array_equal(a[0], so.Q):
             vals, u95 = dict(a[2]), dict(a[3])
         else:
-            vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows)
+            vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows, boot=(folds, others) if folds is not None else None)
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)
