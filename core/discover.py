@@ -3530,11 +3530,15 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
     n = len(rows)
     G = Ep.T @ Ep
     scale = float(np.trace(G)) / max(k, 1)
-    fit = Ep @ c_hat
     rng = np.random.default_rng(PENALISED_BOOT_SEED)
+    # the truths: the fitted coefficients plus a draw of the ridge's posterior s^2 (E^T E + P)^-1 (its prior's spread
+    # along what the data do not determine: the split with the baseline, one axis' field for the other's)
+    w, V = np.linalg.eigh(s2 * np.linalg.pinv(G + tm.penalty, rcond=1e-12, hermitian=True))
+    Ct = c_hat[:, None] + (V * np.sqrt(np.maximum(w, 0.0))) @ rng.standard_normal((k, PENALISED_BOOT))
     Z = rng.standard_normal((n, PENALISED_BOOT)) * np.sqrt(max(s2, 0.0))
-    Y = (yr - (ro - fit))[:, None] + Z  # the fitted values (y less the fit's residuals) plus noise
-    Ro = fit[:, None] + (Z - Qo @ (Qo.T @ Z))
+    fit = Ep @ Ct
+    Y = (yr - ro)[:, None] + fit + Z  # the model's part beside the cause, each truth's field, noise
+    Ro = fit + (Z - Qo @ (Qo.T @ Z))
     X = np.hstack([_stack(others, rows), E]) if others else E
     best = np.full(PENALISED_BOOT, np.inf)
     C = np.zeros((k, PENALISED_BOOT))
@@ -3547,10 +3551,11 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
         best[won] = cv[won]
         C[:, won] = np.linalg.solve(G + P, ErO[:, won])
     draws = [cause.magnitudes(tm.info, C[:, b], bl) for b in range(PENALISED_BOOT)]
+    truths = [cause.magnitudes(tm.info, Ct[:, b], bl) for b in range(PENALISED_BOOT)]
     out, iv = {}, {}
     for key in num:
         m = float(vals[key])
-        d = np.array([float(dr.get(key, np.nan)) for dr in draws]) - m
+        d = np.array([float(dr.get(key, np.nan)) - float(tr.get(key, np.nan)) for dr, tr in zip(draws, truths)])
         if not np.all(np.isfinite(d)):
             out[key] = None
             continue
