@@ -3036,6 +3036,10 @@ def _pen_of(terms, rows) -> tuple | None:
     return (_stack(pen, rows), _penalty(pen)) if pen else None
 
 
+def _pen_names(terms) -> tuple:
+    return tuple(t.cause for t in terms if t.penalty is not None)
+
+
 def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float, pen: tuple | None = None):
     """The combinations of a cause's columns the data determine beside the model.
 
@@ -3433,7 +3437,8 @@ def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float, boot: tuple | N
     if wide:  # named at most ambiguous (step 8): the data do not say how large it is
         tm.evidence["magnitude_undetermined"] = "; ".join(
             f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
-    tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95))
+    # (the penalised terms it was fitted beside: Qo does not show them)
+    tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95, _pen_names(boot[1] if boot else ())))
     for key, v in vals.items():
         if not isinstance(v, float) or v is None:
             continue
@@ -4221,7 +4226,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         others = [t for t in named if t is not tm]
         so = _state(Qb, y, rows, others)
         a = tm.at_adoption  # judged beside this very model at its adoption: the same magnitudes
-        if a is not None and np.array_equal(a[1], rows) and a[0].shape == so.Q.shape and np.array_equal(a[0], so.Q):
+        if a is not None and np.array_equal(a[1], rows) and a[0].shape == so.Q.shape and np.array_equal(a[0], so.Q) \
+                and a[4] == _pen_names(others):
             vals, u95 = dict(a[2]), dict(a[3])
         else:
             vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows, boot=(folds, others) if folds is not None else None)
