@@ -3513,26 +3513,38 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
     The ridge's Bayesian covariance ``s^2 (E^T E + P)^-1`` ignores the
     shrinkage's bias and, through the delta method, treats a field's RMS
     near zero and its signed peak (a maximum over the extent) as linear in
-    the coefficients. Here :data:`PENALISED_BOOT` data sets are drawn from
-    the fitted model (the fitted values plus normal noise of the fit's
-    ``s``; the draws fixed by :data:`PENALISED_BOOT_SEED`); each chooses its
-    own penalty over :data:`PENALTY_GRID` by the same held-out mean square
-    as the search (the folds, beside the other terms with their
+    the coefficients, and a bootstrap from the fitted field alone has no
+    spread along what the data do not determine (the field's split with
+    the baseline, one axis' field for the other's). Here
+    :data:`PENALISED_BOOT` truths are drawn from the ridge's posterior
+    ``N(c, s^2 (E^T E + P)^-1)`` and a data set from each (the model's
+    part beside the cause, the truth's field, normal noise of the fit's
+    ``s``; the draws fixed by :data:`PENALISED_BOOT_SEED`); each chooses
+    its own penalty over :data:`PENALTY_GRID` by the same held-out mean
+    square as the search (the folds, beside the other terms with their
     penalties) and is refitted as the magnitudes are. From the refits'
-    deviations ``d = m* - m`` around the fitted magnitude ``m``, the basic
-    (bias-corrected) 95 % interval ``[m - q97.5(d), m - q2.5(d)]``: the
-    refits' mean shortfall is the shrinkage's bias and is put back on the
-    other side. The U95 reported beside ``m`` is the larger of its two
-    sides. A magnitude bounded below by zero (an RMS) whose interval
-    reaches zero is not distinguishable from none: its upper one-sided 95 %
-    bound ``m - q5(d)`` is given and the U95 reaches from zero to it.
+    errors ``d = m(refit) - m(truth)``, the basic (bias-corrected) 95 %
+    interval ``[m - q97.5(d), m - q2.5(d)]`` around the fitted magnitude
+    ``m``: the refits' mean shortfall (the shrinkage's bias) is put back
+    on the other side. The U95 reported beside ``m`` is the larger of its
+    two sides. A magnitude bounded below by zero (an RMS) whose interval
+    reaches zero is not distinguishable from none: its upper one-sided
+    95 % bound ``m - q5(d)`` is given and the U95 reaches from zero to it.
     The intervals go to the term's evidence (``magnitude_interval95``).
 
-    Returns {key: U95 or None (a refit gave a non-finite magnitude)}.
+    Returns {key: U95 or None (a refit gave a non-finite magnitude)}. Raises ValueError on inconsistent shapes or
+    a noise variance ``s2`` that is not finite and non-negative.
     """
-    E = tm.columns[rows]
-    k = E.shape[1]
     n = len(rows)
+    Ep, ro, yr, c_hat = (np.asarray(a, float) for a in (Ep, ro, yr, c_hat))
+    k = Ep.shape[1] if Ep.ndim == 2 else -1
+    if Ep.ndim != 2 or Ep.shape[0] != n or ro.shape != (n,) or yr.shape != (n,) or Qo.shape[0] != n \
+            or c_hat.shape != (k,):
+        raise ValueError(f"penalised bootstrap: columns {Ep.shape}, residuals {ro.shape}, data {yr.shape}, model "
+                         f"{Qo.shape}, coefficients {c_hat.shape} for {n} rows do not match")
+    if not (np.isfinite(s2) and s2 >= 0):
+        raise ValueError(f"penalised bootstrap: noise variance {s2} is not finite and non-negative")
+    E = tm.columns[rows]
     G = Ep.T @ Ep
     scale = float(np.trace(G)) / max(k, 1)
     rng = np.random.default_rng(PENALISED_BOOT_SEED)
@@ -3540,7 +3552,7 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
     # along what the data do not determine: the split with the baseline, one axis' field for the other's)
     w, V = np.linalg.eigh(s2 * np.linalg.pinv(G + tm.penalty, rcond=1e-12, hermitian=True))
     Ct = c_hat[:, None] + (V * np.sqrt(np.maximum(w, 0.0))) @ rng.standard_normal((k, PENALISED_BOOT))
-    Z = rng.standard_normal((n, PENALISED_BOOT)) * np.sqrt(max(s2, 0.0))
+    Z = rng.standard_normal((n, PENALISED_BOOT)) * np.sqrt(s2)
     fit = Ep @ Ct
     Y = (yr - ro)[:, None] + fit + Z  # the model's part beside the cause, each truth's field, noise
     Ro = fit + (Z - Qo @ (Qo.T @ Z))
@@ -3567,7 +3579,7 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
         lo, hi = m - np.quantile(d, 0.975), m - np.quantile(d, 0.025)
         if lo <= 0 and any(_matches(key, pat) and b[0] == 0 for pat, b in cause.bounds.items()):
             up = m - float(np.quantile(d, 0.05))
-            out[key] = max(up - m, m)
+            out[key] = float(max(up - m, m))
             iv[key] = {"upper_one_sided": up}
         else:
             out[key] = float(max(hi - m, m - lo))
