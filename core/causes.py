@@ -163,8 +163,8 @@ class Cause:
     smooth: Callable | None = None
     support: Callable | None = None
     #: the cause's columns are fitted with a ridge penalty chosen by the held-out mean square (a field of many
-    #: columns, partly inside the baseline's span): one penalised fit gives its held-out gain, magnitudes (U95 from
-    #: the penalised covariance), residuals and workpiece (core.discover; session 15)
+    #: columns, partly inside the baseline's span): one penalised fit gives its held-out gain, magnitudes (U95 by a
+    #: parametric bootstrap, session 16), residuals and workpiece (core.discover; session 15)
     penalised: bool = False
 
     @property

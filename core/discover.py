@@ -112,8 +112,11 @@ What it does, in order, and the statistics behind each step
    (Hausman) and, when real, carried in the extended U95
    (:func:`_unnamed_shift`); beside a penalised named cause likewise (its
    penalty, not the data, splits what the baseline's span holds). A
-   penalised cause's magnitudes take their U95 from the penalised
-   covariance ``s^2 (E^T E + P)^-1`` (:func:`_penalised_fit`).
+   penalised cause's magnitudes take their U95 from a parametric
+   bootstrap with the ridge chosen again (:func:`_penalised_bootstrap`;
+   the penalised covariance ``s^2 (E^T E + P)^-1`` of :func:`_penalised_fit`
+   by the delta method where no folds are given), and a cause beside it is
+   fitted with its columns penalised in the nuisance (session 16).
 8. **Confidence** (each finding's ``confidence``, ``named`` or
    ``ambiguous`` with ``confidence_reason``): ``named`` says the name holds
    against the alternatives the engine can test. A named cause: no smooth
