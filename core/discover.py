@@ -3595,13 +3595,14 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
 def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None, boot: tuple | None = None):
     """Magnitudes of a term and their U95 (delta method over coefficients and nonlinear parameters).
 
-    ``boot`` ``(folds, others)``: the folds the model's held-out figures use
-    and the other terms of the model (``Qo`` spans the baseline and the
-    unpenalised ones). With it a penalised named cause's U95 comes from
-    :func:`_penalised_bootstrap` (else the ridge's Bayesian covariance, by
-    the delta method), and an unpenalised cause's coefficients are fitted
-    beside the penalised others with their penalty (session 16: before,
-    beside ``Qo`` alone, as if the penalised cause were not in the model).
+    ``boot`` ``(folds, others[, report])``: the folds the model's held-out
+    figures use and the other terms of the model (``Qo`` spans the baseline
+    and the unpenalised ones). With it an unpenalised cause's coefficients
+    are fitted beside the penalised others with their penalty (session 16:
+    before, beside ``Qo`` alone, as if the penalised cause were not in the
+    model); with ``report`` true a penalised named cause's U95 comes from
+    :func:`_penalised_bootstrap` (the report's findings; else, at each
+    adoption test, the ridge's Bayesian covariance by the delta method).
 
     A bounded magnitude whose U95 is wider than its whole plausible range is
     reported as no value (it determines nothing); its key, the value and
@@ -3627,7 +3628,7 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         c_red, cov, s2, _ = _penalised_fit(Ep, ro, tm.penalty, len(rows) - Qo.shape[1])
         vals = cause.magnitudes(tm.info, c_red, bl)
         num = [key for key, v in vals.items() if isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)]
-        if boot is not None and isinstance(boot[0], Folds):
+        if boot is not None and len(boot) > 2 and boot[2] and isinstance(boot[0], Folds):
             u95b = _penalised_bootstrap(cause, bl, tm, Ep, ro, yr, Qo, rows, boot[0], boot[1], c_red, s2, vals, num)
             out, u95 = {}, {}
             for key, v in vals.items():
@@ -4241,11 +4242,14 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         others = [t for t in named if t is not tm]
         so = _state(Qb, y, rows, others)
         a = tm.at_adoption  # judged beside this very model at its adoption: the same magnitudes
+        # (a penalised named cause's U95 is the bootstrap's, made here once for the model reported: at adoption, in
+        # every round it was tried, the delta method's)
         if a is not None and np.array_equal(a[1], rows) and a[0].shape == so.Q.shape and np.array_equal(a[0], so.Q) \
-                and a[4] == _pen_names(others):
+                and a[4] == _pen_names(others) and (tm.penalty is None or tm.unnamed or folds is None):
             vals, u95 = dict(a[2]), dict(a[3])
         else:
-            vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows, boot=(folds, others) if folds is not None else None)
+            vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows,
+                                    boot=(folds, others, True) if folds is not None else None)
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)
