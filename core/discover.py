@@ -3570,12 +3570,17 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
         won = cv < best
         best[won] = cv[won]
         C[:, won] = np.linalg.solve(G + P, ErO[:, won])
-    draws = [cause.magnitudes(tm.info, C[:, b], bl) for b in range(PENALISED_BOOT)]
-    truths = [cause.magnitudes(tm.info, Ct[:, b], bl) for b in range(PENALISED_BOOT)]
+    if getattr(cause.magnitudes, "columns", False):  # every refit at once (nonrigid_magnitudes)
+        draws, truths = cause.magnitudes(tm.info, C, bl), cause.magnitudes(tm.info, Ct, bl)
+    else:  # one refit at a time
+        draws, truths = ({key: np.array([float(mg.get(key, np.nan)) for mg in ms]) for key in num}
+                         for ms in ([cause.magnitudes(tm.info, A[:, b], bl) for b in range(PENALISED_BOOT)]
+                                    for A in (C, Ct)))
     out, iv = {}, {}
     for key in num:
         m = float(vals[key])
-        d = np.array([float(dr.get(key, np.nan)) - float(tr.get(key, np.nan)) for dr, tr in zip(draws, truths)])
+        d = np.asarray(draws.get(key, np.nan), float) - np.asarray(truths.get(key, np.nan), float)
+        d = np.broadcast_to(d, (PENALISED_BOOT,))
         if not np.all(np.isfinite(d)):
             out[key] = None
             continue
