@@ -163,8 +163,8 @@ class Cause:
     smooth: Callable | None = None
     support: Callable | None = None
     #: the cause's columns are fitted with a ridge penalty chosen by the held-out mean square (a field of many
-    #: columns, partly inside the baseline's span): one penalised fit gives its held-out gain, magnitudes (U95 from
-    #: the penalised covariance), residuals and workpiece (core.discover; session 15)
+    #: columns, partly inside the baseline's span): one penalised fit gives its held-out gain, magnitudes (U95 by a
+    #: parametric bootstrap, session 16), residuals and workpiece (core.discover; session 15)
     penalised: bool = False
 
     @property
@@ -1673,20 +1673,30 @@ def finer_error_map(bl) -> np.ndarray:
 
 
 def nonrigid_magnitudes(info, coef, bl):
-    """The field's RMS and signed peak over the probed extent (the rectangle of xs, ys the touches span), per axis."""
+    """The field's RMS and signed peak over the probed extent (the rectangle of xs, ys the touches span), per axis.
+
+    ``coef`` (k, m), m coefficient vectors at once (the bootstrap's refits, core.discover._penalised_bootstrap): each
+    magnitude an (m,) array, the same values column by column (:attr:`nonrigid_magnitudes.columns`)."""
     d = bl.data
     u = np.linspace(float(np.min(d.xs)), float(np.max(d.xs)), NONRIGID_GRID)
     v = np.linspace(float(np.min(d.ys)), float(np.max(d.ys)), NONRIGID_GRID)
     U, V = np.meshgrid(u, v)
     B = _xy_basis(U.ravel(), V.ravel())
     c = np.asarray(coef, float)
+    many = c.ndim == 2
     out = {}
     for j, a in enumerate(info.get("axes", "XY")):
         k = len(_XY_LABELS)
         f = B @ c[k * j:k * (j + 1)] / UM
-        out[f"E{a}_field_rms_um"] = float(np.sqrt(np.mean(f ** 2)))
-        out[f"E{a}_field_peak_um"] = float(f[np.argmax(np.abs(f))])
+        rms = np.sqrt(np.mean(f ** 2, axis=0))
+        peak = np.take_along_axis(f, np.argmax(np.abs(f), axis=0)[None], axis=0)[0] if many else f[np.argmax(np.abs(f))]
+        out[f"E{a}_field_rms_um"] = rms if many else float(rms)
+        out[f"E{a}_field_peak_um"] = peak if many else float(peak)
     return out
+
+
+#: nonrigid_magnitudes takes a (k, m) array of coefficient vectors and returns (m,) arrays.
+nonrigid_magnitudes.columns = True
 
 
 # ---------------------------------------------------------------------------

@@ -112,8 +112,11 @@ What it does, in order, and the statistics behind each step
    (Hausman) and, when real, carried in the extended U95
    (:func:`_unnamed_shift`); beside a penalised named cause likewise (its
    penalty, not the data, splits what the baseline's span holds). A
-   penalised cause's magnitudes take their U95 from the penalised
-   covariance ``s^2 (E^T E + P)^-1`` (:func:`_penalised_fit`).
+   penalised cause's magnitudes take their U95 from a parametric
+   bootstrap with the ridge chosen again (:func:`_penalised_bootstrap`;
+   the penalised covariance ``s^2 (E^T E + P)^-1`` of :func:`_penalised_fit`
+   by the delta method where no folds are given), and a cause beside it is
+   fitted with its columns penalised in the nuisance (session 16).
 8. **Confidence** (each finding's ``confidence``, ``named`` or
    ``ambiguous`` with ``confidence_reason``): ``named`` says the name holds
    against the alternatives the engine can test. A named cause: no smooth
@@ -2230,7 +2233,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
                          seen + [(st, diag_e)], fixed=fixed,
-                         repeats=_repeats_beyond_residual(bl.replicate[rows], st, settings))
+                         repeats=_repeats_beyond_residual(bl.replicate[rows], st, settings), folds=folds)
     E_all = _stack(terms, rows)
     cv_e, held_e = _held_out(folds, y[rows], bl.groups[rows], E_all, _penalty(terms)) if terms else (cv_b, held_b)
     outliers = np.setdiff1d(all_rows, rows)
@@ -3041,8 +3044,36 @@ def _smallest_angle_deg(Q: np.ndarray, Qe: np.ndarray) -> float:
     return float(np.degrees(np.arctan2(s.min(), c.max())))
 
 
-def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
+def _gram_beside(Pn: np.ndarray, Q: np.ndarray, pen: tuple | None) -> np.ndarray:
+    """``Pn^T Pn`` (columns already out of ``Q``), or, beside penalised columns ``pen = (S, P)``, what is left of it
+    after their ridge fit: ``Pn^T Pn - Pn^T S_p (S_p^T S_p + P)^-1 S_p^T Pn`` (``S_p``: S out of ``Q``)."""
+    G = Pn.T @ Pn
+    if pen is None or not pen[0].shape[1]:
+        return G
+    Sp = pen[0] - Q @ (Q.T @ pen[0])
+    B = Sp.T @ Pn
+    return G - B.T @ np.linalg.pinv(Sp.T @ Sp + pen[1], rcond=1e-12, hermitian=True) @ B
+
+
+def _pen_of(terms, rows) -> tuple | None:
+    """``(S, P)`` of the penalised terms among ``terms`` (rows used), or None: the nuisance a cause adopted beside
+    them is fitted with (:func:`_determined`, :func:`_magnitudes`)."""
+    pen = [t for t in terms if t.penalty is not None]
+    return (_stack(pen, rows), _penalty(pen)) if pen else None
+
+
+def _pen_names(terms) -> tuple:
+    return tuple(t.cause for t in terms if t.penalty is not None)
+
+
+def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float, pen: tuple | None = None):
     """The combinations of a cause's columns the data determine beside the model.
+
+    ``pen`` ``(S, P)``: penalised columns of the model (an adopted penalised
+    cause, rows used) and their penalty: the Gram matrix is then the one
+    left beside their ridge fit (the Schur complement
+    ``P_E^T (I - S_p (S_p^T S_p + P)^-1 S_p^T) P_E``, session 16), as the
+    cause's coefficients are fitted beside them (:func:`_magnitudes`).
 
     Columns normalised, projected out of the model; eigen-decomposition of
     their Gram matrix. A direction with eigenvalue ``w`` has its coefficient
@@ -3071,7 +3102,7 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float):
     nz = nrm > 0
     En = E / np.where(nz, nrm, 1.0)
     P = En - Q @ (Q.T @ En)
-    w, V = np.linalg.eigh(P.T @ P)
+    w, V = np.linalg.eigh(_gram_beside(P, Q, pen))
     good = (w >= WEAK_SV ** 2) & (np.abs(V[~nz]).max(axis=0, initial=0.0) < 1e-12)
     M = V[:, good] / np.where(nz, nrm, 1.0)[:, None]
     Qe = orth(En)
@@ -3390,7 +3421,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         sm = _smooth_verdict(bl, cause, st, cols[rows], sigma, tries, settings)
         if sm["refused"]:
             return {"reason": sm["reason"], "significant": True}
-    M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max)
+    M, vif, vif_worst, ang, weak = _determined(st.Q, cols[rows], settings.vif_max,
+                                               None if cause.penalised else _pen_of(terms, rows))
     ev.update({"vif": vif, "max_vif": vif_worst, "principal_angle_deg": ang, "weak_directions": weak})
     if cause.penalised:
         return _evaluate_penalised(cause, sc, info, cols, tries, bl, st, folds, terms, cv_cur, sigma, settings, ev)
@@ -3419,19 +3451,20 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
                 "significant": True}
     tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak, origin=cause,
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
-    return _plausible(cause, bl, tm, st, rows, cv)
+    return _plausible(cause, bl, tm, st, rows, cv, boot=(folds, terms))
 
 
-def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float) -> dict:
+def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float, boot: tuple | None = None) -> dict:
     """The last gate of :func:`_evaluate` and :func:`_evaluate_penalised`: the term's magnitudes (with their U95,
     :func:`_magnitudes`, the penalised branch for a penalised term) within the cause's bounds and its own
     plausibility check. ``{"cv", "term"}`` (the term with its magnitudes at adoption), or a refusal."""
     wide = []
-    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows, wide)
+    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows, wide, boot=boot)
     if wide:  # named at most ambiguous (step 8): the data do not say how large it is
         tm.evidence["magnitude_undetermined"] = "; ".join(
             f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
-    tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95))
+    # (the penalised terms it was fitted beside: Qo does not show them)
+    tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95, _pen_names(boot[1] if boot else ())))
     for key, v in vals.items():
         if not isinstance(v, float) or v is None:
             continue
@@ -3491,11 +3524,113 @@ def _evaluate_penalised(cause, sc, info, cols, tries, bl, st: _State, folds: Fol
     k = cols.shape[1]
     tm = Term(cause.name, cols, tuple(sc.labels), info, sc.covariate, tries, ev, penalty=f * scale * np.eye(k),
               origin=cause, labels_all=tuple(sc.labels), map=np.eye(k), cols_all=cols)
-    return _plausible(cause, bl, tm, st, rows, cv)
+    return _plausible(cause, bl, tm, st, rows, cv, boot=(folds, terms))
 
 
-def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None):
+#: Parametric bootstrap refits of a penalised named cause's magnitudes (:func:`_penalised_bootstrap`), and the seed of
+#: their draws (fixed: one campaign, one U95).
+PENALISED_BOOT = 200
+PENALISED_BOOT_SEED = 16
+
+
+def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, others, c_hat, s2, vals, num) -> dict:
+    """U95 of a penalised named cause's magnitudes by a parametric bootstrap with the ridge chosen again (session 16).
+
+    The ridge's Bayesian covariance ``s^2 (E^T E + P)^-1`` ignores the
+    shrinkage's bias and, through the delta method, treats a field's RMS
+    near zero and its signed peak (a maximum over the extent) as linear in
+    the coefficients, and a bootstrap from the fitted field alone has no
+    spread along what the data do not determine (the field's split with
+    the baseline, one axis' field for the other's). Here
+    :data:`PENALISED_BOOT` truths are drawn from the ridge's posterior
+    ``N(c, s^2 (E^T E + P)^-1)`` and a data set from each (the model's
+    part beside the cause, the truth's field, normal noise of the fit's
+    ``s``; the draws fixed by :data:`PENALISED_BOOT_SEED`); each chooses
+    its own penalty over :data:`PENALTY_GRID` by the same held-out mean
+    square as the search (the folds, beside the other terms with their
+    penalties) and is refitted as the magnitudes are. From the refits'
+    errors ``d = m(refit) - m(truth)``, the basic (bias-corrected) 95 %
+    interval ``[m - q97.5(d), m - q2.5(d)]`` around the fitted magnitude
+    ``m``: the refits' mean shortfall (the shrinkage's bias) is put back
+    on the other side. The U95 reported beside ``m`` is the larger of its
+    two sides. A magnitude bounded below by zero (an RMS) whose interval
+    reaches zero is not distinguishable from none: its upper one-sided
+    95 % bound ``m - q5(d)`` is given and the U95 reaches from zero to it.
+    The intervals go to the term's evidence (``magnitude_interval95``).
+
+    Returns {key: U95 or None (a refit gave a non-finite magnitude)}. Raises ValueError on inconsistent shapes or
+    a noise variance ``s2`` that is not finite and non-negative.
+    """
+    n = len(rows)
+    Ep, ro, yr, c_hat = (np.asarray(a, float) for a in (Ep, ro, yr, c_hat))
+    k = Ep.shape[1] if Ep.ndim == 2 else -1
+    if Ep.ndim != 2 or Ep.shape[0] != n or ro.shape != (n,) or yr.shape != (n,) or Qo.shape[0] != n \
+            or c_hat.shape != (k,):
+        raise ValueError(f"penalised bootstrap: columns {Ep.shape}, residuals {ro.shape}, data {yr.shape}, model "
+                         f"{Qo.shape}, coefficients {c_hat.shape} for {n} rows do not match")
+    if not (np.isfinite(s2) and s2 >= 0):
+        raise ValueError(f"penalised bootstrap: noise variance {s2} is not finite and non-negative")
+    E = tm.columns[rows]
+    G = Ep.T @ Ep
+    scale = float(np.trace(G)) / max(k, 1)
+    rng = np.random.default_rng(PENALISED_BOOT_SEED)
+    # the truths: the fitted coefficients plus a draw of the ridge's posterior s^2 (E^T E + P)^-1 (its prior's spread
+    # along what the data do not determine: the split with the baseline, one axis' field for the other's)
+    w, V = np.linalg.eigh(s2 * np.linalg.pinv(G + tm.penalty, rcond=1e-12, hermitian=True))
+    Ct = c_hat[:, None] + (V * np.sqrt(np.maximum(w, 0.0))) @ rng.standard_normal((k, PENALISED_BOOT))
+    Z = rng.standard_normal((n, PENALISED_BOOT)) * np.sqrt(s2)
+    fit = Ep @ Ct
+    Y = (yr - ro)[:, None] + fit + Z  # the model's part beside the cause, each truth's field, noise
+    Ro = fit + (Z - Qo @ (Qo.T @ Z))
+    X = np.hstack([_stack(others, rows), E]) if others else E
+    best = np.full(PENALISED_BOOT, np.inf)
+    C = np.zeros((k, PENALISED_BOOT))
+    ErO = Ep.T @ Ro
+    for f in PENALTY_GRID:
+        P = f * scale * np.eye(k)
+        e = folds.residuals(Y, X, _penalty_beside(others, k, P))
+        cv = np.sum(e ** 2, axis=0) / max(folds.last_dof, 1)
+        won = cv < best
+        best[won] = cv[won]
+        C[:, won] = np.linalg.solve(G + P, ErO[:, won])
+    if getattr(cause.magnitudes, "columns", False):  # every refit at once (nonrigid_magnitudes)
+        draws, truths = cause.magnitudes(tm.info, C, bl), cause.magnitudes(tm.info, Ct, bl)
+    else:  # one refit at a time
+        draws, truths = ({key: np.array([float(mg.get(key, np.nan)) for mg in ms]) for key in num}
+                         for ms in ([cause.magnitudes(tm.info, A[:, b], bl) for b in range(PENALISED_BOOT)]
+                                    for A in (C, Ct)))
+    out, iv = {}, {}
+    for key in num:
+        m = float(vals[key])
+        d = np.asarray(draws.get(key, np.nan), float) - np.asarray(truths.get(key, np.nan), float)
+        d = np.broadcast_to(d, (PENALISED_BOOT,))
+        if not np.all(np.isfinite(d)):
+            out[key] = None
+            continue
+        lo, hi = m - np.quantile(d, 0.975), m - np.quantile(d, 0.025)
+        if lo <= 0 and any(_matches(key, pat) and b[0] == 0 for pat, b in cause.bounds.items()):
+            up = m - float(np.quantile(d, 0.05))
+            out[key] = float(max(up - m, m))
+            iv[key] = {"upper_one_sided": up}
+        else:
+            out[key] = float(max(hi - m, m - lo))
+            iv[key] = {"low": float(lo), "high": float(hi)}
+    tm.evidence["magnitude_interval95"] = {"method": f"parametric bootstrap, {PENALISED_BOOT} refits, the ridge chosen "
+                                                    "again on each", **iv}
+    return out
+
+
+def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None, boot: tuple | None = None):
     """Magnitudes of a term and their U95 (delta method over coefficients and nonlinear parameters).
+
+    ``boot`` ``(folds, others[, report])``: the folds the model's held-out
+    figures use and the other terms of the model (``Qo`` spans the baseline
+    and the unpenalised ones). With it an unpenalised cause's coefficients
+    are fitted beside the penalised others with their penalty (session 16:
+    before, beside ``Qo`` alone, as if the penalised cause were not in the
+    model); with ``report`` true a penalised named cause's U95 comes from
+    :func:`_penalised_bootstrap` (the report's findings; else, at each
+    adoption test, the ridge's Bayesian covariance by the delta method).
 
     A bounded magnitude whose U95 is wider than its whole plausible range is
     reported as no value (it determines nothing); its key, the value and
@@ -3518,9 +3653,20 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         # a penalised named cause: the ridge fit's coefficients and its covariance s^2 (E^T E + P)^-1; every
         # direction is determined by the penalty (none is reported weak: the penalty, chosen by the held-out
         # mean square, decides what the baseline's span keeps)
-        c_red, cov, _, _ = _penalised_fit(Ep, ro, tm.penalty, len(rows) - Qo.shape[1])
+        c_red, cov, s2, _ = _penalised_fit(Ep, ro, tm.penalty, len(rows) - Qo.shape[1])
         vals = cause.magnitudes(tm.info, c_red, bl)
         num = [key for key, v in vals.items() if isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)]
+        if boot is not None and len(boot) > 2 and boot[2] and isinstance(boot[0], Folds):
+            u95b = _penalised_bootstrap(cause, bl, tm, Ep, ro, yr, Qo, rows, boot[0], boot[1], c_red, s2, vals, num)
+            out, u95 = {}, {}
+            for key, v in vals.items():
+                if key not in num:
+                    out[key] = v
+                elif u95b.get(key) is None:
+                    out[key], u95[key] = float(v), None
+                else:
+                    out[key], u95[key] = _within_range(cause, key, float(v), u95b[key], wide)
+            return out, u95
         # central differences, each coefficient's pair of magnitudes made once for every key
         grads = {key: np.zeros(k_all) for key in num}
         for j in range(k_all):
@@ -3540,10 +3686,19 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
             out[key], u95[key] = _within_range(cause, key, float(v), float(2 * np.sqrt(max(g @ cov @ g, 0.0))),
                                                wide)
         return out, u95
-    c_red = np.linalg.lstsq(Ep, ro, rcond=1e-12)[0]
-    res = ro - Ep @ c_red
-    dof = max(len(rows) - Qo.shape[1] - E.shape[1], 1)
-    s2 = float(res @ res) / dof
+    # penalised terms of the model (an adopted nonrigid): fitted with the cause's columns, with their penalty (Qo spans
+    # only the baseline and the unpenalised terms)
+    pen = _pen_of(boot[1], rows) if boot is not None else None
+    if pen is not None:
+        Sp = pen[0] - Qo @ (Qo.T @ pen[0])
+        c_red, _, s2, _ = _penalised_fit(np.hstack([Ep, Sp]), ro, np.pad(pen[1], ((Ep.shape[1], 0),) * 2),
+                                         len(rows) - Qo.shape[1])
+        c_red = c_red[:Ep.shape[1]]
+    else:
+        c_red = np.linalg.lstsq(Ep, ro, rcond=1e-12)[0]
+        res = ro - Ep @ c_red
+        dof = max(len(rows) - Qo.shape[1] - E.shape[1], 1)
+        s2 = float(res @ res) / dof
     coef = M @ c_red
     nl = [nm for nm in cause.nonlinear if nm in tm.info] if cause.rebuild is not None else []
     # Jacobian columns of the nonlinear parameters at the fit
@@ -3555,10 +3710,15 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         im[name] -= h
         J.append((cause.rebuild(bl, ip)[0][rows] - cause.rebuild(bl, im)[0][rows]) @ coef / (2 * h))
     X = np.hstack([Ep] + [(j - Qo @ (Qo.T @ j))[:, None] for j in J]) if J else Ep
-    try:
-        cov_all = s2 * np.linalg.inv(X.T @ X)
-    except np.linalg.LinAlgError:
-        cov_all = s2 * np.linalg.pinv(X.T @ X)
+    if pen is not None:  # the block of the joint penalised fit's Bayesian covariance (as _penalised_fit's)
+        nx = X.shape[1]
+        Xa = np.hstack([X, Sp])
+        cov_all = s2 * np.linalg.pinv(Xa.T @ Xa + np.pad(pen[1], ((nx, 0),) * 2), rcond=1e-12, hermitian=True)[:nx, :nx]
+    else:
+        try:
+            cov_all = s2 * np.linalg.inv(X.T @ X)
+        except np.linalg.LinAlgError:
+            cov_all = s2 * np.linalg.pinv(X.T @ X)
     vec0 = np.concatenate([coef, [tm.info[nm] for nm in nl]])  # label coefficients, then nl
 
     def f(vec):
@@ -3591,8 +3751,12 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
     Eall = tm.cols_all[rows] if tm.cols_all is not None else E
     nrm = np.maximum(np.linalg.norm(Eall, axis=0), 1e-300)
     Pn = Eall / nrm - Qo @ (Qo.T @ (Eall / nrm))
-    _, sv, Vt = np.linalg.svd(Pn, full_matrices=False)
-    weak = Vt[sv < WEAK_SV]
+    if pen is not None:  # what the penalised terms' ridge leaves of the columns (_gram_beside)
+        w, V = np.linalg.eigh(_gram_beside(Pn, Qo, pen))
+        weak = V.T[np.sqrt(np.maximum(w, 0.0)) < WEAK_SV]
+    else:
+        _, sv, Vt = np.linalg.svd(Pn, full_matrices=False)
+        weak = Vt[sv < WEAK_SV]
     u95, out = {}, {}
     for key, v in vals.items():
         if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
@@ -4093,7 +4257,7 @@ def _repeats_beyond_residual(key: np.ndarray, st: _State, settings) -> dict | No
 
 
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-              seen=(), fixed=None, repeats=None) -> list:
+              seen=(), fixed=None, repeats=None, folds=None) -> list:
     out = []
     sig = st.sigma
     named = [t for t in terms if not t.unnamed]
@@ -4106,10 +4270,14 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         others = [t for t in named if t is not tm]
         so = _state(Qb, y, rows, others)
         a = tm.at_adoption  # judged beside this very model at its adoption: the same magnitudes
-        if a is not None and np.array_equal(a[1], rows) and a[0].shape == so.Q.shape and np.array_equal(a[0], so.Q):
+        # (a penalised named cause's U95 is the bootstrap's, made here once for the model reported: at adoption, in
+        # every round it was tried, the delta method's)
+        if a is not None and np.array_equal(a[1], rows) and a[0].shape == so.Q.shape and np.array_equal(a[0], so.Q) \
+                and a[4] == _pen_names(others) and (tm.penalty is None or tm.unnamed or folds is None):
             vals, u95 = dict(a[2]), dict(a[3])
         else:
-            vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows)
+            vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows,
+                                    boot=(folds, others, True) if folds is not None else None)
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)

@@ -816,11 +816,10 @@ def test_nonrigid_field_known_answer():
     0.3 um noise): named nonrigid, its field's RMS and peak over the probed extent within their U95 of the truth
     (the same magnitudes of the true coefficients), the other axis' field within its U95 of zero.
 
-    One seed, a known answer, not a coverage claim: the U95 is the ridge's Bayesian one and carries no
-    shrinkage bias, the peak is taken over the probed rectangle (corners no set-up probed included, biased
-    upward) and an RMS near zero is not normal; a review found seeds 102, 105 and 113 of this campaign outside
-    a U95 (docs/discovery.md, session 15). The last assertion (U95 of the peak under half of it) says the
-    magnitude is determined at all, not how well."""
+    One seed, a known answer, not a coverage claim (that is tests/core/test_discover_nonrigid_u95.py's, over 40
+    seeds, with the bootstrap's U95 of session 16; the ridge's Bayesian U95 before it missed on seeds 102, 105 and
+    113 of this campaign, docs/discovery.md, session 15). The last assertion (U95 of the peak under half of it)
+    says the magnitude is determined at all, not how well."""
     from core import causes
 
     t, _ = S.campaign("nonrigid_field", 100, 6e-6)

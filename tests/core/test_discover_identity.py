@@ -85,6 +85,16 @@ azimuth_by_setup", leaves the demo's list and enters 302's: its new
 columns significant there, not in the demo). Nothing else moved beyond
 REL/ABS.
 
+Refreshed for nonrigid's U95 by a parametric bootstrap (session 16,
+``core.discover._penalised_bootstrap``): gen_a nonrigid 2's nonrigid finding
+only, its four ``params_u95`` (EX RMS 0.270 -> 0.639 um, EX peak 2.70 ->
+5.06, EY RMS 0.175 -> 0.269, EY peak 0.375 -> 9.06) and its evidence's new
+``magnitude_interval95``; the other fifteen reports unchanged (their
+references kept as stored; make.py's ``report_of`` wrote this one alone).
+The bootstrap chooses a ridge per refit: a choice another machine's
+kernels flipped would move a quantile beyond ``REL`` (not measured
+whether any refit's held-out mean squares are that near a tie here).
+
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within
 ``ABS`` of a number that is zero in the reference's own units).
