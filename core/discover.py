@@ -4237,6 +4237,19 @@ def _ordered(findings: list, material_ss_um2: float = 0.0) -> list:
     the whole story). A named cause, flagged or not, keeps the lead:
     outliers beside it may be its own largest residuals (a local scale
     defect's, whose bump the cause's form follows only in part).
+
+    Outliers that lead beside structure left unnamed are not confidently
+    dust (flagged ``ambiguous`` here, in place): the outlier test judges
+    each touch against a model it takes as right but for the outliers,
+    and the ``unexplained`` finding beside them says it is not. The largest
+    residuals of a misfit sit where the misfit peaks, so the test cannot
+    tell dust from that misfit's tails (the place version is
+    :func:`_place_carries`; this is its covariate version, over the whole
+    campaign). Session 16 (docs/discovery.md, "Session 16: confident
+    misnamings"): gen_a knock 1085 (a knock's step read as five outliers of
+    one set-up beside structure in time) and reseat_hysteresis 1036 (the
+    re-seats' two minority readings beside a lack of fit against the
+    repeats), both `outlier` confident before.
     """
     def ss(f):
         return f.evidence.get("explained_ss_um2") or 0.0
@@ -4250,6 +4263,13 @@ def _ordered(findings: list, material_ss_um2: float = 0.0) -> list:
         if ss(d) > max(sum(max(ss(f), 0.0) for f in rest), material_ss_um2):
             d.evidence["leads"] = ("the outliers carry more sum of squares than the structure left unnamed "
                                    f"({ss(d):.3g} against {sum(max(ss(f), 0.0) for f in rest):.3g} um^2)")
+            if d.evidence.get("confidence") == "named":
+                d.evidence["confidence"] = "ambiguous"
+                d.evidence["confidence_reason"] = (
+                    "beside them the residuals keep structure the model does not name (" +
+                    "; ".join(f.evidence.get("text") or "unexplained" for f in rest) +
+                    "): the outliers were judged against a model that is not right but for them, and may be "
+                    "that structure's largest residuals, not dust")
             out = [d] + rest
     return out
 

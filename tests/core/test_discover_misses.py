@@ -1030,3 +1030,50 @@ def test_gen_b_stylus_bending_1041_named_where_the_feature_term_nests_it():
     assert f["cause"] == "stylus_bending", rep["rejected"]
     assert f["evidence"]["confidence"] == "ambiguous"
     assert any(a["covariate"] == "feature" for a in f["evidence"]["alternatives"])
+
+
+@pytest.mark.parametrize("findings, first, confidence", [
+    ([_f("unexplained", 13.0, text="residuals follow time"), _f("outlier", 50.0, "named")], "outlier", "ambiguous"),
+    ([_f("unexplained", 0.0), _f("outlier", 75.0, "named")], "outlier", "ambiguous"),  # a held-out gap beside
+    ([_f("outlier", 75.0, "named")], "outlier", "named"),  # dust alone: nothing beside it says the model is wrong
+    ([_f("unexplained", 3.8), _f("outlier", 12.4, "ambiguous", confidence_reason="own")], "outlier", "ambiguous"),
+    ([_f("local_scale_defect", 1.8, "named"), _f("outlier", 18.9, "named")], "local_scale_defect", "named"),
+    ([_f("unexplained", 341.5), _f("outlier", 70.4, "named")], "unexplained", "named"),  # the structure leads
+])
+def test_outliers_leading_beside_unnamed_structure_are_not_confidently_dust(findings, first, confidence):
+    """_ordered: outliers that lead beside an `unexplained` finding were judged against a model the finding
+    says is wrong, and may be its largest residuals: the outlier finding is ambiguous, with a reason naming
+    the structure; outliers alone, or outliers that do not lead, keep their confidence, and a reason already
+    given is kept. Known answers by construction (main f3c9460 fails the first two: the outliers stay named)."""
+    out = _ordered(findings, 2.0)
+    assert out[0].cause == first
+    dust = next(f for f in out if f.cause == "outlier")
+    assert dust.evidence["confidence"] == confidence, dust.evidence
+    if len(findings) > 1 and first == "outlier" and findings[-1].evidence.get("confidence_reason") != "own":
+        assert "structure the model does not name" in dust.evidence["confidence_reason"]
+        assert "residuals follow time" in dust.evidence["confidence_reason"] or findings[0].evidence.get(
+            "text") is None
+    if findings[-1].evidence.get("confidence_reason") == "own":
+        assert dust.evidence["confidence_reason"] == "own"
+
+
+@pytest.mark.parametrize("effect, seed", [("knock", 1085), ("reseat_hysteresis", 1036)])
+def test_gen_a_outliers_beside_unnamed_structure_not_confidently_misnamed(effect, seed):
+    """Two tuning campaigns of gen_a (out of catalogue) read `outlier` confidently on main f3c9460, each
+    with an `unexplained` finding beside the outliers (session 16, docs/discovery.md): knock 1085 (five of
+    the six outliers are touches of set-up B after the knock, the step its set-up's parameters half absorb;
+    structure left in time, 0.24 um, p 2.6e-8) and reseat_hysteresis 1036 (two minority readings of the
+    re-seats, -5.5 and +5.1 um, beside a lack of fit F = 24.5 against the repeats). The outcome must not be
+    a confident wrong name, and the outlier finding says why (main f3c9460 fails both)."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+
+    log, _ = gen_a.generate(effect, seed)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
+    assert "structure the model does not name" in f["evidence"]["confidence_reason"]
+    assert any(g["cause"] == "unexplained" for g in rep["findings"][1:])
+
