@@ -2222,6 +2222,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         findings.append(_outlier_finding(bl, outliers, st0, st, ranks, events, outlier_seed, settings, places,
                                          covariate_ranks(bl.covariates, families=HISTORY_FAMILIES)))
         _doubt_beside_turned_outliers(findings, settings)
+        _doubt_beside_gathered_outliers(findings, settings)
     if not findings and structure_b["present"]:
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
     findings = _ordered(findings, (settings.material_sigma * sig) ** 2 * len(rows) / UM ** 2)
@@ -4301,6 +4302,42 @@ def _doubt_beside_turned_outliers(findings: list, settings) -> None:
             f"beside it the outliers follow the turn of the approach relative to their targets' other touches "
             f"(centred turn {fmt_p(p)}): a mechanism of the move out of the catalogue, whose other readings are in "
             "the fit, may carry what this cause explains")
+
+
+def _doubt_beside_gathered_outliers(findings: list, settings) -> None:
+    """Named causes smaller than an outlier finding that is no dust made ambiguous, in place.
+
+    The outlier finding's own tests say its touches are a mechanism, not
+    dust, when they gather in a covariate, a place or the moves that reach
+    them (concentration p below ``alpha``) or sit on a feature whose other
+    touches carry structure (``place_structure``). A mechanism that puts
+    some touches beyond the outlier bound puts others below it, in the fit;
+    a catalogue cause named beside it that explains less than the outliers
+    carry (their baseline sum of squares) may be taking a share of those
+    readings rather than its own physics. The centred turn's version, which
+    needs no size, is :func:`_doubt_beside_turned_outliers`. Session 16
+    (docs/discovery.md, "Session 16: confident misnamings"): gen_a
+    reseat_hysteresis 1087, `stylus_bending` (2.8 um^2) confident beside
+    six outliers carrying 59 um^2, concentration p 0.0098.
+    """
+    gathered = [f for f in findings if f.cause == causes_mod.OUTLIER and (
+        (f.evidence.get("concentration_p") is not None and f.evidence["concentration_p"] < settings.alpha)
+        or f.evidence.get("place_structure") is not None)]
+    if not gathered:
+        return
+    d = gathered[0]
+    carried = d.evidence.get("explained_ss_um2") or 0.0
+    for f in findings:
+        if f.cause in (causes_mod.OUTLIER, causes_mod.UNEXPLAINED) or f.evidence.get("confidence") != "named":
+            continue
+        if (f.evidence.get("explained_ss_um2") or 0.0) >= carried:
+            continue
+        f.evidence["confidence"] = "ambiguous"
+        f.evidence["confidence_reason"] = (
+            f"beside it outliers that are no dust (they gather in a covariate or on a place of the part) carry "
+            f"{carried:.3g} um^2, more than this cause explains ({f.evidence.get('explained_ss_um2') or 0.0:.3g} "
+            "um^2): the mechanism behind them, out of the catalogue, has readings below the outlier bound in the "
+            "fit, which this cause may be taking")
 
 
 def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, places=None, history=None) -> Finding:
