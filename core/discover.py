@@ -4315,20 +4315,27 @@ def _doubt_beside_noise_excess(findings: list) -> None:
     debiased by ``k sigma^2`` and materialities are ``0.3 sigma``, so an
     inflated sigma leaves those checks blind (docs/discovery.md, gen_a
     reseat_hysteresis 1609: the rival debiased to 0 um^2 with the repeats'
-    1.52 um). A cause they pass is then not confidently named. Session 16
+    1.52 um). A cause they pass is then not confidently named where the
+    rival check read nothing (its rival debiased to 0 um^2): where the
+    rival still explains something the comparison was made with that noise
+    in it and the cause won it (gen_a probe_lobing 1933, right, its rival
+    73 um^2 against the cause's 167, stays named). Session 16
     (docs/discovery.md, "Session 16: confident misnamings"): gen_a
     reseat_hysteresis 1130, `c_drift` confident beside a 3.0 um scatter of
-    the repeats.
+    the repeats, its rival (time within the set-up) debiased to 0 um^2.
     """
     if not any(f.cause == causes_mod.UNEXPLAINED and f.evidence.get("noise_excess") for f in findings):
         return
     for f in findings:
         if f.cause in (causes_mod.OUTLIER, causes_mod.UNEXPLAINED) or f.evidence.get("confidence") != "named":
             continue
+        if f.evidence.get("rival") is None or (f.evidence.get("rival_explained_ss_um2") or 0.0) > 0.0:
+            continue
         f.evidence["confidence"] = "ambiguous"
         f.evidence["confidence_reason"] = (
             "beside it the scatter left is above any touch-trigger probe's noise (an unexplained noise "
-            "excess): its confidence checks were judged against that noise, which blinds them")
+            f"excess): its rival ({f.evidence['rival']}) was debiased with that noise to nothing, so the "
+            "check that would have seen a plainer explanation was blind")
 
 
 def _doubt_beside_gathered_outliers(findings: list, settings) -> None:

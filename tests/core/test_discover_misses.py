@@ -1126,23 +1126,30 @@ def test_gen_a_reseat_hysteresis_1087_named_cause_beside_gathered_outliers_in_do
 
 def test_doubt_beside_noise_excess_unit():
     """_doubt_beside_noise_excess on made-up findings: an unexplained noise excess makes every named cause
-    ambiguous (the first and a secondary alike), with the reason; an unexplained finding without the excess
-    leaves them named; an ambiguous cause keeps its own reason; outlier and unexplained findings are not
-    touched. Known answers by construction (main f3c9460 has no such rule)."""
+    whose rival was debiased to nothing ambiguous (the first and a secondary alike), with the reason; a cause
+    whose rival still explains something (gen_a probe_lobing 1933's figures), or with no rival, stays named;
+    an unexplained finding without the excess leaves them all named; an ambiguous cause keeps its own reason;
+    outlier and unexplained findings are not touched. Known answers by construction (main f3c9460 has no
+    such rule)."""
     from core.discover import Finding, _doubt_beside_noise_excess
 
     def f(cause, **ev):
         return Finding(cause, dict(ev), {}, {}, 0.1)
 
-    fs = [f("c_drift", confidence="named"), f("unexplained", noise_excess=False), f("outlier", confidence="named")]
-    _doubt_beside_noise_excess(fs)
-    assert [x.evidence.get("confidence") for x in fs] == ["named", None, "named"]
-    fs = [f("c_drift", confidence="named"), f("thermal_drift", confidence="ambiguous", confidence_reason="own"),
-          f("stylus_bending", confidence="named"), f("unexplained", noise_excess=True),
+    blind = {"rival": "time_in_setup", "rival_explained_ss_um2": 0.0}
+    fs = [f("c_drift", confidence="named", **blind), f("unexplained", noise_excess=False),
           f("outlier", confidence="named")]
     _doubt_beside_noise_excess(fs)
-    assert [x.evidence.get("confidence") for x in fs] == ["ambiguous", "ambiguous", "ambiguous", None, "named"]
-    assert "noise excess" in fs[0].evidence["confidence_reason"] and "noise excess" in fs[2].evidence[
+    assert [x.evidence.get("confidence") for x in fs] == ["named", None, "named"]
+    fs = [f("c_drift", confidence="named", **blind), f("thermal_drift", confidence="ambiguous",
+          confidence_reason="own", **blind), f("stylus_bending", confidence="named", **blind),
+          f("probe_lobing", confidence="named", rival="approach_azimuth", rival_explained_ss_um2=73.4),
+          f("part_change", confidence="named", rival=None), f("unexplained", noise_excess=True),
+          f("outlier", confidence="named")]
+    _doubt_beside_noise_excess(fs)
+    assert [x.evidence.get("confidence") for x in fs] == ["ambiguous", "ambiguous", "ambiguous", "named", "named",
+                                                          None, "named"]
+    assert "noise excess" in fs[0].evidence["confidence_reason"] and "time_in_setup" in fs[2].evidence[
         "confidence_reason"]
     assert fs[1].evidence["confidence_reason"] == "own"
     _doubt_beside_noise_excess([])  # nothing to judge: no error
