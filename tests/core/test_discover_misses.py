@@ -1030,3 +1030,138 @@ def test_gen_b_stylus_bending_1041_named_where_the_feature_term_nests_it():
     assert f["cause"] == "stylus_bending", rep["rejected"]
     assert f["evidence"]["confidence"] == "ambiguous"
     assert any(a["covariate"] == "feature" for a in f["evidence"]["alternatives"])
+
+
+@pytest.mark.parametrize("findings, first, confidence", [
+    ([_f("unexplained", 13.0, text="residuals follow time"), _f("outlier", 50.0, "named")], "outlier", "ambiguous"),
+    ([_f("unexplained", 0.0), _f("outlier", 75.0, "named")], "outlier", "ambiguous"),  # a held-out gap beside
+    ([_f("outlier", 75.0, "named")], "outlier", "named"),  # dust alone: nothing beside it says the model is wrong
+    ([_f("unexplained", 3.8), _f("outlier", 12.4, "ambiguous", confidence_reason="own")], "outlier", "ambiguous"),
+    ([_f("local_scale_defect", 1.8, "named"), _f("outlier", 18.9, "named")], "local_scale_defect", "named"),
+    ([_f("unexplained", 341.5), _f("outlier", 70.4, "named")], "unexplained", "named"),  # the structure leads
+])
+def test_outliers_leading_beside_unnamed_structure_are_not_confidently_dust(findings, first, confidence):
+    """_ordered: outliers that lead beside an `unexplained` finding were judged against a model the finding
+    says is wrong, and may be its largest residuals: the outlier finding is ambiguous, with a reason naming
+    the structure; outliers alone, or outliers that do not lead, keep their confidence, and a reason already
+    given is kept. Known answers by construction (main f3c9460 fails the first two: the outliers stay named)."""
+    out = _ordered(findings, 2.0)
+    assert out[0].cause == first
+    dust = next(f for f in out if f.cause == "outlier")
+    assert dust.evidence["confidence"] == confidence, dust.evidence
+    if len(findings) > 1 and first == "outlier" and findings[-1].evidence.get("confidence_reason") != "own":
+        assert "structure the model does not name" in dust.evidence["confidence_reason"]
+        assert "residuals follow time" in dust.evidence["confidence_reason"] or findings[0].evidence.get(
+            "text") is None
+    if findings[-1].evidence.get("confidence_reason") == "own":
+        assert dust.evidence["confidence_reason"] == "own"
+
+
+@pytest.mark.parametrize("effect, seed", [("knock", 1085), ("reseat_hysteresis", 1036)])
+def test_gen_a_outliers_beside_unnamed_structure_not_confidently_misnamed(effect, seed):
+    """Two tuning campaigns of gen_a (out of catalogue) read `outlier` confidently on main f3c9460, each
+    with an `unexplained` finding beside the outliers (session 16, docs/discovery.md): knock 1085 (five of
+    the six outliers are touches of set-up B after the knock, the step its set-up's parameters half absorb;
+    structure left in time, 0.24 um, p 2.6e-8) and reseat_hysteresis 1036 (two minority readings of the
+    re-seats, -5.5 and +5.1 um, beside a lack of fit F = 24.5 against the repeats). The outcome must not be
+    a confident wrong name, and the outlier finding says why (main f3c9460 fails both)."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+
+    log, _ = gen_a.generate(effect, seed)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
+    assert "structure the model does not name" in f["evidence"]["confidence_reason"]
+    assert any(g["cause"] == "unexplained" for g in rep["findings"][1:])
+
+
+def test_doubt_beside_gathered_outliers_unit():
+    """_doubt_beside_gathered_outliers on made-up findings: outliers that are no dust (concentration p below
+    alpha, or structure on their feature) and carry more than a named cause explains make it ambiguous, with
+    the sizes in the reason; outliers that are dust (p at or above alpha, or no test: p None), or carry less
+    than the cause explains, leave it named; an ambiguous cause keeps its own reason; outlier and unexplained
+    findings are not touched. Known answers by construction (main f3c9460 has no such rule: the first case
+    stays named there)."""
+    from core.discover import Finding, Settings, _doubt_beside_gathered_outliers
+
+    def f(cause, **ev):
+        return Finding(cause, dict(ev), {}, {}, 0.1)
+
+    st = Settings()
+    fs = [f("stylus_bending", confidence="named", explained_ss_um2=2.77), f("c_drift", confidence="ambiguous",
+          confidence_reason="own", explained_ss_um2=1.0), f("unexplained", confidence="named", explained_ss_um2=1.0),
+          f("outlier", confidence="ambiguous", concentration_p=0.0098, explained_ss_um2=59.3)]
+    _doubt_beside_gathered_outliers(fs, st)
+    assert [x.evidence["confidence"] for x in fs] == ["ambiguous", "ambiguous", "named", "ambiguous"]
+    assert "59.3 um^2" in fs[0].evidence["confidence_reason"] and "2.77" in fs[0].evidence["confidence_reason"]
+    assert fs[1].evidence["confidence_reason"] == "own" and "confidence_reason" not in fs[2].evidence
+    for out in (f("outlier", confidence="named", concentration_p=0.01, explained_ss_um2=59.3),  # at alpha: dust
+                f("outlier", confidence="ambiguous", concentration_p=None, explained_ss_um2=59.3),  # one event
+                f("outlier", confidence="ambiguous", concentration_p=0.001, explained_ss_um2=2.0),  # smaller
+                f("outlier", confidence="ambiguous", concentration_p=0.001)):  # no sum of squares: carries nothing
+        fs = [f("local_scale_defect", confidence="named", explained_ss_um2=2.77), out]
+        _doubt_beside_gathered_outliers(fs, st)
+        assert fs[0].evidence["confidence"] == "named", out.evidence
+    fs = [f("local_scale_defect", confidence="named", explained_ss_um2=2.77),
+          f("outlier", confidence="ambiguous", concentration_p=0.5, explained_ss_um2=18.9,
+            place_structure={"feature": "wall1"})]
+    _doubt_beside_gathered_outliers(fs, st)
+    assert fs[0].evidence["confidence"] == "ambiguous"
+
+
+def test_gen_a_reseat_hysteresis_1087_named_cause_beside_gathered_outliers_in_doubt():
+    """gen_a reseat_hysteresis 1087 (out of catalogue) read `stylus_bending` confidently on main f3c9460
+    (session 16): the cause explains 2.77 um^2 beside six outliers carrying 59.3 um^2 whose concentration
+    p 0.0098 (below alpha 0.01) says they are a mechanism, not dust (their centred turn p 0.023 is not below
+    0.0025, so the turn's rule does not fire). The cause must not stay confident (main fails)."""
+    from scenarios.blind import gen_a
+    from scenarios.hidden import blind_outcome
+
+    o = blind_outcome(gen_a, "reseat_hysteresis", 1087, generator="gen_a")
+    assert o.cause == "stylus_bending" and not o.confident, (o.cause, o.confident)
+
+
+def test_doubt_beside_noise_excess_unit():
+    """_doubt_beside_noise_excess on made-up findings: an unexplained noise excess makes every named cause
+    whose rival was debiased to nothing ambiguous (the first and a secondary alike), with the reason; a cause
+    whose rival still explains something (gen_a probe_lobing 1933's figures), or with no rival, stays named;
+    an unexplained finding without the excess leaves them all named; an ambiguous cause keeps its own reason;
+    outlier and unexplained findings are not touched. Known answers by construction (main f3c9460 has no
+    such rule)."""
+    from core.discover import Finding, _doubt_beside_noise_excess
+
+    def f(cause, **ev):
+        return Finding(cause, dict(ev), {}, {}, 0.1)
+
+    blind = {"rival": "time_in_setup", "rival_explained_ss_um2": 0.0}
+    fs = [f("c_drift", confidence="named", **blind), f("unexplained", noise_excess=False),
+          f("outlier", confidence="named")]
+    _doubt_beside_noise_excess(fs)
+    assert [x.evidence.get("confidence") for x in fs] == ["named", None, "named"]
+    fs = [f("c_drift", confidence="named", **blind), f("thermal_drift", confidence="ambiguous",
+          confidence_reason="own", **blind), f("stylus_bending", confidence="named", **blind),
+          f("probe_lobing", confidence="named", rival="approach_azimuth", rival_explained_ss_um2=73.4),
+          f("part_change", confidence="named", rival=None), f("unexplained", noise_excess=True),
+          f("outlier", confidence="named")]
+    _doubt_beside_noise_excess(fs)
+    assert [x.evidence.get("confidence") for x in fs] == ["ambiguous", "ambiguous", "ambiguous", "named", "named",
+                                                          None, "named"]
+    assert "noise excess" in fs[0].evidence["confidence_reason"] and "time_in_setup" in fs[2].evidence[
+        "confidence_reason"]
+    assert fs[1].evidence["confidence_reason"] == "own"
+    _doubt_beside_noise_excess([])  # nothing to judge: no error
+
+
+def test_gen_a_reseat_hysteresis_1130_named_cause_beside_a_noise_excess_in_doubt():
+    """gen_a reseat_hysteresis 1130 (out of catalogue) read `c_drift` confidently on main f3c9460 (session 16)
+    beside an unexplained noise excess: the repeats scatter 3.0 um (above the 1.5 um of any touch-trigger
+    probe), the floor its rival and materiality checks were judged with. The cause must not stay confident
+    (main fails)."""
+    from scenarios.blind import gen_a
+    from scenarios.hidden import blind_outcome
+
+    o = blind_outcome(gen_a, "reseat_hysteresis", 1130, generator="gen_a")
+    assert o.cause == "c_drift" and not o.confident, (o.cause, o.confident)
