@@ -42,7 +42,8 @@ What it does, in order, and the statistics behind each step
       confounded and refused (the principal angle to the model is
       reported);
    c. material cross-validated gain: the held-out mean square must fall by
-      at least ``(material_sigma * sigma)^2`` per row;
+      at least ``(material_sigma * sigma)^2`` per row the cause's columns
+      reach (:func:`_support_share`);
    d. plausibility: magnitudes inside the cause's bounds (beyond their
       U95), periods above the Nyquist limit;
    e. the structure lives where the cause says: no smooth function of a
