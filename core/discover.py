@@ -3408,7 +3408,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
 
 #: Whether a cause's own sums of squares are held to materiality over the touches its columns act on (True) or
 #: over every touch (False, the rule before session 16): its held-out gain at adoption, what it explains beyond its
-#: counter-explanation (at adoption and in the rival check) and beyond the best fixture slip. :func:`_support_share`.
+#: counter-explanation (at adoption and in the rival check) and the margin within which the best fixture slip
+#: explains as much as it (not the remainder beyond a material slip). :func:`_support_share`.
 MATERIALITY_OVER_SUPPORT = True
 
 
@@ -3761,9 +3762,11 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
             out["slip_explained_ss_um2"] = max(d_s, 0.0) / UM ** 2
             out["explained_beyond_slip_ss_um2"] = max(d_ns, 0.0) / UM ** 2
             out["p_adjusted_beyond_slip"] = p_ns
-            # (the cause's own sums of squares held to materiality over the touches it acts on; the slip's over all)
+            # (the margin within which the slip explains as much as the cause: the cause's materiality, over the
+            # touches it acts on; the remainder beyond a material slip stays material over every touch, the clause
+            # that keeps a machine-side bending from being named a changing part: docs/discovery.md, session 16)
             m_own = m_ss * _support_share(tm.columns[rows])
-            if (d_s >= m_ss and d_ns < m_own) or (p_ns >= settings.alpha_family and d_s >= d_n - m_own):
+            if (d_s >= m_ss and d_ns < m_ss) or (p_ns >= settings.alpha_family and d_s >= d_n - m_own):
                 out["kept"] = False
                 out["counter"] = cause.counter_scan.__name__.replace("_", " ")
                 out["counter_explained_ss_um2"] = out["slip_explained_ss_um2"]

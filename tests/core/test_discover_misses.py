@@ -768,28 +768,20 @@ def test_gen_a_part_change_a_boss_ovalising_named(seed):
 
 
 @pytest.mark.parametrize("seed", [1508, 1701])
-def test_dropped_cause_still_significant_is_no_none(seed, monkeypatch):
+def test_dropped_cause_still_significant_is_no_none(seed):
     """gen_b part_change 1508 and 1701 (fresh seeds of session 11, opened to diagnose them) read `none`:
     part_change was adopted (p = 1.6e-5 and 8e-16 after its Bonferroni, material held-out gains) and the
     rival check dropped it for a one-off slip of the part explaining as much; the catalogue-free tests then
     saw nothing (no covariate at alpha_family, no held-out gap, no lack of fit) and the report said `none`.
     A dropped cause whose columns still explain a material, significant sum of squares beyond the model
     kept is structure (core.discover._dropped_still_significant): `unexplained`, saying so and naming the rival
-    that dropped it. Fails on a3ba8ad. Since session 16 the slip check holds part_change's own sums of squares
-    to materiality over the touches it acts on (core.discover._support_share): both are named part_change
-    (the slot's change is what the slip was weighed against); the dropped-cause rule is checked with that
-    switched off (the rule before it, under which the slip drops it)."""
+    that dropped it. Fails on a3ba8ad."""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_b
 
-    import core.discover as D
-
     log, _ = gen_b.generate("part_change", seed)
     t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
-    assert rep["findings"][0]["cause"] == "part_change", (rep["cause"], rep["rejected"])
-    monkeypatch.setattr(D, "MATERIALITY_OVER_SUPPORT", False)
     rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
     assert rep["cause"] == "unexplained", (rep["cause"], rep["rejected"])
     left = rep["structure"]["extended"]["dropped_still_significant"]
