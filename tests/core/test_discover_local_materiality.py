@@ -7,8 +7,9 @@ construction; gen_a part_change 1027 and 1040 read `none`, confident, with
 part_change significant (p 2.7e-4 and 4e-7 after its Bonferroni) and its
 held-out gain between the two thresholds. The materiality of a cause's own
 sums of squares (its held-out gain at adoption, what it explains beyond its
-plainer counter-explanation and beyond the best fixture slip) is now counted
-over the rows its columns reach (:func:`core.discover._support_share`).
+plainer counter-explanation, and the margin within which the best fixture slip
+explains as much as it) is now counted over the rows its columns reach
+(:func:`core.discover._support_share`).
 """
 
 from __future__ import annotations
