@@ -42,7 +42,8 @@ What it does, in order, and the statistics behind each step
       confounded and refused (the principal angle to the model is
       reported);
    c. material cross-validated gain: the held-out mean square must fall by
-      at least ``(material_sigma * sigma)^2`` per row;
+      at least ``(material_sigma * sigma)^2`` per row the cause's columns
+      reach (:func:`_support_share`);
    d. plausibility: magnitudes inside the cause's bounds (beyond their
       U95), periods above the Nyquist limit;
    e. the structure lives where the cause says: no smooth function of a
@@ -2991,7 +2992,8 @@ def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: f
                       f"beyond the cause ({fmt_p(p_s)})"}
 
 
-def _beyond(st: _State, U_alt: np.ndarray, E: np.ndarray, sigma: float, tries: float, settings) -> tuple:
+def _beyond(st: _State, U_alt: np.ndarray, E: np.ndarray, sigma: float, tries: float, settings,
+            share: float = 1.0) -> tuple:
     """What the cause's columns ``E`` (rows used) explain once a plainer explanation is in the model.
 
     ``U_alt``: the plainer explanation's orthonormal basis outside ``st.Q``
@@ -3005,6 +3007,8 @@ def _beyond(st: _State, U_alt: np.ndarray, E: np.ndarray, sigma: float, tries: f
     model + alternative, still explain a material amount (debiased, at
     least ``(material_sigma * sigma)^2`` per row) that is significant
     (nested F test with the Bonferroni factor ``tries`` of its adoption).
+    ``share``: the rows the cause acts on, as a share of ``st``'s
+    (:func:`_support_share`): the materiality is counted over those.
 
     Returns
     -------
@@ -3016,7 +3020,7 @@ def _beyond(st: _State, U_alt: np.ndarray, E: np.ndarray, sigma: float, tries: f
     Un = new_basis(Qa, E)
     d = float(np.sum((Un.T @ ra) ** 2)) - Un.shape[1] * sigma ** 2
     p = min(1.0, nested_f(Un, ra, float(ra @ ra), len(rows) - Qa.shape[1]).p_value * tries)
-    stands = bool(d >= (settings.material_sigma * sigma) ** 2 * len(rows) and p < settings.alpha_family)
+    stands = bool(d >= (settings.material_sigma * sigma) ** 2 * len(rows) * share and p < settings.alpha_family)
     return d, p, stands
 
 
@@ -3410,8 +3414,10 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         ss_c, k_c, _, _ = single
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
         d_c, Uc = _counter_ss(bl, cause, st, rows, sigma)
-        if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) and cause.counter_cause is not None \
-                and not _beyond(st, Uc, cols[rows], sigma, tries, settings)[2]:
+        reach = _support_share(cols[rows])  # (materiality over the touches the cause acts on)
+        if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) * reach \
+                and cause.counter_cause is not None and not _beyond(st, Uc, cols[rows], sigma, tries, settings,
+                                                                   reach)[2]:
             return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
                               f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
                     "significant": True}
@@ -3445,7 +3451,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     cv = folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), kept[rows]]) if terms else kept[rows],
                    _penalty_beside(terms, kept.shape[1]))
     gain = cv_cur - cv
-    m2 = (settings.material_sigma * sigma) ** 2
+    # materiality per touch the cause acts on (a local cause, one feature's walls, counted over its own touches)
+    m2 = (settings.material_sigma * sigma) ** 2 * _support_share(kept[rows])
     ev.update({"cv_rms_before_um": float(np.sqrt(cv_cur)) / UM, "cv_rms_after_um": float(np.sqrt(cv)) / UM,
                "cv_gain_um2": gain / UM ** 2, "materiality_um2": m2 / UM ** 2})
     if gain < m2:
@@ -3454,6 +3461,45 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak, origin=cause,
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
     return _plausible(cause, bl, tm, st, rows, cv, boot=(folds, terms))
+
+
+#: Whether a cause's own sums of squares are held to materiality over the touches its columns act on (True) or
+#: over every touch (False, the rule before session 16): its held-out gain at adoption, what it explains beyond its
+#: counter-explanation (at adoption and in the rival check) and the margin within which the best fixture slip
+#: explains as much as it (not the remainder beyond a material slip). :func:`_support_share`.
+MATERIALITY_OVER_SUPPORT = True
+
+
+def _support_share(E: np.ndarray) -> float:
+    """The share of rows on which any column of ``E`` (n, k) acts: the scale of a cause's materiality.
+
+    Materiality is ``(material_sigma sigma)^2`` per touch of the effect: an
+    effect that small moves a target's workpiece estimate by less than half
+    its own uncertainty. A cause whose columns are zero off a few touches (a
+    changing feature: its walls' columns vanish off that feature) acts on
+    those touches only; counted over every touch of the campaign its
+    threshold grows with the touches it never reaches, so that a change of
+    1 sigma per touch on a wall of 16 touches in 256 (6 %) is immaterial by
+    construction (it needs 9 %). The held-out gain (a mean square over all
+    rows) is compared with the materiality scaled by this share, i.e. its
+    sum of squares with ``(material_sigma sigma)^2`` per touch reached.
+    A row is reached where a column's magnitude exceeds 1e-9 of that
+    column's largest; a cause acting on every row keeps the share 1 (the
+    rule unchanged), as does every cause when :data:`MATERIALITY_OVER_SUPPORT`
+    is off. Materiality is a relevance gate beside the significance test:
+    the false-alarm rate stays that of the cause's Bonferroni-corrected F test.
+    """
+    E = np.asarray(E, float)
+    if E.ndim != 2 or E.shape[0] == 0:
+        raise ValueError(f"_support_share needs an (n, k) matrix with rows, got shape {E.shape}")
+    if not np.all(np.isfinite(E)):
+        raise ValueError("_support_share: columns with non-finite values")
+    if not MATERIALITY_OVER_SUPPORT or E.shape[1] == 0:
+        return 1.0
+    a = np.abs(E)
+    top = a.max(axis=0)
+    reached = np.any((a > 1e-9 * top) & (top > 0), axis=1)
+    return float(max(np.mean(reached), 1.0 / E.shape[0]))
 
 
 def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float, boot: tuple | None = None) -> dict:
@@ -3859,8 +3905,9 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
         d_c, Uc = _counter_ss(bl, cause, so, rows, sigma)
         out["counter"] = cause.counter.__name__.replace("_", " ")
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
-        if d_c > d_n - m_ss:
-            d_b, p_b, stands = _beyond(so, Uc, tm.columns[rows], sigma, tm.tries, settings)
+        reach = _support_share(tm.columns[rows])  # (materiality over the touches the cause acts on)
+        if d_c > d_n - m_ss * reach:
+            d_b, p_b, stands = _beyond(so, Uc, tm.columns[rows], sigma, tm.tries, settings, reach)
             out["explained_beyond_counter_ss_um2"] = max(d_b, 0.0) / UM ** 2
             out["p_adjusted_beyond_counter"] = p_b
             if not stands and cause.counter_cause is not None:
@@ -3904,7 +3951,11 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
             out["slip_explained_ss_um2"] = max(d_s, 0.0) / UM ** 2
             out["explained_beyond_slip_ss_um2"] = max(d_ns, 0.0) / UM ** 2
             out["p_adjusted_beyond_slip"] = p_ns
-            if (d_s >= m_ss and d_ns < m_ss) or (p_ns >= settings.alpha_family and d_s >= d_n - m_ss):
+            # (the margin within which the slip explains as much as the cause: the cause's materiality, over the
+            # touches it acts on; the remainder beyond a material slip stays material over every touch, the clause
+            # that keeps a machine-side bending from being named a changing part: docs/discovery.md, session 16)
+            m_own = m_ss * _support_share(tm.columns[rows])
+            if (d_s >= m_ss and d_ns < m_ss) or (p_ns >= settings.alpha_family and d_s >= d_n - m_own):
                 out["kept"] = False
                 out["counter"] = cause.counter_scan.__name__.replace("_", " ")
                 out["counter_explained_ss_um2"] = out["slip_explained_ss_um2"]
