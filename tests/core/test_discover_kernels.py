@@ -1238,3 +1238,18 @@ def test_a_discover_run_leaves_no_projection_kept(monkeypatch):
     discover(t)
     assert max(kept) > 0
     assert len(D._EXTENDS) == len(D._OUTSIDE_BASE) == 0
+
+
+def test_first_largest_takes_the_earliest_of_tied_statistics():
+    """The outlier screen's pick among statistics tied in exact arithmetic is the earliest row, whatever the
+    rounding (gen_a reseat_hysteresis 1087: rows 83 and 85 at t 8.667225540449, 1e-14 apart, picked by the BLAS
+    kernel's rounding before); a real difference, even of 1e-8 relative, still picks the largest."""
+    from core.discover import TIE_RTOL, _first_largest
+
+    t = np.array([3.0, 8.667225540449035, 1.0, 8.667225540448928, 2.0])
+    assert _first_largest(t) == 1
+    assert _first_largest(t[::-1]) == 1  # (reversed: the tied pair is at 1 and 3; the earliest wins)
+    u = t.copy()
+    u[3] *= 1 + 1e-8
+    assert _first_largest(u) == 3 and 1e-8 > TIE_RTOL
+    assert _first_largest(np.array([0.0, 0.0])) == 0 and _first_largest(np.array([-2.0, -1.0])) == 1
