@@ -3645,8 +3645,11 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
     rng = np.random.default_rng(PENALISED_BOOT_SEED)
     # the truths: the fitted coefficients plus a draw of the ridge's posterior s^2 (E^T E + P)^-1 (its prior's spread
     # along what the data do not determine: the split with the baseline, one axis' field for the other's)
+    # (through the covariance's principal square root V sqrt(w) V^T, unique for a symmetric positive semi-definite
+    # matrix: V alone is not where eigenvalues (nearly) repeat, and BLAS kernels that round differently rotate it,
+    # so V sqrt(w) drew other truths on other machines: gen_a nonrigid 2's EX peak interval 5.64 to 6.09 um high)
     w, V = np.linalg.eigh(s2 * np.linalg.pinv(G + tm.penalty, rcond=1e-12, hermitian=True))
-    Ct = c_hat[:, None] + (V * np.sqrt(np.maximum(w, 0.0))) @ rng.standard_normal((k, PENALISED_BOOT))
+    Ct = c_hat[:, None] + ((V * np.sqrt(np.maximum(w, 0.0))) @ V.T) @ rng.standard_normal((k, PENALISED_BOOT))
     Z = rng.standard_normal((n, PENALISED_BOOT)) * np.sqrt(s2)
     fit = Ep @ Ct
     Y = (yr - ro)[:, None] + fit + Z  # the model's part beside the cause, each truth's field, noise

@@ -91,9 +91,16 @@ only, its four ``params_u95`` (EX RMS 0.270 -> 0.639 um, EX peak 2.70 ->
 5.06, EY RMS 0.175 -> 0.269, EY peak 0.375 -> 9.06) and its evidence's new
 ``magnitude_interval95``; the other fifteen reports unchanged (their
 references kept as stored; make.py's ``report_of`` wrote this one alone).
-The bootstrap chooses a ridge per refit: a choice another machine's
-kernels flipped would move a quantile beyond ``REL`` (not measured
-whether any refit's held-out mean squares are that near a tie here).
+Refreshed again (session 17) when that bootstrap drew other truths on other
+machines: its truths were ``V sqrt(w) z`` with ``V`` the posterior
+covariance's eigenvectors, which are not unique where eigenvalues nearly
+repeat, so OpenBLAS's SkylakeX and Haswell kernels rotated them apart (the
+EX peak's upper bound 5.80 and 5.64 um, stored 6.09); now the covariance's
+principal square root ``V sqrt(w) V^T`` (unique), the three kernel
+configurations below agree to 3e-13 relative. Only gen_a nonrigid 2's
+eleven bootstrap leaves moved (``params_u95``: EX RMS 0.639 -> 0.651 um,
+EX peak 5.06 -> 4.70, EY RMS 0.269 -> 0.317, EY peak 9.06 -> 8.97; and
+``magnitude_interval95``, another sample of the same posterior).
 
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within
