@@ -156,13 +156,22 @@ What it does, in order, and the statistics behind each step
    an intermittent mechanism), and, two or more of them on a planar
    campaign, residuals that do not follow the turn of the approach taken
    relative to their target's other touches (:func:`centred_turn_p` at
-   ``alpha_family``: a re-seat a target's parameter half absorbs). A name reported ``ambiguous`` is the best
+   ``alpha_family``: a re-seat a target's parameter half absorbs). Three
+   rules beside the findings (session 16) only move such a flag: outliers
+   that lead beside structure left unnamed are not confidently dust (the
+   largest residuals of a misfit sit where it peaks; :func:`_ordered`); a
+   named cause smaller than outliers whose own tests say mechanism is
+   ambiguous (:func:`_doubt_beside_gathered_outliers`); and a named cause
+   beside an unexplained noise excess whose rival check read nothing (its
+   rival debiased to zero by that noise) is ambiguous
+   (:func:`_doubt_beside_noise_excess`). A name reported ``ambiguous`` is the best
    the catalogue offers, not a claim that the mechanism is known.
 9. **Order**: the findings best first, the first the report's cause
    (:func:`_ordered`): the systematic ones by what they explain, the
    outliers after them unless they are material and beside them is only
    unnamed structure that explains less than they carry, with no noise
-   excess.
+   excess; outliers leading beside such structure keep their place and
+   lose their confidence (step 8).
 
 Family-wise false-alarm rate: :attr:`Settings.alpha`, split equally over
 the four families of tests (lack of fit, CV gap, diagnosis, named causes).
@@ -981,7 +990,8 @@ class Term:
     labels_all: tuple = ()  # the scan's labels (the magnitudes' coefficient layout)
     map: np.ndarray | None = field(default=None, repr=False)  # (k_all, k): label coefficients per column
     cols_all: np.ndarray | None = field(default=None, repr=False)  # (N, k_all) the scan's columns
-    # (Qo, rows, magnitudes, u95) of the adoption test: the model it was judged beside
+    # (Qo, rows, magnitudes, u95, names of the penalised terms it was fitted beside) of the adoption test: the model
+    # it was judged beside (Qo does not show the penalised terms)
     at_adoption: tuple | None = field(default=None, repr=False, compare=False)
     unnamed: bool = False
 
@@ -1274,12 +1284,12 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
 #: Relative width within which two statistics are taken as tied (:func:`_first_largest`): rounding
 #: differences between BLAS kernels measured 1e-14 relative on the same campaign; distinct statistics
 #: closer than 1e-9 are not met in practice.
-TIE_RTOL = 1e-9
+ARGMAX_TIE_RTOL = 1e-9
 
 
 def _first_largest(v: np.ndarray) -> int:
     """The index of the largest value of ``v``, the lowest index among values tied with it (within
-    :data:`TIE_RTOL` relative).
+    :data:`ARGMAX_TIE_RTOL` relative).
 
     Two touches can carry the same statistic in exact arithmetic (the outlier screen's two
     readings of one target whose residuals the fit splits evenly: gen_a reseat_hysteresis 1087,
@@ -1289,7 +1299,9 @@ def _first_largest(v: np.ndarray) -> int:
     index, the earlier touch, makes the choice the data's, not the machine's.
     """
     top = float(np.max(v))
-    return int(np.flatnonzero(v >= top - TIE_RTOL * abs(top))[0])
+    if not np.isfinite(top):  # (a NaN or an infinity: np.argmax's pick, as before the rule)
+        return int(np.argmax(v))
+    return int(np.flatnonzero(v >= top - ARGMAX_TIE_RTOL * abs(top))[0])
 
 
 def _without_row(Q: np.ndarray, k: int) -> np.ndarray:
@@ -1891,6 +1903,19 @@ def _with_convention(bl: Baseline, text: str) -> Baseline:
     return dataclasses.replace(bl, conventions=bl.conventions + (text,))
 
 
+def _releasing(run):
+    """``run`` that releases the projections kept for it when it ends, returned or raised (the parts outside this
+    run's bases, :func:`core.diagnosis.release_projections`: no later run takes them)."""
+    @functools.wraps(run)
+    def released(*args, **kwargs):
+        try:
+            return run(*args, **kwargs)
+        finally:
+            release_projections()
+    return released
+
+
+@_releasing
 def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.random.Generator | None = None,
                       progress=None) -> Discovery:
     """Discovery on any baseline (module docstring: the steps and their statistics)."""
@@ -2320,7 +2345,6 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                                                                f"the unnamed smooth in {t.covariate}" for t in terms))
     named = [t.cause if not t.unnamed else f"unnamed smooth in {t.covariate}" for t in terms]
     model_name = bl.model.split(" (")[0] + "".join(f" + {c}" for c in named) + (" - outliers" if outliers.size else "")
-    release_projections()  # (the parts outside this run's bases: no later run takes them)
     if progress is not None:
         progress(total, total)
     return Discovery(
@@ -3615,8 +3639,9 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
     ``N(c, s^2 (E^T E + P)^-1)`` and a data set from each (the model's
     part beside the cause, the truth's field, normal noise of the fit's
     ``s``; the draws fixed by :data:`PENALISED_BOOT_SEED`); each chooses
-    its own penalty over :data:`PENALTY_GRID` by the same held-out mean
-    square as the search (the folds, beside the other terms with their
+    its own penalty over the search's grid (:data:`PENALTY_GRID` times the
+    scale the search used, so the reported fit's penalty is on it) by the same
+    held-out mean square as the search (the folds, beside the other terms with their
     penalties) and is refitted as the magnitudes are. From the refits'
     errors ``d = m(refit) - m(truth)``, the basic (bias-corrected) 95 %
     interval ``[m - q97.5(d), m - q2.5(d)]`` around the fitted magnitude
@@ -3641,7 +3666,10 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
         raise ValueError(f"penalised bootstrap: noise variance {s2} is not finite and non-negative")
     E = tm.columns[rows]
     G = Ep.T @ Ep
-    scale = float(np.trace(G)) / max(k, 1)
+    # the search's own grid (PENALTY_GRID times the scale of the columns outside the model the cause was adopted
+    # beside, :func:`_evaluate_penalised`), on which the reported fit's penalty lies; the columns' scale outside the
+    # final model (trace(G) / k) is another (0.76-1.14 of it on gen_a nonrigid 1000-1091): session 17's review
+    scale = float(tm.penalty[0, 0]) / float(tm.evidence["penalty"])
     rng = np.random.default_rng(PENALISED_BOOT_SEED)
     # the truths: the fitted coefficients plus a draw of the ridge's posterior s^2 (E^T E + P)^-1 (its prior's spread
     # along what the data do not determine: the split with the baseline, one axis' field for the other's)
