@@ -167,8 +167,22 @@ def project_out(Q: np.ndarray, B: np.ndarray, inplace: bool = False) -> np.ndarr
     ext = _extension_of(Q, B)
     if ext is not None:
         return _project_out_extended(Q, ext, B, inplace)
+    if isinstance(Q, np.ndarray) and isinstance(B, np.ndarray) and B.ndim == 2 and B.nbytes > 2 * PROJECT_BLOCK_BYTES:
+        # a block of columns at a time, each projected in place: a block and its product stay in the core's cache
+        # (the rival check's 480 slip columns on the demo: 4.9 -> 3.3 ms a call; the same products column by column)
+        out = B if inplace else B.copy()
+        w = max(16, PROJECT_BLOCK_BYTES // (8 * max(B.shape[0], 1)))
+        for a in range(0, out.shape[1], w):
+            blk = out[:, a:a + w]
+            blk -= Q @ (Q.T @ blk)
+        return out
     QB = Q @ (Q.T @ B)
     return np.subtract(B, QB, out=B) if inplace else B - QB
+
+
+#: :func:`project_out` projects columns more than twice this many bytes a block of about this many at a time (at
+#: least 16 columns).
+PROJECT_BLOCK_BYTES = 256 << 10
 
 
 #: :func:`extends`' declarations, ``id(Q) -> (Q, Qb)`` (Q held: its id is not reused while declared).
