@@ -193,9 +193,11 @@ PROJECT_BLOCK_BYTES = 256 << 10
 _EXTENDS = Memo(64)
 #: ``B - Qb Qb^T B`` per baseline basis ``Qb`` and columns ``B`` (:func:`project_out`): ``(id(Qb), shape, a
 #: fingerprint of B) -> (Qb, B, Pb)``, ``B`` kept to check a hit is these very numbers (both read-only). Columns of
-#: at most :data:`OUTSIDE_BASE_BYTES` only (256 of them: 128 MiB with their copies). Larger ones are projected in
-#: one step: keeping them cost as much as taking them saved (the rival check's 480 slip columns on the demo, made
-#: twice: 3.8 + 3.0 ms in one step, 6.0 + 1.5 ms kept and taken, their fresh arrays' page faults).
+#: at most :data:`OUTSIDE_BASE_BYTES` only (256 of them: 128 MiB with their copies); larger ones up to
+#: :data:`OUTSIDE_BASE_BIG_BYTES` in :data:`_OUTSIDE_BASE_BIG`. (Session 16 measured keeping the rival check's 480
+#: slip columns as costing what taking them saved, 6.0 + 1.5 ms kept and taken against 3.8 + 3.0 in one step, from
+#: their fresh arrays' page faults; under vmt's allocator settings, projected a block at a time, two such tests
+#: are 8.4-9.5 ms kept and taken against 11.4-12.5 ms in blocks, session 17.)
 _OUTSIDE_BASE = Memo(256)
 OUTSIDE_BASE_BYTES = 256 << 10
 #: :data:`_OUTSIDE_BASE` for columns of more than :data:`OUTSIDE_BASE_BYTES` up to :data:`OUTSIDE_BASE_BIG_BYTES`,
