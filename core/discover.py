@@ -1188,10 +1188,12 @@ def _explains_set_aside(Qall: np.ndarray, y: np.ndarray, all_rows: np.ndarray, r
 
 
 #: :func:`_state`'s last answers in a run, ``(id(Qb), id(y), rows, ids of the terms) -> (Qb, y, terms, state)``
-#: (the objects held so that the ids name them; a dense ``Qb`` only). The engine builds the same model again: the
-#: rival check's and the report's models without and with each cause, the search's state after an adoption (on the
-#: demo 6 of 11 calls, 2.6 of 4.1 ms). Cleared when a run ends (:func:`release_states`).
+#: (the objects held so that the ids name them; a dense ``Qb`` of at most :data:`STATES_KEEP_BYTES` only: sixteen
+#: states' bases beside it, up to about 64 MiB). The engine builds the same model again: the rival check's and the
+#: report's models without and with each cause, the search's state after an adoption (on the demo 6 of 11 calls,
+#: 2.6 of 4.1 ms; its Qb is 0.5 MB). Cleared when a run ends (:func:`release_states`).
 _STATES = Memo(16)
+STATES_KEEP_BYTES = 4 << 20
 
 
 def release_states() -> None:
@@ -1203,7 +1205,7 @@ def _state(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _State:
     """The model of the baseline's basis ``Qb`` and the terms on ``rows`` (a model built before from these very
     objects and rows: that state itself, :data:`_STATES`; no caller writes into a state)."""
     terms = list(terms)
-    if not isinstance(Qb, np.ndarray):
+    if not isinstance(Qb, np.ndarray) or Qb.nbytes > STATES_KEEP_BYTES:
         return _state_made(Qb, y, rows, terms)
     rows_a = np.asarray(rows)
     key = (id(Qb), id(y), rows_a.dtype.str, rows_a.tobytes(), tuple(id(t) for t in terms))
