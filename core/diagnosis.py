@@ -167,19 +167,45 @@ def project_out(Q: np.ndarray, B: np.ndarray, inplace: bool = False) -> np.ndarr
     ext = _extension_of(Q, B)
     if ext is not None:
         return _project_out_extended(Q, ext, B, inplace)
+    if isinstance(Q, np.ndarray) and isinstance(B, np.ndarray) and B.ndim == 2 and B.nbytes > 2 * PROJECT_BLOCK_BYTES:
+        return _project_blocks(Q, B if inplace else B.copy())
     QB = Q @ (Q.T @ B)
     return np.subtract(B, QB, out=B) if inplace else B - QB
+
+
+def _project_blocks(Q: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``B - Q Q^T B`` written over ``B``, a block of :data:`PROJECT_BLOCK_BYTES` of columns at a time (at least 16):
+    a block and its product stay in the core's cache (the rival check's 480 slip columns on the demo: 4.9 -> 3.3 ms
+    a call in one step; the same products column by column, bit for bit at the demo's 432 rows)."""
+    w = max(16, PROJECT_BLOCK_BYTES // (8 * max(B.shape[0], 1)))
+    for a in range(0, B.shape[1], w):
+        blk = B[:, a:a + w]
+        blk -= Q @ (Q.T @ blk)
+    return B
+
+
+#: :func:`project_out` projects columns more than twice this many bytes a block of about this many at a time (at
+#: least 16 columns).
+PROJECT_BLOCK_BYTES = 256 << 10
 
 
 #: :func:`extends`' declarations, ``id(Q) -> (Q, Qb)`` (Q held: its id is not reused while declared).
 _EXTENDS = Memo(64)
 #: ``B - Qb Qb^T B`` per baseline basis ``Qb`` and columns ``B`` (:func:`project_out`): ``(id(Qb), shape, a
 #: fingerprint of B) -> (Qb, B, Pb)``, ``B`` kept to check a hit is these very numbers (both read-only). Columns of
-#: at most :data:`OUTSIDE_BASE_BYTES` only (256 of them: 128 MiB with their copies). Larger ones are projected in
-#: one step: keeping them cost as much as taking them saved (the rival check's 480 slip columns on the demo, made
-#: twice: 3.8 + 3.0 ms in one step, 6.0 + 1.5 ms kept and taken, their fresh arrays' page faults).
+#: at most :data:`OUTSIDE_BASE_BYTES` only (256 of them: 128 MiB with their copies); larger ones up to
+#: :data:`OUTSIDE_BASE_BIG_BYTES` in :data:`_OUTSIDE_BASE_BIG`. (Session 16 measured keeping the rival check's 480
+#: slip columns as costing what taking them saved, 6.0 + 1.5 ms kept and taken against 3.8 + 3.0 in one step, from
+#: their fresh arrays' page faults; under vmt's allocator settings, projected a block at a time, two such tests
+#: are 8.4-9.5 ms kept and taken against 11.4-12.5 ms in blocks, session 17.)
 _OUTSIDE_BASE = Memo(256)
 OUTSIDE_BASE_BYTES = 256 << 10
+#: :data:`_OUTSIDE_BASE` for columns of more than :data:`OUTSIDE_BASE_BYTES` up to :data:`OUTSIDE_BASE_BIG_BYTES`,
+#: the last two (64 MiB with their copies), projected on ``Qb`` a block at a time (:data:`PROJECT_BLOCK_BYTES`):
+#: the rival check's 480 slip columns (1.66 MB on the demo) are tested beside each named cause against the same
+#: baseline, and the second test pays for the causes' few directions only.
+_OUTSIDE_BASE_BIG = Memo(2)
+OUTSIDE_BASE_BIG_BYTES = 16 << 20
 
 
 def extends(Q: np.ndarray, Qb: np.ndarray) -> np.ndarray:
@@ -195,14 +221,15 @@ def extends(Q: np.ndarray, Qb: np.ndarray) -> np.ndarray:
 def release_projections() -> None:
     """Forget :func:`extends`' declarations and the parts outside their bases kept (the end of an engine run: a
     later run's bases are other arrays, so nothing kept would be taken again; up to 128 MiB freed)."""
-    for m in (_EXTENDS, _OUTSIDE_BASE):
+    for m in (_EXTENDS, _OUTSIDE_BASE, _OUTSIDE_BASE_BIG):
         m.clear()
 
 
 def _extension_of(Q, B):
     """The declared ``Qb`` of ``Q`` (:func:`extends`) where ``B`` is small enough to keep its part outside, else
     None."""
-    if not isinstance(Q, np.ndarray) or not isinstance(B, np.ndarray) or B.ndim != 2 or B.nbytes > OUTSIDE_BASE_BYTES:
+    if not isinstance(Q, np.ndarray) or not isinstance(B, np.ndarray) or B.ndim != 2 or \
+            B.nbytes > OUTSIDE_BASE_BIG_BYTES:
         return None
     ent = _EXTENDS.get(id(Q))
     return ent[1] if ent is not None and ent[0] is Q else None
@@ -211,15 +238,19 @@ def _extension_of(Q, B):
 def _project_out_extended(Q: np.ndarray, Qb: np.ndarray, B: np.ndarray, inplace: bool) -> np.ndarray:
     """:func:`project_out` against a declared ``Q = [Qb, U]``: ``B``'s part outside ``Qb`` kept or taken."""
     key = (id(Qb), B.shape, B[0].tobytes(), np.einsum("ij->j", B).tobytes())  # (a fingerprint: a hit is checked)
-    hit = _OUTSIDE_BASE.get(key)
+    memo = _OUTSIDE_BASE if B.nbytes <= OUTSIDE_BASE_BYTES else _OUTSIDE_BASE_BIG
+    hit = memo.get(key)
     if hit is not None and hit[0] is Qb and np.array_equal(hit[1], B):
         Pb = hit[2]
     else:
         Bk = np.array(B)  # (kept: the caller's B may be a temporary written over)
-        Pb = Qb @ (Qb.T @ Bk)
-        np.subtract(Bk, Pb, out=Pb)  # (Bk - Qb Qb^T Bk written over the product: one rows x columns array fewer)
+        if memo is _OUTSIDE_BASE_BIG:
+            Pb = _project_blocks(Qb, Bk.copy())
+        else:
+            Pb = Qb @ (Qb.T @ Bk)
+            np.subtract(Bk, Pb, out=Pb)  # (Bk - Qb Qb^T Bk written over the product: one rows x columns array fewer)
         Bk.flags.writeable = Pb.flags.writeable = False
-        _OUTSIDE_BASE.put(key, (Qb, Bk, Pb))
+        memo.put(key, (Qb, Bk, Pb))
     kb = Qb.shape[1]
     if Q.shape[1] == kb:  # the baseline's basis itself: the one-step product, bit for bit
         if not inplace:
