@@ -559,23 +559,33 @@ class WorkZone:
         orientation's broad phase wherever it was last placed (for segments already in W: its
         ``T_F_R`` may be another pose's).
         """
-        from .clearance import ByOrientation, Clearance, model_geoms
-
-        probe = self._probe_geoms  # about the tip, axes of R (whatever the table's pose)
-        ball = self._pball
         if holder_only:
+            from .clearance import Clearance, model_geoms
+
             key = self._tqpos.tobytes()
             if key not in self._hclr:
                 hm, hd = self._holder_model()
                 self._place(hm, hd, np.zeros(3))
                 table = model_geoms(hm, hd, range(len(self._holder)))
-                self._hclr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
-                                            cert_pad_m=0.0)
+                self._hclr[key] = Clearance(self._probe_geoms, table, [self._feature.get(i, "") for i in self._holder],
+                                            self._pball, cert_pad_m=0.0)
             return self._hclr[key]
         hit = self._at.get(part) if moved else None  # (asked twice per measurement at one pose)
         if hit is not None:
             return hit
+        if not moved:
+            return self._by_orientation(part).get(self._W_R(), move=False)
+        hit = self._at[part] = self._by_orientation(part).get(self._W_R())
+        return hit
+
+    def _by_orientation(self, part: str):
+        """:meth:`clearance`'s broad phases of ``part`` ("all" or "rest") by orientation
+        (:class:`sim.clearance.ByOrientation`), made on first use."""
+        from .clearance import ByOrientation, Clearance
+
         if part not in self._clr:
+            probe = self._probe_geoms  # about the tip, axes of R (whatever the table's pose)
+            ball = self._pball
             pairs = None
             if part == "rest":  # the ball against the table disc, the blocks and the supports only
                 pairs = np.ones((len(self._probe), len(self._table)), bool)
@@ -584,15 +594,12 @@ class WorkZone:
             if "table_W" not in self._shared:  # (the same for every probe at this placement)
                 self._shared["table_W"], self._shared["features"] = self.table_geoms(in_W=True), self._feats
 
-            def build(P, T_F_R, pairs=pairs):
+            def build(P, T_F_R, pairs=pairs, probe_box=None):
                 return Clearance(P, self._shared["table_W"], self._shared["features"], ball, T_F_R=T_F_R,
-                                 pairs=pairs)
+                                 pairs=pairs, probe_box=probe_box)
 
             self._clr[part] = ByOrientation(probe, build)
-        if not moved:
-            return self._clr[part].get(self._W_R(), move=False)
-        hit = self._at[part] = self._clr[part].get(self._W_R())
-        return hit
+        return self._clr[part]
 
     def _W_R(self) -> np.ndarray:
         """(4,4) T_W_R: R in the table's frame, from the table's pose as MuJoCo has it (once per set_table)."""
@@ -1218,7 +1225,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     would judge), in a second pass over those rows alone. A sample is skipped only when its row's
     segment, or the sample itself, is proven farther than :data:`sim.clearance.MARGIN_M` from every
     pair: the rows in A or W and the R samples moved there differ by rounding (1e-16 m)."""
-    from .clearance import Segments, near_segments_many, unique_segments
+    from .clearance import Segments, near_segments_many, orientations_ahead, unique_segments
 
     # (a, b) in A per program (plan object; one bar and ball radius for all: check_measurements')
     plans = list({id(ms[i][5]): ms[i][5] for i in live}.values())
@@ -1230,6 +1237,13 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     in_W = {}  # per (program, placement): its rows in W
     bases = {}  # per broad phase (its certificates): [a Clearance, [its part keys]]
     keys = []  # per live measurement: its two part keys (ball, rest)
+    # the rest broad phases not kept yet, built first, their probes' boxes in one pass (as the loop
+    # below would build each at its measurement)
+    asks = []
+    for i in live:
+        zones[i].set_table(ms[i][2])
+        asks.append((zones[i]._by_orientation("rest"), zones[i]._W_R()))
+    orientations_ahead(asks)
     for i in live:
         wz = zones[i]
         wz.set_table(ms[i][2])
