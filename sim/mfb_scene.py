@@ -979,7 +979,8 @@ def _link_points_A(s_A, features, levels, top_A_m, direct=None) -> tuple[np.ndar
 
 def _segments_A(plans, r: float, top_A_m: float) -> list:
     """Per touch program of ``plans`` (n >= 1 touches each), (a, b) (s,3): the ends, in A, of the
-    segments :func:`_paths_of` gives a measurement of that program (rows in the same order),
+    segments :func:`_paths_of` gives a measurement of that program (rows in the same order), and
+    (s,) int: the row of ``a`` that is each row's ``b`` (``b = a.take(nxt, axis=0)``),
     computed in A from the program (the stylus-centre contacts ``w_A + r wn_A``, the starts
     ``clearance_m`` out along ``wn_A``, the links of :func:`_link_points_A`) rather than brought
     back from R: every measurement of a program has the same rows bit for bit, and a touch's
@@ -1008,7 +1009,7 @@ def _segments_A(plans, r: float, top_A_m: float) -> list:
     b = P.take(nxt, axis=0)
     # each program's polylines (its first touch's approach first) and their points
     cut = np.r_[0, np.cumsum(n_pt)][np.r_[np.searchsorted(touch, t0), len(n_pt)]]
-    return [(P[cut[j]:cut[j + 1]], b[cut[j]:cut[j + 1]]) for j in range(len(plans))]
+    return [(P[cut[j]:cut[j + 1]], b[cut[j]:cut[j + 1]], nxt[cut[j]:cut[j + 1]] - cut[j]) for j in range(len(plans))]
 
 
 def _paths_of(items, link_step_m, approach_step_m) -> list:
@@ -1257,31 +1258,33 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             own.append(key)
             if key in rows_F:
                 continue
-            a, b = segs_A[id(plan)]
+            a, b, nxt = segs_A[id(plan)]
             if place is not None:  # (in W: the same rows for every orientation of this program and placement)
                 pk = (id(plan), key[2])
                 if pk not in in_W:
+                    # (the ends b are rows of a: moved with them, the product being row by row, as
+                    # link_points' one transform of every link is: the same numbers as b @ R + t)
                     R, t = place[:3, :3].T, place[:3, 3]
-                    in_W[pk] = (a @ R + t, b @ R + t)
+                    aW = a @ R + t
+                    in_W[pk] = (aW, aW.take(nxt, axis=0))
                 a, b = in_W[pk]
             fk = (id(clr._fid), id(plan))  # (the program's features as the broad phase's numbers: once each)
             if fk not in fids:
                 ids = np.full(len(allow), -2)
                 ids[is_app] = clr.feature_ids(plan.feature)
-                fids[fk] = ids[sg.path]
+                fids[fk] = ids.take(sg.path)
             rows_F[key] = (a, b, fids[fk])
             bases.setdefault(key[0], [clr, []])[1].append(key)
         keys.append(own)
     # each broad phase's distinct rows, all bounded in one pass: which stay open
     parts, inv = [], {}
     for clr, ks in bases.values():
-        a = np.concatenate([rows_F[k][0] for k in ks])
-        b = np.concatenate([rows_F[k][1] for k in ks])
-        f = np.concatenate([rows_F[k][2] for k in ks])
         if len(ks) > 1:
+            a, b, f = (np.concatenate([rows_F[k][j] for k in ks]) for j in range(3))
             first, back = unique_segments(a, b, f)
-            a, b, f = a.take(first, axis=0), b.take(first, axis=0), f[first]
-        else:  # (one program's rows: few repeat)
+            a, b, f = a.take(first, axis=0), b.take(first, axis=0), f.take(first)
+        else:  # (one program's rows, as they are: few repeat)
+            a, b, f = rows_F[ks[0]]
             back = np.arange(len(f))
         n = len(f)
         parts.append((clr, Segments(a, b, np.ones(n, int), np.ones(n, int), np.arange(n), np.zeros(n, int)), f))
