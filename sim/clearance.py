@@ -1238,7 +1238,8 @@ def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -
     path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt - 1)
     a, b = P.take(a_idx, axis=0), P.take(a_idx + 1, axis=0)
     step = np.asarray(steps_m, float)[path_of_seg]
-    L = np.linalg.norm(b - a, axis=1)
+    d = b - a
+    L = np.sqrt(np.add.reduce(d * d, axis=1))  # (np.linalg.norm's own sum for real rows, without its conj copy)
     k = np.maximum(1, np.ceil(L / step).astype(int))
     if not joints:  # the last point of each polyline: a segment of one sample at fraction 0
         # segments in point order: the one starting at point i is number i (a polyline's last

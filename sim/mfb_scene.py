@@ -107,6 +107,9 @@ class CheckResult:
     samples: int
     collisions: tuple = ()
     min_table_clearance_mm: float = field(default=float("nan"))
+    #: (touches, 3) m, R: each touch's stylus-centre contact as checked (``apply_T(T_R_W @ T_W_A,
+    #: w_A + r wn_A)``; None when not given), for a caller's stroke check (scenarios.mfb.check_plan)
+    contacts_R: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
@@ -420,7 +423,7 @@ class WorkZone:
         self._tpose = [self._tqpos, None]  # (set_table: the pose's entry in _TABLE_POSES)
         self._tkey = None  # (set_table: the pose last set, bytes)
         self._at = {}  # the broad phases at the pose last set (ball_clearance, clearance), by part
-        self._hpairs = {}  # the holder's pairs of each rest broad phase (least_holder_clearance), by its certificates
+        self._hpairs = {}  # the holder's pairs of the rest broad phases (least_holder_clearance), by their pair table
         self._r = float(stylus_r_m)
         self._A_W = None  # (T_A_W: computed when ball_clearance first needs it)
         #: what the work zones of this placement share (_work_zone): the table side's geoms in W
@@ -677,12 +680,14 @@ class WorkZone:
     def _holder_pairs(self, clr) -> tuple:
         """(the pairs of the rest broad phase ``clr`` with a holder geom (indices of its pairs),
         each table geom's index in the holder's model (-1: not the holder's)): shared by the moved
-        copies of a broad phase (kept by its certificates)."""
-        hp = self._hpairs.get(id(clr._certs))
+        copies of a broad phase and by its orientations with the same pairs (kept by their pair
+        table, the pair structure's: :func:`sim.clearance._pair_structure`)."""
+        hp = self._hpairs.get(id(clr.pair_table))
         if hp is None:
             hpos = np.full(len(self._table), -1)
             hpos[self._holder] = np.arange(len(self._holder))  # table geom -> its holder model's geom
-            hp = self._hpairs[id(clr._certs)] = (np.flatnonzero(hpos[clr.pair_table] >= 0), hpos, clr._certs)
+            hp = self._hpairs[id(clr.pair_table)] = (np.flatnonzero(hpos.take(clr.pair_table) >= 0), hpos,
+                                                     clr.pair_table)
         return hp[0], hp[1]
 
     def _holder_distance(self, clr, hpos, tip, pair: int, distmax: float) -> float:
@@ -1206,7 +1211,7 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
         for i in live:
             zones[i].set_table(ms[i][2])
             clear[i] = zones[i].least_holder_clearance(paths[i][0], broad_phase=broad_phase)
-    return [CheckResult(*r, float(c * 1e3)) for r, c in zip(out, clear)]
+    return [CheckResult(*r, float(c * 1e3), None if p is None else p[1]) for r, c, p in zip(out, clear, paths)]
 
 
 def _near_samples(ms, zones, live, sgs) -> dict:
@@ -1235,6 +1240,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
                                                     + r)))
     rows_F = {}  # per (broad phase, program, placement): (a, b, allowed feature ids) in its frame
     fids = {}  # per (feature numbering, program): each row's allowed feature
+    numbering = {}  # per broad phase's feature numbering (its dict's id): its features in order
     in_W = {}  # per (program, placement): its rows in W
     bases = {}  # per broad phase (its certificates): [a Clearance, [its part keys]]
     keys = []  # per live measurement: its two part keys (ball, rest)
@@ -1268,7 +1274,12 @@ def _near_samples(ms, zones, live, sgs) -> dict:
                     aW = a @ R + t
                     in_W[pk] = (aW, aW.take(nxt, axis=0))
                 a, b = in_W[pk]
-            fk = (id(clr._fid), id(plan))  # (the program's features as the broad phase's numbers: once each)
+            # (the program's features as the broad phase's numbers: once per numbering, by its features
+            # in order (a plan's table sides number the bar's features alike), and program)
+            nk = numbering.get(id(clr._fid))
+            if nk is None:
+                nk = numbering[id(clr._fid)] = tuple(clr._fid)
+            fk = (nk, id(plan))
             if fk not in fids:
                 ids = np.full(len(allow), -2)
                 ids[is_app] = clr.feature_ids(plan.feature)
