@@ -150,14 +150,17 @@ before's. Measured: instructions (callgrind, 11 fresh checks less 11 fresh state
 152.8 M a check (-4.6 %; the builds ahead and the W rows -1.5 %, the contacts, holder pairs and lengths -1.1 %,
 the feature numbering and the spec -2.0 %);
 the fresh-check script run side by side with the code before (30 checks each, 4 pairs, load 9-10):
-least check 23.3-24.5 -> 21.1-22.8 ms (paired ratios 0.91-0.93); this collision figure, 6 runs
-interleaved with the code before (the bench's own best of 5 each, load 9-12): the plan check's CPU
-0.0231 -> 0.0209 s (medians; paired ratios 0.85-1.33, median 0.91), its share of the simulation's
-CPU 0.295 -> 0.264 (paired ratios 0.84-1.06, median 0.90; the simulation 0.071-0.095 s); wall share
-0.267 -> 0.252 (median paired ratio 0.95). The target, under 0.25, is not reached. Tried and not
+least check 23.3-24.5 -> 21.1-22.8 ms (paired ratios 0.91-0.93); this collision figure, 10 runs
+interleaved with the code before, one after the other (the bench's own best of 5 each, load 5-12):
+the plan check's CPU 0.0227 -> 0.0209 s (medians; paired ratios 0.85-1.36, median 0.98), its share
+of the simulation's CPU 0.291 -> 0.269 (paired ratios 0.84-1.39, median 0.93; the simulation
+0.071-0.095 s, moved by up to 1.46x between runs as the load changed), and 5 runs side by side with
+it (both under the same load, 7-9): the share 0.294 -> 0.263 (paired ratios 0.86-0.93, every pair
+lower, median 0.87), the check's CPU paired median 0.93; wall share 0.293 -> 0.234 there (paired
+0.27-0.96: wall is noisier). The target, under 0.25 of the simulation's CPU, is not reached. Tried and not
 kept: ``unique_segments``' hash over (n, 3) blocks instead of column by column (the same integers,
 1.5x slower: numpy's strided uint64 sums); a smaller MuJoCo arena (``MjData`` no faster); glibc's
-mmap and trim thresholds raised (no change; a fresh check's kernel time is ~1 ms of 24). Left: the
+mmap and trim thresholds raised (no clear change at that load; a fresh check's kernel time is ~1 ms of 24). Left: the
 three ``unique_segments`` (the rest broad phases' rows could be told apart by the ball's groups in A,
 then the few representatives compared in W), the 14 broad phases' builds (~0.1 ms each with their
 table preps and pair structures), the ball model's compile (~1 ms) and the per-measurement Python
