@@ -688,7 +688,9 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
     for ms, (_, _, T_R_W, _, _, pl, _), r in zip(plan.measurements, todo, check_measurements(art, todo, stylus_r_m)):
         if not r.ok:
             raise PlanError(f"measurement {ms.name!r} ({ms.setup_key}, {ms.stylus}): {r.collisions[0]}")
-        c = A.apply_T(T_R_W @ ms.T_W_A, pl.w_A + stylus_r_m * pl.wn_A)
+        c = r.contacts_R  # (the check's own: apply_T(T_R_W @ T_W_A, w_A + r wn_A), the same numbers)
+        if c is None:
+            c = A.apply_T(T_R_W @ ms.T_W_A, pl.w_A + stylus_r_m * pl.wn_A)
         c_lo, c_hi = c.min(axis=0).tolist(), c.max(axis=0).tolist()  # (the touches' range per axis)
         for j, ax in enumerate("XYZ"):
             lo, hi = cfg.strokes[ax]

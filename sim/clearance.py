@@ -205,11 +205,11 @@ class Clearance:
     """
 
     def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int, T_F_R=None,
-                 cert_pad_m: float = CERT_PAD_M, pairs: np.ndarray | None = None):
+                 cert_pad_m: float = CERT_PAD_M, pairs: np.ndarray | None = None, probe_box=None):
         self.probe, self.table, self.ball = probe, table, int(ball)
         self.cert_pad_m = float(cert_pad_m)
         self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
-        plo, phi = probe.aabb()
+        plo, phi = probe.aabb() if probe_box is None else probe_box  # (probe_box: its aabb, computed with others')
         self.feature, tlo, thi, cl, h_order, self._fid, tfid = _table_prep(table, table_feature)
         st = _pair_structure(table, table_feature, len(probe.kind), self.ball, pairs)
         self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch, (tloT, thiT, tc, pn) = st
@@ -512,21 +512,56 @@ class ByOrientation:
         self.axisym = axisymmetric(probe)
         self._memo = Memo(maxsize)
 
+    def _key(self, R: np.ndarray) -> bytes:
+        """The memo key of the orientation ``R`` (3,3) of F to R."""
+        return np.ascontiguousarray((R[:, 2] if self.axisym else R) + 0.0).tobytes()  # (+0.0: -0 is +0)
+
+    def _in_F(self, R: np.ndarray) -> Geoms:
+        """The probe about the tip, axes of F (F at rotation ``R`` from R)."""
+        P = self.probe
+        return Geoms(P.centre @ R.T, R @ P.axes, P.kind, P.size, P.rbound)
+
     def get(self, T_F_R: np.ndarray, move: bool = True) -> Clearance:
         """The broad phase with F at ``T_F_R`` (4,4) from R. ``move=False``: the broad phase of that
         orientation wherever it was last placed (its geoms in F, pairs and certificates, all a
         caller with segments already in F uses; its ``T_F_R`` may be another pose's)."""
         T_F_R = np.asarray(T_F_R, float)
         R = T_F_R[:3, :3]
-        key = np.ascontiguousarray((R[:, 2] if self.axisym else R) + 0.0).tobytes()  # (+0.0: -0 is +0)
+        key = self._key(R)
         hit = self._memo.get(key)
         if hit is None:
-            P = self.probe
-            P = Geoms(P.centre @ R.T, R @ P.axes, P.kind, P.size, P.rbound)  # about the tip, axes of F
-            hit = self._memo[key] = self._build(P, T_F_R)
+            hit = self._memo[key] = self._build(self._in_F(R), T_F_R)
         elif move and not np.array_equal(hit.T_F_R, T_F_R):
             hit = self._memo[key] = hit.moved(T_F_R)
         return hit
+
+
+def orientations_ahead(asks) -> None:
+    """The broad phases ``asks`` ((ByOrientation, T_F_R (4,4)) each) will be asked for, built now if
+    not kept, as :meth:`ByOrientation.get` would build each at its first ask (in the order of
+    ``asks``, placed at that ask's ``T_F_R``), the probes' boxes in one :meth:`Geoms.aabb` of every
+    new orientation's probe (row by row: the same numbers as one probe at a time). Each
+    ByOrientation's build must take ``probe_box`` ((lo, hi), the probe's aabb in F)."""
+    new, seen = [], set()
+    for bo, T_F_R in asks:
+        T_F_R = np.asarray(T_F_R, float)
+        R = T_F_R[:3, :3]
+        key = bo._key(R)
+        if (id(bo), key) in seen or bo._memo.get(key) is not None:
+            continue
+        seen.add((id(bo), key))
+        new.append((bo, key, T_F_R, bo._in_F(R)))
+    if not new:
+        return
+    if len(new) == 1:
+        boxes = [new[0][3].aabb()]
+    else:
+        Ps = [x[3] for x in new]
+        lo, hi = Geoms(*(np.concatenate([getattr(P, f) for P in Ps]) for f in ("centre", "axes", "kind", "size", "rbound"))).aabb()
+        cut = np.cumsum([len(P.kind) for P in Ps])[:-1]
+        boxes = list(zip(np.split(lo, cut), np.split(hi, cut)))
+    for (bo, key, T_F_R, P), box in zip(new, boxes):
+        bo._memo[key] = bo._build(P, T_F_R, probe_box=box)
 
 
 #: The table side's part of :class:`Clearance` (boxes, clusters, feature numbers) by table
@@ -1203,7 +1238,8 @@ def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -
     path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt - 1)
     a, b = P.take(a_idx, axis=0), P.take(a_idx + 1, axis=0)
     step = np.asarray(steps_m, float)[path_of_seg]
-    L = np.linalg.norm(b - a, axis=1)
+    d = b - a
+    L = np.sqrt(np.add.reduce(d * d, axis=1))  # (np.linalg.norm's own sum for real rows, without its conj copy)
     k = np.maximum(1, np.ceil(L / step).astype(int))
     if not joints:  # the last point of each polyline: a segment of one sample at fraction 0
         # segments in point order: the one starting at point i is number i (a polyline's last

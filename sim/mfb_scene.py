@@ -107,6 +107,9 @@ class CheckResult:
     samples: int
     collisions: tuple = ()
     min_table_clearance_mm: float = field(default=float("nan"))
+    #: (touches, 3) m, R: each touch's stylus-centre contact as checked (``apply_T(T_R_W @ T_W_A,
+    #: w_A + r wn_A)``; None when not given), for a caller's stroke check (scenarios.mfb.check_plan)
+    contacts_R: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
@@ -420,7 +423,7 @@ class WorkZone:
         self._tpose = [self._tqpos, None]  # (set_table: the pose's entry in _TABLE_POSES)
         self._tkey = None  # (set_table: the pose last set, bytes)
         self._at = {}  # the broad phases at the pose last set (ball_clearance, clearance), by part
-        self._hpairs = {}  # the holder's pairs of each rest broad phase (least_holder_clearance), by its certificates
+        self._hpairs = {}  # the holder's pairs of the rest broad phases (least_holder_clearance), by their pair table
         self._r = float(stylus_r_m)
         self._A_W = None  # (T_A_W: computed when ball_clearance first needs it)
         #: what the work zones of this placement share (_work_zone): the table side's geoms in W
@@ -443,6 +446,17 @@ class WorkZone:
                     f'conaffinity="0"/>')
         return (f'<geom name="{prefix}{name}" type="{kind}" size="{_f(size)}" '
                 f'pos="{_f(T[:3, 3])}" quat="{_f(_quat(T[:3, :3]))}" contype="1" conaffinity="0"/>')
+
+    def _geom_spec(self, j: int, prefix: str = "") -> tuple:
+        """Table-side geom j as (name, type, size, pos, quat or None): the values :meth:`_geom_mjcf`
+        writes (each float as its repr, which MJCF reads back as the same float)."""
+        kind, size, T = self._tkind[j], self._tsize[j], self._pose(j)
+        name = self._names[j]
+        if j == 0:
+            return f"{prefix}table_disc", "cylinder", (TABLE_R_M, TABLE_T_M / 2), (0.0, 0.0, -TABLE_T_M / 2), None
+        if name.startswith("fix_") and j <= len(self._args[2]):
+            return f"{prefix}{name}", "box", size, T[:3, 3], None
+        return f"{prefix}{name}", kind, size, T[:3, 3], _quat(T[:3, :3])
 
     def _xml(self, table_geoms, probe_mjcf: str | None = None) -> str:
         return _zone_xml("".join(self._geom_mjcf(j) for j in table_geoms),
@@ -559,23 +573,33 @@ class WorkZone:
         orientation's broad phase wherever it was last placed (for segments already in W: its
         ``T_F_R`` may be another pose's).
         """
-        from .clearance import ByOrientation, Clearance, model_geoms
-
-        probe = self._probe_geoms  # about the tip, axes of R (whatever the table's pose)
-        ball = self._pball
         if holder_only:
+            from .clearance import Clearance, model_geoms
+
             key = self._tqpos.tobytes()
             if key not in self._hclr:
                 hm, hd = self._holder_model()
                 self._place(hm, hd, np.zeros(3))
                 table = model_geoms(hm, hd, range(len(self._holder)))
-                self._hclr[key] = Clearance(probe, table, [self._feature.get(i, "") for i in self._holder], ball,
-                                            cert_pad_m=0.0)
+                self._hclr[key] = Clearance(self._probe_geoms, table, [self._feature.get(i, "") for i in self._holder],
+                                            self._pball, cert_pad_m=0.0)
             return self._hclr[key]
         hit = self._at.get(part) if moved else None  # (asked twice per measurement at one pose)
         if hit is not None:
             return hit
+        if not moved:
+            return self._by_orientation(part).get(self._W_R(), move=False)
+        hit = self._at[part] = self._by_orientation(part).get(self._W_R())
+        return hit
+
+    def _by_orientation(self, part: str):
+        """:meth:`clearance`'s broad phases of ``part`` ("all" or "rest") by orientation
+        (:class:`sim.clearance.ByOrientation`), made on first use."""
+        from .clearance import ByOrientation, Clearance
+
         if part not in self._clr:
+            probe = self._probe_geoms  # about the tip, axes of R (whatever the table's pose)
+            ball = self._pball
             pairs = None
             if part == "rest":  # the ball against the table disc, the blocks and the supports only
                 pairs = np.ones((len(self._probe), len(self._table)), bool)
@@ -584,15 +608,12 @@ class WorkZone:
             if "table_W" not in self._shared:  # (the same for every probe at this placement)
                 self._shared["table_W"], self._shared["features"] = self.table_geoms(in_W=True), self._feats
 
-            def build(P, T_F_R, pairs=pairs):
+            def build(P, T_F_R, pairs=pairs, probe_box=None):
                 return Clearance(P, self._shared["table_W"], self._shared["features"], ball, T_F_R=T_F_R,
-                                 pairs=pairs)
+                                 pairs=pairs, probe_box=probe_box)
 
             self._clr[part] = ByOrientation(probe, build)
-        if not moved:
-            return self._clr[part].get(self._W_R(), move=False)
-        hit = self._at[part] = self._clr[part].get(self._W_R())
-        return hit
+        return self._clr[part]
 
     def _W_R(self) -> np.ndarray:
         """(4,4) T_W_R: R in the table's frame, from the table's pose as MuJoCo has it (once per set_table)."""
@@ -670,12 +691,14 @@ class WorkZone:
     def _holder_pairs(self, clr) -> tuple:
         """(the pairs of the rest broad phase ``clr`` with a holder geom (indices of its pairs),
         each table geom's index in the holder's model (-1: not the holder's)): shared by the moved
-        copies of a broad phase (kept by its certificates)."""
-        hp = self._hpairs.get(id(clr._certs))
+        copies of a broad phase and by its orientations with the same pairs (kept by their pair
+        table, the pair structure's: :func:`sim.clearance._pair_structure`)."""
+        hp = self._hpairs.get(id(clr.pair_table))
         if hp is None:
             hpos = np.full(len(self._table), -1)
             hpos[self._holder] = np.arange(len(self._holder))  # table geom -> its holder model's geom
-            hp = self._hpairs[id(clr._certs)] = (np.flatnonzero(hpos[clr.pair_table] >= 0), hpos, clr._certs)
+            hp = self._hpairs[id(clr.pair_table)] = (np.flatnonzero(hpos.take(clr.pair_table) >= 0), hpos,
+                                                     clr.pair_table)
         return hp[0], hp[1]
 
     def _holder_distance(self, clr, hpos, tip, pair: int, distmax: float) -> float:
@@ -814,6 +837,36 @@ def _zone_xml(table_mjcf: str, probe_mjcf: str) -> str:
             f'</worldbody></mujoco>')
 
 
+def _ball_model_spec(wz, geoms) -> tuple:
+    """(model, data) of :func:`share_ball_model`'s ball model built as an ``MjSpec``: the model
+    ``_zone_xml`` of the holders' geoms ``geoms`` (:meth:`WorkZone._geom_spec` each) and the probe's
+    stylus ball of radius ``wz._r`` at the spindle's origin (``probe_geoms_mjcf((0, 0, 1), r,
+    only=("ball",))``) compiles to, every array equal (tests/sim/test_mfb_scene.py), without writing
+    and parsing its MJCF (timeit: 1.9 -> 1.2 ms a compile at load ~9)."""
+    mj = wz._mj
+    kinds = {"sphere": mj.mjtGeom.mjGEOM_SPHERE, "capsule": mj.mjtGeom.mjGEOM_CAPSULE,
+             "cylinder": mj.mjtGeom.mjGEOM_CYLINDER, "box": mj.mjtGeom.mjGEOM_BOX}
+    spec = mj.MjSpec()
+    spec.modelname = "vmt-mfb-workzone"
+    spec.compiler.degree = False  # (<compiler angle="radian"/>)
+    spec.option.gravity = [0.0, 0.0, 0.0]
+    table = spec.worldbody.add_body(name="table")
+    table.add_freejoint(name="table")
+    for name, kind, size, pos, quat in geoms:
+        sz = [float(v) for v in np.ravel(np.asarray(size, float))]
+        g = table.add_geom(name=name, type=kinds[kind], size=sz + [0.0] * (3 - len(sz)),
+                           pos=[float(v) for v in pos], contype=1, conaffinity=0)
+        if quat is not None:
+            g.quat = [float(v) for v in quat]
+    spindle = spec.worldbody.add_body(name="spindle")
+    spindle.add_freejoint(name="spindle")
+    spindle.add_geom(name="ball", type=kinds["sphere"], size=[float(wz._r), 0.0, 0.0], contype=0, conaffinity=1)
+    m = spec.compile()
+    assert m.ngeom == len(geoms) + 1
+    assert m.jnt_qposadr[m.joint("table").id] == wz._tq and m.jnt_qposadr[m.joint("spindle").id] == wz._sq
+    return m, mj.MjData(m)
+
+
 def share_ball_model(artefact, measurements, stylus_r_m: float) -> list:
     """One MuJoCo model of the stylus ball and the holders of every placement of ``measurements``
     for the least holder clearances of their work zones (instead of one per placement: a compile
@@ -834,14 +887,13 @@ def share_ball_model(artefact, measurements, stylus_r_m: float) -> list:
             zones.setdefault(id(wz._shared), wz)  # one zone per placement
     if len(zones) < 2:
         return each
-    parts, names, first = [], [], []
+    geoms, first = [], []
     for k, wz in enumerate(zones.values()):
-        first.append(len(names))
-        parts += [wz._geom_mjcf(j, prefix=f"p{k}_") for j in wz._holder]
-        names += [f"p{k}_{wz._names[j]}" for j in wz._holder]
+        first.append(len(geoms))
+        geoms += [wz._geom_spec(j, prefix=f"p{k}_") for j in wz._holder]
     wz = next(iter(zones.values()))
-    xml = _zone_xml("".join(parts), probe_geoms_mjcf((0.0, 0.0, 1.0), wz._r, only=("ball",)))
-    m, d = wz._compile(xml, names + ["ball"])
+    m, d = _ball_model_spec(wz, geoms)
+    names = [g[0] for g in geoms]
     for h0, wz in zip(first, zones.values()):
         wz._shared[("ball_model", wz._r)] = (m, d, h0, len(names))
     return each
@@ -972,7 +1024,8 @@ def _link_points_A(s_A, features, levels, top_A_m, direct=None) -> tuple[np.ndar
 
 def _segments_A(plans, r: float, top_A_m: float) -> list:
     """Per touch program of ``plans`` (n >= 1 touches each), (a, b) (s,3): the ends, in A, of the
-    segments :func:`_paths_of` gives a measurement of that program (rows in the same order),
+    segments :func:`_paths_of` gives a measurement of that program (rows in the same order), and
+    (s,) int: the row of ``a`` that is each row's ``b`` (``b = a.take(nxt, axis=0)``),
     computed in A from the program (the stylus-centre contacts ``w_A + r wn_A``, the starts
     ``clearance_m`` out along ``wn_A``, the links of :func:`_link_points_A`) rather than brought
     back from R: every measurement of a program has the same rows bit for bit, and a touch's
@@ -1001,7 +1054,7 @@ def _segments_A(plans, r: float, top_A_m: float) -> list:
     b = P.take(nxt, axis=0)
     # each program's polylines (its first touch's approach first) and their points
     cut = np.r_[0, np.cumsum(n_pt)][np.r_[np.searchsorted(touch, t0), len(n_pt)]]
-    return [(P[cut[j]:cut[j + 1]], b[cut[j]:cut[j + 1]]) for j in range(len(plans))]
+    return [(P[cut[j]:cut[j + 1]], b[cut[j]:cut[j + 1]], nxt[cut[j]:cut[j + 1]] - cut[j]) for j in range(len(plans))]
 
 
 def _paths_of(items, link_step_m, approach_step_m) -> list:
@@ -1198,7 +1251,7 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
         for i in live:
             zones[i].set_table(ms[i][2])
             clear[i] = zones[i].least_holder_clearance(paths[i][0], broad_phase=broad_phase)
-    return [CheckResult(*r, float(c * 1e3)) for r, c in zip(out, clear)]
+    return [CheckResult(*r, float(c * 1e3), None if p is None else p[1]) for r, c, p in zip(out, clear, paths)]
 
 
 def _near_samples(ms, zones, live, sgs) -> dict:
@@ -1218,7 +1271,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     would judge), in a second pass over those rows alone. A sample is skipped only when its row's
     segment, or the sample itself, is proven farther than :data:`sim.clearance.MARGIN_M` from every
     pair: the rows in A or W and the R samples moved there differ by rounding (1e-16 m)."""
-    from .clearance import Segments, near_segments_many, unique_segments
+    from .clearance import Segments, near_segments_many, orientations_ahead, unique_segments
 
     # (a, b) in A per program (plan object; one bar and ball radius for all: check_measurements')
     plans = list({id(ms[i][5]): ms[i][5] for i in live}.values())
@@ -1227,9 +1280,17 @@ def _near_samples(ms, zones, live, sgs) -> dict:
                                                     + r)))
     rows_F = {}  # per (broad phase, program, placement): (a, b, allowed feature ids) in its frame
     fids = {}  # per (feature numbering, program): each row's allowed feature
+    numbering = {}  # per broad phase's feature numbering (its dict's id): its features in order
     in_W = {}  # per (program, placement): its rows in W
     bases = {}  # per broad phase (its certificates): [a Clearance, [its part keys]]
     keys = []  # per live measurement: its two part keys (ball, rest)
+    # the rest broad phases not kept yet, built first, their probes' boxes in one pass (as the loop
+    # below would build each at its measurement)
+    asks = []
+    for i in live:
+        zones[i].set_table(ms[i][2])
+        asks.append((zones[i]._by_orientation("rest"), zones[i]._W_R()))
+    orientations_ahead(asks)
     for i in live:
         wz = zones[i]
         wz.set_table(ms[i][2])
@@ -1243,31 +1304,38 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             own.append(key)
             if key in rows_F:
                 continue
-            a, b = segs_A[id(plan)]
+            a, b, nxt = segs_A[id(plan)]
             if place is not None:  # (in W: the same rows for every orientation of this program and placement)
                 pk = (id(plan), key[2])
                 if pk not in in_W:
+                    # (the ends b are rows of a: moved with them, the product being row by row, as
+                    # link_points' one transform of every link is: the same numbers as b @ R + t)
                     R, t = place[:3, :3].T, place[:3, 3]
-                    in_W[pk] = (a @ R + t, b @ R + t)
+                    aW = a @ R + t
+                    in_W[pk] = (aW, aW.take(nxt, axis=0))
                 a, b = in_W[pk]
-            fk = (id(clr._fid), id(plan))  # (the program's features as the broad phase's numbers: once each)
+            # (the program's features as the broad phase's numbers: once per numbering, by its features
+            # in order (a plan's table sides number the bar's features alike), and program)
+            nk = numbering.get(id(clr._fid))
+            if nk is None:
+                nk = numbering[id(clr._fid)] = tuple(clr._fid)
+            fk = (nk, id(plan))
             if fk not in fids:
                 ids = np.full(len(allow), -2)
                 ids[is_app] = clr.feature_ids(plan.feature)
-                fids[fk] = ids[sg.path]
+                fids[fk] = ids.take(sg.path)
             rows_F[key] = (a, b, fids[fk])
             bases.setdefault(key[0], [clr, []])[1].append(key)
         keys.append(own)
     # each broad phase's distinct rows, all bounded in one pass: which stay open
     parts, inv = [], {}
     for clr, ks in bases.values():
-        a = np.concatenate([rows_F[k][0] for k in ks])
-        b = np.concatenate([rows_F[k][1] for k in ks])
-        f = np.concatenate([rows_F[k][2] for k in ks])
         if len(ks) > 1:
+            a, b, f = (np.concatenate([rows_F[k][j] for k in ks]) for j in range(3))
             first, back = unique_segments(a, b, f)
-            a, b, f = a.take(first, axis=0), b.take(first, axis=0), f[first]
-        else:  # (one program's rows: few repeat)
+            a, b, f = a.take(first, axis=0), b.take(first, axis=0), f.take(first)
+        else:  # (one program's rows, as they are: few repeat)
+            a, b, f = rows_F[ks[0]]
             back = np.arange(len(f))
         n = len(f)
         parts.append((clr, Segments(a, b, np.ones(n, int), np.ones(n, int), np.arange(n), np.zeros(n, int)), f))

@@ -120,6 +120,51 @@ not kept: ``_block_candidates_many`` serving the one-group calls too (``Clearanc
 its docstring): 1.5x slower there. Left: the builds of the rest broad phases (13 orientations,
 5 table preps, 6 pair structures, ~0.1 ms each), the one MuJoCo compile, and the per-measurement
 Python of ``check_measurements``, ``_near_samples`` and ``check_plan`` (17 measurements).
+
+Session 17 (issue 19 item 4, continued). Where a fresh check spends its time, by a sampling profiler
+(a thread reading the main thread's frame every 0.2 ms, 150 fresh checks, load ~9 on 2 cores, with
+the first change below; share of the samples, each function's own with its callees outside this code): ``unique_segments`` 6.7 %
+(3 calls: the ball's 9,324 rows -> 1,616, two rest broad phases' 4,520 and 2,692 -> 1,436), the
+shared ball model's MuJoCo compile 4.8 %, ``_near_samples``' own 6.4 %, ``near_segments_many``'s own
+4.1 %, the 14 broad phases' builds (``Clearance.__init__``, pair structures, table preps) about 11 %,
+``least_holder_clearances``' own 3.6 %; of the builds, 19 ``Geoms.aabb`` (14 of them the rotated
+probes) 1.6 ms of a 25 ms check before (thread CPU around each call). What changed: the rest broad phases
+a check needs are built ahead of ``_near_samples``' loop (``sim.clearance.orientations_ahead``: in
+the order and at the poses ``ByOrientation.get`` would build them) with the 13 rotated probes' boxes
+in one ``Geoms.aabb`` (row by row: the same numbers); a program's rows are moved to W once per
+placement with their ends b taken from the moved a (``_segments_A`` gives each b's row of a: the
+product row by row, as ``link_points`` relies on; equal on random sizes 1-18,000 and by the hashes
+below), and a broad phase with one program's rows uses them without concatenating; the programs'
+allowed features numbered once per numbering by its features in order (the plan's five table sides
+number the bar's 45 features alike: 21 -> 9 ``feature_ids`` a check); the holders' pairs of a zone's
+rest broad phases kept by pair table (shared by its orientations); ``check_plan``'s stroke check
+reads the contacts the check computed (``CheckResult.contacts_R``, the same expression);
+``flat_path_segments``' lengths summed as ``np.linalg.norm`` does without its copy; the placements'
+shared ball model built as an ``MjSpec`` instead of MJCF text (``_ball_model_spec``: every numeric
+array of the compiled model equal to the MJCF's, tests/sim/test_mfb_scene.py; timeit 1.9 -> 1.2 ms a
+compile at load ~9). Every change gives the same values: a hash of every path (``_paths_of``,
+``_segments_A``), every ``near_segments_many`` and ``_near_samples`` answer, every least clearance and
+every ``check_measurements`` and ``check_plan`` answer (the 5-axis plan fresh and again, the
+plan-check variants and fuzz sets fresh and again, the MFB campaign's path checks) equal to the code
+before's. Measured: instructions (callgrind, 11 fresh checks less 11 fresh states alone) 160.1 M ->
+152.8 M a check (-4.6 %; the builds ahead and the W rows -1.5 %, the contacts, holder pairs and lengths -1.1 %,
+the feature numbering and the spec -2.0 %);
+the fresh-check script run side by side with the code before (30 checks each, 4 pairs, load 9-10):
+least check 23.3-24.5 -> 21.1-22.8 ms (paired ratios 0.91-0.93); this collision figure, 10 runs
+interleaved with the code before, one after the other (the bench's own best of 5 each, load 5-12):
+the plan check's CPU 0.0227 -> 0.0209 s (medians; paired ratios 0.85-1.36, median 0.98), its share
+of the simulation's CPU 0.291 -> 0.269 (paired ratios 0.84-1.39, median 0.93; the simulation
+0.071-0.095 s, moved by up to 1.46x between runs as the load changed), and 5 runs side by side with
+it (both under the same load, 7-9): the share 0.294 -> 0.263 (paired ratios 0.86-0.93, every pair
+lower, median 0.87), the check's CPU paired median 0.93; wall share 0.293 -> 0.234 there (paired
+0.27-0.96: wall is noisier). The target, under 0.25 of the simulation's CPU, is not reached. Tried and not
+kept: ``unique_segments``' hash over (n, 3) blocks instead of column by column (the same integers,
+1.5x slower: numpy's strided uint64 sums); a smaller MuJoCo arena (``MjData`` no faster); glibc's
+mmap and trim thresholds raised (no clear change at that load; a fresh check's kernel time is ~1 ms of 24). Left: the
+three ``unique_segments`` (the rest broad phases' rows could be told apart by the ball's groups in A,
+then the few representatives compared in W), the 14 broad phases' builds (~0.1 ms each with their
+table preps and pair structures), the ball model's compile (~1 ms) and the per-measurement Python
+of ``check_measurements``, ``_near_samples``, ``least_holder_clearances`` and ``check_plan``.
 """
 
 from __future__ import annotations

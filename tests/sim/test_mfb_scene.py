@@ -171,6 +171,37 @@ def test_ball_distances_from_the_plans_shared_ball_model_are_each_placements_bit
     assert n > 20  # distances within reach, not only distmax
 
 
+def test_shared_ball_model_built_as_a_spec_is_its_mjcf_model():
+    """share_ball_model builds the placements' ball model as an MjSpec (_ball_model_spec, from
+    WorkZone._geom_spec) instead of writing and parsing its MJCF: every numeric array of the compiled
+    model equals the one of the MJCF the code before wrote (_zone_xml of the zones' _geom_mjcf and
+    the ball's probe_geoms_mjcf), so every MuJoCo distance in it is the same float."""
+    import mujoco
+
+    from sim import mfb_scene
+
+    place = ((FLAT, (Block("riser", (0.0, 0.0, 0.0), (0.02, 0.03, 0.01)),)),
+             (A.make_T(A.rot_z(np.pi / 2) @ A.rot_x(0.3), (0.08, -0.175, 0.070)), ()),
+             (A.make_T(None, (-0.175, -0.05, 0.11)), (Block("a", (-0.2, -0.1, 0.0), (0.3, -0.06, 0.11)),)))
+    mfb_scene._ZONES.clear()
+    zones = [mfb_scene._work_zone(BAR, T, blocks, (0.0, -0.100, 0.150), R, 0.0) for T, blocks in place]
+    xml = mfb_scene._zone_xml("".join(z._geom_mjcf(j, prefix=f"p{k}_") for k, z in enumerate(zones) for j in z._holder),
+                              mfb_scene.probe_geoms_mjcf((0.0, 0.0, 1.0), R, only=("ball",)))
+    m1 = mujoco.MjModel.from_xml_string(xml)
+    m2, _ = mfb_scene._ball_model_spec(zones[0], [z._geom_spec(j, prefix=f"p{k}_") for k, z in enumerate(zones)
+                                                  for j in z._holder])
+    n = 0
+    for k in dir(m1):
+        v1 = getattr(m1, k, None)
+        if k.startswith("_") or not isinstance(v1, np.ndarray):
+            continue
+        v2 = getattr(m2, k)
+        assert v1.shape == v2.shape and np.array_equal(v1, v2, equal_nan=v1.dtype.kind == "f"), k
+        n += 1
+    assert n > 100 and m1.ngeom == m2.ngeom > 10
+    assert [m1.geom(i).name for i in range(m1.ngeom)] == [m2.geom(i).name for i in range(m2.ngeom)]
+
+
 def test_block_overlaps_by_hand():
     # FLAT (A parallel to W): the supports are 8 mm cylinders on the axes x = -175 + 114.43 = -60.57 and
     # 260.57 mm, y = 80 mm, z 0-60 mm; the bar's body z 60-80 mm (hand-worked from the drawing:
