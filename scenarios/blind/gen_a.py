@@ -1736,6 +1736,11 @@ def _fx_feed_latency(rng, camp):
                  amp_max=8.0)
 
 
+#: Cosine below which two approach directions count as a turn of more than 90 deg (reseat_hysteresis):
+#: beyond the rounding of a perpendicular pair (1e-16), far inside any real turn's (90.1 deg: -1.7e-3).
+TURN_COS_TOL = 1e-9
+
+
 def _fx_reseat_hysteresis(rng, camp):
     """Kinematic reseat hysteresis: the first touch after a turn of the approach.
 
@@ -1748,7 +1753,10 @@ def _fx_reseat_hysteresis(rng, camp):
     """
     d = camp.plan.d
     flag = np.zeros(camp.n)
-    flag[1:] = (np.einsum("ij,ij->i", d[1:], d[:-1]) < 0).astype(float)
+    # a turn of exactly 90 deg (perpendicular walls) is not "more than 90 deg": its cosine is 0 to
+    # rounding, +-6e-17 by the BLAS kernel that rotated the plan (seed 1004, row 35: 0.0 under
+    # OpenBLAS's SkylakeX kernels, -5.6e-17 under Haswell's), so it is compared beyond rounding
+    flag[1:] = (np.einsum("ij,ij->i", d[1:], d[:-1]) < -TURN_COS_TOL).astype(float)
     def build(amp):
         return Mods(delta_mm=amp * UM_MM * flag)
     return _Draw({"rows_affected": int(flag.sum())}, ("order", "approach_azimuth"), build, amp_max=10.0)

@@ -101,6 +101,19 @@ configurations below agree to 3e-13 relative. Only gen_a nonrigid 2's
 eleven bootstrap leaves moved (``params_u95``: EX RMS 0.639 -> 0.651 um,
 EX peak 5.06 -> 4.70, EY RMS 0.269 -> 0.317, EY peak 9.06 -> 8.97; and
 ``magnitude_interval95``, another sample of the same posterior).
+Refreshed again (session 17) for a smooth covariate's distinct values
+(:func:`core.diagnosis.distinct_values`): the spline's quantile knots were
+placed among ``np.unique``'s values, which counted repeat touches of one
+position apart where rounding parted them by 6e-17 m, one more or fewer by
+the machine's kernels (gen_a nonrigid 1039's x: 78 values on SkylakeX
+kernels, 79 on Haswell's, its unnamed smooth's penalty 1e-4 against 1e-3 and
+extended workpiece 1.73 against 1.63 um); now values within 1e-9 of their
+magnitude are one. The smooth covariates' diagnoses moved on eleven of the
+sixteen (x, y, time within each set-up: ``explained_rms_um``, ``p_value``,
+their text, and on hidden periodic_axis_error 1000 the order of two p = 1
+tails), and two rival figures that a smooth covariate's basis enters (the
+demo's ``rival_share`` 1.00689 -> 1.00690, the periodic axis error's
+0.998854 -> 0.998862): 79 leaves, every decision as stored; the rest kept.
 
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within

@@ -576,9 +576,30 @@ def test_out_of_catalogue_physics(pairs):
         _pretravel_check(on, t, t.physical["amplitude_um"] * dv)
         (on, t), _ = pairs["reseat_hysteresis", seed]
         d = np.column_stack([on.columns[c] for c in ("dx", "dy", "dz")])
-        turn = np.r_[False, np.einsum("ij,ij->i", d[1:], d[:-1]) < 0]
+        turn = np.r_[False, np.einsum("ij,ij->i", d[1:], d[:-1]) < -1e-9]  # more than 90 deg (not 90 to rounding)
         _pretravel_check(on, t, t.physical["amplitude_um"] * turn)
         (on, t), _ = pairs["vibration", seed]
         assert 25 <= t.params["period_s"] <= 150 and t.covariates == ("time",)
         (on, t), _ = pairs["thermal_bending", seed]
         assert set(t.acceptable_causes) == {"unexplained", "thermal_drift"}
+
+
+def test_reseat_turn_of_exactly_90_deg_is_not_a_turn_whatever_the_rounding():
+    """Known answers: a turn of more than 90 deg re-seats, one of exactly 90 deg does not, whether the
+    rotated plan gives its cosine as 0.0 or -5.6e-17 (gen_a reseat_hysteresis 1004, row 35: OpenBLAS's SkylakeX
+    kernels 0.0, its Haswell kernels -5.6e-17, 30 and 31 rows re-seated before); a turn of 90.1 deg re-seats."""
+    from types import SimpleNamespace
+
+    c = np.cos(np.deg2rad(90.1))
+    d = np.array([[1.0, 0, 0],
+                  [-5.551115123125783e-17, 1.0, 0],  # 90 deg, cosine -5.6e-17 to the previous: no
+                  [1.0, 5.551115123125783e-17, 0],  # 90 deg, cosine +5.6e-17: no
+                  [-1.0, 0, 0],  # 180 deg: yes
+                  [c, -np.sqrt(1 - c * c), 0],  # 89.9 deg from (-1, 0, 0) (cosine 1.7e-3): no
+                  [0, 0, 1.0],  # 90 deg exactly (cosine 0): no
+                  [np.sqrt(1 - c * c), 0, c]])  # 90.1 deg from (0, 0, 1): yes
+    camp = SimpleNamespace(n=len(d), plan=SimpleNamespace(d=d))
+    draw = gen_a._fx_reseat_hysteresis(np.random.default_rng(0), camp)
+    assert draw.params["rows_affected"] == 2
+    delta = draw.build(1.0).delta_mm
+    assert np.flatnonzero(delta).tolist() == [3, 6]
