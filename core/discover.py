@@ -3398,7 +3398,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     # cause's other forms that are significant under the same count, next in the same order, each judged by every
     # test (gen_a c_drift 1135: a quadratic over the campaign, p 5.1e-112, held-out gain -0.028 um^2, beside the
     # per-set-up rates, p 2.3e-110, gain 2.52; gen_b c_drift 1187: the quadratic over the campaign confounded with the
-    # set-ups' own angles, inflation 208, beside the creep after each indexing, p 1.2e-72, gain 0.26)
+    # set-ups' own angles, inflation 208, beside the per-set-up rates, p 1.8e-81, gain 0.30)
     rest = sorted((o for o in owns if o is not best and o.p * tries < settings.alpha_family),
                   key=functools.cmp_to_key(lambda a, b: -1 if _better_trial(a, b, st.rss)
                                            else (1 if _better_trial(b, a, st.rss) else 0)))
@@ -3414,7 +3414,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
 
 #: Whether a cause whose trial of smallest p falls short of its held-out gain, or is confounded with the model, is
 #: judged on its other significant forms, in the same order (:func:`_evaluate`; session 17, gen_a c_drift's
-#: per-set-up creep, gen_b's creep after each indexing). False: the rule before.
+#: per-set-up creep, gen_b's common creep). False: the rule before.
 HELD_OUT_FALLBACK = True
 
 
