@@ -3392,7 +3392,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     if best is None:
         return {"reason": "no columns outside the model"}
     out = _judge_trial(cause, best, scans, tries, bl, st, folds, terms, cv_cur, sigma, settings, families, scan_tries)
-    if not out.get("form_refused") or not HELD_OUT_FALLBACK:
+    if not out.get("form_refused") or not HELD_OUT_FALLBACK or (
+            out.get("form_refused") == "confounded" and not CONFOUNDED_FALLBACK):
         return out
     # the trial of smallest p does not predict held-out data, or the data do not determine it beside the model: the
     # cause's other forms that are significant under the same count, next in the same order, each judged by every
@@ -3416,6 +3417,10 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
 #: judged on its other significant forms, in the same order (:func:`_evaluate`; session 17, gen_a c_drift's
 #: per-set-up creep, gen_b's common creep). False: the rule before.
 HELD_OUT_FALLBACK = True
+#: Whether that fallback also follows a confounded form (True), or only one short of its held-out gain (False).
+#: Its cost measured: gen_a local_scale_defect 1144 named (was periodic_axis_error) on a bump of variance
+#: inflation 31 whose extended workpiece is 4.6 um off against the baseline's 1.7 (U95 2.4).
+CONFOUNDED_FALLBACK = True
 
 
 def _layout_text(info: dict) -> str:
@@ -3504,7 +3509,7 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
         # principal angle that of the worst direction)
         model_words = "the baseline" + "".join(f" + {t.cause}" for t in terms)
         return {"reason": f"confounded with {model_words} (best variance inflation {vif:.3g} > {settings.vif_max:g}, "
-                          f"principal angle {ang:.2g} deg)", "significant": True, "form_refused": True}
+                          f"principal angle {ang:.2g} deg)", "significant": True, "form_refused": "confounded"}
     # prediction and CV use the cause's own columns (a held-out set-up refits the
     # columns that are its own); the determined combinations M carry the
     # magnitudes and the extended workpiece
@@ -3520,7 +3525,7 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
                "cv_gain_um2": gain / UM ** 2, "materiality_um2": m2 / UM ** 2})
     if gain < m2:
         return {"reason": f"cross-validated gain {gain / UM ** 2:.3g} um^2 below materiality {m2 / UM ** 2:.3g} um^2",
-                "significant": True, "form_refused": True}
+                "significant": True, "form_refused": "held-out"}
     tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak, origin=cause,
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
     return _plausible(cause, bl, tm, st, rows, cv, boot=(folds, terms))
