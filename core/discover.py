@@ -43,7 +43,12 @@ What it does, in order, and the statistics behind each step
       reported);
    c. material cross-validated gain: the held-out mean square must fall by
       at least ``(material_sigma * sigma)^2`` per row the cause's columns
-      reach (:func:`_support_share`);
+      reach (:func:`_support_share`); where the trial of smallest p falls
+      short of it (or is confounded, b), the cause's other scans' best
+      trials significant under the same count are judged in turn, in the
+      same order, by every test (:data:`HELD_OUT_FALLBACK`: a form that
+      fits in sample and does not predict a held-out set-up, or that the
+      design does not determine, does not hide one that does);
    d. plausibility: magnitudes inside the cause's bounds (beyond their
       U95), periods above the Nyquist limit;
    e. the structure lives where the cause says: no smooth function of a
@@ -3456,6 +3461,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     """
     rows = st.rows
     best = None
+    owns = []  # each scan's best trial (grown)
     for si, sc in enumerate(scans):
         if sc.infos[0].get("extends_previous"):  # tested only beyond its plainer trial, in _grow_layout
             continue
@@ -3480,10 +3486,51 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # the trials are compared: a wall that bows has a weak plain trial (gen_a part_change 1503: the bowing
         # wall's shift p = 0.068 behind another wall's 0.0029; its bow explained 16.0 of the 18.8 um^2 left)
         own = _grow_layout(own, scans, si, rows, bl, st, folds, terms, settings)
+        owns.append(own)
         if best is None or _better_trial(own, best, st.rss):
             best = own
     if best is None:
         return {"reason": "no columns outside the model"}
+    out = _judge_trial(cause, best, scans, tries, bl, st, folds, terms, cv_cur, sigma, settings, families, scan_tries)
+    if not out.get("form_refused") or not HELD_OUT_FALLBACK or (
+            out.get("form_refused") == "confounded" and not CONFOUNDED_FALLBACK):
+        return out
+    # the trial of smallest p does not predict held-out data, or the data do not determine it beside the model: the
+    # cause's other forms that are significant under the same count, next in the same order, each judged by every
+    # test (gen_a c_drift 1135: a quadratic over the campaign, p 5.1e-112, held-out gain -0.028 um^2, beside the
+    # per-set-up rates, p 2.3e-110, gain 2.52; gen_b c_drift 1187: the quadratic over the campaign confounded with the
+    # set-ups' own angles, inflation 208, beside the per-set-up rates, p 1.8e-81, gain 0.30)
+    rest = sorted((o for o in owns if o is not best and o.p * tries < settings.alpha_family),
+                  key=functools.cmp_to_key(lambda a, b: -1 if _better_trial(a, b, st.rss)
+                                           else (1 if _better_trial(b, a, st.rss) else 0)))
+    for alt in rest:
+        res = _judge_trial(cause, alt, scans, tries, bl, st, folds, terms, cv_cur, sigma, settings, families,
+                           scan_tries)
+        if not res.get("reason"):
+            res["term"].evidence["held_out_fallback"] = (
+                f"the form of smallest p ({_layout_text(best.scan.infos[best.index])}) {out['reason']}")
+            return res
+    return out
+
+
+#: Whether a cause whose trial of smallest p falls short of its held-out gain, or is confounded with the model, is
+#: judged on its other significant forms, in the same order (:func:`_evaluate`; session 17, gen_a c_drift's
+#: per-set-up creep, gen_b's common creep). False: the rule before.
+HELD_OUT_FALLBACK = True
+#: Whether that fallback also follows a confounded form (True), or only one short of its held-out gain (False).
+#: Its cost measured: gen_a local_scale_defect 1144 named (was periodic_axis_error) on a bump of variance
+#: inflation 31 whose extended workpiece is 4.6 um off against the baseline's 1.7 (U95 2.4).
+CONFOUNDED_FALLBACK = True
+
+
+def _layout_text(info: dict) -> str:
+    return ", ".join(f"{k} {v}" for k, v in info.items() if not isinstance(v, (np.ndarray, list, tuple)) or len(v) < 8)
+
+
+def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, sigma, settings,
+                 families=None, scan_tries: float | None = None) -> dict:
+    """The tests of adoption (module docstring 4a-e) of one trial of the cause, chosen by :func:`_evaluate`."""
+    rows = st.rows
     p_val, F_val, k_val, sc, i, single = best[:6]
     info = sc.infos[i]
     # the grown layout's columns (built in _grow_layout), else the trial's as its scan's test took them: sparse on
@@ -3562,7 +3609,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # principal angle that of the worst direction)
         model_words = "the baseline" + "".join(f" + {t.cause}" for t in terms)
         return {"reason": f"confounded with {model_words} (best variance inflation {vif:.3g} > {settings.vif_max:g}, "
-                          f"principal angle {ang:.2g} deg)", "significant": True}
+                          f"principal angle {ang:.2g} deg)", "significant": True, "form_refused": "confounded"}
     # prediction and CV use the cause's own columns (a held-out set-up refits the
     # columns that are its own); the determined combinations M carry the
     # magnitudes and the extended workpiece
@@ -3578,7 +3625,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
                "cv_gain_um2": gain / UM ** 2, "materiality_um2": m2 / UM ** 2})
     if gain < m2:
         return {"reason": f"cross-validated gain {gain / UM ** 2:.3g} um^2 below materiality {m2 / UM ** 2:.3g} um^2",
-                "significant": True}
+                "significant": True, "form_refused": "held-out"}
     tm = Term(cause.name, kept, tuple(sc.labels), info, sc.covariate, tries, ev, weak=weak, origin=cause,
               labels_all=tuple(sc.labels), map=M, cols_all=cols)
     return _plausible(cause, bl, tm, st, rows, cv, boot=(folds, terms))
