@@ -1188,6 +1188,9 @@ def test_c_drift_judged_on_a_form_that_predicts(monkeypatch, gen, seed, refused)
     log, tr = importlib.import_module(f"scenarios.blind.{gen}").generate("c_drift", seed)
     assert "c_drift" in tr.acceptable_causes
     t = from_log(log)
+    if refused == "confounded":  # (off by default: its measured cost, core.discover.CONFOUNDED_FALLBACK)
+        assert D.CONFOUNDED_FALLBACK is False
+        monkeypatch.setattr(D, "CONFOUNDED_FALLBACK", True)
 
     def run():
         return discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
