@@ -87,9 +87,12 @@ functions and add one :class:`Cause` to :data:`REGISTRY`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
+
+if TYPE_CHECKING:  # (annotations only: scipy.sparse is imported where it is used)
+    import scipy.sparse
 
 from .baseline import _xy_basis  # the products the unnamed smooth in xy uses: a named field spans the same functions
 from .diagnosis import TABLE_BYTES, scan_grid, screen_phasors

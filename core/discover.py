@@ -1325,6 +1325,7 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
     cap = max(3, int((max_frac_dust if judged else max_frac) * n))
     keep = np.ones(n, bool)
     out: list[int] = []
+    k = -1  # (the row the previous pass set aside; none before the first)
     while True:
         idx = np.flatnonzero(keep)
         if Q is None or (len(idx) != n and not isinstance(Q, np.ndarray)):

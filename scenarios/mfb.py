@@ -232,7 +232,6 @@ FINGERS = {"TXF": 0.040}
 
 def plan_3axis() -> MfbPlan:
     """The 3-axis plan for ``vmc-3axis``: 14 placements, 17 measurements (module doc)."""
-    L = 0.050
     ms = []
 
     def add(name, x_A, z_A, p, holes, styli=("T0",), senses=""):
@@ -1233,7 +1232,6 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     # truth in the same gauge
     d = res.design
     truth = np.zeros(len(res.theta))
-    mach = next(iter(machines.values()))
     for s in vol.MOTION:
         a = iso.symbol(s).axis
         x = d.nodes[a]

@@ -14,7 +14,7 @@ import pytest
 
 import discover_synth as S
 from core import causes
-from core.discover import Folds, _gram_beside, _penalised_bootstrap, discover
+from core.discover import _gram_beside, _penalised_bootstrap, discover
 
 SEEDS = range(100, 140)
 

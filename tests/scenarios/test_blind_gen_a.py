@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 from core.exceptions import ConfigError
 from core.probelog import OPTIONAL, REQUIRED, read_probe_log, write_probe_log
 from scenarios.blind import gen_a
-from scenarios.blind.gen_a import BORE, BOSS, PLANE, Curve, Machine
+from scenarios.blind.gen_a import BOSS, PLANE, Curve, Machine
 from scenarios.cli import main
 
 SEEDS = (0, 1)

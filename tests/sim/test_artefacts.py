@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from core.exceptions import ConfigError
-from core.units import MM
 from sim import artefacts as A
 from sim.catalog import CATALOG, make_artefact
 
