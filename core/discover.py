@@ -3516,8 +3516,15 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
 
 #: Whether a cause whose trial of smallest p falls short of its held-out gain, or is confounded with the model, is
 #: judged on its other significant forms, in the same order (:func:`_evaluate`; session 17, gen_a c_drift's
-#: per-set-up creep, gen_b's common creep). False: the rule before.
-HELD_OUT_FALLBACK = True
+#: per-set-up creep, gen_b's common creep). False: the rule before. Off (session 17, the lead): on the session's
+#: blind check (gen_a 2400-2409, every effect) it named no campaign more and named gen_a thermal_bending 2400 (out of
+#: the catalogue) part_change confidently: c_drift, refused on its form of smallest p (held-out gain -0.116 um^2),
+#: was adopted on another form, part_change (slot6, wall changes -24, +8, +22 um) adopted beside it in the next
+#: round, and c_drift then dropped by the rival check (share 0.34), leaving part_change named on a search path a
+#: dropped cause had opened (without the fallback: `unexplained`). A confident wrong name is issue 13's worst
+#: outcome; the tuning gains (gen_a c_drift 175 -> 181 of 183) wait for the path to be undone when its cause is
+#: dropped. tests/core/test_discover_misses.py runs it switched on.
+HELD_OUT_FALLBACK = False
 #: Whether that fallback also follows a confounded form (True), or only one short of its held-out gain (False).
 #: Off (session 17, the lead's call): on, it named five more visible campaigns right on gen_a/gen_b 1000-1199
 #: (gen_b c_drift 1139 and 1187, gen_b thermal_drift 1016, gen_a local_scale_defect 1096 and 1144) but named
