@@ -3593,7 +3593,7 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
         ss_c, k_c, _, _ = single
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
         d_c, Uc = _counter_ss(bl, cause, st, rows, sigma)
-        reach = _support_share(cols[rows])  # (materiality over the touches the cause acts on)
+        reach = _support_share(cols[rows], cause)  # (materiality over the touches the cause acts on)
         if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) * reach \
                 and cause.counter_cause is not None and not _beyond(st, Uc, cols[rows], sigma, tries, settings,
                                                                    reach)[2]:
@@ -3631,7 +3631,7 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
                    _penalty_beside(terms, kept.shape[1]))
     gain = cv_cur - cv
     # materiality per touch the cause acts on (a local cause, one feature's walls, counted over its own touches)
-    m2 = (settings.material_sigma * sigma) ** 2 * _support_share(kept[rows])
+    m2 = (settings.material_sigma * sigma) ** 2 * _support_share(kept[rows], cause)
     ev.update({"cv_rms_before_um": float(np.sqrt(cv_cur)) / UM, "cv_rms_after_um": float(np.sqrt(cv)) / UM,
                "cv_gain_um2": gain / UM ** 2, "materiality_um2": m2 / UM ** 2})
     if gain < m2:
@@ -3649,8 +3649,16 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
 MATERIALITY_OVER_SUPPORT = True
 
 
-def _support_share(E: np.ndarray) -> float:
+def _support_share(E: np.ndarray, cause=None) -> float:
     """The share of rows on which any column of ``E`` (n, k) acts: the scale of a cause's materiality.
+
+    Only for a cause that books to the workpiece (``cause.books_to``: part_change, one feature's walls); 1 for
+    the machine's and the probe's causes and without a cause (session 17's blind check, gen_a outlier 2402: a
+    local_scale_defect reaching 5 % of the touches, all at one position, passed materiality scaled to them,
+    0.017 against 0.0013 um^2, 0.025 over every touch, and led the report at 0.08 um^2 explained beside 12 um^2
+    of chips, ambiguous: one position cannot tell a defect from a gross error there). A workpiece-local cause
+    moves the estimates of its own feature's targets only, so its relevance is counted over their touches; a
+    machine-side local cause is judged over the campaign, as before session 16.
 
     Materiality is ``(material_sigma sigma)^2`` per touch of the effect: an
     effect that small moves a target's workpiece estimate by less than half
@@ -3673,7 +3681,7 @@ def _support_share(E: np.ndarray) -> float:
         raise ValueError(f"_support_share needs an (n, k) matrix with rows, got shape {E.shape}")
     if not np.all(np.isfinite(E)):
         raise ValueError("_support_share: columns with non-finite values")
-    if not MATERIALITY_OVER_SUPPORT or E.shape[1] == 0:
+    if not MATERIALITY_OVER_SUPPORT or E.shape[1] == 0 or getattr(cause, "books_to", None) != "workpiece":
         return 1.0
     a = np.abs(E)
     top = a.max(axis=0)
@@ -4091,7 +4099,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
         d_c, Uc = _counter_ss(bl, cause, so, rows, sigma)
         out["counter"] = cause.counter.__name__.replace("_", " ")
         out["counter_explained_ss_um2"] = max(d_c, 0.0) / UM ** 2
-        reach = _support_share(tm.columns[rows])  # (materiality over the touches the cause acts on)
+        reach = _support_share(tm.columns[rows], cause)  # (materiality over the touches the cause acts on)
         if d_c > d_n - m_ss * reach:
             d_b, p_b, stands = _beyond(so, Uc, tm.columns[rows], sigma, tm.tries, settings, reach)
             out["explained_beyond_counter_ss_um2"] = max(d_b, 0.0) / UM ** 2
@@ -4140,7 +4148,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
             # (the margin within which the slip explains as much as the cause: the cause's materiality, over the
             # touches it acts on; the remainder beyond a material slip stays material over every touch, the clause
             # that keeps a machine-side bending from being named a changing part: docs/discovery.md, session 16)
-            m_own = m_ss * _support_share(tm.columns[rows])
+            m_own = m_ss * _support_share(tm.columns[rows], cause)
             if (d_s >= m_ss and d_ns < m_ss) or (p_ns >= settings.alpha_family and d_s >= d_n - m_own):
                 out["kept"] = False
                 out["counter"] = cause.counter_scan.__name__.replace("_", " ")

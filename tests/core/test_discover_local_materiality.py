@@ -20,29 +20,41 @@ import pytest
 import core.discover as D
 from core.discover import _support_share, discover
 
+#: the cause the rule serves (books to the workpiece)
+PC = next(c for c in __import__("core.causes", fromlist=["REGISTRY"]).REGISTRY if c.name == "part_change")
+
 
 def test_support_share_known_answers():
+    """part_change's share of rows reached; a machine's or probe's cause, or none, keeps every touch (session 17)."""
     E = np.zeros((10, 3))
     E[[1, 4, 7], 0] = [1.0, -2.0, 0.5]  # three rows reached
     E[4, 1] = 1e-3  # a row already reached
-    assert _support_share(E) == pytest.approx(0.3)
+    assert _support_share(E, PC) == pytest.approx(0.3)
     E[9, 2] = 5.0  # a third column, reaching another row
-    assert _support_share(E) == pytest.approx(0.4)
+    assert _support_share(E, PC) == pytest.approx(0.4)
     # a value below 1e-9 of its column's largest does not reach a row (rounding in a built column)
     E[0, 0] = 1e-12
-    assert _support_share(E) == pytest.approx(0.4)
+    assert _support_share(E, PC) == pytest.approx(0.4)
     # a column on every row: the rule is the one over every touch
-    assert _support_share(np.column_stack([np.linspace(0.0, 1.0, 10) + 0.1, E[:, 0]])) == 1.0
+    assert _support_share(np.column_stack([np.linspace(0.0, 1.0, 10) + 0.1, E[:, 0]]), PC) == 1.0
     # a column of zeros only reaches nothing; no columns at all: every row (nothing to scale)
-    assert _support_share(np.zeros((10, 1))) == pytest.approx(0.1)  # (at least one row: never a zero threshold)
-    assert _support_share(np.zeros((10, 0))) == 1.0
+    assert _support_share(np.zeros((10, 1)), PC) == pytest.approx(0.1)  # (at least one row: never a zero threshold)
+    assert _support_share(np.zeros((10, 0)), PC) == 1.0
+    # only a cause that books to the workpiece is scaled (gen_a outlier 2402's local_scale_defect, session 17)
+    from core import causes
+    E1 = np.zeros((10, 1))
+    E1[3, 0] = 1.0
+    assert _support_share(E1, PC) == pytest.approx(0.1)
+    for name in ("local_scale_defect", "c_drift", "probe_lobing"):
+        assert _support_share(E1, next(c for c in causes.REGISTRY if c.name == name)) == 1.0
+    assert _support_share(E1) == 1.0
 
 
 def test_support_share_switched_off(monkeypatch):
     E = np.zeros((10, 1))
     E[2, 0] = 1.0
     monkeypatch.setattr(D, "MATERIALITY_OVER_SUPPORT", False)
-    assert _support_share(E) == 1.0
+    assert _support_share(E, PC) == 1.0
 
 
 @pytest.mark.parametrize("bad", [np.zeros(5), np.zeros((0, 2)), np.array([[1.0, np.nan], [0.0, 1.0]]),
