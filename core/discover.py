@@ -1251,6 +1251,11 @@ def _state_made(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _Stat
         r = r - Sp @ c
         edf = float(np.trace(np.linalg.lstsq(M, Sp.T @ Sp, rcond=1e-12)[0]))
         dof = int(round(len(rows) - Q.shape[1] - edf))
+    # (a state is shared by every caller that asks for the same model in a run, :func:`_state`: its own arrays are
+    # read-only, so a caller that wrote into one would fail, not change another's model)
+    r.flags.writeable = False
+    if Q is not Qb and isinstance(Q, np.ndarray):
+        Q.flags.writeable = False
     return _State(rows, Q, r, float(r @ r), max(dof, 1), Qb.shape[1])
 
 
