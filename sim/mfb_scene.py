@@ -435,21 +435,16 @@ class WorkZone:
         return self._tpose0[j] if j < n0 else self._T_W_A @ _solid_pose_stack(self._args[0])[j - n0]
 
     def _geom_mjcf(self, j: int, prefix: str = "") -> str:
-        """Table-side geom j's MJCF (its name after ``prefix``)."""
-        kind, size, T = self._tkind[j], self._tsize[j], self._pose(j)
-        name = self._names[j]
-        if j == 0:
-            return (f'<geom name="{prefix}table_disc" type="cylinder" pos="0 0 {-TABLE_T_M / 2!r}" '
-                    f'size="{TABLE_R_M!r} {TABLE_T_M / 2!r}" contype="1" conaffinity="0"/>')
-        if name.startswith("fix_") and j <= len(self._args[2]):
-            return (f'<geom name="{prefix}{name}" type="box" pos="{_f(T[:3, 3])}" size="{_f(size)}" contype="1" '
-                    f'conaffinity="0"/>')
-        return (f'<geom name="{prefix}{name}" type="{kind}" size="{_f(size)}" '
-                f'pos="{_f(T[:3, 3])}" quat="{_f(_quat(T[:3, :3]))}" contype="1" conaffinity="0"/>')
+        """Table-side geom j's MJCF (its name after ``prefix``): :meth:`_geom_spec`'s values, each float
+        as its repr (which MJCF reads back as the same float)."""
+        name, kind, size, pos, quat = self._geom_spec(j, prefix)
+        q = "" if quat is None else f' quat="{_f(quat)}"'
+        return f'<geom name="{name}" type="{kind}" size="{_f(size)}" pos="{_f(pos)}"{q} contype="1" conaffinity="0"/>'
 
     def _geom_spec(self, j: int, prefix: str = "") -> tuple:
-        """Table-side geom j as (name, type, size, pos, quat or None): the values :meth:`_geom_mjcf`
-        writes (each float as its repr, which MJCF reads back as the same float)."""
+        """Table-side geom j as (name, type, size, pos, quat or None; its name after ``prefix``): what
+        :meth:`_geom_mjcf` writes and :func:`_ball_model_spec` builds (the table disc and the fixture
+        blocks unrotated)."""
         kind, size, T = self._tkind[j], self._tsize[j], self._pose(j)
         name = self._names[j]
         if j == 0:
