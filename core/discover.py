@@ -42,13 +42,13 @@ What it does, in order, and the statistics behind each step
       confounded and refused (the principal angle to the model is
       reported);
    c. material cross-validated gain: the held-out mean square must fall by
-      at least ``(material_sigma * sigma)^2`` per row the cause's columns
-      reach (:func:`_support_share`); where the trial of smallest p falls
-      short of it (or is confounded, b), the cause's other scans' best
-      trials significant under the same count are judged in turn, in the
-      same order, by every test (:data:`HELD_OUT_FALLBACK`: a form that
-      fits in sample and does not predict a held-out set-up, or that the
-      design does not determine, does not hide one that does);
+      at least ``(material_sigma * sigma)^2`` per row, per row the cause's
+      columns reach for a cause that books to the workpiece
+      (:func:`_support_share`); the trial of smallest p alone is judged (a
+      rule that judged the cause's other significant forms in turn where it
+      falls short, or is confounded, b, is kept switched off:
+      :data:`HELD_OUT_FALLBACK`, :data:`CONFOUNDED_FALLBACK`, their measured
+      costs);
    d. plausibility: magnitudes inside the cause's bounds (beyond their
       U95), periods above the Nyquist limit;
    e. the structure lives where the cause says: no smooth function of a
@@ -227,7 +227,7 @@ from . import selfcal
 from .baseline import Baseline
 from .diagnosis import (CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch,
                         new_basis, orth, release_projections, replicate_scatter, take_rows, term_bases, tied,
-                        extends)
+                        extends, _first_largest)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .memo import Memo
@@ -1364,29 +1364,6 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
                                                                            alpha_concentration):
             return []
     return sorted(out)
-
-
-#: Relative width within which two statistics are taken as tied (:func:`_first_largest`): rounding
-#: differences between BLAS kernels measured 1e-14 relative on the same campaign; distinct statistics
-#: closer than 1e-9 are not met in practice.
-ARGMAX_TIE_RTOL = 1e-9
-
-
-def _first_largest(v: np.ndarray) -> int:
-    """The index of the largest value of ``v``, the lowest index among values tied with it (within
-    :data:`ARGMAX_TIE_RTOL` relative).
-
-    Two touches can carry the same statistic in exact arithmetic (the outlier screen's two
-    readings of one target whose residuals the fit splits evenly: gen_a reseat_hysteresis 1087,
-    rows 83 and 85, t 8.667225540449 both to 1e-14); ``np.argmax`` then picks whichever the
-    rounding of the machine's BLAS kernel favours (OpenBLAS's SkylakeX kernels row 85, its
-    Haswell and Zen kernels row 83), and the rest of the screen follows that pick. The lowest
-    index, the earlier touch, makes the choice the data's, not the machine's.
-    """
-    top = float(np.max(v))
-    if not np.isfinite(top):  # (a NaN or an infinity: np.argmax's pick, as before the rule)
-        return int(np.argmax(v))
-    return int(np.flatnonzero(v >= top - ARGMAX_TIE_RTOL * abs(top))[0])
 
 
 def _without_row(Q: np.ndarray, k: int) -> np.ndarray:

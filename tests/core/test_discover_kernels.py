@@ -1245,7 +1245,7 @@ def test_first_largest_takes_the_earliest_of_tied_statistics():
     """The outlier screen's pick among statistics tied in exact arithmetic is the earliest row, whatever the
     rounding (gen_a reseat_hysteresis 1087: rows 83 and 85 at t 8.667225540449, 1e-14 apart, picked by the BLAS
     kernel's rounding before); a real difference, even of 1e-8 relative, still picks the largest."""
-    from core.discover import ARGMAX_TIE_RTOL, _first_largest
+    from core.diagnosis import ARGMAX_TIE_RTOL, _first_largest
 
     t = np.array([3.0, 8.667225540449035, 1.0, 8.667225540448928, 2.0])
     assert _first_largest(t) == 1
