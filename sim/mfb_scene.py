@@ -1401,7 +1401,8 @@ def _rest_groups(ks, ball_g, fid_of) -> tuple[np.ndarray, np.ndarray]:
     among them; its ends in A and its allowed feature in the ball's numbering, which names the
     bar's features as this one does) with the same allowed feature here (``fid_of``). Integers
     compared instead of 7 words a row hashed (the 5-axis plan: two broad phases of 4,520 and
-    2,692 rows)."""
+    2,692 rows). (A rest broad phase is one work zone's, so its parts share one placement; the
+    placement's term keeps the groups right if parts of several placements ever met in one.)"""
     places = {}
     pidx = [places.setdefault(k[2], len(places)) for k in ks]
     g = np.concatenate([ball_g[k[1]] for k in ks])
