@@ -575,24 +575,36 @@ _TABLE_PREP = Memo(16)
 def _table_prep(table: Geoms, table_feature):
     """(feature (k,) object, tlo, thi (k,3), cluster (k,) int, geoms in cluster order (k,),
     feature -> number, each geom's feature number (k,) int (-1: none)) of a table side; computed
-    once per (table, table_feature) objects."""
+    once per (table, table_feature) objects, its feature part (:func:`_feature_prep`) once per
+    ``table_feature`` object (a bar's placements on one workholder share it)."""
     return _TABLE_PREP.get_or_compute((id(table), id(table_feature)), lambda: _build_table_prep(table, table_feature),
                                       owner=(table, table_feature))
 
 
 def _build_table_prep(table: Geoms, table_feature) -> tuple:
     """:func:`_table_prep`'s answer, computed."""
-    feature = np.asarray(table_feature, dtype=object)
+    feature, cl, h_order, fid, tfid = _feature_prep(table_feature)
     tlo, thi = table.aabb()
-    # clusters of table geoms (one per feature, one per geom without): pairs sorted by
-    # (probe geom, cluster, table geom), with the union of each cluster's boxes
-    k = [f if f else f"#{j}" for j, f in enumerate(feature)]
-    rank = {x: i for i, x in enumerate(sorted(set(k)))}  # (np.unique's inverse: keys in code-point order)
-    cl = np.fromiter(map(rank.__getitem__, k), int, len(k))
-    h_order = np.lexsort((np.arange(len(feature)), cl))
-    fid = {f: n for n, f in enumerate(dict.fromkeys(filter(None, feature)))}  # features as numbers
-    tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
     return feature, tlo, thi, cl, h_order, fid, tfid
+
+
+def _feature_prep(table_feature) -> tuple:
+    """(feature (k,) object, cluster (k,) int, geoms in cluster order (k,), feature -> number, each
+    geom's feature number (k,) int (-1: none)) of a table side's features ``table_feature``: what
+    :func:`_table_prep` draws from them alone, kept per list object (in :data:`_TABLE_PREP`)."""
+    def build():
+        feature = np.asarray(table_feature, dtype=object)
+        # clusters of table geoms (one per feature, one per geom without): pairs sorted by
+        # (probe geom, cluster, table geom), with the union of each cluster's boxes
+        k = [f if f else f"#{j}" for j, f in enumerate(feature)]
+        rank = {x: i for i, x in enumerate(sorted(set(k)))}  # (np.unique's inverse: keys in code-point order)
+        cl = np.fromiter(map(rank.__getitem__, k), int, len(k))
+        h_order = np.lexsort((np.arange(len(feature)), cl))
+        fid = {f: n for n, f in enumerate(dict.fromkeys(filter(None, feature)))}  # features as numbers
+        tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
+        return feature, cl, h_order, fid, tfid
+
+    return _TABLE_PREP.get_or_compute(("features", id(table_feature)), build, owner=table_feature)
 
 
 #: The pair structure of :class:`Clearance` (pairs sorted by probe geom, cluster, table geom;
@@ -612,8 +624,26 @@ def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
     key = (id(table), id(table_feature), int(ng), int(ball), None if mask is None else (mask.shape, mask.tobytes()))
 
     def build():
-        _, tlo, thi, cl, h_order, _, tfid = _table_prep(table, table_feature)
-        nh = len(table.kind)
+        _, tlo, thi, _, _, _, _ = _table_prep(table, table_feature)
+        pair_probe, pair_table, cstart, ccount, cballf, pn = _pair_order(table_feature, ng, ball, key[4], mask)
+        # the table side of every pair's rows (whatever the probe's orientation) and the pairs of
+        # each probe geom (pair_probe is sorted); each cluster's box reduced along those rows (one
+        # coordinate a row: the same least and largest values, reduceat along a row being faster)
+        rows = (tlo.T.take(pair_table, axis=1), thi.T.take(pair_table, axis=1), table.centre.take(pair_table, axis=0), pn)
+        cbox = np.stack([np.minimum.reduceat(rows[0], cstart, axis=1).T, np.maximum.reduceat(rows[1], cstart, axis=1).T])
+        return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox, rows
+
+    return _PAIRS.get_or_compute(key, build, owner=(table, table_feature))
+
+
+def _pair_order(table_feature, ng: int, ball: int, mkey, mask) -> tuple:
+    """(pair_probe, pair_table (k,) int, cluster start, count (c,) int, each cluster's feature number
+    when it is the ball's else -1 (c,), the pairs of each probe geom (ng,)) of :func:`_pair_structure`:
+    its part drawn from the table side's features alone (:func:`_feature_prep`), kept per features
+    list object, probe geom count, ball and pair mask (``mkey``: the mask's key) in :data:`_PAIRS`."""
+    def build():
+        _, cl, h_order, _, tfid = _feature_prep(table_feature)
+        nh = len(cl)
         pair_probe, pair_table = np.repeat(np.arange(ng), nh), np.tile(h_order, ng)
         if mask is not None:  # (the order kept: by probe geom, cluster, table geom)
             keep = mask[pair_probe, pair_table]
@@ -624,15 +654,9 @@ def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
         # each cluster's feature as a number (_fid) when it is the ball's (the clusters a touch
         # of that feature may meet), else -1
         cballf = np.where(pair_probe[cstart] == ball, tfid[pair_table[cstart]], -1)
-        # the table side of every pair's rows (whatever the probe's orientation) and the pairs of
-        # each probe geom (pair_probe is sorted); each cluster's box reduced along those rows (one
-        # coordinate a row: the same least and largest values, reduceat along a row being faster)
-        rows = (tlo.T.take(pair_table, axis=1), thi.T.take(pair_table, axis=1), table.centre.take(pair_table, axis=0),
-                np.bincount(pair_probe, minlength=ng))
-        cbox = np.stack([np.minimum.reduceat(rows[0], cstart, axis=1).T, np.maximum.reduceat(rows[1], cstart, axis=1).T])
-        return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox, rows
+        return pair_probe, pair_table, cstart, ccount, cballf, np.bincount(pair_probe, minlength=ng)
 
-    return _PAIRS.get_or_compute(key, build, owner=(table, table_feature))
+    return _PAIRS.get_or_compute(("order", id(table_feature), int(ng), int(ball), mkey), build, owner=table_feature)
 
 
 class _Certificates:

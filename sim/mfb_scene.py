@@ -542,13 +542,28 @@ class WorkZone:
         T[len(self._tpose0):] = self._T_W_A @ T[len(self._tpose0):]
         if not in_W:
             T = self._T_R_W() @ T
-        n0 = len(self._tpose0)
-        size = np.zeros((len(self._tkind), 3))
-        for j, sz in enumerate(self._tsize[:n0]):  # the disc and the blocks; the bar's solids kept
-            size[j, :len(sz)] = sz
-        size[n0:] = _solid_table(self._args[0]).size3
-        kind = np.array([GEOM_TYPE[k] for k in self._tkind])
-        return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rbound(kind, size))
+        kind, size, rb = self._side_shapes()
+        return Geoms(T[:, :3, 3].copy(), T[:, :3, :3].copy(), kind, size, rb)
+
+    def _side_shapes(self) -> tuple:
+        """(kind (k,) int, size (k,3), rbound (k,)) of the table side's geoms (:meth:`table_geoms`),
+        the same at every pose and placement: built once per bar and workholder (kept beside the
+        bar's solids, :data:`_SOLID_POSES`), read only."""
+        art, blocks = self._args[0], self._args[2]
+
+        def build():
+            n0 = len(self._tpose0)
+            size = np.zeros((len(self._tkind), 3))
+            for j, sz in enumerate(self._tsize[:n0]):  # the disc and the blocks; the bar's solids kept
+                size[j, :len(sz)] = sz
+            size[n0:] = _solid_table(art).size3
+            kind = np.array([GEOM_TYPE[k] for k in self._tkind])
+            out = (kind, size, rbound(kind, size))
+            for x in out:
+                x.flags.writeable = False
+            return out
+
+        return _SOLID_POSES.get_or_compute(("shapes", id(art), blocks), build, owner=art)
 
     def clearance(self, holder_only: bool = False, part: str = "all", moved: bool = True):
         """The broad phase (:class:`sim.clearance.Clearance`) at the current table pose.
@@ -1277,6 +1292,22 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     fids = {}  # per (feature numbering, program): each row's allowed feature
     numbering = {}  # per broad phase's feature numbering (its dict's id): its features in order
     in_W = {}  # per (program, placement): its rows in W
+    ptag = {}  # per part key in W: (program, placement's bytes, T_W_A)
+    fid_of = {}  # per part key: each row's allowed feature as its broad phase's number
+
+    def rows_W(key):  # a part's (a, b, allowed feature) in its frame (in W: moved when first asked)
+        got = rows_F[key]
+        if got is None:
+            pid, pb, place = ptag[key]
+            if (pid, pb) not in in_W:
+                # (the ends b are rows of a: moved with them, the product being row by row, as
+                # link_points' one transform of every link is: the same numbers as b @ R + t)
+                a, _, nxt = segs_A[pid]
+                aW = a @ place[:3, :3].T + place[:3, 3]
+                in_W[pid, pb] = (aW, aW.take(nxt, axis=0))
+            got = rows_F[key] = in_W[pid, pb] + (fid_of[key],)
+        return got
+
     bases = {}  # per broad phase (its certificates): [a Clearance, [its part keys]]
     keys = []  # per live measurement: its two part keys (ball, rest)
     # the rest broad phases not kept yet, built first, their probes' boxes in one pass (as the loop
@@ -1299,16 +1330,8 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             own.append(key)
             if key in rows_F:
                 continue
-            a, b, nxt = segs_A[id(plan)]
-            if place is not None:  # (in W: the same rows for every orientation of this program and placement)
-                pk = (id(plan), key[2])
-                if pk not in in_W:
-                    # (the ends b are rows of a: moved with them, the product being row by row, as
-                    # link_points' one transform of every link is: the same numbers as b @ R + t)
-                    R, t = place[:3, :3].T, place[:3, 3]
-                    aW = a @ R + t
-                    in_W[pk] = (aW, aW.take(nxt, axis=0))
-                a, b = in_W[pk]
+            if place is not None:  # (in W: its rows moved when asked, _rows_W)
+                ptag.setdefault(key, (id(plan), key[2], place))
             # (the program's features as the broad phase's numbers: once per numbering, by its features
             # in order (a plan's table sides number the bar's features alike), and program)
             nk = numbering.get(id(clr._fid))
@@ -1319,22 +1342,33 @@ def _near_samples(ms, zones, live, sgs) -> dict:
                 ids = np.full(len(allow), -2)
                 ids[is_app] = clr.feature_ids(plan.feature)
                 fids[fk] = ids.take(sg.path)
-            rows_F[key] = (a, b, fids[fk])
+            rows_F[key] = segs_A[id(plan)][:2] + (fids[fk],) if place is None else None
+            fid_of[key] = fids[fk]
             bases.setdefault(key[0], [clr, []])[1].append(key)
         keys.append(own)
     # each broad phase's distinct rows, all bounded in one pass: which stay open
     parts, inv = [], {}
+    ball_g = None  # per program: its rows' numbers among the ball's distinct rows (A)
     for clr, ks in bases.values():
-        if len(ks) > 1:
+        n_k = [len(fid_of[k]) for k in ks]
+        if len(ks) > 1 and ks[0][2] == b"":  # (the ball, in A: every program's rows)
             a, b, f = (np.concatenate([rows_F[k][j] for k in ks]) for j in range(3))
             first, back = unique_segments(a, b, f)
             a, b, f = a.take(first, axis=0), b.take(first, axis=0), f.take(first)
+            ball_g = dict(zip((k[1] for k in ks), np.split(back, np.cumsum(n_k)[:-1])))
+        elif len(ks) > 1 and ball_g is not None:
+            first, back = _rest_groups(ks, ball_g, fid_of)
+            a, b, f = _rest_rows(ks, n_k, first, segs_A, ptag, fid_of)
+        elif len(ks) > 1:  # (no ball groups: the rows in W compared)
+            a, b, f = (np.concatenate([rows_W(k)[j] for k in ks]) for j in range(3))
+            first, back = unique_segments(a, b, f)
+            a, b, f = a.take(first, axis=0), b.take(first, axis=0), f.take(first)
         else:  # (one program's rows, as they are: few repeat)
-            a, b, f = rows_F[ks[0]]
+            a, b, f = rows_W(ks[0])
             back = np.arange(len(f))
         n = len(f)
         parts.append((clr, Segments(a, b, np.ones(n, int), np.ones(n, int), np.arange(n), np.zeros(n, int)), f))
-        off = np.cumsum([0] + [len(rows_F[k][0]) for k in ks])
+        off = np.cumsum([0] + n_k)
         for j, k in enumerate(ks):
             inv[k] = (len(parts) - 1, back[off[j]:off[j + 1]])
     is_open = near_segments_many(parts, samples=False)
@@ -1347,7 +1381,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             p, back = inv[key]
             rows = np.flatnonzero(is_open[p][back])
             if rows.size:
-                a, b, f = rows_F[key]
+                a, b, f = rows_W(key)
                 sub.append((parts[p][0], Segments(a.take(rows, axis=0), b.take(rows, axis=0), sg.k[rows], sg.m[rows], sg.first[rows],
                                                   sg.path[rows]), f[rows]))
                 who.append(i)
@@ -1356,3 +1390,45 @@ def _near_samples(ms, zones, live, sgs) -> dict:
         if x.size:
             out[i] = np.union1d(out[i], x) if out[i].size else x
     return out
+
+
+def _rest_groups(ks, ball_g, fid_of) -> tuple[np.ndarray, np.ndarray]:
+    """(first, inverse) as :func:`sim.clearance.unique_segments` gives them for the rows in W of
+    a rest broad phase's parts ``ks`` (keys of :func:`_near_samples`: (certificates, program,
+    placement)), found without the rows: a part's rows are its program's rows in A moved by its
+    placement, so two rows are equal in W when they have the same placement and equal rows in
+    A, which the ball's distinct rows already tell (``ball_g``: per program, each row's number
+    among them; its ends in A and its allowed feature in the ball's numbering, which names the
+    bar's features as this one does) with the same allowed feature here (``fid_of``). Integers
+    compared instead of 7 words a row hashed (the 5-axis plan: two broad phases of 4,520 and
+    2,692 rows). (A rest broad phase is one work zone's, so its parts share one placement; the
+    placement's term keeps the groups right if parts of several placements ever met in one.)"""
+    places = {}
+    pidx = [places.setdefault(k[2], len(places)) for k in ks]
+    g = np.concatenate([ball_g[k[1]] for k in ks])
+    fr = np.concatenate([fid_of[k] for k in ks]) + 2  # (>= 0: -2 is none)
+    pl = np.repeat(pidx, [len(fid_of[k]) for k in ks])
+    _, idx, iv = np.unique((g * (int(fr.max()) + 1) + fr) * len(places) + pl, return_index=True,
+                           return_inverse=True)  # (idx: each value's first row)
+    order = np.argsort(idx)
+    rank = np.empty(len(idx), int)
+    rank[order] = np.arange(len(idx))
+    return idx.take(order), rank.take(iv)
+
+
+def _rest_rows(ks, n_k, first, segs_A, ptag, fid_of) -> tuple:
+    """(a, b, allowed feature) in W of the rows ``first`` (increasing, of the parts ``ks``
+    one after another, ``n_k`` rows each) of a rest broad phase: only those rows of each
+    program moved by its placement, both ends as rows of one product (row by row: the same numbers
+    as the program's every row moved, :func:`_near_samples`' ``rows_W``)."""
+    off = np.cumsum([0] + list(n_k))
+    cut = np.searchsorted(first, off)
+    A, B, F = [], [], []
+    for j, k in enumerate(ks):
+        sel = first[cut[j]:cut[j + 1]] - off[j]
+        if sel.size:
+            pid, _, place = ptag[k]
+            a, _, nxt = segs_A[pid]
+            X = np.concatenate([a.take(sel, axis=0), a.take(nxt.take(sel), axis=0)]) @ place[:3, :3].T + place[:3, 3]
+            A.append(X[:len(sel)]), B.append(X[len(sel):]), F.append(fid_of[k].take(sel))
+    return np.concatenate(A), np.concatenate(B), np.concatenate(F)

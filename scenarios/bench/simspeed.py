@@ -165,6 +165,48 @@ three ``unique_segments`` (the rest broad phases' rows could be told apart by th
 then the few representatives compared in W), the 14 broad phases' builds (~0.1 ms each with their
 table preps and pair structures), the ball model's compile (~1 ms) and the per-measurement Python
 of ``check_measurements``, ``_near_samples``, ``least_holder_clearances`` and ``check_plan``.
+
+Session 18 (issue 19 item 4, continued). Where a fresh check spends its thread CPU (each function timed
+around it, the least of 40 fresh checks, load 10-15 on 2 cores; 20.6 ms a check with the timers):
+``_near_samples`` 10.6 ms (``near_segments_many`` 3.6, the 14 broad phases' builds ``Clearance.__init__``
+2.0 with 5 table preps 0.66 and 6 pair structures 0.60, the ball's ``unique_segments`` 0.73,
+``_segments_A`` 0.58), ``share_ball_model`` 2.2 (its ``MjSpec`` compile 1.1), ``least_holder_clearances``
+1.6, ``_paths_of`` 1.2, ``check_measurements``' own first loop over the 17 measurements 1.2 (per
+measurement ~46 us of transforms: contacts, starts, the starts back in A), ``check_plan``'s own 1.5
+(``_plan_for`` 0.5). ``near_segments_many`` passes 15,640 rows of 14 broad phases (the ball's 1,616
+distinct ones, 13 rest broad phases' 824-1,436 each): its first box level gives 20,923 (row, cluster)
+candidates, 644 (row, pair) rows reach the swept bound. What changed: the two rest broad phases
+that hold several programs' or placements' rows tell their distinct rows apart by the ball's
+distinct rows in A (each row's number there, its feature number, its placement: integers through
+``np.unique``, ``_rest_groups``) instead of hashing every row moved to W, and only those rows are
+moved to W (``_rest_rows``; a part's every row is moved only when the sample pass asks for it);
+the table side's kinds, sizes and bounding radii kept once per bar and workholder
+(``WorkZone._side_shapes``); a table side's feature part of its prep and pair structures
+(clusters, their order, feature numbers, pair order) kept per features list (``_feature_prep``,
+``_pair_order``: a bar's placements on one workholder share it). Every change gives the same
+values: the groups and rows equal to ``unique_segments`` on the moved rows at all 20 groupings of
+the hash script (63,296 rows); the hash of every path, broad-phase result, least clearance and
+answer (the 5-axis plan fresh and again, the plan-check variants and fuzz sets fresh and again, the
+MFB campaign's path checks) equal to the code before's. Measured (thread CPU): the fresh-check
+script side by side with the code before, 10 pairs of processes (40 checks each; 6 with the code
+before started first, 4 after, load 13-17): the least check 20.4 ms -> 19.6 ms (medians of the pairs;
+paired ratios 0.94-0.99, median 0.97, every pair lower), the median check paired 0.95-0.98. This
+collision figure, 8 runs side by side with the code before (3 with the order swapped, load 14-17):
+the check's CPU paired ratios 0.93-1.22 (median 1.02), the share 0.225-0.289 before and 0.249-0.286
+after (paired 0.89-1.27, median 0.93, moved mostly by the simulation's CPU, 0.067-0.106 s between
+runs): at that load the bench's best of 5 does not resolve a 3 % change, and the share straddles
+0.25 before and after. The target, under 0.25 of the simulation's CPU, is not reached reliably.
+Tried and not kept: a second box level of 4-row sub-blocks in ``_block_candidates_many`` (the same
+(row, pair) rows in the same order, candidates 2.20 M -> 1.27 M over the hash script's calls, but
+``_block_candidates_many`` 0.76 -> 1.11 ms against ``_pair_candidates`` 0.52 -> 0.43 ms on the 5-axis
+plan: slower); the solid table's sizes through ``np.fromiter`` (92 -> 62 us a build, 0.15 % of a
+check: not worth a change). Not a cost: the cyclic garbage collector (one generation-0 collection in
+a check, 0.36 ms; 30 checks interleaved with it on and off: least 18.5 and 19.2 ms, medians 26.2
+and 24.3 at that load, no clear difference). Left: per-call overhead
+spread thin (about 12,700 Python-level calls a check, cProfile; few functions above 5 % of it on their own);
+what would move it is fewer calls per measurement, orientation and placement, but most of those
+transforms are kept one at a time so their rounding matches ``link_points`` and the reference
+paths bit for bit (``inv_T``'s einsum, ``apply_T``'s products).
 """
 
 from __future__ import annotations

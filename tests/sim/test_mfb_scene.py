@@ -442,3 +442,47 @@ def test_plan_fuzz_gives_the_answers_of_the_code_before_batching():
             assert got[name] == rows, name
     n = [r for rows in want.values() for r in rows]
     assert len(n) == 68 and sum(bool(r["collisions"]) for r in n) >= 50 and sum(not r["collisions"] for r in n) >= 5
+
+
+def test_rest_rows_grouped_by_the_balls_rows_are_unique_segments_in_W(monkeypatch):
+    """The rest broad phases that hold several programs' or placements' rows find their distinct
+    rows from the ball's distinct rows in A, a feature number and a placement
+    (sim.mfb_scene._rest_groups), and move only those to W (_rest_rows): on every such broad phase of
+    the plan variants' checks (fresh), the same first rows, inverse and moved rows, bit for bit, as
+    sim.clearance.unique_segments on every row moved to W (the code before session 18). Fails on a
+    grouping finer or coarser than the rows' bits, or a moved row that differs by rounding; tried:
+    each part's rows kept apart (the program in the groups' integers) fails here. Dropping the
+    placement's term does not (a rest broad phase is one zone's: one placement)."""
+    from sim import clearance as C
+    from sim import mfb_scene as M
+
+    real_groups, real_rows = M._rest_groups, M._rest_rows
+    seen, last = [], {}
+
+    def groups(*a):
+        last["g"] = real_groups(*a)
+        return last["g"]
+
+    def rows(ks, n_k, first, segs_A, ptag, fid_of):
+        out = real_rows(ks, n_k, first, segs_A, ptag, fid_of)
+        moved = []
+        for k in ks:
+            _, _, place = ptag[k]
+            a, _, nxt = segs_A[k[1]]
+            aW = a @ place[:3, :3].T + place[:3, 3]
+            moved.append((aW, aW.take(nxt, axis=0), fid_of[k]))
+        a, b, f = (np.concatenate([m[j] for m in moved]) for j in range(3))
+        f0, back0 = C.unique_segments(a, b, f)
+        f1, back1 = last["g"]
+        assert np.array_equal(f0, f1) and np.array_equal(back0, back1)
+        for x, y in zip(out, (a.take(f0, axis=0), b.take(f0, axis=0), f.take(f0))):
+            assert x.dtype == y.dtype and x.tobytes() == np.ascontiguousarray(y).tobytes()
+        seen.append(len(f))
+        return out
+
+    monkeypatch.setattr(M, "_rest_groups", groups)
+    monkeypatch.setattr(M, "_rest_rows", rows)
+    make, _ = _load_variants()
+    _fresh_variants()
+    make.results(make.variants())
+    assert len(seen) >= 5 and sum(seen) >= 10_000  # (the variants have such broad phases)
