@@ -463,13 +463,18 @@ def _batch_tests(G: np.ndarray, b: np.ndarray, rss: float, dof: int):
     w, V = np.linalg.eigh(G)
     good = w > IN_SPAN ** 2
     proj = (V.transpose(0, 2, 1) @ b[..., None])[..., 0]
-    k = good.sum(axis=1)
-    d2 = dof - k
-    ok = (k > 0) & (d2 >= 1)
-    if good.all() and ok.all():  # (the usual case: the same values as the masked expressions below, fewer passes)
+    T, kk = w.shape
+    if kk and dof - kk >= 1 and good.all():
+        # (the usual case: every direction kept, so every trial's k is the columns' count and every test is made;
+        # the same values as the masked expressions below, fewer passes over the small arrays)
+        k = np.full(T, kk, dtype=np.intp)
+        d2 = dof - k
         ss = np.sum(proj ** 2 / w, axis=1)
         F = (ss / k) / (np.maximum(rss - ss, 1e-300) / d2)
         return ss, k, F, special.fdtrc(k, d2, F)
+    k = good.sum(axis=1)
+    d2 = dof - k
+    ok = (k > 0) & (d2 >= 1)
     ss = np.sum(np.where(good, proj ** 2 / np.where(good, w, 1.0), 0.0), axis=1)
     F = np.where(ok, (ss / np.maximum(k, 1)) / (np.maximum(rss - ss, 1e-300) / np.maximum(d2, 1)), 0.0)
     p = np.where(ok, special.fdtrc(np.maximum(k, 1), np.maximum(d2, 1), F), 1.0)
@@ -853,7 +858,10 @@ class SpectralTable(tuple):
         else:
             _, dS, dC = have
         for cols, rows, Z, S2, C2 in self.blocks(squares=have is None):
-            NZ[:, cols] += A[:, rows] @ Z  # (zeros plus the whole table's product: that product, bit for bit)
+            # (zeros plus the whole table's product: that product, bit for bit, as the blocks' products are). ``A``
+            # is real: the product is one real product on the phasors' real and imaginary parts side by side
+            # (_real_times_complex), half the multiplications of the complex one numpy makes of a real matrix
+            NZ[:, cols] += _real_times_complex(A[:, rows], Z)
             if have is None:
                 dS[:, cols] += W2[:, rows] @ S2
                 dC[:, cols] += W2[:, rows] @ C2
@@ -862,6 +870,18 @@ class SpectralTable(tuple):
             while len(self._dens) > 4:
                 self._dens.pop(next(iter(self._dens)))
         return NZ, dS, dC
+
+
+def _real_times_complex(A: np.ndarray, Z: np.ndarray) -> np.ndarray:
+    """``A @ Z`` for a real ``A`` (m, n) and a complex ``Z`` (n, F) by one real product: ``A @ Z.view(float)``,
+    whose columns are the real and imaginary parts interleaved, read back as complex (m, F); ``Z``'s last axis
+    contiguous (a phasor table and its blocks are), else the complex product. numpy's ``A @ Z`` casts ``A`` to
+    complex and multiplies its zero imaginary parts too: twice the work. The same sums of the same products, to
+    rounding (the order the kernels add them may differ): the pre-screen only ranks frequencies with it, and the
+    16 identity campaigns' reports (tests/core/test_discover_identity.py) come out bit for bit as before."""
+    if A.dtype != np.float64 or Z.dtype != np.complex128 or Z.ndim != 2 or Z.strides[1] != Z.itemsize:
+        return A @ Z
+    return np.ascontiguousarray(A @ Z.view(np.float64)).view(np.complex128)
 
 
 def phasor_blocks(w: np.ndarray, f: np.ndarray):

@@ -1,0 +1,53 @@
+"""Session 18's small shortcuts in core.diagnosis give the numbers of the paths they stand for."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import special
+
+from core import diagnosis as D
+
+
+def _masked(G, b, rss, dof):
+    """``_batch_tests``' general (masked) expressions, for every case."""
+    w, V = np.linalg.eigh(G)
+    good = w > D.IN_SPAN ** 2
+    proj = (V.transpose(0, 2, 1) @ b[..., None])[..., 0]
+    k = good.sum(axis=1)
+    d2 = dof - k
+    ok = (k > 0) & (d2 >= 1)
+    ss = np.sum(np.where(good, proj ** 2 / np.where(good, w, 1.0), 0.0), axis=1)
+    F = np.where(ok, (ss / np.maximum(k, 1)) / (np.maximum(rss - ss, 1e-300) / np.maximum(d2, 1)), 0.0)
+    p = np.where(ok, special.fdtrc(np.maximum(k, 1), np.maximum(d2, 1), F), 1.0)
+    return ss, k, F, p
+
+
+def test_batch_tests_fast_path_is_the_masked_one_bit_for_bit():
+    rng = np.random.default_rng(3)
+    for T, k in ((1, 4), (7, 3), (160, 3), (2, 12)):
+        P = rng.normal(size=(T, 50, k))
+        r = rng.normal(size=50)
+        G, b = P.transpose(0, 2, 1) @ P, P.transpose(0, 2, 1) @ r
+        got, ref = D._batch_tests(G, b, float(r @ r), 40), _masked(G, b, float(r @ r), 40)
+        for x, y in zip(got, ref):
+            assert x.dtype == y.dtype and np.array_equal(x, y)
+    # a direction inside the model (a zero eigenvalue), and too few degrees of freedom: the masked path still
+    P = rng.normal(size=(2, 50, 3))
+    P[:, :, 2] = P[:, :, 0]
+    G, b = P.transpose(0, 2, 1) @ P, P.transpose(0, 2, 1) @ r
+    for dof in (40, 3, 2):
+        got, ref = D._batch_tests(G, b, float(r @ r), dof), _masked(G, b, float(r @ r), dof)
+        for x, y in zip(got, ref):
+            assert np.array_equal(x, y)
+    assert list(D._batch_tests(G, b, float(r @ r), 40)[1]) == [2, 2]
+
+
+def test_real_times_complex_is_the_complex_product():
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(3, 40))
+    Z = np.exp(1j * rng.uniform(0, 10, size=(40, 64)))[:, :50]  # (a view: rows strided, last axis contiguous)
+    got, ref = D._real_times_complex(A, Z), A @ Z
+    assert got.shape == ref.shape and got.dtype == ref.dtype
+    assert np.allclose(got, ref, rtol=1e-13, atol=1e-13 * np.abs(ref).max())
+    Zs = np.exp(1j * rng.uniform(0, 10, size=(40, 100)))[:, ::2]  # last axis strided: the complex product itself
+    assert np.array_equal(D._real_times_complex(A, Zs), A @ Zs)
