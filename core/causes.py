@@ -663,8 +663,9 @@ def unoriented_scans(bl):
     translation, in the set-up's own C-axis offsets). Plausible only when
     the set-ups' lobing vectors lie on one circle (one probe's lobes,
     turned; the circle's centre is a part fixed in the machine frame) and
-    their orientations differ (else the probe is oriented:
-    ``probe_lobing``). Parameters: harmonic, amplitude (um), orientation
+    they differ (else the probe is oriented: ``probe_lobing``): oriented
+    where the vectors agree within their U95 as well as the orientations
+    (angles about a centre few set-ups fix). Parameters: harmonic, amplitude (um), orientation
     per set-up (deg).
     """
     d = bl.data
