@@ -663,8 +663,9 @@ def unoriented_scans(bl):
     translation, in the set-up's own C-axis offsets). Plausible only when
     the set-ups' lobing vectors lie on one circle (one probe's lobes,
     turned; the circle's centre is a part fixed in the machine frame) and
-    their orientations differ (else the probe is oriented:
-    ``probe_lobing``). Parameters: harmonic, amplitude (um), orientation
+    they differ (else the probe is oriented: ``probe_lobing``): oriented
+    where the vectors agree within their U95 as well as the orientations
+    (angles about a centre few set-ups fix). Parameters: harmonic, amplitude (um), orientation
     per set-up (deg).
     """
     d = bl.data
@@ -1095,8 +1096,14 @@ def unoriented_plausible(vals, u95):
     if a > 3 * spread:
         return (f"the set-ups' lobing vectors change by {spread:.2g} um on a circle of {a:.2g} um: a trend, "
                 "not a probe turned at random")
+    # oriented: the set-ups' lobing vectors agree, so their orientations do. The orientations alone cannot
+    # say it: they are angles about the circle's centre, which three or four set-ups barely determine, and
+    # their spread is a maximum bounded by 180 / k deg whose U95 by the delta method blows up where a pair
+    # nears that bound (gen_a lobing_per_setup 1004, 1036, 1040: spreads of 15-60 deg within U95s of 43-80,
+    # the vectors apart by 3-7 times their U95). Refused as oriented only when the vectors agree as well.
     o, do = vals.get("orientation_spread_deg"), u95.get("orientation_spread_deg")
-    if o is not None and do is not None and o <= do:
+    dspread = u95.get("spread_um")
+    if o is not None and do is not None and o <= do and (dspread is None or spread <= dspread):
         return f"orientations agree within U95 ({o:.2g} +- {do:.2g} deg): the probe is oriented"
     return None
 
