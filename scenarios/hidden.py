@@ -647,11 +647,28 @@ def binomial_interval(k: int, n: int, level: float = 0.95) -> tuple:
     return (lo, hi)
 
 
+def in_catalogue(o, cat=None) -> bool:
+    """Whether the effect hidden in outcome ``o`` is itself a catalogue cause (its name one of ``cat``,
+    :func:`catalogue_names`, and a catalogue name among its acceptable readings). An effect outside the
+    catalogue stays outside even where a catalogue name is an acceptable reading of it: gen_a's
+    thermal_bending may be read ``thermal_drift`` or ``unexplained``, and its confident wrong names count in
+    ``confident_misnamed`` (until session 18 it was scored as a catalogue effect, which hid them)."""
+    cat = catalogue_names() if cat is None else cat
+    return o.effect in cat and bool(set(o.acceptable) & cat)
+
+
+def misnamed_confidently(o, cat=None) -> bool:
+    """Outcome ``o`` names a catalogue cause that is not an acceptable reading of its effect, unflagged."""
+    cat = catalogue_names() if cat is None else cat
+    return o.cause in cat and o.cause not in o.acceptable and o.confident
+
+
 def summarize(outcomes) -> dict:
     """The aims of issue 13 item 7 as rates with their binomial intervals.
 
     - ``false_alarm``: effect-free campaigns whose cause is not ``none``;
-    - ``catalogue``: catalogue effects whose campaign kept at least one
+    - ``catalogue``: catalogue effects (the effect is itself a catalogue
+      cause, :func:`in_catalogue`) whose campaign kept at least one
       noise sigma per touch after the baseline, named acceptably (the
       report's cause; flagged ambiguous or not);
     - ``catalogue_ambiguous``: of those named acceptably, the ones whose
@@ -661,9 +678,11 @@ def summarize(outcomes) -> dict:
       is not acceptable but is flagged ambiguous with an acceptable
       catalogue cause among its ``alternatives`` (two causes this design
       cannot tell apart, both named): not counted in ``catalogue``;
-    - ``out_of_catalogue``: effects with no catalogue name among their
-      acceptable causes that kept at least one noise sigma per touch after
-      the baseline, reported ``unexplained`` or acceptably;
+    - ``out_of_catalogue``: effects that are not a catalogue cause, even
+      where a catalogue name is an acceptable reading of them (a wall that
+      bends with the heat may be read ``thermal_drift``), that kept at least
+      one noise sigma per touch after the baseline, reported ``unexplained``
+      or acceptably;
     - ``below_visibility``: effects (catalogue or not) that kept less than
       one sigma per touch: not counted in the two rates above, reported
       apart (``none`` is an honest answer there, a confident wrong name is
@@ -674,6 +693,8 @@ def summarize(outcomes) -> dict:
       the proof);
     - ``confident_misnamed``: out-of-catalogue effects (visible or not)
       named with a wrong catalogue cause without an ambiguity flag;
+      ``confident_misnamed_catalogue`` the same over catalogue effects (one
+      catalogue cause confidently read as another);
     - ``workpiece_ok``: campaigns whose extended workpiece is no worse than
       the baseline's beyond its U95 (both gauge-free against the truth),
       over every campaign that reports an extended estimate (one reported
@@ -694,16 +715,18 @@ def summarize(outcomes) -> dict:
 
     none = [o for o in outcomes if o.acceptable == ("none",)]
     rate("false_alarm", none, [o.cause != "none" for o in none])
-    catl = [o for o in outcomes if set(o.acceptable) & cat and o.visible_sigmas >= 1.0]
+    catl = [o for o in outcomes if in_catalogue(o, cat) and o.visible_sigmas >= 1.0]
     rate("catalogue", catl, [o.cause in o.acceptable for o in catl])
     hit = [o for o in catl if o.cause in o.acceptable]
     rate("catalogue_ambiguous", hit, [not o.confident for o in hit])
     rate("catalogue_alternative", catl, [o.cause not in o.acceptable and not o.confident
                                          and bool(set(o.alternatives) & set(o.acceptable)) for o in catl])
-    ooc = [o for o in outcomes if o.acceptable != ("none",) and not set(o.acceptable) & cat]
+    ooc = [o for o in outcomes if o.acceptable != ("none",) and not in_catalogue(o, cat)]
     oocv = [o for o in ooc if o.visible_sigmas >= 1.0]
     rate("out_of_catalogue", oocv, [o.cause in o.acceptable or o.cause == "unexplained" for o in oocv])
-    rate("confident_misnamed", ooc, [o.cause in cat and o.cause not in o.acceptable and o.confident for o in ooc])
+    rate("confident_misnamed", ooc, [misnamed_confidently(o, cat) for o in ooc])
+    incat = [o for o in outcomes if in_catalogue(o, cat)]
+    rate("confident_misnamed_catalogue", incat, [misnamed_confidently(o, cat) for o in incat])
     low = [o for o in outcomes if o.acceptable != ("none",) and o.visible_sigmas < 1.0]
     rate("below_visibility", low, [o.cause in o.acceptable or o.cause in ("none", "unexplained") for o in low])
     out["absorbed"] = [(o.effect, o.seed, round(o.visible_generator, 2), round(o.visible_sigmas, 3),
@@ -741,9 +764,11 @@ def format_study(outcomes, title: str = "") -> str:
         lines.append(f"{e:<{w}s} {row}   {np.median([o.visible_sigmas for o in sel]):9.2f}  {wp}")
     s = summarize(outcomes)
     for k in ("false_alarm", "catalogue", "catalogue_ambiguous", "catalogue_alternative", "out_of_catalogue",
-              "confident_misnamed", "workpiece_ok", "workpiece_shift_carried", "below_visibility"):
+              "confident_misnamed", "confident_misnamed_catalogue", "workpiece_ok", "workpiece_shift_carried",
+              "below_visibility"):
         v = s[k]
-        if v["n"] and (k not in ("workpiece_shift_carried", "catalogue_ambiguous", "catalogue_alternative")
+        if v["n"] and (k not in ("workpiece_shift_carried", "catalogue_ambiguous", "catalogue_alternative",
+                                 "confident_misnamed_catalogue")
                        or v["k"]):
             lines.append(f"{k:20s} {v['k']:3d}/{v['n']:<3d} = {v['rate']:.2f}  (95 % CI {v['ci95'][0]:.2f}-"
                          f"{v['ci95'][1]:.2f})")

@@ -45,7 +45,7 @@ def run(blind_seed0: int = 100, hidden_seed0: int = 2000) -> dict:
             outs = [blind_outcome(mod, e, blind_seed0 + s, generator=g) for e in mod.effects() for s in range(SEEDS)]
         s = summarize(outs)
         for k in ("false_alarm", "catalogue", "catalogue_ambiguous", "catalogue_alternative", "out_of_catalogue",
-                  "confident_misnamed", "workpiece_ok", "below_visibility"):
+                  "confident_misnamed", "confident_misnamed_catalogue", "workpiece_ok", "below_visibility"):
             out[f"discover_{g}_{k}_rate"] = round(s[k]["rate"], 4) if s[k]["n"] else None
             out[f"discover_{g}_{k}_n"] = s[k]["n"]
             out[f"discover_{g}_{k}_ci95"] = [round(v, 4) for v in s[k]["ci95"]] if s[k]["n"] else None

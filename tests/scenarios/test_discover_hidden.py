@@ -157,9 +157,9 @@ def test_false_alarms_at_most_5_percent(studies, gen):
 @pytest.mark.parametrize("gen", GENERATORS)
 def test_catalogue_causes_named(studies, gen):
     s = summarize(studies[gen])["catalogue"]
+    cat = catalogue_names()
     missed = [(o.effect, o.cause, round(o.visible_sigmas, 2)) for o in studies[gen]
-              if o.visible_sigmas >= 1 and o.cause not in o.acceptable and o.acceptable != ("none",)
-              and o.acceptable[0] != "unexplained"]
+              if o.visible_sigmas >= 1 and o.cause not in o.acceptable and o.effect in cat]
     assert s["rate"] >= 0.95 or {m[:2] for m in missed} <= KNOWN_MISSED.get(gen, set()), (s, missed)
 
 
@@ -170,8 +170,8 @@ def test_out_of_catalogue_unexplained_or_named(studies, gen):
     if s["n"] == 0:
         assert gen == "hidden"  # the simulator hides no out-of-catalogue effect; the blind generators do
         return
-    wrong = [(o.effect, o.cause) for o in studies[gen] if o.acceptable == ("unexplained",)
-             and o.cause not in ("unexplained",)]
+    wrong = [(o.effect, o.cause) for o in studies[gen] if o.effect not in catalogue_names()
+             and o.acceptable != ("none",) and o.cause not in o.acceptable + ("unexplained",)]
     assert s["rate"] >= min(OOC_AIM, OOC_FLOOR.get(gen, OOC_AIM)) - 1e-12, (s, wrong)
 
 
@@ -179,10 +179,31 @@ def test_out_of_catalogue_unexplained_or_named(studies, gen):
 def test_out_of_catalogue_never_confidently_misnamed_beyond_the_known(studies, gen):
     """Aim: never. The known misnamings at SEEDS are listed; any other one fails."""
     cat = catalogue_names()
-    bad = {(o.effect, o.cause) for o in studies[gen] if o.acceptable != ("none",) and not set(o.acceptable) & cat
+    bad = {(o.effect, o.cause) for o in studies[gen] if o.acceptable != ("none",) and o.effect not in cat
            and o.cause in cat and o.cause not in o.acceptable and o.confident}
     assert bad <= KNOWN_MISNAMED.get(gen, set()), bad
     assert summarize(studies[gen])["confident_misnamed"]["k"] == len(bad)
+
+
+def test_an_effect_outside_the_catalogue_with_a_catalogue_reading_is_scored_outside():
+    """gen_a's thermal_bending (a wall bending with the heat) may be read ``thermal_drift`` or ``unexplained``.
+    Until session 18 the study scored it as a catalogue effect because a catalogue name was among its
+    readings, so a confident ``c_drift`` on it was a catalogue miss and never a confident misnaming. It is
+    scored outside the catalogue: named right or ``unexplained`` counts, a confident wrong name counts in
+    ``confident_misnamed``, an ambiguous one does not; a catalogue effect confidently read as another cause
+    counts in ``confident_misnamed_catalogue``."""
+    acc = ("unexplained", "thermal_drift")
+    outs = [Outcome("g", "thermal_bending", 0, acc, "c_drift", ("c_drift",), True, 2.0, 0.3, 0.3, 0.3, 0.3, 0.1),
+            Outcome("g", "thermal_bending", 1, acc, "c_drift", ("c_drift",), False, 2.0, 0.3, 0.3, 0.3, 0.3, 0.1),
+            Outcome("g", "thermal_bending", 2, acc, "thermal_drift", ("thermal_drift",), True, 2.0, 0.3, 0.3, 0.3,
+                    0.3, 0.1),
+            Outcome("g", "c_drift", 3, ("c_drift",), "part_change", ("part_change",), True, 2.0, 0.3, 0.3, 0.3,
+                    0.3, 0.1)]
+    s = summarize(outs)
+    assert (s["catalogue"]["k"], s["catalogue"]["n"]) == (0, 1)
+    assert (s["out_of_catalogue"]["k"], s["out_of_catalogue"]["n"]) == (1, 3)
+    assert (s["confident_misnamed"]["k"], s["confident_misnamed"]["n"]) == (1, 3)
+    assert (s["confident_misnamed_catalogue"]["k"], s["confident_misnamed_catalogue"]["n"]) == (1, 1)
 
 
 @pytest.mark.parametrize("gen", GENERATORS)
