@@ -145,7 +145,13 @@ What it does, in order, and the statistics behind each step
    it (:attr:`core.causes.Cause.richer`: lobes turned per set-up for fixed
    lobes) is neither significant beyond it by its own F test nor left
    possible by the design (:func:`core.causes.turned_lobes`: fixed lobes
-   are confident only where a turn of the fitted lobes would have shown)
+   are confident only where a turn of the fitted lobes would have shown);
+   no unnamed smooth of its own covariate's family was adopted beside it
+   (step 5 keeps a cause beside such a smooth as its refinement; the
+   smooth's material held-out gain says the covariate holds a structure
+   of a form the cause lacks: gen_a thermal_bending 1322 and 1340,
+   ``part_change`` taking one feature of a bending that moves them all,
+   session 18)
    (a rule
    "every combination of its columns inflated at most vif_max" was
    measured and withdrawn: on fresh seeds it flagged 20-23 % more right
@@ -4490,6 +4496,9 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
     out = []
     sig = st.sigma
     named = [t for t in terms if not t.unnamed]
+    # an unnamed smooth adopted beside the named causes: (its covariate's family, its covariate, its held-out gain)
+    own_smooth = (_family(bl, smooth.covariate), smooth.covariate, smooth.evidence["cv_gain_um2"]) \
+        if smooth is not None and smooth.columns.shape[1] else None
     # the model with every named cause: st itself when there is no unnamed smooth (same Qb, rows, terms)
     sf = (st if len(named) == len(terms) else _state(Qb, y, rows, named)) if named else None
     for tm in terms:
@@ -4575,6 +4584,13 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                         "the probe's effective size changing with time (dirt picked up, the probe warming)")
                 why.append(f"{what} explains as much ({a['explained_ss_um2']:.3g} um^2) and the cause nothing "
                            "material beyond it")
+        if own_smooth is not None and own_smooth[0] is not None and _family(bl, tm.covariate) == own_smooth[0]:
+            # step 5 keeps a cause beside an unnamed smooth of its own covariate's family (the smooth refines
+            # it); the smooth earned a material held-out gain beside it, so that covariate holds more than the
+            # cause's form takes: the cause may be the part of a structure of another form its columns bend to
+            why.append(f"an unnamed smooth term in {own_smooth[1]}, of its own covariate's family, earns a "
+                       f"material held-out gain beside it ({own_smooth[2]:.3g} um^2 per touch): the structure "
+                       "there has a form the cause lacks, the cause holding part of it")
         if ev.get("magnitudes_not_determined"):
             why.append(ev["magnitudes_not_determined"])
         if ev.get("magnitude_undetermined"):
@@ -4615,6 +4631,12 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             ev["explained_ss_um2"] = (top.explained_rms_um ** 2 * len(rows)) if top else 0.0
         out.append(Finding(causes_mod.UNEXPLAINED, _clean(ev), params, u95, st.sigma / UM, "unknown"))
     return out
+
+
+def _family(bl, covariate) -> str | None:
+    """The family of a covariate of the baseline's (None where it has none or there is no such covariate)."""
+    cov = bl.covariate(covariate) if covariate is not None else None
+    return (cov.family or None) if cov is not None else None
 
 
 def _smooth_ss(bl, terms, smooth, Qb, y, rows) -> float:
