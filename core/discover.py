@@ -2236,6 +2236,29 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         seen += seen2
     tick()
 
+    by_name = {c.name: c for c in catalogue}
+
+    def judge_again(old: Term, kept: list, rows_, gone: Term) -> Term | None:
+        """The cause of ``old``, adopted with ``gone`` in the model, judged again by the search's tests beside
+        ``kept`` alone (the causes adopted before it that stay) on ``rows_``: its term as adopted there (its form
+        chosen again), or None (refused, said so in ``rejected``)."""
+        _, f_, s_ = model(rows_, kept)
+        sig_ = noise_sigma(s_)
+        # the search's own diagnosis of a round: every covariate in its first, the smooth ones after
+        diag_ = diagnose(s_.Q, s_.r, s_.dof, smooth_covs if kept else bl.covariates, bl.modes, sigma_m=sig_,
+                         material_sigma=settings.material_sigma, rows=rows_, bases=bases)
+        seen.append((s_, diag_))
+        cv_ = f_.mse(y[rows_], _stack(kept, rows_), _penalty(kept)) if kept else f_.mse(y[rows_])
+        sc, tries = scans[old.cause]
+        cand = _evaluate(by_name[old.cause], sc, tries * n_causes, bl, s_, f_, kept, cv_, sig_, settings,
+                         _family_ss(bl, diag_, len(rows_), s_.rss), scan_tries=tries)
+        if cand.get("reason"):
+            rejected.append({"cause": old.cause, "reason": f"judged again without {gone.cause} (adopted before it, "
+                             f"then dropped): {cand['reason']}"})
+            return None
+        cand["term"].evidence["judged_again_without"] = gone.cause
+        return cand["term"]
+
     # 4. rival check: a named cause must explain its covariate's structure
     demoted = []
     dropped = []  # the terms the rival check dropped (their columns re-tested beyond the final model, step 5)
@@ -2270,13 +2293,28 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if changed:
                 break  # (every term judged again on every row)
             if not share["kept"]:
-                terms.remove(tm)
+                at = next(i for i, t in enumerate(terms) if t is tm)
+                later = terms[at + 1:]
+                terms = terms[:at]
                 dropped.append(tm)
                 if tm is put_back_by:  # what it put back was its structure only if it stays named
                     put_back, put_back_by = False, None
                     undone = True
                 demoted.append({"cause": tm.cause, **share})
                 rejected.append({"cause": tm.cause, "reason": _demotion_reason(share, tm.covariate, settings)})
+                # the causes adopted after it were searched with it in the model: each is judged again, in the
+                # order of adoption, beside the causes before it that stay (section 4's "a search built on a
+                # dropped cause")
+                for old in later:
+                    new = judge_again(old, terms, rows, tm)
+                    if new is not None:
+                        terms.append(new)
+                    if old is put_back_by:
+                        if new is None:
+                            put_back, put_back_by = False, None
+                            undone = True
+                        else:
+                            put_back_by = new
                 Qb, folds, st = model(rows, terms)
                 changed = True
                 break
