@@ -3553,7 +3553,9 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
 #: thermal_drift 1023, c_drift 1028, 1920; gen_a thermal_drift 1902, c_drift 1903, 1925), eight more named right
 #: below one sigma, no right -> wrong, no confident misnaming, the workpiece checks as before (gen_a
 #: thermal_bending 1036, `unexplained` -> thermal_drift, ambiguous, both right: its extended workpiece 1.18 um
-#: against U95 1.04 before, 1.39 against 0.95 now, outside either way). The blind 2400 not rerun (a blind seed).
+#: against U95 1.04 before, 1.39 against 0.95 now, outside either way). The blind 2400 not rerun (a blind seed);
+#: its tuning likeness, thermal_bending 1008, reads part_change, ambiguous, as with the step off (part_change judged
+#: again without c_drift takes another form and stands), where session 17's code with the step read `unexplained`.
 HELD_OUT_FALLBACK = True
 #: Whether that fallback also follows a confounded form (True), or only one short of its held-out gain (False).
 #: Off (session 17, the lead's call): on, it named five more visible campaigns right on gen_a/gen_b 1000-1199
