@@ -1341,11 +1341,6 @@ def _ring(w: np.ndarray, n: np.ndarray) -> bool:
     return r > 0 and float(np.max(np.abs(A @ sol - w.reshape(-1)))) <= RING_FIT_REL * r
 
 
-#: part_change's settling forms' time constants, as fractions of the campaign's span (beside the linear form):
-#: :func:`part_change_scans`. Each is refined by :func:`core.discover._refine` (within a quarter of its value).
-PART_TAU_FRACTIONS = (0.25, 0.5)
-
-
 def part_change_scans(bl):
     """The part itself changing during the campaign: one feature's form drifting with time.
 
@@ -1443,30 +1438,64 @@ def part_change_scans(bl):
     mean of its ends', um).
     """
     d = bl.data
-    feats = np.asarray(d.touches.feature, dtype=object)
-    forms = [None] + ([float(f * d.span_s) for f in PART_TAU_FRACTIONS] if d.span_s > 0 else [])
+    t = d.touches
+    feats = np.asarray(t.feature, dtype=object)
+    sector = np.mod(np.round(d.wn_az / (np.pi / 4)).astype(int), 8)
     scans = []
-    for tau_s in forms:  # the linear form's scans first, then each settling form's: the same layouts
-        g = _part_time(d, tau_s)[0]
-        tinfo = {} if tau_s is None else {"tau_s": tau_s}
-        for f in sorted(set(feats.tolist())):
-            lay = _part_feature(d, f)
-            if lay is None:
+    for f in sorted(set(feats.tolist())):
+        m = feats == f
+        nt = np.unique(t.target[m]).size
+        if nt < 2 or np.unique(t.setup[m]).size < 2:
+            continue
+        cols, kinds, labels, walls, turns, bows = [], [], [], [], [], []
+        covered = np.zeros(t.n, bool)  # the feature's touches on a wall
+        w = np.asarray(t.w_A, float)[:, :2]
+        ext = float(np.max(np.ptp(w[m], axis=0))) if np.all(np.isfinite(w[m])) else 0.0
+        for s in range(8):
+            ms = m & (sector == s)
+            if np.unique(t.target[ms]).size >= (2 if nt >= 8 else 1):  # a small feature: every direction it has
+                cols.append(ms * d.tau)
+                kinds.append(0)
+                labels.append(f"{f}@{45 * s}deg")
+                walls.append(45 * s)
+                covered |= ms
+                if ext <= 0:
+                    continue
+                # the wall turning and bowing: its targets' place along the sector's tangent
+                a = w[ms] @ np.array([-np.sin(np.pi / 4 * s), np.cos(np.pi / 4 * s)])
+                if np.ptp(a) > WALL_TURN_MIN * ext and np.ptp(np.angle(
+                        np.exp(1j * (d.wn_az[ms] - d.wn_az[ms][0])))) <= FLAT_WALL_RAD:
+                    u = 2 * (a - a.min()) / np.ptp(a) - 1
+                    c = np.zeros(t.n)
+                    c[ms] = d.tau[ms] * u
+                    cols.append(c)
+                    kinds.append(1)
+                    labels.append(f"{f}@{45 * s}deg turn")
+                    turns.append(45 * s)
+                    if 1 + int(np.sum(np.diff(np.sort(a)) > WALL_TURN_MIN * ext)) >= WALL_BOW_PLACES:
+                        c = np.zeros(t.n)
+                        c[ms] = -d.tau[ms] * u ** 2
+                        cols.append(c)
+                        kinds.append(2)
+                        labels.append(f"{f}@{45 * s}deg bow")
+                        bows.append(45 * s)
+        if not covered[m].all():
+            # some of the feature's targets have no wall: a ring (a boss or a bore) with one target per sector is
+            # described by its ovalisation changing with time instead
+            ring = _ring_columns(d, m)
+            if ring is not None:
+                scans.append(_one(ring, [f"{f} oval cos2", f"{f} oval sin2"],
+                                  {"feature": str(f), "walls_deg": (), "ring": True}, "feature"))
                 continue
-            if lay[0] == "ring":
-                S = lay[1]
-                scans.append(_one(lambda S=S, g=g: S * g[:, None], [f"{f} oval cos2", f"{f} oval sin2"],
-                                  {"feature": str(f), "walls_deg": (), "ring": True, **tinfo}, "feature"))
-                continue
+        if cols:
             # nested: the walls shifting alone; where a wall can turn, shifting and turning; where one can bow,
             # shifting, turning and bowing: richer scans, each taken only where its new columns are significant
             # beyond the layout taken so far and it lowers the held-out mean square (core.discover._grow_layout); each
             # layout is a trial in the count below (the feature's layout is chosen by its own p-value)
-            _, S, kinds, labels, walls, turns, bows = lay
-            info = {"feature": str(f), "walls_deg": tuple(walls), **tinfo}
+            info = {"feature": str(f), "walls_deg": tuple(walls)}
             layouts = [(0, (), ())] + ([(1, tuple(turns), ())] if turns else []) + (
                 [(2, tuple(turns), tuple(bows))] if bows else [])
-            every = S * g[:, None]
+            every = np.column_stack(cols)
             for j, (top, tu, bo) in enumerate(layouts):
                 keep = [i for i, k in enumerate(kinds) if k <= top]
                 scans.append(_one(every[:, keep], [labels[i] for i in keep],
@@ -1475,88 +1504,9 @@ def part_change_scans(bl):
     return scans, float(max(len(scans), 1))
 
 
-def _part_time(d, tau_s) -> np.ndarray:
-    """(T, n) part_change's time form at each touch, 0 at the first touch and 1 at the last: linear (``tau_s``
-    None) or settling, ``(1 - exp(-t / tau)) / (1 - exp(-T / tau))`` for each time constant ``tau_s`` (s; an
-    array gives T forms), ``T`` the campaign's span."""
-    if tau_s is None:
-        return d.tau[None, :]
-    f = np.atleast_1d(np.asarray(tau_s, float))[:, None] / d.span_s
-    return np.expm1(-d.tau[None, :] / f) / np.expm1(-1.0 / f)
-
-
-def _part_feature(d, f):
-    """Feature ``f``'s part_change columns at unit time (``part_change_scans``; each column times the time form is
-    the cause's): ``("ring", S (n, 2))`` a ring's ovalisation, ``("walls", S (n, K), kinds, labels, walls, turns,
-    bows)`` its walls' shifts (kind 0), turns (1) and bows (2), or None (no column: one target or one set-up)."""
-    t = d.touches
-    feats = np.asarray(t.feature, dtype=object)
-    sector = np.mod(np.round(d.wn_az / (np.pi / 4)).astype(int), 8)
-    m = feats == f
-    nt = np.unique(t.target[m]).size
-    if nt < 2 or np.unique(t.setup[m]).size < 2:
-        return None
-    cols, kinds, labels, walls, turns, bows = [], [], [], [], [], []
-    covered = np.zeros(t.n, bool)  # the feature's touches on a wall
-    w = np.asarray(t.w_A, float)[:, :2]
-    ext = float(np.max(np.ptp(w[m], axis=0))) if np.all(np.isfinite(w[m])) else 0.0
-    for s in range(8):
-        ms = m & (sector == s)
-        if np.unique(t.target[ms]).size >= (2 if nt >= 8 else 1):  # a small feature: every direction it has
-            cols.append(ms * 1.0)
-            kinds.append(0)
-            labels.append(f"{f}@{45 * s}deg")
-            walls.append(45 * s)
-            covered |= ms
-            if ext <= 0:
-                continue
-            # the wall turning and bowing: its targets' place along the sector's tangent
-            a = w[ms] @ np.array([-np.sin(np.pi / 4 * s), np.cos(np.pi / 4 * s)])
-            if np.ptp(a) > WALL_TURN_MIN * ext and np.ptp(np.angle(
-                    np.exp(1j * (d.wn_az[ms] - d.wn_az[ms][0])))) <= FLAT_WALL_RAD:
-                u = 2 * (a - a.min()) / np.ptp(a) - 1
-                c = np.zeros(t.n)
-                c[ms] = u
-                cols.append(c)
-                kinds.append(1)
-                labels.append(f"{f}@{45 * s}deg turn")
-                turns.append(45 * s)
-                if 1 + int(np.sum(np.diff(np.sort(a)) > WALL_TURN_MIN * ext)) >= WALL_BOW_PLACES:
-                    c = np.zeros(t.n)
-                    c[ms] = -u ** 2
-                    cols.append(c)
-                    kinds.append(2)
-                    labels.append(f"{f}@{45 * s}deg bow")
-                    bows.append(45 * s)
-    if not covered[m].all():
-        # some of the feature's targets have no wall: a ring (a boss or a bore) with one target per sector is
-        # described by its ovalisation changing with time instead
-        ring = _ring_columns(d, m)
-        if ring is not None:
-            return ("ring", ring)
-    if not cols:
-        return None
-    return ("walls", np.column_stack(cols), kinds, labels, walls, turns, bows)
-
-
-def part_change_rebuild(bl, info):
-    """(T, n, k) part_change's columns for ``info``'s feature and layout, at its time constant(s) ``tau_s`` (an array
-    gives T trials; none: the linear form): what :func:`part_change_scans` built for that trial."""
-    d = bl.data
-    lay = _part_feature(d, info["feature"])
-    if lay[0] == "ring":
-        S = lay[1]
-    else:
-        _, S, kinds = lay[:3]
-        top = 2 if info.get("bows_deg") else (1 if info.get("turns_deg") else 0)
-        S = S[:, [i for i, k in enumerate(kinds) if k <= top]]
-    g = _part_time(d, info.get("tau_s"))
-    return S[None, :, :] * g[:, :, None]
-
-
 def _ring_columns(d, m: np.ndarray) -> np.ndarray | None:
-    """(n, 2) a ring's ovalisation at unit time (``cos 2 theta``, ``sin 2 theta`` on the feature's
-    touches ``m``; :func:`part_change_scans` multiplies by the time form), or None when the feature is no ring (:data:`RING_FIT_REL`) or its azimuths do not tell the
+    """(n, 2) a ring's ovalisation growing with time (``tau cos 2 theta``, ``tau sin 2 theta`` on the feature's
+    touches ``m``), or None when the feature is no ring (:data:`RING_FIT_REL`) or its azimuths do not tell the
     ovalisation's two parts apart and from a size change (:data:`RING_HARMONIC_SV`). ``theta`` is the normal's
     azimuth in the part's frame: on a bore the normal points to the centre, ``theta + pi``, the same second
     harmonic."""
@@ -1571,7 +1521,7 @@ def _ring_columns(d, m: np.ndarray) -> np.ndarray | None:
     H = H / np.maximum(np.linalg.norm(H, axis=0), 1e-300)
     if np.linalg.svd(H, compute_uv=False)[-1] < RING_HARMONIC_SV:
         return None
-    return np.column_stack([m * np.cos(2 * d.wn_az), m * np.sin(2 * d.wn_az)])
+    return np.column_stack([m * d.tau * np.cos(2 * d.wn_az), m * d.tau * np.sin(2 * d.wn_az)])
 
 
 def part_change_rival(bl, info):
@@ -1586,8 +1536,6 @@ def part_change_rival(bl, info):
 
 def part_change_magnitudes(info, coef, bl):
     out = {"feature": info["feature"]}
-    if "tau_s" in info:  # a settling form: its time constant (the coefficients stay the change over the campaign)
-        out["time_constant_s"] = float(info["tau_s"])
     if info.get("ring"):  # the ovalisation's cos 2 theta and sin 2 theta parts
         c = np.asarray(coef, float) / UM
         out["ovalisation_um"] = float(np.hypot(c[0], c[1]))
@@ -1959,7 +1907,7 @@ REGISTRY = (
           {"wall*deg_change_um": (-200, 200), "wall*deg_turn_um": (-200, 200),
            "wall*deg_bow_um": (-200, 200), "ovalisation_um": (0, 200),
            "ovalisation_axis_deg": (0, 180)},
-          part_change_rebuild, ("tau_s",), rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
+          rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
           {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,

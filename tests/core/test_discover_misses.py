@@ -237,11 +237,6 @@ def _gen_b_baseline(effect, seed):
     return log, tr, t, planar(t, 30.0, extra=extra_columns(log, t.row))
 
 
-def _linear(scans):
-    """part_change's scans of the linear time form (each settling form repeats the same layouts: PART_TAU_FRACTIONS)."""
-    return [s for s in scans if "tau_s" not in s.infos[0]]
-
-
 def test_part_change_wall_turns():
     """A wall of a feature may turn as it moves (a slot's wall relaxing more at its open end): each wall's
     change linear along the wall times the time is in part_change's span, the wall shifting alone is too.
@@ -251,7 +246,7 @@ def test_part_change_wall_turns():
     sector) gets no turn column, nor does a curved surface's sector (the blade's: a turn there is the
     feature's smooth form, and with it gen_b local_scale_defect 1077 was named part_change, confident)."""
     _, _, t, bl = _gen_b_baseline("none", 1010)
-    sc = {s.infos[0]["feature"]: s for s in _linear(causes.part_change_scans(bl)[0])}
+    sc = {s.infos[0]["feature"]: s for s in causes.part_change_scans(bl)[0]}
     C = sc["slot"].build([0])[0]
     Qc = orth_of(C)
     tau = (t.t_s - t.t_s.min()) / np.ptp(t.t_s)
@@ -302,7 +297,7 @@ def test_part_change_turn_needs_a_wall_of_some_length():
         t = dataclasses.replace(t0, w_A=w)
         scans, count = causes.part_change_scans(planar(t, 30.0, extra=extra_columns(log, t.row)))
         assert count == len(scans)
-        turns[squeeze] = {a for s in _linear(scans) if s.infos[0]["feature"] == "slot" for a in s.infos[0]["turns_deg"]}
+        turns[squeeze] = {a for s in scans if s.infos[0]["feature"] == "slot" for a in s.infos[0]["turns_deg"]}
     assert turns[1e-6] == set() and turns[1e-2] == {135, 315}, turns
 
 
@@ -314,7 +309,7 @@ def test_part_change_wall_bows():
     A wall whose targets sit at two places only (here pressed onto its two ends) has no bow column
     (WALL_BOW_PLACES = 3: on two places a parabola is a shift and a turn), but keeps its turn."""
     log, _, t, bl = _gen_b_baseline("none", 1010)
-    scans = [s for s in _linear(causes.part_change_scans(bl)[0]) if s.infos[0]["feature"] == "slot"]
+    scans = [s for s in causes.part_change_scans(bl)[0] if s.infos[0]["feature"] == "slot"]
     assert [len(s.infos[0]["bows_deg"]) for s in scans] == [0, 0, 2], [s.labels for s in scans]
     Q_turn, Q_bow = (orth_of(s.build([0])[0]) for s in scans[1:])
     tau = (t.t_s - t.t_s.min()) / np.ptp(t.t_s)
@@ -338,7 +333,7 @@ def test_part_change_wall_bows():
         w_two[w, :2] = t.w_A[w, :2] + (ends - along)[:, None] * ax[None, :]
     from core.baseline import extra_columns
     t2 = dataclasses.replace(t, w_A=w_two)
-    sc2 = [s for s in _linear(causes.part_change_scans(planar(t2, 30.0, extra=extra_columns(log, t2.row)))[0])
+    sc2 = [s for s in causes.part_change_scans(planar(t2, 30.0, extra=extra_columns(log, t2.row)))[0]
            if s.infos[0]["feature"] == "slot"]
     assert len(sc2) == 2 and set(sc2[1].infos[0]["turns_deg"]) == {135, 315}, [s.labels for s in sc2]
     assert not any(s.infos[0]["bows_deg"] for s in sc2)
@@ -695,7 +690,7 @@ def test_part_change_ring_columns():
     log, _ = gen_a.generate("none", 1017)
     t = from_log(log)
     bl = planar(t, 30.0, extra=extra_columns(log, t.row))
-    scans = [s for s in _linear(causes.part_change_scans(bl)[0]) if s.infos[0]["feature"] == "boss"]
+    scans = [s for s in causes.part_change_scans(bl)[0] if s.infos[0]["feature"] == "boss"]
     assert len(scans) == 1 and scans[0].infos[0].get("ring"), [s.labels for s in scans]
     boss = np.asarray(t.feature) == "boss"
     tau = (t.t_s - t.t_s.min()) / np.ptp(t.t_s)
@@ -726,7 +721,7 @@ def test_part_change_ring_columns():
     az = a + np.pi
     tau = np.linspace(0.0, 1.0, a.size)
     d = SimpleNamespace(touches=SimpleNamespace(target=np.arange(a.size), w_A=p), wn_az=az, tau=tau)
-    cols = causes._ring_columns(d, np.ones(a.size, bool)) * tau[:, None]  # (at unit time: the linear form's)
+    cols = causes._ring_columns(d, np.ones(a.size, bool))
     y = 5.0 * causes.UM * tau * np.cos(2 * (az - np.radians(250.0)))
     got = causes.part_change_magnitudes({"feature": "bore", "ring": True}, np.linalg.lstsq(cols, y, rcond=None)[0], None)
     assert abs(got["ovalisation_axis_deg"] - 70.0) < 1e-9 and abs(got["ovalisation_um"] - 5.0) < 1e-9, got
