@@ -151,7 +151,7 @@ What it does, in order, and the statistics behind each step
    possible by the design (:func:`core.causes.turned_lobes`: fixed lobes
    are confident only where a turn of the fitted lobes would have shown);
    no unnamed smooth of its own covariate's family was adopted beside it
-   (step 5 keeps a cause beside such a smooth as its refinement; the
+   (step 6 keeps a cause beside such a smooth as its refinement; the
    smooth's material held-out gain says the covariate holds a structure
    of a form the cause lacks: gen_a thermal_bending 1322 and 1340,
    ``part_change`` taking one feature of a bending that moves them all,

@@ -40,6 +40,20 @@ def test_batch_tests_fast_path_is_the_masked_one_bit_for_bit():
         for x, y in zip(got, ref):
             assert np.array_equal(x, y)
     assert list(D._batch_tests(G, b, float(r @ r), 40)[1]) == [2, 2]
+    # full rank at the shortcut's bounds (session 18 review): dof = k + 1 is the last case it takes, dof = k
+    # (no degree of freedom left: p 1, F 0) and no columns at all go the masked way
+    P = rng.normal(size=(3, 50, 3))
+    G, b = P.transpose(0, 2, 1) @ P, P.transpose(0, 2, 1) @ r
+    for dof in (4, 3):
+        got, ref = D._batch_tests(G, b, float(r @ r), dof), _masked(G, b, float(r @ r), dof)
+        for x, y in zip(got, ref):
+            assert x.dtype == y.dtype and np.array_equal(x, y), (dof, got, ref)
+    assert list(D._batch_tests(G, b, float(r @ r), 3)[3]) == [1.0, 1.0, 1.0]
+    G0, b0 = np.zeros((2, 0, 0)), np.zeros((2, 0))
+    got, ref = D._batch_tests(G0, b0, float(r @ r), 40), _masked(G0, b0, float(r @ r), 40)
+    for x, y in zip(got, ref):
+        assert x.dtype == y.dtype and np.array_equal(x, y)
+    assert list(got[3]) == [1.0, 1.0]
 
 
 def test_real_times_complex_is_the_complex_product():
