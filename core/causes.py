@@ -1103,7 +1103,8 @@ def unoriented_plausible(vals, u95):
     # the vectors apart by 3-7 times their U95). Refused as oriented only when the vectors agree as well.
     o, do = vals.get("orientation_spread_deg"), u95.get("orientation_spread_deg")
     dspread = u95.get("spread_um")
-    if o is not None and do is not None and o <= do and (dspread is None or spread <= dspread):
+    vectors_agree = dspread is None or not np.isfinite(dspread) or spread <= dspread  # (no U95: angles decide)
+    if o is not None and do is not None and o <= do and vectors_agree:
         return f"orientations agree within U95 ({o:.2g} +- {do:.2g} deg): the probe is oriented"
     return None
 

@@ -1219,6 +1219,10 @@ def test_c_drift_judged_on_a_form_that_predicts(monkeypatch, gen, seed, refused)
     # no U95 of the vectors' spread: the orientations decide, as before
     ({"amplitude_um": 1.30, "circle_residual_um": 0.007, "spread_um": 1.95, "orientation_spread_deg": 59.7},
      {"amplitude_um": 0.11, "circle_residual_um": 0.21, "orientation_spread_deg": 79.6}, True),
+    # a U95 that is not a number is no U95 (session 18 review: NaN compared false and let the lobes turn)
+    ({"amplitude_um": 1.30, "circle_residual_um": 0.007, "spread_um": 1.95, "orientation_spread_deg": 59.7},
+     {"amplitude_um": 0.11, "circle_residual_um": 0.21, "spread_um": float("nan"),
+      "orientation_spread_deg": 79.6}, True),
     # orientations apart beyond their U95: turned, whatever the vectors
     ({"amplitude_um": 0.50, "circle_residual_um": 0.007, "spread_um": 0.25, "orientation_spread_deg": 40.0},
      {"amplitude_um": 0.11, "circle_residual_um": 0.21, "spread_um": 0.28, "orientation_spread_deg": 10.0}, False),
