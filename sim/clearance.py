@@ -568,7 +568,9 @@ def orientations_ahead(asks) -> None:
 #: Geoms and feature list objects (kept in the entry, so their ids stay theirs): the work
 #: zones of one placement (sim.mfb_scene) share their table's geoms, whatever the probe.
 #: Safe: keyed by the ids of the two objects the entry keeps (checked with ``is``); read only.
-#: 16 tables (before: cleared at 16).
+#: Beside them (keys ("features", id)) the part drawn from a feature list alone (:func:`_feature_prep`),
+#: so the 16 entries hold tables and their feature lists together (a fresh 5-axis check asks for
+#: 5 table preps on fewer lists; before: cleared at 16).
 _TABLE_PREP = Memo(16)
 
 
@@ -611,6 +613,8 @@ def _feature_prep(table_feature) -> tuple:
 #: clusters) by table side, number of probe geoms, ball and pair mask: the broad phases of one
 #: table side with the same probe's geom count (a work zone's orientations) share it. Safe: keyed
 #: by the ids of the table side's two objects (kept in the entry) and the other inputs; read only.
+#: Beside them, the pairs' order drawn from the feature list alone (:func:`_pair_order`), keyed by
+#: that list's id (kept in the entry) and the other inputs.
 _PAIRS = Memo(64)
 
 

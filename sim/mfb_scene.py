@@ -242,9 +242,10 @@ def _probes_ahead(keys) -> None:
 #: Each solid's pose on the artefact (make_T(rot, pos)) of the artefacts seen last, by object,
 #: and beside them (keys ("table", id), ("stack", id)) the artefact's :class:`_Solids` and the
 #: poses stacked, and (keys ("side", id, blocks)) its work zones' table sides per workholder
-#: (:func:`_table_side`). Safe: the artefact is kept in each entry and checked with ``is``; the
+#: (:func:`_table_side`), and (keys ("shapes", id, blocks)) the table side's kinds, sizes and bounding
+#: radii per workholder. Safe: the artefact is kept in each entry and checked with ``is``; the
 #: blocks are in the key (frozen, compared by value); the values are only read. 64 entries,
-#: three per artefact and one per workholder it sits on (before: cleared when the poses
+#: three per artefact and two per workholder it sits on (before: cleared when the poses
 #: of a new artefact found more than 16 entries; the other two kinds were stored unchecked).
 _SOLID_POSES = Memo(64)
 
