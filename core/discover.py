@@ -3299,7 +3299,8 @@ def _family_ss(bl, diag, n, rss: float | None = None) -> dict:
 #: own size and still at 10 sigmas (the same campaign scaled), a refusal of form, not of power. With the entry, gen_b
 #: 1000-1029 every effect: 3 wrong -> right (probe_lobing 1016, reversal 1008, lobing_per_setup 1023, all ambiguous),
 #: gen_a 1000-1029: 1 (reversal 1016), gen_b 1900-1939: 1 (lobing_per_setup 1905); nothing else changed cause or
-#: confidence, false alarms 0, confident misnamings and workpiece checks equal (docs/discovery.md).
+#: confidence, false alarms 0, confident misnamings and workpiece checks equal; the simulator 4000-4049 lost one
+#: (part_change 4037, 1.37 sigma: the lobes per set-up now win round one, ambiguous) (docs/discovery.md).
 NESTING_FAMILIES = {"position": ("feature",), "direction": ("feature",)}
 
 
