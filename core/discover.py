@@ -3340,7 +3340,16 @@ def _family_ss(bl, diag, n, rss: float | None = None) -> dict:
 #: own family explain ``rival_share`` of it (the larger of the two: ``own`` in
 #: :func:`_evaluate`, as against any other family). The converse does not hold (a smooth of positions does not represent one
 #: feature changing per set-up), so a feature cause keeps the plain test.
-NESTING_FAMILIES = {"position": ("feature",)}
+#: A direction cause (the probe's lobes, fixed or per set-up; the reversal) is nested the same way where a feature
+#: is probed over a narrow arc of azimuths in a set-up (gen_b's slot walls and blade): its offset there takes any
+#: function of the azimuth, the lobes' form error (a six-lobe part beside the catalogue's harmonics 1-4) included.
+#: Session 18: gen_b probe_lobing 1016 and lobing_per_setup 1023, 1080, 1099 read `unexplained` by step 4e at their
+#: own size and still at 10 sigmas (the same campaign scaled), a refusal of form, not of power. With the entry, gen_b
+#: 1000-1029 every effect: 3 wrong -> right (probe_lobing 1016, reversal 1008, lobing_per_setup 1023, all ambiguous),
+#: gen_a 1000-1029: 1 (reversal 1016), gen_b 1900-1939: 1 (lobing_per_setup 1905); nothing else changed cause or
+#: confidence, false alarms 0, confident misnamings and workpiece checks equal; the simulator 4000-4049 lost one
+#: (part_change 4037, 1.37 sigma: the lobes per set-up now win round one, ambiguous) (docs/discovery.md).
+NESTING_FAMILIES = {"position": ("feature",), "direction": ("feature",)}
 
 
 def _spans_exactly(bl, covariate: str, E: np.ndarray, rows) -> bool:
