@@ -472,6 +472,12 @@ def _batch_tests(G: np.ndarray, b: np.ndarray, rss: float, dof: int):
         ss = np.sum(proj ** 2 / w, axis=1)
         F = (ss / k) / (np.maximum(rss - ss, 1e-300) / d2)
         return ss, k, F, special.fdtrc(k, d2, F)
+    return _masked_tests(w, good, proj, rss, dof)
+
+
+def _masked_tests(w: np.ndarray, good: np.ndarray, proj: np.ndarray, rss: float, dof: int):
+    """:func:`_batch_tests`' general case: each trial's test on its kept directions ``good`` (T, k) of
+    eigenvalues ``w`` and projections ``proj``; a trial with none kept, or no degree of freedom left, p 1."""
     k = good.sum(axis=1)
     d2 = dof - k
     ok = (k > 0) & (d2 >= 1)

@@ -3,23 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy import special
 
 from core import diagnosis as D
 
 
 def _masked(G, b, rss, dof):
-    """``_batch_tests``' general (masked) expressions, for every case."""
+    """``_batch_tests``' general (masked) expressions (``_masked_tests``), for every case."""
     w, V = np.linalg.eigh(G)
-    good = w > D.IN_SPAN ** 2
     proj = (V.transpose(0, 2, 1) @ b[..., None])[..., 0]
-    k = good.sum(axis=1)
-    d2 = dof - k
-    ok = (k > 0) & (d2 >= 1)
-    ss = np.sum(np.where(good, proj ** 2 / np.where(good, w, 1.0), 0.0), axis=1)
-    F = np.where(ok, (ss / np.maximum(k, 1)) / (np.maximum(rss - ss, 1e-300) / np.maximum(d2, 1)), 0.0)
-    p = np.where(ok, special.fdtrc(np.maximum(k, 1), np.maximum(d2, 1), F), 1.0)
-    return ss, k, F, p
+    return D._masked_tests(w, w > D.IN_SPAN ** 2, proj, rss, dof)
 
 
 def test_batch_tests_fast_path_is_the_masked_one_bit_for_bit():
