@@ -2141,6 +2141,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     def noise_sigma(s: _State) -> float:
         return noise_of(s)[0]
 
+    def diagnosis(s: _State, covariates, rows_=None, known=()) -> list:
+        """The diagnosis of model ``s``'s residuals over ``covariates`` (on ``rows_``; None: every row)."""
+        return diagnose(s.Q, s.r, s.dof, covariates, bl.modes, sigma_m=noise_sigma(s),
+                        material_sigma=settings.material_sigma, rows=rows_, bases=bases, known=known)
+
     def judge_baseline(st, folds, rows):
         """The baseline's prediction error (and per set-up), held-out gap, lack of fit, diagnosis and structure on ``rows``."""
         # 1. noise floor of the baseline
@@ -2151,8 +2156,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         lof = lack_of_fit(st.rss, st.dof, rep)
         tick()
         # 2. diagnosis of the baseline
-        diag = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(st),
-                        material_sigma=settings.material_sigma, rows=rows, bases=bases)
+        diag = diagnosis(st, bl.covariates, rows)
         tick()
         return cv, held, gap, lof, diag, _structure(diag, gap, lof, st, noise_sigma(st), settings, bl.kind)
 
@@ -2168,6 +2172,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     smooth_covs = [c for c in bl.covariates if c.kind != "spectral"]  # later rounds: the smooth terms' families
 
+    def evaluate(cause, st_: _State, folds_: Folds, terms_, cv_, families_) -> dict:
+        """:func:`_evaluate` of ``cause`` (its scans and tries) beside ``terms_`` in model ``st_``."""
+        sc, tries = scans[cause.name]
+        return _evaluate(cause, sc, tries * n_causes, bl, st_, folds_, terms_, cv_, noise_sigma(st_), settings,
+                         families_, scan_tries=tries)
+
     def search(rows, st, folds, Qb, diag0, cv0, seen):
         """Greedy rounds from a set of rows; outliers re-judged after each adoption.
 
@@ -2180,21 +2190,17 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         for rnd in range(settings.max_findings):
             best = None
             # where the structure lives now, per covariate family (debiased sums of squares)
-            diag_now = diag0 if rnd == 0 else diagnose(st.Q, st.r, st.dof, smooth_covs, bl.modes,
-                                                       sigma_m=noise_sigma(st), material_sigma=settings.material_sigma,
-                                                       rows=rows, bases=bases)
+            diag_now = diag0 if rnd == 0 else diagnosis(st, smooth_covs, rows)
             if rnd:
                 seen.append((st, diag_now))
             families = _family_ss(bl, diag_now, len(rows), st.rss)
             for cause in catalogue:
                 if any(tm.cause == cause.name for tm in terms):
                     continue
-                sc, tries = scans[cause.name]
                 tick()
-                if not sc:
+                if not scans[cause.name][0]:
                     continue
-                cand = _evaluate(cause, sc, tries * n_causes, bl, st, folds, terms, cv_cur, noise_sigma(st), settings,
-                                 families, scan_tries=tries)
+                cand = evaluate(cause, st, folds, terms, cv_cur, families)
                 if cand.get("reason"):
                     if cand.get("significant"):
                         rejected.append({"cause": cause.name, "reason": cand["reason"]})
@@ -2237,9 +2243,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         # leaves as many), the "outliers" it explains were its structure
         Qa, fa, sa = model(all_rows, [])
         seen2 = []  # (its first diagnosis is of every row, rows=None: not one the others can take)
-        t2, r2, s2, f2, q2 = search(all_rows, sa, fa, Qa, diagnose(
-            sa.Q, sa.r, sa.dof, bl.covariates, bl.modes, sigma_m=noise_sigma(sa),
-            material_sigma=settings.material_sigma, bases=bases), fa.mse(y), seen2)
+        t2, r2, s2, f2, q2 = search(all_rows, sa, fa, Qa, diagnosis(sa, bl.covariates), fa.mse(y), seen2)
         if t2 and (len(r2) > len(rows) or per_setup and _explains_set_aside(Qall, y, all_rows, rows, t2, events, r2)):
             # a cause explains some of them: they were its structure
             terms, rows, st, folds, Qb = t2, r2, s2, f2, q2
@@ -2253,15 +2257,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         ``kept`` alone (the causes adopted before it that stay) on ``rows_``: its term as adopted there (its form
         chosen again), or None (refused, said so in ``rejected``)."""
         _, f_, s_ = model(rows_, kept)
-        sig_ = noise_sigma(s_)
         # the search's own diagnosis of a round: every covariate in its first, the smooth ones after
-        diag_ = diagnose(s_.Q, s_.r, s_.dof, smooth_covs if kept else bl.covariates, bl.modes, sigma_m=sig_,
-                         material_sigma=settings.material_sigma, rows=rows_, bases=bases)
+        diag_ = diagnosis(s_, smooth_covs if kept else bl.covariates, rows_)
         seen.append((s_, diag_))
         cv_ = f_.mse(y[rows_], _stack(kept, rows_), _penalty(kept)) if kept else f_.mse(y[rows_])
-        sc, tries = scans[old.cause]
-        cand = _evaluate(by_name[old.cause], sc, tries * n_causes, bl, s_, f_, kept, cv_, sig_, settings,
-                         _family_ss(bl, diag_, len(rows_), s_.rss), scan_tries=tries)
+        cand = evaluate(by_name[old.cause], s_, f_, kept, cv_, _family_ss(bl, diag_, len(rows_), s_.rss))
         if cand.get("reason"):
             rejected.append({"cause": old.cause, "reason": f"judged again without {gone.cause} (adopted before it, "
                              f"then dropped): {cand['reason']}"})
@@ -2339,8 +2339,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     # 5. what remains
     sig = noise_sigma(st)
-    diag_e = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=sig,
-                      material_sigma=settings.material_sigma, rows=rows, bases=bases, known=_made_on(seen, st))
+    diag_e = diagnosis(st, bl.covariates, rows, known=_made_on(seen, st))
     E_named = _stack(terms, rows)
     gap_e = _cv_gap(folds, st, y, E_named, _penalty(terms), settings, gap_seed, sig) if terms else gap_b
     lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(bl.replicate[rows], E_named) else None
