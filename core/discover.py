@@ -73,7 +73,14 @@ What it does, in order, and the statistics behind each step
       without a name (a finer error map) leaves it named, ``ambiguous``.
 
    Among those, the lowest cross-validated mean square wins; within the
-   materiality margin of it, the fewest columns (parsimony).
+   materiality margin of it, the fewest columns (parsimony); and a
+   candidate with fewer columns that is one explanation with the winner
+   under another name (step 8's test: its columns reproduce the winner's
+   signal and explain as much, the winner nothing material and
+   significant beyond them) takes the round whatever the held-out
+   difference, which between two such spans is how each extrapolates to
+   the held-out set-up (:func:`_plainer_one_explanation`: lost motion
+   against the probe's lobes where every approach is along the normal).
    A penalised cause (:attr:`core.causes.Cause.penalised`: the non-rigid
    field) is fitted with a ridge on its columns, the penalty chosen by
    the held-out mean square (:func:`_evaluate_penalised`); that one fit
@@ -3202,17 +3209,26 @@ def _plainer_one_explanation(best: dict, passed: list, st: _State, sigma: float,
     60.9 um^2 in-sample, the lobes 59.9 and nothing beyond it, while the
     held-out mean squares are 6.21 against 5.21 um^2 (the baseline's 33.2,
     its in-sample residual 0.09: the held-out figure is the set-ups'
-    extrapolation). Penalised candidates (the non-rigid field) are not
-    compared here (their signal is the ridge's). Among several plainer
-    ones that qualify, the fewest columns, then the lowest held-out mean
-    square.
+    extrapolation). Only causes of the same covariate are compared (both
+    functions of ``approach_azimuth``, there): fewer columns are then a
+    plainer form of one dependence, while across covariates a column count
+    says nothing of which is plainer (a drift's time layout of 8 columns
+    against one temperature sensor's 4, where the sensor follows the
+    clock: session 15's question, left to the report's ``ambiguous_with``;
+    compared across covariates, gen_b thermal_drift 1001, 0.43 sigma, went
+    from ``thermal_drift`` to ``temperature_expansion``, both ambiguous,
+    the drift's held-out 2.34 against the sensor's 3.47 um^2; the engine
+    puts a temperature in the time family, so the family does not separate
+    them). Penalised candidates (the non-rigid field) are not compared here
+    (their signal is the ridge's). Among several plainer ones that
+    qualify, the fewest columns, then the lowest held-out mean square.
     """
     tb = best["term"]
-    if tb.penalty is not None or tb.unnamed:
+    if tb.penalty is not None or tb.unnamed or tb.covariate is None:
         return best
     k_best = tb.columns.shape[1]
     plainer = [c for c in passed if c is not best and c["term"].penalty is None and not c["term"].unnamed
-               and c["term"].columns.shape[1] < k_best]
+               and c["term"].columns.shape[1] < k_best and c["term"].covariate == tb.covariate]
     if not plainer:
         return best
     signal = _signal(tb, st, sigma)
