@@ -74,7 +74,8 @@ What it does, in order, and the statistics behind each step
 
    Among those, the lowest cross-validated mean square wins; within the
    materiality margin of it, the fewest columns (parsimony); and a
-   candidate with fewer columns that is one explanation with the winner
+   candidate of the same covariate with fewer columns that is one
+   explanation with the winner
    under another name (step 8's test: its columns reproduce the winner's
    signal and explain as much, the winner nothing material and
    significant beyond them) takes the round whatever the held-out
