@@ -493,7 +493,8 @@ def _fresh_plan_check() -> None:
     """Clears what ``scenarios.mfb.check_plan`` computes and keeps, so its timing is its own work.
 
     Cleared: the checks (``_CHECKS``), the program's placement margin (``_MARGINS``), the bar's
-    touch programs (``sim.plans._MFB_PLANS``) and their touches (``_MFB_TOUCHES``), its solids'
+    touch programs (``sim.plans._MFB_PLANS``), their feature numbers (``_FEATURE_CODES``) and their
+    touches (``_MFB_TOUCHES``), its solids'
     points and poses, the work zones, their probes, table sides, pair structures and the ball broad phases
     (``sim.mfb_scene``, ``sim.clearance``, ``sim.scene``). Shared with the plan's making, so not
     timed again: the nominal bar (``_nominal_bar``: the plan chooses each diagonal's holes on it),
@@ -507,7 +508,7 @@ def _fresh_plan_check() -> None:
     from scenarios import mfb as S
     from sim import clearance, mfb_scene, plans, scene
 
-    for memo in (S._CHECKS, S._MARGINS, plans._MFB_PLANS, plans._MFB_TOUCHES, scene._POINTS,
+    for memo in (S._CHECKS, S._MARGINS, S._FEATURE_CODES, plans._MFB_PLANS, plans._MFB_TOUCHES, scene._POINTS,
                  mfb_scene._SOLID_POSES, mfb_scene._ZONES, mfb_scene._BALLS, mfb_scene._PROBES,
                  mfb_scene._TABLE_POSES, clearance._TABLE_PREP, clearance._PAIRS):
         memo.clear()
