@@ -709,14 +709,15 @@ class _Certificates:
 
     def add(self, a, b, allow, r) -> None:
         keep = r > 0
-        if not keep.any():
+        n = int(np.count_nonzero(keep))
+        if not n:
             return
-        if self._n + int(keep.sum()) > _CERT_MAX:
+        if self._n + n > _CERT_MAX:
             self.__init__()
         blk = (a.compress(keep, axis=0), b.compress(keep, axis=0), allow.compress(keep), r.compress(keep))
         self.blocks.append(blk)
         self._by_len.setdefault(len(blk[0]), []).append(blk)
-        self._n += int(keep.sum())
+        self._n += n
 
     def in_order(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
         """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate chosen
@@ -962,10 +963,11 @@ def near_segments_many(parts, samples: bool = True) -> list:
     # certificates: per bounded segment the radius within which it stays clear
     r = pad.copy()
     np.minimum.at(r, seg, lb - MARGIN_M)
-    for j in live:
-        clr, sg, allow = parts[j]
+    for j in live:  # (part j's rows bounded are rows row0[j] .. of A, B, allow: its picked rows, in order)
+        clr = parts[j][0]
         if clr.cert_pad_m > 0:
-            clr._certs.add(pick(sg.a, j), pick(sg.b, j), pick(allow, j), r[row0[j]:row0[j] + cnt[j]])
+            k0, k1 = row0[j], row0[j] + cnt[j]
+            clr._certs.add(A[k0:k1], B[k0:k1], allow[k0:k1], r[k0:k1])
     open_ = lb <= MARGIN_M
     seg, pair, pb = seg[open_], pair[open_], pb[open_]
     if not samples:
@@ -1270,22 +1272,33 @@ def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -
     starts[first + n_pt - 1] = False
     a_idx = np.flatnonzero(starts)  # every point that starts a segment
     path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt - 1)
-    a, b = P.take(a_idx, axis=0), P.take(a_idx + 1, axis=0)
     step = np.asarray(steps_m, float)[path_of_seg]
-    d = b - a
-    L = np.sqrt(np.add.reduce(d * d, axis=1))  # (np.linalg.norm's own sum for real rows, without its conj copy)
+    if joints:
+        a, b = P.take(a_idx, axis=0), P.take(a_idx + 1, axis=0)
+        d = b - a
+        L = np.sqrt(np.add.reduce(d * d, axis=1))  # (np.linalg.norm's own sum for real rows, without its conj copy)
+    else:  # (the same differences b - a, row by row, of every point and the next, the segments' taken)
+        d = P[1:] - P[:-1]
+        L = np.sqrt(np.add.reduce(d * d, axis=1)).take(a_idx)
     k = np.maximum(1, np.ceil(L / step).astype(int))
     if not joints:  # the last point of each polyline: a segment of one sample at fraction 0
         # segments in point order: the one starting at point i is number i (a polyline's last
         # point starts its closing segment, from that point to itself)
         k_all = np.ones(len(P), int)
         k_all[a_idx] = k
-        a, b = P.copy(), P.take(np.arange(len(P)) + starts, axis=0)
+        a, b = P.copy(), _next_rows(P, starts)
         k, m = k_all, k_all.copy()
         path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt)
     else:
         m = k + 1
     return Segments(a, b, k, m, np.cumsum(m) - m, path_of_seg)
+
+
+def _next_rows(P: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """(n,3): row i + 1 of ``P`` (n,3) where ``step`` (n,) bool, else row i (``step`` False on the last
+    row): ``P.take(np.arange(n) + step, axis=0)``, the same rows copied, by one ``np.where`` (a take
+    copies a row of three floats by a ``memmove`` each: 45 instructions a row against a few)."""
+    return np.where(step[:, None], np.concatenate([P[1:], P[-1:]]), P)
 
 
 def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
