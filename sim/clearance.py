@@ -1286,19 +1286,12 @@ def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -
         # point starts its closing segment, from that point to itself)
         k_all = np.ones(len(P), int)
         k_all[a_idx] = k
-        a, b = P.copy(), _next_rows(P, starts)
+        a, b = P.copy(), P.take(np.arange(len(P)) + starts, axis=0)
         k, m = k_all, k_all.copy()
         path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt)
     else:
         m = k + 1
     return Segments(a, b, k, m, np.cumsum(m) - m, path_of_seg)
-
-
-def _next_rows(P: np.ndarray, step: np.ndarray) -> np.ndarray:
-    """(n,3): row i + 1 of ``P`` (n,3) where ``step`` (n,) bool, else row i (``step`` False on the last
-    row): ``P.take(np.arange(n) + step, axis=0)``, the same rows copied, by one ``np.where`` (a take
-    copies a row of three floats by a ``memmove`` each: 45 instructions a row against a few)."""
-    return np.where(step[:, None], np.concatenate([P[1:], P[-1:]]), P)
 
 
 def path_samples(polylines, steps_m, joints: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -1043,7 +1043,7 @@ def _segments_A(plans, r: float, top_A_m: float) -> list:
     approach, or a link between the same two touches, the same row in every program (every value
     is computed row by row). They differ from the R rows moved to A by rounding (1e-16 m, far
     below :data:`sim.clearance.MARGIN_M`)."""
-    from .clearance import _next_rows, touch_polylines
+    from .clearance import touch_polylines
 
     n_t = np.array([pl.n for pl in plans])
     t0 = np.cumsum(n_t) - n_t
@@ -1062,7 +1062,7 @@ def _segments_A(plans, r: float, top_A_m: float) -> list:
     P, n_pt, touch, _ = touch_polylines(start, Xn, has, L, cnt)
     nxt = np.arange(1, len(P) + 1)
     nxt[np.cumsum(n_pt) - 1] -= 1  # (a polyline's last point: its closing segment, to itself)
-    b = _next_rows(P, nxt != np.arange(len(P)))  # (P.take(nxt, axis=0): the same rows)
+    b = P.take(nxt, axis=0)
     # each program's polylines (its first touch's approach first) and their points
     cut = np.r_[0, np.cumsum(n_pt)][np.r_[np.searchsorted(touch, t0), len(n_pt)]]
     return [(P[cut[j]:cut[j + 1]], b[cut[j]:cut[j + 1]], nxt[cut[j]:cut[j + 1]] - cut[j]) for j in range(len(plans))]
@@ -1282,7 +1282,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     would judge), in a second pass over those rows alone. A sample is skipped only when its row's
     segment, or the sample itself, is proven farther than :data:`sim.clearance.MARGIN_M` from every
     pair: the rows in A or W and the R samples moved there differ by rounding (1e-16 m)."""
-    from .clearance import Segments, _next_rows, near_segments_many, orientations_ahead, unique_segments
+    from .clearance import Segments, near_segments_many, orientations_ahead, unique_segments
 
     # (a, b) in A per program (plan object; one bar and ball radius for all: check_measurements')
     plans = list({id(ms[i][5]): ms[i][5] for i in live}.values())
@@ -1305,7 +1305,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
                 # link_points' one transform of every link is: the same numbers as b @ R + t)
                 a, _, nxt = segs_A[pid]
                 aW = a @ place[:3, :3].T + place[:3, 3]
-                in_W[pid, pb] = (aW, _next_rows(aW, nxt != np.arange(len(nxt))))  # (aW.take(nxt, axis=0))
+                in_W[pid, pb] = (aW, aW.take(nxt, axis=0))
             got = rows_F[key] = in_W[pid, pb] + (fid_of[key],)
         return got
 
