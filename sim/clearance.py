@@ -714,7 +714,10 @@ class _Certificates:
             return
         if self._n + n > _CERT_MAX:
             self.__init__()
-        blk = (a.compress(keep, axis=0), b.compress(keep, axis=0), allow.compress(keep), r.compress(keep))
+        if n == len(r):  # (every segment kept: copies, the same arrays as the compress gives, without its gathers)
+            blk = (np.array(a, copy=True), np.array(b, copy=True), np.array(allow, copy=True), np.array(r, copy=True))
+        else:
+            blk = (a.compress(keep, axis=0), b.compress(keep, axis=0), allow.compress(keep), r.compress(keep))
         self.blocks.append(blk)
         self._by_len.setdefault(len(blk[0]), []).append(blk)
         self._n += n
@@ -1150,8 +1153,9 @@ def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarra
     """(which run, element): the elements ``start[r] .. start[r] + count[r] - 1`` of every run r."""
     tot = int(count.sum())
     r = np.repeat(np.arange(len(count)), count)
-    off = np.arange(tot) - np.repeat(np.cumsum(count) - count, count)
-    return r, start.take(r) + off
+    # (element i of the whole is start[r] + i - (count before run r): integers, the same sum taken as
+    # i + (start - count before) repeated, one repeat and one add instead of a repeat, a take and two)
+    return r, np.arange(tot) + np.repeat(start - (np.cumsum(count) - count), count)
 
 
 @dataclass(frozen=True)
