@@ -933,7 +933,8 @@ def _plan_for(art, holes, overshoot_m=3.0 * MM, clearance_m=2.0 * MM):
         rods = {lo, lo + 1} if lo < 11 else {10, 11}
     # by name (sim.plans.mfb_plan's features: holeNN, rodNN, faceLNN, faceRNN): one set look-up a
     # touch instead of parsing its number (0.22 -> 0.11 ms a measurement, selection included)
-    want = {_feature_name("hole", h) for h in holes} | {_feature_name(k, r) for r in rods for k in ("rod", "faceL", "faceR")}
+    want = {_feature_name("hole", h) for h in holes} | {_feature_name(k, r) for r in rods
+                                                       for k in ("rod", "faceL", "faceR")}
     # (the rows whose feature is wanted, in order: each row's feature as a number, kept per program
     # (_feature_codes), looked up in a table of the wanted numbers; 22 -> 6 us a selection)
     num, codes = _feature_codes(full)
