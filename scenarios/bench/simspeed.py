@@ -236,7 +236,9 @@ model's geom arguments by ``tolist()`` and its quaternions passed to ``add_geom`
 Measured at load 16-27 on 2 cores (other helpers' studies): instructions 143.1 M ->
 135.3 M a check (0.945); the fresh-check script side by side with d261c3e, 8 pairs of processes in
 alternating order (30 checks each): least check 19.73 -> 19.17 ms (medians; paired ratios
-0.91-1.01, median 0.964), median check 23.05 -> 22.09 ms (paired median 0.951); this collision
+0.91-1.01, median 0.964), median check 23.05 -> 22.09 ms (paired median 0.951), and 8 pairs more
+after the full suite (load ~13.6, noisier: least 23.57 -> 21.84 ms, paired 0.80-1.24, median 0.937;
+median check paired median 0.987); this collision
 figure, 4 runs one after the other (before, after, after, before; a fifth before run at load ~3.5
 first): the plan check's CPU 20.4, 19.5, 20.2 ms before, 18.5, 19.1 ms after (the two pairs 0.95,
 0.95), its share of the simulation's CPU 0.274, 0.240, 0.258 before and 0.249, 0.262 after (the
