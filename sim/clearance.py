@@ -212,7 +212,7 @@ class Clearance:
         plo, phi = probe.aabb() if probe_box is None else probe_box  # (probe_box: its aabb, computed with others')
         self.feature, tlo, thi, cl, h_order, self._fid, tfid = _table_prep(table, table_feature)
         st = _pair_structure(table, table_feature, len(probe.kind), self.ball, pairs)
-        self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch, (tloT, thiT, tc, pn) = st
+        self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch, (tloT, thiT, pn) = st
         # the tip p puts geom g in collision range of h only if p lies in this box
         # (one coordinate a row, (3, k), for _overlap_rows and box_bound; _lo, _hi (k, 3) are their views).
         # The table side's rows are the pair structure's (tlo.T[:, pair_table], ...); the probe's
@@ -220,17 +220,18 @@ class Clearance:
         self._loT = tloT - np.repeat(phi.T, pn, axis=1) - MARGIN_M
         self._hiT = thiT - np.repeat(plo.T, pn, axis=1) + MARGIN_M
         self._lo, self._hi = self._loT.T, self._hiT.T
-        self._d0 = np.repeat(probe.centre, pn, axis=0) - tc  # centre offset at p = 0
+        # (the centre offset at p = 0 of a pair, probe geom's centre minus table geom's: computed for
+        # the rows asked, _d0_of; the same subtraction as for every pair at once)
         npair = len(self.pair_probe)
         self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
         self._have = np.zeros(npair, bool)
         self._certs = _Certificates()  # of near_segments (shared by the moved copies: same frame)
         # each cluster's box: its table geoms' (ch, the union of their boxes) for its probe geom cg
-        # (the same numbers as the least and largest of its pairs' boxes: a difference is monotone)
-        self._clo = ch[0] - phi[cg] - MARGIN_M
-        self._chi = ch[1] - plo[cg] + MARGIN_M
-        # the cluster boxes one coordinate a row (3, c), for _overlap_rows and _block_candidates
-        self._cloT, self._chiT = self._clo.T.copy(), self._chi.T.copy()
+        # (the same numbers as the least and largest of its pairs' boxes: a difference is monotone),
+        # one coordinate a row (3, c), for _overlap_rows and _block_candidates (ch kept so by the
+        # pair structure: each element the same subtraction as on the (c, 3) rows, transposed)
+        self._cloT = ch[0] - phi.take(cg, axis=0).T - MARGIN_M
+        self._chiT = ch[1] - plo.take(cg, axis=0).T + MARGIN_M
 
     def _axes(self, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(U (r,7,3), E (r,7)): the fixed axes of pairs ``pair`` (the table geom's three, the
@@ -254,6 +255,11 @@ class Clearance:
             self._U[need], self._E[need] = U, np.where(ok, E, np.inf)
             self._have[need] = True
         return self._U.take(pair, axis=0), self._E.take(pair, axis=0)
+
+    def _d0_of(self, g: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """(r,3) the centre offset at p = 0 (probe geom's centre minus table geom's) of the pairs of
+        probe geoms ``g`` and table geoms ``h`` (r,): each row the subtraction of every pair's array."""
+        return self.probe.centre.take(g, axis=0) - self.table.centre.take(h, axis=0)
 
     def moved(self, T_F_R) -> "Clearance":
         """The same geoms in F, F now at ``T_F_R`` from R (the table moved with its artefact);
@@ -360,7 +366,8 @@ class Clearance:
 
     def _swept(self, a: np.ndarray, b: np.ndarray, pair: np.ndarray) -> np.ndarray:
         """:meth:`swept_bound` for ends already in the geoms' frame."""
-        d0 = self._d0.take(pair, axis=0)
+        g, h = self.pair_probe[pair], self.pair_table[pair]
+        d0 = self._d0_of(g, h)
         da, db = d0 + a, d0 + b
 
         def gap(U, E, da, db):  # U (r,j,3), E (r,j)
@@ -370,7 +377,6 @@ class Clearance:
 
         # the direction from the table geom's point nearest the probe geom's centre at the
         # segment's middle: most pairs are cleared by it alone
-        g, h = self.pair_probe[pair], self.pair_table[pair]
         T = self.table.take(h)
         c_g = self.probe.centre.take(g, axis=0) + 0.5 * (a + b)
         u, ok = _unit(c_g - T.closest(c_g))
@@ -442,7 +448,7 @@ class Clearance:
 
     def _bound_F(self, p: np.ndarray, pair: np.ndarray, enough: float = np.inf) -> np.ndarray:
         """:meth:`bound` of pair ``pair`` (r,) with the tip at ``p`` (r,3), already in the geoms' frame."""
-        d = self._d0.take(pair, axis=0) + p
+        d = self._d0_of(self.pair_probe[pair], self.pair_table[pair]) + p
         U, E = self._axes(pair)
         out = np.max(np.abs(U[:, :, 0] * d[:, 0, None] + U[:, :, 1] * d[:, 1, None] + U[:, :, 2] * d[:, 2, None])
                      - E, axis=1)
@@ -621,7 +627,7 @@ _PAIRS = Memo(64)
 def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
     """(pair_probe, pair_table (k,) int, cluster start, count (c,) int, each cluster's feature
     number when it is the ball's else -1 (c,), its probe geom (c,), its table geoms' box
-    (2, c, 3): lo, hi, and the table side's rows (tlo.T, thi.T (3, k) and centre (k, 3) of each
+    (2, 3, c): lo, hi one coordinate a row, and the table side's rows (tlo.T, thi.T (3, k) of each
     pair's table geom, the pairs of each probe geom (ng,))) for ``ng`` probe geoms against
     ``table`` (:meth:`Clearance.__init__`)."""
     mask = None if pairs is None else np.ascontiguousarray(pairs, bool)
@@ -633,8 +639,8 @@ def _pair_structure(table: Geoms, table_feature, ng: int, ball: int, pairs):
         # the table side of every pair's rows (whatever the probe's orientation) and the pairs of
         # each probe geom (pair_probe is sorted); each cluster's box reduced along those rows (one
         # coordinate a row: the same least and largest values, reduceat along a row being faster)
-        rows = (tlo.T.take(pair_table, axis=1), thi.T.take(pair_table, axis=1), table.centre.take(pair_table, axis=0), pn)
-        cbox = np.stack([np.minimum.reduceat(rows[0], cstart, axis=1).T, np.maximum.reduceat(rows[1], cstart, axis=1).T])
+        rows = (tlo.T.take(pair_table, axis=1), thi.T.take(pair_table, axis=1), pn)
+        cbox = np.stack([np.minimum.reduceat(rows[0], cstart, axis=1), np.maximum.reduceat(rows[1], cstart, axis=1)])
         return pair_probe, pair_table, cstart, ccount, cballf, pair_probe[cstart], cbox, rows
 
     return _PAIRS.get_or_compute(key, build, owner=(table, table_feature))
@@ -703,14 +709,18 @@ class _Certificates:
 
     def add(self, a, b, allow, r) -> None:
         keep = r > 0
-        if not keep.any():
+        n = int(np.count_nonzero(keep))
+        if not n:
             return
-        if self._n + int(keep.sum()) > _CERT_MAX:
+        if self._n + n > _CERT_MAX:
             self.__init__()
-        blk = (a.compress(keep, axis=0), b.compress(keep, axis=0), allow.compress(keep), r.compress(keep))
+        if n == len(r):  # (every segment kept: copies, the same arrays as the compress gives, without its gathers)
+            blk = (np.array(a, copy=True), np.array(b, copy=True), np.array(allow, copy=True), np.array(r, copy=True))
+        else:
+            blk = (a.compress(keep, axis=0), b.compress(keep, axis=0), allow.compress(keep), r.compress(keep))
         self.blocks.append(blk)
         self._by_len.setdefault(len(blk[0]), []).append(blk)
-        self._n += int(keep.sum())
+        self._n += n
 
     def in_order(self, a, b, allow) -> tuple[np.ndarray, np.ndarray]:
         """(r0, moved) (n,) per segment ``a -> b`` (n,3) with ``allow`` (n,): the certificate chosen
@@ -956,10 +966,11 @@ def near_segments_many(parts, samples: bool = True) -> list:
     # certificates: per bounded segment the radius within which it stays clear
     r = pad.copy()
     np.minimum.at(r, seg, lb - MARGIN_M)
-    for j in live:
-        clr, sg, allow = parts[j]
+    for j in live:  # (part j's rows bounded are rows row0[j] .. of A, B, allow: its picked rows, in order)
+        clr = parts[j][0]
         if clr.cert_pad_m > 0:
-            clr._certs.add(pick(sg.a, j), pick(sg.b, j), pick(allow, j), r[row0[j]:row0[j] + cnt[j]])
+            k0, k1 = row0[j], row0[j] + cnt[j]
+            clr._certs.add(A[k0:k1], B[k0:k1], allow[k0:k1], r[k0:k1])
     open_ = lb <= MARGIN_M
     seg, pair, pb = seg[open_], pair[open_], pb[open_]
     if not samples:
@@ -1142,8 +1153,9 @@ def _expand(start: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarra
     """(which run, element): the elements ``start[r] .. start[r] + count[r] - 1`` of every run r."""
     tot = int(count.sum())
     r = np.repeat(np.arange(len(count)), count)
-    off = np.arange(tot) - np.repeat(np.cumsum(count) - count, count)
-    return r, start.take(r) + off
+    # (element i of the whole is start[r] + i - (count before run r): integers, the same sum taken as
+    # i + (start - count before) repeated, one repeat and one add instead of a repeat, a take and two)
+    return r, np.arange(tot) + np.repeat(start - (np.cumsum(count) - count), count)
 
 
 @dataclass(frozen=True)
@@ -1264,10 +1276,14 @@ def flat_path_segments(P: np.ndarray, n_pt: np.ndarray, steps_m, joints: bool) -
     starts[first + n_pt - 1] = False
     a_idx = np.flatnonzero(starts)  # every point that starts a segment
     path_of_seg = np.repeat(np.arange(len(n_pt)), n_pt - 1)
-    a, b = P.take(a_idx, axis=0), P.take(a_idx + 1, axis=0)
     step = np.asarray(steps_m, float)[path_of_seg]
-    d = b - a
-    L = np.sqrt(np.add.reduce(d * d, axis=1))  # (np.linalg.norm's own sum for real rows, without its conj copy)
+    if joints:
+        a, b = P.take(a_idx, axis=0), P.take(a_idx + 1, axis=0)
+        d = b - a
+        L = np.sqrt(np.add.reduce(d * d, axis=1))  # (np.linalg.norm's own sum for real rows, without its conj copy)
+    else:  # (the same differences b - a, row by row, of every point and the next, the segments' taken)
+        d = P[1:] - P[:-1]
+        L = np.sqrt(np.add.reduce(d * d, axis=1)).take(a_idx)
     k = np.maximum(1, np.ceil(L / step).astype(int))
     if not joints:  # the last point of each polyline: a segment of one sample at fraction 0
         # segments in point order: the one starting at point i is number i (a polyline's last

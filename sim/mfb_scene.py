@@ -606,9 +606,9 @@ class WorkZone:
     def _by_orientation(self, part: str):
         """:meth:`clearance`'s broad phases of ``part`` ("all" or "rest") by orientation
         (:class:`sim.clearance.ByOrientation`), made on first use."""
-        from .clearance import ByOrientation, Clearance
+        if part not in self._clr:  # (the import only when made: 51 asks a fresh 5-axis check, one make a zone and part)
+            from .clearance import ByOrientation, Clearance
 
-        if part not in self._clr:
             probe = self._probe_geoms  # about the tip, axes of R (whatever the table's pose)
             ball = self._pball
             pairs = None

@@ -25,6 +25,7 @@ Counts (asserted in the tests):
 
 from __future__ import annotations
 
+import operator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -73,8 +74,14 @@ class Plan:
         """A plan with only ``rows`` (indices or bool mask), order kept."""
         idx = np.arange(self.n)[rows]
         ids = idx.tolist()  # (Python ints index the tuples faster than numpy's)
-        return Plan(self.artefact, tuple([self.target[i] for i in ids]), tuple([self.feature[i] for i in ids]),
-                    self.w_A[idx], self.wn_A[idx], self.level[idx], self.clearance_m, self.overshoot_m)
+        if len(ids) > 1:  # (the tuples' items by one itemgetter: the same items, 156 rows 17 -> 4 us)
+            get = operator.itemgetter(*ids)
+            target, feature = get(self.target), get(self.feature)
+        else:
+            target, feature = tuple([self.target[i] for i in ids]), tuple([self.feature[i] for i in ids])
+        # (rows gathered by take: the same values as indexing, a few times faster on (k,3) rows)
+        return Plan(self.artefact, target, feature, self.w_A.take(idx, axis=0), self.wn_A.take(idx, axis=0),
+                    self.level.take(idx, axis=0), self.clearance_m, self.overshoot_m)
 
     def counts(self) -> dict:
         """Touches per feature kind prefix (``hole``, ``rod``, ``face``, ...)."""

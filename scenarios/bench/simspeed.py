@@ -207,6 +207,48 @@ spread thin (about 12,700 Python-level calls a check, cProfile; few functions ab
 what would move it is fewer calls per measurement, orientation and placement, but most of those
 transforms are kept one at a time so their rounding matches ``link_points`` and the reference
 paths bit for bit (``inv_T``'s einsum, ``apply_T``'s products).
+
+Session 19 (issue 19 item 4, continued). Found by cProfile, a sampling profiler, functions timed
+around them (thread CPU) and callgrind (instructions: 12 fresh checks less 12 fresh states, which
+the load does not move): a fresh check took 143.1 M instructions at d261c3e, of which numpy's
+``take`` 18.9 M and the ``memmove`` it calls for every gathered row of three floats 8.8 M, the
+interpreter ~28 M. What changed (each giving the same arrays, so the same answers): ``check_plan``'s
+touch range per axis by one ``reduceat`` over the rows (``c.min(axis=0)`` on a (280,3) array costs
+~18 us: numpy reduces a first axis of 3 columns slowly; a zero or NaN answer takes the expression
+itself, so the sign of a zero is its; the loop after ``check_measurements`` 0.47 -> 0.31 ms);
+``_plan_for``'s rows from each row's feature number, kept per program (``_FEATURE_CODES``, cleared
+by ``_fresh_plan_check``: built inside the timed check, as the CLI's check builds it), its feature
+names looked up, ``Plan.select``'s tuples by one ``itemgetter`` and its rows by ``take`` (87 -> ~45
+us a selection, 9 a check); ``Clearance``'s cluster boxes kept (3, c) by the pair structure and the
+pairs' centre offsets computed for the rows asked (``_d0_of``) rather than for every pair of the
+14 broad phases built; the certificates of a bounded part taken from the arrays bounded (slices:
+the same rows) and copied rather than compressed when every segment is kept; ``_expand`` with one
+repeat fewer; the segments' lengths in ``flat_path_segments`` from every point's difference to the
+next; ``WorkZone._by_orientation`` importing only when it makes. Every change: the hash of every
+path, ``_segments_A``, ``unique_segments``, ``near_segments_many`` and ``_near_samples`` answer,
+least clearance, ``check_measurements`` and ``check_plan`` answer (the 5-axis plan fresh, again and
+fresh; the plan-check variants and fuzz sets the same) and the MFB campaign's touches equal to
+d261c3e's, with the default (SkylakeX) and Haswell OpenBLAS kernels. Tried and not kept: a
+polyline's next points by ``np.where`` with a broadcast (n,1) mask instead of a take of rows
+(fewer instructions, but 10x slower in time: 18,000 rows, take 41 us, where 463 us); the ball
+model's geom arguments by ``tolist()`` and its quaternions passed to ``add_geom`` (no faster:
+2.94-3.05 against 2.85-2.92 ms a build at load 11; the bindings' calls cost, not the conversions).
+Measured at load 16-27 on 2 cores (other helpers' studies): instructions 143.1 M ->
+135.3 M a check (0.945); the fresh-check script side by side with d261c3e, 8 pairs of processes in
+alternating order (30 checks each): least check 19.73 -> 19.17 ms (medians; paired ratios
+0.91-1.01, median 0.964), median check 23.05 -> 22.09 ms (paired median 0.951), and 8 pairs more
+after the full suite (load ~13.6, noisier: least 23.57 -> 21.84 ms, paired 0.80-1.24, median 0.937;
+median check paired median 0.987); this collision
+figure, 4 runs one after the other (before, after, after, before; a fifth before run at load ~3.5
+first): the plan check's CPU 20.4, 19.5, 20.2 ms before, 18.5, 19.1 ms after (the two pairs 0.95,
+0.95), its share of the simulation's CPU 0.274, 0.240, 0.258 before and 0.249, 0.262 after (the
+simulation's CPU moved 0.073-0.081 s between runs). About 5 % of a check's CPU: the target, a 10 %
+cut so the share stays under 0.25 in every run, is not reached. Left as before: the ball model's
+``MjSpec`` compile and ``MjData`` (~1-1.5 ms together, the bindings' wrapper; an arena of 10 kB
+instead of 14 MB makes ``MjData`` no faster), the 14 broad phases' builds (~3 ms with their 5 table
+preps and 6 pair structures), the three box levels over 30,435, 20,923 and 29,096 candidate rows in
+``near_segments_many`` and the gathers of rows of three floats (the 8.8 M instructions of their
+``memmove`` calls).
 """
 
 from __future__ import annotations
@@ -493,7 +535,8 @@ def _fresh_plan_check() -> None:
     """Clears what ``scenarios.mfb.check_plan`` computes and keeps, so its timing is its own work.
 
     Cleared: the checks (``_CHECKS``), the program's placement margin (``_MARGINS``), the bar's
-    touch programs (``sim.plans._MFB_PLANS``) and their touches (``_MFB_TOUCHES``), its solids'
+    touch programs (``sim.plans._MFB_PLANS``), their feature numbers (``_FEATURE_CODES``) and their
+    touches (``_MFB_TOUCHES``), its solids'
     points and poses, the work zones, their probes, table sides, pair structures and the ball broad phases
     (``sim.mfb_scene``, ``sim.clearance``, ``sim.scene``). Shared with the plan's making, so not
     timed again: the nominal bar (``_nominal_bar``: the plan chooses each diagonal's holes on it),
@@ -507,7 +550,7 @@ def _fresh_plan_check() -> None:
     from scenarios import mfb as S
     from sim import clearance, mfb_scene, plans, scene
 
-    for memo in (S._CHECKS, S._MARGINS, plans._MFB_PLANS, plans._MFB_TOUCHES, scene._POINTS,
+    for memo in (S._CHECKS, S._MARGINS, S._FEATURE_CODES, plans._MFB_PLANS, plans._MFB_TOUCHES, scene._POINTS,
                  mfb_scene._SOLID_POSES, mfb_scene._ZONES, mfb_scene._BALLS, mfb_scene._PROBES,
                  mfb_scene._TABLE_POSES, clearance._TABLE_PREP, clearance._PAIRS):
         memo.clear()
