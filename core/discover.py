@@ -3352,6 +3352,9 @@ def _family_ss(bl, diag, n, rss: float | None = None) -> dict:
 #: gen_a 1000-1029: 1 (reversal 1016), gen_b 1900-1939: 1 (lobing_per_setup 1905); nothing else changed cause or
 #: confidence, false alarms 0, confident misnamings and workpiece checks equal; the simulator 4000-4049 lost one
 #: (part_change 4037, 1.37 sigma: the lobes per set-up now win round one, ambiguous) (docs/discovery.md).
+#: Session 19: where the feature term decides a position cause's refusal, the family's own figure is also taken by
+#: the fine position smooth (:func:`_fine_position`; gen_a nonrigid 1048 named), and step 5 does not drop a cause
+#: as redundant beside an unnamed smooth of a family that nests the cause's (gen_a reversal 1054, nonrigid 1047).
 NESTING_FAMILIES = {"position": ("feature",), "direction": ("feature",)}
 
 
