@@ -2371,8 +2371,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             fam_s = bl.covariate(smooth.covariate).family
             for tm in list(terms):
                 cov_n = bl.covariate(tm.covariate)
-                if cov_n is not None and cov_n.family == fam_s:
-                    continue  # the unnamed term refines the cause's own covariate: the cause stays
+                if cov_n is not None and (cov_n.family == fam_s or fam_s in NESTING_FAMILIES.get(cov_n.family, ())):
+                    # the unnamed term refines the cause's own covariate, or nests the cause's family on the
+                    # design (a feature's offset per set-up takes any position or direction structure over the
+                    # feature, the cause's included: step 4e's NESTING_FAMILIES): its making the cause redundant
+                    # is no evidence against the cause. The cause stays
+                    continue
                 rest = [t for t in terms if t is not tm]
                 cv_wo = folds.mse(y[rows], np.hstack([_stack(rest, rows), E_s]), _penalty(rest + [smooth]))
                 if cv_wo - cv_s < (settings.material_sigma * sig) ** 2:
@@ -3421,7 +3425,41 @@ def _family_ss(bl, diag, n, rss: float | None = None) -> dict:
 #: gen_a 1000-1029: 1 (reversal 1016), gen_b 1900-1939: 1 (lobing_per_setup 1905); nothing else changed cause or
 #: confidence, false alarms 0, confident misnamings and workpiece checks equal; the simulator 4000-4049 lost one
 #: (part_change 4037, 1.37 sigma: the lobes per set-up now win round one, ambiguous) (docs/discovery.md).
+#: Session 19: where the feature term decides a position cause's refusal, the family's own figure is also taken by
+#: the fine position smooth (:func:`_fine_position`; gen_a nonrigid 1048 named), and step 5 does not drop a cause
+#: as redundant beside an unnamed smooth of a family that nests the cause's (gen_a reversal 1054, nonrigid 1047).
 NESTING_FAMILIES = {"position": ("feature",), "direction": ("feature",)}
+
+
+#: Largest total degree ``i + j`` of the products ``P_i(xs) P_j(ys)`` (i, j >= 1) of the position family's fine
+#: smooth (:func:`_fine_position`), against which step 4e measures the family's own share of a nesting term.
+FINE_POSITION_DEGREE = 6
+
+
+def _fine_position(bl) -> np.ndarray:
+    """(n, k) the position family's fine smooth: ``-n_x B`` and ``-n_y B``, ``B`` the Legendre products
+    ``P_i(xs) P_j(ys)``, i, j >= 1, i + j <= :data:`FINE_POSITION_DEGREE` (the diagnosis' ``xy`` term at a finer
+    resolution; its separable part is the baseline's error map).
+
+    Why (step 4e, :data:`NESTING_FAMILIES`): the feature-per-set-up term nests a position cause at the spacing of
+    the features, far finer than the diagnosis' ``xy`` term (degree 4: a deflection changing sign about once along
+    each stroke). A machine field that changes sign two or three times along a stroke (gen_a nonrigid's couplings,
+    half-waves 100-250 mm over extents up to 276 mm) is position structure the ``xy`` term holds in part, and the
+    feature term holds whole: compared with the coarse term alone, the finer the field, the more it reads as
+    structure of the features. Where the feature term decides a position cause's refusal, the family's own figure is
+    also taken at this degree, as the product a P-spline of position would be: what a position cause's form cannot
+    hold then shows in the later gates (its held-out gain, the rival check against its own covariate's smooth, the
+    counter-explanation) and in what is left unexplained, not as a structure of the part.
+    """
+    d = bl.data
+    from numpy.polynomial import legendre as leg
+
+    eye = np.eye(FINE_POSITION_DEGREE)
+    P = [leg.legval(d.xs, eye[i]) for i in range(FINE_POSITION_DEGREE)]
+    R = [leg.legval(d.ys, eye[j]) for j in range(FINE_POSITION_DEGREE)]
+    B = np.column_stack([P[i] * R[j] for i in range(1, FINE_POSITION_DEGREE) for j in range(1, FINE_POSITION_DEGREE)
+                         if i + j <= FINE_POSITION_DEGREE])
+    return np.hstack([-d.nx[:, None] * B, -d.ny[:, None] * B])
 
 
 def _spans_exactly(bl, covariate: str, E: np.ndarray, rows) -> bool:
@@ -3697,6 +3735,12 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
             # the feature-per-set-up term nests a position cause: it is judged
             # as the cause's own covariate's smooth is (NESTING_FAMILIES)
             # (the design's exact nesting measured only where it decides: a refusal otherwise)
+            if (f != fam and ss_f > own + m_ss and own < settings.rival_share * ss_f
+                    and f in NESTING_FAMILIES.get(fam, ()) and fam == "position"):
+                # the nesting term is fine-grained: the position family's own figure at a finer resolution
+                # (FINE_POSITION_DEGREE), measured only where it decides
+                own = max(own, _candidate_ss(nested_f_batch(_fine_position(bl)[None, rows], st.Q, st.r, st.rss,
+                                                            st.dof), st))
             if f != fam and ss_f > own + m_ss and not (own >= settings.rival_share * ss_f and (
                     f in NESTING_FAMILIES.get(fam, ()) or _spans_exactly(bl, name, cols[rows], rows))):
                 return {"reason": f"the structure follows {name} ({f}) more than this cause's form or its "
