@@ -368,10 +368,15 @@ def clock_sensors(d) -> dict:
     following that sensor from the machine drifting the same way with
     time; what the report can say is that the machine drifts (the time
     cause, ``thermal_drift``) with the sensor's course as its shape, and
-    name the sensor. The reading's own scatter: the RMS residual of a
-    quadratic in time fitted within each set-up (the reading's local
-    noise, its rounding included; at least the quantisation's ``q /
-    sqrt(12)`` when the readings lie on a grid of step ``q``). A sensor
+    name the sensor. The reading's own scatter: each reading against the
+    line through its two neighbours in time within its set-up (the
+    difference's variance ``sigma^2 (1 + w_1^2 + w_2^2)`` for white noise,
+    ``w`` the interpolation's weights), what a signal smooth over a few
+    touches leaves is the reading's noise, its rounding included; at least
+    the quantisation's ``q / sqrt(12)`` when the readings lie on a grid of
+    step ``q``. (A quadratic within each set-up took a thermostat's or a
+    chiller's cycle inside a set-up for scatter: gen_a's coolant saw read
+    as a clock.) A sensor
     that follows anything but the clock (a thermostat's cycle, a door
     opening, a coolant's saw) is not reproduced by four smooth columns
     over the campaign and is left to ``temperature_expansion``.
@@ -392,21 +397,22 @@ def clock_sensors(d) -> dict:
         forms += [(f"warm-up, T = {f * d.span_s:.0f} s", np.column_stack([one, np.exp(-tau / f)]))
                   for f in DRIFT_TAU_FRACTIONS]
     setup = np.asarray(d.touches.setup)
-    groups = [np.flatnonzero(setup == s) for s in np.unique(setup)]
-    groups = [g for g in groups if len(g) >= 6]
+    groups = [g[np.argsort(tau[g], kind="stable")] for g in (np.flatnonzero(setup == s) for s in np.unique(setup))]
+    groups = [g for g in groups if len(g) >= 3]
     for name, T in d.temps.items():
         T = np.asarray(T, float)
         if n < 8 or not np.all(np.isfinite(T)) or np.ptp(T) <= 0 or not groups:
             continue
         best, form = min((_rms_fit(T, X), f) for f, X in forms)
-        rss, dof = 0.0, 0
-        for g in groups:
-            tg = tau[g] - tau[g].mean()
-            X = np.column_stack([np.ones(len(g)), tg, tg ** 2])
-            c = np.linalg.lstsq(X, T[g], rcond=None)[0]
-            r = T[g] - X @ c
-            rss, dof = rss + float(r @ r), dof + len(g) - 3
-        scatter = float(np.sqrt(rss / max(dof, 1)))
+        ss, cnt = 0.0, 0
+        for g in groups:  # each reading against the line through its neighbours in time, within a set-up
+            tg, Tg = tau[g], T[g]
+            h = tg[2:] - tg[:-2]
+            ok = h > 0
+            w = np.where(ok, (tg[2:] - tg[1:-1]) / np.where(ok, h, 1.0), 0.5)
+            e = Tg[1:-1] - (w * Tg[:-2] + (1 - w) * Tg[2:])
+            ss, cnt = ss + float(np.sum(e ** 2 / (1 + w ** 2 + (1 - w) ** 2))), cnt + len(e)
+        scatter = float(np.sqrt(ss / max(cnt, 1)))
         v = np.unique(T)
         q = float(np.min(np.diff(v))) if len(v) > 1 else 0.0
         if q > 0 and np.all(np.abs((v - v[0]) / q - np.round((v - v[0]) / q)) < 1e-3):
