@@ -441,9 +441,13 @@ def drift_scans(bl):
     step early on (a fixture slip). Within one set-up most of a drift
     looks like the machine's error map or the set-up's own C-axis offsets;
     it is seen by the touches repeated later in the set-up and by the
-    change between set-ups. Parameters: the change of each offset (um) and
-    scale (ppm) from the first to the last touch (and the warm-up's time
-    constant, s).
+    change between set-ups. A third form, one layout per logged sensor
+    that is a clock (:func:`clock_sensors`): the four modes times the
+    sensor's reading about its mean, the drift shaped as the sensor's
+    course (the layout ``temperature_expansion`` would have tried on it;
+    the sensor is named in the finding's parameters). Parameters: the
+    change of each offset (um) and scale (ppm) from the first to the last
+    touch (and the warm-up's time constant, s).
     """
     d = bl.data
     scans = []
