@@ -341,6 +341,87 @@ _DRIFT_MODES = ("x_offset", "y_offset", "x_scale", "y_scale")
 DRIFT_TAU_FRACTIONS = tuple(np.geomspace(1 / 20, 1 / 2, 8))
 
 
+#: A sensor is a clock (:func:`clock_sensors`) when one of the drift's time functions reproduces its reading to at
+#: most this many times the reading's own scatter (RMS).
+CLOCK_RATIO = 1.5
+
+
+def _rms_fit(T: np.ndarray, X: np.ndarray) -> float:
+    """RMS residual of ``T`` least-squares fitted by the columns ``X`` (degrees of freedom counted)."""
+    c = np.linalg.lstsq(X, T, rcond=None)[0]
+    r = T - X @ c
+    return float(np.sqrt(r @ r / max(len(T) - X.shape[1], 1)))
+
+
+def clock_sensors(d) -> dict:
+    """The logged temperatures that are clocks: each a smooth function of time to its own scatter.
+
+    A sensor whose reading one of the thermal drift's time functions (a
+    Legendre polynomial of degree 1-3 over the campaign, or a warm-up
+    ``exp(-t / T)`` at one of :data:`DRIFT_TAU_FRACTIONS`, with a constant)
+    reproduces to at most :data:`CLOCK_RATIO` times the reading's own
+    scatter carries no evidence of itself: the expansion following it is,
+    to that scatter, a drift with time, whose form the sensor happens to
+    share (gen_b's spindle sensor settling exponentially as the spindle
+    cools: a cubic in time leaves 4.4-5.5 mK of a 0.01 K-resolution
+    reading, its rounding and noise). The data cannot tell the machine
+    following that sensor from the machine drifting the same way with
+    time; what the report can say is that the machine drifts (the time
+    cause, ``thermal_drift``) with the sensor's course as its shape, and
+    name the sensor. The reading's own scatter: each reading against the
+    line through its two neighbours in time within its set-up (the
+    difference's variance ``sigma^2 (1 + w_1^2 + w_2^2)`` for white noise,
+    ``w`` the interpolation's weights), what a signal smooth over a few
+    touches leaves is the reading's noise, its rounding included; at least
+    the quantisation's ``q / sqrt(12)`` when the readings lie on a grid of
+    step ``q``. (A quadratic within each set-up took a thermostat's or a
+    chiller's cycle inside a set-up for scatter: gen_a's coolant saw read
+    as a clock.) A sensor
+    that follows anything but the clock (a thermostat's cycle, a door
+    opening, a coolant's saw) is not reproduced by four smooth columns
+    over the campaign and is left to ``temperature_expansion``.
+
+    Returns ``{name: info}`` with the best time function's residual
+    (``time_fit_rms_K``), the reading's scatter (``scatter_rms_K``) and the
+    function (``time_form``).
+    """
+    out = {}
+    if not d.temps:
+        return out
+    tau = np.asarray(d.tau, float)
+    n = len(tau)
+    one = np.ones(n)
+    u = 2 * tau - 1
+    forms = [(f"polynomial of degree {deg}", np.column_stack([one, _legendre(u, deg)])) for deg in (1, 2, 3)]
+    if np.ptp(tau) > 0:
+        forms += [(f"warm-up, T = {f * d.span_s:.0f} s", np.column_stack([one, np.exp(-tau / f)]))
+                  for f in DRIFT_TAU_FRACTIONS]
+    setup = np.asarray(d.touches.setup)
+    groups = [g[np.argsort(tau[g], kind="stable")] for g in (np.flatnonzero(setup == s) for s in np.unique(setup))]
+    groups = [g for g in groups if len(g) >= 3]
+    for name, T in d.temps.items():
+        T = np.asarray(T, float)
+        if n < 8 or not np.all(np.isfinite(T)) or np.ptp(T) <= 0 or not groups:
+            continue
+        best, form = min((_rms_fit(T, X), f) for f, X in forms)
+        ss, cnt = 0.0, 0
+        for g in groups:  # each reading against the line through its neighbours in time, within a set-up
+            tg, Tg = tau[g], T[g]
+            h = tg[2:] - tg[:-2]
+            ok = h > 0
+            w = np.where(ok, (tg[2:] - tg[1:-1]) / np.where(ok, h, 1.0), 0.5)
+            e = Tg[1:-1] - (w * Tg[:-2] + (1 - w) * Tg[2:])
+            ss, cnt = ss + float(np.sum(e ** 2 / (1 + w ** 2 + (1 - w) ** 2))), cnt + len(e)
+        scatter = float(np.sqrt(ss / max(cnt, 1)))
+        v = np.unique(T)
+        q = float(np.min(np.diff(v))) if len(v) > 1 else 0.0
+        if q > 0 and np.all(np.abs((v - v[0]) / q - np.round((v - v[0]) / q)) < 1e-3):
+            scatter = max(scatter, q / np.sqrt(12.0))
+        if best <= CLOCK_RATIO * scatter:
+            out[name] = {"time_fit_rms_K": best, "scatter_rms_K": scatter, "time_form": form}
+    return out
+
+
 def drift_scans(bl):
     """Thermal drift: offsets and scales of the X and Y axes changing with time.
 
@@ -360,9 +441,13 @@ def drift_scans(bl):
     step early on (a fixture slip). Within one set-up most of a drift
     looks like the machine's error map or the set-up's own C-axis offsets;
     it is seen by the touches repeated later in the set-up and by the
-    change between set-ups. Parameters: the change of each offset (um) and
-    scale (ppm) from the first to the last touch (and the warm-up's time
-    constant, s).
+    change between set-ups. A third form, one layout per logged sensor
+    that is a clock (:func:`clock_sensors`): the four modes times the
+    sensor's reading about its mean, the drift shaped as the sensor's
+    course (the layout ``temperature_expansion`` would have tried on it;
+    the sensor is named in the finding's parameters). Parameters: the
+    change of each offset (um) and scale (ppm) from the first to the last
+    touch (and the warm-up's time constant, s).
     """
     d = bl.data
     scans = []
@@ -375,15 +460,25 @@ def drift_scans(bl):
             info = {"form": "warm-up", "tau_s": float(f * d.span_s)}
             scans.append(_one(lambda info=info: drift_rebuild(bl, info)[0], [f"{m}_exp" for m in _DRIFT_MODES], info,
                               "time"))
+    # a clock's course (clock_sensors): the drift shaped as a sensor that follows the time, one layout per sensor
+    clocks = clock_sensors(d)
+    for name, ci in clocks.items():
+        info = {"form": "a clock sensor's course", "sensor": name, "range_K": float(np.ptp(d.temps[name])), **ci}
+        scans.append(_one(lambda info=info: drift_rebuild(bl, info)[0], [f"{m}_per_K" for m in _DRIFT_MODES], info,
+                          "time"))
     # the polynomials' three degrees, and the warm-ups' time constants over a factor 10 counted as
-    # independent hypotheses every factor 1.5 (neighbouring constants' columns correlate; warm_up_scans')
-    return scans, 3.0 + (float(np.log(10) / np.log(1.5)) if span > 0 else 0.0)
+    # independent hypotheses every factor 1.5 (neighbouring constants' columns correlate; warm_up_scans'), a try
+    # per clock sensor (as temperature_expansion counted it)
+    return scans, 3.0 + (float(np.log(10) / np.log(1.5)) if span > 0 else 0.0) + len(clocks)
 
 
 def drift_rebuild(bl, info):
     """(T, n, k) a drift layout's columns: a warm-up's for time constants ``tau_s`` (arrays give T trials), a polynomial's."""
     d = bl.data
     modes = np.column_stack([-d.nx, -d.ny, -d.nx * d.xs, -d.ny * d.ys])
+    if "sensor" in info:  # a clock sensor's course (clock_sensors), about its mean
+        T = np.asarray(d.temps[info["sensor"]], float)
+        return (modes * (T - T.mean())[:, None])[None]
     if "tau_s" not in info:
         return _outer(modes, _legendre(2 * d.tau - 1, info["degree"]))[None]
     f = np.atleast_1d(np.asarray(info["tau_s"], float)) / d.span_s
@@ -396,6 +491,11 @@ def drift_magnitudes(info, coef, bl):
         c = np.asarray(coef)
         ch = c * (np.exp(-bl.data.span_s / info["tau_s"]) - 1.0)
         extra = {"time_constant_s": float(info["tau_s"])}
+    elif "sensor" in info:  # a clock sensor's course: the change from the first to the last touch
+        T = np.asarray(bl.data.temps[info["sensor"]], float)
+        order = np.argsort(bl.data.tau, kind="stable")
+        ch = np.asarray(coef) * float(T[order[-1]] - T[order[0]])
+        extra = {}
     else:
         deg = info["degree"]
         c = np.asarray(coef).reshape(4, deg)
@@ -469,7 +569,9 @@ def expansion_scans(bl):
     for Y, where ``alpha`` is the effective expansion coefficient
     (um/m/K: 11.5 for steel, 23 for aluminium) and ``b`` the drift of the
     axis' zero with that sensor. Each ``temp_*_C`` column is tried as the
-    driver (one trial per sensor). Reference temperature: 20 C (ISO 1);
+    driver (one trial per sensor), but a clock (:func:`clock_sensors`: a
+    smooth function of time to its own scatter), whose expansion is a drift
+    with time and is tried there. Reference temperature: 20 C (ISO 1);
     the static part ``alpha (T_mean - 20 C)`` is a constant scale, which
     the baseline holds (and cannot tell from the part's size). Parameters:
     ``alpha_x``, ``alpha_y`` in um/m/K and the offsets in um/K.
@@ -478,7 +580,10 @@ def expansion_scans(bl):
     scans = []
     xm = (d.x.max() + d.x.min()) / 2
     ym = (d.y.max() + d.y.min()) / 2
+    clocks = clock_sensors(d)
     for name, T in d.temps.items():
+        if name in clocks:  # a clock: its expansion is the drift's (drift_scans' layout on it)
+            continue
         dT = T - T.mean()
         cols = np.column_stack([-d.nx * (d.x - xm) * dT, -d.ny * (d.y - ym) * dT, -d.nx * dT, -d.ny * dT])
         short = name[5:-2] if name.startswith("temp_") and name.endswith("_C") else name

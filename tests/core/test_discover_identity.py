@@ -144,6 +144,17 @@ Refreshed for the direction family nested by the feature term (session 18,
 probe_lobing and lobing_per_setup give their next refusal (a held-out gain
 of -4.72 um^2; the common lobing explains as much) instead of step 4e's;
 only those two reasons moved (the other keys kept as stored).
+
+Refreshed for a sensor that is a clock (session 19,
+:func:`core.causes.clock_sensors`): gen_b stylus_pickup 501's spindle
+sensor is one (a quadratic in time leaves 4.9 mK against its 5.3 mK
+scatter), so its course is a layout of thermal_drift (one more try: the
+dropped drift's ``p_adjusted`` 9.09e-10 -> 1.01e-9, the tries 8.68 ->
+9.68) and temperature_expansion's one layout is the air sensor's, whose
+significant refusal in the part change's round is now listed
+(``rejected`` gains "confounded with the baseline + thermal_drift +
+part_change", variance inflation 339). Only those two leaves took the new
+values; the other fifteen reports and every other leaf are as stored.
 """
 
 from __future__ import annotations

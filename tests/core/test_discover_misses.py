@@ -1412,3 +1412,44 @@ def test_gen_a_reversal_1054_not_dropped_for_the_feature_smooth_that_nests_it():
     assert rep["cause"] in tr.acceptable_causes, rep["rejected"]
     assert not any(r["cause"] == "reversal" and r["reason"].startswith("no material gain once the unnamed")
                    for r in rep["rejected"]), rep["rejected"]
+
+
+def test_clock_sensors_known_answers():
+    """A reading that is an exponential settling of time plus its rounding is a clock; a thermostat's cycle
+    (a triangle of a few minutes' period) is not; a constant sensor gives nothing (no expansion either)."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(3)
+    setup = np.repeat(np.arange(5), 60)
+    t_s = np.sort(rng.uniform(0, 1, setup.size)) * 60.0 + setup * 900.0   # five set-ups of a minute, 15 min apart
+    tau = (t_s - t_s[0]) / np.ptp(t_s)
+    spindle = np.round(22.0 + 3.0 * np.exp(-t_s / 1800.0) + rng.normal(0, 0.004, t_s.size), 2)
+    tri = 2.0 * np.abs(2.0 * ((t_s / 400.0) % 1.0) - 1.0) - 1.0
+    air = np.round(20.0 + 0.5 * tri + rng.normal(0, 0.004, t_s.size), 2)
+    d = SimpleNamespace(tau=tau, span_s=float(np.ptp(t_s)), touches=SimpleNamespace(setup=setup),
+                        temps={"temp_spindle_C": spindle, "temp_air_C": air, "temp_bed_C": np.full(t_s.size, 20.0)})
+    clocks = causes.clock_sensors(d)
+    assert list(clocks) == ["temp_spindle_C"], clocks
+    c = clocks["temp_spindle_C"]
+    assert c["time_fit_rms_K"] <= causes.CLOCK_RATIO * c["scatter_rms_K"]
+    assert 0.002 < c["scatter_rms_K"] < 0.008, c   # rounding (2.9 mK) and noise (4 mK)
+
+
+@pytest.mark.parametrize("seed", [1038, 1091])
+def test_gen_b_thermal_drift_not_read_on_the_clock_sensor(seed):
+    """Issue 13, session 19: gen_b thermal_drift 1016, 1023, 1035, 1038, 1073, 1080, 1091, 1098 read
+    `temperature_expansion` on ``temp_spindle_C``, ambiguous with `thermal_drift`: that sensor settles
+    exponentially (a cubic in time leaves its 0.01 K rounding), a time shape the drift's in-sample-chosen
+    polynomial lacks, and its four columns won round one. A clock carries no evidence of itself
+    (:func:`core.causes.clock_sensors`): its expansion is the drift's, tried as the drift's layout, with the
+    sensor named in the finding's parameters. 1038 (2.0 sigma) and 1091 (1.08) are named `thermal_drift`,
+    confidently, on the sensor's course."""
+    from core.baseline import extra_columns
+
+    log, tr, t, bl = _gen_b_baseline("thermal_drift", seed)
+    assert set(causes.clock_sensors(bl.data)) == {"temp_spindle_C"}
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    assert rep["cause"] == "thermal_drift", rep["rejected"]
+    f = rep["findings"][0]
+    assert f["evidence"]["confidence"] == "named", f["evidence"]
+    assert f["params"].get("sensor") == "temp_spindle_C", f["params"]
