@@ -246,7 +246,7 @@ def test_part_change_wall_turns():
     sector) gets no turn column, nor does a curved surface's sector (the blade's: a turn there is the
     feature's smooth form, and with it gen_b local_scale_defect 1077 was named part_change, confident)."""
     _, _, t, bl = _gen_b_baseline("none", 1010)
-    sc = {s.infos[0]["feature"]: s for s in causes.part_change_scans(bl)[0]}
+    sc = {s.infos[0]["feature"]: s for s in causes.part_change_scans(bl)[0] if s.infos[0]["time_form"] == "continuous"}
     C = sc["slot"].build([0])[0]
     Qc = orth_of(C)
     tau = (t.t_s - t.t_s.min()) / np.ptp(t.t_s)
@@ -309,7 +309,8 @@ def test_part_change_wall_bows():
     A wall whose targets sit at two places only (here pressed onto its two ends) has no bow column
     (WALL_BOW_PLACES = 3: on two places a parabola is a shift and a turn), but keeps its turn."""
     log, _, t, bl = _gen_b_baseline("none", 1010)
-    scans = [s for s in causes.part_change_scans(bl)[0] if s.infos[0]["feature"] == "slot"]
+    scans = [s for s in causes.part_change_scans(bl)[0]
+             if s.infos[0]["feature"] == "slot" and s.infos[0]["time_form"] == "continuous"]
     assert [len(s.infos[0]["bows_deg"]) for s in scans] == [0, 0, 2], [s.labels for s in scans]
     Q_turn, Q_bow = (orth_of(s.build([0])[0]) for s in scans[1:])
     tau = (t.t_s - t.t_s.min()) / np.ptp(t.t_s)
@@ -334,7 +335,7 @@ def test_part_change_wall_bows():
     from core.baseline import extra_columns
     t2 = dataclasses.replace(t, w_A=w_two)
     sc2 = [s for s in causes.part_change_scans(planar(t2, 30.0, extra=extra_columns(log, t2.row)))[0]
-           if s.infos[0]["feature"] == "slot"]
+           if s.infos[0]["feature"] == "slot" and s.infos[0]["time_form"] == "continuous"]
     assert len(sc2) == 2 and set(sc2[1].infos[0]["turns_deg"]) == {135, 315}, [s.labels for s in sc2]
     assert not any(s.infos[0]["bows_deg"] for s in sc2)
 
@@ -690,7 +691,8 @@ def test_part_change_ring_columns():
     log, _ = gen_a.generate("none", 1017)
     t = from_log(log)
     bl = planar(t, 30.0, extra=extra_columns(log, t.row))
-    scans = [s for s in causes.part_change_scans(bl)[0] if s.infos[0]["feature"] == "boss"]
+    scans = [s for s in causes.part_change_scans(bl)[0]
+             if s.infos[0]["feature"] == "boss" and s.infos[0]["time_form"] == "continuous"]
     assert len(scans) == 1 and scans[0].infos[0].get("ring"), [s.labels for s in scans]
     boss = np.asarray(t.feature) == "boss"
     tau = (t.t_s - t.t_s.min()) / np.ptp(t.t_s)
