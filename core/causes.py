@@ -1455,10 +1455,15 @@ def part_change_scans(bl):
     clamping force released and set again, the part relaxing between two
     set-ups, a change made between them) and holds still while clamped;
     the simulator grows its pocket's wall by a step per set-up
-    (``scenarios.hidden._grown_wall``). Within a set-up the step form is
-    the feature's workpiece, so it is told from the continuous form only by
-    the touches' order inside each set-up; the form of smallest p is
-    judged, its name in the parameters (``time_form``). The magnitudes are
+    (``scenarios.hidden._grown_wall``). The two forms differ only within
+    set-ups (a change seen there is continuous) and in how the set-ups'
+    levels lie against their times (steps that a line in time cannot
+    follow): :func:`core.discover._time_forms_chosen` keeps a feature's step
+    trial only where it is significant beyond its continuous trial and the
+    continuous trial is not beyond it, else the continuous one (chosen by
+    p alone, the step took continuous changes: gen_b part_change 1010 lost
+    to the slip check, 1063's workpiece 3.4 um off). The form is in the
+    parameters (``time_form``). The magnitudes are
     the change from the form's 0 to its 1: over the campaign, or from the
     first set-up to the last.
     """
