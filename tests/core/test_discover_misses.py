@@ -1363,8 +1363,10 @@ def test_sim_part_change_named_in_its_step_per_setup_form(seed):
     (``scenarios.hidden._grown_wall``), where part_change's columns grew continuously with the time; at sim
     part_change 4077 (1.23 sigma) and 4079 (1.47) the lobes per set-up won round one on the held-out gain and
     the campaigns read lobing_per_setup (ambiguous). With the step per set-up a second time form of every layout
-    (both counted in the Bonferroni factor) the step is the form of smallest p and part_change is named
-    (ambiguous), its form in the parameters."""
+    (both counted in the Bonferroni factor; the step kept where it is significant beyond the continuous form and
+    not the reverse, ``core.discover._time_forms_chosen``) part_change is named (ambiguous) in the step form, its
+    form in the parameters. (gen_b part_change 1010's test guards the other side: a continuous change keeps the
+    continuous form; chosen by p alone the step took it there and the slip check refused it.)"""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.hidden import hidden_campaign
