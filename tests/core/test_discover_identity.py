@@ -144,15 +144,6 @@ Refreshed for the direction family nested by the feature term (session 18,
 probe_lobing and lobing_per_setup give their next refusal (a held-out gain
 of -4.72 um^2; the common lobing explains as much) instead of step 4e's;
 only those two reasons moved (the other keys kept as stored).
-
-Refreshed for part_change's two time forms (session 19, the step per set-up
-beside the continuous form, every layout of both a trial): gen_b
-stylus_pickup 501 (out of the catalogue, `unexplained` before and after) no
-longer adopts part_change on pin1 in a later round (p 2.1e-5 over 198 tries
-instead of 99: 0.0042, not significant), so that round's part_change refused
-by the fixture slip and the lobes per set-up refused after it are gone:
-``rejected`` and the finding's ``partially_consistent_with`` took this
-engine's values, every other leaf as stored. No other campaign moved.
 """
 
 from __future__ import annotations
