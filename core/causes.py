@@ -1444,7 +1444,8 @@ def part_change_scans(bl):
     the difference of the changes at its two ends, um: + where the end of
     larger ``a`` moves more) and its bow (the change at its middle less the
     mean of its ends', um).
-    Two time forms (:func:`part_change_times`), each feature's layouts in
+    Two time forms (:func:`part_change_times`; the step withheld, on only
+    where :data:`PART_CHANGE_FORMS` names it), each feature's layouts in
     both, every layout of either form a trial in the count: ``continuous``,
     the time ``t`` above (0 at the first touch, 1 at the last: a part that
     changes while it is measured, stress relaxing or moisture taken up as
