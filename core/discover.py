@@ -3637,6 +3637,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # wall's shift p = 0.068 behind another wall's 0.0029; its bow explained 16.0 of the 18.8 um^2 left)
         own = _grow_layout(own, scans, si, rows, bl, st, folds, terms, settings)
         owns.append(own)
+    owns = _time_forms_chosen(owns, rows, st, settings)
+    for own in owns:
         if best is None or _better_trial(own, best, st.rss):
             best = own
     if best is None:
@@ -3661,6 +3663,58 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
                 f"the form of smallest p ({_layout_text(best.scan.infos[best.index])}) {out['reason']}")
             return res
     return out
+
+
+def _time_forms_chosen(owns: list, rows, st: _State, settings) -> list:
+    """Each feature's trial in one time form (:func:`core.causes.part_change_times`): the step per set-up where the
+    data ask for it, else the continuous form (the form before there were two).
+
+    A scan's trial whose layout names a ``time_form`` other than ``continuous`` (part_change's step per set-up)
+    is kept beside the continuous trial of the same feature only where its columns are significant beyond the
+    continuous trial's (F test at ``alpha_family``) and the continuous trial's are not beyond its own: the steps
+    explain what a change linear in time cannot, and no change within a set-up is seen. Where the continuous
+    columns are significant beyond the steps (the part changes while it is measured: gen_a's and gen_b's
+    ``1 - exp(-t / tau)``) or neither beyond the other (the design cannot tell them), the continuous trial is
+    kept; where the steps are chosen, the continuous trial is dropped. Either way one trial per feature is
+    compared with the others (each form still counted in the Bonferroni factor).
+    """
+    cont = {}
+    for o in owns:
+        info = o.scan.infos[o.index]
+        if info.get("time_form") == "continuous":
+            cont[info.get("feature")] = o
+    if not cont:
+        return owns
+    drop = set()
+    for o in owns:
+        info = o.scan.infos[o.index]
+        form = info.get("time_form")
+        if form is None or form == "continuous":
+            continue
+        c = cont.get(info.get("feature"))
+        if c is None:
+            continue
+        cs = o.cols if o.cols is not None else o.scan.build([o.index])[0]
+        cc = c.cols if c.cols is not None else c.scan.build([c.index])[0]
+        cs, cc = (x.toarray() if sps.issparse(x) else np.asarray(x) for x in (cs, cc))
+        joint = nested_f_batch(np.hstack([cs, cc])[None, rows], st.Q, st.r, st.rss, st.dof)
+        one = [nested_f_batch(x[None, rows], st.Q, st.r, st.rss, st.dof) for x in (cs, cc)]
+        one = tuple(np.concatenate([a, b]) for a, b in zip(*one))
+        ss_j, k_j = float(joint[0][0]), int(joint[1][0])
+        dof_j = st.dof - k_j
+        p_beyond = []
+        for i in (1, 0):  # the steps beyond the continuous form, the continuous form beyond the steps
+            k_x = k_j - int(one[1][i])
+            if k_x <= 0 or dof_j <= 0:
+                p_beyond.append(1.0)
+                continue
+            F_x = (ss_j - float(one[0][i])) / k_x / ((st.rss - ss_j) / dof_j)
+            p_beyond.append(float(stats.f.sf(F_x, k_x, dof_j)))
+        if p_beyond[0] < settings.alpha_family and p_beyond[1] >= settings.alpha_family:
+            drop.add(id(c))
+        else:
+            drop.add(id(o))
+    return [o for o in owns if id(o) not in drop]
 
 
 #: Whether a cause whose trial of smallest p falls short of its held-out gain, or is confounded with the model, is
