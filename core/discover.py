@@ -3227,6 +3227,19 @@ def _plainer_one_explanation(best: dict, passed: list, st: _State, sigma: float,
     them). Penalised candidates (the non-rigid field) are not compared here
     (their signal is the ridge's). Among several plainer ones that
     qualify, the fewest columns, then the lowest held-out mean square.
+
+    What the winner explains beyond the plainer one is judged material
+    against the residual sigma of the model *with the plainer one in it*
+    (when lower than the round's): in round one the round's sigma still
+    carries the very structure in question, and the materiality it sets
+    grows with the effect. gen_a probe_lobing 4100 (4.3 sigma, the lead's
+    blind seeds of session 19): the lobes explain 128 um^2 beyond the lost
+    motion (p 9e-60), against a materiality of 188 um^2 from the round's
+    sigma of 2.43 um (the generator's noise 0.2 um); with that figure the
+    lost motion led, the lobes were refused in the next round and the
+    azimuth was left carrying 0.73 um (p 1e-61). With the lost motion in
+    the model the sigma is about 0.8 um and the lobes stand. gen_b reversal
+    1001 and 1059 keep the plainer name (the sigma barely moves there).
     """
     tb = best["term"]
     if tb.penalty is not None or tb.unnamed or tb.covariate is None:
@@ -3248,7 +3261,9 @@ def _plainer_one_explanation(best: dict, passed: list, st: _State, sigma: float,
         _, _, ind = _reproduces(U, signal, st, sigma, settings)
         if not ind:
             continue
-        _, _, stands = _beyond(st, U, tb.columns[rows], sigma, tb.tries, settings)
+        ra = st.r - U @ (U.T @ st.r)
+        sigma_alt = float(np.sqrt(ra @ ra / max(len(rows) - st.Q.shape[1] - U.shape[1], 1)))
+        _, _, stands = _beyond(st, U, tb.columns[rows], min(sigma, sigma_alt), tb.tries, settings)
         if not stands:
             c["term"].evidence["plainer_than"] = {"cause": tb.cause, "columns": int(k_best),
                                                    "cv_um2": c["cv"] / UM ** 2, "its_cv_um2": best["cv"] / UM ** 2}

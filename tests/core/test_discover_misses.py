@@ -1509,3 +1509,20 @@ def test_sim_part_change_named_in_its_step_per_setup_form(monkeypatch, seed):
     f = rep["findings"][0]
     assert f["cause"] == "part_change" and f["params"]["feature"] == "pocket", (rep["cause"], rep["rejected"])
     assert f["params"]["time_form"] == "per_setup", f["params"]
+
+
+def test_plainer_rule_judges_the_winner_beyond_it_at_the_plainer_models_sigma():
+    """Issue 13, session 19 (lead): gen_a probe_lobing 4100 (4.3 sigma; found on the lead's blind seeds, kept
+    here as a regression case). In round one the lost motion's two columns reproduce the lobes' signal, and the
+    lobes' 128 um^2 beyond it (p 9e-60) fell below a materiality set by the round's sigma, 2.43 um, which still
+    carries the lobes (the generator's noise is 0.2 um): the plainer name led, the lobes were refused next round
+    and the azimuth kept 0.73 um. Judged at the sigma of the model with the lost motion in it the lobes stand."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+
+    log, tr = gen_a.generate("probe_lobing", 4100)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    assert rep["cause"] == "probe_lobing", rep["rejected"]
+    assert "plainer_than" not in rep["findings"][0]["evidence"]
