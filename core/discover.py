@@ -3730,21 +3730,11 @@ def _time_forms_chosen(owns: list, rows, st: _State, settings) -> list:
             continue
         cs = o.cols if o.cols is not None else o.scan.build([o.index])[0]
         cc = c.cols if c.cols is not None else c.scan.build([c.index])[0]
-        cs, cc = (x.toarray() if sps.issparse(x) else np.asarray(x) for x in (cs, cc))
-        joint = nested_f_batch(np.hstack([cs, cc])[None, rows], st.Q, st.r, st.rss, st.dof)
-        one = [nested_f_batch(x[None, rows], st.Q, st.r, st.rss, st.dof) for x in (cs, cc)]
-        one = tuple(np.concatenate([a, b]) for a, b in zip(*one))
-        ss_j, k_j = float(joint[0][0]), int(joint[1][0])
-        dof_j = st.dof - k_j
-        p_beyond = []
-        for i in (1, 0):  # the steps beyond the continuous form, the continuous form beyond the steps
-            k_x = k_j - int(one[1][i])
-            if k_x <= 0 or dof_j <= 0:
-                p_beyond.append(1.0)
-                continue
-            F_x = (ss_j - float(one[0][i])) / k_x / ((st.rss - ss_j) / dof_j)
-            p_beyond.append(float(stats.f.sf(F_x, k_x, dof_j)))
-        if p_beyond[0] < settings.alpha_family and p_beyond[1] >= settings.alpha_family:
+        cs, cc = (x.toarray()[rows] if sps.issparse(x) else np.asarray(x)[rows] for x in (cs, cc))
+        # the steps beyond the continuous form, the continuous form beyond the steps (_beyond's F test, unadjusted)
+        p_steps = _beyond(st, new_basis(st.Q, cc), cs, st.sigma, 1.0, settings)[1]
+        p_cont = _beyond(st, new_basis(st.Q, cs), cc, st.sigma, 1.0, settings)[1]
+        if p_steps < settings.alpha_family and p_cont >= settings.alpha_family:
             drop.add(id(c))
         else:
             drop.add(id(o))
