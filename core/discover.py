@@ -4289,17 +4289,25 @@ def _beside_smooth(vals: dict, u95: dict, vals_s: dict, u95_s: dict, alpha: floa
     efficient one where the smooth holds nothing of the cause, so the shift
     ``D`` has variance ``(U95_s^2 - U95^2) / 4``), chi-square with one
     degree of freedom at ``alpha``; a real shift is carried, ``u^2 += D^2 /
-    4`` (the U95 reaches the answer beside the named causes alone).
+    4`` (the U95 reaches the answer beside the named causes alone). A
+    magnitude determined beside the named causes alone and not beside the
+    smooth (the smooth's columns hold the cause's along a direction it
+    moves with) is reported as no value (``not_determined``).
 
     Returns (values, U95, figures for the evidence).
     """
-    out_v, out_u, fig = {}, {}, {"variance_inflation": {}, "shift": {}, "p_value": {}, "carried_in_u95": []}
+    out_v, out_u = {}, {}
+    fig = {"variance_inflation": {}, "shift": {}, "p_value": {}, "carried_in_u95": [], "not_determined": []}
     for key, v in vals_s.items():
         out_v[key] = v
         if key not in u95_s:
             continue
         u_s, v0, u0 = u95_s.get(key), vals.get(key), u95.get(key)
         out_u[key] = u_s
+        if v is None and v0 is not None:
+            # determined beside the named causes alone, not beside the smooth's columns (which hold the
+            # cause's along a direction it moves with: an unbounded variance inflation): no estimate
+            fig["not_determined"].append(key)
         if v is None or u_s is None or v0 is None or u0 is None or not u0 > 0:
             continue
         d = float(v) - float(v0)

@@ -29,6 +29,7 @@ def test_beside_smooth_known_answers():
     assert fig["carried_in_u95"] == ["b_um"]
     assert fig["variance_inflation"]["a_um"] == pytest.approx(6.25)
     assert fig["shift"]["b_um"] == pytest.approx(3.0) and fig["p_value"]["c_um"] > 0.5
+    assert fig["not_determined"] == ["d_um"]
 
 
 def _run(effect, seed, beside):
