@@ -134,7 +134,10 @@ What it does, in order, and the statistics behind each step
    bootstrap with the ridge chosen again (:func:`_penalised_bootstrap`;
    the penalised covariance ``s^2 (E^T E + P)^-1`` of :func:`_penalised_fit`
    by the delta method where no folds are given), and a cause beside it is
-   fitted with its columns penalised in the nuisance (session 16).
+   fitted with its columns penalised in the nuisance (session 16). A named
+   cause beside an unnamed smooth has its magnitudes fitted beside the
+   smooth's columns too, with its penalty, the smooth's shift of them
+   carried in their U95 where real (:func:`_beside_smooth`, session 20).
 8. **Confidence** (each finding's ``confidence``, ``named`` or
    ``ambiguous`` with ``confidence_reason``): ``named`` says the name holds
    against the alternatives the engine can test. A named cause: no smooth
@@ -4278,21 +4281,24 @@ def _beside_smooth(vals: dict, u95: dict, vals_s: dict, u95_s: dict, alpha: floa
 
     ``vals``, ``u95``: the magnitudes and U95 fitted beside the other named
     causes alone; ``vals_s``, ``u95_s``: beside the smooth's columns too,
-    unpenalised (:func:`_magnitudes` with them in ``Qo``: what the data
-    alone determine; a magnitude along a direction the smooth takes whole
-    is None there). Reported: the latter, whose U95 counts the smooth (its
-    square over the former's is the variance inflation the smooth brings).
-    The smooth has no physics: how an effect splits between it and the
-    cause is its form's, not a measurement. The two estimates of one
+    with its penalty (the model reported: the joint ridge fit of
+    :func:`_magnitudes`, its U95 from the fit's Bayesian covariance
+    ``s^2 (X^T X + P)^-1``, as the extended workpiece's; a magnitude along
+    a direction the smooth's ridge leaves undetermined is None there).
+    Reported: the latter, whose U95 counts the smooth (its square over the
+    former's is the variance inflation the smooth brings). The smooth has
+    no physics: how an effect splits between it and the cause is its form's
+    and its penalty's, not a measurement. The two estimates of one
     magnitude are compared as :func:`_unnamed_shift` compares the
-    workpiece's (Hausman 1978: the fit beside the named causes alone is the
-    efficient one where the smooth holds nothing of the cause, so the shift
-    ``D`` has variance ``(U95_s^2 - U95^2) / 4``), chi-square with one
-    degree of freedom at ``alpha``; a real shift is carried, ``u^2 += D^2 /
-    4`` (the U95 reaches the answer beside the named causes alone). A
-    magnitude determined beside the named causes alone and not beside the
-    smooth (the smooth's columns hold the cause's along a direction it
-    moves with) is reported as no value (``not_determined``).
+    workpiece's (Hausman 1978), the shift ``D`` against the variance
+    ``(U95_s^2 - U95^2) / 4`` (the fit beside the named causes alone taken
+    as the efficient one where the smooth holds nothing of the cause: for a
+    ridge beside it an approximation, not the exact variance of ``D``),
+    chi-square with one degree of freedom at ``alpha``; a real shift is
+    carried, ``u^2 += D^2 / 4`` (the U95 reaches the answer beside the
+    named causes alone). A magnitude determined beside the named causes
+    alone and not beside the smooth is reported as no value
+    (``not_determined``).
 
     Returns (values, U95, figures for the evidence).
     """
@@ -4305,8 +4311,8 @@ def _beside_smooth(vals: dict, u95: dict, vals_s: dict, u95_s: dict, alpha: floa
         u_s, v0, u0 = u95_s.get(key), vals.get(key), u95.get(key)
         out_u[key] = u_s
         if v is None and v0 is not None:
-            # determined beside the named causes alone, not beside the smooth's columns (which hold the
-            # cause's along a direction it moves with: an unbounded variance inflation): no estimate
+            # determined beside the named causes alone, not beside the smooth's columns (its ridge leaves a
+            # direction the magnitude moves with undetermined): no estimate
             fig["not_determined"].append(key)
         if v is None or u_s is None or v0 is None or u0 is None or not u0 > 0:
             continue
@@ -4846,10 +4852,10 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                                     boot=(folds, others, True) if folds is not None else None)
         beside_smooth = None
         if smooth_terms and tm.penalty is None and MAGNITUDES_BESIDE_SMOOTH:
-            # the model reported holds the unnamed smooth too: the magnitudes are fitted beside its columns, free
-            # (what the data alone say), and the shift the smooth makes carried where it is real (session 20)
-            Qm = _state(Qb, y, rows, others + [dataclasses.replace(t, penalty=None) for t in smooth_terms]).Q
-            vals_s, u95_s = _magnitudes(cause, bl, tm, Qm, rows, boot=(folds, others) if folds is not None else None)
+            # the model reported holds the unnamed smooth too: the magnitudes are fitted beside its columns with
+            # its penalty (the joint ridge fit, _magnitudes' penalised nuisance), and the shift the smooth makes
+            # carried where it is real (session 20)
+            vals_s, u95_s = _magnitudes(cause, bl, tm, so.Q, rows, boot=(folds, others + smooth_terms))
             vals, u95, beside_smooth = _beside_smooth(vals, u95, vals_s, u95_s, settings.alpha_family)
             beside_smooth = {"smooth": ", ".join(t.covariate for t in smooth_terms), **beside_smooth}
         if tm.evidence.get("magnitudes_not_determined"):

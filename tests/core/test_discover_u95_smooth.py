@@ -3,7 +3,7 @@
 Before, a cause kept beside an unnamed smooth reported magnitudes fitted beside the other named causes alone:
 their U95 did not count the smooth (gen_a reversal 1054, a tuning seed: ``x_lost_motion`` -14.63 +- 0.64 um
 against a true 13.87, which the report's sign convention reads -13.87). Now they are fitted beside the smooth's
-columns too, unpenalised, and the shift the smooth makes is carried where it is real
+columns too, with its penalty (the model reported), and the shift the smooth makes is carried where it is real
 (:func:`core.discover._beside_smooth`).
 """
 
@@ -51,8 +51,8 @@ def _run(effect, seed, beside):
 def test_gen_a_reversal_1054_lost_motion_within_its_u95_beside_the_feature_smooth():
     """gen_a reversal 1054 (tuning seed): the reversal is kept beside an unnamed smooth in `feature` that nests it
     (a bore's lost motion is its size per set-up). Beside the named causes alone the true lost motion lay outside
-    the U95 (0.76 um off, U95 0.64); beside the smooth's columns the variance inflation is over 100 and the shift
-    the smooth makes real (p < 1e-3), carried: the truth lies inside. The decisions do not move."""
+    the U95 (0.76 um off, U95 0.64); beside the smooth's columns the variance inflation is 65 and the shift the
+    smooth makes real (p 3e-4), carried: the truth lies inside (-5.33 +- 10.66). The decisions do not move."""
     tr, before = _run("reversal", 1054, False)
     _, after = _run("reversal", 1054, True)
     axis = tr.params["axis"].lower()
@@ -63,7 +63,7 @@ def test_gen_a_reversal_1054_lost_motion_within_its_u95_beside_the_feature_smoot
     assert abs(fb["params"][key] - truth) > fb["params_u95"][key]
     assert abs(fa["params"][key] - truth) <= fa["params_u95"][key]
     ev = fa["evidence"]["magnitudes_beside_smooth"]
-    assert ev["smooth"] == "feature" and key in ev["carried_in_u95"] and ev["variance_inflation"][key] > 100
+    assert ev["smooth"] == "feature" and key in ev["carried_in_u95"] and ev["variance_inflation"][key] > 10
     assert "magnitudes_beside_smooth" not in fb["evidence"]
     assert [(f["cause"], f["evidence"].get("confidence")) for f in before["findings"]] == \
         [(f["cause"], f["evidence"].get("confidence")) for f in after["findings"]]
