@@ -134,7 +134,10 @@ What it does, in order, and the statistics behind each step
    bootstrap with the ridge chosen again (:func:`_penalised_bootstrap`;
    the penalised covariance ``s^2 (E^T E + P)^-1`` of :func:`_penalised_fit`
    by the delta method where no folds are given), and a cause beside it is
-   fitted with its columns penalised in the nuisance (session 16).
+   fitted with its columns penalised in the nuisance (session 16). A named
+   cause beside an unnamed smooth has its magnitudes fitted beside the
+   smooth's columns too, with its penalty, the smooth's shift of them
+   carried in their U95 where real (:func:`_beside_smooth`, session 20).
 8. **Confidence** (each finding's ``confidence``, ``named`` or
    ``ambiguous`` with ``confidence_reason``): ``named`` says the name holds
    against the alternatives the engine can test. A named cause: no smooth
@@ -4008,6 +4011,9 @@ def _evaluate_penalised(cause, sc, info, cols, tries, bl, st: _State, folds: Fol
 #: Parametric bootstrap refits of a penalised named cause's magnitudes (:func:`_penalised_bootstrap`), and the seed of
 #: their draws (fixed: one campaign, one U95).
 PENALISED_BOOT = 200
+#: A named cause's magnitudes and U95 in the report fitted beside the unnamed smooth when one is adopted (session 20;
+#: False: beside the other named causes alone, as before, the smooth's columns left out of their covariance).
+MAGNITUDES_BESIDE_SMOOTH = True
 PENALISED_BOOT_SEED = 16
 
 
@@ -4268,6 +4274,59 @@ def _within_range(cause, key: str, v: float, u: float, wide: list | None) -> tup
                 wide.append((key, v, u, lo, hi))
             return None, None
     return v, u
+
+
+def _beside_smooth(vals: dict, u95: dict, vals_s: dict, u95_s: dict, alpha: float) -> tuple:
+    """A named cause's magnitudes in the model that holds the unnamed smooth beside it (session 20).
+
+    ``vals``, ``u95``: the magnitudes and U95 fitted beside the other named
+    causes alone; ``vals_s``, ``u95_s``: beside the smooth's columns too,
+    with its penalty (the model reported: the joint ridge fit of
+    :func:`_magnitudes`, its U95 from the fit's Bayesian covariance
+    ``s^2 (X^T X + P)^-1``, as the extended workpiece's; a magnitude along
+    a direction the smooth's ridge leaves undetermined is None there).
+    Reported: the latter, whose U95 counts the smooth (its square over the
+    former's is the variance inflation the smooth brings). The smooth has
+    no physics: how an effect splits between it and the cause is its form's
+    and its penalty's, not a measurement. The two estimates of one
+    magnitude are compared as :func:`_unnamed_shift` compares the
+    workpiece's (Hausman 1978), the shift ``D`` against the variance
+    ``(U95_s^2 - U95^2) / 4`` (the fit beside the named causes alone taken
+    as the efficient one where the smooth holds nothing of the cause: for a
+    ridge beside it an approximation, not the exact variance of ``D``),
+    chi-square with one degree of freedom at ``alpha``; a real shift is
+    carried, ``u^2 += D^2 / 4`` (the U95 reaches the answer beside the
+    named causes alone). A magnitude determined beside the named causes
+    alone and not beside the smooth is reported as no value
+    (``not_determined``).
+
+    Returns (values, U95, figures for the evidence).
+    """
+    out_v, out_u = {}, {}
+    fig = {"variance_inflation": {}, "shift": {}, "p_value": {}, "carried_in_u95": [], "not_determined": []}
+    for key, v in vals_s.items():
+        out_v[key] = v
+        if key not in u95_s:
+            continue
+        u_s, v0, u0 = u95_s.get(key), vals.get(key), u95.get(key)
+        out_u[key] = u_s
+        if v is None and v0 is not None:
+            # determined beside the named causes alone, not beside the smooth's columns (its ridge leaves a
+            # direction the magnitude moves with undetermined): no estimate
+            fig["not_determined"].append(key)
+        if v is None or u_s is None or v0 is None or u0 is None or not u0 > 0:
+            continue
+        d = float(v) - float(v0)
+        var_d = max(u_s ** 2 - u0 ** 2, 0.0) / 4.0
+        chi2 = d * d / var_d if var_d > 0 else (np.inf if d != 0 else 0.0)
+        p = float(stats.chi2.sf(chi2, 1))
+        fig["variance_inflation"][key] = float((u_s / u0) ** 2)
+        fig["shift"][key] = d
+        fig["p_value"][key] = p
+        if p < alpha:
+            out_u[key] = float(np.hypot(u_s, d))
+            fig["carried_in_u95"].append(key)
+    return out_v, out_u, fig
 
 
 def _named_ss(so: _State, sf: _State, sigma: float) -> float:
@@ -4774,6 +4833,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         if smooth is not None and smooth.columns.shape[1] else None
     # the model with every named cause: st itself when there is no unnamed smooth (same Qb, rows, terms)
     sf = (st if len(named) == len(terms) else _state(Qb, y, rows, named)) if named else None
+    # the unnamed smooth adopted beside the named causes (with columns): the magnitudes are fitted beside it too
+    smooth_terms = [t for t in terms if t.unnamed and t.columns.shape[1]]
     for tm in terms:
         if tm.cause == causes_mod.UNEXPLAINED:
             continue
@@ -4789,6 +4850,14 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         else:
             vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows,
                                     boot=(folds, others, True) if folds is not None else None)
+        beside_smooth = None
+        if smooth_terms and tm.penalty is None and MAGNITUDES_BESIDE_SMOOTH:
+            # the model reported holds the unnamed smooth too: the magnitudes are fitted beside its columns with
+            # its penalty (the joint ridge fit, _magnitudes' penalised nuisance), and the shift the smooth makes
+            # carried where it is real (session 20)
+            vals_s, u95_s = _magnitudes(cause, bl, tm, so.Q, rows, boot=(folds, others + smooth_terms))
+            vals, u95, beside_smooth = _beside_smooth(vals, u95, vals_s, u95_s, settings.alpha_family)
+            beside_smooth = {"smooth": ", ".join(t.covariate for t in smooth_terms), **beside_smooth}
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)
@@ -4798,6 +4867,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         ev = dict(tm.evidence)
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
+        if beside_smooth is not None:
+            ev["magnitudes_beside_smooth"] = beside_smooth
         # what the cause explains beside the others (the rival check's own figure; its tests were made)
         explained = max(_named_ss(so, sf, sig), 0.0) / UM ** 2
         ev["explained_ss_um2"] = explained
