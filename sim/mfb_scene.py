@@ -414,7 +414,7 @@ class WorkZone:
         self._feats = feats  # (the same, as a list)
         self._pball = pnames.index("ball")  # the ball among the probe's geoms
         self._ball = nt + self._pball
-        self._tq, self._sq = 0, 7  # the table's and the spindle's free joints in qpos (asserted on compiling)
+        self._tq, self._sq = 0, 7  # the table's and the spindle's free joints in qpos (checked on compiling, _check_layout)
         self._hprobe = list(range(len(holder), len(holder) + npg))
         self._hmodel = self._hdata = None
         self._model = self._data = None
@@ -466,8 +466,7 @@ class WorkZone:
     def _compile(self, xml: str, names: list):
         """(model, data) of ``xml``, its geoms ``names`` and free joints where this zone expects them."""
         m = self._mj.MjModel.from_xml_string(xml)
-        assert [m.geom(i).name for i in range(m.ngeom)] == names
-        assert m.jnt_qposadr[m.joint("table").id] == self._tq and m.jnt_qposadr[m.joint("spindle").id] == self._sq
+        _check_layout(m, self, len(names), names)
         return m, self._mj.MjData(m)
 
     @property
@@ -865,6 +864,10 @@ def _ball_model_spec(wz, geoms) -> tuple:
     table.add_freejoint(name="table")
     for name, kind, size, pos, quat in geoms:
         sz = [float(v) for v in np.ravel(np.asarray(size, float))]
+        if kind not in kinds or not 1 <= len(sz) <= 3 or len(pos) != 3 or (quat is not None and len(quat) != 4):
+            raise ValueError(f"ball model: geom {name!r} must be a sphere, capsule, cylinder or box with 1-3 sizes, "
+                             f"a position (3) and a quaternion (4) or None; got {kind!r}, size {sz}, pos "
+                             f"{list(pos)}, quat {None if quat is None else list(quat)}")
         g = table.add_geom(name=name, type=kinds[kind], size=sz + [0.0] * (3 - len(sz)),
                            pos=[float(v) for v in pos], contype=1, conaffinity=0)
         if quat is not None:
@@ -873,9 +876,24 @@ def _ball_model_spec(wz, geoms) -> tuple:
     spindle.add_freejoint(name="spindle")
     spindle.add_geom(name="ball", type=kinds["sphere"], size=[float(wz._r), 0.0, 0.0], contype=0, conaffinity=1)
     m = spec.compile()
-    assert m.ngeom == len(geoms) + 1
-    assert m.jnt_qposadr[m.joint("table").id] == wz._tq and m.jnt_qposadr[m.joint("spindle").id] == wz._sq
+    _check_layout(m, wz, len(geoms) + 1)
     return m, mj.MjData(m)
+
+
+def _check_layout(m, wz, ngeom: int, names=None) -> None:
+    """Raise RuntimeError unless the compiled model ``m`` has ``ngeom`` geoms (named ``names`` in
+    order, when given) and its table and spindle free joints where the work zone ``wz`` sets them
+    (``wz._tq``, ``wz._sq``): the zone's poses and geom numbers would otherwise be another geom's.
+    (Checks that hold under ``python -O``, unlike ``assert``.)"""
+    if m.ngeom != ngeom:
+        raise RuntimeError(f"work zone model: {m.ngeom} geoms compiled, {ngeom} expected")
+    if names is not None:
+        got = [m.geom(i).name for i in range(m.ngeom)]
+        if got != list(names):
+            raise RuntimeError(f"work zone model: geoms {got} compiled, {list(names)} expected")
+    tq, sq = int(m.jnt_qposadr[m.joint("table").id]), int(m.jnt_qposadr[m.joint("spindle").id])
+    if (tq, sq) != (wz._tq, wz._sq):
+        raise RuntimeError(f"work zone model: table and spindle joints at qpos {tq}, {sq}; expected {wz._tq}, {wz._sq}")
 
 
 def share_ball_model(artefact, measurements, stylus_r_m: float) -> list:
@@ -1323,7 +1341,8 @@ def _near_samples(ms, zones, live, sgs) -> dict:
         wz.set_table(ms[i][2])
         sg, _, allow, is_app = sgs[i]
         plan, T_W_A = ms[i][5], ms[i][1]
-        assert len(segs_A[id(plan)][0]) == len(sg.a)  # (the same polylines, row for row)
+        if len(segs_A[id(plan)][0]) != len(sg.a):  # (the same polylines, row for row)
+            raise RuntimeError(f"_near_samples: {len(sg.a)} path segments, its program's rows in A {len(segs_A[id(plan)][0])}")
         own = []
         # (the two broad phases as kept, not moved to this pose: the rows are given in their frames)
         for clr, place in ((wz._ball_base(), None), (wz.clearance(part="rest", moved=False), T_W_A)):

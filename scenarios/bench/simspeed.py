@@ -249,6 +249,54 @@ instead of 14 MB makes ``MjData`` no faster), the 14 broad phases' builds (~3 ms
 preps and 6 pair structures), the three box levels over 30,435, 20,923 and 29,096 candidate rows in
 ``near_segments_many`` and the gathers of rows of three floats (the 8.8 M instructions of their
 ``memmove`` calls).
+
+Session 20 (issue 19 item 4, continued): nothing of the check's work kept; what was measured and
+why. Instructions (callgrind under valgrind, whose CPU has OpenBLAS take its Haswell kernels; 12 fresh
+checks less 12 fresh states, ``PYTHONHASHSEED=0``): 131.3 M a fresh check at 93a50bf, of which numpy's
+``take`` 16.8 M and libc's ``memcpy`` 7.9 M, OpenBLAS's ``dgemm`` 5.2 M (3.5 M of it the transposed-
+operand path of ``p @ T[:3, :3].T``), the interpreter ~6 M on its own. The shared ball model: MuJoCo's
+own ``mj_compile`` 0.7 M; the Python bindings around the compiled model and its ``MjData`` (the
+``_structs`` module's calls under ``spec.compile()`` and ``MjData(m)``, 1.95 M and 3.2 M) and the
+spec's ~640 binding calls (``add_geom`` and attributes, 0.8 M): ~7 M, 5 % of a check, by timeit 0.8
+ms a build at load ~3 (spec 0.15, compile 0.46, ``MjData`` 0.28 ms), nearly all of it fixed (a model
+of 1, 4, 8 or 14 holder geoms: 0.62, 0.70, 0.72, 0.80 ms). Building it "once per scene geometry"
+would not lower this figure honestly: a fresh process compiles it once anyway, and the CLI's
+``scenarios.mfb.run`` checks its plan once per process (``check_plan``'s answer is kept in
+``_CHECKS``; a budget or study reuses that), so such a cache would serve only a second check of the
+same scene in one process, which a fresh check (every memo cleared, :func:`_fresh_plan_check`)
+must not be credited with. A template model compiled once and its geoms set per check is not exact
+without redoing the compiler's and ``mj_kinematics``' arithmetic, and the template's compile and
+``MjData`` would be paid by a fresh process too. The asserts of ``_ball_model_spec`` and
+``WorkZone._compile`` are now errors (``ValueError`` for a geom of another type or with a wrong
+number of values, ``RuntimeError`` for a compiled layout that is not the zone's;
+tests/sim/test_mfb_scene.py): they held only without ``python -O``.
+Tried and not kept, each giving the same hashes as 93a50bf (every path, ``_segments_A``,
+``unique_segments``, ``near_segments_many`` and ``_near_samples`` answer, least clearance,
+``check_measurements`` and ``check_plan`` answer, the plan-check variants and fuzz sets fresh,
+again and fresh, the MFB campaign's touches): (1) the paths of a measurement that repeats an earlier
+one's program, table pose and placement (Y1, VY, VX: 4 of the 17 probed with another stylus) taken
+from it instead of computed (13 instead of 17 in ``_paths_of``); with (2) below, 131.3 -> 131.9 M
+instructions a check (no function lower by more than 0.1 M; the run from a copy of the tree at
+another path, the fresh states' from the worktree: the import-time part differs by a little), so
+under 1 % and not kept for the code it adds; (2) the (n,3) by 3x3 products of ``check_measurements`` and ``_near_samples`` with the
+rotation's transpose copied C-ordered (OpenBLAS's ``dgemm`` gives the same numbers for n >= 2 with
+either layout, checked on every n 2-3,000 and 200 sizes up to 40,000 with both kernels; one row
+differs, numpy taking a gemv): 82 products a check, 496 -> 417 us (the same inputs timed in a loop),
+0.4 % of a check; (3) the second and third box levels testing y first (on the 5-axis plan's 20,923 and
+29,096 rows x, y, z pass 63 %, 42 %, 63 % and 54 %, 38 %, 84 %; the rows kept are the same, in
+order): ``_pair_candidates`` 435 -> 389 us (least of 300 on its inputs), 0.2 % of a check. Measured, 8 pairs of processes side by side with 93a50bf in alternating order (40 fresh
+checks each, thread CPU, load 19.7-20.8), this commit (the errors only, the check's arithmetic
+unchanged): least check 19.21 -> 18.70 ms (medians), paired 0.950-1.008, median 0.974, 6 of 8 lower;
+median check paired median 1.018 (0.930-1.160). That is the method's noise at this load: a change
+that does nothing reads as 2.6 % faster, so a few per cent from side-by-side pairs is not resolved
+here (6 pairs with (1) and (2) above: least paired median 0.976, the same). This collision figure,
+4 runs one after the other (before, after, after, before; load 18-20): the plan check's CPU 18.5,
+18.8 ms before and 17.3, 19.0 ms after, its share of the simulation's CPU 0.257, 0.263 before and
+0.253, 0.275 after (the simulation's CPU 0.068-0.072 s). The target, a share under 0.25 in every run,
+is not reached. What is left is as session 19 says, spread thin: no single function or call site
+above ~5 % of a check; a 10 % cut needs the broad phase's structures or its box levels rebuilt
+(fewer, larger numpy calls over several broad phases at once, as session 15 did for the first
+level), not another local change.
 """
 
 from __future__ import annotations

@@ -171,6 +171,31 @@ def test_ball_distances_from_the_plans_shared_ball_model_are_each_placements_bit
     assert n > 20  # distances within reach, not only distmax
 
 
+def test_ball_model_spec_refuses_bad_geoms_and_layouts_without_assert():
+    """_ball_model_spec's checks are errors, not asserts (they hold under python -O): a geom of another
+    type or with a wrong number of values is refused before compiling, and a compiled model whose
+    free joints are not where the work zone sets them is refused after."""
+    from sim import mfb_scene
+
+    mfb_scene._ZONES.clear()
+    wz = mfb_scene._work_zone(BAR, FLAT, (), (0.0, -0.100, 0.150), R, 0.0)
+    good = [wz._geom_spec(j, prefix="p0_") for j in wz._holder]
+    m, _ = mfb_scene._ball_model_spec(wz, good)
+    assert m.ngeom == len(good) + 1
+    name, kind, size, pos, quat = good[0]
+    for bad in ((name, "mesh", size, pos, quat), (name, kind, (1.0, 2.0, 3.0, 4.0), pos, quat),
+                (name, kind, size, (0.0, 0.0), quat), (name, kind, size, pos, (1.0, 0.0, 0.0))):
+        with pytest.raises(ValueError, match="ball model: geom"):
+            mfb_scene._ball_model_spec(wz, [bad] + good[1:])
+    tq = wz._tq
+    try:
+        wz._tq = 7  # (a zone expecting its table joint elsewhere)
+        with pytest.raises(RuntimeError, match="table and spindle joints"):
+            mfb_scene._ball_model_spec(wz, good)
+    finally:
+        wz._tq = tq
+
+
 def test_shared_ball_model_built_as_a_spec_is_its_mjcf_model():
     """share_ball_model builds the placements' ball model as an MjSpec (_ball_model_spec, from
     WorkZone._geom_spec) instead of writing and parsing its MJCF: every numeric array of the compiled
