@@ -248,7 +248,7 @@ from .diagnosis import (CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack
                         extends, _first_largest)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
-from .memo import Memo
+from .memo import Memo, kept_on
 from .touches import Touches
 from .units import UM
 
@@ -3496,6 +3496,17 @@ def _fine_position(bl) -> np.ndarray:
     return np.hstack([-d.nx[:, None] * B, -d.ny[:, None] * B])
 
 
+def _fine_position_of(bl) -> np.ndarray:
+    """:func:`_fine_position` of the campaign, built once and kept on its data (:func:`core.memo.kept_on`; it
+    goes with them), read-only as the run's other shared alternatives are (``scan_trials``): step 4e takes it in
+    each round where it decides a position cause's refusal (gen_a nonrigid 1048: twice)."""
+    def make():
+        F = _fine_position(bl)
+        F.flags.writeable = False
+        return F
+    return kept_on(bl.data, "_fine_position", make)
+
+
 def _spans_exactly(bl, covariate: str, E: np.ndarray, rows) -> bool:
     """Whether a categorical covariate's term spans the columns ``E`` (rows ``rows``) exactly on this design.
 
@@ -3817,7 +3828,7 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
                     and f in NESTING_FAMILIES.get(fam, ()) and fam == "position"):
                 # the nesting term is fine-grained: the position family's own figure at a finer resolution
                 # (FINE_POSITION_DEGREE), measured only where it decides
-                own = max(own, _candidate_ss(nested_f_batch(_fine_position(bl)[None, rows], st.Q, st.r, st.rss,
+                own = max(own, _candidate_ss(nested_f_batch(_fine_position_of(bl)[None, rows], st.Q, st.r, st.rss,
                                                             st.dof), st))
             if f != fam and ss_f > own + m_ss and not (own >= settings.rival_share * ss_f and (
                     f in NESTING_FAMILIES.get(fam, ()) or _spans_exactly(bl, name, cols[rows], rows))):
