@@ -468,7 +468,8 @@ class _Fold:
 SEEN_ZERO = 1e-5
 #: Squared shares within this of a threshold count as reaching it: designs put directions exactly at simple
 #: fractions (a target probed in two of four set-ups is half seen, c^2 = 1/2 = cv_seen^2), which rounding
-#: (about 1e-15) must not split two ways.
+#: (about 1e-15) must not split two ways. (Absolute: squared shares lie in 0..1; the other ties, core.diagnosis'
+#: ``TIE_RTOL`` and ``ARGMAX_TIE_RTOL``, are relative to the size of what they compare.)
 SEEN_TIE = 1e-9
 #: An own direction the training rows see with c^2 below this takes its training part from those rows
 #: (Folds._own_seen): |Q_tr v|^2 as a difference carries eps / c^2 relative error, which must stay well
@@ -1584,6 +1585,13 @@ def _place_carries(Q: np.ndarray, r: np.ndarray, kept: np.ndarray, out, events: 
 
 #: Draws of the concentration test's null (its smallest p-value is 1 / (draws + 1)).
 CONCENTRATION_DRAWS = 20000
+#: A drawn statistic of normalised ranks (a mean rank's shift, a spread of ranks: values in 0..1) within this of the
+#: observed one reaches it (counted as an exceedance: a tie goes against the test). Drawing the outliers' own ranks
+#: in another order gives the same statistic up to rounding (a mean of k values below 1: about k eps, 1e-13 for
+#: k = 500), which must not pass for smaller. The same rule as :func:`centred_turn_p`'s tolerance, which is
+#: relative instead (1e-9 of a bound of its statistic) because that statistic is in residual units, not ranks;
+#: not the tests' ties of core.diagnosis (``TIE_RTOL``: sums of squares against one model, relative to its rss).
+RANK_TIE = 1e-12
 
 
 #: Covariate families of a touch's own history (the move that led to it: :func:`_outlier_finding`'s ``history``).
@@ -1682,7 +1690,7 @@ def _shift_p(ranks: np.ndarray, rows: np.ndarray, drawn: np.ndarray) -> np.ndarr
     """
     mu = ranks.mean(axis=0)
     shift = np.abs(ranks[rows].mean(axis=0) - mu)
-    return (1 + np.sum(np.abs(drawn.mean(axis=1) - mu) >= shift - 1e-12, axis=0)) / (len(drawn) + 1)
+    return (1 + np.sum(np.abs(drawn.mean(axis=1) - mu) >= shift - RANK_TIE, axis=0)) / (len(drawn) + 1)
 
 
 def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int = CONCENTRATION_DRAWS,
@@ -1723,7 +1731,7 @@ def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int
     if m and idx.size >= 2:
         Rn = ranks[rng.integers(0, n, (draws, idx.size))]  # (draws, k, m)
         ps.append(_shift_p(ranks, idx, Rn))
-        ps.append((1 + np.sum(np.ptp(Rn, axis=1) <= np.ptp(ranks[idx], axis=0) + 1e-12, axis=0)) / (draws + 1))
+        ps.append((1 + np.sum(np.ptp(Rn, axis=1) <= np.ptp(ranks[idx], axis=0) + RANK_TIE, axis=0)) / (draws + 1))
     n_stats = 2 * m if ps else 0
     if places is not None and place_idx is not None and len(place_idx) >= 2:
         pi = np.asarray(place_idx, int)
@@ -1819,6 +1827,8 @@ def centred_turn_p(c: np.ndarray, idx, r: np.ndarray, rng: np.random.Generator, 
     if np.any(idx < 0) or np.any(idx >= c.size):
         raise ConfigError("centred_turn_p: row index outside the campaign")
     s = abs(float(r @ c[idx]))
+    # a draw within rounding of the observed statistic reaches it (RANK_TIE's rule): relative here, 1e-9 of
+    # sum |r| max |c| (a bound of |S| and of its rounding, k eps of it), as S is in residual units
     tol = 1e-9 * (float(np.sum(np.abs(r))) * float(np.max(np.abs(c))) + 1e-300)
     exceed = 0
     step = max(1, SHARE_BLOCK // idx.size)
