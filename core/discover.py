@@ -2215,7 +2215,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if rnd:
                 seen.append((st, diag_now))
             families = _family_ss(bl, diag_now, len(rows), st.rss)
-            passed = []  # every candidate that passed the round's tests (the one-explanation rule below)
+            # the candidates that passed the round's tests and may be the winner's plainer one-explanation name
+            # (_plainer_one_explanation takes no penalised, unnamed or covariate-less one): only those are kept,
+            # and none beyond the choice (their columns are the term's, n x k each)
+            passed = []
             for cause in catalogue:
                 if any(tm.cause == cause.name for tm in terms):
                     continue
@@ -2229,7 +2232,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                         if cand.get("form_refused") == "confounded":
                             confounded.add(cause.name)
                     continue
-                passed.append(cand)
+                if _may_be_plainer(cand["term"]):
+                    passed.append(cand)
                 margin = settings.material_sigma ** 2 * noise_sigma(st) ** 2
                 if best is None or cand["cv"] < best["cv"] - margin or (
                         cand["cv"] <= best["cv"] + margin
@@ -2238,6 +2242,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if best is None:
                 break
             best = _plainer_one_explanation(best, passed, st, noise_sigma(st), settings)
+            del passed  # (not held through the outlier screen and refit below)
             terms.append(best["term"])
             # outliers judged against the better model: a systematic effect is no dust
             X = np.hstack([bl.A, _stack(terms, all_rows)])
@@ -3224,6 +3229,11 @@ def _beyond(st: _State, U_alt: np.ndarray, E: np.ndarray, sigma: float, tries: f
     return d, p, stands
 
 
+def _may_be_plainer(tm: Term) -> bool:
+    """Whether :func:`_plainer_one_explanation` compares the term at all: named, unpenalised, of a covariate."""
+    return tm.penalty is None and not tm.unnamed and tm.covariate is not None
+
+
 def _plainer_one_explanation(best: dict, passed: list, st: _State, sigma: float, settings) -> dict:
     """The round's winner, or a plainer candidate that is the same explanation under another name.
 
@@ -3271,10 +3281,10 @@ def _plainer_one_explanation(best: dict, passed: list, st: _State, sigma: float,
     1001 and 1059 keep the plainer name (the sigma barely moves there).
     """
     tb = best["term"]
-    if tb.penalty is not None or tb.unnamed or tb.covariate is None:
+    if not _may_be_plainer(tb):
         return best
     k_best = tb.columns.shape[1]
-    plainer = [c for c in passed if c is not best and c["term"].penalty is None and not c["term"].unnamed
+    plainer = [c for c in passed if c is not best and _may_be_plainer(c["term"])
                and c["term"].columns.shape[1] < k_best and c["term"].covariate == tb.covariate]
     if not plainer:
         return best
