@@ -3229,6 +3229,38 @@ def _beyond(st: _State, U_alt: np.ndarray, E: np.ndarray, sigma: float, tries: f
     return d, p, stands
 
 
+def _one_explanation(B: np.ndarray, signal: tuple, E: np.ndarray, st: _State, sigma: float, tries: float, settings,
+                     *, visible_only: bool = False, above: float | None = None,
+                     at_alternative_sigma: bool = False) -> tuple | None:
+    """Whether an alternative's columns ``B`` and a named cause's ``E`` (both (N, k), every baseline row) are one
+    explanation under two names beside ``st`` (step 8's test, :func:`_cause_alternatives`; the round's choice,
+    :func:`_plainer_one_explanation`): ``B``'s part outside ``st.Q`` reproduces at least ``rival_share`` of the named
+    cause's ``signal`` (:func:`_signal`) and explains at least ``rival_share`` as much (:func:`_reproduces`), and the
+    named cause explains nothing material and significant beyond it (:func:`_beyond`, ``tries``: the Bonferroni
+    factor of its adoption). ``(overlap, d_w, d_b, p_b)`` (the share reproduced, what ``B`` explains and what ``E``
+    explains beyond it, m^2, and that test's adjusted p-value) when they are, else None.
+
+    The two callers differ, each for its reason (said there): ``visible_only``, a cause refused as confounded with
+    the model is judged by what its visible part explains alone, without the overlap; ``above``, a layout is tested
+    beyond ``_beyond`` only if it explains more than this (a cause's best layout so far); ``at_alternative_sigma``,
+    what the named cause explains beyond is judged material at the residual sigma of the model with ``B`` in it where
+    that is lower than ``sigma``.
+    """
+    U = new_basis(st.Q, B[st.rows])
+    if U.shape[1] == 0:
+        return None
+    overlap, d_w, ind = _reproduces(U, signal, st, sigma, settings)
+    if visible_only:
+        ind = d_w >= settings.rival_share * signal[1]
+    if not ind or (above is not None and d_w <= above):
+        return None
+    if at_alternative_sigma:
+        ra = st.r - U @ (U.T @ st.r)
+        sigma = min(sigma, float(np.sqrt(ra @ ra / max(len(st.rows) - st.Q.shape[1] - U.shape[1], 1))))
+    d_b, p_b, stands = _beyond(st, U, E[st.rows], sigma, tries, settings)
+    return None if stands else (overlap, d_w, d_b, p_b)
+
+
 def _may_be_plainer(tm: Term) -> bool:
     """Whether :func:`_plainer_one_explanation` compares the term at all: named, unpenalised, of a covariate."""
     return tm.penalty is None and not tm.unnamed and tm.covariate is not None
@@ -3291,19 +3323,11 @@ def _plainer_one_explanation(best: dict, passed: list, st: _State, sigma: float,
     signal = _signal(tb, st, sigma)
     if signal[1] <= 0:
         return best
-    rows = st.rows
     out = best
     for c in sorted(plainer, key=lambda c: (c["term"].columns.shape[1], c["cv"])):
-        U = new_basis(st.Q, c["term"].columns[rows])
-        if U.shape[1] == 0:
-            continue
-        _, _, ind = _reproduces(U, signal, st, sigma, settings)
-        if not ind:
-            continue
-        ra = st.r - U @ (U.T @ st.r)
-        sigma_alt = float(np.sqrt(ra @ ra / max(len(rows) - st.Q.shape[1] - U.shape[1], 1)))
-        _, _, stands = _beyond(st, U, tb.columns[rows], min(sigma, sigma_alt), tb.tries, settings)
-        if not stands:
+        # (what the winner explains beyond it at the sigma of the model with the plainer one in it: see above)
+        if _one_explanation(c["term"].columns, signal, tb.columns, st, sigma, tb.tries, settings,
+                            at_alternative_sigma=True) is not None:
             c["term"].evidence["plainer_than"] = {"cause": tb.cause, "columns": int(k_best),
                                                    "cv_um2": c["cv"] / UM ** 2, "its_cv_um2": best["cv"] / UM ** 2}
             out = c
@@ -4590,7 +4614,6 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
     explains at least ``rival_share`` as much and the named cause nothing
     material and significant beyond it (``refused_confounded``: True).
     """
-    rows = so.rows
     d_n = signal[1]
     out = []
     if d_n <= 0:
@@ -4603,17 +4626,12 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
             continue
         best = None
         for info, B in ([({}, layouts)] if isinstance(layouts, np.ndarray) else layouts):
-            U = new_basis(so.Q, B[rows])
-            if U.shape[1] == 0:
-                continue
-            overlap, d_w, ind = _reproduces(U, signal, so, sigma, settings)
-            if name in confounded:  # (its visible part need not lie along the signal: see above)
-                ind = d_w >= settings.rival_share * d_n
-            if not ind or (best is not None and d_w <= best[1]):
-                continue
-            d_b, p_b, stands = _beyond(so, U, tm.columns[rows], sigma, tm.tries, settings)
-            if not stands:  # (standing beside it, material and significant, the data would tell them apart)
-                best = (overlap, d_w, d_b, p_b, info)
+            # (a confounded cause's visible part need not lie along the signal: see above; standing beside a
+            # layout, material and significant, the data would tell them apart)
+            one = _one_explanation(B, signal, tm.columns, so, sigma, tm.tries, settings,
+                                   visible_only=name in confounded, above=None if best is None else best[1])
+            if one is not None:
+                best = (*one, info)
         if best is not None:
             out.append({"cause": name, "layout": _layout_label(best[4]), "overlap": best[0],
                         "explained_ratio": best[1] / d_n, "cause_beyond_it_ss_um2": max(best[2], 0.0) / UM ** 2,
