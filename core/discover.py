@@ -3241,8 +3241,8 @@ def _one_explanation(B: np.ndarray, signal: tuple, E: np.ndarray, st: _State, si
     explains beyond it, m^2, and that test's adjusted p-value) when they are, else None.
 
     The two callers differ, each for its reason (said there): ``visible_only``, a cause refused as confounded with
-    the model is judged by what its visible part explains alone, without the overlap; ``above``, a layout is tested
-    beyond ``_beyond`` only if it explains more than this (a cause's best layout so far); ``at_alternative_sigma``,
+    the model is judged by what its visible part explains alone, without the overlap; ``above``, a layout goes to
+    the ``_beyond`` test only if it explains more than this (a cause's best layout so far); ``at_alternative_sigma``,
     what the named cause explains beyond is judged material at the residual sigma of the model with ``B`` in it where
     that is lower than ``sigma``.
     """
