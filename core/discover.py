@@ -251,7 +251,7 @@ from .diagnosis import (CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack
                         extends, _first_largest)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
-from .memo import Memo
+from .memo import Memo, kept_on
 from .touches import Touches
 from .units import UM
 
@@ -471,7 +471,8 @@ class _Fold:
 SEEN_ZERO = 1e-5
 #: Squared shares within this of a threshold count as reaching it: designs put directions exactly at simple
 #: fractions (a target probed in two of four set-ups is half seen, c^2 = 1/2 = cv_seen^2), which rounding
-#: (about 1e-15) must not split two ways.
+#: (about 1e-15) must not split two ways. (Absolute: squared shares lie in 0..1; the other ties, core.diagnosis'
+#: ``TIE_RTOL`` and ``ARGMAX_TIE_RTOL``, are relative to the size of what they compare.)
 SEEN_TIE = 1e-9
 #: An own direction the training rows see with c^2 below this takes its training part from those rows
 #: (Folds._own_seen): |Q_tr v|^2 as a difference carries eps / c^2 relative error, which must stay well
@@ -1587,6 +1588,13 @@ def _place_carries(Q: np.ndarray, r: np.ndarray, kept: np.ndarray, out, events: 
 
 #: Draws of the concentration test's null (its smallest p-value is 1 / (draws + 1)).
 CONCENTRATION_DRAWS = 20000
+#: A drawn statistic of normalised ranks (a mean rank's shift, a spread of ranks: values in 0..1) within this of the
+#: observed one reaches it (counted as an exceedance: a tie goes against the test). Drawing the outliers' own ranks
+#: in another order gives the same statistic up to rounding (a mean of k values below 1: about k eps, 1e-13 for
+#: k = 500), which must not pass for smaller. The same rule as :func:`centred_turn_p`'s tolerance, which is
+#: relative instead (1e-9 of a bound of its statistic) because that statistic is in residual units, not ranks;
+#: not the tests' ties of core.diagnosis (``TIE_RTOL``: sums of squares against one model, relative to its rss).
+RANK_TIE = 1e-12
 
 
 #: Covariate families of a touch's own history (the move that led to it: :func:`_outlier_finding`'s ``history``).
@@ -1685,7 +1693,7 @@ def _shift_p(ranks: np.ndarray, rows: np.ndarray, drawn: np.ndarray) -> np.ndarr
     """
     mu = ranks.mean(axis=0)
     shift = np.abs(ranks[rows].mean(axis=0) - mu)
-    return (1 + np.sum(np.abs(drawn.mean(axis=1) - mu) >= shift - 1e-12, axis=0)) / (len(drawn) + 1)
+    return (1 + np.sum(np.abs(drawn.mean(axis=1) - mu) >= shift - RANK_TIE, axis=0)) / (len(drawn) + 1)
 
 
 def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int = CONCENTRATION_DRAWS,
@@ -1726,7 +1734,7 @@ def concentration_p(ranks: np.ndarray, idx, rng: np.random.Generator, draws: int
     if m and idx.size >= 2:
         Rn = ranks[rng.integers(0, n, (draws, idx.size))]  # (draws, k, m)
         ps.append(_shift_p(ranks, idx, Rn))
-        ps.append((1 + np.sum(np.ptp(Rn, axis=1) <= np.ptp(ranks[idx], axis=0) + 1e-12, axis=0)) / (draws + 1))
+        ps.append((1 + np.sum(np.ptp(Rn, axis=1) <= np.ptp(ranks[idx], axis=0) + RANK_TIE, axis=0)) / (draws + 1))
     n_stats = 2 * m if ps else 0
     if places is not None and place_idx is not None and len(place_idx) >= 2:
         pi = np.asarray(place_idx, int)
@@ -1822,6 +1830,8 @@ def centred_turn_p(c: np.ndarray, idx, r: np.ndarray, rng: np.random.Generator, 
     if np.any(idx < 0) or np.any(idx >= c.size):
         raise ConfigError("centred_turn_p: row index outside the campaign")
     s = abs(float(r @ c[idx]))
+    # a draw within rounding of the observed statistic reaches it (RANK_TIE's rule): relative here, 1e-9 of
+    # sum |r| max |c| (a bound of |S| and of its rounding, k eps of it), as S is in residual units
     tol = 1e-9 * (float(np.sum(np.abs(r))) * float(np.max(np.abs(c))) + 1e-300)
     exceed = 0
     step = max(1, SHARE_BLOCK // idx.size)
@@ -2208,7 +2218,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if rnd:
                 seen.append((st, diag_now))
             families = _family_ss(bl, diag_now, len(rows), st.rss)
-            passed = []  # every candidate that passed the round's tests (the one-explanation rule below)
+            # the candidates that passed the round's tests and may be the winner's plainer one-explanation name
+            # (_plainer_one_explanation takes no penalised, unnamed or covariate-less one): only those are kept,
+            # and none beyond the choice (their columns are the term's, n x k each)
+            passed = []
             for cause in catalogue:
                 if any(tm.cause == cause.name for tm in terms):
                     continue
@@ -2222,7 +2235,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                         if cand.get("form_refused") == "confounded":
                             confounded.add(cause.name)
                     continue
-                passed.append(cand)
+                if _may_be_plainer(cand["term"]):
+                    passed.append(cand)
                 margin = settings.material_sigma ** 2 * noise_sigma(st) ** 2
                 if best is None or cand["cv"] < best["cv"] - margin or (
                         cand["cv"] <= best["cv"] + margin
@@ -2231,6 +2245,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             if best is None:
                 break
             best = _plainer_one_explanation(best, passed, st, noise_sigma(st), settings)
+            del passed  # (not held through the outlier screen and refit below)
             terms.append(best["term"])
             # outliers judged against the better model: a systematic effect is no dust
             X = np.hstack([bl.A, _stack(terms, all_rows)])
@@ -3217,6 +3232,43 @@ def _beyond(st: _State, U_alt: np.ndarray, E: np.ndarray, sigma: float, tries: f
     return d, p, stands
 
 
+def _one_explanation(B: np.ndarray, signal: tuple, E: np.ndarray, st: _State, sigma: float, tries: float, settings,
+                     *, visible_only: bool = False, above: float | None = None,
+                     at_alternative_sigma: bool = False) -> tuple | None:
+    """Whether an alternative's columns ``B`` and a named cause's ``E`` (both (N, k), every baseline row) are one
+    explanation under two names beside ``st`` (step 8's test, :func:`_cause_alternatives`; the round's choice,
+    :func:`_plainer_one_explanation`): ``B``'s part outside ``st.Q`` reproduces at least ``rival_share`` of the named
+    cause's ``signal`` (:func:`_signal`) and explains at least ``rival_share`` as much (:func:`_reproduces`), and the
+    named cause explains nothing material and significant beyond it (:func:`_beyond`, ``tries``: the Bonferroni
+    factor of its adoption). ``(overlap, d_w, d_b, p_b)`` (the share reproduced, what ``B`` explains and what ``E``
+    explains beyond it, m^2, and that test's adjusted p-value) when they are, else None.
+
+    The two callers differ, each for its reason (said there): ``visible_only``, a cause refused as confounded with
+    the model is judged by what its visible part explains alone, without the overlap; ``above``, a layout goes to
+    the ``_beyond`` test only if it explains more than this (a cause's best layout so far); ``at_alternative_sigma``,
+    what the named cause explains beyond is judged material at the residual sigma of the model with ``B`` in it where
+    that is lower than ``sigma``.
+    """
+    U = new_basis(st.Q, B[st.rows])
+    if U.shape[1] == 0:
+        return None
+    overlap, d_w, ind = _reproduces(U, signal, st, sigma, settings)
+    if visible_only:
+        ind = d_w >= settings.rival_share * signal[1]
+    if not ind or (above is not None and d_w <= above):
+        return None
+    if at_alternative_sigma:
+        ra = st.r - U @ (U.T @ st.r)
+        sigma = min(sigma, float(np.sqrt(ra @ ra / max(len(st.rows) - st.Q.shape[1] - U.shape[1], 1))))
+    d_b, p_b, stands = _beyond(st, U, E[st.rows], sigma, tries, settings)
+    return None if stands else (overlap, d_w, d_b, p_b)
+
+
+def _may_be_plainer(tm: Term) -> bool:
+    """Whether :func:`_plainer_one_explanation` compares the term at all: named, unpenalised, of a covariate."""
+    return tm.penalty is None and not tm.unnamed and tm.covariate is not None
+
+
 def _plainer_one_explanation(best: dict, passed: list, st: _State, sigma: float, settings) -> dict:
     """The round's winner, or a plainer candidate that is the same explanation under another name.
 
@@ -3264,29 +3316,21 @@ def _plainer_one_explanation(best: dict, passed: list, st: _State, sigma: float,
     1001 and 1059 keep the plainer name (the sigma barely moves there).
     """
     tb = best["term"]
-    if tb.penalty is not None or tb.unnamed or tb.covariate is None:
+    if not _may_be_plainer(tb):
         return best
     k_best = tb.columns.shape[1]
-    plainer = [c for c in passed if c is not best and c["term"].penalty is None and not c["term"].unnamed
+    plainer = [c for c in passed if c is not best and _may_be_plainer(c["term"])
                and c["term"].columns.shape[1] < k_best and c["term"].covariate == tb.covariate]
     if not plainer:
         return best
     signal = _signal(tb, st, sigma)
     if signal[1] <= 0:
         return best
-    rows = st.rows
     out = best
     for c in sorted(plainer, key=lambda c: (c["term"].columns.shape[1], c["cv"])):
-        U = new_basis(st.Q, c["term"].columns[rows])
-        if U.shape[1] == 0:
-            continue
-        _, _, ind = _reproduces(U, signal, st, sigma, settings)
-        if not ind:
-            continue
-        ra = st.r - U @ (U.T @ st.r)
-        sigma_alt = float(np.sqrt(ra @ ra / max(len(rows) - st.Q.shape[1] - U.shape[1], 1)))
-        _, _, stands = _beyond(st, U, tb.columns[rows], min(sigma, sigma_alt), tb.tries, settings)
-        if not stands:
+        # (what the winner explains beyond it at the sigma of the model with the plainer one in it: see above)
+        if _one_explanation(c["term"].columns, signal, tb.columns, st, sigma, tb.tries, settings,
+                            at_alternative_sigma=True) is not None:
             c["term"].evidence["plainer_than"] = {"cause": tb.cause, "columns": int(k_best),
                                                    "cv_um2": c["cv"] / UM ** 2, "its_cv_um2": best["cv"] / UM ** 2}
             out = c
@@ -3497,6 +3541,17 @@ def _fine_position(bl) -> np.ndarray:
     B = np.column_stack([P[i] * R[j] for i in range(1, FINE_POSITION_DEGREE) for j in range(1, FINE_POSITION_DEGREE)
                          if i + j <= FINE_POSITION_DEGREE])
     return np.hstack([-d.nx[:, None] * B, -d.ny[:, None] * B])
+
+
+def _fine_position_of(bl) -> np.ndarray:
+    """:func:`_fine_position` of the campaign, built once and kept on its data (:func:`core.memo.kept_on`; it
+    goes with them), read-only as the run's other shared alternatives are (``scan_trials``): step 4e takes it in
+    each round where it decides a position cause's refusal (gen_a nonrigid 1048: twice)."""
+    def make():
+        F = _fine_position(bl)
+        F.flags.writeable = False
+        return F
+    return kept_on(bl.data, "_fine_position", make)
 
 
 def _spans_exactly(bl, covariate: str, E: np.ndarray, rows) -> bool:
@@ -3820,7 +3875,7 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
                     and f in NESTING_FAMILIES.get(fam, ()) and fam == "position"):
                 # the nesting term is fine-grained: the position family's own figure at a finer resolution
                 # (FINE_POSITION_DEGREE), measured only where it decides
-                own = max(own, _candidate_ss(nested_f_batch(_fine_position(bl)[None, rows], st.Q, st.r, st.rss,
+                own = max(own, _candidate_ss(nested_f_batch(_fine_position_of(bl)[None, rows], st.Q, st.r, st.rss,
                                                             st.dof), st))
             if f != fam and ss_f > own + m_ss and not (own >= settings.rival_share * ss_f and (
                     f in NESTING_FAMILIES.get(fam, ()) or _spans_exactly(bl, name, cols[rows], rows))):
@@ -4618,7 +4673,6 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
     explains at least ``rival_share`` as much and the named cause nothing
     material and significant beyond it (``refused_confounded``: True).
     """
-    rows = so.rows
     d_n = signal[1]
     out = []
     if d_n <= 0:
@@ -4631,17 +4685,12 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
             continue
         best = None
         for info, B in ([({}, layouts)] if isinstance(layouts, np.ndarray) else layouts):
-            U = new_basis(so.Q, B[rows])
-            if U.shape[1] == 0:
-                continue
-            overlap, d_w, ind = _reproduces(U, signal, so, sigma, settings)
-            if name in confounded:  # (its visible part need not lie along the signal: see above)
-                ind = d_w >= settings.rival_share * d_n
-            if not ind or (best is not None and d_w <= best[1]):
-                continue
-            d_b, p_b, stands = _beyond(so, U, tm.columns[rows], sigma, tm.tries, settings)
-            if not stands:  # (standing beside it, material and significant, the data would tell them apart)
-                best = (overlap, d_w, d_b, p_b, info)
+            # (a confounded cause's visible part need not lie along the signal: see above; standing beside a
+            # layout, material and significant, the data would tell them apart)
+            one = _one_explanation(B, signal, tm.columns, so, sigma, tm.tries, settings,
+                                   visible_only=name in confounded, above=None if best is None else best[1])
+            if one is not None:
+                best = (*one, info)
         if best is not None:
             out.append({"cause": name, "layout": _layout_label(best[4]), "overlap": best[0],
                         "explained_ratio": best[1] / d_n, "cause_beyond_it_ss_um2": max(best[2], 0.0) / UM ** 2,

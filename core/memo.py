@@ -146,3 +146,27 @@ class Memo:
 
     def __repr__(self) -> str:
         return f"Memo(maxsize={self.maxsize}, {len(self._d)} kept)"
+
+
+def kept_on(obj: Any, name: str, compute: Callable[[], Any]) -> Any:
+    """``compute()``, made once per object ``obj`` and kept on it (in its ``__dict__``, as
+    :class:`functools.cached_property` keeps a property's value: a frozen dataclass allows it).
+
+    For a value that is a pure function of an object that does not change (a
+    campaign's :class:`core.baseline.PlanarData`), needed by more than one
+    step while the object lives: unlike a :class:`Memo` at module level it
+    goes with the object, so a long log's arrays are not kept alive after
+    the run that needed them. ``name`` is the attribute it is kept under
+    (choose one no field has); the value is shared by every caller, so it
+    is read-only by the callers' contract (arrays: ``writeable = False``).
+
+    >>> class D: pass
+    >>> d, calls = D(), []
+    >>> kept_on(d, "_x", lambda: calls.append(1) or 2), kept_on(d, "_x", lambda: calls.append(1) or 3), len(calls)
+    (2, 2, 1)
+    """
+    kept = obj.__dict__
+    v = kept.get(name, _MISSING)
+    if v is _MISSING:
+        v = kept[name] = compute()
+    return v

@@ -1437,6 +1437,39 @@ def test_clock_sensors_known_answers():
     assert 0.002 < c["scatter_rms_K"] < 0.008, c   # rounding (2.9 mK) and noise (4 mK)
 
 
+def test_clock_sensors_made_once_for_the_drift_and_the_expansion_scans(monkeypatch):
+    """Session 20: the drift's scans and the expansion's take one campaign's clock sensors from one
+    computation (kept on its data), with the same layouts as each computing its own."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(3)
+    setup = np.repeat(np.arange(5), 60)
+    t_s = np.sort(rng.uniform(0, 1, setup.size)) * 60.0 + setup * 900.0
+    tau = (t_s - t_s[0]) / np.ptp(t_s)
+    spindle = np.round(22.0 + 3.0 * np.exp(-t_s / 1800.0) + rng.normal(0, 0.004, t_s.size), 2)
+    air = np.round(20.0 + 0.5 * np.sin(t_s / 300.0) + rng.normal(0, 0.004, t_s.size), 2)
+    a = rng.uniform(0, 2 * np.pi, t_s.size)
+
+    def campaign():
+        return SimpleNamespace(data=SimpleNamespace(
+            tau=tau, span_s=float(np.ptp(t_s)), touches=SimpleNamespace(setup=setup),
+            temps={"temp_spindle_C": spindle, "temp_air_C": air}, x=rng.uniform(0, 0.1, t_s.size),
+            y=rng.uniform(0, 0.1, t_s.size), xs=np.cos(a), ys=np.sin(a), nx=np.cos(a), ny=np.sin(a)))
+
+    bl = campaign()
+    alone = (causes.drift_scans(bl), causes.expansion_scans(bl))
+    calls = []
+    real = causes.clock_sensors
+    monkeypatch.setattr(causes, "clock_sensors", lambda d: calls.append(d) or real(d))
+    bl = campaign()
+    shared = (causes.drift_scans(bl), causes.expansion_scans(bl))
+    assert len(calls) == 1 and calls[0] is bl.data
+    for (s_a, n_a), (s_s, n_s) in zip(alone, shared):
+        assert n_a == n_s and [(s.labels, s.infos) for s in s_a] == [(s.labels, s.infos) for s in s_s]
+    assert [s.infos[0].get("sensor") for s in shared[0][0] if "sensor" in s.infos[0]] == ["temp_spindle_C"]
+    assert [s.infos[0]["sensor"] for s in shared[1][0]] == ["temp_air_C"]
+
+
 @pytest.mark.parametrize("seed", [1038, 1091])
 def test_gen_b_thermal_drift_not_read_on_the_clock_sensor(seed):
     """Issue 13, session 19: gen_b thermal_drift 1016, 1023, 1035, 1038, 1073, 1080, 1091, 1098 read

@@ -184,3 +184,30 @@ def test_clear():
 def test_bad_size(bad):
     with pytest.raises(ValueError, match="maxsize"):
         Memo(bad)
+
+
+def test_kept_on_computes_once_per_object_and_goes_with_it():
+    """core.memo.kept_on: one computation per object (a frozen dataclass included), kept on the object, not
+    shared with another object, and gone with it (no module-level reference keeps the object alive)."""
+    from dataclasses import dataclass
+
+    from core.memo import kept_on
+
+    @dataclass(frozen=True)
+    class Data:
+        v: int
+
+    calls = []
+
+    def make(d):
+        calls.append(d.v)
+        return [d.v * 2]
+
+    a, b = Data(1), Data(1)
+    first = kept_on(a, "_twice", lambda: make(a))
+    assert kept_on(a, "_twice", lambda: make(a)) is first and first == [2] and calls == [1]
+    assert kept_on(b, "_twice", lambda: make(b)) is not first and calls == [1, 1]  # equal, but another object
+    gone = weakref.ref(a)
+    del a, first
+    gc.collect()
+    assert gone() is None
