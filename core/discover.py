@@ -1828,6 +1828,56 @@ def centred_turn_p(c: np.ndarray, idx, r: np.ndarray, rng: np.random.Generator, 
     return (1 + exceed) / (draws + 1)
 
 
+def centred_sign_of(n, d, target) -> np.ndarray:
+    """(n, 2) each touch's lost-motion column per axis (X, Y) less its target's mean over all set-ups.
+
+    The catalogue's ``reversal`` column of an axis is ``-n_ax sign(d_ax) / 2``
+    (:func:`core.causes.reversal_scans`; here without the factor ``-1 / 2``,
+    which the test below does not see): the normal's component along the
+    axis, signed by the approach's. A target's parameter in the baseline takes
+    the mean of its touches' readings, so what of a lost motion the baseline
+    cannot absorb lies on the targets whose touches approach with both signs
+    along the axis (an approach nearly across it, the sign set by the
+    approach's scatter about the normal), and there it is this column less
+    its target's mean. ``n``, ``d`` (n, 3) unit normals and approach
+    directions in the machine frame, ``target`` (n,) the place of the part
+    each touch measures. A touch whose approach has no component along the
+    axis (``|d_ax| <= 1e-9``) takes sign 0, as the catalogue's column does.
+    """
+    n = np.asarray(n, float)
+    d = np.asarray(d, float)
+    target = np.asarray(target)
+    k = len(target)
+    if n.shape != (k, 3) or d.shape != (k, 3) or target.shape != (k,):
+        raise ConfigError(f"centred_sign_of: n (k, 3), d (k, 3), target (k,) expected, got {n.shape}, {d.shape}, "
+                         f"{target.shape}")
+    if not (np.all(np.isfinite(n)) and np.all(np.isfinite(d))):
+        raise ConfigError("centred_sign_of: normals and approach directions must be finite")
+    if k == 0:
+        return np.zeros((0, 2))
+    s = np.where(np.abs(d[:, :2]) > 1e-9, np.sign(d[:, :2]), 0.0)
+    c = n[:, :2] * s
+    tg = np.unique(target, return_inverse=True)[1].ravel()
+    cnt = np.bincount(tg).astype(float)
+    mean = np.column_stack([np.bincount(tg, weights=c[:, j]) / cnt for j in range(2)])
+    return c - mean[tg]
+
+
+def centred_sign(bl: Baseline) -> np.ndarray | None:
+    """:func:`centred_sign_of` of a planar campaign's touches, only the axes where it is not 0 everywhere;
+    None where no axis has one (no target is approached with both signs along an axis), for a campaign
+    without targets, or where the touches do not map one to one onto the baseline's rows (as
+    :func:`centred_turn`)."""
+    if bl.kind != "planar":
+        return None
+    t = bl.data.touches
+    if len(np.asarray(t.t_s)) != len(bl.y):
+        return None
+    c = centred_sign_of(t.n_R, t.d_R, t.target)
+    keep = np.any(np.abs(c) > 1e-9, axis=0)
+    return c[:, keep] if np.any(keep) else None
+
+
 # ---------------------------------------------------------------------------
 # results
 # ---------------------------------------------------------------------------
@@ -5191,10 +5241,26 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
                 f"other touches (centred turn {fmt_p(p_turn)}, below {settings.alpha_family:g}): a mechanism of "
                 "the move that the target's parameter half absorbed, or dust of one sign on touches whose turns "
                 "differ alike from their targets', not dust at random touches")) if w)
+    p_sign, alt = None, []
+    cs = centred_sign(bl) if len(outliers) >= 2 else None
+    if cs is not None:
+        # Bonferroni over the axes tested (each axis its own Monte Carlo stream)
+        p_sign = min(1.0, cs.shape[1] * min(
+            centred_turn_p(cs[:, j], outliers, r0 / UM, np.random.default_rng([seed, 2, j]))
+            for j in range(cs.shape[1])))
+        if p_sign < settings.alpha_family:
+            alt = [c for c in ("reversal",) if causes_mod.lookup(c, bl.kind) is not None]
+            why = "; ".join(w for w in (why, (
+                "the outliers read short or long as their touch's sign of approach along an axis differs from "
+                f"its target's other touches (centred sign {fmt_p(p_sign)}, below {settings.alpha_family:g}): "
+                "the part of a lost motion the targets' parameters do not absorb, or dust of one sign on "
+                "touches whose signs differ alike from their targets', not dust at random touches")) if w)
     return Finding(causes_mod.OUTLIER, {
         "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) / UM for v in r0],
         "explained_ss_um2": ss / UM ** 2, "events": len(first), "concentration_p": p_conc,
         **({"centred_turn_p": p_turn} if p_turn is not None else {}),
+        **({"centred_sign_p": p_sign} if p_sign is not None else {}),
+        **({"ambiguous_with": alt} if alt else {}),
         **({"place_structure": _clean(place)} if place is not None else {}),
         "confidence": "ambiguous" if why else "named", **({"confidence_reason": why} if why else {}),
         "test": "studentized deleted residual beyond the Bonferroni t bound"},
