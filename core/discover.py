@@ -1863,19 +1863,64 @@ def centred_sign_of(n, d, target) -> np.ndarray:
     return c - mean[tg]
 
 
-def centred_sign(bl: Baseline) -> np.ndarray | None:
-    """:func:`centred_sign_of` of a planar campaign's touches, only the axes where it is not 0 everywhere;
-    None where no axis has one (no target is approached with both signs along an axis), for a campaign
-    without targets, or where the touches do not map one to one onto the baseline's rows (as
-    :func:`centred_turn`)."""
-    if bl.kind != "planar":
+def near_across_p(a: np.ndarray, idx, rng: np.random.Generator, draws: int = TURN_DRAWS) -> float:
+    """Monte Carlo p-value that the rows ``idx`` sit on the touches whose approach moves an axis least.
+
+    ``a`` (n,): each touch's ``|d_ax|``, the approach's component along the
+    axis. Statistic ``S = sum_i log q_i`` over the rows, ``q_i`` the share of
+    the campaign's touches with ``a <= a_i`` (ties take the largest rank, which
+    errs towards no finding). An approach nearly across an axis barely moves
+    it: a lost motion's state there is the one earlier moves left, not the
+    approach's sign (the catalogue's column reads the approach's), and a touch
+    whose state differs from its target's other touches reads a full step
+    ``|n_ax| B`` off them, an outlier. Null: dust, as many touches drawn at
+    random (with replacement) from all the campaign's; p = (1 + exceedances)
+    / (draws + 1). One-sided (small ``a`` only).
+    """
+    a = np.asarray(a, float)
+    idx = np.asarray(idx, int)
+    if a.ndim != 1 or idx.ndim != 1 or idx.size < 1 or not np.all(np.isfinite(a)):
+        raise ConfigError(f"near_across_p: a (n,) finite and idx (k,) expected, got {a.shape}, {idx.shape}")
+    if np.any(idx < 0) or np.any(idx >= a.size):
+        raise ConfigError("near_across_p: row index outside the campaign")
+    lq = np.log(np.searchsorted(np.sort(a), a, side="right") / a.size)
+    s = float(np.sum(lq[idx]))
+    tol = 1e-9 * (abs(s) + 1.0)
+    exceed = 0
+    step = max(1, SHARE_BLOCK // idx.size)
+    for b in range(0, draws, step):
+        pick = rng.integers(0, a.size, (min(step, draws - b), idx.size))
+        exceed += int(np.sum(lq[pick].sum(axis=1) <= s + tol))
+    return (1 + exceed) / (draws + 1)
+
+
+def approach_sign_p(bl: Baseline, outliers, r_um: np.ndarray, seed) -> tuple | None:
+    """(p, test, axis) of the outliers against the sign of approach along the X and Y axes; None where untested.
+
+    One family, Bonferroni over its tests: per axis the centred sign
+    (:func:`centred_sign_of` through :func:`centred_turn_p`'s statistic: the
+    outliers' residuals follow the lost-motion column less its target's mean)
+    where some target is approached with both signs, and per axis the
+    nearest-across test (:func:`near_across_p`: the outliers sit on the
+    touches whose approach moves the axis least). ``test`` and ``axis`` name
+    the smallest. Planar campaigns whose touches map one to one onto the
+    baseline's rows, two or more outliers.
+    """
+    if bl.kind != "planar" or len(outliers) < 2:
         return None
     t = bl.data.touches
     if len(np.asarray(t.t_s)) != len(bl.y):
         return None
     c = centred_sign_of(t.n_R, t.d_R, t.target)
-    keep = np.any(np.abs(c) > 1e-9, axis=0)
-    return c[:, keep] if np.any(keep) else None
+    ps = []
+    for j in range(2):
+        if np.any(np.abs(c[:, j]) > 1e-9):
+            ps.append((centred_turn_p(c[:, j], outliers, r_um, np.random.default_rng([seed, 2, j])),
+                       "centred sign", "XY"[j]))
+        ps.append((near_across_p(np.abs(t.d_R[:, j]), outliers, np.random.default_rng([seed, 3, j])),
+                   "nearly across", "XY"[j]))
+    p, test, ax = min(ps)
+    return min(1.0, len(ps) * p), test, ax
 
 
 # ---------------------------------------------------------------------------
@@ -5242,24 +5287,23 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
                 "the move that the target's parameter half absorbed, or dust of one sign on touches whose turns "
                 "differ alike from their targets', not dust at random touches")) if w)
     p_sign, alt = None, []
-    cs = centred_sign(bl) if len(outliers) >= 2 else None
-    if cs is not None:
-        # Bonferroni over the axes tested (each axis its own Monte Carlo stream)
-        p_sign = min(1.0, cs.shape[1] * min(
-            centred_turn_p(cs[:, j], outliers, r0 / UM, np.random.default_rng([seed, 2, j]))
-            for j in range(cs.shape[1])))
+    sgn = approach_sign_p(bl, outliers, r0 / UM, seed)
+    if sgn is not None:
+        p_sign, test, ax = sgn
         if p_sign < settings.alpha_family:
             alt = [c for c in ("reversal",) if causes_mod.lookup(c, bl.kind) is not None]
+            what = (f"read short or long as their touch's sign of approach along {ax} differs from its target's "
+                    "other touches" if test == "centred sign" else
+                    f"sit on the touches whose approach moves {ax} least (nearly across it)")
             why = "; ".join(w for w in (why, (
-                "the outliers read short or long as their touch's sign of approach along an axis differs from "
-                f"its target's other touches (centred sign {fmt_p(p_sign)}, below {settings.alpha_family:g}): "
-                "the part of a lost motion the targets' parameters do not absorb, or dust of one sign on "
-                "touches whose signs differ alike from their targets', not dust at random touches")) if w)
+                f"the outliers {what} (sign of approach {fmt_p(p_sign)}, {test} along {ax}, below "
+                f"{settings.alpha_family:g}): a lost motion whose state the approach did not set, or that the "
+                "targets' parameters half absorb, or dust that falls there, not dust at random touches")) if w)
     return Finding(causes_mod.OUTLIER, {
         "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) / UM for v in r0],
         "explained_ss_um2": ss / UM ** 2, "events": len(first), "concentration_p": p_conc,
         **({"centred_turn_p": p_turn} if p_turn is not None else {}),
-        **({"centred_sign_p": p_sign} if p_sign is not None else {}),
+        **({"approach_sign_p": p_sign, "approach_sign_test": f"{test} along {ax}"} if p_sign is not None else {}),
         **({"ambiguous_with": alt} if alt else {}),
         **({"place_structure": _clean(place)} if place is not None else {}),
         "confidence": "ambiguous" if why else "named", **({"confidence_reason": why} if why else {}),

@@ -1554,6 +1554,23 @@ def test_centred_sign_known_answers():
         centred_sign_of(n[:, :2], d, tg)
 
 
+def test_near_across_known_answers():
+    """near_across_p where the null is exact: the two touches with the smallest |d_ax| of 100 distinct
+    values, drawn with replacement, are matched or beaten by about 3 draws in 10,000 (S <= log(1/100) +
+    log(2/100): both draws in the lowest two, or one at the lowest and the other within the lowest two,
+    P = 3 / 10,000); rows at the largest values give p 1; ties take the largest rank (100 equal values: p 1
+    whatever the rows); bad input raises."""
+    from core.discover import near_across_p
+
+    a = np.linspace(0.0, 1.0, 100)
+    p = near_across_p(a, np.array([0, 1]), np.random.default_rng(3), draws=400_000)
+    assert abs(p - 3e-4) < 6e-5, p
+    assert near_across_p(a, np.array([98, 99]), np.random.default_rng(3), draws=2000) == 1.0
+    assert near_across_p(np.ones(100), np.array([0, 1]), np.random.default_rng(3), draws=2000) == 1.0
+    with pytest.raises(Exception):
+        near_across_p(a, np.array([100]), np.random.default_rng(3))
+
+
 def test_outliers_on_a_lost_motions_visible_part_are_not_confidently_dust():
     """gen_a reversal 1033 (tuning seed; Y lost motion 30 um, 1.06 sigma beyond the baseline by the study's
     count): the catalogue's reversal column is the generator's exactly here (correlation 1 over all 256
@@ -1562,8 +1579,10 @@ def test_outliers_on_a_lost_motions_visible_part_are_not_confidently_dust():
     it, and there the target's parameter leaves +- half the step. Two such touches (rows 34 and 178, n_y
     +-0.118, residuals +2.04 and +2.30 um at 0.24 um noise) are all the data show of it, and the outlier
     screen sets them aside: `outlier`, confident, before session 20 (a confident misnaming). Their residuals
-    follow the centred sign of approach (:func:`core.discover.centred_sign_of`, p at the Monte Carlo floor,
-    against alpha_family), so the finding is ambiguous, with reversal as its alternative."""
+    follow the centred sign of approach along Y (:func:`core.discover.centred_sign_of`) and they sit on the
+    touches whose approach moves Y least (:func:`core.discover.near_across_p`); the family's p
+    (:func:`core.discover.approach_sign_p`, Bonferroni over its four tests) is below alpha_family, so the
+    finding is ambiguous, with reversal as its alternative."""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
@@ -1573,6 +1592,6 @@ def test_outliers_on_a_lost_motions_visible_part_are_not_confidently_dust():
     rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and sorted(f["evidence"]["rows"]) == [34, 178], f["evidence"]
-    assert f["evidence"]["centred_sign_p"] < 0.0025, f["evidence"]
+    assert f["evidence"]["approach_sign_p"] < 0.0025, f["evidence"]
     assert f["evidence"]["confidence"] == "ambiguous", f["evidence"]
     assert f["evidence"]["ambiguous_with"] == ["reversal"], f["evidence"]
