@@ -179,7 +179,12 @@ What it does, in order, and the statistics behind each step
    an intermittent mechanism), and, two or more of them on a planar
    campaign, residuals that do not follow the turn of the approach taken
    relative to their target's other touches (:func:`centred_turn_p` at
-   ``alpha_family``: a re-seat a target's parameter half absorbs). Three
+   ``alpha_family``: a re-seat a target's parameter half absorbs), nor the
+   sign of approach along X or Y (:func:`approach_sign_p` at
+   ``alpha_family``: the lost motion's column less its target's mean, or
+   the touches whose approach moves an axis least, where a lost motion's
+   state is the one earlier moves left; then ambiguous with ``reversal``;
+   gen_a reversal, session 20). Three
    rules beside the findings (session 16) only move such a flag: outliers
    that lead beside structure left unnamed are not confidently dust (the
    largest residuals of a misfit sit where it peaks; :func:`_ordered`); a
@@ -5243,8 +5248,16 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
     once, which the shift of the mean rank above does not see; their
     residuals follow the turn taken relative to the target's other touches
     (gen_a reseat_hysteresis 1012, 1088, 1262: `outlier` confident before,
-    centred-turn p 1.2e-4, 1.0e-5, 1.5e-4). Otherwise ``ambiguous``, with
-    the reason.
+    centred-turn p 1.2e-4, 1.0e-5, 1.5e-4). And for two or more outlier
+    rows on a planar campaign, the sign of approach (:func:`approach_sign_p`,
+    at ``alpha_family``): a lost motion lies almost inside the baseline's
+    span (each target's parameter takes it where the target is approached
+    with one sign along the axis) and shows only on touches whose approach
+    is nearly across the axis, where a touch whose state differs from its
+    target's other touches reads a full step ``|n_ax| B`` off them (gen_a
+    reversal 1033, 1299, 1430, 1688: `outlier` confident before, session
+    20); the finding is then ambiguous with ``reversal`` (``ambiguous_with``).
+    Otherwise ``ambiguous``, with the reason.
     """
     alpha = settings.alpha
     r0 = st0.r[outliers]
