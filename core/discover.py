@@ -182,7 +182,12 @@ What it does, in order, and the statistics behind each step
    an intermittent mechanism), and, two or more of them on a planar
    campaign, residuals that do not follow the turn of the approach taken
    relative to their target's other touches (:func:`centred_turn_p` at
-   ``alpha_family``: a re-seat a target's parameter half absorbs). Three
+   ``alpha_family``: a re-seat a target's parameter half absorbs), nor the
+   sign of approach along X or Y (:func:`approach_sign_p` at
+   ``alpha_family``: the lost motion's column less its target's mean, or
+   the touches whose approach moves an axis least, where a lost motion's
+   state is the one earlier moves left; then ambiguous with ``reversal``;
+   gen_a reversal, session 20). Three
    rules beside the findings (session 16) only move such a flag: outliers
    that lead beside structure left unnamed are not confidently dust (the
    largest residuals of a misfit sit where it peaks; :func:`_ordered`); a
@@ -1839,6 +1844,101 @@ def centred_turn_p(c: np.ndarray, idx, r: np.ndarray, rng: np.random.Generator, 
         pick = rng.integers(0, c.size, (min(step, draws - a), idx.size))
         exceed += int(np.sum(np.abs(c[pick] @ r) >= s - tol))
     return (1 + exceed) / (draws + 1)
+
+
+def centred_sign_of(n, d, target) -> np.ndarray:
+    """(n, 2) each touch's lost-motion column per axis (X, Y) less its target's mean over all set-ups.
+
+    The catalogue's ``reversal`` column of an axis is ``-n_ax sign(d_ax) / 2``
+    (:func:`core.causes.reversal_scans`; here without the factor ``-1 / 2``,
+    which the test below does not see): the normal's component along the
+    axis, signed by the approach's. A target's parameter in the baseline takes
+    the mean of its touches' readings, so what of a lost motion the baseline
+    cannot absorb lies on the targets whose touches approach with both signs
+    along the axis (an approach nearly across it, the sign set by the
+    approach's scatter about the normal), and there it is this column less
+    its target's mean. ``n``, ``d`` (n, 3) unit normals and approach
+    directions in the machine frame, ``target`` (n,) the place of the part
+    each touch measures. A touch whose approach has no component along the
+    axis (``|d_ax| <= 1e-9``) takes sign 0, as the catalogue's column does.
+    """
+    n = np.asarray(n, float)
+    d = np.asarray(d, float)
+    target = np.asarray(target)
+    k = len(target)
+    if n.shape != (k, 3) or d.shape != (k, 3) or target.shape != (k,):
+        raise ConfigError(f"centred_sign_of: n (k, 3), d (k, 3), target (k,) expected, got {n.shape}, {d.shape}, "
+                         f"{target.shape}")
+    if not (np.all(np.isfinite(n)) and np.all(np.isfinite(d))):
+        raise ConfigError("centred_sign_of: normals and approach directions must be finite")
+    if k == 0:
+        return np.zeros((0, 2))
+    s = np.where(np.abs(d[:, :2]) > 1e-9, np.sign(d[:, :2]), 0.0)
+    c = n[:, :2] * s
+    tg = np.unique(target, return_inverse=True)[1].ravel()
+    cnt = np.bincount(tg).astype(float)
+    mean = np.column_stack([np.bincount(tg, weights=c[:, j]) / cnt for j in range(2)])
+    return c - mean[tg]
+
+
+def near_across_p(a: np.ndarray, idx, rng: np.random.Generator, draws: int = TURN_DRAWS) -> float:
+    """Monte Carlo p-value that the rows ``idx`` sit on the touches whose approach moves an axis least.
+
+    ``a`` (n,): each touch's ``|d_ax|``, the approach's component along the
+    axis. Statistic ``S = sum_i log q_i`` over the rows, ``q_i`` the share of
+    the campaign's touches with ``a <= a_i`` (ties take the largest rank, which
+    errs towards no finding). An approach nearly across an axis barely moves
+    it: a lost motion's state there is the one earlier moves left, not the
+    approach's sign (the catalogue's column reads the approach's), and a touch
+    whose state differs from its target's other touches reads a full step
+    ``|n_ax| B`` off them, an outlier. Null: dust, as many touches drawn at
+    random (with replacement) from all the campaign's; p = (1 + exceedances)
+    / (draws + 1). One-sided (small ``a`` only).
+    """
+    a = np.asarray(a, float)
+    idx = np.asarray(idx, int)
+    if a.ndim != 1 or idx.ndim != 1 or idx.size < 1 or not np.all(np.isfinite(a)):
+        raise ConfigError(f"near_across_p: a (n,) finite and idx (k,) expected, got {a.shape}, {idx.shape}")
+    if np.any(idx < 0) or np.any(idx >= a.size):
+        raise ConfigError("near_across_p: row index outside the campaign")
+    lq = np.log(np.searchsorted(np.sort(a), a, side="right") / a.size)
+    s = float(np.sum(lq[idx]))
+    tol = 1e-9 * (abs(s) + 1.0)
+    exceed = 0
+    step = max(1, SHARE_BLOCK // idx.size)
+    for b in range(0, draws, step):
+        pick = rng.integers(0, a.size, (min(step, draws - b), idx.size))
+        exceed += int(np.sum(lq[pick].sum(axis=1) <= s + tol))
+    return (1 + exceed) / (draws + 1)
+
+
+def approach_sign_p(bl: Baseline, outliers, r_um: np.ndarray, seed) -> tuple | None:
+    """(p, test, axis) of the outliers against the sign of approach along the X and Y axes; None where untested.
+
+    One family, Bonferroni over its tests: per axis the centred sign
+    (:func:`centred_sign_of` through :func:`centred_turn_p`'s statistic: the
+    outliers' residuals follow the lost-motion column less its target's mean)
+    where some target is approached with both signs, and per axis the
+    nearest-across test (:func:`near_across_p`: the outliers sit on the
+    touches whose approach moves the axis least). ``test`` and ``axis`` name
+    the smallest. Planar campaigns whose touches map one to one onto the
+    baseline's rows, two or more outliers.
+    """
+    if bl.kind != "planar" or len(outliers) < 2:
+        return None
+    t = bl.data.touches
+    if len(np.asarray(t.t_s)) != len(bl.y):
+        return None
+    c = centred_sign_of(t.n_R, t.d_R, t.target)
+    ps = []
+    for j in range(2):
+        if np.any(np.abs(c[:, j]) > 1e-9):
+            ps.append((centred_turn_p(c[:, j], outliers, r_um, np.random.default_rng([seed, 2, j])),
+                       "centred sign", "XY"[j]))
+        ps.append((near_across_p(np.abs(t.d_R[:, j]), outliers, np.random.default_rng([seed, 3, j])),
+                   "nearly across", "XY"[j]))
+    p, test, ax = min(ps)
+    return min(1.0, len(ps) * p), test, ax
 
 
 # ---------------------------------------------------------------------------
@@ -5268,8 +5368,16 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
     once, which the shift of the mean rank above does not see; their
     residuals follow the turn taken relative to the target's other touches
     (gen_a reseat_hysteresis 1012, 1088, 1262: `outlier` confident before,
-    centred-turn p 1.2e-4, 1.0e-5, 1.5e-4). Otherwise ``ambiguous``, with
-    the reason.
+    centred-turn p 1.2e-4, 1.0e-5, 1.5e-4). And for two or more outlier
+    rows on a planar campaign, the sign of approach (:func:`approach_sign_p`,
+    at ``alpha_family``): a lost motion lies almost inside the baseline's
+    span (each target's parameter takes it where the target is approached
+    with one sign along the axis) and shows only on touches whose approach
+    is nearly across the axis, where a touch whose state differs from its
+    target's other touches reads a full step ``|n_ax| B`` off them (gen_a
+    reversal 1033, 1299, 1430, 1688: `outlier` confident before, session
+    20); the finding is then ambiguous with ``reversal`` (``ambiguous_with``).
+    Otherwise ``ambiguous``, with the reason.
     """
     alpha = settings.alpha
     r0 = st0.r[outliers]
@@ -5311,10 +5419,25 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
                 f"other touches (centred turn {fmt_p(p_turn)}, below {settings.alpha_family:g}): a mechanism of "
                 "the move that the target's parameter half absorbed, or dust of one sign on touches whose turns "
                 "differ alike from their targets', not dust at random touches")) if w)
+    p_sign, alt = None, []
+    sgn = approach_sign_p(bl, outliers, r0 / UM, seed)
+    if sgn is not None:
+        p_sign, test, ax = sgn
+        if p_sign < settings.alpha_family:
+            alt = [c for c in ("reversal",) if causes_mod.lookup(c, bl.kind) is not None]
+            what = (f"read short or long as their touch's sign of approach along {ax} differs from its target's "
+                    "other touches" if test == "centred sign" else
+                    f"sit on the touches whose approach moves {ax} least (nearly across it)")
+            why = "; ".join(w for w in (why, (
+                f"the outliers {what} (sign of approach {fmt_p(p_sign)}, {test} along {ax}, below "
+                f"{settings.alpha_family:g}): a lost motion whose state the approach did not set, or that the "
+                "targets' parameters half absorb, or dust that falls there, not dust at random touches")) if w)
     return Finding(causes_mod.OUTLIER, {
         "rows": [int(bl.rows[i]) for i in outliers], "residual_um": [float(v) / UM for v in r0],
         "explained_ss_um2": ss / UM ** 2, "events": len(first), "concentration_p": p_conc,
         **({"centred_turn_p": p_turn} if p_turn is not None else {}),
+        **({"approach_sign_p": p_sign, "approach_sign_test": f"{test} along {ax}"} if p_sign is not None else {}),
+        **({"ambiguous_with": alt} if alt else {}),
         **({"place_structure": _clean(place)} if place is not None else {}),
         "confidence": "ambiguous" if why else "named", **({"confidence_reason": why} if why else {}),
         "test": "studentized deleted residual beyond the Bonferroni t bound"},

@@ -115,6 +115,12 @@ tails), and two rival figures that a smooth covariate's basis enters (the
 demo's ``rival_share`` 1.00689 -> 1.00690, the periodic axis error's
 0.998854 -> 0.998862): 79 leaves, every decision as stored; the rest kept.
 
+Refreshed for the sign-of-approach test of an outlier finding (session 20:
+:func:`core.discover.approach_sign_p`): two leaves added, the simulator's
+outlier 1002's ``approach_sign_p`` (1.0) and ``approach_sign_test``; the
+finding's confidence unchanged (ambiguous, as stored). No other report
+moved (the other fifteen pass as stored); those leaves alone were written.
+
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within
 ``ABS`` of a number that is zero in the reference's own units).
