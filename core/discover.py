@@ -115,7 +115,10 @@ What it does, in order, and the statistics behind each step
    again) beside the causes before it that stay, and refused
    (``judged again without ...`` in ``rejected``) or adopted again
    (``judged_again_without`` in its evidence).
-6. **Unexplained**: if structure remains (diagnosis, lack of fit or CV gap
+6. **Unexplained**: first a penalised named cause's ridge is chosen again
+   over its grid in the model as it now stands (its rows and the causes
+   beside it final: :func:`_penalties_rechosen`, session 20). Then, if
+   structure remains (diagnosis, lack of fit or CV gap
    significant and material), the cause list gains ``unexplained`` with
    the diagnosis; a penalised smooth term in the strongest covariate
    (P-spline, penalty by cross-validation) is fitted and kept when its
