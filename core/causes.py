@@ -1746,8 +1746,18 @@ def reversal_scans(bl):
     """Reversal: lost motion of an axis, signed by the direction of motion at the touch.
 
     Backlash of the drive, friction-induced lag or a loose scale mounting
-    make the axis stop short by half its lost motion ``B`` in the direction
-    it moves: ``E_X = -sign(d_x) B_x / 2``. Parameters: ``B_x``, ``B_y`` (um).
+    make the axis' actual position differ from its reading by half its lost
+    motion, one way moving in +, the other moving in -. The model is
+    ``E_X = +sign(d_x) B_x / 2`` (``E`` actual minus reported, ``d`` the
+    approach), so ``dq = -n . E`` gives the columns ``-n_x sign(d_x) / 2``.
+    Parameters ``B_x``, ``B_y`` (um, ``x_lost_motion_um``,
+    ``y_lost_motion_um``): ISO 230-2's signed reversal value ``B_i = x_up -
+    x_down`` (2.12, deviation = actual minus target; ``core.positioning``)
+    of each axis. An axis that stops short, lagging its reading by ``b/2``
+    against its motion (``E_X = -sign(d_x) b / 2``), reads ``B = -b``; one
+    that leads (``sim.errorfuncs.Reversal``) reads ``+b``. Worked case and
+    test: docs/discovery.md "Session 20: the sign of the reported lost
+    motion", tests/core/test_reversal_sign.py.
     """
     d = bl.data
 
@@ -1759,6 +1769,7 @@ def reversal_scans(bl):
 
 
 def reversal_magnitudes(info, coef, bl):
+    """ISO 230-2's signed reversal values ``B_x``, ``B_y`` (um): negative for a lag (see :func:`reversal_scans`)."""
     c = np.asarray(coef)
     return {"x_lost_motion_um": c[0] / UM, "y_lost_motion_um": c[1] / UM}
 

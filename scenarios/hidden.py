@@ -149,7 +149,9 @@ def _probe_lobing(rng, duration_s):
 
 
 def _reversal(rng, duration_s):
-    """Lost motion of the X or Y axis."""
+    """Lost motion of the X or Y axis: a lead (``sim.errorfuncs.Reversal``), so the truth ``lost_motion_um`` is
+    ISO 230-2's signed reversal value and compares with the report's ``x_lost_motion_um`` / ``y_lost_motion_um``
+    with the same sign (the blind generators' ``lost_motion_um`` is a lag ``b``: the report reads ``-b``)."""
     from sim.errorfuncs import Reversal
 
     sym = str(rng.choice(["EXX", "EYY"]))

@@ -346,7 +346,17 @@ class Drift(ErrorFunction):
 @dataclass(frozen=True)
 class Reversal(ErrorFunction):
     """Direction-dependent error (backlash): ``+lost_motion/2`` moving in +,
-    ``-lost_motion/2`` moving in -, 0 when ``direction`` is 0 or None."""
+    ``-lost_motion/2`` moving in -, 0 when ``direction`` is 0 or None.
+
+    The error is added to the actual position (``Machine.tip_W``: actual =
+    reading + error), so a positive ``lost_motion`` is a LEAD: the axis is
+    ahead of its reading in the direction it moves. Its ISO 230-2 reversal
+    value (2.12, ``x_up - x_down``, deviation = actual minus target) is
+    ``+lost_motion``, and discover reports it as ``x_lost_motion_um`` /
+    ``y_lost_motion_um`` = ``+lost_motion`` (core.causes.reversal_scans). A
+    carriage that lags (backlash stopping short: ISO B negative, what the
+    blind generators inject) is not expressible here (``lost_motion >= 0``).
+    """
 
     lost_motion: float
 
