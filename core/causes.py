@@ -1556,8 +1556,8 @@ def part_change_scans(bl):
     the difference of the changes at its two ends, um: + where the end of
     larger ``a`` moves more) and its bow (the change at its middle less the
     mean of its ends', um).
-    Two time forms (:func:`part_change_times`; the step withheld, on only
-    where :data:`PART_CHANGE_FORMS` names it), each feature's layouts in
+    Two time forms (:func:`part_change_times`; both on where
+    :data:`PART_CHANGE_FORMS` names them, the default), each feature's layouts in
     both, every layout of either form a trial in the count: ``continuous``,
     the time ``t`` above (0 at the first touch, 1 at the last: a part that
     changes while it is measured, stress relaxing or moisture taken up as
@@ -1575,8 +1575,11 @@ def part_change_scans(bl):
     trial only where it is significant beyond its continuous trial and the
     continuous trial is not beyond it, else the continuous one (chosen by
     p alone, the step took continuous changes: gen_b part_change 1010 lost
-    to the slip check, 1063's workpiece 3.4 um off). The form is in the
-    parameters (``time_form``). The magnitudes are
+    to the slip check, 1063's workpiece 3.4 um off), and only where the
+    steps are also significant beyond the layout stepping once, at one
+    set-up change (an event at a set-up change: gen_b stylus_pickup 1012, a
+    stylus wiped before a set-up; :func:`core.discover._steps_beyond_one_off`).
+    The form is in the parameters (``time_form``). The magnitudes are
     the change from the form's 0 to its 1: over the campaign, or from the
     first set-up to the last.
     """
@@ -1598,13 +1601,14 @@ def part_change_scans(bl):
 
 #: part_change's time forms (:func:`part_change_times`): the part changing continuously with the time, and by a
 #: step per set-up. Each form of each feature's layouts is a trial in the cause's Bonferroni count; with more than
-#: one form the finding's parameters name its form (``time_form``). ``("continuous", "per_setup")`` is the
-#: session 19 design, measured and withheld (docs/discovery.md, "Session 19: part_change in two time forms"): on
-#: the simulator's part change 4000-4099 visible named 46 -> 51 of 52 and gen_b part_change 1054 named, but gen_b
-#: stylus_pickup 1012 (out of the catalogue) `unexplained` -> thermal_drift with part_change in the step form,
-#: ambiguous, its extended workpiece 7.71 um off against the baseline's 1.72 (U95 2.80). Off: the continuous form
-#: alone, the behaviour before.
-PART_CHANGE_FORMS: tuple = ("continuous",)
+#: one form the finding's parameters name its form (``time_form``). The session 19 design, withheld there (gen_b
+#: stylus_pickup 1012, out of the catalogue, named part_change in the step form beside a thermal drift, its
+#: extended workpiece 7.71 um off against the baseline's 1.72, U95 2.80), is on since session 20, where a step
+#: per set-up is kept only where it is also significant beyond the same layout stepping once at one set-up change
+#: (:func:`core.discover._steps_beyond_one_off`: 1012 reads `unexplained`). Measured on against off
+#: (docs/discovery.md, "Session 20"): the simulator's part_change 4000-4099 visible named 46 -> 51 of 52.
+#: ``("continuous",)``: the continuous form alone, the behaviour before.
+PART_CHANGE_FORMS: tuple = ("continuous", "per_setup")
 
 
 def part_change_times(bl) -> list:

@@ -3835,7 +3835,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # wall's shift p = 0.068 behind another wall's 0.0029; its bow explained 16.0 of the 18.8 um^2 left)
         own = _grow_layout(own, scans, si, rows, bl, st, folds, terms, settings)
         owns.append(own)
-    owns = _time_forms_chosen(owns, rows, st, settings)
+    owns = _time_forms_chosen(owns, rows, st, settings, bl)
     for own in owns:
         if best is None or _better_trial(own, best, st.rss):
             best = own
@@ -3863,7 +3863,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     return out
 
 
-def _time_forms_chosen(owns: list, rows, st: _State, settings) -> list:
+def _time_forms_chosen(owns: list, rows, st: _State, settings, bl=None) -> list:
     """Each feature's trial in one time form (:func:`core.causes.part_change_times`): the step per set-up where the
     data ask for it, else the continuous form (the form before there were two).
 
@@ -3875,6 +3875,15 @@ def _time_forms_chosen(owns: list, rows, st: _State, settings) -> list:
     ``1 - exp(-t / tau)``) or neither beyond the other (the design cannot tell them), the continuous trial is
     kept; where the steps are chosen, the continuous trial is dropped. Either way one trial per feature is
     compared with the others (each form still counted in the Bonferroni factor).
+
+    A step per set-up is also a one-off event's form where the set-ups' levels are one jump: a stylus picking up
+    material and wiped before a set-up, a clamp giving once between two set-ups (gen_b stylus_pickup 1012, out of
+    the catalogue: its slot's steps chosen, then named part_change beside a thermal drift, its extended workpiece
+    7.71 um off against the baseline's 1.72, U95 2.80). So the steps are kept only where they are also significant
+    beyond the same layout stepping once, at the one set-up change where that explains most
+    (:func:`_steps_beyond_one_off`, :data:`STEP_BEYOND_ONE_OFF`): a part that changes at every set-up (the
+    simulator's wall grown by a step per set-up, four set-ups) against an event at one set-up change. On two
+    set-ups the two are one column set: the continuous form is kept.
     """
     cont = {}
     for o in owns:
@@ -3884,6 +3893,7 @@ def _time_forms_chosen(owns: list, rows, st: _State, settings) -> list:
     if not cont:
         return owns
     drop = set()
+    level = dict(causes_mod.part_change_times(bl)).get("per_setup") if bl is not None else None
     for o in owns:
         info = o.scan.infos[o.index]
         form = info.get("time_form")
@@ -3898,11 +3908,47 @@ def _time_forms_chosen(owns: list, rows, st: _State, settings) -> list:
         # the steps beyond the continuous form, the continuous form beyond the steps (_beyond's F test, unadjusted)
         p_steps = _beyond(st, new_basis(st.Q, cc), cs, st.sigma, 1.0, settings)[1]
         p_cont = _beyond(st, new_basis(st.Q, cs), cc, st.sigma, 1.0, settings)[1]
-        if p_steps < settings.alpha_family and p_cont >= settings.alpha_family:
+        if p_steps < settings.alpha_family and p_cont >= settings.alpha_family and (
+                not STEP_BEYOND_ONE_OFF or _steps_beyond_one_off(cs, level, rows, st, settings)):
             drop.add(id(c))
         else:
             drop.add(id(o))
     return [o for o in owns if id(o) not in drop]
+
+
+def _steps_beyond_one_off(cs: np.ndarray, level: np.ndarray | None, rows, st: _State, settings) -> bool:
+    """Whether a feature's steps per set-up (``cs``, its layout's columns on the model's rows, each the layout's
+    pattern times the set-up's level) are significant beyond the same pattern stepping once, at the one set-up
+    change where that explains most (:data:`STEP_BEYOND_ONE_OFF`).
+
+    ``level`` (n,): the per-set-up time of :func:`core.causes.part_change_times` (0 on the first set-up, 1 on the
+    last). The one-off trials: the pattern (``cs`` over the level) on every set-up from the ``j``-th level on, 0
+    before it, for each level after the first; the best (largest sum of squares beside the model) is put in the
+    model and the steps tested beyond it (F test at ``alpha_family``, unadjusted, as the forms' own test). On two
+    set-ups the steps are the one-off step: not beyond it.
+    """
+    if level is None:
+        return True
+    L = np.asarray(level, float)[rows]
+    lv = np.unique(L)
+    lv = lv[lv > 1e-12]
+    if lv.size < 2:
+        return False
+    safe = np.where(L > 1e-12, L, 1.0)
+    pat = cs / safe[:, None]
+    C = np.stack([np.where((L >= v - 1e-12)[:, None], pat, 0.0) for v in lv])
+    ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
+    if not np.any(k > 0):  # the one-off steps lie in the model: they explain nothing the steps need beat
+        return True
+    j = int(np.argmax(np.where(k > 0, ss, -np.inf)))
+    p_beyond = _beyond(st, new_basis(st.Q, C[j]), cs, st.sigma, 1.0, settings)[1]
+    return p_beyond < settings.alpha_family
+
+
+#: Whether :func:`_time_forms_chosen` keeps a feature's steps per set-up only where they are significant beyond the
+#: same layout stepping once, at one set-up change (:func:`_steps_beyond_one_off`): a part that changes at every
+#: set-up against a one-off event at one set-up change (gen_b stylus_pickup 1012).
+STEP_BEYOND_ONE_OFF = True
 
 
 #: Whether a cause whose trial of smallest p falls short of its held-out gain, or is confounded with the model, is

@@ -161,6 +161,18 @@ significant refusal in the part change's round is now listed
 (``rejected`` gains "confounded with the baseline + thermal_drift +
 part_change", variance inflation 339). Only those two leaves took the new
 values; the other fifteen reports and every other leaf are as stored.
+
+Refreshed for part_change's step per set-up switched on (session 20,
+:data:`core.causes.PART_CHANGE_FORMS`, with
+:func:`core.discover._steps_beyond_one_off`): gen_b stylus_pickup 501 (still
+`unexplained`) has part_change's trials counted in both time forms, 198 tries
+where there were 99, so its part_change on pin1 in a later round (p 2.1e-5)
+is no longer significant; that round's part_change (refused by the slip) and
+what was refused after it (lobing_per_setup; temperature_expansion,
+confounded with the model holding part_change) leave ``rejected`` and
+``partially_consistent_with``. Only those two leaves took the new values
+(the thermal drift's entry kept there equal within REL); the other fifteen
+reports are as stored.
 """
 
 from __future__ import annotations
