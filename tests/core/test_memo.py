@@ -3,6 +3,7 @@ an owner), bad sizes."""
 
 import gc
 import weakref
+from functools import partial
 
 import pytest
 
@@ -204,9 +205,9 @@ def test_kept_on_computes_once_per_object_and_goes_with_it():
         return [d.v * 2]
 
     a, b = Data(1), Data(1)
-    first = kept_on(a, "_twice", lambda: make(a))
-    assert kept_on(a, "_twice", lambda: make(a)) is first and first == [2] and calls == [1]
-    assert kept_on(b, "_twice", lambda: make(b)) is not first and calls == [1, 1]  # equal, but another object
+    first = kept_on(a, "_twice", partial(make, a))
+    assert kept_on(a, "_twice", partial(make, a)) is first and first == [2] and calls == [1]
+    assert kept_on(b, "_twice", partial(make, b)) is not first and calls == [1, 1]  # equal, but another object
     gone = weakref.ref(a)
     del a, first
     gc.collect()
