@@ -385,17 +385,21 @@ def trials_take(C, ts, rows=None) -> np.ndarray:
     return out if rows is None else take_rows(out, rows, 1)
 
 
-def nested_f_trials(C, rows, Q, r: np.ndarray, rss: float, dof: int):
-    """:func:`nested_f_batch` of every trial of ``C`` on ``rows``: a dense (T, n, k) array as one batch (its rows
-    taken, :func:`take_rows`), :class:`StepTrials` built and tested a block at a time (:func:`trial_blocks`), the
-    same four (T,) arrays bit for bit."""
+def nested_f_trials(C, rows, Q, r: np.ndarray, rss: float, dof: int, ts=None):
+    """:func:`nested_f_batch` of the trials ``ts`` of ``C`` (all if None) on ``rows`` (all if None): a dense
+    (T, n, k) array as one batch (``C[ts]``, its rows taken by :func:`take_rows`), :class:`StepTrials` built and
+    tested a block at a time (:func:`trial_blocks`), the same four arrays bit for bit."""
     if not isinstance(C, StepTrials):
-        return nested_f_batch(take_rows(C, rows, 1), Q, r, rss, dof)
-    T, _, k = C.shape
-    rows = np.asarray(rows)
-    every = rows.size == C.shape[1] and np.array_equal(rows, np.arange(C.shape[1]))
-    outs = [nested_f_batch(C.take(np.arange(a, b), None if every else rows), Q, r, rss, dof)
-            for a, b in trial_blocks(T, rows.size, k, Q)]
+        Ct = C if ts is None else C[np.asarray(ts, int)]
+        return nested_f_batch(Ct if rows is None else take_rows(Ct, rows, 1), Q, r, rss, dof)
+    n, k = C.shape[1], C.shape[2]
+    ts = np.arange(C.shape[0]) if ts is None else np.asarray(ts, int)
+    if rows is not None:
+        rows = np.asarray(rows)
+        if rows.size == n and np.array_equal(rows, np.arange(n)):
+            rows = None  # (take_rows gives a contiguous batch itself: the block as built)
+    outs = [nested_f_batch(C.take(ts[a:b], rows), Q, r, rss, dof)
+            for a, b in trial_blocks(ts.size, n if rows is None else rows.size, k, Q)]
     if len(outs) == 1:
         return outs[0]
     return tuple(np.concatenate([o[i] for o in outs]) for i in range(4))

@@ -1537,10 +1537,9 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
             trials = np.flatnonzero(np.all(~on[:, events != e], axis=1) & np.any(on[:, events == e], axis=1))
         if trials.size == 0:
             continue
-        Ce = trials_take(Cs, trials)  # (the event's trials, at most SLIP_SPLITS)
         # 1. the step that fits every row best (removes most of the residual): more outliers than its
-        # parameters, all its own
-        ss0, _, _, _ = nested_f_batch(Ce, Q0, r0, float(r0 @ r0), n - Q0.shape[1])
+        # parameters, all its own (the event's trials, at most SLIP_SPLITS: one batch, or blocks on a long log)
+        ss0, _, _, _ = nested_f_trials(Cs, None, Q0, r0, float(r0 @ r0), n - Q0.shape[1], ts=trials)
         q, ok, judged = fits(trials[int(np.argmax(ss0))], rows)
         if not ok:
             continue
@@ -1551,7 +1550,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
             Qk = orth_of(X[kept])
             rk = y[kept] - Qk @ (Qk.T @ y[kept])
         dof_k = len(kept) - Qk.shape[1]
-        _, k, _, p = nested_f_batch(take_rows(Ce, kept, 1), Qk, rk, float(rk @ rk), dof_k)
+        _, k, _, p = nested_f_trials(Cs, kept, Qk, rk, float(rk @ rk), dof_k, ts=trials)
         p = np.where((k > 0) & (dof_k - k >= 3), p, np.inf)
         if p.min() * len(trials) * len(multi) < alpha_step:
             return True

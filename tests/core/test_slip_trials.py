@@ -114,6 +114,12 @@ def test_blocked_f_tests_are_the_one_batch_bit_for_bit(slip_case, small_blocks, 
             got = G.nested_f_trials(st, rows, Qm, r, float(r @ r), dof)
             for a, b in zip(ref, got):
                 assert _same_bits(a, b)
+            sub = np.arange(5, dense.shape[0], 2)  # some trials (the outlier screen's: one event's)
+            assert len(G.trial_blocks(sub.size, rows.size, 3, Qm)) >= 2
+            ref = G.nested_f_batch(G.take_rows(dense[sub], rows, 1), Qm, r, float(r @ r), dof)
+            got = G.nested_f_trials(st, rows, Qm, r, float(r @ r), dof, ts=sub)
+            for a, b in zip(ref, got):
+                assert _same_bits(a, b)
     finally:
         G.release_projections()
 
