@@ -284,6 +284,127 @@ class SparseTrials:
         return SparseTrials([m[np.asarray(rows)] for m in self.mats])
 
 
+class StepTrials:
+    """Trials ``(T, n, k)`` of one-off steps kept as their splits, not formed at once (:func:`core.causes.fixture_slip`:
+    every set-up's up to 40 splits were 0.96 GB dense on a 1e4-row log of 100 set-ups, about 96 GB at 1e6 rows).
+
+    Trial ``t`` is ``M`` (n, k) on one group's rows from its split on (the group's rows ``idx`` in time order,
+    ``idx[split:]``) and zero elsewhere: :meth:`take` builds any of them, on any rows, with the values the dense
+    array ``M[None] * mask[:, :, None]`` holds there (the same product, so a masked negative entry is ``-0.0`` as
+    there); :func:`nested_f_trials` tests them a block at a time; :meth:`moved_event` says which one event each moves.
+    """
+
+    def __init__(self, M: np.ndarray, groups):
+        self.M = np.asarray(M, float)
+        self.groups = [(np.asarray(idx, int), np.asarray(splits, int)) for idx, splits in groups]
+        self.offsets = np.concatenate([[0], np.cumsum([s.size for _, s in self.groups], dtype=int)]).astype(int)
+        self.shape = (int(self.offsets[-1]),) + self.M.shape
+
+    def masks(self, ts) -> np.ndarray:
+        """(len(ts), n) 1 on the rows trial ``ts[i]`` moves (``M``'s zero rows included), 0 elsewhere."""
+        ts = np.asarray(ts, int)
+        m = np.zeros((ts.size, self.shape[1]))
+        g = np.searchsorted(self.offsets, ts, side="right") - 1
+        for i, (t, j) in enumerate(zip(ts, g)):
+            idx, splits = self.groups[j]
+            m[i, idx[splits[t - self.offsets[j]]:]] = 1.0
+        return m
+
+    def take(self, ts, rows=None) -> np.ndarray:
+        """(len(ts), n or len(rows), k) trials ``ts`` on ``rows`` (all if None): the dense array's ``[ts]`` (C-contiguous)
+        and its rows taken as :func:`take_rows` takes them (the same layout), bit for bit."""
+        full = self.M[None, :, :] * self.masks(ts)[:, :, None]
+        return full if rows is None else take_rows(full, rows, 1)
+
+    def dense(self) -> np.ndarray:
+        """Every trial at once (small cases and tests only)."""
+        return self.take(np.arange(self.shape[0]))
+
+    def moved_event(self, events: np.ndarray) -> np.ndarray:
+        """(T,) the one event of ``events`` (n,) holding every row trial ``t`` moves (a nonzero row of it), or
+        ``STEP_MIXED`` where it moves rows of two or more events or none: the dense trials' ``on = any(C != 0,
+        axis=2)`` asked ``all(~on[:, events != e]) & any(on[:, events == e])`` (``M`` finite)."""
+        events = np.asarray(events)
+        nz = np.any(self.M != 0, axis=1)
+        out = np.full(self.shape[0], STEP_MIXED, dtype=np.int64)
+        for j, (idx, splits) in enumerate(self.groups):
+            ev = events[idx].astype(np.int64)
+            on = nz[idx]
+            big, small = np.iinfo(np.int64).max, np.iinfo(np.int64).min
+            lo = np.minimum.accumulate(np.where(on, ev, big)[::-1])[::-1]  # over each suffix's moved rows
+            hi = np.maximum.accumulate(np.where(on, ev, small)[::-1])[::-1]
+            lo, hi = lo[splits], hi[splits]
+            single = on[::-1].cumsum()[::-1][splits] > 0
+            single &= lo == hi
+            out[self.offsets[j]:self.offsets[j + 1]] = np.where(single, lo, STEP_MIXED)
+        return out
+
+
+#: :meth:`StepTrials.moved_event` of a trial moving rows of more than one event, or none.
+STEP_MIXED = np.iinfo(np.int64).min
+
+#: :func:`nested_f_trials` tests step trials forming more than this many bytes (on the rows tested) a block at a
+#: time; each block is more than :data:`OUTSIDE_BASE_BIG_BYTES` and a whole number of :func:`_project_blocks`'
+#: column groups, so every column is projected by the same products as in one batch (bit for bit).
+TRIAL_BLOCK_BYTES = 32 << 20
+
+
+def trial_blocks(T: int, n: int, k: int, Q) -> list:
+    """:func:`nested_f_trials`' blocks ``(a, b)`` of ``T`` trials of ``n`` rows by ``k`` columns against ``Q``.
+
+    One block (the one batch) up to :data:`TRIAL_BLOCK_BYTES`. Beyond it: against a block basis (a long log's
+    :class:`core.lsq.Basis`, each trial tested on its own) or no basis, blocks of about that many bytes; against
+    an array basis, blocks each more than :data:`OUTSIDE_BASE_BIG_BYTES` (so :func:`project_out` takes the
+    one-step path the whole batch takes, not the kept part outside a declared baseline, :func:`extends`) and a
+    whole number of :func:`_project_blocks`' groups of ``w`` columns (the same matrix products column for column;
+    the last block takes the rest). Column norms (``einsum`` over the rows of each contiguous trial) and the
+    per-trial products after the projection do not depend on the batch.
+    """
+    nb = 8 * max(n, 1) * max(k, 1)
+    if T <= 1 or T * nb <= TRIAL_BLOCK_BYTES:
+        return [(0, T)]
+    if isinstance(Q, Basis) or (isinstance(Q, np.ndarray) and Q.ndim == 2 and not Q.shape[1]):
+        tb = max(1, TRIAL_BLOCK_BYTES // nb)
+    elif isinstance(Q, np.ndarray) and Q.ndim == 2 and TRIAL_BLOCK_BYTES > OUTSIDE_BASE_BIG_BYTES >= 2 * PROJECT_BLOCK_BYTES:
+        w = max(16, PROJECT_BLOCK_BYTES // (8 * max(n, 1)))
+        g = w // int(np.gcd(w, k))  # trials per whole number of column groups
+        tb = g * (OUTSIDE_BASE_BIG_BYTES // (nb * g) + 1)
+    else:
+        return [(0, T)]
+    m = T // tb
+    if m <= 1:
+        return [(0, T)]
+    return [(i * tb, (i + 1) * tb) for i in range(m - 1)] + [((m - 1) * tb, T)]
+
+
+def trials_take(C, ts, rows=None) -> np.ndarray:
+    """Trials ``ts`` of ``C`` (a dense (T, n, k) array or :class:`StepTrials`) on ``rows`` (all if None)."""
+    if isinstance(C, StepTrials):
+        return C.take(ts, rows)
+    out = C[np.asarray(ts, int)]
+    return out if rows is None else take_rows(out, rows, 1)
+
+
+def nested_f_trials(C, rows, Q, r: np.ndarray, rss: float, dof: int, ts=None):
+    """:func:`nested_f_batch` of the trials ``ts`` of ``C`` (all if None) on ``rows`` (all if None): a dense
+    (T, n, k) array as one batch (``C[ts]``, its rows taken by :func:`take_rows`), :class:`StepTrials` built and
+    tested a block at a time (:func:`trial_blocks`), the same four arrays bit for bit."""
+    if not isinstance(C, StepTrials):
+        Ct = C if ts is None else C[np.asarray(ts, int)]
+        return nested_f_batch(Ct if rows is None else take_rows(Ct, rows, 1), Q, r, rss, dof)
+    n, k = C.shape[1], C.shape[2]
+    ts = np.arange(C.shape[0]) if ts is None else np.asarray(ts, int)
+    if rows is not None:
+        rows = np.asarray(rows)
+        if rows.size == n and np.array_equal(rows, np.arange(n)):
+            rows = None  # (take_rows gives a contiguous batch itself: the block as built)
+    outs = [nested_f_batch(C.take(ts[a:b], rows), Q, r, rss, dof)
+            for a, b in trial_blocks(ts.size, n if rows is None else rows.size, k, Q)]
+    if len(outs) == 1:
+        return outs[0]
+    return tuple(np.concatenate([o[i] for o in outs]) for i in range(4))
+
+
 def take_rows(M: np.ndarray, rows, axis: int = 0) -> np.ndarray:
     """``M``'s rows ``rows`` along ``axis`` (``M[rows]``, ``M[:, rows]`` ...), for reading only.
 

@@ -255,7 +255,8 @@ from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
 from .diagnosis import (CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch,
-                        new_basis, orth, release_projections, replicate_scatter, take_rows, term_bases, tied,
+                        new_basis, nested_f_trials, orth, release_projections, replicate_scatter, StepTrials, take_rows,
+                        term_bases, tied, trials_take,
                         extends, _first_largest)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
@@ -1490,10 +1491,13 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
     multi = [e for e in np.unique(ev[ev >= 0]) if np.sum(ev == e) >= 2]
     if not multi:
         return False
-    Cs = slips()
+    Cs = slips()  # (T, n, k) dense, or StepTrials (built where used)
     if Cs.shape[0] == 0:
         return False
-    on = np.any(Cs != 0, axis=2)  # (T, n) rows each trial moves
+    if isinstance(Cs, StepTrials):
+        moved = Cs.moved_event(events)  # (T,) the one event each trial moves, if one
+    else:
+        on = np.any(Cs != 0, axis=2)  # (T, n) rows each trial moves
     n = len(y)
     Q0 = orth_of(X)
     r0 = y - Q0 @ (Q0.T @ y)
@@ -1510,7 +1514,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
         of its set-up) has no deleted residual: it is neither left beyond the
         bound nor evidence of agreement, and is not counted as judged.
         """
-        W = new_basis(Q0, Cs[tr])
+        W = new_basis(Q0, trials_take(Cs, [tr])[0])
         Q = np.hstack([Q0, W])
         r = y - Q @ (Q.T @ y)
         dof = n - Q.shape[1]
@@ -1527,12 +1531,15 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
 
     for e in multi:
         rows = out[ev == e]
-        trials = np.flatnonzero(np.all(~on[:, events != e], axis=1) & np.any(on[:, events == e], axis=1))
+        if isinstance(Cs, StepTrials):
+            trials = np.flatnonzero(moved == e)
+        else:
+            trials = np.flatnonzero(np.all(~on[:, events != e], axis=1) & np.any(on[:, events == e], axis=1))
         if trials.size == 0:
             continue
         # 1. the step that fits every row best (removes most of the residual): more outliers than its
-        # parameters, all its own
-        ss0, _, _, _ = nested_f_batch(Cs[trials], Q0, r0, float(r0 @ r0), n - Q0.shape[1])
+        # parameters, all its own (the event's trials, at most SLIP_SPLITS: one batch, or blocks on a long log)
+        ss0, _, _, _ = nested_f_trials(Cs, None, Q0, r0, float(r0 @ r0), n - Q0.shape[1], ts=trials)
         q, ok, judged = fits(trials[int(np.argmax(ss0))], rows)
         if not ok:
             continue
@@ -1543,7 +1550,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
             Qk = orth_of(X[kept])
             rk = y[kept] - Qk @ (Qk.T @ y[kept])
         dof_k = len(kept) - Qk.shape[1]
-        _, k, _, p = nested_f_batch(take_rows(Cs[trials], kept, 1), Qk, rk, float(rk @ rk), dof_k)
+        _, k, _, p = nested_f_trials(Cs, kept, Qk, rk, float(rk @ rk), dof_k, ts=trials)
         p = np.where((k > 0) & (dof_k - k >= 3), p, np.inf)
         if p.min() * len(trials) * len(multi) < alpha_step:
             return True
@@ -2147,8 +2154,14 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     @functools.cache
     def scan_trials(fn):
-        """A one-off alternative's (T, n, k) trials (``fn(bl)``), whitened: built once in this run."""
+        """A one-off alternative's (T, n, k) trials (``fn(bl)``), whitened: made once in this run. Kept as their
+        splits where the scan gives them so (:class:`core.diagnosis.StepTrials`, unwhitened: built a block at a
+        time where used); whitened or given dense, the dense array as before."""
         Cs = fn(bl)
+        if isinstance(Cs, StepTrials):
+            if bl.whiten is None:
+                return Cs
+            Cs = Cs.dense()
         Cs = Cs if bl.whiten is None else np.einsum("ij,tjk->tik", bl.whiten, Cs)
         Cs.flags.writeable = False  # shared by every caller of this run
         return Cs
@@ -4679,13 +4692,13 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
         # a one-off alternative chosen among T trials: its best sum of squares is
         # debiased by the median of the largest of T chi-squares (k dof) under noise
         Cs = trials(cause.counter_scan)
-        if Cs.shape[0]:
-            ss_s, k_s, _, _ = nested_f_batch(take_rows(Cs, rows, 1), so.Q, so.r, so.rss, so.dof)
+        if Cs.shape[0]:  # (StepTrials: built and tested a block at a time, the same numbers)
+            ss_s, k_s, _, _ = nested_f_trials(Cs, rows, so.Q, so.r, so.rss, so.dof)
             j = int(np.argmax(ss_s))
             null_max = float(stats.chi2.isf(np.log(2) / Cs.shape[0], max(int(k_s[j]), 1)))
             d_s = float(ss_s[j]) - null_max * s2
             # what the cause still explains once the slip is in the model
-            Qs = np.hstack([so.Q, new_basis(so.Q, Cs[j][rows])])
+            Qs = np.hstack([so.Q, new_basis(so.Q, trials_take(Cs, [j], rows)[0])])
             rs = so.r - Qs[:, so.Q.shape[1]:] @ (Qs[:, so.Q.shape[1]:].T @ so.r)
             Un = new_basis(Qs, tm.columns[rows])
             ss_ns = float(np.sum((Un.T @ rs) ** 2))
