@@ -3488,8 +3488,13 @@ def _pen_of(terms, rows) -> tuple | None:
     return (_stack(pen, rows), _penalty(pen)) if pen else None
 
 
-def _pen_names(terms) -> tuple:
-    return tuple(t.cause for t in terms if t.penalty is not None)
+def _pen_key(terms) -> tuple:
+    """The penalised terms among ``terms`` a cause's magnitudes are fitted beside, by name AND penalty: the key of the
+    magnitudes cached at adoption (``Term.at_adoption``). By name alone a penalty chosen again in the final model
+    (:func:`_penalties_rechosen`) left a cause adopted after it with magnitudes fitted beside the old ridge (session
+    20's review: gen_a nonrigid 1013 with the ridge forced ten times, ``EXX_amplitude`` 0.280 +- 0.123 cached against
+    0.371 +- 0.129 beside the ridge reported)."""
+    return tuple((t.cause, np.asarray(t.penalty, float).tobytes()) for t in terms if t.penalty is not None)
 
 
 def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float, pen: tuple | None = None):
@@ -4152,7 +4157,7 @@ def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float, boot: tuple | N
         tm.evidence["magnitude_undetermined"] = "; ".join(
             f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
     # (the penalised terms it was fitted beside: Qo does not show them)
-    tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95, _pen_names(boot[1] if boot else ())))
+    tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95, _pen_key(boot[1] if boot else ())))
     for key, v in vals.items():
         if not isinstance(v, float) or v is None:
             continue
@@ -5088,7 +5093,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         # (a penalised named cause's U95 is the bootstrap's, made here once for the model reported: at adoption, in
         # every round it was tried, the delta method's)
         if a is not None and np.array_equal(a[1], rows) and a[0].shape == so.Q.shape and np.array_equal(a[0], so.Q) \
-                and a[4] == _pen_names(others) and (tm.penalty is None or tm.unnamed or folds is None):
+                and a[4] == _pen_key(others) and (tm.penalty is None or tm.unnamed or folds is None):
             vals, u95 = dict(a[2]), dict(a[3])
         else:
             vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows,
