@@ -4365,7 +4365,8 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
     return out
 
 
-def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None, boot: tuple | None = None):
+def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None, boot: tuple | None = None,
+                lin: dict | None = None):
     """Magnitudes of a term and their U95 (delta method over coefficients and nonlinear parameters).
 
     ``boot`` ``(folds, others[, report])``: the folds the model's held-out
@@ -4380,6 +4381,13 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
     A bounded magnitude whose U95 is wider than its whole plausible range is
     reported as no value (it determines nothing); its key, the value and
     the U95 are appended to ``wide`` when given.
+
+    ``lin`` (an unpenalised cause, a dict): filled with the fit's linear map
+    from the data to the reduced coefficients (``"A"``, ``c = A y[rows]``),
+    the label map ``"M"``, the residual variance ``"s2"`` and each magnitude's
+    gradient over the label coefficients (``"g"``): what
+    :func:`_beside_smooth`'s shift test needs for the exact variance of a
+    difference of two such fits.
 
     ``Qo``: orthonormal basis of the model without the term (rows used).
     By Frisch-Waugh-Lovell the term's coefficients in the joint fit are the
@@ -4439,8 +4447,14 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         c_red, _, s2, _ = _penalised_fit(np.hstack([Ep, Sp]), ro, np.pad(pen[1], ((Ep.shape[1], 0),) * 2),
                                          len(rows) - Qo.shape[1])
         c_red = c_red[:Ep.shape[1]]
+        if lin is not None:  # c = (X^T X + P)^-1 X^T ro, its cause's rows (X's columns lie outside Qo: ro -> yr)
+            Xa = np.hstack([Ep, Sp])
+            Pa = np.pad(pen[1], ((Ep.shape[1], 0),) * 2)
+            lin["A"] = (np.linalg.pinv(Xa.T @ Xa + Pa, rcond=1e-12, hermitian=True) @ Xa.T)[:Ep.shape[1]]
     else:
         c_red = np.linalg.lstsq(Ep, ro, rcond=1e-12)[0]
+        if lin is not None:
+            lin["A"] = np.linalg.pinv(Ep, rcond=1e-12)
         res = ro - Ep @ c_red
         dof = max(len(rows) - Qo.shape[1] - E.shape[1], 1)
         s2 = float(res @ res) / dof
@@ -4473,6 +4487,8 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         return cause.magnitudes(inf, vec[:k_all], bl)
 
     vals = f(vec0)
+    if lin is not None:
+        lin["M"], lin["s2"], lin["g"] = M, float(s2), {}
     # covariance of the label coefficients (c = M c') and the nonlinear parameters
     r = M.shape[1]
     nv = k_all + len(nl)
@@ -4491,6 +4507,8 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         for key in vals:
             if isinstance(vals[key], float):
                 grads.setdefault(key, np.zeros(nv))[j] = (fp.get(key, np.nan) - fm.get(key, np.nan)) / (2 * h)
+    if lin is not None:
+        lin["g"] = {key: g[:k_all] for key, g in grads.items()}
     # a magnitude is determined when it does not move along a direction of the
     # cause's columns that the data cannot see (inside the model, or collinear)
     Eall = tm.cols_all[rows] if tm.cols_all is not None else E
@@ -4530,7 +4548,29 @@ def _within_range(cause, key: str, v: float, u: float, wide: list | None) -> tup
     return v, u
 
 
-def _beside_smooth(vals: dict, u95: dict, vals_s: dict, u95_s: dict, alpha: float) -> tuple:
+def _shift_variance(lin0: dict, lin_s: dict) -> dict:
+    """The exact variance of each magnitude's shift ``D = v_s - v_0`` between two fits linear in the data.
+
+    ``lin0``, ``lin_s``: :func:`_magnitudes`' ``lin`` of the fit beside the named causes alone and beside the smooth
+    too (``c = A y``, same label map ``M``). To first order ``D = g^T M (A_s - A_0) y`` with ``g`` the magnitude's
+    gradient over the label coefficients (the smooth fit's), so ``var D = s^2 || (A_s - A_0)^T M^T g ||^2`` under
+    white noise of variance ``s^2`` (the smooth fit's): as :func:`_unnamed_shift` tests the workpiece's shift. Before
+    (session 20) ``(U95_s^2 - U95^2) / 4``, two Bayesian covariances on two ``s^2``, which is not the variance of a
+    difference with a ridge on one side and is 0 (any shift "real") where ``U95_s <= U95``. ``{key: variance}``."""
+    if lin0.get("g") is None or lin_s.get("g") is None or "A" not in lin0 or "A" not in lin_s \
+            or lin0["A"].shape != lin_s["A"].shape:
+        return {}
+    dA = lin_s["A"] - lin0["A"]
+    out = {}
+    for key, g in lin_s["g"].items():
+        if not np.all(np.isfinite(g)):
+            continue
+        w = dA.T @ (lin_s["M"].T @ g)
+        out[key] = float(lin_s["s2"] * (w @ w))
+    return out
+
+
+def _beside_smooth(vals: dict, u95: dict, vals_s: dict, u95_s: dict, alpha: float, var_d: dict) -> tuple:
     """A named cause's magnitudes in the model that holds the unnamed smooth beside it (session 20).
 
     ``vals``, ``u95``: the magnitudes and U95 fitted beside the other named
@@ -4544,11 +4584,10 @@ def _beside_smooth(vals: dict, u95: dict, vals_s: dict, u95_s: dict, alpha: floa
     no physics: how an effect splits between it and the cause is its form's
     and its penalty's, not a measurement. The two estimates of one
     magnitude are compared as :func:`_unnamed_shift` compares the
-    workpiece's (Hausman 1978), the shift ``D`` against the variance
-    ``(U95_s^2 - U95^2) / 4`` (the fit beside the named causes alone taken
-    as the efficient one where the smooth holds nothing of the cause: for a
-    ridge beside it an approximation, not the exact variance of ``D``),
-    chi-square with one degree of freedom at ``alpha``; a real shift is
+    workpiece's (Hausman 1978), the shift ``D`` against its exact variance
+    ``var_d`` (:func:`_shift_variance`: both estimates are linear in the
+    data), chi-square with one degree of freedom at ``alpha`` (a shift whose
+    variance is zero, the two fits one map, is no shift); a real shift is
     carried, ``u^2 += D^2 / 4`` (the U95 reaches the answer beside the
     named causes alone). A magnitude determined beside the named causes
     alone and not beside the smooth is reported as no value
@@ -4568,11 +4607,11 @@ def _beside_smooth(vals: dict, u95: dict, vals_s: dict, u95_s: dict, alpha: floa
             # determined beside the named causes alone, not beside the smooth's columns (its ridge leaves a
             # direction the magnitude moves with undetermined): no estimate
             fig["not_determined"].append(key)
-        if v is None or u_s is None or v0 is None or u0 is None or not u0 > 0:
+        if v is None or u_s is None or v0 is None or u0 is None or not u0 > 0 or key not in var_d:
             continue
         d = float(v) - float(v0)
-        var_d = max(u_s ** 2 - u0 ** 2, 0.0) / 4.0
-        chi2 = d * d / var_d if var_d > 0 else (np.inf if d != 0 else 0.0)
+        vd = var_d[key]
+        chi2 = d * d / vd if vd > 0 else 0.0
         p = float(stats.chi2.sf(chi2, 1))
         fig["variance_inflation"][key] = float((u_s / u0) ** 2)
         fig["shift"][key] = d
@@ -5103,8 +5142,11 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             # the model reported holds the unnamed smooth too: the magnitudes are fitted beside its columns with
             # its penalty (the joint ridge fit, _magnitudes' penalised nuisance), and the shift the smooth makes
             # carried where it is real (session 20)
-            vals_s, u95_s = _magnitudes(cause, bl, tm, so.Q, rows, boot=(folds, others + smooth_terms))
-            vals, u95, beside_smooth = _beside_smooth(vals, u95, vals_s, u95_s, settings.alpha_family)
+            lin0, lin_s = {}, {}
+            _magnitudes(cause, bl, tm, so.Q, rows, boot=(folds, others), lin=lin0)  # vals' fit: its linear map
+            vals_s, u95_s = _magnitudes(cause, bl, tm, so.Q, rows, boot=(folds, others + smooth_terms), lin=lin_s)
+            vals, u95, beside_smooth = _beside_smooth(vals, u95, vals_s, u95_s, settings.alpha_family,
+                                                      _shift_variance(lin0, lin_s))
             beside_smooth = {"smooth": ", ".join(t.covariate for t in smooth_terms), **beside_smooth}
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
