@@ -4548,6 +4548,34 @@ def _within_range(cause, key: str, v: float, u: float, wide: list | None) -> tup
     return v, u
 
 
+def _magnitudes_beside_smooth(cause, bl, tm: Term, Qo, rows, folds, others, smooth_terms, vals, u95, alpha) -> tuple:
+    """An unpenalised named cause's magnitudes in the model that holds the unnamed smooth ``smooth_terms`` too.
+
+    ``vals``, ``u95``: fitted beside the named causes ``others`` alone (:func:`_magnitudes`). Fitted again beside
+    the smooth's columns with its penalty, the shift tested and carried (:func:`_beside_smooth`, its variance exact:
+    :func:`_shift_variance`); then the plausible range: a bounded magnitude whose U95 so made (the shift carried) is
+    wider than its whole range is reported as no value and its size said undetermined (``wider_than_range``; the
+    finding named at most ambiguous, as a magnitude wide at adoption is). Before (session 20's review) the range was
+    judged beside the smooth before the carry, the magnitude labelled ``not_determined`` (the smooth's ridge leaving
+    a direction open: a different reason) without the finding's flag, and the carried U95 never judged.
+    Returns (values, U95, evidence figures, the note for ``magnitude_undetermined`` or None).
+    """
+    lin0, lin_s, wide_s = {}, {}, []
+    _magnitudes(cause, bl, tm, Qo, rows, boot=(folds, others), lin=lin0)  # vals' fit: its linear map
+    vals_s, u95_s = _magnitudes(cause, bl, tm, Qo, rows, wide_s, boot=(folds, others + smooth_terms), lin=lin_s)
+    for key, v, u, _, _ in wide_s:  # the plausible range is judged after the carry, below
+        vals_s[key], u95_s[key] = v, u
+    vals, u95, fig = _beside_smooth(vals, u95, vals_s, u95_s, alpha, _shift_variance(lin0, lin_s))
+    wide = []
+    for key in list(u95):
+        if vals.get(key) is not None and u95[key] is not None:
+            vals[key], u95[key] = _within_range(cause, key, float(vals[key]), float(u95[key]), wide)
+    fig = {"smooth": ", ".join(t.covariate for t in smooth_terms), **fig, "wider_than_range": [w[0] for w in wide]}
+    note = "; ".join(f"{k} = {v:.3g} +- {u:.3g} beside the unnamed smooth (U95 wider than its plausible range "
+                     f"{lo:g}..{hi:g})" for k, v, u, lo, hi in wide) if wide else None
+    return vals, u95, fig, note
+
+
 def _shift_variance(lin0: dict, lin_s: dict) -> dict:
     """The exact variance of each magnitude's shift ``D = v_s - v_0`` between two fits linear in the data.
 
@@ -5137,17 +5165,13 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         else:
             vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows,
                                     boot=(folds, others, True) if folds is not None else None)
-        beside_smooth = None
+        beside_smooth, wide_note = None, None
         if smooth_terms and tm.penalty is None and MAGNITUDES_BESIDE_SMOOTH:
             # the model reported holds the unnamed smooth too: the magnitudes are fitted beside its columns with
             # its penalty (the joint ridge fit, _magnitudes' penalised nuisance), and the shift the smooth makes
             # carried where it is real (session 20)
-            lin0, lin_s = {}, {}
-            _magnitudes(cause, bl, tm, so.Q, rows, boot=(folds, others), lin=lin0)  # vals' fit: its linear map
-            vals_s, u95_s = _magnitudes(cause, bl, tm, so.Q, rows, boot=(folds, others + smooth_terms), lin=lin_s)
-            vals, u95, beside_smooth = _beside_smooth(vals, u95, vals_s, u95_s, settings.alpha_family,
-                                                      _shift_variance(lin0, lin_s))
-            beside_smooth = {"smooth": ", ".join(t.covariate for t in smooth_terms), **beside_smooth}
+            vals, u95, beside_smooth, wide_note = _magnitudes_beside_smooth(
+                cause, bl, tm, so.Q, rows, folds, others, smooth_terms, vals, u95, settings.alpha_family)
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)
@@ -5159,6 +5183,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             ev["not_identifiable_directions"] = int(tm.weak)
         if beside_smooth is not None:
             ev["magnitudes_beside_smooth"] = beside_smooth
+        if wide_note is not None:  # named at most ambiguous (step 8), as a magnitude wide at adoption is
+            ev["magnitude_undetermined"] = "; ".join(x for x in (ev.get("magnitude_undetermined"), wide_note) if x)
         # what the cause explains beside the others (the rival check's own figure; its tests were made)
         explained = max(_named_ss(so, sf, sig), 0.0) / UM ** 2
         ev["explained_ss_um2"] = explained

@@ -105,3 +105,33 @@ def test_gen_a_reversal_1054_lost_motion_within_its_u95_beside_the_feature_smoot
     assert [(f["cause"], f["evidence"].get("confidence")) for f in before["findings"]] == \
         [(f["cause"], f["evidence"].get("confidence")) for f in after["findings"]]
     assert before["workpiece"] == after["workpiece"]
+
+
+def _ranged(lam, bounds, smooth_coef):
+    x, S, cause, tm, sm, Qo = _linear_case(lam)
+    cause.bounds = bounds
+    rows = np.arange(len(x))
+    y = 0.5 + 2.0 * x + S @ np.asarray(smooth_coef) + np.random.default_rng(3).standard_normal(len(x))
+    bl = types.SimpleNamespace(y=y)
+    v0, u0 = D._magnitudes(cause, bl, tm, Qo, rows, boot=(None, []))
+    return D._magnitudes_beside_smooth(cause, bl, tm, Qo, rows, None, [], [sm], v0, u0, 0.05)
+
+
+def test_beside_smooth_range_judged_after_the_carry():
+    """The plausible range is judged on the U95 reported beside the smooth, the shift carried: a magnitude whose
+    U95 there exceeds its range is no value, said undetermined in size (``wider_than_range`` and the note that makes
+    the finding ambiguous), not ``not_determined`` (a direction the ridge leaves open). Before, the U95 beside the
+    smooth was judged before the carry and labelled ``not_determined`` without the flag; the carried one not at all.
+    """
+    # no shift to carry: the U95 beside the smooth (about 1.5 at lam 3) against a range of 1
+    v, u, fig, note = _ranged(3.0, {"a_um": (1.5, 2.5)}, (0.0, 0.0, 0.0))
+    assert v["a_um"] is None and u["a_um"] is None
+    assert fig["wider_than_range"] == ["a_um"] and fig["not_determined"] == [] and "a_um" in note
+    # U95 1.81 beside the smooth, within a range of 2.1; the carried shift (-1.67) takes it to 2.46, beyond
+    v0, u0, fig0, _ = _ranged(3.0, {}, (5.0, 5.0, 5.0))
+    assert fig0["carried_in_u95"] == ["a_um"] and np.sqrt(u0["a_um"] ** 2 - fig0["shift"]["a_um"] ** 2) < 2.1 < u0["a_um"]
+    v, u, fig, note = _ranged(3.0, {"a_um": (11.0, 13.1)}, (5.0, 5.0, 5.0))
+    assert v["a_um"] is None and fig["wider_than_range"] == ["a_um"] and note
+    # a wide range: reported, no note
+    v, u, fig, note = _ranged(3.0, {"a_um": (-100.0, 100.0)}, (5.0, 5.0, 5.0))
+    assert v["a_um"] is not None and fig["wider_than_range"] == [] and note is None
