@@ -7,7 +7,6 @@ old ridge. Here the ridge chosen again is forced ten times larger, and the repor
 made afresh in the final model (the cache never hit).
 """
 
-import numpy as np
 import pytest
 
 import core.discover as D
