@@ -1068,7 +1068,7 @@ class Term:
     labels_all: tuple = ()  # the scan's labels (the magnitudes' coefficient layout)
     map: np.ndarray | None = field(default=None, repr=False)  # (k_all, k): label coefficients per column
     cols_all: np.ndarray | None = field(default=None, repr=False)  # (N, k_all) the scan's columns
-    # (Qo, rows, magnitudes, u95, names of the penalised terms it was fitted beside) of the adoption test: the model
+    # (Qo, rows, magnitudes, u95, _pen_key of the penalised terms it was fitted beside) of the adoption test: the model
     # it was judged beside (Qo does not show the penalised terms)
     at_adoption: tuple | None = field(default=None, repr=False, compare=False)
     unnamed: bool = False
