@@ -1940,13 +1940,23 @@ def approach_sign_p(bl: Baseline, outliers, r_um: np.ndarray, seed) -> tuple | N
     if len(np.asarray(t.t_s)) != len(bl.y):
         return None
     c = centred_sign_of(t.n_R, t.d_R, t.target)
+    outliers = np.asarray(outliers, int)
+    r_um = np.asarray(r_um, float)
+    rev = causes_mod.lookup("reversal", bl.kind)
+    b_max = {j: max((abs(float(v)) for v in rev.bounds.get(f"{ax}_lost_motion_um", (np.inf,))), default=np.inf)
+             if rev is not None else np.inf for j, ax in enumerate("xy")}
     ps = []
     for j in range(2):
         if np.any(np.abs(c[:, j]) > 1e-9):
             ps.append((centred_turn_p(c[:, j], outliers, r_um, np.random.default_rng([seed, 2, j])),
                        "centred sign", "XY"[j]))
-        ps.append((near_across_p(np.abs(t.d_R[:, j]), outliers, np.random.default_rng([seed, 3, j])),
-                   "nearly across", "XY"[j]))
+        # a lost motion moves a touch by at most |n_ax| B: an outlier on a touch whose normal cannot carry its
+        # residual within the reversal cause's plausible |B| is no lost motion's along this axis, whatever its
+        # approach; the test counts only the outliers a lost motion could have made (two or more)
+        carry = np.abs(np.asarray(t.n_R, float)[outliers, j]) * b_max[j] >= np.abs(r_um)
+        if np.count_nonzero(carry) >= 2:
+            ps.append((near_across_p(np.abs(t.d_R[:, j]), outliers[carry], np.random.default_rng([seed, 3, j])),
+                       "nearly across", "XY"[j]))
     p, test, ax = min(ps)
     return min(1.0, len(ps) * p), test, ax
 

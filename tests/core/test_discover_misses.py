@@ -1632,6 +1632,35 @@ def test_outliers_on_a_lost_motions_visible_part_are_not_confidently_dust():
     assert f["evidence"]["ambiguous_with"] == ["reversal"], f["evidence"]
 
 
+def test_outliers_a_lost_motion_cannot_reach_are_not_evidence_for_reversal():
+    """The review of csign's nearly-across test: it ranked touches by |d_ax| only, though a lost motion moves a
+    touch by at most |n_ax| |B|. gen_a outlier 1000 (tuning seed; its own outliers rows 48, 171, 315 named,
+    confident) with 3 um put along the normal on the three touches nearest across X (rows 79, 85, 88: |d_x|
+    0.033, 0.034, 0.002, |n_x| 0.034, 0.034, 0.002): row 88 needs |B| >= 1,200 um along X to read 2.3 um, beyond
+    the reversal cause's plausible 100 um, so no lost motion made it. Before the fix the family's p was 1.3e-3
+    (nearly across along X) and the finding ambiguous with reversal; counting only the outliers whose |n_ax|
+    times the bound reaches their residual, it stays a confident `outlier` (p 0.058)."""
+    import dataclasses
+
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+
+    log, tr = gen_a.generate("outlier", 1000)
+    t = from_log(log)
+    rows = [79, 85, 88]
+    assert np.all(np.abs(t.d_R[rows, 0]) < 0.05) and np.all(np.abs(t.n_R[rows, 0]) < 0.05)
+    p = t.p_R.copy()
+    p[rows] += 3e-6 * t.n_R[rows]
+    t = dataclasses.replace(t, p_R=p)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "outlier" and set(rows) <= set(f["evidence"]["rows"]), f["evidence"]
+    assert f["evidence"]["approach_sign_p"] >= 0.0025, f["evidence"]
+    assert f["evidence"]["confidence"] == "named", f["evidence"]
+    assert "ambiguous_with" not in f["evidence"], f["evidence"]
+
+
 # --- session 20 (issue 13): a penalised named cause's ridge chosen again in the model the report gives --------------
 
 @pytest.mark.parametrize("seed", [1001, 1092])
