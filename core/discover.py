@@ -3891,7 +3891,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     return out
 
 
-def _time_forms_chosen(owns: list, rows, st: _State, settings, bl=None) -> list:
+def _time_forms_chosen(owns: list, rows, st: _State, settings, bl) -> list:
     """Each feature's trial in one time form (:func:`core.causes.part_change_times`): the step per set-up where the
     data ask for it, else the continuous form (the form before there were two).
 
@@ -3921,7 +3921,7 @@ def _time_forms_chosen(owns: list, rows, st: _State, settings, bl=None) -> list:
     if not cont:
         return owns
     drop = set()
-    level = dict(causes_mod.part_change_times(bl)).get("per_setup") if bl is not None else None
+    level = dict(causes_mod.part_change_times(bl)).get("per_setup")
     for o in owns:
         info = o.scan.infos[o.index]
         form = info.get("time_form")
@@ -4635,19 +4635,21 @@ def _beside_smooth(vals: dict, u95: dict, vals_s: dict, u95_s: dict, alpha: floa
     :func:`_magnitudes`, its U95 from the fit's Bayesian covariance
     ``s^2 (X^T X + P)^-1``, as the extended workpiece's; a magnitude along
     a direction the smooth's ridge leaves undetermined is None there).
-    Reported: the latter, whose U95 counts the smooth (its square over the
-    former's is the variance inflation the smooth brings). The smooth has
-    no physics: how an effect splits between it and the cause is its form's
-    and its penalty's, not a measurement. The two estimates of one
-    magnitude are compared as :func:`_unnamed_shift` compares the
-    workpiece's (Hausman 1978), the shift ``D`` against its exact variance
-    ``var_d`` (:func:`_shift_variance`: both estimates are linear in the
-    data), chi-square with one degree of freedom at ``alpha`` (a shift whose
-    variance is zero, the two fits one map, is no shift); a real shift is
-    carried, ``u^2 += D^2 / 4`` (the U95 reaches the answer beside the
-    named causes alone). A magnitude determined beside the named causes
-    alone and not beside the smooth is reported as no value
-    (``not_determined``).
+    The smooth has no physics: how an effect splits between it and the
+    cause is its form's and its penalty's, not a measurement. The two
+    estimates of one magnitude are compared as :func:`_unnamed_shift`
+    compares the workpiece's (Hausman 1978), the shift ``D`` against its
+    exact variance ``var_d`` (:func:`_shift_variance`: both estimates are
+    linear in the data), chi-square with one degree of freedom at ``alpha``
+    (a shift whose variance is zero, the two fits one map, is no shift);
+    the variance inflation the smooth brings is ``(U95_s / U95)^2``.
+    Reported (:data:`MAGNITUDES_BESIDE_SMOOTH_VALUE`): ``"named_alone"``,
+    the default, the value beside the named causes alone with U95
+    ``hypot(U95_s, D)`` (the shift always carried: the U95 reaches the
+    answer beside the smooth); ``"smooth"``, the value beside the smooth
+    with U95 ``U95_s``, ``hypot(U95_s, D)`` where the shift is significant.
+    A magnitude determined beside the named causes alone and not beside the
+    smooth is reported as no value (``not_determined``).
 
     Returns (values, U95, figures for the evidence).
     """
