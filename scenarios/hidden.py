@@ -114,7 +114,8 @@ def _effects(causes, rng, duration_s: float):
         if c == "none":
             continue
         if c not in _EFFECTS:
-            raise ConfigError(f"unknown hidden cause {c!r}; expected one of {', '.join(HIDDEN_CAUSES + HIDDEN_EXTRA)}")
+            raise ConfigError(f"unknown hidden cause {c!r}; expected one of "
+                              f"{', '.join(HIDDEN_CAUSES + HIDDEN_EXTRA)}")
         out = _EFFECTS[c](rng, duration_s)
         e_errs, e_probe, e_chips, params[c] = out[:4]
         if len(out) > 4:
@@ -250,7 +251,8 @@ def _part_change(rng, duration_s):
 
 #: cause -> builder ``(rng, duration_s) -> (errors, probe settings, chips, params)``.
 _EFFECTS = {"thermal_drift": _thermal_drift, "periodic_axis_error": _periodic_axis_error,
-            "probe_lobing": _probe_lobing, "reversal": _reversal, "reversal_lag": _reversal_lag, "nonrigid": _nonrigid, "outlier": _outlier,
+            "probe_lobing": _probe_lobing, "reversal": _reversal, "reversal_lag": _reversal_lag,
+            "nonrigid": _nonrigid, "outlier": _outlier,
             "c_drift": _c_drift, "temperature_expansion": _temperature_expansion,
             "local_scale_defect": _local_scale_defect, "lobing_per_setup": _lobing_per_setup,
             "part_change": _part_change}
