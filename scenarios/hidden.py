@@ -12,7 +12,7 @@ cause                 where it is hidden
 thermal_drift         ``Drift`` of an X/Y offset or scale in the machine
 periodic_axis_error   ``Periodic`` term (5-15 mm period) on one X/Y error
 probe_lobing          the probe's pre-travel lobing (k = 2, 3 Fourier terms)
-reversal              ``Reversal`` (lost motion) of the X or Y axis
+reversal              ``Reversal`` (lost motion) of the X or Y axis, a lead
 nonrigid              ``CrossAxis``: the X error grows with x * y
 outlier               a chip on the pocket wall during one set-up (1-3 touches)
 c_drift          ``Drift`` of ``ECC`` (saturating) over the campaign
@@ -24,6 +24,15 @@ lobing_per_setup  a 2-lobe pre-travel turned by a random angle in
                       every set-up (one probe run per set-up)
 part_change           one pocket wall growing set-up by set-up (a bump
                       over the wall's middle; one part per set-up)
+===================== ========================================================
+
+Drawn on request only (:data:`HIDDEN_EXTRA`, not in :data:`HIDDEN_CAUSES`, so
+a study over every effect and the seeds' campaigns are as before):
+
+===================== ========================================================
+reversal_lag          the same draw as ``reversal`` (axis, size) as a lag,
+                      ``Reversal(..., sense="lag")``: backlash, the axis
+                      stopping short; read as ``reversal``
 ===================== ========================================================
 
 Not simulated here (the simulator's plans approach along the normal):
@@ -63,6 +72,9 @@ from core.units import MM, UM
 
 #: Hidden causes this campaign's geometry cannot name (see the module doc).
 NOT_NAMEABLE = ("lobing_per_setup",)
+#: Hidden effects drawn only when asked for by name, and the catalogue cause that names each.
+HIDDEN_EXTRA = ("reversal_lag",)
+_READ_AS = {"reversal_lag": "reversal"}
 
 HIDDEN_CAUSES = ("none", "outlier", "thermal_drift", "periodic_axis_error", "probe_lobing", "reversal",
                  "nonrigid", "c_drift", "temperature_expansion", "local_scale_defect", "lobing_per_setup",
@@ -102,7 +114,8 @@ def _effects(causes, rng, duration_s: float):
         if c == "none":
             continue
         if c not in _EFFECTS:
-            raise ConfigError(f"unknown hidden cause {c!r}; expected one of {', '.join(HIDDEN_CAUSES)}")
+            raise ConfigError(f"unknown hidden cause {c!r}; expected one of "
+                              f"{', '.join(HIDDEN_CAUSES + HIDDEN_EXTRA)}")
         out = _EFFECTS[c](rng, duration_s)
         e_errs, e_probe, e_chips, params[c] = out[:4]
         if len(out) > 4:
@@ -157,6 +170,17 @@ def _reversal(rng, duration_s):
     sym = str(rng.choice(["EXX", "EYY"]))
     m = abs(_mag(rng))
     return {sym: Reversal(m)}, {}, [], {"symbol": sym, "lost_motion_um": m / UM}
+
+
+def _reversal_lag(rng, duration_s):
+    """:func:`_reversal`'s draw as a lag (backlash, the axis stopping short): the truth ``lost_motion_um`` is
+    ISO 230-2's signed reversal value ``-size``, which the report's ``x_lost_motion_um`` / ``y_lost_motion_um``
+    read with the same sign. Seed for seed the mirror of ``reversal``'s campaign."""
+    from sim.errorfuncs import Reversal
+
+    sym = str(rng.choice(["EXX", "EYY"]))
+    m = abs(_mag(rng))
+    return {sym: Reversal(m, sense="lag")}, {}, [], {"symbol": sym, "lost_motion_um": -m / UM, "sense": "lag"}
 
 
 def _nonrigid(rng, duration_s):
@@ -227,7 +251,8 @@ def _part_change(rng, duration_s):
 
 #: cause -> builder ``(rng, duration_s) -> (errors, probe settings, chips, params)``.
 _EFFECTS = {"thermal_drift": _thermal_drift, "periodic_axis_error": _periodic_axis_error,
-            "probe_lobing": _probe_lobing, "reversal": _reversal, "nonrigid": _nonrigid, "outlier": _outlier,
+            "probe_lobing": _probe_lobing, "reversal": _reversal, "reversal_lag": _reversal_lag,
+            "nonrigid": _nonrigid, "outlier": _outlier,
             "c_drift": _c_drift, "temperature_expansion": _temperature_expansion,
             "local_scale_defect": _local_scale_defect, "lobing_per_setup": _lobing_per_setup,
             "part_change": _part_change}
@@ -296,7 +321,7 @@ def hidden_campaign(causes=("none",), seed: int = 0, *, noise_sigma_m: float = 0
     first = {k: plan.target.index(k) for k in tg}
     truth = HiddenTruth(causes=causes, params=params, g_true_m=g_true,
                         w_A={k: plan.w_A[first[k], :2] for k in tg}, wn_A={k: plan.wn_A[first[k], :2] for k in tg},
-                        outlier_rows=tuple(out_rows), acceptable=tuple(c for c in causes) + tuple(
+                        outlier_rows=tuple(out_rows), acceptable=tuple(_READ_AS.get(c, c) for c in causes) + tuple(
                             "unexplained" for c in causes if c in NOT_NAMEABLE))
     return log, truth
 
@@ -656,7 +681,7 @@ def in_catalogue(o, cat=None) -> bool:
     thermal_bending may be read ``thermal_drift`` or ``unexplained``, and its confident wrong names count in
     ``confident_misnamed`` (until session 18 it was scored as a catalogue effect, which hid them)."""
     cat = catalogue_names() if cat is None else cat
-    return o.effect in cat and bool(set(o.acceptable) & cat)
+    return _READ_AS.get(o.effect, o.effect) in cat and bool(set(o.acceptable) & cat)
 
 
 def misnamed_confidently(o, cat=None) -> bool:

@@ -150,6 +150,7 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
                   noise_um: float = 0.5, n_targets: int = 11, travel_mm=None, cycles: int = 5,
                   cycle_kind: str = "linear", overrun_mm: float = 5.0, feed_mm_min: float = 2000.0,
                   dwell_s: float = 2.0, line_mm=None, reversal_um: float = 0.0,
+                  reversal_sense: str = "lead",
                   drift_um_per_h: float = 0.0, drift_tau_s: float | None = None):
     """An ISO 230-2 test of ``axis`` on a named virtual machine: a positioning log.
 
@@ -157,7 +158,8 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
     (:mod:`sim.machinefile`, whose errors are its own). ``errors`` for a
     built-in: an error set of :func:`sim.machinefile.truth_machine`
     (``realistic``, the default, ``study``, ``drawn`` or ``none``). ``reversal_um`` adds lost motion
-    (``Reversal``: +L/2 moving in +, -L/2 in -) and ``drift_um_per_h`` an
+    (``Reversal``: +L/2 moving in +, -L/2 in -, a lead, ISO 230-2's ``B_i = +L``; with ``reversal_sense="lag"``
+    -L/2 moving in +, +L/2 in -, backlash stopping short, ``B_i = -L``) and ``drift_um_per_h`` an
     offset drift (``Drift``, linear, or approaching its steady state with
     time constant ``drift_tau_s``) to the axis's positioning error
     (``EXX`` for X, ...). Error values are ISO 230-1's (the tool relative
@@ -186,9 +188,11 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
         raise ConfigError(f"--drift-um-per-h must be finite, got {drift_um_per_h!r}")
     if not (np.isfinite(feed_mm_min) and feed_mm_min > 0):
         raise ConfigError(f"--move-feed-mm-min must be > 0, got {feed_mm_min!r}")
+    if reversal_sense not in ("lead", "lag"):
+        raise ConfigError(f"--reversal-sense {reversal_sense!r}: expected lead or lag")
     sym = f"E{axis}{axis}"
     if reversal_um:
-        errs = _error_fn_with(errs, sym, Reversal(reversal_um * 1e-6))
+        errs = _error_fn_with(errs, sym, Reversal(reversal_um * 1e-6, reversal_sense))
     if drift_um_per_h:
         errs = _error_fn_with(errs, sym, Drift(offset_rate=drift_um_per_h * 1e-6 / 3600.0, tau_s=drift_tau_s))
     machine = Machine(replace(cfg, errors=errs))
@@ -198,6 +202,8 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
         overrun_m=overrun_mm * 1e-3, feed_mps=feed_mm_min * 1e-3 / 60.0, dwell_s=dwell_s,
         line_m=None if line_mm is None else np.asarray(line_mm, float) * 1e-3, rng=rng)
     meta = {"errors": errors, "reversal_um": f"{reversal_um:g}", "drift_um_per_h": f"{drift_um_per_h:g}"}
+    if reversal_sense != "lead":  # a lead's log as before the sense existed
+        meta["reversal_sense"] = reversal_sense
     if drift_tau_s:
         meta["drift_tau_s"] = f"{drift_tau_s:g}"
     return simulate_positioning(machine, plan, rng, noise_m=noise_um * 1e-6, meta=meta)

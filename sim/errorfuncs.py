@@ -345,26 +345,38 @@ class Drift(ErrorFunction):
 
 @dataclass(frozen=True)
 class Reversal(ErrorFunction):
-    """Direction-dependent error (backlash): ``+lost_motion/2`` moving in +,
-    ``-lost_motion/2`` moving in -, 0 when ``direction`` is 0 or None.
+    """Direction-dependent error (lost motion): ``lost_motion/2`` added to the
+    axis in the direction it moves (``sense="lead"``, the default) or against
+    it (``sense="lag"``); 0 when ``direction`` is 0 or None.
 
     The error is added to the actual position (``Machine.tip_W``: actual =
-    reading + error), so a positive ``lost_motion`` is a LEAD: the axis is
-    ahead of its reading in the direction it moves. Its ISO 230-2 reversal
-    value (2.12, ``x_up - x_down``, deviation = actual minus target) is
-    ``+lost_motion``, and discover reports it as ``x_lost_motion_um`` /
-    ``y_lost_motion_um`` = ``+lost_motion`` (core.causes.reversal_scans). A
-    carriage that lags (backlash stopping short: ISO B negative, what the
-    blind generators inject) is not expressible here (``lost_motion >= 0``).
+    reading + error). A LEAD (``+lost_motion/2`` moving in +, ``-lost_motion/2``
+    moving in -) puts the axis ahead of its reading in the direction it moves;
+    a LAG (``-lost_motion/2`` moving in +, ``+lost_motion/2`` moving in -) is
+    the usual backlash, the carriage stopping short of its reading. ISO 230-2's
+    signed reversal value (2.12, ``B_i = x_up - x_down``, deviation = actual
+    minus target) is :attr:`reversal_value`: ``+lost_motion`` for a lead,
+    ``-lost_motion`` for a lag, and discover reports it with that sign as
+    ``x_lost_motion_um`` / ``y_lost_motion_um`` (core.causes.reversal_scans).
+    ``lost_motion >= 0`` is the size (2.13's unsigned ``B`` of the axis).
     """
 
     lost_motion: float
+    sense: str = "lead"
 
     def __post_init__(self):
         v = _finite("Reversal.lost_motion", self.lost_motion)
         if v < 0:
-            raise ConfigError(f"Reversal.lost_motion must be >= 0, got {v}")
+            raise ConfigError(f"Reversal.lost_motion must be >= 0 (its sign is sense, \"lead\" or \"lag\"), "
+                              f"got {v}")
+        if self.sense not in ("lead", "lag"):
+            raise ConfigError(f"Reversal.sense must be \"lead\" or \"lag\", got {self.sense!r}")
         object.__setattr__(self, "lost_motion", v)
+
+    @property
+    def reversal_value(self) -> float:
+        """ISO 230-2's signed reversal value ``B_i = x_up - x_down`` of this error (m): +size lead, -size lag."""
+        return self.lost_motion if self.sense == "lead" else -self.lost_motion
 
     @property
     def static(self) -> bool:
@@ -374,7 +386,8 @@ class Reversal(ErrorFunction):
         p = np.atleast_1d(np.asarray(pos, float))
         if direction is None:
             return np.zeros(p.shape)
-        return 0.5 * self.lost_motion * np.sign(np.broadcast_to(np.asarray(direction, float), p.shape))
+        half = 0.5 * self.lost_motion if self.sense == "lead" else -0.5 * self.lost_motion
+        return half * np.sign(np.broadcast_to(np.asarray(direction, float), p.shape))
 
     def derivative(self, pos, t_s=None, direction=None):
         return np.zeros(np.atleast_1d(np.asarray(pos, float)).shape)

@@ -65,7 +65,11 @@ positions in m, mm or deg as the key says; a rotary axis's positions in deg)
   (``sim.errorfuncs.Drift``; ``scale_ppm_*`` for translations of a linear
   axis only: um per m of reading);
 - ``reversal_U``: lost motion (>= 0), half of it added moving in +,
-  subtracted moving in -.
+  subtracted moving in - (a lead: ISO 230-2's reversal value ``B_i =
+  +reversal_U``); with ``reversal_sense = "lag"`` half of it subtracted
+  moving in +, added moving in - (backlash, the axis stopping short of its
+  reading: ``B_i = -reversal_U``). ``reversal_sense`` is ``"lead"`` by
+  default and needs ``reversal_U`` (``sim.errorfuncs.Reversal``).
 
 Location errors (``EC0Y``, ``EB0Z``, ``EA0Z``, ``EX0C`` ...) take
 ``constant_U`` only.
@@ -291,7 +295,7 @@ def describe_error(f: ErrorFunction, s) -> str:
     if isinstance(f, Periodic):
         return f"periodic {f.amplitude / UM:g} {u}, period {f.period / pf:g} {pos}, phase {f.phase / DEG:g} deg"
     if isinstance(f, Reversal):
-        return f"reversal {f.lost_motion / UM:g} {u}"
+        return f"reversal {f.lost_motion / UM:g} {u}" + (", lag" if f.sense == "lag" else "")
     if isinstance(f, Drift):
         return "thermal drift"
     return type(f).__name__
@@ -495,7 +499,8 @@ class _Reader(KeyReader):
         allowed = {f"constant_{U}"}
         if not s.location:
             allowed |= {f"slope_{U}_per_{P}", f"quadratic_{U}_per_{P}2", f"cubic_{U}_per_{P}3",
-                        f"table_{Pt}", f"table_{U}", "interpolation", "periodic", "thermal", f"reversal_{U}"}
+                        f"table_{Pt}", f"table_{U}", "interpolation", "periodic", "thermal", f"reversal_{U}",
+                    "reversal_sense"}
         if not t:
             self.fail(key, f"no terms (expected {', '.join(sorted(allowed))})")
         for k in t:
@@ -552,8 +557,14 @@ class _Reader(KeyReader):
                                       self.number(f"{pk}.phase_deg", item.get("phase_deg", 0.0)) * DEG))
         if "thermal" in t:
             terms.append(self.thermal(f"{key}.thermal", s, U, self.table(f"{key}.thermal", t["thermal"])))
+        if "reversal_sense" in t and f"reversal_{U}" not in t:
+            self.fail(f"{key}.reversal_sense", f"needs reversal_{U} (the lost motion's size)")
         if f"reversal_{U}" in t:
-            terms.append(Reversal(self.number(f"{key}.reversal_{U}", t[f"reversal_{U}"], nonneg=True) / 1e6))
+            sense = t.get("reversal_sense", "lead")
+            if sense not in ("lead", "lag"):
+                self.fail(f"{key}.reversal_sense", f"expected \"lead\" or \"lag\", got {sense!r}")
+            terms.append(Reversal(self.number(f"{key}.reversal_{U}", t[f"reversal_{U}"], nonneg=True) / 1e6,
+                                  sense))
         if not terms:
             return Constant(0.0)
         return terms[0] if len(terms) == 1 else Sum(tuple(terms))

@@ -118,7 +118,7 @@ def run(args) -> int:
 # --------------------------------------------------------------------------- vmt simulate positioning
 #: Options only ``vmt simulate positioning`` takes (dest names).
 POSITIONING_ONLY = ("axis", "targets", "travel_mm", "cycles", "cycle", "overrun_mm", "move_feed", "dwell_s", "scatter_um",
-                    "line_mm", "reversal_um", "drift_um_per_h", "drift_tau_s")
+                    "line_mm", "reversal_um", "reversal_sense", "drift_um_per_h", "drift_tau_s")
 
 
 def _add_positioning_options(p) -> None:
@@ -139,6 +139,9 @@ def _add_positioning_options(p) -> None:
     g.add_argument("--line-mm", metavar="X,Y,Z", help="measuring line: readings of the other axes, mm "
                    "(the tested axis's entry is ignored; default mid-stroke)")
     g.add_argument("--reversal-um", type=float, help="lost motion added to the axis's positioning error, µm (0)")
+    g.add_argument("--reversal-sense", choices=("lead", "lag"),
+                   help="the lost motion leads the reading (ISO 230-2 B_i = +size, the default) or lags it "
+                        "(backlash, the axis stopping short: B_i = -size)")
     g.add_argument("--drift-um-per-h", type=float, help="offset drift added to the axis's positioning error, µm/h (0)")
     g.add_argument("--drift-tau-s", type=float, help="the drift approaches its steady state with this time constant, s")
 
@@ -188,6 +191,7 @@ def _run_positioning(args) -> int:
         noise_um=opt("scatter_um", 0.5), n_targets=opt("targets", 11), travel_mm=travel, cycles=opt("cycles", 5),
         cycle_kind=opt("cycle", "linear"), overrun_mm=opt("overrun_mm", 5.0), feed_mm_min=opt("move_feed", 2000.0),
         dwell_s=opt("dwell_s", 2.0), line_mm=line, reversal_um=opt("reversal_um", 0.0),
+        reversal_sense=opt("reversal_sense", "lead"),
         drift_um_per_h=opt("drift_um_per_h", 0.0), drift_tau_s=args.drift_tau_s)
     write_positioning_log(args.out, log, special=True)
     m = len(set(log.target.tolist()))

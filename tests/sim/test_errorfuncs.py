@@ -63,6 +63,18 @@ def test_reversal_depends_on_direction():
     assert np.all(f(POS) == 0)
 
 
+def test_reversal_lag_is_the_lead_mirrored():
+    """A lag (backlash, the axis stopping short) subtracts half the lost motion moving in + and adds it moving in -:
+    ISO 230-2's reversal value ``x_up - x_down`` is -size, a lead's +size; the default is the lead, as before."""
+    lead, lag = Reversal(4e-6), Reversal(4e-6, sense="lag")
+    d = np.array([1.0, -1.0, 0.0])
+    assert lead.sense == "lead" and lead == Reversal(4e-6, "lead")
+    assert np.array_equal(lag(POS[:3], direction=d), -lead(POS[:3], direction=d))
+    assert np.array_equal(lag(POS[:3], direction=d), [-2e-6, 2e-6, 0.0])
+    assert lead.reversal_value == 4e-6 and lag.reversal_value == -4e-6
+    assert np.all(lag(POS) == 0) and lag.static is False
+
+
 def test_sum_and_add():
     f = Constant(1e-6) + Periodic(1e-6, 0.01)
     assert isinstance(f, Sum)
@@ -96,6 +108,7 @@ def test_derivative_matches_finite_differences(f):
     (lambda: Drift(scale_per_K=1e-5), "need a temperature history"),
     (lambda: Drift(temperature_t_s=(0, 1), temperature_K=(293,)), "temperature_K has 1"),
     (lambda: Reversal(-1e-6), "lost_motion must be >= 0"),
+    (lambda: Reversal(1e-6, sense="behind"), "sense must be"),
     (lambda: Sum(()), "non-empty"),
     (lambda: Sum((Constant(0.0), 3.0)), "not an error function"),
 ])

@@ -137,6 +137,9 @@ BAD = [
     ('base = "vmc-3axis"\n[error.EXX]\nperiodic = [{ amplitude_um = 1 }]\n', r"error.EXX.periodic\[0\].period_mm: missing"),
     ('base = "vmc-3axis"\n[error.EXX]\nperiodic = [{ amplitude_um = 1, period_mm = 0 }]\n', "must be > 0"),
     ('base = "vmc-3axis"\n[error.EXX]\nreversal_um = -1\n', "error.EXX.reversal_um: must be >= 0"),
+    ('base = "vmc-3axis"\n[error.EXX]\nreversal_um = 1\nreversal_sense = "behind"\n',
+     "error.EXX.reversal_sense: expected"),
+    ('base = "vmc-3axis"\n[error.EXX]\nreversal_sense = "lag"\n', "error.EXX.reversal_sense: needs reversal_um"),
     ('base = "vmc-3axis"\n[error.EAX]\nthermal = { scale_ppm_per_h = 1 }\n', "error.EAX.thermal.scale_ppm_per_h: unknown key"),
     ('base = "vmc-3axis"\n[error.EXX]\n', "error.EXX: no terms"),
     ('base = "vmc-3axis"\n[probe]\nnoise_um = -1\n', "probe.noise_um: must be >= 0"),
@@ -183,3 +186,20 @@ def test_errors_label_says_what_errors_a_machine_file_has(tmp_path):
     assert sha2 != sha
     assert errors_label(str(p), truth_machine(str(p))) == f"machine file m.toml (sha256 {sha2}): base realistic, seed 3"
     assert errors_label("nmv3000", truth_machine("nmv3000", "study")) == "study"
+
+
+def test_a_lagging_reversal_in_a_machine_file():
+    """``reversal_sense = "lag"``: the axis stops short of its reading by half the lost motion (ISO 230-2's
+    ``B_i = -reversal_um``); without the key the reversal leads, as before."""
+    from core import iso
+    from sim.errorfuncs import Reversal
+    from sim.machinefile import describe_error
+
+    lag = loads('base = "vmc-3axis"\n[error.EXX]\nreversal_um = 4.0\nreversal_sense = "lag"\n').config.errors["EXX"]
+    lead = loads('base = "vmc-3axis"\n[error.EXX]\nreversal_um = 4.0\n').config.errors["EXX"]
+    assert lag == Reversal(4e-6, "lag") and lead == Reversal(4e-6)
+    d = np.array([1.0, -1.0])
+    assert np.allclose(lag(np.zeros(2), direction=d), [-2e-6, 2e-6], atol=1e-18)
+    assert np.allclose(lead(np.zeros(2), direction=d), [2e-6, -2e-6], atol=1e-18)
+    sym = iso.symbol("EXX")
+    assert describe_error(lag, sym) == "reversal 4 um, lag" and describe_error(lead, sym) == "reversal 4 um"

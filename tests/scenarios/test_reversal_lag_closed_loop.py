@@ -1,0 +1,71 @@
+"""A lag and a lead of known size through the exact simulator, read back with ISO 230-2's sign (session 21, issue 13).
+
+``sim.errorfuncs.Reversal(size, sense="lag")`` is backlash, the axis stopping short of its reading by ``size/2``
+against its motion; ``sense="lead"`` (the default) is the mirror. ISO 230-2's signed reversal value
+``B_i = x_up - x_down`` is ``-size`` for the lag and ``+size`` for the lead (docs/discovery.md, "Session 20: the sign
+of the reported lost motion"; the hand-built known answers without sim/ are tests/core/test_reversal_sign.py). Here
+the same truths go through the simulator: discover's ``x_lost_motion_um`` / ``y_lost_motion_um`` on a cross-pocket
+campaign (``scenarios.hidden``: ``reversal`` a lead, ``reversal_lag`` the same draw as a lag) and
+``core.positioning.iso230_2`` on a simulated ISO 230-2 run (``scenarios.positioning.simulate_test``).
+"""
+
+import numpy as np
+import pytest
+
+from core.positioning import iso230_2
+from scenarios.positioning import simulate_test
+
+SIZE_UM = 6.0
+
+
+@pytest.mark.parametrize("sense, sign", [("lead", 1.0), ("lag", -1.0)])
+def test_iso_230_2_of_a_simulated_positioning_run_reads_the_sense(sense, sign):
+    """No machine errors, no scatter: at every target ``B_i`` is exactly ``sign * size`` (2.12), ``B`` the size."""
+    log = simulate_test("vmc-3axis", "X", np.random.default_rng(0), errors="none", noise_um=0.0,
+                        reversal_um=SIZE_UM, reversal_sense=sense)
+    res = iso230_2(log)
+    assert np.allclose(np.asarray(res.B_i) * 1e3, sign * SIZE_UM, atol=1e-9)
+    assert res.B_mean * 1e3 == pytest.approx(sign * SIZE_UM, abs=1e-9)
+    assert res.B * 1e3 == pytest.approx(SIZE_UM, abs=1e-9)  # 2.13: max |B_i|, unsigned
+    assert log.meta.get("reversal_sense", "lead") == sense
+
+
+def test_a_lead_positioning_log_is_as_before_the_sense():
+    """The default sense writes the log it wrote before (no new meta key, the same readings)."""
+    a = simulate_test("vmc-3axis", "X", np.random.default_rng(3), reversal_um=2.0)
+    b = simulate_test("vmc-3axis", "X", np.random.default_rng(3), reversal_um=2.0, reversal_sense="lead")
+    assert a.meta == b.meta and "reversal_sense" not in a.meta
+    assert np.array_equal(a.measured, b.measured)
+
+
+def _discovered(effect, seed):
+    from core.baseline import extra_columns
+    from core.discover import discover
+    from core.touches import from_log
+    from scenarios.hidden import hidden_campaign
+
+    log, truth = hidden_campaign((effect,), seed)
+    t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    return truth, rep
+
+
+def test_discover_reads_a_simulated_lag_negative_and_a_lead_positive():
+    """Simulator seed 4000 (a tuning seed): 3.72 um of lost motion on Y, drawn once, simulated as a lead
+    (``reversal``) and as a lag (``reversal_lag``; same machine, moves and noise). Both are named ``reversal``; the
+    lead reads +4.09 +- 0.52 um, the lag -3.36 +- 0.52: each truth (+3.72, -3.72) within U95. The two readings
+    differ by twice the size (the fit is linear in the truth and both campaigns share everything else): what the
+    two have in common (+0.37 um here) is the effect-free campaign's own reading, not the sign."""
+    out = {}
+    for effect in ("reversal", "reversal_lag"):
+        truth, rep = _discovered(effect, 4000)
+        p = truth.params[effect]
+        key = p["symbol"][1].lower() + "_lost_motion_um"
+        f = next(f for f in rep["findings"] if f["cause"] == "reversal")
+        assert rep["cause"] == "reversal"
+        assert abs(f["params"][key] - p["lost_motion_um"]) <= f["params_u95"][key], (effect, f["params"], p)
+        out[effect] = (p["lost_motion_um"], f["params"][key])
+    (b_lead, r_lead), (b_lag, r_lag) = out["reversal"], out["reversal_lag"]
+    assert b_lead > 0 and b_lag == -b_lead  # the truth: ISO's signed B_i, +size lead, -size lag
+    assert r_lead > 0 > r_lag
+    assert (r_lead - r_lag) / 2 == pytest.approx(b_lead, abs=0.01)
