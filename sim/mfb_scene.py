@@ -622,7 +622,7 @@ class WorkZone:
                 return Clearance(P, self._shared["table_W"], self._shared["features"], ball, T_F_R=T_F_R,
                                  pairs=pairs, probe_box=probe_box)
 
-            self._clr[part] = ByOrientation(probe, build)
+            self._clr[part] = ByOrientation(probe, build, table=(self._shared["table_W"], self._shared["features"]))
         return self._clr[part]
 
     def _W_R(self) -> np.ndarray:
