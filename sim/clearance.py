@@ -580,7 +580,7 @@ def orientations_ahead(asks) -> None:
 #: Geoms and feature list objects (kept in the entry, so their ids stay theirs): the work
 #: zones of one placement (sim.mfb_scene) share their table's geoms, whatever the probe.
 #: Safe: keyed by the ids of the two objects the entry keeps (checked with ``is``); read only.
-#: Beside them (keys ("features", id)) the part drawn from a feature list alone (:func:`_feature_prep`),
+#: Beside them (keys ("features", the names)) the part drawn from a feature list alone (:func:`_feature_prep`),
 #: so the 16 entries hold tables and their feature lists together (a fresh 5-axis check asks for
 #: 5 table preps on fewer lists; before: cleared at 16).
 _TABLE_PREP = Memo(16)
@@ -629,7 +629,8 @@ def tables_ahead(tables) -> None:
 def _feature_prep(table_feature) -> tuple:
     """(feature (k,) object, cluster (k,) int, geoms in cluster order (k,), feature -> number, each
     geom's feature number (k,) int (-1: none)) of a table side's features ``table_feature``: what
-    :func:`_table_prep` draws from them alone, kept per list object (in :data:`_TABLE_PREP`)."""
+    :func:`_table_prep` draws from them alone, kept per list of names (in :data:`_TABLE_PREP`; equal
+    lists, e.g. two placements' on equal workholders, share one)."""
     def build():
         feature = np.asarray(table_feature, dtype=object)
         # clusters of table geoms (one per feature, one per geom without): pairs sorted by
@@ -642,7 +643,14 @@ def _feature_prep(table_feature) -> tuple:
         tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
         return feature, cl, h_order, fid, tfid
 
-    return _TABLE_PREP.get_or_compute(("features", id(table_feature)), build, owner=table_feature)
+    # (keyed by the names themselves: two placements of a bar on equal workholders have equal
+    # lists, two objects, one build; the key is the whole value's input, so no owner is needed,
+    # the memo's entries all having one: _BY_CONTENT stands for it)
+    return _TABLE_PREP.get_or_compute(("features", tuple(table_feature)), build, owner=_BY_CONTENT)
+
+
+#: The owner of the memo entries keyed by their whole input (:func:`_feature_prep`): no object to keep.
+_BY_CONTENT = ("by content",)
 
 
 #: The pair structure of :class:`Clearance` (pairs sorted by probe geom, cluster, table geom;
@@ -696,7 +704,8 @@ def _pair_order(table_feature, ng: int, ball: int, mkey, mask) -> tuple:
         cballf = np.where(pair_probe[cstart] == ball, tfid[pair_table[cstart]], -1)
         return pair_probe, pair_table, cstart, ccount, cballf, np.bincount(pair_probe, minlength=ng)
 
-    return _PAIRS.get_or_compute(("order", id(table_feature), int(ng), int(ball), mkey), build, owner=table_feature)
+    fp = _feature_prep(table_feature)  # (the order is drawn from it alone: kept per its object, shared by equal lists)
+    return _PAIRS.get_or_compute(("order", id(fp), int(ng), int(ball), mkey), build, owner=fp)
 
 
 class _Certificates:
