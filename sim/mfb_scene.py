@@ -806,7 +806,10 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     bound of the rows the box bound leaves close stay per measurement. Each answer is min(distmax,
     every triple's distance) as in the reference (every triple): a triple is left out only when a
     lower bound of its distance exceeds a distance already found by more than the margin, so the
-    triple of the least distance is always given to MuJoCo: the same float whatever the order.
+    triple of the least distance is always given a distance: the same float whatever the order.
+    The stylus ball's distance from a holder's sphere, cylinder or box is :func:`_ball_distance`'s
+    (numpy; MuJoCo's primitive to 1e-17 m, not bit for bit: the reference's MuJoCo distance may
+    differ in its last bits), the other triples' MuJoCo's (:meth:`WorkZone._holder_distance`).
     """
     from .clearance import MARGIN_M
 
