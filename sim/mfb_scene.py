@@ -37,7 +37,8 @@ each broad phase's distinct moves (in its frame, computed from the programs in A
 bounded in one pass, the samples of the moves it leaves open bounded one by one,
 then MuJoCo measurement by measurement, in path order; the least clearances at the
 approach starts of every measurement are bounded in one pass too
-(:func:`least_holder_clearances`), MuJoCo's distances per measurement.
+(:func:`least_holder_clearances`), the distances per measurement (the stylus ball's from a
+holder's sphere, cylinder or box in numpy, :func:`_ball_distance`; the others MuJoCo's).
 """
 
 from __future__ import annotations
@@ -682,10 +683,11 @@ class WorkZone:
         """Least :meth:`holder_clearance` over the tip positions ``tips_R`` (n,3) m, R.
 
         Branch and bound: each (tip, probe geom, holder geom) triple has a lower
-        bound from :mod:`sim.clearance`; MuJoCo's ``mj_geomDistance`` runs in
-        increasing order of bound while the bound is below the least distance
-        found (plus :data:`sim.clearance.MARGIN_M`, MuJoCo's tolerance being far smaller).
-        ``broad_phase=False``: every triple (the reference).
+        bound from :mod:`sim.clearance`; the triple's distance (MuJoCo's ``mj_geomDistance``,
+        or for the ball against a sphere, cylinder or box :func:`_ball_distance`, the same to
+        1e-17 m) is computed in increasing order of bound while the bound is below the least
+        distance found (plus :data:`sim.clearance.MARGIN_M`, MuJoCo's tolerance being far smaller).
+        ``broad_phase=False``: MuJoCo at every triple (the reference).
         """
 
         tips = np.asarray(tips_R, float).reshape(-1, 3)
