@@ -318,7 +318,7 @@ that part (two placements on equal workholders: feature preps 4 -> 3, pair order
 Measured against 424011c (thread CPU; the load 17-22 on 2 cores from other helpers' studies):
 ``share_ball_model`` 3.27 -> 1.14 ms a check (functions timed around, 30 fresh checks, load ~13);
 instructions (callgrind, 12 fresh checks less 12 fresh states, ``PYTHONHASHSEED=0``) 135.2 M -> 125.8 M
-a check (0.931; the fresh states alone 2,466.8 M and 2,461.5 M for 12); the fresh-check script side by side, 8 pairs of processes in alternating order (30 checks
+a check (0.931; the runs of fresh states alone: 2,466.8 M and 2,461.5 M); the fresh-check script side by side, 8 pairs of processes in alternating order (30 checks
 each, load 17-19.5): least check 18.51 -> 17.79 ms (medians; paired 0.81-1.02, median 0.934, 7 of 8
 lower), median check paired median 0.976; this collision figure, 3 runs each interleaved (before,
 after, after, before, before, after; load 19-22): the plan check's CPU 23.1, 19.6, 19.2 ms before and
