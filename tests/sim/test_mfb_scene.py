@@ -137,8 +137,8 @@ def test_ball_distance_is_mujocos_for_every_holder_geom_within_a_picometre():
     sim.mfb_scene._ball_distance (numpy, in the rest broad phase's frame W) rather than from MuJoCo:
     at random tips, near every holder geom (the table disc, the blocks, the turned supports) and
     inside them, it equals the zone's MuJoCo distance (mj_geomDistance in the holder's model) to
-    1e-15 m, distmax included. Fails on a wrong inside case (the depth from the farthest face:
-    off by mm), a cylinder's half length taken as its length, or the tip left in R."""
+    1e-15 m, distmax included. Tried: it fails with a box's or a cylinder's inside case taking the
+    depth from the farthest face or side, and with a cylinder's half length taken as its length."""
     import mujoco
 
     from sim.mfb_scene import _BALL_KINDS, _ball_distance
