@@ -511,12 +511,17 @@ class ByOrientation:
     build : callable (probe in F's axes: Geoms, T_F_R (4,4)) -> Clearance
     maxsize : int
         Orientations kept (least recently used out first).
+    table : (Geoms, table_feature), optional
+        The table side every build passes to :class:`Clearance` (its geoms in F and their
+        features): :func:`orientations_ahead` then prepares the table sides of several
+        ByOrientation at once (:func:`tables_ahead`). None: each build prepares its own.
     """
 
-    def __init__(self, probe: Geoms, build, maxsize: int = 32):
+    def __init__(self, probe: Geoms, build, maxsize: int = 32, table=None):
         self.probe, self._build = probe, build
         self.axisym = axisymmetric(probe)
         self._memo = Memo(maxsize)
+        self.table = table
 
     def _key(self, R: np.ndarray) -> bytes:
         """The memo key of the orientation ``R`` (3,3) of F to R."""
@@ -559,6 +564,7 @@ def orientations_ahead(asks) -> None:
         new.append((bo, key, T_F_R, bo._in_F(R)))
     if not new:
         return
+    tables_ahead([bo.table for bo, _, _, _ in new if bo.table is not None])
     if len(new) == 1:
         boxes = [new[0][3].aabb()]
     else:
@@ -574,7 +580,7 @@ def orientations_ahead(asks) -> None:
 #: Geoms and feature list objects (kept in the entry, so their ids stay theirs): the work
 #: zones of one placement (sim.mfb_scene) share their table's geoms, whatever the probe.
 #: Safe: keyed by the ids of the two objects the entry keeps (checked with ``is``); read only.
-#: Beside them (keys ("features", id)) the part drawn from a feature list alone (:func:`_feature_prep`),
+#: Beside them (keys ("features", the names)) the part drawn from a feature list alone (:func:`_feature_prep`),
 #: so the 16 entries hold tables and their feature lists together (a fresh 5-axis check asks for
 #: 5 table preps on fewer lists; before: cleared at 16).
 _TABLE_PREP = Memo(16)
@@ -589,17 +595,42 @@ def _table_prep(table: Geoms, table_feature):
                                       owner=(table, table_feature))
 
 
-def _build_table_prep(table: Geoms, table_feature) -> tuple:
-    """:func:`_table_prep`'s answer, computed."""
+def _build_table_prep(table: Geoms, table_feature, box=None) -> tuple:
+    """:func:`_table_prep`'s answer, computed (``box``: the table's aabb, computed with others')."""
     feature, cl, h_order, fid, tfid = _feature_prep(table_feature)
-    tlo, thi = table.aabb()
+    tlo, thi = table.aabb() if box is None else box
     return feature, tlo, thi, cl, h_order, fid, tfid
+
+
+def tables_ahead(tables) -> None:
+    """The table preps (:func:`_table_prep`) of ``tables`` ((table Geoms, table_feature) each) not
+    kept yet, computed now, in the order given (each table's feature part first, as
+    :func:`_build_table_prep` takes it), their boxes in one :meth:`Geoms.aabb` of every new
+    table's geoms (row by row: the same numbers as one table at a time; the 5-axis plan's fresh
+    check: four table sides of 253-257 geoms, four aabb calls in one)."""
+    new, seen = [], set()
+    for table, tf in tables:
+        key = (id(table), id(tf))
+        if key in seen:
+            continue
+        seen.add(key)
+        e = _TABLE_PREP._d.get(key)
+        if e is not None and e[0][0] is table and e[0][1] is tf:  # (kept: the memo's own test of its owner)
+            continue
+        new.append((table, tf))
+    if len(new) < 2:
+        return
+    lo, hi = Geoms(*(np.concatenate([getattr(t, f) for t, _ in new]) for f in ("centre", "axes", "kind", "size", "rbound"))).aabb()
+    cut = np.cumsum([len(t.kind) for t, _ in new])[:-1]
+    for (table, tf), box in zip(new, zip(np.split(lo, cut), np.split(hi, cut))):
+        _TABLE_PREP.get_or_compute((id(table), id(tf)), lambda: _build_table_prep(table, tf, box), owner=(table, tf))
 
 
 def _feature_prep(table_feature) -> tuple:
     """(feature (k,) object, cluster (k,) int, geoms in cluster order (k,), feature -> number, each
     geom's feature number (k,) int (-1: none)) of a table side's features ``table_feature``: what
-    :func:`_table_prep` draws from them alone, kept per list object (in :data:`_TABLE_PREP`)."""
+    :func:`_table_prep` draws from them alone, kept per list of names (in :data:`_TABLE_PREP`; equal
+    lists, e.g. two placements' on equal workholders, share one)."""
     def build():
         feature = np.asarray(table_feature, dtype=object)
         # clusters of table geoms (one per feature, one per geom without): pairs sorted by
@@ -612,7 +643,14 @@ def _feature_prep(table_feature) -> tuple:
         tfid = np.fromiter(map(fid.get, feature, itertools.repeat(-1)), int, len(feature))  # per geom (-1: none)
         return feature, cl, h_order, fid, tfid
 
-    return _TABLE_PREP.get_or_compute(("features", id(table_feature)), build, owner=table_feature)
+    # (keyed by the names themselves: two placements of a bar on equal workholders have equal
+    # lists, two objects, one build; the key is the whole value's input, so no owner is needed,
+    # the memo's entries all having one: _BY_CONTENT stands for it)
+    return _TABLE_PREP.get_or_compute(("features", tuple(table_feature)), build, owner=_BY_CONTENT)
+
+
+#: The owner of the memo entries keyed by their whole input (:func:`_feature_prep`): no object to keep.
+_BY_CONTENT = ("by content",)
 
 
 #: The pair structure of :class:`Clearance` (pairs sorted by probe geom, cluster, table geom;
@@ -666,7 +704,8 @@ def _pair_order(table_feature, ng: int, ball: int, mkey, mask) -> tuple:
         cballf = np.where(pair_probe[cstart] == ball, tfid[pair_table[cstart]], -1)
         return pair_probe, pair_table, cstart, ccount, cballf, np.bincount(pair_probe, minlength=ng)
 
-    return _PAIRS.get_or_compute(("order", id(table_feature), int(ng), int(ball), mkey), build, owner=table_feature)
+    fp = _feature_prep(table_feature)  # (the order is drawn from it alone: kept per its object, shared by equal lists)
+    return _PAIRS.get_or_compute(("order", id(fp), int(ng), int(ball), mkey), build, owner=fp)
 
 
 class _Certificates:

@@ -37,12 +37,15 @@ each broad phase's distinct moves (in its frame, computed from the programs in A
 bounded in one pass, the samples of the moves it leaves open bounded one by one,
 then MuJoCo measurement by measurement, in path order; the least clearances at the
 approach starts of every measurement are bounded in one pass too
-(:func:`least_holder_clearances`), MuJoCo's distances per measurement.
+(:func:`least_holder_clearances`), the distances per measurement (the stylus ball's from a
+holder's sphere, cylinder or box in numpy, :func:`_ball_distance`; the others MuJoCo's).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+import math
 
 import numpy as np
 
@@ -622,7 +625,7 @@ class WorkZone:
                 return Clearance(P, self._shared["table_W"], self._shared["features"], ball, T_F_R=T_F_R,
                                  pairs=pairs, probe_box=probe_box)
 
-            self._clr[part] = ByOrientation(probe, build)
+            self._clr[part] = ByOrientation(probe, build, table=(self._shared["table_W"], self._shared["features"]))
         return self._clr[part]
 
     def _W_R(self) -> np.ndarray:
@@ -680,10 +683,11 @@ class WorkZone:
         """Least :meth:`holder_clearance` over the tip positions ``tips_R`` (n,3) m, R.
 
         Branch and bound: each (tip, probe geom, holder geom) triple has a lower
-        bound from :mod:`sim.clearance`; MuJoCo's ``mj_geomDistance`` runs in
-        increasing order of bound while the bound is below the least distance
-        found (plus :data:`sim.clearance.MARGIN_M`, MuJoCo's tolerance being far smaller).
-        ``broad_phase=False``: every triple (the reference).
+        bound from :mod:`sim.clearance`; the triple's distance (MuJoCo's ``mj_geomDistance``,
+        or for the ball against a sphere, cylinder or box :func:`_ball_distance`, the same to
+        1e-17 m) is computed in increasing order of bound while the bound is below the least
+        distance found (plus :data:`sim.clearance.MARGIN_M`, MuJoCo's tolerance being far smaller).
+        ``broad_phase=False``: MuJoCo at every triple (the reference).
         """
 
         tips = np.asarray(tips_R, float).reshape(-1, 3)
@@ -711,11 +715,20 @@ class WorkZone:
                                                      clr.pair_table)
         return hp[0], hp[1]
 
-    def _holder_distance(self, clr, hpos, tip, pair: int, distmax: float) -> float:
-        """MuJoCo's distance of pair ``pair`` of the rest broad phase ``clr`` with the tip centre at
-        ``tip`` (R) at the current table pose: the ball's in the placement's ball model, the other
-        probe geoms' in the holder's model (the same distance as in the whole zone's)."""
+    def _holder_distance(self, clr, hpos, tip, pair: int, distmax: float, tip_F=None) -> float:
+        """The distance of pair ``pair`` of the rest broad phase ``clr`` with the tip centre at
+        ``tip`` (R) at the current table pose: the ball's against a box, cylinder or sphere
+        computed here from ``tip_F`` (the tip in clr's frame W, as ``clr.to_frame`` gives it:
+        :func:`_ball_distance`, MuJoCo's primitive distance to 1e-17 m), else MuJoCo's: the
+        ball's in the placement's ball model, the other probe geoms' in the holder's model (the
+        same distance as in the whole zone's)."""
         g = clr.pair_probe[pair]
+        if g == self._pball and tip_F is not None:
+            h = clr.pair_table[pair]
+            if int(clr.table.kind[h]) in _BALL_KINDS:
+                P, T = clr.probe, clr.table
+                return _ball_distance(int(T.kind[h]), T.size[h], T.centre[h], T.axes[h], tip_F + P.centre[g],
+                                      float(P.size[g, 0]), distmax)
         b = int(hpos[clr.pair_table[pair]])
         if g == self._pball:
             m, d, h0, a = self._ball_model()
@@ -735,6 +748,44 @@ class WorkZone:
             for b in self._holder:
                 best = min(best, float(self._mj.mj_geomDistance(m, d, a, b, distmax, None)))
         return best
+
+
+#: The holder geom types whose distance from the stylus ball :func:`_ball_distance` computes
+#: (sphere, cylinder, box; MuJoCo's type codes): MuJoCo's own for the others.
+_BALL_KINDS = frozenset((GEOM_TYPE["sphere"], GEOM_TYPE["cylinder"], GEOM_TYPE["box"]))
+
+
+def _ball_distance(kind: int, size, centre, axes, c, r: float, distmax: float) -> float:
+    """Signed distance (m) of a ball of radius ``r`` centred at ``c`` (3,) from a sphere, cylinder
+    or box (MuJoCo type ``kind``, ``size`` as MuJoCo's, centre (3,), axes (3,3) columns), all in
+    one frame; ``distmax`` if farther. MuJoCo's ``mj_geomDistance`` computes these pairs by its
+    analytic primitives (sphere-sphere, sphere-cylinder, sphere-box): the centre's distance from
+    the geom (its depth inside, negative, from the nearest face or side), minus ``r``. This is the
+    same distance in numpy's arithmetic: it agreed with MuJoCo 4.0's to 2e-17 m at 3,000 random
+    poses (penetrating ones included) and on every least clearance of the plan-check variants
+    and fuzz sets (below 1e-12 mm; simspeed's docstring, session 21), not bit for bit.
+    Saves a fresh plan check its ball model (an MjSpec compile and MjData, ~1.5-2 ms)."""
+    d = np.asarray(c, float) - centre
+    if kind == _SPHERE_T:
+        out = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) - size[0] - r
+    else:
+        q0, q1, q2 = (axes[0, j] * d[0] + axes[1, j] * d[1] + axes[2, j] * d[2] for j in range(3))  # in the geom's axes
+        if kind == _BOX_T:
+            e = (abs(q0) - size[0], abs(q1) - size[1], abs(q2) - size[2])
+            if max(e) > 0:
+                out = math.sqrt(sum(x * x for x in e if x > 0)) - r
+            else:
+                out = max(e) - r  # (inside: minus the depth from the nearest face)
+        else:  # cylinder: radius size[0], half length size[1] along its z
+            dx, dz = math.hypot(q0, q1) - size[0], abs(q2) - size[1]
+            if dx > 0 or dz > 0:
+                out = math.hypot(max(dx, 0.0), max(dz, 0.0)) - r
+            else:
+                out = max(dx, dz) - r
+    return min(float(out), float(distmax))
+
+
+_SPHERE_T, _BOX_T = GEOM_TYPE["sphere"], GEOM_TYPE["box"]
 
 
 #: Triples of the least holder clearance given to MuJoCo in the order of their box bound
@@ -757,7 +808,10 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     bound of the rows the box bound leaves close stay per measurement. Each answer is min(distmax,
     every triple's distance) as in the reference (every triple): a triple is left out only when a
     lower bound of its distance exceeds a distance already found by more than the margin, so the
-    triple of the least distance is always given to MuJoCo: the same float whatever the order.
+    triple of the least distance is always given a distance: the same float whatever the order.
+    The stylus ball's distance from a holder's sphere, cylinder or box is :func:`_ball_distance`'s
+    (numpy; MuJoCo's primitive to 1e-17 m, not bit for bit: the reference's MuJoCo distance may
+    differ in its last bits), the other triples' MuJoCo's (:meth:`WorkZone._holder_distance`).
     """
     from .clearance import MARGIN_M
 
@@ -814,7 +868,7 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
         rows_k = order[cut[k]:cut[k + 1]]
         if not rows_k.size:
             continue
-        wz, tkey, clr, _, hpos, tips, _ = pre[k]
+        wz, tkey, clr, _, hpos, tips, tips_F = pre[k]
         if wz._tkey != tkey:  # (another item of this zone set another pose since)
             wz.set_table(np.frombuffer(tkey).reshape(4, 4))
         i, pair, lb = tip[rows_k] - t0[k], pair_of[prow[rows_k]], lb0[rows_k]
@@ -823,7 +877,7 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
         # the first few straight to MuJoCo in the box bound's order (a distance costs less than
         # the full bound of a chunk: in the MFB plans one or two triples are ever within reach)
         while pos < min(len(lb), _DIRECT) and lb[pos] <= best + MARGIN_M:
-            best = min(best, wz._holder_distance(clr, hpos, tips[i[pos]], pair[pos], distmax))
+            best = min(best, wz._holder_distance(clr, hpos, tips[i[pos]], pair[pos], distmax, tips_F[i[pos]]))
             pos += 1
         while pos < len(lb) and lb[pos] <= best + MARGIN_M:
             rows = np.arange(pos, min(pos + 64, len(lb)))
@@ -833,7 +887,8 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
             for j in np.argsort(full, kind="stable"):
                 if full[j] > best + MARGIN_M:
                     break
-                best = min(best, wz._holder_distance(clr, hpos, tips[i[rows[j]]], pair[rows[j]], distmax))
+                best = min(best, wz._holder_distance(clr, hpos, tips[i[rows[j]]], pair[rows[j]], distmax,
+                                                     tips_F[i[rows[j]]]))
         out[k] = best
     return out
 
@@ -896,7 +951,7 @@ def _check_layout(m, wz, ngeom: int, names=None) -> None:
         raise RuntimeError(f"work zone model: table and spindle joints at qpos {tq}, {sq}; expected {wz._tq}, {wz._sq}")
 
 
-def share_ball_model(artefact, measurements, stylus_r_m: float) -> list:
+def share_ball_model(artefact, measurements, stylus_r_m: float, primitives_aside: bool = False) -> list:
     """One MuJoCo model of the stylus ball and the holders of every placement of ``measurements``
     for the least holder clearances of their work zones (instead of one per placement: a compile
     costs about 0.6 ms whatever its few geoms; the 5-axis plan's four placements in one, 0.7 ms).
@@ -906,6 +961,10 @@ def share_ball_model(artefact, measurements, stylus_r_m: float) -> list:
     their ball model keep it. The distances are the same bit for bit: each holder geom is written
     as in its placement's own model (its name prefixed), at the same pose in the table body.
     Returns each measurement's work zone (:func:`_work_zone`), in order.
+
+    ``primitives_aside``: no model when every holder geom is a sphere, cylinder or box (the least
+    holder clearances then take the ball's distances from :func:`_ball_distance`, and a
+    placement's own ball model is compiled only if MuJoCo is ever asked: :meth:`WorkZone._ball_model`).
     """
     zones, each = {}, []
     _probes_ahead([_probe_key(J_m, stylus_r_m, finger_m) for _, _, J_m, finger_m in measurements])
@@ -915,6 +974,8 @@ def share_ball_model(artefact, measurements, stylus_r_m: float) -> list:
         if ("ball_model", wz._r) not in wz._shared:
             zones.setdefault(id(wz._shared), wz)  # one zone per placement
     if len(zones) < 2:
+        return each
+    if primitives_aside and all(GEOM_TYPE.get(wz._tkind[j]) in _BALL_KINDS for wz in zones.values() for j in wz._holder):
         return each
     geoms, first = [], []
     for k, wz in enumerate(zones.values()):
@@ -1180,7 +1241,7 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     r = float(stylus_r_m)
     ms = [(name, np.asarray(T_W_A, float), np.asarray(T_R_W, float), tuple(blocks), J_m, plan, float(finger_m))
           for name, T_W_A, T_R_W, blocks, J_m, plan, finger_m in measurements]
-    each = share_ball_model(artefact, [(m[1], m[3], m[4], m[6]) for m in ms], r)  # (every work zone)
+    each = share_ball_model(artefact, [(m[1], m[3], m[4], m[6]) for m in ms], r, primitives_aside=True)  # (every work zone)
     pts_A = artefact_points(artefact)
     top = float(pts_A[:, 2].max()) + r
     z_bars = {}  # the bar's lowest point in W by placement

@@ -18,6 +18,30 @@ BAR = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
 FLAT = A.make_T(None, (-0.175, 0.080, 0.070))
 
 
+
+def _same_check(got, want, note=None) -> None:
+    """A check's CheckResult (or a list of them) as the reference's (``broad_phase=False``: MuJoCo at
+    every sample and every triple): every field bit for bit but the least clearance, which may differ
+    by up to 1e-9 mm (1e-12 m, as the least clearance's own tests allow): the broad phase's path takes
+    the ball's distances from the holder's spheres, cylinders and boxes in numpy
+    (sim.mfb_scene._ball_distance, MuJoCo's primitive in another order of operations; measured below
+    1e-13 mm on the plan-check variants and fuzz sets), the reference MuJoCo's own."""
+    if isinstance(got, list):
+        assert len(got) == len(want), note
+        for g, w in zip(got, want):
+            _same_check(g, w, note)
+        return
+    a, b = vars(got), vars(want)
+    assert a.keys() == b.keys(), note
+    for k in a:
+        x, y = a[k], b[k]
+        if k == "min_table_clearance_mm":
+            assert x == y or abs(x - y) <= 1e-9, (note, x, y)
+        elif isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+            assert type(x) is type(y) and x.dtype == y.dtype and np.array_equal(x, y), (note, k)
+        else:
+            assert x == y, (note, k, x, y)
+
 def _T_R_W(A_deg, C_deg):
     from sim.machine import Machine
     from sim.machines import MACHINES
@@ -149,7 +173,7 @@ def test_check_measurement_with_and_without_broad_phase_agree(A_deg, C_deg, J_m,
     collisions in the same words, the same sample count, the same least clearance."""
     args = ("m", BAR, FLAT, _T_R_W(A_deg, C_deg), (), J_m, R, _holes(*holes), finger)
     new, old = check_measurement(*args), check_measurement(*args, broad_phase=False)
-    assert new == old
+    _same_check(new, old)
 
 
 def test_check_measurement_random_perturbed_plans_agree():
@@ -165,7 +189,7 @@ def test_check_measurement_random_perturbed_plans_agree():
         J = (rng.uniform(-0.03, 0.03), rng.uniform(-0.1, 0.1), 0.150)
         args = ("m", BAR, FLAT, T, (), J, R, pl)
         new, old = check_measurement(*args), check_measurement(*args, broad_phase=False)
-        assert new == old
+        _same_check(new, old)
         n_bad += len(new.collisions)
     assert n_bad > 0
 
@@ -653,7 +677,7 @@ def test_one_work_zone_at_many_table_poses_agrees_with_every_sample_check(J_m, f
     for A_deg, C_deg in ((0, 0), (0, 90), (0, -45), (-90, 0), (-90, 90), (-45, 0), (0, 180), (-90, -90)):
         args = ("m", BAR, FLAT, _T_R_W(A_deg, C_deg), (), J_m, R, pl, finger)
         new, old = check_measurement(*args), check_measurement(*args, broad_phase=False)
-        assert new == old, (A_deg, C_deg)
+        _same_check(new, old, (A_deg, C_deg))
         n_bad += bool(new.collisions)
     assert n_bad >= 2
 
@@ -863,7 +887,8 @@ def test_a_plans_measurements_checked_at_once_are_each_alone_and_every_sample():
     mfb_scene._ZONES.clear()
     mfb_scene._BALLS.clear()
     one = [check_measurement(it[0], BAR, *it[1:5], R, *it[5:]) for it in items]
-    assert got == ref == one
+    assert got == one
+    _same_check(got, ref)
     assert sum(bool(r.collisions) for r in got) >= 1 and sum(r.ok for r in got) >= 3
 
 
@@ -989,7 +1014,8 @@ def test_no_sample_a_shared_part_skips_collides():
     assert skipped > 1000 and n_near > 0
     got = check_measurements(BAR, [(f"m{i}", *it[:2], it[2], it[3], it[4], it[5]) for i, it in enumerate(items)], R)
     ref = check_measurement("m3", BAR, FLAT, items[3][1], (), J0, R, moved, broad_phase=False)
-    assert got[3].collisions and got[3] == ref and all(r.ok for r in got[:3])
+    assert got[3].collisions and all(r.ok for r in got[:3])
+    _same_check(got[3], ref)
 
 
 def _longest_link_move(T_R_W, pl):
@@ -1036,7 +1062,7 @@ def test_a_near_miss_block_under_a_link_move_is_judged_as_mujoco_at_every_sample
     mfb_scene._BALLS.clear()
     got = check_measurements(BAR, items, R)
     ref = [check_measurement(it[0], BAR, *it[1:5], R, *it[5:], broad_phase=False) for it in items]
-    assert got == ref
+    _same_check(got, ref)
     near, clear, arm = got
     assert clear.ok and not arm.ok
     # the construction: MuJoCo's distance of the ball from the pillar at that sample is the gap (1e-12 m)
@@ -1094,7 +1120,7 @@ def test_a_pillar_touched_only_inside_a_link_move_by_the_extension_is_judged_as_
     mfb_scene._BALLS.clear()
     got = check_measurements(BAR, items, R)
     ref = [check_measurement(it[0], BAR, *it[1:5], R, *it[5:], broad_phase=False) for it in items]
-    assert got == ref
+    _same_check(got, ref)
     near, clear = got
     assert clear.ok
     wz = mfb_scene._work_zone(BAR, FLAT, pillar, J0, R, 0.0)
