@@ -18,7 +18,6 @@ BAR = A.multi_feature_bar(deviations_m=np.zeros((12, 3)))
 FLAT = A.make_T(None, (-0.175, 0.080, 0.070))
 
 
-
 def _same_check(got, want, note=None) -> None:
     """A check's CheckResult (or a list of them) as the reference's (``broad_phase=False``: MuJoCo at
     every sample and every triple): every field bit for bit but the least clearance, which may differ
@@ -41,6 +40,7 @@ def _same_check(got, want, note=None) -> None:
             assert type(x) is type(y) and x.dtype == y.dtype and np.array_equal(x, y), (note, k)
         else:
             assert x == y, (note, k, x, y)
+
 
 def _T_R_W(A_deg, C_deg):
     from sim.machine import Machine
