@@ -171,6 +171,12 @@ class Cause:
     #: columns, partly inside the baseline's span): one penalised fit gives its held-out gain, magnitudes (U95 by a
     #: parametric bootstrap, session 16), residuals and workpiece (core.discover; session 15)
     penalised: bool = False
+    #: ``norms(info) -> {key: (i, j)}``: the magnitudes that are the norm of a pair of the cause's coefficients
+    #: (``hypot(coef[i], coef[j]) / UM``: a harmonic's amplitude). Their U95 is not the delta method's but the
+    #: half-width of the 95 % interval of ``|(a, b)|`` from the 2-D normal of the pair
+    #: (:func:`core.discover.norm_interval`, session 21): a norm near zero, or near its noise, has no symmetric
+    #: normal interval.
+    norms: Callable | None = None
 
     @property
     def doc(self) -> str:
@@ -689,6 +695,12 @@ def periodic_rebuild(bl, info):
     return _periodic_cols(bl.data, "XY".index(info["axis"]), info["period_m"])
 
 
+def periodic_norms(info) -> dict:
+    """The amplitudes are norms of the (sin, cos) pairs (:attr:`Cause.norms`)."""
+    ax = info["axis"]
+    return {f"EX{ax}_amplitude_um": (0, 1), f"EY{ax}_amplitude_um": (2, 3)}
+
+
 def periodic_magnitudes(info, coef, bl):
     c = np.asarray(coef)
     ax = info["axis"]
@@ -762,6 +774,11 @@ def lobing_magnitudes(info, coef, bl):
     # set-ups' own offsets and the stylus calibration): the variation is of k = 2..4
     out["pretravel_variation_pv_um"] = _pv(f) / UM
     return out
+
+
+def lobing_norms(info) -> dict:
+    """Each harmonic's amplitude is the norm of its (cos, sin) pair (:attr:`Cause.norms`)."""
+    return {f"k{k}_amplitude_um": (2 * k - 2, 2 * k - 1) for k in range(1, 5)}
 
 
 def unoriented_scans(bl):
@@ -1728,6 +1745,11 @@ def part_change_rival(bl, info):
     return np.column_stack([key == k for k in np.unique(key[m])]).astype(float)
 
 
+def part_change_norms(info) -> dict:
+    """A ring's ovalisation is the norm of its (cos 2 theta, sin 2 theta) pair (:attr:`Cause.norms`)."""
+    return {"ovalisation_um": (0, 1)} if info.get("ring") else {}
+
+
 def part_change_magnitudes(info, coef, bl):
     out = {"feature": info["feature"], **({"time_form": info["time_form"]} if "time_form" in info else {})}
     if info.get("ring"):  # the ovalisation's cos 2 theta and sin 2 theta parts
@@ -2092,10 +2114,10 @@ REGISTRY = (
     Cause("periodic_axis_error", ("planar",), "machine", periodic_scans, periodic_magnitudes,
           {"EXX_amplitude_um": (0, 50), "EYX_amplitude_um": (0, 50), "EXY_amplitude_um": (0, 50),
            "EYY_amplitude_um": (0, 50)}, periodic_rebuild, ("period_m",), check=periodic_check,
-          counter_scan=fixture_slip),
+          counter_scan=fixture_slip, norms=periodic_norms),
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
           {"pretravel_variation_pv_um": (0, 50)}, rival=lobing_rival, counter_scan=fixture_slip,
-          richer=turned_lobes, richer_cause="lobing_per_setup"),
+          richer=turned_lobes, richer_cause="lobing_per_setup", norms=lobing_norms),
     Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
           {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter=common_lobing, counter_scan=fixture_slip,
           counter_cause="probe_lobing"),
@@ -2108,7 +2130,7 @@ REGISTRY = (
           {"wall*deg_change_um": (-200, 200), "wall*deg_turn_um": (-200, 200),
            "wall*deg_bow_um": (-200, 200), "ovalisation_um": (0, 200),
            "ovalisation_axis_deg": (0, 180)},
-          rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
+          rival=part_change_rival, counter_scan=fixture_slip, gradual=True, norms=part_change_norms),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
           {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,
