@@ -177,6 +177,11 @@ class Cause:
     #: (:func:`core.discover.norm_interval`, session 21): a norm near zero, or near its noise, has no symmetric
     #: normal interval.
     norms: Callable | None = None
+    #: ``profile(info) -> {name: (grid, key, scale)}``: nonlinear parameters whose U95 is the profile likelihood's
+    #: (the values of ``name`` on ``grid`` at which the least residual sum of squares over the others' grids and
+    #: the linear coefficients stays within ``4 s^2`` of the least: k = 2), reported as magnitude ``key`` times
+    #: ``scale``. For a one-column ``rebuild`` that broadcasts over its nonlinear parameters (session 21).
+    profile: Callable | None = None
 
     @property
     def doc(self) -> str:
@@ -1417,6 +1422,24 @@ def defect_rebuild(bl, info):
     return _defect_cols(bl.data, "XY".index(info["axis"]), info["centre_m"], info["half_width_m"])
 
 
+#: The profile grid of a local scale defect's centre and half-width (:func:`defect_profile`): centres within
+#: DEFECT_PROFILE_SPAN half-widths of the fitted one, half-widths from 1/DEFECT_PROFILE_SPAN to DEFECT_PROFILE_SPAN
+#: times the fitted one (log-spaced); points per parameter.
+DEFECT_PROFILE_SPAN = 4.0
+DEFECT_PROFILE_POINTS = (161, 49)
+
+
+def defect_profile(info) -> dict:
+    """The centre's and the half-width's profile grids (:attr:`Cause.profile`): a bump's position and width are
+    read off a few touches under it, the residual sum of squares a step function of them, which the delta
+    method's Jacobian at the fit does not see."""
+    c, w = info["centre_m"], info["half_width_m"]
+    nc, nw = DEFECT_PROFILE_POINTS
+    return {"centre_m": (c + w * np.linspace(-DEFECT_PROFILE_SPAN, DEFECT_PROFILE_SPAN, nc), "centre_mm", 1 / MM),
+            "half_width_m": (w * np.geomspace(1 / DEFECT_PROFILE_SPAN, DEFECT_PROFILE_SPAN, nw), "half_width_mm",
+                             1 / MM)}
+
+
 def defect_magnitudes(info, coef, bl):
     ax = info["axis"]
     return {"axis": ax, "symbol": f"E{ax}{ax}", "centre_mm": info["centre_m"] / MM,
@@ -2125,7 +2148,7 @@ REGISTRY = (
           {"pretravel_change_um": (-50, 50)}, counter_scan=fixture_slip),
     Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,
           {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip,
-          smooth=smooth_error_map, support=defect_support),
+          smooth=smooth_error_map, support=defect_support, profile=defect_profile),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
           {"wall*deg_change_um": (-200, 200), "wall*deg_turn_um": (-200, 200),
            "wall*deg_bow_um": (-200, 200), "ovalisation_um": (0, 200),

@@ -4663,6 +4663,76 @@ def norm_interval(m: np.ndarray, S: np.ndarray, level: float = NORM_LEVEL) -> tu
     return float(lo), float(hi)
 
 
+#: A scan's refined nonlinear parameters that a cause declares (:attr:`core.causes.Cause.profile`: a local scale
+#: defect's centre and half-width) take their U95 from the profile likelihood over a grid (:func:`_profile_u95`,
+#: session 21; False: the delta method's, as before)
+PROFILE_NONLINEAR = True
+#: Trials of :func:`_profile_u95` fitted at once (their columns are trials x rows)
+PROFILE_CHUNK = 1000
+
+
+def _profile_u95(cause, bl, tm: Term, Qo: np.ndarray, rows) -> dict:
+    """Profile-likelihood intervals of a cause's nonlinear parameters (:attr:`core.causes.Cause.profile`).
+
+    On the grid of every declared parameter (all combinations), the term's one column is rebuilt and fitted
+    beside ``Qo`` (the model without it: its linear coefficients profiled out by projection, as
+    :func:`_magnitudes` fits). A value is inside where the least residual sum of squares over the other
+    parameters' grid stays within ``4 s^2`` of the least over all (``s^2`` the fit's residual variance; 4 the
+    chi-square quantile of one degree of freedom at k = 2, 95.45 %): the interval ``[lo, hi]`` is the hull of
+    those values widened to the next grid point out on each side (the set's boundary lies before it), the U95 ``max(hi - v, v - lo)`` about the fitted ``v``. The delta method linearises the
+    residuals at the fit; a bump's centre and width are read off the few touches under it, where the sum of
+    squares moves in steps. ``{key: (U95, lo, hi, at_edge)}`` in the magnitudes' units; ``at_edge`` where the
+    set reaches the grid's end (the interval is then at least that). Unpenalised terms only.
+    """
+    if not PROFILE_NONLINEAR or cause.profile is None or cause.rebuild is None or tm.penalty is not None:
+        return {}
+    prof = cause.profile(tm.info)
+    names = list(prof)
+    mesh = np.meshgrid(*[prof[nm][0] for nm in names], indexing="ij")
+    flat = {nm: g.ravel() for nm, g in zip(names, mesh)}
+    yr = bl.y[rows]
+    ro = yr - Qo @ (Qo.T @ yr)
+    base = float(ro @ ro)
+
+    def rss(info):
+        E = np.asarray(cause.rebuild(bl, info))
+        if E.ndim == 2:
+            E = E[None]
+        if E.shape[2] != 1:
+            return None
+        E = E[:, rows, 0]
+        Ep = E - (E @ Qo) @ Qo.T
+        den = np.einsum("ij,ij->i", Ep, Ep)
+        num = Ep @ ro
+        ok = den > 1e-300
+        return np.where(ok, base - np.where(ok, num, 0.0) ** 2 / np.where(ok, den, 1.0), base)
+
+    r0 = rss(dict(tm.info))
+    if r0 is None:
+        return {}
+    r0 = float(r0[0])
+    T = flat[names[0]].size
+    r = np.empty(T)
+    for a in range(0, T, PROFILE_CHUNK):
+        r[a:a + PROFILE_CHUNK] = rss({**tm.info, **{nm: flat[nm][a:a + PROFILE_CHUNK] for nm in names}})
+    s2 = r0 / max(len(rows) - Qo.shape[1] - 1 - len(names), 1)
+    inside = (r <= min(r.min(), r0) + 4.0 * s2).reshape(mesh[0].shape)
+    out = {}
+    for ax, nm in enumerate(names):
+        grid, key, scale = prof[nm]
+        hit = np.any(inside, axis=tuple(i for i in range(len(names)) if i != ax))
+        v = float(tm.info[nm])
+        if not hit.any():
+            continue
+        # the set's boundary lies between its last grid point and the next one out: the hull reaches the latter
+        idx = np.flatnonzero(hit)
+        lo, hi = float(grid[max(idx[0] - 1, 0)]), float(grid[min(idx[-1] + 1, grid.size - 1)])
+        lo, hi = min(lo, v), max(hi, v)
+        edge = bool(hit[0] or hit[-1])
+        out[key] = (max(hi - v, v - lo) * scale, lo * scale, hi * scale, edge)
+    return out
+
+
 def _norm_u95(cause, info: dict, key: str, v: float, coef: np.ndarray, cov: np.ndarray) -> tuple | None:
     """A norm magnitude's ``(U95, (lo, hi))``: :func:`norm_interval` of its coefficient pair (``cov`` the label
     coefficients' covariance), the U95 the half-width ``max(hi - v, v - lo)`` of the symmetric interval about
@@ -5318,6 +5388,11 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             iv = {}
             vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows,
                                     boot=(folds, others, True) if folds is not None else None, intervals=iv)
+        prof = _profile_u95(cause, bl, tm, so.Q, rows)
+        for key, (u, lo, hi, edge) in prof.items():  # a scan's refined parameters: the profile's interval (session 21)
+            if vals.get(key) is not None and u95.get(key) is not None:
+                u95[key] = max(u, u95[key]) if edge else u
+                iv[key] = [lo, hi]
         beside_smooth, wide_note = None, None
         if smooth_terms and tm.penalty is None and MAGNITUDES_BESIDE_SMOOTH:
             # the model reported holds the unnamed smooth too: the magnitudes are fitted beside its columns with
@@ -5325,6 +5400,9 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             # carried where it is real (session 20)
             vals, u95, beside_smooth, wide_note = _magnitudes_beside_smooth(
                 cause, bl, tm, so.Q, rows, folds, others, smooth_terms, vals, u95, settings.alpha_family)
+            for key, (u, _, _, _) in prof.items():  # the profile's interval stays inside the carried one
+                if vals.get(key) is not None and u95.get(key) is not None:
+                    u95[key] = max(u95[key], u)
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)
@@ -5339,6 +5417,9 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
               and not (beside_smooth is not None and k in beside_smooth.get("carried_in_u95", ()))}
         if iv:
             ev["magnitude_intervals"] = iv
+        edges = [k for k, x in prof.items() if x[3] and k in iv]
+        if edges:  # the profile's set reached its grid's end: its U95 at least the delta method's
+            ev["profile_at_grid_edge"] = edges
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
         if beside_smooth is not None:
