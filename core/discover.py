@@ -4684,9 +4684,10 @@ def _profile_u95(cause, bl, tm: Term, Qo: np.ndarray, rows) -> dict:
     squares moves in steps. ``{key: (U95, lo, hi, at_edge)}`` in the magnitudes' units; ``at_edge`` where the
     set reaches the grid's end (the interval is then at least that). Unpenalised terms only.
     """
-    if not PROFILE_NONLINEAR or cause.profile is None or cause.rebuild is None or tm.penalty is not None:
+    profile = getattr(cause, "profile", None)
+    if not PROFILE_NONLINEAR or profile is None or getattr(cause, "rebuild", None) is None or tm.penalty is not None:
         return {}
-    prof = cause.profile(tm.info)
+    prof = profile(tm.info)
     names = list(prof)
     mesh = np.meshgrid(*[prof[nm][0] for nm in names], indexing="ij")
     flat = {nm: g.ravel() for nm, g in zip(names, mesh)}
@@ -4738,9 +4739,10 @@ def _norm_u95(cause, info: dict, key: str, v: float, coef: np.ndarray, cov: np.n
     coefficients' covariance), the U95 the half-width ``max(hi - v, v - lo)`` of the symmetric interval about
     the value that holds it (the report's ``value +- U95`` then holds the 95 % interval). None where the cause
     declares no such norm or the value is not that norm."""
-    if cause.norms is None:
+    norms = getattr(cause, "norms", None)  # (a cause-like record without the field: none)
+    if norms is None:
         return None
-    pair = cause.norms(info).get(key)
+    pair = norms(info).get(key)
     if pair is None:
         return None
     i, j = pair
