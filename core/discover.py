@@ -4747,9 +4747,11 @@ def _norm_u95(cause, info: dict, key: str, v: float, coef: np.ndarray, cov: np.n
         return None
     i, j = pair
     m = np.array([coef[i], coef[j]], float)
-    if not np.isclose(float(np.hypot(*m)) / UM, v, rtol=1e-9, atol=1e-12):
+    S = cov[np.ix_([i, j], [i, j])]
+    if not (np.all(np.isfinite(m)) and np.all(np.isfinite(S))) \
+            or not np.isclose(float(np.hypot(*m)) / UM, v, rtol=1e-9, atol=1e-12):
         return None
-    lo, hi = norm_interval(m, cov[np.ix_([i, j], [i, j])])
+    lo, hi = norm_interval(m, S)
     return float(max(hi / UM - v, v - lo / UM)), (float(lo / UM), float(hi / UM))
 
 

@@ -138,3 +138,13 @@ def test_profile_interval_of_a_bumps_centre_and_half_width_covers_the_truth():
             inside[key] += lo <= truth <= hi
     for key, k in inside.items():
         assert k / n_draw >= 0.85, (key, k)
+
+
+def test_a_covariance_that_is_not_finite_keeps_the_delta_methods_u95():
+    cause = causes.lookup("probe_lobing")
+    coef = np.array([1e-6, 0.0, 2e-6, 1e-6, 0.0, 0.0, 0.0, 0.0])
+    cov = np.eye(8) * 1e-14
+    cov[2, 3] = np.nan
+    vals = cause.magnitudes({}, coef, None)
+    assert D._norm_u95(cause, {}, "k2_amplitude_um", vals["k2_amplitude_um"], coef, cov) is None
+    assert D._norm_u95(cause, {}, "k1_amplitude_um", vals["k1_amplitude_um"], coef, cov) is not None
