@@ -171,6 +171,17 @@ class Cause:
     #: columns, partly inside the baseline's span): one penalised fit gives its held-out gain, magnitudes (U95 by a
     #: parametric bootstrap, session 16), residuals and workpiece (core.discover; session 15)
     penalised: bool = False
+    #: ``norms(info) -> {key: (i, j)}``: the magnitudes that are the norm of a pair of the cause's coefficients
+    #: (``hypot(coef[i], coef[j]) / UM``: a harmonic's amplitude). Their U95 is not the delta method's but the
+    #: half-width of the 95 % interval of ``|(a, b)|`` from the 2-D normal of the pair
+    #: (:func:`core.discover.norm_interval`, session 21): a norm near zero, or near its noise, has no symmetric
+    #: normal interval.
+    norms: Callable | None = None
+    #: ``profile(info) -> {name: (grid, key, scale)}``: nonlinear parameters whose U95 is the profile likelihood's
+    #: (the values of ``name`` on ``grid`` at which the least residual sum of squares over the others' grids and
+    #: the linear coefficients stays within ``4 s^2`` of the least: k = 2), reported as magnitude ``key`` times
+    #: ``scale``. For a one-column ``rebuild`` that broadcasts over its nonlinear parameters (session 21).
+    profile: Callable | None = None
 
     @property
     def doc(self) -> str:
@@ -689,6 +700,12 @@ def periodic_rebuild(bl, info):
     return _periodic_cols(bl.data, "XY".index(info["axis"]), info["period_m"])
 
 
+def periodic_norms(info) -> dict:
+    """The amplitudes are norms of the (sin, cos) pairs (:attr:`Cause.norms`)."""
+    ax = info["axis"]
+    return {f"EX{ax}_amplitude_um": (0, 1), f"EY{ax}_amplitude_um": (2, 3)}
+
+
 def periodic_magnitudes(info, coef, bl):
     c = np.asarray(coef)
     ax = info["axis"]
@@ -762,6 +779,11 @@ def lobing_magnitudes(info, coef, bl):
     # set-ups' own offsets and the stylus calibration): the variation is of k = 2..4
     out["pretravel_variation_pv_um"] = _pv(f) / UM
     return out
+
+
+def lobing_norms(info) -> dict:
+    """Each harmonic's amplitude is the norm of its (cos, sin) pair (:attr:`Cause.norms`)."""
+    return {f"k{k}_amplitude_um": (2 * k - 2, 2 * k - 1) for k in range(1, 5)}
 
 
 def unoriented_scans(bl):
@@ -1400,6 +1422,24 @@ def defect_rebuild(bl, info):
     return _defect_cols(bl.data, "XY".index(info["axis"]), info["centre_m"], info["half_width_m"])
 
 
+#: The profile grid of a local scale defect's centre and half-width (:func:`defect_profile`): centres within
+#: DEFECT_PROFILE_SPAN half-widths of the fitted one, half-widths from 1/DEFECT_PROFILE_SPAN to DEFECT_PROFILE_SPAN
+#: times the fitted one (log-spaced); points per parameter.
+DEFECT_PROFILE_SPAN = 4.0
+DEFECT_PROFILE_POINTS = (161, 49)
+
+
+def defect_profile(info) -> dict:
+    """The centre's and the half-width's profile grids (:attr:`Cause.profile`): a bump's position and width are
+    read off a few touches under it, the residual sum of squares a step function of them, which the delta
+    method's Jacobian at the fit does not see."""
+    c, w = info["centre_m"], info["half_width_m"]
+    nc, nw = DEFECT_PROFILE_POINTS
+    return {"centre_m": (c + w * np.linspace(-DEFECT_PROFILE_SPAN, DEFECT_PROFILE_SPAN, nc), "centre_mm", 1 / MM),
+            "half_width_m": (w * np.geomspace(1 / DEFECT_PROFILE_SPAN, DEFECT_PROFILE_SPAN, nw), "half_width_mm",
+                             1 / MM)}
+
+
 def defect_magnitudes(info, coef, bl):
     ax = info["axis"]
     return {"axis": ax, "symbol": f"E{ax}{ax}", "centre_mm": info["centre_m"] / MM,
@@ -1726,6 +1766,11 @@ def part_change_rival(bl, info):
     sector = np.mod(np.round(d.wn_az / (np.pi / 4)).astype(int), 8)
     key = np.where(m, sector * 10000 + t.setup, -1)
     return np.column_stack([key == k for k in np.unique(key[m])]).astype(float)
+
+
+def part_change_norms(info) -> dict:
+    """A ring's ovalisation is the norm of its (cos 2 theta, sin 2 theta) pair (:attr:`Cause.norms`)."""
+    return {"ovalisation_um": (0, 1)} if info.get("ring") else {}
 
 
 def part_change_magnitudes(info, coef, bl):
@@ -2092,10 +2137,10 @@ REGISTRY = (
     Cause("periodic_axis_error", ("planar",), "machine", periodic_scans, periodic_magnitudes,
           {"EXX_amplitude_um": (0, 50), "EYX_amplitude_um": (0, 50), "EXY_amplitude_um": (0, 50),
            "EYY_amplitude_um": (0, 50)}, periodic_rebuild, ("period_m",), check=periodic_check,
-          counter_scan=fixture_slip),
+          counter_scan=fixture_slip, norms=periodic_norms),
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
           {"pretravel_variation_pv_um": (0, 50)}, rival=lobing_rival, counter_scan=fixture_slip,
-          richer=turned_lobes, richer_cause="lobing_per_setup"),
+          richer=turned_lobes, richer_cause="lobing_per_setup", norms=lobing_norms),
     Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
           {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter=common_lobing, counter_scan=fixture_slip,
           counter_cause="probe_lobing"),
@@ -2103,12 +2148,12 @@ REGISTRY = (
           {"pretravel_change_um": (-50, 50)}, counter_scan=fixture_slip),
     Cause("local_scale_defect", ("planar",), "machine", defect_scans, defect_magnitudes,
           {"amplitude_um": (-50, 50)}, defect_rebuild, ("centre_m", "half_width_m"), counter_scan=fixture_slip,
-          smooth=smooth_error_map, support=defect_support),
+          smooth=smooth_error_map, support=defect_support, profile=defect_profile),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
           {"wall*deg_change_um": (-200, 200), "wall*deg_turn_um": (-200, 200),
            "wall*deg_bow_um": (-200, 200), "ovalisation_um": (0, 200),
            "ovalisation_axis_deg": (0, 180)},
-          rival=part_change_rival, counter_scan=fixture_slip, gradual=True),
+          rival=part_change_rival, counter_scan=fixture_slip, gradual=True, norms=part_change_norms),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
           {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,

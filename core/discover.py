@@ -4174,8 +4174,11 @@ def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float, boot: tuple | N
     """The last gate of :func:`_evaluate` and :func:`_evaluate_penalised`: the term's magnitudes (with their U95,
     :func:`_magnitudes`, the penalised branch for a penalised term) within the cause's bounds and its own
     plausibility check. ``{"cv", "term"}`` (the term with its magnitudes at adoption), or a refusal."""
-    wide = []
-    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows, wide, boot=boot)
+    wide, iv = [], {}
+    vals, u95 = _magnitudes(cause, bl, tm, st.Q, rows, wide, boot=boot, intervals=iv)
+    tm.evidence.pop("magnitude_intervals", None)
+    if iv:  # a norm's 95 % interval (its U95 the symmetric cover): with the magnitudes cached below
+        tm.evidence["magnitude_intervals"] = iv
     if wide:  # named at most ambiguous (step 8): the data do not say how large it is
         tm.evidence["magnitude_undetermined"] = "; ".join(
             f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
@@ -4296,6 +4299,10 @@ MAGNITUDES_BESIDE_SMOOTH = True
 #: campaigns beside a smooth with a known truth 24 inside U95 against 23, median |error| 0.76 against 1.28, the same
 #: median U95 1.38) or "smooth" (the fit beside the smooth's columns, the shift carried where significant).
 MAGNITUDES_BESIDE_SMOOTH_VALUE = "named_alone"
+#: A magnitude a cause declares the norm of a coefficient pair (:attr:`core.causes.Cause.norms`: a harmonic's
+#: amplitude) takes its U95 from the 95 % interval of the norm (:func:`norm_interval`, session 21; False: the delta
+#: method's, as before, which covered the generators' zero amplitudes 50-56 % of the time).
+NORM_INTERVALS = True
 PENALISED_BOOT_SEED = 16
 
 
@@ -4394,7 +4401,7 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
 
 
 def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None, boot: tuple | None = None,
-                lin: dict | None = None):
+                lin: dict | None = None, intervals: dict | None = None):
     """Magnitudes of a term and their U95 (delta method over coefficients and nonlinear parameters).
 
     ``boot`` ``(folds, others[, report])``: the folds the model's held-out
@@ -4416,6 +4423,10 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
     gradient over the label coefficients (``"g"``): what
     :func:`_beside_smooth`'s shift test needs for the exact variance of a
     difference of two such fits.
+
+    ``intervals`` (a dict): filled with ``key: [lo, hi]``, the 95 % interval of
+    each norm magnitude (:attr:`core.causes.Cause.norms`, :func:`norm_interval`)
+    whose U95 is its symmetric cover (unpenalised causes).
 
     ``Qo``: orthonormal basis of the model without the term (rows used).
     By Frisch-Waugh-Lovell the term's coefficients in the joint fit are the
@@ -4561,8 +4572,187 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         if weak.shape[0] and np.max(np.abs(weak @ gn)) > 1e-2 * max(np.linalg.norm(gn), 1e-300):
             out[key], u95[key] = None, None
             continue
-        out[key], u95[key] = _within_range(cause, key, float(v), float(2 * np.sqrt(max(g @ cov @ g, 0.0))), wide)
+        u = float(2 * np.sqrt(max(g @ cov @ g, 0.0)))
+        nu = _norm_u95(cause, tm.info, key, float(v), coef, cov[:k_all, :k_all]) if NORM_INTERVALS else None
+        if nu is not None:  # a harmonic's amplitude: the interval of a norm (session 21), not the delta method's
+            u = nu[0]
+            if intervals is not None:
+                intervals[key] = list(nu[1])
+        out[key], u95[key] = _within_range(cause, key, float(v), u, wide)
+        if intervals is not None and out[key] is None:
+            intervals.pop(key, None)
     return out, u95
+
+
+#: Gauss-Legendre nodes of :func:`norm_cdf`'s one integral (over the normal's first principal axis, within
+#: NORM_CDF_SPAN of its standard deviations): the probability to about 1e-10 where checked against 1e6 draws' 1e-3
+_NORM_NODES = np.polynomial.legendre.leggauss(96)
+NORM_CDF_SPAN = 9.0
+
+
+def norm_cdf(r: float, mu: np.ndarray, S: np.ndarray) -> float:
+    """``P(|X| <= r)`` for ``X ~ N(mu, S)`` in two dimensions (the length of a 2-D normal vector).
+
+    In the principal axes of ``S`` (variances ``l1 >= l2``, ``mu`` there ``nu``) it is one integral over the
+    first coordinate ``x``, of its density times ``P(|x2| <= sqrt(r^2 - x^2))``; ``x = r sin t`` takes the
+    square root's end points smoothly, and only ``x`` within :data:`NORM_CDF_SPAN` of its standard deviations of
+    ``nu_1`` is integrated (the rest weighs below 1e-18). Isotropic ``S`` gives the Rice distribution's CDF
+    (noncentral chi-square with two degrees of freedom of ``r^2 / s^2``).
+    """
+    w, V = np.linalg.eigh(np.asarray(S, float))
+    l1, l2 = max(w[1], 0.0), max(w[0], 0.0)
+    nu = V.T @ np.asarray(mu, float)
+    nu1, nu2 = nu[1], nu[0]
+    s1 = np.sqrt(l1)
+    if r <= 0 or s1 == 0:
+        return float(np.hypot(*nu) <= r)
+    s2 = max(np.sqrt(l2), 1e-12 * s1)
+    a, b = max(nu1 - NORM_CDF_SPAN * s1, -r), min(nu1 + NORM_CDF_SPAN * s1, r)
+    if a >= b:
+        return 0.0
+    ta, tb = np.arcsin(a / r), np.arcsin(b / r)
+    x, wt = _NORM_NODES
+    t = 0.5 * (tb - ta) * x + 0.5 * (tb + ta)
+    ct = np.cos(t)
+    x1, h = r * np.sin(t), r * ct
+    inner = stats.norm.cdf((h - nu2) / s2) - stats.norm.cdf((-h - nu2) / s2)
+    dens = np.exp(-0.5 * ((x1 - nu1) / s1) ** 2) / (s1 * np.sqrt(2 * np.pi))
+    return float(np.clip(0.5 * (tb - ta) * np.sum(wt * dens * inner * r * ct), 0.0, 1.0))
+
+
+#: The coverage of a norm's interval (:func:`norm_interval`): the report's U95 is twice the standard uncertainty
+#: (k = 2, 95.45 % of a normal), so far from zero the interval is the delta method's ``|m| +- 2 u``
+NORM_LEVEL = float(stats.norm.cdf(2.0) - stats.norm.cdf(-2.0))
+
+
+def norm_interval(m: np.ndarray, S: np.ndarray, level: float = NORM_LEVEL) -> tuple:
+    """The ``level`` confidence interval ``(lo, hi)`` of ``|mu|`` from ``m ~ N(mu, S)`` in two dimensions.
+
+    The amplitude of a harmonic (the norm of its cos and sin coefficients) is no normal estimate: ``|m|``
+    is biased up by the noise (the Rice bias: at ``mu = 0`` its mean is ``1.25 s``) and a true zero lies on
+    the boundary, so the delta method's ``|m| +- 2 sqrt(u^T S u)`` (``u = m / |m|``) covers a zero about half
+    the time. Here the equal-tailed test of ``|mu| = A`` by ``|m|`` is inverted: ``A`` is inside when
+    ``(1 - level) / 2 <= P(|X| <= |m|) <= (1 + level) / 2`` for ``X ~ N(A u, S)`` (:func:`norm_cdf`), the
+    phase held at its estimate ``u`` (at ``A = 0`` the phase is irrelevant; at a high ratio of ``|m|`` to the
+    noise it gives the delta method's interval). ``lo = 0`` where a zero is consistent with ``|m|``; where
+    ``|m|`` is below the lower quantile of the zero's own distribution (``F(0) <= (1 - level) / 2``, a draw
+    of the lower tail) the set is ``{0}``: ``(0, 0)``. The probability falls as ``A`` grows (Anderson's
+    theorem: a disc centred on 0), so each end is one root.
+    """
+    m = np.asarray(m, float)
+    r = float(np.hypot(*m))
+    S = np.asarray(S, float)
+    sd = float(np.sqrt(max(np.max(np.linalg.eigvalsh(S)), 0.0)))
+    if sd == 0 or not np.isfinite(sd):
+        return r, r
+    u = m / r if r > 0 else np.array([1.0, 0.0])
+    lo_p, hi_p = (1 - level) / 2, (1 + level) / 2
+
+    def F(A):
+        return norm_cdf(r, A * u, S)
+
+    lo = 0.0
+    if F(0.0) > hi_p:
+        lo = optimize.brentq(lambda A: F(A) - hi_p, 0.0, r, xtol=1e-10 * sd, rtol=1e-12)
+    if F(0.0) <= lo_p:  # |m| below the lower quantile even of a zero: no A > 0 is consistent (the test's own tail)
+        return 0.0, 0.0
+    b = r + 3 * sd
+    while F(b) > lo_p:
+        b += 3 * sd
+    hi = optimize.brentq(lambda A: F(A) - lo_p, lo, b, xtol=1e-10 * sd, rtol=1e-12)
+    return float(lo), float(hi)
+
+
+#: A scan's refined nonlinear parameters that a cause declares (:attr:`core.causes.Cause.profile`: a local scale
+#: defect's centre and half-width) take their U95 from the profile likelihood over a grid (:func:`_profile_u95`,
+#: session 21; False: the delta method's, as before)
+PROFILE_NONLINEAR = True
+#: Trials of :func:`_profile_u95` fitted at once (their columns are trials x rows)
+PROFILE_CHUNK = 1000
+
+
+def _profile_u95(cause, bl, tm: Term, Qo: np.ndarray, rows) -> dict:
+    """Profile-likelihood intervals of a cause's nonlinear parameters (:attr:`core.causes.Cause.profile`).
+
+    On the grid of every declared parameter (all combinations), the term's one column is rebuilt and fitted
+    beside ``Qo`` (the model without it: its linear coefficients profiled out by projection, as
+    :func:`_magnitudes` fits). A value is inside where the least residual sum of squares over the other
+    parameters' grid stays within ``4 s^2`` of the least over all (``s^2`` the fit's residual variance; 4 the
+    chi-square quantile of one degree of freedom at k = 2, 95.45 %): the interval ``[lo, hi]`` is the hull of
+    those values widened to the next grid point out on each side (the set's boundary lies before it), the U95 ``max(hi - v, v - lo)`` about the fitted ``v``. The delta method linearises the
+    residuals at the fit; a bump's centre and width are read off the few touches under it, where the sum of
+    squares moves in steps. ``{key: (U95, lo, hi, at_edge)}`` in the magnitudes' units; ``at_edge`` where the
+    set reaches the grid's end (the interval is then at least that). Unpenalised terms only.
+    """
+    profile = getattr(cause, "profile", None)
+    if not PROFILE_NONLINEAR or profile is None or getattr(cause, "rebuild", None) is None or tm.penalty is not None:
+        return {}
+    prof = profile(tm.info)
+    names = list(prof)
+    mesh = np.meshgrid(*[prof[nm][0] for nm in names], indexing="ij")
+    flat = {nm: g.ravel() for nm, g in zip(names, mesh)}
+    yr = bl.y[rows]
+    ro = yr - Qo @ (Qo.T @ yr)
+    base = float(ro @ ro)
+
+    def rss(info):
+        E = np.asarray(cause.rebuild(bl, info))
+        if E.ndim == 2:
+            E = E[None]
+        if E.shape[2] != 1:
+            return None
+        E = E[:, rows, 0]
+        Ep = E - (E @ Qo) @ Qo.T
+        den = np.einsum("ij,ij->i", Ep, Ep)
+        num = Ep @ ro
+        ok = den > 1e-300
+        return np.where(ok, base - np.where(ok, num, 0.0) ** 2 / np.where(ok, den, 1.0), base)
+
+    r0 = rss(dict(tm.info))
+    if r0 is None:
+        return {}
+    r0 = float(r0[0])
+    T = flat[names[0]].size
+    r = np.empty(T)
+    for a in range(0, T, PROFILE_CHUNK):
+        r[a:a + PROFILE_CHUNK] = rss({**tm.info, **{nm: flat[nm][a:a + PROFILE_CHUNK] for nm in names}})
+    s2 = r0 / max(len(rows) - Qo.shape[1] - 1 - len(names), 1)
+    inside = (r <= min(r.min(), r0) + 4.0 * s2).reshape(mesh[0].shape)
+    out = {}
+    for ax, nm in enumerate(names):
+        grid, key, scale = prof[nm]
+        hit = np.any(inside, axis=tuple(i for i in range(len(names)) if i != ax))
+        v = float(tm.info[nm])
+        if not hit.any():
+            continue
+        # the set's boundary lies between its last grid point and the next one out: the hull reaches the latter
+        idx = np.flatnonzero(hit)
+        lo, hi = float(grid[max(idx[0] - 1, 0)]), float(grid[min(idx[-1] + 1, grid.size - 1)])
+        lo, hi = min(lo, v), max(hi, v)
+        edge = bool(hit[0] or hit[-1])
+        out[key] = (max(hi - v, v - lo) * scale, lo * scale, hi * scale, edge)
+    return out
+
+
+def _norm_u95(cause, info: dict, key: str, v: float, coef: np.ndarray, cov: np.ndarray) -> tuple | None:
+    """A norm magnitude's ``(U95, (lo, hi))``: :func:`norm_interval` of its coefficient pair (``cov`` the label
+    coefficients' covariance), the U95 the half-width ``max(hi - v, v - lo)`` of the symmetric interval about
+    the value that holds it (the report's ``value +- U95`` then holds the 95 % interval). None where the cause
+    declares no such norm or the value is not that norm."""
+    norms = getattr(cause, "norms", None)  # (a cause-like record without the field: none)
+    if norms is None:
+        return None
+    pair = norms(info).get(key)
+    if pair is None:
+        return None
+    i, j = pair
+    m = np.array([coef[i], coef[j]], float)
+    S = cov[np.ix_([i, j], [i, j])]
+    if not (np.all(np.isfinite(m)) and np.all(np.isfinite(S))) \
+            or not np.isclose(float(np.hypot(*m)) / UM, v, rtol=1e-9, atol=1e-12):
+        return None
+    lo, hi = norm_interval(m, S)
+    return float(max(hi / UM - v, v - lo / UM)), (float(lo / UM), float(hi / UM))
 
 
 def _within_range(cause, key: str, v: float, u: float, wide: list | None) -> tuple:
@@ -5197,9 +5387,16 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         if a is not None and np.array_equal(a[1], rows) and a[0].shape == so.Q.shape and np.array_equal(a[0], so.Q) \
                 and a[4] == _pen_key(others) and (tm.penalty is None or tm.unnamed or folds is None):
             vals, u95 = dict(a[2]), dict(a[3])
+            iv = dict(tm.evidence.get("magnitude_intervals") or {})
         else:
+            iv = {}
             vals, u95 = _magnitudes(cause, bl, tm, so.Q, rows,
-                                    boot=(folds, others, True) if folds is not None else None)
+                                    boot=(folds, others, True) if folds is not None else None, intervals=iv)
+        prof = _profile_u95(cause, bl, tm, so.Q, rows)
+        for key, (u, lo, hi, edge) in prof.items():  # a scan's refined parameters: the profile's interval (session 21)
+            if vals.get(key) is not None and u95.get(key) is not None:
+                u95[key] = max(u, u95[key]) if edge else u
+                iv[key] = [lo, hi]
         beside_smooth, wide_note = None, None
         if smooth_terms and tm.penalty is None and MAGNITUDES_BESIDE_SMOOTH:
             # the model reported holds the unnamed smooth too: the magnitudes are fitted beside its columns with
@@ -5207,6 +5404,9 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             # carried where it is real (session 20)
             vals, u95, beside_smooth, wide_note = _magnitudes_beside_smooth(
                 cause, bl, tm, so.Q, rows, folds, others, smooth_terms, vals, u95, settings.alpha_family)
+            for key, (u, _, _, _) in prof.items():  # the profile's interval stays inside the carried one
+                if vals.get(key) is not None and u95.get(key) is not None:
+                    u95[key] = max(u95[key], u)
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)
@@ -5214,6 +5414,16 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                     for k, v in vals.items()}
             u95 = {k: None for k in u95}
         ev = dict(tm.evidence)
+        ev.pop("magnitude_intervals", None)
+        # a norm's 95 % interval [lo, hi] (its U95 the symmetric cover, session 21): where its value and U95 are the
+        # ones reported (beside a smooth the U95 is hypot(U95_s, shift): no such interval)
+        iv = {k: x for k, x in iv.items() if vals.get(k) is not None and u95.get(k) is not None
+              and not (beside_smooth is not None and k in beside_smooth.get("carried_in_u95", ()))}
+        if iv:
+            ev["magnitude_intervals"] = iv
+        edges = [k for k, x in prof.items() if x[3] and k in iv]
+        if edges:  # the profile's set reached its grid's end: its U95 at least the delta method's
+            ev["profile_at_grid_edge"] = edges
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
         if beside_smooth is not None:

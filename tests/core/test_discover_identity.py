@@ -173,6 +173,18 @@ confounded with the model holding part_change) leave ``rejected`` and
 ``partially_consistent_with``. Only those two leaves took the new values
 (the thermal drift's entry kept there equal within REL); the other fifteen
 reports are as stored.
+
+Refreshed for a norm's interval (session 21, :func:`core.discover.norm_interval`:
+a harmonic's amplitude, the norm of its cos and sin coefficients, takes its
+U95 from the interval of the norm instead of the delta method): only the
+``params_u95`` of the norm magnitudes and the new
+``evidence.magnitude_intervals`` of three reports took the new values (the
+demo's probe_lobing k2, k4 and periodic_axis_error EXY, EYY; hidden
+periodic_axis_error 1000's EXX, EYX; gen_a probe_lobing 302's k1-k4: e.g.
+302's k2 0.0317 +- 0.0576 -> +- 0.0476 [0, 0.079], hidden 1000's EYX 0.0958
++- 0.0698 -> +- 0.0890 [0.0067, 0.161]); far from zero they equal the delta
+method's within 0.4 % (k3 1.6597 +- 0.05624 -> 0.05650). Every other leaf,
+and the other thirteen reports, as stored.
 """
 
 from __future__ import annotations
