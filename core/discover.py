@@ -4997,11 +4997,49 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
             # touches it acts on; the remainder beyond a material slip stays material over every touch, the clause
             # that keeps a machine-side bending from being named a changing part: docs/discovery.md, session 16)
             m_own = m_ss * _support_share(tm.columns[rows], cause)
-            if (d_s >= m_ss and d_ns < m_ss) or (p_ns >= settings.alpha_family and d_s >= d_n - m_own):
+            refuse = (d_s >= m_ss and d_ns < m_ss) or (p_ns >= settings.alpha_family and d_s >= d_n - m_own)
+            if refuse and SLIP_OFF_FEATURE and cause.books_to == "workpiece":
+                p_off = _slip_off_feature(trials_take(Cs, [j], rows)[0], tm.columns[rows], so)
+                out["p_slip_off_feature"] = p_off
+                if p_off >= settings.alpha:
+                    # the slip is seen on the cause's own feature only: the data cannot tell the part moving once
+                    # from that feature changing; named, ambiguous with the slip
+                    refuse = False
+                    out["indistinguishable_counter"] = cause.counter_scan.__name__.replace("_", " ")
+                    out["counter_explained_ss_um2"] = out["slip_explained_ss_um2"]
+            if refuse:
                 out["kept"] = False
                 out["counter"] = cause.counter_scan.__name__.replace("_", " ")
                 out["counter_explained_ss_um2"] = out["slip_explained_ss_um2"]
     return out
+
+
+#: Whether the slip that refuses a workpiece-local cause must be seen off that cause's feature to refuse it
+#: (:func:`_slip_off_feature`; docs/discovery.md, session 21); where it is not, the cause is named, ambiguous.
+SLIP_OFF_FEATURE = True
+
+
+def _slip_off_feature(C: np.ndarray, E: np.ndarray, so) -> float:
+    """p of the best slip's step on the touches off the cause's feature alone (1.0: it moves none there).
+
+    A fixture slip moves the whole part at one moment: every touch after it in its set-up, on every feature,
+    is off by the same translation and rotation (:func:`core.causes.fixture_slip`'s columns ``C``). A change of
+    one feature's form moves that feature's touches alone. So a slip that is there is seen on the other
+    features' touches it moves, without the feature's own (gen_b fixture_slip: the features probed after the
+    slip); a "slip" seen only through the feature (gen_b part_change: a step after the slot's first wall that
+    moves its second wall and the blade's few drift-check re-touches, which do not move) is the feature's own
+    change read as a step, and the data cannot tell the two. The test: the slip's columns with the feature's
+    rows (``E``'s support) zeroed, F-tested beside the model without the slip (``so``), unadjusted: the moment
+    is the one the slip check chose on every row, and a small p keeps the slip's refusal.
+    """
+    on = np.any(np.abs(E) > 1e-9 * np.max(np.abs(E), axis=0, initial=0.0), axis=1)
+    Co = C * (~on)[:, None]
+    if not np.any(Co != 0):
+        return 1.0
+    U = new_basis(so.Q, Co)
+    if U.shape[1] == 0 or so.dof - U.shape[1] <= 0:
+        return 1.0
+    return float(nested_f(U, so.r, so.rss, so.dof).p_value)
 
 
 #: Moments tried for a one-off event by :func:`_time_alternatives` (quantiles of the touches' times).
