@@ -2498,6 +2498,32 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if PENALTY_RECHOSEN and any(t.penalty is not None and not t.unnamed for t in terms):
         terms = _penalties_rechosen(terms, folds, y, rows)
         st = _state(Qb, y, rows, terms)
+        if PENALTY_RECHOSEN_GATED:
+            # the gates of adoption that depend on the ridge, run again where it moved (_rechosen_gate)
+            for tm in [t for t in terms if "penalty_at_adoption" in t.evidence]:
+                rest = [t for t in terms if t is not tm]
+                so = _state(Qb, y, rows, rest)
+                why = _rechosen_gate(tm, rest, terms, bl, folds, y, rows, so,
+                                     (settings.material_sigma * noise_sigma(so)) ** 2)
+                if why is None:
+                    continue
+                # refused as its adoption would have been: the causes adopted after it were searched beside it
+                # and are judged again without it (as after the rival check's drop)
+                at = next(i for i, t in enumerate(terms) if t is tm)
+                later, terms = terms[at + 1:], terms[:at]
+                rejected.append({"cause": tm.cause, "reason": why})
+                if put_back_by is not None and put_back_by.cause == tm.cause:  # (its put-back undone with it)
+                    put_back, put_back_by = False, None
+                for old in later:
+                    new = judge_again(old, terms, rows, tm)
+                    if new is not None:
+                        terms.append(new)
+                if not put_back:  # the outliers judged against the terms that stay (the rival check's rule)
+                    rows = np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(terms, all_rows)])) if terms
+                                        else outliers_of(bl.A, Qall))
+                    rows_b = judge_rows_again(rows)
+                Qb, folds, st = model(rows, terms)
+                break  # (one refusal: a second penalised named cause is not in the catalogue)
     tick()
 
     # 5. what remains
@@ -4181,14 +4207,9 @@ def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float, boot: tuple | N
             f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
     # (the penalised terms it was fitted beside: Qo does not show them)
     tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95, _pen_key(boot[1] if boot else ())))
-    for key, v in vals.items():
-        if not isinstance(v, float) or v is None:
-            continue
-        for pat, (lo, hi) in cause.bounds.items():
-            if _matches(key, pat):
-                u = u95.get(key) or 0.0
-                if v + u < lo or v - u > hi:
-                    return {"reason": f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})", "significant": True}
+    bad = _out_of_bounds(cause, vals, u95)
+    if bad:
+        return {"reason": bad, "significant": True}
     why = cause.plausible(vals, u95) if cause.plausible else None
     if isinstance(why, causes_mod.Undetermined):
         # the magnitudes the check needs are not determined on this design: not
@@ -4283,6 +4304,63 @@ def _penalties_rechosen(terms, folds, y, rows) -> list:
             ev = {**tm.evidence, "penalty": best[1], "penalty_at_adoption": float(tm.evidence["penalty"])}
             out[i] = dataclasses.replace(tm, penalty=best[1] * scale * np.eye(k), evidence=ev)
     return out
+
+
+#: Whether a penalised named cause whose ridge :func:`_penalties_rechosen` moved must pass again, at that ridge in
+#: the final model, the gates of its adoption that depend on the ridge (:func:`_rechosen_gate`; session 21, issue 13).
+PENALTY_RECHOSEN_GATED = True
+
+
+def _rechosen_gate(tm: Term, rest: list, terms: list, bl, folds, y, rows, so: _State, m2: float) -> str | None:
+    """Why a penalised named cause fails, at the ridge chosen again in the final model, a gate of its adoption that
+    depends on the ridge (None: it passes). The figures go to its evidence.
+
+    The gates of :func:`_judge_trial` are of two kinds. The significance F test, the family check (4e), the
+    counter-explanation, the support and smooth checks and the variance inflation (reported only for a penalised
+    cause) take the cause's unpenalised columns: the ridge does not enter them, and the rival check has judged the
+    final model's terms and rows. The held-out gain (:func:`_evaluate_penalised`) and the magnitudes' bounds
+    (:func:`_plausible`) are figures of the penalised fit: they are made again here.
+
+    - *Held-out gain*: the final model's held-out mean square without the cause (the others with their penalties)
+      less that with it at its new ridge, against materiality ``m2`` (the noise beside the model without it, as at
+      adoption). The ridge is the one predicting best, so the gain is the largest the grid gives: a gain below
+      materiality here was below it at the adoption's ridge too. A ridge at the grid's largest value is the held-out
+      set-ups asking for as little of the field as the grid allows; its limit, an infinite ridge, is the model
+      without the field, so whether the edge means "no field" is this same comparison (``penalty_at_grid_edge``
+      said in the evidence).
+    - *Bounds*: where the ridge went down the field's magnitudes may grow: they are fitted again (the delta method's
+      U95, as at adoption) and refused wholly outside the cause's bounds. A larger ridge shrinks them: not refitted.
+    """
+    cv_w = folds.mse(y[rows], _stack(terms, rows), _penalty(terms))
+    cv_wo = folds.mse(y[rows], _stack(rest, rows), _penalty(rest)) if rest else folds.mse(y[rows])
+    gain = cv_wo - cv_w
+    f, f0 = float(tm.evidence["penalty"]), float(tm.evidence["penalty_at_adoption"])
+    tm.evidence.update({"cv_gain_um2_rechosen": gain / UM ** 2, "materiality_um2_rechosen": m2 / UM ** 2,
+                        "penalty_at_grid_edge": bool(f >= max(PENALTY_GRID))})
+    if gain < m2:
+        return (f"its ridge chosen again in the final model ({f:g} times its scale, {f0:g} at adoption"
+                + (", the grid's largest" if f >= max(PENALTY_GRID) else "")
+                + f"): cross-validated gain {gain / UM ** 2:.3g} um^2 below materiality {m2 / UM ** 2:.3g} um^2")
+    if f < f0 and tm.origin is not None:
+        vals, u95 = _magnitudes(tm.origin, bl, tm, so.Q, rows, boot=(folds, rest))
+        bad = _out_of_bounds(tm.origin, vals, u95)
+        if bad:
+            return f"its ridge chosen again in the final model ({f:g} times its scale, {f0:g} at adoption): {bad}"
+    return None
+
+
+def _out_of_bounds(cause, vals: dict, u95: dict) -> str | None:
+    """The first magnitude whose interval (value +- U95) lies wholly outside the cause's bounds, as words (None:
+    none does): :func:`_plausible`'s bounds gate."""
+    for key, v in vals.items():
+        if not isinstance(v, float) or v is None:
+            continue
+        for pat, (lo, hi) in cause.bounds.items():
+            if _matches(key, pat):
+                u = u95.get(key) or 0.0
+                if v + u < lo or v - u > hi:
+                    return f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})"
+    return None
 
 
 #: Parametric bootstrap refits of a penalised named cause's magnitudes (:func:`_penalised_bootstrap`), and the seed of
