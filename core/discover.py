@@ -3675,6 +3675,18 @@ NESTING_FAMILIES = {"position": ("feature",), "direction": ("feature",)}
 #: Largest total degree ``i + j`` of the products ``P_i(xs) P_j(ys)`` (i, j >= 1) of the position family's fine
 #: smooth (:func:`_fine_position`), against which step 4e measures the family's own share of a nesting term.
 FINE_POSITION_DEGREE = 6
+#: Whether step 4e credits a position cause with the fine smooth's figure only where the cause itself explains
+#: ``rival_share`` of its family's best (coarse) smooth (session 21, tried: gen_a local_scale_defect 1934 against
+#: gen_a nonrigid 1048).
+FINE_POSITION_NEEDS_SHARE = False
+
+
+def _fine_position_credited(ss_n: float, ss_family: float, settings) -> bool:
+    """Whether step 4e takes the position family's fine smooth as a position cause's own figure against a nesting
+    term: always (the rule of session 19), or with :data:`FINE_POSITION_NEEDS_SHARE` only where the cause explains
+    ``rival_share`` of its family's best coarse smooth ``ss_family`` (the cause holds the family's structure; the fine
+    smooth refines it)."""
+    return not FINE_POSITION_NEEDS_SHARE or ss_n >= settings.rival_share * ss_family
 
 
 def _fine_position(bl) -> np.ndarray:
@@ -4081,8 +4093,9 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
                     and f in NESTING_FAMILIES.get(fam, ()) and fam == "position"):
                 # the nesting term is fine-grained: the position family's own figure at a finer resolution
                 # (FINE_POSITION_DEGREE), measured only where it decides
-                own = max(own, _candidate_ss(nested_f_batch(_fine_position_of(bl)[None, rows], st.Q, st.r, st.rss,
-                                                            st.dof), st))
+                if _fine_position_credited(ss_n, families.get(fam, (0.0, ""))[0], settings):
+                    own = max(own, _candidate_ss(nested_f_batch(_fine_position_of(bl)[None, rows], st.Q, st.r,
+                                                                st.rss, st.dof), st))
             if f != fam and ss_f > own + m_ss and not (own >= settings.rival_share * ss_f and (
                     f in NESTING_FAMILIES.get(fam, ()) or _spans_exactly(bl, name, cols[rows], rows))):
                 return {"reason": f"the structure follows {name} ({f}) more than this cause's form or its "
