@@ -117,7 +117,11 @@ What it does, in order, and the statistics behind each step
    (``judged_again_without`` in its evidence).
 6. **Unexplained**: first a penalised named cause's ridge is chosen again
    over its grid in the model as it now stands (its rows and the causes
-   beside it final: :func:`_penalties_rechosen`, session 20). Then, if
+   beside it final: :func:`_penalties_rechosen`, session 20); where it
+   moved, the gates that depend on the ridge are made again there (the
+   held-out gain against materiality, the bounds: :func:`_rechosen_gate`,
+   session 21) and a cause that fails is refused, the causes after it
+   judged again without it. Then, if
    structure remains (diagnosis, lack of fit or CV gap
    significant and material), the cause list gains ``unexplained`` with
    the diagnosis; a penalised smooth term in the strongest covariate
