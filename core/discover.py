@@ -4346,7 +4346,8 @@ def _rechosen_gate(tm: Term, rest: list, terms: list, bl, folds, y, rows, so: _S
       without the field, so whether the edge means "no field" is this same comparison (``penalty_at_grid_edge``
       said in the evidence).
     - *Bounds*: where the ridge went down the field's magnitudes may grow: they are fitted again (the delta method's
-      U95, as at adoption) and refused wholly outside the cause's bounds. A larger ridge shrinks them: not refitted.
+      U95, as at adoption) and refused wholly outside the cause's bounds or by its own plausibility check (as
+      :func:`_plausible`; `nonrigid` has none). A larger ridge shrinks them: not refitted.
     """
     cv_w = folds.mse(y[rows], _stack(terms, rows), _penalty(terms))
     cv_wo = folds.mse(y[rows], _stack(rest, rows), _penalty(rest)) if rest else folds.mse(y[rows])
@@ -4361,6 +4362,9 @@ def _rechosen_gate(tm: Term, rest: list, terms: list, bl, folds, y, rows, so: _S
     if f < f0 and tm.origin is not None:
         vals, u95 = _magnitudes(tm.origin, bl, tm, so.Q, rows, boot=(folds, rest))
         bad = _out_of_bounds(tm.origin, vals, u95)
+        why = tm.origin.plausible(vals, u95) if tm.origin.plausible else None  # (nonrigid has no such check)
+        if not bad and why and not isinstance(why, causes_mod.Undetermined):
+            bad = f"implausible: {why}"
         if bad:
             return f"its ridge chosen again in the final model ({f:g} times its scale, {f0:g} at adoption): {bad}"
     return None
