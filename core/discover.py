@@ -117,7 +117,11 @@ What it does, in order, and the statistics behind each step
    (``judged_again_without`` in its evidence).
 6. **Unexplained**: first a penalised named cause's ridge is chosen again
    over its grid in the model as it now stands (its rows and the causes
-   beside it final: :func:`_penalties_rechosen`, session 20). Then, if
+   beside it final: :func:`_penalties_rechosen`, session 20); where it
+   moved, the gates that depend on the ridge are made again there (the
+   held-out gain against materiality, the bounds: :func:`_rechosen_gate`,
+   session 21) and a cause that fails is refused, the causes after it
+   judged again without it. Then, if
    structure remains (diagnosis, lack of fit or CV gap
    significant and material), the cause list gains ``unexplained`` with
    the diagnosis; a penalised smooth term in the strongest covariate
@@ -2498,6 +2502,32 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if PENALTY_RECHOSEN and any(t.penalty is not None and not t.unnamed for t in terms):
         terms = _penalties_rechosen(terms, folds, y, rows)
         st = _state(Qb, y, rows, terms)
+        if PENALTY_RECHOSEN_GATED:
+            # the gates of adoption that depend on the ridge, run again where it moved (_rechosen_gate)
+            for tm in [t for t in terms if "penalty_at_adoption" in t.evidence]:
+                rest = [t for t in terms if t is not tm]
+                so = _state(Qb, y, rows, rest)
+                why = _rechosen_gate(tm, rest, terms, bl, folds, y, rows, so,
+                                     (settings.material_sigma * noise_sigma(so)) ** 2)
+                if why is None:
+                    continue
+                # refused as its adoption would have been: the causes adopted after it were searched beside it
+                # and are judged again without it (as after the rival check's drop)
+                at = next(i for i, t in enumerate(terms) if t is tm)
+                later, terms = terms[at + 1:], terms[:at]
+                rejected.append({"cause": tm.cause, "reason": why})
+                if put_back_by is not None and put_back_by.cause == tm.cause:  # (its put-back undone with it)
+                    put_back, put_back_by = False, None
+                for old in later:
+                    new = judge_again(old, terms, rows, tm)
+                    if new is not None:
+                        terms.append(new)
+                if not put_back:  # the outliers judged against the terms that stay (the rival check's rule)
+                    rows = np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(terms, all_rows)])) if terms
+                                        else outliers_of(bl.A, Qall))
+                    rows_b = judge_rows_again(rows)
+                Qb, folds, st = model(rows, terms)
+                break  # (one refusal: a second penalised named cause is not in the catalogue)
     tick()
 
     # 5. what remains
@@ -3649,6 +3679,18 @@ NESTING_FAMILIES = {"position": ("feature",), "direction": ("feature",)}
 #: Largest total degree ``i + j`` of the products ``P_i(xs) P_j(ys)`` (i, j >= 1) of the position family's fine
 #: smooth (:func:`_fine_position`), against which step 4e measures the family's own share of a nesting term.
 FINE_POSITION_DEGREE = 6
+#: Whether step 4e credits a position cause with the fine smooth's figure only where the cause itself explains
+#: ``rival_share`` of its family's best (coarse) smooth (session 21, tried: gen_a local_scale_defect 1934 against
+#: gen_a nonrigid 1048).
+FINE_POSITION_NEEDS_SHARE = False
+
+
+def _fine_position_credited(ss_n: float, ss_family: float, settings) -> bool:
+    """Whether step 4e takes the position family's fine smooth as a position cause's own figure against a nesting
+    term: always (the rule of session 19), or with :data:`FINE_POSITION_NEEDS_SHARE` only where the cause explains
+    ``rival_share`` of its family's best coarse smooth ``ss_family`` (the cause holds the family's structure; the fine
+    smooth refines it)."""
+    return not FINE_POSITION_NEEDS_SHARE or ss_n >= settings.rival_share * ss_family
 
 
 def _fine_position(bl) -> np.ndarray:
@@ -4055,8 +4097,9 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
                     and f in NESTING_FAMILIES.get(fam, ()) and fam == "position"):
                 # the nesting term is fine-grained: the position family's own figure at a finer resolution
                 # (FINE_POSITION_DEGREE), measured only where it decides
-                own = max(own, _candidate_ss(nested_f_batch(_fine_position_of(bl)[None, rows], st.Q, st.r, st.rss,
-                                                            st.dof), st))
+                if _fine_position_credited(ss_n, families.get(fam, (0.0, ""))[0], settings):
+                    own = max(own, _candidate_ss(nested_f_batch(_fine_position_of(bl)[None, rows], st.Q, st.r,
+                                                                st.rss, st.dof), st))
             if f != fam and ss_f > own + m_ss and not (own >= settings.rival_share * ss_f and (
                     f in NESTING_FAMILIES.get(fam, ()) or _spans_exactly(bl, name, cols[rows], rows))):
                 return {"reason": f"the structure follows {name} ({f}) more than this cause's form or its "
@@ -4184,14 +4227,9 @@ def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float, boot: tuple | N
             f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
     # (the penalised terms it was fitted beside: Qo does not show them)
     tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95, _pen_key(boot[1] if boot else ())))
-    for key, v in vals.items():
-        if not isinstance(v, float) or v is None:
-            continue
-        for pat, (lo, hi) in cause.bounds.items():
-            if _matches(key, pat):
-                u = u95.get(key) or 0.0
-                if v + u < lo or v - u > hi:
-                    return {"reason": f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})", "significant": True}
+    bad = _out_of_bounds(cause, vals, u95)
+    if bad:
+        return {"reason": bad, "significant": True}
     why = cause.plausible(vals, u95) if cause.plausible else None
     if isinstance(why, causes_mod.Undetermined):
         # the magnitudes the check needs are not determined on this design: not
@@ -4286,6 +4324,67 @@ def _penalties_rechosen(terms, folds, y, rows) -> list:
             ev = {**tm.evidence, "penalty": best[1], "penalty_at_adoption": float(tm.evidence["penalty"])}
             out[i] = dataclasses.replace(tm, penalty=best[1] * scale * np.eye(k), evidence=ev)
     return out
+
+
+#: Whether a penalised named cause whose ridge :func:`_penalties_rechosen` moved must pass again, at that ridge in
+#: the final model, the gates of its adoption that depend on the ridge (:func:`_rechosen_gate`; session 21, issue 13).
+PENALTY_RECHOSEN_GATED = True
+
+
+def _rechosen_gate(tm: Term, rest: list, terms: list, bl, folds, y, rows, so: _State, m2: float) -> str | None:
+    """Why a penalised named cause fails, at the ridge chosen again in the final model, a gate of its adoption that
+    depends on the ridge (None: it passes). The figures go to its evidence.
+
+    The gates of :func:`_judge_trial` are of two kinds. The significance F test, the family check (4e), the
+    counter-explanation, the support and smooth checks and the variance inflation (reported only for a penalised
+    cause) take the cause's unpenalised columns: the ridge does not enter them, and the rival check has judged the
+    final model's terms and rows. The held-out gain (:func:`_evaluate_penalised`) and the magnitudes' bounds
+    (:func:`_plausible`) are figures of the penalised fit: they are made again here.
+
+    - *Held-out gain*: the final model's held-out mean square without the cause (the others with their penalties)
+      less that with it at its new ridge, against materiality ``m2`` (the noise beside the model without it, as at
+      adoption). The ridge is the one predicting best, so the gain is the largest the grid gives: a gain below
+      materiality here was below it at the adoption's ridge too. A ridge at the grid's largest value is the held-out
+      set-ups asking for as little of the field as the grid allows; its limit, an infinite ridge, is the model
+      without the field, so whether the edge means "no field" is this same comparison (``penalty_at_grid_edge``
+      said in the evidence).
+    - *Bounds*: where the ridge went down the field's magnitudes may grow: they are fitted again (the delta method's
+      U95, as at adoption) and refused wholly outside the cause's bounds or by its own plausibility check (as
+      :func:`_plausible`; `nonrigid` has none). A larger ridge shrinks them: not refitted.
+    """
+    cv_w = folds.mse(y[rows], _stack(terms, rows), _penalty(terms))
+    cv_wo = folds.mse(y[rows], _stack(rest, rows), _penalty(rest)) if rest else folds.mse(y[rows])
+    gain = cv_wo - cv_w
+    f, f0 = float(tm.evidence["penalty"]), float(tm.evidence["penalty_at_adoption"])
+    tm.evidence.update({"cv_gain_um2_rechosen": gain / UM ** 2, "materiality_um2_rechosen": m2 / UM ** 2,
+                        "penalty_at_grid_edge": bool(f >= max(PENALTY_GRID))})
+    if gain < m2:
+        return (f"its ridge chosen again in the final model ({f:g} times its scale, {f0:g} at adoption"
+                + (", the grid's largest" if f >= max(PENALTY_GRID) else "")
+                + f"): cross-validated gain {gain / UM ** 2:.3g} um^2 below materiality {m2 / UM ** 2:.3g} um^2")
+    if f < f0 and tm.origin is not None:
+        vals, u95 = _magnitudes(tm.origin, bl, tm, so.Q, rows, boot=(folds, rest))
+        bad = _out_of_bounds(tm.origin, vals, u95)
+        why = tm.origin.plausible(vals, u95) if tm.origin.plausible else None  # (nonrigid has no such check)
+        if not bad and why and not isinstance(why, causes_mod.Undetermined):
+            bad = f"implausible: {why}"
+        if bad:
+            return f"its ridge chosen again in the final model ({f:g} times its scale, {f0:g} at adoption): {bad}"
+    return None
+
+
+def _out_of_bounds(cause, vals: dict, u95: dict) -> str | None:
+    """The first magnitude whose interval (value +- U95) lies wholly outside the cause's bounds, as words (None:
+    none does): :func:`_plausible`'s bounds gate."""
+    for key, v in vals.items():
+        if not isinstance(v, float) or v is None:
+            continue
+        for pat, (lo, hi) in cause.bounds.items():
+            if _matches(key, pat):
+                u = u95.get(key) or 0.0
+                if v + u < lo or v - u > hi:
+                    return f"implausible {key} = {v:.3g} (bounds {lo:g}..{hi:g})"
+    return None
 
 
 #: Parametric bootstrap refits of a penalised named cause's magnitudes (:func:`_penalised_bootstrap`), and the seed of
