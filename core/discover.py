@@ -2591,7 +2591,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # workpiece is tested and carried where real (:func:`_workpiece`'s ``doubted``)
     fo = next((f for f in findings if f.cause == causes_mod.OUTLIER), None)
     doubted = outliers if (fo is not None and fo.evidence.get("confidence") == "ambiguous"
-                           and OUTLIER_SHIFT_CARRIED) else None
+                           and OUTLIER_SHIFT_CARRIED and _outliers_span_a_form(bl, outliers)) else None
     wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family, doubted)
     if shift is not None and shift.get("of") == "outliers":
         fo.evidence["workpiece_shift"] = _clean({k: v for k, v in shift.items() if k != "of"})
@@ -5672,10 +5672,26 @@ def _unexplained_only(diag, structure, st, sigma, settings) -> Finding:
         "explained_ss_um2": (top.explained_rms_um ** 2 * st.dof) if top else 0.0}), {}, {}, st.sigma / UM, "unknown")
 
 
-#: Outliers the report does not call dust with confidence: their removal's shift of the extended workpiece
-#: tested and, where real, carried in its U95 (:func:`_workpiece`'s ``doubted``). False: the behaviour before
-#: session 21 (the extended U95 from the rows kept alone).
+#: Outliers the report does not call dust with confidence, on :data:`OUTLIER_FORM_TARGETS` or more targets of one
+#: feature: their removal's shift of the extended workpiece tested and, where real, carried in its U95
+#: (:func:`_workpiece`'s ``doubted``). False: the behaviour before session 21 (the extended U95 from the rows kept
+#: alone).
 OUTLIER_SHIFT_CARRIED = True
+#: Distinct targets of one feature the doubted outliers must touch for the part's own state to be a reading of
+#: them: what the workpiece estimates is a form, and a feature's form is seen at three targets or more (two are
+#: a size and a tilt, which the part's gauge and the feature's other targets share); a chip or a skid
+#: corrupts the touch it sits under (gen_a 1-4 random touches, gen_b 2-5, the simulator 1-3 on one wall).
+OUTLIER_FORM_TARGETS = 3
+
+
+def _outliers_span_a_form(bl: Baseline, outliers) -> bool:
+    """Whether the outliers touch :data:`OUTLIER_FORM_TARGETS` or more distinct targets of one feature."""
+    t = getattr(getattr(bl, "data", None), "touches", None)
+    if t is None or getattr(t, "feature", None) is None or len(outliers) < OUTLIER_FORM_TARGETS:
+        return False
+    feat = np.asarray(t.feature, dtype=object)[outliers]
+    tgt = np.asarray(t.target)[outliers]
+    return any(np.unique(tgt[feat == f]).size >= OUTLIER_FORM_TARGETS for f in set(feat.tolist()) if f != "")
 
 
 def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubted=None):
