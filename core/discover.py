@@ -2590,9 +2590,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # their touches are dust or the part's own state is the removal's assumption, and its shift of the
     # workpiece is tested and carried where real (:func:`_workpiece`'s ``doubted``)
     fo = next((f for f in findings if f.cause == causes_mod.OUTLIER), None)
-    doubted = outliers if (fo is not None and fo.evidence.get("confidence") == "ambiguous"
-                           and OUTLIER_SHIFT_CARRIED and _outliers_span_a_form(bl, outliers)) else None
-    wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family, doubted)
+    form = _outliers_span_a_form(bl, outliers) if (fo is not None and OUTLIER_SHIFT_CARRIED and
+                                                   fo.evidence.get("confidence") == "ambiguous") else None
+    wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family,
+                                                    (outliers, form) if form is not None and form.size else None)
     if shift is not None and shift.get("of") == "outliers":
         fo.evidence["workpiece_shift"] = _clean({k: v for k, v in shift.items() if k != "of"})
     res_e = np.full(N, np.nan)
@@ -5673,9 +5674,10 @@ def _unexplained_only(diag, structure, st, sigma, settings) -> Finding:
 
 
 #: Outliers the report does not call dust with confidence, on :data:`OUTLIER_FORM_TARGETS` or more targets of one
-#: feature: their removal's shift of the extended workpiece tested and, where real, carried in its U95
-#: (:func:`_workpiece`'s ``doubted``). False: the behaviour before session 21 (the extended U95 from the rows kept
-#: alone).
+#: feature and reading there both more and less material than the extended fit (a particle reads more, never
+#: less): their removal's shift of the extended workpiece tested and, where real, carried in its U95
+#: (:func:`_workpiece`'s ``doubted``). False: the behaviour before session 21 (the extended U95 from the rows
+#: kept alone).
 OUTLIER_SHIFT_CARRIED = True
 #: Distinct targets of one feature the doubted outliers must touch for the part's own state to be a reading of
 #: them: what the workpiece estimates is a form, and a feature's form is seen at three targets or more (two are
@@ -5684,14 +5686,19 @@ OUTLIER_SHIFT_CARRIED = True
 OUTLIER_FORM_TARGETS = 3
 
 
-def _outliers_span_a_form(bl: Baseline, outliers) -> bool:
-    """Whether the outliers touch :data:`OUTLIER_FORM_TARGETS` or more distinct targets of one feature."""
+def _outliers_span_a_form(bl: Baseline, outliers) -> np.ndarray:
+    """The outliers on features where they touch :data:`OUTLIER_FORM_TARGETS` or more distinct targets (rows)."""
+    outliers = np.asarray(outliers, int)
     t = getattr(getattr(bl, "data", None), "touches", None)
     if t is None or getattr(t, "feature", None) is None or len(outliers) < OUTLIER_FORM_TARGETS:
-        return False
+        return outliers[:0]
     feat = np.asarray(t.feature, dtype=object)[outliers]
     tgt = np.asarray(t.target)[outliers]
-    return any(np.unique(tgt[feat == f]).size >= OUTLIER_FORM_TARGETS for f in set(feat.tolist()) if f != "")
+    on = np.zeros(len(outliers), bool)
+    for f in set(feat.tolist()):
+        if f != "" and np.unique(tgt[feat == f]).size >= OUTLIER_FORM_TARGETS:
+            on |= feat == f
+    return outliers[on]
 
 
 def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubted=None):
@@ -5700,8 +5707,13 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     Beside an unnamed smooth the extended U95 carries the workpiece shift
     the smooth makes when the data say it is real (:func:`_unnamed_shift`).
 
-    ``doubted`` (row indices, optional): outliers the report does not call
-    dust with confidence. Removing a touch says it holds nothing of the
+    ``doubted`` (optional): (the outliers' rows, those of them on a feature
+    where they touch :data:`OUTLIER_FORM_TARGETS` targets or more), outliers
+    the report does not call dust with confidence. A particle between the
+    stylus and the surface makes a touch read more material, never less
+    (every generator's chips; a burr's skid reads less, alone): where the
+    latter rows read both more and less material than the extended fit,
+    they are not all dust. Removing a touch says it holds nothing of the
     part; an intermittent mechanism of the part (a feature relaxing in the
     campaign's first minutes: gen_a part_change 1139, the first eleven
     touches of a boss before it ovalised, removed as one event) leaves
@@ -5753,7 +5765,12 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
         ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
     if need_maps:
         ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, lin[0], lin_e[0], lin_e[1], eb & ee[:len(eb)], alpha)
-    if doubted is not None and len(doubted) and not (shift is not None and shift["carried_in_u95"]):
+    if doubted is not None:
+        r_form = y[doubted[1]] - A1[doubted[1]] @ ge  # the rows on a feature's form against the fit without them
+        if not (np.any(r_form > 0) and np.any(r_form < 0)):
+            doubted = None
+    if doubted is not None and not (shift is not None and shift["carried_in_u95"]):
+        doubted = doubted[0]
         # the same extended model on every row (the outliers kept) against it without them
         ga, _, ea, La, _ = _constrained(A1, y, C1, d1, np.arange(bl.n), P, E.shape[1], linear_map=True)
         if not need_maps:
