@@ -2616,7 +2616,16 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
     findings = _ordered(findings, (settings.material_sigma * sig) ** 2 * len(rows) / UM ** 2)
     tick()
-    wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family)
+    # outliers the report does not call dust with confidence (one event, or a pattern beside them): whether
+    # their touches are dust or the part's own state is the removal's assumption, and its shift of the
+    # workpiece is tested and carried where real (:func:`_workpiece`'s ``doubted``)
+    fo = next((f for f in findings if f.cause == causes_mod.OUTLIER), None)
+    form = _outliers_span_a_form(bl, outliers) if (fo is not None and OUTLIER_SHIFT_CARRIED and
+                                                   fo.evidence.get("confidence") == "ambiguous") else None
+    wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family,
+                                                    (outliers, form) if form is not None and form.size else None)
+    if shift is not None and shift.get("of") == "outliers":
+        fo.evidence["workpiece_shift"] = _clean({k: v for k, v in shift.items() if k != "of"})
     res_e = np.full(N, np.nan)
     res_e[rows] = st.r
     conv = list(bl.conventions) + [
@@ -2640,7 +2649,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     "spans exactly; U95 from the penalised fit's covariance s^2 (A^T A + P)^-1 (the Bayesian "
                     "covariance of a penalised spline, Wahba 1983); an estimate only where the data alone "
                     "determine it")
-    if shift is not None:
+    if shift is not None and shift.get("of") == "outliers":
+        conv.append(f"removing the outliers moves the workpiece by {shift['shift_rms_um']:.3g} um RMS (form only), "
+                    f"{fmt_p(shift['p'])} against its own scatter: real, and the report does not call them dust "
+                    "with confidence (they may be the part's own state at those touches): the extended U95 "
+                    "carries the shift (u = |shift| / 2 per target)")
+    elif shift is not None:
         for f in findings:
             if (f.cause == causes_mod.UNEXPLAINED and "smooth" in f.evidence) or f.evidence.get(
                     "magnitudes_not_determined") or f.cause in pen_named:
@@ -6006,11 +6020,58 @@ def _unexplained_only(diag, structure, st, sigma, settings) -> Finding:
         "explained_ss_um2": (top.explained_rms_um ** 2 * st.dof) if top else 0.0}), {}, {}, st.sigma / UM, "unknown")
 
 
-def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
+#: Outliers the report does not call dust with confidence, on :data:`OUTLIER_FORM_TARGETS` or more targets of one
+#: feature and reading there both more and less material than the extended fit (a particle reads more, never
+#: less): their removal's shift of the extended workpiece tested and, where real, carried in its U95
+#: (:func:`_workpiece`'s ``doubted``). False: the behaviour before session 21 (the extended U95 from the rows
+#: kept alone).
+OUTLIER_SHIFT_CARRIED = True
+#: Distinct targets of one feature the doubted outliers must touch for the part's own state to be a reading of
+#: them: what the workpiece estimates is a form, and a feature's form is seen at three targets or more (two are
+#: a size and a tilt, which the part's gauge and the feature's other targets share); a chip or a skid
+#: corrupts the touch it sits under (gen_a 1-4 random touches, gen_b 2-5, the simulator 1-3 on one wall).
+OUTLIER_FORM_TARGETS = 3
+
+
+def _outliers_span_a_form(bl: Baseline, outliers) -> np.ndarray:
+    """The outliers on features where they touch :data:`OUTLIER_FORM_TARGETS` or more distinct targets (rows)."""
+    outliers = np.asarray(outliers, int)
+    t = getattr(getattr(bl, "data", None), "touches", None)
+    if t is None or getattr(t, "feature", None) is None or len(outliers) < OUTLIER_FORM_TARGETS:
+        return outliers[:0]
+    feat = np.asarray(t.feature, dtype=object)[outliers]
+    tgt = np.asarray(t.target)[outliers]
+    on = np.zeros(len(outliers), bool)
+    for f in set(feat.tolist()):
+        if f != "" and np.unique(tgt[feat == f]).size >= OUTLIER_FORM_TARGETS:
+            on |= feat == f
+    return outliers[on]
+
+
+def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubted=None):
     """Estimand per id for the baseline and the extended model, with U95 (k = 2).
 
     Beside an unnamed smooth the extended U95 carries the workpiece shift
     the smooth makes when the data say it is real (:func:`_unnamed_shift`).
+
+    ``doubted`` (optional): (the outliers' rows, those of them on a feature
+    where they touch :data:`OUTLIER_FORM_TARGETS` targets or more), outliers
+    the report does not call dust with confidence. A particle between the
+    stylus and the surface makes a touch read more material, never less
+    (every generator's chips; a burr's skid reads less, alone): where the
+    latter rows read both more and less material than the extended fit,
+    they are not all dust. Removing a touch says it holds nothing of the
+    part; an intermittent mechanism of the part (a feature relaxing in the
+    campaign's first minutes: gen_a part_change 1139, the first eleven
+    touches of a boss before it ovalised, removed as one event) leaves
+    touches that are the part's own state. Which of the two they are is
+    the removal's assumption, as the split of an unnamed effect is the
+    smooth's: the shift the removal makes (the same extended model fitted
+    with and without them) is tested by :func:`_unnamed_shift` and, when
+    real, carried in the extended U95; the returned figures then carry
+    ``of = "outliers"``. Where the smooth's shift is already carried it
+    reaches the baseline's answer (the outliers in it), and nothing more is
+    added.
 
     Returns (rows of the report, identifiable, G_b, G_e, cov_b, cov_e, shift),
     ``shift`` the test's figures (None without an unnamed smooth).
@@ -6051,6 +6112,20 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01):
         ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
     if need_maps:
         ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, lin[0], lin_e[0], lin_e[1], eb & ee[:len(eb)], alpha)
+    if doubted is not None:
+        r_form = y[doubted[1]] - A1[doubted[1]] @ ge  # the rows on a feature's form against the fit without them
+        if not (np.any(r_form > 0) and np.any(r_form < 0)):
+            doubted = None
+    if doubted is not None and not (shift is not None and shift["carried_in_u95"]):
+        doubted = doubted[0]
+        # the same extended model on every row (the outliers kept) against it without them
+        ga, _, ea, La, _ = _constrained(A1, y, C1, d1, np.arange(bl.n), P, E.shape[1], linear_map=True)
+        if not need_maps:
+            lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=True)[3:]
+        ce2, sh2 = _unnamed_shift(bl, rows, ga[:len(eb)], ge, ce, La[:len(eb)], lin_e[0], lin_e[1],
+                                  ea[:len(eb)] & ee[:len(eb)], alpha)
+        if sh2 is not None and sh2["carried_in_u95"]:
+            ce, shift = ce2, dict(sh2, of="outliers")
     out = []
     vb, ve = cb.diagonal(), ce.diagonal()
     for i, tid in enumerate(bl.estimand_ids):
