@@ -4787,8 +4787,12 @@ def norm_interval(m: np.ndarray, S: np.ndarray, level: float = NORM_LEVEL) -> tu
 #: defect's centre and half-width) take their U95 from the profile likelihood over a grid (:func:`_profile_u95`,
 #: session 21; False: the delta method's, as before)
 PROFILE_NONLINEAR = True
-#: Trials of :func:`_profile_u95` fitted at once (their columns are trials x rows)
+#: Trials of :func:`_profile_u95` fitted at once (their columns are trials x rows), fewer on a long log: a chunk's
+#: columns and their projection stay within :data:`PROFILE_CHUNK_BYTES` (1,000 trials up to about 11,000 rows, so
+#: every campaign of the tests and studies is fitted as before; a 1e6-row log takes 11 trials a chunk, 270 MB,
+#: where 1,000 would be 24 GB)
 PROFILE_CHUNK = 1000
+PROFILE_CHUNK_BYTES = 256 << 20
 
 
 def _profile_u95(cause, bl, tm: Term, Qo: np.ndarray, rows) -> dict:
@@ -4834,8 +4838,9 @@ def _profile_u95(cause, bl, tm: Term, Qo: np.ndarray, rows) -> dict:
     r0 = float(r0[0])
     T = flat[names[0]].size
     r = np.empty(T)
-    for a in range(0, T, PROFILE_CHUNK):
-        r[a:a + PROFILE_CHUNK] = rss({**tm.info, **{nm: flat[nm][a:a + PROFILE_CHUNK] for nm in names}})
+    ch = int(max(1, min(PROFILE_CHUNK, PROFILE_CHUNK_BYTES // (3 * 8 * max(np.size(bl.y), 1)))))  # E, its rows, its projection
+    for a in range(0, T, ch):
+        r[a:a + ch] = rss({**tm.info, **{nm: flat[nm][a:a + ch] for nm in names}})
     s2 = r0 / max(len(rows) - Qo.shape[1] - 1 - len(names), 1)
     inside = (r <= min(r.min(), r0) + 4.0 * s2).reshape(mesh[0].shape)
     out = {}

@@ -148,3 +148,20 @@ def test_a_covariance_that_is_not_finite_keeps_the_delta_methods_u95():
     vals = cause.magnitudes({}, coef, None)
     assert D._norm_u95(cause, {}, "k2_amplitude_um", vals["k2_amplitude_um"], coef, cov) is None
     assert D._norm_u95(cause, {}, "k1_amplitude_um", vals["k1_amplitude_um"], coef, cov) is not None
+
+
+def test_profile_in_small_chunks_is_the_profile_in_one(monkeypatch):
+    """A long log fits the profile's trials a few at a time (PROFILE_CHUNK_BYTES): the intervals are the same as
+    from one chunk of every trial (each trial's sum of squares is its own row of the batch)."""
+    cause = causes.lookup("local_scale_defect")
+    bl = _bump_campaign(np.random.default_rng(5), 0.0031, 0.0042, 6e-6, 1e-6)
+    rows = np.arange(bl.y.size)
+    Qo = np.ones((rows.size, 1)) / np.sqrt(rows.size)
+    tm = SimpleNamespace(info={"axis": "X", "centre_m": 0.0031, "half_width_m": 0.0042}, penalty=None)
+    one = D._profile_u95(cause, bl, tm, Qo, rows)
+    monkeypatch.setattr(D, "PROFILE_CHUNK_BYTES", 3 * 8 * rows.size * 7)  # seven trials a chunk
+    few = D._profile_u95(cause, bl, tm, Qo, rows)
+    assert set(one) == {"centre_mm", "half_width_mm"} and set(few) == set(one)
+    for key in one:
+        np.testing.assert_allclose(few[key][:3], one[key][:3], rtol=0, atol=1e-12)
+        assert few[key][3] == one[key][3]
