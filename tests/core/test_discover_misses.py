@@ -1760,11 +1760,31 @@ def test_gen_b_fixture_slip_1195_a_slip_seen_off_the_slot_still_refuses_part_cha
 
     seen = []
     off = D._slip_off_feature
-    monkeypatch.setattr(D, "_slip_off_feature", lambda C, E, so: seen.append(off(C, E, so)) or seen[-1])
+    monkeypatch.setattr(D, "_slip_off_feature", lambda *a: seen.append(off(*a)) or seen[-1])
     log, tr, t, _ = _gen_b_baseline("fixture_slip", 1195)
     rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
     assert not any(f["cause"] == "part_change" for f in rep["findings"]), rep["cause"]
     assert seen and max(seen) < 1e-10, seen
+
+def test_the_slip_off_the_feature_leaves_out_all_the_features_touches(monkeypatch):
+    """The session 21 review: in part_change's step-per-set-up form the cause's columns are 0 on the first
+    set-up, so "off the feature" taken from the columns' support counted the slot's first-set-up touches as
+    off it, exactly where gen_b's refusing slip sits: with the form forced, gen_b part_change 1001's slip was
+    "seen elsewhere" at p 1e-17 through the slot's own touches. The feature's rows are its touches."""
+    from core import causes as C
+    from core import discover as D
+    from core.baseline import extra_columns
+
+    seen = []
+    off = D._slip_off_feature
+    monkeypatch.setattr(D, "_slip_off_feature", lambda *a: seen.append((off(*a), off(*a[:3]))) or seen[-1][0])
+    monkeypatch.setattr(C, "PART_CHANGE_FORMS", ("per_setup",))
+    log, tr, t, _ = _gen_b_baseline("part_change", 1001)
+    discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    assert seen, "the slip check never reached the test"
+    # with the feature's touches: the slip is not seen off the slot; from the columns' support alone it was
+    assert min(p for p, _ in seen) > 0.01 and min(q for _, q in seen) < 1e-10, seen
+
 
 # --- session 21 (issue 13): a re-chosen ridge passes the adoption gates again ----------------------------------------
 
