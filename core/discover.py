@@ -2522,6 +2522,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     new = judge_again(old, terms, rows, tm)
                     if new is not None:
                         terms.append(new)
+                    if old is put_back_by:  # (a later cause's put-back goes with it, or to its new term: the
+                        if new is None:     # rival check's rule; the session 21 review)
+                            put_back, put_back_by = False, None
+                        else:
+                            put_back_by = new
                 if not put_back:  # the outliers judged against the terms that stay (the rival check's rule)
                     rows = np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(terms, all_rows)])) if terms
                                         else outliers_of(bl.A, Qall))
