@@ -190,6 +190,8 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
         raise ConfigError(f"--move-feed-mm-min must be > 0, got {feed_mm_min!r}")
     if reversal_sense not in ("lead", "lag"):
         raise ConfigError(f"--reversal-sense {reversal_sense!r}: expected lead or lag")
+    if reversal_sense != "lead" and not reversal_um:  # (as the machine file: a sense names a lost motion's sign)
+        raise ConfigError(f"--reversal-sense {reversal_sense} needs --reversal-um > 0 (the lost motion it signs)")
     sym = f"E{axis}{axis}"
     if reversal_um:
         errs = _error_fn_with(errs, sym, Reversal(reversal_um * 1e-6, reversal_sense))

@@ -305,7 +305,7 @@ boxes), and MuJoCo 4.0 computes those pairs with analytic primitives. They are n
 numpy (``sim.mfb_scene._ball_distance``), so a fresh check builds no ball model at all
 (``share_ball_model(..., primitives_aside=True)``; a placement's own ball model is still compiled if
 MuJoCo is ever asked: another geom type, or a non-ball triple in the holder's model). The distance is
-not MuJoCo's bit for bit: 2e-17 m at most at 3,000 random poses (penetrating ones included), 1e-15 m
+not MuJoCo's bit for bit: 2e-17 m at most at 3,000 random poses (penetrating ones included; 1.2e-16 m at points aimed at cylinder rims, the session 21 review), 1e-15 m
 in tests/sim/test_mfb_scene.py near and inside every holder geom, and over the 540 least clearances
 of the 5-axis plan, the plan-check variants and fuzz sets (fresh, again, fresh) 180 the same float,
 the largest difference 8.8e-14 mm; every other answer field bit-equal, and the hash of every path,

@@ -31,11 +31,29 @@ def test_iso_230_2_of_a_simulated_positioning_run_reads_the_sense(sense, sign):
 
 
 def test_a_lead_positioning_log_is_as_before_the_sense():
-    """The default sense writes the log it wrote before (no new meta key, the same readings)."""
+    """The default sense writes the log it wrote before (no new meta key, the same readings): the readings are
+    those the code before the sense existed wrote (424011c, the same call; stored here, in mm, as that code
+    printed them), and the explicit lead writes the same."""
     a = simulate_test("vmc-3axis", "X", np.random.default_rng(3), reversal_um=2.0)
     b = simulate_test("vmc-3axis", "X", np.random.default_rng(3), reversal_um=2.0, reversal_sense="lead")
     assert a.meta == b.meta and "reversal_sense" not in a.meta
     assert np.array_equal(a.measured, b.measured)
+    m = np.asarray(a.measured, float)
+    before_head = [-294.9920533688337, -248.2118070584371, -184.74784056035648, -109.08847762364432]
+    before_tail = [-109.09007061913529, -184.75080375820383, -248.21333270240422, -294.99518137693644]
+    assert m.shape == (110,)
+    np.testing.assert_allclose(m[:4], before_head, rtol=0, atol=1e-9)  # (1e-9 mm: last digits, not a 2 um lead)
+    np.testing.assert_allclose(m[-4:], before_tail, rtol=0, atol=1e-9)
+    assert float(m.sum()) == pytest.approx(-260.0333820482991, abs=1e-8)
+
+
+def test_a_sense_without_a_lost_motion_is_refused():
+    """A lag of nothing is no lag: the log would say ``reversal_sense: lag`` of a run without one (the machine file
+    refuses the same: its sense needs ``reversal_um``; the session 21 review)."""
+    from core.exceptions import ConfigError
+
+    with pytest.raises(ConfigError, match="reversal-sense lag needs --reversal-um"):
+        simulate_test("vmc-3axis", "X", np.random.default_rng(0), reversal_um=0.0, reversal_sense="lag")
 
 
 def _discovered(effect, seed):
