@@ -4704,6 +4704,9 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
 
 #: Gauss-Legendre nodes of :func:`norm_cdf`'s one integral (over the normal's first principal axis, within
 #: NORM_CDF_SPAN of its standard deviations): the probability to about 1e-10 where checked against 1e6 draws' 1e-3
+#: and down to an eigenvalue ratio of 1e-2 against adaptive quadrature (1e-12); below it the inner CDF is nearly a step
+#: and the nodes too few: 6.6e-4 at a ratio of 1e-3, 9e-3 at 1e-6 (the session 21 review; the campaigns it logged had
+#: ratios down to 0.05)
 _NORM_NODES = np.polynomial.legendre.leggauss(96)
 NORM_CDF_SPAN = 9.0
 
