@@ -733,6 +733,16 @@ def lobing_scans(bl):
     deviation (and the stylus calibration). Parameters: amplitude per
     harmonic and the peak-to-valley over the azimuth of harmonics 2-4
     (the first acts as a probe offset) (um).
+
+    The pre-travel is a distance along the approach ``d``: the trigger comes
+    ``p`` later along ``d``, so the normal deviation reads ``dq = (n . d) p``
+    (docs/formats.md: ``n`` out of the material, ``d`` into it), ``-p`` on an
+    approach along the normal, ``-p cos theta`` on one ``theta`` off it (gen_a
+    tilts approaches up to 35 deg). The columns are ``-(n . d) cos k phi``,
+    ``-(n . d) sin k phi`` (:func:`approach_cosine`): the coefficients are
+    those of ``-p`` whatever the approach (as they were, on approaches along
+    the normal), and the amplitudes the pre-travel lobes' (docs/discovery.md,
+    "Session 21: lobes along the approach").
     """
     d = bl.data
     phi = d.azimuth
@@ -753,11 +763,15 @@ def lobing_rival(bl, info) -> np.ndarray:
     cause's own columns): fixed lobes must explain at least ``rival_share``
     of it, or fall short by an immaterial amount, else the name caught only
     the common part of something that turns. One set-up: its own columns.
+    The covariate's harmonics carry the pre-travel's ``-(n . d)`` as the
+    cause's columns do (:func:`approach_cosine`): the per-set-up pre-travel
+    lobes, which nest the fixed ones.
     """
     cov = bl.covariate("azimuth_by_setup")
     if cov is None:
         return common_lobing(bl)
-    return cov.values.toarray() if hasattr(cov.values, "toarray") else np.asarray(cov.values, float)  # (sparse: a long log)
+    B = cov.values.toarray() if hasattr(cov.values, "toarray") else np.asarray(cov.values, float)  # (sparse: a long log)
+    return approach_cosine(bl)[:, None] * B
 
 
 #: cos k phi, sin k phi (k = 1..4) on the azimuths where lobing_magnitudes takes the peak-to-valley
@@ -801,10 +815,12 @@ def unoriented_scans(bl):
     they differ (else the probe is oriented: ``probe_lobing``): oriented
     where the vectors agree within their U95 as well as the orientations
     (angles about a centre few set-ups fix). Parameters: harmonic, amplitude (um), orientation
-    per set-up (deg).
+    per set-up (deg). The pre-travel acts along the approach: the columns
+    carry ``-(n . d)`` as ``probe_lobing``'s do (:func:`approach_cosine`).
     """
     d = bl.data
     phi = d.azimuth
+    w = approach_cosine(bl)
     su = np.unique(d.touches.setup)
     if su.size < 2 or np.unique(np.round(phi, 4)).size < 5:
         return [], 1.0
@@ -815,13 +831,13 @@ def unoriented_scans(bl):
         cols = []
         for j in su:
             m = (d.touches.setup == j).astype(float)
-            cols += [m * np.cos(k * phi), m * np.sin(k * phi)]
+            cols += [m * w * np.cos(k * phi), m * w * np.sin(k * phi)]
         return np.column_stack(cols)[None]
 
     def sparse_trials(k, idx):  # the scan's one trial, as columns(k)[idx] takes it (0 or -1, each a copy); the
         # same values on their set-up's rows only (2 a row: 1.6 GB dense at 1e6 rows)
         return _one_sparse_trial("lobing_per_setup's scan", idx, lambda: _setup_csr(
-            np.column_stack([np.cos(k * phi), np.sin(k * phi)]), d.touches.setup, su))
+            np.column_stack([w * np.cos(k * phi), w * np.sin(k * phi)]), d.touches.setup, su))
 
     for k in (2, 3, 4):
         labels = [lab for sid in ids for lab in (f"cos{k}[{sid}]", f"sin{k}[{sid}]")]
@@ -840,7 +856,22 @@ def common_lobing(bl) -> np.ndarray:
     azimuth, machine frame) do.
     """
     phi = bl.data.azimuth
-    return np.column_stack([f(k * phi) for k in range(1, 5) for f in (np.cos, np.sin)])
+    w = approach_cosine(bl)
+    return np.column_stack([w * f(k * phi) for k in range(1, 5) for f in (np.cos, np.sin)])
+
+
+def approach_cosine(bl) -> np.ndarray:
+    """``-(n . d)`` per row: what a pre-travel (a distance along the approach ``d``) is worth along the normal ``n``.
+
+    A touch-trigger probe triggers ``p`` later along its approach; the
+    normal deviation reads ``dq = n . (p d) = -p (-(n . d))`` (``n`` out of
+    the material, ``d`` into it: docs/formats.md), so the columns of a
+    pre-travel that varies with the approach carry this factor: 1 on an
+    approach along the normal (a log without ``dx, dy, dz``, the simulator,
+    gen_b), ``cos theta`` on one tilted ``theta`` off it.
+    """
+    t = bl.data.touches
+    return -np.einsum("ij,ij->i", np.asarray(t.n_R, float), np.asarray(t.d_R, float))
 
 
 #: Monte Carlo draws of :func:`turned_lobes`' null (the fitted lobes turned at random in every set-up).
@@ -854,7 +885,7 @@ TURN_CHUNK = 500
 #: ``cos k phi`` or ``sin k phi`` smaller than this is a node of the function, its value the rounding of
 #: zero (about 1e-16 for k phi up to 4 pi; 1e-12 is an azimuth 1e-12 rad from the node)
 TRIG_ZERO = 1e-12
-#: The fixed lobes' columns :func:`turned_lobes` takes: ``cos k phi``, ``sin k phi`` for k = 1..4
+#: The fixed lobes' columns :func:`turned_lobes` takes: ``cos k phi``, ``sin k phi`` for k = 1..4 (times ``-(n . d)``)
 #: (:func:`common_lobing`'s).
 FIXED_LOBE_COLUMNS = 8
 
@@ -885,7 +916,8 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
     named cause on ``rows``) with the fixed lobes' columns ``cols``:
 
     1. the per-set-up phase model against the common one: the columns
-       ``cos k phi``, ``sin k phi`` per set-up (k = 2-4) beyond the model
+       ``cos k phi``, ``sin k phi`` per set-up (k = 2-4, times ``-(n . d)`` as
+       the fixed lobes' columns: :func:`approach_cosine`) beyond the model
        with the fixed lobes, their determined directions only (singular
        value of the normalised columns above ``weak_sv``), nested F test
        (``p_value``, ``dof``, ``beyond_ss_um2``): significant, the lobes
@@ -968,7 +1000,7 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
     su = su[np.argsort([str(t.setup_ids[j]) for j in su], kind="stable")]  # by id: the draws' order
     phi = np.asarray(bl.data.azimuth, float)[rows]
     K = TURN_HARMONICS
-    U = _per_setup_lobes(setup, su, phi, K)  # sparse (n, 2 len(K) S), columns (set-up, k, cos/sin)
+    U = _per_setup_lobes(setup, su, phi, K, approach_cosine(bl)[rows])  # sparse (n, 2 len(K) S): (set-up, k, cos/sin)
     Wc = new_basis(Q, cols, weak_sv)  # the fixed lobes beyond the model
     r = yr - Q @ (Q.T @ yr) - Wc @ (Wc.T @ yr)
     dof = len(yr) - Q.shape[1] - Wc.shape[1]
@@ -1035,8 +1067,12 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
             "turned_ss_um2": float(np.median(size)) / UM ** 2}
 
 
-def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K) -> "scipy.sparse.csr_matrix":
-    """(n, 2 len(K) len(su)) sparse: ``cos k phi``, ``sin k phi`` (k in ``K``) of each row in its set-up's columns.
+def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K,
+                     w: np.ndarray | None = None) -> "scipy.sparse.csr_matrix":
+    """(n, 2 len(K) len(su)) sparse: ``w cos k phi``, ``w sin k phi`` (k in ``K``) of each row in its set-up's columns.
+
+    ``w`` (n,): the pre-travel's weight per row along the normal
+    (:func:`approach_cosine`), 1 when None.
 
     Set-up ``su[i]``'s columns are ``2 len(K) i`` onwards, (k, cos/sin) order.
     A value within :data:`TRIG_ZERO` of zero is zero: the rounding of a node
@@ -1052,6 +1088,8 @@ def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K) -> "
     at[su] = np.arange(su.size)
     Fm = np.column_stack([f(k * phi) for k in K for f in (np.cos, np.sin)])
     Fm[np.abs(Fm) < TRIG_ZERO] = 0.0
+    if w is not None:
+        Fm = Fm * np.asarray(w, float)[:, None]
     cidx = at[setup][:, None] * w + np.arange(w)
     return sp.csr_matrix((Fm.ravel(), (np.repeat(np.arange(n), w), cidx.ravel())), shape=(n, w * su.size))
 
