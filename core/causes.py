@@ -1068,10 +1068,10 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
 
 
 def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K,
-                     w: np.ndarray | None = None) -> "scipy.sparse.csr_matrix":
-    """(n, 2 len(K) len(su)) sparse: ``w cos k phi``, ``w sin k phi`` (k in ``K``) of each row in its set-up's columns.
+                     weight: np.ndarray | None = None) -> "scipy.sparse.csr_matrix":
+    """(n, 2 len(K) len(su)) sparse: ``cos k phi``, ``sin k phi`` (k in ``K``) times ``weight`` of each row in its set-up's columns.
 
-    ``w`` (n,): the pre-travel's weight per row along the normal
+    ``weight`` (n,): the pre-travel's worth along the normal per row
     (:func:`approach_cosine`), 1 when None.
 
     Set-up ``su[i]``'s columns are ``2 len(K) i`` onwards, (k, cos/sin) order.
@@ -1088,8 +1088,8 @@ def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K,
     at[su] = np.arange(su.size)
     Fm = np.column_stack([f(k * phi) for k in K for f in (np.cos, np.sin)])
     Fm[np.abs(Fm) < TRIG_ZERO] = 0.0
-    if w is not None:
-        Fm = Fm * np.asarray(w, float)[:, None]
+    if weight is not None:
+        Fm = Fm * np.asarray(weight, float)[:, None]
     cidx = at[setup][:, None] * w + np.arange(w)
     return sp.csr_matrix((Fm.ravel(), (np.repeat(np.arange(n), w), cidx.ravel())), shape=(n, w * su.size))
 
