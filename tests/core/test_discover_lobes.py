@@ -141,11 +141,9 @@ def test_p_turned_does_not_depend_on_the_basis_of_the_model():
 def _reference(bl, Q, y, rows, cols, weak_sv):
     """The F test of the per-set-up columns beyond the model and the fixed lobes, dense and written apart:
     nodes of cos k phi, sin k phi given as exact zeros (the azimuths rounded to the degree where they are whole
-    multiples of 45 deg: those are the nodes here), each times the approach's cosine to the normal ``-(n . d)``
-    (a pre-travel along the approach, as the fixed lobes' columns carry it: the synthetic plan tilts repeats 30 deg)."""
+    multiples of 45 deg: those are the nodes here)."""
     t = bl.data.touches
     setup = t.setup[rows]
-    wr = -np.sum(t.n_R * t.d_R, axis=1)[rows]
     phi = np.asarray(bl.data.azimuth)[rows]
     deg = np.degrees(phi)
     on = np.abs(deg - np.round(deg / 45) * 45) < 1e-9
@@ -156,7 +154,7 @@ def _reference(bl, Q, y, rows, cols, weak_sv):
                 v = f(k * phi)
                 exact = f(np.radians(k * np.round(deg[on] / 45) * 45))
                 v[on] = np.where(np.abs(exact) < 1e-9, 0.0, exact)
-                cols_u.append((setup == j) * v * wr)
+                cols_u.append((setup == j) * v)
     Qc = np.hstack([Q, new_basis(Q, cols, weak_sv)])
     W = new_basis(Qc, np.column_stack(cols_u), weak_sv)
     r = y - Qc @ (Qc.T @ y)
