@@ -185,6 +185,19 @@ periodic_axis_error 1000's EXX, EYX; gen_a probe_lobing 302's k1-k4: e.g.
 +- 0.0698 -> +- 0.0890 [0.0067, 0.161]); far from zero they equal the delta
 method's within 0.4 % (k3 1.6597 +- 0.05624 -> 0.05650). Every other leaf,
 and the other thirteen reports, as stored.
+
+Refreshed for the two readings of a pre-travel lobe (session 21,
+:data:`core.causes.PRETRAVEL_ALONG`: the lobing causes' columns as they were,
+or times the approach's cosine to the normal, where the approaches leave
+it): gen_a probe_lobing 302 reads its lobes along the approach (still
+probe_lobing, ambiguous; ``pretravel_along`` added to its params, k3 1.660
+-> 1.732 um, k1 0.639 -> 0.398 um, the noise 0.241 -> 0.230 um, every
+figure after it with them: its report took the new values whole); gen_a
+nonrigid 2's refused probe_lobing explains 86.9 um^2 where it explained
+86.1 (that reason's text the only leaf taken). The simulator's and the
+demo's reports are as stored (they approach along the normal: one trial,
+the columns as before), and so are gen_b's four and gen_a's other three
+(both readings offered, nothing moved beyond REL).
 """
 
 from __future__ import annotations
