@@ -46,7 +46,7 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   campaign (a drift, a part that changes): the engine tests whether a
   one-off event or the probe's size changing with time explains it as well
   (then the name is ``ambiguous``);
-- ``richer(baseline, Q, y, rows, columns, sigma, weak_sv) -> dict or None``:
+- ``richer(baseline, Q, y, rows, columns, sigma, weak_sv, info=trial) -> dict or None``:
   a richer catalogue cause (``richer_cause``) that nests this one, and
   whether the design tells them apart: its own F test beyond this
   cause's columns (``p_value``) and the chance that the richer cause, at
@@ -801,7 +801,7 @@ def lobing_rival(bl, info) -> np.ndarray:
     cov = bl.covariate("azimuth_by_setup")
     if cov is None:
         return common_lobing(bl, info)
-    B = cov.values.toarray() if hasattr(cov.values, "toarray") else np.asarray(cov.values, float)  # (sparse: a long log)
+    B = cov.values.toarray() if hasattr(cov.values, "toarray") else np.asarray(cov.values, float)  # (sparse: long log)
     w = pretravel_weight(bl, info)
     return B if w is None else w[:, None] * B
 
@@ -932,8 +932,8 @@ TURN_CHUNK = 500
 #: ``cos k phi`` or ``sin k phi`` smaller than this is a node of the function, its value the rounding of
 #: zero (about 1e-16 for k phi up to 4 pi; 1e-12 is an azimuth 1e-12 rad from the node)
 TRIG_ZERO = 1e-12
-#: The fixed lobes' columns :func:`turned_lobes` takes: ``cos k phi``, ``sin k phi`` for k = 1..4 (times ``-(n . d)``)
-#: (:func:`common_lobing`'s).
+#: The fixed lobes' columns :func:`turned_lobes` takes: ``cos k phi``, ``sin k phi`` for k = 1..4, times
+#: ``-(n . d)`` in the approach's reading (:func:`common_lobing`'s).
 FIXED_LOBE_COLUMNS = 8
 
 
@@ -964,8 +964,9 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
     named cause on ``rows``) with the fixed lobes' columns ``cols``:
 
     1. the per-set-up phase model against the common one: the columns
-       ``cos k phi``, ``sin k phi`` per set-up (k = 2-4, times ``-(n . d)`` as
-       the fixed lobes' columns: :func:`approach_cosine`) beyond the model
+       ``cos k phi``, ``sin k phi`` per set-up (k = 2-4; times ``-(n . d)``
+       where ``info`` reads the pre-travel along the approach, as the fixed
+       lobes' columns then are: :func:`pretravel_weight`) beyond the model
        with the fixed lobes, their determined directions only (singular
        value of the normalised columns above ``weak_sv``), nested F test
        (``p_value``, ``dof``, ``beyond_ss_um2``): significant, the lobes
@@ -1121,10 +1122,10 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
 
 def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K,
                      weight: np.ndarray | None = None) -> "scipy.sparse.csr_matrix":
-    """(n, 2 len(K) len(su)) sparse: ``cos k phi``, ``sin k phi`` (k in ``K``) times ``weight`` of each row in its set-up's columns.
+    """(n, 2 len(K) len(su)) sparse: ``cos k phi``, ``sin k phi`` (k in ``K``) of each row in its set-up's columns.
 
-    ``weight`` (n,): the pre-travel's worth along the normal per row
-    (:func:`approach_cosine`), 1 when None.
+    ``weight`` (n,): each row's values times it (the pre-travel's worth
+    along the normal, :func:`approach_cosine`), 1 when None.
 
     Set-up ``su[i]``'s columns are ``2 len(K) i`` onwards, (k, cos/sin) order.
     A value within :data:`TRIG_ZERO` of zero is zero: the rounding of a node

@@ -51,7 +51,8 @@ def test_one_trial_where_every_approach_is_along_the_normal():
     assert causes._lobe_readings(flat) == ({},)
     (sc,), _ = causes.lobing_scans(flat)
     phi = flat.data.azimuth
-    assert sc.size == 1 and np.array_equal(sc.build([0])[0][:, 2:4], np.column_stack([np.cos(2 * phi), np.sin(2 * phi)]))
+    plain = np.column_stack([np.cos(2 * phi), np.sin(2 * phi)])
+    assert sc.size == 1 and np.array_equal(sc.build([0])[0][:, 2:4], plain)
     tilt = planar(S.plan(), 30.0)
     (sc,), _ = causes.lobing_scans(tilt)
     assert [i["pretravel_along"] for i in sc.infos] == ["normal", "approach"]
