@@ -768,6 +768,13 @@ def lobing_scans(bl):
 PRETRAVEL_ALONG = ("normal", "approach")
 #: Approaches all within this of the normal (``max |1 + n . d|``): the two readings are one (one trial).
 ALONG_NORMAL_TOL = 1e-9
+#: ``lobing_per_setup`` offers both readings too (session 21: off). On, gen_a's turned lobes were covered
+#: by their U95 93 times in 99 (77 with the normal reading only), but gen_b probe_lobing 1025 took a
+#: secondary lobing_per_setup read along the approach whose workpiece came out 1.56 um from the truth
+#: (U95 0.78; 0.23 um without it): its per-set-up columns times ``-(n . d)`` nearly confounded with the
+#: targets' own parameters on gen_b's tilted approaches (docs/discovery.md, "Session 21: lobes along the
+#: approach").
+PER_SETUP_READINGS = False
 
 
 def _lobe_readings(bl) -> tuple:
@@ -847,13 +854,14 @@ def unoriented_scans(bl):
     they differ (else the probe is oriented: ``probe_lobing``): oriented
     where the vectors agree within their U95 as well as the orientations
     (angles about a centre few set-ups fix). Parameters: harmonic, amplitude (um), orientation
-    per set-up (deg). Where the approaches leave the normal, each harmonic
-    is offered in both readings of the pre-travel (:data:`PRETRAVEL_ALONG`),
-    as ``probe_lobing``'s columns are.
+    per set-up (deg). With :data:`PER_SETUP_READINGS` each harmonic is
+    offered in both readings of the pre-travel (:data:`PRETRAVEL_ALONG`)
+    where the approaches leave the normal, as ``probe_lobing``'s columns
+    are; without it (the default), along the normal only.
     """
     d = bl.data
     phi = d.azimuth
-    readings = _lobe_readings(bl)
+    readings = _lobe_readings(bl) if PER_SETUP_READINGS else ({},)
     su = np.unique(d.touches.setup)
     if su.size < 2 or np.unique(np.round(phi, 4)).size < 5:
         return [], 1.0

@@ -44,7 +44,7 @@ def test_gen_b_lobe_stays_along_the_normal():
     assert abs(f["params"]["k3_amplitude_um"] - tr.params["lobe3_um"]) <= f["params_u95"]["k3_amplitude_um"]
 
 
-def test_one_trial_where_every_approach_is_along_the_normal():
+def test_one_trial_where_every_approach_is_along_the_normal(monkeypatch):
     """Approaches along the normal (no tilted repeats: d = -n): one trial, the plain cos k phi, sin k phi (the
     simulator's campaigns are unchanged); tilted repeats: both readings, the second times -(n . d)."""
     flat = planar(S.plan(repeats=0), 30.0)
@@ -61,6 +61,8 @@ def test_one_trial_where_every_approach_is_along_the_normal():
     assert 0.86 < w.min() < 0.87 and abs(w.max() - 1.0) < 1e-12  # cos 30 deg on the tilted repeats
     both = sc.build([0, 1])
     np.testing.assert_allclose(both[1], w[:, None] * both[0], rtol=0, atol=1e-15)
+    assert all(s.size == 1 and "pretravel_along" not in s.infos[0] for s in causes.unoriented_scans(tilt)[0])
+    monkeypatch.setattr(causes, "PER_SETUP_READINGS", True)  # lobing_per_setup's two readings, when switched on
     for k, s in zip((2, 3, 4), causes.unoriented_scans(tilt)[0]):
         assert [i["pretravel_along"] for i in s.infos] == ["normal", "approach"] and s.infos[0]["harmonic"] == k
         d2 = s.build([0, 1])
