@@ -46,7 +46,7 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   campaign (a drift, a part that changes): the engine tests whether a
   one-off event or the probe's size changing with time explains it as well
   (then the name is ``ambiguous``);
-- ``richer(baseline, Q, y, rows, columns, sigma, weak_sv) -> dict or None``:
+- ``richer(baseline, Q, y, rows, columns, sigma, weak_sv, info=trial) -> dict or None``:
   a richer catalogue cause (``richer_cause``) that nests this one, and
   whether the design tells them apart: its own F test beyond this
   cause's columns (``p_value``) and the chance that the richer cause, at
@@ -733,13 +733,62 @@ def lobing_scans(bl):
     deviation (and the stylus calibration). Parameters: amplitude per
     harmonic and the peak-to-valley over the azimuth of harmonics 2-4
     (the first acts as a probe offset) (um).
+
+    The pre-travel is a distance along the approach ``d``: the trigger comes
+    ``p`` later along ``d``, so the normal deviation reads ``dq = (n . d) p``
+    (docs/formats.md: ``n`` out of the material, ``d`` into it), ``-p`` on an
+    approach along the normal, ``-p cos theta`` on one ``theta`` off it (gen_a
+    tilts approaches up to 35 deg) -- if the tip holds on the surface. If it
+    slides (friction below the tilt's tangent), the stylus deflects along the
+    contact force, the normal, and ``dq = -p`` whatever the tilt (gen_b's
+    reading). Where the approaches leave the normal the scan offers both
+    (:data:`PRETRAVEL_ALONG`, the trial's ``pretravel_along``): the columns
+    ``cos k phi``, ``sin k phi``, or those times ``-(n . d)``
+    (:func:`approach_cosine`); the coefficients are those of ``-p`` either way,
+    the amplitudes the pre-travel lobes' (docs/discovery.md, "Session 21:
+    lobes along the approach"). Where every approach is along the normal the
+    two are one: one trial, as before.
     """
     d = bl.data
     phi = d.azimuth
     if np.unique(np.round(phi, 4)).size < 3:
         return [], 1.0
-    return [_one(lambda: common_lobing(bl), [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")], {},
-                 "approach_azimuth")], 1.0
+    labels = [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")]
+    infos = _lobe_readings(bl)
+    if len(infos) == 1:
+        return [_one(lambda: common_lobing(bl), labels, {}, "approach_azimuth")], 1.0
+    return [Scan(tuple(labels), infos, "approach_azimuth",
+                 lambda idx: np.stack([common_lobing(bl, infos[i]) for i in np.asarray(idx).ravel()]))], 1.0
+
+
+#: The two readings of a pre-travel lobe on an approach tilted off the normal: ``"normal"``, the stylus
+#: deflected along the contact force (a tip sliding on the surface): ``dq = -p``; ``"approach"``, the trigger
+#: ``p`` later along the approach (a tip held by friction): ``dq = (n . d) p`` (:func:`approach_cosine`).
+#: gen_b writes the first, gen_a the second; the lobing causes' scans offer both where they differ.
+PRETRAVEL_ALONG = ("normal", "approach")
+#: Approaches all within this of the normal (``max |1 + n . d|``): the two readings are one (one trial).
+ALONG_NORMAL_TOL = 1e-9
+#: ``lobing_per_setup`` offers both readings too (session 21: off). On, gen_a's turned lobes were covered
+#: by their U95 93 times in 99 (77 with the normal reading only), but gen_b probe_lobing 1025 took a
+#: secondary lobing_per_setup read along the approach whose workpiece came out 1.56 um from the truth
+#: (U95 0.78; 0.23 um without it): its per-set-up columns times ``-(n . d)`` nearly confounded with the
+#: targets' own parameters on gen_b's tilted approaches (docs/discovery.md, "Session 21: lobes along the
+#: approach").
+PER_SETUP_READINGS = False
+
+
+def _lobe_readings(bl) -> tuple:
+    """The lobing scans' readings: ``({},)`` where every approach is along the normal, else one info per
+    :data:`PRETRAVEL_ALONG`."""
+    if np.max(np.abs(approach_cosine(bl) - 1.0), initial=0.0) <= ALONG_NORMAL_TOL:
+        return ({},)
+    return tuple({"pretravel_along": a} for a in PRETRAVEL_ALONG)
+
+
+def pretravel_weight(bl, info) -> np.ndarray | None:
+    """The lobe columns' factor per row for the trial ``info``: :func:`approach_cosine` for a pre-travel along
+    the approach, None (1) otherwise."""
+    return approach_cosine(bl) if (info or {}).get("pretravel_along") == "approach" else None
 
 
 def lobing_rival(bl, info) -> np.ndarray:
@@ -753,11 +802,15 @@ def lobing_rival(bl, info) -> np.ndarray:
     cause's own columns): fixed lobes must explain at least ``rival_share``
     of it, or fall short by an immaterial amount, else the name caught only
     the common part of something that turns. One set-up: its own columns.
+    The covariate's harmonics carry the factor the cause's trial does
+    (:func:`pretravel_weight`): the per-set-up lobes of the same reading.
     """
     cov = bl.covariate("azimuth_by_setup")
     if cov is None:
-        return common_lobing(bl)
-    return cov.values.toarray() if hasattr(cov.values, "toarray") else np.asarray(cov.values, float)  # (sparse: a long log)
+        return common_lobing(bl, info)
+    B = cov.values.toarray() if hasattr(cov.values, "toarray") else np.asarray(cov.values, float)  # (sparse: long log)
+    w = pretravel_weight(bl, info)
+    return B if w is None else w[:, None] * B
 
 
 #: cos k phi, sin k phi (k = 1..4) on the azimuths where lobing_magnitudes takes the peak-to-valley
@@ -801,46 +854,79 @@ def unoriented_scans(bl):
     they differ (else the probe is oriented: ``probe_lobing``): oriented
     where the vectors agree within their U95 as well as the orientations
     (angles about a centre few set-ups fix). Parameters: harmonic, amplitude (um), orientation
-    per set-up (deg).
+    per set-up (deg). With :data:`PER_SETUP_READINGS` each harmonic is
+    offered in both readings of the pre-travel (:data:`PRETRAVEL_ALONG`)
+    where the approaches leave the normal, as ``probe_lobing``'s columns
+    are; without it (the default), along the normal only.
     """
     d = bl.data
     phi = d.azimuth
+    readings = _lobe_readings(bl) if PER_SETUP_READINGS else ({},)
     su = np.unique(d.touches.setup)
     if su.size < 2 or np.unique(np.round(phi, 4)).size < 5:
         return [], 1.0
     ids = tuple(d.touches.setup_ids[j] for j in su)
     scans = []
 
-    def columns(k):  # rows x 2 per set-up: built when a trial is (not held for the run: 160 MB at 1e5 rows)
+    def trig(k, info):
+        c, s_ = np.cos(k * phi), np.sin(k * phi)
+        w = pretravel_weight(bl, info)
+        return (c, s_) if w is None else (w * c, w * s_)
+
+    def columns(k, info):  # rows x 2 per set-up: built when a trial is (not held for the run: 160 MB at 1e5 rows)
+        c, s_ = trig(k, info)
         cols = []
         for j in su:
             m = (d.touches.setup == j).astype(float)
-            cols += [m * np.cos(k * phi), m * np.sin(k * phi)]
-        return np.column_stack(cols)[None]
+            cols += [m * c, m * s_]
+        return np.column_stack(cols)
 
-    def sparse_trials(k, idx):  # the scan's one trial, as columns(k)[idx] takes it (0 or -1, each a copy); the
-        # same values on their set-up's rows only (2 a row: 1.6 GB dense at 1e6 rows)
-        return _one_sparse_trial("lobing_per_setup's scan", idx, lambda: _setup_csr(
-            np.column_stack([np.cos(k * phi), np.sin(k * phi)]), d.touches.setup, su))
+    def sparse_trials(k, infos, idx):  # the scan's trials, as the dense build takes them; the same values on
+        # their set-up's rows only (2 a row: 1.6 GB dense at 1e6 rows)
+        build = lambda i: _setup_csr(np.column_stack(trig(k, infos[i])), d.touches.setup, su)
+        if len(infos) == 1:
+            return _one_sparse_trial("lobing_per_setup's scan", idx, lambda: build(0))
+        from .diagnosis import SparseTrials
+
+        return SparseTrials([build(i) for i in np.asarray(idx).ravel()])
 
     for k in (2, 3, 4):
         labels = [lab for sid in ids for lab in (f"cos{k}[{sid}]", f"sin{k}[{sid}]")]
-        scans.append(Scan(tuple(labels), ({"harmonic": k, "setups": ids},), "approach_azimuth",
-                          lambda idx, k=k: columns(k)[np.asarray(idx)],
-                          build_sparse=lambda idx, k=k: sparse_trials(k, idx)))
+        infos = tuple({"harmonic": k, "setups": ids, **r} for r in readings)
+        scans.append(Scan(tuple(labels), infos, "approach_azimuth",
+                          lambda idx, k=k, infos=infos: np.stack([columns(k, infos[i])
+                                                                  for i in np.asarray(idx).ravel()]),
+                          build_sparse=lambda idx, k=k, infos=infos: sparse_trials(k, infos, idx)))
     return scans, 3.0
 
 
-def common_lobing(bl) -> np.ndarray:
+def common_lobing(bl, info=None) -> np.ndarray:
     """The probe's lobes fixed in the machine frame (``probe_lobing``'s columns): the plainer explanation of lobes per set-up.
 
     A lobing that turns from set-up to set-up nests the oriented one (equal
     orientations); the turned one is named only when it explains materially
     more than the probe's fixed lobes (harmonics 1-4 of the approach
-    azimuth, machine frame) do.
+    azimuth, machine frame) do. ``info``: a trial of :func:`lobing_scans`
+    (its reading of the pre-travel: :func:`pretravel_weight`).
     """
     phi = bl.data.azimuth
-    return np.column_stack([f(k * phi) for k in range(1, 5) for f in (np.cos, np.sin)])
+    F = np.column_stack([f(k * phi) for k in range(1, 5) for f in (np.cos, np.sin)])
+    w = pretravel_weight(bl, info)
+    return F if w is None else w[:, None] * F
+
+
+def approach_cosine(bl) -> np.ndarray:
+    """``-(n . d)`` per row: what a pre-travel (a distance along the approach ``d``) is worth along the normal ``n``.
+
+    A touch-trigger probe triggers ``p`` later along its approach; the
+    normal deviation reads ``dq = n . (p d) = -p (-(n . d))`` (``n`` out of
+    the material, ``d`` into it: docs/formats.md), so the columns of a
+    pre-travel that varies with the approach carry this factor: 1 on an
+    approach along the normal (a log without ``dx, dy, dz``, the simulator),
+    ``cos theta`` on one tilted ``theta`` off it (gen_a, gen_b).
+    """
+    t = bl.data.touches
+    return -np.einsum("ij,ij->i", np.asarray(t.n_R, float), np.asarray(t.d_R, float))
 
 
 #: Monte Carlo draws of :func:`turned_lobes`' null (the fitted lobes turned at random in every set-up).
@@ -854,13 +940,14 @@ TURN_CHUNK = 500
 #: ``cos k phi`` or ``sin k phi`` smaller than this is a node of the function, its value the rounding of
 #: zero (about 1e-16 for k phi up to 4 pi; 1e-12 is an azimuth 1e-12 rad from the node)
 TRIG_ZERO = 1e-12
-#: The fixed lobes' columns :func:`turned_lobes` takes: ``cos k phi``, ``sin k phi`` for k = 1..4
-#: (:func:`common_lobing`'s).
+#: The fixed lobes' columns :func:`turned_lobes` takes: ``cos k phi``, ``sin k phi`` for k = 1..4, times
+#: ``-(n . d)`` in the approach's reading (:func:`common_lobing`'s).
 FIXED_LOBE_COLUMNS = 8
 
 
 def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigma: float,
-                 weak_sv: float, rng: np.random.Generator | None = None, draws: int = TURN_DRAWS) -> dict | None:
+                 weak_sv: float, rng: np.random.Generator | None = None, draws: int = TURN_DRAWS,
+                 info: dict | None = None) -> dict | None:
     """Can this campaign tell a probe whose lobes stay fixed from one whose lobes turn in every set-up?
 
     Physics: a touch-trigger probe's pre-travel is a pattern fixed in the
@@ -885,7 +972,9 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
     named cause on ``rows``) with the fixed lobes' columns ``cols``:
 
     1. the per-set-up phase model against the common one: the columns
-       ``cos k phi``, ``sin k phi`` per set-up (k = 2-4) beyond the model
+       ``cos k phi``, ``sin k phi`` per set-up (k = 2-4; times ``-(n . d)``
+       where ``info`` reads the pre-travel along the approach, as the fixed
+       lobes' columns then are: :func:`pretravel_weight`) beyond the model
        with the fixed lobes, their determined directions only (singular
        value of the normalised columns above ``weak_sv``), nested F test
        (``p_value``, ``dof``, ``beyond_ss_um2``): significant, the lobes
@@ -949,6 +1038,9 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
         The draws' generator (``default_rng(0)`` when None).
     draws : int
         Monte Carlo draws, >= 1.
+    info : dict or None
+        The fixed lobes' trial (:func:`lobing_scans`): the per-set-up columns
+        take its reading of the pre-travel (:func:`pretravel_weight`).
 
     Returns None with fewer than two set-ups (nothing turns). Raises
     :class:`core.exceptions.ConfigError` (a ``ValueError``) naming the
@@ -968,7 +1060,8 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
     su = su[np.argsort([str(t.setup_ids[j]) for j in su], kind="stable")]  # by id: the draws' order
     phi = np.asarray(bl.data.azimuth, float)[rows]
     K = TURN_HARMONICS
-    U = _per_setup_lobes(setup, su, phi, K)  # sparse (n, 2 len(K) S), columns (set-up, k, cos/sin)
+    w = pretravel_weight(bl, info)
+    U = _per_setup_lobes(setup, su, phi, K, None if w is None else w[rows])  # sparse (n, 2 len(K) S)
     Wc = new_basis(Q, cols, weak_sv)  # the fixed lobes beyond the model
     r = yr - Q @ (Q.T @ yr) - Wc @ (Wc.T @ yr)
     dof = len(yr) - Q.shape[1] - Wc.shape[1]
@@ -1035,8 +1128,12 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
             "turned_ss_um2": float(np.median(size)) / UM ** 2}
 
 
-def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K) -> "scipy.sparse.csr_matrix":
+def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K,
+                     weight: np.ndarray | None = None) -> "scipy.sparse.csr_matrix":
     """(n, 2 len(K) len(su)) sparse: ``cos k phi``, ``sin k phi`` (k in ``K``) of each row in its set-up's columns.
+
+    ``weight`` (n,): each row's values times it (the pre-travel's worth
+    along the normal, :func:`approach_cosine`), 1 when None.
 
     Set-up ``su[i]``'s columns are ``2 len(K) i`` onwards, (k, cos/sin) order.
     A value within :data:`TRIG_ZERO` of zero is zero: the rounding of a node
@@ -1052,6 +1149,8 @@ def _per_setup_lobes(setup: np.ndarray, su: np.ndarray, phi: np.ndarray, K) -> "
     at[su] = np.arange(su.size)
     Fm = np.column_stack([f(k * phi) for k in K for f in (np.cos, np.sin)])
     Fm[np.abs(Fm) < TRIG_ZERO] = 0.0
+    if weight is not None:
+        Fm = Fm * np.asarray(weight, float)[:, None]
     cidx = at[setup][:, None] * w + np.arange(w)
     return sp.csr_matrix((Fm.ravel(), (np.repeat(np.arange(n), w), cidx.ravel())), shape=(n, w * su.size))
 

@@ -5763,7 +5763,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                 ev["ambiguous_with"] = list(ev.get("ambiguous_with", [])) + [causes_mod.OUTLIER]
         if cause.richer is not None:
             # a richer cause nesting this one (lobes turned per set-up for fixed lobes): seen, or not excludable
-            rich = cause.richer(bl, so.Q, y[rows], rows, tm.columns[rows], sig, WEAK_SV)
+            rich = cause.richer(bl, so.Q, y[rows], rows, tm.columns[rows], sig, WEAK_SV, info=tm.info)
             if rich is not None:
                 ev["richer"] = {"cause": cause.richer_cause, **rich}
                 seen_r = rich["p_value"] < settings.alpha_family

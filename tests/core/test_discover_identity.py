@@ -192,6 +192,19 @@ holding the estimate's phase under-covered along the noisier axis of an
 anisotropic pair): 302's k2 +- 0.0476 -> 0.0586 [0, 0.090]; k3 0.05650 ->
 0.05784 (far from zero, k about 2.05 for the phase's share); hidden 1000's
 EYX [0.0067, 0.161] -> [0, 0.162]. Every other leaf as stored.
+
+Refreshed for the two readings of a pre-travel lobe (session 21,
+:data:`core.causes.PRETRAVEL_ALONG`: the lobing causes' columns as they were,
+or times the approach's cosine to the normal, where the approaches leave
+it): gen_a probe_lobing 302 reads its lobes along the approach (still
+probe_lobing, ambiguous; ``pretravel_along`` added to its params, k3 1.660
+-> 1.732 um, k1 0.639 -> 0.398 um, the noise 0.241 -> 0.230 um, every
+figure after it with them: its report took the new values whole); gen_a
+nonrigid 2's refused probe_lobing explains 86.9 um^2 where it explained
+86.1 (that reason's text the only leaf taken). The simulator's and the
+demo's reports are as stored (they approach along the normal: one trial,
+the columns as before), and so are gen_b's four and gen_a's other three
+(both readings offered, nothing moved beyond REL).
 """
 
 from __future__ import annotations

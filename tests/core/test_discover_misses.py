@@ -1627,7 +1627,7 @@ def test_near_across_known_answers():
         near_across_p(a, np.array([100]), np.random.default_rng(3))
 
 
-def test_outliers_on_a_lost_motions_visible_part_are_not_confidently_dust():
+def test_outliers_on_a_lost_motions_visible_part_are_not_confidently_dust(monkeypatch):
     """gen_a reversal 1033 (tuning seed; Y lost motion 30 um, 1.06 sigma beyond the baseline by the study's
     count): the catalogue's reversal column is the generator's exactly here (correlation 1 over all 256
     touches), but it lies almost inside the baseline's span (refused as confounded, variance inflation
@@ -1638,13 +1638,24 @@ def test_outliers_on_a_lost_motions_visible_part_are_not_confidently_dust():
     follow the centred sign of approach along Y (:func:`core.discover.centred_sign_of`) and they sit on the
     touches whose approach moves Y least (:func:`core.discover.near_across_p`); the family's p
     (:func:`core.discover.approach_sign_p`, Bonferroni over its four tests) is below alpha_family, so the
-    finding is ambiguous, with reversal as its alternative."""
+    finding is ambiguous, with reversal as its alternative.
+
+    Session 21: with the lobes' second reading (a pre-travel along the approach, times -(n . d):
+    :data:`core.causes.PRETRAVEL_ALONG`) probe_lobing explains those touches first (p 4e-10), named ambiguous
+    with reversal: still not confident. The outlier rule is checked with the lobes read as before (one reading:
+    :data:`core.causes.ALONG_NORMAL_TOL` infinite)."""
+    from core import causes
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, tr = gen_a.generate("reversal", 1033)
     t = from_log(log)
+    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "probe_lobing" and f["params"]["pretravel_along"] == "approach", f["params"]
+    assert f["evidence"]["confidence"] == "ambiguous" and f["evidence"]["ambiguous_with"] == ["reversal"]
+    monkeypatch.setattr(causes, "ALONG_NORMAL_TOL", np.inf)
     rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and sorted(f["evidence"]["rows"]) == [34, 178], f["evidence"]
