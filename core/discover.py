@@ -2603,7 +2603,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         # temperature sensor, one per feature), for the named causes' alternatives: each layout's columns
         # (whitened) built when that layout is tested and not kept (held all at once they were 105 columns
         # per row on gen_a, ~84 MB more on a 1e5-row log)
-        return {k: _Layouts(v[0]) for k, v in scans.items() if v[0] and all(sc.size == 1 for sc in v[0])}
+        # (a scan whose trials are one layout in two readings of the pre-travel, core.causes.PRETRAVEL_ALONG, is
+        # two fixed layouts: each reading tested; the session 21 review found probe_lobing dropped from this check
+        # once its scan offered both)
+        return {k: _Layouts(v[0]) for k, v in scans.items() if v[0] and all(_readings_only(sc) for sc in v[0])}
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
                          seen + [(st, diag_e)], fixed=fixed, confounded=confounded,
@@ -2630,7 +2633,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family,
                                                     (outliers, form) if form is not None and form.size else None)
     if shift is not None and shift.get("of") == "outliers":
-        fo.evidence["workpiece_shift"] = _clean({k: v for k, v in shift.items() if k != "of"})
+        fo.evidence["workpiece_shift"] = _clean({k: v for k, v in shift.items() if k not in ("of", "beside")})
     res_e = np.full(N, np.nan)
     res_e[rows] = st.r
     conv = list(bl.conventions) + [
@@ -2659,7 +2662,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     f"{fmt_p(shift['p'])} against its own scatter: real, and the report does not call them dust "
                     "with confidence (they may be the part's own state at those touches): the extended U95 "
                     "carries the shift (u = |shift| / 2 per target)")
-    elif shift is not None:
+        shift = shift.get("beside")  # the smooth's own figures, tested and not carried (the session 21 review)
+    if shift is not None:
         for f in findings:
             if (f.cause == causes_mod.UNEXPLAINED and "smooth" in f.evidence) or f.evidence.get(
                     "magnitudes_not_determined") or f.cause in pen_named:
@@ -4863,7 +4867,7 @@ def norm_interval(m: np.ndarray, S: np.ndarray, level: float = NORM_LEVEL) -> tu
     d = np.linspace(-np.pi / 2, np.pi / 2, 8 * NORM_PHASES + 1)
     ph = d + np.arctan2(u[1], u[0])
     Vx = np.column_stack([-np.sin(ph), np.cos(ph)])
-    across = np.abs(Vx @ m) <= -special.ndtri(g / 2) * np.sqrt(np.einsum("ij,jk,ik->i", Vx, S, Vx))
+    across = np.abs(Vx @ m) <= -special.ndtri(g / 2) * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", Vx, S, Vx), 0.0))
     k = np.flatnonzero(across)  # (never empty: d = 0 is the estimate's phase, m . v = 0 there)
     w = np.linalg.eigvalsh(S)
     d = (np.union1d(np.linspace(d[k[0]], d[k[-1]], NORM_PHASES + 1), [0.0]) if w[0] < NORM_ISOTROPIC * w[1]
@@ -5385,18 +5389,29 @@ def _reproduces(U: np.ndarray, signal: tuple, so: _State, sigma, settings) -> tu
     return overlap, d_w, overlap >= settings.rival_share and d_w >= settings.rival_share * d_n
 
 
+def _readings_only(sc) -> bool:
+    """A scan of one layout: a single trial, or trials that differ only in the pre-travel's reading
+    (``pretravel_along``: the same columns read along the normal or along the approach)."""
+    if sc.size == 1:
+        return True
+    labels = {tuple(sorted((k, v) for k, v in _layout_label(info).items() if k != "pretravel_along"))
+              for info in sc.infos}
+    return len(labels) == 1 and all("pretravel_along" in (info or {}) for info in sc.infos)
+
+
 class _Layouts(Sequence):
-    """A cause's fixed layouts (single-trial scans) as ``(info, (n, k) columns)``, each built when asked, not kept."""
+    """A cause's fixed layouts (single-trial scans, or one layout's readings: :func:`_readings_only`) as
+    ``(info, (n, k) columns)``, each built when asked, not kept."""
 
     def __init__(self, scans):
-        self._scans = list(scans)
+        self._items = [(sc, j) for sc in scans for j in range(sc.size)]
 
     def __len__(self):
-        return len(self._scans)
+        return len(self._items)
 
     def __getitem__(self, i):
-        sc = self._scans[i]
-        return sc.infos[0], sc.build([0])[0]
+        sc, j = self._items[i]
+        return sc.infos[j], sc.build([j])[0]
 
 
 def _layout_label(info) -> dict:
@@ -6261,7 +6276,7 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
         ce2, sh2 = _unnamed_shift(bl, rows, ga[:len(eb)], ge, ce, La[:len(eb)], lin_e[0], lin_e[1],
                                   ea[:len(eb)] & ee[:len(eb)], alpha)
         if sh2 is not None and sh2["carried_in_u95"]:
-            ce, shift = ce2, dict(sh2, of="outliers")
+            ce, shift = ce2, dict(sh2, of="outliers", beside=shift)  # (the smooth's figures kept for the report)
     out = []
     vb, ve = cb.diagonal(), ce.diagonal()
     for i, tid in enumerate(bl.estimand_ids):

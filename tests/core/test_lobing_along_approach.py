@@ -36,6 +36,18 @@ def test_gen_a_lobe_amplitude_within_u95_along_the_approach():
     assert f["params"]["pretravel_along"] == "approach"
 
 
+def test_probe_lobing_in_two_readings_is_still_an_alternative_name():
+    """The session 21 review: with the two readings probe_lobing's scan had two trials, and the check of "one
+    explanation under two names" took only causes of single-trial scans: gen_a reversal 1031 went from reversal,
+    ambiguous with probe_lobing, to reversal, confident. Each reading is a fixed layout of that check."""
+    log, tr = gen_a.generate("reversal", 1031)
+    t = from_log(log)
+    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "reversal" and f["evidence"]["confidence"] == "ambiguous", f["evidence"].get("confidence")
+    assert "probe_lobing" in f["evidence"].get("ambiguous_with", ()), f["evidence"].get("ambiguous_with")
+
+
 def test_gen_b_lobe_stays_along_the_normal():
     """gen_b probe_lobing 1015 (a three-lobe deflection along the normal, approaches tilted up to 45 deg): read
     along the normal and still named probe_lobing (columns times -(n . d) alone made it `unexplained`)."""
