@@ -4724,30 +4724,7 @@ def norm_cdf(r: float, mu: np.ndarray, S: np.ndarray) -> float:
     ``nu_1`` is integrated (the rest weighs below 1e-18). Isotropic ``S`` gives the Rice distribution's CDF
     (noncentral chi-square with two degrees of freedom of ``r^2 / s^2``).
     """
-    return _norm_cdf_axes(r, mu, np.linalg.eigh(np.asarray(S, float)))
-
-
-def _norm_cdf_axes(r: float, mu: np.ndarray, eig) -> float:
-    """:func:`norm_cdf` with ``S``'s eigen-decomposition ``eig = (w, V)`` given (one per interval, not per call)."""
-    w, V = eig
-    l1, l2 = max(w[1], 0.0), max(w[0], 0.0)
-    nu = V.T @ np.asarray(mu, float)
-    nu1, nu2 = nu[1], nu[0]
-    s1 = np.sqrt(l1)
-    if r <= 0 or s1 == 0:
-        return float(np.hypot(*nu) <= r)
-    s2 = max(np.sqrt(l2), 1e-12 * s1)
-    a, b = max(nu1 - NORM_CDF_SPAN * s1, -r), min(nu1 + NORM_CDF_SPAN * s1, r)
-    if a >= b:
-        return 0.0
-    ta, tb = np.arcsin(a / r), np.arcsin(b / r)
-    x, wt = _NORM_NODES
-    t = 0.5 * (tb - ta) * x + 0.5 * (tb + ta)
-    ct = np.cos(t)
-    x1, h = r * np.sin(t), r * ct
-    inner = special.ndtr((h - nu2) / s2) - special.ndtr((-h - nu2) / s2)  # stats.norm.cdf's values, without its overhead
-    dens = np.exp(-0.5 * ((x1 - nu1) / s1) ** 2) / (s1 * np.sqrt(2 * np.pi))
-    return float(np.clip(0.5 * (tb - ta) * np.sum(wt * dens * inner * r * ct), 0.0, 1.0))
+    return float(_norm_cdf_many(r, np.asarray(mu, float)[None], np.linalg.eigh(np.asarray(S, float)))[0])
 
 
 #: The coverage of a norm's interval (:func:`norm_interval`): the report's U95 is twice the standard uncertainty
@@ -4766,7 +4743,8 @@ NORM_ISOTROPIC = 1 - 1e-6
 
 
 def _norm_cdf_many(r: float, MU: np.ndarray, eig) -> np.ndarray:
-    """:func:`_norm_cdf_axes` at every row of ``MU`` (one integral per row, the same nodes)."""
+    """:func:`norm_cdf` at every row of ``MU``, ``S``'s eigen-decomposition ``eig = (w, V)`` given (one integral
+    per row, the same nodes)."""
     w, V = eig
     l1, l2 = max(w[1], 0.0), max(w[0], 0.0)
     NU = np.asarray(MU, float) @ V
