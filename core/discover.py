@@ -2631,7 +2631,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     form = _outliers_span_a_form(bl, outliers) if (fo is not None and OUTLIER_SHIFT_CARRIED and
                                                    fo.evidence.get("confidence") == "ambiguous") else None
     wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(bl, terms, y, rows, st0, st, settings.alpha_family,
-                                                    (outliers, form) if form is not None and form.size else None)
+                                                    form if form is not None and form.size else None)
     if shift is not None and shift.get("of") == "outliers":
         fo.evidence["workpiece_shift"] = _clean({k: v for k, v in shift.items() if k not in ("of", "beside")})
     res_e = np.full(N, np.nan)
@@ -6183,9 +6183,9 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     Beside an unnamed smooth the extended U95 carries the workpiece shift
     the smooth makes when the data say it is real (:func:`_unnamed_shift`).
 
-    ``doubted`` (optional): (the outliers' rows, those of them on a feature
-    where they touch :data:`OUTLIER_FORM_TARGETS` targets or more), outliers
-    the report does not call dust with confidence. A particle between the
+    ``doubted`` (optional): the rows of the outliers the report does not
+    call dust with confidence that lie on a feature where they touch
+    :data:`OUTLIER_FORM_TARGETS` targets or more. A particle between the
     stylus and the surface makes a touch read more material, never less
     (every generator's chips; a burr's skid reads less, alone): where the
     latter rows read both more and less material than the extended fit,
@@ -6242,11 +6242,10 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     if need_maps:
         ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, lin[0], lin_e[0], lin_e[1], eb & ee[:len(eb)], alpha)
     if doubted is not None:
-        r_form = y[doubted[1]] - A1[doubted[1]] @ ge  # the rows on a feature's form against the fit without them
+        r_form = y[doubted] - A1[doubted] @ ge  # the rows on a feature's form against the fit without them
         if not (np.any(r_form > 0) and np.any(r_form < 0)):
             doubted = None
     if doubted is not None and not (shift is not None and shift["carried_in_u95"]):
-        doubted = doubted[0]
         # the same extended model on every row (the outliers kept) against it without them
         ga, _, ea, La, _ = _constrained(A1, y, C1, d1, np.arange(bl.n), P, E.shape[1], linear_map=True)
         if not need_maps:
