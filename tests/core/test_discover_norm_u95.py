@@ -224,3 +224,23 @@ def test_profile_in_small_chunks_is_the_profile_in_one(monkeypatch):
     for key in one:
         np.testing.assert_allclose(few[key][:3], one[key][:3], rtol=0, atol=1e-12)
         assert few[key][3] == one[key][3]
+
+
+def test_a_pair_with_no_spread_across_its_estimate_gets_an_interval():
+    """A pair whose covariance is nil across the estimate (one coefficient nearly fixed): the estimate's own
+    phase stays allowed. Before session 22 rounding (m . v about 1e-16 |m| at that phase) emptied the allowed
+    set and discover stopped with an IndexError on gen_a periodic_axis_error (the pair below, from that
+    campaign; 60 of these 300 rank-one draws)."""
+    m = np.array([3.11359653e-21, 4.89096463e-06])
+    S = np.array([[5.64258470e-45, 9.23343687e-30], [9.23343687e-30, 2.25838764e-14]])
+    lo, hi = D.norm_interval(m, S)
+    s = np.sqrt(S[1, 1])  # all the spread is along the estimate: the delta method's interval, k about 2.05
+    assert 1.9 * s < m[1] - lo < 2.2 * s and 1.9 * s < hi - m[1] < 2.2 * s
+    rng = np.random.default_rng(1)
+    for i in range(300):
+        a, r = rng.uniform(0, 2 * np.pi), rng.uniform(1, 10)
+        b = a + rng.choice([0.0, np.pi / 2, rng.uniform(0, np.pi)])
+        v = np.array([np.cos(b), np.sin(b)])
+        S = np.outer(v, v) + (0.0 if i % 2 else 1e-40) * np.eye(2)
+        lo, hi = D.norm_interval(r * np.array([np.cos(a), np.sin(a)]), S)
+        assert 0 <= lo <= r <= hi
