@@ -351,12 +351,16 @@ of the simulation's CPU is page faults and the check's share reads ~0.03 lower.
 
 This figure's state. The bench now records the faults of the runs it reports
 (``col_mfb5_simulation_minor_faults``, ``col_mfb5_plan_check_minor_faults``): 0 and 0 in eight
-``--only bench_simspeed`` runs (three with the thresholds below raised), 0 and 4 in one (the MFB
-campaign's checks before the loop leave the heap warm), and ``MALLOC_MMAP_THRESHOLD_`` and
+``--only bench_simspeed`` runs (three with the thresholds below raised), 0 and 4 in one, and
+``MALLOC_MMAP_THRESHOLD_`` and
 ``MALLOC_TRIM_THRESHOLD_`` raised to 32 and 64 MB moved nothing (shares 0.237, 0.240, 0.240 with
 them; 0.237 and 0.237 in the runs interleaved without). So the bench measures both warm, in a
 helper's run as in ``make bench``: heap warmth does not explain why the lead's two ``make bench``
-runs read 0.283 and 0.274. A script that times fresh checks and simulations in a process without
+runs read 0.283 and 0.274. What warms it is the MFB campaign's every-sample reference check
+(``broad_phase=False``) run before the loop: the kinematics and touch figures and the campaign with
+its broad-phase check alone, then the loop, gave 5,409 faults a simulation and 1,237 a check (share
+0.232); with the every-sample run too, 5-7 and 0-3 (0.255, 0.238). Were that reference dropped or
+moved after the loop, the share would read ~0.02-0.03 lower with no change to the check. A script that times fresh checks and simulations in a process without
 that history can measure a trimmed heap (this session's did: there the check's ~1,240 faults cost
 it ~1-1.3 ms, the simulation's ~4,000-5,000 cost it 9-15 ms).
 Nor does the load: today's ``--only bench_simspeed`` runs at load 30-35, the same check code (3 of
@@ -676,7 +680,7 @@ def collision_figures() -> dict:
         # simulation's CPU counts the faults on fresh pages when glibc has trimmed the heap between
         # runs (~4,000-5,000 a run, 11-17 % of its CPU), the check's far fewer (~1,240): the share of
         # the same code then reads ~0.03 lower. Both 0 in this bench's runs so far (the campaign's
-        # checks before leave the heap warm): the module's docstring, session 22
+        # every-sample reference check before leaves the heap warm): the module's docstring, session 22
         "col_mfb5_simulation_minor_faults": f_sim5,
         "col_mfb5_plan_check_minor_faults": f_plan,
         # the measurements' checks alone (sim.mfb_scene.check_measurements, all of them in one
