@@ -330,6 +330,69 @@ code before was too in the two runs at the lower load), but not the 0.20 asked f
 as sessions 19 and 20 say (the 14 broad
 phases' builds, the three box levels of ``near_segments_many``, the per-measurement Python), now with
 no MuJoCo model compiled in a fresh check of the 5-axis plan. The full suite: 1,937 passed, 1 xfailed.
+
+Session 22 (issue 19 item 4, continued): the check unchanged; why single runs of this figure differ,
+what state it measures in, and where a warm check's CPU goes. All at load 26-35 on 2 cores (other
+helpers' studies), thread CPU.
+
+Page faults. A thread's CPU time includes its minor page faults. glibc gives a freed heap top back to
+the system once it passes its trim threshold (twice its dynamic mmap threshold), so a process that
+allocates and frees arrays of a few MB pays the fresh pages again on every run. The simulation, the
+reference, is the sensitive one (``getrusage(RUSAGE_THREAD)``, 5 runs of each, the least CPU): in a
+process that ran only :func:`kinematics_figures` and :func:`touch_figures` before, 4,961 faults a
+simulation and ~1,240 a check, the simulation 81.3 and 90.5 ms, the check 19.0 and 19.8 ms, the share
+0.233 and 0.218; after the short benchmarks that precede this one in ``make bench`` (fit, machine,
+selfcal, touch, discover, vcmm), no faults, 72.4 and 75.8 ms, 17.9 and 18.4 ms, 0.248 and 0.243.
+After 3,000 arrays of 0.8 kB-3.2 MB allocated and freed with small ones left among them (the heap a
+long run leaves): the simulation 68.6 and 71.1 ms (6-9 faults), the check 16.9 and 17.3 ms, the share
+0.246 and 0.244; the same without the small ones left, or with no such history, ~3,950 faults a
+simulation, 81.8-86.1 ms, the check 17.6-17.9 ms, the share 0.208-0.216. With a trimmed heap 11-17 %
+of the simulation's CPU is page faults and the check's share reads ~0.03 lower.
+
+This figure's state. The bench now records the faults of the runs it reports
+(``col_mfb5_simulation_minor_faults``, ``col_mfb5_plan_check_minor_faults``): 0 and 0 in eight
+``--only bench_simspeed`` runs (three with the thresholds below raised), 0 and 4 in one, and
+``MALLOC_MMAP_THRESHOLD_`` and
+``MALLOC_TRIM_THRESHOLD_`` raised to 32 and 64 MB moved nothing (shares 0.237, 0.240, 0.240 with
+them; 0.237 and 0.237 in the runs interleaved without). So the bench measures both warm, in a
+helper's run as in ``make bench``: heap warmth does not explain why the lead's two ``make bench``
+runs read 0.283 and 0.274. What warms it is the MFB campaign's every-sample reference check
+(``broad_phase=False``) run before the loop: the kinematics and touch figures and the campaign with
+its broad-phase check alone, then the loop, gave 5,409 faults a simulation and 1,237 a check (share
+0.232); with the every-sample run too, 5-7 and 0-3 (0.255, 0.238). Were that reference dropped or
+moved after the loop, the share would read ~0.02-0.03 lower with no change to the check. A script that times fresh checks and simulations in a process without
+that history can measure a trimmed heap (this session's did: there the check's ~1,240 faults cost
+it ~1-1.3 ms, the simulation's ~4,000-5,000 cost it 9-15 ms).
+Nor does the load: today's ``--only bench_simspeed`` runs at load 30-35, the same check code (3 of
+63795e9, 9 of this commit, which adds only the fault figures): the check's CPU 14.8-19.4 ms, the
+simulation's 62.5-75.6 ms, the share 0.245, 0.245, 0.227 (63795e9) and 0.257, 0.237, 0.247, 0.252,
+0.237, 0.237 (this commit; 0.237, 0.240, 0.240 with the thresholds raised): 0.227-0.257. The lead's
+``make bench`` runs at load 1-5 read the check at 20.8 and 23.8 ms and the simulation at 73.4 and
+87.0 ms: the check slower at a far lower load. What is left is the history before this module in
+``make bench`` (probelog's 1e6-row logs, discover_study) or a process on the other core (the lead
+ran ``make test`` beside it). After
+discover_study in the same process (``--only bench_discover_study --only bench_simspeed``, load 31-33)
+the check read 17.7 ms, the simulation 74.1 ms, the share 0.239 (no faults): inside today's range, so
+not discover_study. A run of probelog then this module was stopped (21 s of CPU in 9 minutes at load
+33; probelog needs ~900 s); in probelog the parent writes the 1e6-row file and splits it with
+``csv.reader`` (its checks and discovers run in child processes): 5 million short strings made and
+freed with 1 in 100 kept, then the check and simulation, read the same as without (shares 0.202 and
+0.220 against 0.211 and 0.206; the first such run slower in both, a burst of load). Not resolved:
+what made the check slower in the lead's runs was not reproduced here.
+
+Where a warm check's CPU goes (functions timed around them, 40 fresh checks, the heap thresholds
+raised, load 26: 20.9 ms a check with the timers): ``_near_samples`` 12.5 ms (``near_segments_many``
+4.5: its first box level 1.1, second and third 0.8, swept bounds 0.8, its own 1.8; the rest broad
+phases' builds, ``orientations_ahead``, 2.9, of which 14 ``Clearance.__init__`` 2.4;
+``unique_segments`` 0.85; ``_ball_base`` 0.7; ``_segments_A`` 0.7), ``least_holder_clearances`` 2.0,
+``_paths_of`` 1.5, ``share_ball_model`` 1.0, ``check_measurements``' own ~2, ``_plan_for`` 0.27
+(least of 50, its 9 selections). The three box levels alone on the 5-axis plan's inputs (captured,
+least of 400): 1.04 ms warm (0.60 + 0.43), 1.89 ms on a trimmed heap: 6-7 % of a warm check. Tried
+and not kept: the first two levels in one pass (each hit block's 16 rows gathered as (3, blocks, 16)
+and tested against its cluster on all three axes at once; the same (row, pair) rows in the same
+order): 1,063 against 1,081 us warm, 2,404 against 2,133 us on a trimmed heap. A share of 0.20 needs
+a warm check 15-18 % cheaper; only ``near_segments_many`` (22 %) and the broad phases' builds (14 %)
+are that large, and neither has a cut of that size that keeps what they compute. The target is not met.
 """
 
 from __future__ import annotations
@@ -563,9 +626,14 @@ def collision_figures() -> dict:
     # processes on a busy machine take is not counted), each the best of its own
     t_sim5, t_plan[True], t_meas = float("inf"), float("inf"), {True: float("inf")}
     c_sim5, c_plan = float("inf"), float("inf")
+    f_sim5, f_plan = 0, 0  # this thread's minor page faults in the run of the least CPU (_minor_faults)
     for bp in (True,) * 5 + (False,):
         if bp:
+            f0 = _minor_faults()
             w, c = _mfb5_simulation_s(plan)
+            f = _minor_faults() - f0
+            if c < c_sim5:
+                f_sim5 = f
             t_sim5, c_sim5 = min(t_sim5, w), min(c_sim5, c)
         _fresh_plan_check()
         real_cm, spent = mfb_scene.check_measurements, [0.0]
@@ -579,12 +647,16 @@ def collision_figures() -> dict:
 
         mfb_scene.check_measurements = timed_cm
         try:
+            f0 = _minor_faults()
             c0 = time.thread_time()
             t = _time_patched(mfb_scene, "check_measurements", bp, lambda: S.check_plan(plan))
             c = time.thread_time() - c0
+            f = _minor_faults() - f0
         finally:
             mfb_scene.check_measurements = real_cm
         if bp:
+            if c < c_plan:
+                f_plan = f
             c_plan = min(c_plan, c)
         if not bp or t < t_plan[True]:  # (the measurements' share of the same run)
             t_plan[bp], t_meas[bp] = t, spent[0]
@@ -604,12 +676,27 @@ def collision_figures() -> dict:
         "col_mfb5_simulation_cpu_s": round(c_sim5, 4),
         "col_mfb5_plan_check_cpu_s": round(c_plan, 4),
         "col_mfb5_plan_check_over_simulation_cpu": round(c_plan / c_sim5, 3),
+        # the minor page faults of those two runs (this thread's): whether the heap was warm. The
+        # simulation's CPU counts the faults on fresh pages when glibc has trimmed the heap between
+        # runs (~4,000-5,000 a run, 11-17 % of its CPU), the check's far fewer (~1,240): the share of
+        # the same code then reads ~0.03 lower. Both 0 in this bench's runs so far (the campaign's
+        # every-sample reference check before leaves the heap warm): the module's docstring, session 22
+        "col_mfb5_simulation_minor_faults": f_sim5,
+        "col_mfb5_plan_check_minor_faults": f_plan,
         # the measurements' checks alone (sim.mfb_scene.check_measurements, all of them in one
         # call), without check_plan's table poses and touch programs (scenarios.mfb._plan_for)
         "col_mfb5_measurement_checks_s": round(t_meas[True], 3),
         "col_mfb5_measurement_checks_over_simulation": round(t_meas[True] / t_sim5, 3),
         "col_mfb5_measurement_checks_every_sample_ref_s": round(t_meas[False], 3),
     }
+
+
+def _minor_faults() -> int:
+    """This thread's minor page faults so far (``getrusage(RUSAGE_THREAD)``; 0 where there is none)."""
+    import resource
+
+    who = getattr(resource, "RUSAGE_THREAD", None)
+    return 0 if who is None else resource.getrusage(who).ru_minflt
 
 
 def _fresh_plan_check() -> None:
