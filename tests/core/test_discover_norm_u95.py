@@ -193,3 +193,16 @@ def test_profile_in_small_chunks_is_the_profile_in_one(monkeypatch):
     for key in one:
         np.testing.assert_allclose(few[key][:3], one[key][:3], rtol=0, atol=1e-12)
         assert few[key][3] == one[key][3]
+
+
+def test_a_pair_with_one_coefficient_undetermined_keeps_the_estimates_phase():
+    """gen_a probe_lobing 1025 (a tuning seed): its second harmonic's cos coefficient is a rounding (variance
+    1.5e-45 m^2 against the sin's 3.6e-14), and ``m . v`` at the estimate's own phase, a rounding too, exceeded the
+    allowed width across it: no phase was allowed and discover raised an IndexError (session 22). The estimate's
+    phase is allowed by construction; the interval is then the sin coefficient's, ``|m| +- ~2 sd``."""
+    m = np.array([4.28679047e-22, -2.92711414e-06])
+    S = np.array([[3.13983550e-45, -7.59952944e-30], [-7.59952944e-30, 3.59632123e-14]])
+    lo, hi = D.norm_interval(m, S)
+    sd = np.sqrt(S[1, 1])
+    assert lo < 2.92711414e-06 < hi
+    assert 1.9 * sd < 2.92711414e-06 - lo < 2.2 * sd and 1.9 * sd < hi - 2.92711414e-06 < 2.2 * sd
