@@ -5779,7 +5779,9 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                    if READING_U95 and beside_smooth is None and tm.penalty is None else None)
         if reading is not None:
             u95 = reading.pop("u95")
-            iv = {k: x for k, x in iv.items() if k not in reading["carried_in_u95"]}
+            # a norm's interval [lo, hi] widened at both ends as its U95 is (the choice's spread is no Rice law)
+            iv = {k: ([max(0.0, x[0] - (u95[k] - reading["u95_chosen"][k])), x[1] + u95[k] - reading["u95_chosen"][k]]
+                      if k in reading["carried_in_u95"] else x) for k, x in iv.items()}
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)
