@@ -5698,7 +5698,7 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
 
     Returns None where the term has no other reading (approaches along the
     normal: one reading), else ``{"other": its reading, "explained_gap_um2": D,
-    "weight_other": w_o, "other_values": .., "u95_chosen": .., "carried_in_u95":
+    "weight_other": w_o, "other_values": .., "other_u95": .., "u95_chosen": .., "carried_in_u95":
     [keys whose U95 grew], "u95": the new U95 dict}``.
     """
     got = _other_reading(bl, tm)
@@ -5728,6 +5728,7 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
             grown.append(key)
     return {"other": inf_o["pretravel_along"], "explained_gap_um2": D / UM ** 2, "weight_other": w_o,
             "other_values": {k: v for k, v in vals_o.items() if k in vals and k != "pretravel_along"},
+            "other_u95": {k: v for k, v in u95_o.items() if k in vals},
             "u95_chosen": {k: u95[k] for k in grown}, "carried_in_u95": grown, "u95": new}
 
 
