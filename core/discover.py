@@ -4847,9 +4847,10 @@ def norm_interval(m: np.ndarray, S: np.ndarray, level: float = NORM_LEVEL) -> tu
     Vx = np.column_stack([-np.sin(ph), np.cos(ph)])
     across = np.abs(Vx @ m) <= -special.ndtri(g / 2) * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", Vx, S, Vx), 0.0))
     # the estimate's own phase (d = 0, the grid's middle) is allowed by construction: m . v = 0 there in exact
-    # arithmetic. Rounding leaves about 1e-16 |m|, which a pair whose spread across m is nil cannot hold (gen_a
-    # periodic_axis_error, session 22's blind check: m = (3e-21, 4.9e-6), S's first variance 5.6e-45; the set
-    # was empty and discover stopped with an IndexError)
+    # arithmetic. Rounding leaves about 1e-16 |m|, which a pair whose spread across m is itself a rounding cannot
+    # hold (a harmonic with one coefficient undetermined by the design: gen_a probe_lobing 1025's k2, S's
+    # eigenvalues 1.5e-45 and 3.6e-14 m^2, and session 22's blind gen_a seed 5307; the set was empty and
+    # discover stopped with an IndexError)
     across[4 * NORM_PHASES] = True
     k = np.flatnonzero(across)
     w = np.linalg.eigvalsh(S)
@@ -5648,6 +5649,90 @@ def _repeats_beyond_residual(key: np.ndarray, st: _State, settings) -> dict | No
             "beyond_residual_ss_um2": float((rep.ss / rep.dof - st.rss / st.dof) * len(st.rows)) / UM ** 2}
 
 
+#: The magnitudes of a cause read in one of two readings of the pre-travel (``pretravel_along``,
+#: :data:`core.causes.PRETRAVEL_ALONG`: the data chose the better-fitting one) take a U95 that carries the
+#: choice (:func:`_reading_u95`, session 22); False: the chosen reading's as if it were known, as before.
+READING_U95 = True
+
+
+def _other_reading(bl, tm: Term):
+    """The same layout of ``tm``'s cause in its other reading of the pre-travel: ``(info, (N, k) columns)``
+    (whitened as the engine's), or None where the term has no reading or its scan offers one only."""
+    info = tm.info or {}
+    cause = tm.origin
+    if "pretravel_along" not in info or cause is None or cause.scans is None:
+        return None
+    rest = {k: v for k, v in info.items() if k != "pretravel_along"}
+    for sc in cause.scans(bl)[0]:
+        if sc.size < 2 or not _readings_only(sc):
+            continue
+        for j, inf in enumerate(sc.infos):
+            if inf.get("pretravel_along") != info["pretravel_along"] and \
+                    {k: v for k, v in inf.items() if k != "pretravel_along"} == rest:
+                C = np.asarray(sc.build(np.array([j]))[0], float)
+                return inf, (C if bl.whiten is None else bl.whiten @ C)
+    return None
+
+
+def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, sigma: float, settings, folds,
+                 others) -> dict | None:
+    """The U95 of magnitudes whose reading of the pre-travel the data chose: the choice's uncertainty carried.
+
+    ``probe_lobing`` reads its lobes along the normal or along the approach
+    (:data:`core.causes.PRETRAVEL_ALONG`), whichever fits better; its
+    magnitudes' U95 was the chosen reading's as if that reading were known.
+    The two readings are two models of the same number of columns beside the
+    same others (``so``); with the noise ``sigma`` known and equal prior
+    weights their posterior weights are the likelihood ratio's,
+    ``w_o = 1 / (1 + exp(D / (2 sigma^2)))``, ``D`` what the chosen reading's
+    columns explain beside ``so`` less what the other's do (equal column
+    counts: no Occam factor between them to first order, so AIC's and BIC's
+    weights are these too). A magnitude's uncertainty is then that of the
+    mixture of the two readings' estimates ``N(a_c, u_c^2)`` and
+    ``N(a_o, u_o^2)`` (``u = U95 / 2``), taken about the value reported
+    (the chosen reading's ``a_c``): its second moment
+    ``(1 - w_o) u_c^2 + w_o (u_o^2 + (a_o - a_c)^2)`` (the unconditional
+    variance of model averaging, Buckland, Burnham and Augustin 1997,
+    Biometrics 53, 603-618), U95 twice its root. Where the data prefer the
+    chosen reading clearly (``D`` many ``sigma^2``) ``w_o`` vanishes and the
+    U95 is the chosen reading's; it is never narrowed below that.
+
+    Returns None where the term has no other reading (approaches along the
+    normal: one reading), else ``{"other": its reading, "explained_gap_um2": D,
+    "weight_other": w_o, "other_values": .., "other_u95": .., "u95_chosen": .., "carried_in_u95":
+    [keys whose U95 grew], "u95": the new U95 dict}``.
+    """
+    got = _other_reading(bl, tm)
+    if got is None or not (sigma > 0):
+        return None
+    inf_o, C = got
+    Mo = _determined(so.Q, C[rows], settings.vif_max)[0]
+    if Mo.shape[1] == 0:
+        return None
+    tm_o = dataclasses.replace(tm, columns=C, info=inf_o, map=Mo, cols_all=C, at_adoption=None, evidence={})
+    vals_o, u95_o = _magnitudes(cause, bl, tm_o, so.Q, rows,
+                                boot=(folds, others) if folds is not None else None)
+    Uc = new_basis(so.Q, tm.columns[rows] @ tm.map)
+    Uo = new_basis(so.Q, C[rows] @ Mo)
+    D = float(np.sum((Uc.T @ so.r) ** 2) - np.sum((Uo.T @ so.r) ** 2))
+    w_o = float(special.expit(-D / (2 * sigma ** 2)))
+    new, grown = dict(u95), []
+    for key, v in vals.items():
+        if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
+            continue
+        vo, uc, uo = vals_o.get(key), u95.get(key), u95_o.get(key)
+        if vo is None or uc is None or uo is None:
+            continue
+        u = 2 * float(np.sqrt((1 - w_o) * (uc / 2) ** 2 + w_o * ((uo / 2) ** 2 + (float(vo) - float(v)) ** 2)))
+        if u > uc:
+            new[key] = u
+            grown.append(key)
+    return {"other": inf_o["pretravel_along"], "explained_gap_um2": D / UM ** 2, "weight_other": w_o,
+            "other_values": {k: v for k, v in vals_o.items() if k in vals and k != "pretravel_along"},
+            "other_u95": {k: v for k, v in u95_o.items() if k in vals},
+            "u95_chosen": {k: u95[k] for k in grown}, "carried_in_u95": grown, "u95": new}
+
+
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
               seen=(), fixed=None, repeats=None, folds=None, confounded=()) -> list:
     out = []
@@ -5692,6 +5777,13 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             for key, (u, _, _, _) in prof.items():  # the profile's interval stays inside the carried one
                 if vals.get(key) is not None and u95.get(key) is not None:
                     u95[key] = max(u95[key], u)
+        reading = (_reading_u95(cause, bl, tm, so, rows, vals, u95, sig, settings, folds, others)
+                   if READING_U95 and beside_smooth is None and tm.penalty is None else None)
+        if reading is not None:
+            u95 = reading.pop("u95")
+            # a norm's interval [lo, hi] widened at both ends as its U95 is (the choice's spread is no Rice law)
+            iv = {k: ([max(0.0, x[0] - (u95[k] - reading["u95_chosen"][k])), x[1] + u95[k] - reading["u95_chosen"][k]]
+                      if k in reading["carried_in_u95"] else x) for k, x in iv.items()}
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)
@@ -5713,6 +5805,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             ev["not_identifiable_directions"] = int(tm.weak)
         if beside_smooth is not None:
             ev["magnitudes_beside_smooth"] = beside_smooth
+        if reading is not None:
+            ev["pretravel_reading"] = reading
         if wide_note is not None:  # named at most ambiguous (step 8), as a magnitude wide at adoption is
             ev["magnitude_undetermined"] = "; ".join(x for x in (ev.get("magnitude_undetermined"), wide_note) if x)
         # what the cause explains beside the others (the rival check's own figure; its tests were made)

@@ -121,6 +121,16 @@ outlier 1002's ``approach_sign_p`` (1.0) and ``approach_sign_test``; the
 finding's confidence unchanged (ambiguous, as stored). No other report
 moved (the other fifteen pass as stored); those leaves alone were written.
 
+Refreshed for probe_lobing's two readings of the pre-travel carried (session 22:
+``core.causes.READINGS_TRIES``, ``core.discover.READING_U95``): gen_a probe_lobing
+302 alone, its finding's ``tries`` 10 -> 20 (the two readings counted as two
+trials) with ``p_adjusted`` and ``p_adjusted_beyond_slip`` doubled, the new
+``pretravel_reading`` evidence (the normal reading's weight 1.7e-4: the data
+prefer the approach reading by 0.92 um^2), and its ``params_u95`` and
+``magnitude_intervals`` at most 5e-5 relative wider (k3 0.05748 -> 0.05751 um);
+its decisions as stored. The other fifteen reports pass as stored (make.py's
+``report_of`` wrote this one alone).
+
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within
 ``ABS`` of a number that is zero in the reference's own units).

@@ -92,6 +92,8 @@ def test_toy_coverage_of_a_zero_and_of_an_amplitude_near_the_noise():
 
 @pytest.mark.parametrize("A, S", [(0.5, np.diag([1.0, 0.01])), (1.0, np.diag([1.0, 0.01])),
                                   (1.0, np.diag([1.0, 0.1]))])
+
+
 def test_interval_covers_along_the_noisy_axis_of_an_anisotropic_pair(A, S):
     """The session 21 review: with the estimate's phase held, the interval of ``|mu|`` covered 0.87-0.88 where
     the truth lies along the noisier axis and the amplitude is within a few noise widths (the law of ``|m|``
@@ -109,6 +111,8 @@ def test_interval_covers_along_the_noisy_axis_of_an_anisotropic_pair(A, S):
 
 @pytest.mark.parametrize("name, info", [("probe_lobing", {}), ("periodic_axis_error", {"axis": "Y", "period_m": 0.025}),
                                         ("part_change", {"ring": True, "feature": "bore"})])
+
+
 def test_declared_norms_are_the_magnitudes(name, info):
     """Every norm a cause declares (Cause.norms) is its magnitude's value: the interval is made for it."""
     cause = causes.lookup(name)
@@ -244,3 +248,16 @@ def test_a_pair_with_no_spread_across_its_estimate_gets_an_interval():
         S = np.outer(v, v) + (0.0 if i % 2 else 1e-40) * np.eye(2)
         lo, hi = D.norm_interval(r * np.array([np.cos(a), np.sin(a)]), S)
         assert 0 <= lo <= r <= hi
+
+
+def test_a_pair_with_one_coefficient_undetermined_keeps_the_estimates_phase():
+    """gen_a probe_lobing 1025 (a tuning seed): its second harmonic's cos coefficient is a rounding (variance
+    1.5e-45 m^2 against the sin's 3.6e-14), and ``m . v`` at the estimate's own phase, a rounding too, exceeded the
+    allowed width across it: no phase was allowed and discover raised an IndexError (session 22). The estimate's
+    phase is allowed by construction; the interval is then the sin coefficient's, ``|m| +- ~2 sd``."""
+    m = np.array([4.28679047e-22, -2.92711414e-06])
+    S = np.array([[3.13983550e-45, -7.59952944e-30], [-7.59952944e-30, 3.59632123e-14]])
+    lo, hi = D.norm_interval(m, S)
+    sd = np.sqrt(S[1, 1])
+    assert lo < 2.92711414e-06 < hi
+    assert 1.9 * sd < 2.92711414e-06 - lo < 2.2 * sd and 1.9 * sd < hi - 2.92711414e-06 < 2.2 * sd
