@@ -4102,7 +4102,7 @@ class _Projected:
 
     def blocks(self):
         n = len(self.st.rows)
-        return [np.arange(a, min(a + FORMS_BLOCK_ROWS, n)) for a in range(0, n, FORMS_BLOCK_ROWS)]
+        return (np.arange(a, min(a + FORMS_BLOCK_ROWS, n)) for a in range(0, n, FORMS_BLOCK_ROWS))
 
     def read(self, pos) -> np.ndarray:
         return np.hstack([rd(pos) for rd in self.readers])
@@ -4177,10 +4177,10 @@ def _one_off_p_gram(rs, ks: int, level, rows, st: _State, settings) -> float:
     lv = lv[lv > 1e-12]
     if lv.size < 2:
         return 1.0
-    safe = np.where(L > 1e-12, L, 1.0)
 
-    def once(v):
-        return lambda pos: np.where((L[pos] >= v - 1e-12)[:, None], rs(pos) / safe[pos, None], 0.0)
+    def once(v):  # (the pattern: the steps over the level, as _one_off_p's cs / safe)
+        return lambda pos: np.where((L[pos] >= v - 1e-12)[:, None],
+                                    rs(pos) / np.where(L[pos] > 1e-12, L[pos], 1.0)[:, None], 0.0)
 
     G, bb = np.empty((lv.size, ks, ks)), np.empty((lv.size, ks))
     for j, v in enumerate(lv):  # nested_f_batch's block-basis branch, each trial's sums over its own rows
