@@ -4019,19 +4019,19 @@ def _forms_dense_choice(cs, cc, level, rows, st: _State, settings) -> tuple:
 
 
 #: :func:`_time_forms_chosen` on a long log (the model's basis a :class:`core.lsq.Basis`) whose feature's columns on
-#: the model's rows are more than this many bytes (either form's) tests the forms from their Gram matrices,
-#: accumulated :data:`FORMS_BLOCK_ROWS` rows at a time (:func:`_forms_gram_choice`), not from the columns formed
-#: dense: at the bench's 1e6 rows the dense tests formed the columns, their projections and the model's basis
+#: the model's rows are more than this many bytes (either form's) tests the forms :data:`FORMS_BLOCK_ROWS` rows at
+#: a time (:func:`_forms_gram_choice`: the columns projected a block at a time, their Gram matrices summed), not
+#: from the columns formed dense: at the bench's 1e6 rows the dense tests formed the columns, their projections and the model's basis
 #: stacked with the alternative's (a (1e6, 8) copy of 61 MiB refused under the 2,048 MB limit, session 21), and the
 #: one-off steps' trials at every set-up change at once (99 x 1e6 x 4 doubles, 3.2 GB, had the steps been
 #: significant). The same tests to rounding (tests/core/test_forms_gram.py); below it, the dense tests as before.
 FORMS_DENSE_BYTES = 16 << 20
-#: Rows a block of :func:`_forms_gram`'s sums (8192 x 8 columns: 512 KiB).
+#: Rows a block of :class:`_Projected`'s and :func:`_forms_gram`'s sums (8192 x 8 columns: 512 KiB).
 FORMS_BLOCK_ROWS = 8192
 
 
 def _forms_by_gram(st: _State, rows, *cols) -> bool:
-    """Whether :func:`_time_forms_chosen` takes the Gram path (:data:`FORMS_DENSE_BYTES`)."""
+    """Whether :func:`_time_forms_chosen` tests the forms a block of rows at a time (:data:`FORMS_DENSE_BYTES`)."""
     return isinstance(st.Q, Basis) and 8 * len(rows) * max(x.shape[1] for x in cols) > FORMS_DENSE_BYTES
 
 
@@ -4169,7 +4169,6 @@ def _one_off_p_gram(rs, ks: int, level, rows, st: _State, settings) -> float:
     one-off trial's test beside the model from its Gram matrices (:func:`core.diagnosis.nested_f_batch`'s
     block-basis branch, which :func:`_one_off_p` takes on a long log), summed over its own rows, then the steps beyond
     the best as :func:`_beyond_projected` tests them."""
-    Qr = st.Q.T @ st.r
     if level is None:
         return 0.0
     L = np.asarray(level, float)[rows]
@@ -4177,6 +4176,7 @@ def _one_off_p_gram(rs, ks: int, level, rows, st: _State, settings) -> float:
     lv = lv[lv > 1e-12]
     if lv.size < 2:
         return 1.0
+    Qr = st.Q.T @ st.r
 
     def once(v):  # (the pattern: the steps over the level, as _one_off_p's cs / safe)
         return lambda pos: np.where((L[pos] >= v - 1e-12)[:, None],
