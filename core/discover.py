@@ -258,10 +258,10 @@ from . import baseline as bl_mod
 from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
-from .diagnosis import (CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f, nested_f_batch,
-                        new_basis, nested_f_trials, orth, release_projections, replicate_scatter, StepTrials, take_rows,
+from .diagnosis import (IN_SPAN, CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f,
+                        nested_f_batch, new_basis, nested_f_trials, orth, release_projections, replicate_scatter, StepTrials, take_rows,
                         term_bases, tied, trials_take,
-                        extends, _first_largest)
+                        extends, _batch_tests, _first_largest, _nested_f_ss)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .memo import Memo, kept_on
@@ -3997,16 +3997,205 @@ def _time_forms_chosen(owns: list, rows, st: _State, settings, bl) -> list:
             continue
         cs = o.cols if o.cols is not None else o.scan.build([o.index])[0]
         cc = c.cols if c.cols is not None else c.scan.build([c.index])[0]
-        cs, cc = (x.toarray()[rows] if sps.issparse(x) else np.asarray(x)[rows] for x in (cs, cc))
-        # the steps beyond the continuous form, the continuous form beyond the steps (_beyond's F test, unadjusted)
-        p_steps = _beyond(st, new_basis(st.Q, cc), cs, st.sigma, 1.0, settings)[1]
-        p_cont = _beyond(st, new_basis(st.Q, cs), cc, st.sigma, 1.0, settings)[1]
-        if p_steps < settings.alpha_family and p_cont >= settings.alpha_family and (
-                not STEP_BEYOND_ONE_OFF or _steps_beyond_one_off(cs, level, rows, st, settings)):
-            drop.add(id(c))
-        else:
-            drop.add(id(o))
+        choice = _forms_gram_choice if _forms_by_gram(st, rows, cs, cc) else _forms_dense_choice
+        drop.add(id(c) if choice(cs, cc, level, rows, st, settings)[0] else id(o))
     return [o for o in owns if id(o) not in drop]
+
+
+def _forms_dense_choice(cs, cc, level, rows, st: _State, settings) -> tuple:
+    """:func:`_time_forms_chosen`'s choice for one feature, the columns formed on the model's rows: ``(steps,
+    (p_steps, p_cont, p_once))``, ``steps`` True for the steps ``cs``, False for the continuous ``cc`` (both (N, k)
+    over the baseline's rows, dense or sparse); ``p_once`` (:func:`_one_off_p`) None where not needed."""
+    cs, cc = (x.toarray()[rows] if sps.issparse(x) else np.asarray(x)[rows] for x in (cs, cc))
+    # the steps beyond the continuous form, the continuous form beyond the steps (_beyond's F test, unadjusted)
+    p_steps = _beyond(st, new_basis(st.Q, cc), cs, st.sigma, 1.0, settings)[1]
+    p_cont = _beyond(st, new_basis(st.Q, cs), cc, st.sigma, 1.0, settings)[1]
+    if not (p_steps < settings.alpha_family and p_cont >= settings.alpha_family):
+        return False, (p_steps, p_cont, None)
+    if not STEP_BEYOND_ONE_OFF:
+        return True, (p_steps, p_cont, None)
+    p_once = _one_off_p(cs, level, rows, st, settings)
+    return p_once < settings.alpha_family, (p_steps, p_cont, p_once)
+
+
+#: :func:`_time_forms_chosen` on a long log (the model's basis a :class:`core.lsq.Basis`) whose feature's columns on
+#: the model's rows are more than this many bytes (either form's) tests the forms :data:`FORMS_BLOCK_ROWS` rows at
+#: a time (:func:`_forms_gram_choice`: the columns projected a block at a time, their Gram matrices summed), not
+#: from the columns formed dense: at the bench's 1e6 rows the dense tests formed the columns, their projections and the model's basis
+#: stacked with the alternative's (a (1e6, 8) copy of 61 MiB refused under the 2,048 MB limit, session 21), and the
+#: one-off steps' trials at every set-up change at once (99 x 1e6 x 4 doubles, 3.2 GB, had the steps been
+#: significant). The same tests to rounding (tests/core/test_forms_gram.py); below it, the dense tests as before.
+FORMS_DENSE_BYTES = 16 << 20
+#: Rows a block of :class:`_Projected`'s and :func:`_forms_gram`'s sums (8192 x 8 columns: 512 KiB).
+FORMS_BLOCK_ROWS = 8192
+
+
+def _forms_by_gram(st: _State, rows, *cols) -> bool:
+    """Whether :func:`_time_forms_chosen` tests the forms a block of rows at a time (:data:`FORMS_DENSE_BYTES`)."""
+    return isinstance(st.Q, Basis) and 8 * len(rows) * max(x.shape[1] for x in cols) > FORMS_DENSE_BYTES
+
+
+def _rows_reader(x, rows):
+    """``pos -> x[rows[pos]]`` dense (``x`` (N, k) dense or sparse, ``rows`` the model's rows)."""
+    def read(pos):
+        b = x[rows[pos]]
+        return b.toarray() if sps.issparse(b) else np.asarray(b, float)
+    return read
+
+
+def _forms_gram(st: _State, readers, pos_all=None) -> tuple:
+    """``(X^T X, Q^T X, X^T r)`` of the columns ``X = [reader(pos) ...]`` on the model's rows (``st.Q``'s, a
+    :class:`core.lsq.Basis`), summed :data:`FORMS_BLOCK_ROWS` rows at a time; ``pos_all``: only these rows
+    (positions in ``st.rows``: the others' columns are zero)."""
+    pos_all = np.arange(len(st.rows)) if pos_all is None else np.asarray(pos_all, int)
+    S = XR = QX = None
+    for a in range(0, max(len(pos_all), 1), FORMS_BLOCK_ROWS):
+        pos = pos_all[a:a + FORMS_BLOCK_ROWS]
+        X = np.hstack([rd(pos) for rd in readers])
+        if S is None:
+            S, XR, QX = np.zeros((X.shape[1],) * 2), np.zeros(X.shape[1]), np.zeros((st.Q.shape[1], X.shape[1]))
+        if len(pos):
+            S += X.T @ X
+            XR += X.T @ st.r[pos]
+            st.Q.rows_rmatmul(pos, X, out=QX)
+    return S, QX, XR
+
+
+def _gram_directions(G: np.ndarray) -> np.ndarray:
+    """``W`` (k, k') with ``P W`` :func:`core.diagnosis.new_basis`'s result for ``P`` (columns normalised and
+    projected out of the model) of Gram matrix ``G = P^T P``: the eigenvectors kept (singular value above
+    ``max(IN_SPAN, 1e-5)``), each over its singular value."""
+    if not G.shape[0]:
+        return np.zeros((0, 0))
+    w, V = np.linalg.eigh(G)
+    good = w > max(IN_SPAN, 1e-5) ** 2
+    return V[:, good] / np.sqrt(w[good])
+
+
+class _Projected:
+    """Columns ``X = [reader(pos) ...]`` on the model's rows (``st.Q`` a :class:`core.lsq.Basis`), each normalised
+    and projected out of ``Q`` (``P = X' - Q Q^T X'``, as :func:`core.diagnosis.new_basis` projects them), made a
+    block of :data:`FORMS_BLOCK_ROWS` rows at a time from ``Q^T X`` and the norms (summed in one pass over the rows):
+    nothing rows x columns is formed beyond a block. ``G = P^T P`` and ``P^T r`` are summed over ``P``'s blocks as
+    made (not from ``X^T X - (Q^T X)^T Q^T X``, whose cancellation costs about 1e-6 relative where a direction's
+    singular value is near the cut of 1e-5)."""
+
+    def __init__(self, st: _State, readers):
+        self.st, self.readers, n = st, readers, len(st.rows)
+        ss = QX = None
+        for pos in self.blocks():
+            X = self.read(pos)
+            if QX is None:
+                ss, QX = np.zeros(X.shape[1]), np.zeros((st.Q.shape[1], X.shape[1]))
+            ss += np.einsum("ij,ij->j", X, X)
+            st.Q.rows_rmatmul(pos, X, out=QX)
+        nrm = np.sqrt(ss)
+        self.keep = nrm > 0  # (new_basis drops a zero column)
+        self.inv = np.where(self.keep, 1.0 / np.where(self.keep, nrm, 1.0), 0.0)
+        self.QXn = QX * self.inv
+        self.G, self.Pr = np.zeros((len(nrm),) * 2), np.zeros(len(nrm))
+        for pos in self.blocks():
+            P = self.rows(pos)
+            self.G += P.T @ P
+            self.Pr += P.T @ st.r[pos]
+        self.n = n
+
+    def blocks(self):
+        n = len(self.st.rows)
+        return (np.arange(a, min(a + FORMS_BLOCK_ROWS, n)) for a in range(0, n, FORMS_BLOCK_ROWS))
+
+    def read(self, pos) -> np.ndarray:
+        return np.hstack([rd(pos) for rd in self.readers])
+
+    def rows(self, pos) -> np.ndarray:
+        """``P``'s rows ``pos``."""
+        return self.read(pos) * self.inv - self.st.Q.rows_matmul(pos, self.QXn)
+
+
+def _beyond_projected(pj: _Projected, a, e, sigma: float, tries: float, settings, share: float = 1.0) -> tuple:
+    """:func:`_beyond` of the cause's columns ``X[:, e]`` beside the alternative's ``U_alt = new_basis(Q, X[:, a])``,
+    ``pj``'s columns ``X`` (:class:`_Projected`), a block of rows at a time: ``U_alt = P_a W_a`` (``W_a`` from
+    ``P_a^T P_a``), then the cause's columns beyond ``[Q, U_alt]`` made a block at a time (``P_e - U_alt U_alt^T
+    P_e``) and their Gram matrix and products with ``ra = r - U_alt U_alt^T r`` summed over the blocks. The same
+    ``(d, p, stands)`` to rounding."""
+    st = pj.st
+    a, e = (np.asarray(i, int) for i in (a, e))
+    a, e = a[pj.keep[a]], e[pj.keep[e]]
+    Wa = _gram_directions(pj.G[np.ix_(a, a)])
+    u = Wa.T @ pj.Pr[a]  # U_alt^T r
+    M = Wa.T @ pj.G[np.ix_(a, e)]  # U_alt^T P_e
+    Ge, be, rr = np.zeros((len(e), len(e))), np.zeros(len(e)), 0.0
+    for pos in pj.blocks():
+        P = pj.rows(pos)
+        Ua = P[:, a] @ Wa
+        Pe = P[:, e] - Ua @ M
+        ra = st.r[pos] - Ua @ u
+        Ge += Pe.T @ Pe
+        be += Pe.T @ ra
+        rr += float(ra @ ra)
+    We = _gram_directions(Ge)
+    b = We.T @ be  # Un^T ra
+    k, n = We.shape[1], pj.n
+    ss, dof = float(b @ b), n - (st.Q.shape[1] + Wa.shape[1])
+    d = ss - k * sigma ** 2
+    p = 1.0 if k == 0 or dof - k < 1 else _nested_f_ss(k, ss, n, rr, dof).p_value
+    p = min(1.0, p * tries)
+    stands = bool(d >= (settings.material_sigma * sigma) ** 2 * n * share and p < settings.alpha_family)
+    return d, p, stands
+
+
+def _forms_gram_choice(cs, cc, level, rows, st: _State, settings) -> tuple:
+    """:func:`_forms_dense_choice` a block of rows at a time (:data:`FORMS_DENSE_BYTES`): nothing rows x columns
+    formed beyond a block of rows, the one-off steps' trials one at a time (:func:`_one_off_p`'s, the same
+    order)."""
+    rows = np.asarray(rows)
+    rs, rc = _rows_reader(cs, rows), _rows_reader(cc, rows)
+    ks, kc = cs.shape[1], cc.shape[1]
+    pj = _Projected(st, [rs, rc])
+    i_s, i_c = np.arange(ks), ks + np.arange(kc)
+    p_steps = _beyond_projected(pj, i_c, i_s, st.sigma, 1.0, settings)[1]
+    p_cont = _beyond_projected(pj, i_s, i_c, st.sigma, 1.0, settings)[1]
+    del pj
+    if not (p_steps < settings.alpha_family and p_cont >= settings.alpha_family):
+        return False, (p_steps, p_cont, None)
+    if not STEP_BEYOND_ONE_OFF:
+        return True, (p_steps, p_cont, None)
+    p_once = _one_off_p_gram(rs, ks, level, rows, st, settings)
+    return p_once < settings.alpha_family, (p_steps, p_cont, p_once)
+
+
+def _one_off_p_gram(rs, ks: int, level, rows, st: _State, settings) -> float:
+    """:func:`_one_off_p` a block of rows at a time (``rs``: the steps' block reader, ``ks`` their columns): each
+    one-off trial's test beside the model from its Gram matrices (:func:`core.diagnosis.nested_f_batch`'s
+    block-basis branch, which :func:`_one_off_p` takes on a long log), summed over its own rows, then the steps beyond
+    the best as :func:`_beyond_projected` tests them."""
+    if level is None:
+        return 0.0
+    L = np.asarray(level, float)[rows]
+    lv = np.unique(L)
+    lv = lv[lv > 1e-12]
+    if lv.size < 2:
+        return 1.0
+    Qr = st.Q.T @ st.r
+
+    def once(v):  # (the pattern: the steps over the level, as _one_off_p's cs / safe)
+        return lambda pos: np.where((L[pos] >= v - 1e-12)[:, None],
+                                    rs(pos) / np.where(L[pos] > 1e-12, L[pos], 1.0)[:, None], 0.0)
+
+    G, bb = np.empty((lv.size, ks, ks)), np.empty((lv.size, ks))
+    for j, v in enumerate(lv):  # nested_f_batch's block-basis branch, each trial's sums over its own rows
+        Sj, QC, Cr = _forms_gram(st, [once(v)], np.flatnonzero(L >= v - 1e-12))
+        nrm = np.maximum(np.sqrt(np.maximum(np.diag(Sj), 0.0)), 1e-300)
+        inv = np.where(nrm > 1e-300, 1.0 / nrm, 0.0)
+        QC = QC * inv
+        G[j] = Sj * np.outer(inv, inv) - QC.T @ QC
+        bb[j] = Cr * inv - QC.T @ Qr
+    ss, k, _, _ = _batch_tests(G, bb, st.rss, st.dof)
+    if not np.any(k > 0):
+        return 0.0
+    v = lv[int(np.argmax(np.where(k > 0, ss, -np.inf)))]
+    pj = _Projected(st, [once(v), rs])
+    return _beyond_projected(pj, np.arange(ks), ks + np.arange(ks), st.sigma, 1.0, settings)[1]
 
 
 def _steps_beyond_one_off(cs: np.ndarray, level: np.ndarray | None, rows, st: _State, settings) -> bool:
@@ -4020,22 +4209,27 @@ def _steps_beyond_one_off(cs: np.ndarray, level: np.ndarray | None, rows, st: _S
     model and the steps tested beyond it (F test at ``alpha_family``, unadjusted, as the forms' own test). On two
     set-ups the steps are the one-off step: not beyond it.
     """
+    return _one_off_p(cs, level, rows, st, settings) < settings.alpha_family
+
+
+def _one_off_p(cs: np.ndarray, level: np.ndarray | None, rows, st: _State, settings) -> float:
+    """:func:`_steps_beyond_one_off`'s p-value of the steps beyond the best one-off step (0 where there is no level,
+    or the one-off steps lie in the model; 1 on two set-ups)."""
     if level is None:
-        return True
+        return 0.0
     L = np.asarray(level, float)[rows]
     lv = np.unique(L)
     lv = lv[lv > 1e-12]
     if lv.size < 2:
-        return False
+        return 1.0
     safe = np.where(L > 1e-12, L, 1.0)
     pat = cs / safe[:, None]
     C = np.stack([np.where((L >= v - 1e-12)[:, None], pat, 0.0) for v in lv])
     ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
     if not np.any(k > 0):  # the one-off steps lie in the model: they explain nothing the steps need beat
-        return True
+        return 0.0
     j = int(np.argmax(np.where(k > 0, ss, -np.inf)))
-    p_beyond = _beyond(st, new_basis(st.Q, C[j]), cs, st.sigma, 1.0, settings)[1]
-    return p_beyond < settings.alpha_family
+    return _beyond(st, new_basis(st.Q, C[j]), cs, st.sigma, 1.0, settings)[1]
 
 
 #: Whether :func:`_time_forms_chosen` keeps a feature's steps per set-up only where they are significant beyond the

@@ -1087,6 +1087,13 @@ class Basis:
         out[self.k:] += np.asarray(bot)
         return out
 
+    def rows_matmul(self, pos, c: np.ndarray) -> np.ndarray:
+        """``(Q @ c)[pos]`` for rows ``pos`` (``c`` (q,) or (q, m)), without the product over every row."""
+        c = np.asarray(c, float)
+        k = self.k
+        cg = c[:k] * (self._scale if c.ndim == 1 else self._scale[:, None])
+        return cg[self._pos[self.ids[pos]]] + self.dense_rows(pos) @ c[k:]
+
     def dense_rows(self, pos) -> np.ndarray:
         """(len(pos), r + dense columns): the rows ``pos`` of the basis outside its indicator columns."""
         return np.hstack([self.span.rows(pos), self.U[pos]]) if self._r else self.U[pos]

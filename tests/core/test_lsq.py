@@ -184,6 +184,11 @@ def test_block_basis_is_the_dense_orth_span():
     # a basis widened with new directions, as discovery extends it
     np.testing.assert_allclose(Q2.rows_rmatmul(rows, X[rows]), Q2.toarray()[rows].T @ X[rows], atol=1e-12)
     assert np.array_equal(Q2, Q2) and not np.array_equal(Q2, Q)
+    # (Q @ c)[rows] without the product over every row (its span, dense columns and indicators), c 2-D and 1-D
+    for B in (Q, Q2):
+        c = r.normal(size=(B.shape[1], 3))
+        np.testing.assert_allclose(B.rows_matmul(rows, c), B.toarray()[rows] @ c, atol=1e-12)
+        np.testing.assert_allclose(B.rows_matmul(rows, c[:, 0]), (B @ c[:, 0])[rows], atol=1e-12)
 
 
 def test_basis_rows_rmatmul_into_a_sum_is_the_sum_bit_for_bit():
