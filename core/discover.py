@@ -5300,8 +5300,8 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
     if not np.all(np.isfinite(w[mf])):
         return None
     c = w[mf].mean(axis=0)
-    rigid = np.column_stack([mf * time * cn, mf * time * sn,
-                             mf * time * ((w[:, 0] - c[0]) * sn - (w[:, 1] - c[1]) * cn)])
+    turn = np.where(mf, (w[:, 0] - c[0]) * sn - (w[:, 1] - c[1]) * cn, 0.0)  # (another feature's w may be NaN)
+    rigid = np.column_stack([mf * time * cn, mf * time * sn, time * turn])
 
     def white(C):
         return (C if bl.whiten is None else bl.whiten @ C)[rows]
