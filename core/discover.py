@@ -2632,9 +2632,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                                                    fo.evidence.get("confidence") == "ambiguous") else None
     # the named causes' alternatives under another name (their columns; never in the report)
     alt_cols = {f.cause: f.evidence.pop("_alt_columns") for f in findings if "_alt_columns" in f.evidence}
+    # outliers that share their target with touches kept (the screen chose which of the target's touches are the
+    # part's): those reading less material than the fit are no particle (:func:`_workpiece`'s ``beside_kept``)
+    shared = _outliers_beside_kept(bl, outliers, rows) if OUTLIER_BELOW_KEPT and outliers.size else None
     wp, ident, Gb, Ge, cGb, cGe, shift, named_shift = _workpiece(
         bl, terms, y, rows, st0, st, settings.alpha_family, form if form is not None and form.size else None,
-        alternatives=alt_cols if NAMED_ALTERNATIVE_SHIFT_CARRIED else None)
+        alternatives=alt_cols if NAMED_ALTERNATIVE_SHIFT_CARRIED else None, beside_kept=shared)
     if named_shift:
         for f in findings:
             if f.cause in named_shift:
@@ -2667,7 +2670,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if shift is not None and shift.get("of") == "outliers":
         conv.append(f"removing the outliers moves the workpiece by {shift['shift_rms_um']:.3g} um RMS (form only), "
                     f"{fmt_p(shift['p'])} against its own scatter: real, and the report does not call them dust "
-                    "with confidence (they may be the part's own state at those touches): the extended U95 "
+                    "with confidence or they read less material than the touches kept at their targets (no particle "
+                    "does; they may be the part's own state at those touches): the extended U95 "
                     "carries the shift (u = |shift| / 2 per target)")
         shift = shift.get("beside")  # the smooth's own figures, tested and not carried (the session 21 review)
     if shift is not None:
@@ -6176,6 +6180,9 @@ OUTLIER_REFIT_FORM_ONLY = True
 #: (``ambiguous_with``, step 8): the workpiece shift between the two readings tested and, where real, carried in
 #: the extended U95 (:func:`_workpiece`'s ``alternatives``). False: the U95 of the name reported alone.
 NAMED_ALTERNATIVE_SHIFT_CARRIED = True
+#: Outliers whose target has touches kept, reading less material than the fit there, doubted whatever the report
+#: calls them (:func:`_workpiece`'s ``beside_kept``): the removal's shift tested and carried as the form's.
+OUTLIER_BELOW_KEPT = True
 #: Distinct targets of one feature the doubted outliers must touch for the part's own state to be a reading of
 #: them: what the workpiece estimates is a form, and a feature's form is seen at three targets or more (two are
 #: a size and a tilt, which the part's gauge and the feature's other targets share); a chip or a skid
@@ -6198,7 +6205,18 @@ def _outliers_span_a_form(bl: Baseline, outliers) -> np.ndarray:
     return outliers[on]
 
 
-def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubted=None, alternatives=None):
+def _outliers_beside_kept(bl: Baseline, outliers, rows) -> np.ndarray:
+    """The outliers whose target has touches kept in ``rows`` (rows)."""
+    outliers = np.asarray(outliers, int)
+    t = getattr(getattr(bl, "data", None), "touches", None)
+    if t is None or getattr(t, "target", None) is None or outliers.size == 0:
+        return outliers[:0]
+    tgt = np.asarray(t.target)
+    return outliers[np.isin(tgt[outliers], tgt[np.asarray(rows, int)])]
+
+
+def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubted=None, alternatives=None,
+               beside_kept=None):
     """Estimand per id for the baseline and the extended model, with U95 (k = 2).
 
     Beside an unnamed smooth the extended U95 carries the workpiece shift
@@ -6281,6 +6299,14 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
         r_form = y[doubted] - A1[doubted] @ ge  # the rows on a feature's form against the fit without them
         if not (np.any(r_form > 0) and np.any(r_form < 0)):
             doubted = None
+    if beside_kept is not None and len(beside_kept):
+        # removed touches of a target whose other touches were kept, reading less material than the fit (which
+        # those kept touches make there): no particle reads less, and a particle under the kept ones would make
+        # them read more; which of the target's touches are the part's is then the removal's assumption
+        beside_kept = np.asarray(beside_kept, int)
+        below = beside_kept[(y[beside_kept] - A1[beside_kept] @ ge) < 0]
+        if below.size:
+            doubted = below if doubted is None else np.union1d(doubted, below)
     if doubted is not None and not (shift is not None and shift["carried_in_u95"]):
         # the same extended model with the form's outliers put back (only those: a chip elsewhere is no reading
         # of the part's form, and putting it back would count its own shift) against it without them
