@@ -5,7 +5,8 @@ Two assumptions of the extended model move its workpiece without the data decidi
 - the outliers' removal (session 21's ``OUTLIER_SHIFT_CARRIED``): its shift is now the form's outliers' alone
   (``core.discover.OUTLIER_REFIT_FORM_ONLY``), a chip on another feature no longer counted in it. gen_a
   reseat_hysteresis 1060 (a tuning seed): seven outliers, four of them on bore3's form; the shift they make is
-  a downdate by the rows put back, of rank at most four (seven before);
+  a downdate by the rows put back, of rank at most four (seven before; ``OUTLIER_BELOW_KEPT`` off, which
+  adds a fifth: an outlier reading less material than the touches kept at its target);
 - the name of a cause that is one explanation with another catalogue cause under two names
   (``NAMED_ALTERNATIVE_SHIFT_CARRIED``): gen_a feed_latency 1009 (a tuning seed), read part_change and
   periodic_axis_error, each ambiguous with nonrigid; with nonrigid in their place the workpiece moves by 21 and
@@ -59,6 +60,7 @@ def _rh1060_shift(monkeypatch, form_only):
     from core.touches import from_log
 
     monkeypatch.setattr(D, "OUTLIER_REFIT_FORM_ONLY", form_only)
+    monkeypatch.setattr(D, "OUTLIER_BELOW_KEPT", False)  # (a fifth outlier, below the touches kept at its target)
     log, _ = gen_a.generate("reseat_hysteresis", 1060)
     t = from_log(log)
     d = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
@@ -77,3 +79,24 @@ def test_gen_a_reseat_1060_removal_shift_is_the_forms_outliers_alone(monkeypatch
 def test_gen_a_reseat_1060_every_outlier_put_back_before(monkeypatch):
     n_out, sh = _rh1060_shift(monkeypatch, False)
     assert sh["dof"] > 4, sh  # session 21: the seven put back (dof 7)
+
+
+def _ol1505(monkeypatch, on):
+    monkeypatch.setattr(D, "OUTLIER_BELOW_KEPT", on)
+    return hidden.blind_outcome(gen_a, "outlier", 1505, generator="gen_a")
+
+
+@pytest.mark.slow
+def test_gen_a_outlier_1505_removal_of_a_clean_touch_carried(monkeypatch):
+    # three chips on one target's four touches (9.1, 8.4, 4.4 um): the screen removed the clean touch and the
+    # smallest chip, both reading less material than the two large chips it kept; no particle reads less
+    o = _ol1505(monkeypatch, True)
+    assert o.cause == "outlier" and o.confident  # the decision is not touched
+    assert o.shift_carried and o.wp_u95_um > 0.5, o  # 0.39 -> 0.54 um
+    assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
+
+
+@pytest.mark.slow
+def test_gen_a_outlier_1505_not_carried_before(monkeypatch):
+    o = _ol1505(monkeypatch, False)
+    assert not o.shift_carried and o.wp_u95_um < 0.4, o  # the U95 of the touches kept alone
