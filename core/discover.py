@@ -2670,8 +2670,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if shift is not None and shift.get("of") == "outliers":
         conv.append(f"removing the outliers moves the workpiece by {shift['shift_rms_um']:.3g} um RMS (form only), "
                     f"{fmt_p(shift['p'])} against its own scatter: real, and the report does not call them dust "
-                    "with confidence or they read less material than the touches kept at their targets (no particle "
-                    "does; they may be the part's own state at those touches): the extended U95 "
+                    "with confidence" + (" or they read less material than the touches kept at their targets (no "
+                                         "particle does; " if OUTLIER_BELOW_KEPT else " (") +
+                    "they may be the part's own state at those touches): the extended U95 "
                     "carries the shift (u = |shift| / 2 per target)")
         shift = shift.get("beside")  # the smooth's own figures, tested and not carried (the session 21 review)
     if shift is not None:

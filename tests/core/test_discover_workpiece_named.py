@@ -8,7 +8,7 @@ Two assumptions of the extended model move its workpiece without the data decidi
   a downdate by the rows put back, of rank at most four (seven before; ``OUTLIER_BELOW_KEPT`` off, which
   adds a fifth: an outlier reading less material than the touches kept at its target);
 - the name of a cause that is one explanation with another catalogue cause under two names
-  (``NAMED_ALTERNATIVE_SHIFT_CARRIED``): gen_a feed_latency 1009 (a tuning seed), read part_change and
+  (``NAMED_ALTERNATIVE_SHIFT_CARRIED``, measured and left off: it inflates covering U95s where the name is right): gen_a feed_latency 1009 (a tuning seed), read part_change and
   periodic_axis_error, each ambiguous with nonrigid; with nonrigid in their place the workpiece moves by 21 and
   46 um RMS. Before, the extended workpiece was 13.61 um from the truth against the baseline's 4.96 and a U95
   of 7.28 um, the name taken as true.
@@ -26,14 +26,16 @@ def _fl1009():
 
 
 @pytest.mark.slow
-def test_gen_a_feed_latency_1009_workpiece_within_its_check():
+def test_gen_a_feed_latency_1009_workpiece_within_its_check_with_the_alternative_carried(monkeypatch):
+    # measured and left off (it inflates covering U95s where the name is right: docs/discovery.md, session 22)
+    monkeypatch.setattr(D, "NAMED_ALTERNATIVE_SHIFT_CARRIED", True)
     o = _fl1009()
     assert o.cause == "part_change" and not o.confident  # the decision this rule does not touch
     assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
 
 
 @pytest.mark.slow
-def test_gen_a_feed_latency_1009_fails_with_the_name_taken_as_true(monkeypatch):
+def test_gen_a_feed_latency_1009_fails_with_the_name_taken_as_true_the_default(monkeypatch):
     monkeypatch.setattr(D, "NAMED_ALTERNATIVE_SHIFT_CARRIED", False)
     o = _fl1009()
     assert o.cause == "part_change" and not o.confident
@@ -41,7 +43,8 @@ def test_gen_a_feed_latency_1009_fails_with_the_name_taken_as_true(monkeypatch):
 
 
 @pytest.mark.slow
-def test_gen_a_feed_latency_1009_report_names_the_alternative_shift():
+def test_gen_a_feed_latency_1009_report_names_the_alternative_shift(monkeypatch):
+    monkeypatch.setattr(D, "NAMED_ALTERNATIVE_SHIFT_CARRIED", True)
     from core.baseline import extra_columns
     from core.touches import from_log
 
@@ -81,7 +84,7 @@ def test_gen_a_reseat_1060_every_outlier_put_back_before(monkeypatch):
     assert sh["dof"] > 4, sh  # session 21: the seven put back (dof 7)
 
 
-def _ol1505(monkeypatch, on):
+def _ol1505(monkeypatch, on):  # OUTLIER_BELOW_KEPT: measured and left off (gen_b outlier's covering U95s)
     monkeypatch.setattr(D, "OUTLIER_BELOW_KEPT", on)
     return hidden.blind_outcome(gen_a, "outlier", 1505, generator="gen_a")
 
