@@ -2635,9 +2635,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # outliers that share their target with touches kept (the screen chose which of the target's touches are the
     # part's): those reading less material than the fit are no particle (:func:`_workpiece`'s ``beside_kept``)
     shared = _outliers_beside_kept(bl, outliers, rows) if OUTLIER_BELOW_KEPT and outliers.size else None
-    wp, ident, Gb, Ge, cGb, cGe, shift, named_shift = _workpiece(
+    named_shift = {}
+    wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(
         bl, terms, y, rows, st0, st, settings.alpha_family, form if form is not None and form.size else None,
-        alternatives=alt_cols if NAMED_ALTERNATIVE_SHIFT_CARRIED else None, beside_kept=shared)
+        alternatives=alt_cols if NAMED_ALTERNATIVE_SHIFT_CARRIED else None, beside_kept=shared, named=named_shift)
     if named_shift:
         for f in findings:
             if f.cause in named_shift:
@@ -6224,7 +6225,7 @@ def _outliers_beside_kept(bl: Baseline, outliers, rows) -> np.ndarray:
 
 
 def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubted=None, alternatives=None,
-               beside_kept=None):
+               beside_kept=None, named=None):
     """Estimand per id for the baseline and the extended model, with U95 (k = 2).
 
     Beside an unnamed smooth the extended U95 carries the workpiece shift
@@ -6263,9 +6264,10 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     add (their names are separate choices). Only where no term is penalised (a smooth's or a penalised
     cause's shift is carried by its own test).
 
-    Returns (rows of the report, identifiable, G_b, G_e, cov_b, cov_e, shift, named), ``shift`` the test's
-    figures (None without an unnamed smooth), ``named`` ``{cause: figures}`` of the alternatives' tests
-    (None without alternatives).
+    ``named`` (optional dict): filled with ``{cause: figures}`` of the alternatives' tests.
+
+    Returns (rows of the report, identifiable, G_b, G_e, cov_b, cov_e, shift),
+    ``shift`` the test's figures (None without an unnamed smooth).
     """
     q = bl.estimand
     A0 = bl.A
@@ -6328,9 +6330,8 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
                                   ea[:len(eb)] & ee[:len(eb)], alpha)
         if sh2 is not None and sh2["carried_in_u95"]:
             ce, shift = ce2, dict(sh2, of="outliers", beside=shift)  # (the smooth's figures kept for the report)
-    named = None
+    named = {} if named is None else named
     if alternatives and P is None and isinstance(ce, np.ndarray):
-        named = {}
         Le_map, s2e = (lin_e[0], lin_e[1]) if need_maps else \
             _constrained(A1, y, C1, d1, rows, None, E.shape[1], linear_map=True)[3:]
         o = 0
@@ -6377,8 +6378,7 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     def on_q(c):  # the estimand's block (a long log's kept factored: q x q is 800 MB at 10,000 targets)
         return c.take(q) if isinstance(c, DiagLowRank) else c[np.ix_(q, q)]
 
-    return (out, ident, np.where(eb[q], gb[q], np.nan), np.where(ee[q], ge[q], np.nan), on_q(cb), on_q(ce), shift,
-            named or None)
+    return (out, ident, np.where(eb[q], gb[q], np.nan), np.where(ee[q], ge[q], np.nan), on_q(cb), on_q(ce), shift)
 
 
 def _unnamed_shift(bl, rows, gb, ge, ce, Lb, Le, s2, est, alpha):
