@@ -5474,13 +5474,14 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
             one = _one_explanation(B, signal, tm.columns, so, sigma, tm.tries, settings,
                                    visible_only=name in confounded, above=None if best is None else best[1])
             if one is not None:
-                best = (*one, info, B)
+                best = (*one, info, B if NAMED_ALTERNATIVE_SHIFT_CARRIED else None)
         if best is not None:
             out.append({"cause": name, "layout": _layout_label(best[4]), "overlap": best[0],
                         "explained_ratio": best[1] / d_n, "cause_beyond_it_ss_um2": max(best[2], 0.0) / UM ** 2,
                         "p_adjusted_cause_beyond_it": best[3],
                         **({"refused_confounded": True} if name in confounded else {}),
-                        "_columns": best[5]})  # (the layout's columns, for the workpiece: popped by the caller)
+                        # (the layout's columns, for the workpiece: popped by the caller; held only where used)
+                        **({"_columns": best[5]} if best[5] is not None else {})})
     return out
 
 
@@ -5749,8 +5750,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         if calt:
             # the matched layouts' columns leave the evidence here: the extended workpiece is refitted with each
             # (not a refused-confounded one: its size is not determined) in the cause's place (_workpiece)
-            cols = [(a["cause"], a.pop("_columns")) for a in calt]
-            if any(not a.get("refused_confounded") for a in calt):
+            cols = [(a["cause"], a.pop("_columns", None)) for a in calt]
+            if NAMED_ALTERNATIVE_SHIFT_CARRIED and any(not a.get("refused_confounded") for a in calt):
                 ev["_alt_columns"] = [c for c, a in zip(cols, calt) if not a.get("refused_confounded")]
             ev["cause_alternatives"] = calt
             ev["ambiguous_with"] = [a["cause"] for a in calt]
