@@ -31,6 +31,7 @@ def test_gen_a_part_change_1139_extended_workpiece_within_its_check():
 @pytest.mark.slow
 def test_gen_a_part_change_1139_fails_without_the_rule(monkeypatch):
     monkeypatch.setattr(D, "OUTLIER_SHIFT_CARRIED", False)
+    monkeypatch.setattr(D, "OUTLIER_BELOW_KEPT", False)  # (session 22's rule reaches 1139's removal too)
     o = _outcome()
     assert not o.shift_carried
     assert o.wp_ext_um > o.wp_base_um + o.wp_u95_um, o  # session 20's engine: 2.58 > 2.04 + 0.54

@@ -1,0 +1,105 @@
+"""The extended workpiece where its U95 left out an assumption (session 22, issue 13 item 7).
+
+Two assumptions of the extended model move its workpiece without the data deciding them:
+
+- the outliers' removal (session 21's ``OUTLIER_SHIFT_CARRIED``): its shift is now the form's outliers' alone
+  (``core.discover.OUTLIER_REFIT_FORM_ONLY``), a chip on another feature no longer counted in it. gen_a
+  reseat_hysteresis 1060 (a tuning seed): seven outliers, four of them on bore3's form; the shift they make is
+  a downdate by the rows put back, of rank at most four (seven before; ``OUTLIER_BELOW_KEPT`` off, which
+  adds a fifth: an outlier reading less material than the touches kept at its target);
+- the name of a cause that is one explanation with another catalogue cause under two names
+  (``NAMED_ALTERNATIVE_SHIFT_CARRIED``, measured and left off: it inflates covering U95s where the name is right): gen_a feed_latency 1009 (a tuning seed), read part_change and
+  periodic_axis_error, each ambiguous with nonrigid; with nonrigid in their place the workpiece moves by 21 and
+  46 um RMS. Before, the extended workpiece was 13.61 um from the truth against the baseline's 4.96 and a U95
+  of 7.28 um, the name taken as true.
+"""
+
+import pytest
+
+import core.discover as D
+from scenarios import hidden
+from scenarios.blind import gen_a
+
+
+def _fl1009():
+    return hidden.blind_outcome(gen_a, "feed_latency", 1009, generator="gen_a")
+
+
+@pytest.mark.slow
+def test_gen_a_feed_latency_1009_workpiece_within_its_check_with_the_alternative_carried(monkeypatch):
+    # measured and left off (it inflates covering U95s where the name is right: docs/discovery.md, session 22)
+    monkeypatch.setattr(D, "NAMED_ALTERNATIVE_SHIFT_CARRIED", True)
+    o = _fl1009()
+    assert o.cause == "part_change" and not o.confident  # the decision this rule does not touch
+    assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
+
+
+@pytest.mark.slow
+def test_gen_a_feed_latency_1009_fails_with_the_name_taken_as_true_the_default(monkeypatch):
+    monkeypatch.setattr(D, "NAMED_ALTERNATIVE_SHIFT_CARRIED", False)
+    o = _fl1009()
+    assert o.cause == "part_change" and not o.confident
+    assert o.wp_ext_um > o.wp_base_um + o.wp_u95_um, o  # session 21's engine: 13.61 > 4.96 + 7.28
+
+
+@pytest.mark.slow
+def test_gen_a_feed_latency_1009_report_names_the_alternative_shift(monkeypatch):
+    monkeypatch.setattr(D, "NAMED_ALTERNATIVE_SHIFT_CARRIED", True)
+    from core.baseline import extra_columns
+    from core.touches import from_log
+
+    log, _ = gen_a.generate("feed_latency", 1009)
+    t = from_log(log)
+    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = rep["findings"][0]
+    sh = f["evidence"]["workpiece_shift_alternative"]
+    assert f["cause"] == "part_change" and sh["alternative"] == "nonrigid" and sh["carried_in_u95"]
+    assert "_alt_columns" not in f["evidence"]  # the columns never reach the report
+    assert all("_columns" not in a for a in f["evidence"]["cause_alternatives"])
+
+
+def _rh1060_shift(monkeypatch, form_only):
+    from core.baseline import extra_columns
+    from core.touches import from_log
+
+    monkeypatch.setattr(D, "OUTLIER_REFIT_FORM_ONLY", form_only)
+    monkeypatch.setattr(D, "OUTLIER_BELOW_KEPT", False)  # (a fifth outlier, below the touches kept at its target)
+    log, _ = gen_a.generate("reseat_hysteresis", 1060)
+    t = from_log(log)
+    d = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    fo = next(f for f in d.findings if f.cause == "outlier")
+    return len(d.outlier_rows), fo.evidence["workpiece_shift"]
+
+
+@pytest.mark.slow
+def test_gen_a_reseat_1060_removal_shift_is_the_forms_outliers_alone(monkeypatch):
+    n_out, sh = _rh1060_shift(monkeypatch, True)
+    assert n_out == 7 and sh["carried_in_u95"]
+    assert sh["dof"] <= 4, sh  # four outliers on bore3's form put back: a downdate of rank four at most
+
+
+@pytest.mark.slow
+def test_gen_a_reseat_1060_every_outlier_put_back_before(monkeypatch):
+    n_out, sh = _rh1060_shift(monkeypatch, False)
+    assert sh["dof"] > 4, sh  # session 21: the seven put back (dof 7)
+
+
+def _ol1505(monkeypatch, on):  # OUTLIER_BELOW_KEPT: measured and left off (gen_b outlier's covering U95s)
+    monkeypatch.setattr(D, "OUTLIER_BELOW_KEPT", on)
+    return hidden.blind_outcome(gen_a, "outlier", 1505, generator="gen_a")
+
+
+@pytest.mark.slow
+def test_gen_a_outlier_1505_removal_of_a_clean_touch_carried(monkeypatch):
+    # three chips on one target's four touches (9.1, 8.4, 4.4 um): the screen removed the clean touch and the
+    # smallest chip, both reading less material than the two large chips it kept; no particle reads less
+    o = _ol1505(monkeypatch, True)
+    assert o.cause == "outlier" and o.confident  # the decision is not touched
+    assert o.shift_carried and o.wp_u95_um > 0.5, o  # 0.39 -> 0.54 um
+    assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
+
+
+@pytest.mark.slow
+def test_gen_a_outlier_1505_not_carried_before(monkeypatch):
+    o = _ol1505(monkeypatch, False)
+    assert not o.shift_carried and o.wp_u95_um < 0.4, o  # the U95 of the touches kept alone
