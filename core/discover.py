@@ -4889,6 +4889,7 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         _, sv, Vt = np.linalg.svd(Pn, full_matrices=False)
         weak = Vt[sv < WEAK_SV]
     u95, out = {}, {}
+    norms = getattr(cause, "norms", None)  # (a cause-like record without the field: none)
     for key, v in vals.items():
         if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
             out[key] = v
@@ -4899,6 +4900,14 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
             continue
         gn = g[:k_all] / nrm
         if weak.shape[0] and np.max(np.abs(weak @ gn)) > 1e-2 * max(np.linalg.norm(gn), 1e-300):
+            out[key], u95[key] = None, None
+            continue
+        pair = norms(tm.info).get(key) if norms is not None else None
+        if pair is not None and weak.shape[0] and np.max(np.abs(weak[:, list(pair)])) > 1e-2:
+            # a norm whose pair has a coefficient along a direction the data cannot see: its gradient there is 0
+            # where that coefficient is held at 0, yet |m| = hypot(c_i, c_j) grows with it: the value is a lower
+            # bound, not an estimate (gen_a periodic_axis_error 1025: EXX amplitude 3.970 +- 0.273 um reported with
+            # its cos coefficient undetermined; the session 22 review)
             out[key], u95[key] = None, None
             continue
         u = float(2 * np.sqrt(max(g @ cov @ g, 0.0)))
@@ -5055,9 +5064,10 @@ def norm_interval(m: np.ndarray, S: np.ndarray, level: float = NORM_LEVEL) -> tu
     across = np.abs(Vx @ m) <= -special.ndtri(g / 2) * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", Vx, S, Vx), 0.0))
     # the estimate's own phase (d = 0, the grid's middle) is allowed by construction: m . v = 0 there in exact
     # arithmetic. Rounding leaves about 1e-16 |m|, which a pair whose spread across m is itself a rounding cannot
-    # hold (a harmonic with one coefficient undetermined by the design: gen_a probe_lobing 1025's k2, S's
-    # eigenvalues 1.5e-45 and 3.6e-14 m^2, and session 22's blind gen_a seed 5307; the set was empty and
-    # discover stopped with an IndexError)
+    # hold (a pair with one coefficient undetermined by the design: a candidate periodic_axis_error's EXY/EYY
+    # on the gen_a probe_lobing 1025 campaign, S's eigenvalues 1.5e-45 and 3.6e-14 m^2, and session 22's blind
+    # gen_a seed 5307; the set was empty and discover stopped with an IndexError. _magnitudes does not report
+    # such a norm: only its interval given S is asked here)
     across[4 * NORM_PHASES] = True
     k = np.flatnonzero(across)
     w = np.linalg.eigvalsh(S)
@@ -5997,13 +6007,20 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     ``probe_lobing`` reads its lobes along the normal or along the approach
     (:data:`core.causes.PRETRAVEL_ALONG`), whichever fits better; its
     magnitudes' U95 was the chosen reading's as if that reading were known.
-    The two readings are two models of the same number of columns beside the
-    same others (``so``); with the noise ``sigma`` known and equal prior
-    weights their posterior weights are the likelihood ratio's,
-    ``w_o = 1 / (1 + exp(D / (2 sigma^2)))``, ``D`` what the chosen reading's
-    columns explain beside ``so`` less what the other's do (equal column
-    counts: no Occam factor between them to first order, so AIC's and BIC's
-    weights are these too). A magnitude's uncertainty is then that of the
+    The two readings are two models of the same lobes (the chosen reading's
+    label combinations, ``tm.map``) beside the same others (``so``), of
+    ``k_c`` and ``k_o`` determined columns (``k_o < k_c`` where the other
+    reading leaves some of them undetermined); with the noise ``sigma`` known
+    their weights are Akaike's (the weights of Buckland et al.),
+    ``w_o = 1 / (1 + exp(D / (2 sigma^2) - (k_o - k_c)))``, ``D`` what the
+    chosen reading's columns explain beside ``so`` less what the other's
+    do. With equal counts (gen_a: 8 and 8) that is the likelihood ratio's
+    weight. On gen_b the normal reading's first harmonic lies in the
+    baseline and the approach reading's does not: with its own
+    combinations the other reading had two or four columns more, and what
+    they caught of anything counted for it (the session 22 review:
+    w_o > 0.5 in 53 of gen_b probe_lobing 1000-1199's 148 findings, all
+    written along the normal). A magnitude's uncertainty is then that of the
     mixture of the two readings' estimates ``N(a_c, u_c^2)`` and
     ``N(a_o, u_o^2)`` (``u = U95 / 2``), taken about the value reported
     (the chosen reading's ``a_c``): its second moment
@@ -6015,23 +6032,28 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
 
     Returns None where the term has no other reading (approaches along the
     normal: one reading), else ``{"other": its reading, "explained_gap_um2": D,
-    "weight_other": w_o, "other_values": .., "other_u95": .., "u95_chosen": .., "carried_in_u95":
+    "columns": [k_c, k_o], "weight_other": w_o, "other_values": .., "other_u95": .., "u95_chosen": .., "carried_in_u95":
     [keys whose U95 grew], "u95": the new U95 dict}``.
     """
     got = _other_reading(bl, tm)
     if got is None or not (sigma > 0):
         return None
     inf_o, C = got
-    Mo = _determined(so.Q, C[rows], settings.vif_max)[0]
-    if Mo.shape[1] == 0:
+    # the other reading of the same lobes: the chosen reading's label combinations (tm.map), those of them the
+    # other reading determines beside so. (Its own combinations on gen_b held the first harmonic the normal
+    # reading leaves in the baseline: two columns of anything else counted for it; the session 22 review.)
+    sub = _determined(so.Q, C[rows] @ tm.map, settings.vif_max)[0]
+    if sub.shape[1] == 0:
         return None
+    Mo = tm.map @ sub
     tm_o = dataclasses.replace(tm, columns=C, info=inf_o, map=Mo, cols_all=C, at_adoption=None, evidence={})
     vals_o, u95_o = _magnitudes(cause, bl, tm_o, so.Q, rows,
                                 boot=(folds, others) if folds is not None else None)
     Uc = new_basis(so.Q, tm.columns[rows] @ tm.map)
     Uo = new_basis(so.Q, C[rows] @ Mo)
     D = float(np.sum((Uc.T @ so.r) ** 2) - np.sum((Uo.T @ so.r) ** 2))
-    w_o = float(special.expit(-D / (2 * sigma ** 2)))
+    k_c, k_o = Uc.shape[1], Uo.shape[1]
+    w_o = float(special.expit(-D / (2 * sigma ** 2) + (k_c - k_o)))  # (Akaike's weight: -AIC / 2 = -RSS / 2s^2 - k)
     new, grown = dict(u95), []
     for key, v in vals.items():
         if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
@@ -6043,7 +6065,8 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
         if u > uc:
             new[key] = u
             grown.append(key)
-    return {"other": inf_o["pretravel_along"], "explained_gap_um2": D / UM ** 2, "weight_other": w_o,
+    return {"other": inf_o["pretravel_along"], "explained_gap_um2": D / UM ** 2, "columns": [k_c, k_o],
+            "weight_other": w_o,
             "other_values": {k: v for k, v in vals_o.items() if k in vals and k != "pretravel_along"},
             "other_u95": {k: v for k, v in u95_o.items() if k in vals},
             "u95_chosen": {k: u95[k] for k in grown}, "carried_in_u95": grown, "u95": new}

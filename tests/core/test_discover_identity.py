@@ -127,9 +127,12 @@ Refreshed for probe_lobing's two readings of the pre-travel carried (session 22:
 trials) with ``p_adjusted`` and ``p_adjusted_beyond_slip`` doubled, the new
 ``pretravel_reading`` evidence (the normal reading's weight 1.7e-4: the data
 prefer the approach reading by 0.92 um^2), and its ``params_u95`` and
-``magnitude_intervals`` at most 5e-5 relative wider (k3 0.05748 -> 0.05751 um);
+``magnitude_intervals`` at most 5.2e-4 relative wider (k3 0.05748 -> 0.05751 um; the session 22 review
+measured it, the branch had said 5e-5);
 its decisions as stored. The other fifteen reports pass as stored (make.py's
-``report_of`` wrote this one alone).
+``report_of`` wrote this one alone). The review's mend (the other reading fitted with the
+chosen one's label combinations, Akaike's weight) added ``pretravel_reading.columns`` [8, 8]
+to it and moved no figure beyond 4e-14 relative.
 
 "The same report", stated: every text, name, flag, count and outlier row
 equal, so every decision; every number equal to ``REL`` relative (or within

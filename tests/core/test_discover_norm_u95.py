@@ -251,13 +251,30 @@ def test_a_pair_with_no_spread_across_its_estimate_gets_an_interval():
 
 
 def test_a_pair_with_one_coefficient_undetermined_keeps_the_estimates_phase():
-    """gen_a probe_lobing 1025 (a tuning seed): its second harmonic's cos coefficient is a rounding (variance
-    1.5e-45 m^2 against the sin's 3.6e-14), and ``m . v`` at the estimate's own phase, a rounding too, exceeded the
-    allowed width across it: no phase was allowed and discover raised an IndexError (session 22). The estimate's
-    phase is allowed by construction; the interval is then the sin coefficient's, ``|m| +- ~2 sd``."""
+    """The gen_a probe_lobing 1025 campaign (a tuning seed): a candidate periodic_axis_error's pair in the search
+    had one coefficient a rounding (variance 1.5e-45 m^2 against 3.6e-14), and ``m . v`` at the estimate's own
+    phase, a rounding too, exceeded the allowed width across it: no phase was allowed and discover raised an
+    IndexError (session 22). Given this S the interval is the other coefficient's, ``|m| +- ~2 sd``; whether such a
+    norm is reported at all is _magnitudes' question (the next test)."""
     m = np.array([4.28679047e-22, -2.92711414e-06])
     S = np.array([[3.13983550e-45, -7.59952944e-30], [-7.59952944e-30, 3.59632123e-14]])
     lo, hi = D.norm_interval(m, S)
     sd = np.sqrt(S[1, 1])
     assert lo < 2.92711414e-06 < hi
     assert 1.9 * sd < 2.92711414e-06 - lo < 2.2 * sd and 1.9 * sd < hi - 2.92711414e-06 < 2.2 * sd
+
+
+def test_a_norm_with_a_coefficient_the_data_cannot_see_is_not_reported():
+    """gen_a periodic_axis_error 1025 (a tuning seed): its EXX pair's cos coefficient lies along a weak direction
+    (held at 0, not known to be 0). The amplitude's gradient is 0 there, so the weak-direction check let it through
+    and the report gave 3.970 +- 0.273 um, a lower bound read as an estimate (the session 22 review). A norm whose
+    pair has a coefficient along a weak direction is not reported."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    import scenarios.blind.gen_a as gen_a
+    log, _ = gen_a.generate("periodic_axis_error", 1025)
+    t = from_log(log)
+    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    f = next(f for f in rep["findings"] if f["cause"] == "periodic_axis_error")
+    assert f["evidence"]["not_identifiable_directions"] >= 1
+    assert f["params"]["EXX_amplitude_um"] is None and f["params_u95"]["EXX_amplitude_um"] is None

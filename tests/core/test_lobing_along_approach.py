@@ -110,6 +110,7 @@ def test_the_chosen_readings_u95_carries_the_other_reading():
     r = f["evidence"]["pretravel_reading"]
     assert r["other"] == "approach" and key in r["carried_in_u95"] and abs(v - a) > r["u95_chosen"][key]
     w, vo, uo, uc = r["weight_other"], r["other_values"][key], r["other_u95"][key], r["u95_chosen"][key]
-    assert 0.0 < w <= 0.5 + 1e-12  # the other reading explains no more than the chosen one
-    # the mixture's second moment about the reported value (not a free widening)
+    assert r["columns"] == [8, 8]  # (gen_a: both readings determine every coefficient)
+    assert 0.0 < w <= 0.5 + 1e-12  # equal counts: the other reading explains no more than the chosen one
+    # the report's figures agree with each other: the U95 is the mixture's second moment about the reported value
     assert abs(u - 2 * np.sqrt((1 - w) * (uc / 2) ** 2 + w * ((uo / 2) ** 2 + (vo - v) ** 2))) < 1e-12
