@@ -1238,8 +1238,8 @@ def _explains_set_aside(Qall: np.ndarray, y: np.ndarray, all_rows: np.ndarray, r
 
 
 #: A workpiece cause (part_change) adopted with every row in, to explain touches the first screen set aside, must be
-#: seen on the touches that screen kept (:func:`_workpiece_unseen_without_outliers`); False: the behaviour before
-#: (session 22).
+#: seen on the touches that screen kept where those it reaches are single touches, each alone in its set-up
+#: (:func:`_workpiece_unseen_without_outliers`); False: the behaviour before (session 22).
 WORKPIECE_SEEN_WITHOUT_OUTLIERS = True
 
 
@@ -1255,8 +1255,8 @@ def _workpiece_unseen_without_outliers(Qk: np.ndarray, y: np.ndarray, rows: np.n
     chip sits under one touch. A part change's columns are one feature's walls, and on a small feature (a pin:
     every target its own wall) a wall is one target: where that target is touched in few set-ups, its column
     gives one touch a parameter of its own, and a chip on that touch is "explained" (no longer beyond the bound:
-    its leverage there is about one, so the outlier test cannot judge it; gen_b outlier 1174, a 17 um chip on
-    pin2's 225 deg target, touched at tau 0.024, 0.936 and 0.982, was read as part_change, confident, that wall
+    its leverage there is about one, so the outlier test cannot judge it; gen_b outlier 1174, a chip (residual
+    +11.8 um) on pin2's 225 deg target, touched at tau 0.024, 0.936 and 0.982, was read as part_change, confident, that wall
     changing by -32.6 um over the campaign, its extended workpiece 3.75 um from the truth against the
     baseline's 2.27, U95 0.55). The test: each such term's columns F-tested on ``rows`` beside the baseline
     (``Qk``, its basis on those rows) and the other terms, unadjusted, at ``Settings.alpha``: the cause
@@ -1270,7 +1270,7 @@ def _workpiece_unseen_without_outliers(Qk: np.ndarray, y: np.ndarray, rows: np.n
     aside together and the kept touches, all after the change, do not see it (gen_a part_change 1002, wall3's
     three first touches, p 0.107 on the kept ones; 1019, bore2's two first touches and one later, p 0.012); the
     cause reads them as the part before it changed, which the test above alone refused (both named right
-    before, `outlier` after). Two or more of them in one set-up leave the cause as it was.
+    before; read `outlier` with the test alone). Two or more of them in one set-up leave the cause as it was.
     """
     if setups is None:
         return False
