@@ -2289,6 +2289,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     short = _short_term(bl, rows, y, rep_t) if sigma_rep is not None else None
     if short is not None and short["used"]:
         sigma_rep = short["sigma_m"]
+    elif sigma_rep is not None and REPEATS_BEYOND_FIT:
+        lof0 = lack_of_fit(st.rss, st.dof, rep)
+        if lof0 is not None and float(stats.f.cdf(lof0.F, lof0.dof, rep.dof)) < settings.alpha:
+            sigma_rep = None  # the repeats scatter more than the whole fit leaves: not the probe's noise
 
     def noise_of(s: _State) -> tuple[float, str, int]:
         """The noise beside the model ``s``: (sigma, method, degrees of freedom).
@@ -5303,6 +5307,11 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
 #: refined veto's kept step is refused and the knock reads `unexplained` again; it moves every named cause's rival
 #: check (nearly every cause has the slip as its counter scan) and was not measured across the catalogue.
 SLIP_RIVAL_EXACT = False
+
+#: Whether repeats that scatter more than the baseline's whole residual can hold (the lack-of-fit F in its lower
+#: tail, below ``Settings.alpha``) are set aside as the noise floor, the residuals' scatter used as on a log
+#: without repeats: tried in session 22 (docs/discovery.md, "Session 22: ..."), off.
+REPEATS_BEYOND_FIT = False
 
 #: Whether the slip that refuses a workpiece-local cause must be seen off that cause's feature to refuse it
 #: (:func:`_slip_off_feature`; docs/discovery.md, session 21); where it is not, the cause is named, ambiguous.
