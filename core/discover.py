@@ -5310,7 +5310,8 @@ SLIP_RIVAL_EXACT = False
 
 #: Whether repeats that scatter more than the baseline's whole residual can hold (the lack-of-fit F in its lower
 #: tail, below ``Settings.alpha``) are set aside as the noise floor, the residuals' scatter used as on a log
-#: without repeats: tried in session 22 (docs/discovery.md, "Session 22: ..."), off.
+#: without repeats: tried in session 22 and off (docs/discovery.md, "Session 22: a slip's first touch between two
+#: trials' splits": gen_b fixture_slip 201/211 -> 209/211, gen_a reseat_hysteresis three right -> wrong).
 REPEATS_BEYOND_FIT = False
 
 #: Whether the slip that refuses a workpiece-local cause must be seen off that cause's feature to refuse it
