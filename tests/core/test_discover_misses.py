@@ -1087,7 +1087,10 @@ def test_gen_a_outliers_beside_unnamed_structure_not_confidently_misnamed(effect
     the six outliers are touches of set-up B after the knock, the step its set-up's parameters half absorb;
     structure left in time, 0.24 um, p 2.6e-8) and reseat_hysteresis 1036 (two minority readings of the
     re-seats, -5.5 and +5.1 um, beside a lack of fit F = 24.5 against the repeats). The outcome must not be
-    a confident wrong name, and the outlier finding says why (main f3c9460 fails both)."""
+    a confident wrong name, and the outlier finding says why (main f3c9460 fails both). Since session 22 the
+    slip veto's step starts at the knock's own first touch (core.discover._exact_step; the best trial started
+    it one touch late and left that touch beyond the bound): knock 1085's outliers are the knock's, kept in
+    the fit, and the report reads `unexplained` with no outlier finding, the right reading."""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
@@ -1095,6 +1098,10 @@ def test_gen_a_outliers_beside_unnamed_structure_not_confidently_misnamed(effect
     log, _ = gen_a.generate(effect, seed)
     t = from_log(log)
     rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    if effect == "knock":
+        assert rep["cause"] == "unexplained", rep["cause"]
+        assert all(g["cause"] != "outlier" for g in rep["findings"]), [g["cause"] for g in rep["findings"]]
+        return
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
     assert "structure the model does not name" in f["evidence"]["confidence_reason"]
