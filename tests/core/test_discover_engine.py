@@ -811,6 +811,66 @@ def test_slip_explains_judges_only_what_the_step_does_not_fit_exactly():
     assert _slip_explains(X, y2, [10, 11, 12, 13, 14], events, slips(ind(10), step, step * np.arange(n)), 0.05, 0.05)
 
 
+def test_slip_veto_places_the_step_at_its_own_first_touch():
+    """core.discover._slip_explains with trials kept as quantile splits (core.diagnosis.StepTrials, 40 per set-up
+    of 100 touches: a split every 2-3 touches): three set-ups in time order, one offset each; set-up 1's part
+    turns from its touch 38 on (not a split: the trials start at 36 and 39), ``2 L`` with L the touch's lever,
+    noise 0.3. Its eight touches of lever 2.5-3 are the outliers, 138 (the step's first) among them. The best
+    trial starts at 39 (36 would also move 136-137, unmoved levers of 2.5) and leaves 138 at the step's full
+    6 (20 sigma): before session 22 the step was refused and the eight read as dust. Refined to the touch
+    (core.discover._exact_step), the step from 38 explains them. The same eight rows as chips of +-6 whose
+    signs do not follow the lever are not explained."""
+    from core import discover as D
+    from core.diagnosis import StepTrials
+
+    rng = np.random.default_rng(5)
+    G, m = 3, 100
+    n = G * m
+    events = np.repeat(np.arange(G), m)
+    k = np.arange(n) % m
+    X = (events[:, None] == np.arange(G)).astype(float)
+    phi = rng.uniform(0, 2 * np.pi, n)
+    L = rng.normal(0, 0.2, n)
+    L[[136, 137]] = [2.5, -2.5]
+    rows = [138, 141, 150, 157, 163, 170, 181, 192]
+    L[rows] = [3.0, -3.0, 2.5, -2.8, 3.0, -2.6, 2.7, -3.0]
+    M = np.column_stack([np.cos(phi), np.sin(phi), L])
+    grid = np.unique(np.round(np.linspace(1, m - 1, 40)).astype(int))
+    assert 38 not in grid and {36, 39} <= set(grid.tolist())
+    slips = lambda: StepTrials(M, [(np.flatnonzero(events == g), grid) for g in range(G)])  # noqa: E731
+    noise = 0.3 * rng.normal(size=n)
+    y = noise + np.where((events == 1) & (k >= 38), 2.0 * L, 0.0)
+    out = D.find_outliers(X, y, 0.001, 0.05)
+    assert out == rows, out
+    assert D._slip_explains(X, y, out, events, slips, 0.001, 0.0025)
+    chips = np.zeros(n)
+    chips[rows] = 6.0 * np.array([1, 1, -1, 1, -1, -1, 1, 1])
+    out = D.find_outliers(X, noise + chips, 0.001, 0.05)
+    assert out == rows, out
+    assert not D._slip_explains(X, noise + chips, out, events, slips, 0.001, 0.0025)
+
+
+def test_exact_step_refines_a_long_setups_split_to_the_touch():
+    """core.discover._exact_step on a set-up of 3,000 touches (40 quantile splits, one every 77 touches, then
+    40 between the best's neighbours, then every touch): a noiseless step from touch 1,237 of random columns is
+    found at 1,237, its columns the trial's on exactly those rows."""
+    from core import discover as D
+    from core.diagnosis import StepTrials
+
+    rng = np.random.default_rng(2)
+    n = 3000
+    M = rng.normal(size=(n, 3))
+    grid = np.unique(np.round(np.linspace(1, n - 1, 40)).astype(int))
+    assert 1237 not in grid
+    Cs = StepTrials(M, [(np.arange(n), grid)])
+    y = np.where(np.arange(n) >= 1237, M @ np.array([1.0, -2.0, 0.5]), 0.0)
+    Q0 = np.ones((n, 1)) / np.sqrt(n)
+    r0 = y - Q0 @ (Q0.T @ y)
+    ss, _, _, _ = D.nested_f_trials(Cs, None, Q0, r0, float(r0 @ r0), n - 1)
+    C = D._exact_step(Cs, int(np.argmax(ss)), Q0, r0)
+    np.testing.assert_array_equal(C, np.where((np.arange(n) >= 1237)[:, None], M, 0.0))
+
+
 def test_nonrigid_field_known_answer():
     """A non-rigid field in the form the penalised named term fits (P2(xs) P2(ys) in E_X, 6 um at the corner,
     0.3 um noise): named nonrigid, its field's RMS and peak over the probed extent within their U95 of the truth
