@@ -25,8 +25,8 @@ def _outcome():
     return hidden.blind_outcome(gen_b, "outlier", 1174, generator="gen_b")
 
 
-@pytest.mark.slow
-def test_gen_b_outlier_1174_a_chip_on_a_pin_is_not_a_part_change():
+def _gate_logged(run):
+    """``run()``'s outcome and the answers of :func:`core.discover._workpiece_unseen_without_outliers` on its way."""
     seen = []
     gate = D._workpiece_unseen_without_outliers
 
@@ -37,9 +37,14 @@ def test_gen_b_outlier_1174_a_chip_on_a_pin_is_not_a_part_change():
     mp = pytest.MonkeyPatch()
     mp.setattr(D, "_workpiece_unseen_without_outliers", logged)
     try:
-        o = _outcome()
+        return run(), seen
     finally:
         mp.undo()
+
+
+@pytest.mark.slow
+def test_gen_b_outlier_1174_a_chip_on_a_pin_is_not_a_part_change():
+    o, seen = _gate_logged(_outcome)
     assert seen == [True]  # the search with every row in took part_change; the kept touches do not see it
     assert o.cause == "outlier" and o.confident and o.findings == ("outlier",), o
     assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o  # the issue's check
@@ -79,20 +84,8 @@ def test_the_gate_refuses_a_workpiece_term_its_kept_touches_do_not_see():
 
 @pytest.mark.slow
 def test_gen_a_part_change_1002_the_part_before_it_changed_stays_a_part_change():
-    seen = []
-    gate = D._workpiece_unseen_without_outliers
+    from scenarios.blind import gen_a
 
-    def logged(*a):
-        seen.append(gate(*a))
-        return seen[-1]
-
-    mp = pytest.MonkeyPatch()
-    mp.setattr(D, "_workpiece_unseen_without_outliers", logged)
-    try:
-        from scenarios.blind import gen_a
-
-        o = hidden.blind_outcome(gen_a, "part_change", 1002, generator="gen_a")
-    finally:
-        mp.undo()
+    o, seen = _gate_logged(lambda: hidden.blind_outcome(gen_a, "part_change", 1002, generator="gen_a"))
     assert seen == [False]  # reached: the kept touches alone do not see the change, but its touches set aside are
     assert o.cause == "part_change" and o.confident, o  # three in one set-up, not a chip's single touch
