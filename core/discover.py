@@ -6148,7 +6148,8 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     ``k_c`` and ``k_o`` determined columns (``k_o < k_c`` where the other
     reading leaves some of them undetermined); with the noise ``sigma`` known
     their weights are Akaike's (the weights of Buckland et al.),
-    ``w_o = 1 / (1 + exp(D / (2 sigma^2) - (k_o - k_c)))``, ``D`` what the
+    ``w_o = 1 / (1 + exp(D / (2 sigma^2) + (k_o - k_c)))`` (from
+    ``AIC_o - AIC_c = D / sigma^2 + 2 (k_o - k_c)``), ``D`` what the
     chosen reading's columns explain beside ``so`` less what the other's
     do. With equal counts (gen_a: 8 and 8) that is the likelihood ratio's
     weight. On gen_b the normal reading's first harmonic lies in the

@@ -310,18 +310,27 @@ def _progress_kw(fn, progress) -> dict:
         return {}
 
 
+def _um(v, u=None) -> str:
+    """A magnitude in um with its U95, or "not determined" (the report's None: a value the design cannot see)."""
+    if v is None:
+        return "not determined"
+    return f"{v:.2f} um" if u is None else f"{v:.2f} +/- {u:.2f} um (U95)"
+
+
 def _finding_text(f: dict) -> str:
     p = f["params"]
     if f["cause"] == "periodic_axis_error":
-        ax = p["axis"]
+        ax, key = p["axis"], f"E{p['axis']}{p['axis']}_amplitude_um"
         return (f"axis {ax}, period {p['period_mm']:.2f} mm, E{ax}{ax} amplitude "
-                f"{p[f'E{ax}{ax}_amplitude_um']:.2f} +/- {f['params_u95'][f'E{ax}{ax}_amplitude_um']:.2f} um (U95)")
+                f"{_um(p.get(key), f['params_u95'].get(key))}")
     if f["cause"] == "probe_lobing":
         # the peak-to-valley is of the lobes k = 2..4 this design determines: say which it cannot
         nd = [str(k) for k in (2, 3, 4) if p.get(f"k{k}_amplitude_um", 0.0) is None]
         tail = f" (of the lobes this design determines; k = {', '.join(nd)} not determined)" if nd else ""
-        return (f"pre-travel varies {p['pretravel_variation_pv_um']:.2f} um peak-to-valley with the approach "
-                f"azimuth{tail}")
+        pv = p.get("pretravel_variation_pv_um")
+        if pv is None:
+            return "pre-travel varies with the approach azimuth (its peak-to-valley not determined)"
+        return f"pre-travel varies {pv:.2f} um peak-to-valley with the approach azimuth{tail}"
     if f["cause"] == "outlier":
         return f"{p['n_outliers']} touches, up to {p['max_deviation_um']:.1f} um"
     shown = [f"{k} {v:.3g}" for k, v in p.items() if isinstance(v, float) and not k.endswith("_u_um")][:4]

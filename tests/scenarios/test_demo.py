@@ -68,3 +68,18 @@ def test_lobing_text_says_which_lobes_it_cannot_see():
                                 "(of the lobes this design determines; k = 3 not determined)")
     f["params"]["k3_amplitude_um"] = 1.2
     assert _finding_text(f) == "pre-travel varies 2.97 um peak-to-valley with the approach azimuth"
+
+
+def test_finding_text_of_a_magnitude_the_design_cannot_see():
+    """A periodic error's amplitude whose pair has a coefficient the data cannot see is None in the report
+    (session 22); the demo's text formatted it with ':.2f' and stopped with a TypeError (the session 22 review,
+    on gen_a periodic_axis_error 1025's report). It says "not determined"; a value keeps its U95."""
+    from scenarios.demo import _finding_text
+
+    f = {"cause": "periodic_axis_error", "params": {"axis": "X", "period_mm": 18.69, "EXX_amplitude_um": None},
+         "params_u95": {"period_mm": 0.05, "EXX_amplitude_um": None}}
+    assert _finding_text(f) == "axis X, period 18.69 mm, EXX amplitude not determined"
+    f["params"]["EXX_amplitude_um"], f["params_u95"]["EXX_amplitude_um"] = 1.47, 0.09
+    assert _finding_text(f) == "axis X, period 18.69 mm, EXX amplitude 1.47 +/- 0.09 um (U95)"
+    f = {"cause": "probe_lobing", "params": {"pretravel_variation_pv_um": None}}
+    assert _finding_text(f) == "pre-travel varies with the approach azimuth (its peak-to-valley not determined)"
