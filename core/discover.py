@@ -1279,6 +1279,8 @@ def _workpiece_unseen_without_outliers(Qk: np.ndarray, y: np.ndarray, rows: np.n
         if tm.unnamed or getattr(tm.origin, "books_to", None) != "workpiece":
             continue
         reached = aside[np.any(tm.columns[aside] != 0, axis=1)]
+        if reached.size == 0:
+            continue  # it took back none of the touches set aside: not the case this rule is about
         if np.unique(setups[reached]).size < reached.size:
             continue  # several of its touches set aside in one set-up: the part before it changed, possibly
         so = _state(Qk, y, rows, [t for t in terms if t is not tm])
