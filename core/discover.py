@@ -8,7 +8,9 @@ baseline (Ibaraki et al. eqs 1-18, :func:`core.baseline.planar`) and runs
 What it does, in order, and the statistics behind each step
 -----------------------------------------------------------
 1. **Outliers**: studentized deleted residuals beyond the Bonferroni bound
-   ``t(1 - a / 2n, dof - 1)``, removed one at a time; then judged by
+   ``t(1 - a / 2n, dof - 1)``, removed one at a time (at a target whose
+   touches disagree, the assignment setting aside the touches that read
+   more material where it fits as well: :func:`_chips_read_more`); then judged by
    where they fall (:func:`concentration_p`): concentrated in a covariate
    they are a systematic effect and nothing is removed; at random they
    are dust, up to :attr:`Settings.outlier_max_frac_dust` of the rows.
@@ -1458,8 +1460,12 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
 #: more material are the suspects when that fits as well (:func:`_chips_read_more`); False: the behaviour before
 #: (session 22).
 OUTLIER_CHIPS_READ_MORE = True
-#: With :data:`OUTLIER_CHIPS_READ_MORE`: the assignment reading more material may set aside more touches than the
-#: screen's own (a target's majority; False: only as many or fewer, the screen's parsimony kept).
+#: With :data:`OUTLIER_CHIPS_READ_MORE`: the assignment reading more material may set aside more of a target's
+#: touches than the screen's own (a target's majority; False: only as many or fewer, the screen's parsimony kept).
+#: Measured and left off (session 22): it mends gen_a outlier 1505 (three chips on four touches, workpiece 1.01 ->
+#: 0.22 um) but on gen_b outlier 1000-1029 it changed 20 of 30 campaigns, named right 29 -> 21 (six unexplained,
+#: one local_scale_defect, one part_change confidently), workpiece_ok 28 -> 23: gen_b's burr skids read less material,
+#: alone, and the clean touches beside one were set aside in its place.
 OUTLIER_CHIPS_MAJORITY = False
 
 
