@@ -1,6 +1,9 @@
 """The outlier screen at a target whose touches disagree: a chip reads more material (session 22, issue 13 item 7).
 
-gen_b outlier 1000 (a tuning seed): a chip of about 8 um on row 85, whose target's touches in that set-up are
+Built and left off (``OUTLIER_CHIPS_READ_MORE``: gen_b's burr skids read less material; docs/discovery.md, session
+22); these tests set it.
+
+gen_b outlier 1000 (a tuning seed): a chip on row 85, whose target's touches in that set-up are
 rows 54 and 85 alone (leverage 0.63 each: they split evenly, -4.19 and +4.20 um from the fit). The screen set aside
 the clean touch 54; both assignments set aside one touch and fit as well, and dust reads more material: 85 is the
 chip (the generator's rows 26, 85, 151 and 177).
@@ -67,6 +70,10 @@ def test_gen_a_outlier_1505_clean_touch_set_aside_before_and_without_the_majorit
     out, o = _first_screen(monkeypatch, False)
     assert sorted(out) == [237, 254], out  # the smallest chip and the clean touch
     assert o.wp_ext_um > o.wp_base_um, o
+
+
+def test_chips_read_more_off_by_default():
+    assert D.OUTLIER_CHIPS_READ_MORE is False and D.OUTLIER_CHIPS_MAJORITY is False
 
 
 def test_chips_read_more_two_against_one_synthetic(monkeypatch):
