@@ -8,7 +8,10 @@ baseline (Ibaraki et al. eqs 1-18, :func:`core.baseline.planar`) and runs
 What it does, in order, and the statistics behind each step
 -----------------------------------------------------------
 1. **Outliers**: studentized deleted residuals beyond the Bonferroni bound
-   ``t(1 - a / 2n, dof - 1)``, removed one at a time; then judged by
+   ``t(1 - a / 2n, dof - 1)``, removed one at a time (at a target whose
+   touches disagree, the assignment setting aside the touches that read
+   more material where it fits as well, :func:`_chips_read_more`, is built
+   and off: :data:`OUTLIER_CHIPS_READ_MORE`); then judged by
    where they fall (:func:`concentration_p`): concentrated in a covariate
    they are a systematic effect and nothing is removed; at random they
    are dust, up to :attr:`Settings.outlier_max_frac_dust` of the rows.
@@ -1442,6 +1445,8 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
             return []
         out.append(int(idx[k]))
         keep[idx[k]] = False
+    if OUTLIER_CHIPS_READ_MORE and out and places is not None and isinstance(X, np.ndarray):
+        out = _chips_read_more(X, y, out, places, alpha, cap)
     if judged:
         first = out if events is None else first_per_event(out, events)
         # places only across events: one set-up's chips may gather where its swarf fell
@@ -1452,6 +1457,125 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
                                                                            alpha_concentration):
             return []
     return sorted(out)
+
+
+#: The outlier screen's choice at a target whose touches disagree takes the physics of dust: the touches reading
+#: more material are the suspects when that fits as well (:func:`_chips_read_more`); False: the behaviour before.
+#: Built, measured and left off (session 22, docs/discovery.md): it mends no failure; on gen_b outlier 1000-1499 it
+#: moved four workpieces, two nearer the truth (1000: 1.49 -> 0.22 um, 1179: 5.81 -> 1.13) and two further (1137:
+#: 0.73 -> 1.85, 1450: 0.48 -> 1.39: burr skids, which read less material, set aside in place of their clean
+#: neighbour), every check and name unchanged; on gen_a outlier, whose dust is chips only, only nearer.
+OUTLIER_CHIPS_READ_MORE = False
+#: With :data:`OUTLIER_CHIPS_READ_MORE`: the assignment reading more material may set aside more of a target's
+#: touches than the screen's own (a target's majority; False: only as many or fewer, the screen's parsimony kept).
+#: Measured and left off (session 22): it mends gen_a outlier 1505 (three chips on four touches, workpiece 1.01 ->
+#: 0.22 um) but on gen_b outlier 1000-1029 it changed 20 of 30 campaigns, named right 29 -> 21 (six unexplained,
+#: one local_scale_defect, one part_change confidently), workpiece_ok 28 -> 23: gen_b's burr skids read less material,
+#: alone, and the clean touches beside one were set aside in its place.
+OUTLIER_CHIPS_MAJORITY = False
+
+
+def _prediction_t(X: np.ndarray, y: np.ndarray, keep: np.ndarray, rows: np.ndarray):
+    """(t, bound_dof) the prediction t of ``rows`` from the least-squares fit on the rows ``keep`` (boolean)
+    of ``X``, signed (positive: the row reads more than the fit), and that fit's residual dof; t is NaN for a row
+    the kept rows do not determine (a component outside their row space)."""
+    Xk = X[keep]
+    U, S, Vt = np.linalg.svd(Xk, full_matrices=False)
+    rk = int(np.sum(S > 1e-9 * S[0])) if S.size else 0
+    U, S, Vt = U[:, :rk], S[:rk], Vt[:rk]
+    dof = int(keep.sum()) - rk
+    r = y[keep] - U @ (U.T @ y[keep])
+    s2 = float(r @ r) / max(dof, 1)
+    Xr = X[rows]
+    A = (Xr @ Vt.T) / S
+    out_of_span = np.linalg.norm(Xr - (Xr @ Vt.T) @ Vt, axis=1) > 1e-6 * np.maximum(np.linalg.norm(Xr, axis=1), 1e-300)
+    e = y[rows] - Xr @ (Vt.T @ ((U.T @ y[keep]) / S))
+    t = e / np.sqrt(max(s2, 1e-300) * (1.0 + np.sum(A ** 2, axis=1)))
+    return np.where(out_of_span, np.nan, t), dof
+
+
+def _chips_read_more(X: np.ndarray, y: np.ndarray, out: list, places: Places, alpha: float, cap: int) -> list:
+    """The screen's outliers ``out``, or the other assignment at the targets whose touches disagree.
+
+    Dust on a touch is a particle between the stylus and the surface (a
+    chip, debris, swarf): the stylus meets it first and the touch triggers
+    early, reading more material, never less. Where a target (the same
+    place of the part, every set-up) has touches that disagree beyond the
+    outlier bound, the deleted-residual screen removes the touch furthest
+    from the fit, and the fit there is the mean of the target's touches:
+    two chips of one target among three touches pull the fit towards
+    themselves and leave the clean touch furthest (reading less material),
+    so the screen sets aside the clean touch and keeps the chips, which
+    agree (gen_a outlier 1505: two chips among four touches, the two clean
+    ones removed). Both assignments then fit; only the physics tells them.
+
+    The other assignment is the same greedy screen where the row it would
+    remove reads less material than the fit and its target has kept
+    touches reading more: the target's touch reading most material is set
+    aside in its place (at most ``cap`` rows, the screen's own cap). It is
+    taken when (1) every row it sets aside is beyond the bound as a
+    prediction from the touches it keeps, (2) every row of ``out`` it keeps
+    is within the bound there, and (3) at each target where it set a touch
+    aside in place of another it sets aside no more of the target's touches
+    than ``out`` (:data:`OUTLIER_CHIPS_MAJORITY`: also more), the screen's
+    parsimony kept: where the counts tie the data do not choose, and the
+    physics does. Elsewhere it may set aside more (a smaller chip the
+    disagreeing target hid, beyond the bound once its chips are out). A skid on a burr (the stylus slides off
+    an edge and triggers late) reads less material, alone; where one sits
+    among clean touches of its target, both assignments fit too, the
+    skid's setting aside one touch against the clean touches' two or more:
+    (3) keeps it.
+    """
+    if "target" not in places.names:
+        return out
+    tg = places.codes[:, places.names.index("target")]
+    n = len(y)
+    keep = np.ones(n, bool)
+    keep[out] = False
+    t_out, _ = _prediction_t(X, y, keep, np.asarray(out))
+    # only where a removed row reads less material than the fit and its target keeps other touches
+    if not any(t < 0 and np.any(keep & (tg == tg[i])) for i, t in zip(out, t_out) if np.isfinite(t)):
+        return out
+    keep = np.ones(n, bool)
+    alt: list[int] = []
+    swapped: set = set()
+    while True:
+        idx = np.flatnonzero(keep)
+        Q = orth_of(X[idx])
+        dof = len(idx) - Q.shape[1]
+        if dof < 3:
+            break
+        r = y[idx] - Q @ (Q.T @ y[idx])
+        h = leverage(Q)
+        ok = h < 0.99
+        rss = float(r @ r)
+        den = np.where(ok, 1 - h, 1.0)
+        s2 = (rss - np.where(ok, r ** 2 / den, 0.0)) / (dof - 1)
+        tstat = np.where(ok, np.abs(r) / np.sqrt(np.maximum(s2, 1e-300) * den), 0.0)
+        k = _first_largest(tstat)
+        if tstat[k] <= stats.t.isf(alpha / (2 * len(idx)), dof - 1):
+            break
+        if len(alt) >= cap:
+            return out
+        if r[k] < 0:
+            mates = np.flatnonzero((tg[idx] == tg[idx[k]]) & (r > 0) & ok)
+            if mates.size:
+                k = int(mates[np.argmax(r[mates])])
+                swapped.add(int(tg[idx[k]]))
+        alt.append(int(idx[k]))
+        keep[idx[k]] = False
+    if not swapped or sorted(alt) == sorted(out):
+        return out
+    if not OUTLIER_CHIPS_MAJORITY and any(np.sum(tg[alt] == T) > np.sum(tg[out] == T) for T in swapped):
+        return out
+    t_alt, dof = _prediction_t(X, y, keep, np.asarray(alt))
+    bound = stats.t.isf(alpha / (2 * int(keep.sum())), dof - 1)
+    back = np.setdiff1d(out, alt)
+    t_back = _prediction_t(X, y, keep, back)[0] if back.size else np.zeros(0)
+    if not (np.all(np.isfinite(t_alt)) and np.all(np.abs(t_alt) > bound)
+            and np.all(np.isfinite(t_back)) and np.all(np.abs(t_back) <= bound)):
+        return out
+    return sorted(alt)
 
 
 def _without_row(Q: np.ndarray, k: int) -> np.ndarray:

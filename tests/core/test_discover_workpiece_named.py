@@ -86,6 +86,9 @@ def test_gen_a_reseat_1060_every_outlier_put_back_before(monkeypatch):
 
 def _ol1505(monkeypatch, on):  # OUTLIER_BELOW_KEPT: measured and left off (gen_b outlier's covering U95s)
     monkeypatch.setattr(D, "OUTLIER_BELOW_KEPT", on)
+    # the screen's choice before OUTLIER_CHIPS_READ_MORE (which sets the three chips aside instead:
+    # tests/core/test_discover_chips_read_more.py): what this flag was measured on
+    monkeypatch.setattr(D, "OUTLIER_CHIPS_READ_MORE", False)
     return hidden.blind_outcome(gen_a, "outlier", 1505, generator="gen_a")
 
 
