@@ -1787,10 +1787,51 @@ def _part_change_feature(d, f, m: np.ndarray, nt: int, sector: np.ndarray, form:
     named in their layouts' ``time_form`` (None: one form only, no name, as before there were two)."""
     t = d.touches
     scans = []
-    cols, kinds, labels, walls, turns, bows = [], [], [], [], [], []
-    covered = np.zeros(t.n, bool)  # the feature's touches on a wall
     w = np.asarray(t.w_A, float)[:, :2]
     ext = float(np.max(np.ptp(w[m], axis=0))) if np.all(np.isfinite(w[m])) else 0.0
+    cols, kinds, labels, walls, turns, bows, covered = _part_change_walls(d, f, m, nt, sector, time, w, ext)
+    if not covered[m].all():
+        # some of the feature's targets have no wall: a ring (a boss or a bore) with one target per sector is
+        # described by its ovalisation changing with time instead
+        ring = _ring_columns(d, m, time)
+        if ring is not None:
+            scans.append(_one(ring, [f"{f} oval cos2", f"{f} oval sin2"],
+                              {"feature": str(f), "walls_deg": (), "ring": True, **({"time_form": form} if form else {})}, "feature"))
+            return scans
+    if cols:
+        # nested: the walls shifting alone; where a wall can turn, shifting and turning; where one can bow,
+        # shifting, turning and bowing: richer scans, each taken only where its new columns are significant
+        # beyond the layout taken so far and it lowers the held-out mean square (core.discover._grow_layout); each
+        # layout is a trial in the count below (the feature's layout is chosen by its own p-value)
+        info = {"feature": str(f), "walls_deg": tuple(walls), **({"time_form": form} if form else {})}
+        layouts = [(0, (), ())] + ([(1, tuple(turns), ())] if turns else []) + (
+            [(2, tuple(turns), tuple(bows))] if bows else [])
+        # the columns held while small; above ONE_SCAN_KEEP_BYTES (a long log: 122 MiB for the bench's 1e6 rows,
+        # held through the whole run) each layout's are made again from the touches at each build (_one: the
+        # same operations, the same numbers)
+        held = 8 * t.n * len(cols) <= ONE_SCAN_KEEP_BYTES
+        every = np.column_stack(cols) if held else None
+        del cols
+
+        def layout_cols(keep):
+            if every is not None:
+                return every[:, keep]
+            return lambda: np.column_stack(_part_change_walls(d, f, m, nt, sector, time, w, ext)[0])[:, keep]
+        for j, (top, tu, bo) in enumerate(layouts):
+            keep = [i for i, k in enumerate(kinds) if k <= top]
+            scans.append(_one(layout_cols(keep), [labels[i] for i in keep],
+                              {**info, "turns_deg": tu, "bows_deg": bo, **({"extends_previous": True} if j else {})},
+                              "feature"))
+    return scans
+
+
+def _part_change_walls(d, f, m: np.ndarray, nt: int, sector: np.ndarray, time: np.ndarray, w: np.ndarray,
+                       ext: float) -> tuple:
+    """Feature ``f``'s wall columns of :func:`_part_change_feature` (shift, turn, bow per sector) and their
+    kinds, labels, walls, turns, bows and the touches on a wall: made again by a long log's scans at each build."""
+    t = d.touches
+    cols, kinds, labels, walls, turns, bows = [], [], [], [], [], []
+    covered = np.zeros(t.n, bool)  # the feature's touches on a wall
     for s in range(8):
         ms = m & (sector == s)
         if np.unique(t.target[ms]).size >= (2 if nt >= 8 else 1):  # a small feature: every direction it has
@@ -1819,29 +1860,7 @@ def _part_change_feature(d, f, m: np.ndarray, nt: int, sector: np.ndarray, form:
                     kinds.append(2)
                     labels.append(f"{f}@{45 * s}deg bow")
                     bows.append(45 * s)
-    if not covered[m].all():
-        # some of the feature's targets have no wall: a ring (a boss or a bore) with one target per sector is
-        # described by its ovalisation changing with time instead
-        ring = _ring_columns(d, m, time)
-        if ring is not None:
-            scans.append(_one(ring, [f"{f} oval cos2", f"{f} oval sin2"],
-                              {"feature": str(f), "walls_deg": (), "ring": True, **({"time_form": form} if form else {})}, "feature"))
-            return scans
-    if cols:
-        # nested: the walls shifting alone; where a wall can turn, shifting and turning; where one can bow,
-        # shifting, turning and bowing: richer scans, each taken only where its new columns are significant
-        # beyond the layout taken so far and it lowers the held-out mean square (core.discover._grow_layout); each
-        # layout is a trial in the count below (the feature's layout is chosen by its own p-value)
-        info = {"feature": str(f), "walls_deg": tuple(walls), **({"time_form": form} if form else {})}
-        layouts = [(0, (), ())] + ([(1, tuple(turns), ())] if turns else []) + (
-            [(2, tuple(turns), tuple(bows))] if bows else [])
-        every = np.column_stack(cols)
-        for j, (top, tu, bo) in enumerate(layouts):
-            keep = [i for i, k in enumerate(kinds) if k <= top]
-            scans.append(_one(every[:, keep], [labels[i] for i in keep],
-                              {**info, "turns_deg": tu, "bows_deg": bo, **({"extends_previous": True} if j else {})},
-                              "feature"))
-    return scans
+    return cols, kinds, labels, walls, turns, bows, covered
 
 
 def _ring_columns(d, m: np.ndarray, time: np.ndarray | None = None) -> np.ndarray | None:
