@@ -1931,8 +1931,8 @@ def test_gen_b_fixture_slip_1096_repeats_beyond_the_fit_tried_and_off(monkeypatc
     from scenarios import hidden
     from scenarios.blind import gen_b
 
-    o = hidden.blind_outcome(gen_b, "fixture_slip", 1096, generator="gen_b")
-    assert o.cause == "none", o
+    # (the default engine reads `none` here, a miss: not asserted, so a later mend does not fail this test; the
+    # second review)
     monkeypatch.setattr(D, "REPEATS_BEYOND_FIT", True)
     o = hidden.blind_outcome(gen_b, "fixture_slip", 1096, generator="gen_b")
     assert o.cause in o.acceptable, o
