@@ -5709,7 +5709,7 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
 #: a slip's first touch between two trials' splits"): on, gen_a knock 1292's thermal_drift (ambiguous) beside the
 #: refined veto's kept step is refused and the knock reads `unexplained` again. Measured across the catalogue
 #: (docs/discovery.md, "Session 22: the rival check's slip refined to its touch, measured"): the only other
-#: campaigns it changed were three c_drift below visibility (gen_b 1048, 1133, simulator 4007), all right -> wrong
+#: campaigns it changed were five c_drift below visibility (gen_b 1048, 1133, 1198, simulator 4007, 4066), right -> wrong
 #: (`c_drift` -> `unexplained`), and none gained: off.
 SLIP_RIVAL_EXACT = False
 
