@@ -1634,6 +1634,25 @@ def _exact_step(Cs: StepTrials, best: int, Q0: np.ndarray, r0: np.ndarray, rows=
     sum of squares it explains on every row. Only the step the veto adopts
     changes, not its trials, tests or their Bonferroni counts.
 
+    The counts stay honest. In the veto the refined step enters only the
+    first condition of :func:`_slip_explains` (no outlier left beyond the
+    bound), a heuristic with no stated level; its test (the second
+    condition) is the trials' own F test on the kept touches, Bonferroni
+    over the event's trials, not refined. In the rival check the refined
+    split is chosen by the data after the trials' maximum, so its debias
+    counts every split whose sum of squares was computed (``examined``):
+    the trials' ``T`` plus about two per refinement on a set-up split every
+    second touch (gen_a), up to ``SLIP_SPLITS`` per pass on a longer one.
+    A strict count of every split the search could end at is every touch
+    of every set-up, at most about ``2 T`` where the trials take every
+    second touch; the median of the largest of ``2 T`` chi-squares (3 dof)
+    exceeds that of ``T`` by 1.5 (T 80-640, about ``2 ln 2``), against 0.01-0.05
+    for ``T + 2``, in units of ``s^2``. Neighbouring splits differ by one
+    touch, so their sums of squares are nearly the same and the effective
+    number of trials grows far less than the positions: the count examined
+    is within 1.5 ``s^2`` of the strict one, and not smaller than the
+    trials' own.
+
     ``rows`` (None: every row): the rows ``Q0`` and ``r0`` hold, the step
     returned on them (the rival check of a cause, :func:`_evaluate`, whose
     slip is refined the same way). ``examined`` (a list): the splits tried
@@ -5814,8 +5833,10 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
 #: Whether a cause's rival slip (:func:`_evaluate`'s ``counter_scan``) has its split refined to the touch, as the
 #: outlier screen's slip veto has (:func:`_exact_step`): tried in session 22 and off (docs/discovery.md, "Session 22:
 #: a slip's first touch between two trials' splits"): on, gen_a knock 1292's thermal_drift (ambiguous) beside the
-#: refined veto's kept step is refused and the knock reads `unexplained` again; it moves every named cause's rival
-#: check (nearly every cause has the slip as its counter scan) and was not measured across the catalogue.
+#: refined veto's kept step is refused and the knock reads `unexplained` again. Measured across the catalogue
+#: (docs/discovery.md, "Session 22: the rival check's slip refined to its touch, measured"): the only other
+#: campaigns it changed were five c_drift below visibility (gen_b 1048, 1133, 1198, simulator 4007, 4066), right -> wrong
+#: (`c_drift` -> `unexplained`), and none gained: off.
 SLIP_RIVAL_EXACT = False
 
 #: Whether repeats that scatter more than the baseline's whole residual can hold (the lack-of-fit F in its lower
