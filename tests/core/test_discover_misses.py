@@ -1914,8 +1914,8 @@ def test_gen_a_knock_1292_the_rival_slip_refined_to_the_touch_is_tried_and_off(m
     from scenarios import hidden
     from scenarios.blind import gen_a
 
-    o = hidden.blind_outcome(gen_a, "knock", 1292, generator="gen_a")
-    assert o.cause == "thermal_drift" and not o.confident, o
+    # (the default engine reads thermal_drift, ambiguous, here: a hedged miss, not asserted, so a later mend does not
+    # fail this test; the second review)
     monkeypatch.setattr(D, "SLIP_RIVAL_EXACT", True)
     o = hidden.blind_outcome(gen_a, "knock", 1292, generator="gen_a")
     assert o.cause in o.acceptable, o
