@@ -1353,6 +1353,18 @@ def _state_made(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _Stat
 # ---------------------------------------------------------------------------
 # outliers
 # ---------------------------------------------------------------------------
+def _deleted_t(Q, r: np.ndarray, dof: int) -> tuple:
+    """Each row's deleted-residual t statistic (the residual ``r`` against the scatter of the fit without the row,
+    ``Q`` the fit's orthonormal basis, ``dof`` its residual degrees of freedom) and whether the row can be judged:
+    a row that (nearly) alone determines a parameter (leverage 0.99 or more) cannot, its statistic 0."""
+    h = leverage(Q)
+    ok = h < 0.99
+    rss = float(r @ r)
+    den = np.where(ok, 1 - h, 1.0)
+    s2 = (rss - np.where(ok, r ** 2 / den, 0.0)) / (dof - 1)
+    return np.where(ok, np.abs(r) / np.sqrt(np.maximum(s2, 1e-300) * den), 0.0), ok
+
+
 def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: float = 0.02,
                   Q: np.ndarray | None = None, ranks: np.ndarray | None = None,
                   rng: np.random.Generator | None = None, max_frac_dust: float = 0.05,
@@ -1432,12 +1444,7 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         dof = len(idx) - Q.shape[1]
         if dof < 3:
             break
-        h = leverage(Q)
-        ok = h < 0.99  # a row that (nearly) alone determines a parameter cannot be judged
-        rss = float(r @ r)
-        den = np.where(ok, 1 - h, 1.0)
-        s2 = (rss - np.where(ok, r ** 2 / den, 0.0)) / (dof - 1)
-        tstat = np.where(ok, np.abs(r) / np.sqrt(np.maximum(s2, 1e-300) * den), 0.0)
+        tstat, _ = _deleted_t(Q, r, dof)
         k = _first_largest(tstat)
         if tstat[k] <= stats.t.isf(alpha / (2 * len(idx)), dof - 1):
             break
@@ -1546,12 +1553,7 @@ def _chips_read_more(X: np.ndarray, y: np.ndarray, out: list, places: Places, al
         if dof < 3:
             break
         r = y[idx] - Q @ (Q.T @ y[idx])
-        h = leverage(Q)
-        ok = h < 0.99
-        rss = float(r @ r)
-        den = np.where(ok, 1 - h, 1.0)
-        s2 = (rss - np.where(ok, r ** 2 / den, 0.0)) / (dof - 1)
-        tstat = np.where(ok, np.abs(r) / np.sqrt(np.maximum(s2, 1e-300) * den), 0.0)
+        tstat, ok = _deleted_t(Q, r, dof)
         k = _first_largest(tstat)
         if tstat[k] <= stats.t.isf(alpha / (2 * len(idx)), dof - 1):
             break
