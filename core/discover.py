@@ -1350,6 +1350,12 @@ def _state_made(Qb: np.ndarray, y: np.ndarray, rows: np.ndarray, terms) -> _Stat
     return _State(rows, Q, r, float(r @ r), max(dof, 1), Qb.shape[1])
 
 
+def _white(bl, C: np.ndarray) -> np.ndarray:
+    """Columns ``C`` (every row of the log) in the rows the engine fits: through the baseline's whitening where it
+    has one (a point's touches, :func:`core.baseline.planar`'s point whitening), else ``C`` itself."""
+    return C if bl.whiten is None else bl.whiten @ C
+
+
 # ---------------------------------------------------------------------------
 # outliers
 # ---------------------------------------------------------------------------
@@ -2406,12 +2412,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     y = bl.y
     N = bl.n
     all_rows = np.arange(N)
-    white = (lambda M: M) if bl.whiten is None else (lambda M: bl.whiten @ M)
     use_cv = bool(bl.info.get("cv", True))
     if isinstance(bl.A, BlockDesign):  # a long log: bases built when asked for, not kept (never whitened: planar)
         bases = term_bases(bl.covariates, bl.modes, lazy=True)
     else:
-        bases = {k: (white(B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
+        bases = {k: (_white(bl, B) if not isinstance(B, tuple) else B) for k, B in term_bases(bl.covariates, bl.modes).items()}
 
     ranks = covariate_ranks(bl.covariates)
     places = places_of(bl)
@@ -3503,7 +3508,7 @@ def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> tuple:
     (debiased sum of squares, m^2; Uc (len(rows), kc): its orthonormal basis outside ``st.Q``,
     for :func:`_beyond`)
     """
-    Bc = cause.counter(bl) if bl.whiten is None else bl.whiten @ cause.counter(bl)
+    Bc = _white(bl, cause.counter(bl))
     Uc = new_basis(st.Q, Bc[rows])
     return float(np.sum((Uc.T @ st.r) ** 2)) - Uc.shape[1] * sigma ** 2, Uc
 
@@ -3621,7 +3626,7 @@ def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: f
     """
     rows = st.rows
     s2 = sigma ** 2
-    Bs = cause.smooth(bl) if bl.whiten is None else bl.whiten @ cause.smooth(bl)
+    Bs = _white(bl, cause.smooth(bl))
     Us = new_basis(st.Q, Bs[rows])
     d_s = float(np.sum((Us.T @ st.r) ** 2)) - Us.shape[1] * s2
     Un = new_basis(st.Q, E)
@@ -4439,6 +4444,15 @@ def _forms_gram_choice(cs, cc, level, rows, st: _State, settings) -> tuple:
     return p_once < settings.alpha_family, (p_steps, p_cont, p_once)
 
 
+def _one_off_levels(level, rows) -> tuple:
+    """The one-off trials' levels, one definition for :func:`_one_off_p` and :func:`_one_off_p_gram`: the per-set-up
+    level on the model's rows ``L``, the levels a trial starts at ``lv`` (every level after the first's 0), and the
+    divisor that takes the steps back to their pattern (``L``; 1 on the first set-up, where the steps are 0)."""
+    L = np.asarray(level, float)[rows]
+    lv = np.unique(L)
+    return L, lv[lv > 1e-12], np.where(L > 1e-12, L, 1.0)
+
+
 def _one_off_p_gram(rs, ks: int, level, rows, st: _State, settings) -> float:
     """:func:`_one_off_p` a block of rows at a time (``rs``: the steps' block reader, ``ks`` their columns): each
     one-off trial's test beside the model from its Gram matrices (:func:`core.diagnosis.nested_f_batch`'s
@@ -4446,16 +4460,13 @@ def _one_off_p_gram(rs, ks: int, level, rows, st: _State, settings) -> float:
     the best as :func:`_beyond_projected` tests them."""
     if level is None:
         return 0.0
-    L = np.asarray(level, float)[rows]
-    lv = np.unique(L)
-    lv = lv[lv > 1e-12]
+    L, lv, safe = _one_off_levels(level, rows)
     if lv.size < 2:
         return 1.0
     Qr = st.Q.T @ st.r
 
     def once(v):  # (the pattern: the steps over the level, as _one_off_p's cs / safe)
-        return lambda pos: np.where((L[pos] >= v - 1e-12)[:, None],
-                                    rs(pos) / np.where(L[pos] > 1e-12, L[pos], 1.0)[:, None], 0.0)
+        return lambda pos: np.where((L[pos] >= v - 1e-12)[:, None], rs(pos) / safe[pos][:, None], 0.0)
 
     G, bb = np.empty((lv.size, ks, ks)), np.empty((lv.size, ks))
     for j, v in enumerate(lv):  # nested_f_batch's block-basis branch, each trial's sums over its own rows
@@ -4492,12 +4503,9 @@ def _one_off_p(cs: np.ndarray, level: np.ndarray | None, rows, st: _State, setti
     or the one-off steps lie in the model; 1 on two set-ups)."""
     if level is None:
         return 0.0
-    L = np.asarray(level, float)[rows]
-    lv = np.unique(L)
-    lv = lv[lv > 1e-12]
+    L, lv, safe = _one_off_levels(level, rows)
     if lv.size < 2:
         return 1.0
-    safe = np.where(L > 1e-12, L, 1.0)
     pat = cs / safe[:, None]
     C = np.stack([np.where((L >= v - 1e-12)[:, None], pat, 0.0) for v in lv])
     ss, k, _, _ = nested_f_batch(C, st.Q, st.r, st.rss, st.dof)
@@ -5601,7 +5609,7 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
     sf = _state(Qb, y, rows, others + [tm])
     cause = tm.origin
     if cause is not None and cause.rival is not None:
-        B = (cause.rival(bl, tm.info) if bl.whiten is None else bl.whiten @ cause.rival(bl, tm.info))[rows]
+        B = _white(bl, cause.rival(bl, tm.info))[rows]
     else:
         cov = bl.covariate(tm.covariate)
         if cov is None:
@@ -5796,12 +5804,9 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
     turn = np.where(mf, (w[:, 0] - c[0]) * sn - (w[:, 1] - c[1]) * cn, 0.0)  # (another feature's w may be NaN)
     rigid = np.column_stack([mf * time * cn, mf * time * sn, time * turn])
 
-    def white(C):
-        return (C if bl.whiten is None else bl.whiten @ C)[rows]
-
     s2 = sigma ** 2
     # the change beyond the feature's rigid motion
-    Ur = new_basis(so.Q, white(rigid))
+    Ur = new_basis(so.Q, _white(bl, rigid)[rows])
     Qr = np.hstack([so.Q, Ur])
     rr = so.r - Ur @ (Ur.T @ so.r)
     Un = new_basis(Qr, tm.columns[rows])
@@ -5811,7 +5816,7 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
     else:
         p_form, d_form = 1.0, 0.0
     # the other features moving beside the cause
-    O = white(np.column_stack(other))
+    O = _white(bl, np.column_stack(other))[rows]
     Uo = new_basis(sf.Q, O)
     if Uo.shape[1] == 0 or sf.dof - Uo.shape[1] <= 0:
         return None
@@ -6281,7 +6286,7 @@ def _other_reading(bl, tm: Term):
             if inf.get("pretravel_along") != info["pretravel_along"] and \
                     {k: v for k, v in inf.items() if k != "pretravel_along"} == rest:
                 C = np.asarray(sc.build(np.array([j]))[0], float)
-                return inf, (C if bl.whiten is None else bl.whiten @ C)
+                return inf, _white(bl, C)
     return None
 
 
