@@ -2683,6 +2683,28 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     by_name = {c.name: c for c in catalogue}
 
+    def judge_later_again(later: list, kept: list, rows_, gone: Term, put_back: bool, put_back_by) -> tuple:
+        """The causes ``later`` (adopted after ``gone``, searched with it in the model) judged again in the order of
+        adoption beside ``kept`` (each that stands appended to it, :func:`judge_again`). A put-back of outliers goes
+        with its cause where that is refused, or to its new term. ``(put_back, put_back_by, undone)``: the put-back
+        after, and whether one was undone. The rival check's drop and a re-chosen ridge's refusal both take it."""
+        undone = False
+        for old in later:
+            new = judge_again(old, kept, rows_, gone)
+            if new is not None:
+                kept.append(new)
+            if old is put_back_by:
+                if new is None:
+                    put_back, put_back_by, undone = False, None, True
+                else:
+                    put_back_by = new
+        return put_back, put_back_by, undone
+
+    def rows_screened(kept: list) -> np.ndarray:
+        """Every row but the outliers judged against the baseline and ``kept`` (the baseline alone when none)."""
+        return np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(kept, all_rows)])) if kept
+                            else outliers_of(bl.A, Qall))
+
     def judge_again(old: Term, kept: list, rows_, gone: Term) -> Term | None:
         """The cause of ``old``, adopted with ``gone`` in the model, judged again by the search's tests beside
         ``kept`` alone (the causes adopted before it that stay) on ``rows_``: its term as adopted there (its form
@@ -2746,24 +2768,15 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 # the causes adopted after it were searched with it in the model: each is judged again, in the
                 # order of adoption, beside the causes before it that stay (section 4's "a search built on a
                 # dropped cause")
-                for old in later:
-                    new = judge_again(old, terms, rows, tm)
-                    if new is not None:
-                        terms.append(new)
-                    if old is put_back_by:
-                        if new is None:
-                            put_back, put_back_by = False, None
-                            undone = True
-                        else:
-                            put_back_by = new
+                put_back, put_back_by, gone_back = judge_later_again(later, terms, rows, tm, put_back, put_back_by)
+                undone = undone or gone_back
                 Qb, folds, st = model(rows, terms)
                 changed = True
                 break
     if (terms or undone) and demoted and not put_back:
         # (none dropped: the search judged the outliers against these terms last; a put-back undone: its touches
         # are judged again, against the baseline alone when no cause is left)
-        rows = np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(terms, all_rows)])) if terms
-                            else outliers_of(bl.A, Qall))
+        rows = rows_screened(terms)
     rows_b = judge_rows_again(rows)
     Qb, folds, st = model(rows, terms)
     if PENALTY_RECHOSEN and any(t.penalty is not None and not t.unnamed for t in terms):
@@ -2785,18 +2798,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 rejected.append({"cause": tm.cause, "reason": why})
                 if put_back_by is not None and put_back_by.cause == tm.cause:  # (its put-back undone with it)
                     put_back, put_back_by = False, None
-                for old in later:
-                    new = judge_again(old, terms, rows, tm)
-                    if new is not None:
-                        terms.append(new)
-                    if old is put_back_by:  # (a later cause's put-back goes with it, or to its new term: the
-                        if new is None:     # rival check's rule; the session 21 review)
-                            put_back, put_back_by = False, None
-                        else:
-                            put_back_by = new
+                # (a later cause's put-back goes with it, or to its new term: the rival check's rule; the session
+                # 21 review)
+                put_back, put_back_by, _ = judge_later_again(later, terms, rows, tm, put_back, put_back_by)
                 if not put_back:  # the outliers judged against the terms that stay (the rival check's rule)
-                    rows = np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(terms, all_rows)])) if terms
-                                        else outliers_of(bl.A, Qall))
+                    rows = rows_screened(terms)
                     rows_b = judge_rows_again(rows)
                 Qb, folds, st = model(rows, terms)
                 break  # (one refusal: a second penalised named cause is not in the catalogue)
