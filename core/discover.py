@@ -6349,10 +6349,30 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     chosen reading clearly (``D`` many ``sigma^2``) ``w_o`` vanishes and the
     U95 is the chosen reading's; it is never narrowed below that.
 
+    Session 23 (the session 22 second review's three latent faults): ``k_c``
+    and ``k_o`` are counted by one cut, the directions :func:`_determined`
+    keeps beside ``so`` (before, ``k_o`` by its ``WEAK_SV`` of 1e-2 and
+    ``k_c`` by :func:`new_basis`'s 1e-5: a direction between the two counted
+    for the chosen reading alone, and what it caught too). The directions
+    the chosen reading's combinations hold at 0 are not the other reading's
+    estimates (``held``, :func:`_magnitudes`: gen_b probe_lobing 1002's
+    ``k1_amplitude_um`` read 9e-17 +- 7e-17 um there). A magnitude the other
+    reading's fit refused by the plausible range keeps its value and U95 in
+    the mixture (before: skipped, as if the other reading agreed), a norm it
+    does not report because a coefficient of its pair is held or unseen
+    keeps its lower bound (the norm with that coefficient at 0: the
+    mixture's second moment about ``v`` is at least ``w_o (lower - v)^2``
+    where the bound lies above ``v``), and the carried U95 is judged against
+    the plausible range (:func:`_within_range`, as the carry beside an
+    unnamed smooth is). A magnitude the other reading does not determine
+    and holds no bound of is not carried (its U95 the chosen reading's).
+
     Returns None where the term has no other reading (approaches along the
     normal: one reading), else ``{"other": its reading, "explained_gap_um2": D,
     "columns": [k_c, k_o], "weight_other": w_o, "other_values": .., "other_u95": .., "u95_chosen": .., "carried_in_u95":
-    [keys whose U95 grew], "u95": the new U95 dict}``.
+    [keys whose U95 grew], "u95": the new U95 dict}``, with ``"other_lower_bounds"`` (the norms carried by their
+    lower bound) and ``"wider_than_range"`` (the keys whose carried U95 is wider than their plausible range: the
+    report gives them no value) where there are any.
     """
     got = _other_reading(bl, tm)
     if got is None or not (sigma > 0):
