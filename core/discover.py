@@ -6370,7 +6370,7 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     Returns None where the term has no other reading (approaches along the
     normal: one reading), else ``{"other": its reading, "explained_gap_um2": D,
     "columns": [k_c, k_o], "weight_other": w_o, "other_values": .., "other_u95": .., "u95_chosen": .., "carried_in_u95":
-    [keys whose U95 grew], "u95": the new U95 dict}``, with ``"other_lower_bounds"`` (the norms carried by their
+    [keys whose U95 grew], "u95": the new U95 dict}``, with ``"other_lower_bounds"`` (the norms that entered by their
     lower bound) and ``"wider_than_range"`` (the keys whose carried U95 is wider than their plausible range: the
     report gives them no value) where there are any.
     """
