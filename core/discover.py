@@ -5006,7 +5006,7 @@ def _penalised_bootstrap(cause, bl, tm: Term, Ep, ro, yr, Qo, rows, folds, other
 
 
 def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = None, boot: tuple | None = None,
-                lin: dict | None = None, intervals: dict | None = None):
+                lin: dict | None = None, intervals: dict | None = None, held: bool = False, lower: dict | None = None):
     """Magnitudes of a term and their U95 (delta method over coefficients and nonlinear parameters).
 
     ``boot`` ``(folds, others[, report])``: the folds the model's held-out
@@ -5032,6 +5032,21 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
     ``intervals`` (a dict): filled with ``key: [lo, hi]``, the 95 % interval of
     each norm magnitude (:attr:`core.causes.Cause.norms`, :func:`norm_interval`)
     whose U95 is its symmetric cover (unpenalised causes).
+
+    ``held`` (an unpenalised cause): the label directions outside the span of
+    ``tm.map`` are held at 0 by construction, not because the data cannot see
+    them (:func:`_reading_u95` fits the other reading of the pre-travel in
+    the chosen reading's combinations: on gen_b the approach reading's first
+    harmonic, which the normal reading leaves in the baseline): a magnitude
+    that needs one is not reported, as one that needs an unseen direction is
+    not (before, the held coefficient read as a measured zero: gen_b
+    probe_lobing 1002's other reading showed ``k1_amplitude_um`` 9e-17 +-
+    7e-17 um; session 23).
+
+    ``lower`` (a dict): filled with ``key: value`` of each norm not reported
+    because a coefficient of its pair is unseen or held: the norm with that
+    coefficient at 0, a lower bound of the amplitude (:func:`_reading_u95`
+    carries it).
 
     ``Qo``: orthonormal basis of the model without the term (rows used).
     By Frisch-Waugh-Lovell the term's coefficients in the joint fit are the
@@ -5164,6 +5179,11 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
     else:
         _, sv, Vt = np.linalg.svd(Pn, full_matrices=False)
         weak = Vt[sv < WEAK_SV]
+    if held and M.shape[1] < k_all:
+        # the directions the map holds at 0, in the same normalised coordinates as weak's (c_j = v_j / nrm_j): the
+        # complement of the map's span there
+        Uh, sh, _ = np.linalg.svd(nrm[:, None] * M, full_matrices=True)
+        weak = np.vstack([weak, Uh[:, int(np.sum(sh > 1e-12 * max(sh.max(initial=0.0), 1e-300))):].T])
     u95, out = {}, {}
     norms = getattr(cause, "norms", None)  # (a cause-like record without the field: none)
     for key, v in vals.items():
@@ -5185,6 +5205,8 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
             # bound, not an estimate (gen_a periodic_axis_error 1025: EXX amplitude 3.970 +- 0.273 um reported with
             # its cos coefficient undetermined; the session 22 review)
             out[key], u95[key] = None, None
+            if lower is not None:
+                lower[key] = float(v)
             continue
         u = float(2 * np.sqrt(max(g @ cov @ g, 0.0)))
         nu = _norm_u95(cause, tm.info, key, float(v), coef, cov[:k_all, :k_all]) if NORM_INTERVALS else None
@@ -6327,10 +6349,30 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     chosen reading clearly (``D`` many ``sigma^2``) ``w_o`` vanishes and the
     U95 is the chosen reading's; it is never narrowed below that.
 
+    Session 23 (the session 22 second review's three latent faults): ``k_c``
+    and ``k_o`` are counted by one cut, the directions :func:`_determined`
+    keeps beside ``so`` (before, ``k_o`` by its ``WEAK_SV`` of 1e-2 and
+    ``k_c`` by :func:`new_basis`'s 1e-5: a direction between the two counted
+    for the chosen reading alone, and what it caught too). The directions
+    the chosen reading's combinations hold at 0 are not the other reading's
+    estimates (``held``, :func:`_magnitudes`: gen_b probe_lobing 1002's
+    ``k1_amplitude_um`` read 9e-17 +- 7e-17 um there). A magnitude the other
+    reading's fit refused by the plausible range keeps its value and U95 in
+    the mixture (before: skipped, as if the other reading agreed), a norm it
+    does not report because a coefficient of its pair is held or unseen
+    keeps its lower bound (the norm with that coefficient at 0: the
+    mixture's second moment about ``v`` is at least ``w_o (lower - v)^2``
+    where the bound lies above ``v``), and the carried U95 is judged against
+    the plausible range (:func:`_within_range`, as the carry beside an
+    unnamed smooth is). A magnitude the other reading does not determine
+    and holds no bound of is not carried (its U95 the chosen reading's).
+
     Returns None where the term has no other reading (approaches along the
     normal: one reading), else ``{"other": its reading, "explained_gap_um2": D,
     "columns": [k_c, k_o], "weight_other": w_o, "other_values": .., "other_u95": .., "u95_chosen": .., "carried_in_u95":
-    [keys whose U95 grew], "u95": the new U95 dict}``.
+    [keys whose U95 grew], "u95": the new U95 dict}``, with ``"other_lower_bounds"`` (the norms that entered by their
+    lower bound) and ``"wider_than_range"`` (the keys whose carried U95 is wider than their plausible range: the
+    report gives them no value) where there are any.
     """
     got = _other_reading(bl, tm)
     if got is None or not (sigma > 0):
@@ -6339,33 +6381,55 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     # the other reading of the same lobes: the chosen reading's label combinations (tm.map), those of them the
     # other reading determines beside so. (Its own combinations on gen_b held the first harmonic the normal
     # reading leaves in the baseline: two columns of anything else counted for it; the session 22 review.)
-    sub = _determined(so.Q, C[rows] @ tm.map, settings.vif_max)[0]
+    Ec, Eo = tm.columns[rows] @ tm.map, C[rows] @ tm.map
+    sub = _determined(so.Q, Eo, settings.vif_max)[0]
     if sub.shape[1] == 0:
         return None
     Mo = tm.map @ sub
     tm_o = dataclasses.replace(tm, columns=C, info=inf_o, map=Mo, cols_all=C, at_adoption=None, evidence={})
-    vals_o, u95_o = _magnitudes(cause, bl, tm_o, so.Q, rows,
-                                boot=(folds, others) if folds is not None else None)
-    Uc = new_basis(so.Q, tm.columns[rows] @ tm.map)
+    # (the directions outside Mo are held at 0: a magnitude that needs one is not the other reading's estimate; a
+    # norm so left out keeps its lower bound, and one the plausible range refused its value and U95: session 23)
+    wide_o, lower_o = [], {}
+    vals_o, u95_o = _magnitudes(cause, bl, tm_o, so.Q, rows, wide_o,
+                                boot=(folds, others) if folds is not None else None, held=True, lower=lower_o)
+    for key, v, u, _, _ in wide_o:
+        vals_o[key], u95_o[key] = v, u
+    # each reading's count k by one cut: the directions _determined keeps beside so (before, the other reading's by
+    # _determined's WEAK_SV, 1e-2, and the chosen reading's by new_basis's, 1e-5: a direction between the two counted
+    # once for the chosen reading alone, and the weight favoured the other by e per such direction; session 23)
+    sub_c = _determined(so.Q, Ec, settings.vif_max)[0]
+    Uc = new_basis(so.Q, Ec if sub_c.shape[1] == Ec.shape[1] else Ec @ sub_c)
     Uo = new_basis(so.Q, C[rows] @ Mo)
     D = float(np.sum((Uc.T @ so.r) ** 2) - np.sum((Uo.T @ so.r) ** 2))
     k_c, k_o = Uc.shape[1], Uo.shape[1]
     w_o = float(special.expit(-D / (2 * sigma ** 2) + (k_c - k_o)))  # (Akaike's weight: -AIC / 2 = -RSS / 2s^2 - k)
-    new, grown = dict(u95), []
+    new, grown, floors, refused = dict(u95), [], [], []
     for key, v in vals.items():
         if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
             continue
         vo, uc, uo = vals_o.get(key), u95.get(key), u95_o.get(key)
-        if vo is None or uc is None or uo is None:
+        if uc is None:
             continue
-        u = 2 * float(np.sqrt((1 - w_o) * (uc / 2) ** 2 + w_o * ((uo / 2) ** 2 + (float(vo) - float(v)) ** 2)))
+        if vo is not None and uo is not None:
+            u = 2 * float(np.sqrt((1 - w_o) * (uc / 2) ** 2 + w_o * ((uo / 2) ** 2 + (float(vo) - float(v)) ** 2)))
+        elif key in lower_o:
+            # the other reading's amplitude is at least lower_o[key] (a coefficient of its pair held or unseen): the
+            # mixture's second moment about v is at least w_o (lower - v)^2 where the bound lies above v (Jensen)
+            u = 2 * float(np.sqrt((1 - w_o) * (uc / 2) ** 2 + w_o * max(lower_o[key] - float(v), 0.0) ** 2))
+            floors.append(key)
+        else:
+            continue
         if u > uc:
             new[key] = u
             grown.append(key)
+            if _within_range(cause, key, float(v), u, None)[0] is None:  # the carried U95 beyond the plausible range
+                refused.append(key)
     return {"other": inf_o["pretravel_along"], "explained_gap_um2": D / UM ** 2, "columns": [k_c, k_o],
             "weight_other": w_o,
             "other_values": {k: v for k, v in vals_o.items() if k in vals and k != "pretravel_along"},
             "other_u95": {k: v for k, v in u95_o.items() if k in vals},
+            **({"other_lower_bounds": {k: lower_o[k] for k in floors}} if floors else {}),
+            **({"wider_than_range": refused} if refused else {}),
             "u95_chosen": {k: u95[k] for k in grown}, "carried_in_u95": grown, "u95": new}
 
 
@@ -6420,6 +6484,13 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             # a norm's interval [lo, hi] widened at both ends as its U95 is (the choice's spread is no Rice law)
             iv = {k: ([max(0.0, x[0] - (u95[k] - reading["u95_chosen"][k])), x[1] + u95[k] - reading["u95_chosen"][k]]
                       if k in reading["carried_in_u95"] else x) for k, x in iv.items()}
+            if reading.get("wider_than_range"):
+                # the U95 carried across the readings is wider than the plausible range: no value (as _within_range
+                # and the carry beside a smooth judge it), the finding named at most ambiguous (session 23)
+                wide_note = "; ".join(f"{k} = {vals[k]:.3g} +- {u95[k]:.3g} across the two pre-travel readings (U95 "
+                                      "wider than its plausible range)" for k in reading["wider_than_range"])
+                for k in reading["wider_than_range"]:
+                    vals[k], u95[k] = None, None
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)
