@@ -1890,7 +1890,9 @@ def test_the_confinement_rule_at_its_margins_where_the_feature_has_no_form_direc
     beyond the feature's rigid motion) nearest a refusal are 1293 and 1156: the other features' translations at
     p 0.011 (against alpha_family 0.0025) and immaterial (0.72 against 1.13 um^2, 3.24 against 5.63); the
     thermal bending refused nearest keeping part_change is 1015 (slot2: p 0.0019, 2.69 against 2.48 um^2). The
-    rule keeps the two changes and refuses the bending: a rule loosened toward either side fails here."""
+    rule keeps the two changes and refuses the bending. A rule made stricter on the bending's side (1015 is
+    1.3x inside in p, 1.09x in materiality) fails on 1015; one that refuses on p alone at 0.05 fails on 1293 and
+    1156. With the rule off (PART_CHANGE_CONFINED = False) 1015 reads part_change."""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
