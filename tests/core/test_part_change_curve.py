@@ -1,5 +1,5 @@
 """part_change's continuous form curving in time (core.causes.PART_CHANGE_CURVE, session 23; docs/discovery.md,
-"Session 23: a part that settles, read as a line in time").
+"Session 23: the last blind check's part changes ...").
 
 gen_a's and gen_b's parts change as ``1 - exp(-t / tau)`` with tau about the campaign's span; the catalogue's
 continuous form is the line in ``t`` (0 at the first touch, 1 at the last). The settling change is that line plus
