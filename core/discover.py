@@ -5816,12 +5816,14 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
         return None
     feats = np.asarray(t.feature, dtype=object)
     time = dict(causes_mod.part_change_times(bl)).get(tm.info.get("time_form", "continuous"), d.tau)
+    # a change curving in time (causes.PART_CHANGE_CURVE): the rigid motion and the others' in both its time forms
+    times = (time, time * (1 - time)) if tm.info.get("curve") else (time,)
     cn, sn = np.cos(d.wn_az), np.sin(d.wn_az)
     other = []
     for g in sorted(set(feats.tolist()) - {f}):
         m = feats == g
         if np.unique(np.asarray(t.setup)[m]).size >= 2:
-            other += [m * time * cn, m * time * sn]
+            other += [m * tt * c for tt in times for c in (cn, sn)]
     if not other:
         return None
     mf = feats == f
@@ -5830,7 +5832,7 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
         return None
     c = w[mf].mean(axis=0)
     turn = np.where(mf, (w[:, 0] - c[0]) * sn - (w[:, 1] - c[1]) * cn, 0.0)  # (another feature's w may be NaN)
-    rigid = np.column_stack([mf * time * cn, mf * time * sn, time * turn])
+    rigid = np.column_stack([col for tt in times for col in (mf * tt * cn, mf * tt * sn, tt * turn)])
 
     s2 = sigma ** 2
     # the change beyond the feature's rigid motion
