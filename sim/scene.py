@@ -497,6 +497,7 @@ def check_touch_paths_many(items, link_step_m: float = 2.0e-3, approach_step_m: 
     s0 = np.r_[0, np.cumsum(n_pt - 1)][q0]
     sg = None  # (every set-up's segments, sampled when a set-up is not found passed)
     joined = {}  # the features' text of the key, per features object
+    numbered = {}  # per (broad phase's feature numbering, features object): (that numbering, the features as its numbers)
     for j, (pose, setup, targets, features, _, _) in enumerate(items):
         scene = pose()
         P_j, n_pt_j, is_link_j = P[p0[j]:p0[j + 1]], n_pt[q0[j]:q0[j + 1]], is_link[q0[j]:q0[j + 1]]
@@ -508,12 +509,22 @@ def check_touch_paths_many(items, link_step_m: float = 2.0e-3, approach_step_m: 
         a, b = s0[j], s0[j + 1]
         sg_j = Segments(sg.a[a:b], sg.b[a:b], sg.k[a:b], sg.m[a:b], sg.first[a:b] - sg.first[a] if a < b else sg.first[a:b],
                         sg.path[a:b] - q0[j])
-        allow = np.full(len(n_pt_j), "", dtype=object)
-        allow[~is_link_j] = np.asarray(features, dtype=object)
         if broad_phase:
-            idx = scene.clearance().near_segments(sg_j, allow)
+            # (each polyline's allowed feature as the broad phase's number: -2 on a link, the
+            # touch's feature on an approach; the features numbered once per numbering and plan)
+            clr = scene.clearance()
+            fk = (id(clr._fid), id(features))
+            got = numbered.get(fk)
+            if got is None or got[0] is not clr._fid:
+                got = numbered[fk] = (clr._fid, clr.feature_ids(features))
+            ids = np.full(len(n_pt_j), -2)
+            ids[~is_link_j] = got[1]
+            idx = clr.near_segments(sg_j, feature_ids=ids)
         else:
             idx = np.arange(sg_j.n_samples)
+        if idx.size:  # (the allowed features by name, for MuJoCo)
+            allow = np.full(len(n_pt_j), "", dtype=object)
+            allow[~is_link_j] = np.asarray(features, dtype=object)
         pts, which = sg_j.points(idx), sg_j.path[sg_j.segment_of(idx)]
         touch_j = touch[q0[j]:q0[j + 1]] - t0[j]
         for k in range(len(idx)):  # in path order
