@@ -280,6 +280,7 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     paths = _PathChecker(art, probe) if check_collisions else None
     t_cursor = 0.0
     moves = []  # (set-up, moves, approach start times) in order, every path checked first
+    failed = None  # (a set-up's error: raised after the paths of the set-ups before it are checked)
     try:
         for si, st in enumerate(setups):
             mv = setup_moves(machine, art, plan, st, probe)
@@ -291,12 +292,12 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
                 t_cursor += setup_change_s
             t0, t_cursor = _touch_start_times(mv, travel, t_cursor, feed_mps, rapid_mps)
             moves.append((st, mv, t0))
-    except Exception:
-        if paths is not None:  # (the set-ups before this one first: a crash there is raised as it was)
-            paths.flush()
-        raise
-    if paths is not None:
+    except Exception as e:
+        failed = e
+    if paths is not None:  # (a crash of a set-up before the failed one is raised first, as it was)
         paths.flush()
+    if failed is not None:
+        raise failed
     if plan_only:
         empty = (np.full((plan.n, 3), np.nan), np.full(plan.n, ProbeStatus.OK, dtype=object), np.full(plan.n, np.nan))
         touched = [empty] * len(moves)

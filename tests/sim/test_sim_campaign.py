@@ -115,8 +115,9 @@ def test_a_crash_is_raised_before_a_later_set_ups_stroke_error():
     art = A.multi_feature_bar()
     bad = Setup("P99", A.make_T(A.rot_x(np.pi / 2), (-0.275, 0.0, 0.07)))  # (as above: a crash)
     far = Setup("FAR", A.make_T(A.rot_x(np.pi / 2), (3.0, 0.0, 0.07)))  # (outside the X stroke)
-    with pytest.raises(PlanError, match="set-up 'P99' target 'hole01_u0': link move crashes"):
+    with pytest.raises(PlanError, match="set-up 'P99' target 'hole01_u0': link move crashes") as e:
         simulate_campaign(art, Stroked(), ProbeConfig(), [bad, far], None)
+    assert e.value.__context__ is None  # (raised on its own, not while the stroke error is handled)
     with pytest.raises(PlanError, match="set-up 'FAR' target .*: X = .* is outside the stroke"):
         simulate_campaign(art, Stroked(), ProbeConfig(), [far, bad], None)
 
