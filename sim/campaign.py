@@ -280,16 +280,24 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     paths = _PathChecker(art, probe) if check_collisions else None
     t_cursor = 0.0
     moves = []  # (set-up, moves, approach start times) in order, every path checked first
-    for si, st in enumerate(setups):
-        mv = setup_moves(machine, art, plan, st, probe)
-        if stroke_check:
-            check_strokes(machine, st, plan, mv)
-        if paths is not None:
-            paths.check(st, plan, mv)
-        if si > 0:
-            t_cursor += setup_change_s
-        t0, t_cursor = _touch_start_times(mv, travel, t_cursor, feed_mps, rapid_mps)
-        moves.append((st, mv, t0))
+    failed = None  # (a set-up's error: raised after the paths of the set-ups before it are checked)
+    try:
+        for si, st in enumerate(setups):
+            mv = setup_moves(machine, art, plan, st, probe)
+            if stroke_check:
+                check_strokes(machine, st, plan, mv)
+            if paths is not None:
+                paths.check(st, plan, mv)  # (taken; checked by flush, every set-up's at once)
+            if si > 0:
+                t_cursor += setup_change_s
+            t0, t_cursor = _touch_start_times(mv, travel, t_cursor, feed_mps, rapid_mps)
+            moves.append((st, mv, t0))
+    except Exception as e:
+        failed = e
+    if paths is not None:  # (a crash of a set-up before the failed one is raised first, as it was)
+        paths.flush()
+    if failed is not None:
+        raise failed
     if plan_only:
         empty = (np.full((plan.n, 3), np.nan), np.full(plan.n, ProbeStatus.OK, dtype=object), np.full(plan.n, np.nan))
         touched = [empty] * len(moves)
@@ -405,24 +413,38 @@ LOG_COLUMNS = ("setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm
 
 
 class _PathChecker:
-    """Every link, approach and retract path of a set-up checked in the MuJoCo scene.
+    """Every link, approach and retract path of a campaign's set-ups checked in the MuJoCo scene.
 
-    The scene is built once per artefact placement and re-posed per table index.
+    The scene is built once per artefact placement and re-posed per table index. :meth:`check`
+    takes a set-up's moves; :meth:`flush` checks every set-up taken since, in order, their
+    polylines made and sampled at once (:func:`sim.scene.check_touch_paths_many`: each set-up
+    as :func:`sim.scene.check_touch_paths` checks it alone).
     """
 
     def __init__(self, art: A.Artefact, probe: ProbeConfig):
         self.art, self.probe = art, probe
         self.scene = self.T_W_A = None
+        self._todo = []
 
     def check(self, st: Setup, plan: Plan, mv: SetupMoves) -> None:
-        from .scene import check_touch_paths, scene_for
+        self._todo.append((st, plan, mv))
+
+    def _pose(self, st: Setup, mv: SetupMoves):
+        from .scene import scene_for
 
         if self.scene is None or not np.array_equal(self.T_W_A, st.T_W_A):
             self.scene = scene_for(self.art, self.probe, st.T_W_A)
             self.T_W_A = np.asarray(st.T_W_A)
         self.scene.set_table(mv.T_R_W)
-        check_touch_paths(self.scene, st.name, plan.target, plan.feature, mv.links,
-                          np.stack([mv.start_R, mv.Xn_R], axis=1))
+        return self.scene
+
+    def flush(self) -> None:
+        """Check the set-ups taken (PlanError: the first crash of the first set-up that crashes)."""
+        from .scene import check_touch_paths_many
+
+        todo, self._todo = self._todo, []
+        check_touch_paths_many([(lambda st=st, mv=mv: self._pose(st, mv), st.name, plan.target, plan.feature,
+                                 mv.links, np.stack([mv.start_R, mv.Xn_R], axis=1)) for st, plan, mv in todo])
 
 
 def _touch_start_times(mv: SetupMoves, travel: np.ndarray, t_cursor: float, feed_mps: float,

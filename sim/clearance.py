@@ -394,7 +394,7 @@ class Clearance:
         f = np.asarray(features, dtype=object).ravel()
         return np.fromiter(map(self._fid.get, f, itertools.repeat(-2)), int, len(f))  # ("" is no key)
 
-    def near_segments(self, sg: "Segments", allow_feature=None) -> np.ndarray:
+    def near_segments(self, sg: "Segments", allow_feature=None, feature_ids=None) -> np.ndarray:
         """Sorted sample numbers of ``sg`` where some probe/table pair may be closer than :data:`MARGIN_M`.
 
         Every other sample is provably farther than :data:`MARGIN_M` from every table
@@ -413,10 +413,14 @@ class Clearance:
         found by nearest-neighbour search (the same plan at another placement turned
         the same way, another measurement of the same work zone sharing its moves).
 
-        ``allow_feature`` (number of polylines,) of str: as in :meth:`near`, per polyline.
+        ``allow_feature`` (number of polylines,) of str: as in :meth:`near`, per polyline; or
+        ``feature_ids`` (number of polylines,) int: the same already as :meth:`feature_ids` gives them.
         """
         sg_F = Segments(self.to_frame(sg.a), self.to_frame(sg.b), sg.k, sg.m, sg.first, sg.path)
-        allow_seg = np.full(len(sg.a), -2) if allow_feature is None else self.feature_ids(allow_feature)[sg.path]
+        if feature_ids is not None:
+            allow_seg = np.asarray(feature_ids, int)[sg.path]
+        else:
+            allow_seg = np.full(len(sg.a), -2) if allow_feature is None else self.feature_ids(allow_feature)[sg.path]
         return near_segments_many([(self, sg_F, allow_seg)])[0]
 
     def box_bound(self, p_R: np.ndarray, pairs: np.ndarray) -> np.ndarray:

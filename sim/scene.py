@@ -35,7 +35,7 @@ from core.exceptions import PlanError
 from core.memo import Memo
 
 from .artefacts import Artefact, inv_T, make_T, solids_points
-from .clearance import GEOM_TYPE, Geoms, flat_path_segments, rbound, touch_polylines
+from .clearance import GEOM_TYPE, Geoms, Segments, flat_path_segments, rbound, touch_polylines
 from .probe import ProbeConfig
 
 #: A contact deeper than this counts as a collision (m).
@@ -160,7 +160,7 @@ class Scene:
         self._local = None
         self._model = self._data = self._mjcf = None
         self._model_T_W_A = None
-        self._movable = all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids)
+        self._movable = _movable(artefact)
         self.set_table(np.eye(4))
         if not self._movable:  # meshes: the broad phase reads the compiled model (the compiler re-centres them)
             self.model  # noqa: B018
@@ -394,6 +394,17 @@ def artefact_points(art: Artefact) -> np.ndarray:
 _SCENES = Memo(64)
 
 
+#: Whether an artefact's solids are all boxes, cylinders and spheres (:func:`_movable`), per artefact
+#: object (kept in the entry): :func:`scene_for` asks once per set-up of a campaign (17 x 256 solids
+#: looked at for the MFB). 64 artefacts.
+_MOVABLE = Memo(64)
+
+
+def _movable(artefact: Artefact) -> bool:
+    """True when a :class:`Scene` of ``artefact`` can be moved (:meth:`Scene.place`): no mesh solid."""
+    return all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids)
+
+
 def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
     """The :class:`Scene` of ``artefact`` at ``T_W_A`` with ``probe``: compiled once per
     artefact and probe, moved to each placement (:meth:`Scene.place`; a new one per
@@ -402,7 +413,7 @@ def scene_for(artefact: Artefact, probe: ProbeConfig, T_W_A) -> Scene:
     The table pose is whatever the last user set: set it before use.
     """
     T = np.ascontiguousarray(T_W_A, float)
-    movable = all(s.kind in ("box", "cylinder", "sphere") for s in artefact.solids)
+    movable = _MOVABLE.get_or_compute(id(artefact), lambda: _movable(artefact), owner=artefact)
     # the probe's geoms are made of these three lengths (scene_mjcf)
     key = (id(artefact), float(probe.stylus_r_m), float(probe.shank_r_m), float(probe.shank_length_m),
            None if movable else T.tobytes())
@@ -438,38 +449,92 @@ def check_touch_paths(scene: Scene, setup: str, targets, features, links, approa
     broad_phase : bool
         False: MuJoCo at every sample (the reference the tests compare with).
     """
-    n = len(targets)
-    approach = np.asarray(approach, float).reshape(n, 2, 3)
-    # the polylines in the order checked: per touch its link move (if it has one), then its
-    # approach/retract path; all their points in one array
-    try:  # (a campaign's links are all arrays: their lengths in one pass)
-        lens = np.fromiter(map(len, links), int, n)
-    except TypeError:  # some None
-        lens = np.fromiter((0 if ln is None else len(ln) for ln in links), int, n)
-    has = lens > 1
-    used = links if has.all() else [links[i] for i in np.flatnonzero(has)]
-    L = np.concatenate(used, dtype=float).reshape(-1, 3) if has.any() else np.zeros((0, 3))
-    P, n_pt, touch, is_link = touch_polylines(approach[:, 0], approach[:, 1], has, L, lens[has])
-    key = _paths_key(scene, features, has, n_pt, P, link_step_m, approach_step_m)
-    if _PASSED.get(key):
+    check_touch_paths_many([(lambda: scene, setup, targets, features, links, approach)], link_step_m,
+                           approach_step_m, broad_phase)
+
+
+def check_touch_paths_many(items, link_step_m: float = 2.0e-3, approach_step_m: float = 0.25e-3,
+                           broad_phase: bool = True) -> None:
+    """:func:`check_touch_paths` of several set-ups in turn, their polylines made and sampled at once.
+
+    ``items``: per set-up (pose, setup, targets, features, links, approach), ``pose()`` placing
+    the scene for that set-up (its placement and table) and returning it, the rest as
+    :func:`check_touch_paths` takes them. The set-ups are checked in order, each as
+    :func:`check_touch_paths` checks it alone (its scene posed, its key looked up, its broad
+    phase asked, MuJoCo at its samples left open, in path order: the first crash of the first
+    set-up that crashes is raised); only the polylines of every set-up (:func:`touch_polylines`)
+    and their segments (:func:`flat_path_segments`) are computed in one call each, every value
+    row by row, so the same numbers as one set-up at a time (a campaign's 17 set-ups: 34 calls
+    -> 2)."""
+    if not items:
         return
-    steps = np.where(is_link, link_step_m, approach_step_m)
-    allow = np.full(len(n_pt), "", dtype=object)
-    allow[~is_link] = np.asarray(features, dtype=object)
-    sg = flat_path_segments(P, n_pt, steps, joints=True)
-    if broad_phase:
-        idx = scene.clearance().near_segments(sg, allow)
+    # every set-up's polylines in the order checked: per touch its link move (if it has one),
+    # then its approach/retract path; all their points in one array
+    apps, hass, Ls, cnts = [], [], [], []
+    for _, _, targets, _, links, approach in items:
+        n = len(targets)
+        approach = np.asarray(approach, float).reshape(n, 2, 3)
+        try:  # (a campaign's links are all arrays: their lengths in one pass)
+            lens = np.fromiter(map(len, links), int, n)
+        except TypeError:  # some None
+            lens = np.fromiter((0 if ln is None else len(ln) for ln in links), int, n)
+        has = lens > 1
+        used = links if has.all() else [links[i] for i in np.flatnonzero(has)]
+        Ls.append(np.concatenate(used, dtype=float).reshape(-1, 3) if has.any() else np.zeros((0, 3)))
+        apps.append(approach), hass.append(has), cnts.append(lens[has])
+    if len(items) == 1:
+        P, n_pt, touch, is_link = touch_polylines(apps[0][:, 0], apps[0][:, 1], hass[0], Ls[0], cnts[0])
     else:
-        idx = np.arange(sg.n_samples)
-    pts, which = sg.points(idx), sg.path[sg.segment_of(idx)]
-    for k in range(len(idx)):  # in path order
-        j = which[k]
-        c = scene.collisions(pts[k], allow[j])
-        if c:
-            phase = "link move" if is_link[j] else "approach/retract path"
-            raise PlanError(f"set-up {setup!r} target {targets[touch[j]]!r}: {phase} crashes: {c[0][0]} hits "
-                            f"{c[0][1]} at {np.round(pts[k] * 1e3, 3).tolist()} mm")
-    _PASSED[key] = True
+        A = np.concatenate(apps)
+        P, n_pt, touch, is_link = touch_polylines(A[:, 0], A[:, 1], np.concatenate(hass), np.concatenate(Ls),
+                                                  np.concatenate(cnts))
+    # each set-up's polylines (its touches' and their links), points and segments (n_pt - 1 each)
+    n_t = np.array([len(h) for h in hass])
+    n_poly = n_t + np.array([int(h.sum()) for h in hass])
+    q0 = np.r_[0, np.cumsum(n_poly)]
+    t0 = np.r_[0, np.cumsum(n_t)]
+    p0 = np.r_[0, np.cumsum(n_pt)][q0]
+    s0 = np.r_[0, np.cumsum(n_pt - 1)][q0]
+    sg = None  # (every set-up's segments, sampled when a set-up is not found passed)
+    joined = {}  # the features' text of the key, per features object
+    numbered = {}  # per (broad phase's feature numbering, features object): (that numbering, the features as its numbers)
+    for j, (pose, setup, targets, features, _, _) in enumerate(items):
+        scene = pose()
+        P_j, n_pt_j, is_link_j = P[p0[j]:p0[j + 1]], n_pt[q0[j]:q0[j + 1]], is_link[q0[j]:q0[j + 1]]
+        key = _paths_key(scene, features, hass[j], n_pt_j, P_j, link_step_m, approach_step_m, joined)
+        if _PASSED.get(key):
+            continue
+        if sg is None:
+            sg = flat_path_segments(P, n_pt, np.where(is_link, link_step_m, approach_step_m), joints=True)
+        a, b = s0[j], s0[j + 1]
+        sg_j = Segments(sg.a[a:b], sg.b[a:b], sg.k[a:b], sg.m[a:b], sg.first[a:b] - sg.first[a] if a < b else sg.first[a:b],
+                        sg.path[a:b] - q0[j])
+        if broad_phase:
+            # (each polyline's allowed feature as the broad phase's number: -2 on a link, the
+            # touch's feature on an approach; the features numbered once per numbering and plan)
+            clr = scene.clearance()
+            fk = (id(clr._fid), id(features))
+            got = numbered.get(fk)
+            if got is None or got[0] is not clr._fid:
+                got = numbered[fk] = (clr._fid, clr.feature_ids(features))
+            ids = np.full(len(n_pt_j), -2)
+            ids[~is_link_j] = got[1]
+            idx = clr.near_segments(sg_j, feature_ids=ids)
+        else:
+            idx = np.arange(sg_j.n_samples)
+        if idx.size:  # (the allowed features by name, for MuJoCo)
+            allow = np.full(len(n_pt_j), "", dtype=object)
+            allow[~is_link_j] = np.asarray(features, dtype=object)
+        pts, which = sg_j.points(idx), sg_j.path[sg_j.segment_of(idx)]
+        touch_j = touch[q0[j]:q0[j + 1]] - t0[j]
+        for k in range(len(idx)):  # in path order
+            w = which[k]
+            c = scene.collisions(pts[k], allow[w])
+            if c:
+                phase = "link move" if is_link_j[w] else "approach/retract path"
+                raise PlanError(f"set-up {setup!r} target {targets[touch_j[w]]!r}: {phase} crashes: {c[0][0]} hits "
+                                f"{c[0][1]} at {np.round(pts[k] * 1e3, 3).tolist()} mm")
+        _PASSED[key] = True
 
 
 #: Digests of the path checks that found no collision in this process. A check
@@ -484,17 +549,24 @@ _PASSED = Memo(1024)
 
 
 def _paths_key(scene: Scene, features, has_link: np.ndarray, n_pt: np.ndarray, P: np.ndarray,
-               link_step_m: float, approach_step_m: float) -> bytes:
+               link_step_m: float, approach_step_m: float, joined: dict | None = None) -> bytes:
     """Digest of everything :func:`check_touch_paths` reads except the names in its messages:
     the scene, its placement and table pose, the steps, the features, and the polylines
     checked (which touches have a link move, ``has_link``; the polylines' point counts
-    ``n_pt``, links and approaches in turn; their points ``P``)."""
+    ``n_pt``, links and approaches in turn; their points ``P``). ``joined``: the features' text
+    kept per features object (its id; the caller keeps the objects alive: a campaign's set-ups
+    share one plan's)."""
     h = hashlib.blake2b(digest_size=32)
     h.update(scene.digest())  # the scene as built (artefact, probe)
     h.update(np.ascontiguousarray(scene.T_W_A, float).tobytes())  # the placement (Scene.place)
     h.update(np.ascontiguousarray(scene.table_qpos(), float).tobytes())
     h.update(np.array([link_step_m, approach_step_m, COLLISION_TOL_M]).tobytes())
-    h.update("\0".join(map(str, features)).encode() + b"\1")
+    text = None if joined is None else joined.get(id(features))
+    if text is None:
+        text = "\0".join(map(str, features)).encode() + b"\1"
+        if joined is not None:
+            joined[id(features)] = text
+    h.update(text)
     h.update(np.ascontiguousarray(has_link, bool).tobytes() + b"\1")
     h.update(np.ascontiguousarray(n_pt, np.int64).tobytes() + b"\1")
     h.update(np.ascontiguousarray(P, float).tobytes())

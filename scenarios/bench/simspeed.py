@@ -19,7 +19,9 @@ than the code before issue 19 was and the ratio errs low.
 
 Collision checks (:func:`collision_figures`): the path checks of the MFB
 campaign (``sim.scene``, timed inside the campaign run, the simulation being
-the rest of that run) and of the MFB 5-axis plan (``sim.mfb_scene``,
+the rest of that run: ``sim.campaign._PathChecker``'s ``check``, which takes each
+set-up's moves, and ``flush``, which checks them all; one run, in wall time and, since
+session 23, in this thread's CPU time too) and of the MFB 5-axis plan (``sim.mfb_scene``,
 ``scenarios.mfb.check_plan`` against the simulation of its 17 measurements),
 with the broad phase and with MuJoCo at every sample (``broad_phase=False``,
 the path before). Each in a fresh state: the first scene compiled included,
@@ -393,6 +395,45 @@ and tested against its cluster on all three axes at once; the same (row, pair) r
 order): 1,063 against 1,081 us warm, 2,404 against 2,133 us on a trimmed heap. A share of 0.20 needs
 a warm check 15-18 % cheaper; only ``near_segments_many`` (22 %) and the broad phases' builds (14 %)
 are that large, and neither has a cut of that size that keeps what they compute. The target is not met.
+
+Session 23 (issue 19 item 4, continued): the campaign's path checks at once; the plan check
+profiled, not cut. All thread CPU at load 15-31 on 2 cores (other helpers' work).
+
+The campaign's check. Before, per fresh MFB campaign (functions timed around them, 10 campaigns,
+load ~15; 15.6 ms a check with the timers): 17 ``check_touch_paths`` of which ``near_segments``
+4.9 ms (``near_segments_many`` 3.5, the certificates' ``in_order`` 1.1), ``touch_polylines`` and
+``flat_path_segments`` 1.6 ms each, ``_paths_key`` 2.6 (the scene's digest 0.9, once), the broad
+phase at each pose (``Scene.clearance``) 2.5, ``scene_for`` 0.8 (``all`` over the 256 solids, per
+set-up). What changed: ``sim.campaign._PathChecker.check`` takes each set-up's moves and ``flush``
+(after the set-ups' moves, before their touches) checks them with
+``sim.scene.check_touch_paths_many``: the polylines of every set-up in one ``touch_polylines`` and
+one ``flat_path_segments`` (every value row by row: the same numbers), then each set-up posed, looked
+up in ``_PASSED``, bounded and judged by MuJoCo in turn, as before (the same certificates from set-up
+to set-up); the plan's features numbered once per broad-phase numbering
+(``Clearance.near_segments(feature_ids=...)``), the allowed names built only when MuJoCo is asked;
+``scene_for``'s movable test kept per artefact (``_MOVABLE``). Every ``near_segments_many`` input
+and answer of the MFB campaign and of a crashing one hashed equal to the code before's (default and
+Haswell kernels), the answers and messages of 15 campaigns equal; a set-up's crash still comes before
+a later set-up's stroke error (tests/sim/test_sim_campaign.py). Measured, 8 pairs of processes side by
+side with 3751469 in alternating order (load 29-31): the check, least of 10 fresh campaigns, 15.13
+-> 10.69 ms (medians; paired 0.667-0.763, median 0.701, 8 of 8 lower), its share of the campaign's
+simulation 0.172 -> 0.123. This figure's campaign part now also in CPU
+(``col_mfb_campaign_check_cpu_s``, ``col_mfb_campaign_simulation_cpu_s``): three runs interleaved
+with 3751469's (load 23-29), the wall share 0.258, 0.347, 0.247 before and 0.211, 0.085, 0.218 after
+(one run each: the wall check 0.035-0.135 s), the CPU share after 0.155, 0.150, 0.164.
+
+The plan check, unchanged: in the same pairs least 17.53 and 17.46 ms (paired median 0.998), share
+0.230 and 0.225; in the bench runs its CPU share 0.240, 0.248, 0.245 (3751469) and 0.251, 0.243,
+0.240. Where a fresh check's CPU goes (sections timed around, 35 fresh checks, load ~15; 17.8 ms a
+check): ``_near_samples`` 11.2 ms (``near_segments_many`` 5.1, ``orientations_ahead`` 2.8, the
+distinct rows 2.2, its two loops over the measurements 2.5, ``_segments_A`` 0.9), the least clearances
+1.8, ``_paths_of`` 1.5, ``check_measurements``' first loop 1.5, ``share_ball_model`` 1.0, the links
+0.6. Not found: a cut of 25 % that keeps every value. The eleven rest broad phases of one program's
+rows have no repeated rows (11,152 rows, 11,152 distinct by ``_rest_groups``); a box filter shared by
+a placement's orientations clears only what their own boxes clear (20,923 cluster candidates for
+15,640 rows: most rows meet a box); the 13 orientations' ``Clearance`` built in one array op would
+save at most ~0.6 ms (~45 us each of their own; the pair structures, ~1.2 ms, are kept per table
+side and probe already). The target, 0.18, is not met for the plan check.
 """
 
 from __future__ import annotations
@@ -596,27 +637,37 @@ def collision_figures() -> dict:
     # the MFB campaign (sim.scene): one run with checks, the checks timed inside it (the
     # simulation is the rest), then the checks again with MuJoCo at every sample
     t_chk, t_plan, t_sim = {}, {}, None
-    real_check = campaign._PathChecker.check
+    c_chk = c_sim = None  # (the same run's check and simulation in this thread's CPU time)
+    # (the checker takes each set-up's moves, check, and checks them all at once, flush: both timed)
+    real_check, real_flush = campaign._PathChecker.check, campaign._PathChecker.flush
     for bp in (True, False):
         scene._PASSED.clear()
         scene._SCENES.clear()
-        spent = [0.0]
+        spent = [0.0, 0.0]  # wall, thread CPU
 
-        def timed(self, *a, _bp=bp, _spent=spent):
-            t0 = time.perf_counter()
-            _time_patched(scene, "check_touch_paths", _bp, lambda: real_check(self, *a))
+        def timed(self, *a, _spent=spent):
+            t0, c0 = time.perf_counter(), time.thread_time()
+            real_check(self, *a)
             _spent[0] += time.perf_counter() - t0
+            _spent[1] += time.thread_time() - c0
 
-        campaign._PathChecker.check = timed
+        def timed_flush(self, _bp=bp, _spent=spent):
+            t0, c0 = time.perf_counter(), time.thread_time()
+            _time_patched(scene, "check_touch_paths_many", _bp, lambda: real_flush(self))
+            _spent[0] += time.perf_counter() - t0
+            _spent[1] += time.thread_time() - c0
+
+        campaign._PathChecker.check, campaign._PathChecker.flush = timed, timed_flush
         try:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.thread_time()
             simulate_campaign("mfb", m, ProbeConfig(), None, np.random.default_rng(1), check_collisions=True)
-            total = time.perf_counter() - t0
+            total, c_total = time.perf_counter() - t0, time.thread_time() - c0
         finally:
-            campaign._PathChecker.check = real_check
+            campaign._PathChecker.check, campaign._PathChecker.flush = real_check, real_flush
         t_chk[bp] = spent[0]
         if t_sim is None:
             t_sim = total - spent[0]
+            c_chk, c_sim = spent[1], c_total - spent[1]
     scene._PASSED.clear()
     # the MFB 5-axis plan (sim.mfb_scene): its simulation, then check_plan with and without
     plan = S.plan_5axis()
@@ -667,6 +718,12 @@ def collision_figures() -> dict:
         "col_mfb_campaign_check_every_sample_ref_s": round(t_chk[False], 3),
         "col_mfb_campaign_check_over_simulation": round(t_chk[True] / t_sim, 3),
         "col_mfb_campaign_check_speedup": round(t_chk[False] / t_chk[True], 2),
+        # the same run's check and simulation in this thread's CPU time (time.thread_time): the wall
+        # figures above count what other processes take on a busy machine (a single run: at load ~20
+        # the campaign's check read 0.06-0.13 s wall against ~0.015 s of CPU; session 23)
+        "col_mfb_campaign_simulation_cpu_s": round(c_sim, 4),
+        "col_mfb_campaign_check_cpu_s": round(c_chk, 4),
+        "col_mfb_campaign_check_over_simulation_cpu": round(c_chk / c_sim, 3),
         "col_mfb5_simulation_s": round(t_sim5, 3),
         "col_mfb5_plan_check_s": round(t_plan[True], 3),
         "col_mfb5_plan_check_every_sample_ref_s": round(t_plan[False], 3),
@@ -762,6 +819,7 @@ REFERENCES = {
     "kin_core_tip_W_poses_per_s": "kin_fk_tight_numpy_ref_poses_per_s",
     "kin_touches_per_s": "kin_touches_per_s_pinocchio_loop_ref",
     "col_mfb_campaign_check_s": "col_mfb_campaign_simulation_s",
+    "col_mfb_campaign_check_cpu_s": "col_mfb_campaign_simulation_cpu_s",
     "col_mfb5_plan_check_s": "col_mfb5_simulation_s",
     "col_mfb5_plan_check_cpu_s": "col_mfb5_simulation_cpu_s",
     "col_mfb5_measurement_checks_s": "col_mfb5_simulation_s",
@@ -771,6 +829,7 @@ TARGETS = {
     "kin_fk_error_poses_per_s": ">= 0.5 x the tight numpy reference (issue 19 item 5)",
     "kin_touches_per_s": ">= 2 x the Pinocchio-loop path (issue 19 item 5)",
     "col_mfb_campaign_check_s": "< 0.25 x the simulation (issue 19 item 4)",
+    "col_mfb_campaign_check_cpu_s": "< 0.25 x the simulation (issue 19 item 4)",
     "col_mfb5_plan_check_s": "< 0.25 x the simulation (issue 19 item 4)",
     "col_mfb5_plan_check_cpu_s": "< 0.25 x the simulation (issue 19 item 4)",
 }

@@ -730,13 +730,15 @@ def test_measurement_paths_are_the_polylines_checked_one_by_one():
 def test_campaign_paths_are_the_polylines_checked_one_by_one(monkeypatch):
     """check_touch_paths' polylines in one array are those of the list-of-polylines version: per
     touch its link (when it has one of two points or more; none allowed), then its approach (its
-    feature allowed); the same segments bit for bit, as sim.clearance receives them."""
+    feature allowed); the same segments bit for bit, as sim.clearance receives them, and the
+    allowed features as the broad phase's numbers of those names (given numbered, session 23)."""
     from sim import scene as S
     from sim.clearance import Clearance, path_segments
 
     seen = []
-    monkeypatch.setattr(Clearance, "near_segments", lambda self, sg, allow: seen.append((sg, list(allow))) or
-                        np.zeros(0, int))
+    monkeypatch.setattr(Clearance, "near_segments", lambda self, sg, allow_feature=None, feature_ids=None:
+                        seen.append((sg, list(self.feature_ids(allow_feature)) if feature_ids is None
+                                     else list(feature_ids), self)) or np.zeros(0, int))
     art = A.cross_pocket()
     scene = Scene(art, ProbeConfig())
     rng = np.random.default_rng(9)
@@ -753,7 +755,8 @@ def test_campaign_paths_are_the_polylines_checked_one_by_one(monkeypatch):
                 paths.append((links[i], 2e-3, ""))
             paths.append((approach[i], 0.25e-3, feats[i]))
         _same_segments(seen[0][0], path_segments([p[0] for p in paths], [p[1] for p in paths], joints=True))
-        assert seen[0][1] == [p[2] for p in paths]
+        assert seen[0][1] == list(seen[0][2].feature_ids([p[2] for p in paths]))
+        assert seen[0][1].count(-2) == sum(p[2] == "" for p in paths)  # (the names known: "" alone unnumbered)
 
 
 @pytest.mark.parametrize("weigh_feature", [True, False])

@@ -103,6 +103,25 @@ def test_crashing_placement_is_refused():
         simulate_campaign(art, Translated(), ProbeConfig(), [bad], None)
 
 
+def test_a_crash_is_raised_before_a_later_set_ups_stroke_error():
+    """The path checks of a campaign's set-ups run at once after their moves (sim.campaign._PathChecker):
+    a set-up's crash is still raised before a later set-up's stroke error, and a set-up's stroke
+    error before a later set-up's crash, as when each set-up was checked in turn."""
+    from types import SimpleNamespace
+
+    class Stroked(Translated):
+        config = SimpleNamespace(strokes={"X": (-1.0, 1.0), "Y": (-1.0, 1.0), "Z": (-1.0, 1.0)})
+
+    art = A.multi_feature_bar()
+    bad = Setup("P99", A.make_T(A.rot_x(np.pi / 2), (-0.275, 0.0, 0.07)))  # (as above: a crash)
+    far = Setup("FAR", A.make_T(A.rot_x(np.pi / 2), (3.0, 0.0, 0.07)))  # (outside the X stroke)
+    with pytest.raises(PlanError, match="set-up 'P99' target 'hole01_u0': link move crashes") as e:
+        simulate_campaign(art, Stroked(), ProbeConfig(), [bad, far], None)
+    assert e.value.__context__ is None  # (raised on its own, not while the stroke error is handled)
+    with pytest.raises(PlanError, match="set-up 'FAR' target .*: X = .* is outside the stroke"):
+        simulate_campaign(art, Stroked(), ProbeConfig(), [far, bad], None)
+
+
 def test_target_too_close_to_a_corner_is_refused():
     art = A.cross_pocket()
     p = make_plan(art)
