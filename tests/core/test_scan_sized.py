@@ -114,3 +114,25 @@ def test_workpiece_without_terms_is_the_baseline_solved_once(monkeypatch):
     calls.clear()
     D._workpiece(bl, [], bl.y, np.arange(1, n), None, None)  # a row left out: the extended fit is solved
     assert len(calls) == 2
+
+
+def test_from_sparse_rows_equal_the_csc_path():
+    """core.lsq.BlockDesign.from_sparse takes the columns from the CSR rows: the CSC copy's arrays bit for bit."""
+    import scipy.sparse as sp
+
+    from core.lsq import BlockDesign
+
+    for effect, seed in (("nonrigid", 4001), ("thermal_drift", 4003)):  # 4001: two probing heights (H joined)
+        log, _ = hidden_campaign((effect,), seed)
+        t = from_log(log)
+        bl = bl_mod.planar(t, None, extra=bl_mod.extra_columns(log, t.row))
+        A = sp.csr_matrix(bl.A)
+        g = np.asarray(bl.estimand)
+        Ac = sp.csc_matrix(A)
+        D0 = Ac[:, np.setdiff1d(np.arange(A.shape[1]), g)].tocsr()
+        D0.sort_indices()
+        B = BlockDesign.from_sparse(A, g)
+        assert np.array_equal(B.ids, Ac[:, g].tocsr().indices)
+        for k in ("data", "indices", "indptr"):
+            a, b = getattr(B.D, k), getattr(D0, k)
+            assert a.dtype == b.dtype and np.array_equal(a, b)
