@@ -486,19 +486,19 @@ def drift_scans(bl):
     for deg in (1, 2, 3):
         labels = [f"{m}_P{j}" for m in _DRIFT_MODES for j in range(1, deg + 1)]
         scans.append(_one(lambda deg=deg: drift_rebuild(bl, {"degree": deg})[0], labels, {"degree": deg}, "time",
-                          rows=bl.n))
+                          rows=len(d.tau)))
     span = float(np.ptp(d.tau)) * d.span_s
     if span > 0:
         for f in DRIFT_TAU_FRACTIONS:
             info = {"form": "warm-up", "tau_s": float(f * d.span_s)}
             scans.append(_one(lambda info=info: drift_rebuild(bl, info)[0], [f"{m}_exp" for m in _DRIFT_MODES], info,
-                              "time", rows=bl.n))
+                              "time", rows=len(d.tau)))
     # a clock's course (clock_sensors): the drift shaped as a sensor that follows the time, one layout per sensor
     clocks = _clocks(d)
     for name, ci in clocks.items():
         info = {"form": "a clock sensor's course", "sensor": name, "range_K": float(np.ptp(d.temps[name])), **ci}
         scans.append(_one(lambda info=info: drift_rebuild(bl, info)[0], [f"{m}_per_K" for m in _DRIFT_MODES], info,
-                          "time", rows=bl.n))
+                          "time", rows=len(d.tau)))
     # the polynomials' three degrees, and the warm-ups' time constants over a factor 10 counted as
     # independent hypotheses every factor 1.5 (neighbouring constants' columns correlate; warm_up_scans'), a try
     # per clock sensor (as temperature_expansion counted it)
@@ -770,7 +770,7 @@ def lobing_scans(bl):
     labels = [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")]
     infos = _lobe_readings(bl)
     if len(infos) == 1:
-        return [_one(lambda: common_lobing(bl), labels, {}, "approach_azimuth", rows=bl.n)], 1.0
+        return [_one(lambda: common_lobing(bl), labels, {}, "approach_azimuth", rows=len(phi))], 1.0
     # the better of two readings is a least p-value over two trials: counted as two (Bonferroni, a bound whatever
     # their correlation; session 22 measured the max-statistic's own inflation beside gen_a and gen_b's baselines,
     # medians 1.30-1.57 at levels 0.05-0.001 (up to 1.96), growing towards smaller levels: READINGS_TRIES)
