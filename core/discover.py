@@ -266,7 +266,7 @@ from .diagnosis import (IN_SPAN, CvGap, close_pair_scatter, cv_gap, diagnose, fm
                         term_bases, tied, trials_take,
                         extends, _batch_tests, _first_largest, _nested_f_ss)
 from .exceptions import ConfigError, IdentifiabilityError
-from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, group_sums_rows, leverage, orth_of
+from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .memo import Memo, kept_on
 from .touches import Touches
 from .units import UM
@@ -7323,16 +7323,13 @@ def _constrained_schur(Ar: BlockDesign, yr, C, d, penalty, k_ext):
         pos = at[p - k_ext:]  # where the design's columns p - k_ext .. p - 1 sit in the machine block
         Pen = (V * np.maximum(w, 0)) @ V.T
         M[np.ix_(pos, pos)] += Pen
-    F = np.empty((g, m + r))  # [G^T D | Cr[:, gc]^T], the sums made in place a block of rows at a time (session 23)
-    group_sums_rows(Ar.ids, g, Ar.D, out=F[:, :m])
-    F[:, m:] = Cr[:, gc].T
+    F = np.hstack([group_sums(Ar.ids, g, Ar.D), Cr[:, gc].T])  # (g, m + r)
     H = np.zeros((m + r, m + r))
     H[:m, :m] = M
     H[:m, m:] = Cr[:, dc].T
     H[m:, :m] = Cr[:, dc]
     Fc = F / cnt[:, None]
     S = H - F.T @ Fc
-    del F  # (29 MB at 1e6 rows, read no more)
     sc = 1.0 / np.sqrt(np.maximum(np.abs(S).max(axis=1), 1e-300))  # rows and columns equilibrated (a multiplier's
     # diagonal is zero where its gauge row holds no target)
     if not np.isfinite(S).all() or np.linalg.cond(S * np.outer(sc, sc)) > SCHUR_COND_MAX:
@@ -7352,9 +7349,7 @@ def _constrained_schur(Ar: BlockDesign, yr, C, d, penalty, k_ext):
     dof = max(len(yr) - (p - r), 1)
     s2 = float(res @ res) / dof
     L = np.zeros((p, m + r))
-    for a in range(0, g, 4096):  # -Fc a block of targets at a time (the whole negated copy was a fourth (g, m + r))
-        L[gc[a:a + 4096]] = -Fc[a:a + 4096]
-    del Fc
+    L[gc] = -Fc
     L[dc, np.arange(m)] = 1.0
     dg = np.zeros(p)
     dg[gc] = 1.0 / cnt

@@ -646,37 +646,6 @@ def group_sums(ids: np.ndarray, g: int, X: np.ndarray) -> np.ndarray:
     return _dense(G @ X)
 
 
-#: Rows of a sparse block summed at a time by :func:`group_sums_rows`.
-GROUP_SUMS_ROWS = 65_536
-
-
-def group_sums_rows(ids: np.ndarray, g: int, D, out: np.ndarray | None = None) -> np.ndarray:
-    """:func:`group_sums` of a sparse CSR ``D`` (n, m) into a dense (g, m) ``out``, a block of rows at a time.
-
-    ``group_sums`` forms the (g, n) indicator matrix and the sparse product before its dense result (at the bench's
-    1e6 rows about 70 MB beside the 29 MB sums); here each row's entries are added to its id's row in row order,
-    as the sparse product adds them (from zero, the rows ascending): the same sums bit for bit
-    (``tests/core/test_scan_sized.py``). A dense ``D`` is left to ``group_sums``."""
-    if not sp.issparse(D):
-        res = group_sums(ids, g, D)
-        if out is None:
-            return res
-        out[...] = res
-        return out
-    D = sp.csr_matrix(D)
-    if out is None:
-        out = np.zeros((g, D.shape[1]))
-    else:
-        out[...] = 0.0
-    ids = np.asarray(ids)
-    for a in range(0, D.shape[0], GROUP_SUMS_ROWS):
-        b = min(a + GROUP_SUMS_ROWS, D.shape[0])
-        lo, hi = D.indptr[a], D.indptr[b]
-        rr = np.repeat(ids[a:b], np.diff(D.indptr[a:b + 1]))
-        np.add.at(out, (rr, D.indices[lo:hi]), D.data[lo:hi])
-    return out
-
-
 def _dense(X) -> np.ndarray:
     """``X`` as a dense array (a sparse matrix formed: a block of rows, a product's small result)."""
     return X.toarray() if sp.issparse(X) else np.asarray(X)

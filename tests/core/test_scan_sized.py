@@ -160,24 +160,3 @@ def test_from_sparse_traced_peak_is_about_its_machine_block():
     kept = B.D.data.nbytes + B.D.indices.nbytes + B.D.indptr.nbytes + B.ids.nbytes
     assert peak < 1.5 * kept
     assert np.array_equal(B.toarray(), A.toarray())
-
-
-def test_group_sums_rows_equal_the_sparse_product(monkeypatch):
-    """core.lsq.group_sums_rows (the workpiece fit's Schur sums of a long log) equals group_sums bit for bit, in
-    blocks of rows of any size, and writes into a given array."""
-    import scipy.sparse as sp
-
-    import core.lsq as L
-
-    rng = np.random.default_rng(5)
-    n, g, m = 5_000, 70, 40
-    ids = rng.integers(0, g, n)
-    D = sp.random(n, m, density=0.2, random_state=6, format="csr") * 1e3
-    D.data[::7] = -D.data[::7]
-    ref = L.group_sums(ids, g, D)
-    for rows in (1, 7, 4096, 1 << 20):
-        monkeypatch.setattr(L, "GROUP_SUMS_ROWS", rows)
-        out = np.full((g, m + 3), np.nan)
-        L.group_sums_rows(ids, g, D, out=out[:, :m])
-        assert np.array_equal(out[:, :m], ref) and np.isnan(out[:, m:]).all()
-        assert np.array_equal(L.group_sums_rows(ids, g, D), ref)
