@@ -435,9 +435,19 @@ def planar_covariates(d: PlanarData, sparse: bool = False) -> tuple:
 
 def _xy_basis(xs, ys):
     """Products of Legendre polynomials ``P_i(xs) P_j(ys)``, i, j >= 1, i + j <= 4."""
+    return np.column_stack(list(_xy_products(xs, ys)))
+
+
+def _xy_products(xs, ys):
+    """:func:`_xy_basis`'s columns one at a time (the same operations: the same numbers), so a caller can use
+    each without the table (at 1e6 rows the six columns are 46 MiB, and a product of them with the normals as
+    much again)."""
     P = [np.ones_like(xs), xs, (3 * xs ** 2 - 1) / 2, (5 * xs ** 3 - 3 * xs) / 2]
     R = [np.ones_like(ys), ys, (3 * ys ** 2 - 1) / 2, (5 * ys ** 3 - 3 * ys) / 2]
-    return np.column_stack([P[i] * R[j] for i in range(1, 4) for j in range(1, 4) if i + j <= 4])
+    for i in range(1, 4):
+        for j in range(1, 4):
+            if i + j <= 4:
+                yield P[i] * R[j]
 
 
 def centred_grid(p_R: np.ndarray, step_m: float) -> selfcal.Grid:
@@ -607,18 +617,19 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         if big:  # a long log's: kept as the sparse design, the block design made again for the grid chosen (one
             # dense block held at a time)
             item = [st, des, A_sparse, C, d, names, levels, None, None]
+            del A_sparse  # (held by the item while it is the best: a grid not chosen lets its design go)
         if not ident_here:
             last = IdentifiabilityError(f"grid {st:g} mm: the design leaves {nullity - np.linalg.matrix_rank(C)} "
                                         "combination(s) beyond the gauge unseen (e.g. a symmetric part at C "
                                         "angles 90 deg apart)")
             if fallback is None and not best:
                 fallback = (item, str(last))
-            del item, A, Q, qr
+            del item, A, Q, qr, des, h
             continue
         if win:
             best = [score, item, bound]
             fallback = None
-        del item, A, Q, qr
+        del item, A, Q, qr, des, h  # (the next grid's design is built without this one's, unless it is the best)
     cands = [best[1]] if best else []
     if not cands and fallback is None:
         raise IdentifiabilityError(f"no baseline: the 2D self-calibration does not meet eq 6 on grids of "
@@ -633,6 +644,10 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
     st, des, A, C, d, names, levels, qr, _ = item
     if sp.issparse(A):  # a long log's design, kept sparse while the grids were compared
         A = BlockDesign.from_sparse(A, np.arange(des.slices["G"].start, des.slices["G"].stop))
+        # the sparse design let go before the data and covariates are made (its 183 MiB at 1e6 rows were held by
+        # the grid's item and its SelfCalDesign until planar returned): what follows reads the design's names only
+        des = dataclasses.replace(des, A=None, N=None)
+        item[1] = item[2] = None
     data = planar_data(t, st * MM, extra)
     G = des.slices["G"]
     key = np.full(t.n, -1)

@@ -95,7 +95,7 @@ import numpy as np
 if TYPE_CHECKING:  # (annotations only: scipy.sparse is imported where it is used)
     import scipy.sparse
 
-from .baseline import _xy_basis  # the products the unnamed smooth in xy uses: a named field spans the same functions
+from .baseline import _xy_basis, _xy_products  # the products the unnamed smooth in xy uses: a named field spans the same functions
 from .diagnosis import TABLE_BYTES, StepTrials, scan_grid, screen_phasors
 from .memo import kept_on
 from .units import MM, UM, URAD
@@ -208,17 +208,30 @@ def _outer(modes: np.ndarray, funcs: np.ndarray) -> np.ndarray:
 ONE_SCAN_KEEP_BYTES = 16 << 20
 
 
-def _one(cols, labels, info: dict, cov: str) -> Scan:
+def _one(cols, labels, info: dict, cov: str, rows: int | None = None) -> Scan:
     """A scan of one trial, its columns ``cols`` (n, k), or a callable making them: made once here and held while
-    at most :data:`ONE_SCAN_KEEP_BYTES`, else made again (the same operations: the same numbers) at each build."""
+    at most :data:`ONE_SCAN_KEEP_BYTES`, else made again (the same operations: the same numbers) at each build.
+
+    ``rows`` (with a callable): the rows ``n`` the columns will have, one float64 column per label, so their size
+    is known without making them (at 1e6 rows the non-rigid field's were made only to learn it: 92 MiB, and its
+    temporaries as much again); each build then checks that shape."""
     if callable(cols):
         make = cols
+        if rows is not None and 8 * rows * len(labels) > ONE_SCAN_KEEP_BYTES:
+            return Scan(tuple(labels), (info,), cov, lambda idx: _one_made(_made_as(make(), rows, labels), idx))
         cols = make()
         if cols.nbytes > ONE_SCAN_KEEP_BYTES:
             del cols
             return Scan(tuple(labels), (info,), cov, lambda idx: _one_made(make(), idx))
     arr = cols[None]
     return Scan(tuple(labels), (info,), cov, lambda idx: arr[np.asarray(idx)])
+
+
+def _made_as(cols: np.ndarray, rows: int, labels) -> np.ndarray:
+    """``cols`` when they are the (rows, len(labels)) float64 columns :func:`_one` sized them as, else an error."""
+    if cols.shape != (rows, len(labels)) or cols.dtype != np.float64:
+        raise ValueError(f"a scan's columns are {cols.shape} {cols.dtype}, sized as ({rows}, {len(labels)}) float64")
+    return cols
 
 
 def _one_made(cols: np.ndarray, idx) -> np.ndarray:
@@ -472,19 +485,20 @@ def drift_scans(bl):
     scans = []
     for deg in (1, 2, 3):
         labels = [f"{m}_P{j}" for m in _DRIFT_MODES for j in range(1, deg + 1)]
-        scans.append(_one(lambda deg=deg: drift_rebuild(bl, {"degree": deg})[0], labels, {"degree": deg}, "time"))
+        scans.append(_one(lambda deg=deg: drift_rebuild(bl, {"degree": deg})[0], labels, {"degree": deg}, "time",
+                          rows=len(d.tau)))
     span = float(np.ptp(d.tau)) * d.span_s
     if span > 0:
         for f in DRIFT_TAU_FRACTIONS:
             info = {"form": "warm-up", "tau_s": float(f * d.span_s)}
             scans.append(_one(lambda info=info: drift_rebuild(bl, info)[0], [f"{m}_exp" for m in _DRIFT_MODES], info,
-                              "time"))
+                              "time", rows=len(d.tau)))
     # a clock's course (clock_sensors): the drift shaped as a sensor that follows the time, one layout per sensor
     clocks = _clocks(d)
     for name, ci in clocks.items():
         info = {"form": "a clock sensor's course", "sensor": name, "range_K": float(np.ptp(d.temps[name])), **ci}
         scans.append(_one(lambda info=info: drift_rebuild(bl, info)[0], [f"{m}_per_K" for m in _DRIFT_MODES], info,
-                          "time"))
+                          "time", rows=len(d.tau)))
     # the polynomials' three degrees, and the warm-ups' time constants over a factor 10 counted as
     # independent hypotheses every factor 1.5 (neighbouring constants' columns correlate; warm_up_scans'), a try
     # per clock sensor (as temperature_expansion counted it)
@@ -548,7 +562,7 @@ def c_drift_scans(bl):
     for deg in (1, 2):
         scans.append(_one(lambda deg=deg: _outer(rot[:, None], _legendre(s, deg)),
                           [f"ECC_in_setup_P{j}" for j in range(1, deg + 1)],
-                          {"form": "after each indexing", "degree": deg}, "time_in_setup"))
+                          {"form": "after each indexing", "degree": deg}, "time_in_setup", rows=len(rot)))
     su = np.unique(d.touches.setup)
     if su.size >= 2:
         ids = [d.touches.setup_ids[j] for j in su]
@@ -565,7 +579,7 @@ def c_drift_scans(bl):
     u = 2 * d.tau - 1
     for deg in (1, 2, 3):
         scans.append(_one(lambda deg=deg: _outer(rot[:, None], _legendre(u, deg)), [f"ECC_P{j}" for j in range(1, deg + 1)],
-                          {"form": "over the campaign", "degree": deg}, "time"))
+                          {"form": "over the campaign", "degree": deg}, "time", rows=len(rot)))
     return scans, float(len(scans))
 
 
@@ -756,7 +770,7 @@ def lobing_scans(bl):
     labels = [f"{n}{k}" for k in range(1, 5) for n in ("cos", "sin")]
     infos = _lobe_readings(bl)
     if len(infos) == 1:
-        return [_one(lambda: common_lobing(bl), labels, {}, "approach_azimuth")], 1.0
+        return [_one(lambda: common_lobing(bl), labels, {}, "approach_azimuth", rows=len(phi))], 1.0
     # the better of two readings is a least p-value over two trials: counted as two (Bonferroni, a bound whatever
     # their correlation; session 22 measured the max-statistic's own inflation beside gen_a and gen_b's baselines,
     # medians 1.30-1.57 at levels 0.05-0.001 (up to 1.96), growing towards smaller levels: READINGS_TRIES)
@@ -2032,11 +2046,17 @@ def nonrigid_scans(bl):
     xs, ys = d.xs, d.ys
     axes = _nonrigid_axes(bl)
 
-    def cols():
-        B = _xy_basis(xs, ys)
-        return np.hstack([-(d.nx if a == "X" else d.ny)[:, None] * B for a in axes])
+    def cols():  # np.hstack([-(n_a)[:, None] * _xy_basis(xs, ys) for a in axes]) a column at a time (the same
+        # products: the same numbers), without the basis and each axis' product beside the table
+        k = len(_XY_LABELS)
+        out = np.empty((len(xs), k * len(axes)))
+        for i, a in enumerate(axes):
+            m = -(d.nx if a == "X" else d.ny)
+            for j, b in enumerate(_xy_products(xs, ys)):
+                np.multiply(m, b, out=out[:, i * k + j])
+        return out
     labels = tuple(f"E{a}~{lab}" for a in axes for lab in _XY_LABELS)
-    return [_one(cols, labels, {"axes": "".join(axes)}, "xy")], 1.0
+    return [_one(cols, labels, {"axes": "".join(axes)}, "xy", rows=len(xs))], 1.0
 
 
 #: Grid points per side over which the non-rigid field's RMS and peak are taken (the probed extent's rectangle).

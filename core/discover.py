@@ -7090,7 +7090,13 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
                 pen[o:o + k] = True
             o += k
         C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen)
-    ge, ce, ee, *lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=need_maps)
+    if not E.shape[1] and P is None and len(rows) == bl.n and np.array_equal(rows, np.arange(bl.n)):
+        # nothing extends the baseline and no row is left out: the extended fit is the baseline's, the same system
+        # solved again (A1 is A0, C1 a copy of its gauge rows); at 1e6 rows it was a second normal matrix's
+        # elimination beside the first's (session 23)
+        ge, ce, ee, lin_e = gb, cb, eb, list(lin)
+    else:
+        ge, ce, ee, *lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=need_maps)
     shift = None
     if P is not None:
         # the penalty's ridge rows make every parameter formally estimable:
