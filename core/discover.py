@@ -11,7 +11,9 @@ What it does, in order, and the statistics behind each step
    ``t(1 - a / 2n, dof - 1)``, removed one at a time (at a target whose
    touches disagree, the assignment setting aside the touches that read
    more material where it fits as well, :func:`_chips_read_more`, is built
-   and off: :data:`OUTLIER_CHIPS_READ_MORE`); then judged by
+   and off: :data:`OUTLIER_CHIPS_READ_MORE`; the assignment setting aside
+   the touches its face's other targets say disagree,
+   :func:`_chips_by_likelihood`, is built: :data:`OUTLIER_CHIPS_LIKELIHOOD`); then judged by
    where they fall (:func:`concentration_p`): concentrated in a covariate
    they are a systematic effect and nothing is removed; at random they
    are dust, up to :attr:`Settings.outlier_max_frac_dust` of the rows.
@@ -2125,9 +2127,8 @@ def _target_faces(bl: Baseline, t: Touches, feats: np.ndarray) -> tuple:
     if geo is None or n_w == 0 or len(geo[0]) != n_w or tid.size == 0 or tid.max() >= n_w:
         return None, None, None, None
     P, N = np.asarray(geo[0], float), np.asarray(geo[1], float)
-    first = np.full(n_w, -1)
-    first[tid[::-1]] = np.arange(tid.size)[::-1]  # each target's first touch
-    if np.any(first < 0):
+    seen, first = np.unique(tid, return_index=True)  # each target's first touch
+    if seen.size != n_w:
         return None, None, None, None
     z = np.round(t.pn_R[first, 2], 6)
     lv, cnt = np.unique(z, return_counts=True)
