@@ -1523,6 +1523,10 @@ def _target_z(X: np.ndarray, y: np.ndarray, keep: np.ndarray, places: Places, T:
     """
     tid, col, B, grp = places.target_idx, places.target_col, places.target_basis, places.target_group
     K = keep & (tid != T)
+    has = np.bincount(tid[K], minlength=len(col)) > 0  # targets the fit sees (not T)
+    m = np.flatnonzero((grp == grp[T]) & has)
+    if m.size < 2 or m.size - np.linalg.matrix_rank(B[m], tol=1e-9 * np.linalg.norm(B[m], 2)) < 1:
+        return None  # (the face alone decides, before the fit: a pin of four targets never predicts one)
     U, S, Vt = np.linalg.svd(X[K], full_matrices=False)
     rk = int(np.sum(S > 1e-9 * S[0])) if S.size else 0
     dof = int(K.sum()) - rk
@@ -1534,7 +1538,6 @@ def _target_z(X: np.ndarray, y: np.ndarray, keep: np.ndarray, places: Places, T:
     rs = y[K] - U @ c
     s2 = float(rs @ rs) / dof
     g = theta[col]
-    has = np.bincount(tid[K], minlength=len(col)) > 0  # targets the fit sees (not T)
     ss, dd = 0.0, 0
     mine = None
     for G in np.unique(grp):
