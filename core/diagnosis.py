@@ -59,6 +59,15 @@ IN_SPAN = 1e-6
 # ---------------------------------------------------------------------------
 # linear algebra
 # ---------------------------------------------------------------------------
+def col_norms(M: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(M, axis=0)`` bit for bit: for a float64 ``M`` its own expression without the copy
+    ``M.conj()`` makes of a real array (``sqrt(add.reduce(M * M, axis=0))``, the same product in the same layout and
+    the same reduction; 33 -> 20 us for 432 x 6, session 23), any other array by numpy's."""
+    if isinstance(M, np.ndarray) and M.dtype == np.float64 and M.ndim == 2:
+        return np.sqrt(np.add.reduce(M * M, axis=0))
+    return np.linalg.norm(M, axis=0)
+
+
 def pivoted_qr(M: np.ndarray, q: bool = True):
     """The factorisation :func:`orth` cuts: ``(Q, d, M)``, pivoted QR of ``M`` with columns scaled.
 
@@ -75,7 +84,7 @@ def pivoted_qr(M: np.ndarray, q: bool = True):
     """
     if M.ndim != 2 or M.shape[1] == 0:
         return np.zeros((M.shape[0], 0)), np.zeros(0), M
-    nrm = np.linalg.norm(M, axis=0)
+    nrm = col_norms(M)
     keep = nrm > 0
     if not keep.any():
         return np.zeros((M.shape[0], 0)), np.zeros(0), M
@@ -439,7 +448,7 @@ def new_basis(Q: np.ndarray, B: np.ndarray, tol: float = IN_SPAN, inplace: bool 
     """
     if B.shape[1] == 0:
         return np.zeros((B.shape[0], 0))
-    nrm = np.linalg.norm(B, axis=0)
+    nrm = col_norms(B)
     keep = nrm > 0
     if not keep.any():
         return np.zeros((B.shape[0], 0))

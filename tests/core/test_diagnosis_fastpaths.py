@@ -57,3 +57,16 @@ def test_real_times_complex_is_the_complex_product():
     assert np.allclose(got, ref, rtol=1e-13, atol=1e-13 * np.abs(ref).max())
     Zs = np.exp(1j * rng.uniform(0, 10, size=(40, 100)))[:, ::2]  # last axis strided: the complex product itself
     assert np.array_equal(D._real_times_complex(A, Zs), A @ Zs)
+
+
+def test_col_norms_is_numpys_column_norm_bit_for_bit():
+    """Session 23's :func:`core.diagnosis.col_norms` (no ``M.conj()`` copy): numpy's ``norm(M, axis=0)`` byte for
+    byte on the layouts the engine passes (C- and F-ordered, strided views, zero and huge columns) and others."""
+    rng = np.random.default_rng(23)
+    A = rng.normal(size=(432, 60)) * np.logspace(-9, 3, 60)
+    A[:, 5] = 0.0
+    cases = [A, np.asfortranarray(A), A[:, ::3], A[::2], A[:7], rng.normal(size=(60, 432)).T, A[:, :0],
+             np.arange(12).reshape(3, 4), A.astype(np.float32), A[:, 0]]
+    for M in cases:
+        got, ref = D.col_norms(M), np.linalg.norm(M, axis=0)
+        assert got.dtype == ref.dtype and got.shape == ref.shape and got.tobytes() == ref.tobytes()
