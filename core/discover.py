@@ -5877,7 +5877,9 @@ SLIP_RIVAL_EXACT = False
 #: Whether repeats that scatter more than the baseline's whole residual can hold (the lack-of-fit F in its lower
 #: tail, below ``Settings.alpha``) are set aside as the noise floor, the residuals' scatter used as on a log
 #: without repeats: tried in session 22 and off (docs/discovery.md, "Session 22: a slip's first touch between two
-#: trials' splits": gen_b fixture_slip 201/211 -> 209/211, gen_a reseat_hysteresis three right -> wrong).
+#: trials' splits": gen_b fixture_slip 201/211 -> 209/211, gen_a reseat_hysteresis three right -> wrong). Session 23's
+#: :data:`REPEATS_STRADDLED` sets aside only the groups that scatter beyond the others (the re-seats' 1167 and 1275,
+#: every group inflated alike, keep their repeats; docs/discovery.md, "Session 23").
 REPEATS_BEYOND_FIT = False
 
 #: Whether repeat groups whose scatter is an outlying variance among the groups' (a step between two repeats of
