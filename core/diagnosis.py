@@ -1470,6 +1470,103 @@ def replicate_scatter(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None =
     return Replicates(float(res @ res), max(dof, 0), int(np.sum(cnt > 1)))
 
 
+#: The most groups :func:`straddled_groups` sets aside (its steps, each a refit of the rest): half the groups up to
+#: this many (a log of up to 101 groups is tested to half its groups; a longer one's cost stays bounded).
+STRADDLED_MAX_STEPS = 50
+
+
+def straddled_groups(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None = None,
+                     alpha: float = 0.01) -> np.ndarray:
+    """Replicate groups whose scatter is no probe's: the keys (sorted) of groups that scatter beyond the others.
+
+    Repeats of one target touched before and after a step within their
+    set-up (a fixture slip, a knock) differ by the step; the other groups'
+    scatter is the probe's. Pure error is one variance shared by every
+    group, so a group that holds a step is an outlying variance among them
+    (Cochran's problem), told by an exact test: leaving one group ``g`` out
+    of :func:`replicate_scatter` (with the same ``trend``) is the nested
+    model with one free parameter per touch of ``g``; what its contrasts
+    add, ``dss_g`` over ``ddof_g`` degrees of freedom, against the other
+    groups' ``ss - dss_g`` over ``dof - ddof_g`` is ``F(ddof_g, dof -
+    ddof_g)`` under pure Gaussian noise, independent of them. The group of
+    the smallest p-value is taken out and the test made again on the rest,
+    ``m`` steps in all (half the groups, at most
+    :data:`STRADDLED_MAX_STEPS`); each step's p-value is multiplied by the
+    groups still in and by ``m`` (Bonferroni over both), and the groups set
+    aside are those up to the last step below ``alpha`` (generalised-ESD
+    fashion: the largest step's pairs mask the next one's, which the test
+    on the rest then sees). Under pure noise it set one aside in at most
+    ``alpha`` of logs (the unit test's draws: 0.1-0.9 %). A drift or a re-seat that moves every group's
+    repeats alike is no outlying variance: it is not seen (nor meant to be).
+
+    ``dss_g`` is the deleted-group formula: ``e_g' (I - J/n_g - B_g
+    B_g')^+ e_g`` with ``e`` the scatter's residuals and ``B`` the basis of
+    the trend's within-group deviations, ``ddof_g`` that matrix's rank.
+    """
+    key = np.asarray(key)
+    ok = np.flatnonzero(key >= 0)
+    if ok.size == 0:
+        return np.zeros(0, dtype=key.dtype)
+    yy = np.asarray(y, float)[ok]
+    T = None
+    if trend is not None and np.shape(trend)[1]:
+        T = _dense(trend[ok])
+    kept = np.ones(ok.size, bool)
+    steps: list = []  # (Bonferroni p, key) of the most outlying group, then of the rest's, ...
+    max_out = min(max(int(np.sum(np.unique(key[ok], return_counts=True)[1] > 1)) // 2, 1), STRADDLED_MAX_STEPS)
+    while True:
+        k, inv, cnt = np.unique(key[ok][kept], return_inverse=True, return_counts=True)
+        multi = cnt > 1
+        if multi.sum() < 3:
+            break
+        yk = yy[kept]
+        mean = group_sums(inv, len(k), yk) / cnt
+        res = yk - mean[inv]
+        dof = int(np.sum(cnt - 1))
+        B = np.zeros((len(yk), 0))
+        if T is not None and dof:
+            Tk = T[kept]
+            Tc = Tk - (group_sums(inv, len(k), Tk) / cnt[:, None])[inv]
+            nrm = np.linalg.norm(Tc, axis=0)
+            big = nrm > 1e-9 * np.maximum(np.linalg.norm(Tk, axis=0), 1e-300)
+            if big.any():
+                B = orth(Tc[:, big])
+                res = res - B @ (B.T @ res)
+                dof -= B.shape[1]
+        ss = float(res @ res)
+        if dof < 2 or not ss > 0:
+            break
+        order = np.argsort(inv, kind="stable")
+        starts = np.concatenate([[0], np.cumsum(cnt)])
+        p_g = np.ones(len(k))
+        for n_g in np.unique(cnt[multi]):  # the groups of one size at once
+            gs = np.flatnonzero(cnt == n_g)
+            idx = order[starts[gs][:, None] + np.arange(n_g)]  # (groups, n_g) rows
+            M = np.eye(n_g) - 1.0 / n_g - np.einsum("gik,gjk->gij", B[idx], B[idx])
+            w, V = np.linalg.eigh(M)
+            pos = w > 1e-9
+            z = np.einsum("gij,gi->gj", V, res[idx])
+            dss = np.sum(np.where(pos, z ** 2 / np.where(pos, w, 1.0), 0.0), axis=1)
+            ddof = pos.sum(axis=1)
+            rest = ss - dss
+            good = (ddof > 0) & (ddof < dof)
+            F = np.where(good & (rest > 0), (dss / np.maximum(ddof, 1)) / np.maximum(rest, 1e-300)
+                         * (dof - ddof), np.inf)
+            p_g[gs] = np.where(good, stats.f.sf(F, np.maximum(ddof, 1), np.maximum(dof - ddof, 1)), 1.0)
+        g = int(np.argmin(p_g))
+        best = (float(p_g[g]), g if p_g[g] < 1.0 else -1)
+        p, g = best
+        if g < 0:
+            break
+        steps.append((p * int(multi.sum()), k[g]))
+        if len(steps) >= max_out:
+            break
+        kept &= key[ok] != k[g]
+    sig = [i for i, (pb, _) in enumerate(steps) if pb * max_out < alpha]
+    out = [kk for _, kk in steps[:sig[-1] + 1]] if sig else []
+    return np.sort(np.asarray(out, dtype=key.dtype))
+
+
 #: Repeats no further apart in time than this share of their set-up's time
 #: span are a short-term pair (:func:`close_pair_scatter`).
 CLOSE_PAIR_FRACTION = 0.05

@@ -264,7 +264,7 @@ from . import causes as causes_mod
 from . import selfcal
 from .baseline import Baseline
 from .diagnosis import (IN_SPAN, CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f,
-                        nested_f_batch, new_basis, nested_f_trials, orth, release_projections, replicate_scatter, StepTrials, take_rows,
+                        nested_f_batch, new_basis, nested_f_trials, orth, release_projections, replicate_scatter, StepTrials, straddled_groups, take_rows,
                         term_bases, tied, trials_take,
                         extends, _batch_tests, _first_largest, _nested_f_ss)
 from .exceptions import ConfigError, IdentifiabilityError
@@ -2702,15 +2702,33 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return Qb, folds, _state(Qb, y, rows_, terms)
 
     Qb, folds, st = model(rows, [])
-    rep = replicate_scatter(bl.replicate[rows], y[rows])  # the plain pure error: the lack-of-fit test's
-    # the noise: the repeats' scatter once what drifts linearly in time within a set-up is taken out (a rate
-    # per set-up, else one rate shared by the set-ups, else none: the first that leaves 10 degrees of freedom)
-    trend, rep_t = next(((k, r) for k, r in ((k, replicate_scatter(bl.replicate[rows], y[rows],
-                                                                   drift_trend(bl, rows, k == "shared", True)))
-                                              for k in ("per set-up", "shared")) if r.dof >= 10), ("none", rep))
-    sigma_rep = rep_t.sigma_m if rep_t.dof >= 10 else None
+    def repeats_of(key):
+        """(plain pure error, trend kind, the scatter after that trend) of the repeat groups ``key``."""
+        rep_ = replicate_scatter(key[rows], y[rows])  # the plain pure error: the lack-of-fit test's
+        # the noise: the repeats' scatter once what drifts linearly in time within a set-up is taken out (a rate
+        # per set-up, else one rate shared by the set-ups, else none: the first that leaves 10 degrees of freedom)
+        return (rep_,) + next(((k, r) for k, r in ((k, replicate_scatter(key[rows], y[rows],
+                                                                          drift_trend(bl, rows, k == "shared", True)))
+                                                    for k in ("per set-up", "shared")) if r.dof >= 10), ("none", rep_))
+
+    rep_key = bl.replicate  # the repeat groups whose scatter is pure error
+    rep, trend, rep_t = repeats_of(rep_key)
+    straddled = np.zeros(0, dtype=np.asarray(bl.replicate).dtype)
+    if REPEATS_STRADDLED and rep_t.dof:
+        # groups whose repeats straddle a step (their scatter an outlying variance among the groups', under the
+        # trend just chosen) are no pure error: set aside, and the choice made again on the rest
+        straddled = straddled_groups(bl.replicate[rows], y[rows],
+                                     drift_trend(bl, rows, trend == "shared", True) if trend != "none" else None,
+                                     settings.alpha)
+        if straddled.size:
+            rep_key = np.where(np.isin(bl.replicate, straddled), -1, bl.replicate)
+            rep, trend, rep_t = repeats_of(rep_key)
+    # (as beside a model's terms: at least NOISE_BEYOND_TERMS_MIN_DOF where what is set aside is shown to be more
+    # than noise, here the straddled groups)
+    sigma_rep = (rep_t.sigma_m if rep_t.dof >= 10 or (straddled.size and rep_t.dof >= NOISE_BEYOND_TERMS_MIN_DOF)
+                 else None)
     rep_of: dict = {}
-    short = _short_term(bl, rows, y, rep_t) if sigma_rep is not None else None
+    short = _short_term(bl, rows, y, rep_t, rep_key) if sigma_rep is not None else None
     if short is not None and short["used"]:
         sigma_rep = short["sigma_m"]
     elif sigma_rep is not None and REPEATS_BEYOND_FIT:
@@ -2754,8 +2772,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             # only the repeats' rows hold anything of the scatter: the rates formed dense there alone (dense on
             # every row they were rows x modes x set-ups, 2.4 GB at the bench's 1e6 rows and 100 set-ups); the
             # same values in the same order as on every row
-            rep_rows = np.flatnonzero(bl.replicate[s.rows] >= 0)
-            key_r, y_r = bl.replicate[s.rows][rep_rows], y[s.rows][rep_rows]
+            rep_rows = np.flatnonzero(rep_key[s.rows] >= 0)
+            key_r, y_r = rep_key[s.rows][rep_rows], y[s.rows][rep_rows]
             rates = (_dense(drift_trend(bl, s.rows, trend == "shared", True)[rep_rows]) if trend != "none"
                      else np.zeros((len(rep_rows), 0)))
             T = np.hstack([rates, s.Q[:, s.k_base:][rep_rows]])
@@ -3034,7 +3052,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     diag_e = diagnosis(st, bl.covariates, rows, known=_made_on(seen, st))
     E_named = _stack(terms, rows)
     gap_e = _cv_gap(folds, st, y, E_named, _penalty(terms), settings, gap_seed, sig) if terms else gap_b
-    lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(bl.replicate[rows], E_named) else None
+    lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(rep_key[rows], E_named) else None
     structure_e = _structure(diag_e, gap_e, lof_e, st, sig, settings, bl.kind)
     left = _dropped_still_significant(dropped, st, rows, y, folds, terms, sig, settings)
     if left:
@@ -3104,7 +3122,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
                          seen + [(st, diag_e)], fixed=fixed, confounded=confounded,
-                         repeats=_repeats_beyond_residual(bl.replicate[rows], st, settings), folds=folds)
+                         repeats=_repeats_beyond_residual(rep_key[rows], st, settings), folds=folds)
     E_all = _stack(terms, rows)
     cv_e, held_e = _held_out(folds, y[rows], bl.groups[rows], E_all, _penalty(terms)) if terms else (cv_b, held_b)
     outliers = np.setdiff1d(all_rows, rows)
@@ -3203,7 +3221,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         baseline=bl, baseline_rms_um=float(np.sqrt(st0.rss / N)) / UM, baseline_cv_rms_um=float(np.sqrt(cv_b)) / UM,
         baseline_n_params=int(Qall.shape[1]), findings=tuple(findings), extended_model=model_name,
         extended_rms_um=float(np.sqrt(st.rss / len(rows))) / UM, extended_cv_rms_um=float(np.sqrt(cv_e)) / UM,
-        noise=_noise_report(rep_t, rep, trend, st0, gap_b, lof_b, noise_of(st), short),
+        noise=_noise_report(rep_t, rep, trend, st0, gap_b, lof_b, noise_of(st), short, straddled.size),
         diagnosis=tuple(dataclasses.replace(d, basis=None) for d in diag_b),  # (the bases served this run's tests)
         diagnosis_extended=tuple(dataclasses.replace(d, basis=None) for d in diag_e), workpiece=tuple(wp),
         outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
@@ -3503,7 +3521,7 @@ def short_term_test(rep, pairs) -> tuple[float, float]:
     return float(F), float(stats.f.sf(F, rep.dof - pairs.dof, pairs.dof))
 
 
-def _short_term(bl: Baseline, rows: np.ndarray, y: np.ndarray, rep) -> dict | None:
+def _short_term(bl: Baseline, rows: np.ndarray, y: np.ndarray, rep, key: np.ndarray | None = None) -> dict | None:
     """The short-term repeatability, and whether it replaces the repeats' scatter as the noise.
 
     Repeats touched one right after the other
@@ -3530,7 +3548,8 @@ def _short_term(bl: Baseline, rows: np.ndarray, y: np.ndarray, rep) -> dict | No
     cov = bl.covariate("time")
     if cov is None:
         return None
-    cp = close_pair_scatter(bl.replicate[rows], y[rows], np.asarray(cov.values, float)[rows], bl.groups[rows])
+    key = bl.replicate if key is None else key  # (the repeat groups that are pure error: every one, else as given)
+    cp = close_pair_scatter(key[rows], y[rows], np.asarray(cov.values, float)[rows], bl.groups[rows])
     if not cp.dof or not rep.dof:
         return None
     F, p = short_term_test(rep, cp)
@@ -3538,8 +3557,9 @@ def _short_term(bl: Baseline, rows: np.ndarray, y: np.ndarray, rep) -> dict | No
             "used": bool(cp.dof >= SHORT_TERM_MIN_PAIRS and p < SHORT_TERM_ALPHA)}
 
 
-def _noise_report(rep, rep_plain, trend, st0, gap, lof, used_noise, short=None) -> dict:
-    """``used_noise``: (sigma, method, dof) of the noise the final model was judged with."""
+def _noise_report(rep, rep_plain, trend, st0, gap, lof, used_noise, short=None, straddled: int = 0) -> dict:
+    """``used_noise``: (sigma, method, dof) of the noise the final model was judged with; ``straddled``: the repeat
+    groups set aside as holding a step (:data:`REPEATS_STRADDLED`), said only where there are some."""
     used = short is not None and short["used"]
     sigma, method, dof = used_noise
     out = {"sigma_um": sigma / UM, "method": method, "dof": int(dof),
@@ -3550,6 +3570,8 @@ def _noise_report(rep, rep_plain, trend, st0, gap, lof, used_noise, short=None) 
            "in_sample": {"sigma_um": st0.sigma / UM, "dof": st0.dof},
            "cv_gap": {"sigma_cv_um": gap.sigma_cv_m / UM, "ratio": gap.ratio, "expected_ratio": gap.expected,
                       "p_value": gap.p_value, "draws": gap.draws}}
+    if straddled:
+        out["repeats"]["straddled_groups"] = int(straddled)
     if short is not None:
         out["short_term"] = {"sigma_um": short["sigma_m"] / UM, "dof": short["dof"], "targets": short["targets"],
                              "F_repeats_over_short": short["F"], "p_value": short["p_value"], "used": used}
@@ -6100,8 +6122,15 @@ SLIP_RIVAL_EXACT = False
 #: Whether repeats that scatter more than the baseline's whole residual can hold (the lack-of-fit F in its lower
 #: tail, below ``Settings.alpha``) are set aside as the noise floor, the residuals' scatter used as on a log
 #: without repeats: tried in session 22 and off (docs/discovery.md, "Session 22: a slip's first touch between two
-#: trials' splits": gen_b fixture_slip 201/211 -> 209/211, gen_a reseat_hysteresis three right -> wrong).
+#: trials' splits": gen_b fixture_slip 201/211 -> 209/211, gen_a reseat_hysteresis three right -> wrong). Session 23's
+#: :data:`REPEATS_STRADDLED` sets aside only the groups that scatter beyond the others (the re-seats' 1167 and 1275,
+#: every group inflated alike, keep their repeats; docs/discovery.md, "Session 23").
 REPEATS_BEYOND_FIT = False
+
+#: Whether repeat groups whose scatter is an outlying variance among the groups' (a step between two repeats of
+#: one target: :func:`core.diagnosis.straddled_groups`, at ``Settings.alpha``) are set aside from the repeats the
+#: noise floor and the lack-of-fit test take as pure error (session 23, docs/discovery.md).
+REPEATS_STRADDLED = True
 
 #: Whether the slip that refuses a workpiece-local cause must be seen off that cause's feature to refuse it
 #: (:func:`_slip_off_feature`; docs/discovery.md, session 21); where it is not, the cause is named, ambiguous.
