@@ -6310,6 +6310,11 @@ def _repeats_beyond_residual(key: np.ndarray, st: _State, settings) -> dict | No
 #: :data:`core.causes.PRETRAVEL_ALONG`: the data chose the better-fitting one) take a U95 that carries the
 #: choice (:func:`_reading_u95`, session 22); False: the chosen reading's as if it were known, as before.
 READING_U95 = True
+#: The weight of the other reading above which a magnitude it leaves free (undetermined, or a norm only bounded
+#: below) gets no U95 (:func:`_reading_u95`; session 23 review): the mixture's 95 % interval is bounded only where
+#: the chosen reading alone can hold 0.95 of it, ``(1 - w_o) >= 0.95``. At or below it the chosen reading's U95
+#: stands (its coverage in the mixture at least ``0.9545 (1 - w_o)``, 0.907 at the level).
+READING_FREE_WEIGHT = 0.05
 
 
 def _other_reading(bl, tm: Term):
@@ -6416,7 +6421,7 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     D = float(np.sum((Uc.T @ so.r) ** 2) - np.sum((Uo.T @ so.r) ** 2))
     k_c, k_o = Uc.shape[1], Uo.shape[1]
     w_o = float(special.expit(-D / (2 * sigma ** 2) + (k_c - k_o)))  # (Akaike's weight: -AIC / 2 = -RSS / 2s^2 - k)
-    new, grown, floors, refused = dict(u95), [], [], []
+    new, grown, floors, refused, free = dict(u95), [], [], [], []
     for key, v in vals.items():
         if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
             continue
@@ -6425,9 +6430,16 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
             continue
         if vo is not None and uo is not None:
             u = 2 * float(np.sqrt((1 - w_o) * (uc / 2) ** 2 + w_o * ((uo / 2) ** 2 + (float(vo) - float(v)) ** 2)))
+        elif w_o > READING_FREE_WEIGHT:
+            # the other reading leaves the magnitude free (undetermined, or only bounded below): the mixture's 95 %
+            # interval cannot be bounded, the chosen reading alone holding less than 0.95 of it (session 23 review)
+            new[key] = None
+            free.append(key)
+            continue
         elif key in lower_o:
-            # the other reading's amplitude is at least lower_o[key] (a coefficient of its pair held or unseen): the
-            # mixture's second moment about v is at least w_o (lower - v)^2 where the bound lies above v (Jensen)
+            # (a free reading of negligible weight) the other reading's amplitude is at least lower_o[key] (a
+            # coefficient of its pair held or unseen): the mixture's second moment about v is at least
+            # w_o (lower - v)^2 where the bound lies above v (Jensen)
             u = 2 * float(np.sqrt((1 - w_o) * (uc / 2) ** 2 + w_o * max(lower_o[key] - float(v), 0.0) ** 2))
             floors.append(key)
         else:
@@ -6443,6 +6455,7 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
             "other_u95": {k: v for k, v in u95_o.items() if k in vals},
             **({"other_lower_bounds": {k: lower_o[k] for k in floors}} if floors else {}),
             **({"wider_than_range": refused} if refused else {}),
+            **({"free_in_other": free} if free else {}),
             "u95_chosen": {k: u95[k] for k in grown}, "carried_in_u95": grown, "u95": new}
 
 
@@ -6504,6 +6517,14 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                                       "wider than its plausible range)" for k in reading["wider_than_range"])
                 for k in reading["wider_than_range"]:
                     vals[k], u95[k] = None, None
+            if reading.get("free_in_other"):
+                # the other reading, of weight above READING_FREE_WEIGHT, leaves the magnitude free: no U95 (the
+                # value is the chosen reading's), the finding named at most ambiguous (session 23 review)
+                free_note = "; ".join(
+                    f"{k} = {vals[k]:.3g} um in the reading chosen, free in the other (weight "
+                    f"{reading['weight_other']:.3g} > {READING_FREE_WEIGHT:g}): no U95 across the two pre-travel readings"
+                    for k in reading["free_in_other"])
+                wide_note = "; ".join(x for x in (wide_note, free_note) if x)
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)

@@ -57,3 +57,40 @@ def test_1_the_other_reading_measures_what_its_fitted_combinations_see():
         assert r["other_values"][key] == pytest.approx(amp, rel=1e-9)
         assert r["other_u95"][key] is not None and key not in r.get("other_lower_bounds", {})
     assert r["other_values"]["k1_amplitude_um"] is None  # (the held first harmonic is still no estimate)
+
+
+def _weight(args):
+    """Akaike's weight of the other reading from the direct fits (each reading's combinations its determined ones
+    here: cut by their count of columns, 8 chosen, 6 other on gen_b read along the approach)."""
+    cause, bl, tm, so, rows, vals, u95, sig = args[:8]
+    C = D._other_reading(bl, tm)[1]
+    _, ss_c = _direct(args, tm.columns)
+    Eo = C[rows] @ tm.map
+    Eo = Eo - so.Q @ (so.Q.T @ Eo)
+    s = np.linalg.svd(Eo / np.linalg.norm(Eo, axis=0), compute_uv=False)
+    k_o = int(np.sum(s > 1e-2))
+    U = np.linalg.svd(Eo, full_matrices=False)[0][:, :k_o]
+    ss_o = float(np.sum((U.T @ so.r) ** 2))
+    return 1.0 / (1.0 + np.exp((ss_c - ss_o) / (2 * sig ** 2) - (tm.map.shape[1] - k_o)))
+
+
+@pytest.mark.parametrize("seed, free", [(1276, True), (1253, False)])
+def test_2_a_magnitude_the_other_reading_leaves_free_has_no_u95_at_a_material_weight(seed, free):
+    """(2) gen_b probe_lobing 1276 and 1253, read along the approach: k1 is the chosen reading's (3.53 and 2.22 um),
+    the normal reading leaves it in the baseline. At weight 0.081 (1276, above READING_FREE_WEIGHT = 0.05) the
+    mixture's 95 % interval cannot be bounded: no U95, said in ``magnitude_undetermined`` (before: 3.527 +- 3.527 um
+    reported as if the other reading agreed). At 0.048 (1253) the chosen U95 stands."""
+    args, r, rep = _call(gen_b, seed)
+    f = _finding(rep)
+    key = "k1_amplitude_um"
+    assert f["params"]["pretravel_along"] == "approach" and r["other_values"][key] is None
+    w = _weight(args)
+    assert r["weight_other"] == pytest.approx(w, rel=1e-6)
+    assert (w > D.READING_FREE_WEIGHT) == free
+    assert f["params"][key] == pytest.approx(args[5][key])
+    if free:
+        assert f["params_u95"][key] is None and r["free_in_other"] == [key]
+        assert f"{key} = " in f["evidence"]["magnitude_undetermined"]
+        assert f["evidence"]["confidence"] == "ambiguous"
+    else:
+        assert f["params_u95"][key] == pytest.approx(args[6][key], rel=1e-12) and "free_in_other" not in r
