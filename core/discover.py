@@ -6400,7 +6400,10 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     # other reading determines beside so. (Its own combinations on gen_b held the first harmonic the normal
     # reading leaves in the baseline: two columns of anything else counted for it; the session 22 review.)
     Ec, Eo = tm.columns[rows] @ tm.map, C[rows] @ tm.map
-    sub = _determined(so.Q, Eo, settings.vif_max)[0]
+    # the penalised terms of the model (an adopted nonrigid), beside which _magnitudes fits both readings and judges
+    # their weak directions: the same Gram matrix for the counting cut (session 23 review)
+    pen = _pen_of(others, rows) if folds is not None else None
+    sub = _determined(so.Q, Eo, np.inf, pen)[0]
     if sub.shape[1] == 0:
         return None
     Mo = tm.map @ sub
@@ -6415,7 +6418,10 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     # each reading's count k by one cut: the directions _determined keeps beside so (before, the other reading's by
     # _determined's WEAK_SV, 1e-2, and the chosen reading's by new_basis's, 1e-5: a direction between the two counted
     # once for the chosen reading alone, and the weight favoured the other by e per such direction; session 23)
-    sub_c = _determined(so.Q, Ec, settings.vif_max)[0]
+    # (no refusal by vif_max for counting, in either reading: a chosen reading whose best direction is inflated
+    # beyond it counted k_c = 0 and gave w_o = 1, its own columns ignored; the session 23 review. The count is of
+    # the directions the data determine, WEAK_SV's cut; the term was adopted by its own tests)
+    sub_c = _determined(so.Q, Ec, np.inf, pen)[0]
     Uc = new_basis(so.Q, Ec if sub_c.shape[1] == Ec.shape[1] else Ec @ sub_c)
     Uo = new_basis(so.Q, C[rows] @ Mo)
     D = float(np.sum((Uc.T @ so.r) ** 2) - np.sum((Uo.T @ so.r) ** 2))

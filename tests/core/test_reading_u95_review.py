@@ -94,3 +94,23 @@ def test_2_a_magnitude_the_other_reading_leaves_free_has_no_u95_at_a_material_we
         assert f["evidence"]["confidence"] == "ambiguous"
     else:
         assert f["params_u95"][key] == pytest.approx(args[6][key], rel=1e-12) and "free_in_other" not in r
+
+
+def test_3_a_chosen_reading_inflated_beyond_vif_max_is_still_counted():
+    """(3) gen_a probe_lobing 1023 with ``vif_max`` between the two readings' best inflations (1.32305 chosen,
+    1.32270 other): _determined refused the chosen reading and counted k_c = 0 against 8, giving w_o = 1.0. The
+    count is of the determined directions (8 labels, every one determined: 8 and 8), and the weight that of the
+    direct fits."""
+    args, r0, _ = _call(gen_a, 1023)
+    cause, bl, tm, so, rows, vals, u95, sig, settings, folds, others = args
+    C = D._other_reading(bl, tm)[1]
+    vc = D._determined(so.Q, tm.columns[rows] @ tm.map, np.inf)[1]
+    vo = D._determined(so.Q, C[rows] @ tm.map, np.inf)[1]
+    assert vc > vo
+    s2 = dataclasses.replace(settings, vif_max=float(np.sqrt(vc * vo)))
+    r = D._reading_u95(cause, bl, tm, so, rows, vals, u95, sig, s2, None, others)
+    assert r["columns"] == [8, 8]
+    _, ss_c = _direct(args, tm.columns)
+    _, ss_o = _direct(args, C)
+    assert r["weight_other"] == pytest.approx(1.0 / (1.0 + np.exp((ss_c - ss_o) / (2 * sig ** 2))), rel=1e-6)
+    assert 0.3 < r["weight_other"] < 0.5
