@@ -6385,12 +6385,23 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     unnamed smooth is). A magnitude the other reading does not determine
     and holds no bound of is not carried (its U95 the chosen reading's).
 
+    The session 23 review's mends: the other reading's weak directions are
+    looked for within the combinations it is fitted in (``held``); a
+    magnitude it leaves free (undetermined, or a norm bounded below only)
+    gets no U95 where its weight ``w_o`` exceeds
+    :data:`READING_FREE_WEIGHT` (``"free_in_other"``; the mixture's 95 %
+    interval is unbounded there), the chosen U95 (with the floor of a lower
+    bound) standing at or below it; both counts are made without the
+    ``vif_max`` refusal (a chosen reading refused there counted ``k_c = 0``
+    and gave ``w_o = 1``) and beside the model's penalised terms, as
+    :func:`_magnitudes`' weak test is.
+
     Returns None where the term has no other reading (approaches along the
     normal: one reading), else ``{"other": its reading, "explained_gap_um2": D,
     "columns": [k_c, k_o], "weight_other": w_o, "other_values": .., "other_u95": .., "u95_chosen": .., "carried_in_u95":
     [keys whose U95 grew], "u95": the new U95 dict}``, with ``"other_lower_bounds"`` (the norms that entered by their
-    lower bound) and ``"wider_than_range"`` (the keys whose carried U95 is wider than their plausible range: the
-    report gives them no value) where there are any.
+    lower bound), ``"wider_than_range"`` (the keys whose carried U95 is wider than their plausible range: the
+    report gives them no value) and ``"free_in_other"`` (the keys given no U95) where there are any.
     """
     got = _other_reading(bl, tm)
     if got is None or not (sigma > 0):
