@@ -5424,9 +5424,20 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         weak = Vt[sv < WEAK_SV]
     if held and M.shape[1] < k_all:
         # the directions the map holds at 0, in the same normalised coordinates as weak's (c_j = v_j / nrm_j): the
-        # complement of the map's span there
+        # complement of the map's span there. The directions the data cannot see are looked for within the map's
+        # span only, where the term is fitted (before, over all the labels: a direction weak outside the span but
+        # leaning on a held one sent gen_b probe_lobing 1294's other-reading k3 and k4 to their lower bounds, though
+        # that reading measures them, 1.997 +- 0.758 and 0.024 +- 0.088 um; the session 23 review)
         Uh, sh, _ = np.linalg.svd(nrm[:, None] * M, full_matrices=True)
-        weak = np.vstack([weak, Uh[:, int(np.sum(sh > 1e-12 * max(sh.max(initial=0.0), 1e-300))):].T])
+        rk = int(np.sum(sh > 1e-12 * max(sh.max(initial=0.0), 1e-300)))
+        B = Uh[:, :rk]
+        if pen is not None:
+            w, V = np.linalg.eigh(B.T @ _gram_beside(Pn, Qo, pen) @ B)
+            weak = (B @ V[:, np.sqrt(np.maximum(w, 0.0)) < WEAK_SV]).T
+        else:
+            _, sv, Vt = np.linalg.svd(Pn @ B, full_matrices=False)
+            weak = Vt[sv < WEAK_SV] @ B.T
+        weak = np.vstack([weak, Uh[:, rk:].T])
     u95, out = {}, {}
     norms = getattr(cause, "norms", None)  # (a cause-like record without the field: none)
     for key, v in vals.items():
@@ -6558,6 +6569,11 @@ def _repeats_beyond_residual(key: np.ndarray, st: _State, settings) -> dict | No
 #: :data:`core.causes.PRETRAVEL_ALONG`: the data chose the better-fitting one) take a U95 that carries the
 #: choice (:func:`_reading_u95`, session 22); False: the chosen reading's as if it were known, as before.
 READING_U95 = True
+#: The weight of the other reading above which a magnitude it leaves free (undetermined, or a norm only bounded
+#: below) gets no U95 (:func:`_reading_u95`; session 23 review): the mixture's 95 % interval is bounded only where
+#: the chosen reading alone can hold 0.95 of it, ``(1 - w_o) >= 0.95``. At or below it the chosen reading's U95
+#: stands (its coverage in the mixture at least ``0.9545 (1 - w_o)``, 0.907 at the level).
+READING_FREE_WEIGHT = 0.05
 
 
 def _other_reading(bl, tm: Term):
@@ -6628,12 +6644,23 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     unnamed smooth is). A magnitude the other reading does not determine
     and holds no bound of is not carried (its U95 the chosen reading's).
 
+    The session 23 review's mends: the other reading's weak directions are
+    looked for within the combinations it is fitted in (``held``); a
+    magnitude it leaves free (undetermined, or a norm bounded below only)
+    gets no U95 where its weight ``w_o`` exceeds
+    :data:`READING_FREE_WEIGHT` (``"free_in_other"``; the mixture's 95 %
+    interval is unbounded there), the chosen U95 (with the floor of a lower
+    bound) standing at or below it; both counts are made without the
+    ``vif_max`` refusal (a chosen reading refused there counted ``k_c = 0``
+    and gave ``w_o = 1``) and beside the model's penalised terms, as
+    :func:`_magnitudes`' weak test is.
+
     Returns None where the term has no other reading (approaches along the
     normal: one reading), else ``{"other": its reading, "explained_gap_um2": D,
     "columns": [k_c, k_o], "weight_other": w_o, "other_values": .., "other_u95": .., "u95_chosen": .., "carried_in_u95":
     [keys whose U95 grew], "u95": the new U95 dict}``, with ``"other_lower_bounds"`` (the norms that entered by their
-    lower bound) and ``"wider_than_range"`` (the keys whose carried U95 is wider than their plausible range: the
-    report gives them no value) where there are any.
+    lower bound), ``"wider_than_range"`` (the keys whose carried U95 is wider than their plausible range: the
+    report gives them no value) and ``"free_in_other"`` (the keys given no U95) where there are any.
     """
     got = _other_reading(bl, tm)
     if got is None or not (sigma > 0):
@@ -6643,7 +6670,10 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     # other reading determines beside so. (Its own combinations on gen_b held the first harmonic the normal
     # reading leaves in the baseline: two columns of anything else counted for it; the session 22 review.)
     Ec, Eo = tm.columns[rows] @ tm.map, C[rows] @ tm.map
-    sub = _determined(so.Q, Eo, settings.vif_max)[0]
+    # the penalised terms of the model (an adopted nonrigid), beside which _magnitudes fits both readings and judges
+    # their weak directions: the same Gram matrix for the counting cut (session 23 review)
+    pen = _pen_of(others, rows) if folds is not None else None
+    sub = _determined(so.Q, Eo, np.inf, pen)[0]
     if sub.shape[1] == 0:
         return None
     Mo = tm.map @ sub
@@ -6658,13 +6688,16 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
     # each reading's count k by one cut: the directions _determined keeps beside so (before, the other reading's by
     # _determined's WEAK_SV, 1e-2, and the chosen reading's by new_basis's, 1e-5: a direction between the two counted
     # once for the chosen reading alone, and the weight favoured the other by e per such direction; session 23)
-    sub_c = _determined(so.Q, Ec, settings.vif_max)[0]
+    # (no refusal by vif_max for counting, in either reading: a chosen reading whose best direction is inflated
+    # beyond it counted k_c = 0 and gave w_o = 1, its own columns ignored; the session 23 review. The count is of
+    # the directions the data determine, WEAK_SV's cut; the term was adopted by its own tests)
+    sub_c = _determined(so.Q, Ec, np.inf, pen)[0]
     Uc = new_basis(so.Q, Ec if sub_c.shape[1] == Ec.shape[1] else Ec @ sub_c)
     Uo = new_basis(so.Q, C[rows] @ Mo)
     D = float(np.sum((Uc.T @ so.r) ** 2) - np.sum((Uo.T @ so.r) ** 2))
     k_c, k_o = Uc.shape[1], Uo.shape[1]
     w_o = float(special.expit(-D / (2 * sigma ** 2) + (k_c - k_o)))  # (Akaike's weight: -AIC / 2 = -RSS / 2s^2 - k)
-    new, grown, floors, refused = dict(u95), [], [], []
+    new, grown, floors, refused, free = dict(u95), [], [], [], []
     for key, v in vals.items():
         if not (isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)):
             continue
@@ -6673,9 +6706,16 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
             continue
         if vo is not None and uo is not None:
             u = 2 * float(np.sqrt((1 - w_o) * (uc / 2) ** 2 + w_o * ((uo / 2) ** 2 + (float(vo) - float(v)) ** 2)))
+        elif w_o > READING_FREE_WEIGHT:
+            # the other reading leaves the magnitude free (undetermined, or only bounded below): the mixture's 95 %
+            # interval cannot be bounded, the chosen reading alone holding less than 0.95 of it (session 23 review)
+            new[key] = None
+            free.append(key)
+            continue
         elif key in lower_o:
-            # the other reading's amplitude is at least lower_o[key] (a coefficient of its pair held or unseen): the
-            # mixture's second moment about v is at least w_o (lower - v)^2 where the bound lies above v (Jensen)
+            # (a free reading of negligible weight) the other reading's amplitude is at least lower_o[key] (a
+            # coefficient of its pair held or unseen): the mixture's second moment about v is at least
+            # w_o (lower - v)^2 where the bound lies above v (Jensen)
             u = 2 * float(np.sqrt((1 - w_o) * (uc / 2) ** 2 + w_o * max(lower_o[key] - float(v), 0.0) ** 2))
             floors.append(key)
         else:
@@ -6691,6 +6731,7 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
             "other_u95": {k: v for k, v in u95_o.items() if k in vals},
             **({"other_lower_bounds": {k: lower_o[k] for k in floors}} if floors else {}),
             **({"wider_than_range": refused} if refused else {}),
+            **({"free_in_other": free} if free else {}),
             "u95_chosen": {k: u95[k] for k in grown}, "carried_in_u95": grown, "u95": new}
 
 
@@ -6752,6 +6793,14 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                                       "wider than its plausible range)" for k in reading["wider_than_range"])
                 for k in reading["wider_than_range"]:
                     vals[k], u95[k] = None, None
+            if reading.get("free_in_other"):
+                # the other reading, of weight above READING_FREE_WEIGHT, leaves the magnitude free: no U95 (the
+                # value is the chosen reading's), the finding named at most ambiguous (session 23 review)
+                free_note = "; ".join(
+                    f"{k} = {vals[k]:.3g} um in the reading chosen, free in the other (weight "
+                    f"{reading['weight_other']:.3g} > {READING_FREE_WEIGHT:g}): no U95 across the two pre-travel readings"
+                    for k in reading["free_in_other"])
+                wide_note = "; ".join(x for x in (wide_note, free_note) if x)
         if tm.evidence.get("magnitudes_not_determined"):
             # the design does not determine the cause's magnitudes: none is reported
             # (a value computed from the determined directions alone means nothing)
