@@ -1459,12 +1459,9 @@ def replicate_scatter(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None =
     res = yy - mean[inv]
     dof = int(np.sum(cnt - 1))
     if trend is not None and trend.shape[1] and dof:
-        T = _dense(trend[ok])  # (a sparse trend: its repeated rows formed, the same values)
-        Tc = T - (group_sums(inv, len(k), T) / cnt[:, None])[inv]
-        nrm = np.linalg.norm(Tc, axis=0)
-        big = nrm > 1e-9 * np.maximum(np.linalg.norm(T, axis=0), 1e-300)
-        if big.any():
-            B = orth(Tc[:, big])
+        # (a sparse trend: its repeated rows formed, the same values)
+        B = _trend_within(_dense(trend[ok]), inv, len(k), cnt)
+        if B.shape[1]:
             res = res - B @ (B.T @ res)
             dof -= B.shape[1]
     return Replicates(float(res @ res), max(dof, 0), int(np.sum(cnt > 1)))
@@ -1473,6 +1470,17 @@ def replicate_scatter(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None =
 #: The most groups :func:`straddled_groups` sets aside (its steps, each a refit of the rest): half the groups up to
 #: this many (a log of up to 101 groups is tested to half its groups; a longer one's cost stays bounded).
 STRADDLED_MAX_STEPS = 50
+
+
+def _trend_within(T: np.ndarray, inv: np.ndarray, g: int, cnt: np.ndarray) -> np.ndarray:
+    """(n, r) orthonormal basis of a time trend's variation within the repeat groups: ``T``'s columns less their
+    group means (``inv`` each row's group of ``g``, ``cnt`` their sizes), those that vanish within the groups
+    dropped; (n, 0) where none is left. What :func:`replicate_scatter` and :func:`straddled_groups` take out of
+    the repeats' residuals beside their means."""
+    Tc = T - (group_sums(inv, g, T) / cnt[:, None])[inv]
+    nrm = np.linalg.norm(Tc, axis=0)
+    big = nrm > 1e-9 * np.maximum(np.linalg.norm(T, axis=0), 1e-300)
+    return orth(Tc[:, big]) if big.any() else np.zeros((len(T), 0))
 
 
 def straddled_groups(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None = None,
@@ -1525,12 +1533,8 @@ def straddled_groups(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None = 
         dof = int(np.sum(cnt - 1))
         B = np.zeros((len(yk), 0))
         if T is not None and dof:
-            Tk = T[kept]
-            Tc = Tk - (group_sums(inv, len(k), Tk) / cnt[:, None])[inv]
-            nrm = np.linalg.norm(Tc, axis=0)
-            big = nrm > 1e-9 * np.maximum(np.linalg.norm(Tk, axis=0), 1e-300)
-            if big.any():
-                B = orth(Tc[:, big])
+            B = _trend_within(T[kept], inv, len(k), cnt)
+            if B.shape[1]:
                 res = res - B @ (B.T @ res)
                 dof -= B.shape[1]
         ss = float(res @ res)
