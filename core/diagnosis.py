@@ -1556,7 +1556,9 @@ def straddled_groups(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None = 
             good = (ddof > 0) & (ddof < dof)
             F = np.where(good & (rest > 0), (dss / np.maximum(ddof, 1)) / np.maximum(rest, 1e-300)
                          * (dof - ddof), np.inf)
-            p_g[gs] = np.where(good, stats.f.sf(F, np.maximum(ddof, 1), np.maximum(dof - ddof, 1)), 1.0)
+            # (special.fdtrc: stats.f.sf's own function without its argument handling, 40 -> 1.2 us a call;
+            # F = inf -> 0 and F = 0 -> 1 as there)
+            p_g[gs] = np.where(good, special.fdtrc(np.maximum(ddof, 1), np.maximum(dof - ddof, 1), F), 1.0)
         g = int(np.argmin(p_g))
         best = (float(p_g[g]), g if p_g[g] < 1.0 else -1)
         p, g = best
