@@ -283,3 +283,24 @@ def test_block_basis_span_columns_cannot_be_taken():
     with pytest.raises(ConfigError, match=f"k >= {Q.shape[1]}"):
         Q[:, Q.k:]
     assert np.hstack([A, np.zeros((A.shape[0], 0))]) is A
+
+
+def test_group_sums_of_a_dense_block_are_the_indicator_products_bit_for_bit():
+    """core.lsq.group_sums sums a dense (n, k) block per id by one bincount over (id, column) cells (session 23):
+    the sums must be the indicator block's CSR product's bit for bit (each cell summed from 0 in row order), over
+    ids that skip groups, magnitudes 1e-8-1e8 (where the order of the additions shows), C and Fortran layouts."""
+    from core.lsq import group_sums
+
+    rng = np.random.default_rng(23)
+    for trial in range(300):
+        n, g, k = int(rng.integers(1, 400)), int(rng.integers(1, 60)), int(rng.integers(0, 13))
+        ids = rng.integers(0, g, n)
+        X = rng.normal(size=(n, k)) * 10.0 ** rng.integers(-8, 9, size=(n, 1))
+        if trial % 2:
+            X = np.asfortranarray(X)
+        G = sp.csr_matrix((np.ones(n), (ids, np.arange(n))), shape=(g, n))
+        got = group_sums(ids, g, X)
+        assert got.shape == (g, k) and np.array_equal(got, np.asarray(G @ X)), trial
+    # a sum whose order matters: 1e16 + 1 - 1e16 is 0 in row order, 1 in another
+    X = np.array([[1e16], [1.0], [-1e16]])
+    assert group_sums(np.zeros(3, int), 1, X)[0, 0] == 0.0
