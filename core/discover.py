@@ -1619,14 +1619,45 @@ def _chips_by_likelihood(X: np.ndarray, y: np.ndarray, out: list, places: Places
             or X.shape[1] != places.n_base):
         return out  # (the baseline's screens only: beside a cause's columns the face's prediction is not formed)
     tid = places.target_idx
-    n = len(y)
-    keep = np.ones(n, bool)
+    keep = np.ones(len(y), bool)
     keep[out] = False
     if not any(np.any(keep & (tid == tid[i])) for i in out):
         return out
-    keep = np.ones(n, bool)
-    alt: list[int] = []
     swapped = False
+
+    def choose(keep, idx, r, ok, k):
+        nonlocal swapped
+        mates = np.flatnonzero(tid[idx] == tid[idx[k]])
+        if mates.size >= 2:
+            zd = _target_z(X, y, keep, places, int(tid[idx[k]]), idx[mates])
+            if zd is not None:
+                z, dd = zd
+                c = stats.t.isf(alpha / (2 * mates.size), dd)
+                j = int(np.argmax(np.abs(z)))
+                if mates[j] != k and abs(z[j]) > c and abs(z[int(np.flatnonzero(mates == k)[0])]) <= c:
+                    swapped = True
+                    return int(mates[j])
+        return k
+
+    screened = _greedy_screen(X, y, alpha, cap, choose)
+    if screened is None:
+        return out
+    alt, keep = screened
+    if not swapped or sorted(alt) == sorted(out):
+        return out
+    return sorted(alt) if _assignment_holds(X, y, keep, out, alt, alpha) else out
+
+
+def _greedy_screen(X: np.ndarray, y: np.ndarray, alpha: float, cap: int, choose):
+    """The deleted-residual screen's greedy removals, where ``choose`` may set aside another row in the screen's
+    place: the row of the largest studentized deleted residual beyond the Bonferroni t bound, one at a time, each
+    fit refactored on the rows kept; ``choose(keep, idx, r, ok, k)`` (``idx`` the rows kept, ``r`` their
+    residuals, ``ok`` where the deleted t is defined, ``k`` the screen's choice, positions in ``idx``) returns the
+    position set aside. ``(alt, keep)``: the rows set aside in order and the mask of those kept; None where more
+    than ``cap`` rows would be. What :func:`_chips_by_likelihood` and :func:`_chips_read_more` try beside the
+    screen's own choice."""
+    keep = np.ones(len(y), bool)
+    alt: list[int] = []
     while True:
         idx = np.flatnonzero(keep)
         Q = orth_of(X[idx])
@@ -1639,29 +1670,23 @@ def _chips_by_likelihood(X: np.ndarray, y: np.ndarray, out: list, places: Places
         if tstat[k] <= stats.t.isf(alpha / (2 * len(idx)), dof - 1):
             break
         if len(alt) >= cap:
-            return out
-        mates = np.flatnonzero(tid[idx] == tid[idx[k]])
-        if mates.size >= 2:
-            zd = _target_z(X, y, keep, places, int(tid[idx[k]]), idx[mates])
-            if zd is not None:
-                z, dd = zd
-                c = stats.t.isf(alpha / (2 * mates.size), dd)
-                j = int(np.argmax(np.abs(z)))
-                if mates[j] != k and abs(z[j]) > c and abs(z[int(np.flatnonzero(mates == k)[0])]) <= c:
-                    k = int(mates[j])
-                    swapped = True
+            return None
+        k = choose(keep, idx, r, ok, k)
         alt.append(int(idx[k]))
         keep[idx[k]] = False
-    if not swapped or sorted(alt) == sorted(out):
-        return out
+    return alt, keep
+
+
+def _assignment_holds(X: np.ndarray, y: np.ndarray, keep: np.ndarray, out, alt, alpha: float) -> bool:
+    """Whether the other assignment ``alt`` (kept rows ``keep``) explains the data as the screen's ``out`` does:
+    every row it sets aside beyond the screen's bound as a prediction from the rows it keeps, and every row of
+    ``out`` it keeps within it."""
     t_alt, dof = _prediction_t(X, y, keep, np.asarray(alt))
     bound = stats.t.isf(alpha / (2 * int(keep.sum())), dof - 1)
     back = np.setdiff1d(out, alt)
     t_back = _prediction_t(X, y, keep, back)[0] if back.size else np.zeros(0)
-    if not (np.all(np.isfinite(t_alt)) and np.all(np.abs(t_alt) > bound)
-            and np.all(np.isfinite(t_back)) and np.all(np.abs(t_back) <= bound)):
-        return out
-    return sorted(alt)
+    return bool(np.all(np.isfinite(t_alt)) and np.all(np.abs(t_alt) > bound)
+                and np.all(np.isfinite(t_back)) and np.all(np.abs(t_back) <= bound))
 
 
 def _prediction_t(X: np.ndarray, y: np.ndarray, keep: np.ndarray, rows: np.ndarray):
@@ -1718,48 +1743,31 @@ def _chips_read_more(X: np.ndarray, y: np.ndarray, out: list, places: Places, al
     if "target" not in places.names:
         return out
     tg = places.codes[:, places.names.index("target")]
-    n = len(y)
-    keep = np.ones(n, bool)
+    keep = np.ones(len(y), bool)
     keep[out] = False
     t_out, _ = _prediction_t(X, y, keep, np.asarray(out))
     # only where a removed row reads less material than the fit and its target keeps other touches
     if not any(t < 0 and np.any(keep & (tg == tg[i])) for i, t in zip(out, t_out) if np.isfinite(t)):
         return out
-    keep = np.ones(n, bool)
-    alt: list[int] = []
     swapped: set = set()
-    while True:
-        idx = np.flatnonzero(keep)
-        Q = orth_of(X[idx])
-        dof = len(idx) - Q.shape[1]
-        if dof < 3:
-            break
-        r = y[idx] - Q @ (Q.T @ y[idx])
-        tstat, ok = _deleted_t(Q, r, dof)
-        k = _first_largest(tstat)
-        if tstat[k] <= stats.t.isf(alpha / (2 * len(idx)), dof - 1):
-            break
-        if len(alt) >= cap:
-            return out
+
+    def choose(keep, idx, r, ok, k):
         if r[k] < 0:
             mates = np.flatnonzero((tg[idx] == tg[idx[k]]) & (r > 0) & ok)
             if mates.size:
                 k = int(mates[np.argmax(r[mates])])
                 swapped.add(int(tg[idx[k]]))
-        alt.append(int(idx[k]))
-        keep[idx[k]] = False
+        return k
+
+    screened = _greedy_screen(X, y, alpha, cap, choose)
+    if screened is None:
+        return out
+    alt, keep = screened
     if not swapped or sorted(alt) == sorted(out):
         return out
     if not OUTLIER_CHIPS_MAJORITY and any(np.sum(tg[alt] == T) > np.sum(tg[out] == T) for T in swapped):
         return out
-    t_alt, dof = _prediction_t(X, y, keep, np.asarray(alt))
-    bound = stats.t.isf(alpha / (2 * int(keep.sum())), dof - 1)
-    back = np.setdiff1d(out, alt)
-    t_back = _prediction_t(X, y, keep, back)[0] if back.size else np.zeros(0)
-    if not (np.all(np.isfinite(t_alt)) and np.all(np.abs(t_alt) > bound)
-            and np.all(np.isfinite(t_back)) and np.all(np.abs(t_back) <= bound)):
-        return out
-    return sorted(alt)
+    return sorted(alt) if _assignment_holds(X, y, keep, out, alt, alpha) else out
 
 
 def _without_row(Q: np.ndarray, k: int) -> np.ndarray:
