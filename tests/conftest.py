@@ -163,6 +163,33 @@ def rng():
 
 
 @pytest.fixture
+def first_outlier_screen(monkeypatch):
+    """``run(flag, on, generator="gen_a", seed=1505)``: a blind generator's outlier campaign discovered with
+    ``core.discover``'s ``flag`` set to ``on``; ``(the first outlier screen's rows, the outcome)``."""
+    import importlib
+
+    import core.discover as D
+    from scenarios import hidden
+
+    def run(flag: str, on: bool, generator: str = "gen_a", seed: int = 1505):
+        monkeypatch.setattr(D, flag, on)
+        seen = []
+        orig = D.find_outliers
+
+        def spy(*a, **k):
+            r = orig(*a, **k)
+            seen.append(r)
+            return r
+
+        monkeypatch.setattr(D, "find_outliers", spy)
+        o = hidden.blind_outcome(importlib.import_module(f"scenarios.blind.{generator}"), "outlier", seed,
+                                 generator=generator)
+        return seen[0], o
+
+    return run
+
+
+@pytest.fixture
 def figures_not_drawn(monkeypatch):
     """viz's PNG writer (:func:`viz.figures.write_png`, behind every report figure and recording image)
     replaced, for one test, by one that does not draw: each figure is recorded and a fixed 1 x 1 PNG

@@ -16,8 +16,6 @@ import pytest
 
 import core.discover as D
 from core import selfcal
-from scenarios import hidden
-from scenarios.blind import gen_a
 
 
 def _wall(seed=3, n_t=12, chips=(), skids=()):
@@ -79,31 +77,16 @@ def test_no_prediction_without_a_degree_of_freedom(monkeypatch):
     assert D._target_z(X, y, keep, places, 1, np.array([3, 4, 5])) is None
 
 
-def _first_screen(monkeypatch, on, seed=1505):
-    monkeypatch.setattr(D, "OUTLIER_CHIPS_LIKELIHOOD", on)
-    seen = []
-    orig = D.find_outliers
-
-    def spy(*a, **k):
-        r = orig(*a, **k)
-        seen.append(r)
-        return r
-
-    monkeypatch.setattr(D, "find_outliers", spy)
-    o = hidden.blind_outcome(gen_a, "outlier", seed, generator="gen_a")
-    return seen[0], o
-
-
 @pytest.mark.slow
-def test_gen_a_outlier_1505_the_three_chips_set_aside(monkeypatch):
-    out, o = _first_screen(monkeypatch, True)
+def test_gen_a_outlier_1505_the_three_chips_set_aside(first_outlier_screen):
+    out, o = first_outlier_screen("OUTLIER_CHIPS_LIKELIHOOD", True)
     assert sorted(out) == [73, 90, 237], out
     assert o.cause == "outlier", o
     assert o.wp_ext_um < o.wp_base_um, o
 
 
 @pytest.mark.slow
-def test_gen_a_outlier_1505_clean_touch_set_aside_without_the_rule(monkeypatch):
-    out, o = _first_screen(monkeypatch, False)
+def test_gen_a_outlier_1505_clean_touch_set_aside_without_the_rule(first_outlier_screen):
+    out, o = first_outlier_screen("OUTLIER_CHIPS_LIKELIHOOD", False)
     assert sorted(out) == [237, 254], out
     assert o.wp_ext_um > o.wp_base_um, o

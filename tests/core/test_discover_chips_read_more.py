@@ -22,52 +22,35 @@ import numpy as np
 import pytest
 
 import core.discover as D
-from scenarios import hidden
-from scenarios.blind import gen_a, gen_b
-
-
-def _first_screen(monkeypatch, on, gen=gen_a, name="gen_a", seed=1505):
-    monkeypatch.setattr(D, "OUTLIER_CHIPS_READ_MORE", on)
-    seen = []
-    orig = D.find_outliers
-
-    def spy(*a, **k):
-        r = orig(*a, **k)
-        seen.append(r)
-        return r
-
-    monkeypatch.setattr(D, "find_outliers", spy)
-    o = hidden.blind_outcome(gen, "outlier", seed, generator=name)
-    return seen[0], o
 
 
 @pytest.mark.slow
-def test_gen_b_outlier_1000_the_chip_set_aside_not_its_clean_neighbour(monkeypatch):
-    out, o = _first_screen(monkeypatch, True, gen_b, "gen_b", 1000)
+def test_gen_b_outlier_1000_the_chip_set_aside_not_its_clean_neighbour(first_outlier_screen):
+    out, o = first_outlier_screen("OUTLIER_CHIPS_READ_MORE", True, "gen_b", 1000)
     assert sorted(out) == [26, 85, 151, 177], out
     assert o.cause == "outlier" and o.confident, o
 
 
 @pytest.mark.slow
-def test_gen_b_outlier_1000_clean_touch_set_aside_before(monkeypatch):
-    out, o = _first_screen(monkeypatch, False, gen_b, "gen_b", 1000)
+def test_gen_b_outlier_1000_clean_touch_set_aside_before(first_outlier_screen):
+    out, o = first_outlier_screen("OUTLIER_CHIPS_READ_MORE", False, "gen_b", 1000)
     assert sorted(out) == [26, 54, 151, 177], out
 
 
 @pytest.mark.slow
-def test_gen_a_outlier_1505_chips_set_aside_not_the_clean_touch_with_the_majority(monkeypatch):
+def test_gen_a_outlier_1505_chips_set_aside_not_the_clean_touch_with_the_majority(monkeypatch, first_outlier_screen):
     monkeypatch.setattr(D, "OUTLIER_CHIPS_MAJORITY", True)
-    out, o = _first_screen(monkeypatch, True)
+    out, o = first_outlier_screen("OUTLIER_CHIPS_READ_MORE", True)
     assert sorted(out) == [73, 90, 237], out
     assert o.cause == "outlier", o
     assert o.wp_ext_um < 0.5 * o.wp_base_um, o  # 0.22 um against the baseline's 0.65 (1.01 before)
 
 
 @pytest.mark.slow
-def test_gen_a_outlier_1505_clean_touch_set_aside_before_and_without_the_majority(monkeypatch):
-    out, o = _first_screen(monkeypatch, True)  # two against three: the screen's parsimony kept
+def test_gen_a_outlier_1505_clean_touch_set_aside_before_and_without_the_majority(first_outlier_screen):
+    out, o = first_outlier_screen("OUTLIER_CHIPS_READ_MORE", True)  # two against three: the screen's parsimony kept
     assert sorted(out) == [237, 254], out
-    out, o = _first_screen(monkeypatch, False)
+    out, o = first_outlier_screen("OUTLIER_CHIPS_READ_MORE", False)
     assert sorted(out) == [237, 254], out  # the smallest chip and the clean touch
     assert o.wp_ext_um > o.wp_base_um, o
 
