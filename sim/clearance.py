@@ -171,25 +171,6 @@ def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return v / np.where(ok, n, 1.0)[..., None], ok
 
 
-def _probe_rows(st, plo: np.ndarray, phi: np.ndarray) -> tuple:
-    """(loT, hiT (o, 3, k), cloT, chiT (o, 3, c)) of :class:`Clearance` for ``o`` orientations of one
-    probe against one table side: each probe's geoms' boxes ``plo``, ``phi`` (o, ng, 3) and the pair
-    structure ``st`` (:func:`_pair_structure`). The tip p puts probe geom g in collision range of table
-    geom h only if p lies in the pair's box: the table side's rows (the pair structure's tlo.T[:,
-    pair_table], ...) less the probe geom's, repeated per probe geom (pair_probe runs through the
-    probe geoms in order, pn pairs each), padded by :data:`MARGIN_M`. A cluster's box: its table geoms'
-    (ch, the union of their boxes) less its probe geom's cg (the same numbers as the least and largest
-    of its pairs' boxes: a difference is monotone). Element by element: an orientation's rows are
-    the same numbers whichever others are computed with it."""
-    cg, ch, (tloT, thiT, pn) = st[5:]
-    PLO, PHI = plo.transpose(0, 2, 1), phi.transpose(0, 2, 1)  # (o, 3, ng): one coordinate a row
-    loT = tloT - np.repeat(PHI, pn, axis=2) - MARGIN_M
-    hiT = thiT - np.repeat(PLO, pn, axis=2) + MARGIN_M
-    cloT = ch[0] - PHI.take(cg, axis=2) - MARGIN_M
-    chiT = ch[1] - PLO.take(cg, axis=2) + MARGIN_M
-    return loT, hiT, cloT, chiT
-
-
 class Clearance:
     """Lower bounds of the probe/table distances for a spindle that only translates.
 
@@ -224,21 +205,20 @@ class Clearance:
     """
 
     def __init__(self, probe: Geoms, table: Geoms, table_feature, ball: int, T_F_R=None,
-                 cert_pad_m: float = CERT_PAD_M, pairs: np.ndarray | None = None, probe_box=None, _rows=None):
+                 cert_pad_m: float = CERT_PAD_M, pairs: np.ndarray | None = None, probe_box=None):
         self.probe, self.table, self.ball = probe, table, int(ball)
         self.cert_pad_m = float(cert_pad_m)
         self.T_F_R = None if T_F_R is None else np.array(T_F_R, float)
+        plo, phi = probe.aabb() if probe_box is None else probe_box  # (probe_box: its aabb, computed with others')
         self.feature, tlo, thi, cl, h_order, self._fid, tfid = _table_prep(table, table_feature)
         st = _pair_structure(table, table_feature, len(probe.kind), self.ball, pairs)
-        self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf = st[:5]
-        # the tip p puts geom g in collision range of h only if p lies in a box (_loT, _hiT: one
-        # coordinate a row, (3, k), for _overlap_rows and box_bound; _lo, _hi (k, 3) are their views),
-        # and the box of each cluster of h (_cloT, _chiT (3, c)): _probe_rows. ``_rows``: those four
-        # already computed, with other orientations' (Clearance.many)
-        if _rows is None:
-            plo, phi = probe.aabb() if probe_box is None else probe_box  # (probe_box: its aabb, computed with others')
-            _rows = [x[0] for x in _probe_rows(st, plo[None], phi[None])]
-        self._loT, self._hiT, self._cloT, self._chiT = _rows
+        self.pair_probe, self.pair_table, self._cstart, self._ccount, self._cballf, cg, ch, (tloT, thiT, pn) = st
+        # the tip p puts geom g in collision range of h only if p lies in this box
+        # (one coordinate a row, (3, k), for _overlap_rows and box_bound; _lo, _hi (k, 3) are their views).
+        # The table side's rows are the pair structure's (tlo.T[:, pair_table], ...); the probe's
+        # repeated per probe geom (pair_probe runs through the probe geoms in order, pn pairs each)
+        self._loT = tloT - np.repeat(phi.T, pn, axis=1) - MARGIN_M
+        self._hiT = thiT - np.repeat(plo.T, pn, axis=1) + MARGIN_M
         self._lo, self._hi = self._loT.T, self._hiT.T
         # (the centre offset at p = 0 of a pair, probe geom's centre minus table geom's: computed for
         # the rows asked, _d0_of; the same subtraction as for every pair at once)
@@ -246,19 +226,12 @@ class Clearance:
         self._U, self._E = np.empty((npair, 7, 3)), np.empty((npair, 7))  # filled on demand (_axes)
         self._have = np.zeros(npair, bool)
         self._certs = _Certificates()  # of near_segments (shared by the moved copies: same frame)
-
-    @classmethod
-    def many(cls, probes, boxes, T_F_Rs, table: Geoms, table_feature, ball: int, pairs: np.ndarray | None = None
-             ) -> list:
-        """``[Clearance(P, table, table_feature, ball, T_F_R=T, pairs=pairs, probe_box=box) for P, box, T in
-        zip(probes, boxes, T_F_Rs)]``, probes of one geom count (a work zone's orientations): their boxes'
-        rows (:func:`_probe_rows`) computed for every probe in one pass, element by element the same
-        numbers as one probe at a time."""
-        ng = len(probes[0].kind)
-        st = _pair_structure(table, table_feature, ng, int(ball), pairs)
-        rows = _probe_rows(st, np.stack([b[0] for b in boxes]), np.stack([b[1] for b in boxes]))
-        return [cls(P, table, table_feature, ball, T_F_R=T, pairs=pairs, _rows=[x[o] for x in rows])
-                for o, (P, T) in enumerate(zip(probes, T_F_Rs))]
+        # each cluster's box: its table geoms' (ch, the union of their boxes) for its probe geom cg
+        # (the same numbers as the least and largest of its pairs' boxes: a difference is monotone),
+        # one coordinate a row (3, c), for _overlap_rows and _block_candidates (ch kept so by the
+        # pair structure: each element the same subtraction as on the (c, 3) rows, transposed)
+        self._cloT = ch[0] - phi.take(cg, axis=0).T - MARGIN_M
+        self._chiT = ch[1] - plo.take(cg, axis=0).T + MARGIN_M
 
     def _axes(self, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(U (r,7,3), E (r,7)): the fixed axes of pairs ``pair`` (the table geom's three, the
@@ -546,27 +519,13 @@ class ByOrientation:
         The table side every build passes to :class:`Clearance` (its geoms in F and their
         features): :func:`orientations_ahead` then prepares the table sides of several
         ByOrientation at once (:func:`tables_ahead`). None: each build prepares its own.
-    ball, pairs : optional
-        With ``table`` and no ``build``: each orientation's broad phase is ``Clearance(P, *table,
-        ball, T_F_R=T_F_R, pairs=pairs)``, and :func:`orientations_ahead` builds the new
-        orientations of every ByOrientation of one table side, ball and pairs together
-        (:meth:`Clearance.many`).
     """
 
-    def __init__(self, probe: Geoms, build=None, maxsize: int = 32, table=None, ball=None, pairs=None):
-        self.probe = probe
+    def __init__(self, probe: Geoms, build, maxsize: int = 32, table=None):
+        self.probe, self._build = probe, build
         self.axisym = axisymmetric(probe)
         self._memo = Memo(maxsize)
         self.table = table
-        self._many = None  # (the Clearance arguments of every build: Clearance.many's, orientations_ahead)
-        if build is None:
-            if table is None or ball is None:
-                raise ValueError("ByOrientation: give a build, or the table side and the ball")
-            self._many = (table[0], table[1], int(ball), pairs)
-
-            def build(P, T_F_R, probe_box=None):
-                return Clearance(P, table[0], table[1], ball, T_F_R=T_F_R, pairs=pairs, probe_box=probe_box)
-        self._build = build
 
     def _key(self, R: np.ndarray) -> bytes:
         """The memo key of the orientation ``R`` (3,3) of F to R."""
@@ -617,28 +576,8 @@ def orientations_ahead(asks) -> None:
         lo, hi = Geoms(*(np.concatenate([getattr(P, f) for P in Ps]) for f in ("centre", "axes", "kind", "size", "rbound"))).aabb()
         cut = np.cumsum([len(P.kind) for P in Ps])[:-1]
         boxes = list(zip(np.split(lo, cut), np.split(hi, cut)))
-    # the orientations of one table side, ball, pairs and probe geom count built together
-    # (Clearance.many: the same broad phases as each build's), in the order of asks; the others one by one
-    groups = {}
-    for n, (bo, key, T_F_R, P) in enumerate(new):
-        if bo._many is None:
-            groups[n] = [n]
-        else:
-            t, f, ball, pairs = bo._many
-            mk = None if pairs is None else (pairs.shape, np.ascontiguousarray(pairs, bool).tobytes())
-            groups.setdefault((id(t), id(f), ball, mk, len(P.kind)), []).append(n)
-    built = [None] * len(new)
-    for ns in groups.values():
-        if len(ns) == 1:
-            bo, key, T_F_R, P = new[ns[0]]
-            built[ns[0]] = bo._build(P, T_F_R, probe_box=boxes[ns[0]])
-        else:
-            t, f, ball, pairs = new[ns[0]][0]._many
-            for n, c in zip(ns, Clearance.many([new[n][3] for n in ns], [boxes[n] for n in ns], [new[n][2] for n in ns],
-                                               t, f, ball, pairs)):
-                built[n] = c
-    for (bo, key, _, _), c in zip(new, built):
-        bo._memo[key] = c
+    for (bo, key, T_F_R, P), box in zip(new, boxes):
+        bo._memo[key] = bo._build(P, T_F_R, probe_box=box)
 
 
 #: The table side's part of :class:`Clearance` (boxes, clusters, feature numbers) by table

@@ -609,7 +609,7 @@ class WorkZone:
         """:meth:`clearance`'s broad phases of ``part`` ("all" or "rest") by orientation
         (:class:`sim.clearance.ByOrientation`), made on first use."""
         if part not in self._clr:  # (the import only when made: 51 asks a fresh 5-axis check, one make a zone and part)
-            from .clearance import ByOrientation
+            from .clearance import ByOrientation, Clearance
 
             probe = self._probe_geoms  # about the tip, axes of R (whatever the table's pose)
             ball = self._pball
@@ -621,10 +621,11 @@ class WorkZone:
             if "table_W" not in self._shared:  # (the same for every probe at this placement)
                 self._shared["table_W"], self._shared["features"] = self.table_geoms(in_W=True), self._feats
 
-            # (each orientation's Clearance(P, table_W, features, ball, T_F_R=..., pairs=pairs); several
-            # zones' new orientations on one table side built together: orientations_ahead)
-            self._clr[part] = ByOrientation(probe, table=(self._shared["table_W"], self._shared["features"]),
-                                            ball=ball, pairs=pairs)
+            def build(P, T_F_R, pairs=pairs, probe_box=None):
+                return Clearance(P, self._shared["table_W"], self._shared["features"], ball, T_F_R=T_F_R,
+                                 pairs=pairs, probe_box=probe_box)
+
+            self._clr[part] = ByOrientation(probe, build, table=(self._shared["table_W"], self._shared["features"]))
         return self._clr[part]
 
     def _W_R(self) -> np.ndarray:
