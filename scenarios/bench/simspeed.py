@@ -434,6 +434,39 @@ a placement's orientations clears only what their own boxes clear (20,923 cluste
 15,640 rows: most rows meet a box); the 13 orientations' ``Clearance`` built in one array op would
 save at most ~0.6 ms (~45 us each of their own; the pair structures, ~1.2 ms, are kept per table
 side and probe already). The target, 0.18, is not met for the plan check.
+
+Session 24 (issue 19 item 4, continued): session 23's proposal, the rest broad phases as one
+structure over the orientations, tried; nothing kept, the check's code as 586aff4's. All thread CPU
+at load 14-21 on 2 cores (other helpers' work). Where a fresh check's CPU goes (functions timed
+around, medians of 40 fresh checks, load ~17): ``near_segments_many`` 4.4 ms (least 2.9),
+``orientations_ahead`` 1.8, the least clearances 1.6, ``_paths_of`` 1.4, ``share_ball_model`` 0.9,
+``unique_segments`` 0.8, ``_segments_A`` 0.6, the ball's broad phase 0.5, ``_rest_groups`` 0.2 (two
+calls; 0.14 ms on the same inputs in a loop). ``near_segments_many`` already passes the 14 broad phases
+as one structure: its box levels take 30,435 (block, cluster) tests to 1,332 hits, 20,923 (row,
+cluster) candidates to 2,066, 29,096 (row, pair) rows to 644 swept bounds, each level one set of numpy
+operations for every broad phase; on the same inputs in a loop it takes the same 3.0-3.4 ms as
+inside the check at a warm heap, so it is compute, not cache or faults. Tried, each exact (the hash of
+every ``near_segments_many`` input and answer, every check answer and least clearance of the variants
+and fuzz sets fresh, again and fresh and of the 5-axis plan equal to 586aff4's, default and Haswell
+kernels): (1) the new rest orientations of one table side, ball, pairs and probe geom count built
+together (their probes' box rows in one (o, 3, k) array operation, then the ``Clearance`` objects),
+``orientations_ahead`` 1.77 -> 1.49 ms (medians; least 1.43 -> 1.36); in this figure, 7 runs each
+interleaved with 586aff4 (load 14.6-18.8), the check's CPU 15.3-17.9 ms before and 15.8-17.2 after
+(paired 0.90-1.07, median 1.03), its share 0.238-0.253 before and 0.233-0.254 after (paired median
+1.01; 0 page faults in every run): no gain, removed; (2) the swept bounds of the 14 broad phases in one
+pass (their probes' and distinct tables' geoms gathered, each row bounded as its own broad phase
+bounds it: equal on the plan's 644 rows), 0.47 against 0.43 ms (least of 50 on the same inputs):
+slower, as session 15 found. Side by side, 8 pairs of processes with (1) against 586aff4 in
+alternating order (40 fresh checks each, load 18.9-21.1): the least check 16.34 -> 16.69 ms (paired
+median 1.025, 0 of 8 lower) but the median check 18.58 -> 17.49 ms (paired median 0.944, 8 of 8
+lower). The split is page faults: a fresh check's CPU follows its minor faults (586aff4, one process:
+0-85 faults 15.0-15.9 ms, 1,400-1,600 faults 19.4-19.9 ms, about 2.5-3 us a fault at load ~20), and the
+two codes leave the heap in different states from check to check; with glibc's mmap and trim
+thresholds raised (``GLIBC_TUNABLES``, two processes each, 16 checks) the checks of (1) at 0-18 faults
+took 16.4-17.9 ms (median 17.0), 586aff4's at 0 faults 16.4-19.6 ms (median 17.1; its other checks
+still at ~1,170 faults, 18.5-22.3 ms). In this figure both run warm (0 faults), so a change measured in
+fresh processes must be checked here. The target, 0.18, is not met: a warm check of ~16 ms would need
+~4 ms less compute, and no function takes more than ``near_segments_many``'s ~3 ms.
 """
 
 from __future__ import annotations
