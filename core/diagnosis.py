@@ -101,13 +101,28 @@ def pivoted_qr(M: np.ndarray, q: bool = True):
 def _qr_economic_pivoted(A: np.ndarray):
     """``(Q, |diag R|)`` of ``sla.qr(A, mode="economic", pivoting=True)`` for a finite ``A`` of at least as many rows
     as columns, bit for bit: the same two LAPACK calls (``geqp3`` on a copy, then ``orgqr`` in place on its
-    reflectors, each with the workspace LAPACK asks for), without scipy's argument handling and its ``triu``
-    (about 20 us a call; ``R``'s diagonal is the reflectors' diagonal). Session 24."""
-    geqp3, = sla.get_lapack_funcs(("geqp3",), (A,))
-    qr, _jpvt, tau = _lapack("geqp3", geqp3, A, overwrite_a=False)
+    reflectors, each with the workspace LAPACK asks for, asked once per shape), without scipy's argument handling
+    and its ``triu`` (33 -> 20 us at 128 x 12; ``R``'s diagonal is the reflectors' diagonal). Session 24."""
+    geqp3, orgqr = sla.get_lapack_funcs(("geqp3", "orgqr"), (A,))
+    shape = A.shape + (geqp3.typecode,)
+    if shape not in _QR_LWORK:  # the workspaces LAPACK asks for depend on the shape alone (ilaenv's block sizes)
+        _QR_LWORK[shape] = (int(geqp3(A, lwork=-1)[-2][0].real), None)
+    lw, lw_q = _QR_LWORK[shape]
+    qr, _jpvt, tau, _work, info = geqp3(A, lwork=lw, overwrite_a=False)
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal geqp3")
     d = np.abs(np.diag(qr))  # (before orgqr overwrites it)
-    orgqr, = sla.get_lapack_funcs(("orgqr",), (qr,))
-    return _lapack("orgqr", orgqr, qr, tau, overwrite_a=1)[0], d
+    if lw_q is None:
+        lw_q = int(orgqr(qr, tau, lwork=-1)[-2][0].real)
+        _QR_LWORK[shape] = (lw, lw_q)
+    Q, _work, info = orgqr(qr, tau, lwork=lw_q, overwrite_a=1)
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal gorgqr/gungqr")
+    return Q, d
+
+
+#: (rows, columns, LAPACK's type) -> the workspaces geqp3 and orgqr ask for (:func:`_qr_economic_pivoted`)
+_QR_LWORK: dict = {}
 
 
 @dataclass(frozen=True)
@@ -1495,9 +1510,10 @@ def _trend_within(T: np.ndarray, inv: np.ndarray, g: int, cnt: np.ndarray) -> np
 
 
 def _basis_within(T: np.ndarray, Tc: np.ndarray) -> np.ndarray:
-    """:func:`_trend_within` from ``T`` and its deviations from the group means ``Tc`` (the same operations)."""
-    nrm = np.linalg.norm(Tc, axis=0)
-    big = nrm > 1e-9 * np.maximum(np.linalg.norm(T, axis=0), 1e-300)
+    """:func:`_trend_within` from ``T`` and its deviations from the group means ``Tc`` (the same operations; the
+    columns' norms by :func:`col_norms`, ``np.linalg.norm``'s bit for bit)."""
+    nrm = col_norms(Tc)
+    big = nrm > 1e-9 * np.maximum(col_norms(T), 1e-300)
     return orth(Tc[:, big]) if big.any() else np.zeros((len(T), 0))
 
 
@@ -1552,8 +1568,8 @@ def _straddled_steps(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None):
     # np.unique and group_sums (tests/core/test_straddled_fastpath.py against the plain loop); session 24.
     k, inv, cnt = np.unique(key[ok], return_inverse=True, return_counts=True)
     inv = inv.ravel()
-    y_mean = (group_sums(inv, len(k), yy) / cnt)[inv]
-    T_mean = (group_sums(inv, len(k), T) / cnt[:, None])[inv] if T is not None else None
+    y_dev = yy - (group_sums(inv, len(k), yy) / cnt)[inv]  # (each row less its group's mean: the same subtraction)
+    T_dev = T - (group_sums(inv, len(k), T) / cnt[:, None])[inv] if T is not None else None
     rows = np.arange(ok.size)  # the rows kept (of ok's)
     steps: list = []  # (Bonferroni p, key) of the most outlying group, then of the rest's, ...
     max_out = min(max(int(np.sum(cnt > 1)) // 2, 1), STRADDLED_MAX_STEPS)
@@ -1561,13 +1577,11 @@ def _straddled_steps(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None):
         multi = cnt > 1
         if multi.sum() < 3:
             break
-        yk = yy[rows]
-        res = yk - y_mean[rows]
+        res = y_dev[rows]
         dof = int(np.sum(cnt - 1))
-        B = np.zeros((len(yk), 0))
+        B = np.zeros((len(res), 0))
         if T is not None and dof:
-            Tk = T[rows]
-            B = _basis_within(Tk, Tk - T_mean[rows])
+            B = _basis_within(T[rows], T_dev[rows])
             if B.shape[1]:
                 res = res - B @ (B.T @ res)
                 dof -= B.shape[1]
