@@ -2168,11 +2168,11 @@ def _target_faces(bl: Baseline, t: Touches, feats: np.ndarray) -> tuple:
     B = selfcal.workpiece_gauge_basis(P, N, dz if np.any(dz != 0) else None)
     f_t = feats[first].astype(str)
     nrm = np.round(N, 3)
-    key = []
+    key, planar_faces = [], {}  # (a feature's faces told apart when it has at most three normals: once a feature)
     for j in range(n_w):
-        mine = f_t == f_t[j]
-        planar_faces = len(np.unique(nrm[mine], axis=0)) <= 3
-        key.append((f_t[j], tuple(nrm[j])) if planar_faces else (f_t[j],))
+        if f_t[j] not in planar_faces:
+            planar_faces[f_t[j]] = len(np.unique(nrm[f_t == f_t[j]], axis=0)) <= 3
+        key.append((f_t[j], tuple(nrm[j])) if planar_faces[f_t[j]] else (f_t[j],))
     grp = np.unique(np.array([repr(k) for k in key]), return_inverse=True)[1]
     return tid, np.asarray(bl.estimand, int), B, grp, int(bl.A.shape[1])
 
