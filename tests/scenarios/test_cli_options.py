@@ -450,6 +450,26 @@ def test_no_option_is_abbreviated(capsys):
     assert len(every) > 20 and not any(sp.allow_abbrev for sp in every)
 
 
+def test_unknown_option_is_named_by_its_command(capsys):
+    """An unrecognized option's error names the command given it and that command's help, not vmt's."""
+    p = build_parser()
+    cases = [(["probe", "--controller", "virtual:", "--plan", "p.csv", "--out", "o.csv", "--safe", "80"],
+              "vmt probe", "--safe 80"),
+             (["machine", "serve", "--port", "0", "--speed", "2"], "vmt machine serve", "--speed 2"),
+             (["plan", "grid", "--x-mm", "0:10:1", "--y-mm", "0:10:1", "--out", "g.csv", "--z", "0"],
+              "vmt plan grid", "--z 0"),
+             (["check", "log.csv", "extra.csv"], "vmt check", "extra.csv")]
+    for argv, prog, rest in cases:
+        with pytest.raises(SystemExit) as e:
+            p.parse_args(argv)
+        assert e.value.code == 2
+        err = capsys.readouterr().err
+        assert err == f"{prog}: error: unrecognized arguments: {rest} (see {prog} --help)\n", err
+    with pytest.raises(SystemExit):                   # no command given: vmt's own
+        p.parse_args(["--frobnicate"])
+    assert capsys.readouterr().err.startswith("vmt: error: unrecognized arguments: --frobnicate (see vmt --help)")
+
+
 def _parsers(p):
     yield p
     for a in p._actions:
