@@ -16,6 +16,7 @@ command), ``--noise-um`` and the old names kept as hidden aliases
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 #: The unit suffixes an option carrying a quantity ends with (``--travel-mm``, ``--drift-um-per-h``).
@@ -76,14 +77,22 @@ def parse_grid(text: str, p_R):
     from core.units import MM
 
     try:
-        parts = [float(v) * MM for v in text.split(":")]
+        mm = [float(v) for v in text.split(":")]
     except ValueError:
         raise ConfigError(f"--grid-mm: expected STEP or x0:x1:step in mm, got {text!r}") from None
+    if len(mm) not in (1, 3):
+        raise ConfigError(f"--grid-mm: expected STEP or x0:x1:step in mm, got {text!r}")
+    # judged here, in the option's mm: the grid's own checks speak in metres ('got -0.005' for -5)
+    if not all(math.isfinite(v) for v in mm):
+        raise ConfigError(f"--grid-mm {text}: expected finite numbers of mm")
+    if not mm[-1] > 0:
+        raise ConfigError(f"--grid-mm {text}: the step must be > 0 mm, got {mm[-1]:g} mm")
+    if len(mm) == 3 and not mm[0] < mm[1]:
+        raise ConfigError(f"--grid-mm {text}: expected x0 < x1, got {mm[0]:g} and {mm[1]:g} mm")
+    parts = [v * MM for v in mm]
     if len(parts) == 1:
         return Grid.from_extent(p_R, parts[0])
-    if len(parts) == 3:
-        return Grid.regular(parts[0], parts[1], parts[2])
-    raise ConfigError(f"--grid-mm: expected STEP or x0:x1:step in mm, got {text!r}")
+    return Grid.regular(parts[0], parts[1], parts[2])
 
 
 GRID_HELP = ("error-map grid, mm: STEP (nodes at multiples of it covering the touches) or x0:x1:step (both axes; "

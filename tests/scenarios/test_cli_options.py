@@ -611,3 +611,27 @@ def test_check_usage_says_log_is_required_and_noise_help_says_what_it_does_in_po
     text = " ".join(capsys.readouterr().out.split())
     assert "positioning: the old name of --scatter-um, the same k=1 scatter of each reading" in text
     assert main(["check"]) == 2 and "give the LOG to check" in capsys.readouterr().err
+
+
+def test_grid_steps_are_judged_in_mm(tmp_path, capsys):
+    """--grid-mm (identify, design) and --grid-step-mm (discover) are refused in their own unit: a step
+    of -5 mm said 'grid step must be > 0, got -0.005' (metres), discover took a step of 0 for 'choose by
+    BIC' and a negative one failed on the grid's nodes in metres; nan passed to the grid."""
+    from core.exceptions import ConfigError
+    from scenarios.cli.options import parse_grid
+
+    p_R = np.array([[0.0, 0.0], [0.1, 0.1]])
+    for text, said in (("-5", "the step must be > 0 mm, got -5 mm"), ("0", "the step must be > 0 mm, got 0 mm"),
+                       ("nan", "expected finite numbers of mm"), ("-110:110:0", "the step must be > 0 mm"),
+                       ("110:-110:22", "expected x0 < x1, got 110 and -110 mm"), ("0:inf:22", "finite")):
+        with pytest.raises(ConfigError, match=re.escape(said)):
+            parse_grid(text, p_R)
+    assert np.allclose(np.diff(parse_grid("50", p_R).x_m), 0.05)
+    assert parse_grid("-110:110:110", p_R).y_m.tolist() == [-0.11, 0.0, 0.11]
+    log = tmp_path / "log.csv"
+    log.write_text("any\n")                 # the step is judged before the log is read
+    for step in ("0", "-5", "nan"):
+        assert main(["discover", str(log), "--json", str(tmp_path / "d.json"), "--grid-step-mm", step]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"vmt discover: error: --grid-step-mm must be a finite number > 0 (mm), got {step}"), err
+        assert err.count("\n") == 1
