@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -98,6 +99,9 @@ class OneLineParser(argparse.ArgumentParser):
         super().__init__(*args, **kw)
 
     def error(self, message):  # noqa: D102 - argparse's hook
+        m = re.fullmatch(r"argument (--[\w-]+)(?:/[^:]*)?: expected one argument", message)
+        if m:   # argparse takes a value such as -110:110 for an option: '--travel-mm -100:100' lands here
+            message += f" (a value that starts with '-' is written {m[1]}=VALUE, e.g. {m[1]}=-100:100)"
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
     def parse_args(self, args=None, namespace=None):  # noqa: D102

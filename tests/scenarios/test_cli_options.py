@@ -635,3 +635,46 @@ def test_grid_steps_are_judged_in_mm(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.startswith(f"vmt discover: error: --grid-step-mm must be a finite number > 0 (mm), got {step}"), err
         assert err.count("\n") == 1
+
+
+def test_option_errors_name_the_option_in_its_unit(tmp_path, capsys):
+    """Refusals name the option the user wrote, in its unit: 'vmt simulate positioning --travel-mm 10:-10'
+    said 'measurement travel must be finite with min < max, got 0.01, -0.01' (metres), --cycles 0
+    'cycles must ...', --drift-tau-s 0 'Drift.tau_s must be > 0'; iso230-2's 'uncertainty input
+    u_temperature_K ...'; plan grid's 'z_mm 0.0 / stylus_r_mm -1.0'. A negative value given as a
+    separate word ('--travel-mm -100:100') said only 'expected one argument'."""
+    sample = "scenarios/data/positioning-sample.csv"
+    out = str(tmp_path / "o.csv")
+    cases = [
+        (["simulate", "positioning", "--out", out, "--travel-mm", "10:-10"],
+         "vmt simulate: error: --travel-mm 10:-10: expected finite LO < HI in mm"),
+        (["simulate", "positioning", "--out", out, "--travel-mm=nan:10"],
+         "vmt simulate: error: --travel-mm nan:10: expected finite LO < HI in mm"),
+        (["simulate", "positioning", "--out", out, "--cycles", "0"],
+         "vmt simulate: error: --cycles must be a whole number >= 2, got 0"),
+        (["simulate", "positioning", "--out", out, "--targets", "1"],
+         "vmt simulate: error: --targets must be a whole number >= 2, got 1"),
+        (["simulate", "positioning", "--out", out, "--drift-tau-s", "0", "--drift-um-per-h", "1"],
+         "vmt simulate: error: --drift-tau-s must be a finite number > 0, got 0"),
+        (["iso230-2", sample, "--json", str(tmp_path / "i.json"), "--u-temp-k", "-1"],
+         "vmt iso230-2: error: --u-temp-k must be a finite number >= 0, got -1.0"),
+        (["iso230-2", sample, "--json", str(tmp_path / "i.json"), "--u-instrument-um-per-m", "-1"],
+         "vmt iso230-2: error: --u-instrument-um-per-m must be a finite number >= 0, got -1.0"),
+        (["iso230-2", sample, "--json", str(tmp_path / "i.json"), "--temp-c", "nan"],
+         "vmt iso230-2: error: --temp-c must be a workshop temperature, got nan"),
+        (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", out, "--stylus-r-mm", "-1"],
+         "vmt plan grid: error: --stylus-r-mm must be a finite number >= 0, got -1"),
+        (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", out, "--z-mm", "inf"],
+         "vmt plan grid: error: --z-mm must be a finite number, got inf"),
+    ]
+    for argv, said in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err == said + "\n", err
+    assert not (tmp_path / "o.csv").exists() and not (tmp_path / "i.json").exists()
+    with pytest.raises(SystemExit) as e:
+        main(["simulate", "positioning", "--out", out, "--travel-mm", "-100:100"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("vmt simulate: error: argument --travel-mm: expected one argument (a value that starts "
+                          "with '-' is written --travel-mm=VALUE, e.g. --travel-mm=-100:100)"), err
