@@ -172,11 +172,25 @@ def add_settings_args(p, *, live: bool = True) -> None:
 
 def settings_from_args(args):
     """The :class:`hardware.campaign.ProbeSettings` of the options :func:`add_settings_args` added."""
+    from core.exceptions import ConfigError
     from hardware.campaign import ProbeSettings, parse_limits
 
-    return ProbeSettings(
-        probe_feed_mm_min=args.feed, move_feed_mm_min=args.move_feed,
-        max_feed_mm_min=args.max_feed, clearance_mm=args.clearance,
-        overtravel_mm=args.overtravel, safe_z_mm=args.safe_z,
-        allow_miss=bool(getattr(args, "allow_miss", False)),
-        limits_mm=parse_limits(args.limits) if args.limits else None)
+    limits = parse_limits(args.limits) if args.limits else None
+    try:
+        return ProbeSettings(
+            probe_feed_mm_min=args.feed, move_feed_mm_min=args.move_feed,
+            max_feed_mm_min=args.max_feed, clearance_mm=args.clearance,
+            overtravel_mm=args.overtravel, safe_z_mm=args.safe_z,
+            allow_miss=bool(getattr(args, "allow_miss", False)), limits_mm=limits)
+    except ConfigError as e:     # named by the option ('--feed-mm-min 0 ...', not 'probe_feed_mm_min 0.0 ...')
+        said = str(e)
+        for field, flag in SETTINGS_OPTIONS.items():
+            if said.startswith(f"{field} "):
+                said = f"{flag} {said[len(field) + 1:]}"
+        raise ConfigError(said) from None
+
+
+#: ProbeSettings' fields and the options that set them (:func:`add_settings_args`).
+SETTINGS_OPTIONS = {"probe_feed_mm_min": "--feed-mm-min", "move_feed_mm_min": "--move-feed-mm-min",
+                    "max_feed_mm_min": "--max-feed-mm-min", "clearance_mm": "--clearance-mm",
+                    "overtravel_mm": "--overtravel-mm", "safe_z_mm": "--safe-z-mm"}
