@@ -678,3 +678,14 @@ def test_option_errors_name_the_option_in_its_unit(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("vmt simulate: error: argument --travel-mm: expected one argument (a value that starts "
                           "with '-' is written --travel-mm=VALUE, e.g. --travel-mm=-100:100)"), err
+
+
+def test_machine_serve_refuses_non_finite_settings(capsys):
+    """'vmt machine serve --ec0y-urad inf' served a machine with an infinite squareness, and
+    '--home-mm nan,0,0' said 'controller home (nan, 0.0, 0.0): ...' instead of naming the option."""
+    base = ["machine", "serve", "--port", "0", "--stop-after-s", "0.5"]
+    for extra, said in ((["--ec0y-urad", "inf"], "--ec0y-urad must be a finite number, got inf"),
+                        (["--home-mm", "nan,0,0"], "--home-mm 'nan,0,0': expected three finite numbers a,b,c"),
+                        (["--scale-ppm", "0,inf,0"], "--scale-ppm '0,inf,0': expected three finite numbers a,b,c")):
+        assert main(base + extra) == 2
+        assert capsys.readouterr().err == f"vmt machine serve: error: {said}\n"
