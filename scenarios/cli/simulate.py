@@ -105,7 +105,8 @@ def run(args) -> int:
     write_probe_log(args.out, log, special=True)
     from scenarios.cli.guard import said
 
-    setups = f"{len(dict.fromkeys(log.col('setup')))} set-ups"
+    k = len(dict.fromkeys(log.col('setup')))
+    setups = f"{k} set-up{'' if k == 1 else 's'}"
     if args.plan_only:      # a plan measures nothing and has no truth errors: neither is described
         print(f"{said(args.out)}: plan of {log.n} touches (nothing measured) on {args.artefact}, "
               f"machine {cfg.name}, {setups}")

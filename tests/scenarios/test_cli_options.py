@@ -689,3 +689,19 @@ def test_machine_serve_refuses_non_finite_settings(capsys):
                         (["--scale-ppm", "0,inf,0"], "--scale-ppm '0,inf,0': expected three finite numbers a,b,c")):
         assert main(base + extra) == 2
         assert capsys.readouterr().err == f"vmt machine serve: error: {said}\n"
+
+
+def test_wcs_and_one_setup_are_said_plainly(tmp_path, capsys):
+    """'vmt machine program --wcs G99' named the field ('wcs ...'), not the option; 'vmt simulate' said
+    '1 set-ups' of a one-angle campaign."""
+    plan = tmp_path / "plan.csv"
+    assert main(["plan", "grid", "--x-mm", "0:10:10", "--y-mm", "0:10:10", "--out", str(plan)]) == 0
+    capsys.readouterr()
+    assert main(["machine", "program", "--plan", str(plan), "--out", str(tmp_path / "p.ngc"), "--probe-file", "p.txt",
+                 "--limits-mm", "X-50:50,Y-50:50,Z-50:50", "--wcs", "G99"]) == 2
+    assert capsys.readouterr().err.startswith("vmt machine program: error: --wcs 'G99': expected one of G54, ")
+    out = tmp_path / "one.csv"
+    assert main(["simulate", "pin-circle", "--plan-only", "--out", str(out), "--c-angles-deg", "0",
+                 "--no-collision-check"]) == 0
+    said = capsys.readouterr().out
+    assert said.endswith(", 1 set-up\n"), said
