@@ -20,7 +20,7 @@ def _floats3(text: str, name: str):
     except ValueError:
         v = ()
     if len(v) != 3 or not all(math.isfinite(x) for x in v):
-        raise ConfigError(f"{name} {text!r}: expected three finite numbers a,b,c")
+        raise ConfigError(f"{name} {text!r}: expected three numbers a,b,c, each finite")
     return v
 
 

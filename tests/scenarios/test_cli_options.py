@@ -684,9 +684,10 @@ def test_machine_serve_refuses_non_finite_settings(capsys):
     """'vmt machine serve --ec0y-urad inf' served a machine with an infinite squareness, and
     '--home-mm nan,0,0' said 'controller home (nan, 0.0, 0.0): ...' instead of naming the option."""
     base = ["machine", "serve", "--port", "0", "--stop-after-s", "0.5"]
+    three = "expected three numbers a,b,c, each finite"
     for extra, said in ((["--ec0y-urad", "inf"], "--ec0y-urad must be a finite number, got inf"),
-                        (["--home-mm", "nan,0,0"], "--home-mm 'nan,0,0': expected three finite numbers a,b,c"),
-                        (["--scale-ppm", "0,inf,0"], "--scale-ppm '0,inf,0': expected three finite numbers a,b,c")):
+                        (["--home-mm", "nan,0,0"], f"--home-mm 'nan,0,0': {three}"),
+                        (["--scale-ppm", "0,inf,0"], f"--scale-ppm '0,inf,0': {three}")):
         assert main(base + extra) == 2
         assert capsys.readouterr().err == f"vmt machine serve: error: {said}\n"
 
