@@ -77,6 +77,10 @@ class ProbeSettings:
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"{k} {v!r} must be a positive number")
+        z = self.safe_z_mm
+        if z is not None and not (isinstance(z, (int, float)) and math.isfinite(z)):
+            # a NaN height passed every soft-limit comparison and went out as 'Znan'
+            raise ConfigError(f"safe_z_mm {z!r} must be a finite number")
         if self.limits_mm is not None:
             lim = np.asarray(self.limits_mm, dtype=float)
             if lim.shape != (3, 2) or not np.all(np.isfinite(lim)) or np.any(lim[:, 0] >= lim[:, 1]):
@@ -178,7 +182,7 @@ def check_program(steps: list[Step], settings: ProbeSettings, *, require_limits:
     for st in steps:
         for what, p in [("approach", q) for q in approach(prev, st, settings)] + [
                 ("probing end", st.end_mm)]:
-            bad = (p < lim[:, 0] - 1e-9) | (p > lim[:, 1] + 1e-9)
+            bad = ~((p >= lim[:, 0] - 1e-9) & (p <= lim[:, 1] + 1e-9))   # NaN is outside too
             if bad.any():
                 ax = "XYZ"[int(np.argmax(bad))]
                 raise PlanError(f"row {st.row} (target {st.target!r}): {what} "

@@ -86,7 +86,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         Limits or feeds violated, unknown ``wcs``, a file name LinuxCNC cannot take.
     """
     if wcs not in _WCS_P:
-        raise PlanError(f"wcs {wcs!r}: expected one of {', '.join(_WCS_P)}")
+        raise PlanError(f"--wcs {wcs!r}: expected one of {', '.join(_WCS_P)}")
     if any(c in probe_file for c in "()\n"):
         raise PlanError(f"probe file {probe_file!r}: parentheses and newlines are not allowed")
     steps = plan_steps(plan, settings)

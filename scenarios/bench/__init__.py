@@ -60,8 +60,36 @@ def _selects(o: str, mod: str, short: str) -> bool:
     return o in (mod, short) if o in exact else (o in mod or o in short)
 
 
-def run_all(only: list[str] | None = None) -> dict:
-    """Run the benchmarks (those whose module or short name contains a text of ``only``); the document."""
+def expected_walls(doc: dict | None) -> dict[str, float]:
+    """Each benchmark's wall time in an earlier document (``bench_<module>_wall_s``), by short name."""
+    figs = (doc or {}).get("figures", {}) if isinstance(doc, dict) else {}
+    walls = {}
+    for mod in BENCHES:
+        rec = figs.get(f"{short_name(mod)}_wall_s")
+        v = rec.get("value") if isinstance(rec, dict) else None
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0:
+            walls[short_name(mod)] = float(v)
+    return walls
+
+
+def progress_weights(mods: list[str], expected: dict[str, float] | None) -> list[int]:
+    """Whole seconds each benchmark is expected to take (its earlier run's wall time; the median of
+    the known ones where it has none), at least 1: so the time left is not a mean over benchmarks
+    that last from seconds (fit) to half an hour (the discovery study); all 1 without an earlier run."""
+    known = sorted(v for v in (expected or {}).values())
+    if not known:
+        return [1] * len(mods)
+    fill = known[len(known) // 2]
+    return [max(1, round((expected or {}).get(short_name(m), fill))) for m in mods]
+
+
+def run_all(only: list[str] | None = None, progress=None, expected: dict[str, float] | None = None) -> dict:
+    """Run the benchmarks (those whose module or short name contains a text of ``only``); the document.
+
+    ``progress(done, total)`` (optional, :mod:`viz.progress`) is called before the first and after
+    each benchmark, in expected seconds (:func:`progress_weights` of ``expected``, from
+    :func:`expected_walls` of an earlier document) or, without them, in benchmarks.
+    """
     meta: dict = {"python": platform.python_version(), "cpu_count": os.cpu_count(),
                   # the BLAS thread count asked for (one unless the user chose: scenarios.cli)
                   "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS", "unset"),
@@ -71,10 +99,13 @@ def run_all(only: list[str] | None = None) -> dict:
     origin: dict = {}
     refs: dict = {}
     targets: dict = {}
-    for mod in BENCHES:
+    chosen = [mod for mod in BENCHES if not only or any(_selects(o, mod, short_name(mod)) for o in only)]
+    weights = progress_weights(chosen, expected)
+    done, total = 0, sum(weights)
+    if progress is not None:
+        progress(done, total)
+    for mod, weight in zip(chosen, weights):
         short = short_name(mod)
-        if only and not any(_selects(o, mod, short) for o in only):
-            continue
         t0 = time.perf_counter()
         run = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "invocation_utc": meta["date_utc"],
                "load_average_1min_at_start": round(os.getloadavg()[0], 2)}
@@ -86,6 +117,9 @@ def run_all(only: list[str] | None = None) -> dict:
             values[f"{short}_error"] = f"{type(e).__name__}: {e}"
             origin[f"{short}_error"] = short
             run["load_average_1min_at_end"] = round(os.getloadavg()[0], 2)
+            done += weight
+            if progress is not None:
+                progress(done, total)
             continue
         run["load_average_1min_at_end"] = round(os.getloadavg()[0], 2)
         res[f"{short}_wall_s"] = round(time.perf_counter() - t0, 3)
@@ -93,6 +127,9 @@ def run_all(only: list[str] | None = None) -> dict:
         origin.update(dict.fromkeys(res, short))
         refs.update(getattr(m, "REFERENCES", {}))
         targets.update(getattr(m, "TARGETS", {}))
+        done += weight
+        if progress is not None:
+            progress(done, total)
     meta["load_average_1min_at_end"] = round(os.getloadavg()[0], 2)
     return document(meta, values, refs, targets, origin)
 

@@ -21,8 +21,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from scenarios.bench import merge_documents, run_all, write_figures
-    from scenarios.bench.table import update_readme
+    from pathlib import Path
+
+    from scenarios.bench import expected_walls, merge_documents, run_all, write_figures
+    from scenarios.bench.table import read_results, update_readme
 
     from core.exceptions import ConfigError
 
@@ -39,10 +41,6 @@ def run(args) -> int:
                           "to keep the others' figures from --out")
     old = None
     if args.merge:
-        from pathlib import Path
-
-        from scenarios.bench.table import read_results
-
         from core.atomic import output_kind
 
         kind = output_kind(args.out)
@@ -55,7 +53,20 @@ def run(args) -> int:
                               "fresh clone has none): run `vmt bench` without --merge (all benchmarks), or "
                               "--out the results file to merge into")
         old = read_results(args.out)
-    doc = run_all(args.only)
+    from scenarios.cli.guard import progress_line
+
+    # the time left from the last run's wall time per benchmark (--out, when it is a readable bench
+    # document), else from the benchmarks' count
+    earlier = old
+    if earlier is None:
+        try:
+            earlier = read_results(args.out) if Path(args.out).is_file() else None
+        except ConfigError:
+            earlier = None      # not a bench document: it is replaced, as before
+    expected = expected_walls(earlier)
+    label = "bench (seconds the last run took)" if expected else "bench (benchmarks)"
+    with progress_line(label) as bar:
+        doc = run_all(args.only, progress=bar, expected=expected)
     out = write_figures(doc if old is None else merge_documents(old, doc), args.out)
     for k, r in sorted(doc["figures"].items()):
         ref = f"   [{r['ratio']} x {r['reference']}]" if r.get("reference") else ""

@@ -154,7 +154,15 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
 
 
 def run(args) -> int:
+    import math
+
+    from core.exceptions import ConfigError
     from scenarios.cli.guard import progress_line, said
+
+    if args.grid_mm is not None and not (math.isfinite(args.grid_mm) and args.grid_mm > 0):
+        # 0 was taken for "choose by BIC" and a negative step failed on the grid's nodes in metres
+        raise ConfigError(f"--grid-step-mm must be a finite number > 0 (mm), got {args.grid_mm:g}; leave it out "
+                          "to choose the step by BIC")
 
     with progress_line("discover") as bar:
         rep = run_discover(args.log, args.json_out, args.report, args.grid_mm, progress=bar)

@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -98,7 +99,28 @@ class OneLineParser(argparse.ArgumentParser):
         super().__init__(*args, **kw)
 
     def error(self, message):  # noqa: D102 - argparse's hook
+        m = re.fullmatch(r"argument (--[\w-]+)(?:/[^:]*)?: expected one argument", message)
+        if m:   # argparse takes a value such as -110:110 for an option: '--travel-mm -100:100' lands here
+            message += f" (a value that starts with '-' is written {m[1]}=VALUE, e.g. {m[1]}=-100:100)"
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def parse_args(self, args=None, namespace=None):  # noqa: D102
+        # an unknown option is named by the command that was given it (``vmt probe: error: ...
+        # (see vmt probe --help)``), not by ``vmt``, whose help does not list that command's options
+        ns, rest = self.parse_known_args(args, namespace)
+        if rest:
+            self._command_parser(ns).error(f"unrecognized arguments: {' '.join(rest)}")
+        return ns
+
+    def _command_parser(self, ns) -> argparse.ArgumentParser:
+        """The innermost sub-command's parser that ``ns`` was parsed by (``vmt machine serve``)."""
+        parser = self
+        while True:
+            subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+            chosen = getattr(ns, subs[0].dest, None) if subs else None
+            if chosen not in (subs[0].choices if subs else {}):
+                return parser
+            parser = subs[0].choices[chosen]
 
     def parse_known_args(self, args=None, namespace=None):  # noqa: D102
         # a required option with an old name (scenarios.cli.options.option) is required here, not by

@@ -43,8 +43,17 @@ def run(args) -> int:
     from core.positioning import UncertaintyInputs
     from scenarios.positioning import FIGURE_ROWS, evaluate_file
 
+    from core.exceptions import ConfigError
+    from core.positioning import PositioningLogError
+
     given = {v: getattr(args, k) for k, v in _UNC.items() if getattr(args, k) is not None}
-    unc = UncertaintyInputs(**given) if given else None
+    try:
+        unc = UncertaintyInputs(**given) if given else None
+    except PositioningLogError as e:   # named by its option, not the field ('uncertainty input u_temperature_K')
+        said = str(e)
+        for dest, field in _UNC.items():
+            said = said.replace(f"uncertainty input {field} ", f"--{dest.replace('_', '-')} ")
+        raise ConfigError(said) from None
     rep, warnings = evaluate_file(args.log, args.json, args.report, kind=args.kind, uncertainty=unc,
                                   write_log=args.write_log)
     for w in warnings:

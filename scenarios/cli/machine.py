@@ -7,6 +7,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 
@@ -18,8 +19,8 @@ def _floats3(text: str, name: str):
         v = tuple(float(x) for x in text.split(","))
     except ValueError:
         v = ()
-    if len(v) != 3:
-        raise ConfigError(f"{name} {text!r}: expected three numbers a,b,c")
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise ConfigError(f"{name} {text!r}: expected three numbers a,b,c, each finite")
     return v
 
 
@@ -119,6 +120,8 @@ def run_serve(args) -> int:
     for opt, v in (("--idle-timeout-s", args.idle_timeout), ("--stop-after-s", args.max_seconds)):
         if v is not None and not v > 0:
             raise ConfigError(f"{opt} must be > 0, got {v:g}")
+    if not math.isfinite(args.ec0y_urad):     # an infinite squareness was served
+        raise ConfigError(f"--ec0y-urad must be a finite number, got {args.ec0y_urad:g}")
     machine = served_machine(args)
     axes = args.axes or "XYZ" + "".join(a for a in "ABC" if a in getattr(machine, "rotary_axes", ()))
     config = ControllerConfig(axes=axes, home=_floats3(args.home, "--home-mm"), homing=args.homing,

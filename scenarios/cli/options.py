@@ -16,6 +16,7 @@ command), ``--noise-um`` and the old names kept as hidden aliases
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 #: The unit suffixes an option carrying a quantity ends with (``--travel-mm``, ``--drift-um-per-h``).
@@ -76,14 +77,22 @@ def parse_grid(text: str, p_R):
     from core.units import MM
 
     try:
-        parts = [float(v) * MM for v in text.split(":")]
+        mm = [float(v) for v in text.split(":")]
     except ValueError:
         raise ConfigError(f"--grid-mm: expected STEP or x0:x1:step in mm, got {text!r}") from None
+    if len(mm) not in (1, 3):
+        raise ConfigError(f"--grid-mm: expected STEP or x0:x1:step in mm, got {text!r}")
+    # judged here, in the option's mm: the grid's own checks speak in metres ('got -0.005' for -5)
+    if not all(math.isfinite(v) for v in mm):
+        raise ConfigError(f"--grid-mm {text}: expected finite numbers of mm")
+    if not mm[-1] > 0:
+        raise ConfigError(f"--grid-mm {text}: the step must be > 0 mm, got {mm[-1]:g} mm")
+    if len(mm) == 3 and not mm[0] < mm[1]:
+        raise ConfigError(f"--grid-mm {text}: expected x0 < x1, got {mm[0]:g} and {mm[1]:g} mm")
+    parts = [v * MM for v in mm]
     if len(parts) == 1:
         return Grid.from_extent(p_R, parts[0])
-    if len(parts) == 3:
-        return Grid.regular(parts[0], parts[1], parts[2])
-    raise ConfigError(f"--grid-mm: expected STEP or x0:x1:step in mm, got {text!r}")
+    return Grid.regular(parts[0], parts[1], parts[2])
 
 
 GRID_HELP = ("error-map grid, mm: STEP (nodes at multiples of it covering the touches) or x0:x1:step (both axes; "
@@ -163,11 +172,25 @@ def add_settings_args(p, *, live: bool = True) -> None:
 
 def settings_from_args(args):
     """The :class:`hardware.campaign.ProbeSettings` of the options :func:`add_settings_args` added."""
+    from core.exceptions import ConfigError
     from hardware.campaign import ProbeSettings, parse_limits
 
-    return ProbeSettings(
-        probe_feed_mm_min=args.feed, move_feed_mm_min=args.move_feed,
-        max_feed_mm_min=args.max_feed, clearance_mm=args.clearance,
-        overtravel_mm=args.overtravel, safe_z_mm=args.safe_z,
-        allow_miss=bool(getattr(args, "allow_miss", False)),
-        limits_mm=parse_limits(args.limits) if args.limits else None)
+    limits = parse_limits(args.limits) if args.limits else None
+    try:
+        return ProbeSettings(
+            probe_feed_mm_min=args.feed, move_feed_mm_min=args.move_feed,
+            max_feed_mm_min=args.max_feed, clearance_mm=args.clearance,
+            overtravel_mm=args.overtravel, safe_z_mm=args.safe_z,
+            allow_miss=bool(getattr(args, "allow_miss", False)), limits_mm=limits)
+    except ConfigError as e:     # named by the option ('--feed-mm-min 0 ...', not 'probe_feed_mm_min 0.0 ...')
+        said = str(e)
+        for field, flag in SETTINGS_OPTIONS.items():
+            if said.startswith(f"{field} "):
+                said = f"{flag} {said[len(field) + 1:]}"
+        raise ConfigError(said) from None
+
+
+#: ProbeSettings' fields and the options that set them (:func:`add_settings_args`).
+SETTINGS_OPTIONS = {"probe_feed_mm_min": "--feed-mm-min", "move_feed_mm_min": "--move-feed-mm-min",
+                    "max_feed_mm_min": "--max-feed-mm-min", "clearance_mm": "--clearance-mm",
+                    "overtravel_mm": "--overtravel-mm", "safe_z_mm": "--safe-z-mm"}

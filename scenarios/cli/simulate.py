@@ -105,7 +105,8 @@ def run(args) -> int:
     write_probe_log(args.out, log, special=True)
     from scenarios.cli.guard import said
 
-    setups = f"{len(dict.fromkeys(log.col('setup')))} set-ups"
+    k = len(dict.fromkeys(log.col('setup')))
+    setups = f"{k} set-up{'' if k == 1 else 's'}"
     if args.plan_only:      # a plan measures nothing and has no truth errors: neither is described
         print(f"{said(args.out)}: plan of {log.n} touches (nothing measured) on {args.artefact}, "
               f"machine {cfg.name}, {setups}")
@@ -126,7 +127,8 @@ def _add_positioning_options(p) -> None:
     g = p.add_argument_group("positioning (vmt simulate positioning: an ISO 230-2 test, writes positioning-log/1)")
     g.add_argument("--axis", choices=("X", "Y", "Z"), help="linear axis under test (X)")
     g.add_argument("--targets", type=int, help="number of target positions, irregularly spaced (11)")
-    g.add_argument("--travel-mm", metavar="LO:HI", help="measurement travel, mm (the stroke less the overrun)")
+    g.add_argument("--travel-mm", metavar="LO:HI", help="measurement travel, mm (the stroke less the overrun; "
+                   "write --travel-mm=-100:100 when LO < 0)")
     g.add_argument("--cycles", type=int, help="approaches per target and direction (5, as ISO 230-2 asks)")
     g.add_argument("--cycle", choices=("linear", "pilgrim"), help="ISO 230-2 test cycle (linear)")
     g.add_argument("--overrun-mm", type=float, help="overrun before each reversal, mm (5)")
@@ -184,6 +186,15 @@ def _run_positioning(args) -> int:
         return default if v is None else v
 
     travel = _numbers(args.travel_mm, "--travel-mm", ":", 2) if args.travel_mm else None
+    # judged here in the options' names and units (the simulator's own checks say 'cycles', 'targets'
+    # and the travel in metres)
+    for flag, n in (("--targets", args.targets), ("--cycles", args.cycles)):
+        if n is not None and n < 2:
+            raise ConfigError(f"{flag} must be a whole number >= 2, got {n}")
+    if travel is not None and not (np.all(np.isfinite(travel)) and travel[0] < travel[1]):
+        raise ConfigError(f"--travel-mm {args.travel_mm}: expected finite LO < HI in mm")
+    if args.drift_tau_s is not None and not (np.isfinite(args.drift_tau_s) and args.drift_tau_s > 0):
+        raise ConfigError(f"--drift-tau-s must be a finite number > 0, got {args.drift_tau_s:g}")
     line = _numbers(args.line_mm, "--line-mm", ",", 3) if args.line_mm else None
     name = args.machine or "vmc-3axis"
     log = simulate_test(

@@ -311,6 +311,36 @@ def test_recover_leaves_a_file_that_is_not_a_log_of_the_plan_whole(tmp_path, pla
     assert packed.read_bytes() == body
 
 
+def test_no_nan_height_passes_the_soft_limits(tmp_path, plan_path, capsys):
+    """--safe-z-mm nan passed every soft-limit comparison (NaN compares false): 'vmt machine program'
+    wrote 'G1 X0 Y0 Znan' and 'vmt probe' sent it to the controller. Refused before any connection or
+    file, named by its option; check_program counts a NaN point outside the limits on its own; the
+    settings' other refusals name their options too (not 'probe_feed_mm_min 0.0 ...')."""
+    from hardware.campaign import Step, check_program
+
+    emu, srv = serve()
+    out = tmp_path / "log.csv"
+    try:
+        for extra, said in ((["--safe-z-mm", "nan"], "vmt probe: error: --safe-z-mm nan must be a finite number"),
+                            (["--feed-mm-min", "0"], "vmt probe: error: --feed-mm-min 0.0 must be a positive number"),
+                            (["--clearance-mm", "-1"], "vmt probe: error: --clearance-mm -1.0 must be a positive "
+                                                       "number")):
+            assert main(probe_args(srv.url, plan_path, out, *extra)) == 2
+            assert capsys.readouterr().err == said + "\n"
+        assert srv.connections == 0 and not out.exists()
+    finally:
+        srv.stop()
+    ngc = tmp_path / "p.ngc"
+    assert main(["machine", "program", "--plan", str(plan_path), "--out", str(ngc), "--probe-file", "p.txt",
+                 "--limits-mm", LIMITS, "--safe-z-mm", "nan"]) == 2
+    assert capsys.readouterr().err == "vmt machine program: error: --safe-z-mm nan must be a finite number\n"
+    assert not ngc.exists()
+    settings = ProbeSettings(limits_mm=((0, 10), (0, 10), (0, 10)))
+    nan_step = Step(0, "S1", "t0", np.array([1.0, 1.0, np.nan]), np.array([1.0, 1.0, 1.0]), np.zeros(3))
+    with pytest.raises(PlanError, match="outside the soft limits of Z"):
+        check_program([nan_step], settings)
+
+
 def test_safety_checks_before_any_connection(tmp_path, plan_path, capsys):
     emu, srv = serve()
     out = tmp_path / "log.csv"

@@ -156,3 +156,64 @@ def test_only_an_exact_name_selects_that_benchmark_alone():
     assert pick("bench_discover") == ["bench_discover"]          # not bench_discover_study
     assert pick("discover") == ["bench_discover", "bench_discover_study"]
     assert pick("scenarios.bench.discover_study") == ["bench_discover_study"]
+
+
+def _fake_benches(monkeypatch, names, broken=()):
+    import sys
+    import types
+
+    import scenarios.bench as sb
+
+    mods = []
+    for name in names:
+        m = types.ModuleType(f"fakebench_{name}")
+        if name in broken:
+            m.run = lambda: 1 / 0
+        else:
+            m.run = lambda name=name: {f"{name}_s": 1.0}
+        monkeypatch.setitem(sys.modules, m.__name__, m)
+        mods.append(m.__name__)
+    monkeypatch.setattr(sb, "BENCHES", mods)
+    return sb
+
+
+def test_bench_progress_counts_the_last_runs_seconds(monkeypatch):
+    """run_all reports progress before the first benchmark and after each (a broken one too), in the
+    seconds each took in the last run (a new one: the median of the known), so the time left is not
+    a mean over benchmarks of seconds and of half an hour; without a last run, in benchmarks."""
+    sb = _fake_benches(monkeypatch, ["a", "b", "c"], broken=("b",))
+    last = {"figures": {"bench_fakebench_a_wall_s": {"value": 100.0}, "bench_fakebench_b_wall_s": {"value": 10.2},
+                        "bench_other_wall_s": {"value": 5.0}, "x_s": {"value": 3.0}}}
+    expected = sb.expected_walls(last)
+    assert expected == {"bench_fakebench_a": 100.0, "bench_fakebench_b": 10.2}
+    calls = []
+    doc = sb.run_all(progress=lambda d, t: calls.append((d, t)), expected=expected)
+    assert calls == [(0, 210), (100, 210), (110, 210), (210, 210)]
+    assert "bench_fakebench_b_error" in doc["figures"] and "c_s" in doc["figures"]
+    calls.clear()
+    sb.run_all(progress=lambda d, t: calls.append((d, t)))
+    assert calls == [(0, 3), (1, 3), (2, 3), (3, 3)]
+    calls.clear()
+    sb.run_all(["fakebench_c"], progress=lambda d, t: calls.append((d, t)), expected=expected)
+    assert calls == [(0, 100), (100, 100)]
+    assert sb.expected_walls(None) == {} and sb.expected_walls({"figures": {"bench_fakebench_a_wall_s": 3}}) == {}
+
+
+def test_vmt_bench_takes_the_time_left_from_its_out_file(monkeypatch, tmp_path):
+    """vmt bench passes run_all a progress line and the walls of the --out file it is about to
+    replace; with no such file, or one that is no bench document (replaced as before), none."""
+    sb = _fake_benches(monkeypatch, ["a"])
+    seen = []
+    real = sb.run_all
+    monkeypatch.setattr(sb, "run_all", lambda only=None, progress=None, expected=None:
+                        seen.append((callable(progress), expected)) or real(only, progress, expected))
+    out = tmp_path / "r.json"
+    assert main(["bench", "--out", str(out)]) == 0
+    assert seen[-1] == (True, {})
+    out.write_text(json.dumps({"format": sb.FORMAT, "meta": {}, "figures": {
+        "bench_fakebench_a_wall_s": {"value": 12.5, "bench": "bench_fakebench_a"}}}))
+    assert main(["bench", "--out", str(out)]) == 0          # a last run's file
+    assert seen[-1] == (True, {"bench_fakebench_a": 12.5})
+    out.write_text("not json")
+    assert main(["bench", "--out", str(out)]) == 0
+    assert seen[-1] == (True, {}) and json.loads(out.read_text())["figures"]["a_s"]["value"] == 1.0

@@ -450,6 +450,26 @@ def test_no_option_is_abbreviated(capsys):
     assert len(every) > 20 and not any(sp.allow_abbrev for sp in every)
 
 
+def test_unknown_option_is_named_by_its_command(capsys):
+    """An unrecognized option's error names the command given it and that command's help, not vmt's."""
+    p = build_parser()
+    cases = [(["probe", "--controller", "virtual:", "--plan", "p.csv", "--out", "o.csv", "--safe", "80"],
+              "vmt probe", "--safe 80"),
+             (["machine", "serve", "--port", "0", "--speed", "2"], "vmt machine serve", "--speed 2"),
+             (["plan", "grid", "--x-mm", "0:10:1", "--y-mm", "0:10:1", "--out", "g.csv", "--z", "0"],
+              "vmt plan grid", "--z 0"),
+             (["check", "log.csv", "extra.csv"], "vmt check", "extra.csv")]
+    for argv, prog, rest in cases:
+        with pytest.raises(SystemExit) as e:
+            p.parse_args(argv)
+        assert e.value.code == 2
+        err = capsys.readouterr().err
+        assert err == f"{prog}: error: unrecognized arguments: {rest} (see {prog} --help)\n", err
+    with pytest.raises(SystemExit):                   # no command given: vmt's own
+        p.parse_args(["--frobnicate"])
+    assert capsys.readouterr().err.startswith("vmt: error: unrecognized arguments: --frobnicate (see vmt --help)")
+
+
 def _parsers(p):
     yield p
     for a in p._actions:
@@ -591,3 +611,98 @@ def test_check_usage_says_log_is_required_and_noise_help_says_what_it_does_in_po
     text = " ".join(capsys.readouterr().out.split())
     assert "positioning: the old name of --scatter-um, the same k=1 scatter of each reading" in text
     assert main(["check"]) == 2 and "give the LOG to check" in capsys.readouterr().err
+
+
+def test_grid_steps_are_judged_in_mm(tmp_path, capsys):
+    """--grid-mm (identify, design) and --grid-step-mm (discover) are refused in their own unit: a step
+    of -5 mm said 'grid step must be > 0, got -0.005' (metres), discover took a step of 0 for 'choose by
+    BIC' and a negative one failed on the grid's nodes in metres; nan passed to the grid."""
+    from core.exceptions import ConfigError
+    from scenarios.cli.options import parse_grid
+
+    p_R = np.array([[0.0, 0.0], [0.1, 0.1]])
+    for text, said in (("-5", "the step must be > 0 mm, got -5 mm"), ("0", "the step must be > 0 mm, got 0 mm"),
+                       ("nan", "expected finite numbers of mm"), ("-110:110:0", "the step must be > 0 mm"),
+                       ("110:-110:22", "expected x0 < x1, got 110 and -110 mm"), ("0:inf:22", "finite")):
+        with pytest.raises(ConfigError, match=re.escape(said)):
+            parse_grid(text, p_R)
+    assert np.allclose(np.diff(parse_grid("50", p_R).x_m), 0.05)
+    assert parse_grid("-110:110:110", p_R).y_m.tolist() == [-0.11, 0.0, 0.11]
+    log = tmp_path / "log.csv"
+    log.write_text("any\n")                 # the step is judged before the log is read
+    for step in ("0", "-5", "nan"):
+        assert main(["discover", str(log), "--json", str(tmp_path / "d.json"), "--grid-step-mm", step]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"vmt discover: error: --grid-step-mm must be a finite number > 0 (mm), got {step}"), err
+        assert err.count("\n") == 1
+
+
+def test_option_errors_name_the_option_in_its_unit(tmp_path, capsys):
+    """Refusals name the option the user wrote, in its unit: 'vmt simulate positioning --travel-mm 10:-10'
+    said 'measurement travel must be finite with min < max, got 0.01, -0.01' (metres), --cycles 0
+    'cycles must ...', --drift-tau-s 0 'Drift.tau_s must be > 0'; iso230-2's 'uncertainty input
+    u_temperature_K ...'; plan grid's 'z_mm 0.0 / stylus_r_mm -1.0'. A negative value given as a
+    separate word ('--travel-mm -100:100') said only 'expected one argument'."""
+    sample = "scenarios/data/positioning-sample.csv"
+    out = str(tmp_path / "o.csv")
+    cases = [
+        (["simulate", "positioning", "--out", out, "--travel-mm", "10:-10"],
+         "vmt simulate: error: --travel-mm 10:-10: expected finite LO < HI in mm"),
+        (["simulate", "positioning", "--out", out, "--travel-mm=nan:10"],
+         "vmt simulate: error: --travel-mm nan:10: expected finite LO < HI in mm"),
+        (["simulate", "positioning", "--out", out, "--cycles", "0"],
+         "vmt simulate: error: --cycles must be a whole number >= 2, got 0"),
+        (["simulate", "positioning", "--out", out, "--targets", "1"],
+         "vmt simulate: error: --targets must be a whole number >= 2, got 1"),
+        (["simulate", "positioning", "--out", out, "--drift-tau-s", "0", "--drift-um-per-h", "1"],
+         "vmt simulate: error: --drift-tau-s must be a finite number > 0, got 0"),
+        (["iso230-2", sample, "--json", str(tmp_path / "i.json"), "--u-temp-k", "-1"],
+         "vmt iso230-2: error: --u-temp-k must be a finite number >= 0, got -1.0"),
+        (["iso230-2", sample, "--json", str(tmp_path / "i.json"), "--u-instrument-um-per-m", "-1"],
+         "vmt iso230-2: error: --u-instrument-um-per-m must be a finite number >= 0, got -1.0"),
+        (["iso230-2", sample, "--json", str(tmp_path / "i.json"), "--temp-c", "nan"],
+         "vmt iso230-2: error: --temp-c must be a workshop temperature, got nan"),
+        (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", out, "--stylus-r-mm", "-1"],
+         "vmt plan grid: error: --stylus-r-mm must be a finite number >= 0, got -1"),
+        (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", out, "--z-mm", "inf"],
+         "vmt plan grid: error: --z-mm must be a finite number, got inf"),
+    ]
+    for argv, said in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err == said + "\n", err
+    assert not (tmp_path / "o.csv").exists() and not (tmp_path / "i.json").exists()
+    with pytest.raises(SystemExit) as e:
+        main(["simulate", "positioning", "--out", out, "--travel-mm", "-100:100"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("vmt simulate: error: argument --travel-mm: expected one argument (a value that starts "
+                          "with '-' is written --travel-mm=VALUE, e.g. --travel-mm=-100:100)"), err
+
+
+def test_machine_serve_refuses_non_finite_settings(capsys):
+    """'vmt machine serve --ec0y-urad inf' served a machine with an infinite squareness, and
+    '--home-mm nan,0,0' said 'controller home (nan, 0.0, 0.0): ...' instead of naming the option."""
+    base = ["machine", "serve", "--port", "0", "--stop-after-s", "0.5"]
+    three = "expected three numbers a,b,c, each finite"
+    for extra, said in ((["--ec0y-urad", "inf"], "--ec0y-urad must be a finite number, got inf"),
+                        (["--home-mm", "nan,0,0"], f"--home-mm 'nan,0,0': {three}"),
+                        (["--scale-ppm", "0,inf,0"], f"--scale-ppm '0,inf,0': {three}")):
+        assert main(base + extra) == 2
+        assert capsys.readouterr().err == f"vmt machine serve: error: {said}\n"
+
+
+def test_wcs_and_one_setup_are_said_plainly(tmp_path, capsys):
+    """'vmt machine program --wcs G99' named the field ('wcs ...'), not the option; 'vmt simulate' said
+    '1 set-ups' of a one-angle campaign."""
+    plan = tmp_path / "plan.csv"
+    assert main(["plan", "grid", "--x-mm", "0:10:10", "--y-mm", "0:10:10", "--out", str(plan)]) == 0
+    capsys.readouterr()
+    assert main(["machine", "program", "--plan", str(plan), "--out", str(tmp_path / "p.ngc"), "--probe-file", "p.txt",
+                 "--limits-mm", "X-50:50,Y-50:50,Z-50:50", "--wcs", "G99"]) == 2
+    assert capsys.readouterr().err.startswith("vmt machine program: error: --wcs 'G99': expected one of G54, ")
+    out = tmp_path / "one.csv"
+    assert main(["simulate", "pin-circle", "--plan-only", "--out", str(out), "--c-angles-deg", "0",
+                 "--no-collision-check"]) == 0
+    said = capsys.readouterr().out
+    assert said.endswith(", 1 set-up\n"), said

@@ -339,7 +339,7 @@ def test_bench_never_replaces_a_link_or_device(files, capfd, monkeypatch):
     link (as it would over /dev/null itself, run as root). Now written through, the link kept."""
     import scenarios.bench as sb
 
-    monkeypatch.setattr(sb, "run_all", lambda only=None: {"format": sb.FORMAT, "meta": {}, "figures": {
+    monkeypatch.setattr(sb, "run_all", lambda only=None, **kw: {"format": sb.FORMAT, "meta": {}, "figures": {
         "x_s": {"value": 1.0}}})
     link = files["dir"] / "null-link"
     link.symlink_to("/dev/null")
@@ -501,7 +501,7 @@ def test_bench_merge_refuses_an_output_it_cannot_read_back(files, capsys, monkey
 
     import scenarios.bench as sb
 
-    monkeypatch.setattr(sb, "run_all", lambda only=None: pytest.fail("a benchmark ran"))
+    monkeypatch.setattr(sb, "run_all", lambda only=None, **kw: pytest.fail("a benchmark ran"))
     for out, kind in (("-", "symbolic link (standard output)"), ("/dev/null", "character device")):
         assert main(["bench", "--merge", "--out", out]) == 2
         one_line(capsys, f"vmt bench: error: --merge reads the figures to keep from --out, so --out must be a "
