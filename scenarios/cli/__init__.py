@@ -85,11 +85,7 @@ def keep_freed_memory(environ=os.environ, libc=None) -> bool:
     return all([libc.mallopt(p, v) == 1 for p, v in MALLOPT])
 
 
-KEPT_FREED_MEMORY = keep_freed_memory()
-
-#: M_TOP_PAD (glibc's -2) while a long log's discover gives the heap back between its stages
-#: (:func:`release_freed_memory`): the heap grown again by what is asked and 8 MiB, not 64.
-LONG_LOG_TOP_PAD = 8 << 20
+keep_freed_memory()
 
 
 def _glibc():
@@ -122,18 +118,6 @@ def release_freed_memory(libc=None) -> bool:
     """
     libc = _glibc() if libc is None else libc
     return bool(libc is not None and libc.malloc_trim(0) == 1)
-
-
-def small_top_pad(libc=None) -> bool:
-    """Grow the heap by :data:`LONG_LOG_TOP_PAD` beyond a request, not :data:`MALLOPT`'s 64 MiB, where
-    :func:`keep_freed_memory` set the allocator (the user's own settings are left alone); True when set. With the
-    heap given back between stages (:func:`release_freed_memory`) each stage's growth would otherwise come with
-    64 MiB of address space it does not use (measured on the bench's 1e5-row log: the peak 743 -> 752 MiB with the
-    release alone)."""
-    if not KEPT_FREED_MEMORY and libc is None:
-        return False
-    libc = _glibc() if libc is None else libc
-    return bool(libc is not None and libc.mallopt(-2, LONG_LOG_TOP_PAD) == 1)
 
 #: (name, module) of every sub-command, in the order ``--help`` lists them.
 COMMANDS = [

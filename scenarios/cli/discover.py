@@ -58,11 +58,8 @@ RELEASE_ROWS = 50_000
 
 
 def _releasing(progress):
-    """``progress`` that first gives the free heap back (:func:`scenarios.cli.release_freed_memory`); the heap grown
-    by a small pad from now on (:func:`scenarios.cli.small_top_pad`)."""
-    from scenarios.cli import release_freed_memory, small_top_pad
-
-    small_top_pad()
+    """``progress`` that first gives the free heap back (:func:`scenarios.cli.release_freed_memory`)."""
+    from scenarios.cli import release_freed_memory
 
     def step(done, total):
         release_freed_memory()

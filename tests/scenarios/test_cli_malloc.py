@@ -111,26 +111,10 @@ def test_long_log_discover_releases_at_each_step(monkeypatch):
 
     calls = []
     monkeypatch.setattr(cli, "release_freed_memory", lambda libc=None: calls.append("trim") or True)
-    monkeypatch.setattr(cli, "small_top_pad", lambda libc=None: calls.append("pad") or True)
     seen = []
     step = cd._releasing(lambda done, total: seen.append((done, total)))
-    assert calls == ["pad"]  # set once, when the long log's discover starts
     step(1, 9)
     step(2, 9)
-    assert calls == ["pad", "trim", "trim"] and seen == [(1, 9), (2, 9)]
+    assert calls == ["trim", "trim"] and seen == [(1, 9), (2, 9)]
     cd._releasing(None)(3, 9)  # no progress bar: the release alone
-    assert calls == ["pad", "trim", "trim", "pad", "trim"]
-
-
-def test_small_top_pad_only_over_vmts_own_settings():
-    class _Opt:
-        def __init__(self):
-            self.calls = []
-
-        def mallopt(self, p, v):
-            self.calls.append((p, v))
-            return 1
-    import scenarios.cli as cli
-
-    libc = _Opt()
-    assert cli.small_top_pad(libc) is True and libc.calls == [(-2, cli.LONG_LOG_TOP_PAD)] == [(-2, 8 << 20)]
+    assert calls == ["trim"] * 3
