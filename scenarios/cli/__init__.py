@@ -87,38 +87,6 @@ def keep_freed_memory(environ=os.environ, libc=None) -> bool:
 
 keep_freed_memory()
 
-
-def _glibc():
-    """This process's C library when it is glibc (``mallopt`` and ``malloc_trim`` present), else None."""
-    import platform
-
-    if platform.libc_ver()[0] != "glibc":
-        return None
-    import ctypes
-
-    try:
-        libc = ctypes.CDLL(None)
-        libc.malloc_trim  # noqa: B018 - present on glibc
-    except (OSError, AttributeError):
-        return None
-    return libc
-
-
-def release_freed_memory(libc=None) -> bool:
-    """Give the free memory at the top of glibc's heap back to the system (``malloc_trim(0)``); True when some was.
-
-    Under :data:`MALLOPT` the heap keeps up to 256 MiB of freed memory for
-    reuse: on a long log's discover (arrays of 8-61 MiB at 1e6 rows, all from
-    the heap) that is address space held from one stage to the next, which
-    the next stage's arrays of 64 MiB and more (mapped afresh) come on top of.
-    ``vmt discover`` of a long log calls this between its stages
-    (:data:`scenarios.cli.discover.RELEASE_ROWS`); a no-op off glibc. The
-    numbers computed are not touched. ``libc``: the C library (tests pass a
-    stand-in); default: this process's, on glibc.
-    """
-    libc = _glibc() if libc is None else libc
-    return bool(libc is not None and libc.malloc_trim(0) == 1)
-
 #: (name, module) of every sub-command, in the order ``--help`` lists them.
 COMMANDS = [
     ("check", "scenarios.cli.check"),

@@ -49,25 +49,6 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     return rep
 
 
-#: A probe log of at least this many touches has glibc's free heap given back at each of discover's progress steps
-#: (:func:`scenarios.cli.release_freed_memory`: between the baseline's judgement, its diagnosis and each cause's
-#: test). At the bench's 1e6 rows the heap kept the diagnosis' freed arrays (up to 256 MiB, :data:`scenarios.cli.MALLOPT`) under
-#: the drift trials' and part_change's arrays; the demo's and the stored campaigns' logs (under 1e4 touches) keep
-#: it for reuse, as before.
-RELEASE_ROWS = 50_000
-
-
-def _releasing(progress):
-    """``progress`` that first gives the free heap back (:func:`scenarios.cli.release_freed_memory`)."""
-    from scenarios.cli import release_freed_memory
-
-    def step(done, total):
-        release_freed_memory()
-        if progress is not None:
-            progress(done, total)
-    return step
-
-
 def _discover_probe_log(log_path, grid_mm, progress):
     """The planar self-calibration baseline of a probe-log/1 campaign, then the search."""
     from core.baseline import extra_columns
@@ -82,8 +63,6 @@ def _discover_probe_log(log_path, grid_mm, progress):
     chain, extra = log.meta.get("kinematic_chain"), extra_columns(log, t.row)
     del log  # the file's columns are not the search's: 152 MiB held through it at the bench's 1e6 rows
     # the touches handed over, not held here: the search keeps only what it reads (core.baseline.planar_data)
-    if t.n >= RELEASE_ROWS:
-        progress = _releasing(progress)
     held = [t]
     del t
     return discover(held.pop(), grid_step_mm=grid_mm, chain=chain, progress=progress, extra=extra)
