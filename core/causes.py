@@ -508,12 +508,18 @@ def drift_scans(bl):
 def drift_rebuild(bl, info):
     """(T, n, k) a drift layout's columns: a warm-up's for time constants ``tau_s`` (arrays give T trials), a polynomial's."""
     d = bl.data
+    if "sensor" not in info and "tau_s" not in info:
+        # a polynomial's layout: _outer(modes, P) written a mode at a time, each mode's column made when written
+        # (the same products: at 1e6 rows the (n, 4) modes, 31 MiB, were held beside the 92 MiB layout)
+        P = _legendre(2 * d.tau - 1, info["degree"])
+        out = np.empty((len(P), 4, P.shape[1]))
+        for j, make in enumerate((lambda: -d.nx, lambda: -d.ny, lambda: -d.nx * d.xs, lambda: -d.ny * d.ys)):
+            np.multiply(make()[:, None], P, out=out[:, j, :])
+        return out.reshape(len(P), -1)[None]
     modes = np.column_stack([-d.nx, -d.ny, -d.nx * d.xs, -d.ny * d.ys])
     if "sensor" in info:  # a clock sensor's course (clock_sensors), about its mean
         T = np.asarray(d.temps[info["sensor"]], float)
         return (modes * (T - T.mean())[:, None])[None]
-    if "tau_s" not in info:
-        return _outer(modes, _legendre(2 * d.tau - 1, info["degree"]))[None]
     f = np.atleast_1d(np.asarray(info["tau_s"], float)) / d.span_s
     return modes[None, :, :] * np.exp(-d.tau[None, :] / f[:, None])[:, :, None]
 
@@ -1834,7 +1840,7 @@ def _part_change_feature(d, f, m: np.ndarray, nt: int, sector: np.ndarray, form:
         def layout_cols(keep):
             if every is not None:
                 return every[:, keep]
-            return lambda: np.column_stack(_part_change_walls(d, f, m, nt, sector, time, w, ext)[0])[:, keep]
+            return lambda: _part_change_walls(d, f, m, nt, sector, time, w, ext, keep)[0]
         for j, (top, tu, bo) in enumerate(layouts):
             keep = [i for i, k in enumerate(kinds) if k <= top]
             scans.append(_one(layout_cols(keep), [labels[i] for i in keep],
@@ -1883,16 +1889,30 @@ def _curves(form) -> bool:
 
 
 def _part_change_walls(d, f, m: np.ndarray, nt: int, sector: np.ndarray, time: np.ndarray, w: np.ndarray,
-                       ext: float) -> tuple:
+                       ext: float, keep=None) -> tuple:
     """Feature ``f``'s wall columns of :func:`_part_change_feature` (shift, turn, bow per sector) and their
-    kinds, labels, walls, turns, bows and the touches on a wall: made again by a long log's scans at each build."""
+    kinds, labels, walls, turns, bows and the touches on a wall: made again by a long log's scans at each build.
+
+    ``keep`` (increasing column indices; a long log's layout): in place of the list of columns, the (n, len(keep))
+    array ``np.column_stack(cols)[:, keep]`` bit for bit, each kept column computed into it by the same operation
+    and the others not made (at 1e6 rows a layout was made through all its feature's columns, their stack and the
+    kept copy: three times its size)."""
     t = d.touches
     cols, kinds, labels, walls, turns, bows = [], [], [], [], [], []
+    slot = None if keep is None else {int(i): j for j, i in enumerate(keep)}
+    out = None if keep is None else np.empty((t.n, len(keep)))
+
+    def column(make):  # the next column: made into the kept array, made into the list, or not made
+        i = len(kinds)
+        if slot is None:
+            cols.append(make(np.empty(t.n)))
+        elif i in slot:
+            make(out[:, slot[i]])
     covered = np.zeros(t.n, bool)  # the feature's touches on a wall
     for s in range(8):
         ms = m & (sector == s)
         if np.unique(t.target[ms]).size >= (2 if nt >= 8 else 1):  # a small feature: every direction it has
-            cols.append(ms * time)
+            column(lambda c: np.multiply(ms, time, out=c))
             kinds.append(0)
             labels.append(f"{f}@{45 * s}deg")
             walls.append(45 * s)
@@ -1904,20 +1924,25 @@ def _part_change_walls(d, f, m: np.ndarray, nt: int, sector: np.ndarray, time: n
             if np.ptp(a) > WALL_TURN_MIN * ext and np.ptp(np.angle(
                     np.exp(1j * (d.wn_az[ms] - d.wn_az[ms][0])))) <= FLAT_WALL_RAD:
                 u = 2 * (a - a.min()) / np.ptp(a) - 1
-                c = np.zeros(t.n)
-                c[ms] = time[ms] * u
-                cols.append(c)
+
+                def turn(c):
+                    c[...] = 0.0
+                    c[ms] = time[ms] * u
+                    return c
+                column(turn)
                 kinds.append(1)
                 labels.append(f"{f}@{45 * s}deg turn")
                 turns.append(45 * s)
                 if 1 + int(np.sum(np.diff(np.sort(a)) > WALL_TURN_MIN * ext)) >= WALL_BOW_PLACES:
-                    c = np.zeros(t.n)
-                    c[ms] = -time[ms] * u ** 2
-                    cols.append(c)
+                    def bow(c):
+                        c[...] = 0.0
+                        c[ms] = -time[ms] * u ** 2
+                        return c
+                    column(bow)
                     kinds.append(2)
                     labels.append(f"{f}@{45 * s}deg bow")
                     bows.append(45 * s)
-    return cols, kinds, labels, walls, turns, bows, covered
+    return (cols if out is None else out), kinds, labels, walls, turns, bows, covered
 
 
 def _ring_columns(d, m: np.ndarray, time: np.ndarray | None = None) -> np.ndarray | None:

@@ -59,11 +59,38 @@ IN_SPAN = 1e-6
 # ---------------------------------------------------------------------------
 # linear algebra
 # ---------------------------------------------------------------------------
+#: Above this many bytes a C-ordered float64 matrix of two or more columns has its column norms (:func:`col_norms`)
+#: summed :data:`LONG_ROWS` rows at a time, and :func:`new_basis` projects and rotates it a block of rows at a time
+#: in its own memory: at 1e6 rows a sine's eight columns (61 MiB) had a squared copy, the model's product and the
+#: rotated basis beside them, each as large.
+LONG_BYTES = 16 << 20
+#: Rows of one such block.
+LONG_ROWS = 8192
+#: Columns at most of a matrix those blocks take (a sine's eight, a drift's twelve: narrow; wider ones as before).
+LONG_COLS = 16
+
+
 def col_norms(M: np.ndarray) -> np.ndarray:
     """``np.linalg.norm(M, axis=0)`` bit for bit: for a float64 ``M`` its own expression without the copy
     ``M.conj()`` makes of a real array (``sqrt(add.reduce(M * M, axis=0))``, the same product in the same layout and
-    the same reduction; 33 -> 20 us for 432 x 6, session 23), any other array by numpy's."""
+    the same reduction; 33 -> 20 us for 432 x 6, session 23), any other array by numpy's.
+
+    A long C-ordered ``M`` (over :data:`LONG_BYTES`, two or more columns) is squared :data:`LONG_ROWS` rows at a
+    time, each block's reduction started from the sums so far (a block's first row): numpy reduces the leading
+    axis of such an array row after row, so the sums are the whole reduction's bit for bit
+    (tests/core/test_long_basis.py); one column alone is summed pairwise and is left whole."""
     if isinstance(M, np.ndarray) and M.dtype == np.float64 and M.ndim == 2:
+        n, k = M.shape
+        if 2 <= k <= LONG_COLS and M.nbytes > LONG_BYTES and M.flags.c_contiguous:
+            buf = np.empty((min(LONG_ROWS, n) + 1, k))
+            np.multiply(M[:LONG_ROWS], M[:LONG_ROWS], out=buf[:min(LONG_ROWS, n)])
+            acc = np.add.reduce(buf[:min(LONG_ROWS, n)], axis=0)
+            for a in range(LONG_ROWS, n, LONG_ROWS):
+                b = min(a + LONG_ROWS, n)
+                buf[0] = acc
+                np.multiply(M[a:b], M[a:b], out=buf[1:b - a + 1])
+                acc = np.add.reduce(buf[:b - a + 1], axis=0)
+            return np.sqrt(acc)
         return np.sqrt(np.add.reduce(M * M, axis=0))
     return np.linalg.norm(M, axis=0)
 
@@ -207,6 +234,9 @@ def project_out(Q: np.ndarray, B: np.ndarray, inplace: bool = False) -> np.ndarr
         return _project_out_extended(Q, ext, B, inplace)
     if isinstance(Q, np.ndarray) and isinstance(B, np.ndarray) and B.ndim == 2 and B.nbytes > 2 * PROJECT_BLOCK_BYTES:
         return _project_blocks(Q, B if inplace else B.copy())
+    if inplace and isinstance(Q, Basis) and isinstance(B, np.ndarray) and B.ndim == 2 and B.nbytes > LONG_BYTES:
+        # a long log's block basis: Q Q^T B subtracted a block of rows at a time (the same numbers, no n x m product)
+        return Q.subtract_matmul(Q.T @ B, B, LONG_ROWS)
     QB = Q @ (Q.T @ B)
     return np.subtract(B, QB, out=B) if inplace else B - QB
 
@@ -489,7 +519,19 @@ def new_basis(Q: np.ndarray, B: np.ndarray, tol: float = IN_SPAN, inplace: bool 
     P = project_out(Q, P, inplace=True)
     w, V = np.linalg.eigh(P.T @ P)
     good = w > max(tol, 1e-5) ** 2
-    U = P @ V[:, good]
+    Vg = V[:, good]
+    if P.nbytes > LONG_BYTES and P.flags.c_contiguous and 2 <= P.shape[1] <= LONG_COLS:
+        # a long log: the rotation a block of rows at a time into P's own memory (P is this function's or the
+        # caller's temporary; row blocks of one product are the whole product's rows bit for bit), no second array
+        n, g = P.shape[0], Vg.shape[1]
+        flat = P.reshape(-1)
+        for a in range(0, n, LONG_ROWS):
+            b = min(a + LONG_ROWS, n)
+            block = P[a:b] @ Vg  # (read before its rows' memory is written: rows of U start at or before P's)
+            flat[a * g:b * g] = block.reshape(-1)
+        U = flat[:n * g].reshape(n, g)
+    else:
+        U = P @ Vg
     del P  # (the caller's B, or this function's normalised copy: freed before the result is scaled)
     U /= np.sqrt(w[good])
     return U

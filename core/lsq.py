@@ -638,11 +638,17 @@ def remove_span(v, B, rcond: float = 1e-12) -> np.ndarray:
 # ---------------------------------------------------------------------------
 # block designs: one indicator column per row, eliminated (long logs)
 # ---------------------------------------------------------------------------
+#: :func:`group_sums` of a dense block of more cells than this takes the indicator block's CSR product (the same
+#: sums bit for bit), not one bincount over the cells: their (id, column) index is an int64 per cell (61 MiB for a
+#: long log's eight columns at 1e6 rows, beside the block, at every product of a block basis with them).
+GROUP_CELLS_MAX = 1 << 21
+
+
 def group_sums(ids: np.ndarray, g: int, X: np.ndarray) -> np.ndarray:
     """(g,) or (g, k): the rows of ``X`` summed per id (``G^T X`` for the indicator block ``G``)."""
     if X.ndim == 1:
         return np.bincount(ids, weights=X, minlength=g)
-    if isinstance(X, np.ndarray) and X.ndim == 2:
+    if isinstance(X, np.ndarray) and X.ndim == 2 and X.size <= GROUP_CELLS_MAX:
         # every (id, column) cell summed in row order from 0, as the indicator block's CSR product sums them: the
         # same sums bit for bit (3,000 random layouts, magnitudes 1e-8-1e8), 58 -> 14 us at 432 x 12
         k = X.shape[1]
@@ -1052,6 +1058,27 @@ class Basis:
         if self.U.shape[1]:
             out += self.U @ c[k + r:]
         return self.span.matmul(c[k:k + r], out) if r else out
+
+    def subtract_matmul(self, c: np.ndarray, B: np.ndarray, rows: int = 8192) -> np.ndarray:
+        """``B - self @ c`` written over ``B`` (n, m), ``self @ c`` made ``rows`` rows at a time: each block's
+        products are :meth:`__matmul__`'s on those rows in the same order (the indicators' scaled entries, plus
+        the dense columns' product, plus the span's rows), so ``B`` holds ``B - self @ c`` bit for bit without the
+        (n, m) product and its (n, m) temporaries beside it (two arrays of 61 MiB for 8 columns at 1e6 rows)."""
+        c = np.asarray(c, float)
+        k, r = self.k, self._r
+        cg = c[:k] * (self._scale if c.ndim == 1 else self._scale[:, None])
+        cu = c[k + r:]
+        if r:
+            Tc, Mc = self.span.T @ c[k:k + r], self.span.MT @ c[k:k + r]
+        for a in range(0, len(self.ids), rows):
+            ch = slice(a, min(a + rows, len(self.ids)))
+            out = cg[self._pos[self.ids[ch]]]
+            if self.U.shape[1]:
+                out += self.U[ch] @ cu
+            if r:
+                out += self.span.D[ch] @ Tc - Mc[self.span.ids[ch]]
+            np.subtract(B[ch], out, out=B[ch])
+        return B
 
     def hstack(self, V: np.ndarray) -> "Basis":
         return Basis(self.ids, self.counts, np.hstack([self.U, V]), self.span)
