@@ -121,10 +121,11 @@ class Scan:
         scans too large to build whole; the engine evaluates the best ones
         exactly.
     path : bool
-        The trials are one column each, in order along one continuous
-        parameter (a bump's centre): the engine checks the scan's count of
-        independent trials against Davies' upcrossing bound on the path
-        the trials' columns trace (``core.discover._path_tries``).
+        The trials are in order along one continuous parameter (a bump's
+        centre, one column each; a period, the periodic error's four): the
+        engine checks the scan's count of independent trials against
+        Davies' upcrossing bound on the path the trials' columns trace
+        (``core.discover._path_tries``).
     build_sparse : callable(idx) -> core.diagnosis.SparseTrials, optional
         ``build``'s trials kept sparse (the same values), for a long log's
         test of a trial (``core.discover._evaluate``).
@@ -665,6 +666,12 @@ def _sin_cos(Z: np.ndarray) -> np.ndarray:
     return np.hstack([Z.imag, Z.real])
 
 
+#: The periodic scan's count of independent frequencies checked against Davies' bound on the path its
+#: trials' four columns trace beside the model (:attr:`Scan.path`; docs/discovery.md, "Session 24: a false
+#: periodic_axis_error beside a true outlier finding"). Off: the count alone.
+PERIODIC_PATH = True
+
+
 def periodic_scans(bl):
     """Periodic axis error: a screw-pitch or scale ripple shorter than the error map's grid.
 
@@ -712,7 +719,8 @@ def periodic_scans(bl):
         scans.append(Scan((f"EX{ax}_sin", f"EX{ax}_cos", f"EY{ax}_sin", f"EY{ax}_cos"),
                           tuple({"axis": ax, "period_m": float(p), "nyquist_m": p_lo, **step} for p in P),
                           "xy"[axis],
-                          lambda idx, axis=axis, P=P: _periodic_cols(d, axis, P[np.asarray(idx)]), score))
+                          lambda idx, axis=axis, P=P: _periodic_cols(d, axis, P[np.asarray(idx)]), score,
+                          path=PERIODIC_PATH))
     return scans, tries
 
 

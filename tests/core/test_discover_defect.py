@@ -154,7 +154,8 @@ def test_smooth_error_map_follows_a_quadratic_exactly():
 def test_path_count_hand_worked():
     """Davies' count on hand-made paths: trials that are one column (no length) count 1 per scan; two
     orthogonal unit columns (a path of length pi/2) count level / p*, p* solving p + (1/2) exp(-u/2) = level
-    with u the chi-square(1) quantile of p (the bound written out by hand, solved by bisection here)."""
+    with u the chi-square(1) quantile of p (the bound written out by hand, solved by bisection here); the same for
+    trials of two columns (a chi-square process of two degrees of freedom)."""
     from scipy import stats
     from core.discover import _path_tries
     n = 12
@@ -174,10 +175,25 @@ def test_path_count_hand_worked():
         else:
             lo = mid
     assert _path_tries([sc2], st, 0.01) == pytest.approx(0.01 / lo, rel=1e-4)
-    wide = np.ones((5, n, 2))  # a scan marked path=True whose trials are two columns: refused, not column 0 taken
-    sc3 = causes.Scan(("b",), tuple({} for _ in range(5)), "x", lambda idx: wide[np.asarray(idx)], path=True)
-    with pytest.raises(ValueError, match="one column"):
-        _path_tries([sc3], st, 0.01)
+    # trials of two columns (session 24: the periodic scan's four): one span throughout counts 1; two orthogonal
+    # planes (principal angles pi/2, pi/2: a step of sqrt((pi^2/4 + pi^2/4) / 2) = pi/2) solve
+    # p + (pi/2) sqrt(u) exp(-u/2) / sqrt(2 pi) = level, u the chi-square(2) quantile (a chi-square process of 2 dof)
+    wide = np.zeros((5, n, 2))
+    wide[:, 0, 0] = wide[:, 1, 1] = 1.0
+    sc3 = causes.Scan(("a", "b"), tuple({} for _ in range(5)), "x", lambda idx: wide[np.asarray(idx)], path=True)
+    assert _path_tries([sc3], st, 0.01) == pytest.approx(1.0, rel=1e-9)
+    planes = np.zeros((2, n, 2))
+    planes[0, 0, 0] = planes[0, 1, 1] = planes[1, 2, 0] = planes[1, 3, 1] = 1.0
+    sc4 = causes.Scan(("a", "b"), ({}, {}), "x", lambda idx: planes[np.asarray(idx)], path=True)
+    lo, hi = 1e-12, 0.01
+    for _ in range(200):
+        mid = np.sqrt(lo * hi)
+        u = stats.chi2.isf(mid, 2)
+        if mid + np.pi / 2 * np.sqrt(u) * np.exp(-u / 2) / np.sqrt(2 * np.pi) > 0.01:
+            hi = mid
+        else:
+            lo = mid
+    assert _path_tries([sc4], st, 0.01) == pytest.approx(0.01 / lo, rel=1e-4)
 
 
 def test_the_defect_scan_count_holds_under_noise():

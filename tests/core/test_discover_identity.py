@@ -218,6 +218,16 @@ nonrigid 2's refused probe_lobing explains 86.9 um^2 where it explained
 demo's reports are as stored (they approach along the normal: one trial,
 the columns as before), and so are gen_b's four and gen_a's other three
 (both readings offered, nothing moved beyond REL).
+
+Refreshed for the periodic scan's count checked against Davies' bound on its
+path (session 24, :data:`core.causes.PERIODIC_PATH`): three leaves alone, no
+decision moved. The demo's and the simulator's periodic_axis_error 1000's
+periodic finding keep their cause and figures, their ``tries`` 2644 -> 9728
+and 2718 -> 9991 (the four-column scan's count at the level, 3.7 times the
+independent frequencies on the cross pocket); gen_a thermal_bending 604 still
+reads ``unexplained``, its ``rejected`` entry for periodic_axis_error (refused
+by the family check, time explaining 45.2 against 24.6 um^2) gone: the trial is
+no longer significant, and refusals for significance are not listed.
 """
 
 from __future__ import annotations
