@@ -1105,10 +1105,13 @@ def test_gen_a_outliers_beside_unnamed_structure_not_confidently_misnamed(effect
         assert rep["cause"] == "unexplained", rep["cause"]
         assert all(g["cause"] != "outlier" for g in rep["findings"]), [g["cause"] for g in rep["findings"]]
         return
-    f = rep["findings"][0]
-    assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
+    # since session 24 the `unexplained` finding, whose strongest covariate is the turn from the previous touch,
+    # leads (core.discover.OUTLIERS_BESIDE_TURN_UNEXPLAINED): the right reading; the outlier finding follows it
+    assert rep["cause"] == "unexplained", rep["cause"]
+    f = next(g for g in rep["findings"] if g["cause"] == "outlier")
+    assert f["evidence"]["confidence"] == "ambiguous", f["evidence"]
     assert "structure the model does not name" in f["evidence"]["confidence_reason"]
-    assert any(g["cause"] == "unexplained" for g in rep["findings"][1:])
+    assert [g["cause"] for g in rep["findings"]] == ["unexplained", "outlier"], rep["findings"]
 
 
 def test_doubt_beside_gathered_outliers_unit():
