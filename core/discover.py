@@ -3148,6 +3148,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if not findings and structure_b["present"]:
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
     findings = _ordered(findings, (settings.material_sigma * sig) ** 2 * len(rows) / UM ** 2)
+    if OUTLIERS_TURNED_UNEXPLAINED:
+        findings = _turned_outliers_unexplained(findings, settings, st.sigma / UM)
     tick()
     # outliers the report does not call dust with confidence (one event, or a pattern beside them): whether
     # their touches are dust or the part's own state is the removal's assumption, and its shift of the
@@ -7131,6 +7133,95 @@ def _doubt_beside_turned_outliers(findings: list, settings) -> None:
             f"beside it the outliers follow the turn of the approach relative to their targets' other touches "
             f"(centred turn {fmt_p(p)}): a mechanism of the move out of the catalogue, whose other readings are in "
             "the fit, may carry what this cause explains")
+
+
+#: Outliers that would lead the report (beside no named cause) whose own centred-turn test says they follow the turn
+#: of the approach relative to their targets' other touches (:func:`centred_turn_p` below ``alpha_family``) hand the
+#: lead to ``unexplained`` (:func:`_turned_outliers_unexplained`): a chip sits under the touch it corrupts whatever
+#: move brought the probe there, a mechanism of the move (a probe seat that settles differently after a turn) acts on
+#: every touch the move reaches and leaves its minority readings as outliers (gen_a reseat_hysteresis: 16 of the 23
+#: `outlier?` misses of 1000-1299, session 24). False: the outliers lead (sessions 16-23).
+OUTLIERS_TURNED_UNEXPLAINED = True
+#: With :data:`OUTLIERS_TURNED_UNEXPLAINED`: outliers that would lead beside an ``unexplained`` finding whose strongest
+#: covariate is the turn of the approach from the previous touch's (:data:`TURN_COVARIATE`, the diagnosis of the
+#: touches kept) hand it the lead whatever their own centred turn: the structure the kept touches carry is then a
+#: mechanism of the move, which no chip makes (a chip corrupts the touch it sits under, set aside with it), and the
+#: outliers lead it only by their sum of squares (gen_a reseat_hysteresis 1036, 1154, 1192, 1193, session 24).
+OUTLIERS_BESIDE_TURN_UNEXPLAINED = True
+#: The history covariate of the turn of the approach from the previous touch's (:func:`core.baseline.touch_history`).
+TURN_COVARIATE = "turn_from_previous"
+
+
+def _turned_outliers_unexplained(findings: list, settings, sigma_um: float) -> list:
+    """The findings with ``unexplained`` ahead of outliers that follow the turn of the approach (when they lead).
+
+    Applies only where the outlier finding leads the ordered findings
+    (:func:`_ordered`: beside it no named cause, only structure left unnamed
+    that explains less than the outliers carry, or nothing) and its own
+    centred-turn test fired (``centred_turn_p`` below ``alpha_family``, the
+    level that already makes the finding ``ambiguous``). The outliers'
+    residuals then read short where their touch turned more than its
+    target's other touches and long where it turned less: the minority
+    readings of a mechanism of the move that each target's parameter half
+    absorbs, which is out of the catalogue (no cause depends on the previous
+    touch's approach). Dust has no memory of the move: a chip's reading does
+    not depend on the turn that brought the probe to it. The report then
+    reads ``unexplained``: an ``unexplained`` finding beside the outliers
+    leads (its diagnosis of the touches kept says where the rest of the
+    structure lives, its text adds the outliers' turn, and the outliers lose
+    ``leads``); where there is none
+    (the majority readings sit inside the noise once each target's parameter
+    took their mean), one is made from the outlier finding's own test, its
+    text saying where the mechanism lives (the turn of the approach, the
+    outliers as its minority readings) and its ``explained_ss_um2`` the
+    outliers' sum of squares (``of``: ``outliers``; the outlier finding keeps
+    them as touches set aside). The outliers stay a finding, second, with
+    their confidence and reasons unchanged. A named cause beside turned
+    outliers keeps the lead (:func:`_doubt_beside_turned_outliers` makes it
+    ambiguous). With :data:`OUTLIERS_BESIDE_TURN_UNEXPLAINED`, outliers whose
+    own centred turn did not fire hand the lead as well to an ``unexplained``
+    finding beside them whose strongest covariate is the turn of the approach
+    from the previous touch's (its diagnosis of the touches kept): the
+    structure the kept touches carry is a mechanism of the move, which no
+    chip makes, and the outliers led it by their sum of squares alone.
+    """
+    if not findings or findings[0].cause != causes_mod.OUTLIER:
+        return findings
+    fo = findings[0]
+    rest = findings[1:]
+    if any(f.cause not in (causes_mod.OUTLIER, causes_mod.UNEXPLAINED) for f in rest):
+        return findings
+    un = [f for f in rest if f.cause == causes_mod.UNEXPLAINED]
+    p = fo.evidence.get("centred_turn_p")
+    if p is not None and p < settings.alpha_family:
+        why = (f"the touches set aside as outliers read short or long as their touch's turn of the approach "
+               f"differs from its target's other touches (centred turn {fmt_p(p)}, below {settings.alpha_family:g}): "
+               "a mechanism of the move out of the catalogue (a probe seat that settles differently after a turn), "
+               "whose majority readings each target's parameter took; the outliers are its minority readings, not "
+               "dust")
+    elif OUTLIERS_BESIDE_TURN_UNEXPLAINED and any(
+            (f.evidence.get("diagnosis") or [{}])[0].get("covariate") == TURN_COVARIATE for f in un):
+        # the unnamed structure's strongest covariate is the turn: its figures are in its own text
+        un.sort(key=lambda f: (f.evidence.get("diagnosis") or [{}])[0].get("covariate") != TURN_COVARIATE)
+        fo.evidence["turned_lead"] = (
+            "the structure left in the touches kept follows the turn of the approach from the previous touch's "
+            "first: a mechanism of the move out of the catalogue, whose largest readings the outliers may be")
+        if "leads" in fo.evidence:
+            del fo.evidence["leads"]
+        return un + [fo] + [f for f in rest if f.cause != causes_mod.UNEXPLAINED]
+    else:
+        return findings
+    fo.evidence["turned_lead"] = why
+    if un:
+        if "leads" in fo.evidence:
+            del fo.evidence["leads"]
+        un[0].evidence["text"] = "; ".join(w for w in (un[0].evidence.get("text"), why) if w)
+        return un + [fo] + [f for f in rest if f.cause != causes_mod.UNEXPLAINED]
+    made = Finding(causes_mod.UNEXPLAINED, _clean({
+        "text": why, "diagnosis": [], "cv_gap": False, "lack_of_fit": False, "noise_excess": False,
+        "explained_ss_um2": fo.evidence.get("explained_ss_um2") or 0.0, "of": "outliers",
+        "centred_turn_p": p}), {}, {}, sigma_um, "unknown")
+    return [made] + findings
 
 
 def _doubt_beside_noise_excess(findings: list) -> None:

@@ -497,7 +497,9 @@ def test_gen_a_reseat_hysteresis_876_outliers_not_confidently_dust():
     re-seating, out of the catalogue), read `outlier` confidently (one event per set-up: concentration
     p = 0.069). Counted one per place in the touch's history covariates they gather at one end: the finding
     is ambiguous, its concentration p (one family: covariates per event, places, history per place, 0.0024)
-    below the overall rate 0.01 (main fails: confident, p = 0.069)."""
+    below the overall rate 0.01 (main fails: confident, p = 0.069). Since session 24 the outliers, whose centred
+    turn is below alpha_family too, hand the report's lead to ``unexplained`` (OUTLIERS_TURNED_UNEXPLAINED,
+    tests/core/test_discover_turned_lead.py); the outlier finding follows it, as tested here."""
     from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
@@ -505,8 +507,9 @@ def test_gen_a_reseat_hysteresis_876_outliers_not_confidently_dust():
     log, _ = gen_a.generate("reseat_hysteresis", 876)
     t = from_log(log)
     rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
-    f = rep["findings"][0]
-    assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
+    assert rep["cause"] == "unexplained", rep["cause"]
+    f = next(f for f in rep["findings"] if f["cause"] == "outlier")
+    assert f["evidence"]["confidence"] == "ambiguous", f["evidence"]
     assert f["evidence"]["concentration_p"] < 0.01 and f["evidence"]["events"] == 3
 
 
@@ -1102,10 +1105,13 @@ def test_gen_a_outliers_beside_unnamed_structure_not_confidently_misnamed(effect
         assert rep["cause"] == "unexplained", rep["cause"]
         assert all(g["cause"] != "outlier" for g in rep["findings"]), [g["cause"] for g in rep["findings"]]
         return
-    f = rep["findings"][0]
-    assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
+    # since session 24 the `unexplained` finding, whose strongest covariate is the turn from the previous touch,
+    # leads (core.discover.OUTLIERS_BESIDE_TURN_UNEXPLAINED): the right reading; the outlier finding follows it
+    assert rep["cause"] == "unexplained", rep["cause"]
+    f = next(g for g in rep["findings"] if g["cause"] == "outlier")
+    assert f["evidence"]["confidence"] == "ambiguous", f["evidence"]
     assert "structure the model does not name" in f["evidence"]["confidence_reason"]
-    assert any(g["cause"] == "unexplained" for g in rep["findings"][1:])
+    assert [g["cause"] for g in rep["findings"]] == ["unexplained", "outlier"], rep["findings"]
 
 
 def test_doubt_beside_gathered_outliers_unit():
