@@ -6151,10 +6151,10 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
            "others_move_ss_um2": max(d_oth, 0.0) / UM ** 2, "others_move_k": int(Uo.shape[1]),
            "others_materiality_um2": m_oth / UM ** 2, "refused": bool(refused)}
     if refused and curved:
+        form_txt = fmt_p(p_form) if Un.shape[1] else "nothing beyond its rigid motion to test"
         out["reason"] = (f"not the feature's own change: {f}'s change curves in time as a warm-up does and the other "
                          f"features move with it ({d_oth / UM ** 2:.3g} um^2, {fmt_p(p_oth)}, {Uo.shape[1]} "
-                         f"directions): its change of form ({fmt_p(p_form)}) may be their field's over it, not the "
-                         f"part's")
+                         f"directions): its change of form ({form_txt}) may be their field's over it, not the part's")
     elif refused:
         out["reason"] = (f"not the feature's own change: {f} moves as a whole (its change beyond its rigid motion "
                          f"{fmt_p(p_form)}) and the other features move with it ({d_oth / UM ** 2:.3g} um^2, "
