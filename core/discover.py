@@ -6091,6 +6091,12 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
     (``unexplained``, diagnosed by covariate). Measured in docs/discovery.md,
     "Session 22: a change of the part is confined to its feature".
 
+    A change curving in time (``curve`` in its info, :data:`PART_CHANGE_CURVE_CONFINED`)
+    is refused wherever the others move (``others`` significant, material
+    or not), its change of form notwithstanding: a warm-up's field has a
+    gradient over a bore, which reads as a change of the bore's form (gen_a
+    thermal_bending 1138; docs/discovery.md, "Session 24").
+
     Returns None where the log names no features or no other feature is
     probed in two set-ups; else the figures and ``refused`` with its reason.
     """

@@ -7,7 +7,8 @@ a bulge ``t (1 - t)`` (zero at both ends) and a small rest: the richest layout a
 ring's ovalisation) also times ``t (1 - t)``, grown like the turns and bows (core.discover._grow_layout: taken only
 where its new columns are significant beyond the layout taken so far and it lowers the held-out mean square).
 Built, measured and left off (a settling thermal bending is fitted as well: gen_a thermal_bending 1138 and knock 1001
-right -> wrong); these tests turn it on.
+right -> wrong; session 24's core.discover.PART_CHANGE_CURVE_CONFINED takes those back, tested below); these tests
+turn it on.
 """
 import numpy as np
 import pytest
