@@ -6076,7 +6076,12 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
                 p_off = _slip_off_feature(C_j, tm.columns[rows], so,
                                           _feature_rows(bl, tm.info.get("feature"), rows))
                 out["p_slip_off_feature"] = p_off
-                if p_off >= settings.alpha:
+                if p_off >= settings.alpha and _curve_confined(tm):
+                    # a settling curve seen only on its feature that a step does as well: the curve's bulge is
+                    # what lets the line follow a step (a knock read as the part settling), so it is not named
+                    # for it (docs/discovery.md, "Session 24")
+                    out["curve_slip_on_feature"] = True
+                elif p_off >= settings.alpha:
                     # the slip is seen on the cause's own feature only: the data cannot tell the part moving once
                     # from that feature changing; named, ambiguous with the slip
                     refuse = False
@@ -6101,6 +6106,19 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
 #: other features move in the same time form too (:func:`_confined_to_feature`; session 22: gen_a thermal_bending,
 #: out of the catalogue, read part_change). False: the rule before.
 PART_CHANGE_CONFINED = True
+
+#: Whether a part change curving in time (:data:`core.causes.PART_CHANGE_CURVE`'s layouts, ``curve`` in their info)
+#: is held to the settling of one feature alone (session 24, docs/discovery.md): refused where the other features
+#: move in its time forms, even where its feature's change is one of form (a warm-up bends the machine by a field
+#: whose gradient over a bore is a change of the bore's form: the rigid-motion test cannot tell it from the part's
+#: own), and not saved by a slip seen on its feature only (:data:`SLIP_OFF_FEATURE`: the curve's bulge is what lets
+#: a change in time follow a step). Acts only on curved layouts: with the curve off no decision moves.
+PART_CHANGE_CURVE_CONFINED = True
+
+
+def _curve_confined(tm) -> bool:
+    """Whether trial ``tm`` is a curved part change held to :data:`PART_CHANGE_CURVE_CONFINED`'s rules."""
+    return PART_CHANGE_CURVE_CONFINED and bool(tm.info.get("curve"))
 
 
 def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, settings) -> dict | None:
@@ -6133,6 +6151,12 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
     and the other features move: what is left is structure no cause names
     (``unexplained``, diagnosed by covariate). Measured in docs/discovery.md,
     "Session 22: a change of the part is confined to its feature".
+
+    A change curving in time (``curve`` in its info, :data:`PART_CHANGE_CURVE_CONFINED`)
+    is refused wherever the others move (``others`` significant, material
+    or not), its change of form notwithstanding: a warm-up's field has a
+    gradient over a bore, which reads as a change of the bore's form (gen_a
+    thermal_bending 1138; docs/discovery.md, "Session 24").
 
     Returns None where the log names no features or no other feature is
     probed in two set-ups; else the figures and ``refused`` with its reason.
@@ -6184,11 +6208,21 @@ def _confined_to_feature(bl, tm, so: _State, sf: _State, rows, sigma: float, set
     m_oth = (settings.material_sigma * sigma) ** 2 * len(rows) * reach
     form = p_form < settings.alpha_family
     moves = p_oth < settings.alpha_family and d_oth >= m_oth
+    # a curved change (PART_CHANGE_CURVE_CONFINED): a warm-up's form change over the feature is the others' motion
+    # continued, so where the others move (significant; material or not) its change of form does not make it the
+    # feature's own
+    curved = _curve_confined(tm)
+    refused = (p_oth < settings.alpha_family) if curved else (moves and not form)
     out = {"form_beyond_rigid_p": p_form, "form_beyond_rigid_ss_um2": max(d_form, 0.0) / UM ** 2,
            "form_beyond_rigid_k": int(Un.shape[1]), "others_move_p": p_oth,
            "others_move_ss_um2": max(d_oth, 0.0) / UM ** 2, "others_move_k": int(Uo.shape[1]),
-           "others_materiality_um2": m_oth / UM ** 2, "refused": bool(moves and not form)}
-    if out["refused"]:
+           "others_materiality_um2": m_oth / UM ** 2, "refused": bool(refused)}
+    if refused and curved:
+        form_txt = fmt_p(p_form) if Un.shape[1] else "nothing beyond its rigid motion to test"
+        out["reason"] = (f"not the feature's own change: {f}'s change curves in time as a warm-up does and the other "
+                         f"features move with it ({d_oth / UM ** 2:.3g} um^2, {fmt_p(p_oth)}, {Uo.shape[1]} "
+                         f"directions): its change of form ({form_txt}) may be their field's over it, not the part's")
+    elif refused:
         out["reason"] = (f"not the feature's own change: {f} moves as a whole (its change beyond its rigid motion "
                          f"{fmt_p(p_form)}) and the other features move with it ({d_oth / UM ** 2:.3g} um^2, "
                          f"{fmt_p(p_oth)}, {Uo.shape[1]} directions): their places move, not one feature's form")
