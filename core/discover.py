@@ -3798,8 +3798,11 @@ def _path_parts(sc, rows: np.ndarray):
     _PATH_CACHE.pop(key, None)
     size = 0 if parts is None else sum(a.nbytes for a in parts)
     if parts is not None and size <= PATH_CACHE_BYTES:
-        while _PATH_CACHE and size + sum(v[3] for v in _PATH_CACHE.values()) > PATH_CACHE_BYTES:
-            _PATH_CACHE.pop(next(iter(_PATH_CACHE)))  # the oldest first
+        while True:  # (a snapshot: an entry may go with its scan at any collection)
+            held = list(_PATH_CACHE.items())
+            if not held or size + sum(v[3] for _, v in held) <= PATH_CACHE_BYTES:
+                break
+            _PATH_CACHE.pop(held[0][0], None)  # the oldest first
         _PATH_CACHE[key] = (weakref.ref(sc, lambda _, key=key: _PATH_CACHE.pop(key, None)),
                             np.array(rows, copy=True), parts, size)
     return parts
