@@ -251,6 +251,7 @@ import dataclasses
 import functools
 import itertools
 import re
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
@@ -3660,6 +3661,11 @@ def _path_tries(scans, st: _State, level: float) -> float:
         chunk = max(1, (PATH_BLOCK_BYTES if k > 1 else min(PATH_CHUNK * 8 * len(rows), PATH_BLOCK_BYTES))
                     // max(8 * k * len(rows), 1))
         V = 0.0
+        if k > 1 and chunk >= sc.size:  # the whole scan one block: its model-free parts kept for the next model
+            parts = _path_parts(sc, rows)
+            Vs.append(_subspace_path_of(parts, st) if parts is not None else 0.0)
+            ks.append(k)
+            continue
         for a in range(0, sc.size, chunk):  # each block from the previous block's last trial
             C = take_rows(sc.build(np.arange(max(a - 1, 0), min(a + chunk, sc.size))), rows, 1)
             if k == 1:
@@ -3724,14 +3730,35 @@ def _subspace_path(C: np.ndarray, st: _State) -> float:
     1e-8 rad; the per-trial SVDs of the columns were 0.17 s of the demo's
     0.39 s).
     """
+    parts = _subspace_parts(C)
+    return 0.0 if parts is None else _subspace_path_of(parts, st)
+
+
+def _subspace_parts(C: np.ndarray):
+    """The model-free parts of :func:`_subspace_path` of trials ``C`` (trials x rows x k): ``(Ct, G0, X0)``.
+
+    ``Ct`` the trials' columns side by side (rows x trials * k, C-contiguous,
+    for ``Q^T C``), ``G0 = C^T C`` per trial and ``X0`` the consecutive
+    trials' cross products; None below two trials. The same operations on
+    the same arrays as before they were kept apart: the path from them is
+    the same bit for bit.
+    """
     T, n, k = C.shape
     if T < 2:
-        return 0.0
+        return None
     Ct = np.ascontiguousarray(np.transpose(C, (1, 0, 2))).reshape(n, T * k)
+    Ch = np.swapaxes(C, 1, 2)  # (T, k, n)
+    return Ct, Ch @ C, Ch[:-1] @ C[1:]
+
+
+def _subspace_path_of(parts, st: _State) -> float:
+    """:func:`_subspace_path` from :func:`_subspace_parts` beside the model ``st.Q`` (only ``Q^T C`` is the model's)."""
+    Ct, G0, X0 = parts
+    T, k = G0.shape[0], G0.shape[1]
     B = np.asarray(st.Q.T @ Ct).reshape(-1, T, k).transpose(1, 0, 2)  # (T, r, k)
-    Ch, Bh = np.swapaxes(C, 1, 2), np.swapaxes(B, 1, 2)  # (T, k, n), (T, k, r)
-    G = Ch @ C - Bh @ B
-    X = Ch[:-1] @ C[1:] - Bh[:-1] @ B[1:]
+    Bh = np.swapaxes(B, 1, 2)  # (T, k, r)
+    G = G0 - Bh @ B
+    X = X0 - Bh[:-1] @ B[1:]
     lam, V = np.linalg.eigh(G)  # ascending
     top = lam[:, -1:]
     ok = (lam > 1e-10 * top) & (top > 0)
@@ -3740,6 +3767,47 @@ def _subspace_path(C: np.ndarray, st: _State) -> float:
     m = np.minimum(ok[:-1].sum(1), ok[1:].sum(1))  # the angles the two spans have
     th = np.where(np.arange(k)[None, :] < m[:, None], np.arccos(np.clip(cos, 0.0, 1.0)), 0.0)
     return float(np.sum(np.sqrt(np.sum(th ** 2, axis=1) / k)))
+
+
+#: Bytes of scans' model-free path parts (:func:`_path_parts`: the trials' columns on the rows, ``C^T C`` and the
+#: consecutive cross products) kept for the next model's count, all scans together (the oldest dropped first); a
+#: scan larger is built afresh each time (a long log's blocks never are kept). The demo's two periodic scans hold
+#: 5.9 MiB each (440 trials, 432 rows, 4 columns).
+PATH_CACHE_BYTES = 16 << 20
+#: id(scan) -> (weak reference to the scan, its rows, parts, their bytes): an entry goes with its scan (and when the
+#: rows differ).
+_PATH_CACHE: dict = {}
+
+
+def _path_parts(sc, rows: np.ndarray):
+    """:func:`_subspace_parts` of every trial of the scan ``sc`` on ``rows``, kept while the scan lives.
+
+    The engine counts the path of the same scans on the same rows beside
+    successive models (the demo's discover twice, 145 then 149 columns):
+    the columns, ``C^T C`` and the consecutive cross products do not
+    depend on the model and are made once; only ``Q^T C`` is redone. Kept
+    only where they hold at most :data:`PATH_CACHE_BYTES` with the other
+    scans' kept (the oldest dropped), under the scan's identity and a copy of its rows
+    (other rows: built afresh and kept in their place); the entry goes
+    when the scan is collected.
+    """
+    key = id(sc)
+    hit = _PATH_CACHE.get(key)
+    if hit is not None and hit[0]() is sc and np.array_equal(hit[1], rows):
+        return hit[2]
+    C = take_rows(sc.build(np.arange(sc.size)), rows, 1)
+    parts = _subspace_parts(C)
+    _PATH_CACHE.pop(key, None)
+    size = 0 if parts is None else sum(a.nbytes for a in parts)
+    if parts is not None and size <= PATH_CACHE_BYTES:
+        while True:  # (a snapshot: an entry may go with its scan at any collection)
+            held = list(_PATH_CACHE.items())
+            if not held or size + sum(v[3] for _, v in held) <= PATH_CACHE_BYTES:
+                break
+            _PATH_CACHE.pop(held[0][0], None)  # the oldest first
+        _PATH_CACHE[key] = (weakref.ref(sc, lambda _, key=key: _PATH_CACHE.pop(key, None)),
+                            np.array(rows, copy=True), parts, size)
+    return parts
 
 
 #: A long log's refinement (:func:`_refine`) builds this many bytes of one grid's trials at a time (at least one

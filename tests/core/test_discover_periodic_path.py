@@ -103,3 +103,62 @@ def test_sim_none_5500_without_the_chips_rows_reads_no_periodic():
     """
     rep = _sim("none", 5500, drop=(239, 253, 294))
     assert "periodic_axis_error" not in [f["cause"] for f in rep["findings"]]
+
+
+def test_path_parts_kept_per_scan_and_rows(monkeypatch):
+    """A four-column scan's model-free path parts (columns, ``C^T C``, cross products) are built once per scan and
+    rows (:func:`core.discover._path_parts`): the counts beside two models equal those made afresh bit for bit; other
+    rows build afresh; nothing beyond :data:`core.discover.PATH_CACHE_BYTES` is kept; an entry goes with its scan."""
+    import gc
+
+    from core import discover as D
+
+    rng = np.random.default_rng(3)
+    n, T = 80, 30
+    x = rng.uniform(0, 1, n)
+    nx, ny = rng.standard_normal(n), rng.standard_normal(n)
+    P = np.linspace(0.05, 0.2, T)
+    built = []
+
+    def build(idx):
+        idx = np.asarray(idx)
+        if len(idx) > 1:
+            built.append(len(idx))
+        ph = 2 * np.pi * x[None, :] / P[idx][:, None]
+        return np.stack([nx * np.sin(ph), nx * np.cos(ph), ny * np.sin(ph), ny * np.cos(ph)], axis=-1)
+
+    def scan():
+        return causes.Scan(("a", "b", "c", "d"), tuple({} for _ in range(T)), "x", build, path=True)
+
+    def state(rows, r):
+        Q = np.linalg.qr(rng.standard_normal((len(rows), r)))[0]
+        return D._State(np.asarray(rows), Q, np.zeros(len(rows)), 1.0, len(rows))
+
+    st1, st2 = state(np.arange(n), 6), state(np.arange(n), 9)
+    st3 = state(np.arange(0, n, 2), 6)  # other rows
+    sc = scan()
+    D._PATH_CACHE.clear()
+    kept = [D._path_tries([sc], st, 0.01) for st in (st1, st2, st1)]
+    assert built == [T]  # one build for both models
+    assert id(sc) in D._PATH_CACHE
+    v3 = D._path_tries([sc], st3, 0.01)
+    assert built == [T, T]  # other rows: built afresh
+    monkeypatch.setattr(D, "PATH_CACHE_BYTES", 0)
+    D._PATH_CACHE.clear()
+    fresh = [D._path_tries([scan()], st, 0.01) for st in (st1, st2, st1, st3)]
+    assert not D._PATH_CACHE and len(built) == 6
+    assert kept + [v3] == fresh  # bit for bit
+    assert fresh[0] != fresh[1] and fresh[0] != fresh[3]  # the model and the rows matter
+    for st in (st1, st2):  # and the path itself, as _subspace_path makes it from the columns
+        V = D._subspace_path(build(np.arange(T))[:, st.rows], st)
+        assert D._subspace_path_of(D._path_parts(scan(), st.rows), st) == V
+    # the bound counts all scans together: room for one scan's parts keeps the newest only
+    one = sum(a.nbytes for a in D._subspace_parts(build(np.arange(T))))
+    monkeypatch.setattr(D, "PATH_CACHE_BYTES", one)
+    a, b = scan(), scan()
+    D._path_tries([a], st1, 0.01)
+    D._path_tries([b], st1, 0.01)
+    assert list(D._PATH_CACHE) == [id(b)]
+    del b
+    gc.collect()
+    assert not D._PATH_CACHE  # gone with its scan
