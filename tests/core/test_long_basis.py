@@ -59,7 +59,6 @@ def test_group_sums_of_many_cells_by_the_csr_product(monkeypatch):
 
 def _block_state():
     """A campaign's baseline forced through the block design (a long log's path): its model basis a Basis."""
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.hidden import hidden_campaign
 

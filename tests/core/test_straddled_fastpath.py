@@ -10,7 +10,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy import special
 
-from core.diagnosis import STRADDLED_MAX_STEPS, _qr_economic_pivoted, _straddled_steps, _trend_within, pivoted_qr, \
+from core.diagnosis import STRADDLED_MAX_STEPS, _qr_economic_pivoted, _straddled_steps, pivoted_qr, \
     straddled_groups
 from core.lsq import _dense, group_sums
 
