@@ -575,3 +575,25 @@ def test_a_named_cause_whose_size_is_not_determined_is_ambiguous():
     assert "amplitude_um = " in ev["magnitude_undetermined"] and "-50..50" in ev["magnitude_undetermined"]
     assert f["params"]["amplitude_um"] is None and f["params_u95"]["amplitude_um"] is None
     assert ev["confidence"] == "ambiguous" and "its size is not determined on this design" in ev["confidence_reason"]
+
+
+def test_path_count_of_trials_short_of_their_columns():
+    """A trial of four columns whose span beside the model has two dimensions is a chi-square process of two
+    degrees of freedom, not four (session 24's review: gen_a periodic designs 1025, 1027 have trials of rank 2 and
+    3 beside the model): the two orthogonal planes of test_path_count_hand_worked with two zero columns beside them
+    count exactly as the planes alone (before the mend 0.73 times, the steps divided by 4 and counted at 4 dof); a
+    trial that is not finite has no span and breaks no count (its eigen-decomposition raised before)."""
+    from core.discover import _path_tries
+    n = 12
+    st = _State(np.arange(n), np.zeros((n, 0)), np.zeros(n), 1.0, n)
+    planes = np.zeros((2, n, 2))
+    planes[0, 0, 0] = planes[0, 1, 1] = planes[1, 2, 0] = planes[1, 3, 1] = 1.0
+    padded = np.concatenate([planes, np.zeros((2, n, 2))], axis=2)
+    sc2 = causes.Scan(("a", "b"), ({}, {}), "x", lambda idx: planes[np.asarray(idx)], path=True)
+    sc4 = causes.Scan(("a", "b", "c", "d"), ({}, {}), "x", lambda idx: padded[np.asarray(idx)], path=True)
+    two = _path_tries([sc2], st, 0.01)
+    assert two > 1.5
+    assert _path_tries([sc4], st, 0.01) == pytest.approx(two, rel=1e-9)
+    bad = np.concatenate([planes[:1], np.full((1, n, 2), np.nan), planes[1:]])
+    sc_bad = causes.Scan(("a", "b"), ({}, {}, {}), "x", lambda idx: bad[np.asarray(idx)], path=True)
+    assert _path_tries([sc_bad], st, 0.01) == pytest.approx(1.0, rel=1e-9)  # no step survives the gap

@@ -52,7 +52,7 @@ def test_subspace_path_of_one_column_is_the_angle():
     M = C[:, :, 0].T - Q @ (Q.T @ C[:, :, 0].T)
     M /= np.linalg.norm(M, axis=0)
     want = np.sum(np.arccos(np.clip(np.abs(np.sum(M[:, 1:] * M[:, :-1], axis=0)), 0, 1)))
-    assert _subspace_path(C, SimpleNamespace(Q=Q)) == pytest.approx(want, rel=1e-9)
+    assert _subspace_path(C, SimpleNamespace(Q=Q)) == {1: pytest.approx(want, rel=1e-9)}
 
 
 def test_subspace_path_ignores_a_turn_within_the_span():
@@ -62,7 +62,7 @@ def test_subspace_path_ignores_a_turn_within_the_span():
     Q = np.zeros((n, 0))
     B = rng.standard_normal((n, 2))
     C = np.stack([B @ np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]) for a in np.linspace(0, 3, 20)])
-    assert _subspace_path(C, SimpleNamespace(Q=Q)) == pytest.approx(0.0, abs=1e-6)
+    assert sum(_subspace_path(C, SimpleNamespace(Q=Q)).values()) == pytest.approx(0.0, abs=1e-6)
 
 
 def _sim(effect: str, seed: int, drop=()):
