@@ -3647,7 +3647,13 @@ def _path_tries(scans, st: _State, level: float) -> float:
     (1.49 % below 0.01, 0.83 % below 0.0056): about 1.5 times the
     nominal level at the small levels, still anticonservative (the scan's
     own count with refined widths: 17 %, 4.6 %, 2.9 %). Bounding the
-    (centre, width) field is not done. Cost: every trial's column projected once, in blocks of
+    (centre, width) field is not done. A scan of ``k > 1`` columns a trial
+    (the periodic scan's four, session 24) is a chi-square process of ``m``
+    degrees of freedom along its path, ``m`` the dimension of a trial's span
+    beside the model (``k`` unless the model takes some of it): its steps are
+    measured and booked per ``m`` (:func:`_subspace_path`), each length
+    counted at its own rate (:func:`_chi2_upcrossing_rate`), the start term
+    one single-trial p-value per scan. Cost: every trial's column projected once, in blocks of
     :data:`PATH_CHUNK` trials (fewer on a long log, :data:`PATH_BLOCK_BYTES`: the same angles summed
     in other groups); the engine asks for it only where the scan's own count finds the candidate
     significant.
