@@ -115,3 +115,23 @@ def test_gen_a_reseat_hysteresis_outliers_beside_a_turn_structure_read_unexplain
     monkeypatch.setattr(D, "OUTLIERS_BESIDE_TURN_UNEXPLAINED", True)
     on = blind_outcome(gen_a, "reseat_hysteresis", seed, generator="gen_a")
     assert on.cause == "unexplained" and on.findings[:2] == ("unexplained", "outlier"), on
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "session 24's blind check (spent seed): gen_a reseat_hysteresis 6306 reads `outlier`, confident. Its four "
+    "outliers are all the re-seat's minority readings, but its centred turn reads p = 0.0056 (above alpha_family "
+    "0.0025): log row 165 (touch 164, +5.3 um) retries a no-trigger row (164) whose approach turned 119.5 deg and "
+    "re-seated the probe; the retry turned 10 deg from it and did not re-seat. The engine's turn skips no-trigger "
+    "rows (they are no touches, their time NaN) and gives the retry 129 deg from the touch before: its residual "
+    "counts against the turn. Counted through the no-trigger approach the test reads p = 3e-5 to 6e-5 and the "
+    "report `unexplained` (a prototype, not adopted: docs/discovery.md, 'Session 24: gen_a re-seat 6306 read as "
+    "confident dust')"))
+def test_gen_a_reseat_6306_retry_after_no_trigger_is_no_dust():
+    """gen_a reseat_hysteresis 6306 (out of catalogue, 5.1 sigma visible): a confident name is a miss of the aim
+    (never confidently misname an effect outside the catalogue): the report must read ``unexplained`` or keep
+    its outliers ambiguous."""
+    from scenarios.blind import gen_a
+    from scenarios.hidden import blind_outcome
+
+    o = blind_outcome(gen_a, "reseat_hysteresis", 6306, generator="gen_a")
+    assert o.cause in o.acceptable or not o.confident, o
