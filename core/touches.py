@@ -79,6 +79,12 @@ class Touches:
         Nominal normal, artefact frame (NaN when absent).
     temps_C : dict[str, (n,) float]
         Temperature columns, degrees Celsius.
+    d_prev_R : (n, 3) float or None
+        Approach direction of the log row just before each touch that has
+        one, a row that did not trigger included (the probe moved along it
+        all the same), machine frame; NaN for a touch with none before it
+        (the log's first). None where not built (touches not read from a
+        log).
     """
 
     row: np.ndarray
@@ -96,6 +102,7 @@ class Touches:
     w_A: np.ndarray
     wn_A: np.ndarray
     temps_C: dict
+    d_prev_R: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -162,6 +169,12 @@ def from_log(log: ProbeLog, *, include_invalid: bool = False) -> Touches:
     def v3(names, scale=1.0):
         return np.column_stack([log.col(c)[rows] for c in names]) * scale
 
+    # the move before each touch: the previous log row with an approach direction, whether it triggered or not
+    d_all = np.column_stack([np.asarray(log.col(c), float) for c in ("dx", "dy", "dz")])
+    has_d = np.flatnonzero(np.all(np.isfinite(d_all), axis=1))
+    before = np.searchsorted(has_d, rows) - 1
+    d_prev = np.full((len(rows), 3), np.nan)
+    d_prev[before >= 0] = d_all[has_d[before[before >= 0]]]
     setup, setup_ids = _index(log.col("setup")[rows])
     target, target_ids = _index(log.col("target")[rows])
     return Touches(
@@ -180,4 +193,5 @@ def from_log(log: ProbeLog, *, include_invalid: bool = False) -> Touches:
         w_A=v3(("wx_mm", "wy_mm", "wz_mm"), MM),
         wn_A=v3(("wnx", "wny", "wnz")),
         temps_C={c: log.col(c)[rows] for c in log.temperature_columns()},
+        d_prev_R=d_prev,
     )

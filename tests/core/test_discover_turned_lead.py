@@ -115,3 +115,45 @@ def test_gen_a_reseat_hysteresis_outliers_beside_a_turn_structure_read_unexplain
     monkeypatch.setattr(D, "OUTLIERS_BESIDE_TURN_UNEXPLAINED", True)
     on = blind_outcome(gen_a, "reseat_hysteresis", seed, generator="gen_a")
     assert on.cause == "unexplained" and on.findings[:2] == ("unexplained", "outlier"), on
+
+
+
+def test_centred_turn_through_unit():
+    """The turn from the move before each touch (a no-trigger row's included): rounded degrees less the target's
+    mean; a touch with no move before it turns 0."""
+    from core.discover import centred_turn_through
+
+    d = np.array([[1.0, 0, 0], [0, 1.0, 0], [-1.0, 0, 0]])
+    prev = np.array([[np.nan] * 3, [1.0, 0, 0], [0, -1.0, 0]])
+    assert np.allclose(centred_turn_through(d, prev, [0, 0, 1]), [-45, 45, 0])
+    assert centred_turn_through(np.zeros((0, 3)), np.zeros((0, 3)), []).shape == (0,)
+    with pytest.raises(Exception):
+        centred_turn_through(d, prev[:2], [0, 0, 1])
+
+
+def test_gen_a_reseat_6306_retry_after_no_trigger_is_no_dust(monkeypatch):
+    """gen_a reseat_hysteresis 6306 (session 24's blind check, spent; out of catalogue, 5.1 sigma visible): its
+    four outliers are the re-seat's minority readings; log row 165 retries the no-trigger row 164 (same target),
+    whose approach turned 119.5 deg and re-seated the probe: the retry turned 10 deg from it, 129 deg from the
+    touch before. Counted from the touches alone (the flag off, as on 9a06759) the centred turn reads 0.0056 and
+    the report `outlier`, confident (a confident misnaming: the test fails there); counted through the no-trigger
+    approach (:data:`core.discover.TURN_THROUGH_NO_TRIGGER`) 6e-5, the report ``unexplained``."""
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+    from scenarios.hidden import blind_outcome
+
+    log, _ = gen_a.generate("reseat_hysteresis", 6306)
+    t = from_log(log)
+    k = int(np.flatnonzero(t.row == 165)[0])
+    assert log.col("status")[164] == "no_trigger"
+    d164 = np.array([float(log.col(c)[164]) for c in ("dx", "dy", "dz")])
+    assert np.array_equal(t.d_prev_R[k], d164) and np.all(np.isnan(t.d_prev_R[0]))
+    assert np.array_equal(t.d_prev_R[1], t.d_R[0])
+
+    monkeypatch.setattr(D, "TURN_THROUGH_NO_TRIGGER", False)
+    off = blind_outcome(gen_a, "reseat_hysteresis", 6306, generator="gen_a")
+    assert off.cause == "outlier" and off.confident, off
+    monkeypatch.setattr(D, "TURN_THROUGH_NO_TRIGGER", True)
+    on = blind_outcome(gen_a, "reseat_hysteresis", 6306, generator="gen_a")
+    assert on.cause == "unexplained" and on.cause in on.acceptable, on
+    assert on.findings == ("unexplained", "outlier"), on.findings
