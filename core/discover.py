@@ -7360,29 +7360,28 @@ def _turned_outliers_unexplained(findings: list, settings, sigma_um: float) -> l
         return findings
     un = [f for f in rest if f.cause == causes_mod.UNEXPLAINED]
     p = fo.evidence.get("centred_turn_p")
+
+    def turn_first(f) -> bool:  # the unnamed structure's strongest covariate is the turn
+        return (f.evidence.get("diagnosis") or [{}])[0].get("covariate") == TURN_COVARIATE
+
     if p is not None and p < settings.alpha_family:
         why = (f"the touches set aside as outliers read short or long as their touch's turn of the approach "
                f"differs from its target's other touches (centred turn {fmt_p(p)}, below {settings.alpha_family:g}): "
                "a mechanism of the move out of the catalogue (a probe seat that settles differently after a turn), "
                "whose majority readings each target's parameter took; the outliers are its minority readings, not "
                "dust")
-    elif OUTLIERS_BESIDE_TURN_UNEXPLAINED and any(
-            (f.evidence.get("diagnosis") or [{}])[0].get("covariate") == TURN_COVARIATE for f in un):
-        # the unnamed structure's strongest covariate is the turn: its figures are in its own text
-        un.sort(key=lambda f: (f.evidence.get("diagnosis") or [{}])[0].get("covariate") != TURN_COVARIATE)
+        fo.evidence["turned_lead"] = why
+        if un:
+            un[0].evidence["text"] = "; ".join(w for w in (un[0].evidence.get("text"), why) if w)
+    elif OUTLIERS_BESIDE_TURN_UNEXPLAINED and any(turn_first(f) for f in un):
+        un.sort(key=lambda f: not turn_first(f))  # (its figures are in its own text)
         fo.evidence["turned_lead"] = (
             "the structure left in the touches kept follows the turn of the approach from the previous touch's "
             "first: a mechanism of the move out of the catalogue, whose largest readings the outliers may be")
-        if "leads" in fo.evidence:
-            del fo.evidence["leads"]
-        return un + [fo] + [f for f in rest if f.cause != causes_mod.UNEXPLAINED]
     else:
         return findings
-    fo.evidence["turned_lead"] = why
     if un:
-        if "leads" in fo.evidence:
-            del fo.evidence["leads"]
-        un[0].evidence["text"] = "; ".join(w for w in (un[0].evidence.get("text"), why) if w)
+        fo.evidence.pop("leads", None)
         return un + [fo] + [f for f in rest if f.cause != causes_mod.UNEXPLAINED]
     made = Finding(causes_mod.UNEXPLAINED, _clean({
         "text": why, "diagnosis": [], "cv_gap": False, "lack_of_fit": False, "noise_excess": False,
