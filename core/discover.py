@@ -3706,14 +3706,12 @@ def _path_tries(scans, st: _State, level: float) -> float:
         # batch; in blocks of 64 the demo's two periodic paths cost 0.079 s of CPU)
         chunk = max(1, (PATH_BLOCK_BYTES if k > 1 else min(PATH_CHUNK * 8 * len(rows), PATH_BLOCK_BYTES))
                     // max(8 * k * len(rows), 1))
-        V, Vm = 0.0, {}
-        if k > 1 and chunk >= sc.size:  # the whole scan one block: its model-free parts kept for the next model
+        V, Vm = 0.0, {}  # (k = 1: the length; k > 1: the lengths by the steps' dimension beside the model)
+        whole = k > 1 and chunk >= sc.size  # the whole scan one block: its model-free parts kept for the next model
+        if whole:
             parts = _path_parts(sc, rows)
-            for m, v in (_subspace_path_of(parts, st) if parts is not None else {}).items():
-                Vs.append(v)
-                ks.append(m)
-            continue
-        for a in range(0, sc.size, chunk):  # each block from the previous block's last trial
+            Vm = _subspace_path_of(parts, st) if parts is not None else {}
+        for a in () if whole else range(0, sc.size, chunk):  # each block from the previous block's last trial
             C = take_rows(sc.build(np.arange(max(a - 1, 0), min(a + chunk, sc.size))), rows, 1)
             if k == 1:
                 M = C[:, :, 0].T
@@ -3723,7 +3721,7 @@ def _path_tries(scans, st: _State, level: float) -> float:
                 cos = np.abs(np.sum(M[:, 1:] * M[:, :-1], axis=0))
                 V += float(np.sum(np.arccos(np.clip(cos, 0.0, 1.0))))
             else:
-                for m, v in _subspace_path(C, st).items():  # (lengths by the steps' dimension beside the model)
+                for m, v in _subspace_path(C, st).items():
                     Vm[m] = Vm.get(m, 0.0) + v
         if k == 1:
             Vs.append(V)
