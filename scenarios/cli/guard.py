@@ -258,6 +258,10 @@ COMMON = {
     "angles": (lambda v: v >= 2, "must be >= 2"),
     "workers": (lambda v: v >= 1, "must be >= 1"),
     "delta_l_um": (lambda v: abs(v) < float("inf"), "must be a finite number"),
+    "ec0y_urad": (lambda v: abs(v) < float("inf"), "must be a finite number"),  # (an infinite squareness was served)
+    "z_mm": (lambda v: abs(v) < float("inf"), "must be a finite number"),
+    "stylus_r_mm": (lambda v: 0 <= v < float("inf"), "must be a finite number >= 0"),
+    "drift_tau_s": (lambda v: 0 < v < float("inf"), "must be a finite number > 0"),
 }
 
 

@@ -120,8 +120,6 @@ def run_serve(args) -> int:
     for opt, v in (("--idle-timeout-s", args.idle_timeout), ("--stop-after-s", args.max_seconds)):
         if v is not None and not v > 0:
             raise ConfigError(f"{opt} must be > 0, got {v:g}")
-    if not math.isfinite(args.ec0y_urad):     # an infinite squareness was served
-        raise ConfigError(f"--ec0y-urad must be a finite number, got {args.ec0y_urad:g}")
     machine = served_machine(args)
     axes = args.axes or "XYZ" + "".join(a for a in "ABC" if a in getattr(machine, "rotary_axes", ()))
     config = ControllerConfig(axes=axes, home=_floats3(args.home, "--home-mm"), homing=args.homing,

@@ -31,16 +31,9 @@ def register(sub) -> None:
 
 
 def run_grid(args) -> int:
-    import math
-
-    from core.exceptions import ConfigError
     from core.probelog import write_probe_log
     from hardware.surface import grid_plan
 
-    if not math.isfinite(args.z_mm):
-        raise ConfigError(f"--z-mm must be a finite number, got {args.z_mm:g}")
-    if not (math.isfinite(args.stylus_r_mm) and args.stylus_r_mm >= 0):
-        raise ConfigError(f"--stylus-r-mm must be a finite number >= 0, got {args.stylus_r_mm:g}")
 
     plan = grid_plan(_range(args.x_mm, "--x-mm"), _range(args.y_mm, "--y-mm"), args.z_mm,
                      stylus_r_mm=args.stylus_r_mm, serpentine=not args.no_serpentine)

@@ -193,8 +193,6 @@ def _run_positioning(args) -> int:
             raise ConfigError(f"{flag} must be a whole number >= 2, got {n}")
     if travel is not None and not (np.all(np.isfinite(travel)) and travel[0] < travel[1]):
         raise ConfigError(f"--travel-mm {args.travel_mm}: expected finite LO < HI in mm")
-    if args.drift_tau_s is not None and not (np.isfinite(args.drift_tau_s) and args.drift_tau_s > 0):
-        raise ConfigError(f"--drift-tau-s must be a finite number > 0, got {args.drift_tau_s:g}")
     line = _numbers(args.line_mm, "--line-mm", ",", 3) if args.line_mm else None
     name = args.machine or "vmc-3axis"
     log = simulate_test(
