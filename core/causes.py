@@ -183,6 +183,10 @@ class Cause:
     #: the linear coefficients stays within ``4 s^2`` of the least: k = 2), reported as magnitude ``key`` times
     #: ``scale``. For a one-column ``rebuild`` that broadcasts over its nonlinear parameters (session 21).
     profile: Callable | None = None
+    #: ``{key pattern: period}``: magnitudes that are angles on a circle of that period (in the key's unit). A U95
+    #: of half the period or more says nothing of such an angle (the phase of an amplitude consistent with zero
+    #: is any angle): the report gives it no U95 (:meth:`core.discover.Discovery.to_report`).
+    circular: dict = field(default_factory=dict)
 
     @property
     def doc(self) -> str:
@@ -2369,7 +2373,7 @@ REGISTRY = (
     Cause("periodic_axis_error", ("planar",), "machine", periodic_scans, periodic_magnitudes,
           {"EXX_amplitude_um": (0, 50), "EYX_amplitude_um": (0, 50), "EXY_amplitude_um": (0, 50),
            "EYY_amplitude_um": (0, 50)}, periodic_rebuild, ("period_m",), check=periodic_check,
-          counter_scan=fixture_slip, norms=periodic_norms),
+          counter_scan=fixture_slip, norms=periodic_norms, circular={"E*_phase_rad": 2 * np.pi}),
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
           {"pretravel_variation_pv_um": (0, 50)}, rival=lobing_rival, counter_scan=fixture_slip,
           richer=turned_lobes, richer_cause="lobing_per_setup", norms=lobing_norms),
@@ -2385,7 +2389,8 @@ REGISTRY = (
           {"wall*deg_change_um": (-200, 200), "wall*deg_turn_um": (-200, 200),
            "wall*deg_bow_um": (-200, 200), "ovalisation_um": (0, 200),
            "ovalisation_axis_deg": (0, 180)},
-          rival=part_change_rival, counter_scan=fixture_slip, gradual=True, norms=part_change_norms),
+          rival=part_change_rival, counter_scan=fixture_slip, gradual=True, norms=part_change_norms,
+          circular={"ovalisation_axis_deg": 180.0}),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
           {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,

@@ -47,7 +47,7 @@ from scipy import special, stats
 from scipy.interpolate import BSpline
 
 from .exceptions import ConfigError
-from .lsq import Basis, _dense, group_sums
+from .lsq import Basis, _dense, group_sums, row_blocks
 from .memo import Memo
 from .units import UM
 
@@ -522,13 +522,13 @@ def new_basis(Q: np.ndarray, B: np.ndarray, tol: float = IN_SPAN, inplace: bool 
     Vg = V[:, good]
     if P.nbytes > LONG_BYTES and P.flags.c_contiguous and 2 <= P.shape[1] <= LONG_COLS:
         # a long log: the rotation a block of rows at a time into P's own memory (P is this function's or the
-        # caller's temporary; row blocks of one product are the whole product's rows bit for bit), no second array
+        # caller's temporary; row blocks laid out by row_blocks are the whole product's rows bit for bit), no
+        # second array
         n, g = P.shape[0], Vg.shape[1]
         flat = P.reshape(-1)
-        for a in range(0, n, LONG_ROWS):
-            b = min(a + LONG_ROWS, n)
-            block = P[a:b] @ Vg  # (read before its rows' memory is written: rows of U start at or before P's)
-            flat[a * g:b * g] = block.reshape(-1)
+        for ch in row_blocks(n, LONG_ROWS):
+            block = P[ch] @ Vg  # (read before its rows' memory is written: rows of U start at or before P's)
+            flat[ch.start * g:ch.stop * g] = block.reshape(-1)
         U = flat[:n * g].reshape(n, g)
     else:
         U = P @ Vg

@@ -2527,6 +2527,22 @@ class Finding:
     books_to: str = "machine"
 
 
+def _report_u95(f: Finding, kind: str) -> dict:
+    """A finding's U95 under the report's keys: one for every key of ``params`` (the spec: "same keys"), None
+    for a choice (an axis, a feature), where the data do not determine it, and for an angle whose U95 reaches
+    half its circle (:attr:`core.causes.Cause.circular`: a periodic error's phase beside an amplitude consistent
+    with zero came out as 13 rad, session 25's review)."""
+    cause = causes_mod.lookup(f.cause, kind)
+    circ = cause.circular if cause is not None else {}
+    out = {}
+    for key in f.params:
+        u = f.params_u95.get(key)
+        if u is not None and any(_matches(key, pat) and u >= period / 2 for pat, period in circ.items()):
+            u = None
+        out[key] = u
+    return out
+
+
 @dataclass(frozen=True)
 class Discovery:
     """Everything :func:`discover_baseline` found (``to_report`` gives the spec's JSON)."""
@@ -2570,7 +2586,7 @@ class Discovery:
                          "rms_um": self.baseline_rms_um, **{k: v for k, v in b.info.items()
                                                           if isinstance(v, (int, float, str, list))}},
             "findings": [{"cause": f.cause, "evidence": f.evidence, "params": f.params,
-                          "params_u95": f.params_u95, "rms_um": f.rms_um, "books_to": f.books_to}
+                          "params_u95": _report_u95(f, b.kind), "rms_um": f.rms_um, "books_to": f.books_to}
                          for f in self.findings],
             "cause": self.cause,
             "extended": {"model": self.extended_model, "rms_um": self.extended_rms_um,

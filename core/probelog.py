@@ -718,6 +718,11 @@ def _validate(log: ProbeLog, lines: np.ndarray | None) -> None:
     # a target is one physical point: same artefact-frame nominal in every set-up
     if all(k in c for k in ("wx_mm", "wy_mm", "wz_mm")):
         w = np.column_stack([c["wx_mm"], c["wy_mm"], c["wz_mm"]])
+        # a point is given whole or not at all (as a vector is): an empty coordinate is no coordinate
+        partial = np.isnan(w).any(axis=1) & ~np.isnan(w).all(axis=1)
+        if partial.any():
+            r = int(np.argmax(partial))
+            raise ProbeLogError(f"{_where(src, r, lines)}: artefact-frame point wx_mm,wy_mm,wz_mm is partly empty")
         rows = np.flatnonzero(~np.isnan(w).all(axis=1))
         if rows.size:
             index: dict[str, int] = {}

@@ -228,6 +228,14 @@ independent frequencies on the cross pocket); gen_a thermal_bending 604 still
 reads ``unexplained``, its ``rejected`` entry for periodic_axis_error (refused
 by the family check, time explaining 45.2 against 24.6 um^2) gone: the trial is
 no longer significant, and refusals for significance are not listed.
+
+Refreshed for ``params_u95`` under the spec's "same keys as ``params``"
+(session 25's review, :func:`core.discover._report_u95`): seven findings gain
+the key of a choice, null (the demo's and the simulator's periodic 1000's
+``axis``, the outlier findings' ``n_outliers``, gen_a probe_lobing 302's
+``pretravel_along``, thermal_bending 604's ``covariate``, nonrigid 2's
+``axes``); no phase U95 stored here reaches half a turn; every other leaf as
+stored.
 """
 
 from __future__ import annotations

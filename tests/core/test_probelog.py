@@ -112,6 +112,9 @@ ROW = "s1,p1,0,1,0,0,1,0,0,1,0,0"
         (HEADER + ",wx_mm,wy_mm,wz_mm\n" + ROW + ",1,2,3\ns2,p1,1,1,0,0,1,0,0,1,0,0,1,2,3.01\n",
          r"row 1 \(line 3\): target 'p1' has artefact-frame nominal \(1, 2, 3.01\) mm in set-up 's2' "
          r"but \(1, 2, 3\) mm in set-up 's1'$"),
+        # a point given in part (session 25's review: one empty coordinate compared as no difference)
+        (HEADER + ",wx_mm,wy_mm,wz_mm\n" + ROW + ",1,2,3\ns2,p1,1,1,0,0,1,0,0,1,0,0,1,,3\n",
+         r"row 1 \(line 3\): artefact-frame point wx_mm,wy_mm,wz_mm is partly empty$"),
         (HEADER + "\n" + ROW + ",extra\n", r"row 0 \(line 2\): 13 fields, header has 12"),
         (HEADER + "\ns1,p1,0,,0,0,1,0,0,1,0,0\n" + ROW.replace("s1,p1,0", "s1,p2,1") + "\n",
          r"row 0 \(line 2\): column 'X_mm' is empty"),
