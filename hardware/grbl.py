@@ -564,13 +564,14 @@ def _fit(words, feed_word: str, lead: str) -> str:
                         f"{LINE_MAX_CHARS} characters (error:11): too many axes or too large values")
 
 
-def move_line(target_mm, feed_mm_min: float, rot_deg=None, rotary: str = "ABC") -> str:
+def move_line(target_mm, feed_mm_min: float, rot_deg=None, rotary: str = "ABC", axes: str = "XYZ") -> str:
     """The positioning line: a feed move in machine coordinates (``G53 G90 G1``).
 
     ``rot_deg`` (3,) A, B, C in degrees, or None; only the axes in ``rotary``
-    (the controller's rotary axes) get a word.
+    (the controller's rotary axes) get a word. Only the linear ``axes`` get a
+    word (``"Z"``: a rise whose X and Y are where the machine stands).
     """
-    words = list(zip("XYZ", (float(v) for v in target_mm)))
+    words = [(a, float(v)) for a, v in zip("XYZ", target_mm) if a in axes]
     if rot_deg is not None:
         words += [(a, float(v)) for a, v in zip("ABC", rot_deg) if a in rotary]
     return _fit(words, f"F{feed_mm_min:.1f}", "G53 G90 G1")
