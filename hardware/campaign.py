@@ -312,6 +312,24 @@ def program_lines(steps: list[Step], settings: ProbeSettings, rotary: bool = Fal
 # the append-only log
 
 
+#: Plan metadata a measured log keeps under its own name: what the part, the probe and the machine's
+#: structure are (the analysis reads them: ``stylus_r_mm``, ``kinematic_chain``). Every other key of
+#: the plan is about how the plan was made (a simulator's ``generator``, ``probe_repeatability_k2_um``,
+#: ``feed_mm_per_min``, ``machine``, ``seed``) and is kept as ``plan_<key>``: a measured log never
+#: claims the simulator's provenance or settings as its own.
+PLAN_META_KEPT = ("artefact", "stylus_r_mm", "kinematic_chain")
+
+
+def plan_meta(meta: dict) -> dict:
+    """The plan's metadata as a measured log carries it (:data:`PLAN_META_KEPT`; ``format`` dropped)."""
+    out = {}
+    for k, v in meta.items():
+        if k == "format":
+            continue
+        out[k if (k in PLAN_META_KEPT or k.startswith("plan")) else f"plan_{k}"] = v
+    return out
+
+
 def log_columns(plan: ProbeLog, temps: list[str]) -> list[str]:
     """Columns of the campaign log: the plan's, then ``status``, then ``temp_<name>_C``."""
     cols = list(plan.columns)
@@ -600,11 +618,7 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         temps = sorted(backend.temperatures_C())
         columns = log_columns(plan, temps)
         started = float(clock())
-        meta = {"format": FORMAT}
-        for k, v in plan.meta.items():
-            if k in ("format",):
-                continue
-            meta["plan_machine" if k == "machine" else k] = v
+        meta = {"format": FORMAT, **plan_meta(plan.meta)}
         meta.update({"machine": backend.name, "source": "vmt probe",
                      "plan": plan_path or plan.source, "started_unix": repr(started),
                      "probe_feed_mm_min": settings.probe_feed_mm_min,
@@ -691,8 +705,6 @@ def log_from_plan(plan: ProbeLog, pos_mm, status, t_s, meta: dict | None = None,
         cols[c] = np.where(ok, pos[:, j], np.nan)
     cols["t_s"] = np.where(ok, t, np.nan)
     cols["status"] = st
-    m = {k: v for k, v in plan.meta.items() if k != "format"}
-    if "machine" in m:
-        m["plan_machine"] = m.pop("machine")
+    m = plan_meta(plan.meta)
     m.update(meta or {})
     return make_log(cols, m, source=source)

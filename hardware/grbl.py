@@ -499,8 +499,10 @@ class GrblClient:
                         if st.wco_mm is not None:
                             self._wco = st.wco_mm
                         if st.mpos_mm is None:
-                            self._unexpected(got, "status without MPos and no WCO known yet")
-                            continue
+                            # $10=0 (WPos reports): the firmware adds WCO to one report in 10 (idle)
+                            # to 30 (busy); ask again at once, this is no unexpected line
+                            time.sleep(0.02)
+                            break
                         return st
                     self._unexpected(got, "malformed status report")
                     continue

@@ -286,3 +286,33 @@ def test_settings_that_do_not_say_the_units_are_refused():
         with pytest.raises(HardwareError, match=msg):
             GrblBackend(GrblClient(link, timeout_s=0.2)).start()
         assert link.sent == ["?", "$$\n"]
+
+
+def test_wpos_reports_wait_for_wco_without_warnings(tmp_path, capsys):
+    """``$10=0`` (WPos reports, G54 offset set): the firmware adds WCO to one report in 10 when
+    idle, so the first status queries cannot give MPos; that is the protocol, not an unexpected
+    line (review F7: nine 'unexpected line' warnings, 0.5 s each). The touches equal $10=1's."""
+    from conftest import LIMITS, plan_log
+    from core.probelog import read_probe_log, write_probe_log
+    from scenarios.cli import main
+
+    plan = write_probe_log(tmp_path / "plan.csv", plan_log())
+    logs = []
+    for wpos in (False, True):
+        emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 50)))
+        with TcpServer(emu, time_scale=FAST) as srv:
+            c = connect(srv.url, timeout_s=5).client
+            c.status()
+            c.expect_ok("G10 L2 P1 X5 Y-3 Z2")          # a work offset: WPos != MPos
+            if wpos:
+                c.expect_ok("$10=0")
+            c.status()              # a sender polled it since (as a GUI does): the forced WCO report is gone
+            c.close()
+            capsys.readouterr()
+            out = tmp_path / f"log{int(wpos)}.csv"
+            assert main(["probe", "--controller", srv.url, "--plan", str(plan), "--out", str(out),
+                         "--limits-mm", LIMITS, "--safe-z-mm", "30", "--timeout-s", "5"]) == 0
+            err = capsys.readouterr().err
+            assert "unexpected" not in err and "warning" not in err, err
+        logs.append(read_probe_log(out))
+    assert np.array_equal(logs[0].positions_mm(), logs[1].positions_mm())
