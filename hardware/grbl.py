@@ -35,7 +35,7 @@ a position. GRBL speaks millimetres: :class:`GrblBackend` converts to and
 from metres at its boundary. Unless ``$13=1`` (report inches): then every
 report is in inches, so the start reads ``$$`` (after a running move has
 ended: ``$$`` needs the controller idle or in alarm) and refuses a
-controller with ``$13=1``, naming the setting, before anything is sent. It
+controller with ``$13=1``, naming the setting, before anything moves. It
 converts nothing: a controller's units are its own setting, and a
 conversion would hide which one a log was made with.
 
@@ -544,7 +544,7 @@ class GrblClient:
         """
         rep = self.command("$$", timeout_s)
         if rep.error is not None:
-            raise HardwareError(f"controller rejected '$$' (its settings, read before anything is sent, "
+            raise HardwareError(f"controller rejected '$$' (its settings, read before anything moves, "
                                 f"for $13: are positions reported in mm?): {describe_error(rep.error)}")
         out = {}
         for ln in rep.lines:
@@ -682,16 +682,16 @@ class GrblBackend:
         v = settings.get(13)
         if v is None:
             raise HardwareError("the controller's settings ($$) have no $13 (report inches): vmt cannot "
-                                "tell whether it reports millimetres; nothing was sent")
+                                "tell whether it reports millimetres; nothing moved")
         try:
             inch = float(v) != 0
         except ValueError:
             raise HardwareError(f"the controller's $13 (report inches) is {v!r}, not a number; "
-                                "nothing was sent") from None
+                                "nothing moved") from None
         if inch:
             raise HardwareError(f"the controller reports positions in inches ($13={v}); vmt reads them "
                                 "as millimetres and converts no controller's units: set $13=0 (send "
-                                "'$13=0') and run again; nothing was sent")
+                                "'$13=0') and run again; nothing moved")
 
     def _axes(self, st: Status) -> str:
         k = st.mpos_mm.size

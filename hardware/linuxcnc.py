@@ -3,7 +3,10 @@
 :func:`part_program` writes a plan as G-code for LinuxCNC: every touch is a
 feed move to the approach start, a ``G38.2`` towards the probing end and a
 retract, between ``(PROBEOPEN file)`` and ``(PROBECLOSE)``, so the
-controller logs each successful probe as one line of its probe file.
+controller logs each successful probe as one line of its probe file. The
+moves are the live campaign's (:func:`hardware.campaign.approach`): the
+first is Z alone to the safe Z, and A, B, C (plans with rotary columns)
+turn only there, in a line of their own, X, Y, Z unchanged.
 
 LinuxCNC writes the probed point in the coordinate system in effect
 (offsets and XY rotation removed). The program therefore saves the modal
