@@ -8,6 +8,13 @@ becomes one probing step per row: approach to ``start = Xn - clearance * d``
 Safety before any motion (:func:`check_program`): every point of the
 program inside the soft limits, every feed at most the maximum feed.
 Motion is feed moves only (never rapids), so the maximum feed holds.
+The rotary axes turn only at the safe Z, in a move of their own (X, Y, Z
+unchanged): between touches the probe retracts along its approach, rises
+Z alone to the safe Z, the table turns if the next touch needs it, then X,
+Y go across at the safe Z and Z comes down (:func:`approach`; the first
+move of a campaign or program is Z alone). A program that commands its
+rotary axes without a safe Z is refused: there is no height known to be
+clear of the part.
 
 The log (:class:`AppendLog`) is append-only: the header is created
 atomically, then each touch is one ``write`` of one complete line followed
@@ -147,48 +154,132 @@ def plan_steps(plan: ProbeLog, settings: ProbeSettings) -> list[Step]:
     return out
 
 
-def approach(from_mm, step: Step, settings: ProbeSettings) -> list[np.ndarray]:
-    """Waypoints (machine frame, mm) from ``from_mm`` (or unknown: ``None``) to ``step``'s start."""
-    s = step.start_mm
-    if settings.safe_z_mm is None:
-        return [s]
-    z = settings.safe_z_mm
-    pts = []
-    if from_mm is not None:
-        pts.append(np.array([from_mm[0], from_mm[1], z]))
-    pts += [np.array([s[0], s[1], z]), s]
-    return pts
+#: Two rotary positions closer than this (deg) are the same: no turn between them. Plan angles are
+#: written as text; 1e-9 deg is far below any controller's resolution (GRBL 3 decimals, LinuxCNC 4 here).
+ROT_SAME_DEG = 1e-9
 
 
-def check_program(steps: list[Step], settings: ProbeSettings, *, require_limits: bool = True) -> None:
-    """Refuse a program that would leave the soft limits or exceed the maximum feed.
+@dataclass(frozen=True)
+class Move:
+    """One positioning move (machine frame): a feed move, never a rapid.
+
+    Attributes
+    ----------
+    xyz_mm : (3,) float
+        Target X, Y, Z, mm (only the axes in ``axes`` are commanded).
+    rot_deg : (3,) float or None
+        A, B, C of a turn, deg; ``None``: the rotary axes are not commanded (they stay).
+    axes : str
+        The linear axes commanded: ``"XYZ"``, or ``"Z"`` for the first rise of a program,
+        which does not know where X and Y stand.
+    """
+
+    xyz_mm: np.ndarray
+    rot_deg: np.ndarray | None = None
+    axes: str = "XYZ"
+
+    @property
+    def turns(self) -> bool:
+        return self.rot_deg is not None
+
+
+def approach(from_mm, step: Step, settings: ProbeSettings, *, from_rot=None,
+             rotary: bool = False) -> list[Move]:
+    """The moves from ``from_mm`` (``None``: unknown) to ``step``'s approach start.
+
+    With a safe Z: rise Z alone to it at the current X, Y (a program's first
+    move: Z alone, X and Y unknown), then, if the rotary axes must turn, turn
+    them alone there (X, Y, Z unchanged), then X, Y across at the safe Z,
+    then down to the approach start. The rotary axes never turn anywhere
+    else: not on the rise, not near the part. Without a safe Z: straight to
+    the approach start, and a turn is refused (there is no height known to be
+    clear of the part).
+
+    Parameters
+    ----------
+    from_rot : (3,) float or None
+        Where the rotary axes stand, A, B, C deg; ``None``: unknown (they are
+        turned to the step's angles before its first move).
+    rotary : bool
+        The rotary axes are commanded (``False``: they are left where they are).
 
     Raises
     ------
     PlanError
-        Naming the plan row and the point (mm) or the feed at fault.
+        A turn is needed and no safe Z is given.
+    """
+    s = step.start_mm
+    rot = np.asarray(step.rot_deg, dtype=float)
+    turn = rotary and (from_rot is None
+                       or bool(np.any(np.abs(rot - np.asarray(from_rot, dtype=float)) > ROT_SAME_DEG)))
+    z = settings.safe_z_mm
+    if z is None:
+        if turn:
+            raise PlanError(f"row {step.row} (target {step.target!r}): the rotary axes are commanded "
+                            f"(A, B, C = {np.round(rot, 4).tolist()} deg) but no safe Z is given: they "
+                            "would turn on the way to the part; give --safe-z-mm, a machine Z clear of "
+                            "the part, where they turn alone")
+        return [Move(np.array(s, dtype=float))]
+    if from_mm is None:
+        here = Move(np.array([np.nan, np.nan, z]), None, "Z")
+    else:
+        here = Move(np.array([from_mm[0], from_mm[1], z], dtype=float))
+    out = [here]
+    if turn:
+        out.append(Move(here.xyz_mm.copy(), rot.copy(), here.axes))
+    out += [Move(np.array([s[0], s[1], z], dtype=float)), Move(np.array(s, dtype=float))]
+    return out
+
+
+def motion(steps: list[Step], settings: ProbeSettings, *, rotary: bool = False, from_mm=None,
+           from_rot=None):
+    """Every step's moves in order: ``(step, [Move, ...])`` (see :func:`approach`).
+
+    After a step the machine stands at its approach start (the retract after
+    the touch), with the rotary axes at the step's angles if they are commanded.
+    """
+    prev, rot = from_mm, from_rot
+    for st in steps:
+        yield st, approach(prev, st, settings, from_rot=rot, rotary=rotary)
+        prev = st.start_mm
+        if rotary:
+            rot = st.rot_deg
+
+
+def check_program(steps: list[Step], settings: ProbeSettings, *, require_limits: bool = True,
+                  rotary: bool = False, from_rot=None) -> None:
+    """Refuse a program that would leave the soft limits, exceed the maximum feed or turn unsafely.
+
+    ``rotary``, ``from_rot``: as :func:`approach` (a program that commands
+    its rotary axes needs a safe Z to turn them at).
+
+    Raises
+    ------
+    PlanError
+        Naming the plan row and the point (mm) or the feed at fault, or the
+        turn that has no safe Z.
     """
     mx = settings.max_feed_mm_min
     for k in ("probe_feed_mm_min", "move_feed_mm_min"):
         if getattr(settings, k) > mx:
             raise PlanError(f"{k} {getattr(settings, k):g} exceeds the maximum feed {mx:g} mm/min")
+    program = list(motion(steps, settings, rotary=rotary, from_rot=from_rot))   # refuses a turn without safe Z
     if settings.limits_mm is None:
         if require_limits:
             raise PlanError("no soft limits given (--limits-mm X..:..,Y..:..,Z..:..): "
                             "refusing to move a machine without them")
         return
     lim = np.asarray(settings.limits_mm, dtype=float)
-    prev = None
-    for st in steps:
-        for what, p in [("approach", q) for q in approach(prev, st, settings)] + [
-                ("probing end", st.end_mm)]:
-            bad = ~((p >= lim[:, 0] - 1e-9) & (p <= lim[:, 1] + 1e-9))   # NaN is outside too
+    for st, moves in program:
+        for what, p, axes in [("approach", m.xyz_mm, m.axes) for m in moves] + [
+                ("probing end", st.end_mm, "XYZ")]:
+            on = np.array([a in axes for a in "XYZ"])     # an axis not commanded is not checked
+            bad = on & ~((p >= lim[:, 0] - 1e-9) & (p <= lim[:, 1] + 1e-9))   # NaN is outside too
             if bad.any():
                 ax = "XYZ"[int(np.argmax(bad))]
                 raise PlanError(f"row {st.row} (target {st.target!r}): {what} "
                                 f"{np.round(p, 4).tolist()} mm is outside the soft limits "
                                 f"of {ax} {lim['XYZ'.index(ax)].tolist()} mm")
-        prev = st.start_mm
 
 
 def program_lines(steps: list[Step], settings: ProbeSettings, rotary: bool = False,
@@ -196,20 +287,21 @@ def program_lines(steps: list[Step], settings: ProbeSettings, rotary: bool = Fal
     """The GRBL lines a campaign sends (for ``--dry-run``), assuming every probe triggers.
 
     ``rotary_axes`` names the controller's rotary axes (``"AC"`` for XYZAC):
-    only those get a word, as in a live run.
+    only those get a word, as in a live run. The first line raises Z alone
+    (a live run sends the X and Y the controller reports; a dry run does not
+    know them).
     """
     from .grbl import move_line, probe_line
 
     out = ["G21", "G90", "G94"]
     prev = None
-    for st in steps:
+    for st, moves in motion(steps, settings, rotary=rotary):
         out.append(f"(row {st.row} setup {st.setup} target {st.target})")
-        rot = st.rot_deg if rotary else None
-        for p in approach(prev, st, settings):
-            out.append(move_line(p, settings.move_feed_mm_min, rot, rotary_axes))
+        for m in moves:
+            out.append(move_line(m.xyz_mm, settings.move_feed_mm_min, m.rot_deg, rotary_axes, axes=m.axes))
         out.append(probe_line(st.start_mm, st.end_mm, settings.probe_feed_mm_min, settings.allow_miss))
         out.append("G90")
-        out.append(move_line(st.start_mm, settings.move_feed_mm_min, rot, rotary_axes))
+        out.append(move_line(st.start_mm, settings.move_feed_mm_min))    # the retract: the rotary axes stay
         prev = st.start_mm
     if settings.safe_z_mm is not None and prev is not None:
         out.append(move_line([prev[0], prev[1], settings.safe_z_mm], settings.move_feed_mm_min))
@@ -218,6 +310,24 @@ def program_lines(steps: list[Step], settings: ProbeSettings, rotary: bool = Fal
 
 # ---------------------------------------------------------------------------
 # the append-only log
+
+
+#: Plan metadata a measured log keeps under its own name: what the part, the probe and the machine's
+#: structure are (the analysis reads them: ``stylus_r_mm``, ``kinematic_chain``). Every other key of
+#: the plan is about how the plan was made (a simulator's ``generator``, ``probe_repeatability_k2_um``,
+#: ``feed_mm_per_min``, ``machine``, ``seed``) and is kept as ``plan_<key>``: a measured log never
+#: claims the simulator's provenance or settings as its own.
+PLAN_META_KEPT = ("artefact", "stylus_r_mm", "kinematic_chain")
+
+
+def plan_meta(meta: dict) -> dict:
+    """The plan's metadata as a measured log carries it (:data:`PLAN_META_KEPT`; ``format`` dropped)."""
+    out = {}
+    for k, v in meta.items():
+        if k == "format":
+            continue
+        out[k if (k in PLAN_META_KEPT or k.startswith("plan")) else f"plan_{k}"] = v
+    return out
 
 
 def log_columns(plan: ProbeLog, temps: list[str]) -> list[str]:
@@ -464,7 +574,11 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         The machine failed; every touch made before is on disk, ``resume`` continues.
     """
     steps = plan_steps(plan, settings)
-    check_program(steps, settings, require_limits=require_limits)
+    rotary = getattr(backend, "rotary", None)       # does the backend command the rotary axes?
+    if rotary is None:          # one that does not say (in-process virtual) turns when the plan asks to
+        rotary = any(bool(np.any(st.rot_deg != 0)) for st in steps)
+    rotary = bool(rotary)
+    check_program(steps, settings, require_limits=require_limits, rotary=rotary)
     p = Path(out)
     torn = 0
     fd = None
@@ -504,11 +618,7 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         temps = sorted(backend.temperatures_C())
         columns = log_columns(plan, temps)
         started = float(clock())
-        meta = {"format": FORMAT}
-        for k, v in plan.meta.items():
-            if k in ("format",):
-                continue
-            meta["plan_machine" if k == "machine" else k] = v
+        meta = {"format": FORMAT, **plan_meta(plan.meta)}
         meta.update({"machine": backend.name, "source": "vmt probe",
                      "plan": plan_path or plan.source, "started_unix": repr(started),
                      "probe_feed_mm_min": settings.probe_feed_mm_min,
@@ -518,10 +628,13 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         log = AppendLog(p, columns, fd=fd)
     try:
         cur = backend.position_m() / MM
+        rot = None                      # where the rotary axes stand is not known: turned at the first safe Z
         for st in steps[done:]:
-            rot_rad = np.radians(st.rot_deg)
-            for wp in approach(cur, st, settings):
-                backend.move(wp * MM, settings.move_feed_mm_min, rot_rad)
+            for m in approach(cur, st, settings, from_rot=rot, rotary=rotary):
+                backend.move(m.xyz_mm * MM, settings.move_feed_mm_min,
+                             None if m.rot_deg is None else np.radians(m.rot_deg))
+            if rotary:
+                rot = st.rot_deg
             res = backend.probe(st.end_mm * MM, settings.probe_feed_mm_min,
                                 allow_miss=settings.allow_miss)
             t = max(float(clock()) - started, last_t)
@@ -546,7 +659,7 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
                     f"ALARM:{res.alarm} ({ALARMS.get(res.alarm, 'alarm')}) at row {st.row} "
                     f"(target {st.target!r}, logged as {res.status}); {done} of {plan.n} rows on disk: "
                     "clear the cause and continue with --resume --unlock")
-            backend.move(st.start_mm * MM, settings.move_feed_mm_min, rot_rad)
+            backend.move(st.start_mm * MM, settings.move_feed_mm_min)    # retract along the approach
             cur = st.start_mm
         if settings.safe_z_mm is not None:
             backend.move(np.array([cur[0], cur[1], settings.safe_z_mm]) * MM, settings.move_feed_mm_min)
@@ -592,8 +705,6 @@ def log_from_plan(plan: ProbeLog, pos_mm, status, t_s, meta: dict | None = None,
         cols[c] = np.where(ok, pos[:, j], np.nan)
     cols["t_s"] = np.where(ok, t, np.nan)
     cols["status"] = st
-    m = {k: v for k, v in plan.meta.items() if k != "format"}
-    if "machine" in m:
-        m["plan_machine"] = m.pop("machine")
+    m = plan_meta(plan.meta)
     m.update(meta or {})
     return make_log(cols, m, source=source)

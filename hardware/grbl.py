@@ -32,7 +32,12 @@ never from the command that was sent. Lines that are neither an expected
 answer nor a known informational message are reported through
 ``on_event`` (and kept in :attr:`GrblClient.unexpected`) and never taken for
 a position. GRBL speaks millimetres: :class:`GrblBackend` converts to and
-from metres at its boundary.
+from metres at its boundary. Unless ``$13=1`` (report inches): then every
+report is in inches, so the start reads ``$$`` (after a running move has
+ended: ``$$`` needs the controller idle or in alarm) and refuses a
+controller with ``$13=1``, naming the setting, before anything moves. It
+converts nothing: a controller's units are its own setting, and a
+conversion would hide which one a log was made with.
 
 Motion: positioning is ``G53 G90 G1`` (machine coordinates, a feed move so
 the maximum feed holds); probing is ``G91 G38.2`` by an increment from where
@@ -494,8 +499,10 @@ class GrblClient:
                         if st.wco_mm is not None:
                             self._wco = st.wco_mm
                         if st.mpos_mm is None:
-                            self._unexpected(got, "status without MPos and no WCO known yet")
-                            continue
+                            # $10=0 (WPos reports): the firmware adds WCO to one report in 10 (idle)
+                            # to 30 (busy); ask again at once, this is no unexpected line
+                            time.sleep(0.02)
+                            break
                         return st
                     self._unexpected(got, "malformed status report")
                     continue
@@ -526,6 +533,27 @@ class GrblClient:
                     got_lines.append(more)
                 return got_lines
         raise HardwareError(f"controller did not answer a reset (Ctrl-X) within {timeout_s:g} s")
+
+    def settings(self, timeout_s: float = 5.0) -> dict[int, str]:
+        """The controller's settings from ``$$`` (``{13: "0", ...}``, the values as written).
+
+        Raises
+        ------
+        HardwareError
+            The controller refuses ``$$`` (``error:8``: not idle) or lists nothing.
+        """
+        rep = self.command("$$", timeout_s)
+        if rep.error is not None:
+            raise HardwareError(f"controller rejected '$$' (its settings, read before anything moves, "
+                                f"for $13: are positions reported in mm?): {describe_error(rep.error)}")
+        out = {}
+        for ln in rep.lines:
+            m = re.fullmatch(r"\$(\d+)=([^\s(]*).*", ln)
+            if m:
+                out[int(m.group(1))] = m.group(2)
+        if not out:
+            raise HardwareError("controller answered '$$' with no setting: not a GRBL-family controller?")
+        return out
 
     def axes_from_info(self, timeout_s: float = 5.0) -> str | None:
         """Axis letters from ``$I`` (grblHAL's ``[AXS:n:letters]``); None when not given."""
@@ -564,13 +592,14 @@ def _fit(words, feed_word: str, lead: str) -> str:
                         f"{LINE_MAX_CHARS} characters (error:11): too many axes or too large values")
 
 
-def move_line(target_mm, feed_mm_min: float, rot_deg=None, rotary: str = "ABC") -> str:
+def move_line(target_mm, feed_mm_min: float, rot_deg=None, rotary: str = "ABC", axes: str = "XYZ") -> str:
     """The positioning line: a feed move in machine coordinates (``G53 G90 G1``).
 
     ``rot_deg`` (3,) A, B, C in degrees, or None; only the axes in ``rotary``
-    (the controller's rotary axes) get a word.
+    (the controller's rotary axes) get a word. Only the linear ``axes`` get a
+    word (``"Z"``: a rise whose X and Y are where the machine stands).
     """
-    words = list(zip("XYZ", (float(v) for v in target_mm)))
+    words = [(a, float(v)) for a, v in zip("XYZ", target_mm) if a in axes]
     if rot_deg is not None:
         words += [(a, float(v)) for a, v in zip("ABC", rot_deg) if a in rotary]
     return _fit(words, f"F{feed_mm_min:.1f}", "G53 G90 G1")
@@ -621,6 +650,11 @@ class GrblBackend:
             c.reset()
         st = c.status(timeout_s=min(5.0, c.timeout_s))
         self.axes = self._axes(st)
+        end = time.monotonic() + c.timeout_s
+        while st.state.split(":")[0].lower() in ("run", "jog", "home") and time.monotonic() < end:
+            time.sleep(0.05)      # a move still running (a resume after a lost link): '$$' needs it done
+            st = c.status(timeout_s=min(5.0, c.timeout_s))
+        self._check_units(c.settings(timeout_s=min(5.0, c.timeout_s)))
         if st.state.lower() == "alarm":
             if not unlock and not home:
                 why = describe_alarm(c.alarm) if c.alarm is not None else (
@@ -635,6 +669,29 @@ class GrblBackend:
         for line in ("G21", "G90", "G94"):
             c.expect_ok(line)
         self._pos_mm = c.status().mpos_mm[:3].copy()
+
+    @staticmethod
+    def _check_units(settings: dict[int, str]) -> None:
+        """Refuse a controller that reports inches (``$13=1``), before anything moves.
+
+        vmt reads every position the controller reports (status, ``[PRB]``)
+        as millimetres and converts nothing: a controller's units are its
+        own setting, and a silent conversion would hide which one a log was
+        made with. So the setting is named and left to the user.
+        """
+        v = settings.get(13)
+        if v is None:
+            raise HardwareError("the controller's settings ($$) have no $13 (report inches): vmt cannot "
+                                "tell whether it reports millimetres; nothing moved")
+        try:
+            inch = float(v) != 0
+        except ValueError:
+            raise HardwareError(f"the controller's $13 (report inches) is {v!r}, not a number; "
+                                "nothing moved") from None
+        if inch:
+            raise HardwareError(f"the controller reports positions in inches ($13={v}); vmt reads them "
+                                "as millimetres and converts no controller's units: set $13=0 (send "
+                                "'$13=0') and run again; nothing moved")
 
     def _axes(self, st: Status) -> str:
         k = st.mpos_mm.size

@@ -3,7 +3,10 @@
 :func:`part_program` writes a plan as G-code for LinuxCNC: every touch is a
 feed move to the approach start, a ``G38.2`` towards the probing end and a
 retract, between ``(PROBEOPEN file)`` and ``(PROBECLOSE)``, so the
-controller logs each successful probe as one line of its probe file.
+controller logs each successful probe as one line of its probe file. The
+moves are the live campaign's (:func:`hardware.campaign.approach`): the
+first is Z alone to the safe Z, and A, B, C (plans with rotary columns)
+turn only there, in a line of their own, X, Y, Z unchanged.
 
 LinuxCNC writes the probed point in the coordinate system in effect
 (offsets and XY rotation removed). The program therefore saves the modal
@@ -48,16 +51,16 @@ from core.exceptions import PlanError, ProbeLogError
 from core.keyreader import read_text_file
 from core.probelog import ProbeLog
 
-from .campaign import ProbeSettings, approach, check_program, log_from_plan, plan_steps
+from .campaign import ProbeSettings, check_program, log_from_plan, motion, plan_steps
 
 _WCS_P = {"G54": 1, "G55": 2, "G56": 3, "G57": 4, "G58": 5, "G59": 6,
           "G59.1": 7, "G59.2": 8, "G59.3": 9}
 
 
-def _words(p_mm, rot_deg=None) -> str:
+def _words(p_mm, rot_deg=None, axes: str = "XYZ") -> str:
     # 6 decimals (1 nm), as LinuxCNC writes its probe file: 4 would bend each probing line by up
     # to 0.05 um per axis, a lateral error of the touch on any surface not square to an axis
-    w = " ".join(f"{a}{v:.6f}" for a, v in zip("XYZ", p_mm))
+    w = " ".join(f"{a}{v:.6f}" for a, v in zip("XYZ", p_mm) if a in axes)
     if rot_deg is not None:
         w += " " + " ".join(f"{a}{v:.4f}" for a, v in zip("ABC", rot_deg))
     return w
@@ -90,8 +93,8 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
     if any(c in probe_file for c in "()\n"):
         raise PlanError(f"probe file {probe_file!r}: parentheses and newlines are not allowed")
     steps = plan_steps(plan, settings)
-    check_program(steps, settings, require_limits=require_limits)
     rotary = any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg"))
+    check_program(steps, settings, require_limits=require_limits, rotary=rotary)
     fm, fp = settings.move_feed_mm_min, settings.probe_feed_mm_min
     axes = "XYZABC" if rotary else "XYZ"
     wcs_p = _WCS_P[wcs]
@@ -116,12 +119,11 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
             "G92.2",
             f"(PROBEOPEN {probe_file})"]
     prev = None
-    for st in steps:
-        rot = st.rot_deg if rotary else None
+    for st, moves in motion(steps, settings, rotary=rotary):     # the rotary axes turn alone, at safe Z
         label = f"row {st.row} setup {st.setup} target {st.target}"
         out.append("(" + label.replace("(", "[").replace(")", "]") + ")")
-        for p in approach(prev, st, settings):
-            out.append(f"G1 {_words(p, rot)} F{fm:.1f}")
+        for m in moves:
+            out.append(f"G1 {_words(m.xyz_mm, m.rot_deg, m.axes)} F{fm:.1f}")
         out.append(f"G38.2 {_words(st.end_mm)} F{fp:.1f}")
         out.append(f"G1 {_words(st.start_mm)} F{fm:.1f}")
         prev = st.start_mm

@@ -501,3 +501,32 @@ def test_lock_is_kept_from_creation_and_recovery_respects_it(tmp_path, plan_path
         holder.wait(10)
     with pytest.raises(ProbeLogError, match=r"missing required column 't_s'"):  # lock gone; the content speaks
         recover_log(out, plan)
+
+
+def test_measured_log_does_not_claim_the_simulators_provenance(tmp_path, capsys):
+    """A plan written by the simulator carries its generator and settings; the measured log keeps
+    them as the plan's (``plan_<key>``), never as its own (review F7: a `vmt probe` log said
+    ``generator: vmt sim.campaign`` and ``feed_mm_per_min: 240`` beside the real probing feed).
+    What the analysis reads about the part and the machine stays under its name. The LinuxCNC
+    import (hardware.campaign.log_from_plan) follows the same rule."""
+    from core.probelog import make_log
+    from hardware.campaign import PLAN_META_KEPT
+
+    base = plan_log()
+    sim_meta = {"machine": "nmv3000", "artefact": "table+sphere", "stylus_r_mm": "1.5",
+                "kinematic_chain": "V[w-C-A-b-Y-X-Z-(C)-t]", "probe_repeatability_k2_um": "0.25",
+                "feed_mm_per_min": "240.0", "generator": "vmt sim.campaign"}
+    plan_p = write_probe_log(tmp_path / "plan.csv", make_log(dict(base.columns), sim_meta))
+    out = tmp_path / "log.csv"
+    assert main(probe_args("virtual:", plan_p, out)) == 0
+    pf = tmp_path / "probe.txt"
+    pf.write_text("".join(f"{x:f} {y:f} {z:f}\n" for x, y, z in read_probe_log(out).positions_mm()))
+    imp = tmp_path / "imported.csv"
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan_p), "--out", str(imp)]) == 0
+    for path in (out, imp):
+        meta = read_probe_log(path).meta
+        for k in ("generator", "probe_repeatability_k2_um", "feed_mm_per_min"):
+            assert k not in meta and meta[f"plan_{k}"] == sim_meta[k], (path.name, k)
+        assert meta["plan_machine"] == "nmv3000" and meta["machine"] != "nmv3000"
+        assert all(meta[k] == sim_meta[k] for k in PLAN_META_KEPT)
+    assert float(read_probe_log(out).meta["probe_feed_mm_min"]) == 100.0     # the feed it probed at

@@ -236,3 +236,83 @@ def test_probe_through_the_protocol_equals_the_backend(transport):
                 assert np.allclose(got[0].pos_m, got[1].pos_m, atol=0.5e-6 + 1e-9)
         finally:
             be.close()
+
+
+# ---- units: $13 (report inches) ------------------------------------------
+
+def test_inch_reports_are_refused_before_anything_moves(tmp_path, capsys):
+    """``$13=1`` (review fault F4): the emulator then reports MPos and [PRB] in inches, which vmt
+    read as mm; the first touch failed with a message not naming the cause, or near the origin
+    passed silently. Now the start refuses, naming $13, before any line that moves; $13=0 runs."""
+    from conftest import LIMITS, plan_log
+    from core.probelog import read_probe_log, write_probe_log
+    from scenarios.cli import main
+
+    plan = write_probe_log(tmp_path / "plan.csv", plan_log())
+    emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 50)))
+    args = lambda out: ["probe", "--controller", srv.url, "--plan", str(plan), "--out", str(out),  # noqa: E731
+                        "--limits-mm", LIMITS, "--safe-z-mm", "30", "--timeout-s", "5"]
+    with TcpServer(emu, time_scale=FAST) as srv:
+        c = connect(srv.url, timeout_s=5).client
+        c.status()                                    # past the banner
+        c.expect_ok("$13=1")                          # as a user sets it
+        st = c.status()
+        assert np.allclose(st.mpos_mm, [0, 0, 50 / 25.4], atol=1e-4)   # what the client reads: inches
+        c.close()
+        capsys.readouterr()
+        assert main(args(tmp_path / "inch.csv")) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err
+        assert "reports positions in inches ($13=1)" in err and "set $13=0" in err
+        assert not (tmp_path / "inch.csv").exists()
+        assert emu.probes == 0 and np.allclose(emu.position()[:3], [0, 0, 50])   # nothing moved
+        c = connect(srv.url, timeout_s=5).client
+        c.status()
+        c.expect_ok("$13=0")
+        c.close()
+        assert main(args(tmp_path / "mm.csv")) == 0
+    log = read_probe_log(tmp_path / "mm.csv")
+    assert log.ok.all() and np.allclose(log.positions_mm()[0], [10, 10, 0], atol=1e-3)
+
+
+def test_settings_that_do_not_say_the_units_are_refused():
+    """No $13 in the listing, a $13 that is no number, or '$$' refused: nothing moves."""
+    status = "<Idle|MPos:0.000,0.000,5.000|FS:0,0>"
+    for answers, msg in [([status, "$0=10", "$10=1", "ok"], r"no \$13"),
+                         ([status, "$13=x", "ok"], r"\$13 .* is 'x'"),
+                         ([status, "error:8"], r"rejected '\$\$'.*\$13.*not idle"),
+                         ([status, "ok"], "no setting")]:
+        link = _ScriptLink(answers)
+        with pytest.raises(HardwareError, match=msg):
+            GrblBackend(GrblClient(link, timeout_s=0.2)).start()
+        assert link.sent == ["?", "$$\n"]
+
+
+def test_wpos_reports_wait_for_wco_without_warnings(tmp_path, capsys):
+    """``$10=0`` (WPos reports, G54 offset set): the firmware adds WCO to one report in 10 when
+    idle, so the first status queries cannot give MPos; that is the protocol, not an unexpected
+    line (review F7: nine 'unexpected line' warnings, 0.5 s each). The touches equal $10=1's."""
+    from conftest import LIMITS, plan_log
+    from core.probelog import read_probe_log, write_probe_log
+    from scenarios.cli import main
+
+    plan = write_probe_log(tmp_path / "plan.csv", plan_log())
+    logs = []
+    for wpos in (False, True):
+        emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 50)))
+        with TcpServer(emu, time_scale=FAST) as srv:
+            c = connect(srv.url, timeout_s=5).client
+            c.status()
+            c.expect_ok("G10 L2 P1 X5 Y-3 Z2")          # a work offset: WPos != MPos
+            if wpos:
+                c.expect_ok("$10=0")
+            c.status()              # a sender polled it since (as a GUI does): the forced WCO report is gone
+            c.close()
+            capsys.readouterr()
+            out = tmp_path / f"log{int(wpos)}.csv"
+            assert main(["probe", "--controller", srv.url, "--plan", str(plan), "--out", str(out),
+                         "--limits-mm", LIMITS, "--safe-z-mm", "30", "--timeout-s", "5"]) == 0
+            err = capsys.readouterr().err
+            assert "unexpected" not in err and "warning" not in err, err
+        logs.append(read_probe_log(out))
+    assert np.array_equal(logs[0].positions_mm(), logs[1].positions_mm())

@@ -41,16 +41,39 @@ def transcript(path):
     return out
 
 
+def firmware_settings():
+    """The same firmware's answer to ``$$`` (recorded-protocol.txt: 1.1h, DEFAULTS_GENERIC, ``$13=0``)."""
+    lines = transcript(DATA / "recorded-protocol.txt")
+    k = lines.index((">", "$$"))
+    out = []
+    for d, t in lines[k + 1:]:
+        assert d == "<"
+        out.append(t)
+        if t == "ok":
+            return out
+
+
 class ReplayLink:
-    """A link that is the firmware of a transcript: answers what it answered, checks what is sent."""
+    """A link that is the firmware of a transcript: answers what it answered, checks what is sent.
+
+    The two campaign transcripts were recorded before vmt read the controller's
+    settings (``$$``, for ``$13``: are reports in mm?) at the start: that one
+    line, where the transcript has none, is answered with the same firmware's
+    recorded ``$$`` listing (:func:`firmware_settings`) and counted in ``spliced``.
+    """
 
     def __init__(self, lines):
         self.lines = deque(lines)
         self.pending = deque()
         self.sent = 0
+        self.spliced = 0
 
     def send(self, data):
         text = data.decode("latin-1").strip() or repr(data.decode("latin-1"))
+        if text == "$$" and not (self.lines and self.lines[0] == (">", "$$")):
+            self.spliced += 1
+            self.pending.extend(firmware_settings())
+            return
         assert self.lines, f"vmt sent {text!r} after the transcript's end"
         d, want = self.lines.popleft()
         assert d == ">" and text == want, f"line {self.sent + 1} sent: vmt {text!r}, transcript {want!r}"
@@ -78,6 +101,7 @@ def test_client_replays_the_campaign_transcript(tmp_path):
     res = run_campaign(be, plan_log(), tmp_path / "log.csv", settings(200.0))
     assert not link.lines and not link.pending          # every line of the transcript used
     assert link.sent == sum(d == ">" for d, _ in lines) == 66
+    assert link.spliced == 1                             # '$$', once, before anything moves
     assert res.rows_done == 12 and res.statuses == {"ok": 12}
     from core.probelog import read_probe_log
 
@@ -96,6 +120,7 @@ def test_client_replays_the_miss_transcript_alarm_5_wins(tmp_path):
         run_campaign(be, plan_log(miss_rows=(2,)), tmp_path / "log.csv", settings(300.0))
     assert not link.lines and not link.pending          # down to the G90 refused with error:9
     assert lines[-2:] == [(">", "G90"), ("<", "error:9")]
+    assert link.spliced == 1
     from core.probelog import read_probe_log
 
     log = read_probe_log(tmp_path / "log.csv")
