@@ -256,14 +256,22 @@ def check_program(steps: list[Step], settings: ProbeSettings, *, require_limits:
     Raises
     ------
     PlanError
-        Naming the plan row and the point (mm) or the feed at fault, or the
-        turn that has no safe Z.
+        Naming the plan row and the point (mm) or the feed at fault, the
+        turn that has no safe Z, or an approach start above the safe Z.
     """
     mx = settings.max_feed_mm_min
     for k in ("probe_feed_mm_min", "move_feed_mm_min"):
         if getattr(settings, k) > mx:
             raise PlanError(f"{k} {getattr(settings, k):g} exceeds the maximum feed {mx:g} mm/min")
     program = list(motion(steps, settings, rotary=rotary, from_rot=from_rot))   # refuses a turn without safe Z
+    if settings.safe_z_mm is not None:
+        # the safe Z is a rise from every approach start: one below a start would move the stylus down, toward
+        # the part, before a move across (and a turn there is not safe)
+        for st in steps:
+            if not st.start_mm[2] <= settings.safe_z_mm + 1e-9:
+                raise PlanError(f"row {st.row} (target {st.target!r}): approach start Z {st.start_mm[2]:.4f} mm is "
+                                f"above the safe Z {settings.safe_z_mm:g} mm (--safe-z-mm): the rise to the safe Z "
+                                f"would move the stylus down toward the part")
     if settings.limits_mm is None:
         if require_limits:
             raise PlanError("no soft limits given (--limits-mm X..:..,Y..:..,Z..:..): "

@@ -255,3 +255,26 @@ def test_program_reproduces_the_live_campaign_touch_for_touch(tmp_path):
     assert rots == live.rots
     # the program's points carry 6 decimals (0.5 nm per axis); a touch moves by at most about as much
     assert np.abs(np.array(touches) - log.positions_mm()).max() < 2e-6
+
+
+def test_safe_z_below_an_approach_start_is_refused(tmp_path, capsys):
+    """A safe Z below an approach start would make the rise a descent toward the part: refused, naming the row,
+    before anything is written or sent (for plans that turn and plans that do not)."""
+    for plan in (rotary_plan(), plan_log()):
+        steps = plan_steps(plan, ProbeSettings(limits_mm=LIMITS_MM))
+        top = max(range(len(steps)), key=lambda i: steps[i].start_mm[2])
+        z = steps[top].start_mm[2]
+        low = ProbeSettings(limits_mm=LIMITS_MM, safe_z_mm=z - 0.5)
+        with pytest.raises(PlanError, match=rf"row {steps[top].row} .*above the safe Z {z - 0.5:g} mm"):
+            part_program(plan, low)
+        with pytest.raises(PlanError, match=r"above the safe Z"):
+            run_campaign(VirtualBackend(scene()), plan, tmp_path / "log.csv", low)
+        assert not (tmp_path / "log.csv").exists()
+        part_program(plan, ProbeSettings(limits_mm=LIMITS_MM, safe_z_mm=z))   # at the start's height: allowed
+    p = write_probe_log(tmp_path / "plan.csv", plan)
+    capsys.readouterr()
+    assert main(["machine", "program", "--plan", str(p), "--out", str(tmp_path / "p.ngc"), "--limits-mm", LIMITS,
+                 "--safe-z-mm", f"{z - 0.5:g}"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "above the safe Z" in err and "Traceback" not in err
+    assert not (tmp_path / "p.ngc").exists()
