@@ -74,7 +74,8 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .exceptions import VmtError
-from .probelog import last_row_check, step_back
+from .probelog import (ANGLE_MAX_DEG, LENGTH_MAX_MM, T_MAX_S, TEMP_RANGE_C, _num, is_number, last_row_check,
+                       step_back)
 
 FORMAT = "positioning-log/1"
 #: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
@@ -197,11 +198,12 @@ def _direction_array(values, src: str) -> np.ndarray:
 def make_positioning_log(target, cycle, direction, measured, *, t_s=None, status=None,
                          extra: Mapping[str, Iterable] | None = None,
                          meta: Mapping[str, str] | None = None, unit: str = "mm",
-                         source: str = "<memory>") -> PositioningLog:
+                         source: str = "<memory>", lines: list[int] | None = None) -> PositioningLog:
     """Build and validate a :class:`PositioningLog` from sequences (file unit).
 
     ``direction`` holds ``"+"``/``"-"`` or +1/-1; ``unit`` is ``mm`` or
-    ``deg``; ``format`` and ``unit`` are written into the metadata.
+    ``deg``; ``format`` and ``unit`` are written into the metadata. ``lines``:
+    the file line of each reading, for error messages (an importer's).
     """
     m = {"format": FORMAT}
     m.update({str(k): str(v) for k, v in (meta or {}).items()})
@@ -225,7 +227,7 @@ def make_positioning_log(target, cycle, direction, measured, *, t_s=None, status
                          direction=_direction_array(list(direction), source),
                          measured=np.asarray(measured, dtype=float).reshape(-1).copy(),
                          t_s=ts, status=st, extra=ex, source=source)
-    _validate(log, None)
+    _validate(log, None if lines is None or len(lines) != n else list(lines))
     return log
 
 
@@ -234,14 +236,38 @@ def _is_temp(name: str) -> bool:
 
 
 def _finite_number(text: str, where: str, what: str) -> float:
-    """``float(text)``, or a one-line error ``"<where>: <what> '<text>' is not a number"``."""
+    """``float(text)``, or a one-line error ``"<where>: <what> '<text>' is not a number"``.
+
+    A number has the form :data:`core.probelog.NUMBER` (``[+-]digits[.digits][e[+-]digits]``, ASCII
+    digits): ``1_0`` and non-ASCII digits, which Python's float() alone reads, are not numbers.
+    """
     try:
         v = float(text)
     except ValueError:
-        raise PositioningLogError(f"{where}: {what} {text!r} is not a number") from None
-    if not math.isfinite(v):
+        v = None
+    if v is not None and not math.isfinite(v):
         raise PositioningLogError(f"{where}: {what} {text!r} is not finite")
+    if v is None or not is_number(text):
+        raise PositioningLogError(f"{where}: {what} {text!r} is not a number")
     return v
+
+
+def _target_groups(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The targets P_i among ``values``: ``(group of each value, first value of each group)``.
+
+    Sorted, a value more than :data:`TARGET_TOL` above the one before starts a new target; closer
+    values are the same target (a chain). The one grouping both the duplicate check
+    (:func:`_validate`) and :func:`arrange` use, so what the check lets through never lands on
+    another reading's place in the arrays.
+    """
+    order = np.argsort(values, kind="stable")
+    groups = np.zeros(values.size, dtype=np.int64)
+    if values.size == 0:
+        return groups, np.empty(0)
+    new = np.diff(values[order]) > TARGET_TOL
+    groups[order] = np.concatenate([[0], np.cumsum(new)])
+    starts = np.concatenate([[0], np.flatnonzero(new) + 1])
+    return groups, values[order][starts]
 
 
 # ---------------------------------------------------------------------------
@@ -283,10 +309,13 @@ def read_positioning_log(path: str | os.PathLike) -> PositioningLog:
     PositioningLogError
         One line naming the file, the data row (0-based) and file line:
         missing/empty file, no or wrong ``format``, missing column, a
-        value that is not a number, a cycle that is not a whole number
-        >= 1, a direction that is not ``+`` or ``-``, time going
-        backwards, the same (target, cycle, direction) twice among valid
-        readings, a torn last row (the probe log's rule,
+        value that is not a number (the form :data:`core.probelog.NUMBER`),
+        a cycle that is not a whole number >= 1, a direction that is not
+        ``+`` or ``-``, a value beyond the probe log's bounds (positions
+        beyond 100 m or 1e6 deg, ``t_s`` below 0 or beyond 1e10 s, a
+        temperature outside -273.15..1000 C), time going backwards, the
+        same (target, cycle, direction) twice among valid readings (targets
+        grouped as :func:`arrange` groups them), a torn last row (the probe log's rule,
         :func:`core.probelog.last_row_check`: a last row without an end of
         line with too few fields, a number cut to no number, or a status
         other than ``ok``; one that still reads whole is kept with a warning).
@@ -465,17 +494,36 @@ def _validate(log: PositioningLog, lines: list[int] | None) -> None:
             before, r = back
             raise PositioningLogError(f"{where(r)}: time goes backwards (t_s {t[r]:g} after {t[before]:g}); "
                                       "rows must be in the order measured")
-    # one valid reading per (target, cycle, direction)
+    # the probe log's physical bounds (core.probelog.value_range): keep absurd values out of the figures
+    big, why = ((LENGTH_MAX_MM, "no machine tool's stroke reaches 100 m") if unit == "mm"
+                else (ANGLE_MAX_DEG, "2778 turns of a multi-turn table"))
+    bounds = [(f"target_{unit}", log.target, -big, big, unit, why),
+              (f"measured_{unit}", log.measured, -big, big, unit, why)]
+    if log.t_s is not None:
+        bounds.append(("t_s", log.t_s, 0.0, T_MAX_S, "s", "time since the test started"))
+    bounds += [(k, v, *TEMP_RANGE_C, "C", "") for k, v in log.extra.items() if _is_temp(k)]
+    for name, v, lo, hi, u, why in bounds:
+        v = np.asarray(v, dtype=float)
+        with np.errstate(invalid="ignore"):
+            out = (v < lo) | (v > hi)
+        if out.any():
+            r = int(np.argmax(out))
+            raise PositioningLogError(f"{where(r)}: column {name!r}: {_num(v[r])} is out of range (must be "
+                                      f">= {lo:g} and <= {hi:g} {u}{': ' + why if why else ''})")
+    # one valid reading per (target, cycle, direction), targets grouped as arrange() groups them
     first: dict[tuple, int] = {}
-    keys = np.round(log.target / TARGET_TOL).astype(np.int64)
-    for r in np.flatnonzero(ok):
-        key = (int(keys[r]), int(log.cycle[r]), int(log.direction[r]))
+    rows = np.flatnonzero(ok)
+    groups, _ = _target_groups(log.target[rows])
+    table = log.meta.get("imported_from", "") == "table" and log.status is None  # no status to mark
+    for r, g in zip(rows, groups):
+        key = (int(g), int(log.cycle[r]), int(log.direction[r]))
         if key in first:
             d = "+" if log.direction[r] > 0 else "-"
+            fix = ("delete the reading that is not valid" if table
+                   else "mark one reading with a status other than ok")
             raise PositioningLogError(
-                f"{where(int(r))}: target {log.target[r]:g} {unit}, cycle {int(log.cycle[r])}, "
-                f"direction '{d}' already measured in row {first[key]} (mark one reading "
-                "with a status other than ok)")
+                f"{where(int(r))}: target {_num(log.target[r])} {unit}, cycle {int(log.cycle[r])}, "
+                f"direction '{d}' already measured in row {first[key]} ({fix})")
         first[key] = int(r)
 
 
@@ -586,7 +634,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
 
     def index(s: str, count: int, ln: int, key: str) -> tuple[int, ...]:
         parts = [p.strip() for p in s.split(",")]
-        if len(parts) != count or not all(p.isdigit() and int(p) >= 1 for p in parts):
+        if len(parts) != count or not all(p.isascii() and p.isdigit() and int(p) >= 1 for p in parts):
             want = "[i]" if count == 1 else "[i,j]"
             raise PositioningLogError(f"{src}: line {ln}: {key}[{s}]: index must be {want} with whole numbers >= 1")
         return tuple(int(p) for p in parts)
@@ -629,7 +677,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
     for key in ("POSITIONS", "CYCLES"):
         if key in scalars:
             v, ln = scalars[key]
-            if not v.strip().isdigit() or int(v) < 1:
+            if not (v.strip().isascii() and v.strip().isdigit()) or int(v) < 1:
                 raise PositioningLogError(f"{src}: line {ln}: {key} {v!r} is not a whole number >= 1")
             declared[key] = int(v)
     if not tgt:
@@ -694,11 +742,16 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
     order, or in any order under a header row naming them (``target``,
     ``cycle``/``run``, ``direction``/``dir``, ``measured``/``actual``;
     ``deviation_um`` instead of ``measured`` gives ``measured = target +
-    deviation``). Directions: ``+ - up down fwd bwd forward backward pos
-    neg +1 -1 1``. Lines starting with ``#`` are comments (``# key: value``
-    lines become metadata). Values in ``unit`` (``mm`` or ``deg``; default:
-    a ``# unit:`` comment line, else mm); rows are taken to be in the
-    order measured.
+    deviation``, on a linear axis only). A header column that names none of
+    these is refused, not dropped (a ``status`` column dropped would let
+    invalid readings into the figures: such a file is a positioning log and
+    needs its ``# format:`` line). Directions: ``+ - up down fwd bwd forward
+    backward pos neg +1 -1 1``. Lines starting with ``#`` are comments
+    (``# key: value`` lines become metadata). The unit (``mm`` or ``deg``):
+    the one in the target or measured column's name (``target_deg``), else
+    ``unit``, else a ``# unit:`` comment line, else mm; a name in another
+    unit than ``unit`` or the ``# unit:`` line, or two names in two units,
+    are refused. Rows are taken to be in the order measured.
     """
     src = source
     if not text.strip():
@@ -722,9 +775,9 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
         rows.append((ln, cells))
     if not rows:
         raise PositioningLogError(f"{src}: no data rows")
-    unit = unit or meta.get("unit") or "mm"
-    if unit not in _NUMERIC_REQUIRED:
-        raise PositioningLogError(f"{src}: unit {unit!r} is not 'mm' or 'deg'")
+    given, said = (unit, "asked for") if unit else (meta.get("unit"), "from the '# unit:' line")
+    if given and given not in _NUMERIC_REQUIRED:
+        raise PositioningLogError(f"{src}: unit {given!r} is not 'mm' or 'deg'")
     first = rows[0][1]
 
     def is_number(c: str) -> bool:
@@ -739,11 +792,15 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
         lookup = {}
         for j, name in enumerate(first):
             key = name.strip().lower()
-            for canon, names in _TABLE_NAMES.items():
-                if key in names:
-                    if canon in lookup:
-                        raise PositioningLogError(f"{src}: line {rows[0][0]}: two columns mean {canon!r}")
-                    lookup[canon] = j
+            canon = next((c for c, names in _TABLE_NAMES.items() if key in names), None)
+            if canon is None:   # refused, not dropped: a status column dropped let invalid readings in
+                raise PositioningLogError(
+                    f"{src}: line {rows[0][0]}: column {name!r} is not a table column (target, cycle, "
+                    f"direction, measured or deviation_um): delete it, or, for a positioning log, "
+                    f"add the line '# format: {FORMAT}'")
+            if canon in lookup:
+                raise PositioningLogError(f"{src}: line {rows[0][0]}: two columns mean {canon!r}")
+            lookup[canon] = j
         for need in ("target", "cycle", "direction"):
             if need not in lookup:
                 raise PositioningLogError(
@@ -752,6 +809,22 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
             raise PositioningLogError(
                 f"{src}: line {rows[0][0]}: header has no 'measured' or 'deviation_um' column")
         cols = lookup
+        # a unit in a column's name (target_deg, measured_mm) is the table's unit
+        named = [(first[cols[c]], first[cols[c]].strip().lower().rsplit("_", 1)[-1])
+                 for c in ("target", "measured") if c in cols]
+        named = [(name, u) for name, u in named if u in _NUMERIC_REQUIRED]   # not p_i, p_ij
+        for name, u in named[1:]:
+            if u != named[0][1]:
+                raise PositioningLogError(f"{src}: line {rows[0][0]}: column {name!r} is in {u} but column "
+                                          f"{named[0][0]!r} is in {named[0][1]}")
+        if named and given and named[0][1] != given:
+            raise PositioningLogError(f"{src}: line {rows[0][0]}: column {named[0][0]!r} is in {named[0][1]} "
+                                      f"but the unit is {given} ({said})")
+        unit = named[0][1] if named else (given or "mm")
+        if "deviation_um" in cols and unit != "mm":
+            raise PositioningLogError(
+                f"{src}: line {rows[0][0]}: column {first[cols['deviation_um']]!r} is a length (um) but the "
+                f"table is in {unit}: give the measured angle instead (measured_deg)")
         rows = rows[1:]
         width = len(first)
         if not rows:
@@ -759,7 +832,8 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
     else:
         cols = {"target": 0, "cycle": 1, "direction": 2, "measured": 3}
         width = 4
-    tg, cy, di, me = [], [], [], []
+        unit = given or "mm"
+    tg, cy, di, me, lns = [], [], [], [], []
     for ln, cells in rows:
         if len(cells) != width:
             raise PositioningLogError(f"{src}: line {ln}: {len(cells)} fields, expected {width}")
@@ -774,7 +848,8 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
         dtxt = cells[cols["direction"]].strip().lower()
         if dtxt not in _DIRECTION_WORDS:
             raise PositioningLogError(f"{src}: line {ln}: direction {cells[cols['direction']]!r} is not + or -")
-        mv = val("measured") if "measured" in cols else t + val("deviation_um") * (1e-3 if unit == "mm" else 1 / 3600e3)
+        mv = val("measured") if "measured" in cols else t + val("deviation_um") * 1e-3
+        lns.append(ln)
         tg.append(t)
         cy.append(int(c))
         di.append(_DIRECTION_WORDS[dtxt])
@@ -782,7 +857,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
     meta.setdefault("imported_from", "table")
     meta.pop("format", None)
     meta.pop("unit", None)
-    return make_positioning_log(tg, cy, di, me, meta=meta, unit=unit, source=src)
+    return make_positioning_log(tg, cy, di, me, meta=meta, unit=unit, source=src, lines=lns)
 
 
 def load_positioning(path: str | os.PathLike, kind: str = "auto", unit: str | None = None) -> PositioningLog:
@@ -889,19 +964,7 @@ def arrange(log: PositioningLog) -> PositioningTest:
                 f"{src}: no valid readings approached in the '{name}' direction "
                 "(ISO 230-2 needs both directions at every target)")
     # targets: sorted, values closer than TARGET_TOL are one target
-    tv = log.target[rows]
-    order = np.argsort(tv, kind="stable")
-    groups = np.zeros(rows.size, dtype=np.int64)
-    g = 0
-    prev = tv[order[0]]
-    targets = [prev]
-    for k in order[1:]:
-        if tv[k] - prev > TARGET_TOL:
-            g += 1
-            targets.append(tv[k])
-        prev = tv[k]
-        groups[k] = g
-    targets_arr = np.array(targets)
+    groups, targets_arr = _target_groups(log.target[rows])
     m = targets_arr.size
     if m < 2:
         raise PositioningLogError(f"{src}: one target only ({targets_arr[0]:g} {u}); ISO 230-2 needs several")
@@ -925,12 +988,12 @@ def arrange(log: PositioningLog) -> PositioningTest:
         for i in range(m):
             if cnt[i] == 0 and other[i] > 0:
                 raise PositioningLogError(
-                    f"{src}: target {targets_arr[i]:g} {u} has readings in "
+                    f"{src}: target {_num(targets_arr[i])} {u} has readings in "
                     f"'{'-' if d > 0 else '+'}' but none in '{name}': the targets do not "
                     "match between directions")
             if cnt[i] < N_MIN:
                 raise PositioningLogError(
-                    f"{src}: target {targets_arr[i]:g} {u}, direction '{name}': {int(cnt[i])} "
+                    f"{src}: target {_num(targets_arr[i])} {u}, direction '{name}': {int(cnt[i])} "
                     f"valid reading; the repeatability estimator needs at least {N_MIN} "
                     f"(ISO 230-2 asks {N_STANDARD})")
     counts = np.concatenate([np.sum(~np.isnan(out[d][0]), axis=1) for d in (1, -1)])

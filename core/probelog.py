@@ -19,6 +19,7 @@ import csv
 import io
 import math
 import os
+import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping
@@ -58,6 +59,18 @@ T_MAX_S = 1e10
 ANGLE_MAX_DEG = 1e6
 #: Temperatures (Celsius) from absolute zero to 1000 C (no machine tool runs hotter).
 TEMP_RANGE_C = (-273.15, 1000.0)
+
+#: A number in a file: ``[+-]digits[.digits][e[+-]digits]`` (also ``.5`` and ``5.``, as C's strtod
+#: reads them), ASCII digits only. Python's float() reads more: ``1_0`` as 10, Arabic-Indic or
+#: full-width digits as digits; no CSV reader outside Python does, so vmt refuses them
+#: (:func:`is_number`). ``nan`` and ``inf`` are not numbers here either (refused as not finite).
+NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
+
+
+def is_number(cell: str) -> bool:
+    """True when ``cell`` (surrounding blanks ignored) has the form of :data:`NUMBER`."""
+    return NUMBER.match(cell.strip()) is not None
+
 
 _LENGTHS = ("X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "wx_mm", "wy_mm", "wz_mm")
 #: The statuses the spec names (``ok``, and why a touch is not valid: ``no_trigger``,
@@ -236,10 +249,9 @@ def _text_cells(values) -> bool:
     """True when some value is a string that is not empty and not a finite number."""
     for v in values:
         if isinstance(v, str) and v.strip():
-            try:
-                if not math.isfinite(float(v)):
-                    return True
-            except ValueError:
+            if not is_number(v):
+                return True
+            if not math.isfinite(float(v)):  # 1e999
                 return True
     return False
 
@@ -462,7 +474,9 @@ class _Columns:
     def _numbers(self, j: int, cells, row0: int, lines: np.ndarray) -> np.ndarray | None:
         try:
             v = np.fromiter(map(float, cells), float, count=len(cells))
-            if np.isfinite(v).all():
+            # what float() reads beyond NUMBER: '_' between digits, non-ASCII digits and blanks
+            # (nan, inf fail isfinite); one pass over the joined block keeps 1e6 rows fast
+            if np.isfinite(v).all() and "_" not in (block := "".join(cells)) and block.isascii():
                 return v
         except ValueError:
             pass
@@ -476,6 +490,8 @@ class _Columns:
             try:
                 x = float(c)
             except ValueError:
+                x = None
+            if x is None or (math.isfinite(x) and not is_number(c)):
                 self.error[j] = (f"{self.src}: row {row0 + r} (line {lines[r]}): column {name!r}: "
                                  f"{_shown(c)} is not a number")
                 return None
@@ -740,10 +756,9 @@ def _validate(log: ProbeLog, lines: np.ndarray | None) -> None:
                     f"{_xyz(w[r0])} mm in set-up {c['setup'][r0]!r}")
     sr = log.meta.get("stylus_r_mm")
     if sr not in (None, ""):
-        try:
-            v = float(sr)
-        except ValueError:
-            raise ProbeLogError(f"{src}: metadata stylus_r_mm {_shown(sr)} is not a length") from None
+        if not is_number(sr):
+            raise ProbeLogError(f"{src}: metadata stylus_r_mm {_shown(sr)} is not a length")
+        v = float(sr)
         if not (math.isfinite(v) and 0 <= v <= STYLUS_R_MAX_MM):
             raise ProbeLogError(f"{src}: metadata stylus_r_mm {_shown(sr)} is out of range (must be >= 0 "
                                 f"and <= {STYLUS_R_MAX_MM:g} mm: a tip radius is not negative)")

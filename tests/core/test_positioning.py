@@ -543,3 +543,159 @@ def test_uncertainty_budget_is_for_linear_axes():
     text = hand_text(rows, header="target_deg,cycle,direction,measured_deg", meta="# unit: deg\n")
     with pytest.raises(PositioningLogError, match="for linear axes"):
         figure_uncertainty(iso230_2(parse_positioning_log(text)), UncertaintyInputs(eve_um=1.0))
+
+
+# --------------------------------------------------------------------------
+# session 25 review (brief pos5): what the readers did with files they should refuse or read otherwise
+
+
+def _rows_text(rows, header="target_mm,cycle,direction,measured_mm"):
+    return header + "\n" + "\n".join(",".join(str(v) for v in r) for r in rows) + "\n"
+
+
+# three targets, three cycles; the + reading at 10 mm of cycle 2 is marked invalid (10.5 mm)
+STATUS_ROWS = [(p, j, d, (10.5 if (p, j, d) == (10.0, 2, "+") else p + j / 1000),
+                "interrupted" if (p, j, d) == (10.0, 2, "+") else "ok")
+               for j in (1, 2, 3) for d in "+-" for p in (0.0, 10.0, 20.0)]
+
+
+def test_a_log_without_its_format_line_is_not_read_as_a_table_that_drops_status(tmp_path):
+    """F1: without '# format:' the file is a table, and a table has no status column: refused with
+    one line naming the column and the missing format line (main read it as a table, dropped the
+    status and let the invalid 10.5 mm reading into the figures: B = E_up = 166 um, exit 0)."""
+    body = _rows_text(STATUS_ROWS, "target_mm,cycle,direction,measured_mm,status")
+    (tmp_path / "with.csv").write_text(f"# format: {FORMAT}\n# axis: X\n" + body)
+    (tmp_path / "without.csv").write_text("# axis: X\n" + body)
+    r = iso230_2(load_positioning(tmp_path / "with.csv"))
+    assert list(r.n_up) == [3, 2, 3] and abs(r.B) < 1e-12   # the invalid reading left out
+    with pytest.raises(PositioningLogError,
+                       match=r"without\.csv: line 2: column 'status' is not a table column .*"
+                             r"'# format: positioning-log/1'"):
+        load_positioning(tmp_path / "without.csv")
+    # any column a table does not know is refused, not dropped (t_s, temp_*_C, a note)
+    for extra in ("t_s", "temp_air_C", "note"):
+        text = _rows_text([r[:4] + (1,) for r in STATUS_ROWS], f"target_mm,cycle,direction,measured_mm,{extra}")
+        with pytest.raises(PositioningLogError, match=f"column '{extra}' is not a table column"):
+            parse_table(text, "t.csv")
+
+
+# five targets (deg), five cycles: + reads 0.001 deg high, - 0.001 deg low: B_i = 0.002 deg = 7.2 arcsec
+DEG_ROWS = [(p, j, d, p + (0.001 if d == "+" else -0.001))
+            for j in range(1, 6) for d in "+-" for p in (0.0, 90.0, 180.0, 270.0, 350.0)]
+
+
+def test_a_table_takes_its_unit_from_its_column_names():
+    """F2: target_deg/measured_deg columns are degrees (main read them as mm: 'B 2.000 um')."""
+    log = parse_table(_rows_text(DEG_ROWS, "target_deg,cycle,direction,measured_deg"), "t.csv")
+    assert log.unit == "deg"
+    rep = iso230_2(log).to_report()
+    assert rep["unit"] == "arcsec" and abs(rep["B_arcsec"] - 7.2) < 1e-6   # 0.002 deg x 3600; float rounding ~1e-9
+    assert parse_table(_rows_text(DEG_ROWS, "target_mm,cycle,direction,measured_mm"), "t.csv").unit == "mm"
+    assert parse_table(_rows_text(DEG_ROWS, "target,cycle,direction,measured"), "t.csv").unit == "mm"
+    assert parse_table(_rows_text(DEG_ROWS, "P_i,run,dir,P_ij"), "t.csv").unit == "mm"   # '_i' is no unit
+    assert parse_table("# unit: deg\n" + _rows_text(DEG_ROWS, "target,cycle,direction,measured"),
+                       "t.csv").unit == "deg"
+    for text, match in [
+        ("# unit: mm\n" + _rows_text(DEG_ROWS, "target_deg,cycle,direction,measured_deg"),
+         r"t\.csv: line 2: column 'target_deg' is in deg but the unit is mm \(from the '# unit:' line\)"),
+        (_rows_text(DEG_ROWS, "target_mm,cycle,direction,measured_deg"),
+         r"t\.csv: line 1: column 'measured_deg' is in deg but column 'target_mm' is in mm"),
+    ]:
+        with pytest.raises(PositioningLogError, match=match):
+            parse_table(text, "t.csv")
+    with pytest.raises(PositioningLogError, match=r"line 1: column 'target_deg' is in deg but the unit is mm \(asked"):
+        parse_table(_rows_text(DEG_ROWS, "target_deg,cycle,direction,measured_deg"), "t.csv", unit="mm")
+
+
+def test_a_deviation_in_um_on_a_rotary_table_is_refused():
+    """F6: deviation_um is a length; main read it on a deg table as milli-arcseconds."""
+    rows = [(p, j, d, 3.6 if d == "+" else -3.6) for p, j, d, _ in DEG_ROWS]
+    with pytest.raises(PositioningLogError, match=r"t\.csv: line 2: column 'deviation_um' is a length "
+                                                  r"\(um\) but the table is in deg"):
+        parse_table("# unit: deg\n" + _rows_text(rows, "target,cycle,direction,deviation_um"), "t.csv")
+
+
+def test_duplicates_are_found_by_the_same_grouping_the_evaluation_uses():
+    """F5: two valid cycle-1 '+' readings 2e-7 mm apart are one target: refused as a duplicate (main
+    rounded to a 1e-6 grid for the check, 10.0000006 -> 10000001, 10.0000004 -> 10000000, and let
+    arrange() overwrite one with the other: n_up 3 where 4 valid readings were given)."""
+    rows = [(p, j, d, p + 0.001) for j in (1, 2, 3) for d in "+-" for p in (0.0, 10.0)
+            if (j, d, p) != (1, "+", 10.0)]
+    for a, b in ((10.0000006, 10.0000004), (10.0000014, 10.0000016)):
+        text = f"# format: {FORMAT}\n" + _rows_text(rows + [(a, 1, "+", 10.001), (b, 1, "+", 10.101)])
+        with pytest.raises(PositioningLogError, match=rf"row 12 \(line 15\): target {b!r} mm, cycle 1, "
+                                                      r"direction '\+' already measured in row 11"):
+            parse_positioning_log(text, "d.csv")
+    # 2e-6 mm apart with nothing between: two targets, as before (the second has one '+' reading)
+    text = f"# format: {FORMAT}\n" + _rows_text(rows + [(10.0, 1, "+", 10.001), (10.000002, 1, "+", 10.0)])
+    with pytest.raises(PositioningLogError, match="target 10.000002 mm, direction '\\+': 1 valid reading"):
+        arrange(parse_positioning_log(text, "d.csv"))
+
+
+@pytest.mark.parametrize("cell", ["1_0", "1_0.00_1", "\u0661\u0660", "１0", "0x10", "1e5_0", "nan0"])
+def test_python_only_number_forms_are_refused(cell):
+    """F6: float() reads '1_0' as 10 and Arabic-Indic or full-width digits as digits; no CSV reader
+    outside Python does, so the readers refuse them (in a log, a table and an ecmc file)."""
+    rows = [(0, 1, "+", 0.001), (10, 1, "+", 10.002), (0, 2, "+", 0.001), (10, 2, "+", 10.002),
+            (0, 1, "-", 0), (10, 1, "-", 10), (0, 2, "-", 0), (10, 2, "-", 10)]
+    bad = [(cell if k == 1 else t, c, d, m) for k, (t, c, d, m) in enumerate(rows)]
+    with pytest.raises(PositioningLogError, match=rf"row 1 \(line 4\): column 'target_mm': {re.escape(repr(cell))} "
+                                                  r"is not a number"):
+        parse_positioning_log(f"# format: {FORMAT}\n" + _rows_text(bad), "u.csv")
+    with pytest.raises(PositioningLogError, match=rf"line 3: target {re.escape(repr(cell))} is not a number"):
+        parse_table(_rows_text(bad), "u.csv")
+    with pytest.raises(PositioningLogError, match=rf"e\.dat: line 2: TGT_DATA\[2\] {re.escape(repr(cell))} "
+                                                  r"is not a number"):
+        parse_ecmc_dat(f"TGT_DATA[1]=0\nTGT_DATA[2]={cell}\n", "e.dat")
+
+
+@pytest.mark.parametrize("cell,value", [("1.", 1.0), (".5", 0.5), ("+2", 2.0), ("-0.0", -0.0), ("1E-3", 1e-3),
+                                        ("2.5e+1", 25.0), ("7", 7.0), (" 3.25 ", 3.25)])
+def test_every_decimal_number_form_is_read_exactly(cell, value):
+    """The forms a number may take ([+-]digits[.digits][e[+-]digits], '.5' and '5.' as C reads them): read
+    exactly as float() reads them."""
+    rows = [(0, 1, "+", 0.0), (10, 1, "+", cell), (0, 2, "+", 0), (10, 2, "+", 10),
+            (0, 1, "-", 0), (10, 1, "-", 10), (0, 2, "-", 0), (10, 2, "-", 10)]
+    log = parse_positioning_log(f"# format: {FORMAT}\n" + _rows_text(rows), "ok.csv")
+    assert log.measured[1] == value and math.copysign(1, log.measured[1]) == math.copysign(1, value)
+
+
+@pytest.mark.parametrize("col,cells,match", [
+    ("t_s", [-99 + k for k in range(8)], r"row 0 \(line 3\): column 't_s': -99 is out of range \(must be >= 0"),
+    ("temp_air_C", [-500] * 8, r"row 0 \(line 3\): column 'temp_air_C': -500 is out of range \(must be >= -273.15"),
+    ("temp_air_C", [20, 20, 20, 1001, 20, 20, 20, 20], r"row 3 \(line 6\): column 'temp_air_C': 1001 is out of"),
+])
+def test_times_and_temperatures_are_bounded_as_in_a_probe_log(col, cells, match):
+    """F6: t_s is time since the test started (>= 0) and a temperature is not below absolute zero: the
+    probe log's bounds (core.probelog.value_range); main read t_s = -99 and -500 C."""
+    rows = [(0, 1, "+", 0), (10, 1, "+", 10), (0, 1, "-", 0), (10, 1, "-", 10),
+            (0, 2, "+", 0), (10, 2, "+", 10), (0, 2, "-", 0), (10, 2, "-", 10)]
+    text = f"# format: {FORMAT}\n" + _rows_text([r + (c,) for r, c in zip(rows, cells)],
+                                               f"target_mm,cycle,direction,measured_mm,{col}")
+    with pytest.raises(PositioningLogError, match=match):
+        parse_positioning_log(text, "b.csv")
+
+
+@pytest.mark.parametrize("unit,big,match", [
+    ("mm", 1e300, r"row 1 \(line 5\): column 'target_mm': 1e\+300 is out of range \(must be >= -100000 "
+                  r"and <= 100000 mm"),
+    ("mm", 100000.001, r"column 'target_mm': 100000.001 is out of range"),
+    ("deg", 1e7, r"row 1 \(line 5\): column 'target_deg': 1e\+07 is out of range \(must be >= -1e\+06"),
+])
+def test_non_physical_magnitudes_are_refused_without_a_numpy_warning(unit, big, match):
+    """F6: a target of 1e300 mm printed numpy's 'invalid value encountered in cast' (the duplicate
+    check cast target / 1e-6 to int64) and was evaluated; now refused with one line at the probe
+    log's bounds (100 m; 1e6 deg), with no warning."""
+    import warnings
+
+    rows = [(0, 1, "+", 0), (big, 1, "+", big), (0, 1, "-", 0), (big, 1, "-", big),
+            (0, 2, "+", 0), (big, 2, "+", big), (0, 2, "-", 0), (big, 2, "-", big)]
+    text = f"# format: {FORMAT}\n# unit: {unit}\n" + _rows_text(rows, f"target_{unit},cycle,direction,measured_{unit}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(PositioningLogError, match=match):
+            parse_positioning_log(text, "h.csv")
+    edge = 99999.0 if unit == "mm" else 999999.0   # inside the bounds: read
+    rows = [(edge if p else p, c, d, edge if p else m) for p, c, d, m in rows]
+    text = f"# format: {FORMAT}\n# unit: {unit}\n" + _rows_text(rows, f"target_{unit},cycle,direction,measured_{unit}")
+    assert parse_positioning_log(text, "h.csv").target.max() == edge

@@ -528,3 +528,29 @@ def test_mixed_line_ends_count_lines_as_the_text_does(tmp_path):
                    + "s1,p3,2,x,0,0,1,0,0,1,0,0\r\n").encode())
     with pytest.raises(ProbeLogError, match=r"row 2 \(line 5\): column 'X_mm': 'x' is not a number$"):
         read_probe_log(p)
+
+
+@pytest.mark.parametrize("cell", ["1_0", "1_0.00_1", "\u0661", "\uff11.5", "1e1_0"])
+def test_python_only_number_forms_are_refused(tmp_path, cell):
+    """float() reads '1_0' as 10 and Arabic-Indic or full-width digits as digits; no CSV reader outside
+    Python does: a number is [+-]digits[.digits][e[+-]digits] in ASCII (core.probelog.NUMBER). Refused in
+    a numeric column (here the second of three rows, so the block's fast path sees it), kept as text in
+    a column the spec does not define, refused as the stylus radius."""
+    rows = [ROW, ROW.replace("s1,p1,0,1,", f"s1,p2,1,{cell},"), ROW.replace("s1,p1,0,", "s1,p3,2,")]
+    p = tmp_path / "n.csv"
+    p.write_text(HEADER + "\n" + "\n".join(rows) + "\n")
+    with pytest.raises(ProbeLogError, match=rf"n\.csv: row 1 \(line 3\): column 'X_mm': {re.escape(repr(cell))} "
+                                            r"is not a number$"):
+        read_probe_log(p)
+    p.write_text(HEADER + ",note\n" + "\n".join(r + f",{c}" for r, c in zip([ROW] * 3, ["2", cell, "3"])) + "\n")
+    assert list(parse_probe_log(p.read_text()).columns["note"]) == ["2", cell, "3"]
+    p.write_text(f"# stylus_r_mm: {cell}\n" + _one())
+    with pytest.raises(ProbeLogError, match=rf"metadata stylus_r_mm {re.escape(repr(cell))} is not a length"):
+        read_probe_log(p)
+
+
+def test_decimal_number_forms_read_exactly():
+    """The legal forms ('.5', '5.', '+2', '1E-3', blanks around) read as float() reads them."""
+    cells = [".5", "5.", "+2", "-0.0", "1E-3", " 2.5e+1 "]
+    text = HEADER + "\n" + "\n".join(ROW.replace("s1,p1,0,1,", f"s1,p{k},{k},{c},") for k, c in enumerate(cells))
+    assert list(parse_probe_log(text + "\n").columns["X_mm"]) == [float(c) for c in cells]

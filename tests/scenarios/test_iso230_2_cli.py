@@ -129,3 +129,44 @@ def test_simulate_positioning_bad_options_exit_2(tmp_path, capsys, monkeypatch, 
     err = capsys.readouterr().err
     assert match in err and err.count("\n") == 1
     assert not (tmp_path / "x.csv").exists()
+
+
+# session 25 review (brief pos5): refusals reach the user as one line and exit 2
+_HDR = "target_mm,cycle,direction,measured_mm"
+
+
+@pytest.mark.parametrize("text,match", [
+    ("# axis: X\n" + _HDR + ",status\n" + "\n".join(f"{p},{c},{d},{m},ok" for p, c, d, m in ROWS) + "\n",
+     "line 2: column 'status' is not a table column"),
+    ("# unit: deg\ntarget,cycle,direction,deviation_um\n" + "\n".join(f"{p},{c},{d},1" for p, c, d, _ in ROWS),
+     "column 'deviation_um' is a length (um) but the table is in deg"),
+    (log_text(ROWS + [(10.0000004, 1, "+", 10.1)]), "target 10.0000004 mm, cycle 1, direction '+' already measured"),
+    (log_text([("1_0", 1, "+", 10.002)] + ROWS[1:]), "column 'target_mm': '1_0' is not a number"),
+    (log_text([r + (-5 + k,) for k, r in enumerate(ROWS)]).replace(_HDR, _HDR + ",t_s"),
+     "column 't_s': -5 is out of range (must be >= 0"),
+    (log_text([r + (-500,) for r in ROWS]).replace(_HDR, _HDR + ",temp_air_C"),
+     "column 'temp_air_C': -500 is out of range (must be >= -273.15"),
+    (log_text([(1e300 if p else p, c, d, 1e300 if p else m) for p, c, d, m in ROWS]),
+     "column 'target_mm': 1e+300 is out of range"),
+])
+def test_iso230_2_review_refusals_exit_2(tmp_path, capsys, text, match):
+    p = tmp_path / "in.csv"
+    p.write_text(text)
+    out = tmp_path / "r.json"
+    assert main(["iso230-2", str(p), "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert match in err and err.count("\n") == 1 and str(p) in err
+    assert not out.exists()
+
+
+def test_iso230_2_deg_table_is_evaluated_and_saved_in_degrees(tmp_path, capsys):
+    """A table with target_deg/measured_deg columns and no '# unit:' line: degrees (main: mm)."""
+    rows = [(p / 10, c, d, p / 10 + (m - p) / 10) for p, c, d, m in ROWS]
+    p = tmp_path / "t.csv"
+    p.write_text("target_deg,cycle,direction,measured_deg\n" + "\n".join(",".join(map(str, r)) for r in rows) + "\n")
+    out, log = tmp_path / "r.json", tmp_path / "w.csv"
+    assert main(["iso230-2", str(p), "--json", str(out), "--write-log", str(log)]) == 0
+    rep = json.loads(out.read_text())
+    assert rep["unit"] == "arcsec" and "B_arcsec" in rep
+    back = read_positioning_log(log)
+    assert back.unit == "deg" and "target_deg,cycle,direction,measured_deg" in log.read_text()
