@@ -2874,7 +2874,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     scans = {c.name: c.scans(bl) for c in catalogue}
     if bl.whiten is not None:  # every column the causes build goes through the baseline's whitening
         scans = {k: ([dataclasses.replace(sc, build=(lambda idx, b=sc.build: bl.whiten @ b(idx)), score=None,
-                                          build_sparse=None) for sc in v[0]], v[1]) for k, v in scans.items()}
+                                          build_sparse=None, build_rows=None) for sc in v[0]], v[1])
+                 for k, v in scans.items()}
     n_causes = max(sum(1 for c in catalogue if scans[c.name][0]), 1)
     rejected: list[dict] = []
     # causes refused in a search round as confounded with the model (their magnitudes not determined, their
@@ -3809,6 +3810,19 @@ def _subspace_parts(C: np.ndarray):
     return Ct, Ch @ C, Ch[:-1] @ C[1:]
 
 
+def _subspace_parts_rows(R: np.ndarray):
+    """:func:`_subspace_parts` of the trials ``np.transpose(R, (1, 0, 2))``, ``R`` rows first (rows x trials x k,
+    C-contiguous: :attr:`core.causes.Scan.build_rows`): ``Ct`` is ``R`` itself, reshaped; ``C^T C`` and the cross
+    products the same matrix products of the same numbers (each trial's ``n x k`` block read with the rows'
+    stride instead of ``k``: BLAS packs its operands, the sums are the same, tested byte for byte)."""
+    n, T, k = R.shape
+    if T < 2:
+        return None
+    C = np.transpose(R, (1, 0, 2))  # (T, n, k), a view
+    Ch = np.swapaxes(C, 1, 2)
+    return R.reshape(n, T * k), Ch @ C, Ch[:-1] @ C[1:]
+
+
 def _subspace_path_of(parts, st: _State) -> dict:
     """:func:`_subspace_path` from :func:`_subspace_parts` beside the model ``st.Q`` (only ``Q^T C`` is the model's)."""
     Ct, G0, X0 = parts
@@ -3858,8 +3872,10 @@ def _path_parts(sc, rows: np.ndarray):
     hit = _PATH_CACHE.get(key)
     if hit is not None and hit[0]() is sc and np.array_equal(hit[1], rows):
         return hit[2]
-    C = take_rows(sc.build(np.arange(sc.size)), rows, 1)
-    parts = _subspace_parts(C)
+    if sc.build_rows is not None:  # rows first: the trials side by side without a transposed copy (the same doubles)
+        parts = _subspace_parts_rows(take_rows(sc.build_rows(np.arange(sc.size)), rows, 0))
+    else:
+        parts = _subspace_parts(take_rows(sc.build(np.arange(sc.size)), rows, 1))
     _PATH_CACHE.pop(key, None)
     size = 0 if parts is None else sum(a.nbytes for a in parts)
     if parts is not None and size <= PATH_CACHE_BYTES:

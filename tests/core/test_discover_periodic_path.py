@@ -162,3 +162,33 @@ def test_path_parts_kept_per_scan_and_rows(monkeypatch):
     del b
     gc.collect()
     assert not D._PATH_CACHE  # gone with its scan
+
+
+def test_periodic_rows_first_build_is_the_same_doubles():
+    """The periodic scan's rows-first build (:func:`core.causes._periodic_cols_rows`, the path count's, sines and
+    cosines once per distinct position) holds :func:`core.causes._periodic_cols`' doubles byte for byte, on positions
+    with repeats, ``-0.0`` beside ``0.0`` and a NaN; the path parts from it (:func:`core.discover._subspace_parts_rows`)
+    equal those from the trials-first build byte for byte, on every row and on some."""
+    from core import discover as D
+    from core.diagnosis import take_rows
+
+    rng = np.random.default_rng(5)
+    n, T = 97, 41
+    x = np.round(rng.uniform(-0.3, 0.3, n), 3)  # repeated positions (about 60 distinct per 97 rows)
+    x[:4] = [0.0, -0.0, 0.0, -0.0]
+    y = rng.uniform(-0.2, 0.2, n)
+    y[7] = np.nan
+    nx = np.where(rng.random(n) < 0.5, 0.0, rng.choice([-1.0, 1.0], n))
+    d = SimpleNamespace(x=x, y=y, nx=nx, ny=np.sqrt(1 - nx ** 2) * rng.choice([-1.0, 1.0], n))
+    P = np.geomspace(2e-3, 5e-2, T)
+    for axis in (0, 1):
+        C = causes._periodic_cols(d, axis, P)
+        R = causes._periodic_cols_rows(d, axis, P)
+        assert R.flags.c_contiguous and R.shape == (n, T, 4)
+        assert np.transpose(C, (1, 0, 2)).tobytes() == R.tobytes()
+        assert causes._periodic_cols_rows(d, axis, P[5]).tobytes() == causes._periodic_cols(d, axis, P[5]).tobytes()
+        for rows in (np.arange(n), np.sort(rng.choice(n, 60, replace=False))):
+            a = D._subspace_parts(take_rows(C, rows, 1))
+            b = D._subspace_parts_rows(take_rows(R, rows, 0))
+            assert [u.shape for u in a] == [v.shape for v in b]
+            assert all(u.tobytes() == v.tobytes() for u, v in zip(a, b))
