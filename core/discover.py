@@ -267,7 +267,7 @@ from .baseline import Baseline
 from .diagnosis import (IN_SPAN, CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f,
                         nested_f_batch, new_basis, nested_f_trials, orth, release_projections, replicate_scatter, StepTrials, straddled_groups, take_rows,
                         term_bases, tied, trials_take,
-                        extends, _batch_tests, _first_largest, _nested_f_ss)
+                        extends, declared_base, _batch_tests, _first_largest, _nested_f_ss)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .memo import Memo, kept_on
@@ -3711,7 +3711,7 @@ def _path_tries(scans, st: _State, level: float) -> float:
         whole = k > 1 and chunk >= sc.size  # the whole scan one block: its model-free parts kept for the next model
         if whole:
             parts = _path_parts(sc, rows)
-            Vm = _subspace_path_of(parts, st) if parts is not None else {}
+            Vm = _subspace_path_of(parts, st, _path_product(sc, parts, st.Q)) if parts is not None else {}
         for a in () if whole else range(0, sc.size, chunk):  # each block from the previous block's last trial
             C = take_rows(sc.build(np.arange(max(a - 1, 0), min(a + chunk, sc.size))), rows, 1)
             if k == 1:
@@ -3823,11 +3823,13 @@ def _subspace_parts_rows(R: np.ndarray):
     return R.reshape(n, T * k), Ch @ C, Ch[:-1] @ C[1:]
 
 
-def _subspace_path_of(parts, st: _State) -> dict:
-    """:func:`_subspace_path` from :func:`_subspace_parts` beside the model ``st.Q`` (only ``Q^T C`` is the model's)."""
+def _subspace_path_of(parts, st: _State, QtC: np.ndarray | None = None) -> dict:
+    """:func:`_subspace_path` from :func:`_subspace_parts` beside the model ``st.Q`` (only ``Q^T C`` is the model's;
+    ``QtC``: that product when made already, :func:`_path_product`)."""
     Ct, G0, X0 = parts
     T, k = G0.shape[0], G0.shape[1]
-    B = np.asarray(st.Q.T @ Ct).reshape(-1, T, k).transpose(1, 0, 2)  # (T, r, k)
+    QtC = np.asarray(st.Q.T @ Ct) if QtC is None else QtC
+    B = QtC.reshape(-1, T, k).transpose(1, 0, 2)  # (T, r, k)
     Bh = np.swapaxes(B, 1, 2)  # (T, k, r)
     G = G0 - Bh @ B
     X = X0 - Bh[:-1] @ B[1:]
@@ -3877,16 +3879,69 @@ def _path_parts(sc, rows: np.ndarray):
     else:
         parts = _subspace_parts(take_rows(sc.build(np.arange(sc.size)), rows, 1))
     _PATH_CACHE.pop(key, None)
+    _PATH_PRODUCTS.pop(key, None)
     size = 0 if parts is None else sum(a.nbytes for a in parts)
     if parts is not None and size <= PATH_CACHE_BYTES:
         while True:  # (a snapshot: an entry may go with its scan at any collection)
-            held = list(_PATH_CACHE.items())
-            if not held or size + sum(v[3] for _, v in held) <= PATH_CACHE_BYTES:
+            held = list(_PATH_CACHE)
+            if not held or size + _path_held() <= PATH_CACHE_BYTES:
                 break
-            _PATH_CACHE.pop(held[0][0], None)  # the oldest first
-        _PATH_CACHE[key] = (weakref.ref(sc, lambda _, key=key: _PATH_CACHE.pop(key, None)),
+            _PATH_CACHE.pop(held[0], None)  # the oldest first, its product with it
+            _PATH_PRODUCTS.pop(held[0], None)
+        _PATH_CACHE[key] = (weakref.ref(sc, lambda _, key=key: (_PATH_CACHE.pop(key, None),
+                                                               _PATH_PRODUCTS.pop(key, None))),
                             np.array(rows, copy=True), parts, size)
     return parts
+
+
+#: Whether the path count beside a model that extends the last one counted for the scan (``Q = [Qb, U]``,
+#: :func:`core.diagnosis.extends`: the demo's second count, 149 columns after 145) takes ``Qb^T C`` from that count
+#: and forms only ``U^T C`` (:func:`_path_product`). Not bit for bit: the one product of ``Q``'s 149 rows and the
+#: 145 rows' product differ in the last places (OpenBLAS' kernels block the rows by the product's shape), so the path
+#: lengths move by about 1e-13 relative (session 25, docs/performance.md). Off: every product made whole.
+PATH_PRODUCT_REUSE = True
+#: id(scan) -> (the model basis ``Q``, ``Q^T C``) of the scan's last whole path count (:func:`_path_product`): kept
+#: only while the scan's parts are kept in :data:`_PATH_CACHE` (and counted in its bound), gone with them.
+_PATH_PRODUCTS: dict = {}
+
+
+def _path_product(sc, parts, Q: np.ndarray) -> np.ndarray:
+    """``Q^T C`` of the scan's trials side by side (``parts[0]``, :func:`_path_parts`) beside the model basis ``Q``.
+
+    Where the scan's parts are kept (:data:`_PATH_CACHE`) the product is
+    kept with its ``Q`` (held: the identity names it) for the next count:
+    the same ``Q`` again takes it whole; a ``Q`` declared to extend it
+    (:func:`core.diagnosis.declared_base`, ``Q[:, :kb]`` its bytes) takes
+    its rows and forms only the new columns' (:data:`PATH_PRODUCT_REUSE`).
+    Otherwise the product is made whole, as :func:`_subspace_path_of` makes it.
+    """
+    Ct = parts[0]
+    key = id(sc)
+    ent = _PATH_CACHE.get(key)
+    if ent is None or ent[2] is not parts:  # (parts not kept: nothing kept beside them)
+        return np.asarray(Q.T @ Ct)
+    prev = _PATH_PRODUCTS.get(key)
+    if prev is not None and prev[2] is not parts:  # (kept beside other parts: the scan's other rows)
+        prev = None
+    if prev is not None and prev[0] is Q:
+        return prev[1]
+    Qb = declared_base(Q)
+    if (PATH_PRODUCT_REUSE and prev is not None and Qb is not None and Qb is prev[0] and Qb is not Q
+            and prev[1].shape == (Qb.shape[1], Ct.shape[1])):
+        B = np.vstack([prev[1], Q[:, Qb.shape[1]:].T @ Ct])
+    else:
+        B = np.asarray(Q.T @ Ct)
+    _PATH_PRODUCTS.pop(key, None)
+    if _path_held() + B.nbytes <= PATH_CACHE_BYTES:
+        B.flags.writeable = False
+        _PATH_PRODUCTS[key] = (Q, B, parts)
+    return B
+
+
+def _path_held() -> int:
+    """Bytes :data:`_PATH_CACHE` and :data:`_PATH_PRODUCTS` hold (snapshots: an entry may go with its scan at any
+    collection)."""
+    return sum(v[3] for v in list(_PATH_CACHE.values())) + sum(v[1].nbytes for v in list(_PATH_PRODUCTS.values()))
 
 
 #: A long log's refinement (:func:`_refine`) builds this many bytes of one grid's trials at a time (at least one

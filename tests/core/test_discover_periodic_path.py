@@ -192,3 +192,74 @@ def test_periodic_rows_first_build_is_the_same_doubles():
             b = D._subspace_parts_rows(take_rows(R, rows, 0))
             assert [u.shape for u in a] == [v.shape for v in b]
             assert all(u.tobytes() == v.tobytes() for u, v in zip(a, b))
+
+
+def test_path_product_kept_and_extended(monkeypatch):
+    """``Q^T C`` of a scan's kept parts (:func:`core.discover._path_product`) is kept with its model basis: the same
+    basis takes it again (the same array), a basis declared to extend it (:func:`core.diagnosis.extends`) takes its
+    rows and forms only the new columns' product, anything else (another basis of the same shape, a basis extending
+    another, other rows, the reuse off) forms the product whole. The extended product equals the whole one to the last
+    places (1e-14 of the columns' scale: BLAS blocks a 9-row product's rows otherwise than a 6-row one's), and the
+    count from it the whole product's count to 1e-12 relative; nothing is kept beyond
+    :data:`core.discover.PATH_CACHE_BYTES`."""
+    from core import discover as D
+    from core.diagnosis import extends, new_basis
+
+    rng = np.random.default_rng(11)
+    n, T = 90, 25
+    x = rng.uniform(0, 1, n)
+    nx, ny = rng.standard_normal(n), rng.standard_normal(n)
+    P = np.linspace(0.05, 0.2, T)
+
+    def build(idx):
+        ph = 2 * np.pi * x[None, :] / P[np.asarray(idx)][:, None]
+        return np.stack([nx * np.sin(ph), nx * np.cos(ph), ny * np.sin(ph), ny * np.cos(ph)], axis=-1)
+
+    sc = causes.Scan(("a", "b", "c", "d"), tuple({} for _ in range(T)), "x", build, path=True)
+    rows = np.arange(n)
+    Qb = np.linalg.qr(rng.standard_normal((n, 6)))[0]
+    extends(Qb, Qb)
+    Q2 = extends(np.hstack([Qb, new_basis(Qb, rng.standard_normal((n, 3)))]), Qb)
+    other = np.linalg.qr(rng.standard_normal((n, 9)))[0]  # the same shape, no declaration
+    D._PATH_CACHE.clear()
+    D._PATH_PRODUCTS.clear()
+    parts = D._path_parts(sc, rows)
+    Ct = parts[0]
+    B1 = D._path_product(sc, parts, Qb)
+    assert B1.tobytes() == (Qb.T @ Ct).tobytes() and D._path_product(sc, parts, Qb) is B1  # the same basis: kept
+    calls = []
+    real_vstack = np.vstack
+    monkeypatch.setattr(D.np, "vstack", lambda a, *k, **kw: calls.append(len(a)) or real_vstack(a, *k, **kw))
+    B2 = D._path_product(sc, parts, Q2)
+    assert calls == [2]  # formed from the kept rows and the new columns' product
+    full = Q2.T @ Ct
+    assert np.array_equal(B2[:6], B1) and np.abs(B2 - full).max() <= 1e-14 * np.abs(Ct).max()
+    st = lambda Q: D._State(rows, Q, np.zeros(n), 1.0, n)  # noqa: E731
+    V2 = D._subspace_path_of(parts, st(Q2), B2)
+    Vf = D._subspace_path_of(parts, st(Q2))
+    assert V2.keys() == Vf.keys() and all(abs(V2[m] - Vf[m]) <= 1e-12 * Vf[m] for m in Vf)
+    # another basis of the same shape: made whole, not taken from Q2's (the numbers differ)
+    Bo = D._path_product(sc, parts, other)
+    assert calls == [2] and Bo.tobytes() == (other.T @ Ct).tobytes()
+    assert not np.allclose(Bo, B2)
+    # a basis extending another base than the one kept: made whole
+    Qc = extends(np.hstack([other[:, :6], new_basis(other[:, :6], rng.standard_normal((n, 2)))]), other[:, :6])
+    assert D._path_product(sc, parts, Qc).tobytes() == (Qc.T @ Ct).tobytes() and calls == [2]
+    # the reuse off: the extension's product made whole
+    D._path_product(sc, parts, Qb)
+    monkeypatch.setattr(D, "PATH_PRODUCT_REUSE", False)
+    assert D._path_product(sc, parts, Q2).tobytes() == full.tobytes() and calls == [2]
+    monkeypatch.setattr(D, "PATH_PRODUCT_REUSE", True)
+    # other rows: new parts, the product kept beside the old ones not taken
+    D._path_product(sc, parts, Qb)
+    half = np.arange(0, n, 2)
+    Qh = np.linalg.qr(rng.standard_normal((half.size, 6)))[0]
+    p2 = D._path_parts(sc, half)
+    assert p2 is not parts and D._path_product(sc, p2, Qh).tobytes() == (Qh.T @ p2[0]).tobytes()
+    # no room beside the parts: nothing kept
+    monkeypatch.setattr(D, "PATH_CACHE_BYTES", sum(a.nbytes for a in parts))
+    D._PATH_CACHE.clear()
+    D._PATH_PRODUCTS.clear()
+    parts = D._path_parts(sc, rows)
+    D._path_product(sc, parts, Qb)
+    assert not D._PATH_PRODUCTS and id(sc) in D._PATH_CACHE
