@@ -3896,12 +3896,15 @@ def _path_parts(sc, rows: np.ndarray):
 
 #: Whether the path count beside a model that extends the last one counted for the scan (``Q = [Qb, U]``,
 #: :func:`core.diagnosis.extends`: the demo's second count, 149 columns after 145) takes ``Qb^T C`` from that count
-#: and forms only ``U^T C`` (:func:`_path_product`). Not bit for bit: the one product of ``Q``'s 149 rows and the
-#: 145 rows' product differ in the last places (OpenBLAS' kernels block the rows by the product's shape), so the path
-#: lengths move by about 1e-13 relative (session 25, docs/performance.md). Off: every product made whole.
+#: and forms only ``U^T C`` (:func:`_path_product`). Not bit for bit in general: OpenBLAS blocks a product's rows by
+#: its shape, and on its Haswell kernels rows 144 and 148 of the demo's 149-row product differ from the 145-row
+#: product and the new rows' by up to 3.1e-15 (on SkylakeX kernels they are the same bytes); the demo's path lengths
+#: and every identity campaign's report are the same bytes on both kernels (session 25, docs/performance.md: 2 of
+#: the 4 products a demo discover, about 8 ms). Off: every product made whole.
 PATH_PRODUCT_REUSE = True
-#: id(scan) -> (the model basis ``Q``, ``Q^T C``) of the scan's last whole path count (:func:`_path_product`): kept
-#: only while the scan's parts are kept in :data:`_PATH_CACHE` (and counted in its bound), gone with them.
+#: id(scan) -> (the model basis ``Q``, ``Q^T C``, the parts it was made from) of the scan's last whole path count
+#: (:func:`_path_product`): kept only beside the parts kept in :data:`_PATH_CACHE` (counted in its bound), gone with
+#: them.
 _PATH_PRODUCTS: dict = {}
 
 
