@@ -286,13 +286,6 @@ def extends(Q: np.ndarray, Qb: np.ndarray) -> np.ndarray:
     return Q
 
 
-def declared_base(Q):
-    """The ``Qb`` that :func:`extends` declared ``Q[:, :Qb.shape[1]]`` to be bit for bit (``Q`` itself for a base
-    declared of itself), else None."""
-    ent = _EXTENDS.get(id(Q)) if isinstance(Q, np.ndarray) else None
-    return ent[1] if ent is not None and ent[0] is Q else None
-
-
 def release_projections() -> None:
     """Forget :func:`extends`' declarations and the parts outside their bases kept (the end of an engine run: a
     later run's bases are other arrays, so nothing kept would be taken again; up to 128 MiB freed)."""

@@ -267,7 +267,7 @@ from .baseline import Baseline
 from .diagnosis import (IN_SPAN, CvGap, close_pair_scatter, cv_gap, diagnose, fmt_p, lack_of_fit, nested_f,
                         nested_f_batch, new_basis, nested_f_trials, orth, release_projections, replicate_scatter, StepTrials, straddled_groups, take_rows,
                         term_bases, tied, trials_take,
-                        extends, declared_base, _batch_tests, _first_largest, _nested_f_ss)
+                        extends, _batch_tests, _first_largest, _nested_f_ss)
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .memo import Memo, kept_on
@@ -3851,8 +3851,9 @@ def _subspace_path_of(parts, st: _State, QtC: np.ndarray | None = None) -> dict:
 #: Bytes of scans' model-free path parts (:func:`_path_parts`: the trials' columns on the rows, ``C^T C`` and the
 #: consecutive cross products) kept for the next model's count, all scans together (the oldest dropped first); a
 #: scan larger is built afresh each time (a long log's blocks never are kept). The demo's two periodic scans hold
-#: 5.9 MiB each (440 trials, 432 rows, 4 columns).
-PATH_CACHE_BYTES = 16 << 20
+#: 5.9 MiB each (440 trials, 432 rows, 4 columns), and with each its last ``Q^T C`` and a copy of its basis
+#: (:data:`_PATH_PRODUCTS`, 2.4 MiB at 145 columns): 16.6 MiB in all, so 24 MiB since session 25 (16 before).
+PATH_CACHE_BYTES = 24 << 20
 #: id(scan) -> (weak reference to the scan, its rows, parts, their bytes): an entry goes with its scan (and when the
 #: rows differ).
 _PATH_CACHE: dict = {}
@@ -3894,57 +3895,62 @@ def _path_parts(sc, rows: np.ndarray):
     return parts
 
 
-#: Whether the path count beside a model that extends the last one counted for the scan (``Q = [Qb, U]``,
-#: :func:`core.diagnosis.extends`: the demo's second count, 149 columns after 145) takes ``Qb^T C`` from that count
-#: and forms only ``U^T C`` (:func:`_path_product`). Not bit for bit in general: OpenBLAS blocks a product's rows by
-#: its shape, and on its Haswell kernels rows 144 and 148 of the demo's 149-row product differ from the 145-row
-#: product and the new rows' by up to 3.1e-15 (on SkylakeX kernels they are the same bytes); the demo's path lengths
-#: and every identity campaign's report are the same bytes on both kernels (session 25, docs/performance.md: 2 of
-#: the 4 products a demo discover, about 8 ms). Off: every product made whole.
+#: Whether the path count beside a model whose first columns are the last one counted for the scan (``Q = [Qb, U]``,
+#: ``Qb``'s bytes: the demo's second count, 149 columns after 145, the engine's next state beside the baseline's
+#: basis) takes ``Qb^T C`` from that count and forms only ``U^T C`` (:func:`_path_product`). Not bit for bit in
+#: general: OpenBLAS blocks a product's rows by its shape, and on its Haswell kernels rows 144 and 148 of the demo's
+#: 149-row product differ from the 145-row product and the new rows' by up to 3.1e-15 (on SkylakeX kernels they are
+#: the same bytes); the demo's path lengths and every identity campaign's report are the same bytes on both kernels
+#: (session 25, docs/performance.md: 2 of the 4 products a demo discover, about 8 ms). Off: every product made whole.
 PATH_PRODUCT_REUSE = True
-#: id(scan) -> (the model basis ``Q``, ``Q^T C``, the parts it was made from) of the scan's last whole path count
-#: (:func:`_path_product`): kept only beside the parts kept in :data:`_PATH_CACHE` (counted in its bound), gone with
-#: them.
+#: id(scan) -> (a copy of the model basis ``Q``, ``Q^T C``, the parts it was made from) of the scan's last whole path
+#: count (:func:`_path_product`): kept only beside the parts kept in :data:`_PATH_CACHE` (counted in its bound, the
+#: copy of ``Q`` with it), gone with them.
 _PATH_PRODUCTS: dict = {}
 
 
-def _path_product(sc, parts, Q: np.ndarray) -> np.ndarray:
+def _path_product(sc, parts, Q) -> np.ndarray:
     """``Q^T C`` of the scan's trials side by side (``parts[0]``, :func:`_path_parts`) beside the model basis ``Q``.
 
     Where the scan's parts are kept (:data:`_PATH_CACHE`) the product is
-    kept with its ``Q`` (held: the identity names it) for the next count:
-    the same ``Q`` again takes it whole; a ``Q`` declared to extend it
-    (:func:`core.diagnosis.declared_base`, ``Q[:, :kb]`` its bytes) takes
-    its rows and forms only the new columns' (:data:`PATH_PRODUCT_REUSE`).
-    Otherwise the product is made whole, as :func:`_subspace_path_of` makes it.
+    kept with a copy of its ``Q`` for the next count: a ``Q`` of the same
+    bytes takes it whole (the same product of the same numbers); a ``Q``
+    whose first columns are those bytes takes its rows and forms only the
+    other columns' (:data:`PATH_PRODUCT_REUSE`); any other ``Q`` (its
+    numbers changed in place included) makes the product whole, as
+    :func:`_subspace_path_of` makes it.
     """
     Ct = parts[0]
     key = id(sc)
     ent = _PATH_CACHE.get(key)
-    if ent is None or ent[2] is not parts:  # (parts not kept: nothing kept beside them)
+    if (ent is None or ent[2] is not parts or not isinstance(Q, np.ndarray) or Q.ndim != 2
+            or Q.dtype != np.float64):  # (parts not kept, or a basis not a dense array: nothing kept)
         return np.asarray(Q.T @ Ct)
     prev = _PATH_PRODUCTS.get(key)
     if prev is not None and prev[2] is not parts:  # (kept beside other parts: the scan's other rows)
         prev = None
-    if prev is not None and prev[0] is Q:
+    kb = prev[0].shape[1] if prev is not None else 0
+    same = (prev is not None and Q.shape[0] == prev[0].shape[0] and kb <= Q.shape[1]
+            and bool((Q[:, :kb].view(np.int64) == prev[0].view(np.int64)).all()))
+    if same and kb == Q.shape[1]:
         return prev[1]
-    Qb = declared_base(Q)
-    if (PATH_PRODUCT_REUSE and prev is not None and Qb is not None and Qb is prev[0] and Qb is not Q
-            and prev[1].shape == (Qb.shape[1], Ct.shape[1])):
-        B = np.vstack([prev[1], Q[:, Qb.shape[1]:].T @ Ct])
+    if same and kb and PATH_PRODUCT_REUSE:
+        B = np.vstack([prev[1], Q[:, kb:].T @ Ct])
     else:
         B = np.asarray(Q.T @ Ct)
     _PATH_PRODUCTS.pop(key, None)
-    if _path_held() + B.nbytes <= PATH_CACHE_BYTES:
-        B.flags.writeable = False
-        _PATH_PRODUCTS[key] = (Q, B, parts)
+    if _path_held() + B.nbytes + Q.nbytes <= PATH_CACHE_BYTES:
+        Qk = np.array(Q, copy=True)
+        B.flags.writeable = Qk.flags.writeable = False
+        _PATH_PRODUCTS[key] = (Qk, B, parts)
     return B
 
 
 def _path_held() -> int:
     """Bytes :data:`_PATH_CACHE` and :data:`_PATH_PRODUCTS` hold (snapshots: an entry may go with its scan at any
     collection)."""
-    return sum(v[3] for v in list(_PATH_CACHE.values())) + sum(v[1].nbytes for v in list(_PATH_PRODUCTS.values()))
+    return sum(v[3] for v in list(_PATH_CACHE.values())) + sum(v[0].nbytes + v[1].nbytes
+                                                                for v in list(_PATH_PRODUCTS.values()))
 
 
 #: A long log's refinement (:func:`_refine`) builds this many bytes of one grid's trials at a time (at least one

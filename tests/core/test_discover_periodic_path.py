@@ -195,15 +195,15 @@ def test_periodic_rows_first_build_is_the_same_doubles():
 
 
 def test_path_product_kept_and_extended(monkeypatch):
-    """``Q^T C`` of a scan's kept parts (:func:`core.discover._path_product`) is kept with its model basis: the same
-    basis takes it again (the same array), a basis declared to extend it (:func:`core.diagnosis.extends`) takes its
-    rows and forms only the new columns' product, anything else (another basis of the same shape, a basis extending
-    another, other rows, the reuse off) forms the product whole. The extended product equals the whole one to the last
-    places (1e-14 of the columns' scale: BLAS blocks a 9-row product's rows otherwise than a 6-row one's), and the
-    count from it the whole product's count to 1e-12 relative; nothing is kept beyond
-    :data:`core.discover.PATH_CACHE_BYTES`."""
+    """``Q^T C`` of a scan's kept parts (:func:`core.discover._path_product`) is kept with a copy of its model basis:
+    a basis of the same bytes takes it again (the same array), a basis whose first columns are those bytes (the
+    engine's next state, ``[Qb, U]``) takes its rows and forms only the new columns' product; anything else (the basis
+    changed in place, another basis of the same shape, a basis starting with other columns, other rows, the reuse
+    off) forms the product whole. The extended product equals the whole one to the last places (1e-14 of the columns'
+    scale: BLAS blocks a 9-row product's rows otherwise than a 6-row one's), and the count from it the whole
+    product's count to 1e-12 relative; nothing is kept beyond :data:`core.discover.PATH_CACHE_BYTES`."""
     from core import discover as D
-    from core.diagnosis import extends, new_basis
+    from core.diagnosis import new_basis
 
     rng = np.random.default_rng(11)
     n, T = 90, 25
@@ -218,15 +218,15 @@ def test_path_product_kept_and_extended(monkeypatch):
     sc = causes.Scan(("a", "b", "c", "d"), tuple({} for _ in range(T)), "x", build, path=True)
     rows = np.arange(n)
     Qb = np.linalg.qr(rng.standard_normal((n, 6)))[0]
-    extends(Qb, Qb)
-    Q2 = extends(np.hstack([Qb, new_basis(Qb, rng.standard_normal((n, 3)))]), Qb)
-    other = np.linalg.qr(rng.standard_normal((n, 9)))[0]  # the same shape, no declaration
+    Q2 = np.hstack([Qb, new_basis(Qb, rng.standard_normal((n, 3)))])
+    other = np.linalg.qr(rng.standard_normal((n, 9)))[0]  # the same shape, other numbers
     D._PATH_CACHE.clear()
     D._PATH_PRODUCTS.clear()
     parts = D._path_parts(sc, rows)
     Ct = parts[0]
     B1 = D._path_product(sc, parts, Qb)
-    assert B1.tobytes() == (Qb.T @ Ct).tobytes() and D._path_product(sc, parts, Qb) is B1  # the same basis: kept
+    assert B1.tobytes() == (Qb.T @ Ct).tobytes()
+    assert D._path_product(sc, parts, Qb) is B1 and D._path_product(sc, parts, Qb.copy()) is B1  # the same bytes
     calls = []
     real_vstack = np.vstack
     monkeypatch.setattr(D.np, "vstack", lambda a, *k, **kw: calls.append(len(a)) or real_vstack(a, *k, **kw))
@@ -238,17 +238,26 @@ def test_path_product_kept_and_extended(monkeypatch):
     V2 = D._subspace_path_of(parts, st(Q2), B2)
     Vf = D._subspace_path_of(parts, st(Q2))
     assert V2.keys() == Vf.keys() and all(abs(V2[m] - Vf[m]) <= 1e-12 * Vf[m] for m in Vf)
+    # the kept basis changed in place: its product made again from the new numbers, not the kept one
+    Qm = Qb.copy()
+    assert D._path_product(sc, parts, Qm) is not None
+    kept = D._path_product(sc, parts, Qm)
+    Qm[3, 2] += 0.25
+    Bm = D._path_product(sc, parts, Qm)
+    assert Bm is not kept and Bm.tobytes() == (Qm.T @ Ct).tobytes() and not np.array_equal(Bm, kept)
     # another basis of the same shape: made whole, not taken from Q2's (the numbers differ)
+    D._path_product(sc, parts, Q2)
     Bo = D._path_product(sc, parts, other)
-    assert calls == [2] and Bo.tobytes() == (other.T @ Ct).tobytes()
-    assert not np.allclose(Bo, B2)
-    # a basis extending another base than the one kept: made whole
-    Qc = extends(np.hstack([other[:, :6], new_basis(other[:, :6], rng.standard_normal((n, 2)))]), other[:, :6])
-    assert D._path_product(sc, parts, Qc).tobytes() == (Qc.T @ Ct).tobytes() and calls == [2]
+    assert Bo.tobytes() == (other.T @ Ct).tobytes() and not np.allclose(Bo, B2)
+    # a basis that starts with other columns than the kept one's: made whole
+    n_calls = len(calls)
+    Qc = np.hstack([other[:, :6], new_basis(other[:, :6], rng.standard_normal((n, 2)))])
+    D._path_product(sc, parts, Qb)
+    assert D._path_product(sc, parts, Qc).tobytes() == (Qc.T @ Ct).tobytes() and len(calls) == n_calls
     # the reuse off: the extension's product made whole
     D._path_product(sc, parts, Qb)
     monkeypatch.setattr(D, "PATH_PRODUCT_REUSE", False)
-    assert D._path_product(sc, parts, Q2).tobytes() == full.tobytes() and calls == [2]
+    assert D._path_product(sc, parts, Q2).tobytes() == full.tobytes() and len(calls) == n_calls
     monkeypatch.setattr(D, "PATH_PRODUCT_REUSE", True)
     # other rows: new parts, the product kept beside the old ones not taken
     D._path_product(sc, parts, Qb)
