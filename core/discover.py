@@ -2890,7 +2890,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     scans = {c.name: c.scans(bl) for c in catalogue}
     if bl.whiten is not None:  # every column the causes build goes through the baseline's whitening
         scans = {k: ([dataclasses.replace(sc, build=(lambda idx, b=sc.build: bl.whiten @ b(idx)), score=None,
-                                          build_sparse=None) for sc in v[0]], v[1]) for k, v in scans.items()}
+                                          build_sparse=None, build_rows=None) for sc in v[0]], v[1])
+                 for k, v in scans.items()}
     n_causes = max(sum(1 for c in catalogue if scans[c.name][0]), 1)
     rejected: list[dict] = []
     # causes refused in a search round as confounded with the model (their magnitudes not determined, their
@@ -3726,7 +3727,7 @@ def _path_tries(scans, st: _State, level: float) -> float:
         whole = k > 1 and chunk >= sc.size  # the whole scan one block: its model-free parts kept for the next model
         if whole:
             parts = _path_parts(sc, rows)
-            Vm = _subspace_path_of(parts, st) if parts is not None else {}
+            Vm = _subspace_path_of(parts, st, _path_product(sc, parts, st.Q)) if parts is not None else {}
         for a in () if whole else range(0, sc.size, chunk):  # each block from the previous block's last trial
             C = take_rows(sc.build(np.arange(max(a - 1, 0), min(a + chunk, sc.size))), rows, 1)
             if k == 1:
@@ -3825,11 +3826,26 @@ def _subspace_parts(C: np.ndarray):
     return Ct, Ch @ C, Ch[:-1] @ C[1:]
 
 
-def _subspace_path_of(parts, st: _State) -> dict:
-    """:func:`_subspace_path` from :func:`_subspace_parts` beside the model ``st.Q`` (only ``Q^T C`` is the model's)."""
+def _subspace_parts_rows(R: np.ndarray):
+    """:func:`_subspace_parts` of the trials ``np.transpose(R, (1, 0, 2))``, ``R`` rows first (rows x trials x k,
+    C-contiguous: :attr:`core.causes.Scan.build_rows`): ``Ct`` is ``R`` itself, reshaped; ``C^T C`` and the cross
+    products the same matrix products of the same numbers (each trial's ``n x k`` block read with the rows'
+    stride instead of ``k``: BLAS packs its operands, the sums are the same, tested byte for byte)."""
+    n, T, k = R.shape
+    if T < 2:
+        return None
+    C = np.transpose(R, (1, 0, 2))  # (T, n, k), a view
+    Ch = np.swapaxes(C, 1, 2)
+    return R.reshape(n, T * k), Ch @ C, Ch[:-1] @ C[1:]
+
+
+def _subspace_path_of(parts, st: _State, QtC: np.ndarray | None = None) -> dict:
+    """:func:`_subspace_path` from :func:`_subspace_parts` beside the model ``st.Q`` (only ``Q^T C`` is the model's;
+    ``QtC``: that product when made already, :func:`_path_product`)."""
     Ct, G0, X0 = parts
     T, k = G0.shape[0], G0.shape[1]
-    B = np.asarray(st.Q.T @ Ct).reshape(-1, T, k).transpose(1, 0, 2)  # (T, r, k)
+    QtC = np.asarray(st.Q.T @ Ct) if QtC is None else QtC
+    B = QtC.reshape(-1, T, k).transpose(1, 0, 2)  # (T, r, k)
     Bh = np.swapaxes(B, 1, 2)  # (T, k, r)
     G = G0 - Bh @ B
     X = X0 - Bh[:-1] @ B[1:]
@@ -3851,8 +3867,9 @@ def _subspace_path_of(parts, st: _State) -> dict:
 #: Bytes of scans' model-free path parts (:func:`_path_parts`: the trials' columns on the rows, ``C^T C`` and the
 #: consecutive cross products) kept for the next model's count, all scans together (the oldest dropped first); a
 #: scan larger is built afresh each time (a long log's blocks never are kept). The demo's two periodic scans hold
-#: 5.9 MiB each (440 trials, 432 rows, 4 columns).
-PATH_CACHE_BYTES = 16 << 20
+#: 5.9 MiB each (440 trials, 432 rows, 4 columns), and with each its last ``Q^T C`` and a copy of its basis
+#: (:data:`_PATH_PRODUCTS`, 2.4 MiB at 145 columns): 16.6 MiB in all, so 24 MiB since session 25 (16 before).
+PATH_CACHE_BYTES = 24 << 20
 #: id(scan) -> (weak reference to the scan, its rows, parts, their bytes): an entry goes with its scan (and when the
 #: rows differ).
 _PATH_CACHE: dict = {}
@@ -3874,19 +3891,82 @@ def _path_parts(sc, rows: np.ndarray):
     hit = _PATH_CACHE.get(key)
     if hit is not None and hit[0]() is sc and np.array_equal(hit[1], rows):
         return hit[2]
-    C = take_rows(sc.build(np.arange(sc.size)), rows, 1)
-    parts = _subspace_parts(C)
+    if sc.build_rows is not None:  # rows first: the trials side by side without a transposed copy (the same doubles)
+        parts = _subspace_parts_rows(take_rows(sc.build_rows(np.arange(sc.size)), rows, 0))
+    else:
+        parts = _subspace_parts(take_rows(sc.build(np.arange(sc.size)), rows, 1))
     _PATH_CACHE.pop(key, None)
+    _PATH_PRODUCTS.pop(key, None)
     size = 0 if parts is None else sum(a.nbytes for a in parts)
     if parts is not None and size <= PATH_CACHE_BYTES:
         while True:  # (a snapshot: an entry may go with its scan at any collection)
-            held = list(_PATH_CACHE.items())
-            if not held or size + sum(v[3] for _, v in held) <= PATH_CACHE_BYTES:
+            held = list(_PATH_CACHE)
+            if not held or size + _path_held() <= PATH_CACHE_BYTES:
                 break
-            _PATH_CACHE.pop(held[0][0], None)  # the oldest first
-        _PATH_CACHE[key] = (weakref.ref(sc, lambda _, key=key: _PATH_CACHE.pop(key, None)),
+            _PATH_CACHE.pop(held[0], None)  # the oldest first, its product with it
+            _PATH_PRODUCTS.pop(held[0], None)
+        _PATH_CACHE[key] = (weakref.ref(sc, lambda _, key=key: (_PATH_CACHE.pop(key, None),
+                                                               _PATH_PRODUCTS.pop(key, None))),
                             np.array(rows, copy=True), parts, size)
     return parts
+
+
+#: Whether the path count beside a model whose first columns are the last one counted for the scan (``Q = [Qb, U]``,
+#: ``Qb``'s bytes: the demo's second count, 149 columns after 145, the engine's next state beside the baseline's
+#: basis) takes ``Qb^T C`` from that count and forms only ``U^T C`` (:func:`_path_product`). Not bit for bit in
+#: general: OpenBLAS blocks a product's rows by its shape, and on its Haswell kernels rows 144 and 148 of the demo's
+#: 149-row product differ from the 145-row product and the new rows' by up to 3.1e-15 (on SkylakeX kernels they are
+#: the same bytes); the demo's path lengths and every identity campaign's report are the same bytes on both kernels
+#: (session 25, docs/performance.md: 2 of the 4 products a demo discover, about 8 ms). Off: every product made whole.
+PATH_PRODUCT_REUSE = True
+#: id(scan) -> (a copy of the model basis ``Q``, ``Q^T C``, the parts it was made from) of the scan's last whole path
+#: count (:func:`_path_product`): kept only beside the parts kept in :data:`_PATH_CACHE` (counted in its bound, the
+#: copy of ``Q`` with it), gone with them.
+_PATH_PRODUCTS: dict = {}
+
+
+def _path_product(sc, parts, Q) -> np.ndarray:
+    """``Q^T C`` of the scan's trials side by side (``parts[0]``, :func:`_path_parts`) beside the model basis ``Q``.
+
+    Where the scan's parts are kept (:data:`_PATH_CACHE`) the product is
+    kept with a copy of its ``Q`` for the next count: a ``Q`` of the same
+    bytes takes it whole (the same product of the same numbers); a ``Q``
+    whose first columns are those bytes takes its rows and forms only the
+    other columns' (:data:`PATH_PRODUCT_REUSE`); any other ``Q`` (its
+    numbers changed in place included) makes the product whole, as
+    :func:`_subspace_path_of` makes it.
+    """
+    Ct = parts[0]
+    key = id(sc)
+    ent = _PATH_CACHE.get(key)
+    if (ent is None or ent[2] is not parts or not isinstance(Q, np.ndarray) or Q.ndim != 2
+            or Q.dtype != np.float64):  # (parts not kept, or a basis not a dense array: nothing kept)
+        return np.asarray(Q.T @ Ct)
+    prev = _PATH_PRODUCTS.get(key)
+    if prev is not None and prev[2] is not parts:  # (kept beside other parts: the scan's other rows)
+        prev = None
+    kb = prev[0].shape[1] if prev is not None else 0
+    same = (prev is not None and Q.shape[0] == prev[0].shape[0] and kb <= Q.shape[1]
+            and bool((Q[:, :kb].view(np.int64) == prev[0].view(np.int64)).all()))
+    if same and kb == Q.shape[1]:
+        return prev[1]
+    if same and kb and PATH_PRODUCT_REUSE:
+        B = np.vstack([prev[1], Q[:, kb:].T @ Ct])
+    else:
+        B = np.asarray(Q.T @ Ct)
+    _PATH_PRODUCTS.pop(key, None)
+    if _path_held() + B.nbytes + Q.nbytes <= PATH_CACHE_BYTES:
+        Qk = np.array(Q, copy=True)
+        B.flags.writeable = Qk.flags.writeable = False
+        _PATH_PRODUCTS[key] = (Qk, B, parts)
+    return B
+
+
+def _path_held() -> int:
+    """Bytes :data:`_PATH_CACHE` and :data:`_PATH_PRODUCTS` hold (snapshots: an entry may go with its scan at any
+    collection)."""
+    return sum(v[3] for v in list(_PATH_CACHE.values())) + sum(v[0].nbytes + v[1].nbytes
+                                                                for v in list(_PATH_PRODUCTS.values()))
 
 
 #: A long log's refinement (:func:`_refine`) builds this many bytes of one grid's trials at a time (at least one

@@ -162,3 +162,113 @@ def test_path_parts_kept_per_scan_and_rows(monkeypatch):
     del b
     gc.collect()
     assert not D._PATH_CACHE  # gone with its scan
+
+
+def test_periodic_rows_first_build_is_the_same_doubles():
+    """The periodic scan's rows-first build (:func:`core.causes._periodic_cols_rows`, the path count's, sines and
+    cosines once per distinct position) holds :func:`core.causes._periodic_cols`' doubles byte for byte, on positions
+    with repeats, ``-0.0`` beside ``0.0`` and a NaN; the path parts from it (:func:`core.discover._subspace_parts_rows`)
+    equal those from the trials-first build byte for byte, on every row and on some."""
+    from core import discover as D
+    from core.diagnosis import take_rows
+
+    rng = np.random.default_rng(5)
+    n, T = 97, 41
+    x = np.round(rng.uniform(-0.3, 0.3, n), 3)  # repeated positions (about 60 distinct per 97 rows)
+    x[:4] = [0.0, -0.0, 0.0, -0.0]
+    y = rng.uniform(-0.2, 0.2, n)
+    y[7] = np.nan
+    nx = np.where(rng.random(n) < 0.5, 0.0, rng.choice([-1.0, 1.0], n))
+    d = SimpleNamespace(x=x, y=y, nx=nx, ny=np.sqrt(1 - nx ** 2) * rng.choice([-1.0, 1.0], n))
+    P = np.geomspace(2e-3, 5e-2, T)
+    for axis in (0, 1):
+        C = causes._periodic_cols(d, axis, P)
+        R = causes._periodic_cols_rows(d, axis, P)
+        assert R.flags.c_contiguous and R.shape == (n, T, 4)
+        assert np.transpose(C, (1, 0, 2)).tobytes() == R.tobytes()
+        assert causes._periodic_cols_rows(d, axis, P[5]).tobytes() == causes._periodic_cols(d, axis, P[5]).tobytes()
+        for rows in (np.arange(n), np.sort(rng.choice(n, 60, replace=False))):
+            a = D._subspace_parts(take_rows(C, rows, 1))
+            b = D._subspace_parts_rows(take_rows(R, rows, 0))
+            assert [u.shape for u in a] == [v.shape for v in b]
+            assert all(u.tobytes() == v.tobytes() for u, v in zip(a, b))
+
+
+def test_path_product_kept_and_extended(monkeypatch):
+    """``Q^T C`` of a scan's kept parts (:func:`core.discover._path_product`) is kept with a copy of its model basis:
+    a basis of the same bytes takes it again (the same array), a basis whose first columns are those bytes (the
+    engine's next state, ``[Qb, U]``) takes its rows and forms only the new columns' product; anything else (the basis
+    changed in place, another basis of the same shape, a basis starting with other columns, other rows, the reuse
+    off) forms the product whole. The extended product equals the whole one to the last places (1e-14 of the columns'
+    scale: BLAS blocks a 9-row product's rows otherwise than a 6-row one's), and the count from it the whole
+    product's count to 1e-12 relative; nothing is kept beyond :data:`core.discover.PATH_CACHE_BYTES`."""
+    from core import discover as D
+    from core.diagnosis import new_basis
+
+    rng = np.random.default_rng(11)
+    n, T = 90, 25
+    x = rng.uniform(0, 1, n)
+    nx, ny = rng.standard_normal(n), rng.standard_normal(n)
+    P = np.linspace(0.05, 0.2, T)
+
+    def build(idx):
+        ph = 2 * np.pi * x[None, :] / P[np.asarray(idx)][:, None]
+        return np.stack([nx * np.sin(ph), nx * np.cos(ph), ny * np.sin(ph), ny * np.cos(ph)], axis=-1)
+
+    sc = causes.Scan(("a", "b", "c", "d"), tuple({} for _ in range(T)), "x", build, path=True)
+    rows = np.arange(n)
+    Qb = np.linalg.qr(rng.standard_normal((n, 6)))[0]
+    Q2 = np.hstack([Qb, new_basis(Qb, rng.standard_normal((n, 3)))])
+    other = np.linalg.qr(rng.standard_normal((n, 9)))[0]  # the same shape, other numbers
+    D._PATH_CACHE.clear()
+    D._PATH_PRODUCTS.clear()
+    parts = D._path_parts(sc, rows)
+    Ct = parts[0]
+    B1 = D._path_product(sc, parts, Qb)
+    assert B1.tobytes() == (Qb.T @ Ct).tobytes()
+    assert D._path_product(sc, parts, Qb) is B1 and D._path_product(sc, parts, Qb.copy()) is B1  # the same bytes
+    calls = []
+    real_vstack = np.vstack
+    monkeypatch.setattr(D.np, "vstack", lambda a, *k, **kw: calls.append(len(a)) or real_vstack(a, *k, **kw))
+    B2 = D._path_product(sc, parts, Q2)
+    assert calls == [2]  # formed from the kept rows and the new columns' product
+    full = Q2.T @ Ct
+    assert np.array_equal(B2[:6], B1) and np.abs(B2 - full).max() <= 1e-14 * np.abs(Ct).max()
+    st = lambda Q: D._State(rows, Q, np.zeros(n), 1.0, n)  # noqa: E731
+    V2 = D._subspace_path_of(parts, st(Q2), B2)
+    Vf = D._subspace_path_of(parts, st(Q2))
+    assert V2.keys() == Vf.keys() and all(abs(V2[m] - Vf[m]) <= 1e-12 * Vf[m] for m in Vf)
+    # the kept basis changed in place: its product made again from the new numbers, not the kept one
+    Qm = Qb.copy()
+    assert D._path_product(sc, parts, Qm) is not None
+    kept = D._path_product(sc, parts, Qm)
+    Qm[3, 2] += 0.25
+    Bm = D._path_product(sc, parts, Qm)
+    assert Bm is not kept and Bm.tobytes() == (Qm.T @ Ct).tobytes() and not np.array_equal(Bm, kept)
+    # another basis of the same shape: made whole, not taken from Q2's (the numbers differ)
+    D._path_product(sc, parts, Q2)
+    Bo = D._path_product(sc, parts, other)
+    assert Bo.tobytes() == (other.T @ Ct).tobytes() and not np.allclose(Bo, B2)
+    # a basis that starts with other columns than the kept one's: made whole
+    n_calls = len(calls)
+    Qc = np.hstack([other[:, :6], new_basis(other[:, :6], rng.standard_normal((n, 2)))])
+    D._path_product(sc, parts, Qb)
+    assert D._path_product(sc, parts, Qc).tobytes() == (Qc.T @ Ct).tobytes() and len(calls) == n_calls
+    # the reuse off: the extension's product made whole
+    D._path_product(sc, parts, Qb)
+    monkeypatch.setattr(D, "PATH_PRODUCT_REUSE", False)
+    assert D._path_product(sc, parts, Q2).tobytes() == full.tobytes() and len(calls) == n_calls
+    monkeypatch.setattr(D, "PATH_PRODUCT_REUSE", True)
+    # other rows: new parts, the product kept beside the old ones not taken
+    D._path_product(sc, parts, Qb)
+    half = np.arange(0, n, 2)
+    Qh = np.linalg.qr(rng.standard_normal((half.size, 6)))[0]
+    p2 = D._path_parts(sc, half)
+    assert p2 is not parts and D._path_product(sc, p2, Qh).tobytes() == (Qh.T @ p2[0]).tobytes()
+    # no room beside the parts: nothing kept
+    monkeypatch.setattr(D, "PATH_CACHE_BYTES", sum(a.nbytes for a in parts))
+    D._PATH_CACHE.clear()
+    D._PATH_PRODUCTS.clear()
+    parts = D._path_parts(sc, rows)
+    D._path_product(sc, parts, Qb)
+    assert not D._PATH_PRODUCTS and id(sc) in D._PATH_CACHE
