@@ -103,7 +103,8 @@ def read_transcript(path):
         stamps.append(ts)
         where.append(ln)
     if not pos:
-        raise ProbeLogError(f"{p}: no probe reports ([PRB:...]) in the transcript")
+        raise ProbeLogError(f"{p}: no probe reports ([PRB:...]) in it: not a GRBL session transcript "
+                            "(vmt probe --transcript writes one), or of a session that probed nothing")
     have = [s is not None for s in stamps]
     if any(have) and not all(have):
         ln = where[have.index(False)]
