@@ -279,6 +279,31 @@ def check_common_options(args) -> None:
             raise ConfigError(f"{FLAGS.get(name, '--' + name.replace('_', '-'))} {rule}, got {v:g}")
 
 
+@contextlib.contextmanager
+def about_file(path, detail: str = ""):
+    """Errors of the work done on the input ``path`` inside this block name the file.
+
+    The library's estimators speak of their data (``sphere fit: points are coplanar``, ``rank
+    deficient by 31``), not of the file it came from; a :class:`~core.exceptions.VmtError` whose
+    message does not already name ``path`` is raised again, the same class, as ``PATH: message``
+    (``PATH (detail): message`` when ``detail`` says which part of it, e.g. ``--feature sphere1``).
+    """
+    from core.exceptions import VmtError
+
+    try:
+        yield
+    except VmtError as e:
+        msg = str(e)
+        if str(path) in msg:
+            raise
+        head = f"{path} ({detail})" if detail else str(path)
+        try:
+            again = type(e)(f"{head}: {msg}")
+        except TypeError:       # a subclass with another constructor: the root class says it as well
+            again = VmtError(f"{head}: {msg}")
+        raise again from None
+
+
 def os_error_line(e: OSError) -> str:
     """WHICH PATH: WHY (one line) for an operating-system error."""
     why = e.strerror or str(e) or type(e).__name__

@@ -1,0 +1,162 @@
+"""The CLI's leftovers of session 25: errors that name their file, progress with the time left, the
+folders a run makes said, counts in the right number.
+
+In-process through ``scenarios.cli.main`` (exit status 2 and one line on stderr for bad input; the
+process path of the same promise is tests/test_fuzz_cli.py's).
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from core.design import example_cross_pocket
+from core.probelog import make_log, write_probe_log
+from scenarios.cli import main
+
+
+def one_error_line(capsys) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    return err
+
+
+# --------------------------------------------------------------------------- identify names its log
+
+def campaign(path, angles, rng, noise_m=0.3e-6):
+    """The cross-pocket's 92 targets at ``angles`` (deg), read off a machine with a squareness."""
+    w, wn, ids = example_cross_pocket()
+    cols = {k: [] for k in ("setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm",
+                            "nx", "ny", "nz", "C_deg", "wx_mm", "wy_mm", "wz_mm", "wnx", "wny", "wnz")}
+    t = 0.0
+    for c in angles:
+        a = -np.radians(c)
+        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        for p, n, i in zip(w, wn, ids):
+            pn, nn = R @ p * 1e3, R @ n
+            dq = 20e-6 * pn[1] * nn[0] + rng.normal(0, noise_m * 1e3)     # mm
+            t += 1.0
+            for k, v in (("setup", f"C{c:g}"), ("target", i), ("t_s", t), ("X_mm", pn[0] + dq * nn[0]),
+                         ("Y_mm", pn[1] + dq * nn[1]), ("Z_mm", -3.0), ("Xn_mm", pn[0]), ("Yn_mm", pn[1]),
+                         ("Zn_mm", -3.0), ("nx", nn[0]), ("ny", nn[1]), ("nz", 0.0), ("C_deg", c),
+                         ("wx_mm", p[0] * 1e3), ("wy_mm", p[1] * 1e3), ("wz_mm", -3.0), ("wnx", n[0]),
+                         ("wny", n[1]), ("wnz", 0.0)):
+                cols[k].append(v)
+    return write_probe_log(path, make_log(cols, {"artefact": "cross-pocket", "stylus_r_mm": "3"}))
+
+
+@pytest.mark.parametrize("angles, grid, said", [
+    # C = 0 and 180 deg: a half turn maps the pocket onto itself, the design is rank deficient
+    ((0, 180), "20", "rank deficient by"),
+    # a 2 mm grid: more unknowns than equations (eq 6 of Ibaraki et al.)
+    ((0, 75, 130, 210), "2", "eq 6 needs"),
+])
+def test_identify_design_errors_name_the_log(tmp_path, rng, capsys, angles, grid, said):
+    """They said 'vmt identify: error: rank deficient by 31 ...' with no file (session 25)."""
+    log = campaign(tmp_path / "camp.csv", angles, rng)
+    out = tmp_path / "id.json"
+    assert main(["identify", str(log), "--json", str(out), "--grid-mm", grid]) == 2
+    err = one_error_line(capsys)
+    assert err.startswith(f"vmt identify: error: {log}: ") and said in err, err
+    assert not out.exists()
+
+
+# --------------------------------------------------------------------------- fit names its log
+
+def ring_log(path, z_mm=(0.0,), r_mm=10.0, n=12, feature="ring"):
+    """Touches around a circle of radius ``r_mm`` in XY at each height of ``z_mm`` (outside, radial normals)."""
+    a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    rows = [(r_mm * np.cos(t), r_mm * np.sin(t), z, np.cos(t), np.sin(t)) for z in z_mm for t in a]
+    x, y, z, nx, ny = (np.array(v) for v in zip(*rows))
+    k = len(x)
+    cols = {"setup": ["S1"] * k, "target": [f"t{i}" for i in range(k)], "t_s": np.arange(k, dtype=float),
+            "X_mm": x, "Y_mm": y, "Z_mm": z, "Xn_mm": x, "Yn_mm": y, "Zn_mm": z, "nx": nx, "ny": ny,
+            "nz": np.zeros(k), "feature": [feature] * k}
+    return write_probe_log(path, make_log(cols, {"stylus_r_mm": "0"}))
+
+
+def test_fit_error_names_the_log_and_the_rows(tmp_path, capsys):
+    """'sphere fit: points are coplanar' said which data only as 'sphere fit' (session 25)."""
+    log = ring_log(tmp_path / "ring.csv")
+    assert main(["fit", "sphere", str(log)]) == 2
+    err = one_error_line(capsys)
+    assert err.startswith(f"vmt fit: error: {log}: sphere fit: ") and "coplanar" in err, err
+    assert main(["fit", "sphere", str(log), "--feature", "ring", "--setup", "S1"]) == 2
+    err = one_error_line(capsys)
+    assert err.startswith(f"vmt fit: error: {log} (--feature ring --setup S1): sphere fit: "), err
+
+
+def square_log(path):
+    """A square section, 20 mm a side, touched on its four faces at two heights: it lies about
+    equally well on cylinders about X, Y and Z."""
+    s = np.linspace(-10, 10, 5)
+    rows = [p for z in (0.0, 20.0) for v in s
+            for p in ((10, v, z, 1, 0), (-10, v, z, -1, 0), (v, 10, z, 0, 1), (v, -10, z, 0, -1))]
+    x, y, z, nx, ny = (np.array(v, float) for v in zip(*rows))
+    k = len(x)
+    cols = {"setup": ["S1"] * k, "target": [f"t{i}" for i in range(k)], "t_s": np.arange(k, dtype=float),
+            "X_mm": x, "Y_mm": y, "Z_mm": z, "Xn_mm": x, "Yn_mm": y, "Zn_mm": z, "nx": nx, "ny": ny,
+            "nz": np.zeros(k), "feature": ["block"] * k}
+    return write_probe_log(path, make_log(cols, {"stylus_r_mm": "0"}))
+
+
+def test_fit_cylinder_advice_is_an_option_of_the_command(tmp_path, capsys):
+    """Touches that lie about equally well on cylinders of different axes: the library says 'pass
+    axis_hint', an argument of a function no user of the command can give; the command says what
+    it can do."""
+    log = square_log(tmp_path / "square.csv")
+    assert main(["fit", "cylinder", str(log)]) == 2
+    err = one_error_line(capsys)
+    assert "axis_hint" not in err and "cylinders with different axes" in err and str(log) in err, err
+    assert err.rstrip().endswith("fit one cylinder's touches: --feature NAME"), err
+    assert main(["fit", "cylinder", str(log), "--feature", "block"]) == 2
+    err = one_error_line(capsys)
+    assert "axis_hint" not in err and "touches around it at two or more heights)" in err, err
+    # two rings fix it: a known answer, radius 10 mm about Z
+    two = ring_log(tmp_path / "two.csv", z_mm=(0.0, 20.0))
+    assert main(["fit", "cylinder", str(two)]) == 0
+    out = capsys.readouterr().out
+    assert "radius 10.0000 mm (outside)" in out and "axis (0.000000, 0.000000, 1.000000)" in out.replace("-0.0", "0.0")
+
+
+class Tty(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def drawn_lines(tty) -> list[str]:
+    return [s.rstrip() for s in tty.getvalue().split("\r") if s.strip()]
+
+
+def terminal(monkeypatch) -> Tty:
+    """Draw the commands' progress lines (scenarios.cli.guard.progress_line) on a fake terminal."""
+    import scenarios.cli.guard as guard
+    from viz.progress import TerminalProgress
+
+    tty = Tty()
+    monkeypatch.setattr(guard, "progress_line", lambda label: TerminalProgress(label, stream=tty, min_interval_s=0))
+    return tty
+
+
+def test_fit_shows_progress_with_time_left(tmp_path, capsys, monkeypatch):
+    """vmt fit takes 1-6 s on 2 busy cores (a 5,000-row log; its Student t imports scipy.stats): the
+    line shows the share of the work done while the log is read, then the time left, then done."""
+    import core.probelog
+    import scenarios.cli.fit as fit
+
+    monkeypatch.setattr(core.probelog, "CHUNK_ROWS", 8)
+    # the fit weighed as much as reading these 24 rows (0.55 s, 3e4 lines' worth, really): the read's
+    # share is then seen in whole percent
+    monkeypatch.setattr(fit, "FIT_S", 24 * fit.READ_S_PER_LINE)
+    tty = terminal(monkeypatch)
+    log = ring_log(tmp_path / "two.csv", z_mm=(0.0, 20.0))
+    assert main(["fit", "cylinder", str(log)]) == 0
+    drawn = drawn_lines(tty)
+    assert all(d.startswith("fit: % of the work: [") for d in drawn), drawn
+    shares = [int(d.split("] ")[1].split("/")[0]) for d in drawn]
+    assert shares == sorted(shares) and shares[-1] == 100 and len(shares) >= 3, drawn
+    assert any("left" in d for d in drawn[:-1]) and "done in" in drawn[-1], drawn
+    assert tty.getvalue().endswith("\n")      # the line is ended before the result is printed
+    assert "cylinder: 24 touches" in capsys.readouterr().out
