@@ -45,9 +45,35 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+#: Share of ``vmt simulate ARTEFACT``'s work done (percent) when its machine is built (the imports and
+#: the truth machine), when the campaign is simulated (paths checked, touches) and when the log is
+#: written: CPU seconds measured on each artefact with its default machine (0.45, 0.06-0.24 and
+#: 0.00-0.04 s), for the progress line's time left; the run takes 2-3 s wall on 2 busy cores.
+SIMULATE_SHARES = (70, 96, 100)
+
+
 def run(args) -> int:
     if args.artefact == "positioning":
         return _run_positioning(args)
+    from scenarios.cli.guard import progress_line
+
+    with progress_line(f"simulate {args.artefact}: % of the work") as bar:
+        log, cfg, errors = _campaign(args, bar)
+    from scenarios.cli.guard import said
+
+    k = len(dict.fromkeys(log.col('setup')))
+    setups = f"{k} set-up{'' if k == 1 else 's'}"
+    if args.plan_only:      # a plan measures nothing and has no truth errors: neither is described
+        print(f"{said(args.out)}: plan of {log.n} touches (nothing measured) on {args.artefact}, "
+              f"machine {cfg.name}, {setups}")
+    else:
+        print(f"{said(args.out)}: campaign of {log.n} touches ({int(log.ok.sum())} ok) on {args.artefact}, "
+              f"machine {cfg.name}, errors {errors}, {setups}")
+    return 0
+
+
+def _campaign(args, bar):
+    """Simulate the campaign of ``args`` and write its log; return (log, machine config, errors label)."""
     from core.exceptions import ConfigError
 
     for name in POSITIONING_ONLY:
@@ -99,21 +125,14 @@ def run(args) -> int:
         except ValueError:
             raise ConfigError(f"--c-angles-deg {text!r} is not a comma-separated list of degrees") from None
     seed = args.seed or 0
+    bar(SIMULATE_SHARES[0], 100)    # (drawn once the options are judged: a refused one is the only line)
     log = simulate_campaign(args.artefact, machine, probe, setups, np.random.default_rng(seed),
                             plan_only=args.plan_only, check_collisions=not args.no_collision_check,
                             meta={} if args.plan_only else {"errors": errors, "seed": str(seed)})
+    bar(SIMULATE_SHARES[1], 100)
     write_probe_log(args.out, log, special=True)
-    from scenarios.cli.guard import said
-
-    k = len(dict.fromkeys(log.col('setup')))
-    setups = f"{k} set-up{'' if k == 1 else 's'}"
-    if args.plan_only:      # a plan measures nothing and has no truth errors: neither is described
-        print(f"{said(args.out)}: plan of {log.n} touches (nothing measured) on {args.artefact}, "
-              f"machine {cfg.name}, {setups}")
-    else:
-        print(f"{said(args.out)}: campaign of {log.n} touches ({int(log.ok.sum())} ok) on {args.artefact}, "
-              f"machine {cfg.name}, errors {errors}, {setups}")
-    return 0
+    bar(SIMULATE_SHARES[2], 100)
+    return log, cfg, errors
 
 
 # --------------------------------------------------------------------------- vmt simulate positioning

@@ -160,3 +160,44 @@ def test_fit_shows_progress_with_time_left(tmp_path, capsys, monkeypatch):
     assert any("left" in d for d in drawn[:-1]) and "done in" in drawn[-1], drawn
     assert tty.getvalue().endswith("\n")      # the line is ended before the result is printed
     assert "cylinder: 24 touches" in capsys.readouterr().out
+
+
+def shares_of(drawn, label) -> list[int]:
+    assert drawn and all(d.startswith(f"{label}: [") for d in drawn), drawn
+    return [int(d.split("] ")[1].split("/")[0]) for d in drawn]
+
+
+def test_simulate_shows_progress_with_time_left(tmp_path, capsys, monkeypatch):
+    """vmt simulate ARTEFACT took 2-3 s wall on 2 busy cores with no line (session 25): the shares of
+    scenarios.cli.simulate.SIMULATE_SHARES, the time left once the machine is built."""
+    from scenarios.cli.simulate import SIMULATE_SHARES
+
+    tty = terminal(monkeypatch)
+    out = tmp_path / "cp.csv"
+    assert main(["simulate", "cross-pocket", "--out", str(out), "--c-angles-deg", "0,90"]) == 0
+    drawn = drawn_lines(tty)
+    assert shares_of(drawn, "simulate cross-pocket: % of the work") == list(SIMULATE_SHARES)
+    assert all("left" in d for d in drawn[:-1]) and "done in" in drawn[-1], drawn
+    assert "campaign of 184 touches" in capsys.readouterr().out and out.exists()
+
+
+def test_simulate_refused_option_draws_no_progress(tmp_path, capsys, monkeypatch):
+    """An option refused before the work is the only line on the terminal (no half-drawn progress)."""
+    tty = terminal(monkeypatch)
+    assert main(["simulate", "cross-pocket", "--out", str(tmp_path / "p.csv"), "--plan-only",
+                 "--errors", "none"]) == 2
+    assert "--plan-only measures nothing" in one_error_line(capsys) and tty.getvalue() == ""
+
+
+def test_iso230_2_report_shows_progress_with_time_left(tmp_path, capsys, monkeypatch):
+    """vmt iso230-2 --report took 2-3 s wall on 2 busy cores (the plot) with no line."""
+    from scenarios.positioning import REPORT_SHARES
+
+    log = tmp_path / "pos.csv"
+    assert main(["simulate", "positioning", "--out", str(log)]) == 0
+    tty = terminal(monkeypatch)
+    assert main(["iso230-2", str(log), "--json", str(tmp_path / "r.json"), "--report", str(tmp_path / "rep")]) == 0
+    drawn = drawn_lines(tty)
+    assert shares_of(drawn, "iso230-2: % of the work") == list(REPORT_SHARES)
+    assert all("left" in d for d in drawn[:-1]) and "done in" in drawn[-1], drawn
+    assert (tmp_path / "rep" / "index.html").exists()
