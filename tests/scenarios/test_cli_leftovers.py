@@ -201,3 +201,87 @@ def test_iso230_2_report_shows_progress_with_time_left(tmp_path, capsys, monkeyp
     assert shares_of(drawn, "iso230-2: % of the work") == list(REPORT_SHARES)
     assert all("left" in d for d in drawn[:-1]) and "done in" in drawn[-1], drawn
     assert (tmp_path / "rep" / "index.html").exists()
+
+
+# --------------------------------------------------------------------------- the folders a run makes
+
+def test_folders_made_for_outputs_are_said_in_one_line(tmp_path, capsys):
+    """Outputs in folders that did not exist: they were made silently (session 25); one line names
+    each (the folder the output went in) with its option. An existing folder is not named."""
+    log = ring_log(tmp_path / "two.csv", z_mm=(0.0, 20.0))
+    out = tmp_path / "new" / "deeper" / "fit.json"
+    assert main(["fit", "cylinder", str(log), "--json", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-2:] == [f"wrote {out}", f"made the folder {out.parent} (for --json {out})"]
+    assert main(["fit", "cylinder", str(log), "--json", str(out)]) == 0     # the folder is there now
+    assert "made the folder" not in capsys.readouterr().out
+
+
+def test_folders_made_for_a_report_and_files_are_one_line(tmp_path, capsys):
+    """iso230-2 with --json, --write-log and --report in three new folders: one line names the
+    three; the report's folder is made as discover's is (it was refused after the work: 'report
+    folder ...: parent folder does not exist', the JSON written and taken back)."""
+    log = tmp_path / "pos.csv"
+    assert main(["simulate", "positioning", "--out", str(log)]) == 0
+    capsys.readouterr()
+    j, w, r = tmp_path / "j" / "iso.json", tmp_path / "w" / "pos.csv", tmp_path / "r" / "sub" / "rep"
+    assert main(["iso230-2", str(log), "--json", str(j), "--write-log", str(w), "--report", str(r)]) == 0
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last == (f"made the folders {j.parent} (for --json {j}); {w.parent} (for --write-log {w}); "
+                    f"{r.parent} (for --report {r})"), last
+    assert (r / "index.html").exists()
+
+
+def test_failed_run_takes_back_the_folders_it_made(tmp_path, capsys):
+    """The line is said of a run that succeeded; a failed one leaves no folder (guard's promise)."""
+    log = ring_log(tmp_path / "ring.csv")
+    out = tmp_path / "new" / "fit.json"
+    assert main(["fit", "sphere", str(log), "--json", str(out)]) == 2
+    assert "made the folder" not in capsys.readouterr().out and not (tmp_path / "new").exists()
+
+
+def test_output_where_a_file_is_is_refused_before_the_work(tmp_path, capsys):
+    """A file where the output's folder should be, or given as a report folder: exit 2, one line
+    naming it, before any work (the shared checks of scenarios.cli.guard)."""
+    log = ring_log(tmp_path / "two.csv", z_mm=(0.0, 20.0))
+    f = tmp_path / "afile"
+    f.write_text("mine\n")
+    assert main(["fit", "cylinder", str(log), "--json", str(f / "x.json")]) == 2
+    assert f"{f / 'x.json'}: cannot write there: {f} is a file, not a folder" in one_error_line(capsys)
+    pos = tmp_path / "pos.csv"
+    assert main(["simulate", "positioning", "--out", str(pos)]) == 0
+    capsys.readouterr()
+    assert main(["iso230-2", str(pos), "--json", str(tmp_path / "i.json"), "--report", str(f)]) == 2
+    assert f"--report {f}: is a file, not a folder" in one_error_line(capsys)
+    assert f.read_text() == "mine\n" and not (tmp_path / "i.json").exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ["design", "{plan}", "--n-angles", "3", "--step-deg", "30", "--json", "{out}"],
+    ["scenario", "pin-circle", "--json", "{out}"],
+])
+def test_json_outputs_are_said(tmp_path, capsys, argv):
+    """design --json and scenario pin-circle --json wrote their JSON without a word (session 25)."""
+    out = tmp_path / "r.json"
+    plan = cross_pocket_plan(tmp_path / "plan.csv") if "{plan}" in argv else None
+    assert main([a.format(plan=plan, out=out) for a in argv]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == f"wrote {out}" and out.exists()
+
+
+def cross_pocket_plan(path):
+    from sim.campaign import simulate_campaign
+    from sim.catalog import CATALOG
+    from sim.machine import Machine
+    from sim.machinefile import truth_machine
+
+    spec = truth_machine(CATALOG["cross-pocket"].default_machine, "none")
+    return write_probe_log(path, simulate_campaign("cross-pocket", Machine(spec.config), spec.probe, [0.0],
+                                                   plan_only=True, check_collisions=False))
+
+
+def test_design_error_names_the_plan(tmp_path, capsys):
+    """'no choice of 2 C angles on a 90 deg grid identifies the workpiece' named no plan (session 25)."""
+    plan = cross_pocket_plan(tmp_path / "plan.csv")
+    assert main(["design", str(plan), "--n-angles", "2", "--step-deg", "90"]) == 2
+    err = one_error_line(capsys)
+    assert err.startswith(f"vmt design: error: {plan}: no choice of 2 C angles"), err
