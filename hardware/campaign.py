@@ -34,7 +34,7 @@ from typing import Callable
 
 import numpy as np
 
-from core.exceptions import ConfigError, HardwareError, PlanError, ProbeLogError
+from core.exceptions import ConfigError, HardwareError, PlanError, ProbeLogError, counted
 from core.probelog import FORMAT, MEASURED, ProbeLog, parse_probe_log
 from core.units import MM
 
@@ -394,7 +394,7 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
     if missing:
         raise PlanError(f"{p}: log has no column {missing[0]!r} of the plan: not a log of this plan")
     if log.n > plan.n:
-        raise PlanError(f"{p}: {log.n} rows but the plan has {plan.n}: not a log of this plan")
+        raise PlanError(f"{p}: {counted(log.n, 'row')} but the plan has {plan.n}: not a log of this plan")
     pn, ln = plan.nominals_mm(), log.nominals_mm()
     for i in range(log.n):
         same = (log.columns["setup"][i] == plan.columns["setup"][i]

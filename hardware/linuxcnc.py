@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.exceptions import PlanError, ProbeLogError
+from core.exceptions import PlanError, ProbeLogError, counted
 from core.keyreader import read_text_file
 from core.probelog import ProbeLog
 
@@ -175,10 +175,10 @@ def read_probe_file(path) -> np.ndarray:
                 bad = next(v for v in parts if not _isnum(v))
                 raise ProbeLogError(f"{p}: line {ln}: {bad!r} is not a number") from None
             if len(vals) not in (3, 9):
-                raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers, expected 3 (X Y Z) "
+                raise ProbeLogError(f"{p}: line {ln}: {counted(len(vals), 'number')}, expected 3 (X Y Z) "
                                     "or 9 (X Y Z A B C U V W)")
             if width is not None and len(vals) != width:
-                raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers but earlier lines have {width}")
+                raise ProbeLogError(f"{p}: line {ln}: {counted(len(vals), 'number')} but earlier lines have {width}")
         if not all(math.isfinite(v) for v in vals):
             raise ProbeLogError(f"{p}: line {ln}: not finite")
         width = len(vals)
@@ -314,7 +314,7 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
     k, n = data.shape[0], plan.n
     if k > n:
         raise PlanError(f"{path}: {k} probe lines but the plan {plan.source} has "
-                        f"{n} rows: not the file of this plan")
+                        f"{counted(n, 'row')}: not the file of this plan")
     status = ["ok"] * k + ["aborted"] * (n - k)
     if k < n:
         pos = np.vstack([pos, np.full((n - k, 3), np.nan)])

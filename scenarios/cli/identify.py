@@ -49,7 +49,10 @@ def _run(args, bar) -> int:
     t = from_log(log.select(planar))
     if not planar.all():
         bar.clear()     # the line said goes on a line of its own, not after the progress line
-        print(f"{args.log}: {int((~planar & log.ok).sum())} touches with normals out of the XY plane left out")
+        from core.exceptions import counted
+
+        print(f"{args.log}: {counted(int((~planar & log.ok).sum()), 'touch')} with normals out of the XY plane "
+              "left out")
     del log, planar  # the touches hold what the identification needs: the log's memory goes before it
     grid = parse_grid(args.grid_mm, t.pn_R)
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6

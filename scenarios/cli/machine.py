@@ -147,7 +147,9 @@ def run_serve(args) -> int:
         tcp.stop()
         if ptys is not None:
             ptys.stop()
-    print(f"vmt machine: stopped after {emu.probes} probing moves", flush=True)
+    from core.exceptions import counted
+
+    print(f"vmt machine: stopped after {counted(emu.probes, 'probing move')}", flush=True)
     return 0
 
 
@@ -171,7 +173,9 @@ def run_program(args) -> int:
         settings = replace(settings, limits_mm=tuple((lo * 1e3, hi * 1e3) for lo, hi in (st[a] for a in "XYZ")))
     text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs)
     out = write_text_atomic(args.out, text, special=True)
-    print(f"{out}: LinuxCNC program, {plan.n} touches, probe file {args.probe_file}")
+    from core.exceptions import counted
+
+    print(f"{out}: LinuxCNC program, {counted(plan.n, 'touch')}, probe file {args.probe_file}")
     return 0
 
 

@@ -285,3 +285,29 @@ def test_design_error_names_the_plan(tmp_path, capsys):
     assert main(["design", str(plan), "--n-angles", "2", "--step-deg", "90"]) == 2
     err = one_error_line(capsys)
     assert err.startswith(f"vmt design: error: {plan}: no choice of 2 C angles"), err
+
+
+# --------------------------------------------------------------------------- counts in the right number
+
+def test_counted_known_answers():
+    from core.exceptions import counted
+
+    assert [counted(1, "entry"), counted(2, "entry"), counted(0, "entry")] == ["1 entry", "2 entries", "0 entries"]
+    assert [counted(1, "touch"), counted(7, "touch"), counted(2, "field"), counted(3, "key")] == \
+        ["1 touch", "7 touches", "2 fields", "3 keys"]
+    assert [counted(1, "rotary axis", "rotary axes"), counted(2, "rotary axis", "rotary axes")] == \
+        ["1 rotary axis", "2 rotary axes"]
+
+
+def test_one_of_a_count_is_singular_in_messages(tmp_path, capsys):
+    """'holds 1 entries', '1 numbers, expected 3', '1 fields, header has 20': the counts that can be
+    one say it in the singular (session 25)."""
+    pf = tmp_path / "probe.txt"
+    pf.write_text("1 2 3\n5\n")
+    assert main(["import", "linuxcnc", str(pf), "--out", str(tmp_path / "o.csv")]) == 2
+    assert "line 2: 1 number, expected 3 (X Y Z)" in one_error_line(capsys)
+    log = ring_log(tmp_path / "ring.csv")
+    text = log.read_text().splitlines()
+    (tmp_path / "short.csv").write_text("\n".join(text + ["S1"]) + "\n")
+    assert main(["check", str(tmp_path / "short.csv")]) == 2
+    assert "1 field, header has" in one_error_line(capsys)
