@@ -100,6 +100,8 @@ def parse_limits(text: str) -> tuple:
             raise ConfigError(f"--limits-mm {text!r}: {part!r} is not AXISmin:max (e.g. X-10:300)") from None
         if ax not in "XYZ" or ax in out:
             raise ConfigError(f"--limits-mm {text!r}: axis {ax!r} unknown or repeated")
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):   # (said as 'limits_mm ((nan, ...' before)
+            raise ConfigError(f"--limits-mm {text!r}: {part!r}: expected finite min < max, mm")
         out[ax] = (lo, hi)
     if set(out) != set("XYZ"):
         raise ConfigError(f"--limits-mm {text!r}: give X, Y and Z")

@@ -285,6 +285,7 @@ COMMON = {
     "z_mm": (lambda v: abs(v) < float("inf"), "must be a finite number"),
     "stylus_r_mm": (lambda v: 0 <= v < float("inf"), "must be a finite number >= 0"),
     "drift_tau_s": (lambda v: 0 < v < float("inf"), "must be a finite number > 0"),
+    "time_scale": (lambda v: 0 < v < float("inf"), "must be a finite number > 0"),  # ('time scale nan: ...')
 }
 
 
@@ -310,6 +311,8 @@ def about_file(path, detail: str = ""):
     deficient by 31``), not of the file it came from; a :class:`~core.exceptions.VmtError` whose
     message does not already name ``path`` is raised again, the same class, as ``PATH: message``
     (``PATH (detail): message`` when ``detail`` says which part of it, e.g. ``--feature sphere1``).
+    A message that starts with an option (``--wcs 'G99': expected ...``) is of that option, not of
+    the file: it is left as it is.
     """
     from core.exceptions import VmtError
 
@@ -317,7 +320,7 @@ def about_file(path, detail: str = ""):
         yield
     except VmtError as e:
         msg = str(e)
-        if str(path) in msg:
+        if str(path) in msg or msg.startswith("--"):
             raise
         head = f"{path} ({detail})" if detail else str(path)
         try:

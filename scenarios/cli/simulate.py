@@ -10,6 +10,8 @@ of one axis instead and writes ``positioning-log/1``.
 
 from __future__ import annotations
 
+import math
+
 
 def register(sub) -> None:
     import argparse
@@ -124,6 +126,8 @@ def _campaign(args, bar):
             setups = [float(v) for v in text.split(",") if v.strip()]
         except ValueError:
             raise ConfigError(f"--c-angles-deg {text!r} is not a comma-separated list of degrees") from None
+        if not all(math.isfinite(c) for c in setups):   # (the set-ups said 'C angle nan is not finite')
+            raise ConfigError(f"--c-angles-deg {text!r}: expected finite angles, deg")
     seed = args.seed or 0
     bar(SIMULATE_SHARES[0], 100)    # (drawn once the options are judged: a refused one is the only line)
     log = simulate_campaign(args.artefact, machine, probe, setups, np.random.default_rng(seed),
@@ -213,6 +217,9 @@ def _run_positioning(args) -> int:
     if travel is not None and not (np.all(np.isfinite(travel)) and travel[0] < travel[1]):
         raise ConfigError(f"--travel-mm {args.travel_mm}: expected finite LO < HI in mm")
     line = _numbers(args.line_mm, "--line-mm", ",", 3) if args.line_mm else None
+    if line is not None and not all(math.isfinite(v) for v in line):
+        # (it reached the simulator: 'measuring line must be 3 finite readings X, Y, Z, got array([nan, 0., 0.])')
+        raise ConfigError(f"--line-mm {args.line_mm}: expected three finite numbers X,Y,Z in mm")
     name = args.machine or "vmc-3axis"
     log = simulate_test(
         name, opt("axis", "X"), np.random.default_rng(args.seed or 0), errors=args.errors,

@@ -311,3 +311,34 @@ def test_one_of_a_count_is_singular_in_messages(tmp_path, capsys):
     (tmp_path / "short.csv").write_text("\n".join(text + ["S1"]) + "\n")
     assert main(["check", str(tmp_path / "short.csv")]) == 2
     assert "1 field, header has" in one_error_line(capsys)
+
+
+# --------------------------------------------------------------------------- the sweep's findings
+
+@pytest.mark.parametrize("argv, said", [
+    # was: "measuring line must be 3 finite readings X, Y, Z, got array([nan, 0., 0.])" (a numpy repr)
+    (["simulate", "positioning", "--out", "{tmp}/p.csv", "--line-mm", "nan,0,0"],
+     "vmt simulate: error: --line-mm nan,0,0: expected three finite numbers X,Y,Z in mm"),
+    # was: "C angle nan is not finite" (no option)
+    (["simulate", "cross-pocket", "--out", "{tmp}/c.csv", "--c-angles-deg", "0,nan"],
+     "vmt simulate: error: --c-angles-deg '0,nan': expected finite angles, deg"),
+    # was: "time scale nan: expected a positive number" (no option)
+    (["machine", "serve", "--port", "0", "--time-scale", "nan"],
+     "vmt machine serve: error: --time-scale must be a finite number > 0, got nan"),
+    (["machine", "serve", "--port", "0", "--time-scale", "inf"],
+     "vmt machine serve: error: --time-scale must be a finite number > 0, got inf"),
+    # was: "limits_mm ((nan, 300.0), (-300.0, 300.0), (-300.0, 300.0)): expected ((xmin, xmax), ..." (a field)
+    (["machine", "program", "--plan", "{plan}", "--out", "{tmp}/p.ngc", "--limits-mm", "Xnan:300,Y-300:300,Z-300:300"],
+     "vmt machine program: error: --limits-mm 'Xnan:300,Y-300:300,Z-300:300': 'Xnan:300': expected finite min < max"),
+    (["machine", "program", "--plan", "{plan}", "--out", "{tmp}/p.ngc", "--limits-mm", "X300:0,Y-300:300,Z-300:300"],
+     "vmt machine program: error: --limits-mm 'X300:0,Y-300:300,Z-300:300': 'X300:0': expected finite min < max"),
+    # was: "row 23 (target 'wall03_2'): approach ... is outside the soft limits" (no plan named)
+    (["machine", "program", "--plan", "{plan}", "--out", "{tmp}/p.ngc", "--limits-mm", "X0:300,Y-300:300,Z-300:300"],
+     "vmt machine program: error: {plan}: row "),
+])
+def test_sweep_messages_name_the_option_or_file(tmp_path, capsys, argv, said):
+    plan = cross_pocket_plan(tmp_path / "plan.csv") if any("{plan}" in a for a in argv) else None
+    assert main([a.format(tmp=tmp_path, plan=plan) for a in argv]) == 2
+    err = one_error_line(capsys)
+    assert err.startswith(said.format(plan=plan)), err
+    assert not list(tmp_path.glob("p.*")) and not (tmp_path / "c.csv").exists()
