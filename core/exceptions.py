@@ -41,3 +41,22 @@ class HardwareError(VmtError):
 
 class OutputError(VmtError):
     """An output cannot be written as asked: not a regular file, not writable, not a valid result."""
+
+
+def counted(n, singular: str, plural: str | None = None) -> str:
+    """``n`` and its noun in the right number, for messages: ``counted(1, "entry")`` is ``1 entry``,
+    ``counted(3, "entry")`` ``3 entries`` ("holds 1 entries" was said of a folder of one file).
+
+    The plural is ``plural`` when given (``"axes"``), else the singular with ``es`` after s, x, ch
+    or sh (``touch``: ``touches``), ``ies`` for a consonant and y (``entry``), ``s`` otherwise.
+    """
+    if n == 1:
+        return f"{n} {singular}"
+    if plural is None:
+        if singular.endswith(("s", "x", "ch", "sh")):
+            plural = singular + "es"
+        elif singular.endswith("y") and singular[-2:-1] not in tuple("aeiou"):
+            plural = singular[:-1] + "ies"
+        else:
+            plural = singular + "s"
+    return f"{n} {plural}"

@@ -73,7 +73,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from .atomic import write_text_atomic
-from .exceptions import VmtError
+from .exceptions import VmtError, counted
 from .probelog import (ANGLE_MAX_DEG, LENGTH_MAX_MM, T_MAX_S, TEMP_RANGE_C, _num, is_number, last_row_check,
                        step_back)
 
@@ -392,7 +392,7 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
                 if unterminated and ln == n_lines and len(row) < len(header):
                     last_row(row, len(raw), ln)
                 raise PositioningLogError(
-                    f"{src}: row {len(raw)} (line {ln}): {len(row)} fields, header has {len(header)}")
+                    f"{src}: row {len(raw)} (line {ln}): {counted(len(row), 'field')}, header has {len(header)}")
             raw.append([c.strip() for c in row])
             line_of_row.append(ln)
     except csv.Error as e:
@@ -836,7 +836,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
     tg, cy, di, me, lns = [], [], [], [], []
     for ln, cells in rows:
         if len(cells) != width:
-            raise PositioningLogError(f"{src}: line {ln}: {len(cells)} fields, expected {width}")
+            raise PositioningLogError(f"{src}: line {ln}: {counted(len(cells), 'field')}, expected {width}")
 
         def val(name: str) -> float:
             return _finite_number(cells[cols[name]], f"{src}: line {ln}", name)
@@ -999,13 +999,13 @@ def arrange(log: PositioningLog) -> PositioningTest:
     counts = np.concatenate([np.sum(~np.isnan(out[d][0]), axis=1) for d in (1, -1)])
     if counts.min() < N_STANDARD:
         warnings.append(
-            f"{int(counts.min())} valid approaches at some target and direction: ISO 230-2 asks "
+            f"{counted(int(counts.min()), 'valid approach')} at some target and direction: ISO 230-2 asks "
             f"{N_STANDARD} in each direction; s, R and A rest on fewer and are not the standard's figures")
     if counts.min() != counts.max():
         warnings.append(f"unequal numbers of valid readings per target and direction "
                         f"({int(counts.min())} to {int(counts.max())})")
     if m < 5:
-        warnings.append(f"{m} targets: ISO 230-2 asks at least 5 (5 per metre of travel up to 2 m)")
+        warnings.append(f"{counted(m, 'target')}: ISO 230-2 asks at least 5 (5 per metre of travel up to 2 m)")
     return PositioningTest(unit=u, targets=targets_arr, cycles=cycles.astype(np.int64),
                            dev_up=out[1][0], dev_down=out[-1][0], t_up=out[1][1], t_down=out[-1][1],
                            row_up=out[1][2], row_down=out[-1][2], warnings=tuple(warnings),

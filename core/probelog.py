@@ -27,7 +27,7 @@ from typing import Iterable, Iterator, Mapping
 import numpy as np
 
 from .atomic import input_problem, write_text_atomic
-from .exceptions import ProbeLogError
+from .exceptions import ProbeLogError, counted
 
 FORMAT = "probe-log/1"
 #: Format of :func:`summary` (what ``vmt check --json`` prints).
@@ -602,7 +602,7 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
                 if unterminated and ln == n_lines and len(row) < width:
                     last_row_check(src, header, row, cols.n + len(block), ln, numeric=_spec_numeric)
                 raise ProbeLogError(
-                    f"{src}: row {cols.n + len(block)} (line {ln}): {len(row)} fields, header has {width}")
+                    f"{src}: row {cols.n + len(block)} (line {ln}): {counted(len(row), 'field')}, header has {width}")
             block.append(row)
             block_lines.append(ln)
             last_row, last_ln = row, ln

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .exceptions import IdentifiabilityError
+from .exceptions import IdentifiabilityError, counted
 from .probelog import ProbeLog
 from .selfcal import NZ_MAX
 
@@ -84,7 +84,7 @@ def check_planar_scope(log: ProbeLog, command: str = "identify", *, min_touches:
             "touches on vertical walls (bores, pins, pocket sides) at several C angles"
             + (f"; {hint}" if hint else ""))
     if planar.sum() < min_touches:
-        raise IdentifiabilityError(f"{src}: {int(planar.sum())} valid touches with a normal in the XY "
+        raise IdentifiabilityError(f"{src}: {counted(int(planar.sum()), 'valid touch')} with a normal in the XY "
                                    f"plane; {command} needs at least {min_touches}")
     setups = np.unique(log.col("setup")[ok][planar].astype(str))
     if setups.size < 2:

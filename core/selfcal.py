@@ -133,7 +133,7 @@ from enum import StrEnum
 import numpy as np
 import scipy.sparse as sp
 
-from .exceptions import ConfigError, IdentifiabilityError
+from .exceptions import ConfigError, IdentifiabilityError, counted
 from .lsq import LinearEstimator, column_norms, remove_span, solve
 from .touches import Touches
 from .units import DEG, MM, UM
@@ -907,7 +907,7 @@ def _abbe_identifiable(touches: Touches, dz: np.ndarray, setups: np.ndarray) -> 
     gain = _rank(M) - _rank(M[:, :-2])
     if gain == 2:
         return True, ""
-    return False, (f"the raised touches ({len(raised)} at {len(cnt)} targets in {len(setups)} set-up(s))"
+    return False, (f"the raised touches ({len(raised)} at {counted(len(cnt), 'target')} in {len(setups)} set-up(s))"
                    f" do not tell the tool's Abbe terms apart from the part's tilt and the raised targets' own"
                    f" positions (probe raised features in more set-ups); left out")
 

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import iso
-from .exceptions import ConfigError
+from .exceptions import ConfigError, counted
 
 FORMAT = "vmt-estimate/1"
 INTERPOLATIONS = ("linear", "cubic-spline")
@@ -183,7 +183,7 @@ def loads_estimate(doc, source: str = "<estimate>") -> MachineState:
     except (TypeError, ValueError):
         fail("values/covariance", "expected numbers")
     if v.shape != (n,):
-        fail("values", f"expected {n} numbers (one per parameter), got shape {v.shape}")
+        fail("values", f"expected {counted(n, 'number')} (one per parameter), got shape {v.shape}")
     if C.shape != (n, n):
         fail("covariance", f"expected {n} x {n}, got shape {C.shape}")
     if not (np.all(np.isfinite(v)) and np.all(np.isfinite(C))):

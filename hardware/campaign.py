@@ -41,7 +41,7 @@ from typing import Callable
 
 import numpy as np
 
-from core.exceptions import ConfigError, HardwareError, PlanError, ProbeLogError
+from core.exceptions import ConfigError, HardwareError, PlanError, ProbeLogError, counted
 from core.probelog import FORMAT, MEASURED, ProbeLog, parse_probe_log
 from core.units import MM
 
@@ -107,6 +107,8 @@ def parse_limits(text: str) -> tuple:
             raise ConfigError(f"--limits-mm {text!r}: {part!r} is not AXISmin:max (e.g. X-10:300)") from None
         if ax not in "XYZ" or ax in out:
             raise ConfigError(f"--limits-mm {text!r}: axis {ax!r} unknown or repeated")
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):   # (said as 'limits_mm ((nan, ...' before)
+            raise ConfigError(f"--limits-mm {text!r}: {part!r}: expected finite min < max, mm")
         out[ax] = (lo, hi)
     if set(out) != set("XYZ"):
         raise ConfigError(f"--limits-mm {text!r}: give X, Y and Z")
@@ -512,7 +514,7 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
     if missing:
         raise PlanError(f"{p}: log has no column {missing[0]!r} of the plan: not a log of this plan")
     if log.n > plan.n:
-        raise PlanError(f"{p}: {log.n} rows but the plan has {plan.n}: not a log of this plan")
+        raise PlanError(f"{p}: {counted(log.n, 'row')} but the plan has {plan.n}: not a log of this plan")
     pn, ln = plan.nominals_mm(), log.nominals_mm()
     for i in range(log.n):
         same = (log.columns["setup"][i] == plan.columns["setup"][i]

@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.exceptions import PlanError, ProbeLogError
+from core.exceptions import PlanError, ProbeLogError, counted
 from core.keyreader import read_text_file
 from core.probelog import ProbeLog
 
@@ -161,6 +161,8 @@ def read_probe_file(path) -> np.ndarray:
     for ln, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
+        if not rows:
+            _first_line(p, ln, line, text)
         words = line.lstrip()[0].isalpha()
         if kind is not None and words != (kind == "log"):
             raise ProbeLogError(f"{p}: line {ln}: G-code words and bare numbers mixed in one file")
@@ -175,10 +177,10 @@ def read_probe_file(path) -> np.ndarray:
                 bad = next(v for v in parts if not _isnum(v))
                 raise ProbeLogError(f"{p}: line {ln}: {bad!r} is not a number") from None
             if len(vals) not in (3, 9):
-                raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers, expected 3 (X Y Z) "
+                raise ProbeLogError(f"{p}: line {ln}: {counted(len(vals), 'number')}, expected 3 (X Y Z) "
                                     "or 9 (X Y Z A B C U V W)")
             if width is not None and len(vals) != width:
-                raise ProbeLogError(f"{p}: line {ln}: {len(vals)} numbers but earlier lines have {width}")
+                raise ProbeLogError(f"{p}: line {ln}: {counted(len(vals), 'number')} but earlier lines have {width}")
         if not all(math.isfinite(v) for v in vals):
             raise ProbeLogError(f"{p}: line {ln}: not finite")
         width = len(vals)
@@ -186,6 +188,35 @@ def read_probe_file(path) -> np.ndarray:
     if not rows:
         raise ProbeLogError(f"{p}: empty probe file")
     return np.array(rows)
+
+
+#: What a LinuxCNC probe file is, for a file that is none.
+PROBE_FILE_KINDS = ("a PROBEOPEN file (3 or 9 numbers a line: X Y Z [A B C U V W]) or a LOGOPEN file "
+                    "(lines like 'G1 X1.0 Y2.0 Z-0.5')")
+
+
+def _first_line(p: Path, ln: int, line: str, text: str) -> None:
+    """ProbeLogError unless the file's first line (``line``, number ``ln``, of ``text``) could open a
+    probe file: a file of another kind (a probe-log/1 CSV, a part program, a table) is named as not
+    a LinuxCNC probe file, with what was expected, rather than by the first word its first line
+    fails on ('a,b,c' is not a G-code word)."""
+    shown = line.strip()[:40]
+    if line.lstrip().startswith("#") and "probe-log/1" in line:
+        raise ProbeLogError(f"{p}: a probe-log/1 file (vmt's own log), not a LinuxCNC probe file: "
+                            f"it needs no import (vmt check {p.name})")
+    probing = re.search(r"(?<![A-Za-z])G\s*38\.[2-5]", re.sub(r"\([^)]*\)", "", text), re.IGNORECASE)
+    if probing:
+        raise ProbeLogError(f"{p}: a part program (it probes: {probing[0]}), not the probe file it writes; "
+                            "expected " + PROBE_FILE_KINDS)
+    if line.lstrip()[0].isalpha():
+        code = re.sub(r"\([^)]*\)|;.*$", "", line).strip()
+        if code and not re.fullmatch(r"(?:" + _WORD.pattern + r"\s*)+", code):
+            raise ProbeLogError(f"{p}: not a LinuxCNC probe file: line {ln} is {shown!r}; expected "
+                                + PROBE_FILE_KINDS)
+        return
+    parts = line.split()
+    if not all(_isnum(v) for v in parts) or len(parts) not in (3, 9):
+        raise ProbeLogError(f"{p}: not a LinuxCNC probe file: line {ln} is {shown!r}; expected " + PROBE_FILE_KINDS)
 
 
 _WORD = re.compile(r"([A-Za-z])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
@@ -285,7 +316,7 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
     k, n = data.shape[0], plan.n
     if k > n:
         raise PlanError(f"{path}: {k} probe lines but the plan {plan.source} has "
-                        f"{n} rows: not the file of this plan")
+                        f"{counted(n, 'row')}: not the file of this plan")
     status = ["ok"] * k + ["aborted"] * (n - k)
     if k < n:
         pos = np.vstack([pos, np.full((n - k, 3), np.nan)])

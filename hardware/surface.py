@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from core.exceptions import ConfigError
+from core.exceptions import ConfigError, counted
 from core.probelog import FORMAT, ProbeLog, make_log
 
 #: XY coordinates closer than this (mm) are the same grid line / target.
@@ -147,7 +147,7 @@ def plan_from_z_touches(pos_mm, *, z_mm: float | None = None, source: str = "<pr
         for j, i, k in zip(iy, ix, range(len(p))):
             first.setdefault((j, i), len(first))
             names.append(f"p{first[(j, i)]}")
-        shape = f"{len(first)} points, not a full grid"
+        shape = f"{counted(len(first), 'point')}, not a full grid"
     zt = float(np.median(p[:, 2])) if z_mm is None else float(z_mm)
     meta = {"plan": f"built from {len(p)} touches probed along -Z ({shape}); nominal tip-centre Z "
                     f"{zt:.6f} mm ({'median of the touches' if z_mm is None else 'given'})"}

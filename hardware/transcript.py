@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from core.atomic import head_problem, input_problem
-from core.exceptions import PlanError, ProbeLogError
+from core.exceptions import PlanError, ProbeLogError, counted
 from core.probelog import ProbeLog
 
 from .campaign import log_from_plan
@@ -103,7 +103,8 @@ def read_transcript(path):
         stamps.append(ts)
         where.append(ln)
     if not pos:
-        raise ProbeLogError(f"{p}: no probe reports ([PRB:...]) in the transcript")
+        raise ProbeLogError(f"{p}: no probe reports ([PRB:...]) in it: not a GRBL session transcript "
+                            "(vmt probe --transcript writes one), or of a session that probed nothing")
     have = [s is not None for s in stamps]
     if any(have) and not all(have):
         ln = where[have.index(False)]
@@ -135,7 +136,7 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0) -> ProbeLog:
     """
     pos, touched, t, _ = read_transcript(path)
     if len(pos) != plan.n:
-        raise PlanError(f"{path}: {len(pos)} probe reports but the plan {plan.source} has {plan.n} rows")
+        raise PlanError(f"{path}: {len(pos)} probe reports but the plan {plan.source} has {counted(plan.n, 'row')}")
     src = "transcript timestamps" if t is not None else f"plan order x {dt_s:g} s (no timestamps)"
     if t is None:
         t = np.arange(plan.n) * float(dt_s)

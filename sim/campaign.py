@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.exceptions import ConfigError, PlanError
+from core.exceptions import ConfigError, PlanError, counted
 from core.probelog import ProbeLog, make_log
 from core.touches import STATUS_MESSAGES, ProbeStatus
 from core.units import MM
@@ -171,7 +171,7 @@ def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: Probe
     k = rotary_count(machine)
     rot = np.asarray(setup.rot_rad, float).reshape(1, -1) if k else None
     if k and rot.shape[1] != k:
-        raise ConfigError(f"set-up {setup.name!r}: rot_rad has {rot.shape[1]} values, machine has {k} rotary axes")
+        raise ConfigError(f"set-up {setup.name!r}: rot_rad has {counted(rot.shape[1], 'value')}, machine has {counted(k, 'rotary axis', 'rotary axes')}")
     T_R_W = T_R_W_nominal(machine, rot, 1)[0]
     T_R_A = T_R_W @ np.asarray(setup.T_W_A, float)
     r = probe.stylus_r_m

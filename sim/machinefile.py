@@ -90,7 +90,7 @@ import numpy as np
 
 from core import iso
 from core.chain import parse_chain
-from core.exceptions import ConfigError
+from core.exceptions import ConfigError, counted
 from core.keyreader import KeyReader, read_text_file
 from core.units import DEG, MM, UM
 
@@ -533,7 +533,7 @@ class _Reader(KeyReader):
             x = self.numbers(f"{key}.table_{Pt}", t[f"table_{Pt}"], min_len=2)
             y = self.numbers(f"{key}.table_{U}", t[f"table_{U}"])
             if len(y) != len(x):
-                self.fail(f"{key}.table_{U}", f"{len(y)} values for {len(x)} positions")
+                self.fail(f"{key}.table_{U}", f"{counted(len(y), 'value')} for {counted(len(x), 'position')}")
             if any(b <= a for a, b in zip(x, x[1:])):
                 self.fail(f"{key}.table_{Pt}", "positions must be strictly increasing")
             how = t["interpolation"]
@@ -587,7 +587,7 @@ class _Reader(KeyReader):
             th = self.numbers(f"{key}.temperature_h", t.get("temperature_h", []))
             tk = self.numbers(f"{key}.temperature_K", t.get("temperature_K", []))
             if len(th) != len(tk):
-                self.fail(f"{key}.temperature_K", f"{len(tk)} temperatures for {len(th)} times")
+                self.fail(f"{key}.temperature_K", f"{counted(len(tk), 'temperature')} for {counted(len(th), 'time')}")
             kw["temperature_t_s"] = tuple(v * H for v in th)
             kw["temperature_K"] = tk
         try:

@@ -29,7 +29,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from core.exceptions import ConfigError
+from core.exceptions import ConfigError, counted
 
 
 @dataclass(frozen=True)
@@ -171,7 +171,7 @@ def replace_problem(folder) -> str | None:
         return None
     wrote = report_entries(folder)
     if wrote is None:
-        return (f"exists and holds {len(entries)} entries but no report of vmt (no index.html vmt wrote): a "
+        return (f"exists and holds {counted(len(entries), 'entry')} but no report of vmt (no index.html vmt wrote): a "
                 "report replaces its folder whole; give a new folder (or remove this one)")
     other = [n for n in entries if n not in wrote or not (folder / n).is_file() or (folder / n).is_symlink()]
     if other:

@@ -70,7 +70,11 @@ def run(args) -> int:
     rep = s["repeated"]
     if rep["touches"]:
         ex = ", ".join(f"{e['setup']}/{e['target']} x{e['times']}" for e in rep["examples"])
-        print(f"  repeated {rep['touches']} touches repeat an earlier (setup, target) ({rep['pairs']} pairs, "
+        from core.exceptions import counted
+
+        n = rep["touches"]
+        print(f"  repeated {counted(n, 'touch')} {'repeats' if n == 1 else 'repeat'} an earlier (setup, target) "
+              f"({counted(rep['pairs'], 'pair')}, "
               f"e.g. {ex}): two writers on one log, or a plan that repeats targets?")
     for w in s["warnings"]:
         print(f"  warning  {w}")

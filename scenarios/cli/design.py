@@ -58,8 +58,10 @@ def run(args) -> int:
     u = args.noise_um * 1e-6
     from scenarios.cli.guard import progress_line
 
+    from scenarios.cli.guard import about_file
+
     ev = design_evaluator(w, wn, grid, u, args.measure, dask=args.dask, workers=args.workers)
-    with progress_line("design: designs evaluated (at most)") as bar:
+    with progress_line("design: designs evaluated (at most)") as bar, about_file(args.plan):
         r = optimise_angles(w, wn, args.angles, grid, step_deg=args.step_deg, u_probe_m=u, reference_deg=ref,
                             measure=args.measure, evaluate=ev, progress=bar)
     print(f"C angles {', '.join(f'{c:g}' for c in r.c_deg)} deg: max workpiece U95 {r.max_U95_m * 1e6:.3f} um"
@@ -73,4 +75,7 @@ def run(args) -> int:
             "reference_deg": list(r.reference_deg) if r.reference_deg else None,
             "reference_max_u95_um": None if r.reference_max_U95_m is None else round(r.reference_max_U95_m * 1e6, 4),
             "gain": r.gain, "evaluations": r.evaluations, "step_deg": r.step_deg})
+        from scenarios.cli.guard import said
+
+        print(f"wrote {said(args.json)}")
     return 0

@@ -224,6 +224,29 @@ def check_outputs(inputs: dict, files: dict, folders: dict, command: str | None 
         _writable_folder(Path(out), folder=True)
 
 
+def folders_to_make(files: dict, folders: dict, command: str | None = None) -> list[tuple[Path, str]]:
+    """(the folder an output goes in, the option and output) for each output whose folder does not
+    exist yet: the run makes it, and the folders above it that are missing too
+    (:func:`core.atomic.write_text_atomic` makes the folders of a file, a report those of its
+    folder). An output folder itself (``--report DIR``) is not counted: the command names it when
+    it says what it wrote; the folder it goes in is."""
+    made = []
+    for name, out in {**files, **folders}.items():
+        q = Path(out).parent
+        if str(q) not in ("", ".") and not os.path.lexists(q) and all(q != f for f, _ in made):
+            made.append((q, f"{_opt(name, command)} {out}"))
+    return made
+
+
+def say_made(made: list[tuple[Path, str]]) -> None:
+    """One line naming the folders a run made on the way to its outputs (:func:`folders_to_make`)
+    that exist now: the user learns where the outputs went, not only that they were written."""
+    now = [(f, why) for f, why in made if f.is_dir()]
+    if now:
+        s = "s" if len(now) > 1 else ""
+        print(f"made the folder{s} " + "; ".join(f"{f} (for {why})" for f, why in now))
+
+
 def _inside(path: str, folder: str) -> bool:
     """``path`` (links resolved) is ``folder`` or lies in it."""
     p, f = os.path.realpath(path), os.path.realpath(folder)
@@ -262,6 +285,7 @@ COMMON = {
     "z_mm": (lambda v: abs(v) < float("inf"), "must be a finite number"),
     "stylus_r_mm": (lambda v: 0 <= v < float("inf"), "must be a finite number >= 0"),
     "drift_tau_s": (lambda v: 0 < v < float("inf"), "must be a finite number > 0"),
+    "time_scale": (lambda v: 0 < v < float("inf"), "must be a finite number > 0"),  # ('time scale nan: ...')
 }
 
 
@@ -277,6 +301,33 @@ def check_common_options(args) -> None:
         v = getattr(args, name, None)
         if isinstance(v, (int, float)) and not isinstance(v, bool) and not ok(v):
             raise ConfigError(f"{FLAGS.get(name, '--' + name.replace('_', '-'))} {rule}, got {v:g}")
+
+
+@contextlib.contextmanager
+def about_file(path, detail: str = ""):
+    """Errors of the work done on the input ``path`` inside this block name the file.
+
+    The library's estimators speak of their data (``sphere fit: points are coplanar``, ``rank
+    deficient by 31``), not of the file it came from; a :class:`~core.exceptions.VmtError` whose
+    message does not already name ``path`` is raised again, the same class, as ``PATH: message``
+    (``PATH (detail): message`` when ``detail`` says which part of it, e.g. ``--feature sphere1``).
+    A message that starts with an option (``--wcs 'G99': expected ...``) is of that option, not of
+    the file: it is left as it is.
+    """
+    from core.exceptions import VmtError
+
+    try:
+        yield
+    except VmtError as e:
+        msg = str(e)
+        if str(path) in msg or msg.startswith("--"):
+            raise
+        head = f"{path} ({detail})" if detail else str(path)
+        try:
+            again = type(e)(f"{head}: {msg}")
+        except TypeError:       # a subclass with another constructor: the root class says it as well
+            again = VmtError(f"{head}: {msg}")
+        raise again from None
 
 
 def os_error_line(e: OSError) -> str:
@@ -322,11 +373,13 @@ def run_command(args) -> int:
             report = folders.get("report")
             if report:
                 check_report_folder(report, {**inputs, **others}, {**files, **folders}, args.command)
+            made = folders_to_make(files, folders, args.command)
             outputs = RunOutputs(list(files.values()) + list(folders.values()))
             # an output on our own stdout (--out /dev/stdout): the command's messages go to stderr
             said_to = sys.stderr if any(own_descriptor(p) == 1 for p in files.values()) else None
             with contextlib.redirect_stdout(said_to) if said_to else contextlib.nullcontext():
                 rc = int(args.func(args) or 0)
+                say_made(made)
             sys.stdout.flush()
             outputs.commit()
             return rc

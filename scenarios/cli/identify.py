@@ -20,9 +20,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from viz.progress import TerminalProgress
+    from scenarios.cli.guard import progress_line
 
-    with TerminalProgress("identify") as bar:
+    with progress_line("identify") as bar:
         return _run(args, bar)
 
 
@@ -48,7 +48,11 @@ def _run(args, bar) -> int:
     planar = abs(log.col("nz")) <= 0.01
     t = from_log(log.select(planar))
     if not planar.all():
-        print(f"{args.log}: {int((~planar & log.ok).sum())} touches with normals out of the XY plane left out")
+        bar.clear()     # the line said goes on a line of its own, not after the progress line
+        from core.exceptions import counted
+
+        print(f"{args.log}: {counted(int((~planar & log.ok).sum()), 'touch')} with normals out of the XY plane "
+              "left out")
     del log, planar  # the touches hold what the identification needs: the log's memory goes before it
     grid = parse_grid(args.grid_mm, t.pn_R)
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
@@ -60,17 +64,21 @@ def _run(args, bar) -> int:
     if args.mc < 0:
         raise ConfigError(f"--mc must be >= 0, got {args.mc}")
     bar(1, steps)
-    res = self_calibrate(t, grid, dL, sigma_m=sigma, yaw=yaw)
-    bar(2, steps)
-    mc = None
-    if args.mc and res.sigma_m > 0:
-        mc = monte_carlo_touches(t, grid, res.sigma_m, runs=args.mc, rng=np.random.default_rng(args.seed or 0),
-                                 delta_L_m=dL, yaw=yaw)
-        bar(3, steps)
+    from scenarios.cli.guard import about_file
+
+    with about_file(args.log):  # 'rank deficient by 31', 'eq 6 needs ...': of this log's design
+        res = self_calibrate(t, grid, dL, sigma_m=sigma, yaw=yaw)
+        bar(2, steps)
+        mc = None
+        if args.mc and res.sigma_m > 0:
+            mc = monte_carlo_touches(t, grid, res.sigma_m, runs=args.mc,
+                                     rng=np.random.default_rng(args.seed or 0), delta_L_m=dL, yaw=yaw)
+            bar(3, steps)
     from core.atomic import write_json_atomic
 
     out = write_json_atomic(args.json, res.to_report(mc), special=True)
     bar(steps, steps)
+    bar.close()         # the report's lines below the finished progress line, not on it
     G = res.G
     print(f"{args.log}: {res.n_touches} touches, {len(G)} targets, {len(res.design.setup_ids)} C angles;"
           f" residual RMS {res.rms_m * 1e6:.3f} um; workpiece {G.min() * 1e6:+.2f}..{G.max() * 1e6:+.2f} um;"

@@ -45,7 +45,9 @@ def run(args) -> int:
     ok = int(log.ok.sum())
     from scenarios.cli.guard import said
 
-    print(f"{said(args.out)}: {log.n} touches ({ok} ok) from {args.kind} {args.file}")
+    from core.exceptions import counted
+
+    print(f"{said(args.out)}: {counted(log.n, 'touch')} ({ok} ok) from {args.kind} {args.file}")
     if "probe_file_rows" in log.meta:
         print(f"note: the probe file has {log.meta['probe_file_rows']}")
     if plan is None:

@@ -147,7 +147,9 @@ def run_serve(args) -> int:
         tcp.stop()
         if ptys is not None:
             ptys.stop()
-    print(f"vmt machine: stopped after {emu.probes} probing moves", flush=True)
+    from core.exceptions import counted
+
+    print(f"vmt machine: stopped after {counted(emu.probes, 'probing move')}", flush=True)
     return 0
 
 
@@ -169,9 +171,14 @@ def run_program(args) -> int:
             raise ConfigError("--machine and --limits-mm: give one (the machine's strokes are its limits)")
         st = truth_machine(args.machine).config.strokes
         settings = replace(settings, limits_mm=tuple((lo * 1e3, hi * 1e3) for lo, hi in (st[a] for a in "XYZ")))
-    text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs)
+    from scenarios.cli.guard import about_file
+
+    with about_file(args.plan):     # 'row 23 (target ...): approach ... is outside the soft limits': of this plan
+        text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs)
     out = write_text_atomic(args.out, text, special=True)
-    print(f"{out}: LinuxCNC program, {plan.n} touches, probe file {args.probe_file}")
+    from core.exceptions import counted
+
+    print(f"{out}: LinuxCNC program, {counted(plan.n, 'touch')}, probe file {args.probe_file}")
     return 0
 
 

@@ -38,5 +38,7 @@ def run_grid(args) -> int:
     plan = grid_plan(_range(args.x_mm, "--x-mm"), _range(args.y_mm, "--y-mm"), args.z_mm,
                      stylus_r_mm=args.stylus_r_mm, serpentine=not args.no_serpentine)
     write_probe_log(args.out, plan, special=True)
-    print(f"{args.out}: {plan.meta['plan']} ({plan.n} touches)")
+    from core.exceptions import counted
+
+    print(f"{args.out}: {plan.meta['plan']} ({counted(plan.n, 'touch')})")
     return 0

@@ -56,9 +56,11 @@ def run(args) -> int:
     _check_before_connecting(steps, args)
     res = _probe(plan, settings, args)
     new = res.rows_done - res.rows_before
-    extra = f", cut a torn last line ({res.torn_bytes} bytes)" if res.torn_bytes else ""
+    from core.exceptions import counted
+
+    extra = f", cut a torn last line ({counted(res.torn_bytes, 'byte')})" if res.torn_bytes else ""
     st = ", ".join(f"{k}: {v}" for k, v in sorted(res.statuses.items())) or "none"
-    print(f"{args.out}: {res.rows_done} of {res.rows_total} touches "
+    print(f"{args.out}: {res.rows_done} of {counted(res.rows_total, 'touch')} "
           f"({new} new, {res.rows_before} before{extra}; the new ones: {st})")
     return 0
 

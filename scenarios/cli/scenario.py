@@ -6,6 +6,8 @@ adding one entry (the lead adds the cross-pocket scenarios here).
 
 from __future__ import annotations
 
+from scenarios.cli.guard import said
+
 
 def _mfb(args) -> int:
     from scenarios.mfb import closed_loop, run
@@ -88,6 +90,7 @@ def _mfb(args) -> int:
         from core.atomic import write_json_atomic
 
         write_json_atomic(args.json, d, special=True)
+        print(f"wrote {said(args.json)}")
     return 0
 
 
@@ -143,6 +146,7 @@ def _cross_pocket_uncertainty(args) -> int:
         print(f"figures ({', '.join(figs)}) -> {args.report}")
     if args.json:
         write_json_atomic(args.json, r, special=True)
+        print(f"wrote {said(args.json)}")
     return 0
 
 
@@ -164,6 +168,7 @@ def _pin_circle(args) -> int:
         print(f"report (index.html, fig17) -> {pin_figure(Path(args.report), r).parent}")
     if args.json:
         write_json_atomic(args.json, r, special=True)
+        print(f"wrote {said(args.json)}")
     return 0
 
 

@@ -88,7 +88,16 @@ def test_linuxcnc_probe_file_both_widths(tmp_path, plan_path, measured, width, c
     ("G1 X1 Y2 Z3\n1 2 3\n", "line 2: G-code words and bare numbers mixed"),
     ("G1 X1 Y2\n", "line 1: no Z word"),
     ("G1 X1 Y2 Z3 X4\n", "line 1: two X words"),
-    ("probe 1 2 3\n", "line 1: 'probe' is not a G-code word"),
+    ("G1 X1 Y2 Z3\nprobe 1 2 3\n", "line 2: 'probe' is not a G-code word"),
+    # a file of another kind: named as not a probe file, with what was expected (it said "line 1:
+    # 'probe' is not a G-code word", and of a CSV table "'a,b,c' is not a G-code word")
+    ("probe 1 2 3\n", "not a LinuxCNC probe file: line 1 is 'probe 1 2 3'; expected a PROBEOPEN file"),
+    ("a,b,c\n1,2,3\n", "not a LinuxCNC probe file: line 1 is 'a,b,c'; expected a PROBEOPEN file (3 or 9 "
+                        "numbers a line: X Y Z [A B C U V W]) or a LOGOPEN file (lines like 'G1 X1.0 Y2.0 Z-0.5')"),
+    ("1,2,3\n", "not a LinuxCNC probe file: line 1 is '1,2,3'"),
+    ("# format: probe-log/1\nsetup,target\n", "a probe-log/1 file (vmt's own log), not a LinuxCNC probe file"),
+    ("%\n(PROBEOPEN p.txt)\nG38.2 Z-10 F100\n", "a part program (it probes: G38.2), not the probe file it writes"),
+    ("G1 X1 Y2 Z3\ng38.3 z-5\n", "a part program (it probes: g38.3)"),
 ])
 def test_linuxcnc_bad_probe_file_one_line_exit_2(tmp_path, plan_path, capsys, body, msg):
     pf = tmp_path / "probe.txt"
@@ -145,6 +154,7 @@ def test_transcript_formats_misses_and_status_queries(tmp_path):
     (["5.0 < [PRB:1,2,3:1]", "[PRB:1,2,3:1]"], "line 2: probe report without a timestamp"),
     (["5.0 < [PRB:1,2,3:1]", "4.0 < [PRB:1,2,3:1]"], "line 2: time goes backwards"),
     (["ok", "<Idle|MPos:0,0,0>"], "no probe reports"),
+    (["a,b,c", "1,2,3"], "no probe reports ([PRB:...]) in it: not a GRBL session transcript"),  # a CSV table
     (["[PRB:1,2,3:1]"] * 3, "3 probe reports but the plan"),
 ])
 def test_bad_transcript_one_line_exit_2(tmp_path, capsys, lines, msg):

@@ -165,7 +165,7 @@ def test_check_reports_repeated_touches_and_a_possibly_torn_end(files, capsys):
     dup.write_text(text + text.splitlines()[-1].replace(",2,3,", ",3,3,", 1))   # no end of line
     assert main(["check", str(dup)]) == 0
     out = capsys.readouterr().out
-    assert "repeated 1 touches repeat an earlier (setup, target) (1 pairs, e.g. b/1 x2)" in out
+    assert "repeated 1 touch repeats an earlier (setup, target) (1 pair, e.g. b/1 x2)" in out
     assert "warning  " in out and "may be cut short" in out
     assert main(["check", str(dup), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
@@ -381,7 +381,7 @@ def test_report_into_a_folder_of_the_users_files_is_refused_before_the_run(files
     (mine / "notes.txt").write_text("mine")
     j = files["dir"] / "s.json"
     assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(mine)]) == 2
-    one_line(capsys, f"vmt iso230-2: error: --report {mine}: exists and holds 1 entries but no report of vmt")
+    one_line(capsys, f"vmt iso230-2: error: --report {mine}: exists and holds 1 entry but no report of vmt")
     assert (mine / "notes.txt").read_text() == "mine" and not j.exists()
     assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(files["dir"] / "new")]) == 0
     assert main(["iso230-2", str(sample), "--json", str(j), "--report", str(files["dir"] / "new")]) == 0  # replaced
@@ -434,7 +434,7 @@ def test_a_users_file_in_an_earlier_report_is_never_swept_away(files, capsys):
 def test_an_output_inside_the_report_folder_is_refused_before_the_run(files, capsys, opt, name, earlier):
     """Reviewer's cases c) and d): '--json rep/inner.json --report rep' said 'wrote rep/inner.json'
     (exit 0) but the report then replaced rep/ whole, the file gone; with rep/ new, the run went to
-    its end and then said 'holds 1 entries but no index.html' (exit 2). Now refused before any work."""
+    its end and then said 'holds 1 entries' (sic) 'but no index.html' (exit 2). Now refused before any work."""
     rep, j = files["dir"] / "rep", files["dir"] / "j.json"
     if earlier:
         assert main(["iso230-2", str(_sample()), "--json", str(j), "--report", str(rep)]) == 0
@@ -556,5 +556,5 @@ def test_pin_circle_report_is_a_report_folder_like_every_other(files, capsys):
     mine.mkdir()
     (mine / "notes.txt").write_text("mine")
     assert main(["scenario", "pin-circle", "--report", str(mine)]) == 2
-    one_line(capsys, f"vmt scenario: error: --report {mine}: exists and holds 1 entries but no report of vmt")
+    one_line(capsys, f"vmt scenario: error: --report {mine}: exists and holds 1 entry but no report of vmt")
     assert sorted(p.name for p in mine.iterdir()) == ["notes.txt"]

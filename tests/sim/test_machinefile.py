@@ -129,7 +129,7 @@ BAD = [
     ('base = "vmc-3axis"\n[error.EC0Y]\nslope_urad_per_m = 1\n', "error.EC0Y.slope_urad_per_m: EC0Y is a location error"),
     ('base = "vmc-3axis"\n[error.EXX]\ntable_mm = [0, 1]\ntable_um = [0, 1]\n', "error.EXX.interpolation: missing"),
     ('base = "vmc-3axis"\n[error.EXX]\ntable_mm = [0, 1]\ntable_um = [0]\ninterpolation = "cubic"\n',
-     "error.EXX.table_um: 1 values for 2 positions"),
+     "error.EXX.table_um: 1 value for 2 positions"),
     ('base = "vmc-3axis"\n[error.EXX]\ntable_mm = [1, 0]\ntable_um = [0, 1]\ninterpolation = "cubic"\n',
      "error.EXX.table_mm: positions must be strictly increasing"),
     ('base = "vmc-3axis"\n[error.EXX]\ntable_mm = [0, 1]\ntable_um = [0, 1]\ninterpolation = "akima"\n',

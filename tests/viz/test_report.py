@@ -97,7 +97,7 @@ def test_a_folder_of_other_files_or_the_working_folder_is_never_replaced(tmp_pat
     mine = tmp_path / "results"
     mine.mkdir()
     (mine / "notes.txt").write_text("mine")
-    with pytest.raises(ConfigError, match="holds 1 entries but no report of vmt"):
+    with pytest.raises(ConfigError, match="holds 1 entry but no report of vmt"):
         write_report(mine, "x", [])
     assert (mine / "notes.txt").read_text() == "mine" and not (mine / "index.html").exists()
     (tmp_path / "empty").mkdir()
