@@ -268,7 +268,7 @@ from .diagnosis import (IN_SPAN, CvGap, close_pair_scatter, cv_gap, diagnose, fm
                         nested_f_batch, new_basis, nested_f_trials, orth, release_projections, replicate_scatter, StepTrials, straddled_groups, take_rows,
                         term_bases, tied, trials_take,
                         extends, _batch_tests, _first_largest, _nested_f_ss)
-from .exceptions import ConfigError, IdentifiabilityError
+from .exceptions import ConfigError, IdentifiabilityError, counted
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .memo import Memo, kept_on
 from .touches import Touches
@@ -2658,8 +2658,8 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
                        yaw=selfcal.yaw_for_chain(chain), extra=extra)
     del t, extra  # (the baseline holds what the search reads: the caller's touches can go, core.baseline.planar_data)
     if left_out:
-        bl = _with_convention(bl, f"{left_out} touches with normals out of the XY plane left out of the planar "
-                                  "baseline")
+        bl = _with_convention(bl, f"{counted(left_out, 'touch')} with normals out of the XY plane left out of "
+                                  "the planar baseline")
     return discover_baseline(bl, settings=settings, rng=rng, progress=progress)
 
 

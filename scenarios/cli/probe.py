@@ -52,7 +52,11 @@ def run(args) -> int:
     steps = plan_steps(plan, settings)
     if args.dry_run:
         return _dry_run(steps, settings, args)
-    check_program(steps, settings)          # before connecting, before any motion
+    # before connecting, before any motion; the rotary axes as the run will command them (a controller's with
+    # --rotary, the in-process virtual machine's wherever the plan turns: hardware.campaign.run_campaign)
+    rotary = args.rotary or (args.controller.startswith("virtual")
+                             and any(bool((s.rot_deg != 0).any()) for s in steps))
+    check_program(steps, settings, rotary=rotary)
     _check_before_connecting(steps, args)
     res = _probe(plan, settings, args)
     new = res.rows_done - res.rows_before
@@ -69,7 +73,7 @@ def _dry_run(steps, settings, args) -> int:
     """``--dry-run``: check the program (limits optional) and print it."""
     from hardware.campaign import check_program, program_lines
 
-    check_program(steps, settings, require_limits=False)
+    check_program(steps, settings, require_limits=False, rotary=args.rotary)
     if settings.limits_mm is None:
         _warn("no --limits-mm: a live run will refuse to start")
     rotary_axes = "ABC"

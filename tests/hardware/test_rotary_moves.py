@@ -278,3 +278,15 @@ def test_safe_z_below_an_approach_start_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "above the safe Z" in err and "Traceback" not in err
     assert not (tmp_path / "p.ngc").exists()
+
+
+def test_rotary_probe_without_safe_z_is_refused_before_connecting(tmp_path, capsys):
+    """`vmt probe --rotary` with no safe Z is refused before the controller is reached: port 9 on loopback
+    (discard: nothing listens here) would fail to connect if the check came after."""
+    p = write_probe_log(tmp_path / "plan.csv", rotary_plan())
+    capsys.readouterr()
+    assert main(["probe", "--controller", "grbl://127.0.0.1:9", "--plan", str(p), "--out", str(tmp_path / "l.csv"),
+                 "--limits-mm", LIMITS, "--rotary"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--safe-z-mm" in err and "connect" not in err.lower()
+    assert not (tmp_path / "l.csv").exists()
