@@ -1338,9 +1338,12 @@ def coverage_factor(dof: int, p: float = 0.95) -> float:
     ``t_{(1+p)/2, dof}`` (2.57 at 5 dof, 2.04 at 30, 1.96 at infinity), not 2.
     NaN when ``dof < 1``.
     """
-    from scipy.stats import t as student_t
+    # scipy.special's inverse of Student's t CDF: scipy.stats.t.ppf's value (it calls the same function; equal in
+    # every double for dof 1..2000, 1e4, 1e6, 1e9 at p 0.5, 0.6827, 0.95, 0.99), without importing scipy.stats
+    # (0.5 s of `vmt fit`'s 0.7 s of CPU on a 5,000-row log)
+    from scipy.special import stdtrit
 
-    return float(student_t.ppf(0.5 + p / 2.0, dof)) if dof >= 1 else float("nan")
+    return float(stdtrit(dof, 0.5 + p / 2.0)) if dof >= 1 else float("nan")
 
 
 def u95(fit) -> dict:
