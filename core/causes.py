@@ -129,6 +129,14 @@ class Scan:
     build_sparse : callable(idx) -> core.diagnosis.SparseTrials, optional
         ``build``'s trials kept sparse (the same values), for a long log's
         test of a trial (``core.discover._evaluate``).
+    path_at : callable(values) -> (len(values), n, k), optional
+        A path scan's columns at any values of its continuous parameter (the
+        periodic scan: frequencies, 1/m), for a long log's path length
+        estimated from the path's speed at a sample of values
+        (``core.discover._arc_path``).
+    path_range : (float, float), optional
+        The parameter's range the engine can reach (the scan's, widened by
+        the refinement's one step either side), with ``path_at``.
     """
 
     labels: tuple
@@ -138,6 +146,8 @@ class Scan:
     score: Callable | None = field(default=None, repr=False)
     path: bool = False
     build_sparse: Callable | None = field(default=None, repr=False)
+    path_at: Callable | None = field(default=None, repr=False)
+    path_range: tuple | None = None
 
     @property
     def size(self) -> int:
@@ -720,7 +730,12 @@ def periodic_scans(bl):
                           tuple({"axis": ax, "period_m": float(p), "nyquist_m": p_lo, **step} for p in P),
                           "xy"[axis],
                           lambda idx, axis=axis, P=P: _periodic_cols(d, axis, P[np.asarray(idx)]), score,
-                          path=PERIODIC_PATH))
+                          path=PERIODIC_PATH,
+                          # (any frequency's columns, over the scan's range and the refinement's one step either
+                          # side: discover._refine searches f0 +- a scan step)
+                          path_at=lambda fq, axis=axis: _periodic_cols(d, axis, 1 / np.asarray(fq, float)),
+                          path_range=(float(max(f[0] - (f[1] - f[0] if len(f) > 1 else 0.0), 1e-12)),
+                                      float(f[-1] + (f[1] - f[0] if len(f) > 1 else 0.0)))))
     return scans, tries
 
 
