@@ -3700,7 +3700,7 @@ def _path_tries(scans, st: _State, level: float) -> float:
     parameter (:attr:`core.causes.Scan.path_at`: the periodic scan) has its length estimated instead
     (:func:`_arc_path`: the integral of the path's speed over the range the refinement reaches, from
     :data:`PATH_ARC_SAMPLES` values, plus :data:`PATH_ARC_Z` standard errors; at least the trial-by-trial
-    sum but for the estimate's error): 64 trials projected instead of the scan's 8,192 (session 25).
+    sum but for the estimate's error): 64 trials a scan projected instead of its 4,096 (session 25).
     """
     rows = st.rows
     Vs, ks = [], []
