@@ -134,6 +134,14 @@ class Scan:
         layout ``np.transpose(build(idx), (1, 0, 2))`` copied would have
         (the path count's ``Q^T C`` takes every trial's columns side by
         side, ``core.discover._path_parts``: no transposed copy).
+    path_at : callable(values) -> (len(values), n, k), optional
+        A path scan's columns at any values of its continuous parameter (the
+        periodic scan: frequencies, 1/m), for a long log's path length
+        estimated from the path's speed at a sample of values
+        (``core.discover._arc_path``).
+    path_range : (float, float), optional
+        The parameter's range the engine can reach (the scan's, widened by
+        the refinement's one step either side), with ``path_at``.
     """
 
     labels: tuple
@@ -144,6 +152,8 @@ class Scan:
     path: bool = False
     build_sparse: Callable | None = field(default=None, repr=False)
     build_rows: Callable | None = field(default=None, repr=False)
+    path_at: Callable | None = field(default=None, repr=False)
+    path_range: tuple | None = None
 
     @property
     def size(self) -> int:
@@ -758,7 +768,12 @@ def periodic_scans(bl):
                           "xy"[axis],
                           lambda idx, axis=axis, P=P: _periodic_cols(d, axis, P[np.asarray(idx)]), score,
                           path=PERIODIC_PATH,
-                          build_rows=lambda idx, axis=axis, P=P: _periodic_cols_rows(d, axis, P[np.asarray(idx)])))
+                          build_rows=lambda idx, axis=axis, P=P: _periodic_cols_rows(d, axis, P[np.asarray(idx)]),
+                          # (any frequency's columns, over the scan's range and the refinement's one step either
+                          # side: discover._refine searches f0 +- a scan step)
+                          path_at=lambda fq, axis=axis: _periodic_cols(d, axis, 1 / np.asarray(fq, float)),
+                          path_range=(float(max(f[0] - (f[1] - f[0] if len(f) > 1 else 0.0), 1e-12)),
+                                      float(f[-1] + (f[1] - f[0] if len(f) > 1 else 0.0)))))
     return scans, tries
 
 

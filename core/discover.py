@@ -3713,7 +3713,11 @@ def _path_tries(scans, st: _State, level: float) -> float:
     one single-trial p-value per scan. Cost: every trial's column projected once, in blocks of
     :data:`PATH_CHUNK` trials (fewer on a long log, :data:`PATH_BLOCK_BYTES`: the same angles summed
     in other groups); the engine asks for it only where the scan's own count finds the candidate
-    significant.
+    significant. Beyond :data:`PATH_ARC_ROWS` rows a scan that builds its columns at any value of its
+    parameter (:attr:`core.causes.Scan.path_at`: the periodic scan) has its length estimated instead
+    (:func:`_arc_path`: the integral of the path's speed over the range the refinement reaches, from
+    :data:`PATH_ARC_SAMPLES` values, plus :data:`PATH_ARC_Z` standard errors; at least the trial-by-trial
+    sum but for the estimate's error): 64 trials a scan projected instead of its 4,096 (session 25).
     """
     rows = st.rows
     Vs, ks = [], []
@@ -3725,7 +3729,10 @@ def _path_tries(scans, st: _State, level: float) -> float:
                     // max(8 * k * len(rows), 1))
         V, Vm = 0.0, {}  # (k = 1: the length; k > 1: the lengths by the steps' dimension beside the model)
         whole = k > 1 and chunk >= sc.size  # the whole scan one block: its model-free parts kept for the next model
-        if whole:
+        arc = k > 1 and sc.path_at is not None and sc.path_range is not None and len(rows) > PATH_ARC_ROWS
+        if arc:  # a long log: the length from the path's speed at a sample of its parameter's values
+            Vm, whole = _arc_path(sc, st, chunk), True
+        elif whole:
             parts = _path_parts(sc, rows)
             Vm = _subspace_path_of(parts, st, _path_product(sc, parts, st.Q)) if parts is not None else {}
         for a in () if whole else range(0, sc.size, chunk):  # each block from the previous block's last trial
@@ -3764,6 +3771,78 @@ def _path_tries(scans, st: _State, level: float) -> float:
     if excess(lo) <= 0:  # no length: one trial per scan
         return float(ns)
     return float(level / np.exp(optimize.brentq(excess, hi, lo, xtol=1e-6)))
+
+
+#: Rows beyond which a path scan that can build its columns at any value of its parameter (:attr:`Scan.path_at`:
+#: the periodic scan) has its path's length estimated by :func:`_arc_path` instead of summed trial by trial: every
+#: stored campaign is far below (hundreds to a few thousand rows); the bench's 1e5- and 1e6-row logs above, where the
+#: trial-by-trial sum projects every trial out of the model (about 30 min of CPU at 1e6 rows; docs/discovery.md,
+#: "Session 25: the periodic path count on long logs").
+PATH_ARC_ROWS = 50_000
+#: Strata of :func:`_arc_path`'s estimate (one value of the parameter drawn in each, evenly sized; even, paired for
+#: the variance).
+PATH_ARC_SAMPLES = 32
+#: Standard errors :func:`_arc_path` adds to its estimate (one-sided): the length counted is the estimate's upper
+#: bound at about 99.9 % (normal), so that the count is the trial-by-trial one's or more.
+PATH_ARC_Z = 3.0
+#: :func:`_arc_path`'s difference step, as a share of the scan's own step: the chord over it is the speed times
+#: the step to about ``(speed step)^2 / 24`` relative (a share 1e-3 of a fine step: a chord of about 6e-4 rad).
+PATH_ARC_H = 1e-3
+#: Seed of :func:`_arc_path`'s draws (fixed: a report is reproducible).
+PATH_ARC_SEED = 20251205
+
+
+def _arc_path(sc, st: _State, chunk: int) -> dict:
+    """Length of a path scan's path beside the model ``st.Q`` estimated from its speed at a sample of values.
+
+    The path :func:`_path_tries` sums trial by trial is the chord sum of a
+    continuous path: the span of the columns :attr:`Scan.path_at` builds at
+    each value ``f`` of the parameter, beside the model. Its length over
+    the range the engine can reach (:attr:`Scan.path_range`: the scan's,
+    widened by the refinement's one step either side) is the integral of
+    its speed, ``|d gamma / d f|``, which is at least every chord sum over
+    the same range (a chord is never longer than its arc), so the count it
+    gives is the trial-by-trial one's or more and bounds the continuous
+    scan the refinement searches. The range is cut into
+    :data:`PATH_ARC_SAMPLES` equal strata and one value drawn in each
+    (:data:`PATH_ARC_SEED`); the speed there is the step between the spans
+    at ``f -+ h / 2`` over ``h`` (:func:`_subspace_steps`, ``h`` a share
+    :data:`PATH_ARC_H` of the scan's step); the strata's speeds times
+    their width sum to an unbiased estimate, whose variance is estimated
+    from the strata in adjacent pairs (the collapsed-strata estimator,
+    biased up), and the length counted is the estimate plus
+    :data:`PATH_ARC_Z` standard errors, booked per dimension ``m`` of the
+    spans as the samples are. Cost: ``2 PATH_ARC_SAMPLES`` trials
+    projected out of the model, whatever the scan's size, ``chunk`` pairs'
+    worth of trials at a time (at least one pair).
+    """
+    a, b = sc.path_range
+    S = PATH_ARC_SAMPLES
+    w = (b - a) / S
+    f = a + w * (np.arange(S) + np.random.default_rng(PATH_ARC_SEED).random(S))
+    speed, dims = _arc_speeds(sc, st, f, PATH_ARC_H * (b - a) / max(sc.size, 1), chunk)
+    est = w * speed
+    V = float(np.sum(est))
+    se = float(np.sqrt(np.sum((est[0::2] - est[1::2]) ** 2))) if S > 1 else V
+    grow = 1.0 + PATH_ARC_Z * se / V if V > 0 else 1.0
+    return {int(d): float(np.sum(est[dims == d])) * grow for d in np.unique(dims) if d > 0}
+
+
+def _arc_speeds(sc, st: _State, f: np.ndarray, h: float, chunk: int) -> tuple:
+    """(speed, m): the speed of a path scan's path beside the model at the values ``f`` of its parameter, the step
+    between the spans at ``f -+ h / 2`` over ``h`` (:func:`_subspace_steps`), and the dimension of those spans;
+    ``chunk`` trials' worth built at a time (at least one pair)."""
+    S = len(f)
+    vals = np.column_stack([f - h / 2, f + h / 2]).ravel()
+    per = max(1, chunk // 2)  # pairs a block
+    speed, dims = np.empty(S), np.empty(S, int)
+    for j in range(0, S, per):
+        C = take_rows(sc.path_at(vals[2 * j:2 * min(j + per, S)]), st.rows, 1)
+        parts = _subspace_parts(C)
+        step, m = _subspace_steps(parts, st)
+        speed[j:j + per], dims[j:j + per] = step[0::2] / h, m[0::2]
+        del C, parts
+    return speed, dims
 
 
 def _chi2_upcrossing_rate(u: float, k: int) -> float:
@@ -3842,6 +3921,13 @@ def _subspace_parts_rows(R: np.ndarray):
 def _subspace_path_of(parts, st: _State, QtC: np.ndarray | None = None) -> dict:
     """:func:`_subspace_path` from :func:`_subspace_parts` beside the model ``st.Q`` (only ``Q^T C`` is the model's;
     ``QtC``: that product when made already, :func:`_path_product`)."""
+    step, m = _subspace_steps(parts, st, QtC)
+    return {int(d): float(np.sum(step[m == d])) for d in np.unique(m) if d > 0}
+
+
+def _subspace_steps(parts, st: _State, QtC: np.ndarray | None = None) -> tuple:
+    """(step, m): each consecutive pair of trials' step and the dimension it is booked to (:func:`_subspace_path`;
+    ``QtC`` as :func:`_subspace_path_of`)."""
     Ct, G0, X0 = parts
     T, k = G0.shape[0], G0.shape[1]
     QtC = np.asarray(st.Q.T @ Ct) if QtC is None else QtC
@@ -3861,7 +3947,7 @@ def _subspace_path_of(parts, st: _State, QtC: np.ndarray | None = None) -> dict:
     m = np.minimum(ok[:-1].sum(1), ok[1:].sum(1))  # the angles the two spans have
     th = np.where(np.arange(k)[None, :] < m[:, None], np.arccos(np.clip(cos, 0.0, 1.0)), 0.0)
     step = np.sqrt(np.sum(th ** 2, axis=1) / np.maximum(m, 1))
-    return {int(d): float(np.sum(step[m == d])) for d in np.unique(m) if d > 0}
+    return step, m
 
 
 #: Bytes of scans' model-free path parts (:func:`_path_parts`: the trials' columns on the rows, ``C^T C`` and the
