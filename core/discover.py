@@ -7402,7 +7402,10 @@ def _turned_outliers_unexplained(findings: list, settings, sigma_um: float) -> l
 #: fit, and the named cause a small share of them (:func:`_doubt_beside_turned_outliers` already makes it
 #: ambiguous); the report reads the larger structure. gen_a reseat_hysteresis 6300 (blind check of session 24,
 #: `stylus_bending?` explaining 1.73 um^2 beside 13 turned outliers carrying 154 um^2, centred turn p = 1e-5),
-#: session 25. False: the named cause keeps the lead, ambiguous (sessions 16-24).
+#: session 25. Measured (docs/discovery.md, "Session 25"): gen_a reseat_hysteresis 1047, 1146, 1279 `stylus_bending?`,
+#: `local_scale_defect?` -> `unexplained` on the tuning seeds, nothing else moved on gen_a/gen_b every effect
+#: 1000-1099, reseat and none 1100-1299, the simulator's none, outlier and lobing sets. False: the named cause keeps
+#: the lead, ambiguous (sessions 16-24).
 NAMED_BESIDE_TURNED_OUTLIERS_UNEXPLAINED = True
 
 
@@ -7661,7 +7664,10 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
 #: judged with: gen_a reseat_hysteresis 6100 (session 24's blind check) read `none` beside a turn of the approach at
 #: p = 8e-14, 0.31 um against a materiality of 0.43 um from repeats of 1.43 um (true noise 0.41, the residuals'
 #: 0.70). Unlike :data:`REPEATS_BEYOND_FIT` (the whole selection at the residuals' floor: two re-seats read
-#: `c_drift?` there) it names nothing: it only turns `none` into `unexplained`. Session 25 (docs/discovery.md).
+#: `c_drift?` there) it names nothing: it only turns `none` into `unexplained`. Session 25 (docs/discovery.md):
+#: on the tuning seeds gen_a reseat 1000, 1022, 1140, 1206, 1209, 1280 and gen_b fixture_slip 1075, 1096 `none` ->
+#: `unexplained`, ten campaigns below visibility and gen_b c_drift 1187, 1220 (a miss either way) too; no
+#: effect-free campaign of gen_a, gen_b (500) or the simulator (100) moved.
 REPEATS_FLOOR_NONE_RECHECKED = True
 
 
