@@ -974,7 +974,9 @@ def test_a_named_cause_beside_turned_outliers_is_in_doubt(seed, cause):
     log, _ = importlib.import_module("scenarios.blind.gen_a").generate("reseat_hysteresis", seed)
     t = from_log(log)
     rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
-    first = rep["findings"][0]
+    # (1047's stylus_bending explains less than the turned outliers carry: session 25's
+    # NAMED_BESIDE_TURNED_OUTLIERS_UNEXPLAINED puts `unexplained` ahead of it, the cause second)
+    first = next(f for f in rep["findings"] if f["cause"] != "unexplained")
     assert first["cause"] == cause, first["cause"]
     assert first["evidence"]["confidence"] == "ambiguous", first["evidence"]
     assert "centred turn" in first["evidence"]["confidence_reason"], first["evidence"]["confidence_reason"]

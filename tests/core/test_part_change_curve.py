@@ -96,6 +96,10 @@ def test_curved_change_refused_where_the_others_move(monkeypatch, confined):
 
     monkeypatch.setattr(C, "PART_CHANGE_CURVE", True)
     monkeypatch.setattr(D, "PART_CHANGE_CURVE_CONFINED", confined)
+    # (the wrong turn pinned below is of the named cause's adoption: session 25's
+    # NAMED_BESIDE_TURNED_OUTLIERS_UNEXPLAINED, off here, would put `unexplained` ahead of it, the outliers beside
+    # it turned and carrying more than it explains)
+    monkeypatch.setattr(D, "NAMED_BESIDE_TURNED_OUTLIERS_UNEXPLAINED", False)
     f, rejected = _first_and_rejected("gen_a", "thermal_bending", 1138)
     if not confined:
         assert f["cause"] == "part_change" and f["params"]["feature"] == "bore1", f["cause"]
