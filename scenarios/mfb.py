@@ -113,7 +113,7 @@ plate; flat for the XZ anti-diagonal), presented by A and C in 13 set-ups,
 collisions and reach in the MuJoCo work zone (:func:`check_plan`,
 :mod:`sim.mfb_scene`); the rotary axes' errors are absorbed by each
 set-up's pose. Noise-free on the realistic machine (rotary axes' errors
-included): 0.041 um / 0.49 urad (EBY). At 0.125 um probing noise (seed 1):
+included): 0.041 um / 0.31 urad (EAX; session 25). At 0.125 um probing noise (seed 1):
 U95 max 0.73 um positioning, 1.6 um straightness; the twists: EAX U95 28.9
 urad on a 4.8 urad peak-to-peak signal (not resolved: on this tool-side
 chain a ramp of an angular error of X moves every bar along X rigidly, and
@@ -1306,6 +1306,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
                            cal_map=cal_map)
     doc["estimate"] = vol.estimate(res_g, cov_g)  # vmt-estimate/1
     doc["machine"] = cfg.name
+    if unseen := unseen_ripple(errs):
+        doc["u95_scope"] = unseen_ripple_note(unseen)
     if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
         doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
     doc["bar"] = _bar_doc(E_cal_O, u_cal, art.info["E_MFB_m"],
@@ -1383,6 +1385,33 @@ def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None)
             "errors": errors, "max_dev_um": dev_um, "max_dev_urad": dev_urad,
             "twists": _twists(errors) if plan.rotary else {},  # (TWIST_SENSING: the 5-axis plan's sensing)
             "injected_note": "truth at the nodes, expressed in the same ISO 230-1 conventions (gauge)"}
+
+
+def unseen_ripple(errs: dict, pitch_m: float = 0.050) -> list:
+    """The injected errors holding a periodic term shorter than twice the bar's pitch, ``[(symbol, period_m)]``.
+
+    No MFB plan sees such a ripple (module docstring): every hole samples it at one phase and the hole fit averages
+    it, so the nodes' tables carry it aliased and their U95 (the noise's, the placements', the calibration's) does
+    not cover it: on the ``realistic`` set's 10 mm screw ripple EXX's nodes fell within their U95 in 83 % of 1,600
+    (200 seeds; 94-95 % without the ripple), off by up to 0.42 um against a U95 of 0.66 um (session 25's review).
+    """
+    from sim.errorfuncs import Periodic, Sum
+
+    def periods(f):
+        if isinstance(f, Sum):  # (a sum of sums: a thermal ramp added to a profile, thermal_scales)
+            return [p for t in f.terms for p in periods(t)]
+        return [float(f.period)] if isinstance(f, Periodic) else []
+
+    return sorted({(sym, p) for sym, f in errs.items() for p in periods(f) if p < 2 * pitch_m})
+
+
+def unseen_ripple_note(unseen: list) -> str:
+    """One line for the report: which injected ripples the U95 leaves out, and why."""
+    per = sorted({p for _, p in unseen})
+    return (f"the U95 covers what the node tables can represent; the truth holds a ripple of "
+            f"{', '.join(f'{p * 1e3:g}' for p in per)} mm period in {', '.join(s for s, _ in unseen)}, shorter than "
+            f"twice the bar's 50 mm pitch: no MFB plan sees it, the tables carry it aliased beyond their U95 "
+            f"(--errors study leaves it out)")
 
 
 # --------------------------------------------------------------------------- closed loop

@@ -49,6 +49,8 @@ def _mfb(args) -> int:
         u = max(e.get("u95", [float("nan")]))
         print(f"{s:6s} {e['unit']:5s} {inj:14.3f} {e['max_dev']:15.4f} {u:9.3f}")
     print(f"max_dev_um {d['max_dev_um']:.4f}  max_dev_urad {d['max_dev_urad']:.4f}")
+    if d.get("u95_scope"):
+        print(f"note: {d['u95_scope']}")
     if d.get("twists"):
         from scenarios.mfb import describe_twists
 
