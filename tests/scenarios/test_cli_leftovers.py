@@ -12,7 +12,6 @@ import io
 import numpy as np
 import pytest
 
-from core.design import example_cross_pocket
 from core.probelog import make_log, write_probe_log
 from scenarios.cli import main
 
@@ -25,26 +24,12 @@ def one_error_line(capsys) -> str:
 
 # --------------------------------------------------------------------------- identify names its log
 
-def campaign(path, angles, rng, noise_m=0.3e-6):
-    """The cross-pocket's 92 targets at ``angles`` (deg), read off a machine with a squareness."""
-    w, wn, ids = example_cross_pocket()
-    cols = {k: [] for k in ("setup", "target", "t_s", "X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm",
-                            "nx", "ny", "nz", "C_deg", "wx_mm", "wy_mm", "wz_mm", "wnx", "wny", "wnz")}
-    t = 0.0
-    for c in angles:
-        a = -np.radians(c)
-        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-        for p, n, i in zip(w, wn, ids):
-            pn, nn = R @ p * 1e3, R @ n
-            dq = 20e-6 * pn[1] * nn[0] + rng.normal(0, noise_m * 1e3)     # mm
-            t += 1.0
-            for k, v in (("setup", f"C{c:g}"), ("target", i), ("t_s", t), ("X_mm", pn[0] + dq * nn[0]),
-                         ("Y_mm", pn[1] + dq * nn[1]), ("Z_mm", -3.0), ("Xn_mm", pn[0]), ("Yn_mm", pn[1]),
-                         ("Zn_mm", -3.0), ("nx", nn[0]), ("ny", nn[1]), ("nz", 0.0), ("C_deg", c),
-                         ("wx_mm", p[0] * 1e3), ("wy_mm", p[1] * 1e3), ("wz_mm", -3.0), ("wnx", n[0]),
-                         ("wny", n[1]), ("wnz", 0.0)):
-                cols[k].append(v)
-    return write_probe_log(path, make_log(cols, {"artefact": "cross-pocket", "stylus_r_mm": "3"}))
+def campaign(path, angles, rng):
+    """The cross-pocket's 92 targets at ``angles`` (deg), read off a machine with a squareness (the fuzz tests'
+    campaign, every target)."""
+    from test_fuzz_cli import campaign_log
+
+    return write_probe_log(path, campaign_log(rng, c_deg=tuple(float(c) for c in angles), every=1))
 
 
 @pytest.mark.parametrize("angles, grid, said", [
