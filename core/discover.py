@@ -78,7 +78,12 @@ What it does, in order, and the statistics behind each step
       without a name (a finer error map) leaves it named, ``ambiguous``.
 
    Among those, the lowest cross-validated mean square wins; within the
-   materiality margin of it, the fewest columns (parsimony); and a
+   materiality margin of it, the fewest columns (parsimony); a cause
+   whose form entered the round and lost it takes the round on another
+   of its significant forms that passes every test and predicts the
+   held-out set-up better than the winner by the materiality margin (each
+   cause enters by its trial of smallest p, in-sample, but the round is
+   decided held-out: :data:`ENTRANT_FORM_HELD_OUT`, session 25); and a
    candidate of the same covariate with fewer columns that is one
    explanation with the winner
    under another name (step 8's test: its columns reproduce the winner's
