@@ -4200,6 +4200,13 @@ def _may_be_plainer(tm: Term) -> bool:
 #: that passes every test and predicts the held-out set-up better than the round's winner by the materiality margin
 #: (:func:`_entrant_form_held_out`; session 25). False: each cause enters a round by its form of smallest p alone.
 ENTRANT_FORM_HELD_OUT = True
+#: Whether those other forms are only the cause's forms of the covariate its entrant form follows (True): another
+#: shape of the same dependence (a drift's quadratic over the campaign, its warm-ups), not another hypothesis under
+#: the cause's name (another axis of a periodic error or a scale defect, another feature's change), which the
+#: catalogue's count and p compare. Session 25: without it the rule also let a periodic error's X axis (held-out
+#: 1.27 um^2) take the round from part_change (8.87) where its Y axis had entered, on gen_a part_change 1009
+#: (part_change? -> periodic_axis_error?, the extended workpiece 0.54 -> 1.96 um, the baseline's 1.03).
+ENTRANT_FORM_SAME_COVARIATE = True
 
 
 def _entrant_form_held_out(best: dict, other_forms: list, passed: list, sigma: float, settings) -> dict:
@@ -4734,7 +4741,8 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
             res = [_judge_trial(cause, o, scans, tries, bl, st, folds, terms, cv_cur, sigma, settings, families,
                                 scan_tries)
                    for o in sorted((o for o in owns if o is not chosen and all(o is not j for j in judged)
-                                    and o.p * tries < settings.alpha_family),
+                                    and o.p * tries < settings.alpha_family
+                                    and (not ENTRANT_FORM_SAME_COVARIATE or o.scan.covariate == chosen.scan.covariate)),
                                    key=functools.cmp_to_key(lambda a, b: -1 if _better_trial(a, b, st.rss)
                                                             else (1 if _better_trial(b, a, st.rss) else 0)))]
             return [r for r in res if not r.get("reason")]
