@@ -4205,8 +4205,9 @@ ENTRANT_FORM_HELD_OUT = True
 #: the cause's name (another axis of a periodic error or a scale defect), which the catalogue's count and p compare.
 #: The covariate is the scan's: part_change's features all follow ``feature``, so another feature's change is among
 #: the forms (gen_a thermal_bending 1016: another wall takes round one, the report the same). Session 25: without
-#: it the rule also let a periodic error's X axis (held-out 1.27 um^2) take the round from part_change (8.87) where its Y axis had entered, on gen_a part_change 1009
-#: (part_change? -> periodic_axis_error?, the extended workpiece 0.54 -> 1.96 um, the baseline's 1.03).
+#: it the rule also let a periodic error's X axis (held-out 1.27 um^2) take the round from part_change (8.87) where
+#: its Y axis had entered, on gen_a part_change 1009 (part_change? -> periodic_axis_error?, the extended workpiece
+#: 0.54 -> 1.96 um, the baseline's 1.03).
 ENTRANT_FORM_SAME_COVARIATE = True
 
 
