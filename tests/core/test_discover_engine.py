@@ -850,6 +850,51 @@ def test_slip_veto_places_the_step_at_its_own_first_touch():
     assert not D._slip_explains(X, noise + chips, out, events, slips, 0.001, 0.0025)
 
 
+def test_slip_veto_asks_the_other_touches_where_the_step_fits_every_outlier_exactly(monkeypatch):
+    """core.discover._slip_explains where the step fixes its turn on the outliers themselves (session 25,
+    ``SLIP_UNJUDGED_BY_OTHERS``; gen_a knock 6109): three set-ups of 100 touches, each its own rigid placement
+    (two translations and a turn); set-up 1's touches 0-37 are turn-blind and along X only (like the bores and
+    bosses before 6109's knock), 38 and 39 generic, and the part steps from touch 40 by (0.5, 3, 2) along
+    (cos, sin, lever), noise 0.3. The set-up's placement takes the step's mean, so 138 and 139, the only touches
+    before it that see Y and the turn, are the outliers; beside the step they fit exactly (leverage 1): none is
+    judged, and before session 25 the step was refused unasked (dust). With the rule the set-up's other touches
+    decide: with 138 and 139 set aside they see the step's X part (F test at 0.0025 over the set-up's trials).
+    Chips of +-6 on the same two touches, no step: the other touches see nothing, dust either way."""
+    from core import discover as D
+    from core.diagnosis import StepTrials
+
+    rng = np.random.default_rng(7)
+    G, m = 3, 100
+    n = G * m
+    events = np.repeat(np.arange(G), m)
+    k = np.arange(n) % m
+    phi = rng.uniform(0, 2 * np.pi, n)
+    L = rng.normal(0, 1.0, n)
+    pre = (events == 1) & (k < 38)
+    phi[pre], L[pre] = 0.0, 0.0
+    M = np.column_stack([np.cos(phi), np.sin(phi), L])
+    X = np.hstack([M * (events == g)[:, None] for g in range(G)])
+    grid = np.unique(np.round(np.linspace(1, m - 1, 40)).astype(int))
+    slips = lambda: StepTrials(M, [(np.flatnonzero(events == g), grid) for g in range(G)])  # noqa: E731
+    noise = 0.3 * rng.normal(size=n)
+    moved = (events == 1) & (k >= 40)
+    y = noise + np.where(moved, M @ np.array([0.5, 3.0, 2.0]), 0.0)
+    out = D.find_outliers(X, y, 0.001, 0.05)
+    assert out == [138, 139], out
+    Q = np.linalg.qr(np.hstack([X, np.where(moved[:, None], M, 0.0)]))[0]
+    assert np.all(D.leverage(Q)[out] > 0.99)  # the step fits them exactly: the first condition judges none
+    assert D._slip_explains(X, y, out, events, slips, 0.001, 0.0025)
+    monkeypatch.setattr(D, "SLIP_UNJUDGED_BY_OTHERS", False)
+    assert not D._slip_explains(X, y, out, events, slips, 0.001, 0.0025)  # the rule before: dust
+    chips = np.zeros(n)
+    chips[[138, 139]] = [6.0, -6.0]
+    out = D.find_outliers(X, noise + chips, 0.001, 0.05)
+    assert out == [138, 139], out
+    for on in (False, True):
+        monkeypatch.setattr(D, "SLIP_UNJUDGED_BY_OTHERS", on)
+        assert not D._slip_explains(X, noise + chips, out, events, slips, 0.001, 0.0025)
+
+
 def test_exact_step_refines_a_long_setups_split_to_the_touch():
     """core.discover._exact_step on a set-up of 3,000 touches (40 quantile splits, one every 77 touches, then
     40 between the best's neighbours, then every touch): a noiseless step from touch 1,237 of random columns is
