@@ -286,11 +286,12 @@ COMMON = {
     "stylus_r_mm": (lambda v: 0 <= v < float("inf"), "must be a finite number >= 0"),
     "drift_tau_s": (lambda v: 0 < v < float("inf"), "must be a finite number > 0"),
     "time_scale": (lambda v: 0 < v < float("inf"), "must be a finite number > 0"),  # ('time scale nan: ...')
+    "timeout": (lambda v: 0 < v < float("inf"), "must be a finite number > 0"),  # (was checked after the plan's)
 }
 
 
 #: The option names of :data:`COMMON`'s entries whose ``args`` name is not the option's.
-FLAGS = {"dt": "--dt-s", "angles": "--n-angles"}
+FLAGS = {"dt": "--dt-s", "angles": "--n-angles", "timeout": "--timeout-s"}
 
 
 def check_common_options(args) -> None:

@@ -94,10 +94,8 @@ def _check_before_connecting(steps, args) -> None:
 
     import numpy as np
 
-    from core.exceptions import ConfigError, PlanError
+    from core.exceptions import PlanError
 
-    if not args.timeout > 0:
-        raise ConfigError(f"--timeout-s must be > 0, got {args.timeout:g}")
     if not args.rotary and not args.controller.startswith("virtual"):
         moving = [s for s in steps if np.any(s.rot_deg != 0)]
         if moving:
