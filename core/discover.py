@@ -2820,8 +2820,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if short is not None and short["used"]:
         sigma_rep = short["sigma_m"]
     elif sigma_rep is not None and REPEATS_BEYOND_FIT:
-        lof0 = lack_of_fit(st.rss, st.dof, rep)
-        if lof0 is not None and float(stats.f.cdf(lof0.F, lof0.dof, rep.dof)) < settings.alpha:
+        if _repeats_beyond_fit(st, rep, settings.alpha) is not None:
             sigma_rep = None  # the repeats scatter more than the whole fit leaves: not the probe's noise
 
     def noise_of(s: _State) -> tuple[float, str, int]:
@@ -2908,7 +2907,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     scans = {c.name: c.scans(bl) for c in catalogue}
     if bl.whiten is not None:  # every column the causes build goes through the baseline's whitening
         scans = {k: ([dataclasses.replace(sc, build=(lambda idx, b=sc.build: bl.whiten @ b(idx)), score=None,
-                                          build_sparse=None, build_rows=None) for sc in v[0]], v[1])
+                                          build_sparse=None, build_rows=None, path_at=None) for sc in v[0]],
+                                v[1])
                  for k, v in scans.items()}
     n_causes = max(sum(1 for c in catalogue if scans[c.name][0]), 1)
     rejected: list[dict] = []
@@ -7517,9 +7517,12 @@ def _ordered(findings: list, material_ss_um2: float = 0.0) -> list:
     75 um^2 of chips), and what
     remains after them within a probe's noise (an ``unexplained`` noise
     excess says the scatter left is itself no probe's: the outliers are not
-    the whole story). A named cause, flagged or not, keeps the lead:
+    the whole story). A named cause, flagged or not, keeps the lead here:
     outliers beside it may be its own largest residuals (a local scale
-    defect's, whose bump the cause's form follows only in part).
+    defect's, whose bump the cause's form follows only in part); only
+    outliers that follow the turn and carry more than the named causes
+    explain hand its lead to ``unexplained``
+    (:data:`NAMED_BESIDE_TURNED_OUTLIERS_UNEXPLAINED`).
 
     Outliers that lead beside structure left unnamed are not confidently
     dust (flagged ``ambiguous`` here, in place): the outlier test judges
@@ -7628,8 +7631,9 @@ def _turned_outliers_unexplained(findings: list, settings, sigma_um: float) -> l
     outliers' sum of squares (``of``: ``outliers``; the outlier finding keeps
     them as touches set aside). The outliers stay a finding, second, with
     their confidence and reasons unchanged. A named cause beside turned
-    outliers keeps the lead (:func:`_doubt_beside_turned_outliers` makes it
-    ambiguous). With :data:`OUTLIERS_BESIDE_TURN_UNEXPLAINED`, outliers whose
+    outliers keeps the lead here (:func:`_doubt_beside_turned_outliers` makes
+    it ambiguous; :func:`_named_beside_turned_outliers_unexplained` hands
+    the lead on where the outliers carry more than it explains). With :data:`OUTLIERS_BESIDE_TURN_UNEXPLAINED`, outliers whose
     own centred turn did not fire hand the lead as well to an ``unexplained``
     finding beside them whose strongest covariate is the turn of the approach
     from the previous touch's (its diagnosis of the touches kept): the
@@ -7649,14 +7653,10 @@ def _turned_outliers_unexplained(findings: list, settings, sigma_um: float) -> l
         return (f.evidence.get("diagnosis") or [{}])[0].get("covariate") == TURN_COVARIATE
 
     if p is not None and p < settings.alpha_family:
-        why = (f"the touches set aside as outliers read short or long as their touch's turn of the approach "
-               f"differs from its target's other touches (centred turn {fmt_p(p)}, below {settings.alpha_family:g}): "
-               "a mechanism of the move out of the catalogue (a probe seat that settles differently after a turn), "
-               "whose majority readings each target's parameter took; the outliers are its minority readings, not "
-               "dust")
+        why = _turned_why(p, settings)
         fo.evidence["turned_lead"] = why
         if un:
-            un[0].evidence["text"] = "; ".join(w for w in (un[0].evidence.get("text"), why) if w)
+            _add_text(un[0], why)
     elif OUTLIERS_BESIDE_TURN_UNEXPLAINED and any(turn_first(f) for f in un):
         un.sort(key=lambda f: not turn_first(f))  # (its figures are in its own text)
         fo.evidence["turned_lead"] = (
@@ -7667,11 +7667,27 @@ def _turned_outliers_unexplained(findings: list, settings, sigma_um: float) -> l
     if un:
         fo.evidence.pop("leads", None)
         return un + [fo] + [f for f in rest if f.cause != causes_mod.UNEXPLAINED]
-    made = Finding(causes_mod.UNEXPLAINED, _clean({
+    return [_unexplained_of_outliers(why, fo.evidence.get("explained_ss_um2") or 0.0, p, sigma_um)] + findings
+
+
+def _turned_why(p: float, settings, extra: str = "") -> str:
+    """What an ``unexplained`` finding led by turned outliers says (``extra``: a clause after the test's figures)."""
+    return (f"the touches set aside as outliers read short or long as their touch's turn of the approach differs "
+            f"from its target's other touches (centred turn {fmt_p(p)}, below {settings.alpha_family:g}){extra}: a "
+            "mechanism of the move out of the catalogue (a probe seat that settles differently after a turn), whose "
+            "majority readings each target's parameter took; the outliers are its minority readings, not dust")
+
+
+def _add_text(f: Finding, why: str) -> None:
+    """``why`` appended to a finding's text, in place."""
+    f.evidence["text"] = "; ".join(w for w in (f.evidence.get("text"), why) if w)
+
+
+def _unexplained_of_outliers(why: str, carried: float, p: float, sigma_um: float) -> Finding:
+    """An ``unexplained`` finding made from turned outliers' own test (``of``: ``outliers``, their sum of squares)."""
+    return Finding(causes_mod.UNEXPLAINED, _clean({
         "text": why, "diagnosis": [], "cv_gap": False, "lack_of_fit": False, "noise_excess": False,
-        "explained_ss_um2": fo.evidence.get("explained_ss_um2") or 0.0, "of": "outliers",
-        "centred_turn_p": p}), {}, {}, sigma_um, "unknown")
-    return [made] + findings
+        "explained_ss_um2": carried, "of": "outliers", "centred_turn_p": p}), {}, {}, sigma_um, "unknown")
 
 
 #: Named causes that lead beside outliers whose own centred-turn test fired (:func:`centred_turn_p` below
@@ -7721,20 +7737,14 @@ def _named_beside_turned_outliers_unexplained(findings: list, settings, sigma_um
     if not named_ss < carried:
         return findings
     p = fo.evidence["centred_turn_p"]
-    why = (f"the touches set aside as outliers read short or long as their touch's turn of the approach differs "
-           f"from its target's other touches (centred turn {fmt_p(p)}, below {settings.alpha_family:g}) and carry "
-           f"{carried:.3g} um^2, more than the named causes beside them explain ({named_ss:.3g} um^2): a mechanism "
-           "of the move out of the catalogue (a probe seat that settles differently after a turn), whose majority "
-           "readings each target's parameter took; the outliers are its minority readings, not dust")
+    why = _turned_why(p, settings, f" and carry {carried:.3g} um^2, more than the named causes beside them explain "
+                                   f"({named_ss:.3g} um^2)")
     fo.evidence["turned_lead"] = why
     un = [f for f in findings if f.cause == causes_mod.UNEXPLAINED]
     if un:
-        un[0].evidence["text"] = "; ".join(w for w in (un[0].evidence.get("text"), why) if w)
+        _add_text(un[0], why)
         return [un[0]] + [f for f in findings if f is not un[0]]
-    made = Finding(causes_mod.UNEXPLAINED, _clean({
-        "text": why, "diagnosis": [], "cv_gap": False, "lack_of_fit": False, "noise_excess": False,
-        "explained_ss_um2": carried, "of": "outliers", "centred_turn_p": p}), {}, {}, sigma_um, "unknown")
-    return [made] + findings
+    return [_unexplained_of_outliers(why, carried, p, sigma_um)] + findings
 
 
 def _doubt_beside_noise_excess(findings: list) -> None:
@@ -7972,12 +7982,10 @@ def _none_at_the_residual_floor(bl, st, rep, rows, settings, bases=None) -> Find
     fit are not judged again (the first is judged against the fit's own
     sigma already, the second is the test that fired in its other tail).
     """
-    lof = lack_of_fit(st.rss, st.dof, rep)
-    if lof is None:
+    beyond = _repeats_beyond_fit(st, rep, settings.alpha)
+    if beyond is None:
         return None
-    p_low = float(stats.f.cdf(lof.F, lof.dof, rep.dof))
-    if not p_low < settings.alpha:
-        return None
+    lof, p_low = beyond
     diag = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=st.sigma,
                     material_sigma=settings.material_sigma, rows=rows, bases=bases)
     sig_cov = [d.covariate for d in diag if d.significant(settings.alpha_family)]
@@ -7995,6 +8003,16 @@ def _none_at_the_residual_floor(bl, st, rep, rows, settings, bases=None) -> Find
                  "structure, not the probe's noise alone; judged at the residuals' scatter")})
     f.evidence["text"] = f"{f.evidence['text']}; {f.evidence['repeats_floor']['text']}"
     return f
+
+
+def _repeats_beyond_fit(st, rep, alpha: float) -> tuple | None:
+    """``(lack of fit, p)`` where the repeats' pure error ``rep`` scatters more than the whole fit ``st`` leaves
+    beyond chance (the lack-of-fit F in its lower tail, ``p = F(d1, dof_pe).cdf(F)`` below ``alpha``), else None."""
+    lof = lack_of_fit(st.rss, st.dof, rep)
+    if lof is None:
+        return None
+    p_low = float(stats.f.cdf(lof.F, lof.dof, rep.dof))
+    return (lof, p_low) if p_low < alpha else None
 
 
 def _unexplained_only(diag, structure, st, sigma, settings) -> Finding:

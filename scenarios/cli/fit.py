@@ -8,9 +8,9 @@ FORM = {"plane": "flatness", "sphere": "sphericity", "circle": "roundness", "cyl
 
 #: CPU seconds per line of the log read (core.probelog.read_probe_log) and of the fit once read, for the
 #: progress line's share of each: measured on the MFB campaign (5,372 rows) and copies of it of 53,720 and
-#: 214,880 rows, 16 us a line read; the fit 0.55 s whatever the size (0.5 s of it importing scipy.stats for
-#: the Student t of the U95), a sphere or plane adding 2 us a row.
-READ_S_PER_LINE, FIT_S = 16e-6, 0.55
+#: 214,880 rows, 16 us a line read; the fit a fixed 0.12 s (importing core.features 0.03 s, the first Student t of
+#: the U95 0.1 s; 0.55 s while that imported scipy.stats, before session 25), a sphere or plane adding 2 us a row.
+READ_S_PER_LINE, FIT_S = 16e-6, 0.12
 
 
 def register(sub) -> None:

@@ -126,13 +126,14 @@ def terminal(monkeypatch) -> Tty:
 
 
 def test_fit_shows_progress_with_time_left(tmp_path, capsys, monkeypatch):
-    """vmt fit takes 1-6 s on 2 busy cores (a 5,000-row log; its Student t imports scipy.stats): the
-    line shows the share of the work done while the log is read, then the time left, then done."""
+    """vmt fit took 1-6 s on 2 busy cores on a 5,000-row log while its Student t imported scipy.stats, and a large
+    log's read still takes seconds (16 us a line): the line shows the share of the work done while the log is read,
+    then the time left, then done."""
     import core.probelog
     import scenarios.cli.fit as fit
 
     monkeypatch.setattr(core.probelog, "CHUNK_ROWS", 8)
-    # the fit weighed as much as reading these 24 rows (0.55 s, 3e4 lines' worth, really): the read's
+    # the fit weighed as much as reading these 24 rows (0.12 s, 7,500 lines' worth, really): the read's
     # share is then seen in whole percent
     monkeypatch.setattr(fit, "FIT_S", 24 * fit.READ_S_PER_LINE)
     tty = terminal(monkeypatch)
