@@ -74,8 +74,7 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .exceptions import VmtError, counted
-from .probelog import (ANGLE_MAX_DEG, LENGTH_MAX_MM, T_MAX_S, TEMP_RANGE_C, _num, is_number, last_row_check,
-                       step_back)
+from .probelog import T_MAX_S, TEMP_RANGE_C, _num, is_number, last_row_check, step_back, value_range
 
 FORMAT = "positioning-log/1"
 #: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
@@ -495,8 +494,10 @@ def _validate(log: PositioningLog, lines: list[int] | None) -> None:
             raise PositioningLogError(f"{where(r)}: time goes backwards (t_s {t[r]:g} after {t[before]:g}); "
                                       "rows must be in the order measured")
     # the probe log's physical bounds (core.probelog.value_range): keep absurd values out of the figures
-    big, why = ((LENGTH_MAX_MM, "no machine tool's stroke reaches 100 m") if unit == "mm"
-                else (ANGLE_MAX_DEG, "2778 turns of a multi-turn table"))
+    if unit == "mm":
+        _, big, _, why = value_range("X_mm")
+    else:
+        big, why = value_range("C_deg")[1], "2778 turns of a multi-turn table"
     bounds = [(f"target_{unit}", log.target, -big, big, unit, why),
               (f"measured_{unit}", log.measured, -big, big, unit, why)]
     if log.t_s is not None:
@@ -780,7 +781,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
         raise PositioningLogError(f"{src}: unit {given!r} is not 'mm' or 'deg'")
     first = rows[0][1]
 
-    def is_number(c: str) -> bool:
+    def reads_as_float(c: str) -> bool:  # (Python's float: any text a data row's first cell could hold)
         try:
             float(c)
             return True
@@ -788,7 +789,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
             return False
 
     cols: dict[str, int]
-    if not is_number(first[0]):     # a header names its first column; a data row starts with its target
+    if not reads_as_float(first[0]):     # a header names its first column; a data row starts with its target
         lookup = {}
         for j, name in enumerate(first):
             key = name.strip().lower()

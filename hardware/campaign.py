@@ -248,6 +248,12 @@ def motion(steps: list[Step], settings: ProbeSettings, *, rotary: bool = False, 
             rot = st.rot_deg
 
 
+def plan_turns(steps: list[Step]) -> bool:
+    """Whether any step's rotary angles are not zero (a machine that commands its rotary axes wherever the plan
+    asks to, the in-process virtual one, then turns them)."""
+    return any(bool(np.any(st.rot_deg != 0)) for st in steps)
+
+
 def check_program(steps: list[Step], settings: ProbeSettings, *, require_limits: bool = True,
                   rotary: bool = False, from_rot=None) -> None:
     """Refuse a program that would leave the soft limits, exceed the maximum feed or turn unsafely.
@@ -336,7 +342,7 @@ def plan_meta(meta: dict) -> dict:
     for k, v in meta.items():
         if k == "format":
             continue
-        out[k if (k in PLAN_META_KEPT or k.startswith("plan")) else f"plan_{k}"] = v
+        out[k if (k in PLAN_META_KEPT or k.startswith("plan_")) else f"plan_{k}"] = v  # (a plan's own plan_*)
     return out
 
 
@@ -586,7 +592,7 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
     steps = plan_steps(plan, settings)
     rotary = getattr(backend, "rotary", None)       # does the backend command the rotary axes?
     if rotary is None:          # one that does not say (in-process virtual) turns when the plan asks to
-        rotary = any(bool(np.any(st.rot_deg != 0)) for st in steps)
+        rotary = plan_turns(steps)
     rotary = bool(rotary)
     check_program(steps, settings, require_limits=require_limits, rotary=rotary)
     p = Path(out)

@@ -56,9 +56,7 @@ def run(args) -> int:
     if not args.noise_um > 0:
         raise ConfigError(f"--noise-um must be > 0, got {args.noise_um}")
     u = args.noise_um * 1e-6
-    from scenarios.cli.guard import progress_line
-
-    from scenarios.cli.guard import about_file
+    from scenarios.cli.guard import about_file, progress_line
 
     ev = design_evaluator(w, wn, grid, u, args.measure, dask=args.dask, workers=args.workers)
     with progress_line("design: designs evaluated (at most)") as bar, about_file(args.plan):

@@ -45,7 +45,7 @@ def _warn(msg: str) -> None:
 
 def run(args) -> int:
     from core.probelog import read_probe_log
-    from hardware.campaign import check_program, plan_steps
+    from hardware.campaign import check_program, plan_steps, plan_turns
 
     plan = read_probe_log(args.plan)
     settings = settings_from_args(args)
@@ -54,8 +54,7 @@ def run(args) -> int:
         return _dry_run(steps, settings, args)
     # before connecting, before any motion; the rotary axes as the run will command them (a controller's with
     # --rotary, the in-process virtual machine's wherever the plan turns: hardware.campaign.run_campaign)
-    rotary = args.rotary or (args.controller.startswith("virtual")
-                             and any(bool((s.rot_deg != 0).any()) for s in steps))
+    rotary = args.rotary or (args.controller.startswith("virtual") and plan_turns(steps))
     check_program(steps, settings, rotary=rotary)
     _check_before_connecting(steps, args)
     res = _probe(plan, settings, args)

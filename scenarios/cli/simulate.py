@@ -63,8 +63,9 @@ def run(args) -> int:
         log, cfg, errors = _campaign(args, bar)
     from scenarios.cli.guard import said
 
-    k = len(dict.fromkeys(log.col('setup')))
-    setups = f"{k} set-up{'' if k == 1 else 's'}"
+    from core.exceptions import counted
+
+    setups = counted(len(dict.fromkeys(log.col('setup'))), "set-up")
     if args.plan_only:      # a plan measures nothing and has no truth errors: neither is described
         print(f"{said(args.out)}: plan of {log.n} touches (nothing measured) on {args.artefact}, "
               f"machine {cfg.name}, {setups}")

@@ -515,7 +515,8 @@ def test_measured_log_does_not_claim_the_simulators_provenance(tmp_path, capsys)
     base = plan_log()
     sim_meta = {"machine": "nmv3000", "artefact": "table+sphere", "stylus_r_mm": "1.5",
                 "kinematic_chain": "V[w-C-A-b-Y-X-Z-(C)-t]", "probe_repeatability_k2_um": "0.25",
-                "feed_mm_per_min": "240.0", "generator": "vmt sim.campaign"}
+                "feed_mm_per_min": "240.0", "generator": "vmt sim.campaign", "planner": "by hand",
+                "plan_origin": "a plan's own plan_ key"}
     plan_p = write_probe_log(tmp_path / "plan.csv", make_log(dict(base.columns), sim_meta))
     out = tmp_path / "log.csv"
     assert main(probe_args("virtual:", plan_p, out)) == 0
@@ -525,8 +526,9 @@ def test_measured_log_does_not_claim_the_simulators_provenance(tmp_path, capsys)
     assert main(["import", "linuxcnc", str(pf), "--plan", str(plan_p), "--out", str(imp)]) == 0
     for path in (out, imp):
         meta = read_probe_log(path).meta
-        for k in ("generator", "probe_repeatability_k2_um", "feed_mm_per_min"):
+        for k in ("generator", "probe_repeatability_k2_um", "feed_mm_per_min", "planner"):  # ('planner' too)
             assert k not in meta and meta[f"plan_{k}"] == sim_meta[k], (path.name, k)
         assert meta["plan_machine"] == "nmv3000" and meta["machine"] != "nmv3000"
+        assert meta["plan_origin"] == sim_meta["plan_origin"] and "plan_plan_origin" not in meta
         assert all(meta[k] == sim_meta[k] for k in PLAN_META_KEPT)
     assert float(read_probe_log(out).meta["probe_feed_mm_min"]) == 100.0     # the feed it probed at
