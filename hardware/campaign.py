@@ -644,13 +644,12 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         log = AppendLog(p, columns, fd=fd)
     try:
         cur = backend.position_m() / MM
-        rot = None                      # where the rotary axes stand is not known: turned at the first safe Z
-        for st in steps[done:]:
-            for m in approach(cur, st, settings, from_rot=rot, rotary=rotary):
+        # the one planner of every writer (motion: the program, the dry run); where the rotary axes stand is not
+        # known at the start, so they turn at the first safe Z
+        for st, moves in motion(steps[done:], settings, rotary=rotary, from_mm=cur):
+            for m in moves:
                 backend.move(m.xyz_mm * MM, settings.move_feed_mm_min,
                              None if m.rot_deg is None else np.radians(m.rot_deg))
-            if rotary:
-                rot = st.rot_deg
             res = backend.probe(st.end_mm * MM, settings.probe_feed_mm_min,
                                 allow_miss=settings.allow_miss)
             t = max(float(clock()) - started, last_t)
