@@ -1033,7 +1033,6 @@ def ripple_columns(res: VolumetricResult, meas, chain: str, symbol: str, amplitu
     meas = list(meas)
     prep = _prepare_all(meas, chain, rotary_points_R_m, res.design.nodes)
     ks, ax = MOTION.index(symbol), iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
-    St = None
     if prep.batch is not None:
         St, _, at = _touch_kinematics(prep, None, res.design.slices, False, True)
         Sd = np.einsum("tj,tj->t", prep.batch["d_W"], St[:, :, ks])  # each touch along its approach

@@ -265,6 +265,7 @@ def test_a_declared_ripple_term_is_what_the_simulator_does_to_the_node_errors():
     assert c.doc["u95_scope"].count("EXX") == 0 and "EZZ" in c.doc["u95_scope"]  # EZZ's ripple: not declared
     assert "u95_scope" not in b.doc and "u95_scope" not in a.doc
     assert b.doc["declared_ripple"]["EXX"] == {"amplitude_um": 0.5, "period_mm": 10.0}
+    assert b.doc["estimate"]["method"].endswith("declared ripples (type B, unknown phase): EXX, EZZ")
 
 
 def test_a_declared_ripple_alone_is_an_arcsine_in_the_monte_carlo():
