@@ -1008,8 +1008,77 @@ def _cal_columns(K, B, u_cal, cal_map) -> np.ndarray:
     return KB * u_cal.ravel()[None, :]
 
 
+def ripple_columns(res: VolumetricResult, meas, chain: str, symbol: str, amplitude: float, period: float,
+                   rotary_points_R_m=None) -> np.ndarray:
+    """(n, 2) what a periodic error the tables cannot hold does to the estimate's error (a type B term).
+
+    A ripple ``amplitude * sin(2 pi q / period + phi)`` in the motion error ``symbol`` (m or rad; ``q``
+    its axis' reading, m) is ``amplitude * (cos phi * s(q) + sin phi * c(q))`` with ``s = sin(2 pi q / period)``,
+    ``c = cos(2 pi q / period)``. Each moves the rows of (1) as the identification's own model (3) moves them:
+    every touch by its sensitivity to ``symbol`` along its approach, carried into the points of interest by the
+    extraction's gain (model (2) at the points of interest for a measurement without touches), the shifted
+    holes without z_A; the estimate moves by ``res.K`` of that (its linear map; the sensitivity taken at zero
+    errors, a relative change of order the errors' slopes, 1e-4). The measurand moves too: the truth at the
+    nodes holds the ripple (``amplitude * s`` and ``c`` at ``symbol``'s nodes, in the design's gauge,
+    :meth:`VolumetricDesign.to_gauge`), which no table fitted through the plan's touches follows. Column 0 is
+    ``amplitude * (K y(s) - s_nodes)``, column 1 the same of ``c``: for a phase phi the estimate's error moves by
+    ``C[:, 0] cos phi + C[:, 1] sin phi``; for an unknown phase (uniform) its covariance is ``C C^T / 2``.
+    ``res`` as identified (:func:`identify_volumetric`, its gauge); the report form's columns are
+    ``iso_map(res.design) @ C``.
+    """
+    if symbol not in MOTION:
+        raise ConfigError(f"ripple_columns: {symbol!r} is not a motion error ({', '.join(MOTION)})")
+    if not (np.isfinite(amplitude) and np.isfinite(period) and period > 0):
+        raise ConfigError(f"ripple_columns: amplitude finite and period > 0, got {amplitude!r}, {period!r}")
+    meas = list(meas)
+    prep = _prepare_all(meas, chain, rotary_points_R_m, res.design.nodes)
+    ks, ax = MOTION.index(symbol), iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
+    if prep.batch is not None:
+        St, _, at = _touch_kinematics(prep, None, res.design.slices, False, True)
+        Sd = np.einsum("tj,tj->t", prep.batch["d_W"], St[:, :, ks])  # each touch along its approach
+    w = 2.0 * np.pi / period
+    cols = np.zeros((res.K.shape[1], 2))
+    r0 = 0
+    for i, pm in enumerate(prep):
+        k = pm["k"]
+        if pm["touches"]:
+            t = len(pm["qt"])
+            sd, x = Sd[at[i]:at[i] + t], pm["qt"][:, ax]
+            dy = [(pm["GW"].reshape(3 * k, t) @ (sd * f(w * x))).reshape(k, 3) for f in (np.sin, np.cos)]
+        else:
+            S = sensitivity(pm["g"], pm["q"], pm["rot"], None, symbols=MOTION + SQUARENESS)[:, :, ks]
+            x = pm["q"][:, ax]
+            dy = [S * f(w * x)[:, None] for f in (np.sin, np.cos)]
+        for j, r in enumerate(dy):
+            r[pm["off"]] = r[pm["off"]] @ pm["Pz"].T
+            cols[r0:r0 + 3 * k, j] = r.ravel()
+        r0 += 3 * k
+    d = res.design
+    x_n = d.nodes[iso.symbol(symbol).axis]
+    truth = np.zeros((len(d.names), 2))
+    for j, f in enumerate((np.sin, np.cos)):
+        truth[d.slices[symbol], j] = f(w * np.asarray(x_n, float))
+        truth[:, j] = d.to_gauge(truth[:, j])
+    return amplitude * (res.K @ cols - truth)
+
+
+def _ripple_cols(ripples, K) -> np.ndarray | None:
+    """The declared ripples' columns (:func:`ripple_columns`) side by side, (n, 2 r), checked; None when none.
+    A value the gauge fixes (its row of ``K`` zero: the convention's, not estimated) keeps no uncertainty:
+    its rows are set to zero (they hold the gauge projection's rounding, ~1e-22 m)."""
+    if ripples is None or len(ripples) == 0:
+        return None
+    n = K.shape[0]
+    C = np.hstack([np.asarray(c, float) for c in ripples])
+    if C.shape != (n, 2 * len(ripples)) or not np.all(np.isfinite(C)):
+        raise ConfigError(f"ripples: finite ({n}, 2) columns each (ripple_columns), got {C.shape}")
+    C[~np.any(K != 0, axis=1)] = 0.0
+    return C
+
+
 def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, runs: int = 1000,
-                rng: np.random.Generator | None = None, u_place=None, cal_map=None) -> VolumetricUncertainty:
+                rng: np.random.Generator | None = None, u_place=None, cal_map=None,
+                ripples=None) -> VolumetricUncertainty:
     """Linear propagation and Monte Carlo (JCGM 101) of probing noise, bar calibration and placement.
 
     Parameters
@@ -1037,6 +1106,10 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
         n independent standard normal (default: the identity, independent per
         point and direction). A multi-feature bar's heights come from its rods:
         :func:`core.mfb.calibration_map`.
+    ripples : sequence of (n, 2) float, optional
+        Declared periodic errors the tables cannot hold (:func:`ripple_columns`), each of unknown phase
+        (uniform): a type B term, ``C C^T / 2`` in the linear propagation, ``C[:, 0] cos phi + C[:, 1] sin phi``
+        with phi drawn uniform in the Monte Carlo (after every other draw: without ripples nothing moves).
 
     Linear propagation: ``u^2 = sum (K G)^2 sigma^2 + (K B u_cal)^2 +
     (K B_p u_place)^2`` (JCGM 100 eq. 13 for the linear estimator ``K``);
@@ -1062,6 +1135,9 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
     var += np.einsum("ij,ij->i", KB, KB)
     KP = (K @ Bp) * np.tile(up, Bp.shape[1] // 6)[None, :]
     var += np.einsum("ij,ij->i", KP, KP)
+    C = _ripple_cols(ripples, K)
+    if C is not None:
+        var += 0.5 * np.einsum("ij,ij->i", C, C)
     u = np.sqrt(var)
     lo = hi = U = np.zeros(0)
     if runs:
@@ -1073,6 +1149,9 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
             d += K[:, r0:r0 + GR.shape[0]] @ (GR @ e)
         d += KB @ rng.standard_normal((KB.shape[1], runs))
         d += KP @ rng.standard_normal((KP.shape[1], runs))
+        if C is not None:
+            phi = rng.uniform(0.0, 2.0 * np.pi, (C.shape[1] // 2, runs))
+            d += C[:, 0::2] @ np.cos(phi) + C[:, 1::2] @ np.sin(phi)
         lo = res.theta + np.percentile(d, 2.5, axis=1)
         hi = res.theta + np.percentile(d, 97.5, axis=1)
         U = 0.5 * (hi - lo)
@@ -1080,11 +1159,11 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
 
 
 def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
-               cal_map=None) -> np.ndarray:
+               cal_map=None, ripples=None) -> np.ndarray:
     """(n, n) covariance of ``res.theta`` by linear propagation, the same inputs as :func:`uncertainty`.
 
     ``K G G^T K^T sigma^2`` per measurement plus ``(K B M) diag(u_cal^2) (K B M)^T`` (M = ``cal_map``,
-    default the identity) plus the placements'
+    default the identity) plus the placements' plus ``C C^T / 2`` of each declared ripple (``ripples``)
     (JCGM 100 eq. 13 in matrix form); its diagonal is :func:`uncertainty`'s ``u_lin**2``.
     """
     u_cal = np.asarray(u_cal_m, float)
@@ -1099,7 +1178,9 @@ def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pla
         cov += sigma_probe_m ** 2 * (KG @ KG.T)
     KB = _cal_columns(K, B, u_cal, cal_map)
     KP = (K @ Bp) * np.tile(up, Bp.shape[1] // 6)[None, :]
-    return cov + KB @ KB.T + KP @ KP.T
+    cov = cov + KB @ KB.T + KP @ KP.T
+    C = _ripple_cols(ripples, K)
+    return cov if C is None else cov + 0.5 * (C @ C.T)
 
 
 def estimate(res: VolumetricResult, cov: np.ndarray) -> dict:

@@ -1067,7 +1067,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         u_place: tuple = U_PLACE, machine=None, compensate=None, bar_seed: int | None = None,
         u_stylus_um: float = 0.0, bar_temperature_C: float = 20.0, hook=None, progress=None,
         bar_calibration=None, bar_true_m=None, draw_inputs: bool | None = None, lobing_m: tuple = (),
-        machine_temperature_C: float = 20.0, stylus_dJ_m: dict | None = None) -> ScenarioResult:
+        machine_temperature_C: float = 20.0, stylus_dJ_m: dict | None = None,
+        declared_ripple: dict | None = None) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -1132,6 +1133,12 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         The machine's temperature: its linear axes' scales expand by
         :data:`MACHINE_CTE_PER_C` from the axis zero (the truth, and the
         tables compared with, stay the 20 degC machine's).
+    declared_ripple : dict, optional
+        ``{symbol: (amplitude, period_m)}``: periodic errors the user declares the machine holds and no MFB
+        plan sees (shorter than twice the bar's pitch, :func:`unseen_ripple`), amplitude in m (rad for an
+        angular symbol), phase unknown (uniform): their effect on the identified values
+        (:func:`core.volumetric.ripple_columns`) joins the U95 and the covariance as a type B term. Default
+        none: the U95 is the noise's, the calibration's and the placements'.
     drop : str, optional
         A placement to remove (to see the observability report refuse).
     on_nodes : bool
@@ -1163,6 +1170,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         if drop not in plan.placements:
             raise ConfigError(f"drop: no placement {drop!r} in {name} ({', '.join(plan.placements)})")
         plan = plan.without(drop)
+    declared = _check_declared_ripple(declared_ripple)
     rng = np.random.default_rng(seed)
     if machine is not None:
         _check_machine_for_plan(machine.config, plan, name)
@@ -1280,9 +1288,12 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     if progress is not None:
         progress(steps - 1, steps)
     cal_map = mfb.calibration_map()  # the bar's heights as its rods give them (the draw above is so)
+    rip_g = [vol.ripple_columns(res_g, meas, cfg.chain, s, a, p, dict(cfg.rotary_points_R_m))
+             for s, (a, p) in declared.items()] or None  # (the gauge's; the report's below, L_iso of them)
     unc = (vol.uncertainty(res, meas, probe.sigma_m, u_cal, runs=mc_runs, rng=rng,
-                           u_place=np.asarray(u_place, float) if draw else None, cal_map=cal_map)
-           if mc_runs or noisy else None)
+                           u_place=np.asarray(u_place, float) if draw else None, cal_map=cal_map,
+                           ripples=None if rip_g is None else [L_iso @ c for c in rip_g])
+           if mc_runs or noisy or declared else None)
     # truth in the same gauge
     d = res.design
     truth = np.zeros(len(res.theta))
@@ -1303,10 +1314,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, sigma_um, slopes)
     cov_g = vol.covariance(res_g, meas, probe.sigma_m, u_cal, np.asarray(u_place, float) if draw else None,
-                           cal_map=cal_map)
+                           cal_map=cal_map, ripples=rip_g)
     doc["estimate"] = vol.estimate(res_g, cov_g)  # vmt-estimate/1
+    if declared:
+        doc["estimate"]["method"] += "; declared ripples (type B, unknown phase): " + ", ".join(declared)
     doc["machine"] = cfg.name
-    if unseen := unseen_ripple(errs):
+    if declared:
+        doc["declared_ripple"] = {s: {"amplitude_" + ("urad" if iso.symbol(s).angular else "um"): a * 1e6,
+                                      "period_mm": p * 1e3} for s, (a, p) in declared.items()}
+    if unseen := [(s, p) for s, p in unseen_ripple(errs) if not _declared_covers(declared, s, p)]:
         doc["u95_scope"] = unseen_ripple_note(unseen)
     if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
         doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
@@ -1394,6 +1410,7 @@ def unseen_ripple(errs: dict, pitch_m: float = 0.050) -> list:
     it, so the nodes' tables carry it aliased and their U95 (the noise's, the placements', the calibration's) does
     not cover it: on the ``realistic`` set's 10 mm screw ripple EXX's nodes fell within their U95 in 83 % of 1,600
     (200 seeds; 94-95 % without the ripple), off by up to 0.42 um against a U95 of 0.66 um (session 25's review).
+    A declared ripple (``run``'s ``declared_ripple``) puts its term in the U95: 96 % with all six declared.
     """
     from sim.errorfuncs import Periodic, Sum
 
@@ -1405,13 +1422,39 @@ def unseen_ripple(errs: dict, pitch_m: float = 0.050) -> list:
     return sorted({(sym, p) for sym, f in errs.items() for p in periods(f) if p < 2 * pitch_m})
 
 
+def _check_declared_ripple(declared) -> dict:
+    """``run``'s ``declared_ripple`` checked: ``{motion symbol: (amplitude >= 0, period_m > 0)}`` finite, or ConfigError."""
+    from core import volumetric as vol
+    from core.exceptions import ConfigError
+
+    if not declared:
+        return {}
+    out = {}
+    for s, v in dict(declared).items():
+        if s not in vol.MOTION:
+            raise ConfigError(f"declared_ripple: {s!r} is not a motion error ({', '.join(vol.MOTION)})")
+        try:
+            a, p = (float(x) for x in v)
+        except (TypeError, ValueError):
+            raise ConfigError(f"declared_ripple {s}: expected (amplitude, period_m), got {v!r}") from None
+        if not (np.isfinite(a) and np.isfinite(p) and a >= 0 and p > 0):
+            raise ConfigError(f"declared_ripple {s}: amplitude >= 0 and period > 0, finite, got {v!r}")
+        out[s] = (a, p)
+    return out
+
+
+def _declared_covers(declared: dict, symbol: str, period_m: float) -> bool:
+    """Whether a declared ripple of ``symbol`` has this period (to 1e-9 m): the U95 then holds its term."""
+    return symbol in declared and abs(declared[symbol][1] - period_m) <= 1e-9
+
+
 def unseen_ripple_note(unseen: list) -> str:
     """One line for the report: which injected ripples the U95 leaves out, and why."""
     per = sorted({p for _, p in unseen})
     return (f"the U95 covers what the node tables can represent; the truth holds a ripple of "
             f"{', '.join(f'{p * 1e3:g}' for p in per)} mm period in {', '.join(s for s, _ in unseen)}, shorter than "
             f"twice the bar's 50 mm pitch: no MFB plan sees it, the tables carry it aliased beyond their U95 "
-            f"(--errors study leaves it out)")
+            f"(--errors study leaves it out; --declared-ripple-um-mm / -urad-mm puts it in the U95)")
 
 
 # --------------------------------------------------------------------------- closed loop

@@ -26,6 +26,10 @@ def _mfb(args) -> int:
             spec = truth_machine(name, args.errors, "study")
         # else naming the plan's machine (error set study) is omitting it: the study's own truth machine
     kw = dict(seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc, machine=spec)
+    if args.declared_ripple or args.declared_ripple_urad:
+        kw["declared_ripple"] = {**(parse_declared_ripple(args.declared_ripple, "um") if args.declared_ripple else {}),
+                                 **(parse_declared_ripple(args.declared_ripple_urad, "urad")
+                                    if args.declared_ripple_urad else {})}
     if args.bar_calibration:
         from scenarios.mfb import read_bar_calibration
 
@@ -49,6 +53,10 @@ def _mfb(args) -> int:
         u = max(e.get("u95", [float("nan")]))
         print(f"{s:6s} {e['unit']:5s} {inj:14.3f} {e['max_dev']:15.4f} {u:9.3f}")
     print(f"max_dev_um {d['max_dev_um']:.4f}  max_dev_urad {d['max_dev_urad']:.4f}")
+    if d.get("declared_ripple"):
+        print("U95 includes the declared ripple (type B, unknown phase): " + ", ".join(
+            f"{s} {v.get('amplitude_um', v.get('amplitude_urad')):g} {'um' if 'amplitude_um' in v else 'urad'} / "
+            f"{v['period_mm']:g} mm" for s, v in d["declared_ripple"].items()))
     if d.get("u95_scope"):
         print(f"note: {d['u95_scope']}")
     if d.get("twists"):
@@ -184,6 +192,42 @@ SCENARIOS = {
 }
 
 
+def _ripple_symbols(angular: bool) -> tuple:
+    """The motion errors ``--declared-ripple-um-mm`` (length: positioning, straightness) or
+    ``--declared-ripple-urad-mm`` (angular) takes."""
+    from core import iso, volumetric as vol
+
+    return tuple(s for s in vol.MOTION if iso.symbol(s).angular == angular)
+
+
+def parse_declared_ripple(text: str, unit: str = "um") -> dict:
+    """``EXX=0.4:10,EYY=0.2:10`` (amplitude in ``unit``, um or urad : period mm per motion error of that unit)
+    -> ``{symbol: (m or rad, m)}``, or ConfigError naming the bad item."""
+    import math
+
+    from core.exceptions import ConfigError
+
+    opt = f"--declared-ripple-{unit}-mm"
+    known = _ripple_symbols(unit == "urad")
+    out = {}
+    for item in (t.strip() for t in text.split(",")):
+        sym, _, val = item.partition("=")
+        sym = sym.strip().upper()
+        amp, _, per = val.partition(":")
+        try:
+            a, p = float(amp), float(per)
+        except ValueError:
+            a = p = math.nan
+        if sym not in known or not (math.isfinite(a) and math.isfinite(p) and a >= 0 and p > 0):
+            raise ConfigError(f"{opt}: {item!r} is not SYMBOL=AMPLITUDE_{unit.upper()}:PERIOD_MM with SYMBOL one of "
+                              f"{', '.join(known)}, amplitude >= 0, period > 0 (e.g. "
+                              f"{'EXX=0.4:10,EYY=0.2:10' if unit == 'um' else 'EBX=1:10'})")
+        if sym in out:
+            raise ConfigError(f"{opt}: {sym} declared twice")
+        out[sym] = (a * 1e-6, p * 1e-3)
+    return out
+
+
 def register(sub) -> None:
     p = sub.add_parser("scenario", help="run a named study: simulate, identify, compare with the truth")
     p.add_argument("name", choices=sorted(SCENARIOS), help="scenario name")
@@ -211,6 +255,14 @@ def register(sub) -> None:
                    help="mfb scenarios: identify with this bar calibration (vmt-bar-calibration/1 JSON, as "
                         "'vmt scenario mfb-reversal --json FILE' writes it) instead of the declared one; a "
                         "simulated calibration's true bar is the one simulated")
+    p.add_argument("--declared-ripple-um-mm", default=None, metavar="SYM=UM:MM,...", dest="declared_ripple",
+                   help="mfb scenarios: a screw ripple the machine holds and no MFB plan sees (period shorter "
+                        "than twice the bar's 50 mm pitch), per positioning or straightness error: amplitude um "
+                        "and period mm, e.g. EXX=0.4:10,EYY=0.2:10; its effect on the node tables (unknown "
+                        "phase) joins the U95 as a type B term")
+    p.add_argument("--declared-ripple-urad-mm", default=None, metavar="SYM=URAD:MM,...", dest="declared_ripple_urad",
+                   help="mfb scenarios: the same for an angular error (a pitch or yaw ripple of the screw), "
+                        "amplitude urad and period mm, e.g. EBX=1:10")
     p.add_argument("--budget-runs", type=int, default=0, metavar="N", dest="budget_runs",
                    help="mfb scenarios: add the uncertainty budget (each source's share per error, and N "
                         "Monte Carlo runs of the whole pipeline with every source; about 8 s of CPU a run)")
@@ -227,6 +279,7 @@ def _dispatch(args) -> int:
     mfb_only = tuple((opt, v, ()) for opt, v in (
         ("--machine", args.machine), ("--errors", args.errors), ("--comp", args.comp),
         ("--apply-comp", args.apply_comp), ("--bar-calibration", args.bar_calibration),
+        ("--declared-ripple-um-mm", args.declared_ripple), ("--declared-ripple-urad-mm", args.declared_ripple_urad),
         ("--budget-runs", args.budget_runs or None)))
     for opt, v, takers in mfb_only + (("--noise-um", args.noise_um, ("mfb-reversal", "pin-circle")),
                                       ("--mc", args.mc, ("cross-pocket-uncertainty",)),

@@ -202,6 +202,148 @@ def test_a_ripple_the_bar_cannot_see_is_said_to_lie_outside_the_u95():
     assert "10 mm" in note and "EXX" in note and "\n" not in note
 
 
+def _rippled_spec(errs_extra: dict):
+    """The vmc-3axis study machine (no ripple) with ``errs_extra`` added to its errors (a Sum per symbol)."""
+    from dataclasses import replace
+
+    from sim.errorfuncs import Sum
+    from sim.machinefile import truth_machine
+
+    spec = truth_machine("vmc-3axis", "study")
+    errs = dict(spec.config.errors)
+    for s, f in errs_extra.items():
+        errs[s] = Sum((errs[s], f))
+    return replace(spec, config=replace(spec.config, errors=errs))
+
+
+def test_a_declared_ripple_term_is_what_the_simulator_does_to_the_node_errors():
+    """Known answer, truth -> estimate round trip: a 10 mm ripple of 0.5 um in EXX and 0.3 um in EZZ (phases
+    1.0 and 2.5 rad, both columns of each) is added to the smooth truth; the noise-free identification's node
+    errors (identified - injected, every one of the 21 tables) move from the smooth truth's by
+    ``C[:, 0] cos phi + C[:, 1] sin phi`` of :func:`core.volumetric.ripple_columns`, the identification's own
+    linear map plus the ripple the truth holds at the nodes. Measured agreement (seed 3): 0.0022 um on the
+    length tables (EZX), 0.011 urad on the angular ones (EAX; its U95 is ~2 urad), the Gauss-Newton's
+    nonlinearity and the sensitivity taken at zero errors; bounds 0.005 um and 0.03 urad, against moves of
+    0.5 um and 1.2 urad (a wrong sign, a missing node term or a wrong axis is off by the move itself). The declared ripple
+    drops the note for the symbols it covers (EXX, EZZ) and the U95 grows by the term in quadrature."""
+    from core import volumetric as vol
+    from sim.errorfuncs import Periodic
+    from scenarios.mfb import run
+
+    rip = {"EXX": (0.5e-6, 0.010, 1.0), "EZZ": (0.3e-6, 0.010, 2.5)}
+    spec0 = _rippled_spec({})
+    spec1 = _rippled_spec({s: Periodic(a, p, ph) for s, (a, p, ph) in rip.items()})
+    a = run("mfb-3axis", seed=3, noise_um=0, mc_runs=0, machine=spec0)
+    b = run("mfb-3axis", seed=3, noise_um=0, mc_runs=0, machine=spec1,
+            declared_ripple={s: (am, p) for s, (am, p, _) in rip.items()})
+    cfg = spec1.config
+    res_g = vol.identify_volumetric(a.meas, cfg.chain, a.plan.nodes, dict(cfg.rotary_points_R_m))
+    L = vol.iso_map(res_g.design)
+    pred = np.zeros(len(res_g.theta))
+    for s, (am, p, ph) in rip.items():
+        C = L @ vol.ripple_columns(res_g, a.meas, cfg.chain, s, am, p, dict(cfg.rotary_points_R_m))
+        pred += C[:, 0] * np.cos(ph) + C[:, 1] * np.sin(ph)
+    d = res_g.design
+    worst, moved = {"um": 0.0, "urad": 0.0}, {"um": 0.0, "urad": 0.0}
+    for s, ea in a.doc["errors"].items():
+        eb = b.doc["errors"][s]
+        dev = [np.asarray(e["identified"]) - np.asarray(e["injected"]) for e in (ea, eb)]
+        moved[ea["unit"]] = max(moved[ea["unit"]], float(np.max(np.abs(dev[1] - dev[0]))))
+        worst[ea["unit"]] = max(worst[ea["unit"]], float(np.max(np.abs(dev[1] - dev[0] - pred[d.slices[s]] * 1e6))))
+    assert moved["um"] > 0.4 and moved["urad"] > 0.5, moved
+    assert worst["um"] < 0.005 and worst["urad"] < 0.03, worst
+    # the U95 grows by the term in quadrature: (U95 / 2)^2 = the calibration's u^2 (noise-free: no noise, no
+    # placement draw; a zero-amplitude declaration keeps the run's U95 without the term) + sum C^2 / 2
+    c = run("mfb-3axis", seed=3, noise_um=0, mc_runs=0, machine=spec1, declared_ripple={"EXX": (0.0, 0.010)})
+    res_b = vol.identify_volumetric(b.meas, cfg.chain, b.plan.nodes, dict(cfg.rotary_points_R_m))  # b's own K
+    var = sum(0.5 * np.sum((L @ vol.ripple_columns(res_b, b.meas, cfg.chain, s, am, p, dict(cfg.rotary_points_R_m)))
+                           ** 2, axis=1) for s, (am, p, _) in rip.items())
+    for s in ("EXX", "EZZ", "EBX"):
+        u0 = np.asarray(c.doc["errors"][s]["u95"]) * 1e-6 / 2
+        assert np.allclose(b.doc["errors"][s]["u95"], 2e6 * np.sqrt(u0 ** 2 + var[d.slices[s]]), rtol=1e-9, atol=1e-9)
+        assert np.max(np.asarray(b.doc["errors"][s]["u95"]) - np.asarray(c.doc["errors"][s]["u95"])) > 0.05
+    assert c.doc["u95_scope"].count("EXX") == 0 and "EZZ" in c.doc["u95_scope"]  # EZZ's ripple: not declared
+    assert "u95_scope" not in b.doc and "u95_scope" not in a.doc
+    assert b.doc["declared_ripple"]["EXX"] == {"amplitude_um": 0.5, "period_mm": 10.0}
+    assert b.doc["estimate"]["method"].endswith("declared ripples (type B, unknown phase): EXX, EZZ")
+
+
+def test_a_declared_ripple_alone_is_an_arcsine_in_the_monte_carlo():
+    """Known answer: with no other input, one ripple of uniform phase moves each value by
+    ``C0 cos phi + C1 sin phi = R sin(phi + psi)``, ``R = |C_i|``: an arcsine law whose 95 % symmetric interval
+    is ``+-R sin(0.95 pi / 2) = +-0.99692 R``, and whose standard deviation is ``R / sqrt(2)`` (the linear U95,
+    ``2 u = 1.414 R``, is the k = 2 convention's, wider than the arcsine's own 95 %). Monte Carlo with 40,000
+    draws: the percentile's error near the arcsine's edge is ~0.3 % of R (its density there is 1 / (pi R
+    sqrt(1 - 0.997^2)), 4 R^-1); bound 1 %. Without ripples the Monte Carlo's numbers stay the same doubles."""
+    from core import volumetric as vol
+    from scenarios.mfb import default_machine, run
+
+    r = run("mfb-3axis", seed=1, noise_um=0, mc_runs=0)
+    cfg, _ = default_machine(r.plan.machine)
+    res_g = vol.identify_volumetric(r.meas, cfg.chain, r.plan.nodes, dict(cfg.rotary_points_R_m))
+    C = vol.ripple_columns(res_g, r.meas, cfg.chain, "EXX", 0.4e-6, 0.010, dict(cfg.rotary_points_R_m))
+    R = np.hypot(C[:, 0], C[:, 1])
+    zero = np.zeros((12, 3))
+    u = vol.uncertainty(res_g, r.meas, 0.0, zero, runs=40000, rng=np.random.default_rng(7), ripples=[C])
+    m = R > 0.05e-6
+    assert m.sum() >= 20
+    assert np.allclose(u.U95_mc[m], np.sin(0.95 * np.pi / 2) * R[m], rtol=0.01, atol=0)
+    fixed = ~np.any(res_g.K != 0, axis=1)  # the gauge's values: no uncertainty (exact zeros)
+    assert fixed.any() and np.all(u.u_lin[fixed] == 0) and np.all(u.U95_mc[fixed] == 0)
+    assert np.allclose(u.u_lin[~fixed], R[~fixed] / np.sqrt(2), rtol=1e-12, atol=0)
+    Cf = np.where(fixed[:, None], 0.0, C)
+    assert np.allclose(vol.covariance(res_g, r.meas, 0.0, zero, ripples=[C]), 0.5 * Cf @ Cf.T, rtol=1e-12, atol=1e-30)
+    u0 = vol.uncertainty(res_g, r.meas, 1e-7, zero + 1e-7, runs=50, rng=np.random.default_rng(7))
+    u1 = vol.uncertainty(res_g, r.meas, 1e-7, zero + 1e-7, runs=50, rng=np.random.default_rng(7), ripples=[])
+    assert np.array_equal(u0.lo95, u1.lo95) and np.array_equal(u0.u_lin, u1.u_lin)
+
+
+def test_ripple_columns_and_declared_ripple_refuse_bad_input():
+    from core import volumetric as vol
+    from core.exceptions import ConfigError
+    from scenarios.cli import main
+    from scenarios.mfb import run
+
+    r = run("mfb-3axis", seed=1, noise_um=0, mc_runs=0)
+    for sym, a, p in (("EXY2", 1e-6, 0.01), ("EC0Y", 1e-6, 0.01), ("EXX", 1e-6, 0.0), ("EXX", np.nan, 0.01)):
+        with pytest.raises(ConfigError):
+            vol.ripple_columns(r.result, r.meas, "vmc-3axis", sym, a, p)
+    for bad in ({"EQQ": (1e-6, 0.01)}, {"EXX": (-1e-6, 0.01)}, {"EXX": (1e-6, 0.0)}, {"EXX": 1e-6}):
+        with pytest.raises(ConfigError):
+            run("mfb-3axis", seed=1, noise_um=0, mc_runs=0, declared_ripple=bad)
+    with pytest.raises(ConfigError):
+        vol.uncertainty(r.result, r.meas, 0.0, np.zeros((12, 3)), runs=0, ripples=[np.zeros((3, 2))])
+    for arg in ("EXX=abc", "EAX=1:10", "EC0Y=1:10", "EXX=1:0", "EXX=-1:10", "EXX=1:10,EXX=2:10", "EXX"):
+        assert main(["scenario", "mfb-3axis", "--mc", "0", "--declared-ripple-um-mm", arg]) == 2
+    for arg in ("EXX=1:10", "EBX=1", "EBX=inf:10"):
+        assert main(["scenario", "mfb-3axis", "--mc", "0", "--declared-ripple-urad-mm", arg]) == 2
+    assert main(["scenario", "pin-circle", "--declared-ripple-um-mm", "EXX=0.4:10"]) == 2
+    assert main(["scenario", "pin-circle", "--declared-ripple-urad-mm", "EBX=1:10"]) == 2
+
+
+def test_cli_declares_the_ripple_and_the_note_names_only_the_undeclared(tmp_path, capsys):
+    """The realistic set's six 10 mm ripples: EXX, EYY, EZZ (um) and EBX, EBZ, ECY (urad). Declaring the three
+    positioning ones on the CLI puts them in the JSON (their units) and the note names only the three angular
+    ones; the U95 of EXX is wider than the undeclared run's (same seed: the same identification)."""
+    from scenarios.cli import main
+
+    out0, out1 = tmp_path / "a.json", tmp_path / "b.json"
+    base = ["scenario", "mfb-3axis", "--errors", "realistic", "--mc", "0", "--seed", "4"]
+    assert main(base + ["--json", str(out0)]) == 0
+    assert main(base + ["--json", str(out1), "--declared-ripple-um-mm", "EXX=0.38:10,EYY=0.2:10,ezz=0.15:10"]) == 0
+    text = capsys.readouterr().out
+    d0, d1 = json.loads(out0.read_text()), json.loads(out1.read_text())
+    assert list(d1["declared_ripple"]) == ["EXX", "EYY", "EZZ"]  # (um -> m -> um: to rounding)
+    for s, a in (("EXX", 0.38), ("EYY", 0.2), ("EZZ", 0.15)):
+        assert d1["declared_ripple"][s] == {"amplitude_um": pytest.approx(a, rel=1e-12), "period_mm": 10.0}
+    assert "declared_ripple" not in d0 and "EXX" in d0["u95_scope"]
+    assert "EBX, EBZ, ECY" in d1["u95_scope"] and "EXX" not in d1["u95_scope"] and "EYY" not in d1["u95_scope"]
+    assert "U95 includes the declared ripple" in text and "EXX 0.38 um / 10 mm" in text
+    assert d1["errors"]["EXX"]["identified"] == d0["errors"]["EXX"]["identified"]
+    u0, u1 = np.asarray(d0["errors"]["EXX"]["u95"]), np.asarray(d1["errors"]["EXX"]["u95"])
+    assert np.all(u1 >= u0) and np.max(u1 - u0) > 0.1
+
+
 def test_5axis_compensation_closes_the_loop(tmp_path):
     """The Mikron's X, Y, Z all carry the tool: the axes whose files the old
     convention doubled. Both controllers bring the true positioning error
