@@ -1893,6 +1893,10 @@ def _exact_step(Cs: StepTrials, best: int, Q0: np.ndarray, r0: np.ndarray, rows=
 #: step fits exactly; the other touches saw the step at p 3e-36, and the report read `outlier?`. False: the rule
 #: before (session 25, docs/discovery.md "Session 25: hedged outliers of effects that are not dust").
 SLIP_UNJUDGED_BY_OTHERS = True
+#: An event's single outlier is judged by the slip veto too (True), where the step leaves it within the bound (or
+#: fits it exactly) and the set-up's other touches see the step (the veto's second condition: one outlier never
+#: outnumbers the step's parameters). False: only events of two or more outliers are judged (the rule before).
+SLIP_ONE_OUTLIER_BY_OTHERS = True
 
 
 def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, slips, alpha: float,
@@ -1957,7 +1961,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
     """
     out = np.asarray(out, int)
     ev = events[out]
-    multi = [e for e in np.unique(ev[ev >= 0]) if np.sum(ev == e) >= 2]
+    multi = [e for e in np.unique(ev[ev >= 0]) if np.sum(ev == e) >= (1 if SLIP_ONE_OUTLIER_BY_OTHERS else 2)]
     if not multi:
         return False
     Cs = slips()  # (T, n, k) dense, or StepTrials (built where used)
