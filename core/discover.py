@@ -1901,7 +1901,9 @@ SLIP_ONE_OUTLIER_BY_OTHERS = True
 
 def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, slips, alpha: float,
                    alpha_step: float) -> bool:
-    """Whether one step of :func:`find_outliers`'s ``slips`` explains an event's two or more outliers.
+    """Whether one step of :func:`find_outliers`'s ``slips`` explains an event's outliers (two or more; one with
+    :data:`SLIP_ONE_OUTLIER_BY_OTHERS`, judged by the second condition below: one never outnumbers the step's
+    parameters).
 
     A slip moves the part once and every touch after it stays moved; a chip
     corrupts the touch it sits under and nothing else. A step explains an
