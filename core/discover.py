@@ -2926,6 +2926,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     confounded: set = set()
 
     smooth_covs = [c for c in bl.covariates if c.kind != "spectral"]  # later rounds: the smooth terms' families
+    # the causes whose scans are fixed layouts (step 8 tests each of their layouts: fixed() below)
+    fixed_causes = [k for k, v in scans.items() if v[0] and all(_readings_only(sc) for sc in v[0])]  # (in order)
 
     def evaluate(cause, st_: _State, folds_: Folds, terms_, cv_, families_) -> dict:
         """:func:`_evaluate` of ``cause`` (its scans and tries) beside ``terms_`` in model ``st_``."""
@@ -2984,10 +2986,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             best = _plainer_one_explanation(best, passed, st, noise_sigma(st), settings)
             if CAUSE_ALTERNATIVES_OF_THE_ROUND:
                 # the round's other passing candidates, in the forms they passed with: step 8 tests them as the
-                # winner's alternatives (only their columns are kept, already built)
+                # winner's alternatives (their columns, already built, kept only for causes of no fixed layouts:
+                # step 8 tests the others' every layout anyway)
                 best["term"] = dataclasses.replace(best["term"], round_rivals=tuple(
                     (c["term"].cause, c["term"].info, c["term"].columns) for c in passed
-                    if c["term"].cause != best["term"].cause))
+                    if c["term"].cause != best["term"].cause and c["term"].cause not in fixed_causes))
             del passed  # (not held through the outlier screen and refit below)
             terms.append(best["term"])
             # outliers judged against the better model: a systematic effect is no dust
@@ -3228,7 +3231,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         # (a scan whose trials are one layout in two readings of the pre-travel, core.causes.PRETRAVEL_ALONG, is
         # two fixed layouts: each reading tested; the session 21 review found probe_lobing dropped from this check
         # once its scan offered both)
-        return {k: _Layouts(v[0]) for k, v in scans.items() if v[0] and all(_readings_only(sc) for sc in v[0])}
+        return {k: _Layouts(scans[k][0]) for k in fixed_causes}
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
                          seen + [(st, diag_e)], fixed=fixed, confounded=confounded,
