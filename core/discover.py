@@ -1088,8 +1088,8 @@ class Term:
     # it was judged beside (Qo does not show the penalised terms)
     at_adoption: tuple | None = field(default=None, repr=False, compare=False)
     unnamed: bool = False
-    # (cause, info, (N, k) columns) of the other candidates that passed every test of the round this term won, each in the
-    # form it passed with: tested as its alternatives under another name (:data:`CAUSE_ALTERNATIVES_OF_THE_ROUND`)
+    # (cause, info, (N, k) columns) of the other candidates that passed every test of the round this term won, each
+    # in the form it passed with: tested as its alternatives under another name (CAUSE_ALTERNATIVES_OF_THE_ROUND)
     round_rivals: tuple = field(default=(), repr=False, compare=False)
 
 
@@ -6917,6 +6917,11 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
     an alternative without the overlap condition: its visible part
     explains at least ``rival_share`` as much and the named cause nothing
     material and significant beyond it (``refused_confounded``: True).
+
+    ``tm.round_rivals`` (:data:`CAUSE_ALTERNATIVES_OF_THE_ROUND`): the other candidates that passed every test of
+    the round ``tm`` won, in the form each passed with, are tested the same way where their cause has no fixed
+    layouts (a periodic error's period, a local defect's position and width: searches, which ``fixed`` lacks);
+    such an alternative carries ``of_the_round``: True.
     """
     d_n = signal[1]
     out = []
