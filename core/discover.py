@@ -4420,8 +4420,9 @@ def _may_be_plainer(tm: Term) -> bool:
 #: other candidates that passed every test of the round it won, each in the form it passed with (True), beside the
 #: catalogue's fixed layouts. Without it a cause whose scan is a search (a periodic error's period, a local defect's
 #: position and width) was never tested as an alternative: gen_a periodic_axis_error 6706 (session 25's blind check)
-#: read ``local_scale_defect``, ambiguous with ``nonrigid`` alone, though the periodic error passed round one 0.004
-#: um^2 behind it held out (materiality 0.075), explaining 61.3 against 61.0 um^2. The test is step 8's own
+#: read ``local_scale_defect``, ambiguous with ``nonrigid`` alone, though the periodic error passed round one within
+#: 0.004 um^2 of it held out (materiality 0.075; the bump led on one column against two), explaining 61.3 against
+#: 61.0 um^2. The test is step 8's own
 #: (:func:`_one_explanation`); only the report's alternatives and the confidence they make read it. Session 25.
 CAUSE_ALTERNATIVES_OF_THE_ROUND = True
 

@@ -2046,9 +2046,9 @@ def test_gen_a_knock_6109_a_step_that_fits_its_outliers_exactly_is_asked_of_the_
 
 
 def test_gen_a_periodic_axis_error_6706_round_rival_is_an_alternative(monkeypatch):
-    """gen_a periodic_axis_error 6706 (session 25's blind check, spent): round one's held-out mean squares put the
-    periodic error 0.004 um^2 behind the one-column local scale defect (materiality 0.075), which leads on fewer
-    columns; both explain about 61 um^2. Step 8 tested only the catalogue's fixed layouts (a periodic error's scan
+    """gen_a periodic_axis_error 6706 (session 25's blind check, spent): round one's held-out gains put the periodic
+    error within 0.004 um^2 of the one-column local scale defect (materiality 0.075), which leads on fewer columns;
+    both explain about 61 um^2. Step 8 tested only the catalogue's fixed layouts (a periodic error's scan
     is a search over periods), so the report listed ``nonrigid`` alone and the study counted a plain miss. With
     ``CAUSE_ALTERNATIVES_OF_THE_ROUND`` the round's other passing candidates are tested too, in the form each
     passed with: the periodic error reproduces the bump's signal (overlap >= rival_share) and explains as much.
