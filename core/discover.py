@@ -1088,6 +1088,9 @@ class Term:
     # it was judged beside (Qo does not show the penalised terms)
     at_adoption: tuple | None = field(default=None, repr=False, compare=False)
     unnamed: bool = False
+    # (cause, info, (N, k) columns) of the other candidates that passed every test of the round this term won, each
+    # in the form it passed with: tested as its alternatives under another name (CAUSE_ALTERNATIVES_OF_THE_ROUND)
+    round_rivals: tuple = field(default=(), repr=False, compare=False)
 
 
 def _stack(terms, rows) -> np.ndarray:
@@ -1890,11 +1893,17 @@ def _exact_step(Cs: StepTrials, best: int, Q0: np.ndarray, r0: np.ndarray, rows=
 #: step fits exactly; the other touches saw the step at p 3e-36, and the report read `outlier?`. False: the rule
 #: before (session 25, docs/discovery.md "Session 25: hedged outliers of effects that are not dust").
 SLIP_UNJUDGED_BY_OTHERS = True
+#: An event's single outlier is judged by the slip veto too (True), where the step leaves it within the bound (or
+#: fits it exactly) and the set-up's other touches see the step (the veto's second condition: one outlier never
+#: outnumbers the step's parameters). False: only events of two or more outliers are judged (the rule before).
+SLIP_ONE_OUTLIER_BY_OTHERS = True
 
 
 def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, slips, alpha: float,
                    alpha_step: float) -> bool:
-    """Whether one step of :func:`find_outliers`'s ``slips`` explains an event's two or more outliers.
+    """Whether one step of :func:`find_outliers`'s ``slips`` explains an event's outliers (two or more; one with
+    :data:`SLIP_ONE_OUTLIER_BY_OTHERS`, judged by the second condition below: one never outnumbers the step's
+    parameters).
 
     A slip moves the part once and every touch after it stays moved; a chip
     corrupts the touch it sits under and nothing else. A step explains an
@@ -1954,7 +1963,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
     """
     out = np.asarray(out, int)
     ev = events[out]
-    multi = [e for e in np.unique(ev[ev >= 0]) if np.sum(ev == e) >= 2]
+    multi = [e for e in np.unique(ev[ev >= 0]) if np.sum(ev == e) >= (1 if SLIP_ONE_OUTLIER_BY_OTHERS else 2)]
     if not multi:
         return False
     Cs = slips()  # (T, n, k) dense, or StepTrials (built where used)
@@ -2917,6 +2926,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     confounded: set = set()
 
     smooth_covs = [c for c in bl.covariates if c.kind != "spectral"]  # later rounds: the smooth terms' families
+    # the causes whose scans are fixed layouts (step 8 tests each of their layouts: fixed() below)
+    fixed_causes = [k for k, v in scans.items() if v[0] and all(_readings_only(sc) for sc in v[0])]  # (in order)
 
     def evaluate(cause, st_: _State, folds_: Folds, terms_, cv_, families_) -> dict:
         """:func:`_evaluate` of ``cause`` (its scans and tries) beside ``terms_`` in model ``st_``."""
@@ -2973,6 +2984,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 best = _entrant_form_held_out(best, other_forms, passed, noise_sigma(st), settings)
             del other_forms
             best = _plainer_one_explanation(best, passed, st, noise_sigma(st), settings)
+            if CAUSE_ALTERNATIVES_OF_THE_ROUND:
+                # the round's other passing candidates, in the forms they passed with: step 8 tests them as the
+                # winner's alternatives (their columns, already built, kept only for causes of no fixed layouts:
+                # step 8 tests the others' every layout anyway)
+                best["term"] = dataclasses.replace(best["term"], round_rivals=tuple(
+                    (c["term"].cause, c["term"].info, c["term"].columns) for c in passed
+                    if c["term"].cause != best["term"].cause and c["term"].cause not in fixed_causes))
             del passed  # (not held through the outlier screen and refit below)
             terms.append(best["term"])
             # outliers judged against the better model: a systematic effect is no dust
@@ -3213,7 +3231,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         # (a scan whose trials are one layout in two readings of the pre-travel, core.causes.PRETRAVEL_ALONG, is
         # two fixed layouts: each reading tested; the session 21 review found probe_lobing dropped from this check
         # once its scan offered both)
-        return {k: _Layouts(v[0]) for k, v in scans.items() if v[0] and all(_readings_only(sc) for sc in v[0])}
+        return {k: _Layouts(scans[k][0]) for k in fixed_causes}
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
                          seen + [(st, diag_e)], fixed=fixed, confounded=confounded,
@@ -4396,6 +4414,17 @@ def _one_explanation(B: np.ndarray, signal: tuple, E: np.ndarray, st: _State, si
 def _may_be_plainer(tm: Term) -> bool:
     """Whether :func:`_plainer_one_explanation` compares the term at all: named, unpenalised, of a covariate."""
     return tm.penalty is None and not tm.unnamed and tm.covariate is not None
+
+
+#: Whether step 8 (:func:`_cause_alternatives`) also tests, as a named cause's alternatives under another name, the
+#: other candidates that passed every test of the round it won, each in the form it passed with (True), beside the
+#: catalogue's fixed layouts. Without it a cause whose scan is a search (a periodic error's period, a local defect's
+#: position and width) was never tested as an alternative: gen_a periodic_axis_error 6706 (session 25's blind check)
+#: read ``local_scale_defect``, ambiguous with ``nonrigid`` alone, though the periodic error passed round one within
+#: 0.004 um^2 of it held out (materiality 0.075; the bump led on one column against two), explaining 61.3 against
+#: 61.0 um^2. The test is step 8's own
+#: (:func:`_one_explanation`); only the report's alternatives and the confidence they make read it. Session 25.
+CAUSE_ALTERNATIVES_OF_THE_ROUND = True
 
 
 #: Whether a cause whose form entered a round and lost it may take the round on another of its significant forms
@@ -6889,13 +6918,23 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
     an alternative without the overlap condition: its visible part
     explains at least ``rival_share`` as much and the named cause nothing
     material and significant beyond it (``refused_confounded``: True).
+
+    ``tm.round_rivals`` (:data:`CAUSE_ALTERNATIVES_OF_THE_ROUND`): the other candidates that passed every test of
+    the round ``tm`` won, in the form each passed with, are tested the same way where their cause has no fixed
+    layouts (a periodic error's period, a local defect's position and width: searches, which ``fixed`` lacks);
+    such an alternative carries ``of_the_round``: True.
     """
     d_n = signal[1]
     out = []
     if d_n <= 0:
         return out
     cause = tm.origin
-    for name, layouts in fixed().items():
+    pool = list(fixed().items())
+    # the round's other passing candidates whose scans are not fixed layouts (a period, a defect's position and
+    # width): the form each passed the round with (CAUSE_ALTERNATIVES_OF_THE_ROUND)
+    of_round = {r[0] for r in tm.round_rivals} - {n for n, _ in pool} if CAUSE_ALTERNATIVES_OF_THE_ROUND else set()
+    pool += [(n, [(info, B)]) for n, info, B in tm.round_rivals if n in of_round]
+    for name, layouts in pool:
         other = causes_mod.lookup(name, cause.kinds[0]) if cause is not None else None
         if name == tm.cause or (cause is not None and cause.counter_cause == name) or (
                 other is not None and other.counter_cause == tm.cause):
@@ -6909,7 +6948,8 @@ def _cause_alternatives(tm: Term, so: _State, sigma, settings, fixed, signal: tu
             if one is not None:
                 best = (*one, info, B if NAMED_ALTERNATIVE_SHIFT_CARRIED else None)
         if best is not None:
-            out.append({"cause": name, "layout": _layout_label(best[4]), "overlap": best[0],
+            out.append({"cause": name, "layout": _layout_label(best[4]), **({"of_the_round": True} if name in of_round
+                                                                          else {}), "overlap": best[0],
                         "explained_ratio": best[1] / d_n, "cause_beyond_it_ss_um2": max(best[2], 0.0) / UM ** 2,
                         "p_adjusted_cause_beyond_it": best[3],
                         **({"refused_confounded": True} if name in confounded else {}),
