@@ -4965,6 +4965,25 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
     rest = sorted((o for o in owns if o is not best and o.p * tries < settings.alpha_family),
                   key=functools.cmp_to_key(lambda a, b: -1 if _better_trial(a, b, st.rss)
                                            else (1 if _better_trial(b, a, st.rss) else 0)))
+    if out.get("form_refused") == "confounded" and (CONFOUNDED_FALLBACK_BY_GAIN or CONFOUNDED_FALLBACK_SAME_COVARIATE):
+        # session 25 (conf25): the confounded step's variants, each behind its own switch
+        if CONFOUNDED_FALLBACK_SAME_COVARIATE:
+            rest = [o for o in rest if o.scan.covariate == best.scan.covariate]
+        if CONFOUNDED_FALLBACK_BY_GAIN:
+            passed = []
+            for alt in rest:
+                res = _judge_trial(cause, alt, scans, tries, bl, st, folds, terms, cv_cur, sigma, settings, families,
+                                   scan_tries)
+                if not res.get("reason"):
+                    passed.append((alt, res))
+            if not passed:
+                return out
+            alt, res = min(passed, key=lambda ar: ar[1]["cv"])  # the largest held-out gain; ties by the order
+            res["term"].evidence["held_out_fallback"] = (
+                f"the form of smallest p ({_layout_text(best.scan.infos[best.index])}) {out['reason']}; of the "
+                f"{len(passed)} other forms that pass, the one of largest held-out gain")
+            res["other_forms"] = other_forms(alt, [o for o in rest if o is not alt] + [best])
+            return res
     for alt in rest:
         res = _judge_trial(cause, alt, scans, tries, bl, st, folds, terms, cv_cur, sigma, settings, families,
                            scan_tries)
@@ -5289,6 +5308,12 @@ HELD_OUT_FALLBACK = True
 #: adds gen_b thermal_drift 1016 alone to the held-out step, and the undo of a dropped cause's search does not
 #: reach 1144 (nothing is dropped there: the confounded bump is the cause named).
 CONFOUNDED_FALLBACK = False
+#: Whether that confounded step takes, of the cause's other significant forms that pass every test, the one of
+#: largest held-out gain (True) rather than the first by p (False). Session 25 (conf25), measured below.
+CONFOUNDED_FALLBACK_BY_GAIN = False
+#: Whether that confounded step judges only the cause's forms of the refused form's covariate (True; session 25's
+#: :data:`ENTRANT_FORM_SAME_COVARIATE` idea applied to the fallback). Session 25 (conf25), measured below.
+CONFOUNDED_FALLBACK_SAME_COVARIATE = False
 
 
 def _layout_text(info: dict) -> str:
