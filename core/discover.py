@@ -53,8 +53,9 @@ What it does, in order, and the statistics behind each step
       the cause's other significant forms are judged in turn by every test
       (:data:`HELD_OUT_FALLBACK`; where it is confounded, b, they are not:
       :data:`CONFOUNDED_FALLBACK` is off, its measured cost, and so are its
-      two variants of session 25, :data:`CONFOUNDED_FALLBACK_BY_GAIN` and
-      :data:`CONFOUNDED_FALLBACK_SAME_COVARIATE`);
+      three variants of session 25, :data:`CONFOUNDED_FALLBACK_BY_GAIN`,
+      :data:`CONFOUNDED_FALLBACK_SAME_COVARIATE` and
+      :data:`CONFOUNDED_FALLBACK_LEAST_INFLATION`);
    d. plausibility: magnitudes inside the cause's bounds (beyond their
       U95), periods above the Nyquist limit;
    e. the structure lives where the cause says: no smooth function of a
