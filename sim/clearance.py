@@ -1127,8 +1127,8 @@ def _block_rows(cut, end, blk, cp, lo, hi, allow, cloT, chiT, cballf) -> tuple[n
     against its cluster, then :func:`_pair_candidates`' row level (:func:`_overlap_rows`), the
     same comparisons of the same numbers and the same rows in the same order (hit by hit, a
     block's rows in order), done on (hits, 16) arrays: each block's rows gathered once as one
-    run of 16, not one gather a row and cluster (the 5-axis plan check: 20,923 candidate rows,
-    1,308 hits; session 26)."""
+    run of 16, not one gather a row and cluster (the 5-axis plan check: 604 blocks, 1,332
+    hits, 20,923 candidate rows of which 2,066 kept; session 26)."""
     slot = cut[:, None] + np.arange(_BLOCK)
     valid = slot < end[:, None]  # (a group's last block: its rows only)
     slot = np.where(valid, slot, cut[:, None]).ravel()  # (the others read the block's first row, then dropped)
