@@ -1397,16 +1397,17 @@ def _near_samples(ms, zones, live, sgs) -> dict:
         zones[i].set_table(ms[i][2])
         asks.append((zones[i]._by_orientation("rest"), zones[i]._W_R()))
     orientations_ahead(asks)
-    for i in live:
+    ball = zones[live[0]]._ball_base()  # (one per bar and ball radius: every zone's here, check_measurements')
+    for i, (bo, W_R) in zip(live, asks):
         wz = zones[i]
-        wz.set_table(ms[i][2])
         sg, _, allow, is_app = sgs[i]
         plan, T_W_A = ms[i][5], ms[i][1]
         if len(segs_A[id(plan)][0]) != len(sg.a):  # (the same polylines, row for row)
             raise RuntimeError(f"_near_samples: {len(sg.a)} path segments, its program's rows in A {len(segs_A[id(plan)][0])}")
         own = []
         # (the two broad phases as kept, not moved to this pose: the rows are given in their frames)
-        for clr, place in ((wz._ball_base(), None), (wz.clearance(part="rest", moved=False), T_W_A)):
+        # (the rest: wz.clearance(part="rest", moved=False) at this measurement's pose, the ask's)
+        for clr, place in ((ball, None), (bo.get(W_R, move=False), T_W_A)):
             key = (id(clr._certs), id(plan), b"" if place is None else place.tobytes())
             own.append(key)
             if key in rows_F:

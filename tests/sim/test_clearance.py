@@ -1190,15 +1190,10 @@ def test_open_rows_are_the_segments_that_may_come_near():
     assert np.array_equal(np.unique(sg.segment_of(near)), np.flatnonzero(got))
 
 
-def test_broad_phases_at_once_are_each_broad_phase_alone():
-    """Known answer: near_segments_many's first box level for the rows of several broad phases at
-    once (_block_candidates_many) is that of one broad phase at a time (Clearance._block_candidates),
-    bit for bit and in the same order: three rest broad phases (two probes, three table poses,
-    frame W) and the ball's (frame A), random rows around the bar, half of them through a pair's
-    two geoms, allowed features at random, groups of rows that do not fill their last block."""
-    from sim.clearance import _block_candidates_many
-
-    rng = np.random.default_rng(11)
+def _many_bases_rows(seed: int = 11):
+    """Rows of three rest broad phases and the ball's for the box levels' tests: (bases, groups,
+    cl0, lo, hi, allow) (test_broad_phases_at_once_are_each_broad_phase_alone says what)."""
+    rng = np.random.default_rng(seed)
     zones = [WorkZone(BAR, FLAT, (), J, R) for J in ((0.0, 0.0, 0.08), (0.03, 0.0, 0.08))]
     bases = []
     for wz, (a_deg, c_deg) in ((zones[0], (0, 0)), (zones[0], (-30, 45)), (zones[1], (0, 90))):
@@ -1223,6 +1218,18 @@ def test_broad_phases_at_once_are_each_broad_phase_alone():
     pb = np.repeat(np.arange(len(bases)), [len(x) for x in A_])
     pad = np.array([bases[k].cert_pad_m for k in pb])[:, None]
     lo, hi = np.minimum(a, b) - pad, np.maximum(a, b) + pad
+    return bases, groups, cl0, lo, hi, allow
+
+
+def test_broad_phases_at_once_are_each_broad_phase_alone():
+    """Known answer: near_segments_many's first box level for the rows of several broad phases at
+    once (_block_candidates_many) is that of one broad phase at a time (Clearance._block_candidates),
+    bit for bit and in the same order: three rest broad phases (two probes, three table poses,
+    frame W) and the ball's (frame A), random rows around the bar, half of them through a pair's
+    two geoms, allowed features at random, groups of rows that do not fill their last block."""
+    from sim.clearance import _block_candidates_many
+
+    bases, groups, cl0, lo, hi, allow = _many_bases_rows()
     # the first box level
     seg, cp = _block_candidates_many(groups, np.array(cl0), lo, hi, allow,
                                      np.concatenate([c._cloT for c in bases], axis=1),
@@ -1232,3 +1239,49 @@ def test_broad_phases_at_once_are_each_broad_phase_alone():
     assert np.array_equal(seg, np.concatenate([s + r0 for (s, _), (_, r0, _) in zip(want, groups)]))
     assert np.array_equal(cp, np.concatenate([x + cl0[k] for k, (_, x) in enumerate(want)]))
     assert len(seg) > 1000
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_block_rows_are_the_first_two_box_levels(seed):
+    """Known answer: the second box level done block by block (_block_candidates_many(rows=True),
+    sim.clearance._block_rows; session 26) gives the (row, cluster) candidates of the first level
+    (rows=False) that the second keeps (_overlap_rows, each row's box against its cluster's, as
+    _pair_candidates did them): the same rows and clusters in the same order, on the rows of three
+    rest broad phases and the ball's (_many_bases_rows: groups whose last block is not full,
+    allowed features at random). Fails on a block's padding rows let through, a comparison
+    changed (> for >=) or another order; tried: the valid-row mask left out fails here."""
+    from sim.clearance import _block_candidates_many, _overlap_rows
+
+    bases, groups, cl0, lo, hi, allow = _many_bases_rows(seed)
+    cloT = np.concatenate([c._cloT for c in bases], axis=1)
+    chiT = np.concatenate([c._chiT for c in bases], axis=1)
+    cballf = np.concatenate([c._cballf for c in bases])
+    seg, cp = _block_candidates_many(groups, np.array(cl0), lo, hi, allow, cloT, chiT, cballf)
+    ok = _overlap_rows(lo.T.copy(), hi.T.copy(), seg, cloT, chiT, cp)
+    got = _block_candidates_many(groups, np.array(cl0), lo, hi, allow, cloT, chiT, cballf, rows=True)
+    assert np.array_equal(got[0], seg[ok]) and np.array_equal(got[1], cp[ok])
+    assert 0 < len(got[0]) < len(seg)  # (the second level drops some candidates and keeps some)
+
+
+def test_row_norm_is_numpys_norm_bit_for_bit():
+    """Known answer and property: sim.clearance._row_norm (the paths' segment lengths, the unit
+    axes of the swept bounds, the geoms' bounding radii; session 26) is np.linalg.norm(d, axis=-1)
+    bit for bit: the squares summed as (x^2 + y^2) + z^2, numpy's order. Known answer: a row whose
+    two orders of summation differ (1 and two squares of 0.6 ulp: 1 + 2 ulp against 1 + 1 ulp
+    before the root) gives numpy's; property: random rows of magnitudes 1e-17 .. 1e17, shapes
+    (n,3) and (n,7,3), C, Fortran and reversed strides, zeros. Fails with the sum in the other
+    order (x^2 + (y^2 + z^2)) on the known row."""
+    from sim.clearance import _row_norm
+
+    u = np.finfo(float).eps  # (1 ulp of 1.0)
+    y = np.sqrt(0.6 * u)
+    row = np.array([[1.0, y, y]])
+    numpy_order = np.sqrt((1.0 + y * y) + y * y)
+    assert numpy_order != np.sqrt(1.0 + (y * y + y * y))  # (the row tells the two orders apart)
+    assert _row_norm(row)[0] == numpy_order == np.linalg.norm(row, axis=-1)[0]
+    rng = np.random.default_rng(3)
+    for shape in ((1, 3), (644, 3), (2000, 3), (400, 7, 3), (0, 3)):
+        x = rng.standard_normal(shape) * np.exp(rng.uniform(-40, 40, shape))
+        x[rng.random(shape) < 0.1] = 0.0
+        for v in (x, np.asfortranarray(x), x[::-1]):
+            assert np.array_equal(_row_norm(v).view(np.uint64), np.linalg.norm(v, axis=-1).view(np.uint64))
