@@ -235,13 +235,22 @@ def test_plan_grid_and_a_planless_import_give_the_same_plan(tmp_path, capsys):
     log = read_probe_log(out)
     assert list(log.col("target")) == list(plan.col("target")) and np.all(log.ok)
     assert np.allclose(log.dq_mm(), pos[:, 2] - np.median(pos[:, 2]), atol=1e-9)
-    # and vmt fit plane finds the tilt and a flat surface
+    # and vmt fit plane finds the tilt and a flat surface; the file does not say the stylus radius (the plan
+    # did): the fit asks for it rather than apply 0 (session 26), and puts the surface one radius below the tips
     js = tmp_path / "plane.json"
-    assert main(["fit", "plane", str(out), "--json", str(js)]) == 0
+    capsys.readouterr()
+    assert main(["fit", "plane", str(out), "--json", str(js)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(out) in err and "give --stylus-r-mm R" in err and not js.exists()
+    assert main(["fit", "plane", str(out), "--json", str(js), "--stylus-r-mm", "1"]) == 0
+    assert "stylus radius 1 mm applied (--stylus-r-mm; the log says none)" in capsys.readouterr().out
     import json
     rep = json.loads(js.read_text())
     n = np.array(rep["values"]["normal"])
     assert abs(n[0] / n[2] + 1e-3) < 1e-6 and rep["form_um"] < 0.01
+    # the tip centres' plane (z = 3 + 1e-3 x) moved 1 mm against its normal: the surface
+    p0 = np.array(rep["values"]["point_mm"])
+    assert abs((p0 - [0, 0, 3]) @ n + 1.0) < 1e-9 and rep["stylus_r_source"] == "given"
     assert len(rep["touches"]) == 12
 
 
@@ -253,7 +262,8 @@ def test_planless_import_of_scattered_points_and_bad_grids(tmp_path, capsys):
     assert list(read_probe_log(out).col("target")) == ["p0", "p1", "p0"]
     for bad, msg in (("0:10:3", "not a whole number of steps"), ("10:0:1", "lo <= hi"),
                      ("0:10", "expected lo:hi:step")):
-        assert main(["plan", "grid", "--x-mm", bad, "--y-mm", "0:1:1", "--out", str(tmp_path / "g.csv")]) == 2
+        assert main(["plan", "grid", "--x-mm", bad, "--y-mm", "0:1:1", "--stylus-r-mm", "0",
+                     "--out", str(tmp_path / "g.csv")]) == 2
         assert msg in capsys.readouterr().err
     assert main(["import", "grbl", str(pf), "--out", str(out)]) == 2
     assert "--plan is required" in capsys.readouterr().err
@@ -261,7 +271,8 @@ def test_planless_import_of_scattered_points_and_bad_grids(tmp_path, capsys):
 
 def test_identify_and_discover_name_the_real_reason(tmp_path, capsys):
     plan_p = tmp_path / "grid.csv"
-    assert main(["plan", "grid", "--x-mm", "0:30:10", "--y-mm", "0:20:10", "--out", str(plan_p)]) == 0
+    assert main(["plan", "grid", "--x-mm", "0:30:10", "--y-mm", "0:20:10", "--stylus-r-mm", "0",
+                 "--out", str(plan_p)]) == 0
     pf = tmp_path / "probe.txt"
     _probe_file(pf, read_probe_log(plan_p).nominals_mm())
     out = tmp_path / "log.csv"
