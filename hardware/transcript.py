@@ -118,12 +118,14 @@ def read_transcript(path):
     return s.pos_mm, s.touched, s.t_s, s.lines
 
 
-def read_session(path) -> Session:
+def read_session(path, *, stopped_at_first: bool = False) -> Session:
     """:func:`read_transcript`'s reports, with the alarms, errors, resets and probing commands around them.
 
     A line's direction is its ``>`` (sent) or ``<`` (received) after the
     timestamp, when it has one; a line without either is read both ways
-    (another sender's console log).
+    (another sender's console log). ``stopped_at_first``: a session whose
+    first probing move was stopped by an alarm (no report at all) is read,
+    not refused (:func:`import_transcript` names that alarm in its refusal).
 
     Raises
     ------
@@ -184,7 +186,8 @@ def read_session(path) -> Session:
         touched.append(r[1])
         stamps.append(ts)
         where.append(ln)
-    if not pos:
+    first_stopped = stopped_at_first and bool(probing) and any(a > probing[0] for a, _ in alarms)
+    if not pos and not first_stopped:
         raise ProbeLogError(f"{p}: no probe reports ([PRB:...]) in it: not a GRBL session transcript "
                             "(vmt probe --transcript writes one), or of a session that probed nothing")
     have = [s is not None for s in stamps]
@@ -192,7 +195,7 @@ def read_session(path) -> Session:
         ln_ = where[have.index(False)]
         raise ProbeLogError(f"{p}: line {ln_}: probe report without a timestamp (others have one)")
     t = None
-    if all(have):
+    if have and all(have):
         t = np.array(stamps, dtype=float) - t0
         off = 0.0
         for i in range(1, len(t)):
@@ -203,7 +206,8 @@ def read_session(path) -> Session:
                     t[i] += 86400.0
                 else:
                     raise ProbeLogError(f"{p}: line {where[i]}: time goes backwards")
-    return Session(np.array(pos), np.array(touched, dtype=bool), t, where, alarms, probing, errors,
+    return Session(np.array(pos, dtype=float).reshape(-1, 3), np.array(touched, dtype=bool), t, where, alarms,
+                   probing, errors,
                    resets, ln)
 
 
@@ -263,9 +267,13 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0) -> ProbeLog:
     ProbeLogError
         See :func:`read_transcript`.
     """
-    s = read_session(path)
+    s = read_session(path, stopped_at_first=True)
     pos, touched, t = s.pos_mm, s.touched, s.t_s
     k, n = len(pos), plan.n
+    if k == 0:      # nothing measured: a log of it would read as a plan (as LinuxCNC's empty probe file, refused)
+        _, why, _ = _stop(s, plan)
+        raise ProbeLogError(f"{path}: no probe reports ([PRB:...]): the run stopped at its first touch, {why}; "
+                            "nothing measured to import")
     if k > n:
         raise PlanError(f"{path}: {k} probe reports but the plan {plan.source} has {counted(n, 'row')}: "
                         "not the transcript of this plan")

@@ -462,3 +462,16 @@ def test_live_log_keeps_the_controllers_digits(tmp_path):
     imp = tmp_path / "imported.csv"
     assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(imp)]) == 0
     assert np.array_equal(read_probe_log(imp).positions_mm(), live)
+
+
+def test_grbl_run_stopped_at_its_first_touch_is_named(tmp_path, capsys):
+    """No report at all: nothing measured (a log of it would read as a plan, as LinuxCNC's empty probe file is
+    refused); the refusal names the alarm that stopped the first touch instead of 'not a GRBL transcript'."""
+    lines = (REF / "grbl-1.1h-sim-vmt-campaign-transcript.txt").read_text().splitlines()
+    assert "G38.2" in lines[14] and not any("[PRB" in x for x in lines[:15])
+    tr, plan_path = tmp_path / "t.txt", write_probe_log(tmp_path / "plan.csv", plan_log())
+    tr.write_text("\n".join(_cut(lines, 15, ["< ALARM:4", "< ok"])) + "\n")
+    assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the run stopped at its first touch, ALARM:4 (probe not in the expected" in err
+    assert "at line 16; nothing measured to import" in err and not (tmp_path / "o.csv").exists()
