@@ -9,6 +9,12 @@ boss or pin (the log's normals point away from the centre) and grows by
 ``r`` in a bore or hollow (normals point at the centre). Position and
 orientation do not depend on ``r``.
 
+The radius is the caller's (``stylus_r_mm``: a qualified, effective radius
+wins over the nominal one a log carries), else the log's (its
+``stylus_r_mm`` column, else its metadata). A log that says none and no
+radius given is refused (:class:`NoStylusRadius`): a fit with a wrong
+radius is wrong by that radius, and nothing in the fit would show it.
+
 Each parameter comes with its U95 (:func:`core.fit.u95`: Student's t on the
 fit's own covariance) and the feature with its form deviation
 (:func:`core.fit.form_deviation`, peak-to-valley about the least-squares
@@ -59,6 +65,11 @@ class FeatureReport:
         Stylus radius applied.
     dof : int
         Degrees of freedom of the fit.
+    stylus_r_source : str
+        Where the radius came from: ``given``, ``column`` (the log's
+        ``stylus_r_mm`` column) or ``metadata`` (its ``stylus_r_mm`` line).
+    log_stylus_r_mm : float or None
+        The radius the log says (column or metadata), ``None`` when it says none.
     """
 
     kind: str
@@ -71,19 +82,38 @@ class FeatureReport:
     residuals_um: np.ndarray
     stylus_r_mm: float
     dof: int
+    stylus_r_source: str = "given"
+    log_stylus_r_mm: float | None = None
 
 
-def _stylus_r_mm(log: ProbeLog, rows: np.ndarray) -> float:
+class NoStylusRadius(ConfigError):
+    """The log says no stylus radius (no ``stylus_r_mm`` column or metadata) and none was given."""
+
+
+def log_stylus_r_mm(log: ProbeLog, rows: np.ndarray) -> tuple[float | None, str]:
+    """The stylus radius the log says for ``rows``, mm, and where (``column``, ``metadata``); ``(None, "")``.
+
+    Raises
+    ------
+    ConfigError
+        The rows' radii differ; metadata that is not a finite number >= 0.
+    """
     if log.has("stylus_r_mm"):
         r = log.col("stylus_r_mm")[rows].astype(float)
-        if np.all(np.isfinite(r)):
+        if r.size and np.all(np.isfinite(r)):
             if np.ptp(r) > 1e-9:
                 raise ConfigError(f"{log.source}: the touches of this feature have different stylus radii")
-            return float(r[0])
+            return float(r[0]), "column"
+    if "stylus_r_mm" not in log.meta:
+        return None, ""
     try:
-        return float(log.meta.get("stylus_r_mm", 0.0))
+        v = float(log.meta["stylus_r_mm"])
     except ValueError:
-        raise ConfigError(f"{log.source}: metadata stylus_r_mm {log.meta['stylus_r_mm']!r} is not a number") from None
+        v = float("nan")
+    if not (np.isfinite(v) and v >= 0):
+        raise ConfigError(f"{log.source}: metadata stylus_r_mm {log.meta['stylus_r_mm']!r} is not a finite "
+                          "number >= 0")
+    return v, "metadata"
 
 
 def _u95_named(fit, units: dict) -> dict:
@@ -103,7 +133,7 @@ def _side(p_m: np.ndarray, n: np.ndarray, centre_m: np.ndarray, axis=None) -> st
 
 
 def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
-                    setup: str | None = None) -> FeatureReport:
+                    setup: str | None = None, stylus_r_mm: float | None = None) -> FeatureReport:
     """Fit a feature to the valid touches of ``log``.
 
     Parameters
@@ -113,11 +143,16 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
     kind : {"plane", "sphere", "circle", "cylinder"}
     feature, setup : str or None
         Use only the rows of this ``feature`` / ``setup``.
+    stylus_r_mm : float or None
+        Stylus tip radius, mm (0: a pin or a tool as the probe); ``None``: the log's.
 
     Raises
     ------
+    NoStylusRadius
+        ``stylus_r_mm`` is ``None`` and the log says no radius.
     ConfigError
-        Unknown kind, an unknown feature or set-up, a plan instead of a log.
+        Unknown kind, an unknown feature or set-up, a plan instead of a log,
+        a radius that is not a finite number >= 0.
     FitError
         Too few or degenerate points (from :mod:`core.fit`).
     """
@@ -138,7 +173,17 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
         raise FitError(f"{log.source}: no valid touch to fit")
     p = log.positions_mm()[rows] * 1e-3
     n = log.normals()[rows]
-    r_st = _stylus_r_mm(log, rows)
+    said, where = log_stylus_r_mm(log, rows)
+    if stylus_r_mm is not None:
+        r_st = float(stylus_r_mm)
+        if not (np.isfinite(r_st) and r_st >= 0):
+            raise ConfigError(f"stylus radius {stylus_r_mm!r} mm: need a finite number >= 0")
+        where = "given"
+    elif said is None:
+        raise NoStylusRadius(f"{log.source}: says no stylus radius (no stylus_r_mm column or metadata); "
+                             "a fit without the right one is wrong by it")
+    else:
+        r_st = said
     n_mean = n.mean(axis=0)
     if kind == "plane":
         f = F.fit_plane(p, normal_hint=n_mean if np.linalg.norm(n_mean) > 0.5 else None)
@@ -171,4 +216,5 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
         res = f.residuals
     return FeatureReport(kind=kind, n=int(rows.size), rows=rows, values=vals, u95=u,
                          form_um=F.form_deviation(f) * 1e6, rms_um=f.rms * 1e6,
-                         residuals_um=np.asarray(res) * 1e6, stylus_r_mm=r_st, dof=int(f.dof))
+                         residuals_um=np.asarray(res) * 1e6, stylus_r_mm=r_st, dof=int(f.dof),
+                         stylus_r_source=where, log_stylus_r_mm=said)

@@ -129,12 +129,18 @@ class ProbeResult:
     extra_axes : tuple of float
         Further axes of the controller's probe report (A, B, C, ... in the
         controller's units), empty when it reports only X, Y, Z.
+    reported_mm : (3,) float or None
+        X, Y, Z as the controller reported them, mm (GRBL's ``[PRB:...]``
+        numbers), ``None`` for a backend that measures in metres: the log
+        writes these, so a report's ``-3.937`` is not logged
+        ``-3.9369999999999994`` after the trip through metres.
     """
 
     status: str
     pos_m: np.ndarray
     alarm: int | None = None
     extra_axes: tuple = field(default=())
+    reported_mm: np.ndarray | None = None
 
     @property
     def triggered(self) -> bool:

@@ -656,7 +656,9 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
             row = {c: plan.columns[c][st.row] for c in plan.columns}
             row["status"] = res.status
             if res.triggered:
-                x = np.asarray(res.pos_m, dtype=float) / MM
+                # the controller's own digits when it reported mm (a trip through metres moves the last one)
+                x = (np.asarray(res.reported_mm, dtype=float) if res.reported_mm is not None
+                     else np.asarray(res.pos_m, dtype=float) / MM)
                 row.update({"X_mm": x[0], "Y_mm": x[1], "Z_mm": x[2], "t_s": t})
                 last_t = t
             else:          # probe-log/1: the measured cells of an invalid touch stay empty

@@ -783,7 +783,7 @@ class GrblBackend:
         # where the machine stopped (deceleration past the trigger), from its own report
         self._pos_mm = self.client.status().mpos_mm[:3].copy()
         if touched:
-            return ProbeResult("ok", p * 1e-3, extra_axes=tuple(axes[3:]))
+            return ProbeResult("ok", p * 1e-3, extra_axes=tuple(axes[3:]), reported_mm=p.copy())
         if not allow_miss:
             raise HardwareError(f"G38.2 ended without contact and without ALARM:5 ({line!r})")
         return ProbeResult("no_trigger", p * 1e-3, extra_axes=tuple(axes[3:]))

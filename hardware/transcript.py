@@ -14,11 +14,29 @@ timestamp): a leading number of seconds (``12.345 < [PRB:...]``, what
 ISO date-time, optionally in brackets. Without timestamps ``t_s`` is the
 touch index. ``t_s`` must not go backwards (a clock time passing midnight
 is unwrapped).
+
+A run that stopped (an alarm, a lost connection, the user's stop) leaves
+fewer reports than the plan has rows. :func:`import_transcript` then does
+what the LinuxCNC import does with a short probe file: the reports fill the
+first plan rows, every row after them is kept with status ``aborted`` and
+empty measured cells (probe-log/1: a touch not taken), and the stop's
+reason goes into the metadata (``stop_reason``, with ``transcript_reports``
+saying how many of the plan's rows the transcript holds). The touch that was
+under way when the controller stopped is marked by the alarm that stopped it
+(GRBL 1.1h, as recorded in ``tests/hardware/data/grbl-1.1h``): ``ALARM:4``
+(the probe already in contact at the start of a ``G38.2``; no report
+follows) is ``early_trigger``; ``ALARM:5`` whose ``[PRB:...:0]`` never came
+(the transcript ends in the firmware's 0.5 s alarm delay) is
+``no_trigger``; any other alarm after a probing command was sent (a reset,
+``ALARM:3``, or a limit) is ``alarm``. Without an alarm (the transcript just
+ends: the connection lost, the sender killed) the row is ``aborted``: what
+happened to it is not known.
 """
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
@@ -36,6 +54,10 @@ _TS = re.compile(
     r"|(?P<hms>\d\d?:\d\d:\d\d(?:[.,]\d+)?)"
     r"|(?P<sec>\d+(?:\.\d+)?)(?=\s))\s*\]?")
 _PRB_TOKEN = re.compile(r"\[PRB[^\]]*\]?")
+_ALARM = re.compile(r"\bALARM:(\d+)")
+_PROBING = re.compile(r"\bG38\.[2-5]\b", re.I)
+_RESET_SENT = re.compile(r"^(\^X|\x18|0x18|ctrl-x)$", re.I)
+_BANNER = re.compile(r"^(Grbl|GrblHAL)\s*\S*\s*\[.*\]\s*$", re.I)
 
 
 def _stamp(line: str) -> float | None:
@@ -48,6 +70,29 @@ def _stamp(line: str) -> float | None:
         h, mi, s = m.group("hms").replace(",", ".").split(":")
         return int(h) * 3600 + int(mi) * 60 + float(s)
     return float(m.group("sec"))
+
+
+@dataclass
+class Session:
+    """What a transcript holds: its probe reports and what stopped it.
+
+    ``pos_mm``, ``touched``, ``t_s``, ``lines`` are :func:`read_transcript`'s.
+    ``alarms``: ``(line, code)`` of every ``ALARM:n`` received; ``probing``:
+    the lines where a probing command (``G38.2`` .. ``G38.5``) was sent;
+    ``errors``: ``(line, code)`` of every ``error:n``; ``resets``: lines where
+    the controller was reset (Ctrl-X sent, or its banner received);
+    ``n_lines``: the transcript's last line.
+    """
+
+    pos_mm: np.ndarray
+    touched: np.ndarray
+    t_s: np.ndarray | None
+    lines: list
+    alarms: list = field(default_factory=list)
+    probing: list = field(default_factory=list)
+    errors: list = field(default_factory=list)
+    resets: list = field(default_factory=list)
+    n_lines: int = 0
 
 
 def read_transcript(path):
@@ -69,6 +114,24 @@ def read_transcript(path):
         Missing file, a malformed probe report, timestamps on some probe
         lines only, time going backwards.
     """
+    s = read_session(path)
+    return s.pos_mm, s.touched, s.t_s, s.lines
+
+
+def read_session(path, *, stopped_at_first: bool = False) -> Session:
+    """:func:`read_transcript`'s reports, with the alarms, errors, resets and probing commands around them.
+
+    A line's direction is its ``>`` (sent) or ``<`` (received) after the
+    timestamp, when it has one; a line without either is read both ways
+    (another sender's console log). ``stopped_at_first``: a session whose
+    first probing move was stopped by an alarm (no report at all) is read,
+    not refused (:func:`import_transcript` names that alarm in its refusal).
+
+    Raises
+    ------
+    ProbeLogError
+        See :func:`read_transcript`.
+    """
     p = Path(path)
     problem = input_problem(p, "transcript")  # (a pipe is read too: vmt import grbl /dev/stdin)
     if problem:
@@ -81,12 +144,33 @@ def read_transcript(path):
     # replacement (a probe report it garbles is refused as malformed, below)
     text = data.decode("utf-8", errors="replace")
     pos, touched, stamps, where = [], [], [], []
+    alarms, probing, errors, resets = [], [], [], []
     t0 = None
     prev_info = False
+    ln = 0
     for ln, line in enumerate(text.splitlines(), start=1):
         ts = _stamp(line)
         if ts is not None and t0 is None:
             t0 = ts
+        m = _TS.match(line)
+        body = (line[m.end():] if m else line).strip()
+        way = body[:1] if body[:1] in "<>" else ""
+        if way:
+            body = body[1:].strip()
+        if way != ">":
+            a = _ALARM.search(body)
+            if a:
+                alarms.append((ln, int(a.group(1))))
+            e = re.fullmatch(r"error:(\d+)", body)
+            if e:
+                errors.append((ln, int(e.group(1))))
+            if _BANNER.match(body):
+                resets.append(ln)
+        if way != "<" and not body.startswith("["):
+            if _PROBING.search(body):
+                probing.append(ln)
+            elif _RESET_SENT.match(body):
+                resets.append(ln)
         tok = _PRB_TOKEN.search(line)
         if not tok:
             prev_info = bool(re.search(r"\[(G5[4-9]|G28|G30|G92|TLO):", line)) or (
@@ -102,15 +186,16 @@ def read_transcript(path):
         touched.append(r[1])
         stamps.append(ts)
         where.append(ln)
-    if not pos:
+    first_stopped = stopped_at_first and bool(probing) and any(a > probing[0] for a, _ in alarms)
+    if not pos and not first_stopped:
         raise ProbeLogError(f"{p}: no probe reports ([PRB:...]) in it: not a GRBL session transcript "
                             "(vmt probe --transcript writes one), or of a session that probed nothing")
     have = [s is not None for s in stamps]
     if any(have) and not all(have):
-        ln = where[have.index(False)]
-        raise ProbeLogError(f"{p}: line {ln}: probe report without a timestamp (others have one)")
+        ln_ = where[have.index(False)]
+        raise ProbeLogError(f"{p}: line {ln_}: probe report without a timestamp (others have one)")
     t = None
-    if all(have):
+    if have and all(have):
         t = np.array(stamps, dtype=float) - t0
         off = 0.0
         for i in range(1, len(t)):
@@ -121,25 +206,90 @@ def read_transcript(path):
                     t[i] += 86400.0
                 else:
                     raise ProbeLogError(f"{p}: line {where[i]}: time goes backwards")
-    return np.array(pos), np.array(touched, dtype=bool), t, where
+    return Session(np.array(pos, dtype=float).reshape(-1, 3), np.array(touched, dtype=bool), t, where, alarms,
+                   probing, errors,
+                   resets, ln)
+
+
+def _stop(s: Session, plan: ProbeLog) -> tuple[str, str, str]:
+    """Why a session with fewer reports than plan rows stopped.
+
+    Returns ``(status of the first row without a report, the reason, where the run stopped)``.
+    """
+    from .backend import ALARMS, describe_error
+
+    k = len(s.lines)
+    last = s.lines[-1] if k else 0
+    after = [ln for ln in s.probing if ln > last]
+    # the alarm that ended the session: no report after it, but the stale [PRB:...:0] an ALARM:5 is followed by
+    for ln, code in reversed(s.alarms):
+        later = [i for i in range(k) if s.lines[i] > ln]
+        if later and not (code == 5 and len(later) == 1 and not s.touched[later[0]]):
+            break
+        what = f"ALARM:{code} ({ALARMS.get(code, 'unknown alarm')}) at line {ln}"
+        if later:                     # a G38.2 miss: its row is the report's, no_trigger
+            r = later[0]
+            return "aborted", what, f"at plan row {r} (target {plan.col('target')[r]!r}, no_trigger)"
+        under_way = any(last < p_ln < ln for p_ln in s.probing)
+        st = {4: "early_trigger", 5: "no_trigger"}.get(code, "alarm" if under_way else "aborted")
+        if st == "aborted":
+            return st, what, f"after plan row {k - 1}" if k else "before the first plan row"
+        return st, what, f"at plan row {k} (target {plan.col('target')[k]!r}, {st})"
+    where = f"after plan row {k - 1}"
+    errs = [(ln, c) for ln, c in s.errors if ln > last]
+    if errs:
+        ln, c = errs[0]
+        return "aborted", f"{describe_error(c)} at line {ln}", where
+    resets = [ln for ln in s.resets if ln > last]
+    if resets:
+        return "aborted", f"the controller was reset at line {resets[0]}", where
+    if after:
+        return "aborted", (f"the transcript ends at line {s.n_lines} without an alarm, during the probing "
+                           f"move sent at line {after[-1]} (a lost connection, or the sender stopped)"), where
+    return "aborted", (f"the transcript ends at line {s.n_lines} without an alarm "
+                       "(a lost connection, or the sender stopped)"), where
 
 
 def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0) -> ProbeLog:
     """Merge a GRBL transcript with its plan into a full ``probe-log/1``.
 
+    One report per plan row, in order. A transcript with fewer reports is
+    the record of a run that stopped: the reports fill the first rows, the
+    row under way is marked by the alarm that stopped it, the rows after it
+    ``aborted`` (see the module docstring); metadata ``transcript_reports``
+    and ``stop_reason`` say how many rows the transcript holds and why it
+    stopped.
+
     Raises
     ------
     PlanError
-        Not one probe report per plan row.
+        More probe reports than plan rows.
     ProbeLogError
         See :func:`read_transcript`.
     """
-    pos, touched, t, _ = read_transcript(path)
-    if len(pos) != plan.n:
-        raise PlanError(f"{path}: {len(pos)} probe reports but the plan {plan.source} has {counted(plan.n, 'row')}")
+    s = read_session(path, stopped_at_first=True)
+    pos, touched, t = s.pos_mm, s.touched, s.t_s
+    k, n = len(pos), plan.n
+    if k == 0:      # nothing measured: a log of it would read as a plan (as LinuxCNC's empty probe file, refused)
+        _, why, _ = _stop(s, plan)
+        raise ProbeLogError(f"{path}: no probe reports ([PRB:...]): the run stopped at its first touch, {why}; "
+                            "nothing measured to import")
+    if k > n:
+        raise PlanError(f"{path}: {k} probe reports but the plan {plan.source} has {counted(n, 'row')}: "
+                        "not the transcript of this plan")
     src = "transcript timestamps" if t is not None else f"plan order x {dt_s:g} s (no timestamps)"
     if t is None:
-        t = np.arange(plan.n) * float(dt_s)
-    status = ["ok" if k else "no_trigger" for k in touched]
+        t = np.arange(k) * float(dt_s)
+    status = ["ok" if x else "no_trigger" for x in touched]
     meta = {"machine": "grbl", "source": f"vmt import grbl {Path(path).name}", "t_s_source": src}
+    if k < n:
+        first, why, at = _stop(s, plan)
+        status += [first] + ["aborted"] * (n - k - 1)
+        pos = np.vstack([pos.reshape(-1, 3), np.full((n - k, 3), np.nan)])
+        t = np.concatenate([t, np.full(n - k, np.nan)])
+        rest = f"rows {k}..{n - 1}" if n - k > 1 else f"row {k}"
+        marked = "aborted" if first == "aborted" else f"{first}, then aborted"
+        meta["transcript_reports"] = (f"{k} of {n}: the run stopped {at}; {rest} not measured "
+                                      f"({marked})")
+        meta["stop_reason"] = why
     return log_from_plan(plan, pos, status, t, meta, source=str(path))

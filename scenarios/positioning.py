@@ -155,7 +155,6 @@ def positioning_report(folder, rep: dict, log, *, budget=None, title: str = "ISO
               f"{b[f'rms_{u}']:.3g} {sym}; pooled s {b[f's_up_pooled_{u}']:.3g} {sym} (+), "
               f"{b[f's_down_pooled_{u}']:.3g} {sym} (-). Drift across cycles, warm-up, outliers, "
               "pitch errors between targets stay in these residuals.")))
-    Path(folder).parent.mkdir(parents=True, exist_ok=True)   # as every report of vmt (scenarios.reports)
     return write_report(folder, title, sections)
 
 

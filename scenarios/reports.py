@@ -18,8 +18,12 @@ from core.units import MM, UM, URAD
 
 
 def _recording_path(folder: Path) -> Path:
-    """A temporary ``recording.rrd`` beside the report (copied in by write_report)."""
-    folder.parent.mkdir(parents=True, exist_ok=True)
+    """A temporary ``recording.rrd`` beside the report (copied in by write_report; the report's parent
+    folder exists: the CLI makes an output's folders, scenarios.cli.guard.make_folders)."""
+    if not folder.parent.is_dir():       # refused as write_report refuses it, before any work on the recording
+        from core.exceptions import ConfigError
+
+        raise ConfigError(f"report folder {str(folder)!r}: parent folder does not exist")
     return Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent)) / "recording.rrd"
 
 

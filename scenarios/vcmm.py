@@ -733,7 +733,4 @@ def write_report(folder, rep: dict, *, worst: int = 10):
                     figures={"budget": budget_figure(ms)}),
             Section("Worst touches", "The touches whose normal deviation scatters most over the runs.",
                     tables=[touches])]
-    from pathlib import Path
-
-    Path(folder).parent.mkdir(parents=True, exist_ok=True)   # as every report of vmt (scenarios.reports)
     return write(folder, "Virtual CMM: task uncertainty", secs)

@@ -337,6 +337,8 @@ def argv_case(rng, b, out: Path) -> list:
         a = ["fit", pick(["plane", "sphere", "circle", "cylinder", "cone"]), pick(inputs)]
         if rng.random() < 0.5:
             a += ["--json", pick(outputs)]
+        if rng.random() < 0.4:
+            a += ["--stylus-r-mm", pick(["0", "1.5", "-1", "nan", "1e9"])]
         return a
     if cmd == 1:
         a = ["identify", pick(inputs), "--json", pick(outputs), "--grid-mm", "55"]

@@ -22,6 +22,10 @@ def register(sub) -> None:
     p.add_argument("--feature", help="use only the rows of this feature (column 'feature')")
     p.add_argument("--setup", help="use only the rows of this set-up")
     p.add_argument("--json", metavar="OUT", help="also write the result, with each touch's residual, as JSON")
+    from scenarios.cli.options import add_stylus_r_arg
+
+    add_stylus_r_arg(p, "default: the log's stylus_r_mm (column, else metadata); required when the log has "
+                        "none; given, it wins over the log's (a qualified, effective radius)")
     p.set_defaults(func=run)
 
 
@@ -29,9 +33,14 @@ def _fitted(log, args, fit_log_feature):
     """The fit of ``args.kind`` to the log's rows; a cylinder whose axis the touches leave open says
     what the command can do about it (the library's advice, ``pass axis_hint``, is no option of it)."""
     from core.exceptions import FitError
+    from core.features import NoStylusRadius
+    from scenarios.cli.options import no_stylus_r
 
     try:
-        return fit_log_feature(log, args.kind, feature=args.feature, setup=args.setup)
+        return fit_log_feature(log, args.kind, feature=args.feature, setup=args.setup,
+                               stylus_r_mm=args.stylus_r_mm)
+    except NoStylusRadius:
+        raise no_stylus_r(f"{args.log}: says no stylus radius (no stylus_r_mm column or metadata)") from None
     except FitError as e:
         said = str(e)
         if not said.endswith("; pass axis_hint"):
@@ -40,6 +49,17 @@ def _fitted(log, args, fit_log_feature):
         raise FitError(said + ("; fit one cylinder's touches: --feature NAME" if args.feature is None else
                                "; these touches do not fix a cylinder's axis (it takes touches "
                                "around it at two or more heights)")) from None
+
+
+def _radius_from(r) -> str:
+    """Where the applied stylus radius came from, and what the log says when the option overrode it."""
+    if r.stylus_r_source != "given":
+        return f"the log's stylus_r_mm {r.stylus_r_source}"
+    if r.log_stylus_r_mm is None:
+        return "--stylus-r-mm; the log says none"
+    if r.log_stylus_r_mm == r.stylus_r_mm:
+        return "--stylus-r-mm, as the log says"
+    return f"--stylus-r-mm; the log says {r.log_stylus_r_mm:g} mm"
 
 
 def _v(x, nd=6):
@@ -64,7 +84,7 @@ def run(args) -> int:
         bar(100, 100)
     v = r.values
     sel = "".join(f", {k} {w}" for k, w in (("feature", args.feature), ("setup", args.setup)) if w)
-    print(f"{r.kind}: {r.n} touches{sel}, stylus radius {r.stylus_r_mm:g} mm applied")
+    print(f"{r.kind}: {r.n} touches{sel}, stylus radius {r.stylus_r_mm:g} mm applied ({_radius_from(r)})")
     if r.kind == "plane":
         print(f"  point {_v(v['point_mm'], 4)} mm, normal {_v(v['normal'])}")
     elif r.kind == "cylinder":
@@ -79,7 +99,8 @@ def run(args) -> int:
         tg = log.col("target")[r.rows].astype(str).tolist()
         rep = {"format": FIT_FORMAT, "log": str(args.log), "kind": r.kind, "n": r.n, "feature": args.feature, "setup": args.setup,
                "values": v, "u95": r.u95, "form": FORM[r.kind], "form_um": r.form_um, "rms_um": r.rms_um,
-               "dof": r.dof, "stylus_r_mm": r.stylus_r_mm,
+               "dof": r.dof, "stylus_r_mm": r.stylus_r_mm, "stylus_r_source": r.stylus_r_source,
+               "log_stylus_r_mm": r.log_stylus_r_mm,
                "touches": [{"row": int(i), "target": t, "residual_um": float(e)}
                            for i, t, e in zip(r.rows, tg, r.residuals_um)]}
         write_json_atomic(args.json, json_safe(rep), special=True)

@@ -226,16 +226,24 @@ def check_outputs(inputs: dict, files: dict, folders: dict, command: str | None 
 
 def folders_to_make(files: dict, folders: dict, command: str | None = None) -> list[tuple[Path, str]]:
     """(the folder an output goes in, the option and output) for each output whose folder does not
-    exist yet: the run makes it, and the folders above it that are missing too
-    (:func:`core.atomic.write_text_atomic` makes the folders of a file, a report those of its
-    folder). An output folder itself (``--report DIR``) is not counted: the command names it when
-    it says what it wrote; the folder it goes in is."""
+    exist yet: :func:`make_folders` makes it before the run, with the folders above it that are
+    missing too. An output folder itself (``--report DIR``) is not counted: the command names it
+    when it says what it wrote; the folder it goes in is."""
     made = []
     for name, out in {**files, **folders}.items():
         q = Path(out).parent
         if str(q) not in ("", ".") and not os.path.lexists(q) and all(q != f for f, _ in made):
             made.append((q, f"{_opt(name, command)} {out}"))
     return made
+
+
+def make_folders(made: list[tuple[Path, str]]) -> None:
+    """Make the folders of :func:`folders_to_make`, before the run: the one place a command's output
+    folders are made, so every writer finds its folder (a report writer that made its own parent and
+    one that did not: ``scenario pin-circle --report new/rep`` failed after its work, session 26).
+    :class:`core.atomic.RunOutputs`, made before, takes them back if the run fails."""
+    for q, _ in made:
+        q.mkdir(parents=True, exist_ok=True)
 
 
 def say_made(made: list[tuple[Path, str]]) -> None:
@@ -376,6 +384,7 @@ def run_command(args) -> int:
                 check_report_folder(report, {**inputs, **others}, {**files, **folders}, args.command)
             made = folders_to_make(files, folders, args.command)
             outputs = RunOutputs(list(files.values()) + list(folders.values()))
+            make_folders(made)
             # an output on our own stdout (--out /dev/stdout): the command's messages go to stderr
             said_to = sys.stderr if any(own_descriptor(p) == 1 for p in files.values()) else None
             with contextlib.redirect_stdout(said_to) if said_to else contextlib.nullcontext():

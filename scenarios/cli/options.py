@@ -6,7 +6,7 @@ that takes it, and a name that carries a quantity says its unit
 :data:`UNIT_SUFFIXES`). ``tests/scenarios/test_cli_options.py`` walks every
 command's parser and holds the rule.
 
-Shared here: ``--grid-mm`` (``identify``, ``design``), the probing settings
+Shared here: ``--grid-mm`` (``identify``, ``design``), ``--stylus-r-mm`` (``plan grid``, ``fit``), the probing settings
 (``probe``, ``machine program``), ``--machine NAME|FILE`` with its truth
 errors (:func:`add_machine_args`, :func:`sim.machinefile.truth_machine`: one rule for every
 command), ``--noise-um`` and the old names kept as hidden aliases
@@ -103,6 +103,28 @@ def add_noise_arg(p, default_text: str, *, old: tuple[str, ...] = (), default=No
     """``--noise-um``: the probing noise, a standard deviation (k=1) along the approach, um (every command)."""
     option(p, "--noise-um", type=float, default=default, dest="noise_um", old=old,
            help=f"probing noise, a standard deviation (k=1) along the approach, um ({default_text})")
+
+
+#: What ``--stylus-r-mm`` is, in every command that takes it (the same words as probe-log/1's ``stylus_r_mm``).
+STYLUS_R_HELP = "stylus tip radius, mm (0: a pin or a tool as the probe)"
+
+
+def add_stylus_r_arg(p, when: str) -> None:
+    """``--stylus-r-mm``: the stylus tip radius, mm, in every command that needs one.
+
+    It has no default: a radius left out is never taken for 0 (a fit is then wrong by the radius, a plan's
+    nominals and its approach clearance too); ``when`` says when the command needs it, and
+    :func:`no_stylus_r` is the one refusal when it is needed and not known.
+    """
+    p.add_argument("--stylus-r-mm", type=float, default=None, help=f"{STYLUS_R_HELP}; {when}")
+
+
+def no_stylus_r(what: str):
+    """The one refusal of every command that needs a stylus radius and has none: a ConfigError naming the option."""
+    from core.exceptions import ConfigError
+
+    return ConfigError(f"{what}: give --stylus-r-mm R, the stylus tip radius in mm "
+                       "(--stylus-r-mm 0 for a pin or a tool as the probe)")
 
 
 def refuse_seed_without_noise(seed: int | None, noise_um: float | None, default_um: float, default_why: str) -> None:

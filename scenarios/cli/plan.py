@@ -21,8 +21,9 @@ def register(sub) -> None:
     g.add_argument("--x-mm", required=True, metavar="lo:hi:step", help="grid lines along X, machine frame, mm")
     g.add_argument("--y-mm", required=True, metavar="lo:hi:step", help="grid lines along Y, machine frame, mm")
     g.add_argument("--z-mm", type=float, default=0.0, help="nominal surface height, machine frame, mm (0)")
-    g.add_argument("--stylus-r-mm", type=float, default=0.0,
-                   help="stylus tip radius, mm (0: a pin or a tool as the probe)")
+    from scenarios.cli.options import add_stylus_r_arg
+
+    add_stylus_r_arg(g, "required: the plan's nominal tip centres stand one radius above the surface")
     g.add_argument("--no-serpentine", action="store_true",
                    help="probe every row in +X (default: serpentine, X reversed on odd rows)")
     g.add_argument("--out", required=True, help="plan to write (probe-log/1, measured columns empty)")
@@ -33,9 +34,12 @@ def register(sub) -> None:
 def run_grid(args) -> int:
     from core.probelog import write_probe_log
     from hardware.surface import grid_plan
+    from scenarios.cli.options import no_stylus_r
 
-
-    plan = grid_plan(_range(args.x_mm, "--x-mm"), _range(args.y_mm, "--y-mm"), args.z_mm,
+    x_mm, y_mm = _range(args.x_mm, "--x-mm"), _range(args.y_mm, "--y-mm")
+    if args.stylus_r_mm is None:      # never 0 by default: every nominal and the approach clearance would be off by it
+        raise no_stylus_r("no stylus radius (the plan's nominal tip centres stand one radius above the surface)")
+    plan = grid_plan(x_mm, y_mm, args.z_mm,
                      stylus_r_mm=args.stylus_r_mm, serpentine=not args.no_serpentine)
     write_probe_log(args.out, plan, special=True)
     from core.exceptions import counted

@@ -114,3 +114,38 @@ def test_scope_names_the_real_reason():
     with pytest.raises(IdentifiabilityError, match="one set-up"):
         check_planar_scope(log_of(20 * rad, rad))
     check_planar_scope(log_of(20 * rad, rad, setup=["C0"] * 3 + ["C90"] * 3))      # in scope: no error
+
+
+def test_stylus_radius_given_from_the_log_or_refused():
+    """Session 26: a log that says no stylus radius was fitted with 0, a sphere's radius then wrong by the stylus
+    radius with only a notice. Now: the log's radius (column, else metadata) by default, a given one wins (a
+    qualified, effective radius), none at all is refused; 0 given is a pin or a tool used as the probe."""
+    from core.features import NoStylusRadius
+
+    rng = np.random.default_rng(1)
+    u = rng.normal(size=(30, 3))
+    u[:, 2] = np.abs(u[:, 2])
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    c = np.array([10.0, 20.0, 30.0])
+    tips = c + (12.5 + 1.5) * u                                   # a 12.5 mm ball probed with a 1.5 mm tip
+    said = log_of(tips, u, stylus_r_mm=1.5)
+    r = fit_log_feature(said, "sphere")
+    assert r.values["radius_mm"] == pytest.approx(12.5, abs=1e-9)
+    assert (r.stylus_r_source, r.log_stylus_r_mm) == ("metadata", 1.5)
+    r = fit_log_feature(said, "sphere", stylus_r_mm=1.4987)     # the qualified radius wins: 12.5 + 0.0013
+    assert r.values["radius_mm"] == pytest.approx(12.5013, abs=1e-9)
+    assert (r.stylus_r_source, r.log_stylus_r_mm) == ("given", 1.5)
+    cols = dict(said.columns)
+    cols["stylus_r_mm"] = np.full(said.n, 1.5)
+    from core.probelog import make_log as mk
+
+    assert fit_log_feature(mk(cols, {}), "sphere").stylus_r_source == "column"
+    silent = mk(dict(said.columns), {})                          # no column, no metadata
+    with pytest.raises(NoStylusRadius, match="says no stylus radius"):
+        fit_log_feature(silent, "sphere")
+    assert issubclass(NoStylusRadius, ConfigError)
+    r = fit_log_feature(silent, "sphere", stylus_r_mm=0.0)       # explicit 0: the tip-centre sphere itself
+    assert r.values["radius_mm"] == pytest.approx(14.0, abs=1e-9) and r.log_stylus_r_mm is None
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ConfigError, match="need a finite number >= 0"):
+            fit_log_feature(said, "sphere", stylus_r_mm=bad)

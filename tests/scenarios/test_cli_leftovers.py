@@ -328,3 +328,32 @@ def test_sweep_messages_name_the_option_or_file(tmp_path, capsys, argv, said):
     err = one_error_line(capsys)
     assert err.startswith(said.format(plan=plan)), err
     assert not list(tmp_path.glob("p.*")) and not (tmp_path / "c.csv").exists()
+
+
+def test_every_report_finds_its_folder_made_by_one_place(tmp_path, capsys):
+    """Session 26: a report's parent folder was made by some report writers (discover's, iso230-2's, vcmm's, each
+    its own mkdir) and not by others: `vmt scenario pin-circle --report new/sub/rep` did its work, then failed
+    'report folder ...: parent folder does not exist' (exit 2). The CLI now makes every output's missing folders
+    before the run (scenarios.cli.guard.make_folders) and says them after it; the writers make none."""
+    rep = tmp_path / "new" / "sub" / "rep"
+    assert main(["scenario", "pin-circle", "--report", str(rep)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[-1] == f"made the folder {rep.parent} (for --report {rep})", out[-3:]
+    assert (rep / "index.html").is_file()
+    import inspect
+
+    import scenarios.positioning
+    import scenarios.reports
+    import scenarios.vcmm
+
+    for m in (scenarios.reports, scenarios.vcmm, scenarios.positioning):
+        assert ".parent.mkdir(" not in inspect.getsource(m), m.__name__
+
+
+def test_a_report_writer_without_its_folder_says_so(tmp_path):
+    """Called as a library, a report writer whose parent folder is missing refuses it in write_report's words."""
+    from core.exceptions import ConfigError
+    from scenarios.reports import _recording_path
+
+    with pytest.raises(ConfigError, match="parent folder does not exist"):
+        _recording_path(tmp_path / "none" / "rep")

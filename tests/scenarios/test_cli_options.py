@@ -698,7 +698,7 @@ def test_wcs_and_one_setup_are_said_plainly(tmp_path, capsys):
     """'vmt machine program --wcs G99' named the field ('wcs ...'), not the option; 'vmt simulate' said
     '1 set-ups' of a one-angle campaign."""
     plan = tmp_path / "plan.csv"
-    assert main(["plan", "grid", "--x-mm", "0:10:10", "--y-mm", "0:10:10", "--out", str(plan)]) == 0
+    assert main(["plan", "grid", "--x-mm", "0:10:10", "--y-mm", "0:10:10", "--stylus-r-mm", "0", "--out", str(plan)]) == 0
     capsys.readouterr()
     assert main(["machine", "program", "--plan", str(plan), "--out", str(tmp_path / "p.ngc"), "--probe-file", "p.txt",
                  "--limits-mm", "X-50:50,Y-50:50,Z-50:50", "--wcs", "G99"]) == 2

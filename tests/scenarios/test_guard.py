@@ -280,8 +280,9 @@ def _heights(files):
 
 
 @pytest.mark.parametrize("cmd, starts", [
-    (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", "-"], "# format: probe-log/1"),
-    (["fit", "plane", "{heights}", "--json", "-"], "{"),
+    (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--stylus-r-mm", "0", "--out", "-"],
+     "# format: probe-log/1"),
+    (["fit", "plane", "{heights}", "--stylus-r-mm", "0", "--json", "-"], "{"),
     (["import", "linuxcnc", "{probe}", "--plan", "{plan}", "--out", "-"], "# format: probe-log/1"),
 ])
 def test_dash_is_standard_output_in_every_command(files, capfd, monkeypatch, cmd, starts):
@@ -301,8 +302,9 @@ def test_dash_is_standard_output_in_every_command(files, capfd, monkeypatch, cmd
     assert "/dev/stdout" in err          # the command's own message, on stderr
 
 STDOUT_CASES = [
-    (["fit", "plane", "{heights}", "--json", "/dev/stdout"], "{"),
-    (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", "/dev/stdout"], "# format: probe-log/1"),
+    (["fit", "plane", "{heights}", "--stylus-r-mm", "0", "--json", "/dev/stdout"], "{"),
+    (["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--stylus-r-mm", "0", "--out", "/dev/stdout"],
+     "# format: probe-log/1"),
     (["simulate", "positioning", "--out", "/dev/stdout"], "# format: positioning-log/1"),
     (["iso230-2", "{sample}", "--json", "/dev/stdout"], "{"),
     (["iso230-2", "{sample}", "--json", "{dir}/s.json", "--write-log", "/dev/stdout"], "# format: positioning-log/1"),
