@@ -93,3 +93,52 @@ def test_coverage_refuses_a_study_that_is_not_mfb(capsys):
     assert main([str(src), "--seeds", "1", "2"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "mfb-3axis or mfb-5axis" in err
+
+
+def test_share_ranges_known_answers():
+    """share_ranges against exact binomial answers (each value normal with its true U95 = 2 u, so each is
+    inside with p = P(|Z| <= 2) = 0.9545). An error of 4 nodes that miss together (one draw for all) has
+    over 60 runs the share of ONE value, Binomial(60, p) / 60 (95 % range 0.883-1.000), twice as wide as
+    4 independent nodes, Binomial(240, p) / 240 (0.925-0.979); the lowest of 5 independent one-node
+    errors has the exact law P(min >= x) = P(share >= x)^5 (median 0.933, against one error's 0.967).
+    Tolerance one step of the share (1 / 60, 1 / 240): the quantiles of a discrete law, estimated from
+    4,000 simulated studies, land on a neighbouring step when the exact CDF passes 2.5 % near a step; the
+    means to 0.004 (about 4 standard errors of 4,000 studies of 60 runs)."""
+    from scipy import stats
+
+    from core.exceptions import ConfigError
+    from scenarios.mfb_coverage import share_ranges
+
+    p = stats.norm.cdf(2.0) - stats.norm.cdf(-2.0)
+    runs, u = 60, 0.3
+    C = np.zeros((8, 8))
+    C[:4, :4] = u * u  # "A": 4 nodes, one draw
+    C[4:, 4:] = np.eye(4) * (2 * u) ** 2  # "B": 4 independent nodes (its own u: the scale must not matter)
+    out = share_ranges(C, ["A"] * 4 + ["B"] * 4, runs, sets=4000, rng=np.random.default_rng(1), lowest=2)
+    for k, n in (("A", runs), ("B", 4 * runs)):
+        mean, lo, hi = out["errors"][k]
+        exact = stats.binom.ppf([0.025, 0.975], n, p) / n
+        assert abs(mean - p) < 0.004 and abs(lo - exact[0]) <= 1.0 / n + 1e-12 and abs(hi - exact[1]) <= 1.0 / n + 1e-12, (k, out["errors"][k], exact)
+    wa, wb = (out["errors"][k][2] - out["errors"][k][1] for k in "AB")
+    assert wa > 1.6 * wb  # nodes that miss together widen the error's range (exact: 0.117 against 0.054)
+    five = share_ranges(np.eye(5), list("abcde"), runs, sets=4000, rng=np.random.default_rng(2))
+    x = np.arange(runs + 1)
+    sf = stats.binom.sf(x - 1, runs, p) ** 5  # P(min >= x / runs)
+    med = x[np.nonzero(sf >= 0.5)[0].max()] / runs  # the exact median of the lowest share
+    assert abs(five["lowest"][0][0] - med) <= 1.0 / runs + 1e-12 and med < stats.binom.median(runs, p) / runs
+    assert len(five["lowest"]) == 3 and five["lowest"][0][0] <= five["lowest"][1][0] <= five["lowest"][2][0]
+    for bad in (dict(cov=np.eye(3), names=["a", "b"], runs=5), dict(cov=np.diag([1.0, 0.0]), names=list("ab"), runs=5),
+                dict(cov=np.eye(2), names="ab", runs=5), dict(cov=np.eye(2), names=list("ab"), runs=0),
+                dict(cov=np.full((2, 2), np.nan), names=list("ab"), runs=5)):
+        with pytest.raises(ConfigError, match="share_ranges"):
+            share_ranges(bad.pop("cov"), **bad)
+
+
+def test_describe_lowest_puts_each_rank_beside_its_model_range():
+    from scenarios.mfb_coverage import describe_lowest
+
+    s = {"errors": {"EXX": {"within": (0.96, [0.9, 1.0])}, "EYY": {"within": (0.94, [0.9, 1.0])}}}
+    m = {"runs": 200, "lowest": [[0.936, 0.915, 0.947], [0.942, 0.929, 0.950], [0.945, 0.935, 0.951]]}
+    lines = describe_lowest(s, m).splitlines()
+    assert lines == ["1. lowest error share: EYY 0.940; the model over 200 runs: median 0.936, 95 % 0.915-0.947",
+                     "2. lowest error share: EXX 0.960; the model over 200 runs: median 0.942, 95 % 0.929-0.950"]
