@@ -3825,6 +3825,55 @@ def _path_tries(scans, st: _State, level: float) -> float:
     return float(level / np.exp(optimize.brentq(excess, hi, lo, xtol=1e-6)))
 
 
+#: Whether :func:`_judge_trial` puts off the path count (:func:`_path_tries`) of a candidate that a bound on that
+#: count already shows significant (:func:`_path_count_below`: every step between consecutive trials at its
+#: largest, pi / 2) until a test after the significance test reads the count (the counter-explanation's, the
+#: smoothness verdict's, the penalised cause's, the term's own): a candidate refused before that (by the structure's
+#: family, by :attr:`core.causes.Cause.check`) has its path never measured. Every count made is the number it was,
+#: and every decision: exact (session 26: the demo's first round refuses the periodic scan at p = 4.5e-16 by its
+#: family, after a count of about 22 ms whose 1,073 tries decided nothing). False: counted before the significance
+#: test, as before.
+PATH_COUNT_DEFERRED = True
+#: The factor by which the adjusted p-value at :func:`_path_count_below`'s bound must be below ``alpha_family`` for
+#: the count to be put off (:data:`PATH_COUNT_DEFERRED`): :func:`_path_tries` finds its count to a relative 1e-6
+#: (``brentq``'s tolerance on the log of the single-trial p-value); 2 leaves room for that and for rounding.
+PATH_BOUND_MARGIN = 2.0
+
+
+def _path_count_below(scans, rows: int, level: float, count: float) -> bool:
+    """Whether :func:`_path_tries`' count of ``scans`` at ``level`` is surely below ``count``, from the scans'
+    sizes alone (no model, no columns).
+
+    The count is ``level / p*``, ``p*`` where Davies' bound summed over the
+    scans, ``B(p) = ns p + sum_m V_m rate_m(u_m(p))`` (``u_m`` the
+    chi-square quantile of ``m`` degrees of freedom above which ``p`` lies),
+    equals ``level``. ``B`` rises with ``p`` at these levels (the upcrossing
+    rate falls as ``u`` grows beyond ``m - 1``, and ``p`` is below
+    ``level``, at most ``alpha_family``: ``u_4`` beyond 16), so the count is
+    below ``count`` where ``B(level / count) < level``. ``B`` is bounded
+    above from the sizes: each step between consecutive trials is at most
+    pi / 2 (an angle between unit columns, or the root mean square of
+    principal angles, each at most pi / 2), so a scan of ``T`` trials is at
+    most ``(T - 1) pi / 2`` long whatever the dimensions ``m <= k`` its steps
+    are booked to, and its part of ``B`` at most that length times the
+    largest of the rates ``m = 1 .. k`` (``k`` read from a trial's columns
+    as :func:`_path_tries` reads it). False beyond :data:`PATH_ARC_ROWS` rows
+    (the arc estimate there is no chord sum: it may be longer).
+    """
+    if rows > PATH_ARC_ROWS or not count > 0:
+        return False
+    q = level / count
+    if q <= 0.0:  # (a count beyond any bound: a p-value of zero)
+        return True
+    bound = len(scans) * q
+    for sc in scans:
+        V = max(int(sc.size) - 1, 0) * np.pi / 2
+        if V > 0:
+            k = int(sc.build(np.arange(1)).shape[2])
+            bound += V * max(_chi2_upcrossing_rate(float(special.chdtri(m, q)), m) for m in range(1, k + 1))
+    return bool(np.isfinite(bound) and bound < level)
+
+
 #: Rows beyond which a path scan that can build its columns at any value of its parameter (:attr:`Scan.path_at`:
 #: the periodic scan) has its path's length estimated by :func:`_arc_path` instead of summed trial by trial: every
 #: stored campaign is far below (hundreds to a few thousand rows); the bench's 1e5- and 1e6-row logs above, where the
@@ -5385,9 +5434,16 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
         single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)  # (the refined trial's)
         _, kk, FF, pp = single
         p_val, F_val, k_val = float(pp[0]), float(FF[0]), int(kk[0])
+    deferred = None  # the path count's level where the count is put off (PATH_COUNT_DEFERRED)
     if scan_tries and p_val * tries < settings.alpha_family and all(s.path for s in scans):
         # the scan's count checked against Davies' bound on its trials' path (never lowered)
-        tries *= max(1.0, _path_tries(scans, st, settings.alpha_family * scan_tries / tries) / scan_tries)
+        level = settings.alpha_family * scan_tries / tries
+        margin = PATH_BOUND_MARGIN * p_val * tries  # (the adjusted p-value at a count c is p_val tries c / scan_tries)
+        if PATH_COUNT_DEFERRED and margin < settings.alpha_family and _path_count_below(
+                scans, len(rows), level, settings.alpha_family * scan_tries / margin if margin > 0 else np.inf):
+            deferred = level  # significant at the count's bound: counted once a test below asks for the count
+        else:
+            tries *= max(1.0, _path_tries(scans, st, level) / scan_tries)
     p_adj = min(1.0, p_val * tries)
     ev = {"F": F_val, "p_value": p_val, "p_adjusted": p_adj, "tries": float(tries), "k": k_val}
     if p_adj >= settings.alpha_family:
@@ -5423,6 +5479,12 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
     why = cause.check(info, bl) if cause.check else None
     if why:
         return {"reason": f"implausible: {why}", "significant": True}
+    if deferred is not None:  # (every test below may read the count: made now, as it would have been above)
+        tries *= max(1.0, _path_tries(scans, st, deferred) / scan_tries)
+        p_adj = min(1.0, p_val * tries)
+        ev.update({"p_adjusted": p_adj, "tries": float(tries)})
+        if p_adj >= settings.alpha_family:  # (never, by the bound: the test above, as it stood)
+            return {"reason": f"not significant ({fmt_p(p_adj)} after Bonferroni over {tries:.0f} tries)"}
     if cause.counter is not None:
         # the plainer explanation is tested before adoption too, so that a plainer
         # cause of the catalogue (the probe's fixed lobes for lobes turned per
