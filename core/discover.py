@@ -3858,14 +3858,18 @@ def _path_count_below(scans, rows: int, level: float, count: float) -> bool:
     are booked to, and its part of ``B`` at most that length times the
     largest of the rates ``m = 1 .. k`` (``k`` read from a trial's columns
     as :func:`_path_tries` reads it). False beyond :data:`PATH_ARC_ROWS` rows
-    (the arc estimate there is no chord sum: it may be longer).
+    (the arc estimate there is no chord sum: it may be longer), for a count
+    not above the scans' number (the count is at least that: ``B(p) >= ns
+    p``) and at a level of 0.25 a scan or more (where the rate need not
+    fall: the engine asks at most ``alpha_family``).
     """
-    if rows > PATH_ARC_ROWS or not count > 0:
+    ns = len(scans)
+    if rows > PATH_ARC_ROWS or not count > ns or not level / max(ns, 1) < 0.25:
         return False
     q = level / count
     if q <= 0.0:  # (a count beyond any bound: a p-value of zero)
         return True
-    bound = len(scans) * q
+    bound = ns * q
     for sc in scans:
         V = max(int(sc.size) - 1, 0) * np.pi / 2
         if V > 0:
