@@ -3166,6 +3166,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # 5. what remains
     sig = noise_sigma(st)
     diag_e = diagnosis(st, bl.covariates, rows, known=_made_on(seen, st))
+    st_e = st  # (the model diag_e's tests were made against)
     E_named = _stack(terms, rows)
     gap_e = _cv_gap(folds, st, y, E_named, _penalty(terms), settings, gap_seed, sig) if terms else gap_b
     lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(rep_key[rows], E_named) else None
@@ -3252,7 +3253,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
     elif (not findings and REPEATS_FLOOR_NONE_RECHECKED and sigma_rep is not None
           and not (short is not None and short["used"])):
-        made = _none_at_the_residual_floor(bl, st, rep, rows, settings, bases)
+        made = _none_at_the_residual_floor(bl, st, rep, rows, settings, bases, known=_made_on([(st_e, diag_e)], st))
         if made is not None:
             findings.append(made)
     findings = _ordered(findings, (settings.material_sigma * sig) ** 2 * len(rows) / UM ** 2)
@@ -8111,7 +8112,7 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
 REPEATS_FLOOR_NONE_RECHECKED = True
 
 
-def _none_at_the_residual_floor(bl, st, rep, rows, settings, bases=None) -> Finding | None:
+def _none_at_the_residual_floor(bl, st, rep, rows, settings, bases=None, known=()) -> Finding | None:
     """An ``unexplained`` finding for a report that reads ``none`` at an inflated repeats' floor, else None.
 
     Called only where the report has no finding and its noise floor is the
@@ -8132,13 +8133,17 @@ def _none_at_the_residual_floor(bl, st, rep, rows, settings, bases=None) -> Find
     own level (1 % and the diagnosis's family level). The cv gap and lack of
     fit are not judged again (the first is judged against the fit's own
     sigma already, the second is the test that fired in its other tail).
+    ``known``: diagnoses made against ``st`` itself over the covariates
+    (step 5's, at the repeats' floor): their tests are taken, only their
+    materiality is judged again (session 26: the same numbers, one
+    diagnosis of every covariate fewer).
     """
     beyond = _repeats_beyond_fit(st, rep, settings.alpha)
     if beyond is None:
         return None
     lof, p_low = beyond
     diag = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=st.sigma,
-                    material_sigma=settings.material_sigma, rows=rows, bases=bases)
+                    material_sigma=settings.material_sigma, rows=rows, bases=bases, known=known)
     sig_cov = [d.covariate for d in diag if d.significant(settings.alpha_family)]
     if not sig_cov:
         return None
