@@ -147,3 +147,62 @@ def test_floor_recheck_takes_step_fives_tests(monkeypatch):
     assert n_known > 5  # (fails with nothing taken: 0)
     dump = lambda f: json.dumps(dataclasses.asdict(f), sort_keys=True, default=str)
     assert a is not None and dump(a) == dump(b)
+
+
+@pytest.mark.parametrize("gen,effect,seed", [("demo", "", 0), ("gen_a", "part_change", 1000),
+                                             ("gen_b", "part_change", 1001)])
+def test_not_significant_at_once_is_the_judges_answer(monkeypatch, gen, effect, seed):
+    """:data:`core.discover.NOT_SIGNIFICANT_AT_ONCE`: where every trial's p times the count is 1 or more,
+    :func:`core.discover._evaluate` answers at once; each such answer equals the one it gives with the time forms
+    chosen and the best trial judged (the rule off), and it answers so on these campaigns (the demo's part_change
+    in each of its rounds; fails with the rule out: no answer without a trial judged)."""
+    import sys
+    sys.path.insert(0, "tests/core/data/discover_identity")
+    import make
+
+    orig, judge = D._evaluate, D._judge_trial
+    shortcut, judged = [], []
+
+    def counted(*a, **k):
+        judged.append(1)
+        return judge(*a, **k)
+
+    monkeypatch.setattr(D, "_judge_trial", counted)
+
+    def both(*a, **k):
+        judged.clear()
+        on = orig(*a, **k)
+        if not judged and "no columns" not in on.get("reason", ""):  # answered at once (no trial judged)
+            monkeypatch.setattr(D, "NOT_SIGNIFICANT_AT_ONCE", False)
+            try:
+                off = orig(*a, **k)
+            finally:
+                monkeypatch.setattr(D, "NOT_SIGNIFICANT_AT_ONCE", True)
+            assert off == on
+            shortcut.append(a[0].name)
+        return on
+
+    monkeypatch.setattr(D, "_evaluate", both)
+    make.report_of(make.campaign_log(gen, effect, seed))
+    assert shortcut
+    if gen == "demo":
+        assert shortcut.count("part_change") == 3
+
+
+def test_not_significant_at_once_skips_the_time_forms(monkeypatch):
+    """The demo's part_change is refused without its time forms chosen (fails with the rule out: three choices, one a
+    round) and the report is the same bytes either way."""
+    calls = []
+    orig = D._time_forms_chosen
+
+    def counted(owns, *a, **k):
+        calls.append(len(owns))
+        return orig(owns, *a, **k)
+
+    monkeypatch.setattr(D, "_time_forms_chosen", counted)
+    on, _ = _demo_report(monkeypatch, True)
+    n_on = len(calls)
+    monkeypatch.setattr(D, "NOT_SIGNIFICANT_AT_ONCE", False)
+    off, _ = _demo_report(monkeypatch, True)
+    assert len(calls) - n_on - n_on >= 3  # the rule off: at least part_change's three choices more
+    assert on == off
