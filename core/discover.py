@@ -5024,9 +5024,10 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # wall's shift p = 0.068 behind another wall's 0.0029; its bow explained 16.0 of the 18.8 um^2 left)
         own = _grow_layout(own, scans, si, rows, bl, st, folds, terms, settings)
         owns.append(own)
-    if owns and NOT_SIGNIFICANT_AT_ONCE and all(o.p * tries >= 1.0 for o in owns):
+    if owns and NOT_SIGNIFICANT_AT_ONCE and settings.alpha_family <= 1.0 and all(o.p * tries >= 1.0 for o in owns):
         # every trial's p times the count at 1 or more: _judge_trial's answer whichever the time forms keep (they only
-        # drop trials) and whichever is best (no refinement below p tries = 1, no path count above alpha_family)
+        # drop trials) and whichever is best (no refinement below p tries = 1, no path count above alpha_family; a
+        # family level above 1, which no campaign is run at, would count a path there and pass p = 1)
         return {"reason": f"not significant ({fmt_p(1.0)} after Bonferroni over {tries:.0f} tries)"}
     owns = _time_forms_chosen(owns, rows, st, settings, bl)
     for own in owns:
