@@ -3166,6 +3166,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # 5. what remains
     sig = noise_sigma(st)
     diag_e = diagnosis(st, bl.covariates, rows, known=_made_on(seen, st))
+    st_e = st  # (the model diag_e's tests were made against)
     E_named = _stack(terms, rows)
     gap_e = _cv_gap(folds, st, y, E_named, _penalty(terms), settings, gap_seed, sig) if terms else gap_b
     lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(rep_key[rows], E_named) else None
@@ -3252,7 +3253,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
     elif (not findings and REPEATS_FLOOR_NONE_RECHECKED and sigma_rep is not None
           and not (short is not None and short["used"])):
-        made = _none_at_the_residual_floor(bl, st, rep, rows, settings, bases)
+        made = _none_at_the_residual_floor(bl, st, rep, rows, settings, bases, known=_made_on([(st_e, diag_e)], st))
         if made is not None:
             findings.append(made)
     findings = _ordered(findings, (settings.material_sigma * sig) ** 2 * len(rows) / UM ** 2)
@@ -3823,6 +3824,59 @@ def _path_tries(scans, st: _State, level: float) -> float:
     if excess(lo) <= 0:  # no length: one trial per scan
         return float(ns)
     return float(level / np.exp(optimize.brentq(excess, hi, lo, xtol=1e-6)))
+
+
+#: Whether :func:`_judge_trial` puts off the path count (:func:`_path_tries`) of a candidate that a bound on that
+#: count already shows significant (:func:`_path_count_below`: every step between consecutive trials at its
+#: largest, pi / 2) until a test after the significance test reads the count (the counter-explanation's, the
+#: smoothness verdict's, the penalised cause's, the term's own): a candidate refused before that (by the structure's
+#: family, by :attr:`core.causes.Cause.check`) has its path never measured. Every count made is the number it was,
+#: and every decision: exact (session 26: the demo's first round refuses the periodic scan at p = 4.5e-16 by its
+#: family, after a count of about 22 ms whose 1,073 tries decided nothing). False: counted before the significance
+#: test, as before.
+PATH_COUNT_DEFERRED = True
+#: The factor by which the adjusted p-value at :func:`_path_count_below`'s bound must be below ``alpha_family`` for
+#: the count to be put off (:data:`PATH_COUNT_DEFERRED`): :func:`_path_tries` finds its count to a relative 1e-6
+#: (``brentq``'s tolerance on the log of the single-trial p-value); 2 leaves room for that and for rounding.
+PATH_BOUND_MARGIN = 2.0
+
+
+def _path_count_below(scans, rows: int, level: float, count: float) -> bool:
+    """Whether :func:`_path_tries`' count of ``scans`` at ``level`` is surely below ``count``, from the scans'
+    sizes alone (no model, no columns).
+
+    The count is ``level / p*``, ``p*`` where Davies' bound summed over the
+    scans, ``B(p) = ns p + sum_m V_m rate_m(u_m(p))`` (``u_m`` the
+    chi-square quantile of ``m`` degrees of freedom above which ``p`` lies),
+    equals ``level``. ``B`` rises with ``p`` at these levels (the upcrossing
+    rate falls as ``u`` grows beyond ``m - 1``, and ``p`` is below
+    ``level``, at most ``alpha_family``: ``u_4`` beyond 16), so the count is
+    below ``count`` where ``B(level / count) < level``. ``B`` is bounded
+    above from the sizes: each step between consecutive trials is at most
+    pi / 2 (an angle between unit columns, or the root mean square of
+    principal angles, each at most pi / 2), so a scan of ``T`` trials is at
+    most ``(T - 1) pi / 2`` long whatever the dimensions ``m <= k`` its steps
+    are booked to, and its part of ``B`` at most that length times the
+    largest of the rates ``m = 1 .. k`` (``k`` read from a trial's columns
+    as :func:`_path_tries` reads it). False beyond :data:`PATH_ARC_ROWS` rows
+    (the arc estimate there is no chord sum: it may be longer), for a count
+    not above the scans' number (the count is at least that: ``B(p) >= ns
+    p``) and at a level of 0.25 a scan or more (where the rate need not
+    fall: the engine asks at most ``alpha_family``).
+    """
+    ns = len(scans)
+    if rows > PATH_ARC_ROWS or not count > ns or not level / max(ns, 1) < 0.25:
+        return False
+    q = level / count
+    if q <= 0.0:  # (a count beyond any bound: a p-value of zero)
+        return True
+    bound = ns * q
+    for sc in scans:
+        V = max(int(sc.size) - 1, 0) * np.pi / 2
+        if V > 0:
+            k = int(sc.build(np.arange(1)).shape[2])
+            bound += V * max(_chi2_upcrossing_rate(float(special.chdtri(m, q)), m) for m in range(1, k + 1))
+    return bool(np.isfinite(bound) and bound < level)
 
 
 #: Rows beyond which a path scan that can build its columns at any value of its parameter (:attr:`Scan.path_at`:
@@ -4898,6 +4952,15 @@ def _trials(sc, idx, st: _State):
 TRIALS_BLOCK_BYTES = 32 << 20
 
 
+#: Whether :func:`_evaluate` answers "not significant" at once where every scan's best trial (grown) has its p-value
+#: times the Bonferroni count at 1 or more: :func:`_time_forms_chosen` only drops trials and :func:`_judge_trial`
+#: refines a trial only below ``p tries = 1`` and counts a path only below ``alpha_family``, so its answer is then
+#: ``p = 1`` over the same count whichever trial it is given: the same words (session 26, exact: the demo's
+#: part_change, p 0.16-0.23 over 90 tries in each of its three rounds, chose between its time forms, 1.6 ms a round,
+#: to be refused so). False: the time forms chosen and the best trial judged, as before.
+NOT_SIGNIFICANT_AT_ONCE = True
+
+
 def _test_trials(sc, idx, st: _State):
     """:func:`nested_f_batch` of the scan's trials ``idx`` on the model's rows.
 
@@ -4961,6 +5024,11 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         # wall's shift p = 0.068 behind another wall's 0.0029; its bow explained 16.0 of the 18.8 um^2 left)
         own = _grow_layout(own, scans, si, rows, bl, st, folds, terms, settings)
         owns.append(own)
+    if owns and NOT_SIGNIFICANT_AT_ONCE and settings.alpha_family <= 1.0 and all(o.p * tries >= 1.0 for o in owns):
+        # every trial's p times the count at 1 or more: _judge_trial's answer whichever the time forms keep (they only
+        # drop trials) and whichever is best (no refinement below p tries = 1, no path count above alpha_family; a
+        # family level above 1, which no campaign is run at, would count a path there and pass p = 1)
+        return {"reason": f"not significant ({fmt_p(1.0)} after Bonferroni over {tries:.0f} tries)"}
     owns = _time_forms_chosen(owns, rows, st, settings, bl)
     for own in owns:
         if best is None or _better_trial(own, best, st.rss):
@@ -5385,9 +5453,16 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
         single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)  # (the refined trial's)
         _, kk, FF, pp = single
         p_val, F_val, k_val = float(pp[0]), float(FF[0]), int(kk[0])
+    deferred = None  # the path count's level where the count is put off (PATH_COUNT_DEFERRED)
     if scan_tries and p_val * tries < settings.alpha_family and all(s.path for s in scans):
         # the scan's count checked against Davies' bound on its trials' path (never lowered)
-        tries *= max(1.0, _path_tries(scans, st, settings.alpha_family * scan_tries / tries) / scan_tries)
+        level = settings.alpha_family * scan_tries / tries
+        margin = PATH_BOUND_MARGIN * p_val * tries  # (the adjusted p-value at a count c is p_val tries c / scan_tries)
+        if PATH_COUNT_DEFERRED and margin < settings.alpha_family and _path_count_below(
+                scans, len(rows), level, settings.alpha_family * scan_tries / margin if margin > 0 else np.inf):
+            deferred = level  # significant at the count's bound: counted once a test below asks for the count
+        else:
+            tries *= max(1.0, _path_tries(scans, st, level) / scan_tries)
     p_adj = min(1.0, p_val * tries)
     ev = {"F": F_val, "p_value": p_val, "p_adjusted": p_adj, "tries": float(tries), "k": k_val}
     if p_adj >= settings.alpha_family:
@@ -5423,6 +5498,12 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
     why = cause.check(info, bl) if cause.check else None
     if why:
         return {"reason": f"implausible: {why}", "significant": True}
+    if deferred is not None:  # (every test below may read the count: made now, as it would have been above)
+        tries *= max(1.0, _path_tries(scans, st, deferred) / scan_tries)
+        p_adj = min(1.0, p_val * tries)
+        ev.update({"p_adjusted": p_adj, "tries": float(tries)})
+        if p_adj >= settings.alpha_family:  # (never, by the bound: the test above, as it stood)
+            return {"reason": f"not significant ({fmt_p(p_adj)} after Bonferroni over {tries:.0f} tries)"}
     if cause.counter is not None:
         # the plainer explanation is tested before adoption too, so that a plainer
         # cause of the catalogue (the probe's fixed lobes for lobes turned per
@@ -8045,7 +8126,7 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
 REPEATS_FLOOR_NONE_RECHECKED = True
 
 
-def _none_at_the_residual_floor(bl, st, rep, rows, settings, bases=None) -> Finding | None:
+def _none_at_the_residual_floor(bl, st, rep, rows, settings, bases=None, known=()) -> Finding | None:
     """An ``unexplained`` finding for a report that reads ``none`` at an inflated repeats' floor, else None.
 
     Called only where the report has no finding and its noise floor is the
@@ -8066,13 +8147,17 @@ def _none_at_the_residual_floor(bl, st, rep, rows, settings, bases=None) -> Find
     own level (1 % and the diagnosis's family level). The cv gap and lack of
     fit are not judged again (the first is judged against the fit's own
     sigma already, the second is the test that fired in its other tail).
+    ``known``: diagnoses made against ``st`` itself over the covariates
+    (step 5's, at the repeats' floor): their tests are taken, only their
+    materiality is judged again (session 26: the same numbers, one
+    diagnosis of every covariate fewer).
     """
     beyond = _repeats_beyond_fit(st, rep, settings.alpha)
     if beyond is None:
         return None
     lof, p_low = beyond
     diag = diagnose(st.Q, st.r, st.dof, bl.covariates, bl.modes, sigma_m=st.sigma,
-                    material_sigma=settings.material_sigma, rows=rows, bases=bases)
+                    material_sigma=settings.material_sigma, rows=rows, bases=bases, known=known)
     sig_cov = [d.covariate for d in diag if d.significant(settings.alpha_family)]
     if not sig_cov:
         return None
