@@ -1230,8 +1230,9 @@ def test_c_drift_judged_on_a_form_that_predicts(monkeypatch, gen, seed, refused)
     log, tr = importlib.import_module(f"scenarios.blind.{gen}").generate("c_drift", seed)
     assert "c_drift" in tr.acceptable_causes
     t = from_log(log)
-    # (the held-out step on by default since session 18, the confounded one off: core.discover.HELD_OUT_FALLBACK
-    # and CONFOUNDED_FALLBACK, their measured figures)
+    # (the held-out step on by default since session 18, the confounded one by p off: core.discover.HELD_OUT_FALLBACK
+    # and CONFOUNDED_FALLBACK, their measured figures; since session 26 the confounded step takes the least inflated
+    # passing form, CONFOUNDED_FALLBACK_LEAST_INFLATION, on)
     assert D.HELD_OUT_FALLBACK is True and D.CONFOUNDED_FALLBACK is False
     monkeypatch.setattr(D, "HELD_OUT_FALLBACK", True)
     if refused == "confounded":
@@ -1264,6 +1265,8 @@ def test_confounded_fallback_by_held_out_gain(monkeypatch):
 
     assert D.CONFOUNDED_FALLBACK is False and D.CONFOUNDED_FALLBACK_BY_GAIN is False
     assert D.CONFOUNDED_FALLBACK_SAME_COVARIATE is False
+    # (the least-inflation choice, on since session 26, comes before the gain's: off here, this test is the gain's)
+    monkeypatch.setattr(D, "CONFOUNDED_FALLBACK_LEAST_INFLATION", False)
     log, _ = gen_b.generate("c_drift", 1187)
     t = from_log(log)
 
@@ -1284,7 +1287,7 @@ def test_confounded_fallback_by_held_out_gain(monkeypatch):
 
 def test_confounded_fallback_least_inflation(monkeypatch):
     """Session 25 (conf25): the confounded step's variant that takes, of the cause's passing forms, the one of least
-    variance inflation (``CONFOUNDED_FALLBACK_LEAST_INFLATION``, off: measured on the deciding campaigns only).
+    variance inflation (``CONFOUNDED_FALLBACK_LEAST_INFLATION``, on since session 26: measured on every effect).
     gen_a c_drift 1267 (1.31 sigma): the creep after each indexing is confounded (inflation 1.08e3); the step by
     gain takes its degree 2, a near-confounded neighbour (extended workpiece 9.48 um off against 0.56 + U95 1.92);
     the least inflated passing form keeps the workpiece inside the baseline's U95 (0.19 um measured; asserted
@@ -1293,7 +1296,7 @@ def test_confounded_fallback_least_inflation(monkeypatch):
     from scenarios.blind import gen_a
     from scenarios.hidden import blind_outcome
 
-    assert D.CONFOUNDED_FALLBACK_LEAST_INFLATION is False
+    monkeypatch.setattr(D, "CONFOUNDED_FALLBACK_LEAST_INFLATION", False)
     monkeypatch.setattr(D, "CONFOUNDED_FALLBACK", True)
     monkeypatch.setattr(D, "CONFOUNDED_FALLBACK_BY_GAIN", True)
     gain = blind_outcome(gen_a, "c_drift", 1267, generator="gen_a")
@@ -1302,6 +1305,38 @@ def test_confounded_fallback_least_inflation(monkeypatch):
     o = blind_outcome(gen_a, "c_drift", 1267, generator="gen_a")
     assert o.cause == "c_drift", o.cause
     assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, (o.wp_ext_um, o.wp_base_um, o.wp_u95_um)
+
+
+def test_confounded_step_by_least_inflation_names_c_drift_1125(monkeypatch):
+    """Session 26 (conf26): the confounded step on by default, taking the least inflated of the cause's passing forms
+    (``CONFOUNDED_FALLBACK_LEAST_INFLATION``; measured on every effect of gen_a/gen_b 1000-1099 and the simulator
+    4000-4049). gen_a c_drift 1125 (1.25 sigma): c_drift's form of smallest p, the quadratic over the campaign, is
+    confounded with the baseline (inflation 370); of its three other forms that pass every test, the least
+    inflated (10.8) is named, and the extended workpiece stays inside the check (0.44 um against the baseline's 0.71
+    + U95 0.50: the study's aim ``ext <= base + U95``). With the switch off the step is never taken and the campaign
+    reads `unexplained`, confidently: a miss."""
+    import core.discover as D
+    from core.baseline import extra_columns
+    from core.touches import from_log
+    from scenarios.blind import gen_a
+    from scenarios.hidden import blind_outcome
+
+    assert D.CONFOUNDED_FALLBACK is False and D.CONFOUNDED_FALLBACK_BY_GAIN is False
+    log, _ = gen_a.generate("c_drift", 1125)
+    t = from_log(log)
+
+    def run():
+        return discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+
+    rep = run()
+    assert rep["cause"] == "c_drift", rep["rejected"]
+    step = rep["findings"][0]["evidence"]["held_out_fallback"]
+    assert "confounded" in step and "least variance inflation" in step, step
+    o = blind_outcome(gen_a, "c_drift", 1125, generator="gen_a")
+    assert o.cause == "c_drift" and o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, (o.wp_ext_um, o.wp_base_um,
+                                                                                  o.wp_u95_um)
+    monkeypatch.setattr(D, "CONFOUNDED_FALLBACK_LEAST_INFLATION", False)
+    assert run()["cause"] == "unexplained"
 
 
 @pytest.mark.parametrize("vals, u95, oriented", [
