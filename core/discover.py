@@ -3241,7 +3241,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return {k: _Layouts(scans[k][0]) for k in fixed_causes}
 
     findings = _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
-                         seen + [(st, diag_e)], fixed=fixed, confounded=confounded,
+                         seen + [(st_e, diag_e)], fixed=fixed, confounded=confounded,
                          repeats=_repeats_beyond_residual(rep_key[rows], st, settings), folds=folds)
     E_all = _stack(terms, rows)
     cv_e, held_e = _held_out(folds, y[rows], bl.groups[rows], E_all, _penalty(terms)) if terms else (cv_b, held_b)
