@@ -88,12 +88,12 @@ def test_the_touch_by_touch_figure_is_not_made_where_a_setup_sees_the_cause():
 def test_gen_b_a_cause_no_setup_sees_named_by_the_touches(monkeypatch, effect, seed):
     """gen_b stylus_bending 6508 (session 25's blind miss (C): `unexplained`, confident, 1.52 sigma) and reversal
     1061 (tuning seed; session 19's reversal the held-out rule cannot see, 2.07 sigma): three set-ups, the true cause
-    significant and unseen by every fold. With the switch on the true cause is named (ambiguous) and the extended
+    significant and unseen by every fold. With the rule (on) the true cause is named (ambiguous) and the extended
     workpiece comes within its check; off, `unexplained` as before."""
     from scenarios import hidden
     from scenarios.blind import gen_b
 
-    monkeypatch.setattr(D, "HELD_OUT_UNSEEN_BY_TOUCHES", True)
+    assert D.HELD_OUT_UNSEEN_BY_TOUCHES is True
     on = hidden.blind_outcome(gen_b, effect, seed, generator="gen_b")
     assert on.cause == effect, on
     assert on.wp_ext_um <= on.wp_base_um + on.wp_u95_um, on
