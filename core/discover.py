@@ -5383,6 +5383,8 @@ def _layout_text(info: dict) -> str:
 #: 1054, 1094 (below one sigma) `unexplained` -> the true cause, ambiguous; lobing_per_setup 1070 (0.47 sigma)
 #: `unexplained` -> `probe_lobing?` with lobing_per_setup its alternative (the one right -> wrong); reversal 1054
 #: (0.64) `unexplained` both, its outlier finding gone; no false alarm, confident misnaming or workpiece check moved.
+#: gen_b every effect 1100-1149 (900, after the decision): six named (stylus_bending 1115 visible), one lost:
+#: signal_latency 1133 (out of the catalogue, 1.11 sigma) `unexplained` -> `part_change?`, within its check.
 #: False: such a cause is refused at its zero gain (the rule before session 26).
 HELD_OUT_UNSEEN_BY_TOUCHES = True
 
