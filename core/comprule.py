@@ -18,7 +18,7 @@ controller interpolates by its spline). Measured (session 26, 8 seeds, the exact
 axis of the volumetric error over the node box, mean): a perfect machine 2.71 um after every term,
 1.11 um after this rule; five injected errors 2.71 -> 1.46 um; the realistic machine (all 21 errors
 present, several near their U95) 2.70 -> 3.07 um; a 95 %-significance cut (RMS > RMS U95) gave
-0.62 / 1.40 / 4.19 um (docs/mfb.md, "How much of each error a compensation applies").
+0.62 / 1.40 / 4.19 um (docs/papers-mfb.md, "How much of each error a compensation applies").
 
 :func:`predicted_residual` is the tool-tip deviation the compensation is predicted to leave over a
 set of points, a rigid motion removed (what no artefact on the table sees), with two U95 per point
@@ -39,9 +39,11 @@ from .kinematics import ChainGeometry, tip_W
 from .state import MachineState
 from .volumetric import spline_weights
 
-#: Below this factor (a term's RMS no more than its RMS standard uncertainty: l = 0) a term is left
-#: out. Applied factors are max(0, 1 - mean(u^2) / mean(e^2)) (module doc; session 26's study, docs/mfb.md).
-LEFT_OUT = 0.0
+#: The rule's factor is ``max(0, 1 - SHRINKAGE * mean(u^2) / mean(e^2))`` per error function: 1 is the
+#: least-mean-square fraction (module doc); 0 applies every identified value whole (the rule before
+#: session 26). Set by session 26's closed-loop study (docs/papers-mfb.md, "How much of each error a
+#: compensation applies").
+SHRINKAGE = 1.0
 
 
 def select_terms(state: MachineState) -> dict:
@@ -67,13 +69,13 @@ def select_terms(state: MachineState) -> dict:
         elif rms == 0.0:
             f, why = 0.0, "identified as zero"
         else:
-            f = max(0.0, 1.0 - (rms_u / 2.0) ** 2 / rms ** 2)
+            f = max(0.0, 1.0 - SHRINKAGE * (rms_u / 2.0) ** 2 / rms ** 2)
             why = (f"RMS {rms:.3g} {unit} against RMS U95 {rms_u:.3g} {unit}: "
                    + (f"applied at {f:.3f} = 1 - (U95 / 2)^2 / RMS^2 (the fraction that leaves the least "
-                      f"mean-square error)" if f > LEFT_OUT else
+                      f"mean-square error)" if f > 0.0 else
                       "no larger than its standard uncertainty, left out (applying it would add more than "
                       "it removes)"))
-        out[s] = {"factor": f, "applied": f > LEFT_OUT, "rms": rms, "rms_u95": rms_u,
+        out[s] = {"factor": f, "applied": f > 0.0, "rms": rms, "rms_u95": rms_u,
                   "ratio": None if rms_u == 0.0 else rms / rms_u, "reason": why}
     return out
 

@@ -1674,11 +1674,16 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw
     placements (seed + 1), identified again. Per axis X, Y, Z: the
     positioning error (``EXX``, ``EYY``, ``EZZ``) identified before and after
     with the U95 of each identification, and the machine's exact
-    positioning error (:func:`true_positioning_m`) before and after; the
-    criterion: after compensation the true positioning error lies within
-    the U95 of the identification the compensation came from, at every node
-    (``true_within_u95``). Beside it the machine's exact volumetric error
-    (:func:`volumetric_residual_um`, a rigid motion removed).
+    positioning error (:func:`true_positioning_m`) before and after, and
+    whether it lies within the U95 of the identification the compensation
+    came from, at every node (``true_within_u95``). The machine's exact
+    volumetric error (:func:`volumetric_residual_um`, a rigid motion
+    removed), and per controller ``volumetric_check``
+    (:func:`volumetric_check`): that error before and after against the
+    residual predicted from ``before``'s estimate for the fractions the
+    directory's JSON applies (``applied_factor``; all 1 without it), with
+    its U95: the verdict on what the user cares about. The prediction
+    assumes the directory was written from ``before``.
     """
     from dataclasses import replace as _rep
 
