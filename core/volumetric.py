@@ -1283,7 +1283,8 @@ def comp_tables(doc: dict) -> tuple[str, dict, dict, dict]:
     tables : dict symbol -> ((k,) nodes m, (k,) values m or rad)
         The 18 motion errors; each straightness with its end-point line's
         slope restored (its constant is the gauge's: no artefact sees a
-        constant shift).
+        constant shift). Each error (a squareness too) times its
+        ``applied_factor`` (0 to 1, :mod:`core.comprule`; absent: 1).
     constants : dict symbol -> float
         The squarenesses, rad.
     rotary_points_R_m : dict axis -> (3,) float
@@ -1304,6 +1305,10 @@ def comp_tables(doc: dict) -> tuple[str, dict, dict, dict]:
         if not isinstance(e, dict) or "identified" not in e:
             raise ConfigError(f"vmt-comp/1: error {s} missing")
         v = np.asarray(e["identified"], float) * 1e-6
+        f = e.get("applied_factor", 1.0)  # absent: applied whole (files before session 26)
+        if isinstance(f, bool) or not isinstance(f, (int, float)) or not 0.0 <= f <= 1.0:
+            raise ConfigError(f"vmt-comp/1: {s}.applied_factor must be a number from 0 to 1, got {f!r}")
+        v = v * float(f)  # the fraction of the identified error the controller corrects (core.comprule)
         if s in SQUARENESS:
             if v.shape != (1,) or not np.isfinite(v).all():
                 raise ConfigError(f"vmt-comp/1: {s}.identified must be one finite value")
@@ -1315,7 +1320,7 @@ def comp_tables(doc: dict) -> tuple[str, dict, dict, dict]:
         if np.any(np.diff(x) <= 0):
             raise ConfigError(f"vmt-comp/1: {s}.nodes_mm must be strictly increasing")
         if "end_point_slope_urad" in e:
-            v = v + float(e["end_point_slope_urad"]) * 1e-6 * (x - x[0])
+            v = v + float(f) * float(e["end_point_slope_urad"]) * 1e-6 * (x - x[0])
         tables[s] = (x, v)
     pts = {a: tuple(float(c) * 1e-3 for c in p) for a, p in (doc.get("rotary_points_mm") or {}).items()}
     return str(doc.get("chain", "")), tables, const, pts

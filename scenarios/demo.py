@@ -237,10 +237,14 @@ def _mfb(seed: int, outp: Path, say) -> None:
     say(f"LinuxCNC compensation written to {comp_dir}/ and applied to the virtual machine (X, Y carry the "
         f"table, Z the tool), bar measured again; true positioning error before -> per-axis files -> volumetric "
         f"table: " + "; ".join(rows))
-    vol = [f"{a} {loop['before']['volumetric_residual_um'][a]:.1f} -> {loop['volumetric']['volumetric_residual_um'][a]:.1f}"
+    vc = loop["volumetric"]["volumetric_check"]
+    vol = [f"{a} {vc[a]['before_max_um']:.1f} -> {vc[a]['after_max_um']:.1f} (predicted {vc[a]['predicted_max_um']:.1f}, "
+           f"U95 {vc[a]['u95_max_um']:.1f}; {'improved beyond its U95' if vc[a]['improved'] else 'not worse' if vc[a]['not_worse'] else 'WORSE than its U95'})"
            for a in "XYZ"]
+    part = [f"{s} {f:.2f}" for s, f in loop["volumetric"]["applied_factor"].items() if f < 0.995]
     say("volumetric error over the node box (rigid motion removed), um: " + ", ".join(vol)
-        + f" -> {outp / 'mfb-3axis-closed-loop.json'}")
+        + "; errors applied in part, the fraction that leaves the least mean-square error against their U95 "
+          "(0: left out): " + (", ".join(part) or "none") + f" -> {outp / 'mfb-3axis-closed-loop.json'}")
 
 
 def _positioning(machine, seed: int, outp: Path, say) -> None:

@@ -992,23 +992,95 @@ class ScenarioResult:
         (:data:`COMP_STYLUS`: reading + its offsets J), and
         ``<dir>/<scenario>-comp.json`` (``vmt-comp/1``,
         :func:`core.volumetric.tables_json`). Returns the paths written.
+
+        Each error is applied at the fraction that leaves the least
+        mean-square error against its uncertainty (:func:`compensation_plan`,
+        :func:`core.comprule.select_terms`; 0: left out): the ``.comp`` files
+        carry the positioning tables so scaled; the JSON keeps the identified
+        values with ``applied_factor`` and the decision's figures per error
+        (controllers apply ``applied_factor`` times the table,
+        :func:`core.volumetric.comp_tables`), the rule, and the residual
+        predicted over the node box with its U95.
         """
+        import json
+        from dataclasses import replace as _rep
         from pathlib import Path
 
         from core import volumetric as vol
         from core.atomic import write_text_atomic
         from hardware.linuxcnc import comp_file
 
+        plan = compensation_plan(self)
+        dec = plan["terms"]
+        res, slopes = self.result, dict(self.slopes or {})
+        theta = np.array(res.theta, float)
+        for s, d in dec.items():
+            theta[res.design.slices[s]] *= d["factor"]
+            if s in slopes:
+                slopes[s] *= d["factor"]
+        res_applied = _rep(res, theta=theta)
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
         out = []
         J = STYLI[COMP_STYLUS]
         for i, a in enumerate(("X", "Y", "Z")):
-            out.append(write_text_atomic(d / f"{a}.comp", comp_file(self.result, a, step_m=0.005,
+            out.append(write_text_atomic(d / f"{a}.comp", comp_file(res_applied, a, step_m=0.005,
                                                                     joint_offset_m=J[i])))
-        out.append(write_text_atomic(d / f"{self.doc['scenario']}-comp.json",
-                                     vol.tables_json(self.result, self.unc, self.slopes)))
+        doc = json.loads(vol.tables_json(self.result, self.unc, self.slopes))
+        for s, e in doc["errors"].items():
+            e["applied_factor"] = dec[s]["factor"]
+            e["decision"] = {k: v for k, v in dec[s].items() if k != "factor"}
+        doc["applied_rule"] = plan["rule"]
+        doc["predicted_residual"] = plan["predicted_residual"]
+        out.append(write_text_atomic(d / f"{self.doc['scenario']}-comp.json", json.dumps(doc, indent=1)))
         return [Path(p) for p in out]
+
+
+def _node_box(nodes) -> np.ndarray:
+    """The plan's node box: every (x, y, z) of the X, Y, Z nodes, (n, 3) m."""
+    gx, gy, gz = (np.asarray(nodes[a], float) for a in "XYZ")
+    return np.stack(np.meshgrid(gx, gy, gz, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
+def _prediction(r: "ScenarioResult", factors: dict) -> dict:
+    """What compensating ``factors`` (symbol -> fraction applied) of ``r``'s estimate is predicted to
+    leave over ``r``'s node box (:func:`core.comprule.predicted_residual`, stylus :data:`COMP_STYLUS`,
+    a rigid motion removed): ``residual``, ``U95``, ``U95_added``, each (n, 3) m."""
+    from core.comprule import predicted_residual, tip_map
+    from core.state import loads_estimate
+
+    state = loads_estimate(r.doc["estimate"])
+    G = tip_map(state, r.result.chain, _node_box(r.plan.nodes), STYLI[COMP_STYLUS], r.result.rotary_points_R_m)
+    return predicted_residual(state, factors, G)
+
+
+def compensation_plan(r: "ScenarioResult") -> dict:
+    """How much of each error ``r``'s compensation applies and what it is predicted to leave.
+
+    ``terms``: :func:`core.comprule.select_terms` of ``r``'s estimate (``doc["estimate"]``, the
+    tables the controllers get: their U95 by linear propagation); ``rule``: the rule in words;
+    ``predicted_residual``: over the plan's node box, a rigid motion removed, per axis X/Y/Z the
+    largest predicted |residual|, the largest U95 of what is left and the largest U95 the applied
+    part adds (a machine without errors: the compensation's whole effect), um, for the volumetric
+    table and for the per-axis files (EXX, EYY, EZZ alone).
+    """
+    from core.comprule import select_terms
+    from core.state import loads_estimate
+
+    dec = select_terms(loads_estimate(r.doc["estimate"]))
+    factors = {s: d["factor"] for s, d in dec.items()}
+    pred = {}
+    for key, fs in (("volumetric", factors), ("per_axis_files", {s: factors[s] for s in ("EXX", "EYY", "EZZ")})):
+        p = _prediction(r, fs)
+        pred[key] = {a: {"max_abs_um": float(np.abs(p["residual"][:, i]).max() * 1e6),
+                         "u95_max_um": float(p["U95"][:, i].max() * 1e6),
+                         "u95_added_max_um": float(p["U95_added"][:, i].max() * 1e6)} for i, a in enumerate("XYZ")}
+    pred["points"] = "the plan's node box, rotary axes at 0, stylus " + COMP_STYLUS + ", a rigid motion removed"
+    return {"terms": dec, "predicted_residual": pred,
+            "rule": ("each error function (table or squareness) is applied at the fraction "
+                     "max(0, 1 - mean(u^2) / mean(e^2)) over its nodes (u = U95 / 2, linear propagation): applying "
+                     "a fraction l of an estimate e^ of e leaves (1 - l)^2 e^2 + l^2 u^2 in mean square, least at "
+                     "e^2 / (e^2 + u^2), e^2 estimated by mean(e^2) - mean(u^2); 0: left out (core.comprule)")}
 
 
 #: The stylus whose joint positions index the LinuxCNC files (T0: a 150 mm probe).
@@ -1473,16 +1545,57 @@ def _rigid_residual(D, P):
     return D - (A @ sol).reshape(n, 3)
 
 
+def _volumetric_deviation(machine, nodes) -> np.ndarray:
+    """The machine's tip deviation (exact sim) at the plan's node box (:func:`_node_box`), rotary axes at
+    zero, a rigid motion removed, (n, 3) m."""
+    P = _node_box(nodes)
+    rot = None if not machine.rotary_axes else np.zeros((len(P), len(machine.rotary_axes)))
+    D = np.asarray(machine.tip_W(P, rot), float) - np.asarray(machine.tip_W_nominal(P, rot), float)
+    return _rigid_residual(D, P)
+
+
 def volumetric_residual_um(machine, nodes) -> dict:
     """The machine's tip deviation (tool relative to the part, exact sim) over the
     plan's node box, rotary axes at zero, a rigid motion removed: max |.| per axis, um."""
-    gx, gy, gz = (np.asarray(nodes[a], float) for a in "XYZ")
-    P = np.stack(np.meshgrid(gx, gy, gz, indexing="ij"), axis=-1).reshape(-1, 3)
-    rot = None if not machine.rotary_axes else np.zeros((len(P), len(machine.rotary_axes)))
-    D = np.asarray(machine.tip_W(P, rot), float) - np.asarray(machine.tip_W_nominal(P, rot), float)
-    R = _rigid_residual(D, P)
+    R = _volumetric_deviation(machine, nodes)
     return {a: float(np.abs(R[:, i]).max() * 1e6) for i, a in enumerate("XYZ")} | {
-        "rms": float(np.sqrt(np.mean(R ** 2)) * 1e6), "points": int(len(P))}
+        "rms": float(np.sqrt(np.mean(R ** 2)) * 1e6), "points": int(len(R))}
+
+
+def volumetric_check(R_before, R_after, pred) -> dict:
+    """The closed loop's volumetric verdict per axis X/Y/Z (um): the exact tip deviation over the node
+    box before and after compensation (rigid motion removed); the residual predicted with the U95 of
+    what is left and the U95 the applied part adds (:func:`_prediction`); ``within_u95``: points where
+    the residual found lies within the prediction's U95; ``improved``: the largest deviation fell by
+    more than the largest U95 of what is left (the compensation helped beyond its uncertainty);
+    ``not_worse``: the largest deviation after is no more than before plus that U95 (what a
+    compensation must never break: a good machine made worse than its stated residual U95). The U95
+    the applied part adds (``u95_added_max_um``) is beside them, not in the verdicts: the factors are
+    chosen on the estimate itself, which its linear propagation does not see (a zero term applied in
+    part is one whose estimate came out large: on a machine without errors it can exceed it)."""
+    out = {}
+    for i, a in enumerate("XYZ"):
+        b, f = float(np.abs(R_before[:, i]).max() * 1e6), float(np.abs(R_after[:, i]).max() * 1e6)
+        r, U = pred["residual"][:, i], pred["U95"][:, i]
+        u = float(U.max() * 1e6)
+        out[a] = {"before_max_um": b, "after_max_um": f, "predicted_max_um": float(np.abs(r).max() * 1e6),
+                  "u95_max_um": u, "u95_added_max_um": float(pred["U95_added"][:, i].max() * 1e6),
+                  "within_u95": f"{int(np.sum(np.abs(R_after[:, i] - r) <= U))}/{len(r)}",
+                  "improved": bool(b - f > u), "not_worse": bool(f <= b + u)}
+    return out
+
+
+def _applied_in(directory, name: str) -> dict:
+    """symbol -> fraction the compensation in ``directory`` applies (its JSON's ``applied_factor``; 1
+    for every error when the JSON has none or is absent)."""
+    import json
+    from pathlib import Path
+
+    from core.volumetric import MOTION, SQUARENESS
+
+    pj = Path(directory) / f"{name}-comp.json"
+    errs = json.loads(pj.read_text()).get("errors", {}) if pj.is_file() else {}
+    return {s: float(errs.get(s, {}).get("applied_factor", 1.0)) for s in MOTION + SQUARENESS}
 
 
 def compensators(directory, name: str):
@@ -1561,11 +1674,16 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw
     placements (seed + 1), identified again. Per axis X, Y, Z: the
     positioning error (``EXX``, ``EYY``, ``EZZ``) identified before and after
     with the U95 of each identification, and the machine's exact
-    positioning error (:func:`true_positioning_m`) before and after; the
-    criterion: after compensation the true positioning error lies within
-    the U95 of the identification the compensation came from, at every node
-    (``true_within_u95``). Beside it the machine's exact volumetric error
-    (:func:`volumetric_residual_um`, a rigid motion removed).
+    positioning error (:func:`true_positioning_m`) before and after, and
+    whether it lies within the U95 of the identification the compensation
+    came from, at every node (``true_within_u95``). The machine's exact
+    volumetric error (:func:`volumetric_residual_um`, a rigid motion
+    removed), and per controller ``volumetric_check``
+    (:func:`volumetric_check`): that error before and after against the
+    residual predicted from ``before``'s estimate for the fractions the
+    directory's JSON applies (``applied_factor``; all 1 without it), with
+    its U95: the verdict on what the user cares about. The prediction
+    assumes the directory was written from ``before``.
     """
     from dataclasses import replace as _rep
 
@@ -1586,7 +1704,7 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw
         e = r.doc["errors"][f"E{a}{a}"]
         return np.asarray(e.get("u95", [np.nan] * len(e["identified"])), float)
 
-    def block(r, comp=None):
+    def block(r, comp=None, applied=None):
         pos = {}
         true = true_positioning_m(truth((0.0, 0.0, 0.0), comp), r.plan.nodes)
         for a in "XYZ":
@@ -1599,17 +1717,28 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw
                 pos[a]["true_within_u95"] = f"{int(np.sum(t <= u_before))}/{len(t)}"
             if np.isfinite(u_now).all():
                 pos[a]["identified_within_u95"] = f"{int(np.sum(ident <= u_now))}/{len(ident)}"
-        return {"positioning": pos,
-                "volumetric_residual_um": volumetric_residual_um(truth(STYLI[COMP_STYLUS], comp), r.plan.nodes)}
+        m = truth(STYLI[COMP_STYLUS], comp)
+        out = {"positioning": pos, "volumetric_residual_um": volumetric_residual_um(m, r.plan.nodes)}
+        if applied is not None:  # the exact volumetric error against the one predicted from `before`
+            out["volumetric_check"] = volumetric_check(R_before, _volumetric_deviation(m, r.plan.nodes),
+                                                       _prediction(before, applied))
+            out["applied_factor"] = dict(applied)
+        return out
+
+    R_before = _volumetric_deviation(truth(STYLI[COMP_STYLUS]), before.plan.nodes)
+    applied = _applied_in(directory, name)
 
     doc = {"format": CLOSED_LOOP_FORMAT, "scenario": name, "directory": str(directory), "seed_before": seed,
            "seed_after": seed + 1,
-           "criterion": "after compensation, the true positioning error (exact sim) within the U95 of the "
+           "criterion": "volumetric_check: the exact tip deviation over the node box (rigid motion removed) "
+                        "after compensation against the residual predicted from the identification with its U95 "
+                        "(within_u95: points inside), improved: fell by more than the U95, not_worse: never above "
+                        "before + U95; beside it the true positioning error (exact sim) within the U95 of the "
                         "identification the compensation came from, at every node (true_within_u95)",
            "before": block(before)}
     for key, comp in ctl.items():
         r = run(name, seed=seed + 1, bar_seed=seed, compensate=comp, **kw)
-        doc[key] = block(r, comp)
+        doc[key] = block(r, comp, applied if key == "volumetric" else {s: applied[s] for s in ("EXX", "EYY", "EZZ")})
     return doc
 
 

@@ -85,6 +85,23 @@ def _mfb(args) -> int:
         print("(true: the exact simulator's positioning error, zero at the first node; within U95: nodes where it "
               "lies within the U95 of the identification that made the compensation; volumetric: the tip "
               "deviation over the node box, a rigid motion removed)")
+        print(f"volumetric error over the node box, um: {'':6s} {'axis':>4s} {'before':>7s} {'after':>7s} "
+              f"{'predicted':>9s} {'U95':>6s} {'U95 added':>9s} {'within U95':>10s}  verdict")
+        for key in ("per_axis_files", "volumetric"):
+            for a, v in loop.get(key, {}).get("volumetric_check", {}).items():
+                verdict = ("improved beyond its U95" if v["improved"] else
+                           "not worse (within its U95)" if v["not_worse"] else "WORSE than its U95")
+                print(f"{key:45s} {a:>4s} {v['before_max_um']:7.3f} {v['after_max_um']:7.3f} "
+                      f"{v['predicted_max_um']:9.3f} {v['u95_max_um']:6.3f} {v['u95_added_max_um']:9.3f} "
+                      f"{v['within_u95']:>10s}  {verdict}")
+        if args.comp:
+            import json as _json
+            from pathlib import Path
+
+            cj = _json.loads((Path(args.comp) / f"{args.name}-comp.json").read_text())
+            part = [f"{s} {e['applied_factor']:.2f}" for s, e in cj["errors"].items() if e["applied_factor"] < 1.0]
+            print("errors applied in part (the fraction that leaves the least mean-square error against its U95, "
+                  "core.comprule; 0: left out): " + (", ".join(part) or "none"))
     if args.budget_runs:
         from scenarios.mfb import budget
 
