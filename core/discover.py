@@ -29,7 +29,11 @@ What it does, in order, and the statistics behind each step
    baseline against the plain pure error, and the gap between held-out and
    in-sample residuals: ``cv_ss / rss`` against its parametric bootstrap
    (the fitted model plus noise at the estimated sigma through the same
-   fit and folds, :func:`_cv_gap`).
+   fit and folds, :func:`_cv_gap`). The noise is never below the data's
+   own rounding (:func:`roundoff_floor_m`, :data:`ROUNDOFF_ULPS`: exact
+   repeats of a noise-free campaign scatter by 0), and a baseline whose
+   every residual is within it leaves nothing to find (no outlier, no
+   structure, no search: ``none``).
 3. **Diagnosis** (catalogue-free, :mod:`core.diagnosis`): for every
    covariate a smooth term is tested against the model (nested F test,
    Holm over the covariates); its debiased explained RMS says how much of
@@ -3533,7 +3537,8 @@ def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: 
     sig_cov = [d.covariate for d in diag if d.significant(a)]
     # the held-out residuals amplify what the model misses (a held-out set-up
     # is predicted, not fitted): material when they imply a noise 30 % above the fit's
-    gap_sig = bool(gap.draws) and gap.p_value < a and gap.sigma_cv_m >= (1 + settings.material_sigma) * max(st.sigma, floor)
+    gap_sig = (bool(gap.draws) and gap.p_value < a
+               and gap.sigma_cv_m >= (1 + settings.material_sigma) * max(st.sigma, floor))
     lof_sig = lof is not None and lof.p_value < a and lof.sigma_lof_m ** 2 >= m2
     excess = kind == "planar" and sigma > settings.noise_max_um * UM
     return {"present": bool(sig_cov or gap_sig or lof_sig or excess), "covariates": sig_cov, "cv_gap": bool(gap_sig),
