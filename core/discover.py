@@ -29,7 +29,11 @@ What it does, in order, and the statistics behind each step
    baseline against the plain pure error, and the gap between held-out and
    in-sample residuals: ``cv_ss / rss`` against its parametric bootstrap
    (the fitted model plus noise at the estimated sigma through the same
-   fit and folds, :func:`_cv_gap`).
+   fit and folds, :func:`_cv_gap`). The noise is never below the data's
+   own rounding (:func:`roundoff_floor_m`, :data:`ROUNDOFF_ULPS`: exact
+   repeats of a noise-free campaign scatter by 0), and a baseline whose
+   every residual is within it leaves nothing to find (no outlier, no
+   structure, no search: ``none``).
 3. **Diagnosis** (catalogue-free, :mod:`core.diagnosis`): for every
    covariate a smooth term is tested against the model (nested F test,
    Holm over the covariates); its debiased explained RMS says how much of
@@ -2766,6 +2770,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     def outliers_of(X, Q=None):
         # each call draws its own null from a generator seeded by the caller's: the
         # answer does not depend on how many other tests drew before it
+        if at_roundoff:  # (no residual beyond the data's rounding: none stands out of anything but rounding)
+            return np.zeros(0, dtype=int)
         return find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac, Q, ranks=ranks,
                              rng=np.random.default_rng(outlier_seed), max_frac_dust=settings.outlier_max_frac_dust,
                              alpha_concentration=settings.alpha_family, events=events, slips=slips,
@@ -2776,6 +2782,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # 0. baseline fit and a first outlier screen
     Qall = orth_of(bl.A, qr=bl.qr)  # the planar baseline's grid choice factored A already
     st0 = _state(Qall, y, all_rows, [])
+    # the data's own numerical precision: the noise is never taken below it, and a baseline that leaves every
+    # residual below it (a noise-free campaign the model represents exactly) leaves nothing to find: no outlier,
+    # no structure, no search (ROUNDOFF_ULPS, session 26)
+    floor = roundoff_floor_m(bl)
+    at_roundoff = bool(N and np.max(np.abs(st0.r)) <= floor)
     rows = np.setdiff1d(all_rows, outliers_of(bl.A, Qall))
     tick()
 
@@ -2895,7 +2906,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return rep_of[key]
 
     def noise_sigma(s: _State) -> float:
-        return noise_of(s)[0]
+        return max(noise_of(s)[0], floor)  # (never below the data's rounding: exact repeats scatter by 0)
 
     def diagnosis(s: _State, covariates, rows_=None, known=()) -> list:
         """The diagnosis of model ``s``'s residuals over ``covariates`` (on ``rows_``; None: every row)."""
@@ -2914,7 +2925,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         # 2. diagnosis of the baseline
         diag = diagnosis(st, bl.covariates, rows)
         tick()
-        return cv, held, gap, lof, diag, _structure(diag, gap, lof, st, noise_sigma(st), settings, bl.kind)
+        structure = _structure(diag, gap, lof, st, noise_sigma(st), settings, bl.kind, floor)
+        return cv, held, gap, lof, diag, ({**structure, "present": False} if at_roundoff else structure)
 
     cv_b, held_b, gap_b, lof_b, diag_b, structure_b = judge_baseline(st, folds, rows)
 
@@ -2950,7 +2962,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         """
         terms: list[Term] = []
         cv_cur = cv0
-        for rnd in range(settings.max_findings):
+        for rnd in range(0 if at_roundoff else settings.max_findings):
             best = None
             # where the structure lives now, per covariate family (debiased sums of squares)
             diag_now = diag0 if rnd == 0 else diagnosis(st, smooth_covs, rows)
@@ -3173,7 +3185,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     E_named = _stack(terms, rows)
     gap_e = _cv_gap(folds, st, y, E_named, _penalty(terms), settings, gap_seed, sig) if terms else gap_b
     lof_e = lack_of_fit(st.rss, st.dof, rep) if _constant_within(rep_key[rows], E_named) else None
-    structure_e = _structure(diag_e, gap_e, lof_e, st, sig, settings, bl.kind)
+    structure_e = _structure(diag_e, gap_e, lof_e, st, sig, settings, bl.kind, floor)
+    if at_roundoff:
+        structure_e = {**structure_e, "present": False}
     left = _dropped_still_significant(dropped, st, rows, y, folds, terms, sig, settings)
     if left:
         structure_e = {**structure_e, "present": True, "dropped_still_significant": left}
@@ -3254,7 +3268,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     _doubt_beside_noise_excess(findings)
     if not findings and structure_b["present"]:
         findings.append(_unexplained_only(diag_b, structure_b, st, sig, settings))
-    elif (not findings and REPEATS_FLOOR_NONE_RECHECKED and sigma_rep is not None
+    elif (not findings and REPEATS_FLOOR_NONE_RECHECKED and sigma_rep is not None and not at_roundoff
           and not (short is not None and short["used"])):
         made = _none_at_the_residual_floor(bl, st, rep, rows, settings, bases, known=_made_on([(st_e, diag_e)], st))
         if made is not None:
@@ -3295,6 +3309,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         f"false-alarm rate {settings.alpha:g} split over {', '.join(FAMILIES)}; "
         f"materiality {settings.material_sigma:g} sigma per row",
         "U95: k = 2, sigma from each model's residuals",
+        *([f"every baseline residual within the data's rounding ({floor / UM:.2g} um: {ROUNDOFF_ULPS:g} eps times "
+           "its largest coordinate): nothing beyond rounding to find"] if at_roundoff else []),
         "gain's cv_rms_ratio_95: 95 % interval over set-ups (delete-one-set-up jackknife of the ratio's "
         "logarithm, Student's t at 97.5 % with set-ups - 1 degrees of freedom); none without an extension, "
         "cross-validation or three set-ups"]
@@ -3511,19 +3527,22 @@ def _constant_within(key: np.ndarray, E: np.ndarray) -> bool:
     return not np.any(ptp > 1e-9 * np.maximum(np.abs(E).max(axis=0), 1e-300))
 
 
-def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: str = "") -> dict:
+def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: str = "", floor: float = 0.0) -> dict:
     """Is there structure the model misses (catalogue-free)?
 
     Besides the diagnosis, the held-out gap and the lack of fit: a planar
     campaign's noise above :attr:`Settings.noise_max_um` is no probe's
-    noise (``noise_excess``, with the figure in ``noise_um``).
+    noise (``noise_excess``, with the figure in ``noise_um``). ``floor``:
+    the data's rounding (:func:`roundoff_floor_m`), below which the fit's
+    residual scatter is not taken when the held-out gap is judged material.
     """
     a = settings.alpha_family
     m2 = (settings.material_sigma * sigma) ** 2
     sig_cov = [d.covariate for d in diag if d.significant(a)]
     # the held-out residuals amplify what the model misses (a held-out set-up
     # is predicted, not fitted): material when they imply a noise 30 % above the fit's
-    gap_sig = bool(gap.draws) and gap.p_value < a and gap.sigma_cv_m >= (1 + settings.material_sigma) * st.sigma
+    gap_sig = (bool(gap.draws) and gap.p_value < a
+               and gap.sigma_cv_m >= (1 + settings.material_sigma) * max(st.sigma, floor))
     lof_sig = lof is not None and lof.p_value < a and lof.sigma_lof_m ** 2 >= m2
     excess = kind == "planar" and sigma > settings.noise_max_um * UM
     return {"present": bool(sig_cov or gap_sig or lof_sig or excess), "covariates": sig_cov, "cv_gap": bool(gap_sig),
@@ -8217,6 +8236,36 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
 #: `unexplained`, ten campaigns below visibility and gen_b c_drift 1187, 1220 (a miss either way) too; no
 #: effect-free campaign of gen_a, gen_b (500) or the simulator (100) moved.
 REPEATS_FLOOR_NONE_RECHECKED = True
+
+#: The floor of the noise, in units of the data's own numerical precision (:func:`roundoff_floor_m`): the
+#: machine epsilon times the largest coordinate of the campaign (its nominal tip centres, m) times this many. A
+#: reading enters as a double parsed from the log and scaled mm -> m (each coordinate within one ulp of its value,
+#: eps |x|), and the deviation ``n . (p - pn)`` subtracts two such points: a row carries up to a few eps |x| of
+#: rounding whatever the probe did, and the fit's own rounding is far smaller (it acts on deviations of um, not on
+#: coordinates of 0.1 m). 64: measured, gen_c's noise-free campaigns on an affine machine leave the baseline's
+#: residuals at 3.3-3.6e-18 m RMS (0.15 eps |x|, |x| 0.1 m) and 2e-12 um on the workpiece; the floor there,
+#: 1.4e-15 m, is 400 times that and seven orders of magnitude below any probe's noise (gen_c draws 0.2-0.5 um)
+#: or the smallest structure a noise-free campaign holds (the smooth machine's grid interpolation, 5e-9 m RMS).
+#: Session 26 (docs/discovery.md, "Session 26: discover on noise-free data").
+ROUNDOFF_ULPS = 64.0
+
+
+def roundoff_floor_m(bl: Baseline) -> float:
+    """The data's own numerical precision, m: :data:`ROUNDOFF_ULPS` eps times its largest coordinate.
+
+    Planar: the nominal tip centres' X and Y (``bl.data``); every kind: the
+    observations themselves (a floor of their own rounding where no
+    coordinate is known). What a model leaves below it is rounding, not
+    anything the probe or the machine did: the noise is never taken below it
+    (no test divides by a zero scatter of exact repeats), and a baseline whose
+    every residual is below it leaves nothing to find (:func:`discover_baseline`).
+    """
+    mag = float(np.max(np.abs(bl.y))) if len(bl.y) else 0.0
+    data = bl.data if bl.kind == "planar" else None
+    for v in (getattr(data, "x", None), getattr(data, "y", None)):
+        if v is not None and len(v):
+            mag = max(mag, float(np.max(np.abs(v))))
+    return ROUNDOFF_ULPS * float(np.finfo(float).eps) * mag
 
 
 def _none_at_the_residual_floor(bl, st, rep, rows, settings, bases=None, known=()) -> Finding | None:
