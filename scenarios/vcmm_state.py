@@ -68,6 +68,37 @@ max_runs = 400
 """
 
 
+#: The screw ripple declared (``[declared]``, appended to :data:`TASK` in :data:`TASK_RIPPLE`): the
+#: identification's 22 mm tables cannot follow a 10 mm period, so a truth with the ripple
+#: (:func:`sim.machines.realistic_errors`, ``ripple=True``: a 10 mm sine of 1 % of each linear
+#: profile's magnitude on EXX, EBX, EYY, ECY, ...) carries an error the state does not hold. Declared
+#: from the machine's specification alone (not from any coverage figure): the bound is 1 % of the
+#: largest magnitude the machine's class reports (``sim.machines._LINEAR``: EXX 38 um, EBX 98 urad,
+#: EYY 20 um, ECY 15 urad), amplitude uniform within it, phase unknown (uniform). EBX acts through the
+#: tool's Abbe arm, ECY through the X offset of the tool; EZZ and EBZ do not move between the touches
+#: of one height. Only the X and Y axes' terms move this task's features.
+RIPPLE_DECLARED = """
+[declared.EXX]
+periodic_um = 0.38
+period_mm = 10.0
+distribution = "uniform"
+[declared.EBX]
+periodic_urad = 0.98
+period_mm = 10.0
+distribution = "uniform"
+[declared.EYY]
+periodic_um = 0.20
+period_mm = 10.0
+distribution = "uniform"
+[declared.ECY]
+periodic_urad = 0.15
+period_mm = 10.0
+distribution = "uniform"
+"""
+#: :data:`TASK` with the ripple declared (:data:`RIPPLE_DECLARED`).
+TASK_RIPPLE = TASK.replace("[mc]", RIPPLE_DECLARED.lstrip() + "[mc]")
+
+
 def coverage_plan(z_mm: float, stylus_r_mm: float = 3.0):
     """A block at tip-centre height ``z_mm``: faces x = -60 and +60 mm (4 touches each, 4 mm above and
     below), bores of 20 mm at (-50, -40) and (50, 40) mm (8 touches each); a probe-log/1 plan."""
@@ -93,6 +124,9 @@ class Identified:
     machine: object
     z_m: float
     delta_L: tuple
+    #: d(estimate)/d(delta_L), SI per m, in the estimate's parameter order: what the covariance's
+    #: measured-length term is made of (``g g^T u_dL^2``).
+    dtheta_ddL: np.ndarray | None = None
 
 
 def model_space_errors(seed: int, ripple: bool = True) -> dict:
@@ -121,6 +155,30 @@ def model_space_errors(seed: int, ripple: bool = True) -> dict:
     return errs
 
 
+def ripple_phase_errors(seed: int) -> dict:
+    """The realistic machine of ``seed`` (with the ripple) with each axis's screw ripple at a phase drawn
+    for the seed (``default_rng([seed, 29])``, uniform, one per axis: EXX and EBX share X's screw, EYY
+    and ECY Y's, ...); amplitudes and every other error as :func:`sim.machines.realistic_errors` draws.
+
+    :func:`sim.machines.realistic_errors` puts every ripple at phase 0 with a positive amplitude in
+    every seed: for this task's bores (centres on whole periods) and faces (tip centres at +-63 mm)
+    that is within 5 % of the phase of largest effect, so the seeds repeat one nearly worst phase;
+    a declared term with an unknown phase is checked against phases drawn as it assumes them."""
+    from sim.errorfuncs import Periodic, Sum
+    from sim.machines import MACHINES, realistic_errors
+
+    cfg = MACHINES[MACHINE]()
+    axes = tuple(a for a in ("X", "Y", "Z", "C", "A") if a in cfg.strokes)
+    errs = dict(realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(seed), ripple=True))
+    rng = np.random.default_rng([seed, 29])
+    phase = {a: float(rng.uniform(0.0, 2.0 * np.pi)) for a in ("X", "Y", "Z")}
+    for k, f in errs.items():   # the linear axes' motion errors: a polynomial plus the 10 mm ripple
+        if isinstance(f, Sum) and k[2] in phase:
+            errs[k] = Sum(tuple(dataclasses.replace(t, phase=phase[k[2]]) if isinstance(t, Periodic) else t
+                                for t in f.terms))
+    return errs
+
+
 def identify_campaign(seed: int, noise_m: float = NOISE_M, *, ripple: bool = True, exact_scale: bool = False,
                       errors: dict | None = None) -> Identified:
     """Simulate and identify one cross-pocket campaign (module doc); the report is ``vmt identify``'s JSON.
@@ -145,7 +203,7 @@ def identify_campaign(seed: int, noise_m: float = NOISE_M, *, ripple: bool = Tru
     res0 = self_calibrate(c.touches, grid, dL, yaw=yaw, covariance="none", model_error=False)
     g = (res1.theta - res0.theta) / 1e-6
     res = dataclasses.replace(res, cov=res.cov + np.outer(g, g) * u_dL ** 2)
-    return Identified(res.to_report(), c.machine, float(z_ref), (dL, dL_true, u_dL))
+    return Identified(res.to_report(), c.machine, float(z_ref), (dL, dL_true, u_dL), g)
 
 
 def true_values(ident: Identified, st, seed: int) -> np.ndarray:
@@ -158,16 +216,20 @@ def true_values(ident: Identified, st, seed: int) -> np.ndarray:
 
 
 def one_seed(seed: int, *, noise_m: float = NOISE_M, ripple: bool = True, vcmm_seed: int = 0,
-             ident: Identified | None = None, task: str = TASK) -> dict:
+             ident: Identified | None = None, task: str = TASK, ripple_phase: bool = False) -> dict:
     """Coverage of the task's measurands for one campaign: per measurand the true value, the interval, U95.
 
-    ``task``: the task's text (default :data:`TASK`); ``ident`` a campaign already identified."""
+    ``task``: the task's text (default :data:`TASK`; :data:`TASK_RIPPLE` declares the ripple); ``ident``
+    a campaign already identified; ``ripple_phase``: the truth's ripple at phases drawn per seed
+    (:func:`ripple_phase_errors`) instead of :func:`sim.machines.realistic_errors`' phase 0."""
     from core import vcmm as V
     from core.state import loads_estimate
     from scenarios.vcmm import prepare, study
     from sim.machinefile import truth_machine
 
-    ident = ident if ident is not None else identify_campaign(seed, noise_m, ripple=ripple)
+    if ident is None:
+        errs = ripple_phase_errors(seed) if ripple and ripple_phase else None
+        ident = identify_campaign(seed, noise_m, ripple=ripple, errors=errs)
     state = loads_estimate(ident.report, source=f"identify seed {seed}")
     spec = truth_machine(MACHINE, "none")  # the best estimate before the state: no errors
     task = V.loads_task(task, source="coverage task")

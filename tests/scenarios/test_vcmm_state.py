@@ -236,3 +236,107 @@ def test_model_space_errors_follow_the_realistic_tool_on_the_nodes():
     # them the realistic machine's curvature the linear tables leave (seen 26 nm for seed 3)
     assert on < 1e-9, on
     assert off > 100 * on, (on, off)
+
+
+def _noise_free(st, values):
+    """The task's measurands (SI) of the virtual CMM's machine with the state at ``values``, no noise."""
+    return V.evaluate(st.task, st.rows, S.simulate_run(st, {S.STATE_KEY: values}, None, noise=False), st.n_R,
+                      st.probe.stylus_r_m, st.Xn_R)
+
+
+def test_the_measured_length_is_propagated_with_the_scale_it_sets(realistic):
+    """The covariance's measured-length term (``g g^T u_dL^2``, :func:`VS.identify_campaign`) through the
+    virtual CMM. Known answers: delta_L sets the scale of both axes over x_N = 110 mm (the C rotations tie
+    Y's to X's), so a shift d of it moves each measurand by -d / 110 mm times its span between tip centres
+    (a machine that travels further reads a part shorter):
+    the faces' 126 mm (120 + 2 x 3 mm stylus), the bores' hypot(100, 80) = 128.06 mm, the bore's 14 mm
+    tip-centre diameter; and the state's variance along the measurand, with the term minus without it
+    (the same campaign with delta_L exact), is that sensitivity times u_dL, squared. Tolerances: 0.5 % on
+    the sensitivity (the faces' +-4 mm heights and the campaign's second-order terms; seen 0.03 %), 2 %
+    on the variance's share (finite differences of 0.1 um on a linear model; seen < 0.1 %). A guard, not
+    a fix: session 26's reviewer read 1.04-1.07 x from two Monte Carlo U95s where 1.145 x is due."""
+    ident = realistic[0]
+    exact = VS.identify_campaign(3, ripple=False, exact_scale=True)
+    st = _state_setting(ident.report, ident.z_m)
+    state = st.state
+    d = 1e-7
+    doc = json.loads(json.dumps(ident.report))
+    doc["estimate"]["values"] = (np.asarray(doc["estimate"]["values"]) + ident.dtheta_ddL * d * 1e6).tolist()
+    g = (loads_estimate(doc).mean - state.mean) / d                       # d(state)/d(delta_L)
+    y0 = _noise_free(st, state.mean)
+    s = (_noise_free(st, state.mean + g * d) - y0) / d
+    np.testing.assert_allclose(s, [-126 / 110, -math.hypot(100, 80) / 110, -14 / 110], rtol=5e-3)
+    J = np.array([(_noise_free(st, state.mean + e * 1e-7) - y0) / 1e-7 for e in np.eye(len(state.mean))])
+    var = lambda F: ((J.T @ F) ** 2).sum(axis=1)
+    share = var(state.factor) - var(loads_estimate(exact.report).factor)
+    u_dL = ident.delta_L[2]
+    assert exact.delta_L[2] == 0.0 and u_dL > 0.3e-6
+    np.testing.assert_allclose(share, (s * u_dL) ** 2, rtol=0.02)
+
+
+@pytest.mark.parametrize("phase", [0.0, 1.0, math.pi / 2, 4.0])
+def test_the_screw_ripple_moves_the_block_as_the_closed_form(phase):
+    """Why the coverage study's diameter leans positive with the ripple (session 26): EXX = a sin(2 pi X /
+    10 mm + phase) alone on the exact simulator, noise-free, block at 27 mm. Each tip-centre reading is
+    short by E along the normal's X, so the face distance reads -(E(63 mm) - E(-63 mm)) and a bore's
+    diameter (least-squares circle of 8 touches on a tip-centre circle of 7 mm) -2 mean(E(x_i) cos a_i);
+    to 2 nm (the ripple taken at the reading, not the nominal: a^2 2 pi / p = 0.1 nm, and the faces' fit).
+    Both are cos(phase) times their largest value (the bores' centres lie on whole periods), so the
+    truth generator's phase 0 (sim.machines.realistic_errors) is within 5 % of the worst phase for both
+    measurands in every seed: the diameter's bias is the positioning errors' own ripple, not an Abbe term."""
+    import dataclasses
+
+    from sim.errorfuncs import Periodic
+    from sim.machine import Machine
+
+    a, p = 0.3e-6, 0.010
+    spec = resolve(VS.MACHINE)
+    spec = dataclasses.replace(spec, config=dataclasses.replace(spec.config, errors={}))
+    st = S.prepare(VS.coverage_plan(27.0), V.loads_task(VS.TASK), spec, noise_um=0.0)
+    run = lambda errs: V.evaluate(st.task, st.rows, S.simulate_run(st, {}, None, noise=False, machine=Machine(
+        dataclasses.replace(st.config, errors=errs))), st.n_R, st.probe.stylus_r_m, st.Xn_R)
+    dy = run({"EXX": Periodic(a, p, phase)}) - run({})
+    E = lambda x: a * np.sin(2 * np.pi * x / p + phase)
+    ang = np.deg2rad(22.5 + 45.0 * np.arange(8))
+    want_face = -(E(0.063) - E(-0.063))
+    want_diam = -2 * np.mean(E(-0.050 + 0.007 * np.cos(ang)) * np.cos(ang))
+    assert abs(dy[0] - want_face) < 2e-9 and abs(dy[2] - want_diam) < 2e-9, (dy, want_face, want_diam)
+    worst_face = 2 * a                      # |E(63) - E(-63)| at its best phase
+    worst_diam = 2 * a * abs(np.mean(np.sin(2 * np.pi * 0.007 * np.cos(ang) / p) * np.cos(ang)))
+    assert abs(want_face) == pytest.approx(worst_face * abs(np.cos(phase)) * np.sin(2 * np.pi * 6.3), rel=1e-9)
+    assert abs(want_diam) == pytest.approx(worst_diam * abs(np.cos(phase)), rel=1e-9)
+    if phase == 0.0:
+        assert abs(want_face) > 0.95 * worst_face and want_diam > 0.99 * worst_diam > 0
+
+
+def test_the_declared_ripple_is_the_truth_generators_specification():
+    """:data:`VS.RIPPLE_DECLARED` bounds each X/Y ripple at 1 % of the largest magnitude of its linear
+    profile (sim.machines: the ripple is 0.01 |mag|, |mag| at most the class's value), period 10 mm,
+    amplitude uniform, phase unknown; the truth with drawn phases (:func:`VS.ripple_phase_errors`) keeps
+    every amplitude and every other error, one phase per screw (EXX and EBX share X's)."""
+    from sim.errorfuncs import Periodic, Sum
+    from sim.machines import _LINEAR, MACHINES, realistic_errors
+
+    lin = {sym: m for ax in "XY" for sym, shape, m in _LINEAR[ax] if shape == "lin"}
+    task = V.loads_task(VS.TASK_RIPPLE)
+    got = {t.symbol: t for t in task.declared}
+    assert set(got) == set(lin)
+    for sym, m in lin.items():
+        t = got[sym]
+        assert t.term == "periodic" and t.period == pytest.approx(0.010) and t.distribution == "uniform"
+        assert t.bound == pytest.approx(0.01 * m, rel=1e-12)
+    cfg = MACHINES[VS.MACHINE]()
+    axes = tuple(a for a in ("X", "Y", "Z", "C", "A") if a in cfg.strokes)
+    ref = realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(7), ripple=True)
+    e7, e8 = VS.ripple_phase_errors(7), VS.ripple_phase_errors(8)
+    ph = {}
+    for k, f in ref.items():
+        if k[2] in "XYZ" and isinstance(f, Sum):
+            (r,) = [t for t in f.terms if isinstance(t, Periodic)]
+            (q,) = [t for t in e7[k].terms if isinstance(t, Periodic)]
+            assert r.phase == 0.0 and q.amplitude == r.amplitude and q.period == r.period == 0.010
+            ph[k] = q.phase
+        else:
+            assert repr(e7[k]) == repr(f), k          # the rotary axes' Sums and everything else unchanged
+    assert ph["EXX"] == ph["EBX"] != ph["EYY"] == ph["ECY"] and len(set(ph.values())) == 3
+    assert repr(e8["EXX"]) != repr(e7["EXX"])
