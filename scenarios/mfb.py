@@ -1164,6 +1164,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 
     if name not in PLANS:
         raise ConfigError(f"unknown MFB scenario {name!r}; known: {', '.join(PLANS)}")
+    from core.uncertainty import check_mc_runs
+
+    mc_runs = check_mc_runs(mc_runs, "mc_runs", zero_ok=True)  # before the campaign, not after it
     t0 = time.time()
     plan = PLANS[name]()
     if drop:

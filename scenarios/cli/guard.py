@@ -279,16 +279,23 @@ def check_report_folder(report: str, inputs: dict, outputs: dict, command: str |
         raise OutputError(f"--report {report}: {problem}")
 
 
+#: The largest ``--delta-l-um`` taken, um: the X positioning error at the last node of a grid of a few hundred
+#: mm is microns to tens of microns; 1 mm (thousands of ppm) is no machine's, and the linear model of the
+#: self-calibration (small errors) would not hold (review26: 1e30 was taken and identified).
+DELTA_L_MAX_UM = 1000.0
+
+
 #: Options that mean the same in every command that has them (``args`` name: test, rule).
 COMMON = {
     "seed": (lambda v: v >= 0, "must be >= 0"),
-    "mc": (lambda v: v >= 0, "must be >= 0"),
+    # --mc: not here; its one refusal is scenarios.cli.options.check_mc (what 0 means is the command's)
     "noise_um": (lambda v: v >= 0 and v < float("inf"), "must be a finite number >= 0"),
     "dt": (lambda v: 0 < v < float("inf"), "must be a positive number of seconds"),
     "step_deg": (lambda v: 0 < v <= 360, "must be > 0 and divide 360"),
     "angles": (lambda v: v >= 2, "must be >= 2"),
     "workers": (lambda v: v >= 1, "must be >= 1"),
-    "delta_l_um": (lambda v: abs(v) < float("inf"), "must be a finite number"),
+    "delta_l_um": (lambda v: abs(v) <= DELTA_L_MAX_UM,
+                   f"must be within +-{DELTA_L_MAX_UM:g} um (the X positioning error at the last x node)"),
     "ec0y_urad": (lambda v: abs(v) < float("inf"), "must be a finite number"),  # (an infinite squareness was served)
     "z_mm": (lambda v: abs(v) < float("inf"), "must be a finite number"),
     "stylus_r_mm": (lambda v: 0 <= v < float("inf"), "must be a finite number >= 0"),
@@ -302,11 +309,18 @@ COMMON = {
 FLAGS = {"dt": "--dt-s", "angles": "--n-angles", "timeout": "--timeout-s"}
 
 
+#: ``--noise-um`` where it is the sigma a U95 is computed from (``identify``, ``design``): 0 has no meaning
+#: there, and -1 and 0 are refused in the same words (``p.set_defaults(vmt_rules=NOISE_POSITIVE)``).
+NOISE_POSITIVE = {"noise_um": (lambda v: 0 < v < float("inf"), "must be a finite number > 0")}
+
+
 def check_common_options(args) -> None:
-    """Refuse a value of a shared option outside its meaning (NaN fails every test)."""
+    """Refuse a value of a shared option outside its meaning (NaN fails every test); a command's
+    ``vmt_rules`` default (same shape as :data:`COMMON`) narrows an entry for it, in the same phrasing."""
     from core.exceptions import ConfigError
 
-    for name, (ok, rule) in COMMON.items():
+    own = getattr(args, "vmt_rules", None) or {}
+    for name, (ok, rule) in {**COMMON, **own}.items():
         v = getattr(args, name, None)
         if isinstance(v, (int, float)) and not isinstance(v, bool) and not ok(v):
             raise ConfigError(f"{FLAGS.get(name, '--' + name.replace('_', '-'))} {rule}, got {v:g}")

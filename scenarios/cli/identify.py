@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from scenarios.cli.options import GRID_HELP, add_noise_arg, parse_grid
+from scenarios.cli.options import GRID_HELP, add_mc_arg, add_noise_arg, check_mc, parse_grid
 
 
 def register(sub) -> None:
@@ -12,16 +12,19 @@ def register(sub) -> None:
     p.add_argument("--grid-mm", default="22", metavar="STEP|x0:x1:step", help=GRID_HELP + " (22)")
     p.add_argument("--delta-l-um", type=float, default=None,
                    help="X positioning error at the last x node, measured (eq 17); omitted = scale unknown")
-    p.add_argument("--mc", type=int, default=0, metavar="N", help="also run N Monte Carlo runs (JCGM 101)")
+    add_mc_arg(p, "default: none, the linear propagation's U95 alone; the runs draw the probing noise")
     p.add_argument("--seed", type=int, default=None,
                    help="seed of the Monte Carlo runs (0); only with --mc: without it nothing is drawn")
     add_noise_arg(p, "for U95; default: sigma from the residuals", old=("--u-probe-um",))
-    p.set_defaults(func=run)
+    from scenarios.cli.guard import NOISE_POSITIVE
+
+    p.set_defaults(func=run, vmt_rules=NOISE_POSITIVE)   # the sigma of the U95: > 0, -1 and 0 in one phrasing
 
 
 def run(args) -> int:
     from scenarios.cli.guard import progress_line
 
+    args.mc = 0 if args.mc is None else check_mc(args.mc, zero="none")   # before any work
     with progress_line("identify") as bar:
         return _run(args, bar)
 
@@ -58,11 +61,7 @@ def _run(args, bar) -> int:
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
     sigma = None
     if args.noise_um is not None:
-        if not args.noise_um > 0:
-            raise ConfigError(f"--noise-um must be > 0, got {args.noise_um}")
         sigma = args.noise_um * 1e-6
-    if args.mc < 0:
-        raise ConfigError(f"--mc must be >= 0, got {args.mc}")
     bar(1, steps)
     from scenarios.cli.guard import about_file
 

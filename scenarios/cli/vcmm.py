@@ -35,7 +35,8 @@ def register(sub) -> None:
                         "its covariance; the task's [declared] limits add what it does not cover")
     p.add_argument("--sobol-runs", type=int, default=0, metavar="N",
                    help="also first-order Sobol indices of every source, N runs per matrix (N (k + 2) runs for "
-                        "k sources; 0: none)")
+                        "k sources; 0: none; each run measures the plan once with every source drawn; the "
+                        "uncertainty's own runs stop by --tol-um, not by a count)")
     p.add_argument("--no-budget", action="store_true", help="skip the one-at-a-time budget runs")
     p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT",
                    help="run the Monte Carlo batches on this Dask cluster (the same result for a seed)")

@@ -1,0 +1,96 @@
+"""The CLI's language, session 26 (review26): one meaning per option, honest Monte Carlo sizes.
+
+In-process through ``scenarios.cli.main`` (exit status 2 and one line on stderr for bad input).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from scenarios.cli import main
+
+
+def one_error_line(capsys, start: str) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(start), err
+    return err
+
+
+def campaign(path, angles, rng):
+    """The cross-pocket's 92 targets at ``angles`` (deg) (the fuzz tests' campaign, every target)."""
+    from core.probelog import write_probe_log
+    from test_fuzz_cli import campaign_log
+
+    return write_probe_log(path, campaign_log(rng, c_deg=tuple(float(c) for c in angles), every=1))
+
+
+# --------------------------------------------------------------------------- 1. --mc: one minimum everywhere
+
+MC_SAID = "a Monte Carlo needs at least 10 runs (its U95 is read from the runs' 2.5 % and 97.5 % percentiles)"
+
+
+@pytest.mark.parametrize("cmd, n, zero", [
+    # main ran these: --mc 1 gave U95 = 0 for every error (percentiles of one run), 9 a width of 9 runs
+    (["scenario", "mfb-3axis"], 1, ", or --mc 0 (the linear propagation's U95 alone)"),
+    (["scenario", "mfb-5axis"], 9, ", or --mc 0 (the linear propagation's U95 alone)"),
+    # main: '--mc must be >= 10 for this study, got 3' (its own phrasing); 0 has no meaning there
+    (["scenario", "cross-pocket-uncertainty"], 3, ""),
+    (["scenario", "cross-pocket-uncertainty"], 0, ""),
+    (["scenario", "mfb-3axis"], -1, ", or --mc 0 (the linear propagation's U95 alone)"),
+])
+def test_mc_below_the_minimum_is_refused_in_one_phrasing(tmp_path, capsys, cmd, n, zero):
+    out = tmp_path / "r.json"
+    assert main(cmd + ["--mc", str(n), "--json", str(out)]) == 2
+    one_error_line(capsys, f"vmt scenario: error: --mc {n}: {MC_SAID}{zero}\n")
+    assert not out.exists()
+
+
+def test_identify_mc_below_the_minimum_names_the_option_not_the_log(tmp_path, rng, capsys):
+    """main: 'vmt identify: error: LOG: runs must be >= 10, got 3' (after the identification, under the log's
+    name); and --mc -1 said '--mc must be >= 0'. Now the one refusal of --mc, before any work."""
+    log = campaign(tmp_path / "camp.csv", (0, 75, 130, 210), rng)
+    out = tmp_path / "id.json"
+    for n in (3, -1):
+        assert main(["identify", str(log), "--json", str(out), "--mc", str(n)]) == 2
+        one_error_line(capsys, f"vmt identify: error: --mc {n}: {MC_SAID}, or --mc 0 (none)\n")
+        assert not out.exists()
+    assert main(["identify", str(log), "--json", str(out), "--mc", "10", "--grid-mm", "22"]) == 0
+    assert json.loads(out.read_text())["monte_carlo"]["runs"] == 10
+
+
+def test_volumetric_uncertainty_refuses_a_monte_carlo_of_one_run():
+    """core.volumetric.uncertainty(runs=1): U95_mc = 0 everywhere (2.5 and 97.5 percentiles of one value);
+    now refused, 0 (linear only) and 10 taken."""
+    from core.exceptions import ConfigError
+    from scenarios import mfb as S
+
+    r = S.run("mfb-3axis", noise_um=0.0, draw_inputs=False, mc_runs=0, declared_ripple=None)
+    from core import volumetric as vol
+
+    u_cal = np.full((12, 3), 1e-6)
+    for runs in (1, 2, 9):
+        with pytest.raises(ConfigError, match=f"runs {runs}: a Monte Carlo needs at least 10 runs"):
+            vol.uncertainty(r.result, r.meas, 1e-7, u_cal, runs=runs, rng=np.random.default_rng(1))
+    u10 = vol.uncertainty(r.result, r.meas, 1e-7, u_cal, runs=10, rng=np.random.default_rng(1))
+    assert u10.runs == 10 and np.max(u10.U95_mc) > 0
+    with pytest.raises(ConfigError, match="mc_runs 1: a Monte Carlo needs at least 10 runs"):
+        S.run("mfb-3axis", mc_runs=1)
+
+
+def test_mc_help_says_what_it_counts():
+    """--mc, --budget-runs and --sobol-runs count different runs: the help says what each is."""
+    import argparse
+
+    from scenarios.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+    helps = {(c, a.option_strings[0]): a.help for c in ("identify", "scenario", "vcmm")
+             for a in sub[c]._actions if a.option_strings}
+    for c in ("identify", "scenario"):
+        assert "at least 10" in helps[(c, "--mc")] and "percentiles" in helps[(c, "--mc")]
+    assert "simulates the campaign again" in helps[("scenario", "--budget-runs")]
+    assert "runs per matrix" in helps[("vcmm", "--sobol-runs")]
