@@ -1015,7 +1015,9 @@ class ScenarioResult:
 COMP_STYLUS = "T0"
 
 
-def _check_machine_for_plan(cfg, plan, name):
+def _check_machine_for_plan(cfg, plan, name, source: str | None = None):
+    """Refuse a machine whose chain is not the plan's, naming it as the user did (``source``: the machine
+    file's path or the built-in name given to --machine; default the machine's own name)."""
     from core.chain import parse_chain
     from core.exceptions import ConfigError
     from sim.machines import MACHINES
@@ -1023,7 +1025,7 @@ def _check_machine_for_plan(cfg, plan, name):
     want = parse_chain(MACHINES[plan.machine]().chain)
     got = parse_chain(cfg.chain)
     if (got.workpiece_axes, got.tool_axes) != (want.workpiece_axes, want.tool_axes):
-        raise ConfigError(f"--machine {cfg.name!r}: chain {cfg.chain!r} is not the {name} plan's "
+        raise ConfigError(f"--machine {source or cfg.name}: chain {cfg.chain!r} is not the {name} plan's "
                           f"{want.text!r} (the plan is designed for that structure)")
 
 
@@ -1176,7 +1178,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     declared = _check_declared_ripple(declared_ripple)
     rng = np.random.default_rng(seed)
     if machine is not None:
-        _check_machine_for_plan(machine.config, plan, name)
+        _check_machine_for_plan(machine.config, plan, name, getattr(machine, "source", None))
         probe = machine.probe
         cfg, errs = machine.config, dict(machine.config.errors)
     else:
@@ -1554,7 +1556,7 @@ def true_positioning_m(machine, nodes) -> dict:
     return out
 
 
-def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw) -> dict:
+def closed_loop(name: str, directory, before: ScenarioResult | None = None, *, progress=None, **kw) -> dict:
     """Apply the compensation in ``directory`` to the virtual machine, run the plan again, identify again.
 
     ``before`` is the uncompensated run (default: :func:`run` with ``kw``).
@@ -1568,7 +1570,8 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw
     criterion: after compensation the true positioning error lies within
     the U95 of the identification the compensation came from, at every node
     (``true_within_u95``). Beside it the machine's exact volumetric error
-    (:func:`volumetric_residual_um`, a rigid motion removed).
+    (:func:`volumetric_residual_um`, a rigid motion removed). ``progress(done, total)``: over the new
+    campaigns, each :func:`run`'s steps (the CLI's line with the time left).
     """
     from dataclasses import replace as _rep
 
@@ -1610,8 +1613,9 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw
            "criterion": "after compensation, the true positioning error (exact sim) within the U95 of the "
                         "identification the compensation came from, at every node (true_within_u95)",
            "before": block(before)}
-    for key, comp in ctl.items():
-        r = run(name, seed=seed + 1, bar_seed=seed, compensate=comp, **kw)
+    for i, (key, comp) in enumerate(ctl.items()):
+        each = None if progress is None else (lambda k, n, i=i: progress(i * n + k, len(ctl) * n))
+        r = run(name, seed=seed + 1, bar_seed=seed, compensate=comp, progress=each, **kw)
         doc[key] = block(r, comp)
     return doc
 

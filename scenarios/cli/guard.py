@@ -150,7 +150,7 @@ def _opt(name: str, command: str | None = None) -> str:
     if name == "plan" and command in PLAN_POSITIONAL:
         return "PLAN"
     return {"json_out": "--json", "log": "LOG", "plan": "--plan", "file": "FILE", "rrd": "RRD",
-            "study": "STUDY"}.get(name, "--" + name.replace("_", "-"))
+            "c_angles": "--c-angles-deg", "study": "STUDY"}.get(name, "--" + name.replace("_", "-"))
 
 
 def map_dash(args, outs, dirs) -> None:
@@ -314,6 +314,27 @@ FLAGS = {"dt": "--dt-s", "angles": "--n-angles", "timeout": "--timeout-s"}
 NOISE_POSITIVE = {"noise_um": (lambda v: 0 < v < float("inf"), "must be a finite number > 0")}
 
 
+#: Options that name something and where an empty value (``--out ""``, ``--machine ""``) would fall back to a
+#: default or say "'.': is a directory": refused naming the empty value (review26). ``args`` name -> what to give.
+NONEMPTY = {"machine": "a built-in machine name or a machine file (or leave --machine out)",
+            "c_angles": "comma-separated C angles in degrees (or leave --c-angles-deg out)",
+            "machine_state": "an identification result (JSON)", "bar_calibration": "a bar calibration (JSON)",
+            "transcript": "a file name", "readme": "a file name"}
+
+
+def check_empty_values(args) -> None:
+    """Refuse an empty value of an option that names a file, a folder, a machine or a list (one line)."""
+    from core.exceptions import ConfigError
+
+    ins, outs, dirs = FILES.get(args.command, ((), (), ()))
+    what = {**{n: "a file" for n in ins}, **{n: "a file name" for n in outs}, **{n: "a folder name" for n in dirs},
+            **NONEMPTY}
+    for name, give in what.items():
+        v = getattr(args, name, None)
+        if isinstance(v, str) and not v.strip():
+            raise ConfigError(f"{_opt(name, args.command)} {v!r}: empty; give {give}")
+
+
 def check_common_options(args) -> None:
     """Refuse a value of a shared option outside its meaning (NaN fails every test); a command's
     ``vmt_rules`` default (same shape as :data:`COMMON`) narrows an entry for it, in the same phrasing."""
@@ -385,6 +406,7 @@ def run_command(args) -> int:
     try:
         try:
             check_common_options(args)
+            check_empty_values(args)
             map_dash(args, outs, dirs)
             inputs = _arg_paths(args, ins)
             for path in inputs.values():

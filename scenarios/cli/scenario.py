@@ -67,7 +67,8 @@ def _mfb(args) -> int:
         for p in r.write_comp(args.comp):
             print(f"wrote {p}")
     if args.apply_comp:
-        loop = closed_loop(args.name, args.apply_comp, before=r, **kw)
+        with progress_line(f"{args.name}: compensated campaigns simulated") as bar:
+            loop = closed_loop(args.name, args.apply_comp, before=r, progress=bar, **kw)
         d["closed_loop"] = loop
         print(f"closed loop with {args.apply_comp}: a new campaign on the compensated virtual machine "
               f"(seed {loop['seed_after']}), identified again; um")

@@ -18,7 +18,10 @@ def register(sub) -> None:
     p.add_argument("plan", metavar="PLAN", help="probe-log/1 plan (or log: its nominal columns are used)")
     from scenarios.cli.options import add_machine_args, add_noise_arg
 
-    add_machine_args(p, default=None, required=True, what="the machine, its errors your best estimate",
+    add_machine_args(p, default=None, required=True,
+                     what="the machine, its errors your best estimate (required, unlike simulate's and scenario's "
+                          "--machine: those run a study on the artefact's or plan's own machine, this is the "
+                          "uncertainty of your measurement on your machine, and no default stands in for it)",
                      errors_default="none", errors_why="best-estimate errors: a built-in machine's as its file "
                                                        "states them, none; name a set to take it as your estimate")
     p.add_argument("--task", required=True, metavar="TASK.toml", help="features, measurands, declared limits")

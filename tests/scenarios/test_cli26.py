@@ -94,3 +94,90 @@ def test_mc_help_says_what_it_counts():
         assert "at least 10" in helps[(c, "--mc")] and "percentiles" in helps[(c, "--mc")]
     assert "simulates the campaign again" in helps[("scenario", "--budget-runs")]
     assert "runs per matrix" in helps[("vcmm", "--sobol-runs")]
+
+
+# --------------------------------------------------------------------------- 3. the small ones
+
+@pytest.mark.parametrize("cmd, said", [
+    # main: --machine "" and --c-angles-deg "" fell back to the defaults (exit 0); --out "" said "'.': is a directory"
+    (["simulate", "cross-pocket", "--out", "{d}/x.csv", "--machine", ""],
+     "--machine '': empty; give a built-in machine name or a machine file (or leave --machine out)"),
+    (["simulate", "cross-pocket", "--out", "{d}/x.csv", "--c-angles-deg", ""],
+     "--c-angles-deg '': empty; give comma-separated C angles in degrees (or leave --c-angles-deg out)"),
+    (["simulate", "cross-pocket", "--out", ""], "--out '': empty; give a file name"),
+    (["scenario", "mfb-3axis", "--json", ""], "--json '': empty; give a file name"),
+    (["scenario", "mfb-3axis", "--report", " "], "--report ' ': empty; give a folder name"),
+])
+def test_an_empty_value_is_refused_naming_it(tmp_path, capsys, cmd, said):
+    assert main([a.format(d=tmp_path) for a in cmd]) == 2
+    one_error_line(capsys, f"vmt {cmd[0]}: error: {said}\n")
+    assert not (tmp_path / "x.csv").exists()
+
+
+@pytest.mark.parametrize("angles, said", [
+    ("0,360", "C angles 0 and 360 deg are the same set-up (equal modulo 360): give each angle once"),
+    ("0,90,-270", "C angles 90 and -270 deg are the same set-up (equal modulo 360)"),
+    ("10,10", "C angles 10 and 10 deg are the same set-up"),
+])
+def test_c_angles_equal_modulo_360_are_refused(tmp_path, capsys, angles, said):
+    """main took 0,360 as two set-ups (C0 and C360), and identify then reported a rank deficiency."""
+    out = tmp_path / "x.csv"
+    assert main(["simulate", "cross-pocket", "--out", str(out), "--c-angles-deg", angles]) == 2
+    one_error_line(capsys, f"vmt simulate: error: {said}")
+    assert not out.exists()
+
+
+def test_no_c_axis_names_the_angle_not_the_argument(tmp_path, capsys):
+    """main: 'c_angles_deg: machine 'vmc-3axis' has no C axis ...' (the function's argument)."""
+    assert main(["simulate", "cross-pocket", "--machine", "vmc-3axis", "--out", str(tmp_path / "x.csv"),
+                 "--c-angles-deg", "0,90"]) == 2
+    one_error_line(capsys, "vmt simulate: error: C angle 90 deg: machine 'vmc-3axis' has no C axis "
+                           "(rotary axes none); only 0 is possible\n")
+
+
+def test_noise_of_identify_and_design_is_refused_in_one_phrasing(tmp_path, rng, capsys):
+    """main: --noise-um -1 said 'must be a finite number >= 0', 0 said 'must be > 0' (identify.py, design.py)."""
+    log = campaign(tmp_path / "camp.csv", (0, 75, 130, 210), rng)
+    for cmd in (["identify", str(log), "--json", str(tmp_path / "i.json")],
+                ["design", str(log), "--n-angles", "3"]):
+        for v in ("-1", "0"):
+            assert main(cmd + ["--noise-um", v]) == 2
+            one_error_line(capsys, f"vmt {cmd[0]}: error: --noise-um must be a finite number > 0, got {v}\n")
+
+
+def test_delta_l_is_bounded(tmp_path, rng, capsys):
+    """main identified with --delta-l-um 1e30 (exit 0)."""
+    log = campaign(tmp_path / "camp.csv", (0, 75, 130, 210), rng)
+    out = tmp_path / "i.json"
+    for v in ("1e30", "-1001"):
+        assert main(["identify", str(log), "--json", str(out), "--delta-l-um", v]) == 2
+        one_error_line(capsys, "vmt identify: error: --delta-l-um must be within +-1000 um (the X positioning "
+                               f"error at the last x node), got {float(v):g}\n")
+    assert not out.exists()
+    assert main(["identify", str(log), "--json", str(out), "--delta-l-um", "1000"]) == 0
+
+
+def test_wrong_chain_machine_file_is_named_by_its_path(tmp_path, capsys):
+    """main: '--machine 'nmv3000': chain ...' for /some/dir/mine.toml (the file's machine name)."""
+    from pathlib import Path
+
+    mine = tmp_path / "mine.toml"
+    mine.write_text((Path(__file__).resolve().parents[2] / "sim" / "data" / "machines" / "nmv3000.toml").read_text())
+    assert main(["scenario", "mfb-3axis", "--machine", str(mine)]) == 2
+    one_error_line(capsys, f"vmt scenario: error: --machine {mine}: chain 'V[w-C-A-b-Y-X-Z-(C)-t]' is not the "
+                           "mfb-3axis plan's")
+
+
+def test_closed_loop_reports_progress(tmp_path):
+    """main's --apply-comp loop (about 5 s) drew no progress line: closed_loop now reports over its campaigns."""
+    from scenarios import mfb as S
+
+    r = S.run("mfb-3axis", mc_runs=0)
+    r.write_comp(tmp_path / "comp")
+    seen = []
+    loop = S.closed_loop("mfb-3axis", tmp_path / "comp", before=r, mc_runs=0,
+                         progress=lambda k, n: seen.append((k, n)))
+    assert "volumetric" in loop and seen
+    total = {n for _, n in seen}
+    assert len(total) == 1 and seen[-1][0] == seen[-1][1]               # one total, reached at the end
+    assert all(b[0] >= a[0] for a, b in zip(seen, seen[1:]))            # never backwards
