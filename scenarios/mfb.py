@@ -1321,6 +1321,10 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     cov_g = vol.covariance(res_g, meas, probe.sigma_m, u_cal, np.asarray(u_place, float) if draw else None,
                            cal_map=cal_map, ripples=rip_g)
     doc["estimate"] = vol.estimate(res_g, cov_g)  # vmt-estimate/1
+    from core.state import identified_on
+
+    doc["estimate"]["identified_on"] = identified_on(   # its tables run along Z: no single height
+        cfg.name, cfg.chain, sorted({tuple(float(v) * 1e3 for v in m.J_m) for m in plan.measurements}), None)
     if declared:
         doc["estimate"]["method"] += "; declared ripples (type B, unknown phase): " + ", ".join(declared)
     doc["machine"] = cfg.name

@@ -56,6 +56,11 @@ def _run(args, bar) -> int:
 
         print(f"{args.log}: {counted(int((~planar & log.ok).sum()), 'touch')} with normals out of the XY plane "
               "left out")
+    # what the state is identified on (estimate.identified_on): a state applied elsewhere is refused by vcmm
+    z_read = log.col("Z_mm")[planar & log.ok]
+    z_read = z_read[np.isfinite(z_read)]
+    on = dict(machine=log.meta.get("machine"), chain=log.meta.get("kinematic_chain"),
+              z_mm=(float(z_read.min()), float(z_read.max())) if z_read.size else None)
     del log, planar  # the touches hold what the identification needs: the log's memory goes before it
     grid = parse_grid(args.grid_mm, t.pn_R)
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
@@ -75,7 +80,12 @@ def _run(args, bar) -> int:
             bar(3, steps)
     from core.atomic import write_json_atomic
 
-    out = write_json_atomic(args.json, res.to_report(mc), special=True)
+    from core.state import identified_on
+
+    report = res.to_report(mc)
+    if "estimate" in report:
+        report["estimate"]["identified_on"] = identified_on(**on)   # J: probe-log/1 does not state it
+    out = write_json_atomic(args.json, report, special=True)
     bar(steps, steps)
     bar.close()         # the report's lines below the finished progress line, not on it
     G = res.G

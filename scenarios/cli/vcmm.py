@@ -75,6 +75,15 @@ def run(args) -> int:
         from core.state import read_estimate
 
         state = read_estimate(args.machine_state)
+        from core.state import identified_on_mismatch
+
+        cfg = spec.config
+        why = identified_on_mismatch(state, cfg.name, cfg.chain)
+        if why:
+            raise ConfigError(f"--machine-state {args.machine_state}: {why}")
+        if state.identified_on is None:
+            print(f"{args.machine_state}: no record of the machine it was identified on (a file written before "
+                  f"session 26): applied to {cfg.name} unchecked")
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
     with progress_line("vcmm: Monte Carlo runs") as bar:
         rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask,

@@ -181,3 +181,91 @@ def test_closed_loop_reports_progress(tmp_path):
     total = {n for _, n in seen}
     assert len(total) == 1 and seen[-1][0] == seen[-1][1]               # one total, reached at the end
     assert all(b[0] >= a[0] for a, b in zip(seen, seen[1:]))            # never backwards
+
+
+# --------------------------------------------------------------------------- 2. what a state was identified on
+
+@pytest.fixture(scope="module")
+def identified(tmp_path_factory):
+    """A cross-pocket campaign simulated on nmv3000 (no errors) and identified by the CLI."""
+    d = tmp_path_factory.mktemp("ident")
+    log, out = d / "cp.csv", d / "id.json"
+    assert main(["simulate", "cross-pocket", "--out", str(log), "--errors", "none"]) == 0
+    assert main(["identify", str(log), "--json", str(out)]) == 0
+    return log, out
+
+
+VCMM = ["vcmm", "scenarios/data/vcmm-block-plan.csv", "--task", "scenarios/data/vcmm-block-task.toml", "--no-budget"]
+
+
+def test_identify_records_the_machine_chain_and_height(identified):
+    from core.probelog import read_probe_log
+    from core.state import read_estimate
+
+    log, out = identified
+    rec = json.loads(out.read_text())["estimate"]["identified_on"]
+    lg = read_probe_log(log)
+    z = lg.col("Z_mm")[lg.ok & (np.abs(lg.col("nz")) <= 0.01)]
+    assert rec == {"machine": "nmv3000", "chain": "V[w-C-A-b-Y-X-Z-(C)-t]", "probe_offsets_J_mm": None,
+                   "z_mm": [round(float(z.min()), 9), round(float(z.max()), 9)]}   # (rounded to 1e-9 mm)
+    assert read_estimate(out).identified_on == rec                  # read back as written
+
+
+def test_a_state_on_another_machine_or_chain_is_refused(identified, tmp_path, capsys):
+    """main: 'vmt vcmm --machine vmc-3axis --machine-state id.json' took a state identified on nmv3000 (exit 0)."""
+    _, ident = identified
+    out = tmp_path / "v.json"
+    capsys.readouterr()
+    assert main(VCMM + ["--machine", "vmc-3axis", "--json", str(out), "--machine-state", str(ident)]) == 2
+    err = one_error_line(capsys, f"vmt vcmm: error: --machine-state {ident}: identified on machine 'nmv3000', "
+                                 "chain V[w-C-A-b-Y-X-Z-(C)-t], Z ")
+    assert "not on machine 'vmc-3axis' (chain V[w-X-Y-b-Z-(C)-t]): another structure" in err
+    # the same chain, another machine's name: refused too
+    doc = json.loads(ident.read_text())
+    doc["estimate"]["identified_on"]["machine"] = "my-nmv"
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(doc))
+    assert main(VCMM + ["--machine", "nmv3000", "--json", str(out), "--machine-state", str(other)]) == 2
+    err = one_error_line(capsys, f"vmt vcmm: error: --machine-state {other}: identified on machine 'my-nmv'")
+    assert "not on machine 'nmv3000': identify this machine, or name the one it was identified on" in err
+    assert not out.exists()
+
+
+def test_a_state_without_the_record_reads_with_a_notice(identified, tmp_path, capsys):
+    _, ident = identified
+    doc = json.loads(ident.read_text())
+    del doc["estimate"]["identified_on"]
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(doc))
+    capsys.readouterr()
+    main(VCMM + ["--machine", "vmc-3axis", "--json", str(tmp_path / "v.json"), "--machine-state", str(old)])
+    out = capsys.readouterr().out
+    assert out.startswith(f"{old}: no record of the machine it was identified on (a file written before session "
+                          "26): applied to vmc-3axis unchecked\n"), out
+
+
+@pytest.mark.parametrize("rec, key", [
+    ("x", "identified_on: expected an object"),
+    ({"machine": 3}, "identified_on.machine: expected a string or null"),
+    ({"probe_offsets_J_mm": [[0, 0]]}, "identified_on.probe_offsets_J_mm"),
+    ({"z_mm": [5, 1]}, "identified_on.z_mm"),
+])
+def test_a_bad_record_is_refused_by_key(identified, rec, key):
+    from core.state import StateFileError, loads_estimate
+
+    doc = json.loads(identified[1].read_text())
+    doc["estimate"]["identified_on"] = rec
+    with pytest.raises(StateFileError, match=key):
+        loads_estimate(doc)
+
+
+def test_the_mfb_records_its_machine_and_styli():
+    from core.state import loads_estimate
+    from scenarios import mfb as S
+
+    r = S.run("mfb-3axis", mc_runs=0)
+    rec = r.doc["estimate"]["identified_on"]
+    assert rec["machine"] == "vmc-3axis" and rec["chain"] == "V[w-X-Y-b-Z-(C)-t]" and rec["z_mm"] is None
+    J = {tuple(j) for j in rec["probe_offsets_J_mm"]}
+    assert J == {tuple(round(v * 1e3, 9) for v in m.J_m) for m in r.plan.measurements} and (0.0, 0.0, 150.0) in J
+    assert loads_estimate(json.loads(json.dumps(r.doc))).identified_on == rec
