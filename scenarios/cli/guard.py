@@ -104,6 +104,27 @@ class OneLineParser(argparse.ArgumentParser):
             message += f" (a value that starts with '-' is written {m[1]}=VALUE, e.g. {m[1]}=-100:100)"
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+    @contextlib.contextmanager
+    def _shown_required(self):
+        """Options the command requires and refuses itself, in its own words (``vmt_shown_required``:
+        ``plan grid --stylus-r-mm``), shown in the usage without brackets as argparse shows a required one."""
+        acts = getattr(self, "vmt_shown_required", ())
+        for a in acts:
+            a.required = True
+        try:
+            yield
+        finally:
+            for a in acts:
+                a.required = False
+
+    def format_usage(self):  # noqa: D102
+        with self._shown_required():
+            return super().format_usage()
+
+    def format_help(self):  # noqa: D102
+        with self._shown_required():
+            return super().format_help()
+
     def parse_args(self, args=None, namespace=None):  # noqa: D102
         # an unknown option is named by the command that was given it (``vmt probe: error: ...
         # (see vmt probe --help)``), not by ``vmt``, whose help does not list that command's options

@@ -135,14 +135,16 @@ def check_mc(n: int, *, zero: str | None = None) -> int:
 STYLUS_R_HELP = "stylus tip radius, mm (0: a pin or a tool as the probe)"
 
 
-def add_stylus_r_arg(p, when: str) -> None:
+def add_stylus_r_arg(p, when: str, *, required: bool = False) -> None:
     """``--stylus-r-mm``: the stylus tip radius, mm, in every command that needs one.
 
     It has no default: a radius left out is never taken for 0 (a fit is then wrong by the radius, a plan's
     nominals and its approach clearance too); ``when`` says when the command needs it, and
     :func:`no_stylus_r` is the one refusal when it is needed and not known.
     """
-    p.add_argument("--stylus-r-mm", type=float, default=None, help=f"{STYLUS_R_HELP}; {when}")
+    a = p.add_argument("--stylus-r-mm", type=float, default=None, help=f"{STYLUS_R_HELP}; {when}")
+    if required:    # refused by the command in its own words (no_stylus_r); the usage shows it required
+        p.vmt_shown_required = (*getattr(p, "vmt_shown_required", ()), a)
 
 
 def no_stylus_r(what: str):

@@ -269,3 +269,23 @@ def test_the_mfb_records_its_machine_and_styli():
     J = {tuple(j) for j in rec["probe_offsets_J_mm"]}
     assert J == {tuple(round(v * 1e3, 9) for v in m.J_m) for m in r.plan.measurements} and (0.0, 0.0, 150.0) in J
     assert loads_estimate(json.loads(json.dumps(r.doc))).identified_on == rec
+
+
+# --------------------------------------------------------------------------- 4. plan grid's usage line
+
+def test_plan_grid_usage_shows_the_stylus_radius_required(capsys):
+    """main: 'usage: vmt plan grid ... [--stylus-r-mm STYLUS_R_MM] ...' (optional brackets) though it is refused
+    without it; the refusal stays the command's own words (the usage shows it like --x-mm)."""
+    import re
+
+    with pytest.raises(SystemExit):
+        main(["plan", "grid", "--help"])
+    usage = capsys.readouterr().out.split("\n\n")[0]
+    assert re.search(r"(?<!\[)--stylus-r-mm STYLUS_R_MM(?!\])", usage) and "[--stylus-r-mm" not in usage, usage
+    assert "[--z-mm Z_MM]" in usage                                          # an optional one keeps its brackets
+    assert main(["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", "/nonexistent/p.csv"]) == 2
+    one_error_line(capsys, "vmt plan grid: error: no stylus radius (the plan's nominal tip centres stand one "
+                           "radius above the surface): give --stylus-r-mm R")
+    with pytest.raises(SystemExit):
+        main(["plan", "grid", "--help"])
+    assert "[--stylus-r-mm" not in capsys.readouterr().out                  # (restored after each formatting)
