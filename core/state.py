@@ -17,7 +17,15 @@ covariance")::
                     {"name": "EC0Y", "symbol": "EC0Y", "unit": "urad"},
                     {"name": "G[P01]", "symbol": null, "unit": "um"}, ...],
      "values": [...],                            # one per parameter, in its unit
-     "covariance": [[...], ...]}                 # n x n, entry (i, j) in unit_i * unit_j
+     "covariance": [[...], ...],                 # n x n, entry (i, j) in unit_i * unit_j
+     "identified_on": {"machine": "nmv3000", "chain": "V[w-C-A-b-Y-X-Z-(C)-t]",
+                       "probe_offsets_J_mm": [[0, 0, 150]] | null, "z_mm": [27.0, 27.0] | null}}
+
+``identified_on`` (since session 26; optional, a file without it reads with a notice) says what the
+state was identified on: the machine's name and ISO 10791 chain, the probe offsets J of the touches
+(mm, tool side; null: the log did not state them) and the range of the touches' Z axis readings (mm; null
+for a 3D identification whose tables run along Z). A state is refused on another machine or chain
+(:func:`identified_on_mismatch`).
 
 A parameter with a ``symbol`` and ``at_mm`` is one node of that ISO 230-1
 motion error's table along its axis (the symbol names the axis); with a
@@ -96,6 +104,43 @@ def estimate_doc(names, symbols, at_m, units, theta, cov, *, method: str, interp
             "parameters": params, "values": (theta * 1e6).tolist(), "covariance": (cov * 1e12).tolist()}
 
 
+def identified_on(machine, chain, probe_offsets_J_mm=None, z_mm=None) -> dict:
+    """The ``identified_on`` record of an estimate (module doc): ``machine`` name, ``chain`` (ISO 10791),
+    ``probe_offsets_J_mm`` (k, 3) mm or None (unknown), ``z_mm`` (lo, hi) of the touches' Z readings or None."""
+    J = None if probe_offsets_J_mm is None else [[round(float(v), 9) for v in j] for j in probe_offsets_J_mm]
+    z = None if z_mm is None else [round(float(v), 9) for v in z_mm]
+    return {"machine": None if machine is None else str(machine), "chain": None if chain is None else str(chain),
+            "probe_offsets_J_mm": J, "z_mm": z}
+
+
+def _same_chain(a: str, b: str) -> bool:
+    from .chain import parse_chain
+
+    try:
+        pa, pb = parse_chain(a), parse_chain(b)
+    except ConfigError:
+        return a.strip() == b.strip()
+    return (pa.workpiece_axes, pa.tool_axes) == (pb.workpiece_axes, pb.tool_axes)
+
+
+def identified_on_mismatch(state: "MachineState", machine: str, chain: str) -> str | None:
+    """Why ``state`` may not be applied to machine ``machine`` with chain ``chain`` (None: it may; also None
+    when the state carries no record: the caller says so, :attr:`MachineState.identified_on`)."""
+    rec = state.identified_on
+    if rec is None:
+        return None
+    got_m, got_c = rec.get("machine"), rec.get("chain")
+    where = ", ".join(w for w in (
+        None if got_m is None else f"machine {got_m!r}", None if got_c is None else f"chain {got_c}",
+        None if not rec.get("z_mm") else f"Z {rec['z_mm'][0]:g}..{rec['z_mm'][1]:g} mm") if w)
+    if got_c is not None and not _same_chain(got_c, chain):
+        return f"identified on {where}, not on machine {machine!r} (chain {chain}): another structure"
+    if got_m is not None and got_m != machine:
+        return (f"identified on {where}, not on machine {machine!r}: identify this machine, or name the one "
+                "it was identified on")
+    return None
+
+
 @dataclass(frozen=True)
 class MachineState:
     """The machine part of an estimate: tables and constants with their joint normal distribution (SI).
@@ -111,6 +156,8 @@ class MachineState:
     interpolation : str
     conventions : tuple of str
     source : str
+    identified_on : dict or None
+        What it was identified on (:func:`identified_on`); None: a file without the record.
     """
 
     tables: dict
@@ -120,6 +167,7 @@ class MachineState:
     interpolation: str
     conventions: tuple
     source: str
+    identified_on: dict | None = None
 
     @property
     def symbols(self) -> tuple:
@@ -241,4 +289,27 @@ def loads_estimate(doc, source: str = "<estimate>") -> MachineState:
         fail("covariance", f"not positive semi-definite (eigenvalue {w.min() * 1e12:.3g})")
     F = V * np.sqrt(np.clip(w, 0.0, None))[None, :]
     return MachineState(out_t, out_c, v[keep] * 1e-6, F, interp, tuple(str(c) for c in doc.get("conventions", [])),
-                        source)
+                        source, _read_identified_on(doc.get("identified_on"), fail))
+
+
+def _read_identified_on(rec, fail) -> dict | None:
+    """The ``identified_on`` record as read (None: absent), or ``fail(key, msg)``."""
+    if rec is None:
+        return None
+    if not isinstance(rec, dict):
+        fail("identified_on", "expected an object")
+    for k in ("machine", "chain"):
+        if rec.get(k) is not None and not isinstance(rec[k], str):
+            fail(f"identified_on.{k}", f"expected a string or null, got {rec[k]!r}")
+
+    def numbers(v, n):
+        return (isinstance(v, list) and len(v) == n and all(isinstance(x, int | float) and not isinstance(x, bool)
+                                                             and math.isfinite(x) for x in v))
+
+    J = rec.get("probe_offsets_J_mm")
+    if J is not None and not (isinstance(J, list) and all(numbers(j, 3) for j in J)):
+        fail("identified_on.probe_offsets_J_mm", "expected a list of [x, y, z] mm or null")
+    z = rec.get("z_mm")
+    if z is not None and not (numbers(z, 2) and z[0] <= z[1]):
+        fail("identified_on.z_mm", "expected [lo, hi] mm (lo <= hi) or null")
+    return identified_on(rec.get("machine"), rec.get("chain"), J, z)

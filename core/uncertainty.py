@@ -31,6 +31,22 @@ from .touches import Touches
 U_PROBE_M = 1.38e-6
 #: Coverage factor for the expanded uncertainty.
 K = 2.0
+#: The fewest Monte Carlo runs any vmt Monte Carlo takes (JCGM 101): its U95 is a half-width between the
+#: 2.5 % and 97.5 % percentiles of the runs, and of fewer runs those are the runs' extremes or less (of one
+#: run a width of 0: every U95 zero, review of session 26). One rule for the self-calibration's Monte Carlo,
+#: the volumetric identification's (:func:`core.volumetric.uncertainty`) and every ``--mc`` of the CLI.
+MC_MIN_RUNS = 10
+
+
+def check_mc_runs(runs, what: str = "runs", *, zero_ok: bool = False) -> int:
+    """``runs`` as an int if it is a Monte Carlo size vmt takes (>= :data:`MC_MIN_RUNS`; 0 too with
+    ``zero_ok``: no Monte Carlo), else a ConfigError naming ``what`` (``"--mc"`` in the CLI)."""
+    n = int(runs)
+    if n != runs or not (n >= MC_MIN_RUNS or (zero_ok and n == 0)):
+        zero = " (0: none)" if zero_ok else ""
+        raise ConfigError(f"{what} {runs}: a Monte Carlo needs at least {MC_MIN_RUNS} runs{zero}: its U95 is "
+                          "read from the runs' 2.5 % and 97.5 % percentiles")
+    return n
 
 
 @dataclass(frozen=True)
@@ -164,8 +180,7 @@ def monte_carlo_touches(touches: Touches, grid: Grid, u_probe_m: float = U_PROBE
                         yaw: Yaw | str = Yaw.ECY, heights: bool | str = "auto") -> SelfCalUncertainty:
     """JCGM 101 Monte Carlo for the touches of a log (design factored once; probing noise only)."""
     _check_u(u_probe_m)
-    if int(runs) < 10:
-        raise ConfigError(f"runs must be >= 10, got {runs}")
+    runs = check_mc_runs(runs)
     if not isinstance(rng, np.random.Generator):
         raise ConfigError("rng must be a numpy.random.Generator")
     des, est = estimator(touches, grid, delta_L_m, yaw=yaw, heights=heights)

@@ -1114,8 +1114,12 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
     Linear propagation: ``u^2 = sum (K G)^2 sigma^2 + (K B u_cal)^2 +
     (K B_p u_place)^2`` (JCGM 100 eq. 13 for the linear estimator ``K``);
     Monte Carlo: the same estimator over ``runs`` joint draws of the inputs
-    (JCGM 101, 95 % probabilistically symmetric interval).
+    (JCGM 101, 95 % probabilistically symmetric interval); ``runs`` 0 or at least
+    :data:`core.uncertainty.MC_MIN_RUNS` (of fewer the percentiles are the runs' extremes: of one, U95 = 0).
     """
+    from .uncertainty import check_mc_runs
+
+    runs = check_mc_runs(runs, zero_ok=True)
     meas = list(meas)
     u_cal = np.asarray(u_cal_m, float)
     if u_cal.ndim != 2 or u_cal.shape[1] != 3:

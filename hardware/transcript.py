@@ -250,6 +250,75 @@ def _stop(s: Session, plan: ProbeLog) -> tuple[str, str, str]:
                        "(a lost connection, or the sender stopped)"), where
 
 
+#: A report is its plan row's touch only on that row's approach line: ``vmt probe`` moves from
+#: ``Xn - clearance d`` to ``Xn + overtravel d`` in machine coordinates (G53) and GRBL reports the machine
+#: position where the probe stopped, so a report lies on the line through the row's nominal ``Xn`` along ``d``
+#: (off it by the firmware's step resolution, microns) within clearance/overtravel of ``Xn`` (2 mm each by
+#: default). The bounds, mm: off the line by at most :data:`ALIGN_LATERAL_MM` (a hundred times the 0.005 mm a
+#: report is rounded to; a neighbouring row's line is millimetres away), along it within
+#: :data:`ALIGN_ALONG_MM` of ``Xn`` (room for an overtravel of up to 10 mm). Beyond them the report is not
+#: that row's: refused (a transcript of another plan, or one report off), or, when it lies on the previous
+#: row's line, taken as that touch repeated (session 26: ``vmt probe`` killed after a report reached the
+#: transcript but before its log line was synced repeats the touch on ``--resume``) and the first dropped.
+#: A miss's report (``[PRB:...:0]``) is not checked: after ALARM:5 GRBL repeats the last successful probe's
+#: position in it.
+ALIGN_LATERAL_MM = 0.5
+ALIGN_ALONG_MM = 10.0
+
+
+def _row_offset(p, pn, d) -> tuple[float, float]:
+    """(distance off the approach line, distance along it) of report ``p`` from nominal ``pn`` along ``d``."""
+    v = np.asarray(p, float) - pn
+    n = float(np.linalg.norm(d)) if np.all(np.isfinite(d)) else 0.0
+    if n == 0.0:            # no approach direction in the plan: the distance from the nominal, all along
+        return 0.0, float(np.linalg.norm(v))
+    u = d / n
+    along = float(v @ u)
+    return float(np.linalg.norm(v - along * u)), along
+
+
+def _on_row(p, pn, d) -> bool:
+    lat, along = _row_offset(p, pn, d)
+    return lat <= ALIGN_LATERAL_MM and abs(along) <= ALIGN_ALONG_MM
+
+
+def _align(path, s: "Session", plan: ProbeLog):
+    """The session with each report on its plan row's approach line (:data:`ALIGN_LATERAL_MM`), a repeated
+    touch's first report dropped; and the notes of what was dropped. Raises ProbeLogError naming the first
+    report that is not its row's touch (``None`` instead, when ``s`` has more reports than the plan rows and
+    the count is the better refusal)."""
+    from dataclasses import replace
+
+    pn = plan.nominals_mm()
+    d = np.column_stack([plan.col(c) for c in ("dx", "dy", "dz")])
+    n = plan.n
+    keep, notes = [], []
+    for j, p in enumerate(s.pos_mm):
+        r = len(keep)
+        # a miss's [PRB:...:0] after ALARM:5 repeats the last successful probe's position (GRBL 1.1h): it
+        # takes its row by order, its position says nothing
+        if r < n and (not s.touched[j] or _on_row(p, pn[r], d[r])):
+            keep.append(j)
+            continue
+        if keep and s.touched[keep[-1]] and _on_row(p, pn[r - 1], d[r - 1]):
+            notes.append(f"lines {s.lines[keep[-1]]} and {s.lines[j]} both report plan row {r - 1} (target "
+                         f"{plan.col('target')[r - 1]!r}): the touch repeated on a resume, the first dropped")
+            keep[-1] = j
+            continue
+        if r >= n:
+            return None, notes
+        lat, along = _row_offset(p, pn[r], d[r])
+        raise ProbeLogError(
+            f"{path}: line {s.lines[j]}: report {j + 1} [{p[0]:g}, {p[1]:g}, {p[2]:g}] mm is not a touch of plan "
+            f"row {r} (target {plan.col('target')[r]!r}, nominal [{pn[r][0]:g}, {pn[r][1]:g}, {pn[r][2]:g}] mm): "
+            f"{lat:.3f} mm off its approach line, {along:+.3f} mm along it (a touch lies within "
+            f"{ALIGN_LATERAL_MM:g} mm of the line and {ALIGN_ALONG_MM:g} mm of the nominal): not this plan's "
+            "transcript, or its reports are one off")
+    k = np.array(keep, dtype=int)
+    return replace(s, pos_mm=s.pos_mm[k].reshape(-1, 3), touched=s.touched[k],
+                   t_s=None if s.t_s is None else s.t_s[k], lines=[s.lines[i] for i in keep]), notes
+
+
 def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0) -> ProbeLog:
     """Merge a GRBL transcript with its plan into a full ``probe-log/1``.
 
@@ -260,28 +329,43 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0) -> ProbeLog:
     and ``stop_reason`` say how many rows the transcript holds and why it
     stopped.
 
+    Each report must lie on its row's approach line (:data:`ALIGN_LATERAL_MM`, :data:`ALIGN_ALONG_MM`): one
+    that does not is refused, naming its line, unless it lies on the previous row's line (a touch repeated on a
+    resume: the first report dropped, said in ``transcript_repeats``).
+
     Raises
     ------
     PlanError
         More probe reports than plan rows.
     ProbeLogError
-        See :func:`read_transcript`.
+        See :func:`read_transcript`; a report that is not its row's touch.
     """
     s = read_session(path, stopped_at_first=True)
-    pos, touched, t = s.pos_mm, s.touched, s.t_s
-    k, n = len(pos), plan.n
+    k, n = len(s.pos_mm), plan.n
     if k == 0:      # nothing measured: a log of it would read as a plan (as LinuxCNC's empty probe file, refused)
         _, why, _ = _stop(s, plan)
         raise ProbeLogError(f"{path}: no probe reports ([PRB:...]): the run stopped at its first touch, {why}; "
                             "nothing measured to import")
-    if k > n:
+    try:
+        aligned, repeats = _align(path, s, plan)
+    except ProbeLogError:
+        if k > n:       # more reports than rows and not this plan's touches: the count says it best
+            aligned = None
+        else:
+            raise
+    if aligned is None:
         raise PlanError(f"{path}: {k} probe reports but the plan {plan.source} has {counted(n, 'row')}: "
                         "not the transcript of this plan")
+    s = aligned
+    pos, touched, t = s.pos_mm, s.touched, s.t_s
+    k = len(pos)
     src = "transcript timestamps" if t is not None else f"plan order x {dt_s:g} s (no timestamps)"
     if t is None:
         t = np.arange(k) * float(dt_s)
     status = ["ok" if x else "no_trigger" for x in touched]
     meta = {"machine": "grbl", "source": f"vmt import grbl {Path(path).name}", "t_s_source": src}
+    if repeats:
+        meta["transcript_repeats"] = "; ".join(repeats)
     if k < n:
         first, why, at = _stop(s, plan)
         status += [first] + ["aborted"] * (n - k - 1)

@@ -1087,7 +1087,9 @@ def compensation_plan(r: "ScenarioResult") -> dict:
 COMP_STYLUS = "T0"
 
 
-def _check_machine_for_plan(cfg, plan, name):
+def _check_machine_for_plan(cfg, plan, name, source: str | None = None):
+    """Refuse a machine whose chain is not the plan's, naming it as the user did (``source``: the machine
+    file's path or the built-in name given to --machine; default the machine's own name)."""
     from core.chain import parse_chain
     from core.exceptions import ConfigError
     from sim.machines import MACHINES
@@ -1095,7 +1097,7 @@ def _check_machine_for_plan(cfg, plan, name):
     want = parse_chain(MACHINES[plan.machine]().chain)
     got = parse_chain(cfg.chain)
     if (got.workpiece_axes, got.tool_axes) != (want.workpiece_axes, want.tool_axes):
-        raise ConfigError(f"--machine {cfg.name!r}: chain {cfg.chain!r} is not the {name} plan's "
+        raise ConfigError(f"--machine {source or cfg.name}: chain {cfg.chain!r} is not the {name} plan's "
                           f"{want.text!r} (the plan is designed for that structure)")
 
 
@@ -1236,6 +1238,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 
     if name not in PLANS:
         raise ConfigError(f"unknown MFB scenario {name!r}; known: {', '.join(PLANS)}")
+    from core.uncertainty import check_mc_runs
+
+    mc_runs = check_mc_runs(mc_runs, "mc_runs", zero_ok=True)  # before the campaign, not after it
     t0 = time.time()
     plan = PLANS[name]()
     if drop:
@@ -1245,7 +1250,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     declared = _check_declared_ripple(declared_ripple)
     rng = np.random.default_rng(seed)
     if machine is not None:
-        _check_machine_for_plan(machine.config, plan, name)
+        _check_machine_for_plan(machine.config, plan, name, getattr(machine, "source", None))
         probe = machine.probe
         cfg, errs = machine.config, dict(machine.config.errors)
     else:
@@ -1388,6 +1393,10 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     cov_g = vol.covariance(res_g, meas, probe.sigma_m, u_cal, np.asarray(u_place, float) if draw else None,
                            cal_map=cal_map, ripples=rip_g)
     doc["estimate"] = vol.estimate(res_g, cov_g)  # vmt-estimate/1
+    from core.state import identified_on
+
+    doc["estimate"]["identified_on"] = identified_on(   # its tables run along Z: no single height
+        cfg.name, cfg.chain, sorted({tuple(float(v) * 1e3 for v in m.J_m) for m in plan.measurements}), None)
     if declared:
         doc["estimate"]["method"] += "; declared ripples (type B, unknown phase): " + ", ".join(declared)
     doc["machine"] = cfg.name
@@ -1664,7 +1673,7 @@ def true_positioning_m(machine, nodes) -> dict:
     return out
 
 
-def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw) -> dict:
+def closed_loop(name: str, directory, before: ScenarioResult | None = None, *, progress=None, **kw) -> dict:
     """Apply the compensation in ``directory`` to the virtual machine, run the plan again, identify again.
 
     ``before`` is the uncompensated run (default: :func:`run` with ``kw``).
@@ -1683,7 +1692,9 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw
     residual predicted from ``before``'s estimate for the fractions the
     directory's JSON applies (``applied_factor``; all 1 without it), with
     its U95: the verdict on what the user cares about. The prediction
-    assumes the directory was written from ``before``.
+    assumes the directory was written from ``before``. ``progress(done,
+    total)``: over the new campaigns, each :func:`run`'s steps (the CLI's
+    line with the time left).
     """
     from dataclasses import replace as _rep
 
@@ -1736,8 +1747,9 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, **kw
                         "before + U95; beside it the true positioning error (exact sim) within the U95 of the "
                         "identification the compensation came from, at every node (true_within_u95)",
            "before": block(before)}
-    for key, comp in ctl.items():
-        r = run(name, seed=seed + 1, bar_seed=seed, compensate=comp, **kw)
+    for i, (key, comp) in enumerate(ctl.items()):
+        each = None if progress is None else (lambda k, n, i=i: progress(i * n + k, len(ctl) * n))
+        r = run(name, seed=seed + 1, bar_seed=seed, compensate=comp, progress=each, **kw)
         doc[key] = block(r, comp, applied if key == "volumetric" else {s: applied[s] for s in ("EXX", "EYY", "EZZ")})
     return doc
 

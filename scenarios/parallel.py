@@ -140,11 +140,11 @@ def mc_study(w_W, wn_W, c_deg, grid, u_probe_m: float, runs: int, seed: int, *, 
         Local processes when no ``dask``.
     """
     from core.exceptions import ConfigError
-    from core.uncertainty import linear_uncertainty
+    from core.uncertainty import check_mc_runs, linear_uncertainty
 
-    runs, block = int(runs), int(block)
-    if runs < 10 or block < 1:
-        raise ConfigError(f"runs must be >= 10 and block >= 1, got {runs}, {block}")
+    runs, block = check_mc_runs(runs), int(block)
+    if block < 1:
+        raise ConfigError(f"block must be >= 1, got {block}")
     w = np.ascontiguousarray(w_W, float)
     wn = np.ascontiguousarray(wn_W, float)
     c = tuple(float(v) for v in c_deg)

@@ -46,19 +46,23 @@ def c_angle_setups(machine, artefact: A.Artefact, c_angles_deg) -> list[Setup]:
     """One set-up per C angle (deg), artefact in its default placement."""
     axes = tuple(getattr(machine, "rotary_axes", ()) or ())
     out = []
+    seen = {}
     for c in c_angles_deg:
         c = float(c)
         if not np.isfinite(c):
             raise ConfigError(f"C angle {c!r} is not finite")
+        turn = round(c % 360.0, 9) % 360.0     # 0 and 360, -90 and 270: the same set-up
+        if turn in seen:
+            raise ConfigError(f"C angles {seen[turn]:g} and {c:g} deg are the same set-up (equal modulo 360): "
+                              "give each angle once")
+        seen[turn] = c
         rot = np.zeros(len(axes))
         if "C" in axes:
             rot[axes.index("C")] = np.deg2rad(c)
         elif c != 0.0:
-            raise ConfigError(f"c_angles_deg: machine {machine_name(machine)!r} has no C axis "
-                              f"(rotary axes {axes or 'none'}); only 0 is possible")
+            raise ConfigError(f"C angle {c:g} deg: machine {machine_name(machine)!r} has no C axis "
+                              f"(rotary axes {', '.join(axes) or 'none'}); only 0 is possible")
         out.append(Setup(f"C{c:g}", artefact.T_W_A, tuple(rot)))
-    if len({s.name for s in out}) != len(out):
-        raise ConfigError("c_angles_deg has repeated angles")
     return out
 
 

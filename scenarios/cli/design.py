@@ -24,7 +24,9 @@ def register(sub) -> None:
     p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT", help="evaluate sweeps on this Dask cluster")
     p.add_argument("--workers", type=int, default=1, help="local processes when no --dask (1 = serial)")
     p.add_argument("--json", default=None, metavar="OUT", help="also write the result as JSON")
-    p.set_defaults(func=run)
+    from scenarios.cli.guard import NOISE_POSITIVE
+
+    p.set_defaults(func=run, vmt_rules=NOISE_POSITIVE)   # the sigma of the U95: > 0, -1 and 0 in one phrasing
 
 
 def _swept(w):
@@ -53,8 +55,6 @@ def run(args) -> int:
         ref = [float(v) for v in args.reference.split(",")] if args.reference.strip() else None
     except ValueError:
         raise ConfigError(f"--reference-deg: expected comma-separated degrees, got {args.reference!r}") from None
-    if not args.noise_um > 0:
-        raise ConfigError(f"--noise-um must be > 0, got {args.noise_um}")
     u = args.noise_um * 1e-6
     from scenarios.cli.guard import about_file, progress_line
 

@@ -15,8 +15,10 @@ def register(sub) -> None:
     p.add_argument("--report", help="folder for a readable report (index.html, PNG figures, rerun .rrd)")
     from scenarios.cli.options import option
 
-    option(p, "--grid-step-mm", dest="grid_mm", type=float, default=None, old=("--grid-mm",),
-           help="error-map grid step of the baseline, mm (default: chosen by BIC among 22-80 mm)")
+    # --grid-mm as in identify and design (the error-map grid, mm); discover takes its STEP form only
+    option(p, "--grid-mm", dest="grid_mm", default=None, metavar="STEP", old=("--grid-step-mm",),
+           help="error-map grid of the baseline, mm: STEP only, discover places the nodes (default: the step "
+                "chosen by BIC among 22-80 mm)")
     p.set_defaults(func=run)
 
 
@@ -89,7 +91,7 @@ def _discover_positioning(log_path, report, grid_mm):
     from core.positioning import read_positioning_log
 
     if grid_mm is not None:
-        raise ConfigError("--grid-step-mm: a positioning test has no error-map grid (its baseline is a mean per target "
+        raise ConfigError("--grid-mm: a positioning test has no error-map grid (its baseline is a mean per target "
                           "and direction)")
     if report:
         raise ConfigError("--report: not available for positioning tests yet (the JSON and the summary are; "
@@ -159,10 +161,16 @@ def run(args) -> int:
     from core.exceptions import ConfigError
     from scenarios.cli.guard import progress_line, said
 
-    if args.grid_mm is not None and not (math.isfinite(args.grid_mm) and args.grid_mm > 0):
-        # 0 was taken for "choose by BIC" and a negative step failed on the grid's nodes in metres
-        raise ConfigError(f"--grid-step-mm must be a finite number > 0 (mm), got {args.grid_mm:g}; leave it out "
-                          "to choose the step by BIC")
+    if args.grid_mm is not None:
+        try:
+            step = float(args.grid_mm)
+        except ValueError:
+            step = None
+        if step is None or not (math.isfinite(step) and step > 0):
+            # 0 was taken for "choose by BIC" and a negative step failed on the grid's nodes in metres
+            raise ConfigError(f"--grid-mm must be a finite number > 0 (mm; discover takes a STEP, not x0:x1:step), "
+                              f"got {args.grid_mm}; leave it out to choose the step by BIC")
+        args.grid_mm = step
 
     with progress_line("discover") as bar:
         rep = run_discover(args.log, args.json_out, args.report, args.grid_mm, progress=bar)

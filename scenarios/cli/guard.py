@@ -104,6 +104,27 @@ class OneLineParser(argparse.ArgumentParser):
             message += f" (a value that starts with '-' is written {m[1]}=VALUE, e.g. {m[1]}=-100:100)"
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+    @contextlib.contextmanager
+    def _shown_required(self):
+        """Options the command requires and refuses itself, in its own words (``vmt_shown_required``:
+        ``plan grid --stylus-r-mm``), shown in the usage without brackets as argparse shows a required one."""
+        acts = getattr(self, "vmt_shown_required", ())
+        for a in acts:
+            a.required = True
+        try:
+            yield
+        finally:
+            for a in acts:
+                a.required = False
+
+    def format_usage(self):  # noqa: D102
+        with self._shown_required():
+            return super().format_usage()
+
+    def format_help(self):  # noqa: D102
+        with self._shown_required():
+            return super().format_help()
+
     def parse_args(self, args=None, namespace=None):  # noqa: D102
         # an unknown option is named by the command that was given it (``vmt probe: error: ...
         # (see vmt probe --help)``), not by ``vmt``, whose help does not list that command's options
@@ -150,7 +171,7 @@ def _opt(name: str, command: str | None = None) -> str:
     if name == "plan" and command in PLAN_POSITIONAL:
         return "PLAN"
     return {"json_out": "--json", "log": "LOG", "plan": "--plan", "file": "FILE", "rrd": "RRD",
-            "study": "STUDY"}.get(name, "--" + name.replace("_", "-"))
+            "c_angles": "--c-angles-deg", "study": "STUDY"}.get(name, "--" + name.replace("_", "-"))
 
 
 def map_dash(args, outs, dirs) -> None:
@@ -279,16 +300,23 @@ def check_report_folder(report: str, inputs: dict, outputs: dict, command: str |
         raise OutputError(f"--report {report}: {problem}")
 
 
+#: The largest ``--delta-l-um`` taken, um: the X positioning error at the last node of a grid of a few hundred
+#: mm is microns to tens of microns; 1 mm (thousands of ppm) is no machine's, and the linear model of the
+#: self-calibration (small errors) would not hold (review26: 1e30 was taken and identified).
+DELTA_L_MAX_UM = 1000.0
+
+
 #: Options that mean the same in every command that has them (``args`` name: test, rule).
 COMMON = {
     "seed": (lambda v: v >= 0, "must be >= 0"),
-    "mc": (lambda v: v >= 0, "must be >= 0"),
+    # --mc: not here; its one refusal is scenarios.cli.options.check_mc (what 0 means is the command's)
     "noise_um": (lambda v: v >= 0 and v < float("inf"), "must be a finite number >= 0"),
     "dt": (lambda v: 0 < v < float("inf"), "must be a positive number of seconds"),
     "step_deg": (lambda v: 0 < v <= 360, "must be > 0 and divide 360"),
     "angles": (lambda v: v >= 2, "must be >= 2"),
     "workers": (lambda v: v >= 1, "must be >= 1"),
-    "delta_l_um": (lambda v: abs(v) < float("inf"), "must be a finite number"),
+    "delta_l_um": (lambda v: abs(v) <= DELTA_L_MAX_UM,
+                   f"must be within +-{DELTA_L_MAX_UM:g} um (the X positioning error at the last x node)"),
     "ec0y_urad": (lambda v: abs(v) < float("inf"), "must be a finite number"),  # (an infinite squareness was served)
     "z_mm": (lambda v: abs(v) < float("inf"), "must be a finite number"),
     "stylus_r_mm": (lambda v: 0 <= v < float("inf"), "must be a finite number >= 0"),
@@ -302,11 +330,39 @@ COMMON = {
 FLAGS = {"dt": "--dt-s", "angles": "--n-angles", "timeout": "--timeout-s"}
 
 
-def check_common_options(args) -> None:
-    """Refuse a value of a shared option outside its meaning (NaN fails every test)."""
+#: ``--noise-um`` where it is the sigma a U95 is computed from (``identify``, ``design``): 0 has no meaning
+#: there, and -1 and 0 are refused in the same words (``p.set_defaults(vmt_rules=NOISE_POSITIVE)``).
+NOISE_POSITIVE = {"noise_um": (lambda v: 0 < v < float("inf"), "must be a finite number > 0")}
+
+
+#: Options that name something and where an empty value (``--out ""``, ``--machine ""``) would fall back to a
+#: default or say "'.': is a directory": refused naming the empty value (review26). ``args`` name -> what to give.
+NONEMPTY = {"machine": "a built-in machine name or a machine file (or leave --machine out)",
+            "c_angles": "comma-separated C angles in degrees (or leave --c-angles-deg out)",
+            "machine_state": "an identification result (JSON)", "bar_calibration": "a bar calibration (JSON)",
+            "transcript": "a file name", "readme": "a file name"}
+
+
+def check_empty_values(args) -> None:
+    """Refuse an empty value of an option that names a file, a folder, a machine or a list (one line)."""
     from core.exceptions import ConfigError
 
-    for name, (ok, rule) in COMMON.items():
+    ins, outs, dirs = FILES.get(args.command, ((), (), ()))
+    what = {**{n: "a file" for n in ins}, **{n: "a file name" for n in outs}, **{n: "a folder name" for n in dirs},
+            **NONEMPTY}
+    for name, give in what.items():
+        v = getattr(args, name, None)
+        if isinstance(v, str) and not v.strip():
+            raise ConfigError(f"{_opt(name, args.command)} {v!r}: empty; give {give}")
+
+
+def check_common_options(args) -> None:
+    """Refuse a value of a shared option outside its meaning (NaN fails every test); a command's
+    ``vmt_rules`` default (same shape as :data:`COMMON`) narrows an entry for it, in the same phrasing."""
+    from core.exceptions import ConfigError
+
+    own = getattr(args, "vmt_rules", None) or {}
+    for name, (ok, rule) in {**COMMON, **own}.items():
         v = getattr(args, name, None)
         if isinstance(v, (int, float)) and not isinstance(v, bool) and not ok(v):
             raise ConfigError(f"{FLAGS.get(name, '--' + name.replace('_', '-'))} {rule}, got {v:g}")
@@ -371,6 +427,7 @@ def run_command(args) -> int:
     try:
         try:
             check_common_options(args)
+            check_empty_values(args)
             map_dash(args, outs, dirs)
             inputs = _arg_paths(args, ins)
             for path in inputs.values():

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from scenarios.cli.options import GRID_HELP, add_noise_arg, parse_grid
+from scenarios.cli.options import GRID_HELP, add_mc_arg, add_noise_arg, check_mc, parse_grid
 
 
 def register(sub) -> None:
@@ -12,16 +12,19 @@ def register(sub) -> None:
     p.add_argument("--grid-mm", default="22", metavar="STEP|x0:x1:step", help=GRID_HELP + " (22)")
     p.add_argument("--delta-l-um", type=float, default=None,
                    help="X positioning error at the last x node, measured (eq 17); omitted = scale unknown")
-    p.add_argument("--mc", type=int, default=0, metavar="N", help="also run N Monte Carlo runs (JCGM 101)")
+    add_mc_arg(p, "default: none, the linear propagation's U95 alone; the runs draw the probing noise")
     p.add_argument("--seed", type=int, default=None,
                    help="seed of the Monte Carlo runs (0); only with --mc: without it nothing is drawn")
     add_noise_arg(p, "for U95; default: sigma from the residuals", old=("--u-probe-um",))
-    p.set_defaults(func=run)
+    from scenarios.cli.guard import NOISE_POSITIVE
+
+    p.set_defaults(func=run, vmt_rules=NOISE_POSITIVE)   # the sigma of the U95: > 0, -1 and 0 in one phrasing
 
 
 def run(args) -> int:
     from scenarios.cli.guard import progress_line
 
+    args.mc = 0 if args.mc is None else check_mc(args.mc, zero="none")   # before any work
     with progress_line("identify") as bar:
         return _run(args, bar)
 
@@ -53,16 +56,17 @@ def _run(args, bar) -> int:
 
         print(f"{args.log}: {counted(int((~planar & log.ok).sum()), 'touch')} with normals out of the XY plane "
               "left out")
+    # what the state is identified on (estimate.identified_on): a state applied elsewhere is refused by vcmm
+    z_read = log.col("Z_mm")[planar & log.ok]
+    z_read = z_read[np.isfinite(z_read)]
+    on = dict(machine=log.meta.get("machine"), chain=log.meta.get("kinematic_chain"),
+              z_mm=(float(z_read.min()), float(z_read.max())) if z_read.size else None)
     del log, planar  # the touches hold what the identification needs: the log's memory goes before it
     grid = parse_grid(args.grid_mm, t.pn_R)
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
     sigma = None
     if args.noise_um is not None:
-        if not args.noise_um > 0:
-            raise ConfigError(f"--noise-um must be > 0, got {args.noise_um}")
         sigma = args.noise_um * 1e-6
-    if args.mc < 0:
-        raise ConfigError(f"--mc must be >= 0, got {args.mc}")
     bar(1, steps)
     from scenarios.cli.guard import about_file
 
@@ -76,7 +80,12 @@ def _run(args, bar) -> int:
             bar(3, steps)
     from core.atomic import write_json_atomic
 
-    out = write_json_atomic(args.json, res.to_report(mc), special=True)
+    from core.state import identified_on
+
+    report = res.to_report(mc)
+    if "estimate" in report:
+        report["estimate"]["identified_on"] = identified_on(**on)   # J: probe-log/1 does not state it
+    out = write_json_atomic(args.json, report, special=True)
     bar(steps, steps)
     bar.close()         # the report's lines below the finished progress line, not on it
     G = res.G

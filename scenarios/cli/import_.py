@@ -50,6 +50,8 @@ def run(args) -> int:
     print(f"{said(args.out)}: {counted(log.n, 'touch')} ({ok} ok) from {args.kind} {args.file}")
     if "probe_file_rows" in log.meta:
         print(f"note: the probe file has {log.meta['probe_file_rows']}")
+    if "transcript_repeats" in log.meta:
+        print(f"note: {log.meta['transcript_repeats']}")
     if "transcript_reports" in log.meta:
         print(f"note: the transcript has {log.meta['transcript_reports']}")
         print(f"note: what stopped it: {log.meta['stop_reason']}")

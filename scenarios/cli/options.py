@@ -105,18 +105,46 @@ def add_noise_arg(p, default_text: str, *, old: tuple[str, ...] = (), default=No
            help=f"probing noise, a standard deviation (k=1) along the approach, um ({default_text})")
 
 
+def add_mc_arg(p, default_text: str) -> None:
+    """``--mc N``: the number of Monte Carlo runs (JCGM 101), one meaning in every command that takes it.
+
+    ``default_text`` says the command's default and what 0 does there (``"500; 0: linear propagation only"``).
+    """
+    from core.uncertainty import MC_MIN_RUNS
+
+    p.add_argument("--mc", type=int, default=None, metavar="N",
+                   help=f"Monte Carlo runs (JCGM 101: each run draws every input once and identifies again; the "
+                        f"U95 is read from their 2.5 %% and 97.5 %% percentiles), at least {MC_MIN_RUNS} "
+                        f"({default_text})")
+
+
+def check_mc(n: int, *, zero: str | None = None) -> int:
+    """The one refusal of ``--mc``: ``n`` below :data:`core.uncertainty.MC_MIN_RUNS` (0 only where the command
+    gives it a meaning, ``zero``: what 0 does there) -> a ConfigError naming ``--mc``, in one line."""
+    from core.exceptions import ConfigError
+    from core.uncertainty import MC_MIN_RUNS
+
+    if n >= MC_MIN_RUNS or (zero is not None and n == 0):
+        return n
+    alt = f", or --mc 0 ({zero})" if zero is not None else ""
+    raise ConfigError(f"--mc {n}: a Monte Carlo needs at least {MC_MIN_RUNS} runs (its U95 is read from the "
+                      f"runs' 2.5 % and 97.5 % percentiles){alt}")
+
+
 #: What ``--stylus-r-mm`` is, in every command that takes it (the same words as probe-log/1's ``stylus_r_mm``).
 STYLUS_R_HELP = "stylus tip radius, mm (0: a pin or a tool as the probe)"
 
 
-def add_stylus_r_arg(p, when: str) -> None:
+def add_stylus_r_arg(p, when: str, *, required: bool = False) -> None:
     """``--stylus-r-mm``: the stylus tip radius, mm, in every command that needs one.
 
     It has no default: a radius left out is never taken for 0 (a fit is then wrong by the radius, a plan's
     nominals and its approach clearance too); ``when`` says when the command needs it, and
     :func:`no_stylus_r` is the one refusal when it is needed and not known.
     """
-    p.add_argument("--stylus-r-mm", type=float, default=None, help=f"{STYLUS_R_HELP}; {when}")
+    a = p.add_argument("--stylus-r-mm", type=float, default=None, help=f"{STYLUS_R_HELP}; {when}")
+    if required:    # refused by the command in its own words (no_stylus_r); the usage shows it required
+        p.vmt_shown_required = (*getattr(p, "vmt_shown_required", ()), a)
 
 
 def no_stylus_r(what: str):

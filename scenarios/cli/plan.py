@@ -23,7 +23,8 @@ def register(sub) -> None:
     g.add_argument("--z-mm", type=float, default=0.0, help="nominal surface height, machine frame, mm (0)")
     from scenarios.cli.options import add_stylus_r_arg
 
-    add_stylus_r_arg(g, "required: the plan's nominal tip centres stand one radius above the surface")
+    add_stylus_r_arg(g, "required: the plan's nominal tip centres stand one radius above the surface",
+                     required=True)
     g.add_argument("--no-serpentine", action="store_true",
                    help="probe every row in +X (default: serpentine, X reversed on odd rows)")
     g.add_argument("--out", required=True, help="plan to write (probe-log/1, measured columns empty)")

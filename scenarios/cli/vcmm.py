@@ -18,7 +18,10 @@ def register(sub) -> None:
     p.add_argument("plan", metavar="PLAN", help="probe-log/1 plan (or log: its nominal columns are used)")
     from scenarios.cli.options import add_machine_args, add_noise_arg
 
-    add_machine_args(p, default=None, required=True, what="the machine, its errors your best estimate",
+    add_machine_args(p, default=None, required=True,
+                     what="the machine, its errors your best estimate (required, unlike simulate's and scenario's "
+                          "--machine: those run a study on the artefact's or plan's own machine, this is the "
+                          "uncertainty of your measurement on your machine, and no default stands in for it)",
                      errors_default="none", errors_why="best-estimate errors: a built-in machine's as its file "
                                                        "states them, none; name a set to take it as your estimate")
     p.add_argument("--task", required=True, metavar="TASK.toml", help="features, measurands, declared limits")
@@ -35,7 +38,8 @@ def register(sub) -> None:
                         "its covariance; the task's [declared] limits add what it does not cover")
     p.add_argument("--sobol-runs", type=int, default=0, metavar="N",
                    help="also first-order Sobol indices of every source, N runs per matrix (N (k + 2) runs for "
-                        "k sources; 0: none)")
+                        "k sources; 0: none; each run measures the plan once with every source drawn; the "
+                        "uncertainty's own runs stop by --tol-um, not by a count)")
     p.add_argument("--no-budget", action="store_true", help="skip the one-at-a-time budget runs")
     p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT",
                    help="run the Monte Carlo batches on this Dask cluster (the same result for a seed)")
@@ -71,6 +75,15 @@ def run(args) -> int:
         from core.state import read_estimate
 
         state = read_estimate(args.machine_state)
+        from core.state import identified_on_mismatch
+
+        cfg = spec.config
+        why = identified_on_mismatch(state, cfg.name, cfg.chain)
+        if why:
+            raise ConfigError(f"--machine-state {args.machine_state}: {why}")
+        if state.identified_on is None:
+            print(f"{args.machine_state}: no record of the machine it was identified on (a file written before "
+                  f"session 26): applied to {cfg.name} unchecked")
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
     with progress_line("vcmm: Monte Carlo runs") as bar:
         rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask,

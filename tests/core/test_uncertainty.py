@@ -94,7 +94,7 @@ def test_bad_input(pocket):
     w, wn, _ = pocket
     with pytest.raises(ConfigError, match="u_probe_m must be > 0"):
         linear_uncertainty(w, wn, PAPER, GRID, u_probe_m=0.0)
-    with pytest.raises(ConfigError, match="runs must be >= 10"):
+    with pytest.raises(ConfigError, match="runs 3: a Monte Carlo needs at least 10 runs"):
         monte_carlo(w, wn, PAPER, GRID, runs=3, rng=np.random.default_rng(1))
     with pytest.raises(ConfigError, match="rng must be a numpy.random.Generator"):
         monte_carlo_touches(nominal_touches(w, wn, PAPER), GRID, rng=1)

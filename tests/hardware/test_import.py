@@ -475,3 +475,57 @@ def test_grbl_run_stopped_at_its_first_touch_is_named(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "the run stopped at its first touch, ALARM:4 (probe not in the expected" in err
     assert "at line 16; nothing measured to import" in err and not (tmp_path / "o.csv").exists()
+
+
+# ---------------------------------------------------------------- reports on their rows' approach lines (session 26)
+
+def _prb_rows(lines):
+    return [i for i, x in enumerate(lines) if "[PRB" in x]
+
+
+def test_grbl_repeated_touch_after_a_resume_is_dropped_not_shifted(tmp_path, capsys):
+    """`vmt probe` killed after row 3's report reached the transcript but before the log's fsync: --resume probes
+    row 3 again, so the transcript holds one report too many; the run then stops after row 7. Main mapped every
+    report after the repeat one row off (row 4 got row 3's touch, ..., exit 0, no word). Now the repeat lies on row
+    3's approach line, not row 4's: the first is dropped with a note and every row keeps its own touch."""
+    lines = (REF / "grbl-1.1h-sim-vmt-campaign-transcript.txt").read_text().splitlines()
+    prb = _prb_rows(lines)
+    assert len(prb) == 12
+    rep = lines[:prb[3] + 1] + [lines[prb[3]]] + lines[prb[3] + 1:prb[7] + 1]    # row 3 twice, then stops at 7
+    log, out = _import(tmp_path, rep, plan_log(), capsys)
+    want = [parse_prb(lines[i].split(" ", 2)[2])[0] for i in prb[:8]]
+    assert list(log.col("status")) == ["ok"] * 8 + ["aborted"] * 4
+    assert np.array_equal(log.positions_mm()[:8], np.array(want))
+    said = f"lines {prb[3] + 1} and {prb[3] + 2} both report plan row 3 (target "
+    assert log.meta["transcript_repeats"].startswith(said) and f"note: {said}" in out
+    assert "the first dropped" in log.meta["transcript_repeats"]
+
+
+def test_grbl_report_off_its_row_is_refused_naming_the_line(tmp_path, capsys):
+    """A report lost (row 2's line removed): every later report would fill the row before its own. Refused at the
+    first report that is not its row's touch, with its distance from the row's approach line."""
+    lines = (REF / "grbl-1.1h-sim-vmt-campaign-transcript.txt").read_text().splitlines()
+    prb = _prb_rows(lines)
+    cut = lines[:prb[2]] + lines[prb[2] + 1:]
+    tr, plan_path, out = tmp_path / "t.txt", tmp_path / "plan.csv", tmp_path / "log.csv"
+    tr.write_text("\n".join(cut) + "\n")
+    write_probe_log(plan_path, plan_log())
+    assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert re.search(rf"line {prb[3]}: report 3 \[[-\d., ]+\] mm is not a touch of plan row 2 \(target 'p2', "
+                     r"nominal \[[-\d., ]+\] mm\): [\d.]+ mm off its approach line", err), err
+    assert "within 0.5 mm of the line and 10 mm of the nominal" in err and not out.exists()
+
+
+def test_row_offset_known_answers():
+    """Lateral and along distances of a report from a row, by hand: nominal (10, 0, 0), approach -z."""
+    from hardware.transcript import ALIGN_LATERAL_MM, _on_row, _row_offset
+
+    pn, d = np.array([10.0, 0.0, 0.0]), np.array([0.0, 0.0, -2.0])      # (not unit: normalised)
+    assert np.allclose(_row_offset([10.0, 0.0, -1.5], pn, d), (0.0, 1.5))
+    assert np.allclose(_row_offset([13.0, 4.0, 1.0], pn, d), (5.0, -1.0))
+    assert _on_row([10.0 + ALIGN_LATERAL_MM, 0.0, -2.0], pn, d)
+    assert not _on_row([10.0 + ALIGN_LATERAL_MM + 1e-6, 0.0, -2.0], pn, d)
+    assert not _on_row([10.0, 0.0, -10.5], pn, d) and _on_row([10.0, 0.0, -10.0], pn, d)
+    assert np.allclose(_row_offset([13.0, 4.0, 0.0], pn, np.full(3, np.nan)), (0.0, 5.0))   # no direction

@@ -51,7 +51,7 @@ RENAMED = [
     (["design", "plan.csv"], "--reference", "0,90", "--reference-deg"),
     (["design", "plan.csv"], "--u-probe-um", "1.1", "--noise-um"),
     (["identify", "log.csv"], "--u-probe-um", "1.1", "--noise-um"),
-    (["discover", "log.csv"], "--grid-mm", "30", "--grid-step-mm"),
+    (["discover", "log.csv"], "--grid-step-mm", "30", "--grid-mm"),
     (["import", "grbl", "t.txt"], "--dt", "2", "--dt-s"),
     (["demo"], "--out", "o", "--out-dir"),
 ]
@@ -126,7 +126,7 @@ def unit_problems(parser=None) -> list:
 
 #: Old names kept as aliases whose old meaning differs from the same name's meaning elsewhere (they work,
 #: print their new name, and go when the aliases go); any other name with two meanings fails the walk.
-OLD_MEANINGS = {"--out", "--machine", "--home", "--grid-mm"}
+OLD_MEANINGS = {"--out", "--machine", "--home"}
 
 
 def test_each_option_name_has_one_meaning_across_commands():
@@ -616,7 +616,7 @@ def test_check_usage_says_log_is_required_and_noise_help_says_what_it_does_in_po
 
 
 def test_grid_steps_are_judged_in_mm(tmp_path, capsys):
-    """--grid-mm (identify, design) and --grid-step-mm (discover) are refused in their own unit: a step
+    """--grid-mm (identify, design, discover) is refused in its own unit: a step
     of -5 mm said 'grid step must be > 0, got -0.005' (metres), discover took a step of 0 for 'choose by
     BIC' and a negative one failed on the grid's nodes in metres; nan passed to the grid."""
     from core.exceptions import ConfigError
@@ -632,10 +632,11 @@ def test_grid_steps_are_judged_in_mm(tmp_path, capsys):
     assert parse_grid("-110:110:110", p_R).y_m.tolist() == [-0.11, 0.0, 0.11]
     log = tmp_path / "log.csv"
     log.write_text("any\n")                 # the step is judged before the log is read
-    for step in ("0", "-5", "nan"):
-        assert main(["discover", str(log), "--json", str(tmp_path / "d.json"), "--grid-step-mm", step]) == 2
+    for step in ("0", "-5", "nan", "10:100:22"):
+        assert main(["discover", str(log), "--json", str(tmp_path / "d.json"), "--grid-mm", step]) == 2
         err = capsys.readouterr().err
-        assert err.startswith(f"vmt discover: error: --grid-step-mm must be a finite number > 0 (mm), got {step}"), err
+        assert err.startswith(f"vmt discover: error: --grid-mm must be a finite number > 0 (mm; discover takes a "
+                              f"STEP, not x0:x1:step), got {step}"), err
         assert err.count("\n") == 1
 
 

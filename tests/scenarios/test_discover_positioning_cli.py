@@ -36,7 +36,7 @@ def _times():
             yield float(line.split(",")[4])
 
 
-@pytest.mark.parametrize("extra, what", [(["--report", "r"], "--report"), (["--grid-step-mm", "22"], "--grid-step-mm")])
+@pytest.mark.parametrize("extra, what", [(["--report", "r"], "--report"), (["--grid-mm", "22"], "--grid-mm")])
 def test_discover_positioning_refuses_what_it_cannot_do(tmp_path, capsys, extra, what):
     out = tmp_path / "d.json"
     assert main(["discover", str(SAMPLE), "--json", str(out), *extra]) == 2

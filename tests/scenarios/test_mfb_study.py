@@ -174,7 +174,7 @@ def test_linear_calibration_share_is_the_simulated_bars_own():
     from core import mfb, volumetric as vol
     from sim import artefacts as A
 
-    r = S.run("mfb-3axis", noise_um=0.0, draw_inputs=False, mc_runs=1)  # its U95: the calibration's alone
+    r = S.run("mfb-3axis", noise_um=0.0, draw_inputs=False, mc_runs=10)  # its U95: the calibration's alone (lin)
     u_cal = np.tile(np.array(S.inspect_default("u_cal_um"), float) * 1e-6, (12, 1))
     E0 = A.mfb_default_deviations()
     base = A.multi_feature_bar(deviations_m=E0).info["E_MFB_m"]

@@ -206,7 +206,7 @@ def test_pin_circle_the_papers_way(pin):
 
 def test_scenario_mc_too_small(capsys):
     assert main(["scenario", "cross-pocket-uncertainty", "--mc", "3"]) == 2
-    assert "--mc must be >= 10" in capsys.readouterr().err
+    assert "--mc 3: a Monte Carlo needs at least 10 runs" in capsys.readouterr().err
 
 
 def test_paper_report_folder(cpu, pin, tmp_path):

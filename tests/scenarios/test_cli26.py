@@ -1,0 +1,291 @@
+"""The CLI's language, session 26 (review26): one meaning per option, honest Monte Carlo sizes.
+
+In-process through ``scenarios.cli.main`` (exit status 2 and one line on stderr for bad input).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from scenarios.cli import main
+
+
+def one_error_line(capsys, start: str) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(start), err
+    return err
+
+
+def campaign(path, angles, rng):
+    """The cross-pocket's 92 targets at ``angles`` (deg) (the fuzz tests' campaign, every target)."""
+    from core.probelog import write_probe_log
+    from test_fuzz_cli import campaign_log
+
+    return write_probe_log(path, campaign_log(rng, c_deg=tuple(float(c) for c in angles), every=1))
+
+
+# --------------------------------------------------------------------------- 1. --mc: one minimum everywhere
+
+MC_SAID = "a Monte Carlo needs at least 10 runs (its U95 is read from the runs' 2.5 % and 97.5 % percentiles)"
+
+
+@pytest.mark.parametrize("cmd, n, zero", [
+    # main ran these: --mc 1 gave U95 = 0 for every error (percentiles of one run), 9 a width of 9 runs
+    (["scenario", "mfb-3axis"], 1, ", or --mc 0 (the linear propagation's U95 alone)"),
+    (["scenario", "mfb-5axis"], 9, ", or --mc 0 (the linear propagation's U95 alone)"),
+    # main: '--mc must be >= 10 for this study, got 3' (its own phrasing); 0 has no meaning there
+    (["scenario", "cross-pocket-uncertainty"], 3, ""),
+    (["scenario", "cross-pocket-uncertainty"], 0, ""),
+    (["scenario", "mfb-3axis"], -1, ", or --mc 0 (the linear propagation's U95 alone)"),
+])
+def test_mc_below_the_minimum_is_refused_in_one_phrasing(tmp_path, capsys, cmd, n, zero):
+    out = tmp_path / "r.json"
+    assert main(cmd + ["--mc", str(n), "--json", str(out)]) == 2
+    one_error_line(capsys, f"vmt scenario: error: --mc {n}: {MC_SAID}{zero}\n")
+    assert not out.exists()
+
+
+def test_identify_mc_below_the_minimum_names_the_option_not_the_log(tmp_path, rng, capsys):
+    """main: 'vmt identify: error: LOG: runs must be >= 10, got 3' (after the identification, under the log's
+    name); and --mc -1 said '--mc must be >= 0'. Now the one refusal of --mc, before any work."""
+    log = campaign(tmp_path / "camp.csv", (0, 75, 130, 210), rng)
+    out = tmp_path / "id.json"
+    for n in (3, -1):
+        assert main(["identify", str(log), "--json", str(out), "--mc", str(n)]) == 2
+        one_error_line(capsys, f"vmt identify: error: --mc {n}: {MC_SAID}, or --mc 0 (none)\n")
+        assert not out.exists()
+    assert main(["identify", str(log), "--json", str(out), "--mc", "10", "--grid-mm", "22"]) == 0
+    assert json.loads(out.read_text())["monte_carlo"]["runs"] == 10
+
+
+def test_volumetric_uncertainty_refuses_a_monte_carlo_of_one_run():
+    """core.volumetric.uncertainty(runs=1): U95_mc = 0 everywhere (2.5 and 97.5 percentiles of one value);
+    now refused, 0 (linear only) and 10 taken."""
+    from core.exceptions import ConfigError
+    from scenarios import mfb as S
+
+    r = S.run("mfb-3axis", noise_um=0.0, draw_inputs=False, mc_runs=0, declared_ripple=None)
+    from core import volumetric as vol
+
+    u_cal = np.full((12, 3), 1e-6)
+    for runs in (1, 2, 9):
+        with pytest.raises(ConfigError, match=f"runs {runs}: a Monte Carlo needs at least 10 runs"):
+            vol.uncertainty(r.result, r.meas, 1e-7, u_cal, runs=runs, rng=np.random.default_rng(1))
+    u10 = vol.uncertainty(r.result, r.meas, 1e-7, u_cal, runs=10, rng=np.random.default_rng(1))
+    assert u10.runs == 10 and np.max(u10.U95_mc) > 0
+    with pytest.raises(ConfigError, match="mc_runs 1: a Monte Carlo needs at least 10 runs"):
+        S.run("mfb-3axis", mc_runs=1)
+
+
+def test_mc_help_says_what_it_counts():
+    """--mc, --budget-runs and --sobol-runs count different runs: the help says what each is."""
+    import argparse
+
+    from scenarios.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+    helps = {(c, a.option_strings[0]): a.help for c in ("identify", "scenario", "vcmm")
+             for a in sub[c]._actions if a.option_strings}
+    for c in ("identify", "scenario"):
+        assert "at least 10" in helps[(c, "--mc")] and "percentiles" in helps[(c, "--mc")]
+    assert "simulates the campaign again" in helps[("scenario", "--budget-runs")]
+    assert "runs per matrix" in helps[("vcmm", "--sobol-runs")]
+
+
+# --------------------------------------------------------------------------- 3. the small ones
+
+@pytest.mark.parametrize("cmd, said", [
+    # main: --machine "" and --c-angles-deg "" fell back to the defaults (exit 0); --out "" said "'.': is a directory"
+    (["simulate", "cross-pocket", "--out", "{d}/x.csv", "--machine", ""],
+     "--machine '': empty; give a built-in machine name or a machine file (or leave --machine out)"),
+    (["simulate", "cross-pocket", "--out", "{d}/x.csv", "--c-angles-deg", ""],
+     "--c-angles-deg '': empty; give comma-separated C angles in degrees (or leave --c-angles-deg out)"),
+    (["simulate", "cross-pocket", "--out", ""], "--out '': empty; give a file name"),
+    (["scenario", "mfb-3axis", "--json", ""], "--json '': empty; give a file name"),
+    (["scenario", "mfb-3axis", "--report", " "], "--report ' ': empty; give a folder name"),
+])
+def test_an_empty_value_is_refused_naming_it(tmp_path, capsys, cmd, said):
+    assert main([a.format(d=tmp_path) for a in cmd]) == 2
+    one_error_line(capsys, f"vmt {cmd[0]}: error: {said}\n")
+    assert not (tmp_path / "x.csv").exists()
+
+
+@pytest.mark.parametrize("angles, said", [
+    ("0,360", "C angles 0 and 360 deg are the same set-up (equal modulo 360): give each angle once"),
+    ("0,90,-270", "C angles 90 and -270 deg are the same set-up (equal modulo 360)"),
+    ("10,10", "C angles 10 and 10 deg are the same set-up"),
+])
+def test_c_angles_equal_modulo_360_are_refused(tmp_path, capsys, angles, said):
+    """main took 0,360 as two set-ups (C0 and C360), and identify then reported a rank deficiency."""
+    out = tmp_path / "x.csv"
+    assert main(["simulate", "cross-pocket", "--out", str(out), "--c-angles-deg", angles]) == 2
+    one_error_line(capsys, f"vmt simulate: error: {said}")
+    assert not out.exists()
+
+
+def test_no_c_axis_names_the_angle_not_the_argument(tmp_path, capsys):
+    """main: 'c_angles_deg: machine 'vmc-3axis' has no C axis ...' (the function's argument)."""
+    assert main(["simulate", "cross-pocket", "--machine", "vmc-3axis", "--out", str(tmp_path / "x.csv"),
+                 "--c-angles-deg", "0,90"]) == 2
+    one_error_line(capsys, "vmt simulate: error: C angle 90 deg: machine 'vmc-3axis' has no C axis "
+                           "(rotary axes none); only 0 is possible\n")
+
+
+def test_noise_of_identify_and_design_is_refused_in_one_phrasing(tmp_path, rng, capsys):
+    """main: --noise-um -1 said 'must be a finite number >= 0', 0 said 'must be > 0' (identify.py, design.py)."""
+    log = campaign(tmp_path / "camp.csv", (0, 75, 130, 210), rng)
+    for cmd in (["identify", str(log), "--json", str(tmp_path / "i.json")],
+                ["design", str(log), "--n-angles", "3"]):
+        for v in ("-1", "0"):
+            assert main(cmd + ["--noise-um", v]) == 2
+            one_error_line(capsys, f"vmt {cmd[0]}: error: --noise-um must be a finite number > 0, got {v}\n")
+
+
+def test_delta_l_is_bounded(tmp_path, rng, capsys):
+    """main identified with --delta-l-um 1e30 (exit 0)."""
+    log = campaign(tmp_path / "camp.csv", (0, 75, 130, 210), rng)
+    out = tmp_path / "i.json"
+    for v in ("1e30", "-1001"):
+        assert main(["identify", str(log), "--json", str(out), "--delta-l-um", v]) == 2
+        one_error_line(capsys, "vmt identify: error: --delta-l-um must be within +-1000 um (the X positioning "
+                               f"error at the last x node), got {float(v):g}\n")
+    assert not out.exists()
+    assert main(["identify", str(log), "--json", str(out), "--delta-l-um", "1000"]) == 0
+
+
+def test_wrong_chain_machine_file_is_named_by_its_path(tmp_path, capsys):
+    """main: '--machine 'nmv3000': chain ...' for /some/dir/mine.toml (the file's machine name)."""
+    from pathlib import Path
+
+    mine = tmp_path / "mine.toml"
+    mine.write_text((Path(__file__).resolve().parents[2] / "sim" / "data" / "machines" / "nmv3000.toml").read_text())
+    assert main(["scenario", "mfb-3axis", "--machine", str(mine)]) == 2
+    one_error_line(capsys, f"vmt scenario: error: --machine {mine}: chain 'V[w-C-A-b-Y-X-Z-(C)-t]' is not the "
+                           "mfb-3axis plan's")
+
+
+def test_closed_loop_reports_progress(tmp_path):
+    """main's --apply-comp loop (about 5 s) drew no progress line: closed_loop now reports over its campaigns."""
+    from scenarios import mfb as S
+
+    r = S.run("mfb-3axis", mc_runs=0)
+    r.write_comp(tmp_path / "comp")
+    seen = []
+    loop = S.closed_loop("mfb-3axis", tmp_path / "comp", before=r, mc_runs=0,
+                         progress=lambda k, n: seen.append((k, n)))
+    assert "volumetric" in loop and seen
+    total = {n for _, n in seen}
+    assert len(total) == 1 and seen[-1][0] == seen[-1][1]               # one total, reached at the end
+    assert all(b[0] >= a[0] for a, b in zip(seen, seen[1:]))            # never backwards
+
+
+# --------------------------------------------------------------------------- 2. what a state was identified on
+
+@pytest.fixture(scope="module")
+def identified(tmp_path_factory):
+    """A cross-pocket campaign simulated on nmv3000 (no errors) and identified by the CLI."""
+    d = tmp_path_factory.mktemp("ident")
+    log, out = d / "cp.csv", d / "id.json"
+    assert main(["simulate", "cross-pocket", "--out", str(log), "--errors", "none"]) == 0
+    assert main(["identify", str(log), "--json", str(out)]) == 0
+    return log, out
+
+
+VCMM = ["vcmm", "scenarios/data/vcmm-block-plan.csv", "--task", "scenarios/data/vcmm-block-task.toml", "--no-budget"]
+
+
+def test_identify_records_the_machine_chain_and_height(identified):
+    from core.probelog import read_probe_log
+    from core.state import read_estimate
+
+    log, out = identified
+    rec = json.loads(out.read_text())["estimate"]["identified_on"]
+    lg = read_probe_log(log)
+    z = lg.col("Z_mm")[lg.ok & (np.abs(lg.col("nz")) <= 0.01)]
+    assert rec == {"machine": "nmv3000", "chain": "V[w-C-A-b-Y-X-Z-(C)-t]", "probe_offsets_J_mm": None,
+                   "z_mm": [round(float(z.min()), 9), round(float(z.max()), 9)]}   # (rounded to 1e-9 mm)
+    assert read_estimate(out).identified_on == rec                  # read back as written
+
+
+def test_a_state_on_another_machine_or_chain_is_refused(identified, tmp_path, capsys):
+    """main: 'vmt vcmm --machine vmc-3axis --machine-state id.json' took a state identified on nmv3000 (exit 0)."""
+    _, ident = identified
+    out = tmp_path / "v.json"
+    capsys.readouterr()
+    assert main(VCMM + ["--machine", "vmc-3axis", "--json", str(out), "--machine-state", str(ident)]) == 2
+    err = one_error_line(capsys, f"vmt vcmm: error: --machine-state {ident}: identified on machine 'nmv3000', "
+                                 "chain V[w-C-A-b-Y-X-Z-(C)-t], Z ")
+    assert "not on machine 'vmc-3axis' (chain V[w-X-Y-b-Z-(C)-t]): another structure" in err
+    # the same chain, another machine's name: refused too
+    doc = json.loads(ident.read_text())
+    doc["estimate"]["identified_on"]["machine"] = "my-nmv"
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(doc))
+    assert main(VCMM + ["--machine", "nmv3000", "--json", str(out), "--machine-state", str(other)]) == 2
+    err = one_error_line(capsys, f"vmt vcmm: error: --machine-state {other}: identified on machine 'my-nmv'")
+    assert "not on machine 'nmv3000': identify this machine, or name the one it was identified on" in err
+    assert not out.exists()
+
+
+def test_a_state_without_the_record_reads_with_a_notice(identified, tmp_path, capsys):
+    _, ident = identified
+    doc = json.loads(ident.read_text())
+    del doc["estimate"]["identified_on"]
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(doc))
+    capsys.readouterr()
+    main(VCMM + ["--machine", "vmc-3axis", "--json", str(tmp_path / "v.json"), "--machine-state", str(old)])
+    out = capsys.readouterr().out
+    assert out.startswith(f"{old}: no record of the machine it was identified on (a file written before session "
+                          "26): applied to vmc-3axis unchecked\n"), out
+
+
+@pytest.mark.parametrize("rec, key", [
+    ("x", "identified_on: expected an object"),
+    ({"machine": 3}, "identified_on.machine: expected a string or null"),
+    ({"probe_offsets_J_mm": [[0, 0]]}, "identified_on.probe_offsets_J_mm"),
+    ({"z_mm": [5, 1]}, "identified_on.z_mm"),
+])
+def test_a_bad_record_is_refused_by_key(identified, rec, key):
+    from core.state import StateFileError, loads_estimate
+
+    doc = json.loads(identified[1].read_text())
+    doc["estimate"]["identified_on"] = rec
+    with pytest.raises(StateFileError, match=key):
+        loads_estimate(doc)
+
+
+def test_the_mfb_records_its_machine_and_styli():
+    from core.state import loads_estimate
+    from scenarios import mfb as S
+
+    r = S.run("mfb-3axis", mc_runs=0)
+    rec = r.doc["estimate"]["identified_on"]
+    assert rec["machine"] == "vmc-3axis" and rec["chain"] == "V[w-X-Y-b-Z-(C)-t]" and rec["z_mm"] is None
+    J = {tuple(j) for j in rec["probe_offsets_J_mm"]}
+    assert J == {tuple(round(v * 1e3, 9) for v in m.J_m) for m in r.plan.measurements} and (0.0, 0.0, 150.0) in J
+    assert loads_estimate(json.loads(json.dumps(r.doc))).identified_on == rec
+
+
+# --------------------------------------------------------------------------- 4. plan grid's usage line
+
+def test_plan_grid_usage_shows_the_stylus_radius_required(capsys):
+    """main: 'usage: vmt plan grid ... [--stylus-r-mm STYLUS_R_MM] ...' (optional brackets) though it is refused
+    without it; the refusal stays the command's own words (the usage shows it like --x-mm)."""
+    import re
+
+    with pytest.raises(SystemExit):
+        main(["plan", "grid", "--help"])
+    usage = capsys.readouterr().out.split("\n\n")[0]
+    assert re.search(r"(?<!\[)--stylus-r-mm STYLUS_R_MM(?!\])", usage) and "[--stylus-r-mm" not in usage, usage
+    assert "[--z-mm Z_MM]" in usage                                          # an optional one keeps its brackets
+    assert main(["plan", "grid", "--x-mm", "0:10:5", "--y-mm", "0:10:5", "--out", "/nonexistent/p.csv"]) == 2
+    one_error_line(capsys, "vmt plan grid: error: no stylus radius (the plan's nominal tip centres stand one "
+                           "radius above the surface): give --stylus-r-mm R")
+    with pytest.raises(SystemExit):
+        main(["plan", "grid", "--help"])
+    assert "[--stylus-r-mm" not in capsys.readouterr().out                  # (restored after each formatting)
