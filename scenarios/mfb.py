@@ -24,9 +24,12 @@ stylus (J_X). Placements (14), measurements (17):
   40 mm finger): Y3-Y1 (dJ_X 100 mm) gives ECY by differential positioning
   and EBY by differential vertical straightness (with T0 it gave neither:
   the weakest combination was an ECY ramp, relative sv 1.3e-4 -> 6.5e-4);
-- VY: standing bar (along Z) at (-25, -40) mm, holes facing -Y, star
-  styli TY1, TY2 (arm 100, 150 mm along Y) and TYL (TY1 on J_Z 250 mm):
-  EZZ, EXZ, EYZ; dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ;
+- VY: standing bar (along Z) at (-25, -20) mm, holes facing -Y, star
+  styli TY1, TY2 (arm 100, 150 mm along Y) and TYL (TY1 on J_Z 250 mm,
+  holes 1-5): EZZ, EXZ, EYZ; dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ (session 26:
+  at y = -40 mm TY2's spindle went 13 mm past Y's -200 mm on its links,
+  and TYL over holes 6-7 put the spindle 93 mm past Z's 400 mm: a stroke
+  bounds the axis, reading + J - the machine's J, docs/formats.md);
 - VX: standing bar, holes facing -X, TX1 and TX2: ECZ, EBZ; EXZ, EYZ with
   the other Abbe arm;
 - DXY (flat, 45 deg in XY, T0), DXZ (tilted 45 deg in XZ, holes facing
@@ -57,15 +60,18 @@ supports, pointing +Y, bolted to an angle plate whose face is y = 30 mm,
 those facing -X (VX, DYZ, AYZ) to one at x = 45 mm (the tilt lies in the
 plate's face: no tilted block is needed); a test checks by hand geometry
 that every support's foot lies on the table or on a fixture's face. Every
-run is collision-checked (:func:`check_plan`: 3,944 touches, fixtures
-included; the probe never nears them: a fixture's face moved toward the bar
+run is collision-checked (:func:`check_plan`: 3,888 touches since session
+26, 3,944 before, fixtures included; the probe never nears them: a fixture's face moved toward the bar
 is first met 60.9 mm in, 0.9 mm inside the bar's body). Until session 11
 the plan had no fixtures, 11 of its measurements' bars floating with their
 supports' feet on nothing, and :func:`run` did not check it; the bar poses
 and every figure of its results are the same.
 
-Each bar is probed over the holes that fit the strokes (12 along X, 8
-along Y, 7 standing), with the rods and faces the planes PL_i need (rod k
+Every position the program commands (touches, approach starts, overshoot
+ends, links) lies within the strokes as an axis position (reading + J -
+the machine's J, :func:`check_program_strokes`), checked on every run by
+:func:`check_plan`. Each bar is probed over the holes that fit the strokes
+(12 along X, 8 along Y, 7 standing; VYc 5), with the rods and faces the planes PL_i need (rod k
 of a bar probed to hole k lies 25 mm beyond it). The error tables have
 their nodes at the points of interest, where a bar senses all three
 directions: 8 along Y and 7 along Z (one per hole), 9 along X over the
@@ -108,18 +114,27 @@ over +-5 mm, so no MFB plan can see a ripple shorter than twice its pitch
 
 5-axis (``mfb-5axis``, ``mikron-ucp710``): :func:`plan_5axis`, 4 bar
 placements on the table (flat; flat on a 150 mm riser; on edge on an angle
-plate; flat for the XZ anti-diagonal), presented by A and C in 13 set-ups,
-17 measurements; every touch, approach and link move checked for
+plate; flat for the XZ anti-diagonal), presented by A and C in 12 set-ups,
+15 measurements; every touch, approach and link move checked for
 collisions and reach in the MuJoCo work zone (:func:`check_plan`,
-:mod:`sim.mfb_scene`); the rotary axes' errors are absorbed by each
-set-up's pose. Noise-free on the realistic machine (rotary axes' errors
-included): 0.041 um / 0.31 urad (EAX; session 25). At 0.125 um probing noise (seed 1):
-U95 max 0.73 um positioning, 1.6 um straightness; the twists: EAX U95 28.9
-urad on a 4.8 urad peak-to-peak signal (not resolved: on this tool-side
-chain a ramp of an angular error of X moves every bar along X rigidly, and
-only the diagonals' bend, ~0.1 um, sees it), EBY 7.7 urad on 5.95 (seen by
-T0 vs TXF in one pose, dJ_X 100 mm), ECZ 8.5 urad on 3.6 (dJ 50 mm star
-arms; not resolved at this noise).
+:mod:`sim.mfb_scene`) and within the strokes as axis positions; the rotary
+axes' errors are absorbed by each set-up's pose. Noise-free on the
+realistic machine (rotary axes' errors included): 0.020 um / 0.19 urad
+(EAX; session 26; 0.041 / 0.31 with the plan before). At 0.125 um probing
+noise (seed 1): U95 max 0.69 um positioning, 2.3 um straightness (EYZ);
+the twists: EAX U95 29.4 urad on a 4.8 urad peak-to-peak signal (not
+resolved: on this tool-side chain a ramp of an angular error of X moves
+every bar along X rigidly, and only the diagonals' bend, ~0.1 um, sees
+it), EBY 7.6 urad on 5.95 (seen by T0 vs TXF in one pose, dJ_X 100 mm),
+ECZ 12.1 urad on 3.6 (TX1 vs TX2 on VX, dJ_X 50 mm; not resolved at this
+noise). Session 26 took the standing bar VY (holes facing -Y) out: A = -90
+deg puts its holes at R y ~ -190 mm and the program's links at -213 mm, so
+a star arm along +Y keeps the spindle within Y's -275 mm only up to 62 mm,
+and at 60 mm the spindle nose already meets the bar's upper holes (MuJoCo,
+0.4-0.5 mm deep; 40-50 mm arms 7-13 mm): the Z axis's errors now come from
+VX with TX1, TX2 and TXL (dJ_Z 100 mm for EAZ). What moved (seed 1, U95
+max): EA0Z 4.0 -> 14.8 urad, ECZ 8.4 -> 12.1, EBZ 3.1 -> 6.1, EC0Y 4.8 ->
+7.5 urad, EYZ 1.0 -> 2.3 um; the rest within 10 %.
 
 The bar's calibration: declared (its default deviations, u_cal_um) or the
 reversal on a simulated CMM (:func:`reversal_on_cmm`, eqs 5-7, written by
@@ -363,16 +378,19 @@ def plan_5axis() -> MfbPlan:
       first hole at (x, y) = (-175, 80) mm. X1 (A = C = 0, T0): along X at
       (y, z) = (80, 70) mm; X3 (A = -90, C = 0, TY1): along X at (-190, -40)
       mm, holes facing -Y; Y1 (C = 90; T0 and TXF in one pose): along -Y at
-      (x, z) = (80, 70) mm; VY (A = -90, C = -90; TY1, TY2, TYL): standing,
-      holes facing -Y; DXY / AXY (C = -45 / +45, T0) and DXZ (A = -90,
-      C = -45, TY1): diagonals.
+      (x, z) = (80, 70) mm; DXY / AXY (C = -45 / +45, T0) and DXZ (A = -90,
+      C = -45, TYM): diagonals. (X3, DXZ, AXZ on TYM, a 60 mm arm: at A =
+      -90 their links lie at R y -213 mm, and TY1's 100 mm arm put the
+      spindle 38 mm past Y's -275 mm; the standing VY, holes facing -Y, is
+      out: no arm both keeps its spindle within Y and clears the bar.)
     - **P2**: the bar flat on a 150 mm riser block: X2 (A = C = 0, T0) at
       (y, z) = (0, 220) mm, Y2 (C = 90, T0) at (x, z) = (0, 220) mm.
     - **P3**: the bar on its edge along W y, holes facing -W x, its
       supports bolted to an angle plate, 105 mm above the table: Y3 (A = C =
-      0, TX1), VX (A = -90; TX1, TX2), DYZ (A = -45, TX1).
+      0, TX1), VX (A = -90; TX1, TX2, TXL: the standing bar for the Z axis,
+      dJ_X 50 mm, dJ_Z 100 mm), DYZ (A = -45, TX1).
     - **P4**: flat along W x, first hole at (-300, 160) mm: AXZ (A = -90,
-      C = 45, TY1), the XZ anti-diagonal (from P1 it falls below the Z
+      C = 45, TYM), the XZ anti-diagonal (from P1 it falls below the Z
       stroke after 4 holes).
 
     The YZ anti-diagonal is not in the plan: A turns about X, so a line
@@ -385,8 +403,8 @@ def plan_5axis() -> MfbPlan:
     and positioning, the *curvature* of EAX and EBX, ECX (a ramp of an
     angular error of X moves a bar along X rigidly); Y1 a / b (dJ_X 100 mm in
     one pose): ECY, EBY with their ramps; Y2 - Y1 (dz 150 mm): EAY, EBY; Y3;
-    VY (dJ_Y 50 mm, dJ_Z 100 mm) and VX (dJ_X 50 mm), one pose each: ECZ,
-    EAZ, EBZ with their ramps; the diagonals: EC0Y, EB0Z, EA0Z and the
+    VX (dJ_X 50 mm, dJ_Z 100 mm), one pose: ECZ, EAZ, EBZ with their
+    ramps; the diagonals: EC0Y, EB0Z, EA0Z and the
     twist ramps. The paper's 6 placements: this chain needs 4 (run with
     ``drop=`` to see what is lost without each).
     """
@@ -433,7 +451,7 @@ def plan_5axis() -> MfbPlan:
     add(P2, "Y2", {"A": 0, "C": 90}, h29, senses="with Y1 (dz 150 mm): EAY, EBY")
     add(P3, "Y3", {"A": 0, "C": 0}, h18, ("TX1",), senses="with Y1 (dJ_X 100 mm): ECY, EBY")
     add(P3, "VX", {"A": -90, "C": 0}, h712, ("TX1", "TX2", "TXL"),
-        senses="EZZ, EXZ, EYZ; dJ_X: ECZ, EBZ; dJ_Z: EBZ, EAZ")
+        senses="EZZ, EXZ, EYZ; dJ_X (TX1 vs TX2): ECZ, EBZ; dJ_Z (TX1 vs TXL): EBZ, EAZ")
     add(P1, "DXY", {"A": 0, "C": -45}, _DIAG, senses="EC0Y, twist")
     add(P1, "AXY", {"A": 0, "C": 45}, _DIAG, senses="EC0Y, twist")
     add(P1, "DXZ", {"A": -90, "C": -45}, _DIAG, ("TYM",), senses="EB0Z, twist")
@@ -1431,9 +1449,10 @@ TWIST_SENSING = {
            "calibrated bow (u 0.35 um) and the probing noise",
     "EBY": "T0 vs TXF on Y1 in one pose (dJ_X 100 mm): differential vertical straightness; Y2 - Y1 (dz 150 mm) "
            "only its curvature (separate poses); limited by the probing noise over the 100 mm arm",
-    "ECZ": "TY1 vs TY2 on VY and TX1 vs TX2 on VX, one pose each (dJ 50 mm): differential positioning; "
-           "limited by the probing noise over the 50 mm arm difference (a longer star arm puts the spindle "
-           "beyond the Y travel)",
+    "ECZ": "TX1 vs TX2 on VX in one pose (dJ_X 50 mm): differential positioning; limited by the probing "
+           "noise over the 50 mm arm difference (the "
+           "standing bar facing -Y is out of the plan: no star arm along Y keeps the spindle within the Y "
+           "travel and clears the bar)",
 }
 
 
