@@ -119,22 +119,24 @@ plate; flat for the XZ anti-diagonal), presented by A and C in 12 set-ups,
 collisions and reach in the MuJoCo work zone (:func:`check_plan`,
 :mod:`sim.mfb_scene`) and within the strokes as axis positions; the rotary
 axes' errors are absorbed by each set-up's pose. Noise-free on the
-realistic machine (rotary axes' errors included): 0.020 um / 0.19 urad
+realistic machine (rotary axes' errors included): 0.020 um / 0.20 urad
 (EAX; session 26; 0.041 / 0.31 with the plan before). At 0.125 um probing
-noise (seed 1): U95 max 0.69 um positioning, 2.3 um straightness (EYZ);
-the twists: EAX U95 29.4 urad on a 4.8 urad peak-to-peak signal (not
+noise (seed 1): U95 max 0.66 um positioning, 1.4 um straightness (EYZ);
+the twists: EAX U95 28.9 urad on a 4.8 urad peak-to-peak signal (not
 resolved: on this tool-side chain a ramp of an angular error of X moves
 every bar along X rigidly, and only the diagonals' bend, ~0.1 um, sees
-it), EBY 7.6 urad on 5.95 (seen by T0 vs TXF in one pose, dJ_X 100 mm),
-ECZ 12.1 urad on 3.6 (TX1 vs TX2 on VX, dJ_X 50 mm; not resolved at this
+it), EBY 7.2 urad on 5.95 (seen by T0 vs TXF in one pose, dJ_X 100 mm),
+ECZ 8.9 urad on 3.6 (TX1 vs TX3 on VX, dJ_X 150 mm; not resolved at this
 noise). Session 26 took the standing bar VY (holes facing -Y) out: A = -90
 deg puts its holes at R y ~ -190 mm and the program's links at -213 mm, so
 a star arm along +Y keeps the spindle within Y's -275 mm only up to 62 mm,
 and at 60 mm the spindle nose already meets the bar's upper holes (MuJoCo,
 0.4-0.5 mm deep; 40-50 mm arms 7-13 mm): the Z axis's errors now come from
-VX with TX1, TX2 and TXL (dJ_Z 100 mm for EAZ). What moved (seed 1, U95
-max): EA0Z 4.0 -> 14.8 urad, ECZ 8.4 -> 12.1, EBZ 3.1 -> 6.1, EC0Y 4.8 ->
-7.5 urad, EYZ 1.0 -> 2.3 um; the rest within 10 %.
+VX with TX1, TX3 (250 mm arm, dJ_X 150 mm) and TXL (dJ_Z 100 mm for EAZ).
+What moved (seed 1, U95 max, plan before -> now): EA0Z 4.0 -> 11.9 urad,
+EC0Y 4.8 -> 7.4 urad, ECZ 8.4 -> 8.9, EBZ 3.1 -> 3.5, EYZ 1.0 -> 1.4 um,
+EXZ 1.5 -> 1.1 um, EAZ 4.7 -> 4.0 urad; the rest within 10 %. (With TX2's
+50 mm arm in place of TX3: ECZ 12.1, EBZ 6.1, EA0Z 14.8 urad, EYZ 2.3 um.)
 
 The bar's calibration: declared (its default deviations, u_cal_um) or the
 reversal on a simulated CMM (:func:`reversal_on_cmm`, eqs 5-7, written by
@@ -346,9 +348,13 @@ def _fixtures_3axis() -> dict:
 #: holes face -Y is presented by A = -90 deg (the A line 120 mm below the table face), so its
 #: hole line lies at R y = -(z_W + 120 mm) ~ -190 mm and the program's links, 10 mm beyond the
 #: bar's face, at -213 mm: the spindle (reading + J_Y) stays within Y's -275 mm only with an arm
-#: of at most 62 mm (TY1's 100 mm put it 38 mm beyond, TY2's 150 mm 88 mm; session 26). TYS:
-#: 30 mm arm; TYM: 60 mm; TYML: TYM on the 250 mm extension (J_Z 250 mm).
-STYLI_5AXIS = {"TYM": (0.0, -0.060, 0.150), "TXL": (-0.100, 0.0, 0.250)}
+#: of at most 62 mm (TY1's 100 mm put it 38 mm beyond, TY2's 150 mm 88 mm; session 26).
+#: TYM: a 60 mm arm (X3, DXZ, AXZ). The standing bar facing -Y (VY) is out: at 60 mm the
+#: spindle nose meets the bar's upper holes (0.4-0.5 mm deep; 40-50 mm arms 7-13 mm), so the Z
+#: axis is measured on VX (holes facing -X, X's stroke leaves room): TX1, TX3 (a 250 mm arm
+#: along +X, dJ_X 150 mm: ECZ U95 12.1 -> 8.9 urad, EBZ 6.1 -> 3.5 against TX2's 50 mm, seed 1)
+#: and TXL (TX1 on the 250 mm extension, J_Z 250 mm: dJ_Z for EAZ).
+STYLI_5AXIS = {"TYM": (0.0, -0.060, 0.150), "TX3": (-0.250, 0.0, 0.150), "TXL": (-0.100, 0.0, 0.250)}
 
 #: 5-axis nodes (R, m): the points of interest of the bars along each axis
 #: (X: holes 1-10 of a bar whose first hole is at x = -175 mm, 9 nodes as
@@ -450,8 +456,8 @@ def plan_5axis() -> MfbPlan:
                "with their ramps (a ramp is a bar's yaw or pitch to any bar set up alone)")
     add(P2, "Y2", {"A": 0, "C": 90}, h29, senses="with Y1 (dz 150 mm): EAY, EBY")
     add(P3, "Y3", {"A": 0, "C": 0}, h18, ("TX1",), senses="with Y1 (dJ_X 100 mm): ECY, EBY")
-    add(P3, "VX", {"A": -90, "C": 0}, h712, ("TX1", "TX2", "TXL"),
-        senses="EZZ, EXZ, EYZ; dJ_X (TX1 vs TX2): ECZ, EBZ; dJ_Z (TX1 vs TXL): EBZ, EAZ")
+    add(P3, "VX", {"A": -90, "C": 0}, h712, ("TX1", "TX3", "TXL"),
+        senses="EZZ, EXZ, EYZ; dJ_X (TX1 vs TX3, 150 mm): ECZ, EBZ; dJ_Z (TX1 vs TXL): EBZ, EAZ")
     add(P1, "DXY", {"A": 0, "C": -45}, _DIAG, senses="EC0Y, twist")
     add(P1, "AXY", {"A": 0, "C": 45}, _DIAG, senses="EC0Y, twist")
     add(P1, "DXZ", {"A": -90, "C": -45}, _DIAG, ("TYM",), senses="EB0Z, twist")
@@ -1449,8 +1455,8 @@ TWIST_SENSING = {
            "calibrated bow (u 0.35 um) and the probing noise",
     "EBY": "T0 vs TXF on Y1 in one pose (dJ_X 100 mm): differential vertical straightness; Y2 - Y1 (dz 150 mm) "
            "only its curvature (separate poses); limited by the probing noise over the 100 mm arm",
-    "ECZ": "TX1 vs TX2 on VX in one pose (dJ_X 50 mm): differential positioning; limited by the probing "
-           "noise over the 50 mm arm difference (the "
+    "ECZ": "TX1 vs TX3 on VX in one pose (dJ_X 150 mm): differential positioning; limited by the probing "
+           "noise over the 150 mm arm difference (the "
            "standing bar facing -Y is out of the plan: no star arm along Y keeps the spindle within the Y "
            "travel and clears the bar)",
 }

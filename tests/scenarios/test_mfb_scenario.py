@@ -168,7 +168,7 @@ def test_5axis_cli_noise_free(tmp_path):
     # strokes), every touch and move checked for collisions
     # in the MuJoCo work zone (issue 16 item 1); the rotary axes' errors
     # injected too. Noise-free on the realistic machine: measured 0.0203 um
-    # / 0.195 urad (EAX; session 26's plan; 0.0405 / 0.305 the session-25 plan,
+    # / 0.202 urad (EAX; session 26's plan; 0.0405 / 0.305 the session-25 plan,
     # 0.491 urad on EBY before); bounds the
     # issue 6 targets 0.1 um / 0.5 urad.
     from scenarios.cli import main
