@@ -261,8 +261,10 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         Write the plan: measured columns (X/Y/Z_mm, t_s) empty.
     stroke_check : bool
         Check every move against the machine's strokes (:func:`check_strokes`); False
-        when the caller checks its touches itself (a standing bar's links via the safe
-        height pass above the Z stroke where a real program retracts sideways).
+        when the caller checks its own program's moves (the MFB runs: ``scenarios.mfb.check_plan``
+        checks every touch, approach start, overshoot end and link of the program as axis
+        positions; this campaign's links pass over the bar's top in R z, a standing bar's above
+        the Z stroke, where the MFB program retracts along the holes' normal).
 
     Returns
     -------
