@@ -54,7 +54,7 @@ def _plan_items(plan, art, program):
 
 def plan_5axis_s25():
     """The 5-axis plan as shipped until session 26 (the references were made on it): today's
-    ``scenarios.mfb.plan_5axis`` with X3, DXZ, AXZ on TY1 (100 mm arm, not TYM's 60 mm), VY
+    ``scenarios.mfb.plan_5axis`` with X3, DXZ, AXZ on TY1 (100 mm arm, not TYM's 60 mm), VXb on TX2, VY
     (P1 at A -90, C -90 deg, holes 6-11, TY1, TY2, TYL) back, VXc (TXL) out, in the old order.
     (Session 26 refit the plan within the Y stroke as axis positions; the plan check's engine
     references stay those of this plan: they test the engine, not the plan.)"""
@@ -67,7 +67,11 @@ def plan_5axis_s25():
 
     def old(n):
         ms = new[n]
-        return dataclasses.replace(ms, J_m=ty["TY1"], stylus="TY1") if ms.stylus == "TYM" else ms
+        if ms.stylus == "TYM":
+            return dataclasses.replace(ms, J_m=ty["TY1"], stylus="TY1")
+        if ms.stylus == "TX3":  # (VXb: TX2 until session 26)
+            return dataclasses.replace(ms, J_m=S.STYLI["TX2"], stylus="TX2")
+        return ms
 
     x1 = new["X1"]
     rot = tuple(float(np.deg2rad(v)) for v in (-90.0, -90.0))
