@@ -24,9 +24,12 @@ stylus (J_X). Placements (14), measurements (17):
   40 mm finger): Y3-Y1 (dJ_X 100 mm) gives ECY by differential positioning
   and EBY by differential vertical straightness (with T0 it gave neither:
   the weakest combination was an ECY ramp, relative sv 1.3e-4 -> 6.5e-4);
-- VY: standing bar (along Z) at (-25, -40) mm, holes facing -Y, star
-  styli TY1, TY2 (arm 100, 150 mm along Y) and TYL (TY1 on J_Z 250 mm):
-  EZZ, EXZ, EYZ; dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ;
+- VY: standing bar (along Z) at (-25, -20) mm, holes facing -Y, star
+  styli TY1, TY2 (arm 100, 150 mm along Y) and TYL (TY1 on J_Z 250 mm,
+  holes 1-5): EZZ, EXZ, EYZ; dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ (session 26:
+  at y = -40 mm TY2's spindle went 13 mm past Y's -200 mm on its links,
+  and TYL over holes 6-7 put the spindle 93 mm past Z's 400 mm: a stroke
+  bounds the axis, reading + J - the machine's J, docs/formats.md);
 - VX: standing bar, holes facing -X, TX1 and TX2: ECZ, EBZ; EXZ, EYZ with
   the other Abbe arm;
 - DXY (flat, 45 deg in XY, T0), DXZ (tilted 45 deg in XZ, holes facing
@@ -57,15 +60,18 @@ supports, pointing +Y, bolted to an angle plate whose face is y = 30 mm,
 those facing -X (VX, DYZ, AYZ) to one at x = 45 mm (the tilt lies in the
 plate's face: no tilted block is needed); a test checks by hand geometry
 that every support's foot lies on the table or on a fixture's face. Every
-run is collision-checked (:func:`check_plan`: 3,944 touches, fixtures
-included; the probe never nears them: a fixture's face moved toward the bar
+run is collision-checked (:func:`check_plan`: 3,888 touches since session
+26, 3,944 before, fixtures included; the probe never nears them: a fixture's face moved toward the bar
 is first met 60.9 mm in, 0.9 mm inside the bar's body). Until session 11
 the plan had no fixtures, 11 of its measurements' bars floating with their
 supports' feet on nothing, and :func:`run` did not check it; the bar poses
 and every figure of its results are the same.
 
-Each bar is probed over the holes that fit the strokes (12 along X, 8
-along Y, 7 standing), with the rods and faces the planes PL_i need (rod k
+Every position the program commands (touches, approach starts, overshoot
+ends, links) lies within the strokes as an axis position (reading + J -
+the machine's J, :func:`check_program_strokes`), checked on every run by
+:func:`check_plan`. Each bar is probed over the holes that fit the strokes
+(12 along X, 8 along Y, 7 standing; VYc 5), with the rods and faces the planes PL_i need (rod k
 of a bar probed to hole k lies 25 mm beyond it). The error tables have
 their nodes at the points of interest, where a bar senses all three
 directions: 8 along Y and 7 along Z (one per hole), 9 along X over the
@@ -108,18 +114,29 @@ over +-5 mm, so no MFB plan can see a ripple shorter than twice its pitch
 
 5-axis (``mfb-5axis``, ``mikron-ucp710``): :func:`plan_5axis`, 4 bar
 placements on the table (flat; flat on a 150 mm riser; on edge on an angle
-plate; flat for the XZ anti-diagonal), presented by A and C in 13 set-ups,
-17 measurements; every touch, approach and link move checked for
+plate; flat for the XZ anti-diagonal), presented by A and C in 12 set-ups,
+15 measurements; every touch, approach and link move checked for
 collisions and reach in the MuJoCo work zone (:func:`check_plan`,
-:mod:`sim.mfb_scene`); the rotary axes' errors are absorbed by each
-set-up's pose. Noise-free on the realistic machine (rotary axes' errors
-included): 0.041 um / 0.31 urad (EAX; session 25). At 0.125 um probing noise (seed 1):
-U95 max 0.73 um positioning, 1.6 um straightness; the twists: EAX U95 28.9
-urad on a 4.8 urad peak-to-peak signal (not resolved: on this tool-side
-chain a ramp of an angular error of X moves every bar along X rigidly, and
-only the diagonals' bend, ~0.1 um, sees it), EBY 7.7 urad on 5.95 (seen by
-T0 vs TXF in one pose, dJ_X 100 mm), ECZ 8.5 urad on 3.6 (dJ 50 mm star
-arms; not resolved at this noise).
+:mod:`sim.mfb_scene`) and within the strokes as axis positions; the rotary
+axes' errors are absorbed by each set-up's pose. Noise-free on the
+realistic machine (rotary axes' errors included): 0.020 um / 0.20 urad
+(EAX; session 26; 0.041 / 0.31 with the plan before). At 0.125 um probing
+noise (seed 1): U95 max 0.66 um positioning, 1.4 um straightness (EYZ);
+the twists: EAX U95 28.9 urad on a 4.8 urad peak-to-peak signal (not
+resolved: on this tool-side chain a ramp of an angular error of X moves
+every bar along X rigidly, and only the diagonals' bend, ~0.1 um, sees
+it), EBY 7.2 urad on 5.95 (seen by T0 vs TXF in one pose, dJ_X 100 mm),
+ECZ 8.9 urad on 3.6 (TX1 vs TX3 on VX, dJ_X 150 mm; not resolved at this
+noise). Session 26 took the standing bar VY (holes facing -Y) out: A = -90
+deg puts its holes at R y ~ -190 mm and the program's links at -213 mm, so
+a star arm along +Y keeps the spindle within Y's -275 mm only up to 62 mm,
+and at 60 mm the spindle nose already meets the bar's upper holes (MuJoCo,
+0.4-0.5 mm deep; 40-50 mm arms 7-13 mm): the Z axis's errors now come from
+VX with TX1, TX3 (250 mm arm, dJ_X 150 mm) and TXL (dJ_Z 100 mm for EAZ).
+What moved (seed 1, U95 max, plan before -> now): EA0Z 4.0 -> 11.9 urad,
+EC0Y 4.8 -> 7.4 urad, ECZ 8.4 -> 8.9, EBZ 3.1 -> 3.5, EYZ 1.0 -> 1.4 um,
+EXZ 1.5 -> 1.1 um, EAZ 4.7 -> 4.0 urad; the rest within 10 %. (With TX2's
+50 mm arm in place of TX3: ECZ 12.1, EBZ 6.1, EA0Z 14.8 urad, EYZ 2.3 um.)
 
 The bar's calibration: declared (its default deviations, u_cal_um) or the
 reversal on a simulated CMM (:func:`reversal_on_cmm`, eqs 5-7, written by
@@ -234,12 +251,12 @@ def plan_3axis() -> MfbPlan:
     """The 3-axis plan for ``vmc-3axis``: 14 placements, 17 measurements (module doc)."""
     ms = []
 
-    def add(name, x_A, z_A, p, holes, styli=("T0",), senses=""):
+    def add(name, x_A, z_A, p, holes, styli=("T0",), senses="", stylus_holes=None):
         x_A, z_A = np.asarray(x_A, float), np.asarray(z_A, float)
         T = _T((x_A, np.cross(z_A, x_A), z_A), p)
         for k, st in enumerate(styli):
             ms.append(MeasurementSpec(name if len(styli) == 1 else f"{name}{'abc'[k]}", name, T, (),
-                                      STYLI[st], tuple(holes), senses, st))
+                                      STYLI[st], tuple((stylus_holes or {}).get(st, holes)), senses, st))
 
     h12, h8, h7 = tuple(range(1, 13)), tuple(range(1, 9)), tuple(range(1, 8))
     add("X1", _X, _Z, (-0.275, -0.040, 0.070), h12, senses="EXX, EYX, EZX (tables along X at y=-40, z=70 mm)")
@@ -254,9 +271,13 @@ def plan_3axis() -> MfbPlan:
         senses="with Y1, Abbe arm dJ_X = 100 mm: ECY by differential positioning, EBY by differential "
                "vertical straightness (the table does not move in X under the tool when Y moves, so a bar "
                "shifted in x gives no arm: the arm must come from the stylus)")
-    add("VY", _Z, -_Y, (-0.025, -0.040, 0.060), h7, ("TY1", "TY2", "TYL"),
+    # VY at y = -20 mm (was -40: TY2's spindle went 13 mm past Y's -200 mm on its links) and
+    # TYL over holes 1-5 (its spindle is 100 mm above the reference tool's: holes 6-7 put it
+    # 93 mm past Z's 400 mm): every position within the strokes as axis positions (check_plan)
+    add("VY", _Z, -_Y, (-0.025, -0.020, 0.060), h7, ("TY1", "TY2", "TYL"),
         senses="standing bar, holes facing -Y, probed with a star stylus arm along +Y: EZZ, EXZ, EYZ; "
-               "arm 100 vs 150 mm (dJ_Y = 50 mm): ECZ (x) and EAZ (z); stylus 150 vs 250 mm (dJ_Z): EBZ (x), EAZ (y)")
+               "arm 100 vs 150 mm (dJ_Y = 50 mm): ECZ (x) and EAZ (z); stylus 150 vs 250 mm (dJ_Z, holes "
+               "1-5): EBZ (x), EAZ (y)", stylus_holes={"TYL": tuple(range(1, 6))})
     add("VX", _Z, -_X, (-0.025, -0.040, 0.060), h7, ("TX1", "TX2"),
         senses="standing bar, holes facing -X, star stylus arm along +X: arm 100 vs 150 mm: ECZ (y), EBZ (z); "
                "EXZ / EYZ again with the other Abbe arm")
@@ -315,7 +336,7 @@ def _fixtures_3axis() -> dict:
 
     return {"X2": b("riser", (-200, -85, 0), (200, 5, 200)),
             "Y2": b("riser", (-70, -115, 0), (20, 285, 200)),
-            "VY": b("angle_plate", (-70, 30, 0), (20, 60, 535)),
+            "VY": b("angle_plate", (-70, 50, 0), (20, 80, 535)),
             "VX": b("angle_plate", (45, -85, 0), (75, 5, 535)),
             "DXZ": b("angle_plate", (-85, 30, 0), (225, 60, 410)),
             "AXZ": b("angle_plate", (-225, 30, 0), (85, 60, 445)),
@@ -323,8 +344,17 @@ def _fixtures_3axis() -> dict:
             "AYZ": b("angle_plate", (45, -240, 0), (75, 70, 445))}
 
 
-#: Star styli of the 5-axis plan besides :data:`STYLI` (none needed: the bar's
-#: holes face +Z, -Y or -X in every measurement, probed with T0, TY*, TX*).
+#: Star styli of the 5-axis plan besides :data:`STYLI`: short arms along +Y. A bar whose
+#: holes face -Y is presented by A = -90 deg (the A line 120 mm below the table face), so its
+#: hole line lies at R y = -(z_W + 120 mm) ~ -190 mm and the program's links, 10 mm beyond the
+#: bar's face, at -213 mm: the spindle (reading + J_Y) stays within Y's -275 mm only with an arm
+#: of at most 62 mm (TY1's 100 mm put it 38 mm beyond, TY2's 150 mm 88 mm; session 26).
+#: TYM: a 60 mm arm (X3, DXZ, AXZ). The standing bar facing -Y (VY) is out: at 60 mm the
+#: spindle nose meets the bar's upper holes (0.4-0.5 mm deep; 40-50 mm arms 7-13 mm), so the Z
+#: axis is measured on VX (holes facing -X, X's stroke leaves room): TX1, TX3 (a 250 mm arm
+#: along +X, dJ_X 150 mm: ECZ U95 12.1 -> 8.9 urad, EBZ 6.1 -> 3.5 against TX2's 50 mm, seed 1)
+#: and TXL (TX1 on the 250 mm extension, J_Z 250 mm: dJ_Z for EAZ).
+STYLI_5AXIS = {"TYM": (0.0, -0.060, 0.150), "TX3": (-0.250, 0.0, 0.150), "TXL": (-0.100, 0.0, 0.250)}
 
 #: 5-axis nodes (R, m): the points of interest of the bars along each axis
 #: (X: holes 1-10 of a bar whose first hole is at x = -175 mm, 9 nodes as
@@ -354,16 +384,19 @@ def plan_5axis() -> MfbPlan:
       first hole at (x, y) = (-175, 80) mm. X1 (A = C = 0, T0): along X at
       (y, z) = (80, 70) mm; X3 (A = -90, C = 0, TY1): along X at (-190, -40)
       mm, holes facing -Y; Y1 (C = 90; T0 and TXF in one pose): along -Y at
-      (x, z) = (80, 70) mm; VY (A = -90, C = -90; TY1, TY2, TYL): standing,
-      holes facing -Y; DXY / AXY (C = -45 / +45, T0) and DXZ (A = -90,
-      C = -45, TY1): diagonals.
+      (x, z) = (80, 70) mm; DXY / AXY (C = -45 / +45, T0) and DXZ (A = -90,
+      C = -45, TYM): diagonals. (X3, DXZ, AXZ on TYM, a 60 mm arm: at A =
+      -90 their links lie at R y -213 mm, and TY1's 100 mm arm put the
+      spindle 38 mm past Y's -275 mm; the standing VY, holes facing -Y, is
+      out: no arm both keeps its spindle within Y and clears the bar.)
     - **P2**: the bar flat on a 150 mm riser block: X2 (A = C = 0, T0) at
       (y, z) = (0, 220) mm, Y2 (C = 90, T0) at (x, z) = (0, 220) mm.
     - **P3**: the bar on its edge along W y, holes facing -W x, its
       supports bolted to an angle plate, 105 mm above the table: Y3 (A = C =
-      0, TX1), VX (A = -90; TX1, TX2), DYZ (A = -45, TX1).
+      0, TX1), VX (A = -90; TX1, TX2, TXL: the standing bar for the Z axis,
+      dJ_X 50 mm, dJ_Z 100 mm), DYZ (A = -45, TX1).
     - **P4**: flat along W x, first hole at (-300, 160) mm: AXZ (A = -90,
-      C = 45, TY1), the XZ anti-diagonal (from P1 it falls below the Z
+      C = 45, TYM), the XZ anti-diagonal (from P1 it falls below the Z
       stroke after 4 holes).
 
     The YZ anti-diagonal is not in the plan: A turns about X, so a line
@@ -376,8 +409,8 @@ def plan_5axis() -> MfbPlan:
     and positioning, the *curvature* of EAX and EBX, ECX (a ramp of an
     angular error of X moves a bar along X rigidly); Y1 a / b (dJ_X 100 mm in
     one pose): ECY, EBY with their ramps; Y2 - Y1 (dz 150 mm): EAY, EBY; Y3;
-    VY (dJ_Y 50 mm, dJ_Z 100 mm) and VX (dJ_X 50 mm), one pose each: ECZ,
-    EAZ, EBZ with their ramps; the diagonals: EC0Y, EB0Z, EA0Z and the
+    VX (dJ_X 50 mm, dJ_Z 100 mm), one pose: ECZ, EAZ, EBZ with their
+    ramps; the diagonals: EC0Y, EB0Z, EA0Z and the
     twist ramps. The paper's 6 placements: this chain needs 4 (run with
     ``drop=`` to see what is lost without each).
     """
@@ -387,6 +420,7 @@ def plan_5axis() -> MfbPlan:
 
     m = Machine(MACHINES["mikron-ucp710"]())
     axes = m.rotary_axes
+    styli_5 = {**STYLI, **STYLI_5AXIS}
     ms = []
     fixtures = {}
 
@@ -400,11 +434,11 @@ def plan_5axis() -> MfbPlan:
         r = tuple(float(np.deg2rad(rot_deg[a])) for a in axes)
         if holes == _DIAG:
             T_R_W = np.asarray(m.T_R_W_nominal(np.asarray(r)[None, :]), float).reshape(4, 4)
-            holes = _fit_holes(T_R_W @ T, _reach(m.config.strokes), STYLI[styli[0]])
+            holes = _fit_holes(T_R_W @ T, _reach(m.config.strokes), styli_5[styli[0]], m.config.strokes, m.config.J_m)
         key = f"{p}@" + ",".join(f"{a}{rot_deg[a]:g}" for a in axes)
         for k, st in enumerate(styli):
             ms.append(MeasurementSpec(name if len(styli) == 1 else f"{name}{'abc'[k]}", p, T, r,
-                                      STYLI[st], tuple(holes), senses, st, setup=key))
+                                      styli_5[st], tuple(holes), senses, st, setup=key))
 
     h10, h29, h611, h18, h712 = (tuple(range(1, 11)), tuple(range(2, 10)), tuple(range(6, 12)),
                                  tuple(range(1, 9)), tuple(range(7, 13)))
@@ -416,19 +450,18 @@ def plan_5axis() -> MfbPlan:
     P4 = place("P4", _X, _Z, (-0.300, 0.160, 0.070))
     add(P1, "X1", {"A": 0, "C": 0}, h10, senses="EXX, EYX, EZX at (y, z) = (80, 70) mm")
     add(P2, "X2", {"A": 0, "C": 0}, h10, senses="with X1 (dy -80, dz 150 mm): EAX, EBX, ECX")
-    add(P1, "X3", {"A": -90, "C": 0}, h10, ("TY1",), senses="with X1, X2 (y, z) = (-190, -40) mm: EAX, EBX, ECX")
+    add(P1, "X3", {"A": -90, "C": 0}, h10, ("TYM",), senses="with X1, X2 (y, z) = (-190, -40) mm: EAX, EBX, ECX")
     add(P1, "Y1", {"A": 0, "C": 90}, h29, ("T0", "TXF"),
         senses="EYY, EXY, EZY at (x, z) = (80, 70) mm; T0 vs TXF in one pose (dJ_X 100 mm): ECY, EBY "
                "with their ramps (a ramp is a bar's yaw or pitch to any bar set up alone)")
     add(P2, "Y2", {"A": 0, "C": 90}, h29, senses="with Y1 (dz 150 mm): EAY, EBY")
     add(P3, "Y3", {"A": 0, "C": 0}, h18, ("TX1",), senses="with Y1 (dJ_X 100 mm): ECY, EBY")
-    add(P1, "VY", {"A": -90, "C": -90}, h611, ("TY1", "TY2", "TYL"),
-        senses="EZZ, EXZ, EYZ; dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ")
-    add(P3, "VX", {"A": -90, "C": 0}, h712, ("TX1", "TX2"), senses="dJ_X: ECZ, EBZ")
+    add(P3, "VX", {"A": -90, "C": 0}, h712, ("TX1", "TX3", "TXL"),
+        senses="EZZ, EXZ, EYZ; dJ_X (TX1 vs TX3, 150 mm): ECZ, EBZ; dJ_Z (TX1 vs TXL): EBZ, EAZ")
     add(P1, "DXY", {"A": 0, "C": -45}, _DIAG, senses="EC0Y, twist")
     add(P1, "AXY", {"A": 0, "C": 45}, _DIAG, senses="EC0Y, twist")
-    add(P1, "DXZ", {"A": -90, "C": -45}, _DIAG, ("TY1",), senses="EB0Z, twist")
-    add(P4, "AXZ", {"A": -90, "C": 45}, _DIAG, ("TY1",), senses="EB0Z, twist (the XZ anti-diagonal: out of "
+    add(P1, "DXZ", {"A": -90, "C": -45}, _DIAG, ("TYM",), senses="EB0Z, twist")
+    add(P4, "AXZ", {"A": -90, "C": 45}, _DIAG, ("TYM",), senses="EB0Z, twist (the XZ anti-diagonal: out of "
         "reach from P1, whose bar falls below the Z stroke)")
     add(P3, "DYZ", {"A": -45, "C": 0}, _DIAG, ("TX1",), senses="EA0Z, twist")
     return MfbPlan("mikron-ucp710", tuple(ms), dict(NODES_5AXIS), fixtures)
@@ -461,23 +494,36 @@ def _nominal_bar():
     return art
 
 
-def _fit_holes(T_R_A, reach, J_m, prefer=((1, 8), (2, 9), (6, 11), (7, 12), (1, 10)),
-               margin_m: float = 5.0e-3) -> tuple:
+def _fit_holes(T_R_A, reach, J_m, strokes=None, J_ref_m=None,
+               prefer=((1, 8), (2, 9), (6, 11), (7, 12), (1, 10)), margin_m: float = 5.0e-3,
+               stroke_margin_m: float = 1.0e-3) -> tuple:
     """Holes of a diagonal measurement: the longest of the plan's other hole
     runs (``prefer``, first, last; their extraction gains are computed once)
-    whose touches and approach starts lie ``margin_m`` inside ``reach``; else
-    the longest run of consecutive reachable holes (at least 4)."""
+    whose touches and approach starts lie ``margin_m`` inside ``reach`` (readings)
+    and, given ``strokes``, whose whole program at the default placement
+    tolerance (touches, approach starts, overshoot ends, links:
+    :func:`program_positions`) lies ``stroke_margin_m`` inside the strokes as
+    axis positions (reading + ``J_m`` - ``J_ref_m``, the machine's reference tool;
+    :func:`check_program_strokes`, session 26); else the longest run of
+    consecutive reachable holes (at least 4)."""
     from sim import artefacts as A
     from core.exceptions import PlanError
 
     art = _nominal_bar()
+    dJ = np.asarray(J_m, float) - np.asarray(J_m if J_ref_m is None else J_ref_m, float)
     ok = []
     for h in range(1, 13):
         pl = _plan_for(art, (h,))
         c = A.apply_T(T_R_A, pl.w_A + 3.0e-3 * pl.wn_A)
         c = np.vstack([c, c + pl.clearance_m * A.apply_R(T_R_A, pl.wn_A)])
-        ok.append(all(np.all((c[:, j] >= reach[a][0] + margin_m) & (c[:, j] <= reach[a][1] - margin_m))
-                      for j, a in enumerate("XYZ")))
+        fit = all(np.all((c[:, j] >= reach[a][0] + margin_m) & (c[:, j] <= reach[a][1] - margin_m))
+                  for j, a in enumerate("XYZ"))
+        if fit and strokes is not None:
+            q = np.concatenate(list(program_positions(T_R_A, _plan_for(art, (h,), **_program(U_PLACE)), 3.0e-3,
+                                                      art).values())) + dJ
+            fit = all(np.all((q[:, j] >= strokes[a][0] + stroke_margin_m) & (q[:, j] <= strokes[a][1] - stroke_margin_m))
+                      for j, a in enumerate("XYZ"))
+        ok.append(fit)
     fits = [(hi - lo, lo, hi) for lo, hi in prefer if all(ok[lo - 1:hi])]
     if fits:
         _, lo, hi = max(fits)
@@ -691,24 +737,25 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
         if c is None:
             c = A.apply_T(T_R_W @ ms.T_W_A, pl.w_A + stylus_r_m * pl.wn_A)
         c_lo, c_hi = _column_range(c)  # (the touches' range per axis)
-        for j, ax in enumerate("XYZ"):
-            lo, hi = cfg.strokes[ax]
-            if c_lo[j] < lo - 1e-9 or c_hi[j] > hi + 1e-9:
-                raise PlanError(f"measurement {ms.name!r}: a touch at {ax} outside the stroke [{lo / MM:g}, "
-                                f"{hi / MM:g}] mm")
+        q_lo, q_hi = check_program_strokes(ms.name, program_positions(T_R_W @ ms.T_W_A, pl, stylus_r_m, art),
+                                           ms.J_m, cfg.J_m, cfg.strokes)
         per[ms.name] = {"placement": ms.placement, "setup": ms.setup_key, "stylus": ms.stylus,
                         "J_mm": [round(v / MM, 3) for v in ms.J_m], "holes": list(ms.holes),
                         "touches": r.touches, "path_points": r.samples, "collisions": len(r.collisions),
                         "min_clearance_at_approach_starts_mm": round(r.min_table_clearance_mm, 2),
                         "touch_range_mm": {ax: [round(c_lo[j] / MM, 1), round(c_hi[j] / MM, 1)]
-                                           for j, ax in enumerate("XYZ")}}
+                                           for j, ax in enumerate("XYZ")},
+                        "axis_range_mm": {ax: [round(q_lo[j] / MM, 1), round(q_hi[j] / MM, 1)]
+                                          for j, ax in enumerate("XYZ")}}
         n_t += r.touches
         n_s += r.samples
     out = {"passed": True, "engine": "MuJoCo (sim.mfb_scene.WorkZone)",
            "checked": "table disc (R %g mm, %g mm thick), workholder blocks, bar and its supports vs stylus ball, "
                       "star arm, extension, probe body, spindle nose; approach/retract and link moves; the bar "
                       "above the table face; the workholder blocks clear of the bar and its supports "
-                      "(separating axes, a support or rod as its square prism); touches within the strokes" % (TABLE_R_M / MM, TABLE_T_M / MM),
+                      "(separating axes, a support or rod as its square prism); every touch, approach start, overshoot end and "
+                      "link point within the strokes as axis positions (reading + J - the machine's J: "
+                      "check_program_strokes)" % (TABLE_R_M / MM, TABLE_T_M / MM),
            "touches": n_t, "path_points": n_s, "seconds": round(time.time() - t0, 1), "measurements": per,
            "program_mm": {"clearance": round(program["clearance_m"] / MM, 3),
                           "overshoot": round(program["overshoot_m"] / MM, 3)},
@@ -816,15 +863,74 @@ def _part_of(full, pl) -> tuple | None:
     return np.concatenate([np.arange(3 * row[h], 3 * row[h] + 3) for h in h_pl]), cols
 
 
-def _check_touch_strokes(log, machine, name):
+def program_positions(T_R_A, pl, stylus_r_m: float, art=None) -> dict:
+    """Every position a measurement's program commands, in readings (R, m): kind -> (k, 3).
+
+    ``touches`` (the nominal stylus-centre contacts), ``approach starts`` (``clearance_m`` out
+    along the normal), ``overshoot ends`` (``overshoot_m`` past the contact: where a touch that
+    never triggers stops) and ``links`` (the moves between consecutive starts that
+    :func:`check_plan` checks for collisions, :func:`sim.mfb_scene.link_points`: along the
+    feature's level, else out to 10 mm beyond the bar's top along z_A, across and back)."""
+    from sim import artefacts as A
+    from sim.mfb_scene import link_points
+    from sim.scene import artefact_points
+
+    art = _nominal_bar() if art is None else art
+    r = float(stylus_r_m)
+    Xn = A.apply_T(T_R_A, pl.w_A + r * pl.wn_A)
+    n_R = A.apply_R(T_R_A, pl.wn_A)
+    start = Xn + pl.clearance_m * n_R
+    out = {"touches": Xn, "approach starts": start, "overshoot ends": Xn - pl.overshoot_m * n_R}
+    if pl.n > 1:
+        top = float(artefact_points(art)[:, 2].max()) + r
+        out["links"] = link_points(T_R_A, start, pl.feature, pl.level, top)[0]
+    return out
+
+
+def check_plan_strokes(plan: MfbPlan, cfg, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> None:
+    """:func:`check_program_strokes` of every measurement of ``plan`` on the machine ``cfg`` (a
+    :class:`sim.machine.MachineConfig`: its strokes, its tool's offsets ``J_m`` the reference),
+    the program at ``u_place``'s margins: what :func:`check_plan` checks on the plan's built-in
+    machine, for another machine file of the same chain (``run(machine=...)``)."""
+    from sim.machine import nominal_T_R_W
+
+    art, program = _nominal_bar(), _program(u_place)
+    for ms in plan.measurements:
+        rot = np.asarray([ms.rot_rad], float) if len(ms.rot_rad) else None
+        T_R_W = np.asarray(nominal_T_R_W(cfg, rot), float).reshape(-1, 4, 4)[0]
+        pl = _plan_for(art, ms.holes, **program)
+        check_program_strokes(ms.name, program_positions(T_R_W @ ms.T_W_A, pl, stylus_r_m, art), ms.J_m,
+                              cfg.J_m, cfg.strokes)
+
+
+def check_program_strokes(name: str, positions: dict, J_m, J_ref_m, strokes) -> tuple:
+    """PlanError unless every commanded position lies within the machine's linear strokes as an
+    axis position: the stroke limits the axis (the carriage and spindle gauge point), as a
+    controller's soft limits do, stated for the machine's reference tool (its file's
+    ``[tool] offset_mm``, ``J_ref_m``); a reading with the offsets ``J_m`` puts the axis at
+    ``q = reading + J_m - J_ref_m`` in those terms (docs/formats.md, "Strokes").
+
+    ``positions``: kind -> (k, 3) readings (:func:`program_positions`). Returns the axis
+    positions' (least, largest) per axis (lists, m). The error names the measurement, the axis,
+    the kind of position, the axis position and the excess."""
     from core.exceptions import PlanError
 
-    p = np.column_stack([log.col("Xn_mm"), log.col("Yn_mm"), log.col("Zn_mm")]) * MM
-    for j, ax in enumerate("XYZ"):
-        lo, hi = machine.config.strokes[ax]
-        bad = (p[:, j] < lo - 1e-9) | (p[:, j] > hi + 1e-9)
-        if bad.any():
-            raise PlanError(f"measurement {name!r}: a touch at {ax} = {p[bad][0, j] / MM:.1f} mm is outside the stroke")
+    dJ = np.asarray(J_m, float) - np.asarray(J_ref_m, float)
+    lo_all, hi_all = [np.inf] * 3, [-np.inf] * 3
+    for kind, P in positions.items():
+        if not len(P):
+            continue
+        q = np.asarray(P, float) + dJ
+        for j, ax in enumerate("XYZ"):
+            lo, hi = strokes[ax]
+            qmin, qmax = float(q[:, j].min()), float(q[:, j].max())
+            lo_all[j], hi_all[j] = min(lo_all[j], qmin), max(hi_all[j], qmax)
+            for v, lim, over in ((qmax, hi, qmax - hi), (qmin, lo, lo - qmin)):
+                if over > 1e-9:
+                    raise PlanError(f"measurement {name!r}: axis {ax} at {v / MM:.1f} mm at its {kind} "
+                                    f"(reading + J - the machine's J), {over / MM:.1f} mm beyond its stroke's "
+                                    f"{lim / MM:g} mm")
+    return lo_all, hi_all
 
 
 #: _declared_poi_deviations's answers by the declared deviations' bytes (a pure function of them:
@@ -1307,6 +1413,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     # the program's approach margins cover the declared placement tolerance (not the draw)
     program = _program(u_place)
     collision = check_plan(plan, u_place=u_place)  # after the inputs are checked
+    if machine is not None:  # another machine file: the program within its strokes too
+        check_plan_strokes(plan, machine.config, probe.stylus_r_m, u_place)
     machines = {}
     meas, G_cache, n_touch = [], {}, 0
     gain_fits: dict = {}  # the gains' light fits, shared by the hole sets of this run (same touches, same fits)
@@ -1324,12 +1432,14 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     steps = len(plan.measurements) + 2
     items = simulation_items(plan, art, probe, cfg_true, program, machines, T_true, compensate=compensate,
                              hook=hook, progress=None if progress is None else (lambda k: progress(k, steps)))
-    # every measurement's touches in one simulation (its styli on one machine, sim.campaign);
-    # the links' safe height lies above a standing bar's Z stroke: the touches are checked instead
+    # every measurement's touches in one simulation (its styli on one machine, sim.campaign).
+    # The strokes: check_plan (above, always) has checked every position the program commands
+    # (touches, approach starts, overshoot ends, links) as axis positions; sim.campaign's own
+    # check is not the program's: its links pass over the bar's top in R z (a standing bar's
+    # top is above the Z stroke), where the program's retract out along the holes' normal
     logs = simulate_measurements(items, rng if noisy else None, stroke_check=False)
     done = []  # (spec, J, touches, readings, plan of the valid touches) of each measurement simulated
     for ms, (_, m, _, _, pl), log in zip(plan.measurements, items, logs):
-        _check_touch_strokes(log, m, ms.name)
         _check_touches_ok(log, ms.name, program)
         t = from_log(log)
         n_touch += t.n
@@ -1426,9 +1536,10 @@ TWIST_SENSING = {
            "calibrated bow (u 0.35 um) and the probing noise",
     "EBY": "T0 vs TXF on Y1 in one pose (dJ_X 100 mm): differential vertical straightness; Y2 - Y1 (dz 150 mm) "
            "only its curvature (separate poses); limited by the probing noise over the 100 mm arm",
-    "ECZ": "TY1 vs TY2 on VY and TX1 vs TX2 on VX, one pose each (dJ 50 mm): differential positioning; "
-           "limited by the probing noise over the 50 mm arm difference (a longer star arm puts the spindle "
-           "beyond the Y travel)",
+    "ECZ": "TX1 vs TX3 on VX in one pose (dJ_X 150 mm): differential positioning; limited by the probing "
+           "noise over the 150 mm arm difference (the "
+           "standing bar facing -Y is out of the plan: no star arm along Y keeps the spindle within the Y "
+           "travel and clears the bar)",
 }
 
 

@@ -45,11 +45,21 @@ SAFE_MARGIN_M = 5.0 * MM
 DEFAULT_SETUP_CHANGE_S = 10.0
 
 
-def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves") -> None:
-    """PlanError when a move leaves the machine's strokes (``machine.config.strokes``)."""
+def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves", J_ref_m=None) -> None:
+    """PlanError when a move leaves the machine's strokes (``machine.config.strokes``).
+
+    A stroke limits the axis (the carriage, the spindle's gauge point), as a controller's soft
+    limits do, stated for the machine's reference tool (offsets ``J_ref_m``; default the
+    machine's own ``config.J_m``, whose readings are then the axis positions); a reading taken
+    with the machine's offsets J puts the axis at ``reading + J - J_ref`` in those terms
+    (docs/formats.md, "Strokes"). Checked: every link point (they end at the approach starts)
+    and every overshoot end (a touch lies between its start and its overshoot end). The error
+    names the set-up, the target, the axis, its position and the excess."""
     strokes = getattr(getattr(machine, "config", None), "strokes", None)
     if not strokes:
         return
+    J = np.asarray(getattr(machine.config, "J_m", (0.0, 0.0, 0.0)), float)
+    dJ = np.zeros(3) if J_ref_m is None else J - np.asarray(J_ref_m, float)
     # every link point and overshoot end, touch by touch (vectorised; the first offender is
     # the first touch, then axis X Y Z, then point in order, as a loop over them would find)
     n_pt = np.array([len(ln) + 1 for ln in mv.links], int)
@@ -60,6 +70,8 @@ def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves") -> None:
         on_link = np.ones(len(pts), bool)
         on_link[end] = False
         pts[on_link] = np.concatenate(mv.links)
+    if dJ.any():
+        pts = pts + dJ
     touch = np.repeat(np.arange(plan.n), n_pt)
     bad = np.zeros((len(pts), 3), bool)
     for j, ax in enumerate("XYZ"):
@@ -73,7 +85,9 @@ def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves") -> None:
         lo, hi = strokes["XYZ"[j]]
         v = pts[rows[np.argmax(bad[rows, j])], j]
         raise PlanError(f"set-up {setup.name!r} target {plan.target[i]!r}: {'XYZ'[j]} = {v * 1e3:.3f} mm "
-                        f"is outside the stroke {lo * 1e3:.0f}..{hi * 1e3:.0f} mm")
+                        f"is outside the stroke {lo * 1e3:.0f}..{hi * 1e3:.0f} mm by "
+                        f"{max(lo - v, v - hi) * 1e3:.3f} mm" + (" (axis position: reading + J - the reference "
+                                                                  "tool's J)" if dJ.any() else ""))
     for ax, v in zip(getattr(machine, "rotary_axes", ()), setup.rot_rad):
         if ax in strokes and not (strokes[ax][0] - 1e-12 <= v <= strokes[ax][1] + 1e-12):
             raise PlanError(f"set-up {setup.name!r}: {ax} = {np.rad2deg(v):g} deg is outside its stroke")
@@ -247,8 +261,10 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         Write the plan: measured columns (X/Y/Z_mm, t_s) empty.
     stroke_check : bool
         Check every move against the machine's strokes (:func:`check_strokes`); False
-        when the caller checks its touches itself (a standing bar's links via the safe
-        height pass above the Z stroke where a real program retracts sideways).
+        when the caller checks its own program's moves (the MFB runs: ``scenarios.mfb.check_plan``
+        checks every touch, approach start, overshoot end and link of the program as axis
+        positions; this campaign's links pass over the bar's top in R z, a standing bar's above
+        the Z stroke, where the MFB program retracts along the holes' normal).
 
     Returns
     -------

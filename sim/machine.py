@@ -76,8 +76,11 @@ class MachineConfig:
     chain : str
         ISO 10791 chain, e.g. ``"V[w-C-A-b-Y-X-Z-(C)-t]"`` (``core.chain``).
     strokes : mapping axis -> (min, max)
-        Travel of every axis of the chain, in readings: m (linear), rad
-        (rotary).
+        Travel of every axis of the chain: m (linear), rad (rotary). A linear
+        stroke bounds the axis position stated for this configuration's own
+        offsets ``J_m`` (the reference tool), i.e. its readings; with a stylus
+        of offsets J the axis lies at ``reading + J - J_m`` (docs/formats.md,
+        "Strokes").
     rotary_points_R_m : mapping axis -> (3,) float
         A point on each rotary axis's nominal line, in R with all axes at
         zero, m (the C entry is the rotary table centre). Default origin.

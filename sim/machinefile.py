@@ -36,7 +36,10 @@ Top-level keys
 pitch ripple, default true), and the tables:
 
 - ``[strokes]``: ``X_mm = [min, max]`` per linear axis, ``C_deg = [min,
-  max]`` per rotary axis, in axis readings (stylus-tip positions);
+  max]`` per rotary axis: the axis positions the controller's soft limits
+  bound, stated for the file's own tool (``[tool] offset_mm``): a reading
+  taken with a stylus of offsets J lies at ``reading + J - offset`` in those
+  terms (docs/formats.md, "Strokes"); with that tool, its readings;
 - ``[rotary_points]``: ``C_mm = [x, y, z]``, a point on each rotary axis's
   nominal line in R with all axes at zero (default the origin);
 - ``[tool]``: ``offset_mm = [J_X, J_Y, J_Z]``, spindle gauge point minus

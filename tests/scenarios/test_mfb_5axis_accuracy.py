@@ -22,7 +22,8 @@ def test_5axis_noise_free_recovery_and_the_bar_calibration_response():
     calibration share (core.volumetric._input_maps, the same one), to the bound the noise-free scenario
     test allows (0.1 um / 0.5 urad, issue 6; without the draw 0.022 um / 0.149 urad): the model has nothing
     the simulator's truth lacks at that level, and the calibration share moves the identification as the
-    simulator does. Without the response EYY is 0.73 um and EBZ 2.98 urad off (the fails of seed 1)."""
+    simulator does. Without the response EYY is 0.75 um and EBZ 1.62 urad off (0.73 / 2.98 with the plan before
+    session 26: the fails of seed 1)."""
     from core import iso, volumetric as vol
     from scenarios import mfb
     from scenarios.regress import load_study
@@ -47,7 +48,9 @@ def test_5axis_noise_free_recovery_and_the_bar_calibration_response():
         assert left <= lim, (s, left * 1e6, lim * 1e6)
         worst[s] = np.abs(dev[sl]).max() * 1e6
     # the response is what the noise-free bound alone cannot explain: the draw moves the errors
-    assert worst["EYY"] > 0.6 and worst["EBZ"] > 2.5 and worst["EXX"] > 0.4, worst
+    # (session 26's plan: EYY 0.75 um, EBZ 1.62 urad, EXX 0.52 um; 0.73 / 2.98 / > 0.4 before, EBZ > 2.5
+    # asserted: VY's dJ_Y went with the refit within the strokes; each still 3x the noise-free bound)
+    assert worst["EYY"] > 0.6 and worst["EBZ"] > 1.5 and worst["EXX"] > 0.4, worst
 
 
 def test_coverage_summary_known_answer():

@@ -226,14 +226,14 @@ def test_measurements_of_several_styli_at_once_are_each_campaign(drifting_mikron
     for ms in plan.measurements:
         m = machines.setdefault(ms.stylus, Machine(replace(drifting_mikron.config, J_m=tuple(ms.J_m))))
         items.append((art, m, probe, Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad)), _plan_for(art, ms.holes, **program)))
-    assert len({id(m) for _, m, *_ in items}) == 7
+    assert len({id(m) for _, m, *_ in items}) == 6  # T0, TYM, TXF, TX1, TX2, TXL (session 26: TY1, TY2, TYL out)
     new = simulate_measurements(items, np.random.default_rng(3), stroke_check=False)
     rng = np.random.default_rng(3)
     old = [simulate_campaign(a, m, p, [st], rng, plan=pl, check_collisions=False, stroke_check=False)
            for a, m, p, st, pl in items]
     assert all(a.positions_mm().tobytes() == b.positions_mm().tobytes() for a, b in zip(
         old, campaign._simulate_each_measurement(items, np.random.default_rng(3), stroke_check=False)))
-    assert len(new) == len(old) == 17
+    assert len(new) == len(old) == 15
     for a, b in zip(new, old):
         assert a.meta == b.meta and a.n == b.n
         for c in ("setup", "target", "feature", "status"):
@@ -250,3 +250,32 @@ def test_measurements_of_several_styli_at_once_are_each_campaign(drifting_mikron
            for a, m, p, st, pl in mixed]
     for a, b in zip(got, ref):
         assert a.positions_mm().tobytes() == b.positions_mm().tobytes()
+
+
+def test_check_strokes_on_axis_positions_with_a_reference_tool_and_the_excess_named():
+    """sim.campaign.check_strokes: a stroke bounds the axis position (reading + J - J_ref,
+    docs/formats.md "Strokes"). Known answers: a link point at Z reading 0.300 m inside Z's 0.400 m
+    on the machine's own offsets (J_ref default: its readings) and with J_ref equal to J; a stylus
+    0.101 m longer than the reference tool puts the axis 1 mm beyond: refused naming the excess."""
+    from types import SimpleNamespace
+
+    from sim.campaign import check_strokes
+
+    def machine(J):
+        return SimpleNamespace(config=SimpleNamespace(strokes={"X": (-1.0, 1.0), "Y": (-1.0, 1.0), "Z": (-0.1, 0.4)},
+                                                      J_m=J), rotary_axes=())
+
+    plan = SimpleNamespace(n=1, overshoot_m=0.003, target=["t0"])
+    mv = SimpleNamespace(links=[np.array([[0.0, 0.0, 0.300], [0.0, 0.0, 0.100]])],
+                         Xn_R=np.array([[0.0, 0.0, 0.090]]), n_R=np.array([[0.0, 0.0, 1.0]]))
+    st = Setup("S", np.eye(4), ())
+    check_strokes(machine((0.0, 0.0, 0.251)), st, plan, mv)  # its own offsets: readings
+    check_strokes(machine((0.0, 0.0, 0.150)), st, plan, mv, J_ref_m=(0.0, 0.0, 0.150))
+    with pytest.raises(PlanError, match=r"set-up 'S' target 't0': Z = 401\.000 mm is outside the stroke "
+                                        r"-100\.\.400 mm by 1\.000 mm \(axis position"):
+        check_strokes(machine((0.0, 0.0, 0.251)), st, plan, mv, J_ref_m=(0.0, 0.0, 0.150))
+    # the overshoot end (0.087 m) counts too: Z's lower end at 0.088 m refuses it by 1 mm
+    m = machine((0.0, 0.0, 0.150))
+    m.config.strokes["Z"] = (0.088, 0.4)
+    with pytest.raises(PlanError, match=r"Z = 87\.000 mm is outside the stroke 88\.\.400 mm by 1\.000 mm$"):
+        check_strokes(m, st, plan, mv)

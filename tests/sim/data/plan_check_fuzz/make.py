@@ -56,7 +56,7 @@ def variants():
     V = _variants_module()
     cfg = MACHINES["mikron-ucp710"]()
     art = S._nominal_bar()
-    base = V._plan_items(S.plan_5axis(), art, S._program(S.U_PLACE))
+    base = V._plan_items(V.plan_5axis_s25(), art, S._program(S.U_PLACE))
     rng = np.random.default_rng(SEED)
     names = list(S.STYLI)
 
@@ -83,7 +83,7 @@ def variants():
         sunk.append((f"{n}_z", T @ A.make_T(None, (0.0, 0.0, -rng.uniform(0.0, 0.060))), TR, b, J, pl, f))
     out.append(("bar_sunk", sunk))
     flat = A.make_T(None, (-0.175, 0.080, 0.070))
-    sets = [ms.holes for ms in S.plan_5axis().measurements]
+    sets = [ms.holes for ms in V.plan_5axis_s25().measurements]
     walls = []
     for k in range(17):
         holes = sets[int(rng.integers(len(sets)))]

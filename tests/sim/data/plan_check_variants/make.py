@@ -12,7 +12,8 @@ at the approach starts (mm, the float as Python writes it). tests/sim/test_mfb_s
 checks the code against them. A change meant to change the check's answers (what is modelled)
 rewrites them once it is reviewed; a change of its speed must leave them as they are.
 
-The variants (:func:`variants`): the MFB 5-axis plan as ``scenarios.mfb.check_plan`` checks it; the
+The variants (:func:`variants`): the MFB 5-axis plan of session 25 (:func:`plan_5axis_s25`) as
+``scenarios.mfb.check_plan`` checks it; the
 same turned 30 deg in C, tilted 30 deg more in A, each measurement with the next stylus (star arms
 through walls); the bar sunk 80 mm into the table; a star arm through a hole's wall and a finger
 stylus, programs of one and two touches; the riser block raised into the bar; the touches moved at
@@ -51,6 +52,39 @@ def _plan_items(plan, art, program):
     return out
 
 
+def plan_5axis_s25():
+    """The 5-axis plan as shipped until session 26 (the references were made on it): today's
+    ``scenarios.mfb.plan_5axis`` with X3, DXZ, AXZ on TY1 (100 mm arm, not TYM's 60 mm), VXb on TX2, VY
+    (P1 at A -90, C -90 deg, holes 6-11, TY1, TY2, TYL) back, VXc (TXL) out, in the old order.
+    (Session 26 refit the plan within the Y stroke as axis positions; the plan check's engine
+    references stay those of this plan: they test the engine, not the plan.)"""
+    import dataclasses
+
+    from scenarios import mfb as S
+
+    new = {ms.name: ms for ms in S.plan_5axis().measurements}
+    ty = {st: S.STYLI[st] for st in ("TY1", "TY2", "TYL")}
+
+    def old(n):
+        ms = new[n]
+        if ms.stylus == "TYM":
+            return dataclasses.replace(ms, J_m=ty["TY1"], stylus="TY1")
+        if ms.stylus == "TX3":  # (VXb: TX2 until session 26)
+            return dataclasses.replace(ms, J_m=S.STYLI["TX2"], stylus="TX2")
+        return ms
+
+    x1 = new["X1"]
+    rot = tuple(float(np.deg2rad(v)) for v in (-90.0, -90.0))
+    vy = [S.MeasurementSpec(f"VY{k}", "P1", x1.T_W_A, rot, ty[st], tuple(range(6, 12)),
+                            "EZZ, EXZ, EYZ; dJ_Y: ECZ, EAZ; dJ_Z: EBZ, EAZ", st, setup="P1@A-90,C-90")
+          for k, st in zip("abc", ("TY1", "TY2", "TYL"))]
+    order = ["X1", "X2", "X3", "Y1a", "Y1b", "Y2", "Y3", "VYa", "VYb", "VYc", "VXa", "VXb", "DXY", "AXY",
+             "DXZ", "AXZ", "DYZ"]
+    by = {**{n: old(n) for n in new if n != "VXc"}, **{m.name: m for m in vy}}
+    plan = S.plan_5axis()
+    return S.MfbPlan(plan.machine, tuple(by[n] for n in order), plan.nodes, plan.fixtures)
+
+
 def variants():
     """[(name, measurements)]: each a list of (name, T_W_A, T_R_W, blocks, J_m, plan, finger_m)."""
     import dataclasses
@@ -63,7 +97,7 @@ def variants():
 
     cfg = MACHINES["mikron-ucp710"]()
     art = S._nominal_bar()
-    base = _plan_items(S.plan_5axis(), art, S._program(S.U_PLACE))
+    base = _plan_items(plan_5axis_s25(), art, S._program(S.U_PLACE))
 
     def pose(rot):
         return np.asarray(nominal_T_R_W(cfg, np.asarray([rot], float)), float).reshape(4, 4)
