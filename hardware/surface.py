@@ -26,8 +26,16 @@ from core.probelog import FORMAT, ProbeLog, make_log
 SAME_MM = 1e-3
 
 
+#: Most touches a grid plan may hold (a plan is a file a controller runs touch by touch).
+MAX_GRID_TOUCHES = 100_000
+
+
 def axis_nodes(lo_mm: float, hi_mm: float, step_mm: float, name: str) -> np.ndarray:
-    """Nodes ``lo, lo + step, ..., hi`` (mm); ``hi - lo`` must be a multiple of ``step``."""
+    """Nodes ``lo, lo + step, ..., hi`` (mm); ``hi - lo`` must be a multiple of ``step``.
+
+    More than :data:`MAX_GRID_TOUCHES` nodes are refused before any array is
+    made (``--x-mm 0:1e9:1`` asked numpy for 8 GB and then a copy of it).
+    """
     vals = (lo_mm, hi_mm, step_mm)
     if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
         raise ConfigError(f"{name} {lo_mm}:{hi_mm}:{step_mm}: not finite numbers")
@@ -36,6 +44,9 @@ def axis_nodes(lo_mm: float, hi_mm: float, step_mm: float, name: str) -> np.ndar
     k = (hi_mm - lo_mm) / step_mm
     if abs(k - round(k)) > 1e-9 * max(1.0, k):
         raise ConfigError(f"{name} {lo_mm:g}:{hi_mm:g}:{step_mm:g}: the span is not a whole number of steps")
+    if round(k) + 1 > MAX_GRID_TOUCHES:
+        raise ConfigError(f"{name} {lo_mm:g}:{hi_mm:g}:{step_mm:g}: {round(k) + 1:.0f} nodes, "
+                          f"more than {MAX_GRID_TOUCHES} touches")
     return lo_mm + step_mm * np.arange(int(round(k)) + 1)
 
 
@@ -78,8 +89,8 @@ def grid_plan(x_mm: tuple, y_mm: tuple, z_mm: float = 0.0, *, stylus_r_mm: float
     xs, ys = axis_nodes(*x_mm, "--x-mm"), axis_nodes(*y_mm, "--y-mm")
     if not (math.isfinite(z_mm) and math.isfinite(stylus_r_mm) and stylus_r_mm >= 0):
         raise ConfigError(f"z_mm {z_mm!r} / stylus_r_mm {stylus_r_mm!r}: need finite numbers, radius >= 0")
-    if xs.size * ys.size > 100_000:
-        raise ConfigError(f"grid of {xs.size} x {ys.size} nodes: more than 100000 touches")
+    if xs.size * ys.size > MAX_GRID_TOUCHES:
+        raise ConfigError(f"grid of {xs.size} x {ys.size} nodes: more than {MAX_GRID_TOUCHES} touches")
     xy, names = [], []
     for j, y in enumerate(ys):
         cols = range(xs.size)

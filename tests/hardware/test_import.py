@@ -529,3 +529,22 @@ def test_row_offset_known_answers():
     assert not _on_row([10.0 + ALIGN_LATERAL_MM + 1e-6, 0.0, -2.0], pn, d)
     assert not _on_row([10.0, 0.0, -10.5], pn, d) and _on_row([10.0, 0.0, -10.0], pn, d)
     assert np.allclose(_row_offset([13.0, 4.0, 0.0], pn, np.full(3, np.nan)), (0.0, 5.0))   # no direction
+
+
+def test_a_huge_grid_is_refused_before_any_array_is_made(tmp_path, capsys):
+    """``plan grid --x-mm 0:1e9:1`` took 49 s and 15.6 GB before its count was refused (the fuzz test's case 113,
+    session 26): the count is checked from the range itself. A range of 1e12 nodes would ask numpy for 8 TB and
+    fail with MemoryError, not this refusal, without the check."""
+    from core.exceptions import ConfigError
+    from hardware.surface import MAX_GRID_TOUCHES, axis_nodes, grid_plan
+
+    with pytest.raises(ConfigError, match=r"--x-mm 0:1e\+12:1: 1000000000001 nodes, more than 100000 touches"):
+        axis_nodes(0.0, 1e12, 1.0, "--x-mm")
+    assert axis_nodes(0.0, MAX_GRID_TOUCHES - 1.0, 1.0, "--x-mm").size == MAX_GRID_TOUCHES
+    with pytest.raises(ConfigError, match="more than 100000 touches"):
+        grid_plan((0.0, 1e12, 1.0), (0.0, 20.0, 10.0), stylus_r_mm=1.0)
+    rc = main(["plan", "grid", "--x-mm", "0:1e12:1", "--y-mm", "0:20:10", "--out", str(tmp_path / "p.csv"),
+               "--stylus-r-mm", "1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "more than 100000 touches" in err[0], err
+    assert not (tmp_path / "p.csv").exists()
