@@ -440,8 +440,7 @@ def plan_5axis() -> MfbPlan:
             ms.append(MeasurementSpec(name if len(styli) == 1 else f"{name}{'abc'[k]}", p, T, r,
                                       styli_5[st], tuple(holes), senses, st, setup=key))
 
-    h10, h29, h611, h18, h712 = (tuple(range(1, 11)), tuple(range(2, 10)), tuple(range(6, 12)),
-                                 tuple(range(1, 9)), tuple(range(7, 13)))
+    h10, h29, h18, h712 = (tuple(range(1, 11)), tuple(range(2, 10)), tuple(range(1, 9)), tuple(range(7, 13)))
     P1 = place("P1", _X, _Z, (-0.175, 0.080, 0.070))
     P2 = place("P2", _X, _Z, (-0.175, 0.000, 0.220),
                (Block("riser", (-0.095, -0.045, 0.0), (0.295, 0.045, 0.150)),))

@@ -1399,7 +1399,6 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     orientations_ahead(asks)
     ball = zones[live[0]]._ball_base()  # (one per bar and ball radius: every zone's here, check_measurements')
     for i, (bo, W_R) in zip(live, asks):
-        wz = zones[i]
         sg, _, allow, is_app = sgs[i]
         plan, T_W_A = ms[i][5], ms[i][1]
         if len(segs_A[id(plan)][0]) != len(sg.a):  # (the same polylines, row for row)

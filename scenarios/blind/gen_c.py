@@ -334,7 +334,7 @@ def _lost_motion(rows, b_um, s0_mm):
     for ax in range(2):
         if b_um[ax] == 0:
             continue
-        w, last = 0.0, None
+        w = 0.0
         for i, r in enumerate(rows):
             pts = [np.asarray(p, float) for p in r["path"]] + [r["xn"][:2]]
             for a, b in zip(pts[:-1], pts[1:]):
