@@ -111,15 +111,21 @@ def test_linuxcnc_bad_probe_file_one_line_exit_2(tmp_path, plan_path, capsys, bo
     assert not out.exists()
 
 
-def test_grbl_transcript_of_a_live_campaign_imports_to_the_same_log(tmp_path, plan_path):
+def _probe_then_import(tmp_path, plan_path, probe_rc: int):
+    """`vmt probe` of the plan on the emulator with a transcript (exit ``probe_rc``), then `vmt import grbl` of
+    that transcript: (the live log, the imported log)."""
     tr, out = tmp_path / "session.txt", tmp_path / "live.csv"
     emu = GrblEmulator(scene(), ControllerConfig(home=(0, 0, 50)))
     with TcpServer(emu, time_scale=200.0) as srv:
         assert main(["probe", "--controller", srv.url, "--plan", str(plan_path), "--out", str(out),
-                     "--limits-mm", LIMITS, "--safe-z-mm", "30", "--transcript", str(tr)]) == 0
+                     "--limits-mm", LIMITS, "--safe-z-mm", "30", "--transcript", str(tr)]) == probe_rc
     imp = tmp_path / "imported.csv"
     assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(imp)]) == 0
-    a, b = read_probe_log(out), read_probe_log(imp)
+    return read_probe_log(out), read_probe_log(imp)
+
+
+def test_grbl_transcript_of_a_live_campaign_imports_to_the_same_log(tmp_path, plan_path):
+    a, b = _probe_then_import(tmp_path, plan_path, 0)
     assert np.array_equal(a.positions_mm(), b.positions_mm())      # same PRB lines, same digits
     assert b.meta["t_s_source"] == "transcript timestamps"
     assert np.all(np.diff(b.columns["t_s"]) >= 0)
@@ -426,14 +432,7 @@ def test_grbl_live_run_stopped_by_a_miss_imports_to_the_same_rows(tmp_path):
     """End to end through the emulator: `vmt probe` stops at the miss (exit 2, the rows before it and the miss on
     disk); its transcript imports to the same rows, digit for digit, and the plan's rest as aborted."""
     plan_path = write_probe_log(tmp_path / "plan.csv", plan_log(miss_rows=(6,)))
-    tr, out = tmp_path / "session.txt", tmp_path / "live.csv"
-    emu = GrblEmulator(scene(), ControllerConfig(home=(0, 0, 50)))
-    with TcpServer(emu, time_scale=200.0) as srv:
-        assert main(["probe", "--controller", srv.url, "--plan", str(plan_path), "--out", str(out),
-                     "--limits-mm", LIMITS, "--safe-z-mm", "30", "--transcript", str(tr)]) == 2
-    imp = tmp_path / "imported.csv"
-    assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(imp)]) == 0
-    a, b = read_probe_log(out), read_probe_log(imp)
+    a, b = _probe_then_import(tmp_path, plan_path, 2)
     assert a.n == 7 and b.n == 12
     assert list(b.col("status")) == list(a.col("status")) + ["aborted"] * 5 == ["ok"] * 6 + ["no_trigger"] + \
         ["aborted"] * 5
