@@ -66,11 +66,12 @@ def test_a_perfect_machine_is_not_made_worse_beyond_the_stated_u95(tmp_path, see
 
 
 def test_applying_every_value_would_fail_the_check_on_the_perfect_machine(tmp_path):
-    """The check can fail: the old rule (every factor 1) leaves seed 1's perfect machine 2.75 um off in
-    X, beyond the 2.53 um residual U95 (the reviewer's figures)."""
+    """The check can fail: the old rule (every factor 1) leaves seed 1's perfect machine 2.73 um off in
+    X, beyond its residual U95 (the reviewer's figure was 2.75 um against 2.53 on the plan before session 26's
+    refit within the strokes)."""
     _, loop = _loop(tmp_path, _own("none"), 1, force_whole=True)
     v = loop["volumetric"]["volumetric_check"]["X"]
-    assert not v["not_worse"] and v["after_max_um"] == pytest.approx(2.745, abs=0.01)
+    assert not v["not_worse"] and v["after_max_um"] == pytest.approx(2.728, abs=0.01)
 
 
 def test_a_machine_with_five_errors_improves_and_z_is_not_made_worse(tmp_path):
