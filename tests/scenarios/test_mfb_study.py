@@ -96,19 +96,9 @@ def test_study_report_stability_and_percentiles_known_answer(tmp_path, monkeypat
     assert rep["temperature_draws"]["mean_C"] == 20.5
 
 
-#: Session 26 refit both MFB plans within the strokes (scenarios.mfb.check_plan, axis positions):
-#: the stored 1,000-run studies are of the plans before; run 1 recomputed now differs. Not re-run
-#: in session 26 (2 x 1,000 pipeline runs did not fit its time): strict, so re-running them
-#: (scenarios.mfb.budget_study, assemble_study, the doc tables) turns this into a failure to remove.
-_STUDY_OF_OLD_PLANS = pytest.mark.xfail(strict=True, reason="the stored budget studies are of the plans "
-                                        "before session 26's stroke refit: to be re-run")
-
-
 @pytest.mark.parametrize("name, heading", [
-    pytest.param("mfb-3axis", "## Uncertainty budget (item 3): {n:,} runs through the pipeline",
-                 marks=_STUDY_OF_OLD_PLANS),
-    pytest.param("mfb-5axis", "## Uncertainty budget of the 5-axis plan: {n:,} runs through the pipeline",
-                 marks=_STUDY_OF_OLD_PLANS),
+    ("mfb-3axis", "## Uncertainty budget (item 3): {n:,} runs through the pipeline"),
+    ("mfb-5axis", "## Uncertainty budget of the 5-axis plan: {n:,} runs through the pipeline"),
 ])
 def test_stored_study_is_this_pipeline_and_the_doc_table_is_its_summary(name, heading):
     # run 1 of the stored study recomputed now (one pipeline run) equals the stored vector: the
@@ -126,26 +116,16 @@ def test_stored_study_is_this_pipeline_and_the_doc_table_is_its_summary(name, he
     doc = (ROOT / "docs" / "papers-mfb.md").read_text()
     assert S.study_table_markdown(rep) in doc
     assert heading.format(n=len(err)) in doc
-    # a study whose runs' own U95 were computed with an earlier calibration share keeps it as "U_runs:";
-    # the doc's coverage with it swapped for today's, sqrt(U95^2 - old^2 + new^2) per node, is the
-    # file's. A study made whole by this code (the 3-axis one since session 10) has no such key: its
-    # runs' own U95 are today's, run 1's recomputed above equal to the stored float32 ones
+    # both studies were made whole by this code (session 26, the plans refit within the strokes): the
+    # runs' own U95 are today's (no "U_runs:" calibration share kept beside them, as the studies made
+    # before the calibration share's correction had), run 1's recomputed above equal to the stored
+    # float32 ones (6e-8 relative), and the doc's coverage within them is the file's
     with np.load(study) as z:
+        assert not any(k.startswith("U_runs:") for k in z.files)
         own, keep = z["U95_lin"].astype(float), z["keep"]
-        old_cal = z["U_runs:bar calibration"] if "U_runs:bar calibration" in z.files else None
-        swapped = own if old_cal is None else \
-            np.sqrt(np.maximum(own ** 2 - old_cal ** 2 + z["U:bar calibration"] ** 2, 0))
-    k, n = int(np.sum(np.abs(err[:, keep]) <= swapped[:, keep])), int(keep.sum()) * len(err)
+    assert np.allclose(own[0], r["U95_lin"], rtol=1e-6, atol=1e-15)
+    k, n = int(np.sum(np.abs(err[:, keep]) <= own[:, keep])), int(keep.sum()) * len(err)
     assert f"{k:,} ({100 * k / n:.1f} %" in doc
-    if old_cal is None:
-        # float32 storage: 6e-8 relative
-        assert np.allclose(own[0], r["U95_lin"], rtol=1e-6, atol=1e-15)
-    if name == "mfb-5axis":
-        # every 5-axis run came after the maps' pose fix: the swap gives today's U95 (measured 0.07 % off
-        # at the worst node, where the stored one is 9 % off; 1 % tells the two apart)
-        today = r["U95_lin"][keep]
-        assert np.max(np.abs(own[0][keep] - today) / today) > 0.05
-        assert np.all(np.abs(swapped[0][keep] - today) <= 0.01 * today)
 
 
 def test_5axis_budget_covers_the_injected_errors_and_meets_the_hand_values():
