@@ -84,19 +84,11 @@ def test_plan_grid_without_a_radius_is_refused_in_the_same_words(tmp_path, capsy
 
 def test_one_stylus_radius_option_everywhere():
     """Every command that takes a stylus radius names it --stylus-r-mm, no default, the same help."""
-    import argparse
+    from test_cli_options import _walk  # (the parser walk of the option-language tests)
 
     from scenarios.cli.options import STYLUS_R_HELP
 
-    def walk(p, path=()):
-        for a in p._actions:
-            if isinstance(a, argparse._SubParsersAction):
-                for name, sp in a.choices.items():
-                    yield from walk(sp, path + (name,))
-            else:
-                yield path, a
-
-    uses = {" ".join(path): a for path, a in walk(build_parser())
+    uses = {" ".join(path[1:]): a for path, a in _walk(build_parser())
             if any("stylus" in o or "radius" in o for o in a.option_strings)}
     assert set(uses) == {"plan grid", "fit"}
     for a in uses.values():
