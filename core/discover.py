@@ -5531,7 +5531,7 @@ def _held_out_by_touches(folds, y: np.ndarray, T: np.ndarray | None, C: np.ndarr
     B1 = np.hstack([B0, new_basis(B0, C)])
     r0 = y - B0 @ (B0.T @ y)
     r1 = y - B1 @ (B1.T @ y)
-    h0, h1 = np.sum(B0 ** 2, axis=1), np.sum(B1 ** 2, axis=1)
+    h0, h1 = leverage(B0), leverage(B1)
     ok = h1 < 1 - OWN_LEVERAGE
     if not ok.any():
         return None
