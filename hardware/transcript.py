@@ -207,8 +207,7 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
                 else:
                     raise ProbeLogError(f"{p}: line {where[i]}: time goes backwards")
     return Session(np.array(pos, dtype=float).reshape(-1, 3), np.array(touched, dtype=bool), t, where, alarms,
-                   probing, errors,
-                   resets, ln)
+                   probing, errors, resets, ln)
 
 
 def _stop(s: Session, plan: ProbeLog) -> tuple[str, str, str]:
