@@ -43,6 +43,33 @@ DWELL_S = 0.2
 SAFE_MARGIN_M = 5.0 * MM
 #: Time between set-ups of an artefact without a record in :data:`sim.catalog.CATALOG`, s.
 DEFAULT_SETUP_CHANGE_S = 10.0
+#: An axis position beyond its stroke by up to this much is within it, m (sums of lengths rounded; one
+#: value for every stroke check: :func:`check_strokes`, ``scenarios.mfb.check_program_strokes``).
+STROKE_TOL_M = 1e-9
+
+
+def first_outside_stroke(q_m, strokes, tol_m: float = STROKE_TOL_M):
+    """The first axis position outside its stroke, or None: ``(row, axis index j, value, limit, excess)``.
+
+    ``q_m``: (n, 3) axis positions X, Y, Z (m), in the order they are reached; ``strokes``: axis ->
+    (least, largest) m (an axis without one is not checked). The first offender is the first row
+    with any axis beyond ``tol_m``, and of its axes the first in X, Y, Z order; ``limit`` is the end
+    of the stroke it passes, ``excess`` (> ``tol_m``) by how much. The one stroke rule of the linear
+    axes (:func:`check_strokes` and ``scenarios.mfb.check_program_strokes`` word their own errors)."""
+    q = np.asarray(q_m, float).reshape(-1, 3)
+    over = np.full(q.shape, -np.inf)
+    for j, ax in enumerate("XYZ"):
+        if ax in strokes:
+            lo, hi = strokes[ax]
+            over[:, j] = np.maximum(lo - q[:, j], q[:, j] - hi)
+    bad = over > tol_m
+    if not bad.any():
+        return None
+    i = int(np.flatnonzero(bad.any(axis=1))[0])
+    j = int(np.flatnonzero(bad[i])[0])
+    lo, hi = strokes["XYZ"[j]]
+    v = float(q[i, j])
+    return i, j, v, float(hi if v > hi else lo), float(over[i, j])
 
 
 def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves", J_ref_m=None) -> None:
@@ -53,15 +80,15 @@ def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves", J_ref_m=N
     machine's own ``config.J_m``, whose readings are then the axis positions); a reading taken
     with the machine's offsets J puts the axis at ``reading + J - J_ref`` in those terms
     (docs/formats.md, "Strokes"). Checked: every link point (they end at the approach starts)
-    and every overshoot end (a touch lies between its start and its overshoot end). The error
-    names the set-up, the target, the axis, its position and the excess."""
+    and every overshoot end (a touch lies between its start and its overshoot end), by
+    :func:`first_outside_stroke`. The error names the set-up, the target, the axis, its position and
+    the excess of the first point out in the order the moves reach them."""
     strokes = getattr(getattr(machine, "config", None), "strokes", None)
     if not strokes:
         return
     J = np.asarray(getattr(machine.config, "J_m", (0.0, 0.0, 0.0)), float)
     dJ = np.zeros(3) if J_ref_m is None else J - np.asarray(J_ref_m, float)
-    # every link point and overshoot end, touch by touch (vectorised; the first offender is
-    # the first touch, then axis X Y Z, then point in order, as a loop over them would find)
+    # every link point and overshoot end, touch by touch, in the order the moves reach them
     n_pt = np.array([len(ln) + 1 for ln in mv.links], int)
     pts = np.zeros((int(n_pt.sum()), 3))
     if plan.n:  # touch i: its link points, then its overshoot end
@@ -73,21 +100,14 @@ def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves", J_ref_m=N
     if dJ.any():
         pts = pts + dJ
     touch = np.repeat(np.arange(plan.n), n_pt)
-    bad = np.zeros((len(pts), 3), bool)
-    for j, ax in enumerate("XYZ"):
-        if ax in strokes:
-            lo, hi = strokes[ax]
-            bad[:, j] = (pts[:, j] < lo - 1e-12) | (pts[:, j] > hi + 1e-12)
-    if bad.any():
-        i = int(touch[np.flatnonzero(bad.any(axis=1))[0]])
-        rows = np.flatnonzero(touch == i)
-        j = int(np.flatnonzero(bad[rows].any(axis=0))[0])
+    hit = first_outside_stroke(pts, strokes)
+    if hit is not None:
+        row, j, v, _, over = hit
         lo, hi = strokes["XYZ"[j]]
-        v = pts[rows[np.argmax(bad[rows, j])], j]
-        raise PlanError(f"set-up {setup.name!r} target {plan.target[i]!r}: {'XYZ'[j]} = {v * 1e3:.3f} mm "
+        raise PlanError(f"set-up {setup.name!r} target {plan.target[int(touch[row])]!r}: {'XYZ'[j]} = {v * 1e3:.3f} mm "
                         f"is outside the stroke {lo * 1e3:.0f}..{hi * 1e3:.0f} mm by "
-                        f"{max(lo - v, v - hi) * 1e3:.3f} mm" + (" (axis position: reading + J - the reference "
-                                                                  "tool's J)" if dJ.any() else ""))
+                        f"{over * 1e3:.3f} mm" + (" (axis position: reading + J - the reference "
+                                                  "tool's J)" if dJ.any() else ""))
     for ax, v in zip(getattr(machine, "rotary_axes", ()), setup.rot_rad):
         if ax in strokes and not (strokes[ax][0] - 1e-12 <= v <= strokes[ax][1] + 1e-12):
             raise PlanError(f"set-up {setup.name!r}: {ax} = {np.rad2deg(v):g} deg is outside its stroke")

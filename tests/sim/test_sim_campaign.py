@@ -252,6 +252,25 @@ def test_measurements_of_several_styli_at_once_are_each_campaign(drifting_mikron
         assert a.positions_mm().tobytes() == b.positions_mm().tobytes()
 
 
+def test_first_outside_stroke_is_the_first_position_reached_then_x_y_z():
+    """sim.campaign.first_outside_stroke, the one stroke rule of sim.campaign.check_strokes and
+    scenarios.mfb.check_program_strokes. Known answers: row 1 (Y 2 mm beyond, Z 5 mm beyond) is named
+    before row 2 (X 50 mm beyond: larger, but reached later), and Y before Z within it; 1 nm beyond is
+    within (STROKE_TOL_M, rounding), 2 nm is not; an axis without a stroke is not checked."""
+    from sim.campaign import STROKE_TOL_M, first_outside_stroke
+
+    st = {"X": (-0.1, 0.1), "Y": (-0.1, 0.1), "Z": (0.0, 0.4), "C": (-3.2, 3.2)}
+    q = np.array([[0.0, 0.0, 0.2], [0.0, -0.102, 0.405], [0.15, 0.0, 0.2]])
+    i, j, v, lim, over = first_outside_stroke(q, st)
+    assert (i, j, v, lim) == (1, 1, -0.102, -0.1) and over == pytest.approx(0.002, abs=1e-15)
+    assert first_outside_stroke(q[[0, 2]], st)[:4] == (1, 0, 0.15, 0.1)
+    assert STROKE_TOL_M == 1e-9
+    assert first_outside_stroke([[0.1 + 1e-9, 0.0, 0.0]], st) is None
+    assert first_outside_stroke([[0.1 + 2e-9, 0.0, 0.0]], st)[:2] == (0, 0)
+    assert first_outside_stroke([[5.0, 0.0, 0.2]], {"Y": (-0.1, 0.1), "Z": (0.0, 0.4)}) is None
+    assert first_outside_stroke(np.empty((0, 3)), st) is None
+
+
 def test_check_strokes_on_axis_positions_with_a_reference_tool_and_the_excess_named():
     """sim.campaign.check_strokes: a stroke bounds the axis position (reading + J - J_ref,
     docs/formats.md "Strokes"). Known answers: a link point at Z reading 0.300 m inside Z's 0.400 m
