@@ -5,7 +5,8 @@ artefact placement or one rotary-table index). For every touch it builds
 the nominal geometry in R (``Xn``: nominal stylus-tip centre at contact on
 a perfect machine with a perfect artefact in its nominal pose; ``n``: the
 nominal normal in R), the moves (link from the previous retract point,
-direct inside one feature level, else via the safe height; approach along
+direct inside one feature level, else via the safe height, or for the bar
+as its part program moves, along z_A; approach along
 ``-n`` from ``clearance`` outside ``Xn``; retract back), their times from
 the feeds (``t_s``), checks the paths in the MuJoCo scene, then simulates
 the touches of all set-ups at once (:func:`sim.probe.simulate_touches`) and
@@ -199,6 +200,25 @@ def _links(start: np.ndarray, plan: Plan, z_safe: float, start_from) -> list[np.
     return [paths[i, 4 - k[i]:] if fresh[i] else paths[i, :k[i]] for i in range(n)]
 
 
+def _program_links(T_R_A, start: np.ndarray, plan: Plan, top_A_m: float) -> list[np.ndarray]:
+    """Each touch's link (R, m) as a bar's part program moves (:func:`sim.mfb_scene.link_points`, the
+    moves ``scenarios.mfb`` checks for collisions and strokes): between two starts of one feature and
+    level directly, else out along z_A to ``top_A_m`` + its clearance, across and back; the first
+    start from that plane above it. ``top_A_m``: the bar's top plus the stylus radius, A."""
+    from .mfb_scene import LINK_CLEAR_M, link_points
+
+    n = len(start)
+    if n == 0:
+        return []
+    s_A = A.apply_T(A.inv_T(T_R_A), start[:1])[0]
+    above = A.apply_T(T_R_A, np.array([[s_A[0], s_A[1], max(top_A_m + LINK_CLEAR_M, s_A[2])]]))
+    links = [np.concatenate([above, start[:1]])]
+    if n > 1:
+        P, cnt = link_points(T_R_A, start, plan.feature, plan.level, top_A_m)
+        links += np.split(P, np.cumsum(cnt)[:-1])
+    return links
+
+
 def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: ProbeConfig,
                 start_from: np.ndarray | None = None) -> SetupMoves:
     """Nominal contact centres, normals, start points and link moves in R."""
@@ -212,9 +232,13 @@ def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: Probe
     Xn = A.apply_T(T_R_A, plan.w_A + r * plan.wn_A)
     n_R = A.apply_R(T_R_A, plan.wn_A)
     start = Xn + plan.clearance_m * n_R
-    top = float(np.max(A.apply_T(T_R_A, artefact_points(art))[:, 2]))
-    z_safe = top + r + SAFE_MARGIN_M
-    links, lens = _links(start, plan, z_safe, start_from), np.zeros(plan.n)
+    rec = CATALOG.get(art.name)
+    if rec is not None and rec.links_along_z_A and start_from is None:
+        links = _program_links(T_R_A, start, plan, float(artefact_points(art)[:, 2].max()) + r)
+    else:
+        top = float(np.max(A.apply_T(T_R_A, artefact_points(art))[:, 2]))
+        links = _links(start, plan, top + r + SAFE_MARGIN_M, start_from)
+    lens = np.zeros(plan.n)
     if plan.n:  # each link's length: the sum of its segments' lengths, in order
         P = np.concatenate(links)
         first = np.cumsum([len(p) for p in links]) - np.array([len(p) for p in links])
@@ -283,8 +307,10 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         Check every move against the machine's strokes (:func:`check_strokes`); False
         when the caller checks its own program's moves (the MFB runs: ``scenarios.mfb.check_plan``
         checks every touch, approach start, overshoot end and link of the program as axis
-        positions; this campaign's links pass over the bar's top in R z, a standing bar's above
-        the Z stroke, where the MFB program retracts along the holes' normal).
+        positions against the machine's reference tool, each stylus's offsets counted). The
+        bar's links are its program's (out along z_A: :func:`_program_links`, since session 27;
+        before, a climb along R z over the bar's top, a standing bar's above the Z stroke),
+        so its touches' t_s follow the program's path.
 
     Returns
     -------
