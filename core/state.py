@@ -141,6 +141,36 @@ def identified_on_mismatch(state: "MachineState", machine: str, chain: str) -> s
     return None
 
 
+#: Probe offsets closer than this on every axis are the same probe, mm (a file rounds them to 1e-9 mm).
+J_SAME_MM = 1e-3
+
+
+def probe_offsets_check(state: "MachineState", J_mm) -> tuple[str | None, str | None]:
+    """``(refusal, notice)`` of applying ``state`` with a tool of offsets ``J_mm`` (3,) mm; both None: fine.
+
+    Only a state of the tool's deviation at one height (``z_mm`` recorded: ``vmt identify``'s 2D
+    self-calibration) depends on the probe: its tables are the tool tip's X/Y deviation with the probe
+    it was identified with, the machine's angular errors acting through that probe's arm, so with other
+    offsets the tip deviates otherwise. Refused when the record names other offsets; a notice when it
+    does not name them (``identify`` without ``--tool-offset-mm``: null). An MFB state (``z_mm`` null)
+    holds the axes' own errors, angular ones included, and applies with any tool."""
+    rec = state.identified_on
+    if rec is None or rec.get("z_mm") is None:
+        return None, None
+    here = "(" + ", ".join(f"{float(v):g}" for v in J_mm) + ") mm"
+    J = rec.get("probe_offsets_J_mm")
+    if J is None:
+        return None, (f"{state.source}: the probe offsets J it was identified with are not recorded (vmt identify "
+                      f"--tool-offset-mm): its tables, the tool's X/Y deviation with that probe, applied with the "
+                      f"tool offsets {here} unchecked")
+    if any(max(abs(float(a) - float(b)) for a, b in zip(j, J_mm)) <= J_SAME_MM for j in J):
+        return None, None
+    there = " or ".join("(" + ", ".join(f"{float(v):g}" for v in j) + ")" for j in J)
+    return (f"identified with probe offsets J {there} mm, not with this machine's tool offsets {here}: its tables "
+            "are the tool's X/Y deviation with that probe (the angular errors through its arm); identify with "
+            "this probe, or give the machine file that probe's [tool] offset_mm"), None
+
+
 @dataclass(frozen=True)
 class MachineState:
     """The machine part of an estimate: tables and constants with their joint normal distribution (SI).

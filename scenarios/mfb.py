@@ -910,26 +910,24 @@ def check_program_strokes(name: str, positions: dict, J_m, J_ref_m, strokes) -> 
     ``q = reading + J_m - J_ref_m`` in those terms (docs/formats.md, "Strokes").
 
     ``positions``: kind -> (k, 3) readings (:func:`program_positions`). Returns the axis
-    positions' (least, largest) per axis (lists, m). The error names the measurement, the axis,
-    the kind of position, the axis position and the excess."""
+    positions' (least, largest) per axis (lists, m). The rule is :func:`sim.campaign.first_outside_stroke`'s;
+    the error names the measurement, the kind of position, the axis, the first such position out
+    (kinds in ``positions``' order) and its excess."""
     from core.exceptions import PlanError
+    from sim.campaign import first_outside_stroke
 
     dJ = np.asarray(J_m, float) - np.asarray(J_ref_m, float)
-    lo_all, hi_all = [np.inf] * 3, [-np.inf] * 3
-    for kind, P in positions.items():
-        if not len(P):
-            continue
-        q = np.asarray(P, float) + dJ
-        for j, ax in enumerate("XYZ"):
-            lo, hi = strokes[ax]
-            qmin, qmax = float(q[:, j].min()), float(q[:, j].max())
-            lo_all[j], hi_all[j] = min(lo_all[j], qmin), max(hi_all[j], qmax)
-            for v, lim, over in ((qmax, hi, qmax - hi), (qmin, lo, lo - qmin)):
-                if over > 1e-9:
-                    raise PlanError(f"measurement {name!r}: axis {ax} at {v / MM:.1f} mm at its {kind} "
-                                    f"(reading + J - the machine's J), {over / MM:.1f} mm beyond its stroke's "
-                                    f"{lim / MM:g} mm")
-    return lo_all, hi_all
+    q = {kind: np.asarray(P, float).reshape(-1, 3) + dJ for kind, P in positions.items()}
+    for kind, qk in q.items():
+        if (hit := first_outside_stroke(qk, strokes)) is not None:
+            _, j, v, lim, over = hit
+            raise PlanError(f"measurement {name!r}: axis {'XYZ'[j]} at {v / MM:.1f} mm at its {kind} "
+                            f"(reading + J - the machine's J), {over / MM:.1f} mm beyond its stroke's "
+                            f"{lim / MM:g} mm")
+    qa = np.concatenate(list(q.values()) or [np.empty((0, 3))])
+    if not len(qa):
+        return [np.inf] * 3, [-np.inf] * 3
+    return qa.min(axis=0).tolist(), qa.max(axis=0).tolist()
 
 
 #: _declared_poi_deviations's answers by the declared deviations' bytes (a pure function of them:

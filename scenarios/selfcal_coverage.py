@@ -55,13 +55,14 @@ class Campaign:
 
 
 def simulate(machine_name: str, seed: int, noise_m: float = 0.0, *, ripple: bool = True,
-             angles=ANGLES, errors: dict | None = None) -> Campaign:
+             angles=ANGLES, errors: dict | None = None, ripple_phase: float | None = None) -> Campaign:
     """A cross-pocket campaign on ``machine_name`` with realistic errors drawn from ``seed``.
 
     ``noise_m``: probing standard deviation (k = 1), m, along the approach;
     ``errors``: the machine's errors (symbol -> sim.errorfuncs function)
-    instead of the realistic draw. Only touches with normals in the XY plane
-    are kept (as ``vmt identify``).
+    instead of the realistic draw; ``ripple_phase``: every screw ripple at this
+    phase (rad; :func:`sim.machines.realistic_errors`, default drawn from the
+    seed). Only touches with normals in the XY plane are kept (as ``vmt identify``).
     """
     from core.touches import from_log
     from sim import artefacts as A
@@ -73,8 +74,8 @@ def simulate(machine_name: str, seed: int, noise_m: float = 0.0, *, ripple: bool
 
     cfg = MACHINES[machine_name]()
     axes = tuple(a for a in ("X", "Y", "Z", "C", "A") if a in cfg.strokes)
-    errs = (realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(seed), ripple=ripple)
-            if errors is None else errors)
+    errs = (realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(seed), ripple=ripple,
+                             ripple_phase=ripple_phase) if errors is None else errors)
     m = Machine(MACHINES[machine_name](errors=errs))
     art = A.cross_pocket()
     plan = make_plan(art)

@@ -155,30 +155,6 @@ def model_space_errors(seed: int, ripple: bool = True) -> dict:
     return errs
 
 
-def ripple_phase_errors(seed: int) -> dict:
-    """The realistic machine of ``seed`` (with the ripple) with each axis's screw ripple at a phase drawn
-    for the seed (``default_rng([seed, 29])``, uniform, one per axis: EXX and EBX share X's screw, EYY
-    and ECY Y's, ...); amplitudes and every other error as :func:`sim.machines.realistic_errors` draws.
-
-    :func:`sim.machines.realistic_errors` puts every ripple at phase 0 with a positive amplitude in
-    every seed: for this task's bores (centres on whole periods) and faces (tip centres at +-63 mm)
-    that is within 5 % of the phase of largest effect, so the seeds repeat one nearly worst phase;
-    a declared term with an unknown phase is checked against phases drawn as it assumes them."""
-    from sim.errorfuncs import Periodic, Sum
-    from sim.machines import MACHINES, realistic_errors
-
-    cfg = MACHINES[MACHINE]()
-    axes = tuple(a for a in ("X", "Y", "Z", "C", "A") if a in cfg.strokes)
-    errs = dict(realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(seed), ripple=True))
-    rng = np.random.default_rng([seed, 29])
-    phase = {a: float(rng.uniform(0.0, 2.0 * np.pi)) for a in ("X", "Y", "Z")}
-    for k, f in errs.items():   # the linear axes' motion errors: a polynomial plus the 10 mm ripple
-        if isinstance(f, Sum) and k[2] in phase:
-            errs[k] = Sum(tuple(dataclasses.replace(t, phase=phase[k[2]]) if isinstance(t, Periodic) else t
-                                for t in f.terms))
-    return errs
-
-
 def identify_campaign(seed: int, noise_m: float = NOISE_M, *, ripple: bool = True, exact_scale: bool = False,
                       errors: dict | None = None) -> Identified:
     """Simulate and identify one cross-pocket campaign (module doc); the report is ``vmt identify``'s JSON.
@@ -215,26 +191,29 @@ def true_values(ident: Identified, st, seed: int) -> np.ndarray:
     return V.evaluate(st.task, st.rows, p, st.n_R, st.probe.stylus_r_m, st.Xn_R)
 
 
-def one_seed(seed: int, *, noise_m: float = NOISE_M, ripple: bool = True, vcmm_seed: int = 0,
-             ident: Identified | None = None, task: str = TASK, ripple_phase: bool = False) -> dict:
+def one_seed(seed: int, *, noise_m: float = NOISE_M, ripple: bool = True, vcmm_seed: int | None = None,
+             ident: Identified | None = None, task: str = TASK) -> dict:
     """Coverage of the task's measurands for one campaign: per measurand the true value, the interval, U95.
 
     ``task``: the task's text (default :data:`TASK`; :data:`TASK_RIPPLE` declares the ripple); ``ident``
-    a campaign already identified; ``ripple_phase``: the truth's ripple at phases drawn per seed
-    (:func:`ripple_phase_errors`) instead of :func:`sim.machines.realistic_errors`' phase 0."""
+    a campaign already identified (``seed`` still sets the truth's noise draw and the virtual CMM's);
+    ``vcmm_seed``: the virtual CMM's Monte Carlo seed, default ``seed`` (each campaign its own draws, so
+    the study averages the Monte Carlo's sampling error over the seeds instead of repeating one draw's;
+    run k draws from ``SeedSequence([vcmm_seed, k])``'s children, apart from the campaign's
+    ``default_rng(seed)``, ``[seed, 7]``, ``[seed, 17]``, ``[seed, 23]``). The truth's screw ripple
+    (``ripple``) sits at the phases :func:`sim.machines.realistic_errors` draws from the seed."""
     from core import vcmm as V
     from core.state import loads_estimate
     from scenarios.vcmm import prepare, study
     from sim.machinefile import truth_machine
 
     if ident is None:
-        errs = ripple_phase_errors(seed) if ripple and ripple_phase else None
-        ident = identify_campaign(seed, noise_m, ripple=ripple, errors=errs)
+        ident = identify_campaign(seed, noise_m, ripple=ripple)
     state = loads_estimate(ident.report, source=f"identify seed {seed}")
     spec = truth_machine(MACHINE, "none")  # the best estimate before the state: no errors
     task = V.loads_task(task, source="coverage task")
     st = prepare(coverage_plan(ident.z_m * 1e3), task, spec, noise_um=noise_m * 1e6, state=state)
-    rep = study(st, vcmm_seed, budget=False)
+    rep = study(st, seed if vcmm_seed is None else vcmm_seed, budget=False)
     y = true_values(ident, st, seed)
     out = {}
     for j, m in enumerate(rep["measurands"]):   # all in mm, U in um

@@ -5,7 +5,8 @@ artefact placement or one rotary-table index). For every touch it builds
 the nominal geometry in R (``Xn``: nominal stylus-tip centre at contact on
 a perfect machine with a perfect artefact in its nominal pose; ``n``: the
 nominal normal in R), the moves (link from the previous retract point,
-direct inside one feature level, else via the safe height; approach along
+direct inside one feature level, else via the safe height, or for the bar
+as its part program moves, along z_A; approach along
 ``-n`` from ``clearance`` outside ``Xn``; retract back), their times from
 the feeds (``t_s``), checks the paths in the MuJoCo scene, then simulates
 the touches of all set-ups at once (:func:`sim.probe.simulate_touches`) and
@@ -43,6 +44,33 @@ DWELL_S = 0.2
 SAFE_MARGIN_M = 5.0 * MM
 #: Time between set-ups of an artefact without a record in :data:`sim.catalog.CATALOG`, s.
 DEFAULT_SETUP_CHANGE_S = 10.0
+#: An axis position beyond its stroke by up to this much is within it, m (sums of lengths rounded; one
+#: value for every stroke check: :func:`check_strokes`, ``scenarios.mfb.check_program_strokes``).
+STROKE_TOL_M = 1e-9
+
+
+def first_outside_stroke(q_m, strokes, tol_m: float = STROKE_TOL_M):
+    """The first axis position outside its stroke, or None: ``(row, axis index j, value, limit, excess)``.
+
+    ``q_m``: (n, 3) axis positions X, Y, Z (m), in the order they are reached; ``strokes``: axis ->
+    (least, largest) m (an axis without one is not checked). The first offender is the first row
+    with any axis beyond ``tol_m``, and of its axes the first in X, Y, Z order; ``limit`` is the end
+    of the stroke it passes, ``excess`` (> ``tol_m``) by how much. The one stroke rule of the linear
+    axes (:func:`check_strokes` and ``scenarios.mfb.check_program_strokes`` word their own errors)."""
+    q = np.asarray(q_m, float).reshape(-1, 3)
+    over = np.full(q.shape, -np.inf)
+    for j, ax in enumerate("XYZ"):
+        if ax in strokes:
+            lo, hi = strokes[ax]
+            over[:, j] = np.maximum(lo - q[:, j], q[:, j] - hi)
+    bad = over > tol_m
+    if not bad.any():
+        return None
+    i = int(np.flatnonzero(bad.any(axis=1))[0])
+    j = int(np.flatnonzero(bad[i])[0])
+    lo, hi = strokes["XYZ"[j]]
+    v = float(q[i, j])
+    return i, j, v, float(hi if v > hi else lo), float(over[i, j])
 
 
 def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves", J_ref_m=None) -> None:
@@ -53,15 +81,15 @@ def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves", J_ref_m=N
     machine's own ``config.J_m``, whose readings are then the axis positions); a reading taken
     with the machine's offsets J puts the axis at ``reading + J - J_ref`` in those terms
     (docs/formats.md, "Strokes"). Checked: every link point (they end at the approach starts)
-    and every overshoot end (a touch lies between its start and its overshoot end). The error
-    names the set-up, the target, the axis, its position and the excess."""
+    and every overshoot end (a touch lies between its start and its overshoot end), by
+    :func:`first_outside_stroke`. The error names the set-up, the target, the axis, its position and
+    the excess of the first point out in the order the moves reach them."""
     strokes = getattr(getattr(machine, "config", None), "strokes", None)
     if not strokes:
         return
     J = np.asarray(getattr(machine.config, "J_m", (0.0, 0.0, 0.0)), float)
     dJ = np.zeros(3) if J_ref_m is None else J - np.asarray(J_ref_m, float)
-    # every link point and overshoot end, touch by touch (vectorised; the first offender is
-    # the first touch, then axis X Y Z, then point in order, as a loop over them would find)
+    # every link point and overshoot end, touch by touch, in the order the moves reach them
     n_pt = np.array([len(ln) + 1 for ln in mv.links], int)
     pts = np.zeros((int(n_pt.sum()), 3))
     if plan.n:  # touch i: its link points, then its overshoot end
@@ -73,21 +101,14 @@ def check_strokes(machine, setup: Setup, plan: Plan, mv: "SetupMoves", J_ref_m=N
     if dJ.any():
         pts = pts + dJ
     touch = np.repeat(np.arange(plan.n), n_pt)
-    bad = np.zeros((len(pts), 3), bool)
-    for j, ax in enumerate("XYZ"):
-        if ax in strokes:
-            lo, hi = strokes[ax]
-            bad[:, j] = (pts[:, j] < lo - 1e-12) | (pts[:, j] > hi + 1e-12)
-    if bad.any():
-        i = int(touch[np.flatnonzero(bad.any(axis=1))[0]])
-        rows = np.flatnonzero(touch == i)
-        j = int(np.flatnonzero(bad[rows].any(axis=0))[0])
+    hit = first_outside_stroke(pts, strokes)
+    if hit is not None:
+        row, j, v, _, over = hit
         lo, hi = strokes["XYZ"[j]]
-        v = pts[rows[np.argmax(bad[rows, j])], j]
-        raise PlanError(f"set-up {setup.name!r} target {plan.target[i]!r}: {'XYZ'[j]} = {v * 1e3:.3f} mm "
+        raise PlanError(f"set-up {setup.name!r} target {plan.target[int(touch[row])]!r}: {'XYZ'[j]} = {v * 1e3:.3f} mm "
                         f"is outside the stroke {lo * 1e3:.0f}..{hi * 1e3:.0f} mm by "
-                        f"{max(lo - v, v - hi) * 1e3:.3f} mm" + (" (axis position: reading + J - the reference "
-                                                                  "tool's J)" if dJ.any() else ""))
+                        f"{over * 1e3:.3f} mm" + (" (axis position: reading + J - the reference "
+                                                  "tool's J)" if dJ.any() else ""))
     for ax, v in zip(getattr(machine, "rotary_axes", ()), setup.rot_rad):
         if ax in strokes and not (strokes[ax][0] - 1e-12 <= v <= strokes[ax][1] + 1e-12):
             raise PlanError(f"set-up {setup.name!r}: {ax} = {np.rad2deg(v):g} deg is outside its stroke")
@@ -179,6 +200,25 @@ def _links(start: np.ndarray, plan: Plan, z_safe: float, start_from) -> list[np.
     return [paths[i, 4 - k[i]:] if fresh[i] else paths[i, :k[i]] for i in range(n)]
 
 
+def _program_links(T_R_A, start: np.ndarray, plan: Plan, top_A_m: float) -> list[np.ndarray]:
+    """Each touch's link (R, m) as a bar's part program moves (:func:`sim.mfb_scene.link_points`, the
+    moves ``scenarios.mfb`` checks for collisions and strokes): between two starts of one feature and
+    level directly, else out along z_A to ``top_A_m`` + its clearance, across and back; the first
+    start from that plane above it. ``top_A_m``: the bar's top plus the stylus radius, A."""
+    from .mfb_scene import LINK_CLEAR_M, link_points
+
+    n = len(start)
+    if n == 0:
+        return []
+    s_A = A.apply_T(A.inv_T(T_R_A), start[:1])[0]
+    above = A.apply_T(T_R_A, np.array([[s_A[0], s_A[1], max(top_A_m + LINK_CLEAR_M, s_A[2])]]))
+    links = [np.concatenate([above, start[:1]])]
+    if n > 1:
+        P, cnt = link_points(T_R_A, start, plan.feature, plan.level, top_A_m)
+        links += np.split(P, np.cumsum(cnt)[:-1])
+    return links
+
+
 def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: ProbeConfig,
                 start_from: np.ndarray | None = None) -> SetupMoves:
     """Nominal contact centres, normals, start points and link moves in R."""
@@ -192,9 +232,13 @@ def setup_moves(machine, art: A.Artefact, plan: Plan, setup: Setup, probe: Probe
     Xn = A.apply_T(T_R_A, plan.w_A + r * plan.wn_A)
     n_R = A.apply_R(T_R_A, plan.wn_A)
     start = Xn + plan.clearance_m * n_R
-    top = float(np.max(A.apply_T(T_R_A, artefact_points(art))[:, 2]))
-    z_safe = top + r + SAFE_MARGIN_M
-    links, lens = _links(start, plan, z_safe, start_from), np.zeros(plan.n)
+    rec = CATALOG.get(art.name)
+    if rec is not None and rec.links_along_z_A and start_from is None:
+        links = _program_links(T_R_A, start, plan, float(artefact_points(art)[:, 2].max()) + r)
+    else:
+        top = float(np.max(A.apply_T(T_R_A, artefact_points(art))[:, 2]))
+        links = _links(start, plan, top + r + SAFE_MARGIN_M, start_from)
+    lens = np.zeros(plan.n)
     if plan.n:  # each link's length: the sum of its segments' lengths, in order
         P = np.concatenate(links)
         first = np.cumsum([len(p) for p in links]) - np.array([len(p) for p in links])
@@ -263,8 +307,10 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         Check every move against the machine's strokes (:func:`check_strokes`); False
         when the caller checks its own program's moves (the MFB runs: ``scenarios.mfb.check_plan``
         checks every touch, approach start, overshoot end and link of the program as axis
-        positions; this campaign's links pass over the bar's top in R z, a standing bar's above
-        the Z stroke, where the MFB program retracts along the holes' normal).
+        positions against the machine's reference tool, each stylus's offsets counted). The
+        bar's links are its program's (out along z_A: :func:`_program_links`, since session 27;
+        before, a climb along R z over the bar's top, a standing bar's above the Z stroke),
+        so its touches' t_s follow the program's path.
 
     Returns
     -------

@@ -52,6 +52,12 @@ class ArtefactRecord:
     setup_change_s : float
         Time between two set-ups, s (re-placing a bar takes longer than
         indexing a table).
+    links_along_z_A : bool
+        The moves between touches are its part program's: out along the
+        artefact's own z_A to a clearance plane above its top, across,
+        back (:func:`sim.mfb_scene.link_points`, a bar in any
+        orientation); False: up to a safe height along the machine's z
+        (an artefact lying on the table).
     """
 
     name: str
@@ -62,6 +68,7 @@ class ArtefactRecord:
     default_c_deg: tuple = ()
     placements: Callable[..., list] | None = None
     setup_change_s: float = 10.0
+    links_along_z_A: bool = False
 
     def default_setups(self, machine, artefact: A.Artefact) -> list[Setup]:
         """The set-ups :func:`sim.campaign.simulate_campaign` uses when given none.
@@ -96,7 +103,7 @@ def _placement_count(placements: Callable[..., list]) -> int:
 CATALOG: dict[str, ArtefactRecord] = {r.name: r for r in (
     ArtefactRecord("mfb", "the multi-feature bar (Viprey et al. 2016): 12 holes, 11 rods, 22 faces",
                    A.multi_feature_bar, P.mfb_plan, "mikron-ucp710", placements=mfb_placements,
-                   setup_change_s=300.0),
+                   setup_change_s=300.0, links_along_z_A=True),
     ArtefactRecord("cross-pocket", "the cross-shaped pocket with two spheres (Ibaraki et al., section 4.2)",
                    A.cross_pocket, P.cross_pocket_plan, "nmv3000", default_c_deg=(0.0, 75.0, 130.0, 210.0)),
     ArtefactRecord("pin-circle", "the circle of 18 pins with two spheres (Ibaraki et al., section 5)",

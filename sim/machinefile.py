@@ -14,7 +14,7 @@ Example (a user's machine starting from a built-in one)::
     name = "my-vmc"
     base = "vmc-3axis"          # start from a built-in machine (optional)
     errors = "realistic"         # "none" (default) or "realistic": the papers' magnitudes
-    seed = 7                     # realistic: scale and signs drawn (absent: the nominal set)
+    seed = 7                     # realistic: scale, signs and phases drawn (absent: the nominal set)
 
     [strokes]
     X_mm = [-250, 250]           # replaces the base's X stroke

@@ -119,12 +119,16 @@ _ROTARY = {
 }
 
 
+#: Period of the screw-pitch ripple on the linear axes' "lin" profiles, m; its amplitude is 1 % of the profile's.
+RIPPLE_PERIOD_M = 0.010
+
+
 def _profile(shape: str, mag: float, lo: float, hi: float, k: int = 9, ripple: bool = True) -> ErrorFunction:
     if shape == "lin":  # 0 at the low end, mag at the high end, plus a 1 % screw pitch ripple
         slope = mag / (hi - lo)
         if not ripple:
             return Polynomial((-slope * lo, slope))
-        return Sum((Polynomial((-slope * lo, slope)), Periodic(0.01 * abs(mag), 0.010)))
+        return Sum((Polynomial((-slope * lo, slope)), Periodic(0.01 * abs(mag), RIPPLE_PERIOD_M)))
     u = np.linspace(0.0, 1.0, k)
     y = mag * (4 * u * (1 - u) if shape == "bow" else np.sin(2 * np.pi * u))
     return SplineTable(tuple(lo + u * (hi - lo)), tuple(y))
@@ -133,7 +137,7 @@ def _profile(shape: str, mag: float, lo: float, hi: float, k: int = 9, ripple: b
 def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
                      strokes: Mapping[str, tuple[float, float]] | None = None,
                      rng: np.random.Generator | None = None,
-                     ripple: bool = True) -> dict[str, ErrorFunction]:
+                     ripple: bool = True, ripple_phase: float | None = None) -> dict[str, ErrorFunction]:
     """A realistic truth error set with the magnitudes the papers report.
 
     Parameters
@@ -146,13 +150,23 @@ def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
         Strokes over which the profiles are drawn (m / rad); default a
         Mikron-like workspace. Pass ``config.strokes``.
     rng : np.random.Generator, optional
-        None: the nominal set (reproducible, paper magnitudes). Given: each
-        magnitude is scaled by U(0.5, 1) with a random sign, phases random.
+        None: the nominal set (reproducible, paper magnitudes, every phase
+        0). Given: each magnitude is scaled by U(0.5, 1) with a random sign,
+        each rotary axis's phase drawn, and (with ``ripple``) each linear
+        axis's screw ripple at a phase drawn U(0, 2 pi), one per screw
+        (EXX, EBX, ECX ... of X share X's phase). The ripple phases are
+        drawn after every other value, so a seed's magnitudes, signs and
+        rotary phases are the same with or without the ripple.
     ripple : bool
         Add the 10 mm screw-pitch ripple (1 % of the positioning error) to
         the positioning errors (default). ``False`` gives errors that the
         papers' smooth look-up-table models represent (a "no hidden
         effect" machine for model-discovery tests).
+    ripple_phase : float, optional
+        Every screw's ripple at this phase (rad) instead: ``0.0`` is the
+        set every seed gave before session 27 (a phase that flatters the
+        self-calibration's workpiece and C-axis U95, docs/discovery.md,
+        "Session 27: the screw ripple's phase"). Nothing is drawn for it.
 
     Returns
     -------
@@ -192,4 +206,14 @@ def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
             out[ps] = Periodic(mag(m), 2 * np.pi, ph) + Periodic(0.25 * m, np.pi / 2, ph)
         else:
             raise ConfigError(f"realistic_errors: unknown axis {a!r}")
+    if ripple and (rng is not None or ripple_phase is not None):
+        # a real screw's ripple sits at an arbitrary phase: phase 0 (sine zero at the axis origin) in every
+        # seed is one fixed phase, near the worst for a feature centred on a whole period (session 26)
+        for a in axes:
+            if a in _LINEAR:
+                ph = float(rng.uniform(0.0, 2.0 * np.pi)) if ripple_phase is None else float(ripple_phase)
+                for sym, shape, _ in _LINEAR[a]:
+                    if shape == "lin":
+                        poly, rip = out[sym].terms
+                        out[sym] = Sum((poly, Periodic(rip.amplitude, rip.period, ph)))
     return out

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from scenarios.cli.options import GRID_HELP, add_mc_arg, add_noise_arg, check_mc, parse_grid
+from scenarios.cli.options import GRID_HELP, add_mc_arg, add_noise_arg, check_mc, parse_floats3, parse_grid
 
 
 def register(sub) -> None:
@@ -16,6 +16,11 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=None,
                    help="seed of the Monte Carlo runs (0); only with --mc: without it nothing is drawn")
     add_noise_arg(p, "for U95; default: sigma from the residuals", old=("--u-probe-um",))
+    p.add_argument("--tool-offset-mm", default=None, metavar="X,Y,Z",
+                   help="the probe's offsets J the log was probed with, mm (tool side, as a machine file's [tool] "
+                        "offset_mm); recorded in the state (estimate.identified_on) so that vmt vcmm "
+                        "--machine-state can check its tool: the tables are the tool's X/Y deviation with this "
+                        "probe. Omitted: recorded as unknown (null), and vmt vcmm applies the state unchecked")
     from scenarios.cli.guard import NOISE_POSITIVE
 
     p.set_defaults(func=run, vmt_rules=NOISE_POSITIVE)   # the sigma of the U95: > 0, -1 and 0 in one phrasing
@@ -41,6 +46,11 @@ def _run(args, bar) -> int:
 
     if args.seed is not None and not args.mc:  # refused, not ignored: without --mc nothing is drawn
         raise ConfigError(f"--seed {args.seed}: it seeds the Monte Carlo runs, and there are none; add --mc N")
+    J_mm = None if args.tool_offset_mm is None else parse_floats3(args.tool_offset_mm, "--tool-offset-mm")
+    from core.probelog import LENGTH_MAX_MM
+
+    if J_mm is not None and max(abs(v) for v in J_mm) > LENGTH_MAX_MM:
+        raise ConfigError(f"--tool-offset-mm {args.tool_offset_mm!r}: beyond {LENGTH_MAX_MM:g} mm, no probe's offset")
     steps = 4 if args.mc else 3
     bar(0, steps)
     log = read_probe_log(args.log)
@@ -60,6 +70,7 @@ def _run(args, bar) -> int:
     z_read = log.col("Z_mm")[planar & log.ok]
     z_read = z_read[np.isfinite(z_read)]
     on = dict(machine=log.meta.get("machine"), chain=log.meta.get("kinematic_chain"),
+              probe_offsets_J_mm=None if J_mm is None else [J_mm],
               z_mm=(float(z_read.min()), float(z_read.max())) if z_read.size else None)
     del log, planar  # the touches hold what the identification needs: the log's memory goes before it
     grid = parse_grid(args.grid_mm, t.pn_R)
@@ -84,7 +95,7 @@ def _run(args, bar) -> int:
 
     report = res.to_report(mc)
     if "estimate" in report:
-        report["estimate"]["identified_on"] = identified_on(**on)   # J: probe-log/1 does not state it
+        report["estimate"]["identified_on"] = identified_on(**on)   # J: --tool-offset-mm (probe-log/1 has none)
     out = write_json_atomic(args.json, report, special=True)
     bar(steps, steps)
     bar.close()         # the report's lines below the finished progress line, not on it

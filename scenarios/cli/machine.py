@@ -7,21 +7,10 @@
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 
-
-def _floats3(text: str, name: str):
-    from core.exceptions import ConfigError
-
-    try:
-        v = tuple(float(x) for x in text.split(","))
-    except ValueError:
-        v = ()
-    if len(v) != 3 or not all(math.isfinite(x) for x in v):
-        raise ConfigError(f"{name} {text!r}: expected three numbers a,b,c, each finite")
-    return v
+from scenarios.cli.options import parse_floats3
 
 
 def register(sub) -> None:
@@ -98,7 +87,7 @@ def served_machine(args):
                 raise ConfigError(f"{opt}: the simple scene has its own errors (--scale-ppm, --ec0y-urad); "
                                   "give --scene ARTEFACT to probe an artefact on a machine")
         refuse_seed_without_noise(args.seed, args.noise_um, 0.0, "the simple scene is served noise-free")
-        return builtin_machine(args.noise_um or 0.0, args.seed or 0, _floats3(args.scale_ppm, "--scale-ppm"),
+        return builtin_machine(args.noise_um or 0.0, args.seed or 0, parse_floats3(args.scale_ppm, "--scale-ppm"),
                                args.ec0y_urad)
     name = args.machine or "nmv3000"
     spec = truth_machine(name, args.errors, "drawn")
@@ -122,7 +111,7 @@ def run_serve(args) -> int:
             raise ConfigError(f"{opt} must be > 0, got {v:g}")
     machine = served_machine(args)
     axes = args.axes or "XYZ" + "".join(a for a in "ABC" if a in getattr(machine, "rotary_axes", ()))
-    config = ControllerConfig(axes=axes, home=_floats3(args.home, "--home-mm"), homing=args.homing,
+    config = ControllerConfig(axes=axes, home=parse_floats3(args.home, "--home-mm"), homing=args.homing,
                               travel=parse_limits(args.limits) if args.limits else None)
     emu = GrblEmulator(machine, config)
     runner = EmulatorRunner(emu, time_scale=args.time_scale)

@@ -95,6 +95,19 @@ def parse_grid(text: str, p_R):
     return Grid.regular(parts[0], parts[1], parts[2])
 
 
+def parse_floats3(text: str, name: str) -> tuple[float, float, float]:
+    """``a,b,c``: three finite numbers (an option's value), else a ConfigError naming the option ``name``."""
+    from core.exceptions import ConfigError
+
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        v = ()
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise ConfigError(f"{name} {text!r}: expected three numbers a,b,c, each finite")
+    return v
+
+
 GRID_HELP = ("error-map grid, mm: STEP (nodes at multiples of it covering the touches) or x0:x1:step (both axes; "
              "write --grid-mm=-110:110:22 when x0 < 0)")
 

@@ -84,6 +84,13 @@ def run(args) -> int:
         if state.identified_on is None:
             print(f"{args.machine_state}: no record of the machine it was identified on (a file written before "
                   f"session 26): applied to {cfg.name} unchecked")
+        from core.state import probe_offsets_check
+
+        why, notice = probe_offsets_check(state, [v * 1e3 for v in cfg.J_m])
+        if why:
+            raise ConfigError(f"--machine-state {args.machine_state}: {why}")
+        if notice:
+            print(notice)
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
     with progress_line("vcmm: Monte Carlo runs") as bar:
         rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask,

@@ -259,6 +259,63 @@ def test_a_bad_record_is_refused_by_key(identified, rec, key):
         loads_estimate(doc)
 
 
+def test_identify_records_the_tool_offsets_given_and_vcmm_checks_them(identified, tmp_path, capsys):
+    """A self-calibrated state's tables are the tool's X/Y deviation with the probe it was identified with
+    (the angular errors through its arm), so its offsets J matter where it is applied. vmt identify
+    --tool-offset-mm records them (probe-log/1 has no J); vmt vcmm applies the state with the same tool
+    quietly, refuses another tool in one line (exit 2), and says so when the record has none (null)."""
+    log, ident = identified
+    out = tmp_path / "id.json"
+    assert main(["identify", str(log), "--json", str(out), "--tool-offset-mm", "0,0,150"]) == 0
+    assert json.loads(out.read_text())["estimate"]["identified_on"]["probe_offsets_J_mm"] == [[0.0, 0.0, 150.0]]
+    capsys.readouterr()
+    v = tmp_path / "v.json"
+    assert main(VCMM + ["--machine", "nmv3000", "--json", str(v), "--machine-state", str(out)]) == 0
+    assert "probe offsets" not in capsys.readouterr().out                   # nmv3000's tool: [0, 0, 150] mm
+    assert main(["identify", str(log), "--json", str(out), "--tool-offset-mm", "0,0,100"]) == 0
+    capsys.readouterr()
+    v.unlink()
+    assert main(VCMM + ["--machine", "nmv3000", "--json", str(v), "--machine-state", str(out)]) == 2
+    err = one_error_line(capsys, f"vmt vcmm: error: --machine-state {out}: identified with probe offsets J "
+                                 "(0, 0, 100) mm, not with this machine's tool offsets (0, 0, 150) mm")
+    assert "identify with this probe" in err and not v.exists()
+    # without the option (the fixture's state): null, applied with a notice naming what is unchecked
+    assert main(VCMM + ["--machine", "nmv3000", "--json", str(v), "--machine-state", str(ident)]) == 0
+    assert (f"{ident}: the probe offsets J it was identified with are not recorded (vmt identify "
+            "--tool-offset-mm): its tables, the tool's X/Y deviation with that probe, applied with the tool "
+            "offsets (0, 0, 150) mm unchecked\n") in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("value, why", [
+    ("0,150", "expected three numbers a,b,c, each finite"),
+    ("0,0,nan", "expected three numbers a,b,c, each finite"),
+    ("0,0,x", "expected three numbers a,b,c, each finite"),
+    ("0,0,1e6", "beyond 100000 mm, no probe's offset"),
+])
+def test_identify_refuses_a_bad_tool_offset_in_one_line(identified, tmp_path, capsys, value, why):
+    log, _ = identified
+    out = tmp_path / "id.json"
+    capsys.readouterr()
+    assert main(["identify", str(log), "--json", str(out), f"--tool-offset-mm={value}"]) == 2
+    err = one_error_line(capsys, f"vmt identify: error: --tool-offset-mm {value!r}: ")
+    assert why in err and not out.exists()
+
+
+def test_an_mfb_state_applies_with_any_tool():
+    """An MFB state (z_mm null) holds the axes' own errors, angular ones included: no probe check."""
+    from types import SimpleNamespace
+
+    from core.state import probe_offsets_check
+
+    mfb = SimpleNamespace(source="m.json", identified_on={"machine": "vmc-3axis", "chain": "V[w-X-Y-b-Z-(C)-t]",
+                                                          "probe_offsets_J_mm": [[0, 0, 150]], "z_mm": None})
+    assert probe_offsets_check(mfb, (0.0, 0.0, 90.0)) == (None, None)
+    planar = SimpleNamespace(source="s.json", identified_on={**mfb.identified_on, "z_mm": [27.0, 27.0]})
+    assert probe_offsets_check(planar, (0.0, 0.0, 150.0005)) == (None, None)        # within J_SAME_MM
+    assert probe_offsets_check(planar, (0.0, 0.0, 150.002))[0].startswith("identified with probe offsets J (0, 0, 150)")
+    assert probe_offsets_check(SimpleNamespace(source="o.json", identified_on=None), (0, 0, 1)) == (None, None)
+
+
 def test_the_mfb_records_its_machine_and_styli():
     from core.state import loads_estimate
     from scenarios import mfb as S

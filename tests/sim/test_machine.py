@@ -298,6 +298,43 @@ def test_realistic_errors_magnitudes():
     assert 19e-6 <= np.ptp(r["EXX"](np.linspace(-0.355, 0.355, 11))) <= 40e-6
 
 
+def test_realistic_errors_draw_each_screws_ripple_phase_from_the_seed():
+    """A drawn machine's 10 mm screw ripple sits at a phase drawn from its generator, one per screw (every
+    "lin" profile of X shares X's phase: EXX, EBX), drawn after every other value: the same seed with and
+    without the ripple gives the same magnitudes, signs and rotary phases to the bit. Before session 27 every
+    ripple sat at phase 0 in every seed. The nominal set (no generator) keeps phase 0, and
+    ripple_phase=0.0 pins a seeded set's ripples there (the set before)."""
+    from sim.errorfuncs import Periodic, Sum
+
+    cfg = MACHINES["nmv3000"]()
+    axes = ("X", "Y", "Z", "A", "C")
+    phases = []
+    for seed in (3, 4):
+        e = realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(seed))
+        smooth = realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(seed), ripple=False)
+        ph = {}
+        for k, f in e.items():
+            if k[2] in "XYZ" and isinstance(f, Sum):
+                poly, rip = f.terms
+                assert isinstance(rip, Periodic) and rip.period == 0.010
+                assert repr(poly) == repr(smooth[k]), k       # the profile itself: the same draw
+                ph[k] = rip.phase
+            else:
+                assert repr(f) == repr(smooth[k]), k          # every other error: the same draw
+        assert set(ph) == {"EXX", "EBX", "EYY", "ECY", "EZZ", "EBZ"}
+        assert ph["EXX"] == ph["EBX"] and ph["EYY"] == ph["ECY"] and ph["EZZ"] == ph["EBZ"]
+        assert len({ph["EXX"], ph["EYY"], ph["EZZ"]}) == 3 and all(0.0 < v < 2 * np.pi for v in ph.values())
+        phases.append(ph["EXX"])
+    assert phases[0] != phases[1]
+    again = realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(3))
+    assert again["EXX"].terms[1].phase == phases[0]        # deterministic per seed
+    nominal = realistic_errors(axes, strokes=cfg.strokes)
+    assert nominal["EXX"].terms[1].phase == 0.0
+    pinned = realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(3), ripple_phase=0.0)
+    assert {pinned[k].terms[1].phase for k in ("EXX", "EBX", "EYY", "ECY", "EZZ", "EBZ")} == {0.0}
+    assert pinned["EXX"].terms[1].amplitude == again["EXX"].terms[1].amplitude
+
+
 @pytest.mark.parametrize("kw, match", [
     (dict(errors={"EQQ": Constant(0.0)}), "unknown ISO error symbol"),
     (dict(errors={"EB0X": Constant(1e-6)}), "zero by the ISO 230-1 convention"),

@@ -252,6 +252,25 @@ def test_measurements_of_several_styli_at_once_are_each_campaign(drifting_mikron
         assert a.positions_mm().tobytes() == b.positions_mm().tobytes()
 
 
+def test_first_outside_stroke_is_the_first_position_reached_then_x_y_z():
+    """sim.campaign.first_outside_stroke, the one stroke rule of sim.campaign.check_strokes and
+    scenarios.mfb.check_program_strokes. Known answers: row 1 (Y 2 mm beyond, Z 5 mm beyond) is named
+    before row 2 (X 50 mm beyond: larger, but reached later), and Y before Z within it; 1 nm beyond is
+    within (STROKE_TOL_M, rounding), 2 nm is not; an axis without a stroke is not checked."""
+    from sim.campaign import STROKE_TOL_M, first_outside_stroke
+
+    st = {"X": (-0.1, 0.1), "Y": (-0.1, 0.1), "Z": (0.0, 0.4), "C": (-3.2, 3.2)}
+    q = np.array([[0.0, 0.0, 0.2], [0.0, -0.102, 0.405], [0.15, 0.0, 0.2]])
+    i, j, v, lim, over = first_outside_stroke(q, st)
+    assert (i, j, v, lim) == (1, 1, -0.102, -0.1) and over == pytest.approx(0.002, abs=1e-15)
+    assert first_outside_stroke(q[[0, 2]], st)[:4] == (1, 0, 0.15, 0.1)
+    assert STROKE_TOL_M == 1e-9
+    assert first_outside_stroke([[0.1 + 1e-9, 0.0, 0.0]], st) is None
+    assert first_outside_stroke([[0.1 + 2e-9, 0.0, 0.0]], st)[:2] == (0, 0)
+    assert first_outside_stroke([[5.0, 0.0, 0.2]], {"Y": (-0.1, 0.1), "Z": (0.0, 0.4)}) is None
+    assert first_outside_stroke(np.empty((0, 3)), st) is None
+
+
 def test_check_strokes_on_axis_positions_with_a_reference_tool_and_the_excess_named():
     """sim.campaign.check_strokes: a stroke bounds the axis position (reading + J - J_ref,
     docs/formats.md "Strokes"). Known answers: a link point at Z reading 0.300 m inside Z's 0.400 m
@@ -279,3 +298,35 @@ def test_check_strokes_on_axis_positions_with_a_reference_tool_and_the_excess_na
     m.config.strokes["Z"] = (0.088, 0.4)
     with pytest.raises(PlanError, match=r"Z = 87\.000 mm is outside the stroke 88\.\.400 mm by 1\.000 mm$"):
         check_strokes(m, st, plan, mv)
+
+
+def test_the_bars_links_are_its_part_programs_moves():
+    """The bar's link moves (which set each touch's simulated t_s through their length at rapid feed)
+    are the ones its part program moves and scenarios.mfb checks (program_positions' "links",
+    sim.mfb_scene.link_points: out along z_A above the bar, across, back), not a climb along the
+    machine's z over the bar's top (before session 27: +181 s over the 17 default placements' 5,372
+    touches). The first touch comes down z_A from the clearance plane. A lying artefact keeps R z."""
+    from scenarios import mfb as S
+    from sim.campaign import setup_moves
+    from sim.catalog import CATALOG
+    from sim.machine import Machine
+    from sim.machines import MACHINES
+    from sim.mfb_scene import LINK_CLEAR_M
+    from sim.scene import artefact_points
+
+    art = S._nominal_bar()
+    plan = make_plan(art)
+    probe = ProbeConfig()
+    m = Machine(MACHINES["mikron-ucp710"]())
+    assert CATALOG["mfb"].links_along_z_A and not CATALOG["cross-pocket"].links_along_z_A
+    for st in CATALOG["mfb"].default_setups(m, art)[:4]:
+        mv = setup_moves(m, art, plan, st, probe)
+        T_R_A = mv.T_R_W @ np.asarray(st.T_W_A, float)
+        want = S.program_positions(T_R_A, plan, probe.stylus_r_m, art)["links"]
+        np.testing.assert_array_equal(np.concatenate(mv.links[1:]), want)
+        first = A.apply_T(A.inv_T(T_R_A), mv.links[0])
+        top = artefact_points(art)[:, 2].max() + probe.stylus_r_m + LINK_CLEAR_M
+        np.testing.assert_allclose(first[0], [*first[1, :2], top], rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(mv.links[0][1], mv.start_R[0])
+        seg = [np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in mv.links]
+        np.testing.assert_allclose(mv.link_len_m, seg, rtol=1e-12)
