@@ -187,7 +187,8 @@ What it does, in order, and the statistics behind each step
    it (:attr:`core.causes.Cause.richer`: lobes turned per set-up for fixed
    lobes) is neither significant beyond it by its own F test nor left
    possible by the design (:func:`core.causes.turned_lobes`: fixed lobes
-   are confident only where a turn of the fitted lobes would have shown);
+   are confident only where a turn of the fitted lobes would have shown,
+   and the data favour them by odds of 1 / alpha: :data:`RICHER_NEEDS_ODDS`);
    no unnamed smooth of its own covariate's family was adopted beside it
    (step 6 keeps a cause beside such a smooth as its refinement; the
    smooth's material held-out gain says the covariate holds a structure
