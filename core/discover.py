@@ -8371,10 +8371,12 @@ NAMED_ALTERNATIVE_SHIFT_CARRIED = False
 #: Bayes factor with the turn taken as Gaussian), not only where a turn would have shown in all but ``alpha``
 #: of draws (``p_turned``). Where few directions tell a turn from fixed lobes the odds are capped at about the
 #: turn's amplitude over the noise per direction (``log10_odds_most``): the simulator's cross pocket (2
-#: directions, one carrying the turn) reaches at most 12-100 on its tuning seeds, so its small ``p_turned``
+#: directions, one carrying the turn) reaches at most 8-100 on its tuning seeds, so its small ``p_turned``
 #: (a calibrated test of low power, about 15 %) leaves fixed lobes ambiguous with ``lobing_per_setup``; gen_a
-#: and gen_c (12-36 directions) reach 10^2-10^9. True (session 27: simulator lobing_per_setup 6101 and tuning
-#: twin 4038, confidently ``probe_lobing``, hedged; docs/discovery.md, "Session 27: fixed lobes need odds").
+#: and gen_c (12-30 directions) reach odds of 10^2-10^17. True (session 27: simulator lobing_per_setup 6101
+#: and tuning twin 4038, confidently ``probe_lobing``, hedged; the simulator's 14 confident fixed-lobe names
+#: of 4000-4099 hedged too, no cause changed on 1,235 tuning campaigns; docs/discovery.md, "Session 27: fixed
+#: lobes need odds, not only a small p_turned").
 RICHER_NEEDS_ODDS = True
 #: Outliers whose target has touches kept, reading less material than the fit there, doubted whatever the report
 #: calls them (:func:`_workpiece`'s ``beside_kept``): the removal's shift tested and carried as the form's.
