@@ -187,7 +187,8 @@ What it does, in order, and the statistics behind each step
    it (:attr:`core.causes.Cause.richer`: lobes turned per set-up for fixed
    lobes) is neither significant beyond it by its own F test nor left
    possible by the design (:func:`core.causes.turned_lobes`: fixed lobes
-   are confident only where a turn of the fitted lobes would have shown);
+   are confident only where a turn of the fitted lobes would have shown,
+   and the data favour them by odds of 1 / alpha: :data:`RICHER_NEEDS_ODDS`);
    no unnamed smooth of its own covariate's family was adopted beside it
    (step 6 keeps a cause beside such a smooth as its refinement; the
    smooth's material held-out gain says the covariate holds a structure
@@ -7685,13 +7686,21 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             if rich is not None:
                 ev["richer"] = {"cause": cause.richer_cause, **rich}
                 seen_r = rich["p_value"] < settings.alpha_family
-                if seen_r or rich["p_turned"] >= settings.alpha:
+                odds = rich.get("log10_odds_fixed")
+                weak = (RICHER_NEEDS_ODDS and odds is not None and rich["p_turned"] < settings.alpha
+                        and odds < np.log10(1.0 / settings.alpha))
+                if seen_r or rich["p_turned"] >= settings.alpha or weak:
                     why.append(f"{cause.richer_cause} explains {rich['beyond_ss_um2']:.3g} um^2 beyond it "
                                f"({fmt_p(rich['p_value'])}, {rich['dof']} directions): the data show it, if not "
                                "materially" if seen_r else
                                f"{cause.richer_cause} at the magnitudes fitted here would look as little different "
                                f"in a share {rich['p_turned']:.2g} of draws ({rich['dof']} directions tell them apart on "
-                               "this design): the data cannot exclude it")
+                               "this design): the data cannot exclude it" if not weak else
+                               f"{cause.richer_cause} at the magnitudes fitted here would look as little different "
+                               f"in a share {rich['p_turned']:.2g} of draws, but the data favour the fixed lobes by odds "
+                               f"of only {10 ** odds:.3g} (at most {10 ** rich['log10_odds_most']:.3g} on this design, "
+                               f"{rich['dof']} directions tell them apart; {1 / settings.alpha:.3g} needed): the data "
+                               "cannot exclude it")
                     ev["ambiguous_with"] = list(ev.get("ambiguous_with", [])) + [cause.richer_cause]
         if cause.gradual:
             talt = _time_alternatives(bl, tm, so, sig, settings)
@@ -8357,6 +8366,18 @@ OUTLIER_REFIT_FORM_ONLY = True
 #: beside nonrigid, local_scale_defect read on outlier 1824 2.9 -> 29 um beside part_change): the shift measures
 #: the alternative's model error as much as the name's (docs/discovery.md, session 22).
 NAMED_ALTERNATIVE_SHIFT_CARRIED = False
+#: Fixed lobes (a cause whose ``richer`` nests it) named confidently only where the data favour them over the
+#: richer cause by odds of at least ``1 / alpha`` (:func:`core.causes.turned_lobes`' ``log10_odds_fixed``: the
+#: Bayes factor with the turn taken as Gaussian), not only where a turn would have shown in all but ``alpha``
+#: of draws (``p_turned``). Where few directions tell a turn from fixed lobes the odds are capped at about the
+#: turn's amplitude over the noise per direction (``log10_odds_most``): the simulator's cross pocket (2
+#: directions, one carrying the turn) reaches at most 8-100 on its tuning seeds, so its small ``p_turned``
+#: (a calibrated test of low power, about 15 %) leaves fixed lobes ambiguous with ``lobing_per_setup``; gen_a
+#: and gen_c (12-30 directions) reach odds of 10^2-10^17. True (session 27: simulator lobing_per_setup 6101
+#: and tuning twin 4038, confidently ``probe_lobing``, hedged; the simulator's 14 confident fixed-lobe names
+#: of 4000-4099 hedged too, no cause changed on 1,235 tuning campaigns; docs/discovery.md, "Session 27: fixed
+#: lobes need odds, not only a small p_turned").
+RICHER_NEEDS_ODDS = True
 #: Outliers whose target has touches kept, reading less material than the fit there, doubted whatever the report
 #: calls them (:func:`_workpiece`'s ``beside_kept``): the removal's shift tested and carried as the form's.
 #: False (kept, session 22): measured on, it raised the covering U95 of 65 of gen_b outlier 1000-1099's 93

@@ -236,6 +236,14 @@ the key of a choice, null (the demo's and the simulator's periodic 1000's
 ``pretravel_along``, thermal_bending 604's ``covariate``, nonrigid 2's
 ``axes``); no phase U95 stored here reaches half a turn; every other leaf as
 stored.
+
+Refreshed for fixed lobes' odds (session 27, :func:`core.causes._fixed_odds`,
+``core.discover.RICHER_NEEDS_ODDS``): the ``richer`` evidence of the demo and
+of gen_a probe_lobing 302 gains ``log10_odds_fixed`` and ``log10_odds_most``
+(demo 1.38 and 1.70: its four set-ups leave two telling directions; 302 5.83
+and 10.13); no decision moved (the demo was ambiguous by ``p_turned`` 0.015,
+302 by its other reasons), every other leaf as stored (/work/team/s27/refresh.py
+with those two keys' paths alone).
 """
 
 from __future__ import annotations

@@ -99,6 +99,53 @@ def test_fixed_lobes_ambiguous_where_a_turn_cannot_be_excluded():
     f = discover(dataclasses.replace(t6, p_R=t6.pn_R + dq[:, None] * t6.n_R)).to_report()["findings"][0]
     assert f["cause"] == "probe_lobing" and f["evidence"]["confidence"] == "named", f["evidence"]
     assert f["evidence"]["richer"]["p_turned"] < 0.01 and f["evidence"]["richer"]["p_value"] > 0.01
+    assert f["evidence"]["richer"]["log10_odds_fixed"] >= 2, f["evidence"]["richer"]  # odds 1 / alpha reached
+
+
+def test_fixed_odds_is_the_gaussian_bayes_factor():
+    """Known answer: the closed form of :func:`core.causes._fixed_odds` equals the ratio of the two normal
+    densities at the data, N(0, sigma^2) over N(0, sigma^2 + lam) per direction (scipy's logpdf; to 1e-12 of
+    the log, the rounding of sums of a few terms of order 10), its statistic the weighted sum of squares
+    turned_lobes tests; a direction no turn reaches (lam 0) adds nothing; one telling direction caps the odds
+    at sqrt(1 + lam / sigma^2); noise-free data (sigma 0) are not limited by noise (None)."""
+    from scipy import stats
+
+    rng = np.random.default_rng(3)
+    sigma = 0.3e-6
+    lam = np.array([0.0, 2.0, 40.0, 900.0]) * sigma ** 2
+    for _ in range(5):
+        x = rng.normal(0, sigma, lam.size) * rng.uniform(0.2, 3.0)
+        obs = float(np.sum(lam / (sigma ** 2 + lam) * x ** 2))
+        ref = np.sum(stats.norm.logpdf(x, 0, sigma) - stats.norm.logpdf(x, 0, np.sqrt(sigma ** 2 + lam)))
+        got = causes._fixed_odds(lam, sigma, obs)
+        assert abs(got["log10_odds_fixed"] * np.log(10) - ref) < 1e-12 * max(1.0, abs(ref)), (got, ref)
+        assert got["log10_odds_fixed"] <= got["log10_odds_most"]
+    one = causes._fixed_odds(np.array([0.0, 99.0]) * sigma ** 2, sigma, 0.0)
+    assert abs(10 ** one["log10_odds_most"] - 10.0) < 1e-12 and one["log10_odds_fixed"] == one["log10_odds_most"]
+    assert causes._fixed_odds(lam, 0.0, 0.0) == {"log10_odds_fixed": None, "log10_odds_most": None}
+
+
+def test_one_telling_direction_caps_the_odds_for_fixed_lobes():
+    """Session 27: on the four-wall design one direction tells a turn, so however small p_turned is the data
+    favour fixed lobes over turned ones by at most about the turn's amplitude over the noise. Fixed lobes of
+    2 um there (the campaign of seed 3: p_turned 0.0017, below alpha 0.01, the per-set-up lobes not
+    significant) reach odds near 60, below 1 / alpha = 100, and their ceiling on this design is below it too;
+    six set-ups of 24 azimuths (many telling directions) give odds far beyond it."""
+    t0 = S.plan()
+    t = t0.subset(np.array([f == "pocket" for f in t0.feature]), reindex=True)
+    tt, _ = S.campaign("probe_lobing", 3, t=t)
+    bl, Q, L = _fit(tt)
+    y = np.einsum("ij,ij->i", tt.p_R - tt.pn_R, tt.n_R)  # the readings along the normal (dq)
+    r = causes.turned_lobes(bl, Q, y, np.arange(tt.n), L, S.SIG, 1e-2)
+    assert r["p_turned"] < 0.01 and r["p_value"] > 0.01, r
+    assert r["log10_odds_fixed"] <= r["log10_odds_most"] < 2, r
+    t6 = S.plan(c_deg=C6)
+    bl, Q, L = _fit(t6)
+    rng = np.random.default_rng(4)
+    mf, _ = S.machine_and_form(t6, rng)
+    r6 = causes.turned_lobes(bl, Q, mf + _lobes(t6, [0.7] * 6) + rng.normal(0, S.SIG, t6.n), np.arange(t6.n), L,
+                             S.SIG, 1e-2)
+    assert r6["p_turned"] < 0.01 and r6["log10_odds_fixed"] > 5, r6  # 9.3 measured: 1e5 is far beyond 1e2
 
 
 def _places(n_feat=12, per=5, setups=6):

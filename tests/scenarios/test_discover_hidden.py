@@ -465,3 +465,18 @@ def test_the_noise_beyond_a_drift_model_is_taken_where_shown():
     noise = rep["noise_um"]
     assert noise["method"] == "repeats beyond the model's terms", noise["method"]
     assert 0.41 * tr.noise_um < noise["sigma_um"] < 1.66 * tr.noise_um, (noise["sigma_um"], tr.noise_um)
+
+
+def test_turned_lobes_hidden_in_the_one_telling_direction_are_not_confidently_fixed(monkeypatch):
+    """Session 27 (issue 13; the blind check's lobing_per_setup 6101, tuning twin 4038): the cross pocket leaves
+    one direction that tells lobes turned per set-up from fixed ones, and 4038's turn angles hide the turn
+    there (p_turned 0.0005 < alpha: main named probe_lobing confidently). The data favour fixed lobes by odds
+    of only 57 (at most 58 on this design), below 1 / alpha: probe_lobing stays ambiguous with
+    lobing_per_setup. Without the rule (RICHER_NEEDS_ODDS False) the misnaming is confident again."""
+    import core.discover as D
+
+    o = hidden_outcome("lobing_per_setup", 4038)
+    assert o.cause == "probe_lobing" and not o.confident, o
+    monkeypatch.setattr(D, "RICHER_NEEDS_ODDS", False)
+    o = hidden_outcome("lobing_per_setup", 4038)
+    assert o.cause == "probe_lobing" and o.confident, o
