@@ -197,8 +197,9 @@ def _strokes_loop(positions, J_m, J_ref_m, strokes):
 def test_check_program_strokes_one_pass_equals_the_loop():
     """The one pass over every kind (session 27) gives the loop's ranges bit for bit, and the loop's
     error (the first kind, axis and side in its order) whenever a position is beyond: random programs
-    inside, just inside (1e-9 m: not refused), beyond on each side of each axis in each kind, and
-    positions with a signed zero or a NaN (the loop's own answer: Python's min keeps inf beside a NaN)."""
+    inside, one position moved past a side of an axis in one kind by 1e-9 m (at the tolerance: refused or
+    not as rounding makes the excess, as in the loop), 2e-9 m or 1 mm, and positions with a signed zero or a
+    NaN (the loop's own answer: Python's min keeps inf beside a NaN)."""
     rng = np.random.default_rng(27)
     st = {"X": (-0.3, 0.3), "Y": (-0.2, 0.25), "Z": (0.0, 0.4)}
     kinds = ("touches", "approach starts", "overshoot ends", "links")
