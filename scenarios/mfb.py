@@ -736,8 +736,12 @@ def check_plan(plan: MfbPlan, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> di
         if c is None:
             c = A.apply_T(T_R_W @ ms.T_W_A, pl.w_A + stylus_r_m * pl.wn_A)
         c_lo, c_hi = _column_range(c)  # (the touches' range per axis)
-        q_lo, q_hi = check_program_strokes(ms.name, program_positions(T_R_W @ ms.T_W_A, pl, stylus_r_m, art),
-                                           ms.J_m, cfg.J_m, cfg.strokes)
+        # (the program's positions as the check computed them: program_positions' arrays, the same
+        # expressions on the same operands, so the same numbers; tests/scenarios/test_mfb_strokes.py)
+        pos = r.positions_R
+        if pos is None:
+            pos = program_positions(T_R_W @ ms.T_W_A, pl, stylus_r_m, art)
+        q_lo, q_hi = check_program_strokes(ms.name, pos, ms.J_m, cfg.J_m, cfg.strokes)
         per[ms.name] = {"placement": ms.placement, "setup": ms.setup_key, "stylus": ms.stylus,
                         "J_mm": [round(v / MM, 3) for v in ms.J_m], "holes": list(ms.holes),
                         "touches": r.touches, "path_points": r.samples, "collisions": len(r.collisions),
@@ -917,8 +921,24 @@ def check_program_strokes(name: str, positions: dict, J_m, J_ref_m, strokes) -> 
     from sim.campaign import first_outside_stroke
 
     dJ = np.asarray(J_m, float) - np.asarray(J_ref_m, float)
+    # every kind's positions in one pass when none is beyond a stroke: the least and largest of
+    # floats are the same numbers whatever the grouping (but for a zero's sign or a NaN: then, or
+    # when a position is beyond a stroke, the rule below, sim.campaign.first_outside_stroke, which
+    # names the first in its order). A stroke's excess rises with the position (rounding is monotone), so the largest position's
+    # excess is above 1e-9 exactly when one of the kinds' is
+    qs = [P for P in positions.values() if len(P)]
+    if qs:
+        q = (np.concatenate(qs) if len(qs) > 1 else np.asarray(qs[0], float)) + dJ
+        lo_all, hi_all = _column_range(q)
+        v = lo_all + hi_all
+        if (0.0 not in v and all(map(float.__eq__, v, v))
+                and all(hi_all[j] - strokes[ax][1] <= 1e-9 and strokes[ax][0] - lo_all[j] <= 1e-9
+                        for j, ax in enumerate("XYZ"))):
+            return lo_all, hi_all
     q = {kind: np.asarray(P, float).reshape(-1, 3) + dJ for kind, P in positions.items()}
     for kind, qk in q.items():
+        if not np.isfinite(qk).all():
+            raise PlanError(f"measurement {name!r}: a position at its {kind} is not a finite number")
         if (hit := first_outside_stroke(qk, strokes)) is not None:
             _, j, v, lim, over = hit
             raise PlanError(f"measurement {name!r}: axis {'XYZ'[j]} at {v / MM:.1f} mm at its {kind} "

@@ -113,6 +113,11 @@ class CheckResult:
     #: (touches, 3) m, R: each touch's stylus-centre contact as checked (``apply_T(T_R_W @ T_W_A,
     #: w_A + r wn_A)``; None when not given), for a caller's stroke check (scenarios.mfb.check_plan)
     contacts_R: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: kind -> (k, 3) m, R: every position the measurement's program commands, as checked, in the
+    #: form and order of ``scenarios.mfb.program_positions`` ("touches" the contacts above, "approach
+    #: starts", "overshoot ends", "links" when the program has two touches or more), the same
+    #: expressions row by row (None when not given), for a caller's stroke check (scenarios.mfb.check_plan)
+    positions_R: dict | None = field(default=None, repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
@@ -1249,6 +1254,7 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
     direct = {}  # per program (plan object): its direct links (_direct_links)
     bad, zones, T_R_As, paths = [], [], [], []
     linked = []  # (measurement, starts in A, direct links) of the measurements with links
+    ends = {}  # the overshoot ends in R by measurement (CheckResult.positions_R)
     for i, ((name, T_W_A, T_R_W, blocks, J_m, plan, finger_m), wz) in enumerate(zip(ms, each)):
         T_R_A = T_R_W @ T_W_A
         b = []
@@ -1269,7 +1275,9 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
         bad.append(b), zones.append(wz), T_R_As.append(T_R_A)
         if plan.n:
             Xn = apply_T(T_R_A, plan.w_A + r * plan.wn_A)
-            start = Xn + plan.clearance_m * apply_R(T_R_A, plan.wn_A)
+            n_R = apply_R(T_R_A, plan.wn_A)
+            start = Xn + plan.clearance_m * n_R
+            ends[i] = Xn - plan.overshoot_m * n_R  # (the overshoot ends, as scenarios.mfb.program_positions)
             if plan.n > 1:
                 dl = direct.get(id(plan))  # (per program: its features compared once)
                 if dl is None:
@@ -1341,7 +1349,20 @@ def check_measurements(artefact, measurements, stylus_r_m, link_step_m: float = 
         for i in live:
             zones[i].set_table(ms[i][2])
             clear[i] = zones[i].least_holder_clearance(paths[i][0], broad_phase=broad_phase)
-    return [CheckResult(*r, float(c * 1e3), None if p is None else p[1]) for r, c, p in zip(out, clear, paths)]
+    return [CheckResult(*r, float(c * 1e3), None if p is None else p[1], _positions(p, ends.get(i), ms[i][5]))
+            for i, (r, c, p) in enumerate(zip(out, clear, paths))]
+
+
+def _positions(path, ends, plan) -> dict | None:
+    """:attr:`CheckResult.positions_R` of a measurement from its checked path (start, contacts, links,
+    link counts) and overshoot ends: the arrays ``scenarios.mfb.program_positions`` computes, by the same
+    expressions on the same operands (the links: :func:`link_points`' rows, as the check computes them)."""
+    if path is None:
+        return None
+    out = {"touches": path[1], "approach starts": path[0], "overshoot ends": ends}
+    if plan.n > 1:
+        out["links"] = path[2]
+    return out
 
 
 def _near_samples(ms, zones, live, sgs) -> dict:

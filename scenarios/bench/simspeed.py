@@ -467,6 +467,13 @@ took 16.4-17.9 ms (median 17.0), 586aff4's at 0 faults 16.4-19.6 ms (median 17.1
 still at ~1,170 faults, 18.5-22.3 ms). In this figure both run warm (0 faults), so a change measured in
 fresh processes must be checked here. The target, 0.18, is not met: a warm check of ~16 ms would need
 ~4 ms less compute, and no function takes more than ``near_segments_many``'s ~3 ms.
+
+Session 27 (issue 19 item 4): ``check_plan``'s stroke check no longer recomputes the program's positions
+(``scenarios.mfb.program_positions``, 15 ``link_points``: ~1.1 ms a fresh check) but reads the collision
+check's own (``CheckResult.positions_R``, the same arrays bit for bit), and ``check_program_strokes`` reduces
+every kind in one pass when nothing is beyond a stroke (0.66 -> 0.29 ms). This figure's share, 10 rounds
+interleaved with 63c4d4f at load 11-18: medians 0.283/0.281 -> 0.2495/0.2445, paired 0.82-0.92; two
+``--only bench_simspeed`` runs side by side: 0.298 -> 0.264, 0.293 -> 0.253 (docs/performance.md, session 27).
 """
 
 from __future__ import annotations

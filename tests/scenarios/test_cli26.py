@@ -232,13 +232,18 @@ def test_a_state_on_another_machine_or_chain_is_refused(identified, tmp_path, ca
 
 
 def test_a_state_without_the_record_reads_with_a_notice(identified, tmp_path, capsys):
+    """A state file written before session 26 (no ``identified_on``) is applied with a notice, and the run
+    completes. At a loose Monte Carlo tolerance (--tol-um 1: 0.9 s of CPU against 5.9 s at the default,
+    session 27): the subject is the notice and the state read; the full run with a state at the default
+    tolerance is tests/scenarios/test_vcmm_state.py's."""
     _, ident = identified
     doc = json.loads(ident.read_text())
     del doc["estimate"]["identified_on"]
     old = tmp_path / "old.json"
     old.write_text(json.dumps(doc))
     capsys.readouterr()
-    main(VCMM + ["--machine", "vmc-3axis", "--json", str(tmp_path / "v.json"), "--machine-state", str(old)])
+    assert main(VCMM + ["--machine", "vmc-3axis", "--json", str(tmp_path / "v.json"), "--machine-state", str(old),
+                        "--tol-um", "1"]) == 0
     out = capsys.readouterr().out
     assert out.startswith(f"{old}: no record of the machine it was identified on (a file written before session "
                           "26): applied to vmc-3axis unchecked\n"), out

@@ -173,3 +173,92 @@ def test_run_on_a_machine_file_with_a_shorter_stroke_is_refused():
     spec = loads(text, source="short.toml")
     with pytest.raises(PlanError, match=r"^measurement 'X3': axis Y at -273\.0 mm .* 1\.0 mm beyond its stroke's -272 mm"):
         M.run("mfb-5axis", seed=1, mc_runs=0, machine=spec)
+
+
+def _strokes_loop(positions, J_m, J_ref_m, strokes):
+    """check_program_strokes as written before session 27 (kind by kind, axis by axis): the reference
+    its one pass must equal, (lo, hi) or the error's text."""
+    dJ = np.asarray(J_m, float) - np.asarray(J_ref_m, float)
+    lo_all, hi_all = [np.inf] * 3, [-np.inf] * 3
+    for kind, P in positions.items():
+        if not len(P):
+            continue
+        q = np.asarray(P, float) + dJ
+        for j, ax in enumerate("XYZ"):
+            lo, hi = strokes[ax]
+            qmin, qmax = float(q[:, j].min()), float(q[:, j].max())
+            lo_all[j], hi_all[j] = min(lo_all[j], qmin), max(hi_all[j], qmax)
+            for v, lim, over in ((qmax, hi, qmax - hi), (qmin, lo, lo - qmin)):
+                if over > 1e-9:
+                    return f"{kind} {ax} {v!r} {over!r}"
+    return lo_all, hi_all
+
+
+def test_check_program_strokes_one_pass_equals_the_loop():
+    """The one pass over every kind (session 27) gives the loop's ranges bit for bit, and the loop's
+    error (the first kind, axis and side in its order) whenever a position is beyond: random programs
+    inside, one position moved past a side of an axis in one kind by 1e-9 m (at the tolerance: refused or
+    not as rounding makes the excess, as in the loop), 2e-9 m or 1 mm, and positions with a signed zero; a
+    NaN position, which the loop let through, is refused."""
+    rng = np.random.default_rng(27)
+    st = {"X": (-0.3, 0.3), "Y": (-0.2, 0.25), "Z": (0.0, 0.4)}
+    kinds = ("touches", "approach starts", "overshoot ends", "links")
+    cases = []
+    for _ in range(200):
+        pos = {k: rng.uniform([-0.29, -0.19, 0.01], [0.29, 0.24, 0.39], (int(rng.integers(0, 6)), 3)) for k in kinds}
+        cases.append(pos)
+        k, j, side = kinds[rng.integers(4)], int(rng.integers(3)), int(rng.integers(2))
+        if len(pos[k]):
+            beyond = {kk: v.copy() for kk, v in pos.items()}
+            lim = st["XYZ"[j]][side]
+            beyond[k][0, j] = lim + (1.0 if side else -1.0) * rng.choice([1e-9, 2e-9, 1e-3])
+            cases.append(beyond)
+    z = {"touches": np.array([[0.0, -0.0, 0.1], [0.1, 0.0, 0.2]]), "links": np.array([[-0.0, 0.1, 0.0]])}
+    cases.append(z)
+    # a NaN position (the loop let it through: Python's min keeps inf beside a NaN) is refused by name
+    with pytest.raises(PlanError, match=r"measurement 'm': a position at its touches is not a finite number"):
+        M.check_program_strokes("m", {"touches": np.array([[np.nan, 0.0, 0.1]]), "links": np.array([[0.1, 0.1, 0.1]])},
+                                (0, 0, 0.1), (0, 0, 0.1), st)
+    refused = 0
+    for pos in cases:
+        want = _strokes_loop(pos, (0, 0, 0.1), (0, 0, 0.1), st)
+        try:
+            got = M.check_program_strokes("m", pos, (0, 0, 0.1), (0, 0, 0.1), st)
+        except PlanError as e:
+            refused += 1
+            assert isinstance(want, str), (pos, str(e))
+            k = next(kk for kk in kinds if want.startswith(kk))
+            assert f"at its {k} " in str(e) and f"axis {want[len(k) + 1]} " in str(e), (want, str(e))
+            continue
+        assert not isinstance(want, str), want
+        assert [repr(v) for v in got[0] + got[1]] == [repr(v) for v in want[0] + want[1]], (got, want)
+    assert 100 <= refused < len(cases) - 150, refused  # (both answers met many times)
+
+
+@pytest.mark.parametrize("name", ["mfb-3axis", "mfb-5axis"])
+def test_check_results_carry_program_positions_bit_for_bit(name):
+    """check_plan's stroke check reads the program's positions from the collision check
+    (CheckResult.positions_R, session 27): for every measurement they are program_positions' arrays
+    bit for bit (the same kinds in the same order; links only for programs of two touches or more),
+    also for a program of one touch."""
+    from sim.machine import nominal_T_R_W
+    from sim.mfb_scene import check_measurements
+
+    plan = M.PLANS[name]()
+    cfg = MACHINES[plan.machine]()
+    art, program = M._nominal_bar(), M._program(M.U_PLACE)
+    items = []
+    for ms in plan.measurements:
+        rot = np.asarray([ms.rot_rad], float) if len(ms.rot_rad) else None
+        T_R_W = np.asarray(nominal_T_R_W(cfg, rot), float).reshape(-1, 4, 4)[0]
+        pl = M._plan_for(art, ms.holes, **program)
+        items.append((ms.name, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m, pl,
+                      M.FINGERS.get(ms.stylus, 0.0)))
+    one = items[0][5].select(np.array([0]))
+    items.append(("one", *items[0][1:5], one, items[0][6]))
+    kinds = ["touches", "approach starts", "overshoot ends", "links"]
+    for it, r in zip(items, check_measurements(art, items, R_STYLUS)):
+        want = M.program_positions(it[2] @ it[1], it[5], R_STYLUS, art)
+        assert list(r.positions_R) == list(want) == kinds[:3 + (it[5].n > 1)], it[0]
+        for k, v in want.items():
+            assert v.shape == r.positions_R[k].shape and v.tobytes() == r.positions_R[k].tobytes(), (it[0], k)

@@ -38,6 +38,9 @@ def _same_check(got, want, note=None) -> None:
             assert x == y or abs(x - y) <= 1e-12, (note, x, y)
         elif isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
             assert type(x) is type(y) and x.dtype == y.dtype and np.array_equal(x, y), (note, k)
+        elif isinstance(x, dict) or isinstance(y, dict):  # (positions_R: kind -> array, in order)
+            assert type(x) is type(y) and list(x) == list(y), (note, k, list(x), list(y))
+            assert all(x[j].dtype == y[j].dtype and np.array_equal(x[j], y[j]) for j in x), (note, k)
         else:
             assert x == y, (note, k, x, y)
 
