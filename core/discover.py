@@ -23,6 +23,9 @@ What it does, in order, and the statistics behind each step
    part they fall is tested too (:class:`Places`: outliers that share a
    feature or a target, set-up after set-up, more than chips at random
    places would, are that feature's structure).
+   Where touches are set aside, the error-map grid is chosen again by BIC
+   on the touches kept and the search runs again on it where it differs
+   (:func:`discover`, :data:`GRID_AFTER_OUTLIERS`).
 2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
    error) after a time trend per set-up (:func:`drift_trend`: a drift
    between drift-check repeats is not noise), the lack-of-fit F test of the
@@ -2662,7 +2665,8 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         ``conventions``).
     grid_step_mm : float or None
         Error-map grid step of the baseline; None = chosen by BIC among
-        ``settings.grid_steps_mm``.
+        ``settings.grid_steps_mm`` (and again on the touches the outlier
+        screen keeps: :data:`GRID_AFTER_OUTLIERS`).
     chain : str or None
         The log's ``kinematic_chain``: which axis carries the other decides
         the rigid-body yaw term (:func:`core.selfcal.yaw_for_chain`).
@@ -2708,7 +2712,8 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     if not regrid:
         return d
     tried = {bl.info["grid_step_mm"]}
-    while d.outlier_rows:
+    while d.outlier_rows and (GRID_AFTER_OUTLIERS_CAUSES is None
+                              or any(f.cause in GRID_AFTER_OUTLIERS_CAUSES for f in d.findings)):
         # the grid BIC chooses on the touches the screen kept (GRID_AFTER_OUTLIERS): where it is another, the
         # search runs again on it, its own screen on that grid; until the grid is one already tried
         t = dataclasses.replace(bl.data.touches, **dropped)  # (the touches again, as the caller gave them)
@@ -2740,6 +2745,15 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
 #: without the chips; `periodic_axis_error` at 81.5 mm, confident). Session 26 diagnosis, session 27 study
 #: (docs/discovery.md, "Session 27: the grid chosen again on the touches the outlier screen kept").
 GRID_AFTER_OUTLIERS = True
+#: With :data:`GRID_AFTER_OUTLIERS`: the causes of which a finding must be made beside the touches set aside for the
+#: grid to be chosen again (None: wherever touches are set aside). A coarse grid's misfit of a smooth machine repeats
+#: with its nodes, and the catalogue reads it as a ripple at the grid step (``periodic_axis_error``) or as bumps
+#: between the nodes (``local_scale_defect``); where neither is named the misfit was read as no cause, and a finer
+#: grid moves the screen's own bound instead (gen_c part_change 298: on 55 mm both walls of a bore's first set-up
+#: are set aside, a change of its size, where 80 mm set aside one; a bump at the bore's place then reads the rest of
+#: the change, confident; `outlier?` on 80 mm). Session 27 (docs/discovery.md, "Session 27: the grid chosen again on
+#: the touches the outlier screen kept").
+GRID_AFTER_OUTLIERS_CAUSES = ("periodic_axis_error", "local_scale_defect")
 
 
 def _grid_on_kept(t: Touches, extra: dict, outlier_rows, settings: Settings, yaw: str) -> float | None:

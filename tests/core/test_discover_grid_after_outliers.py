@@ -7,6 +7,13 @@ curvature is cheap and 80 mm wins; on the touches the screen keeps 55 mm wins. O
 aside and the grid's misfit, which repeats with its nodes, was read as an X ripple at the grid step
 (`periodic_axis_error`, confident). ``core.discover.GRID_AFTER_OUTLIERS`` has the grid chosen again on the kept
 touches and the search run on it: `outlier` alone, confident (two events at random).
+
+Only where a cause that reads a coarse grid's misfit is named beside the touches set aside
+(``GRID_AFTER_OUTLIERS_CAUSES``: a ripple at the grid step, bumps between its nodes): gen_c part_change 298 (a
+tuning seed, bore1's size changed 3.0 um after 798 s) sets aside one touch on 80 mm and reads `outlier?` (wrong,
+hedged); BIC prefers 55 mm on the kept touches, where the screen sets aside both X-facing walls of bore1's first
+set-up (rows 32 and 35: a size change, not one touch) and a local scale defect at the bore's place reads the rest of
+the change, confident.
 """
 
 import numpy as np
@@ -69,3 +76,20 @@ def test_a_grid_given_or_no_outlier_leaves_the_search_as_it_was(monkeypatch):
     calls.clear()
     _, _, d = _run(grid_step_mm=80.0)  # the chips' campaign on the grid it is given: kept, whatever the screen says
     assert d.to_report()["baseline"]["grid_step_mm"] == 80.0 and len(calls) == 1
+
+
+@pytest.mark.slow
+def test_gen_c_part_change_298_no_grid_misfit_read_no_grid_chosen_again():
+    _, _, d = _run("part_change", 298)
+    rep = d.to_report()
+    assert rep["outlier_rows"] == [32] and rep["baseline"]["grid_step_mm"] == 80.0
+    assert [f.cause for f in d.findings] == ["outlier"] and rep["findings"][0]["evidence"]["confidence"] != "named"
+
+
+@pytest.mark.slow
+def test_gen_c_part_change_298_fails_wherever_touches_are_set_aside(monkeypatch):
+    monkeypatch.setattr(D, "GRID_AFTER_OUTLIERS_CAUSES", None)
+    _, _, d = _run("part_change", 298)
+    rep = d.to_report()
+    assert rep["outlier_rows"] == [32, 35] and rep["baseline"]["grid_step_mm"] == 55.0
+    assert d.cause == "local_scale_defect" and rep["findings"][0]["evidence"]["confidence"] == "named"
