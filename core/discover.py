@@ -23,9 +23,10 @@ What it does, in order, and the statistics behind each step
    part they fall is tested too (:class:`Places`: outliers that share a
    feature or a target, set-up after set-up, more than chips at random
    places would, are that feature's structure).
-   Where touches are set aside, the error-map grid is chosen again by BIC
-   on the touches kept and the search runs again on it where it differs
-   (:func:`discover`, :data:`GRID_AFTER_OUTLIERS`).
+   Where touches are set aside and a ripple or a bump is named beside
+   them, the error-map grid is chosen again by BIC on the touches kept and
+   the search runs again on it where it differs (:func:`discover`,
+   :data:`GRID_AFTER_OUTLIERS`, :data:`GRID_AFTER_OUTLIERS_CAUSES`).
 2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
    error) after a time trend per set-up (:func:`drift_trend`: a drift
    between drift-check repeats is not noise), the lack-of-fit F test of the
@@ -2737,9 +2738,9 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     return d
 
 
-#: Whether the error-map grid is chosen again, by BIC, on the touches the outlier screen kept (:func:`discover`):
-#: where it is another grid the search runs again on it (its own screen there), until the grid is one already
-#: tried. BIC chooses the grid on every touch, before the screen; a few chips' residuals (131 um^2 against the
+#: Whether the error-map grid is chosen again, by BIC, on the touches the outlier screen kept (:func:`discover`;
+#: where a finding of :data:`GRID_AFTER_OUTLIERS_CAUSES` is made beside them): where it is another grid the search
+#: runs again on it (its own screen there), until the grid is one already tried. BIC chooses the grid on every touch, before the screen; a few chips' residuals (131 um^2 against the
 #: smooth machine's 15) make a coarser grid's extra misfit cheap, and once they are set aside that misfit, which
 #: repeats with the grid step, is read as a ripple at the grid step (gen_c outlier 5105: 80 mm chosen, 55 mm
 #: without the chips; `periodic_axis_error` at 81.5 mm, confident). Session 26 diagnosis, session 27 study
