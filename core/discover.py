@@ -2740,11 +2740,13 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
 
 #: Whether the error-map grid is chosen again, by BIC, on the touches the outlier screen kept (:func:`discover`;
 #: where a finding of :data:`GRID_AFTER_OUTLIERS_CAUSES` is made beside them): where it is another grid the search
-#: runs again on it (its own screen there), until the grid is one already tried. BIC chooses the grid on every touch, before the screen; a few chips' residuals (131 um^2 against the
-#: smooth machine's 15) make a coarser grid's extra misfit cheap, and once they are set aside that misfit, which
-#: repeats with the grid step, is read as a ripple at the grid step (gen_c outlier 5105: 80 mm chosen, 55 mm
-#: without the chips; `periodic_axis_error` at 81.5 mm, confident). Session 26 diagnosis, session 27 study
-#: (docs/discovery.md, "Session 27: the grid chosen again on the touches the outlier screen kept").
+#: runs again on it (its own screen there), until the grid is one already tried. BIC chooses the grid on every
+#: touch, before the screen; a few chips' residuals (131 um^2 against the smooth machine's 15) make a coarser grid's
+#: extra misfit cheap, and once they are set aside that misfit, which repeats with the grid step, is read as a
+#: ripple at the grid step (gen_c outlier 5105: 80 mm chosen, 55 mm without the chips; `periodic_axis_error` at
+#: 81.5 mm, confident). Session 26 diagnosis, session 27 study (docs/discovery.md, "Session 27: the grid chosen
+#: again on the touches the outlier screen kept": gen_c outlier 200-599 right 365 -> 376, no right -> wrong on
+#: gen_a, gen_b, gen_c or the simulator).
 GRID_AFTER_OUTLIERS = True
 #: With :data:`GRID_AFTER_OUTLIERS`: the causes of which a finding must be made beside the touches set aside for the
 #: grid to be chosen again (None: wherever touches are set aside). A coarse grid's misfit of a smooth machine repeats
