@@ -23,6 +23,10 @@ What it does, in order, and the statistics behind each step
    part they fall is tested too (:class:`Places`: outliers that share a
    feature or a target, set-up after set-up, more than chips at random
    places would, are that feature's structure).
+   Where touches are set aside and a ripple or a bump is named beside
+   them, the error-map grid is chosen again by BIC on the touches kept and
+   the search runs again on it where it differs (:func:`discover`,
+   :data:`GRID_AFTER_OUTLIERS`, :data:`GRID_AFTER_OUTLIERS_CAUSES`).
 2. **Noise floor** (catalogue-free): the scatter of repeated touches (pure
    error) after a time trend per set-up (:func:`drift_trend`: a drift
    between drift-check repeats is not noise), the lack-of-fit F test of the
@@ -263,6 +267,7 @@ normal matrix.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import itertools
@@ -2662,7 +2667,8 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         ``conventions``).
     grid_step_mm : float or None
         Error-map grid step of the baseline; None = chosen by BIC among
-        ``settings.grid_steps_mm``.
+        ``settings.grid_steps_mm`` (and again on the touches the outlier
+        screen keeps: :data:`GRID_AFTER_OUTLIERS`).
     chain : str or None
         The log's ``kinematic_chain``: which axis carries the other decides
         the rigid-body yaw term (:func:`core.selfcal.yaw_for_chain`).
@@ -2692,13 +2698,78 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         t = t.subset(planar, reindex=True)
         extra = {k: v[planar] for k, v in extra.items()}
     bl_mod.check_planar(t)
-    bl = bl_mod.planar(t, grid_step_mm, settings.grid_steps_mm, select_grid=settings.select_grid,
-                       yaw=selfcal.yaw_for_chain(chain), extra=extra)
-    del t, extra  # (the baseline holds what the search reads: the caller's touches can go, core.baseline.planar_data)
+    yaw = selfcal.yaw_for_chain(chain)
+    bl = bl_mod.planar(t, grid_step_mm, settings.grid_steps_mm, select_grid=settings.select_grid, yaw=yaw,
+                       extra=extra)
     if left_out:
         bl = _with_convention(bl, f"{counted(left_out, 'touch')} with normals out of the XY plane left out of "
                                   "the planar baseline")
-    return discover_baseline(bl, settings=settings, rng=rng, progress=progress)
+    regrid = GRID_AFTER_OUTLIERS and grid_step_mm is None and settings.select_grid and len(settings.grid_steps_mm) > 1
+    rng0 = copy.deepcopy(rng) if regrid and rng is not None else None  # (a search again draws as the first did)
+    # the baseline holds what the search reads: the caller's touches can go (core.baseline.planar_data); the two
+    # arrays its copy drops are kept where the grid may be chosen again (2 x 24 MB at 1e6 rows)
+    dropped = {k: getattr(t, k) for k in bl_mod.PLANAR_TOUCHES_DROPPED} if regrid else None
+    del t, extra
+    d = discover_baseline(bl, settings=settings, rng=rng, progress=progress)
+    if not regrid:
+        return d
+    tried = {bl.info["grid_step_mm"]}
+    while d.outlier_rows and (GRID_AFTER_OUTLIERS_CAUSES is None
+                              or any(f.cause in GRID_AFTER_OUTLIERS_CAUSES for f in d.findings)):
+        # the grid BIC chooses on the touches the screen kept (GRID_AFTER_OUTLIERS): where it is another, the
+        # search runs again on it, its own screen on that grid; until the grid is one already tried
+        t = dataclasses.replace(bl.data.touches, **dropped)  # (the touches again, as the caller gave them)
+        extra = bl.data.extra
+        step = _grid_on_kept(t, extra, d.outlier_rows, settings, yaw)
+        if step is None or step in tried:
+            break
+        g0, n_out = d.baseline.info["grid_step_mm"], len(d.outlier_rows)
+        del d  # (its baseline's touches let go: one copy alive while the search runs again)
+        tried.add(step)
+        bl = bl_mod.planar(t, step, settings.grid_steps_mm, select_grid=False, yaw=yaw, extra=extra)
+        del t, extra
+        bl = _with_convention(bl, f"error-map grid {step:g} mm: chosen by BIC on the touches the outlier screen "
+                                  f"kept ({counted(n_out, 'touch')} set aside on the {g0:g} mm grid "
+                                  "BIC chose with them in)")
+        if left_out:
+            bl = _with_convention(bl, f"{counted(left_out, 'touch')} with normals out of the XY plane left out of "
+                                      "the planar baseline")
+        d = discover_baseline(bl, settings=settings, rng=copy.deepcopy(rng0) if rng0 is not None else None,
+                              progress=progress)
+    return d
+
+
+#: Whether the error-map grid is chosen again, by BIC, on the touches the outlier screen kept (:func:`discover`;
+#: where a finding of :data:`GRID_AFTER_OUTLIERS_CAUSES` is made beside them): where it is another grid the search
+#: runs again on it (its own screen there), until the grid is one already tried. BIC chooses the grid on every
+#: touch, before the screen; a few chips' residuals (131 um^2 against the smooth machine's 15) make a coarser grid's
+#: extra misfit cheap, and once they are set aside that misfit, which repeats with the grid step, is read as a
+#: ripple at the grid step (gen_c outlier 5105: 80 mm chosen, 55 mm without the chips; `periodic_axis_error` at
+#: 81.5 mm, confident). Session 26 diagnosis, session 27 study (docs/discovery.md, "Session 27: the grid chosen
+#: again on the touches the outlier screen kept": gen_c outlier 200-599 right 365 -> 376, no right -> wrong on
+#: gen_a, gen_b, gen_c or the simulator).
+GRID_AFTER_OUTLIERS = True
+#: With :data:`GRID_AFTER_OUTLIERS`: the causes of which a finding must be made beside the touches set aside for the
+#: grid to be chosen again (None: wherever touches are set aside). A coarse grid's misfit of a smooth machine repeats
+#: with its nodes, and the catalogue reads it as a ripple at the grid step (``periodic_axis_error``) or as bumps
+#: between the nodes (``local_scale_defect``); where neither is named the misfit was read as no cause, and a finer
+#: grid moves the screen's own bound instead (gen_c part_change 298: on 55 mm both walls of a bore's first set-up
+#: are set aside, a change of its size, where 80 mm set aside one; a bump at the bore's place then reads the rest of
+#: the change, confident; `outlier?` on 80 mm). Session 27 (docs/discovery.md, "Session 27: the grid chosen again on
+#: the touches the outlier screen kept").
+GRID_AFTER_OUTLIERS_CAUSES = ("periodic_axis_error", "local_scale_defect")
+
+
+def _grid_on_kept(t: Touches, extra: dict, outlier_rows, settings: Settings, yaw: str) -> float | None:
+    """The grid step (mm) BIC chooses among ``settings.grid_steps_mm`` on the touches of ``t`` not in
+    ``outlier_rows`` (log row numbers), or None where no grid is identifiable on them."""
+    keep = ~np.isin(np.asarray(t.row), np.asarray(outlier_rows))
+    try:
+        kb = bl_mod.planar(t.subset(keep, reindex=True), None, settings.grid_steps_mm, yaw=yaw,
+                           extra={k: v[keep] for k, v in extra.items()})
+    except (IdentifiabilityError, ConfigError):
+        return None
+    return kb.info["grid_step_mm"] if kb.identifiable else None
 
 
 def _with_convention(bl: Baseline, text: str) -> Baseline:

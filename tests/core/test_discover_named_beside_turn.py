@@ -67,7 +67,11 @@ def test_named_beside_turned_outliers_unit():
     assert rule([], st, 0.3) == []
 
 
-@pytest.mark.parametrize("seed, named", [(1146, "stylus_bending"), (1279, "local_scale_defect"),
+# 1279's named cause was local_scale_defect on the 80 mm grid BIC chose with the outliers in; since session 27 a
+# bump beside touches set aside has the grid chosen again on the kept touches (core.discover.GRID_AFTER_OUTLIERS),
+# 55 mm, where stylus_bending is named beside the outliers instead (`unexplained` first either way; extended
+# workpiece 2.855 -> 2.881 um, the baseline's 2.819, U95 0.409)
+@pytest.mark.parametrize("seed, named", [(1146, "stylus_bending"), (1279, "stylus_bending"),
                                          (6300, "stylus_bending")])
 def test_gen_a_reseat_hysteresis_named_beside_turned_outliers_reads_unexplained(seed, named, monkeypatch):
     """gen_a reseat_hysteresis (out of catalogue: ``unexplained`` is right) 1146 and 1279 (tuning seeds, visible
