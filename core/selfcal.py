@@ -1457,6 +1457,33 @@ def blind_lobes(design: SelfCalDesign, est: LinearEstimator, touches: Touches,
     return tuple(out)
 
 
+
+def absorbed_lobes(phi: np.ndarray, project, orders=LOBE_ORDERS) -> tuple:
+    """((k, principal angle deg), ...): the pre-travel lobe orders a model's column space absorbs.
+
+    The model-free half of :func:`blind_lobes`, for a model given only as its
+    projection: ``project(X)`` (n, r) -> the part of ``X`` in the model's
+    column space (``Q (Q^T X)`` with ``Q`` an orthonormal basis, as the
+    discovery baseline's). ``phi`` (n,) is the approach azimuth, machine frame,
+    rad. An order is absorbed when the sine of its smallest principal angle to
+    the span is below :data:`LOBE_ALIAS_SIN`, as in :func:`blind_lobes`.
+    """
+    phi = np.asarray(phi, float)
+    if phi.ndim != 1 or phi.size == 0 or not np.all(np.isfinite(phi)):
+        raise ConfigError(f"absorbed_lobes: phi must be a non-empty finite (n,) array, got shape {phi.shape}")
+    out = []
+    for k in orders:
+        L = np.column_stack([np.cos(k * phi), np.sin(k * phi)])
+        keep = np.linalg.norm(L, axis=0) > 1e-9 * np.sqrt(phi.size)
+        if not keep.any():
+            continue
+        Q, _ = np.linalg.qr(L[:, keep])
+        P = np.column_stack([np.asarray(project(Q[:, j]), float) for j in range(Q.shape[1])])
+        sin_min = float(min(np.linalg.svd(Q - P, compute_uv=False).min(), 1.0))
+        if sin_min < LOBE_ALIAS_SIN:
+            out.append((int(k), float(np.degrees(np.arcsin(sin_min)))))
+    return tuple(out)
+
 def not_covered(blind: tuple) -> dict:
     """The report's statement of what the U95 leaves out (:func:`blind_lobes` of the design), JSON-ready."""
     orders = ", ".join(str(k) for k in LOBE_ORDERS)

@@ -44,6 +44,9 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     fc = workpiece_form_change(d)
     if fc is not None:
         rep["workpiece_form_change"] = fc
+    nd = lobes_not_determined(d)
+    if nd is not None:
+        rep["not_determined"] = nd
     rep["log"] = str(log_path)
     text = json_text(rep, json_out)
     if report:
@@ -103,6 +106,45 @@ def workpiece_form_change(d) -> dict | None:
             "what": "extended minus baseline workpiece, its shift, rotation, scale and common offset removed"
                     + (" (and the tilt, twist and growth of the raised targets)" if dz is not None else "")
                     + ": the change of the form, the part the gauge does not decide"}
+
+
+def lobes_not_determined(d) -> dict | None:
+    """The probe's pre-travel lobe orders the baseline absorbs (:func:`core.selfcal.absorbed_lobes`), or None.
+
+    What the baseline takes exactly leaves no residual: no diagnosis sees it
+    and no cause can be named for it, so a ``none`` says nothing about it
+    (review 27: a three-lobe probe on a cross pocket, walls at 0/90/180/270
+    deg, read as C-axis errors while discover said ``none``). Empty orders
+    when every order of :data:`core.selfcal.LOBE_ORDERS` leaves a residual;
+    None for a baseline without approach directions (an ISO 230-2 test).
+    """
+    import numpy as np
+
+    from core.baseline import RANK_TOL
+    from core.lsq import orth_of
+    from core.selfcal import LOBE_ALIAS_SIN, LOBE_ORDERS, absorbed_lobes
+
+    bl = d.baseline
+    data = getattr(bl, "data", None)
+    phi = getattr(data, "azimuth", None)
+    if phi is None or getattr(bl, "kind", None) != "planar" or bl.A is None:
+        return None
+    qr = getattr(bl, "qr", None)
+    if qr is not None:   # the baseline's own factorisation (reflectors: formed here, the same Q as ever)
+        from core.diagnosis import qr_formed
+
+        qr = qr_formed(qr)
+    Q = orth_of(bl.A, RANK_TOL, qr=qr)
+    got = absorbed_lobes(np.asarray(phi, float), lambda x: Q @ (Q.T @ x))
+    ks = [k for k, _ in got]
+    lim = float(np.degrees(np.arcsin(LOBE_ALIAS_SIN)))
+    what = (f"pre-travel lobes of order k = {', '.join(map(str, ks))} (approach azimuth, machine frame) are not "
+            f"determined on this design: the baseline absorbs them (principal angle below {lim:.1f} deg), so no "
+            "residual shows them and no cause's magnitude at these orders is measured: a `none` does not "
+            "exclude them (vmt identify's not_covered names the parameters they move)" if ks else
+            f"every pre-travel lobe order k = {', '.join(map(str, LOBE_ORDERS))} leaves a residual on this design")
+    return {"pretravel_lobe_orders": ks, "principal_angle_deg": [round(a, 2) for _, a in got],
+            "checked_lobe_orders": list(LOBE_ORDERS), "what": what}
 
 
 def _discover_probe_log(log_path, grid_mm, progress):
@@ -193,6 +235,10 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
             if f["evidence"].get("confidence") == "ambiguous" else ""
         said_u95 = " (value +- U95, k = 2)" if any(isinstance(pu.get(k), float) for k, _ in shown_params) else ""
         out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}{said_u95}")
+    nd = rep.get("not_determined")
+    if nd and nd.get("pretravel_lobe_orders"):
+        out.append(f"not seen   pre-travel lobes k = {', '.join(map(str, nd['pretravel_lobe_orders']))}: absorbed by"
+                   " the baseline on this design (not determined: no residual shows them, no cause measures them)")
     g = rep["gain"]
     out.append(f"extended   {rep['extended']['model']}: rms {rep['extended']['rms_um']:.3f} um "
                f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um ({cv_ratio_text(g)})")

@@ -159,6 +159,17 @@ def test_identify_names_the_lobes_its_u95_does_not_cover(tmp_path, capsys):
     beyond = [abs(v[f"{c}_um"]) > v[f"{c}_u95_um"] for v in r["rotary"] for c in ("exc", "eyc")
               if v[f"{c}_u95_um"]]
     assert sum(beyond) >= 2
+    # discover cannot see what is absorbed exactly: it says `none`, and now says which lobes it could not see
+    disc = tmp_path / "lob_disc.json"
+    assert main(["discover", str(log), "--json", str(disc)]) == 0
+    said = capsys.readouterr().out
+    rd = json.loads(disc.read_text())
+    assert rd["cause"] == "none"
+    assert 3 in rd["not_determined"]["pretravel_lobe_orders"]
+    assert 2 not in rd["not_determined"]["pretravel_lobe_orders"]
+    assert any(ln.startswith("not seen") and "k = " in ln and "3" in ln for ln in said.splitlines())
+    # the same orders as identify's statement (two routes: discover's baseline basis, identify's estimator)
+    assert rd["not_determined"]["pretravel_lobe_orders"] == [e["k"] for e in r["not_covered"]["pretravel_lobes"]]
     # ... and a probe without lobes on the same design names only the orders it could not see, with no fit
     # error from them: the statement is of the design, the same list
     toml.write_text(src)
