@@ -982,6 +982,9 @@ class SelfCalResult:
     budget : ModelErrorBudget or None
         The split of ``std`` into probing noise and model error
         (:func:`core.uncertainty.model_error_budget`); None when not computed.
+    blind_lobes : tuple of BlindLobe
+        The probe's pre-travel lobe orders this design absorbs into its
+        parameters (:func:`blind_lobes`): what the U95 does not cover.
     """
 
     design: SelfCalDesign
@@ -997,6 +1000,7 @@ class SelfCalResult:
     scale_known: bool
     n_touches: int
     budget: object = None
+    blind_lobes: tuple = ()
 
     def _blk(self, k):
         return self.theta[self.design.slices[k]]
@@ -1168,6 +1172,7 @@ class SelfCalResult:
                 "model_error_units": {k: ("urad" if k in unit else "um") for k in b.components},
                 "model_error_z": {k: _r(v, 2) for k, v in b.z.items()},
                 "rule": b.rule}
+        out["not_covered"] = not_covered(res.blind_lobes)
         if res.cov is not None:
             out["estimate"] = res.estimate()
         if mc is not None:
@@ -1310,10 +1315,11 @@ def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float 
             notes.append("model error not budgeted (design too large): U95 from the residuals' sigma as probing noise")
             budget = None
     notes.append(f"sigma from {src}")
+    blind = blind_lobes(des, sol.estimator, touches)
     return SelfCalResult(design=des, theta=sol.theta, std=std, cov=cov, residuals_m=sol.residuals,
                          rms_m=sol.rms, sigma_m=sigma, sigma_source=src, dof=sol.dof,
                          conventions=des.gauge + tuple(notes), scale_known=des.scale_known, n_touches=touches.n,
-                         budget=budget)
+                         budget=budget, blind_lobes=blind)
 
 
 def _design_and_solve(touches: Touches, grid: Grid, delta_L_m, dq, yaw, heights, **kw):
@@ -1335,6 +1341,175 @@ def estimator(touches: Touches, grid: Grid, delta_L_m: float | None = None, *,
     des, sol = _design_and_solve(touches, grid, delta_L_m, np.zeros(touches.n), yaw, heights, sigma=1.0,
                                  covariance="none")
     return des, sol.estimator
+
+
+# ---------------------------------------------------------------------------
+# what the uncertainty statement does not cover: pre-travel lobes the design absorbs
+# ---------------------------------------------------------------------------
+#: Lobe orders k of the probe's pre-travel (``p(phi) = a cos k phi + b sin k phi`` of the approach azimuth,
+#: machine frame) that :func:`blind_lobes` checks against a design: 1..6 (k = 1 is a probe offset, 3 the
+#: common three-point kinematic probe's, 6 its second harmonic).
+LOBE_ORDERS = (1, 2, 3, 4, 5, 6)
+#: A lobe direction is "not determined" when the sine of its smallest principal angle to the design's column
+#: space is below this: the fit absorbs at least 1 - 0.1^2 = 99 % of its signal (variance inflation 100, the
+#: threshold core.discover refuses a cause as confounded with the model by, ``vif_max``: about 5.7 deg).
+LOBE_ALIAS_SIN = 0.1
+#: A block of parameters is named as taking an absorbed lobe when its part of the fitted signal is at least
+#: this share of the lobe's (the rest spread over blocks that each take less).
+LOBE_ALIAS_SHARE = 0.1
+
+
+@dataclass(frozen=True)
+class BlindLobe:
+    """A pre-travel lobe order the design cannot see (:func:`blind_lobes`).
+
+    Attributes
+    ----------
+    k : int
+        Lobe order.
+    angle_deg : float
+        Smallest principal angle between the lobe's columns (cos k phi, sin k phi) and the design's column
+        space, deg (0: some phase of the lobe is fitted exactly).
+    absorbed : float
+        Share of that worst phase's signal the fit takes (``cos^2`` of the angle).
+    blocks : tuple of str
+        Parameter blocks taking at least :data:`LOBE_ALIAS_SHARE` of the fitted signal, largest first.
+    per_um : dict[str, float]
+        Per block, the largest change of one of its values a lobe of 1 um amplitude (any phase) makes, um per
+        um (urad per um for ``ECC``, ``ECY``, ``ECX``, ``EC0Y``, ``EBC``, ``EAC``).
+    """
+
+    k: int
+    angle_deg: float
+    absorbed: float
+    blocks: tuple
+    per_um: dict
+
+    def text(self) -> str:
+        mags = ", ".join(f"{b} up to {self.per_um[b]:.2f} {_alias_unit(b)}" for b in self.blocks)
+        return (f"k = {self.k} (principal angle {self.angle_deg:.1f} deg, {100 * self.absorbed:.0f} % absorbed)"
+                f" into {mags} per um of lobe")
+
+
+_ANGULAR_BLOCKS = ("ECC", "ECY", "ECX", "EC0Y", "EBC", "EAC")
+
+
+def _alias_unit(block: str) -> str:
+    return "urad" if block in _ANGULAR_BLOCKS else "um"
+
+
+def blind_lobes(design: SelfCalDesign, est: LinearEstimator, touches: Touches,
+                orders=LOBE_ORDERS) -> tuple:
+    """The probe's pre-travel lobe orders ``orders`` this design cannot tell from the errors it identifies.
+
+    A touch-trigger probe's pre-travel varies with the approach azimuth ``phi``
+    (machine frame: the probe turns with the spindle, not with C): a lobe of
+    order ``k`` adds ``a cos k phi + b sin k phi`` to each normal deviation.
+    Ibaraki et al. (section 2) assume it compensated; vmt's uncertainty does
+    not include it. Where the lobe's columns lie in the design's column space
+    the fit takes the lobe into its parameters exactly (no residual, so no
+    model error is seen) and the U95 does not cover it: e.g. a pocket whose
+    walls face 0/90/180/270 deg makes an odd ``k`` act with opposite signs on
+    opposite walls, a translation per set-up (EXC/EYC). Computed from the
+    design (the touches' approach azimuths and the estimator), not the data:
+    the smallest principal angle between ``[cos k phi, sin k phi]`` and the
+    column space (the fitted part of each column from ``est``), its worst phase
+    absorbed when the sine is below :data:`LOBE_ALIAS_SIN`; the parameter
+    blocks that take it and by how much per um of lobe.
+
+    Returns a tuple of :class:`BlindLobe`, in the order of ``orders`` (empty:
+    every order is seen at least that well).
+    """
+    d = np.asarray(touches.d_R, float)
+    if d.shape[0] != design.A.shape[0]:
+        raise ConfigError(f"blind_lobes: {d.shape[0]} touches for a design of {design.A.shape[0]} rows")
+    phi = np.arctan2(d[:, 1], d[:, 0])
+    A = design.A
+    out = []
+    for k in orders:
+        L = np.column_stack([np.cos(k * phi), np.sin(k * phi)])    # m per m of lobe amplitude (1 um -> 1 um)
+        nrm = np.linalg.norm(L, axis=0)
+        keep = nrm > 1e-9 * np.sqrt(len(phi))
+        if not keep.any():
+            continue
+        Q, R = np.linalg.qr(L[:, keep])
+        T = est.noise_gain(Q)                                        # the parameters the fit gives each column
+        _, sv, Vt = np.linalg.svd(Q - A @ T, full_matrices=False)    # sv: sines of the principal angles
+        sin_min = float(min(sv.min(), 1.0))
+        if sin_min >= LOBE_ALIAS_SIN:
+            continue
+        V = Vt[sv < LOBE_ALIAS_SIN].T                                # the absorbed phases (in Q's coordinates)
+        TV = T @ V
+        fit = A @ TV
+        tot = float(np.sum(fit * fit))
+        share = {b: float(np.sum((A[:, sl] @ TV[sl]) * fit)) / tot if tot > 0 else 0.0
+                 for b, sl in design.slices.items() if b != "ABBE"}
+        # per unit lobe amplitude: the lobe's (cos, sin) coefficients are M w for phase w of V, M = R^-1 V;
+        # a value's largest change over unit amplitudes in that span is sqrt(a (M^T M)^-1 a), a its row of TV.
+        # m per m of lobe = um per um; rad per m = urad per um: the numbers as they stand
+        M = np.linalg.solve(R, V)
+        Gi = np.linalg.inv(M.T @ M)
+        big = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", TV, Gi, TV), 0.0))
+        blocks = tuple(b for b, v_ in sorted(share.items(), key=lambda kv: -kv[1]) if v_ >= LOBE_ALIAS_SHARE)
+        out.append(BlindLobe(k=int(k), angle_deg=float(np.degrees(np.arcsin(sin_min))),
+                             absorbed=float(1 - sin_min ** 2), blocks=blocks,
+                             per_um={b: float(np.max(big[design.slices[b]], initial=0.0)) for b in blocks}))
+    return tuple(out)
+
+
+
+def absorbed_lobes(phi: np.ndarray, project, orders=LOBE_ORDERS) -> tuple:
+    """((k, principal angle deg), ...): the pre-travel lobe orders a model's column space absorbs.
+
+    The model-free half of :func:`blind_lobes`, for a model given only as its
+    projection: ``project(X)`` (n, r) -> the part of ``X`` in the model's
+    column space (``Q (Q^T X)`` with ``Q`` an orthonormal basis, as the
+    discovery baseline's). ``phi`` (n,) is the approach azimuth, machine frame,
+    rad. An order is absorbed when the sine of its smallest principal angle to
+    the span is below :data:`LOBE_ALIAS_SIN`, as in :func:`blind_lobes`.
+    """
+    phi = np.asarray(phi, float)
+    if phi.ndim != 1 or phi.size == 0 or not np.all(np.isfinite(phi)):
+        raise ConfigError(f"absorbed_lobes: phi must be a non-empty finite (n,) array, got shape {phi.shape}")
+    out = []
+    for k in orders:
+        L = np.column_stack([np.cos(k * phi), np.sin(k * phi)])
+        keep = np.linalg.norm(L, axis=0) > 1e-9 * np.sqrt(phi.size)
+        if not keep.any():
+            continue
+        Q, _ = np.linalg.qr(L[:, keep])
+        P = np.column_stack([np.asarray(project(Q[:, j]), float) for j in range(Q.shape[1])])
+        sin_min = float(min(np.linalg.svd(Q - P, compute_uv=False).min(), 1.0))
+        if sin_min < LOBE_ALIAS_SIN:
+            out.append((int(k), float(np.degrees(np.arcsin(sin_min)))))
+    return tuple(out)
+
+def not_covered(blind: tuple) -> dict:
+    """The report's statement of what the U95 leaves out (:func:`blind_lobes` of the design), JSON-ready."""
+    orders = ", ".join(str(k) for k in LOBE_ORDERS)
+    if blind:
+        what = ("the probe's pre-travel lobes of order k = " + ", ".join(str(b.k) for b in blind)
+                + " (approach azimuth, machine frame) are absorbed by this design into the parameters named:"
+                  " no residual shows them, no model error is budgeted for them, and the U95 does not cover them;"
+                  " compensate the pre-travel or change the design (approach azimuths that separate them)")
+    else:
+        what = (f"every pre-travel lobe order k = {orders} leaves a residual on this design (none absorbed at a"
+                f" principal angle below {np.degrees(np.arcsin(LOBE_ALIAS_SIN)):.1f} deg); their effect is in the"
+                " residuals and the model-error budget, not hidden in the parameters")
+    return {"checked_lobe_orders": list(LOBE_ORDERS), "what": what,
+            "pretravel_lobes": [{"k": b.k, "principal_angle_deg": _r(b.angle_deg, 2),
+                                 "absorbed_share": _r(b.absorbed, 4), "into": list(b.blocks),
+                                 "per_um_of_lobe": {k: _r(v, 3) for k, v in b.per_um.items()},
+                                 "units": {k: _alias_unit(k) + "/um" for k in b.blocks}}
+                                for b in blind]}
+
+
+def blind_lobes_line(blind: tuple) -> str | None:
+    """One line for the CLI: the lobe orders the U95 does not cover and where they go, or None."""
+    if not blind:
+        return None
+    return ("not covered by U95: probe pre-travel lobes this design absorbs (compensate them): "
+            + "; ".join(b.text() for b in blind))
 
 
 # ---------------------------------------------------------------------------

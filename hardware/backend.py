@@ -119,12 +119,14 @@ class ProbeResult:
     Attributes
     ----------
     status : core.touches.ProbeStatus or str
-        ``ok`` (triggered) or ``no_trigger`` (the move ended without contact).
+        ``ok`` (triggered), ``no_trigger`` (the move ended without contact) or
+        ``early_trigger`` (the probe was triggered before the move: GRBL's ALARM:4).
     pos_m : (3,) float
         Machine-reported stylus-tip centre at the trigger, machine frame R, m;
         where the move ended when nothing triggered.
     alarm : int or None
-        Controller alarm raised by this move (5 for a G38.2 miss), ``None`` if none.
+        Controller alarm raised by this move (5 for a G38.2 miss, 4 for a probe
+        triggered before it), ``None`` if none.
         The touch is still a valid record; the campaign stops after logging it.
     extra_axes : tuple of float
         Further axes of the controller's probe report (A, B, C, ... in the
@@ -174,7 +176,9 @@ class ProbingBackend(Protocol):
         """Probe linearly from the current position towards ``target_m`` (3,), m.
 
         ``allow_miss``: a miss is a plain ``no_trigger`` (GRBL G38.3); without
-        it a miss is a ``no_trigger`` with ``alarm=5`` (G38.2).
+        it a miss is a ``no_trigger`` with ``alarm=5`` (G38.2). A probe found
+        triggered before the move (GRBL's ``ALARM:4``) is an ``early_trigger``
+        with ``alarm=4``.
         """
 
     def temperatures_C(self) -> dict[str, float]:

@@ -740,7 +740,10 @@ class GrblBackend:
         is a ``no_trigger`` with ``alarm=5``. The ``G90`` that restores
         absolute mode is then refused with ``error:9`` (alarm lock), as the
         firmware does; the controller stays locked until ``$X`` (``--unlock``)
-        when the campaign is resumed. Any other alarm raises with what to do.
+        when the campaign is resumed. ``ALARM:4`` (the probe already triggered
+        before the move, nothing moved) is an ``early_trigger`` with
+        ``alarm=4``, the word ``vmt import grbl`` gives it. Any other alarm
+        raises with what to do.
         """
         if self._pos_mm is None:
             self.position_m()
@@ -757,11 +760,16 @@ class GrblBackend:
         back = self.client.command("G90")
         if back.error is not None and not (back.error == 9 and rep.alarms):
             raise HardwareError(f"controller rejected 'G90': {describe_error(back.error)}")
-        other = [a for a in rep.alarms if a != 5]
+        other = [a for a in rep.alarms if a not in (4, 5)]
         if other:
             raise HardwareError(f"{describe_alarm(other[0])} [during {line!r}]")
         if rep.error is not None:
             raise HardwareError(f"controller rejected {line!r}: {describe_error(rep.error)}")
+        if 4 in rep.alarms:
+            # the probe was already in contact (or its pin in the wrong state) before the move: nothing moved, no
+            # position; the touch is logged early_trigger, as vmt import grbl reads the same alarm (review 27)
+            self._pos_mm = None
+            return ProbeResult("early_trigger", start * 1e-3, alarm=4)
         if 5 in rep.alarms:
             for axes_mm, touched in rep.prb:
                 self.client._note(f"ALARM:5 (no contact): the probe report that follows it "

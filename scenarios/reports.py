@@ -31,6 +31,57 @@ def _recording_path(folder: Path) -> Path:
 _PLOT_AS = {"xy": "x", "azimuth_by_setup": "approach_azimuth"}
 
 
+#: Time covariates drawn in hours rather than seconds when their span exceeds this, s.
+TIME_IN_HOURS_S = 7200.0
+
+
+def diagnosis_axis(cov, x: np.ndarray, bl=None) -> tuple:
+    """(x to draw, axis label with its unit, tick labels or None) of one diagnosis panel's covariate.
+
+    Review 27 fault 4: the panels drew time without a unit, the time within a
+    set-up (a fraction of the longest set-up's span) as if it were time, and
+    categories as bare indices. A category is drawn at 0, 1, ... with its
+    names as tick labels (a set-up by its id); time in s (h beyond
+    :data:`TIME_IN_HOURS_S`); angles in degrees; positions in mm; the time
+    since the previous touch is its log10 in s (core.baseline.touch_history);
+    a temperature in °C.
+    """
+    label = cov.words
+    name = cov.name
+    if x.dtype == object or cov.kind == "categorical":
+        u, inv = np.unique(x, return_inverse=True)
+        names = [str(v) for v in u]
+        if name == "setup" and bl is not None and getattr(bl, "group_ids", None) is not None:
+            ids = tuple(bl.group_ids)
+            names = [ids[int(v)] if 0 <= int(v) < len(ids) else str(v) for v in u]
+        elif name == "feature":
+            # 'feature|set-up index' keys: the set-up by its id
+            ids = tuple(getattr(bl, "group_ids", None) or ())
+            names = [(f"{a} @ {ids[int(b)]}" if b.isdigit() and int(b) < len(ids) else v)
+                     for v in names for a, _, b in [v.rpartition("|")]]
+        return inv.astype(float), label + " (category)", names
+    xf = x.astype(float)
+    if cov.kind == "circular":
+        return np.degrees(xf), label + " / °", None
+    if cov.family == "position":
+        return xf / 1e-3, label + " / mm", None
+    if name == "time_in_setup":
+        return xf, label + " (fraction of the longest set-up's span, 0..1)", None
+    if name == "time_since_previous":
+        return xf, "log10 of " + label + " / s", None
+    if name == "turn_from_previous" or name == "approach_elevation":
+        return (xf if name == "turn_from_previous" else np.degrees(xf)), label + " / °", None
+    if name == "order":
+        return xf, label + " (index)", None
+    if name.startswith("temp_"):
+        return xf, label + " / °C", None
+    if name in ("time", "time_periodic"):
+        if np.ptp(xf) > TIME_IN_HOURS_S:
+            return xf / 3600.0, label + " / h", None
+        return xf, label + " / s", None
+    return xf, label, None
+
+
 def _discovery_sections(d, t, rep: dict, rec=None) -> list:
     """Report sections (and recording entities) of one discovery.
 
@@ -81,18 +132,10 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
         x = np.asarray(cov.values)
         if x.ndim != 1:
             continue
-        label = cov.words
-        if x.dtype == object or cov.kind == "categorical":
-            x = np.unique(x, return_inverse=True)[1].astype(float)
-        elif cov.kind == "circular":
-            x = np.degrees(x.astype(float))
-            label += " / °"
-        elif cov.family == "position":
-            x = x.astype(float) / 1e-3
-            label += " / mm"
+        x, label, ticks = diagnosis_axis(cov, x, bl)
         rows = np.setdiff1d(np.arange(n), out_idx) if len(dg.fitted_um) != n else np.arange(n)
         panels.append({"x": x[rows], "residual_um": d.residuals_baseline_um[rows], "fitted_um": dg.fitted_um,
-                       "xlabel": label, "text": dg.words})
+                       "xlabel": label, "text": dg.words, **({"xticklabels": ticks} if ticks is not None else {})})
     diag_rows = [[dg["covariate"], dg["explained_rms_um"], dg["p_value"], dg["text"]] for dg in rep["diagnosis"]]
     secs.append(Section("Diagnosis: where the structure lives",
                         text="For every covariate the log holds, a smooth function of it is added to the baseline "

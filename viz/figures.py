@@ -626,8 +626,9 @@ def diagnosis_figure(panels: Sequence[Mapping], title: str = "Discovery: where t
         ``x`` : (n,) float, the covariate's value per row (a category's index
         for a category); ``residual_um`` : (n,) float, the baseline's
         residuals, µm; ``fitted_um`` : (n,) float, the smooth term the
-        diagnosis fitted, µm; ``xlabel`` : str; ``text`` : str (the
-        diagnosis in words, drawn as the panel's title).
+        diagnosis fitted, µm; ``xlabel`` : str (with its unit); ``text`` : str (the
+        diagnosis in words, drawn as the panel's title); ``xticklabels`` :
+        optional, a category's names (drawn at x = 0, 1, ...).
     """
     panels = list(panels)[:6]
     if not panels:
@@ -646,6 +647,10 @@ def diagnosis_figure(panels: Sequence[Mapping], title: str = "Discovery: where t
         ax.plot(x[order], f[order], ".", color=_C_TRUE, ms=3, label="smooth term")
         ax.axhline(0.0, color=_C_NOMINAL, lw=0.8)
         ax.set_xlabel(str(p.get("xlabel", "")))
+        ticks = p.get("xticklabels")
+        if ticks is not None:   # a category: drawn at 0, 1, ... and named
+            ax.set_xticks(np.arange(len(ticks)), [str(v) for v in ticks], rotation=30 if len(ticks) > 4 else 0,
+                          fontsize="x-small")
         ax.set_ylabel("residual of dq / µm")
         ax.set_title(str(p.get("text", "")), fontsize="x-small")
         ax.grid(alpha=0.3)

@@ -41,6 +41,12 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     for k in ("workpiece", "findings"):
         if k in rep:
             rep[k] = json_safe(rep[k])
+    fc = workpiece_form_change(d)
+    if fc is not None:
+        rep["workpiece_form_change"] = fc
+    nd = lobes_not_determined(d)
+    if nd is not None:
+        rep["not_determined"] = nd
     rep["log"] = str(log_path)
     text = json_text(rep, json_out)
     if report:
@@ -49,6 +55,96 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
         discovery_report(report, d, rep, title=f"vmt discover: {Path(log_path).name}")
     write_text_atomic(json_out, text, special=True)
     return rep
+
+
+def workpiece_form_change(d) -> dict | None:
+    """The largest change of the workpiece's FORM from the baseline to the extended model, or None.
+
+    The two models' workpiece estimates are each in a gauge: a shift, a
+    rotation and a scale of the part and a common offset (with touches at
+    several heights also a tilt, twist and growth of the raised targets) are
+    not seen by self-calibration, and an effect the extended model takes (a
+    drift, an offset per set-up) can move the estimate along them without
+    changing the form at all (review 27: a drift run's per-target change of
+    -1.320 um was at most 0.040 um of form). So the change is taken after
+    removing that span (:func:`core.selfcal.workpiece_form`, the basis
+    :func:`core.selfcal.workpiece_gauge_basis` of each target's nominal point,
+    normal and height), over the targets both models report.
+    """
+    import numpy as np
+
+    from core.selfcal import workpiece_form
+
+    bl = d.baseline
+    geo = getattr(bl, "geometry", None)
+    Gb, Ge = d.G_baseline_m, d.G_extended_m
+    if geo is None or Gb is None or Ge is None or not d.workpiece_identifiable:
+        return None
+    Gb, Ge = np.asarray(Gb, float), np.asarray(Ge, float)
+    P, N = np.asarray(geo[0], float), np.asarray(geo[1], float)
+    ids = tuple(bl.estimand_ids)
+    if not (len(Gb) == len(Ge) == len(P) == len(ids)):
+        return None
+    t = bl.data.touches
+    tid = np.asarray(t.target, int)
+    seen, first = np.unique(tid, return_index=True)
+    dz = None
+    if seen.size == len(ids):   # each target's height above the most common level (core.discover's faces alike)
+        z = np.round(t.pn_R[first, 2], 6)
+        lv, cnt = np.unique(z, return_counts=True)
+        dz = z - lv[np.argmax(cnt)]
+        dz = dz if np.any(dz != 0) else None
+    ok = np.isfinite(Gb) & np.isfinite(Ge)
+    if ok.sum() < 2:
+        return None
+    f = workpiece_form(Ge[ok] - Gb[ok], P[ok], N[ok], None if dz is None else dz[ok])
+    raw = (Ge - Gb)[ok]
+    j = int(np.argmax(np.abs(f)))
+    kept = [ids[i] for i in np.flatnonzero(ok)]
+    return {"max_abs_um": float(abs(f[j]) * 1e6), "value_um": float(f[j] * 1e6), "target": kept[j],
+            "raw_max_abs_um": float(np.max(np.abs(raw)) * 1e6), "targets": int(ok.sum()), "heights": dz is not None,
+            "what": "extended minus baseline workpiece, its shift, rotation, scale and common offset removed"
+                    + (" (and the tilt, twist and growth of the raised targets)" if dz is not None else "")
+                    + ": the change of the form, the part the gauge does not decide"}
+
+
+def lobes_not_determined(d) -> dict | None:
+    """The probe's pre-travel lobe orders the baseline absorbs (:func:`core.selfcal.absorbed_lobes`), or None.
+
+    What the baseline takes exactly leaves no residual: no diagnosis sees it
+    and no cause can be named for it, so a ``none`` says nothing about it
+    (review 27: a three-lobe probe on a cross pocket, walls at 0/90/180/270
+    deg, read as C-axis errors while discover said ``none``). Empty orders
+    when every order of :data:`core.selfcal.LOBE_ORDERS` leaves a residual;
+    None for a baseline without approach directions (an ISO 230-2 test).
+    """
+    import numpy as np
+
+    from core.baseline import RANK_TOL
+    from core.lsq import orth_of
+    from core.selfcal import LOBE_ALIAS_SIN, LOBE_ORDERS, absorbed_lobes
+
+    bl = d.baseline
+    data = getattr(bl, "data", None)
+    phi = getattr(data, "azimuth", None)
+    if phi is None or getattr(bl, "kind", None) != "planar" or bl.A is None:
+        return None
+    qr = getattr(bl, "qr", None)
+    if qr is not None:   # the baseline's own factorisation (reflectors: formed here, the same Q as ever)
+        from core.diagnosis import qr_formed
+
+        qr = qr_formed(qr)
+    Q = orth_of(bl.A, RANK_TOL, qr=qr)
+    got = absorbed_lobes(np.asarray(phi, float), lambda x: Q @ (Q.T @ x))
+    ks = [k for k, _ in got]
+    lim = float(np.degrees(np.arcsin(LOBE_ALIAS_SIN)))
+    what = (f"pre-travel lobes of order k = {', '.join(map(str, ks))} (approach azimuth, machine frame) are not "
+            f"determined on this design: the baseline absorbs them (principal angle below {lim:.1f} deg), so no "
+            "residual shows them and no cause's magnitude at these orders is measured: a `none` does not "
+            "exclude them (vmt identify's not_covered names the parameters they move)" if ks else
+            f"every pre-travel lobe order k = {', '.join(map(str, LOBE_ORDERS))} leaves a residual on this design")
+    return {"pretravel_lobe_orders": ks, "principal_angle_deg": [round(a, 2) for _, a in got],
+            "checked_lobe_orders": list(LOBE_ORDERS), "what": what}
 
 
 def _discover_probe_log(log_path, grid_mm, progress):
@@ -139,6 +235,10 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
             if f["evidence"].get("confidence") == "ambiguous" else ""
         said_u95 = " (value +- U95, k = 2)" if any(isinstance(pu.get(k), float) for k, _ in shown_params) else ""
         out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}{said_u95}")
+    nd = rep.get("not_determined")
+    if nd and nd.get("pretravel_lobe_orders"):
+        out.append(f"not seen   pre-travel lobes k = {', '.join(map(str, nd['pretravel_lobe_orders']))}: absorbed by"
+                   " the baseline on this design (not determined: no residual shows them, no cause measures them)")
     g = rep["gain"]
     out.append(f"extended   {rep['extended']['model']}: rms {rep['extended']['rms_um']:.3f} um "
                f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um ({cv_ratio_text(g)})")
@@ -148,10 +248,20 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
         w = [r for r in rep["workpiece"] if isinstance(r.get("extended_u95_um"), float)
              and isinstance(r.get("baseline_u95_um"), float)]
         if w:
-            moved = max(w, key=lambda r: abs(r["extended_um"] - r["baseline_um"]))
-            out.append(f"{label:10s} U95 max {max(r['baseline_u95_um'] for r in w):.3f} -> "
-                       f"{max(r['extended_u95_um'] for r in w):.3f} um (baseline -> extended, {len(w)} {rows}); "
-                       f"largest change {moved['extended_um'] - moved['baseline_um']:+.3f} um at {moved['target']}")
+            line = (f"{label:10s} U95 max {max(r['baseline_u95_um'] for r in w):.3f} -> "
+                    f"{max(r['extended_u95_um'] for r in w):.3f} um (baseline -> extended, {len(w)} {rows})")
+            fc = rep.get("workpiece_form_change")
+            if fc is not None:
+                # the form's change, the gauge removed: a shift/rotation/scale/offset of the part is no change of it
+                gauge = "shift, rotation, scale, offset" + (", tilt, twist and growth" if fc.get("heights") else "")
+                line += (f"; largest change of the form {fc['value_um']:+.3f} um at {fc['target']} (the part's {gauge}"
+                         f" removed; {fc['raw_max_abs_um']:.3f} um at most per target in the gauge)")
+            else:   # no geometry to remove a gauge with (a planar one said so; ISO 230-2's means have none)
+                moved = max(w, key=lambda r: abs(r["extended_um"] - r["baseline_um"]))
+                line += (f"; largest change {moved['extended_um'] - moved['baseline_um']:+.3f} um at "
+                         f"{moved['target']}" + (" (in the gauge: shift, rotation and scale included)"
+                                                 if kind == "planar" else ""))
+            out.append(line)
     return out
 
 

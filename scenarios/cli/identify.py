@@ -114,6 +114,11 @@ def _run(args, bar) -> int:
                        for k, v in b.components.items() if v > 0)
         print(f"U95: probing sigma {b.sigma_probe_m * 1e6:.3f} um"
               + (f", model error the tables cannot follow: {me}" if me else ", no model error seen in the residuals"))
+    from core.selfcal import blind_lobes_line
+
+    blind = blind_lobes_line(res.blind_lobes)   # what the U95 above leaves out, from the design
+    if blind:
+        print(blind)
     if args.mc and mc is None:
         print("Monte Carlo skipped: no probing noise left beside the model error (sigma 0)")
     from scenarios.cli.guard import said

@@ -532,3 +532,27 @@ def test_measured_log_does_not_claim_the_simulators_provenance(tmp_path, capsys)
         assert meta["plan_origin"] == sim_meta["plan_origin"] and "plan_plan_origin" not in meta
         assert all(meta[k] == sim_meta[k] for k in PLAN_META_KEPT)
     assert float(read_probe_log(out).meta["probe_feed_mm_min"]) == 100.0     # the feed it probed at
+
+
+def test_early_trigger_alarm_4_is_logged_like_import_reads_it(tmp_path, plan_path, capsys):
+    """Review 27 (a): ALARM:4 (the probe already triggered before the move) stopped `vmt probe` without a row,
+    while `vmt import grbl` reads the same alarm as an `early_trigger` touch and ALARM:5 is logged
+    `no_trigger`. Now the touch is logged `early_trigger` (empty measured cells), the run stops on the alarm
+    with what to do, and --resume --unlock goes on from the next row to a complete log."""
+    plan = read_probe_log(plan_path)
+    emu, srv = serve(Faults(alarm_at_probe={5: 4}))     # probe 5 = plan row 4 finds the probe triggered
+    out = tmp_path / "log.csv"
+    try:
+        assert main(probe_args(srv.url, plan_path, out)) == 2
+        err = capsys.readouterr().err
+        assert "ALARM:4" in err and "logged as early_trigger" in err and "--resume --unlock" in err
+        log = read_probe_log(out)
+        assert log.n == 5 and log.col("status")[4] == "early_trigger" and emu.alarm == 4
+        assert main(probe_args(srv.url, plan_path, out, "--resume", "--unlock")) == 0
+    finally:
+        srv.stop()
+    log = read_probe_log(out)
+    assert_complete(log, plan)
+    st = list(log.col("status"))
+    assert st.count("early_trigger") == 1 and st[4] == "early_trigger" and st.count("ok") == plan.n - 1
+    assert np.isnan(log.columns["X_mm"][4])        # probe-log/1: an invalid touch, empty measured cells

@@ -41,7 +41,15 @@ def test_workpiece_u95_before_and_after():
     # -3.0 - (-1.0) = -2.0 (a's is +0.5)
     w = [ln for ln in summary_lines(_report(WP)) if ln.startswith("workpiece")]
     assert w == ["workpiece  U95 max 2.000 -> 1.250 um (baseline -> extended, 2 targets); "
-                 "largest change -2.000 um at b"]
+                 "largest change -2.000 um at b (in the gauge: shift, rotation and scale included)"]
+    # with the form's change in the report (vmt discover writes it), that is what is printed
+    rep = _report(WP)
+    rep["workpiece_form_change"] = {"max_abs_um": 0.04, "value_um": -0.04, "target": "a", "raw_max_abs_um": 2.0,
+                                    "targets": 2, "heights": False, "what": "..."}
+    w = [ln for ln in summary_lines(rep) if ln.startswith("workpiece")]
+    assert w == ["workpiece  U95 max 2.000 -> 1.250 um (baseline -> extended, 2 targets); largest change of the form"
+                 " -0.040 um at a (the part's shift, rotation, scale, offset removed; 2.000 um at most per target in"
+                 " the gauge)"]
 
 
 def test_workpiece_line_when_not_identifiable_or_nothing_found():
@@ -183,3 +191,62 @@ def test_discover_command_lets_the_touches_go_before_the_search(monkeypatch, tmp
     assert np.array_equal(bl.A.toarray() if hasattr(bl.A, "toarray") else bl.A,
                           ref.A.toarray() if hasattr(ref.A, "toarray") else ref.A)
     assert np.array_equal(bl.data.touches.pn_R, t.pn_R) and np.array_equal(bl.data.touches.d_R, t.d_R)
+
+
+def test_the_form_change_is_of_the_form_not_the_gauge(tmp_path, capsys):
+    """Review 27 fault 3: a drift run's 'largest change' was a shift/scale of the part (the gauge), not form.
+    Known answer: a simulated cross pocket with a drift that discover names; the form change the CLI prints is
+    the extended-minus-baseline workpiece with core.selfcal.workpiece_form's span removed, recomputed here from
+    the log's own wx/wy/wnx/wny/wz columns (an independent route to the geometry), and it is much smaller than
+    the change per target in the gauge."""
+    import json
+
+    import numpy as np
+
+    from core.probelog import read_probe_log
+    from core.selfcal import workpiece_form
+    from scenarios.cli import main
+
+    log, out = tmp_path / "drift.csv", tmp_path / "d.json"
+    clean = tmp_path / "clean.csv"
+    assert main(["simulate", "cross-pocket", "--machine", "nmv3000", "--errors", "none", "--out", str(clean),
+                 "--seed", "1001"]) == 0
+    # a thermal drift of X written into the log (review 27's drift_probe.py): time stretched x10, X reads
+    # 3 um/h x t more
+    lines = clean.read_text().splitlines()
+    h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+    cols = lines[h].split(",")
+    it, ix = cols.index("t_s"), cols.index("X_mm")
+    body = []
+    for ln in lines[h + 1:]:
+        f = ln.split(",")
+        t = float(f[it]) * 10
+        f[it], f[ix] = repr(t), repr(float(f[ix]) + 3.0 * t / 3600 / 1000)
+        body.append(",".join(f))
+    log.write_text("\n".join(lines[:h + 1] + body) + "\n")
+    capsys.readouterr()
+    assert main(["discover", str(log), "--json", str(out)]) == 0
+    said = capsys.readouterr().out
+    rep = json.loads(out.read_text())
+    fc = rep["workpiece_form_change"]
+    lg = read_probe_log(log)
+    first = {}
+    for i, tg in enumerate(lg.col("target")):
+        first.setdefault(tg, i)
+    ids = [w["target"] for w in rep["workpiece"]]
+    ix = np.array([first[k] for k in ids])
+    P = np.column_stack([lg.col("wx_mm")[ix], lg.col("wy_mm")[ix]]) * 1e-3
+    N = np.column_stack([lg.col("wnx")[ix], lg.col("wny")[ix]])
+    z = lg.col("Z_mm")[ix]   # the probing height (R), as the baseline's levels
+    zr = np.round(z * 1e-3, 6)
+    lv, cnt = np.unique(zr, return_counts=True)
+    dz = zr - lv[np.argmax(cnt)]
+    g = np.array([w["extended_um"] - w["baseline_um"] for w in rep["workpiece"]])
+    f = workpiece_form(g, P, N, dz if np.any(dz != 0) else None)
+    j = int(np.argmax(np.abs(f)))
+    # 1e-9 um: the JSON's and the engine's doubles differ only by the report's rounding (none for these keys)
+    assert fc["target"] == ids[j] and abs(fc["value_um"] - f[j]) < 1e-9
+    assert abs(fc["raw_max_abs_um"] - np.abs(g).max()) < 1e-9
+    assert fc["max_abs_um"] < 0.5 * fc["raw_max_abs_um"]     # the drift moved the gauge, not (much) the form
+    line = next(ln for ln in said.splitlines() if ln.startswith("workpiece"))
+    assert f"largest change of the form {fc['value_um']:+.3f} um at {fc['target']}" in line

@@ -132,3 +132,48 @@ def test_identify_touches_at_two_heights(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "touches at 2 heights: C-axis tilt per set-up and the tool's Abbe terms" in text
     assert "U95: probing sigma" in text
+
+
+def test_identify_names_the_lobes_its_u95_does_not_cover(tmp_path, capsys):
+    """Review 27's case, end to end: a perfect nmv3000 whose probe has a 3-lobe pre-travel (0.5 cos + 0.2 sin
+    um), the simulator's cross pocket. The fit absorbs the lobe into EXC/EYC (no residual: "no model error
+    seen"), so the CLI and the report must say that the U95 does not cover k = 3 and where it went."""
+    from pathlib import Path
+
+    src = (Path(__file__).resolve().parents[2] / "sim" / "data" / "machines" / "nmv3000.toml").read_text()
+    assert 'errors = "none"' in src and "noise_um = 0.125" in src   # a perfect machine's file, as review 27's
+    toml = tmp_path / "lob.toml"
+    toml.write_text(src.replace('name = "nmv3000"', 'name = "nmv3000-lobing"').replace(
+        "noise_um = 0.125", "noise_um = 0.1\nlobing = [{ k = 3, cos_um = 0.5, sin_um = 0.2 }]"))
+    log, out = tmp_path / "lob.csv", tmp_path / "lob_id.json"
+    assert main(["simulate", "cross-pocket", "--machine", str(toml), "--out", str(log), "--seed", "1001"]) == 0
+    capsys.readouterr()
+    assert main(["identify", str(log), "--json", str(out)]) == 0
+    said = capsys.readouterr().out
+    line = next(ln for ln in said.splitlines() if ln.startswith("not covered by U95"))
+    assert "k = 3" in line and "EXC" in line and "EYC" in line
+    r = json.loads(out.read_text())
+    e3 = next(e for e in r["not_covered"]["pretravel_lobes"] if e["k"] == 3)
+    assert {"EXC", "EYC"} <= set(e3["into"]) and e3["principal_angle_deg"] < 0.01
+    # what the statement warns of is there: C-axis values beyond their U95 on a perfect machine
+    beyond = [abs(v[f"{c}_um"]) > v[f"{c}_u95_um"] for v in r["rotary"] for c in ("exc", "eyc")
+              if v[f"{c}_u95_um"]]
+    assert sum(beyond) >= 2
+    # discover cannot see what is absorbed exactly: it says `none`, and now says which lobes it could not see
+    disc = tmp_path / "lob_disc.json"
+    assert main(["discover", str(log), "--json", str(disc)]) == 0
+    said = capsys.readouterr().out
+    rd = json.loads(disc.read_text())
+    assert rd["cause"] == "none"
+    assert 3 in rd["not_determined"]["pretravel_lobe_orders"]
+    assert 2 not in rd["not_determined"]["pretravel_lobe_orders"]
+    assert any(ln.startswith("not seen") and "k = " in ln and "3" in ln for ln in said.splitlines())
+    # the same orders as identify's statement (two routes: discover's baseline basis, identify's estimator)
+    assert rd["not_determined"]["pretravel_lobe_orders"] == [e["k"] for e in r["not_covered"]["pretravel_lobes"]]
+    # ... and a probe without lobes on the same design names only the orders it could not see, with no fit
+    # error from them: the statement is of the design, the same list
+    toml.write_text(src)
+    assert main(["simulate", "cross-pocket", "--machine", str(toml), "--out", str(log), "--seed", "1001"]) == 0
+    assert main(["identify", str(log), "--json", str(out)]) == 0
+    r0 = json.loads(out.read_text())
+    assert r0["not_covered"] == r["not_covered"]

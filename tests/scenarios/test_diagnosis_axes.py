@@ -1,0 +1,97 @@
+"""diagnosis.png's axes say their units and name their categories (review 27 fault 4), read from the
+matplotlib objects the report draws, not from pixels."""
+
+import numpy as np
+import pytest
+
+from core.diagnosis import Covariate
+from scenarios.reports import TIME_IN_HOURS_S, _discovery_sections, diagnosis_axis
+
+
+class _Bl:
+    group_ids = ("C0", "C75", "C130", "C210")
+
+
+def test_each_covariate_kind_gets_its_unit_or_its_names():
+    n = 8
+    cases = {
+        "time": (Covariate("time", np.linspace(0, 600, n), "smooth", 6, (0,), "time", "time"), "time / s"),
+        "time_h": (Covariate("time", np.linspace(0, 3 * TIME_IN_HOURS_S, n), "smooth", 6, (0,), "time", "time"),
+                   "time / h"),
+        "in_setup": (Covariate("time_in_setup", np.linspace(0, 1, n), "smooth", 5, (0,), "time within each set-up",
+                               "time"), "time within each set-up (fraction of the longest set-up's span, 0..1)"),
+        "az": (Covariate("approach_azimuth", np.linspace(0, np.pi, n), "circular", 4, (0,), "the approach azimuth",
+                         "direction"), "the approach azimuth / °"),
+        "x": (Covariate("x", np.linspace(0, 0.1, n), "smooth", 8, (0,), "the x position", "position"),
+              "the x position / mm"),
+        "since": (Covariate("time_since_previous", np.linspace(0, 2, n), "smooth", 4, (0,),
+                            "the time since the previous touch", "history"),
+                  "log10 of the time since the previous touch / s"),
+        "temp": (Covariate("temp_spindle", np.linspace(20, 21, n), "smooth", 5, (0,), "the temperature temp_spindle_C",
+                           "time"), "the temperature temp_spindle_C / °C"),
+    }
+    for key, (cov, want) in cases.items():
+        x, label, ticks = diagnosis_axis(cov, np.asarray(cov.values), _Bl())
+        assert label == want, key
+        assert ticks is None
+    assert diagnosis_axis(cases["time_h"][0], np.asarray(cases["time_h"][0].values))[0].max() == \
+        pytest.approx(3 * TIME_IN_HOURS_S / 3600)
+    setup = Covariate("setup", np.array([0, 0, 1, 3, 3, 2]), "categorical", 0, (0,), "the set-up", "time")
+    x, label, ticks = diagnosis_axis(setup, np.asarray(setup.values), _Bl())
+    assert ticks == ["C0", "C75", "C130", "C210"] and label == "the set-up (category)"
+    assert x.tolist() == [0, 0, 1, 3, 3, 2]
+    # drawn: the ticks sit at the categories' indices and carry their names
+    from viz.figures import diagnosis_figure
+
+    fig = diagnosis_figure([{"x": x, "residual_um": np.zeros(6), "fitted_um": np.zeros(6), "xlabel": label,
+                             "text": "t", "xticklabels": ticks}])
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "the set-up (category)"
+    assert [tk.get_text() for tk in ax.get_xticklabels()] == ["C0", "C75", "C130", "C210"]
+    assert list(ax.get_xticks()) == [0, 1, 2, 3]
+    feat = Covariate("feature", np.array(["pocket|0", "sphere1|1", "pocket|1"], dtype=object), "categorical", 0,
+                     (0,), "the feature, differently in each set-up", "feature")
+    assert diagnosis_axis(feat, np.asarray(feat.values), _Bl())[2] == ["pocket @ C0", "pocket @ C75",
+                                                                       "sphere1 @ C75"]
+
+
+def test_the_report_figure_of_a_drifting_campaign_reads_its_units(tmp_path):
+    """A drift written into a simulated cross pocket (as review 27's drift run): time, time within a set-up
+    and the touch order carry structure; every panel's x label names its unit or scale, categories their
+    names."""
+    from core.baseline import extra_columns
+    from core.discover import discover
+    from core.probelog import read_probe_log
+    from core.touches import from_log
+    from scenarios.cli import main
+
+    clean, log = tmp_path / "clean.csv", tmp_path / "drift.csv"
+    assert main(["simulate", "cross-pocket", "--machine", "nmv3000", "--errors", "none", "--out", str(clean),
+                 "--seed", "1001"]) == 0
+    lines = clean.read_text().splitlines()
+    h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+    cols = lines[h].split(",")
+    it, ix = cols.index("t_s"), cols.index("X_mm")
+    body = []
+    for ln in lines[h + 1:]:
+        f = ln.split(",")
+        t = float(f[it]) * 10
+        f[it], f[ix] = repr(t), repr(float(f[ix]) + 3.0 * t / 3600 / 1000)
+        body.append(",".join(f))
+    log.write_text("\n".join(lines[:h + 1] + body) + "\n")
+    lg = read_probe_log(log)
+    t = from_log(lg)
+    d = discover(t, chain=lg.meta.get("kinematic_chain"), extra=extra_columns(lg, t.row))
+    rep = d.to_report()
+    secs = _discovery_sections(d, t, rep)
+    fig = next(s.figures["diagnosis"] for s in secs if "diagnosis" in s.figures)
+    axs = [ax for ax in fig.axes if ax.get_visible()]
+    labels = [ax.get_xlabel() for ax in axs]   # seed 1001: time in set-up, time periodically, order, time, C, set-up
+    assert any(lb == "time / s" or lb == "time / h" for lb in labels), labels
+    units = (" / s", " / h", " / °", " / mm", " / °C", "(category)", "(index)", "0..1)")
+    for ax, lb in zip(axs, labels):
+        assert lb.endswith(units), lb
+        if lb == "the set-up (category)":
+            assert [tk.get_text() for tk in ax.get_xticklabels()] == list(d.baseline.group_ids)
+    if any(lb.startswith("time within each set-up") for lb in labels):
+        assert "time within each set-up (fraction of the longest set-up's span, 0..1)" in labels
