@@ -198,7 +198,7 @@ class Cause:
     #: (:func:`core.discover.norm_interval`, session 21): a norm near zero, or near its noise, has no symmetric
     #: normal interval.
     norms: Callable | None = None
-    #: ``profile(info, bl) -> {name: (grid, key, scale)}``: nonlinear parameters whose U95 is the profile likelihood's
+    #: ``profile(info) -> {name: (grid, key, scale)}`` (``profile(info, bl)`` for a cause with :attr:`search_range`): nonlinear parameters whose U95 is the profile likelihood's
     #: (the values of ``name`` on ``grid`` at which the least residual sum of squares over the others' grids and
     #: the linear coefficients stays within ``4 s^2`` of the least: k = 2), reported as magnitude ``key`` times
     #: ``scale``. For a ``rebuild`` that broadcasts over its nonlinear parameters (session 21; of several columns: session
@@ -1628,7 +1628,7 @@ DEFECT_PROFILE_SPAN = 4.0
 DEFECT_PROFILE_POINTS = (161, 49)
 
 
-def defect_profile(info, bl=None) -> dict:
+def defect_profile(info) -> dict:
     """The centre's and the half-width's profile grids (:attr:`Cause.profile`): a bump's position and width are
     read off a few touches under it, the residual sum of squares a step function of them, which the delta
     method's Jacobian at the fit does not see."""

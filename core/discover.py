@@ -6480,7 +6480,8 @@ def _profile_u95(cause, bl, tm: Term, Qo: np.ndarray, rows) -> dict:
     profile = getattr(cause, "profile", None)
     if not PROFILE_NONLINEAR or profile is None or getattr(cause, "rebuild", None) is None or tm.penalty is not None:
         return {}
-    prof = profile(tm.info, bl)
+    # (a parameter sought over a range the log sets, Cause.search_range: its grid from the log too)
+    prof = profile(tm.info, bl) if getattr(cause, "search_range", None) is not None else profile(tm.info)
     names = list(prof)
     mesh = np.meshgrid(*[prof[nm][0] for nm in names], indexing="ij")
     flat = {nm: g.ravel() for nm, g in zip(names, mesh)}
@@ -6509,7 +6510,7 @@ def _profile_u95(cause, bl, tm: Term, Qo: np.ndarray, rows) -> dict:
     if r0 is None:
         return {}
     r0 = float(r0[0])
-    k = np.asarray(tm.columns).shape[1] if np.ndim(tm.columns) == 2 else 1
+    k = np.shape(cause.rebuild(bl, dict(tm.info)))[-1]  # the term's columns (1: a bump's; 2: a warm-up's)
     T = flat[names[0]].size
     r = np.empty(T)
     ch = int(max(1, min(PROFILE_CHUNK, PROFILE_CHUNK_BYTES // (3 * 8 * max(np.size(bl.y), 1)))))  # E, its rows, its projection
