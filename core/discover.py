@@ -4237,7 +4237,7 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     for name in cause.nonlinear:
         if name not in info:  # (a layout without it: a drift's polynomial)
             continue
-        if name in bounds:
+        if name in bounds and REFINE_OVER_RANGE:
             info[name] = _refine_bounded(cause, bl, info, name, bounds[name], st, rows)
             continue
         v0 = info[name]
@@ -4268,6 +4268,11 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     return info
 
 
+#: A nonlinear parameter a cause gives a range to (:attr:`core.causes.Cause.search_range`: warm-up's time constant)
+#: is refined over that whole range (:func:`_refine_bounded`), not within +-25 % of the scan's trial (False: as
+#: before). Session 27, review27 fault 2: the window's two passes ended at its edges (740 -> 925 -> 962 s) where
+#: the sum of squares peaks at 1110 s.
+REFINE_OVER_RANGE = True
 #: Points of :func:`_refine_bounded`'s first grid over the whole range (geometric), before the bounded search
 #: between the best point's neighbours: a sum of squares with several local maxima over the range (a warm-up's
 #: time constant beside a drift's) is searched globally at 2.3 % (40x range), then to :data:`REFINE_BOUNDED_XTOL`.
@@ -4286,6 +4291,8 @@ def _refine_bounded(cause, bl, info: dict, name: str, rng: tuple, st: _State, ro
     the data ask for a value beyond it."""
     lo, hi = float(rng[0]), float(rng[1])
     v0 = float(info[name])
+    if not 0 < lo < hi < np.inf:  # (no range to search: the scan's trial as it is)
+        return v0
 
     C0 = take_rows(cause.rebuild(bl, info), rows, 1)
     g = _refine_group(st, C0.shape[1], C0.shape[2])  # (a long log's: built a block at a time, as _refine's)
