@@ -198,14 +198,14 @@ class Cause:
     #: (:func:`core.discover.norm_interval`, session 21): a norm near zero, or near its noise, has no symmetric
     #: normal interval.
     norms: Callable | None = None
-    #: ``profile(info) -> {name: (grid, key, scale)}`` (``profile(info, bl)`` for a cause with :attr:`search_range`): nonlinear parameters whose U95 is the profile likelihood's
-    #: (the values of ``name`` on ``grid`` at which the least residual sum of squares over the others' grids and
-    #: the linear coefficients stays within ``4 s^2`` of the least: k = 2), reported as magnitude ``key`` times
-    #: ``scale``. For a ``rebuild`` that broadcasts over its nonlinear parameters (session 21; of several columns: session
-    #: 27).
+    #: ``profile(info) -> {name: (grid, key, scale)}`` (``profile(info, bl)`` for a cause with
+    #: :attr:`search_range`): nonlinear parameters whose U95 is the profile likelihood's (the values of ``name``
+    #: on ``grid`` at which the least residual sum of squares over the others' grids and the linear coefficients
+    #: stays within ``4 s^2`` of the least: k = 2), reported as magnitude ``key`` times ``scale``. For a
+    #: ``rebuild`` that broadcasts over its nonlinear parameters (session 21; of several columns: session 27).
     profile: Callable | None = None
-    #: ``search_range(bl) -> {name: (lo, hi)}``: nonlinear parameters the refinement seeks over a whole range by a bounded
-    #: 1-D search (``core.discover._refine``), not within one scan step of the scan's trial; a profile interval
+    #: ``search_range(bl) -> {name: (lo, hi)}``: nonlinear parameters the refinement seeks over a whole range by a
+    #: bounded 1-D search (``core.discover._refine``), not within one scan step of the scan's trial; a profile interval
     #: reaching an end of that range is reported one-sided (the value not determined beyond it). Session 27
     #: (warm-up's time constant).
     search_range: Callable | None = None

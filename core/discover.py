@@ -4231,6 +4231,8 @@ def _refine(cause, bl, info: dict, st: _State, rows) -> dict:
     Each parameter in turn: 11 values over the neighbourhood the scan's
     step leaves open, then 9 around the best (a resolution of 1/40 of the
     scan's step); the trial's value is kept unless a better one is found.
+    A parameter the cause gives a range to (:attr:`core.causes.Cause.search_range`) is sought over that whole
+    range instead (:func:`_refine_bounded`, :data:`REFINE_OVER_RANGE`).
     """
     info = dict(info)
     bounds = cause.search_range(bl) if getattr(cause, "search_range", None) is not None else {}

@@ -12,7 +12,6 @@ delta method's of a sum of squares far from quadratic, given as a value even whe
 from __future__ import annotations
 
 import os
-import sys
 
 import numpy as np
 import pytest
@@ -23,8 +22,7 @@ from core.baseline import positioning, positioning_from_log
 from core.discover import discover_baseline
 from core.positioning import read_positioning_log
 
-sys.path.insert(0, os.path.dirname(__file__))
-from warmup_iso_synth import warm_up_test  # noqa: E402
+from warmup_iso_synth import warm_up_test
 
 SAMPLE = os.path.join(os.path.dirname(__file__), "..", "..", "scenarios", "data", "positioning-sample.csv")
 
