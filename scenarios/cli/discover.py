@@ -195,7 +195,13 @@ def _discover_positioning(log_path, report, grid_mm):
     return discover_baseline(positioning_from_log(read_positioning_log(log_path)))
 
 
-def _fmt(v, u=None) -> str:
+def _fmt(v, u=None, side=None) -> str:
+    if v is None and isinstance(side, dict):  # a one-sided statement (core.discover._one_sided): no value +- U95
+        if "at_least" in side:
+            return f">= {side['at_least']:.3g} (not determined)"
+        if "at_most" in side:
+            return f"<= {side['at_most']:.3g} (not determined)"
+        return "not determined"
     if isinstance(v, float):
         return f"{v:.3g}" + (f" +- {u:.2g}" if isinstance(u, float) else "")
     return "n/d" if v is None else str(v)
@@ -230,7 +236,8 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     for f in rep["findings"]:
         pu = f.get("params_u95", {})
         shown_params = list(f["params"].items())[:6]
-        params = ", ".join(f"{k} {_fmt(v, pu.get(k))}" for k, v in shown_params)
+        sides = f["evidence"].get("one_sided") or {}
+        params = ", ".join(f"{k} {_fmt(v, pu.get(k), sides.get(k))}" for k, v in shown_params)
         flag = f" (ambiguous: {f['evidence'].get('confidence_reason', '')})" \
             if f["evidence"].get("confidence") == "ambiguous" else ""
         said_u95 = " (value +- U95, k = 2)" if any(isinstance(pu.get(k), float) for k, _ in shown_params) else ""
