@@ -137,8 +137,8 @@ def test_identify_touches_at_two_heights(tmp_path, capsys):
 def test_identify_declared_ripple(tmp_path, capsys):
     """--declared-ripple-um-mm / --declared-ripple-urad-mm put the spec's sub-grid ripple in the U95
     (core.uncertainty.model_error_budget(subgrid=)): the run says which, the report's rule names them, and
-    every workpiece U95 grows (the ripple's value at the datum's nodes: measured median x 2.24, least x 1.13, on this noise-free
-    log of the realistic nmv3000); bad declarations are one line, exit 2, nothing written."""
+    every workpiece U95 grows (the ripple's value at the datum's nodes: median x 2.24, least x 1.13, on
+    this noise-free log of the realistic nmv3000); bad declarations are one line, exit 2, nothing written."""
     from core.probelog import write_probe_log as write
     from scenarios.selfcal_coverage import simulate
     from sim import artefacts as A
