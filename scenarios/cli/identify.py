@@ -27,7 +27,8 @@ def register(sub) -> None:
                         "EYY): a sinusoid at an unknown phase in the U95 (the residuals do not show its value at "
                         "the datum's nodes). Omitted: the U95 holds only the model error the residuals show")
     p.add_argument("--declared-ripple-urad-mm", default=None, metavar="SYM=URAD:MM,...", dest="declared_ripple_urad",
-                   help="the same for the yaw table (ECY or ECX, the machine's), urad")
+                   help="the same for the yaw table (ECY or ECX, the machine's): amplitude urad and period mm, "
+                        "e.g. ECY=0.15:10")
     from scenarios.cli.guard import NOISE_POSITIVE
 
     p.set_defaults(func=run, vmt_rules=NOISE_POSITIVE)   # the sigma of the U95: > 0, -1 and 0 in one phrasing
