@@ -1240,7 +1240,7 @@ def _check_nodes(des: SelfCalDesign) -> None:
 def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
                    grid_step_m: float = 0.022, sigma_m: float | None = None, covariance: str = "auto",
                    yaw: Yaw | str = Yaw.ECY, heights: bool | str = "auto",
-                   model_error: bool | str = "auto") -> SelfCalResult:
+                   model_error: bool | str = "auto", subgrid: dict | None = None) -> SelfCalResult:
     """2D self-calibration, eqs 15-18.
 
     Parameters
@@ -1270,6 +1270,12 @@ def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float 
         enough (:data:`core.uncertainty.MODEL_ERROR_MAX_CELLS`; a note says
         when not); False: probing noise alone (the residuals' sigma).
         Not computed with ``covariance="none"``.
+    subgrid : dict or None
+        Declared sub-grid amplitudes, table -> m (rad for the yaw): what a
+        table cannot follow between its nodes, from the machine's spec
+        (e.g. a screw's pitch ripple); a floor on the budget's components
+        (:func:`core.uncertainty.model_error_budget`). None: the residuals
+        alone (which do not see a ripple's value at the datum's nodes).
 
     Raises
     ------
@@ -1281,6 +1287,9 @@ def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float 
     """
     if not (model_error is True or model_error is False or model_error == "auto"):
         raise ConfigError(f"model_error must be True, False or 'auto', got {model_error!r}")
+    if subgrid and (not model_error or covariance == "none"):
+        raise ConfigError("subgrid: a declared sub-grid ripple enters the model-error budget: it needs model_error "
+                          "True or 'auto' and a covariance")
     if grid is None:
         grid = Grid.from_extent(touches.pn_R, grid_step_m)
     des, sol = _design_and_solve(touches, grid, delta_L_m, touches.dq_m, yaw, heights, sigma=sigma_m,
@@ -1302,7 +1311,8 @@ def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float 
     if model_error and covariance != "none":
         from .uncertainty import model_error_budget
 
-        budget = model_error_budget(des, sol.estimator, touches, sol.residuals, sigma_m, full=sol.cov is not None)
+        budget = model_error_budget(des, sol.estimator, touches, sol.residuals, sigma_m, full=sol.cov is not None,
+                                    subgrid=subgrid)
         if budget.computed:
             sigma = budget.sigma_probe_m
             std = budget.u

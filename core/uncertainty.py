@@ -227,6 +227,12 @@ MODEL_ERROR_RULE = (
     "estimator and, as the difference between a table's value and the function at its node, through the gauge")
 
 
+SUBGRID_RULE = (
+    "declared sub-grid ripples ({}): each a sinusoid of amplitude A (the spec's bound) along its table's axis at a "
+    "phase the design cannot see (uniform: its sine and cosine parts each of variance A^2 / 2), propagated through "
+    "the estimator and, as its value at the nodes where eqs 16-17 set the datum, through the gauge")
+
+
 @dataclass(frozen=True)
 class ModelErrorBudget:
     """The self-calibration's uncertainty from probing noise and from model error.
@@ -299,9 +305,45 @@ def _fine_table(des: SelfCalDesign, touches: Touches, name: str, step_m: float):
     return Phi, S
 
 
+def _check_subgrid(t, v) -> tuple[float, float]:
+    """(amplitude, period) of one declared sub-grid ripple, or a ConfigError naming it."""
+    if t not in TABLES:
+        raise ConfigError(f"subgrid: unknown table {t!r} (one of {', '.join(TABLES)})")
+    try:
+        a, p = (float(x) for x in v)
+    except (TypeError, ValueError):
+        raise ConfigError(f"subgrid: {t} must be (amplitude, period), got {v!r}") from None
+    if not (np.isfinite(a) and a >= 0):
+        raise ConfigError(f"subgrid: {t} amplitude must be finite and >= 0, got {a}")
+    if not (np.isfinite(p) and p > 0):
+        raise ConfigError(f"subgrid: {t} period must be finite and > 0, got {p}")
+    return a, p
+
+
+def _ripple_table(des: SelfCalDesign, touches: Touches, name: str, period_m: float):
+    """(Phi (n, 2), S (n_params, 2)) of a sinusoid of period ``period_m`` along table ``name``'s axis.
+
+    Columns: its sine and cosine parts. ``Phi[i]``: how touch i sees them
+    (the table's coefficient in eq 14 times their values at its axis
+    position, as :func:`_fine_table`); ``S``: their values at the table's
+    nodes (what the table's truth holds there).
+    """
+    x, y = touches.pn_R[:, 0], touches.pn_R[:, 1]
+    nx, ny = touches.n_R[:, 0], touches.n_R[:, 1]
+    coef, v, on_x = {"EXX": (-nx, x, True), "EYX": (-ny, x, True), "EXY": (-nx, y, False), "EYY": (-ny, y, False),
+                     "ECY": (-ny * x, y, False), "ECX": (nx * y, x, True)}[name]
+    w = 2.0 * np.pi / period_m
+    Phi = np.column_stack([coef * np.sin(w * v), coef * np.cos(w * v)])
+    nodes = des.grid.x_m if on_x else des.grid.y_m
+    S = np.zeros((des.n_params, 2))
+    S[des.slices[name], 0] = np.sin(w * nodes)
+    S[des.slices[name], 1] = np.cos(w * nodes)
+    return Phi, S
+
+
 def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touches, residuals_m: np.ndarray,
                        sigma_m: float | None = None, *, full: bool = False,
-                       step_m: float = MODEL_ERROR_STEP_M) -> ModelErrorBudget:
+                       step_m: float = MODEL_ERROR_STEP_M, subgrid: dict | None = None) -> ModelErrorBudget:
     """The uncertainty of a self-calibration with its model error estimated from the residuals.
 
     The tables of eqs 8-11 are piecewise linear: what an error motion does
@@ -339,6 +381,19 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
         components are estimated), m.
     full : bool
         Also the model error's covariance (n_params, n_params).
+    subgrid : dict or None
+        Declared sub-grid ripples: table -> (amplitude bound ``A`` m, rad
+        for the yaw; period m), e.g. a screw's pitch ripple from the
+        machine's spec. Each is a sinusoid ``A sin(2 pi v / p + phi)``
+        along the table's axis at a phase the design cannot see (uniform:
+        ``A cos(phi)`` and ``A sin(phi)`` independent, variance ``A^2 / 2``
+        each), propagated like the fine tables (through ``K`` and, as its
+        values at the nodes, through the gauge), beside what the residuals
+        show; the probing noise (when estimated) is then what the residuals
+        hold beside every component (moment equation, at least 0). A
+        ripple finer than the nodes is seen by the touches but its value
+        at the datum's nodes is not: the residuals alone miss that part
+        (docs/discovery.md, "Session 27: a declared sub-grid ripple").
 
     Returns
     -------
@@ -385,7 +440,21 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
             scale = np.sqrt((lhs[:, 1:] ** 2).sum(axis=0))
             sol, _ = nnls(lhs[:, 1:] / scale, rhs - lhs[:, 0] * sig ** 2)
             s2[keep] = sol / scale
+    declared = {}
+    rip = []  # (amplitude, Gk (n_params, 2)) of each declared ripple
     Q = des.N @ np.linalg.solve(des.C @ des.N, des.C)  # gauge part of I - Q
+    if subgrid:
+        extra = 0.0
+        for t, v in subgrid.items():
+            a, p = _check_subgrid(t, v)
+            if t in tables and a > 0:
+                declared[t] = (a, p)
+                Pr, Sr = _ripple_table(des, touches, t, p)
+                kr = est.noise_gain(Pr)
+                extra += 0.5 * a ** 2 * float(np.sum((Pr - A @ kr) ** 2))
+                rip.append((a, kr - (Sr - Q @ Sr)))
+        if declared and sigma_m is None:  # the residuals' variance beside every component (moment equation)
+            sig = float(np.sqrt(max(float(r @ r) - float(s2 @ tr) - extra, 0.0) / dof))
     u2 = np.zeros(des.n_params)
     cov = np.zeros((des.n_params, des.n_params)) if full else None
     for k in np.flatnonzero(s2 > 0):
@@ -394,8 +463,15 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
         u2 += s2[k] * np.einsum("ij,ij->i", Gk, Gk)
         if full:
             cov += s2[k] * (Gk @ Gk.T)
+    for a, Gk in rip:  # a sinusoid at a uniform phase: its sine and cosine parts each of variance a^2 / 2
+        u2 += 0.5 * a ** 2 * np.einsum("ij,ij->i", Gk, Gk)
+        if full:
+            cov += 0.5 * a ** 2 * (Gk @ Gk.T)
     return ModelErrorBudget(sig, {t: float(np.sqrt(v)) for t, v in zip(tables, s2)},
-                            {t: float(v) for t, v in zip(tables, z)}, sig * u1, np.sqrt(u2), cov, True)
+                            {t: float(v) for t, v in zip(tables, z)}, sig * u1, np.sqrt(u2), cov, True,
+                            MODEL_ERROR_RULE + ("; " + SUBGRID_RULE.format(", ".join(
+                                f"{t} {a * 1e6:g} {'urad' if t in ('ECY', 'ECX') else 'um'} per {p * 1e3:g} mm"
+                                for t, (a, p) in declared.items())) if declared else ""))
 
 
 # ---------------------------------------------------------------------------

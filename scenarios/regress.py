@@ -59,6 +59,10 @@ Identifications, their quantities and ``[plan]`` keys:
     noise and the model-error budget). Truth: the exact simulator's
     (:func:`scenarios.selfcal_coverage.block_truth`), moved into the
     identification's gauge (:meth:`core.selfcal.SelfCalDesign.to_gauge`).
+    ``declared_ripple = { EXX = [0.38, 10], ... }``: a sub-grid ripple per
+    table (amplitude um, urad for the yaw; period mm) the U95 holds, as
+    ``vmt identify --declared-ripple-um-mm`` (:func:`core.selfcal.self_calibrate`
+    ``subgrid``); a table the chain's yaw is not is left out.
 ``mfb-3axis``, ``mfb-5axis``
     the multi-feature bar plan (:mod:`scenarios.mfb`), 21 errors: ``EXX``
     ... ``EA0Z`` (um or urad, per node; straightness against its end-point
@@ -165,7 +169,7 @@ SIM_DRAWS = 100_000
 SIM_SEED = 20261202
 #: Quantities that have no U95 (absolute tolerance only).
 _NO_U95 = {"iso230-2": ("E", "M", "B")}
-_PLAN_KEYS = {"selfcal": ("c_angles_deg", "grid_mm"), "mfb-3axis": ("mc_runs",), "mfb-5axis": ("mc_runs",),
+_PLAN_KEYS = {"selfcal": ("c_angles_deg", "grid_mm", "declared_ripple"), "mfb-3axis": ("mc_runs",), "mfb-5axis": ("mc_runs",),
               "iso230-2": ("axis", "targets", "cycles", "cycle"), "discover": ("c_angles_deg",)}
 _TOP = ("format", "name", "description", "identification", "machine", "seeds", "noise_um", "injected", "plan",
         "accept", "mutate")
@@ -663,6 +667,23 @@ def _check_plan(r: _Reader, ident: str, plan: dict) -> None:
             lo, hi, st = (r.number(f"plan.grid_mm[{i}]", x) for i, x in enumerate(v))
             if not (lo < hi and st > 0):
                 r.fail("plan.grid_mm", f"expected lo < hi and step > 0, got {v!r}")
+        if "declared_ripple" in plan:
+            if ident != "selfcal":
+                r.fail("plan.declared_ripple", "only for selfcal")
+            from core.uncertainty import TABLES
+
+            v = plan["declared_ripple"]
+            if not isinstance(v, dict) or not v:
+                r.fail("plan.declared_ripple", f"expected a table {{ EXX = [amplitude, period_mm], ... }}, got {v!r}")
+            for k, ap in v.items():
+                w = f"plan.declared_ripple.{k}"
+                if k not in TABLES:
+                    r.fail(w, f"not a table of the self-calibration (one of {', '.join(TABLES)})")
+                if not isinstance(ap, list) or len(ap) != 2:
+                    r.fail(w, f"expected [amplitude (um; urad for ECY, ECX), period mm], got {ap!r}")
+                a, per = (r.number(f"{w}[{i}]", x) for i, x in enumerate(ap))
+                if not (a >= 0 and per > 0):
+                    r.fail(w, f"expected amplitude >= 0 and period > 0, got {ap!r}")
     elif ident.startswith("mfb"):
         if "mc_runs" in plan:
             r.integer("plan.mc_runs", plan["mc_runs"], lo=0)
@@ -726,7 +747,10 @@ def _selfcal(study: Study, seed: int) -> dict:
     t = from_log(log.select(np.abs(log.col("nz")) <= 0.01))
     lo, hi, st = (v * 1e-3 for v in study.plan_value("grid_mm", [-110.0, 110.0, 22.0]))
     heights = False if (study.mutation is not None and study.mutation.planar) else "auto"
-    res = self_calibrate(t, Grid.regular(lo, hi, st), yaw=yaw_for_chain(spec.config.chain), heights=heights)
+    dec = study.plan_value("declared_ripple", None)
+    sub = None if not dec else {k: (a * 1e-6, p * 1e-3) for k, (a, p) in dec.items()}
+    res = self_calibrate(t, Grid.regular(lo, hi, st), yaw=yaw_for_chain(spec.config.chain), heights=heights,
+                         subgrid=sub)
     des = res.design
     raw, _ = block_truth(Campaign(m, t, art, plan, seed, noise_m), des)
     truth = des.to_gauge(raw)

@@ -21,6 +21,14 @@ def register(sub) -> None:
                         "offset_mm); recorded in the state (estimate.identified_on) so that vmt vcmm "
                         "--machine-state can check its tool: the tables are the tool's X/Y deviation with this "
                         "probe. Omitted: recorded as unknown (null), and vmt vcmm applies the state unchecked")
+    p.add_argument("--declared-ripple-um-mm", default=None, metavar="SYM=UM:MM,...", dest="declared_ripple",
+                   help="a ripple finer than the grid each table holds, from the machine's spec (e.g. a screw's "
+                        "pitch error: EXX=0.38:10,EYY=0.2:10; amplitude bound um, period mm; tables EXX, EYX, EXY, "
+                        "EYY): a sinusoid at an unknown phase in the U95 (the residuals do not show its value at "
+                        "the datum's nodes). Omitted: the U95 holds only the model error the residuals show")
+    p.add_argument("--declared-ripple-urad-mm", default=None, metavar="SYM=URAD:MM,...", dest="declared_ripple_urad",
+                   help="the same for the yaw table (ECY or ECX, the machine's): amplitude urad and period mm, "
+                        "e.g. ECY=0.15:10")
     from scenarios.cli.guard import NOISE_POSITIVE
 
     p.set_defaults(func=run, vmt_rules=NOISE_POSITIVE)   # the sigma of the U95: > 0, -1 and 0 in one phrasing
@@ -47,6 +55,7 @@ def _run(args, bar) -> int:
     if args.seed is not None and not args.mc:  # refused, not ignored: without --mc nothing is drawn
         raise ConfigError(f"--seed {args.seed}: it seeds the Monte Carlo runs, and there are none; add --mc N")
     J_mm = None if args.tool_offset_mm is None else parse_floats3(args.tool_offset_mm, "--tool-offset-mm")
+    sub = _declared(args)
     from core.probelog import LENGTH_MAX_MM
 
     if J_mm is not None and max(abs(v) for v in J_mm) > LENGTH_MAX_MM:
@@ -56,6 +65,10 @@ def _run(args, bar) -> int:
     log = read_probe_log(args.log)
     check_planar_scope(log, "identify")
     yaw = yaw_for_chain(log.meta.get("kinematic_chain"))
+    other = [k for k in sub if k in ("ECY", "ECX") and k != yaw]
+    if other:
+        raise ConfigError(f"{args.log}: --declared-ripple-urad-mm {other[0]}: this machine's yaw table is {yaw} "
+                          f"(its chain {log.meta.get('kinematic_chain')!r})")
     # the planar model takes touches with normals in XY (sphere points off the
     # equator are for 3D fits); say how many were left out
     planar = abs(log.col("nz")) <= 0.01
@@ -82,7 +95,7 @@ def _run(args, bar) -> int:
     from scenarios.cli.guard import about_file
 
     with about_file(args.log):  # 'rank deficient by 31', 'eq 6 needs ...': of this log's design
-        res = self_calibrate(t, grid, dL, sigma_m=sigma, yaw=yaw)
+        res = self_calibrate(t, grid, dL, sigma_m=sigma, yaw=yaw, subgrid=sub or None)
         bar(2, steps)
         mc = None
         if args.mc and res.sigma_m > 0:
@@ -112,8 +125,12 @@ def _run(args, bar) -> int:
     if b is not None:
         me = ", ".join(f"{k} {v * 1e6:.3f} {'urad' if k in ('ECY', 'ECX') else 'um'}"
                        for k, v in b.components.items() if v > 0)
+        dec = ", ".join(f"{k} {a * 1e6:g} {'urad' if k in ('ECY', 'ECX') else 'um'} per {p * 1e3:g} mm"
+                        for k, (a, p) in sub.items())
         print(f"U95: probing sigma {b.sigma_probe_m * 1e6:.3f} um"
-              + (f", model error the tables cannot follow: {me}" if me else ", no model error seen in the residuals"))
+              + (f", model error the tables cannot follow: {me}" if me else ", no model error seen in the residuals")
+              + (f"; declared sub-grid ripple: {dec}" if dec else
+                 "; a ripple finer than the grid is not in it unless declared (--declared-ripple-um-mm)"))
     from core.selfcal import blind_lobes_line
 
     blind = blind_lobes_line(res.blind_lobes)   # what the U95 above leaves out, from the design
@@ -125,3 +142,25 @@ def _run(args, bar) -> int:
 
     print(f"wrote {said(out)}")
     return 0
+
+
+#: The tables a declared ripple may name, per option (the self-calibration's; the yaw is the machine's).
+RIPPLE_TABLES = {"um": ("EXX", "EYX", "EXY", "EYY"), "urad": ("ECY", "ECX")}
+
+
+def _declared(args) -> dict:
+    """``--declared-ripple-um-mm`` / ``--declared-ripple-urad-mm`` -> ``{table: (m or rad, m)}`` or a ConfigError
+    naming the option and the symbol."""
+    from core.exceptions import ConfigError
+    from scenarios.cli.scenario import parse_declared_ripple
+
+    out = {}
+    for text, unit in ((args.declared_ripple, "um"), (args.declared_ripple_urad, "urad")):
+        if text is None:
+            continue
+        for k, v in parse_declared_ripple(text, unit).items():
+            if k not in RIPPLE_TABLES[unit]:
+                raise ConfigError(f"--declared-ripple-{unit}-mm: {k} is not a table of the self-calibration "
+                                  f"(one of {', '.join(RIPPLE_TABLES[unit])})")
+            out[k] = v
+    return out

@@ -166,3 +166,51 @@ def test_model_error_budget_skipped_on_large_designs(pocket, monkeypatch):
     res = self_calibrate(tt, GRID)
     assert res.budget is None and any("model error not budgeted" in c for c in res.conventions)
     assert res.sigma_source == "residuals"
+
+
+def test_declared_ripple_known_answer(pocket):
+    """The declared sub-grid ripple's term (model_error_budget(subgrid=)) is the exact spread of the
+    estimate over the ripple's phase: truths holding only an EXX ripple of amplitude 0.3 um, period
+    10 mm, at 8 equally spaced phases (mean sin^2 = cos^2 = 1/2, mean sin cos = 0 exactly), noise
+    free; the estimator is linear, so the mean square of (estimate - truth at the nodes, in the
+    gauge) equals the term's variance to rounding (rtol 1e-9). Residuals 0 give no probing noise
+    and no residual component, so u_model is the ripple's term alone."""
+    from core.selfcal import build_design
+    from core.uncertainty import model_error_budget
+    from core.units import MM
+
+    w, wn, ids = pocket
+    t = nominal_touches(w, wn, PAPER, stylus_r_m=0.003, target_ids=ids)
+    des = build_design(t, GRID)
+    a, p = 0.3 * UM, 10 * MM
+    err = []
+    for ph in 2 * np.pi * np.arange(8) / 8:
+        dq = -t.n_R[:, 0] * a * np.sin(2 * np.pi * t.pn_R[:, 0] / p + ph)
+        raw = np.zeros(des.n_params)
+        raw[des.slices["EXX"]] = a * np.sin(2 * np.pi * GRID.x_m / p + ph)
+        res = self_calibrate(replace(t, p_R=t.pn_R + dq[:, None] * t.n_R), GRID, model_error=False)
+        err.append(res.theta - des.to_gauge(raw))
+    ms = np.mean(np.square(err), axis=0)
+    des2, est = estimator(t, GRID)
+    b = model_error_budget(des2, est, t, np.zeros(t.n), subgrid={"EXX": (a, p)})
+    assert b.sigma_probe_m == 0 and all(v == 0 for v in b.components.values())
+    big = ms > 1e-6 * ms.max()
+    assert big.sum() > 80  # 98 of 165: the workpiece, EXX, the C axis; a ripple along X leaves Y tables alone
+    np.testing.assert_allclose(b.u_model[big] ** 2, ms[big], rtol=1e-9)
+    assert np.all(b.u_model[~big] ** 2 <= 1e-6 * ms.max())
+    assert "declared sub-grid ripples (EXX 0.3 um per 10 mm)" in b.rule
+
+
+def test_declared_ripple_bad_input(pocket):
+    """Each bad declaration is one ConfigError naming the table and what is wrong."""
+    tt, _, _ = next(rippled_campaigns(pocket, 1))
+    for sub, msg in (({"EZZ": (1e-7, 0.01)}, "unknown table 'EZZ'"),
+                     ({"EXX": 1e-7}, "EXX must be \\(amplitude, period\\)"),
+                     ({"EXX": (1e-7, 0.01, 3)}, "EXX must be \\(amplitude, period\\)"),
+                     ({"EXX": (-1e-7, 0.01)}, "EXX amplitude must be finite and >= 0"),
+                     ({"EXX": (float("nan"), 0.01)}, "EXX amplitude must be finite"),
+                     ({"EXX": (1e-7, 0.0)}, "EXX period must be finite and > 0")):
+        with pytest.raises(ConfigError, match=msg):
+            self_calibrate(tt, GRID, subgrid=sub)
+    with pytest.raises(ConfigError, match="needs model_error True or 'auto'"):
+        self_calibrate(tt, GRID, model_error=False, subgrid={"EXX": (1e-7, 0.01)})

@@ -177,3 +177,43 @@ def test_identify_names_the_lobes_its_u95_does_not_cover(tmp_path, capsys):
     assert main(["identify", str(log), "--json", str(out)]) == 0
     r0 = json.loads(out.read_text())
     assert r0["not_covered"] == r["not_covered"]
+
+
+def test_identify_declared_ripple(tmp_path, capsys):
+    """--declared-ripple-um-mm / --declared-ripple-urad-mm put the spec's sub-grid ripple in the U95
+    (core.uncertainty.model_error_budget(subgrid=)): the run says which, the report's rule names them, and
+    every workpiece U95 grows (the ripple's value at the datum's nodes: median x 2.24, least x 1.13, on
+    this noise-free log of the realistic nmv3000); bad declarations are one line, exit 2, nothing written."""
+    from core.probelog import write_probe_log as write
+    from scenarios.selfcal_coverage import simulate
+    from sim import artefacts as A
+    from sim.campaign import simulate_campaign
+    from sim.probe import ProbeConfig
+
+    c = simulate("nmv3000", 2, 0.0)
+    log = simulate_campaign(A.cross_pocket(), c.machine, ProbeConfig(repeatability_k2_m=0.0), list(ANG), None,
+                            check_collisions=False)
+    path = write(tmp_path / "pocket.csv", log)
+    u = {}
+    for name, extra in (("plain", []), ("declared", ["--declared-ripple-um-mm", "EXX=0.38:10,EYY=0.2:10",
+                                                     "--declared-ripple-urad-mm", "ECY=0.15:10"])):
+        out = tmp_path / f"{name}.json"
+        assert main(["identify", str(path), "--json", str(out), "--grid-mm=-110:110:22", *extra]) == 0
+        r = json.loads(out.read_text())
+        u[name] = np.array([x["u95_um"] for x in r["workpiece"]])
+        text = capsys.readouterr().out
+        if name == "plain":
+            assert "a ripple finer than the grid is not in it unless declared" in text
+        else:
+            assert "declared sub-grid ripple: EXX 0.38 um per 10 mm, EYY 0.2 um per 10 mm, ECY 0.15 urad per 10 mm" \
+                in text
+            assert "declared sub-grid ripples (EXX 0.38 um per 10 mm" in r["uncertainty"]["rule"]
+    assert np.all(u["declared"] > u["plain"]) and np.median(u["declared"] / u["plain"]) > 1.3
+    for extra, what in ((["--declared-ripple-um-mm", "EZZ=0.1:10"], "EZZ is not a table of the self-calibration"),
+                        (["--declared-ripple-um-mm", "EXX=-1:10"], "is not SYMBOL=AMPLITUDE_UM:PERIOD_MM"),
+                        (["--declared-ripple-urad-mm", "ECX=0.1:10"], "this machine's yaw table is ECY")):
+        bad = tmp_path / "bad.json"
+        assert main(["identify", str(path), "--json", str(bad), *extra]) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and err.count("\n") == 1 and err.startswith("vmt identify: error: "), err
+        assert what in err and not bad.exists()

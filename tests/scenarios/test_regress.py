@@ -405,6 +405,8 @@ def test_positioning_truth_by_hand():
 
 # --------------------------------------------------------------------------- bad input
 BASE = 'identification = "iso230-2"\nmachine = "vmc-3axis"\nseeds = [1]\n[accept.mean]\nwithin_u95 = 1.0\n'
+SC = (BASE.replace('"iso230-2"', '"selfcal"').replace("[accept.mean]", "[accept.EXX]")
+      .replace('"vmc-3axis"', '"nmv3000"').replace("within_u95 = 1.0", 'within_u95 = "simultaneous"'))
 
 
 @pytest.mark.parametrize("text, match", [
@@ -426,6 +428,13 @@ BASE = 'identification = "iso230-2"\nmachine = "vmc-3axis"\nseeds = [1]\n[accept
     (BASE + "[plan]\naxis = \"A\"\n", "plan.axis: expected X, Y or Z"),
     (BASE + "[plan]\nc_angles_deg = [0, 90]\n", "plan.c_angles_deg: unknown key for iso230-2"),
     (BASE + "[mutate]\nflip_sign = [\"EXX\"]\n", "mutate.flip_sign: unknown quantity 'EXX'"),
+    (BASE + "[plan]\ndeclared_ripple = { EXX = [0.4, 10] }\n", "plan.declared_ripple: unknown key for iso230-2"),
+    (SC + "[plan]\ndeclared_ripple = { EZZ = [0.4, 10] }\n", "plan.declared_ripple.EZZ: not a table"),
+    (SC + "[plan]\ndeclared_ripple = { EXX = [0.4] }\n", r"plan.declared_ripple.EXX: expected \[amplitude"),
+    (SC + "[plan]\ndeclared_ripple = { EXX = [0.4, 0] }\n", "plan.declared_ripple.EXX: expected amplitude >= 0 and"),
+    (SC + "[plan]\ndeclared_ripple = { EXX = [\"a\", 10] }\n", r"plan.declared_ripple.EXX\[0\]"),
+    (SC + "[plan]\ndeclared_ripple = 3\n", "plan.declared_ripple: expected a table"),
+    (SC + "[plan]\ndeclared_ripple = { EXX = [0.38, 10], ECY = [0.15, 10] }\n", None),
     (BASE + "[mutate]\nplanar = true\n", "mutate.planar: only for the self-calibration"),
     (BASE + "[injected.error.EXX]\nslope_um = 1\n", "error.EXX"),
     (BASE.replace("[accept.mean]\nwithin_u95 = 1.0\n", ""), "accept: missing"),

@@ -106,13 +106,54 @@ def test_without_heights_and_budget_the_bands_do_not_cover(campaigns):
 
 
 @pytest.mark.xfail(strict=True, reason="session 27: the screw ripple at drawn phases leaves the workpiece and "
-                                       "C-axis blocks outside their U95 (noise free 0.75-0.86 over 20 seeds)")
+                                       "C-axis blocks outside their U95 from the residuals alone (noise free "
+                                       "0.75-0.86 over 20 seeds); declared (spec_subgrid) it is covered, below")
 @pytest.mark.parametrize("machine", MACHINES)
 def test_drawn_ripple_phases_are_covered_per_block(machine):
     """The same check with each screw's ripple at the phase sim.machines.realistic_errors draws from the
     seed (session 27), noise free, four seeds: measured workpiece 0.75 and C axis 0.72 (nmv3000), 0.72 and
     0.64 (mikron; its EXX 0.75) against >= 0.90 (seeds 20-39: workpiece 0.80 and 0.76, C axis 0.86 and
     0.75, every block 0.92-1.00 at phase 0; docs/discovery.md, "Session 27: the screw ripple's phase").
-    The model-error budget does not hold a ripple at an arbitrary phase in these blocks."""
+    The model-error budget from the residuals alone does not hold a ripple at an arbitrary phase in these
+    blocks: the misses are the workpiece's shift, rotation and scale (its form error stays within 0.2 U95),
+    the datum eqs 16-17 set on the nodes, where the truth holds the ripple's value and no touch sees it."""
     cov = pooled([simulate(machine, s, 0.0) for s in SEEDS])
     assert min(cov.values()) >= 0.90, cov
+
+
+@pytest.fixture(scope="module")
+def drawn():
+    """The realistic machines with each screw's ripple at the phase its seed draws."""
+    return {(m, nz): [simulate(m, s, nz) for s in SEEDS] for m in MACHINES for nz in NOISES_M}
+
+
+@pytest.mark.parametrize("machine", MACHINES)
+def test_declared_ripple_covers_drawn_phases(drawn, machine):
+    """The same drawn-phase campaigns (noise 0 and 0.5 um, four seeds) with the screw ripple declared as
+    the spec gives it (spec_subgrid: 1 % of each 'lin' table's nominal magnitude, 10 mm, phase unknown):
+    every block's U95 holds the truth in >= 90 % (measured on these 8 campaigns: 0.967-1.000 per block, without
+    the declaration 0.750-0.975, workpiece 0.85 and 0.83, C axis 0.79 and 0.75; on
+    the held-out seeds 200-239: noise free 1.000 in every block, both machines, 0.5 um 0.958-0.986;
+    docs/discovery.md, "Session 27: a declared sub-grid ripple"). Without the declaration the same
+    campaigns miss (the xfail above)."""
+    from scenarios.selfcal_coverage import spec_subgrid
+
+    cov = pooled(drawn[(machine, 0.0)] + drawn[(machine, 0.5e-6)], subgrid=spec_subgrid())
+    assert min(cov.values()) >= 0.90, cov
+
+
+def test_spec_subgrid_is_the_generators_bound():
+    """spec_subgrid declares what sim.machines.realistic_errors can put there: the ripple's amplitude is
+    1 % of a magnitude drawn in [0.5, 1] x nominal, so every seed's amplitude lies in [0.5, 1] x the
+    declared one (checked on the drawn functions of seeds 0-19), period 10 mm."""
+    from scenarios.selfcal_coverage import spec_subgrid
+    from sim.machines import MACHINES as M, realistic_errors
+
+    spec = spec_subgrid()
+    assert set(spec) == {"EXX", "EYY", "ECY"}
+    cfg = M["nmv3000"]()
+    for sd in range(20):
+        errs = realistic_errors(("X", "Y", "Z", "C"), strokes=cfg.strokes, rng=np.random.default_rng(sd))
+        for t, (a, p) in spec.items():
+            rip = errs[t].terms[1]
+            assert rip.period == p and 0.5 * a - 1e-18 <= rip.amplitude <= a + 1e-18
