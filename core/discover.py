@@ -262,6 +262,7 @@ normal matrix.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import itertools
@@ -2693,11 +2694,56 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
     bl_mod.check_planar(t)
     bl = bl_mod.planar(t, grid_step_mm, settings.grid_steps_mm, select_grid=settings.select_grid,
                        yaw=selfcal.yaw_for_chain(chain), extra=extra)
+    finer = (FINER_MAP_CHECK and grid_step_mm is None and settings.select_grid
+             and bl.info["grid_step_mm"] > min(settings.grid_steps_mm))
+    kept = (t, extra) if finer else None  # (the touches again for the finer map, else they can go)
     del t, extra  # (the baseline holds what the search reads: the caller's touches can go, core.baseline.planar_data)
+    note = f"{counted(left_out, 'touch')} with normals out of the XY plane left out of the planar baseline"
     if left_out:
-        bl = _with_convention(bl, f"{counted(left_out, 'touch')} with normals out of the XY plane left out of "
-                                  "the planar baseline")
-    return discover_baseline(bl, settings=settings, rng=rng, progress=progress)
+        bl = _with_convention(bl, note)
+    rng0 = copy.deepcopy(rng) if finer and rng is not None else None  # (the finer map's search draws as this one)
+    d = discover_baseline(bl, settings=settings, rng=rng, progress=progress)
+    if not finer or d.cause not in FINER_MAP_CAUSES:
+        return d
+    return _finer_map_check(d, kept, settings, chain, rng0, note if left_out else None)
+
+
+#: Whether a reading of a position-only kind (:data:`FINER_MAP_CAUSES`) on an error-map grid BIC chose coarser
+#: than the finest is checked against the finest identifiable map (:func:`_finer_map_check`): where the search on
+#: that map finds nothing (``none``), the reading was the coarse map's own interpolation misfit of the machine's
+#: smooth axis errors (the baseline's world, not an effect), and the finer map's discovery is reported. BIC's
+#: penalty (log n per parameter) keeps a coarse grid whose misfit the search's tests (F tests at the family's
+#: level, materiality 0.3 sigma) then find: gen_c's smooth machine (quadratic and cubic axis errors), effect-free,
+#: read something on 49 of 960 campaigns (48 on the 80 mm grid BIC chose), 8 of 960 on its affine machine
+#: (errors every map represents); on the 22 mm map 41 of the 49 read none. Session 27 study (docs/discovery.md,
+#: "Session 27: gen_c's false alarms are the coarse map's misfit").
+FINER_MAP_CHECK = True
+
+#: The readings :data:`FINER_MAP_CHECK` checks: structure no catalogue cause takes, and the causes whose columns
+#: are functions of the touch's position alone (the error map's own variable, which a finer map could take).
+FINER_MAP_CAUSES = ("unexplained", "periodic_axis_error", "local_scale_defect", "nonrigid")
+
+
+def _finer_map_check(d: Discovery, kept, settings: Settings, chain, rng, note) -> Discovery:
+    """``d``, or the discovery on the finest identifiable error map where that one reads ``none``
+    (:data:`FINER_MAP_CHECK`); ``kept`` the (touches, extra) ``d``'s baseline was made from."""
+    t, extra = kept
+    g0 = d.baseline.info["grid_step_mm"]
+    try:
+        bl = bl_mod.planar(t, None, settings.grid_steps_mm, select_grid=False, yaw=selfcal.yaw_for_chain(chain),
+                           extra=extra)
+    except (IdentifiabilityError, ConfigError):
+        return d
+    if not bl.identifiable or bl.info["grid_step_mm"] >= g0:
+        return d
+    del t, extra, kept
+    if note:
+        bl = _with_convention(bl, note)
+    bl = _with_convention(bl, f"error-map grid {bl.info['grid_step_mm']:g} mm, the finest identifiable: on the "
+                              f"{g0:g} mm grid BIC chose the search read {d.cause}, and nothing on this one "
+                              "(the coarse map's misfit of the machine's smooth errors)")
+    df = discover_baseline(bl, settings=settings, rng=rng)
+    return df if df.cause == causes_mod.NONE else d
 
 
 def _with_convention(bl: Baseline, text: str) -> Baseline:
