@@ -4,7 +4,8 @@ as nothing is the coarse map's misfit of the machine's smooth axis errors, not a
 gen_c's smooth machine (quadratic and cubic axis errors, the baseline's world) effect-free: BIC chooses the 80 mm
 grid and the search finds the map's interpolation misfit along x (seed 200: ``unexplained``, ``residuals follow
 the x position: 0.097 um, p = 2.0e-04``); on the 22 mm map it finds nothing. Each test below fails with the
-constant off (the first two reverted and run: ``unexplained`` and 80 mm). Session 27 study (docs/discovery.md).
+constant off (the first and the fourth reverted and run: ``unexplained != none``, ``[80] != [80, 22]``); the
+last fails without the U95 guard. Session 27 study (docs/discovery.md).
 """
 
 import numpy as np
@@ -66,3 +67,21 @@ def test_a_ripple_finer_than_the_map_stays_named(monkeypatch):
     assert d.cause == "periodic_axis_error" and d.baseline.info["grid_step_mm"] == 80.0
     assert [g for g, _ in grids] == [80.0, 22.0] and grids[1][1] != "none"
     assert tr.params["period_mm"] < 14.0
+
+
+def _discover_b(effect, seed):
+    from scenarios.blind import gen_b
+    log, _ = gen_b.generate(effect, seed)
+    t = from_log(log)
+    return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+
+
+def test_a_finer_map_that_loses_the_workpiece_is_not_taken(monkeypatch):
+    # gen_b c_drift 1000 (an effect 0.3 sigma visible): unexplained on BIC's 55 mm grid; the 22 mm map reads none
+    # only by trading the workpiece for the map (its U95 5.7 times the coarse map's): kept unexplained
+    # (FINER_MAP_U95_RATIO); with the guard off (an infinite factor) the finer map's none is taken
+    d = _discover_b("c_drift", 1000)
+    assert d.cause == "unexplained" and d.baseline.info["grid_step_mm"] == 55.0
+    monkeypatch.setattr(D, "FINER_MAP_U95_RATIO", np.inf)
+    d = _discover_b("c_drift", 1000)
+    assert d.cause == "none" and d.baseline.info["grid_step_mm"] == 22.0
