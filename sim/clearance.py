@@ -861,9 +861,11 @@ def _pair_candidates(sT_lo, sT_hi, seg, cp, cloT, chiT, cstart, ccount, loT, hiT
     if not rows_done:
         ok = _overlap_rows(sT_lo, sT_hi, seg, cloT, chiT, cp)
         seg, cp = seg.take(ok), cp.take(ok)
-    # -> (segment, pair) for the cluster's member geoms
-    k, pair = _expand(cstart.take(cp), ccount.take(cp))
-    seg = seg.take(k)
+    # -> (segment, pair) for the cluster's member geoms (_expand's runs, each candidate's segment
+    # repeated along its run: the same rows as seg.take of _expand's run numbers, one gather fewer)
+    cnt = ccount.take(cp)
+    pair = np.arange(int(cnt.sum())) + np.repeat(cstart.take(cp) - (np.cumsum(cnt) - cnt), cnt)
+    seg = np.repeat(seg, cnt)
     ok = _overlap_rows(sT_lo, sT_hi, seg, loT, hiT, pair)
     return seg.take(ok), pair.take(ok)
 
@@ -988,6 +990,7 @@ def near_segments_many(parts, samples: bool = True) -> list:
         ccount = np.concatenate([c._ccount for c in bases])
         loT = np.concatenate([c._loT for c in bases], axis=1)
         hiT = np.concatenate([c._hiT for c in bases], axis=1)
+    sT_lo, sT_hi = lo.T.copy(), hi.T.copy()  # (the boxes one coordinate a row: the box levels' rows)
     # the first box level (blocks of rows against clusters), every broad phase's rows at once
     groups = [(b, row0[js[0]], row0[js[-1]] + cnt[js[-1]])
               for b, js in ((b, list(js)) for b, js in itertools.groupby(live, key=lambda j: base_of[j]))]
@@ -997,8 +1000,9 @@ def near_segments_many(parts, samples: bool = True) -> list:
         seg, cp = seg + r0, cp + cl0[b]
     else:
         cballf = np.concatenate([c._cballf for c in bases])
-        seg, cp = _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows=True)
-    seg, pair = _pair_candidates(lo.T.copy(), hi.T.copy(), seg, cp, cloT, chiT, cstart, ccount, loT, hiT,
+        seg, cp = _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows=True, loT=sT_lo,
+                                         hiT=sT_hi)
+    seg, pair = _pair_candidates(sT_lo, sT_hi, seg, cp, cloT, chiT, cstart, ccount, loT, hiT,
                                  rows_done=len(groups) > 1)
     # swept bounds, per broad phase
     # (one call per broad phase: one call for all, their geoms concatenated, cost more, 0.70-1.35
@@ -1072,7 +1076,7 @@ def near_segments_many(parts, samples: bool = True) -> list:
     return out
 
 
-def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows: bool = False
+def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows: bool = False, loT=None, hiT=None
                            ) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`Clearance._block_candidates` of several broad phases' rows at once: ``groups`` (base,
     first row, end row) in row order, covering the rows of ``lo``, ``hi`` (n,3) and ``allow`` (n,);
@@ -1084,7 +1088,8 @@ def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows:
 
     ``rows=True``: the next level too (:func:`_pair_candidates`' first test, each row's box
     against its candidate cluster's), done block by block: the (row, cluster) candidates whose
-    boxes meet, in the same order, from the same comparisons (:func:`_block_rows`)."""
+    boxes meet, in the same order, from the same comparisons (:func:`_block_rows`; ``loT``, ``hiT``:
+    ``lo.T``, ``hi.T`` contiguous, (3, n), when the caller has them)."""
     g_b = np.array([g[0] for g in groups])
     g_r0 = np.array([g[1] for g in groups])
     g_r1 = np.array([g[2] for g in groups])
@@ -1110,7 +1115,9 @@ def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows:
     hit = _overlap_rows(b_lo.T.copy(), b_hi.T.copy(), blk, cloT, chiT, cp)  # (an axis at a time, on the rows left)
     blk, cp = blk.take(hit), cp.take(hit)
     if rows:
-        return _block_rows(cut, g_r1.take(gb), blk, cp, lo, hi, allow, cloT, chiT, cballf)
+        if loT is None:
+            loT, hiT = lo.T.copy(), hi.T.copy()
+        return _block_rows(cut, g_r1.take(gb), blk, cp, loT, hiT, allow, cloT, chiT, cballf)
     seg = (cut.take(blk)[:, None] + np.arange(_BLOCK)).ravel()
     cp = np.repeat(cp, _BLOCK)
     ok = seg < np.repeat(g_r1[gb[blk]], _BLOCK)  # (a group's last block: its rows only)
@@ -1119,29 +1126,31 @@ def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows:
     return seg.compress(ok), cp.compress(ok)
 
 
-def _block_rows(cut, end, blk, cp, lo, hi, allow, cloT, chiT, cballf) -> tuple[np.ndarray, np.ndarray]:
+def _block_rows(cut, end, blk, cp, loT, hiT, allow, cloT, chiT, cballf) -> tuple[np.ndarray, np.ndarray]:
     """(row, cluster) of every row of the blocks ``blk`` (blocks of :data:`_BLOCK` rows from
-    ``cut``, each block's rows before ``end``) whose box ``[lo, hi]`` (n,3) meets the box of the
-    cluster ``cp`` (``cloT``, ``chiT`` (3, c)) hit with its block, but the ball's clusters of the row's
-    ``allow`` feature (``cballf``): what :func:`_block_candidates_many` gives, each block's rows
-    against its cluster, then :func:`_pair_candidates`' row level (:func:`_overlap_rows`), the
-    same comparisons of the same numbers and the same rows in the same order (hit by hit, a
-    block's rows in order), done on (hits, 16) arrays: each block's rows gathered once as one
-    run of 16, not one gather a row and cluster (the 5-axis plan check: 604 blocks, 1,332
-    hits, 20,923 candidate rows of which 2,066 kept; session 26)."""
-    slot = cut[:, None] + np.arange(_BLOCK)
-    valid = slot < end[:, None]  # (a group's last block: its rows only)
-    slot = np.where(valid, slot, cut[:, None]).ravel()  # (the others read the block's first row, then dropped)
-    LB = lo.take(slot, axis=0).reshape(len(cut), _BLOCK, 3).take(blk, axis=0)
-    HB = hi.take(slot, axis=0).reshape(len(cut), _BLOCK, 3).take(blk, axis=0)
-    cl, ch = cloT.take(cp, axis=1), chiT.take(cp, axis=1)
-    ok = valid.take(blk, axis=0)
-    for ax in range(3):  # (_overlap_rows' two comparisons on each axis)
-        ok &= HB[:, :, ax] >= cl[ax][:, None]
-        ok &= LB[:, :, ax] <= ch[ax][:, None]
-    ok &= allow.take(slot).reshape(len(cut), _BLOCK).take(blk, axis=0) != cballf.take(cp)[:, None]
-    h, j = np.nonzero(ok)
-    return cut.take(blk.take(h)) + j, cp.take(h)
+    ``cut``, each block's rows before ``end``) whose box ``[lo, hi]`` (``loT``, ``hiT`` (3, n), one
+    coordinate a row) meets the box of the cluster ``cp`` (``cloT``, ``chiT`` (3, c)) hit with its
+    block, but the ball's clusters of the row's ``allow`` feature (``cballf``): what
+    :func:`_block_candidates_many` gives, each block's rows against its cluster, then
+    :func:`_pair_candidates`' row level (:func:`_overlap_rows`), the same comparisons of the same
+    numbers and the same rows in the same order (hit by hit, a block's rows in order). Each hit's
+    16 row numbers as one (hits, 16) array: the first axis's two comparisons on all of them (one
+    1-D take of a coordinate row each), then the other axes' and the feature's only on the rows
+    the first kept (flat, in the same row-major order: a (row, cluster) kept is one that passes
+    every comparison, whatever their order). The 5-axis plan check: 523 blocks, 1,289 hits, 20,624
+    slots, 2,394 kept; 880 -> 180-240 us a call against session 26's (hits, 16, 3) gathers of
+    both boxes and six strided comparisons (session 27, perf27b)."""
+    c = cut.take(blk)
+    slot = c[:, None] + np.arange(_BLOCK)
+    ok = slot < end.take(blk)[:, None]  # (a group's last block: its rows only)
+    slot = np.where(ok, slot, c[:, None])  # (the others read the block's first row, then dropped)
+    ok &= hiT[0].take(slot) >= cloT[0].take(cp)[:, None]
+    ok &= loT[0].take(slot) <= chiT[0].take(cp)[:, None]
+    r = np.flatnonzero(ok)
+    s, q = slot.ravel().take(r), np.repeat(cp, _BLOCK).take(r)
+    keep = (hiT[1].take(s) >= cloT[1].take(q)) & (loT[1].take(s) <= chiT[1].take(q)) \
+        & (hiT[2].take(s) >= cloT[2].take(q)) & (loT[2].take(s) <= chiT[2].take(q)) & (allow.take(s) != cballf.take(q))
+    return s.compress(keep), q.compress(keep)
 
 
 def _open_rows(n_of, off, cov, live, todo, full, row0, cnt, rows) -> list:
