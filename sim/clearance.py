@@ -551,6 +551,14 @@ class ByOrientation:
         return hit
 
 
+def _pieces(x: np.ndarray, cut) -> list:
+    """``np.split(x, cut)`` (views of ``x`` between the increasing row numbers ``cut``) by slicing:
+    the same views, without ``np.split``'s per-piece axis swaps (~8 us a piece, 66 pieces a fresh
+    5-axis check)."""
+    ends = [0, *(int(c) for c in cut), len(x)]
+    return [x[i:j] for i, j in zip(ends[:-1], ends[1:])]
+
+
 def orientations_ahead(asks) -> None:
     """The broad phases ``asks`` ((ByOrientation, T_F_R (4,4)) each) will be asked for, built now if
     not kept, as :meth:`ByOrientation.get` would build each at its first ask (in the order of
@@ -575,7 +583,7 @@ def orientations_ahead(asks) -> None:
         Ps = [x[3] for x in new]
         lo, hi = Geoms(*(np.concatenate([getattr(P, f) for P in Ps]) for f in ("centre", "axes", "kind", "size", "rbound"))).aabb()
         cut = np.cumsum([len(P.kind) for P in Ps])[:-1]
-        boxes = list(zip(np.split(lo, cut), np.split(hi, cut)))
+        boxes = list(zip(_pieces(lo, cut), _pieces(hi, cut)))
     for (bo, key, T_F_R, P), box in zip(new, boxes):
         bo._memo[key] = bo._build(P, T_F_R, probe_box=box)
 
@@ -626,7 +634,7 @@ def tables_ahead(tables) -> None:
         return
     lo, hi = Geoms(*(np.concatenate([getattr(t, f) for t, _ in new]) for f in ("centre", "axes", "kind", "size", "rbound"))).aabb()
     cut = np.cumsum([len(t.kind) for t, _ in new])[:-1]
-    for (table, tf), box in zip(new, zip(np.split(lo, cut), np.split(hi, cut))):
+    for (table, tf), box in zip(new, zip(_pieces(lo, cut), _pieces(hi, cut))):
         _TABLE_PREP.get_or_compute((id(table), id(tf)), lambda: _build_table_prep(table, tf, box), owner=(table, tf))
 
 
@@ -1109,11 +1117,18 @@ def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows:
         & (a_lo[1][gcl] <= chiT[1][cl]) & (a_hi[2][gcl] >= cloT[2][cl]) & (a_lo[2][gcl] <= chiT[2][cl])
     cl, gcl = cl[near], gcl[near]
     ncl = np.bincount(gcl, minlength=len(groups))
-    # every (block, near cluster of its group), block by block, clusters in order
-    blk, at = _expand((np.cumsum(ncl) - ncl)[gb], ncl[gb])
-    cp = cl[at]
-    hit = _overlap_rows(b_lo.T.copy(), b_hi.T.copy(), blk, cloT, chiT, cp)  # (an axis at a time, on the rows left)
-    blk, cp = blk.take(hit), cp.take(hit)
+    # every (block, near cluster of its group), block by block, clusters in order (_expand's runs):
+    # the boxes meeting on x, then on y and z among those (:func:`_overlap_rows`' comparisons; the
+    # blocks' side repeated along the runs and the near clusters' taken by run element, rather than
+    # both gathered by (block, cluster) numbers: 28,041 pairs, 1,289 kept, on the 5-axis plan check)
+    cnt = ncl.take(gb)
+    at = np.arange(int(cnt.sum())) + np.repeat((np.cumsum(ncl) - ncl).take(gb) - (np.cumsum(cnt) - cnt), cnt)
+    r = np.flatnonzero((np.repeat(b_hi[:, 0], cnt) >= cloT[0].take(cl).take(at))
+                       & (np.repeat(b_lo[:, 0], cnt) <= chiT[0].take(cl).take(at)))
+    blk, cp = np.repeat(np.arange(len(cnt)), cnt).take(r), cl.take(at.take(r))
+    ok = (b_hi[:, 1].take(blk) >= cloT[1].take(cp)) & (b_lo[:, 1].take(blk) <= chiT[1].take(cp)) \
+        & (b_hi[:, 2].take(blk) >= cloT[2].take(cp)) & (b_lo[:, 2].take(blk) <= chiT[2].take(cp))
+    blk, cp = blk.compress(ok), cp.compress(ok)
     if rows:
         if loT is None:
             loT, hiT = lo.T.copy(), hi.T.copy()

@@ -1382,7 +1382,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     would judge), in a second pass over those rows alone. A sample is skipped only when its row's
     segment, or the sample itself, is proven farther than :data:`sim.clearance.MARGIN_M` from every
     pair: the rows in A or W and the R samples moved there differ by rounding (1e-16 m)."""
-    from .clearance import Segments, near_segments_many, orientations_ahead, unique_segments
+    from .clearance import Segments, _pieces, near_segments_many, orientations_ahead, unique_segments
 
     # (a, b) in A per program (plan object; one bar and ball radius for all: check_measurements')
     plans = list({id(ms[i][5]): ms[i][5] for i in live}.values())
@@ -1457,7 +1457,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             a, b, f = (np.concatenate([rows_F[k][j] for k in ks]) for j in range(3))
             first, back = unique_segments(a, b, f)
             a, b, f = a.take(first, axis=0), b.take(first, axis=0), f.take(first)
-            ball_g = dict(zip((k[1] for k in ks), np.split(back, np.cumsum(n_k)[:-1])))
+            ball_g = dict(zip((k[1] for k in ks), _pieces(back, np.cumsum(n_k)[:-1])))
         elif len(ks) > 1 and ball_g is not None:
             first, back = _rest_groups(ks, ball_g, fid_of)
             a, b, f = _rest_rows(ks, n_k, first, segs_A, ptag, fid_of)
