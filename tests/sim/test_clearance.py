@@ -1383,6 +1383,41 @@ def test_box_levels_are_the_old_code_paths(seed):
     assert 0 < len(got[0]) < len(s_old)
 
 
+@pytest.mark.parametrize("seed", [11, 12])
+def test_swept_bounds_at_once_are_each_broad_phase_alone(seed):
+    """Known answer (session 27, perf27b): sim.clearance._swept_many (the swept bounds of rows of
+    several broad phases in one pass, as near_segments_many now asks them) is Clearance._swept of
+    each broad phase's rows alone, as near_segments_many asked them at 72703a3 (one call per broad
+    phase), bit for bit: three rest broad phases and the ball's, random (row, pair) rows in mixed
+    order (a tip where the pair's geoms meet, give or take 2 mm, half of them moved up to ~3 cm), so
+    that some rows are cleared by the first axis and others go on to the pairs' fixed axes. Fresh
+    broad phases for each side (the fixed axes computed on demand by each), compared as uint64."""
+    from sim.clearance import _swept_many
+
+    def rows(bases, rng):
+        n = 400
+        pb = rng.integers(0, len(bases), n)
+        pair = np.array([rng.integers(0, len(bases[k].pair_probe)) for k in pb])
+        a = np.array([bases[k].table.centre[bases[k].pair_table[p]] - bases[k].probe.centre[bases[k].pair_probe[p]]
+                      for k, p in zip(pb, pair)]) + rng.normal(0, 2e-3, (n, 3))
+        far = rng.random(n) < 0.5
+        a[far] += rng.normal(0, 0.03, (int(far.sum()), 3))
+        return pb, pair, a, a + rng.normal(0, 3e-3, (n, 3))
+
+    old_bases = _many_bases_rows(seed)[0]
+    new_bases = _many_bases_rows(seed)[0]
+    pb, pair, a, b = rows(old_bases, np.random.default_rng(seed))
+    want = np.empty(len(pb))
+    for k, clr in enumerate(old_bases):
+        r = np.flatnonzero(pb == k)
+        want[r] = clr._swept(a.take(r, axis=0), b.take(r, axis=0), pair[r])
+    got = _swept_many(new_bases, pb, pair, a, b)
+    assert np.array_equal(got.view(np.uint64), want.view(np.uint64))
+    # (both kinds of rows: some pairs' fixed axes computed, fewer than the rows)
+    assert 0 < sum(int(c._have.sum()) for c in new_bases) < len(pb)
+    assert len(_swept_many(new_bases, pb[:0], pair[:0], a[:0], b[:0])) == 0
+
+
 def test_pieces_are_np_split():
     """Known answer: sim.clearance._pieces gives np.split's views (the same rows, shapes and base)
     for cuts at the ends, repeated, as a list or an array, and no cut."""
