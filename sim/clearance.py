@@ -1160,8 +1160,12 @@ def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows:
     gb = np.repeat(np.arange(len(groups)), nblk)  # each block's group
     b0 = np.cumsum(nblk) - nblk
     cut = g_r0[gb] + (np.arange(len(gb)) - b0[gb]) * _BLOCK
-    b_lo, b_hi = np.minimum.reduceat(lo, cut, axis=0), np.maximum.reduceat(hi, cut, axis=0)
-    a_lo, a_hi = np.minimum.reduceat(b_lo, b0, axis=0).T, np.maximum.reduceat(b_hi, b0, axis=0).T
+    if loT is None:
+        loT, hiT = lo.T.copy(), hi.T.copy()
+    # (each block's box and each group's, one coordinate a row: reduceat along contiguous rows, the
+    # same least and largest values as along the columns of (n, 3))
+    b_lo, b_hi = np.minimum.reduceat(loT, cut, axis=1), np.maximum.reduceat(hiT, cut, axis=1)
+    a_lo, a_hi = np.minimum.reduceat(b_lo, b0, axis=1), np.maximum.reduceat(b_hi, b0, axis=1)
     # the clusters of each group's base that the box of all its blocks meets
     g_of = np.full(len(cl0) - 1, -1)
     g_of[g_b] = np.arange(len(groups))
@@ -1178,15 +1182,13 @@ def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows:
     # both gathered by (block, cluster) numbers: 28,041 pairs, 1,289 kept, on the 5-axis plan check)
     cnt = ncl.take(gb)
     at = np.arange(int(cnt.sum())) + np.repeat((np.cumsum(ncl) - ncl).take(gb) - (np.cumsum(cnt) - cnt), cnt)
-    r = np.flatnonzero((np.repeat(b_hi[:, 0], cnt) >= cloT[0].take(cl).take(at))
-                       & (np.repeat(b_lo[:, 0], cnt) <= chiT[0].take(cl).take(at)))
+    r = np.flatnonzero((np.repeat(b_hi[0], cnt) >= cloT[0].take(cl).take(at))
+                       & (np.repeat(b_lo[0], cnt) <= chiT[0].take(cl).take(at)))
     blk, cp = np.repeat(np.arange(len(cnt)), cnt).take(r), cl.take(at.take(r))
-    ok = (b_hi[:, 1].take(blk) >= cloT[1].take(cp)) & (b_lo[:, 1].take(blk) <= chiT[1].take(cp)) \
-        & (b_hi[:, 2].take(blk) >= cloT[2].take(cp)) & (b_lo[:, 2].take(blk) <= chiT[2].take(cp))
+    ok = (b_hi[1].take(blk) >= cloT[1].take(cp)) & (b_lo[1].take(blk) <= chiT[1].take(cp)) \
+        & (b_hi[2].take(blk) >= cloT[2].take(cp)) & (b_lo[2].take(blk) <= chiT[2].take(cp))
     blk, cp = blk.compress(ok), cp.compress(ok)
     if rows:
-        if loT is None:
-            loT, hiT = lo.T.copy(), hi.T.copy()
         return _block_rows(cut, g_r1.take(gb), blk, cp, loT, hiT, allow, cloT, chiT, cballf)
     seg = (cut.take(blk)[:, None] + np.arange(_BLOCK)).ravel()
     cp = np.repeat(cp, _BLOCK)
