@@ -1091,8 +1091,8 @@ def _swept_many(bases, pb, pair, a, b) -> np.ndarray:
     it leaves at or below :data:`MARGIN_M` the pairs' fixed axes, ``_axes`` per broad phase) runs
     once on all rows: the same element-by-element operations on the same numbers as one call per
     broad phase, so the same floats (a case of ``Geoms.extent``/``closest`` is computed row by row
-    whatever other types are present). The 5-axis plan check: 644 rows of 14 broad phases in
-    one pass instead of 14 (session 27, perf27b; concatenating every broad phase's whole geoms
+    whatever other types are present). The 5-axis plan check: 1,189 rows of 12 broad phases in
+    one pass instead of 12 (session 27, perf27b; concatenating every broad phase's whole geoms
     instead cost more, session 26)."""
     n = len(pb)
     out = np.empty(n)
