@@ -1112,8 +1112,8 @@ def _swept_many(bases, pb, pair, a, b) -> np.ndarray:
     if len(Ps) == 1:
         P, T = Ps[0], Ts[0]
     else:
-        P, T = (Geoms(*(np.concatenate([getattr(x, f) for x in xs]) for f in ("centre", "axes", "kind", "size", "rbound")))
-                for xs in (Ps, Ts))
+        fields = ("centre", "axes", "kind", "size", "rbound")
+        P, T = (Geoms(*(np.concatenate([getattr(x, f) for x in xs]) for f in fields)) for xs in (Ps, Ts))
     a, b = a.take(order, axis=0), b.take(order, axis=0)
     d0 = P.centre - T.centre
     da, db = d0 + a, d0 + b
