@@ -551,6 +551,14 @@ class ByOrientation:
         return hit
 
 
+def _pieces(x: np.ndarray, cut) -> list:
+    """``np.split(x, cut)`` (views of ``x`` between the increasing row numbers ``cut``) by slicing:
+    the same views, without ``np.split``'s per-piece axis swaps (~8 us a piece, 66 pieces a fresh
+    5-axis check)."""
+    ends = [0, *(int(c) for c in cut), len(x)]
+    return [x[i:j] for i, j in zip(ends[:-1], ends[1:])]
+
+
 def orientations_ahead(asks) -> None:
     """The broad phases ``asks`` ((ByOrientation, T_F_R (4,4)) each) will be asked for, built now if
     not kept, as :meth:`ByOrientation.get` would build each at its first ask (in the order of
@@ -575,7 +583,7 @@ def orientations_ahead(asks) -> None:
         Ps = [x[3] for x in new]
         lo, hi = Geoms(*(np.concatenate([getattr(P, f) for P in Ps]) for f in ("centre", "axes", "kind", "size", "rbound"))).aabb()
         cut = np.cumsum([len(P.kind) for P in Ps])[:-1]
-        boxes = list(zip(np.split(lo, cut), np.split(hi, cut)))
+        boxes = list(zip(_pieces(lo, cut), _pieces(hi, cut)))
     for (bo, key, T_F_R, P), box in zip(new, boxes):
         bo._memo[key] = bo._build(P, T_F_R, probe_box=box)
 
@@ -626,7 +634,7 @@ def tables_ahead(tables) -> None:
         return
     lo, hi = Geoms(*(np.concatenate([getattr(t, f) for t, _ in new]) for f in ("centre", "axes", "kind", "size", "rbound"))).aabb()
     cut = np.cumsum([len(t.kind) for t, _ in new])[:-1]
-    for (table, tf), box in zip(new, zip(np.split(lo, cut), np.split(hi, cut))):
+    for (table, tf), box in zip(new, zip(_pieces(lo, cut), _pieces(hi, cut))):
         _TABLE_PREP.get_or_compute((id(table), id(tf)), lambda: _build_table_prep(table, tf, box), owner=(table, tf))
 
 
@@ -861,9 +869,11 @@ def _pair_candidates(sT_lo, sT_hi, seg, cp, cloT, chiT, cstart, ccount, loT, hiT
     if not rows_done:
         ok = _overlap_rows(sT_lo, sT_hi, seg, cloT, chiT, cp)
         seg, cp = seg.take(ok), cp.take(ok)
-    # -> (segment, pair) for the cluster's member geoms
-    k, pair = _expand(cstart.take(cp), ccount.take(cp))
-    seg = seg.take(k)
+    # -> (segment, pair) for the cluster's member geoms (_expand's runs, each candidate's segment
+    # repeated along its run: the same rows as seg.take of _expand's run numbers, one gather fewer)
+    cnt = ccount.take(cp)
+    pair = np.arange(int(cnt.sum())) + np.repeat(cstart.take(cp) - (np.cumsum(cnt) - cnt), cnt)
+    seg = np.repeat(seg, cnt)
     ok = _overlap_rows(sT_lo, sT_hi, seg, loT, hiT, pair)
     return seg.take(ok), pair.take(ok)
 
@@ -988,6 +998,7 @@ def near_segments_many(parts, samples: bool = True) -> list:
         ccount = np.concatenate([c._ccount for c in bases])
         loT = np.concatenate([c._loT for c in bases], axis=1)
         hiT = np.concatenate([c._hiT for c in bases], axis=1)
+    sT_lo, sT_hi = lo.T.copy(), hi.T.copy()  # (the boxes one coordinate a row: the box levels' rows)
     # the first box level (blocks of rows against clusters), every broad phase's rows at once
     groups = [(b, row0[js[0]], row0[js[-1]] + cnt[js[-1]])
               for b, js in ((b, list(js)) for b, js in itertools.groupby(live, key=lambda j: base_of[j]))]
@@ -997,19 +1008,19 @@ def near_segments_many(parts, samples: bool = True) -> list:
         seg, cp = seg + r0, cp + cl0[b]
     else:
         cballf = np.concatenate([c._cballf for c in bases])
-        seg, cp = _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows=True)
-    seg, pair = _pair_candidates(lo.T.copy(), hi.T.copy(), seg, cp, cloT, chiT, cstart, ccount, loT, hiT,
+        seg, cp = _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows=True, loT=sT_lo,
+                                         hiT=sT_hi)
+    seg, pair = _pair_candidates(sT_lo, sT_hi, seg, cp, cloT, chiT, cstart, ccount, loT, hiT,
                                  rows_done=len(groups) > 1)
-    # swept bounds, per broad phase
-    # (one call per broad phase: one call for all, their geoms concatenated, cost more, 0.70-1.35
-    # against 0.54-1.00 ms on the 5-axis plan's 644 rows of 14 broad phases)
-    lb = np.empty(len(seg))
-    pb = np.searchsorted(pair0, pair, side="right") - 1 if len(bases) > 1 else np.zeros(len(seg), int)
-    for b, clr in enumerate(bases):
-        rows = np.flatnonzero(pb == b) if len(bases) > 1 else np.arange(len(seg))
-        if rows.size:
-            sr = seg[rows]
-            lb[rows] = clr._swept(A.take(sr, axis=0), B.take(sr, axis=0), pair[rows] - pair0[b])
+    # swept bounds, every broad phase's rows in one pass (_swept_many: each broad phase's geoms of its
+    # rows gathered; session 26 found one call on every broad phase's whole geoms concatenated dearer
+    # than one call per broad phase, 0.70-1.35 against 0.54-1.00 ms)
+    if len(bases) > 1:
+        pb = np.searchsorted(pair0, pair, side="right") - 1
+        lb = _swept_many(bases, pb, pair - pair0.take(pb), A.take(seg, axis=0), B.take(seg, axis=0))
+    else:
+        pb = np.zeros(len(seg), int)
+        lb = bases[0]._swept(A.take(seg, axis=0), B.take(seg, axis=0), pair) if len(seg) else np.empty(0)
     # certificates: per bounded segment the radius within which it stays clear
     r = pad.copy()
     np.minimum.at(r, seg, lb - MARGIN_M)
@@ -1072,7 +1083,63 @@ def near_segments_many(parts, samples: bool = True) -> list:
     return out
 
 
-def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows: bool = False
+def _swept_many(bases, pb, pair, a, b) -> np.ndarray:
+    """:meth:`Clearance._swept` of rows of several broad phases at once: row i is pair ``pair[i]``
+    of ``bases[pb[i]]`` for the segment ``a[i] -> b[i]`` (n,3, in that broad phase's frame). Each
+    broad phase's geoms of its rows are gathered (``Geoms.take``), then every step of ``_swept``
+    (the centre offsets, the axis from the nearest point, the extents, the gaps, and for the rows
+    it leaves at or below :data:`MARGIN_M` the pairs' fixed axes, ``_axes`` per broad phase) runs
+    once on all rows: the same element-by-element operations on the same numbers as one call per
+    broad phase, so the same floats (a case of ``Geoms.extent``/``closest`` is computed row by row
+    whatever other types are present). The 5-axis plan check: 1,189 rows of 12 broad phases in
+    one pass instead of 12 (session 27, perf27b; concatenating every broad phase's whole geoms
+    instead cost more, session 26)."""
+    n = len(pb)
+    out = np.empty(n)
+    if not n:
+        return out
+    order = np.argsort(pb, kind="stable")  # (rows grouped by broad phase, in order within each)
+    sp = pb.take(order)
+    cut = np.flatnonzero(np.r_[True, sp[1:] != sp[:-1]])
+    ends = np.r_[cut[1:], n]
+    lp = pair.take(order)
+    Ps, Ts = [], []
+    for c0, c1 in zip(cut, ends):
+        clr = bases[sp[c0]]
+        q = lp[c0:c1]
+        Ps.append(clr.probe.take(clr.pair_probe.take(q)))
+        Ts.append(clr.table.take(clr.pair_table.take(q)))
+    if len(Ps) == 1:
+        P, T = Ps[0], Ts[0]
+    else:
+        fields = ("centre", "axes", "kind", "size", "rbound")
+        P, T = (Geoms(*(np.concatenate([getattr(x, f) for x in xs]) for f in fields)) for xs in (Ps, Ts))
+    a, b = a.take(order, axis=0), b.take(order, axis=0)
+    d0 = P.centre - T.centre
+    da, db = d0 + a, d0 + b
+
+    def gap(U, E, da, db):  # U (r,j,3), E (r,j)  (Clearance._swept's)
+        sa = U[:, :, 0] * da[:, 0, None] + U[:, :, 1] * da[:, 1, None] + U[:, :, 2] * da[:, 2, None]
+        sb = U[:, :, 0] * db[:, 0, None] + U[:, :, 1] * db[:, 1, None] + U[:, :, 2] * db[:, 2, None]
+        return np.where(sa * sb > 0, np.minimum(np.abs(sa), np.abs(sb)), 0.0) - E
+
+    c_g = P.centre + 0.5 * (a + b)
+    u, ok = _unit(c_g - T.closest(c_g))
+    E = P.extent(u) + T.extent(u)
+    res = np.where(ok, gap(u[:, None, :], E[:, None], da, db)[:, 0], -np.inf)
+    r = np.flatnonzero(res <= MARGIN_M)
+    if r.size:  # the pairs' fixed axes (computed once per pair, per broad phase) for the rest
+        rc = np.searchsorted(r, cut)
+        re = np.r_[rc[1:], len(r)]
+        UE = [bases[sp[c0]]._axes(lp.take(r[i0:i1])) for c0, i0, i1 in zip(cut, rc, re) if i1 > i0]
+        U = UE[0][0] if len(UE) == 1 else np.concatenate([x[0] for x in UE])
+        E = UE[0][1] if len(UE) == 1 else np.concatenate([x[1] for x in UE])
+        res[r] = np.maximum(res[r], np.max(gap(U, E, da.take(r, axis=0), db.take(r, axis=0)), axis=1))
+    out[order] = res
+    return out
+
+
+def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows: bool = False, loT=None, hiT=None
                            ) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`Clearance._block_candidates` of several broad phases' rows at once: ``groups`` (base,
     first row, end row) in row order, covering the rows of ``lo``, ``hi`` (n,3) and ``allow`` (n,);
@@ -1084,7 +1151,8 @@ def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows:
 
     ``rows=True``: the next level too (:func:`_pair_candidates`' first test, each row's box
     against its candidate cluster's), done block by block: the (row, cluster) candidates whose
-    boxes meet, in the same order, from the same comparisons (:func:`_block_rows`)."""
+    boxes meet, in the same order, from the same comparisons (:func:`_block_rows`; ``loT``, ``hiT``:
+    ``lo.T``, ``hi.T`` contiguous, (3, n), when the caller has them)."""
     g_b = np.array([g[0] for g in groups])
     g_r0 = np.array([g[1] for g in groups])
     g_r1 = np.array([g[2] for g in groups])
@@ -1092,8 +1160,12 @@ def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows:
     gb = np.repeat(np.arange(len(groups)), nblk)  # each block's group
     b0 = np.cumsum(nblk) - nblk
     cut = g_r0[gb] + (np.arange(len(gb)) - b0[gb]) * _BLOCK
-    b_lo, b_hi = np.minimum.reduceat(lo, cut, axis=0), np.maximum.reduceat(hi, cut, axis=0)
-    a_lo, a_hi = np.minimum.reduceat(b_lo, b0, axis=0).T, np.maximum.reduceat(b_hi, b0, axis=0).T
+    if loT is None:
+        loT, hiT = lo.T.copy(), hi.T.copy()
+    # (each block's box and each group's, one coordinate a row: reduceat along contiguous rows, the
+    # same least and largest values as along the columns of (n, 3))
+    b_lo, b_hi = np.minimum.reduceat(loT, cut, axis=1), np.maximum.reduceat(hiT, cut, axis=1)
+    a_lo, a_hi = np.minimum.reduceat(b_lo, b0, axis=1), np.maximum.reduceat(b_hi, b0, axis=1)
     # the clusters of each group's base that the box of all its blocks meets
     g_of = np.full(len(cl0) - 1, -1)
     g_of[g_b] = np.arange(len(groups))
@@ -1104,13 +1176,20 @@ def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows:
         & (a_lo[1][gcl] <= chiT[1][cl]) & (a_hi[2][gcl] >= cloT[2][cl]) & (a_lo[2][gcl] <= chiT[2][cl])
     cl, gcl = cl[near], gcl[near]
     ncl = np.bincount(gcl, minlength=len(groups))
-    # every (block, near cluster of its group), block by block, clusters in order
-    blk, at = _expand((np.cumsum(ncl) - ncl)[gb], ncl[gb])
-    cp = cl[at]
-    hit = _overlap_rows(b_lo.T.copy(), b_hi.T.copy(), blk, cloT, chiT, cp)  # (an axis at a time, on the rows left)
-    blk, cp = blk.take(hit), cp.take(hit)
+    # every (block, near cluster of its group), block by block, clusters in order (_expand's runs):
+    # the boxes meeting on x, then on y and z among those (:func:`_overlap_rows`' comparisons; the
+    # blocks' side repeated along the runs and the near clusters' taken by run element, rather than
+    # both gathered by (block, cluster) numbers: 28,041 pairs, 1,289 kept, on the 5-axis plan check)
+    cnt = ncl.take(gb)
+    at = np.arange(int(cnt.sum())) + np.repeat((np.cumsum(ncl) - ncl).take(gb) - (np.cumsum(cnt) - cnt), cnt)
+    r = np.flatnonzero((np.repeat(b_hi[0], cnt) >= cloT[0].take(cl).take(at))
+                       & (np.repeat(b_lo[0], cnt) <= chiT[0].take(cl).take(at)))
+    blk, cp = np.repeat(np.arange(len(cnt)), cnt).take(r), cl.take(at.take(r))
+    ok = (b_hi[1].take(blk) >= cloT[1].take(cp)) & (b_lo[1].take(blk) <= chiT[1].take(cp)) \
+        & (b_hi[2].take(blk) >= cloT[2].take(cp)) & (b_lo[2].take(blk) <= chiT[2].take(cp))
+    blk, cp = blk.compress(ok), cp.compress(ok)
     if rows:
-        return _block_rows(cut, g_r1.take(gb), blk, cp, lo, hi, allow, cloT, chiT, cballf)
+        return _block_rows(cut, g_r1.take(gb), blk, cp, loT, hiT, allow, cloT, chiT, cballf)
     seg = (cut.take(blk)[:, None] + np.arange(_BLOCK)).ravel()
     cp = np.repeat(cp, _BLOCK)
     ok = seg < np.repeat(g_r1[gb[blk]], _BLOCK)  # (a group's last block: its rows only)
@@ -1119,29 +1198,31 @@ def _block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows:
     return seg.compress(ok), cp.compress(ok)
 
 
-def _block_rows(cut, end, blk, cp, lo, hi, allow, cloT, chiT, cballf) -> tuple[np.ndarray, np.ndarray]:
+def _block_rows(cut, end, blk, cp, loT, hiT, allow, cloT, chiT, cballf) -> tuple[np.ndarray, np.ndarray]:
     """(row, cluster) of every row of the blocks ``blk`` (blocks of :data:`_BLOCK` rows from
-    ``cut``, each block's rows before ``end``) whose box ``[lo, hi]`` (n,3) meets the box of the
-    cluster ``cp`` (``cloT``, ``chiT`` (3, c)) hit with its block, but the ball's clusters of the row's
-    ``allow`` feature (``cballf``): what :func:`_block_candidates_many` gives, each block's rows
-    against its cluster, then :func:`_pair_candidates`' row level (:func:`_overlap_rows`), the
-    same comparisons of the same numbers and the same rows in the same order (hit by hit, a
-    block's rows in order), done on (hits, 16) arrays: each block's rows gathered once as one
-    run of 16, not one gather a row and cluster (the 5-axis plan check: 604 blocks, 1,332
-    hits, 20,923 candidate rows of which 2,066 kept; session 26)."""
-    slot = cut[:, None] + np.arange(_BLOCK)
-    valid = slot < end[:, None]  # (a group's last block: its rows only)
-    slot = np.where(valid, slot, cut[:, None]).ravel()  # (the others read the block's first row, then dropped)
-    LB = lo.take(slot, axis=0).reshape(len(cut), _BLOCK, 3).take(blk, axis=0)
-    HB = hi.take(slot, axis=0).reshape(len(cut), _BLOCK, 3).take(blk, axis=0)
-    cl, ch = cloT.take(cp, axis=1), chiT.take(cp, axis=1)
-    ok = valid.take(blk, axis=0)
-    for ax in range(3):  # (_overlap_rows' two comparisons on each axis)
-        ok &= HB[:, :, ax] >= cl[ax][:, None]
-        ok &= LB[:, :, ax] <= ch[ax][:, None]
-    ok &= allow.take(slot).reshape(len(cut), _BLOCK).take(blk, axis=0) != cballf.take(cp)[:, None]
-    h, j = np.nonzero(ok)
-    return cut.take(blk.take(h)) + j, cp.take(h)
+    ``cut``, each block's rows before ``end``) whose box ``[lo, hi]`` (``loT``, ``hiT`` (3, n), one
+    coordinate a row) meets the box of the cluster ``cp`` (``cloT``, ``chiT`` (3, c)) hit with its
+    block, but the ball's clusters of the row's ``allow`` feature (``cballf``): what
+    :func:`_block_candidates_many` gives, each block's rows against its cluster, then
+    :func:`_pair_candidates`' row level (:func:`_overlap_rows`), the same comparisons of the same
+    numbers and the same rows in the same order (hit by hit, a block's rows in order). Each hit's
+    16 row numbers as one (hits, 16) array: the first axis's two comparisons on all of them (one
+    1-D take of a coordinate row each), then the other axes' and the feature's only on the rows
+    the first kept (flat, in the same row-major order: a (row, cluster) kept is one that passes
+    every comparison, whatever their order). The 5-axis plan check: 523 blocks, 1,289 hits, 20,624
+    slots, 2,394 kept; 880 -> 180-240 us a call against session 26's (hits, 16, 3) gathers of
+    both boxes and six strided comparisons (session 27, perf27b)."""
+    c = cut.take(blk)
+    slot = c[:, None] + np.arange(_BLOCK)
+    ok = slot < end.take(blk)[:, None]  # (a group's last block: its rows only)
+    slot = np.where(ok, slot, c[:, None])  # (the others read the block's first row, then dropped)
+    ok &= hiT[0].take(slot) >= cloT[0].take(cp)[:, None]
+    ok &= loT[0].take(slot) <= chiT[0].take(cp)[:, None]
+    r = np.flatnonzero(ok)
+    s, q = slot.ravel().take(r), np.repeat(cp, _BLOCK).take(r)
+    keep = (hiT[1].take(s) >= cloT[1].take(q)) & (loT[1].take(s) <= chiT[1].take(q)) \
+        & (hiT[2].take(s) >= cloT[2].take(q)) & (loT[2].take(s) <= chiT[2].take(q)) & (allow.take(s) != cballf.take(q))
+    return s.compress(keep), q.compress(keep)
 
 
 def _open_rows(n_of, off, cov, live, todo, full, row0, cnt, rows) -> list:

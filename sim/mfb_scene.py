@@ -859,7 +859,8 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     item = np.repeat(np.arange(n), cnt)
     local = np.arange(tot) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     qk = q[item]
-    tip, prow = local // qk + t0[item], local % qk + q0[item]
+    tip, prow = np.divmod(local, qk)  # (local // qk, local % qk in one pass)
+    tip, prow = tip + t0[item], prow + q0[item]
     pT = np.ascontiguousarray(pF.T).take(tip, axis=1)
     g = np.maximum(loT.take(prow, axis=1) - pT, pT - hiT.take(prow, axis=1))  # the boxes' gap along x, y, z
     worst = np.maximum(np.maximum(g[0], g[1]), g[2])
@@ -867,12 +868,14 @@ def least_holder_clearances(items, distmax: float = 0.05) -> np.ndarray:
     m *= m
     lb0 = np.where(worst > 0, np.sqrt(m[0] + m[1] + m[2]), worst)
     near = np.flatnonzero(lb0 <= distmax + MARGIN_M)
-    order = near[np.lexsort((lb0[near], item[near]))]  # by item, then bound (stable: tip-major on ties)
-    cut = np.searchsorted(item[order], np.arange(n + 1))
+    # by item, then bound (stable: tip-major on ties): the rows are item-major already, so each
+    # item's rows sorted by bound alone, stably (np.lexsort((lb0, item))'s order, item by item)
+    lbn = lb0.take(near)
+    cut = np.searchsorted(item.take(near), np.arange(n + 1))
     for k in range(n):
-        rows_k = order[cut[k]:cut[k + 1]]
-        if not rows_k.size:
+        if cut[k + 1] == cut[k]:
             continue
+        rows_k = near[cut[k]:cut[k + 1]].take(np.argsort(lbn[cut[k]:cut[k + 1]], kind="stable"))
         wz, tkey, clr, _, hpos, tips, tips_F = pre[k]
         if wz._tkey != tkey:  # (another item of this zone set another pose since)
             wz.set_table(np.frombuffer(tkey).reshape(4, 4))
@@ -1382,7 +1385,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
     would judge), in a second pass over those rows alone. A sample is skipped only when its row's
     segment, or the sample itself, is proven farther than :data:`sim.clearance.MARGIN_M` from every
     pair: the rows in A or W and the R samples moved there differ by rounding (1e-16 m)."""
-    from .clearance import Segments, near_segments_many, orientations_ahead, unique_segments
+    from .clearance import Segments, _pieces, near_segments_many, orientations_ahead, unique_segments
 
     # (a, b) in A per program (plan object; one bar and ball radius for all: check_measurements')
     plans = list({id(ms[i][5]): ms[i][5] for i in live}.values())
@@ -1457,7 +1460,7 @@ def _near_samples(ms, zones, live, sgs) -> dict:
             a, b, f = (np.concatenate([rows_F[k][j] for k in ks]) for j in range(3))
             first, back = unique_segments(a, b, f)
             a, b, f = a.take(first, axis=0), b.take(first, axis=0), f.take(first)
-            ball_g = dict(zip((k[1] for k in ks), np.split(back, np.cumsum(n_k)[:-1])))
+            ball_g = dict(zip((k[1] for k in ks), _pieces(back, np.cumsum(n_k)[:-1])))
         elif len(ks) > 1 and ball_g is not None:
             first, back = _rest_groups(ks, ball_g, fid_of)
             a, b, f = _rest_rows(ks, n_k, first, segs_A, ptag, fid_of)

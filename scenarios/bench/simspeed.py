@@ -474,6 +474,13 @@ check's own (``CheckResult.positions_R``, the same arrays bit for bit), and ``ch
 every kind in one pass when nothing is beyond a stroke (0.66 -> 0.29 ms). This figure's share, 10 rounds
 interleaved with 63c4d4f at load 11-18: medians 0.283/0.281 -> 0.2495/0.2445, paired 0.82-0.92; two
 ``--only bench_simspeed`` runs side by side: 0.298 -> 0.264, 0.293 -> 0.253 (docs/performance.md, session 27).
+Then (perf27b) the box levels and swept bounds of ``near_segments_many`` in fewer numpy passes
+(``_block_rows`` and the (block, cluster) test on 1-D coordinate rows, x first; ``_swept_many`` for
+every broad phase's rows at once) and ``least_holder_clearances``' order by per-item stable argsorts:
+the same answers (hashed with every ``near_segments_many`` answer and certificate); this figure's
+share, 6 rounds interleaved with 72703a3 at load 7.5-9.8: medians 0.2315 -> 0.2235 (paired 0.94-0.97);
+``--only bench_simspeed`` base then branch: 0.2424 -> 0.2272, 0.2451 -> 0.2379. The 0.22 target is
+not met.
 """
 
 from __future__ import annotations

@@ -1266,6 +1266,171 @@ def test_block_rows_are_the_first_two_box_levels(seed):
     assert 0 < len(got[0]) < len(seg)  # (the second level drops some candidates and keeps some)
 
 
+def _old_block_rows(cut, end, blk, cp, lo, hi, allow, cloT, chiT, cballf):
+    """sim.clearance._block_rows as it stood at 72703a3 (session 26): each hit's 16 rows gathered as
+    (hits, 16, 3) boxes, six strided comparisons and the feature's, np.nonzero."""
+    from sim.clearance import _BLOCK
+
+    slot = cut[:, None] + np.arange(_BLOCK)
+    valid = slot < end[:, None]
+    slot = np.where(valid, slot, cut[:, None]).ravel()
+    LB = lo.take(slot, axis=0).reshape(len(cut), _BLOCK, 3).take(blk, axis=0)
+    HB = hi.take(slot, axis=0).reshape(len(cut), _BLOCK, 3).take(blk, axis=0)
+    cl, ch = cloT.take(cp, axis=1), chiT.take(cp, axis=1)
+    ok = valid.take(blk, axis=0)
+    for ax in range(3):
+        ok &= HB[:, :, ax] >= cl[ax][:, None]
+        ok &= LB[:, :, ax] <= ch[ax][:, None]
+    ok &= allow.take(slot).reshape(len(cut), _BLOCK).take(blk, axis=0) != cballf.take(cp)[:, None]
+    h, j = np.nonzero(ok)
+    return cut.take(blk.take(h)) + j, cp.take(h)
+
+
+def _old_block_candidates_many(groups, cl0, lo, hi, allow, cloT, chiT, cballf, rows=False):
+    """sim.clearance._block_candidates_many as it stood at 72703a3: the (block, near cluster) pairs
+    by _expand's run numbers, both boxes gathered by them (_overlap_rows), then _old_block_rows."""
+    from sim.clearance import _BLOCK, _expand, _overlap_rows
+
+    g_b = np.array([g[0] for g in groups])
+    g_r0 = np.array([g[1] for g in groups])
+    g_r1 = np.array([g[2] for g in groups])
+    nblk = (g_r1 - g_r0 + _BLOCK - 1) // _BLOCK
+    gb = np.repeat(np.arange(len(groups)), nblk)
+    b0 = np.cumsum(nblk) - nblk
+    cut = g_r0[gb] + (np.arange(len(gb)) - b0[gb]) * _BLOCK
+    b_lo, b_hi = np.minimum.reduceat(lo, cut, axis=0), np.maximum.reduceat(hi, cut, axis=0)
+    a_lo, a_hi = np.minimum.reduceat(b_lo, b0, axis=0).T, np.maximum.reduceat(b_hi, b0, axis=0).T
+    g_of = np.full(len(cl0) - 1, -1)
+    g_of[g_b] = np.arange(len(groups))
+    gc = np.repeat(g_of, np.diff(cl0))
+    cl = np.flatnonzero(gc >= 0)
+    gcl = gc[cl]
+    near = (a_hi[0][gcl] >= cloT[0][cl]) & (a_lo[0][gcl] <= chiT[0][cl]) & (a_hi[1][gcl] >= cloT[1][cl]) \
+        & (a_lo[1][gcl] <= chiT[1][cl]) & (a_hi[2][gcl] >= cloT[2][cl]) & (a_lo[2][gcl] <= chiT[2][cl])
+    cl, gcl = cl[near], gcl[near]
+    ncl = np.bincount(gcl, minlength=len(groups))
+    blk, at = _expand((np.cumsum(ncl) - ncl)[gb], ncl[gb])
+    cp = cl[at]
+    hit = _overlap_rows(b_lo.T.copy(), b_hi.T.copy(), blk, cloT, chiT, cp)
+    blk, cp = blk.take(hit), cp.take(hit)
+    if rows:
+        return _old_block_rows(cut, g_r1.take(gb), blk, cp, lo, hi, allow, cloT, chiT, cballf)
+    seg = (cut.take(blk)[:, None] + np.arange(_BLOCK)).ravel()
+    cp = np.repeat(cp, _BLOCK)
+    ok = seg < np.repeat(g_r1[gb[blk]], _BLOCK)
+    seg, cp = seg.compress(ok), cp.compress(ok)
+    ok = cballf.take(cp) != allow.take(seg)
+    return seg.compress(ok), cp.compress(ok)
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13, 14, 15])
+def test_box_levels_are_the_old_code_paths(seed):
+    """Known answer (session 27, perf27b): the box levels of near_segments_many as rewritten for
+    speed (_block_candidates_many's (block, cluster) test on x then y and z, _block_rows on 1-D
+    coordinate rows, _pair_candidates' segments by np.repeat) give what the code of 72703a3 gave
+    (copied above): the same (row, cluster) and (row, pair) candidates, element for element and in
+    the same order, with and without the row level, with and without the caller's transposed boxes,
+    on the rows of three rest broad phases and the ball's (_many_bases_rows: groups whose last block
+    is not full, allowed features at random, half the rows through a pair's geoms). Exact: integer
+    answers of the same float comparisons. A third of the rows have a side exactly on a side of a
+    cluster's or pair's box (ties): fails on a comparison changed (>= for >; tried: _block_rows' y
+    fails on all five seeds, the first level's x on two) or another order (tried: _pair_candidates'
+    segments reversed)."""
+    from sim.clearance import _block_candidates_many, _expand, _overlap_rows, _pair_candidates
+
+    bases, groups, cl0, lo, hi, allow = _many_bases_rows(seed)
+    cloT = np.concatenate([c._cloT for c in bases], axis=1)
+    chiT = np.concatenate([c._chiT for c in bases], axis=1)
+    cballf = np.concatenate([c._cballf for c in bases])
+    # ties: a third of the rows given a side exactly on a side of one of its base's cluster or pair
+    # boxes (a row touching a box by a closed comparison: >= and <= tell it from > and <)
+    rng = np.random.default_rng(seed + 100)
+    for b, r0, r1 in groups:
+        c = bases[b]
+        for r in range(r0, r1):
+            if rng.random() < 1 / 3:
+                ax, j = int(rng.integers(3)), int(rng.integers(len(c._cstart)))
+                if rng.random() < 0.5:
+                    box = (c._cloT, c._chiT)
+                else:  # (a pair of the cluster)
+                    box, j = (c._loT, c._hiT), int(c._cstart[j] + rng.integers(c._ccount[j]))
+                if rng.random() < 0.5:
+                    hi[r, ax] = box[0][ax, j]
+                    lo[r, ax] = min(lo[r, ax], hi[r, ax])
+                else:
+                    lo[r, ax] = box[1][ax, j]
+                    hi[r, ax] = max(hi[r, ax], lo[r, ax])
+    args = (groups, np.array(cl0), lo, hi, allow, cloT, chiT, cballf)
+    for rows in (False, True):
+        want = _old_block_candidates_many(*args, rows=rows)
+        got = _block_candidates_many(*args, rows=rows)
+        assert all(np.array_equal(x, y) for x, y in zip(got, want))
+        assert len(want[0]) > 100
+    got = _block_candidates_many(*args, rows=True, loT=lo.T.copy(), hiT=hi.T.copy())
+    assert all(np.array_equal(x, y) for x, y in zip(got, want))
+    # the pair level on the row level's candidates: _expand's run numbers and a gather (the old way)
+    pair0 = np.cumsum([0] + [len(c.pair_probe) for c in bases])
+    cstart = np.concatenate([c._cstart + pair0[b] for b, c in enumerate(bases)])
+    ccount = np.concatenate([c._ccount for c in bases])
+    loT = np.concatenate([c._loT for c in bases], axis=1)
+    hiT = np.concatenate([c._hiT for c in bases], axis=1)
+    seg, cp = want
+    k, pair = _expand(cstart.take(cp), ccount.take(cp))
+    s_old = seg.take(k)
+    ok = _overlap_rows(lo.T.copy(), hi.T.copy(), s_old, loT, hiT, pair)
+    got = _pair_candidates(lo.T.copy(), hi.T.copy(), seg, cp, cloT, chiT, cstart, ccount, loT, hiT, rows_done=True)
+    assert np.array_equal(got[0], s_old.take(ok)) and np.array_equal(got[1], pair.take(ok))
+    assert 0 < len(got[0]) < len(s_old)
+
+
+@pytest.mark.parametrize("seed", [11, 12])
+def test_swept_bounds_at_once_are_each_broad_phase_alone(seed):
+    """Known answer (session 27, perf27b): sim.clearance._swept_many (the swept bounds of rows of
+    several broad phases in one pass, as near_segments_many now asks them) is Clearance._swept of
+    each broad phase's rows alone, as near_segments_many asked them at 72703a3 (one call per broad
+    phase), bit for bit: three rest broad phases and the ball's, random (row, pair) rows in mixed
+    order (a tip where the pair's geoms meet, give or take 2 mm, half of them moved up to ~3 cm), so
+    that some rows are cleared by the first axis and others go on to the pairs' fixed axes. Fresh
+    broad phases for each side (the fixed axes computed on demand by each), compared as uint64."""
+    from sim.clearance import _swept_many
+
+    def rows(bases, rng):
+        n = 400
+        pb = rng.integers(0, len(bases), n)
+        pair = np.array([rng.integers(0, len(bases[k].pair_probe)) for k in pb])
+        a = np.array([bases[k].table.centre[bases[k].pair_table[p]] - bases[k].probe.centre[bases[k].pair_probe[p]]
+                      for k, p in zip(pb, pair)]) + rng.normal(0, 2e-3, (n, 3))
+        far = rng.random(n) < 0.5
+        a[far] += rng.normal(0, 0.03, (int(far.sum()), 3))
+        return pb, pair, a, a + rng.normal(0, 3e-3, (n, 3))
+
+    old_bases = _many_bases_rows(seed)[0]
+    new_bases = _many_bases_rows(seed)[0]
+    pb, pair, a, b = rows(old_bases, np.random.default_rng(seed))
+    want = np.empty(len(pb))
+    for k, clr in enumerate(old_bases):
+        r = np.flatnonzero(pb == k)
+        want[r] = clr._swept(a.take(r, axis=0), b.take(r, axis=0), pair[r])
+    got = _swept_many(new_bases, pb, pair, a, b)
+    assert np.array_equal(got.view(np.uint64), want.view(np.uint64))
+    # (both kinds of rows: some pairs' fixed axes computed, fewer than the rows)
+    assert 0 < sum(int(c._have.sum()) for c in new_bases) < len(pb)
+    assert len(_swept_many(new_bases, pb[:0], pair[:0], a[:0], b[:0])) == 0
+
+
+def test_pieces_are_np_split():
+    """Known answer: sim.clearance._pieces gives np.split's views (the same rows, shapes and base)
+    for cuts at the ends, repeated, as a list or an array, and no cut."""
+    from sim.clearance import _pieces
+
+    x = np.arange(36.0).reshape(12, 3)
+    for cut in ([], [5], [0, 4, 4, 12], np.array([2, 7])):
+        want, got = np.split(x, cut), _pieces(x, cut)
+        assert len(got) == len(want)
+        for g, w in zip(got, want):
+            assert g.shape == w.shape and np.array_equal(g, w) and g.base is w.base is not None
+
+
 def test_row_norm_is_numpys_norm_bit_for_bit():
     """Known answer and property: sim.clearance._row_norm (the paths' segment lengths, the unit
     axes of the swept bounds, the geoms' bounding radii; session 26) is np.linalg.norm(d, axis=-1)
