@@ -96,9 +96,19 @@ def test_study_report_stability_and_percentiles_known_answer(tmp_path, monkeypat
     assert rep["temperature_draws"]["mean_C"] == 20.5
 
 
+#: Session 27 evaluates the motion errors at the axis positions (reading + J) and refit the 5-axis
+#: plan: the stored 1,000-run studies are of the errors at the readings; run 1 recomputed now
+#: differs. Strict, so re-running them (scenarios.mfb.budget_study, assemble_study, the doc tables)
+#: turns this into a failure to remove.
+_STUDY_OF_READINGS = pytest.mark.xfail(strict=True, reason="the stored budget studies are of the errors at the "
+                                       "tip readings, before session 27: to be re-run")
+
+
 @pytest.mark.parametrize("name, heading", [
-    ("mfb-3axis", "## Uncertainty budget (item 3): {n:,} runs through the pipeline"),
-    ("mfb-5axis", "## Uncertainty budget of the 5-axis plan: {n:,} runs through the pipeline"),
+    pytest.param("mfb-3axis", "## Uncertainty budget (item 3): {n:,} runs through the pipeline",
+                 marks=_STUDY_OF_READINGS),
+    pytest.param("mfb-5axis", "## Uncertainty budget of the 5-axis plan: {n:,} runs through the pipeline",
+                 marks=_STUDY_OF_READINGS),
 ])
 def test_stored_study_is_this_pipeline_and_the_doc_table_is_its_summary(name, heading):
     # run 1 of the stored study recomputed now (one pipeline run) equals the stored vector: the
@@ -177,11 +187,13 @@ def test_linear_calibration_share_is_the_simulated_bars_own():
         assert np.allclose(r.unc.U95_lin[sl], sim_bar[sl], rtol=1e-9, atol=1e-15), \
             (s, np.max(r.unc.U95_lin[sl] / np.where(sim_bar[sl] > 0, sim_bar[sl], 1.0)))
     # the comparison sees the difference: the points taken as independent (main before this test)
-    # put 11.7 % more in EZX's first free node (3.82 um against the simulated bar's 3.42; 9.7 %, 4.01
-    # against 3.65 um, on the plan before its bars were lifted onto the table face)
+    # put 6.2 % more in EZX's first free node (2.23 um against the simulated bar's 2.10; session 27,
+    # the errors at the axis positions and EXY/EXZ/EYZ's end-point conventions: 11.7 %, 3.82 against
+    # 3.42 um, before; 9.7 %, 4.01 against 3.65 um, on the plan before its bars were lifted onto the
+    # table face). The band as before: 0.03 on the ratio, 3 % on the value (this pipeline's figures)
     ezx = d.slices["EZX"].start + 1
     indep = 2.0 * np.sqrt(vol.covariance(r.result, r.meas, 0.0, u_cal)[ezx, ezx])
-    assert 1.10 < indep / sim_bar[ezx] < 1.13 and 3.37e-6 < sim_bar[ezx] < 3.47e-6
+    assert 1.05 < indep / sim_bar[ezx] < 1.08 and 2.07e-6 < sim_bar[ezx] < 2.14e-6
     # and the bar's own map is the rods' (core.mfb's reading of section 2.1, sim's built apart)
     assert np.allclose(mfb.calibration_map(), R, atol=1e-12)
     # the run's bar block, U95 of calibrated - true in the gauge it is shown in (Exx from O_1; Eyx,
