@@ -96,19 +96,9 @@ def test_study_report_stability_and_percentiles_known_answer(tmp_path, monkeypat
     assert rep["temperature_draws"]["mean_C"] == 20.5
 
 
-#: Session 27 evaluates the motion errors at the axis positions (reading + J) and refit the 5-axis
-#: plan: the stored 1,000-run studies are of the errors at the readings; run 1 recomputed now
-#: differs. Strict, so re-running them (scenarios.mfb.budget_study, assemble_study, the doc tables)
-#: turns this into a failure to remove.
-_STUDY_OF_READINGS = pytest.mark.xfail(strict=True, reason="the stored budget studies are of the errors at the "
-                                       "tip readings, before session 27: to be re-run")
-
-
 @pytest.mark.parametrize("name, heading", [
-    pytest.param("mfb-3axis", "## Uncertainty budget (item 3): {n:,} runs through the pipeline",
-                 marks=_STUDY_OF_READINGS),
-    pytest.param("mfb-5axis", "## Uncertainty budget of the 5-axis plan: {n:,} runs through the pipeline",
-                 marks=_STUDY_OF_READINGS),
+    ("mfb-3axis", "## Uncertainty budget (item 3): {n:,} runs through the pipeline"),
+    ("mfb-5axis", "## Uncertainty budget of the 5-axis plan: {n:,} runs through the pipeline"),
 ])
 def test_stored_study_is_this_pipeline_and_the_doc_table_is_its_summary(name, heading):
     # run 1 of the stored study recomputed now (one pipeline run) equals the stored vector: the
@@ -154,12 +144,17 @@ def test_5axis_budget_covers_the_injected_errors_and_meets_the_hand_values():
         assert 0.87 <= c["mc_over_quadrature"] <= 1.13, (s, c["mc_over_quadrature"])
     # JCGM 101 7.9 by halves: most nodes' halves within 2 standard errors
     assert rep["stability"]["within_2_se"] >= 0.9
-    # hand values: 11.5 um/m/K (machine scales) and 1 um/m/K (Invar bar) over the plan's node spans
-    # 450 / 350 / 250 mm
+    # hand values: 11.5 um/m/K (machine scales) over the plan's node spans 450 / 350 / 250 mm, to
+    # 1e-3 um. The Invar bar's 1 um/m/K is that hand value only while the errors were evaluated at
+    # the tip readings (0.4500 / 0.3500 / 0.2500 then): the scales act at the carriage (reading + J),
+    # the bar expands about the tips, so styli of different J see it offset by s x dJ at one carriage
+    # position, which no machine error reproduces (session 27: 0.4521 / 0.3194 / 0.2403); each axis's
+    # departure within s x the plan's largest dJ along it (X: TX3's 250 mm, Y: TYM's 60, Z: TXL's
+    # 100 mm over the others' 150), a bound from that geometry, not from the figures
     ts = rep["temperature_sensitivity_per_C"]
-    for s, span_mm in (("EXX", 450.0), ("EYY", 350.0), ("EZZ", 250.0)):
+    for s, span_mm, dJ_mm in (("EXX", 450.0, 250.0), ("EYY", 350.0, 60.0), ("EZZ", 250.0, 100.0)):
         assert abs(ts["machine temperature"][s] - 11.5e-3 * span_mm) <= 1e-3
-        assert abs(ts["bar temperature"][s] - 1e-3 * span_mm) <= 1e-3
+        assert abs(ts["bar temperature"][s] - 1e-3 * span_mm) <= 1e-3 * dJ_mm
 
 
 def test_linear_calibration_share_is_the_simulated_bars_own():
