@@ -97,6 +97,9 @@ def tip_map(state: MachineState, chain: str, P, J_m=(0.0, 0.0, 0.0), rotary_poin
             step: float = 1e-6) -> np.ndarray:
     """(3n, p) d tip deviation / d parameters at readings P (n, 3) (rotary axes at 0), rigid motion removed.
 
+    The tables are looked up at the axis (joint) positions ``P + J_m`` (the state's tables are
+    functions of the joint positions, :mod:`core.kinematics`).
+
     Each column: the tip moved by one parameter of ``state`` (a node value or a constant) by
     ``step`` (m or rad) through :func:`core.kinematics.tip_W`, divided by it (the chain's second
     order, ~step x arm, is 1e-6 of the column), projected off the rigid motions of the points.
@@ -112,7 +115,7 @@ def tip_map(state: MachineState, chain: str, P, J_m=(0.0, 0.0, 0.0), rotary_poin
     zeros = np.zeros(len(P))
     for s, (x, i) in state.tables.items():
         a = iso.LINEAR_AXES.index(iso.symbol(s).axis)
-        W = spline_weights(x, P[:, a])
+        W = spline_weights(x, P[:, a] + geom.J_m[a])
         for k, j in enumerate(np.atleast_1d(i)):
             G[:, j] = ((tip_W(geom, P, rot, {s: step * W[:, k]}) - base) / step).ravel()
     for s, j in state.constants.items():

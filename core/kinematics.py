@@ -25,11 +25,21 @@ on (e the axis direction; ``exp`` the rotation-vector exponential)::
                                   . Rot(e, -theta_k) . Trans(-c_k)
 
 with ``E_k = [exp(skew(EA, EB, EC)) | (EX, EY, EZ)]`` the motion errors of
-axis k (evaluated at its reading), ``q_k = reading_k + J_k`` the axis
-position (the controller adds the probe offset J of eq. 8), ``c_k`` a point
+axis k, ``q_k = reading_k + J_k`` the axis position (the controller adds
+the probe offset J of eq. 8), ``c_k`` a point
 on the nominal rotary axis line and ``d_k`` its position errors (``EX0C``,
 ``EY0C``...). The tool branch ends with ``Trans(-J)`` at the stylus-tip
-centre P (eq. 8); the workpiece branch ends at W. Hence on a perfect
+centre P (eq. 8); the workpiece branch ends at W.
+
+Where the errors are evaluated: a linear axis's motion errors are functions
+of its axis (joint) position ``q_k = reading_k + J_k`` (the carriage, what
+its scale reads; ISO 230-1 errors along the travel; eq. 8 writes
+``E_XX(X)``... of the joint parameters, the tool offset applied after),
+a rotary axis's of its angle. This module takes the error VALUES (callers
+evaluate them: ``sim.machine.Machine.error_values``, the tables of
+``core.volumetric``, ``sim.compensation.ErrorModel``), so each caller adds
+the pose's J before evaluating: two styli at the same carriage position
+see the same error values. Hence on a perfect
 machine with rotary axes at zero, tip_W equals the readings, and W rotates
 as ``p_R = R(-C) p_W`` about the C line (self-calibration paper eq. 1).
 

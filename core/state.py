@@ -10,7 +10,7 @@ covariance")::
     {"format": "vmt-estimate/1",
      "method": "...",
      "sign_convention": "ISO 230-1: the tool's displacement relative to the workpiece",
-     "positions": "axis readings: stylus-tip centre in the machine frame R, mm",
+     "positions": "axis (joint) positions: the reading (stylus-tip centre) + the probe offsets J, in the machine frame R, mm",
      "interpolation": "linear" | "cubic-spline",
      "conventions": ["EXX(x=0mm)=0", ...],       # the gauge: what the data cannot fix
      "parameters": [{"name": "EXX@x=-110mm", "symbol": "EXX", "at_mm": -110.0, "unit": "um"},
@@ -55,7 +55,7 @@ from .exceptions import ConfigError, counted
 FORMAT = "vmt-estimate/1"
 INTERPOLATIONS = ("linear", "cubic-spline")
 SIGN_CONVENTION = "ISO 230-1: the tool's displacement relative to the workpiece (actual minus commanded)"
-POSITIONS = "axis readings: stylus-tip centre in the machine frame R, mm"
+POSITIONS = "axis (joint) positions: the reading (stylus-tip centre) + the probe offsets J, in the machine frame R, mm"
 #: Relative asymmetry of a covariance tolerated (rounding in JSON), and the relative size of a negative
 #: eigenvalue taken as rounding (clipped to 0) rather than refused.
 SYM_TOL = 1e-6

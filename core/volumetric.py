@@ -12,7 +12,9 @@ and, from the bar's calibration, where they really are on the bar
     tip_W(O_R; E) = exp(xi_p) T_W_A,p O_A                          (1)
 
 ``tip_W`` is core's exact chain (:mod:`core.kinematics`), ``E`` the error
-motions evaluated at the readings, ``T_W_A,p`` the nominal placement and
+motions evaluated at the axis positions ``O_R + J`` (the joints, eq. 8:
+the errors are functions of the joint parameters, the probe offset J
+applied after them), ``T_W_A,p`` the nominal placement and
 ``xi_p = (v, w)`` the unknown placement error (6 nuisance values per
 placement, shared by the measurements of that placement). To first order
 (eqs 8-12, ``S = d tip_W / d E`` at E = 0, which for the chain b-X-Y-Z-t
@@ -40,8 +42,9 @@ with the true error functions it agrees to <= 13 nm per point (against
 2.5 um for (2)). The noise-free accuracy is then the tables' interpolation
 of the truth, amplified by the plan's weakest direction.
 
-Each motion error of an axis is a look-up table on nodes along that axis
-(the points of interest of the bars laid along it), interpolated by a C2
+Each motion error of an axis is a look-up table on nodes along that axis,
+indexed by the axis (joint) position ``reading + J`` (the points of
+interest of the bars laid along it, as the reference stylus reaches them), interpolated by a C2
 cubic spline (section 6) where a point falls between nodes and along its
 end tangent up to :data:`NODE_MARGIN_M` beyond the end nodes (the rods and
 faces probed around the end holes; farther readings are refused); the three
@@ -59,7 +62,33 @@ table is a rotated bar). :func:`design` computes the null space of (2)
 and fixes it with the ISO conventions: always positioning zero at the first
 node (``EX0X = 0``...) and straightness zero at both end nodes (the
 end-point reference straight line, section 6); then, greedily, angular
-errors zero at the first node, each only while it removes a null direction. A null
+errors zero at the first node, each only while it removes a null direction.
+
+With the errors as functions of the axis (joint) positions (eq. 8), a
+squareness, a straightness slope and a constant angular error are one
+combination to first order, exactly, for every stylus: ``EB0Z`` tilts the
+Z motion and what Z carries, the tool included, so the tip moves by
+``EB0Z (Z - J_z)`` along x, which is an ``EXZ`` slope ``EB0Z * Z`` plus a
+constant ``EBZ = EB0Z`` acting on the lever arm ``-J``; likewise ``EA0Z``
+= ``-EYZ`` slope + constant ``EAZ`` and ``EC0Y`` = ``-EXY`` slope +
+constant ``ECY`` (the angular term where the axis carries the tool: on a
+table-side Y the constant ``ECY`` is a rotated bar, a placement's freedom,
+and ``EC0Y`` is the slope alone). tests/core/test_volumetric.py checks the
+identity on core's chain and in the 3-axis plan's design, and that the
+gauge fixes exactly these. No bar can tell them apart: the redundancy is
+physical. ISO 230-1 resolves it by
+definition: a straightness is reported against its reference straight line
+and a squareness is the angle between the axes' reference lines, so the
+end-point convention (both ends of ``EXY``, ``EXZ``, ``EYZ`` zero) gives
+the slope to the squareness; the constant ``EAZ``, ``EBZ``, ``ECZ`` that
+remain move the tip by their lever arm, the stylus offset ``J``, and are
+sensed by styli of different ``J`` (the plans' star styli and
+extensions). (Until session 27, with the errors evaluated at the tip
+readings, the three differed by stylus-dependent terms, 25-55 % of the
+squareness's column in the 3-axis plan, so the plan seemed to separate
+them and the gauge fixed those three tables at their first node only: a
+separation a real machine, whose errors follow its carriage, does not
+give.) A null
 direction left after all conventions is a combination the plan cannot see:
 :func:`identify_volumetric` raises :class:`~core.exceptions.IdentifiabilityError`
 naming it (via :func:`core.lsq.solve`), never a silent solution.
@@ -123,7 +152,7 @@ GAUGE_MIN = 1e-6
 #: RANK_TOL (1e-12 in eigenvalues, 1e-6 in singular values), so the plan is
 #: refused here, by name, before the solver would.
 COND_TOL = 1e-5
-#: How far (m) beyond the end nodes a reading may lie; there the table
+#: How far (m) beyond the end nodes an axis position (reading + J) may lie; there the table
 #: continues along its end tangent (:func:`spline_weights`). The nodes sit at
 #: the points of interest (where the bar senses every error, see
 #: scenarios.mfb); the rod and faces that give the last hole its height lie
@@ -322,20 +351,22 @@ def _check(meas, nodes):
             raise ConfigError(f"measurement {m.name!r}: non-finite points of interest")
         if np.shape(m.T_W_A) != (4, 4):
             raise ConfigError(f"measurement {m.name!r}: T_W_A must be 4x4")
-        # the readings the errors are evaluated at must lie within the nodes
-        # (at most NODE_MARGIN_M beyond, along the end tangent)
-        q = np.asarray(m.q_R, float) if _has_touches(m) else O_R
+        # the axis positions the errors are evaluated at (reading + J) must lie within the
+        # nodes (at most NODE_MARGIN_M beyond, along the end tangent)
+        q = (np.asarray(m.q_R, float) if _has_touches(m) else O_R) + np.asarray(m.J_m, float)
         for j, a in enumerate(iso.LINEAR_AXES):
             v = np.asarray(nodes[a], float)
             if len(v) > 1 and (q[:, j].min() < v[0] - NODE_MARGIN_M or q[:, j].max() > v[-1] + NODE_MARGIN_M):
-                raise ConfigError(f"measurement {m.name!r}: readings reach {a} = {q[:, j].min() * 1e3:.1f} .. "
+                raise ConfigError(f"measurement {m.name!r}: axis positions (reading + J) reach {a} = "
+                                  f"{q[:, j].min() * 1e3:.1f} .. "
                                   f"{q[:, j].max() * 1e3:.1f} mm, outside the {a} nodes "
                                   f"{v[0] * 1e3:.1f} .. {v[-1] * 1e3:.1f} mm (extend the nodes)")
 
 
 def _axis_weights(nodes, q) -> dict:
-    """axis -> (p, k_axis) spline weights at the readings q (p, 3): one evaluation per
-    axis, shared by the six motion errors of that axis (and by values and Jacobian)."""
+    """axis -> (p, k_axis) spline weights at the axis positions q (p, 3) (reading + J: the
+    tables are functions of the joint positions, module doc): one evaluation per axis,
+    shared by the six motion errors of that axis (and by values and Jacobian)."""
     return {a: spline_weights(nodes[a], q[:, i]) for i, a in enumerate(iso.LINEAR_AXES)}
 
 
@@ -392,11 +423,11 @@ def _prepare(m, chain, rotary_points, nodes) -> dict:
         t = len(qt)
         p["qt"] = qt
         p["rott"] = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (t, 1)) if nr else None
-        p["W"] = _axis_weights(nodes, qt)
+        p["W"] = _axis_weights(nodes, qt + np.asarray(g.J_m, float))
         p["d_W"] = np.asarray(m.d_A, float) @ T[:3, :3].T
         p["GW"] = np.einsum("ij,kjt->kit", T[:3, :3], np.asarray(m.G_A, float).reshape(k, 3, t))  # (k, 3, t)
     else:
-        p["W"] = _axis_weights(nodes, q)
+        p["W"] = _axis_weights(nodes, q + np.asarray(g.J_m, float))
     return p
 
 
@@ -802,7 +833,7 @@ class VolumetricResult:
         return CubicSpline(x, v, bc_type="not-a-knot" if len(x) >= 4 else "natural")
 
     def value(self, symbol: str, u) -> np.ndarray:
-        """The error between nodes by the spline, at positions u (m)."""
+        """The error between nodes by the spline, at axis (joint) positions u (m, reading + J)."""
         s = iso.symbol(symbol).name
         if s in SQUARENESS:
             return np.full(np.shape(u), self.theta[self.design.slices[s]][0])
@@ -1013,7 +1044,7 @@ def ripple_columns(res: VolumetricResult, meas, chain: str, symbol: str, amplitu
     """(n, 2) what a periodic error the tables cannot hold does to the estimate's error (a type B term).
 
     A ripple ``amplitude * sin(2 pi q / period + phi)`` in the motion error ``symbol`` (m or rad; ``q``
-    its axis' reading, m) is ``amplitude * (cos phi * s(q) + sin phi * c(q))`` with ``s = sin(2 pi q / period)``,
+    its axis position, reading + J, m) is ``amplitude * (cos phi * s(q) + sin phi * c(q))`` with ``s = sin(2 pi q / period)``,
     ``c = cos(2 pi q / period)``. Each moves the rows of (1) as the identification's own model (3) moves them:
     every touch by its sensitivity to ``symbol`` along its approach, carried into the points of interest by the
     extraction's gain (model (2) at the points of interest for a measurement without touches), the shifted
@@ -1043,11 +1074,11 @@ def ripple_columns(res: VolumetricResult, meas, chain: str, symbol: str, amplitu
         k = pm["k"]
         if pm["touches"]:
             t = len(pm["qt"])
-            sd, x = Sd[at[i]:at[i] + t], pm["qt"][:, ax]
+            sd, x = Sd[at[i]:at[i] + t], pm["qt"][:, ax] + pm["g"].J_m[ax]
             dy = [(pm["GW"].reshape(3 * k, t) @ (sd * f(w * x))).reshape(k, 3) for f in (np.sin, np.cos)]
         else:
             S = sensitivity(pm["g"], pm["q"], pm["rot"], None, symbols=MOTION + SQUARENESS)[:, :, ks]
-            x = pm["q"][:, ax]
+            x = pm["q"][:, ax] + pm["g"].J_m[ax]
             dy = [S * f(w * x)[:, None] for f in (np.sin, np.cos)]
         for j, r in enumerate(dy):
             r[pm["off"]] = r[pm["off"]] @ pm["Pz"].T
@@ -1268,7 +1299,7 @@ def tables_json(res: VolumetricResult, unc: VolumetricUncertainty | None = None,
     doc = {"format": "vmt-comp/1", "chain": res.chain,
            "sign_convention": "ISO 230-1: each value is the tool's displacement relative to the workpiece "
                               "(actual minus commanded), whichever side of the bed the axis is on",
-           "positions": "axis readings: stylus-tip centre in the machine frame R, mm",
+           "positions": "axis (joint) positions: the reading (stylus-tip centre) + the probe offsets J, in the machine frame R, mm",
            "rotary_points_mm": {a: [v * 1e3 for v in p] for a, p in (res.rotary_points_R_m or {}).items()},
            "conventions": list(res.design.gauge),
            "straightness_reference": "end-point straight line (slope in end_point_slope_urad)",

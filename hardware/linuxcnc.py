@@ -352,16 +352,16 @@ def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float
     Parameters
     ----------
     res : core.volumetric.VolumetricResult
-        Identified tables (``res.value("EXX", x)`` at readings x, m).
+        Identified tables (``res.value("EXX", x)`` at axis positions x, m).
     axis : {"X", "Y", "Z"}
     step_m : float, optional
         Spacing of the lines along the table (by its C2 spline), m; default
         the table's nodes. At most :data:`COMP_SIZE` lines.
     joint_offset_m : float
-        Joint position minus axis reading, m: vmt's tables are functions of
-        the readings (stylus-tip centre); LinuxCNC indexes the joint, which
-        is the reading plus the tool offset in effect (the probe's length
-        for Z). Nominal = reading + ``joint_offset_m``.
+        Shift of the nominal column from the tables' positions, m: vmt's
+        tables are functions of the joint (axis) positions, reading + J,
+        which LinuxCNC indexes too, so the default 0 writes them as they
+        are. Nominal = table position + ``joint_offset_m``.
 
     Returns
     -------

@@ -79,6 +79,22 @@ directions: 8 along Y and 7 along Z (one per hole), 9 along X over the
 leave one EZX combination seen by curvature alone). The end nodes are the
 end holes; over the rods and faces beyond them (up to 34 mm) the tables
 continue along their end tangent (:data:`core.volumetric.NODE_MARGIN_M`).
+Since session 27 the tables (and the truth's error functions) are functions
+of the axis (joint) positions ``reading + J`` (eq. 8), so the nodes are
+joint positions: the holes as T0 reaches them (Z 150 mm above the holes'
+heights, 210-510 mm), and a stylus with another J visits other carriage
+positions (VYc's TYL probes the standing bar's holes 1-5). The gauge fixes
+21 conventions (EXY, EXZ, EYZ at both ends now: the slope is one
+combination with the squareness and a constant angular error,
+:mod:`core.volumetric`). Seed 1 (0.125 um noise, 200 Monte Carlo runs):
+123 of 126 node values within U95 (19 of 21 errors whole; the model
+expects 104-126); seeds 1-10: 1,176 of 1,260 (93.3 %; 1,184, 94.0 %, at
+63c4d4f), the lowest seed 8's 101 (112 before: a hard campaign either
+way); U95 max EAZ / EBZ / ECZ 10.3 / 10.5 / 13.3
+urad, EB0Z / EA0Z 10.7 / 7.1 (7.3 / 6.5 / 7.1, 5.9 / 5.0 before: the
+combination the lever arms alone sense now; 500 Monte Carlo runs). Noise-free 0.047 um / 0.33
+urad (EA0Z). Figures in this doc not restated here were measured before
+that change (errors at the tip readings).
 End nodes spanning every touch (the previous layout) sat where only one
 direction is sensed, and the end-point conventions hung every table on
 them: U95 reached 47 um (EZX) and 110 urad (EBY) at 0.25 um probing noise.
@@ -87,10 +103,11 @@ Identification (:mod:`core.volumetric`): the machine errors enter through
 the touches, carried into the points of interest by the extraction's gain;
 then Gauss-Newton on the exact chain; reported in the ISO 230-1 form
 (straightness against its end-point line, the slope kept beside it).
-Noise-free on the default realistic machine: 0.045 um / 0.17 urad (the
+Noise-free on the default realistic machine: 0.047 um / 0.33 urad (the
 tables' interpolation of its 9-knot profiles and the tangent continuation
-over the end rods); 0.003 um / 0.025 urad for errors the tables represent
-(``on_nodes=True``).
+over the end rods; session 27, errors at the axis positions: 0.045 / 0.17
+before); 0.003 um / 0.038 urad for errors the tables represent
+(``on_nodes=True``; 0.003 / 0.025 before).
 
 Uncertainty: probing noise (0.125 um standard deviation, the paper's 0.25 um
 at k = 2), the bar's calibration (the
@@ -137,6 +154,26 @@ What moved (seed 1, U95 max, plan before -> now): EA0Z 4.0 -> 11.9 urad,
 EC0Y 4.8 -> 7.4 urad, ECZ 8.4 -> 8.9, EBZ 3.1 -> 3.5, EYZ 1.0 -> 1.4 um,
 EXZ 1.5 -> 1.1 um, EAZ 4.7 -> 4.0 urad; the rest within 10 %. (With TX2's
 50 mm arm in place of TX3: ECZ 12.1, EBZ 6.1, EA0Z 14.8 urad, EYZ 2.3 um.)
+The figures above are of the errors at the tip readings.
+
+Session 27 (the errors at the axis positions, reading + J; nodes as joint
+positions: Z 105-355 mm): VX's TX3 put its carriage 250 mm beyond its tip
+in X, at -311 mm, 136 mm below the X nodes, where no X bar senses the X
+errors it carries; P3 (Y3, VX, DYZ) moved to x = 90 mm (-161 mm), and
+VXc's TXL probes holes 5-10 (two lower than TX1 / TX3's 7-12), so its
+carriage passes the same Z positions: an angular error of Z is told from a
+straightness by dJ_Z only where both carriages pass. The diagonals' reach
+is the node box widened by NODE_MARGIN_M (TYM's carriage, 60 mm beyond
+its tip in Y, reaches -258 mm). Seed 1: 117 of 120 node values within U95
+(expected 97-120), seeds 1-10 1,130 of 1,200 (94.2 %; 1,132, 94.3 %, at
+63c4d4f); U95 max (seed 1, 500 runs; 63c4d4f in brackets): positioning
+0.77 um (0.70), EYZ 2.6 um (1.4), ECY 6.3 (4.5), EBY 14.9 (7.2), EAY 3.1
+(2.7), EAZ 17.9 (4.0), ECZ 9.3 (8.9), EBZ 6.0 (3.5), EA0Z 14.4 (11.9),
+EC0Y 7.5 (7.4), EB0Z 8.3 (3.0), EAX 17.1 (28.9) urad. The 3-axis plan's
+(seed 1, same settings): ECY 5.3, EBY 13.4, EAY 2.7, EAZ 10.3 urad: the Y
+errors of the order of the 3-axis plan's, EAZ under twice (TXL's 6 holes
+against VY's TY1 / TY2 / TYL). Noise-free 0.021 um /
+0.125 urad (EB0Z); on the nodes 0.002 / 0.031.
 
 The bar's calibration: declared (its default deviations, u_cal_um) or the
 reversal on a simulated CMM (:func:`reversal_on_cmm`, eqs 5-7, written by
@@ -307,8 +344,10 @@ def plan_3axis() -> MfbPlan:
     # EZX one combination sensed by nothing but curvature (U95 ~25 um); 9
     # nodes (68.75 mm) keep it at ~4 um and interpolate the realistic
     # profiles to < 0.08 um.
+    # The nodes are axis (joint) positions, reading + J (core.volumetric): the points of
+    # interest as T0 (J_Z 150 mm) reaches them, so Z's sit 150 mm above the holes' heights.
     nodes = {"X": np.linspace(-0.275, 0.275, 9), "Y": np.linspace(-0.190, 0.160, 8),
-             "Z": np.linspace(0.060, 0.360, 7)}
+             "Z": np.linspace(0.060, 0.360, 7) + STYLI["T0"][2]}
     return MfbPlan("vmc-3axis", tuple(ms), nodes, _fixtures_3axis())
 
 
@@ -362,8 +401,12 @@ STYLI_5AXIS = {"TYM": (0.0, -0.060, 0.150), "TX3": (-0.250, 0.0, 0.150), "TXL": 
 #: standing bars, z = -45 to 205 mm, the A line being 120 mm below the
 #: table face). Every reading of every measurement lies within the nodes
 #: (plus :data:`core.volumetric.NODE_MARGIN_M`) of all three axes.
+#: The nodes are axis (joint) positions, reading + J (core.volumetric, session 27): Z's are the
+#: holes' heights as T0 (J_Z 150 mm) reaches them, 105-355 mm; the carriages of the other styli
+#: stay within them (P3 moved to x = 90 mm for TX3, TXL two holes lower, plan_5axis) but for
+#: TYM's Y (60 mm beyond its tip: X3, DXZ, AXZ at Y -258 .. -244 mm, within NODE_MARGIN_M).
 NODES_5AXIS = {"X": np.linspace(-0.175, 0.275, 9), "Y": np.linspace(-0.225, 0.125, 8),
-               "Z": np.linspace(-0.045, 0.205, 6)}
+               "Z": np.linspace(-0.045, 0.205, 6) + 0.150}
 
 
 def plan_5axis() -> MfbPlan:
@@ -429,23 +472,27 @@ def plan_5axis() -> MfbPlan:
         fixtures[name] = tuple(blocks)
         return name, _T((x_W, np.cross(z_W, x_W), z_W), origin)
 
-    def add(pl, name, rot_deg, holes, styli=("T0",), senses=""):
+    def add(pl, name, rot_deg, holes, styli=("T0",), senses="", stylus_holes=None):
         p, T = pl
         r = tuple(float(np.deg2rad(rot_deg[a])) for a in axes)
         if holes == _DIAG:
             T_R_W = np.asarray(m.T_R_W_nominal(np.asarray(r)[None, :]), float).reshape(4, 4)
-            holes = _fit_holes(T_R_W @ T, _reach(m.config.strokes), styli_5[styli[0]], m.config.strokes, m.config.J_m)
+            holes = _fit_holes(T_R_W @ T, _reach(m.config.strokes, styli_5[styli[0]], m.config.J_m), styli_5[styli[0]], m.config.strokes, m.config.J_m)
         key = f"{p}@" + ",".join(f"{a}{rot_deg[a]:g}" for a in axes)
         for k, st in enumerate(styli):
             ms.append(MeasurementSpec(name if len(styli) == 1 else f"{name}{'abc'[k]}", p, T, r,
-                                      styli_5[st], tuple(holes), senses, st, setup=key))
+                                      styli_5[st], tuple((stylus_holes or {}).get(st, holes)), senses, st,
+                                      setup=key))
 
     h10, h29, h18, h712 = (tuple(range(1, 11)), tuple(range(2, 10)), tuple(range(1, 9)), tuple(range(7, 13)))
     P1 = place("P1", _X, _Z, (-0.175, 0.080, 0.070))
     P2 = place("P2", _X, _Z, (-0.175, 0.000, 0.220),
                (Block("riser", (-0.095, -0.045, 0.0), (0.295, 0.045, 0.150)),))
-    P3 = place("P3", _Y, -_X, (-0.060, -0.225, 0.105),
-               (Block("angle_plate", (0.010, -0.135, 0.0), (0.030, 0.235, 0.140)),))
+    # P3 at x = 90 mm (was -60, session 27): VX's TX3 (arm 250 mm along +X) puts its carriage at
+    # reading - 250 mm in X, -161 mm here (-311 before: 136 mm below the X nodes, where no X bar
+    # senses the X errors its carriage then carries); Y3 and DYZ share the placement
+    P3 = place("P3", _Y, -_X, (0.090, -0.225, 0.105),
+               (Block("angle_plate", (0.160, -0.135, 0.0), (0.180, 0.235, 0.140)),))
     P4 = place("P4", _X, _Z, (-0.300, 0.160, 0.070))
     add(P1, "X1", {"A": 0, "C": 0}, h10, senses="EXX, EYX, EZX at (y, z) = (80, 70) mm")
     add(P2, "X2", {"A": 0, "C": 0}, h10, senses="with X1 (dy -80, dz 150 mm): EAX, EBX, ECX")
@@ -455,8 +502,12 @@ def plan_5axis() -> MfbPlan:
                "with their ramps (a ramp is a bar's yaw or pitch to any bar set up alone)")
     add(P2, "Y2", {"A": 0, "C": 90}, h29, senses="with Y1 (dz 150 mm): EAY, EBY")
     add(P3, "Y3", {"A": 0, "C": 0}, h18, ("TX1",), senses="with Y1 (dJ_X 100 mm): ECY, EBY")
-    add(P3, "VX", {"A": -90, "C": 0}, h712, ("TX1", "TX3", "TXL"),
-        senses="EZZ, EXZ, EYZ; dJ_X (TX1 vs TX3, 150 mm): ECZ, EBZ; dJ_Z (TX1 vs TXL): EBZ, EAZ")
+    # TXL (J_Z 250 mm) two holes lower than TX1 and TX3 (holes 5-10 against 7-12): its carriage
+    # is 100 mm above theirs at one hole, so these holes put it over the same Z axis positions
+    # (105-355 mm): an angular error of Z is sensed by dJ_Z only where both styli's carriages pass
+    add(P3, "VX", {"A": -90, "C": 0}, h712, ("TX1", "TX3", "TXL"), stylus_holes={"TXL": tuple(range(5, 11))},
+        senses="EZZ, EXZ, EYZ; dJ_X (TX1 vs TX3, 150 mm): ECZ, EBZ; dJ_Z (TX1 vs TXL, the same axis "
+               "positions): EBZ, EAZ")
     add(P1, "DXY", {"A": 0, "C": -45}, _DIAG, senses="EC0Y, twist")
     add(P1, "AXY", {"A": 0, "C": 45}, _DIAG, senses="EC0Y, twist")
     add(P1, "DXZ", {"A": -90, "C": -45}, _DIAG, ("TYM",), senses="EB0Z, twist")
@@ -470,11 +521,17 @@ def plan_5axis() -> MfbPlan:
 _DIAG = ()
 
 
-def _reach(strokes) -> dict:
-    """Where a 5-axis reading may lie: the strokes, and the node box of each axis
-    widened by 30 mm (within :data:`core.volumetric.NODE_MARGIN_M`)."""
-    return {a: (max(strokes[a][0], NODES_5AXIS[a][0] - 0.030), min(strokes[a][1], NODES_5AXIS[a][-1] + 0.030))
-            for a in "XYZ"}
+def _reach(strokes, J_m, J_ref_m) -> dict:
+    """Where a 5-axis reading may lie with probe offsets ``J_m``: the strokes (axis positions,
+    reading + J - ``J_ref_m``) and the node box of each axis (axis positions, reading + J) widened
+    by :data:`core.volumetric.NODE_MARGIN_M` (the touches then lie :func:`_fit_holes`' 5 mm margin
+    inside it; 30 mm until session 27, when the TYM diagonals' carriages, 60 mm beyond their
+    tips in Y, came to be the ones checked), each less its offset."""
+    from core.volumetric import NODE_MARGIN_M
+
+    J, dJ = np.asarray(J_m, float), np.asarray(J_m, float) - np.asarray(J_ref_m, float)
+    return {a: (max(strokes[a][0] - dJ[i], NODES_5AXIS[a][0] - NODE_MARGIN_M - J[i]),
+                min(strokes[a][1] - dJ[i], NODES_5AXIS[a][-1] + NODE_MARGIN_M - J[i])) for i, a in enumerate("XYZ")}
 
 
 @functools.lru_cache(maxsize=1)
@@ -1111,8 +1168,7 @@ class ScenarioResult:
         ``<dir>/<X|Y|Z>.comp`` (``[JOINT_n] COMP_FILE``, ``COMP_FILE_TYPE =
         0``: nominal, actual forward, actual reverse in mm, every 5 mm along
         the table by its C2 spline, :func:`hardware.linuxcnc.comp_file`),
-        indexed by the joint position of the reference stylus
-        (:data:`COMP_STYLUS`: reading + its offsets J), and
+        indexed by the joint position (reading + J, as the tables are), and
         ``<dir>/<scenario>-comp.json`` (``vmt-comp/1``,
         :func:`core.volumetric.tables_json`). Returns the paths written.
 
@@ -1145,10 +1201,8 @@ class ScenarioResult:
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
         out = []
-        J = STYLI[COMP_STYLUS]
-        for i, a in enumerate(("X", "Y", "Z")):
-            out.append(write_text_atomic(d / f"{a}.comp", comp_file(res_applied, a, step_m=0.005,
-                                                                    joint_offset_m=J[i])))
+        for a in ("X", "Y", "Z"):
+            out.append(write_text_atomic(d / f"{a}.comp", comp_file(res_applied, a, step_m=0.005)))
         doc = json.loads(vol.tables_json(self.result, self.unc, self.slopes))
         for s, e in doc["errors"].items():
             e["applied_factor"] = dec[s]["factor"]
@@ -1173,7 +1227,8 @@ def _prediction(r: "ScenarioResult", factors: dict) -> dict:
     from core.state import loads_estimate
 
     state = loads_estimate(r.doc["estimate"])
-    G = tip_map(state, r.result.chain, _node_box(r.plan.nodes), STYLI[COMP_STYLUS], r.result.rotary_points_R_m)
+    J = np.asarray(STYLI[COMP_STYLUS], float)  # the node box is of axis positions: the readings are less J
+    G = tip_map(state, r.result.chain, _node_box(r.plan.nodes) - J, J, r.result.rotary_points_R_m)
     return predicted_residual(state, factors, G)
 
 
@@ -1206,7 +1261,8 @@ def compensation_plan(r: "ScenarioResult") -> dict:
                      "e^2 / (e^2 + u^2), e^2 estimated by mean(e^2) - mean(u^2); 0: left out (core.comprule)")}
 
 
-#: The stylus whose joint positions index the LinuxCNC files (T0: a 150 mm probe).
+#: The stylus the closed loop's volumetric residual is evaluated with (T0: a 150 mm probe); the
+#: LinuxCNC files are indexed by joint position, whatever stylus is mounted.
 COMP_STYLUS = "T0"
 
 
@@ -1683,9 +1739,10 @@ def _rigid_residual(D, P):
 
 
 def _volumetric_deviation(machine, nodes) -> np.ndarray:
-    """The machine's tip deviation (exact sim) at the plan's node box (:func:`_node_box`), rotary axes at
-    zero, a rigid motion removed, (n, 3) m."""
-    P = _node_box(nodes)
+    """The machine's tip deviation (exact sim) at the plan's node box (:func:`_node_box`: axis positions,
+    so the readings are the nodes less the machine's probe offsets J), rotary axes at zero, a rigid motion
+    removed, (n, 3) m."""
+    P = _node_box(nodes) - np.asarray(machine.config.J_m, float)
     rot = None if not machine.rotary_axes else np.zeros((len(P), len(machine.rotary_axes)))
     D = np.asarray(machine.tip_W(P, rot), float) - np.asarray(machine.tip_W_nominal(P, rot), float)
     return _rigid_residual(D, P)
@@ -1693,7 +1750,8 @@ def _volumetric_deviation(machine, nodes) -> np.ndarray:
 
 def volumetric_residual_um(machine, nodes) -> dict:
     """The machine's tip deviation (tool relative to the part, exact sim) over the
-    plan's node box, rotary axes at zero, a rigid motion removed: max |.| per axis, um."""
+    plan's node box (axis positions: the readings are the nodes less the machine's
+    probe offsets J), rotary axes at zero, a rigid motion removed: max |.| per axis, um."""
     R = _volumetric_deviation(machine, nodes)
     return {a: float(np.abs(R[:, i]).max() * 1e6) for i, a in enumerate("XYZ")} | {
         "rms": float(np.sqrt(np.mean(R ** 2)) * 1e6), "points": int(len(R))}
@@ -1740,8 +1798,8 @@ def compensators(directory, name: str):
 
     Returns ``{"per_axis_files": f, "volumetric": g}``, each ``f(machine) ->
     machine``: LinuxCNC with ``<dir>/X.comp``, ``Y.comp``, ``Z.comp``
-    (:class:`sim.compensation.AxisCompensation`, joint positions of
-    :data:`COMP_STYLUS`) and a volumetric controller with
+    (:class:`sim.compensation.AxisCompensation`, looked up at the joint
+    positions of the stylus mounted) and a volumetric controller with
     ``<dir>/<name>-comp.json`` (:class:`sim.compensation.VolumetricCompensation`).
     A missing file leaves its controller out.
 
@@ -1764,8 +1822,7 @@ def compensators(directory, name: str):
     files = {a: d / f"{a}.comp" for a in "XYZ" if (d / f"{a}.comp").is_file()}
     if files:
         joints = {a: JointTable.from_type0(read_comp_file(p) * MM) for a, p in files.items()}
-        off = STYLI[COMP_STYLUS]
-        out["per_axis_files"] = lambda m: AxisCompensation(m, joints, joint_offset_m=off)
+        out["per_axis_files"] = lambda m: AxisCompensation(m, joints)  # at reading + the mounted stylus's J
     pj = d / f"{name}-comp.json"
     if pj.is_file():
         from core.keyreader import read_text_file

@@ -36,10 +36,10 @@ iteration.
 
 Positions: the wrapped machine's readings (stylus-tip centre in R, m).
 LinuxCNC indexes its tables by joint position, which is the reading plus
-the tool offset in effect; vmt's error functions are functions of the
-readings (``sim.machine``), so the tables are looked up at
-``reading + joint_offset_m`` with the offsets the files were written for
-(``hardware.linuxcnc.comp_file``), whatever stylus is mounted.
+the tool offset in effect, and vmt's error functions are functions of the
+joint positions too (``sim.machine``, ``core.kinematics``: ``q = reading +
+J``), so both controllers look their tables up at ``reading + J`` with the
+probe offsets J of the stylus mounted (the wrapped machine's ``J_m``).
 """
 
 from __future__ import annotations
@@ -148,14 +148,15 @@ class AxisCompensation(_Wrapper):
     machine : object with ``tip_W`` (``sim.machine.Machine``)
     tables : mapping axis ("X", "Y", "Z") -> JointTable
         Joints without a table are not compensated.
-    joint_offset_m : (3,) float
-        Joint position minus reading per axis, m, the offsets the tables were
-        written for (``hardware.linuxcnc.comp_file``).
+    joint_offset_m : (3,) float, optional
+        Joint position minus reading per axis, m: default the wrapped
+        machine's probe offsets ``config.J_m`` (the stylus mounted: the joint
+        really is at reading + J, whatever stylus the files were measured with).
     idle_direction : {+1, -1}
         The trim of a joint at rest during a touch: forward (+1) or reverse.
     """
 
-    def __init__(self, machine, tables: Mapping[str, JointTable], joint_offset_m=(0.0, 0.0, 0.0),
+    def __init__(self, machine, tables: Mapping[str, JointTable], joint_offset_m=None,
                  idle_direction: int = 1):
         super().__init__(machine)
         t = {}
@@ -165,7 +166,7 @@ class AxisCompensation(_Wrapper):
             if not isinstance(tab, JointTable):
                 raise ConfigError(f"AxisCompensation: table of {a} is a {type(tab).__name__}, not a JointTable")
             t[a] = tab
-        off = np.asarray(joint_offset_m, float)
+        off = np.asarray(machine.config.J_m if joint_offset_m is None else joint_offset_m, float)
         if off.shape != (3,) or not np.all(np.isfinite(off)):
             raise ConfigError(f"joint_offset_m must be 3 finite values, got {joint_offset_m!r}")
         if idle_direction not in (1, -1):
@@ -188,7 +189,7 @@ class AxisCompensation(_Wrapper):
 
 
 def _table_function(x, v):
-    """The error table as a function of the reading, interpolated as
+    """The error table as a function of the axis position, interpolated as
     :func:`core.volumetric.spline_weights` does (C2 not-a-knot for 4 nodes or
     more, continued along the end tangents; linear, ends held, below 4)."""
     from scipy.interpolate import CubicSpline
@@ -245,7 +246,7 @@ class ErrorModel:
         object.__setattr__(self, "_fns", fns)
 
     def values(self, lin_m) -> dict:
-        """symbol -> (n,) error values at the readings (n, 3)."""
+        """symbol -> (n,) error values at the axis (joint) positions (n, 3), reading + J."""
         lin = np.atleast_2d(np.asarray(lin_m, float))
         out = {s: f(lin[:, i]) for s, (i, f) in self._fns.items()}
         for s, v in self.constants.items():
@@ -259,7 +260,8 @@ class VolumetricCompensation(_Wrapper):
     The command ``q'`` for a wanted reading ``q`` solves
     ``tip_model_W(q') = tip_nominal_W(q)`` with core's exact chain
     (``core.kinematics.tip_W``) at the machine's probe offsets J and rotary
-    positions: ``q' <- q' - R_RW (tip_model_W(q') - tip_nominal_W(q))``,
+    positions, the model's tables at the axis positions ``q' + J``:
+    ``q' <- q' - R_RW (tip_model_W(q') - tip_nominal_W(q))``,
     ``iterations`` times (the model's gradient is < 1e-3, each step gains
     three digits: 3 steps leave < 1e-15 m of a 100 um correction).
     """
@@ -273,6 +275,7 @@ class VolumetricCompensation(_Wrapper):
         self.model = model
         self.iterations = int(iterations)
         self._geom = ChainGeometry.of(model.chain, machine.config.J_m, model.rotary_points_R_m)
+        self._J = np.asarray(self._geom.J_m, float)
 
     def commanded(self, lin_m, rot_rad=None, direction=None) -> np.ndarray:
         from core.kinematics import T_R_W, tip_W
@@ -284,6 +287,6 @@ class VolumetricCompensation(_Wrapper):
         R_RW = T_R_W(self._geom, lin, rot, None)[:, :3, :3]  # d reading / d tip_W of a perfect machine
         q = lin.copy()
         for _ in range(self.iterations):
-            err_W = tip_W(self._geom, q, rot, self.model.values(q)) - target_W
+            err_W = tip_W(self._geom, q, rot, self.model.values(q + self._J)) - target_W
             q = q - np.einsum("nij,nj->ni", R_RW, err_W)
         return q

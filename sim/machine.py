@@ -222,11 +222,16 @@ class Machine:
         """A new machine, same geometry, these truth errors."""
         return Machine(dataclasses.replace(self.config, errors=dict(errors)))
 
-    def error_values(self, lin_m, rot_rad=None, t_s=None, direction=None) -> dict[str, np.ndarray]:
+    def error_values(self, lin_m, rot_rad=None, t_s=None, direction=None, J_m=None) -> dict[str, np.ndarray]:
         """Every configured error evaluated at the poses: symbol -> (n,) m or rad.
 
-        Motion errors of a linear axis are evaluated at its reading and
-        ``direction[:, i]``; those of a rotary axis at its angle (direction 0).
+        Motion errors of a linear axis are evaluated at its axis (joint)
+        position ``q = reading + J`` (the carriage, what its scale reads;
+        Viprey et al. eq. 8: the errors are functions of the joint
+        parameters, the tool offset J applied after them) and
+        ``direction[:, i]``, every axis's ``q`` passed as ``axes``; those of a
+        rotary axis at its angle (direction 0). ``J_m`` (n, 3): each pose's
+        probe offsets (default the configuration's ``J_m``).
         Spline tables of one linear axis on the same knots are evaluated in one
         call (:class:`sim.errorfuncs.SplineStack`, the same values), and the
         position-only errors of a rotary axis once per distinct angle (a
@@ -234,6 +239,7 @@ class Machine:
         """
         lin, rot, n = self._inputs(lin_m, rot_rad)
         t, d = self._td(t_s, direction, n)
+        lin = lin + (np.asarray(self.config.J_m, float) if J_m is None else np.broadcast_to(np.asarray(J_m, float), (n, 3)))
         axes = {a: lin[:, k] for k, a in enumerate(iso.LINEAR_AXES)}
         stacked = {}
         for i, names, stack in self._spline_stacks:
@@ -293,8 +299,9 @@ class Machine:
             Probe offsets of each pose's stylus, m (default the configuration's
             ``J_m`` at every pose): the tips of several styli on this machine in
             one call, each as ``Machine(replace(config, J_m=J))`` gives it, bit
-            for bit (the offsets enter the axis positions q = reading + J and
-            the tip frame, nothing else).
+            for bit (the offsets enter the axis positions q = reading + J, at
+            which the motion errors are evaluated, and the tip frame, nothing
+            else).
         """
         return self._poses(lin_m, rot_rad, t_s, direction, want="tip", J=J_m)[1]
 
@@ -493,13 +500,13 @@ class Machine:
         """Poses of W, P or the tip by :class:`_BatchFK` (the Pinocchio model, all poses at once);
         ``J`` (n, 3): each pose's probe offsets (tip only; default the configuration's)."""
         lin, rot, n = self._inputs(lin_m, rot_rad)
-        vals = self.error_values(lin, rot, t_s, direction)
         tip_t = None
         if J is not None:
             J = np.broadcast_to(np.asarray(J, float), (n, 3))
             if want != "tip" or not np.all(np.isfinite(J)):
                 raise ConfigError(f"per-pose probe offsets J_m: finite (n, 3), for the tip only, got {J.shape}")
             tip_t = self._tip_rows(J)
+        vals = self.error_values(lin, rot, t_s, direction, J)
         if want == "tip" and self._W_by_angles and n > 1:
             # the workpiece branch once per run of equal rotary positions (a campaign: one per
             # set-up), the tool branch at every pose

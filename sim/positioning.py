@@ -13,7 +13,11 @@ time ``t_s`` and the direction of motion at the stop passed in, so any
 :class:`~sim.errorfuncs.Drift` (thermal drift) and
 :class:`~sim.errorfuncs.Reversal` (lost motion) in the machine's error
 functions shows as it would on a real test, together with the angular
-errors' Abbe offsets at the measuring line. A random scatter (machine
+errors' Abbe offsets at the measuring line. The targets and the line are
+readings (the stylus-tip centre, the machine's probe offsets J in effect),
+so the errors a stop reads are those of the axis positions ``P_i + J``
+(CONTRIBUTING.md, "Error conventions"): with a 150 mm probe on Z, a Z
+test's target P_i reads the errors of Z at P_i + 150 mm. A random scatter (machine
 repeatability plus instrument noise, normal, k = 1) is added from a
 passed generator.
 

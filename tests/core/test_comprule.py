@@ -80,7 +80,10 @@ def test_tip_map_is_the_chain_to_first_order_rigid_motion_removed():
     chain = "V[w-X-Y-b-Z-t]"  # the vmc-3axis structure without its rotary axis
     G = tip_map(st, chain, P, (0.0, 0.0, 0.15))
     geom = ChainGeometry.of(chain, (0.0, 0.0, 0.15))
-    vals = {s: spline_weights(xs, P[:, "XYZ".index(iso.symbol(s).axis)]) @ v for s, (xs, v) in tabs.items()}
+    # the tables at the axis positions reading + J (the tables are functions of the joint positions)
+    J = (0.0, 0.0, 0.15)
+    vals = {s: spline_weights(xs, P[:, "XYZ".index(iso.symbol(s).axis)] + J["XYZ".index(iso.symbol(s).axis)]) @ v
+            for s, (xs, v) in tabs.items()}
     vals["EC0Y"] = np.full(len(P), 25e-6)
     D = (tip_W(geom, P, None, vals) - tip_W(geom, P, None, None)).ravel()
     from core.comprule import _rigid_basis

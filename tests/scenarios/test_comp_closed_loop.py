@@ -66,17 +66,19 @@ def test_a_perfect_machine_is_not_made_worse_beyond_the_stated_u95(tmp_path, see
 
 
 def test_applying_every_value_would_fail_the_check_on_the_perfect_machine(tmp_path):
-    """The check can fail: the old rule (every factor 1) leaves seed 1's perfect machine 2.73 um off in
+    """The check can fail: the old rule (every factor 1) leaves seed 1's perfect machine 2.74 um off in
     X, beyond its residual U95 (the reviewer's figure was 2.75 um against 2.53 on the plan before session 26's
-    refit within the strokes)."""
+    refit within the strokes; 2.728 until session 27, whose estimate of the same campaign moved with the
+    tables at the axis positions and the EXY/EXZ/EYZ end-point conventions: the truth, no error, did not)."""
     _, loop = _loop(tmp_path, _own("none"), 1, force_whole=True)
     v = loop["volumetric"]["volumetric_check"]["X"]
-    assert not v["not_worse"] and v["after_max_um"] == pytest.approx(2.728, abs=0.01)
+    assert not v["not_worse"] and v["after_max_um"] == pytest.approx(2.738, abs=0.01)
 
 
 def test_a_machine_with_five_errors_improves_and_z_is_not_made_worse(tmp_path):
-    """The reviewer's five injected errors: X 9.68 -> 0.86, Y 3.58 -> 0.87 um (improved beyond U95); Z,
-    1.0 um before, 0.45 after (it was 2.28 after every value: made worse)."""
+    """The reviewer's five injected errors: X 9.68 -> 0.73, Y 3.58 -> 0.69 um (improved beyond U95); Z,
+    1.0 um before, 0.10 after (it was 2.28 after every value: made worse). Session 27 (errors at the
+    axis positions); at 63c4d4f 0.60 / 0.63 / 0.09 (the 0.86 / 0.87 / 0.45 this doc quoted were older)."""
     p = tmp_path / "mix.toml"
     p.write_text(MIX)
     r, loop = _loop(tmp_path, truth_machine(str(p), None, "study"), 1)
@@ -85,13 +87,22 @@ def test_a_machine_with_five_errors_improves_and_z_is_not_made_worse(tmp_path):
     assert v["Z"]["not_worse"] and v["Z"]["after_max_um"] < v["Z"]["before_max_um"], v["Z"]
     f = loop["volumetric"]["applied_factor"]
     assert f["EXX"] > 0.99 and f["EC0Y"] > 0.95 and f["EB0Z"] > 0.9  # the injected errors applied
-    assert f["EZX"] == 0.0 and f["EBY"] == 0.0  # absent ones left out
+    assert f["EZX"] == 0.0  # absent, left out
+    # absent EBY: its estimate (RMS 3.9 urad, up to 6.9 at the last node, all within U95) leaves
+    # 1 - (U95/2)^2 / RMS^2 = 0.056 > 0 since session 27 (the plan's U95 of EBY 13.2 -> 12.4 urad
+    # at the last node with the errors at the axis positions; 0 before): the rule by hand from the
+    # report, and the part applied within the U95 at every node
+    e = r.doc["errors"]["EBY"]
+    ident, u = np.asarray(e["identified"], float), np.asarray(e["u95_lin"], float)
+    assert f["EBY"] == pytest.approx(max(0.0, 1.0 - np.mean((u / 2) ** 2) / np.mean(ident ** 2)), rel=1e-9)
+    assert 0.0 < f["EBY"] < 1.0 and np.all(np.abs(f["EBY"] * ident) <= u)
 
 
 def test_the_realistic_machine_still_improves_on_every_axis(tmp_path):
-    """The study machine (all 21 errors present): 44.7/19.0/11.6 um -> 2.6/1.9/2.7 um, each beyond
-    its U95 (every value applied: 2.7/1.4/2.2; several real errors sit near their U95 and are applied
-    in part)."""
+    """The study machine (all 21 errors present): 47.8/21.1/14.8 um -> 2.45/1.88/1.69 um, each beyond
+    its U95 (session 27: the truth's errors at the axis positions, T0's carriage 150 mm above its tip in
+    Z; 44.7/19.0/11.6 -> 2.67/2.42/2.30 um at 63c4d4f; several real errors sit near their U95 and are
+    applied in part)."""
     _, loop = _loop(tmp_path, None, 1)
     v = loop["volumetric"]["volumetric_check"]
     for a in "XYZ":

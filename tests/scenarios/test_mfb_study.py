@@ -144,12 +144,17 @@ def test_5axis_budget_covers_the_injected_errors_and_meets_the_hand_values():
         assert 0.87 <= c["mc_over_quadrature"] <= 1.13, (s, c["mc_over_quadrature"])
     # JCGM 101 7.9 by halves: most nodes' halves within 2 standard errors
     assert rep["stability"]["within_2_se"] >= 0.9
-    # hand values: 11.5 um/m/K (machine scales) and 1 um/m/K (Invar bar) over the plan's node spans
-    # 450 / 350 / 250 mm
+    # hand values: 11.5 um/m/K (machine scales) over the plan's node spans 450 / 350 / 250 mm, to
+    # 1e-3 um. The Invar bar's 1 um/m/K is that hand value only while the errors were evaluated at
+    # the tip readings (0.4500 / 0.3500 / 0.2500 then): the scales act at the carriage (reading + J),
+    # the bar expands about the tips, so styli of different J see it offset by s x dJ at one carriage
+    # position, which no machine error reproduces (session 27: 0.4521 / 0.3194 / 0.2403); each axis's
+    # departure within s x the plan's largest dJ along it (X: TX3's 250 mm, Y: TYM's 60, Z: TXL's
+    # 100 mm over the others' 150), a bound from that geometry, not from the figures
     ts = rep["temperature_sensitivity_per_C"]
-    for s, span_mm in (("EXX", 450.0), ("EYY", 350.0), ("EZZ", 250.0)):
+    for s, span_mm, dJ_mm in (("EXX", 450.0, 250.0), ("EYY", 350.0, 60.0), ("EZZ", 250.0, 100.0)):
         assert abs(ts["machine temperature"][s] - 11.5e-3 * span_mm) <= 1e-3
-        assert abs(ts["bar temperature"][s] - 1e-3 * span_mm) <= 1e-3
+        assert abs(ts["bar temperature"][s] - 1e-3 * span_mm) <= 1e-3 * dJ_mm
 
 
 def test_linear_calibration_share_is_the_simulated_bars_own():
@@ -177,11 +182,13 @@ def test_linear_calibration_share_is_the_simulated_bars_own():
         assert np.allclose(r.unc.U95_lin[sl], sim_bar[sl], rtol=1e-9, atol=1e-15), \
             (s, np.max(r.unc.U95_lin[sl] / np.where(sim_bar[sl] > 0, sim_bar[sl], 1.0)))
     # the comparison sees the difference: the points taken as independent (main before this test)
-    # put 11.7 % more in EZX's first free node (3.82 um against the simulated bar's 3.42; 9.7 %, 4.01
-    # against 3.65 um, on the plan before its bars were lifted onto the table face)
+    # put 6.2 % more in EZX's first free node (2.23 um against the simulated bar's 2.10; session 27,
+    # the errors at the axis positions and EXY/EXZ/EYZ's end-point conventions: 11.7 %, 3.82 against
+    # 3.42 um, before; 9.7 %, 4.01 against 3.65 um, on the plan before its bars were lifted onto the
+    # table face). The band as before: 0.03 on the ratio, 3 % on the value (this pipeline's figures)
     ezx = d.slices["EZX"].start + 1
     indep = 2.0 * np.sqrt(vol.covariance(r.result, r.meas, 0.0, u_cal)[ezx, ezx])
-    assert 1.10 < indep / sim_bar[ezx] < 1.13 and 3.37e-6 < sim_bar[ezx] < 3.47e-6
+    assert 1.05 < indep / sim_bar[ezx] < 1.08 and 2.07e-6 < sim_bar[ezx] < 2.14e-6
     # and the bar's own map is the rods' (core.mfb's reading of section 2.1, sim's built apart)
     assert np.allclose(mfb.calibration_map(), R, atol=1e-12)
     # the run's bar block, U95 of calibrated - true in the gauge it is shown in (Exx from O_1; Eyx,

@@ -125,3 +125,36 @@ def test_volumetric_model_equal_to_the_truth_compensates_exactly(name, rng):
 def test_volumetric_bad_input():
     with pytest.raises(ConfigError, match="ErrorModel"):
         VolumetricCompensation(Machine(MACHINES["vmc-3axis"]()), {"EXX": Constant(0.0)})
+
+
+@pytest.mark.parametrize("name", ["vmc-3axis", "mikron-ucp710"])
+def test_tables_indexed_by_joint_position_compensate_any_stylus(name, rng):
+    """The truth's motion errors are functions of the axis (joint) position reading + J
+    (sim.machine), so a table written from them against joint positions compensates every
+    stylus: LinuxCNC's per-joint table (EXX, EZZ: looked up at reading + the mounted stylus's J)
+    to its linear interpolation (< 5 nm, as above), the volumetric model exactly (< 1e-12 m).
+    Looked up at the reading instead (joint_offset_m = 0) the Z table misses by EZZ's slope x
+    J_Z: 150-250 mm x ~1e-4 > 1 um."""
+    fx, fz = Polynomial((0.0, 6e-5, 1e-4)), Polynomial((0.0, -8e-5, 2e-4))
+    x = np.arange(-0.5, 0.7001, 0.005)
+    tables = {"X": JointTable.from_type0(np.column_stack([x, x + fx(x), x + fx(x)])),
+              "Z": JointTable.from_type0(np.column_stack([x, x + fz(x), x + fz(x)]))}
+    cfg0 = MACHINES[name]()
+    nodes = {a: np.linspace(cfg0.strokes[a][0] - 0.2, cfg0.strokes[a][1] + 0.3, 9) for a in "XYZ"}
+    errs = _on_node_errors(cfg0, nodes)
+    vtab = {s: (nodes[iso.symbol(s).axis], np.asarray(f(nodes[iso.symbol(s).axis]), float))
+            for s, f in errs.items() if not iso.symbol(s).location}
+    const = {s: f.value for s, f in errs.items() if iso.symbol(s).location}
+    model = ErrorModel(cfg0.chain, vtab, const, dict(cfg0.rotary_points_R_m))
+    lin = np.column_stack([rng.uniform(-0.2, 0.2, 40), rng.uniform(-0.1, 0.1, 40), rng.uniform(0.0, 0.2, 40)])
+    for J in ((-0.100, 0.0, 0.150), (0.0, -0.100, 0.250)):
+        m = Machine(MACHINES[name](errors={"EXX": fx, "EZZ": fz}, J_m=J))
+        rot = None if not m.rotary_axes else np.zeros((40, len(m.rotary_axes)))
+        nominal = m.tip_W_nominal(lin, rot)
+        assert np.abs(m.tip_W(lin, rot) - nominal).max() > 5e-6  # ~9 um uncompensated
+        assert np.abs(AxisCompensation(m, tables).tip_W(lin, rot) - nominal).max() < 5e-9
+        at_reading = AxisCompensation(m, tables, joint_offset_m=(0.0, 0.0, 0.0)).tip_W(lin, rot) - nominal
+        assert np.abs(at_reading[:, 2]).max() > 1e-6
+        mv = Machine(MACHINES[name](errors=errs, J_m=J))
+        assert np.abs(mv.tip_W(lin, rot) - nominal).max() > 20e-6
+        assert np.abs(VolumetricCompensation(mv, model).tip_W(lin, rot) - nominal).max() < 1e-12

@@ -13,11 +13,6 @@ Known answers (hand-worked):
 - an angular error EAZ(Z) = c Z rotates what Z carries about x: the tip moves by (R_x(c Z) - I)(-J),
   its lever arm the stylus offset J.
 Tolerances: 1e-15 m (products of 4x4 transforms of O(0.5 m), rounding only).
-
-Session 26 (joint26): the simulator and core still evaluate the errors at the READING (the
-stylus-tip centre), so every test here fails today (strict xfail: the fix, which moves sim,
-core.volumetric, the MFB plans' nodes, compensation and many reference figures together, must
-remove the marker). The fix's work-in-progress and its blast radius: the joint26 report.
 """
 
 import numpy as np
@@ -60,9 +55,6 @@ def _eq8_tip(q, J, exx=0.0, ezz=0.0, eaz=0.0):
 def _machine(J, **errs):
     return Machine(MACHINES["mikron-ucp710"](errors={k: Polynomial((0.0, v)) for k, v in errs.items()}, J_m=J))
 
-
-pytestmark = pytest.mark.xfail(strict=True, reason="motion errors are evaluated at the tip reading, not at the "
-                                                    "axis position reading + J (session 26 review, joint26)")
 
 CARRIAGES = [np.array([0.0, 0.0, 0.200]), np.array([0.150, -0.080, 0.320]), np.array([-0.250, 0.100, 0.050])]
 

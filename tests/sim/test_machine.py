@@ -247,7 +247,7 @@ def test_axis_jacobian_with_error_slopes_matches_sim(rng):
     S = K.sensitivity(geom, lin, rot, vals, syms)
     cols = ("X", "Y", "Z") + m.rotary_axes
     for j, a in enumerate(cols):
-        pos = lin[:, j] if j < 3 else rot[:, j - 3]
+        pos = lin[:, j] + geom.J_m[j] if j < 3 else rot[:, j - 3]  # the errors at the axis position reading + J
         dv = np.array([errs[s].derivative(pos) if iso.symbol(s).axis == a and not iso.symbol(s).location
                        else np.zeros(len(pos)) for s in syms]).T
         total = Ja[:, :, j] + np.einsum("nkm,nm->nk", S, dv)
@@ -386,14 +386,15 @@ def test_error_values_are_each_function_at_its_axis():
     t, d = rng.uniform(0, 1e3, n), rng.choice([-1.0, 0.0, 1.0], (n, 3))
     got = m.error_values(lin, rot, t, d)
     assert list(got) == list(errors)
-    axes = {a: lin[:, k] for k, a in enumerate("XYZ")}
+    q = lin + np.asarray(m.config.J_m, float)  # a linear axis's errors are functions of its axis position reading + J
+    axes = {a: q[:, k] for k, a in enumerate("XYZ")}
     for name, f in errors.items():
         s = iso.symbol(name)
         if s.location:
             want = np.full(n, f.value)
         elif s.axis in "XYZ":
             i = "XYZ".index(s.axis)
-            want = f.evaluate(lin[:, i], t, d[:, i], axes)
+            want = f.evaluate(q[:, i], t, d[:, i], axes)
         else:
             want = f(rot[:, m.rotary_axes.index(s.axis)], t, None)
         assert got[name].shape == (n,) and np.array_equal(got[name], want), name

@@ -76,13 +76,18 @@ def test_scale_error_and_reversal_read_exactly(axis, sym, sign):
     Error values are ISO 230-1's, the tool relative to the part, whichever
     side of the bed the axis is on: X of vmc-3axis moves the table, Z the
     spindle, both read +E. Reversal gives +L/2 moving in +, -L/2 in -.
+    The targets are readings (the stylus-tip centre the controller commands,
+    its probe offset J in effect); the error read there is the one at the
+    axis position P + J (session 27: Z's 150 mm probe reads E(P + 150 mm),
+    6 um more than E(P) with this 40 um/m slope; X's J_x = 0).
     """
     L = 3e-6
     f = Polynomial((2e-6, 40e-6))  # 2 um + 40 um/m
     m = Machine(MACHINES["vmc-3axis"](errors={sym: f + Reversal(L)}))
     plan = positioning_plan(m, axis, n_targets=6, cycles=3)
     log = simulate_positioning(m, plan, np.random.default_rng(0))
-    P = log.target * MM
+    P = log.target * MM + m.config.J_m["XYZ".index(axis)]  # the axis positions
+    assert m.config.J_m == (0.0, 0.0, 0.150)
     expect_mm = sign * (f(P) + 0.5 * L * log.direction) / MM
     np.testing.assert_allclose(log.deviation, expect_mm, rtol=0, atol=EXACT_M / MM)
     r = iso230_2(log)

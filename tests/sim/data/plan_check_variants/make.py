@@ -55,18 +55,27 @@ def _plan_items(plan, art, program):
 def plan_5axis_s25():
     """The 5-axis plan as shipped until session 26 (the references were made on it): today's
     ``scenarios.mfb.plan_5axis`` with X3, DXZ, AXZ on TY1 (100 mm arm, not TYM's 60 mm), VXb on TX2, VY
-    (P1 at A -90, C -90 deg, holes 6-11, TY1, TY2, TYL) back, VXc (TXL) out, in the old order.
+    (P1 at A -90, C -90 deg, holes 6-11, TY1, TY2, TYL) back, VXc (TXL) out, in the old order; P3
+    (Y3, VX, DYZ) at x = -60 mm with its angle plate and DXY's, AXY's holes as then (session 27 moved
+    P3 to 90 mm and widened the diagonals' reach: :data:`_S25_DIAG_HOLES`).
     (Session 26 refit the plan within the Y stroke as axis positions; the plan check's engine
     references stay those of this plan: they test the engine, not the plan.)"""
     import dataclasses
 
     from scenarios import mfb as S
+    from sim.mfb_scene import Block
 
     new = {ms.name: ms for ms in S.plan_5axis().measurements}
     ty = {st: S.STYLI[st] for st in ("TY1", "TY2", "TYL")}
 
     def old(n):
         ms = new[n]
+        if ms.placement == "P3":  # P3 at x = -60 mm until session 27 (then moved to 90 mm for VX's TX3)
+            T = np.array(ms.T_W_A, float)
+            T[:3, 3] = (-0.060, -0.225, 0.105)
+            ms = dataclasses.replace(ms, T_W_A=T)
+        if n in _S25_DIAG_HOLES:  # the diagonals' holes as fitted then (session 27 widened their reach)
+            ms = dataclasses.replace(ms, holes=_S25_DIAG_HOLES[n])
         if ms.stylus == "TYM":
             return dataclasses.replace(ms, J_m=ty["TY1"], stylus="TY1")
         if ms.stylus == "TX3":  # (VXb: TX2 until session 26)
@@ -82,7 +91,12 @@ def plan_5axis_s25():
              "DXZ", "AXZ", "DYZ"]
     by = {**{n: old(n) for n in new if n != "VXc"}, **{m.name: m for m in vy}}
     plan = S.plan_5axis()
-    return S.MfbPlan(plan.machine, tuple(by[n] for n in order), plan.nodes, plan.fixtures)
+    fixtures = {**plan.fixtures, "P3": (Block("angle_plate", (0.010, -0.135, 0.0), (0.030, 0.235, 0.140)),)}
+    return S.MfbPlan(plan.machine, tuple(by[n] for n in order), plan.nodes, fixtures)
+
+
+#: The 5-axis diagonals' holes of sessions 25-26 (DXZ, AXZ, DYZ unchanged since).
+_S25_DIAG_HOLES = {"DXY": (1, 2, 3, 4, 5), "AXY": (4, 5, 6, 7, 8, 9, 10)}
 
 
 def variants():
