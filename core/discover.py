@@ -2750,7 +2750,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
 #: touch, before the screen; a few chips' residuals (131 um^2 against the smooth machine's 15) make a coarser grid's
 #: extra misfit cheap, and once they are set aside that misfit, which repeats with the grid step, is read as a
 #: ripple at the grid step (gen_c outlier 5105: 80 mm chosen, 55 mm without the chips; `periodic_axis_error` at
-#: 81.5 mm, confident). Session 26 diagnosis, session 27 study (docs/discovery.md, "Session 27: the grid chosen
+#: 81.5 mm, confident). Session 26 diagnosis, session 27 study (docs/discovery-studies.md, "Session 27: the grid chosen
 #: again on the touches the outlier screen kept": gen_c outlier 200-599 right 365 -> 376, no right -> wrong on
 #: gen_a, gen_b, gen_c or the simulator).
 GRID_AFTER_OUTLIERS = True
@@ -2760,8 +2760,8 @@ GRID_AFTER_OUTLIERS = True
 #: between the nodes (``local_scale_defect``); where neither is named the misfit was read as no cause, and a finer
 #: grid moves the screen's own bound instead (gen_c part_change 298: on 55 mm both walls of a bore's first set-up
 #: are set aside, a change of its size, where 80 mm set aside one; a bump at the bore's place then reads the rest of
-#: the change, confident; `outlier?` on 80 mm). Session 27 (docs/discovery.md, "Session 27: the grid chosen again on
-#: the touches the outlier screen kept").
+#: the change, confident; `outlier?` on 80 mm). Session 27 (docs/discovery-studies.md, "Session 27: the grid chosen
+#: again on the touches the outlier screen kept").
 GRID_AFTER_OUTLIERS_CAUSES = ("periodic_axis_error", "local_scale_defect")
 
 
@@ -2785,7 +2785,7 @@ def _grid_on_kept(t: Touches, extra: dict, outlier_rows, settings: Settings, yaw
 #: penalty (log n per parameter) keeps a coarse grid whose misfit the search's tests (F tests at the family's
 #: level, materiality 0.3 sigma) then find: gen_c's smooth machine (quadratic and cubic axis errors), effect-free,
 #: read something on 49 of 960 campaigns (48 on the 80 mm grid BIC chose), 8 of 960 on its affine machine
-#: (errors every map represents); on the 22 mm map 41 of the 49 read none. Session 27 study (docs/discovery.md,
+#: (errors every map represents); on the 22 mm map 41 of the 49 read none. Session 27 study (docs/discovery-studies.md,
 #: "Session 27: gen_c's false alarms are the coarse map's misfit").
 FINER_MAP_CHECK = True
 
@@ -8614,7 +8614,7 @@ NAMED_ALTERNATIVE_SHIFT_CARRIED = False
 #: (a calibrated test of low power, about 15 %) leaves fixed lobes ambiguous with ``lobing_per_setup``; gen_a
 #: and gen_c (12-30 directions) reach odds of 10^2-10^17. True (session 27: simulator lobing_per_setup 6101
 #: and tuning twin 4038, confidently ``probe_lobing``, hedged; the simulator's 14 confident fixed-lobe names
-#: of 4000-4099 hedged too, no cause changed on 1,235 tuning campaigns; docs/discovery.md, "Session 27: fixed
+#: of 4000-4099 hedged too, no cause changed on 1,235 tuning campaigns; docs/discovery-studies.md, "Session 27: fixed
 #: lobes need odds, not only a small p_turned").
 RICHER_NEEDS_ODDS = True
 #: Outliers whose target has touches kept, reading less material than the fit there, doubted whatever the report

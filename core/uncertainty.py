@@ -393,7 +393,7 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
         hold beside every component (moment equation, at least 0). A
         ripple finer than the nodes is seen by the touches but its value
         at the datum's nodes is not: the residuals alone miss that part
-        (docs/discovery.md, "Session 27: a declared sub-grid ripple").
+        (docs/discovery-studies.md, "Session 27: a declared sub-grid ripple").
 
     Returns
     -------

@@ -165,7 +165,7 @@ def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
     ripple_phase : float, optional
         Every screw's ripple at this phase (rad) instead: ``0.0`` is the
         set every seed gave before session 27 (a phase that flatters the
-        self-calibration's workpiece and C-axis U95, docs/discovery.md,
+        self-calibration's workpiece and C-axis U95, docs/discovery-studies.md,
         "Session 27: the screw ripple's phase"). Nothing is drawn for it.
 
     Returns

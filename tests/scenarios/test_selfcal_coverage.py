@@ -113,7 +113,7 @@ def test_drawn_ripple_phases_are_covered_per_block(machine):
     """The same check with each screw's ripple at the phase sim.machines.realistic_errors draws from the
     seed (session 27), noise free, four seeds: measured workpiece 0.75 and C axis 0.72 (nmv3000), 0.72 and
     0.64 (mikron; its EXX 0.75) against >= 0.90 (seeds 20-39: workpiece 0.80 and 0.76, C axis 0.86 and
-    0.75, every block 0.92-1.00 at phase 0; docs/discovery.md, "Session 27: the screw ripple's phase").
+    0.75, every block 0.92-1.00 at phase 0; docs/discovery-studies.md, "Session 27: the screw ripple's phase").
     The model-error budget from the residuals alone does not hold a ripple at an arbitrary phase in these
     blocks: the misses are the workpiece's shift, rotation and scale (its form error stays within 0.2 U95),
     the datum eqs 16-17 set on the nodes, where the truth holds the ripple's value and no touch sees it."""
@@ -134,7 +134,7 @@ def test_declared_ripple_covers_drawn_phases(drawn, machine):
     every block's U95 holds the truth in >= 90 % (measured on these 8 campaigns: 0.967-1.000 per block, without
     the declaration 0.750-0.975, workpiece 0.85 and 0.83, C axis 0.79 and 0.75; on
     the held-out seeds 200-239: noise free 1.000 in every block, both machines, 0.5 um 0.958-0.986;
-    docs/discovery.md, "Session 27: a declared sub-grid ripple"). Without the declaration the same
+    docs/discovery-studies.md, "Session 27: a declared sub-grid ripple"). Without the declaration the same
     campaigns miss (the xfail above)."""
     from scenarios.selfcal_coverage import spec_subgrid
 
