@@ -14,6 +14,7 @@ from core.exceptions import ConfigError
 from core.selfcal import (Grid, LOBE_ALIAS_SIN, absorbed_lobes, blind_lobes, blind_lobes_line, estimator, nominal_touches,
                           not_covered, self_calibrate)
 from core.units import UM
+from tests.core.test_selfcal import freeform
 
 GRID = Grid.regular(-0.110, 0.110, 0.022)
 ANGLES = [0, 75, 130, 210]
@@ -21,13 +22,7 @@ ANGLES = [0, 75, 130, 210]
 
 def _wavy(n=60):
     """A free-form closed curve (tests/core/test_selfcal.py's): normals at many azimuths."""
-    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
-    r = 0.082 + 0.012 * np.sin(3 * t) + 0.005 * np.cos(5 * t)
-    dr = 0.036 * np.cos(3 * t) - 0.025 * np.sin(5 * t)
-    p = np.column_stack([r * np.cos(t), r * np.sin(t)])
-    tang = np.column_stack([dr * np.cos(t) - r * np.sin(t), dr * np.sin(t) + r * np.cos(t)])
-    nrm = np.column_stack([tang[:, 1], -tang[:, 0]])
-    return p, nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+    return freeform(n)
 
 
 def _lobe_dq(t, k, a_um, b_um):

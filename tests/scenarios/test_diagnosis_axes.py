@@ -63,22 +63,9 @@ def test_the_report_figure_of_a_drifting_campaign_reads_its_units(tmp_path):
     from core.discover import discover
     from core.probelog import read_probe_log
     from core.touches import from_log
-    from scenarios.cli import main
+    from tests.scenarios.test_discover_cli_summary import drift_log
 
-    clean, log = tmp_path / "clean.csv", tmp_path / "drift.csv"
-    assert main(["simulate", "cross-pocket", "--machine", "nmv3000", "--errors", "none", "--out", str(clean),
-                 "--seed", "1001"]) == 0
-    lines = clean.read_text().splitlines()
-    h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
-    cols = lines[h].split(",")
-    it, ix = cols.index("t_s"), cols.index("X_mm")
-    body = []
-    for ln in lines[h + 1:]:
-        f = ln.split(",")
-        t = float(f[it]) * 10
-        f[it], f[ix] = repr(t), repr(float(f[ix]) + 3.0 * t / 3600 / 1000)
-        body.append(",".join(f))
-    log.write_text("\n".join(lines[:h + 1] + body) + "\n")
+    log = drift_log(tmp_path)
     lg = read_probe_log(log)
     t = from_log(lg)
     d = discover(t, chain=lg.meta.get("kinematic_chain"), extra=extra_columns(lg, t.row))

@@ -207,23 +207,7 @@ def test_the_form_change_is_of_the_form_not_the_gauge(tmp_path, capsys):
     from core.selfcal import workpiece_form
     from scenarios.cli import main
 
-    log, out = tmp_path / "drift.csv", tmp_path / "d.json"
-    clean = tmp_path / "clean.csv"
-    assert main(["simulate", "cross-pocket", "--machine", "nmv3000", "--errors", "none", "--out", str(clean),
-                 "--seed", "1001"]) == 0
-    # a thermal drift of X written into the log (review 27's drift_probe.py): time stretched x10, X reads
-    # 3 um/h x t more
-    lines = clean.read_text().splitlines()
-    h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
-    cols = lines[h].split(",")
-    it, ix = cols.index("t_s"), cols.index("X_mm")
-    body = []
-    for ln in lines[h + 1:]:
-        f = ln.split(",")
-        t = float(f[it]) * 10
-        f[it], f[ix] = repr(t), repr(float(f[ix]) + 3.0 * t / 3600 / 1000)
-        body.append(",".join(f))
-    log.write_text("\n".join(lines[:h + 1] + body) + "\n")
+    log, out = drift_log(tmp_path), tmp_path / "d.json"
     capsys.readouterr()
     assert main(["discover", str(log), "--json", str(out)]) == 0
     said = capsys.readouterr().out
@@ -250,3 +234,26 @@ def test_the_form_change_is_of_the_form_not_the_gauge(tmp_path, capsys):
     assert fc["max_abs_um"] < 0.5 * fc["raw_max_abs_um"]     # the drift moved the gauge, not (much) the form
     line = next(ln for ln in said.splitlines() if ln.startswith("workpiece"))
     assert f"largest change of the form {fc['value_um']:+.3f} um at {fc['target']}" in line
+
+
+def drift_log(tmp_path):
+    """A perfect nmv3000's cross-pocket log (seed 1001) with a thermal drift of X written into it (review 27's
+    drift_probe.py): time stretched x10, X reading 3 um/h x t more; ``tmp_path / "drift.csv"``, beside the
+    clean log ``clean.csv``."""
+    from scenarios.cli import main
+
+    clean, log = tmp_path / "clean.csv", tmp_path / "drift.csv"
+    assert main(["simulate", "cross-pocket", "--machine", "nmv3000", "--errors", "none", "--out", str(clean),
+                 "--seed", "1001"]) == 0
+    lines = clean.read_text().splitlines()
+    h = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+    cols = lines[h].split(",")
+    it, ix = cols.index("t_s"), cols.index("X_mm")
+    body = []
+    for ln in lines[h + 1:]:
+        f = ln.split(",")
+        t = float(f[it]) * 10
+        f[it], f[ix] = repr(t), repr(float(f[ix]) + 3.0 * t / 3600 / 1000)
+        body.append(",".join(f))
+    log.write_text("\n".join(lines[:h + 1] + body) + "\n")
+    return log
