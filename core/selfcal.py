@@ -1079,11 +1079,18 @@ class SelfCalResult:
         """One parameter by name."""
         return float(self.theta[self.design.names.index(name)])
 
-    def estimate(self) -> dict:
+    def estimate(self, J_m=None) -> dict:
         """The estimate with its covariance (``vmt-estimate/1``, :mod:`core.state`): the X/Y tables
         (EXX, EYX, the yaw on their nodes; linear interpolation, eqs 8-11) and EC0Y are machine errors,
-        the workpiece, set-up and height terms named only."""
-        from .state import estimate_doc
+        the workpiece, set-up and height terms named only.
+
+        ``J_m`` (3,) m: the probe offsets of the touches; the nodes, on the grid of readings, are then
+        written at the axis positions reading + J (X tables + J_X, Y tables + J_Y), as the format
+        declares. None (unknown): at the readings, and ``positions`` says so
+        (:data:`core.state.POSITIONS_READINGS`)."""
+        from .state import POSITIONS, POSITIONS_READINGS, estimate_doc
+
+        J = None if J_m is None else np.asarray(J_m, float)
 
         des = self.design
         g = des.grid
@@ -1092,9 +1099,11 @@ class SelfCalResult:
         for k, sl in des.slices.items():
             r = range(sl.start, sl.stop)
             if k in ("EXX", "EYX", "ECX", "EXY", "EYY", "ECY"):
-                pos = g.x_m if k in ("EXX", "EYX", "ECX") else g.y_m
+                on_x = k in ("EXX", "EYX", "ECX")
+                pos = g.x_m if on_x else g.y_m
+                off = 0.0 if J is None else float(J[0 if on_x else 1])
                 for i, x in zip(r, pos):
-                    symbols[i], at[i] = k, float(x)
+                    symbols[i], at[i] = k, float(x) + off
             elif k == "EC0Y":
                 symbols[sl.start] = k
             if k in ("ECX", "ECY", "EC0Y", "ECC", "EBC", "EAC"):
@@ -1106,13 +1115,15 @@ class SelfCalResult:
         return estimate_doc(des.names, symbols, at, units, self.theta, self.cov,
                             method="2D self-calibration, Ibaraki et al. eqs 15-18 (covariance: probing noise"
                                    + (" and model error)" if self.budget is not None else ")"),
-                            interpolation="linear", conventions=self.conventions)
+                            interpolation="linear", conventions=self.conventions,
+                            positions=POSITIONS if J is not None else POSITIONS_READINGS)
 
-    def to_report(self, mc=None) -> dict:
+    def to_report(self, mc=None, J_m=None) -> dict:
         """JSON-ready report (um, urad, mm, deg): what ``vmt identify`` writes.
 
         ``mc`` (a Monte Carlo :func:`core.uncertainty.monte_carlo_touches` of the
-        same touches) adds its U95 per target and its summary.
+        same touches) adds its U95 per target and its summary. ``J_m``: the
+        touches' probe offsets, m, or None (:meth:`estimate`).
         """
         res = self
         des = res.design
@@ -1174,7 +1185,7 @@ class SelfCalResult:
                 "rule": b.rule}
         out["not_covered"] = not_covered(res.blind_lobes)
         if res.cov is not None:
-            out["estimate"] = res.estimate()
+            out["estimate"] = res.estimate(J_m)
         if mc is not None:
             out["monte_carlo"] = {"runs": mc.runs, "u_probe_um": _r(mc.u_probe_m * 1e6),
                                   "what": "probing noise only (JCGM 101), beside the linear U95 of the budget",

@@ -21,6 +21,12 @@ covariance")::
      "identified_on": {"machine": "nmv3000", "chain": "V[w-C-A-b-Y-X-Z-(C)-t]",
                        "probe_offsets_J_mm": [[0, 0, 150]] | null, "z_mm": [27.0, 27.0] | null}}
 
+``positions`` is :data:`POSITIONS` (the nodes at the axis positions reading + J); a ``vmt identify``
+without ``--tool-offset-mm`` (J unknown) writes :data:`POSITIONS_READINGS`, its nodes at the readings, and a
+reader places them with the J of the probe it assumes (:meth:`MachineState.at_axis_positions`, as vmt vcmm
+does with a notice). A state written before session 27's fix (review27b F2) has its ``vmt identify`` nodes at
+the readings under either wording.
+
 ``identified_on`` (since session 26; optional, a file without it reads with a notice) says what the
 state was identified on: the machine's name and ISO 10791 chain, the probe offsets J of the touches
 (mm, tool side; null: the log did not state them) and the range of the touches' Z axis readings (mm; null
@@ -45,7 +51,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -56,6 +62,11 @@ FORMAT = "vmt-estimate/1"
 INTERPOLATIONS = ("linear", "cubic-spline")
 SIGN_CONVENTION = "ISO 230-1: the tool's displacement relative to the workpiece (actual minus commanded)"
 POSITIONS = "axis (joint) positions: the reading (stylus-tip centre) + the probe offsets J, in the machine frame R, mm"
+#: ``positions`` of a state whose probe offsets J were not known to its writer (``vmt identify`` without
+#: ``--tool-offset-mm``: ``identified_on.probe_offsets_J_mm`` null): its nodes are at the readings, not
+#: shifted by an unknown J (a reader adds the J of the probe it assumes, :meth:`MachineState.at_axis_positions`).
+POSITIONS_READINGS = ("readings (stylus-tip centre) in the machine frame R, mm: the probe offsets J unknown "
+                      "(identified_on.probe_offsets_J_mm null), so not the axis positions reading + J")
 #: Relative asymmetry of a covariance tolerated (rounding in JSON), and the relative size of a negative
 #: eigenvalue taken as rounding (clipped to 0) rather than refused.
 SYM_TOL = 1e-6
@@ -67,8 +78,9 @@ class StateFileError(ConfigError):
 
 
 def estimate_doc(names, symbols, at_m, units, theta, cov, *, method: str, interpolation: str,
-                 conventions) -> dict:
-    """The ``vmt-estimate/1`` block (module doc), JSON-ready.
+                 conventions, positions: str = POSITIONS) -> dict:
+    """The ``vmt-estimate/1`` block (module doc), JSON-ready (``positions``: :data:`POSITIONS`, or
+    :data:`POSITIONS_READINGS` when the writer does not know J).
 
     Parameters
     ----------
@@ -99,7 +111,7 @@ def estimate_doc(names, symbols, at_m, units, theta, cov, *, method: str, interp
         if a is not None:
             p["at_mm"] = round(float(a) * 1e3, 9)
         params.append(p)
-    return {"format": FORMAT, "method": method, "sign_convention": SIGN_CONVENTION, "positions": POSITIONS,
+    return {"format": FORMAT, "method": method, "sign_convention": SIGN_CONVENTION, "positions": positions,
             "interpolation": interpolation, "conventions": [str(c) for c in conventions],
             "parameters": params, "values": (theta * 1e6).tolist(), "covariance": (cov * 1e12).tolist()}
 
@@ -162,7 +174,9 @@ def probe_offsets_check(state: "MachineState", J_mm) -> tuple[str | None, str | 
     if J is None:
         return None, (f"{state.source}: the probe offsets J it was identified with are not recorded (vmt identify "
                       f"--tool-offset-mm): its tables, the tool's X/Y deviation with that probe, applied with the "
-                      f"tool offsets {here} unchecked")
+                      f"tool offsets {here} unchecked"
+                      + (" (its nodes, at the readings, placed at reading + these offsets)" if state.at_readings
+                         else ""))
     if any(max(abs(float(a) - float(b)) for a, b in zip(j, J_mm)) <= J_SAME_MM for j in J):
         return None, None
     there = " or ".join("(" + ", ".join(f"{float(v):g}" for v in j) + ")" for j in J)
@@ -188,6 +202,9 @@ class MachineState:
     source : str
     identified_on : dict or None
         What it was identified on (:func:`identified_on`); None: a file without the record.
+    at_readings : bool
+        The tables' nodes are readings (``positions`` :data:`POSITIONS_READINGS`: the writer did not
+        know J), not axis positions; :meth:`at_axis_positions` places them with a probe's J.
     """
 
     tables: dict
@@ -198,6 +215,17 @@ class MachineState:
     conventions: tuple
     source: str
     identified_on: dict | None = None
+    at_readings: bool = False
+
+    def at_axis_positions(self, J_m) -> "MachineState":
+        """The state with its tables at the axis positions: a state at the readings (:attr:`at_readings`)
+        has each table's nodes moved by the probe offset ``J_m`` (3,) m along the table's axis (reading
+        + J, the probe taken as the one it was identified with); any other state is returned as is."""
+        if not self.at_readings:
+            return self
+        J = np.asarray(J_m, float)
+        tables = {s: (x + J["XYZ".index(iso.symbol(s).axis)], idx) for s, (x, idx) in self.tables.items()}
+        return replace(self, tables=tables, at_readings=False)
 
     @property
     def symbols(self) -> tuple:
@@ -319,7 +347,8 @@ def loads_estimate(doc, source: str = "<estimate>") -> MachineState:
         fail("covariance", f"not positive semi-definite (eigenvalue {w.min() * 1e12:.3g})")
     F = V * np.sqrt(np.clip(w, 0.0, None))[None, :]
     return MachineState(out_t, out_c, v[keep] * 1e-6, F, interp, tuple(str(c) for c in doc.get("conventions", [])),
-                        source, _read_identified_on(doc.get("identified_on"), fail))
+                        source, _read_identified_on(doc.get("identified_on"), fail),
+                        at_readings=doc.get("positions") == POSITIONS_READINGS)
 
 
 def _read_identified_on(rec, fail) -> dict | None:

@@ -277,8 +277,9 @@ class Temperature:
 
     The part expands about the centroid of its probed surface points by
     ``e_p = alpha_p (T_p - 20)``; the scales by ``e_s = alpha_s (T_s - 20)``
-    (a reading is the true position over ``1 + e_s``: the tool sits at the
-    reading times ``1 + e_s``, an ``EXX``, ``EYY``, ``EZZ`` slope of ``e_s``). The
+    (an axis position ``q = reading + J`` is the true one over ``1 + e_s``:
+    the axis sits at ``q (1 + e_s)``, an ``EXX``, ``EYY``, ``EZZ`` slope of
+    ``e_s`` at the axis position). The
     result is corrected to 20 C with the best estimates (:func:`correct_to_20c`);
     what remains is the uncertainty of the draws.
     """
@@ -309,15 +310,19 @@ class Temperature:
 
 
 def correct_to_20c(p_R: np.ndarray, n_R: np.ndarray, stylus_r: float, e_part: float, e_scales: float,
-                   centre: np.ndarray) -> np.ndarray:
+                   centre: np.ndarray, J_m=(0.0, 0.0, 0.0)) -> np.ndarray:
     """Reported tip centres corrected to 20 C with the strains' best estimates, (n, 3) m.
 
-    The tool is at the reading times ``1 + e_scales``; the surface point is
-    ``r`` back along the normal; at 20 C the part is ``1 + e_part`` smaller
-    about ``centre``; the tip centre goes back out by ``r`` (the ball does
-    not belong to the part).
+    The scales measure the axis position ``q = reading + J`` (``J_m``: the
+    probe offsets of the tool used, CONTRIBUTING's joint position): the axis
+    is at ``q (1 + e_scales)``, so the tool at ``(p + J)(1 + e_scales) - J``
+    (``p (1 + e_scales)`` only when J = 0); the surface point is ``r`` back
+    along the normal; at 20 C the part is ``1 + e_part`` smaller about
+    ``centre``; the tip centre goes back out by ``r`` (the ball does not
+    belong to the part).
     """
-    s = p_R * (1.0 + e_scales) - stylus_r * n_R
+    J = np.asarray(J_m, float)
+    s = (p_R + J) * (1.0 + e_scales) - J - stylus_r * n_R
     return centre + (s - centre) / (1.0 + e_part) + stylus_r * n_R
 
 

@@ -36,7 +36,13 @@ it (:func:`hardware.surface.plan_from_z_touches`).
 :func:`comp_file` writes an identified positioning error as a LinuxCNC
 per-joint compensation file (``COMP_FILE_TYPE = 0``), :func:`read_comp_file`
 reads one back (``sim.compensation`` applies it to the virtual machine as
-LinuxCNC's motion controller does).
+LinuxCNC's motion controller does). Its nominal column is the joint
+position, vmt's axis position ``reading + J``; LinuxCNC adds the tool
+offset to the programmed position to make the joint command
+(``emccanon.cc``) and looks the table up there, so the file (and the
+strokes, docs/formats.md) assume the probe's LinuxCNC tool offset (its
+tool table entry, with ``G43``) equals vmt's J; another offset shifts the
+table by the difference.
 """
 
 from __future__ import annotations

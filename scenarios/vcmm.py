@@ -430,7 +430,7 @@ def _measure(st: Setting, coeffs: dict, rng, thermal: dict, *, noise: bool, mach
             coeffs[(sym, 1)] = coeffs.get((sym, 1), 0.0) + e_s
     p = simulate_run(st, coeffs, rng, noise=noise, machine=machine, e_part=e_p)
     e_p0, e_s0 = temp.strains()
-    return V.correct_to_20c(p, st.n_R, st.probe.stylus_r_m, e_p0, e_s0, st.centre_R)
+    return V.correct_to_20c(p, st.n_R, st.probe.stylus_r_m, e_p0, e_s0, st.centre_R, st.config.J_m)
 
 
 def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: list | None = None,

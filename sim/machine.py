@@ -43,8 +43,10 @@ machine believes it, in R (the controller adds the probe offsets J, so axis
 position ``q = reading + J``); a table-moving linear axis moves the table
 by ``-q``. Rotary axes on the workpiece branch turn W by ``-theta``:
 ``p_R = T_R_W(rot) p_W`` with ``R(-C)`` about the C line (self-calibration
-paper eq. 1), likewise A. Error functions are evaluated at the axis
-readings (the probe-log positions). Units: SI.
+paper eq. 1), likewise A. A linear axis's error functions are evaluated at
+its axis position ``q = reading + J`` (CONTRIBUTING.md, "Error
+conventions"), not at the reading (the probe-log position); a rotary
+axis's at its angle. Units: SI.
 """
 
 from __future__ import annotations
@@ -77,10 +79,10 @@ class MachineConfig:
         ISO 10791 chain, e.g. ``"V[w-C-A-b-Y-X-Z-(C)-t]"`` (``core.chain``).
     strokes : mapping axis -> (min, max)
         Travel of every axis of the chain: m (linear), rad (rotary). A linear
-        stroke bounds the axis position stated for this configuration's own
-        offsets ``J_m`` (the reference tool), i.e. its readings; with a stylus
-        of offsets J the axis lies at ``reading + J - J_m`` (docs/formats.md,
-        "Strokes").
+        stroke bounds the axis position ``q = reading + J``, written in the
+        readings of this configuration's own offsets ``J_m`` (the reference
+        tool): a reading with a stylus of offsets J is checked as
+        ``reading + J - J_m`` (docs/formats.md, "Strokes").
     rotary_points_R_m : mapping axis -> (3,) float
         A point on each rotary axis's nominal line, in R with all axes at
         zero, m (the C entry is the rotary table centre). Default origin.

@@ -106,7 +106,7 @@ def _run(args, bar) -> int:
 
     from core.state import identified_on
 
-    report = res.to_report(mc)
+    report = res.to_report(mc, None if J_mm is None else [v * 1e-3 for v in J_mm])   # the state at reading + J
     if "estimate" in report:
         report["estimate"]["identified_on"] = identified_on(**on)   # J: --tool-offset-mm (probe-log/1 has none)
     out = write_json_atomic(args.json, report, special=True)

@@ -210,8 +210,13 @@ def run_show(args) -> int:
             rng_txt = ""
         else:
             lo, hi = cfg.strokes[sy.axis]
+            where = "over the stroke"
+            if sy.axis in iso.LINEAR_AXES:   # evaluated at the axis position reading + J (the reference tool)
+                j = cfg.J_m[iso.LINEAR_AXES.index(sy.axis)]
+                lo, hi = lo + j, hi + j
+                where = f"over the stroke + J ({sy.axis} {lo / MM:g}..{hi / MM:g} mm, axis positions)"
             v = np.asarray(f(np.linspace(lo, hi, 201)), float) * 1e6
-            rng_txt = f"  [{v.min():+.3f} .. {v.max():+.3f}] over the stroke"
+            rng_txt = f"  [{v.min():+.3f} .. {v.max():+.3f}] {where}"
         print(f"  {name:5s} {sy.report_unit:4s} {describe_error(f, sy)}{rng_txt}")
     m = Machine(cfg)
     lin = []

@@ -91,6 +91,7 @@ def run(args) -> int:
             raise ConfigError(f"--machine-state {args.machine_state}: {why}")
         if notice:
             print(notice)
+        state = state.at_axis_positions(cfg.J_m)   # a state at the readings (J unknown): at reading + this J
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
     with progress_line("vcmm: Monte Carlo runs") as bar:
         rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask,

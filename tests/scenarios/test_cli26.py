@@ -288,7 +288,8 @@ def test_identify_records_the_tool_offsets_given_and_vcmm_checks_them(identified
     assert main(VCMM + ["--machine", "nmv3000", "--json", str(v), "--machine-state", str(ident)]) == 0
     assert (f"{ident}: the probe offsets J it was identified with are not recorded (vmt identify "
             "--tool-offset-mm): its tables, the tool's X/Y deviation with that probe, applied with the tool "
-            "offsets (0, 0, 150) mm unchecked\n") in capsys.readouterr().out
+            "offsets (0, 0, 150) mm unchecked (its nodes, at the readings, placed at reading + these offsets)\n"
+            ) in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("value, why", [

@@ -39,6 +39,20 @@ def test_show_prints_chain_strokes_errors_and_tip_deviations(my_file, capsys):
     assert "errors (ISO 230-1" in capsys.readouterr().out
 
 
+def test_show_gives_each_error_range_at_the_axis_positions(tmp_path, capsys):
+    """An error's range is over the stroke at the axis positions reading + J (review27b F4): EZZ
+    100 um/m on vmc-3axis (Z -50..400 mm readings, J_Z 150 mm) spans 10..55 um at Z 100..550 mm,
+    not -5..40 um at the readings; EXX (J_X 0) keeps its stroke."""
+    f = tmp_path / "z.toml"
+    f.write_text('base = "vmc-3axis"\nname = "z"\nerrors = "none"\n[error.EZZ]\nslope_um_per_m = 100.0\n'
+                 '[error.EXX]\nconstant_um = 1.0\n')
+    assert main(["machine", "show", str(f)]) == 0
+    out = capsys.readouterr().out
+    assert "tool offset J (gauge point - tip centre): (0, 0, 150) mm" in out
+    assert "[+10.000 .. +55.000] over the stroke + J (Z 100..550 mm, axis positions)" in out, out
+    assert "[+1.000 .. +1.000] over the stroke + J (X -300..300 mm, axis positions)" in out, out
+
+
 def test_simulate_with_a_machine_file_reads_minus_one_um_on_x_faces(my_file, tmp_path, capsys):
     """The file's EXX = +1 um against the same campaign on the perfect built-in
     (same part, form errors and all): every X-face touch 1 um short."""

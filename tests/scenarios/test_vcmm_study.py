@@ -155,6 +155,43 @@ def test_gauge_length_at_a_part_and_scale_temperature_matches_the_closed_form(ma
     assert abs(y.mean() - L) < 4 * u_closed / math.sqrt(len(y))        # corrected to 20 C: no bias
 
 
+SPHERE_Z_TASK = """
+[features.top]
+kind = "sphere"
+feature = "top"
+[[measurands]]
+name = "z"
+quantity = "position"
+axis = "z"
+of = "top"
+[probe]
+noise_um = 0.0
+[temperature]
+scales_C = 25.0
+scales_alpha_per_K = 8e-6
+[mc]
+batch_runs = 50
+max_runs = 100
+"""
+
+
+@pytest.mark.parametrize("Jz_m", [0.0, 0.150])
+def test_scale_temperature_correction_of_a_position_is_exact_with_a_probe_offset(machine, Jz_m):
+    """Scales at 25 C (alpha 8e-6, e_s = 4e-5, no uncertainty), no machine errors, a sphere of
+    centre z = -20 mm: the scales read the axis position q = reading + J over 1 + e_s, and the
+    correction takes them back exactly (the position measurand is the nominal to 1 nm, float
+    rounding only). Review27b F1: correcting the reading instead of q left -e_s J = -6.000 um at
+    J_Z = 150 mm (the J = 0 case passed either way)."""
+    import dataclasses
+    dirs = [(0, 0, 1)] + [(math.cos(a) * math.cos(e), math.sin(a) * math.cos(e), math.sin(e))
+                          for e in (0.3, 0.9) for a in np.linspace(0, 2 * math.pi, 6, endpoint=False)]
+    plan = plan_of([("top", tuple(np.array((0, 0, -20.0)) + 10 * np.array(d)), d) for d in dirs])
+    spec = dataclasses.replace(machine, config=dataclasses.replace(machine.config, errors={}, J_m=(0.0, 0.0, Jz_m)))
+    st = S.prepare(plan, loads_task(SPHERE_Z_TASK), spec)
+    y = S.run_values(st, 1, np.arange(3))[:, 0]
+    assert np.max(np.abs(y - (-0.020))) < 1e-9
+
+
 def test_cli_end_to_end_gauge(tmp_path, machine, capsys):
     """vmt vcmm: adaptive MC (converged), the budget (one source: all of u), the nominal on a
     perfect machine to 1 nm, the 95 % interval of a uniform: +-0.95 (L + 2 r) a."""
