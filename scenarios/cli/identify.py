@@ -151,16 +151,14 @@ RIPPLE_TABLES = {"um": ("EXX", "EYX", "EXY", "EYY"), "urad": ("ECY", "ECX")}
 def _declared(args) -> dict:
     """``--declared-ripple-um-mm`` / ``--declared-ripple-urad-mm`` -> ``{table: (m or rad, m)}`` or a ConfigError
     naming the option and the symbol."""
+    from core import iso
     from core.exceptions import ConfigError
-    from scenarios.cli.scenario import parse_declared_ripple
+    from scenarios.cli.scenario import declared_ripples
 
-    out = {}
-    for text, unit in ((args.declared_ripple, "um"), (args.declared_ripple_urad, "urad")):
-        if text is None:
-            continue
-        for k, v in parse_declared_ripple(text, unit).items():
-            if k not in RIPPLE_TABLES[unit]:
-                raise ConfigError(f"--declared-ripple-{unit}-mm: {k} is not a table of the self-calibration "
-                                  f"(one of {', '.join(RIPPLE_TABLES[unit])})")
-            out[k] = v
+    out = declared_ripples(args)
+    for k in out:
+        unit = "urad" if iso.symbol(k).angular else "um"
+        if k not in RIPPLE_TABLES[unit]:
+            raise ConfigError(f"--declared-ripple-{unit}-mm: {k} is not a table of the self-calibration "
+                              f"(one of {', '.join(RIPPLE_TABLES[unit])})")
     return out

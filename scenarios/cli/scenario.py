@@ -26,10 +26,8 @@ def _mfb(args) -> int:
             spec = truth_machine(name, args.errors, "study")
         # else naming the plan's machine (error set study) is omitting it: the study's own truth machine
     kw = dict(seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc, machine=spec)
-    if args.declared_ripple or args.declared_ripple_urad:
-        kw["declared_ripple"] = {**(parse_declared_ripple(args.declared_ripple, "um") if args.declared_ripple else {}),
-                                 **(parse_declared_ripple(args.declared_ripple_urad, "urad")
-                                    if args.declared_ripple_urad else {})}
+    if declared := declared_ripples(args):
+        kw["declared_ripple"] = declared
     if args.bar_calibration:
         from scenarios.mfb import read_bar_calibration
 
@@ -212,6 +210,17 @@ def _ripple_symbols(angular: bool) -> tuple:
     from core import iso, volumetric as vol
 
     return tuple(s for s in vol.MOTION if iso.symbol(s).angular == angular)
+
+
+def declared_ripples(args) -> dict:
+    """``--declared-ripple-um-mm`` and ``--declared-ripple-urad-mm`` (either may be absent) read together ->
+    ``{symbol: (m or rad, m)}`` (:func:`parse_declared_ripple`: a ConfigError names the option and the bad item,
+    an empty value included). ``vmt scenario`` and ``vmt identify`` read them through this one function."""
+    out = {}
+    for text, unit in ((args.declared_ripple, "um"), (args.declared_ripple_urad, "urad")):
+        if text is not None:
+            out.update(parse_declared_ripple(text, unit))
+    return out
 
 
 def parse_declared_ripple(text: str, unit: str = "um") -> dict:

@@ -318,9 +318,9 @@ def test_ripple_columns_and_declared_ripple_refuse_bad_input():
             run("mfb-3axis", seed=1, noise_um=0, mc_runs=0, declared_ripple=bad)
     with pytest.raises(ConfigError):
         vol.uncertainty(r.result, r.meas, 0.0, np.zeros((12, 3)), runs=0, ripples=[np.zeros((3, 2))])
-    for arg in ("EXX=abc", "EAX=1:10", "EC0Y=1:10", "EXX=1:0", "EXX=-1:10", "EXX=1:10,EXX=2:10", "EXX"):
+    for arg in ("EXX=abc", "EAX=1:10", "EC0Y=1:10", "EXX=1:0", "EXX=-1:10", "EXX=1:10,EXX=2:10", "EXX", ""):
         assert main(["scenario", "mfb-3axis", "--mc", "0", "--declared-ripple-um-mm", arg]) == 2
-    for arg in ("EXX=1:10", "EBX=1", "EBX=inf:10"):
+    for arg in ("EXX=1:10", "EBX=1", "EBX=inf:10", ""):
         assert main(["scenario", "mfb-3axis", "--mc", "0", "--declared-ripple-urad-mm", arg]) == 2
     assert main(["scenario", "pin-circle", "--declared-ripple-um-mm", "EXX=0.4:10"]) == 2
     assert main(["scenario", "pin-circle", "--declared-ripple-urad-mm", "EBX=1:10"]) == 2
