@@ -1419,6 +1419,15 @@ def _alias_unit(block: str) -> str:
     return "urad" if block in _ANGULAR_BLOCKS else "um"
 
 
+def _lobe_basis(phi: np.ndarray, k: int):
+    """``(Q, R)``, the QR factors of a lobe of order ``k``'s columns ``[cos k phi, sin k phi]`` (m per m of
+    lobe amplitude: 1 um of lobe -> 1 um), those not vanishing at the azimuths ``phi``; None when both do.
+    The one lobe basis of :func:`blind_lobes` and :func:`absorbed_lobes`."""
+    L = np.column_stack([np.cos(k * phi), np.sin(k * phi)])
+    keep = np.linalg.norm(L, axis=0) > 1e-9 * np.sqrt(phi.size)
+    return np.linalg.qr(L[:, keep]) if keep.any() else None
+
+
 def blind_lobes(design: SelfCalDesign, est: LinearEstimator, touches: Touches,
                 orders=LOBE_ORDERS) -> tuple:
     """The probe's pre-travel lobe orders ``orders`` this design cannot tell from the errors it identifies.
@@ -1448,12 +1457,9 @@ def blind_lobes(design: SelfCalDesign, est: LinearEstimator, touches: Touches,
     A = design.A
     out = []
     for k in orders:
-        L = np.column_stack([np.cos(k * phi), np.sin(k * phi)])    # m per m of lobe amplitude (1 um -> 1 um)
-        nrm = np.linalg.norm(L, axis=0)
-        keep = nrm > 1e-9 * np.sqrt(len(phi))
-        if not keep.any():
+        if (QR := _lobe_basis(phi, k)) is None:
             continue
-        Q, R = np.linalg.qr(L[:, keep])
+        Q, R = QR
         T = est.noise_gain(Q)                                        # the parameters the fit gives each column
         _, sv, Vt = np.linalg.svd(Q - A @ T, full_matrices=False)    # sv: sines of the principal angles
         sin_min = float(min(sv.min(), 1.0))
@@ -1494,16 +1500,15 @@ def absorbed_lobes(phi: np.ndarray, project, orders=LOBE_ORDERS) -> tuple:
         raise ConfigError(f"absorbed_lobes: phi must be a non-empty finite (n,) array, got shape {phi.shape}")
     out = []
     for k in orders:
-        L = np.column_stack([np.cos(k * phi), np.sin(k * phi)])
-        keep = np.linalg.norm(L, axis=0) > 1e-9 * np.sqrt(phi.size)
-        if not keep.any():
+        if (QR := _lobe_basis(phi, k)) is None:
             continue
-        Q, _ = np.linalg.qr(L[:, keep])
+        Q = QR[0]
         P = np.column_stack([np.asarray(project(Q[:, j]), float) for j in range(Q.shape[1])])
         sin_min = float(min(np.linalg.svd(Q - P, compute_uv=False).min(), 1.0))
         if sin_min < LOBE_ALIAS_SIN:
             out.append((int(k), float(np.degrees(np.arcsin(sin_min)))))
     return tuple(out)
+
 
 def not_covered(blind: tuple) -> dict:
     """The report's statement of what the U95 leaves out (:func:`blind_lobes` of the design), JSON-ready."""
