@@ -2204,12 +2204,9 @@ def _target_faces(bl: Baseline, t: Touches, feats: np.ndarray) -> tuple:
     if geo is None or n_w == 0 or len(geo[0]) != n_w or tid.size == 0 or tid.max() >= n_w:
         return None, None, None, None, None
     P, N = np.asarray(geo[0], float), np.asarray(geo[1], float)
-    seen, first = np.unique(tid, return_index=True)  # each target's first touch
-    if seen.size != n_w:
+    if (fz := selfcal.target_heights(t, n_w)) is None:
         return None, None, None, None, None
-    z = np.round(t.pn_R[first, 2], 6)
-    lv, cnt = np.unique(z, return_counts=True)
-    dz = z - lv[np.argmax(cnt)]
+    first, dz = fz  # each target's first touch, its height above the common level
     B = selfcal.workpiece_gauge_basis(P, N, dz if np.any(dz != 0) else None)
     f_t = feats[first].astype(str)
     nrm = np.round(N, 3)

@@ -1597,6 +1597,18 @@ def map_in_gauge(x_m, y_m, ex_true, ey_true, ex_m, ey_m) -> tuple[np.ndarray, np
     return Ea[:n].reshape(shape), Ea[n:].reshape(shape)
 
 
+def target_heights(t: Touches, n_targets: int):
+    """``(first, dz)``: each target's first touch (row index, targets ``0 .. n_targets - 1`` in order) and its
+    nominal height above the most common targets' level, m (heights rounded to 1e-6 m), the ``dz_m`` of
+    :func:`workpiece_gauge_basis` and :func:`workpiece_form`; None where a target has no touch."""
+    seen, first = np.unique(np.asarray(t.target, int), return_index=True)
+    if seen.size != n_targets:
+        return None
+    z = np.round(t.pn_R[first, 2], 6)
+    lv, cnt = np.unique(z, return_counts=True)
+    return first, z - lv[np.argmax(cnt)]
+
+
 def workpiece_gauge_basis(w_W, wn_W, dz_m=None) -> np.ndarray:
     """(N_w, 5 or 9) workpiece deviations G that self-calibration cannot see (eqs 16-17).
 

@@ -73,7 +73,7 @@ def workpiece_form_change(d) -> dict | None:
     """
     import numpy as np
 
-    from core.selfcal import workpiece_form
+    from core.selfcal import target_heights, workpiece_form
 
     bl = d.baseline
     geo = getattr(bl, "geometry", None)
@@ -85,15 +85,8 @@ def workpiece_form_change(d) -> dict | None:
     ids = tuple(bl.estimand_ids)
     if not (len(Gb) == len(Ge) == len(P) == len(ids)):
         return None
-    t = bl.data.touches
-    tid = np.asarray(t.target, int)
-    seen, first = np.unique(tid, return_index=True)
-    dz = None
-    if seen.size == len(ids):   # each target's height above the most common level (core.discover's faces alike)
-        z = np.round(t.pn_R[first, 2], 6)
-        lv, cnt = np.unique(z, return_counts=True)
-        dz = z - lv[np.argmax(cnt)]
-        dz = dz if np.any(dz != 0) else None
+    fz = target_heights(bl.data.touches, len(ids))   # each target's height above the common level
+    dz = None if fz is None or not np.any(fz[1] != 0) else fz[1]
     ok = np.isfinite(Gb) & np.isfinite(Ge)
     if ok.sum() < 2:
         return None
