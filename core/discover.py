@@ -2737,7 +2737,7 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
             or d.baseline.info["grid_step_mm"] <= min(settings.grid_steps_mm)):
         return d
     kept = (dataclasses.replace(bl.data.touches, **dropped), bl.data.extra)  # (the touches again)
-    return _finer_map_check(d, kept, settings, chain, copy.deepcopy(rng0) if rng0 is not None else None,
+    return _finer_map_check(d, kept, settings, yaw, copy.deepcopy(rng0) if rng0 is not None else None,
                             note if left_out else None)
 
 
@@ -2816,14 +2816,13 @@ def _u95_rms(d: Discovery) -> float:
     return float(np.sqrt(np.mean(4 * np.maximum(np.einsum("ij,jk,ik->i", Pm, C, Pm), 0))))
 
 
-def _finer_map_check(d: Discovery, kept, settings: Settings, chain, rng, note) -> Discovery:
+def _finer_map_check(d: Discovery, kept, settings: Settings, yaw: str, rng, note) -> Discovery:
     """``d``, or the discovery on the finest identifiable error map where that one reads ``none``
-    (:data:`FINER_MAP_CHECK`); ``kept`` the (touches, extra) ``d``'s baseline was made from."""
+    (:data:`FINER_MAP_CHECK`); ``kept`` the (touches, extra) ``d``'s baseline was made from, ``yaw`` its yaw table."""
     t, extra = kept
     g0 = d.baseline.info["grid_step_mm"]
     try:
-        bl = bl_mod.planar(t, None, settings.grid_steps_mm, select_grid=False, yaw=selfcal.yaw_for_chain(chain),
-                           extra=extra)
+        bl = bl_mod.planar(t, None, settings.grid_steps_mm, select_grid=False, yaw=yaw, extra=extra)
     except (IdentifiabilityError, ConfigError):
         return d
     if not bl.identifiable or bl.info["grid_step_mm"] >= g0:
