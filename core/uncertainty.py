@@ -274,6 +274,16 @@ class ModelErrorBudget:
         return np.sqrt(self.u_probe ** 2 + self.u_model ** 2)
 
 
+def _table_axis(des: SelfCalDesign, touches: Touches, name: str):
+    """(coef (n,), v (n,), nodes): table ``name``'s coefficient in eq 14 for each touch, the touch's position
+    along the table's axis (x for EXX, EYX, ECX; y for EXY, EYY, ECY), m, and the table's nodes on that axis."""
+    x, y = touches.pn_R[:, 0], touches.pn_R[:, 1]
+    nx, ny = touches.n_R[:, 0], touches.n_R[:, 1]
+    coef, v, on_x = {"EXX": (-nx, x, True), "EYX": (-ny, x, True), "EXY": (-nx, y, False), "EYY": (-ny, y, False),
+                     "ECY": (-ny * x, y, False), "ECX": (nx * y, x, True)}[name]
+    return coef, v, des.grid.x_m if on_x else des.grid.y_m
+
+
 def _fine_table(des: SelfCalDesign, touches: Touches, name: str, step_m: float):
     """(Phi (n, f) sparse, S (n_params, f)) of one table's fine model-error table.
 
@@ -283,11 +293,7 @@ def _fine_table(des: SelfCalDesign, touches: Touches, name: str, step_m: float):
     """
     import scipy.sparse as sp
 
-    x, y = touches.pn_R[:, 0], touches.pn_R[:, 1]
-    nx, ny = touches.n_R[:, 0], touches.n_R[:, 1]
-    coef, v, on_x = {"EXX": (-nx, x, True), "EYX": (-ny, x, True), "EXY": (-nx, y, False), "EYY": (-ny, y, False),
-                     "ECY": (-ny * x, y, False), "ECX": (nx * y, x, True)}[name]
-    nodes = des.grid.x_m if on_x else des.grid.y_m
+    coef, v, nodes = _table_axis(des, touches, name)
     lo, hi = nodes[0], nodes[-1]
     f = max(int(np.ceil((hi - lo) / step_m - 1e-9)), 1)
     h = (hi - lo) / f
@@ -328,13 +334,9 @@ def _ripple_table(des: SelfCalDesign, touches: Touches, name: str, period_m: flo
     position, as :func:`_fine_table`); ``S``: their values at the table's
     nodes (what the table's truth holds there).
     """
-    x, y = touches.pn_R[:, 0], touches.pn_R[:, 1]
-    nx, ny = touches.n_R[:, 0], touches.n_R[:, 1]
-    coef, v, on_x = {"EXX": (-nx, x, True), "EYX": (-ny, x, True), "EXY": (-nx, y, False), "EYY": (-ny, y, False),
-                     "ECY": (-ny * x, y, False), "ECX": (nx * y, x, True)}[name]
+    coef, v, nodes = _table_axis(des, touches, name)
     w = 2.0 * np.pi / period_m
     Phi = np.column_stack([coef * np.sin(w * v), coef * np.cos(w * v)])
-    nodes = des.grid.x_m if on_x else des.grid.y_m
     S = np.zeros((des.n_params, 2))
     S[des.slices[name], 0] = np.sin(w * nodes)
     S[des.slices[name], 1] = np.cos(w * nodes)
