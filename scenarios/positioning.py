@@ -226,6 +226,13 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
         raise ConfigError(f"--reversal-sense {reversal_sense!r}: expected lead or lag")
     if reversal_sense != "lead" and not reversal_um:  # (as the machine file: a sense names a lost motion's sign)
         raise ConfigError(f"--reversal-sense {reversal_sense} needs --reversal-um > 0 (the lost motion it signs)")
+    if travel_mm is None:          # the default travel: the stroke less the overrun at each end
+        lo, hi = cfg.strokes[axis]
+        ov = overrun_mm * 1e-3
+        if not lo + ov < hi - ov:      # (the simulator said 'measurement travel must be ... got 0.1, -0.1', m)
+            raise ConfigError(f"--overrun-mm {overrun_mm:g}: axis {axis}'s stroke {lo * 1e3:g}..{hi * 1e3:g} mm "
+                              f"less {overrun_mm:g} mm at each end leaves no travel to test (the default "
+                              "--travel-mm); give a smaller --overrun-mm")
     sym = f"E{axis}{axis}"
     if reversal_um:
         errs = _error_fn_with(errs, sym, Reversal(reversal_um * 1e-6, reversal_sense))

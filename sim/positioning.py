@@ -107,7 +107,7 @@ def iso_targets(lo_m: float, hi_m: float, m: int, rng: np.random.Generator | Non
     if m < 2:
         raise ConfigError(f"targets: need at least 2, got {m}")
     if not (np.isfinite(lo_m) and np.isfinite(hi_m) and lo_m < hi_m):
-        raise ConfigError(f"measurement travel must be finite with min < max, got {lo_m}, {hi_m}")
+        raise ConfigError(f"measurement travel must be finite with min < max, got {lo_m / MM:g}..{hi_m / MM:g} mm")
     p = (hi_m - lo_m) / (m - 1)
     P = lo_m + p * np.arange(m)
     if rng is not None and m > 2:
