@@ -1,10 +1,18 @@
 """Offline LinuxCNC: the plan as a part program, and the controller's probe file back.
 
 :func:`part_program` writes a plan as G-code for LinuxCNC: every touch is a
-feed move to the approach start, a ``G38.2`` towards the probing end and a
-retract, between ``(PROBEOPEN file)`` and ``(PROBECLOSE)``, so the
-controller logs each successful probe as one line of its probe file. The
-moves are the live campaign's (:func:`hardware.campaign.approach`): the
+feed move to the approach start, a ``G38.2`` towards the probing end, a
+``(LOG,N<row> G1 X#5061 Y#5062 Z#5063)`` line and a retract, between
+``(LOGOPEN,file)`` and ``(LOGCLOSE)``, so the controller writes each
+successful probe as one line of its log file, numbered by its plan row.
+Not ``PROBEOPEN`` (vmt's programs before session 28): LinuxCNC writes a
+``PROBEOPEN`` line only when the probed position differs from the last one
+written (``GET_EXTERNAL_PROBE_POSITION``, src/emc/task/emccanon.cc: a
+static position, all zeros at start, compared exactly), so two probes
+tripping at the same position leave one line, and every later line would
+fall one plan row early; a ``LOG`` line is written for every probe (the
+interpreter expands it after the probe, src/emc/rs274ngc/interp_convert.cc).
+The moves are the live campaign's (:func:`hardware.campaign.approach`): the
 first is Z alone to the safe Z, and A, B, C (plans with rotary columns)
 turn only there, in a line of their own, X, Y, Z unchanged.
 
@@ -24,9 +32,12 @@ values first (``DEBUG``), and its header says so.
 (X Y Z, older LinuxCNC) or 9 (X Y Z A B C U V W), as LinuxCNC writes it
 (``%f``: 6 decimals). It also reads ``LOGOPEN`` files whose lines are
 G-code words, as LinuxCNC's ``smartprobe.ngc`` writes them with
-``(LOG,G1 X#5061 Y#5062 Z#5063)``: every line must carry X, Y and Z words.
-:func:`import_probe_file` merges it with the plan into a full
-``probe-log/1``. A file shorter than the plan is the record of a run that
+``(LOG,G1 X#5061 Y#5062 Z#5063)``: every line must carry X, Y and Z words,
+and may carry the plan row (``N``). :func:`import_probe_file` merges it
+with the plan into a full ``probe-log/1``: numbered lines go to their rows
+(which must be 0, 1, 2, ...), others in plan order, and every line must lie
+on its row's approach line, else the file is refused naming the line. A
+file shorter than the plan is the record of a run that
 stopped (a ``G38.2`` miss or an abort: LinuxCNC logs successful probes only
 and stops at a miss): its lines are the first plan rows, the rows after them
 are kept with status ``aborted`` and empty measured cells. Without a plan,
@@ -58,6 +69,7 @@ from core.keyreader import read_text_file
 from core.probelog import ProbeLog
 
 from .campaign import ProbeSettings, check_program, log_from_plan, motion, plan_steps
+from .transcript import ALIGN_ALONG_MM, ALIGN_LATERAL_MM, _row_offset
 
 _WCS_P = {"G54": 1, "G55": 2, "G56": 3, "G57": 4, "G58": 5, "G59": 6,
           "G59.1": 7, "G59.2": 8, "G59.3": 9}
@@ -85,7 +97,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         ignored: LinuxCNC logs successful probes only, so every probe is G38.2
         and a miss stops the program).
     probe_file : str
-        File named in ``(PROBEOPEN ...)``, as LinuxCNC will resolve it.
+        File named in ``(LOGOPEN,...)``, as LinuxCNC will resolve it.
     wcs : str
         Work coordinate system zeroed and used (``G54`` ... ``G59.3``).
 
@@ -123,7 +135,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
             f"G10 L2 P{wcs_p} {zero}",
             wcs,
             "G92.2",
-            f"(PROBEOPEN {probe_file})"]
+            f"(LOGOPEN,{probe_file})"]
     prev = None
     for st, moves in motion(steps, settings, rotary=rotary):     # the rotary axes turn alone, at safe Z
         label = f"row {st.row} setup {st.setup} target {st.target}"
@@ -131,11 +143,12 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         for m in moves:
             out.append(f"G1 {_words(m.xyz_mm, m.rot_deg, m.axes)} F{fm:.1f}")
         out.append(f"G38.2 {_words(st.end_mm)} F{fp:.1f}")
+        out.append(f"(LOG,N{st.row} G1 X#5061 Y#5062 Z#5063)")     # the touch, numbered by its plan row
         out.append(f"G1 {_words(st.start_mm)} F{fm:.1f}")
         prev = st.start_mm
     if settings.safe_z_mm is not None and prev is not None:
         out.append(f"G1 {_words([prev[0], prev[1], settings.safe_z_mm])} F{fm:.1f}")
-    out += ["(PROBECLOSE)",
+    out += ["(LOGCLOSE)",
             f"G10 L2 P{wcs_p} {back}",
             "o9001 if [#<_vmt_g92_on> EQ 1]",
             "G92.3",
@@ -159,11 +172,21 @@ def read_probe_file(path) -> np.ndarray:
     ProbeLogError
         Missing or empty file; a line (named by number) that is not 3 or 9
         numbers, not finite, or of another width than the first line; a
-        ``LOGOPEN`` line without X, Y and Z words, or lines of both kinds.
+        ``LOGOPEN`` line without X, Y and Z words, or lines of both kinds;
+        an ``N`` word (the plan row) that is not a whole number >= 0, or on
+        some lines and not others.
     """
+    return _read_lines(path)[0]
+
+
+def _read_lines(path):
+    """(the numbers of :func:`read_probe_file`, the plan row of each line (its ``N`` word, as
+    :func:`part_program`'s ``LOG`` lines carry it) or ``None`` for a file without them, the
+    file's line number of each row, ``"probe"`` for a PROBEOPEN file or ``"log"``)."""
     p = Path(path)
     text = read_text_file(p, ProbeLogError, "file")
     rows, width, kind = [], None, None
+    tags, line_no = [], []
     for ln, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
@@ -174,7 +197,10 @@ def read_probe_file(path) -> np.ndarray:
             raise ProbeLogError(f"{p}: line {ln}: G-code words and bare numbers mixed in one file")
         kind = "log" if words else "probe"
         if words:
-            vals = _log_line(p, ln, line)
+            vals, tag = _log_line(p, ln, line)
+            if tags and (tag is None) != (tags[-1] is None):
+                raise ProbeLogError(f"{p}: line {ln}: an N word (the plan row) on some lines and not on others")
+            tags.append(tag)
         else:
             parts = line.split()
             try:
@@ -191,9 +217,10 @@ def read_probe_file(path) -> np.ndarray:
             raise ProbeLogError(f"{p}: line {ln}: not finite")
         width = len(vals)
         rows.append(vals)
+        line_no.append(ln)
     if not rows:
         raise ProbeLogError(f"{p}: empty probe file")
-    return np.array(rows)
+    return np.array(rows), (tags if tags and tags[0] is not None else None), line_no, kind
 
 
 #: What a LinuxCNC probe file is, for a file that is none.
@@ -246,15 +273,20 @@ def _log_line(p: Path, ln: int, line: str) -> list[float]:
     got = {}
     for letter, v in words:
         letter = letter.upper()
-        if letter in "XYZ":
+        if letter in "XYZN":
             if letter in got:
                 raise ProbeLogError(f"{p}: line {ln}: two {letter} words")
-            got[letter] = float(v)
+            got[letter] = v
     missing = [a for a in "XYZ" if a not in got]
     if missing:
         raise ProbeLogError(f"{p}: line {ln}: no {', '.join(missing)} word (a probe log line "
                             "needs X, Y and Z, e.g. (LOG,G1 X#5061 Y#5062 Z#5063))")
-    return [got["X"], got["Y"], got["Z"]]
+    tag = None
+    if "N" in got:
+        if not re.fullmatch(r"\+?\d+", got["N"]):
+            raise ProbeLogError(f"{p}: line {ln}: N{got['N']}: the plan row must be a whole number >= 0")
+        tag = int(got["N"])
+    return [float(got["X"]), float(got["Y"]), float(got["Z"])], tag
 
 
 def _number_lines(p: Path, error):
@@ -279,12 +311,63 @@ def _isnum(v: str) -> bool:
         return False
 
 
+# A probe-file line is its plan row's touch only on that row's approach line. The program moves the
+# probe from ``Xn - clearance d`` to ``Xn + overtravel d`` in the frame it zeroes (the file's frame:
+# machine coordinates less the tool offset), and LinuxCNC records the feedback position where the probe
+# tripped (``probedPos = carte_pos_fb``, src/emc/motion/control.c), so a touch lies on the line through the
+# row's nominal ``Xn`` along ``d``. The machine's geometric errors do not move it off that line (the
+# controller reports its axes' own readings, which those errors do not bend); what does is the following error
+# across the line (microns on a straight feed move) and the file's 6 decimals (0.5 nm). The bounds are
+# GRBL's (:data:`hardware.transcript.ALIGN_LATERAL_MM`, 0.5 mm off the line: a hundred times those,
+# while a neighbouring row's line is millimetres away; :data:`hardware.transcript.ALIGN_ALONG_MM`, 10 mm
+# of the nominal along it: the stroke, clearance + overtravel, 2 mm each by default). A line beyond them
+# is refused naming its row (session 28: lines were booked to rows by order alone, and LinuxCNC writes
+# no PROBEOPEN line for a probe at exactly the previous probe's position, so a repeated touch shifted
+# every later line one row early, without a word).
+
+#: Why a PROBEOPEN file can be a line short with nothing wrong (emccanon.cc, GET_EXTERNAL_PROBE_POSITION:
+#: a line only when the position differs from the last one written, a static starting at all zeros).
+PROBEOPEN_SKIPS = ("LinuxCNC writes no PROBEOPEN line for a probe at exactly the previous probe's position "
+                   "(or, first, at all zeros)")
+
+
+def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str) -> None:
+    """ProbeLogError naming the first line of ``pos`` (mm) that is not a touch of its plan row ``rows[i]``."""
+    pn = plan.nominals_mm()
+    d = np.column_stack([plan.col(c) for c in ("dx", "dy", "dz")])
+    tgt = plan.col("target")
+    for i, (p, r) in enumerate(zip(pos, rows)):
+        lat, along = _row_offset(p, pn[r], d[r])
+        if lat <= ALIGN_LATERAL_MM and abs(along) <= ALIGN_ALONG_MM:
+            continue
+        why = ": not this plan's probe file"
+        if kind != "tagged":
+            nxt = r + 1 < plan.n and _row_offset(p, pn[r + 1], d[r + 1])[0] <= ALIGN_LATERAL_MM
+            why = (f"; it lies on row {r + 1}'s line: the lines are one row early" if nxt
+                   else why + ", or lines are missing")
+            if nxt and kind == "probe":
+                why += f" ({PROBEOPEN_SKIPS}; vmt machine program's programs log every probe with its row)"
+        raise ProbeLogError(
+            f"{path}: line {line_no[i]}: [{p[0]:g}, {p[1]:g}, {p[2]:g}] mm is not a touch of plan row {r} "
+            f"(target {tgt[r]!r}, nominal [{pn[r][0]:g}, {pn[r][1]:g}, {pn[r][2]:g}] mm): {lat:.3f} mm off its "
+            f"approach line, {along:+.3f} mm along it (a touch lies within {ALIGN_LATERAL_MM:g} mm of the line "
+            f"and {ALIGN_ALONG_MM:g} mm of the nominal){why}")
+
+
 def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
                       units: str = "mm") -> ProbeLog:
     """Merge a LinuxCNC probe file with its plan into a full ``probe-log/1``.
 
     The file holds no clock: ``t_s`` is the touch index (plan order) times
     ``dt_s``, and metadata ``t_s_source`` says so.
+
+    A ``LOGOPEN`` file whose lines carry the plan row (``N`` word, as
+    :func:`part_program` writes them) books each line to that row: the rows
+    must be 0, 1, 2, ... (one line per probe, none skipped). Any other file
+    (a ``PROBEOPEN`` file, a ``LOGOPEN`` file without ``N``) is read in plan
+    order. Either way every line must lie on its row's approach line
+    (:data:`ALIGN_LATERAL_MM`, :data:`ALIGN_ALONG_MM`), else the file is
+    refused naming the line and the row.
 
     Parameters
     ----------
@@ -306,15 +389,17 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
     PlanError
         The file has more lines than the plan has rows; bad ``units``.
     ProbeLogError
-        A bad line of the file (see :func:`read_probe_file`).
+        A bad line of the file (see :func:`read_probe_file`); a line not on
+        its row's approach line; row numbers that are not 0, 1, 2, ...
     """
     if units not in ("mm", "inch"):
         raise PlanError(f"units {units!r}: expected mm or inch")
-    data = read_probe_file(path)
+    data, tags, line_no, kind = _read_lines(path)
     pos = data[:, :3] * (25.4 if units == "inch" else 1.0)
     meta = {"machine": "linuxcnc", "source": f"vmt import linuxcnc {Path(path).name}",
             "t_s_source": f"plan order x {dt_s:g} s (the probe file has no clock)"}
-    if plan is None:
+    built = plan is None
+    if built:
         from .surface import plan_from_z_touches
 
         plan = plan_from_z_touches(pos, source=str(path))
@@ -323,11 +408,23 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
     if k > n:
         raise PlanError(f"{path}: {k} probe lines but the plan {plan.source} has "
                         f"{counted(n, 'row')}: not the file of this plan")
+    if tags is not None:
+        for i, r in enumerate(tags):
+            if r != i:
+                raise ProbeLogError(
+                    f"{path}: line {line_no[i]}: N{r}, but it is probe line {i + 1}, plan row {i}'s: "
+                    + (f"row {r} is beyond the plan's {n} rows" if r >= n else
+                       "a line is missing or repeated (the program writes one line per probe, in plan order)"))
+    if not built:
+        _check_rows(path, pos, range(k), line_no, plan, "tagged" if tags is not None else kind)
     status = ["ok"] * k + ["aborted"] * (n - k)
     if k < n:
         pos = np.vstack([pos, np.full((n - k, 3), np.nan)])
-        meta["probe_file_rows"] = (f"{k} of {n}: the program stopped at plan row {k} (a G38.2 miss "
-                                   "or an abort); later rows are marked aborted")
+        why = "a G38.2 miss or an abort"
+        if kind == "probe":
+            why += f"; or the last touch was at the previous one's position: {PROBEOPEN_SKIPS}"
+        meta["probe_file_rows"] = (f"{k} of {n}: the program stopped at plan row {k} ({why}); "
+                                   "later rows are marked aborted")
     t = np.arange(n) * float(dt_s)
     return log_from_plan(plan, pos, status, t, meta, source=str(path))
 

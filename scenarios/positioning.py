@@ -27,6 +27,17 @@ FIGURE_ROWS = (
 )
 
 
+#: What a pilgrim-cycle test's figures are, in the JSON (``cycle_note``), the CLI and the report. vmt's
+#: ``pilgrim`` cycle (:mod:`sim.positioning`: each target approached ``n`` times from each side before the
+#: axis steps on) is a step cycle, the optional cycle of ISO 230-2:2014 Annex B, whose scope says its
+#: results are not to be quoted with reference to ISO 230-2 nor used for acceptance except under a written
+#: agreement between manufacturer/supplier and user: acceptance to ISO 230-2 means the standard (linear)
+#: test cycle.
+PILGRIM_NOTE = ("a pilgrim (step) cycle, ISO 230-2:2014 Annex B: not ISO 230-2 results to quote or to accept a "
+                "machine by, unless manufacturer/supplier and user agree so in writing (acceptance: the "
+                "standard, linear cycle)")
+
+
 #: Share of :func:`evaluate_file`'s work with a report done (percent) once the test is evaluated and
 #: its JSON written, once the report's figure is drawn and once the report is written: CPU seconds
 #: measured on a simulated test of 110 readings and one of 8,000 (0.03-0.09, 0.31-0.36 and 0.20 s;
@@ -71,6 +82,8 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     rep["log"] = str(path)
     rep["machine"] = log.meta.get("machine", "")
     rep["instrument"] = log.meta.get("instrument", "")
+    if rep.get("cycle_kind") == "pilgrim":
+        rep["cycle_note"] = PILGRIM_NOTE
     budget = None
     if uncertainty is not None:
         budget = figure_uncertainty(result, uncertainty)
@@ -109,6 +122,8 @@ def positioning_report(folder, rep: dict, log, *, budget=None, title: str = "ISO
                  "Definitions of ISO 230-2 (clause numbers of the 2006 edition, unchanged in 2014): "
                  "x_ij = P_ij - P_i, means and s (n - 1) per target and direction, R_i = max(2 s↑ + 2 s↓ "
                  "+ |B_i|, 4 s↑, 4 s↓).")
+    if rep.get("cycle_note"):
+        test_text += f"\n\nNote: {rep['cycle_note']}."
     if rep.get("warnings"):
         test_text += "\n\nWarnings: " + "; ".join(rep["warnings"]) + "."
     rows = []
@@ -211,6 +226,13 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
         raise ConfigError(f"--reversal-sense {reversal_sense!r}: expected lead or lag")
     if reversal_sense != "lead" and not reversal_um:  # (as the machine file: a sense names a lost motion's sign)
         raise ConfigError(f"--reversal-sense {reversal_sense} needs --reversal-um > 0 (the lost motion it signs)")
+    if travel_mm is None:          # the default travel: the stroke less the overrun at each end
+        lo, hi = cfg.strokes[axis]
+        ov = overrun_mm * 1e-3
+        if not lo + ov < hi - ov:      # (the simulator said 'measurement travel must be ... got 0.1, -0.1', m)
+            raise ConfigError(f"--overrun-mm {overrun_mm:g}: axis {axis}'s stroke {lo * 1e3:g}..{hi * 1e3:g} mm "
+                              f"less {overrun_mm:g} mm at each end leaves no travel to test (the default "
+                              "--travel-mm); give a smaller --overrun-mm")
     sym = f"E{axis}{axis}"
     if reversal_um:
         errs = _error_fn_with(errs, sym, Reversal(reversal_um * 1e-6, reversal_sense))

@@ -21,8 +21,7 @@ test's target P_i reads the errors of Z at P_i + 150 mm. A random scatter (machi
 repeatability plus instrument noise, normal, k = 1) is added from a
 passed generator.
 
-Test cycles (ISO 230-2 standard test; both are stated in the log's
-``cycle_kind``):
+Test cycles (both are stated in the log's ``cycle_kind``):
 
 ``linear``
     each cycle runs up through all targets (approach ``+``), overruns the
@@ -31,7 +30,8 @@ Test cycles (ISO 230-2 standard test; both are stated in the log's
 ``pilgrim``
     each target in turn is approached ``n`` times from each side, going
     back and forth (``P_i - overrun -> P_i``, ``P_i + overrun -> P_i``)
-    before the axis steps to the next target.
+    before the axis steps to the next target: a step cycle, ISO 230-2:2014
+    Annex B's optional cycle, not the standard test (``vmt iso230-2`` says so).
 
 Times come from the moves at ``feed`` plus a ``dwell`` at each stop (the
 reading is taken at the end of the dwell). Units: SI inside (m, s); the
@@ -107,7 +107,7 @@ def iso_targets(lo_m: float, hi_m: float, m: int, rng: np.random.Generator | Non
     if m < 2:
         raise ConfigError(f"targets: need at least 2, got {m}")
     if not (np.isfinite(lo_m) and np.isfinite(hi_m) and lo_m < hi_m):
-        raise ConfigError(f"measurement travel must be finite with min < max, got {lo_m}, {hi_m}")
+        raise ConfigError(f"measurement travel must be finite with min < max, got {lo_m / MM:g}..{hi_m / MM:g} mm")
     p = (hi_m - lo_m) / (m - 1)
     P = lo_m + p * np.arange(m)
     if rng is not None and m > 2:

@@ -222,7 +222,7 @@ def run_program(program, machine, *, probe_file: str, out_dir, parameters: dict 
     machine : object with ``probe_move(start_m, target_m, rot_rad)``
         The virtual machine and part (machine frame R, m).
     probe_file : str
-        The file named in the program's ``(PROBEOPEN ...)``; a relative name is
+        The file named in the program's ``(LOGOPEN,...)``; a relative name is
         relative to the config directory, where LinuxCNC runs.
     out_dir : path-like
         Where the probe file and LinuxCNC's output are copied.

@@ -6,7 +6,8 @@ from __future__ import annotations
 def register(sub) -> None:
     p = sub.add_parser("import", help="merge a controller's probe file or transcript with its plan")
     p.add_argument("kind", choices=("linuxcnc", "grbl"),
-                   help="linuxcnc: a PROBEOPEN file (3 or 9 numbers a line) or a LOGOPEN file "
+                   help="linuxcnc: the LOGOPEN file of a vmt machine program run (N<row> G1 X.. Y.. Z.. lines), "
+                        "a PROBEOPEN file (3 or 9 numbers a line) or another LOGOPEN file "
                         "(G1 X.. Y.. Z.. lines); grbl: a session transcript")
     p.add_argument("file", help="the probe file or transcript")
     p.add_argument("--plan", help="the probe-log/1 plan that was run; without it (linuxcnc) the file "

@@ -66,6 +66,8 @@ def run(args) -> int:
     sym = "um" if u == "um" else "arcsec"
     print(f"{args.log}: axis {rep['axis'] or '?'}, {rep['targets']} targets x {rep['cycles']} cycles"
           + (f", {rep['cycle_kind']} cycle" if rep.get("cycle_kind") else ""))
+    if rep.get("cycle_note"):
+        print(f"  note: {rep['cycle_note']}")
     U = rep.get("uncertainty") or {}
     for name, symbol, clause, meaning in FIGURE_ROWS:
         extra = f"  (U {U[f'U_{name}_um']:.3f})" if U else ""

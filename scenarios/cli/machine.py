@@ -55,10 +55,12 @@ def register(sub) -> None:
     option(s, "--stop-after-s", dest="max_seconds", type=float, old=("--max-seconds",),
            help="stop after this long, s (default: until Ctrl-C)")
     s.set_defaults(func=run_serve)
-    g = msub.add_parser("program", help="write a plan as a LinuxCNC part program (G38.2, PROBEOPEN)")
+    g = msub.add_parser("program", help="write a plan as a LinuxCNC part program (G38.2; each touch a LOG "
+                        "line numbered by its plan row)")
     add_settings_args(g, live=False)
     g.add_argument("--out", required=True, help="part program to write (.ngc)")
-    g.add_argument("--probe-file", default="vmt-probe.txt", help="file named in (PROBEOPEN ...)")
+    g.add_argument("--probe-file", default="vmt-probe.txt",
+                   help="file named in (LOGOPEN,...): one line per touch, numbered by its plan row")
     g.add_argument("--wcs", default="G59.3", help="work coordinate system zeroed and used (G59.3)")
     add_machine_args(g, default=None, errors=False,
                      what="take the soft limits from this machine's X, Y, Z strokes (when --limits-mm is not given)")

@@ -48,9 +48,12 @@ def _mfb(args) -> int:
     print(f"{'error':6s} {'unit':5s} {'max|injected|':>14s} {'max|ident-inj|':>15s} {'max U95':>9s}")
     for s, e in d["errors"].items():
         inj = max(abs(v) for v in e["injected"])
-        u = max(e.get("u95", [float("nan")]))
-        print(f"{s:6s} {e['unit']:5s} {inj:14.3f} {e['max_dev']:15.4f} {u:9.3f}")
+        u = f"{max(e['u95']):9.3f}" if "u95" in e else f"{'n/a':>9s}"
+        print(f"{s:6s} {e['unit']:5s} {inj:14.3f} {e['max_dev']:15.4f} {u}")
     print(f"max_dev_um {d['max_dev_um']:.4f}  max_dev_urad {d['max_dev_urad']:.4f}")
+    if not any("u95" in e for e in d["errors"].values()):   # (it printed nan in the column)
+        print("max U95 n/a: no uncertainty computed (it is with probing noise, --noise-um > 0, Monte Carlo runs, "
+              "--mc N, or a declared ripple; this run has none)")
     if d.get("declared_ripple"):
         print("U95 includes the declared ripple (type B, unknown phase): " + ", ".join(
             f"{s} {v.get('amplitude_um', v.get('amplitude_urad')):g} {'um' if 'amplitude_um' in v else 'urad'} / "

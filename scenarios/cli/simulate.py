@@ -154,7 +154,8 @@ def _add_positioning_options(p) -> None:
     g.add_argument("--travel-mm", metavar="LO:HI", help="measurement travel, mm (the stroke less the overrun; "
                    "write --travel-mm=-100:100 when LO < 0)")
     g.add_argument("--cycles", type=int, help="approaches per target and direction (5, as ISO 230-2 asks)")
-    g.add_argument("--cycle", choices=("linear", "pilgrim"), help="ISO 230-2 test cycle (linear)")
+    g.add_argument("--cycle", choices=("linear", "pilgrim"), help="test cycle: linear (ISO 230-2's standard "
+                   "test, the default) or pilgrim (a step cycle, its Annex B: not for acceptance)")
     g.add_argument("--overrun-mm", type=float, help="overrun before each reversal, mm (5)")
     from scenarios.cli.options import option
 

@@ -192,3 +192,37 @@ def test_a_miss_stops_linuxcnc_and_the_partial_file_keeps_every_touch(tmp_path, 
     assert "3 of 6" in log.meta["probe_file_rows"]
     assert np.all(np.abs(log.positions_mm()[:3, 2]) <= RES_MM + ROUND_MM)
     assert os.path.getsize(res.probe_file) > 0
+
+
+def test_a_touch_repeated_at_the_same_position_keeps_its_row(tmp_path, capsys):
+    """Two probes tripping at the same position (the first table touch made twice, then the second): the
+    program's numbered LOG lines keep all three. The same program with PROBEOPEN instead (vmt's programs
+    before session 28) gets two lines from LinuxCNC, which writes no line for a probe at the previous one's
+    position (emccanon.cc, GET_EXTERNAL_PROBE_POSITION); its import is refused, naming the line and row
+    (before session 28: imported with the second touch on the wrong target and the last row 'aborted')."""
+    linuxcnc_path()                     # HardwareError (a failure, never a skip) without LinuxCNC
+    plan_path = write_probe_log(tmp_path / "plan.csv", plan().select(np.array([0, 0, 1])))
+    prog = tmp_path / "probe.ngc"
+    assert main(["machine", "program", "--plan", str(plan_path), "--out", str(prog),
+                 "--probe-file", "probe.txt", *COMMON]) == 0
+    res = run_program(prog, scene(), probe_file="probe.txt", out_dir=tmp_path / "log")
+    assert res.ok, res.errors
+    lines = res.probe_file.read_text().splitlines()
+    assert [ln.split()[0] for ln in lines] == ["N0", "N1", "N2"] and lines[0][3:] == lines[1][3:], lines
+    out = tmp_path / "log.csv"
+    assert main(["import", "linuxcnc", str(res.probe_file), "--plan", str(plan_path), "--out", str(out)]) == 0
+    log = read_probe_log(out)
+    assert np.all(log.ok) and np.array_equal(log.positions_mm()[0], log.positions_mm()[1])
+    old = prog.read_text().replace("(LOGOPEN,probe.txt)", "(PROBEOPEN probe.txt)").replace("(LOGCLOSE)",
+                                                                                           "(PROBECLOSE)")
+    old_prog = tmp_path / "old.ngc"
+    old_prog.write_text("".join(ln + "\n" for ln in old.splitlines() if not ln.startswith("(LOG,")))
+    res = run_program(old_prog, scene(), probe_file="probe.txt", out_dir=tmp_path / "old")
+    assert res.ok, res.errors
+    assert len(res.probe_file.read_text().splitlines()) == 2          # three probes, two lines
+    capsys.readouterr()
+    assert main(["import", "linuxcnc", str(res.probe_file), "--plan", str(plan_path),
+                 "--out", str(tmp_path / "old.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "line 2: [120, 10, " in err and "not a touch of plan row 1 (target 'r0c0'" in err, err
+    assert "one row early" in err and err.count("\n") == 1

@@ -12,7 +12,7 @@ from core.probelog import read_probe_log, write_probe_log
 from hardware.backend import VirtualBackend
 from hardware.campaign import ProbeSettings, run_campaign
 from hardware.emulator import ControllerConfig, GrblEmulator, TcpServer
-from hardware.linuxcnc import part_program, read_probe_file
+from hardware.linuxcnc import import_probe_file, part_program, read_probe_file
 from hardware.grbl import parse_prb
 from hardware.transcript import read_transcript
 from scenarios.cli import main
@@ -27,15 +27,19 @@ def measured(tmp_path, plan_path):
     return read_probe_log(out)
 
 
-def test_part_program_probes_every_row_between_probeopen_and_probeclose(plan_path, tmp_path, capsys):
+def test_part_program_probes_every_row_between_logopen_and_logclose(plan_path, tmp_path, capsys):
     prog = tmp_path / "probe.ngc"
     assert main(["machine", "program", "--plan", str(plan_path), "--out", str(prog),
                  "--limits-mm", LIMITS, "--safe-z-mm", "30", "--probe-file", "/tmp/p.txt"]) == 0
     text = prog.read_text()
     lines = text.splitlines()
-    i0, i1 = lines.index("(PROBEOPEN /tmp/p.txt)"), lines.index("(PROBECLOSE)")
+    i0, i1 = lines.index("(LOGOPEN,/tmp/p.txt)"), lines.index("(LOGCLOSE)")
     probes = [k for k, ln in enumerate(lines) if ln.startswith("G38.2 ")]
     assert len(probes) == 12 and i0 < probes[0] and probes[-1] < i1
+    # each probe logged right after it, numbered by its plan row (a PROBEOPEN file has no line for a probe
+    # at the previous one's position: LinuxCNC's emccanon.cc), and nothing else logged
+    assert [lines[k + 1] for k in probes] == [f"(LOG,N{r} G1 X#5061 Y#5062 Z#5063)" for r in range(12)]
+    assert sum(ln.startswith("(LOG,") for ln in lines) == 12 and not any("PROBEOPEN" in ln for ln in lines)
     # G59.3 zeroed with no rotation (R0: an existing XY rotation would turn the file), G92 suspended
     assert "G10 L2 P9 X0 Y0 Z0 R0" in lines and "G59.3" in lines and "G92.2" in lines
     assert "G92.1" not in lines                      # the user's G92 values are kept, not erased
@@ -50,9 +54,9 @@ def test_part_program_probes_every_row_between_probeopen_and_probeclose(plan_pat
     assert "restored" in head and "stops early" in head
     g54 = part_program(read_probe_log(plan_path), ProbeSettings(limits_mm=LIMITS_MM), wcs="G54").splitlines()
     assert "G10 L2 P1 X0 Y0 Z0 R0" in g54 and "#<_vmt_wcs_r> = #5230" in g54
-    # each probe is followed by its retract to the approach start, which preceded it
+    # each probe is followed (after its LOG line) by its retract to the approach start, which preceded it
     for k in probes:
-        assert lines[k + 1] == lines[k - 1]
+        assert lines[k + 2] == lines[k - 1]
     plan = read_probe_log(plan_path)
     first = [float(v) for v in re.findall(r"[XYZ](-?\d+\.\d+)", lines[probes[0]])]
     assert np.allclose(first, plan.nominals_mm()[0] - 2.0 * plan.normals()[0], atol=1e-4)
@@ -547,3 +551,104 @@ def test_a_huge_grid_is_refused_before_any_array_is_made(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "more than 100000 touches" in err[0], err
     assert not (tmp_path / "p.csv").exists()
+
+
+# ----------------------------------------------------------------- probe-file lines checked on their rows
+# review28's repro (/tmp/review28/bad): two touches planned at the same point, then three more along X
+DUP_PLAN = """# format: probe-log/1
+# artefact: surface
+# stylus_r_mm: 1.5
+setup,target,t_s,X_mm,Y_mm,Z_mm,Xn_mm,Yn_mm,Zn_mm,nx,ny,nz,feature,dx,dy,dz
+grid,r0c0,,,,,0.0,0.0,1.5,0.0,0.0,1.0,surface,0.0,0.0,-1.0
+grid,r0c0b,,,,,0.0,0.0,1.5,0.0,0.0,1.0,surface,0.0,0.0,-1.0
+grid,r0c1,,,,,10.0,0.0,1.5,0.0,0.0,1.0,surface,0.0,0.0,-1.0
+grid,r0c2,,,,,20.0,0.0,1.5,0.0,0.0,1.0,surface,0.0,0.0,-1.0
+grid,r0c3,,,,,30.0,0.0,1.5,0.0,0.0,1.0,surface,0.0,0.0,-1.0
+"""
+#: the two touches at r0c0 tripped at the same position: LinuxCNC's PROBEOPEN file has one line for both
+DUP_TXT = "0.000000 0.000000 1.500200\n10.000000 0.000000 1.500400\n20.000000 0.000000 1.500600\n" \
+          "30.000000 0.000000 1.500800\n"
+#: a first line nowhere near its row (123, -77, 9) for a touch planned at (0, 0, 1.5) along -Z
+WRONG_TXT = "123.000000 -77.000000 9.000000\n10.000000 0.000000 1.500400\n20.000000 0.000000 1.500600\n" \
+            "30.000000 0.000000 1.500800\n0 0 1.5\n"
+
+
+@pytest.mark.parametrize("body, msg", [
+    # before session 28: exit 0, r0c0b booked (10, 0) and so on, r0c3 'aborted' blaming a stopped program
+    (DUP_TXT, "line 2: [10, 0, 1.5004] mm is not a touch of plan row 1 (target 'r0c0b', nominal [0, 0, 1.5] mm): "
+              "10.000 mm off its approach line"),
+    # before: exit 0, every row ok, r0c0 at (123, -77, 9) and r0c3 at (0, 0, 1.5)
+    (WRONG_TXT, "line 1: [123, -77, 9] mm is not a touch of plan row 0 (target 'r0c0', nominal [0, 0, 1.5] mm): "
+                "145.114 mm off its approach line, -7.500 mm along it"),
+])
+def test_probe_file_line_off_its_row_is_refused_naming_line_and_row(tmp_path, capsys, body, msg):
+    plan = tmp_path / "dup.csv"
+    plan.write_text(DUP_PLAN)
+    pf = tmp_path / "dup.txt"
+    pf.write_text(body)
+    out = tmp_path / "imp.csv"
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and err.count("\n") == 1 and str(pf) in err, err
+    assert not out.exists()
+    if body == DUP_TXT:    # the likely cause named: LinuxCNC's PROBEOPEN skips a repeated position
+        assert "it lies on row 2's line: the lines are one row early" in err and "PROBEOPEN line" in err
+
+
+def _log_lines(pos, rows):
+    """A vmt machine program's LOGOPEN file: ``N<row> G1 X.. Y.. Z..`` as LinuxCNC expands its LOG lines
+    (``%lf``: 6 decimals)."""
+    return "".join(f"N{r} G1 X{p[0]:f} Y{p[1]:f} Z{p[2]:f}\n" for r, p in zip(rows, pos))
+
+
+def test_numbered_log_file_keeps_a_repeated_touch_on_its_own_row(tmp_path, capsys):
+    """The same run as DUP_TXT, logged by the session-28 program: a line per probe, the repeat included."""
+    plan = tmp_path / "dup.csv"
+    plan.write_text(DUP_PLAN)
+    pos = np.array([[0, 0, 1.5002], [0, 0, 1.5002], [10, 0, 1.5004], [20, 0, 1.5006], [30, 0, 1.5008]])
+    pf = tmp_path / "dup.log"
+    pf.write_text(_log_lines(pos, range(5)))
+    out = tmp_path / "imp.csv"
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan), "--out", str(out)]) == 0
+    log = read_probe_log(out)
+    assert list(log.col("status")) == ["ok"] * 5 and np.array_equal(log.positions_mm(), pos)
+    assert "probe_file_rows" not in log.meta
+    # a run stopped at row 3 (a miss): three numbered lines, the rest aborted; no word of PROBEOPEN's skips
+    pf.write_text(_log_lines(pos[:3], range(3)))
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan), "--out", str(out)]) == 0
+    log = read_probe_log(out)
+    assert list(log.col("status")) == ["ok"] * 3 + ["aborted"] * 2
+    assert "3 of 5" in log.meta["probe_file_rows"] and "PROBEOPEN" not in log.meta["probe_file_rows"]
+
+
+def test_short_probeopen_file_says_a_repeated_position_leaves_no_line(tmp_path, plan_path, measured):
+    """A PROBEOPEN file one line short whose lines all fit their rows: a stopped run, or the last touch at the
+    previous one's position (nothing in the file tells them apart); the note says both."""
+    pf = tmp_path / "probe.txt"
+    _probe_file(pf, measured.positions_mm()[:11])
+    log = import_probe_file(pf, read_probe_log(plan_path))
+    assert "11 of 12" in log.meta["probe_file_rows"] and "previous one's position" in log.meta["probe_file_rows"]
+
+
+@pytest.mark.parametrize("rows, change, msg", [
+    ([0, 2, 3], None, "line 2: N2, but it is probe line 2, plan row 1's: a line is missing or repeated"),
+    ([0, 1, 1], None, "line 3: N1, but it is probe line 3, plan row 2's: a line is missing or repeated"),
+    ([1, 2, 3], None, "line 1: N1, but it is probe line 1, plan row 0's"),
+    ([0, 1, 12], None, "line 3: N12, but it is probe line 3, plan row 2's: row 12 is beyond the plan's 12 rows"),
+    ([0, 1, 2], ("N1 ", "N1.5 "), "line 2: N1.5: the plan row must be a whole number >= 0"),
+    ([0, 1, 2], ("N1 ", "N-1 "), "line 2: N-1: the plan row must be a whole number >= 0"),
+    ([0, 1, 2], ("N1 ", ""), "line 2: an N word (the plan row) on some lines and not on others"),
+    # X given a leading 1 (90 -> 190 mm): numbered right, but off its row's line
+    ([0, 1, 2], ("N1 G1 X", "N1 G1 X1"), "is not a touch of plan row 1 (target 'p1'"),
+])
+def test_numbered_log_file_bad_rows_one_line_exit_2(tmp_path, plan_path, measured, capsys, rows, change, msg):
+    pf = tmp_path / "probe.log"
+    text = _log_lines(measured.positions_mm()[:3], rows)
+    if change:
+        text = text.replace(*change, 1)
+    pf.write_text(text)
+    out = tmp_path / "log.csv"
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan_path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and err.count("\n") == 1 and str(pf) in err, err
+    assert not out.exists()

@@ -352,3 +352,22 @@ def test_plan_grid_usage_shows_the_stylus_radius_required(capsys):
     with pytest.raises(SystemExit):
         main(["plan", "grid", "--help"])
     assert "[--stylus-r-mm" not in capsys.readouterr().out                  # (restored after each formatting)
+
+
+def test_noise_free_mfb_run_says_no_u95_instead_of_nan(capsys):
+    """'vmt scenario mfb-3axis --noise-um 0 --mc 0' computes no uncertainty: the max U95 column printed nan
+    (review28); now 'n/a' in every row and one line saying why. With noise, numbers and no such line."""
+    assert main(["scenario", "mfb-3axis", "--noise-um", "0", "--mc", "0"]) == 0
+    out = capsys.readouterr().out
+    assert "nan" not in out
+    lines = out.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("error ") and "max U95" in ln)
+    rows = lines[head + 1:head + 22]
+    assert len(rows) == 21 and all(ln.split()[-1] == "n/a" for ln in rows), rows
+    assert sum(ln.startswith("max U95 n/a: no uncertainty computed") for ln in lines) == 1
+    assert main(["scenario", "mfb-3axis", "--mc", "0"]) == 0             # the default noise: linear U95
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("error ") and "max U95" in ln)
+    assert all(float(ln.split()[-1]) > 0 for ln in lines[head + 1:head + 22])
+    assert "n/a" not in out and "nan" not in out

@@ -653,6 +653,14 @@ def test_option_errors_name_the_option_in_its_unit(tmp_path, capsys):
          "vmt simulate: error: --travel-mm 10:-10: expected finite LO < HI in mm"),
         (["simulate", "positioning", "--out", out, "--travel-mm=nan:10"],
          "vmt simulate: error: --travel-mm nan:10: expected finite LO < HI in mm"),
+        # the default travel emptied by the overrun: said 'measurement travel must be finite with min < max,
+        # got 0.10000000000000003, -0.10000000000000003' (metres, no option; review28)
+        (["simulate", "positioning", "--out", out, "--axis", "X", "--overrun-mm", "400"],
+         "vmt simulate: error: --overrun-mm 400: axis X's stroke -300..300 mm less 400 mm at each end leaves no "
+         "travel to test (the default --travel-mm); give a smaller --overrun-mm"),
+        (["simulate", "positioning", "--out", out, "--axis", "X", "--overrun-mm", "300"],
+         "vmt simulate: error: --overrun-mm 300: axis X's stroke -300..300 mm less 300 mm at each end leaves no "
+         "travel to test (the default --travel-mm); give a smaller --overrun-mm"),
         (["simulate", "positioning", "--out", out, "--cycles", "0"],
          "vmt simulate: error: --cycles must be a whole number >= 2, got 0"),
         (["simulate", "positioning", "--out", out, "--targets", "1"],

@@ -113,6 +113,18 @@ def test_simulate_positioning_then_evaluate_with_report(tmp_path, capsys):
     assert rep["M_um"] == pytest.approx(0.0, abs=1e-6) and rep["cycle_kind"] == "pilgrim"
     html = (tmp_path / "rep" / "index.html").read_text()
     assert "iso230_2.png" in html and "Baseline for model discovery" in html
+    # a pilgrim cycle is ISO 230-2's Annex B step cycle: its figures are said not to be ISO 230-2 results
+    # (for acceptance) in the JSON, on the CLI (one line) and in the report; a linear test says nothing
+    note = "a pilgrim (step) cycle, ISO 230-2:2014 Annex B: not ISO 230-2 results to quote or to accept a machine by"
+    assert rep["cycle_note"].startswith(note) and "agree so in writing" in rep["cycle_note"]
+    out = capsys.readouterr().out
+    assert sum(note in ln for ln in out.splitlines()) == 1 and note in html
+    lin = tmp_path / "lin.csv"
+    assert main(["simulate", "positioning", "--machine", "vmc-3axis", "--axis", "Y", "--out", str(lin),
+                 "--targets", "6", "--cycles", "5", "--noise-um", "0", "--errors", "none"]) == 0
+    assert main(["iso230-2", str(lin), "--json", str(tmp_path / "l.json")]) == 0
+    assert "Annex B" not in capsys.readouterr().out
+    assert "cycle_note" not in json.loads((tmp_path / "l.json").read_text())
 
 
 @pytest.mark.parametrize("argv,match", [
