@@ -181,8 +181,9 @@ def truth_machine(name_or_path: str, errors: str | None = None, default: str = "
     with the error set ``errors`` names, ``default`` when not given (each
     command states its default in its help):
 
-    - ``"realistic"``: :func:`sim.machines.realistic_errors` over its strokes,
-      the papers' magnitudes, nominal set, with the 10 mm screw ripple;
+    - ``"realistic"``: :func:`sim.machines.realistic_errors` over the axis
+      positions its strokes allow (strokes + its tool's J), the papers'
+      magnitudes, nominal set, with the 10 mm screw ripple;
     - ``"study"``: the same set without the screw ripple (the MFB studies'
       truth, errors their smooth models represent);
     - ``"drawn"``: a ripple-free set with magnitudes and phases drawn with
