@@ -897,6 +897,7 @@ def pin_circle(seed: int = 1, noise_um: float = 1.8 / 2, sphere_touches: int = P
     angles = list(PIN_ANGLES_DEG)
     cfg = MACHINES["mikron-ucp710"]()
     errs = realistic_errors(tuple(a for a in ("X", "Y", "Z", "C") if a in cfg.strokes), strokes=cfg.strokes,
+                            J_m=cfg.J_m,
                             rng=np.random.default_rng(seed), ripple=False)
     machine = Machine(MACHINES["mikron-ucp710"](errors=errs))
     art = A.pin_circle()

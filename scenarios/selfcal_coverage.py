@@ -78,7 +78,7 @@ def simulate(machine_name: str, seed: int, noise_m: float = 0.0, *, ripple: bool
 
     cfg = MACHINES[machine_name]()
     axes = tuple(a for a in ("X", "Y", "Z", "C", "A") if a in cfg.strokes)
-    errs = (realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(seed), ripple=ripple,
+    errs = (realistic_errors(axes, strokes=cfg.strokes, J_m=cfg.J_m, rng=np.random.default_rng(seed), ripple=ripple,
                              ripple_phase=ripple_phase) if errors is None else errors)
     m = Machine(MACHINES[machine_name](errors=errs))
     art = A.cross_pocket()

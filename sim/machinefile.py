@@ -181,8 +181,9 @@ def truth_machine(name_or_path: str, errors: str | None = None, default: str = "
     with the error set ``errors`` names, ``default`` when not given (each
     command states its default in its help):
 
-    - ``"realistic"``: :func:`sim.machines.realistic_errors` over its strokes,
-      the papers' magnitudes, nominal set, with the 10 mm screw ripple;
+    - ``"realistic"``: :func:`sim.machines.realistic_errors` over the axis
+      positions its strokes allow (strokes + its tool's J), the papers'
+      magnitudes, nominal set, with the 10 mm screw ripple;
     - ``"study"``: the same set without the screw ripple (the MFB studies'
       truth, errors their smooth models represent);
     - ``"drawn"``: a ripple-free set with magnitudes and phases drawn with
@@ -219,7 +220,7 @@ def truth_machine(name_or_path: str, errors: str | None = None, default: str = "
         errs = realistic_errors(tuple(a for a in "XYZC" if a in cfg.strokes), rng=np.random.default_rng(1),
                                 ripple=False)
         return replace(spec, config=replace(cfg, errors=errs), errors="drawn", seed=1, overrides=())
-    errs = realistic_errors(axes, strokes=cfg.strokes)
+    errs = realistic_errors(axes, strokes=cfg.strokes, J_m=cfg.J_m)
     if errors == "study":
         errs = {k: strip_ripple(v) for k, v in errs.items()}
     return replace(spec, config=replace(cfg, errors=errs), errors=errors, seed=None, overrides=())
@@ -399,7 +400,7 @@ class _Reader(KeyReader):
         errs: dict[str, ErrorFunction] = {}
         if kind == "realistic":
             rng = None if seed is None else np.random.default_rng(seed)
-            errs = realistic_errors(ch.axes, strokes=strokes, rng=rng, ripple=ripple)
+            errs = realistic_errors(ch.axes, strokes=strokes, J_m=J, rng=rng, ripple=ripple)
         overrides = []
         for sym, body in self.table("error", doc.get("error", {})).items():
             key = f"error.{sym}"

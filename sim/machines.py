@@ -135,7 +135,7 @@ def _profile(shape: str, mag: float, lo: float, hi: float, k: int = 9, ripple: b
 
 
 def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
-                     strokes: Mapping[str, tuple[float, float]] | None = None,
+                     strokes: Mapping[str, tuple[float, float]] | None = None, J_m=None,
                      rng: np.random.Generator | None = None,
                      ripple: bool = True, ripple_phase: float | None = None) -> dict[str, ErrorFunction]:
     """A realistic truth error set with the magnitudes the papers report.
@@ -147,8 +147,23 @@ def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
         with the linear axes they belong to (``EC0Y`` with Y, ``EB0Z`` and
         ``EA0Z`` with Z).
     strokes : mapping axis -> (min, max), optional
-        Strokes over which the profiles are drawn (m / rad); default a
-        Mikron-like workspace. Pass ``config.strokes``.
+        The machine's strokes (m / rad) as a machine file writes them: in
+        the readings of its reference tool (docs/formats.md, "Strokes");
+        default a Mikron-like workspace. Pass ``config.strokes`` with
+        ``J_m=config.J_m``.
+    J_m : (3,) float, optional
+        The reference tool's offsets (J_X, J_Y, J_Z), m, that ``strokes``
+        are written for: required with ``strokes``; default (with the
+        default strokes) :data:`DEFAULT_J_M`, the Mikron's 150 mm probe.
+        A linear axis's profile is laid over the axis positions its stroke
+        allows, ``stroke + J`` (the errors are functions of the axis
+        position q = reading + J, and every stylus's positions are checked
+        as ``q - J_ref`` against the stroke), so the positions the machine
+        reaches see the paper's magnitude and none runs on a table's
+        end-tangent extension. Until session 28 the profiles were laid
+        over the strokes as readings: with J_Z = 150 mm, 30 % of the Z
+        travel lay beyond the Z tables (EAZ 20 -> 46.7 urad p-p over the
+        positions reached).
     rng : np.random.Generator, optional
         None: the nominal set (reproducible, paper magnitudes, every phase
         0). Given: each magnitude is scaled by U(0.5, 1) with a random sign,
@@ -172,6 +187,12 @@ def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
     -------
     dict symbol -> ErrorFunction (SI units)
     """
+    if strokes is not None and J_m is None:
+        raise ConfigError("realistic_errors: strokes given without J_m, the reference tool's offsets they are "
+                          "written for (pass config.J_m; (0, 0, 0) for strokes already in axis positions)")
+    J = np.asarray(DEFAULT_J_M if J_m is None else J_m, float)
+    if J.shape != (3,) or not np.all(np.isfinite(J)):
+        raise ConfigError(f"realistic_errors: J_m must be 3 finite values (m), got {J_m!r}")
     st = dict(_DEFAULT_STROKES)
     st.update(strokes or {})
     out: dict[str, ErrorFunction] = {}
@@ -183,7 +204,8 @@ def realistic_errors(axes: Sequence[str] = ("X", "Y", "Z", "C"), *,
         if a not in st:
             raise ConfigError(f"realistic_errors: unknown axis {a!r}")
         lo, hi = st[a]
-        if a in _LINEAR:
+        if a in _LINEAR:  # laid over the axis positions: the stroke + the reference tool's J
+            lo, hi = lo + float(J["XYZ".index(a)]), hi + float(J["XYZ".index(a)])
             for sym, shape, m in _LINEAR[a]:
                 out[sym] = _profile(shape, mag(m), lo, hi, ripple=ripple)
             for sq, v in _SQUARENESS.items():

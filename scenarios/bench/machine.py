@@ -25,7 +25,7 @@ def run(n: int = 20000) -> dict:
 
     cfg = MACHINES["nmv3000"]()
     m = Machine(cfg)
-    m = m.with_errors(realistic_errors(m.chain.axes, strokes=cfg.strokes, rng=np.random.default_rng(0)))
+    m = m.with_errors(realistic_errors(m.chain.axes, strokes=cfg.strokes, J_m=cfg.J_m, rng=np.random.default_rng(0)))
     rng = np.random.default_rng(1)
     lin = np.column_stack([rng.uniform(*cfg.strokes[a], n) for a in "XYZ"])
     rot = np.column_stack([rng.uniform(*cfg.strokes[a], n) for a in m.rotary_axes])

@@ -584,7 +584,7 @@ def kinematics_figures(n: int = 20000) -> dict:
 
     cfg = MACHINES["nmv3000"]()
     m = Machine(cfg)
-    m = m.with_errors({k: f for k, f in realistic_errors(m.chain.axes, strokes=cfg.strokes,
+    m = m.with_errors({k: f for k, f in realistic_errors(m.chain.axes, strokes=cfg.strokes, J_m=cfg.J_m,
                                                          rng=np.random.default_rng(0)).items()
                        if not (k.endswith(("0C", "0A")))})  # the tight chain leaves the rotary lines out
     rng = np.random.default_rng(1)
@@ -629,7 +629,8 @@ def _mfb_machine():
     from sim.machines import MACHINES, realistic_errors
 
     cfg = MACHINES["mikron-ucp710"]()
-    return Machine(MACHINES["mikron-ucp710"](errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)))
+    return Machine(MACHINES["mikron-ucp710"](errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes,
+                                                                     J_m=cfg.J_m)))
 
 
 def touch_figures() -> dict:

@@ -20,7 +20,8 @@ def run() -> dict:
     from sim.probe import ProbeConfig
 
     cfg = MACHINES["mikron-ucp710"]()
-    m = Machine(MACHINES["mikron-ucp710"](errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)))
+    m = Machine(MACHINES["mikron-ucp710"](errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes,
+                                                                  J_m=cfg.J_m)))
     rng = np.random.default_rng(1)
     simulate_campaign("cross-pocket", m, ProbeConfig(), [0.0], rng, check_collisions=False)  # warm-up
     t0 = time.perf_counter()

@@ -153,7 +153,7 @@ def test_spec_subgrid_is_the_generators_bound():
     assert set(spec) == {"EXX", "EYY", "ECY"}
     cfg = M["nmv3000"]()
     for sd in range(20):
-        errs = realistic_errors(("X", "Y", "Z", "C"), strokes=cfg.strokes, rng=np.random.default_rng(sd))
+        errs = realistic_errors(("X", "Y", "Z", "C"), strokes=cfg.strokes, J_m=cfg.J_m, rng=np.random.default_rng(sd))
         for t, (a, p) in spec.items():
             rip = errs[t].terms[1]
             assert rip.period == p and 0.5 * a - 1e-18 <= rip.amplitude <= a + 1e-18

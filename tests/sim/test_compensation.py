@@ -89,7 +89,7 @@ def test_direction_picks_the_column_and_idle_is_stated():
 def _on_node_errors(cfg, nodes):
     """21 errors the tables represent exactly: C2 splines through the realistic
     profiles at the nodes (not-a-knot, end tangents), and the squarenesses."""
-    errs = realistic_errors(("X", "Y", "Z"), strokes=cfg.strokes, ripple=False)
+    errs = realistic_errors(("X", "Y", "Z"), strokes=cfg.strokes, J_m=cfg.J_m, ripple=False)
     out = {}
     for s, f in errs.items():
         sy = iso.symbol(s)

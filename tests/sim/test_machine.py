@@ -31,7 +31,7 @@ def _poses(cfg, rot_axes, n, rng):
 def _realistic(name, rng=None):
     cfg = MACHINES[name]()
     m = Machine(cfg)
-    return m.with_errors(realistic_errors(m.chain.axes, strokes=cfg.strokes, rng=rng))
+    return m.with_errors(realistic_errors(m.chain.axes, strokes=cfg.strokes, J_m=cfg.J_m, rng=rng))
 
 
 def test_docstring_example_runs():
@@ -66,7 +66,8 @@ def test_nominal_T_R_W_without_the_machine_is_the_machines():
 
     rng = np.random.default_rng(3)
     cfg = MACHINES["mikron-ucp710"](rotary_points_R_m={"A": (0.0, 0.01, -0.12), "C": (0.003, -0.02, 0.0)})
-    cfg = dataclasses.replace(cfg, errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes, rng=rng))
+    cfg = dataclasses.replace(cfg, errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes,
+                                                           J_m=cfg.J_m, rng=rng))
     rot = rng.uniform(-1.5, 1.5, (7, 2))
     m = Machine(cfg)
     for args in ((rot,), (rot[:1],), (None,), (rot, rng.uniform(-0.2, 0.2, (7, 3)))):
@@ -199,7 +200,7 @@ def test_first_order_agrees_with_mfb_eqs_10_12(rng):
     most (sum|angles|)^2 * L + (sum|angles|) * (sum|translations|), L the
     largest arm from a pivot to the tip (< 1 m here)."""
     cfg = MACHINES["mikron-ucp710"](J_m=(0.02, -0.015, 0.15))
-    m = Machine(cfg).with_errors(realistic_errors(("X", "Y", "Z"), strokes=cfg.strokes, rng=rng))
+    m = Machine(cfg).with_errors(realistic_errors(("X", "Y", "Z"), strokes=cfg.strokes, J_m=cfg.J_m, rng=rng))
     lin, rot = _poses(cfg, ("A", "C"), 200, rng)
     geom = m.geometry()
     T = m.T_R_W_nominal(rot)
@@ -223,7 +224,7 @@ def test_first_order_agrees_with_mfb_eqs_10_12(rng):
 # (d) Jacobians against finite differences of the truth ------------------------
 def test_sensitivity_matches_finite_differences_of_sim(rng):
     cfg = MACHINES["nmv3000"]()
-    errs = realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)
+    errs = realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes, J_m=cfg.J_m)
     m = Machine(cfg).with_errors(errs)
     lin, rot = _poses(cfg, m.rotary_axes, 5, rng)
     syms = ("EXX", "EBX", "ECY", "EC0Y", "EB0Z", "EAZ", "EX0C", "EA0C", "ECC", "EYA", "EB0A")
@@ -237,7 +238,7 @@ def test_sensitivity_matches_finite_differences_of_sim(rng):
 
 def test_axis_jacobian_with_error_slopes_matches_sim(rng):
     cfg = MACHINES["mikron-ucp710"]()
-    errs = realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)
+    errs = realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes, J_m=cfg.J_m)
     m = Machine(cfg).with_errors(errs)
     lin, rot = _poses(cfg, m.rotary_axes, 5, rng)
     geom = m.geometry()
@@ -288,7 +289,7 @@ def test_c_axis_offset_moves_the_part():
 
 def test_realistic_errors_magnitudes():
     cfg = MACHINES["mikron-ucp710"]()
-    e = realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)
+    e = realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes, J_m=cfg.J_m)
     x = np.linspace(*cfg.strokes["X"], 201)
     assert 35e-6 < np.ptp(e["EXX"](x)) < 40e-6
     assert np.abs(e["EYX"](x)).max() <= 3e-6 and np.abs(e["EBX"](x)).max() <= 100e-6
@@ -296,6 +297,93 @@ def test_realistic_errors_magnitudes():
     assert e["EX0C"].value == 15e-6 and e["EY0C"].value == 6e-6
     r = realistic_errors(("X",), rng=np.random.default_rng(3))
     assert 19e-6 <= np.ptp(r["EXX"](np.linspace(-0.355, 0.355, 11))) <= 40e-6
+
+
+#: The paper magnitude's peak-to-peak of each profile shape (sim.machines._LINEAR): "lin" ramps 0..mag, "bow" rises
+#: 0..mag..0, "s" is mag sin(2 pi u), -mag..mag.
+_PP = {"lin": 1.0, "bow": 1.0, "s": 2.0}
+
+
+def _smooth(f):
+    from sim.machinefile import strip_ripple
+
+    return strip_ripple(f)
+
+
+@pytest.mark.parametrize("name", sorted(MACHINES))
+def test_realistic_profiles_lie_over_the_axis_positions_the_strokes_allow(name):
+    """Each linear axis's realistic profile (sim.machinefile.truth_machine's set, the CLI's) is laid over the
+    axis positions its stroke allows, stroke + the reference tool's J (docs/formats.md, "Strokes"; errors are
+    functions of q = reading + J): over them its peak-to-peak is the paper's magnitude (to 1e-4 relative:
+    the 9-node spline through a sine peaks 9e-6 above its nodes, measured) and every spline's table spans
+    exactly them, so no reachable position runs on an end-tangent extension. Before session 28 the tables
+    were laid over the strokes as readings: on the Mikron EAZ's bow read 46.7 urad p-p over the Z axis
+    positions (paper 20), 150 mm beyond its table."""
+    from sim.errorfuncs import SplineTable
+    from sim.machinefile import truth_machine
+    from sim.machines import _LINEAR
+
+    cfg = truth_machine(name, "realistic").config
+    for j, a in enumerate("XYZ"):
+        lo, hi = cfg.strokes[a][0] + cfg.J_m[j], cfg.strokes[a][1] + cfg.J_m[j]
+        q = np.linspace(lo, hi, 2001)
+        for sym, shape, mag in _LINEAR[a]:
+            f = _smooth(cfg.errors[sym])
+            assert np.ptp(f(q)) == pytest.approx(_PP[shape] * mag, rel=1e-4), (name, sym)
+            if isinstance(f, SplineTable):
+                assert f.pos[0] == pytest.approx(lo, abs=1e-15) and f.pos[-1] == pytest.approx(hi, abs=1e-15)
+            else:  # "lin": 0 at the stroke's low end as an axis position
+                assert f(np.array([lo]))[0] == pytest.approx(0.0, abs=1e-18), (name, sym)
+
+
+@pytest.mark.parametrize("plan_name", ["plan_3axis", "plan_5axis"])
+def test_realistic_profiles_cover_the_positions_an_mfb_campaign_reaches(plan_name):
+    """Over every axis position the MFB plans command (touches, approach starts, overshoot ends, links; q =
+    reading + the measurement's stylus J, scenarios.mfb.program_positions) each linear-axis profile of the
+    scenario's truth (scenarios.mfb.default_machine) stays within its table's nodes and within the paper's
+    peak-to-peak (1e-4 relative: the spline's overshoot above its nodes, as above). Before session 28 the
+    3-axis plan put Z at 543.8 mm, 143.8 mm past the vmc's Z tables' 400 mm (EAZ 20 -> 45.4 urad p-p, EYZ 3
+    -> 6.8 um over the positions it reaches); the 5-axis plan (refitted to its node box in session 27)
+    stayed within them (Z 72-393 mm)."""
+    from sim.errorfuncs import SplineTable
+    from sim.machine import nominal_T_R_W
+    from sim.machines import _LINEAR
+    from scenarios import mfb
+
+    plan = getattr(mfb, plan_name)()
+    _, errs = mfb.default_machine(plan.machine)
+    cfg = MACHINES[plan.machine]()
+    art, program = mfb._nominal_bar(), mfb._program(mfb.U_PLACE)
+    qs = []
+    for ms in plan.measurements:
+        rot = np.asarray([ms.rot_rad], float) if len(ms.rot_rad) else None
+        T_R_W = np.asarray(nominal_T_R_W(cfg, rot), float).reshape(-1, 4, 4)[0]
+        pl = mfb._plan_for(art, ms.holes, **program)
+        pos = mfb.program_positions(T_R_W @ ms.T_W_A, pl, 3.0e-3, art)
+        qs.append(np.concatenate([np.asarray(P, float).reshape(-1, 3) for P in pos.values()]) + np.asarray(ms.J_m))
+    q = np.concatenate(qs)
+    for j, a in enumerate("XYZ"):
+        for sym, shape, mag in _LINEAR[a]:
+            f = errs[sym]
+            if isinstance(f, SplineTable):
+                assert f.pos[0] <= q[:, j].min() and q[:, j].max() <= f.pos[-1], (plan_name, sym)
+            assert np.ptp(f(q[:, j])) <= _PP[shape] * mag * (1 + 1e-4), (plan_name, sym)
+
+
+def test_realistic_errors_refuse_strokes_without_their_reference_tool():
+    """Strokes are written in the reference tool's readings: without its J the axis positions they allow are
+    unknown (a silent default would lay a custom machine's tables 150 mm off); a bad J is named."""
+    cfg = MACHINES["vmc-3axis"]()
+    with pytest.raises(ConfigError, match="strokes given without J_m"):
+        realistic_errors(("X",), strokes=cfg.strokes)
+    for bad in ((0.0, 0.0), (0.0, 0.0, float("nan"))):
+        with pytest.raises(ConfigError, match="J_m must be 3 finite values"):
+            realistic_errors(("X",), strokes=cfg.strokes, J_m=bad)
+    # J_m = 0: strokes already in axis positions; the Z tables then lie over the strokes as they are
+    e = realistic_errors(("Z",), strokes=cfg.strokes, J_m=(0.0, 0.0, 0.0))
+    assert e["EAZ"].pos[0] == cfg.strokes["Z"][0] and e["EAZ"].pos[-1] == cfg.strokes["Z"][1]
+    e = realistic_errors(("Z",), strokes=cfg.strokes, J_m=cfg.J_m)
+    assert e["EAZ"].pos[0] == cfg.strokes["Z"][0] + 0.150 and e["EAZ"].pos[-1] == cfg.strokes["Z"][1] + 0.150
 
 
 def test_realistic_errors_draw_each_screws_ripple_phase_from_the_seed():
@@ -310,8 +398,8 @@ def test_realistic_errors_draw_each_screws_ripple_phase_from_the_seed():
     axes = ("X", "Y", "Z", "A", "C")
     phases = []
     for seed in (3, 4):
-        e = realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(seed))
-        smooth = realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(seed), ripple=False)
+        e = realistic_errors(axes, strokes=cfg.strokes, J_m=cfg.J_m, rng=np.random.default_rng(seed))
+        smooth = realistic_errors(axes, strokes=cfg.strokes, J_m=cfg.J_m, rng=np.random.default_rng(seed), ripple=False)
         ph = {}
         for k, f in e.items():
             if k[2] in "XYZ" and isinstance(f, Sum):
@@ -326,11 +414,11 @@ def test_realistic_errors_draw_each_screws_ripple_phase_from_the_seed():
         assert len({ph["EXX"], ph["EYY"], ph["EZZ"]}) == 3 and all(0.0 < v < 2 * np.pi for v in ph.values())
         phases.append(ph["EXX"])
     assert phases[0] != phases[1]
-    again = realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(3))
+    again = realistic_errors(axes, strokes=cfg.strokes, J_m=cfg.J_m, rng=np.random.default_rng(3))
     assert again["EXX"].terms[1].phase == phases[0]        # deterministic per seed
-    nominal = realistic_errors(axes, strokes=cfg.strokes)
+    nominal = realistic_errors(axes, strokes=cfg.strokes, J_m=cfg.J_m)
     assert nominal["EXX"].terms[1].phase == 0.0
-    pinned = realistic_errors(axes, strokes=cfg.strokes, rng=np.random.default_rng(3), ripple_phase=0.0)
+    pinned = realistic_errors(axes, strokes=cfg.strokes, J_m=cfg.J_m, rng=np.random.default_rng(3), ripple_phase=0.0)
     assert {pinned[k].terms[1].phase for k in ("EXX", "EBX", "EYY", "ECY", "EZZ", "EBZ")} == {0.0}
     assert pinned["EXX"].terms[1].amplitude == again["EXX"].terms[1].amplitude
 

@@ -84,7 +84,7 @@ thermal = { offset_um_per_h = 2.0, scale_ppm_per_h = 1.0 }
 def test_realistic_with_seed_is_the_seeded_set():
     spec = loads('base = "mikron-ucp710"\nerrors = "realistic"\nseed = 7\nripple = false\n')
     cfg = MACHINES["mikron-ucp710"]()
-    want = realistic_errors(("A", "C", "X", "Y", "Z"), strokes=cfg.strokes, rng=np.random.default_rng(7),
+    want = realistic_errors(("A", "C", "X", "Y", "Z"), strokes=cfg.strokes, J_m=cfg.J_m, rng=np.random.default_rng(7),
                             ripple=False)
     lin = np.array([[0.1, -0.05, 0.2]])
     rot = np.array([[0.3, 1.0]])

@@ -145,7 +145,8 @@ def test_real_machine_campaign(tmp_path, rng):
     from sim.machines import MACHINES, realistic_errors
 
     cfg = MACHINES["nmv3000"]()
-    m = Machine(MACHINES["nmv3000"](errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes)))
+    m = Machine(MACHINES["nmv3000"](errors=realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes,
+                                                            J_m=cfg.J_m)))
     log = simulate_campaign("cross-pocket", m, ProbeConfig.ibaraki(), [0, 75, 130, 210], rng)
     assert log.meta["kinematic_chain"] == cfg.chain and log.meta["machine"] == "nmv3000"
     t = from_log(read_probe_log(write_probe_log(tmp_path / "r.csv", log)))
@@ -178,7 +179,7 @@ def drifting_mikron():
     from sim.machines import MACHINES, realistic_errors
 
     cfg = MACHINES["mikron-ucp710"]()
-    err = dict(realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes))
+    err = dict(realistic_errors(("X", "Y", "Z", "A", "C"), strokes=cfg.strokes, J_m=cfg.J_m))
     err["EXX"] = err["EXX"] + Drift(offset_rate=2e-9, scale_rate=1e-10)
     err["EYY"] = err["EYY"] + Reversal(3e-6)
     return Machine(MACHINES["mikron-ucp710"](errors=err))

@@ -119,7 +119,7 @@ def test_realistic_errors_agree_with_core_model(vmc):
     """All 21 realistic errors (Abbe offsets at the measuring line included),
     sim's Pinocchio chain against core's own transform product."""
     cfg = MACHINES["vmc-3axis"]()
-    m = vmc.with_errors(realistic_errors(("X", "Y", "Z"), strokes=cfg.strokes))
+    m = vmc.with_errors(realistic_errors(("X", "Y", "Z"), strokes=cfg.strokes, J_m=cfg.J_m))
     for axis in "XYZ":
         plan = positioning_plan(m, axis, n_targets=7, cycles=2, rng=np.random.default_rng(3))
         s = schedule(plan)
@@ -138,7 +138,7 @@ def test_realistic_errors_agree_with_core_model(vmc):
 
 def test_pilgrim_equals_linear_when_nothing_depends_on_time():
     cfg = MACHINES["vmc-3axis"]()
-    m = Machine(MACHINES["vmc-3axis"](errors=realistic_errors(("X", "Y", "Z"), strokes=cfg.strokes)))
+    m = Machine(MACHINES["vmc-3axis"](errors=realistic_errors(("X", "Y", "Z"), strokes=cfg.strokes, J_m=cfg.J_m)))
     kw = dict(n_targets=6, cycles=3)
     a = iso230_2(simulate_positioning(m, positioning_plan(m, "Y", **kw), np.random.default_rng(0)))
     b = iso230_2(simulate_positioning(m, positioning_plan(m, "Y", cycle_kind="pilgrim", **kw),
