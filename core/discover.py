@@ -8635,17 +8635,17 @@ NAMED_ALTERNATIVE_SHIFT_CARRIED = False
 #: lobes need odds, not only a small p_turned").
 RICHER_NEEDS_ODDS = True
 #: A named cause hedged because a richer catalogue cause that nests it is significant beyond it or cannot be
-#: excluded (step 8's ``evidence.richer``: lobes turned per set-up beside fixed lobes, seen but not material, or a
-#: turn this design could have missed, ``p_turned`` or the odds): the extended workpiece refitted with the richer cause's added columns
-#: (:attr:`core.causes.Cause.richer_columns`) beside the named ones, its shift from the named reading tested by
-#: :func:`_unnamed_shift` against its own scatter and, where real, carried in the extended U95 as ``D D^T / 4``
-#: (:func:`_workpiece`'s ``richer``; the report's ``workpiece_shift_richer``). The name is a model choice the report
-#: itself doubts: the richer fit nests the named one (unlike a rival of the same richness, whose fit may be
-#: degenerate: :data:`NAMED_ALTERNATIVE_SHIFT_CARRIED`), so its workpiece is consistent under either truth and
-#: the shift is the named reading's bias where the richer cause is the truth; where the richer cause is absent the
-#: shift is noise, carried in a share alpha of campaigns (the test's level). False: the U95 of the named model
-#: alone (before session 28; simulator lobing_per_setup 6403 and tuning twin 4086 missed their checks by 1 %).
-#: Set by session 28 (docs/discovery.md, "Session 28: the richer cause's shift carried in the extended U95").
+#: excluded (step 8's ``evidence.richer``: lobes turned per set-up against fixed lobes, seen but not material, or a
+#: turn the design could have missed, by ``p_turned`` or the odds): the extended workpiece refitted with the richer
+#: cause's columns (:attr:`core.causes.Cause.richer_columns`, their determined combinations) in the named one's
+#: place, its shift from the named reading tested by :func:`_unnamed_shift` against its own scatter and, where real,
+#: carried in the extended U95 as ``D D^T / 4`` (:func:`_workpiece`'s ``richer``; the report's
+#: ``workpiece_shift_richer`` and a convention line). The richer fit nests the named one (unlike a rival of the same
+#: richness, whose fit may be degenerate: :data:`NAMED_ALTERNATIVE_SHIFT_CARRIED`), so a real shift is the named
+#: reading's bias if the richer cause is the truth, a model choice the report itself doubts. False: the U95 of the
+#: named model alone (before session 28: simulator lobing_per_setup 6403 and its tuning twin 4086 missed their
+#: workpiece checks by 1 %). Session 28 (docs/discovery.md, "Session 28: the richer cause's workpiece shift
+#: carried in the extended U95").
 RICHER_SHIFT_CARRIED = True
 #: Outliers whose target has touches kept, reading less material than the fit there, doubted whatever the report
 #: calls them (:func:`_workpiece`'s ``beside_kept``): the removal's shift tested and carried as the form's.
@@ -8725,17 +8725,18 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     add (their names are separate choices). Only where no term is penalised (a smooth's or a penalised
     cause's shift is carried by its own test).
 
-    ``richer`` (optional): ``{cause: (richer cause, build)}``, ``build()`` the (n, m) columns a richer
-    catalogue cause adds beyond the named one's (:attr:`core.causes.Cause.richer_columns`), for a named
-    cause hedged because the richer one is significant beyond it or not excluded (:data:`RICHER_SHIFT_CARRIED`). Tested
-    and carried as an alternative is, with the richer columns added beside the named cause's (the richer
-    model nests the named one: its fit is the named one's freed, not a rival's) and gauged as the
-    alternative's columns are; the figures carry ``richer = True``. The richer fit's workpiece is
-    consistent whichever of the two is the truth, so a real shift is the named reading's bias where the
-    richer cause is true, a model choice the data do not settle (significant, not material): carried as
-    ``D D^T / 4`` like the alternatives' (u = ``|D| / 2``, the U95 at k = 2 reaching the richer reading
-    at every target), not as a bias added to the U95 (``|D|`` linearly), which would count the richer
-    cause as the truth the report did not name.
+    ``richer`` (optional): ``{cause: (richer cause, build)}``, ``build()`` the (n, m) columns of a richer
+    catalogue cause that nests the named one (:attr:`core.causes.Cause.richer_columns`), the combinations
+    the data determine beside the other terms (:func:`_determined`, as a cause is adopted; None where
+    confounded), for a named cause hedged because the richer one is significant beyond it or cannot be
+    excluded (:data:`RICHER_SHIFT_CARRIED`). Tested and carried as an alternative is, in the named cause's
+    place; the figures carry ``richer = True``. Both readings are under the engine's one convention (the
+    determined combinations; the richer columns refitted as the fixed lobes alone shift nothing,
+    session 28), so the shift is the model's: the richer fit nests the named one, its workpiece consistent
+    whichever of the two is the truth, and a real shift is the named reading's bias if the richer cause is
+    true, a model choice the report itself doubts. Carried as ``D D^T / 4`` like the alternatives' (u =
+    ``|D| / 2``: the U95 at k = 2 reaches the richer reading at every target), not as a bias bound added
+    linearly (``U95 + |D|``), which would take the richer cause for the truth the report did not name.
 
     ``named`` (optional dict): filled with ``{cause: figures}`` of the alternatives' (and the richer
     causes') tests.
