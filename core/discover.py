@@ -8645,7 +8645,7 @@ RICHER_NEEDS_ODDS = True
 #: reading's bias if the richer cause is the truth, a model choice the report itself doubts. False: the U95 of the
 #: named model alone (before session 28: simulator lobing_per_setup 6403 and its tuning twin 4086 missed their
 #: workpiece checks by 1 %). Measured on 2,540 tuning campaigns (simulator, gen_a, gen_b, gen_c): no cause changed,
-#: workpiece failures 3 -> 2 (on the simulator 1 -> 0 4086: U95 0.310 -> 0.649), the U95 grown on 97 campaigns
+#: workpiece failures 3 -> 2 (on the simulator 1 -> 0: 4086, U95 0.310 -> 0.649), the U95 grown on 97 campaigns
 #: (simulator 91: mean x1.11, max x2.09), none of them needlessly wide (error < U95 / 3). Session 28
 #: (docs/discovery.md, "Session 28: the richer cause's workpiece shift carried in the extended U95").
 RICHER_SHIFT_CARRIED = True
