@@ -55,7 +55,11 @@ baseline's design (:class:`core.baseline.Baseline`). A record says
   (``log10_odds_fixed``, a Bayes factor); the engine names the cause
   ``ambiguous`` with the richer one when that is significant or cannot be
   excluded (:func:`turned_lobes`: fixed lobes against lobes turned per
-  set-up);
+  set-up); ``richer_columns(baseline, info=trial) -> (n, m)``: the columns
+  the richer cause adds beyond this one's, on every row (the engine refits
+  the extended workpiece with them where the richer cause is significant
+  beyond this one: :data:`core.discover.RICHER_SHIFT_CARRIED`;
+  :func:`turned_lobe_columns`);
 - ``smooth(baseline) -> (n, m)``: for a cause confined in a covariate (a
   local defect), the same error as a smooth function over the covariate's
   whole range (:func:`smooth_error_map`). A confined cause is refused,
@@ -188,6 +192,7 @@ class Cause:
     gradual: bool = False
     richer: Callable | None = None
     richer_cause: str | None = None
+    richer_columns: Callable | None = None
     smooth: Callable | None = None
     support: Callable | None = None
     #: the cause's columns are fitted with a ridge penalty chosen by the held-out mean square (a field of many
@@ -1238,6 +1243,31 @@ def turned_lobes(bl, Q, yr: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigm
     return {**out, "beyond_ss_um2": ss / UM ** 2, "F": float(F), "p_value": p,
             "p_turned": float((1 + np.sum(sim <= obs)) / (draws + 1)),
             "turned_ss_um2": float(np.median(size)) / UM ** 2, **_fixed_odds(lam, sigma, obs)}
+
+
+def turned_lobe_columns(bl, info: dict | None = None) -> np.ndarray:
+    """(n, 8 + 2 len(:data:`TURN_HARMONICS`) S) dense: the model :func:`turned_lobes` tests fixed lobes against.
+
+    The fixed lobes' columns (:func:`common_lobing`, harmonics 1-4) and
+    beside them the columns :func:`turned_lobes` tests beyond them (``cos k
+    phi``, ``sin k phi`` per set-up, k in :data:`TURN_HARMONICS`, a node's
+    rounding zero: :func:`_per_setup_lobes`), both in the fixed lobes' trial
+    ``info``'s reading of the pre-travel (:func:`pretravel_weight`), on all
+    of the baseline's rows (the engine picks its rows): lobes turned per
+    set-up with the first harmonic (a probe offset, common) kept, which
+    nests the fixed lobes exactly (:attr:`Cause.richer_columns`). Redundant
+    (the per-set-up columns sum to the fixed ones): the engine takes the
+    combinations the data determine (``core.discover._determined``). Dense:
+    the engine refits the extended workpiece with them beside the
+    baseline's dense design (``core.discover._workpiece``; 4 set-ups, 32
+    columns on the simulator).
+    """
+    t = bl.data.touches
+    setup = np.asarray(t.setup)
+    w = pretravel_weight(bl, info)
+    U = _per_setup_lobes(setup, np.unique(setup), np.asarray(bl.data.azimuth, float), TURN_HARMONICS,
+                         None if w is None else w).toarray()
+    return np.hstack([common_lobing(bl, info), U])
 
 
 def _fixed_odds(lam: np.ndarray, sigma: float, obs: float) -> dict:
@@ -2508,7 +2538,8 @@ REGISTRY = (
           counter_scan=fixture_slip, norms=periodic_norms, circular={"E*_phase_rad": 2 * np.pi}),
     Cause("probe_lobing", ("planar",), "probe", lobing_scans, lobing_magnitudes,
           {"pretravel_variation_pv_um": (0, 50)}, rival=lobing_rival, counter_scan=fixture_slip,
-          richer=turned_lobes, richer_cause="lobing_per_setup", norms=lobing_norms),
+          richer=turned_lobes, richer_cause="lobing_per_setup", richer_columns=turned_lobe_columns,
+          norms=lobing_norms),
     Cause("lobing_per_setup", ("planar",), "probe", unoriented_scans, unoriented_magnitudes,
           {"amplitude_um": (0, 50)}, plausible=unoriented_plausible, counter=common_lobing, counter_scan=fixture_slip,
           counter_cause="probe_lobing"),

@@ -3427,17 +3427,22 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                                                    fo.evidence.get("confidence") == "ambiguous") else None
     # the named causes' alternatives under another name (their columns; never in the report)
     alt_cols = {f.cause: f.evidence.pop("_alt_columns") for f in findings if "_alt_columns" in f.evidence}
+    # the richer causes significant beyond a named one (RICHER_SHIFT_CARRIED): their added columns, built on demand
+    richer_cols = {f.cause: f.evidence.pop("_richer_columns") for f in findings if "_richer_columns" in f.evidence}
     # outliers that share their target with touches kept (the screen chose which of the target's touches are the
     # part's): those reading less material than the fit are no particle (:func:`_workpiece`'s ``beside_kept``)
     shared = _outliers_beside_kept(bl, outliers, rows) if OUTLIER_BELOW_KEPT and outliers.size else None
     named_shift = {}
     wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(
         bl, terms, y, rows, st0, st, settings.alpha_family, form if form is not None and form.size else None,
-        alternatives=alt_cols if NAMED_ALTERNATIVE_SHIFT_CARRIED else None, beside_kept=shared, named=named_shift)
+        alternatives=alt_cols if NAMED_ALTERNATIVE_SHIFT_CARRIED else None, beside_kept=shared, named=named_shift,
+        richer=richer_cols or None)
     if named_shift:
         for f in findings:
             if f.cause in named_shift:
-                f.evidence["workpiece_shift_alternative"] = _clean(named_shift[f.cause])
+                fig = named_shift[f.cause]
+                f.evidence["workpiece_shift_richer" if fig.get("richer") else "workpiece_shift_alternative"] = \
+                    _clean({k: v for k, v in fig.items() if k != "richer"})
     if shift is not None and shift.get("of") == "outliers":
         fo.evidence["workpiece_shift"] = _clean({k: v for k, v in shift.items() if k not in ("of", "beside")})
     res_e = np.full(N, np.nan)
@@ -3493,6 +3498,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                         f"real, and the split of {split} "
                         "assumption: the extended U95 carries the shift (u = |shift| / 2 per target)"
                         if shift["carried_in_u95"] else "within the noise the extended U95 already carries"))
+    for c, fig in named_shift.items():
+        if fig.get("richer") and fig["carried_in_u95"]:
+            conv.append(f"{fig['alternative']}, richer than {c} and not excluded beside it, moves the workpiece by "
+                        f"{fig['shift_rms_um']:.3g} um RMS (form only) from {c}'s reading, {fmt_p(fig['p'])} against "
+                        f"its own scatter: real, and {c} a choice the data doubt: the extended U95 carries the "
+                        "shift (u = |shift| / 2 per target)")
     lost = [w["target"] for w in wp if w["baseline_um"] is not None and w["extended_um"] is None]
     if lost:
         conv.append(f"extended workpiece not reported at {len(lost)} target(s) (e.g. {lost[0]}): the data alone "
@@ -7937,6 +7948,16 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                                f"{rich['dof']} directions tell them apart; {1 / settings.alpha:.3g} needed): the data "
                                "cannot exclude it")
                     ev["ambiguous_with"] = list(ev.get("ambiguous_with", [])) + [cause.richer_cause]
+                    if RICHER_SHIFT_CARRIED and cause.richer_columns is not None:
+                        # the richer cause's columns, the combinations the data determine beside the other terms
+                        # (as the engine adopts a cause: _determined), built only if the extended workpiece is
+                        # refitted with them in this cause's place (_workpiece's richer; they leave the evidence
+                        # there); None where they are confounded with the model
+                        def _richer_cols(c=cause.richer_columns, i=tm.info, Q=so.Q, pen=_pen_of(others, rows)):
+                            B = c(bl, info=i)
+                            M = _determined(Q, B[rows], settings.vif_max, pen)[0]
+                            return B @ M if M.shape[1] else None
+                        ev["_richer_columns"] = (cause.richer_cause, _richer_cols)
         if cause.gradual:
             talt = _time_alternatives(bl, tm, so, sig, settings)
             if talt:
@@ -8613,6 +8634,21 @@ NAMED_ALTERNATIVE_SHIFT_CARRIED = False
 #: of 4000-4099 hedged too, no cause changed on 1,235 tuning campaigns; docs/discovery-studies.md, "Session 27: fixed
 #: lobes need odds, not only a small p_turned").
 RICHER_NEEDS_ODDS = True
+#: A named cause hedged because a richer catalogue cause that nests it is significant beyond it or cannot be
+#: excluded (step 8's ``evidence.richer``: lobes turned per set-up against fixed lobes, seen but not material, or a
+#: turn the design could have missed, by ``p_turned`` or the odds): the extended workpiece refitted with the richer
+#: cause's columns (:attr:`core.causes.Cause.richer_columns`, their determined combinations) in the named one's
+#: place, its shift from the named reading tested by :func:`_unnamed_shift` against its own scatter and, where real,
+#: carried in the extended U95 as ``D D^T / 4`` (:func:`_workpiece`'s ``richer``; the report's
+#: ``workpiece_shift_richer`` and a convention line). The richer fit nests the named one (unlike a rival of the same
+#: richness, whose fit may be degenerate: :data:`NAMED_ALTERNATIVE_SHIFT_CARRIED`), so a real shift is the named
+#: reading's bias if the richer cause is the truth, a model choice the report itself doubts. False: the U95 of the
+#: named model alone (before session 28: simulator lobing_per_setup 6403 and its tuning twin 4086 missed their
+#: workpiece checks by 1 %). Measured on 2,540 tuning campaigns (simulator, gen_a, gen_b, gen_c): no cause changed,
+#: workpiece failures 3 -> 2 (on the simulator 1 -> 0: 4086, U95 0.310 -> 0.649), the U95 grown on 97 campaigns
+#: (simulator 91: mean x1.11, max x2.09), none of them needlessly wide (error < U95 / 3). Session 28
+#: (docs/discovery.md, "Session 28: the richer cause's workpiece shift carried in the extended U95").
+RICHER_SHIFT_CARRIED = True
 #: Outliers whose target has touches kept, reading less material than the fit there, doubted whatever the report
 #: calls them (:func:`_workpiece`'s ``beside_kept``): the removal's shift tested and carried as the form's.
 #: False (kept, session 22): measured on, it raised the covering U95 of 65 of gen_b outlier 1000-1099's 93
@@ -8652,7 +8688,7 @@ def _outliers_beside_kept(bl: Baseline, outliers, rows) -> np.ndarray:
 
 
 def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubted=None, alternatives=None,
-               beside_kept=None, named=None):
+               beside_kept=None, named=None, richer=None):
     """Estimand per id for the baseline and the extended model, with U95 (k = 2).
 
     Beside an unnamed smooth the extended U95 carries the workpiece shift
@@ -8691,7 +8727,21 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     add (their names are separate choices). Only where no term is penalised (a smooth's or a penalised
     cause's shift is carried by its own test).
 
-    ``named`` (optional dict): filled with ``{cause: figures}`` of the alternatives' tests.
+    ``richer`` (optional): ``{cause: (richer cause, build)}``, ``build()`` the (n, m) columns of a richer
+    catalogue cause that nests the named one (:attr:`core.causes.Cause.richer_columns`), the combinations
+    the data determine beside the other terms (:func:`_determined`, as a cause is adopted; None where
+    confounded), for a named cause hedged because the richer one is significant beyond it or cannot be
+    excluded (:data:`RICHER_SHIFT_CARRIED`). Tested and carried as an alternative is, in the named cause's
+    place; the figures carry ``richer = True``. Both readings are under the engine's one convention (the
+    determined combinations; the richer columns refitted as the fixed lobes alone shift nothing,
+    session 28), so the shift is the model's: the richer fit nests the named one, its workpiece consistent
+    whichever of the two is the truth, and a real shift is the named reading's bias if the richer cause is
+    true, a model choice the report itself doubts. Carried as ``D D^T / 4`` like the alternatives' (u =
+    ``|D| / 2``: the U95 at k = 2 reaches the richer reading at every target), not as a bias bound added
+    linearly (``U95 + |D|``), which would take the richer cause for the truth the report did not name.
+
+    ``named`` (optional dict): filled with ``{cause: figures}`` of the alternatives' (and the richer
+    causes') tests.
 
     Returns (rows of the report, identifiable, G_b, G_e, cov_b, cov_e, shift),
     ``shift`` the test's figures (None without an unnamed smooth).
@@ -8764,14 +8814,20 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
         if sh2 is not None and sh2["carried_in_u95"]:
             ce, shift = ce2, dict(sh2, of="outliers", beside=shift)  # (the smooth's figures kept for the report)
     named = {} if named is None else named
-    if alternatives and P is None and isinstance(ce, np.ndarray):
+    if (alternatives or richer) and P is None and isinstance(ce, np.ndarray):
         Le_map, s2e = (lin_e[0], lin_e[1]) if need_maps else \
             _constrained(A1, y, C1, d1, rows, None, E.shape[1], linear_map=True)[3:]
         o = 0
         for t in terms:
             k = t.map.shape[1] if t.map is not None else t.columns.shape[1]
             best = None
-            for other, B in alternatives.get(t.cause, ()):
+            # each reading takes the named cause's place: an alternative's columns, a richer cause's (built here)
+            readings = [(other, B, False) for other, B in (alternatives or {}).get(t.cause, ())]
+            if t.cause in (richer or {}):
+                B = richer[t.cause][1]()
+                if B is not None and B.shape[1]:
+                    readings.append((richer[t.cause][0], B, True))
+            for other, B, nests in readings:
                 Ea = np.hstack([E[:, :o], B, E[:, o + k:]])
                 Aa = np.hstack([A0, Ea])
                 Ca = np.hstack([bl.C, np.zeros((bl.C.shape[0], Ea.shape[1]))])
@@ -8788,7 +8844,7 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
                                            alpha)
                 if fig is None:
                     continue
-                fig = dict(fig, alternative=other)
+                fig = dict(fig, alternative=other, **({"richer": True} if nests else {}))
                 if best is None or (fig["carried_in_u95"], fig["shift_rms_um"]) > (best[1]["carried_in_u95"],
                                                                                    best[1]["shift_rms_um"]):
                     best = (ce_a - ce, fig)

@@ -235,6 +235,28 @@ def test_round_trip_fixed_and_turned_lobes_and_noise_free_data():
     assert exact["p_turned"] == tiny["p_turned"] > 0.05, (exact, tiny)
 
 
+def test_richer_columns_nest_the_fixed_lobes_and_fit_turned_lobes_exactly():
+    """:func:`core.causes.turned_lobe_columns` (the richer reading the engine refits the extended workpiece with,
+    ``core.discover.RICHER_SHIFT_CARRIED``): the fixed lobes' 8 columns then 6 per set-up (harmonics 2-4); the
+    per-set-up columns of a harmonic sum over the set-ups to its fixed column (the richer model nests the fixed
+    one); lobes turned per set-up (truth, no noise) lie in their span (residual at rounding, 1e-12 of the
+    signal); in the approach's reading every column carries the factor -(n . d)."""
+    t = S.plan(c_deg=C6)
+    bl = planar(t, 30.0)
+    B = causes.turned_lobe_columns(bl)
+    S_ = np.unique(t.setup).size
+    assert B.shape == (t.n, 8 + 6 * S_)
+    F, U = B[:, :8], B[:, 8:].reshape(t.n, S_, 6)
+    assert np.array_equal(F, causes.common_lobing(bl))
+    assert np.allclose(U.sum(axis=1), F[:, 2:], atol=1e-12)
+    y = _lobes(t, [0.0, 0.8, 2.1, 2.9, 1.4, 0.3])
+    r = y - B @ np.linalg.lstsq(B, y, rcond=None)[0]
+    assert np.linalg.norm(r) <= 1e-12 * np.linalg.norm(y), np.linalg.norm(r)
+    info = {"pretravel_along": "approach"}
+    w = causes.pretravel_weight(bl, info)
+    assert np.allclose(causes.turned_lobe_columns(bl, info), w[:, None] * B, rtol=0, atol=1e-15)
+
+
 @pytest.mark.parametrize("change, match", [
     (dict(cols=lambda a: a["cols"][:, :2]), r"cols must be the fixed lobes' 8 columns .* got \(\d+, 2\)"),
     (dict(rows=lambda a: a["rows"] + 1), r"rows must index the baseline's \d+ rows"),

@@ -480,3 +480,21 @@ def test_turned_lobes_hidden_in_the_one_telling_direction_are_not_confidently_fi
     monkeypatch.setattr(D, "RICHER_NEEDS_ODDS", False)
     o = hidden_outcome("lobing_per_setup", 4038)
     assert o.cause == "probe_lobing" and o.confident, o
+
+
+def test_the_richer_readings_workpiece_shift_is_carried_where_the_name_is_hedged_beside_it(monkeypatch):
+    """Session 28 (issue 13; the blind check's lobing_per_setup 6403, tuning twin 4086): the truth turns a 2-lobe
+    pre-travel per set-up, the report names probe_lobing (fixed lobes) hedged beside lobing_per_setup. The extended
+    workpiece (0.935 um from the truth) missed the baseline's 0.618 + its U95 0.310 (the fixed-lobe model's variance
+    alone). The richer reading (lobes turned per set-up, their determined combinations in the fixed lobes' place)
+    moves the workpiece 0.57 um RMS, far beyond its scatter: carried (u = |shift| / 2 per target), the U95 covers.
+    Without the rule (RICHER_SHIFT_CARRIED False) the check fails again, 0.935 > 0.928."""
+    import core.discover as D
+
+    o = hidden_outcome("lobing_per_setup", 4086)
+    assert o.cause == "probe_lobing" and not o.confident, o
+    assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
+    monkeypatch.setattr(D, "RICHER_SHIFT_CARRIED", False)
+    o = hidden_outcome("lobing_per_setup", 4086)
+    assert o.cause == "probe_lobing" and not o.confident, o
+    assert o.wp_ext_um > o.wp_base_um + o.wp_u95_um, o
