@@ -1728,6 +1728,16 @@ RING_FIT_REL = 1e-3
 #: holding a single target, could.
 RING_HARMONIC_SV = 0.1
 
+#: Whether a ring's part change (:func:`part_change_scans`, :func:`_ring_columns`) also carries its size: a third
+#: column ``time`` on the ring's touches (the material growing along every normal alike: a boss growing, a bore
+#: closing) beside its ovalisation's two. Session 28 (docs/discovery.md, "Session 28: a ring's size change, held to
+#: the ring"): gen_c grows its eight-target boss by a size change alone, which the ovalisation cannot take (10 of
+#: 10 `unexplained` in session 26's experiment, named with the column). A size change of every feature at once is
+#: a probe's pre-travel drifting (gen_a probe_heating 1057, out of the catalogue, read `part_change?` with the
+#: column alone): the size is held to the ring by :data:`core.discover.RING_SIZE_CONFINED`. False: the ovalisation
+#: alone, the rule before.
+RING_SIZE = True
+
 
 def _ring(w: np.ndarray, n: np.ndarray) -> bool:
     """Whether points ``w`` (k, 2) with normals ``n`` (k, 2) lie on one circle, each along its normal (a ring)."""
@@ -1926,11 +1936,13 @@ def _part_change_feature(d, f, m: np.ndarray, nt: int, sector: np.ndarray, form:
         # described by its ovalisation changing with time instead
         ring = _ring_columns(d, m, time)
         if ring is not None:
-            rinfo = {"feature": str(f), "walls_deg": (), "ring": True, **({"time_form": form} if form else {})}
-            scans.append(_one(ring, [f"{f} oval cos2", f"{f} oval sin2"], rinfo, "feature"))
-            if _curves(form):  # the ovalisation's change curving in time (PART_CHANGE_CURVE)
+            rinfo = {"feature": str(f), "walls_deg": (), "ring": True, **({"time_form": form} if form else {}),
+                     **({"ring_size": True} if ring.shape[1] == 3 else {})}
+            names = [f"{f} oval cos2", f"{f} oval sin2", f"{f} size"][:ring.shape[1]]
+            scans.append(_one(ring, names, rinfo, "feature"))
+            if _curves(form):  # the ovalisation's (and size's) change curving in time (PART_CHANGE_CURVE)
                 scans.append(_one(np.column_stack([ring, ring * (1 - time)[:, None]]),
-                                  [f"{f} oval cos2", f"{f} oval sin2", f"{f} oval cos2 curve", f"{f} oval sin2 curve"],
+                                  names + [f"{n} curve" for n in names],
                                   {**rinfo, "curve": True, "extends_previous": True}, "feature"))
             return scans
     if cols:
@@ -2079,7 +2091,8 @@ def _ring_columns(d, m: np.ndarray, time: np.ndarray | None = None) -> np.ndarra
     if np.linalg.svd(H, compute_uv=False)[-1] < RING_HARMONIC_SV:
         return None
     time = d.tau if time is None else time
-    return np.column_stack([m * time * np.cos(2 * d.wn_az), m * time * np.sin(2 * d.wn_az)])
+    cols = [m * time * np.cos(2 * d.wn_az), m * time * np.sin(2 * d.wn_az)]
+    return np.column_stack(cols + [m * time] if RING_SIZE else cols)
 
 
 def part_change_rival(bl, info):
@@ -2103,8 +2116,13 @@ def part_change_magnitudes(info, coef, bl):
         c = np.asarray(coef, float) / UM
         out["ovalisation_um"] = float(np.hypot(c[0], c[1]))
         out["ovalisation_axis_deg"] = float(np.degrees(0.5 * np.arctan2(c[1], c[0])) % 180.0)
+        k = 3 if info.get("ring_size") else 2  # the columns' order: cos 2, sin 2, (size,) then their curves
+        if k == 3:  # the ring's size (RING_SIZE): material grown along every normal, um (+: a boss grows, a bore closes)
+            out["size_um"] = float(c[2])
         if info.get("curve"):  # the bulge at mid-campaign beyond the line, t (1 - t) = 1/4 there
-            out["ovalisation_curve_um"] = float(np.hypot(c[2], c[3])) / 4
+            out["ovalisation_curve_um"] = float(np.hypot(c[k], c[k + 1])) / 4
+            if k == 3:
+                out["size_curve_um"] = float(c[k + 2]) / 4
         return out
     keys = []
     for w in info["walls_deg"]:  # the columns' order: each wall's shift, then its turn and bow where it has them
@@ -2519,7 +2537,7 @@ REGISTRY = (
           smooth=smooth_error_map, support=defect_support, profile=defect_profile),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
           {"wall*deg_change_um": (-200, 200), "wall*deg_turn_um": (-200, 200),
-           "wall*deg_bow_um": (-200, 200), "ovalisation_um": (0, 200),
+           "wall*deg_bow_um": (-200, 200), "ovalisation_um": (0, 200), "size_um": (-200, 200),
            "ovalisation_axis_deg": (0, 180)},
           rival=part_change_rival, counter_scan=fixture_slip, gradual=True, norms=part_change_norms,
           circular={"ovalisation_axis_deg": 180.0}),

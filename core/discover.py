@@ -7012,6 +7012,12 @@ def _rival_share(bl, tm: Term, terms, Qb, y, rows, sigma, settings, bases, trial
             if conf["refused"]:
                 out["kept"] = False
                 out["not_confined"] = conf["reason"]
+    if cause is not None and out["kept"] and RING_SIZE_CONFINED and tm.info.get("ring_size"):
+        own = _ring_size_own(bl, tm, sf, rows, sigma, settings)
+        out["ring_size"] = own
+        if own["refused"]:
+            out["kept"] = False
+            out["not_confined"] = own["reason"]
     return out
 
 
@@ -7028,6 +7034,54 @@ PART_CHANGE_CONFINED = True
 #: own), and not saved by a slip seen on its feature only (:data:`SLIP_OFF_FEATURE`: the curve's bulge is what lets
 #: a change in time follow a step). Acts only on curved layouts: with the curve off no decision moves.
 PART_CHANGE_CURVE_CONFINED = True
+
+
+#: Whether a ring's size change (:data:`core.causes.RING_SIZE`: part_change's ring layout with its size column) is
+#: refused where every feature's size changes with it (:func:`_ring_size_own`): a probe's pre-travel drifting moves
+#: every touch along its normal alike, a ring's size among them (gen_a probe_heating 1057, out of the catalogue, read
+#: `part_change?` on its boss with the size column alone, its workpiece check lost). Session 28 (docs/discovery.md,
+#: "Session 28: a ring's size change, held to the ring"). False: the size column unguarded.
+RING_SIZE_CONFINED = True
+
+
+def _ring_size_own(bl, tm, sf: _State, rows, sigma: float, settings) -> dict:
+    """Whether a ring's size change (``tm``: part_change's ring layout with its size, ``ring_size`` in its info) is
+    the ring's own, or every feature's size changing with it (:data:`RING_SIZE_CONFINED`).
+
+    A probe's pre-travel that drifts (heating, a stylus that settles)
+    moves every touch along its normal by the same amount at each moment:
+    the ring's size changes, and so does every other feature's (a wall's
+    place, a bore's size), in the same time. A ring that grows on its own
+    leaves the other touches still. The test: the other touches' common
+    change along their normals in the trial's time form (one column, ``time``
+    on every touch off the ring), beside the model with the cause (``sf``),
+    at ``alpha_family``. Refused where it is significant, material or not: a
+    probe that warms with use (gen_a probe_heating 1057) moves the others by
+    its heat, not by the time, and most of that the targets' own columns take;
+    what is left beside the ring's size is small (2.9 um^2 against a
+    materiality of 4.7) but significant (p 5e-5). Where no touch lies off the
+    ring (a log of the ring alone) the two cannot be told apart and the size
+    is refused too.
+    """
+    d = bl.data
+    t = d.touches
+    time = dict(causes_mod.part_change_times(bl)).get(tm.info.get("time_form", "continuous"), d.tau)
+    off = np.asarray(t.feature, dtype=object) != tm.info["feature"]
+    O = _white(bl, (off * time)[:, None])[rows]
+    Uo = new_basis(sf.Q, O)
+    if Uo.shape[1] == 0 or sf.dof - Uo.shape[1] <= 0:
+        return {"refused": True, "reason": (f"{tm.info['feature']}'s size change cannot be told from a probe's "
+                                            f"pre-travel drifting: no touch off it tests the others' sizes")}
+    s2 = sigma ** 2
+    p = float(nested_f(Uo, sf.r, sf.rss, sf.dof).p_value)
+    ss = float(np.sum((Uo.T @ sf.r) ** 2)) - s2
+    refused = p < settings.alpha_family
+    out = {"others_size_p": p, "others_size_ss_um2": max(ss, 0.0) / UM ** 2, "refused": bool(refused)}
+    if refused:
+        out["reason"] = (f"not the ring's own size change: every other touch moves along its normal with "
+                         f"{tm.info['feature']} ({ss / UM ** 2:.3g} um^2, {fmt_p(p)}): a probe's pre-travel "
+                         f"drifting, not the part")
+    return out
 
 
 def _curve_confined(tm) -> bool:
