@@ -1803,20 +1803,27 @@ def part_change_scans(bl):
     this feature has too few targets per sector to carry, and each further
     pair of columns is another chance to take noise or another cause's
     pattern on a feature of eight targets; gen_a's rings only ovalise.
-    Its size (the zeroth) is left out: a ring growing or shrinking with
-    time is what a probe's pre-travel drifting does on every feature (gen_a
-    probe_heating 1057, out of the catalogue, `unexplained`, was named
-    part_change on an eight-target boss shrinking 5.9 um with the size
-    column), and gen_a's rings only ovalise (the size explained 0-0.3 % of
-    1017's and 1026's change). Taken where its azimuths tell the
-    ovalisation from a size change (:data:`RING_HARMONIC_SV`). Noise-free
+    Its size (the zeroth) is a third column (:data:`RING_SIZE`, session 28:
+    ``dq_i += s t`` on the ring's touches, a boss growing, a bore closing;
+    gen_c grows its boss so, 10 of 10 `unexplained` without it). A ring
+    growing or shrinking with time is also what a probe's pre-travel
+    drifting does on every feature (gen_a probe_heating 1057, out of the
+    catalogue, `unexplained`, was named part_change on an eight-target boss
+    shrinking 5.9 um with the size column alone): the size is held to the
+    ring by :data:`core.discover.RING_SIZE_CONFINED` (refused where the
+    other touches' common change along their normals is significant beside
+    it). gen_a's rings only ovalise (the size explained 0-0.3 % of 1017's
+    and 1026's change). Taken where its azimuths tell the ovalisation from a
+    size change (:data:`RING_HARMONIC_SV`). Noise-free
     on gen_a's ovalising bosses at tuning seeds 1017 and 1026 (eight
     targets, no column before) it explains 97 % and 100 % of the change
     outside the baseline, the best one-off slip 6 % and 22 %; on its bores
     1015, 1027, 1040 (every sector a wall, unchanged) 97-100 %, as the walls
     do. Parameters: the ovalisation (half the difference of the largest and
-    smallest change round the ring, um) and its axis (the normal's azimuth
-    in the part's frame where the material grows most, deg, 0-180).
+    smallest change round the ring, um), its axis (the normal's azimuth in
+    the part's frame where the material grows most, deg, 0-180) and, with
+    :data:`RING_SIZE`, its size change (``size_um``: the material's mean
+    growth along the ring's normals, + a boss growing or a bore closing).
     Their U95 covers the noise only, not the columns' form: linear in time,
     where a relaxing ring grows as ``1 - exp(-t / tau)``, so the ovalisation
     is biased low when tau is short against the campaign. The axis (the
