@@ -5809,6 +5809,11 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
         d_c, Uc = _counter_ss(bl, cause, st, rows, sigma)
         reach = _support_share(cols[rows], cause)  # (materiality over the touches the cause acts on)
+        if cause.counter_cause is not None and COUNTER_SHARE is not None and d_n > 0 and d_c >= COUNTER_SHARE * d_n:
+            return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains "
+                              f"{d_c / d_n:.0%} of its signal ({max(d_c, 0.0) / UM ** 2:.3g} against "
+                              f"{d_n / UM ** 2:.3g} um^2): what it adds is a part no larger than "
+                              f"{1 - COUNTER_SHARE:.0%}", "significant": True}
         if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) * reach \
                 and cause.counter_cause is not None and not _beyond(st, Uc, cols[rows], sigma, tries, settings,
                                                                    reach)[2]:
@@ -7035,6 +7040,16 @@ PART_CHANGE_CONFINED = True
 #: a change in time follow a step). Acts only on curved layouts: with the curve off no decision moves.
 PART_CHANGE_CURVE_CONFINED = True
 
+
+#: A richer cause with a plainer, nested explanation in the catalogue (``counter_cause``: the lobes turned per
+#: set-up, whose plainer explanation is the probe's lobes fixed in the machine frame) is refused where the plainer
+#: one explains at least this share of its signal (debiased sums of squares beside the model), its part beyond
+#: significant or not: a probe turned at random per set-up leaves its fixed lobes about one set-up's share of the
+#: signal, and a reading whose turned part is a small wobble about fixed lobes names the wobble, not the bulk.
+#: Session 28 (docs/discovery.md, "Session 28: ..."), a candidate for gen_c travel_hysteresis read
+#: `lobing_per_setup?`. None: off (the rule before: refused only where the plainer explains as much and the richer
+#: is not significant beyond it).
+COUNTER_SHARE: float | None = None
 
 #: Whether a ring's size change (:data:`core.causes.RING_SIZE`: part_change's ring layout with its size column) is
 #: refused where every feature's size changes with it (:func:`_ring_size_own`): a probe's pre-travel drifting moves
