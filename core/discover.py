@@ -5809,6 +5809,13 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
         d_n = float(ss_c[0]) - int(k_c[0]) * sigma ** 2
         d_c, Uc = _counter_ss(bl, cause, st, rows, sigma)
         reach = _support_share(cols[rows], cause)  # (materiality over the touches the cause acts on)
+        if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) * reach \
+                and cause.counter_cause is not None and not _beyond(st, Uc, cols[rows], sigma, tries, settings,
+                                                                   reach)[2]:
+            return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
+                              f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
+                    "significant": True}
+        # (FIXED_SHARE_TEST: after the check above, which keeps its reason where both refuse)
         if cause.counter_cause is not None and FIXED_SHARE_TEST and d_n > 0:
             fs = _fixed_share(st, Uc, cols[rows], sigma)
             if fs is not None:
@@ -5819,12 +5826,6 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
                                       f"set-up leave it {fs['null_median']:.0%} on this design ({fmt_p(fs['p'])}): "
                                       f"fixed lobes (or a lost motion) with a wobble, not a probe turned",
                             "significant": True}
-        if d_c > d_n - (settings.material_sigma * sigma) ** 2 * len(rows) * reach \
-                and cause.counter_cause is not None and not _beyond(st, Uc, cols[rows], sigma, tries, settings,
-                                                                   reach)[2]:
-            return {"reason": f"a plainer explanation ({cause.counter.__name__.replace('_', ' ')}) explains as much "
-                              f"({max(d_c, 0.0) / UM ** 2:.3g} against {max(d_n, 0.0) / UM ** 2:.3g} um^2)",
-                    "significant": True}
     if cause.support is not None:
         sp = _support(bl, cause, info, st, cols[rows])
         if sp["refused"]:
