@@ -2124,7 +2124,7 @@ def part_change_magnitudes(info, coef, bl):
         out["ovalisation_um"] = float(np.hypot(c[0], c[1]))
         out["ovalisation_axis_deg"] = float(np.degrees(0.5 * np.arctan2(c[1], c[0])) % 180.0)
         k = 3 if info.get("ring_size") else 2  # the columns' order: cos 2, sin 2, (size,) then their curves
-        if k == 3:  # the ring's size (RING_SIZE): material grown along every normal, um (+: a boss grows, a bore closes)
+        if k == 3:  # the ring's size (RING_SIZE): material grown along every normal, um (+: a boss grows)
             out["size_um"] = float(c[2])
         if info.get("curve"):  # the bulge at mid-campaign beyond the line, t (1 - t) = 1/4 there
             out["ovalisation_curve_um"] = float(np.hypot(c[k], c[k + 1])) / 4

@@ -105,7 +105,7 @@ def test_ring_size_guard_known_answers():
     assert verdict(3.0 * tau)["refused"]                      # every touch: a pre-travel drifting
     own = verdict(3.0 * tau * boss)                           # the boss alone: its own size change
     assert not own["refused"] and own["others_size_p"] > settings.alpha_family, own
-    alone = SimpleNamespace(data=SimpleNamespace(touches=SimpleNamespace(feature=np.full(t.n, "boss", object), setup=t.setup),
-                                                 tau=tau), whiten=bl.whiten)
+    only_ring = SimpleNamespace(feature=np.full(t.n, "boss", object), setup=t.setup)
+    alone = SimpleNamespace(data=SimpleNamespace(touches=only_ring, tau=tau), whiten=bl.whiten)
     got = disc._ring_size_own(alone, tm, disc._State(rows, Qb, bl.y, 1.0, 10), rows, 1.0, settings)
     assert got["refused"] and "no touch off it" in got["reason"]
