@@ -1758,6 +1758,16 @@ RING_FIT_REL = 1e-3
 #: holding a single target, could.
 RING_HARMONIC_SV = 0.1
 
+#: Whether a ring's part change (:func:`part_change_scans`, :func:`_ring_columns`) also carries its size: a third
+#: column ``time`` on the ring's touches (the material growing along every normal alike: a boss growing, a bore
+#: closing) beside its ovalisation's two. Session 28 (docs/discovery.md, "Session 28: a ring's size change, held to
+#: the ring"): gen_c grows its eight-target boss by a size change alone, which the ovalisation cannot take (10 of
+#: 10 `unexplained` in session 26's experiment, named with the column). A size change of every feature at once is
+#: a probe's pre-travel drifting (gen_a probe_heating 1057, out of the catalogue, read `part_change?` with the
+#: column alone): the size is held to the ring by :data:`core.discover.RING_SIZE_CONFINED`. False: the ovalisation
+#: alone, the rule before.
+RING_SIZE = True
+
 
 def _ring(w: np.ndarray, n: np.ndarray) -> bool:
     """Whether points ``w`` (k, 2) with normals ``n`` (k, 2) lie on one circle, each along its normal (a ring)."""
@@ -1823,20 +1833,27 @@ def part_change_scans(bl):
     this feature has too few targets per sector to carry, and each further
     pair of columns is another chance to take noise or another cause's
     pattern on a feature of eight targets; gen_a's rings only ovalise.
-    Its size (the zeroth) is left out: a ring growing or shrinking with
-    time is what a probe's pre-travel drifting does on every feature (gen_a
-    probe_heating 1057, out of the catalogue, `unexplained`, was named
-    part_change on an eight-target boss shrinking 5.9 um with the size
-    column), and gen_a's rings only ovalise (the size explained 0-0.3 % of
-    1017's and 1026's change). Taken where its azimuths tell the
-    ovalisation from a size change (:data:`RING_HARMONIC_SV`). Noise-free
+    Its size (the zeroth) is a third column (:data:`RING_SIZE`, session 28:
+    ``dq_i += s t`` on the ring's touches, a boss growing, a bore closing;
+    gen_c grows its boss so, 10 of 10 `unexplained` without it). A ring
+    growing or shrinking with time is also what a probe's pre-travel
+    drifting does on every feature (gen_a probe_heating 1057, out of the
+    catalogue, `unexplained`, was named part_change on an eight-target boss
+    shrinking 5.9 um with the size column alone): the size is held to the
+    ring by :data:`core.discover.RING_SIZE_CONFINED` (refused where the
+    other touches' common change along their normals is significant beside
+    it). gen_a's rings only ovalise (the size explained 0-0.3 % of 1017's
+    and 1026's change). Taken where its azimuths tell the ovalisation from a
+    size change (:data:`RING_HARMONIC_SV`). Noise-free
     on gen_a's ovalising bosses at tuning seeds 1017 and 1026 (eight
     targets, no column before) it explains 97 % and 100 % of the change
     outside the baseline, the best one-off slip 6 % and 22 %; on its bores
     1015, 1027, 1040 (every sector a wall, unchanged) 97-100 %, as the walls
     do. Parameters: the ovalisation (half the difference of the largest and
-    smallest change round the ring, um) and its axis (the normal's azimuth
-    in the part's frame where the material grows most, deg, 0-180).
+    smallest change round the ring, um), its axis (the normal's azimuth in
+    the part's frame where the material grows most, deg, 0-180) and, with
+    :data:`RING_SIZE`, its size change (``size_um``: the material's mean
+    growth along the ring's normals, + a boss growing or a bore closing).
     Their U95 covers the noise only, not the columns' form: linear in time,
     where a relaxing ring grows as ``1 - exp(-t / tau)``, so the ovalisation
     is biased low when tau is short against the campaign. The axis (the
@@ -1956,11 +1973,13 @@ def _part_change_feature(d, f, m: np.ndarray, nt: int, sector: np.ndarray, form:
         # described by its ovalisation changing with time instead
         ring = _ring_columns(d, m, time)
         if ring is not None:
-            rinfo = {"feature": str(f), "walls_deg": (), "ring": True, **({"time_form": form} if form else {})}
-            scans.append(_one(ring, [f"{f} oval cos2", f"{f} oval sin2"], rinfo, "feature"))
-            if _curves(form):  # the ovalisation's change curving in time (PART_CHANGE_CURVE)
+            rinfo = {"feature": str(f), "walls_deg": (), "ring": True, **({"time_form": form} if form else {}),
+                     **({"ring_size": True} if ring.shape[1] == 3 else {})}
+            names = [f"{f} oval cos2", f"{f} oval sin2", f"{f} size"][:ring.shape[1]]
+            scans.append(_one(ring, names, rinfo, "feature"))
+            if _curves(form):  # the ovalisation's (and size's) change curving in time (PART_CHANGE_CURVE)
                 scans.append(_one(np.column_stack([ring, ring * (1 - time)[:, None]]),
-                                  [f"{f} oval cos2", f"{f} oval sin2", f"{f} oval cos2 curve", f"{f} oval sin2 curve"],
+                                  names + [f"{n} curve" for n in names],
                                   {**rinfo, "curve": True, "extends_previous": True}, "feature"))
             return scans
     if cols:
@@ -2109,7 +2128,8 @@ def _ring_columns(d, m: np.ndarray, time: np.ndarray | None = None) -> np.ndarra
     if np.linalg.svd(H, compute_uv=False)[-1] < RING_HARMONIC_SV:
         return None
     time = d.tau if time is None else time
-    return np.column_stack([m * time * np.cos(2 * d.wn_az), m * time * np.sin(2 * d.wn_az)])
+    cols = [m * time * np.cos(2 * d.wn_az), m * time * np.sin(2 * d.wn_az)]
+    return np.column_stack(cols + [m * time] if RING_SIZE else cols)
 
 
 def part_change_rival(bl, info):
@@ -2133,8 +2153,13 @@ def part_change_magnitudes(info, coef, bl):
         c = np.asarray(coef, float) / UM
         out["ovalisation_um"] = float(np.hypot(c[0], c[1]))
         out["ovalisation_axis_deg"] = float(np.degrees(0.5 * np.arctan2(c[1], c[0])) % 180.0)
+        k = 3 if info.get("ring_size") else 2  # the columns' order: cos 2, sin 2, (size,) then their curves
+        if k == 3:  # the ring's size (RING_SIZE): material grown along every normal, um (+: a boss grows)
+            out["size_um"] = float(c[2])
         if info.get("curve"):  # the bulge at mid-campaign beyond the line, t (1 - t) = 1/4 there
-            out["ovalisation_curve_um"] = float(np.hypot(c[2], c[3])) / 4
+            out["ovalisation_curve_um"] = float(np.hypot(c[k], c[k + 1])) / 4
+            if k == 3:
+                out["size_curve_um"] = float(c[k + 2]) / 4
         return out
     keys = []
     for w in info["walls_deg"]:  # the columns' order: each wall's shift, then its turn and bow where it has them
@@ -2550,7 +2575,7 @@ REGISTRY = (
           smooth=smooth_error_map, support=defect_support, profile=defect_profile),
     Cause("part_change", ("planar",), "workpiece", part_change_scans, part_change_magnitudes,
           {"wall*deg_change_um": (-200, 200), "wall*deg_turn_um": (-200, 200),
-           "wall*deg_bow_um": (-200, 200), "ovalisation_um": (0, 200),
+           "wall*deg_bow_um": (-200, 200), "ovalisation_um": (0, 200), "size_um": (-200, 200),
            "ovalisation_axis_deg": (0, 180)},
           rival=part_change_rival, counter_scan=fixture_slip, gradual=True, norms=part_change_norms,
           circular={"ovalisation_axis_deg": 180.0}),

@@ -738,9 +738,10 @@ def test_repeats_beyond_residual_power():
 def test_part_change_ring_columns():
     """A ring (a boss or a bore) whose 45 deg sectors do not each hold two targets has no wall column; its
     ovalisation changing with time is its columns instead (``tau cos 2 theta``, ``tau sin 2 theta`` on its
-    touches, theta its normal's azimuth in the part's frame), its size not (a probe's pre-travel drifting
-    changes every feature's size). gen_a none 1017's boss (eight targets, one per sector): one scan, an
-    ovalisation of any axis in its span (to 1e-9 of its norm: rounding), a size change mostly not.
+    touches, theta its normal's azimuth in the part's frame) and its size (``tau`` on its touches,
+    ``causes.RING_SIZE``, session 28; without it a size change mostly not in the span). gen_a none 1017's boss
+    (eight targets, one per sector): one scan, an ovalisation of any axis in its span (to 1e-9 of its norm:
+    rounding), a size change too.
     Hand-made rings: eight points on a circle are one; the same points moved along one normal by 1 % of the
     radius are not (a flat wall's places, a blade's curve); four points 90 deg apart are a ring whose
     ovalisation's axis cannot be seen (``cos 2 theta`` and ``sin 2 theta`` one column up to sign), no ring
@@ -763,7 +764,14 @@ def test_part_change_ring_columns():
     y = boss * tau * np.cos(2 * th - 0.4)
     assert np.linalg.norm(y - Q @ (Q.T @ y)) < 1e-9 * np.linalg.norm(y)
     y = boss * tau
-    assert np.linalg.norm(y - Q @ (Q.T @ y)) > 0.9 * np.linalg.norm(y)
+    assert np.linalg.norm(y - Q @ (Q.T @ y)) < 1e-9 * np.linalg.norm(y)
+    assert scans[0].infos[0].get("ring_size") and scans[0].labels[-1] == "boss size", scans[0].labels
+    with pytest.MonkeyPatch.context() as mp:  # without the size (the rule before session 28): mostly outside
+        mp.setattr(causes, "RING_SIZE", False)
+        sc0 = [s for s in causes.part_change_scans(bl)[0] if s.infos[0]["feature"] == "boss"][0]
+        assert not sc0.infos[0].get("ring_size") and len(sc0.labels) == 2
+        Q0 = orth_of(sc0.build([0])[0])
+        assert np.linalg.norm(y - Q0 @ (Q0.T @ y)) > 0.9 * np.linalg.norm(y)
     a = np.linspace(0, 2 * np.pi, 8, endpoint=False) + 0.3
     n = np.column_stack([np.cos(a), np.sin(a)])
     w = np.array([3.0, -2.0]) + 12.0 * n
@@ -787,8 +795,12 @@ def test_part_change_ring_columns():
     d = SimpleNamespace(touches=SimpleNamespace(target=np.arange(a.size), w_A=p), wn_az=az, tau=tau)
     cols = causes._ring_columns(d, np.ones(a.size, bool))
     y = 5.0 * causes.UM * tau * np.cos(2 * (az - np.radians(250.0)))
-    got = causes.part_change_magnitudes({"feature": "bore", "ring": True}, np.linalg.lstsq(cols, y, rcond=None)[0], None)
+    # with a size change of -2 um (the bore opening: material receding from the stylus) beside it
+    y = y - 2.0 * causes.UM * tau
+    got = causes.part_change_magnitudes({"feature": "bore", "ring": True, "ring_size": True},
+                                        np.linalg.lstsq(cols, y, rcond=None)[0], None)
     assert abs(got["ovalisation_axis_deg"] - 70.0) < 1e-9 and abs(got["ovalisation_um"] - 5.0) < 1e-9, got
+    assert abs(got["size_um"] + 2.0) < 1e-9, got
     _, _, tb, blb = _gen_b_baseline("none", 1000)
     assert not any(s.infos[0].get("ring") for s in causes.part_change_scans(blb)[0])
     assert causes._ring_columns(blb.data, np.asarray(tb.feature) == "blade") is None
