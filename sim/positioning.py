@@ -17,7 +17,11 @@ errors' Abbe offsets at the measuring line. The targets and the line are
 readings (the stylus-tip centre, the machine's probe offsets J in effect),
 so the errors a stop reads are those of the axis positions ``P_i + J``
 (CONTRIBUTING.md, "Error conventions"): with a 150 mm probe on Z, a Z
-test's target P_i reads the errors of Z at P_i + 150 mm. A random scatter (machine
+test's target P_i reads the errors of Z at P_i + 150 mm. The log says so: a
+machine with J not 0 writes it as ``tool_offset_mm``
+(:data:`core.positioning.TOOL_OFFSET_KEY`), so a reader places the targets at
+the axis positions (a compensation table built from the log,
+:func:`hardware.linuxcnc.positioning_comp_file`). A random scatter (machine
 repeatability plus instrument noise, normal, k = 1) is added from a
 passed generator.
 
@@ -46,7 +50,7 @@ import numpy as np
 
 from core import iso
 from core.exceptions import ConfigError
-from core.positioning import CYCLE_KINDS, N_MIN, PositioningLog, make_positioning_log
+from core.positioning import CYCLE_KINDS, N_MIN, TOOL_OFFSET_KEY, PositioningLog, make_positioning_log
 from core.units import MM, UM
 
 #: Default feed between targets, m/s (2000 mm/min).
@@ -285,6 +289,9 @@ def simulate_positioning(machine, plan: PositioningPlan, rng: np.random.Generato
          "line_mm": ",".join(f"{v / MM:g}" for v in plan.line_m),
          "overrun_mm": f"{plan.overrun_m / MM:g}", "feed_mm_min": f"{plan.feed_mps / MM * 60:g}",
          "dwell_s": f"{plan.dwell_s:g}"}
+    J = np.asarray(machine.config.J_m, float)
+    if np.any(J != 0):  # the targets are readings: the axis positions are target + J (TOOL_OFFSET_KEY)
+        m[TOOL_OFFSET_KEY] = ",".join(repr(float(np.round(v / MM, 9))) for v in J)
     m.update({str(k): str(v) for k, v in (meta or {}).items()})
     return make_positioning_log(target_mm, s["cycle"], s["direction"], target_mm + dev / MM,
                                 t_s=s["t_s"], meta=m, unit="mm", source=f"simulated {name} {plan.axis}")
