@@ -64,6 +64,10 @@ OVERRUN_M = 5.0 * MM
 #: spacing that samples periodic (pitch) errors; the end targets keep the
 #: measurement travel.
 TARGET_JITTER = 0.25
+#: Decimals (mm) of the targets written in the log: each target is the double nearest its commanded
+#: decimal value, so the file shows ``84.971``, not the metre-to-millimetre conversion's
+#: ``84.97099999999999`` (exact round trips either way; 1e-9 mm is far below any target's resolution).
+TARGET_DECIMALS_MM = 9
 
 
 @dataclass(frozen=True)
@@ -280,7 +284,10 @@ def simulate_positioning(machine, plan: PositioningPlan, rng: np.random.Generato
     dev = deviations_m(machine, plan, s["target_m"], s["t_s"], s["direction"])
     if noise_m > 0:
         dev = dev + rng.normal(0.0, noise_m, dev.shape)
-    target_mm = s["target_m"] / MM
+    # the commanded values in the log's unit: m -> mm leaves the last bits of a double off the decimal a
+    # part program commands (84.971 mm read as 84.97099999999999); rounded to 1e-9 mm (1 pm, far below
+    # the 1 um the targets are commanded to) each is the double nearest its decimal, written as such
+    target_mm = np.round(s["target_m"] / MM, TARGET_DECIMALS_MM)
     name = getattr(machine.config, "name", "")
     m = {"axis": plan.axis, "machine": name,
          "instrument": "virtual laser interferometer (exact chain"
