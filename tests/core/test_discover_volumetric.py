@@ -81,9 +81,9 @@ def test_scale_drift_between_placements(campaign):
     (Z read -1.6 ppm for -10). Why the difference, not each estimate: this campaign (seed 5, its
     placement errors drawn: the only input drawn, the bar as calibrated and the styli's J exact)
     reads an apparent drift of its own, half the sum of the two estimates, X +1.8, Y -2.3, Z -0.6 ppm
-    (seed 6: -2.0, +0.7, -3.3; seed 7: +1.6, -0.6, -0.3), about three times the reported U95
-    (1.0-1.3 ppm), which holds probing noise only: without the drawn placements (draw_inputs=False)
-    seed 5 reads -0.4, +0.7, -0.1. The single estimate Y +5.7 ppm (29 % off, session 26's strict
+    (seed 6: -2.0, +0.7, -3.3; seed 7: +1.6, -0.6, -0.3), RMS 1.75 ppm, about three times the
+    standard uncertainty the reported U95 (1.0-1.3 ppm, k = 2) implies; without the drawn placements
+    (draw_inputs=False) seed 5 reads -0.4, +0.7, -0.1. The single estimate Y +5.7 ppm (29 % off, session 26's strict
     xfail) was that -2.3 ppm; the response itself is -12.01, +8.03, -9.98 ppm (measured, seed 5;
     seed 7 -11.95, +8.00, -10.08), so the bound is 5 %."""
     meas = campaign[0]
