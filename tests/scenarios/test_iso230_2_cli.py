@@ -200,3 +200,12 @@ def test_iso230_2_bad_tool_offset_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "metadata tool_offset_mm '0,150': expected 3 numbers" in err and err.count("\n") == 1
     assert not (tmp_path / "c").exists() and not (tmp_path / "r.json").exists()
+
+
+def test_iso230_2_comp_file_on_the_input_refused(tmp_path, capsys):
+    p = tmp_path / "in.csv"
+    p.write_text(log_text())
+    assert main(["iso230-2", str(p), "--json", str(tmp_path / "r.json"), "--comp-file", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert "--comp-file" in err and "refusing to overwrite an input" in err and err.count("\n") == 1
+    assert p.read_text() == log_text()
