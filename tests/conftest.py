@@ -38,8 +38,8 @@ SHARED_SESSION_FIXTURES = ("mfb3_noise_free",)
 #: which ran where collection put them. xdist's loadscope queue replayed on these durations (a unit at a time to a
 #: worker with 2 tests or fewer pending): the two workers' sums 890 and 907 s with the old list, 898 and 899 with this
 #: one; with each unit's time scaled by a random factor (lognormal, 30 %) the gap between the workers' ends averages
-#: 32 s (90th percentile 87 s) with the old list and 1.7 s (3.6 s) with this one. A file missing here only loses its
-#: place.
+#: 32 s (90th percentile 87 s) with the old list and 1.7 s (3.6 s) with this one. The full run with this list (same
+#: load, 2,477 passed): the workers' tests took 876 and 875 s. A file missing here only loses its place.
 LONGEST_FIRST = ("tests/scenarios/test_cli26.py", "tests/core/test_discover_misses.py",
                  "tests/scenarios/test_discover_hidden.py", "fixture:mfb3_noise_free",
                  "tests/core/test_discover_nonrigid_u95.py", "tests/core/test_discover_norm_u95.py",
