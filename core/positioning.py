@@ -89,6 +89,13 @@ TARGET_TOL = 1e-6
 #: Report scale per file unit: mm -> µm, deg -> arc seconds.
 REPORT_UNIT = {"mm": ("um", 1e3), "deg": ("arcsec", 3600.0)}
 CYCLE_KINDS = ("linear", "pilgrim")
+#: Metadata key of the tool (probe) offsets J in effect during the test, ``X,Y,Z`` in mm: the
+#: targets are the commanded positions (the readings the controller reports, tool offset applied),
+#: and the axis (joint) position of a target is ``target + J`` along the axis tested
+#: (:attr:`PositioningLog.joint_offset`), where vmt's error tables and LinuxCNC's compensation
+#: tables are indexed. Absent: J = 0, the targets are the axis positions (a laser test run in
+#: machine coordinates, no tool offset). ``vmt simulate positioning`` writes it when J is not 0.
+TOOL_OFFSET_KEY = "tool_offset_mm"
 
 _NUMERIC_REQUIRED = {"mm": ("target_mm", "measured_mm"), "deg": ("target_deg", "measured_deg")}
 
@@ -173,6 +180,44 @@ class PositioningLog:
     def deviation(self) -> np.ndarray:
         """(N,) positional deviation ``x_ij = P_ij - P_i`` (ISO 230-2 2.5), file unit."""
         return self.measured - self.target
+
+    @property
+    def tool_offset_mm(self) -> tuple[float, float, float] | None:
+        """The tool (probe) offsets J X, Y, Z of the test, mm (:data:`TOOL_OFFSET_KEY`), or None."""
+        return _tool_offset(self.meta, self.source)
+
+    @property
+    def joint_offset(self) -> float:
+        """Axis (joint) position minus target along the axis tested, file unit: J of that axis
+        (:data:`TOOL_OFFSET_KEY`), 0.0 without the key."""
+        J = self.tool_offset_mm
+        return 0.0 if J is None else J[_LINEAR.index(self.axis)]
+
+
+_LINEAR = ("X", "Y", "Z")
+
+
+def _tool_offset(meta: Mapping[str, str], src: str) -> tuple[float, float, float] | None:
+    """The :data:`TOOL_OFFSET_KEY` of ``meta`` as 3 floats (mm), None without it; one-line errors:
+    not 3 numbers, beyond the probe log's length bound, a log in degrees or of no linear axis."""
+    text = meta.get(TOOL_OFFSET_KEY)
+    if text is None:
+        return None
+    where = f"{src}: metadata {TOOL_OFFSET_KEY}"
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) != 3:
+        raise PositioningLogError(f"{where} {text!r}: expected 3 numbers X,Y,Z in mm")
+    J = tuple(_finite_number(p, where, "value") for p in parts)
+    _, big, _, why = value_range("X_mm")
+    if any(abs(v) > big for v in J):
+        raise PositioningLogError(f"{where} {text!r}: beyond +-{big:g} mm ({why})")
+    if (meta.get("unit", "mm") or "mm") != "mm":
+        raise PositioningLogError(f"{where}: a tool offset applies to a linear axis, the log is in "
+                                  f"{meta.get('unit')!r}")
+    if meta.get("axis", "") not in _LINEAR:
+        raise PositioningLogError(f"{where}: needs the axis tested (metadata axis X, Y or Z), got "
+                                  f"{meta.get('axis', '')!r}")
+    return J
 
 
 def _direction_array(values, src: str) -> np.ndarray:
@@ -456,6 +501,7 @@ def _validate(log: PositioningLog, lines: list[int] | None) -> None:
     unit = log.unit
     if unit not in _NUMERIC_REQUIRED:
         raise PositioningLogError(f"{src}: unit {unit!r} is not 'mm' or 'deg'")
+    _tool_offset(log.meta, src)
     kind = log.meta.get("cycle_kind", "")
     if kind and kind not in CYCLE_KINDS:
         raise PositioningLogError(f"{src}: metadata cycle_kind {kind!r} is not 'linear' or 'pilgrim'")
@@ -913,6 +959,10 @@ class PositioningTest:
         What makes this test less than ISO 230-2's full test.
     axis, cycle_kind : str
         From the log's metadata.
+    joint_offset : float
+        Axis (joint) position minus target along the axis
+        (:attr:`PositioningLog.joint_offset`): target ``P_i`` is the axis at
+        ``P_i + joint_offset``.
     """
 
     unit: str
@@ -927,6 +977,7 @@ class PositioningTest:
     warnings: tuple[str, ...] = ()
     axis: str = ""
     cycle_kind: str = ""
+    joint_offset: float = 0.0
 
     @property
     def m(self) -> int:
@@ -1010,7 +1061,8 @@ def arrange(log: PositioningLog) -> PositioningTest:
     return PositioningTest(unit=u, targets=targets_arr, cycles=cycles.astype(np.int64),
                            dev_up=out[1][0], dev_down=out[-1][0], t_up=out[1][1], t_down=out[-1][1],
                            row_up=out[1][2], row_down=out[-1][2], warnings=tuple(warnings),
-                           axis=log.axis, cycle_kind=log.meta.get("cycle_kind", ""))
+                           axis=log.axis, cycle_kind=log.meta.get("cycle_kind", ""),
+                           joint_offset=log.joint_offset)
 
 
 # ---------------------------------------------------------------------------

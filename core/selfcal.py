@@ -543,39 +543,55 @@ def _gauge_conditions(grid: Grid, s: dict, c_rad: np.ndarray, cn: list, delta_L_
     ref = int(np.argmin(np.abs(np.angle(np.exp(1j * c_rad)))))
     C = np.zeros((11, n_par))
     d = np.zeros(11)
-    gauge = []
+    gauge = _gauge_words(grid, yaw, cn[ref], delta_L_m)
 
-    def g(i, blk, row, txt, val=0.0):
+    def g(i, blk, row, val=0.0):
         C[i, s[blk]] = row
         d[i] = val
-        gauge.append(txt)
 
-    g(0, "EXX", _interp_row(gx, xo), f"EXX(x={_fmt_mm(xo)}mm)=0")
-    g(1, "EYX", _interp_row(gx, xo), f"EYX(x={_fmt_mm(xo)}mm)=0")
-    g(2, "EXY", _interp_row(gy, yo), f"EXY(y={_fmt_mm(yo)}mm)=0")
-    g(3, "EYY", _interp_row(gy, yo), f"EYY(y={_fmt_mm(yo)}mm)=0")
+    g(0, "EXX", _interp_row(gx, xo))
+    g(1, "EYX", _interp_row(gx, xo))
+    g(2, "EXY", _interp_row(gy, yo))
+    g(3, "EYY", _interp_row(gy, yo))
     if yaw == Yaw.ECY:
-        g(4, "ECY", _interp_row(gy, yo), f"ECY(y={_fmt_mm(yo)}mm)=0")
+        g(4, "ECY", _interp_row(gy, yo))
     else:
-        g(4, "ECX", _interp_row(gx, xo), f"ECX(x={_fmt_mm(xo)}mm)=0")
+        g(4, "ECX", _interp_row(gx, xo))
     e = np.zeros(len(c_rad))
     e[ref] = 1.0
-    g(5, "EXC", e, f"EXC,total({cn[ref]})=0")
-    g(6, "EYC", e, f"EYC,total({cn[ref]})=0")
-    g(7, "ECC", e, f"ECC({cn[ref]})=0")
+    g(5, "EXC", e)
+    g(6, "EYC", e)
+    g(7, "ECC", e)
     last_x = np.zeros(len(gx))
     last_x[-1] = 1
     last_y = np.zeros(len(gy))
     last_y[-1] = 1
-    g(8, "EYX", last_x, f"EYX(x={_fmt_mm(gx[-1])}mm)=0")
-    g(9, "EXY", last_y, f"EXY(y={_fmt_mm(gy[-1])}mm)=0")
-    if delta_L_m is None:
-        g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=0: scale unknown (delta_L not given), "
-                             "EXX, EYY and G carry an unknown common scale")
-    else:
-        g(10, "EXX", last_x, f"EXX(x={_fmt_mm(gx[-1])}mm)=delta_L={delta_L_m / UM:g}um (scale known)",
-          float(delta_L_m))
+    g(8, "EYX", last_x)
+    g(9, "EXY", last_y)
+    g(10, "EXX", last_x, 0.0 if delta_L_m is None else float(delta_L_m))
     return C, d, gauge, ref
+
+
+def _gauge_words(grid: Grid, yaw: Yaw, ref_name: str, delta_L_m, J_m=None) -> list:
+    """The eleven gauge conditions of eqs 16-17 in words (rows of :func:`_gauge_conditions`).
+
+    Positions at the grid's readings (``J_m`` None: the design, the report's tables), or at the axis
+    positions reading + J (``J_m`` (3,) m: a ``vmt-estimate/1`` state whose nodes are axis positions,
+    :meth:`SelfCalResult.estimate`)."""
+    ox, oy = (0.0, 0.0) if J_m is None else (float(J_m[0]), float(J_m[1]))
+    gx, gy = np.asarray(grid.x_m) + ox, np.asarray(grid.y_m) + oy
+    xo, yo = grid.origin_m[0] + ox, grid.origin_m[1] + oy
+    words = [f"EXX(x={_fmt_mm(xo)}mm)=0", f"EYX(x={_fmt_mm(xo)}mm)=0", f"EXY(y={_fmt_mm(yo)}mm)=0",
+             f"EYY(y={_fmt_mm(yo)}mm)=0",
+             f"ECY(y={_fmt_mm(yo)}mm)=0" if yaw == Yaw.ECY else f"ECX(x={_fmt_mm(xo)}mm)=0",
+             f"EXC,total({ref_name})=0", f"EYC,total({ref_name})=0", f"ECC({ref_name})=0",
+             f"EYX(x={_fmt_mm(gx[-1])}mm)=0", f"EXY(y={_fmt_mm(gy[-1])}mm)=0"]
+    if delta_L_m is None:
+        words.append(f"EXX(x={_fmt_mm(gx[-1])}mm)=0: scale unknown (delta_L not given), "
+                     "EXX, EYY and G carry an unknown common scale")
+    else:
+        words.append(f"EXX(x={_fmt_mm(gx[-1])}mm)=delta_L={delta_L_m / UM:g}um (scale known)")
+    return words
 
 
 def c_axis_xy(touches: Touches, c_rad: np.ndarray) -> tuple[float, float]:
@@ -1112,10 +1128,15 @@ class SelfCalResult:
             elif k == "ABBE":
                 for i in r:
                     units[i] = "urad/m"
+        conventions = tuple(self.conventions)
+        if J is not None:  # the gauge's positions where the nodes are: the axis positions reading + J
+            words = _gauge_words(g, des.yaw, _c_names(des.setup_ids, des.c_rad)[des.ref_setup],
+                                 float(des.d[10]) if des.scale_known else None, J)
+            conventions = tuple(words) + conventions[len(words):]
         return estimate_doc(des.names, symbols, at, units, self.theta, self.cov,
                             method="2D self-calibration, Ibaraki et al. eqs 15-18 (covariance: probing noise"
                                    + (" and model error)" if self.budget is not None else ")"),
-                            interpolation="linear", conventions=self.conventions,
+                            interpolation="linear", conventions=conventions,
                             positions=POSITIONS if J is not None else POSITIONS_READINGS)
 
     def to_report(self, mc=None, J_m=None) -> dict:

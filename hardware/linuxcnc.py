@@ -45,7 +45,9 @@ the file is taken for a surface (Z) probing job and the plan is built from
 it (:func:`hardware.surface.plan_from_z_touches`).
 
 :func:`comp_file` writes an identified positioning error as a LinuxCNC
-per-joint compensation file (``COMP_FILE_TYPE = 0``), :func:`read_comp_file`
+per-joint compensation file (``COMP_FILE_TYPE = 0``),
+:func:`positioning_comp_file` one from an ISO 230-2 positioning test,
+:func:`read_comp_file`
 reads one back (``sim.compensation`` applies it to the virtual machine as
 LinuxCNC's motion controller does). Its nominal column is the joint
 position, vmt's axis position ``reading + J``; LinuxCNC adds the tool
@@ -493,6 +495,47 @@ def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float
     nom = (x + joint_offset_m) / MM
     act = nom + e / MM
     return "".join(f"{u:.6f} {v:.6f} {v:.6f}\n" for u, v in zip(nom, act))
+
+
+def positioning_comp_file(test) -> str:
+    """LinuxCNC TYPE 0 compensation file from an ISO 230-2 positioning test of one axis.
+
+    One line per target ``P_i``: ``nominal forward reverse`` with nominal the
+    axis (joint) position of the target, ``P_i + J`` (the log's
+    ``tool_offset_mm``, :attr:`core.positioning.PositioningLog.joint_offset`;
+    LinuxCNC looks its table up at the joint command, the programmed position
+    plus the tool offset), and forward / reverse where the axis really went,
+    nominal plus the mean deviation approached in + / in - (ISO 230-2's
+    ``x̄_i↑``, ``x̄_i↓``: the standard's deviation, measured minus target, is
+    the tool relative to the part, as :func:`comp_file`'s E). A log without
+    the key has J = 0: its targets are taken as the axis positions.
+
+    Parameters
+    ----------
+    test : core.positioning.PositioningLog or PositioningTest
+        In the log's unit (mm; degrees for a rotary joint).
+
+    Returns
+    -------
+    str
+        Lines in the log's unit, 6 decimals, ascending, no header.
+
+    Raises
+    ------
+    ConfigError
+        More than :data:`COMP_SIZE` targets. (A log that cannot be arranged
+        raises :class:`core.positioning.PositioningLogError`.)
+    """
+    from core.exceptions import ConfigError
+    from core.positioning import PositioningLog, arrange
+
+    t = arrange(test) if isinstance(test, PositioningLog) else test
+    if t.m > COMP_SIZE:
+        raise ConfigError(f"positioning_comp_file: {t.m} targets, LinuxCNC takes at most {COMP_SIZE} per joint")
+    nom = np.asarray(t.targets, float) + float(t.joint_offset)
+    fwd = nom + np.nanmean(t.dev_up, axis=1)
+    rev = nom + np.nanmean(t.dev_down, axis=1)
+    return "".join(f"{u:.6f} {v:.6f} {w:.6f}\n" for u, v, w in zip(nom, fwd, rev))
 
 
 def read_comp_file(path) -> np.ndarray:

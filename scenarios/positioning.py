@@ -46,7 +46,7 @@ REPORT_SHARES = (8, 66, 100)
 
 
 def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertainty=None,
-                  write_log=None, progress=None) -> tuple[dict, list[str]]:
+                  write_log=None, comp_file=None, progress=None) -> tuple[dict, list[str]]:
     """Read a positioning test, evaluate ISO 230-2, write the JSON (and report).
 
     Parameters
@@ -63,6 +63,10 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
         Measuring conditions: adds the expanded uncertainty of each figure.
     write_log : path, optional
         Also write the readings as ``positioning-log/1`` (an import).
+    comp_file : path, optional
+        Also write a LinuxCNC TYPE 0 compensation table of the axis
+        (:func:`hardware.linuxcnc.positioning_comp_file`: at the axis positions,
+        target + the log's ``tool_offset_mm``).
     progress : callable, optional
         ``progress(done, 100)``: the share of the work done (:data:`REPORT_SHARES`), after each step.
 
@@ -94,8 +98,20 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     rep["baseline"] = {"model": "ISO 230-2: one mean per target and direction",
                        "n_params": base.n_params, "dof": base.dof, f"rms_{ru}": base.rms * k,
                        f"s_up_pooled_{ru}": base.s_up_pooled * k, f"s_down_pooled_{ru}": base.s_down_pooled * k}
+    if J := log.tool_offset_mm:
+        rep["tool_offset_mm"] = list(J)
+        rep["axis_position_offset_mm"] = log.joint_offset
+    comp_text = None
+    if comp_file:
+        from hardware.linuxcnc import positioning_comp_file
+
+        comp_text = positioning_comp_file(test)
     if write_log:
         write_positioning_log(write_log, log, special=True)
+    if comp_text is not None:
+        from core.atomic import write_text_atomic
+
+        write_text_atomic(comp_file, comp_text, special=True)
     write_json_atomic(json_out, rep, special=True)
     if report:
         if progress is not None:

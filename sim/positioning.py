@@ -17,7 +17,11 @@ errors' Abbe offsets at the measuring line. The targets and the line are
 readings (the stylus-tip centre, the machine's probe offsets J in effect),
 so the errors a stop reads are those of the axis positions ``P_i + J``
 (CONTRIBUTING.md, "Error conventions"): with a 150 mm probe on Z, a Z
-test's target P_i reads the errors of Z at P_i + 150 mm. A random scatter (machine
+test's target P_i reads the errors of Z at P_i + 150 mm. The log says so: a
+machine with J not 0 writes it as ``tool_offset_mm``
+(:data:`core.positioning.TOOL_OFFSET_KEY`), so a reader places the targets at
+the axis positions (a compensation table built from the log,
+:func:`hardware.linuxcnc.positioning_comp_file`). A random scatter (machine
 repeatability plus instrument noise, normal, k = 1) is added from a
 passed generator.
 
@@ -46,7 +50,7 @@ import numpy as np
 
 from core import iso
 from core.exceptions import ConfigError
-from core.positioning import CYCLE_KINDS, N_MIN, PositioningLog, make_positioning_log
+from core.positioning import CYCLE_KINDS, N_MIN, TOOL_OFFSET_KEY, PositioningLog, make_positioning_log
 from core.units import MM, UM
 
 #: Default feed between targets, m/s (2000 mm/min).
@@ -60,6 +64,10 @@ OVERRUN_M = 5.0 * MM
 #: spacing that samples periodic (pitch) errors; the end targets keep the
 #: measurement travel.
 TARGET_JITTER = 0.25
+#: Decimals (mm) of the targets written in the log: each target is the double nearest its commanded
+#: decimal value, so the file shows ``84.971``, not the metre-to-millimetre conversion's
+#: ``84.97099999999999`` (exact round trips either way; 1e-9 mm is far below any target's resolution).
+TARGET_DECIMALS_MM = 9
 
 
 @dataclass(frozen=True)
@@ -276,7 +284,10 @@ def simulate_positioning(machine, plan: PositioningPlan, rng: np.random.Generato
     dev = deviations_m(machine, plan, s["target_m"], s["t_s"], s["direction"])
     if noise_m > 0:
         dev = dev + rng.normal(0.0, noise_m, dev.shape)
-    target_mm = s["target_m"] / MM
+    # the commanded values in the log's unit: m -> mm leaves the last bits of a double off the decimal a
+    # part program commands (84.971 mm read as 84.97099999999999); rounded to 1e-9 mm (1 pm, far below
+    # the 1 um the targets are commanded to) each is the double nearest its decimal, written as such
+    target_mm = np.round(s["target_m"] / MM, TARGET_DECIMALS_MM)
     name = getattr(machine.config, "name", "")
     m = {"axis": plan.axis, "machine": name,
          "instrument": "virtual laser interferometer (exact chain"
@@ -285,6 +296,9 @@ def simulate_positioning(machine, plan: PositioningPlan, rng: np.random.Generato
          "line_mm": ",".join(f"{v / MM:g}" for v in plan.line_m),
          "overrun_mm": f"{plan.overrun_m / MM:g}", "feed_mm_min": f"{plan.feed_mps / MM * 60:g}",
          "dwell_s": f"{plan.dwell_s:g}"}
+    J = np.asarray(machine.config.J_m, float)
+    if np.any(J != 0):  # the targets are readings: the axis positions are target + J (TOOL_OFFSET_KEY)
+        m[TOOL_OFFSET_KEY] = ",".join(repr(float(np.round(v / MM, 9))) for v in J)
     m.update({str(k): str(v) for k, v in (meta or {}).items()})
     return make_positioning_log(target_mm, s["cycle"], s["direction"], target_mm + dev / MM,
                                 t_s=s["t_s"], meta=m, unit="mm", source=f"simulated {name} {plan.axis}")

@@ -53,7 +53,7 @@ FILES = {
     "view": (("rrd",), (), ()),
     "plan": ((), ("out",), ()),
     "fit": (("log",), ("json",), ()),
-    "iso230-2": (("log",), ("json", "write_log"), ("report",)),
+    "iso230-2": (("log",), ("json", "write_log", "comp_file"), ("report",)),
     "regress": (("study",), ("json", "junit"), ()),
     "vcmm": (("plan", "task"), ("json",), ("report",)),
 }

@@ -21,14 +21,14 @@ def register(sub) -> None:
                         "offset_mm); recorded in the state (estimate.identified_on) so that vmt vcmm "
                         "--machine-state can check its tool: the tables are the tool's X/Y deviation with this "
                         "probe. Omitted: recorded as unknown (null), and vmt vcmm applies the state unchecked")
-    p.add_argument("--declared-ripple-um-mm", default=None, metavar="SYM=UM:MM,...", dest="declared_ripple",
-                   help="a ripple finer than the grid each table holds, from the machine's spec (e.g. a screw's "
-                        "pitch error: EXX=0.38:10,EYY=0.2:10; amplitude bound um, period mm; tables EXX, EYX, EXY, "
-                        "EYY): a sinusoid at an unknown phase in the U95 (the residuals do not show its value at "
-                        "the datum's nodes). Omitted: the U95 holds only the model error the residuals show")
-    p.add_argument("--declared-ripple-urad-mm", default=None, metavar="SYM=URAD:MM,...", dest="declared_ripple_urad",
-                   help="the same for the yaw table (ECY or ECX, the machine's): amplitude urad and period mm, "
-                        "e.g. ECY=0.15:10")
+    from scenarios.cli.scenario import add_declared_ripple_args
+
+    add_declared_ripple_args(
+        p, "a ripple finer than the grid each table holds, from the machine's spec (e.g. a screw's pitch error: "
+           "EXX=0.38:10,EYY=0.2:10; amplitude bound um, period mm; tables EXX, EYX, EXY, EYY): a sinusoid at an "
+           "unknown phase in the U95 (the residuals do not show its value at the datum's nodes). Omitted: the U95 "
+           "holds only the model error the residuals show",
+        "the same for the yaw table (ECY or ECX, the machine's): amplitude urad and period mm, e.g. ECY=0.15:10")
     from scenarios.cli.guard import NOISE_POSITIVE
 
     p.set_defaults(func=run, vmt_rules=NOISE_POSITIVE)   # the sigma of the U95: > 0, -1 and 0 in one phrasing

@@ -22,6 +22,10 @@ def register(sub) -> None:
     p.add_argument("--from", dest="kind", choices=("auto", "log", "ecmc", "table"), default="auto",
                    help="what LOG is (auto: '# format:' line -> log, TGT_DATA[ -> ecmc, else table)")
     p.add_argument("--write-log", metavar="LOG", help="also write the readings as positioning-log/1")
+    p.add_argument("--comp-file", metavar="COMP",
+                   help="also write a LinuxCNC compensation table (COMP_FILE_TYPE 0: nominal forward reverse, the "
+                        "mean deviation per target and direction) at the axis (joint) positions: target + the "
+                        "log's tool_offset_mm")
     g = p.add_argument_group("uncertainty of the test (ISO/TR 230-9 style; any of these adds U (k=2) per figure)")
     g.add_argument("--u-instrument-um", type=float, metavar="UM", help="instrument, length-independent, standard uncertainty, µm")
     g.add_argument("--u-instrument-um-per-m", type=float, metavar="UM_PER_M", help="instrument, per m of travel, standard uncertainty, µm/m")
@@ -59,7 +63,8 @@ def run(args) -> int:
     # with --report: 2-3 s wall on 2 busy cores (the plot), without it 0.1 s (the line is not drawn then)
     with progress_line("iso230-2: % of the work") as bar:
         rep, warnings = evaluate_file(args.log, args.json, args.report, kind=args.kind, uncertainty=unc,
-                                      write_log=args.write_log, progress=bar if args.report else None)
+                                      write_log=args.write_log, comp_file=args.comp_file,
+                                      progress=bar if args.report else None)
     for w in warnings:
         print(f"vmt iso230-2: warning: {w}", file=sys.stderr)
     u = rep["unit"]
@@ -76,5 +81,5 @@ def run(args) -> int:
     from pathlib import Path
 
     print(f"wrote {args.json}" + (f" and {Path(args.report) / 'index.html'}" if args.report else "")
-          + (f" and {args.write_log}" if args.write_log else ""))
+          + (f" and {args.write_log}" if args.write_log else "") + (f" and {args.comp_file}" if args.comp_file else ""))
     return 0

@@ -215,6 +215,16 @@ def _ripple_symbols(angular: bool) -> tuple:
     return tuple(s for s in vol.MOTION if iso.symbol(s).angular == angular)
 
 
+def add_declared_ripple_args(p, um_help: str, urad_help: str) -> None:
+    """The two options ``--declared-ripple-um-mm`` (dest ``declared_ripple``) and
+    ``--declared-ripple-urad-mm`` (``declared_ripple_urad``) on parser ``p``, with each command's help;
+    :func:`declared_ripples` reads them. ``vmt scenario`` and ``vmt identify`` define them here, once."""
+    p.add_argument("--declared-ripple-um-mm", default=None, metavar="SYM=UM:MM,...", dest="declared_ripple",
+                   help=um_help)
+    p.add_argument("--declared-ripple-urad-mm", default=None, metavar="SYM=URAD:MM,...", dest="declared_ripple_urad",
+                   help=urad_help)
+
+
 def declared_ripples(args) -> dict:
     """``--declared-ripple-um-mm`` and ``--declared-ripple-urad-mm`` (either may be absent) read together ->
     ``{symbol: (m or rad, m)}`` (:func:`parse_declared_ripple`: a ConfigError names the option and the bad item,
@@ -281,14 +291,12 @@ def register(sub) -> None:
                    help="mfb scenarios: identify with this bar calibration (vmt-bar-calibration/1 JSON, as "
                         "'vmt scenario mfb-reversal --json FILE' writes it) instead of the declared one; a "
                         "simulated calibration's true bar is the one simulated")
-    p.add_argument("--declared-ripple-um-mm", default=None, metavar="SYM=UM:MM,...", dest="declared_ripple",
-                   help="mfb scenarios: a screw ripple the machine holds and no MFB plan sees (period shorter "
-                        "than twice the bar's 50 mm pitch), per positioning or straightness error: amplitude um "
-                        "and period mm, e.g. EXX=0.4:10,EYY=0.2:10; its effect on the node tables (unknown "
-                        "phase) joins the U95 as a type B term")
-    p.add_argument("--declared-ripple-urad-mm", default=None, metavar="SYM=URAD:MM,...", dest="declared_ripple_urad",
-                   help="mfb scenarios: the same for an angular error (a pitch or yaw ripple of the screw), "
-                        "amplitude urad and period mm, e.g. EBX=1:10")
+    add_declared_ripple_args(
+        p, "mfb scenarios: a screw ripple the machine holds and no MFB plan sees (period shorter than twice the "
+           "bar's 50 mm pitch), per positioning or straightness error: amplitude um and period mm, e.g. "
+           "EXX=0.4:10,EYY=0.2:10; its effect on the node tables (unknown phase) joins the U95 as a type B term",
+        "mfb scenarios: the same for an angular error (a pitch or yaw ripple of the screw), amplitude urad and "
+        "period mm, e.g. EBX=1:10")
     p.add_argument("--budget-runs", type=int, default=0, metavar="N", dest="budget_runs",
                    help="mfb scenarios: add the uncertainty budget (each source's share per error, and N "
                         "Monte Carlo runs of the whole pipeline with every source; about 8 s of CPU a run; "

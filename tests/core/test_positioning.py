@@ -699,3 +699,41 @@ def test_non_physical_magnitudes_are_refused_without_a_numpy_warning(unit, big, 
     rows = [(edge if p else p, c, d, edge if p else m) for p, c, d, m in rows]
     text = f"# format: {FORMAT}\n# unit: {unit}\n" + _rows_text(rows, f"target_{unit},cycle,direction,measured_{unit}")
     assert parse_positioning_log(text, "h.csv").target.max() == edge
+
+
+def test_tool_offset_places_the_targets_at_the_axis_positions(tmp_path):
+    """``tool_offset_mm`` (J X,Y,Z): the targets stay the commanded readings (ISO 230-2's figures
+    unchanged), the axis position of each is target + J of the axis tested; kept through a write
+    and a read; absent: J = 0."""
+    plain = parse_positioning_log(hand_text(meta="# axis: Y\n"))
+    assert plain.tool_offset_mm is None and plain.joint_offset == 0.0 and arrange(plain).joint_offset == 0.0
+    log = parse_positioning_log(hand_text(meta="# axis: Y\n# tool_offset_mm: 12.5, -40, 150\n"))
+    assert log.tool_offset_mm == (12.5, -40.0, 150.0) and log.joint_offset == -40.0
+    assert arrange(log).joint_offset == -40.0
+    assert iso230_2(log).to_report() == iso230_2(plain).to_report()
+    back = read_positioning_log(write_positioning_log(tmp_path / "j.csv", log))
+    assert back.meta["tool_offset_mm"] == "12.5, -40, 150" and back.joint_offset == -40.0
+
+
+@pytest.mark.parametrize("meta,match", [
+    ("# axis: Z\n# tool_offset_mm: 0,150\n", "metadata tool_offset_mm '0,150': expected 3 numbers X,Y,Z in mm"),
+    ("# axis: Z\n# tool_offset_mm: 0,0,abc\n", "metadata tool_offset_mm: value 'abc' is not a number"),
+    ("# axis: Z\n# tool_offset_mm: 0,0,nan\n", "metadata tool_offset_mm: value 'nan' is not finite"),
+    ("# axis: Z\n# tool_offset_mm: 0,0,1e6\n", "metadata tool_offset_mm '0,0,1e6': beyond +-100000 mm"),
+    ("# tool_offset_mm: 0,0,150\n", "tool_offset_mm: needs the axis tested (metadata axis X, Y or Z), got ''"),
+    ("# axis: C\n# tool_offset_mm: 0,0,150\n", "needs the axis tested (metadata axis X, Y or Z), got 'C'"),
+])
+def test_tool_offset_bad_values_one_line(meta, match):
+    with pytest.raises(PositioningLogError, match=re.escape(match)) as e:
+        parse_positioning_log(hand_text(meta=meta), "bad.csv")
+    assert "\n" not in str(e.value) and str(e.value).startswith("bad.csv: ")
+    with pytest.raises(PositioningLogError, match=re.escape(match)):
+        make_positioning_log([0, 1, 0, 1], [1, 1, 1, 1], "++--", [0, 1, 0, 1], source="bad.csv",
+                             meta=dict(line.lstrip("# ").split(": ", 1) for line in meta.splitlines()))
+
+
+def test_tool_offset_on_a_rotary_log_refused():
+    text = (f"# format: {FORMAT}\n# axis: C\n# unit: deg\n# tool_offset_mm: 0,0,150\n"
+            "target_deg,cycle,direction,measured_deg\n0,1,+,0\n")
+    with pytest.raises(PositioningLogError, match="a tool offset applies to a linear axis, the log is in 'deg'"):
+        parse_positioning_log(text, "r.csv")

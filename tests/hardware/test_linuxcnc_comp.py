@@ -84,3 +84,66 @@ def test_written_file_applied_as_linuxcnc_removes_the_error(tmp_path, name, side
     assert np.abs(m.tip_W(lin, rot) - lin).max() > 20e-6
     # the file rounds to 1 nm (6 decimals in mm)
     assert np.abs(comp.tip_W(lin, rot) - lin).max() < 6e-9
+
+
+@pytest.mark.parametrize("name", ["vmc-3axis", "mikron-ucp710"])
+def test_positioning_test_comp_table_closed_loop_with_a_probe_offset(tmp_path, name):
+    """ISO 230-2 test of Z (probe J_Z 150 mm) -> positioning-log/1 file -> TYPE 0 table -> applied as
+    LinuxCNC applies it (at the joint, reading + J) -> the test again. EZZ (the truth, at the axis
+    position q = reading + 150 mm) = 20 um/m q + 300 um/m^2 q^2 + a 3 um lead (Reversal): ISO 230-2's
+    E 98 um (vmc-3axis) and 101 um (Mikron) before. The table must sit at the axis positions
+    target + J (the log's tool_offset_mm): read at the targets as they are (the readings), every lookup
+    lands 150 mm off and leaves f(q) - f(q - 150 mm), 12-52 um (E 42 um measured). With the table in
+    the right place the retest reads the targets themselves (no interpolation error there), and what
+    is left is EZZ' x EZZ (the table is read at the command, the error acts at the actual position:
+    3.5e-4 x 110e-6 = 0.04 um) plus the file's 1 nm rounding: 0.036 um measured on both machines;
+    bound 0.1 um (2.5 x the predicted term), E likewise."""
+    from dataclasses import replace
+
+    from core.positioning import iso230_2, read_positioning_log, write_positioning_log
+    from hardware.linuxcnc import positioning_comp_file
+    from sim.errorfuncs import Reversal
+    from sim.positioning import positioning_plan, simulate_positioning
+
+    f = Polynomial((0.0, 2e-5, 3e-4)) + Reversal(3e-6)
+    cfg = MACHINES[name](errors={"EZZ": f})
+    cfg = replace(cfg, J_m=(0.0, 0.0, 0.150))
+    m = Machine(cfg)
+    rng = np.random.default_rng(1)
+    plan = positioning_plan(m, "Z", rng=rng)
+    p = tmp_path / "Z.csv"
+    write_positioning_log(p, simulate_positioning(m, plan, rng))
+    log = read_positioning_log(p)
+    before = iso230_2(log)
+    assert before.E > 0.080  # mm
+    c = tmp_path / "Z.comp"
+    c.write_text(positioning_comp_file(log))
+    table = read_comp_file(c)
+    comp = AxisCompensation(m, {"Z": JointTable.from_type0(table * 1e-3)})  # looked up at reading + J_m
+    after = iso230_2(simulate_positioning(comp, plan, rng))
+    assert np.abs(after.mean_up).max() < 1e-4 and np.abs(after.mean_down).max() < 1e-4, after.to_report()
+    assert after.E < 1e-4, after.E
+    assert log.meta["tool_offset_mm"] == "0.0,0.0,150.0" and log.joint_offset == 150.0
+    np.testing.assert_allclose(table[:, 0], np.unique(log.target) + 150.0, rtol=0, atol=1e-9)
+    # the same table at the targets as written (the readings): 150 mm off
+    wrong = np.column_stack([table[:, 0] - 150.0, table[:, 1:] - 150.0])
+    off = iso230_2(simulate_positioning(AxisCompensation(m, {"Z": JointTable.from_type0(wrong * 1e-3)}), plan, rng))
+    assert off.E > 0.010
+
+
+def test_positioning_comp_file_known_answer_and_no_offset():
+    """Two targets, two cycles: forward / reverse = nominal + the mean deviation per direction; the
+    nominal column is target + J of the axis (Y here), target as it is without the key."""
+    from core.positioning import make_positioning_log
+    from hardware.linuxcnc import positioning_comp_file
+
+    rows = dict(target=[0, 100, 100, 0, 0, 100, 100, 0], cycle=[1, 1, 1, 1, 2, 2, 2, 2],
+                direction=["+", "+", "-", "-", "+", "+", "-", "-"])
+    dev = np.array([0.001, 0.003, 0.002, 0.000, 0.003, 0.005, 0.002, 0.002])
+    meas = np.array(rows["target"], float) + dev
+    log = make_positioning_log(rows["target"], rows["cycle"], rows["direction"], meas,
+                               meta={"axis": "Y", "tool_offset_mm": "1,-20.5,150"})
+    assert positioning_comp_file(log) == ("-20.500000 -20.498000 -20.499000\n"
+                                          "79.500000 79.504000 79.502000\n")
+    plain = make_positioning_log(rows["target"], rows["cycle"], rows["direction"], meas, meta={"axis": "Y"})
+    assert positioning_comp_file(plain).splitlines()[1] == "100.000000 100.004000 100.002000"

@@ -717,3 +717,26 @@ def test_wcs_and_one_setup_are_said_plainly(tmp_path, capsys):
                  "--no-collision-check"]) == 0
     said = capsys.readouterr().out
     assert said.endswith(", 1 set-up\n"), said
+
+
+def test_declared_ripple_options_are_defined_once_for_identify_and_scenario(monkeypatch):
+    """``--declared-ripple-um-mm`` / ``-urad-mm`` are one definition (name, dest, metavar, default) that
+    ``vmt identify`` and ``vmt scenario`` share with their own help: building the parser goes through
+    ``scenarios.cli.scenario.add_declared_ripple_args`` for both, and nothing else defines them."""
+    import pathlib
+
+    import scenarios.cli.scenario as S
+
+    calls = []
+    real = S.add_declared_ripple_args
+    monkeypatch.setattr(S, "add_declared_ripple_args", lambda p, *h: (calls.append(p.prog), real(p, *h))[1])
+    parser = build_parser()
+    assert sorted(c.split()[-1] for c in calls) == ["identify", "scenario"]
+    subs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+    for cmd in ("identify", "scenario"):
+        acts = {o: a for a in subs[cmd]._actions for o in a.option_strings}
+        assert acts["--declared-ripple-um-mm"].dest == "declared_ripple"
+        assert acts["--declared-ripple-urad-mm"].dest == "declared_ripple_urad"
+    src = "".join(p.read_text() for p in pathlib.Path(S.__file__).parent.glob("*.py"))
+    assert src.count('add_argument("--declared-ripple-um-mm"') == 1
+    assert src.count('add_argument("--declared-ripple-urad-mm"') == 1

@@ -182,3 +182,42 @@ def test_iso230_2_deg_table_is_evaluated_and_saved_in_degrees(tmp_path, capsys):
     assert rep["unit"] == "arcsec" and "B_arcsec" in rep
     back = read_positioning_log(log)
     assert back.unit == "deg" and "target_deg,cycle,direction,measured_deg" in log.read_text()
+
+
+def test_simulated_z_test_records_j_and_the_comp_file_sits_at_the_axis_positions(tmp_path, capsys):
+    """vmc-3axis's probe is 150 mm long (J_Z): the simulated Z log records it, and
+    ``vmt iso230-2 --comp-file`` writes the table at target + 150 mm; its forward / reverse columns
+    are nominal + the JSON's mean deviations (6 decimals in mm: 0.5 nm)."""
+    log = tmp_path / "z.csv"
+    assert main(["simulate", "positioning", "--axis", "Z", "--out", str(log), "--targets", "6"]) == 0
+    assert "# tool_offset_mm: 0.0,0.0,150.0\n" in log.read_text()
+    comp = tmp_path / "z.comp"
+    assert main(["iso230-2", str(log), "--json", str(tmp_path / "r.json"), "--comp-file", str(comp)]) == 0
+    assert f"and {comp}" in capsys.readouterr().out
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["tool_offset_mm"] == [0.0, 0.0, 150.0] and rep["axis_position_offset_mm"] == 150.0
+    rows = [[float(v) for v in line.split()] for line in comp.read_text().splitlines()]
+    targets = sorted(set(read_positioning_log(log).target.tolist()))
+    assert len(rows) == 6
+    for (nom, fwd, rev), p, t in zip(rows, targets, rep["per_target"]):
+        assert nom == pytest.approx(p + 150.0, abs=5e-7)
+        assert fwd - nom == pytest.approx(t["mean_up_um"] * 1e-3, abs=1e-6)
+        assert rev - nom == pytest.approx(t["mean_down_um"] * 1e-3, abs=1e-6)
+
+
+def test_iso230_2_bad_tool_offset_exit_2(tmp_path, capsys):
+    p = tmp_path / "j.csv"
+    p.write_text(log_text().replace("\ntarget_mm", "\n# axis: Z\n# tool_offset_mm: 0,150\ntarget_mm"))
+    assert main(["iso230-2", str(p), "--json", str(tmp_path / "r.json"), "--comp-file", str(tmp_path / "c")]) == 2
+    err = capsys.readouterr().err
+    assert "metadata tool_offset_mm '0,150': expected 3 numbers" in err and err.count("\n") == 1
+    assert not (tmp_path / "c").exists() and not (tmp_path / "r.json").exists()
+
+
+def test_iso230_2_comp_file_on_the_input_refused(tmp_path, capsys):
+    p = tmp_path / "in.csv"
+    p.write_text(log_text())
+    assert main(["iso230-2", str(p), "--json", str(tmp_path / "r.json"), "--comp-file", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert "--comp-file" in err and "refusing to overwrite an input" in err and err.count("\n") == 1
+    assert p.read_text() == log_text()

@@ -67,6 +67,15 @@ def test_identify_writes_the_tables_at_reading_plus_J(tmp_path):
     assert _off_truth(xk, vk, truth) < TOL_UM                      # axis positions: the truth there
     assert _off_truth(xu, vu, lambda x: truth(x + 0.040)) < TOL_UM  # readings: the truth at reading + J
     assert _off_truth(xu, vu, truth) > 1.0                         # what the unshifted state got wrong
+    # the gauge's words name the nodes where each state has them: EXX(x=...)=0 at an axis position with
+    # J known (grid + 40 mm), at a reading without (session 27 left the readings in both)
+    import re
+
+    ck, cu = (json.loads(p.read_text())["estimate"]["conventions"] for p in (known, unknown))
+    xs_k, xs_u = ([float(v) for c in cs for v in re.findall(r"\bx=(-?[\d.]+)mm", c)] for cs in (ck, cu))
+    assert len(xs_k) == len(xs_u) == 4 and np.allclose(np.array(xs_k) - 40.0, xs_u, atol=1e-9)
+    assert all(np.isclose(xk, v).any() for v in xs_k) and all(np.isclose(xu, v).any() for v in xs_u)
+    assert [c for c in ck if "x=" not in c] == [c for c in cu if "x=" not in c]  # y (J_Y 0), C, notes
     # a reader of the state at the readings places its nodes with the probe it assumes (reading + J);
     # the state written with J is already there and stays as it is
     from core.state import read_estimate

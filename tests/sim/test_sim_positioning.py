@@ -185,3 +185,25 @@ def test_bad_plans(vmc, kw, match):
 def test_negative_noise_refused(vmc):
     with pytest.raises(ConfigError, match="noise must be >= 0"):
         simulate_positioning(vmc, positioning_plan(vmc, "X"), np.random.default_rng(0), noise_m=-1e-6)
+
+
+def test_targets_are_written_as_their_commanded_decimals_and_read_back_exactly(tmp_path):
+    """The metre-to-millimetre conversion left targets such as 84.97099999999999 in the file; the
+    commanded values are whole micrometres (interior targets) or the travel's ends: each target cell
+    must read as a decimal of at most 3 places in mm, and the file must read back to the same doubles."""
+    from decimal import Decimal
+
+    from core.positioning import format_positioning_log, read_positioning_log, write_positioning_log
+    from scenarios.positioning import simulate_test
+
+    for axis in "XYZ":
+        log = simulate_test("vmc-3axis", axis, np.random.default_rng(3))
+        p = write_positioning_log(tmp_path / f"{axis}.csv", log)
+        lines = [ln for ln in p.read_text().splitlines() if not ln.startswith("#")]
+        col = lines[0].split(",").index("target_mm")
+        cells = {ln.split(",")[col] for ln in lines[1:]}
+        assert all(Decimal(c).as_tuple().exponent >= -3 for c in cells), sorted(cells)
+        back = read_positioning_log(p)
+        for k in ("target", "measured", "t_s"):
+            np.testing.assert_array_equal(getattr(back, k), getattr(log, k))
+        assert format_positioning_log(back) == p.read_text()
