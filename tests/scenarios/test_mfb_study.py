@@ -96,19 +96,9 @@ def test_study_report_stability_and_percentiles_known_answer(tmp_path, monkeypat
     assert rep["temperature_draws"]["mean_C"] == 20.5
 
 
-#: Session 28 lays the realistic machine's tables over the axis positions (stroke + J): the stored
-#: 1,000-run studies are of the tables over the strokes as readings; run 1 recomputed now differs.
-#: Strict, so re-running them (scenarios.mfb.budget_study, assemble_study, the doc tables) turns this
-#: into a failure to remove.
-_STUDY_BEFORE_28 = pytest.mark.xfail(strict=True, reason="the stored budget studies are of the realistic tables "
-                                     "laid over the strokes as readings, before session 28: to be re-run")
-
-
 @pytest.mark.parametrize("name, heading", [
-    pytest.param("mfb-3axis", "## Uncertainty budget (item 3): {n:,} runs through the pipeline",
-                 marks=_STUDY_BEFORE_28),
-    pytest.param("mfb-5axis", "## Uncertainty budget of the 5-axis plan: {n:,} runs through the pipeline",
-                 marks=_STUDY_BEFORE_28),
+    pytest.param("mfb-3axis", "## Uncertainty budget (item 3): {n:,} runs through the pipeline"),
+    pytest.param("mfb-5axis", "## Uncertainty budget of the 5-axis plan: {n:,} runs through the pipeline"),
 ])
 def test_stored_study_is_this_pipeline_and_the_doc_table_is_its_summary(name, heading):
     # run 1 of the stored study recomputed now (one pipeline run) equals the stored vector: the
