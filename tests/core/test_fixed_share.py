@@ -8,7 +8,6 @@ the limits below are far from it (a turned probe's p 0.2-1, a wobble's at the 1/
 """
 
 import numpy as np
-import pytest
 
 from core import discover as disc
 from core.diagnosis import new_basis

@@ -13,7 +13,6 @@ interface only.
 """
 
 import numpy as np
-import pytest
 
 from core import causes
 from core import discover as disc
