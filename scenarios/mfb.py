@@ -947,18 +947,26 @@ def program_positions(T_R_A, pl, stylus_r_m: float, art=None) -> dict:
     return out
 
 
-def check_plan_strokes(plan: MfbPlan, cfg, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> None:
-    """:func:`check_program_strokes` of every measurement of ``plan`` on the machine ``cfg`` (a
-    :class:`sim.machine.MachineConfig`: its strokes, its tool's offsets ``J_m`` the reference),
-    the program at ``u_place``'s margins: what :func:`check_plan` checks on the plan's built-in
-    machine, for another machine file of the same chain (``run(machine=...)``)."""
+def measurement_programs(plan: MfbPlan, cfg, u_place=U_PLACE):
+    """Each measurement of ``plan`` with its nominal frame and program on the machine ``cfg``: yields
+    ``(ms, T_R_W, pl, art)``, the measurement, the nominal table frame at its rotary positions
+    (:func:`sim.machine.nominal_T_R_W`), its touch plan at ``u_place``'s margins and the nominal bar
+    (one object for every measurement)."""
     from sim.machine import nominal_T_R_W
 
     art, program = _nominal_bar(), _program(u_place)
     for ms in plan.measurements:
         rot = np.asarray([ms.rot_rad], float) if len(ms.rot_rad) else None
         T_R_W = np.asarray(nominal_T_R_W(cfg, rot), float).reshape(-1, 4, 4)[0]
-        pl = _plan_for(art, ms.holes, **program)
+        yield ms, T_R_W, _plan_for(art, ms.holes, **program), art
+
+
+def check_plan_strokes(plan: MfbPlan, cfg, stylus_r_m: float = 3.0e-3, u_place=U_PLACE) -> None:
+    """:func:`check_program_strokes` of every measurement of ``plan`` on the machine ``cfg`` (a
+    :class:`sim.machine.MachineConfig`: its strokes, its tool's offsets ``J_m`` the reference),
+    the program at ``u_place``'s margins: what :func:`check_plan` checks on the plan's built-in
+    machine, for another machine file of the same chain (``run(machine=...)``)."""
+    for ms, T_R_W, pl, art in measurement_programs(plan, cfg, u_place):
         check_program_strokes(ms.name, program_positions(T_R_W @ ms.T_W_A, pl, stylus_r_m, art), ms.J_m,
                               cfg.J_m, cfg.strokes)
 

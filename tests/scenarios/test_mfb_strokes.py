@@ -241,17 +241,12 @@ def test_check_results_carry_program_positions_bit_for_bit(name):
     (CheckResult.positions_R, session 27): for every measurement they are program_positions' arrays
     bit for bit (the same kinds in the same order; links only for programs of two touches or more),
     also for a program of one touch."""
-    from sim.machine import nominal_T_R_W
     from sim.mfb_scene import check_measurements
 
     plan = M.PLANS[name]()
     cfg = MACHINES[plan.machine]()
-    art, program = M._nominal_bar(), M._program(M.U_PLACE)
     items = []
-    for ms in plan.measurements:
-        rot = np.asarray([ms.rot_rad], float) if len(ms.rot_rad) else None
-        T_R_W = np.asarray(nominal_T_R_W(cfg, rot), float).reshape(-1, 4, 4)[0]
-        pl = M._plan_for(art, ms.holes, **program)
+    for ms, T_R_W, pl, art in M.measurement_programs(plan, cfg):
         items.append((ms.name, ms.T_W_A, T_R_W, plan.fixtures.get(ms.placement, ()), ms.J_m, pl,
                       M.FINGERS.get(ms.stylus, 0.0)))
     one = items[0][5].select(np.array([0]))

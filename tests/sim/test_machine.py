@@ -346,19 +346,14 @@ def test_realistic_profiles_cover_the_positions_an_mfb_campaign_reaches(plan_nam
     -> 6.8 um over the positions it reaches); the 5-axis plan (refitted to its node box in session 27)
     stayed within them (Z 72-393 mm)."""
     from sim.errorfuncs import SplineTable
-    from sim.machine import nominal_T_R_W
     from sim.machines import _LINEAR
     from scenarios import mfb
 
     plan = getattr(mfb, plan_name)()
     _, errs = mfb.default_machine(plan.machine)
     cfg = MACHINES[plan.machine]()
-    art, program = mfb._nominal_bar(), mfb._program(mfb.U_PLACE)
     qs = []
-    for ms in plan.measurements:
-        rot = np.asarray([ms.rot_rad], float) if len(ms.rot_rad) else None
-        T_R_W = np.asarray(nominal_T_R_W(cfg, rot), float).reshape(-1, 4, 4)[0]
-        pl = mfb._plan_for(art, ms.holes, **program)
+    for ms, T_R_W, pl, art in mfb.measurement_programs(plan, cfg):
         pos = mfb.program_positions(T_R_W @ ms.T_W_A, pl, 3.0e-3, art)
         qs.append(np.concatenate([np.asarray(P, float).reshape(-1, 3) for P in pos.values()]) + np.asarray(ms.J_m))
     q = np.concatenate(qs)
