@@ -35,6 +35,12 @@ def _off(monkeypatch):
         monkeypatch.setattr(D, name, False)
 
 
+def test_defaults():
+    """v8 on (its readings the determined forms), v7 off (session 28, form28's measurement)."""
+    assert D.FORM_SHIFT_CARRIED is True and D.FORM_SHIFT_DETERMINED_ONLY is True
+    assert D.VIF_FORM_BY_GAIN is False and D.VIF_DROP_BEYOND_MAX is False and D.VIF_DROP_LEAST_INFLATION is False
+
+
 def test_c_drift_1998_the_other_forms_shift_carried_in_the_u95(monkeypatch):
     """``FORM_SHIFT_CARRIED`` on gen_a c_drift 1998: the name, the form and the extended workpiece (11.894 um) do not
     change; the cause's other passing forms are refitted in its place, the cubic over the campaign moves the workpiece
@@ -53,6 +59,7 @@ def test_c_drift_1998_the_other_forms_shift_carried_in_the_u95(monkeypatch):
     assert "workpiece_shift_form" not in f0["evidence"] and f0["evidence"]["max_vif"] > 100.0
 
     monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", True)
+    monkeypatch.setattr(D, "FORM_SHIFT_DETERMINED_ONLY", True)
     on = blind_outcome(gen_a, "c_drift", 1998, generator="gen_a")
     assert on.cause == "c_drift" and on.confident
     assert on.wp_ext_um == pytest.approx(off.wp_ext_um, abs=1e-9)  # (the estimate is the adopted form's)
@@ -82,6 +89,28 @@ def test_no_other_form_carried_where_the_adopted_form_is_within_vif_max(monkeypa
     assert (on.cause, on.confident, on.wp_ext_um, on.wp_u95_um) == (off.cause, off.confident, off.wp_ext_um,
                                                                      off.wp_u95_um)
     assert "workpiece_shift_form" not in _report("gen_a", "c_drift", 1005)["findings"][0]["evidence"]
+
+
+def test_thermal_drift_1004_an_inflated_reading_not_carried(monkeypatch):
+    """``FORM_SHIFT_DETERMINED_ONLY``: gen_a thermal_drift 1004 names the warm-up (the truth's form) with a direction
+    inflated beyond vif_max; its other passing forms that are inflated too shift the workpiece by their own
+    amplification: read in every form, the U95 goes 0.570 -> 1.147 um against an error of 0.372 (three times wider
+    than the error); read only in the determined forms, nothing real is carried and the U95 stays 0.570. Figures as
+    measured, to 1e-3 um."""
+    from scenarios.hidden import blind_outcome
+
+    gen_a = importlib.import_module("scenarios.blind.gen_a")
+    _off(monkeypatch)
+    off = blind_outcome(gen_a, "thermal_drift", 1004, generator="gen_a")
+    assert off.cause == "thermal_drift" and off.wp_u95_um == pytest.approx(0.570, abs=1e-3)
+    monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", True)
+    monkeypatch.setattr(D, "FORM_SHIFT_DETERMINED_ONLY", False)
+    every = blind_outcome(gen_a, "thermal_drift", 1004, generator="gen_a")
+    assert every.wp_ext_um == off.wp_ext_um and every.wp_u95_um == pytest.approx(1.147, abs=1e-3)
+    assert every.wp_ext_um < every.wp_u95_um / 3
+    monkeypatch.setattr(D, "FORM_SHIFT_DETERMINED_ONLY", True)
+    det = blind_outcome(gen_a, "thermal_drift", 1004, generator="gen_a")
+    assert det.wp_ext_um == off.wp_ext_um and det.wp_u95_um == off.wp_u95_um
 
 
 @pytest.mark.parametrize("seed, on_um, off_um, least_inflated_um", [
