@@ -5414,8 +5414,12 @@ VIF_DROP_LEAST_INFLATION = False
 #: Whether the step :data:`VIF_DROP_LEAST_INFLATION` opens (a passing form with a direction inflated beyond
 #: ``vif_max``, weighed against the cause's other passing forms) takes the form of the largest held-out gain, the
 #: lowest held-out mean square (True; ties: the adopted form, then the order by p) rather than the least inflated.
-#: Session 28 (form28, "v7", measured with :data:`VIF_DROP_BEYOND_MAX` on as v328 proposed). docs/discovery.md,
-#: "Session 28: the workpiece not determined between a cause's forms".
+#: Off (session 28, form28, "v7", measured with :data:`VIF_DROP_BEYOND_MAX` on as v328 proposed): it mends all seven
+#: gen_a c_drift failures by the estimate (7302 12.815 -> 0.612 um, 1791 kept within its check where the least
+#: inflated form fails it) but carries the drop's costs (7 gen_a campaigns named -> hedged, gen_a's mean extended error
+#: +0.057 um) and moves gen_a c_drift 1076 (0.85 sigma) and gen_b thermal_drift 1016 (2.74 sigma) right -> wrong;
+#: :data:`FORM_SHIFT_CARRIED` is on instead. docs/discovery.md, "Session 28: the workpiece not determined between a
+#: cause's forms".
 VIF_FORM_BY_GAIN = False
 
 
