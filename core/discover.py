@@ -3526,11 +3526,11 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                         if shift["carried_in_u95"] else "within the noise the extended U95 already carries"))
     for c, fig in named_shift.items():
         if fig.get("form") and fig["carried_in_u95"]:
-            conv.append(f"{c}'s form has a direction inflated beyond vif_max = {settings.vif_max:g}; {fig['alternative']} "
-                        f"(another of its forms, passing every test) moves the workpiece by {fig['shift_rms_um']:.3g} um "
-                        f"RMS (form only), {fmt_p(fig['p'])} against its own scatter: real, and the workpiece not "
-                        "determined between the cause's forms: the extended U95 carries the shift (u = |shift| / 2 "
-                        "per target)")
+            conv.append(f"{c}'s form has a direction inflated beyond vif_max = {settings.vif_max:g}; "
+                        f"{fig['alternative']} (another of its forms, passing every test) moves the workpiece by "
+                        f"{fig['shift_rms_um']:.3g} um RMS (form only), {fmt_p(fig['p'])} against its own scatter: "
+                        "real, and the workpiece not determined between the cause's forms: the extended U95 carries "
+                        "the shift (u = |shift| / 2 per target)")
         if fig.get("richer") and fig["carried_in_u95"]:
             conv.append(f"{fig['alternative']}, richer than {c} and not excluded beside it, moves the workpiece by "
                         f"{fig['shift_rms_um']:.3g} um RMS (form only) from {c}'s reading, {fmt_p(fig['p'])} against "
