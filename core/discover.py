@@ -169,6 +169,10 @@ What it does, in order, and the statistics behind each step
    cause beside an unnamed smooth has its magnitudes fitted beside the
    smooth's columns too, with its penalty, the smooth's shift of them
    carried in their U95 where real (:func:`_beside_smooth`, session 20).
+   A named cause whose form has a direction inflated beyond ``vif_max``
+   is read in its other determined passing forms too, the largest real
+   workpiece shift carried in the extended U95 (:data:`FORM_SHIFT_CARRIED`,
+   session 28).
 8. **Confidence** (each finding's ``confidence``, ``named`` or
    ``ambiguous`` with ``confidence_reason``): ``named`` says the name holds
    against the alternatives the engine can test. A named cause: no smooth
@@ -1108,6 +1112,9 @@ class Term:
     # (cause, info, (N, k) columns) of the other candidates that passed every test of the round this term won, each
     # in the form it passed with: tested as its alternatives under another name (CAUSE_ALTERNATIVES_OF_THE_ROUND)
     round_rivals: tuple = field(default=(), repr=False, compare=False)
+    # (form text, (N, k) columns of its determined combinations) of the cause's other significant forms that pass every
+    # test, kept where this term's form has a direction inflated beyond vif_max (FORM_SHIFT_CARRIED)
+    form_rivals: tuple = field(default=(), repr=False, compare=False)
 
 
 def _stack(terms, rows) -> np.ndarray:
@@ -3140,8 +3147,24 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 break
             if ENTRANT_FORM_HELD_OUT:
                 best = _entrant_form_held_out(best, other_forms, passed, noise_sigma(st), settings)
+            forms_of = dict(other_forms)
             del other_forms
             best = _plainer_one_explanation(best, passed, st, noise_sigma(st), settings)
+            if FORM_SHIFT_CARRIED and _beyond_vif_max(best["term"].evidence, settings) \
+                    and best["term"].cause in forms_of:
+                # the form adopted is inflated beyond vif_max along a direction: the cause's other passing forms, in
+                # their determined combinations, are its readings under the same name (_workpiece's forms)
+                tb = best["term"]
+                rivals = tuple((_layout_text(r["term"].info), r["term"].columns @ r["term"].map
+                                if r["term"].map is not None else r["term"].columns)
+                               for r in forms_of[tb.cause](any_covariate=True)
+                               if (not FORM_SHIFT_DETERMINED_ONLY or not _beyond_vif_max(r["term"].evidence, settings))
+                               and r["term"].info is not tb.info and not (
+                                   r["term"].columns.shape == tb.columns.shape
+                                   and np.array_equal(r["term"].columns, tb.columns)))
+                if rivals:
+                    best["term"] = dataclasses.replace(tb, form_rivals=rivals)
+            del forms_of
             if CAUSE_ALTERNATIVES_OF_THE_ROUND:
                 # the round's other passing candidates, in the forms they passed with: step 8 tests them as the
                 # winner's alternatives (their columns, already built, kept only for causes of no fixed layouts:
@@ -3429,6 +3452,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     alt_cols = {f.cause: f.evidence.pop("_alt_columns") for f in findings if "_alt_columns" in f.evidence}
     # the richer causes significant beyond a named one (RICHER_SHIFT_CARRIED): their added columns, built on demand
     richer_cols = {f.cause: f.evidence.pop("_richer_columns") for f in findings if "_richer_columns" in f.evidence}
+    # the cause's other passing forms where the adopted one is inflated beyond vif_max (FORM_SHIFT_CARRIED)
+    form_cols = {f.cause: f.evidence.pop("_form_columns") for f in findings if "_form_columns" in f.evidence}
     # outliers that share their target with touches kept (the screen chose which of the target's touches are the
     # part's): those reading less material than the fit are no particle (:func:`_workpiece`'s ``beside_kept``)
     shared = _outliers_beside_kept(bl, outliers, rows) if OUTLIER_BELOW_KEPT and outliers.size else None
@@ -3436,13 +3461,14 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(
         bl, terms, y, rows, st0, st, settings.alpha_family, form if form is not None and form.size else None,
         alternatives=alt_cols if NAMED_ALTERNATIVE_SHIFT_CARRIED else None, beside_kept=shared, named=named_shift,
-        richer=richer_cols or None)
+        richer=richer_cols or None, forms=form_cols or None)
     if named_shift:
         for f in findings:
             if f.cause in named_shift:
                 fig = named_shift[f.cause]
-                f.evidence["workpiece_shift_richer" if fig.get("richer") else "workpiece_shift_alternative"] = \
-                    _clean({k: v for k, v in fig.items() if k != "richer"})
+                f.evidence["workpiece_shift_form" if fig.get("form") else
+                           "workpiece_shift_richer" if fig.get("richer") else "workpiece_shift_alternative"] = \
+                    _clean({k: v for k, v in fig.items() if k not in ("richer", "form")})
     if shift is not None and shift.get("of") == "outliers":
         fo.evidence["workpiece_shift"] = _clean({k: v for k, v in shift.items() if k not in ("of", "beside")})
     res_e = np.full(N, np.nan)
@@ -3499,6 +3525,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                         "assumption: the extended U95 carries the shift (u = |shift| / 2 per target)"
                         if shift["carried_in_u95"] else "within the noise the extended U95 already carries"))
     for c, fig in named_shift.items():
+        if fig.get("form") and fig["carried_in_u95"]:
+            conv.append(f"{c}'s form has a direction inflated beyond vif_max = {settings.vif_max:g}; "
+                        f"{fig['alternative']} (another of its forms, passing every test) moves the workpiece by "
+                        f"{fig['shift_rms_um']:.3g} um RMS (form only), {fmt_p(fig['p'])} against its own scatter: "
+                        "real, and the workpiece not determined between the cause's forms: the extended U95 carries "
+                        "the shift (u = |shift| / 2 per target)")
         if fig.get("richer") and fig["carried_in_u95"]:
             conv.append(f"{fig['alternative']}, richer than {c} and not excluded beside it, moves the workpiece by "
                         f"{fig['shift_rms_um']:.3g} um RMS (form only) from {c}'s reading, {fmt_p(fig['p'])} against "
@@ -5298,19 +5330,21 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         """The cause's other significant forms (those not ``chosen`` nor already ``judged``), in the same order, each
         judged by every test; the results of those that pass (:data:`ENTRANT_FORM_HELD_OUT`, made by the round
         only where the chosen form lost it)."""
-        def judge() -> list:
+        def judge(any_covariate: bool = False) -> list:
+            # (any_covariate: every other form, whatever its covariate: FORM_SHIFT_CARRIED's readings)
             res = [_judge_trial(cause, o, scans, tries, bl, st, folds, terms, cv_cur, sigma, settings, families,
                                 scan_tries)
                    for o in sorted((o for o in owns if o is not chosen and all(o is not j for j in judged)
                                     and o.p * tries < settings.alpha_family
-                                    and (not ENTRANT_FORM_SAME_COVARIATE or o.scan.covariate == chosen.scan.covariate)),
+                                    and (any_covariate or not ENTRANT_FORM_SAME_COVARIATE
+                                         or o.scan.covariate == chosen.scan.covariate)),
                                    key=functools.cmp_to_key(lambda a, b: -1 if _better_trial(a, b, st.rss)
                                                             else (1 if _better_trial(b, a, st.rss) else 0)))]
             return [r for r in res if not r.get("reason")]
         return judge
 
     if not out.get("reason"):
-        if VIF_DROP_LEAST_INFLATION and _beyond_vif_max(out["term"].evidence, settings):
+        if (VIF_DROP_LEAST_INFLATION or VIF_FORM_BY_GAIN) and _beyond_vif_max(out["term"].evidence, settings):
             return _least_inflated_form(out, best, owns, other_forms, cause, scans, tries, bl, st, folds, terms,
                                         cv_cur, sigma, settings, families, scan_tries)
         out["other_forms"] = other_forms(best)
@@ -5355,7 +5389,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
         if not res.get("reason"):
             res["term"].evidence["held_out_fallback"] = (
                 f"the form of smallest p ({_layout_text(best.scan.infos[best.index])}) {out['reason']}")
-            if VIF_DROP_LEAST_INFLATION and _beyond_vif_max(res["term"].evidence, settings):
+            if (VIF_DROP_LEAST_INFLATION or VIF_FORM_BY_GAIN) and _beyond_vif_max(res["term"].evidence, settings):
                 return _least_inflated_form(res, alt, [o for o in owns if o is not best], other_forms, cause, scans,
                                             tries, bl, st, folds, terms, cv_cur, sigma, settings, families,
                                             scan_tries, judged=[best])
@@ -5377,6 +5411,16 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
 #: a quarter to a third of the campaigns (an inflation beyond 100 somewhere in a passing form is common).
 #: docs/discovery.md, "Session 28: directions inflated beyond vif_max".
 VIF_DROP_LEAST_INFLATION = False
+#: Whether the step :data:`VIF_DROP_LEAST_INFLATION` opens (a passing form with a direction inflated beyond
+#: ``vif_max``, weighed against the cause's other passing forms) takes the form of the largest held-out gain, the
+#: lowest held-out mean square (True; ties: the adopted form, then the order by p) rather than the least inflated.
+#: Off (session 28, form28, "v7", measured with :data:`VIF_DROP_BEYOND_MAX` on as v328 proposed): it mends all seven
+#: gen_a c_drift failures by the estimate (7302 12.815 -> 0.612 um, 1791 kept within its check where the least
+#: inflated form fails it) but carries the drop's costs (7 gen_a campaigns named -> hedged, gen_a's mean extended error
+#: +0.057 um) and moves gen_a c_drift 1076 (0.85 sigma) and gen_b thermal_drift 1016 (2.74 sigma) right -> wrong;
+#: :data:`FORM_SHIFT_CARRIED` is on instead. docs/discovery.md, "Session 28: the workpiece not determined between a
+#: cause's forms".
+VIF_FORM_BY_GAIN = False
 
 
 def _beyond_vif_max(ev: dict, settings) -> bool:
@@ -5401,12 +5445,13 @@ def _least_inflated_form(out, chosen, owns, other_forms, cause, scans, tries, bl
             failed.append(alt)
         else:
             passed.append((alt, res))
-    alt, res = min(passed, key=lambda ar: ar[1]["term"].evidence["vif"])
+    alt, res = min(passed, key=lambda ar: ar[1]["cv"] if VIF_FORM_BY_GAIN else ar[1]["term"].evidence["vif"])
     if alt is not chosen:
         res["term"].evidence["least_inflated_form"] = (
             f"the form ({_layout_text(chosen.scan.infos[chosen.index])}) has directions inflated beyond "
             f"{settings.vif_max:g} (best inflation {out['term'].evidence['vif']:.3g}); of the {len(passed)} "
-            f"forms that pass, the one of least variance inflation")
+            f"forms that pass, the one of "
+            f"{'largest held-out gain' if VIF_FORM_BY_GAIN else 'least variance inflation'}")
     # (the forms that failed, and the one set aside, are no entrants: ENTRANT_FORM_HELD_OUT)
     res["other_forms"] = other_forms(alt, failed + ([chosen] if alt is not chosen else []) + list(judged))
     return res
@@ -8080,6 +8125,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             u95 = {k: None for k in u95}
         ev = dict(tm.evidence)
         ev.pop("magnitude_intervals", None)
+        if tm.form_rivals:
+            ev["_form_columns"] = list(tm.form_rivals)  # (FORM_SHIFT_CARRIED: never in the report)
         # a norm's 95 % interval [lo, hi] (its U95 the symmetric cover, session 21): where its value and U95 are the
         # ones reported (beside a smooth the U95 is hypot(U95_s, shift): no such interval)
         iv = {k: x for k, x in iv.items() if vals.get(k) is not None and u95.get(k) is not None
@@ -8871,6 +8918,28 @@ RICHER_NEEDS_ODDS = True
 #: (simulator 91: mean x1.11, max x2.09), none of them needlessly wide (error < U95 / 3). Session 28
 #: (docs/discovery.md, "Session 28: the richer cause's workpiece shift carried in the extended U95").
 RICHER_SHIFT_CARRIED = True
+#: Whether, where the form a named cause is adopted in has a direction inflated beyond ``vif_max`` (its best
+#: direction within it: :func:`_determined`, ``max_vif``), the cause's other significant forms that pass every test
+#: (whatever their covariate) are fitted in its place, in their determined combinations, and the largest real shift
+#: of the extended workpiece between the adopted form and them carried in the extended U95 (True; :func:`_workpiece`'s
+#: ``forms``: the same test, :func:`_unnamed_shift`, and the same quadrature, ``D D^T / 4``, as
+#: :data:`RICHER_SHIFT_CARRIED`; the report's ``workpiece_shift_form`` and a convention line). The name, the form and
+#: the estimate do not change: the U95 says the workpiece is not determined between the cause's forms. Session 28
+#: (form28, "v8"): gen_a c_drift 7302 (session 27's blind failure) and its tuning twins 1560, 1682, 1904, 1929, 1998
+#: adopt a creep common to the set-ups for per-set-up creeps of alternating sign along a direction inflated 563-8,559
+#: times; all six pass with it (7302: U95 1.496 -> 12.483 um against an error of 12.815 beside the baseline's 1.170),
+#: no name or estimate moves anywhere (by construction), the U95 grows only where it fires. The choice of form by
+#: held-out gain instead (:data:`VIF_FORM_BY_GAIN`, "v7") mends the six by the estimate but moves gen_a c_drift 1076
+#: right -> wrong and carries :data:`VIF_DROP_BEYOND_MAX`'s costs. docs/discovery.md, "Session 28: the workpiece not
+#: determined between a cause's forms".
+FORM_SHIFT_CARRIED = True
+#: Whether :data:`FORM_SHIFT_CARRIED` reads the cause only in those of its other forms that have no direction inflated
+#: beyond ``vif_max`` themselves (True), or in every other passing form (False). A reading inflated as the adopted
+#: one is carries its own amplification along the inflated direction into the shift: on gen_a thermal_drift
+#: 1000-1019 (the warm-up's right form, inflated, beside polynomials over the campaign) every form widened 11 U95s, 8
+#: of them newly to more than three times the error (1004: 0.570 -> 1.147 um, error 0.372), the determined forms 8,
+#: 4 of them (1004 unchanged); the six c_drift failures are mended either way. Session 28 (form28).
+FORM_SHIFT_DETERMINED_ONLY = True
 #: Outliers whose target has touches kept, reading less material than the fit there, doubted whatever the report
 #: calls them (:func:`_workpiece`'s ``beside_kept``): the removal's shift tested and carried as the form's.
 #: False (kept, session 22): measured on, it raised the covering U95 of 65 of gen_b outlier 1000-1099's 93
@@ -8910,7 +8979,7 @@ def _outliers_beside_kept(bl: Baseline, outliers, rows) -> np.ndarray:
 
 
 def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubted=None, alternatives=None,
-               beside_kept=None, named=None, richer=None):
+               beside_kept=None, named=None, richer=None, forms=None):
     """Estimand per id for the baseline and the extended model, with U95 (k = 2).
 
     Beside an unnamed smooth the extended U95 carries the workpiece shift
@@ -8962,8 +9031,13 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     ``|D| / 2``: the U95 at k = 2 reaches the richer reading at every target), not as a bias bound added
     linearly (``U95 + |D|``), which would take the richer cause for the truth the report did not name.
 
+    ``forms`` (optional): ``{cause: [(form text, (n, m) columns), ...]}``, the named cause's other significant forms
+    that pass every test, in their determined combinations, where the form adopted has a direction inflated beyond
+    ``vif_max`` (:data:`FORM_SHIFT_CARRIED`): each tested and carried in its place as an alternative is (the largest
+    real shift of all the cause's readings carried); the figures carry ``form = True``.
+
     ``named`` (optional dict): filled with ``{cause: figures}`` of the alternatives' (and the richer
-    causes') tests.
+    causes', the other forms') tests.
 
     Returns (rows of the report, identifiable, G_b, G_e, cov_b, cov_e, shift),
     ``shift`` the test's figures (None without an unnamed smooth).
@@ -9036,7 +9110,7 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
         if sh2 is not None and sh2["carried_in_u95"]:
             ce, shift = ce2, dict(sh2, of="outliers", beside=shift)  # (the smooth's figures kept for the report)
     named = {} if named is None else named
-    if (alternatives or richer) and P is None and isinstance(ce, np.ndarray):
+    if (alternatives or richer or forms) and P is None and isinstance(ce, np.ndarray):
         Le_map, s2e = (lin_e[0], lin_e[1]) if need_maps else \
             _constrained(A1, y, C1, d1, rows, None, E.shape[1], linear_map=True)[3:]
         o = 0
@@ -9049,6 +9123,8 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
                 B = richer[t.cause][1]()
                 if B is not None and B.shape[1]:
                     readings.append((richer[t.cause][0], B, True))
+            readings += [(f"{t.cause} as {text}", B, "form") for text, B in (forms or {}).get(t.cause, ())
+                         if B.shape[1]]
             for other, B, nests in readings:
                 Ea = np.hstack([E[:, :o], B, E[:, o + k:]])
                 Aa = np.hstack([A0, Ea])
@@ -9066,7 +9142,8 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
                                            alpha)
                 if fig is None:
                     continue
-                fig = dict(fig, alternative=other, **({"richer": True} if nests else {}))
+                fig = dict(fig, alternative=other, **({"form": True} if nests == "form" else
+                                                      {"richer": True} if nests else {}))
                 if best is None or (fig["carried_in_u95"], fig["shift_rms_um"]) > (best[1]["carried_in_u95"],
                                                                                    best[1]["shift_rms_um"]):
                     best = (ce_a - ce, fig)

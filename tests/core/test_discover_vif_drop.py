@@ -63,6 +63,7 @@ def test_c_drift_1998_workpiece_within_u95_only_with_the_rule(monkeypatch):
 
     gen_a = importlib.import_module("scenarios.blind.gen_a")
     monkeypatch.setattr(D, "VIF_DROP_LEAST_INFLATION", False)  # (the drop alone; the form choice is tested below)
+    monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", False)  # (v328's figures: the other forms' shift not carried)
     monkeypatch.setattr(D, "VIF_DROP_BEYOND_MAX", True)
     on = blind_outcome(gen_a, "c_drift", 1998, generator="gen_a")
     assert on.cause == "c_drift" and on.confident
@@ -100,6 +101,7 @@ def test_c_drift_least_inflated_form_when_a_direction_is_beyond_vif_max(monkeypa
     gen_a = importlib.import_module("scenarios.blind.gen_a")
     # (both off by default since session 28: measured, each moves other campaigns; docs/discovery.md)
     assert D.VIF_DROP_LEAST_INFLATION is False and D.VIF_DROP_BEYOND_MAX is False
+    monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", False)  # (v328's figures: the other forms' shift not carried)
     monkeypatch.setattr(D, "VIF_DROP_LEAST_INFLATION", True)
     on = blind_outcome(gen_a, "c_drift", seed, generator="gen_a")
     assert on.cause == "c_drift" and on.confident

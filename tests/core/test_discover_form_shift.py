@@ -1,0 +1,144 @@
+"""Session 28 (form28): gen_a c_drift's wrong form, where the adopted form has a direction inflated beyond ``vif_max``.
+
+Session 27's blind check failed gen_a c_drift 7302's workpiece check: a creep common to every set-up adopted (named)
+for per-set-up creeps of alternating sign, along a direction inflated hundreds to thousands of times while the best,
+which ``vif_max`` judges, stayed below it. Its tuning twin 1998 fails alike (the form "after each indexing", best
+inflation 29.7, worst 1,370: the extended workpiece 11.894 um against the baseline 1.084 + U95 1.551). Two remedies,
+each behind its constant (docs/discovery.md, "Session 28: the workpiece not determined between a cause's forms"):
+
+- ``FORM_SHIFT_CARRIED`` ("v8"): the cause's other passing forms fitted in the adopted one's place and the largest real
+  workpiece shift carried in the extended U95 (the name and the estimate unchanged);
+- ``VIF_FORM_BY_GAIN`` with ``VIF_DROP_BEYOND_MAX`` ("v7"): of the cause's passing forms the one of largest held-out
+  gain taken, the inflated directions left out.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import pytest
+
+import core.discover as D
+
+
+def _report(gen, effect, seed):
+    from core.baseline import extra_columns
+    from core.touches import from_log
+
+    log, _ = importlib.import_module(f"scenarios.blind.{gen}").generate(effect, seed)
+    t = from_log(log)
+    return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+
+
+def _off(monkeypatch):
+    for name in ("VIF_DROP_BEYOND_MAX", "VIF_DROP_LEAST_INFLATION", "VIF_FORM_BY_GAIN", "FORM_SHIFT_CARRIED"):
+        monkeypatch.setattr(D, name, False)
+
+
+def test_defaults():
+    """v8 on (its readings the determined forms), v7 off (session 28, form28's measurement)."""
+    assert D.FORM_SHIFT_CARRIED is True and D.FORM_SHIFT_DETERMINED_ONLY is True
+    assert D.VIF_FORM_BY_GAIN is False and D.VIF_DROP_BEYOND_MAX is False and D.VIF_DROP_LEAST_INFLATION is False
+
+
+def test_c_drift_1998_the_other_forms_shift_carried_in_the_u95(monkeypatch):
+    """``FORM_SHIFT_CARRIED`` on gen_a c_drift 1998: the name, the form and the extended workpiece (11.894 um) do not
+    change; the cause's other passing forms are refitted in its place, the cubic over the campaign moves the workpiece
+    by 12.4 um RMS (p ~ 1e-123 against its own scatter: real) and is carried in quadrature, so the U95 goes 1.551 ->
+    12.486 um and the check passes (11.894 <= 1.084 + 12.486); off, it fails (11.894 > 1.084 + 1.551). Figures as
+    measured, to 1e-3 um (an engine change that moves them should be looked at)."""
+    from scenarios.hidden import blind_outcome
+
+    gen_a = importlib.import_module("scenarios.blind.gen_a")
+    _off(monkeypatch)
+    off = blind_outcome(gen_a, "c_drift", 1998, generator="gen_a")
+    assert off.cause == "c_drift" and off.confident
+    assert off.wp_ext_um == pytest.approx(11.894, abs=1e-3) and off.wp_u95_um == pytest.approx(1.551, abs=1e-3)
+    assert off.wp_ext_um > off.wp_base_um + off.wp_u95_um
+    f0 = _report("gen_a", "c_drift", 1998)["findings"][0]
+    assert "workpiece_shift_form" not in f0["evidence"] and f0["evidence"]["max_vif"] > 100.0
+
+    monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", True)
+    monkeypatch.setattr(D, "FORM_SHIFT_DETERMINED_ONLY", True)
+    on = blind_outcome(gen_a, "c_drift", 1998, generator="gen_a")
+    assert on.cause == "c_drift" and on.confident
+    assert on.wp_ext_um == pytest.approx(off.wp_ext_um, abs=1e-9)  # (the estimate is the adopted form's)
+    assert on.wp_u95_um == pytest.approx(12.486, abs=1e-3)
+    assert on.wp_ext_um <= on.wp_base_um + on.wp_u95_um
+    r = _report("gen_a", "c_drift", 1998)
+    f = r["findings"][0]
+    assert f["params"]["form"] == "after each indexing"
+    sh = f["evidence"]["workpiece_shift_form"]
+    assert sh["carried_in_u95"] and sh["p"] < 1e-6 and sh["shift_rms_um"] == pytest.approx(12.39, abs=0.01)
+    assert sh["alternative"].startswith("c_drift as ")
+    assert any("inflated beyond vif_max" in c for c in r["conventions"])
+
+
+def test_no_other_form_carried_where_the_adopted_form_is_within_vif_max(monkeypatch):
+    """The rule acts only where the adopted form has a direction inflated beyond ``vif_max``: gen_a c_drift 1005's
+    per-set-up creep (worst inflation 22.3) reads the same with the constant on and off, field for field."""
+    from scenarios.hidden import blind_outcome
+
+    gen_a = importlib.import_module("scenarios.blind.gen_a")
+    _off(monkeypatch)
+    f0 = _report("gen_a", "c_drift", 1005)["findings"][0]
+    assert f0["evidence"]["max_vif"] <= 100.0
+    off = blind_outcome(gen_a, "c_drift", 1005, generator="gen_a")
+    monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", True)
+    on = blind_outcome(gen_a, "c_drift", 1005, generator="gen_a")
+    assert (on.cause, on.confident, on.wp_ext_um, on.wp_u95_um) == (off.cause, off.confident, off.wp_ext_um,
+                                                                     off.wp_u95_um)
+    assert "workpiece_shift_form" not in _report("gen_a", "c_drift", 1005)["findings"][0]["evidence"]
+
+
+def test_thermal_drift_1004_an_inflated_reading_not_carried(monkeypatch):
+    """``FORM_SHIFT_DETERMINED_ONLY``: gen_a thermal_drift 1004 names the warm-up (the truth's form) with a direction
+    inflated beyond vif_max; its other passing forms that are inflated too shift the workpiece by their own
+    amplification: read in every form, the U95 goes 0.570 -> 1.147 um against an error of 0.372 (three times wider
+    than the error); read only in the determined forms, nothing real is carried and the U95 stays 0.570. Figures as
+    measured, to 1e-3 um."""
+    from scenarios.hidden import blind_outcome
+
+    gen_a = importlib.import_module("scenarios.blind.gen_a")
+    _off(monkeypatch)
+    off = blind_outcome(gen_a, "thermal_drift", 1004, generator="gen_a")
+    assert off.cause == "thermal_drift" and off.wp_u95_um == pytest.approx(0.570, abs=1e-3)
+    monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", True)
+    monkeypatch.setattr(D, "FORM_SHIFT_DETERMINED_ONLY", False)
+    every = blind_outcome(gen_a, "thermal_drift", 1004, generator="gen_a")
+    assert every.wp_ext_um == off.wp_ext_um and every.wp_u95_um == pytest.approx(1.147, abs=1e-3)
+    assert every.wp_ext_um < every.wp_u95_um / 3
+    monkeypatch.setattr(D, "FORM_SHIFT_DETERMINED_ONLY", True)
+    det = blind_outcome(gen_a, "thermal_drift", 1004, generator="gen_a")
+    assert det.wp_ext_um == off.wp_ext_um and det.wp_u95_um == off.wp_u95_um
+
+
+@pytest.mark.parametrize("seed, on_um, off_um, least_inflated_um", [
+    (1998, 0.216, 11.894, 0.216),  # (the form "after each indexing" given up for the per-set-up creep)
+    (1791, 0.795, 0.584, 1.960),  # (the per-set-up creep kept; by least inflation it is given up and fails)
+])
+def test_c_drift_form_of_largest_held_out_gain(monkeypatch, seed, on_um, off_um, least_inflated_um):
+    """``VIF_FORM_BY_GAIN`` with ``VIF_DROP_BEYOND_MAX`` on gen_a c_drift 1998 and 1791: the per-set-up creep (the
+    truth's form) is named in both, each check passes; without the rule 1998 fails (the common creep), and with the
+    choice by least inflation instead (``VIF_DROP_LEAST_INFLATION``, v328's v5) 1791 fails (1.960 against 0.644 + U95
+    0.659): the key of the choice is what mends both. Figures as measured, to 1e-3 um."""
+    from scenarios.hidden import blind_outcome
+
+    gen_a = importlib.import_module("scenarios.blind.gen_a")
+    _off(monkeypatch)
+    off = blind_outcome(gen_a, "c_drift", seed, generator="gen_a")
+    assert off.wp_ext_um == pytest.approx(off_um, abs=1e-3)
+    monkeypatch.setattr(D, "VIF_DROP_LEAST_INFLATION", True)
+    li = blind_outcome(gen_a, "c_drift", seed, generator="gen_a")
+    assert li.wp_ext_um == pytest.approx(least_inflated_um, abs=1e-3)
+    monkeypatch.setattr(D, "VIF_DROP_LEAST_INFLATION", False)
+    monkeypatch.setattr(D, "VIF_DROP_BEYOND_MAX", True)
+    monkeypatch.setattr(D, "VIF_FORM_BY_GAIN", True)
+    on = blind_outcome(gen_a, "c_drift", seed, generator="gen_a")
+    assert on.cause == "c_drift" and on.wp_ext_um == pytest.approx(on_um, abs=1e-3)
+    assert on.wp_ext_um <= on.wp_base_um + on.wp_u95_um
+    assert _report("gen_a", "c_drift", seed)["findings"][0]["params"]["form"] == "per set-up"
+    if seed == 1998:
+        assert off.wp_ext_um > off.wp_base_um + off.wp_u95_um
+    else:
+        assert li.wp_ext_um > li.wp_base_um + li.wp_u95_um
