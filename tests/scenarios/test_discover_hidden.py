@@ -483,18 +483,22 @@ def test_turned_lobes_hidden_in_the_one_telling_direction_are_not_confidently_fi
 
 
 def test_the_richer_readings_workpiece_shift_is_carried_where_the_name_is_hedged_beside_it(monkeypatch):
-    """Session 28 (issue 13; the blind check's lobing_per_setup 6403, tuning twin 4086): the truth turns a 2-lobe
-    pre-travel per set-up, the report names probe_lobing (fixed lobes) hedged beside lobing_per_setup. The extended
-    workpiece (0.935 um from the truth) missed the baseline's 0.618 + its U95 0.310 (the fixed-lobe model's variance
-    alone). The richer reading (lobes turned per set-up, their determined combinations in the fixed lobes' place)
-    moves the workpiece 0.57 um RMS, far beyond its scatter: carried (u = |shift| / 2 per target), the U95 covers.
-    Without the rule (RICHER_SHIFT_CARRIED False) the check fails again, 0.935 > 0.928."""
+    """Session 28 (issue 13; the blind check's lobing_per_setup 6403, spent): the truth turns a 2-lobe pre-travel
+    per set-up, the report names probe_lobing (fixed lobes) hedged beside lobing_per_setup. The extended workpiece
+    (0.611 um from the truth) misses the baseline's 0.300 + its U95 0.296 (the fixed-lobe model's variance alone).
+    The richer reading (lobes turned per set-up, their determined combinations in the fixed lobes' place) moves
+    the workpiece far beyond its scatter: carried (u = |shift| / 2 per target), the U95 is 0.397 and covers.
+    Without the rule (RICHER_SHIFT_CARRIED False) the check fails again. The campaign: shift28 showed the rule on
+    the tuning twin 4086, which on session 28's truth (the tables over stroke + J) no longer fails without it
+    (0.947 against 0.645 + 0.310), nor does any of the simulator's 820 lobing_per_setup / probe_lobing campaigns
+    4000-4409 (the rule changes 385 of their U95, none across its check); 6403 still does (the lead's run,
+    /tmp/lead28/rs)."""
     import core.discover as D
 
-    o = hidden_outcome("lobing_per_setup", 4086)
+    o = hidden_outcome("lobing_per_setup", 6403)
     assert o.cause == "probe_lobing" and not o.confident, o
     assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
     monkeypatch.setattr(D, "RICHER_SHIFT_CARRIED", False)
-    o = hidden_outcome("lobing_per_setup", 4086)
+    o = hidden_outcome("lobing_per_setup", 6403)
     assert o.cause == "probe_lobing" and not o.confident, o
     assert o.wp_ext_um > o.wp_base_um + o.wp_u95_um, o
