@@ -2220,7 +2220,11 @@ def reversal_scans(bl):
 #: positions): an axis whose lost motion is wound by the traverse between features, not by the probing stroke,
 #: reads reversal rather than a part_change on the first touch after the traverse (gen_c travel_hysteresis 5409).
 #: Bonferroni over the two layouts. Measured as a monkeypatch on gen_c travel_hysteresis 200-599: acceptable 337 ->
-#: 396/400, 0 right->wrong; none and every other gen_c effect 200-239 unchanged.
+#: 396/400, 0 right->wrong; none and every other gen_c effect 200-239 unchanged. Off: in the engine (r2b28) on gen_a
+#: and gen_b every effect 1000-1009 (reversal, probe_lobing, lobing_per_setup 1000-1049) and the simulator every
+#: effect 4000-4019 (the three 4000-4049) it mends gen_a reversal 1033 but moves the simulator's probe_lobing 4003
+#: (0.99 sigma) from ``probe_lobing?`` to ``reversal?`` (right -> wrong, hedged, each the other's alternative) and adds
+#: a secondary ``reversal`` finding to 14 of gen_b's 50 probe_lobing campaigns; no workpiece check moved.
 REVERSAL_MOVE_SIGNED = False
 
 
