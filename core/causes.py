@@ -2199,13 +2199,54 @@ def reversal_scans(bl):
         dR = d.touches.d_R
         s = np.where(np.abs(dR) > 1e-9, np.sign(dR), 0.0)
         return np.column_stack([-d.nx * s[:, 0] / 2, -d.ny * s[:, 1] / 2])
-    return [_one(cols, ["x_lost_motion", "y_lost_motion"], {}, "approach_azimuth")], 1.0
+    scans = [_one(cols, ["x_lost_motion", "y_lost_motion"], {}, "approach_azimuth")]
+    if not REVERSAL_MOVE_SIGNED:
+        return scans, 1.0
+
+    def cols_both():
+        dR = d.touches.d_R
+        sa = np.where(np.abs(dR) > 1e-9, np.sign(dR), 0.0)
+        sm = _move_signs(d)
+        return np.column_stack([-d.nx * sa[:, 0] / 2, -d.ny * sa[:, 1] / 2,
+                                -d.nx * sm[:, 0] / 2, -d.ny * sm[:, 1] / 2])
+    scans.append(_one(cols_both, ["x_lost_motion", "y_lost_motion", "x_move_lost_motion", "y_move_lost_motion"],
+                      {"signed_by": "approach+move"}, "approach_azimuth"))
+    return scans, 2.0
+
+
+#: R2b (session 28, r2b28; study docs/discovery.md "Session 28: the blind check's two gen_c faults, diagnosed"):
+#: the reversal cause gets a second layout of four columns, each axis' lost motion signed both by the approach (the
+#: first layout's columns) and by the net move of that axis from the previous touch in log order (the log's nominal
+#: positions): an axis whose lost motion is wound by the traverse between features, not by the probing stroke,
+#: reads reversal rather than a part_change on the first touch after the traverse (gen_c travel_hysteresis 5409).
+#: Bonferroni over the two layouts. Measured as a monkeypatch on gen_c travel_hysteresis 200-599: acceptable 337 ->
+#: 396/400, 0 right->wrong; none and every other gen_c effect 200-239 unchanged. Off: in the engine (r2b28) on gen_a
+#: and gen_b every effect 1000-1009 (reversal, probe_lobing, lobing_per_setup 1000-1049) and the simulator every
+#: effect 4000-4019 (the three 4000-4049) it mends gen_a reversal 1033 but moves the simulator's probe_lobing 4003
+#: (0.99 sigma) from ``probe_lobing?`` to ``reversal?`` (right -> wrong, hedged, each the other's alternative) and adds
+#: a secondary ``reversal`` finding to 14 of gen_b's 50 probe_lobing campaigns; no workpiece check moved.
+REVERSAL_MOVE_SIGNED = False
+
+
+def _move_signs(d) -> np.ndarray:
+    """Sign (-1, 0, +1) of each axis' net nominal move from the previous touch (log order); 0 on the first touch."""
+    p = np.asarray(d.touches.pn_R, float)[:, :2]
+    mv = np.vstack([np.zeros((1, 2)), np.diff(p, axis=0)])
+    return np.where(np.abs(mv) > 1e-9, np.sign(mv), 0.0)
 
 
 def reversal_magnitudes(info, coef, bl):
-    """ISO 230-2's signed reversal values ``B_x``, ``B_y`` (um): negative for a lag (see :func:`reversal_scans`)."""
+    """ISO 230-2's signed reversal values ``B_x``, ``B_y`` (um): negative for a lag (see :func:`reversal_scans`).
+
+    On the move-signed layout (:data:`REVERSAL_MOVE_SIGNED`, ``info["signed_by"] == "approach+move"``) also the
+    lost motion signed by the net move from the previous touch, ``x_move_lost_motion_um``, ``y_move_lost_motion_um``
+    (same sign convention, the move in place of the approach)."""
     c = np.asarray(coef)
-    return {"x_lost_motion_um": c[0] / UM, "y_lost_motion_um": c[1] / UM}
+    out = {"x_lost_motion_um": c[0] / UM, "y_lost_motion_um": c[1] / UM}
+    if info.get("signed_by") == "approach+move":
+        out["x_move_lost_motion_um"] = c[2] / UM
+        out["y_move_lost_motion_um"] = c[3] / UM
+    return out
 
 
 #: The axes whose error the penalised non-rigid field enters: "carried" (the axis the chain's yaw term says rides
@@ -2580,7 +2621,8 @@ REGISTRY = (
           rival=part_change_rival, counter_scan=fixture_slip, gradual=True, norms=part_change_norms,
           circular={"ovalisation_axis_deg": 180.0}),
     Cause("reversal", ("planar",), "machine", reversal_scans, reversal_magnitudes,
-          {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
+          {"x_lost_motion_um": (-100, 100), "y_lost_motion_um": (-100, 100), "x_move_lost_motion_um": (-100, 100),
+           "y_move_lost_motion_um": (-100, 100)}, counter_scan=fixture_slip),
     Cause("nonrigid", ("planar",), "machine", nonrigid_scans, nonrigid_magnitudes,
           {"E*_field_rms_um": (0, 200), "E*_field_peak_um": (-200, 200)}, counter=finer_error_map, penalised=True),
     Cause(OUTLIER, ("planar", "volumetric", "positioning"), "data", None, None, {},
