@@ -1760,7 +1760,7 @@ RING_HARMONIC_SV = 0.1
 
 #: Whether a ring's part change (:func:`part_change_scans`, :func:`_ring_columns`) also carries its size: a third
 #: column ``time`` on the ring's touches (the material growing along every normal alike: a boss growing, a bore
-#: closing) beside its ovalisation's two. Session 28 (docs/discovery.md, "Session 28: a ring's size change, held to
+#: closing) beside its ovalisation's two. Session 28 (docs/discovery-studies.md, "Session 28: a ring's size change, held to
 #: the ring"): gen_c grows its eight-target boss by a size change alone, which the ovalisation cannot take (10 of
 #: 10 `unexplained` in session 26's experiment, named with the column). A size change of every feature at once is
 #: a probe's pre-travel drifting (gen_a probe_heating 1057, out of the catalogue, read `part_change?` with the
@@ -2214,7 +2214,7 @@ def reversal_scans(bl):
     return scans, 2.0
 
 
-#: R2b (session 28, r2b28; study docs/discovery.md "Session 28: the blind check's two gen_c faults, diagnosed"):
+#: R2b (session 28, r2b28; study docs/discovery-studies.md "Session 28: the blind check's two gen_c faults, diagnosed"):
 #: the reversal cause gets a second layout of four columns, each axis' lost motion signed both by the approach (the
 #: first layout's columns) and by the net move of that axis from the previous touch in log order (the log's nominal
 #: positions): an axis whose lost motion is wound by the traverse between features, not by the probing stroke,

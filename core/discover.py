@@ -4932,7 +4932,7 @@ def _pen_key(terms) -> tuple:
 #: lobing_per_setup (a norm over every set-up's lobes loses its value with one direction: 6 of gen_a's 20 named ->
 #: hedged) and throws away the drift a right form carries along such directions (gen_a thermal_drift 1000-1019:
 #: mean extended error 0.250 -> 0.538 um); :data:`VIF_DROP_LEAST_INFLATION` (off too) was measured beside it.
-#: docs/discovery.md, "Session 28: directions inflated beyond vif_max".
+#: docs/discovery-studies.md, "Session 28: directions inflated beyond vif_max".
 VIF_DROP_BEYOND_MAX = False
 
 
@@ -5409,7 +5409,7 @@ def _evaluate(cause, scans, tries, bl, st: _State, folds: Folds, terms, cv_cur, 
 #: moves four campaigns right -> wrong (gen_b thermal_drift 1001, 1006, gen_a c_drift 1076 below one sigma; gen_c
 #: clamp_creep 223, 1.25 sigma, `part_change` -> `thermal_drift?`) against two wrong -> right. Its step is reached on
 #: a quarter to a third of the campaigns (an inflation beyond 100 somewhere in a passing form is common).
-#: docs/discovery.md, "Session 28: directions inflated beyond vif_max".
+#: docs/discovery-studies.md, "Session 28: directions inflated beyond vif_max".
 VIF_DROP_LEAST_INFLATION = False
 #: Whether the step :data:`VIF_DROP_LEAST_INFLATION` opens (a passing form with a direction inflated beyond
 #: ``vif_max``, weighed against the cause's other passing forms) takes the form of the largest held-out gain, the
@@ -5418,7 +5418,7 @@ VIF_DROP_LEAST_INFLATION = False
 #: gen_a c_drift failures by the estimate (7302 12.815 -> 0.612 um, 1791 kept within its check where the least
 #: inflated form fails it) but carries the drop's costs (7 gen_a campaigns named -> hedged, gen_a's mean extended error
 #: +0.057 um) and moves gen_a c_drift 1076 (0.85 sigma) and gen_b thermal_drift 1016 (2.74 sigma) right -> wrong;
-#: :data:`FORM_SHIFT_CARRIED` is on instead. docs/discovery.md, "Session 28: the workpiece not determined between a
+#: :data:`FORM_SHIFT_CARRIED` is on instead. docs/discovery-studies.md, "Session 28: the workpiece not determined between a
 #: cause's forms".
 VIF_FORM_BY_GAIN = False
 
@@ -7201,7 +7201,7 @@ PART_CHANGE_CURVE_CONFINED = True
 #: Whether lobes turned per set-up (a cause with a plainer nested explanation, ``counter_cause``: the probe's lobes
 #: fixed in the machine frame) are refused where the fixed lobes explain a share of their signal that lobes turned
 #: at random in every set-up would leave them with probability below ``Settings.alpha`` on this design
-#: (:func:`_fixed_share`). Session 28 (docs/discovery.md, "Session 28: gen_c's wound lost motion read as lobes per
+#: (:func:`_fixed_share`). Session 28 (docs/discovery-studies.md, "Session 28: gen_c's wound lost motion read as lobes per
 #: set-up"): gen_c travel_hysteresis (out of the catalogue, a lost motion winding up along the path) read
 #: `lobing_per_setup?`, the fixed lobes 0.92-1.02 of its signal on 10 of 11 (true turned lobes 0.03-0.75 on gen_a and
 #: gen_b, up to 0.97 on the simulator's cross pocket, where a turn leaves them as much). Measured: gen_c
@@ -7263,7 +7263,7 @@ def _fixed_share(st: _State, Uc: np.ndarray, E: np.ndarray, sigma: float) -> dic
 #: Whether a ring's size change (:data:`core.causes.RING_SIZE`: part_change's ring layout with its size column) is
 #: refused where every feature's size changes with it (:func:`_ring_size_own`): a probe's pre-travel drifting moves
 #: every touch along its normal alike, a ring's size among them (gen_a probe_heating 1057, out of the catalogue, read
-#: `part_change?` on its boss with the size column alone, its workpiece check lost). Session 28 (docs/discovery.md,
+#: `part_change?` on its boss with the size column alone, its workpiece check lost). Session 28 (docs/discovery-studies.md,
 #: "Session 28: a ring's size change, held to the ring"). False: the size column unguarded.
 RING_SIZE_CONFINED = True
 
@@ -8916,7 +8916,7 @@ RICHER_NEEDS_ODDS = True
 #: workpiece checks by 1 %). Measured on 2,540 tuning campaigns (simulator, gen_a, gen_b, gen_c): no cause changed,
 #: workpiece failures 3 -> 2 (on the simulator 1 -> 0: 4086, U95 0.310 -> 0.649), the U95 grown on 97 campaigns
 #: (simulator 91: mean x1.11, max x2.09), none of them needlessly wide (error < U95 / 3). Session 28
-#: (docs/discovery.md, "Session 28: the richer cause's workpiece shift carried in the extended U95").
+#: (docs/discovery-studies.md, "Session 28: the richer cause's workpiece shift carried in the extended U95").
 RICHER_SHIFT_CARRIED = True
 #: Whether, where the form a named cause is adopted in has a direction inflated beyond ``vif_max`` (its best
 #: direction within it: :func:`_determined`, ``max_vif``), the cause's other significant forms that pass every test
@@ -8930,7 +8930,7 @@ RICHER_SHIFT_CARRIED = True
 #: times; all six pass with it (7302: U95 1.496 -> 12.483 um against an error of 12.815 beside the baseline's 1.170),
 #: no name or estimate moves anywhere (by construction), the U95 grows only where it fires. The choice of form by
 #: held-out gain instead (:data:`VIF_FORM_BY_GAIN`, "v7") mends the six by the estimate but moves gen_a c_drift 1076
-#: right -> wrong and carries :data:`VIF_DROP_BEYOND_MAX`'s costs. docs/discovery.md, "Session 28: the workpiece not
+#: right -> wrong and carries :data:`VIF_DROP_BEYOND_MAX`'s costs. docs/discovery-studies.md, "Session 28: the workpiece not
 #: determined between a cause's forms".
 FORM_SHIFT_CARRIED = True
 #: Whether :data:`FORM_SHIFT_CARRIED` reads the cause only in those of its other forms that have no direction inflated

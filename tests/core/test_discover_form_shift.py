@@ -4,7 +4,7 @@ Session 27's blind check failed gen_a c_drift 7302's workpiece check: a creep co
 for per-set-up creeps of alternating sign, along a direction inflated hundreds to thousands of times while the best,
 which ``vif_max`` judges, stayed below it. Its tuning twin 1998 fails alike (the form "after each indexing", best
 inflation 29.7, worst 1,370: the extended workpiece 11.894 um against the baseline 1.084 + U95 1.551). Two remedies,
-each behind its constant (docs/discovery.md, "Session 28: the workpiece not determined between a cause's forms"):
+each behind its constant (docs/discovery-studies.md, "Session 28: the workpiece not determined between a cause's forms"):
 
 - ``FORM_SHIFT_CARRIED`` ("v8"): the cause's other passing forms fitted in the adopted one's place and the largest real
   workpiece shift carried in the extended U95 (the name and the estimate unchanged);

@@ -1,5 +1,5 @@
 """Lobes per set-up against fixed lobes with a wobble (core.discover.FIXED_SHARE_TEST, _fixed_share; session 28,
-docs/discovery.md "Session 28: gen_c's wound lost motion read as lobes per set-up").
+docs/discovery-studies.md "Session 28: gen_c's wound lost motion read as lobes per set-up").
 
 Known answers on hand-made designs (no baseline beyond a constant): the share of the per-set-up lobes' signal the
 fixed lobes explain, and how rare it is under lobes turned at random in every set-up on that design. Tolerances:

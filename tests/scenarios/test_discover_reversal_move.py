@@ -1,5 +1,5 @@
 """REVERSAL_MOVE_SIGNED (R2b, session 28 r2b28): reversal's second layout, each axis' lost motion signed both by the
-approach and by the net move from the previous touch (docs/discovery.md "Session 28: the blind check's two gen_c
+approach and by the net move from the previous touch (docs/discovery-studies.md "Session 28: the blind check's two gen_c
 faults, diagnosed").
 
 gen_c travel_hysteresis 213 (tuning): a lost motion wound up over the distance travelled (Dahl's law, windup of a

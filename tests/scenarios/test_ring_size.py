@@ -1,5 +1,5 @@
 """A ring's size change named, and held to the ring (session 28: core.causes.RING_SIZE,
-core.discover.RING_SIZE_CONFINED; docs/discovery.md, "Session 28: a ring's size change, held to the ring").
+core.discover.RING_SIZE_CONFINED; docs/discovery-studies.md, "Session 28: a ring's size change, held to the ring").
 
 gen_c grows its boss (eight targets, one per 45 deg sector: no wall column) by a size change beside a small
 ovalisation; without the ring's size column part_change cannot take it and the campaign read `unexplained`
