@@ -71,7 +71,7 @@ from core.keyreader import read_text_file
 from core.probelog import ProbeLog
 
 from .campaign import ProbeSettings, check_program, log_from_plan, motion, plan_steps
-from .transcript import ALIGN_ALONG_MM, ALIGN_LATERAL_MM, _row_offset
+from .transcript import ALIGN_LATERAL_MM, _on_row, _row_offset, off_row_words, row_lines
 
 _WCS_P = {"G54": 1, "G55": 2, "G56": 3, "G57": 4, "G58": 5, "G59": 6,
           "G59.1": 7, "G59.2": 8, "G59.3": 9}
@@ -335,12 +335,9 @@ PROBEOPEN_SKIPS = ("LinuxCNC writes no PROBEOPEN line for a probe at exactly the
 
 def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str) -> None:
     """ProbeLogError naming the first line of ``pos`` (mm) that is not a touch of its plan row ``rows[i]``."""
-    pn = plan.nominals_mm()
-    d = np.column_stack([plan.col(c) for c in ("dx", "dy", "dz")])
-    tgt = plan.col("target")
+    pn, d = row_lines(plan)
     for i, (p, r) in enumerate(zip(pos, rows)):
-        lat, along = _row_offset(p, pn[r], d[r])
-        if lat <= ALIGN_LATERAL_MM and abs(along) <= ALIGN_ALONG_MM:
+        if _on_row(p, pn[r], d[r]):
             continue
         why = ": not this plan's probe file"
         if kind != "tagged":
@@ -349,11 +346,7 @@ def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str) -> None:
                    else why + ", or lines are missing")
             if nxt and kind == "probe":
                 why += f" ({PROBEOPEN_SKIPS}; vmt machine program's programs log every probe with its row)"
-        raise ProbeLogError(
-            f"{path}: line {line_no[i]}: [{p[0]:g}, {p[1]:g}, {p[2]:g}] mm is not a touch of plan row {r} "
-            f"(target {tgt[r]!r}, nominal [{pn[r][0]:g}, {pn[r][1]:g}, {pn[r][2]:g}] mm): {lat:.3f} mm off its "
-            f"approach line, {along:+.3f} mm along it (a touch lies within {ALIGN_LATERAL_MM:g} mm of the line "
-            f"and {ALIGN_ALONG_MM:g} mm of the nominal){why}")
+        raise ProbeLogError(f"{path}: line {line_no[i]}: {off_row_words(p, plan, r, pn, d)}{why}")
 
 
 def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,

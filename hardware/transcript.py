@@ -281,6 +281,21 @@ def _on_row(p, pn, d) -> bool:
     return lat <= ALIGN_LATERAL_MM and abs(along) <= ALIGN_ALONG_MM
 
 
+def row_lines(plan: ProbeLog) -> tuple[np.ndarray, np.ndarray]:
+    """Each plan row's approach line: its nominal (n, 3) mm and its approach direction (n, 3)."""
+    return plan.nominals_mm(), np.column_stack([plan.col(c) for c in ("dx", "dy", "dz")])
+
+
+def off_row_words(p, plan: ProbeLog, r: int, pn, d) -> str:
+    """Where report ``p`` (mm) lies against plan row ``r``'s approach line (``pn``, ``d``: :func:`row_lines`),
+    in a refusal's words: the GRBL and LinuxCNC imports' one account of a touch booked to the wrong row."""
+    lat, along = _row_offset(p, pn[r], d[r])
+    return (f"[{p[0]:g}, {p[1]:g}, {p[2]:g}] mm is not a touch of plan row {r} (target {plan.col('target')[r]!r}, "
+            f"nominal [{pn[r][0]:g}, {pn[r][1]:g}, {pn[r][2]:g}] mm): {lat:.3f} mm off its approach line, "
+            f"{along:+.3f} mm along it (a touch lies within {ALIGN_LATERAL_MM:g} mm of the line and "
+            f"{ALIGN_ALONG_MM:g} mm of the nominal)")
+
+
 def _align(path, s: "Session", plan: ProbeLog):
     """The session with each report on its plan row's approach line (:data:`ALIGN_LATERAL_MM`), a repeated
     touch's first report dropped; and the notes of what was dropped. Raises ProbeLogError naming the first
@@ -288,8 +303,7 @@ def _align(path, s: "Session", plan: ProbeLog):
     the count is the better refusal)."""
     from dataclasses import replace
 
-    pn = plan.nominals_mm()
-    d = np.column_stack([plan.col(c) for c in ("dx", "dy", "dz")])
+    pn, d = row_lines(plan)
     n = plan.n
     keep, notes = [], []
     for j, p in enumerate(s.pos_mm):
@@ -306,13 +320,8 @@ def _align(path, s: "Session", plan: ProbeLog):
             continue
         if r >= n:
             return None, notes
-        lat, along = _row_offset(p, pn[r], d[r])
-        raise ProbeLogError(
-            f"{path}: line {s.lines[j]}: report {j + 1} [{p[0]:g}, {p[1]:g}, {p[2]:g}] mm is not a touch of plan "
-            f"row {r} (target {plan.col('target')[r]!r}, nominal [{pn[r][0]:g}, {pn[r][1]:g}, {pn[r][2]:g}] mm): "
-            f"{lat:.3f} mm off its approach line, {along:+.3f} mm along it (a touch lies within "
-            f"{ALIGN_LATERAL_MM:g} mm of the line and {ALIGN_ALONG_MM:g} mm of the nominal): not this plan's "
-            "transcript, or its reports are one off")
+        raise ProbeLogError(f"{path}: line {s.lines[j]}: report {j + 1} {off_row_words(p, plan, r, pn, d)}: "
+                            "not this plan's transcript, or its reports are one off")
     k = np.array(keep, dtype=int)
     return replace(s, pos_mm=s.pos_mm[k].reshape(-1, 3), touched=s.touched[k],
                    t_s=None if s.t_s is None else s.t_s[k], lines=[s.lines[i] for i in keep]), notes
