@@ -68,9 +68,9 @@ def main_job(out: str = "out", seed: int = 2026, progress=None) -> int:
     res, ident = _identify(t, truth, errs, seed, outp, say)
     say.head("4. discover: what the model gets wrong, and why")
     d, rep, all_named = _discover(t, truth, log_path, outp, say)
-    say.head("5. the multi-feature bar: 21 errors of three linear axes")
+    say.head("5. the multi-feature bar: 21 errors of three linear axes, on a 3-axis VMC (vmc-3axis)")
     _mfb(seed, outp, say)
-    say.head("6. ISO 230-2: a positioning test of the Y axis on the same machine")
+    say.head("6. ISO 230-2: a positioning test of the Y axis of step 1's nmv3000 (its worn screw)")
     _positioning(machine, seed, outp, say)
     say.head("7. report and recording")
     from scenarios.reports import demo_report
@@ -166,8 +166,9 @@ def _identify(t, truth: _Truth, errs, seed: int, outp: Path, say):
         f"against {inj[res.design.slices['EC0Y']][0] * 1e6:+.1f} urad injected, in the same gauge (eqs 16-17: "
         f"EYX zero at both ends; raw {errs['EC0Y'](np.zeros(1))[0] * 1e6:+.1f}); the gap is the lobing probe's, "
         "which this model does not know (step 4)")
-    say(f"workpiece: max U95 {np.nanmax([w['u95_um'] for w in ident['workpiece']]):.2f} um (linear), "
-        f"{ident['monte_carlo']['max_workpiece_u95_um']:.2f} um (Monte Carlo, 1000 runs, with the datum);"
+    say(f"workpiece: max U95 {np.nanmax([w['u95_um'] for w in ident['workpiece']]):.2f} um (linear: probing noise "
+        f"and the model error the residuals show), {ident['monte_carlo']['max_workpiece_u95_um']:.2f} um (Monte "
+        f"Carlo of the probing noise alone, 1000 runs, with the datum);"
         f" form {ident['monte_carlo']['max_workpiece_form_u95_um']:.2f} um")
     raw = t.dq_m[t.setup == 0]
     say(f"error against the true workpiece: raw C=0 probing {np.sqrt(np.mean((raw - _truth_at(t, truth.g, 0)) ** 2)) * 1e6:.2f} um RMS"

@@ -36,7 +36,7 @@ def _mfb(args) -> int:
         from scenarios.mfb import compensators
 
         compensators(args.apply_comp, args.name)  # a bad directory is refused before the campaign
-    with progress_line(f"{args.name}: measurements simulated") as bar:
+    with progress_line(f"{args.name}: steps (each measurement simulated, then two of identification)") as bar:
         r = run(args.name, progress=bar, **kw)
     d = r.doc
     print(f"vmt scenario {args.name}: {d['placements']} placements, {d['measurements']} measurements, "

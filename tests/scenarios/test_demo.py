@@ -41,7 +41,7 @@ def test_demo_end_to_end(tmp_path, capsys):
         assert loop["volumetric"]["volumetric_check"][a]["improved"], loop["volumetric"]["volumetric_check"][a]
     assert outside <= 3, outside
     assert "applied to the virtual machine" in text
-    # step 6: the ISO 230-2 test of Y on the same machine, its figures and discovery on it
+    # step 6: the ISO 230-2 test of Y on step 1's nmv3000 (not step 5's VMC), its figures and discovery on it
     pos = json.loads((out / "iso230-2.json").read_text())
     iso = pos["iso230_2"]
     assert iso["E_um"] >= iso["M_um"] > 0 and iso["A_um"] >= iso["E_um"]
