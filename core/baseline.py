@@ -790,8 +790,10 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
 
     The left side is (2)'s reduced to first order at the exact model's
     solution (:data:`VOLUMETRIC_REDUCED_AT_SOLUTION`,
-    :func:`core.volumetric.reduced_design`): the baseline's fit is the
-    identification's (:func:`core.volumetric.identify_volumetric`), and what
+    :func:`core.volumetric.reduced_design`): unweighted, its least squares
+    is the identification's solution
+    (:func:`core.volumetric.identify_volumetric`; the baseline's rows are
+    whitened, which weights the fit a little differently), and what
     discovery fits beside it is fitted against the exact model's residuals,
     not against (2)'s second order in the placements' turns. The matrix is
     (2)'s, its null space exactly the gauge's.
