@@ -759,6 +759,18 @@ VOLUMETRIC_MODES = ("x (W)", "y (W)", "z (W)")
 #: every bar's holes out interpolates, as a new measurement would.
 VOLUMETRIC_FOLDS = 4
 
+#: The volumetric baseline's observations reduced to first order at the exact solution
+#: (:func:`core.volumetric.reduced_design`: ``y = r(theta) + A theta``, the exact model's residual at the
+#: Gauss-Newton identification plus the first-order model there), not (2)'s own left side. (2) is first
+#: order in the placement errors, and a bar turned by w (pitch, yaw) reads a length changed by
+#: -(w_y^2 + w_z^2) / 2 (0.7 ppm from placement to placement at the default placement tolerance), which
+#: no placement column absorbs and a scale drift between placements takes. Session 29 (docs/discovery.md,
+#: "the volumetric drift magnitudes' U95 and the placements"): 20 MFB campaigns (seeds 5-24, the test's
+#: set-up, +-s injected), the thermal_drift magnitudes within their U95 39 -> 56 of 60 (+s), their error
+#: over the standard uncertainty the U95 implies RMS 2.2-3.4 -> 1.0-1.3; without placement draws the same
+#: campaigns read 55 of 60 either way. Off: (2)'s own left side (sessions 13-28).
+VOLUMETRIC_REDUCED_AT_SOLUTION = True
+
 
 def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: dict | None = None) -> Baseline:
     """The volumetric MFB baseline: the first-order problem (2)/(3) of :mod:`core.volumetric` with its ISO gauge.
@@ -775,11 +787,24 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
     estimand is the error tables (every motion error on its nodes and the
     squarenesses). The covariates: time, placement, stylus, position along
     the bar, x, y, z, component.
+
+    The left side is (2)'s reduced to first order at the exact model's
+    solution (:data:`VOLUMETRIC_REDUCED_AT_SOLUTION`,
+    :func:`core.volumetric.reduced_design`): unweighted, its least squares
+    is the identification's solution
+    (:func:`core.volumetric.identify_volumetric`; the baseline's rows are
+    whitened, which weights the fit a little differently), and what
+    discovery fits beside it is fitted against the exact model's residuals,
+    not against (2)'s second order in the placements' turns. The matrix is
+    (2)'s, its null space exactly the gauge's.
     """
     from . import volumetric as vol
 
     meas = list(meas)
-    d = vol.design(meas, chain, nodes, rotary_points_R_m)
+    if VOLUMETRIC_REDUCED_AT_SOLUTION:
+        d, theta_x = vol.reduced_design(meas, chain, nodes, rotary_points_R_m)
+    else:
+        d, theta_x = vol.design(meas, chain, nodes, rotary_points_R_m), None
     names = [m.name for m in meas]
     places = list(dict.fromkeys(m.placement for m in meas))
     styli = list(dict.fromkeys(tuple(np.round(np.asarray(m.J_m, float), 6)) for m in meas))
@@ -846,7 +871,9 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
         estimand_ids=tuple(d.names[i] for i in est), geometry=None, replicate=np.full(n, -1),
         covariates=tuple(covs), modes=modes, mode_names=VOLUMETRIC_MODES, rows=sel, data=data,
         identifiable=not d.unseen.shape[1], why="" if not d.unseen.shape[1] else "the plan leaves combinations unseen",
-        conventions=tuple(d.gauge) + ("rows whitened by each point's noise covariance (its touches' gain)",),
+        conventions=tuple(d.gauge) + ("rows whitened by each point's noise covariance (its touches' gain)",)
+        + (("observations reduced to first order at the exact model's solution (placements turned: second order)",)
+           if theta_x is not None else ()),
         info={"placements": len(places), "measurements": len(meas), "cv": False},
         estimand_label="error tables")
 
