@@ -332,10 +332,13 @@ def _isnum(v: str) -> bool:
 # no PROBEOPEN line for a probe at exactly the previous probe's position, so a repeated touch shifted
 # every later line one row early, without a word).
 
-#: Why a PROBEOPEN file can be a line short with nothing wrong (emccanon.cc, GET_EXTERNAL_PROBE_POSITION:
-#: a line only when the position differs from the last one written, a static starting at all zeros).
-PROBEOPEN_SKIPS = ("LinuxCNC writes no PROBEOPEN line for a probe at exactly the previous probe's position "
-                   "(or, first, at all zeros)")
+#: Why a PROBEOPEN file can be a line short with nothing wrong (src/emc/task/emccanon.cc,
+#: GET_EXTERNAL_PROBE_POSITION: ``if (last_probed_position != position)`` before each ``fprintf``, the last
+#: position written kept in a function ``static``: all zeros when LinuxCNC starts, and kept from one program
+#: run to the next while it runs). A LOGOPEN file's ``(LOG,...)`` line is written every time it is executed.
+PROBEOPEN_SKIPS = ("LinuxCNC writes no PROBEOPEN line for a probe at exactly the position of the last line it "
+                   "wrote: the previous probe's (before the first, all zeros, or the last probe of an earlier "
+                   "program in the same LinuxCNC session)")
 
 
 def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str, stroke: Stroke | None = None) -> None:
@@ -354,6 +357,27 @@ def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str, stroke: Str
             if nxt and kind == "probe":
                 why += f" ({PROBEOPEN_SKIPS}; vmt machine program's programs log every probe with its row)"
         raise ProbeLogError(f"{path}: line {line_no[i]}: {off_row_words(p, plan, r, pn, d, stroke)}{why}")
+
+
+def _short_file_note(k: int, n: int, kind: str, numbered: bool) -> str:
+    """What a probe file of ``k`` lines for a plan of ``n > k`` rows says (metadata ``probe_file_rows``).
+
+    A LOGOPEN file has a line for every probe its program logged (LinuxCNC writes a ``(LOG,...)`` line each
+    time it runs; a numbered one, ``N<row>``, :func:`part_program`'s, was checked row by row): the program
+    stopped at plan row ``k``. A PROBEOPEN file is short either so or because LinuxCNC skipped touches at
+    exactly the last position it wrote (:data:`PROBEOPEN_SKIPS`), and it does not say which: both are said.
+    """
+    rest = f"row {k}" if n - k == 1 else f"rows {k}..{n - 1}"
+    if kind == "probe":
+        return (f"lines for {k} of {n} plan rows: the program stopped at plan row {k} (a G38.2 miss or an abort), "
+                f"or touches at a repeated position left no line ({PROBEOPEN_SKIPS}); a PROBEOPEN file does not "
+                f"tell which (a LOGOPEN file of vmt machine program's, a line per probe numbered by its row, does). "
+                f"Its lines fill rows 0..{k - 1} in order (each checked on its row's approach line), {rest} marked "
+                "aborted")
+    logged = ("its LOG lines numbered 0..{}, one per probe".format(k - 1) if numbered
+              else "a LOGOPEN file has a line for every probe its program logged")
+    return (f"lines for {k} of {n} plan rows: the program stopped at plan row {k} (a G38.2 miss or an abort; "
+            f"{logged}); {rest} marked aborted")
 
 
 def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
@@ -378,9 +402,10 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
         ``PROBEOPEN`` or ``LOGOPEN`` file (:func:`read_probe_file`).
     plan : ProbeLog or None
         The plan that was run. A file with fewer lines than the plan (the
-        program stopped) fills the first rows; the others get status
-        ``aborted`` and metadata ``probe_file_rows`` says how many were in the
-        file. ``None``: the file is a surface (Z) probing job and the plan is
+        program stopped; or, a PROBEOPEN file, touches at a repeated position
+        skipped) fills the first rows; the others get status ``aborted`` and
+        metadata ``probe_file_rows`` says how many were in the file and what
+        that can mean (:func:`_short_file_note`). ``None``: the file is a surface (Z) probing job and the plan is
         built from it (:func:`hardware.surface.plan_from_z_touches`).
     dt_s : float
         Seconds between touches (``t_s``).
@@ -426,11 +451,7 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
     status = ["ok"] * k + ["aborted"] * (n - k)
     if k < n:
         pos = np.vstack([pos, np.full((n - k, 3), np.nan)])
-        why = "a G38.2 miss or an abort"
-        if kind == "probe":
-            why += f"; or the last touch was at the previous one's position: {PROBEOPEN_SKIPS}"
-        meta["probe_file_rows"] = (f"{k} of {n}: the program stopped at plan row {k} ({why}); "
-                                   "later rows are marked aborted")
+        meta["probe_file_rows"] = _short_file_note(k, n, kind, tags is not None)
     t = np.arange(n) * float(dt_s)
     return log_from_plan(plan, pos, status, t, meta, source=str(path))
 

@@ -624,15 +624,38 @@ def test_numbered_log_file_keeps_a_repeated_touch_on_its_own_row(tmp_path, capsy
     log = read_probe_log(out)
     assert list(log.col("status")) == ["ok"] * 3 + ["aborted"] * 2
     assert "3 of 5" in log.meta["probe_file_rows"] and "PROBEOPEN" not in log.meta["probe_file_rows"]
+    assert log.meta["probe_file_rows"] == ("lines for 3 of 5 plan rows: the program stopped at plan row 3 (a G38.2 "
+                                           "miss or an abort; its LOG lines numbered 0..2, one per probe); rows "
+                                           "3..4 marked aborted")
 
 
-def test_short_probeopen_file_says_a_repeated_position_leaves_no_line(tmp_path, plan_path, measured):
+def test_short_probeopen_file_says_a_repeated_position_leaves_no_line(tmp_path, plan_path, measured, capsys):
     """A PROBEOPEN file one line short whose lines all fit their rows: a stopped run, or the last touch at the
-    previous one's position (nothing in the file tells them apart); the note says both."""
+    previous one's position (nothing in the file tells them apart); the note says both, neither as the fact
+    (session 28's opened with "the program stopped at plan row k"), and that a numbered LOGOPEN file tells."""
     pf = tmp_path / "probe.txt"
     _probe_file(pf, measured.positions_mm()[:11])
-    log = import_probe_file(pf, read_probe_log(plan_path))
-    assert "11 of 12" in log.meta["probe_file_rows"] and "previous one's position" in log.meta["probe_file_rows"]
+    note = import_probe_file(pf, read_probe_log(plan_path)).meta["probe_file_rows"]
+    assert note.startswith("lines for 11 of 12 plan rows: the program stopped at plan row 11 (a G38.2 miss or an "
+                           "abort), or touches at a repeated position left no line (LinuxCNC writes no PROBEOPEN "
+                           "line for a probe at exactly the position of the last line it wrote: the previous "
+                           "probe's"), note
+    assert "a PROBEOPEN file does not tell which (a LOGOPEN file of vmt machine program's, a line per probe " \
+        "numbered by its row, does)" in note and note.endswith("row 11 marked aborted")
+    # the case itself: the plan's last two rows at one point, touched at exactly one position (DUP_PLAN's
+    # rows 0-1 moved to its end): LinuxCNC wrote 4 lines for 5 rows, nothing stopped
+    plan = tmp_path / "end.csv"
+    head, rows = DUP_PLAN.split("feature,dx,dy,dz\n")
+    rows = rows.splitlines()
+    plan.write_text(head + "feature,dx,dy,dz\n" + "\n".join(rows[2:] + rows[:2]) + "\n")
+    pf.write_text("10.000000 0.000000 1.500400\n20.000000 0.000000 1.500600\n30.000000 0.000000 1.500800\n"
+                  "0.000000 0.000000 1.500200\n")
+    out = tmp_path / "end-log.csv"
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan), "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "note: the probe file has lines for 4 of 5 plan rows: the program stopped at plan row 4 (a G38.2 " \
+        "miss or an abort), or touches at a repeated position left no line" in said, said
+    assert list(read_probe_log(out).col("status")) == ["ok"] * 4 + ["aborted"]
 
 
 @pytest.mark.parametrize("rows, change, msg", [
