@@ -20,12 +20,12 @@ def register(sub) -> None:
     p.add_argument("--units", choices=("mm", "inch"), default=None,
                    help="units of a LinuxCNC probe file (mm); not for grbl, whose reports are read as mm")
     p.add_argument("--clearance-mm", dest="clearance", type=float, default=None,
-                   help="the clearance the program was written with (vmt machine program / vmt probe "
-                        "--clearance-mm; 2 when only --overtravel-mm is given): a touch lies within clearance + "
-                        "overtravel of its nominal along its approach line. Neither given: 10 mm (a GRBL "
+                   help="the program's approach start before contact (vmt machine program / vmt probe "
+                        "--clearance-mm), mm (2 when only --overtravel-mm is given): each touch within clearance + "
+                        "overtravel of its nominal along its approach line; neither given, 10 mm (a GRBL "
                         "transcript's own G91 G38.2 moves say it)")
     p.add_argument("--overtravel-mm", dest="overtravel", type=float, default=None,
-                   help="the overtravel the program was written with (2 when only --clearance-mm is given)")
+                   help="the program's probing end beyond contact, mm (2 when only --clearance-mm is given)")
     p.set_defaults(func=run)
 
 
