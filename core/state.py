@@ -24,7 +24,8 @@ covariance")::
 ``positions`` is :data:`POSITIONS` (the nodes at the axis positions reading + J); a ``vmt identify``
 without ``--tool-offset-mm`` (J unknown) writes :data:`POSITIONS_READINGS`, its nodes at the readings, and a
 reader places them with the J of the probe it assumes (:meth:`MachineState.at_axis_positions`, as vmt vcmm
-does with a notice). A state written before session 27's fix (review27b F2) has its ``vmt identify`` nodes at
+does with a notice): the nodes, the positions its ``conventions`` name and a note of that J move together, and
+the placed state saves (:func:`state_doc`) with ``positions`` :data:`POSITIONS`. A state written before session 27's fix (review27b F2) has its ``vmt identify`` nodes at
 the readings under either wording.
 
 ``identified_on`` (since session 26; optional, a file without it reads with a notice) says what the
@@ -42,7 +43,7 @@ set-up, a placement) and is named only. Between nodes the tables follow
 not-a-knot spline); beyond the end nodes the end segment (tangent)
 continues.
 
-This module writes the block (:func:`estimate_doc`) and reads it back
+This module writes the block (:func:`estimate_doc`; a state's, :func:`state_doc`) and reads it back
 (:func:`read_estimate`) into a :class:`MachineState` that can draw machine
 states from the multivariate normal of the estimate (JCGM 101 6.4.8).
 """
@@ -51,6 +52,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -185,6 +187,16 @@ def probe_offsets_check(state: "MachineState", J_mm) -> tuple[str | None, str | 
             "this probe, or give the machine file that probe's [tool] offset_mm"), None
 
 
+#: A position named in a convention's words, ``(x=-110mm)``: the axis letter and the position, mm.
+_POSITION_WORDS = re.compile(r"\(([xyz])=(-?\d+(?:\.\d*)?(?:e[+-]?\d+)?)mm\)")
+
+
+def _at_position(words: str, J_mm) -> str:
+    """``words`` with each position it names along X, Y or Z moved by that axis's J (mm), written as the
+    writer writes them (``:g``, no ``-0``)."""
+    return _POSITION_WORDS.sub(lambda m: f"({m[1]}={float(m[2]) + J_mm['xyz'.index(m[1])] + 0.0:g}mm)", words)
+
+
 @dataclass(frozen=True)
 class MachineState:
     """The machine part of an estimate: tables and constants with their joint normal distribution (SI).
@@ -205,6 +217,8 @@ class MachineState:
     at_readings : bool
         The tables' nodes are readings (``positions`` :data:`POSITIONS_READINGS`: the writer did not
         know J), not axis positions; :meth:`at_axis_positions` places them with a probe's J.
+    method : str
+        The estimate's ``method`` as read ("": none).
     """
 
     tables: dict
@@ -216,16 +230,27 @@ class MachineState:
     source: str
     identified_on: dict | None = None
     at_readings: bool = False
+    method: str = ""
 
     def at_axis_positions(self, J_m) -> "MachineState":
         """The state with its tables at the axis positions: a state at the readings (:attr:`at_readings`)
         has each table's nodes moved by the probe offset ``J_m`` (3,) m along the table's axis (reading
-        + J, the probe taken as the one it was identified with); any other state is returned as is."""
+        + J, the probe taken as the one it was identified with); any other state is returned as is.
+
+        Its labels move with the nodes: every position the ``conventions`` name (``EXX(x=0mm)=0``: the
+        gauge where a table is pinned) is moved by the same J, as the writer does when it knows J
+        (:meth:`core.selfcal.SelfCalResult.estimate`), and a note saying which J placed them is appended,
+        so the state saved (:func:`state_doc`, ``positions`` :data:`POSITIONS`) and read back is this
+        state. ``identified_on`` is left as read (J null: the writer did not know it)."""
         if not self.at_readings:
             return self
         J = np.asarray(J_m, float)
         tables = {s: (x + J["XYZ".index(iso.symbol(s).axis)], idx) for s, (x, idx) in self.tables.items()}
-        return replace(self, tables=tables, at_readings=False)
+        J_mm = [float(v) * 1e3 for v in J]
+        conventions = tuple(_at_position(c, J_mm) for c in self.conventions) + (
+            "nodes placed at the axis positions reading + J with the reader's probe offsets J = ("
+            + ", ".join(f"{v + 0.0:g}" for v in J_mm) + ") mm (the writer did not know J)",)
+        return replace(self, tables=tables, conventions=conventions, at_readings=False)
 
     @property
     def symbols(self) -> tuple:
@@ -348,7 +373,38 @@ def loads_estimate(doc, source: str = "<estimate>") -> MachineState:
     F = V * np.sqrt(np.clip(w, 0.0, None))[None, :]
     return MachineState(out_t, out_c, v[keep] * 1e-6, F, interp, tuple(str(c) for c in doc.get("conventions", [])),
                         source, _read_identified_on(doc.get("identified_on"), fail),
-                        at_readings=doc.get("positions") == POSITIONS_READINGS)
+                        at_readings=doc.get("positions") == POSITIONS_READINGS, method=str(doc.get("method", "")))
+
+
+def state_doc(state: MachineState) -> dict:
+    """The ``vmt-estimate/1`` block of ``state``'s machine part (what :func:`loads_estimate` reads back
+    as the same state: nodes, values, covariance, ``conventions``, ``positions``, ``identified_on``): a
+    state placed at the axis positions (:meth:`MachineState.at_axis_positions`) is written with
+    ``positions`` :data:`POSITIONS`, one still at the readings with :data:`POSITIONS_READINGS`."""
+    names, symbols, at, units, idx = [], [], [], [], []
+    for s, (x, ii) in state.tables.items():
+        sy = iso.symbol(s)
+        for xv, i in zip(x, ii):
+            names.append(f"{s}@{sy.axis.lower()}={float(xv) * 1e3 + 0.0:g}mm")
+            symbols.append(s)
+            at.append(float(xv))
+            units.append("urad" if sy.angular else "um")
+            idx.append(int(i))
+    for s, i in state.constants.items():
+        names.append(s)
+        symbols.append(s)
+        at.append(None)
+        units.append("urad" if iso.symbol(s).angular else "um")
+        idx.append(int(i))
+    idx = np.asarray(idx, int)
+    cov = state.factor @ state.factor.T
+    doc = estimate_doc(names, symbols, at, units, state.mean[idx], cov[np.ix_(idx, idx)],
+                       method=state.method or f"the machine part of {state.source}",
+                       interpolation=state.interpolation, conventions=state.conventions,
+                       positions=POSITIONS_READINGS if state.at_readings else POSITIONS)
+    if state.identified_on is not None:
+        doc["identified_on"] = json.loads(json.dumps(state.identified_on))
+    return doc
 
 
 def _read_identified_on(rec, fail) -> dict | None:

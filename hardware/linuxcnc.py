@@ -71,7 +71,7 @@ from core.keyreader import read_text_file
 from core.probelog import ProbeLog
 
 from .campaign import ProbeSettings, check_program, log_from_plan, motion, plan_steps
-from .transcript import ALIGN_LATERAL_MM, _on_row, _row_offset, off_row_words, row_lines
+from .transcript import ALIGN_LATERAL_MM, Stroke, _on_row, _row_offset, along_bound, off_row_words, row_lines
 
 _WCS_P = {"G54": 1, "G55": 2, "G56": 3, "G57": 4, "G58": 5, "G59": 6,
           "G59.1": 7, "G59.2": 8, "G59.3": 9}
@@ -129,6 +129,9 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
            f"(at the end your {wcs}, your G92 offsets and the modal state [M70/M72] are restored;)",
            f"(a run that stops early leaves {wcs} zeroed: its earlier values are the DEBUG line below)",
            "(load the probe tool with its length offset, G43, before running)",
+           f"(probing stroke: clearance {settings.clearance_mm:g} + overtravel {settings.overtravel_mm:g} mm; "
+           f"vmt import linuxcnc --clearance-mm {settings.clearance_mm:g} --overtravel-mm "
+           f"{settings.overtravel_mm:g} checks each touch within it)",
            "M70"]
     out += [f"{saved[a]} = #{base + (9 if a == 'R' else 'XYZABC'.index(a))}" for a in axes + "R"]
     out += ["#<_vmt_g92_on> = #5210",
@@ -321,23 +324,30 @@ def _isnum(v: str) -> bool:
 # controller reports its axes' own readings, which those errors do not bend); what does is the following error
 # across the line (microns on a straight feed move) and the file's 6 decimals (0.5 nm). The bounds are
 # GRBL's (:data:`hardware.transcript.ALIGN_LATERAL_MM`, 0.5 mm off the line: a hundred times those,
-# while a neighbouring row's line is millimetres away; :data:`hardware.transcript.ALIGN_ALONG_MM`, 10 mm
-# of the nominal along it: the stroke, clearance + overtravel, 2 mm each by default). A line beyond them
+# while a neighbouring row's line is millimetres away; along it, the program's stroke, clearance +
+# overtravel, when the import is given it (``vmt import --clearance-mm/--overtravel-mm``, as the program
+# was written: :func:`hardware.transcript.program_stroke`; the probe file does not say it), else
+# :data:`hardware.transcript.ALIGN_ALONG_MM`, 10 mm, room for the 2 + 2 mm default). A line beyond them
 # is refused naming its row (session 28: lines were booked to rows by order alone, and LinuxCNC writes
 # no PROBEOPEN line for a probe at exactly the previous probe's position, so a repeated touch shifted
 # every later line one row early, without a word).
 
-#: Why a PROBEOPEN file can be a line short with nothing wrong (emccanon.cc, GET_EXTERNAL_PROBE_POSITION:
-#: a line only when the position differs from the last one written, a static starting at all zeros).
-PROBEOPEN_SKIPS = ("LinuxCNC writes no PROBEOPEN line for a probe at exactly the previous probe's position "
-                   "(or, first, at all zeros)")
+#: Why a PROBEOPEN file can be a line short with nothing wrong (src/emc/task/emccanon.cc,
+#: GET_EXTERNAL_PROBE_POSITION: ``if (last_probed_position != position)`` before each ``fprintf``, the last
+#: position written kept in a function ``static``: all zeros when LinuxCNC starts, and kept from one program
+#: run to the next while it runs). A LOGOPEN file's ``(LOG,...)`` line is written every time it is executed.
+PROBEOPEN_SKIPS = ("LinuxCNC writes no PROBEOPEN line for a probe at exactly the position of the last line it "
+                   "wrote: the previous probe's (before the first, all zeros, or the last probe of an earlier "
+                   "program in the same LinuxCNC session)")
 
 
-def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str) -> None:
-    """ProbeLogError naming the first line of ``pos`` (mm) that is not a touch of its plan row ``rows[i]``."""
+def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str, stroke: Stroke | None = None) -> None:
+    """ProbeLogError naming the first line of ``pos`` (mm) that is not a touch of its plan row ``rows[i]``
+    (along the line within ``stroke``, :func:`hardware.transcript.along_bound`)."""
     pn, d = row_lines(plan)
+    along = along_bound(stroke)
     for i, (p, r) in enumerate(zip(pos, rows)):
-        if _on_row(p, pn[r], d[r]):
+        if _on_row(p, pn[r], d[r], along):
             continue
         why = ": not this plan's probe file"
         if kind != "tagged":
@@ -346,11 +356,32 @@ def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str) -> None:
                    else why + ", or lines are missing")
             if nxt and kind == "probe":
                 why += f" ({PROBEOPEN_SKIPS}; vmt machine program's programs log every probe with its row)"
-        raise ProbeLogError(f"{path}: line {line_no[i]}: {off_row_words(p, plan, r, pn, d)}{why}")
+        raise ProbeLogError(f"{path}: line {line_no[i]}: {off_row_words(p, plan, r, pn, d, stroke)}{why}")
+
+
+def _short_file_note(k: int, n: int, kind: str, numbered: bool) -> str:
+    """What a probe file of ``k`` lines for a plan of ``n > k`` rows says (metadata ``probe_file_rows``).
+
+    A LOGOPEN file has a line for every probe its program logged (LinuxCNC writes a ``(LOG,...)`` line each
+    time it runs; a numbered one, ``N<row>``, :func:`part_program`'s, was checked row by row): the program
+    stopped at plan row ``k``. A PROBEOPEN file is short either so or because LinuxCNC skipped touches at
+    exactly the last position it wrote (:data:`PROBEOPEN_SKIPS`), and it does not say which: both are said.
+    """
+    rest = f"row {k}" if n - k == 1 else f"rows {k}..{n - 1}"
+    if kind == "probe":
+        return (f"lines for {k} of {n} plan rows: the program stopped at plan row {k} (a G38.2 miss or an abort), "
+                f"or touches at a repeated position left no line ({PROBEOPEN_SKIPS}); a PROBEOPEN file does not "
+                f"tell which (a LOGOPEN file of vmt machine program's, a line per probe numbered by its row, does). "
+                f"Its lines fill rows 0..{k - 1} in order (each checked on its row's approach line), {rest} marked "
+                "aborted")
+    logged = ("its LOG lines numbered 0..{}, one per probe".format(k - 1) if numbered
+              else "a LOGOPEN file has a line for every probe its program logged")
+    return (f"lines for {k} of {n} plan rows: the program stopped at plan row {k} (a G38.2 miss or an abort; "
+            f"{logged}); {rest} marked aborted")
 
 
 def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
-                      units: str = "mm") -> ProbeLog:
+                      units: str = "mm", stroke: Stroke | None = None) -> ProbeLog:
     """Merge a LinuxCNC probe file with its plan into a full ``probe-log/1``.
 
     The file holds no clock: ``t_s`` is the touch index (plan order) times
@@ -361,8 +392,9 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
     must be 0, 1, 2, ... (one line per probe, none skipped). Any other file
     (a ``PROBEOPEN`` file, a ``LOGOPEN`` file without ``N``) is read in plan
     order. Either way every line must lie on its row's approach line
-    (:data:`ALIGN_LATERAL_MM`, :data:`ALIGN_ALONG_MM`), else the file is
-    refused naming the line and the row.
+    (:data:`ALIGN_LATERAL_MM`; along it within ``stroke``, else
+    :data:`hardware.transcript.ALIGN_ALONG_MM`), else the file is refused
+    naming the line, the row and the bound.
 
     Parameters
     ----------
@@ -370,14 +402,18 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
         ``PROBEOPEN`` or ``LOGOPEN`` file (:func:`read_probe_file`).
     plan : ProbeLog or None
         The plan that was run. A file with fewer lines than the plan (the
-        program stopped) fills the first rows; the others get status
-        ``aborted`` and metadata ``probe_file_rows`` says how many were in the
-        file. ``None``: the file is a surface (Z) probing job and the plan is
+        program stopped; or, a PROBEOPEN file, touches at a repeated position
+        skipped) fills the first rows; the others get status ``aborted`` and
+        metadata ``probe_file_rows`` says how many were in the file and what
+        that can mean (:func:`_short_file_note`). ``None``: the file is a surface (Z) probing job and the plan is
         built from it (:func:`hardware.surface.plan_from_z_touches`).
     dt_s : float
         Seconds between touches (``t_s``).
     units : {"mm", "inch"}
         Units of the file (a ``G20`` program writes inches).
+    stroke : hardware.transcript.Stroke, optional
+        The program's probing stroke (clearance + overtravel, mm:
+        :func:`hardware.transcript.program_stroke`); default not known.
 
     Raises
     ------
@@ -411,15 +447,11 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
                     + (f"row {r} is beyond the plan's {n} rows" if r >= n else
                        "a line is missing or repeated (the program writes one line per probe, in plan order)"))
     if not built:
-        _check_rows(path, pos, range(k), line_no, plan, "tagged" if tags is not None else kind)
+        _check_rows(path, pos, range(k), line_no, plan, "tagged" if tags is not None else kind, stroke)
     status = ["ok"] * k + ["aborted"] * (n - k)
     if k < n:
         pos = np.vstack([pos, np.full((n - k, 3), np.nan)])
-        why = "a G38.2 miss or an abort"
-        if kind == "probe":
-            why += f"; or the last touch was at the previous one's position: {PROBEOPEN_SKIPS}"
-        meta["probe_file_rows"] = (f"{k} of {n}: the program stopped at plan row {k} ({why}); "
-                                   "later rows are marked aborted")
+        meta["probe_file_rows"] = _short_file_note(k, n, kind, tags is not None)
     t = np.arange(n) * float(dt_s)
     return log_from_plan(plan, pos, status, t, meta, source=str(path))
 

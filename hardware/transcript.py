@@ -58,6 +58,10 @@ _ALARM = re.compile(r"\bALARM:(\d+)")
 _PROBING = re.compile(r"\bG38\.[2-5]\b", re.I)
 _RESET_SENT = re.compile(r"^(\^X|\x18|0x18|ctrl-x)$", re.I)
 _BANNER = re.compile(r"^(Grbl|GrblHAL)\s*\S*\s*\[.*\]\s*$", re.I)
+# a sent line's words, spaces optional (GRBL strips them): G91 (relative), G20/G21 (inch/mm), X/Y/Z values
+_G91 = re.compile(r"G0*91(?![.\d])", re.I)
+_UNITS = re.compile(r"G0*(2[01])(?![.\d])", re.I)
+_AXIS_WORDS = re.compile(r"([XYZ])\s*([-+]?(?:\d+\.?\d*|\.\d+))", re.I)
 
 
 def _stamp(line: str) -> float | None:
@@ -81,7 +85,9 @@ class Session:
     the lines where a probing command (``G38.2`` .. ``G38.5``) was sent;
     ``errors``: ``(line, code)`` of every ``error:n``; ``resets``: lines where
     the controller was reset (Ctrl-X sent, or its banner received);
-    ``n_lines``: the transcript's last line.
+    ``n_lines``: the transcript's last line; ``strokes``: per probing command, the length of its move, mm,
+    when the line says it (``G91`` on it, in mm: ``vmt probe`` sends ``G91 G38.2 X.. Y.. Z..`` from the
+    approach start, a move of clearance + overtravel), else None.
     """
 
     pos_mm: np.ndarray
@@ -93,6 +99,7 @@ class Session:
     errors: list = field(default_factory=list)
     resets: list = field(default_factory=list)
     n_lines: int = 0
+    strokes: list = field(default_factory=list)
 
 
 def read_transcript(path):
@@ -144,7 +151,8 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
     # replacement (a probe report it garbles is refused as malformed, below)
     text = data.decode("utf-8", errors="replace")
     pos, touched, stamps, where = [], [], [], []
-    alarms, probing, errors, resets = [], [], [], []
+    alarms, probing, errors, resets, strokes = [], [], [], [], []
+    inch = False      # G20 sent: a probing move's words in inches (the reports stay mm, $13=0)
     t0 = None
     prev_info = False
     ln = 0
@@ -167,8 +175,12 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
             if _BANNER.match(body):
                 resets.append(ln)
         if way != "<" and not body.startswith("["):
+            u = _UNITS.findall(body)
+            if u:
+                inch = u[-1] == "20"
             if _PROBING.search(body):
                 probing.append(ln)
+                strokes.append(_stroke_mm(body, inch))
             elif _RESET_SENT.match(body):
                 resets.append(ln)
         tok = _PRB_TOKEN.search(line)
@@ -207,7 +219,20 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
                 else:
                     raise ProbeLogError(f"{p}: line {where[i]}: time goes backwards")
     return Session(np.array(pos, dtype=float).reshape(-1, 3), np.array(touched, dtype=bool), t, where, alarms,
-                   probing, errors, resets, ln)
+                   probing, errors, resets, ln, strokes)
+
+
+def _stroke_mm(body: str, inch: bool) -> float | None:
+    """The length of a probing command's move, mm, when it is relative (``G91`` on its line) with axis words;
+    else None (an absolute target: where the move started is not on the line)."""
+    if not _G91.search(body):
+        return None
+    w = _AXIS_WORDS.findall(body)
+    if not w:
+        return None
+    v = np.array([float(x) for _, x in w]) * (25.4 if inch else 1.0)
+    n = float(np.sqrt(v @ v))
+    return n if np.isfinite(n) and n > 0 else None
 
 
 def _stop(s: Session, plan: ProbeLog) -> tuple[str, str, str]:
@@ -254,15 +279,56 @@ def _stop(s: Session, plan: ProbeLog) -> tuple[str, str, str]:
 #: position where the probe stopped, so a report lies on the line through the row's nominal ``Xn`` along ``d``
 #: (off it by the firmware's step resolution, microns) within clearance/overtravel of ``Xn`` (2 mm each by
 #: default). The bounds, mm: off the line by at most :data:`ALIGN_LATERAL_MM` (a hundred times the 0.005 mm a
-#: report is rounded to; a neighbouring row's line is millimetres away), along it within
-#: :data:`ALIGN_ALONG_MM` of ``Xn`` (room for an overtravel of up to 10 mm). Beyond them the report is not
-#: that row's: refused (a transcript of another plan, or one report off), or, when it lies on the previous
-#: row's line, taken as that touch repeated (session 26: ``vmt probe`` killed after a report reached the
-#: transcript but before its log line was synced repeats the touch on ``--resume``) and the first dropped.
-#: A miss's report (``[PRB:...:0]``) is not checked: after ALARM:5 GRBL repeats the last successful probe's
-#: position in it.
+#: report is rounded to; a neighbouring row's line is millimetres away), along it within the program's stroke
+#: (clearance + overtravel, :func:`along_bound`) of ``Xn`` where the import knows it (the transcript's own
+#: ``G91 G38.2`` move; ``vmt import``'s ``--clearance-mm``/``--overtravel-mm``), else :data:`ALIGN_ALONG_MM`.
+#: Beyond them the report is not that row's: refused (a transcript of another plan, or one report off), or, when
+#: it lies on the previous row's line, taken as that touch repeated (session 26: ``vmt probe`` killed after a
+#: report reached the transcript but before its log line was synced repeats the touch on ``--resume``) and the
+#: first dropped. A miss's report (``[PRB:...:0]``) is not checked: after ALARM:5 GRBL repeats the last
+#: successful probe's position in it.
 ALIGN_LATERAL_MM = 0.5
+#: The along-the-line bound when the program's stroke is not known, mm: room for a stroke (clearance +
+#: overtravel) of up to 10 mm; 2 + 2 mm by default. A longer stroke's far touches are refused by it, and a short
+#: one's neighbouring row along the same line may pass it: give the import the stroke (session 29).
 ALIGN_ALONG_MM = 10.0
+#: Added to a known stroke, mm: a touch lies between the stroke's ends (``-clearance`` .. ``+overtravel`` along
+#: the line, so within clearance + overtravel of the nominal); this much more for the reports' rounding (GRBL
+#: 0.001 mm) and the servo's following error along the line (microns).
+ALIGN_ALONG_SLACK_MM = 0.01
+
+
+@dataclass(frozen=True)
+class Stroke:
+    """A probing stroke the import knows: ``mm`` its length (clearance + overtravel), ``said`` where it is
+    from (a refusal's words)."""
+
+    mm: float
+    said: str
+
+
+def along_bound(stroke: "Stroke | None") -> float:
+    """How far along its approach line a touch may lie from its nominal, mm: the stroke's length
+    (+ :data:`ALIGN_ALONG_SLACK_MM`), or :data:`ALIGN_ALONG_MM` when the stroke is not known."""
+    return ALIGN_ALONG_MM if stroke is None else stroke.mm + ALIGN_ALONG_SLACK_MM
+
+
+def program_stroke(clearance_mm: float | None, overtravel_mm: float | None) -> "Stroke | None":
+    """The stroke of a program written with ``--clearance-mm``/``--overtravel-mm`` (the one not given: its
+    default, 2 mm), or None when neither is given. :class:`core.exceptions.ConfigError` for a value that is
+    not a finite number >= 0, or both 0."""
+    from core.exceptions import ConfigError
+
+    if clearance_mm is None and overtravel_mm is None:
+        return None
+    c = 2.0 if clearance_mm is None else clearance_mm
+    o = 2.0 if overtravel_mm is None else overtravel_mm
+    for name, v in (("--clearance-mm", c), ("--overtravel-mm", o)):
+        if not (np.isfinite(v) and v >= 0):
+            raise ConfigError(f"{name} must be a finite number >= 0 (the program's, mm), got {v!r}")
+    if c + o <= 0:
+        raise ConfigError("--clearance-mm and --overtravel-mm are both 0: no probing stroke")
+    return Stroke(float(c + o), f"the program's stroke, clearance {c:g} + overtravel {o:g} mm")
 
 
 def _row_offset(p, pn, d) -> tuple[float, float]:
@@ -276,9 +342,9 @@ def _row_offset(p, pn, d) -> tuple[float, float]:
     return float(np.linalg.norm(v - along * u)), along
 
 
-def _on_row(p, pn, d) -> bool:
+def _on_row(p, pn, d, along_mm: float = ALIGN_ALONG_MM) -> bool:
     lat, along = _row_offset(p, pn, d)
-    return lat <= ALIGN_LATERAL_MM and abs(along) <= ALIGN_ALONG_MM
+    return lat <= ALIGN_LATERAL_MM and abs(along) <= along_mm
 
 
 def row_lines(plan: ProbeLog) -> tuple[np.ndarray, np.ndarray]:
@@ -286,21 +352,42 @@ def row_lines(plan: ProbeLog) -> tuple[np.ndarray, np.ndarray]:
     return plan.nominals_mm(), np.column_stack([plan.col(c) for c in ("dx", "dy", "dz")])
 
 
-def off_row_words(p, plan: ProbeLog, r: int, pn, d) -> str:
+def off_row_words(p, plan: ProbeLog, r: int, pn, d, stroke: "Stroke | None" = None,
+                  unknown: str = "give vmt import the program's --clearance-mm and --overtravel-mm") -> str:
     """Where report ``p`` (mm) lies against plan row ``r``'s approach line (``pn``, ``d``: :func:`row_lines`),
-    in a refusal's words: the GRBL and LinuxCNC imports' one account of a touch booked to the wrong row."""
+    in a refusal's words: the GRBL and LinuxCNC imports' one account of a touch booked to the wrong row, with the
+    along-the-line bound and where it is from (``stroke``, :func:`along_bound`; ``unknown``: what to do when the
+    stroke is not known)."""
     lat, along = _row_offset(p, pn[r], d[r])
+    bound = (f"{stroke.mm:g} mm of the nominal: {stroke.said}" if stroke is not None else
+             f"{ALIGN_ALONG_MM:g} mm of the nominal: the program's stroke not known, {unknown}")
     return (f"[{p[0]:g}, {p[1]:g}, {p[2]:g}] mm is not a touch of plan row {r} (target {plan.col('target')[r]!r}, "
             f"nominal [{pn[r][0]:g}, {pn[r][1]:g}, {pn[r][2]:g}] mm): {lat:.3f} mm off its approach line, "
-            f"{along:+.3f} mm along it (a touch lies within {ALIGN_LATERAL_MM:g} mm of the line and "
-            f"{ALIGN_ALONG_MM:g} mm of the nominal)")
+            f"{along:+.3f} mm along it (a touch lies within {ALIGN_LATERAL_MM:g} mm of the line and {bound})")
 
 
-def _align(path, s: "Session", plan: ProbeLog):
-    """The session with each report on its plan row's approach line (:data:`ALIGN_LATERAL_MM`), a repeated
-    touch's first report dropped; and the notes of what was dropped. Raises ProbeLogError naming the first
-    report that is not its row's touch (``None`` instead, when ``s`` has more reports than the plan rows and
-    the count is the better refusal)."""
+def _report_stroke(s: "Session", j: int, default: "Stroke | None") -> "Stroke | None":
+    """The stroke of report ``j``'s probing command (the last one sent before it) when its line says it
+    (:attr:`Session.strokes`), else ``default``."""
+    import bisect
+
+    k = bisect.bisect_left(s.probing, s.lines[j]) - 1
+    if 0 <= k < len(s.strokes) and s.strokes[k] is not None:
+        return Stroke(s.strokes[k], f"the stroke of the G38 move sent at line {s.probing[k]}")
+    return default
+
+
+#: What to do when a transcript's probing moves do not say their stroke (the refusal's words).
+_UNKNOWN_GRBL = ("its G38 move is not relative (G91) in the transcript: give vmt import the program's "
+                 "--clearance-mm and --overtravel-mm")
+
+
+def _align(path, s: "Session", plan: ProbeLog, stroke: "Stroke | None" = None):
+    """The session with each report on its plan row's approach line (:data:`ALIGN_LATERAL_MM`, along it
+    within its probing move's stroke, else ``stroke``'s, else :data:`ALIGN_ALONG_MM`), a repeated touch's
+    first report dropped; and the notes of what was dropped. Raises ProbeLogError naming the first report
+    that is not its row's touch (``None`` instead, when ``s`` has more reports than the plan rows and the
+    count is the better refusal)."""
     from dataclasses import replace
 
     pn, d = row_lines(plan)
@@ -308,26 +395,29 @@ def _align(path, s: "Session", plan: ProbeLog):
     keep, notes = [], []
     for j, p in enumerate(s.pos_mm):
         r = len(keep)
+        st = _report_stroke(s, j, stroke)
+        along = along_bound(st)
         # a miss's [PRB:...:0] after ALARM:5 repeats the last successful probe's position (GRBL 1.1h): it
         # takes its row by order, its position says nothing
-        if r < n and (not s.touched[j] or _on_row(p, pn[r], d[r])):
+        if r < n and (not s.touched[j] or _on_row(p, pn[r], d[r], along)):
             keep.append(j)
             continue
-        if keep and s.touched[keep[-1]] and _on_row(p, pn[r - 1], d[r - 1]):
+        if keep and s.touched[keep[-1]] and _on_row(p, pn[r - 1], d[r - 1], along):
             notes.append(f"lines {s.lines[keep[-1]]} and {s.lines[j]} both report plan row {r - 1} (target "
                          f"{plan.col('target')[r - 1]!r}): the touch repeated on a resume, the first dropped")
             keep[-1] = j
             continue
         if r >= n:
             return None, notes
-        raise ProbeLogError(f"{path}: line {s.lines[j]}: report {j + 1} {off_row_words(p, plan, r, pn, d)}: "
+        raise ProbeLogError(f"{path}: line {s.lines[j]}: report {j + 1} "
+                            f"{off_row_words(p, plan, r, pn, d, st, _UNKNOWN_GRBL)}: "
                             "not this plan's transcript, or its reports are one off")
     k = np.array(keep, dtype=int)
     return replace(s, pos_mm=s.pos_mm[k].reshape(-1, 3), touched=s.touched[k],
                    t_s=None if s.t_s is None else s.t_s[k], lines=[s.lines[i] for i in keep]), notes
 
 
-def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0) -> ProbeLog:
+def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke | None = None) -> ProbeLog:
     """Merge a GRBL transcript with its plan into a full ``probe-log/1``.
 
     One report per plan row, in order. A transcript with fewer reports is
@@ -337,9 +427,11 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0) -> ProbeLog:
     and ``stop_reason`` say how many rows the transcript holds and why it
     stopped.
 
-    Each report must lie on its row's approach line (:data:`ALIGN_LATERAL_MM`, :data:`ALIGN_ALONG_MM`): one
-    that does not is refused, naming its line, unless it lies on the previous row's line (a touch repeated on a
-    resume: the first report dropped, said in ``transcript_repeats``).
+    Each report must lie on its row's approach line (:data:`ALIGN_LATERAL_MM`; along it within the stroke of
+    its probing move, the transcript's ``G91 G38.2`` line, else ``stroke`` (:func:`program_stroke`: the
+    program's clearance + overtravel), else :data:`ALIGN_ALONG_MM`): one that does not is refused, naming its
+    line and the bound, unless it lies on the previous row's line (a touch repeated on a resume: the first
+    report dropped, said in ``transcript_repeats``).
 
     Raises
     ------
@@ -355,7 +447,7 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0) -> ProbeLog:
         raise ProbeLogError(f"{path}: no probe reports ([PRB:...]): the run stopped at its first touch, {why}; "
                             "nothing measured to import")
     try:
-        aligned, repeats = _align(path, s, plan)
+        aligned, repeats = _align(path, s, plan, stroke)
     except ProbeLogError:
         if k > n:       # more reports than rows and not this plan's touches: the count says it best
             aligned = None

@@ -1558,10 +1558,13 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     cal_map = mfb.calibration_map()  # the bar's heights as its rods give them (the draw above is so)
     rip_g = [vol.ripple_columns(res_g, meas, cfg.chain, s, a, p, dict(cfg.rotary_points_R_m))
              for s, (a, p) in declared.items()] or None  # (the gauge's; the report's below, L_iso of them)
+    # the U95 whenever an input has an uncertainty: the probing noise, a declared ripple, or the bar's
+    # calibration u (given, noise or not: a noise-free run's U95 is the calibration's alone, linear, or
+    # Monte Carlo with mc_runs); none only for a noise-free run with u_cal 0 and no Monte Carlo asked
     unc = (vol.uncertainty(res, meas, probe.sigma_m, u_cal, runs=mc_runs, rng=rng,
                            u_place=np.asarray(u_place, float) if draw else None, cal_map=cal_map,
                            ripples=None if rip_g is None else [L_iso @ c for c in rip_g])
-           if mc_runs or noisy or declared else None)
+           if mc_runs or noisy or declared or np.any(u_cal > 0) else None)
     # truth in the same gauge
     d = res.design
     truth = np.zeros(len(res.theta))
@@ -1596,6 +1599,12 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
                                       "period_mm": p * 1e3} for s, (a, p) in declared.items()}
     if unseen := [(s, p) for s, p in unseen_ripple(errs) if not _declared_covers(declared, s, p)]:
         doc["u95_scope"] = unseen_ripple_note(unseen)
+    if unc is not None:  # what the U95 holds (a noise-free run: the bar calibration's u alone, and a ripple)
+        doc["u95_inputs"] = [k for k, on in (("probing noise", noisy), ("bar calibration", bool(np.any(u_cal > 0))),
+                                             ("placement", draw and bool(np.any(np.asarray(u_place, float) > 0))),
+                                             ("declared ripple", bool(declared))) if on]
+        doc["u95_method"] = (f"Monte Carlo (JCGM 101), {unc.runs} runs" if unc.runs
+                             else "linear propagation (JCGM 100 eq. 13), k = 2")
     if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
         doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
     doc["bar"] = _bar_doc(E_cal_O, u_cal, art.info["E_MFB_m"],

@@ -30,6 +30,7 @@ import numpy as np
 
 from core import vcmm as V
 from core.exceptions import ConfigError, FitError, PlanError
+from core.state import POSITIONS, POSITIONS_READINGS
 from core.touches import ProbeStatus
 
 #: Approach start before the nominal contact and search beyond it, m. find_contacts brackets the
@@ -634,7 +635,8 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             "seed": int(seed), "sources": list(st.sources),
             "machine_state": None if st.state is None else {
                 "file": st.state.source, "symbols": list(st.state.symbols), "conventions": list(st.state.conventions),
-                "interpolation": st.state.interpolation},
+                "interpolation": st.state.interpolation,
+                "positions": POSITIONS_READINGS if st.state.at_readings else POSITIONS},
             "declared": [{"source": t.source, "bound": t.bound * 1e6, "distribution": t.distribution,
                           "u": t.u * 1e6, "unit": ("urad" if V.iso.symbol(t.symbol).angular else "um")
                           + {0: "", 1: "/m", 2: "/m2"}[t.power],

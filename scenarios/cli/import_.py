@@ -19,6 +19,13 @@ def register(sub) -> None:
            help="time between touches when the file has no clock, s (1)")
     p.add_argument("--units", choices=("mm", "inch"), default=None,
                    help="units of a LinuxCNC probe file (mm); not for grbl, whose reports are read as mm")
+    p.add_argument("--clearance-mm", dest="clearance", type=float, default=None,
+                   help="the program's approach start before contact (vmt machine program / vmt probe "
+                        "--clearance-mm), mm (2 when only --overtravel-mm is given): each touch within clearance + "
+                        "overtravel of its nominal along its approach line; neither given, 10 mm (a GRBL "
+                        "transcript's own G91 G38.2 moves say it)")
+    p.add_argument("--overtravel-mm", dest="overtravel", type=float, default=None,
+                   help="the program's probing end beyond contact, mm (2 when only --clearance-mm is given)")
     p.set_defaults(func=run)
 
 
@@ -27,11 +34,14 @@ def run(args) -> int:
 
     from core.exceptions import ConfigError
 
+    from hardware.transcript import program_stroke
+
+    stroke = program_stroke(args.clearance, args.overtravel)
     plan = read_probe_log(args.plan) if args.plan else None
     if args.kind == "linuxcnc":
         from hardware.linuxcnc import import_probe_file
 
-        log = import_probe_file(args.file, plan, dt_s=args.dt, units=args.units or "mm")
+        log = import_probe_file(args.file, plan, dt_s=args.dt, units=args.units or "mm", stroke=stroke)
     else:
         from hardware.transcript import import_transcript
 
@@ -41,7 +51,7 @@ def run(args) -> int:
             raise ConfigError("import grbl: --units is for LinuxCNC probe files; a GRBL transcript's reports are "
                               "read as mm (GRBL's $13=0): inch reports are not converted")
 
-        log = import_transcript(args.file, plan, dt_s=args.dt)
+        log = import_transcript(args.file, plan, dt_s=args.dt, stroke=stroke)
     write_probe_log(args.out, log, special=True)
     ok = int(log.ok.sum())
     from scenarios.cli.guard import said

@@ -52,8 +52,11 @@ def _mfb(args) -> int:
         print(f"{s:6s} {e['unit']:5s} {inj:14.3f} {e['max_dev']:15.4f} {u}")
     print(f"max_dev_um {d['max_dev_um']:.4f}  max_dev_urad {d['max_dev_urad']:.4f}")
     if not any("u95" in e for e in d["errors"].values()):   # (it printed nan in the column)
-        print("max U95 n/a: no uncertainty computed (it is with probing noise, --noise-um > 0, Monte Carlo runs, "
-              "--mc N, or a declared ripple; this run has none)")
+        print("max U95 n/a: no uncertainty computed (it is with probing noise, --noise-um > 0, a bar calibration "
+              "u > 0, Monte Carlo runs, --mc N, or a declared ripple; this run has none)")
+    elif d.get("u95_inputs") is not None and "probing noise" not in d["u95_inputs"]:
+        print(f"U95 ({d['u95_method']}) of {' and '.join(d['u95_inputs']) or 'no input (all u 0)'} alone: a "
+              "noise-free run (no probing noise; the placements and the bar's calibration error not drawn)")
     if d.get("declared_ripple"):
         print("U95 includes the declared ripple (type B, unknown phase): " + ", ".join(
             f"{s} {v.get('amplitude_um', v.get('amplitude_urad')):g} {'um' if 'amplitude_um' in v else 'urad'} / "

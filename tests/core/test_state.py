@@ -83,3 +83,60 @@ def test_files_a_result_without_estimate_and_not_json(tmp_path):
         read_estimate(p)
     with pytest.raises(StateFileError, match="no such machine state"):
         read_estimate(tmp_path / "missing.json")
+
+
+def _at_readings_doc():
+    """A state written by a writer that did not know J (``positions`` POSITIONS_READINGS): EXX on X nodes,
+    EXY on Y nodes, gauge words at the readings, a z range (a 2D self-calibration's state)."""
+    from core.state import POSITIONS_READINGS, identified_on
+
+    names = ["EXX@x=-100mm", "EXX@x=0mm", "EXX@x=100mm", "EXY@y=-50mm", "EXY@y=50mm", "EC0Y"]
+    symbols = ["EXX", "EXX", "EXX", "EXY", "EXY", "EC0Y"]
+    at = [-0.1, 0.0, 0.1, -0.05, 0.05, None]
+    units = ["um"] * 5 + ["urad"]
+    theta = np.array([-1e-6, 0.0, 2e-6, 0.0, 3e-6, 5e-6])
+    A = np.arange(36, dtype=float).reshape(6, 6) * 1e-7
+    cov = A @ A.T + np.eye(6) * 1e-14
+    doc = estimate_doc(names, symbols, at, units, theta, cov, method="test at the readings", interpolation="linear",
+                       conventions=["EXX(x=0mm)=0", "EXY(y=-50mm)=0", "EXC,total(C0)=0", "EXX(x=100mm)=0: scale"],
+                       positions=POSITIONS_READINGS)
+    doc["identified_on"] = identified_on("m", "V[w-C-Y-b-X-Z-(C)-t]", None, (27.0, 27.0))
+    return doc
+
+
+def test_a_state_placed_at_the_axis_positions_says_so_and_saves_and_reads_back_as_itself():
+    """at_axis_positions moves the nodes by J and every label with them: the gauge's positions in
+    ``conventions`` (reading + J, as a writer that knew J writes them), a note naming the J, and
+    ``positions`` when saved (state_doc); saved and read back, the same state. Before session 29 the
+    conventions kept the readings (EXX(x=0mm)=0 for a table whose node 0 had moved to 40 mm)."""
+    from core.state import POSITIONS, POSITIONS_READINGS, state_doc
+
+    st = loads_estimate(_at_readings_doc(), source="r.json")
+    assert st.at_readings
+    placed = st.at_axis_positions((0.040, -0.010, 0.150))
+    np.testing.assert_allclose(placed.tables["EXX"][0], [-0.06, 0.04, 0.14], atol=1e-15)
+    np.testing.assert_allclose(placed.tables["EXY"][0], [-0.06, 0.04], atol=1e-15)
+    assert placed.conventions == ("EXX(x=40mm)=0", "EXY(y=-60mm)=0", "EXC,total(C0)=0", "EXX(x=140mm)=0: scale",
+                                  "nodes placed at the axis positions reading + J with the reader's probe offsets "
+                                  "J = (40, -10, 150) mm (the writer did not know J)")
+    assert not placed.at_readings and placed.identified_on == st.identified_on
+    # saved and read back: the same state, labelled axis positions
+    doc = json.loads(json.dumps(state_doc(placed)))
+    assert doc["positions"] == POSITIONS and doc["method"] == "test at the readings"
+    back = loads_estimate(doc, source="r.json")
+    assert not back.at_readings and back.conventions == placed.conventions
+    assert back.identified_on == placed.identified_on and back.source == placed.source
+    assert set(back.tables) == set(placed.tables) and back.constants == placed.constants
+    for s, (x, idx) in placed.tables.items():
+        np.testing.assert_allclose(back.tables[s][0], x, rtol=0, atol=1e-12)   # m: at_mm rounded to 1e-9 mm
+        np.testing.assert_array_equal(back.tables[s][1], idx)
+    np.testing.assert_array_equal(back.mean, placed.mean)
+    np.testing.assert_allclose(back.factor @ back.factor.T, placed.factor @ placed.factor.T, rtol=1e-9, atol=1e-22)
+    assert back.at_axis_positions((0.040, -0.010, 0.150)) is back          # placed once, not again
+    # a state still at the readings saves as such, and reads back to be placed the same way
+    doc_r = json.loads(json.dumps(state_doc(st)))
+    assert doc_r["positions"] == POSITIONS_READINGS
+    again = loads_estimate(doc_r, source="r.json").at_axis_positions((0.040, -0.010, 0.150))
+    assert again.conventions == placed.conventions
+    for s, (x, _) in placed.tables.items():
+        np.testing.assert_allclose(again.tables[s][0], x, rtol=0, atol=1e-12)

@@ -52,6 +52,9 @@ def test_part_program_probes_every_row_between_logopen_and_logclose(plan_path, t
     assert lines[i1 + 2:k_end] == ["o9001 if [#<_vmt_g92_on> EQ 1]", "G92.3", "o9001 endif", "M72"]
     head = "\n".join(lines[:k0])
     assert "restored" in head and "stops early" in head
+    # the stroke, so the import can bound each touch by it (session 29)
+    assert ("(probing stroke: clearance 2 + overtravel 2 mm; vmt import linuxcnc --clearance-mm 2 --overtravel-mm 2 "
+            "checks each touch within it)") in lines[:k0]
     g54 = part_program(read_probe_log(plan_path), ProbeSettings(limits_mm=LIMITS_MM), wcs="G54").splitlines()
     assert "G10 L2 P1 X0 Y0 Z0 R0" in g54 and "#<_vmt_wcs_r> = #5230" in g54
     # each probe is followed (after its LOG line) by its retract to the approach start, which preceded it
@@ -518,7 +521,9 @@ def test_grbl_report_off_its_row_is_refused_naming_the_line(tmp_path, capsys):
     assert err.count("\n") == 1 and "Traceback" not in err, err
     assert re.search(rf"line {prb[3]}: report 3 \[[-\d., ]+\] mm is not a touch of plan row 2 \(target 'p2', "
                      r"nominal \[[-\d., ]+\] mm\): [\d.]+ mm off its approach line", err), err
-    assert "within 0.5 mm of the line and 10 mm of the nominal" in err and not out.exists()
+    # the bound along the line: the transcript's own G91 G38.2 move (Z-4: clearance + overtravel), session 29
+    assert "within 0.5 mm of the line and 4 mm of the nominal: the stroke of the G38 move sent at line " in err
+    assert not out.exists()
 
 
 def test_row_offset_known_answers():
@@ -619,15 +624,38 @@ def test_numbered_log_file_keeps_a_repeated_touch_on_its_own_row(tmp_path, capsy
     log = read_probe_log(out)
     assert list(log.col("status")) == ["ok"] * 3 + ["aborted"] * 2
     assert "3 of 5" in log.meta["probe_file_rows"] and "PROBEOPEN" not in log.meta["probe_file_rows"]
+    assert log.meta["probe_file_rows"] == ("lines for 3 of 5 plan rows: the program stopped at plan row 3 (a G38.2 "
+                                           "miss or an abort; its LOG lines numbered 0..2, one per probe); rows "
+                                           "3..4 marked aborted")
 
 
-def test_short_probeopen_file_says_a_repeated_position_leaves_no_line(tmp_path, plan_path, measured):
+def test_short_probeopen_file_says_a_repeated_position_leaves_no_line(tmp_path, plan_path, measured, capsys):
     """A PROBEOPEN file one line short whose lines all fit their rows: a stopped run, or the last touch at the
-    previous one's position (nothing in the file tells them apart); the note says both."""
+    previous one's position (nothing in the file tells them apart); the note says both, neither as the fact
+    (session 28's opened with "the program stopped at plan row k"), and that a numbered LOGOPEN file tells."""
     pf = tmp_path / "probe.txt"
     _probe_file(pf, measured.positions_mm()[:11])
-    log = import_probe_file(pf, read_probe_log(plan_path))
-    assert "11 of 12" in log.meta["probe_file_rows"] and "previous one's position" in log.meta["probe_file_rows"]
+    note = import_probe_file(pf, read_probe_log(plan_path)).meta["probe_file_rows"]
+    assert note.startswith("lines for 11 of 12 plan rows: the program stopped at plan row 11 (a G38.2 miss or an "
+                           "abort), or touches at a repeated position left no line (LinuxCNC writes no PROBEOPEN "
+                           "line for a probe at exactly the position of the last line it wrote: the previous "
+                           "probe's"), note
+    assert "a PROBEOPEN file does not tell which (a LOGOPEN file of vmt machine program's, a line per probe " \
+        "numbered by its row, does)" in note and note.endswith("row 11 marked aborted")
+    # the case itself: the plan's last two rows at one point, touched at exactly one position (DUP_PLAN's
+    # rows 0-1 moved to its end): LinuxCNC wrote 4 lines for 5 rows, nothing stopped
+    plan = tmp_path / "end.csv"
+    head, rows = DUP_PLAN.split("feature,dx,dy,dz\n")
+    rows = rows.splitlines()
+    plan.write_text(head + "feature,dx,dy,dz\n" + "\n".join(rows[2:] + rows[:2]) + "\n")
+    pf.write_text("10.000000 0.000000 1.500400\n20.000000 0.000000 1.500600\n30.000000 0.000000 1.500800\n"
+                  "0.000000 0.000000 1.500200\n")
+    out = tmp_path / "end-log.csv"
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan), "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "note: the probe file has lines for 4 of 5 plan rows: the program stopped at plan row 4 (a G38.2 " \
+        "miss or an abort), or touches at a repeated position left no line" in said, said
+    assert list(read_probe_log(out).col("status")) == ["ok"] * 4 + ["aborted"]
 
 
 @pytest.mark.parametrize("rows, change, msg", [
@@ -652,3 +680,140 @@ def test_numbered_log_file_bad_rows_one_line_exit_2(tmp_path, plan_path, measure
     err = capsys.readouterr().err
     assert msg in err and err.count("\n") == 1 and str(pf) in err, err
     assert not out.exists()
+
+
+# ------------------------------------------------ the along-the-line bound: the program's own stroke (session 29)
+def _long_stroke_transcript(z_report: str, g38: str = "G91 G38.2 X0.0000 Y0.0000 Z-24.0000"):
+    """The real GRBL 1.1h campaign, its first probe sent with a 24 mm stroke (start Z2, end Z-22: clearance 2 +
+    overtravel 22) and its report at ``z_report`` (the plan's nominal: Z 0)."""
+    lines = (REF / "grbl-1.1h-sim-vmt-campaign-transcript.txt").read_text().splitlines()
+    i = next(k for k, x in enumerate(lines) if "G38.2" in x)
+    j = _prb_rows(lines)[0]
+    assert lines[i].endswith("> G91 G38.2 X0.0000 Y0.0000 Z-4.0000 F200.0") and j == i + 1
+    assert lines[j].endswith("< [PRB:10.000,10.000,0.000:1]")
+    lines[i] = lines[i].replace("G91 G38.2 X0.0000 Y0.0000 Z-4.0000", g38)
+    lines[j] = lines[j].replace("10.000,10.000,0.000", f"10.000,10.000,{z_report}")
+    return lines
+
+
+def _grbl_import(tmp_path, lines, *opts):
+    tr, plan_path, out = tmp_path / "t.txt", tmp_path / "plan.csv", tmp_path / "log.csv"
+    tr.write_text("\n".join(lines) + "\n")
+    write_probe_log(plan_path, plan_log())
+    return main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(out), *opts]), out
+
+
+def test_grbl_long_stroke_touch_is_its_rows_by_the_transcripts_own_stroke(tmp_path, capsys):
+    """A touch 11 mm beyond its nominal, probed with a 24 mm stroke the transcript itself sent (G91 G38.2
+    Z-24): refused before session 29 (the bound was 10 mm whatever the stroke), its row's now. Off its line, or
+    beyond the stroke, still refused, the message naming the bound and where it is from."""
+    rc, out = _grbl_import(tmp_path, _long_stroke_transcript("-11.000"))
+    assert rc == 0 and read_probe_log(out).positions_mm()[0, 2] == -11.0
+    capsys.readouterr()
+    out.unlink()
+    for z, x, what in (("-11.000", "15.000", "5.000 mm off its approach line, +11.000 mm along it"),
+                       ("-30.000", "10.000", "0.000 mm off its approach line, +30.000 mm along it")):
+        lines = [ln.replace("[PRB:10.000,10.000,", f"[PRB:{x},10.000,") for ln in _long_stroke_transcript(z)]
+        rc, out = _grbl_import(tmp_path, lines)
+        err = capsys.readouterr().err
+        assert rc == 2 and err.count("\n") == 1 and what in err, err
+        assert "within 0.5 mm of the line and 24 mm of the nominal: the stroke of the G38 move sent at line 15" \
+            in err and not out.exists()
+
+
+def test_grbl_absolute_probe_moves_take_the_programs_stroke_from_the_options(tmp_path, capsys):
+    """A sender's absolute G38.2 (no G91: where it started is not on its line) does not say its stroke: the
+    10 mm fallback refuses the long stroke's touch and says how to give the stroke; --clearance-mm 2
+    --overtravel-mm 22 (the program's) accept it."""
+    lines = _long_stroke_transcript("-11.000", g38="G90 G38.2 X10.0000 Y10.0000 Z-22.0000")
+    rc, out = _grbl_import(tmp_path, lines)
+    err = capsys.readouterr().err
+    assert rc == 2 and "+11.000 mm along it (a touch lies within 0.5 mm of the line and 10 mm of the nominal: " \
+        "the program's stroke not known, its G38 move is not relative (G91) in the transcript: give vmt import " \
+        "the program's --clearance-mm and --overtravel-mm)" in err, err
+    rc, out = _grbl_import(tmp_path, lines, "--clearance-mm", "2", "--overtravel-mm", "22")
+    assert rc == 0 and read_probe_log(out).positions_mm()[0, 2] == -11.0
+
+
+#: Rows on one approach line (a step probed down Z at one XY): row 1's nominal 3 mm below row 0's
+STEP_PLAN = """# format: probe-log/1
+# artefact: surface
+# stylus_r_mm: 1.5
+setup,target,t_s,X_mm,Y_mm,Z_mm,Xn_mm,Yn_mm,Zn_mm,nx,ny,nz,feature,dx,dy,dz
+grid,upper,,,,,0.0,0.0,4.5,0.0,0.0,1.0,surface,0.0,0.0,-1.0
+grid,lower,,,,,0.0,0.0,1.5,0.0,0.0,1.0,surface,0.0,0.0,-1.0
+grid,far,,,,,40.0,0.0,1.5,0.0,0.0,1.0,surface,0.0,0.0,-1.0
+"""
+
+
+def test_linuxcnc_bound_along_the_line_is_the_programs_stroke(tmp_path, capsys):
+    """LinuxCNC's probe file does not say the stroke: vmt import takes the program's --clearance-mm and
+    --overtravel-mm. A long stroke (12 + 12 mm): a touch 11 mm beyond its nominal refused by the 10 mm
+    fallback (before session 29, always), its row's with the stroke; 30 mm beyond still refused. A short
+    stroke (0.5 + 0.5 mm): a PROBEOPEN file of one line, the lower step's touch (3 mm along row 0's line, where
+    a 1 mm stroke cannot reach: another run's file), passed the 10 mm bound as row 0's, wrong row; refused
+    with the stroke."""
+    plan = tmp_path / "step.csv"
+    plan.write_text(STEP_PLAN)
+    pf, out = tmp_path / "probe.log", tmp_path / "imp.csv"
+    args = ["import", "linuxcnc", str(pf), "--plan", str(plan), "--out", str(out)]
+    pos = np.array([[0.0, 0.0, 4.5002], [0.0, 0.0, -9.5], [40.0, 0.0, 1.5001]])   # lower: 11 mm beyond
+    pf.write_text(_log_lines(pos, range(3)))
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "line 2: [0, 0, -9.5] mm is not a touch of plan row 1 (target 'lower'" in err and \
+        "+11.000 mm along it (a touch lies within 0.5 mm of the line and 10 mm of the nominal: the program's " \
+        "stroke not known, give vmt import the program's --clearance-mm and --overtravel-mm)" in err, err
+    assert main(args + ["--clearance-mm", "12", "--overtravel-mm", "12"]) == 0
+    assert np.array_equal(read_probe_log(out).positions_mm(), pos)
+    pos[1, 2] = 1.5 - 30.0
+    pf.write_text(_log_lines(pos, range(3)))
+    out.unlink()
+    assert main(args + ["--clearance-mm", "12", "--overtravel-mm", "12"]) == 2
+    err = capsys.readouterr().err
+    assert "+30.000 mm along it (a touch lies within 0.5 mm of the line and 24 mm of the nominal: the program's " \
+        "stroke, clearance 12 + overtravel 12 mm)" in err and not out.exists(), err
+    # the short stroke: the lower step's touch read as row 0's (the upper step's)
+    pf = tmp_path / "probe.txt"
+    pf.write_text("0.000000 0.000000 1.500200\n")
+    args = ["import", "linuxcnc", str(pf), "--plan", str(plan), "--out", str(out)]
+    assert main(args) == 0 and read_probe_log(out).positions_mm()[0, 2] == 1.5002     # wrong row, no word
+    capsys.readouterr()
+    out.unlink()
+    assert main(args + ["--clearance-mm", "0.5", "--overtravel-mm", "0.5"]) == 2
+    err = capsys.readouterr().err
+    assert "line 1: [0, 0, 1.5002] mm is not a touch of plan row 0 (target 'upper'" in err and \
+        "+2.9998 mm along it" not in err and "+3.000 mm along it (a touch lies within 0.5 mm of the line and " \
+        "1 mm of the nominal: the program's stroke, clearance 0.5 + overtravel 0.5 mm)" in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("opts, msg", [
+    (["--clearance-mm", "-1"], "--clearance-mm must be a finite number >= 0 (the program's, mm), got -1.0"),
+    (["--overtravel-mm", "nan"], "--overtravel-mm must be a finite number >= 0"),
+    (["--clearance-mm", "0", "--overtravel-mm", "0"], "--clearance-mm and --overtravel-mm are both 0"),
+])
+def test_import_stroke_options_bad_values_one_line_exit_2(tmp_path, capsys, opts, msg):
+    plan = tmp_path / "step.csv"
+    plan.write_text(STEP_PLAN)
+    pf = tmp_path / "probe.txt"
+    pf.write_text("0.000000 0.000000 4.500200\n")
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan), "--out", str(tmp_path / "o.csv"), *opts]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and err.count("\n") == 1, err
+
+
+def test_program_stroke_and_transcript_strokes_known_answers(tmp_path):
+    """program_stroke: the one option not given takes the program's default 2 mm; the transcript's stroke:
+    a relative probing move's length (mm; G20: inches converted), none for an absolute one."""
+    from hardware.transcript import ALIGN_ALONG_SLACK_MM, along_bound, program_stroke, read_session
+
+    assert program_stroke(None, None) is None and along_bound(None) == 10.0
+    assert program_stroke(None, 8.0).mm == 10.0 and program_stroke(3.0, None).mm == 5.0
+    assert along_bound(program_stroke(0.5, 0.5)) == 1.0 + ALIGN_ALONG_SLACK_MM
+    tr = tmp_path / "t.txt"
+    tr.write_text("> G91 G38.2 X3 Y-4 F100\n< [PRB:1.000,2.000,3.000:1]\n> G90 G38.2 X1 Y2 Z3\n"
+                  "< [PRB:1.000,2.000,3.000:1]\n> G20\n> G91 G38.2 Z-0.5\n< [PRB:1.000,2.000,3.000:1]\n")
+    s = read_session(tr)
+    assert s.probing == [1, 3, 6] and s.strokes[0] == 5.0 and s.strokes[1] is None
+    assert s.strokes[2] == pytest.approx(12.7, abs=1e-12)

@@ -354,10 +354,20 @@ def test_plan_grid_usage_shows_the_stylus_radius_required(capsys):
     assert "[--stylus-r-mm" not in capsys.readouterr().out                  # (restored after each formatting)
 
 
-def test_noise_free_mfb_run_says_no_u95_instead_of_nan(capsys):
-    """'vmt scenario mfb-3axis --noise-um 0 --mc 0' computes no uncertainty: the max U95 column printed nan
-    (review28); now 'n/a' in every row and one line saying why. With noise, numbers and no such line."""
-    assert main(["scenario", "mfb-3axis", "--noise-um", "0", "--mc", "0"]) == 0
+def test_noise_free_mfb_run_says_no_u95_instead_of_nan(capsys, tmp_path):
+    """'vmt scenario mfb-3axis --noise-um 0 --mc 0' with a bar calibration of u 0 computes no uncertainty: the
+    max U95 column printed nan (review28); now 'n/a' in every row and one line saying why. Noise-free with the
+    default calibration u (session 29): the calibration's U95, linear, and a line saying so. With noise,
+    numbers and no such line."""
+    import json as _json
+
+    from scenarios.mfb import BAR_CALIBRATION_FORMAT
+    from sim.artefacts import mfb_default_deviations
+
+    cal = tmp_path / "cal-u0.json"
+    cal.write_text(_json.dumps({"format": BAR_CALIBRATION_FORMAT, "E_um": (mfb_default_deviations() * 1e6).tolist(),
+                                "u_um": [[0.0, 0.0, 0.0]] * 12}))
+    assert main(["scenario", "mfb-3axis", "--noise-um", "0", "--mc", "0", "--bar-calibration", str(cal)]) == 0
     out = capsys.readouterr().out
     assert "nan" not in out
     lines = out.splitlines()
@@ -365,9 +375,17 @@ def test_noise_free_mfb_run_says_no_u95_instead_of_nan(capsys):
     rows = lines[head + 1:head + 22]
     assert len(rows) == 21 and all(ln.split()[-1] == "n/a" for ln in rows), rows
     assert sum(ln.startswith("max U95 n/a: no uncertainty computed") for ln in lines) == 1
-    assert main(["scenario", "mfb-3axis", "--mc", "0"]) == 0             # the default noise: linear U95
+    assert main(["scenario", "mfb-3axis", "--noise-um", "0", "--mc", "0"]) == 0   # the calibration's u: its U95
     out = capsys.readouterr().out
     lines = out.splitlines()
     head = next(i for i, ln in enumerate(lines) if ln.startswith("error ") and "max U95" in ln)
     assert all(float(ln.split()[-1]) > 0 for ln in lines[head + 1:head + 22])
     assert "n/a" not in out and "nan" not in out
+    assert sum(ln.startswith("U95 (linear propagation (JCGM 100 eq. 13), k = 2) of bar calibration alone: a "
+                             "noise-free run") for ln in lines) == 1
+    assert main(["scenario", "mfb-3axis", "--mc", "0"]) == 0             # the default noise: linear U95
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("error ") and "max U95" in ln)
+    assert all(float(ln.split()[-1]) > 0 for ln in lines[head + 1:head + 22])
+    assert "n/a" not in out and "nan" not in out and "noise-free run" not in out

@@ -88,3 +88,12 @@ def test_identify_writes_the_tables_at_reading_plus_J(tmp_path):
     for s, (x, idx) in sk.tables.items():
         np.testing.assert_allclose(placed.tables[s][0], x, atol=1e-12)   # m: the files round to 1e-9 mm
         np.testing.assert_array_equal(placed.tables[s][1], idx)
+    # and its labels with them: the gauge's words as the writer that knew J wrote them, then a note of the J
+    # (session 28 left the placed state's conventions at the readings); saved and read back, the same labels
+    assert placed.conventions[:-1] == sk.conventions and "J = (40, 0, 150) mm" in placed.conventions[-1]
+    from core.state import loads_estimate, state_doc
+
+    back = loads_estimate(json.loads(json.dumps(state_doc(placed))))
+    assert not back.at_readings and back.conventions == placed.conventions
+    for s, (x, idx) in sk.tables.items():
+        np.testing.assert_allclose(back.tables[s][0], x, atol=1e-12)

@@ -191,6 +191,12 @@ def test_cli_machine_state_end_to_end(tmp_path, identify_json, realistic, capsys
                  "--machine-state", str(identify_json), "--noise-um", "0.25"]) == 0
     rep = json.loads(out.read_text())
     assert rep["machine_state"]["symbols"] == ["EXX", "EYX", "EXY", "EYY", "ECY", "EC0Y"]
+    # the state, written at the readings (J unknown), placed at reading + nmv3000's J: its labels say so
+    from core.state import POSITIONS, POSITIONS_READINGS
+
+    assert json.loads(identify_json.read_text())["estimate"]["positions"] == POSITIONS_READINGS
+    assert rep["machine_state"]["positions"] == POSITIONS
+    assert rep["machine_state"]["conventions"][-1].startswith("nodes placed at the axis positions reading + J")
     assert rep["sources"] == ["EXX periodic", "probe repeatability", "machine state"]
     b = {x["source"]: x["u"] for x in rep["measurands"][0]["budget"]}
     assert b["machine state"] > 0.05 and "machine state" in capsys.readouterr().out
