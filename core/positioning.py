@@ -74,7 +74,8 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .exceptions import VmtError, counted
-from .probelog import T_MAX_S, TEMP_RANGE_C, _num, is_number, last_row_check, step_back, value_range
+from .probelog import (T_MAX_S, TEMP_RANGE_C, _num, csv_lines, is_number, last_row_check, step_back,
+                       value_range)
 
 FORMAT = "positioning-log/1"
 #: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
@@ -371,7 +372,7 @@ def read_positioning_log(path: str | os.PathLike) -> PositioningLog:
 def _split_meta(text: str, src: str) -> tuple[dict[str, str], list[str], int]:
     if not text.strip():
         raise PositioningLogError(f"{src}: empty file")
-    lines = text.splitlines()
+    lines = csv_lines(text)
     meta: dict[str, str] = {}
     i = 0
     while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
@@ -805,7 +806,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
         raise PositioningLogError(f"{src}: empty file")
     meta: dict[str, str] = {}
     rows: list[tuple[int, list[str]]] = []
-    for ln, line in enumerate(text.splitlines(), start=1):
+    for ln, line in enumerate(csv_lines(text), start=1):
         s = line.strip()
         if not s:
             continue

@@ -67,6 +67,24 @@ TEMP_RANGE_C = (-273.15, 1000.0)
 NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 
 
+#: Where a line of a CSV log ends: ``\r\n``, ``\r`` or ``\n``, as CSV (RFC 4180) and Python's csv
+#: reader end a record. ``str.splitlines`` also breaks at form feed, vertical tab, ``\x1c``-``\x1e``,
+#: U+0085, U+2028 and U+2029, which in a CSV file are characters of a cell (:func:`csv_lines`).
+_EOL = re.compile(r"\r\n|\r|\n")
+
+
+def csv_lines(text: str) -> list[str]:
+    """The lines of ``text``, ended by ``\r\n``, ``\r`` or ``\n`` only (:data:`_EOL`), without their ends.
+
+    As ``text.splitlines()`` but for the other characters Unicode counts as line breaks,
+    which stay in their line (a form feed or U+2028 in a ``feature`` cell is part of the cell).
+    """
+    lines = _EOL.split(text) if "\r" in text else text.split("\n")
+    if lines[-1] == "":  # the text ends with an end of line (or is empty)
+        lines.pop()
+    return lines
+
+
 def is_number(cell: str) -> bool:
     """True when ``cell`` (surrounding blanks ignored) has the form of :data:`NUMBER`."""
     return NUMBER.match(cell.strip()) is not None
@@ -325,9 +343,9 @@ def read_probe_log(path: str | os.PathLike, *, progress=None) -> ProbeLog:
 
 
 def _file_lines(f) -> Iterator[str]:
-    """The lines of a binary file as ``text.splitlines()`` of its UTF-8 text gives them."""
+    """The lines of a binary file as :func:`csv_lines` of its UTF-8 text gives them."""
     for i, raw in enumerate(f):  # split at b"\n", which no UTF-8 sequence holds
-        yield from raw.decode("utf-8-sig" if i == 0 else "utf-8").splitlines()
+        yield from csv_lines(raw.decode("utf-8-sig" if i == 0 else "utf-8"))
 
 
 def _scan(f, src: str) -> tuple[int, bool]:
@@ -348,7 +366,7 @@ def _scan(f, src: str) -> tuple[int, bool]:
         off += len(raw)
         nul = nul or "\x00" in s
         blank = blank and not s.strip()
-        n += len(s.splitlines())
+        n += len(csv_lines(s))
         last = s
     if nul:
         raise ProbeLogError(f"{src}: holds NUL bytes: not a text file")
@@ -419,7 +437,7 @@ def parse_probe_log(text: str, source: str = "<memory>") -> ProbeLog:
         raise ProbeLogError(f"{source}: holds NUL bytes: not a text file")
     if not text.strip():
         raise ProbeLogError(f"{source}: empty file")
-    lines = text.splitlines()
+    lines = csv_lines(text)
     return _parse(iter(lines), len(lines), not text.endswith(("\n", "\r")), source)
 
 
