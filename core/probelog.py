@@ -609,33 +609,35 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
     cols = _Columns(header, src)
     block: list[list[str]] = []
     block_lines: list[int] = []
-    last_row, last_ln = None, 0
-    k = 0
+    last_row, last_ln, last_end = None, 0, 0
+    # the file line where each record starts: a quoted cell may hold ends of line, so a record
+    # may span lines (reader.line_num counts the lines read, the header's first)
+    ln, end = header_line + 1, header_line
     try:
-        for k, row in enumerate(reader):
-            ln = header_line + 1 + k
+        for row in reader:
+            ln, end = end + 1, header_line - 1 + reader.line_num
             if not row or not "".join(row).strip():  # a blank row (every cell white space)
                 continue
             if len(row) != width:
-                if unterminated and ln == n_lines and len(row) < width:
+                if unterminated and end == n_lines and len(row) < width:
                     last_row_check(src, header, row, cols.n + len(block), ln, numeric=_spec_numeric)
                 raise ProbeLogError(
                     f"{src}: row {cols.n + len(block)} (line {ln}): {counted(len(row), 'field')}, header has {width}")
             block.append(row)
             block_lines.append(ln)
-            last_row, last_ln = row, ln
+            last_row, last_ln, last_end = row, ln, end
             if len(block) == CHUNK_ROWS:
                 cols.add(block, block_lines)
                 block, block_lines = [], []
                 if progress is not None:
-                    progress(ln, n_lines)
-    except csv.Error as e:
-        raise ProbeLogError(f"{src}: line {header_line + 1 + k}: {e}") from None
+                    progress(end, n_lines)
+    except csv.Error as e:  # in the record that starts at line end + 1
+        raise ProbeLogError(f"{src}: line {end + 1}: {e}") from None
     cols.add(block, block_lines)
     del block, block_lines
     # the last row ends the file without an end of line: torn, or written by hand?
     warnings = []
-    if unterminated and last_row is not None and last_ln == n_lines:
+    if unterminated and last_row is not None and last_end == n_lines:
         w = last_row_check(src, header, last_row, cols.n - 1, last_ln, numeric=_spec_numeric)
         if w is not None:
             warnings.append(w)

@@ -591,3 +591,28 @@ def test_csv_lines_splits_as_csv_does():
     assert csv_lines("a\x0cb\u2028c\x85\n") == ["a\x0cb\u2028c\x85"]
     s = "x\r\ny\n\n z\rw\v\f"
     assert csv_lines(s) == s.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+
+
+def test_a_row_after_quoted_multi_line_cells_is_named_by_its_file_line(tmp_path):
+    """A quoted cell may hold an end of line, so a record may span lines: the message names the file
+    line where the bad record starts (the review's qnl_err.csv said line 6 for a row on line 9),
+    and a row of the wrong width, a csv error and a torn last row likewise."""
+    p = CSV_LINES / "qnl_err.csv"
+    want = r"qnl_err.csv: row 3 \(line 9\): column 'nz': 'abc' is not a number$"
+    with pytest.raises(ProbeLogError, match=want):
+        read_probe_log(p)
+    with pytest.raises(ProbeLogError, match=want):
+        parse_probe_log(p.read_text(encoding="utf-8"), "qnl_err.csv")
+    two = HEADER + ',feature\n' + ROW + ',"a\r\nb\nc"\n' + "\n"      # row 0 on lines 2-4, a blank line 5
+    with pytest.raises(ProbeLogError, match=r"row 1 \(line 6\): 12 fields, header has 13$"):
+        parse_probe_log(two + ROW.replace("p1", "p2") + "\n")
+    with pytest.raises(ProbeLogError, match=r"row 1 \(line 6\): torn last row \(12 of 13 fields"):
+        parse_probe_log(two + ROW.replace("p1", "p2"))
+    log = parse_probe_log(two + ROW.replace("p1", "p2") + ',"x\ny"')  # whole, unterminated, starts on line 6
+    assert log.n == 2 and re.search(r"row 1 \(line 6\): the file ends without an end of line", log.warnings[0])
+    with pytest.raises(ProbeLogError, match=r"line 6: field larger than field limit"):  # a csv error
+        parse_probe_log(two + ROW.replace("p1", "p2") + "," + "x" * 200_000 + "\n", "q.csv")
+    f = tmp_path / "q.csv"
+    f.write_text(two + ROW.replace("p1,0,1", "p2,1,y") + ",z\n", encoding="utf-8")
+    with pytest.raises(ProbeLogError, match=r"row 1 \(line 6\): column 'X_mm': 'y' is not a number$"):
+        read_probe_log(f)
