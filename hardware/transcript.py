@@ -8,6 +8,13 @@ repeats the last probe and is skipped. A line that starts like a probe
 report but is not one is an error naming the line: garbage is never taken
 for a position.
 
+Reports are read as millimetres. GRBL reports inches, ``[PRB:...]`` too,
+when its setting ``$13`` (report inches) is 1: a transcript that shows
+``$13=1`` (its ``$$`` dump, or the setting sent) before a probe report is
+refused naming both lines, as ``vmt probe`` refuses such a controller; a
+later ``$13=0`` ends it. A transcript without ``$13`` is read as mm (most
+senders' logs hold no settings dump).
+
 Timestamps, when lines carry them, give ``t_s`` (seconds since the first
 timestamp): a leading number of seconds (``12.345 < [PRB:...]``, what
 ``vmt probe --transcript`` writes), a clock time ``HH:MM:SS(.fff)`` or an
@@ -58,6 +65,10 @@ _ALARM = re.compile(r"\bALARM:(\d+)")
 _PROBING = re.compile(r"\bG38\.[2-5]\b", re.I)
 _RESET_SENT = re.compile(r"^(\^X|\x18|0x18|ctrl-x)$", re.I)
 _BANNER = re.compile(r"^(Grbl|GrblHAL)\s*\S*\s*\[.*\]\s*$", re.I)
+#: ``$13=v`` in a settings dump (``$$``, received) or a setting sent: GRBL's "report inches". With
+#: ``$13=1`` every report, ``[PRB:...]`` too (report_probe_parameters prints with
+#: printFloat_CoordValue), is in inches.
+_REPORT_INCHES = re.compile(r"^\$13\s*=\s*([^\s(]*)")
 
 
 def _stamp(line: str) -> float | None:
@@ -147,6 +158,7 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
     alarms, probing, errors, resets = [], [], [], []
     t0 = None
     prev_info = False
+    inch = None             # (line, value) of a $13 that makes the reports after it inches
     ln = 0
     for ln, line in enumerate(text.splitlines(), start=1):
         ts = _stamp(line)
@@ -166,6 +178,12 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
                 errors.append((ln, int(e.group(1))))
             if _BANNER.match(body):
                 resets.append(ln)
+        m13 = _REPORT_INCHES.match(body)     # received in a $$ dump, or sent to change it
+        if m13:
+            try:
+                inch = (ln, m13.group(1), True) if float(m13.group(1)) != 0 else None
+            except ValueError:
+                inch = (ln, m13.group(1), False)   # not a number: the units unknown (the live client's word)
         if way != "<" and not body.startswith("["):
             if _PROBING.search(body):
                 probing.append(ln)
@@ -179,6 +197,15 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
         if prev_info:               # the PRB line of a `$#` answer repeats the last probe
             prev_info = False
             continue
+        if inch is not None:         # the live client refuses such a controller (GrblBackend._check_units)
+            if not inch[2]:
+                raise ProbeLogError(
+                    f"{p}: line {ln}: the controller's $13 (report inches, line {inch[0]}) is {inch[1]!r}, "
+                    "not a number: vmt cannot tell whether the probe reports are millimetres")
+            raise ProbeLogError(
+                f"{p}: line {ln}: the probe report is in inches (the controller's $13={inch[1]}, report "
+                f"inches, line {inch[0]}); vmt reads reports as millimetres and converts no controller's "
+                "units, as vmt probe refuses $13=1: set $13=0 (send '$13=0') and probe again")
         r = parse_prb(tok.group(0))
         if r is None:
             raise ProbeLogError(f"{p}: line {ln}: malformed probe report {tok.group(0)[:60]!r}")
