@@ -13,7 +13,7 @@ and checked against the firmware itself, built for a PC with grbl-sim):
 - lines: spaces, control characters and comments are dropped and letters
   upper-cased before anything else; a line keeps at most 79 characters
   (80-byte buffer with its terminator): more is ``error:11`` and the line
-  is not executed; the serial receive buffer holds 127 bytes and drops
+  is not executed; the serial receive buffer holds 128 bytes and drops
   what does not fit while the firmware is busy;
 - ``ok`` means the block is in the planner (15 blocks), not that it is
   done; motion takes time (trapezoidal speed per block, the axes' maximum
@@ -93,8 +93,10 @@ VERSION, BUILD_DATE = "1.1h", "20190830"
 BANNER = f"Grbl {VERSION} ['$' for help]"
 #: Characters a line may keep after spaces and comments are stripped (80-byte buffer).
 LINE_MAX_CHARS = 79
-#: Bytes the serial receive ring holds (128, one kept free).
-RX_BUFFER_BYTES = 127
+#: Bytes the serial receive ring holds: serial.h's RX_BUFFER_SIZE, 128 (``[OPT:V,15,128]``, and
+#: ``Bf:`` counts free bytes of it). serial.c's ring has RX_BUFFER_SIZE + 1 = 129 slots and is full
+#: when the next head would meet the tail, so 128 bytes fit (the one slot kept free is the 129th).
+RX_BUFFER_BYTES = 128
 #: Planner blocks (``[OPT:V,15,128]``).
 PLANNER_BLOCKS = 15
 #: The firmware waits this long after printing an alarm (``report_alarm_message``), s.
@@ -945,7 +947,7 @@ class GrblEmulator:
         else:
             parts.append("WPos:" + self._units(p - wco))
         if mask & 2:
-            parts.append(f"Bf:{PLANNER_BLOCKS - self._planner_blocks()},{RX_BUFFER_BYTES + 1 - len(self._rx)}")
+            parts.append(f"Bf:{PLANNER_BLOCKS - self._planner_blocks()},{RX_BUFFER_BYTES - len(self._rx)}")
         inch = bool(self.settings[13])
         feed = self.speed_per_min() / (MM_PER_INCH if inch else 1.0)
         parts.append(f"FS:{_fmt(feed, 1 if inch else 0)},{_fmt(self.gc['speed'], 0)}")
@@ -1056,7 +1058,7 @@ class GrblEmulator:
         if c == "I":
             if len(line) == 2:
                 self._print(f"[VER:{VERSION}.{BUILD_DATE}:{self.build_info}]")
-                self._print(f"[OPT:V,{PLANNER_BLOCKS},{RX_BUFFER_BYTES + 1}]")
+                self._print(f"[OPT:V,{PLANNER_BLOCKS},{RX_BUFFER_BYTES}]")
                 if self.n > 3:          # grblHAL names its axes; GRBL 1.1 has X, Y, Z only
                     self._print(f"[AXS:{self.n}:{self.axes}]")
                 return 0
