@@ -228,3 +228,23 @@ def test_without_a_travel_box_the_soft_limits_are_grbls_own():
     assert say(emu, "?") == [] and say(emu, "$X\n") == []         # nothing until a reset
     assert say(emu, "\x18") == ["ok", BANNER, MSG_UNLOCK] and emu.pos_mm[0] == pytest.approx(-49)
     assert say(emu, "$X\n$J=G91 X50 F100\n") == ["[MSG:Caution: Unlocked]", "ok", "error:15"]
+
+
+def test_power_cycle_sets_the_position_to_zero_where_the_machine_stands_and_home_restores_it():
+    """GRBL's main(): a hardware reset (power-up, DTR) sets the machine position to 0 where the machine
+    stands (memset(sys_position, 0)), powers on in alarm when homing is enabled, prints the banner; the
+    machine itself has not moved, so the table (z = 0 in the old frame) is touched 40 mm lower in the
+    new one. $H finds the switches where they were: the old frame again."""
+    emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(10, 20, 50), homing=True))
+    assert say(emu, "$H\nG53 G90 G1 X30 Y30 Z40 F1000\n") == ["ok", "ok"]
+    settings = dict(emu.settings)
+    emu.power_cycle()
+    assert emu.take_output() == ["", BANNER, MSG_UNLOCK] and emu.state == "Alarm"
+    assert np.allclose(emu.pos_mm, 0) and np.allclose(emu.frame_mm, [30, 30, 40]) and emu.settings == settings
+    assert say(emu, "$X\nG91 G38.2 Z-60 F300\n")[-2] == "[PRB:0.000,0.000,-40.000:1]"
+    assert say(emu, "$H\n") == ["ok"] and np.allclose(emu.pos_mm, [10, 20, 50]) and np.allclose(emu.frame_mm, 0)
+    assert say(emu, "G53 G90 G1 X30 Y30 Z10 F1000\nG91 G38.2 Z-20 F300\n")[-2] == "[PRB:30.000,30.000,0.000:1]"
+    off = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 5)))   # homing off: Idle after it
+    off.power_cycle()
+    assert off.take_output() == ["", BANNER] and off.state == "Idle" and np.allclose(off.frame_mm, [0, 0, 5])
+
