@@ -74,7 +74,8 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .exceptions import VmtError, counted
-from .probelog import T_MAX_S, TEMP_RANGE_C, _num, is_number, last_row_check, step_back, value_range
+from .probelog import (T_MAX_S, TEMP_RANGE_C, _num, csv_lines, is_number, last_row_check, step_back,
+                       value_range)
 
 FORMAT = "positioning-log/1"
 #: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
@@ -371,7 +372,7 @@ def read_positioning_log(path: str | os.PathLike) -> PositioningLog:
 def _split_meta(text: str, src: str) -> tuple[dict[str, str], list[str], int]:
     if not text.strip():
         raise PositioningLogError(f"{src}: empty file")
-    lines = text.splitlines()
+    lines = csv_lines(text)
     meta: dict[str, str] = {}
     i = 0
     while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
@@ -419,7 +420,7 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
             raise PositioningLogError(f"{src}: missing required column {c!r}{hint}")
     raw: list[list[str]] = []
     line_of_row: list[int] = []
-    k = 0
+    last_end = 0
     unterminated, n_lines = not text.endswith(("\n", "\r")), len(lines)
 
     def last_row(row, r, ln):  # where a writer that died would have stopped: the probe log's rule
@@ -427,23 +428,27 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
                               remedy="delete the line",
                               numeric=lambda h: h in (tname, mname, "cycle", "t_s") or _is_temp(h))
 
+    # the file line where each record starts (a quoted cell may hold ends of line; reader.line_num
+    # counts the lines read, the header's first) and where the last one read ends
+    ln, end = header_line + 1, header_line
     try:
-        for k, row in enumerate(reader):
-            ln = header_line + 1 + k
+        for row in reader:
+            ln, end = end + 1, header_line - 1 + reader.line_num
             if not row or all(not c.strip() for c in row):
                 continue
             if len(row) != len(header):
-                if unterminated and ln == n_lines and len(row) < len(header):
+                if unterminated and end == n_lines and len(row) < len(header):
                     last_row(row, len(raw), ln)
                 raise PositioningLogError(
                     f"{src}: row {len(raw)} (line {ln}): {counted(len(row), 'field')}, header has {len(header)}")
             raw.append([c.strip() for c in row])
             line_of_row.append(ln)
-    except csv.Error as e:
-        raise PositioningLogError(f"{src}: line {header_line + 1 + k}: {e}") from None
+            last_end = end
+    except csv.Error as e:  # in the record that starts at line end + 1
+        raise PositioningLogError(f"{src}: line {end + 1}: {e}") from None
     warnings = ()
-    if unterminated and raw and line_of_row[-1] == n_lines:
-        w = last_row(raw[-1], len(raw) - 1, n_lines)
+    if unterminated and raw and last_end == n_lines:
+        w = last_row(raw[-1], len(raw) - 1, line_of_row[-1])
         warnings = () if w is None else (w,)
     col = {h: [r[j] for r in raw] for j, h in enumerate(header)}
 
@@ -805,7 +810,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
         raise PositioningLogError(f"{src}: empty file")
     meta: dict[str, str] = {}
     rows: list[tuple[int, list[str]]] = []
-    for ln, line in enumerate(text.splitlines(), start=1):
+    for ln, line in enumerate(csv_lines(text), start=1):
         s = line.strip()
         if not s:
             continue

@@ -67,6 +67,24 @@ TEMP_RANGE_C = (-273.15, 1000.0)
 NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 
 
+#: Where a line of a CSV log ends: ``\r\n``, ``\r`` or ``\n``, as CSV (RFC 4180) and Python's csv
+#: reader end a record. ``str.splitlines`` also breaks at form feed, vertical tab, ``\x1c``-``\x1e``,
+#: U+0085, U+2028 and U+2029, which in a CSV file are characters of a cell (:func:`csv_lines`).
+_EOL = re.compile(r"\r\n|\r|\n")
+
+
+def csv_lines(text: str) -> list[str]:
+    """The lines of ``text``, ended by ``\r\n``, ``\r`` or ``\n`` only (:data:`_EOL`), without their ends.
+
+    As ``text.splitlines()`` but for the other characters Unicode counts as line breaks,
+    which stay in their line (a form feed or U+2028 in a ``feature`` cell is part of the cell).
+    """
+    lines = _EOL.split(text) if "\r" in text else text.split("\n")
+    if lines[-1] == "":  # the text ends with an end of line (or is empty)
+        lines.pop()
+    return lines
+
+
 def is_number(cell: str) -> bool:
     """True when ``cell`` (surrounding blanks ignored) has the form of :data:`NUMBER`."""
     return NUMBER.match(cell.strip()) is not None
@@ -325,9 +343,9 @@ def read_probe_log(path: str | os.PathLike, *, progress=None) -> ProbeLog:
 
 
 def _file_lines(f) -> Iterator[str]:
-    """The lines of a binary file as ``text.splitlines()`` of its UTF-8 text gives them."""
+    """The lines of a binary file as :func:`csv_lines` of its UTF-8 text gives them."""
     for i, raw in enumerate(f):  # split at b"\n", which no UTF-8 sequence holds
-        yield from raw.decode("utf-8-sig" if i == 0 else "utf-8").splitlines()
+        yield from csv_lines(raw.decode("utf-8-sig" if i == 0 else "utf-8"))
 
 
 def _scan(f, src: str) -> tuple[int, bool]:
@@ -348,7 +366,7 @@ def _scan(f, src: str) -> tuple[int, bool]:
         off += len(raw)
         nul = nul or "\x00" in s
         blank = blank and not s.strip()
-        n += len(s.splitlines())
+        n += len(csv_lines(s))
         last = s
     if nul:
         raise ProbeLogError(f"{src}: holds NUL bytes: not a text file")
@@ -419,7 +437,7 @@ def parse_probe_log(text: str, source: str = "<memory>") -> ProbeLog:
         raise ProbeLogError(f"{source}: holds NUL bytes: not a text file")
     if not text.strip():
         raise ProbeLogError(f"{source}: empty file")
-    lines = text.splitlines()
+    lines = csv_lines(text)
     return _parse(iter(lines), len(lines), not text.endswith(("\n", "\r")), source)
 
 
@@ -591,33 +609,35 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
     cols = _Columns(header, src)
     block: list[list[str]] = []
     block_lines: list[int] = []
-    last_row, last_ln = None, 0
-    k = 0
+    last_row, last_ln, last_end = None, 0, 0
+    # the file line where each record starts: a quoted cell may hold ends of line, so a record
+    # may span lines (reader.line_num counts the lines read, the header's first)
+    ln, end = header_line + 1, header_line
     try:
-        for k, row in enumerate(reader):
-            ln = header_line + 1 + k
+        for row in reader:
+            ln, end = end + 1, header_line - 1 + reader.line_num
             if not row or not "".join(row).strip():  # a blank row (every cell white space)
                 continue
             if len(row) != width:
-                if unterminated and ln == n_lines and len(row) < width:
+                if unterminated and end == n_lines and len(row) < width:
                     last_row_check(src, header, row, cols.n + len(block), ln, numeric=_spec_numeric)
                 raise ProbeLogError(
                     f"{src}: row {cols.n + len(block)} (line {ln}): {counted(len(row), 'field')}, header has {width}")
             block.append(row)
             block_lines.append(ln)
-            last_row, last_ln = row, ln
+            last_row, last_ln, last_end = row, ln, end
             if len(block) == CHUNK_ROWS:
                 cols.add(block, block_lines)
                 block, block_lines = [], []
                 if progress is not None:
-                    progress(ln, n_lines)
-    except csv.Error as e:
-        raise ProbeLogError(f"{src}: line {header_line + 1 + k}: {e}") from None
+                    progress(end, n_lines)
+    except csv.Error as e:  # in the record that starts at line end + 1
+        raise ProbeLogError(f"{src}: line {end + 1}: {e}") from None
     cols.add(block, block_lines)
     del block, block_lines
     # the last row ends the file without an end of line: torn, or written by hand?
     warnings = []
-    if unterminated and last_row is not None and last_ln == n_lines:
+    if unterminated and last_row is not None and last_end == n_lines:
         w = last_row_check(src, header, last_row, cols.n - 1, last_ln, numeric=_spec_numeric)
         if w is not None:
             warnings.append(w)

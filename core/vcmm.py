@@ -122,8 +122,10 @@ for every touch.
 
 Declared terms: ``constant_U``, and for a linear axis's motion errors also
 ``slope_U_per_m`` and ``quadratic_U_per_m2`` (``U`` = ``um`` for a
-translation, ``urad`` for a rotation) of the axis reading, the same
-polynomial as a machine file's, and ``periodic_U`` with ``period_mm``: a
+translation, ``urad`` for a rotation) of the axis (joint) position
+``q = reading + J`` (J the stylus's probe offset: on vmc-3axis, J_Z 150 mm,
+a touch reading Z -17 mm is at q = 133 mm), the same polynomial as a
+machine file's and evaluated where its errors are, and ``periodic_U`` with ``period_mm``: a
 periodic error ``a sin(2 pi x / period + phi)`` (a screw's pitch error,
 the ripple an identification's tables cannot follow between their nodes)
 with its amplitude ``a`` drawn within +-``periodic_U`` by the distribution
@@ -158,7 +160,7 @@ DISTRIBUTIONS = ("uniform", "normal", "triangular", "arcsine")
 #: Standard uncertainty of a term declared with half-width (bound) 1 (normal: bound = U at k = 2).
 U_PER_BOUND = {"uniform": 1 / math.sqrt(3), "normal": 0.5, "triangular": 1 / math.sqrt(6),
                "arcsine": 1 / math.sqrt(2)}
-#: Power of the axis reading of each declared term.
+#: Power of the axis position (reading + J) of each declared term.
 TERM_POWER = {"constant": 0, "slope": 1, "quadratic": 2, "periodic": 0, "pretravel": 0, "lobing": 0, "form": 0,
               "drift": 0}
 PROBE_SOURCE = "probe repeatability"

@@ -25,6 +25,13 @@ second writer is refused with a message naming the log, so two
 number of complete rows on disk (:func:`recover_log`; a torn last line is
 cut off). A touch made but not yet on disk when the process died is made
 again on resume: the log never holds a touch twice and never misses one.
+
+A resume also needs the machine frame the log was made in: a controller
+reset between the sessions (opening an Arduino GRBL's serial port resets it)
+sets its machine position to 0 where the machine stands. Before any motion
+:func:`resume_frame_problem` refuses one that says it was reset at connect
+or stands farther than :data:`RESUME_POSITION_TOL_MM` from where the log's
+last row left it, unless the run homes (``--home-cycle``).
 """
 
 from __future__ import annotations
@@ -543,6 +550,69 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
 # the campaign
 
 
+#: How far (mm) the machine may stand, on a resume, from the path its log left it on (the last logged
+#: row's probing segment and retract, the moves to the next row and its probing segment: a lost link,
+#: an alarm or a killed process stops it somewhere on that path) before vmt takes its machine position
+#: for lost (:func:`resume_frame_problem`). Above the 2 mm a user jogs to clear a probe found in
+#: contact (ALARM:4, the default clearance) and a controlled stop, which stays on the path; a
+#: controller reset moves the reading by the machine's whole former position (GRBL's power-up sets the
+#: machine position to 0 where the machine stands), which a machine homed to a travel end keeps far
+#: from any probing point. A reset with the machine within this distance of machine zero along that
+#: path passes unseen: over a serial link its banner at connect still tells (``reset_at_connect``).
+RESUME_POSITION_TOL_MM = 5.0
+
+
+def _resume_path(steps: list[Step], done: int, settings: ProbeSettings) -> list[np.ndarray]:
+    """The points (mm) of the path the machine may stand on after ``done`` logged rows: the last
+    logged row's probing segment (end, start: the retract), the moves to row ``done`` and its probing
+    segment (a touch made but not yet on disk is made again)."""
+    last = steps[done - 1]
+    pts = [np.asarray(last.end_mm, float), np.asarray(last.start_mm, float)]
+    if done < len(steps):
+        nxt = steps[done]
+        pts += [np.asarray(m.xyz_mm, float) for m in approach(last.start_mm, nxt, settings)]
+        pts += [np.asarray(nxt.start_mm, float), np.asarray(nxt.end_mm, float)]
+    return pts
+
+
+def _distance_to_path(p, pts) -> float:
+    best = float(np.linalg.norm(p - pts[0]))
+    for a, b in zip(pts[:-1], pts[1:]):
+        d = b - a
+        L2 = float(d @ d)
+        t = 0.0 if L2 == 0.0 else min(1.0, max(0.0, float((p - a) @ d) / L2))
+        best = min(best, float(np.linalg.norm(p - a - t * d)))
+    return best
+
+
+def resume_frame_problem(backend, steps: list[Step], done: int, settings: ProbeSettings) -> str | None:
+    """Why the machine frame of a resumed run may not be its log's, or None.
+
+    ``backend.reset_at_connect()`` (when it has one) names a reset seen at connect (a serial GRBL's
+    banner: opening the port resets an Arduino). A backend whose machine position outlives a
+    connection (``keeps_position``) must stand within :data:`RESUME_POSITION_TOL_MM` of the path
+    the log's last row left it on (:func:`_resume_path`); the in-process virtual machine starts at its
+    home, as a homed machine does, and is not checked.
+    """
+    said = getattr(backend, "reset_at_connect", None)
+    why = said() if callable(said) else None
+    if why:
+        return why
+    if not getattr(backend, "keeps_position", False) or done <= 0:
+        return None
+    here = np.asarray(backend.position_m(), float) / MM
+    pts = _resume_path(steps, done, settings)
+    d = _distance_to_path(here, pts)
+    if d <= RESUME_POSITION_TOL_MM:
+        return None
+    r = pts[1]
+    return (f"the machine reads X{here[0]:.3f} Y{here[1]:.3f} Z{here[2]:.3f} mm, {d:.1f} mm from the path "
+            f"the log's last row (row {done - 1}) left it on (its retract point X{r[0]:.3f} Y{r[1]:.3f} "
+            f"Z{r[2]:.3f} mm, the moves to row {done}; more than {RESUME_POSITION_TOL_MM:g} mm): the "
+            "controller was reset (its machine position set to 0 where the machine stood) or the machine "
+            "was moved (then moving it back to that path resumes too)")
+
+
 @dataclass(frozen=True)
 class CampaignResult:
     """Outcome of :func:`run_campaign`."""
@@ -624,8 +694,31 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         if fd is not None:
             os.close(fd)
         return CampaignResult(p, plan.n, done, done, torn, statuses)
+    resumed = fd is not None and before > 0 and not home   # $H re-establishes the machine position
+
+    def frame_lost(why: str) -> HardwareError:
+        return HardwareError(
+            f"{p}: not resumed, nothing moved, the log kept ({before} of {plan.n} rows): {why}; its "
+            "positions would not be the log's: re-run with --resume --home-cycle ($H sets the machine "
+            "position again; a machine without homing cannot be tied to the log: start a new log)")
+
     try:
-        backend.start(unlock=unlock, home=home)
+        try:
+            backend.start(unlock=unlock, home=home)
+        except HardwareError as e:   # in alarm after a reset (homing enabled): say why, not only $X
+            if not resumed:
+                raise
+            try:
+                why = resume_frame_problem(backend, steps, before, settings)
+            except HardwareError:
+                why = None
+            if why:
+                raise frame_lost(why) from None
+            raise e from None
+        if resumed:
+            why = resume_frame_problem(backend, steps, before, settings)
+            if why:
+                raise frame_lost(why)
     except BaseException:
         if fd is not None:
             os.close(fd)

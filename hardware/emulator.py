@@ -13,7 +13,7 @@ and checked against the firmware itself, built for a PC with grbl-sim):
 - lines: spaces, control characters and comments are dropped and letters
   upper-cased before anything else; a line keeps at most 79 characters
   (80-byte buffer with its terminator): more is ``error:11`` and the line
-  is not executed; the serial receive buffer holds 127 bytes and drops
+  is not executed; the serial receive buffer holds 128 bytes and drops
   what does not fit while the firmware is busy;
 - ``ok`` means the block is in the planner (15 blocks), not that it is
   done; motion takes time (trapezoidal speed per block, the axes' maximum
@@ -46,6 +46,10 @@ and checked against the firmware itself, built for a PC with grbl-sim):
   ``$G``, ``$I`` (``$I=`` stores the build info), ``$N``/``$Nn=``, ``$C``,
   ``$X``, ``$H`` (``error:5`` when ``$22=0``), ``$J=`` (``error:15`` beyond
   soft limits, ``error:16`` for other G-codes), ``$RST=$|#|*``, ``$SLP``;
+- a hardware reset (:meth:`GrblEmulator.power_cycle`: power-up, DTR): the
+  machine position 0 where the machine stands (the machine model keeps where
+  it physically is, until ``$H`` finds the switches), the banner;
+  :class:`TcpServer` ``on_connect`` greets, resets or says nothing;
 - alarms: power-on in alarm when ``$22=1``; Ctrl-X during motion raises
   ``ALARM:3`` (``ALARM:6`` while homing), then ``ok`` for the line that was
   executing, then the banner and ``[MSG:'$H'|'$X' to unlock]``; a
@@ -93,8 +97,10 @@ VERSION, BUILD_DATE = "1.1h", "20190830"
 BANNER = f"Grbl {VERSION} ['$' for help]"
 #: Characters a line may keep after spaces and comments are stripped (80-byte buffer).
 LINE_MAX_CHARS = 79
-#: Bytes the serial receive ring holds (128, one kept free).
-RX_BUFFER_BYTES = 127
+#: Bytes the serial receive ring holds: serial.h's RX_BUFFER_SIZE, 128 (``[OPT:V,15,128]``, and
+#: ``Bf:`` counts free bytes of it). serial.c's ring has RX_BUFFER_SIZE + 1 = 129 slots and is full
+#: when the next head would meet the tail, so 128 bytes fit (the one slot kept free is the 129th).
+RX_BUFFER_BYTES = 128
 #: Planner blocks (``[OPT:V,15,128]``).
 PLANNER_BLOCKS = 15
 #: The firmware waits this long after printing an alarm (``report_alarm_message``), s.
@@ -350,6 +356,10 @@ class GrblEmulator:
         self.build_info = ""
         self.now = 0.0
         self.pos = np.array(self.config.home, dtype=float)        # machine position, mm / deg
+        #: Where the machine model's frame has the machine position's zero (mm / deg): the machine
+        #: physically stands at ``pos + frame_mm``. 0 until a power-up reset (:meth:`power_cycle`) sets
+        #: the position to 0 where the machine stands; ``$H`` finds the switches and sets it back to 0.
+        self.frame_mm = np.zeros(self.n)
         self.probes = 0            # probing moves received
         self.touches: list = []    # (triggered, pos_mm (3,)) of every executed probing move
         self.alarm: int | None = None
@@ -897,6 +907,30 @@ class GrblEmulator:
         self._wait = None
         self._step_main()
 
+    def power_cycle(self) -> None:
+        """A hardware reset: power-up, the reset button, or DTR when a host opens an Arduino's
+        serial port. GRBL's main() then sets the machine position to 0 where the machine stands
+        (``memset(sys_position, 0)``), powers on in alarm when homing is enabled (HOMING_INIT_LOCK),
+        clears the parser, the planner and the receive buffer, and prints its banner. Motion stops
+        where it is (no ALARM:3: the firmware that would print it restarts); the settings and the
+        G54..G59 offsets (EEPROM) stay."""
+        here = self.position()
+        self.frame_mm = self.frame_mm + here
+        self.pos = np.zeros(self.n)
+        self._active = None
+        self._phases = []
+        self._queue.clear()
+        self._holding = self._cancel = self._hold_done = False
+        self._rx.clear()
+        self._line = bytearray()
+        self._line_flags = 0
+        self._critical = self._sleep = self._busy_line = self._reset_after_line = False
+        self.alarm = None
+        self.state = "Alarm" if self.settings[22] else "Idle"
+        self._main = self._after_reset(None, False)
+        self._wait = None
+        self._step_main()
+
     def _after_reset(self, alarm, executing):
         if alarm is not None:
             self.state = "Alarm"
@@ -945,7 +979,7 @@ class GrblEmulator:
         else:
             parts.append("WPos:" + self._units(p - wco))
         if mask & 2:
-            parts.append(f"Bf:{PLANNER_BLOCKS - self._planner_blocks()},{RX_BUFFER_BYTES + 1 - len(self._rx)}")
+            parts.append(f"Bf:{PLANNER_BLOCKS - self._planner_blocks()},{RX_BUFFER_BYTES - len(self._rx)}")
         inch = bool(self.settings[13])
         feed = self.speed_per_min() / (MM_PER_INCH if inch else 1.0)
         parts.append(f"FS:{_fmt(feed, 1 if inch else 0)},{_fmt(self.gc['speed'], 0)}")
@@ -980,7 +1014,8 @@ class GrblEmulator:
     def _contact_now(self, p) -> bool:
         f = getattr(self.machine, "in_contact", None)
         if callable(f):
-            return bool(f(np.asarray(p[:3], float) * 1e-3, self._abc_rad(p)))
+            q = np.asarray(p, float) + self.frame_mm
+            return bool(f(q[:3] * 1e-3, self._abc_rad(q)))
         return self._contact and self._active is None
 
     def _probe_pin(self, p=None) -> bool:
@@ -1056,7 +1091,7 @@ class GrblEmulator:
         if c == "I":
             if len(line) == 2:
                 self._print(f"[VER:{VERSION}.{BUILD_DATE}:{self.build_info}]")
-                self._print(f"[OPT:V,{PLANNER_BLOCKS},{RX_BUFFER_BYTES + 1}]")
+                self._print(f"[OPT:V,{PLANNER_BLOCKS},{RX_BUFFER_BYTES}]")
                 if self.n > 3:          # grblHAL names its axes; GRBL 1.1 has X, Y, Z only
                     self._print(f"[AXS:{self.n}:{self.axes}]")
                 return 0
@@ -1115,6 +1150,9 @@ class GrblEmulator:
 
     def _home(self):
         self.state = "Home"
+        # the switches are where they always were: the homing moves run in the machine model's frame
+        self.pos = self.position() + self.frame_mm
+        self.frame_mm = np.zeros(self.n)
         target = np.array(self.config.home, dtype=float)
         seek = self.settings[25]
         z_first = self.pos.copy()
@@ -1596,8 +1634,9 @@ class GrblEmulator:
     def _find_trigger(self, start, target, away):
         """Where along the move the pin changes: ``(s, report position)``, ``(None, None)``
         for a miss, ``("initial", None)`` when the pin is wrong at the start (ALARM:4)."""
-        s_m, t_m = start[:3] * 1e-3, target[:3] * 1e-3
-        rot = self._abc_rad(start)
+        fr = self.frame_mm            # the machine model's frame: where the machine physically is
+        s_m, t_m = (start[:3] + fr[:3]) * 1e-3, (target[:3] + fr[:3]) * 1e-3
+        rot = self._abc_rad(start + fr)
         d = target - start
         L = float(np.linalg.norm(d))
         if self.settings[6]:              # $6=1: the pin reads active out of contact
@@ -1607,7 +1646,7 @@ class GrblEmulator:
             if has_contact and self._contact_now(start):
                 return "initial", None
             trig, p_m = self.machine.probe_move(s_m, t_m, rot)
-            p = np.asarray(p_m, dtype=float).reshape(3) * 1e3
+            p = np.asarray(p_m, dtype=float).reshape(3) * 1e3 - fr[:3]
             if bool(trig) and np.allclose(p, start[:3], rtol=0, atol=1e-9):
                 return "initial", None
             if not trig:
@@ -1619,7 +1658,7 @@ class GrblEmulator:
             if not c0:
                 return "initial", None
             trig, p_m = self.machine.probe_move(t_m, s_m, rot)    # the exit, seen from the end
-            p = np.asarray(p_m, dtype=float).reshape(3) * 1e3
+            p = np.asarray(p_m, dtype=float).reshape(3) * 1e3 - fr[:3]
             if trig and np.allclose(p, target[:3], rtol=0, atol=1e-9):
                 return None, None                                   # never leaves the material
             if not trig:
@@ -1664,6 +1703,9 @@ def _read_float(s: str, i: int):
 
 # ---------------------------------------------------------------------------
 # running it in real time, on ports
+
+
+_POWER_CYCLE = object()   # an EmulatorRunner inbox item: a hardware reset, not bytes
 
 
 class EmulatorRunner:
@@ -1713,6 +1755,13 @@ class EmulatorRunner:
         """Bytes from a port (thread-safe, never waits for the firmware)."""
         with self._lock:
             self._inbox.append((port, bytes(data)))
+        self._wake.set()
+
+    def power_cycle(self, port) -> None:
+        """A hardware reset (:meth:`GrblEmulator.power_cycle`) on the firmware's thread, in turn with
+        the bytes received; its banner goes to ``port`` (thread-safe, never waits)."""
+        with self._lock:
+            self._inbox.append((port, _POWER_CYCLE))
         self._wake.set()
 
     def greeting(self) -> list[str]:
@@ -1779,7 +1828,10 @@ class EmulatorRunner:
                 try:
                     emu.advance_to(self.emulated_now())
                     if item is not None:
-                        emu.receive(item[1])
+                        if item[1] is _POWER_CYCLE:
+                            emu.power_cycle()
+                        else:
+                            emu.receive(item[1])
                 except Exception as e:          # never let the firmware thread die
                     emu.internal_errors.append(f"{type(e).__name__}: {e}")
                 self._output(port, emu.take_output())
@@ -1829,9 +1881,18 @@ class TcpServer:
     """Serve a :class:`GrblEmulator` on a TCP port, one client at a time.
 
     Listens on ``host`` (127.0.0.1 by default); ``port=0`` picks a free port
-    (see :attr:`port`). A new client reads the banner (and the lock message
-    in alarm), as a network controller greets a new connection; the
-    machine's state is kept between connections (no reset on connect).
+    (see :attr:`port`). What a new client meets, ``on_connect``:
+
+    - ``"greet"`` (default): the banner (and the lock message in alarm), the
+      machine's state kept: a network controller's greeting to each new client
+      (Grbl_Esp32's ENABLE_TELNET_WELCOME_MSG, on in its config.h), not a reset;
+    - ``"reset"``: a hardware reset first (:meth:`GrblEmulator.power_cycle`:
+      the machine position 0 where the machine stands, in alarm when homing is
+      enabled, the banner): GRBL 1.1h on an Arduino, whose board resets when a
+      host opens its serial port (DTR), behind a bridge that opens the port per
+      client;
+    - ``"silent"``: nothing printed, the state kept: GRBL behind a bridge that
+      holds its port open (GRBL prints its banner only on a reset).
 
     Several clients: the first is served; another one connecting meanwhile
     reads ``[MSG:vmt emulator busy: one client at a time]`` and is closed
@@ -1841,8 +1902,15 @@ class TcpServer:
     idle connection never blocks the next client.
     """
 
+    ON_CONNECT = ("greet", "reset", "silent")
+
     def __init__(self, emulator, host: str = "127.0.0.1", port: int = 0, *,
-                 time_scale: float = 1.0, idle_timeout_s: float = 300.0):
+                 time_scale: float = 1.0, idle_timeout_s: float = 300.0, on_connect: str = "greet"):
+        if on_connect not in self.ON_CONNECT:
+            from core.exceptions import ConfigError
+
+            raise ConfigError(f"on_connect {on_connect!r}: expected one of {', '.join(self.ON_CONNECT)}")
+        self.on_connect = on_connect
         self.runner = EmulatorRunner.of(emulator, time_scale)
         self.emulator = self.runner.emulator
         self.idle_timeout_s = float(idle_timeout_s)
@@ -1913,7 +1981,10 @@ class TcpServer:
         port = _TcpPort(conn)
         try:
             conn.setblocking(False)
-            port.write(("".join(x + "\r\n" for x in self.runner.greeting())).encode("latin-1"))
+            if self.on_connect == "greet":
+                port.write(("".join(x + "\r\n" for x in self.runner.greeting())).encode("latin-1"))
+            elif self.on_connect == "reset":
+                self.runner.power_cycle(port)
             last_in = time.monotonic()
             while not self._stop.is_set() and not port.dropped and not port.overflow:
                 with port.lock:
@@ -2013,6 +2084,12 @@ class PtyServer:
     @property
     def url(self) -> str:
         return f"serial://{self.path}"
+
+    def power_cycle(self) -> None:
+        """A hardware reset of the controller on the line (:meth:`GrblEmulator.power_cycle`): its
+        banner waits in the line for the next reader, as when a host's opening of an Arduino's
+        serial port resets it (DTR)."""
+        self.runner.power_cycle(self._port)
 
     def start(self) -> "PtyServer":
         self.runner.start()

@@ -186,6 +186,11 @@ class _Link:
 class TcpLink(_Link):
     """GRBL over a TCP socket (grblHAL / FluidNC telnet, ``vmt machine serve``)."""
 
+    #: A banner on a new connection says nothing of a reset: a network controller may greet every
+    #: client with it (Grbl_Esp32's config.h defines ENABLE_TELNET_WELCOME_MSG: report_init_message
+    #: to each new telnet client), and ``vmt machine serve`` does by default.
+    resets_on_open = False
+
     def __init__(self, host: str, port: int, connect_timeout_s: float = 5.0):
         self.where = f"grbl://{host}:{port}"
         try:
@@ -222,6 +227,12 @@ class TcpLink(_Link):
 
 class SerialLink(_Link):
     """GRBL over a serial port or pty, standard library only (termios, raw 8N1)."""
+
+    #: Opening an Arduino's serial port pulls DTR, which resets the board; GRBL prints its banner only
+    #: from main()'s start-up loop (power-up, a reset), so a banner read at connect, before vmt sent a
+    #: reset, means the board was reset, and GRBL's power-up cleared its machine position (main.c:
+    #: memset(sys_position, 0)).
+    resets_on_open = True
 
     def __init__(self, path: str, baud: int = 115200):
         import termios
@@ -342,6 +353,7 @@ class GrblClient:
         self.transcript = transcript
         self.clock = clock
         self.unexpected: list[str] = []
+        self.banners: list[str] = []        # every start-up banner read (a reset: power-up, DTR, Ctrl-X)
         self.alarm: int | None = None       # the last alarm seen, until cleared by the backend
         self.last_msg: str | None = None    # the last [MSG:...] line
         self._wco = None
@@ -372,6 +384,8 @@ class GrblClient:
             self._log("<", line)
             if line.startswith("[MSG:"):
                 self.last_msg = line
+            elif _BANNER.match(line):
+                self.banners.append(line)
         return line
 
     def _lost(self, e: HardwareError) -> HardwareError:
@@ -643,12 +657,37 @@ class GrblBackend:
         self.axes: str | None = None
         self.reset = reset
         self._pos_mm: np.ndarray | None = None
+        self._connect_banner: str | None = None
+
+    #: A controller's machine position outlives a connection (unless the controller was reset):
+    #: a resumed campaign checks it against where its log left the machine
+    #: (:func:`hardware.campaign.resume_frame_problem`).
+    keeps_position = True
+
+    def reset_at_connect(self) -> str | None:
+        """Why the controller was reset when vmt connected (its machine position lost), or None.
+
+        A banner read before any reset vmt sent, on a link whose opening resets the board
+        (:attr:`SerialLink.resets_on_open`: DTR on an Arduino). Over TCP a banner may be a network
+        controller's greeting (:attr:`TcpLink.resets_on_open`), and after ``--reset`` vmt's own
+        Ctrl-X is answered by one: the machine position then decides (:mod:`hardware.campaign`).
+        """
+        if self._connect_banner is None or not getattr(self.client.link, "resets_on_open", False):
+            return None
+        return (f"the controller printed its start-up banner ({self._connect_banner!r}) when "
+                f"{self.client.link.where} was opened: opening the port resets an Arduino GRBL (DTR), "
+                "and GRBL's start-up sets its machine position to 0 where the machine stands")
 
     def start(self, *, unlock: bool = False, home: bool = False) -> None:
         c = self.client
         if self.reset:
             c.reset()
-        st = c.status(timeout_s=min(5.0, c.timeout_s))
+        seen = len(c.banners)
+        try:
+            st = c.status(timeout_s=min(5.0, c.timeout_s))
+        finally:          # a banner before the first status report: the controller greeted or was reset
+            if not self.reset and len(c.banners) > seen:
+                self._connect_banner = c.banners[seen]
         self.axes = self._axes(st)
         end = time.monotonic() + c.timeout_s
         while st.state.split(":")[0].lower() in ("run", "jog", "home") and time.monotonic() < end:

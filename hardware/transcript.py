@@ -8,6 +8,13 @@ repeats the last probe and is skipped. A line that starts like a probe
 report but is not one is an error naming the line: garbage is never taken
 for a position.
 
+Reports are read as millimetres. GRBL reports inches, ``[PRB:...]`` too,
+when its setting ``$13`` (report inches) is 1: a transcript that shows
+``$13=1`` (its ``$$`` dump, or the setting sent) before a probe report is
+refused naming both lines, as ``vmt probe`` refuses such a controller; a
+later ``$13=0`` ends it. A transcript without ``$13`` is read as mm (most
+senders' logs hold no settings dump).
+
 Timestamps, when lines carry them, give ``t_s`` (seconds since the first
 timestamp): a leading number of seconds (``12.345 < [PRB:...]``, what
 ``vmt probe --transcript`` writes), a clock time ``HH:MM:SS(.fff)`` or an
@@ -62,6 +69,10 @@ _BANNER = re.compile(r"^(Grbl|GrblHAL)\s*\S*\s*\[.*\]\s*$", re.I)
 _G91 = re.compile(r"G0*91(?![.\d])", re.I)
 _UNITS = re.compile(r"G0*(2[01])(?![.\d])", re.I)
 _AXIS_WORDS = re.compile(r"([XYZ])\s*([-+]?(?:\d+\.?\d*|\.\d+))", re.I)
+#: ``$13=v`` in a settings dump (``$$``, received) or a setting sent: GRBL's "report inches". With
+#: ``$13=1`` every report, ``[PRB:...]`` too (report_probe_parameters prints with
+#: printFloat_CoordValue), is in inches.
+_REPORT_INCHES = re.compile(r"^\$13\s*=\s*([^\s(]*)")
 
 
 def _stamp(line: str) -> float | None:
@@ -155,6 +166,7 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
     inch = False      # G20 sent: a probing move's words in inches (the reports stay mm, $13=0)
     t0 = None
     prev_info = False
+    inch_reports = None     # (line, value, numeric) of a $13 that makes the reports after it inches
     ln = 0
     for ln, line in enumerate(text.splitlines(), start=1):
         ts = _stamp(line)
@@ -174,6 +186,12 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
                 errors.append((ln, int(e.group(1))))
             if _BANNER.match(body):
                 resets.append(ln)
+        m13 = _REPORT_INCHES.match(body)     # received in a $$ dump, or sent to change it
+        if m13:
+            try:
+                inch_reports = (ln, m13.group(1), True) if float(m13.group(1)) != 0 else None
+            except ValueError:
+                inch_reports = (ln, m13.group(1), False)   # not a number: the units unknown (the live client's word)
         if way != "<" and not body.startswith("["):
             u = _UNITS.findall(body)
             if u:
@@ -191,6 +209,15 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
         if prev_info:               # the PRB line of a `$#` answer repeats the last probe
             prev_info = False
             continue
+        if inch_reports is not None:  # the live client refuses such a controller (GrblBackend._check_units)
+            if not inch_reports[2]:
+                raise ProbeLogError(
+                    f"{p}: line {ln}: the controller's $13 (report inches, line {inch_reports[0]}) is {inch_reports[1]!r}, "
+                    "not a number: vmt cannot tell whether the probe reports are millimetres")
+            raise ProbeLogError(
+                f"{p}: line {ln}: the probe report is in inches (the controller's $13={inch_reports[1]}, report "
+                f"inches, line {inch_reports[0]}); vmt reads reports as millimetres and converts no controller's "
+                "units, as vmt probe refuses $13=1: set $13=0 (send '$13=0') and probe again")
         r = parse_prb(tok.group(0))
         if r is None:
             raise ProbeLogError(f"{p}: line {ln}: malformed probe report {tok.group(0)[:60]!r}")

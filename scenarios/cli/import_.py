@@ -18,7 +18,8 @@ def register(sub) -> None:
     option(p, "--dt-s", dest="dt", type=float, default=1.0, old=("--dt",),
            help="time between touches when the file has no clock, s (1)")
     p.add_argument("--units", choices=("mm", "inch"), default=None,
-                   help="units of a LinuxCNC probe file (mm); not for grbl, whose reports are read as mm")
+                   help="units of a LinuxCNC probe file (mm); not for grbl, whose reports are read as mm "
+                        "(a transcript showing $13=1, report inches, is refused)")
     p.add_argument("--clearance-mm", dest="clearance", type=float, default=None,
                    help="the program's approach start before contact (vmt machine program / vmt probe "
                         "--clearance-mm), mm (2 when only --overtravel-mm is given): each touch within clearance + "

@@ -54,6 +54,11 @@ def register(sub) -> None:
            help="close a client that sends nothing this long while the machine is idle, s (300)")
     option(s, "--stop-after-s", dest="max_seconds", type=float, old=("--max-seconds",),
            help="stop after this long, s (default: until Ctrl-C)")
+    s.add_argument("--on-connect", choices=("greet", "reset", "silent"), default="greet",
+                   help="what a new TCP client meets: greet (the banner, the position kept: a network "
+                        "controller's welcome), reset (a hardware reset first, the position 0 where the machine "
+                        "stands: an Arduino GRBL whose serial port a bridge opens per client, DTR) or silent "
+                        "(nothing: a bridge that holds the port open); default greet")
     s.set_defaults(func=run_serve)
     g = msub.add_parser("program", help="write a plan as a LinuxCNC part program (G38.2; each touch a LOG "
                         "line numbered by its plan row)")
@@ -121,7 +126,8 @@ def run_serve(args) -> int:
         print(f"vmt machine: warning: listening on {args.host}, not only this computer",
               file=sys.stderr)
     try:
-        tcp = TcpServer(runner, args.host, args.port, idle_timeout_s=args.idle_timeout).start()
+        tcp = TcpServer(runner, args.host, args.port, idle_timeout_s=args.idle_timeout,
+                        on_connect=args.on_connect).start()
     except OSError as e:
         raise ConfigError(f"--host {args.host} --port {args.port}: cannot listen ({e.strerror})") from None
     ptys = PtyServer(runner).start() if args.pty else None

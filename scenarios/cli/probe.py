@@ -24,7 +24,8 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="campaign log (probe-log/1), append-only")
     add_settings_args(p)
     p.add_argument("--dry-run", action="store_true", help="print the program, move nothing")
-    p.add_argument("--resume", action="store_true", help="continue the log --out where it stops")
+    p.add_argument("--resume", action="store_true", help="continue the log --out where it stops (refused, nothing moved, when the "
+                        "controller lost the log's machine position: then add --home-cycle)")
     p.add_argument("--unlock", action="store_true", help="send $X if the controller is in alarm")
     option(p, "--home-cycle", dest="home", action="store_true", old=("--home",),
            help="send $H (the homing cycle) before probing")

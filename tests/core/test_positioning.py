@@ -737,3 +737,45 @@ def test_tool_offset_on_a_rotary_log_refused():
             "target_deg,cycle,direction,measured_deg\n0,1,+,0\n")
     with pytest.raises(PositioningLogError, match="a tool offset applies to a linear axis, the log is in 'deg'"):
         parse_positioning_log(text, "r.csv")
+
+
+def test_only_cr_and_lf_end_a_line(tmp_path):
+    """A positioning log's record ends at CR, LF or CRLF only: the review's file with a form feed in
+    its note column read as rows of 1 field (str.splitlines breaks at it); it reads 30 readings now,
+    and every other character splitlines breaks at stays in its cell, with the line count behind it."""
+    from pathlib import Path
+
+    p = Path(__file__).parent / "data" / "csv_lines" / "pos_ff.csv"
+    log = read_positioning_log(p)
+    assert log.n == 30 and list(log.extra["note"]) == ["a\x0cb"] * 30
+    for c in "\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029":
+        rows = [r + (f"a{c}b",) for r in hand_rows()]
+        log = parse_positioning_log(hand_text(rows, header="target_mm,cycle,direction,measured_mm,note"))
+        assert log.n == 30 and set(log.extra["note"]) == {f"a{c}b"}
+        bad = hand_text(rows[:3] + [(0.0, 1, "-", "x", "n")], header="target_mm,cycle,direction,measured_mm,note")
+        with pytest.raises(PositioningLogError, match=r"row 3 \(line 7\): .*measured_mm"):
+            parse_positioning_log(bad)
+        # a plain table (no format line): the line of a bad cell behind such a character
+        with pytest.raises(PositioningLogError, match=r"line 3\b"):
+            parse_table(f"target_mm,cycle,direction,measured_mm\n0,1,+,0{c}\n0,1,x,0\n")
+
+
+def test_a_row_after_quoted_multi_line_cells_is_named_by_its_file_line():
+    """A quoted note may hold ends of line: the message names the file line where the bad record
+    starts (it counted records: line 6 for a row on line 9, the review's finding), the torn-row
+    rule looks at the record that ends the file, and a whole last row is named by its first line."""
+    h = "target_mm,cycle,direction,measured_mm,note"
+    rows = [r + ('"a\nb"',) for r in hand_rows()]            # each reading on two lines
+    text = hand_text(rows, header=h)                           # meta lines 1-2, header 3, row r on 4 + 2r
+    assert parse_positioning_log(text).n == 30
+    bad = hand_text(rows[:3] + [(0.0, 1, "-", "x", '"n\nm"')], header=h)
+    with pytest.raises(PositioningLogError, match=r"row 3 \(line 10\): .*measured_mm"):
+        parse_positioning_log(bad)
+    cut = hand_text(rows[:3], header=h) + '200,1,-,200.001'
+    with pytest.raises(PositioningLogError, match=r"row 3 \(line 10\): torn last row \(4 of 5 fields"):
+        parse_positioning_log(cut)
+    whole = hand_text(rows, header=h)[:-1]                     # no end of line after the last reading
+    log = parse_positioning_log(whole)
+    assert log.n == 30 and re.search(r"row 29 \(line 62\): the file ends without an end of line", log.warnings[0])
+    with pytest.raises(PositioningLogError, match=r": line 10: field larger than field limit"):
+        parse_positioning_log(hand_text(rows[:3], header=h) + "0,1,-,0," + "x" * 200_000 + "\n")

@@ -1,11 +1,12 @@
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from core.exceptions import OutputError, ProbeLogError
-from core.probelog import (OPTIONAL, REQUIRED, format_probe_log, make_log, parse_probe_log,
+from core.probelog import (OPTIONAL, REQUIRED, csv_lines, format_probe_log, make_log, parse_probe_log,
                            read_probe_log, summary, write_probe_log)
 from core.touches import from_log
 
@@ -554,3 +555,64 @@ def test_decimal_number_forms_read_exactly():
     cells = [".5", "5.", "+2", "-0.0", "1E-3", " 2.5e+1 "]
     text = HEADER + "\n" + "\n".join(ROW.replace("s1,p1,0,1,", f"s1,p{k},{k},{c},") for k, c in enumerate(cells))
     assert list(parse_probe_log(text + "\n").columns["X_mm"]) == [float(c) for c in cells]
+
+
+CSV_LINES = Path(__file__).parent / "data" / "csv_lines"
+
+
+@pytest.mark.parametrize("name, ch", [("ff.csv", "\x0c"), ("nel.csv", "\x85"), ("u2028.csv", "\u2028")])
+def test_only_cr_and_lf_end_a_line(tmp_path, name, ch):
+    """A CSV record ends at CR, LF or CRLF only: a form feed, U+0085 or U+2028 in a cell (which
+    str.splitlines breaks at: the review's files read as rows of 1 field, or the quoted cell
+    changed to a newline) is a character of the cell, in the file and in memory, and round trips."""
+    p = CSV_LINES / name
+    log = read_probe_log(p)
+    assert log.n == 4
+    assert list(log.col("feature")) == [f"a{ch}b"] * 4
+    mem = parse_probe_log(p.read_text(encoding="utf-8"), name)
+    assert list(mem.col("feature")) == [f"a{ch}b"] * 4
+    back = read_probe_log(write_probe_log(tmp_path / name, log))
+    assert list(back.col("feature")) == [f"a{ch}b"] * 4
+    # every other character splitlines breaks at, unquoted in a text cell, and the line count behind it
+    for c in "\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029":
+        text = HEADER + ",feature\n" + ROW + f",a{c}b\n" + "s1,p2,1,x,0,0,1,0,0,1,0,0,f\n"
+        assert list(parse_probe_log(HEADER + ",feature\n" + ROW + f",a{c}b\n").col("feature")) == [f"a{c}b"]
+        with pytest.raises(ProbeLogError, match=r"row 1 \(line 3\): column 'X_mm'"):
+            parse_probe_log(text)
+        f = tmp_path / "c.csv"
+        f.write_text(text, encoding="utf-8")
+        with pytest.raises(ProbeLogError, match=r"row 1 \(line 3\): column 'X_mm'"):
+            read_probe_log(f)
+
+
+def test_csv_lines_splits_as_csv_does():
+    assert csv_lines("") == [] and csv_lines("a") == ["a"] and csv_lines("a\n") == ["a"]
+    assert csv_lines("a\r\n\nb\rc\r") == ["a", "", "b", "c"]
+    assert csv_lines("a\x0cb\u2028c\x85\n") == ["a\x0cb\u2028c\x85"]
+    s = "x\r\ny\n\n z\rw\v\f"
+    assert csv_lines(s) == s.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+
+
+def test_a_row_after_quoted_multi_line_cells_is_named_by_its_file_line(tmp_path):
+    """A quoted cell may hold an end of line, so a record may span lines: the message names the file
+    line where the bad record starts (the review's qnl_err.csv said line 6 for a row on line 9),
+    and a row of the wrong width, a csv error and a torn last row likewise."""
+    p = CSV_LINES / "qnl_err.csv"
+    want = r"qnl_err.csv: row 3 \(line 9\): column 'nz': 'abc' is not a number$"
+    with pytest.raises(ProbeLogError, match=want):
+        read_probe_log(p)
+    with pytest.raises(ProbeLogError, match=want):
+        parse_probe_log(p.read_text(encoding="utf-8"), "qnl_err.csv")
+    two = HEADER + ',feature\n' + ROW + ',"a\r\nb\nc"\n' + "\n"      # row 0 on lines 2-4, a blank line 5
+    with pytest.raises(ProbeLogError, match=r"row 1 \(line 6\): 12 fields, header has 13$"):
+        parse_probe_log(two + ROW.replace("p1", "p2") + "\n")
+    with pytest.raises(ProbeLogError, match=r"row 1 \(line 6\): torn last row \(12 of 13 fields"):
+        parse_probe_log(two + ROW.replace("p1", "p2"))
+    log = parse_probe_log(two + ROW.replace("p1", "p2") + ',"x\ny"')  # whole, unterminated, starts on line 6
+    assert log.n == 2 and re.search(r"row 1 \(line 6\): the file ends without an end of line", log.warnings[0])
+    with pytest.raises(ProbeLogError, match=r"line 6: field larger than field limit"):  # a csv error
+        parse_probe_log(two + ROW.replace("p1", "p2") + "," + "x" * 200_000 + "\n", "q.csv")
+    f = tmp_path / "q.csv"
+    f.write_text(two + ROW.replace("p1,0,1", "p2,1,y") + ",z\n", encoding="utf-8")
+    with pytest.raises(ProbeLogError, match=r"row 1 \(line 6\): column 'X_mm': 'y' is not a number$"):
+        read_probe_log(f)

@@ -447,15 +447,17 @@ def test_second_writer_is_refused_while_the_first_writes(tmp_path, plan_path, ca
     plan = read_probe_log(plan_path)
     ref = direct_log(tmp_path, plan)
     out = tmp_path / "log.csv"
-    emu, srv = serve(machine=_Slower(scene()))
+    emu, srv = serve(machine=_Slower(scene()), homing=True)
     try:
         assert main(probe_args("virtual:", plan_path, out)) == 0       # a finished log, cut back to 3 rows
         text = out.read_text()
         head = [x for x in text.splitlines(True) if x.startswith("#") or x.startswith("setup")]
         out.write_text("".join(head + [x for x in text.splitlines(True)
                                        if not (x.startswith("#") or x.startswith("setup"))][:3]))
+        # the log's rows were made on another machine (virtual:): the controller's position is not
+        # where the log left it, so the resume homes it (hardware.campaign.resume_frame_problem)
         first = subprocess.Popen([sys.executable, "-m", "scenarios.cli",
-                                  *probe_args(srv.url, plan_path, out, "--resume")],
+                                  *probe_args(srv.url, plan_path, out, "--resume", "--home-cycle")],
                                  cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         end = time.monotonic() + 30
         while len(_rows(out)) < 4 and time.monotonic() < end:          # the first writer is at work
@@ -556,3 +558,125 @@ def test_early_trigger_alarm_4_is_logged_like_import_reads_it(tmp_path, plan_pat
     st = list(log.col("status"))
     assert st.count("early_trigger") == 1 and st[4] == "early_trigger" and st.count("ok") == plan.n - 1
     assert np.isnan(log.columns["X_mm"][4])        # probe-log/1: an invalid touch, empty measured cells
+
+
+# ---------------------------------------------------------------- a controller reset between sessions (review29 F1)
+
+def test_resume_after_a_controller_reset_is_refused_until_homed(tmp_path, plan_path, capsys):
+    """Opening an Arduino GRBL's serial port resets it (DTR): GRBL's main() sets the machine position to 0
+    where the machine stands, in alarm when homing is enabled. On main a resume after such a reset went on
+    in the new frame (--unlock sent $X): every later row off by the machine's former position. The
+    emulator behind a bridge that opens the port per client (on_connect="reset") refuses the resume in
+    one line, nothing moved and the log kept, with --unlock too; --home-cycle ($H) resumes it, whole."""
+    plan = read_probe_log(plan_path)
+    ref = direct_log(tmp_path, plan)
+    emu, srv = serve(Faults(drop_before_probe=(6,)), homing=True)
+    out = tmp_path / "log.csv"
+    try:
+        assert main(probe_args(srv.url, plan_path, out, "--home-cycle")) == 2     # the link drops: 5 rows
+        assert read_probe_log(out).n == 5
+        capsys.readouterr()
+        before, probes = out.read_bytes(), emu.probes
+        srv.on_connect = "reset"
+        for extra in ((), ("--unlock",)):
+            assert main(probe_args(srv.url, plan_path, out, "--resume", *extra)) == 2
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and "Traceback" not in err
+            assert f"{out}: not resumed, nothing moved, the log kept (5 of 12 rows)" in err
+            assert "X0.000 Y0.000 Z0.000 mm" in err and "the controller was reset" in err
+            assert "re-run with --resume --home-cycle" in err
+            assert out.read_bytes() == before and emu.probes == probes and np.allclose(emu.pos_mm, 0)
+        assert main(probe_args(srv.url, plan_path, out, "--resume", "--home-cycle")) == 0
+    finally:
+        srv.stop()
+    log = read_probe_log(out)
+    assert_complete(log, plan)
+    assert np.abs(log.positions_mm() - ref.positions_mm()).max() < QUANT_MM
+
+
+def test_resume_without_a_reset_goes_on_whatever_the_greeting(tmp_path, plan_path, capsys):
+    """A reconnect without a reset keeps the machine position: GRBL behind a bridge that holds its port
+    prints nothing (on_connect="silent"), a network controller greets (the default): both resume."""
+    plan = read_probe_log(plan_path)
+    ref = direct_log(tmp_path, plan)
+    emu, srv = serve(Faults(drop_before_probe=(4, 9)))
+    out = tmp_path / "log.csv"
+    try:
+        assert main(probe_args(srv.url, plan_path, out)) == 2
+        assert read_probe_log(out).n == 3
+        srv.on_connect = "silent"
+        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 2         # the second drop
+        assert read_probe_log(out).n == 7
+        srv.on_connect = "greet"
+        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 0
+    finally:
+        srv.stop()
+    log = read_probe_log(out)
+    assert_complete(log, plan)
+    assert np.abs(log.positions_mm() - ref.positions_mm()).max() < QUANT_MM
+    assert np.allclose(emu.frame_mm, 0)
+
+
+def test_a_banner_when_a_serial_port_opens_is_a_reset(tmp_path, plan_path, capsys):
+    """Over a serial link GRBL prints its banner only on a reset, and opening the port resets an Arduino:
+    the resume is refused naming the banner and the port (before the position is even read); without
+    homing ($22=0) the log cannot be tied to the new frame and the message says so."""
+    from hardware.emulator import PtyServer
+
+    plan = read_probe_log(plan_path)
+    emu, srv = serve(Faults(drop_before_probe=(6,)))
+    out = tmp_path / "log.csv"
+    pty = None
+    try:
+        assert main(probe_args(srv.url, plan_path, out)) == 2
+        before = out.read_bytes()
+        pty = PtyServer(srv.runner).start()
+        pty.power_cycle()                       # the board resets as the host opens its port (DTR)
+        capsys.readouterr()
+        assert main(probe_args(pty.url, plan_path, out, "--resume")) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and out.read_bytes() == before
+        assert "printed its start-up banner (\"Grbl 1.1h ['$' for help]\")" in err
+        assert f"when {pty.url} was opened" in err and "start a new log" in err
+    finally:
+        if pty is not None:
+            pty.stop()
+        srv.stop()
+    assert read_probe_log(out).n == 5 and plan.n == 12
+
+
+class _Stands:
+    """A backend that stands where it is told and keeps its position across connections."""
+
+    keeps_position = True
+
+    def __init__(self, at_mm, banner=None):
+        self.at, self.banner = np.asarray(at_mm, float), banner
+
+    def position_m(self):
+        return self.at * 1e-3
+
+    def reset_at_connect(self):
+        return self.banner
+
+
+def test_resume_position_tolerance_is_5_mm_from_the_path():
+    """RESUME_POSITION_TOL_MM: anywhere on the path the last logged row left the machine on (its probing
+    segment, its retract, the moves to the next row and that row's probing segment) resumes; a jog of
+    4.9 mm off it too (clearing a probe found in contact); 5.1 mm off, or machine zero, does not."""
+    from hardware.campaign import RESUME_POSITION_TOL_MM, plan_steps, resume_frame_problem
+
+    assert RESUME_POSITION_TOL_MM == 5.0
+    st = ProbeSettings(limits_mm=LIMITS_MM, safe_z_mm=30.0)
+    steps = plan_steps(plan_log(), st)                  # row 2: table (90, 90, 0) -> row 3: (10, 90, 0)
+    a, b = steps[2], steps[3]
+    on_path = [a.end_mm, a.start_mm, (90, 90, 30), (50, 90, 30), (10, 90, 30), (10, 90, 10), b.start_mm, b.end_mm]
+    for p in on_path:
+        assert resume_frame_problem(_Stands(p), steps, 3, st) is None
+    assert resume_frame_problem(_Stands((50, 94.9, 30)), steps, 3, st) is None
+    why = resume_frame_problem(_Stands((50, 95.1, 30)), steps, 3, st)
+    assert "5.1 mm from the path the log's last row (row 2)" in why and "X90.000 Y90.000 Z2.000" in why
+    assert "90.6 mm from" in resume_frame_problem(_Stands((0, 0, 0)), steps, 3, st)   # a reset: 0 where it stood
+    assert resume_frame_problem(_Stands((0, 0, 0)), steps, 0, st) is None          # no row logged: no frame yet
+    assert resume_frame_problem(_Stands(a.start_mm, banner="reset"), steps, 3, st) == "reset"
+    assert resume_frame_problem(VirtualBackend(scene(), home_m=(0, 0, 0.05)), steps, 3, st) is None

@@ -170,14 +170,36 @@ def test_runner_time_scale():
 
 
 def test_serial_receive_buffer_drops_what_a_busy_firmware_cannot_take():
-    """serial.c: 128-byte ring; while a line waits (here a G38.2 behind a move) 127 bytes fit."""
+    """serial.c: a ring of RX_BUFFER_SIZE + 1 = 129 slots, full when the next head would meet the
+    tail: 128 bytes fit while a line waits (here a G38.2 behind a move), as [OPT:V,15,128] and
+    serial_get_rx_buffer_available (128 - used) count them."""
     emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 50)))
     emu.receive(b"G1 X100 F100\nG38.2 Z-60 F100\n")
-    emu.receive(b"G1 X1\n" * 40)                        # 240 bytes: 127 kept
-    assert emu._rx_dropped == 240 - 127
+    emu.receive(b"G1 X1\n" * 40)                        # 240 bytes: 128 kept
+    assert emu._rx_dropped == 240 - 128
     out = say(emu, "")
-    assert out.count("ok") == 1 + 1 + 21                # the move, the probe, 127 // 6 lines
+    assert out.count("ok") == 1 + 1 + 21                # the move, the probe, 128 // 6 lines
     assert math.isclose(emu.pos_mm[0], 1.0)
+
+
+def test_a_character_counting_sender_may_have_128_bytes_in_flight():
+    """The review's case: a dwell holds the main loop, then exactly 128 bytes of lines (a sender
+    counting characters against [OPT:...,128] sends that much): GRBL keeps them all; an emulator
+    holding 127 dropped the last newline and ran 11 of the 12 lines."""
+    emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 30)))
+    assert say(emu, b"$I\n")[1].startswith("[OPT:V,15,128]")
+    assert say(emu, b"$10=3\n") == ["ok"]                # status reports show Bf:
+    emu.receive(b"G4P5\n")
+    buf = b"".join(b"G1X%02dF1000\n" % (k + 10) for k in range(10)) + b"G1X1F10\n" + b"G1X2F1000\n"
+    assert len(buf) == 128
+    emu.receive(buf)
+    assert emu._rx_dropped == 0
+    emu.receive(b"?")
+    assert emu.take_output()[-1].split("|Bf:")[1].split("|")[0].endswith(",0")   # no room left
+    emu.receive(b"G1X3F1000\n")                        # one byte more is dropped (the 129th)
+    assert emu._rx_dropped > 0
+    out, _ = emu.feed_bytes(b"", max_s=1e5)
+    assert out.count("ok") == 1 + 12
 
 
 def test_jog_cancel_and_overrides_act_at_once():
@@ -206,3 +228,23 @@ def test_without_a_travel_box_the_soft_limits_are_grbls_own():
     assert say(emu, "?") == [] and say(emu, "$X\n") == []         # nothing until a reset
     assert say(emu, "\x18") == ["ok", BANNER, MSG_UNLOCK] and emu.pos_mm[0] == pytest.approx(-49)
     assert say(emu, "$X\n$J=G91 X50 F100\n") == ["[MSG:Caution: Unlocked]", "ok", "error:15"]
+
+
+def test_power_cycle_sets_the_position_to_zero_where_the_machine_stands_and_home_restores_it():
+    """GRBL's main(): a hardware reset (power-up, DTR) sets the machine position to 0 where the machine
+    stands (memset(sys_position, 0)), powers on in alarm when homing is enabled, prints the banner; the
+    machine itself has not moved, so the table (z = 0 in the old frame) is touched 40 mm lower in the
+    new one. $H finds the switches where they were: the old frame again."""
+    emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(10, 20, 50), homing=True))
+    assert say(emu, "$H\nG53 G90 G1 X30 Y30 Z40 F1000\n") == ["ok", "ok"]
+    settings = dict(emu.settings)
+    emu.power_cycle()
+    assert emu.take_output() == ["", BANNER, MSG_UNLOCK] and emu.state == "Alarm"
+    assert np.allclose(emu.pos_mm, 0) and np.allclose(emu.frame_mm, [30, 30, 40]) and emu.settings == settings
+    assert say(emu, "$X\nG91 G38.2 Z-60 F300\n")[-2] == "[PRB:0.000,0.000,-40.000:1]"
+    assert say(emu, "$H\n") == ["ok"] and np.allclose(emu.pos_mm, [10, 20, 50]) and np.allclose(emu.frame_mm, 0)
+    assert say(emu, "G53 G90 G1 X30 Y30 Z10 F1000\nG91 G38.2 Z-20 F300\n")[-2] == "[PRB:30.000,30.000,0.000:1]"
+    off = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 5)))   # homing off: Idle after it
+    off.power_cycle()
+    assert off.take_output() == ["", BANNER] and off.state == "Idle" and np.allclose(off.frame_mm, [0, 0, 5])
+

@@ -195,3 +195,27 @@ def test_garbage_on_the_serial_port_too():
         be.start()
         be.close()
     assert emu.internal_errors == []
+
+
+@pytest.mark.parametrize("mode", ["greet", "reset", "silent"])
+def test_tcp_server_on_connect(mode):
+    """What a new TCP client meets: the banner and the state kept (greet: a network controller's welcome),
+    a hardware reset (reset: DTR when a bridge opens an Arduino's port), or nothing (silent)."""
+    emu = GrblEmulator(SimpleScene(), ControllerConfig(home=(0, 0, 30)))
+    with TcpServer(emu, time_scale=200.0, on_connect=mode) as srv:
+        for k in range(2):
+            with socket.create_connection((srv.host, srv.port)) as s:
+                got = _lines(s, timeout_s=0.3)
+                assert got == ([] if mode == "silent" else [BANNER])
+                s.sendall(b"?")
+                st = _lines(s, until="^<")[-1]
+                # reset: 0 where it stands (each time); otherwise the position kept: 30, then the 20 moved to
+                want = "0.000,0.000,0.000" if mode == "reset" else ("0.000,0.000,30.000", "0.000,0.000,20.000")[k]
+                assert st.startswith(f"<Idle|MPos:{want}|"), st
+                s.sendall(b"G53 G90 G1 Z20 F6000\nG4P0.01\n")
+                assert _lines(s, until="ok.*", timeout_s=2.0)[-1] == "ok"
+                time.sleep(0.05)
+    from core.exceptions import ConfigError
+
+    with pytest.raises(ConfigError, match="on_connect 'dtr'"):
+        TcpServer(GrblEmulator(SimpleScene()), on_connect="dtr")

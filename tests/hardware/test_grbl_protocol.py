@@ -316,3 +316,21 @@ def test_wpos_reports_wait_for_wco_without_warnings(tmp_path, capsys):
             assert "unexpected" not in err and "warning" not in err, err
         logs.append(read_probe_log(out))
     assert np.array_equal(logs[0].positions_mm(), logs[1].positions_mm())
+
+
+@pytest.mark.parametrize("serial, reset, said", [(True, False, True), (False, False, False), (True, True, False)])
+def test_a_banner_at_connect_is_a_reset_on_a_serial_link_only(serial, reset, said):
+    """GrblBackend.reset_at_connect: a banner read before the first status report means the board was
+    reset when a serial port opened (DTR); over TCP it may be a network controller's greeting (Grbl_Esp32's
+    telnet welcome), and after --reset it answers vmt's own Ctrl-X: then the position decides."""
+    st = "<Idle|MPos:1.000,2.000,3.000|FS:0,0>"
+    script = (["", BANNER] if reset else []) + ["", BANNER, st, "$13=0", "ok", "ok", "ok", "ok", st]
+    link = _ScriptLink(script)
+    link.resets_on_open, link.where = serial, "serial:///dev/ttyACM0" if serial else "grbl://h:1"
+    be = GrblBackend(GrblClient(link, timeout_s=0.5), reset=reset)   # --reset: a banner answers its Ctrl-X
+    be.start()
+    why = be.reset_at_connect()
+    assert (why is not None) == said
+    if said:
+        assert why.startswith(f"the controller printed its start-up banner ({BANNER!r}) when "
+                              "serial:///dev/ttyACM0 was opened")

@@ -8,7 +8,7 @@ import pytest
 
 from conftest import LIMITS, LIMITS_MM, plan_log, scene
 from core.exceptions import PlanError, ProbeLogError
-from core.probelog import read_probe_log, write_probe_log
+from core.probelog import make_log, read_probe_log, write_probe_log
 from hardware.backend import VirtualBackend
 from hardware.campaign import ProbeSettings, run_campaign
 from hardware.emulator import ControllerConfig, GrblEmulator, TcpServer
@@ -817,3 +817,53 @@ def test_program_stroke_and_transcript_strokes_known_answers(tmp_path):
     s = read_session(tr)
     assert s.probing == [1, 3, 6] and s.strokes[0] == 5.0 and s.strokes[1] is None
     assert s.strokes[2] == pytest.approx(12.7, abs=1e-12)
+INCH_TRANSCRIPT = """1000.000 > $$
+1000.010 < $13=1
+1000.011 < ok
+1000.100 > G91 G38.2 X0.0000 Y0.0000 Z-4.0000 F300.0
+1003.000 < [PRB:0.0000,0.0000,0.0669:1]
+1003.001 < ok
+1004.100 > G91 G38.2 X0.0000 Y0.0000 Z-4.0000 F300.0
+1007.000 < [PRB:0.0000,0.0079,0.0669:1]
+1007.001 < ok
+"""
+INCH_PLAN = make_log({"setup": ["s1", "s1"], "target": ["p0", "p1"], "t_s": [np.nan] * 2,
+                      "X_mm": [np.nan] * 2, "Y_mm": [np.nan] * 2, "Z_mm": [np.nan] * 2,
+                      "Xn_mm": [0.0, 0.0], "Yn_mm": [0.0, 0.2], "Zn_mm": [1.5, 1.5],
+                      "nx": [0.0, 0.0], "ny": [0.0, 0.0], "nz": [1.0, 1.0]}, meta={"stylus_r_mm": "1.5"})
+
+
+@pytest.mark.parametrize("edit, msg", [
+    (lambda t: t, "line 5: the probe report is in inches (the controller's $13=1, report inches, line 2)"),
+    (lambda t: t.replace("< $13=1", "$13=1 (report inches, bool)"), "(the controller's $13=1, report inches, line 2)"),
+    (lambda t: t.replace("< $13=1", "> $13=1"), "line 5: the probe report is in inches"),       # the setting sent
+    (lambda t: t.replace("< $13=1", "< $13=x"), "line 5: the controller's $13 (report inches, line 2) is 'x', not a"),
+])
+def test_grbl_transcript_with_inch_reports_is_refused_naming_the_setting(tmp_path, capsys, edit, msg):
+    """The review's transcript: $$ shows $13=1, so GRBL printed [PRB:...] in inches
+    (report_probe_parameters -> printFloat_CoordValue); the import read 0.0669 in as 0.0669 mm
+    (exit 0). vmt probe refuses a controller with $13=1 (GrblBackend._check_units), so the import
+    refuses such a transcript in one line naming the setting's line and the report's."""
+    plan_path = write_probe_log(tmp_path / "plan.csv", INCH_PLAN)
+    tr, out = tmp_path / "t.txt", tmp_path / "o.csv"
+    tr.write_text(edit(INCH_TRANSCRIPT))
+    assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and err.count("\n") == 1 and not out.exists()
+    assert "set $13=0" in err or "not a number" in err
+
+
+@pytest.mark.parametrize("edit", [
+    lambda t: t.replace("$13=1", "$13=0"),                                            # a mm controller's dump
+    lambda t: t.replace("1000.011 < ok", "1000.011 < ok\n1000.050 > $13=0\n1000.051 < ok"),  # set back to mm
+    lambda t: t.replace("1000.010 < $13=1\n", "") + "1008.000 > $13=1\n1008.001 < ok\n",   # inches after the touches
+    lambda t: t.replace("1000.010 < $13=1\n", ""),                                    # no dump: read as mm
+])
+def test_grbl_transcript_in_mm_reads_whatever_13_says_elsewhere(tmp_path, capsys, edit):
+    plan_path = write_probe_log(tmp_path / "plan.csv", INCH_PLAN)
+    tr, out = tmp_path / "t.txt", tmp_path / "o.csv"
+    tr.write_text(edit(INCH_TRANSCRIPT))
+    assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(out)]) == 0
+    log = read_probe_log(out)
+    np.testing.assert_array_equal(log.columns["Z_mm"], [0.0669, 0.0669])
+    np.testing.assert_array_equal(log.columns["Y_mm"], [0.0, 0.0079])

@@ -274,3 +274,28 @@ def test_cli_best_estimate_errors_default_to_the_shipped_file(tmp_path, capsys):
     capsys.readouterr()
     assert docs["omitted"] == docs["none"]
     assert docs["omitted"] != docs["realistic"]
+
+
+def test_a_declared_polynomial_is_of_the_axis_position_reading_plus_J(machine):
+    """core.vcmm's words (review29 F6): a declared slope or quadratic term is a polynomial of the axis
+    position q = reading + J, where the simulator evaluates every machine error, not of the reading.
+    vmc-3axis has J_Z = 150 mm; touches on a face read Z = -17 mm (q = 133 mm). An EZZ bow c q^2 moves
+    each reading by -EZZ at the trigger: c (0.133)^2 = 17.7 um, where c (-0.017)^2 would be 0.29 um."""
+    J_z = machine.config.J_m[2]
+    assert J_z == 0.150
+    plan = plan_of([("top", (x, y, -20.0), (0, 0, 1)) for x, y in ((0, 0), (50, 0), (0, 50), (-40, -30))])
+    task = ('[features.top]\nkind = "plane"\nfeature = "top"\n[[measurands]]\nname = "flat"\n'
+            'quantity = "flatness"\nof = "top"\n[declared.EZZ]\nquadratic_um_per_m2 = 1000.0\n'
+            '[probe]\nnoise_um = 0.0\n')
+    st = S.prepare(plan, loads_task(task), machine)
+    c = 1e-3                                        # m/m^2 (1000 um/m^2)
+    p0 = S.simulate_run(st, {}, None, noise=False)
+    p1 = S.simulate_run(st, {("EZZ", 2): c}, None, noise=False)
+    np.testing.assert_allclose(p0[:, 2], -0.017, atol=1e-12)
+    # exact but for rounding (measured 3e-17 m): the bow at the axis position where the trigger happened
+    np.testing.assert_allclose(p1[:, 2] - p0[:, 2], -c * (p1[:, 2] + J_z) ** 2, rtol=0, atol=1e-12)
+    assert np.all(np.abs(p1[:, 2] - p0[:, 2]) > 50 * c * p0[:, 2] ** 2)   # not the reading's c z^2
+    # a slope (scale) likewise: EZZ = s q
+    s = 1e-5
+    p2 = S.simulate_run(st, {("EZZ", 1): s}, None, noise=False)
+    np.testing.assert_allclose(p2[:, 2] - p0[:, 2], -s * (p2[:, 2] + J_z), rtol=0, atol=1e-12)
