@@ -691,7 +691,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
             raise PositioningLogError(f"{src}: line {ln}: {key}[{s}]: index must be {want} with whole numbers >= 1")
         return tuple(int(p) for p in parts)
 
-    for ln, line in enumerate(text.splitlines(), start=1):
+    for ln, line in enumerate(csv_lines(text), start=1):
         s = line.strip()
         if not s or s.startswith("#"):
             continue

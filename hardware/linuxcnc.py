@@ -68,7 +68,7 @@ import numpy as np
 
 from core.exceptions import PlanError, ProbeLogError, counted
 from core.keyreader import read_text_file
-from core.probelog import ProbeLog
+from core.probelog import ProbeLog, csv_lines
 
 from .campaign import ProbeSettings, check_program, log_from_plan, motion, plan_steps
 from .transcript import ALIGN_LATERAL_MM, Stroke, _on_row, _row_offset, along_bound, off_row_words, row_lines
@@ -192,7 +192,7 @@ def _read_lines(path):
     text = read_text_file(p, ProbeLogError, "file")
     rows, width, kind = [], None, None
     tags, line_no = [], []
-    for ln, line in enumerate(text.splitlines(), start=1):
+    for ln, line in enumerate(csv_lines(text), start=1):
         if not line.strip():
             continue
         if not rows:
@@ -297,7 +297,7 @@ def _log_line(p: Path, ln: int, line: str) -> list[float]:
 def _number_lines(p: Path, error):
     """(line number, numbers) of every non-blank line of text file ``p``;
     ``error`` (a VmtError class) names the file and line of what is wrong."""
-    for ln, line in enumerate(read_text_file(p, error, "file").splitlines(), start=1):
+    for ln, line in enumerate(csv_lines(read_text_file(p, error, "file")), start=1):
         parts = line.split()
         if not parts:
             continue

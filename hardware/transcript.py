@@ -51,7 +51,7 @@ import numpy as np
 
 from core.atomic import head_problem, input_problem
 from core.exceptions import PlanError, ProbeLogError, counted
-from core.probelog import ProbeLog
+from core.probelog import ProbeLog, csv_lines
 
 from .campaign import log_from_plan
 from .grbl import parse_prb
@@ -62,7 +62,7 @@ _TS = re.compile(
     r"|(?P<sec>\d+(?:\.\d+)?)(?=\s))\s*\]?")
 _PRB_TOKEN = re.compile(r"\[PRB[^\]]*\]?")
 _ALARM = re.compile(r"\bALARM:(\d+)")
-_PROBING = re.compile(r"\bG38\.[2-5]\b", re.I)
+_PROBING = re.compile(r"(?<![A-Z])G0*38\.[2-5](?!\d)", re.I)  # spaces optional: G91G38.2Z-4 (GRBL strips them)
 _RESET_SENT = re.compile(r"^(\^X|\x18|0x18|ctrl-x)$", re.I)
 _BANNER = re.compile(r"^(Grbl|GrblHAL)\s*\S*\s*\[.*\]\s*$", re.I)
 # a sent line's words, spaces optional (GRBL strips them): G91 (relative), G20/G21 (inch/mm), X/Y/Z values
@@ -168,7 +168,7 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
     prev_info = False
     inch_reports = None     # (line, value, numeric) of a $13 that makes the reports after it inches
     ln = 0
-    for ln, line in enumerate(text.splitlines(), start=1):
+    for ln, line in enumerate(csv_lines(text), start=1):
         ts = _stamp(line)
         if ts is not None and t0 is None:
             t0 = ts
@@ -240,7 +240,7 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
         for i in range(1, len(t)):
             t[i] += off
             if t[i] < t[i - 1]:
-                if t[i - 1] - t[i] > 43200 and _TS.match(text.splitlines()[where[i] - 1]).group("hms"):
+                if t[i - 1] - t[i] > 43200 and _TS.match(csv_lines(text)[where[i] - 1]).group("hms"):
                     off += 86400.0
                     t[i] += 86400.0
                 else:

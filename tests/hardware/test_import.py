@@ -721,6 +721,14 @@ def test_grbl_long_stroke_touch_is_its_rows_by_the_transcripts_own_stroke(tmp_pa
             in err and not out.exists()
 
 
+def test_grbl_probe_move_sent_without_spaces_is_a_probing_move(tmp_path):
+    """GRBL strips spaces, so a sender may write ``G91G38.2Z-24``: it is a probing move (its stroke read as with
+    spaces; a word boundary before G38 missed it: no stroke, the 10 mm fallback refused the 11 mm touch)."""
+    lines = _long_stroke_transcript("-11.000", g38="G91G38.2X0.0000Y0.0000Z-24.0000")
+    rc, out = _grbl_import(tmp_path, lines)
+    assert rc == 0 and read_probe_log(out).positions_mm()[0, 2] == -11.0
+
+
 def test_grbl_absolute_probe_moves_take_the_programs_stroke_from_the_options(tmp_path, capsys):
     """A sender's absolute G38.2 (no G91: where it started is not on its line) does not say its stroke: the
     10 mm fallback refuses the long stroke's touch and says how to give the stroke; --clearance-mm 2
