@@ -4570,7 +4570,9 @@ def _support(bl, cause, info, st: _State, E: np.ndarray, reached_only: bool = Fa
 #: ``outlier``); where they cannot tell (no other touch lies where the bump would move it detectably) the two
 #: readings are indistinguishable on the design and the finding stays ambiguous with ``outlier``, said in those
 #: words. Session 29 (out29, docs/discovery.md): the simulator's outlier 4021 and 4047 (tuning) and 6609 (blind)
-#: `local_scale_defect?` -> `outlier?`, nothing else moved on the tuning sets. False: the behaviour before.
+#: `local_scale_defect?` -> `outlier?`, nothing else moved on the tuning sets (gen_a/gen_b outlier and
+#: local_scale_defect 1000-1099, every effect 1000-1009, none 1000-1049; the simulator's 4000-4049 and every effect
+#: 4000-4019; gen_c 200-299 and every effect 200-219), no identity leaf. False: the behaviour before.
 DEFECT_BEYOND_ONE_PLACE = True
 #: With :data:`DEFECT_BEYOND_ONE_PLACE`: a bump the touches away from its largest place show (one-sided at
 #: ``Settings.alpha``) is named without the ``outlier`` ambiguity of :func:`_findings`' reached-only support count.
@@ -8488,8 +8490,11 @@ def _ordered(findings: list, material_ss_um2: float = 0.0) -> list:
 #: the bump cuts none of their residuals (:func:`_explained_outliers`: they are not its largest residuals); they
 #: lead as :func:`_ordered` lets them lead beside unnamed structure, ambiguous. Session 29 (out29): gen_c outlier
 #: 5400 (three chips, 312 um^2, named, beside a 0.48 um bump 36 mm wide explaining 1.3 um^2 that a smooth error map
-#: explains as well) read `local_scale_defect?`. False: a named cause keeps the lead (the behaviour before).
-OUTLIERS_LEAD_BESIDE_SMOOTH_DEFECT = False
+#: explains as well) read `local_scale_defect?`; on tuning gen_a outlier 1098, gen_c 205 and 245
+#: `local_scale_defect?` -> `outlier?`, nothing else moved (gen_a/gen_b outlier and local_scale_defect 1000-1099, the
+#: simulator's 4000-4049, gen_c 200-299; on every effect and none it can reach only those outlier campaigns, the only
+#: ones whose first finding is a bump beside outliers). False: a named cause keeps the lead (the behaviour before).
+OUTLIERS_LEAD_BESIDE_SMOOTH_DEFECT = True
 
 
 def _outliers_lead_beside_smooth_defect(findings: list, material_ss_um2: float, explains_outliers) -> list:
