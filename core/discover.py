@@ -238,7 +238,10 @@ What it does, in order, and the statistics behind each step
    outliers after them unless they are material and beside them is only
    unnamed structure that explains less than they carry, with no noise
    excess; outliers leading beside such structure keep their place and
-   lose their confidence (step 8).
+   lose their confidence (step 8); so do outliers beside a
+   ``local_scale_defect`` that a smooth error map explains as well and
+   that cuts none of their residuals, where they carry more than all
+   beside them (:data:`OUTLIERS_LEAD_BESIDE_SMOOTH_DEFECT`, session 29).
 
 Family-wise false-alarm rate: :attr:`Settings.alpha`, split equally over
 the four families of tests (lack of fit, CV gap, diagnosis, named causes).
@@ -4540,7 +4543,10 @@ def _support(bl, cause, info, st: _State, E: np.ndarray, reached_only: bool = Fa
     2.4 effective positions, the largest carrying 42 %, two 13 mm outside
     a 1.5 mm half-width). A real narrow bump touched at its peak and two
     shoulders can fail it too (its peak carries over half): the finding
-    is then ambiguous with ``outlier``, not refused (:func:`_findings`).
+    is then ambiguous with ``outlier``, not refused (:func:`_findings`),
+    unless the touches away from that place contradict it
+    (:func:`_beyond_one_place`, :data:`DEFECT_BEYOND_ONE_PLACE`: refused at
+    adoption).
     """
     rows = st.rows
     U = new_basis(st.Q, E)
