@@ -1625,6 +1625,14 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
                                       "period_mm": p * 1e3} for s, (a, p) in declared.items()}
     if unseen := [(s, p) for s, p in unseen_ripple(errs) if not _declared_covers(declared, s, p)]:
         doc["u95_scope"] = unseen_ripple_note(unseen)
+    # the residuals against the inputs' noise model (review29b F2): a note when the tables miss structure
+    lof = vol.lack_of_fit(res_g, meas, probe.sigma_m,
+                          u_cal if (bar_true_m is not None or (draw and bar_cal_error)) else np.zeros_like(u_cal),
+                          np.asarray(u_place, float) if draw else None, cal_map=cal_map)
+    if lof is not None:
+        doc["lack_of_fit"] = lof.as_dict()
+        if not lof.fits:
+            doc["model_fit_note"] = lack_of_fit_note(lof, plan.nodes)
     if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
         doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
     doc["bar"] = _bar_doc(E_cal_O, u_cal, art.info["E_MFB_m"],
@@ -1636,6 +1644,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         progress(steps, steps)
     return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0], meas,
                           axis_strokes_m(cfg))
+
+
+def lack_of_fit_note(lof, nodes) -> str:
+    """The run's one-line note when its residuals exceed the inputs' noise model
+    (:func:`core.volumetric.lack_of_fit`; review29b F2)."""
+    h = sorted({round(float(np.median(np.diff(np.asarray(nodes[a], float)))) * 1e3) for a in "XYZ"})
+    return (f"residuals {lof.rms_m * 1e6:.3f} um RMS against {lof.expected_rms_m * 1e6:.3f} um expected from the "
+            f"probing noise, bar calibration and placements (p = {lof.p:.1e}, {lof.dof:.0f} effective degrees of "
+            f"freedom): the {'/'.join(str(v) for v in h)} mm tables miss structure; U95 may under-cover")
 
 
 def axis_strokes_m(cfg) -> dict:

@@ -60,6 +60,8 @@ def _mfb(args) -> int:
             f"{v['period_mm']:g} mm" for s, v in d["declared_ripple"].items()))
     if d.get("u95_scope"):
         print(f"note: {d['u95_scope']}")
+    if d.get("model_fit_note"):
+        print(f"note: {d['model_fit_note']}")
     if d.get("twists"):
         from scenarios.mfb import describe_twists
 
