@@ -1398,3 +1398,123 @@ def comp_tables(doc: dict) -> tuple[str, dict, dict, dict]:
         tables[s] = (x, v)
     pts = {a: tuple(float(c) * 1e-3 for c in p) for a, p in (doc.get("rotary_points_mm") or {}).items()}
     return str(doc.get("chain", "")), tables, const, pts
+
+
+# --------------------------------------------------------------------------- lack of fit (session 29)
+#: The lack-of-fit test's level (:func:`lack_of_fit`): residuals whose sum of squares the inputs'
+#: noise model gives a probability below this are reported as a model that does not fit (the tables
+#: miss structure between or beyond their nodes, and the U95, which propagates only those inputs,
+#: may under-cover). Set in session 29 (docs/papers-mfb.md, "Residuals against the noise model").
+LACK_OF_FIT_P = 1e-3
+
+
+@dataclass(frozen=True)
+class LackOfFit:
+    """The identification's residuals against what its inputs' noise alone would leave (:func:`lack_of_fit`).
+
+    Attributes
+    ----------
+    rms_m : float
+        RMS of the residuals of (1) at the solution, m.
+    expected_rms_m : float
+        Their RMS expected from the inputs (probing noise, bar calibration, placements), m.
+    dof : float
+        Satterthwaite's effective degrees of freedom of the sum of squares.
+    p : float
+        Probability of a sum of squares at least this large under the noise model.
+    fits : bool
+        ``p >= LACK_OF_FIT_P``.
+    ratio : float
+        The tested residuals' RMS over their probing-noise expectation (1 when the model fits).
+    """
+
+    rms_m: float
+    expected_rms_m: float
+    dof: float
+    p: float
+    fits: bool
+    ratio: float
+
+    def as_dict(self) -> dict:
+        return {"rms_um": self.rms_m * 1e6, "expected_rms_um": self.expected_rms_m * 1e6,
+                "tested_ratio": self.ratio, "dof": self.dof, "p": self.p, "level": LACK_OF_FIT_P,
+                "fits": self.fits}
+
+
+def lack_of_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
+                cal_map=None) -> LackOfFit | None:
+    """Lack-of-fit test of an MFB identification: its residuals against the probing noise and the other inputs.
+
+    The residuals ``r`` of (1) at the solution (``res`` as identified, :func:`identify_volumetric`) are, to
+    first order, ``(I - J K) e`` of the inputs' errors ``e`` (``J`` the rows' Jacobian at the solution,
+    ``K`` = ``res.K``): with the inputs' covariance ``L L^T`` (probing noise ``sigma_probe_m`` through each
+    measurement's extraction gain, the bar calibration ``u_cal_m`` through ``cal_map``, the placements
+    ``u_place``: :func:`covariance`'s maps, the holes' z_A rows dropped as the identification drops them),
+    ``M = (I - J K) L L^T (I - J K)^T`` is the residuals' covariance, and ``r.r`` a sum of squares of mean
+    ``tr M``, taken as ``c chi2(nu)`` (Satterthwaite: ``c = tr M^2 / tr M``, ``nu = (tr M)^2 / tr M^2``).
+    A model that does not hold (an error with structure its tables cannot follow: a wave shorter than
+    a few node spacings, a table run beyond its nodes) leaves more: ``p`` small. The U95 propagates
+    only these inputs, so a model that does not fit may under-cover (review29b F2). The same moment
+    reasoning as the self-calibration's :func:`core.uncertainty.model_error_budget` (its probing-noise
+    expectation of ``r.r``), for the MFB's correlated inputs.
+
+    Returns None when the inputs leave no residual variance (noise-free and nothing drawn: nothing to
+    test against).
+
+    Raises
+    ------
+    ConfigError
+        ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0.
+    """
+    from scipy.stats import chi2
+
+    if not (np.isfinite(sigma_probe_m) and sigma_probe_m >= 0):
+        raise ConfigError(f"lack_of_fit: sigma_probe_m must be >= 0, got {sigma_probe_m!r}")
+    u_cal = np.asarray(u_cal_m, float)
+    if u_cal.ndim != 2 or u_cal.shape[1] != 3 or not np.all(np.isfinite(u_cal)):
+        raise ConfigError(f"lack_of_fit: u_cal_m must be finite (N, 3), got {u_cal.shape}")
+    up = np.zeros(6) if u_place is None else np.asarray(u_place, float)
+    if up.shape != (6,) or not np.all(np.isfinite(up)) or np.any(up < 0):
+        raise ConfigError(f"lack_of_fit: u_place must be 6 finite values >= 0, got {u_place!r}")
+    meas = list(meas)
+    d = res.design
+    if res.iterations:
+        prep = _prepare_all(meas, res.chain, res.rotary_points_R_m, d.nodes)
+        J, r, _ = _rows(meas, res.chain, res.rotary_points_R_m, d.nodes, res.theta, d.slices, len(res.theta),
+                        exact=True, prep=prep)
+    else:
+        prep = _prepare_all(meas, res.chain, res.rotary_points_R_m, d.nodes)
+        J, r = d.A, d.y - d.A @ res.theta
+    blocks, B, Bp = _input_maps(res, meas, u_cal.shape[0])
+    m = len(r)
+    Sp = np.zeros((m, m))  # the probing noise's covariance of the rows, block by measurement
+    for r0, GR in blocks:
+        Sp[r0:r0 + GR.shape[0], r0:r0 + GR.shape[0]] = sigma_probe_m ** 2 * (GR @ GR.T)
+    Lc = np.hstack([_cal_columns(np.eye(m), B, u_cal, cal_map), Bp * np.tile(up, Bp.shape[1] // 6)[None, :]])
+    Pz = np.eye(m)  # the rows of the shifted holes without z_A, as _rows gives the residuals
+    r0 = 0
+    for pm in prep:
+        for h in np.flatnonzero(pm["off"]):
+            Pz[r0 + 3 * h:r0 + 3 * h + 3, r0 + 3 * h:r0 + 3 * h + 3] = pm["Pz"]
+        r0 += 3 * pm["k"]
+    Sp = Pz @ Sp @ Pz.T
+    R = np.eye(m) - J @ res.K  # d residual / d rows
+    RLc = R @ (Pz @ Lc)
+    t_all = float(np.sum((R @ Sp) * R) + np.sum(RLc * RLc))  # tr M
+    # the bar calibration and the placements move the residuals along a few directions (the bar's 36
+    # deviations, 6 per placement), the same in every measurement: taken out, the residuals' sum of
+    # squares is tested against the probing noise alone, over the many directions it spreads on (with
+    # them in, the calibration's few directions set the distribution: ~20 degrees of freedom, little power)
+    U, sv, _ = np.linalg.svd(RLc, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-9] if len(sv) and sv[0] > 0 else U[:, :0]
+    rp = r - U @ (U.T @ r)
+    Rp = R - U @ (U.T @ R)
+    Mp = Rp @ Sp @ Rp.T
+    t1, t2 = float(np.trace(Mp)), float(np.sum(Mp * Mp))
+    if not (t1 > 0 and t2 > 0 and t_all > 0):
+        return None
+    q = float(rp @ rp)
+    c, nu = t2 / t1, t1 * t1 / t2
+    p = float(chi2.sf(q / c, nu))
+    return LackOfFit(float(np.sqrt(r @ r / len(r))), float(np.sqrt(t_all / len(r))), float(nu), p,
+                     p >= LACK_OF_FIT_P, float(np.sqrt(q / t1)))

@@ -461,7 +461,8 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
 COMP_SIZE = 256
 
 
-def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float = 0.0) -> str:
+def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float = 0.0,
+              range_m: tuple | None = None) -> str:
     """LinuxCNC per-joint compensation file (``COMP_FILE_TYPE = 0``) for the positioning error of ``axis``.
 
     LinuxCNC documents TYPE 0 lines as ``nominal forward reverse`` in machine
@@ -492,6 +493,18 @@ def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float
         tables are functions of the joint (axis) positions, reading + J,
         which LinuxCNC indexes too, so the default 0 writes them as they
         are. Nominal = table position + ``joint_offset_m``.
+    range_m : (float, float), optional
+        The axis positions (as the tables', m) the file must cover, e.g. the
+        machine's stroke: a line is added at each end beyond the table's end
+        nodes, its value the table's continuation there (:func:`core.volumetric.
+        spline_weights`: along the end tangent, as the ``vmt-comp/1`` JSON
+        says; held for a table of fewer than 4 nodes). LinuxCNC interpolates
+        linearly between lines, so the file then gives the JSON's
+        extrapolation exactly; without the lines it holds the end trims
+        beyond the file (motion.c's sentinels, ``compute_screw_comp()``), and
+        the first node is the gauge zero (trim 0): below it the joint would
+        be left uncompensated while the JSON extrapolates (review29b F1).
+        Default: the table's nodes only.
 
     Returns
     -------
@@ -514,6 +527,11 @@ def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float
         if not (step_m > 0):
             raise ConfigError(f"comp_file: step_m must be > 0, got {step_m!r}")
         x = np.arange(x[0], x[-1] + 0.5 * step_m, step_m)
+    if range_m is not None:
+        lo, hi = (float(v) for v in range_m)
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise ConfigError(f"comp_file: range_m must be finite (min, max), min < max, got {range_m!r}")
+        x = np.r_[[lo] if lo < x[0] - 1e-6 else [], x, [hi] if hi > x[-1] + 1e-6 else []]
     if len(x) > COMP_SIZE:
         raise ConfigError(f"comp_file: {len(x)} lines, LinuxCNC takes at most {COMP_SIZE} per joint")
     e = res.value(f"E{a}{a}", x)

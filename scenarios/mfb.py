@@ -1169,6 +1169,9 @@ class ScenarioResult:
     doc: dict
     slopes: dict = field(default=None, compare=False)
     meas: list = field(default=None, compare=False)  # the core.volumetric.Measurement list identified
+    #: axis -> (min, max) axis positions (reading + J, m) the truth machine's strokes reach
+    #: (``strokes`` + its ``J_m``): where the compensation files run beyond the node box (review29b F1)
+    strokes_m: dict = field(default=None, compare=False)
 
     def write_comp(self, directory) -> list:
         """Write the LinuxCNC per-axis compensation files and the vmt JSON tables.
@@ -1209,9 +1212,12 @@ class ScenarioResult:
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
         out = []
+        strokes = self.strokes_m or {}
         for a in ("X", "Y", "Z"):
-            out.append(write_text_atomic(d / f"{a}.comp", comp_file(res_applied, a, step_m=0.005)))
+            out.append(write_text_atomic(d / f"{a}.comp", comp_file(res_applied, a, step_m=0.005,
+                                                                     range_m=strokes.get(a))))
         doc = json.loads(vol.tables_json(self.result, self.unc, self.slopes))
+        doc.update(compensation_range(self.plan.nodes, strokes))
         for s, e in doc["errors"].items():
             e["applied_factor"] = dec[s]["factor"]
             e["decision"] = {k: v for k, v in dec[s].items() if k != "factor"}
@@ -1219,6 +1225,29 @@ class ScenarioResult:
         doc["predicted_residual"] = plan["predicted_residual"]
         out.append(write_text_atomic(d / f"{self.doc['scenario']}-comp.json", json.dumps(doc, indent=1)))
         return [Path(p) for p in out]
+
+
+def compensation_range(nodes, strokes_m: dict | None) -> dict:
+    """The range statement of a compensation's JSON (review29b F1): ``compensated_range_mm`` (axis ->
+    [first node, last node], axis positions, mm: where the tables were measured), ``strokes_mm`` (axis ->
+    the machine's strokes as axis positions, mm, when known) and ``extrapolation`` (:data:`COMP_EXTRAPOLATION`;
+    without strokes the files stop at the end nodes and LinuxCNC holds their end values)."""
+    out = {"compensated_range_mm": {a: [float(nodes[a][0]) * 1e3, float(nodes[a][-1]) * 1e3] for a in "XYZ"}}
+    if strokes_m:
+        out["strokes_mm"] = {a: [v * 1e3 for v in strokes_m[a]] for a in "XYZ"}
+        out["extrapolation"] = COMP_EXTRAPOLATION
+    return out
+
+
+def describe_compensation_range(doc: dict) -> str:
+    """One line of the run's output: the compensated range per axis, and that beyond it the
+    correction is an extrapolation (``doc``: :func:`compensation_range`'s keys)."""
+    cr, st = doc["compensated_range_mm"], doc.get("strokes_mm")
+    ax = ", ".join(f"{a} {cr[a][0]:.0f}..{cr[a][1]:.0f}" + (f" of stroke {st[a][0]:.0f}..{st[a][1]:.0f}" if st else "")
+                   for a in "XYZ")
+    tail = ("outside it the correction is an extrapolation along the tables' end tangents (the .comp files and "
+            "the JSON alike)" if st else "outside it LinuxCNC holds the files' end values")
+    return f"compensated range (the node box, axis positions, mm): {ax}; {tail}"
 
 
 def _node_box(nodes) -> np.ndarray:
@@ -1605,6 +1634,14 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
                                              ("declared ripple", bool(declared))) if on]
         doc["u95_method"] = (f"Monte Carlo (JCGM 101), {unc.runs} runs" if unc.runs
                              else "linear propagation (JCGM 100 eq. 13), k = 2")
+    # the residuals against the inputs' noise model (review29b F2): a note when the tables miss structure
+    lof = vol.lack_of_fit(res_g, meas, probe.sigma_m,
+                          u_cal if (bar_true_m is not None or (draw and bar_cal_error)) else np.zeros_like(u_cal),
+                          np.asarray(u_place, float) if draw else None, cal_map=cal_map)
+    if lof is not None:
+        doc["lack_of_fit"] = lof.as_dict()
+        if not lof.fits:
+            doc["model_fit_note"] = lack_of_fit_note(lof, plan.nodes)
     if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
         doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
     doc["bar"] = _bar_doc(E_cal_O, u_cal, art.info["E_MFB_m"],
@@ -1614,7 +1651,34 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         doc["collision_check"] = collision
     if progress is not None:
         progress(steps, steps)
-    return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0], meas)
+    return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0], meas,
+                          axis_strokes_m(cfg))
+
+
+def lack_of_fit_note(lof, nodes) -> str:
+    """The run's one-line note when its residuals exceed the inputs' noise model
+    (:func:`core.volumetric.lack_of_fit`; review29b F2)."""
+    h = sorted({round(float(np.median(np.diff(np.asarray(nodes[a], float)))) * 1e3) for a in "XYZ"})
+    return (f"residuals {lof.rms_m * 1e6:.3f} um RMS against {lof.expected_rms_m * 1e6:.3f} um expected from the "
+            f"probing noise, bar calibration and placements (p = {lof.p:.1e}, {lof.dof:.0f} effective degrees of "
+            f"freedom): the {'/'.join(str(v) for v in h)} mm tables miss structure; U95 may under-cover")
+
+
+def axis_strokes_m(cfg) -> dict:
+    """axis -> (min, max): the axis positions (reading + J, the tables' and the ``.comp`` files'
+    abscissa, m) a machine's linear strokes allow: ``strokes`` are written in the readings of the
+    configuration's own offsets ``J_m`` (sim.machine.MachineConfig), so the axis positions are the
+    stroke plus ``J_m``."""
+    J = np.asarray(cfg.J_m, float)
+    return {a: (float(cfg.strokes[a][0] + J[i]), float(cfg.strokes[a][1] + J[i])) for i, a in enumerate("XYZ")}
+
+
+#: The one rule of both compensation outputs beyond the node box (review29b F1), stated in the
+#: vmt-comp/1 JSON, the run's output and README "Compensation files".
+COMP_EXTRAPOLATION = ("beyond the end nodes along the end tangent (the C2 spline's), to the machine's strokes: "
+                      "the .comp files carry a line at each stroke end on that tangent (LinuxCNC interpolates "
+                      "linearly between lines and holds the end lines beyond them); outside compensated_range_mm "
+                      "the correction is an extrapolation, not a measurement")
 
 
 #: How each twist (an axis' rotation about itself) is sensed by the 5-axis plan
@@ -1875,6 +1939,43 @@ def true_positioning_m(machine, nodes) -> dict:
     return out
 
 
+def stroke_grid(nodes, strokes_m: dict) -> dict:
+    """axis -> the nodes continued at their end spacings out to the strokes (axis positions, m; the
+    stroke ends included, a point closer than half a spacing to one dropped): the closed loop's grid
+    beyond the node box (review29b F1)."""
+    out = {}
+    for a in "XYZ":
+        x = np.asarray(nodes[a], float)
+        lo, hi = strokes_m[a]
+        h0, h1 = (x[1] - x[0], x[-1] - x[-2]) if len(x) > 1 else (0.025, 0.025)
+        below = np.arange(x[0] - h0, lo + 0.5 * h0, -h0)[::-1]
+        above = np.arange(x[-1] + h1, hi - 0.5 * h1, h1)
+        out[a] = np.r_[[lo] if lo < x[0] - 1e-6 else [], below, x, above, [hi] if hi > x[-1] + 1e-6 else []]
+    return out
+
+
+def stroke_residual_um(machine, nodes, strokes_m: dict) -> dict:
+    """The machine's exact errors over its strokes (:func:`stroke_grid`), apart from the node box's:
+    per axis the positioning error (:func:`true_positioning_m`'s, zero at the first node) at its grid
+    points outside the nodes (``positioning_outside_max_um``) and inside (``positioning_inside_max_um``),
+    and the tip deviation over the stroke box (:func:`volumetric_residual_um` on the grid: a rigid
+    motion removed over that box). ``machine`` with ``J_m = 0`` for the positioning, the compensation's
+    stylus for the box: pass ``(machine_J0, machine_stylus)``."""
+    m0, m = machine
+    g = stroke_grid(nodes, strokes_m)
+    pos = true_positioning_m(m0, g)
+    out = {"range_mm": {a: [float(g[a][0]) * 1e3, float(g[a][-1]) * 1e3] for a in "XYZ"},
+           "positioning_outside_max_um": {}, "positioning_inside_max_um": {}}
+    for a in "XYZ":
+        x, n = g[a], np.asarray(nodes[a], float)
+        t = np.abs(pos[a] - pos[a][int(np.argmin(np.abs(x - n[0])))]) * 1e6  # zero at the first node
+        inside = (x >= n[0] - 1e-9) & (x <= n[-1] + 1e-9)
+        out["positioning_outside_max_um"][a] = float(t[~inside].max()) if (~inside).any() else 0.0
+        out["positioning_inside_max_um"][a] = float(t[inside].max())
+    out["volumetric_residual_um"] = volumetric_residual_um(m, g)
+    return out
+
+
 def closed_loop(name: str, directory, before: ScenarioResult | None = None, *, progress=None, **kw) -> dict:
     """Apply the compensation in ``directory`` to the virtual machine, run the plan again, identify again.
 
@@ -1932,6 +2033,8 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, *, p
                 pos[a]["identified_within_u95"] = f"{int(np.sum(ident <= u_now))}/{len(ident)}"
         m = truth(STYLI[COMP_STYLUS], comp)
         out = {"positioning": pos, "volumetric_residual_um": volumetric_residual_um(m, r.plan.nodes)}
+        if before.strokes_m:  # beyond the node box, out to the strokes: the extrapolation checked (F1)
+            out["strokes"] = stroke_residual_um((truth((0.0, 0.0, 0.0), comp), m), r.plan.nodes, before.strokes_m)
         if applied is not None:  # the exact volumetric error against the one predicted from `before`
             out["volumetric_check"] = volumetric_check(R_before, _volumetric_deviation(m, r.plan.nodes),
                                                        _prediction(before, applied))

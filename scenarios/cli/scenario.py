@@ -63,6 +63,8 @@ def _mfb(args) -> int:
             f"{v['period_mm']:g} mm" for s, v in d["declared_ripple"].items()))
     if d.get("u95_scope"):
         print(f"note: {d['u95_scope']}")
+    if d.get("model_fit_note"):
+        print(f"note: {d['model_fit_note']}")
     if d.get("twists"):
         from scenarios.mfb import describe_twists
 
@@ -70,6 +72,9 @@ def _mfb(args) -> int:
     if args.comp:
         for p in r.write_comp(args.comp):
             print(f"wrote {p}")
+        from scenarios.mfb import compensation_range, describe_compensation_range
+
+        print(describe_compensation_range(compensation_range(r.plan.nodes, r.strokes_m)))
     if args.apply_comp:
         with progress_line(f"{args.name}: compensated campaigns simulated") as bar:
             loop = closed_loop(args.name, args.apply_comp, before=r, progress=bar, **kw)
@@ -90,6 +95,18 @@ def _mfb(args) -> int:
         print("(true: the exact simulator's positioning error, zero at the first node; within U95: nodes where it "
               "lies within the U95 of the identification that made the compensation; volumetric: the tip "
               "deviation over the node box, a rigid motion removed)")
+        if "strokes" in loop["before"]:
+            rg = loop["before"]["strokes"]["range_mm"]
+            print("beyond the node box, out to the strokes (" + ", ".join(f"{a} {rg[a][0]:.0f}..{rg[a][1]:.0f}"
+                                                                     for a in "XYZ") + " mm), exact, um: "
+                  "true positioning max outside the nodes / inside; volumetric max over the stroke box")
+            for key in ("before", "per_axis_files", "volumetric"):
+                if key in loop:
+                    st = loop[key]["strokes"]
+                    print(f"{key:15s} " + "  ".join(
+                        f"{a} {st['positioning_outside_max_um'][a]:.3f} / {st['positioning_inside_max_um'][a]:.3f}"
+                        for a in "XYZ") + "; volumetric " + " ".join(
+                        f"{a} {st['volumetric_residual_um'][a]:.3f}" for a in "XYZ"))
         print(f"volumetric error over the node box, um: {'':6s} {'axis':>4s} {'before':>7s} {'after':>7s} "
               f"{'predicted':>9s} {'U95':>6s} {'U95 added':>9s} {'within U95':>10s}  verdict")
         for key in ("per_axis_files", "volumetric"):

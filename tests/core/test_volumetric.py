@@ -284,3 +284,25 @@ def test_touches_of_all_measurements_in_one_call_are_the_per_measurement_calls(m
         mask[sl] = False
         assert np.array_equal(rows[off][:, :, mask], own[off][:, :, mask]), m.name
         r0 += 3 * k
+
+
+def test_lack_of_fit_known_answers_and_bad_input(meas3):
+    # review29b F2. Noise-free measurements of the realistic 3-axis machine: the residuals are the
+    # model's own truncation (the tables' splines against the truth's 9-knot profiles, nm). Declared
+    # against the probe's 0.125 um they fit (ratio << 1); declared against a 1 pm probe the same
+    # residuals are far beyond its noise (p ~ 0); with no input at all there is nothing to test (None).
+    # The residual RMS is the identification's own (res.rms_m: the same rows at the same solution).
+    meas, chain, nodes, rp = meas3
+    res = vol.identify_volumetric(meas, chain, nodes, rp)
+    u0 = np.zeros((12, 3))
+    ok = vol.lack_of_fit(res, meas, 0.125e-6, u0)
+    assert ok.fits and ok.p > 0.5 and ok.ratio < 0.5 and ok.dof > 1
+    assert ok.rms_m == pytest.approx(res.rms_m, rel=1e-9)
+    bad = vol.lack_of_fit(res, meas, 1e-12, u0)
+    assert not bad.fits and bad.p < 1e-12 and bad.ratio > 10
+    assert set(bad.as_dict()) >= {"rms_um", "expected_rms_um", "tested_ratio", "dof", "p", "fits"}
+    assert vol.lack_of_fit(res, meas, 0.0, u0) is None
+    for args, match in (((-1e-7, u0), "sigma_probe_m"), ((float("nan"), u0), "sigma_probe_m"),
+                        ((1e-7, np.zeros((12, 2))), "u_cal_m"), ((1e-7, u0, (1e-4,)), "u_place")):
+        with pytest.raises(ConfigError, match=match):
+            vol.lack_of_fit(res, meas, *args)

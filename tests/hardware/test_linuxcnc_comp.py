@@ -39,6 +39,27 @@ def test_type0_columns_known_answer(tmp_path):
     assert len(comp_file(res, "Y", step_m=0.005).splitlines()) == 21
 
 
+def test_range_adds_the_stroke_ends_on_the_tables_continuation():
+    # review29b F1: a line at each end of range_m beyond the nodes, valued by the table's own
+    # continuation (res.value: the end tangent for an identified table; here E = 2 um + 10 um/m x
+    # everywhere), so LinuxCNC's linear interpolation between lines gives that continuation exactly;
+    # a range inside the nodes adds nothing (the file never shrinks)
+    res = _result([0.0, 0.1], lambda x: 2e-6 + 1e-5 * x)
+    assert comp_file(res, "X", range_m=(-0.05, 0.2)) == ("-50.000000 -49.998500 -49.998500\n"
+                                                         "0.000000 0.002000 0.002000\n"
+                                                         "100.000000 100.003000 100.003000\n"
+                                                         "200.000000 200.004000 200.004000\n")
+    assert comp_file(res, "X", range_m=(0.01, 0.09)) == comp_file(res, "X")
+    t = comp_file(res, "X", step_m=0.005, range_m=(-0.05, 0.2)).splitlines()
+    assert len(t) == 23 and t[0].startswith("-50.000000 ") and t[-1].startswith("200.000000 ")
+
+
+@pytest.mark.parametrize("rng", [(0.2, -0.05), (float("nan"), 0.2), (0.0, float("inf"))])
+def test_comp_file_bad_range(rng):
+    with pytest.raises(ConfigError, match="range_m must be finite"):
+        comp_file(_result([0.0, 0.1], lambda x: 0 * x), "X", range_m=rng)
+
+
 @pytest.mark.parametrize("kw, match", [
     (dict(axis="Q"), "axis must be X, Y or Z"),
     (dict(axis="X", step_m=0.0), "step_m must be > 0"),
