@@ -273,3 +273,93 @@ def study(machines=("nmv3000", "mikron-ucp710"), seeds=range(20), noises_m=(0.0,
                     "ci95": [round(v, 4) for v in clopper_pearson(k, n)]} for b, (k, n) in tot.items()}
             out[f"{mn}/noise_{nz * 1e6:g}um"]["split_misfit_nm"] = round(worst * 1e9, 3)
     return out
+
+
+#: Version of the JSON :func:`main` writes.
+FORMAT = "vmt-selfcal-coverage/1"
+
+
+def record(c: Campaign, declared: bool = False) -> dict:
+    """One campaign's figures: coverage per block (covered, free), the median workpiece U95 and the largest
+    C-axis displacement U95 (EXC, EYC), um, and the split's misfit, nm; the budget from the residuals alone,
+    or with the spec's sub-grid ripple declared (:func:`spec_subgrid`)."""
+    res, cv, mis = identify_and_cover(c, **({"subgrid": spec_subgrid()} if declared else {}))
+    s, U = res.design.slices, 2.0 * res.std
+    uc = np.concatenate([U[s["EXC"]], U[s["EYC"]]])
+    return {"coverage": {b: list(v) for b, v in cv.items()}, "workpiece_u95_median_um": float(np.median(U[s["G"]]) * 1e6),
+            "c_axis_u95_max_um": float(uc.max() * 1e6), "split_misfit_nm": float(mis * 1e9)}
+
+
+def pool(records: list) -> dict:
+    """Per block: covered, n, fraction and Clopper-Pearson 95 % over ``records`` (:func:`record`'s); the median
+    over campaigns of the median workpiece U95, and of the largest C-axis U95, um."""
+    tot: dict = {}
+    for r in records:
+        for b, (k, n) in r["coverage"].items():
+            a = tot.setdefault(b, [0, 0])
+            a[0] += k
+            a[1] += n
+    out = {b: {"covered": k, "n": n, "fraction": round(k / n, 4), "ci95": [round(v, 4) for v in clopper_pearson(k, n)]}
+           for b, (k, n) in tot.items()}
+    out["workpiece_u95_median_um"] = float(np.median([r["workpiece_u95_median_um"] for r in records]))
+    out["c_axis_u95_max_um"] = float(np.median([r["c_axis_u95_max_um"] for r in records]))
+    out["campaigns"] = len(records)
+    return out
+
+
+def main(argv=None) -> int:
+    """``python -m scenarios.selfcal_coverage``: coverage per block over seeds, machines, noises, the ripple's
+    phase (drawn per seed, or every screw at phase 0) and the budget (residuals only and/or declared); prints a
+    line per case, ``--out`` writes every campaign's figures and the pooled ones (JSON)."""
+    import argparse
+    import json
+    import sys
+
+    from sim.machines import MACHINES
+
+    ap = argparse.ArgumentParser(prog="python -m scenarios.selfcal_coverage",
+                                 description="the self-calibration's U95 coverage per block against the exact simulator")
+    ap.add_argument("--machines", nargs="+", default=["nmv3000", "mikron-ucp710"])
+    ap.add_argument("--seeds", nargs=2, type=int, default=(20, 40), metavar=("LO", "HI"))
+    ap.add_argument("--noise-um", nargs="+", type=float, default=[0.0, 0.5], help="probing sigma (k = 1), um")
+    ap.add_argument("--phase", nargs="+", choices=("drawn", "0"), default=["drawn"],
+                    help="the screw ripple's phase: drawn per seed (the truth since session 27) or 0 for every screw")
+    ap.add_argument("--budget", nargs="+", choices=("residuals", "declared"), default=["residuals", "declared"],
+                    help="model-error budget: from the residuals alone, or with spec_subgrid() declared")
+    ap.add_argument("--out", help="JSON of every campaign's figures and the pooled ones")
+    a = ap.parse_args(argv)
+    bad = [m for m in a.machines if m not in MACHINES or "C" not in MACHINES[m]().strokes]
+    if bad:
+        print(f"error: --machines {bad[0]}: not a built-in machine with a C axis", file=sys.stderr)
+        return 2
+    if a.seeds[1] <= a.seeds[0] or any(not np.isfinite(n) or n < 0 for n in a.noise_um):
+        print(f"error: --seeds {a.seeds[0]} {a.seeds[1]} / --noise-um {a.noise_um}: an empty seed range or a "
+              f"negative noise", file=sys.stderr)
+        return 2
+    recs = []
+    for mn in a.machines:
+        for nz in a.noise_um:
+            for ph in a.phase:
+                for sd in range(*a.seeds):
+                    c = simulate(mn, sd, nz * 1e-6, ripple_phase=None if ph == "drawn" else 0.0)
+                    for bu in a.budget:
+                        recs.append({"machine": mn, "noise_um": nz, "phase": ph, "budget": bu, "seed": sd}
+                                    | record(c, declared=bu == "declared"))
+                for bu in a.budget:
+                    p = pool([r for r in recs if (r["machine"], r["noise_um"], r["phase"], r["budget"]) == (mn, nz, ph, bu)])
+                    print(f"{mn}, {nz:g} um, phase {ph}, {bu}: " + ", ".join(
+                        f"{b} {p[b]['fraction']:.3f}" for b in BLOCKS) + f"; workpiece U95 median "
+                        f"{p['workpiece_u95_median_um']:.2f} um, C-axis U95 largest {p['c_axis_u95_max_um']:.2f} um "
+                        f"(median over {p['campaigns']})", flush=True)
+    if a.out:
+        cases = dict.fromkeys((r["machine"], r["noise_um"], r["phase"], r["budget"]) for r in recs)
+        with open(a.out, "w") as f:
+            json.dump({"format": FORMAT, "seeds": list(range(*a.seeds)), "records": recs,
+                       "pooled": [{"machine": m, "noise_um": n, "phase": ph, "budget": b} | pool(
+                           [r for r in recs if (r["machine"], r["noise_um"], r["phase"], r["budget"]) == (m, n, ph, b)])
+                                  for m, n, ph, b in cases]}, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -99,10 +99,10 @@ def test_a_machine_with_five_errors_improves_and_z_is_not_made_worse(tmp_path):
 
 
 def test_the_realistic_machine_still_improves_on_every_axis(tmp_path):
-    """The study machine (all 21 errors present): 47.8/21.1/14.8 um -> 2.45/1.88/1.69 um, each beyond
-    its U95 (session 27: the truth's errors at the axis positions, T0's carriage 150 mm above its tip in
-    Z; 44.7/19.0/11.6 -> 2.67/2.42/2.30 um at 63c4d4f; several real errors sit near their U95 and are
-    applied in part)."""
+    """The study machine (all 21 errors present): 44.7/19.0/11.6 um -> 2.15/2.15/1.69 um, each beyond
+    its U95 (session 28's truth, the tables over the axis positions; session 27's, the tables over the
+    strokes as readings: 47.8/21.1/14.8 -> 2.45/1.88/1.69 um; 44.7/19.0/11.6 -> 2.67/2.42/2.30 um at
+    63c4d4f; several real errors sit near their U95 and are applied in part)."""
     _, loop = _loop(tmp_path, None, 1)
     v = loop["volumetric"]["volumetric_check"]
     for a in "XYZ":
