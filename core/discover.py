@@ -5908,6 +5908,25 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
     cols = cols.toarray() if sps.issparse(cols) else cols  # (a trial kept sparse, formed once it is significant)
     if single is None and (families or cause.counter is not None):  # (both checks below take it)
         single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
+    if info.get("signed_by") == "approach+move":  # (core.causes.REVERSAL_MOVE_SIGNED's layout)
+        p_move = _move_pair_p(cols[rows], st, single)
+        ev["move_signed_p"] = p_move
+        ev["move_signed_p_adjusted"] = min(1.0, p_move * tries)
+        if REVERSAL_MOVE_EARNS and not p_move * tries < settings.alpha_family:
+            return {"reason": f"the lost motion signed by the move is not significant beside the one signed by the "
+                              f"approach ({fmt_p(min(1.0, p_move * tries))} after Bonferroni over {tries:.0f} tries): "
+                              "the four columns owe their test to the approach's pair",
+                    "significant": True, "form_refused": "move-signed"}
+        if REVERSAL_MOVE_HELD_OUT or REVERSAL_MOVE_RECORD:
+            # the held-out mean square with the four columns against the approach-signed pair alone (the
+            # plainer layout), as _grow_layout takes a richer layout only where it lowers it
+            held = [folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), C[rows]]) if terms else C[rows],
+                              _penalty_beside(terms, C.shape[1])) for C in (cols[:, :2], cols)]
+            ev["move_signed_held_out_gain_um2"] = (held[0] - held[1]) / UM ** 2
+            if REVERSAL_MOVE_HELD_OUT and not held[1] < held[0]:
+                return {"reason": f"the lost motion signed by the move does not predict held-out set-ups better than "
+                                  f"the one signed by the approach alone ({(held[0] - held[1]) / UM ** 2:.3g} um^2)",
+                        "significant": True, "form_refused": "move-signed"}
     # e. the structure must live where the cause says: a smooth function of a
     # covariate of another family may not explain materially more than it
     if families:
@@ -6026,6 +6045,44 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
 #: counter-explanation (at adoption and in the rival check) and the margin within which the best fixture slip
 #: explains as much as it (not the remainder beyond a material slip). :func:`_support_share`.
 MATERIALITY_OVER_SUPPORT = True
+
+
+#: Whether reversal's move-signed layout (:data:`core.causes.REVERSAL_MOVE_SIGNED`: the lost motion signed by the
+#: approach and by the net move from the previous touch) is taken only where its move-signed pair is significant
+#: beyond the model and the approach-signed pair (:func:`_move_pair_p`, the partial F test :func:`_grow_layout` makes
+#: of a nesting layout's new columns), under the cause's own Bonferroni count (the move-signed pair is a claim of its
+#: own, reported as ``x_move_lost_motion_um``, ``y_move_lost_motion_um``). Without it the four columns pass the
+#: confounding check on the move pair's well determined directions while the signal they explain is the
+#: approach-signed pair's, confounded with the probe's lobes (gen_b probe_lobing 1007: the approach-signed layout
+#: refused beside probe_lobing, inflation 518; the four columns taken as its fallback, best inflation 2, worst 1,460,
+#: lost motion 7.3 um signed by the approach against 0.24 um by the move, U95 0.23 um; on gen_b's along-normal
+#: approaches the approach-signed pair is ``|n_x| / 2``, ``|n_y| / 2``, whose difference carries the sixth harmonic of
+#: the azimuth, the generator's six-lobe part the catalogue's lobes (harmonics 1-4) lack). Session 29 (lobe29),
+#: docs/discovery.md "Session 29: the move-signed reversal must earn its move".
+REVERSAL_MOVE_EARNS = True
+#: Whether the move-signed layout must also lower the held-out mean square below the approach-signed pair's alone
+#: (:func:`_grow_layout`'s second condition for a richer layout). Measured in session 29 (lobe29).
+REVERSAL_MOVE_HELD_OUT = False
+#: Record the held-out comparison in the evidence without deciding on it (a study's switch; off).
+REVERSAL_MOVE_RECORD = False
+
+
+def _move_pair_p(C: np.ndarray, st: _State, single=None) -> float:
+    """p-value of the F test of the move-signed pair (columns 2-3 of reversal's four-column layout ``C`` on the
+    model's rows) beyond the model ``st`` and the approach-signed pair (columns 0-1): the partial F test of
+    :func:`_grow_layout` with the approach pair as the plainer layout. ``single``: the four columns' own
+    :func:`nested_f_batch` against ``st`` where made. 1 where the move pair adds no direction."""
+    C = np.asarray(C, float)
+    if C.ndim != 2 or C.shape[1] != 4 or C.shape[0] != len(st.r):
+        raise ValueError(f"the move-signed layout has four columns on the model's {len(st.r)} rows, not {C.shape}")
+    t_a = nested_f_batch(C[None, :, :2], st.Q, st.r, st.rss, st.dof)
+    t_f = single if single is not None else nested_f_batch(C[None], st.Q, st.r, st.rss, st.dof)
+    k_x = int(t_f[1][0]) - int(t_a[1][0])
+    dof_f = st.dof - int(t_f[1][0])
+    if k_x <= 0 or dof_f <= 0:
+        return 1.0
+    F_x = (float(t_f[0][0]) - float(t_a[0][0])) / k_x / max((st.rss - float(t_f[0][0])) / dof_f, 1e-300)
+    return float(stats.f.sf(max(F_x, 0.0), k_x, dof_f))
 
 
 def _support_share(E: np.ndarray, cause=None) -> float:
@@ -8256,6 +8313,14 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                        f"something the model does not hold, worth {repeats['beyond_residual_ss_um2']:.3g} um^2 over the "
                        f"campaign against the {explained:.3g} um^2 the cause explains, and the noise its checks "
                        "were judged with carries it")
+        if PART_CHANGE_ONE_TARGET and tm.cause == "part_change":
+            share = _one_target_share(bl, tm, so, rows)
+            if share is not None:
+                ev["one_target_share"] = share
+                if share >= PART_CHANGE_ONE_TARGET_SHARE:
+                    why.append(f"one target carries {share:.0%} of the change: a change of one place has no form "
+                               "of the part to tell it from that touch's own history (the path before it, a lost "
+                               "motion the traverse winds)")
         ev["confidence"] = "ambiguous" if why else "named"
         if why:
             ev["confidence_reason"] = "; ".join(why)
@@ -8284,6 +8349,35 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             ev["explained_ss_um2"] = (top.explained_rms_um ** 2 * len(rows)) if top else 0.0
         out.append(Finding(causes_mod.UNEXPLAINED, _clean(ev), params, u95, st.sigma / UM, "unknown"))
     return out
+
+
+#: R1 (session 28's diagnosis, docs/discovery-studies.md "Session 28: the blind check's two gen_c faults, diagnosed";
+#: built in session 29, lobe29): a part_change finding whose signal one target carries a share
+#: :data:`PART_CHANGE_ONE_TARGET_SHARE` or more of (:func:`_one_target_share`) is named at most ambiguous. A part
+#: that changes moves a wall, a ring, a boss: several targets; a change of one target has no spatial form to tell it
+#: from that touch's own history (gen_c travel_hysteresis 5409: bore2's first touch after the traverse, a wound lost
+#: motion's two levels in time order, read `part_change` confidently, share 0.91). Measured in session 29 (lobe29).
+PART_CHANGE_ONE_TARGET = False
+#: The share of a part_change finding's signal one target must carry for :data:`PART_CHANGE_ONE_TARGET` to hedge it:
+#: 0.8, above the largest share of a true change measured (gen_c part_change 200-399: 0.67; session 29 on gen_a, gen_b
+#: and the simulator).
+PART_CHANGE_ONE_TARGET_SHARE = 0.8
+
+
+def _one_target_share(bl, tm, so: _State, rows) -> float | None:
+    """The largest share of a term's fitted signal one target carries: the term's columns times their coefficients
+    fitted beside the other terms ``so`` (the model reported), squared and summed over each target's touches, over
+    all its touches. None where the term explains nothing."""
+    E = np.asarray(tm.columns, float)[rows]
+    Ep = E - so.Q @ (so.Q.T @ E)
+    coef = np.linalg.lstsq(Ep, so.r, rcond=None)[0]
+    s2 = (E @ coef) ** 2
+    tot = float(s2.sum())
+    if not tot > 0:
+        return None
+    tg = np.asarray(bl.data.touches.target, dtype=object)[rows]
+    _, inv = np.unique(tg.astype(str), return_inverse=True)
+    return float(np.bincount(inv, weights=s2).max() / tot)
 
 
 def _family(bl, covariate) -> str | None:
