@@ -81,3 +81,14 @@ def test_move_pair_p_bad_input():
         D._move_pair_p(Cm[:, :3], st)
     with pytest.raises(ValueError, match="four columns"):
         D._move_pair_p(Cm[:10], st)
+
+
+def test_engine_defaults_read_the_wound_lost_motion_and_leave_the_lobes_alone():
+    """The defaults (session 29): the move-signed layout on, guarded. gen_c travel_hysteresis 213 (a lost motion
+    wound by the traverse) reads reversal confidently; gen_b probe_lobing 1007 reads probe_lobing with no reversal."""
+    assert C.REVERSAL_MOVE_SIGNED and D.REVERSAL_MOVE_EARNS
+    from scenarios.blind import gen_c
+    o = blind_outcome(gen_c, "travel_hysteresis", 213, generator="gen_c")
+    assert o.cause == "reversal" and o.confident
+    o = blind_outcome(gen_b, "probe_lobing", SEED, generator="gen_b")
+    assert o.cause == "probe_lobing" and "reversal" not in o.findings
