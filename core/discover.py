@@ -5917,16 +5917,6 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
                               f"approach ({fmt_p(min(1.0, p_move * tries))} after Bonferroni over {tries:.0f} tries): "
                               "the four columns owe their test to the approach's pair",
                     "significant": True, "form_refused": "move-signed"}
-        if REVERSAL_MOVE_HELD_OUT or REVERSAL_MOVE_RECORD:
-            # the held-out mean square with the four columns against the approach-signed pair alone (the
-            # plainer layout), as _grow_layout takes a richer layout only where it lowers it
-            held = [folds.mse(bl.y[rows], np.hstack([_stack(terms, rows), C[rows]]) if terms else C[rows],
-                              _penalty_beside(terms, C.shape[1])) for C in (cols[:, :2], cols)]
-            ev["move_signed_held_out_gain_um2"] = (held[0] - held[1]) / UM ** 2
-            if REVERSAL_MOVE_HELD_OUT and not held[1] < held[0]:
-                return {"reason": f"the lost motion signed by the move does not predict held-out set-ups better than "
-                                  f"the one signed by the approach alone ({(held[0] - held[1]) / UM ** 2:.3g} um^2)",
-                        "significant": True, "form_refused": "move-signed"}
     # e. the structure must live where the cause says: a smooth function of a
     # covariate of another family may not explain materially more than it
     if families:
@@ -6060,11 +6050,6 @@ MATERIALITY_OVER_SUPPORT = True
 #: the azimuth, the generator's six-lobe part the catalogue's lobes (harmonics 1-4) lack). Session 29 (lobe29),
 #: docs/discovery.md "Session 29: the move-signed reversal must earn its move".
 REVERSAL_MOVE_EARNS = True
-#: Whether the move-signed layout must also lower the held-out mean square below the approach-signed pair's alone
-#: (:func:`_grow_layout`'s second condition for a richer layout). Measured in session 29 (lobe29).
-REVERSAL_MOVE_HELD_OUT = False
-#: Record the held-out comparison in the evidence without deciding on it (a study's switch; off).
-REVERSAL_MOVE_RECORD = False
 
 
 def _move_pair_p(C: np.ndarray, st: _State, single=None) -> float:
