@@ -8341,11 +8341,15 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
 #: :data:`PART_CHANGE_ONE_TARGET_SHARE` or more of (:func:`_one_target_share`) is named at most ambiguous. A part
 #: that changes moves a wall, a ring, a boss: several targets; a change of one target has no spatial form to tell it
 #: from that touch's own history (gen_c travel_hysteresis 5409: bore2's first touch after the traverse, a wound lost
-#: motion's two levels in time order, read `part_change` confidently, share 0.91). Measured in session 29 (lobe29).
+#: motion's two levels in time order, read `part_change` confidently, share 0.91). Off: measured in session 29 (lobe29,
+#: docs/discovery.md "Session 29: the move-signed reversal must earn its move") on gen_a, gen_b, the simulator and
+#: gen_c (1,150 campaigns, part_change 1000-1049 / 4000-4049 / 200-299 among them) it moves nothing right -> wrong or
+#: wrong -> right and hedges three right confident readings (gen_a part_change 1039, 1045, 1049: shares 0.83-0.93, a
+#: pin's wall is one target), while 5409 reads `reversal` through :data:`core.causes.REVERSAL_MOVE_SIGNED`.
 PART_CHANGE_ONE_TARGET = False
 #: The share of a part_change finding's signal one target must carry for :data:`PART_CHANGE_ONE_TARGET` to hedge it:
-#: 0.8, above the largest share of a true change measured (gen_c part_change 200-399: 0.67; session 29 on gen_a, gen_b
-#: and the simulator).
+#: 0.8, above the largest share of a true change session 28 measured on gen_c (0.67); session 29 found true changes up
+#: to 0.93 on gen_a (gen_b 0.39, the simulator 0.08, gen_c 200-299 0.59).
 PART_CHANGE_ONE_TARGET_SHARE = 0.8
 
 
