@@ -2219,13 +2219,17 @@ def reversal_scans(bl):
 #: first layout's columns) and by the net move of that axis from the previous touch in log order (the log's nominal
 #: positions): an axis whose lost motion is wound by the traverse between features, not by the probing stroke,
 #: reads reversal rather than a part_change on the first touch after the traverse (gen_c travel_hysteresis 5409).
-#: Bonferroni over the two layouts. Measured as a monkeypatch on gen_c travel_hysteresis 200-599: acceptable 337 ->
-#: 396/400, 0 right->wrong; none and every other gen_c effect 200-239 unchanged. Off: in the engine (r2b28) on gen_a
-#: and gen_b every effect 1000-1009 (reversal, probe_lobing, lobing_per_setup 1000-1049) and the simulator every
-#: effect 4000-4019 (the three 4000-4049) it mends gen_a reversal 1033 but moves the simulator's probe_lobing 4003
-#: (0.99 sigma) from ``probe_lobing?`` to ``reversal?`` (right -> wrong, hedged, each the other's alternative) and adds
-#: a secondary ``reversal`` finding to 14 of gen_b's 50 probe_lobing campaigns; no workpiece check moved.
-REVERSAL_MOVE_SIGNED = False
+#: Bonferroni over the two layouts. On since session 29 (lobe29, docs/discovery.md "Session 29: the move-signed
+#: reversal must earn its move"), with :data:`core.discover.REVERSAL_MOVE_EARNS`: the layout is taken only where its
+#: move pair is significant beside the approach pair (unguarded, r2b28 found it carrying the confounded approach pair
+#: into 14 of gen_b's 50 probe_lobing campaigns as a spurious secondary `reversal`). Measured, off against on with the
+#: guard: gen_c travel_hysteresis 200-399 acceptable 171 -> 199 of 200 (28 wrong -> right, 0 right -> wrong, confidently
+#: misnamed 4 -> 1), gen_c none and every other effect 200-219 unchanged; gen_a, gen_b every effect 1000-1009 and
+#: reversal, probe_lobing, lobing_per_setup, part_change 1010-1049 unchanged (no secondary finding added); the
+#: simulator every effect 4000-4019 and the four 4020-4049: only probe_lobing 4003 (0.99 sigma, below visibility)
+#: `probe_lobing?` -> `reversal?` (hedged, each the other's alternative); no workpiece check moved to a failure.
+#: False: approach-signed only (the rule before session 29).
+REVERSAL_MOVE_SIGNED = True
 
 
 def _move_signs(d) -> np.ndarray:

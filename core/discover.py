@@ -6003,6 +6003,15 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
     cols = cols.toarray() if sps.issparse(cols) else cols  # (a trial kept sparse, formed once it is significant)
     if single is None and (families or cause.counter is not None):  # (both checks below take it)
         single = nested_f_batch(cols[None, rows], st.Q, st.r, st.rss, st.dof)
+    if info.get("signed_by") == "approach+move":  # (core.causes.REVERSAL_MOVE_SIGNED's layout)
+        p_move = _move_pair_p(cols[rows], st, single)
+        ev["move_signed_p"] = p_move
+        ev["move_signed_p_adjusted"] = min(1.0, p_move * tries)
+        if REVERSAL_MOVE_EARNS and not p_move * tries < settings.alpha_family:
+            return {"reason": f"the lost motion signed by the move is not significant beside the one signed by the "
+                              f"approach ({fmt_p(min(1.0, p_move * tries))} after Bonferroni over {tries:.0f} tries): "
+                              "the four columns owe their test to the approach's pair",
+                    "significant": True, "form_refused": "move-signed"}
     # e. the structure must live where the cause says: a smooth function of a
     # covariate of another family may not explain materially more than it
     if families:
@@ -6132,6 +6141,39 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
 #: counter-explanation (at adoption and in the rival check) and the margin within which the best fixture slip
 #: explains as much as it (not the remainder beyond a material slip). :func:`_support_share`.
 MATERIALITY_OVER_SUPPORT = True
+
+
+#: Whether reversal's move-signed layout (:data:`core.causes.REVERSAL_MOVE_SIGNED`: the lost motion signed by the
+#: approach and by the net move from the previous touch) is taken only where its move-signed pair is significant
+#: beyond the model and the approach-signed pair (:func:`_move_pair_p`, the partial F test :func:`_grow_layout` makes
+#: of a nesting layout's new columns), under the cause's own Bonferroni count (the move-signed pair is a claim of its
+#: own, reported as ``x_move_lost_motion_um``, ``y_move_lost_motion_um``). Without it the four columns pass the
+#: confounding check on the move pair's well determined directions while the signal they explain is the
+#: approach-signed pair's, confounded with the probe's lobes (gen_b probe_lobing 1007: the approach-signed layout
+#: refused beside probe_lobing, inflation 518; the four columns taken as its fallback, best inflation 2, worst 1,460,
+#: lost motion 7.3 um signed by the approach against 0.24 um by the move, U95 0.23 um; on gen_b's along-normal
+#: approaches the approach-signed pair is ``|n_x| / 2``, ``|n_y| / 2``, whose difference carries the sixth harmonic of
+#: the azimuth, the generator's six-lobe part the catalogue's lobes (harmonics 1-4) lack). Session 29 (lobe29),
+#: docs/discovery.md "Session 29: the move-signed reversal must earn its move".
+REVERSAL_MOVE_EARNS = True
+
+
+def _move_pair_p(C: np.ndarray, st: _State, single=None) -> float:
+    """p-value of the F test of the move-signed pair (columns 2-3 of reversal's four-column layout ``C`` on the
+    model's rows) beyond the model ``st`` and the approach-signed pair (columns 0-1): the partial F test of
+    :func:`_grow_layout` with the approach pair as the plainer layout. ``single``: the four columns' own
+    :func:`nested_f_batch` against ``st`` where made. 1 where the move pair adds no direction."""
+    C = np.asarray(C, float)
+    if C.ndim != 2 or C.shape[1] != 4 or C.shape[0] != len(st.r):
+        raise ValueError(f"the move-signed layout has four columns on the model's {len(st.r)} rows, not {C.shape}")
+    t_a = nested_f_batch(C[None, :, :2], st.Q, st.r, st.rss, st.dof)
+    t_f = single if single is not None else nested_f_batch(C[None], st.Q, st.r, st.rss, st.dof)
+    k_x = int(t_f[1][0]) - int(t_a[1][0])
+    dof_f = st.dof - int(t_f[1][0])
+    if k_x <= 0 or dof_f <= 0:
+        return 1.0
+    F_x = (float(t_f[0][0]) - float(t_a[0][0])) / k_x / max((st.rss - float(t_f[0][0])) / dof_f, 1e-300)
+    return float(stats.f.sf(max(F_x, 0.0), k_x, dof_f))
 
 
 def _support_share(E: np.ndarray, cause=None) -> float:
@@ -8374,6 +8416,14 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                        f"something the model does not hold, worth {repeats['beyond_residual_ss_um2']:.3g} um^2 over the "
                        f"campaign against the {explained:.3g} um^2 the cause explains, and the noise its checks "
                        "were judged with carries it")
+        if PART_CHANGE_ONE_TARGET and tm.cause == "part_change":
+            share = _one_target_share(bl, tm, so, rows)
+            if share is not None:
+                ev["one_target_share"] = share
+                if share >= PART_CHANGE_ONE_TARGET_SHARE:
+                    why.append(f"one target carries {share:.0%} of the change: a change of one place has no form "
+                               "of the part to tell it from that touch's own history (the path before it, a lost "
+                               "motion the traverse winds)")
         ev["confidence"] = "ambiguous" if why else "named"
         if why:
             ev["confidence_reason"] = "; ".join(why)
@@ -8402,6 +8452,39 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             ev["explained_ss_um2"] = (top.explained_rms_um ** 2 * len(rows)) if top else 0.0
         out.append(Finding(causes_mod.UNEXPLAINED, _clean(ev), params, u95, st.sigma / UM, "unknown"))
     return out
+
+
+#: R1 (session 28's diagnosis, docs/discovery-studies.md "Session 28: the blind check's two gen_c faults, diagnosed";
+#: built in session 29, lobe29): a part_change finding whose signal one target carries a share
+#: :data:`PART_CHANGE_ONE_TARGET_SHARE` or more of (:func:`_one_target_share`) is named at most ambiguous. A part
+#: that changes moves a wall, a ring, a boss: several targets; a change of one target has no spatial form to tell it
+#: from that touch's own history (gen_c travel_hysteresis 5409: bore2's first touch after the traverse, a wound lost
+#: motion's two levels in time order, read `part_change` confidently, share 0.91). Off: measured in session 29 (lobe29,
+#: docs/discovery.md "Session 29: the move-signed reversal must earn its move") on gen_a, gen_b, the simulator and
+#: gen_c (1,150 campaigns, part_change 1000-1049 / 4000-4049 / 200-299 among them) it moves nothing right -> wrong or
+#: wrong -> right and hedges three right confident readings (gen_a part_change 1039, 1045, 1049: shares 0.83-0.93, a
+#: pin's wall is one target), while 5409 reads `reversal` through :data:`core.causes.REVERSAL_MOVE_SIGNED`.
+PART_CHANGE_ONE_TARGET = False
+#: The share of a part_change finding's signal one target must carry for :data:`PART_CHANGE_ONE_TARGET` to hedge it:
+#: 0.8, above the largest share of a true change session 28 measured on gen_c (0.67); session 29 found true changes up
+#: to 0.93 on gen_a (gen_b 0.39, the simulator 0.08, gen_c 200-299 0.59).
+PART_CHANGE_ONE_TARGET_SHARE = 0.8
+
+
+def _one_target_share(bl, tm, so: _State, rows) -> float | None:
+    """The largest share of a term's fitted signal one target carries: the term's columns times their coefficients
+    fitted beside the other terms ``so`` (the model reported), squared and summed over each target's touches, over
+    all its touches. None where the term explains nothing."""
+    E = np.asarray(tm.columns, float)[rows]
+    Ep = E - so.Q @ (so.Q.T @ E)
+    coef = np.linalg.lstsq(Ep, so.r, rcond=None)[0]
+    s2 = (E @ coef) ** 2
+    tot = float(s2.sum())
+    if not tot > 0:
+        return None
+    tg = np.asarray(bl.data.touches.target, dtype=object)[rows]
+    _, inv = np.unique(tg.astype(str), return_inverse=True)
+    return float(np.bincount(inv, weights=s2).max() / tot)
 
 
 def _family(bl, covariate) -> str | None:

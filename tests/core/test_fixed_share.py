@@ -59,6 +59,11 @@ def test_end_to_end_gen_c_wound_lost_motion_and_simulator_turned_lobes(monkeypat
     from scenarios.blind import gen_c
     from scenarios.hidden import blind_outcome, hidden_outcome
 
+    import core.causes as causes
+
+    # the approach-signed reversal alone, the engine this rule was set on: with the move-signed layout (session 29,
+    # REVERSAL_MOVE_SIGNED on) 202 reads reversal without the rule too, the traverse's winding taken by its own columns
+    monkeypatch.setattr(causes, "REVERSAL_MOVE_SIGNED", False)
     monkeypatch.setattr(disc, "FIXED_SHARE_TEST", False)
     assert blind_outcome(gen_c, "travel_hysteresis", 202, generator="gen_c").cause == "lobing_per_setup"
     monkeypatch.setattr(disc, "FIXED_SHARE_TEST", True)
