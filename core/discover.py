@@ -3717,7 +3717,8 @@ def _constant_within(key: np.ndarray, E: np.ndarray) -> bool:
 #: materiality. The point estimate ``sigma_lof^2 = ms_lof - ms_pe`` carries the pure error's own sampling (40 degrees
 #: of freedom on gen_c): repeats drawn low (0.6-0.8 of the true noise) inflate it several times over, and the plain
 #: test then finds the coarse map's misfit, 0.24 of the noise, material (gen_c none 263, 274, 571 read `unexplained`
-#: on the lack of fit alone). Session 29 (docs/discovery.md, "Session 29: ...").
+#: on the lack of fit alone; 274 and 571 read none with it, 263 at F = 2.79 on (258, 40) still fires). Session 29
+#: (docs/discovery.md, "Session 29: gen_c's false alarms near the materiality").
 LOF_MATERIAL_TEST = True
 
 
@@ -3728,7 +3729,10 @@ LOF_MATERIAL_TEST = True
 #: that explains most of ~19: under noise its sum of squares is the largest of ~19 draws, whose mean is well above
 #: ``k s^2``. Near the materiality (0.3 sigma) that selection decides: gen_c's smooth machine between the 80 mm
 #: map's nodes (0.047 um, 0.24 of the noise, noise-free) read 0.066 um at 0.193 (none 5405, blind, `unexplained`
-#: confident). Session 29 (docs/discovery.md, "Session 29: ...").
+#: confident; 0.053 debiased as the largest of 19). Measured on gen_c none 200-599 (the false alarms 10 -> 8 with
+#: :data:`LOF_MATERIAL_TEST`), every effect 200-239 (no cause or confidence changed; 17 second `unexplained` findings
+#: at 1.0-1.3 times the materiality dropped), gen_a, gen_b and the simulator (no cause changed but below visibility).
+#: Session 29 (docs/discovery.md, "Session 29: gen_c's false alarms near the materiality").
 STRUCTURE_SELECTION_DEBIAS = True
 
 
