@@ -1713,6 +1713,7 @@ class LackOfFit:
     p_value: float
     sigma_lof_m: float  # sqrt of the lack-of-fit variance component (0 when below the replicates)
     dof: int
+    dof_pe: int = 0  # the pure error's degrees of freedom (the F's second)
 
 
 def lack_of_fit(rss: float, dof: int, rep: Replicates) -> LackOfFit | None:
@@ -1727,7 +1728,7 @@ def lack_of_fit(rss: float, dof: int, rep: Replicates) -> LackOfFit | None:
     ms_lof = max(rss - rep.ss, 0.0) / d1
     ms_pe = rep.ss / rep.dof
     F = ms_lof / max(ms_pe, 1e-300)
-    return LackOfFit(F, float(stats.f.sf(F, d1, rep.dof)), float(np.sqrt(max(ms_lof - ms_pe, 0.0))), d1)
+    return LackOfFit(F, float(stats.f.sf(F, d1, rep.dof)), float(np.sqrt(max(ms_lof - ms_pe, 0.0))), d1, rep.dof)
 
 
 @dataclass(frozen=True)
