@@ -62,10 +62,10 @@ def main_job(out: str = "out", seed: int = 2026, progress=None) -> int:
     say.head("1. the virtual machine")
     machine, probe, errs = _machine(seed, say)
     say.head("2. simulate the cross-pocket campaign")
-    art, plan, log_path, t = _campaign(machine, probe, seed, outp, say)
+    art, plan, log_path, t, on = _campaign(machine, probe, seed, outp, say)
     say.head("3. identify: self-calibration, Ibaraki et al. eqs 1-18")
     truth = _Truth.of(art, plan)
-    res, ident = _identify(t, truth, errs, seed, outp, say)
+    res, ident = _identify(t, truth, errs, seed, outp, say, on)
     say.head("4. discover: what the model gets wrong, and why")
     d, rep, all_named = _discover(t, truth, log_path, outp, say)
     say.head("5. the multi-feature bar: 21 errors of three linear axes, on a 3-axis VMC (vmc-3axis)")
@@ -111,6 +111,7 @@ def _campaign(machine, probe, seed: int, outp: Path, say):
     from core.probelog import read_probe_log, write_probe_log
     from core.touches import from_log
     from scenarios.hidden import drift_check_plan
+    from scenarios.identify_report import identify_record
     from sim import artefacts as A
     from sim.campaign import simulate_campaign
 
@@ -123,7 +124,10 @@ def _campaign(machine, probe, seed: int, outp: Path, say):
     log = read_probe_log(log_path)  # from here on, only what the file holds
     say(f"{log.n} touches ({plan.n} per C angle at C = {', '.join(f'{a:g}' for a in angles)} deg), "
         f"{np.nanmax(log.col('t_s')) / 60:.1f} min of machine time -> {log_path}")
-    return art, plan, log_path, from_log(log)
+    # what identify.json's state is identified on: the log's machine and chain, the probe offsets J the
+    # virtual machine touched with (vmt identify --tool-offset-mm), as vmt identify records it (review29c F2)
+    on = identify_record(log, [v * 1e3 for v in machine.config.J_m])
+    return art, plan, log_path, from_log(log), on
 
 
 @dataclass(frozen=True)
@@ -149,16 +153,18 @@ class _Truth:
         return gauge_free_rms_m(g_m, ids, self.g, self.w_A, self.wn_A)
 
 
-def _identify(t, truth: _Truth, errs, seed: int, outp: Path, say):
-    """Step 3: self-calibration with 1000 Monte Carlo runs; its error against the true workpiece."""
+def _identify(t, truth: _Truth, errs, seed: int, outp: Path, say, on: dict):
+    """Step 3: self-calibration with 1000 Monte Carlo runs; its error against the true workpiece. ``on``:
+    what it is identified on (:func:`scenarios.identify_report.identify_record`)."""
     from core.atomic import json_safe, write_json_atomic
     from core.selfcal import Grid, self_calibrate
     from core.uncertainty import monte_carlo_touches
+    from scenarios.identify_report import identify_report
 
     grid = Grid.regular(-0.110, 0.110, 0.022)
     res = self_calibrate(t, grid)
     mc = monte_carlo_touches(t, grid, res.sigma_m, runs=1000, rng=np.random.default_rng(seed + 2))
-    ident = res.to_report(mc)
+    ident = identify_report(res, mc, on)   # with its identified_on record, as vmt identify writes it
     write_json_atomic(outp / "identify.json", json_safe(ident))
     g_err = truth.rms_m(res.G, res.design.target_ids)
     inj = _injected_in_gauge(res.design, errs, truth.g)

@@ -87,12 +87,16 @@ Identifications, their quantities and ``[plan]`` keys:
     (:func:`scenarios.cli.discover.run_discover`). One quantity, ``cause``:
     the causes its JSON report names (``findings[*].cause``, e.g.
     ``periodic_axis_error``, ``probe_lobing``), checked by ``[accept.cause]
-    expected = ["periodic_axis_error"]`` (every expected cause named; other
-    findings allowed). Only the cause names are relied on: the discovery
-    engine is being rewritten, its fitted magnitudes are not checked.
+    expected = ["periodic_axis_error"]``: the whole set, every expected
+    cause named and no other (a finding beyond them fails, named in the
+    note: a discover that named every cause would pass otherwise, review29c;
+    ``others = "allowed"`` lets it name more), ``expected = []`` or
+    ``"none"``: no cause may be named (a machine without a hidden effect).
+    Only the cause names are relied on: the discovery engine is being
+    rewritten, its fitted magnitudes are not checked.
 
 Acceptance rules (``[accept.QUANTITY]``, exactly one key; discover:
-``expected``): ``within_u95 = "simultaneous"`` (every element of every
+``expected``, optionally ``others``): ``within_u95 = "simultaneous"`` (every element of every
 quantity so marked, together: ``|identified - injected| <= k_sim U95 +
 1e-6``, ``k_sim`` the 95 % point of the largest ``|identified - injected| /
 U95`` of them under the run's own joint covariance, :func:`simultaneous_k`:
@@ -167,6 +171,9 @@ JOINT_COVERAGE = 0.95
 #: Monte Carlo draws of :func:`simultaneous_k` and their fixed seed (the same k_sim for the same covariance).
 SIM_DRAWS = 100_000
 SIM_SEED = 20261202
+#: ``[accept.cause] expected = "none"``: the same as ``expected = []``, discover may name no cause (a study of
+#: a machine without a hidden effect: a finding there is a false alarm, review29c).
+NO_CAUSE = "none"
 #: Quantities that have no U95 (absolute tolerance only).
 _NO_U95 = {"iso230-2": ("E", "M", "B")}
 _PLAN_KEYS = {"selfcal": ("c_angles_deg", "grid_mm", "declared_ripple"), "mfb-3axis": ("mc_runs",), "mfb-5axis": ("mc_runs",),
@@ -272,7 +279,10 @@ class Rule:
     unit : str
         ``um`` or ``urad``: the quantity's unit (``cause`` for discover).
     expected : tuple of str
-        Discover: the causes the findings must name.
+        Discover: the causes the findings must name (empty: none may be named).
+    others_allowed : bool
+        Discover: findings beyond ``expected`` pass (``others = "allowed"``); by default each fails the
+        check, named in its note (a discover that names every cause would otherwise pass, review29c).
     simultaneous : bool
         ``within_u95 = "simultaneous"``: pass when ``|identified - injected| <= k_sim U95``, ``k_sim``
         from the seed's joint covariance of every simultaneous quantity (:func:`simultaneous_k`).
@@ -284,10 +294,14 @@ class Rule:
     unit: str
     expected: tuple[str, ...] = ()
     simultaneous: bool = False
+    others_allowed: bool = False
 
     def text(self, k_sim: float | None = None, values: int = 0) -> str:
-        if self.expected:
-            return "names " + ", ".join(self.expected)
+        if self.unit == "cause":
+            if not self.expected:
+                return "names no cause"
+            return ("names " + ", ".join(self.expected) + (" (others allowed)" if self.others_allowed else
+                                                           " and no other cause"))
         if self.simultaneous:
             return ("<= k_sim x U95 (simultaneous)" if k_sim is None else
                     f"<= {k_sim:.3f} x U95 (simultaneous, {JOINT_COVERAGE:.0%} over {values} values)")
@@ -596,13 +610,23 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
         body = r.table(key, body)
         unit = known[q]
         if ident == "discover":
-            if list(body) != ["expected"]:
-                r.fail(key, "expected exactly one key: expected = [\"cause\", ...] (the causes discover must name)")
+            for k in body:
+                if k not in ("expected", "others"):
+                    r.fail(f"{key}.{k}", "unknown key (expected: expected = [\"cause\", ...], the whole set of causes "
+                                         "discover must name, [] for none; others = \"allowed\" to let it name more)")
+            if "expected" not in body:
+                r.fail(key, "missing: expected = [\"cause\", ...] (the causes discover must name; [] for none)")
             exp = body["expected"]
-            exp = [exp] if isinstance(exp, str) else exp
-            if not isinstance(exp, list) or not exp or not all(isinstance(x, str) and x for x in exp):
-                r.fail(f"{key}.expected", f"expected a cause name or a non-empty list of them, got {body['expected']!r}")
-            rules.append(Rule(q, None, None, unit, tuple(exp)))
+            exp = [] if exp == NO_CAUSE else [exp] if isinstance(exp, str) else exp
+            if not isinstance(exp, list) or not all(isinstance(x, str) and x and x != NO_CAUSE for x in exp):
+                r.fail(f"{key}.expected", f"expected a cause name, a list of them, [] or {NO_CAUSE!r} (no cause may be "
+                                          f"named), got {body['expected']!r}")
+            others = body.get("others", "refused")
+            if others not in ("allowed", "refused"):
+                r.fail(f"{key}.others", f"expected \"allowed\" or \"refused\" (the default), got {others!r}")
+            if not exp and others == "allowed":
+                r.fail(key, "expected = [] with others = \"allowed\": a check that nothing can fail")
+            rules.append(Rule(q, None, None, unit, tuple(exp), others_allowed=others == "allowed"))
             continue
         allowed = ("within_u95", f"tolerance_{unit}")
         for k in body:
@@ -646,6 +670,8 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
         scale = tuple((q, r.number(f"mutate.scale.{q}", c)) for q, c in sc.items())
         mutation = Mutation(r.names("mutate.flip_sign", mt.get("flip_sign", []), known),
                             r.names("mutate.drop", mt.get("drop", []), known), planar, scale)
+        if ident == "discover" and "cause" in mutation.drop and any(not u.expected for u in rules):
+            r.fail("mutate.drop", "the study expects no cause: dropping the findings cannot fail it")
     desc = doc.get("description", "")
     if not isinstance(desc, str):
         r.fail("description", f"expected a string, got {desc!r}")
@@ -871,12 +897,15 @@ def check(rule: Rule, est: Estimate | None, seed: int, k_sim: float | None = Non
     text = rule.text(k_sim, values)
     if est is None:
         return Check(seed, rule.quantity, rule.unit, text, False, note="not identified")
-    if rule.expected:
+    if rule.unit == "cause":
         named = est.named
         missing = [c for c in rule.expected if c not in named]
+        extra = [] if rule.others_allowed else [c for c in dict.fromkeys(named) if c not in rule.expected]
         note = ("named " + (", ".join(named) if named else "no cause")
-                + (f"; expected {', '.join(missing)} not named" if missing else ""))
-        return Check(seed, rule.quantity, rule.unit, text, not missing, "findings", n=len(named), note=note)
+                + (f"; expected {', '.join(missing)} not named" if missing else "")
+                + (f"; not expected: {', '.join(extra)}" if extra else ""))
+        return Check(seed, rule.quantity, rule.unit, text, not (missing or extra), "findings", n=len(named),
+                     note=note)
     dev = np.abs(np.asarray(est.identified, float) - np.asarray(est.injected, float))
     k = k_sim if rule.simultaneous else rule.k
     if rule.simultaneous and k_sim is None:

@@ -80,11 +80,9 @@ def _run(args, bar) -> int:
         print(f"{args.log}: {counted(int((~planar & log.ok).sum()), 'touch')} with normals out of the XY plane "
               "left out")
     # what the state is identified on (estimate.identified_on): a state applied elsewhere is refused by vcmm
-    z_read = log.col("Z_mm")[planar & log.ok]
-    z_read = z_read[np.isfinite(z_read)]
-    on = dict(machine=log.meta.get("machine"), chain=log.meta.get("kinematic_chain"),
-              probe_offsets_J_mm=None if J_mm is None else [J_mm],
-              z_mm=(float(z_read.min()), float(z_read.max())) if z_read.size else None)
+    from scenarios.identify_report import identify_record, identify_report
+
+    on = identify_record(log, J_mm, planar & log.ok)   # J: --tool-offset-mm (probe-log/1 has none)
     del log, planar  # the touches hold what the identification needs: the log's memory goes before it
     grid = parse_grid(args.grid_mm, t.pn_R)
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
@@ -104,11 +102,7 @@ def _run(args, bar) -> int:
             bar(3, steps)
     from core.atomic import write_json_atomic
 
-    from core.state import identified_on
-
-    report = res.to_report(mc, None if J_mm is None else [v * 1e-3 for v in J_mm])   # the state at reading + J
-    if "estimate" in report:
-        report["estimate"]["identified_on"] = identified_on(**on)   # J: --tool-offset-mm (probe-log/1 has none)
+    report = identify_report(res, mc, on)   # the state at reading + J, with its identified_on record
     out = write_json_atomic(args.json, report, special=True)
     bar(steps, steps)
     bar.close()         # the report's lines below the finished progress line, not on it

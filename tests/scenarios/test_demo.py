@@ -55,6 +55,24 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert json.loads((out / "comp" / "mfb-3axis-comp.json").read_text())["format"] == "vmt-comp/1"
     for f in ("index.html", "recording.rrd", "error_map.png", "residuals_baseline.png"):
         assert (out / "report" / f).stat().st_size > 1000
+    # its identify.json holds the record vmt identify writes of the same log with the demo's probe offsets J
+    # (the nmv3000's 150 mm tool), so vcmm refuses it on another machine as it refuses identify's: without it
+    # the state applied to vmc-3axis with a notice about files older than session 26 (exit 0; review29c F2)
+    rec = ident["estimate"]["identified_on"]
+    assert (rec["machine"], rec["chain"], rec["probe_offsets_J_mm"]) == (
+        "nmv3000", "V[w-C-A-b-Y-X-Z-(C)-t]", [[0.0, 0.0, 150.0]])
+    cli = tmp_path / "id.json"
+    assert main(["identify", str(out / "cross-pocket.csv"), "--json", str(cli), "--tool-offset-mm", "0,0,150",
+                 "--mc", "0"]) == 0
+    assert json.loads(cli.read_text())["estimate"]["identified_on"] == rec
+    vcmm = ["vcmm", "scenarios/data/vcmm-block-plan.csv", "--task", "scenarios/data/vcmm-block-task.toml",
+            "--no-budget", "--machine", "vmc-3axis", "--json", str(tmp_path / "v.json"), "--machine-state"]
+    for state in (out / "identify.json", cli):
+        capsys.readouterr()
+        assert main(vcmm + [str(state)]) == 2
+        err = capsys.readouterr().err
+        assert f"--machine-state {state}: identified on machine 'nmv3000'" in err and "another structure" in err
+    assert not (tmp_path / "v.json").exists()
 
 
 def test_lobing_text_says_which_lobes_it_cannot_see():

@@ -118,14 +118,30 @@ def test_there_is_an_example_per_identification():
     assert set(kinds) <= set(IDENTIFICATIONS)
 
 
+#: Examples that FAIL, and the one failure each gives: a finding of the code under test, kept visible (not
+#: loosened away) until the code changes. discover-nmv3000 (review29c F3, rf29): since a discover study states
+#: the whole set of causes, its realistic ripple-free machine (the 'no hidden effect' set the LUT models
+#: represent) reads ``unexplained`` beside the screw on seed 1 (13 of seeds 1-20; without the screw 12 of 20,
+#: and ``outlier`` 2 of 20): a 0.1 um structure per feature and set-up that stays at 0.03 um probing noise
+#: while identify's tables leave 0.019 um RMS noise-free. When discover stops naming it this test fails: move
+#: the study back among those that pass.
+KNOWN_FAILING = {"regress-discover-nmv3000": "cause (seed 1): named periodic_axis_error, unexplained; not "
+                                             "expected: unexplained"}
+
+
 @pytest.mark.parametrize("stem", [p.stem for p in EXAMPLES])
 def test_each_example_passes_through_vmt_regress(example_runs, stem):
     rc, rep, xml = example_runs[stem]
-    assert rc == 0, [c["message"] for c in rep["checks"] if not c["passed"]]
-    assert rep["passed"] and rep["n_failed"] == 0 and rep["n_checks"] == len(rep["checks"]) > 0
+    failed = [c["message"] for c in rep["checks"] if not c["passed"]]
+    if stem in KNOWN_FAILING:
+        assert (rc, rep["passed"], failed) == (1, False, [KNOWN_FAILING[stem]])
+    else:
+        assert rc == 0, failed
+        assert rep["passed"] and rep["n_failed"] == 0
+    assert rep["n_checks"] == len(rep["checks"]) > 0
     for c in rep["checks"]:  # every check is a real comparison, not an empty one
-        assert c["elements"] >= 1
-        if c["unit"] != "cause":
+        if c["unit"] != "cause":   # (a cause check compares sets: none named is a comparison when none is expected)
+            assert c["elements"] >= 1
             assert c["deviation"] <= c["limit"] and c["margin"] >= 0
     validate_junit(xml)
     assert len(ET.fromstring(xml).findall(".//testcase")) == rep["n_checks"]
@@ -316,6 +332,52 @@ def test_discover_fails_when_the_hidden_cause_is_not_there(tmp_path):
     assert c["quantity"] == "cause" and not c["passed"] and "periodic_axis_error not named" in c["message"]
 
 
+DISCOVER_CLEAN = """
+identification = "discover"
+machine = "nmv3000"
+seeds = [1]
+noise_um = 0.3
+[injected]
+errors = "none"
+%s
+[plan]
+c_angles_deg = [0, 75, 130, 210]
+[accept.cause]
+%s
+"""
+SCREW = "[injected.error.EYY]\nperiodic = [{ amplitude_um = 1.5, period_mm = 8.01 }]"
+
+
+def test_a_discover_naming_every_cause_fails_the_study():
+    """review29c's hook (/tmp/review29c/disc_hook.py): a discover that names all 15 catalogue causes passed
+    a study expecting one of them. The study now states the whole set: on an error-free machine with only the
+    hidden screw, discover names just it (the study passes), and the hook fails it naming the 14 others."""
+    from core.causes import names
+
+    study = loads_study(DISCOVER_CLEAN % (SCREW, 'expected = ["periodic_axis_error"]'), "s.toml")
+    assert run_study(study).passed
+    every = tuple(sorted(names()))
+    res = run_study(study, hook=lambda ident, est: {"cause": Causes(every)})
+    (c,) = res.checks
+    others = [n for n in every if n != "periodic_axis_error"]
+    assert not res.passed and len(others) == 14 and c.note.endswith("; not expected: " + ", ".join(others))
+    # allowed on purpose (others = "allowed"), it passes, and says so
+    loose = loads_study(DISCOVER_CLEAN % (SCREW, 'expected = ["periodic_axis_error"]\nothers = "allowed"'), "s.toml")
+    res = run_study(loose, hook=lambda ident, est: {"cause": Causes(every)})
+    assert res.passed and res.checks[0].rule == "names periodic_axis_error (others allowed)"
+
+
+@pytest.mark.parametrize("expected", ["expected = []", 'expected = "none"'])
+def test_an_effect_free_study_fails_on_any_finding(expected):
+    """No hidden effect (errors none, probing noise 0.3 um): discover names nothing (seeds 1-20 all, rf29), the
+    study expecting no cause passes; a finding injected into the same run fails it, named."""
+    study = loads_study(DISCOVER_CLEAN % ("", expected), "s.toml")
+    res = run_study(study)
+    assert res.passed and res.checks[0].note == "named no cause" and res.checks[0].rule == "names no cause"
+    res = run_study(study, hook=lambda ident, est: {"cause": Causes(est["cause"].named + ("outlier",))})
+    assert not res.passed and res.checks[0].note == "named outlier; not expected: outlier"
+
+
 def test_the_flip_is_exactly_a_negation(tmp_path):
     """The hook sees the identification's values: a sign flip negates the identified quantity, nothing else."""
     study = load_study(POSITIONING)
@@ -367,9 +429,19 @@ def test_check_by_hand():
     assert not check(Rule("EXX", 1.0, None, "um"), off, 1).passed
     assert check(Rule("EXX", 1.0, None, "um"), None, 1).note == "not identified"
     rule = Rule("cause", None, None, "cause", ("periodic_axis_error",))
-    assert check(rule, Causes(("probe_lobing", "periodic_axis_error")), 1).passed
+    assert check(rule, Causes(("periodic_axis_error",)), 1).passed
     c = check(rule, Mutation(drop=("cause",))("discover", {"cause": Causes(("periodic_axis_error",))})["cause"], 1)
     assert not c.passed and c.message() == "cause (seed 1): named no cause; expected periodic_axis_error not named"
+    # the expected set is the whole set: a cause beyond it fails, named (once however often it is named)
+    c = check(rule, Causes(("probe_lobing", "periodic_axis_error", "probe_lobing")), 1)
+    assert not c.passed and c.note == ("named probe_lobing, periodic_axis_error, probe_lobing; not expected: "
+                                       "probe_lobing")
+    c = check(rule, Causes(("outlier",)), 1)
+    assert c.note == "named outlier; expected periodic_axis_error not named; not expected: outlier"
+    assert check(replace(rule, others_allowed=True), Causes(("probe_lobing", "periodic_axis_error")), 1).passed
+    none = Rule("cause", None, None, "cause", ())
+    assert check(none, Causes(()), 1).passed and none.text() == "names no cause"
+    assert not check(none, Causes(("unexplained",)), 1).passed
 
 
 def test_positioning_truth_by_hand():
@@ -405,6 +477,7 @@ def test_positioning_truth_by_hand():
 
 # --------------------------------------------------------------------------- bad input
 BASE = 'identification = "iso230-2"\nmachine = "vmc-3axis"\nseeds = [1]\n[accept.mean]\nwithin_u95 = 1.0\n'
+DISC = BASE.replace('"iso230-2"', '"discover"').replace("[accept.mean]\nwithin_u95 = 1.0", "[accept.cause]\nexpected = []")
 SC = (BASE.replace('"iso230-2"', '"selfcal"').replace("[accept.mean]", "[accept.EXX]")
       .replace('"vmc-3axis"', '"nmv3000"').replace("within_u95 = 1.0", 'within_u95 = "simultaneous"'))
 
@@ -414,8 +487,14 @@ SC = (BASE.replace('"iso230-2"', '"selfcal"').replace("[accept.mean]", "[accept.
     ("colour = 1\n" + BASE, "colour: unknown key"),
     (BASE.replace('"iso230-2"', '"dicsover"'), "identification: expected one of"),
     (BASE.replace('"iso230-2"', '"discover"'), "accept.mean: unknown quantity for discover"),
-    (BASE.replace('"iso230-2"', '"discover"').replace("[accept.mean]\nwithin_u95 = 1.0", "[accept.cause]\nexpected = []"),
-     "accept.cause.expected: expected a cause name"),
+    (DISC.replace("expected = []", "expected = [1]"), "accept.cause.expected: expected a cause name"),
+    (DISC.replace("expected = []", 'expected = ["none"]'), "accept.cause.expected: expected a cause name"),
+    (DISC.replace("expected = []", 'expected = ""'), "accept.cause.expected: expected a cause name"),
+    (DISC.replace("expected = []", 'expected = ["x"]\nothers = "some"'), 'accept.cause.others: expected "allowed"'),
+    (DISC.replace("expected = []", 'expected = []\nothers = "allowed"'), "accept.cause: expected = .* nothing can fail"),
+    (DISC.replace("expected = []", 'expected = ["x"]\nallowed = ["y"]'), "accept.cause.allowed: unknown key"),
+    (DISC.replace("expected = []", 'others = "allowed"'), "accept.cause: missing: expected"),
+    (DISC + '[mutate]\ndrop = ["cause"]\n', "mutate.drop: the study expects no cause"),
     (BASE.replace("seeds = [1]", "seeds = []"), "seeds: missing"),
     (BASE.replace("seeds = [1]", "seeds = [1, 1]"), "seeds: a seed given twice"),
     (BASE.replace("seeds = [1]", 'seeds = ["a"]'), r"seeds\[0\]: expected an integer"),
