@@ -1319,7 +1319,10 @@ def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float 
         the noise component. "auto" and True: when the design is small
         enough (:data:`core.uncertainty.MODEL_ERROR_MAX_CELLS`; a note says
         when not); False: probing noise alone (the residuals' sigma).
-        Not computed with ``covariance="none"``.
+        Not computed with ``covariance="none"``. With the budget, residuals
+        that follow the approach direction (:func:`direction_structure`,
+        confirmed against the budget's tables) are removed before it and
+        named in ``direction``; without it they are not looked for.
     subgrid : dict or None
         Declared sub-grid amplitudes, table -> m (rad for the yaw): what a
         table cannot follow between its nodes, from the machine's spec
