@@ -1215,7 +1215,7 @@ class SelfCalResult:
             bias = direction_biases(des, ds, res.std)
             out["not_covered"]["approach_direction"] = {
                 "what": direction_text(ds, bias), "lobe_order": ds.k, "amplitude_um": _r(ds.amplitude_m * 1e6),
-                "orders_tested": list(ds.orders), "F": _r(ds.F, 2), "p_value": float(f"{ds.p:.3g}"),
+                "orders_tested": list(ds.orders), "F": _r(ds.F, 2) if np.isfinite(ds.F) else None, "p_value": float(f"{ds.p:.3g}"),
                 "p_value_tables": float(f"{ds.p_tables:.3g}"),
                 "dof_taken": ds.rank,
                 "shift": {b: {"largest": _r(v["signed"]), "ratio_to_u95": None if v["ratio_to_u95"] is None

@@ -241,3 +241,12 @@ def test_direction_structure_bad_input():
     from core.selfcal import direction_structure
     with pytest.raises(ConfigError, match="residuals"):
         direction_structure(des, est, t, np.zeros(t.n - 1))
+
+
+def test_direction_report_noise_free_is_valid_json():
+    """Noise free, the F statistic is infinite: the report says null, not Infinity (strict JSON)."""
+    import json
+    tt, _ = _campaign(_paper_pocket(), 7, lobe=(4, 0.5), noise_um=0.0)
+    ad = self_calibrate(tt, GRID).to_report()["not_covered"]["approach_direction"]
+    assert ad["F"] is None and ad["p_value"] == 0.0
+    json.dumps(ad, allow_nan=False)
