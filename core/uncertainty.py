@@ -257,6 +257,10 @@ class ModelErrorBudget:
         False when the design was too large (:data:`MODEL_ERROR_MAX_CELLS`):
         the budget is then probing noise alone.
     rule : str
+    probe_p : float or None
+        With ``probe_cols``: the p-value of the residuals' part along them
+        (their chi-square against this budget's noise and table model error:
+        small when the tables cannot explain it); else None.
     """
 
     sigma_probe_m: float
@@ -267,6 +271,7 @@ class ModelErrorBudget:
     cov_model: np.ndarray | None
     computed: bool
     rule: str = MODEL_ERROR_RULE
+    probe_p: float | None = None
 
     @property
     def u(self) -> np.ndarray:
@@ -345,7 +350,8 @@ def _ripple_table(des: SelfCalDesign, touches: Touches, name: str, period_m: flo
 
 def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touches, residuals_m: np.ndarray,
                        sigma_m: float | None = None, *, full: bool = False,
-                       step_m: float = MODEL_ERROR_STEP_M, subgrid: dict | None = None) -> ModelErrorBudget:
+                       step_m: float = MODEL_ERROR_STEP_M, subgrid: dict | None = None,
+                       extra_free: int = 0, probe_cols: tuple | None = None) -> ModelErrorBudget:
     """The uncertainty of a self-calibration with its model error estimated from the residuals.
 
     The tables of eqs 8-11 are piecewise linear: what an error motion does
@@ -396,6 +402,18 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
         ripple finer than the nodes is seen by the touches but its value
         at the datum's nodes is not: the residuals alone miss that part
         (docs/discovery-studies.md, "Session 27: a declared sub-grid ripple").
+    extra_free : int
+        Degrees of freedom taken from the residuals beside the design's
+        (``residuals_m`` already has that many more directions projected
+        out, e.g. the approach-direction structure of
+        :func:`core.selfcal.direction_structure`); 0: none.
+    probe_cols : (U, proj) or None
+        ``U`` (n, q) orthonormal directions of the residual space (the
+        approach-direction columns the fit leaves) and ``proj = U^T r`` of
+        the raw residuals: the budget then also says whether the tables'
+        model error and the noise it finds explain ``proj``
+        (``probe_p``: ``proj^T S^-1 proj`` against chi-square(q), ``S =
+        sigma^2 I + sum_T s_T^2 (U^T R Phi_T)(U^T R Phi_T)^T``).
 
     Returns
     -------
@@ -404,7 +422,7 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
     r = np.asarray(residuals_m, float)
     n = touches.n
     u1 = est.std(1.0)
-    dof = n - est.n_free
+    dof = n - est.n_free - int(extra_free)
     s0 = float(np.sqrt(r @ r / dof)) if dof > 0 else 0.0
     tables = [k for k in TABLES if k in des.slices]
     span = {k: (des.grid.x_m if k in ("EXX", "EYX", "ECX") else des.grid.y_m) for k in tables}
@@ -442,6 +460,21 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
             scale = np.sqrt((lhs[:, 1:] ** 2).sum(axis=0))
             sol, _ = nnls(lhs[:, 1:] / scale, rhs - lhs[:, 0] * sig ** 2)
             s2[keep] = sol / scale
+    probe_p = None
+    if probe_cols is not None:
+        from scipy import stats
+
+        U, proj = probe_cols
+        U, proj = np.asarray(U, float), np.asarray(proj, float)
+        Sg = sig ** 2 * np.eye(U.shape[1])
+        for k in np.flatnonzero(s2 > 0):
+            W = U.T @ RP[k]
+            Sg += s2[k] * (W @ W.T)
+        try:
+            chi = float(proj @ np.linalg.solve(Sg, proj))
+            probe_p = float(stats.chi2.sf(chi, U.shape[1]))
+        except np.linalg.LinAlgError:   # no noise and no model error along them: anything there is unexplained
+            probe_p = 0.0 if float(proj @ proj) > 0 else 1.0
     declared = {}
     rip = []  # (amplitude, Gk (n_params, 2)) of each declared ripple
     Q = des.N @ np.linalg.solve(des.C @ des.N, des.C)  # gauge part of I - Q
@@ -473,7 +506,7 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
                             {t: float(v) for t, v in zip(tables, z)}, sig * u1, np.sqrt(u2), cov, True,
                             MODEL_ERROR_RULE + ("; " + SUBGRID_RULE.format(", ".join(
                                 f"{t} {a * 1e6:g} {'urad' if t in ('ECY', 'ECX') else 'um'} per {p * 1e3:g} mm"
-                                for t, (a, p) in declared.items())) if declared else ""))
+                                for t, (a, p) in declared.items())) if declared else ""), probe_p)
 
 
 # ---------------------------------------------------------------------------

@@ -130,6 +130,9 @@ def _run(args, bar) -> int:
     blind = blind_lobes_line(res.blind_lobes)   # what the U95 above leaves out, from the design
     if blind:
         print(blind)
+    ad = report.get("not_covered", {}).get("approach_direction")
+    if ad:      # residuals that follow the approach direction: a probe lobing the U95 does not cover
+        print("not covered by U95: " + ad["what"])
     if args.mc and mc is None:
         print("Monte Carlo skipped: no probing noise left beside the model error (sigma 0)")
     from scenarios.cli.guard import said

@@ -143,3 +143,110 @@ def test_absorbed_lobes_bad_input():
         absorbed_lobes(np.array([0.0, np.nan]), lambda x: x)
     with pytest.raises(ConfigError, match="phi"):
         absorbed_lobes(np.zeros((3, 2)), lambda x: x)
+
+
+# ---------------------------------------------------------------------------
+# residuals that follow the approach direction (review29c F1): a lobe the design does not absorb
+# ---------------------------------------------------------------------------
+def _paper_pocket():
+    """The paper's pocket with its spheres' equators (normals every 45 deg), as the simulator probes it."""
+    w, wn, ids = example_cross_pocket()
+    return nominal_touches(w, wn, ANGLES, stylus_r_m=0.003, target_ids=ids)
+
+
+def _campaign(t, seed, lobe=None, noise_um=0.3, ripple=None):
+    """In-model truth (3 um per parameter) + an optional lobe (k, cos um) + an optional table ripple
+    (axis 0|1, um, period mm) + noise; returns (touches, truth in the gauge)."""
+    from dataclasses import replace
+    from core.selfcal import build_design
+
+    des = build_design(t, GRID)
+    rng = np.random.default_rng(seed)
+    th = des.to_gauge(rng.normal(0, 3 * UM, des.n_params))
+    dq = des.A @ th + rng.normal(0, noise_um * UM, t.n)
+    if lobe is not None:
+        dq += _lobe_dq(t, lobe[0], lobe[1], 0.0)
+    if ripple is not None:
+        ax, a, p = ripple
+        dq -= t.n_R[:, ax] * a * UM * np.sin(2 * np.pi * t.pn_R[:, ax] / (p * 1e-3) + rng.uniform(0, 2 * np.pi))
+    return replace(t, p_R=t.pn_R + dq[:, None] * t.n_R), th
+
+
+def test_a_2_lobe_probe_is_named_not_booked_as_table_model_error():
+    """Review 29c F1: a 0.75 um 2-lobe pre-travel (principal axes on X/Y) on noise 0.3 um. Before, the
+    budget read it as EXX/EYY model error and the probing sigma collapsed to 0 (measured: 0.000 on these
+    seeds); now the structure is named (order 2, ~0.75 um) and removed before the budget: sigma within 20 %
+    of 0.3 um (dof ~290: its sampling sd is ~4 %; measured 0.28-0.33), no table model error (measured: none)."""
+    t = _paper_pocket()
+    for seed in (200, 203):
+        tt, _ = _campaign(t, seed, lobe=(2, 0.75))
+        res = self_calibrate(tt, GRID)
+        ds = res.direction
+        assert ds is not None and ds.k == 2 and 2 in ds.orders and 1 not in ds.orders   # k = 1 is absorbed
+        assert abs(ds.amplitude_m / UM - 0.75) < 0.15    # sampling: 0.3 um noise over ~300 touches
+        assert 0.24 * UM < res.sigma_m < 0.36 * UM
+        assert all(v == 0 for v in res.budget.components.values())
+        assert ds.p < 1e-20 and ds.p_tables < 1e-20
+        nc = res.to_report()["not_covered"]["approach_direction"]
+        assert nc["lobe_order"] == 2 and "approach direction" in nc["what"] and "EC0Y" in nc["shift"]
+        # without the structure removed: the old reading (tables' model error, sigma collapsed)
+        from core.uncertainty import model_error_budget
+        des, est = estimator(tt, GRID)
+        old = model_error_budget(des, est, tt, res.residuals_m)
+        assert old.sigma_probe_m < 0.1 * UM and max(old.components.values()) > 0.3 * UM
+
+
+def test_direction_shift_known_answer_noise_free():
+    """Truth -> lobe (no noise) -> estimate: the estimate minus the reported shift is the truth (Frisch-Waugh:
+    the fit with the lobe alongside), to 1e-8 um: the solve's rounding on parameters of ~3 um (measured
+    6e-9 um at worst), five orders below the lobe's shift of the values (~0.5 um)."""
+    t = _paper_pocket()
+    tt, th = _campaign(t, 7, lobe=(4, 0.5), noise_um=0.0)
+    res = self_calibrate(tt, GRID)
+    assert res.direction is not None and res.direction.k == 4
+    assert np.abs(res.direction.shift).max() > 0.3 * UM
+    np.testing.assert_allclose(res.theta - res.direction.shift, th, rtol=0, atol=1e-8 * UM)
+    assert abs(res.direction.amplitude_m - 0.5 * UM) < 1e-9 * UM
+
+
+def test_plain_and_rippled_campaigns_name_no_direction():
+    """No lobe: nothing named, the budget exactly as before (the same call on the raw residuals). A table
+    ripple the tables cannot follow (2 um / 37 mm on EYY, noise 0.3) is table model error: the F test against
+    noise alone fires on some of these seeds (measured 3 of 10: the misfit is not white), the second test
+    (against the budget's noise and table model error) refuses every one, so nothing is named."""
+    from core.selfcal import direction_structure
+    from core.uncertainty import model_error_budget
+
+    t = _paper_pocket()
+    for seed in (300, 301, 302):
+        tt, _ = _campaign(t, seed)
+        res = self_calibrate(tt, GRID)
+        assert res.direction is None and "approach_direction" not in res.to_report()["not_covered"]
+        des, est = estimator(tt, GRID)
+        b = model_error_budget(des, est, tt, res.residuals_m)
+        assert res.sigma_m == b.sigma_probe_m and np.array_equal(res.std, b.u)
+    first = 0
+    for seed in range(100, 110):
+        tt, _ = _campaign(t, seed, ripple=(1, 2.0, 37.0))
+        res = self_calibrate(tt, GRID)
+        des, est = estimator(tt, GRID)
+        first += direction_structure(des, est, tt, res.residuals_m, res.blind_lobes) is not None
+        assert res.direction is None
+    assert first >= 1      # the first stage alone would name a lobe here
+
+
+def test_direction_structure_bad_input():
+    t = _paper_pocket()
+    des, est = estimator(t, GRID)
+    from core.selfcal import direction_structure
+    with pytest.raises(ConfigError, match="residuals"):
+        direction_structure(des, est, t, np.zeros(t.n - 1))
+
+
+def test_direction_report_noise_free_is_valid_json():
+    """Noise free, the F statistic is infinite: the report says null, not Infinity (strict JSON)."""
+    import json
+    tt, _ = _campaign(_paper_pocket(), 7, lobe=(4, 0.5), noise_um=0.0)
+    ad = self_calibrate(tt, GRID).to_report()["not_covered"]["approach_direction"]
+    assert ad["F"] is None and ad["p_value"] == 0.0
+    json.dumps(ad, allow_nan=False)

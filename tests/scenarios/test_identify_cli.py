@@ -217,3 +217,41 @@ def test_identify_declared_ripple(tmp_path, capsys):
         err = capsys.readouterr().err
         assert "Traceback" not in err and err.count("\n") == 1 and err.startswith("vmt identify: error: "), err
         assert what in err and not bad.exists()
+
+
+def test_identify_names_a_2_lobe_probe_and_keeps_its_probing_sigma(tmp_path, capsys):
+    """Review 29c F1, end to end (nmv3000, errors none, a 0.75 um 2-lobe pre-travel, noise 0.3 um, the
+    review's seed and angles). Before: "probing sigma 0.000 um, model error ... EXX 0.693 um, EYY 0.806 um",
+    EC0Y 42.4 +- 27.3 urad against a truth of 0, and not a word about the lobe. Now: the line names the
+    direction structure (order 2, its size, EC0Y's shift beyond its U95), sigma within 20 % of 0.3 um
+    (measured 0.286), no table model error; the same seed without the lobe names nothing."""
+    from pathlib import Path
+
+    src = (Path(__file__).resolve().parents[2] / "sim" / "data" / "machines" / "nmv3000.toml").read_text()
+    assert 'errors = "none"' in src and "noise_um = 0.125" in src
+    toml = tmp_path / "lob.toml"
+    toml.write_text(src.replace('name = "nmv3000"', 'name = "nmv3000-lob2"').replace(
+        "noise_um = 0.125", "noise_um = 0.125\nlobing = [{ k = 2, cos_um = 0.75, sin_um = 0.0 }]"))
+    log, out = tmp_path / "lob.csv", tmp_path / "lob_id.json"
+    sim = ["--seed", "1001", "--noise-um", "0.3", "--c-angles-deg", "0,75,130,210"]
+    assert main(["simulate", "cross-pocket", "--machine", str(toml), "--out", str(log)] + sim) == 0
+    capsys.readouterr()
+    assert main(["identify", str(log), "--json", str(out), "--mc", "0"]) == 0
+    said = capsys.readouterr().out
+    line = next(ln for ln in said.splitlines() if "approach direction" in ln)
+    assert line.startswith("not covered by U95") and "order 2" in line and "EC0Y" in line
+    r = json.loads(out.read_text())
+    u = r["uncertainty"]
+    assert 0.24 < u["probe_sigma_um"] < 0.36 and all(v == 0 for v in u["model_error"].values())
+    ad = r["not_covered"]["approach_direction"]
+    assert ad["lobe_order"] == 2 and 0.6 < ad["amplitude_um"] < 0.9
+    # the shift it puts in EC0Y is what separates the estimate from the truth (0): beyond the U95
+    ec0y = r["axes"]["EC0Y"]
+    assert ad["shift"]["EC0Y"]["ratio_to_u95"] > 1 and abs(ec0y["value_urad"]) > ec0y["u95_urad"]
+    assert abs(ec0y["value_urad"] - ad["shift"]["EC0Y"]["largest"]) < ec0y["u95_urad"]   # less the shift: 0 within U95
+    # the same seed without the lobe: nothing named
+    toml.write_text(src)
+    assert main(["simulate", "cross-pocket", "--machine", str(toml), "--out", str(log)] + sim) == 0
+    assert main(["identify", str(log), "--json", str(out), "--mc", "0"]) == 0
+    assert "approach direction" not in capsys.readouterr().out
+    assert "approach_direction" not in json.loads(out.read_text())["not_covered"]
