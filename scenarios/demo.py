@@ -172,6 +172,14 @@ def _identify(t, truth: _Truth, errs, seed: int, outp: Path, say, on: dict):
         f"against {inj[res.design.slices['EC0Y']][0] * 1e6:+.1f} urad injected, in the same gauge (eqs 16-17: "
         f"EYX zero at both ends; raw {errs['EC0Y'](np.zeros(1))[0] * 1e6:+.1f}); the gap is the lobing probe's, "
         "which this model does not know (step 4)")
+    ad = ident.get("not_covered", {}).get("approach_direction")
+    if ad:  # identify's own residual check sees it and says what it biases, beyond the U95
+        big = [("EC0Y", ad["shift"]["EC0Y"])] * ("EC0Y" in ad["shift"]) + sorted(
+            ((k, v) for k, v in ad["shift"].items() if k != "EC0Y"), key=lambda kv: -kv[1]["ratio_to_u95"])[:1]
+        say(f"identify's residual check: the residuals follow the approach direction (a pre-travel lobing of order "
+            f"{ad['lobe_order']}, ~{ad['amplitude_um']:.2f} um, p {ad['p_value']:.0e}), not in the U95; it biases "
+            + ", ".join(f"{k} by up to {abs(v['largest']):.2f} {v['unit']} ({v['ratio_to_u95']:.1f} x its U95)"
+                        for k, v in big))
     say(f"workpiece: max U95 {np.nanmax([w['u95_um'] for w in ident['workpiece']]):.2f} um (linear: probing noise "
         f"and the model error the residuals show), {ident['monte_carlo']['max_workpiece_u95_um']:.2f} um (Monte "
         f"Carlo of the probing noise alone, 1000 runs, with the datum);"
