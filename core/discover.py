@@ -5422,16 +5422,22 @@ VIF_DROP_LEAST_INFLATION = False
 #: cause's forms". Measured alone too (session 29, form29, "v9": the drop off, :data:`FORM_SHIFT_CARRIED` on, the shift
 #: then read against the chosen form's other forms): it mends five of the seven by the estimate (7302 12.815 -> 0.612
 #: um, U95 12.483 -> 0.671; 1682, 1904, 1929, 1998) and costs none of the drop's hedging on lobing_per_setup, but the
-#: form it takes is refused later in two campaigns, gen_a c_drift 1076 (0.85 sigma, ``c_drift`` -> ``unexplained``)
-#: and thermal_drift 1086 (1.03 sigma, ``thermal_drift?`` -> ``unexplained``), hedges thermal_drift 1110 and 1194,
-#: and swaps thermal_drift's warm-up on 73 of 200 campaigns for a mean extended error 0.249 -> 0.256 um: still off.
+#: names session 28 put on the drop move again, so they were the choice's: gen_a c_drift 1076 (0.85 sigma) and gen_b
+#: thermal_drift 1016 (2.74 sigma, confident) -> ``unexplained``, and gen_a thermal_drift 1086 (1.03 sigma) too; it
+#: hedges gen_a thermal_drift 1110, 1194 and gen_b 1019 (0.137 -> 0.829 um) and swaps gen_a thermal_drift's warm-up
+#: on 73 of 200 campaigns for a mean extended error 0.249 -> 0.256 um: still off (the forms it takes are mostly
+#: inflated as well; :data:`FORM_BY_GAIN_DETERMINED_ONLY` is the lead).
 #: docs/discovery.md, "Session 29: the form of largest held-out gain without the drop".
 VIF_FORM_BY_GAIN = False
 #: With :data:`VIF_FORM_BY_GAIN`: another form is taken only where it is itself within ``vif_max`` in every direction
-#: (True; the adopted form is kept otherwise). Off (session 29, form29, "v9b"; measured only where v9 moved a form).
+#: (True; the adopted form is kept otherwise). Off (session 29, form29, "v9b", rerun where v9's step was reached): it
+#: mends the same five of the seven and moves no record on gen_b's 360 nor gen_a thermal_drift's mean, but leaves
+#: gen_a c_drift 1076 right -> wrong (0.85 sigma) and hedges c_drift 1139 (3.13 sigma) and thermal_drift 1110 (2.74).
+#: docs/discovery.md, "Session 29: the form of largest held-out gain without the drop".
 FORM_BY_GAIN_DETERMINED_ONLY = False
 #: With :data:`VIF_FORM_BY_GAIN`: another form is taken only where its held-out mean square lies below the adopted
-#: form's by the round's materiality margin ``(material_sigma * sigma)^2`` (True). Off (session 29, form29, "v9c").
+#: form's by the round's materiality margin ``(material_sigma * sigma)^2`` (True). Off (session 29, form29, "v9c":
+#: 1929 left unmended, gen_a c_drift 1076 right -> wrong, thermal_drift 1110 and 1194 hedged).
 FORM_BY_GAIN_MATERIAL = False
 
 
