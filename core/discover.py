@@ -5584,8 +5584,26 @@ VIF_DROP_LEAST_INFLATION = False
 #: inflated form fails it) but carries the drop's costs (7 gen_a campaigns named -> hedged, gen_a's mean extended error
 #: +0.057 um) and moves gen_a c_drift 1076 (0.85 sigma) and gen_b thermal_drift 1016 (2.74 sigma) right -> wrong;
 #: :data:`FORM_SHIFT_CARRIED` is on instead. docs/discovery-studies.md, "Session 28: the workpiece not determined between a
-#: cause's forms".
+#: cause's forms". Measured alone too (session 29, form29, "v9": the drop off, :data:`FORM_SHIFT_CARRIED` on, the shift
+#: then read against the chosen form's other forms): it mends five of the seven by the estimate (7302 12.815 -> 0.612
+#: um, U95 12.483 -> 0.671; 1682, 1904, 1929, 1998) and costs none of the drop's hedging on lobing_per_setup, but the
+#: names session 28 put on the drop move again, so they were the choice's: gen_a c_drift 1076 (0.85 sigma) and gen_b
+#: thermal_drift 1016 (2.74 sigma, confident) -> ``unexplained``, and gen_a thermal_drift 1086 (1.03 sigma) too; it
+#: hedges gen_a thermal_drift 1110, 1194 and gen_b 1019 (0.137 -> 0.829 um) and swaps gen_a thermal_drift's warm-up
+#: on 73 of 200 campaigns for a mean extended error 0.249 -> 0.256 um: still off (the forms it takes are mostly
+#: inflated as well; :data:`FORM_BY_GAIN_DETERMINED_ONLY` is the lead).
+#: docs/discovery.md, "Session 29: the form of largest held-out gain without the drop".
 VIF_FORM_BY_GAIN = False
+#: With :data:`VIF_FORM_BY_GAIN`: another form is taken only where it is itself within ``vif_max`` in every direction
+#: (True; the adopted form is kept otherwise). Off (session 29, form29, "v9b", rerun where v9's step was reached): it
+#: mends the same five of the seven and moves no record on gen_b's 360 nor gen_a thermal_drift's mean, but leaves
+#: gen_a c_drift 1076 right -> wrong (0.85 sigma) and hedges c_drift 1139 (3.13 sigma) and thermal_drift 1110 (2.74).
+#: docs/discovery.md, "Session 29: the form of largest held-out gain without the drop".
+FORM_BY_GAIN_DETERMINED_ONLY = False
+#: With :data:`VIF_FORM_BY_GAIN`: another form is taken only where its held-out mean square lies below the adopted
+#: form's by the round's materiality margin ``(material_sigma * sigma)^2`` (True). Off (session 29, form29, "v9c":
+#: 1929 left unmended, gen_a c_drift 1076 right -> wrong, thermal_drift 1110 and 1194 hedged).
+FORM_BY_GAIN_MATERIAL = False
 
 
 def _beyond_vif_max(ev: dict, settings) -> bool:
@@ -5610,6 +5628,13 @@ def _least_inflated_form(out, chosen, owns, other_forms, cause, scans, tries, bl
             failed.append(alt)
         else:
             passed.append((alt, res))
+    if VIF_FORM_BY_GAIN and (FORM_BY_GAIN_DETERMINED_ONLY or FORM_BY_GAIN_MATERIAL):
+        # (session 29's variants: an alternative only where it is within vif_max in every direction, and / or where
+        # its held-out mean square lies below the adopted form's by the round's materiality margin)
+        margin = settings.material_sigma ** 2 * sigma ** 2 if FORM_BY_GAIN_MATERIAL else 0.0
+        passed = [(a, r) for a, r in passed if a is chosen or (
+            (not FORM_BY_GAIN_DETERMINED_ONLY or not _beyond_vif_max(r["term"].evidence, settings))
+            and r["cv"] < out["cv"] - margin)]
     alt, res = min(passed, key=lambda ar: ar[1]["cv"] if VIF_FORM_BY_GAIN else ar[1]["term"].evidence["vif"])
     if alt is not chosen:
         res["term"].evidence["least_inflated_form"] = (
