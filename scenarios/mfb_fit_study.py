@@ -80,6 +80,7 @@ def one(kind: str, r: int, directory) -> dict:
         ins, tot = ins + k, tot + int(m.sum())
     return {"kind": kind, "r": r, "seed": 4000 + r, "rms_residual_um": d["rms_residual_um"],
             "lack_of_fit": d.get("lack_of_fit"), "note": d.get("model_fit_note"), "within": [ins, tot],
+            "model_error": d.get("model_error"),
             "per_error": per}
 
 
@@ -97,6 +98,15 @@ def tally(paths) -> str:
         out.append(f"{kind}: {len(rs)} runs, note fired on {fired}; within U95 {ins}/{tot} = {ins / tot:.3f}; "
                    f"tested ratio {ratio[0]:.2f}-{ratio[-1]:.2f} (median {ratio[len(ratio) // 2]:.2f}); "
                    f"p from {p[0]:.1e} (median {p[len(p) // 2]:.1e})")
+        me = [x.get("model_error") for x in rs]
+        if any(m is not None for m in me):  # the model-error share (session 29, F2b)
+            ent = [m for m in me if m and m["entered"]]
+            grow = sorted(m["u95_growth"]["median"] for m in ent if "u95_growth" in m)
+            allg = sorted(grow + [0.0] * (len(rs) - len(grow)))
+            tabs = sorted({s for m in ent for s in m["entered"]})
+            out.append(f"  model-error share entered on {len(ent)}/{len(rs)} runs ({', '.join(tabs) or 'none'}); "
+                       f"median U95 growth per run: median over runs {allg[len(allg) // 2]:.3f}"
+                       + (f", over the runs it entered {grow[0]:.3f}-{grow[-1]:.3f}" if grow else ""))
         if fired and fired < len(rs):
             a = [x for x in rs if x["note"]]
             b = [x for x in rs if not x["note"]]
