@@ -1682,8 +1682,12 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 #: The residuals' model-error share in the U95 (:func:`core.volumetric.model_error_share`, review29b F2b):
 #: per motion table a fine table (1 mm) entering when the residuals show it (z > 3 over the probing noise),
 #: propagated through K into the node values, the U95 and the covariance. Session 29, docs/papers-mfb.md
-#: "A model-error share in the U95 (session 29)".
-MFB_MODEL_ERROR_SHARE = True
+#: "A model-error share in the U95 (session 29)". OFF: validated on the review's truths, but on the 3-axis
+#: budget study's runs (stylus, lobing and temperature drawn, outside the noise model) the lack-of-fit gate
+#: opens on most runs and the share widens their own U95: the stored 1,000-run studies
+#: (scenarios/data/mfb-*-budget-study.npz, their doc tables) hold the U95 without it and must be made
+#: again before it is on (docs/papers-mfb.md, that section).
+MFB_MODEL_ERROR_SHARE = False
 #: The model-error share enters only when :func:`core.volumetric.lack_of_fit` rejects the noise model (the
 #: run's ``model_fit_note``): without this gate the per-table z > 3 rule let a share into the U95 on 10 of
 #: the realistic machine's 40 seeds (z 3.1-5.2, no note on any) and on the demo's 3-axis seed 1 (EBX, z 3.6,

@@ -14,6 +14,9 @@ out)::
     python -m scenarios.mfb_fit_study realistic 0 40 OUT.jsonl
     python -m scenarios.mfb_fit_study --tally OUT.jsonl ...
 
+``--share`` turns the model-error share on (:data:`scenarios.mfb.MFB_MODEL_ERROR_SHARE`, OFF by default);
+the tally then reports its entries and the U95's growth.
+
 About 7 s per run.
 """
 
@@ -117,12 +120,17 @@ def tally(paths) -> str:
 
 
 def main(argv=None) -> int:
-    a = sys.argv[1:] if argv is None else argv
+    a = list(sys.argv[1:] if argv is None else argv)
+    if "--share" in a:  # the model-error share in the U95 (scenarios.mfb.MFB_MODEL_ERROR_SHARE, OFF by default)
+        import scenarios.mfb
+
+        a.remove("--share")
+        scenarios.mfb.MFB_MODEL_ERROR_SHARE = True
     if a and a[0] == "--tally":
         print(tally(a[1:]))
         return 0
     if len(a) != 4 or a[0] not in ("short", "long", "realistic"):
-        print("usage: python -m scenarios.mfb_fit_study short|long|realistic R_LO R_HI OUT.jsonl "
+        print("usage: python -m scenarios.mfb_fit_study [--share] short|long|realistic R_LO R_HI OUT.jsonl "
               "| --tally OUT.jsonl ...", file=sys.stderr)
         return 2
     kind, lo, hi, out = a[0], int(a[1]), int(a[2]), Path(a[3])
