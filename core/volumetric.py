@@ -1146,9 +1146,24 @@ def _ripple_cols(ripples, K) -> np.ndarray | None:
     return C
 
 
+def _model_error_cols(C, K) -> np.ndarray | None:
+    """The model-error share's columns (:func:`model_error_share`), checked; None when none (or no column)."""
+    if C is None:
+        return None
+    C = np.asarray(C, float)
+    if C.ndim != 2 or C.shape[0] != K.shape[0] or not np.all(np.isfinite(C)):
+        raise ConfigError(f"model_error: finite ({K.shape[0]}, c) columns (model_error_share), got {C.shape}")
+    if C.shape[1] == 0:
+        return None
+    if C.shape[1] > K.shape[0]:  # as many columns as values at most (the same C C^T)
+        Q, Rr = np.linalg.qr(C.T)
+        C = Rr.T
+    return C
+
+
 def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, runs: int = 1000,
                 rng: np.random.Generator | None = None, u_place=None, cal_map=None,
-                ripples=None) -> VolumetricUncertainty:
+                ripples=None, model_error=None) -> VolumetricUncertainty:
     """Linear propagation and Monte Carlo (JCGM 101) of probing noise, bar calibration and placement.
 
     Parameters
@@ -1180,6 +1195,10 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
         Declared periodic errors the tables cannot hold (:func:`ripple_columns`), each of unknown phase
         (uniform): a type B term, ``C C^T / 2`` in the linear propagation, ``C[:, 0] cos phi + C[:, 1] sin phi``
         with phi drawn uniform in the Monte Carlo (after every other draw: without ripples nothing moves).
+    model_error : (n, c) float, optional
+        The model-error share's columns (:func:`model_error_share`, ``columns``, in ``res``'s form): ``C C^T``
+        in the linear propagation, ``C`` times standard normal draws in the Monte Carlo (drawn after the
+        ripples: without it nothing moves).
 
     Linear propagation: ``u^2 = sum (K G)^2 sigma^2 + (K B u_cal)^2 +
     (K B_p u_place)^2`` (JCGM 100 eq. 13 for the linear estimator ``K``);
@@ -1212,6 +1231,9 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
     C = _ripple_cols(ripples, K)
     if C is not None:
         var += 0.5 * np.einsum("ij,ij->i", C, C)
+    Cm = _model_error_cols(model_error, K)
+    if Cm is not None:
+        var += np.einsum("ij,ij->i", Cm, Cm)
     u = np.sqrt(var)
     lo = hi = U = np.zeros(0)
     if runs:
@@ -1226,6 +1248,8 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
         if C is not None:
             phi = rng.uniform(0.0, 2.0 * np.pi, (C.shape[1] // 2, runs))
             d += C[:, 0::2] @ np.cos(phi) + C[:, 1::2] @ np.sin(phi)
+        if Cm is not None:
+            d += Cm @ rng.standard_normal((Cm.shape[1], runs))
         lo = res.theta + np.percentile(d, 2.5, axis=1)
         hi = res.theta + np.percentile(d, 97.5, axis=1)
         U = 0.5 * (hi - lo)
@@ -1233,7 +1257,7 @@ def uncertainty(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, *, r
 
 
 def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
-               cal_map=None, ripples=None) -> np.ndarray:
+               cal_map=None, ripples=None, model_error=None) -> np.ndarray:
     """(n, n) covariance of ``res.theta`` by linear propagation, the same inputs as :func:`uncertainty`.
 
     ``K G G^T K^T sigma^2`` per measurement plus ``(K B M) diag(u_cal^2) (K B M)^T`` (M = ``cal_map``,
@@ -1254,7 +1278,9 @@ def covariance(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pla
     KP = (K @ Bp) * np.tile(up, Bp.shape[1] // 6)[None, :]
     cov = cov + KB @ KB.T + KP @ KP.T
     C = _ripple_cols(ripples, K)
-    return cov if C is None else cov + 0.5 * (C @ C.T)
+    cov = cov if C is None else cov + 0.5 * (C @ C.T)
+    Cm = _model_error_cols(model_error, K)
+    return cov if Cm is None else cov + Cm @ Cm.T
 
 
 def estimate(res: VolumetricResult, cov: np.ndarray) -> dict:
@@ -1518,3 +1544,185 @@ def lack_of_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pl
     p = float(chi2.sf(q / c, nu))
     return LackOfFit(float(np.sqrt(r @ r / len(r))), float(np.sqrt(t_all / len(r))), float(nu), p,
                      p >= LACK_OF_FIT_P, float(np.sqrt(q / t1)))
+
+
+# --------------------------------------------------------------------------- model-error share (session 29)
+#: Step of the fine tables that stand for what the MFB's tables cannot follow (:func:`model_error_share`), m:
+#: :data:`core.uncertainty.MODEL_ERROR_STEP_M`'s 1 mm.
+MFB_MODEL_ERROR_STEP_M = 1.0e-3
+#: A table's model-error component enters the MFB's U95 when its residual statistic exceeds what the probing
+#: noise alone gives by this many standard deviations (:data:`core.uncertainty.MODEL_ERROR_Z`'s rule).
+MFB_MODEL_ERROR_Z = 3.0
+
+
+@dataclass(frozen=True)
+class ModelErrorShare:
+    """What the residuals show the tables miss, per motion table (:func:`model_error_share`).
+
+    Attributes
+    ----------
+    u : dict
+        symbol -> the fine table's estimated standard deviation (m or rad; 0 when it did not enter).
+    z : dict
+        symbol -> its statistic's excess over the probing noise's expectation, in standard deviations.
+    entered : tuple
+        The symbols whose share entered (z > :data:`MFB_MODEL_ERROR_Z` and a positive variance).
+    columns : (n, c) float
+        The estimate's error from the entered shares, ``cov = C C^T`` (the design's gauge); (n, 0) when none.
+    """
+
+    u: dict
+    z: dict
+    entered: tuple
+    columns: np.ndarray
+
+    def as_dict(self) -> dict:
+        def unit(s):
+            return "urad" if iso.symbol(s).angular else "um"
+
+        return {"entered": list(self.entered), "step_mm": MFB_MODEL_ERROR_STEP_M * 1e3, "z_min": MFB_MODEL_ERROR_Z,
+                "u": {s: {"u_" + unit(s): self.u[s] * 1e6, "z": self.z[s]} for s in self.entered},
+                "z": {s: round(float(v), 2) for s, v in self.z.items()}}
+
+
+def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float):
+    """(Phi (m, f), S (n, f)): a fine table of ``symbol`` (hat functions ``step_m`` apart over the axis
+    positions the touches and the nodes span) as the rows of (1) see it (as :func:`ripple_columns` carries a
+    function of the axis position: each touch's sensitivity along its approach, the extraction's gain, the
+    shifted holes without z_A), and its values at ``symbol``'s nodes in the design's gauge."""
+    ks, ax = MOTION.index(symbol), iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
+    d = res.design
+    x_n = np.asarray(d.nodes[iso.symbol(symbol).axis], float)
+    Sd = None
+    if prep.batch is not None:
+        St, _, at = _touch_kinematics(prep, None, d.slices, False, True)
+        Sd = np.einsum("tj,tj->t", prep.batch["d_W"], St[:, :, ks])
+    xs = [pm["qt"][:, ax] + pm["g"].J_m[ax] if pm["touches"] else pm["q"][:, ax] + pm["g"].J_m[ax] for pm in prep]
+    lo = min(float(x_n.min()), *(float(x.min()) for x in xs))
+    hi = max(float(x_n.max()), *(float(x.max()) for x in xs))
+    f = max(int(np.ceil((hi - lo) / step_m - 1e-9)), 1)
+    h = (hi - lo) / f
+
+    def hat(x):
+        k = np.clip(np.floor((x - lo) / h).astype(int), 0, f - 1)
+        z = (x - lo) / h - k
+        W = np.zeros((len(x), f + 1))
+        np.add.at(W, (np.arange(len(x)), k), 1 - z)
+        np.add.at(W, (np.arange(len(x)), k + 1), z)
+        return W
+
+    Phi = np.zeros((res.K.shape[1], f + 1))
+    r0 = 0
+    for i, (pm, x) in enumerate(zip(prep, xs)):
+        k = pm["k"]
+        H = hat(x)
+        if pm["touches"]:
+            t = len(x)
+            dy = (pm["GW"].reshape(3 * k, t) @ (Sd[at[i]:at[i] + t, None] * H)).reshape(k, 3, f + 1)
+        else:
+            S = sensitivity(pm["g"], pm["q"], pm["rot"], None, symbols=MOTION + SQUARENESS)[:, :, ks]
+            dy = S[:, :, None] * H[:, None, :]
+        dy[pm["off"]] = np.einsum("ij,kjf->kif", pm["Pz"], dy[pm["off"]])
+        Phi[r0:r0 + 3 * k] = dy.reshape(3 * k, f + 1)
+        r0 += 3 * k
+    S = np.zeros((len(d.names), f + 1))
+    S[d.slices[symbol]] = hat(x_n)
+    S = np.column_stack([d.to_gauge(S[:, j]) for j in range(f + 1)])
+    return Phi, S
+
+
+def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
+                      cal_map=None, step_m: float = MFB_MODEL_ERROR_STEP_M,
+                      z_min: float = MFB_MODEL_ERROR_Z) -> ModelErrorShare | None:
+    """The MFB's model-error share: per motion table, a fine table the residuals show the tables miss.
+
+    :func:`core.uncertainty.model_error_budget`'s way for the MFB's correlated inputs: each motion table
+    ``T`` gets a fine table ``e_T`` (hat functions ``step_m`` apart, independent values of variance
+    ``s_T^2``) seen by the rows of (1) as ``Phi_T e_T`` (:func:`_fine_rows`); the estimate's error moves by
+    ``G_T e_T``, ``G_T = K Phi_T - S_T`` (``S_T`` its node values, the measurand's share the tables do not
+    follow, in the design's gauge). The residuals, with the bar calibration's and the placements' few
+    directions projected out as :func:`lack_of_fit` does (``rp = P r``, ``Rp = P (I - J K)``), are
+    ``Rp (sum_T Phi_T e_T + noise)``; with ``W_T = Rp Phi_T`` the statistic ``q_T = |W_T^T rp|^2`` has the
+    probing noise's expectation ``tr(W_T^T Mp W_T)`` (``Mp`` the projected residuals' probing-noise
+    covariance) and variance ``2 |W_T^T Mp W_T|_F^2``; a table enters when ``q_T`` exceeds that by
+    ``z_min`` standard deviations, and the entered tables' ``s_T^2`` solve the moment equations ``q_T -
+    tr(W_T^T Mp W_T) = sum_U s_U^2 |W_T^T W_U|_F^2`` non-negative (the probing noise known).
+
+    Returns None when there is no probing noise to test against (``sigma_probe_m`` 0).
+
+    Raises
+    ------
+    ConfigError
+        ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0;
+        ``step_m`` not > 0; ``z_min`` not finite.
+    """
+    from scipy.optimize import nnls
+
+    if not (np.isfinite(sigma_probe_m) and sigma_probe_m >= 0):
+        raise ConfigError(f"model_error_share: sigma_probe_m must be >= 0, got {sigma_probe_m!r}")
+    u_cal = np.asarray(u_cal_m, float)
+    if u_cal.ndim != 2 or u_cal.shape[1] != 3 or not np.all(np.isfinite(u_cal)):
+        raise ConfigError(f"model_error_share: u_cal_m must be finite (N, 3), got {u_cal.shape}")
+    up = np.zeros(6) if u_place is None else np.asarray(u_place, float)
+    if up.shape != (6,) or not np.all(np.isfinite(up)) or np.any(up < 0):
+        raise ConfigError(f"model_error_share: u_place must be 6 finite values >= 0, got {u_place!r}")
+    if not (np.isfinite(step_m) and step_m > 0):
+        raise ConfigError(f"model_error_share: step_m must be > 0, got {step_m!r}")
+    if not np.isfinite(z_min):
+        raise ConfigError(f"model_error_share: z_min must be finite, got {z_min!r}")
+    if sigma_probe_m == 0:
+        return None
+    meas = list(meas)
+    d = res.design
+    prep = _prepare_all(meas, res.chain, res.rotary_points_R_m, d.nodes)
+    if res.iterations:
+        J, r, _ = _rows(meas, res.chain, res.rotary_points_R_m, d.nodes, res.theta, d.slices, len(res.theta),
+                        exact=True, prep=prep)
+    else:
+        J, r = d.A, d.y - d.A @ res.theta
+    blocks, B, Bp = _input_maps(res, meas, u_cal.shape[0])
+    m = len(r)
+    Sp = np.zeros((m, m))
+    for r0, GR in blocks:
+        Sp[r0:r0 + GR.shape[0], r0:r0 + GR.shape[0]] = sigma_probe_m ** 2 * (GR @ GR.T)
+    Lc = np.hstack([_cal_columns(np.eye(m), B, u_cal, cal_map), Bp * np.tile(up, Bp.shape[1] // 6)[None, :]])
+    Pz = np.eye(m)
+    r0 = 0
+    for pm in prep:
+        for hh in np.flatnonzero(pm["off"]):
+            Pz[r0 + 3 * hh:r0 + 3 * hh + 3, r0 + 3 * hh:r0 + 3 * hh + 3] = pm["Pz"]
+        r0 += 3 * pm["k"]
+    Sp = Pz @ Sp @ Pz.T
+    R = np.eye(m) - J @ res.K
+    RLc = R @ (Pz @ Lc)
+    U, sv, _ = np.linalg.svd(RLc, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-9] if len(sv) and sv[0] > 0 else U[:, :0]
+    rp = r - U @ (U.T @ r)
+    Rp = R - U @ (U.T @ R)
+    Mp = Rp @ Sp @ Rp.T
+    syms = list(MOTION)
+    fine = [_fine_rows(res, meas, prep, s, step_m) for s in syms]
+    Ws = []  # each W_T compressed to its column space (m, rank): W_T W_T^T unchanged
+    for Phi, _ in fine:
+        W = Rp @ Phi
+        Uw, sw, _ = np.linalg.svd(W, full_matrices=False)
+        keep = sw > (sw[0] * 1e-10 if len(sw) and sw[0] > 0 else np.inf)
+        Ws.append(Uw[:, keep] * sw[keep])
+    q = np.array([float(np.sum((W.T @ rp) ** 2)) for W in Ws])
+    WM = [W.T @ Mp @ W for W in Ws]
+    e0 = np.array([float(np.trace(a)) for a in WM])
+    v0 = np.array([2.0 * float(np.sum(a * a)) for a in WM])
+    z = np.where(v0 > 0, (q - e0) / np.sqrt(np.where(v0 > 0, v0, 1.0)), 0.0)
+    kept = np.flatnonzero(z > z_min)
+    s2 = np.zeros(len(syms))
+    if kept.size:
+        X = np.array([[float(np.sum((Ws[a].T @ Ws[b]) ** 2)) for b in kept] for a in kept])
+        scale = np.sqrt((X ** 2).sum(axis=0))
+        sol, _ = nnls(X / scale, q[kept] - e0[kept])
+        s2[kept] = sol / scale
+    cols = [np.sqrt(s2[k]) * (res.K @ fine[k][0] - fine[k][1]) for k in np.flatnonzero(s2 > 0)]
+    C = np.hstack(cols) if cols else np.zeros((res.K.shape[0], 0))
+    C[~np.any(res.K != 0, axis=1)] = 0.0  # the values the gauge fixes keep no uncertainty
+    return ModelErrorShare({s: float(np.sqrt(v)) for s, v in zip(syms, s2)},
+                           {s: float(v) for s, v in zip(syms, z)},
+                           tuple(s for s, v in zip(syms, s2) if v > 0), C)

@@ -14,6 +14,9 @@ out)::
     python -m scenarios.mfb_fit_study realistic 0 40 OUT.jsonl
     python -m scenarios.mfb_fit_study --tally OUT.jsonl ...
 
+``--share`` turns the model-error share on (:data:`scenarios.mfb.MFB_MODEL_ERROR_SHARE`, OFF by default);
+the tally then reports its entries and the U95's growth.
+
 About 7 s per run.
 """
 
@@ -80,6 +83,7 @@ def one(kind: str, r: int, directory) -> dict:
         ins, tot = ins + k, tot + int(m.sum())
     return {"kind": kind, "r": r, "seed": 4000 + r, "rms_residual_um": d["rms_residual_um"],
             "lack_of_fit": d.get("lack_of_fit"), "note": d.get("model_fit_note"), "within": [ins, tot],
+            "model_error": d.get("model_error"),
             "per_error": per}
 
 
@@ -97,6 +101,15 @@ def tally(paths) -> str:
         out.append(f"{kind}: {len(rs)} runs, note fired on {fired}; within U95 {ins}/{tot} = {ins / tot:.3f}; "
                    f"tested ratio {ratio[0]:.2f}-{ratio[-1]:.2f} (median {ratio[len(ratio) // 2]:.2f}); "
                    f"p from {p[0]:.1e} (median {p[len(p) // 2]:.1e})")
+        me = [x.get("model_error") for x in rs]
+        if any(m is not None for m in me):  # the model-error share (session 29, F2b)
+            ent = [m for m in me if m and m["entered"]]
+            grow = sorted(m["u95_growth"]["median"] for m in ent if "u95_growth" in m)
+            allg = sorted(grow + [0.0] * (len(rs) - len(grow)))
+            tabs = sorted({s for m in ent for s in m["entered"]})
+            out.append(f"  model-error share entered on {len(ent)}/{len(rs)} runs ({', '.join(tabs) or 'none'}); "
+                       f"median U95 growth per run: median over runs {allg[len(allg) // 2]:.3f}"
+                       + (f", over the runs it entered {grow[0]:.3f}-{grow[-1]:.3f}" if grow else ""))
         if fired and fired < len(rs):
             a = [x for x in rs if x["note"]]
             b = [x for x in rs if not x["note"]]
@@ -107,12 +120,17 @@ def tally(paths) -> str:
 
 
 def main(argv=None) -> int:
-    a = sys.argv[1:] if argv is None else argv
+    a = list(sys.argv[1:] if argv is None else argv)
+    if "--share" in a:  # the model-error share in the U95 (scenarios.mfb.MFB_MODEL_ERROR_SHARE, OFF by default)
+        import scenarios.mfb
+
+        a.remove("--share")
+        scenarios.mfb.MFB_MODEL_ERROR_SHARE = True
     if a and a[0] == "--tally":
         print(tally(a[1:]))
         return 0
     if len(a) != 4 or a[0] not in ("short", "long", "realistic"):
-        print("usage: python -m scenarios.mfb_fit_study short|long|realistic R_LO R_HI OUT.jsonl "
+        print("usage: python -m scenarios.mfb_fit_study [--share] short|long|realistic R_LO R_HI OUT.jsonl "
               "| --tally OUT.jsonl ...", file=sys.stderr)
         return 2
     kind, lo, hi, out = a[0], int(a[1]), int(a[2]), Path(a[3])

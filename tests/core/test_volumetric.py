@@ -306,3 +306,38 @@ def test_lack_of_fit_known_answers_and_bad_input(meas3):
                         ((1e-7, np.zeros((12, 2))), "u_cal_m"), ((1e-7, u0, (1e-4,)), "u_place")):
         with pytest.raises(ConfigError, match=match):
             vol.lack_of_fit(res, meas, *args)
+
+
+def test_model_error_share_enters_only_when_residuals_show_it_and_bad_input(meas3):
+    # review29b F2b. The same noise-free measurements as the lack-of-fit test: against the probe's
+    # 0.125 um the model's own truncation (nm) is far inside the noise, so no table enters (z <= 3)
+    # and the U95 is unchanged to the last bit; against a 1 pm probe the same residuals are far beyond
+    # it, so shares enter and the U95 grows by exactly their columns (u^2 adds: rel 1e-12, rounding).
+    meas, chain, nodes, rp = meas3
+    res = vol.identify_volumetric(meas, chain, nodes, rp)
+    u0 = np.zeros((12, 3))
+    quiet = vol.model_error_share(res, meas, 0.125e-6, u0)
+    assert quiet.entered == () and quiet.columns.shape == (len(res.theta), 0)
+    assert max(quiet.z.values()) <= vol.MFB_MODEL_ERROR_Z and set(quiet.z) == set(vol.MOTION)
+    loud = vol.model_error_share(res, meas, 1e-12, u0)
+    assert loud.entered and all(loud.z[s] > vol.MFB_MODEL_ERROR_Z and loud.u[s] > 0 for s in loud.entered)
+    assert all(loud.u[s] == 0 for s in vol.MOTION if s not in loud.entered)
+    base = vol.uncertainty(res, meas, 1e-12, u0, runs=0)
+    same = vol.uncertainty(res, meas, 1e-12, u0, runs=0, model_error=quiet.columns)
+    assert np.array_equal(base.u_lin, same.u_lin)
+    wide = vol.uncertainty(res, meas, 1e-12, u0, runs=0, model_error=loud.columns)
+    add = np.einsum("ij,ij->i", loud.columns, loud.columns)
+    np.testing.assert_allclose(wide.u_lin ** 2, base.u_lin ** 2 + add, rtol=1e-12, atol=1e-40)
+    assert np.any(add > 0)
+    cov = vol.covariance(res, meas, 1e-12, u0, model_error=loud.columns)
+    np.testing.assert_allclose(np.diag(cov), wide.u_lin ** 2, rtol=1e-9, atol=1e-40)
+    assert vol.model_error_share(res, meas, 0.0, u0) is None
+    d = loud.as_dict()
+    assert d["entered"] == list(loud.entered) and set(d["u"]) == set(loud.entered)
+    for args, kw, match in (((-1e-7, u0), {}, "sigma_probe_m"), ((float("nan"), u0), {}, "sigma_probe_m"),
+                            ((1e-7, np.zeros((12, 2))), {}, "u_cal_m"), ((1e-7, u0, (1e-4,)), {}, "u_place"),
+                            ((1e-7, u0), {"step_m": 0.0}, "step_m"), ((1e-7, u0), {"z_min": float("nan")}, "z_min")):
+        with pytest.raises(ConfigError, match=match):
+            vol.model_error_share(res, meas, *args, **kw)
+    with pytest.raises(ConfigError, match="model_error"):
+        vol.uncertainty(res, meas, 1e-7, u0, runs=0, model_error=np.zeros((3, 1)))
