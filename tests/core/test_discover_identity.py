@@ -244,18 +244,6 @@ of gen_a probe_lobing 302 gains ``log10_odds_fixed`` and ``log10_odds_most``
 and 10.13); no decision moved (the demo was ambiguous by ``p_turned`` 0.015,
 302 by its other reasons), every other leaf as stored (/work/team/s27/refresh.py
 with those two keys' paths alone).
-
-Refreshed for the planar baseline's Abbe height terms (session 29, rs29,
-``core.baseline.PLANAR_ABBE``): 14 of the stored campaigns gain two baseline
-columns (``n_params`` + 2), so every figure of theirs moved
-(rms, p-values, workpiece estimates and U95); no campaign's cause, findings or
-confidence moved; gen_b stylus_pickup 501's evidence lists moved
-(``partially_consistent_with``, ``rejected``, a ``dropped_still_significant``
-entry in the extended structure). gen_a knock 1 and nonrigid 2 (C angles 90
-deg apart, workpiece not identifiable) moved in one leaf only: the unseen
-combinations their message counts, 18 -> 20 (the two Abbe shears are among
-them on that design; residuals unchanged). Every leaf rewritten
-(/work/team/s29/refresh.py with the pattern ".").
 """
 
 from __future__ import annotations

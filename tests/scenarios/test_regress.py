@@ -119,11 +119,14 @@ def test_there_is_an_example_per_identification():
 
 
 #: Examples that FAIL, and the one failure each gives: a finding of the code under test, kept visible (not
-#: loosened away) until the code changes. None since session 29 (rs29): discover-nmv3000 failed on seed 1 (review29c
-#: F3, rf29: ``unexplained`` beside the screw, a 0.1 um structure per feature and set-up) until the planar
-#: baseline carried identify's Abbe height terms (``core.baseline.PLANAR_ABBE``): the realistic machine's X pitch
-#: ramp and Y roll through the spheres' 25.7 mm height, which the per-set-up tilt alone could not hold.
-KNOWN_FAILING: dict = {}
+#: loosened away) until the code changes. discover-nmv3000 (review29c F3, rf29): since a discover study states
+#: the whole set of causes, its realistic ripple-free machine (the 'no hidden effect' set the LUT models
+#: represent) reads ``unexplained`` beside the screw on seed 1 (13 of seeds 1-20; without the screw 12 of 20,
+#: and ``outlier`` 2 of 20): a 0.1 um structure per feature and set-up that stays at 0.03 um probing noise
+#: while identify's tables leave 0.019 um RMS noise-free. When discover stops naming it this test fails: move
+#: the study back among those that pass.
+KNOWN_FAILING = {"regress-discover-nmv3000": "cause (seed 1): named periodic_axis_error, unexplained; not "
+                                             "expected: unexplained"}
 
 
 @pytest.mark.parametrize("stem", [p.stem for p in EXAMPLES])
