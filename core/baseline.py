@@ -471,7 +471,7 @@ def centred_grid(p_R: np.ndarray, step_m: float) -> selfcal.Grid:
 #: fits. Without them (before session 29) a realistic nmv3000's X pitch ramp ``EBX`` (98 urad/m) and Y roll ``EAY``
 #: through the cross pocket's 25.7 mm sphere height left 0.107 um RMS noise-free (identify: 0.0185 um) that
 #: discover read as ``unexplained`` ("residuals follow the feature, differently in each set-up") on 3/20 of the
-#: regress study's seeds with the screw, 6/20 without (docs/discovery.md, "Session 29: the 0.1 um discover
+#: regress study's seeds with the screw, 6/20 without (docs/discovery-studies.md, "Session 29: the 0.1 um discover
 #: called unexplained ...", rs29). Built and OFF: on, it moves 42 discover tests that pin figures of stored or
 #: generated two-level campaigns (tests/core/test_discover_misses.py 18 of them), not reviewed by session 29's
 #: deadline. False: the per-set-up tilt only, as before.
@@ -802,7 +802,7 @@ VOLUMETRIC_FOLDS = 4
 #: Gauss-Newton identification plus the first-order model there), not (2)'s own left side. (2) is first
 #: order in the placement errors, and a bar turned by w (pitch, yaw) reads a length changed by
 #: -(w_y^2 + w_z^2) / 2 (0.7 ppm from placement to placement at the default placement tolerance), which
-#: no placement column absorbs and a scale drift between placements takes. Session 29 (docs/discovery.md,
+#: no placement column absorbs and a scale drift between placements takes. Session 29 (docs/discovery-studies.md,
 #: "the volumetric drift magnitudes' U95 and the placements"): 20 MFB campaigns (seeds 5-24, the test's
 #: set-up, +-s injected), the thermal_drift magnitudes within their U95 39 -> 56 of 60 (+s), their error
 #: over the standard uncertainty the U95 implies RMS 2.2-3.4 -> 1.0-1.3; without placement draws the same

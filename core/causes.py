@@ -2219,7 +2219,7 @@ def reversal_scans(bl):
 #: first layout's columns) and by the net move of that axis from the previous touch in log order (the log's nominal
 #: positions): an axis whose lost motion is wound by the traverse between features, not by the probing stroke,
 #: reads reversal rather than a part_change on the first touch after the traverse (gen_c travel_hysteresis 5409).
-#: Bonferroni over the two layouts. On since session 29 (lobe29, docs/discovery.md "Session 29: the move-signed
+#: Bonferroni over the two layouts. On since session 29 (lobe29, docs/discovery-studies.md "Session 29: the move-signed
 #: reversal must earn its move"), with :data:`core.discover.REVERSAL_MOVE_EARNS`: the layout is taken only where its
 #: move pair is significant beside the approach pair (unguarded, r2b28 found it carrying the confounded approach pair
 #: into 14 of gen_b's 50 probe_lobing campaigns as a spurious secondary `reversal`). Measured, off against on with the

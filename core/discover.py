@@ -3739,7 +3739,7 @@ _PLAIN_STRUCTURE = [False]
 #: of freedom on gen_c): repeats drawn low (0.6-0.8 of the true noise) inflate it several times over, and the plain
 #: test then finds the coarse map's misfit, 0.24 of the noise, material (gen_c none 263, 274, 571 read `unexplained`
 #: on the lack of fit alone; 274 and 571 read none with it, 263 at F = 2.79 on (258, 40) still fires). Session 29
-#: (docs/discovery.md, "Session 29: gen_c's false alarms near the materiality").
+#: (docs/discovery-studies.md, "Session 29: gen_c's false alarms near the materiality").
 LOF_MATERIAL_TEST = True
 
 
@@ -3753,7 +3753,7 @@ LOF_MATERIAL_TEST = True
 #: confident; 0.053 debiased as the largest of 19). Measured on gen_c none 200-599 (the false alarms 10 -> 8 with
 #: :data:`LOF_MATERIAL_TEST`), every effect 200-239 (no cause or confidence changed; 17 second `unexplained` findings
 #: at 1.0-1.3 times the materiality dropped), gen_a, gen_b and the simulator (no cause changed but below visibility).
-#: Session 29 (docs/discovery.md, "Session 29: gen_c's false alarms near the materiality").
+#: Session 29 (docs/discovery-studies.md, "Session 29: gen_c's false alarms near the materiality").
 STRUCTURE_SELECTION_DEBIAS = True
 
 
@@ -4645,7 +4645,7 @@ def _support(bl, cause, info, st: _State, E: np.ndarray, reached_only: bool = Fa
 #: decide for the bump (with :data:`DEFECT_SEEN_BEYOND_ONE_PLACE_NAMED`, off, it would not be made ambiguous with
 #: ``outlier``); where they cannot tell (no other touch lies where the bump would move it detectably) the two
 #: readings are indistinguishable on the design and the finding stays ambiguous with ``outlier``, said in those
-#: words. Session 29 (out29, docs/discovery.md): the simulator's outlier 4021 and 4047 (tuning) and 6609 (blind)
+#: words. Session 29 (out29, docs/discovery-studies.md): the simulator's outlier 4021 and 4047 (tuning) and 6609 (blind)
 #: `local_scale_defect?` -> `outlier?`, nothing else moved on the tuning sets (gen_a/gen_b outlier and
 #: local_scale_defect 1000-1099, every effect 1000-1009, none 1000-1049; the simulator's 4000-4049 and every effect
 #: 4000-4019; gen_c 200-299 and every effect 200-219), no identity leaf. False: the behaviour before.
@@ -5592,13 +5592,13 @@ VIF_DROP_LEAST_INFLATION = False
 #: hedges gen_a thermal_drift 1110, 1194 and gen_b 1019 (0.137 -> 0.829 um) and swaps gen_a thermal_drift's warm-up
 #: on 73 of 200 campaigns for a mean extended error 0.249 -> 0.256 um: still off (the forms it takes are mostly
 #: inflated as well; :data:`FORM_BY_GAIN_DETERMINED_ONLY` is the lead).
-#: docs/discovery.md, "Session 29: the form of largest held-out gain without the drop".
+#: docs/discovery-studies.md, "Session 29: the form of largest held-out gain without the drop".
 VIF_FORM_BY_GAIN = False
 #: With :data:`VIF_FORM_BY_GAIN`: another form is taken only where it is itself within ``vif_max`` in every direction
 #: (True; the adopted form is kept otherwise). Off (session 29, form29, "v9b", rerun where v9's step was reached): it
 #: mends the same five of the seven and moves no record on gen_b's 360 nor gen_a thermal_drift's mean, but leaves
 #: gen_a c_drift 1076 right -> wrong (0.85 sigma) and hedges c_drift 1139 (3.13 sigma) and thermal_drift 1110 (2.74).
-#: docs/discovery.md, "Session 29: the form of largest held-out gain without the drop".
+#: docs/discovery-studies.md, "Session 29: the form of largest held-out gain without the drop".
 FORM_BY_GAIN_DETERMINED_ONLY = False
 #: With :data:`VIF_FORM_BY_GAIN`: another form is taken only where its held-out mean square lies below the adopted
 #: form's by the round's materiality margin ``(material_sigma * sigma)^2`` (True). Off (session 29, form29, "v9c":
@@ -6249,7 +6249,7 @@ MATERIALITY_OVER_SUPPORT = True
 #: lost motion 7.3 um signed by the approach against 0.24 um by the move, U95 0.23 um; on gen_b's along-normal
 #: approaches the approach-signed pair is ``|n_x| / 2``, ``|n_y| / 2``, whose difference carries the sixth harmonic of
 #: the azimuth, the generator's six-lobe part the catalogue's lobes (harmonics 1-4) lack). Session 29 (lobe29),
-#: docs/discovery.md "Session 29: the move-signed reversal must earn its move".
+#: docs/discovery-studies.md "Session 29: the move-signed reversal must earn its move".
 REVERSAL_MOVE_EARNS = True
 
 
@@ -8555,7 +8555,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
 #: that changes moves a wall, a ring, a boss: several targets; a change of one target has no spatial form to tell it
 #: from that touch's own history (gen_c travel_hysteresis 5409: bore2's first touch after the traverse, a wound lost
 #: motion's two levels in time order, read `part_change` confidently, share 0.91). Off: measured in session 29 (lobe29,
-#: docs/discovery.md "Session 29: the move-signed reversal must earn its move") on gen_a, gen_b, the simulator and
+#: docs/discovery-studies.md "Session 29: the move-signed reversal must earn its move") on gen_a, gen_b, the simulator and
 #: gen_c (1,150 campaigns, part_change 1000-1049 / 4000-4049 / 200-299 among them) it moves nothing right -> wrong or
 #: wrong -> right and hedges three right confident readings (gen_a part_change 1039, 1045, 1049: shares 0.83-0.93, a
 #: pin's wall is one target), while 5409 reads `reversal` through :data:`core.causes.REVERSAL_MOVE_SIGNED`.

@@ -1,6 +1,6 @@
 """PART_CHANGE_ONE_TARGET (R1 of session 28's diagnosis, built in session 29, lobe29): a part_change finding whose
 signal one target carries PART_CHANGE_ONE_TARGET_SHARE (0.8) or more of is named at most ambiguous
-(docs/discovery.md "Session 29: the move-signed reversal must earn its move").
+(docs/discovery-studies.md "Session 29: the move-signed reversal must earn its move").
 
 gen_c travel_hysteresis 5409 (session 28's blind seed, spent and opened for this work): a lost motion wound by the
 traverse between features changes bore2's first touch after it, in time order by the feature order; approach-signed

@@ -1,6 +1,6 @@
 """REVERSAL_MOVE_EARNS (session 29, lobe29): reversal's move-signed layout (core.causes.REVERSAL_MOVE_SIGNED) is taken
 only where its move-signed pair is significant beside the model and the approach-signed pair, under the cause's own
-Bonferroni count (docs/discovery.md "Session 29: the move-signed reversal must earn its move").
+Bonferroni count (docs/discovery-studies.md "Session 29: the move-signed reversal must earn its move").
 
 gen_b probe_lobing 1007 (tuning): gen_b hides no lost motion there. The approach-signed pair is refused beside the
 lobes (confounded, inflation 518); unguarded, the four columns come in as its fallback, passing the confounding
