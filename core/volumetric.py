@@ -1434,6 +1434,20 @@ def comp_tables(doc: dict) -> tuple[str, dict, dict, dict]:
 LACK_OF_FIT_P = 1e-3
 
 
+def _noise_inputs(who: str, sigma_probe_m, u_cal_m, u_place) -> tuple[np.ndarray, np.ndarray]:
+    """The residual tests' inputs checked (a bad one refused in one line naming ``who``): the probing sigma,
+    the bar calibration's (N, 3) u and the placements' six u (None: none); returns (u_cal, u_place)."""
+    if not (np.isfinite(sigma_probe_m) and sigma_probe_m >= 0):
+        raise ConfigError(f"{who}: sigma_probe_m must be >= 0, got {sigma_probe_m!r}")
+    u_cal = np.asarray(u_cal_m, float)
+    if u_cal.ndim != 2 or u_cal.shape[1] != 3 or not np.all(np.isfinite(u_cal)):
+        raise ConfigError(f"{who}: u_cal_m must be finite (N, 3), got {u_cal.shape}")
+    up = np.zeros(6) if u_place is None else np.asarray(u_place, float)
+    if up.shape != (6,) or not np.all(np.isfinite(up)) or np.any(up < 0):
+        raise ConfigError(f"{who}: u_place must be 6 finite values >= 0, got {u_place!r}")
+    return u_cal, up
+
+
 @dataclass(frozen=True)
 class LackOfFit:
     """The identification's residuals against what its inputs' noise alone would leave (:func:`lack_of_fit`).
@@ -1494,14 +1508,7 @@ def lack_of_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pl
     """
     from scipy.stats import chi2
 
-    if not (np.isfinite(sigma_probe_m) and sigma_probe_m >= 0):
-        raise ConfigError(f"lack_of_fit: sigma_probe_m must be >= 0, got {sigma_probe_m!r}")
-    u_cal = np.asarray(u_cal_m, float)
-    if u_cal.ndim != 2 or u_cal.shape[1] != 3 or not np.all(np.isfinite(u_cal)):
-        raise ConfigError(f"lack_of_fit: u_cal_m must be finite (N, 3), got {u_cal.shape}")
-    up = np.zeros(6) if u_place is None else np.asarray(u_place, float)
-    if up.shape != (6,) or not np.all(np.isfinite(up)) or np.any(up < 0):
-        raise ConfigError(f"lack_of_fit: u_place must be 6 finite values >= 0, got {u_place!r}")
+    u_cal, up = _noise_inputs("lack_of_fit", sigma_probe_m, u_cal_m, u_place)
     meas = list(meas)
     d = res.design
     if res.iterations:
@@ -1658,14 +1665,7 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     """
     from scipy.optimize import nnls
 
-    if not (np.isfinite(sigma_probe_m) and sigma_probe_m >= 0):
-        raise ConfigError(f"model_error_share: sigma_probe_m must be >= 0, got {sigma_probe_m!r}")
-    u_cal = np.asarray(u_cal_m, float)
-    if u_cal.ndim != 2 or u_cal.shape[1] != 3 or not np.all(np.isfinite(u_cal)):
-        raise ConfigError(f"model_error_share: u_cal_m must be finite (N, 3), got {u_cal.shape}")
-    up = np.zeros(6) if u_place is None else np.asarray(u_place, float)
-    if up.shape != (6,) or not np.all(np.isfinite(up)) or np.any(up < 0):
-        raise ConfigError(f"model_error_share: u_place must be 6 finite values >= 0, got {u_place!r}")
+    u_cal, up = _noise_inputs("model_error_share", sigma_probe_m, u_cal_m, u_place)
     if not (np.isfinite(step_m) and step_m > 0):
         raise ConfigError(f"model_error_share: step_m must be > 0, got {step_m!r}")
     if not np.isfinite(z_min):

@@ -8,21 +8,8 @@ import numpy as np
 import pytest
 
 from scenarios import mfb
+from scenarios.comprule_study import FIVE_ERRORS as MIX  # session 26's review machine: five errors
 from sim.machinefile import truth_machine
-
-MIX = """format = "vmt-machine/1"
-base = "vmc-3axis"
-[error.EC0Y]
-constant_urad = 20.0
-[error.EB0Z]
-constant_urad = -15.0
-[error.EXX]
-slope_um_per_m = 20.0
-[error.EAY]
-slope_urad_per_m = 10.0
-[error.EYX]
-quadratic_um_per_m2 = 30.0
-"""
 
 
 def _loop(tmp_path, spec, seed, force_whole=False):
