@@ -4594,6 +4594,16 @@ def _counter_ss(bl, cause, st: _State, rows, sigma: float) -> tuple:
 MIN_SUPPORT = 2.0
 
 
+def _positions_text(n_eff: float) -> str:
+    """``n_eff`` effective positions as the support message prints it: two significant digits, more where two
+    would round a count short of :data:`MIN_SUPPORT` up to it (1.986 printed "2" hid why a bump was refused:
+    blind gen_b 8306, session 29)."""
+    shown = f"{n_eff:.2g}"
+    if n_eff < MIN_SUPPORT <= float(shown):
+        shown = next(t for t in (f"{n_eff:.{k}g}" for k in range(3, 18)) if float(t) < MIN_SUPPORT)
+    return shown
+
+
 def _support(bl, cause, info, st: _State, E: np.ndarray, reached_only: bool = False) -> dict:
     """Over how many units (``cause.support``: positions along an axis) the cause's evidence spreads.
 
@@ -4629,7 +4639,8 @@ def _support(bl, cause, info, st: _State, E: np.ndarray, reached_only: bool = Fa
     s = np.bincount(lab, weights=w)
     top = float(s.max()) if s.size else 0.0
     n_eff = float(s.sum()) / top if top > 0 else 0.0
-    where = (f"one position carries {top / max(float(s.sum()), 1e-300):.0%} of what it explains ({n_eff:.2g} "
+    where = (f"one position carries {top / max(float(s.sum()), 1e-300):.0%} of what it explains "
+             f"({_positions_text(n_eff)} "
              f"effective positions, at least {MIN_SUPPORT:g})")
     return {"refused": bool(n_eff < MIN_SUPPORT), "support_units": n_eff, "where": where,
             "reason": f"not seen at two places: {where}"}

@@ -601,3 +601,14 @@ def test_path_count_of_trials_short_of_their_columns():
     bad = np.concatenate([planes[:1], np.full((1, n, 2), np.nan), planes[1:]])
     sc_bad = causes.Scan(("a", "b"), ({}, {}, {}), "x", lambda idx: bad[np.asarray(idx)], path=True)
     assert _path_tries([sc_bad], st, 0.01) == pytest.approx(1.0, rel=1e-9)  # no step survives the gap
+
+
+def test_support_message_never_rounds_a_short_count_up_to_the_bar():
+    """The support count's message: 1.986 effective positions printed "2" beside "at least 2" (blind gen_b 8306,
+    session 29); it now shows the digits that put it short; other counts keep their two digits."""
+    from core.discover import MIN_SUPPORT, _positions_text
+
+    assert MIN_SUPPORT == 2.0
+    assert _positions_text(1.986) == "1.99" and _positions_text(1.9996) == "1.9996"
+    assert (_positions_text(1.7), _positions_text(2.4), _positions_text(15.3), _positions_text(2.0)) == \
+        ("1.7", "2.4", "15", "2")
