@@ -1481,6 +1481,57 @@ class LackOfFit:
                 "fits": self.fits}
 
 
+@dataclass(frozen=True)
+class _ResidualNoise:
+    """The residuals of an MFB identification and their noise model (:func:`_residual_noise`)."""
+
+    prep: list          # the measurements' prepared rows (_prepare_all)
+    r: np.ndarray       # (m,) residuals at the solution
+    R: np.ndarray       # (m, m) d residual / d rows, I - J K
+    Sp: np.ndarray      # (m, m) the probing noise's covariance of the rows (the shifted holes without z_A)
+    RLc: np.ndarray     # (m, c) the bar calibration's and the placements' columns through R
+    rp: np.ndarray      # r with the calibration/placement directions taken out
+    Rp: np.ndarray      # R likewise
+    Mp: np.ndarray      # Rp Sp Rp^T: what the probing noise alone leaves in rp
+
+
+def _residual_noise(res: VolumetricResult, meas: list, sigma_probe_m: float, u_cal: np.ndarray, up: np.ndarray,
+                    cal_map) -> _ResidualNoise:
+    """The residuals' first-order noise model, shared by :func:`lack_of_fit` and :func:`model_error_share`: the
+    residuals are ``(I - J K) e`` of the inputs' errors ``e``; the probing noise through each measurement's
+    extraction gain, the bar calibration through its rods' map and the placements give their covariance. The bar
+    calibration and the placements move the residuals along a few directions (the bar's 36 deviations, 6 per
+    placement), the same in every measurement: those are taken out (``rp``, ``Rp``, ``Mp``), so what is left is
+    tested against the probing noise alone, over the many directions it spreads on (with them in, the
+    calibration's few directions set the distribution: ~20 degrees of freedom, little power)."""
+    d = res.design
+    prep = _prepare_all(meas, res.chain, res.rotary_points_R_m, d.nodes)
+    if res.iterations:
+        J, r, _ = _rows(meas, res.chain, res.rotary_points_R_m, d.nodes, res.theta, d.slices, len(res.theta),
+                        exact=True, prep=prep)
+    else:
+        J, r = d.A, d.y - d.A @ res.theta
+    blocks, B, Bp = _input_maps(res, meas, u_cal.shape[0])
+    m = len(r)
+    Sp = np.zeros((m, m))  # the probing noise's covariance of the rows, block by measurement
+    for r0, GR in blocks:
+        Sp[r0:r0 + GR.shape[0], r0:r0 + GR.shape[0]] = sigma_probe_m ** 2 * (GR @ GR.T)
+    Lc = np.hstack([_cal_columns(np.eye(m), B, u_cal, cal_map), Bp * np.tile(up, Bp.shape[1] // 6)[None, :]])
+    Pz = np.eye(m)  # the rows of the shifted holes without z_A, as _rows gives the residuals
+    r0 = 0
+    for pm in prep:
+        for h in np.flatnonzero(pm["off"]):
+            Pz[r0 + 3 * h:r0 + 3 * h + 3, r0 + 3 * h:r0 + 3 * h + 3] = pm["Pz"]
+        r0 += 3 * pm["k"]
+    Sp = Pz @ Sp @ Pz.T
+    R = np.eye(m) - J @ res.K
+    RLc = R @ (Pz @ Lc)
+    U, sv, _ = np.linalg.svd(RLc, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-9] if len(sv) and sv[0] > 0 else U[:, :0]
+    Rp = R - U @ (U.T @ R)
+    return _ResidualNoise(prep, r, R, Sp, RLc, r - U @ (U.T @ r), Rp, Rp @ Sp @ Rp.T)
+
+
 def lack_of_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
                 cal_map=None) -> LackOfFit | None:
     """Lack-of-fit test of an MFB identification: its residuals against the probing noise and the other inputs.
@@ -1509,40 +1560,9 @@ def lack_of_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pl
     from scipy.stats import chi2
 
     u_cal, up = _noise_inputs("lack_of_fit", sigma_probe_m, u_cal_m, u_place)
-    meas = list(meas)
-    d = res.design
-    if res.iterations:
-        prep = _prepare_all(meas, res.chain, res.rotary_points_R_m, d.nodes)
-        J, r, _ = _rows(meas, res.chain, res.rotary_points_R_m, d.nodes, res.theta, d.slices, len(res.theta),
-                        exact=True, prep=prep)
-    else:
-        prep = _prepare_all(meas, res.chain, res.rotary_points_R_m, d.nodes)
-        J, r = d.A, d.y - d.A @ res.theta
-    blocks, B, Bp = _input_maps(res, meas, u_cal.shape[0])
-    m = len(r)
-    Sp = np.zeros((m, m))  # the probing noise's covariance of the rows, block by measurement
-    for r0, GR in blocks:
-        Sp[r0:r0 + GR.shape[0], r0:r0 + GR.shape[0]] = sigma_probe_m ** 2 * (GR @ GR.T)
-    Lc = np.hstack([_cal_columns(np.eye(m), B, u_cal, cal_map), Bp * np.tile(up, Bp.shape[1] // 6)[None, :]])
-    Pz = np.eye(m)  # the rows of the shifted holes without z_A, as _rows gives the residuals
-    r0 = 0
-    for pm in prep:
-        for h in np.flatnonzero(pm["off"]):
-            Pz[r0 + 3 * h:r0 + 3 * h + 3, r0 + 3 * h:r0 + 3 * h + 3] = pm["Pz"]
-        r0 += 3 * pm["k"]
-    Sp = Pz @ Sp @ Pz.T
-    R = np.eye(m) - J @ res.K  # d residual / d rows
-    RLc = R @ (Pz @ Lc)
+    nm = _residual_noise(res, list(meas), sigma_probe_m, u_cal, up, cal_map)
+    r, R, Sp, RLc, rp, Mp = nm.r, nm.R, nm.Sp, nm.RLc, nm.rp, nm.Mp
     t_all = float(np.sum((R @ Sp) * R) + np.sum(RLc * RLc))  # tr M
-    # the bar calibration and the placements move the residuals along a few directions (the bar's 36
-    # deviations, 6 per placement), the same in every measurement: taken out, the residuals' sum of
-    # squares is tested against the probing noise alone, over the many directions it spreads on (with
-    # them in, the calibration's few directions set the distribution: ~20 degrees of freedom, little power)
-    U, sv, _ = np.linalg.svd(RLc, full_matrices=False)
-    U = U[:, sv > sv[0] * 1e-9] if len(sv) and sv[0] > 0 else U[:, :0]
-    rp = r - U @ (U.T @ r)
-    Rp = R - U @ (U.T @ R)
-    Mp = Rp @ Sp @ Rp.T
     t1, t2 = float(np.trace(Mp)), float(np.sum(Mp * Mp))
     if not (t1 > 0 and t2 > 0 and t_all > 0):
         return None
@@ -1673,33 +1693,8 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     if sigma_probe_m == 0:
         return None
     meas = list(meas)
-    d = res.design
-    prep = _prepare_all(meas, res.chain, res.rotary_points_R_m, d.nodes)
-    if res.iterations:
-        J, r, _ = _rows(meas, res.chain, res.rotary_points_R_m, d.nodes, res.theta, d.slices, len(res.theta),
-                        exact=True, prep=prep)
-    else:
-        J, r = d.A, d.y - d.A @ res.theta
-    blocks, B, Bp = _input_maps(res, meas, u_cal.shape[0])
-    m = len(r)
-    Sp = np.zeros((m, m))
-    for r0, GR in blocks:
-        Sp[r0:r0 + GR.shape[0], r0:r0 + GR.shape[0]] = sigma_probe_m ** 2 * (GR @ GR.T)
-    Lc = np.hstack([_cal_columns(np.eye(m), B, u_cal, cal_map), Bp * np.tile(up, Bp.shape[1] // 6)[None, :]])
-    Pz = np.eye(m)
-    r0 = 0
-    for pm in prep:
-        for hh in np.flatnonzero(pm["off"]):
-            Pz[r0 + 3 * hh:r0 + 3 * hh + 3, r0 + 3 * hh:r0 + 3 * hh + 3] = pm["Pz"]
-        r0 += 3 * pm["k"]
-    Sp = Pz @ Sp @ Pz.T
-    R = np.eye(m) - J @ res.K
-    RLc = R @ (Pz @ Lc)
-    U, sv, _ = np.linalg.svd(RLc, full_matrices=False)
-    U = U[:, sv > sv[0] * 1e-9] if len(sv) and sv[0] > 0 else U[:, :0]
-    rp = r - U @ (U.T @ r)
-    Rp = R - U @ (U.T @ R)
-    Mp = Rp @ Sp @ Rp.T
+    nm = _residual_noise(res, meas, sigma_probe_m, u_cal, up, cal_map)
+    prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
     syms = list(MOTION)
     fine = [_fine_rows(res, meas, prep, s, step_m) for s in syms]
     Ws = []  # each W_T compressed to its column space (m, rank): W_T W_T^T unchanged
