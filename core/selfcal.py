@@ -1476,13 +1476,19 @@ def _alias_unit(block: str) -> str:
     return "urad" if block in _ANGULAR_BLOCKS else "um"
 
 
-def _lobe_basis(phi: np.ndarray, k: int):
-    """``(Q, R)``, the QR factors of a lobe of order ``k``'s columns ``[cos k phi, sin k phi]`` (m per m of
-    lobe amplitude: 1 um of lobe -> 1 um), those not vanishing at the azimuths ``phi``; None when both do.
-    The one lobe basis of :func:`blind_lobes` and :func:`absorbed_lobes`."""
+def _lobe_columns(phi: np.ndarray, k: int):
+    """A lobe of order ``k``'s columns ``[cos k phi, sin k phi]`` (m per m of lobe amplitude: 1 um of lobe ->
+    1 um), those not vanishing at the azimuths ``phi``; None when both do. The one lobe of
+    :func:`blind_lobes`, :func:`absorbed_lobes` (through :func:`_lobe_basis`) and :func:`direction_structure`."""
     L = np.column_stack([np.cos(k * phi), np.sin(k * phi)])
     keep = np.linalg.norm(L, axis=0) > 1e-9 * np.sqrt(phi.size)
-    return np.linalg.qr(L[:, keep]) if keep.any() else None
+    return L[:, keep] if keep.any() else None
+
+
+def _lobe_basis(phi: np.ndarray, k: int):
+    """``(Q, R)``, the QR factors of :func:`_lobe_columns` (None when both columns vanish)."""
+    L = _lobe_columns(phi, k)
+    return None if L is None else np.linalg.qr(L)
 
 
 def blind_lobes(design: SelfCalDesign, est: LinearEstimator, touches: Touches,
@@ -1651,9 +1657,7 @@ def direction_structure(design: SelfCalDesign, est: LinearEstimator, touches: To
     for k in LOBE_ORDERS:
         if k in skip:
             continue
-        L = np.column_stack([np.cos(k * phi), np.sin(k * phi)])
-        L = L[:, np.linalg.norm(L, axis=0) > 1e-9 * np.sqrt(phi.size)]
-        if L.shape[1] == 0:
+        if (L := _lobe_columns(phi, k)) is None:
             continue
         raw.append(L)
         Gs.append(L - design.A @ est.noise_gain(L))
