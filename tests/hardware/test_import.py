@@ -268,11 +268,29 @@ def test_plan_grid_and_a_planless_import_give_the_same_plan(tmp_path, capsys):
 
 
 def test_planless_import_of_scattered_points_and_bad_grids(tmp_path, capsys):
+    """review30 F2: without --plan the file was read as a Z grid whatever its points (a pocket's wall touches
+    became 83 'points, not a full grid' whose plane fit said 26 mm flatness, exit 0). Points that are not a
+    grid's nodes are refused naming --plan; a grid's nodes (a line of them too, repeats too) are read."""
     pf = tmp_path / "probe.txt"
-    _probe_file(pf, [[0, 0, 1], [5, 1, 1.1], [0, 0, 1.05]])            # a repeat of the first point
     out = tmp_path / "log.csv"
+    _probe_file(pf, [[0, 0, 1], [5, 1, 1.1], [0, 0, 1.05]])            # scattered: 2 of a 2 x 2 grid's nodes
+    assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(pf) in err and "3 touches at 2 XY points on 2 X and 2 Y lines" in err
+    assert err.rstrip().endswith("give the plan that was run: --plan PLAN.csv") and not out.exists()
+    # a 3 x 2 grid run that stopped after 4 nodes: its last nodes are not known without the plan
+    grid = [[0, 0, 1], [10, 0, 1], [20, 0, 1], [20, 5, 1], [10, 5, 1], [0, 5, 1]]
+    _probe_file(pf, grid[:4])
+    assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 2
+    assert "are not the 6 nodes of a surface grid" in capsys.readouterr().err
+    # the whole grid, with a repeat: read, the repeat sharing its node's target
+    _probe_file(pf, grid + [[0, 0, 1.001]])
     assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 0
-    assert list(read_probe_log(out).col("target")) == ["p0", "p1", "p0"]
+    assert list(read_probe_log(out).col("target")) == ["r0c0", "r0c1", "r0c2", "r1c2", "r1c1", "r1c0", "r0c0"]
+    # one line of nodes is a grid too (vmt plan grid --y-mm 0:0:1)
+    _probe_file(pf, grid[:3])
+    assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 0
+    assert list(read_probe_log(out).col("target")) == ["r0c0", "r0c1", "r0c2"]
     for bad, msg in (("0:10:3", "not a whole number of steps"), ("10:0:1", "lo <= hi"),
                      ("0:10", "expected lo:hi:step")):
         assert main(["plan", "grid", "--x-mm", bad, "--y-mm", "0:1:1", "--stylus-r-mm", "0",
