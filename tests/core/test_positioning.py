@@ -779,3 +779,38 @@ def test_a_row_after_quoted_multi_line_cells_is_named_by_its_file_line():
     assert log.n == 30 and re.search(r"row 29 \(line 62\): the file ends without an end of line", log.warnings[0])
     with pytest.raises(PositioningLogError, match=r": line 10: field larger than field limit"):
         parse_positioning_log(hand_text(rows[:3], header=h) + "0,1,-,0," + "x" * 200_000 + "\n")
+
+
+@pytest.mark.parametrize("span, m, asked", [
+    (400.0, 5, None), (400.0, 4, 5),          # the overall minimum of 5 under a metre
+    (1000.0, 5, None), (1000.0, 4, 5),        # 5 per metre: 5 at 1 m
+    (1200.0, 6, None), (1200.0, 5, 6),        # 6 at 1.2 m
+    (2000.0, 10, None), (2000.0, 6, 10), (2000.0, 9, 10),   # review30 F4: 6 over 2000 mm passed
+    (3000.0, 10, None), (3000.0, 9, 10),      # beyond 2 m: the 2 m count, the longer-axis rule named unchecked
+])
+def test_target_count_warning_applies_five_per_metre_up_to_two_metres(span, m, asked):
+    """ISO 230-2 (the rule the warning quotes): at least 5 targets per metre of travel, and at least 5, for
+    axes up to 2 m; the travel here is the targets' span. The warning used to check m < 5 only."""
+    t = np.linspace(0.0, span, m)
+    rows = []
+    for j in range(5):
+        rows += [(p, j + 1, "+", p + 1e-3 * ((i + j) % 3)) for i, p in enumerate(t)]
+        rows += [(p, j + 1, "-", p - 1e-3 * ((i + j) % 2)) for i, p in enumerate(t[::-1])]
+    r = iso230_2(parse_positioning_log(hand_text(rows), "t.csv"))
+    said = [w for w in r.warnings if "targets: ISO 230-2 asks" in w]
+    if asked is None:
+        assert said == []
+    else:
+        assert len(said) == 1 and said[0].startswith(f"{m} targets: ISO 230-2 asks at least {asked} (5 per metre")
+        assert f"these span {span:g} mm" in said[0]
+        assert ("rule for axes over 2 m is not checked" in said[0]) == (span > 2000)
+
+
+def test_target_count_warning_of_a_rotary_axis():
+    rows = []
+    for j in range(5):
+        rows += [(p, j + 1, "+", p + 1e-4) for p in (0.0, 90.0, 180.0, 270.0)]
+        rows += [(p, j + 1, "-", p - 1e-4) for p in (270.0, 180.0, 90.0, 0.0)]
+    text = hand_text(rows, header="target_deg,cycle,direction,measured_deg", meta="# axis: C\n")
+    r = iso230_2(parse_positioning_log(text, "c.csv"))
+    assert "4 targets: ISO 230-2 asks at least 5 (at least 5 on a rotary axis)" in r.warnings
