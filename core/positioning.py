@@ -505,6 +505,24 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
     return log
 
 
+#: Axis letters of ISO 841: the linear axes (a positioning log of one in mm) and the rotary axes (in deg).
+LINEAR_LETTERS, ROTARY_LETTERS = ("X", "Y", "Z", "U", "V", "W"), ("A", "B", "C")
+
+
+def _axis_fits_unit(axis: str, unit: str, src: str) -> None:
+    """Refuse an axis letter that contradicts the unit (review30 F6: '# axis: X' with '# unit: deg' gave figures
+    in arcsec under a plot labelled 'X / mm'). The format says lengths in mm and deg for a rotary axis: one of
+    the two lines is wrong, and which one decides whether the figures are um or arcsec, so neither is guessed.
+    Other axis names (none, 'X1', a joint's name) say nothing of the unit and pass."""
+    a = axis.strip().upper()
+    if unit == "deg" and a in LINEAR_LETTERS:
+        raise PositioningLogError(f"{src}: metadata axis {axis!r} is a linear axis but unit is 'deg' (a rotary "
+                                  "axis's, A B C): correct '# axis:' or '# unit: mm' and the column names")
+    if unit == "mm" and a in ROTARY_LETTERS:
+        raise PositioningLogError(f"{src}: metadata axis {axis!r} is a rotary axis but unit is 'mm' (a linear "
+                                  "axis's, X Y Z U V W): correct '# axis:' or '# unit: deg' and the column names")
+
+
 def _validate(log: PositioningLog, lines: list[int] | None) -> None:
     src = log.source
     n = log.n
@@ -516,6 +534,7 @@ def _validate(log: PositioningLog, lines: list[int] | None) -> None:
     if unit not in _NUMERIC_REQUIRED:
         raise PositioningLogError(f"{src}: unit {unit!r} is not 'mm' or 'deg'")
     _tool_offset(log.meta, src)
+    _axis_fits_unit(log.axis, unit, src)
     kind = log.meta.get("cycle_kind", "")
     if kind and kind not in CYCLE_KINDS:
         raise PositioningLogError(f"{src}: metadata cycle_kind {kind!r} is not 'linear' or 'pilgrim'")

@@ -814,3 +814,28 @@ def test_target_count_warning_of_a_rotary_axis():
     text = hand_text(rows, header="target_deg,cycle,direction,measured_deg", meta="# axis: C\n")
     r = iso230_2(parse_positioning_log(text, "c.csv"))
     assert "4 targets: ISO 230-2 asks at least 5 (at least 5 on a rotary axis)" in r.warnings
+
+
+@pytest.mark.parametrize("axis, unit, said", [
+    ("X", "deg", "metadata axis 'X' is a linear axis but unit is 'deg'"),
+    ("w", "deg", "metadata axis 'w' is a linear axis but unit is 'deg'"),
+    ("C", "mm", "metadata axis 'C' is a rotary axis but unit is 'mm'"),
+    ("A", "mm", "metadata axis 'A' is a rotary axis but unit is 'mm'"),
+])
+def test_axis_letter_that_contradicts_the_unit_is_refused(axis, unit, said):
+    """review30 F6: '# axis: X' with '# unit: deg' was read: figures in arcsec, the plot's x label 'X / mm'.
+    The format says deg is a rotary axis's unit: one of the two lines is wrong, refused in one line."""
+    rows = [(r[0], r[1], r[2], r[3]) for r in hand_rows()]
+    text = hand_text(rows, header=f"target_{unit},cycle,direction,measured_{unit}",
+                     meta=f"# axis: {axis}\n# unit: {unit}\n")
+    with pytest.raises(PositioningLogError, match=re.escape(said)) as e:
+        parse_positioning_log(text, "bad.csv")
+    assert "\n" not in str(e.value) and str(e.value).startswith("bad.csv: ")
+
+
+@pytest.mark.parametrize("axis, unit", [("X", "mm"), ("U", "mm"), ("C", "deg"), ("B", "deg"), ("", "deg"),
+                                        ("X1", "deg"), ("", "mm")])
+def test_axis_letter_that_fits_the_unit_or_says_nothing_is_read(axis, unit):
+    text = hand_text(hand_rows(), header=f"target_{unit},cycle,direction,measured_{unit}",
+                     meta=(f"# axis: {axis}\n" if axis else "") + f"# unit: {unit}\n")
+    assert parse_positioning_log(text, "ok.csv").unit == unit
