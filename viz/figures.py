@@ -733,7 +733,8 @@ def positioning_figure(report: Mapping, *, readings: Mapping | None = None,
             color=_C_MEAS, alpha=0.7)
     axb.axhline(0.0, color=_C_NOMINAL, lw=0.8)
     axis = report.get("axis") or ""
-    axb.set_xlabel(_axis_label(axis) if axis else f"target P / {'mm' if tkey == 'target_mm' else '°'}")
+    # the unit from the report's targets, not from the axis letter (an axis 'X1' in degrees read '/ mm')
+    axb.set_xlabel(f"{axis or 'target P'} / {'mm' if tkey == 'target_mm' else '°'}")
     axb.set_ylabel(f"B_i / {sym}")
     axb.grid(alpha=0.3)
     names = (("B", "reversal B"), ("B_mean", "mean reversal B̄"), ("R_up", "repeatability R↑"),
