@@ -893,3 +893,32 @@ def test_grbl_transcript_in_mm_reads_whatever_13_says_elsewhere(tmp_path, capsys
     log = read_probe_log(out)
     np.testing.assert_array_equal(log.columns["Z_mm"], [0.0669, 0.0669])
     np.testing.assert_array_equal(log.columns["Y_mm"], [0.0, 0.0079])
+
+
+def test_probeopen_rotary_positions_are_checked_against_the_plan(tmp_path, plan_path, measured, capsys):
+    """review30 F8: a 9-number PROBEOPEN file's A B C were ignored: C = 0 on every line of a cross-pocket plan's
+    C = 75/130/210 rows was booked at the plan's angles (276 rows), exit 0. Now each line's A B C must be its
+    row's within ROTARY_TOL_DEG (modulo 360), else refused naming the line and the row."""
+    plan = read_probe_log(plan_path)
+    plan.columns["C_deg"] = np.where(np.arange(plan.n) < 6, 0.0, 75.0)    # two set-ups: C 0, then C 75
+    turned = write_probe_log(tmp_path / "plan-c.csv", plan)
+    pos = measured.positions_mm()
+    pf, out = tmp_path / "probe.txt", tmp_path / "log.csv"
+
+    def file_with(c_deg):
+        with open(pf, "w") as f:
+            for p, c in zip(pos, c_deg):
+                f.write(" ".join(f"{v:f}" for v in list(p) + [0.0, 0.0, c, 0.0, 0.0, 0.0]) + "\n")
+
+    file_with([0.0] * plan.n)                                  # the table never turned
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(turned), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and not out.exists()
+    assert f"{pf}: line 7: C 0 deg, but plan row 6 (target {plan.col('target')[6]}) has C 75 deg (within 0.01 deg" in err
+    file_with([0.0] * 6 + [75.0] * 5 + [75.02])                # the last 0.02 deg off
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(turned), "--out", str(out)]) == 2
+    assert "line 12: C 75.02 deg, but plan row 11" in capsys.readouterr().err
+    file_with([360.0] * 6 + [435.0] * 5 + [75.009])            # a continuous axis: the same angles
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(turned), "--out", str(out)]) == 0
+    log = read_probe_log(out)
+    assert log.n == plan.n and np.all(log.ok) and list(log.col("C_deg")) == [0.0] * 6 + [75.0] * 6
