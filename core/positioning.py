@@ -41,9 +41,9 @@ of the 2014 edition; checked against two public reproductions, see
             ``R_i = max(2 s_i↑ + 2 s_i↓ + |B_i|, R_i↑, R_i↓)``
 2.18        ``R↑ = max R_i↑``, ``R↓ = max R_i↓``
 2.19        ``R = max R_i``
-2.20        unidirectional systematic positional deviation
+2.20        unidirectional systematic positioning error of an axis
             ``E↑ = max x̄_i↑ - min x̄_i↑``
-2.21        bidirectional systematic positional deviation
+2.21        bidirectional systematic positioning error of an axis
             ``E = max(x̄_i↑, x̄_i↓) - min(x̄_i↑, x̄_i↓)`` (over all i, both
             directions together)
 2.22        range of the mean bidirectional positional deviation
@@ -1097,6 +1097,17 @@ def arrange(log: PositioningLog) -> PositioningTest:
                            row_up=out[1][2], row_down=out[-1][2], warnings=tuple(warnings),
                            axis=log.axis, cycle_kind=log.meta.get("cycle_kind", ""),
                            joint_offset=log.joint_offset)
+
+
+def cycles_said(report: Mapping) -> str:
+    """``5 cycles``, or ``5-6 cycles`` when the valid readings per target and direction differ (a reading
+    retaken, one invalid), for the headers of a :meth:`Iso2302Result.to_report` dict (review30: '7 targets
+    x 6 cycles' where one target had a 6th)."""
+    n = [int(r[k]) for r in report.get("per_target", ()) for k in ("n_up", "n_down") if k in r]
+    if not n:
+        return f"{report.get('cycles', '?')} cycles"
+    lo, hi = min(n), max(n)
+    return f"{hi} cycles" if lo == hi else f"{lo}-{hi} cycles"
 
 
 def targets_asked(targets, unit: str) -> tuple[int, str]:

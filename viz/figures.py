@@ -753,7 +753,9 @@ def positioning_figure(report: Mapping, *, readings: Mapping | None = None,
     tab.auto_set_font_size(False)
     tab.set_fontsize(8.5)
     tab.scale(1.0, 1.35)
-    sub = f"{report.get('targets', P.size)} targets, {report.get('cycles', '?')} cycles"
+    from core.positioning import cycles_said
+
+    sub = f"{report.get('targets', P.size)} targets, {cycles_said(report)}"
     if report.get("cycle_kind"):
         sub += f", {report['cycle_kind']} cycle"
     fig.suptitle(f"{title} ({sub})")

@@ -839,3 +839,14 @@ def test_axis_letter_that_fits_the_unit_or_says_nothing_is_read(axis, unit):
     text = hand_text(hand_rows(), header=f"target_{unit},cycle,direction,measured_{unit}",
                      meta=(f"# axis: {axis}\n" if axis else "") + f"# unit: {unit}\n")
     assert parse_positioning_log(text, "ok.csv").unit == unit
+
+
+def test_headers_say_the_range_of_cycles_when_a_target_has_more():
+    """review30 F9: the header said '3 targets x 6 cycles' when one target had a 6th (retaken) reading."""
+    from core.positioning import cycles_said
+
+    rows = hand_rows() + [(100.0, 6, "+", 100.0 + 5e-3)]
+    rep = iso230_2(parse_positioning_log(hand_text(rows), "h.csv")).to_report()
+    assert rep["cycles"] == 6 and cycles_said(rep) == "5-6 cycles"
+    assert cycles_said(iso230_2(parse_positioning_log(hand_text(), "h.csv")).to_report()) == "5 cycles"
+    assert cycles_said({"cycles": 4}) == "4 cycles"

@@ -221,3 +221,13 @@ def test_iso230_2_comp_file_on_the_input_refused(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--comp-file" in err and "refusing to overwrite an input" in err and err.count("\n") == 1
     assert p.read_text() == log_text()
+
+
+def test_iso230_2_names_e_as_the_standard_does(tmp_path, capsys):
+    """review30 F9: ISO 230-2:2014 calls E the systematic positioning error of an axis (2.20, 2.21)."""
+    from scenarios.positioning import FIGURE_ROWS
+
+    said = {name: meaning for name, _s, _c, meaning in FIGURE_ROWS}
+    assert said["E"] == "bidirectional systematic positioning error"
+    assert said["E_up"].startswith("unidirectional systematic positioning error")
+    assert not any("positional deviation" in m for n, m in said.items() if n.startswith("E"))
