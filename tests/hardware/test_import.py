@@ -287,6 +287,8 @@ def test_planless_import_of_scattered_points_and_bad_grids(tmp_path, capsys):
     _probe_file(pf, grid + [[0, 0, 1.001]])
     assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 0
     assert list(read_probe_log(out).col("target")) == ["r0c0", "r0c1", "r0c2", "r1c2", "r1c1", "r1c0", "r0c0"]
+    # the note says how the plan was built (it said 'built from the file': the plan's 'plan' key is plan_plan)
+    assert "note: no plan: built from 7 touches probed along -Z (grid 3 x 2)" in capsys.readouterr().out
     # one line of nodes is a grid too (vmt plan grid --y-mm 0:0:1)
     _probe_file(pf, grid[:3])
     assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 0
