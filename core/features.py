@@ -90,6 +90,38 @@ class NoStylusRadius(ConfigError):
     """The log says no stylus radius (no ``stylus_r_mm`` column or metadata) and none was given."""
 
 
+class MixedRows(ConfigError):
+    """The valid touches chosen span more than one set-up or feature (review30 F1: a pin's 8 set-ups
+    fitted as one circle gave a 197 mm radius for a 6 mm pin, exit 0).
+
+    ``spans`` maps the column (``setup``, ``feature``) to the sorted values found; the message
+    names them and the keyword that picks one (a caller with other names for it, like the CLI's
+    ``--setup``, builds its own line from ``spans``).
+    """
+
+    def __init__(self, source: str, spans: dict[str, list[str]]):
+        self.source, self.spans = source, spans
+        super().__init__(f"{source}: {mixed_rows_text(spans)}; pick one with "
+                         + " and ".join(f"{c}=NAME" for c in spans))
+
+
+#: Values named in a refusal of mixed rows before "...": enough to recognise the log's naming.
+MIXED_SHOWN = 6
+
+
+def mixed_rows_text(spans: dict[str, list[str]]) -> str:
+    """``the valid touches span 8 set-ups (C0, C45, ...) and 2 features (a, b): a fit takes one feature
+    of one set-up``, for :class:`MixedRows`."""
+    noun = {"setup": ("set-up", "set-ups"), "feature": ("feature", "features")}
+    parts = []
+    for col, vals in spans.items():
+        shown = ", ".join(repr(v) if v == "" else v for v in vals[:MIXED_SHOWN])
+        more = ", ..." if len(vals) > MIXED_SHOWN else ""
+        parts.append(f"{len(vals)} {noun[col][1]} ({shown}{more})")
+    return ("the valid touches span " + " and ".join(parts)
+            + ": a fit takes the touches of one feature in one set-up")
+
+
 def log_stylus_r_mm(log: ProbeLog, rows: np.ndarray) -> tuple[float | None, str]:
     """The stylus radius the log says for ``rows``, mm, and where (``column``, ``metadata``); ``(None, "")``.
 
@@ -150,6 +182,9 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
     ------
     NoStylusRadius
         ``stylus_r_mm`` is ``None`` and the log says no radius.
+    MixedRows
+        The valid touches chosen span more than one set-up or feature
+        (a ``ConfigError``: choose one with ``setup`` / ``feature``).
     ConfigError
         Unknown kind, an unknown feature or set-up, a plan instead of a log,
         a radius that is not a finite number >= 0.
@@ -168,6 +203,14 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
                 known = ", ".join(sorted(set(have[log.ok])))[:200]
                 raise ConfigError(f"{log.source}: no {col} {want!r} (valid touches have: {known})")
             mask &= have == want
+    spans = {}
+    for col in ("setup", "feature"):
+        if log.has(col):
+            vals = sorted(set(log.col(col).astype(str)[mask]))
+            if len(vals) > 1:
+                spans[col] = vals
+    if spans:
+        raise MixedRows(str(log.source), spans)
     rows = np.flatnonzero(mask)
     if rows.size == 0:
         raise FitError(f"{log.source}: no valid touch to fit")

@@ -457,6 +457,17 @@ class AppendLog:
             self.fd = None
 
 
+def _whole_rows(path) -> int | None:
+    """Rows of an :class:`AppendLog` on disk (whole lines after the header; a torn last line is none), or None
+    when it cannot be read. Read only: ``--resume`` (:func:`recover_log`) cuts a torn line."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError:
+        return None
+    body = [ln for ln in data.split(b"\n")[:-1] if not ln.startswith(b"#")]
+    return max(len(body) - 1, 0)
+
+
 def _fsync_dir(d: Path) -> None:
     try:
         fd = os.open(d, os.O_RDONLY)
@@ -776,6 +787,11 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
     except HardwareError as e:
         raise HardwareError(f"{e} [{done} of {plan.n} rows in {p}; continue with --resume]"
                             if "--resume" not in str(e) else str(e)) from None
+    except KeyboardInterrupt as e:   # Ctrl-C (or SIGTERM, which vmt probe turns into one): the same note
+        # as a lost connection; counted on disk: the signal lands anywhere, e.g. in the fsync of a row written
+        on_disk = _whole_rows(p)
+        e.args = (f"[{done if on_disk is None else on_disk} of {plan.n} rows in {p}; continue with --resume]",)
+        raise
     finally:
         log.close()
     return CampaignResult(p, plan.n, before, done, torn, statuses)

@@ -359,6 +359,31 @@ def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str, stroke: Str
         raise ProbeLogError(f"{path}: line {line_no[i]}: {off_row_words(p, plan, r, pn, d, stroke)}{why}")
 
 
+#: How far a 9-number PROBEOPEN line's A, B or C may lie from its plan row's, deg (modulo 360: a continuous
+#: axis may report 435 for 75). The file holds the position where the probe tripped, the rotary axes standing
+#: at their commanded angle (an axis at rest holds it within its in-position band, thousandths of a degree;
+#: LinuxCNC writes 6 decimals); plans index in whole degrees. 0.01 deg is 10x that band, far below any index.
+ROTARY_TOL_DEG = 0.01
+
+
+def _check_rotary(path, data, line_no, plan: ProbeLog) -> None:
+    """ProbeLogError naming the first line of a 9-number file whose A, B or C is not its plan row's (review30
+    F8: a file with C = 0 on every line was booked at a cross-pocket plan's C = 75/130/210, 276 rows)."""
+    if data.shape[1] < 6:
+        return
+    for j, ax in enumerate("ABC"):
+        want = np.asarray(plan.col(f"{ax}_deg"), float)[: data.shape[0]]
+        got = data[:, 3 + j]
+        off = np.abs((got - want + 180.0) % 360.0 - 180.0)
+        bad = np.flatnonzero(~(off <= ROTARY_TOL_DEG))
+        if bad.size:
+            i = int(bad[0])
+            raise ProbeLogError(
+                f"{path}: line {line_no[i]}: {ax} {got[i]:g} deg, but plan row {i} "
+                f"(target {plan.col('target')[i]}) has {ax} {want[i]:g} deg (within {ROTARY_TOL_DEG:g} deg, "
+                "modulo 360): not this plan's set-up")
+
+
 def _short_file_note(k: int, n: int, kind: str, numbered: bool) -> str:
     """What a probe file of ``k`` lines for a plan of ``n > k`` rows says (metadata ``probe_file_rows``).
 
@@ -447,6 +472,7 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
                     + (f"row {r} is beyond the plan's {n} rows" if r >= n else
                        "a line is missing or repeated (the program writes one line per probe, in plan order)"))
     if not built:
+        _check_rotary(path, data, line_no, plan)
         _check_rows(path, pos, range(k), line_no, plan, "tagged" if tags is not None else kind, stroke)
     status = ["ok"] * k + ["aborted"] * (n - k)
     if k < n:

@@ -119,6 +119,11 @@ def _grid_index(v: np.ndarray) -> tuple[np.ndarray, int]:
     return idx, k + 1
 
 
+class NotAGrid(ConfigError):
+    """Touches that are not the nodes of a surface grid (review30 F2: a pocket's wall touches, read without
+    their plan, became a "Z grid" of 83 points whose plane fit said a flatness of 26 mm, exit 0)."""
+
+
 def plan_from_z_touches(pos_mm, *, z_mm: float | None = None, source: str = "<probe file>") -> ProbeLog:
     """The plan of a surface (Z) probing job, rebuilt from its touches.
 
@@ -133,15 +138,19 @@ def plan_from_z_touches(pos_mm, *, z_mm: float | None = None, source: str = "<pr
     Returns
     -------
     ProbeLog
-        A plan: nominal ``(X, Y, z)`` per touch, normal ``+Z``, approach ``-Z``.
-        When the XY points lie on a rectangular grid (every combination of the
-        distinct X and Y lines, each once) targets are ``r<row>c<col>``,
-        otherwise ``p<i>``; touches at the same XY (repeats) share a target.
+        A plan: nominal ``(X, Y, z)`` per touch, normal ``+Z``, approach ``-Z``,
+        targets ``r<row>c<col>``; touches at the same XY (repeats) share a target.
 
     Raises
     ------
     ConfigError
         Not an (n, 3) array of finite numbers.
+    NotAGrid
+        The XY points are not a rectangular grid's nodes (every combination of
+        the distinct X and Y lines, within :data:`SAME_MM`, each once or more):
+        no :func:`grid_plan` makes them, so the touches' nominals, normals and
+        approach are not known from the file (a grid run that stopped short is
+        one of these: its missing nodes are not known either).
     """
     p = np.asarray(pos_mm, dtype=float)
     if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] == 0 or not np.all(np.isfinite(p)):
@@ -149,17 +158,12 @@ def plan_from_z_touches(pos_mm, *, z_mm: float | None = None, source: str = "<pr
     ix, nx = _grid_index(p[:, 0])
     iy, ny = _grid_index(p[:, 1])
     cells = set(zip(iy.tolist(), ix.tolist()))
-    if len(cells) == nx * ny and nx > 1 and ny > 1:
-        names = [f"r{j}c{i}" for j, i in zip(iy, ix)]
-        shape = f"grid {nx} x {ny}"
-    else:
-        first: dict = {}
-        names = []
-        for j, i, k in zip(iy, ix, range(len(p))):
-            first.setdefault((j, i), len(first))
-            names.append(f"p{first[(j, i)]}")
-        shape = f"{counted(len(first), 'point')}, not a full grid"
+    if len(cells) != nx * ny:
+        raise NotAGrid(f"{source}: {counted(len(p), 'touch')} at {counted(len(cells), 'XY point')} on "
+                       f"{nx} X and {ny} Y lines are not the {nx * ny} nodes of a surface grid (each X line "
+                       "with each Y line), the one job whose plan the file alone says")
+    names = [f"r{j}c{i}" for j, i in zip(iy, ix)]
     zt = float(np.median(p[:, 2])) if z_mm is None else float(z_mm)
-    meta = {"plan": f"built from {len(p)} touches probed along -Z ({shape}); nominal tip-centre Z "
+    meta = {"plan": f"built from {len(p)} touches probed along -Z (grid {nx} x {ny}); nominal tip-centre Z "
                     f"{zt:.6f} mm ({'median of the touches' if z_mm is None else 'given'})"}
     return _plan(p[:, :2].copy(), names, np.full(len(p), zt), meta, source)

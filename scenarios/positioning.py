@@ -17,9 +17,9 @@ FIGURE_ROWS = (
     ("R_up", "R↑", "2.18", "unidirectional repeatability, approach +"),
     ("R_down", "R↓", "2.18", "unidirectional repeatability, approach -"),
     ("R", "R", "2.19", "bidirectional repeatability (with the reversal term)"),
-    ("E_up", "E↑", "2.20", "unidirectional systematic positional deviation, +"),
-    ("E_down", "E↓", "2.20", "unidirectional systematic positional deviation, -"),
-    ("E", "E", "2.21", "bidirectional systematic positional deviation"),
+    ("E_up", "E↑", "2.20", "unidirectional systematic positioning error, +"),
+    ("E_down", "E↓", "2.20", "unidirectional systematic positioning error, -"),
+    ("E", "E", "2.21", "bidirectional systematic positioning error"),
     ("M", "M", "2.22", "range of the mean bidirectional positional deviation"),
     ("A_up", "A↑", "2.23", "unidirectional accuracy, +"),
     ("A_down", "A↓", "2.23", "unidirectional accuracy, -"),
@@ -132,7 +132,9 @@ def positioning_report(folder, rep: dict, log, *, budget=None, title: str = "ISO
 
     u = rep["unit"]
     sym = "µm" if u == "um" else "arcsec"
-    test_text = (f"Axis {rep.get('axis') or '?'}; {rep['targets']} targets, {rep['cycles']} cycles"
+    from core.positioning import cycles_said
+
+    test_text = (f"Axis {rep.get('axis') or '?'}; {rep['targets']} targets, {cycles_said(rep)}"
                  f"{', ' + rep['cycle_kind'] + ' cycle' if rep.get('cycle_kind') else ''}; "
                  f"machine {rep.get('machine') or '?'}; instrument {rep.get('instrument') or '?'}. "
                  "Definitions of ISO 230-2 (clause numbers of the 2006 edition, unchanged in 2014): "

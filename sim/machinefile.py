@@ -77,6 +77,13 @@ positions in m, mm or deg as the key says; a rotary axis's positions in deg)
 Location errors (``EC0Y``, ``EB0Z``, ``EA0Z``, ``EX0C`` ...) take
 ``constant_U`` only.
 
+Bounds: an error the file gives, its terms summed, must stay within
+:data:`MAX_ANGULAR_URAD` (a rotation) or :data:`MAX_LINEAR_UM` (a
+translation) over its axis's stroke, both directions, at the start and after
+:data:`BOUND_AFTER_H` hours (its thermal drift); beyond, the file is refused
+naming the error, the value reached and the unit (review30 F3: ``EC0Y =
+-20000000 urad``, 20 rad, simulated as "368 touches (29 ok)", exit 0).
+
 A malformed file raises :class:`MachineFileError` with one line naming the
 file, the key and what is wrong.
 """
@@ -106,6 +113,23 @@ DEFAULT_OFFSET_MM = (0.0, 0.0, 150.0)
 _TOP = ("format", "name", "description", "base", "chain", "errors", "seed", "ripple",
         "strokes", "rotary_points", "tool", "probe", "error")
 _PROBE = ("stylus_radius_mm", "pretravel_um", "pretravel_axial_um", "lobing", "noise_um", "max_travel_mm")
+
+
+#: Largest rotation error a machine file may give, urad (1 mrad, 206 arcsec, 1 mm per metre): vmt's estimators
+#: take the chain's angular errors to first order (identify's Jacobian, discover's baseline), and the neglected
+#: second-order term e^2/2 of a rotation e reaches 0.5 um a metre from its axis at 1 mrad, the size of the probing
+#: noise they are sized for; and 1 mrad over a 1 m lever is MAX_LINEAR_UM. Real machines' angular errors are tens
+#: of urad (the built-in machines' 'realistic' sets, 31 seeds each: at most 98.6 urad, EBX; 38.2 um, EXX).
+MAX_ANGULAR_URAD = 1000.0
+#: Largest translation error a machine file may give, um (1 mm): half the default 2 mm approach clearance of
+#: the plans (sim.plans.Plan.clearance_m), beyond which a planned touch starts in the material or misses,
+#: and tens of times a real machine's uncompensated positioning error (tens of um per metre of stroke).
+MAX_LINEAR_UM = 1000.0
+#: The bounds hold at the start and after this many hours of the error's thermal drift (a working shift).
+BOUND_AFTER_H = 8.0
+#: Positions along the stroke where an error is checked against its bound (a period of 1/1000 of the stroke
+#: is sampled at its peaks within 1 %).
+BOUND_SAMPLES = 2001
 
 
 class MachineFileError(ConfigError):
@@ -413,6 +437,7 @@ class _Reader(KeyReader):
             if s.location and s.axis in iso.LINEAR_AXES and s.name not in iso.SQUARENESS:
                 self.fail(key, f"{s.name} is zero by the ISO 230-1 convention (X primary, Y secondary)")
             errs[s.name] = self.error(key, s, self.table(key, body))
+            self.bounded(key, s, errs[s.name], strokes[s.axis])
             overrides.append(s.name)
         try:
             cfg = MachineConfig(name=name, chain=ch.text, strokes=strokes, rotary_points_R_m=points,
@@ -572,6 +597,31 @@ class _Reader(KeyReader):
         if not terms:
             return Constant(0.0)
         return terms[0] if len(terms) == 1 else Sum(tuple(terms))
+
+    def bounded(self, key, s, f: ErrorFunction, stroke) -> None:
+        """Refuse an error that leaves :data:`MAX_ANGULAR_URAD` / :data:`MAX_LINEAR_UM` over the stroke."""
+        U, bound = ("urad", MAX_ANGULAR_URAD) if s.angular else ("um", MAX_LINEAR_UM)
+        pos = np.linspace(stroke[0], stroke[1], BOUND_SAMPLES)
+        peak = 0.0
+        for t_s in (0.0, BOUND_AFTER_H * 3600.0):
+            for d in (1.0, -1.0):
+                v = np.asarray(f(pos, np.full(pos.shape, t_s), np.full(pos.shape, d)), float) / 1e-6
+                i = int(np.argmax(np.abs(v)))
+                if not np.isfinite(v[i]):
+                    self.fail(key, f"not finite on the {s.axis} stroke")
+                if abs(v[i]) > abs(peak):
+                    peak, at, when = v[i], pos[i], t_s
+        if abs(peak) > bound * (1 + 1e-9):     # the bound itself loads (units scaled to SI and back)
+            rot = s.axis in iso.ROTARY_AXES
+            where = f"{at / DEG:g} deg" if rot else f"{at / MM:g} mm"
+            why = ("vmt's models take angular errors to first order: the neglected e^2/2 is 0.5 um a metre "
+                   "from the axis at 1000 urad" if s.angular else
+                   "half the plans' 2 mm approach clearance; a real machine's are tens of um")
+            at_ = [] if s.location else [f"at {s.axis} {where}"]
+            at_ += [f"after {BOUND_AFTER_H:g} h"] if when else []
+            self.fail(key, f"reaches {peak:.6g} {U}" + (f" ({', '.join(at_)})" if at_ else "")
+                           + f": beyond the +-{bound:g} {U} a machine file's "
+                           + ("rotation" if s.angular else "translation") + f" error may have ({why})")
 
     def thermal(self, key, s, U, t) -> Drift:
         allowed = [f"offset_{U}_per_h", "tau_h", f"offset_{U}_per_K", "temperature_h", "temperature_K"]

@@ -733,7 +733,8 @@ def positioning_figure(report: Mapping, *, readings: Mapping | None = None,
             color=_C_MEAS, alpha=0.7)
     axb.axhline(0.0, color=_C_NOMINAL, lw=0.8)
     axis = report.get("axis") or ""
-    axb.set_xlabel(_axis_label(axis) if axis else f"target P / {'mm' if tkey == 'target_mm' else '°'}")
+    # the unit from the report's targets, not from the axis letter (an axis 'X1' in degrees read '/ mm')
+    axb.set_xlabel(f"{axis or 'target P'} / {'mm' if tkey == 'target_mm' else '°'}")
     axb.set_ylabel(f"B_i / {sym}")
     axb.grid(alpha=0.3)
     names = (("B", "reversal B"), ("B_mean", "mean reversal B̄"), ("R_up", "repeatability R↑"),
@@ -752,7 +753,9 @@ def positioning_figure(report: Mapping, *, readings: Mapping | None = None,
     tab.auto_set_font_size(False)
     tab.set_fontsize(8.5)
     tab.scale(1.0, 1.35)
-    sub = f"{report.get('targets', P.size)} targets, {report.get('cycles', '?')} cycles"
+    from core.positioning import cycles_said
+
+    sub = f"{report.get('targets', P.size)} targets, {cycles_said(report)}"
     if report.get("cycle_kind"):
         sub += f", {report['cycle_kind']} cycle"
     fig.suptitle(f"{title} ({sub})")

@@ -32,13 +32,16 @@ def register(sub) -> None:
 def _fitted(log, args, fit_log_feature):
     """The fit of ``args.kind`` to the log's rows; a cylinder whose axis the touches leave open says
     what the command can do about it (the library's advice, ``pass axis_hint``, is no option of it)."""
-    from core.exceptions import FitError
-    from core.features import NoStylusRadius
+    from core.exceptions import ConfigError, FitError
+    from core.features import MixedRows, NoStylusRadius, mixed_rows_text
     from scenarios.cli.options import no_stylus_r
 
     try:
         return fit_log_feature(log, args.kind, feature=args.feature, setup=args.setup,
                                stylus_r_mm=args.stylus_r_mm)
+    except MixedRows as e:      # the library names its keywords; the command names its options
+        raise ConfigError(f"{args.log}: {mixed_rows_text(e.spans)}; choose one with "
+                          + " and ".join(f"--{c} NAME" for c in e.spans)) from None
     except NoStylusRadius:
         raise no_stylus_r(f"{args.log}: says no stylus radius (no stylus_r_mm column or metadata)") from None
     except FitError as e:

@@ -32,6 +32,7 @@ import argparse
 import contextlib
 import os
 import re
+import signal
 import sys
 import tempfile
 from pathlib import Path
@@ -467,9 +468,39 @@ def run_command(args) -> int:
     except OSError as e:
         print(f"vmt {name}: error: {os_error_line(e)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"vmt {name}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:   # its text, when a command gave it one, says what is kept (vmt probe's rows)
+        sig = getattr(e, "signum", signal.SIGINT)
+        what = "interrupted" if sig == signal.SIGINT else f"terminated ({signal.Signals(sig).name})"
+        print(f"vmt {name}: {what}" + (f" {e}" if str(e) else ""), file=sys.stderr)
+        return 128 + int(sig)
+
+
+class Terminated(KeyboardInterrupt):
+    """A termination signal (SIGTERM) turned into an interruption by a command that has something to say
+    on it (vmt probe: the rows on disk and --resume); :func:`terminating_as_interrupt` raises it."""
+
+    def __init__(self, signum: int, *args):
+        super().__init__(*args)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def terminating_as_interrupt():
+    """Inside the block SIGTERM raises :class:`Terminated`, handled as Ctrl-C is (cleanup, one line, exit
+    128 + 15 = 143) instead of ending the process without a word (review30 F7). Outside the main thread
+    (where no handler can be set) the block runs unchanged."""
+    def raise_it(signum, _frame):
+        raise Terminated(signum)
+
+    try:
+        before = signal.signal(signal.SIGTERM, raise_it)
+    except ValueError:      # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
 
 
 def progress_line(label: str):

@@ -11,7 +11,8 @@ def register(sub) -> None:
                         "(G1 X.. Y.. Z.. lines); grbl: a session transcript")
     p.add_argument("file", help="the probe file or transcript")
     p.add_argument("--plan", help="the probe-log/1 plan that was run; without it (linuxcnc) the file "
-                   "is a surface probed along Z and the plan is built from it")
+                   "is a surface probed along Z and the plan is built from it (points that are not a grid's "
+                   "nodes are refused)")
     p.add_argument("--out", required=True, help="probe-log/1 file to write")
     from scenarios.cli.options import option
 
@@ -42,7 +43,12 @@ def run(args) -> int:
     if args.kind == "linuxcnc":
         from hardware.linuxcnc import import_probe_file
 
-        log = import_probe_file(args.file, plan, dt_s=args.dt, units=args.units or "mm", stroke=stroke)
+        from hardware.surface import NotAGrid
+
+        try:
+            log = import_probe_file(args.file, plan, dt_s=args.dt, units=args.units or "mm", stroke=stroke)
+        except NotAGrid as e:   # read without --plan as a Z grid, and it is none
+            raise ConfigError(f"{e}; give the plan that was run: --plan PLAN.csv") from None
     else:
         from hardware.transcript import import_transcript
 
@@ -68,5 +74,5 @@ def run(args) -> int:
         print(f"note: the transcript has {log.meta['transcript_reports']}")
         print(f"note: what stopped it: {log.meta['stop_reason']}")
     if plan is None:
-        print(f"note: no plan: {log.meta.get('plan', 'built from the file')}")
+        print(f"note: no plan: {log.meta.get('plan_plan', 'built from the file')}")   # the plan's 'plan', kept as plan_plan
     return 0

@@ -69,7 +69,9 @@ def run(args) -> int:
         print(f"vmt iso230-2: warning: {w}", file=sys.stderr)
     u = rep["unit"]
     sym = "um" if u == "um" else "arcsec"
-    print(f"{args.log}: axis {rep['axis'] or '?'}, {rep['targets']} targets x {rep['cycles']} cycles"
+    from core.positioning import cycles_said
+
+    print(f"{args.log}: axis {rep['axis'] or '?'}, {rep['targets']} targets x {cycles_said(rep)}"
           + (f", {rep['cycle_kind']} cycle" if rep.get("cycle_kind") else ""))
     if rep.get("cycle_note"):
         print(f"  note: {rep['cycle_note']}")

@@ -90,9 +90,12 @@ def parse_grid(text: str, p_R):
     if len(mm) == 3 and not mm[0] < mm[1]:
         raise ConfigError(f"--grid-mm {text}: expected x0 < x1, got {mm[0]:g} and {mm[1]:g} mm")
     parts = [v * MM for v in mm]
-    if len(parts) == 1:
-        return Grid.from_extent(p_R, parts[0])
-    return Grid.regular(parts[0], parts[1], parts[2])
+    try:   # the grid's own refusals (not a whole number of steps, ...) are of this option: it is named
+        if len(parts) == 1:
+            return Grid.from_extent(p_R, parts[0])
+        return Grid.regular(parts[0], parts[1], parts[2])
+    except ConfigError as e:
+        raise ConfigError(f"--grid-mm {text}: {e}") from None
 
 
 def parse_floats3(text: str, name: str) -> tuple[float, float, float]:

@@ -109,6 +109,7 @@ def _probe(plan, settings, args):
     """Open the backend (and the transcript), run the campaign with progress, close both."""
     from hardware.campaign import run_campaign
     from hardware.virtual import open_backend
+    from scenarios.cli.guard import terminating_as_interrupt
     from viz.progress import TerminalProgress
 
     tr = open(args.transcript, "a", encoding="utf-8") if args.transcript else None
@@ -116,7 +117,9 @@ def _probe(plan, settings, args):
         backend = open_backend(args.controller, timeout_s=args.timeout, rotary=args.rotary, on_event=_warn,
                                transcript=tr, axes=args.axes, reset=args.reset)
         try:
-            with TerminalProgress("campaign") as progress:
+            # SIGTERM as Ctrl-C: the run stops between two statements, the log's rows are on disk, and one line
+            # says how many and --resume (it ended the process without a word: review30 F7)
+            with TerminalProgress("campaign") as progress, terminating_as_interrupt():
                 return run_campaign(backend, plan, args.out, settings, resume=args.resume,
                                     unlock=args.unlock, home=args.home, plan_path=args.plan,
                                     on_touch=lambda row, _r: progress(row + 1, plan.n),

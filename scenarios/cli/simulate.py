@@ -37,8 +37,8 @@ def register(sub) -> None:
     add_machine_args(p, default=None, what="virtual machine (default: the artefact's, list below; positioning: "
                                             "vmc-3axis)")
     add_noise_arg(p, "default: the machine's probe, 0.125 for the built-ins: the MFB paper's 0.25 um at k=2; "
-                     "1.38 for the self-calibration paper; positioning: the old name of --scatter-um, the same "
-                     "k=1 scatter of each reading, with a line naming it")
+                     "1.38 for the self-calibration paper; not for positioning, which has no probe: its "
+                     "readings' scatter is --scatter-um")
     option(p, "--c-angles-deg", dest="c_angles", default=None, old=("--c-angles",),
            help="comma-separated C angles of the set-ups, deg (not for a placed artefact: mfb)")
     p.add_argument("--plan-only", action="store_true", help="write the plan only (measured columns empty)")
@@ -54,7 +54,18 @@ def register(sub) -> None:
 SIMULATE_SHARES = (70, 96, 100)
 
 
+#: Old option names refused in one line, with the name that took their meaning (dest -> message): one meaning
+#: per option name (review30 F9: '--cycle', the kind, sat beside '--cycles', the count).
+REFUSED = {"old_cycle": "--cycle is now --cycle-kind (the test cycle, linear or pilgrim; --cycles is the number "
+                        "of approaches)"}
+
+
 def run(args) -> int:
+    from core.exceptions import ConfigError
+
+    for dest, why in REFUSED.items():
+        if getattr(args, dest, None) is not None:
+            raise ConfigError(why)
     if args.artefact == "positioning":
         return _run_positioning(args)
     from scenarios.cli.guard import progress_line
@@ -142,7 +153,7 @@ def _campaign(args, bar):
 
 # --------------------------------------------------------------------------- vmt simulate positioning
 #: Options only ``vmt simulate positioning`` takes (dest names).
-POSITIONING_ONLY = ("axis", "targets", "travel_mm", "cycles", "cycle", "overrun_mm", "move_feed", "dwell_s", "scatter_um",
+POSITIONING_ONLY = ("axis", "targets", "travel_mm", "cycles", "cycle_kind", "overrun_mm", "move_feed", "dwell_s", "scatter_um",
                     "line_mm", "reversal_um", "reversal_sense", "drift_um_per_h", "drift_tau_s")
 
 
@@ -154,8 +165,12 @@ def _add_positioning_options(p) -> None:
     g.add_argument("--travel-mm", metavar="LO:HI", help="measurement travel, mm (the stroke less the overrun; "
                    "write --travel-mm=-100:100 when LO < 0)")
     g.add_argument("--cycles", type=int, help="approaches per target and direction (5, as ISO 230-2 asks)")
-    g.add_argument("--cycle", choices=("linear", "pilgrim"), help="test cycle: linear (ISO 230-2's standard "
-                   "test, the default) or pilgrim (a step cycle, its Annex B: not for acceptance)")
+    g.add_argument("--cycle-kind", choices=("linear", "pilgrim"), help="test cycle: linear (ISO 230-2's "
+                   "standard test, the default) or pilgrim (a step cycle, its Annex B: not for acceptance); "
+                   "the log's cycle_kind")
+    import argparse
+
+    g.add_argument("--cycle", dest="old_cycle", default=None, help=argparse.SUPPRESS)   # refused: REFUSED
     g.add_argument("--overrun-mm", type=float, help="overrun before each reversal, mm (5)")
     from scenarios.cli.options import option
 
@@ -187,20 +202,15 @@ def _numbers(text: str, name: str, sep: str, count: int):
 
 def _run_positioning(args) -> int:
     """``vmt simulate positioning``: write the simulated test as positioning-log/1."""
-    import sys
-
     import numpy as np
 
     from core.exceptions import ConfigError
     from core.positioning import write_positioning_log
     from scenarios.positioning import simulate_test
 
-    if args.noise_um is not None:
-        if args.scatter_um is not None:
-            raise ConfigError("--noise-um and --scatter-um: a positioning test has one scatter, give --scatter-um")
-        print("vmt: --noise-um of a positioning test is renamed to --scatter-um (the scatter of each reading; "
-              "the old name works for now)", file=sys.stderr, flush=True)
-        args.scatter_um = args.noise_um
+    if args.noise_um is not None:    # one meaning per name: --noise-um is the probing noise everywhere else
+        raise ConfigError("--noise-um is the probing noise; a positioning test has no probe: the scatter of "
+                          "each reading is --scatter-um")
     for name in ("c_angles", "plan_only", "no_collision_check"):
         if getattr(args, name, None):
             flag = "--c-angles-deg" if name == "c_angles" else f"--{name.replace('_', '-')}"
@@ -226,7 +236,7 @@ def _run_positioning(args) -> int:
     log = simulate_test(
         name, opt("axis", "X"), np.random.default_rng(args.seed or 0), errors=args.errors,
         noise_um=opt("scatter_um", 0.5), n_targets=opt("targets", 11), travel_mm=travel, cycles=opt("cycles", 5),
-        cycle_kind=opt("cycle", "linear"), overrun_mm=opt("overrun_mm", 5.0), feed_mm_min=opt("move_feed", 2000.0),
+        cycle_kind=opt("cycle_kind", "linear"), overrun_mm=opt("overrun_mm", 5.0), feed_mm_min=opt("move_feed", 2000.0),
         dwell_s=opt("dwell_s", 2.0), line_mm=line, reversal_um=opt("reversal_um", 0.0),
         reversal_sense=opt("reversal_sense", "lead"),
         drift_um_per_h=opt("drift_um_per_h", 0.0), drift_tau_s=args.drift_tau_s)

@@ -149,3 +149,28 @@ def test_stylus_radius_given_from_the_log_or_refused():
     for bad in (-1.0, float("nan"), float("inf")):
         with pytest.raises(ConfigError, match="need a finite number >= 0"):
             fit_log_feature(said, "sphere", stylus_r_mm=bad)
+
+
+def test_touches_of_several_setups_or_features_are_refused_not_fitted_as_one():
+    """review30 F1: a pin's 8 set-ups fitted as one circle gave a 197 mm radius for a 6 mm pin, exit 0.
+    Two 6 mm pins (two set-ups, or two features) 200 mm apart: one at a time fits exactly; together refused."""
+    from core.features import MixedRows
+
+    a = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    rad = np.column_stack([np.cos(a), np.sin(a), np.zeros(8)])
+    p = np.vstack([[0.0, 0, 5] + 6.0 * rad, [200.0, 0, 5] + 6.0 * rad])
+    n = np.vstack([rad, rad])
+    two_setups = log_of(p, n, setup=["C0"] * 8 + ["C90"] * 8)
+    assert fit_log_feature(two_setups, "circle", setup="C90").values["radius_mm"] == pytest.approx(6.0, abs=1e-9)
+    with pytest.raises(MixedRows, match=r"span 2 set-ups \(C0, C90\).*pick one with setup=NAME$") as e:
+        fit_log_feature(two_setups, "circle")
+    assert e.value.spans == {"setup": ["C0", "C90"]} and isinstance(e.value, ConfigError)
+    lg = log_of(p, n)
+    lg.columns["feature"] = np.array(["pinA"] * 8 + ["pinB"] * 8, dtype=object)
+    with pytest.raises(MixedRows, match=r"span 2 features \(pinA, pinB\).*pick one with feature=NAME$"):
+        fit_log_feature(lg, "sphere")
+    assert fit_log_feature(lg, "circle", feature="pinA").values["radius_mm"] == pytest.approx(6.0, abs=1e-9)
+    # rows already excluded (status not ok) do not count: one valid set-up is one set-up
+    st = ["ok"] * 8 + ["miss"] * 8
+    one_ok = log_of(p, n, setup=["C0"] * 8 + ["C90"] * 8, status=st)
+    assert fit_log_feature(one_ok, "circle").values["radius_mm"] == pytest.approx(6.0, abs=1e-9)

@@ -779,3 +779,74 @@ def test_a_row_after_quoted_multi_line_cells_is_named_by_its_file_line():
     assert log.n == 30 and re.search(r"row 29 \(line 62\): the file ends without an end of line", log.warnings[0])
     with pytest.raises(PositioningLogError, match=r": line 10: field larger than field limit"):
         parse_positioning_log(hand_text(rows[:3], header=h) + "0,1,-,0," + "x" * 200_000 + "\n")
+
+
+@pytest.mark.parametrize("span, m, asked", [
+    (400.0, 5, None), (400.0, 4, 5),          # the overall minimum of 5 under a metre
+    (1000.0, 5, None), (1000.0, 4, 5),        # 5 per metre: 5 at 1 m
+    (1200.0, 6, None), (1200.0, 5, 6),        # 6 at 1.2 m
+    (2000.0, 10, None), (2000.0, 6, 10), (2000.0, 9, 10),   # review30 F4: 6 over 2000 mm passed
+    (3000.0, 10, None), (3000.0, 9, 10),      # beyond 2 m: the 2 m count, the longer-axis rule named unchecked
+])
+def test_target_count_warning_applies_five_per_metre_up_to_two_metres(span, m, asked):
+    """ISO 230-2 (the rule the warning quotes): at least 5 targets per metre of travel, and at least 5, for
+    axes up to 2 m; the travel here is the targets' span. The warning used to check m < 5 only."""
+    t = np.linspace(0.0, span, m)
+    rows = []
+    for j in range(5):
+        rows += [(p, j + 1, "+", p + 1e-3 * ((i + j) % 3)) for i, p in enumerate(t)]
+        rows += [(p, j + 1, "-", p - 1e-3 * ((i + j) % 2)) for i, p in enumerate(t[::-1])]
+    r = iso230_2(parse_positioning_log(hand_text(rows), "t.csv"))
+    said = [w for w in r.warnings if "targets: ISO 230-2 asks" in w]
+    if asked is None:
+        assert said == []
+    else:
+        assert len(said) == 1 and said[0].startswith(f"{m} targets: ISO 230-2 asks at least {asked} (5 per metre")
+        assert f"these span {span:g} mm" in said[0]
+        assert ("rule for axes over 2 m is not checked" in said[0]) == (span > 2000)
+
+
+def test_target_count_warning_of_a_rotary_axis():
+    rows = []
+    for j in range(5):
+        rows += [(p, j + 1, "+", p + 1e-4) for p in (0.0, 90.0, 180.0, 270.0)]
+        rows += [(p, j + 1, "-", p - 1e-4) for p in (270.0, 180.0, 90.0, 0.0)]
+    text = hand_text(rows, header="target_deg,cycle,direction,measured_deg", meta="# axis: C\n")
+    r = iso230_2(parse_positioning_log(text, "c.csv"))
+    assert "4 targets: ISO 230-2 asks at least 5 (at least 5 on a rotary axis)" in r.warnings
+
+
+@pytest.mark.parametrize("axis, unit, said", [
+    ("X", "deg", "metadata axis 'X' is a linear axis but unit is 'deg'"),
+    ("w", "deg", "metadata axis 'w' is a linear axis but unit is 'deg'"),
+    ("C", "mm", "metadata axis 'C' is a rotary axis but unit is 'mm'"),
+    ("A", "mm", "metadata axis 'A' is a rotary axis but unit is 'mm'"),
+])
+def test_axis_letter_that_contradicts_the_unit_is_refused(axis, unit, said):
+    """review30 F6: '# axis: X' with '# unit: deg' was read: figures in arcsec, the plot's x label 'X / mm'.
+    The format says deg is a rotary axis's unit: one of the two lines is wrong, refused in one line."""
+    rows = [(r[0], r[1], r[2], r[3]) for r in hand_rows()]
+    text = hand_text(rows, header=f"target_{unit},cycle,direction,measured_{unit}",
+                     meta=f"# axis: {axis}\n# unit: {unit}\n")
+    with pytest.raises(PositioningLogError, match=re.escape(said)) as e:
+        parse_positioning_log(text, "bad.csv")
+    assert "\n" not in str(e.value) and str(e.value).startswith("bad.csv: ")
+
+
+@pytest.mark.parametrize("axis, unit", [("X", "mm"), ("U", "mm"), ("C", "deg"), ("B", "deg"), ("", "deg"),
+                                        ("X1", "deg"), ("", "mm")])
+def test_axis_letter_that_fits_the_unit_or_says_nothing_is_read(axis, unit):
+    text = hand_text(hand_rows(), header=f"target_{unit},cycle,direction,measured_{unit}",
+                     meta=(f"# axis: {axis}\n" if axis else "") + f"# unit: {unit}\n")
+    assert parse_positioning_log(text, "ok.csv").unit == unit
+
+
+def test_headers_say_the_range_of_cycles_when_a_target_has_more():
+    """review30 F9: the header said '3 targets x 6 cycles' when one target had a 6th (retaken) reading."""
+    from core.positioning import cycles_said
+
+    rows = hand_rows() + [(100.0, 6, "+", 100.0 + 5e-3)]
+    rep = iso230_2(parse_positioning_log(hand_text(rows), "h.csv")).to_report()
+    assert rep["cycles"] == 6 and cycles_said(rep) == "5-6 cycles"
+    assert cycles_said(iso230_2(parse_positioning_log(hand_text(), "h.csv")).to_report()) == "5 cycles"
+    assert cycles_said({"cycles": 4}) == "4 cycles"

@@ -1,5 +1,6 @@
 """`vmt probe` campaigns against the emulator: equal to the backend, resumable, lossless."""
 
+import re
 import signal
 import subprocess
 import sys
@@ -250,6 +251,43 @@ def test_killed_process_and_torn_line_then_resume(tmp_path, plan_path):
         assert 5 <= n_before < plan.n
         with open(out, "ab") as f:                      # a torn line, as if killed mid-write
             f.write(b"sphere,s9,12.0,61.2")
+        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 0
+    finally:
+        srv.stop()
+    log = read_probe_log(out)
+    assert_complete(log, plan)
+    assert np.abs(log.positions_mm() - ref.positions_mm()).max() < QUANT_MM
+
+
+@pytest.mark.parametrize("sig, rc, said", [(signal.SIGINT, 130, "interrupted"),
+                                           (signal.SIGTERM, 143, "terminated (SIGTERM)")])
+def test_ctrl_c_and_sigterm_say_the_rows_kept_and_resume(tmp_path, plan_path, sig, rc, said):
+    """review30 F7: Ctrl-C said only 'vmt probe: interrupted' and SIGTERM nothing (rc 143) where a lost connection
+    says '[60 of 368 rows in LOG; continue with --resume]'. Both now say it, the rows it counts are the log's, and
+    --resume completes the campaign on the emulator as a run never stopped would have."""
+    plan = read_probe_log(plan_path)
+    ref = direct_log(tmp_path, plan)
+    emu, srv = serve(machine=_Slow(scene()))
+    out = tmp_path / "log.csv"
+    try:   # SIGINT as the default handler takes it, even when this test runs with it ignored (a background job)
+        proc = subprocess.Popen([sys.executable, "-m", "scenarios.cli", *probe_args(srv.url, plan_path, out)],
+                                cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.default_int_handler))
+        end = time.monotonic() + 30
+        while time.monotonic() < end:
+            rows = [x for x in out.read_text().splitlines() if not x.startswith("#")] if out.exists() else []
+            if len(rows) >= 1 + 3:                              # header + 3 touches
+                break
+            time.sleep(0.01)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=30)
+        assert proc.returncode == rc, err
+        last = err.strip().splitlines()[-1]
+        m = re.fullmatch(rf"vmt probe: {re.escape(said)} \[(\d+) of {plan.n} rows in (.+); continue with --resume\]",
+                         last)
+        assert m and m.group(2) == str(out), err
+        n_before = read_probe_log(out).n
+        assert 3 <= n_before < plan.n and int(m.group(1)) == n_before
         assert main(probe_args(srv.url, plan_path, out, "--resume")) == 0
     finally:
         srv.stop()

@@ -268,11 +268,31 @@ def test_plan_grid_and_a_planless_import_give_the_same_plan(tmp_path, capsys):
 
 
 def test_planless_import_of_scattered_points_and_bad_grids(tmp_path, capsys):
+    """review30 F2: without --plan the file was read as a Z grid whatever its points (a pocket's wall touches
+    became 83 'points, not a full grid' whose plane fit said 26 mm flatness, exit 0). Points that are not a
+    grid's nodes are refused naming --plan; a grid's nodes (a line of them too, repeats too) are read."""
     pf = tmp_path / "probe.txt"
-    _probe_file(pf, [[0, 0, 1], [5, 1, 1.1], [0, 0, 1.05]])            # a repeat of the first point
     out = tmp_path / "log.csv"
+    _probe_file(pf, [[0, 0, 1], [5, 1, 1.1], [0, 0, 1.05]])            # scattered: 2 of a 2 x 2 grid's nodes
+    assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(pf) in err and "3 touches at 2 XY points on 2 X and 2 Y lines" in err
+    assert err.rstrip().endswith("give the plan that was run: --plan PLAN.csv") and not out.exists()
+    # a 3 x 2 grid run that stopped after 4 nodes: its last nodes are not known without the plan
+    grid = [[0, 0, 1], [10, 0, 1], [20, 0, 1], [20, 5, 1], [10, 5, 1], [0, 5, 1]]
+    _probe_file(pf, grid[:4])
+    assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 2
+    assert "are not the 6 nodes of a surface grid" in capsys.readouterr().err
+    # the whole grid, with a repeat: read, the repeat sharing its node's target
+    _probe_file(pf, grid + [[0, 0, 1.001]])
     assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 0
-    assert list(read_probe_log(out).col("target")) == ["p0", "p1", "p0"]
+    assert list(read_probe_log(out).col("target")) == ["r0c0", "r0c1", "r0c2", "r1c2", "r1c1", "r1c0", "r0c0"]
+    # the note says how the plan was built (it said 'built from the file': the plan's 'plan' key is plan_plan)
+    assert "note: no plan: built from 7 touches probed along -Z (grid 3 x 2)" in capsys.readouterr().out
+    # one line of nodes is a grid too (vmt plan grid --y-mm 0:0:1)
+    _probe_file(pf, grid[:3])
+    assert main(["import", "linuxcnc", str(pf), "--out", str(out)]) == 0
+    assert list(read_probe_log(out).col("target")) == ["r0c0", "r0c1", "r0c2"]
     for bad, msg in (("0:10:3", "not a whole number of steps"), ("10:0:1", "lo <= hi"),
                      ("0:10", "expected lo:hi:step")):
         assert main(["plan", "grid", "--x-mm", bad, "--y-mm", "0:1:1", "--stylus-r-mm", "0",
@@ -875,3 +895,32 @@ def test_grbl_transcript_in_mm_reads_whatever_13_says_elsewhere(tmp_path, capsys
     log = read_probe_log(out)
     np.testing.assert_array_equal(log.columns["Z_mm"], [0.0669, 0.0669])
     np.testing.assert_array_equal(log.columns["Y_mm"], [0.0, 0.0079])
+
+
+def test_probeopen_rotary_positions_are_checked_against_the_plan(tmp_path, plan_path, measured, capsys):
+    """review30 F8: a 9-number PROBEOPEN file's A B C were ignored: C = 0 on every line of a cross-pocket plan's
+    C = 75/130/210 rows was booked at the plan's angles (276 rows), exit 0. Now each line's A B C must be its
+    row's within ROTARY_TOL_DEG (modulo 360), else refused naming the line and the row."""
+    plan = read_probe_log(plan_path)
+    plan.columns["C_deg"] = np.where(np.arange(plan.n) < 6, 0.0, 75.0)    # two set-ups: C 0, then C 75
+    turned = write_probe_log(tmp_path / "plan-c.csv", plan)
+    pos = measured.positions_mm()
+    pf, out = tmp_path / "probe.txt", tmp_path / "log.csv"
+
+    def file_with(c_deg):
+        with open(pf, "w") as f:
+            for p, c in zip(pos, c_deg):
+                f.write(" ".join(f"{v:f}" for v in list(p) + [0.0, 0.0, c, 0.0, 0.0, 0.0]) + "\n")
+
+    file_with([0.0] * plan.n)                                  # the table never turned
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(turned), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and not out.exists()
+    assert f"{pf}: line 7: C 0 deg, but plan row 6 (target {plan.col('target')[6]}) has C 75 deg (within 0.01 deg" in err
+    file_with([0.0] * 6 + [75.0] * 5 + [75.02])                # the last 0.02 deg off
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(turned), "--out", str(out)]) == 2
+    assert "line 12: C 75.02 deg, but plan row 11" in capsys.readouterr().err
+    file_with([360.0] * 6 + [435.0] * 5 + [75.009])            # a continuous axis: the same angles
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(turned), "--out", str(out)]) == 0
+    log = read_probe_log(out)
+    assert log.n == plan.n and np.all(log.ok) and list(log.col("C_deg")) == [0.0] * 6 + [75.0] * 6

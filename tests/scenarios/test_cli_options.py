@@ -230,16 +230,23 @@ def test_check_json_file_stdout_and_the_old_flag(tmp_path, capsys):
         assert json.loads(cap.out)["touches"] == 2 and cap.err.count("\n") == 1 and "--json -" in cap.err
 
 
-def test_simulate_positioning_noise_is_now_scatter(tmp_path, capsys):
+def test_simulate_positioning_refuses_noise_and_the_old_cycle(tmp_path, capsys):
+    """review30 F9: --noise-um is the probing noise in every command; in simulate positioning it was an alias
+    of --scatter-um. --cycle (the kind) sat beside --cycles (the count): renamed --cycle-kind. Both old
+    names are refused in one line naming the option to use; nothing written."""
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    for argv, said in ((["--noise-um", "0.3"], "the scatter of each reading is --scatter-um"),
+                       (["--noise-um", "0.3", "--scatter-um", "0.3"], "is --scatter-um"),
+                       (["--cycle", "pilgrim"], "--cycle is now --cycle-kind"),
+                       (["--cycle", "linear"], "--cycle is now --cycle-kind")):
+        assert main(["simulate", "positioning", "--targets", "5", "--cycles", "2", "--out", str(a), *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and said in err and not a.exists(), err
     assert main(["simulate", "positioning", "--targets", "5", "--cycles", "2", "--out", str(a),
-                 "--noise-um", "0.3"]) == 0
-    assert "renamed to --scatter-um" in capsys.readouterr().err
-    assert main(["simulate", "positioning", "--targets", "5", "--cycles", "2", "--out", str(b),
-                 "--scatter-um", "0.3"]) == 0
-    assert capsys.readouterr().err == ""
-    assert a.read_bytes() == b.read_bytes()
-    assert main(["simulate", "positioning", "--out", str(b), "--noise-um", "0.3", "--scatter-um", "0.3"]) == 2
+                 "--cycle-kind", "pilgrim", "--scatter-um", "0.3"]) == 0
+    assert capsys.readouterr().err == "" and "# cycle_kind: pilgrim" in a.read_text()
+    assert main(["simulate", "cross-pocket", "--out", str(b), "--cycle-kind", "pilgrim"]) == 2
+    assert "--cycle-kind applies to 'vmt simulate positioning' only" in capsys.readouterr().err
 
 
 def test_naming_the_default_machine_is_omitting_it(tmp_path, capsys):
@@ -602,8 +609,7 @@ def test_every_old_alias_is_exercised():
 
 def test_check_usage_says_log_is_required_and_noise_help_says_what_it_does_in_positioning(capsys):
     # `vmt check` refuses to run without LOG: its usage line may not show it optional (it showed [LOG]);
-    # `--noise-um` of `vmt simulate positioning` is --scatter-um's old name (same bytes, test above): the help
-    # says so (it said "not for positioning")
+    # `--noise-um` of `vmt simulate positioning` is refused naming --scatter-um (test above): the help says so
     with pytest.raises(SystemExit):
         main(["check", "--help"])
     usage = capsys.readouterr().out.splitlines()[0]
@@ -611,7 +617,7 @@ def test_check_usage_says_log_is_required_and_noise_help_says_what_it_does_in_po
     with pytest.raises(SystemExit):
         main(["simulate", "--help"])
     text = " ".join(capsys.readouterr().out.split())
-    assert "positioning: the old name of --scatter-um, the same k=1 scatter of each reading" in text
+    assert "not for positioning, which has no probe: its readings' scatter is --scatter-um" in text
     assert main(["check"]) == 2 and "give the LOG to check" in capsys.readouterr().err
 
 

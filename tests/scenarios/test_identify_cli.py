@@ -79,6 +79,13 @@ def test_identify_bad_input_one_line_exit_2(tmp_path, rng, capsys):
     assert "lies outside the grid -50..50 mm" in err
     assert not (tmp_path / "x.json").exists()
     assert main(["identify", str(log), "--json", str(tmp_path / "y.json"), "--grid-mm", "a:b"]) == 2
+    # review30 F5: the grid's own refusal named no option ('grid -110..110 mm is not a whole number of 500 mm
+    # steps'); the CLI names --grid-mm and keeps the library's words
+    capsys.readouterr()
+    assert main(["identify", str(log), "--json", str(tmp_path / "z.json"), "--grid-mm=-110:110:500"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("vmt identify: error: --grid-mm -110:110:500: grid -110..110 mm is not a whole number of "
+                   "500 mm steps\n"), err
 
 
 def test_identify_seed_without_mc_refused(tmp_path, rng, capsys):

@@ -103,8 +103,8 @@ def test_iso230_2_subprocess_no_traceback(tmp_path):
 def test_simulate_positioning_then_evaluate_with_report(tmp_path, capsys):
     log = tmp_path / "y.csv"
     assert main(["simulate", "positioning", "--machine", "vmc-3axis", "--axis", "Y", "--out", str(log),
-                 "--targets", "6", "--cycles", "5", "--cycle", "pilgrim", "--reversal-um", "2",
-                 "--noise-um", "0", "--errors", "none"]) == 0
+                 "--targets", "6", "--cycles", "5", "--cycle-kind", "pilgrim", "--reversal-um", "2",
+                 "--scatter-um", "0", "--errors", "none"]) == 0
     assert main(["iso230-2", str(log), "--json", str(tmp_path / "r.json"), "--report", str(tmp_path / "rep")]) == 0
     rep = json.loads((tmp_path / "r.json").read_text())
     # lost motion 2 um on Y (ISO 230-1 values: the tool relative to the part, also on this table-side
@@ -121,7 +121,7 @@ def test_simulate_positioning_then_evaluate_with_report(tmp_path, capsys):
     assert sum(note in ln for ln in out.splitlines()) == 1 and note in html
     lin = tmp_path / "lin.csv"
     assert main(["simulate", "positioning", "--machine", "vmc-3axis", "--axis", "Y", "--out", str(lin),
-                 "--targets", "6", "--cycles", "5", "--noise-um", "0", "--errors", "none"]) == 0
+                 "--targets", "6", "--cycles", "5", "--scatter-um", "0", "--errors", "none"]) == 0
     assert main(["iso230-2", str(lin), "--json", str(tmp_path / "l.json")]) == 0
     assert "Annex B" not in capsys.readouterr().out
     assert "cycle_note" not in json.loads((tmp_path / "l.json").read_text())
@@ -221,3 +221,13 @@ def test_iso230_2_comp_file_on_the_input_refused(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--comp-file" in err and "refusing to overwrite an input" in err and err.count("\n") == 1
     assert p.read_text() == log_text()
+
+
+def test_iso230_2_names_e_as_the_standard_does(tmp_path, capsys):
+    """review30 F9: ISO 230-2:2014 calls E the systematic positioning error of an axis (2.20, 2.21)."""
+    from scenarios.positioning import FIGURE_ROWS
+
+    said = {name: meaning for name, _s, _c, meaning in FIGURE_ROWS}
+    assert said["E"] == "bidirectional systematic positioning error"
+    assert said["E_up"].startswith("unidirectional systematic positioning error")
+    assert not any("positional deviation" in m for n, m in said.items() if n.startswith("E"))

@@ -150,6 +150,15 @@ BAD = [
     ('base = "vmc-3axis"\nerrors = "some"\n', "errors: expected"),
     ('base = "vmc-3axis"\nchain = "[w-X-b-Q-t]"\n', "chain: chain '\\[w-X-b-Q-t\\]': unknown token"),
     ("base = \n", "not TOML"),
+    # review30 F3: magnitudes beyond the bounds (MAX_ANGULAR_URAD, MAX_LINEAR_UM), the unit named
+    ('base = "vmc-3axis"\n[error.EC0Y]\nconstant_urad = -20000000.0\n',
+     r"error.EC0Y: reaches -2e\+07 urad: beyond the \+-1000 urad a machine file's rotation error may have"),
+    ('base = "vmc-3axis"\n[error.EXX]\nslope_um_per_m = 5000\n',    # 5 mm/m over X -300..300 mm
+     r"error.EXX: reaches -1500 um \(at X -300 mm\): beyond the \+-1000 um"),
+    ('base = "vmc-3axis"\n[error.EAX]\nperiodic = [{ amplitude_urad = 1001, period_mm = 20 }]\n',
+     r"error.EAX: reaches .*urad \(at X .* mm\): beyond the \+-1000 urad"),
+    ('base = "vmc-3axis"\n[error.EXX]\nthermal = { offset_um_per_h = 200 }\n',    # 1600 um after 8 h
+     r"error.EXX: reaches 1600 um \(at X .* mm, after 8 h\)"),
 ]
 
 
@@ -203,3 +212,25 @@ def test_a_lagging_reversal_in_a_machine_file():
     assert np.allclose(lead(np.zeros(2), direction=d), [2e-6, -2e-6], atol=1e-18)
     sym = iso.symbol("EXX")
     assert describe_error(lag, sym) == "reversal 4 um, lag" and describe_error(lead, sym) == "reversal 4 um"
+
+
+def test_error_bounds_are_inclusive_and_the_realistic_sets_far_inside():
+    """The bounds themselves load (a machine file may reach them); the built-ins' realistic sets are 10x inside."""
+    from sim.machinefile import MAX_ANGULAR_URAD, MAX_LINEAR_UM
+
+    ok = loads(f'base = "vmc-3axis"\n[error.EC0Y]\nconstant_urad = {-MAX_ANGULAR_URAD}\n'
+               f'[error.EXX]\nconstant_um = {MAX_LINEAR_UM}\n', source="m.toml")
+    assert ok.config.errors["EC0Y"].value == pytest.approx(-1e-3)
+    from core import iso
+
+    worst = {True: 0.0, False: 0.0}      # the docstring's figures: 98.6 urad, 38.2 um over 31 seeds
+    for name in ("vmc-3axis", "mikron-ucp710", "nmv3000"):
+        cfg = resolve(name).config
+        for seed in range(5):
+            for k, f in realistic_errors(tuple(cfg.strokes), strokes=cfg.strokes, J_m=cfg.J_m,
+                                         rng=np.random.default_rng(seed)).items():
+                s = iso.symbol(k)
+                p = np.linspace(*cfg.strokes[s.axis], 201)
+                v = np.max(np.abs(f(p, np.zeros_like(p), np.ones_like(p)))) / 1e-6
+                worst[s.angular] = max(worst[s.angular], v)
+    assert 50 < worst[True] < MAX_ANGULAR_URAD / 5 and 20 < worst[False] < MAX_LINEAR_UM / 5, worst

@@ -53,3 +53,19 @@ def test_positioning_figure_bad_report(mutate, match):
     mutate(rep)
     with pytest.raises(ConfigError, match=match):
         vf.positioning_figure(rep)
+
+
+@pytest.mark.parametrize("axis, unit, label", [("X1", "deg", "X1 / °"), ("C", "deg", "C / °"),
+                                               ("", "deg", "target P / °"), ("spindle", "mm", "spindle / mm")])
+def test_positioning_figure_x_label_follows_the_unit(axis, unit, label):
+    """review30 F6: the reversal plot's x label came from the axis letter ('X / mm' whatever the unit); a log in
+    degrees of an axis named otherwise than A B C (refused for X Y Z U V W since) said mm."""
+    P = np.array([0.0, 90.0, 180.0, 270.0, 360.0])
+    T, C, D, M = [], [], [], []
+    for j in range(1, 6):
+        for d in (1, -1):
+            for p in (P if d > 0 else P[::-1]):
+                T.append(p), C.append(j), D.append(d), M.append(p + d * 1e-4 + 1e-5 * j)
+    log = make_positioning_log(T, C, D, M, meta={"axis": axis}, unit=unit)
+    fig = vf.positioning_figure(iso230_2(log).to_report())
+    assert fig.axes[1].get_xlabel() == label
