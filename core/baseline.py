@@ -472,10 +472,22 @@ def centred_grid(p_R: np.ndarray, step_m: float) -> selfcal.Grid:
 #: through the cross pocket's 25.7 mm sphere height left 0.107 um RMS noise-free (identify: 0.0185 um) that
 #: discover read as ``unexplained`` ("residuals follow the feature, differently in each set-up") on 3/20 of the
 #: regress study's seeds with the screw, 6/20 without (docs/discovery-studies.md, "Session 29: the 0.1 um discover
-#: called unexplained ...", rs29). Built and OFF: on, it moves 42 discover tests that pin figures of stored or
-#: generated two-level campaigns (tests/core/test_discover_misses.py 18 of them), not reviewed by session 29's
-#: deadline. False: the per-set-up tilt only, as before.
+#: called unexplained ...", rs29). Built and OFF. Session 30 (abbe30, docs/discovery.md "Session 30: the planar
+#: baseline's Abbe columns ..."): on, 55 discover tests fail, reviewed one by one; on gen_b every effect 1000-1011
+#: it moves 9 readings right -> wrong against 5 wrong -> right (part_change 1001, 1004, 1008, 1011 among them:
+#: gen_a's and gen_b's machines carry almost no pitch or roll, and the two columns, nonzero on the raised touches
+#: only, take part of an effect on a raised feature). False: the per-set-up tilt only, as before.
 PLANAR_ABBE = False
+
+#: Session 30 (abbe30): the Abbe shear columns (:data:`PLANAR_ABBE`) offered to the baseline's BIC choice beside the
+#: grid instead of always taken: each grid is tried with and without them and BIC chooses among all (two columns
+#: cost ``2 ln n``; on one grid given, BIC chooses whether they are taken). Built and OFF (docs/discovery.md,
+#: "Session 30: the planar baseline's Abbe columns ..."): on, the regress study names the screw alone 20/20 and
+#: nothing 20/20 without it, gen_a/gen_b ``none`` 1000-1011 never take the columns, gen_a every effect 1000-1011
+#: moves no name, but gen_b's moves 3 right -> wrong (part_change 1004, 1011, stylus_bending 1005) against 5 wrong
+#: -> right: BIC judges the columns on residuals that still hold the effect. Acts only with :data:`PLANAR_ABBE`
+#: off.
+PLANAR_ABBE_BIC = False
 
 
 def _abbe_shear_columns(t: Touches, des: selfcal.SelfCalDesign):
@@ -497,7 +509,7 @@ def _abbe_shear_columns(t: Touches, des: selfcal.SelfCalDesign):
     return ht.A[:, ab] @ N, tuple(f"Abbe shear {i + 1} (height terms)" for i in range(N.shape[1]))
 
 
-def _height_columns(t: Touches, des: selfcal.SelfCalDesign):
+def _height_columns(t: Touches, des: selfcal.SelfCalDesign, abbe: bool | None = None):
     """C-axis tilt and Abbe columns for touches at more than one Z level.
 
     The paper's model is planar: every touch at one height. Touches at
@@ -507,7 +519,9 @@ def _height_columns(t: Touches, des: selfcal.SelfCalDesign):
     ``n_x dz``, ``-n_y dz``. The reference set-up's pair is fixed (a tilt
     of the part in W is the same as shifting every raised target). With
     :data:`PLANAR_ABBE`, the angular errors' variation over the stroke
-    too (:func:`_abbe_shear_columns`, two columns shared by every set-up).
+    too (:func:`_abbe_shear_columns`, two columns shared by every set-up);
+    ``abbe`` True or False says so for this call (:data:`PLANAR_ABBE_BIC`'s
+    two tries), None leaves it to :data:`PLANAR_ABBE`.
     Returns (columns, names, per-set-up column indices, gauge columns,
     levels) or None for a single level.
     """
@@ -525,7 +539,7 @@ def _height_columns(t: Touches, des: selfcal.SelfCalDesign):
         cols += [nx * dz * m, -ny * dz * m]
         names += [f"EBC,total[{cn[j]}]", f"EAC,total[{cn[j]}]"]
     ref = des.ref_setup
-    ab = _abbe_shear_columns(t, des) if PLANAR_ABBE else None
+    ab = _abbe_shear_columns(t, des) if (PLANAR_ABBE if abbe is None else abbe) else None
     if ab is not None:
         cols += list(ab[0].T)
         names += list(ab[1])
@@ -545,7 +559,9 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
     added (:func:`_height_columns`). Grids are tried from ``grid_steps_mm``
     (or ``grid_step_mm`` alone), centred on the campaign
     (:func:`centred_grid`); among those whose design is identifiable beyond
-    the gauge, BIC chooses (``select_grid``; else the finest). When none is
+    the gauge, BIC chooses (``select_grid``; else the finest), with
+    :data:`PLANAR_ABBE_BIC` among each grid with and without the Abbe
+    columns (on one grid given, whether they are taken). When none is
     (a symmetric part at C 90 deg apart), the finest grid that meets eq 6
     is used all the same: residuals do not depend on the gauge, and the
     workpiece is then reported as not identifiable.
@@ -610,7 +626,8 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         c0 = np.array([(t.pn_R[:, 0].max() + t.pn_R[:, 0].min()) / 2, (t.pn_R[:, 1].max() + t.pn_R[:, 1].min()) / 2])
     sh = np.array([c0[0], c0[1], 0.0])
     td = dataclasses.replace(t, pn_R=t.pn_R - sh, p_R=t.p_R - sh)
-    for st in steps:
+    tries = [(st, ab) for st in steps for ab in ((False, True) if PLANAR_ABBE_BIC and not PLANAR_ABBE else (None,))]
+    for st, ab in tries:
         grid = centred_grid(td.pn_R, st * MM)
         try:
             selfcal.check_count(td, grid)
@@ -618,7 +635,9 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         except IdentifiabilityError as e:
             last = e
             continue
-        h = _height_columns(td, des)
+        h = _height_columns(td, des, ab)
+        if ab and (h is None or not any(n.startswith("Abbe shear") for n in h[1])):
+            continue  # (no Abbe columns on this design: the try without them stands for it)
         p_all = des.A.shape[1] + (h[0].shape[1] if h is not None else 0)
         big = 8 * t.n * p_all > DENSE_DESIGN_BYTES
         A = des.A if big else des.A.toarray()
@@ -651,7 +670,9 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         nullity = A.shape[1] - rank
         ident_here = nullity <= np.linalg.matrix_rank(C)
         if ident_here:  # the grid BIC chooses (the first on a tie), or the first: only the best kept so far
-            win, score, bound = better(item, rank, best) if select_grid and len(steps) > 1 else (not best, 0.0, 0.0)
+            # (BIC chooses the grid, or, on one grid given, whether the Abbe columns are taken)
+            win, score, bound = (better(item, rank, best) if (select_grid or len(steps) == 1) and len(tries) > 1
+                                 else (not best, 0.0, 0.0))
         if big:  # a long log's: kept as the sparse design, the block design made again for the grid chosen (one
             # dense block held at a time)
             item = [st, des, A_sparse, C, d, names, levels, None, None]
