@@ -4744,6 +4744,13 @@ def _beyond_one_place(st: _State, E: np.ndarray, sigma: float, settings, lab: np
 DEFECT_BEYOND_ONE_FEATURE = True
 
 
+def _feature_names(bl) -> np.ndarray | None:
+    """The log's feature names, sorted (the codes of :func:`_feature_codes`), or None where it names none."""
+    t = getattr(getattr(bl, "data", None), "touches", None)
+    f = getattr(t, "feature", None) if t is not None else None
+    return None if f is None else np.unique(np.asarray(f, dtype=object).astype(str))
+
+
 def _feature_codes(bl, rows) -> np.ndarray | None:
     """(rows) integer codes of the touches' features, or None where the log names none (or one feature only)."""
     t = getattr(getattr(bl, "data", None), "touches", None)
@@ -4808,6 +4815,32 @@ def _beyond_one_feature(st: _State, E: np.ndarray, sigma: float, settings, feat:
     verdict = "seen" if z_rest > bound else ("refuted" if z_short > bound else "cannot tell")
     return {**out, "verdict": verdict, "z_rest": float(z_rest), "z_expected": float(abs(a_all) / s_rest),
             "z_short": float(z_short), "bound": bound}
+
+
+def _feature_change_ratio(bl, tm: Term, so: _State, sigma: float, fixed, code: int) -> float | None:
+    """What a change of one feature explains, as a share of what the finding ``tm`` explains, beside ``so``.
+
+    The feature is the one of code ``code`` (:func:`_feature_codes`' order); its changes are the catalogue's
+    ``part_change`` layouts on it (``fixed()``: each a wall's shift, turn or bow in time, its form), each's sum of
+    squares beside the model debiased by its directions (``ss - k sigma^2``), the largest taken, over the finding's
+    own (debiased). None where the catalogue has no such layout or the finding explains nothing.
+    """
+    names = _feature_names(bl)
+    if fixed is None or names is None or not 0 <= code < len(names):
+        return None
+    rows = so.rows
+    U = new_basis(so.Q, np.asarray(tm.columns)[rows])
+    d_n = float(np.sum((U.T @ so.r) ** 2)) - U.shape[1] * sigma ** 2
+    if d_n <= 0:
+        return None
+    best = None
+    for info, B in fixed().get("part_change", ()):
+        if str(info.get("feature")) != names[code]:
+            continue
+        V = new_basis(so.Q, np.asarray(B)[rows])
+        d = float(np.sum((V.T @ so.r) ** 2)) - V.shape[1] * sigma ** 2
+        best = d if best is None else max(best, d)
+    return None if best is None else max(best, 0.0) / d_n
 
 
 #: A turn of the table growing in time (``c_drift``) moves every touch by ``(R90 (p - c0)) . n ECC(t)``: touches
@@ -8604,9 +8637,13 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             if DEFECT_BEYOND_ONE_FEATURE and (feat := _feature_codes(bl, rows)) is not None:
                 # one feature's: where the other features cannot tell (or, beside the final model, contradict)
                 onef = _beyond_one_feature(so, tm.columns[rows], sig, settings, feat)
+                if onef is not None and onef["verdict"] != "seen":
+                    # the change of that feature the hedge would name, by the catalogue's own layouts
+                    onef["part_change_ratio"] = _feature_change_ratio(bl, tm, so, sig, fixed, onef["feature"])
                 if onef is not None:
                     ev["beyond_one_feature"] = {k: v for k, v in onef.items() if k != "feature"}
-                if onef is not None and onef["verdict"] != "seen":
+                if onef is not None and onef["verdict"] != "seen" and (
+                        onef["part_change_ratio"] is not None and onef["part_change_ratio"] >= settings.rival_share):
                     why.append(f"one feature carries {onef['feature_share']:.0%} of what it explains, and the other "
                                "features' touches "
                                + (f"it reaches would show it at its fitted size "
@@ -8614,10 +8651,10 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                                   if onef["verdict"] == "refuted" else
                                   f"tell too little ({onef['z_expected']:.2g} sigma expected, "
                                   f"{onef['z_rest']:.2g} seen)")
-                               + (": a change of that feature (part_change) reads it better"
-                                  if onef["verdict"] == "refuted" else
-                                  ": a change of that feature (part_change) does as much, and this design cannot "
-                                  "tell them apart"))
+                               + f", and a change of that feature (part_change) explains as much "
+                                 f"(x{onef['part_change_ratio']:.2g})"
+                               + (": the part, not the axis" if onef["verdict"] == "refuted" else
+                                  ": this design cannot tell them apart"))
                     if "part_change" not in ev.get("ambiguous_with", []):
                         ev["ambiguous_with"] = list(ev.get("ambiguous_with", [])) + ["part_change"]
         if cause.richer is not None:
