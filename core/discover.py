@@ -4882,7 +4882,21 @@ def _turn_split(bl, st: _State, E: np.ndarray) -> dict | None:
         return None
     t = nested_f(V, r1, float(r1 @ r1), st.dof - U.shape[1])
     ss = [float(np.sum((new_basis(st.Q, E * g[:, None]).T @ st.r) ** 2)) / UM ** 2 for g in (gx, ~gx)]
-    return {"F": float(t.F), "p_value": float(t.p_value), "k": int(t.k), "ss_x_um2": ss[0], "ss_y_um2": ss[1]}
+    # each group's share of the turn fitted on every touch (its one time course f), fitted beside the model and the
+    # other group's: 1 where the group carries the turn at its joint size, 0 where it does not move
+    f = E @ np.linalg.lstsq(E - st.Q @ (st.Q.T @ E), st.r, rcond=None)[0]
+    P = np.column_stack([f * gx, f * ~gx])
+    P = P - st.Q @ (st.Q.T @ P)
+    G = P.T @ P
+    if np.linalg.cond(G) > 1e12:
+        return None
+    a = np.linalg.solve(G, P.T @ st.r)
+    res = st.r - P @ a
+    s2 = float(res @ res) / max(st.dof - 2, 1)
+    se = np.sqrt(np.diag(np.linalg.inv(G)) * s2)
+    z = a / se
+    return {"F": float(t.F), "p_value": float(t.p_value), "k": int(t.k), "ss_x_um2": ss[0], "ss_y_um2": ss[1],
+            "share_x": float(a[0]), "share_y": float(a[1]), "z_x": float(z[0]), "z_y": float(z[1])}
 
 
 def _demotion_reason(share: dict, covariate: str, settings) -> str:
@@ -6359,12 +6373,15 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
                         "significant": True}
     if C_DRIFT_NORMALS_AGREE and cause.name == "c_drift":
         split = _turn_split(bl, st, cols[rows])
-        if split is not None and split["p_value"] < settings.alpha:
+        bound = float(stats.norm.isf(settings.alpha))
+        if split is not None and split["p_value"] < settings.alpha and min(split["z_x"], split["z_y"]) < bound:
+            weak = "X" if split["z_x"] < split["z_y"] else "Y"
             return {"reason": f"not one turn of the table: fitted on the touches of mainly-X and of mainly-Y normals "
-                              f"apart, the angles differ (F = {split['F']:.3g}, {fmt_p(split['p_value'])}; it "
-                              f"explains {split['ss_x_um2']:.3g} um^2 on the mainly-X normals, "
-                              f"{split['ss_y_um2']:.3g} on the mainly-Y): an error of one axis growing in time, not "
-                              "the table turning",
+                              f"apart, the angles differ (F = {split['F']:.3g}, {fmt_p(split['p_value'])}) and the "
+                              f"mainly-{weak} normals do not show it ({split['share_' + weak.lower()]:.2g} of the turn "
+                              f"fitted on every touch, {split['z_' + weak.lower()]:.2g} sigma; it explains "
+                              f"{split['ss_x_um2']:.3g} um^2 on the mainly-X normals, {split['ss_y_um2']:.3g} on the "
+                              "mainly-Y): an error of one axis growing in time, not the table turning",
                     "significant": True}
     if cause.smooth is not None:
         sm = _smooth_verdict(bl, cause, st, cols[rows], sigma, tries, settings)
