@@ -6395,7 +6395,8 @@ def _judge_trial(cause, best: _Trial, scans, tries, bl, st: _State, folds: Folds
             ratio = (_feature_change_ratio(bl, cols, st, sigma, _part_change_layouts(bl), onef["feature"])
                      if onef is not None and onef["verdict"] == "refuted" else None)
             if ratio is not None and ratio >= settings.rival_share:
-                return {"reason": f"carried by one feature: it carries {onef['feature_share']:.0%} of what the bump "
+                return {"reason": f"carried by one feature ({_feature_names(bl)[onef['feature']]}): it carries "
+                                  f"{onef['feature_share']:.0%} of what the bump "
                                   f"explains, without it the other features' touches it reaches, which at its fitted "
                                   f"size would show it ({onef['z_expected']:.2g} sigma expected), do not "
                                   f"({onef['z_rest']:.2g} sigma), and a change of that feature (part_change) explains "
@@ -8692,7 +8693,9 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
                     ev["beyond_one_feature"] = {k: v for k, v in onef.items() if k != "feature"}
                 if onef is not None and onef["verdict"] != "seen" and (
                         onef["part_change_ratio"] is not None and onef["part_change_ratio"] >= settings.rival_share):
-                    why.append(f"one feature carries {onef['feature_share']:.0%} of what it explains, and the other "
+                    names = _feature_names(bl)
+                    why.append(f"one feature ({names[onef['feature']]}) carries {onef['feature_share']:.0%} of what it "
+                               "explains, and the other "
                                "features' touches "
                                + (f"it reaches would show it at its fitted size "
                                   f"({onef['z_expected']:.2g} sigma expected) and do not ({onef['z_rest']:.2g} sigma)"
