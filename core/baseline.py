@@ -51,12 +51,13 @@ RANK_TOL = 1e-7
 #: engine's own basis kept directions at 1.3e-9 to 2.2e-9 (its cut was 1e-9) that a shift of the campaign flipped
 #: (rank30). False: RANK_TOL for the grid, 1e-9 for the engine's basis, 1e-6 for the gauge, as before session 30.
 PRECISION_RANK = True
-#: :func:`precision_rank_tol`'s factor on the coordinates' relative quantum (``q / L``, half the quantum being the
-#: largest rounding error): measured on review30c's campaigns printed to 3-6 decimals (rank30, docs/discovery.md
-#: "Session 30: rank decisions at the log's precision"), a rounding-made direction's |R_ii|/|R_00| is 0.3-2.2 times
-#: ``q / L`` and its column-scaled singular value in the gauge 0.1-0.3 times; the designs' real directions are at
-#: 3e-2 and up (QR) and 9e-4 and up (gauge SVD): 10 leaves a margin of about 4 over the rounding and of 7 below the
-#: weakest real direction at 3 decimals.
+#: :func:`precision_rank_tol`'s factor on the coordinates' relative quantum ``q_rel = q / L`` (``q`` the step the
+#: nominal X, Y are printed to, ``L`` their largest distance from the C axis). Measured on 18 of review30c's
+#: campaigns (none, lobe3, screw_saw, backlash_x, feed_force, clamp_warp at seeds 300, 305, 310) printed to 3, 4,
+#: 5 and 6 decimals, on every grid (360 designs; rank30, /tmp/rank30/s/margin.py): a direction made by the
+#: rounding has |R_ii|/|R_00| 0.97-1.79 ``q_rel`` and, in the gauge's null space (column-scaled SVD), at most
+#: 0.19 ``q_rel``; the real directions are at 2.7e3 ``q_rel`` and up (QR) and 66 ``q_rel`` and up (gauge SVD)
+#: even at 3 decimals. 10 leaves a margin of 5.6 above the rounding and of 6.6 below the weakest real direction.
 RANK_QUANTUM_FACTOR = 10.0
 #: Largest dense planar design (bytes, n x p doubles); a larger one is kept as a
 #: :class:`core.lsq.BlockDesign`, the targets' columns eliminated (a 1e5-row log: 1.1 GB dense).
