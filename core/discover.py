@@ -2935,7 +2935,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     gap_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # the held-out gap's bootstrap draws
     # 0. baseline fit and a first outlier screen
     # (the planar baseline's grid choice factored A already; cut at its rank tolerance, the log's precision's)
-    Qall = orth_of(bl.A, qr=bl.qr) if bl.rank_tol is None else orth_of(bl.A, tol=bl.rank_tol, qr=bl.qr)
+    rank_tol = getattr(bl, "rank_tol", None)
+    Qall = orth_of(bl.A, qr=bl.qr) if rank_tol is None else orth_of(bl.A, tol=rank_tol, qr=bl.qr)
     st0 = _state(Qall, y, all_rows, [])
     # the data's own numerical precision: the noise is never taken below it, and a baseline that leaves every
     # residual below it (a noise-free campaign the model represents exactly) leaves nothing to find: no outlier,
@@ -2954,7 +2955,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             # the folds share, not a copy of its rows factored again (the same numbers: the same rows in order);
             # after an outlier removal one copy of the rows, whose block basis the folds share with Qb
             A_r = bl.A if key is None and isinstance(bl.A, BlockDesign) else bl.A[rows_]
-            Qb = (orth_of(A_r) if bl.rank_tol is None else orth_of(A_r, tol=bl.rank_tol)) if key is not None else Qall
+            Qb = (orth_of(A_r) if rank_tol is None else orth_of(A_r, tol=rank_tol)) if key is not None else Qall
             # (the model's basis of these rows is orth(A_r), the numbers the estimate would factor again)
             est = (Folds if use_cv else CpEstimate)(A_r, bl.groups[rows_], settings.cv_seen,
                                                        settings.cv_seen_extension,
@@ -9397,13 +9398,14 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     """
     q = bl.estimand
     A0 = bl.A
+    rt = getattr(bl, "rank_tol", None)  # the baseline's rank tolerance (the log's precision), None: the gauge's own
     # the linear maps (data -> parameters) serve only the shift test of an unnamed smooth or of a
     # named cause whose magnitudes this design does not determine: such a cause has, here, no more
     # physics than an unnamed smooth to say how its effect splits between machine and part, so its
     # shift of the workpiece is tested and carried alike
     smooth = any(t.penalty is not None for t in terms)
     need_maps = smooth or any(t.evidence.get("magnitudes_not_determined") for t in terms)
-    gb, cb, eb, *lin = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=need_maps, tol=bl.rank_tol)
+    gb, cb, eb, *lin = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=need_maps, tol=rt)
     # a named cause enters with the combinations the data determine (its map)
     E = np.hstack([t.columns @ t.map if t.map is not None else t.columns for t in terms]) if terms \
         else np.zeros((bl.n, 0))
@@ -9421,20 +9423,20 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
                 P[o - A0.shape[1]:o - A0.shape[1] + k, o - A0.shape[1]:o - A0.shape[1] + k] = t.penalty
                 pen[o:o + k] = True
             o += k
-        C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen, bl.rank_tol)
+        C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen, rt)
     if not E.shape[1] and P is None and len(rows) == bl.n and np.array_equal(rows, np.arange(bl.n)):
         # nothing extends the baseline and no row is left out: the extended fit is the baseline's, the same system
         # solved again (A1 is A0, C1 a copy of its gauge rows); at 1e6 rows it was a second normal matrix's
         # elimination beside the first's (session 23)
         ge, ce, ee, lin_e = gb, cb, eb, list(lin)
     else:
-        ge, ce, ee, *lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=need_maps, tol=bl.rank_tol)
+        ge, ce, ee, *lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=need_maps, tol=rt)
     shift = None
     if P is not None:
         # the penalty's ridge rows make every parameter formally estimable:
         # the extended workpiece is an estimate only where the data alone
         # determine it (else the penalty's strength, not the campaign, decides)
-        ee = ee & _constrained(A1, y, C1, d1, rows, None, 0, tol=bl.rank_tol)[2]
+        ee = ee & _constrained(A1, y, C1, d1, rows, None, 0, tol=rt)[2]
     if need_maps:
         ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, lin[0], lin_e[0], lin_e[1], eb & ee[:len(eb)], alpha)
     if doubted is not None:
@@ -9453,11 +9455,11 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
         # the same extended model with the form's outliers put back (only those: a chip elsewhere is no reading
         # of the part's form, and putting it back would count its own shift) against it without them
         back = np.union1d(rows, doubted) if OUTLIER_REFIT_FORM_ONLY else np.arange(bl.n)
-        ga, _, ea, La_b, _ = _constrained(A1, y, C1, d1, back, P, E.shape[1], linear_map=True, tol=bl.rank_tol)
+        ga, _, ea, La_b, _ = _constrained(A1, y, C1, d1, back, P, E.shape[1], linear_map=True, tol=rt)
         La = np.zeros((La_b.shape[0], bl.n))
         La[:, back] = La_b
         if not need_maps:
-            lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=True, tol=bl.rank_tol)[3:]
+            lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=True, tol=rt)[3:]
         ce2, sh2 = _unnamed_shift(bl, rows, ga[:len(eb)], ge, ce, La[:len(eb)], lin_e[0], lin_e[1],
                                   ea[:len(eb)] & ee[:len(eb)], alpha)
         if sh2 is not None and sh2["carried_in_u95"]:
@@ -9465,7 +9467,7 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     named = {} if named is None else named
     if (alternatives or richer or forms) and P is None and isinstance(ce, np.ndarray):
         Le_map, s2e = (lin_e[0], lin_e[1]) if need_maps else \
-            _constrained(A1, y, C1, d1, rows, None, E.shape[1], linear_map=True, tol=bl.rank_tol)[3:]
+            _constrained(A1, y, C1, d1, rows, None, E.shape[1], linear_map=True, tol=rt)[3:]
         o = 0
         for t in terms:
             k = t.map.shape[1] if t.map is not None else t.columns.shape[1]
@@ -9486,8 +9488,8 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
                 # _smooth_gauge: its layout is raw columns, the named cause's its determined combinations)
                 on_b = np.zeros(Aa.shape[1], bool)
                 on_b[A0.shape[1] + o:A0.shape[1] + o + B.shape[1]] = True
-                Ca, da = _smooth_gauge(Aa, Ca, bl.d, rows, on_b, bl.rank_tol)
-                ga, _, ea, La_r, _ = _constrained(Aa, y, Ca, da, rows, None, Ea.shape[1], linear_map=True, tol=bl.rank_tol)
+                Ca, da = _smooth_gauge(Aa, Ca, bl.d, rows, on_b, rt)
+                ga, _, ea, La_r, _ = _constrained(Aa, y, Ca, da, rows, None, Ea.shape[1], linear_map=True, tol=rt)
                 La = np.zeros((La_r.shape[0], bl.n))
                 La[:, rows] = La_r
                 p0 = len(eb)
