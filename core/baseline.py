@@ -41,6 +41,24 @@ from .units import MM
 #: Relative pivot of the column-scaled design below which a direction counts
 #: as unseen (singular-value ratio; core.lsq.solve uses 1e-6).
 RANK_TOL = 1e-7
+#: The planar baseline's rank decisions (the grid's identifiability and BIC rank, the engine's baseline basis
+#: and its gauge's unseen directions, :func:`core.discover._gauge_svd`) take their tolerance from the log's own
+#: precision (:func:`precision_rank_tol`): a direction the design determines only through the rounding of the
+#: printed nominal coordinates is unseen. review30c (session 30): the same campaign with ``Xn, Yn, Zn`` printed to
+#: 4 decimals of a mm (0.1 um, as most controllers print) instead of 7 lost its workpiece ("not identifiable by
+#: this design") and changed its grid (55 -> 80 mm), because two directions a full-precision log leaves at
+#: |R_ii|/|R_00| 1e-9 (the gauge's: exact in exact coordinates) came out at 5e-7 and 1.7e-6, above RANK_TOL, and the
+#: engine's own basis kept directions at 1.3e-9 to 2.2e-9 (its cut was 1e-9) that a shift of the campaign flipped
+#: (rank30). False: RANK_TOL for the grid, 1e-9 for the engine's basis, 1e-6 for the gauge, as before session 30.
+PRECISION_RANK = True
+#: :func:`precision_rank_tol`'s factor on the coordinates' relative quantum ``q_rel = q / L`` (``q`` the step the
+#: nominal X, Y are printed to, ``L`` their largest distance from the C axis). Measured on 18 of review30c's
+#: campaigns (none, lobe3, screw_saw, backlash_x, feed_force, clamp_warp at seeds 300, 305, 310) printed to 3, 4,
+#: 5 and 6 decimals, on every grid (360 designs; rank30, /tmp/rank30/s/margin.py): a direction made by the
+#: rounding has |R_ii|/|R_00| 0.97-1.79 ``q_rel`` and, in the gauge's null space (column-scaled SVD), at most
+#: 0.19 ``q_rel``; the real directions are at 2.7e3 ``q_rel`` and up (QR) and 66 ``q_rel`` and up (gauge SVD)
+#: even at 3 decimals. 10 leaves a margin of 5.6 above the rounding and of 6.6 below the weakest real direction.
+RANK_QUANTUM_FACTOR = 10.0
 #: Largest dense planar design (bytes, n x p doubles); a larger one is kept as a
 #: :class:`core.lsq.BlockDesign`, the targets' columns eliminated (a 1e5-row log: 1.1 GB dense).
 DENSE_DESIGN_BYTES = 256 << 20
@@ -110,6 +128,12 @@ class Baseline:
         factor it again; it names the matrix it factors and is ignored for
         any other (a replaced ``A``). None for a block design (it keeps its
         own factorisation, :meth:`core.lsq.BlockDesign.basis`).
+    rank_tol : float or None
+        The relative tolerance below which a direction of ``A`` is unseen (the
+        pivoted QR's ``|R_ii| / |R_00|``; the gauge's column-scaled singular
+        values at the larger of it and 1e-6): the planar baseline's
+        :func:`precision_rank_tol`, the grid chosen by the same. None: the
+        engine's own cuts (1e-9 for its basis, 1e-6 for the gauge).
     """
 
     kind: str
@@ -137,6 +161,7 @@ class Baseline:
     estimand_label: str = "workpiece"
     whiten: np.ndarray | None = field(default=None, repr=False)
     qr: tuple | None = field(default=None, repr=False, compare=False)
+    rank_tol: float | None = None
 
     @property
     def n(self) -> int:
@@ -546,6 +571,42 @@ def _height_columns(t: Touches, des: selfcal.SelfCalDesign, abbe: bool | None = 
     return np.column_stack(cols), tuple(names), own, [own[ref][0], own[ref][1]], tuple(float(v) for v in levels)
 
 
+def decimal_quantum(v: np.ndarray, max_decimals: int = 9) -> float:
+    """The step the values ``v`` are printed to: ``10^-k`` for the fewest decimals ``k`` (0 .. ``max_decimals``)
+    that write every one of them (to 1e-3 of that step: a value read from text and scaled back carries a few ulp);
+    0.0 when none does (full precision, or values computed, not read)."""
+    v = np.asarray(v, float).ravel()
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return 0.0
+    for k in range(max_decimals + 1):
+        s = v * 10.0 ** k
+        if np.max(np.abs(s - np.round(s))) <= 1e-3:
+            return 10.0 ** -k
+    return 0.0
+
+
+def precision_rank_tol(t: Touches, centre_m: np.ndarray) -> float:
+    """The planar design's rank tolerance at the log's precision: ``max(RANK_TOL, RANK_QUANTUM_FACTOR * q_rel)``.
+
+    ``q_rel`` is the larger of the nominal tip centres' quantum (X and Y printed to ``q`` mm,
+    :func:`decimal_quantum`) over their largest distance ``L`` from the design's origin (the C axis, the
+    coordinates the design is built in) and the normals' quantum (unit-free). The design's columns are built from
+    these numbers; a direction exact in exact coordinates (the gauge's: the part's shift, rotation and size, the
+    C-axis centre) is seen through their rounding at about ``q_rel`` (:data:`RANK_QUANTUM_FACTOR`), so no
+    direction at that level is counted as determined. A full-precision log (7 decimals of a mm: ``q_rel`` about
+    1e-9) keeps :data:`RANK_TOL`. Values that are round by design (every nominal on a whole um) are taken as
+    printed so: the tolerance is then the one a log printed to that step needs (the decision at most as fine as
+    the file can carry).
+    """
+    xy = t.pn_R[:, :2] - np.asarray(centre_m, float)[:2]
+    L = float(np.max(np.abs(xy))) if t.n else 0.0
+    q_pos = decimal_quantum(t.pn_R[:, :2] / MM) * MM  # (the file's mm; metres carry the scaling's ulp)
+    q_n = decimal_quantum(t.n_R)
+    q_rel = max(q_pos / L if L > 0 else 0.0, q_n)
+    return max(RANK_TOL, RANK_QUANTUM_FACTOR * q_rel)
+
+
 def _bic(rss: float, n: int, k: int) -> float:
     return n * np.log(max(rss, 1e-300) / n) + k * np.log(n)
 
@@ -581,14 +642,14 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         """The grid's orthonormal basis (a dense design's Q formed when first asked: qr_formed)."""
         if item[-1] is None and not sp.issparse(item[2]):  # (a long log's sparse design: made again, Q by it)
             item[7] = qr_formed(item[7])
-            item[-1] = orth(item[2], tol=RANK_TOL, qr=item[7])
+            item[-1] = orth(item[2], tol=tol, qr=item[7])
         return item[-1]
 
     def bic(item):
         Q = basis(item)
         if Q is None:  # (a long log's grid kept sparse as the best so far: its block basis made again to compare)
             Gs = item[1].slices["G"]
-            Q = BlockDesign.from_sparse(item[2], np.arange(Gs.start, Gs.stop)).basis(RANK_TOL)
+            Q = BlockDesign.from_sparse(item[2], np.arange(Gs.start, Gs.stop)).basis(tol)
         r = t.dq_m - Q @ (Q.T @ t.dq_m)
         return _bic(float(r @ r), t.n, Q.shape[1])
 
@@ -626,6 +687,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         c0 = np.array([(t.pn_R[:, 0].max() + t.pn_R[:, 0].min()) / 2, (t.pn_R[:, 1].max() + t.pn_R[:, 1].min()) / 2])
     sh = np.array([c0[0], c0[1], 0.0])
     td = dataclasses.replace(t, pn_R=t.pn_R - sh, p_R=t.p_R - sh)
+    tol = precision_rank_tol(t, sh) if PRECISION_RANK else RANK_TOL
     tries = [(st, ab) for st in steps for ab in ((False, True) if PLANAR_ABBE_BIC and not PLANAR_ABBE else (None,))]
     for st, ab in tries:
         grid = centred_grid(td.pn_R, st * MM)
@@ -659,12 +721,12 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
             A_sparse = A
             A = BlockDesign.from_sparse(A, np.arange(Gs.start, Gs.stop))
             qr = None
-            Q = A.basis(RANK_TOL)
+            Q = A.basis(tol)
             rank = Q.shape[1]
         else:  # (Q formed only for the grid chosen: basis)
             qr = pivoted_qr(A, q=False)
             Q = None
-            rank = qr_rank(qr[1], RANK_TOL)
+            rank = qr_rank(qr[1], tol)
         item = [st, des, A, C, d, names, levels, qr, Q]
         # identifiable beyond the gauge: the gauge rows fix exactly the null space
         nullity = A.shape[1] - rank
@@ -728,7 +790,7 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         covariates=planar_covariates(data, sparse=isinstance(A, BlockDesign)), modes=planar_modes(data), mode_names=PLANAR_MODES,
         rows=np.asarray(t.row), data=data, identifiable=ident, why=why, conventions=tuple(conv),
         info={"grid_step_mm": st, "z_levels_mm": [v / MM for v in levels], "yaw": des.yaw,
-              "grid": des.grid}, qr=qr)  # the grid, not the design: its sparse A (177 MiB at 1e6 rows) read by none
+              "grid": des.grid}, qr=qr, rank_tol=tol if PRECISION_RANK else None)  # the grid, not the design: its sparse A (177 MiB at 1e6 rows) read by none
 
 
 def workpiece_geometry(t: Touches, c0_m: np.ndarray):

@@ -2934,7 +2934,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     gap_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # the held-out gap's bootstrap draws
     # 0. baseline fit and a first outlier screen
-    Qall = orth_of(bl.A, qr=bl.qr)  # the planar baseline's grid choice factored A already
+    # (the planar baseline's grid choice factored A already; cut at its rank tolerance, the log's precision's)
+    rank_tol = getattr(bl, "rank_tol", None)
+    Qall = orth_of(bl.A, qr=bl.qr) if rank_tol is None else orth_of(bl.A, tol=rank_tol, qr=bl.qr)
     st0 = _state(Qall, y, all_rows, [])
     # the data's own numerical precision: the noise is never taken below it, and a baseline that leaves every
     # residual below it (a noise-free campaign the model represents exactly) leaves nothing to find: no outlier,
@@ -2953,7 +2955,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             # the folds share, not a copy of its rows factored again (the same numbers: the same rows in order);
             # after an outlier removal one copy of the rows, whose block basis the folds share with Qb
             A_r = bl.A if key is None and isinstance(bl.A, BlockDesign) else bl.A[rows_]
-            Qb = orth_of(A_r) if key is not None else Qall
+            Qb = (orth_of(A_r) if rank_tol is None else orth_of(A_r, tol=rank_tol)) if key is not None else Qall
             # (the model's basis of these rows is orth(A_r), the numbers the estimate would factor again)
             est = (Folds if use_cv else CpEstimate)(A_r, bl.groups[rows_], settings.cv_seen,
                                                        settings.cv_seen_extension,
@@ -9643,13 +9645,14 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     """
     q = bl.estimand
     A0 = bl.A
+    rt = getattr(bl, "rank_tol", None)  # the baseline's rank tolerance (the log's precision), None: the gauge's own
     # the linear maps (data -> parameters) serve only the shift test of an unnamed smooth or of a
     # named cause whose magnitudes this design does not determine: such a cause has, here, no more
     # physics than an unnamed smooth to say how its effect splits between machine and part, so its
     # shift of the workpiece is tested and carried alike
     smooth = any(t.penalty is not None for t in terms)
     need_maps = smooth or any(t.evidence.get("magnitudes_not_determined") for t in terms)
-    gb, cb, eb, *lin = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=need_maps)
+    gb, cb, eb, *lin = _constrained(A0, y, bl.C, bl.d, np.arange(bl.n), None, 0, linear_map=need_maps, tol=rt)
     # a named cause enters with the combinations the data determine (its map)
     E = np.hstack([t.columns @ t.map if t.map is not None else t.columns for t in terms]) if terms \
         else np.zeros((bl.n, 0))
@@ -9667,20 +9670,20 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
                 P[o - A0.shape[1]:o - A0.shape[1] + k, o - A0.shape[1]:o - A0.shape[1] + k] = t.penalty
                 pen[o:o + k] = True
             o += k
-        C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen)
+        C1, d1 = _smooth_gauge(A1, C1, d1, rows, pen, rt)
     if not E.shape[1] and P is None and len(rows) == bl.n and np.array_equal(rows, np.arange(bl.n)):
         # nothing extends the baseline and no row is left out: the extended fit is the baseline's, the same system
         # solved again (A1 is A0, C1 a copy of its gauge rows); at 1e6 rows it was a second normal matrix's
         # elimination beside the first's (session 23)
         ge, ce, ee, lin_e = gb, cb, eb, list(lin)
     else:
-        ge, ce, ee, *lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=need_maps)
+        ge, ce, ee, *lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=need_maps, tol=rt)
     shift = None
     if P is not None:
         # the penalty's ridge rows make every parameter formally estimable:
         # the extended workpiece is an estimate only where the data alone
         # determine it (else the penalty's strength, not the campaign, decides)
-        ee = ee & _constrained(A1, y, C1, d1, rows, None, 0)[2]
+        ee = ee & _constrained(A1, y, C1, d1, rows, None, 0, tol=rt)[2]
     if need_maps:
         ce, shift = _unnamed_shift(bl, rows, gb, ge, ce, lin[0], lin_e[0], lin_e[1], eb & ee[:len(eb)], alpha)
     if doubted is not None:
@@ -9699,11 +9702,11 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
         # the same extended model with the form's outliers put back (only those: a chip elsewhere is no reading
         # of the part's form, and putting it back would count its own shift) against it without them
         back = np.union1d(rows, doubted) if OUTLIER_REFIT_FORM_ONLY else np.arange(bl.n)
-        ga, _, ea, La_b, _ = _constrained(A1, y, C1, d1, back, P, E.shape[1], linear_map=True)
+        ga, _, ea, La_b, _ = _constrained(A1, y, C1, d1, back, P, E.shape[1], linear_map=True, tol=rt)
         La = np.zeros((La_b.shape[0], bl.n))
         La[:, back] = La_b
         if not need_maps:
-            lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=True)[3:]
+            lin_e = _constrained(A1, y, C1, d1, rows, P, E.shape[1], linear_map=True, tol=rt)[3:]
         ce2, sh2 = _unnamed_shift(bl, rows, ga[:len(eb)], ge, ce, La[:len(eb)], lin_e[0], lin_e[1],
                                   ea[:len(eb)] & ee[:len(eb)], alpha)
         if sh2 is not None and sh2["carried_in_u95"]:
@@ -9711,7 +9714,7 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
     named = {} if named is None else named
     if (alternatives or richer or forms) and P is None and isinstance(ce, np.ndarray):
         Le_map, s2e = (lin_e[0], lin_e[1]) if need_maps else \
-            _constrained(A1, y, C1, d1, rows, None, E.shape[1], linear_map=True)[3:]
+            _constrained(A1, y, C1, d1, rows, None, E.shape[1], linear_map=True, tol=rt)[3:]
         o = 0
         for t in terms:
             k = t.map.shape[1] if t.map is not None else t.columns.shape[1]
@@ -9732,8 +9735,8 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
                 # _smooth_gauge: its layout is raw columns, the named cause's its determined combinations)
                 on_b = np.zeros(Aa.shape[1], bool)
                 on_b[A0.shape[1] + o:A0.shape[1] + o + B.shape[1]] = True
-                Ca, da = _smooth_gauge(Aa, Ca, bl.d, rows, on_b)
-                ga, _, ea, La_r, _ = _constrained(Aa, y, Ca, da, rows, None, Ea.shape[1], linear_map=True)
+                Ca, da = _smooth_gauge(Aa, Ca, bl.d, rows, on_b, rt)
+                ga, _, ea, La_r, _ = _constrained(Aa, y, Ca, da, rows, None, Ea.shape[1], linear_map=True, tol=rt)
                 La = np.zeros((La_r.shape[0], bl.n))
                 La[:, rows] = La_r
                 p0 = len(eb)
@@ -9826,7 +9829,7 @@ def _unnamed_shift(bl, rows, gb, ge, ce, Lb, Le, s2, est, alpha):
     return ce, fig
 
 
-def _smooth_gauge(A, C, d, rows, pen):
+def _smooth_gauge(A, C, d, rows, pen, tol=None):
     """Gauge rows for a penalised (smooth) term: it takes no combination the rest of the model spans exactly.
 
     A smooth basis (B-splines sum to one, per set-up modes) can reproduce
@@ -9840,7 +9843,7 @@ def _smooth_gauge(A, C, d, rows, pen):
     pinned). Returns (C, d) with the rows appended.
     """
     p = A.shape[1]
-    Ns = _gauge_svd(A[rows], C)[-1][pen]
+    Ns = _gauge_svd(A[rows], C, tol)[-1][pen]
     if Ns.shape[1] == 0:
         return C, d
     K = orth(Ns).T  # (r, n_pen)
@@ -9849,14 +9852,21 @@ def _smooth_gauge(A, C, d, rows, pen):
     return np.vstack([C, rows_K]), np.concatenate([d, np.zeros(K.shape[0])])
 
 
-def _gauge_svd(Ar: np.ndarray, C: np.ndarray):
+#: The gauge's singular-value cut (:func:`_gauge_svd`, :func:`_gauge_eig`): a direction of the column-scaled design in
+#: the gauge's null space below this share of the largest is unseen; a baseline's ``rank_tol`` (the log's precision,
+#: :func:`core.baseline.precision_rank_tol`) raises it, never lowers it.
+GAUGE_SV_TOL = 1e-6
+
+
+def _gauge_svd(Ar: np.ndarray, C: np.ndarray, tol: float | None = None):
     """The gauge's null space and the SVD of the design in it: what :func:`_constrained` and :func:`_smooth_gauge` solve by.
 
     ``theta = theta0 + Z phi`` with ``C Z = 0`` (``Z`` from the SVD of
     ``C``, rank at 1e-12 of its largest singular value; the identity
     without gauge rows); ``M = Ar Z`` with its columns scaled by ``sc``;
-    its thin SVD ``U s Vt``; ``good`` the singular values above 1e-6 of
-    the largest. ``null`` (p, m): the parameter directions the rows do not
+    its thin SVD ``U s Vt``; ``good`` the singular values above
+    :data:`GAUGE_SV_TOL` (or ``tol``, the baseline's ``rank_tol``, where
+    larger) of the largest. ``null`` (p, m): the parameter directions the rows do not
     see, ``Z Vt[~good]^T / sc``, and, when ``M`` has more columns than rows
     (a thin SVD has only as many directions as rows), every direction
     beyond them as well (the full SVD's remaining rows of ``Vt``): those
@@ -9867,12 +9877,12 @@ def _gauge_svd(Ar: np.ndarray, C: np.ndarray):
     p = Ar.shape[1]
     Z = _gauge_svd_z(C, p)
     if isinstance(Ar, BlockDesign):
-        return _gauge_eig(Ar.gram(), Z)
+        return _gauge_eig(Ar.gram(), Z, tol)
     M = Ar @ Z
     sc = np.linalg.norm(M, axis=0)
     sc = np.where(sc > 0, sc, 1.0)
     U, s, Vt = np.linalg.svd(M / sc, full_matrices=False)
-    good = s > (1e-6 * s.max() if s.size else 0.0)
+    good = s > (_gauge_cut(tol) * s.max() if s.size else 0.0)
     Vn = Vt[~good]
     if M.shape[1] > s.size:  # more unknowns than rows: the rest is null too
         Vn = np.vstack([Vn, np.linalg.svd(M / sc)[2][s.size:]])
@@ -9880,7 +9890,12 @@ def _gauge_svd(Ar: np.ndarray, C: np.ndarray):
     return Z, sc, U, s, Vt, good, null
 
 
-def _gauge_eig(N: np.ndarray, Z: np.ndarray):
+def _gauge_cut(tol: float | None) -> float:
+    """The relative singular-value cut of the gauge: :data:`GAUGE_SV_TOL`, or a baseline's larger ``rank_tol``."""
+    return GAUGE_SV_TOL if tol is None else max(GAUGE_SV_TOL, tol)
+
+
+def _gauge_eig(N: np.ndarray, Z: np.ndarray, tol: float | None = None):
     """:func:`_gauge_svd` from the normal matrix ``N = A^T A`` (p, p) of a block design (a long log).
 
     The SVD of the column-scaled ``A Z`` from the eigen-decomposition of
@@ -9896,13 +9911,13 @@ def _gauge_eig(N: np.ndarray, Z: np.ndarray):
     w, V = np.linalg.eigh(NZ / np.outer(sc, sc))
     w, V = w[::-1], V[:, ::-1]  # decreasing, as an SVD's
     s = np.sqrt(np.maximum(w, 0.0))
-    good = s > (1e-6 * s.max() if s.size else 0.0)
+    good = s > (_gauge_cut(tol) * s.max() if s.size else 0.0)
     Vt = V.T
     null = Z @ (Vt[~good].T / sc[:, None]) if (~good).any() else np.zeros((Z.shape[0], 0))
     return Z, sc, None, s, Vt, good, null
 
 
-def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_map=False):
+def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_map=False, tol=None):
     """:func:`_constrained` for a block design: the same solution from its normal matrix.
 
     Without the linear map, the targets eliminated (:func:`_constrained_schur`) where the
@@ -9914,7 +9929,7 @@ def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_ma
     yr = y[rows]
     p = A.shape[1]
     if not linear_map:
-        out = _constrained_schur(Ar, yr, C, d, penalty, k_ext)
+        out = _constrained_schur(Ar, yr, C, d, penalty, k_ext)  # (well posed: every direction far above any cut)
         if out is not None:
             return out
     N = Ar.gram()
@@ -9922,7 +9937,7 @@ def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_ma
         w, V = np.linalg.eigh(penalty)
         N[p - k_ext:, p - k_ext:] += (V * np.maximum(w, 0)) @ V.T
     theta0 = np.linalg.lstsq(C, d, rcond=None)[0] if C.shape[0] else np.zeros(p)
-    Z, sc, _, s, Vt, good, null = _gauge_eig(N, _gauge_svd_z(C, p))
+    Z, sc, _, s, Vt, good, null = _gauge_eig(N, _gauge_svd_z(C, p), tol)
     Vg = Vt[good].T / sc[:, None]
     Atb = Ar.T @ yr - N @ theta0  # A^T (b) with b = y - A theta0 (the ridge rows' part included)
     phi = Vg @ ((Vg.T @ (Z.T @ Atb)) / s[good] ** 2)
@@ -10040,7 +10055,7 @@ def _gauge_svd_z(C: np.ndarray, p: int) -> np.ndarray:
     return VtC[rC:].T
 
 
-def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
+def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False, tol=None):
     """Gauge-constrained least squares with covariance and per-parameter estimability.
 
     Null-space method: ``theta = theta0 + Z phi`` with ``C theta = d``;
@@ -10053,7 +10068,7 @@ def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
     matrix (:func:`_constrained_blocks`).
     """
     if isinstance(A, BlockDesign):
-        return _constrained_blocks(A, y, C, d, rows, penalty, k_ext, linear_map)
+        return _constrained_blocks(A, y, C, d, rows, penalty, k_ext, linear_map, tol)
     Ar = A[rows]
     yr = y[rows]
     p = A.shape[1]
@@ -10063,7 +10078,7 @@ def _constrained(A, y, C, d, rows, penalty, k_ext, linear_map=False):
         Ar = np.vstack([Ar, np.hstack([np.zeros((k_ext, p - k_ext)), R])])
         yr = np.concatenate([yr, np.zeros(k_ext)])
     theta0 = np.linalg.lstsq(C, d, rcond=None)[0] if C.shape[0] else np.zeros(p)
-    Z, sc, U, s, Vt, good, null = _gauge_svd(Ar, C)
+    Z, sc, U, s, Vt, good, null = _gauge_svd(Ar, C, tol)
     Vg = Vt[good].T / sc[:, None]  # (nz, r): phi = Vg diag(1/s) U^T b
     b = yr - Ar @ theta0
     phi = Vg @ ((U[:, good].T @ b) / s[good])

@@ -127,7 +127,7 @@ def lobes_not_determined(d) -> dict | None:
         from core.diagnosis import qr_formed
 
         qr = qr_formed(qr)
-    Q = orth_of(bl.A, RANK_TOL, qr=qr)
+    Q = orth_of(bl.A, getattr(bl, "rank_tol", None) or RANK_TOL, qr=qr)
     got = absorbed_lobes(np.asarray(phi, float), lambda x: Q @ (Q.T @ x))
     ks = [k for k, _ in got]
     lim = float(np.degrees(np.arcsin(LOBE_ALIAS_SIN)))
