@@ -979,6 +979,21 @@ class PositioningData:
     cycle: np.ndarray = field(repr=False)
 
 
+#: Columns of the positioning baseline's ``time_by_direction`` covariate (0: none): the direction (+1/-1) times
+#: the first Legendre polynomials of the normalised time (degree 1 to this), so that a reversal that grows or
+#: shrinks through the test shows as structure. A + trend up and a - trend down cancel in a plain time smooth,
+#: and the repeats of one target in one direction across cycles pool it as noise (review30c's backlash_grow3
+#: 401: 1.53 um RMS left outside the per-target-and-direction means, true repeatability 0.62 um, read `none`
+#: on a repeats' noise of 1.13 um with time at p = 0.004; docs/discovery.md, "Session 30: positioning").
+POSITIONING_TIME_BY_DIRECTION = 3
+
+
+def _time_by_direction_basis(tau: np.ndarray) -> np.ndarray:
+    """(n, POSITIONING_TIME_BY_DIRECTION) Legendre polynomials P_1..P_k of ``2 tau - 1`` (tau in [0, 1])."""
+    u = 2.0 * np.asarray(tau, float) - 1.0
+    return np.polynomial.legendre.legvander(u, POSITIONING_TIME_BY_DIRECTION)[:, 1:]
+
+
 def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict | None = None) -> Baseline:
     """The ISO 230-2 baseline: a systematic deviation per target and direction, plus repeatability.
 
@@ -1046,6 +1061,10 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
                                                             for f in (data.xs, data.xs ** 2)]), "basis",
                       2 * len(cyc_ids), (0,), "the target position, differently in each cycle", "time"),
             Covariate("order", np.arange(n, dtype=float), "smooth", 6, (0,), "the reading order", "time")]
+    if POSITIONING_TIME_BY_DIRECTION:
+        covs.append(Covariate("time_by_direction", dr[:, None] * _time_by_direction_basis(tau), "basis",
+                              POSITIONING_TIME_BY_DIRECTION, (0,),
+                              "time, opposite in the two directions (a reversal that changes)", "time"))
     for name, v in (temps or {}).items():
         v = np.asarray(v, float)
         if np.all(np.isfinite(v)) and np.ptp(v) > 0:
