@@ -6322,6 +6322,14 @@ def _support_share(E: np.ndarray, cause=None) -> float:
     return float(max(np.mean(reached), 1.0 / E.shape[0]))
 
 
+def _undetermined_text(key: str, lo, hi, where: str = "") -> str:
+    """What the report says of a magnitude whose U95 is wider than its whole plausible range: that it is not
+    determined, and the range, never the value or its U95 (numbers of a direction the design leaves open:
+    review30c's MFB Z step read ``pretravel_pv = 4.46e+09 +- 7.87e+09`` um; session 30)."""
+    rng = f" {lo:g}..{hi:g}" if lo is not None and hi is not None else ""
+    return f"{key} not determined{' ' + where if where else ''} (its U95 wider than its plausible range{rng})"
+
+
 def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float, boot: tuple | None = None) -> dict:
     """The last gate of :func:`_evaluate` and :func:`_evaluate_penalised`: the term's magnitudes (with their U95,
     :func:`_magnitudes`, the penalised branch for a penalised term) within the cause's bounds and its own
@@ -6333,7 +6341,7 @@ def _plausible(cause, bl, tm: Term, st: _State, rows, cv: float, boot: tuple | N
         tm.evidence["magnitude_intervals"] = iv
     if wide:  # named at most ambiguous (step 8): the data do not say how large it is
         tm.evidence["magnitude_undetermined"] = "; ".join(
-            f"{k} = {v:.3g} +- {u:.3g} (U95 wider than its plausible range {lo:g}..{hi:g})" for k, v, u, lo, hi in wide)
+            _undetermined_text(k, lo, hi) for k, v, u, lo, hi in wide)
     # (the penalised terms it was fitted beside: Qo does not show them)
     tm = dataclasses.replace(tm, at_adoption=(st.Q, rows, vals, u95, _pen_key(boot[1] if boot else ())))
     bad = _out_of_bounds(cause, vals, u95)
@@ -7185,8 +7193,7 @@ def _magnitudes_beside_smooth(cause, bl, tm: Term, Qo, rows, folds, others, smoo
         if vals.get(key) is not None and u95[key] is not None:
             vals[key], u95[key] = _within_range(cause, key, float(vals[key]), float(u95[key]), wide)
     fig = {"smooth": ", ".join(t.covariate for t in smooth_terms), **fig, "wider_than_range": [w[0] for w in wide]}
-    note = "; ".join(f"{k} = {v:.3g} +- {u:.3g} beside the unnamed smooth (U95 wider than its plausible range "
-                     f"{lo:g}..{hi:g})" for k, v, u, lo, hi in wide) if wide else None
+    note = "; ".join(_undetermined_text(k, lo, hi, "beside the unnamed smooth") for k, v, u, lo, hi in wide) if wide else None
     return vals, u95, fig, note
 
 
@@ -8355,8 +8362,8 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             if reading.get("wider_than_range"):
                 # the U95 carried across the readings is wider than the plausible range: no value (as _within_range
                 # and the carry beside a smooth judge it), the finding named at most ambiguous (session 23)
-                wide_note = "; ".join(f"{k} = {vals[k]:.3g} +- {u95[k]:.3g} across the two pre-travel readings (U95 "
-                                      "wider than its plausible range)" for k in reading["wider_than_range"])
+                wide_note = "; ".join(_undetermined_text(k, None, None, "across the two pre-travel readings")
+                                      for k in reading["wider_than_range"])
                 for k in reading["wider_than_range"]:
                     vals[k], u95[k] = None, None
             if reading.get("free_in_other"):
