@@ -3805,8 +3805,55 @@ def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: 
         # material beyond chance: H0 the lack-of-fit variance at most material_sigma^2 times the pure error's
         lof_sig = float(stats.f.sf(lof.F / (1.0 + settings.material_sigma ** 2), lof.dof, lof.dof_pe)) < a
     excess = kind == "planar" and sigma > settings.noise_max_um * UM
-    return {"present": bool(sig_cov or gap_sig or lof_sig or excess), "covariates": sig_cov, "cv_gap": bool(gap_sig),
-            "lack_of_fit": bool(lof_sig), "noise_excess": bool(excess), "noise_um": sigma / UM}
+    out = {"present": bool(sig_cov or gap_sig or lof_sig or excess), "covariates": sig_cov, "cv_gap": bool(gap_sig),
+           "lack_of_fit": bool(lof_sig), "noise_excess": bool(excess), "noise_um": sigma / UM}
+    if STRUCTURE_NOT_COUNTED_SAID:
+        out["not_counted"] = [_why_not_counted(d, len(diag), len(st.r), sigma, settings)
+                              for d in diag if d.p_value < NOT_COUNTED_P and d.covariate not in sig_cov]
+    return out
+
+
+#: Whether :func:`_structure` says, for each diagnosis with p below :data:`NOT_COUNTED_P` (the CLI's and the
+#: report page's cut for printing a diagnosis line) that it does not count as structure, why (``not_counted``):
+#: p not below ``alpha_family``, or an explained RMS below the materiality (its own columns' noise debiased, then
+#: its choice among the covariates). Without it the CLI printed "x position periodically (period 12.4 mm) p =
+#: 0.0012" above "none: ... within the probing noise" and the page "the residuals show no structure" under the
+#: panel (review30c's screw_saw-312: 0.158 um < 0.3 x 0.546 um). Words only: no reading moves. Session 30.
+STRUCTURE_NOT_COUNTED_SAID = True
+#: The p-value below which the CLI and the report page print a diagnosis line (scenarios/cli/discover.py).
+NOT_COUNTED_P = 0.01
+
+
+def not_counted_words(rep: dict) -> dict:
+    """covariate -> why its diagnosis (p < :data:`NOT_COUNTED_P`, printed by the CLI and the report page) is not
+    counted as the baseline's structure (the report's ``structure.baseline.not_counted``); empty without them."""
+    st = (rep.get("structure") or {}).get("baseline") or {}
+    return {w["covariate"]: w["text"] for w in st.get("not_counted") or ()}
+
+
+def _why_not_counted(d, m: int, n: int, sigma: float, settings) -> dict:
+    """Why diagnosis ``d`` (one of ``m`` covariates on ``n`` rows) is no structure (:func:`_structure`): a dict with
+    the covariate, its p-value, the reason (``not_significant``: p >= alpha_family; ``below_materiality``: its
+    explained RMS below ``material_sigma`` times the noise, as debiased for its own columns (``explained_rms_um``)
+    or for its choice as the largest of ``m`` (``debiased_rms_um``)) and the figures, and the words."""
+    a = settings.alpha_family
+    thr = settings.material_sigma * sigma / UM
+    base = {"covariate": d.covariate, "p_value": float(d.p_value), "explained_rms_um": float(d.explained_rms_um),
+            "materiality_um": float(thr), "alpha_family": float(a)}
+    if not d.p_value < a:
+        return {**base, "reason": "not_significant",
+                "text": f"significant at 0.01 alone, not once every family is tested (p >= {a:.3g})"}
+    rms = float(d.explained_rms_um)
+    t = d.test
+    if d.material and STRUCTURE_SELECTION_DEBIAS and t is not None and t.k and t.F > 0 and n > 0:
+        s2 = t.ss / (t.k * t.F)
+        rms = float(np.sqrt(max(t.ss - _chi2_max_mean(max(int(m), 1), int(t.k)) * s2, 0.0) / n) / UM)
+        how = f", debiased for its choice as the largest of {m} covariates"
+    else:
+        how = ""
+    return {**base, "reason": "below_materiality", "debiased_rms_um": rms,
+            "text": (f"significant but below materiality ({rms:.3g} um{how} < {settings.material_sigma:g} x "
+                     f"{sigma / UM:.3g} um noise = {thr:.3g} um): not counted as structure")}
 
 
 def _dropped_still_significant(dropped, st: _State, rows, y, folds: Folds, terms, sigma: float, settings) -> list:

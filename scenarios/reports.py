@@ -139,7 +139,8 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
     diag_rows = [[dg["covariate"], dg["explained_rms_um"], dg["p_value"], dg["text"]] for dg in rep["diagnosis"]]
     secs.append(Section("Diagnosis: where the structure lives",
                         text="For every covariate the log holds, a smooth function of it is added to the baseline "
-                             "and tested (nested F test, Holm over the covariates); the explained RMS is debiased.",
+                             "and tested (nested F test, Holm over the covariates); the explained RMS is debiased."
+                             + _not_counted_note(rep),
                         figures={"diagnosis": figures.diagnosis_figure(panels)} if panels else {},
                         tables=[Table(["covariate", "explained RMS / µm", "p (Holm)", "in words"], diag_rows)]))
     secs.append(Section("Baseline residuals: what the model gets wrong",
@@ -493,8 +494,25 @@ def _log_machine_bodies(rec, record, t) -> None:
     record.log_probe_path(rec, t.pn_R)
 
 
+def _not_counted_note(rep: dict) -> str:
+    """The diagnosis section's words for the panels drawn that are no structure (significant alone, below the
+    materiality or the family's level: core.discover's ``structure.baseline.not_counted``)."""
+    from core.discover import not_counted_words
+
+    why = not_counted_words(rep)
+    return (" Drawn but not counted as structure: " + "; ".join(f"{c}: {w}" for c, w in why.items()) + "."
+            if why else "")
+
+
 def _verdict(rep: dict) -> str:
     if rep["cause"] == "none":
+        from core.discover import not_counted_words
+
+        why = not_counted_words(rep)
+        if why:  # a diagnosis the page draws, significant alone yet no structure: said, not denied (review30c)
+            return ("No candidate cause beats the baseline out of sample, and no residual structure counts: "
+                    + "; ".join(f"{c}: {w}" for c, w in why.items())
+                    + ". The baseline explains the data within the probing noise.")
         return ("No candidate cause beats the baseline out of sample and the residuals show no "
                 "structure: the baseline explains the data within the probing noise.")
     names = ", ".join(f["cause"] for f in rep["findings"])

@@ -257,3 +257,40 @@ def drift_log(tmp_path):
         body.append(",".join(f))
     log.write_text("\n".join(lines[:h + 1] + body) + "\n")
     return log
+
+
+def test_a_printed_diagnosis_not_counted_as_structure_says_why(tmp_path):
+    """review30c's screw_saw-312 (its generator's 12.38 mm sawtooth on X, under 1 sigma visible): the CLI printed
+    "residuals follow the x position periodically (period 12.4 mm): 0.16 um, p = 0.0012" and then "none: the baseline
+    explains the data within the probing noise", the page "the residuals show no structure". The line is
+    significant at its family's level (0.0025) but its explained RMS, 0.158 um, is below the materiality 0.3 x the
+    0.546 um noise: said under the line and on the page, the verdict unchanged. Fails before (no such words)."""
+    import gzip
+    import json
+    from pathlib import Path
+
+    from scenarios.cli.discover import run_discover
+    from scenarios.reports import _not_counted_note, _verdict
+
+    log = tmp_path / "screw_saw-312.csv"
+    log.write_bytes(gzip.decompress((Path(__file__).parents[1] / "core/data/review30c/screw_saw-312.csv.gz")
+                                    .read_bytes()))
+    rep = run_discover(str(log), str(tmp_path / "r.json"), None, None)
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["cause"] == "none"
+    nc = rep["structure"]["baseline"]["not_counted"]
+    assert [w["covariate"] for w in nc] == ["x_periodic"] and nc[0]["reason"] == "below_materiality"
+    assert nc[0]["explained_rms_um"] < nc[0]["materiality_um"] == pytest.approx(0.3 * rep["noise_um"]["sigma_um"])
+    lines = summary_lines(rep)
+    i = next(i for i, ln in enumerate(lines) if ln.startswith("diagnosis") and "periodically" in ln)
+    assert lines[i + 1].strip().startswith("(significant but below materiality (0.158 um < 0.3 x 0.546 um noise")
+    assert "no structure" not in _verdict(rep) and "below materiality" in _verdict(rep)
+    assert "x_periodic: significant but below materiality" in _not_counted_note(rep)
+
+
+def test_not_counted_words_of_a_report_without_them():
+    """A report from before (no ``not_counted``) prints as it did."""
+    from core.discover import not_counted_words
+
+    assert not_counted_words({}) == {} and not_counted_words({"structure": {"baseline": {}}}) == {}
+
