@@ -294,3 +294,15 @@ def test_not_counted_words_of_a_report_without_them():
 
     assert not_counted_words({}) == {} and not_counted_words({"structure": {"baseline": {}}}) == {}
 
+
+
+def test_touches_left_out_of_the_planar_baseline_are_said():
+    """The planar baseline leaves out touches with normals out of the XY plane (review30c: 36 of 456 rows, a
+    spindle Z growth undetectable by design); before, only the JSON's conventions said so. Fails before (no line)."""
+    from core.discover import LEFT_OUT_NOTE
+
+    rep = _report(WP)
+    assert not any(ln.startswith("left out") for ln in summary_lines(rep))
+    rep["conventions"] = ["EXX(x=0mm)=0", f"36 touches {LEFT_OUT_NOTE}"]
+    line = next(ln for ln in summary_lines(rep) if ln.startswith("left out"))
+    assert line.startswith("left out   36 touches with normals out of the XY plane") and "Z growth" in line
