@@ -35,6 +35,20 @@ _PLOT_AS = {"xy": "x", "azimuth_by_setup": "approach_azimuth"}
 TIME_IN_HOURS_S = 7200.0
 
 
+def periodic_phase(cov, dg, x: np.ndarray, label: str) -> tuple:
+    """(x, label) of a periodic diagnosis's panel drawn against its phase: the covariate's drawn value modulo the
+    period found (``dg.test.period``, in the covariate's unit; mm for a position), so that a 12 mm screw profile
+    over 150 mm of x reads as one profile rather than as noise (review30c, finding 7). Other covariates, and a
+    period not known, as given."""
+    P = float(getattr(getattr(dg, "test", None), "period", 0.0) or 0.0)
+    if cov.kind != "spectral" or not P > 0 or np.asarray(x).dtype == object:
+        return x, label
+    base, _, unit = label.rpartition(" / ") if " / " in label else (label, "", "")
+    P_drawn = P / {"mm": 1e-3, "h": 3600.0}.get(unit, 1.0)  # (the drawn unit: diagnosis_axis's; s and SI as they are)
+    return (np.mod(x, P_drawn),
+            f"{base} modulo the period {P_drawn:.3g}" + (f" {unit} / {unit}" if unit else ""))
+
+
 def diagnosis_axis(cov, x: np.ndarray, bl=None) -> tuple:
     """(x to draw, axis label with its unit, tick labels or None) of one diagnosis panel's covariate.
 
@@ -133,6 +147,7 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
         if x.ndim != 1:
             continue
         x, label, ticks = diagnosis_axis(cov, x, bl)
+        x, label = periodic_phase(cov, dg, x, label)
         rows = np.setdiff1d(np.arange(n), out_idx) if len(dg.fitted_um) != n else np.arange(n)
         panels.append({"x": x[rows], "residual_um": d.residuals_baseline_um[rows], "fitted_um": dg.fitted_um,
                        "xlabel": label, "text": dg.words, **({"xticklabels": ticks} if ticks is not None else {})})
