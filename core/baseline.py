@@ -900,6 +900,12 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
             Covariate("z", data.O_R[:, 2], "smooth", 6, allm, "the z position", "position")]
     if np.unique(data.t_s).size >= 3:
         covs.insert(0, Covariate("time", data.t_s, "smooth", min(5, np.unique(data.t_s).size), allm, "time", "time"))
+    if VOLUMETRIC_ALONG_BAR_BY_MEASUREMENT and np.unique(data.meas).size >= 2:
+        um_ = np.unique(data.meas)
+        P = data.s[:, None] * (data.meas[:, None] == um_[None, :])
+        covs.append(Covariate("along_bar_by_measurement", P, "basis", P.shape[1], allm,
+                              "the position along the bar, differently in each measurement (a scale that changes)",
+                              "time"))
     est = np.concatenate([np.arange(d.slices[s_].start, d.slices[s_].stop) for s_ in vol.MOTION + vol.SQUARENESS])
     return Baseline(
         kind="volumetric", model="volumetric MFB (Viprey eqs 8-12, touch model (3))", A=W @ d.A[sel],
@@ -914,6 +920,19 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
            if theta_x is not None else ()),
         info={"placements": len(places), "measurements": len(meas), "cv": False},
         estimand_label="error tables")
+
+
+#: Whether the volumetric (MFB) baseline's diagnosis tests the position along the bar linearly, with its own slope
+#: in each measurement and each component (``along_bar_by_measurement``): a scale that changes between placements (an
+#: HVAC cycle's +-8 ppm on X, review30c's finding 4: points moved by up to 2.19 um read `none`, the plain
+#: ``along_bar`` smooth, one function for every placement, at p = 1.6e-6 but 0.07 um, below the materiality of a
+#: noise the effect itself inflated). Built and OFF: on, the HVAC scale reads `unexplained` 24 of 24 (4 and 8 ppm,
+#: mfb-3axis seeds 1-12; none 20, outlier? 3, unexplained 1 before) and nothing else moves on campaigns whose bar is
+#: as calibrated (44 plain: none 44; 12 monotone drifts: thermal_drift 12), but on the realistic bar that differs
+#: from its calibration by 0.2-0.35 um per hole (``bar_cal_error``) the slopes take the bar's own error along each
+#: placement's direction: 7 of 44 plain campaigns `none`/`outlier` -> `unexplained` (docs/discovery.md, "Session 30:
+#: MFB"). Session 30.
+VOLUMETRIC_ALONG_BAR_BY_MEASUREMENT = False
 
 
 def _point_whitening(touch_cols, n: int, point: np.ndarray) -> np.ndarray:
