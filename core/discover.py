@@ -3848,7 +3848,8 @@ def _why_not_counted(d, m: int, n: int, sigma: float, settings) -> dict:
             "materiality_um": float(thr), "alpha_family": float(a)}
     if not d.p_value < a:
         return {**base, "reason": "not_significant",
-                "text": f"significant at 0.01 alone, not once every family is tested (p >= {a:.3g})"}
+                "text": (f"p not below {a:.3g}, the 0.01 false-alarm rate split over the {len(FAMILIES)} families of "
+                         "tests: not counted as structure")}
     rms = float(d.explained_rms_um)
     t = d.test
     if d.material and STRUCTURE_SELECTION_DEBIAS and t is not None and t.k and t.F > 0 and n > 0:
@@ -7246,7 +7247,8 @@ def _magnitudes_beside_smooth(cause, bl, tm: Term, Qo, rows, folds, others, smoo
         if vals.get(key) is not None and u95[key] is not None:
             vals[key], u95[key] = _within_range(cause, key, float(vals[key]), float(u95[key]), wide)
     fig = {"smooth": ", ".join(t.covariate for t in smooth_terms), **fig, "wider_than_range": [w[0] for w in wide]}
-    note = "; ".join(_undetermined_text(k, lo, hi, "beside the unnamed smooth") for k, v, u, lo, hi in wide) if wide else None
+    note = ("; ".join(_undetermined_text(k, lo, hi, "beside the unnamed smooth") for k, _, _, lo, hi in wide)
+            if wide else None)
     return vals, u95, fig, note
 
 

@@ -306,3 +306,22 @@ def test_touches_left_out_of_the_planar_baseline_are_said():
     rep["conventions"] = ["EXX(x=0mm)=0", f"36 touches {LEFT_OUT_NOTE}"]
     line = next(ln for ln in summary_lines(rep) if ln.startswith("left out"))
     assert line.startswith("left out   36 touches with normals out of the XY plane") and "Z growth" in line
+
+
+def test_why_not_counted_names_each_reason():
+    """core.discover._why_not_counted on made-up diagnoses (known answers): p not below alpha_family (0.0025), and
+    below the materiality by its own columns (0.1 um < 0.3 x 0.5 um = 0.15 um)."""
+    from core.diagnosis import Diagnosis
+    from core.discover import Settings, _why_not_counted
+    from core.units import UM
+
+    s = Settings()
+    d = Diagnosis("time", 0.3, 0.004, 0.001, 3, "residuals follow time: 0.3 µm, p = 0.004", True)
+    w = _why_not_counted(d, 5, 100, 0.5 * UM, s)
+    assert w["reason"] == "not_significant" and w["alpha_family"] == pytest.approx(0.0025)
+    assert w["text"].startswith("p not below 0.0025")
+    d = Diagnosis("x", 0.1, 1e-4, 1e-5, 3, "residuals follow x: 0.1 µm, p = 1e-4", False)
+    w = _why_not_counted(d, 5, 100, 0.5 * UM, s)
+    assert w["reason"] == "below_materiality" and w["materiality_um"] == pytest.approx(0.15)
+    assert w["text"] == ("significant but below materiality (0.1 um < 0.3 x 0.5 um noise = 0.15 um): not counted as "
+                         "structure")
