@@ -45,8 +45,8 @@ def periodic_phase(cov, dg, x: np.ndarray, label: str) -> tuple:
         return x, label
     base, _, unit = label.rpartition(" / ") if " / " in label else (label, "", "")
     P_drawn = P / {"mm": 1e-3, "h": 3600.0}.get(unit, 1.0)  # (the drawn unit: diagnosis_axis's; s and SI as they are)
-    return (np.mod(x, P_drawn),
-            f"{base} modulo the period {P_drawn:.3g}" + (f" {unit} / {unit}" if unit else ""))
+    # (short: a single panel's axis is 4.2 inches wide)
+    return np.mod(x, P_drawn), f"{base}, modulo {P_drawn:.3g}" + (f" / {unit}" if unit else "")
 
 
 def diagnosis_axis(cov, x: np.ndarray, bl=None) -> tuple:

@@ -97,12 +97,12 @@ def test_a_periodic_diagnosis_is_drawn_against_its_phase():
     x, label, _ = diagnosis_axis(cov, np.asarray(cov.values))
     xp, lp = periodic_phase(cov, SimpleNamespace(test=SimpleNamespace(period=0.0124)), x, label)
     np.testing.assert_allclose(xp, [0.0, 30.0 - 2 * 12.4, 0.0], atol=1e-12)
-    assert lp == "the x position periodically modulo the period 12.4 mm / mm"
+    assert lp == "the x position periodically, modulo 12.4 / mm"
     tcov = Covariate("time_periodic", np.linspace(0, 3 * TIME_IN_HOURS_S, 4), "spectral", 0, (0,), "time periodically",
                      "time", (60.0, 3600.0))
     x, label, _ = diagnosis_axis(tcov, np.asarray(tcov.values))
     xp, lp = periodic_phase(tcov, SimpleNamespace(test=SimpleNamespace(period=1800.0)), x, label)
-    assert lp == "time periodically modulo the period 0.5 h / h" and np.all(xp < 0.5)
+    assert lp == "time periodically, modulo 0.5 / h" and np.all(xp < 0.5)
     smooth = Covariate("x", np.array([0.0, 0.03]), "smooth", 8, (0,), "the x position", "position")
     x, label, _ = diagnosis_axis(smooth, np.asarray(smooth.values))
     assert periodic_phase(smooth, SimpleNamespace(test=SimpleNamespace(period=0.0124)), x, label) == (x, label)
