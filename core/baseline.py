@@ -983,6 +983,12 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
             Covariate("z", data.O_R[:, 2], "smooth", 6, allm, "the z position", "position")]
     if np.unique(data.t_s).size >= 3:
         covs.insert(0, Covariate("time", data.t_s, "smooth", min(5, np.unique(data.t_s).size), allm, "time", "time"))
+    if VOLUMETRIC_ALONG_BAR_BY_MEASUREMENT and np.unique(data.meas).size >= 2:
+        um_ = np.unique(data.meas)
+        P = data.s[:, None] * (data.meas[:, None] == um_[None, :])
+        covs.append(Covariate("along_bar_by_measurement", P, "basis", P.shape[1], allm,
+                              "the position along the bar, differently in each measurement (a scale that changes)",
+                              "time"))
     est = np.concatenate([np.arange(d.slices[s_].start, d.slices[s_].stop) for s_ in vol.MOTION + vol.SQUARENESS])
     return Baseline(
         kind="volumetric", model="volumetric MFB (Viprey eqs 8-12, touch model (3))", A=W @ d.A[sel],
@@ -997,6 +1003,19 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
            if theta_x is not None else ()),
         info={"placements": len(places), "measurements": len(meas), "cv": False},
         estimand_label="error tables")
+
+
+#: Whether the volumetric (MFB) baseline's diagnosis tests the position along the bar linearly, with its own slope
+#: in each measurement and each component (``along_bar_by_measurement``): a scale that changes between placements (an
+#: HVAC cycle's +-8 ppm on X, review30c's finding 4: points moved by up to 2.19 um read `none`, the plain
+#: ``along_bar`` smooth, one function for every placement, at p = 1.6e-6 but 0.07 um, below the materiality of a
+#: noise the effect itself inflated). Built and OFF: on, the HVAC scale reads `unexplained` 24 of 24 (4 and 8 ppm,
+#: mfb-3axis seeds 1-12; none 20, outlier? 3, unexplained 1 before) and nothing else moves on campaigns whose bar is
+#: as calibrated (44 plain: none 44; 12 monotone drifts: thermal_drift 12), but on the realistic bar that differs
+#: from its calibration by 0.2-0.35 um per hole (``bar_cal_error``) the slopes take the bar's own error along each
+#: placement's direction: 7 of 44 plain campaigns `none`/`outlier` -> `unexplained` (docs/discovery.md, "Session 30:
+#: MFB"). Session 30.
+VOLUMETRIC_ALONG_BAR_BY_MEASUREMENT = False
 
 
 def _point_whitening(touch_cols, n: int, point: np.ndarray) -> np.ndarray:
@@ -1060,6 +1079,21 @@ class PositioningData:
     tau: np.ndarray = field(repr=False)
     direction: np.ndarray = field(repr=False)
     cycle: np.ndarray = field(repr=False)
+
+
+#: Columns of the positioning baseline's ``time_by_direction`` covariate (0: none): the direction (+1/-1) times
+#: the first Legendre polynomials of the normalised time (degree 1 to this), so that a reversal that grows or
+#: shrinks through the test shows as structure. A + trend up and a - trend down cancel in a plain time smooth,
+#: and the repeats of one target in one direction across cycles pool it as noise (review30c's backlash_grow3
+#: 401: 1.53 um RMS left outside the per-target-and-direction means, true repeatability 0.62 um, read `none`
+#: on a repeats' noise of 1.13 um with time at p = 0.004; docs/discovery.md, "Session 30: positioning").
+POSITIONING_TIME_BY_DIRECTION = 3
+
+
+def _time_by_direction_basis(tau: np.ndarray) -> np.ndarray:
+    """(n, POSITIONING_TIME_BY_DIRECTION) Legendre polynomials P_1..P_k of ``2 tau - 1`` (tau in [0, 1])."""
+    u = 2.0 * np.asarray(tau, float) - 1.0
+    return np.polynomial.legendre.legvander(u, POSITIONING_TIME_BY_DIRECTION)[:, 1:]
 
 
 def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict | None = None) -> Baseline:
@@ -1129,6 +1163,10 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
                                                             for f in (data.xs, data.xs ** 2)]), "basis",
                       2 * len(cyc_ids), (0,), "the target position, differently in each cycle", "time"),
             Covariate("order", np.arange(n, dtype=float), "smooth", 6, (0,), "the reading order", "time")]
+    if POSITIONING_TIME_BY_DIRECTION:
+        covs.append(Covariate("time_by_direction", dr[:, None] * _time_by_direction_basis(tau), "basis",
+                              POSITIONING_TIME_BY_DIRECTION, (0,),
+                              "time, opposite in the two directions (a reversal that changes)", "time"))
     for name, v in (temps or {}).items():
         v = np.asarray(v, float)
         if np.all(np.isfinite(v)) and np.ptp(v) > 0:

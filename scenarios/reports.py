@@ -35,6 +35,20 @@ _PLOT_AS = {"xy": "x", "azimuth_by_setup": "approach_azimuth"}
 TIME_IN_HOURS_S = 7200.0
 
 
+def periodic_phase(cov, dg, x: np.ndarray, label: str) -> tuple:
+    """(x, label) of a periodic diagnosis's panel drawn against its phase: the covariate's drawn value modulo the
+    period found (``dg.test.period``, in the covariate's unit; mm for a position), so that a 12 mm screw profile
+    over 150 mm of x reads as one profile rather than as noise (review30c, finding 7). Other covariates, and a
+    period not known, as given."""
+    P = float(getattr(getattr(dg, "test", None), "period", 0.0) or 0.0)
+    if cov.kind != "spectral" or not P > 0 or np.asarray(x).dtype == object:
+        return x, label
+    base, _, unit = label.rpartition(" / ") if " / " in label else (label, "", "")
+    P_drawn = P / {"mm": 1e-3, "h": 3600.0}.get(unit, 1.0)  # (the drawn unit: diagnosis_axis's; s and SI as they are)
+    # (short: a single panel's axis is 4.2 inches wide)
+    return np.mod(x, P_drawn), f"{base}, modulo {P_drawn:.3g}" + (f" / {unit}" if unit else "")
+
+
 def diagnosis_axis(cov, x: np.ndarray, bl=None) -> tuple:
     """(x to draw, axis label with its unit, tick labels or None) of one diagnosis panel's covariate.
 
@@ -133,13 +147,15 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
         if x.ndim != 1:
             continue
         x, label, ticks = diagnosis_axis(cov, x, bl)
+        x, label = periodic_phase(cov, dg, x, label)
         rows = np.setdiff1d(np.arange(n), out_idx) if len(dg.fitted_um) != n else np.arange(n)
         panels.append({"x": x[rows], "residual_um": d.residuals_baseline_um[rows], "fitted_um": dg.fitted_um,
                        "xlabel": label, "text": dg.words, **({"xticklabels": ticks} if ticks is not None else {})})
     diag_rows = [[dg["covariate"], dg["explained_rms_um"], dg["p_value"], dg["text"]] for dg in rep["diagnosis"]]
     secs.append(Section("Diagnosis: where the structure lives",
                         text="For every covariate the log holds, a smooth function of it is added to the baseline "
-                             "and tested (nested F test, Holm over the covariates); the explained RMS is debiased.",
+                             "and tested (nested F test, Holm over the covariates); the explained RMS is debiased."
+                             + _not_counted_note(rep),
                         figures={"diagnosis": figures.diagnosis_figure(panels)} if panels else {},
                         tables=[Table(["covariate", "explained RMS / µm", "p (Holm)", "in words"], diag_rows)]))
     secs.append(Section("Baseline residuals: what the model gets wrong",
@@ -493,8 +509,25 @@ def _log_machine_bodies(rec, record, t) -> None:
     record.log_probe_path(rec, t.pn_R)
 
 
+def _not_counted_note(rep: dict) -> str:
+    """The diagnosis section's words for the panels drawn that are no structure (significant alone, below the
+    materiality or the family's level: core.discover's ``structure.baseline.not_counted``)."""
+    from core.discover import not_counted_words
+
+    why = not_counted_words(rep)
+    return (" Drawn but not counted as structure: " + "; ".join(f"{c}: {w}" for c, w in why.items()) + "."
+            if why else "")
+
+
 def _verdict(rep: dict) -> str:
     if rep["cause"] == "none":
+        from core.discover import not_counted_words
+
+        why = not_counted_words(rep)
+        if why:  # a diagnosis the page draws, significant alone yet no structure: said, not denied (review30c)
+            return ("No candidate cause beats the baseline out of sample, and no residual structure counts: "
+                    + "; ".join(f"{c}: {w}" for c, w in why.items())
+                    + ". The baseline explains the data within the probing noise.")
         return ("No candidate cause beats the baseline out of sample and the residuals show no "
                 "structure: the baseline explains the data within the probing noise.")
     names = ", ".join(f["cause"] for f in rep["findings"])

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import textwrap
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -652,7 +653,8 @@ def diagnosis_figure(panels: Sequence[Mapping], title: str = "Discovery: where t
             ax.set_xticks(np.arange(len(ticks)), [str(v) for v in ticks], rotation=30 if len(ticks) > 4 else 0,
                           fontsize="x-small")
         ax.set_ylabel("residual of dq / µm")
-        ax.set_title(str(p.get("text", "")), fontsize="x-small")
+        # wrapped to the panel's width: a single panel's long title was cut ("... p = 0" for p = 0.0012, review30c)
+        ax.set_title(textwrap.fill(str(p.get("text", "")), 58), fontsize="x-small")
         ax.grid(alpha=0.3)
     for ax in axs[len(panels):]:
         ax.set_visible(False)

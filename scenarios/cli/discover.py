@@ -211,7 +211,7 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     ``kind`` is the baseline's (``planar``: a probe-log campaign, its estimand the workpiece;
     ``positioning``: an ISO 230-2 test, its estimand the mean deviation per target and direction).
     """
-    from core.discover import cv_ratio_text
+    from core.discover import LEFT_OUT_NOTE, cv_ratio_text, not_counted_words
 
     label, rows = ESTIMAND_WORDS[kind]
     b, nz = rep["baseline"], rep["noise_um"]
@@ -220,8 +220,17 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
            f"noise      {nz['sigma_um']:.3f} um (from {nz['method']}); held-out/in-sample ratio "
            f"{nz['cv_gap']['ratio']:.2f} (pure noise: {nz['cv_gap']['expected_ratio']:.2f}, "
            f"p = {nz['cv_gap']['p_value']:.2g})"]
+    left = next((c for c in rep.get("conventions") or () if c.endswith(LEFT_OUT_NOTE)), None)
+    if left is not None:  # said in the summary, not only in the JSON (review30c)
+        out.append(f"left out   {left.split(' with ')[0]} with normals out of the XY plane (top faces, inclined "
+                   "walls): the planar baseline reads X and Y only, so an error along Z (a spindle's Z growth) "
+                   "cannot be seen here")
     shown = [d for d in rep["diagnosis"] if d["p_value"] < 0.01][:4]
-    out += [f"diagnosis  {d['text']}" for d in shown]
+    why = not_counted_words(rep)
+    for d in shown:
+        out.append(f"diagnosis  {d['text']}")
+        if d["covariate"] in why:  # printed, yet no structure: say why (review30c: the verdict contradicted it)
+            out.append(f"           ({why[d['covariate']]})")
     if not shown:
         out.append("diagnosis  no covariate carries structure (every smooth term's p >= 0.01)")
     if not rep["findings"]:

@@ -41,6 +41,8 @@ def _run(effect: str, seed: int):
         "warm_up": (3e-6 + 4e-6 * x / 0.6) * np.exp(-ts / 300.0),
         "outlier": np.where(np.arange(len(x)) == 57, 9e-6, 0.0),
         "cycle_parity": 2e-6 * np.where(c % 2 == 0, 1.0, -1.0),
+        # (out of catalogue) a reversal that grows through the test: + readings drift up, - readings down
+        "reversal_grow": 0.5 * 5e-6 * d * tau,
     }[effect]
     dev = sysdev + eff + rng.normal(0, SIG, len(x))
     return positioning(x, np.where(d > 0, "+", "-"), c, dev, ts)
@@ -98,3 +100,29 @@ def test_held_out_gap_of_alike_draws_is_one():
     cv = 1.5625 * rss * (1 + 2e-16 * rng.normal(size=99))
     assert cv_gap(1.5625 * (1 + 4e-16), 1.0, cv, rss).p_value == 1.0
     assert cv_gap(1.5625 * (1 + 10 * NULL_ALIKE), 1.0, cv, rss).p_value == 0.0
+
+
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_a_reversal_growing_through_the_test_is_structure_in_time_by_direction(seed):
+    """A reversal growing by 5 um through the test (0.72 um RMS beside the per-target-and-direction means against
+    a 0.5 um repeatability) reads `unexplained` with the diagnosis first in time by direction. A + trend up and a -
+    trend down cancel in a plain time smooth, and the repeats of one target in one direction across the cycles
+    pool it as noise: before (no time_by_direction covariate) review30c's backlash_grow3 401 read `none` at 1.53 um
+    left against a true 0.62 um (docs/discovery.md, "Session 30: positioning"). Fails without
+    core.baseline.POSITIONING_TIME_BY_DIRECTION (none or another covariate first at each of these seeds)."""
+    rep = discover_baseline(_run("reversal_grow", seed)).to_report()
+    assert rep["cause"] == "unexplained", [(f["cause"], f["evidence"].get("text")) for f in rep["findings"]]
+    assert rep["diagnosis"][0]["covariate"] == "time_by_direction"
+    assert rep["findings"][0]["params"]["covariate"] == "time_by_direction"
+
+
+def test_time_by_direction_basis_is_signed_legendre():
+    """The covariate's columns: the direction times P_1..P_k of the normalised time (known values), so that
+    readings alike in time and opposite in direction have opposite columns."""
+    import core.baseline as B
+    bl = _run("none", 3)
+    cov = bl.covariate("time_by_direction")
+    assert cov is not None and cov.kind == "basis" and cov.values.shape == (len(bl.y), B.POSITIONING_TIME_BY_DIRECTION)
+    u = 2 * bl.data.tau - 1
+    np.testing.assert_allclose(cov.values[:, 0], bl.data.direction * u, atol=1e-15)
+    np.testing.assert_allclose(cov.values[:, 1], bl.data.direction * (3 * u ** 2 - 1) / 2, atol=1e-15)

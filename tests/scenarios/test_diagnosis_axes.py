@@ -82,3 +82,43 @@ def test_the_report_figure_of_a_drifting_campaign_reads_its_units(tmp_path):
             assert [tk.get_text() for tk in ax.get_xticklabels()] == list(d.baseline.group_ids)
     if any(lb.startswith("time within each set-up") for lb in labels):
         assert "time within each set-up (fraction of the longest set-up's span, 0..1)" in labels
+
+
+def test_a_periodic_diagnosis_is_drawn_against_its_phase():
+    """A periodic (spectral) diagnosis is drawn against the covariate modulo the period found, so a 12.4 mm screw
+    profile over 150 mm of x reads as one profile (review30c finding 7: drawn against x it looked like noise); a
+    smooth covariate, and a periodic one without a period, as given. Known answers: 30.0 mm mod 12.4 = 5.2 mm."""
+    from types import SimpleNamespace
+
+    from scenarios.reports import periodic_phase
+
+    cov = Covariate("x_periodic", np.array([0.0, 0.03, 0.0124]), "spectral", 0, (1, 2), "the x position periodically",
+                    "position", (0.005, 0.05))
+    x, label, _ = diagnosis_axis(cov, np.asarray(cov.values))
+    xp, lp = periodic_phase(cov, SimpleNamespace(test=SimpleNamespace(period=0.0124)), x, label)
+    np.testing.assert_allclose(xp, [0.0, 30.0 - 2 * 12.4, 0.0], atol=1e-12)
+    assert lp == "the x position periodically, modulo 12.4 / mm"
+    tcov = Covariate("time_periodic", np.linspace(0, 3 * TIME_IN_HOURS_S, 4), "spectral", 0, (0,), "time periodically",
+                     "time", (60.0, 3600.0))
+    x, label, _ = diagnosis_axis(tcov, np.asarray(tcov.values))
+    xp, lp = periodic_phase(tcov, SimpleNamespace(test=SimpleNamespace(period=1800.0)), x, label)
+    assert lp == "time periodically, modulo 0.5 / h" and np.all(xp < 0.5)
+    smooth = Covariate("x", np.array([0.0, 0.03]), "smooth", 8, (0,), "the x position", "position")
+    x, label, _ = diagnosis_axis(smooth, np.asarray(smooth.values))
+    assert periodic_phase(smooth, SimpleNamespace(test=SimpleNamespace(period=0.0124)), x, label) == (x, label)
+    assert periodic_phase(cov, SimpleNamespace(test=None), x, label) == (x, label)
+
+
+def test_a_long_panel_title_is_wrapped_not_cut():
+    """A single panel's title (the diagnosis in words) is wrapped to the panel, so its p-value is drawn whole
+    (review30c: "... p = 0" for p = 0.0012 on screw_saw-312's one panel)."""
+    from viz.figures import diagnosis_figure
+
+    words = ("residuals follow the x position periodically (period 12.4 mm): 0.16 µm, p = 0.0012")
+    fig = diagnosis_figure([{"x": np.arange(5.0), "residual_um": np.zeros(5), "fitted_um": np.zeros(5),
+                             "xlabel": "x / mm", "text": words}])
+    title = fig.axes[0].get_title()
+    assert "\n" in title and title.replace("\n", " ") == words
+    fig.canvas.draw()
+    bb, fb = fig.axes[0].title.get_window_extent(), fig.bbox
+    assert bb.x0 >= fb.x0 - 1 and bb.x1 <= fb.x1 + 1  # inside the figure: nothing cut
