@@ -1577,9 +1577,15 @@ def lack_of_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pl
 #: Step of the fine tables that stand for what the MFB's tables cannot follow (:func:`model_error_share`), m:
 #: :data:`core.uncertainty.MODEL_ERROR_STEP_M`'s 1 mm.
 MFB_MODEL_ERROR_STEP_M = 1.0e-3
-#: A table's model-error component enters the MFB's U95 when its residual statistic exceeds what the probing
-#: noise alone gives by this many standard deviations (:data:`core.uncertainty.MODEL_ERROR_Z`'s rule).
+#: A table's residual statistic's excess over what the probing noise alone gives, in its standard deviations
+#: (reported as ``z``; the gate is :data:`MFB_MODEL_ERROR_P`). A quadratic form of few effective degrees of
+#: freedom: on noise-only runs (mikron-ucp710, errors none, session 30 small30) z > 3 let a table in far more
+#: often than a normal's 0.135 % (docs/papers-mfb.md "The share's gate on noise alone (session 30)").
 MFB_MODEL_ERROR_Z = 3.0
+#: A table's model-error component enters the MFB's U95 when its statistic's exact tail probability under the
+#: probing noise alone (the weights of ``W_T^T Mp W_T``, :func:`core.lsq.quadratic_form_sf`) is below this:
+#: :data:`core.uncertainty.MODEL_ERROR_P`, the one-sided normal tail at 3.
+MFB_MODEL_ERROR_P = 1.3498980316300946e-3
 
 
 @dataclass(frozen=True)
@@ -1593,7 +1599,10 @@ class ModelErrorShare:
     z : dict
         symbol -> its statistic's excess over the probing noise's expectation, in standard deviations.
     entered : tuple
-        The symbols whose share entered (z > :data:`MFB_MODEL_ERROR_Z` and a positive variance).
+        The symbols whose share entered (p below the gate and a positive variance).
+    p : dict or None
+        symbol -> its statistic's exact tail probability under the probing noise alone (the gate,
+        :data:`MFB_MODEL_ERROR_P`).
     columns : (n, c) float
         The estimate's error from the entered shares, ``cov = C C^T`` (the design's gauge); (n, 0) when none.
     """
@@ -1602,14 +1611,17 @@ class ModelErrorShare:
     z: dict
     entered: tuple
     columns: np.ndarray
+    p: dict | None = None
+    p_max: float = MFB_MODEL_ERROR_P
 
     def as_dict(self) -> dict:
         def unit(s):
             return "urad" if iso.symbol(s).angular else "um"
 
-        return {"entered": list(self.entered), "step_mm": MFB_MODEL_ERROR_STEP_M * 1e3, "z_min": MFB_MODEL_ERROR_Z,
-                "u": {s: {"u_" + unit(s): self.u[s] * 1e6, "z": self.z[s]} for s in self.entered},
-                "z": {s: round(float(v), 2) for s, v in self.z.items()}}
+        return {"entered": list(self.entered), "step_mm": MFB_MODEL_ERROR_STEP_M * 1e3, "p_max": self.p_max,
+                "u": {s: {"u_" + unit(s): self.u[s] * 1e6, "z": self.z[s], "p": self.p[s]} for s in self.entered},
+                "z": {s: round(float(v), 2) for s, v in self.z.items()},
+                "p": {s: float(f"{v:.3g}") for s, v in self.p.items()}}
 
 
 def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float):
@@ -1660,7 +1672,7 @@ def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float):
 
 def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
                       cal_map=None, step_m: float = MFB_MODEL_ERROR_STEP_M,
-                      z_min: float = MFB_MODEL_ERROR_Z) -> ModelErrorShare | None:
+                      p_max: float = MFB_MODEL_ERROR_P) -> ModelErrorShare | None:
     """The MFB's model-error share: per motion table, a fine table the residuals show the tables miss.
 
     :func:`core.uncertainty.model_error_budget`'s way for the MFB's correlated inputs: each motion table
@@ -1671,8 +1683,10 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     directions projected out as :func:`lack_of_fit` does (``rp = P r``, ``Rp = P (I - J K)``), are
     ``Rp (sum_T Phi_T e_T + noise)``; with ``W_T = Rp Phi_T`` the statistic ``q_T = |W_T^T rp|^2`` has the
     probing noise's expectation ``tr(W_T^T Mp W_T)`` (``Mp`` the projected residuals' probing-noise
-    covariance) and variance ``2 |W_T^T Mp W_T|_F^2``; a table enters when ``q_T`` exceeds that by
-    ``z_min`` standard deviations, and the entered tables' ``s_T^2`` solve the moment equations ``q_T -
+    covariance) and variance ``2 |W_T^T Mp W_T|_F^2`` (``z``: the excess in standard deviations); under
+    the probing noise alone ``q_T`` is a quadratic form of the weights of ``W_T^T Mp W_T``'s eigenvalues, and
+    a table enters when its exact tail probability (:func:`core.lsq.quadratic_form_sf`) is below ``p_max``;
+    the entered tables' ``s_T^2`` solve the moment equations ``q_T -
     tr(W_T^T Mp W_T) = sum_U s_U^2 |W_T^T W_U|_F^2`` non-negative (the probing noise known).
 
     Returns None when there is no probing noise to test against (``sigma_probe_m`` 0).
@@ -1681,15 +1695,17 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     ------
     ConfigError
         ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0;
-        ``step_m`` not > 0; ``z_min`` not finite.
+        ``step_m`` not > 0; ``p_max`` not in (0, 1).
     """
     from scipy.optimize import nnls
+
+    from .lsq import quadratic_form_sf
 
     u_cal, up = _noise_inputs("model_error_share", sigma_probe_m, u_cal_m, u_place)
     if not (np.isfinite(step_m) and step_m > 0):
         raise ConfigError(f"model_error_share: step_m must be > 0, got {step_m!r}")
-    if not np.isfinite(z_min):
-        raise ConfigError(f"model_error_share: z_min must be finite, got {z_min!r}")
+    if not (np.isfinite(p_max) and 0 < p_max < 1):
+        raise ConfigError(f"model_error_share: p_max must be in (0, 1), got {p_max!r}")
     if sigma_probe_m == 0:
         return None
     meas = list(meas)
@@ -1708,7 +1724,17 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     e0 = np.array([float(np.trace(a)) for a in WM])
     v0 = np.array([2.0 * float(np.sum(a * a)) for a in WM])
     z = np.where(v0 > 0, (q - e0) / np.sqrt(np.where(v0 > 0, v0, 1.0)), 0.0)
-    kept = np.flatnonzero(z > z_min)
+    pv = np.ones(len(syms))
+    for k, (a, qk) in enumerate(zip(WM, q)):
+        lam = np.linalg.eigvalsh(a) if a.size else np.zeros(0)
+        lam = lam[lam > (lam.max() * 1e-12 if lam.size and lam.max() > 0 else np.inf)]
+        if lam.size >= 2:
+            pv[k] = quadratic_form_sf(lam, float(qk))
+        elif lam.size:  # one direction: a scaled chi-square of 1 degree
+            from scipy.stats import chi2
+
+            pv[k] = float(chi2.sf(float(qk) / lam[0], 1))
+    kept = np.flatnonzero(pv < p_max)
     s2 = np.zeros(len(syms))
     if kept.size:
         X = np.array([[float(np.sum((Ws[a].T @ Ws[b]) ** 2)) for b in kept] for a in kept])
@@ -1720,4 +1746,5 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     C[~np.any(res.K != 0, axis=1)] = 0.0  # the values the gauge fixes keep no uncertainty
     return ModelErrorShare({s: float(np.sqrt(v)) for s, v in zip(syms, s2)},
                            {s: float(v) for s, v in zip(syms, z)},
-                           tuple(s for s, v in zip(syms, s2) if v > 0), C)
+                           tuple(s for s, v in zip(syms, s2) if v > 0), C,
+                           {s: float(v) for s, v in zip(syms, pv)}, float(p_max))
