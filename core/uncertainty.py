@@ -245,7 +245,7 @@ DECLARED_IN_PROBE_P = True
 #: moment equations' (which take a smooth misfit for more than the white fine table holds and drive the
 #: noise to 0: a 2 um / 37 mm EYY ripple, noise 0.3 um, gave sigma 0.000 on 20/20 seeds; sclob29, session
 #: 30 small30). Needs :data:`SIGMA_BESIDE_MIN_DOF` degrees of freedom there, else the moment equations.
-SIGMA_BESIDE_TABLES = False
+SIGMA_BESIDE_TABLES = True
 #: Fewest residual degrees of freedom beside the entered tables for :data:`SIGMA_BESIDE_TABLES` (20: the
 #: sigma's relative sampling sd 1 / sqrt(2 dof) within 16 %).
 SIGMA_BESIDE_MIN_DOF = 20
@@ -257,7 +257,9 @@ MODEL_ERROR_RULE = (
     "a random function of its axis position, the same for touches within 1 mm along that axis and independent beyond "
     "(a fine table, 1 mm step); a table's part enters when the residuals show it (z > 3 against probing noise alone; "
     "measured on noise alone about 0.4 % of tables enter, not a normal's 0.135 %), "
-    "its variance and the probing noise's estimated from the residuals (moment equations); it is propagated through the "
+    "the probing noise estimated from the residuals beside the entered tables' fine span (from the moment equations "
+    "when that leaves fewer than 20 degrees of freedom), its variance from the moment equations; it is propagated "
+    "through the "
     "estimator and, as the difference between a table's value and the function at its node, through the gauge")
 
 

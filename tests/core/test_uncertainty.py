@@ -275,3 +275,18 @@ def test_model_error_exact_gate_refuses_noise_a_z_of_3_lets_in(pocket, monkeypat
     dof = t0.n - est.n_free
     assert b.sigma_probe_m == pytest.approx(np.sqrt(res.residuals_m @ res.residuals_m / dof), rel=1e-12)
 
+
+def test_probing_sigma_beside_the_entered_tables_on_a_strong_ripple(pocket):
+    """Session 30 (small30, sclob29's left-over): a 2 um / 37 mm EYY ripple (finer than no table, but not
+    white at 1 mm), noise 0.3 um. The joint moment equations took the smooth misfit for more than the
+    white fine table holds and put the noise at 0.000 (every seed measured, 20/20 with vmt simulate); the
+    sigma from the residuals beside EYY's fine span (SIGMA_BESIDE_TABLES) is the noise's: within 0.2-0.4 um
+    (its ~40 degrees of freedom: sampling sd ~11 %; measured 0.24-0.33). EYY's model error stays ~2 um."""
+    from tests.core.test_selfcal_lobes import _campaign, _paper_pocket
+
+    t = _paper_pocket()
+    for seed in (100, 101, 102):
+        tt, _ = _campaign(t, seed, ripple=(1, 2.0, 37.0))
+        b = self_calibrate(tt, GRID).budget
+        assert b.components["EYY"] > 1.0 * UM
+        assert 0.2 * UM < b.sigma_probe_m < 0.4 * UM
