@@ -1208,6 +1208,7 @@ class SelfCalResult:
                 "model_error": {k: _r(v * unit.get(k, 1e6)) for k, v in b.components.items()},
                 "model_error_units": {k: ("urad" if k in unit else "um") for k in b.components},
                 "model_error_z": {k: _r(v, 2) for k, v in b.z.items()},
+                "model_error_p": (None if b.p is None else {k: float(f"{v:.3g}") for k, v in b.p.items()}),
                 "rule": b.rule}
         out["not_covered"] = not_covered(res.blind_lobes)
         if res.direction is not None:

@@ -130,8 +130,8 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
            f"(a run that stops early leaves {wcs} zeroed: its earlier values are the DEBUG line below)",
            "(load the probe tool with its length offset, G43, before running)",
            f"(probing stroke: clearance {settings.clearance_mm:g} + overtravel {settings.overtravel_mm:g} mm; "
-           f"vmt import linuxcnc --clearance-mm {settings.clearance_mm:g} --overtravel-mm "
-           f"{settings.overtravel_mm:g} checks each touch within it)",
+           "each LOG line carries its G38.2 move as G91 G38.2 words, start to end:)",
+           "(vmt import linuxcnc reads the stroke from them and checks each touch within it)",
            "M70"]
     out += [f"{saved[a]} = #{base + (9 if a == 'R' else 'XYZABC'.index(a))}" for a in axes + "R"]
     out += ["#<_vmt_g92_on> = #5210",
@@ -148,7 +148,10 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         for m in moves:
             out.append(f"G1 {_words(m.xyz_mm, m.rot_deg, m.axes)} F{fm:.1f}")
         out.append(f"G38.2 {_words(st.end_mm)} F{fp:.1f}")
-        out.append(f"(LOG,N{st.row} G1 X#5061 Y#5062 Z#5063)")     # the touch, numbered by its plan row
+        # the touch, numbered by its plan row, and the probing move it ended (start to end, as GRBL's G91 G38.2
+        # carries it): the import's along-the-line bound is that stroke
+        move = " ".join(f"{a}{e - b:.4f}" for a, b, e in zip("XYZ", st.start_mm, st.end_mm))
+        out.append(f"(LOG,N{st.row} G1 X#5061 Y#5062 Z#5063 G91 G38.2 {move})")
         out.append(f"G1 {_words(st.start_mm)} F{fm:.1f}")
         prev = st.start_mm
     if settings.safe_z_mm is not None and prev is not None:
@@ -184,14 +187,16 @@ def read_probe_file(path) -> np.ndarray:
     return _read_lines(path)[0]
 
 
-def _read_lines(path):
+def _read_lines(path, inch: bool = False):
     """(the numbers of :func:`read_probe_file`, the plan row of each line (its ``N`` word, as
     :func:`part_program`'s ``LOG`` lines carry it) or ``None`` for a file without them, the
-    file's line number of each row, ``"probe"`` for a PROBEOPEN file or ``"log"``)."""
+    file's line number of each row, ``"probe"`` for a PROBEOPEN file or ``"log"``, each line's
+    probing stroke in mm (its ``G91 G38.2`` move; ``inch``: the file's units) or ``None`` for a file
+    without them)."""
     p = Path(path)
     text = read_text_file(p, ProbeLogError, "file")
     rows, width, kind = [], None, None
-    tags, line_no = [], []
+    tags, line_no, strokes = [], [], []
     for ln, line in enumerate(csv_lines(text), start=1):
         if not line.strip():
             continue
@@ -202,7 +207,11 @@ def _read_lines(path):
             raise ProbeLogError(f"{p}: line {ln}: G-code words and bare numbers mixed in one file")
         kind = "log" if words else "probe"
         if words:
-            vals, tag = _log_line(p, ln, line)
+            vals, tag, stroke = _log_line(p, ln, line, inch)
+            if strokes and (stroke is None) != (strokes[-1] is None):
+                raise ProbeLogError(f"{p}: line {ln}: a G91 G38.2 move (the probing stroke) on some lines and not "
+                                    "on others")
+            strokes.append(stroke)
             if tags and (tag is None) != (tags[-1] is None):
                 raise ProbeLogError(f"{p}: line {ln}: an N word (the plan row) on some lines and not on others")
             tags.append(tag)
@@ -225,7 +234,8 @@ def _read_lines(path):
         line_no.append(ln)
     if not rows:
         raise ProbeLogError(f"{p}: empty probe file")
-    return np.array(rows), (tags if tags and tags[0] is not None else None), line_no, kind
+    return (np.array(rows), (tags if tags and tags[0] is not None else None), line_no, kind,
+            (strokes if strokes and strokes[0] is not None else None))
 
 
 #: What a LinuxCNC probe file is, for a file that is none.
@@ -242,7 +252,9 @@ def _first_line(p: Path, ln: int, line: str, text: str) -> None:
     if line.lstrip().startswith("#") and "probe-log/1" in line:
         raise ProbeLogError(f"{p}: a probe-log/1 file (vmt's own log), not a LinuxCNC probe file: "
                             f"it needs no import (vmt check {p.name})")
-    probing = re.search(r"(?<![A-Za-z])G\s*38\.[2-5]", re.sub(r"\([^)]*\)", "", text), re.IGNORECASE)
+    code = "\n".join(ln_ for ln_ in re.sub(r"\([^)]*\)", "", text).splitlines()   # a LOG line's own move is no program
+                     if not (_LOG_START.match(ln_) and _LOG_MOVE.search(ln_)))
+    probing = re.search(r"(?<![A-Za-z])G\s*38\.[2-5]", code, re.IGNORECASE)
     if probing:
         raise ProbeLogError(f"{p}: a part program (it probes: {probing[0]}), not the probe file it writes; "
                             "expected " + PROBE_FILE_KINDS)
@@ -260,9 +272,28 @@ def _first_line(p: Path, ln: int, line: str, text: str) -> None:
 _WORD = re.compile(r"([A-Za-z])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
 
 
-def _log_line(p: Path, ln: int, line: str) -> list[float]:
-    """X, Y, Z of a ``LOGOPEN`` line such as ``G1 X1.000000 Y2.000000 Z-0.500000``."""
+#: A LOG line's probing move (:func:`part_program` since session 30): ``G91 G38.2`` and its axis words, the
+#: move from its start to its end (clearance + overtravel long).
+_LOG_MOVE = re.compile(r"G0*91\s*G0*38\.2(?![\d])", re.I)
+#: How a LOG line of a touch begins (``N<row> G1 X``): its G38.2 is the logged move, not a program's.
+_LOG_START = re.compile(r"\s*(?:N\s*\d+\s*)?G\s*0*1\s*X", re.I)
+
+
+def _log_line(p: Path, ln: int, line: str, inch: bool = False) -> tuple:
+    """(X, Y, Z, the plan row or None, the probing move's length mm or None) of a ``LOGOPEN`` line such as
+    ``G1 X1.000000 Y2.000000 Z-0.500000`` (``N<row>`` and a ``G91 G38.2 X.. Y.. Z..`` tail: its probing
+    move, :func:`part_program`'s)."""
+    from .transcript import _stroke_mm
+
     code = re.sub(r"\([^)]*\)|;.*$", "", line)
+    stroke = None
+    if (m := _LOG_MOVE.search(code)) is not None:
+        tail = code[m.end():]
+        stroke = _stroke_mm("G91 " + tail, inch)
+        if stroke is None or not re.fullmatch(r"(?:\s*[XYZ]\s*[-+]?(?:\d+\.?\d*|\.\d+))+\s*", tail, re.I):
+            raise ProbeLogError(f"{p}: line {ln}: its G91 G38.2 move {tail.strip()[:40]!r} is not X, Y, Z "
+                                "words of a move of non-zero length")
+        code = code[:m.start()]
     words, pos = [], 0
     while pos < len(code):
         if code[pos].isspace():
@@ -291,7 +322,7 @@ def _log_line(p: Path, ln: int, line: str) -> list[float]:
         if not re.fullmatch(r"\+?\d+", got["N"]):
             raise ProbeLogError(f"{p}: line {ln}: N{got['N']}: the plan row must be a whole number >= 0")
         tag = int(got["N"])
-    return [float(got["X"]), float(got["Y"]), float(got["Z"])], tag
+    return [float(got["X"]), float(got["Y"]), float(got["Z"])], tag, stroke
 
 
 def _number_lines(p: Path, error):
@@ -341,13 +372,17 @@ PROBEOPEN_SKIPS = ("LinuxCNC writes no PROBEOPEN line for a probe at exactly the
                    "program in the same LinuxCNC session)")
 
 
-def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str, stroke: Stroke | None = None) -> None:
+def _check_rows(path, pos, rows, line_no, plan: ProbeLog, kind: str, stroke: Stroke | None = None,
+                line_strokes=None) -> None:
     """ProbeLogError naming the first line of ``pos`` (mm) that is not a touch of its plan row ``rows[i]``
-    (along the line within ``stroke``, :func:`hardware.transcript.along_bound`)."""
+    (along the line within the line's own stroke, ``line_strokes[i]``, else ``stroke``,
+    :func:`hardware.transcript.along_bound`)."""
     pn, d = row_lines(plan)
-    along = along_bound(stroke)
     for i, (p, r) in enumerate(zip(pos, rows)):
-        if _on_row(p, pn[r], d[r], along):
+        if line_strokes is not None:
+            stroke = Stroke(float(line_strokes[i]), f"the program's stroke, its G91 G38.2 move on this LOG line "
+                                                    f"({line_strokes[i]:g} mm)")
+        if _on_row(p, pn[r], d[r], along_bound(stroke)):
             continue
         why = ": not this plan's probe file"
         if kind != "tagged":
@@ -438,7 +473,10 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
         Units of the file (a ``G20`` program writes inches).
     stroke : hardware.transcript.Stroke, optional
         The program's probing stroke (clearance + overtravel, mm:
-        :func:`hardware.transcript.program_stroke`); default not known.
+        :func:`hardware.transcript.program_stroke`); default not known. A
+        file whose lines carry their probing move (``G91 G38.2 X.. Y.. Z..``,
+        :func:`part_program`'s since session 30) is checked against each
+        line's own stroke instead.
 
     Raises
     ------
@@ -450,7 +488,7 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
     """
     if units not in ("mm", "inch"):
         raise PlanError(f"units {units!r}: expected mm or inch")
-    data, tags, line_no, kind = _read_lines(path)
+    data, tags, line_no, kind, strokes = _read_lines(path, units == "inch")
     pos = data[:, :3] * (25.4 if units == "inch" else 1.0)
     meta = {"machine": "linuxcnc", "source": f"vmt import linuxcnc {Path(path).name}",
             "t_s_source": f"plan order x {dt_s:g} s (the probe file has no clock)"}
@@ -473,7 +511,7 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
                        "a line is missing or repeated (the program writes one line per probe, in plan order)"))
     if not built:
         _check_rotary(path, data, line_no, plan)
-        _check_rows(path, pos, range(k), line_no, plan, "tagged" if tags is not None else kind, stroke)
+        _check_rows(path, pos, range(k), line_no, plan, "tagged" if tags is not None else kind, stroke, strokes)
     status = ["ok"] * k + ["aborted"] * (n - k)
     if k < n:
         pos = np.vstack([pos, np.full((n - k, 3), np.nan)])

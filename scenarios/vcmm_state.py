@@ -209,7 +209,9 @@ def one_seed(seed: int, *, noise_m: float = NOISE_M, ripple: bool = True, vcmm_s
 
     if ident is None:
         ident = identify_campaign(seed, noise_m, ripple=ripple)
-    state = loads_estimate(ident.report, source=f"identify seed {seed}")
+    # the report's tables are at the readings (vmt identify does not know J): at the axis positions reading + J
+    # of the probe the campaign used, as vmt vcmm --machine-state places them (J_X = J_Y = 0 on nmv3000)
+    state = loads_estimate(ident.report, source=f"identify seed {seed}").at_axis_positions(ident.machine.config.J_m)
     spec = truth_machine(MACHINE, "none")  # the best estimate before the state: no errors
     task = V.loads_task(task, source="coverage task")
     st = prepare(coverage_plan(ident.z_m * 1e3), task, spec, noise_um=noise_m * 1e6, state=state)
@@ -316,7 +318,8 @@ def crosspocket_comparison(seed: int = 1, nodes_mm=COMPARE_NODES_MM, vcmm_seed: 
             "identification's covariance (sigma + model error)": u95_map(res.cov)}
     spec = truth_machine(MACHINE, "none")  # the best estimate before the state: no errors
     st = prepare(_node_plan(nodes_mm, z_ref * 1e3), V.loads_task(_node_task(nodes_mm)), spec, noise_um=0.0,
-                 state=loads_estimate(res.to_report(), source=f"identify seed {seed}"))
+                 state=loads_estimate(res.to_report(), source=f"identify seed {seed}").at_axis_positions(
+                     c.machine.config.J_m))   # at reading + J, as vmt vcmm places a state at the readings
     rep = study(st, vcmm_seed, budget=False)
     ms = {m["name"]: m for m in rep["measurands"]}
     rows = []

@@ -25,7 +25,8 @@ def register(sub) -> None:
                    help="the program's approach start before contact (vmt machine program / vmt probe "
                         "--clearance-mm), mm (2 when only --overtravel-mm is given): each touch within clearance + "
                         "overtravel of its nominal along its approach line; neither given, 10 mm (a GRBL "
-                        "transcript's own G91 G38.2 moves say it)")
+                        "transcript's own G91 G38.2 moves say it, and so do the LOG lines of a vmt machine "
+                        "program since session 30: their own stroke is used)")
     p.add_argument("--overtravel-mm", dest="overtravel", type=float, default=None,
                    help="the program's probing end beyond contact, mm (2 when only --clearance-mm is given)")
     p.set_defaults(func=run)

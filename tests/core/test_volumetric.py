@@ -318,9 +318,11 @@ def test_model_error_share_enters_only_when_residuals_show_it_and_bad_input(meas
     u0 = np.zeros((12, 3))
     quiet = vol.model_error_share(res, meas, 0.125e-6, u0)
     assert quiet.entered == () and quiet.columns.shape == (len(res.theta), 0)
-    assert max(quiet.z.values()) <= vol.MFB_MODEL_ERROR_Z and set(quiet.z) == set(vol.MOTION)
+    assert max(quiet.z.values()) <= vol.MFB_MODEL_ERROR_Z and set(quiet.z) == set(quiet.p) == set(vol.MOTION)
+    assert min(quiet.p.values()) > vol.MFB_MODEL_ERROR_P   # the exact tail agrees here
     loud = vol.model_error_share(res, meas, 1e-12, u0)
     assert loud.entered and all(loud.z[s] > vol.MFB_MODEL_ERROR_Z and loud.u[s] > 0 for s in loud.entered)
+    assert all(0.0 <= v <= 1.0 for v in loud.p.values()) and min(loud.p.values()) < vol.MFB_MODEL_ERROR_P
     assert all(loud.u[s] == 0 for s in vol.MOTION if s not in loud.entered)
     base = vol.uncertainty(res, meas, 1e-12, u0, runs=0)
     same = vol.uncertainty(res, meas, 1e-12, u0, runs=0, model_error=quiet.columns)

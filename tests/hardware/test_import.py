@@ -38,7 +38,12 @@ def test_part_program_probes_every_row_between_logopen_and_logclose(plan_path, t
     assert len(probes) == 12 and i0 < probes[0] and probes[-1] < i1
     # each probe logged right after it, numbered by its plan row (a PROBEOPEN file has no line for a probe
     # at the previous one's position: LinuxCNC's emccanon.cc), and nothing else logged
-    assert [lines[k + 1] for k in probes] == [f"(LOG,N{r} G1 X#5061 Y#5062 Z#5063)" for r in range(12)]
+    logged = [lines[k + 1] for k in probes]
+    assert [ln.split(" G91 ")[0] for ln in logged] == [f"(LOG,N{r} G1 X#5061 Y#5062 Z#5063" for r in range(12)]
+    # ... with the probing move that made it, start to end (G91 G38.2): 2 + 2 mm long (session 30)
+    moves = [np.array([float(v) for v in re.findall(r"[XYZ](-?\d+\.\d+)", ln.split("G38.2")[1])]) for ln in logged]
+    assert all(ln.endswith(")") and " G91 G38.2 X" in ln for ln in logged)
+    np.testing.assert_allclose([np.linalg.norm(m) for m in moves], 4.0, atol=2e-4)
     assert sum(ln.startswith("(LOG,") for ln in lines) == 12 and not any("PROBEOPEN" in ln for ln in lines)
     # G59.3 zeroed with no rotation (R0: an existing XY rotation would turn the file), G92 suspended
     assert "G10 L2 P9 X0 Y0 Z0 R0" in lines and "G59.3" in lines and "G92.2" in lines
@@ -53,8 +58,8 @@ def test_part_program_probes_every_row_between_logopen_and_logclose(plan_path, t
     head = "\n".join(lines[:k0])
     assert "restored" in head and "stops early" in head
     # the stroke, so the import can bound each touch by it (session 29)
-    assert ("(probing stroke: clearance 2 + overtravel 2 mm; vmt import linuxcnc --clearance-mm 2 --overtravel-mm 2 "
-            "checks each touch within it)") in lines[:k0]
+    assert ("(probing stroke: clearance 2 + overtravel 2 mm; each LOG line carries its G38.2 move as G91 G38.2 "
+            "words, start to end:)") in lines[:k0]
     g54 = part_program(read_probe_log(plan_path), ProbeSettings(limits_mm=LIMITS_MM), wcs="G54").splitlines()
     assert "G10 L2 P1 X0 Y0 Z0 R0" in g54 and "#<_vmt_wcs_r> = #5230" in g54
     # each probe is followed (after its LOG line) by its retract to the approach start, which preceded it
@@ -924,3 +929,63 @@ def test_probeopen_rotary_positions_are_checked_against_the_plan(tmp_path, plan_
     assert main(["import", "linuxcnc", str(pf), "--plan", str(turned), "--out", str(out)]) == 0
     log = read_probe_log(out)
     assert log.n == plan.n and np.all(log.ok) and list(log.col("C_deg")) == [0.0] * 6 + [75.0] * 6
+
+
+def _linuxcnc_writes(program: str, pos) -> str:
+    """The LOGOPEN file LinuxCNC writes running ``program``: each (LOG,...) line's text, its #5061-#5063 (the
+    probed X Y Z) expanded as %lf (6 decimals), one per probe, with the touches ``pos`` (mm)."""
+    logs = re.findall(r"^\(LOG,(.*)\)$", program, re.M)
+    assert len(logs) == len(pos)
+    return "".join(t.replace("#5061", f"{p[0]:f}").replace("#5062", f"{p[1]:f}").replace("#5063", f"{p[2]:f}") + "\n"
+                   for t, p in zip(logs, pos))
+
+
+def test_linuxcnc_program_carries_its_stroke_to_the_import(tmp_path, capsys):
+    """Session 30 (small30): vmt's LinuxCNC program logs each touch with the G38.2 move that made it (G91 G38.2,
+    start to end: clearance + overtravel), so vmt import linuxcnc reads the stroke from the file, as it reads
+    GRBL's from the transcript's G91 G38.2, without --clearance-mm/--overtravel-mm. A 12 + 12 mm stroke: a
+    touch 11 mm beyond its nominal, refused by the 10 mm fallback before (the file said nothing), is its row's;
+    30 mm beyond is refused naming the line's own 24 mm stroke. A 0.5 + 0.5 mm stroke: a touch 3 mm along
+    (the 10 mm fallback took it) is refused."""
+    plan = tmp_path / "step.csv"
+    plan.write_text(STEP_PLAN)
+    pf, out = tmp_path / "probe.log", tmp_path / "imp.csv"
+    args = ["import", "linuxcnc", str(pf), "--plan", str(plan), "--out", str(out)]
+    lim = ((-50.0, 100.0), (-50.0, 50.0), (-50.0, 50.0))
+    prog = part_program(read_probe_log(plan), ProbeSettings(clearance_mm=12.0, overtravel_mm=12.0, limits_mm=lim))
+    assert "(LOG,N1 G1 X#5061 Y#5062 Z#5063 G91 G38.2 X0.0000 Y0.0000 Z-24.0000)" in prog
+    pos = np.array([[0.0, 0.0, 4.5002], [0.0, 0.0, -9.5], [40.0, 0.0, 1.5001]])   # lower: 11 mm beyond
+    pf.write_text(_linuxcnc_writes(prog, pos))
+    assert main(args) == 0, capsys.readouterr().err
+    assert np.array_equal(read_probe_log(out).positions_mm(), pos)
+    pos[1, 2] = 1.5 - 30.0
+    pf.write_text(_linuxcnc_writes(prog, pos))
+    out.unlink()
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "line 2: [0, 0, -28.5] mm is not a touch of plan row 1 (target 'lower'" in err and \
+        "+30.000 mm along it (a touch lies within 0.5 mm of the line and 24 mm of the nominal: the program's " \
+        "stroke, its G91 G38.2 move on this LOG line (24 mm))" in err and not out.exists(), err
+    short = part_program(read_probe_log(plan), ProbeSettings(clearance_mm=0.5, overtravel_mm=0.5, limits_mm=lim))
+    lines = _linuxcnc_writes(short, np.array([[0.0, 0.0, 1.5002], [0.0, 0.0, 1.5], [40.0, 0.0, 1.5]]))
+    pf.write_text(lines.splitlines(keepends=True)[0])       # one line: the lower step's touch as row 0's (upper)
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "line 1: [0, 0, 1.5002] mm is not a touch of plan row 0 (target 'upper'" in err and \
+        "1 mm of the nominal: the program's stroke, its G91 G38.2 move on this LOG line (1 mm)" in err, err
+
+
+@pytest.mark.parametrize("tail, msg", [
+    ("G91 G38.2 X0 Y0 Z0", "its G91 G38.2 move 'X0 Y0 Z0' is not X, Y, Z words of a move of non-zero length"),
+    ("G91 G38.2 X0 Q4", "its G91 G38.2 move 'X0 Q4' is not X, Y, Z words"),
+    ("G91 G38.2 Z-4\nN1 G1 X0.000000 Y0.000000 Z1.500000",
+     "line 2: a G91 G38.2 move (the probing stroke) on some lines and not on others"),
+])
+def test_linuxcnc_log_line_bad_move_exit_2(tmp_path, capsys, tail, msg):
+    plan = tmp_path / "step.csv"
+    plan.write_text(STEP_PLAN)
+    pf = tmp_path / "probe.log"
+    pf.write_text(f"N0 G1 X0.000000 Y0.000000 Z4.500200 {tail}\n")
+    assert main(["import", "linuxcnc", str(pf), "--plan", str(plan), "--out", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and "line " in err and err.count("\n") == 1, err

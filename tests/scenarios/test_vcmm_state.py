@@ -356,3 +356,65 @@ def test_the_declared_ripple_is_the_truth_generators_specification():
         t = got[sym]
         assert t.term == "periodic" and t.period == pytest.approx(0.010) and t.distribution == "uniform"
         assert t.bound == pytest.approx(0.01 * m, rel=1e-12)
+
+
+@pytest.fixture
+def machine_with_j(monkeypatch):
+    """nmv3000 with a probe offset in X and Y (J = (4, -3, 150) mm): the built-in machines all have J_X = J_Y = 0,
+    where a state at the readings and one at the axis positions have the same nodes."""
+    import functools
+
+    from sim import machines as M
+
+    J = (0.004, -0.003, 0.15)
+    from sim import machinefile as MF
+
+    monkeypatch.setitem(M.MACHINES, "nmv3000-j", functools.partial(M.MACHINES["nmv3000"], J_m=J))
+    monkeypatch.setattr(VS, "MACHINE", "nmv3000-j")
+    tm = MF.truth_machine   # the best estimate before the state (no errors): only prepare's, intercepted below
+    monkeypatch.setattr(MF, "truth_machine", lambda name, *a, **k: tm("nmv3000" if name == "nmv3000-j" else name,
+                                                                      *a, **k))
+    return J
+
+
+class _Stop(Exception):
+    pass
+
+
+def _capture_state(monkeypatch):
+    got = {}
+
+    def prepare(*a, state=None, **k):
+        got["state"] = state
+        raise _Stop
+
+    monkeypatch.setattr(S, "prepare", prepare)
+    return got
+
+
+def test_one_seed_places_the_state_at_the_axis_positions(machine_with_j, monkeypatch):
+    """Session 30 (small30): the identification's report holds its tables at the readings (vmt identify does
+    not know J); one_seed applied them as if at the axis positions, J off on a machine where J_X, J_Y != 0
+    (small29; no effect on nmv3000). Now at reading + J, as vmt vcmm --machine-state places them: each
+    table's nodes moved by its axis's J exactly (fails before: the state at the readings)."""
+    J = machine_with_j
+    got = _capture_state(monkeypatch)
+    ident = VS.identify_campaign(0, ripple=False)
+    with pytest.raises(_Stop):
+        VS.one_seed(0, ident=ident)
+    st, raw = got["state"], loads_estimate(ident.report, source="raw")
+    assert raw.at_readings and not st.at_readings
+    for s, (x, _) in raw.tables.items():
+        np.testing.assert_allclose(st.tables[s][0], x + J["XYZ".index(s[2])], rtol=0, atol=1e-15)
+    assert any("reading + J" in c for c in st.conventions)
+
+
+def test_crosspocket_comparison_places_the_state_at_the_axis_positions(machine_with_j, monkeypatch):
+    """The same for crosspocket_comparison's state (vcmm_state.py's second reader; fails before)."""
+    J = machine_with_j
+    got = _capture_state(monkeypatch)
+    with pytest.raises(_Stop):
+        VS.crosspocket_comparison(seed=1)
+    st = got["state"]
+    assert not st.at_readings
+    assert any("reading + J" in c for c in st.conventions) and any("(4, -3, 150) mm" in c for c in st.conventions)
