@@ -2126,7 +2126,7 @@ def test_gen_b_fixture_slip_1096_repeats_beyond_the_fit_tried_and_off(monkeypatc
     ``REPEATS_BEYOND_FIT`` (off: three reversals on gen_a reseat_hysteresis 1000-1299, the other gen_b effects not
     measured) sets such repeats aside and reads it `unexplained`. The default engine now reads it `unexplained`
     too, confidently (abbe30, session 30, at b72ab75; which later rule mended it was not traced): this test holds
-    the off rule's own reading.
+    the off rule's own reading."""
     from core import discover as D
     from scenarios import hidden
     from scenarios.blind import gen_b
