@@ -6292,9 +6292,13 @@ REVERSAL_MOVE_EARNS = True
 #: :data:`TWO_LOBE_MOVE_SHARE` of the approach pair's). On approaches along the normal the approach pair's columns are
 #: ``|n_x| / 2``, ``|n_y| / 2``; equal and opposite lost motions are ``(|cos| - |sin|) / 2``, a two-lobe pre-travel
 #: (harmonics 2, 6, 10). Session 30 (form30; the simulator's probe_lobing 4003 and the spent blind 6803, each read
-#: `reversal?` through the four columns with balance 0.67 / 0.65 and move share 0.13 / 0.19). Off: built and
-#: measured only in part (docs/discovery.md, "Session 30: the move-signed reversal on two-lobe probes").
-REVERSAL_TWO_LOBE_YIELDS = False
+#: `reversal?` through the four columns with balance 0.67 / 0.65 and move share 0.13 / 0.19). On: measured (this
+#: tree's defaults, and with the rule rerun where a four-column layout judged had the signature) on the simulator's
+#: probe_lobing and reversal 4000-4099, gen_a/gen_b reversal 1000-1099, gen_c travel_hysteresis and reversal
+#: 200-399 / 200-299, gen_b probe_lobing 1000-1049 and more: 4003 and 6803 `reversal?` -> `probe_lobing?`, nothing
+#: right -> wrong, no workpiece check moved (docs/discovery.md, "Session 30: the move-signed reversal on two-lobe
+#: probes"). False: the four columns judged by :data:`REVERSAL_MOVE_EARNS` alone.
+REVERSAL_TWO_LOBE_YIELDS = True
 #: :data:`REVERSAL_TWO_LOBE_YIELDS`' balance: the smaller approach-signed lost motion over the larger, at least.
 TWO_LOBE_BALANCE = 0.5
 #: :data:`REVERSAL_TWO_LOBE_YIELDS`' move share: the move-signed pair's norm over the approach-signed pair's, below.
