@@ -63,6 +63,7 @@ def test_c_drift_1998_workpiece_within_u95_only_with_the_rule(monkeypatch):
 
     gen_a = importlib.import_module("scenarios.blind.gen_a")
     monkeypatch.setattr(D, "VIF_DROP_LEAST_INFLATION", False)  # (the drop alone; the form choice is tested below)
+    monkeypatch.setattr(D, "VIF_FORM_BY_GAIN", False)  # (nor session 30's choice by gain: on since form30)
     monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", False)  # (v328's figures: the other forms' shift not carried)
     monkeypatch.setattr(D, "VIF_DROP_BEYOND_MAX", True)
     on = blind_outcome(gen_a, "c_drift", 1998, generator="gen_a")
@@ -101,6 +102,9 @@ def test_c_drift_least_inflated_form_when_a_direction_is_beyond_vif_max(monkeypa
     gen_a = importlib.import_module("scenarios.blind.gen_a")
     # (both off by default since session 28: measured, each moves other campaigns; docs/discovery.md)
     assert D.VIF_DROP_LEAST_INFLATION is False and D.VIF_DROP_BEYOND_MAX is False
+    # (the choice by least inflation, as session 28 measured it: session 30's choice by held-out gain, on since
+    # form30, would take the same per-set-up form by its gain, with another evidence line, and mend "off" too)
+    monkeypatch.setattr(D, "VIF_FORM_BY_GAIN", False)
     monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", False)  # (v328's figures: the other forms' shift not carried)
     monkeypatch.setattr(D, "VIF_DROP_LEAST_INFLATION", True)
     on = blind_outcome(gen_a, "c_drift", seed, generator="gen_a")
