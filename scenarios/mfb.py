@@ -1611,6 +1611,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     # truth in the same gauge
     d = res.design
     truth = np.zeros(len(res.theta))
+    # a time-varying table (a machine file's thermal drift) has no one truth: its mean over the campaign's
+    # touch times (the measurements run on one clock, sim.campaign.simulate_measurements; review30b F2)
+    t_touch = np.concatenate([np.asarray(log.col("t_s"), float) for log in logs])
+    t_touch = t_touch[np.isfinite(t_touch)]
+    varying = {}  # table -> its span over the campaign (max over nodes of max - min in time), SI
     for s in vol.MOTION:
         a = iso.symbol(s).axis
         x = d.nodes[a]
@@ -1618,11 +1623,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         lin[:, iso.LINEAR_AXES.index(a)] = x
         f = errs.get(s)
         if f is not None:
-            truth[d.slices[s]] = np.asarray(f(x), float)
+            truth[d.slices[s]] = _campaign_mean(f, x, t_touch, s, varying)
     for s in vol.SQUARENESS:
         f = errs.get(s)
         if f is not None:
-            truth[d.slices[s]] = float(np.asarray(f(np.zeros(1)))[0])
+            truth[d.slices[s]] = float(_campaign_mean(f, np.zeros(1), t_touch, s, varying)[0])
     truth_raw = d.to_gauge(truth)
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
@@ -1668,6 +1673,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
             doc["model_fit_note"] = lack_of_fit_note(lof, plan.nodes)
     if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
         doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
+    if varying:  # what `injected` is for a table that drifts in time (review30b F2)
+        doc["injected_note"] += ("; a table that drifts in time (" + ", ".join(varying) + "): its mean over the "
+                                 "campaign's touch times (injected_time)")
+        doc["injected_time"] = {
+            "rule": "mean over the campaign's touch times (the tables drift in time; a static table: its value)",
+            "t_s": [float(t_touch.min()), float(t_touch.max())], "t_mean_s": float(t_touch.mean()),
+            "touches": int(t_touch.size),
+            "span": {k: v * 1e6 for k, v in varying.items()},
+            "span_units": "um (urad for angles, um/m for squareness): max over the nodes of the drift over the campaign"}
     doc["bar"] = _bar_doc(E_cal_O, u_cal, art.info["E_MFB_m"],
                           "declared" if bar_calibration is None else "calibration given (e.g. reversal on a CMM)",
                           cal_map if bar_calibration is None else None)
@@ -1693,6 +1707,20 @@ MFB_MODEL_ERROR_SHARE = False
 #: the realistic machine's 40 seeds (z 3.1-5.2, no note on any) and on the demo's 3-axis seed 1 (EBX, z 3.6,
 #: lack-of-fit p 0.20). Session 29, docs/papers-mfb.md "A model-error share in the U95 (session 29)".
 MFB_MODEL_ERROR_GATE = True
+
+
+def _campaign_mean(f, x, t_s: np.ndarray, name: str, varying: dict) -> np.ndarray:
+    """``f`` at ``x`` as the MFB scenario reports its truth: ``f(x)`` when ``f`` takes the same values at every
+    touch time ``t_s`` (a static table: the same doubles as before), else its mean over those times, with
+    the table's span over the campaign (max over ``x`` of max - min in time) put in ``varying[name]``."""
+    v0 = np.asarray(f(x), float)
+    if t_s.size == 0:
+        return v0
+    V = np.asarray(f(np.tile(x, t_s.size), np.repeat(t_s, x.size)), float).reshape(t_s.size, x.size)
+    if np.array_equal(V, np.broadcast_to(v0, V.shape)):
+        return v0
+    varying[name] = float(np.max(V.max(axis=0) - V.min(axis=0)))
+    return V.mean(axis=0)
 
 
 def lack_of_fit_note(lof, nodes) -> str:

@@ -278,7 +278,8 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
                       rng: np.random.Generator | None = None, *, plan: Plan | None = None,
                       feed_mps: float = PROBING_FEED_MPS, rapid_mps: float = RAPID_FEED_MPS,
                       setup_change_s: float | None = None, check_collisions: bool = True,
-                      plan_only: bool = False, meta: dict | None = None, stroke_check: bool = True) -> ProbeLog:
+                      plan_only: bool = False, meta: dict | None = None, stroke_check: bool = True,
+                      t_start_s: float = 0.0) -> ProbeLog:
     """Simulate a campaign into a probe log (or write the plan only).
 
     Parameters
@@ -311,6 +312,10 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
         bar's links are its program's (out along z_A: :func:`_program_links`, since session 27;
         before, a climb along R z over the bar's top, a standing bar's above the Z stroke),
         so its touches' t_s follow the program's path.
+    t_start_s : float
+        The machine's clock at the campaign's start, s (default 0): its first link starts then.
+        A campaign that is one part of a longer one (:func:`simulate_measurements`) starts where the
+        part before it ended, so a time-varying error (thermal drift) goes on across the parts.
 
     Returns
     -------
@@ -340,7 +345,9 @@ def simulate_campaign(artefact, machine, probe: ProbeConfig | None = None, setup
     sdf_true = [art.feature(f).true.sdf for f in feats]
     travel = np.full(plan.n, plan.clearance_m + plan.overshoot_m)
     paths = _PathChecker(art, probe) if check_collisions else None
-    t_cursor = 0.0
+    t_cursor = float(t_start_s)
+    if not np.isfinite(t_cursor):
+        raise ConfigError(f"t_start_s must be finite, got {t_start_s!r}")
     moves = []  # (set-up, moves, approach start times) in order, every path checked first
     failed = None  # (a set-up's error: raised after the paths of the set-ups before it are checked)
     try:
@@ -387,10 +394,16 @@ def _campaign_log(rows, machine, art, probe, feed_mps: float, meta) -> ProbeLog:
 
 def simulate_measurements(items, rng: np.random.Generator | None = None, *,
                           feed_mps: float = PROBING_FEED_MPS, rapid_mps: float = RAPID_FEED_MPS,
-                          meta: dict | None = None, stroke_check: bool = True) -> list[ProbeLog]:
+                          meta: dict | None = None, stroke_check: bool = True,
+                          setup_change_s: float | None = None) -> list[ProbeLog]:
     """One probe log per measurement ``(artefact, machine, probe, setup, plan)`` of ``items``: what
     ``simulate_campaign(artefact, machine, probe, [setup], rng, plan=plan, check_collisions=False,
-    stroke_check=stroke_check)`` gives called for each in turn, the noise drawn in the same order.
+    stroke_check=stroke_check, t_start_s=t)`` gives called for each in turn, the noise drawn in the
+    same order, on one clock: each measurement starts ``setup_change_s`` after the one before it ended
+    (default the first artefact's record, 300 s for the bar, as :func:`simulate_campaign` between its
+    set-ups), the first at t = 0. So a time-varying error (a machine file's thermal drift) acts across
+    the whole campaign, as in ``vmt simulate mfb`` (review30b F2: before session 30 every measurement
+    restarted the clock at 0; time-invariant machines give the same touches either way, only t_s moves).
 
     Measurements of one artefact and one probe on machines that differ only in their probe
     offsets (``Machine(replace(config, J_m=J))``, one per stylus: :func:`_styli_of_one_machine`)
@@ -402,9 +415,11 @@ def simulate_measurements(items, rng: np.random.Generator | None = None, *,
     items = list(items)
     if not _styli_of_one_machine(items):
         return _simulate_each_measurement(items, rng, feed_mps=feed_mps, rapid_mps=rapid_mps, meta=meta,
-                                          stroke_check=stroke_check)
+                                          stroke_check=stroke_check, setup_change_s=setup_change_s)
     _check_feeds(feed_mps, rapid_mps)
     art, machine, probe = items[0][:3]
+    change_s = _measurement_change_s(art, setup_change_s)
+    t_cursor = -change_s  # (the first measurement starts at 0)
     plans = {}  # id -> (plan, its travel); each plan validated once
     feats = sorted({f for *_, pl in items for f in pl.feature})
     at = {f: i for i, f in enumerate(feats)}
@@ -417,7 +432,7 @@ def simulate_measurements(items, rng: np.random.Generator | None = None, *,
         mv = setup_moves(m, art, pl, st, probe)
         if stroke_check:
             check_strokes(m, st, pl, mv)
-        t0, _ = _touch_start_times(mv, travel, 0.0, feed_mps, rapid_mps)
+        t0, t_cursor = _touch_start_times(mv, travel, t_cursor + change_s, feed_mps, rapid_mps)
         moves.append((m, st, pl, mv))
         parts.append(_setup_touches(m, st, mv, t0) + (travel, np.array([at[f] for f in pl.feature], int),
                                                        np.broadcast_to(np.asarray(m.config.J_m, float), (pl.n, 3))))
@@ -436,13 +451,34 @@ def simulate_measurements(items, rng: np.random.Generator | None = None, *,
 
 def _simulate_each_measurement(items, rng=None, *, feed_mps: float = PROBING_FEED_MPS,
                                rapid_mps: float = RAPID_FEED_MPS, meta: dict | None = None,
-                               stroke_check: bool = True) -> list[ProbeLog]:
+                               stroke_check: bool = True, setup_change_s: float | None = None) -> list[ProbeLog]:
     """:func:`simulate_measurements` one campaign per measurement (the path for measurements that
     cannot share a kinematics call, and the path before: the oracle of the tests, the reference
-    of the bench)."""
-    return [simulate_campaign(a, m, p, [st], rng, plan=pl, feed_mps=feed_mps, rapid_mps=rapid_mps,
-                              check_collisions=False, meta=meta, stroke_check=stroke_check)
-            for a, m, p, st, pl in items]
+    of the bench), each started where the one before ended plus the set-up change."""
+    logs, t_cursor = [], None
+    for a, m, p, st, pl in items:
+        change_s = _measurement_change_s(make_artefact(a) if isinstance(a, str) else a, setup_change_s)
+        t_start = 0.0 if t_cursor is None else t_cursor + change_s
+        logs.append(simulate_campaign(a, m, p, [st], rng, plan=pl, feed_mps=feed_mps, rapid_mps=rapid_mps,
+                                      check_collisions=False, meta=meta, stroke_check=stroke_check,
+                                      t_start_s=t_start))
+        art = make_artefact(a) if isinstance(a, str) else a
+        mv = setup_moves(m, art, pl, st, p or ProbeConfig())  # (its end on the clock: the same moves)
+        _, t_cursor = _touch_start_times(mv, np.full(pl.n, pl.clearance_m + pl.overshoot_m), t_start,
+                                         feed_mps, rapid_mps)
+    return logs
+
+
+def _measurement_change_s(art, setup_change_s: float | None) -> float:
+    """The time between two measurements of :func:`simulate_measurements`, s: ``setup_change_s`` or the
+    artefact's record's (:func:`simulate_campaign`'s default between set-ups); ConfigError unless >= 0."""
+    if setup_change_s is None:
+        name = getattr(art, "name", None)
+        setup_change_s = CATALOG[name].setup_change_s if name in CATALOG else DEFAULT_SETUP_CHANGE_S
+    c = float(setup_change_s)
+    if not (np.isfinite(c) and c >= 0):
+        raise ConfigError(f"setup_change_s must be >= 0 (s), got {setup_change_s!r}")
+    return c
 
 
 def _styli_of_one_machine(items) -> bool:

@@ -4,7 +4,9 @@ Each is a small frozen dataclass, vectorised::
 
     f(pos, t_s=None, direction=None) -> (n,) float
 
-``pos`` is the axis reading (m for a linear axis, rad for a rotary axis),
+``pos`` is the axis position (m for a linear axis: the machine passes its
+reading plus the probe offset, ``q = reading + J``, :mod:`sim.machine`; rad
+for a rotary axis),
 ``t_s`` seconds since the campaign start (None: 0), ``direction`` the sign
 of the axis velocity at that moment (-1, 0, +1; None: 0). The value is in
 m for a translational error, rad for an angular one (``core.iso``).

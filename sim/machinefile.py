@@ -54,10 +54,16 @@ pitch ripple, default true), and the tables:
 Error terms (``U`` = ``um`` for a translation, ``urad`` for a rotation;
 positions in m, mm or deg as the key says; a rotary axis's positions in deg)
 --------------------------------------------------------------------------
+Every term of a linear axis is a function of its axis position ``q = reading
++ J`` (the probe offsets ``[tool] offset_mm`` added to the stylus-tip reading,
+:mod:`sim.machine`; CONTRIBUTING.md, "Error conventions"), not of the reading
+the probe log holds: ``EZZ`` ``slope_um_per_m = 10`` with ``offset_mm = [0, 0,
+150]`` is 1.5 um at reading Z = 0 (review30b F5). A rotary axis's: its angle.
+
 - ``constant_U``;
 - ``slope_U_per_m``, ``quadratic_U_per_m2``, ``cubic_U_per_m3`` (rotary
   axis: ``_per_deg``, ``_per_deg2``, ``_per_deg3``): a polynomial in the
-  axis reading;
+  axis position;
 - ``table_mm`` (rotary ``table_deg``) with ``table_U`` and ``interpolation
   = "cubic"`` (C2 spline, not-a-knot, end tangents beyond the ends) or
   ``"linear"`` (end segments continued beyond the ends);
@@ -66,7 +72,7 @@ positions in m, mm or deg as the key says; a rotary axis's positions in deg)
 - ``thermal = {offset_U_per_h, scale_ppm_per_h, tau_h, offset_U_per_K,
   scale_ppm_per_K, temperature_h = [...], temperature_K = [...]}``
   (``sim.errorfuncs.Drift``; ``scale_ppm_*`` for translations of a linear
-  axis only: um per m of reading);
+  axis only: um per m of axis position);
 - ``reversal_U``: lost motion (>= 0), half of it added moving in +,
   subtracted moving in - (a lead: ISO 230-2's reversal value ``B_i =
   +reversal_U``); with ``reversal_sense = "lag"`` half of it subtracted

@@ -130,8 +130,9 @@ def add_mc_arg(p, default_text: str) -> None:
 
     p.add_argument("--mc", type=int, default=None, metavar="N",
                    help=f"Monte Carlo runs (JCGM 101: each run draws every input once and identifies again; the "
-                        f"U95 is read from their 2.5 %% and 97.5 %% percentiles), at least {MC_MIN_RUNS} "
-                        f"({default_text})")
+                        f"U95 in identify and scenario cross-pocket-uncertainty: 2 x the runs' std (Gaussian errors: "
+                        f"probing noise through a linear estimator); in scenario mfb-*: the half-width of the runs' 2.5-97.5 %% interval), at "
+                        f"least {MC_MIN_RUNS} ({default_text})")
 
 
 def check_mc(n: int, *, zero: str | None = None) -> int:
@@ -144,7 +145,7 @@ def check_mc(n: int, *, zero: str | None = None) -> int:
         return n
     alt = f", or --mc 0 ({zero})" if zero is not None else ""
     raise ConfigError(f"--mc {n}: a Monte Carlo needs at least {MC_MIN_RUNS} runs (its U95 is read from the "
-                      f"runs' 2.5 % and 97.5 % percentiles){alt}")
+                      f"runs' spread: their 2.5 % and 97.5 % percentiles, or 2 std in identify){alt}")
 
 
 #: What ``--stylus-r-mm`` is, in every command that takes it (the same words as probe-log/1's ``stylus_r_mm``).

@@ -36,6 +36,40 @@ def test_monte_carlo_agrees_with_linear_within_sampling_error(pocket):
     np.testing.assert_allclose(mc.lo[free], -1.96 * lin.u[free], rtol=0.12)
 
 
+def test_monte_carlo_u95_rules_known_answer(pocket):
+    """review30b F3: the self-calibration's Monte Carlo U95 is 2 x the runs' std (Gaussian errors by
+    construction: SelfCalUncertainty), its percentile interval kept in lo/hi; the CLI and README now say
+    so. Known answer on errors that are not Gaussian, where the rules differ: uniform on [-a, a] per
+    parameter, 200,000 runs: 2 std = 2 a / sqrt(3) = 1.155 a, the percentile half-width 0.95 a (21.5 %
+    less). Tolerance 1 %: the std's relative sampling sd is sqrt(0.8 / 4R) = 0.1 % here (uniform
+    kurtosis 1.8), the percentile's 0.0007 a, so 1 % is 10-14 of them against a 21.5 % gap."""
+    from core.uncertainty import MC_MIN_RUNS, summarise_mc
+
+    w, wn, ids = pocket
+    des, _ = estimator(nominal_touches(w, wn, PAPER, stylus_r_m=0.003, target_ids=ids), GRID)
+    a = np.linspace(1.0, 3.0, des.n_params) * UM
+    err = np.random.default_rng(5).uniform(-1.0, 1.0, (200_000, des.n_params)) * a
+    mc = summarise_mc(des, err, U_PROBE_M)
+    np.testing.assert_allclose(mc.U95, 2.0 * a / np.sqrt(3.0), rtol=0.01)
+    np.testing.assert_allclose(0.5 * (mc.hi - mc.lo), 0.95 * a, rtol=0.01)
+    np.testing.assert_allclose(mc.u, a / np.sqrt(3.0), rtol=0.01)
+    with pytest.raises(ConfigError, match="fewer than MC_MIN_RUNS"):
+        summarise_mc(des, err[:MC_MIN_RUNS - 1], U_PROBE_M)
+
+
+def test_mc_help_states_each_commands_rule():
+    """review30b F3: --mc's help (identify and scenario share it) says which U95 each Monte Carlo gives:
+    identify's and cross-pocket-uncertainty's 2 std, scenario mfb-*'s percentile half-width (before: percentiles for both)."""
+    import argparse
+
+    from scenarios.cli.options import add_mc_arg
+
+    p = argparse.ArgumentParser()
+    add_mc_arg(p, "0: none")
+    h = next(a.help for a in p._actions if "--mc" in a.option_strings) % {}
+    assert "identify and scenario cross-pocket-uncertainty: 2 x the runs' std" in h and "scenario mfb-*: the half-width of the runs' 2.5-97.5 %" in h
+
+
 def test_paper_section6_figures(pocket):
     """Known answer against the paper (our Fig. 8 geometry is approximate, hence 15-25 %).
 

@@ -30,7 +30,8 @@ def campaign(path, angles, rng):
 
 # --------------------------------------------------------------------------- 1. --mc: one minimum everywhere
 
-MC_SAID = "a Monte Carlo needs at least 10 runs (its U95 is read from the runs' 2.5 % and 97.5 % percentiles)"
+MC_SAID = ("a Monte Carlo needs at least 10 runs (its U95 is read from the runs' spread: their 2.5 % and 97.5 % "
+           "percentiles, or 2 std in identify)")
 
 
 @pytest.mark.parametrize("cmd, n, zero", [
@@ -91,7 +92,8 @@ def test_mc_help_says_what_it_counts():
     helps = {(c, a.option_strings[0]): a.help for c in ("identify", "scenario", "vcmm")
              for a in sub[c]._actions if a.option_strings}
     for c in ("identify", "scenario"):
-        assert "at least 10" in helps[(c, "--mc")] and "percentiles" in helps[(c, "--mc")]
+        assert "at least 10" in helps[(c, "--mc")] and "2.5-97.5" in helps[(c, "--mc")]  # (and 2 std: review30b F3)
+        assert "in identify and scenario cross-pocket-uncertainty: 2 x the runs' std" in helps[(c, "--mc")]
     assert "simulates the campaign again" in helps[("scenario", "--budget-runs")]
     assert "runs per matrix" in helps[("vcmm", "--sobol-runs")]
 

@@ -1266,3 +1266,35 @@ def test_noise_free_run_has_the_u95_of_its_bar_calibration_by_re_identification(
     r2 = run("mfb-3axis", seed=1, noise_um=0.0, mc_runs=0, u_cal_um=tuple(2 * v for v in U_CAL_UM))
     np.testing.assert_allclose(r2.unc.U95_lin, 2 * r.unc.U95_lin, rtol=1e-9, atol=1e-18)
     assert run("mfb-3axis", seed=1, noise_um=0.0, mc_runs=0, u_cal_um=(0.0, 0.0, 0.0)).unc is None
+
+
+def test_a_thermal_drift_acts_across_the_campaign_and_injected_is_its_time_mean():
+    """review30b F2: the MFB scenario's measurements run on one clock (sim.campaign.simulate_measurements, as
+    ``vmt simulate mfb``): a machine file's thermal drift acts across the campaign, not restarted at every
+    measurement, and ``injected`` of a drifting table is its mean over the touch times (``injected_time``
+    says so). Known answer: EXX + a scale drift of 30 ppm/h (noise-free, seed 3): the injected EXX minus the
+    static machine's is ``scale_rate x t_mean`` times the position (slope between nodes; the gauge's offset
+    cancels in the differences) to 1e-7 relative (measured 6e-9: the report's rounding and the ISO view; a t_mean off by 1 s is 2e-4); the touches span more than 9,000 s
+    (before: every measurement from 0, under 700 s); the static machine's run has no ``injected_time``."""
+    from scenarios import mfb as M
+    from sim.errorfuncs import Drift
+
+    rate = 30e-6 / 3600.0
+    kw = dict(seed=3, mc_runs=0, noise_um=0.0)
+    static = M.run("mfb-3axis", machine=_rippled_spec({}), **kw).doc
+    doc = M.run("mfb-3axis", machine=_rippled_spec({"EXX": Drift(scale_rate=rate)}), **kw).doc
+    assert "injected_time" not in static
+    it = doc["injected_time"]
+    assert it["t_s"][0] >= 0.0 and it["t_s"][1] > 9000.0 and it["t_s"][0] < it["t_mean_s"] < it["t_s"][1]
+    assert list(it["span"]) == ["EXX"] and it["touches"] == doc["touches"]
+    x = np.asarray(doc["errors"]["EXX"]["nodes_mm"], float) * 1e-3
+    d_inj = (np.asarray(doc["errors"]["EXX"]["injected"], float)
+             - np.asarray(static["errors"]["EXX"]["injected"], float)) * 1e-6
+    np.testing.assert_allclose(np.diff(d_inj) / np.diff(x), rate * it["t_mean_s"], rtol=1e-7)
+    # the span: the drift over the campaign at the farthest node
+    assert it["span"]["EXX"] == pytest.approx(rate * np.max(np.abs(x)) * (it["t_s"][1] - it["t_s"][0]) * 1e6,
+                                              rel=1e-9)
+    for k in doc["errors"]:  # the other tables: the static truth's (to 1e-6 um/urad: the gauge's rounding,
+        if k != "EXX":      # measured 4e-8; the drift moves EXX's injected by up to 28 um)
+            np.testing.assert_allclose(doc["errors"][k]["injected"], static["errors"][k]["injected"], rtol=0,
+                                       atol=1e-6, err_msg=k)

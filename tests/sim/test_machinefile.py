@@ -234,3 +234,30 @@ def test_error_bounds_are_inclusive_and_the_realistic_sets_far_inside():
                 v = np.max(np.abs(f(p, np.zeros_like(p), np.ones_like(p)))) / 1e-6
                 worst[s.angular] = max(worst[s.angular], v)
     assert 50 < worst[True] < MAX_ANGULAR_URAD / 5 and 20 < worst[False] < MAX_LINEAR_UM / 5, worst
+
+
+def test_polynomial_terms_are_of_the_axis_position_as_documented():
+    """review30b F5: sim/machinefile.py's docstring (and README's) says the terms are functions of the axis
+    position q = reading + J, with this example: EZZ slope 10 um/m and a 150 mm tool offset along Z give
+    1.5 um at reading Z = 0 (1.5 um = 10 um/m x 0.150 m; at the reading it would be 0). Exact to rounding."""
+    import numpy as np
+
+    from sim.machine import Machine
+    from sim.machinefile import __doc__ as doc, loads
+
+    spec = loads('''format = "vmt-machine/1"
+name = "poly"
+chain = "V[w-X-Y-b-Z-(C)-t]"
+[strokes]
+X_mm = [-300, 300]
+Y_mm = [-200, 200]
+Z_mm = [-50, 400]
+[tool]
+offset_mm = [0, 0, 150]
+[error.EZZ]
+slope_um_per_m = 10.0
+''', "poly.toml")
+    m = Machine(spec.config)
+    v = m.error_values(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.1]]))["EZZ"]
+    np.testing.assert_allclose(v, [1.5e-6, 2.5e-6], rtol=1e-12)
+    assert "polynomial in the\n  axis position" in doc and "1.5 um at reading Z = 0" in doc

@@ -229,9 +229,11 @@ def test_measurements_of_several_styli_at_once_are_each_campaign(drifting_mikron
         items.append((art, m, probe, Setup(ms.name, ms.T_W_A, tuple(ms.rot_rad)), _plan_for(art, ms.holes, **program)))
     assert len({id(m) for _, m, *_ in items}) == 6  # T0, TYM, TXF, TX1, TX2, TXL (session 26: TY1, TY2, TYL out)
     new = simulate_measurements(items, np.random.default_rng(3), stroke_check=False)
-    rng = np.random.default_rng(3)
-    old = [simulate_campaign(a, m, p, [st], rng, plan=pl, check_collisions=False, stroke_check=False)
-           for a, m, p, st, pl in items]
+    # one clock (review30b F2): each campaign starts 300 s (the bar's set-up change) after the one before
+    # ended (its last retract and dwell), so the drift goes on across the measurements
+    old = _campaigns_on_one_clock(items, np.random.default_rng(3))
+    ts = [np.asarray(g.col("t_s"), float) for g in new]
+    assert np.nanmin(ts[0]) < 300.0 and all(np.nanmin(b) > np.nanmax(a) + 300.0 for a, b in zip(ts, ts[1:]))
     assert all(a.positions_mm().tobytes() == b.positions_mm().tobytes() for a, b in zip(
         old, campaign._simulate_each_measurement(items, np.random.default_rng(3), stroke_check=False)))
     assert len(new) == len(old) == 15
@@ -246,11 +248,25 @@ def test_measurements_of_several_styli_at_once_are_each_campaign(drifting_mikron
     other = Machine(replace(drifting_mikron.config, errors={}))
     mixed = [items[0], (art, other) + items[1][2:]]
     got = simulate_measurements(mixed, np.random.default_rng(5), stroke_check=False)
-    rng = np.random.default_rng(5)
-    ref = [simulate_campaign(a, m, p, [st], rng, plan=pl, check_collisions=False, stroke_check=False)
-           for a, m, p, st, pl in mixed]
+    ref = _campaigns_on_one_clock(mixed, np.random.default_rng(5))
     for a, b in zip(got, ref):
         assert a.positions_mm().tobytes() == b.positions_mm().tobytes()
+        assert np.asarray(a.col("t_s"), float).tobytes() == np.asarray(b.col("t_s"), float).tobytes()
+
+
+def _campaigns_on_one_clock(items, rng):
+    """The oracle of sim.campaign.simulate_measurements: one simulate_campaign per measurement, each started
+    300 s (the bar's set-up change, sim.catalog) after the one before ended (its last retract and dwell)."""
+    from sim import campaign
+
+    out, t = [], 0.0
+    for a, m, p, st, pl in items:
+        out.append(simulate_campaign(a, m, p, [st], rng, plan=pl, check_collisions=False, stroke_check=False,
+                                     t_start_s=t))
+        _, end = campaign._touch_start_times(campaign.setup_moves(m, a, pl, st, p), np.full(
+            pl.n, pl.clearance_m + pl.overshoot_m), t, campaign.PROBING_FEED_MPS, campaign.RAPID_FEED_MPS)
+        t = end + 300.0
+    return out
 
 
 def test_first_outside_stroke_is_the_first_position_reached_then_x_y_z():
