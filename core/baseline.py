@@ -497,7 +497,7 @@ def centred_grid(p_R: np.ndarray, step_m: float) -> selfcal.Grid:
 #: through the cross pocket's 25.7 mm sphere height left 0.107 um RMS noise-free (identify: 0.0185 um) that
 #: discover read as ``unexplained`` ("residuals follow the feature, differently in each set-up") on 3/20 of the
 #: regress study's seeds with the screw, 6/20 without (docs/discovery-studies.md, "Session 29: the 0.1 um discover
-#: called unexplained ...", rs29). Built and OFF. Session 30 (abbe30, docs/discovery.md "Session 30: the planar
+#: called unexplained ...", rs29). Built and OFF. Session 30 (abbe30, docs/discovery-studies.md "Session 30: the planar
 #: baseline's Abbe columns ..."): on, 55 discover tests fail, reviewed one by one; on gen_b every effect 1000-1011
 #: it moves 9 readings right -> wrong against 5 wrong -> right (part_change 1001, 1004, 1008, 1011 among them:
 #: gen_a's and gen_b's machines carry almost no pitch or roll, and the two columns, nonzero on the raised touches
@@ -506,7 +506,7 @@ PLANAR_ABBE = False
 
 #: Session 30 (abbe30): the Abbe shear columns (:data:`PLANAR_ABBE`) offered to the baseline's BIC choice beside the
 #: grid instead of always taken: each grid is tried with and without them and BIC chooses among all (two columns
-#: cost ``2 ln n``; on one grid given, BIC chooses whether they are taken). Built and OFF (docs/discovery.md,
+#: cost ``2 ln n``; on one grid given, BIC chooses whether they are taken). Built and OFF (docs/discovery-studies.md,
 #: "Session 30: the planar baseline's Abbe columns ..."): on, the regress study names the screw alone 20/20 and
 #: nothing 20/20 without it, gen_a/gen_b ``none`` 1000-1011 never take the columns, gen_a every effect 1000-1011
 #: moves no name, but gen_b's moves 3 right -> wrong (part_change 1004, 1011, stylus_bending 1005) against 5 wrong
@@ -1013,7 +1013,7 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
 #: mfb-3axis seeds 1-12; none 20, outlier? 3, unexplained 1 before) and nothing else moves on campaigns whose bar is
 #: as calibrated (44 plain: none 44; 12 monotone drifts: thermal_drift 12), but on the realistic bar that differs
 #: from its calibration by 0.2-0.35 um per hole (``bar_cal_error``) the slopes take the bar's own error along each
-#: placement's direction: 7 of 44 plain campaigns `none`/`outlier` -> `unexplained` (docs/discovery.md, "Session 30:
+#: placement's direction: 7 of 44 plain campaigns `none`/`outlier` -> `unexplained` (docs/discovery-studies.md, "Session 30:
 #: MFB"). Session 30.
 VOLUMETRIC_ALONG_BAR_BY_MEASUREMENT = False
 
@@ -1086,7 +1086,7 @@ class PositioningData:
 #: shrinks through the test shows as structure. A + trend up and a - trend down cancel in a plain time smooth,
 #: and the repeats of one target in one direction across cycles pool it as noise (review30c's backlash_grow3
 #: 401: 1.53 um RMS left outside the per-target-and-direction means, true repeatability 0.62 um, read `none`
-#: on a repeats' noise of 1.13 um with time at p = 0.004; docs/discovery.md, "Session 30: positioning").
+#: on a repeats' noise of 1.13 um with time at p = 0.004; docs/discovery-studies.md, "Session 30: positioning").
 POSITIONING_TIME_BY_DIRECTION = 3
 
 

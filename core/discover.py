@@ -4808,7 +4808,7 @@ def _beyond_one_place(st: _State, E: np.ndarray, sigma: float, settings, lab: np
 #: share. Both gates measured: gen_b's true bumps lie mostly on the long blade, whose change explains 0.01-0.36 of
 #: them (ungated, the hedge took 10 of 100 right confident readings); gen_a local_scale_defect 1065's bump, refuted
 #: beyond its feature (2.4 sigma expected, -0.6 seen), is one no change of that feature explains (0.02): ungated,
-#: the refusal turned its `local_scale_defect?` into `unexplained`. Session 30 (mis30, docs/discovery.md "Session 30: two confident
+#: the refusal turned its `local_scale_defect?` into `unexplained`. Session 30 (mis30, docs/discovery-studies.md "Session 30: two confident
 #: misnamings of the blind check"): blind gen_b part_change 8101 read `local_scale_defect` (confident; the slot
 #: carries 73 % of the bump, the other features 2.0 sigma where 3.9 was expected, the slot's change explains 1.41
 #: times as much) -> `local_scale_defect?` ambiguous with `part_change`. False: the behaviour before.
@@ -4938,7 +4938,7 @@ def _feature_change_ratio(bl, E: np.ndarray, so: _State, sigma: float, layouts, 
 #: beside the model and the other group's, below ``z(1 - alpha)`` sigma) the cause is refused (not one angle of the
 #: table; the round goes on without it). The second condition keeps a turn both groups carry beside a misfit of its
 #: form (gen_a c_drift 1072: the per-set-up rates, shares 1.08 and 0.90 at 20+ sigma, the F test alone p 7e-4).
-#: Session 30 (mis30, docs/discovery.md "Session 30: two confident misnamings of the blind check"): blind gen_a
+#: Session 30 (mis30, docs/discovery-studies.md "Session 30: two confident misnamings of the blind check"): blind gen_a
 #: thermal_bending 8100 read `c_drift` (confident; the effect's sum of squares 1853 um^2 on mainly-Y normals against
 #: 132 on mainly-X; split p 0.0063, the mainly-X share 0.20 at 0.8 sigma) -> `unexplained`. False: the behaviour
 #: before.
@@ -5880,7 +5880,7 @@ VIF_FORM_BY_GAIN = True
 #: where the check counts no miss) and its five hedges of a right name (gen_a c_drift 1139, 1397 at 3.13 sigma, 1421
 #: at 4.35; thermal_drift 1110 at 2.74, 1580 at 4.02) say what the truth holds: an unnamed smooth of the cause's own covariate earns a material held-out gain
 #: beside the determined form (per-set-up creeps of either sign beside a creep common to the set-ups; a warm-up of
-#: two time constants beside one), its real workpiece shift carried in the U95. docs/discovery.md, "Session 30: v9b
+#: two time constants beside one), its real workpiece shift carried in the U95. docs/discovery-studies.md, "Session 30: v9b
 #: measured where it was not".
 FORM_BY_GAIN_DETERMINED_ONLY = True
 #: With :data:`VIF_FORM_BY_GAIN`: another form is taken only where its held-out mean square lies below the adopted
@@ -6594,7 +6594,7 @@ REVERSAL_MOVE_EARNS = True
 #: tree's defaults, and with the rule rerun where a four-column layout judged had the signature) on the simulator's
 #: probe_lobing and reversal 4000-4099, gen_a/gen_b reversal 1000-1099, gen_c travel_hysteresis and reversal
 #: 200-399 / 200-299, gen_b probe_lobing 1000-1049 and more: 4003 and 6803 `reversal?` -> `probe_lobing?`, nothing
-#: right -> wrong, no workpiece check moved (docs/discovery.md, "Session 30: the move-signed reversal on two-lobe
+#: right -> wrong, no workpiece check moved (docs/discovery-studies.md, "Session 30: the move-signed reversal on two-lobe
 #: probes"). False: the four columns judged by :data:`REVERSAL_MOVE_EARNS` alone.
 REVERSAL_TWO_LOBE_YIELDS = True
 #: :data:`REVERSAL_TWO_LOBE_YIELDS`' balance: the smaller approach-signed lost motion over the larger, at least.

@@ -232,7 +232,7 @@ MODEL_ERROR_STEP_M = 1.0e-3
 #: (session 30, small30; identify's path, 400 draws each, 0.3 um) z > 3 enters a table 0.55 % of the time on
 #: the cross pocket at 4 and at 8 C angles, 0.05 % on the pin circle (0.38 % pooled), and the paper pocket's
 #: yaw table (ECY) 0.92 % (40,000 draws): not the 0.135 % a normal's z > 3 gives. Kept (the exact gate below
-#: is built and off): docs/discovery.md "Session 30: identify's model-error budget ...".
+#: is built and off): docs/discovery-studies.md "Session 30: identify's model-error budget ...".
 MODEL_ERROR_Z = 3.0
 #: The exact gate, built and OFF (:data:`MODEL_ERROR_EXACT_GATE`): a table enters when its statistic's exact
 #: tail probability under probing noise alone (``model_error_p``; :func:`core.lsq.quadratic_form_sf` on the
@@ -246,14 +246,14 @@ MODEL_ERROR_P = 1.3498980316300946e-3
 #: 0.3 um (vmt regress, seeds 1000-1019): each p 0.003-0.005, neither entered, EXX's nodes within U95 on 1/20
 #: seeds and EYY's on 13/20 (z > 3: 20/20, 20/20). Re-testing the others against the noise and model error
 #: beside an entered table, and a test of the tables' sum, did not recover EYY (the shared 45 deg touches
-#: let EXX's fine table hold it). docs/discovery.md "Session 30: identify's model-error budget ...".
+#: let EXX's fine table hold it). docs/discovery-studies.md "Session 30: identify's model-error budget ...".
 MODEL_ERROR_EXACT_GATE = False
 #: Largest ``n_touches x fine nodes`` for which the budget is computed (dense work arrays).
 MODEL_ERROR_MAX_CELLS = 3.0e7
 #: The approach-direction test's second stage (``probe_p``: can the budget's noise and model error explain the
 #: residuals along the lobe columns?) counts the declared sub-grid ripples among that model error (their residual
 #: part along the columns, at a uniform phase, beside the tables' fine model error), and the probing sigma it
-#: tests against is the one beside them. Session 30 (small30): sclob29 left them out; docs/discovery.md
+#: tests against is the one beside them. Session 30 (small30): sclob29 left them out; docs/discovery-studies.md
 #: "Session 30: identify's model-error budget ..." (its second part).
 DECLARED_IN_PROBE_P = True
 #: The probing sigma, when tables entered, is the residuals' beside every entered table's fine span (``|P

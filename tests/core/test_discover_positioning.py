@@ -108,7 +108,7 @@ def test_a_reversal_growing_through_the_test_is_structure_in_time_by_direction(s
     a 0.5 um repeatability) reads `unexplained` with the diagnosis first in time by direction. A + trend up and a -
     trend down cancel in a plain time smooth, and the repeats of one target in one direction across the cycles
     pool it as noise: before (no time_by_direction covariate) review30c's backlash_grow3 401 read `none` at 1.53 um
-    left against a true 0.62 um (docs/discovery.md, "Session 30: positioning"). Fails without
+    left against a true 0.62 um (docs/discovery-studies.md, "Session 30: positioning"). Fails without
     core.baseline.POSITIONING_TIME_BY_DIRECTION (none or another covariate first at each of these seeds)."""
     rep = discover_baseline(_run("reversal_grow", seed)).to_report()
     assert rep["cause"] == "unexplained", [(f["cause"], f["evidence"].get("text")) for f in rep["findings"]]

@@ -239,7 +239,7 @@ def test_a_scale_that_oscillates_between_measurements_is_structure(campaign, mon
     `unexplained` (no catalogue cause oscillates; thermal_drift's monotone form explains too little). Before,
     review30c's seed 11 read `none`: the one along_bar smooth at p = 1.6e-6 explained 0.077 um, below the materiality
     of a residual noise the effect itself inflated (0.242 um against 0.141 without it). Fails with the constant off
-    (`outlier` here). The constant is off in the engine (docs/discovery.md, "Session 30: MFB"): set on here."""
+    (`outlier` here). The constant is off in the engine (docs/discovery-studies.md, "Session 30: MFB"): set on here."""
     import core.baseline as B
 
     monkeypatch.setattr(B, "VOLUMETRIC_ALONG_BAR_BY_MEASUREMENT", True)

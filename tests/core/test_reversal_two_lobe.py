@@ -61,7 +61,7 @@ def test_two_lobe_signature_bad_input():
 
 
 def test_rule_on_by_default():
-    """On since session 30 (docs/discovery.md, "Session 30: the move-signed reversal on two-lobe probes")."""
+    """On since session 30 (docs/discovery-studies.md, "Session 30: the move-signed reversal on two-lobe probes")."""
     assert D.REVERSAL_TWO_LOBE_YIELDS is True and D.TWO_LOBE_BALANCE == 0.5 and D.TWO_LOBE_MOVE_SHARE == 0.3
 
 
