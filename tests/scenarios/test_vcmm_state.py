@@ -410,8 +410,8 @@ def test_one_seed_places_the_state_at_the_axis_positions(machine_with_j, monkeyp
 
 
 def test_crosspocket_comparison_places_the_state_at_the_axis_positions(machine_with_j, monkeypatch):
-    """The same for crosspocket_comparison's state (vcmm_state.py's second reader; fails before)."""
-    J = machine_with_j
+    """The same for crosspocket_comparison's state (vcmm_state.py's second reader; fails before; the machine
+    with J is the fixture's, its (4, -3, 150) mm read back from the state's conventions)."""
     got = _capture_state(monkeypatch)
     with pytest.raises(_Stop):
         VS.crosspocket_comparison(seed=1)
