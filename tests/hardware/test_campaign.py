@@ -230,6 +230,17 @@ class _Slow:
         return self.machine.probe_move(a, b, rot)
 
 
+def _rows(path):
+    return [x for x in path.read_text().splitlines() if not x.startswith("#")][1:] if path.exists() else []
+
+
+def _wait_rows(path, n, seconds):
+    """Wait until the log at ``path`` holds ``n`` touch rows (its header and comments aside), or ``seconds`` pass."""
+    end = time.monotonic() + seconds
+    while len(_rows(path)) < n and time.monotonic() < end:
+        time.sleep(0.01)
+
+
 def test_killed_process_and_torn_line_then_resume(tmp_path, plan_path):
     plan = read_probe_log(plan_path)
     ref = direct_log(tmp_path, plan)
@@ -239,12 +250,7 @@ def test_killed_process_and_torn_line_then_resume(tmp_path, plan_path):
         proc = subprocess.Popen([sys.executable, "-m", "scenarios.cli",
                                  *probe_args(srv.url, plan_path, out)],
                                 cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-        end = time.monotonic() + 15
-        while time.monotonic() < end:
-            rows = [x for x in out.read_text().splitlines() if not x.startswith("#")] if out.exists() else []
-            if len(rows) >= 1 + 5:                              # header + 5 touches
-                break
-            time.sleep(0.01)
+        _wait_rows(out, 5, 15)
         proc.send_signal(signal.SIGKILL)
         proc.communicate(timeout=10)
         n_before = read_probe_log(out).n
@@ -273,12 +279,7 @@ def test_ctrl_c_and_sigterm_say_the_rows_kept_and_resume(tmp_path, plan_path, si
         proc = subprocess.Popen([sys.executable, "-m", "scenarios.cli", *probe_args(srv.url, plan_path, out)],
                                 cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                 preexec_fn=lambda: signal.signal(signal.SIGINT, signal.default_int_handler))
-        end = time.monotonic() + 30
-        while time.monotonic() < end:
-            rows = [x for x in out.read_text().splitlines() if not x.startswith("#")] if out.exists() else []
-            if len(rows) >= 1 + 3:                              # header + 3 touches
-                break
-            time.sleep(0.01)
+        _wait_rows(out, 3, 30)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=30)
         assert proc.returncode == rc, err
@@ -475,10 +476,6 @@ class _Slower(_Slow):
         return self.machine.probe_move(a, b, rot)
 
 
-def _rows(path):
-    return [x for x in path.read_text().splitlines() if not x.startswith("#")][1:] if path.exists() else []
-
-
 def test_second_writer_is_refused_while_the_first_writes(tmp_path, plan_path, capsys):
     """Two processes, one log: `vmt probe --resume` in a subprocess holds the lock; a second
     `vmt probe --resume` (this process) is refused with one line naming the log, and changes nothing."""
@@ -497,9 +494,7 @@ def test_second_writer_is_refused_while_the_first_writes(tmp_path, plan_path, ca
         first = subprocess.Popen([sys.executable, "-m", "scenarios.cli",
                                   *probe_args(srv.url, plan_path, out, "--resume", "--home-cycle")],
                                  cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        end = time.monotonic() + 30
-        while len(_rows(out)) < 4 and time.monotonic() < end:          # the first writer is at work
-            time.sleep(0.02)
+        _wait_rows(out, 4, 30)                                          # the first writer is at work
         assert len(_rows(out)) >= 4 and first.poll() is None
         before = out.read_bytes()
         capsys.readouterr()
