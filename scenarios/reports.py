@@ -324,7 +324,7 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
     rrd = _recording_path(folder)
     v = _DemoView.of(t, res, ident, machine)
     with record.recording(rrd) as rec:
-        _record_demo(rec, record, v, t, res, ident, art)
+        _record_demo(rec, record, v, t, res, ident, art, machine)
         dsecs = _discovery_sections(d, t, rep, rec)
     secs = _demo_sections(figures, v, t, res, ident, g_true, art) + dsecs
     try:
@@ -380,22 +380,62 @@ class _DemoView:
                    c_deg, res.EXC / UM, res.EYC / UM, c_axis_centre_um(res), true_centre)
 
 
-def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art) -> None:
-    """The demo's recording: artefact, touches, error grid, bodies, workpiece, C axis, error motions."""
+def _table_poses(t, machine) -> list | None:
+    """Nominal T_R_W (4, 4) of each set-up of ``t`` (its rotary angles) on ``machine``'s chain, or None
+    without a machine. The demo's table carries C and A only, so the pose does not depend on X, Y, Z."""
+    if machine is None:
+        return None
+    import dataclasses
+
+    from sim.machine import Machine
+
+    nominal = Machine(dataclasses.replace(machine.config, errors={}))
+    cols = ["ABC".index(a) for a in nominal.rotary_axes]
+    out = []
+    for k in range(len(t.setup_ids)):
+        rows = np.flatnonzero(t.setup == k)
+        if not rows.size:
+            return None
+        T = nominal.T_R_W_nominal(t.rot_rad[rows[:1]][:, cols], t.pn_R[rows[:1]])[0]
+        out.append(T)
+    return out
+
+
+def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art, machine=None) -> None:
+    """The demo's recording: artefact, touches, error grid, bodies, workpiece, C axis, error motions.
+
+    The artefact's mesh is in its frame A, placed in W by ``art.T_W_A`` (the cross pocket sits 30 mm
+    above W); the workpiece points go into W the same way. With ``machine`` the table (and W on it)
+    is placed in R at each set-up's nominal pose on timeline ``setup``, beside that set-up's touches
+    (review30d F2: the C = 75/130/210 touches were drawn against the part at its C = 0 pose, and the
+    part 30 mm too low); without it the touches are static in R and the table is not placed.
+    """
     try:
         mesh = art.mesh()
-        record.log_mesh(rec, record.ARTEFACT, np.asarray(mesh.vertices), np.asarray(mesh.faces))
+        record.log_mesh(rec, record.ARTEFACT, np.asarray(mesh.vertices), np.asarray(mesh.faces),
+                        T_parent_child=art.T_W_A)
     except Exception:  # a display mesh is a nicety, never a reason to fail
         pass
-    record.log_touches(rec, t.pn_R, t.dq_m / UM, n_R=t.n_R)
+    dq = t.dq_m / UM
+    poses = _table_poses(t, machine)
+    if poses is None:
+        record.log_touches(rec, t.pn_R, dq, n_R=t.n_R)
+    else:
+        record.log_placement(rec, record.W, np.eye(4))     # W is the table's frame
+        lim = float(np.max(np.abs(dq), initial=0.0))       # one colour scale for every set-up
+        for k, T in enumerate(poses):
+            rows = t.setup == k
+            record.log_placement(rec, record.TABLE, T, setup=k)
+            record.log_touches(rec, t.pn_R[rows], dq[rows], n_R=t.n_R[rows], limit_um=lim, setup=k)
     record.log_error_grid(rec, v.x_mm, v.y_mm, v.ex_um, v.ey_um, true_ex_um=v.tex, true_ey_um=v.tey)
-    _log_machine_bodies(rec, record, t)
+    _log_machine_bodies(rec, record, t, art)
     # the profile drawn x2500 is the form: G with the datum's shift, rotation and scale (tens of um, which
     # would move points tens of mm off the part) removed; the U95 colours sit on the nominal points
     from core.selfcal import workpiece_form
 
-    record.log_workpiece(rec, t.w_A[v.idx], t.wn_A[v.idx], workpiece_form(v.g_um, v.w_mm * MM, v.wn),
-                         u95_um=v.u95_um)
+    TA = np.asarray(art.T_W_A, float)
+    record.log_workpiece(rec, t.w_A[v.idx] @ TA[:3, :3].T + TA[:3, 3], t.wn_A[v.idx] @ TA[:3, :3].T,
+                         workpiece_form(v.g_um, v.w_mm * MM, v.wn), u95_um=v.u95_um)
     record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, centre_um=v.centre)
     record.log_error_motions(rec, {k: e for k, e in ident["axes"].items() if k != "EC0Y"})
 
@@ -473,11 +513,19 @@ def _profile_figure(figures, des, w_mm, wn, g_um, t, g_true):
                                   title="Cross pocket form")
 
 
-def _log_machine_bodies(rec, record, t) -> None:
-    """Simple display bodies: the rotary table under W, the spindle and probe above the tip."""
+def _log_machine_bodies(rec, record, t, art=None) -> None:
+    """Simple display bodies: the rotary table under W, the spindle and probe above the tip.
+
+    The table's top is at the artefact's lowest point in W (its mesh placed by ``T_W_A``), else 13 mm
+    below the lowest touch."""
     import trimesh
 
     z_top = float(np.min(t.pn_R[:, 2])) - 0.013  # table surface below the probed level
+    try:
+        TA = np.asarray(art.T_W_A, float)
+        z_top = float(np.min(np.asarray(art.mesh().vertices) @ TA[2, :3] + TA[2, 3]))
+    except Exception:  # no artefact or no mesh: the fallback
+        pass
     table = trimesh.creation.cylinder(radius=0.17, height=0.04,
                                       transform=trimesh.transformations.translation_matrix((0, 0, z_top - 0.02)))
     record.log_mesh(rec, record.TABLE, np.asarray(table.vertices), np.asarray(table.faces), color=(120, 130, 150))
