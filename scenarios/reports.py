@@ -435,7 +435,7 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art, machine=No
 
     TA = np.asarray(art.T_W_A, float)
     record.log_workpiece(rec, t.w_A[v.idx] @ TA[:3, :3].T + TA[:3, 3], t.wn_A[v.idx] @ TA[:3, :3].T,
-                         workpiece_form(v.g_um, v.w_mm * MM, v.wn), u95_um=v.u95_um)
+                         workpiece_form(v.g_um, v.w_mm * MM, v.wn), u95_um=v.u95_um, label="form")
     record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, centre_um=v.centre)
     record.log_error_motions(rec, {k: e for k, e in ident["axes"].items() if k != "EC0Y"})
 

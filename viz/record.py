@@ -507,7 +507,8 @@ def log_rotary(rec, c_deg, exc_um, eyc_um, *, ecc_urad=None, u95_exc_um=None,
 
 
 def log_workpiece(rec, p_W_m, n_W, g_um, *, u95_um=None,
-                  magnification: float = PROFILE_MAGNIFICATION, path: str = WORKPIECE) -> None:
+                  magnification: float = PROFILE_MAGNIFICATION, path: str = WORKPIECE,
+                  label: str = "G") -> None:
     """Log the identified workpiece deviation and its uncertainty on the part.
 
     ``<path>/nominal``: the nominal points (grey); ``<path>/deviation``: each
@@ -522,9 +523,14 @@ def log_workpiece(rec, p_W_m, n_W, g_um, *, u95_um=None,
     n_W : (n, 3) float
         Unit outward normals in W.
     g_um : (n,) float
-        Identified normal deviation of the workpiece ``G_normal``, µm.
+        Identified normal deviation of the workpiece ``G_normal``, µm, or
+        what is drawn of it (the demo draws its form: datum shift, rotation
+        and scale removed).
     u95_um : (n,) float, optional
         Its expanded uncertainty (k = 2), µm.
+    label : str
+        The name in each point's label, ``"<label> = +1.06 µm"``: ``"G"``,
+        or ``"form"`` when ``g_um`` is the form.
     """
     import rerun as rr
 
@@ -536,7 +542,7 @@ def log_workpiece(rec, p_W_m, n_W, g_um, *, u95_um=None,
     moved = p + (magnification * 1e-6) * g[:, None] * n
     rec.log(f"{path}/deviation", rr.Points3D(
         moved, colors=diverging_colors(g), radii=[0.0007],
-        labels=[f"G = {v:+.2f} µm" for v in g], show_labels=False), static=True)
+        labels=[f"{label} = {v:+.2f} µm" for v in g], show_labels=False), static=True)
     rec.log(f"{path}/deviation/profile", rr.LineStrips3D([moved], colors=[_ORANGE]), static=True)
     if u95_um is not None:
         u = _arr("u95_um", u95_um, (-1,))

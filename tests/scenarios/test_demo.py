@@ -46,6 +46,10 @@ def _check_recording_frames(rrd):
     gap = [np.min(np.linalg.norm(in_W[0] - q, axis=1)) for q in wp]
     assert np.allclose(gap, 0.003, atol=1e-7)
     assert v[:, 2].min() < in_W[0][:, 2].min() and in_W[0][:, 2].max() < v[:, 2].max()
+    # the drawn deviation is the form (G with the datum's shift, rotation and scale removed, a few um),
+    # labelled so: G itself is about -30 um on these walls (review30d F3)
+    labels = data["/world/R/table/W/workpiece/deviation"]["Points3D:labels"][0]
+    assert len(labels) == 92 and all(s.startswith("form = ") and s.endswith(" µm") for s in labels)
 
 
 def test_demo_end_to_end(tmp_path, capsys):

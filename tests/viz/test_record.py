@@ -201,7 +201,12 @@ def test_rotary_centre_trajectory_and_workpiece(tmp_path, rng):
         n = 12
         vr.log_workpiece(rec, rng.random((n, 3)), np.tile([1.0, 0, 0], (n, 1)),
                          rng.normal(size=n), u95_um=rng.random(n))
+        vr.log_workpiece(rec, rng.random((2, 3)), np.tile([1.0, 0, 0], (2, 1)), np.array([1.06, -1.1]),
+                         label="form", path=f"{vr.WORKPIECE}/form")
     data = read(p)
+    assert data["/world/R/table/W/workpiece/deviation"]["Points3D:labels"][0][0].startswith("G = ")
+    assert data["/world/R/table/W/workpiece/form/deviation"]["Points3D:labels"][0] == [
+        "form = +1.06 µm", "form = -1.10 µm"]
     traj = np.array(data["/rotary/C/centre_trajectory"]["Points2D:positions"][0])
     assert np.allclose(traj, [[16, 6], [14, 7], [15, 5], [13, 6]])
     assert data["/rotary/C/centre_trajectory/centre"]["Points2D:positions"][0] == [[15.0, 6.0]]
