@@ -202,6 +202,26 @@ def error_map_um(res):
     return x_m / MM, y_m / MM, ex.T / UM, ey.T / UM
 
 
+def error_map_u95_um(res) -> np.ndarray | None:
+    """(ny, nx) U95 (k = 2) of the error map :func:`error_map_um` draws, um, or None without a covariance.
+
+    The paper's Fig. 20 quantity, ``k sqrt(u_X^2 + u_Y^2)`` of ``(E_X,total, E_Y,total)`` at each node,
+    propagated linearly from ``res.cov`` (the covariance behind identify.json's U95 of every axis table)
+    through :func:`core.uncertainty.error_map_operator`; :func:`core.uncertainty.error_map_u95` is the
+    same from Monte Carlo errors. In the gauge of eqs 16-17 (0 at the origin node).
+    """
+    from core.uncertainty import K, error_map_operator
+
+    if getattr(res, "cov", None) is None:
+        return None
+    des = res.design
+    M = error_map_operator(des)
+    v = np.einsum("ij,jk,ik->i", M, np.asarray(res.cov, float), M)
+    n = v.size // 2
+    u = K * np.sqrt(np.maximum(v[:n] + v[n:], 0.0)).reshape(len(des.grid.x_m), len(des.grid.y_m))
+    return u.T / UM
+
+
 def true_error_map(machine, x_mm, y_mm, z_m: float, ex_um, ey_um):
     """The machine's true E_X,total / E_Y,total on the grid (um), in the identification's gauge.
 
@@ -342,7 +362,8 @@ class _DemoView:
     ``idx`` the first touch of each target, ``w_mm``, ``wn`` its nominal
     point and normal (A frame), ``g_um``, ``u95_um`` the workpiece; ``c_deg``,
     ``exc``, ``eyc`` the C axis and ``centre`` the circle through it (None
-    when degenerate or fewer than three angles).
+    when degenerate or fewer than three angles); ``map_u95`` the map's U95
+    (:func:`error_map_u95_um`, None without a covariance).
     """
 
     x_mm: np.ndarray
@@ -361,6 +382,7 @@ class _DemoView:
     eyc: np.ndarray
     centre: np.ndarray | None
     true_centre: np.ndarray | None = None
+    map_u95: np.ndarray | None = None
 
     @classmethod
     def of(cls, t, res, ident: dict, machine=None) -> "_DemoView":
@@ -377,7 +399,7 @@ class _DemoView:
         u95 = np.array([w["u95_um"] if w["u95_um"] is not None else np.nan for w in ident["workpiece"]])
         c_deg = np.degrees(res.design.c_rad)
         return cls(x_mm, y_mm, ex_um, ey_um, tex, tey, idx, t.w_A[idx, :2] / MM, t.wn_A[idx, :2], res.G / UM, u95,
-                   c_deg, res.EXC / UM, res.EYC / UM, c_axis_centre_um(res), true_centre)
+                   c_deg, res.EXC / UM, res.EYC / UM, c_axis_centre_um(res), true_centre, error_map_u95_um(res))
 
 
 def _table_poses(t, machine) -> list | None:
@@ -427,7 +449,10 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art, machine=No
             rows = t.setup == k
             record.log_placement(rec, record.TABLE, T, setup=k)
             record.log_touches(rec, t.pn_R[rows], dq[rows], n_R=t.n_R[rows], limit_um=lim, setup=k)
-    record.log_error_grid(rec, v.x_mm, v.y_mm, v.ex_um, v.ey_um, true_ex_um=v.tex, true_ey_um=v.tey)
+    # with its U95 (review30d F4): the edge rows' yaw ECY is barely determined (U95 279 urad at
+    # y = -110 mm, 31 um over 110 mm), so the identified map may leave the true one by tens of um there
+    record.log_error_grid(rec, v.x_mm, v.y_mm, v.ex_um, v.ey_um, true_ex_um=v.tex, true_ey_um=v.tey,
+                          u95_um=v.map_u95)
     _log_machine_bodies(rec, record, t, art)
     # the profile drawn x2500 is the form: G with the datum's shift, rotation and scale (tens of um, which
     # would move points tens of mm off the part) removed; the U95 colours sit on the nominal points

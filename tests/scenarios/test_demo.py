@@ -50,6 +50,14 @@ def _check_recording_frames(rrd):
     # labelled so: G itself is about -30 um on these walls (review30d F3)
     labels = data["/world/R/table/W/workpiece/deviation"]["Points3D:labels"][0]
     assert len(labels) == 92 and all(s.startswith("form = ") and s.endswith(" µm") for s in labels)
+    # the error map's U95 (review30d F4) on its 11 x 11 nodes, rows y: 0 where eqs 16-17 fix the gauge
+    # (the origin node, and (110, 0) mm with the scale), largest on the edge rows y = +-110 mm, where
+    # the yaw ECY rests on one row of touches (U95 279 urad at y = -110 mm: 31 um at x = -110 mm)
+    u = np.array([float(s.split()[2]) for s in data["/world/R/error_map/identified/u95"]["Points3D:labels"][0]])
+    u = u.reshape(11, 11)
+    assert u[5, 5] == 0.0 and u[5, 10] == 0.0
+    assert set(np.unravel_index(np.argsort(u, axis=None)[-4:], u.shape)[0]) <= {0, 10}
+    assert u[0, 0] > 30.0
 
 
 def test_demo_end_to_end(tmp_path, capsys):
