@@ -116,3 +116,31 @@ def test_the_same_bores_probed_at_one_c_position_are_measured(tmp_path, capsys):
     assert rc == 0, out.err
     line = next(s for s in out.out.splitlines() if s.strip().startswith("bore-bore distance"))
     assert f"nominal {60 * np.sqrt(2):.6f} mm" in line
+
+
+def test_a_circle_on_a_tilted_table_is_refused(tmp_path, capsys):
+    """Found beside F1: circles are fitted in R's XY plane. The same two bores probed at A = -30 (their
+    axes 30 deg from R's Z) read 19.079043 mm in diameter and 79.372539 mm apart, exit 0; now refused."""
+    from sim.machine import Machine
+    from sim.machinefile import truth_machine
+
+    T = Machine(truth_machine("mikron-ucp710", "none").config).T_R_W_nominal(np.deg2rad([[-30.0, 0.0]]))[0]
+    rows = []
+    for name, cW in (("b1", (60.0, 0.0)), ("b2", (0.0, 60.0))):
+        for k in range(8):
+            a = np.deg2rad(22.5 + 45 * k)
+            pW = np.array([cW[0] + 10 * np.cos(a), cW[1] + 10 * np.sin(a), 60.0]) * 1e-3
+            nW = np.array([-np.cos(a), -np.sin(a), 0.0])
+            rows.append((name, f"{name}-{k}", (T[:3, :3] @ pW + T[:3, 3]) * 1e3, T[:3, :3] @ nW))
+    plan = plan_from_rows(rows, 3.0, "two bores at A=-30")
+    cols = {k: plan.col(k) for k in plan.columns}
+    cols["A_deg"], cols["C_deg"] = np.full(16, -30.0), np.zeros(16)
+    p = write_probe_log(tmp_path / "plan.csv", make_log(cols, dict(plan.meta)))
+    task = tmp_path / "task.toml"
+    task.write_text(TASK)
+    rc = main(["vcmm", "--machine", "mikron-ucp710", "--task", str(task), "--no-budget",
+               "--json", str(tmp_path / "out.json"), str(p)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1
+    assert "features.b1: a circle probed at A=-30 B=0 with normals 0.462 out of the machine's XY plane" in err[0]
+    assert not (tmp_path / "out.json").exists()
