@@ -635,12 +635,16 @@ def feature_rows(task: Task, target, feature, setup, rotary_deg=None) -> dict:
         The plan's columns (``feature`` may be all empty).
     rotary_deg : (n, 3) float, optional
         A, B, C of each row: a feature's rows must share one rotary position
-        (the fits work in the machine frame R).
+        (the fits work in the machine frame R), so must the two features of
+        a measurand, and a ``position`` or a line's ``angle`` from +X needs
+        its feature at rotary zero (:func:`_refuse_mixed_rotary`).
 
     Raises
     ------
     TaskFileError
-        A feature that selects no row, or rows at different rotary positions.
+        A feature that selects no row, or rows at different rotary positions;
+        a measurand whose features differ in rotary position, or a frame-bound
+        one (position, a line's angle) away from rotary zero.
     """
     target, feature, setup = (np.asarray(c).astype(str) for c in (target, feature, setup))
     out = {}
@@ -665,7 +669,46 @@ def feature_rows(task: Task, target, feature, setup, rotary_deg=None) -> dict:
             raise TaskFileError(f"{task.source}: features.{f.name}: its rows are at different rotary "
                                 "positions (fits are in the machine frame; give setup = ...)")
         out[f.name] = rows
+    if rotary_deg is not None:
+        _refuse_mixed_rotary(task, out, np.asarray(rotary_deg, float))
     return out
+
+
+def _fmt_rotary(r: np.ndarray) -> str:
+    """``A=0 B=0 C=90`` (deg, the axes that are not 0; ``rotary zero`` if none)."""
+    s = " ".join(f"{a}={v:g}" for a, v in zip("ABC", r) if abs(v) > 1e-9)
+    return s or "rotary zero"
+
+
+def _refuse_mixed_rotary(task: Task, rows: dict, rotary_deg: np.ndarray) -> None:
+    """Refuse what the machine-frame fits cannot give (review30d F1).
+
+    The features are fitted in the machine frame R (:func:`evaluate`). A
+    measurand over two features probed at different rotary positions would
+    compare them in R, where the part has turned between them (two bores
+    84.9 mm apart on the part, at C = 0 and C = 90, measured 0 mm apart);
+    a ``position`` or a line's ``angle`` from +X of a feature probed away from
+    rotary zero is its R coordinate, not the part's. Doing these right needs
+    each feature moved into W and the rotary axes' own errors in the model
+    (an ``mfb-5axis`` state holds none: they are absorbed into each set-up's
+    pose), so they are refused, naming the measurand and the positions.
+    """
+    pos = {k: rotary_deg[v[0]] for k, v in rows.items() if len(v)}
+    for m in task.measurands:
+        if m.quantity == "profile":
+            continue                      # deviations along the nominal normals: frame-free
+        at = [(f, pos[f]) for f in m.of if f in pos]
+        if len(at) == 2 and np.max(np.abs(at[0][1] - at[1][1])) > 1e-9:
+            raise TaskFileError(
+                f"{task.source}: measurand {m.name!r}: features {at[0][0]!r} ({_fmt_rotary(at[0][1])}) and "
+                f"{at[1][0]!r} ({_fmt_rotary(at[1][1])}) were probed at different rotary positions; the fits "
+                "are in the machine frame, so vmt vcmm cannot combine them (probe both at one rotary position)")
+        frame = m.quantity == "position" or (m.quantity == "angle" and len(m.of) == 1)
+        if frame and at and np.max(np.abs(at[0][1])) > 1e-9:
+            raise TaskFileError(
+                f"{task.source}: measurand {m.name!r}: feature {at[0][0]!r} was probed at "
+                f"{_fmt_rotary(at[0][1])}; a {m.quantity} is read in the machine frame, which there is not "
+                "the part's (give one probed at rotary zero)")
 
 
 # --------------------------------------------------------------------------- evaluating measurands

@@ -218,6 +218,26 @@ def error_map_um(res):
     return x_m / MM, y_m / MM, ex.T / UM, ey.T / UM
 
 
+def error_map_u95_um(res) -> np.ndarray | None:
+    """(ny, nx) U95 (k = 2) of the error map :func:`error_map_um` draws, um, or None without a covariance.
+
+    The paper's Fig. 20 quantity, ``k sqrt(u_X^2 + u_Y^2)`` of ``(E_X,total, E_Y,total)`` at each node,
+    propagated linearly from ``res.cov`` (the covariance behind identify.json's U95 of every axis table)
+    through :func:`core.uncertainty.error_map_operator`; :func:`core.uncertainty.error_map_u95` is the
+    same from Monte Carlo errors. In the gauge of eqs 16-17 (0 at the origin node).
+    """
+    from core.uncertainty import K, error_map_operator
+
+    if getattr(res, "cov", None) is None:
+        return None
+    des = res.design
+    M = error_map_operator(des)
+    v = np.einsum("ij,jk,ik->i", M, np.asarray(res.cov, float), M)
+    n = v.size // 2
+    u = K * np.sqrt(np.maximum(v[:n] + v[n:], 0.0)).reshape(len(des.grid.x_m), len(des.grid.y_m))
+    return u.T / UM
+
+
 def true_error_map(machine, x_mm, y_mm, z_m: float, ex_um, ey_um):
     """The machine's true E_X,total / E_Y,total on the grid (um), in the identification's gauge.
 
@@ -340,7 +360,7 @@ def demo_report(folder, t, res, ident: dict, d, rep: dict, art, title: str, mach
     rrd = _recording_path(folder)
     v = _DemoView.of(t, res, ident, machine)
     with record.recording(rrd) as rec:
-        _record_demo(rec, record, v, t, res, ident, art)
+        _record_demo(rec, record, v, t, res, ident, art, machine)
         dsecs = _discovery_sections(d, t, rep, rec)
     secs = _demo_sections(figures, v, t, res, ident, g_true, art) + dsecs
     try:
@@ -358,7 +378,8 @@ class _DemoView:
     ``idx`` the first touch of each target, ``w_mm``, ``wn`` its nominal
     point and normal (A frame), ``g_um``, ``u95_um`` the workpiece; ``c_deg``,
     ``exc``, ``eyc`` the C axis and ``centre`` the circle through it (None
-    when degenerate or fewer than three angles).
+    when degenerate or fewer than three angles); ``map_u95`` the map's U95
+    (:func:`error_map_u95_um`, None without a covariance).
     """
 
     x_mm: np.ndarray
@@ -377,6 +398,7 @@ class _DemoView:
     eyc: np.ndarray
     centre: np.ndarray | None
     true_centre: np.ndarray | None = None
+    map_u95: np.ndarray | None = None
 
     @classmethod
     def of(cls, t, res, ident: dict, machine=None) -> "_DemoView":
@@ -393,25 +415,68 @@ class _DemoView:
         u95 = np.array([w["u95_um"] if w["u95_um"] is not None else np.nan for w in ident["workpiece"]])
         c_deg = np.degrees(res.design.c_rad)
         return cls(x_mm, y_mm, ex_um, ey_um, tex, tey, idx, t.w_A[idx, :2] / MM, t.wn_A[idx, :2], res.G / UM, u95,
-                   c_deg, res.EXC / UM, res.EYC / UM, c_axis_centre_um(res), true_centre)
+                   c_deg, res.EXC / UM, res.EYC / UM, c_axis_centre_um(res), true_centre, error_map_u95_um(res))
 
 
-def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art) -> None:
-    """The demo's recording: artefact, touches, error grid, bodies, workpiece, C axis, error motions."""
+def _table_poses(t, machine) -> list | None:
+    """Nominal T_R_W (4, 4) of each set-up of ``t`` (its rotary angles) on ``machine``'s chain, or None
+    without a machine. The demo's table carries C and A only, so the pose does not depend on X, Y, Z."""
+    if machine is None:
+        return None
+    import dataclasses
+
+    from sim.machine import Machine
+
+    nominal = Machine(dataclasses.replace(machine.config, errors={}))
+    cols = ["ABC".index(a) for a in nominal.rotary_axes]
+    out = []
+    for k in range(len(t.setup_ids)):
+        rows = np.flatnonzero(t.setup == k)
+        if not rows.size:
+            return None
+        T = nominal.T_R_W_nominal(t.rot_rad[rows[:1]][:, cols], t.pn_R[rows[:1]])[0]
+        out.append(T)
+    return out
+
+
+def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art, machine=None) -> None:
+    """The demo's recording: artefact, touches, error grid, bodies, workpiece, C axis, error motions.
+
+    The artefact's mesh is in its frame A, placed in W by ``art.T_W_A`` (the cross pocket sits 30 mm
+    above W); the workpiece points go into W the same way. With ``machine`` the table (and W on it)
+    is placed in R at each set-up's nominal pose on timeline ``setup``, beside that set-up's touches
+    (review30d F2: the C = 75/130/210 touches were drawn against the part at its C = 0 pose, and the
+    part 30 mm too low); without it the touches are static in R and the table is not placed.
+    """
     try:
         mesh = art.mesh()
-        record.log_mesh(rec, record.ARTEFACT, np.asarray(mesh.vertices), np.asarray(mesh.faces))
+        record.log_mesh(rec, record.ARTEFACT, np.asarray(mesh.vertices), np.asarray(mesh.faces),
+                        T_parent_child=art.T_W_A)
     except Exception:  # a display mesh is a nicety, never a reason to fail
         pass
-    record.log_touches(rec, t.pn_R, t.dq_m / UM, n_R=t.n_R)
-    record.log_error_grid(rec, v.x_mm, v.y_mm, v.ex_um, v.ey_um, true_ex_um=v.tex, true_ey_um=v.tey)
-    _log_machine_bodies(rec, record, t)
+    dq = t.dq_m / UM
+    poses = _table_poses(t, machine)
+    if poses is None:
+        record.log_touches(rec, t.pn_R, dq, n_R=t.n_R)
+    else:
+        record.log_placement(rec, record.W, np.eye(4))     # W is the table's frame
+        lim = float(np.max(np.abs(dq), initial=0.0))       # one colour scale for every set-up
+        for k, T in enumerate(poses):
+            rows = t.setup == k
+            record.log_placement(rec, record.TABLE, T, setup=k)
+            record.log_touches(rec, t.pn_R[rows], dq[rows], n_R=t.n_R[rows], limit_um=lim, setup=k)
+    # with its U95 (review30d F4): the edge rows' yaw ECY is barely determined (U95 279 urad at
+    # y = -110 mm, 31 um over 110 mm), so the identified map may leave the true one by tens of um there
+    record.log_error_grid(rec, v.x_mm, v.y_mm, v.ex_um, v.ey_um, true_ex_um=v.tex, true_ey_um=v.tey,
+                          u95_um=v.map_u95)
+    _log_machine_bodies(rec, record, t, art)
     # the profile drawn x2500 is the form: G with the datum's shift, rotation and scale (tens of um, which
     # would move points tens of mm off the part) removed; the U95 colours sit on the nominal points
     from core.selfcal import workpiece_form
 
-    record.log_workpiece(rec, t.w_A[v.idx], t.wn_A[v.idx], workpiece_form(v.g_um, v.w_mm * MM, v.wn),
-                         u95_um=v.u95_um)
+    TA = np.asarray(art.T_W_A, float)
+    record.log_workpiece(rec, t.w_A[v.idx] @ TA[:3, :3].T + TA[:3, 3], t.wn_A[v.idx] @ TA[:3, :3].T,
+                         workpiece_form(v.g_um, v.w_mm * MM, v.wn), u95_um=v.u95_um, label="form")
     record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, centre_um=v.centre)
     record.log_error_motions(rec, {k: e for k, e in ident["axes"].items() if k != "EC0Y"})
 
@@ -489,11 +554,19 @@ def _profile_figure(figures, des, w_mm, wn, g_um, t, g_true):
                                   title="Cross pocket form")
 
 
-def _log_machine_bodies(rec, record, t) -> None:
-    """Simple display bodies: the rotary table under W, the spindle and probe above the tip."""
+def _log_machine_bodies(rec, record, t, art=None) -> None:
+    """Simple display bodies: the rotary table under W, the spindle and probe above the tip.
+
+    The table's top is at the artefact's lowest point in W (its mesh placed by ``T_W_A``), else 13 mm
+    below the lowest touch."""
     import trimesh
 
     z_top = float(np.min(t.pn_R[:, 2])) - 0.013  # table surface below the probed level
+    try:
+        TA = np.asarray(art.T_W_A, float)
+        z_top = float(np.min(np.asarray(art.mesh().vertices) @ TA[2, :3] + TA[2, 3]))
+    except Exception:  # no artefact or no mesh: the fallback
+        pass
     table = trimesh.creation.cylinder(radius=0.17, height=0.04,
                                       transform=trimesh.transformations.translation_matrix((0, 0, z_top - 0.02)))
     record.log_mesh(rec, record.TABLE, np.asarray(table.vertices), np.asarray(table.faces), color=(120, 130, 150))

@@ -233,6 +233,7 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=No
     if extra:
         raise PlanError(f"{plan.source}: rows at {extra[0]} != 0, machine {cfg.name} has no {extra[0]} axis")
     rot = np.deg2rad(rot_deg[used][:, ["ABC".index(a) for a in axes]]) if axes else None
+    tilted_xy_fits(task, rows, rot_deg[used], n_R)
     probe = spec.probe
     if plan.has("stylus_r_mm"):
         r_plan = plan.col("stylus_r_mm").astype(float)[used]
@@ -275,6 +276,34 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=No
     return Setting(task, rows, Xn_R, n_R, rot, tuple(sdfs), group, cfg, probe, sources,
                    tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0), state, form_u,
                    touch_times(plan, task, used))
+
+
+#: Largest |n_z| (R) of a circle's or line's nominal normal at a tilted rotary position (A or B not 0):
+#: those features are fitted in R's XY plane (core.vcmm.fit_feature), right only about R's Z.
+XY_FIT_NZ_MAX = 1e-6
+
+
+def tilted_xy_fits(task: V.Task, rows: dict, rot_deg: np.ndarray, n_R: np.ndarray) -> None:
+    """Refuse a circle or line probed where the table is tilted and its axis is not R's Z.
+
+    Circles and lines are fitted in the machine frame's XY plane. Found beside review30d F1 (session
+    30): two 20 mm bores 84.853 mm apart on the part, probed at A = -30 on the mikron-ucp710 (their
+    axes 30 deg from R's Z), read "nominal 19.079043 mm" and 79.372539 mm apart, exit 0; at A = -90
+    the fit failed with "points are collinear". A feature whose normals are horizontal in R (a bore
+    whose axis the tilt brings onto R's Z) is fitted right and passes.
+    """
+    for f in task.features:
+        if f.kind not in ("circle", "line"):
+            continue
+        idx = rows[f.name]
+        tilt = rot_deg[idx][:, :2]
+        nz = np.abs(n_R[idx, 2])
+        if np.any(np.abs(tilt) > 1e-9) and nz.max() > XY_FIT_NZ_MAX:
+            a, b = tilt[0]
+            raise ConfigError(
+                f"{task.source}: features.{f.name}: a {f.kind} probed at A={a:g} B={b:g} with normals "
+                f"{nz.max():.3g} out of the machine's XY plane: a {f.kind} is fitted in that plane, so its axis "
+                "must be the machine's Z there (probe it at rotary zero, or where the tilt brings its axis onto Z)")
 
 
 def touch_times(plan, task: V.Task, used: np.ndarray) -> np.ndarray | None:

@@ -8,14 +8,17 @@ entity path                        what is logged there (data in that frame)
 =================================  ==========================================
 ``/``                              ``ViewCoordinates.RIGHT_HAND_Z_UP``, once, static
 ``world/R``                        machine reference frame R (MCS)
-``world/R/table``                  rotary table, placement in R (per C angle)
+``world/R/table``                  rotary table, placement in R per set-up
+                                   (timeline ``setup``: T_R_W at its angles)
 ``world/R/table/W``                workpiece frame W (WCS), placement in table
-``world/R/table/W/artefact``       artefact mesh, vertices in W
+``world/R/table/W/artefact``       artefact mesh, vertices in A, placed in W
+                                   (``T_W_A``)
 ``world/R/table/W/workpiece/*``    identified workpiece deviation / U95 (W)
 ``world/R/spindle``                spindle S, placement in R
 ``world/R/spindle/probe``          probe mesh, vertices in S
 ``world/R/probe_path``             stylus-tip centre path, in R
-``world/R/touches``                touch points in R, coloured by dq
+``world/R/touches``                touch points in R, coloured by dq (one
+                                   set-up per step of timeline ``setup``)
 ``world/R/error_map/*``            error grid: nominal, identified, true (x1000)
 ``plots/error_motions/<axis>/<S>``  error motion ``S`` against axis position
 ``plots/rotary/<axis>/<S>``         rotary-axis error motion against angle
@@ -29,7 +32,10 @@ error values and their uncertainties are in the report units µm / µrad, as
 the results' JSON carries them (unit in each argument's name). Timelines:
 ``<axis>_um`` (sequence: axis position in integer µm) for linear error
 motions, ``<axis>_mdeg`` (sequence: millidegrees) for rotary ones,
-``campaign_time`` (duration, s) and ``approach_mdeg`` for residuals.
+``campaign_time`` (duration, s) and ``approach_mdeg`` for residuals,
+``setup`` (sequence: set-up index) for a campaign's set-ups: the table's
+placement and the touches of that set-up, so each set-up's touches are drawn
+against the part at that set-up's pose.
 
 viz draws what the results hold and computes nothing: every quantity shown
 (errors, U95, centres, residuals) is passed in. The only arithmetic here is
@@ -176,7 +182,8 @@ def recording(path, *, application_id: str = "vmt", recording_id: str | None = N
                 os.unlink(tmp)
 
 
-def log_placement(rec, path: str, T_parent_child, *, time_s: float | None = None) -> None:
+def log_placement(rec, path: str, T_parent_child, *, time_s: float | None = None,
+                  setup: int | None = None) -> None:
     """Log the pose of the frame at ``path`` in its parent frame.
 
     Parameters
@@ -184,18 +191,35 @@ def log_placement(rec, path: str, T_parent_child, *, time_s: float | None = None
     T_parent_child : (4, 4) float
         Homogeneous transform, translation in m (e.g. ``T_R_W``).
     time_s : float, optional
-        Campaign time of this placement (timeline ``campaign_time``);
-        ``None`` logs it static.
+        Campaign time of this placement (timeline ``campaign_time``).
+    setup : int, optional
+        Set-up index of this placement (timeline ``setup``, e.g. the table
+        at that set-up's C angle). With neither it is logged static.
     """
     import rerun as rr
 
     T = _arr("T_parent_child", T_parent_child, (4, 4))
     tf = rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3])
-    if time_s is None:
+    if time_s is None and setup is None:
         rec.log(path, tf, static=True)
-    else:
-        rec.set_time("campaign_time", duration=float(time_s))
+        return
+    with _at(rec, time_s, setup):
         rec.log(path, tf)
+
+
+@contextlib.contextmanager
+def _at(rec, time_s: float | None, setup: int | None):
+    """Log on ``campaign_time`` and/or ``setup`` inside the block; no timeline set after it."""
+    if setup is not None and (int(setup) != setup or setup < 0):
+        raise ConfigError(f"setup: expected a set-up index >= 0, got {setup!r}")
+    if time_s is not None:
+        rec.set_time("campaign_time", duration=float(time_s))
+    if setup is not None:
+        rec.set_time("setup", sequence=int(setup))
+    try:
+        yield
+    finally:
+        rec.reset_time()
 
 
 def log_mesh(rec, path: str, vertices_m, faces, *, T_parent_child=None,
@@ -243,7 +267,7 @@ def log_probe_path(rec, p_R_m, *, path: str = PROBE_PATH) -> None:
 
 
 def log_touches(rec, p_R_m, dq_um, *, limit_um: float | None = None,
-                n_R=None, path: str = TOUCHES) -> None:
+                n_R=None, path: str = TOUCHES, setup: int | None = None) -> None:
     """Log touch points coloured by their deviation ``dq`` (diverging, symmetric).
 
     Parameters
@@ -257,21 +281,29 @@ def log_touches(rec, p_R_m, dq_um, *, limit_um: float | None = None,
         logged as a label under ``<path>/colour_scale``.
     n_R : (n, 3) float, optional
         Surface normals in R; drawn as short arrows when given.
+    setup : int, optional
+        These are one set-up's touches: logged at that step of timeline
+        ``setup`` (beside the table's placement there, :func:`log_placement`),
+        not static; give ``limit_um`` so every set-up has one colour scale.
     """
     import rerun as rr
 
     p = _arr("p_R_m", p_R_m, (-1, 3))
     dq = _arr("dq_um", dq_um, (-1,))
     _same_len(p_R_m=p, dq_um=dq)
-    lim = float(limit_um) if limit_um is not None else float(np.max(np.abs(dq), initial=0.0))
-    labels = [f"dq = {d:+.2f} µm" for d in dq]
-    rec.log(path, rr.Points3D(p, colors=diverging_colors(dq, lim), radii=[0.0008],
-                              labels=labels, show_labels=False), static=True)
+    n = None
     if n_R is not None:
         n = _arr("n_R", n_R, (-1, 3))
         _same_len(p_R_m=p, n_R=n)
-        rec.log(f"{path}/normals", rr.Arrows3D(origins=p, vectors=0.004 * n,
-                                               colors=[_GREY]), static=True)
+    lim = float(limit_um) if limit_um is not None else float(np.max(np.abs(dq), initial=0.0))
+    labels = [f"dq = {d:+.2f} µm" for d in dq]
+    static = setup is None
+    with _at(rec, None, setup) if setup is not None else contextlib.nullcontext():
+        rec.log(path, rr.Points3D(p, colors=diverging_colors(dq, lim), radii=[0.0008],
+                                  labels=labels, show_labels=False), static=static)
+        if n is not None:
+            rec.log(f"{path}/normals", rr.Arrows3D(origins=p, vectors=0.004 * n,
+                                                   colors=[_GREY]), static=static)
     rec.log(f"{path}/colour_scale",
             rr.TextDocument(f"dq colour scale: blue -{lim:.2f} µm .. white 0 .. red +{lim:.2f} µm"),
             static=True)
@@ -475,7 +507,8 @@ def log_rotary(rec, c_deg, exc_um, eyc_um, *, ecc_urad=None, u95_exc_um=None,
 
 
 def log_workpiece(rec, p_W_m, n_W, g_um, *, u95_um=None,
-                  magnification: float = PROFILE_MAGNIFICATION, path: str = WORKPIECE) -> None:
+                  magnification: float = PROFILE_MAGNIFICATION, path: str = WORKPIECE,
+                  label: str = "G") -> None:
     """Log the identified workpiece deviation and its uncertainty on the part.
 
     ``<path>/nominal``: the nominal points (grey); ``<path>/deviation``: each
@@ -490,9 +523,14 @@ def log_workpiece(rec, p_W_m, n_W, g_um, *, u95_um=None,
     n_W : (n, 3) float
         Unit outward normals in W.
     g_um : (n,) float
-        Identified normal deviation of the workpiece ``G_normal``, µm.
+        Identified normal deviation of the workpiece ``G_normal``, µm, or
+        what is drawn of it (the demo draws its form: datum shift, rotation
+        and scale removed).
     u95_um : (n,) float, optional
         Its expanded uncertainty (k = 2), µm.
+    label : str
+        The name in each point's label, ``"<label> = +1.06 µm"``: ``"G"``,
+        or ``"form"`` when ``g_um`` is the form.
     """
     import rerun as rr
 
@@ -504,7 +542,7 @@ def log_workpiece(rec, p_W_m, n_W, g_um, *, u95_um=None,
     moved = p + (magnification * 1e-6) * g[:, None] * n
     rec.log(f"{path}/deviation", rr.Points3D(
         moved, colors=diverging_colors(g), radii=[0.0007],
-        labels=[f"G = {v:+.2f} µm" for v in g], show_labels=False), static=True)
+        labels=[f"{label} = {v:+.2f} µm" for v in g], show_labels=False), static=True)
     rec.log(f"{path}/deviation/profile", rr.LineStrips3D([moved], colors=[_ORANGE]), static=True)
     if u95_um is not None:
         u = _arr("u95_um", u95_um, (-1,))

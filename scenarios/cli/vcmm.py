@@ -6,7 +6,11 @@ machine's declared error limits drawn anew (the task's [declared] tables)
 and the probe's noise; the task's features are fitted and its measurands
 evaluated. Monte Carlo per JCGM 101 (adaptive: batches until y, u and the
 95 % interval of every measurand are stable), then the budget, one
-source at a time. The task file is described in the README ("Virtual CMM").
+source at a time. The interval holds what the model holds: an error in
+neither the machine file, the task nor --machine-state is taken as zero.
+Features are fitted in the machine frame: a measurand over features probed
+at different rotary positions is refused. The task file is described in
+the README ("Virtual CMM").
 """
 
 from __future__ import annotations

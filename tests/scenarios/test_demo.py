@@ -2,8 +2,62 @@
 
 import json
 
+import numpy as np
+import pytest
+
 from core.probelog import read_probe_log
 from scenarios.cli import main
+
+
+def _check_recording_frames(rrd):
+    """The recording read back with rerun's own reader (review30d F2): the cross pocket placed in W by
+    its T_W_A (30 mm up: its mesh from W z 0, not -30 mm), the table placed in R at each set-up's C
+    angle (timeline ``setup``), and each set-up's touches, taken back through that placement into W,
+    on the part: the same tip centres at every set-up (float32 storage: 1e-7 m), 3 mm (the stylus
+    radius) from the workpiece's nominal surface points, and inside the part's mesh in z."""
+    from tests.viz.test_record import read
+
+    pytest.importorskip("rerun.chunk")
+    data = read(rrd)
+
+    def mat(flat):                                   # rerun's Mat3x3 is column-major
+        return np.asarray(flat, float).reshape(3, 3).T
+
+    art = data["/world/R/table/W/artefact"]
+    assert "Transform3D:translation" in art, "the artefact is not placed in W"
+    assert np.allclose(art["Transform3D:translation"][0][0], [0.0, 0.0, 0.030], atol=1e-7)
+    v = (np.asarray(art["Mesh3D:vertex_positions"][0], float) @ mat(art["Transform3D:mat3x3"][0][0]).T
+         + np.asarray(art["Transform3D:translation"][0][0]))
+    assert abs(v[:, 2].min()) < 1e-7                 # the part stands on W's z = 0 (the table's top)
+    table, touches = data["/world/R/table"], data["/world/R/touches"]
+    assert table["setup"] == touches["setup"] == [0, 1, 2, 3]
+    c_deg = []
+    in_W = []
+    for M, tr, P in zip(table["Transform3D:mat3x3"], table["Transform3D:translation"],
+                        touches["Points3D:positions"]):
+        Rm = mat(M[0])
+        c_deg.append(np.degrees(np.arctan2(Rm[0, 1], Rm[0, 0])))    # T_R_W = Rz(-C)
+        in_W.append((np.asarray(P, float) - np.asarray(tr[0])) @ Rm)
+    assert np.allclose(np.mod(c_deg, 360), [0.0, 75.0, 130.0, 210.0], atol=1e-4)
+    assert [len(p) for p in in_W] == [108] * 4
+    for p in in_W[1:]:
+        assert np.abs(p - in_W[0]).max() < 1e-7
+    wp = np.asarray(data["/world/R/table/W/workpiece/nominal"]["Points3D:positions"][0], float)
+    gap = [np.min(np.linalg.norm(in_W[0] - q, axis=1)) for q in wp]
+    assert np.allclose(gap, 0.003, atol=1e-7)
+    assert v[:, 2].min() < in_W[0][:, 2].min() and in_W[0][:, 2].max() < v[:, 2].max()
+    # the drawn deviation is the form (G with the datum's shift, rotation and scale removed, a few um),
+    # labelled so: G itself is about -30 um on these walls (review30d F3)
+    labels = data["/world/R/table/W/workpiece/deviation"]["Points3D:labels"][0]
+    assert len(labels) == 92 and all(s.startswith("form = ") and s.endswith(" µm") for s in labels)
+    # the error map's U95 (review30d F4) on its 11 x 11 nodes, rows y: 0 where eqs 16-17 fix the gauge
+    # (the origin node, and (110, 0) mm with the scale), largest on the edge rows y = +-110 mm, where
+    # the yaw ECY rests on one row of touches (U95 279 urad at y = -110 mm: 31 um at x = -110 mm)
+    u = np.array([float(s.split()[2]) for s in data["/world/R/error_map/identified/u95"]["Points3D:labels"][0]])
+    u = u.reshape(11, 11)
+    assert u[5, 5] == 0.0 and u[5, 10] == 0.0
+    assert set(np.unravel_index(np.argsort(u, axis=None)[-4:], u.shape)[0]) <= {0, 10}
+    assert u[0, 0] > 30.0
 
 
 def test_demo_end_to_end(tmp_path, capsys):
@@ -55,6 +109,7 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert json.loads((out / "comp" / "mfb-3axis-comp.json").read_text())["format"] == "vmt-comp/1"
     for f in ("index.html", "recording.rrd", "error_map.png", "residuals_baseline.png"):
         assert (out / "report" / f).stat().st_size > 1000
+    _check_recording_frames(out / "report" / "recording.rrd")
     # its identify.json holds the record vmt identify writes of the same log with the demo's probe offsets J
     # (the nmv3000's 150 mm tool), so vcmm refuses it on another machine as it refuses identify's: without it
     # the state applied to vmc-3axis with a notice about files older than session 26 (exit 0; review29c F2)

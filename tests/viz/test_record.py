@@ -95,6 +95,33 @@ def test_scene_paths_mirror_the_frame_tree(tmp_path, rng):
     assert np.all(rgb[1] > 230)  # white for 0 (RdBu midpoint is (247, 247, 247))
 
 
+def test_setups_on_their_timeline(tmp_path, rng):
+    """A campaign's set-ups (review30d F2): the table's placement and that set-up's touches at each
+    step of timeline ``setup``, one colour scale; nothing logged after them carries that timeline."""
+    p = tmp_path / "setups.rrd"
+    c = np.deg2rad([0.0, 75.0])
+    with vr.recording(p) as rec:
+        for k, ck in enumerate(c):
+            T = np.eye(4)
+            T[:2, :2] = [[np.cos(ck), np.sin(ck)], [-np.sin(ck), np.cos(ck)]]
+            vr.log_placement(rec, vr.TABLE, T, setup=k)
+            vr.log_touches(rec, rng.random((3 + k, 3)), np.array([1.0, -2.0, 0.5, 0.0][:3 + k]),
+                           limit_um=2.0, n_R=np.tile([1.0, 0.0, 0.0], (3 + k, 1)), setup=k)
+        vr.log_placement(rec, vr.W, np.eye(4), time_s=1.0)
+    data = read(p)
+    assert data["/world/R/table"]["setup"] == [0, 1]
+    assert data["/world/R/touches"]["setup"] == [0, 1]
+    assert [len(x) for x in data["/world/R/touches"]["Points3D:positions"]] == [3, 4]
+    assert data["/world/R/touches/normals"]["setup"] == [0, 1]
+    M = np.asarray(data["/world/R/table"]["Transform3D:mat3x3"][1][0]).reshape(3, 3).T   # column-major
+    assert np.allclose(M[:2, :2], [[np.cos(c[1]), np.sin(c[1])], [-np.sin(c[1]), np.cos(c[1])]], atol=1e-7)
+    assert "setup" not in data["/world/R/table/W"]                   # the time is reset after a set-up
+    with vr.recording(tmp_path / "bad.rrd") as rec:
+        for bad in (-1, 1.5):
+            with pytest.raises(ConfigError, match="setup: expected a set-up index"):
+                vr.log_placement(rec, vr.TABLE, np.eye(4), setup=bad)
+
+
 def test_diverging_colors_are_symmetric():
     c = vr.diverging_colors([-2.0, 2.0, 0.0], limit=2.0)
     assert c.dtype == np.uint8 and c.shape == (3, 3)
@@ -174,7 +201,12 @@ def test_rotary_centre_trajectory_and_workpiece(tmp_path, rng):
         n = 12
         vr.log_workpiece(rec, rng.random((n, 3)), np.tile([1.0, 0, 0], (n, 1)),
                          rng.normal(size=n), u95_um=rng.random(n))
+        vr.log_workpiece(rec, rng.random((2, 3)), np.tile([1.0, 0, 0], (2, 1)), np.array([1.06, -1.1]),
+                         label="form", path=f"{vr.WORKPIECE}/form")
     data = read(p)
+    assert data["/world/R/table/W/workpiece/deviation"]["Points3D:labels"][0][0].startswith("G = ")
+    assert data["/world/R/table/W/workpiece/form/deviation"]["Points3D:labels"][0] == [
+        "form = +1.06 µm", "form = -1.10 µm"]
     traj = np.array(data["/rotary/C/centre_trajectory"]["Points2D:positions"][0])
     assert np.allclose(traj, [[16, 6], [14, 7], [15, 5], [13, 6]])
     assert data["/rotary/C/centre_trajectory/centre"]["Points2D:positions"][0] == [[15.0, 6.0]]
