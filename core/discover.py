@@ -3571,8 +3571,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         baseline_n_params=int(Qall.shape[1]), findings=tuple(findings), extended_model=model_name,
         extended_rms_um=float(np.sqrt(st.rss / len(rows))) / UM, extended_cv_rms_um=float(np.sqrt(cv_e)) / UM,
         noise=_noise_report(rep_t, rep, trend, st0, gap_b, lof_b, noise_of(st), short, straddled.size,
-                            ("time_by_direction",) if (POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION and bl.kind == "positioning"
-                                                       and bl.covariate("time_by_direction") is not None) else ()),
+                            ("time_by_direction",) if _noise_beyond(bl) is not None else ()),
         diagnosis=tuple(dataclasses.replace(d, basis=None) for d in diag_b),  # (the bases served this run's tests)
         diagnosis_extended=tuple(dataclasses.replace(d, basis=None) for d in diag_e), workpiece=tuple(wp),
         outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
@@ -3955,11 +3954,19 @@ def drift_trend(bl: Baseline, rows: np.ndarray, shared: bool = False,
         return np.zeros((len(rows), 0))
     t = np.asarray(cov.values, float)[rows]
     m = bl.modes[rows][:, :DRIFT_MODES if bl.kind == "planar" else 1]
-    tbd = bl.covariate("time_by_direction") if POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION and bl.kind == "positioning" else None
+    tbd = _noise_beyond(bl)
     if tbd is not None:  # (a positioning run's reversal that changes through the test: beside the rates, its columns)
         T = np.hstack([_time_rates(t, m, bl.groups[rows], shared, False), np.asarray(tbd.values, float)[rows]])
         return sps.csr_matrix(T) if sparse else T
     return _time_rates(t, m, bl.groups[rows], shared, sparse)
+
+
+def _noise_beyond(bl: Baseline):
+    """The covariate whose columns :func:`drift_trend` takes out of the repeats beside the rates: a positioning
+    run's ``time_by_direction`` (:data:`POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION`), else None."""
+    if not (POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION and bl.kind == "positioning"):
+        return None
+    return bl.covariate("time_by_direction")
 
 
 def _time_rates(t: np.ndarray, m: np.ndarray, g: np.ndarray, shared: bool, sparse: bool):

@@ -136,7 +136,8 @@ def test_the_noise_of_a_reversal_growing_through_the_test_is_the_repeatability(s
     one direction sit in different cycles, so their plain scatter holds the growth. Beyond the per-cycle rates and
     the baseline's time_by_direction columns (core.discover.POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION) the noise
     is the 0.5 um repeatability: within 25 % (22 groups of 5 readings: 88 contrasts, about 81 beyond the
-    columns, 1 s.d. of sigma about 8 %, so 3 s.d.). Fails without the constant (the rates alone leave 1.02-1.22 um at seeds 3-5)."""
+    columns, 1 s.d. of sigma about 8 %, so 3 s.d.). Fails without the constant (the rates alone leave 1.02-1.22 um
+    at seeds 3-5)."""
     bl = _run("reversal_grow", seed)
     bl = dataclasses.replace(bl, y=bl.y + 0.5 * 7e-6 * bl.data.direction * bl.data.tau)  # 5 + 7 = 12 um
     nz = discover_baseline(bl).to_report()["noise_um"]
@@ -149,7 +150,8 @@ def test_the_noise_of_a_reversal_growing_through_the_test_is_the_repeatability(s
 def test_the_noise_beyond_time_by_direction_is_unbiased_under_no_effect():
     """Under no effect the time_by_direction columns are fixed regressors: the repeats' scatter beyond them is
     chi-square on fewer degrees of freedom (the columns' rank within the groups beyond the rates'), and its mean
-    over 200 noise draws is the true variance within 5 % (1 s.d. of the mean of 200 chi-square/81 is 1.1 %: 4.5 s.d.)."""
+    over 200 noise draws is the true variance within 5 % (1 s.d. of the mean of 200 chi-square/81 is 1.1 %:
+    4.5 s.d.)."""
     import core.discover as D
     from core.diagnosis import replicate_scatter
     bl = _run("none", 3)
