@@ -3570,7 +3570,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         baseline=bl, baseline_rms_um=float(np.sqrt(st0.rss / N)) / UM, baseline_cv_rms_um=float(np.sqrt(cv_b)) / UM,
         baseline_n_params=int(Qall.shape[1]), findings=tuple(findings), extended_model=model_name,
         extended_rms_um=float(np.sqrt(st.rss / len(rows))) / UM, extended_cv_rms_um=float(np.sqrt(cv_e)) / UM,
-        noise=_noise_report(rep_t, rep, trend, st0, gap_b, lof_b, noise_of(st), short, straddled.size),
+        noise=_noise_report(rep_t, rep, trend, st0, gap_b, lof_b, noise_of(st), short, straddled.size,
+                            ("time_by_direction",) if _noise_beyond(bl) is not None else ()),
         diagnosis=tuple(dataclasses.replace(d, basis=None) for d in diag_b),  # (the bases served this run's tests)
         diagnosis_extended=tuple(dataclasses.replace(d, basis=None) for d in diag_e), workpiece=tuple(wp),
         outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
@@ -3942,16 +3943,37 @@ def drift_trend(bl: Baseline, rows: np.ndarray, shared: bool = False,
     A baseline without a ``time`` covariate gets none (q = 0). With
     ``sparse`` the per-group columns come as a CSR matrix of the same values
     (each row's in its group's columns only: dense they are rows x modes x
-    groups, 2.4 GB at the bench's 1e6 rows and 100 set-ups).
+    groups, 2.4 GB at the bench's 1e6 rows and 100 set-ups). A positioning
+    run's (:data:`POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION`) gains its
+    ``time_by_direction`` columns after the rates (a reversal that changes
+    through the test: each target's repeats in one direction lie in
+    different cycles and move with it).
     """
     cov = bl.covariate("time")
     if cov is None:
         return np.zeros((len(rows), 0))
     t = np.asarray(cov.values, float)[rows]
     m = bl.modes[rows][:, :DRIFT_MODES if bl.kind == "planar" else 1]
+    tbd = _noise_beyond(bl)
+    if tbd is not None:  # (a positioning run's reversal that changes through the test: beside the rates, its columns)
+        T = np.hstack([_time_rates(t, m, bl.groups[rows], shared, False), np.asarray(tbd.values, float)[rows]])
+        return sps.csr_matrix(T) if sparse else T
+    return _time_rates(t, m, bl.groups[rows], shared, sparse)
+
+
+def _noise_beyond(bl: Baseline):
+    """The covariate whose columns :func:`drift_trend` takes out of the repeats beside the rates: a positioning
+    run's ``time_by_direction`` (:data:`POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION`), else None."""
+    if not (POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION and bl.kind == "positioning"):
+        return None
+    return bl.covariate("time_by_direction")
+
+
+def _time_rates(t: np.ndarray, m: np.ndarray, g: np.ndarray, shared: bool, sparse: bool):
+    """:func:`drift_trend`'s rates: time (less its mean per group) x modes ``m``, one rate per group ``g`` or with
+    ``shared`` one for all."""
     if shared:
         return (t - t.mean())[:, None] * m
-    g = bl.groups[rows]
     ug, gi = np.unique(g, return_inverse=True)
     tc = np.empty(len(t))
     for gg in ug:  # each group's times less their mean
@@ -3964,6 +3986,15 @@ def drift_trend(bl: Baseline, rows: np.ndarray, shared: bool = False,
     return T if sparse else T.toarray()
 
 
+#: A positioning run's repeats (one target in one direction, one reading per cycle) are its noise once
+#: :func:`drift_trend` has also taken out the baseline's ``time_by_direction`` columns
+#: (:data:`core.baseline.POSITIONING_TIME_BY_DIRECTION`): a reversal that grows through the test moves the + and -
+#: repeats of every target apart from cycle to cycle, and their plain scatter pooled it as noise (review30c's
+#: backlash_grow3 401: 1.134 um printed for a true 0.616 um; beyond these columns 0.675 um). Under no effect the
+#: columns are fixed regressors and the estimate stays unbiased (3 degrees of freedom fewer: 67 -> 64).
+#: docs/discovery.md, "Session 30: a positioning run's noise beyond a reversal that changes (posn30)".
+#: False: the rates per cycle alone, as before.
+POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION = True
 #: Short-term pairs needed before their scatter may replace the repeats' (:func:`_short_term`).
 SHORT_TERM_MIN_PAIRS = 5
 #: Fewest degrees of freedom of the repeats' scatter beyond the model's terms (fewer than 10) that may be the
@@ -4029,9 +4060,11 @@ def _short_term(bl: Baseline, rows: np.ndarray, y: np.ndarray, rep, key: np.ndar
             "used": bool(cp.dof >= SHORT_TERM_MIN_PAIRS and p < SHORT_TERM_ALPHA)}
 
 
-def _noise_report(rep, rep_plain, trend, st0, gap, lof, used_noise, short=None, straddled: int = 0) -> dict:
+def _noise_report(rep, rep_plain, trend, st0, gap, lof, used_noise, short=None, straddled: int = 0,
+                  beyond=()) -> dict:
     """``used_noise``: (sigma, method, dof) of the noise the final model was judged with; ``straddled``: the repeat
-    groups set aside as holding a step (:data:`REPEATS_STRADDLED`), said only where there are some."""
+    groups set aside as holding a step (:data:`REPEATS_STRADDLED`), said only where there are some; ``beyond``: the
+    covariates whose columns :func:`drift_trend` took out of the repeats beside the rates (said where some)."""
     used = short is not None and short["used"]
     sigma, method, dof = used_noise
     out = {"sigma_um": sigma / UM, "method": method, "dof": int(dof),
@@ -4044,6 +4077,8 @@ def _noise_report(rep, rep_plain, trend, st0, gap, lof, used_noise, short=None, 
                       "p_value": gap.p_value, "draws": gap.draws}}
     if straddled:
         out["repeats"]["straddled_groups"] = int(straddled)
+    if beyond and trend != "none":  # (the covariates' columns taken out of the repeats beside the rates)
+        out["repeats"]["beyond"] = list(beyond)
     if short is not None:
         out["short_term"] = {"sigma_um": short["sigma_m"] / UM, "dof": short["dof"], "targets": short["targets"],
                              "F_repeats_over_short": short["F"], "p_value": short["p_value"], "used": used}

@@ -215,9 +215,12 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
 
     label, rows = ESTIMAND_WORDS[kind]
     b, nz = rep["baseline"], rep["noise_um"]
+    # (what the repeats were taken beyond, besides the rates: a positioning run's time_by_direction)
+    beyond = (" beyond " + ", ".join(nz["repeats"]["beyond"])
+              if nz["method"] == "repeats" and (nz.get("repeats") or {}).get("beyond") else "")
     out = [f"baseline   {b['model']}: rms {b['rms_um']:.3f} um, cv rms {rep['baseline_cv_rms_um']:.3f} um "
            f"({b['n']} touches, {b['n_params']} parameters)",
-           f"noise      {nz['sigma_um']:.3f} um (from {nz['method']}); held-out/in-sample ratio "
+           f"noise      {nz['sigma_um']:.3f} um (from {nz['method']}{beyond}); held-out/in-sample ratio "
            f"{nz['cv_gap']['ratio']:.2f} (pure noise: {nz['cv_gap']['expected_ratio']:.2f}, "
            f"p = {nz['cv_gap']['p_value']:.2g})"]
     left = next((c for c in rep.get("conventions") or () if c.endswith(LEFT_OUT_NOTE)), None)

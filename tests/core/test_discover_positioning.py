@@ -12,6 +12,8 @@ alternates between odd and even cycles. (A drift that settles is a
 warm-up: the two are then one physics, and either name is right.)
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -126,3 +128,41 @@ def test_time_by_direction_basis_is_signed_legendre():
     u = 2 * bl.data.tau - 1
     np.testing.assert_allclose(cov.values[:, 0], bl.data.direction * u, atol=1e-15)
     np.testing.assert_allclose(cov.values[:, 1], bl.data.direction * (3 * u ** 2 - 1) / 2, atol=1e-15)
+
+
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_the_noise_of_a_reversal_growing_through_the_test_is_the_repeatability(seed):
+    """A reversal growing by 12 um through the test (review30c's backlash_grow3 rate): the repeats of one target in
+    one direction sit in different cycles, so their plain scatter holds the growth. Beyond the per-cycle rates and
+    the baseline's time_by_direction columns (core.discover.POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION) the noise
+    is the 0.5 um repeatability: within 25 % (22 groups of 5 readings: 88 contrasts, about 81 beyond the
+    columns, 1 s.d. of sigma about 8 %, so 3 s.d.). Fails without the constant (the rates alone leave 1.02-1.22 um
+    at seeds 3-5)."""
+    bl = _run("reversal_grow", seed)
+    bl = dataclasses.replace(bl, y=bl.y + 0.5 * 7e-6 * bl.data.direction * bl.data.tau)  # 5 + 7 = 12 um
+    nz = discover_baseline(bl).to_report()["noise_um"]
+    assert nz["method"] == "repeats" and nz["repeats"]["beyond"] == ["time_by_direction"], nz
+    assert abs(nz["sigma_um"] - 0.5) < 0.5 * 0.25, nz
+    # (88 contrasts less the 8 columns' rank within the groups: 7 here, 81; the rates alone take 5)
+    assert nz["repeats"]["dof_plain"] - 8 <= nz["dof"] < nz["repeats"]["dof_plain"] - 5, nz
+
+
+def test_the_noise_beyond_time_by_direction_is_unbiased_under_no_effect():
+    """Under no effect the time_by_direction columns are fixed regressors: the repeats' scatter beyond them is
+    chi-square on fewer degrees of freedom (the columns' rank within the groups beyond the rates'), and its mean
+    over 200 noise draws is the true variance within 5 % (1 s.d. of the mean of 200 chi-square/81 is 1.1 %:
+    4.5 s.d.)."""
+    import core.discover as D
+    from core.diagnosis import replicate_scatter
+    bl = _run("none", 3)
+    rows = np.arange(bl.n)
+    T = D.drift_trend(bl, rows)
+    assert T.shape[1] == 5 + 3  # rates per cycle, then the covariate's columns
+    np.testing.assert_array_equal(T[:, 5:], bl.covariate("time_by_direction").values)
+    rng = np.random.default_rng(11)
+    v = [replicate_scatter(bl.replicate, rng.normal(0, 1.0, bl.n), T) for _ in range(200)]
+    # the degrees of freedom: the contrasts less the rank of the columns' variation within the groups (7 of 8 on
+    # this evenly clocked design), counted here apart
+    Tc = T - np.array([T[bl.replicate == g].mean(0) for g in bl.replicate])
+    assert v[0].dof == replicate_scatter(bl.replicate, bl.y).dof - np.linalg.matrix_rank(Tc) < 88 - 5
+    assert abs(np.mean([r.ss / r.dof for r in v]) - 1.0) < 0.05
