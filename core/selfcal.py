@@ -1765,16 +1765,23 @@ def direction_text(ds, biases: dict) -> str:
 # residuals that follow time (review30b F7): a drift inside the campaign
 # ---------------------------------------------------------------------------
 #: Name a drift in time in ``not_covered`` (:func:`time_structure`, confirmed against the budget's noise and
-#: table model error): on, :func:`self_calibrate` runs it beside the approach-direction test and the report
-#: gets ``not_covered["time_drift"]`` (the U95 and the budget unchanged). Session 30 (time30): OFF, measured
-#: in docs/papers-selfcal.md "A drift in time inside the campaign".
+#: table model error): :func:`self_calibrate` runs it after the approach-direction test and the report gets
+#: ``not_covered["time_drift"]`` (the U95, the budget and every value unchanged). Session 30 (time30), on the
+#: review30b generator's cross pocket (368 touches, noise 0.3 um, 20 seeds each): plain 0/20, a 2 um / 15 mm EXX
+#: ripple 0/20, the simulator's cross pocket (nmv3000 realistic, seeds 1-20, t_s clock) 0/20; an X drift of 3 um
+#: over the campaign named 17/20, 2 um 6/20, 1 um 0/20. docs/discovery.md "Session 30: identify's residuals that
+#: follow time".
 TIME_STRUCTURE = True
 #: The time test's p-value threshold, both stages (as :data:`DIRECTION_P`).
 TIME_P = 1e-4
 #: Legendre degrees 1..this in the campaign's time (touch order when the log's t_s does not vary), per
-#: machine direction X and Y along each touch's normal.
+#: machine direction X and Y along each touch's normal. Session 30 (time30): degree 1 (2 columns) names the
+#: 3 um drift on 17/20 seeds, degree 2 on 15/20, degree 3 with a linear term per set-up (10 columns left)
+#: on a few of 3 (p 6e-5, 1e-8, 5e-3): each column more dilutes the F test; a drift that is not linear in
+#: time (a thermal approach) is seen by its linear part.
 TIME_DEGREE_CAMPAIGN = 1
-#: Legendre degrees 1..this in time within each set-up (its mean is the set-up's own EXC/EYC).
+#: Legendre degrees 1..this in time within each set-up (its mean is the set-up's own EXC/EYC); 0: none
+#: (the campaign's degrees hold a smooth drift's within-set-up part).
 TIME_DEGREE_SETUP = 0
 
 

@@ -29,7 +29,8 @@ def _pocket():
 
 def _campaign(t, seed, drift_um=0.0, noise_um=0.3, ripple=None):
     """In-model truth (3 um per parameter) + an X drift linear in touch order (drift_um over the campaign; the
-    tool moves +X relative to the part: dq = -n_x drift; centred on the campaign's middle) + an optional EYY ripple (um, period mm) + noise."""
+    tool moves +X relative to the part: dq = -n_x drift; centred on the campaign's middle) + an optional EYY
+    ripple (um, period mm) + noise."""
     des = build_design(t, GRID)
     rng = np.random.default_rng(seed)
     th = des.to_gauge(rng.normal(0, 3 * UM, des.n_params))
