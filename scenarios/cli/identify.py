@@ -133,6 +133,9 @@ def _run(args, bar) -> int:
     ad = report.get("not_covered", {}).get("approach_direction")
     if ad:      # residuals that follow the approach direction: a probe lobing the U95 does not cover
         print("not covered by U95: " + ad["what"])
+    td = report.get("not_covered", {}).get("time_drift")
+    if td:      # residuals that follow time: a drift inside the campaign (core.selfcal.TIME_STRUCTURE)
+        print("not covered by U95: " + td["what"])
     if args.mc and mc is None:
         print("Monte Carlo skipped: no probing noise left beside the model error (sigma 0)")
     from scenarios.cli.guard import said
