@@ -580,8 +580,8 @@ def precision_rank_tol(t: Touches, centre_m: np.ndarray) -> float:
     coordinates the design is built in) and the normals' quantum (unit-free; components exactly 0 or +-1 left out:
     a log whose walls all lie along the axes, written ``1,0,0``, took ``q = 1`` and a tolerance of 10 before).
     The design's columns are built from these numbers (normals the reader normalised: the step they were printed
-    to, ``Touches.n_step``); a direction exact in exact coordinates (the gauge's: the part's shift, rotation and size, the
-    C-axis centre) is seen through their rounding at about ``q_rel`` (:data:`RANK_QUANTUM_FACTOR`), so no
+    to, ``Touches.n_step``); a direction exact in exact coordinates (the gauge's: the part's shift, rotation and
+    size, the C-axis centre) is seen through their rounding at about ``q_rel`` (:data:`RANK_QUANTUM_FACTOR`), so no
     direction at that level is counted as determined. A full-precision log (7 decimals of a mm: ``q_rel`` about
     1e-9) keeps :data:`RANK_TOL`. Values that are round by design (every nominal on a whole um) are taken as
     printed so: the tolerance is then the one a log printed to that step needs (the decision at most as fine as

@@ -10195,9 +10195,10 @@ SCHUR_COND_MAX = 1e8
 #: normal matrix's to decide (without a ``rank_tol``, or below 1e-5, ``SCHUR_COND_MAX`` is the smaller).
 #: Measured (session 30, rank30b, review30c's two plate logs at full precision and 5, 4, 3 decimals on
 #: every grid: 40 designs): the condition number is 1.3-2.9 times ``(s_max / s_min)^2`` of the gauge's singular
-#: values (1.1 with a near-collinear extension at 2 decimals: the test's), the elimination ran on the 20 designs whose smallest gauge direction is 0.016-0.036 of the largest
-#: (condition 2.2e3-5.2e3, far below ``1 / (10 tol)^2`` = 6.9e5 even at 3 decimals) and agreed with the dense fit
-#: to 5e-14; on the other 20 (a direction cut) the condition number is 1e17 and up. None: off (SCHUR_COND_MAX only).
+#: values (1.1 with a near-collinear extension at 2 decimals: the test's), the elimination ran on the 20 designs
+#: whose smallest gauge direction is 0.016-0.036 of the largest (condition 2.2e3-5.2e3, far below
+#: ``1 / (10 tol)^2`` = 6.9e5 even at 3 decimals) and agreed with the dense fit to 5e-14; on the other 20 (a
+#: direction cut) the condition number is 1e17 and up. None: off (SCHUR_COND_MAX only).
 SCHUR_TOL_MARGIN: float | None = 10.0
 
 
