@@ -35,6 +35,7 @@ from . import selfcal
 from .diagnosis import Covariate, orth, pivoted_qr, qr_formed, qr_rank, qr_rss
 from .exceptions import ConfigError, IdentifiabilityError
 from .lsq import BlockDesign
+from .probelog import decimal_quantum
 from .touches import Touches
 
 from .units import MM
@@ -571,29 +572,16 @@ def _height_columns(t: Touches, des: selfcal.SelfCalDesign, abbe: bool | None = 
     return np.column_stack(cols), tuple(names), own, [own[ref][0], own[ref][1]], tuple(float(v) for v in levels)
 
 
-def decimal_quantum(v: np.ndarray, max_decimals: int = 9) -> float:
-    """The step the values ``v`` are printed to: ``10^-k`` for the fewest decimals ``k`` (0 .. ``max_decimals``)
-    that write every one of them (to 1e-3 of that step: a value read from text and scaled back carries a few ulp);
-    0.0 when none does (full precision, or values computed, not read)."""
-    v = np.asarray(v, float).ravel()
-    v = v[np.isfinite(v)]
-    if not v.size:
-        return 0.0
-    for k in range(max_decimals + 1):
-        s = v * 10.0 ** k
-        if np.max(np.abs(s - np.round(s))) <= 1e-3:
-            return 10.0 ** -k
-    return 0.0
-
-
 def precision_rank_tol(t: Touches, centre_m: np.ndarray) -> float:
     """The planar design's rank tolerance at the log's precision: ``max(RANK_TOL, RANK_QUANTUM_FACTOR * q_rel)``.
 
     ``q_rel`` is the larger of the nominal tip centres' quantum (X and Y printed to ``q`` mm,
     :func:`decimal_quantum`) over their largest distance ``L`` from the design's origin (the C axis, the
-    coordinates the design is built in) and the normals' quantum (unit-free). The design's columns are built from
-    these numbers; a direction exact in exact coordinates (the gauge's: the part's shift, rotation and size, the
-    C-axis centre) is seen through their rounding at about ``q_rel`` (:data:`RANK_QUANTUM_FACTOR`), so no
+    coordinates the design is built in) and the normals' quantum (unit-free; components exactly 0 or +-1 left out:
+    a log whose walls all lie along the axes, written ``1,0,0``, took ``q = 1`` and a tolerance of 10 before).
+    The design's columns are built from these numbers (normals the reader normalised: the step they were printed
+    to, ``Touches.n_step``); a direction exact in exact coordinates (the gauge's: the part's shift, rotation and
+    size, the C-axis centre) is seen through their rounding at about ``q_rel`` (:data:`RANK_QUANTUM_FACTOR`), so no
     direction at that level is counted as determined. A full-precision log (7 decimals of a mm: ``q_rel`` about
     1e-9) keeps :data:`RANK_TOL`. Values that are round by design (every nominal on a whole um) are taken as
     printed so: the tolerance is then the one a log printed to that step needs (the decision at most as fine as
@@ -602,7 +590,9 @@ def precision_rank_tol(t: Touches, centre_m: np.ndarray) -> float:
     xy = t.pn_R[:, :2] - np.asarray(centre_m, float)[:2]
     L = float(np.max(np.abs(xy))) if t.n else 0.0
     q_pos = decimal_quantum(t.pn_R[:, :2] / MM) * MM  # (the file's mm; metres carry the scaling's ulp)
-    q_n = decimal_quantum(t.n_R)
+    # the normals' step: a component exactly 0 or +-1 is exact at any step (an axis-aligned wall), not a printed 1
+    n = np.asarray(t.n_R, float)
+    q_n = max(decimal_quantum(n[~np.isin(np.abs(n), (0.0, 1.0))]), t.n_step)  # (n_step: normalised on reading)
     q_rel = max(q_pos / L if L > 0 else 0.0, q_n)
     return max(RANK_TOL, RANK_QUANTUM_FACTOR * q_rel)
 

@@ -1409,11 +1409,19 @@ def _deleted_t(Q, r: np.ndarray, dof: int) -> tuple:
     return np.where(ok, np.abs(r) / np.sqrt(np.maximum(s2, 1e-300) * den), 0.0), ok
 
 
+#: The outlier screen's refitted bases (the rows kept after a removal on a long log, an extended design's screen,
+#: the slip test's and the chip rules' fits) drop a direction at the baseline's ``rank_tol`` (the log's printed
+#: precision, :func:`core.baseline.precision_rank_tol`), as the first pass's ``Qall`` does; False: at ``orth_of``'s
+#: 1e-9 (the behaviour before). Session 30 (rank30b, docs/discovery.md): a 4-decimal plate log's rounding directions
+#: (QR pivots at ~1-2 q / L) are no parameters of the baseline, and no parameters of its refits either.
+OUTLIER_RANK_TOL = True
+
+
 def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: float = 0.02,
                   Q: np.ndarray | None = None, ranks: np.ndarray | None = None,
                   rng: np.random.Generator | None = None, max_frac_dust: float = 0.05,
                   alpha_concentration: float = 0.0025, events: np.ndarray | None = None,
-                  slips=None, places: Places | None = None) -> list[int]:
+                  slips=None, places: Places | None = None, rank_tol: float | None = None) -> list[int]:
     """Indices (into y) of gross outliers: studentized deleted residuals, one at a time.
 
     Each pass removes the most extreme row if its studentized deleted
@@ -1471,7 +1479,15 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         set-up's chips may gather where its swarf fell; a place that
         collects outliers set-up after set-up, the part cleaned and set up
         again in between, is no chip).
+    rank_tol : float, optional
+        The relative pivot below which a refitted basis of ``X``'s rows
+        (``X`` itself without ``Q``, the rows kept after a removal on a long
+        log, the slip test's and the chip rules' fits) drops a direction:
+        the baseline's ``rank_tol`` (the log's printed precision,
+        :func:`core.baseline.precision_rank_tol`), as ``Q`` itself is cut;
+        None (or :data:`OUTLIER_RANK_TOL` off): ``orth_of``'s 1e-9.
     """
+    tol = rank_tol if OUTLIER_RANK_TOL and rank_tol is not None else 1e-9
     n = len(y)
     judged = ranks is not None and ranks.shape[1] > 0 and rng is not None
     cap = max(3, int((max_frac_dust if judged else max_frac) * n))
@@ -1481,7 +1497,7 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
     while True:
         idx = np.flatnonzero(keep)
         if Q is None or (len(idx) != n and not isinstance(Q, np.ndarray)):
-            Q = orth_of(X[idx])  # (a long log's Basis: factored afresh without the row)
+            Q = orth_of(X[idx], tol)  # (a long log's Basis: factored afresh without the row)
         elif len(idx) != n:
             Q = _without_row(Q, k)  # the previous pass's basis less its row k: X[idx]'s column space
         r = y[idx] - Q @ (Q.T @ y[idx])
@@ -1497,9 +1513,9 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         out.append(int(idx[k]))
         keep[idx[k]] = False
     if OUTLIER_CHIPS_LIKELIHOOD and out and places is not None and isinstance(X, np.ndarray):
-        out = _chips_by_likelihood(X, y, out, places, alpha, cap)
+        out = _chips_by_likelihood(X, y, out, places, alpha, cap, tol)
     if OUTLIER_CHIPS_READ_MORE and out and places is not None and isinstance(X, np.ndarray):
-        out = _chips_read_more(X, y, out, places, alpha, cap)
+        out = _chips_read_more(X, y, out, places, alpha, cap, tol)
     if judged:
         first = out if events is None else first_per_event(out, events)
         # places only across events: one set-up's chips may gather where its swarf fell
@@ -1507,7 +1523,7 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         if len(first) >= 2 and concentration_p(ranks, first, rng, places=places, place_idx=at) < alpha_concentration:
             return []
         if slips is not None and events is not None and _slip_explains(X, y, out, np.asarray(events), slips, alpha,
-                                                                           alpha_concentration):
+                                                                           alpha_concentration, tol):
             return []
     return sorted(out)
 
@@ -1616,7 +1632,8 @@ def _target_z(X: np.ndarray, y: np.ndarray, keep: np.ndarray, places: Places, T:
     return e / np.sqrt(s2 + est + tau2 * (1.0 + float(a @ a))), dd
 
 
-def _chips_by_likelihood(X: np.ndarray, y: np.ndarray, out: list, places: Places, alpha: float, cap: int) -> list:
+def _chips_by_likelihood(X: np.ndarray, y: np.ndarray, out: list, places: Places, alpha: float, cap: int,
+                         tol: float = 1e-9) -> list:
     """The screen's outliers ``out``, or the assignment the targets' faces choose where a target's touches disagree.
 
     At a target whose touches disagree beyond the outlier bound the
@@ -1675,7 +1692,7 @@ def _chips_by_likelihood(X: np.ndarray, y: np.ndarray, out: list, places: Places
                     return int(mates[j])
         return k
 
-    screened = _greedy_screen(X, y, alpha, cap, choose)
+    screened = _greedy_screen(X, y, alpha, cap, choose, tol)
     if screened is None:
         return out
     alt, keep = screened
@@ -1684,7 +1701,7 @@ def _chips_by_likelihood(X: np.ndarray, y: np.ndarray, out: list, places: Places
     return sorted(alt) if _assignment_holds(X, y, keep, out, alt, alpha) else out
 
 
-def _greedy_screen(X: np.ndarray, y: np.ndarray, alpha: float, cap: int, choose):
+def _greedy_screen(X: np.ndarray, y: np.ndarray, alpha: float, cap: int, choose, tol: float = 1e-9):
     """The deleted-residual screen's greedy removals, where ``choose`` may set aside another row in the screen's
     place: the row of the largest studentized deleted residual beyond the Bonferroni t bound, one at a time, each
     fit refactored on the rows kept; ``choose(keep, idx, r, ok, k)`` (``idx`` the rows kept, ``r`` their
@@ -1696,7 +1713,7 @@ def _greedy_screen(X: np.ndarray, y: np.ndarray, alpha: float, cap: int, choose)
     alt: list[int] = []
     while True:
         idx = np.flatnonzero(keep)
-        Q = orth_of(X[idx])
+        Q = orth_of(X[idx], tol)  # (the screen's cut: find_outliers' rank_tol)
         dof = len(idx) - Q.shape[1]
         if dof < 3:
             break
@@ -1744,7 +1761,8 @@ def _prediction_t(X: np.ndarray, y: np.ndarray, keep: np.ndarray, rows: np.ndarr
     return np.where(out_of_span, np.nan, t), dof
 
 
-def _chips_read_more(X: np.ndarray, y: np.ndarray, out: list, places: Places, alpha: float, cap: int) -> list:
+def _chips_read_more(X: np.ndarray, y: np.ndarray, out: list, places: Places, alpha: float, cap: int,
+                     tol: float = 1e-9) -> list:
     """The screen's outliers ``out``, or the other assignment at the targets whose touches disagree.
 
     Dust on a touch is a particle between the stylus and the surface (a
@@ -1795,7 +1813,7 @@ def _chips_read_more(X: np.ndarray, y: np.ndarray, out: list, places: Places, al
                 swapped.add(int(tg[idx[k]]))
         return k
 
-    screened = _greedy_screen(X, y, alpha, cap, choose)
+    screened = _greedy_screen(X, y, alpha, cap, choose, tol)
     if screened is None:
         return out
     alt, keep = screened
@@ -1927,7 +1945,7 @@ SLIP_ONE_OUTLIER_BY_OTHERS = True
 
 
 def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, slips, alpha: float,
-                   alpha_step: float) -> bool:
+                   alpha_step: float, tol: float = 1e-9) -> bool:
     """Whether one step of :func:`find_outliers`'s ``slips`` explains an event's outliers (two or more; one with
     :data:`SLIP_ONE_OUTLIER_BY_OTHERS`, judged by the second condition below: one never outnumbers the step's
     parameters).
@@ -2001,7 +2019,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
     else:
         on = np.any(Cs != 0, axis=2)  # (T, n) rows each trial moves
     n = len(y)
-    Q0 = orth_of(X)
+    Q0 = orth_of(X, tol)  # (the screen's cut: find_outliers' rank_tol)
     r0 = y - Q0 @ (Q0.T @ y)
     kept = np.setdiff1d(np.arange(n), out)
     Qk = rk = None
@@ -2051,7 +2069,7 @@ def _slip_explains(X: np.ndarray, y: np.ndarray, out: list, events: np.ndarray, 
             return True
         # 2. fewer outliers than parameters: the other touches must see a step in this event
         if Qk is None:
-            Qk = orth_of(X[kept])
+            Qk = orth_of(X[kept], tol)
             rk = y[kept] - Qk @ (Qk.T @ y[kept])
         dof_k = len(kept) - Qk.shape[1]
         _, k, _, p = nested_f_trials(Cs, kept, Qk, rk, float(rk @ rk), dof_k, ts=trials)
@@ -2929,7 +2947,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return find_outliers(X, y, settings.outlier_alpha, settings.outlier_max_frac, Q, ranks=ranks,
                              rng=np.random.default_rng(outlier_seed), max_frac_dust=settings.outlier_max_frac_dust,
                              alpha_concentration=settings.alpha_family, events=events, slips=slips,
-                             places=places)
+                             places=places, rank_tol=rank_tol)
 
     outlier_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # spawning leaves rng's own stream as it was
     gap_seed = int(rng.spawn(1)[0].integers(2 ** 32))  # the held-out gap's bootstrap draws
@@ -10177,7 +10195,7 @@ def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_ma
     yr = y[rows]
     p = A.shape[1]
     if not linear_map:
-        out = _constrained_schur(Ar, yr, C, d, penalty, k_ext)  # (well posed: every direction far above any cut)
+        out = _constrained_schur(Ar, yr, C, d, penalty, k_ext, tol)  # (well posed: every direction far above any cut)
         if out is not None:
             return out
     N = Ar.gram()
@@ -10206,9 +10224,20 @@ def _constrained_blocks(A: BlockDesign, y, C, d, rows, penalty, k_ext, linear_ma
 #: condition number is below this; above it (near the 1e12 of :func:`_gauge_eig`'s singular-value cut, 1e-6
 #: squared) the whole normal matrix decides which directions are unseen, as before.
 SCHUR_COND_MAX = 1e8
+#: With a baseline's ``rank_tol`` (the log's printed precision, :func:`core.baseline.precision_rank_tol`), the
+#: elimination also needs the equilibrated condition number below ``1 / (SCHUR_TOL_MARGIN * cut)^2``, ``cut`` the
+#: gauge's (:func:`_gauge_cut`: ``max(GAUGE_SV_TOL, tol)``): a direction within this factor of the cut is the whole
+#: normal matrix's to decide (without a ``rank_tol``, or below 1e-5, ``SCHUR_COND_MAX`` is the smaller).
+#: Measured (session 30, rank30b, review30c's two plate logs at full precision and 5, 4, 3 decimals on
+#: every grid: 40 designs): the condition number is 1.3-2.9 times ``(s_max / s_min)^2`` of the gauge's singular
+#: values (1.1 with a near-collinear extension at 2 decimals: the test's), the elimination ran on the 20 designs
+#: whose smallest gauge direction is 0.016-0.036 of the largest (condition 2.2e3-5.2e3, far below
+#: ``1 / (10 tol)^2`` = 6.9e5 even at 3 decimals) and agreed with the dense fit to 5e-14; on the other 20 (a
+#: direction cut) the condition number is 1e17 and up. None: off (SCHUR_COND_MAX only).
+SCHUR_TOL_MARGIN: float | None = 10.0
 
 
-def _constrained_schur(Ar: BlockDesign, yr, C, d, penalty, k_ext):
+def _constrained_schur(Ar: BlockDesign, yr, C, d, penalty, k_ext, tol=None):
     """:func:`_constrained_blocks` with the targets eliminated: (theta, cov, est), or None where it does not apply.
 
     The gauge-constrained least squares is the saddle-point system
@@ -10225,7 +10254,9 @@ def _constrained_schur(Ar: BlockDesign, yr, C, d, penalty, k_ext):
     of the saddle matrix's inverse, ``s^2 (diag(1 / count) + L S^-1 L^T)``
     on the targets and the machine (:class:`core.lsq.DiagLowRank`, never
     ``p x p``); every parameter estimable. Else None: the caller decides
-    from the whole normal matrix which directions are unseen.
+    from the whole normal matrix which directions are unseen. ``tol``: the
+    baseline's rank tolerance (the gauge's cut): the elimination also needs
+    the condition number below ``1 / (SCHUR_TOL_MARGIN max(1e-6, tol))^2``.
     """
     p, g = Ar.shape[1], Ar.g
     gc, dc = Ar.g_cols, Ar.d_cols
@@ -10255,7 +10286,10 @@ def _constrained_schur(Ar: BlockDesign, yr, C, d, penalty, k_ext):
     S = H - F.T @ Fc
     sc = 1.0 / np.sqrt(np.maximum(np.abs(S).max(axis=1), 1e-300))  # rows and columns equilibrated (a multiplier's
     # diagonal is zero where its gauge row holds no target)
-    if not np.isfinite(S).all() or np.linalg.cond(S * np.outer(sc, sc)) > SCHUR_COND_MAX:
+    cond_max = SCHUR_COND_MAX
+    if SCHUR_TOL_MARGIN is not None:  # (the gauge's own 1e-6 cut gives 1e10: SCHUR_COND_MAX decides there)
+        cond_max = min(cond_max, 1.0 / (SCHUR_TOL_MARGIN * _gauge_cut(tol)) ** 2)
+    if not np.isfinite(S).all() or np.linalg.cond(S * np.outer(sc, sc)) > cond_max:
         return None
     Si = np.linalg.inv(S)
     theta = np.zeros(p)

@@ -20,7 +20,7 @@ import io
 import math
 import os
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping
 
@@ -45,6 +45,14 @@ OPTIONAL = ("feature", "A_deg", "B_deg", "C_deg", "dx", "dy", "dz",
 TEXT_COLUMNS = ("setup", "target", "feature", "status")
 #: Tolerance on the length of unit vectors (normals, approach directions).
 UNIT_TOL = 1e-6
+#: The coarsest step a unit vector's components may be printed to and still be read (session 30, rank30b): a
+#: vector whose components are printed to ``q`` (every component of the column's vectors written with the same
+#: decimals, :func:`decimal_quantum`) misses length 1 by up to ``sqrt(3) q / 2`` (8.7e-5 at 4 decimals:
+#: ``0.7071``); such a log is read with that tolerance (plus :data:`UNIT_TOL`) and its vectors normalised, the step
+#: kept (:attr:`ProbeLog.unit_steps`: the planar baseline's rank tolerance takes the normals' step,
+#: ``core.baseline.precision_rank_tol``). Coarser (3 decimals: 0.5 mrad of direction) is refused as before.
+#: None: every vector within :data:`UNIT_TOL` (the behaviour before).
+UNIT_STEP_MAX: float | None = 1e-4
 #: Tolerance (mm) on a target's artefact-frame nominal across set-ups.
 TARGET_TOL_MM = 1e-6
 #: Largest length (mm) a position may have: 100 m, beyond any machine tool's
@@ -159,6 +167,12 @@ class ProbeLog:
         What reading found doubtful but not wrong (one line each, naming the
         file and row), e.g. a last row without an end of line that may be
         torn. The CLI prints them.
+    unit_steps : dict[str, float]
+        For each unit-vector column trio read at its printed step's
+        tolerance (keyed by its first column, ``"nx"``): the step its
+        components were printed to (:data:`UNIT_STEP_MAX`); its vectors
+        are stored normalised. Empty when every vector had length 1 within
+        :data:`UNIT_TOL` (stored as read).
 
     Columns the spec defines are numeric (except ``setup``, ``target``,
     ``feature``, ``status``); a column the spec does not define is numeric
@@ -169,6 +183,7 @@ class ProbeLog:
     columns: dict[str, np.ndarray]
     source: str = "<memory>"
     warnings: tuple = ()
+    unit_steps: dict = field(default_factory=dict)
 
     # ---- shape ---------------------------------------------------------
     @property
@@ -259,7 +274,7 @@ def make_log(columns: Mapping[str, Iterable], meta: Mapping[str, str] | None = N
             cols[name] = np.asarray(vals, dtype=float).copy()
     log = ProbeLog(meta=m, columns=_ordered(cols), source=source)
     if validate:
-        _validate(log, lines=None)
+        log = replace(log, unit_steps=_validate(log, lines=None))
     return log
 
 
@@ -643,7 +658,7 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
             warnings.append(w)
     line_of_row = cols.line_of_row()
     log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings))
-    _validate(log, lines=line_of_row)
+    log = replace(log, unit_steps=_validate(log, lines=line_of_row))
     if progress is not None:
         progress(n_lines, n_lines)
     return log
@@ -679,7 +694,25 @@ def _where(src: str, r: int, lines: np.ndarray | None) -> str:
     return f"{src}: row {r}" + (f" (line {lines[r]})" if lines is not None else "")
 
 
-def _validate(log: ProbeLog, lines: np.ndarray | None) -> None:
+def decimal_quantum(v: np.ndarray, max_decimals: int = 9) -> float:
+    """The step the values ``v`` are printed to: ``10^-k`` for the fewest decimals ``k`` (0 .. ``max_decimals``)
+    that write every one of them (to 1e-3 of that step: a value read from text and scaled back carries a few ulp);
+    0.0 when none does (full precision, or values computed, not read)."""
+    v = np.asarray(v, float).ravel()
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return 0.0
+    for k in range(max_decimals + 1):
+        s = v * 10.0 ** k
+        if np.max(np.abs(s - np.round(s))) <= 1e-3:
+            return 10.0 ** -k
+    return 0.0
+
+
+def _validate(log: ProbeLog, lines: np.ndarray | None) -> dict:
+    """Check ``log`` (raise :class:`ProbeLogError` naming the first problem); normalise in place the unit vectors
+    printed to a step up to :data:`UNIT_STEP_MAX` and return those steps (:attr:`ProbeLog.unit_steps`)."""
+    steps: dict = {}
     src = log.source
     c = log.columns
     n = log.n
@@ -741,10 +774,21 @@ def _validate(log: ProbeLog, lines: np.ndarray | None) -> None:
         norm = np.linalg.norm(np.where(filled[:, None], v, 1.0), axis=1)
         bad = filled & (np.abs(norm - 1.0) > UNIT_TOL)
         if bad.any():
-            r = int(np.argmax(bad))
-            raise ProbeLogError(
-                f"{_where(src, r, lines)}: vector ({','.join(trio)}) has length "
-                f"{norm[r]:.9g}, not 1 (tolerance {UNIT_TOL:g})")
+            # printed to q: each component within q / 2 of the unit vector's, its length within sqrt(3) q / 2
+            q = decimal_quantum(v[filled]) if UNIT_STEP_MAX is not None else 0.0
+            tol = UNIT_TOL + np.sqrt(3.0) * q / 2 if 0 < q <= UNIT_STEP_MAX * (1 + 1e-9) else UNIT_TOL
+            far = filled & (np.abs(norm - 1.0) > tol)
+            if far.any():
+                r = int(np.argmax(far))
+                at = (f"; {tol:.2g} for components printed to {q:g}" if tol > UNIT_TOL else
+                      f"; components printed to {q:g}, coarser than {UNIT_STEP_MAX:g}" if q > 0 and UNIT_STEP_MAX
+                      else "")
+                raise ProbeLogError(
+                    f"{_where(src, r, lines)}: vector ({','.join(trio)}) has length "
+                    f"{norm[r]:.9g}, not 1 (tolerance {UNIT_TOL:g}{at})")
+            for t, col in zip(trio, (v / norm[:, None]).T):
+                c[t] = np.where(filled, col, c[t])
+            steps[trio[0]] = q
     # time never goes backwards (rows are in the order touches happened)
     t = c["t_s"]
     back = step_back(t)
@@ -782,6 +826,7 @@ def _validate(log: ProbeLog, lines: np.ndarray | None) -> None:
         if not (math.isfinite(v) and 0 <= v <= STYLUS_R_MAX_MM):
             raise ProbeLogError(f"{src}: metadata stylus_r_mm {_shown(sr)} is out of range (must be >= 0 "
                                 f"and <= {STYLUS_R_MAX_MM:g} mm: a tip radius is not negative)")
+    return steps
 
 
 # ---------------------------------------------------------------------------

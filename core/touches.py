@@ -85,6 +85,11 @@ class Touches:
         all the same), machine frame; NaN for a touch with none before it
         (the log's first). None where not built (touches not read from a
         log).
+    n_step : float
+        The step the log printed the normals' components to where the
+        reader normalised them (:attr:`core.probelog.ProbeLog.unit_steps`,
+        e.g. 1e-4 for ``0.7071``); 0.0 where they were read as written
+        (``n_R``'s own digits then say their step).
     """
 
     row: np.ndarray
@@ -103,6 +108,7 @@ class Touches:
     wn_A: np.ndarray
     temps_C: dict
     d_prev_R: np.ndarray | None = None
+    n_step: float = 0.0
 
     @property
     def n(self) -> int:
@@ -194,4 +200,5 @@ def from_log(log: ProbeLog, *, include_invalid: bool = False) -> Touches:
         wn_A=v3(("wnx", "wny", "wnz")),
         temps_C={c: log.col(c)[rows] for c in log.temperature_columns()},
         d_prev_R=d_prev,
+        n_step=float(log.unit_steps.get("nx", 0.0)),
     )
