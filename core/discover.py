@@ -4010,7 +4010,7 @@ def _time_rates(t: np.ndarray, m: np.ndarray, g: np.ndarray, shared: bool, spars
 #: repeats of every target apart from cycle to cycle, and their plain scatter pooled it as noise (review30c's
 #: backlash_grow3 401: 1.134 um printed for a true 0.616 um; beyond these columns 0.675 um). Under no effect the
 #: columns are fixed regressors and the estimate stays unbiased (3 degrees of freedom fewer: 67 -> 64).
-#: docs/discovery.md, "Session 30: a positioning run's noise beyond a reversal that changes (posn30)".
+#: docs/discovery-studies.md, "Session 30: a positioning run's noise beyond a reversal that changes (posn30)".
 #: False: the rates per cycle alone, as before.
 POSITIONING_NOISE_BEYOND_TIME_BY_DIRECTION = True
 #: Short-term pairs needed before their scatter may replace the repeats' (:func:`_short_term`).
@@ -6411,7 +6411,7 @@ def _held_out_by_touches(folds, y: np.ndarray, T: np.ndarray | None, C: np.ndarr
 #: (blind gen_c clamp_creep 5603, session 29: 4.19 mm, below each set-up's 5.3-6.8 mm, through three clamps'
 #: dents, 9.3 effective targets of 74). Either condition alone costs a true periodic error on tuning seeds (gen_c
 #: 206: 5.40 mm below its set-ups' 6.33 mm, 24 targets; gen_a 1010: 8.2 effective targets of 63). None: off.
-#: Left off by session 30's study (docs/discovery.md, "Session 30: a periodic error through a few dented edges"):
+#: Left off by session 30's study (docs/discovery-studies.md, "Session 30: a periodic error through a few dented edges"):
 #: on gen_c's true periodic errors 200-249 the fewest were 13.6 of 74 (a margin of 1.5 over 5603, on one blind
 #: draw), and the before/after measurement the rule needs was not made in the session.
 PERIODIC_MIN_TARGET_SHARE: float | None = None

@@ -1769,7 +1769,7 @@ def direction_text(ds, biases: dict) -> str:
 #: ``not_covered["time_drift"]`` (the U95, the budget and every value unchanged). Session 30 (time30), on the
 #: review30b generator's cross pocket (368 touches, noise 0.3 um, 20 seeds each): plain 0/20, a 2 um / 15 mm EXX
 #: ripple 0/20, the simulator's cross pocket (nmv3000 realistic, seeds 1-20, t_s clock) 0/20; an X drift of 3 um
-#: over the campaign named 17/20, 2 um 6/20, 1 um 0/20. docs/discovery.md "Session 30: identify's residuals that
+#: over the campaign named 17/20, 2 um 6/20, 1 um 0/20. docs/discovery-studies.md "Session 30: identify's residuals that
 #: follow time".
 TIME_STRUCTURE = True
 #: The time test's p-value threshold, both stages (as :data:`DIRECTION_P`).

@@ -6,7 +6,7 @@ axis AND whose explained part spreads over fewer effective targets than the shar
 gen_c clamp_creep 5603 (a spent blind seed, session 29's confident misnaming): a 4.19 mm X period, below each
 set-up's 5.3-6.8 mm, through three clamps' dents (9.3 effective targets of 74): with the rule on it reads
 ``unexplained`` (acceptable), off ``periodic_axis_error``. The rule stays off: its before/after measurement is in
-docs/discovery.md, "Session 30: a periodic error through a few dented edges".
+docs/discovery-studies.md, "Session 30: a periodic error through a few dented edges".
 """
 
 from types import SimpleNamespace

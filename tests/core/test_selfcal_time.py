@@ -4,7 +4,7 @@ The review's case: a 3 um X drift over the 368 touches of a cross pocket gave 90
 identify said nothing about time (it booked the drift as ECY/EYY model error). The test is like the approach-direction
 one (tests/core/test_selfcal_lobes.py): Legendre columns in the campaign's time along each touch's X and Y normal,
 their part the fit leaves tested against the noise (F), then against the budget's noise and table model error.
-It is on (core.selfcal.TIME_STRUCTURE; docs/discovery.md "Session 30: identify's residuals that follow time").
+It is on (core.selfcal.TIME_STRUCTURE; docs/discovery-studies.md "Session 30: identify's residuals that follow time").
 """
 
 from dataclasses import replace
