@@ -1655,6 +1655,34 @@ class DirectionStructure:
     p_tables: float | None = None
 
 
+def _structure_f(G: np.ndarray, r: np.ndarray, dof: int, p_max: float):
+    """The first stage of identify's residual checks (:func:`direction_structure`, :func:`time_structure`): the
+    residuals ``r`` (``dof`` degrees of freedom) projected on the columns ``G`` the fit leaves (those of unit size:
+    directions the residuals can hold), F against the rest. None when nothing is held or ``p >= p_max``; else
+    ``(U, sv, Vt, keep, q, proj, drop, F, p)`` of the SVD of ``G``. Noise-free residuals (the rest at rounding):
+    F infinite, p 0."""
+    from scipy import stats
+
+    U, sv, Vt = np.linalg.svd(G, full_matrices=False)
+    keep = sv > 1e-6 * np.sqrt(r.size)
+    q = int(keep.sum())
+    if q == 0 or dof - q <= 0:
+        return None
+    proj = U[:, keep].T @ r
+    drop = float(proj @ proj)
+    rest = float(r @ r) - drop
+    if drop <= 1e-12 * float(r @ r) or drop <= 0.0:
+        return None
+    if rest <= 1e-12 * float(r @ r):
+        F, p = float("inf"), 0.0
+    else:
+        F = (drop / q) / (rest / (dof - q))
+        p = float(stats.f.sf(F, q, dof - q))
+    if not p < p_max:
+        return None
+    return U, sv, Vt, keep, q, proj, drop, F, p
+
+
 def direction_structure(design: SelfCalDesign, est: LinearEstimator, touches: Touches, residuals_m: np.ndarray,
                         blind: tuple = (), p_max: float = DIRECTION_P):
     """The part of the residuals that follows the approach azimuth, when significant; else None.
@@ -1673,8 +1701,6 @@ def direction_structure(design: SelfCalDesign, est: LinearEstimator, touches: To
     amplitude, and the parameters' shift (``T c``: by Frisch-Waugh, the
     estimate with the structure fitted alongside is ``theta_hat - T c``).
     """
-    from scipy import stats
-
     r = np.asarray(residuals_m, float)
     d = np.asarray(touches.d_R, float)
     if d.shape[0] != r.size or r.size != design.A.shape[0]:
@@ -1695,24 +1721,11 @@ def direction_structure(design: SelfCalDesign, est: LinearEstimator, touches: To
     if not ks or dof <= 0:
         return None
     Lall, Gall = np.hstack(raw), np.hstack(Gs)
-    U, sv, Vt = np.linalg.svd(Gall, full_matrices=False)
-    keep = sv > 1e-6 * np.sqrt(r.size)           # columns of unit size: directions the residuals can hold
-    q = int(keep.sum())
-    if q == 0 or dof - q <= 0:
+    first = _structure_f(Gall, r, dof, p_max)
+    if first is None:
         return None
+    U, sv, Vt, keep, q, proj, drop, F, p = first
     Uq = U[:, keep]
-    proj = Uq.T @ r
-    drop = float(proj @ proj)
-    rest = float(r @ r) - drop
-    if drop <= 1e-12 * float(r @ r) or drop <= 0.0:
-        return None
-    if rest <= 1e-12 * float(r @ r):             # noise-free: the structure is all there is
-        F, p = float("inf"), 0.0
-    else:
-        F = (drop / q) / (rest / (dof - q))
-        p = float(stats.f.sf(F, q, dof - q))
-    if not p < p_max:
-        return None
     c = Vt[keep].T @ (proj / sv[keep])           # coefficients on Lall's columns (minimum norm)
     fitted = Gall @ c
     shift = est.noise_gain(Lall) @ c
@@ -1851,8 +1864,6 @@ def time_structure(design: SelfCalDesign, est: LinearEstimator, touches: Touches
     None. As :func:`direction_structure` (F test of the columns' part the fit leaves against the residual
     variance beside them), on :func:`time_columns`; the second stage (against the tables' model error) is the
     caller's, through :func:`core.uncertainty.model_error_budget`'s ``probe_cols``."""
-    from scipy import stats
-
     r = np.asarray(residuals_m, float)
     if r.size != touches.n or r.size != design.A.shape[0]:
         raise ConfigError(f"time_structure: {r.size} residuals, {touches.n} touches, design of "
@@ -1862,24 +1873,11 @@ def time_structure(design: SelfCalDesign, est: LinearEstimator, touches: Touches
     if L.shape[1] == 0 or dof <= 0:
         return None
     G = L - design.A @ est.noise_gain(L)
-    U, sv, Vt = np.linalg.svd(G, full_matrices=False)
-    keep = sv > 1e-6 * np.sqrt(r.size)
-    q = int(keep.sum())
-    if q == 0 or dof - q <= 0:
+    first = _structure_f(G, r, dof, p_max)
+    if first is None:
         return None
+    U, sv, Vt, keep, q, proj, drop, F, p = first
     Uq = U[:, keep]
-    proj = Uq.T @ r
-    drop = float(proj @ proj)
-    rest = float(r @ r) - drop
-    if drop <= 1e-12 * float(r @ r) or drop <= 0.0:
-        return None
-    if rest <= 1e-12 * float(r @ r):
-        F, p = float("inf"), 0.0
-    else:
-        F = (drop / q) / (rest / (dof - q))
-        p = float(stats.f.sf(F, q, dof - q))
-    if not p < p_max:
-        return None
     c = Vt[keep].T @ (proj / sv[keep])
     h = B.shape[1]
     ex, ey = B @ c[:h], B @ c[h:]
