@@ -1611,8 +1611,24 @@ def absorbed_lobes(phi: np.ndarray, project, orders=LOBE_ORDERS) -> tuple:
 DIRECTION_P = 1e-4
 
 
-@dataclass(frozen=True)
-class DirectionStructure:
+@dataclass(frozen=True, kw_only=True)
+class _ResidualStructure:
+    """What identify's residual checks (:func:`direction_structure`, :func:`time_structure`) share: the
+    statistics and the structure's part of the residuals and of the parameters (as :class:`DirectionStructure`
+    describes them)."""
+
+    F: float
+    p: float
+    rank: int
+    fitted_m: np.ndarray
+    shift: np.ndarray
+    basis: np.ndarray
+    proj: np.ndarray
+    p_tables: float | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class DirectionStructure(_ResidualStructure):
     """Residuals that follow the probe's approach azimuth (:func:`direction_structure`).
 
     Attributes
@@ -1645,14 +1661,6 @@ class DirectionStructure:
     k: int
     amplitude_m: float
     orders: tuple
-    F: float
-    p: float
-    rank: int
-    fitted_m: np.ndarray
-    shift: np.ndarray
-    basis: np.ndarray
-    proj: np.ndarray
-    p_tables: float | None = None
 
 
 def _structure_f(G: np.ndarray, r: np.ndarray, dof: int, p_max: float):
@@ -1798,8 +1806,8 @@ TIME_DEGREE_CAMPAIGN = 1
 TIME_DEGREE_SETUP = 0
 
 
-@dataclass(frozen=True)
-class TimeStructure:
+@dataclass(frozen=True, kw_only=True)
+class TimeStructure(_ResidualStructure):
     """Residuals that follow time (:func:`time_structure`): a drift of the tool relative to the part.
 
     ``clock`` is "t_s" or "touch order"; ``drift_um`` the fitted drift's range over the campaign per machine
@@ -1807,14 +1815,6 @@ class TimeStructure:
 
     clock: str
     drift_um: tuple
-    F: float
-    p: float
-    rank: int
-    fitted_m: np.ndarray
-    shift: np.ndarray
-    basis: np.ndarray
-    proj: np.ndarray
-    p_tables: float | None = None
 
 
 def _time_clock(touches: Touches) -> tuple[np.ndarray, str]:
