@@ -526,8 +526,10 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art, machine=No
             record.log_placement(rec, record.TABLE, T, setup=k)
             record.log_touches(rec, t.pn_R[rows], dq[rows], n_R=t.n_R[rows], limit_um=lim, setup=k)
     # with its U95 (review30d F4): the edge rows' yaw ECY is barely determined (U95 279 urad at
-    # y = -110 mm, 31 um over 110 mm), so the identified map may leave the true one by tens of um there
-    # (session 31) and says how often the truth lies within it: not as if it covered (map_cover_text)
+    # y = -110 mm, 31 um over 110 mm), so the identified map may leave the true one by tens of um there;
+    # the legend says how often the truth lies outside the U95 (session 31: 70 of 119 nodes, the lobing
+    # probe's bias, largest near the gauge node (110, 0) mm where the U95 is small), so it is not read as
+    # if it covered (map_cover_text)
     record.log_error_grid(rec, v.x_mm, v.y_mm, v.ex_um, v.ey_um, true_ex_um=v.tex, true_ey_um=v.tey,
                           u95_um=v.map_u95, note=map_cover_text(v.map_cover))
     _log_machine_bodies(rec, record, t, art)
