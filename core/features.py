@@ -24,6 +24,8 @@ frame R of the log.
 
 from __future__ import annotations
 
+import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,7 +96,7 @@ class MixedRows(ConfigError):
     """The valid touches chosen span more than one set-up or feature (review30 F1: a pin's 8 set-ups
     fitted as one circle gave a 197 mm radius for a 6 mm pin, exit 0).
 
-    ``spans`` maps the column (``setup``, ``feature``) to the sorted values found; the message
+    ``spans`` maps the column (``setup``, ``feature``) to the values found, in :func:`name_order`; the message
     names them and the keyword that picks one (a caller with other names for it, like the CLI's
     ``--setup``, builds its own line from ``spans``).
     """
@@ -107,6 +109,24 @@ class MixedRows(ConfigError):
 
 #: Values named in a refusal of mixed rows before "...": enough to recognise the log's naming.
 MIXED_SHOWN = 6
+
+
+def name_order(name: str) -> tuple:
+    """Sort key for set-up and feature names, numbers as numbers (session 30: ``vmt fit`` listed
+    ``C137`` before ``C31`` and set-up ``10`` before ``2``, sorted as text).
+
+    A name that is a finite number (``2``, ``-30``, ``7.5``) sorts by its value, before every other
+    name; any other by its runs of digits as integers and the text between them as text
+    (``C2 < C31 < C137``, ``pin2 < pin10``); the name itself breaks ties (``C01``, ``C1``).
+    """
+    try:
+        v = float(name)
+    except ValueError:
+        v = math.nan
+    if math.isfinite(v):
+        return (0, v, (), name)
+    parts = re.split(r"(\d+)", name)      # text, digits, text, ...: digits at the odd places
+    return (1, 0.0, tuple(int(q) if i % 2 else q for i, q in enumerate(parts)), name)
 
 
 def mixed_rows_text(spans: dict[str, list[str]]) -> str:
@@ -200,13 +220,13 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
         if want is not None:
             have = log.col(col).astype(str)
             if want not in set(have):
-                known = ", ".join(sorted(set(have[log.ok])))[:200]
+                known = ", ".join(sorted(set(have[log.ok]), key=name_order))[:200]
                 raise ConfigError(f"{log.source}: no {col} {want!r} (valid touches have: {known})")
             mask &= have == want
     spans = {}
     for col in ("setup", "feature"):
         if log.has(col):
-            vals = sorted(set(log.col(col).astype(str)[mask]))
+            vals = sorted(set(log.col(col).astype(str)[mask]), key=name_order)
             if len(vals) > 1:
                 spans[col] = vals
     if spans:

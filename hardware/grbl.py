@@ -461,6 +461,9 @@ class GrblClient:
                     rep.prb.append(p)
                 continue
             if _BANNER.match(got):
+                if rep.alarms:     # ALARM:3 (reset in motion) then the banner: the alarm says what to do
+                    raise HardwareError(f"{describe_alarm(rep.alarms[0])} [during {line!r}; the controller "
+                                        f"reset: {got!r}]")
                 raise HardwareError(f"controller reset while executing {line!r} ({got!r})")
             if got.startswith("<"):
                 st = parse_status(got, self._wco)
@@ -782,7 +785,8 @@ class GrblBackend:
         when the campaign is resumed. ``ALARM:4`` (the probe already triggered
         before the move, nothing moved) is an ``early_trigger`` with
         ``alarm=4``, the word ``vmt import grbl`` gives it. Any other alarm
-        raises with what to do.
+        (1 hard limit, 2 soft limit, 3 a reset during the move) raises with what
+        to do, and nothing more is sent.
         """
         if self._pos_mm is None:
             self.position_m()
@@ -796,12 +800,12 @@ class GrblBackend:
         crit = [a for a in rep.alarms if a in CRITICAL_ALARMS]
         if crit:       # the firmware now answers nothing until a reset: send nothing more
             raise HardwareError(f"{describe_alarm(crit[0])} [during {line!r}]")
+        other = [a for a in rep.alarms if a not in (4, 5)]
+        if other:      # e.g. ALARM:3, a reset during the move: its banner would fail the G90 (session 31)
+            raise HardwareError(f"{describe_alarm(other[0])} [during {line!r}]")
         back = self.client.command("G90")
         if back.error is not None and not (back.error == 9 and rep.alarms):
             raise HardwareError(f"controller rejected 'G90': {describe_error(back.error)}")
-        other = [a for a in rep.alarms if a not in (4, 5)]
-        if other:
-            raise HardwareError(f"{describe_alarm(other[0])} [during {line!r}]")
         if rep.error is not None:
             raise HardwareError(f"controller rejected {line!r}: {describe_error(rep.error)}")
         if 4 in rep.alarms:

@@ -226,16 +226,72 @@ def error_map_u95_um(res) -> np.ndarray | None:
     through :func:`core.uncertainty.error_map_operator`; :func:`core.uncertainty.error_map_u95` is the
     same from Monte Carlo errors. In the gauge of eqs 16-17 (0 at the origin node).
     """
-    from core.uncertainty import K, error_map_operator
+    from core.uncertainty import K
+
+    v = _map_variances(res)
+    if v is None:
+        return None
+    vx, vy = v
+    return K * np.sqrt(np.maximum(vx + vy, 0.0)) / UM
+
+
+def _map_variances(res) -> tuple[np.ndarray, np.ndarray] | None:
+    """(var E_X, var E_Y), each (ny, nx), m^2, of the error map from ``res.cov`` (linear), or None."""
+    from core.uncertainty import error_map_operator
 
     if getattr(res, "cov", None) is None:
         return None
     des = res.design
     M = error_map_operator(des)
     v = np.einsum("ij,jk,ik->i", M, np.asarray(res.cov, float), M)
-    n = v.size // 2
-    u = K * np.sqrt(np.maximum(v[:n] + v[n:], 0.0)).reshape(len(des.grid.x_m), len(des.grid.y_m))
-    return u.T / UM
+    n, shape = v.size // 2, (len(des.grid.x_m), len(des.grid.y_m))
+    return v[:n].reshape(shape).T, v[n:].reshape(shape).T
+
+
+#: Node variances at most this share of the map's largest are the gauge's (eqs 16-17 fix them: 0 exactly in
+#: exact arithmetic; the demo's are 0.0): :func:`map_u95_coverage` pins the truth there.
+GAUGE_VAR_SHARE = 1e-12
+
+
+def map_u95_coverage(res, x_mm, y_mm, ex_um, ey_um, tex_um, tey_um) -> dict | None:
+    """How often the true error map lies within the identified map's U95 (:func:`error_map_u95_um`), or None.
+
+    The U95 is of the map in the gauge of eqs 16-17 (0 at the origin node, scale and rotation fixed at
+    (x_max, 0)): the truth is compared in that same gauge, moved by the map's gauge directions
+    (:func:`core.selfcal.map_gauge_basis`) to equal the identified map where the gauge fixes it (the
+    entries whose variance is the gauge's, :data:`GAUGE_VAR_SHARE`). The drawn truth (:func:`true_error_map`,
+    a least-squares fit of the gauge, which takes up part of a bias) is counted beside it (``*_as_drawn``);
+    that count is not the U95's. A node is outside when ``|identified - true|`` (2D, um) exceeds its U95.
+
+    Returns ``{"outside", "nodes", "gauge_nodes", "max_ratio", "worst_mm": [x, y], "worst_gap_um",
+    "worst_u95_um", "outside_as_drawn"}``: the counts over the nodes the gauge leaves free (``nodes``; the
+    ``gauge_nodes``, U95 0, are equal by construction).
+    """
+    from core.selfcal import map_gauge_basis
+    from core.uncertainty import K
+
+    v = _map_variances(res)
+    if v is None or tex_um is None:
+        return None
+    u = K * np.sqrt(np.maximum(v[0] + v[1], 0.0)) / UM
+    X, Y = np.meshgrid(np.asarray(x_mm, float), np.asarray(y_mm, float))           # (ny, nx), as the maps
+    B = map_gauge_basis(X * MM, Y * MM) / UM                                      # um per unit gauge step
+    vv = np.concatenate([v[0].ravel(), v[1].ravel()])
+    pinned = vv <= GAUGE_VAR_SHARE * max(float(vv.max()), 0.0)
+    E = np.concatenate([np.ravel(tex_um), np.ravel(tey_um)])
+    Mv = np.concatenate([np.ravel(ex_um), np.ravel(ey_um)])
+    c = np.linalg.lstsq(B[pinned], Mv[pinned] - E[pinned], rcond=None)[0] if pinned.any() else np.zeros(4)
+    Ep = E + B @ c
+    n = Ep.size // 2
+    gap = np.hypot(Mv[:n] - Ep[:n], Mv[n:] - Ep[n:]).reshape(u.shape)
+    drawn = np.hypot(np.asarray(ex_um) - tex_um, np.asarray(ey_um) - tey_um)
+    free = ~(pinned[:n] & pinned[n:]).reshape(u.shape)
+    ratio = np.where(free, gap / np.where(free, u, 1.0), 0.0)
+    i = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+    return {"outside": int(np.sum(free & (gap > u))), "nodes": int(free.sum()), "gauge_nodes": int((~free).sum()),
+            "max_ratio": float(ratio[i]), "worst_mm": [float(X[i]), float(Y[i])],
+            "worst_gap_um": float(gap[i]), "worst_u95_um": float(u[i]),
+            "outside_as_drawn": int(np.sum(free & (drawn > u)))}
 
 
 def true_error_map(machine, x_mm, y_mm, z_m: float, ex_um, ey_um):
@@ -379,7 +435,9 @@ class _DemoView:
     point and normal (A frame), ``g_um``, ``u95_um`` the workpiece; ``c_deg``,
     ``exc``, ``eyc`` the C axis and ``centre`` the circle through it (None
     when degenerate or fewer than three angles); ``map_u95`` the map's U95
-    (:func:`error_map_u95_um`, None without a covariance).
+    (:func:`error_map_u95_um`, None without a covariance) and ``map_cover``
+    how often the truth lies within it (:func:`map_u95_coverage`, None
+    without the machine or a covariance).
     """
 
     x_mm: np.ndarray
@@ -399,6 +457,7 @@ class _DemoView:
     centre: np.ndarray | None
     true_centre: np.ndarray | None = None
     map_u95: np.ndarray | None = None
+    map_cover: dict | None = None
 
     @classmethod
     def of(cls, t, res, ident: dict, machine=None) -> "_DemoView":
@@ -415,7 +474,8 @@ class _DemoView:
         u95 = np.array([w["u95_um"] if w["u95_um"] is not None else np.nan for w in ident["workpiece"]])
         c_deg = np.degrees(res.design.c_rad)
         return cls(x_mm, y_mm, ex_um, ey_um, tex, tey, idx, t.w_A[idx, :2] / MM, t.wn_A[idx, :2], res.G / UM, u95,
-                   c_deg, res.EXC / UM, res.EYC / UM, c_axis_centre_um(res), true_centre, error_map_u95_um(res))
+                   c_deg, res.EXC / UM, res.EYC / UM, c_axis_centre_um(res), true_centre, error_map_u95_um(res),
+                   map_u95_coverage(res, x_mm, y_mm, ex_um, ey_um, tex, tey))
 
 
 def _table_poses(t, machine) -> list | None:
@@ -466,9 +526,12 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art, machine=No
             record.log_placement(rec, record.TABLE, T, setup=k)
             record.log_touches(rec, t.pn_R[rows], dq[rows], n_R=t.n_R[rows], limit_um=lim, setup=k)
     # with its U95 (review30d F4): the edge rows' yaw ECY is barely determined (U95 279 urad at
-    # y = -110 mm, 31 um over 110 mm), so the identified map may leave the true one by tens of um there
+    # y = -110 mm, 31 um over 110 mm), so the identified map may leave the true one by tens of um there;
+    # the legend says how often the truth lies outside the U95 (session 31: 70 of 119 nodes, the lobing
+    # probe's bias, largest near the gauge node (110, 0) mm where the U95 is small), so it is not read as
+    # if it covered (map_cover_text)
     record.log_error_grid(rec, v.x_mm, v.y_mm, v.ex_um, v.ey_um, true_ex_um=v.tex, true_ey_um=v.tey,
-                          u95_um=v.map_u95)
+                          u95_um=v.map_u95, note=map_cover_text(v.map_cover))
     _log_machine_bodies(rec, record, t, art)
     # the profile drawn x2500 is the form: G with the datum's shift, rotation and scale (tens of um, which
     # would move points tens of mm off the part) removed; the U95 colours sit on the nominal points
@@ -479,6 +542,19 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art, machine=No
                          workpiece_form(v.g_um, v.w_mm * MM, v.wn), u95_um=v.u95_um, label="form")
     record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, centre_um=v.centre)
     record.log_error_motions(rec, {k: e for k, e in ident["axes"].items() if k != "EC0Y"})
+
+
+def map_cover_text(cover: dict | None) -> str:
+    """One sentence: how often the true map lies within the identified map's U95 (:func:`map_u95_coverage`),
+    and that a U95 covers only what the identification's model holds; "" without a count."""
+    if not cover:
+        return ""
+    return (f"The true map lies outside the map's U95 (k = 2, eqs 16-17's gauge, the truth in the same gauge) at "
+            f"{cover['outside']} of {cover['nodes']} nodes ({cover['gauge_nodes']} gauge nodes, U95 0, aside), up "
+            f"to {cover['max_ratio']:.1f} x at ({cover['worst_mm'][0]:g}, {cover['worst_mm'][1]:g}) mm "
+            f"({cover['worst_gap_um']:.1f} µm against {cover['worst_u95_um']:.1f} µm; as drawn, the truth fitted to "
+            f"the identified map, {cover['outside_as_drawn']}): the U95 is of the probing noise and the model "
+            "error the residuals show, not of a bias the model cannot hold, such as a lobing probe's.")
 
 
 #: What the C-axis figure shows (the demo's report and the paper's Fig. 13).
@@ -507,7 +583,7 @@ def _demo_sections(figures, v: _DemoView, t, res, ident: dict, g_true, art=None)
                 f"{res.rms_m / UM:.3f} µm. The profile shows the pocket's form: the part's shift, rotation "
                 "and scale in W (which no self-calibration sees, eqs 16-17) are removed from each curve.",
                 figures={"profile": _profile_figure(figures, des, v.w_mm, v.wn, v.g_um, t, g_true)}),
-        Section("Machine error map (eqs 4-5, ×1000)",
+        Section("Machine error map (eqs 4-5, ×1000)", text=map_cover_text(v.map_cover),
                 figures={"error_map": figures.error_grid_figure(v.x_mm, v.y_mm, v.ex_um, v.ey_um,
                                                                 true_ex_um=v.tex, true_ey_um=v.tey),
                          "error_motions": figures.error_motions_figure(motions)},

@@ -317,7 +317,7 @@ def _grid_strips(x, y, z):
 
 def log_error_grid(rec, x_mm, y_mm, ex_um, ey_um, *, true_ex_um=None, true_ey_um=None,
                    u95_um=None, magnification: float = GRID_MAGNIFICATION,
-                   z_mm: float = 0.0, path: str = ERROR_MAP) -> None:
+                   z_mm: float = 0.0, path: str = ERROR_MAP, note: str = "") -> None:
     """Log the 2D positioning-error map drawn deformed and magnified (Figure 12).
 
     Each node ``(x, y)`` is drawn at ``(x, y) + magnification * (Ex, Ey)``:
@@ -340,6 +340,8 @@ def log_error_grid(rec, x_mm, y_mm, ex_um, ey_um, *, true_ex_um=None, true_ey_um
         Expanded uncertainty (k = 2) of the node's error, µm.
     magnification : float
         Drawing magnification of the errors (1000 as in the paper).
+    note : str
+        Added to the legend (e.g. how often the true map lies within the U95).
     """
     import rerun as rr
 
@@ -374,7 +376,7 @@ def log_error_grid(rec, x_mm, y_mm, ex_um, ey_um, *, true_ex_um=None, true_ey_um
     rec.log(f"{path}/legend", rr.TextDocument(
         f"Error map, errors magnified x{magnification:g}: grey nominal, blue identified"
         + (", orange true" if true_ex_um is not None else "")
-        + (", node colour U95 (k=2)" if u95_um is not None else "")), static=True)
+        + (", node colour U95 (k=2)" if u95_um is not None else "") + (f". {note}" if note else "")), static=True)
 
 
 def _values_key(d: Mapping, name: str) -> tuple[np.ndarray, str]:

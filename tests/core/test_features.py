@@ -174,3 +174,24 @@ def test_touches_of_several_setups_or_features_are_refused_not_fitted_as_one():
     st = ["ok"] * 8 + ["miss"] * 8
     one_ok = log_of(p, n, setup=["C0"] * 8 + ["C90"] * 8, status=st)
     assert fit_log_feature(one_ok, "circle").values["radius_mm"] == pytest.approx(6.0, abs=1e-9)
+
+
+def test_setup_names_listed_as_numbers_where_they_are_numbers():
+    """Session 30: vmt fit's refusal listed the set-ups sorted as text (set-up 10 before 2, C137 before C31).
+    Numbers sort by value, digit runs inside a name as integers; the unknown-name line lists them alike."""
+    from core.features import MixedRows, name_order
+
+    assert sorted(["10", "2", "-30", "7.5", "1e3"], key=name_order) == ["-30", "2", "7.5", "10", "1e3"]
+    assert sorted(["C137", "C31", "C2", "pin10", "pin2", "C01", "C1", "", "nan"], key=name_order) == [
+        "", "C01", "C1", "C2", "C31", "C137", "nan", "pin2", "pin10"]
+    assert sorted(["C31", "2", "C137", "10"], key=name_order) == ["2", "10", "C31", "C137"]   # numbers first
+    a = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    rad = np.column_stack([np.cos(a), np.sin(a), np.zeros(8)])
+    names = ["10", "2", "C137", "C31"]
+    p = np.vstack([[200.0 * k, 0, 5] + 6.0 * rad for k in range(4)])
+    lg = log_of(p, np.vstack([rad] * 4), setup=[s for s in names for _ in range(8)])
+    with pytest.raises(MixedRows, match=r"span 4 set-ups \(2, 10, C31, C137\)") as e:
+        fit_log_feature(lg, "circle")
+    assert e.value.spans == {"setup": ["2", "10", "C31", "C137"]}
+    with pytest.raises(ConfigError, match=r"no setup 'C3' \(valid touches have: 2, 10, C31, C137\)"):
+        fit_log_feature(lg, "circle", setup="C3")

@@ -140,6 +140,56 @@ def test_critical_alarm_sends_nothing_more_and_says_reset():
     assert len(link.sent) == 1            # no G90: the firmware would not answer it
 
 
+
+# What GRBL 1.1h answers to a G38.2 that ends in each alarm its probe cycle can raise (gnea/grbl 1.1h:
+# system.h EXEC_ALARM_*, mc_probe_cycle in motion_control.c, limits_soft_check in limits.c, protocol.c),
+# answer streams as recorded from that firmware (tests/hardware/data/grbl-1.1h/recorded-*.txt):
+# 1 hard limit during the move and 2 soft limit (a probe target beyond the travel, checked by mc_line before
+# the move) are critical: "[MSG:Reset to continue]", then nothing until a reset; 3 a reset during the move
+# (ok for the line, the banner); 4 the probe already triggered at the start (mc_probe_cycle, before motion);
+# 5 no contact within the travel (G38.2 only; then the stale [PRB:...:0] and ok).
+PROBE_CYCLE_ALARMS = {
+    1: (["ALARM:1", "[MSG:Reset to continue]"], None,
+        r"^ALARM:1 \(hard limit: .*position is likely lost\): .*--resume --reset --home-cycle"),
+    2: (["ALARM:2", "[MSG:Reset to continue]"], None,
+        r"^ALARM:2 \(soft limit: the target lies outside the machine travel.*position kept\): "
+        r".*--resume --reset --unlock"),
+    3: (["ALARM:3", "ok", BANNER, "[MSG:'$H'|'$X' to unlock]", "error:9"], None,
+        r"^ALARM:3 \(reset while in motion: .*position is likely lost\): re-run with --resume --home-cycle"),
+    "3 before ok": (["ALARM:3", BANNER, "ok", "[MSG:'$H'|'$X' to unlock]", "error:9"], None,
+                    r"^ALARM:3 \(reset while in motion: .*--resume --home-cycle.* \[during 'G91 G38\.2 .*"
+                    r"the controller reset: \"Grbl 1\.1h \['\$' for help\]\"\]$"),
+    4: (["ALARM:4", "ok", "error:9"], "early_trigger", None),
+    5: (["ALARM:5", "[PRB:0.000,0.000,9.000:0]", "ok", "error:9"], "no_trigger", None),
+}
+
+
+@pytest.mark.parametrize("code", PROBE_CYCLE_ALARMS)
+def test_each_alarm_a_probe_cycle_can_raise_gets_its_own_line(code):
+    """GRBL's alarm codes are 1 hard limit, 2 soft limit, 3 reset in motion, 4 probe not in its initial
+    state, 5 probe without contact (report.h / system.h of 1.1h): a G38.2 miss is ALARM:5, never ALARM:2.
+    Each code a probing move can end in: 4 and 5 are touches (logged early_trigger / no_trigger with the
+    alarm, the position the start / the commanded end), the others stop with one line naming the alarm,
+    what it means and the options to resume, and send nothing more (after 1 and 2 GRBL would not answer;
+    session 31: after ALARM:3 the G90 met the reset's banner and the line said only "controller reset while
+    executing 'G90'", the alarm and its advice lost; the banner can also come before the line's ok)."""
+    answers, status, said = PROBE_CYCLE_ALARMS[code]
+    link = _ScriptLink(answers)
+    be = GrblBackend(GrblClient(link, timeout_s=0.2))
+    be._pos_mm = np.array([0.0, 0.0, 5.0])
+    if status is None:
+        with pytest.raises(HardwareError, match=said) as e:
+            be.probe([0, 0, 0.0], 100)
+        msg = str(e.value)
+        assert "\n" not in msg and "[during 'G91 G38.2 X0.0000 Y0.0000 Z-5.0000 F100.0'" in msg
+        assert len(link.sent) == 1
+    else:
+        r = be.probe([0, 0, 0.0], 100)
+        assert (r.status, r.alarm) == (status, code)
+        assert np.allclose(r.pos_m, [0, 0, 5e-3] if code == 4 else [0, 0, 0])
+        assert link.sent == ["G91 G38.2 X0.0000 Y0.0000 Z-5.0000 F100.0\n", "G90\n"]
+
+
 # ---- the client against the emulator -------------------------------------
 
 def test_client_status_wpos_and_banner_over_tcp():

@@ -24,7 +24,9 @@ def test_fit_across_setups_is_refused_naming_them_and_the_option(pin_log, capsys
     assert main(["fit", "circle", str(pin_log), "--feature", "pin01"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "Traceback" not in err
-    assert str(pin_log) in err and "span 8 set-ups (C0, " in err and err.endswith("choose one with --setup NAME")
+    assert str(pin_log) in err and err.endswith("choose one with --setup NAME")
+    # in the order of their angles (session 30: sorted as text, "C0, C137, C191, C227, C257, C31, ...")
+    assert "span 8 set-ups (C0, C31, C83, C137, C191, C227, ...)" in err
     assert main(["fit", "circle", str(pin_log), "--feature", "pin01", "--setup", "C0"]) == 0
     assert "radius 5.9998 mm" in capsys.readouterr().out
 
