@@ -612,6 +612,9 @@ U_PLACE = (0.2e-3, 0.2e-3, 0.1e-3, 0.5e-3, 0.5e-3, 1.0e-3)
 U_PLACE_CMM = (0.1e-3, 0.1e-3, 0.1e-3, 0.5e-3, 0.2e-3, 0.2e-3)
 
 #: Default declared calibration uncertainty of the bar's 12 points (standard, um): x_A, y_A, z_A.
+#: Half the paper's "average uncertainty 0.4 um and 0.7 um" (positioning, straightnesses): the paper
+#: states no coverage factor; reading them as k = 2 is vmt's assumption (read as k = 1, u twice these:
+#: seed 1's EXX U95 max 0.66 -> 1.22 um on the 3-axis plan, docs/papers-mfb.md, review31b F3).
 U_CAL_UM = (0.2, 0.35, 0.35)
 
 
@@ -1388,7 +1391,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         same bar again with new noise).
     u_cal_um : (3,) float
         Standard uncertainty of the bar calibration (Exx, Eyx, Ezx), um
-        (about half the paper's 0.4 / 0.7 um expanded).
+        (half the paper's 0.4 / 0.7 um "average uncertainty", read as k = 2:
+        vmt's assumption, the paper states no coverage factor; :data:`U_CAL_UM`).
     bar_cal_error : bool
         With noise: the true bar differs from its calibration by a draw of
         ``u_cal_um`` (what the uncertainty must cover).
