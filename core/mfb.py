@@ -599,6 +599,50 @@ def _gain_rows(G, r0: int, idx, dO, h_m: float) -> None:
 
 
 # --------------------------------------------------------------------------- reversal (eqs 5-7)
+def align_on_cmm(O_R, z_R, *, roll: bool = True) -> np.ndarray:
+    """The points of interest of one placement as the CMM's alignment on the bar gives them
+    to the reversal (:func:`reversal_calibration`): O_1 at the origin; the roll about the
+    CMM's X taken out so that the bar's own z (``z_R``: the normal of PL_ref, R_MFB's z_M in
+    the CMM frame, :attr:`PointsOfInterest.T_R_M` ``[:3, 2]``; +Z or -Z as the bar lies
+    normal or upside-down) has no Y component; then y and z against the line O_1 O_N.
+
+    Why the roll: holes 2 and 5 are shifted 1.5 mm in y (mistake-proofing); a roll phi of
+    the bar about its axis moves them 1.5 mm x phi in z. A roll common to both orientations
+    does not cancel in eq. 6 (it stays as bar form: 0.75 um at holes 2 and 5 for 0.5 mrad,
+    review31b F1) and the line O_1 O_N does not see it (the unshifted holes lie on the axis).
+    The rods' axes do: PL_ref passes through two of them, across the bar. A CMM roll (its
+    X carriage's EAX) is taken out with it as far as it is common to the two end rods.
+    ``roll=False``: the line alone (the alignment before session 31).
+
+    Parameters
+    ----------
+    O_R : (N, 3) float
+        O_i in the CMM frame, m.
+    z_R : (3,) float
+        The bar's z_M in the CMM frame (unit or not; its Y, Z components give the roll).
+
+    Returns
+    -------
+    (N, 3) float, m.
+    """
+    O = np.asarray(O_R, float)
+    z = np.asarray(z_R, float)
+    if O.ndim != 2 or O.shape[1] != 3 or len(O) < 2 or not np.all(np.isfinite(O)):
+        raise ConfigError(f"align_on_cmm: O_R must be finite (N >= 2, 3), got {O.shape}")
+    if z.shape != (3,) or not np.all(np.isfinite(z)) or abs(z[2]) <= abs(z[1]):
+        raise ConfigError(f"align_on_cmm: z_R must be the bar's z within 45 deg of the CMM's +-Z, got {z_R!r}")
+    O = O - O[0]
+    if roll:
+        s = np.sign(z[2])
+        phi = np.arctan2(-s * z[1], s * z[2])  # z_M = Rx(phi) (0, 0, s)
+        c, q = np.cos(phi), np.sin(phi)
+        O = O @ np.array([[1.0, 0.0, 0.0], [0.0, c, q], [0.0, -q, c]]).T  # Rx(-phi)
+    if O[-1, 0] == 0.0:
+        raise ConfigError("align_on_cmm: O_1 and O_N at the same x")
+    O[:, 1:] -= np.outer(O[:, 0] / O[-1, 0], O[-1, 1:])
+    return O
+
+
 @dataclass(frozen=True)
 class BarCalibration:
     """Calibrated deviations of the points of interest (eq. 4) with uncertainty.

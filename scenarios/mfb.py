@@ -604,7 +604,17 @@ PLANS = {"mfb-3axis": plan_3axis, "mfb-5axis": plan_5axis}
 #: 0.2 mm along x_A, y_A, 0.1 mm along z_A; 0.5 mrad roll and pitch, 1 mrad yaw.
 U_PLACE = (0.2e-3, 0.2e-3, 0.1e-3, 0.5e-3, 0.5e-3, 1.0e-3)
 
+#: Re-placement uncertainty of the bar on the CMM between repeats of the reversal (standard,
+#: :func:`reversal_on_cmm`): 0.1 mm along x, y, z; 0.5 mrad roll (about its axis: as on the
+#: machine, :data:`U_PLACE`; a bar laid by hand on its supports, nothing in the set-up fixes it;
+#: the CMM's alignment takes it out from the rods, :func:`core.mfb.align_on_cmm`), 0.2 mrad
+#: pitch and yaw. Until session 31 the roll was 0 (review31b F1).
+U_PLACE_CMM = (0.1e-3, 0.1e-3, 0.1e-3, 0.5e-3, 0.2e-3, 0.2e-3)
+
 #: Default declared calibration uncertainty of the bar's 12 points (standard, um): x_A, y_A, z_A.
+#: Half the paper's "average uncertainty 0.4 um and 0.7 um" (positioning, straightnesses): the paper
+#: states no coverage factor; reading them as k = 2 is vmt's assumption (read as k = 1, u twice these:
+#: seed 1's EXX U95 max 0.66 -> 1.22 um on the 3-axis plan, docs/papers-mfb.md, review31b F3).
 U_CAL_UM = (0.2, 0.35, 0.35)
 
 
@@ -1381,7 +1391,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         same bar again with new noise).
     u_cal_um : (3,) float
         Standard uncertainty of the bar calibration (Exx, Eyx, Ezx), um
-        (about half the paper's 0.4 / 0.7 um expanded).
+        (half the paper's 0.4 / 0.7 um "average uncertainty", read as k = 2:
+        vmt's assumption, the paper states no coverage factor; :data:`U_CAL_UM`).
     bar_cal_error : bool
         With noise: the true bar differs from its calibration by a draw of
         ``u_cal_um`` (what the uncertainty must cover).
@@ -2129,7 +2140,8 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, *, p
 
 # --------------------------------------------------------------------------- reversal on a CMM (eqs 5-7)
 def reversal_on_cmm(*, repeats: int = 5, seed: int = 1, noise_um: float = 0.05, deviations_m=None,
-                    cmm_errors: dict | None = None, u_place=(0.1e-3, 0.1e-3, 0.1e-3, 0.0, 0.2e-3, 0.2e-3)) -> dict:
+                    cmm_errors: dict | None = None, u_place=None, align_roll: bool = True,
+                    step_gauge_abbe: bool = True) -> dict:
     """Calibrate the bar by reversal on a simulated CMM, touches and all (Viprey 2016 eqs 5-7).
 
     The CMM is the ``vmc-3axis`` chain with its own errors (default: EXX 2
@@ -2138,11 +2150,19 @@ def reversal_on_cmm(*, repeats: int = 5, seed: int = 1, noise_um: float = 0.05, 
     ``noise_um`` (k = 1). The bar lies along the CMM's X, probed over its
     12 holes, rods and faces: ``repeats`` times as it is (NR) and turned 180
     deg about its x axis (R, the rods touched from the other side), each
-    time re-placed (``u_place``: translation m, rotation rad, standard).
+    time re-placed (``u_place``: translation m, rotation rad, standard; default
+    :data:`U_PLACE_CMM`, a roll of 0.5 mrad among them).
     Points of interest from the touches (:func:`core.mfb.points_of_interest`),
-    O_1 at the origin; the CMM's positioning error at the holes as a step
-    gauge gives it (the true value + a draw of the paper's U(k=2) = 0.3 um +
-    1.5e-6 L). Then :func:`core.mfb.reversal_calibration`.
+    aligned as the CMM's operator aligns on the bar (:func:`core.mfb.align_on_cmm`:
+    O_1 at the origin, the roll from the bar's PL_ref, y and z against O_1 O_12;
+    ``align_roll=False``: the line alone, which leaves a roll common to both
+    orientations in Ezx at the shifted holes 2 and 5, review31b F1).
+    The CMM's positioning error at the holes as a step gauge along the bar's
+    line gives it: the x error of the CMM's tip there, its angular errors at
+    that line's offsets (Abbe) included (``step_gauge_abbe=False``: EXX(x) alone,
+    what this did before session 31, off by the Abbe terms: review31b F5), plus a
+    draw of the paper's U(k=2) = 0.3 um + 1.5e-6 L. Then
+    :func:`core.mfb.reversal_calibration`.
 
     Returns
     -------
@@ -2168,6 +2188,7 @@ def reversal_on_cmm(*, repeats: int = 5, seed: int = 1, noise_um: float = 0.05, 
 
     if int(repeats) < 2:
         raise ConfigError(f"repeats must be >= 2 (the type A uncertainty needs a scatter), got {repeats!r}")
+    u_place = U_PLACE_CMM if u_place is None else u_place
     rng = np.random.default_rng(seed)
     E_true = A.mfb_default_deviations() if deviations_m is None else np.asarray(deviations_m, float)
     art = A.multi_feature_bar(deviations_m=E_true)
@@ -2188,15 +2209,21 @@ def reversal_on_cmm(*, repeats: int = 5, seed: int = 1, noise_um: float = 0.05, 
             log = simulate_campaign(art, cmm, probe, [Setup(f"{key}{k}", T, (), T @ dT)], rng, plan=p,
                                     check_collisions=False)
             t = from_log(log)
-            O = mfb.points_of_interest(t.p_R, t.feature, t.n_R).O_R
-            O = O - O[0]
-            # the CMM's alignment on the bar: y and z against the line O_1 O_12
-            # (the bar "carefully aligned along the CMM axis"; eq. 6 then gives
-            # the straightness against its end-point line)
-            O[:, 1:] -= np.outer(O[:, 0] / O[-1, 0], O[-1, 1:])
-            M[key].append(O)
+            poi = mfb.points_of_interest(t.p_R, t.feature, t.n_R)
+            # the CMM's alignment on the bar (the bar "carefully aligned along the CMM
+            # axis"; eq. 6 then gives the straightness against its end-point line), the
+            # roll from the bar's rods
+            M[key].append(mfb.align_on_cmm(poi.O_R, poi.T_R_M[:3, 2], roll=align_roll))
     x_cmm = T_nr[0, 3] + np.arange(12) * A.MFB_PITCH_M
-    exx = np.asarray(errs["EXX"](x_cmm), float) if "EXX" in errs else np.zeros(12)
+    if step_gauge_abbe:
+        # the step gauge lies along the bar's line (O_i of the bar as designed, unshifted, in
+        # the CMM's frame) and is probed with the same stylus: what it reads there is the x
+        # component of the CMM's tip error at those points, Abbe terms and all (eq. 5's sign:
+        # M = true - E, E = actual tip - reading)
+        line = (T_nr @ np.c_[np.arange(12) * A.MFB_PITCH_M, np.zeros((12, 2)), np.ones(12)].T).T[:, :3]
+        exx = (cmm.tip_W(line) - cmm.tip_W_nominal(line))[:, 0]
+    else:
+        exx = np.asarray(errs["EXX"](x_cmm), float) if "EXX" in errs else np.zeros(12)
     u_sg = 0.5 * (0.3e-6 + 1.5e-6 * np.arange(12) * A.MFB_PITCH_M)
     exx_sg = exx - exx[0] + rng.standard_normal(12) * u_sg
     cal = mfb.reversal_calibration(np.array(M["NR"]), np.array(M["R"]), exx_sg, u_step_gauge_m=u_sg)

@@ -252,3 +252,70 @@ def test_points_of_interest_of_several_placements_equal_each_placement_alone():
     assert not np.array_equal(got[0].O_R, got[1].O_R)  # each placement its own touches
     with pytest.raises(ConfigError, match="non-finite"):
         mfb.points_of_interest_batched([places[0], (np.full_like(places[1][0], np.nan),) + places[1][1:]])
+
+
+def _rolled_setup(E_bar, roll, flip, cmm_yz):
+    """Own forward model of one set-up on a CMM (review31b F1's numpy model): the bar's O_i in its
+    frame (x + Exx, shift + Eyx, Ezx), turned 180 deg about x when ``flip``, rolled by ``roll``
+    about the CMM's X, read with the CMM's straightness (machine-fixed: M = true - E, eq. 5).
+    Returns the O_i in the CMM frame and the bar's z_M there."""
+    def rx(p):
+        c, q = np.cos(p), np.sin(p)
+        return np.array([[1.0, 0.0, 0.0], [0.0, c, -q], [0.0, q, c]])
+
+    x = np.arange(MFB.n_holes) * MFB.pitch_m
+    s = np.array([MFB.shift_of(i) for i in range(1, MFB.n_holes + 1)])
+    R = rx(roll) @ rx(np.pi if flip else 0.0)
+    P = np.c_[x + E_bar[:, 0], s + E_bar[:, 1], E_bar[:, 2]] @ R.T
+    P[:, 1:] -= cmm_yz
+    return P, R @ np.array([0.0, 0.0, 1.0])
+
+
+def test_align_on_cmm_takes_a_common_roll_out_of_the_reversal():
+    """review31b F1: a roll phi of the bar about its axis moves the shifted holes 2 and 5 by 1.5 mm x phi
+    in z; common to both orientations it does not cancel in eq. 6. Own forward model (no vmt code
+    but the reversal): with the line O_1 O_12 alone (roll=False) Ezx is off by the hand value (shift +
+    Eyx) x phi, at holes 2 and 5 1.5 mm x phi (0.75 um at 0.5 mrad, 3.0 um at 2 mrad); aligned on the bar's z (the PL_ref
+    normal, what the rods give) it is exact. Tolerance 1e-10 m: the alignment's line runs through
+    the measured x (x + Exx), the truth's gauge through the nominal x: Exx / L x the end-point y, z,
+    5 um / 0.55 m x 3 um = 3e-11 m (measured 2.8e-11, with and without a roll); the hand value to 1e-3
+    relative (phi^2 terms: 2e-3 x 1.5 mm x 2 mrad / 2 is 3e-12 m)."""
+    rng = np.random.default_rng(5)
+    N = MFB.n_holes
+    x = np.arange(N) * MFB.pitch_m
+    E = np.c_[rng.normal(0, 5e-6, N), rng.normal(0, 2e-6, N), rng.normal(0, 2e-6, N)]
+    E[0] = 0.0
+    line = lambda v: v - v[0] - x / x[-1] * (v[-1] - v[0])  # noqa: E731
+    truth = np.c_[E[:, 0], line(E[:, 1]), line(E[:, 2])]
+    cmm = np.c_[3e-6 * np.sin(np.pi * x / x[-1]) + 1e-6 * x / x[-1], -2e-6 * np.sin(np.pi * x / x[-1]) ** 2]
+    for roll in (0.0, 0.5e-3, 2e-3):
+        for aligned in (True, False):
+            M = [mfb.align_on_cmm(*_rolled_setup(E, roll, flip, cmm), roll=aligned) for flip in (False, True)]
+            cal = mfb.reversal_calibration(M[0][None], M[1][None], np.zeros(N), u_step_gauge_m=0.0)
+            d = cal.E_m - truth
+            d[:, 1], d[:, 2] = line(d[:, 1]), line(d[:, 2])
+            if aligned or roll == 0.0:
+                assert np.abs(d[:, 1:]).max() < 1e-10, (roll, aligned, np.abs(d).max(axis=0))
+            else:
+                # the roll turns the bar's y (the shift and Eyx) into z, with the sign of y in each set-up
+                hand = line((np.array([MFB.shift_of(i) for i in range(1, N + 1)]) + E[:, 1]) * roll)
+                assert np.allclose(hand, d[:, 2], rtol=1e-3, atol=1e-10), (roll, d[:, 2], hand)
+                assert np.abs(d[[1, 4], 2]).min() > 0.5 * 1.5e-3 * roll
+            assert np.abs(d[:, 0] - d[0, 0]).max() < 1e-12  # x untouched by a roll about x
+
+
+def test_align_on_cmm_refuses_bad_input():
+    O = np.c_[np.arange(12) * 0.05, np.zeros((12, 2))]
+    with pytest.raises(ConfigError, match="O_R must be finite"):
+        mfb.align_on_cmm(O[:, :2], (0, 0, 1))
+    with pytest.raises(ConfigError, match="O_R must be finite"):
+        mfb.align_on_cmm(np.where(O == 0.05, np.nan, O), (0, 0, 1))
+    for z in ((0, 1, 0), (0, 0.8, -0.6), (0, 0, np.inf), (0, 0)):
+        with pytest.raises(ConfigError, match="z_R must be the bar's z"):
+            mfb.align_on_cmm(O, z)
+    with pytest.raises(ConfigError, match="same x"):
+        mfb.align_on_cmm(np.zeros((12, 3)), (0, 0, 1))
+    # the sign of z_M (normal or upside-down) does not change the roll taken out
+    a = mfb.align_on_cmm(O + [0, 0.001, 0], (0, -1e-3, 1))
+    b = mfb.align_on_cmm(O + [0, 0.001, 0], (0, 1e-3, -1))
+    assert np.allclose(a, b, rtol=0, atol=1e-18)
