@@ -151,11 +151,23 @@ def log_stylus_r_mm(log: ProbeLog, rows: np.ndarray) -> tuple[float | None, str]
         The rows' radii differ; metadata that is not a finite number >= 0.
     """
     if log.has("stylus_r_mm"):
+        rows = np.arange(log.n)[rows]
         r = log.col("stylus_r_mm")[rows].astype(float)
-        if r.size and np.all(np.isfinite(r)):
+        known = np.isfinite(r)
+        if known.any():  # (an empty cell holds the metadata's radius: core.probelog reads it so)
+            first = int(np.argmax(known))
+            if not known.all():  # review31 F9: one empty cell, no metadata, dropped the column's radius
+                k = int(np.argmin(known))
+                raise ConfigError(f"{log.source}: row {rows[k]}: stylus_r_mm is empty and there is no stylus_r_mm "
+                                  f"metadata, but row {rows[first]} of this feature has {r[first]:g} mm: give "
+                                  "every touch its radius (or the metadata line)")
             if np.ptp(r) > 1e-9:
-                raise ConfigError(f"{log.source}: the touches of this feature have different stylus radii")
-            return float(r[0]), "column"
+                k = int(np.argmax(np.abs(r - r[first]) > 1e-9))
+                meta = log.meta.get("stylus_r_mm", "")
+                raise ConfigError(f"{log.source}: the touches of this feature have different stylus radii "
+                                  f"(row {rows[first]}: {r[first]:g} mm, row {rows[k]}: {r[k]:g} mm"
+                                  + (f"; an empty stylus_r_mm cell is the metadata's {meta} mm)" if meta else ")"))
+            return float(r[first]), "column"
     if "stylus_r_mm" not in log.meta:
         return None, ""
     try:

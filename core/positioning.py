@@ -74,8 +74,8 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .exceptions import VmtError, counted
-from .probelog import (T_MAX_S, TEMP_RANGE_C, _num, csv_lines, is_number, last_row_check, step_back,
-                       value_range)
+from .probelog import (COMMENT_AFTER_HEADER, OK_CELLS, T_MAX_S, TEMP_RANGE_C, _comment_row, _num, add_meta,
+                       csv_lines, is_number, last_row_check, ok_statuses, step_back, value_range)
 
 FORMAT = "positioning-log/1"
 #: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
@@ -187,7 +187,7 @@ class PositioningLog:
         """(N,) bool: the readings the evaluation uses."""
         if self.status is None:
             return np.ones(self.n, bool)
-        return np.array([s in ("", "ok") for s in self.status], dtype=bool)
+        return np.array([s in OK_CELLS for s in self.status], dtype=bool)
 
     @property
     def deviation(self) -> np.ndarray:
@@ -386,12 +386,11 @@ def _split_meta(text: str, src: str) -> tuple[dict[str, str], list[str], int]:
         raise PositioningLogError(f"{src}: empty file")
     lines = csv_lines(text)
     meta: dict[str, str] = {}
+    meta_line: dict[str, int] = {}
     i = 0
     while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
-        body = lines[i][1:].strip() if lines[i].startswith("#") else ""
-        if ":" in body:
-            k, v = body.split(":", 1)
-            meta[k.strip()] = v.strip()
+        if lines[i].startswith("#"):  # a key given twice with two values is refused (the probe log's rule)
+            add_meta(meta, meta_line, lines[i], i + 1, src, error=PositioningLogError)
         i += 1
     if i >= len(lines):
         raise PositioningLogError(f"{src}: no header row (only metadata lines)")
@@ -449,6 +448,8 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
             if not row or all(not c.strip() for c in row):
                 continue
             if len(row) != len(header):
+                if _comment_row(row):  # the probe log's rule: '#' lines only before the header (review31 F14)
+                    raise PositioningLogError(f"{src}: line {ln}: " + COMMENT_AFTER_HEADER.format(header=header_line))
                 if unterminated and end == n_lines and len(row) < len(header):
                     last_row(row, len(raw), ln)
                 raise PositioningLogError(
@@ -478,8 +479,8 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
             out[r] = _finite_number(c, where(r), f"column {name!r}:")
         return out
 
-    status = np.array(col["status"], dtype=object) if "status" in col else None
-    ok = np.array([s in ("", "ok") for s in status], bool) if status is not None else np.ones(len(raw), bool)
+    status = ok_statuses(np.array(col["status"], dtype=object)) if "status" in col else None  # OK is ok
+    ok = np.array([s in OK_CELLS for s in status], bool) if status is not None else np.ones(len(raw), bool)
     target = numbers(tname, allow_empty=False)
     measured = numbers(mname, allow_empty=True)
     miss = np.isnan(measured) & ok
@@ -1044,8 +1045,11 @@ def arrange(log: PositioningLog) -> PositioningTest:
     u = log.unit
     ok = log.ok
     rows = np.flatnonzero(ok)
-    if rows.size == 0:
-        raise PositioningLogError(f"{src}: no valid readings")
+    if rows.size == 0:  # say which words left them out (review31 F6: a log all 'OK' got no hint before)
+        words = list(dict.fromkeys(str(w) for w in log.status)) if log.status is not None else []
+        shown = ", ".join(repr(w) for w in words[:5]) + (", ..." if len(words) > 5 else "")
+        raise PositioningLogError(f"{src}: no valid readings" + (
+            f": every reading's status is not 'ok' ({shown})" if log.n else ""))
     for d, name in ((1, "+"), (-1, "-")):
         if not np.any(log.direction[rows] == d):
             raise PositioningLogError(

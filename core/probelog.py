@@ -111,6 +111,38 @@ KNOWN_STATUSES = ("ok", "no_trigger", "early_trigger", "alarm", "aborted")
 
 _VECTORS = (("nx", "ny", "nz"), ("dx", "dy", "dz"), ("wnx", "wny", "wnz"))
 
+#: The rotary-axis columns: an empty cell is the spec's default, 0 (as the column absent).
+ROTARY_COLUMNS = ("A_deg", "B_deg", "C_deg")
+#: Least cosine between a touch's approach direction (``dx,dy,dz``) and the reversed normal ``-(nx,ny,nz)``
+#: (session 31, input31, review31 F5): the spec's normal points "out of the material (towards the stylus)" and
+#: ``dx,dy,dz`` is "the approach direction of the stylus at the trigger", so a stylus that triggers on the surface
+#: moves into it, ``-(d . n) > 0``. A direction along the normal's side (``d . n >= 0``: away from the surface, or
+#: tangential to it) cannot trigger at the target and is refused, naming the row. 0.0 refuses only what is
+#: physically impossible (no approach angle, however oblique, is judged here); None: no check (before session 31).
+APPROACH_INTO_MIN: float | None = 0.0
+
+
+#: The ``status`` cells that mean a valid touch: empty (the spec's default) and ``ok`` in any case (``OK``, ``Ok``:
+#: review31 F6, read as ``ok`` since session 31; before, such rows were left out of every fit without a word).
+OK_CELLS = frozenset({"", "ok", "OK", "Ok", "oK"})
+
+
+def is_ok_status(s: str) -> bool:
+    """True for a ``status`` cell that means a valid touch (:data:`OK_CELLS`)."""
+    return s in OK_CELLS
+
+
+def ok_statuses(status: np.ndarray) -> np.ndarray:
+    """``status`` with every spelling of ``ok`` (:func:`is_ok_status`, not empty) written ``ok``: the same
+    array when there is none to change (distinct values looked at once, so 1e6 rows cost one ``set``)."""
+    odd = [v for v in set(status.tolist()) if v != "ok" and v != "" and is_ok_status(v)]
+    if not odd:
+        return status
+    out = status.copy()
+    for v in odd:
+        out[status == v] = "ok"
+    return out
+
 
 def _is_text(name: str) -> bool:
     return name in TEXT_COLUMNS
@@ -160,7 +192,10 @@ class ProbeLog:
     columns : dict[str, numpy.ndarray]
         One array per column, in file order. Text columns are ``object``
         arrays of ``str`` (``""`` when empty); numeric columns are float64,
-        NaN where the cell is empty.
+        NaN where the cell is empty. A validated log holds the spec's default
+        in place of an empty cell where the spec gives one (:func:`_validate`:
+        rotary angles 0, ``dx,dy,dz`` the reversed normal, ``stylus_r_mm``
+        the metadata's), and ``status`` ``ok`` for ``OK``.
     source : str
         Where the log came from (the path), used in error messages.
     warnings : tuple of str
@@ -221,7 +256,7 @@ class ProbeLog:
     def ok(self) -> np.ndarray:
         """(n,) bool: rows whose status is ``ok`` or empty (the spec's default; the rows fits use)."""
         st = self.col("status")
-        return np.array([s in ("", "ok") for s in st], dtype=bool)
+        return np.array([s in OK_CELLS for s in st], dtype=bool)
 
     @property
     def is_plan(self) -> bool:
@@ -337,7 +372,11 @@ def read_probe_log(path: str | os.PathLike, *, progress=None) -> ProbeLog:
         physical range (:func:`value_range`), a normal or approach vector
         not of unit length (tolerance 1e-6), a ``target`` whose
         artefact-frame nominal differs between set-ups, time going
-        backwards, a row of the wrong width, a torn last row.
+        backwards, a row of the wrong width, a torn last row, an approach
+        direction not into the material (:data:`APPROACH_INTO_MIN`), a
+        metadata key given twice with two values, a ``#`` line after the
+        header. Empty cells of optional columns take the spec's defaults
+        (:func:`_validate`).
     """
     p = Path(path)
     src = str(p)
@@ -423,7 +462,7 @@ def last_row_check(src: str, header: list, row: list, r: int, ln: int, *, numeri
         raise _torn(src, r, ln, f"{len(row)} of {width} fields", error, remedy)
     cell, name = row[-1].strip(), header[len(row) - 1] if len(row) <= len(header) else ""
     if name == "status":
-        if cell not in statuses:
+        if cell not in statuses and cell.lower() not in statuses:  # OK is ok, whole (OK_CELLS)
             raise _torn(src, r, ln, f"last field status {_shown(cell)} is not a whole status word "
                         f"({', '.join(statuses)})", error, remedy)
         return None
@@ -579,18 +618,44 @@ class _Columns:
         return np.concatenate(self.lines) if self.lines else np.empty(0, dtype=np.int64)
 
 
+def add_meta(meta: dict, meta_line: dict, s: str, ln: int, src: str, error: type = ProbeLogError) -> None:
+    """Add the metadata line ``s`` (file line ``ln``, starting with ``#``) to ``meta``: ``# key: value``; a line
+    without ``:`` is a comment. A key given again with another value is refused (``error``, naming the key and
+    both lines: review31 F13; before session 31 the last line won without a word): the spec has one
+    ``# key: value`` per line and a log one value per key. The same value again is the same statement, kept once.
+    The probe-log and positioning-log readers share it."""
+    body = s[1:].strip()
+    if ":" not in body:
+        return
+    k, v = body.split(":", 1)
+    k, v = k.strip(), v.strip()
+    if k in meta and meta[k] != v:
+        raise error(f"{src}: line {ln}: metadata key {k!r} given twice: {_shown(meta[k])} on line "
+                    f"{meta_line[k]}, {_shown(v)} on line {ln}: keep the one that holds")
+    meta.setdefault(k, v)
+    meta_line.setdefault(k, ln)
+
+
+#: What a ``#`` line after the header is (review31 F14): the spec has metadata lines before the header only.
+COMMENT_AFTER_HEADER = ("a '#' line after the header: metadata and comment lines are allowed only before the "
+                        "header (line {header}); move it up or delete it")
+
+
+def _comment_row(row: list[str]) -> bool:
+    """True for a CSV record that is a ``#`` line (its first cell starts with ``#``)."""
+    return bool(row) and row[0].lstrip().startswith("#")
+
+
 def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, progress=None) -> ProbeLog:
     """Parse the lines of a probe log (``n_lines`` in all; the last without an end of line when ``unterminated``);
     ``progress(lines_done, n_lines)`` after each block and when validated (:func:`read_probe_log`)."""
     meta: dict[str, str] = {}
+    meta_line: dict[str, int] = {}
     i, first = 0, None
     for s in lines:
         i += 1
         if s.startswith("#"):
-            body = s[1:].strip()
-            if ":" in body:
-                k, v = body.split(":", 1)
-                meta[k.strip()] = v.strip()
+            add_meta(meta, meta_line, s, i, src)
         elif s.strip():
             first = s
             break
@@ -634,6 +699,8 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
             if not row or not "".join(row).strip():  # a blank row (every cell white space)
                 continue
             if len(row) != width:
+                if _comment_row(row):
+                    raise ProbeLogError(f"{src}: line {ln}: " + COMMENT_AFTER_HEADER.format(header=header_line))
                 if unterminated and end == n_lines and len(row) < width:
                     last_row_check(src, header, row, cols.n + len(block), ln, numeric=_spec_numeric)
                 raise ProbeLogError(
@@ -658,7 +725,9 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
             warnings.append(w)
     line_of_row = cols.line_of_row()
     log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings))
-    log = replace(log, unit_steps=_validate(log, lines=line_of_row))
+    log = replace(log, unit_steps=_validate(log, lines=line_of_row, warnings=warnings))
+    if len(warnings) > len(log.warnings):
+        log = replace(log, warnings=tuple(warnings))
     if progress is not None:
         progress(n_lines, n_lines)
     return log
@@ -709,9 +778,19 @@ def decimal_quantum(v: np.ndarray, max_decimals: int = 9) -> float:
     return 0.0
 
 
-def _validate(log: ProbeLog, lines: np.ndarray | None) -> dict:
+def _validate(log: ProbeLog, lines: np.ndarray | None, warnings: list | None = None) -> dict:
     """Check ``log`` (raise :class:`ProbeLogError` naming the first problem); normalise in place the unit vectors
-    printed to a step up to :data:`UNIT_STEP_MAX` and return those steps (:attr:`ProbeLog.unit_steps`)."""
+    printed to a step up to :data:`UNIT_STEP_MAX` and return those steps (:attr:`ProbeLog.unit_steps`).
+
+    Empty cells of the optional columns the spec gives a default take it, in place (session 31, review31 F3, F9:
+    before, they were NaN, which ``vmt check`` passed and ``discover`` and ``identify`` then broke on or
+    misread): ``A_deg``, ``B_deg``, ``C_deg`` 0; ``dx,dy,dz`` (all three empty: one given in part is refused)
+    the reversed normal; ``stylus_r_mm`` the metadata ``stylus_r_mm`` (left empty without it: the row has no
+    radius, which only ``vmt fit`` needs and refuses naming the row); ``status`` ``ok``, any case
+    (:data:`OK_CELLS`; written ``ok``). The columns whose default is "empty" or "none" (``feature``,
+    ``wx_mm``.., ``wnx``.., ``temp_<name>_C``) keep their empty cells. A rotary column with some cells empty
+    and others not adds a line to ``warnings`` (an empty angle beside written ones is more often an omission
+    than a 0)."""
     steps: dict = {}
     src = log.source
     c = log.columns
@@ -740,6 +819,15 @@ def _validate(log: ProbeLog, lines: np.ndarray | None) -> dict:
                 raise ProbeLogError(f"{_where(src, r, lines)}: column {name!r}: {_num(v[r])} is out of "
                                     f"range (must be >= {lo:g} and <= {hi:g}{' ' + unit if unit else ''}"
                                     f"{': ' + why if why else ''})")
+    if "status" in c:
+        c["status"] = ok_statuses(c["status"])
+    for name in ROTARY_COLUMNS:  # the spec's default, 0, for an empty cell as for the column absent
+        if name in c and (empty := np.isnan(c[name])).any():
+            if warnings is not None and not empty.all():
+                r = int(np.argmax(empty))
+                warnings.append(f"{_where(src, r, lines)}: column {name!r} is empty: read as 0, the format's "
+                                f"default ({counted(int(empty.sum()), 'empty cell')} of {n})")
+            c[name] = np.where(empty, 0.0, c[name])
     ok = log.ok
     plan = n > 0 and log.is_plan
     # required cells: ids always; measured ones only for ok rows of a campaign
@@ -789,6 +877,24 @@ def _validate(log: ProbeLog, lines: np.ndarray | None) -> dict:
             for t, col in zip(trio, (v / norm[:, None]).T):
                 c[t] = np.where(filled, col, c[t])
             steps[trio[0]] = q
+    if "dx" in c:  # an approach direction left empty is the spec's default, the reversed normal
+        d = np.column_stack([c["dx"], c["dy"], c["dz"]])
+        empty = np.isnan(d).all(axis=1)
+        if empty.any():
+            for t, nt in zip(("dx", "dy", "dz"), ("nx", "ny", "nz")):
+                c[t] = np.where(empty, -c[nt], c[t])
+        if APPROACH_INTO_MIN is not None:
+            d = np.column_stack([c["dx"], c["dy"], c["dz"]])
+            into = -np.einsum("ij,ij->i", d, np.column_stack([c["nx"], c["ny"], c["nz"]]))
+            bad = into <= APPROACH_INTO_MIN
+            if bad.any():
+                r = int(np.argmax(bad))
+                way = "tangential to" if abs(into[r]) <= UNIT_TOL else "out of"
+                raise ProbeLogError(
+                    f"{_where(src, r, lines)}: approach direction (dx,dy,dz) {_xyz(d[r])} "
+                    f"points {way} the surface: its angle to the normal (nx,ny,nz) pointing out of the material is "
+                    f"{np.degrees(np.arccos(np.clip(-into[r], -1, 1))):.4g} deg; a stylus triggers moving into the "
+                    "material, against the normal (under 90 deg to -(nx,ny,nz))")
     # time never goes backwards (rows are in the order touches happened)
     t = c["t_s"]
     back = step_back(t)
@@ -826,6 +932,8 @@ def _validate(log: ProbeLog, lines: np.ndarray | None) -> dict:
         if not (math.isfinite(v) and 0 <= v <= STYLUS_R_MAX_MM):
             raise ProbeLogError(f"{src}: metadata stylus_r_mm {_shown(sr)} is out of range (must be >= 0 "
                                 f"and <= {STYLUS_R_MAX_MM:g} mm: a tip radius is not negative)")
+        if "stylus_r_mm" in c:  # an empty cell is the metadata's radius (the spec's default)
+            c["stylus_r_mm"] = np.where(np.isnan(c["stylus_r_mm"]), v, c["stylus_r_mm"])
     return steps
 
 

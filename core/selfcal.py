@@ -361,8 +361,11 @@ def _setup_angles(touches: Touches) -> np.ndarray:
     for s, sid in enumerate(touches.setup_ids):
         cs = touches.rot_rad[touches.setup == s, 2]
         if np.ptp(cs) > 1e-9:
+            rows = touches.row[touches.setup == s]
+            k = int(np.argmax(np.abs(cs - cs[0]) > 1e-9))  # the first log row off the set-up's first C
             raise ConfigError(f"set-up {sid!r}: C varies within the set-up ({np.degrees(cs.min()):g}.."
-                              f"{np.degrees(cs.max()):g} deg); one indexing per set-up")
+                              f"{np.degrees(cs.max()):g} deg: row {rows[0]} at {np.degrees(cs[0]):g}, row {rows[k]} at "
+                              f"{np.degrees(cs[k]):g}); one indexing per set-up")
         c[s] = cs[0]
     return c
 
