@@ -18,7 +18,7 @@ touches of a log.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -248,6 +248,12 @@ MODEL_ERROR_P = 1.3498980316300946e-3
 #: beside an entered table, and a test of the tables' sum, did not recover EYY (the shared 45 deg touches
 #: let EXX's fine table hold it). docs/discovery-studies.md "Session 30: identify's model-error budget ...".
 MODEL_ERROR_EXACT_GATE = False
+#: ``model_error_p`` (the exact tails: an SVD of each table's ``R Phi`` and Imhof's quadrature, about half of a
+#: cross-pocket self-calibration's CPU) is computed when first read (``ModelErrorBudget.p``: ``vmt identify``'s
+#: report) or when :data:`MODEL_ERROR_EXACT_GATE` gates on it; until then the budget holds the tables' ``R Phi``
+#: (dense), so beyond this many cells in all it is computed at once instead (same doubles either way; session 31,
+#: ripple31).
+MODEL_ERROR_P_LAZY_CELLS = 4.0e6
 #: Largest ``n_touches x fine nodes`` for which the budget is computed (dense work arrays).
 MODEL_ERROR_MAX_CELLS = 3.0e7
 #: The approach-direction test's second stage (``probe_p``: can the budget's noise and model error explain the
@@ -344,7 +350,16 @@ class ModelErrorBudget:
     computed: bool
     rule: str = MODEL_ERROR_RULE
     probe_p: float | None = None
-    p: dict | None = None
+    p_tail: object = field(default=None, repr=False, compare=False)
+
+    @property
+    def p(self) -> dict | None:
+        """``p`` above: computed on first use (``p_tail`` holds the computation until then) and kept."""
+        v = self.p_tail
+        if callable(v):
+            v = v()
+            object.__setattr__(self, "p_tail", v)
+        return v
 
     @property
     def u(self) -> np.ndarray:
@@ -557,8 +572,20 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
     s0n = float(np.sqrt(max(float(r @ r) - drr_decl, 0.0) / dof)) if drr_decl else s0
     var0 = 2.0 * s0n ** 4 * np.diag(cross)
     z = np.where(var0 > 0, (q - dq_decl - s0n ** 2 * tr) / np.sqrt(np.where(var0 > 0, var0, 1.0)), 0.0)
-    pv = np.array([_null_tail(rp, float(qk), float(r @ r), dof) for rp, qk in zip(RP, q)])
-    keep = np.flatnonzero(pv < MODEL_ERROR_P) if MODEL_ERROR_EXACT_GATE else np.flatnonzero(z > MODEL_ERROR_Z)
+    rr_all = float(r @ r)
+
+    def tails(RP_=RP, q_=q, dof_=dof):
+        """The exact tails ``model_error_p`` per table (an SVD and Imhof's quadrature each)."""
+        return {t: _null_tail(rp, float(qk), rr_all, dof_) for t, rp, qk in zip(tables, RP_, q_)}
+
+    p_tail = tails   # on first use of ModelErrorBudget.p (a report), unless the gate needs it now
+    if MODEL_ERROR_EXACT_GATE or sum(rp.size for rp in RP) > MODEL_ERROR_P_LAZY_CELLS:
+        p_tail = tails()
+    if MODEL_ERROR_EXACT_GATE:
+        pv = np.array([p_tail[t] for t in tables])
+        keep = np.flatnonzero(pv < MODEL_ERROR_P)
+    else:
+        keep = np.flatnonzero(z > MODEL_ERROR_Z)
 
     def noise_beside(kept):
         """(sigma, s2, span basis or None, residuals beside the span, their dof) with tables ``kept`` entered."""
@@ -653,7 +680,7 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
                             MODEL_ERROR_RULE + ("; " + SUBGRID_RULE.format(", ".join(
                                 f"{t} {a * 1e6:g} {'urad' if t in ('ECY', 'ECX') else 'um'} per {p * 1e3:g} mm"
                                 for t, (a, p) in declared.items())) if declared else ""), probe_p,
-                            {t: float(v) for t, v in zip(tables, pv)})
+                            p_tail=p_tail)
 
 
 def _null_tail(RPk: np.ndarray, q: float, rr: float, dof: int) -> float:

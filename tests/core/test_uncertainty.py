@@ -376,3 +376,33 @@ def test_declared_ripple_taken_off_by_its_own_directions_not_its_phase_average()
         b = self_calibrate(tt, GRID, subgrid=sub).budget
         assert 0.24 * UM < b.sigma_probe_m < 0.36 * UM, (seed, b.sigma_probe_m)
         assert all(v == 0 for v in b.components.values()), (seed, b.components)
+
+
+def test_model_error_p_computed_when_read_or_gated_with_the_same_doubles(pocket, monkeypatch):
+    """Session 31 (ripple31): the exact tails model_error_p (an SVD and Imhof's quadrature per table: 40 -> 18 ms
+    CPU per cross-pocket self_calibrate, measured) are computed when first read (vmt identify's report) or when
+    the exact gate needs them, not on every run: self_calibrate calls _null_tail 0 times with the gate off, a
+    read calls it once per table and a second read not at all; the values are the eager ones to the bit
+    (MODEL_ERROR_P_LAZY_CELLS 0: computed at once), and the exact gate computes them at once (fails without the
+    change: every run computed them)."""
+    import core.uncertainty as U
+
+    t0, des, est = _pocket_design(pocket)
+    e = np.random.default_rng(89).standard_normal(t0.n) * 0.3 * UM
+    tt = replace(t0, p_R=t0.pn_R + e[:, None] * t0.n_R)
+    calls = []
+    real = U._null_tail
+    monkeypatch.setattr(U, "_null_tail", lambda *a: calls.append(1) or real(*a))
+    b = self_calibrate(tt, GRID).budget
+    assert not calls
+    p = b.p
+    assert len(calls) == len(p) == len(b.components) and b.p is p and len(calls) == len(p)
+    monkeypatch.setattr(U, "MODEL_ERROR_P_LAZY_CELLS", 0)
+    calls.clear()
+    eager = self_calibrate(tt, GRID).budget
+    assert len(calls) == len(p) and eager.p == p      # computed at once, the same doubles
+    monkeypatch.setattr(U, "MODEL_ERROR_P_LAZY_CELLS", 4.0e6)
+    monkeypatch.setattr(U, "MODEL_ERROR_EXACT_GATE", True)
+    calls.clear()
+    self_calibrate(tt, GRID)
+    assert len(calls) == len(p)
