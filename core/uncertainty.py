@@ -288,10 +288,13 @@ DECLARED_IN_MOMENTS = True
 #: noise at 0 where a phase shows less than the average (small30's 2 um / 37 mm EYY test, seed 101: sigma 0.000
 #: against a true 0.3 um; session 31, ripple31).
 DECLARED_MOMENTS_SPAN = True
-#: Prototype, OFF (None): the tables' model error as a smooth random process of the axis position (squared-
-#: exponential correlation of this length, m) in place of the white 1 mm fine table; its variance from the same
-#: moment equations. Session 31 (ripple31): measured under an undeclared ripple at random phases and on truths
-#: inside the model; docs/discovery.md "Session 31: declared ripples counted once ...".
+#: Prototype, OFF (None: the white 1 mm fine table): the tables' model error as a smooth random process of the
+#: axis position (squared-exponential correlation of this length, m), its variance from the same moment
+#: equations; a tuple of lengths (None among them for the white table): per table the one whose gate statistic
+#: ``z`` stands out most. Session 31 (ripple31): under an undeclared EXX ripple at random phases (10-60 mm) the
+#: chosen length mends EXX/EYY at 27.5-60 mm but not the set-ups' yaw (65 %) nor the 10 mm workpiece (88 %), and
+#: the realistic mikron's residuals-only rows get worse; docs/discovery.md "Session 31: declared ripples counted
+#: once ...".
 MODEL_ERROR_CORR_M = None
 #: The tables whose unrepresented part is budgeted (the yaw is ECY or ECX).
 TABLES = ("EXX", "EYX", "EXY", "EYY", "ECY", "ECX")
@@ -348,6 +351,8 @@ class ModelErrorBudget:
     p : dict[str, float] or None
         Per table, the statistic's exact tail probability under probing
         noise alone (the gate: :data:`MODEL_ERROR_P`); None when not computed.
+        A property: computed on first read (:data:`MODEL_ERROR_P_LAZY_CELLS`),
+        ``p_tail`` holding the computation until then.
     """
 
     sigma_probe_m: float
@@ -573,7 +578,7 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
             if best is None or zc > best[0]:
                 best = (zc, (P, S_), kp, rp)
         fine.append(best[1]); KP.append(best[2]); RP.append(best[3])
-    RP_raw, r_raw = RP, r   # before the declared ripples' span is taken off (DECLARED_MOMENTS_SPAN): the probe test's
+    RP_raw = RP   # before the declared ripples' span is taken off (DECLARED_MOMENTS_SPAN): the probe test's
     span_decl = DECLARED_IN_MOMENTS and DECLARED_MOMENTS_SPAN and bool(subgrid)
     if span_decl:   # the residuals beside the declared ripples' span: what the realized ripple left is not tested
         D = [_ripple_table(des, touches, t, _check_subgrid(t, v)[1])[0] for t, v in subgrid.items()
