@@ -189,8 +189,12 @@ def test_identify_names_the_lobes_its_u95_does_not_cover(tmp_path, capsys):
 def test_identify_declared_ripple(tmp_path, capsys):
     """--declared-ripple-um-mm / --declared-ripple-urad-mm put the spec's sub-grid ripple in the U95
     (core.uncertainty.model_error_budget(subgrid=)): the run says which, the report's rule names them, and
-    every workpiece U95 grows (the ripple's value at the datum's nodes: median x 2.24, least x 1.13, on
-    this noise-free log of the realistic nmv3000); bad declarations are one line, exit 2, nothing written."""
+    the workpiece U95 grows (the ripple's value at the datum's nodes: median x 2.37 on this noise-free log of
+    the realistic nmv3000, > 1.3 asserted; 89 of 92 grow, >= 90 % asserted). Since session 31 (ripple31,
+    core.uncertainty.DECLARED_IN_MOMENTS on) the plain run's white EXX term (0.21 um), which held the same
+    ripple, is not also added beside the declared one, so at 3 targets the declared U95 is the smaller (least x
+    0.77, > 0.7 asserted; before, every one grew, least x 1.24, counting the ripple twice); bad declarations are
+    one line, exit 2, nothing written."""
     from core.probelog import write_probe_log as write
     from scenarios.selfcal_coverage import simulate
     from sim import artefacts as A
@@ -215,7 +219,8 @@ def test_identify_declared_ripple(tmp_path, capsys):
             assert "declared sub-grid ripple: EXX 0.38 um per 10 mm, EYY 0.2 um per 10 mm, ECY 0.15 urad per 10 mm" \
                 in text
             assert "declared sub-grid ripples (EXX 0.38 um per 10 mm" in r["uncertainty"]["rule"]
-    assert np.all(u["declared"] > u["plain"]) and np.median(u["declared"] / u["plain"]) > 1.3
+    ratio = u["declared"] / u["plain"]
+    assert np.median(ratio) > 1.3 and np.mean(ratio > 1) >= 0.9 and ratio.min() > 0.7, ratio
     for extra, what in ((["--declared-ripple-um-mm", "EZZ=0.1:10"], "EZZ is not a table of the self-calibration"),
                         (["--declared-ripple-um-mm", "EXX=-1:10"], "is not SYMBOL=AMPLITUDE_UM:PERIOD_MM"),
                         (["--declared-ripple-urad-mm", "ECX=0.1:10"], "this machine's yaw table is ECY")):
