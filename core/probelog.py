@@ -74,6 +74,49 @@ TEMP_RANGE_C = (-273.15, 1000.0)
 #: (:func:`is_number`). ``nan`` and ``inf`` are not numbers here either (refused as not finite).
 NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 
+#: The columns whose printed step the reader records (:attr:`ProbeLog.text_steps`; session 31, rank31): the nominal
+#: tip centres and normals, the numbers the planar design is built from (``core.baseline.precision_rank_tol``). A
+#: value round by design (``10.0000000``: 7 decimals written) is exact, not rounded: only the text says how many
+#: digits were printed. Counting the digits costs 40-80 ns a cell (a regular expression over each block of cells),
+#: some 0.3 s on a 1e6-row log for these six columns: every numeric column would cost 1-1.5 s of a read of 8 s.
+#: None: no column's step recorded (every decision from the values, as before).
+TEXT_STEP_COLUMNS: tuple | None = ("Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz")
+
+_MORE_DECIMALS: dict = {}
+
+
+def most_decimals(cells) -> int | None:
+    """The most decimals written in the cells (text of numbers): ``10.0000000`` has 7, ``10`` and ``10.`` 0;
+    ``1.5e-3`` 4 (the mantissa's decimals less the exponent: the step 1e-4 it was written to, at least 0).
+    None when no cell holds a number (every one empty). Cells are taken as :data:`NUMBER` reads them (blanks
+    around a cell ignored)."""
+    cells = list(cells)
+    s = ",".join(cells)
+    if not s.strip(", \t"):
+        return None
+    if "e" in s or "E" in s:  # exponents (rare): cell by cell
+        best = None
+        for c in cells:
+            c = c.strip()
+            if not c:
+                continue
+            m, _, e = c.lower().partition("e")
+            i = m.find(".")
+            d = max((len(m) - i - 1 if i >= 0 else 0) - (int(e) if e else 0), 0)
+            best = d if best is None else max(best, d)
+        return best
+    c0 = next((c.strip() for c in cells if c.strip()), "")
+    i = c0.find(".")
+    d = len(c0) - i - 1 if i >= 0 else 0
+    while True:  # a longer run of digits after a point than d: d grows to it (the first cell's count a start)
+        rx = _MORE_DECIMALS.get(d + 1)
+        if rx is None:
+            rx = _MORE_DECIMALS[d + 1] = re.compile(r"\.[0-9]{%d}[0-9]*" % (d + 1))
+        m = rx.search(s)
+        if m is None:
+            return d
+        d = m.end() - m.start() - 1
+
 
 #: Where a line of a CSV log ends: ``\r\n``, ``\r`` or ``\n``, as CSV (RFC 4180) and Python's csv
 #: reader end a record. ``str.splitlines`` also breaks at form feed, vertical tab, ``\x1c``-``\x1e``,
@@ -173,6 +216,12 @@ class ProbeLog:
         components were printed to (:data:`UNIT_STEP_MAX`); its vectors
         are stored normalised. Empty when every vector had length 1 within
         :data:`UNIT_TOL` (stored as read).
+    text_steps : dict[str, float]
+        For each column of :data:`TEXT_STEP_COLUMNS` read from text: the step
+        it was printed to, ``10^-k`` for the most decimals ``k`` written in
+        the column (``10.0000000``: 1e-7, whatever its values; ``10``: 1):
+        the precision the file declares by its digits. Empty for a log built
+        in memory (:func:`make_log`): its values alone say their step.
 
     Columns the spec defines are numeric (except ``setup``, ``target``,
     ``feature``, ``status``); a column the spec does not define is numeric
@@ -184,6 +233,7 @@ class ProbeLog:
     source: str = "<memory>"
     warnings: tuple = ()
     unit_steps: dict = field(default_factory=dict)
+    text_steps: dict = field(default_factory=dict)
 
     # ---- shape ---------------------------------------------------------
     @property
@@ -490,6 +540,9 @@ class _Columns:
         self.pools: list[dict] = [{} for _ in header]
         self.lines: list[np.ndarray] = []
         self.n = 0
+        want = TEXT_STEP_COLUMNS or ()
+        #: the most decimals written so far in each column whose step is recorded (None: no number yet)
+        self.decimals: dict[int, int | None] = {j: None for j, h in enumerate(header) if h in want}
 
     def _text(self, j: int, cells) -> list:
         pool = self.pools[j]
@@ -549,6 +602,9 @@ class _Columns:
                 v = self._numbers(j, cells, self.n, ln)
                 if v is not None:
                     self.parts[j].append(v)
+                    if j in self.decimals:
+                        d, k = self.decimals[j], most_decimals(cells)
+                        self.decimals[j] = k if d is None else d if k is None else max(d, k)
         self.lines.append(ln)
         self.n += len(rows)
 
@@ -577,6 +633,10 @@ class _Columns:
 
     def line_of_row(self) -> np.ndarray:
         return np.concatenate(self.lines) if self.lines else np.empty(0, dtype=np.int64)
+
+    def steps(self) -> dict[str, float]:
+        """The step each recorded column was printed to (:attr:`ProbeLog.text_steps`)."""
+        return {self.header[j]: 10.0 ** -d for j, d in self.decimals.items() if d is not None}
 
 
 def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, progress=None) -> ProbeLog:
@@ -657,7 +717,7 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
         if w is not None:
             warnings.append(w)
     line_of_row = cols.line_of_row()
-    log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings))
+    log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings), text_steps=cols.steps())
     log = replace(log, unit_steps=_validate(log, lines=line_of_row))
     if progress is not None:
         progress(n_lines, n_lines)
