@@ -108,14 +108,15 @@ def most_decimals(cells) -> int | None:
     c0 = next((c.strip() for c in cells if c.strip()), "")
     i = c0.find(".")
     d = len(c0) - i - 1 if i >= 0 else 0
-    while True:  # a longer run of digits after a point than d: d grows to it (the first cell's count a start)
-        rx = _MORE_DECIMALS.get(d + 1)
+    at = 0
+    while True:  # a longer run of digits after a point than d: d grows to it (the first cell's count a start;
+        rx = _MORE_DECIMALS.get(d + 1)  # the text before the last such run holds none longer than d)
         if rx is None:
             rx = _MORE_DECIMALS[d + 1] = re.compile(r"\.[0-9]{%d}[0-9]*" % (d + 1))
-        m = rx.search(s)
+        m = rx.search(s, at)
         if m is None:
             return d
-        d = m.end() - m.start() - 1
+        d, at = m.end() - m.start() - 1, m.end()
 
 
 #: Where a line of a CSV log ends: ``\r\n``, ``\r`` or ``\n``, as CSV (RFC 4180) and Python's csv
