@@ -62,27 +62,32 @@ def _planar(text: str):
 @pytest.mark.parametrize("cells, k", [
     (["10.0000000", "20.0000000"], 7), (["10", "-20"], 0), (["10.", "3"], 0), ([".5", "10"], 1),
     (["10", "3.25", "7.1"], 2), ([" 2.50 ", "1"], 2), (["1.5e-3"], 4), (["1E-7", "2"], 7), (["1.25e3"], 0),
-    (["", "4.000", ""], 3), (["", " "], None), (["71.70328770000001", "1.5"], 14),
+    (["", "4.000", ""], 3), (["", " "], None), (["71.70328770000001", "1.5"], 12), (["6.1e-17"], 12),
 ])
 def test_most_decimals_known_answers(cells, k):
     """The most decimals written in a column's cells: trailing zeros count (``10.0000000`` is printed to 1e-7),
-    an exponent moves the point (``1.5e-3`` is 0.0015: 4 decimals), empty cells count nothing."""
+    an exponent moves the point (``1.5e-3`` is 0.0015: 4 decimals), empty cells count nothing; counted up to
+    TEXT_DECIMALS_MAX (12: a repr's 14 read as 12)."""
     assert P.most_decimals(cells) == k
 
 
 def test_most_decimals_agrees_with_counting_cell_by_cell():
     """The block scan (a run of digits after a point longer than the longest so far) against each cell's
-    decimals counted one by one, on 200 blocks of 1-300 cells printed to 0-12 decimals each (repr and
-    integers among them)."""
+    decimals counted one by one, on 200 blocks of 1-300 cells printed to 0-10 decimals each, with exponents
+    (``1.2e+03``: 0, ``-4.5e-05``: 6) and as repr, ``6.123233995736766e-17`` among them."""
     rng = np.random.default_rng(31)
     for _ in range(200):
         n = int(rng.integers(1, 300))
         ks = rng.integers(0, 13, n)
         v = rng.normal(0, 10.0 ** rng.integers(-2, 4), n)
-        cells = [repr(float(x)) if k == 12 else f"{x:.{k}f}" for x, k in zip(v, ks)]
-        cells = [c for c in cells if "e" not in c] or ["1"]
-        want = max(len(c) - c.index(".") - 1 if "." in c else 0 for c in cells)
-        assert P.most_decimals(cells) == want
+        cells = [repr(float(x)) if k == 12 else f"{x:.{k}e}" if k == 11 else f"{x:.{k}f}" for x, k in zip(v, ks)]
+        if rng.random() < 0.3:
+            cells[0] = repr(float(rng.normal() * 1e-17))  # (a component next to 0: 6.123233995736766e-17)
+
+        def one(c):
+            m, _, e = c.partition("e")
+            return max((len(m) - m.index(".") - 1 if "." in m else 0) - (int(e) if e else 0), 0)
+        assert P.most_decimals(cells) == min(max(map(one, cells)), P.TEXT_DECIMALS_MAX)
 
 
 _HDR = "setup,target,t_s,X_mm,Y_mm,Z_mm,Xn_mm,Yn_mm,Zn_mm,nx,ny,nz"
